@@ -1,0 +1,53 @@
+#pragma once
+// Pinhole camera with OpenCV conventions (x right, y down, z forward; pixel centres at integers),
+// and the camera / pose file formats of DESIGN.md.
+#include <rehearse/types.hpp>
+
+#include <array>
+#include <stdexcept>
+#include <string>
+
+namespace rehearse::imaging {
+
+/// A user-facing input error: `what()` is one sentence saying what is wrong and what to do.
+struct InputError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+struct Camera {
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();  ///< intrinsics in pixels
+  std::array<double, 5> distortion{};               ///< k1 k2 p1 p2 k3
+  int width = 0, height = 0;                        ///< image size in pixels
+
+  double fx() const { return K(0, 0); }
+  double fy() const { return K(1, 1); }
+  double cx() const { return K(0, 2); }
+  double cy() const { return K(1, 2); }
+  /// Ideal (undistorted) pixel of a camera-frame point; z must be > 0.
+  Eigen::Vector2d project(const Eigen::Vector3d& xCam) const {
+    return {fx() * xCam.x() / xCam.z() + K(0, 1) * xCam.y() / xCam.z() + cx(), fy() * xCam.y() / xCam.z() + cy()};
+  }
+  /// Empty when usable; otherwise one sentence saying what is wrong.
+  std::string problem() const;
+  /// The stated default when no calibration is given: principal point at the image centre,
+  /// fx = fy = 0.8 * width (about a 64 degree horizontal field of view, typical of laparoscopes), no distortion.
+  static Camera defaultFor(int width, int height);
+};
+
+/// Reads a camera: OpenCV calibration YAML/XML (camera_matrix, distortion_coefficients, image_width,
+/// image_height), JSON ({"K": [[...]], "distortion": [...], "width": w, "height": h}, or the P2ILF
+/// form with fx fy cx cy k1 k2 k3 p1 p2), or a 3x3 text matrix (then width/height must be given).
+/// Throws InputError.
+Camera loadCamera(const std::string& path, int width = 0, int height = 0);
+/// Writes an OpenCV calibration file (.yaml/.yml/.xml) or our JSON (.json). Throws InputError.
+void saveCamera(const Camera& camera, const std::string& path);
+
+/// Reads a pose: JSON {"R": [[..],[..],[..]], "t": [..], "unit": "m"} or a 4x4 text matrix in
+/// `matrixUnit` (metres per unit). Returns metres. Throws InputError (also for a non-rotation R).
+Pose loadPose(const std::string& path, double matrixUnitToMetre = 1.0);
+void savePose(const Pose& pose, const std::string& path);
+
+/// Writes bytes to `path` through a temporary file and a rename (never half-written). Throws InputError.
+void writeFileAtomically(const std::string& path, const std::string& bytes);
+
+}  // namespace rehearse::imaging

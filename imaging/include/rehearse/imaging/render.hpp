@@ -1,0 +1,42 @@
+#pragma once
+// CPU reference rendering of a triangle surface through a pinhole camera (undistorted image).
+// Used to make the phantom frame, the software viewport, silhouettes and masks.
+#include <rehearse/imaging/appearance.hpp>
+#include <rehearse/imaging/camera.hpp>
+
+#include <opencv2/core.hpp>
+
+namespace rehearse::imaging {
+
+/// Per-pixel visibility: nearest triangle id (-1 for none) and its depth (camera z, metres).
+struct Rasterization {
+  cv::Mat1i triangle;
+  cv::Mat1f depth;
+  int scale = 1;  ///< supersampling factor the buffers were made with
+};
+
+/// Rasterises the surface (vertices in model frame, metres) posed by `pose`; `scale` > 1 supersamples.
+/// Triangles crossing the plane z = nearPlane are dropped. Throws InputError for a bad camera.
+Rasterization rasterize(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale = 1,
+                        double nearPlane = 1e-3);
+
+/// 8-bit mask (255 where the surface covers the pixel centre) at the camera's resolution.
+cv::Mat1b renderMask(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale = 1);
+
+/// Torrance-Sparrow render (appearance.hpp) of the surface over `background` (8-bit BGR, camera size),
+/// with smooth vertex normals; `scale` > 1 supersamples edges. Returns 8-bit BGR.
+cv::Mat3b renderShaded(const Camera& camera, const Pose& pose, const SurfaceView& surface, const Appearance& appearance,
+                       const cv::Mat3b& background, int scale = 2);
+
+/// Simple headlight grey shading (for overlays), alpha 255 where covered. Returns 8-bit BGRA.
+cv::Mat4b renderOverlay(const Camera& camera, const Pose& pose, const SurfaceView& surface, const cv::Vec3b& colourBgr);
+
+/// Intersection over union of two masks of the same size.
+double maskIoU(const cv::Mat1b& a, const cv::Mat1b& b);
+
+/// Procedural tissue background (abdominal wall, fat, small vessels) for the phantom frame: deterministic for a seed.
+cv::Mat3b makeTissueBackground(int width, int height, unsigned seed);
+/// Darkens outside the circular field of view of a scope (radius as a fraction of the image width).
+void applyScopeVignette(cv::Mat3b& image, double radiusFraction = 0.56, double softEdgePx = 18);
+
+}  // namespace rehearse::imaging

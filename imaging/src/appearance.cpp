@@ -1,0 +1,60 @@
+#include <rehearse/imaging/appearance.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace rehearse::imaging {
+
+Eigen::Vector3d Appearance::shade(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {
+  const Eigen::Vector3d toLight = lightPosition - p;
+  const double r2 = std::max(toLight.squaredNorm(), 1e-12);
+  const Eigen::Vector3d l = toLight / std::sqrt(r2);
+  const Eigen::Vector3d v = (-p).normalized();
+  const double cosI = n.dot(l);
+  if (cosI <= 0) return Eigen::Vector3d::Zero();
+  const double cosR = std::max(n.dot(v), 1e-3);
+  const Eigen::Vector3d h = (l + v).normalized();
+  const double alpha = std::acos(std::clamp(n.dot(h), -1.0, 1.0));
+  const double spec = std::exp(-alpha * alpha / (2 * roughness * roughness)) / (r2 * cosR);
+  return kd * (cosI / r2) + ks * spec;
+}
+
+Appearance loadAppearance(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("The appearance file " + path + " cannot be opened; check the path.");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string name = std::filesystem::path(path).filename().string();
+  try {
+    auto j = nlohmann::json::parse(ss.str());
+    Appearance a;
+    for (int k = 0; k < 3; ++k) {
+      a.lightPosition[k] = j.at("light_position").at(k).get<double>();
+      a.kd[k] = j.at("kd").at(k).get<double>();
+      a.ks[k] = j.at("ks").at(k).get<double>();
+    }
+    a.roughness = j.at("roughness").get<double>();
+    if (!(a.roughness > 0) || !a.kd.allFinite() || !a.ks.allFinite() || !a.lightPosition.allFinite())
+      throw InputError(name + ": roughness must be positive and every value finite.");
+    return a;
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception&) {
+    throw InputError(name + " is not an appearance file: it needs light_position, kd, ks and roughness.");
+  }
+}
+
+void saveAppearance(const Appearance& a, const std::string& path) {
+  nlohmann::json j;
+  j["light_position"] = {a.lightPosition.x(), a.lightPosition.y(), a.lightPosition.z()};
+  j["kd"] = {a.kd.x(), a.kd.y(), a.kd.z()};
+  j["ks"] = {a.ks.x(), a.ks.y(), a.ks.z()};
+  j["roughness"] = a.roughness;
+  writeFileAtomically(path, j.dump(2) + "\n");
+}
+
+}  // namespace rehearse::imaging

@@ -1,0 +1,191 @@
+#include <rehearse/imaging/render.hpp>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+namespace rehearse::imaging {
+namespace {
+
+struct Posed {
+  std::vector<Eigen::Vector3d> x;       // camera frame
+  std::vector<Eigen::Vector3d> normal;  // camera frame, unit (area-weighted vertex normals)
+};
+
+Posed pose3(const Pose& pose, const SurfaceView& s, bool normals) {
+  Posed p;
+  p.x.resize(s.vertexCount);
+  for (std::size_t i = 0; i < s.vertexCount; ++i) p.x[i] = pose.apply(s.vertex(i));
+  if (normals) {
+    p.normal.assign(s.vertexCount, Eigen::Vector3d::Zero());
+    for (std::size_t t = 0; t < s.triangleCount; ++t) {
+      const int* tri = s.triangles + 3 * t;
+      Eigen::Vector3d n = (p.x[tri[1]] - p.x[tri[0]]).cross(p.x[tri[2]] - p.x[tri[0]]);
+      for (int k = 0; k < 3; ++k) p.normal[tri[k]] += n;
+    }
+    for (auto& n : p.normal) {
+      double l = n.norm();
+      n = l > 0 ? Eigen::Vector3d(n / l) : Eigen::Vector3d(0, 0, -1);
+    }
+  }
+  return p;
+}
+
+Eigen::Matrix3d scaledK(const Camera& c, int s) {
+  Eigen::Matrix3d K = c.K;
+  K.row(0) *= s;
+  K.row(1) *= s;
+  K(0, 2) = s * c.cx() + (s - 1) / 2.0;
+  K(1, 2) = s * c.cy() + (s - 1) / 2.0;
+  K(2, 2) = 1;
+  return K;
+}
+
+void checkCamera(const Camera& c) {
+  if (auto p = c.problem(); !p.empty()) throw InputError(p);
+}
+
+Rasterization rasterizePosed(const Camera& camera, const Posed& P, const SurfaceView& s, int scale, double nearPlane) {
+  const int W = camera.width * scale, H = camera.height * scale;
+  Rasterization r;
+  r.scale = scale;
+  r.triangle = cv::Mat1i(H, W, -1);
+  r.depth = cv::Mat1f(H, W, std::numeric_limits<float>::infinity());
+  const Eigen::Matrix3d K = scaledK(camera, scale);
+  std::vector<Eigen::Vector2d> uv(s.vertexCount);
+  for (std::size_t i = 0; i < s.vertexCount; ++i) {
+    const auto& x = P.x[i];
+    uv[i] = x.z() > 0 ? Eigen::Vector2d(K(0, 0) * x.x() / x.z() + K(0, 1) * x.y() / x.z() + K(0, 2),
+                                        K(1, 1) * x.y() / x.z() + K(1, 2))
+                      : Eigen::Vector2d(0, 0);
+  }
+  for (std::size_t t = 0; t < s.triangleCount; ++t) {
+    const int* tri = s.triangles + 3 * t;
+    const double z0 = P.x[tri[0]].z(), z1 = P.x[tri[1]].z(), z2 = P.x[tri[2]].z();
+    if (z0 <= nearPlane || z1 <= nearPlane || z2 <= nearPlane) continue;
+    const Eigen::Vector2d a = uv[tri[0]], b = uv[tri[1]], c = uv[tri[2]];
+    const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+    if (std::abs(area) < 1e-12) continue;
+    const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), c.x()}))));
+    const int x1 = std::min(W - 1, static_cast<int>(std::floor(std::max({a.x(), b.x(), c.x()}))));
+    const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}))));
+    const int y1 = std::min(H - 1, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}))));
+    const double inv = 1.0 / area;
+    for (int y = y0; y <= y1; ++y) {
+      int* tid = r.triangle.ptr<int>(y);
+      float* dep = r.depth.ptr<float>(y);
+      for (int x = x0; x <= x1; ++x) {
+        const double px = x, py = y;
+        const double w0 = ((b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px)) * inv;
+        const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) * inv;
+        const double w2 = 1.0 - w0 - w1;
+        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+        const double z = 1.0 / (w0 / z0 + w1 / z1 + w2 / z2);
+        if (z < dep[x]) {
+          dep[x] = static_cast<float>(z);
+          tid[x] = static_cast<int>(t);
+        }
+      }
+    }
+  }
+  return r;
+}
+
+// Camera-frame point and smooth normal seen at pixel (x, y) of a rasterization.
+bool surfacePoint(const Eigen::Matrix3d& Kinv, const Posed& P, const SurfaceView& s, int tid, int x, int y,
+                  Eigen::Vector3d& point, Eigen::Vector3d& normal) {
+  const int* tri = s.triangles + 3 * tid;
+  const Eigen::Vector3d &a = P.x[tri[0]], &b = P.x[tri[1]], &c = P.x[tri[2]];
+  const Eigen::Vector3d d = Kinv * Eigen::Vector3d(x, y, 1);
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const double denom = n.dot(d);
+  if (std::abs(denom) < 1e-300) return false;
+  point = d * (n.dot(a) / denom);
+  // Barycentric coordinates of the point in the 3D triangle.
+  const double nn = n.squaredNorm();
+  const double wa = (c - b).cross(point - b).dot(n) / nn;
+  const double wb = (a - c).cross(point - c).dot(n) / nn;
+  const double wc = 1 - wa - wb;
+  normal = (wa * P.normal[tri[0]] + wb * P.normal[tri[1]] + wc * P.normal[tri[2]]).normalized();
+  if (normal.dot(-point) < 0) normal = -normal;  // an open surface seen from inside
+  return normal.allFinite();
+}
+
+}  // namespace
+
+Rasterization rasterize(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale, double nearPlane) {
+  checkCamera(camera);
+  return rasterizePosed(camera, pose3(pose, surface, false), surface, std::max(1, scale), nearPlane);
+}
+
+cv::Mat1b renderMask(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale) {
+  auto r = rasterize(camera, pose, surface, scale);
+  cv::Mat1b full = r.triangle >= 0;
+  if (r.scale == 1) return full;
+  cv::Mat small;
+  cv::resize(full, small, cv::Size(camera.width, camera.height), 0, 0, cv::INTER_AREA);
+  return small >= 128;
+}
+
+cv::Mat3b renderShaded(const Camera& camera, const Pose& pose, const SurfaceView& surface, const Appearance& appearance,
+                       const cv::Mat3b& background, int scale) {
+  checkCamera(camera);
+  scale = std::max(1, scale);
+  const Posed P = pose3(pose, surface, true);
+  const Rasterization r = rasterizePosed(camera, P, surface, scale, 1e-3);
+  const Eigen::Matrix3d Kinv = scaledK(camera, scale).inverse();
+  cv::Mat3b bg;
+  if (background.empty()) bg = cv::Mat3b(camera.height, camera.width, cv::Vec3b(0, 0, 0));
+  else bg = background;
+  cv::Mat3b full;
+  cv::resize(bg, full, cv::Size(camera.width * scale, camera.height * scale), 0, 0, cv::INTER_LINEAR);
+  cv::parallel_for_(cv::Range(0, full.rows), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const int* tid = r.triangle.ptr<int>(y);
+      cv::Vec3b* out = full.ptr<cv::Vec3b>(y);
+      for (int x = 0; x < full.cols; ++x) {
+        if (tid[x] < 0) continue;
+        Eigen::Vector3d p, n;
+        if (!surfacePoint(Kinv, P, surface, tid[x], x, y, p, n)) continue;
+        const Eigen::Vector3d rgb = appearance.shade(p, n);
+        out[x] = cv::Vec3b(cv::saturate_cast<uchar>(rgb.z() * 255.0), cv::saturate_cast<uchar>(rgb.y() * 255.0),
+                           cv::saturate_cast<uchar>(rgb.x() * 255.0));
+      }
+    }
+  });
+  if (scale == 1) return full;
+  cv::Mat3b small;
+  cv::resize(full, small, cv::Size(camera.width, camera.height), 0, 0, cv::INTER_AREA);
+  return small;
+}
+
+cv::Mat4b renderOverlay(const Camera& camera, const Pose& pose, const SurfaceView& surface, const cv::Vec3b& colour) {
+  checkCamera(camera);
+  const Posed P = pose3(pose, surface, true);
+  const Rasterization r = rasterizePosed(camera, P, surface, 1, 1e-3);
+  const Eigen::Matrix3d Kinv = camera.K.inverse();
+  cv::Mat4b out(camera.height, camera.width, cv::Vec4b(0, 0, 0, 0));
+  cv::parallel_for_(cv::Range(0, out.rows), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < out.cols; ++x) {
+        int t = r.triangle(y, x);
+        if (t < 0) continue;
+        Eigen::Vector3d p, n;
+        if (!surfacePoint(Kinv, P, surface, t, x, y, p, n)) continue;
+        const double shade = 0.25 + 0.75 * std::max(0.0, n.dot(-p.normalized()));
+        out(y, x) = cv::Vec4b(cv::saturate_cast<uchar>(colour[0] * shade), cv::saturate_cast<uchar>(colour[1] * shade),
+                              cv::saturate_cast<uchar>(colour[2] * shade), 255);
+      }
+  });
+  return out;
+}
+
+double maskIoU(const cv::Mat1b& a, const cv::Mat1b& b) {
+  if (a.size() != b.size()) throw InputError("Masks of different sizes cannot be compared.");
+  const double inter = cv::countNonZero(a & b), uni = cv::countNonZero(a | b);
+  return uni > 0 ? inter / uni : 1.0;
+}
+
+}  // namespace rehearse::imaging

@@ -1,0 +1,155 @@
+// A case as a folder of ordinary files (what `rehearse phantom --out DIR` writes and `rehearse open DIR` reads).
+#include "phantom/phantom.hpp"
+
+#include <rehearse/simcore/meshio.hpp>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace rehearse::phantom {
+namespace {
+
+std::string objText(const simcore::Mesh& m, const std::vector<std::array<int, 3>>& tris, const char* comment) {
+  // Only the points the triangles use, renumbered.
+  std::vector<int> index(m.points.size(), -1);
+  std::string out = std::string("# ") + comment + " (metres, written by Rehearse)\n";
+  char buf[128];
+  int next = 0;
+  std::string faces;
+  for (const auto& t : tris) {
+    faces += "f";
+    for (int v : t) {
+      if (index[v] < 0) {
+        index[v] = ++next;
+        const auto& p = m.points[v];
+        std::snprintf(buf, sizeof buf, "v %.9g %.9g %.9g\n", p.x(), p.y(), p.z());
+        out += buf;
+      }
+      faces += " " + std::to_string(index[v]);
+    }
+    faces += "\n";
+  }
+  return out + faces;
+}
+
+json vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+Eigen::Vector3d vec3(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
+
+}  // namespace
+
+void writeCaseDirectory(const Case& c, const std::string& dir) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec) throw imaging::InputError("Cannot create the folder " + dir + " (" + ec.message() + ").");
+  auto path = [&](const char* f) { return (fs::path(dir) / f).string(); };
+  try {
+    simcore::saveMesh(c.volume, path("organ.vtu"));
+    simcore::saveMesh(c.volume, path("organ.msh"));
+  } catch (const simcore::MeshError& e) {
+    throw imaging::InputError(e.what());
+  }
+  imaging::writeFileAtomically(path("organ_surface.obj"), objText(c.volume, c.surface, "organ outer surface"));
+  std::vector<int> labels;
+  auto all = simcore::boundaryTriangles(c.volume, true, &labels);
+  std::vector<std::array<int, 3>> vessel;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    if (labels[i] == kVesselLabel) vessel.push_back(all[i]);
+  imaging::writeFileAtomically(path("vessels_surface.obj"), objText(c.volume, vessel, "vessel tree surface"));
+  imaging::saveCamera(c.camera, path("camera.yaml"));
+  std::vector<uchar> png;
+  if (!cv::imencode(".png", c.frame, png)) throw imaging::InputError("The frame could not be encoded as PNG.");
+  imaging::writeFileAtomically(path("frame.png"), std::string(png.begin(), png.end()));
+  imaging::writeFileAtomically(path("attachments.json"), json{{"nodes", c.attachments}, {"indexing", "0-based, organ.vtu node order"}}.dump() + "\n");
+
+  json manifest;
+  manifest["format"] = "rehearse-case-folder";
+  manifest["version"] = 1;
+  manifest["name"] = c.name;
+  manifest["unit"] = "m";
+  manifest["files"] = {{"volume", "organ.vtu"}, {"volume_msh", "organ.msh"}, {"surface", "organ_surface.obj"},
+                       {"vessels", "vessels_surface.obj"}, {"camera", "camera.yaml"}, {"frame", "frame.png"},
+                       {"attachments", "attachments.json"}};
+  json labelsJson = json::array();
+  for (const auto& [l, n] : c.volume.labelNames) labelsJson.push_back({{"label", l}, {"name", n}});
+  manifest["labels"] = labelsJson;
+  if (c.hasGroundTruth) {
+    imaging::savePose(c.truePose, path("pose.json"));
+    imaging::saveAppearance(c.trueAppearance, path("appearance.json"));
+    json tree = json::array();
+    for (const auto& s : c.vesselTree) tree.push_back({{"a", vec(s.a)}, {"b", vec(s.b)}, {"radius", s.radius}});
+    manifest["ground_truth"] = {{"pose", "pose.json"}, {"appearance", "appearance.json"}, {"vessel_tree", tree},
+                                {"note", "frame.png was rendered from organ_surface.obj at pose.json with appearance.json"}};
+  }
+  imaging::writeFileAtomically(path("case.json"), manifest.dump(2) + "\n");
+}
+
+Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) {
+  auto path = [&](const std::string& f) { return (fs::path(dir) / f).string(); };
+  std::ifstream in(path("case.json"));
+  if (!in) throw imaging::InputError(dir + " is not a case folder (it has no case.json); choose a folder written by 'rehearse phantom'.");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  json manifest;
+  try {
+    manifest = json::parse(ss.str());
+  } catch (const std::exception&) {
+    throw imaging::InputError("case.json in " + dir + " is not valid JSON; the case folder is damaged.");
+  }
+  if (manifest.value("format", "") != "rehearse-case-folder")
+    throw imaging::InputError("case.json in " + dir + " is not a Rehearse case manifest.");
+  Case c;
+  c.name = manifest.value("name", fs::path(dir).filename().string());
+  auto note = [&](const std::string& s) {
+    if (notes) notes->push_back(s);
+  };
+  const json files = manifest.value("files", json::object());
+  // Each part loads on its own: a damaged part is reported and the rest stays usable.
+  try {
+    c.volume = simcore::loadMesh(path(files.value("volume", "organ.vtu")));
+    for (const auto& l : manifest.value("labels", json::array())) c.volume.setLabelName(l.at("label").get<int>(), l.at("name").get<std::string>());
+    c.surface = simcore::boundaryTriangles(c.volume, false);
+  } catch (const std::exception& e) {
+    note(std::string("Organ mesh not loaded: ") + e.what());
+  }
+  try {
+    c.camera = imaging::loadCamera(path(files.value("camera", "camera.yaml")));
+  } catch (const std::exception& e) {
+    note(std::string("Camera not loaded: ") + e.what());
+  }
+  c.frame = cv::imread(path(files.value("frame", "frame.png")), cv::IMREAD_COLOR);
+  if (c.frame.empty()) note("Frame not loaded: " + files.value("frame", "frame.png") + " is missing or not an image.");
+  else if (c.camera.width == 0) c.camera = imaging::Camera::defaultFor(c.frame.cols, c.frame.rows);
+  try {
+    std::ifstream a(path(files.value("attachments", "attachments.json")));
+    if (a) {
+      std::stringstream as;
+      as << a.rdbuf();
+      for (const auto& n : json::parse(as.str()).at("nodes")) c.attachments.push_back(n.get<int>());
+    }
+  } catch (const std::exception&) {
+    note("Attachments not loaded: attachments.json is damaged.");
+  }
+  if (manifest.contains("ground_truth")) {
+    try {
+      const auto& gt = manifest["ground_truth"];
+      c.truePose = imaging::loadPose(path(gt.value("pose", "pose.json")));
+      c.trueAppearance = imaging::loadAppearance(path(gt.value("appearance", "appearance.json")));
+      for (const auto& s : gt.value("vessel_tree", json::array()))
+        c.vesselTree.push_back({vec3(s.at("a")), vec3(s.at("b")), s.at("radius").get<double>()});
+      c.hasGroundTruth = true;
+    } catch (const std::exception& e) {
+      note(std::string("Ground truth not loaded: ") + e.what());
+    }
+  }
+  return c;
+}
+
+}  // namespace rehearse::phantom

@@ -1,0 +1,50 @@
+#pragma once
+// Mesh as loaded or generated: one container for surfaces and volumes.
+#include <rehearse/types.hpp>
+
+#include <array>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace rehearse::simcore {
+
+/// A user-facing mesh error: `what()` is one sentence that says what is wrong and what to do.
+struct MeshError : std::runtime_error {
+  using std::runtime_error::runtime_error;
+};
+
+/// Points plus triangles and/or tetrahedra. A surface has no tets; a volume may also carry boundary
+/// triangles from its file. Labels: per element integer (part index for surfaces from multi-part
+/// files, physical/region tag for volumes); `labelNames` maps a label to a name when one is known.
+struct Mesh {
+  std::vector<Eigen::Vector3d> points;            // file order, in `unit` until scaled
+  std::vector<std::array<int, 3>> triangles;      // 0-based point indices
+  std::vector<int> triangleLabels;                // same size as triangles
+  std::vector<std::array<int, 4>> tets;           // 0-based point indices, positive orientation
+  std::vector<int> tetLabels;                     // same size as tets
+  std::vector<std::pair<int, std::string>> labelNames;
+  double unitToMetre = 1.0;                       // coordinates * unitToMetre = metres
+
+  bool isVolume() const { return !tets.empty(); }
+  bool empty() const { return points.empty(); }
+  std::string labelName(int label) const;
+  void setLabelName(int label, const std::string& name);
+  SurfaceView surfaceView() const;  // triangles only; valid while the mesh is unchanged
+  Eigen::AlignedBox3d bounds() const;
+  /// Scale coordinates to metres and set unitToMetre = 1.
+  void convertToMetres();
+  /// Remove points used by no element, renumbering elements; returns the old index of each kept point.
+  std::vector<int> compact();
+};
+
+/// Boundary (outer) triangles of a tet mesh, oriented outward, with the tet label as triangle label.
+/// Faces shared by two tets of different labels are included when `includeInterfaces` is true.
+std::vector<std::array<int, 3>> boundaryTriangles(const Mesh& volume, bool includeInterfaces,
+                                                  std::vector<int>* labels = nullptr);
+
+/// Length units accepted by importers: "m", "dm", "cm", "mm". Returns metres per unit;
+/// throws MeshError naming the accepted units otherwise.
+double metresPerUnit(const std::string& unit);
+
+}  // namespace rehearse::simcore

@@ -1,0 +1,101 @@
+// Mesh file dispatch: size checks, format by extension, validation, unit conversion, repairs.
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/quality.hpp>
+
+#include "text_reader.hpp"
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+namespace fs = std::filesystem;
+
+namespace rehearse::simcore {
+
+const std::vector<std::string>& supportedMeshExtensions() {
+  static const std::vector<std::string> ext = {".msh", ".vtk", ".vtu", ".mesh", ".obj", ".stl",
+                                               ".ply", ".off", ".gltf", ".glb"};
+  return ext;
+}
+
+namespace {
+std::string extensionOf(const std::string& path) { return detail::lower(fs::path(path).extension().string()); }
+
+std::string readAll(const std::string& path) {
+  std::error_code ec;
+  if (!fs::exists(path, ec)) throw MeshError("The file " + path + " does not exist; check the path.");
+  if (fs::is_directory(path, ec)) throw MeshError(path + " is a folder, not a mesh file; choose a file inside it.");
+  auto size = fs::file_size(path, ec);
+  if (ec) throw MeshError("The file " + path + " cannot be read (" + ec.message() + ").");
+  if (size > kMaxMeshFileBytes)
+    throw MeshError("The file " + path + " is too large (" + std::to_string(size >> 20) +
+                    " MiB, limit 2048 MiB); decimate the mesh first.");
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw MeshError("The file " + path + " cannot be opened; check its permissions.");
+  std::string bytes(size, '\0');
+  in.read(bytes.data(), static_cast<std::streamsize>(size));
+  if (static_cast<std::uintmax_t>(in.gcount()) != size) throw MeshError("The file " + path + " could not be read completely.");
+  return bytes;
+}
+}  // namespace
+
+Mesh loadMesh(const std::string& path, const LoadOptions& options, std::vector<std::string>* notes) {
+  const double scale = metresPerUnit(options.unit);
+  const std::string ext = extensionOf(path);
+  Mesh m;
+  const std::string name = fs::path(path).filename().string();
+  try {
+    if (ext == ".msh") m = parseGmsh(readAll(path));
+    else if (ext == ".vtk") m = parseVtkLegacy(readAll(path));
+    else if (ext == ".vtu") m = parseVtu(readAll(path));
+    else if (ext == ".mesh") m = parseMedit(readAll(path));
+    else if (ext == ".obj" || ext == ".stl" || ext == ".ply" || ext == ".off" || ext == ".gltf" || ext == ".glb") {
+      readAll(path).size();  // existence and size checks with our messages
+      m = loadSurfaceAssimp(path);
+    } else {
+      throw MeshError("The file type '" + ext + "' of " + name +
+                      " is not supported; use .msh, .vtk, .vtu, .mesh, .obj, .stl, .ply, .off, .gltf or .glb.");
+    }
+  } catch (const MeshError& e) {
+    std::string w = e.what();
+    if (w.rfind("This ", 0) == 0) throw MeshError(name + ": " + w);
+    throw;
+  } catch (const std::bad_alloc&) {
+    throw MeshError(name + " needs more memory than is available; decimate the mesh first.");
+  }
+  validateMesh(m, name);
+  m.unitToMetre = scale;
+  m.convertToMetres();
+  auto repairs = repairVolume(m);
+  if (notes) notes->insert(notes->end(), repairs.begin(), repairs.end());
+  if (m.isVolume() && m.tets.empty()) throw MeshError(name + " has only degenerate tetrahedra.");
+  return m;
+}
+
+void saveMesh(const Mesh& mesh, const std::string& path, bool ascii) {
+  const std::string ext = extensionOf(path);
+  std::string bytes;
+  if (ext == ".msh") bytes = writeGmsh22(mesh);
+  else if (ext == ".vtk") bytes = writeVtkLegacy(mesh, ascii);
+  else if (ext == ".vtu") bytes = writeVtu(mesh, ascii);
+  else if (ext == ".mesh") bytes = writeMedit(mesh);
+  else throw MeshError("Cannot write '" + ext + "' files; use .msh, .vtk, .vtu or .mesh.");
+  // Write beside the target and rename, so a failure never leaves a half-written file.
+  const std::string tmp = path + ".part";
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw MeshError("Cannot write " + path + "; check that the folder exists and is writable.");
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    out.flush();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw MeshError("Writing " + path + " failed (disk full?); nothing was changed.");
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, path, ec);
+  if (ec) throw MeshError("Cannot replace " + path + " (" + ec.message() + ").");
+}
+
+}  // namespace rehearse::simcore

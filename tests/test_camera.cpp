@@ -1,0 +1,175 @@
+// Camera convention, projection, camera/pose files and the CPU renderer.
+#include "test_support.hpp"
+
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/meshio.hpp>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <numbers>
+
+using namespace rehearse;
+
+class TestCamera : public QObject {
+  Q_OBJECT
+ private slots:
+  // Our projected silhouette of scikit-surgery's liver must match that project's own render (IoU >= 0.97).
+  void silhouetteMatchesScikitSurgeryRender() {
+    const std::string dir = "scikit-surgery/liver-overlay/";
+    REQUIRE_SHARED(dir + "fig06_case1b_overlay.png");
+    auto mesh = simcore::loadMesh(sharedData(dir + "liver_sub.ply"), {"mm"});
+    // Intrinsics are for 1920x1080; the reference render is 960x540, so scale K by 1/2 about pixel centres.
+    auto full = imaging::loadCamera(sharedData(dir + "calib.left.intrinsics.txt"), 1920, 1080);
+    auto pose = imaging::loadPose(sharedData(dir + "model_to_camera.txt"), 1e-3);
+    imaging::Camera half = full;
+    half.width = 960;
+    half.height = 540;
+    half.K.row(0) *= 0.5;
+    half.K.row(1) *= 0.5;
+    half.K(0, 2) = 0.5 * full.cx() - 0.25;
+    half.K(1, 2) = 0.5 * full.cy() - 0.25;
+    cv::Mat1b ours = imaging::renderMask(half, pose, mesh.surfaceView(), 4);
+    cv::Mat3b ref = cv::imread(sharedData(dir + "fig06_case1b_overlay.png"));
+    QCOMPARE(ref.cols, 960);
+    // Their background is pure white; the shaded liver is not.
+    cv::Mat1b theirs(ref.rows, ref.cols);
+    for (int y = 0; y < ref.rows; ++y)
+      for (int x = 0; x < ref.cols; ++x) {
+        const auto p = ref(y, x);
+        theirs(y, x) = (p[0] < 250 || p[1] < 250 || p[2] < 250) ? 255 : 0;
+      }
+    cv::morphologyEx(theirs, theirs, cv::MORPH_CLOSE, cv::getStructuringElement(cv::MORPH_ELLIPSE, {5, 5}));
+    const double iou = imaging::maskIoU(ours, theirs);
+    qInfo("IoU with scikit-surgery's render: %.4f (ours %d px, theirs %d px)", iou, cv::countNonZero(ours), cv::countNonZero(theirs));
+    QVERIFY2(iou >= 0.97, qPrintable(QString::number(iou)));
+    // A wrong convention (y up, as OpenGL) must fail the same check: the test can fail.
+    Pose flipped = pose;
+    flipped.R.row(1) *= -1;
+    flipped.R.row(2) *= -1;
+    flipped.t.y() *= -1;
+    flipped.t.z() *= -1;
+    cv::Mat1b wrong = imaging::renderMask(half, flipped, mesh.surfaceView(), 1);
+    QVERIFY(imaging::maskIoU(wrong, theirs) < 0.5);
+  }
+
+  // Camera::project against OpenCV projectPoints (no distortion).
+  void projectionMatchesOpenCV() {
+    imaging::Camera c = imaging::Camera::defaultFor(1280, 720);
+    c.K(0, 0) = 1012.5;  // OpenCV models no skew, so none here
+    c.K(1, 1) = 998.25;
+    cv::Matx33d K;
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) K(r, k) = c.K(r, k);
+    std::vector<cv::Point3d> pts = {{0.01, -0.02, 0.2}, {-0.05, 0.03, 0.15}, {0.0, 0.0, 0.3}};
+    std::vector<cv::Point2d> out;
+    cv::projectPoints(pts, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K, cv::noArray(), out);
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      auto p = c.project({pts[i].x, pts[i].y, pts[i].z});
+      QVERIFY(std::abs(p.x() - out[i].x) < 1e-9 && std::abs(p.y() - out[i].y) < 1e-9);
+    }
+  }
+
+  // A rendered square's mask covers exactly the pixel centres inside its projection.
+  void maskOfSquareIsExact() {
+    imaging::Camera c = imaging::Camera::defaultFor(200, 100);
+    c.K << 100, 0, 99.5, 0, 100, 49.5, 0, 0, 1;
+    // Square of side 0.2 m at z = 1 m: projects to [-10, 10] px around the centre -> pixels 90..109 x 40..59.
+    std::vector<double> v = {-0.1, -0.1, 1, 0.1, -0.1, 1, 0.1, 0.1, 1, -0.1, 0.1, 1};
+    std::vector<int> t = {0, 1, 2, 0, 2, 3};
+    SurfaceView s{v.data(), 4, t.data(), 2};
+    cv::Mat1b m = imaging::renderMask(c, Pose{}, s);
+    QCOMPARE(cv::countNonZero(m), 20 * 20);
+    QCOMPARE(int(m(40, 90)), 255);
+    QCOMPARE(int(m(59, 109)), 255);
+    QCOMPARE(int(m(39, 90)), 0);
+    QCOMPARE(int(m(40, 110)), 0);
+  }
+
+  // Torrance-Sparrow at normal incidence with the light at the camera: J = (kd + ks) / r^2.
+  void torranceSparrowAnalytic() {
+    imaging::Appearance a;
+    a.kd = {0.02, 0.01, 0.005};
+    a.ks = {0.003, 0.003, 0.003};
+    a.roughness = 0.1;
+    const double r = 0.2;
+    auto J = a.shade({0, 0, r}, {0, 0, -1});
+    for (int k = 0; k < 3; ++k) QVERIFY(std::abs(J[k] - (a.kd[k] + a.ks[k]) / (r * r)) < 1e-12);
+    // Light 45 degrees off the normal, seen along the normal: theta_i = 45, theta_r = 0, alpha = 22.5 deg.
+    a.lightPosition = {r, 0, 0};
+    Eigen::Vector3d p(0, 0, r), n(0, 0, -1);
+    auto J2 = a.shade(p, n);
+    const double d2 = 2 * r * r, alpha = std::numbers::pi / 8;
+    for (int k = 0; k < 3; ++k) {
+      const double expect = a.kd[k] * std::cos(std::numbers::pi / 4) / d2 + a.ks[k] / d2 * std::exp(-alpha * alpha / (2 * 0.01));
+      QVERIFY2(std::abs(J2[k] - expect) < 1e-12, qPrintable(QString("%1 vs %2").arg(J2[k]).arg(expect)));
+    }
+  }
+
+  void cameraFilesRoundTrip() {
+    imaging::Camera c = imaging::Camera::defaultFor(1920, 1080);
+    c.distortion = {-0.1, 0.02, 0.001, -0.002, 0.0005};
+    for (const char* ext : {".yaml", ".xml", ".json"}) {
+      const std::string p = tempPath(std::string("cam") + ext);
+      imaging::saveCamera(c, p);
+      auto r = imaging::loadCamera(p);
+      QVERIFY((r.K - c.K).norm() < 1e-12);
+      QCOMPARE(r.width, 1920);
+      QCOMPARE(r.height, 1080);
+      for (int k = 0; k < 5; ++k) QCOMPARE(r.distortion[k], c.distortion[k]);
+    }
+    // P2ILF camera JSON: numbers as strings.
+    const std::string p2 = tempPath("p2ilf.json");
+    writeFile(p2, R"({"fx":"1000.5","fy":"1001","cx":"640","cy":"360","k1":"-0.1","k2":"0","k3":"0","p1":"0","p2":"0","width":1280,"height":720})");
+    auto q = imaging::loadCamera(p2);
+    QCOMPARE(q.fx(), 1000.5);
+    QCOMPARE(q.distortion[0], -0.1);
+  }
+
+  void degenerateCamerasAndPosesAreRefused() {
+    const std::string p = tempPath("bad.txt");
+    writeFile(p, "0 0 640\n0 0 360\n0 0 1\n");
+    try {
+      imaging::loadCamera(p, 1280, 720);
+      QFAIL("a zero focal length was accepted");
+    } catch (const imaging::InputError& e) {
+      QVERIFY(QString(e.what()).contains("degenerate"));
+    }
+    writeFile(p, "1000 0 640\n0 1000 360\n0 0 1\n");
+    try {
+      imaging::loadCamera(p);  // no image size
+      QFAIL("a camera without an image size was accepted");
+    } catch (const imaging::InputError& e) {
+      QVERIFY(QString(e.what()).contains("image size"));
+    }
+    writeFile(p, "garbage");
+    QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::loadCamera(p, 640, 480));
+    const std::string pj = tempPath("pose.json");
+    writeFile(pj, R"({"R": [[1,0,0],[0,1,0],[0,0,2]], "t": [0,0,0.2]})");
+    QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::loadPose(pj));
+    writeFile(pj, R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0,0,20], "unit": "cm"})");
+    QCOMPARE(imaging::loadPose(pj).t.z(), 0.2);
+    Pose rot;
+    rot.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    rot.t = {0.01, -0.02, 0.3};
+    imaging::savePose(rot, pj);
+    auto back = imaging::loadPose(pj);
+    QVERIFY((back.R - rot.R).norm() < 1e-12 && (back.t - rot.t).norm() < 1e-12);
+  }
+
+  // A mesh behind the camera renders nothing (no crash); a mesh crossing the image plane is clipped.
+  void meshBehindCameraRendersNothing() {
+    imaging::Camera c = imaging::Camera::defaultFor(64, 48);
+    std::vector<double> v = {-0.1, -0.1, -1, 0.1, -0.1, -1, 0.1, 0.1, -1};
+    std::vector<int> t = {0, 1, 2};
+    SurfaceView s{v.data(), 3, t.data(), 1};
+    QCOMPARE(cv::countNonZero(imaging::renderMask(c, Pose{}, s)), 0);
+    cv::Mat3b bg(48, 64, cv::Vec3b(1, 2, 3));
+    auto img = imaging::renderShaded(c, Pose{}, s, imaging::Appearance{}, bg, 2);
+    QCOMPARE(img(10, 10), cv::Vec3b(1, 2, 3));
+  }
+};
+
+QTEST_GUILESS_MAIN(TestCamera)
+#include "test_camera.moc"

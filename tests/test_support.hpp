@@ -1,0 +1,34 @@
+#pragma once
+// Helpers shared by the test suites.
+#include <QtTest>
+
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+inline std::string sharedData(const std::string& rel) { return std::string(REHEARSE_SHARED_DATA) + "/" + rel; }
+
+/// Skips the current test with a message when a file from ../shared/data is absent.
+#define REQUIRE_SHARED(rel)                                                                      \
+  do {                                                                                           \
+    if (!std::filesystem::exists(sharedData(rel)))                                               \
+      QSKIP(qPrintable(QStringLiteral("../shared/data/%1 is absent; skipping").arg(QString::fromStdString(rel)))); \
+  } while (0)
+
+inline std::string readFile(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+inline void writeFile(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+inline std::string tempPath(const std::string& name) {
+  static QTemporaryDir dir;
+  return dir.path().toStdString() + "/" + name;
+}

@@ -1,0 +1,31 @@
+#pragma once
+// Loads a case (the built-in phantom or a case folder) off the GUI thread and prepares what the
+// view draws: the frame and the organ overlay, as QImages.
+#include "phantom/phantom.hpp"
+
+#include <QImage>
+#include <QPolygonF>
+#include <QString>
+#include <QStringList>
+
+#include <atomic>
+#include <functional>
+#include <memory>
+
+namespace rehearse::ui {
+
+struct LoadedCase {
+  std::shared_ptr<const phantom::Case> data;
+  QImage frame;                  ///< RGB888 copy of the case frame
+  QImage organOverlay;           ///< ARGB32, shaded organ through the camera at the case pose
+  QList<QPolygonF> silhouette;   ///< outline of the organ in frame pixels
+  QString qualityText;           ///< mesh quality report
+  QStringList notes;             ///< parts that could not be loaded, repairs made
+  double seconds = 0;            ///< load time
+};
+
+/// Runs on a worker thread. `dir` empty = built-in phantom. Throws std::exception with one sentence.
+LoadedCase loadCase(const QString& dir, const std::function<void(double, const QString&)>& progress,
+                    const std::atomic<bool>* cancel);
+
+}  // namespace rehearse::ui

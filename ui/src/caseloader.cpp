@@ -1,0 +1,58 @@
+#include "rehearse/ui/caseloader.hpp"
+
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/quality.hpp>
+
+#include <opencv2/imgproc.hpp>
+
+#include <chrono>
+
+namespace rehearse::ui {
+
+LoadedCase loadCase(const QString& dir, const std::function<void(double, const QString&)>& progress,
+                    const std::atomic<bool>* cancel) {
+  const auto t0 = std::chrono::steady_clock::now();
+  LoadedCase out;
+  auto c = std::make_shared<phantom::Case>();
+  if (dir.isEmpty()) {
+    phantom::PhantomOptions po;
+    po.meshing.cancel = cancel;
+    po.meshing.progress = [&](double f, const std::string& stage) {
+      if (progress) progress(0.9 * f, QString::fromStdString(stage));
+    };
+    *c = phantom::makePhantom(po);
+  } else {
+    std::vector<std::string> notes;
+    *c = phantom::loadCaseDirectory(dir.toStdString(), &notes);
+    for (const auto& n : notes) out.notes << QString::fromStdString(n);
+  }
+  if (progress) progress(0.92, QStringLiteral("drawing the organ"));
+  if (!c->frame.empty()) {
+    cv::Mat rgb;
+    cv::cvtColor(c->frame, rgb, cv::COLOR_BGR2RGB);
+    out.frame = QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
+  }
+  const bool posed = c->hasGroundTruth && !c->surface.empty() && c->camera.problem().empty();
+  if (posed) {
+    // The organ at the case pose (the phantom's ground truth until a registration exists).
+    cv::Mat4b overlay = imaging::renderOverlay(c->camera, c->truePose, c->surfaceView(), cv::Vec3b(150, 210, 120));
+    cv::Mat rgba;
+    cv::cvtColor(overlay, rgba, cv::COLOR_BGRA2RGBA);
+    out.organOverlay = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
+    cv::Mat1b mask = imaging::renderMask(c->camera, c->truePose, c->surfaceView());
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+    for (const auto& ct : contours) {
+      QPolygonF poly;
+      for (const auto& p : ct) poly << QPointF(p.x + 0.5, p.y + 0.5);
+      out.silhouette << poly;
+    }
+  }
+  if (!c->volume.empty()) out.qualityText = QString::fromStdString(simcore::formatQuality(simcore::computeQuality(c->volume)));
+  out.data = std::move(c);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (progress) progress(1.0, QStringLiteral("done"));
+  return out;
+}
+
+}  // namespace rehearse::ui

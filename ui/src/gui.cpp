@@ -1,0 +1,85 @@
+#include "rehearse/ui/gui.hpp"
+
+#include "rehearse/ui/mainwindow.hpp"
+
+#include <QApplication>
+#include <QCommandLineParser>
+#include <QPalette>
+#include <QStyleFactory>
+#include <QTimer>
+
+#include <cstdio>
+
+namespace rehearse::ui {
+namespace {
+// Operating rooms are dim: a dark theme by default.
+void applyDarkTheme(QApplication& app) {
+  app.setStyle(QStyleFactory::create(QStringLiteral("Fusion")));
+  QPalette p;
+  p.setColor(QPalette::Window, QColor(37, 38, 41));
+  p.setColor(QPalette::WindowText, QColor(225, 225, 225));
+  p.setColor(QPalette::Base, QColor(26, 27, 30));
+  p.setColor(QPalette::AlternateBase, QColor(44, 45, 48));
+  p.setColor(QPalette::Text, QColor(225, 225, 225));
+  p.setColor(QPalette::Button, QColor(48, 49, 53));
+  p.setColor(QPalette::ButtonText, QColor(225, 225, 225));
+  p.setColor(QPalette::Highlight, QColor(46, 140, 90));
+  p.setColor(QPalette::HighlightedText, Qt::white);
+  p.setColor(QPalette::ToolTipBase, QColor(50, 50, 50));
+  p.setColor(QPalette::ToolTipText, Qt::white);
+  p.setColor(QPalette::Disabled, QPalette::Text, QColor(110, 110, 110));
+  p.setColor(QPalette::Disabled, QPalette::ButtonText, QColor(110, 110, 110));
+  p.setColor(QPalette::Disabled, QPalette::WindowText, QColor(110, 110, 110));
+  app.setPalette(p);
+  QFont f = app.font();
+  f.setPointSizeF(std::max(11.0, f.pointSizeF()));
+  app.setFont(f);
+}
+}  // namespace
+
+int runGui(int argc, char** argv) {
+  QApplication app(argc, argv);
+  QApplication::setOrganizationName(QStringLiteral("Rehearse"));
+  QApplication::setApplicationName(QStringLiteral("Rehearse"));
+  QApplication::setApplicationVersion(QStringLiteral(REHEARSE_VERSION));
+  applyDarkTheme(app);
+
+  QCommandLineParser parser;
+  parser.addPositionalArgument(QStringLiteral("open"), QStringLiteral("open CASE"));
+  QCommandLineOption screenshot(QStringLiteral("screenshot"), QStringLiteral("Save the window to PNG and quit."), QStringLiteral("png"));
+  QCommandLineOption software(QStringLiteral("software"), QStringLiteral("Do not use OpenGL."));
+  parser.addOption(screenshot);
+  parser.addOption(software);
+  if (!parser.parse(app.arguments())) {
+    std::fprintf(stderr, "rehearse: %s; see 'rehearse --help'\n", qPrintable(parser.errorText()));
+    return 2;
+  }
+  const QStringList pos = parser.positionalArguments();
+  QString caseDir;
+  if (!pos.isEmpty()) {
+    if (pos.size() != 2 || pos[0] != QLatin1String("open")) {
+      std::fprintf(stderr, "rehearse: expected 'open CASE'; see 'rehearse --help'\n");
+      return 2;
+    }
+    caseDir = pos[1];
+  }
+  MainWindow window;
+  const QString shot = parser.value(screenshot);
+  int exitCode = 0;
+  if (!shot.isEmpty()) {
+    QObject::connect(&window, &MainWindow::caseLoaded, &window, [&window, shot, &exitCode](bool ok) {
+      QTimer::singleShot(300, &window, [&window, shot, ok, &exitCode] {
+        const bool saved = window.grab().save(shot);
+        if (!saved) std::fprintf(stderr, "rehearse: error: cannot write %s\n", qPrintable(shot));
+        exitCode = ok && saved ? 0 : 1;
+        QMetaObject::invokeMethod(qApp, &QCoreApplication::quit, Qt::QueuedConnection);
+      });
+    });
+  }
+  window.show();
+  window.openCase(caseDir);
+  const int code = app.exec();
+  return shot.isEmpty() ? code : exitCode;
+}
+
+}  // namespace rehearse::ui
