@@ -1,4 +1,491 @@
-#include <QtTest>
-class T : public QObject { Q_OBJECT private slots: void a() {} };
-QTEST_MAIN(T)
+// Mesh loaders on real files from other projects, write->read round trips for every writer and
+// format variant, and bad input for every loader.
+#include "test_support.hpp"
+
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/quality.hpp>
+
+#include <zlib.h>
+
+#include <cmath>
+#include <random>
+#include <regex>
+#include <set>
+
+using namespace rehearse::simcore;
+
+namespace {
+
+// Independent counts from the file text: points declared by a VTK header.
+std::size_t vtkDeclaredPoints(const std::string& bytes) {
+  std::smatch m;
+  std::string head = bytes.substr(0, 4096);
+  if (std::regex_search(head, m, std::regex("POINTS (\\d+)"))) return std::stoul(m[1]);
+  return 0;
+}
+
+// Vertices an OBJ's faces actually use, counted from the text (assimp drops unused ones).
+std::size_t objUsedVertices(const std::string& text) {
+  std::istringstream in(text);
+  std::string line;
+  std::set<std::string> positions;
+  std::vector<std::string> verts;
+  std::set<long> used;
+  while (std::getline(in, line)) {
+    if (line.rfind("v ", 0) == 0) verts.push_back(line.substr(2));
+    if (line.rfind("f ", 0) == 0) {
+      std::istringstream f(line.substr(2));
+      std::string tok;
+      while (f >> tok) used.insert(std::stol(tok.substr(0, tok.find('/'))) - 1);
+    }
+  }
+  // Distinct positions among used vertices (we weld exact duplicates).
+  for (long u : used) {
+    std::istringstream p(verts.at(u));
+    double x, y, z;
+    p >> x >> y >> z;
+    char buf[96];
+    std::snprintf(buf, sizeof buf, "%.9g %.9g %.9g", x, y, z);
+    positions.insert(buf);
+  }
+  return positions.size();
+}
+
+Mesh twoTets() {
+  Mesh m;
+  m.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}, {1, 1, 1}};
+  m.tets = {{0, 1, 2, 3}, {1, 2, 3, 4}};
+  // Second tet: orientation of (1,2,3,4)
+  if (tetVolume(m.points[1], m.points[2], m.points[3], m.points[4]) < 0) std::swap(m.tets[1][2], m.tets[1][3]);
+  m.tetLabels = {7, 9};
+  m.triangles = {{0, 2, 1}};
+  m.triangleLabels = {3};
+  return m;
+}
+
+void compareMeshes(const Mesh& a, const Mesh& b, bool withTriangles = true) {
+  QCOMPARE(b.points.size(), a.points.size());
+  for (std::size_t i = 0; i < a.points.size(); ++i) QVERIFY((a.points[i] - b.points[i]).norm() < 1e-12);
+  QCOMPARE(b.tets.size(), a.tets.size());
+  for (std::size_t i = 0; i < a.tets.size(); ++i) {
+    QVERIFY(a.tets[i] == b.tets[i]);
+    QCOMPARE(b.tetLabels[i], a.tetLabels[i]);
+  }
+  if (withTriangles) {
+    QCOMPARE(b.triangles.size(), a.triangles.size());
+    for (std::size_t i = 0; i < a.triangles.size(); ++i) QVERIFY(a.triangles[i] == b.triangles[i]);
+  }
+}
+
+template <class T>
+void putLE(std::string& s, T v) {
+  s.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+
+// MSH 2.2 binary of twoTets (hand-built from the format specification).
+std::string msh22Binary(const Mesh& m) {
+  std::string s = "$MeshFormat\n2.2 1 8\n";
+  putLE<int>(s, 1);
+  s += "\n$EndMeshFormat\n$Nodes\n" + std::to_string(m.points.size()) + "\n";
+  for (std::size_t i = 0; i < m.points.size(); ++i) {
+    putLE<int>(s, static_cast<int>(i + 10));  // non-contiguous tags
+    for (int k = 0; k < 3; ++k) putLE<double>(s, m.points[i][k]);
+  }
+  s += "\n$EndNodes\n$Elements\n" + std::to_string(m.tets.size()) + "\n";
+  putLE<int>(s, 4);
+  putLE<int>(s, static_cast<int>(m.tets.size()));
+  putLE<int>(s, 2);
+  for (std::size_t e = 0; e < m.tets.size(); ++e) {
+    putLE<int>(s, static_cast<int>(e + 1));
+    putLE<int>(s, m.tetLabels[e]);
+    putLE<int>(s, m.tetLabels[e]);
+    for (int v : m.tets[e]) putLE<int>(s, v + 10);
+  }
+  s += "\n$EndElements\n";
+  return s;
+}
+
+// MSH 4.1 (ascii or binary) of twoTets: one volume entity per label with a physical tag.
+std::string msh41(const Mesh& m, bool binary) {
+  std::string s = std::string("$MeshFormat\n4.1 ") + (binary ? "1" : "0") + " 8\n";
+  if (binary) {
+    putLE<int>(s, 1);
+    s += "\n";
+  }
+  s += "$EndMeshFormat\n$PhysicalNames\n2\n3 7 \"liver\"\n3 9 \"vessel\"\n$EndPhysicalNames\n$Entities\n";
+  auto sz = [&](std::size_t v) { binary ? putLE<std::uint64_t>(s, v) : void(s += std::to_string(v) + " "); };
+  auto in = [&](int v) { binary ? putLE<int>(s, v) : void(s += std::to_string(v) + " "); };
+  auto dbl = [&](double v) {
+    if (binary) putLE<double>(s, v);
+    else {
+      char b[40];
+      std::snprintf(b, sizeof b, "%.17g ", v);
+      s += b;
+    }
+  };
+  auto nl = [&] {
+    if (!binary) s += "\n";
+  };
+  sz(0), sz(0), sz(0), sz(2), nl();
+  for (int e = 0; e < 2; ++e) {
+    in(e + 1);
+    for (int k = 0; k < 6; ++k) dbl(0);
+    sz(1), in(m.tetLabels[e]), sz(0), nl();
+  }
+  if (binary) s += "\n";
+  s += "$EndEntities\n$Nodes\n";
+  sz(1), sz(m.points.size()), sz(1), sz(m.points.size()), nl();
+  in(3), in(1), in(0), sz(m.points.size()), nl();
+  for (std::size_t i = 0; i < m.points.size(); ++i) sz(i + 1), nl();
+  for (const auto& p : m.points) dbl(p.x()), dbl(p.y()), dbl(p.z()), nl();
+  if (binary) s += "\n";
+  s += "$EndNodes\n$Elements\n";
+  sz(2), sz(2), sz(1), sz(2), nl();
+  for (int e = 0; e < 2; ++e) {
+    in(3), in(e + 1), in(4), sz(1), nl();
+    sz(e + 1);
+    for (int v : m.tets[e]) sz(v + 1);
+    nl();
+  }
+  if (binary) s += "\n";
+  s += "$EndElements\n";
+  return s;
+}
+
+std::string vtk51Ascii(const Mesh& m) {
+  std::string s = "# vtk DataFile Version 5.1\nnew layout\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 5 double\n";
+  for (const auto& p : m.points) s += std::to_string(p.x()) + " " + std::to_string(p.y()) + " " + std::to_string(p.z()) + "\n";
+  s += "CELLS 3 8\nOFFSETS vtktypeint64\n0 4 8\nCONNECTIVITY vtktypeint64\n";
+  for (const auto& t : m.tets) s += std::to_string(t[0]) + " " + std::to_string(t[1]) + " " + std::to_string(t[2]) + " " + std::to_string(t[3]) + "\n";
+  s += "CELL_TYPES 2\n10\n10\nCELL_DATA 2\nFIELD FieldData 1\nregion 1 2 int\n7 9\n";
+  return s;
+}
+
+std::string base64(const std::string& in) {
+  static const char* a = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  for (std::size_t i = 0; i < in.size(); i += 3) {
+    unsigned w = static_cast<unsigned char>(in[i]) << 16;
+    if (i + 1 < in.size()) w |= static_cast<unsigned char>(in[i + 1]) << 8;
+    if (i + 2 < in.size()) w |= static_cast<unsigned char>(in[i + 2]);
+    out += a[(w >> 18) & 63];
+    out += a[(w >> 12) & 63];
+    out += i + 1 < in.size() ? a[(w >> 6) & 63] : '=';
+    out += i + 2 < in.size() ? a[w & 63] : '=';
+  }
+  return out;
+}
+
+// VTU with zlib-compressed inline arrays (UInt32 headers), or raw appended data (UInt64 headers).
+std::string vtuVariant(const Mesh& m, bool compressed) {
+  std::vector<float> pts;
+  for (const auto& p : m.points)
+    for (int k = 0; k < 3; ++k) pts.push_back(static_cast<float>(p[k]));
+  std::vector<std::int32_t> conn, offs = {4, 8}, labels = {m.tetLabels[0], m.tetLabels[1]};
+  for (const auto& t : m.tets)
+    for (int v : t) conn.push_back(v);
+  std::vector<std::uint8_t> types = {10, 10};
+  auto bytesOf = [](const auto& v) { return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(v[0])); };
+  std::string appended;
+  auto array = [&](const char* type, const char* name, int comps, const std::string& raw) {
+    std::string head = std::string("<DataArray type=\"") + type + "\" Name=\"" + name + "\" NumberOfComponents=\"" + std::to_string(comps) + "\" ";
+    if (compressed) {
+      uLongf n = compressBound(raw.size());
+      std::string z(n, '\0');
+      compress(reinterpret_cast<Bytef*>(z.data()), &n, reinterpret_cast<const Bytef*>(raw.data()), raw.size());
+      z.resize(n);
+      std::string h;
+      putLE<std::uint32_t>(h, 1);
+      putLE<std::uint32_t>(h, static_cast<std::uint32_t>(raw.size()));
+      putLE<std::uint32_t>(h, static_cast<std::uint32_t>(raw.size()));
+      putLE<std::uint32_t>(h, static_cast<std::uint32_t>(z.size()));
+      return head + "format=\"binary\">" + base64(h) + base64(z) + "</DataArray>\n";
+    }
+    std::string out = head + "format=\"appended\" offset=\"" + std::to_string(appended.size()) + "\"/>\n";
+    putLE<std::uint64_t>(appended, raw.size());
+    appended += raw;
+    return out;
+  };
+  std::string s = std::string("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\"") +
+                  (compressed ? " header_type=\"UInt32\" compressor=\"vtkZLibDataCompressor\">" : " header_type=\"UInt64\">") +
+                  "\n<UnstructuredGrid><Piece NumberOfPoints=\"5\" NumberOfCells=\"2\">\n<CellData>" +
+                  array("Int32", "region", 1, bytesOf(labels)) + "</CellData>\n<Points>" + array("Float32", "pts", 3, bytesOf(pts)) +
+                  "</Points>\n<Cells>" + array("Int32", "connectivity", 1, bytesOf(conn)) + array("Int32", "offsets", 1, bytesOf(offs)) +
+                  array("UInt8", "types", 1, bytesOf(types)) + "</Cells>\n</Piece></UnstructuredGrid>\n";
+  if (!compressed) s += "<AppendedData encoding=\"raw\">\n_" + appended + "\n</AppendedData>\n";
+  s += "</VTKFile>\n";
+  return s;
+}
+
+// Every parser must throw MeshError (never crash) on these.
+void expectRefused(const std::function<Mesh(std::string_view)>& parse, const std::string& bytes, const char* what) {
+  try {
+    Mesh m = parse(bytes);
+    validateMesh(m, what);  // a parse that "succeeds" must still fail validation
+    QFAIL(qPrintable(QString("accepted: %1").arg(what)));
+  } catch (const MeshError& e) {
+    QVERIFY2(std::string(e.what()).find('\n') == std::string::npos, "error messages are one line");
+  }
+}
+
+}  // namespace
+
+class TestMeshIO : public QObject {
+  Q_OBJECT
+ private slots:
+  void sofaLiverMsh() {
+    REQUIRE_SHARED("sofa/liver.msh");
+    auto m = loadMesh(sharedData("sofa/liver.msh"), {"cm"});
+    QCOMPARE(m.points.size(), std::size_t(181));
+    QCOMPARE(m.tets.size(), std::size_t(596));
+    auto q = computeQuality(m);
+    QCOMPARE(q.inverted, std::size_t(0));
+    QVERIFY(q.bounds.sizes().maxCoeff() > 0.05 && q.bounds.sizes().maxCoeff() < 0.2);  // about 10 cm
+    // First node as in the file (node order kept): 1 -0.979259 2.23512 2.61245 (cm).
+    QVERIFY((m.points[0] - Eigen::Vector3d(-0.979259, 2.23512, 2.61245) * 0.01).norm() < 1e-12);
+  }
+  void sofaLiver2Msh() {
+    REQUIRE_SHARED("sofa/liver2.msh");
+    auto m = loadMesh(sharedData("sofa/liver2.msh"), {"dm"});
+    QCOMPARE(m.points.size(), std::size_t(507));
+    QCOMPARE(m.tets.size(), std::size_t(1493));
+    QVERIFY(m.triangles.size() > 0);  // boundary triangles are kept as well
+    // Non-contiguous node ids: the first node in the file has id 2.
+    QVERIFY((m.points[0] - Eigen::Vector3d(0.3708951229648599, -0.4656592203247305, -0.1604279814553062) * 0.1).norm() < 1e-12);
+  }
+  void ossiclesVtu() {
+    REQUIRE_SHARED("sofa/Ossicles.vtu");
+    auto m = loadMesh(sharedData("sofa/Ossicles.vtu"), {"mm"});
+    QCOMPARE(m.points.size(), std::size_t(1733));
+    QCOMPARE(m.tets.size(), std::size_t(5058));
+  }
+  void scikitSurgeryPolydata_data() {
+    QTest::addColumn<QString>("file");
+    for (const char* f : {"kidney/kidney.vtk", "kidney/tumors.vtk", "patient-liver/liver.vtk", "patient-liver/portal_vein.vtk",
+                          "patient-liver/hepatic_veins.vtk", "patient-liver/arteries.vtk", "patient-liver/liver_tumours.vtk",
+                          "patient-liver/gallbladder.vtk"})
+      QTest::newRow(f) << QString(f);
+  }
+  void scikitSurgeryPolydata() {
+    QFETCH(QString, file);
+    const std::string rel = "scikit-surgery/" + file.toStdString();
+    REQUIRE_SHARED(rel);
+    auto m = loadMesh(sharedData(rel), {"mm"});
+    QCOMPARE(m.points.size(), vtkDeclaredPoints(readFile(sharedData(rel))));
+    QVERIFY(!m.triangles.empty());
+    QVERIFY(!m.isVolume());
+  }
+  void hubmapGlb_data() {
+    QTest::addColumn<QString>("file");
+    QTest::addColumn<int>("parts");
+    QTest::newRow("uterus") << "VH_F_Uterus.glb" << 10;
+    QTest::newRow("kidney") << "VH_F_Kidney_L.glb" << 15;
+    QTest::newRow("liver") << "VH_M_Liver.glb" << 26;
+  }
+  void hubmapGlb() {
+    QFETCH(QString, file);
+    QFETCH(int, parts);
+    const std::string rel = "hubmap/" + file.toStdString();
+    REQUIRE_SHARED(rel);
+    auto m = loadMesh(sharedData(rel), {"m"});
+    std::set<int> labels(m.triangleLabels.begin(), m.triangleLabels.end());
+    QCOMPARE(int(labels.size()), parts);
+    QCOMPARE(int(m.labelNames.size()), parts);
+    for (const auto& [l, n] : m.labelNames) QVERIFY(!n.empty());
+    if (file.contains("Uterus")) QVERIFY(m.points.size() > 15000 && m.points.size() < 25000);  // "20k vertices"
+  }
+  void bodyParts3dObj_data() {
+    QTest::addColumn<QString>("file");
+    QTest::newRow("eyeball") << "bodyparts3d/FMA12513_Eyeball.obj";
+    QTest::newRow("liver") << "bodyparts3d/FMA7197_Liver.obj";
+    QTest::newRow("kidney") << "bodyparts3d/FMA7205_Left_Kidney.obj";
+    QTest::newRow("sofa-liver") << "sofa/liver.obj";
+  }
+  void bodyParts3dObj() {
+    QFETCH(QString, file);
+    REQUIRE_SHARED(file.toStdString());
+    auto m = loadMesh(sharedData(file.toStdString()), {"mm"});
+    QCOMPARE(m.points.size(), objUsedVertices(readFile(sharedData(file.toStdString()))));
+    auto q = computeQuality(m);
+    QVERIFY(q.closed);
+  }
+  void stlAndPly() {
+    REQUIRE_SHARED("scikit-surgery/liver_downsample.stl");
+    auto stl = loadMesh(sharedData("scikit-surgery/liver_downsample.stl"), {"mm"});
+    QCOMPARE(stl.triangles.size(), std::size_t(5168));
+    QVERIFY(computeQuality(stl).closed);  // STL corners welded into a closed surface
+    auto ply = loadMesh(sharedData("scikit-surgery/liver-overlay/liver_sub.ply"), {"mm"});
+    QCOMPARE(ply.points.size(), std::size_t(1252));
+    QCOMPARE(ply.triangles.size(), std::size_t(2500));
+  }
+  void offThroughAssimp() {
+    const std::string p = tempPath("tet.off");
+    writeFile(p, "OFF\n4 4 0\n0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 2 1\n3 0 1 3\n3 0 3 2\n3 1 2 3\n");
+    auto m = loadMesh(p);
+    QCOMPARE(m.points.size(), std::size_t(4));
+    QCOMPARE(m.triangles.size(), std::size_t(4));
+    QVERIFY(std::abs(computeQuality(m).volume - 1.0 / 6.0) < 1e-12);
+  }
+
+  void roundTrips_data() {
+    QTest::addColumn<QString>("ext");
+    QTest::addColumn<bool>("ascii");
+    QTest::newRow("msh 2.2") << ".msh" << true;
+    QTest::newRow("vtk ascii") << ".vtk" << true;
+    QTest::newRow("vtk binary") << ".vtk" << false;
+    QTest::newRow("vtu ascii") << ".vtu" << true;
+    QTest::newRow("vtu binary") << ".vtu" << false;
+    QTest::newRow("medit") << ".mesh" << true;
+  }
+  void roundTrips() {
+    QFETCH(QString, ext);
+    QFETCH(bool, ascii);
+    Mesh m = twoTets();
+    // Non-trivial coordinates: every digit must survive.
+    std::mt19937 rng(3);
+    std::uniform_real_distribution<double> u(-1e-3, 1e-3);
+    for (auto& p : m.points) p += Eigen::Vector3d(u(rng), u(rng), u(rng)) * 1.2345678901234567;
+    const std::string p = tempPath("rt" + std::to_string(ascii) + ext.toStdString());
+    saveMesh(m, p, ascii);
+    auto r = loadMesh(p);
+    compareMeshes(m, r);
+  }
+  void roundTripRealMesh() {
+    REQUIRE_SHARED("sofa/Ossicles.vtu");
+    auto m = loadMesh(sharedData("sofa/Ossicles.vtu"), {"mm"});
+    for (const char* ext : {".msh", ".vtk", ".vtu", ".mesh"}) {
+      const std::string p = tempPath(std::string("oss") + ext);
+      saveMesh(m, p);
+      compareMeshes(m, loadMesh(p), false);
+    }
+  }
+  void formatVariants() {
+    Mesh m = twoTets();
+    m.triangles.clear();
+    m.triangleLabels.clear();
+    compareMeshes(m, parseGmsh(msh22Binary(m)));
+    compareMeshes(m, parseGmsh(msh41(m, false)));
+    auto b41 = parseGmsh(msh41(m, true));
+    compareMeshes(m, b41);
+    QCOMPARE(QString::fromStdString(b41.labelName(9)), QString("vessel"));
+    compareMeshes(m, parseVtkLegacy(vtk51Ascii(m)));
+    Mesh mf = m;  // float32 arrays in the VTU variants
+    for (auto& p : mf.points) p = p.cast<float>().cast<double>();
+    compareMeshes(mf, parseVtu(vtuVariant(m, true)));
+    compareMeshes(mf, parseVtu(vtuVariant(m, false)));
+  }
+  void unitsAndRepairs() {
+    Mesh m = twoTets();
+    // Clockwise numbering everywhere (another convention): repaired with a note.
+    for (auto& t : m.tets) std::swap(t[0], t[1]);
+    const std::string p = tempPath("cw.msh");
+    saveMesh(m, p);
+    std::vector<std::string> notes;
+    auto r = loadMesh(p, {"mm"}, &notes);
+    QCOMPARE(notes.size(), std::size_t(1));
+    QVERIFY(QString::fromStdString(notes[0]).contains("clockwise"));
+    QCOMPARE(computeQuality(r).inverted, std::size_t(0));
+    QVERIFY(std::abs(r.points[4].x() - 1e-3) < 1e-15);  // mm -> m
+    QVERIFY_THROWS_EXCEPTION(MeshError, loadMesh(p, {"furlong"}));
+  }
+
+  void badInput_data() {
+    QTest::addColumn<QString>("format");
+    for (const char* f : {"msh1", "msh22", "msh22b", "msh41", "msh41b", "vtk", "vtkb", "vtu", "vtuz", "mesh"}) QTest::newRow(f) << QString(f);
+  }
+  void badInput() {
+    QFETCH(QString, format);
+    Mesh m = twoTets();
+    m.triangles.clear();
+    m.triangleLabels.clear();
+    std::string good;
+    std::function<Mesh(std::string_view)> parse;
+    if (format == "msh1") {
+      good = "$NOD\n5\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n5 1 1 1\n$ENDNOD\n$ELM\n1\n1 4 1 1 4 1 2 3 4\n$ENDELM\n";
+      parse = parseGmsh;
+    } else if (format == "msh22") good = writeGmsh22(m), parse = parseGmsh;
+    else if (format == "msh22b") good = msh22Binary(m), parse = parseGmsh;
+    else if (format == "msh41") good = msh41(m, false), parse = parseGmsh;
+    else if (format == "msh41b") good = msh41(m, true), parse = parseGmsh;
+    else if (format == "vtk") good = writeVtkLegacy(m, true), parse = parseVtkLegacy;
+    else if (format == "vtkb") good = writeVtkLegacy(m, false), parse = parseVtkLegacy;
+    else if (format == "vtu") good = writeVtu(m, false), parse = parseVtu;
+    else if (format == "vtuz") good = vtuVariant(m, true), parse = parseVtu;
+    else good = writeMedit(m), parse = parseMedit;
+    QVERIFY(!parse(good).points.empty());
+    expectRefused(parse, "", "empty");
+    // Truncated at many points; every prefix either parses into a valid mesh or is refused.
+    for (std::size_t cut = 1; cut < good.size(); cut += std::max<std::size_t>(1, good.size() / 97)) {
+      try {
+        Mesh t = parse(std::string_view(good).substr(0, cut));
+        validateMesh(t, "truncated");
+      } catch (const MeshError&) {
+      }
+    }
+    expectRefused(parse, good.substr(0, good.size() / 2), "half");
+    std::mt19937 rng(11);
+    std::string garbage(4096, '\0');
+    for (auto& c : garbage) c = static_cast<char>(rng());
+    expectRefused(parse, garbage, "garbage");
+    // Random byte flips must never crash.
+    for (int trial = 0; trial < 200; ++trial) {
+      std::string mutated = good;
+      for (int k = 0; k < 3; ++k) mutated[rng() % mutated.size()] = static_cast<char>(rng());
+      try {
+        validateMesh(parse(mutated), "mutated");
+      } catch (const MeshError&) {
+      }
+    }
+  }
+  void nanAndRangeErrors() {
+    Mesh m = twoTets();
+    m.points[2].y() = std::nan("");
+    const std::string p = tempPath("nan.vtk");
+    writeFile(p, writeVtkLegacy(m, true));
+    try {
+      loadMesh(p);
+      QFAIL("NaN accepted");
+    } catch (const MeshError& e) {
+      QVERIFY(QString(e.what()).contains("point 2"));
+    }
+    writeFile(p, "# vtk DataFile Version 3.0\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 2 float\n0 0 0 1 1 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n");
+    QVERIFY_THROWS_EXCEPTION(MeshError, loadMesh(p));
+    expectRefused(parseGmsh, "$NOD\n99999999999999\n", "absurd count");
+    expectRefused(parseMedit, "MeshVersionFormatted 2\nDimension 3\nVertices\n1\n0 0 0 0\nTetrahedra\n1\n1 2 3 4 0\nEnd\n", "bad index");
+  }
+  void fileLevelErrors() {
+    QVERIFY_THROWS_EXCEPTION(MeshError, loadMesh(tempPath("does-not-exist.msh")));
+    const std::string txt = tempPath("mesh.txt");
+    writeFile(txt, "hello");
+    try {
+      loadMesh(txt);
+      QFAIL("unknown extension accepted");
+    } catch (const MeshError& e) {
+      QVERIFY(QString(e.what()).contains("not supported"));
+    }
+    // A huge file is refused before it is read (sparse file: no disk used).
+    const std::string huge = tempPath("huge.vtk");
+    writeFile(huge, "# vtk");
+    std::filesystem::resize_file(huge, (std::uintmax_t(3) << 30));
+    try {
+      loadMesh(huge);
+      QFAIL("huge file accepted");
+    } catch (const MeshError& e) {
+      QVERIFY(QString(e.what()).contains("too large"));
+    }
+    std::filesystem::remove(huge);
+    for (const char* ext : {".obj", ".stl", ".glb", ".ply"}) {
+      const std::string p = tempPath(std::string("garbage") + ext);
+      std::string g(2000, '\0');
+      std::mt19937 rng(5);
+      for (auto& c : g) c = static_cast<char>(rng());
+      writeFile(p, g);
+      QVERIFY_THROWS_EXCEPTION(MeshError, loadMesh(p));
+      writeFile(p, "");
+      QVERIFY_THROWS_EXCEPTION(MeshError, loadMesh(p));
+    }
+  }
+};
+
+QTEST_GUILESS_MAIN(TestMeshIO)
 #include "test_meshio.moc"

@@ -217,10 +217,9 @@ Mesh parseVtu(std::string_view bytes) {
     auto us = bytes.find('_', close);
     if (us == std::string_view::npos) fail("the appended data has no '_' marker");
     c.appended = bytes.substr(us + 1);
-    xml = std::string(bytes.substr(0, ap)) + "</UnstructuredGrid></VTKFile>";
-    // The UnstructuredGrid element was closed after the appended data in the original file.
-    auto ug = xml.rfind("</UnstructuredGrid>", ap);
-    if (ug != std::string::npos && ug < ap) xml = std::string(bytes.substr(0, ap)) + "</VTKFile>";
+    // The XML before the appended block, closed (the grid element is normally closed before it).
+    const std::string_view prefix = bytes.substr(0, ap);
+    xml = std::string(prefix) + (prefix.rfind("</UnstructuredGrid>") != std::string_view::npos ? "</VTKFile>" : "</UnstructuredGrid></VTKFile>");
   } else {
     xml = std::string(bytes);
   }

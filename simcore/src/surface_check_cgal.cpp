@@ -12,6 +12,7 @@
 #include <CGAL/Polygon_mesh_processing/stitch_borders.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
+#include <CGAL/Polygon_mesh_processing/bbox.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 
 #include <map>
@@ -52,21 +53,23 @@ bool partToSurfaceMesh(const Mesh& m, int label, SurfaceMesh3& out) {
 using detail::SurfaceMesh3;
 
 namespace {
-// Closes holes with at most this many border edges (larger holes are a missing part, not a gap).
-constexpr std::size_t kMaxHoleEdges = 200;
+// Closes holes whose perimeter is at most this fraction of the part's bounding-box diagonal
+// (larger holes are a missing piece of the organ, not a gap in the file).
+constexpr double kMaxHolePerimeter = 0.15;
 
 std::size_t closeHoles(SurfaceMesh3& sm, std::size_t* filled) {
   PMP::stitch_borders(sm);
   std::vector<SurfaceMesh3::Halfedge_index> borders;
   PMP::extract_boundary_cycles(sm, std::back_inserter(borders));
   std::size_t remaining = 0;
+  const auto box = PMP::bbox(sm);
+  const double diagonal = std::sqrt(CGAL::square(box.xmax() - box.xmin()) + CGAL::square(box.ymax() - box.ymin()) +
+                                    CGAL::square(box.zmax() - box.zmin()));
   for (auto h : borders) {
-    std::size_t len = 0;
-    for (auto hh : CGAL::halfedges_around_face(h, sm)) {
-      (void)hh;
-      ++len;
-    }
-    if (len <= kMaxHoleEdges) {
+    double perimeter = 0;
+    for (auto hh : CGAL::halfedges_around_face(h, sm))
+      perimeter += std::sqrt(CGAL::squared_distance(sm.point(sm.source(hh)), sm.point(sm.target(hh))));
+    if (perimeter <= kMaxHolePerimeter * diagonal) {
       std::vector<SurfaceMesh3::Face_index> faces;
       PMP::triangulate_hole(sm, h, std::back_inserter(faces));
       ++*filled;

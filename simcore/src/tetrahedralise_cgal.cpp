@@ -103,12 +103,16 @@ Mesh tetrahedraliseImplicit(const LabelFunction& label, const Eigen::AlignedBox3
   };
   report(0.05, "meshing");
   Mesh m = meshOnce(label, bounds, o, size, calls);
-  if (o.cellSize <= 0 && !m.tets.empty()) {
-    double ratio = static_cast<double>(m.tets.size()) / static_cast<double>(o.targetTets);
-    if (ratio < 0.8 || ratio > 1.25) {
-      report(0.5, "meshing (size corrected)");
-      m = meshOnce(label, bounds, o, size * std::cbrt(ratio), calls);
-    }
+  // The count is not exactly proportional to size^-3 (the surface refines on its own criteria):
+  // correct the size up to twice and keep the closest result.
+  for (int pass = 0; pass < 2 && o.cellSize <= 0 && !m.tets.empty(); ++pass) {
+    const double ratio = static_cast<double>(m.tets.size()) / static_cast<double>(o.targetTets);
+    if (ratio > 0.9 && ratio < 1.1) break;
+    report(0.35 + 0.3 * pass, "meshing (size corrected)");
+    size *= std::cbrt(ratio);
+    Mesh next = meshOnce(label, bounds, o, size, calls);
+    const double nextRatio = static_cast<double>(next.tets.size()) / static_cast<double>(o.targetTets);
+    if (std::abs(std::log(nextRatio)) < std::abs(std::log(ratio))) m = std::move(next);
   }
   report(1.0, "done");
   if (m.tets.empty())
