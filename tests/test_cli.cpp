@@ -1,4 +1,84 @@
-#include <QtTest>
-class T : public QObject { Q_OBJECT private slots: void a() {} };
-QTEST_MAIN(T)
+// The command line, run as a user would: exit codes, one-line errors, files written.
+#include "test_support.hpp"
+
+#include <QProcess>
+
+namespace {
+struct Run {
+  int code;
+  QString out, err;
+};
+Run run(const QStringList& args, int timeoutMs = 300000) {
+  QProcess p;
+  p.start(QStringLiteral(REHEARSE_BINARY), args);
+  p.waitForFinished(timeoutMs);
+  return {p.exitStatus() == QProcess::NormalExit ? p.exitCode() : -1, QString::fromUtf8(p.readAllStandardOutput()),
+          QString::fromUtf8(p.readAllStandardError())};
+}
+void expectOneLineError(const Run& r, int code, const char* fragment) {
+  QVERIFY2(r.code == code, qPrintable(QString("exit %1, stderr: %2").arg(r.code).arg(r.err)));
+  QCOMPARE(r.err.trimmed().count('\n'), 0);
+  QVERIFY2(r.err.contains(QLatin1String(fragment)), qPrintable(r.err));
+}
+}  // namespace
+
+class TestCli : public QObject {
+  Q_OBJECT
+ private slots:
+  void helpAndVersion() {
+    auto h = run({"--help"});
+    QCOMPARE(h.code, 0);
+    for (const char* s : {"phantom --out", "mesh --in", "info FILE", "open CASE"}) QVERIFY(h.out.contains(QLatin1String(s)));
+    auto v = run({"--version"});
+    QCOMPARE(v.code, 0);
+    QVERIFY(v.out.startsWith("rehearse 0."));
+  }
+  void phantomWritesACase() {
+    const QString dir = QString::fromStdString(tempPath("cli-phantom"));
+    auto r = run({"phantom", "--out", dir});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    for (const char* f : {"case.json", "organ.vtu", "organ.msh", "organ_surface.obj", "vessels_surface.obj", "camera.yaml",
+                          "frame.png", "pose.json", "appearance.json", "attachments.json"})
+      QVERIFY2(QFile::exists(dir + "/" + f), f);
+    auto info = run({"info", dir + "/organ.msh"});
+    QCOMPARE(info.code, 0);
+    QVERIFY(info.out.contains("labels: 2"));
+    QVERIFY(info.out.contains("inverted tetrahedra: 0"));
+  }
+  void meshAndInfo() {
+    REQUIRE_SHARED("scikit-surgery/liver_downsample.stl");
+    const QString out = QString::fromStdString(tempPath("liver.vtu"));
+    auto r = run({"mesh", "--in", QString::fromStdString(sharedData("scikit-surgery/liver_downsample.stl")), "--out", out,
+                  "--target-tets", "3000", "--unit", "mm"});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    QVERIFY(r.out.contains("tetrahedra:"));
+    auto info = run({"info", out});
+    QCOMPARE(info.code, 0);
+    const QRegularExpression tets("tetrahedra: (\\d+)");
+    const int n = tets.match(info.out).captured(1).toInt();
+    QVERIFY2(n > 2400 && n < 3600, qPrintable(info.out));
+    // Surface info reports closedness and self-intersections.
+    auto s = run({"info", QString::fromStdString(sharedData("scikit-surgery/liver_downsample.stl")), "--unit", "mm"});
+    QVERIFY(s.out.contains("closed: yes"));
+    QVERIFY(s.out.contains("self-intersecting triangle pairs: 0"));
+  }
+  void errorsAreOneLine() {
+    expectOneLineError(run({"info", "/no/such/file.msh"}), 1, "does not exist");
+    expectOneLineError(run({"frobnicate"}), 2, "unknown command");
+    expectOneLineError(run({"mesh", "--in", "x.stl"}), 2, "--out");
+    expectOneLineError(run({"mesh", "--in", "x.stl", "--out", "y.txt"}), 2, "--out must end");
+    expectOneLineError(run({"phantom", "--out", "/tmp/x", "--tets", "many"}), 2, "whole number");
+    expectOneLineError(run({"info"}), 2, "needs a FILE");
+    const std::string garbage = tempPath("garbage.msh");
+    writeFile(garbage, "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n3\n1 0 0\n");
+    expectOneLineError(run({"info", QString::fromStdString(garbage)}), 1, "cannot be read");
+    const std::string open = tempPath("open.obj");
+    writeFile(open, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
+    expectOneLineError(run({"mesh", "--in", QString::fromStdString(open), "--out", QString::fromStdString(tempPath("o.msh"))}), 1,
+                       "no closed part");
+    expectOneLineError(run({"info", QString::fromStdString(open), "--unit", "parsec"}), 1, "Unknown length unit");
+  }
+};
+
+QTEST_GUILESS_MAIN(TestCli)
 #include "test_cli.moc"

@@ -1,4 +1,93 @@
-#include <QtTest>
-class T : public QObject { Q_OBJECT private slots: void a() {} };
-QTEST_MAIN(T)
+// The real main window, driven with QTest events offscreen: the built-in case loads on a worker thread
+// and the frame shows the organ over it; keys toggle the overlay; a damaged case folder opens with a message.
+#include "test_support.hpp"
+
+#include "phantom/phantom.hpp"
+#include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/mainwindow.hpp"
+
+#include <QSignalSpy>
+
+using namespace rehearse;
+
+class TestGui : public QObject {
+  Q_OBJECT
+ private slots:
+  void initTestCase() { QCoreApplication::setOrganizationName("RehearseTest"); }
+
+  void builtInCaseShowsFrameAndOrgan() {
+    ui::MainWindow w;
+    w.resize(1400, 800);
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    QVERIFY(w.isLoading());  // the work runs off the GUI thread
+    QVERIFY(loaded.wait(60000));
+    QCOMPARE(loaded.takeFirst().at(0).toBool(), true);
+    const auto& c = w.currentCase();
+    QCOMPARE(c.frame.size(), QSize(1280, 720));
+    QVERIFY(!c.organOverlay.isNull());
+    QVERIFY(!c.silhouette.isEmpty());
+    QVERIFY(w.infoText().contains("tetrahedra:"));
+    QVERIFY(w.windowTitle().contains("phantom"));
+
+    // The organ is drawn over the frame: the view's centre differs with and without the overlay.
+    auto* view = w.frameView();
+    const QImage withOrgan = view->grab().toImage();
+    QTest::keyClick(&w, Qt::Key_O);
+    QVERIFY(!view->overlayVisible());
+    const QImage without = view->grab().toImage();
+    const QPoint centre = view->rect().center();
+    QVERIFY(withOrgan.pixel(centre) != without.pixel(centre));
+    QTest::keyClick(&w, Qt::Key_O);
+    QVERIFY(view->overlayVisible());
+
+    // Zoom about the cursor with the wheel, Home fits again.
+    const QPointF before = view->toFrame(centre);
+    QWheelEvent wheel(QPointF(centre), view->mapToGlobal(QPointF(centre)), QPoint(), QPoint(0, 480), Qt::NoButton, Qt::NoModifier,
+                      Qt::NoScrollPhase, false);
+    QApplication::sendEvent(view, &wheel);
+    QVERIFY(view->zoom() > 1.5);
+    QVERIFY((view->toFrame(centre) - before).manhattanLength() < 1.0);
+    view->setFocus();
+    QTest::keyClick(view, Qt::Key_Home);
+    QCOMPARE(view->zoom(), 1.0);
+  }
+
+  void damagedCaseFolderOpensWithMessage() {
+    const std::string dir = tempPath("gui-case");
+    auto c = phantom::makePhantom();
+    phantom::writeCaseDirectory(c, dir);
+    QFile::remove(QString::fromStdString(dir + "/frame.png"));
+    ui::MainWindow w;
+    w.show();
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase(QString::fromStdString(dir));
+    QVERIFY(loaded.wait(60000));
+    QCOMPARE(loaded.takeFirst().at(0).toBool(), true);
+    QVERIFY(w.infoText().contains("Frame not loaded"));
+    QVERIFY(w.infoText().contains("tetrahedra:"));
+    // A folder that is not a case: the current case stays.
+    w.openCase(QString::fromStdString(tempPath("not-a-case")));
+    QVERIFY(loaded.wait(60000));
+    QCOMPARE(loaded.takeFirst().at(0).toBool(), false);
+    QVERIFY(w.infoText().contains("Frame not loaded"));
+  }
+
+  void cancelKeepsTheWindowUsable() {
+    ui::MainWindow w;
+    w.show();
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    QTest::keyClick(&w, Qt::Key_Escape);
+    QVERIFY(loaded.wait(60000));
+    // Either the load finished before Esc arrived or it was cancelled; both leave a working window.
+    w.openCase({});
+    QVERIFY(loaded.wait(60000));
+    QCOMPARE(loaded.last().at(0).toBool(), true);
+  }
+};
+
+QTEST_MAIN(TestGui)
 #include "test_gui.moc"

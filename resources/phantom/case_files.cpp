@@ -132,7 +132,12 @@ Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) 
     if (a) {
       std::stringstream as;
       as << a.rdbuf();
-      for (const auto& n : json::parse(as.str()).at("nodes")) c.attachments.push_back(n.get<int>());
+      const json parsed = json::parse(as.str());  // keep it alive: the loop below iterates into it
+      for (const auto& n : parsed.at("nodes")) {
+        const int v = n.get<int>();
+        if (v < 0 || v >= static_cast<int>(c.volume.points.size())) throw std::out_of_range("node index");
+        c.attachments.push_back(v);
+      }
     }
   } catch (const std::exception&) {
     note("Attachments not loaded: attachments.json is damaged.");

@@ -81,9 +81,9 @@ struct Reader {
       if (n == 0) return out;
       for (std::size_t i = 0; i + 1 < n; ++i) {
         double a = offsets[i], b = offsets[i + 1];
-        if (a < 0 || b < a || b > static_cast<double>(size)) r.fail("cell offsets are inconsistent");
+        if (!(a >= 0 && b >= a && b <= static_cast<double>(size))) r.fail("cell offsets are inconsistent");
         std::vector<long long> cell;
-        for (auto k = static_cast<std::size_t>(a); k < static_cast<std::size_t>(b); ++k) cell.push_back(static_cast<long long>(conn[k]));
+        for (auto k = static_cast<std::size_t>(a); k < static_cast<std::size_t>(b); ++k) cell.push_back(detail::toInteger(conn[k]));
         out.push_back(std::move(cell));
       }
       return out;
@@ -93,10 +93,10 @@ struct Reader {
     out.reserve(n);
     for (std::size_t i = 0; i < n; ++i) {
       if (k >= data.size()) r.fail("the cell list is shorter than declared");
-      auto cnt = static_cast<long long>(data[k++]);
+      auto cnt = detail::toInteger(data[k++]);
       if (cnt < 0 || static_cast<std::size_t>(cnt) > data.size() - k) r.fail("a cell has an impossible point count");
       std::vector<long long> cell(cnt);
-      for (auto& v : cell) v = static_cast<long long>(data[k++]);
+      for (auto& v : cell) v = detail::toInteger(data[k++]);
       out.push_back(std::move(cell));
     }
     return out;
@@ -178,7 +178,7 @@ Mesh parseVtkLegacy(std::string_view bytes) {
       ugTypes = R.values(n, "int");
       if (ugTypes.size() != ugCells.size()) r.fail("CELL_TYPES and CELLS have different counts");
       for (std::size_t i = 0; i < ugCells.size(); ++i) {
-        int t = static_cast<int>(ugTypes[i]);
+        int t = detail::toLabel(ugTypes[i]);
         auto& c = ugCells[i];
         if ((t == 10 || t == 24) && c.size() >= 4) {  // tetra, quadratic tetra (corners first)
           cellTarget.push_back({2, m.tets.size()});
@@ -224,8 +224,8 @@ Mesh parseVtkLegacy(std::string_view bytes) {
             labelled = true;
             for (std::size_t i = 0; i < n; ++i) {
               auto [k, idx] = cellTarget[i];
-              if (k == 2) m.tetLabels[idx] = static_cast<int>(v[i]);
-              if (k == 1) m.triangleLabels[idx] = static_cast<int>(v[i]);
+              if (k == 2) m.tetLabels[idx] = detail::toLabel(v[i]);
+              if (k == 1) m.triangleLabels[idx] = detail::toLabel(v[i]);
             }
           }
         } else if (iequals(a, "VECTORS") || iequals(a, "NORMALS")) {
@@ -266,8 +266,8 @@ Mesh parseVtkLegacy(std::string_view bytes) {
               labelled = true;
               for (std::size_t i = 0; i < tuples; ++i) {
                 auto [kk, idx] = cellTarget[i];
-                if (kk == 2) m.tetLabels[idx] = static_cast<int>(v[i]);
-                if (kk == 1) m.triangleLabels[idx] = static_cast<int>(v[i]);
+                if (kk == 2) m.tetLabels[idx] = detail::toLabel(v[i]);
+                if (kk == 1) m.triangleLabels[idx] = detail::toLabel(v[i]);
               }
             }
           }

@@ -254,7 +254,9 @@ Mesh parseVtu(std::string_view bytes) {
   for (std::int64_t i = 0; i < np; ++i) m.points[i] = {p[3 * i], p[3 * i + 1], p[3 * i + 2]};
   auto o = readArray(offs, c, nc);
   auto ty = readArray(types, c, nc);
-  std::size_t connSize = nc ? static_cast<std::size_t>(std::max(0.0, o.back())) : 0;
+  const long long lastOffset = nc ? detail::toInteger(o.back()) : 0;
+  if (lastOffset < 0) fail("cell offsets are inconsistent");
+  std::size_t connSize = static_cast<std::size_t>(lastOffset);
   if (connSize > 16 * kMaxMeshItems) fail("the connectivity size is out of range");
   auto cn = readArray(conn, c, connSize);
   std::vector<std::pair<int, std::size_t>> target(nc, {0, 0});
@@ -265,9 +267,9 @@ Mesh parseVtu(std::string_view bytes) {
   };
   for (std::int64_t i = 0; i < nc; ++i) {
     double end = o[i];
-    if (end < prev || end > static_cast<double>(connSize)) fail("cell offsets are inconsistent");
+    if (!(end >= prev && end <= static_cast<double>(connSize))) fail("cell offsets are inconsistent");
     auto b = static_cast<std::size_t>(prev), n = static_cast<std::size_t>(end) - b;
-    int t = static_cast<int>(ty[i]);
+    int t = detail::toLabel(ty[i]);
     if ((t == 10 || t == 24) && n >= 4) {
       target[i] = {2, m.tets.size()};
       m.tets.push_back({idx(cn[b]), idx(cn[b + 1]), idx(cn[b + 2]), idx(cn[b + 3])});
@@ -287,8 +289,8 @@ Mesh parseVtu(std::string_view bytes) {
       if (a->IntAttribute("NumberOfComponents", 1) != 1) continue;
       auto v = readArray(a, c, nc);
       for (std::int64_t i = 0; i < nc; ++i) {
-        if (target[i].first == 2) m.tetLabels[target[i].second] = static_cast<int>(v[i]);
-        if (target[i].first == 1) m.triangleLabels[target[i].second] = static_cast<int>(v[i]);
+        if (target[i].first == 2) m.tetLabels[target[i].second] = detail::toLabel(v[i]);
+        if (target[i].first == 1) m.triangleLabels[target[i].second] = detail::toLabel(v[i]);
       }
       break;
     }

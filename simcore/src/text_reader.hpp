@@ -3,6 +3,7 @@
 // Every failure throws MeshError with a sentence naming the format and what was expected.
 #include <rehearse/simcore/mesh.hpp>
 
+#include <algorithm>
 #include <bit>
 #include <cstdint>
 #include <cstring>
@@ -48,6 +49,16 @@ T readBinary(const char* p, bool bigEndian) {
     for (std::size_t i = 0; i < sizeof(T) / 2; ++i) std::swap(b[i], b[sizeof(T) - 1 - i]);
   }
   return v;
+}
+
+/// Integer value of a number read as double, without undefined behaviour: values that are not finite
+/// or beyond +-2^53 become `fallback` (which the callers' range checks then refuse).
+inline long long toInteger(double v, long long fallback = -1) {
+  return (v >= -9007199254740992.0 && v <= 9007199254740992.0) ? static_cast<long long>(v) : fallback;
+}
+/// A label read as double: clamped into int range (NaN becomes 0).
+inline int toLabel(double v) {
+  return static_cast<int>(std::max<long long>(-2147483647LL, std::min<long long>(2147483647LL, toInteger(v, 0))));
 }
 
 bool iequals(std::string_view a, std::string_view b);

@@ -9,8 +9,9 @@
 
 namespace rehearse::ui {
 
-LoadedCase loadCase(const QString& dir, const std::function<void(double, const QString&)>& progress,
-                    const std::atomic<bool>* cancel) {
+namespace {
+LoadedCase loadCaseOrThrow(const QString& dir, const std::function<void(double, const QString&)>& progress,
+                           const std::atomic<bool>* cancel) {
   const auto t0 = std::chrono::steady_clock::now();
   LoadedCase out;
   auto c = std::make_shared<phantom::Case>();
@@ -53,6 +54,23 @@ LoadedCase loadCase(const QString& dir, const std::function<void(double, const Q
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (progress) progress(1.0, QStringLiteral("done"));
   return out;
+}
+}  // namespace
+
+LoadedCase loadCase(const QString& dir, const std::function<void(double, const QString&)>& progress,
+                    const std::atomic<bool>* cancel) {
+  LoadedCase failed;
+  try {
+    return loadCaseOrThrow(dir, progress, cancel);
+  } catch (const simcore::Cancelled&) {
+    failed.cancelled = true;
+    failed.error = QStringLiteral("Loading was cancelled; the previous case is unchanged.");
+  } catch (const std::bad_alloc&) {
+    failed.error = QStringLiteral("There is not enough memory to open this case.");
+  } catch (const std::exception& e) {
+    failed.error = QString::fromUtf8(e.what());
+  }
+  return failed;
 }
 
 }  // namespace rehearse::ui

@@ -150,13 +150,10 @@ void MainWindow::cancelLoading() {
 
 void MainWindow::onLoadFinished() {
   setBusy(false);
-  LoadedCase loaded;
-  try {
-    loaded = watcher_.result();
-  } catch (const std::exception& e) {
+  LoadedCase loaded = watcher_.result();
+  if (!loaded.error.isEmpty()) {
     // A failed or cancelled load leaves the current case untouched.
-    const QString reason = cancel_ ? tr("Loading was cancelled.") : QString::fromUtf8(e.what());
-    statusCase_->setText(reason);
+    statusCase_->setText(loaded.error);
     emit caseLoaded(false);
     return;
   }

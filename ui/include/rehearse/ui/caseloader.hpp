@@ -22,9 +22,11 @@ struct LoadedCase {
   QString qualityText;           ///< mesh quality report
   QStringList notes;             ///< parts that could not be loaded, repairs made
   double seconds = 0;            ///< load time
+  QString error;                 ///< non-empty when loading failed (one sentence); nothing else is set then
+  bool cancelled = false;
 };
 
-/// Runs on a worker thread. `dir` empty = built-in phantom. Throws std::exception with one sentence.
+/// Runs on a worker thread. `dir` empty = built-in phantom. Never throws: failures come back in `error`.
 LoadedCase loadCase(const QString& dir, const std::function<void(double, const QString&)>& progress,
                     const std::atomic<bool>* cancel);
 

@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Runs the benchmarks and writes their CSVs to build/bench/ (summarised by hand in BENCHMARKS.md).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/build.sh --target bench_foundation
+mkdir -p build/bench
+build/tests/bench_foundation build/bench/bench_foundation.csv

@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Installs the Debian 12 packages Rehearse needs (as root, or through sudo). Idempotent: does nothing
+# when everything is already installed.
+set -euo pipefail
+PACKAGES=(
+  build-essential cmake ninja-build ccache pkg-config clang libclang-rt-14-dev
+  qt6-base-dev qt6-base-dev-tools libqt6opengl6-dev libqt6charts6-dev libqt6sql6-sqlite libgl-dev libegl-dev
+  libeigen3-dev libopencv-dev libopencv-contrib-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
+  libassimp-dev libsuitesparse-dev libopenblas-dev libtbb-dev nlohmann-json3-dev libtinyxml2-dev zlib1g-dev
+  calculix-ccx xvfb xauth libgl1-mesa-dri fonts-dejavu-core
+)
+missing=()
+for p in "${PACKAGES[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#PACKAGES[@]} packages present"
+  exit 0
+fi
+echo "install-deps: installing ${missing[*]}"
+SUDO=""
+if [ "$(id -u)" -ne 0 ]; then
+  if command -v sudo >/dev/null; then SUDO="sudo"; else
+    echo "install-deps: run as root (or install sudo) to install: ${missing[*]}" >&2
+    exit 1
+  fi
+fi
+export DEBIAN_FRONTEND=noninteractive
+$SUDO apt-get update -qq
+$SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"

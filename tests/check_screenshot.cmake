@@ -1,0 +1,15 @@
+# Starts the app under xvfb-run with --screenshot and checks a real PNG of the window came out.
+file(REMOVE ${OUT})
+execute_process(COMMAND ${XVFB_RUN} -a -s "-screen 0 1600x900x24" ${APP} --screenshot ${OUT}
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 240)
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "the GUI exited with ${rc}: ${err}")
+endif()
+if(NOT EXISTS ${OUT})
+  message(FATAL_ERROR "no screenshot was written")
+endif()
+file(SIZE ${OUT} size)
+if(size LESS 100000)
+  message(FATAL_ERROR "the screenshot is suspiciously small (${size} bytes): the frame is probably missing")
+endif()
+message(STATUS "screenshot ${OUT}: ${size} bytes")
