@@ -101,6 +101,7 @@ void readPhysicalNames(TextReader& r, Mesh& m) {
 void readV1(TextReader& r, Builder& b) {
   // $NOD already consumed.
   std::size_t n = r.count("node", kMaxMeshItems);
+  r.expectRoom(n, 8, "nodes");
   b.mesh.points.reserve(n);
   for (std::size_t i = 0; i < n; ++i) {
     long long id = r.integer("node id");
@@ -127,6 +128,7 @@ void readV1(TextReader& r, Builder& b) {
 
 void readV2Nodes(TextReader& r, Builder& b, bool binary, bool bigEndian) {
   std::size_t n = r.count("node", kMaxMeshItems);
+  r.expectRoom(n, binary ? 28 : 8, "nodes");
   b.mesh.points.reserve(n);
   if (binary) {
     r.skipLineEnd();
@@ -191,6 +193,9 @@ void readV2Elements(TextReader& r, Builder& b, bool binary, bool bigEndian) {
   expectSection(r, "$EndElements");
 }
 
+struct V4;
+std::size_t binary_min(const V4& v);
+
 // v4.1 helpers: in binary files counts and tags are size_t (8 bytes), dims/entity tags int.
 struct V4 {
   TextReader& r;
@@ -218,6 +223,8 @@ struct V4 {
   }
 };
 
+std::size_t binary_min(const V4& v) { return v.binary ? 32 : 8; }
+
 void readV4Entities(V4& v, std::map<std::pair<int, int>, int>& physicalOf) {
   std::size_t counts[4];
   for (auto& c : counts) c = v.count("entity");
@@ -243,6 +250,7 @@ void readV4Nodes(V4& v, Builder& b) {
   std::size_t total = v.count("node");
   v.sz("min node tag");
   v.sz("max node tag");
+  v.r.expectRoom(total, binary_min(v), "nodes");
   b.mesh.points.reserve(total);
   std::vector<long long> tags;
   for (std::size_t bl = 0; bl < blocks; ++bl) {

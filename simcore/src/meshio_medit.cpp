@@ -38,6 +38,7 @@ Mesh parseMedit(std::string_view bytes) {
       if (r.integer("dimension") != 3) r.fail("only 3D meshes are supported");
     } else if (k == "vertices") {
       std::size_t n = r.count("vertex", kMaxMeshItems);
+      r.expectRoom(n, 8, "vertices");
       m.points.resize(n);
       for (auto& p : m.points) {
         p.x() = r.real("x");

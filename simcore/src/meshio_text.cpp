@@ -85,6 +85,11 @@ std::string_view TextReader::take(std::size_t n, const char* what) {
   return v;
 }
 
+void TextReader::expectRoom(std::size_t n, std::size_t minBytes, const char* what) {
+  if (minBytes && n > (remaining() + 1) / minBytes)
+    fail("it declares " + std::to_string(n) + " " + what + " but is too short to hold them");
+}
+
 void TextReader::fail(const std::string& message) const {
   throw MeshError("This " + format_ + " file cannot be read: " + message + " (byte " +
                   std::to_string(pos_) + "); check that the file is complete and in that format.");

@@ -38,9 +38,12 @@ struct Reader {
     int size = typeSize(type);
     if (size <= 0) r.fail("data type '" + std::string(type) + "' is not supported");
     if (n > 8 * kMaxMeshItems) r.fail("a data array is too large");
-    std::vector<double> out(n);
     if (binary) {
       if (r.position() == 0 || r.bytes()[r.position() - 1] != '\n') r.skipLineEnd();
+    }
+    r.expectRoom(n, binary ? size : 2, "values");
+    std::vector<double> out(n);
+    if (binary) {
       auto d = r.take(n * size, "binary data array");
       auto l = detail::lower(type);
       for (std::size_t i = 0; i < n; ++i) {
@@ -90,7 +93,7 @@ struct Reader {
     }
     auto data = values(size, "int");
     std::size_t k = 0;
-    out.reserve(n);
+    out.reserve(std::min(n, data.size()));
     for (std::size_t i = 0; i < n; ++i) {
       if (k >= data.size()) r.fail("the cell list is shorter than declared");
       auto cnt = detail::toInteger(data[k++]);

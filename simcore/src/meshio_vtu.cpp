@@ -115,8 +115,10 @@ std::string payload(std::string_view blob, const Context& c, std::size_t* consum
   for (std::uint64_t b = 0; b < blocks; ++b) {
     std::uint64_t csize = header(blob.data() + (3 + b) * hs, c);
     if (csize > blob.size() - pos) fail("a compressed block is truncated");
-    uLongf usize = static_cast<uLongf>((b + 1 == blocks && lastSize) ? lastSize : blockSize);
-    if (usize > (std::uint64_t(1) << 31)) fail("a compressed block is too large");
+    const std::uint64_t declared = (b + 1 == blocks && lastSize) ? lastSize : blockSize;
+    // zlib cannot expand more than about 1032:1; a larger claim is a corrupt header, not data.
+    if (declared > csize * 1032 + 64 || declared > (std::uint64_t(1) << 31)) fail("a compressed block header is inconsistent");
+    uLongf usize = static_cast<uLongf>(declared);
     std::string block(usize, '\0');
     if (uncompress(reinterpret_cast<Bytef*>(block.data()), &usize,
                    reinterpret_cast<const Bytef*>(blob.data() + pos), static_cast<uLong>(csize)) != Z_OK)
@@ -139,7 +141,7 @@ std::vector<double> readArray(const tinyxml2::XMLElement* e, const Context& c, s
   if (f == "ascii") {
     const char* text = e->GetText();
     detail::TextReader r(text ? text : "", "VTU");
-    out.reserve(expected);
+    out.reserve(std::min(expected, r.remaining() / 2 + 1));
     while (!r.atEnd()) {
       if (out.size() >= expected) break;
       out.push_back(r.real("data value"));

@@ -26,6 +26,10 @@ class TextReader {
   double real(const char* what);
   std::size_t count(const char* what, std::size_t max);  // non-negative integer <= max
   std::size_t position() const { return pos_; }
+  std::size_t remaining() const { return s_.size() - pos_; }
+  /// Fails unless `n` items of at least `minBytes` each can still fit in the file: declared counts
+  /// never drive an allocation larger than the file can back.
+  void expectRoom(std::size_t n, std::size_t minBytes, const char* what);
   void seek(std::size_t p) { pos_ = p < s_.size() ? p : s_.size(); }
   std::string_view bytes() const { return s_; }
   /// Raw bytes at the current position; throws when fewer remain.
