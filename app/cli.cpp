@@ -12,6 +12,8 @@
 #include <iostream>
 #include <map>
 
+#include <unistd.h>
+
 #ifndef REHEARSE_VERSION
 #define REHEARSE_VERSION "0.0.0"
 #endif
@@ -86,7 +88,7 @@ int cmdPhantom(const std::vector<std::string>& args) {
 }
 
 int cmdMesh(const std::vector<std::string>& args) {
-  auto o = parseOptions(args, 2, {"in", "out", "target-tets", "size", "unit"}, {"ascii"});
+  auto o = parseOptions(args, 2, {"in", "out", "target-tets", "size", "unit"}, {"ascii", "allow-self-intersections"});
   if (!o.count("in") || !o.count("out")) throw UsageError("mesh needs --in SURFACE and --out VOLUME.msh|.vtk|.vtu");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".msh" && ext != ".vtk" && ext != ".vtu" && ext != ".mesh")
@@ -106,9 +108,13 @@ int cmdMesh(const std::vector<std::string>& args) {
     simcore::TetrahedraliseOptions to;
     if (o.count("target-tets")) to.targetTets = parseCount(o["target-tets"], "--target-tets", 10, 5'000'000);
     if (o.count("size")) to.cellSize = parseNumber(o["size"], "--size") * 1e-3;
+    to.allowSelfIntersections = o.count("allow-self-intersections") > 0;
+    if (isatty(fileno(stderr)))
+      to.progress = [](double f, const std::string& stage) { std::fprintf(stderr, "\r%3.0f%% %-40s", 100 * f, stage.c_str()); };
     volume = simcore::tetrahedraliseSurface(input, to, &notes);
   }
   double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (isatty(fileno(stderr))) std::fprintf(stderr, "\r%50s\r", "");
   simcore::saveMesh(volume, o["out"], o.count("ascii") > 0);
   for (const auto& n : notes) std::fprintf(stderr, "note: %s\n", n.c_str());
   std::printf("%s", simcore::formatQuality(simcore::computeQuality(volume)).c_str());
@@ -143,7 +149,7 @@ std::string usage() {
          "  rehearse phantom --out DIR [--tets N] [--seed S]\n"
          "                                   write the built-in phantom case as ordinary files\n"
          "  rehearse mesh --in SURFACE --out VOLUME.msh|.vtk|.vtu [--target-tets N] [--size MM]\n"
-         "                [--unit m|dm|cm|mm] [--ascii]\n"
+         "                [--unit m|dm|cm|mm] [--ascii] [--allow-self-intersections]\n"
          "                                   tetrahedralise a closed surface (inner closed parts become labels)\n"
          "  rehearse info FILE [--unit m|dm|cm|mm]\n"
          "                                   node, element and label counts, bounds and quality\n"

@@ -126,7 +126,10 @@ Mesh tetrahedraliseSurface(const Mesh& surface0, const TetrahedraliseOptions& o,
   if (surface.triangles.empty()) throw MeshError("There is no surface to tetrahedralise; load a surface mesh first.");
   if (o.progress) o.progress(0.0, "checking the surface");
   Mesh closedParts;
-  SurfaceCheck check = checkSurface(surface, false, &closedParts);
+  SurfaceCheck check = checkSurface(surface, o.allowSelfIntersections, &closedParts);
+  if (check.selfIntersections > 0 && notes)
+    notes->push_back("The organ surface intersects itself (" + std::to_string(check.selfIntersections) +
+                     " triangle pairs); its inside was decided by ray parity, so check the result.");
   if (notes) notes->insert(notes->end(), check.notes.begin(), check.notes.end());
   std::vector<int> partLabels = {check.outerPart};
   partLabels.insert(partLabels.end(), check.innerParts.begin(), check.innerParts.end());

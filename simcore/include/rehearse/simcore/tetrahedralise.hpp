@@ -20,6 +20,8 @@ struct TetrahedraliseOptions {
   double cellSize = 0;            ///< target edge length (m); 0 derives it from targetTets
   bool optimise = true;           ///< exude slivers after refinement (no time limit, so results are reproducible)
   unsigned seed = 0;              ///< Mesh_3's random seed: same input and seed give the same mesh
+  /// Mesh surfaces whose outer part intersects itself (inside decided by ray parity) instead of refusing them.
+  bool allowSelfIntersections = false;
   /// Called with a fraction in [0, 1] and a stage name; may be called often. Thread: the caller's.
   std::function<void(double, const std::string&)> progress;
   /// Set to true from any thread to cancel; the call then throws Cancelled.
