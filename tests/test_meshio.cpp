@@ -8,6 +8,7 @@
 #include <zlib.h>
 
 #include <cmath>
+#include <numbers>
 #include <random>
 #include <regex>
 #include <set>
@@ -373,6 +374,51 @@ class TestMeshIO : public QObject {
     for (auto& p : mf.points) p = p.cast<float>().cast<double>();
     compareMeshes(mf, parseVtu(vtuVariant(m, true)));
     compareMeshes(mf, parseVtu(vtuVariant(m, false)));
+  }
+  // Quality measures against closed-form values: the regular tet and the corner tet.
+  void qualityAnalytic() {
+    Mesh regular;
+    regular.points = {{1, 1, 1}, {1, -1, -1}, {-1, 1, -1}, {-1, -1, 1}};
+    regular.tets = {{0, 1, 2, 3}};
+    if (tetVolume(regular.points[0], regular.points[1], regular.points[2], regular.points[3]) < 0) std::swap(regular.tets[0][2], regular.tets[0][3]);
+    regular.tetLabels = {1};
+    auto q = computeQuality(regular);
+    const double dihedral = std::acos(1.0 / 3.0) * 180 / std::numbers::pi;
+    QVERIFY(std::abs(q.minDihedralDeg - dihedral) < 1e-9 && std::abs(q.maxDihedralDeg - dihedral) < 1e-9);
+    QVERIFY(std::abs(q.worstAspectRatio - 1.0) < 1e-12);
+    QVERIFY(std::abs(q.volume - 8.0 / 3.0) < 1e-12);  // cube of side 2 minus four corners of 4/3
+    Mesh corner;
+    corner.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+    corner.tets = {{0, 1, 2, 3}};
+    corner.tetLabels = {1};
+    q = computeQuality(corner);
+    QVERIFY(std::abs(q.maxDihedralDeg - 90) < 1e-9);
+    QVERIFY(std::abs(q.minDihedralDeg - std::acos(1 / std::sqrt(3.0)) * 180 / std::numbers::pi) < 1e-9);
+    const double R = std::sqrt(3.0) / 2, r = 0.5 / (1.5 + std::sqrt(3.0) / 2);
+    QVERIFY(std::abs(q.worstAspectRatio - R / (3 * r)) < 1e-12);
+    // A flat (sliver) tet is degenerate, an inverted one is counted as such.
+    corner.points.push_back({0.5, 0.5, 0});
+    corner.tets.push_back({1, 2, 4, 0});
+    corner.tets.push_back({0, 2, 1, 3});
+    corner.tetLabels = {1, 1, 1};
+    q = computeQuality(corner);
+    QCOMPARE(q.degenerate, std::size_t(1));
+    QCOMPARE(q.inverted, std::size_t(1));
+    auto notes = repairVolume(corner);
+    QCOMPARE(notes.size(), std::size_t(2));
+    QCOMPARE(corner.tets.size(), std::size_t(2));
+    QCOMPARE(computeQuality(corner).inverted, std::size_t(0));
+  }
+  void vtkPolydataAscii() {
+    const std::string p = tempPath("poly.vtk");
+    writeFile(p, "# vtk DataFile Version 3.0\nt\nASCII\nDATASET POLYDATA\nPOINTS 5 float\n0 0 0 1 0 0 1 1 0 0 1 0 0.5 0.5 1\n"
+                 "POLYGONS 5 21\n4 0 3 2 1\n3 0 1 4\n3 1 2 4\n3 2 3 4\n3 3 0 4\nCELL_DATA 5\nSCALARS part int\nLOOKUP_TABLE default\n1 2 2 2 2\n");
+    auto m = loadMesh(p);
+    QCOMPARE(m.triangles.size(), std::size_t(6));  // the quad base is split in two
+    auto q = computeQuality(m);
+    QVERIFY(q.closed);
+    QVERIFY(std::abs(q.volume - 1.0 / 3.0) < 1e-7);  // pyramid: base 1, height 1
+    QCOMPARE(std::count(m.triangleLabels.begin(), m.triangleLabels.end(), 1), 2L);
   }
   void unitsAndRepairs() {
     Mesh m = twoTets();

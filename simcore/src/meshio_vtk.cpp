@@ -127,8 +127,21 @@ Mesh parseVtkLegacy(std::string_view bytes) {
   Mesh m;
   std::vector<std::vector<long long>> ugCells;
   std::vector<double> ugTypes;
-  // Which element each input cell became: (0 none, 1 triangle, 2 tet) and its index; for cell labels.
-  std::vector<std::pair<int, std::size_t>> cellTarget;
+  // Which elements each input cell became, for cell labels: kind (0 none, 1 triangles, 2 tet), first, count.
+  struct Target {
+    int kind;
+    std::size_t first, count = 1;
+  };
+  std::vector<Target> cellTarget;
+  auto applyLabels = [&](const std::vector<double>& v) {
+    for (std::size_t i = 0; i < cellTarget.size(); ++i) {
+      const auto& t = cellTarget[i];
+      for (std::size_t k = 0; k < t.count; ++k) {
+        if (t.kind == 2) m.tetLabels[t.first + k] = detail::toLabel(v[i]);
+        if (t.kind == 1) m.triangleLabels[t.first + k] = detail::toLabel(v[i]);
+      }
+    }
+  };
   auto addPoly = [&](const std::vector<long long>& c) {
     if (c.size() < 3) {
       cellTarget.push_back({0, 0});
@@ -139,7 +152,7 @@ Mesh parseVtkLegacy(std::string_view bytes) {
       m.triangles.push_back({static_cast<int>(c[0]), static_cast<int>(c[k]), static_cast<int>(c[k + 1])});
       m.triangleLabels.push_back(0);
     }
-    cellTarget.push_back({1, first});
+    cellTarget.push_back({1, first, m.triangles.size() - first});
   };
   auto toInt = [&](long long v) {
     if (v < 0 || v > static_cast<long long>(kMaxMeshItems)) r.fail("a cell refers to point " + std::to_string(v) + ", which is out of range");
@@ -172,7 +185,7 @@ Mesh parseVtkLegacy(std::string_view bytes) {
           m.triangles.push_back({a, b, d});
           m.triangleLabels.push_back(0);
         }
-        cellTarget.push_back({1, first});
+        cellTarget.push_back({1, first, m.triangles.size() - first});
       }
     } else if (!poly && iequals(key, "CELLS")) {
       ugCells = R.cells("cell");
@@ -225,11 +238,7 @@ Mesh parseVtkLegacy(std::string_view bytes) {
           auto v = R.values(n * comps, type);
           if (cellData && !labelled && comps == 1 && isIntegerType(type) && n == cellTarget.size()) {
             labelled = true;
-            for (std::size_t i = 0; i < n; ++i) {
-              auto [k, idx] = cellTarget[i];
-              if (k == 2) m.tetLabels[idx] = detail::toLabel(v[i]);
-              if (k == 1) m.triangleLabels[idx] = detail::toLabel(v[i]);
-            }
+            applyLabels(v);
           }
         } else if (iequals(a, "VECTORS") || iequals(a, "NORMALS")) {
           r.token();
@@ -267,11 +276,7 @@ Mesh parseVtkLegacy(std::string_view bytes) {
             auto v = R.values(comps * tuples, type);
             if (cellData && !labelled && comps == 1 && tuples == cellTarget.size() && isIntegerType(type)) {
               labelled = true;
-              for (std::size_t i = 0; i < tuples; ++i) {
-                auto [kk, idx] = cellTarget[i];
-                if (kk == 2) m.tetLabels[idx] = detail::toLabel(v[i]);
-                if (kk == 1) m.triangleLabels[idx] = detail::toLabel(v[i]);
-              }
+              applyLabels(v);
             }
           }
         } else if (iequals(a, "METADATA")) {
