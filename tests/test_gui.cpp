@@ -7,13 +7,60 @@
 #include "rehearse/ui/mainwindow.hpp"
 
 #include <QSignalSpy>
+#include <QStandardPaths>
 
 using namespace rehearse;
 
 class TestGui : public QObject {
   Q_OBJECT
  private slots:
-  void initTestCase() { QCoreApplication::setOrganizationName("RehearseTest"); }
+  void initTestCase() {
+    QCoreApplication::setOrganizationName("RehearseTest");
+    QStandardPaths::setTestModeEnabled(true);  // settings and autosave go to a test location
+  }
+
+  // Save through the window, reopen in a new window, compare; autosave exists while open and is
+  // removed by a clean close (its presence at start means a crash).
+  void saveReopenAndAutosave() {
+    const QString path = QString::fromStdString(tempPath("gui-saved.rehearse"));
+    std::size_t tets = 0;
+    {
+      ui::MainWindow w;
+      w.show();
+      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+      w.openCase({});
+      QVERIFY(loaded.wait(60000));
+      tets = w.currentCase().data->volume.tets.size();
+      QSignalSpy saved(&w, &ui::MainWindow::caseSaved);
+      w.saveCaseAs(path);
+      QVERIFY(w.isSaving() || saved.count() == 1);  // the save runs off the GUI thread
+      QVERIFY(saved.count() == 1 || saved.wait(60000));
+      QCOMPARE(saved.first().at(0).toBool(), true);
+      QCOMPARE(w.currentPath(), path);
+      QVERIFY(w.recentFiles().contains(path));
+      QVERIFY(w.windowTitle().contains("gui-saved.rehearse"));
+      w.autosaveNow();
+      QVERIFY(ui::MainWindow::hasRecoverableAutosave());
+      w.close();
+      QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
+    }
+    ui::MainWindow w2;
+    w2.show();
+    QSignalSpy loaded2(&w2, &ui::MainWindow::caseLoaded);
+    w2.openCase(path);
+    QVERIFY(loaded2.wait(60000));
+    QCOMPARE(loaded2.first().at(0).toBool(), true);
+    QCOMPARE(w2.currentCase().data->volume.tets.size(), tets);
+    QCOMPARE(w2.currentPath(), path);
+    QCOMPARE(w2.currentCase().frame.size(), QSize(1280, 720));
+    // Saving where it cannot be written keeps the case and says so.
+    QSignalSpy saved2(&w2, &ui::MainWindow::caseSaved);
+    w2.saveCaseAs("/proc/no-such-dir/x.rehearse");
+    QVERIFY(saved2.count() == 1 || saved2.wait(60000));
+    QCOMPARE(saved2.first().at(0).toBool(), false);
+    QVERIFY(saved2.first().at(1).toString().startsWith("Cannot write"));
+    QCOMPARE(w2.currentPath(), path);
+  }
 
   void builtInCaseShowsFrameAndOrgan() {
     ui::MainWindow w;

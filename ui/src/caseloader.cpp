@@ -1,5 +1,9 @@
 #include "rehearse/ui/caseloader.hpp"
 
+#include "rehearse/ui/casefile.hpp"
+
+#include <QFileInfo>
+
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/quality.hpp>
 
@@ -22,6 +26,8 @@ LoadedCase loadCaseOrThrow(const QString& dir, const std::function<void(double, 
       if (progress) progress(0.9 * f, QString::fromStdString(stage));
     };
     *c = phantom::makePhantom(po);
+  } else if (QFileInfo(dir).isFile()) {
+    *c = loadCaseFile(dir, &out.notes);
   } else {
     std::vector<std::string> notes;
     *c = phantom::loadCaseDirectory(dir.toStdString(), &notes);

@@ -48,8 +48,10 @@ int runGui(int argc, char** argv) {
   parser.addPositionalArgument(QStringLiteral("open"), QStringLiteral("open CASE"));
   QCommandLineOption screenshot(QStringLiteral("screenshot"), QStringLiteral("Save the window to PNG and quit."), QStringLiteral("png"));
   QCommandLineOption software(QStringLiteral("software"), QStringLiteral("Do not use OpenGL."));
+  QCommandLineOption noRecover(QStringLiteral("no-recover"), QStringLiteral("Do not offer to recover an autosaved case."));
   parser.addOption(screenshot);
   parser.addOption(software);
+  parser.addOption(noRecover);
   if (!parser.parse(app.arguments())) {
     std::fprintf(stderr, "rehearse: %s; see 'rehearse --help'\n", qPrintable(parser.errorText()));
     return 2;
@@ -77,7 +79,9 @@ int runGui(int argc, char** argv) {
     });
   }
   window.show();
+  const bool recover = shot.isEmpty() && !parser.isSet(noRecover) && MainWindow::hasRecoverableAutosave();
   window.openCase(caseDir);
+  if (recover) QTimer::singleShot(0, &window, &MainWindow::offerRecovery);
   const int code = app.exec();
   return shot.isEmpty() ? code : exitCode;
 }

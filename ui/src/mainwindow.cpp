@@ -1,10 +1,17 @@
 #include "rehearse/ui/mainwindow.hpp"
 
+#include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/frameview.hpp"
 
 #include <QAction>
 #include <QApplication>
 #include <QCloseEvent>
+#include <QDir>
+#include <QDragEnterEvent>
+#include <QDropEvent>
+#include <QFileInfo>
+#include <QMimeData>
+#include <QStandardPaths>
 #include <QDockWidget>
 #include <QFileDialog>
 #include <QLabel>
@@ -61,6 +68,34 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
 
   buildMenus();
   connect(&watcher_, &QFutureWatcher<LoadedCase>::finished, this, &MainWindow::onLoadFinished);
+  connect(&saveWatcher_, &QFutureWatcher<QString>::finished, this, [this] {
+    const QString error = saveWatcher_.result();
+    if (error.isEmpty()) {
+      currentPath_ = savingPath_;
+      addRecent(savingPath_);
+      setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(savingPath_).fileName()));
+      statusCase_->setText(tr("Saved %1").arg(savingPath_));
+    } else {
+      statusCase_->setText(error);
+    }
+    emit caseSaved(error.isEmpty(), error);
+  });
+  setAcceptDrops(true);
+  autosaveTimer_.setInterval(60'000);
+  connect(&autosaveTimer_, &QTimer::timeout, this, [this] {
+    if (case_.data && !saveWatcher_.isRunning()) {
+      auto data = case_.data;
+      // Off the GUI thread; the autosave file is written atomically like any save.
+      (void)QtConcurrent::run([data] {
+        try {
+          QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
+          saveCaseFile(*data, autosavePath());
+        } catch (const std::exception&) {
+        }
+      });
+    }
+  });
+  autosaveTimer_.start();
 
   QSettings settings;
   if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) resize(1500, 860);
@@ -70,11 +105,115 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
 MainWindow::~MainWindow() {
   cancel_ = true;
   watcher_.waitForFinished();
+  saveWatcher_.waitForFinished();
+}
+
+QString MainWindow::autosavePath() {
+  return QStandardPaths::writableLocation(QStandardPaths::AppDataLocation) + QStringLiteral("/autosave.rehearse");
+}
+
+bool MainWindow::hasRecoverableAutosave() { return isCaseFile(autosavePath()); }
+
+void MainWindow::autosaveNow() {
+  if (!case_.data) return;
+  QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
+  saveCaseFile(*case_.data, autosavePath());
+}
+
+QStringList MainWindow::recentFiles() const { return QSettings().value(QStringLiteral("recentFiles")).toStringList(); }
+
+void MainWindow::addRecent(const QString& path) {
+  QSettings s;
+  QStringList list = s.value(QStringLiteral("recentFiles")).toStringList();
+  list.removeAll(path);
+  list.prepend(path);
+  while (list.size() > 8) list.removeLast();
+  s.setValue(QStringLiteral("recentFiles"), list);
+  rebuildRecentMenu();
+}
+
+void MainWindow::rebuildRecentMenu() {
+  if (!recentMenu_) return;
+  recentMenu_->clear();
+  const QStringList list = recentFiles();
+  for (int i = 0; i < list.size(); ++i) {
+    QAction* a = recentMenu_->addAction(QStringLiteral("&%1 %2").arg(i + 1).arg(list[i]));
+    const QString path = list[i];
+    connect(a, &QAction::triggered, this, [this, path] { openCase(path); });
+  }
+  recentMenu_->setEnabled(!list.isEmpty());
+}
+
+void MainWindow::saveCaseAs(const QString& path) {
+  if (!case_.data || saveWatcher_.isRunning()) {
+    emit caseSaved(false, tr("Nothing to save yet."));
+    return;
+  }
+  savingPath_ = path;
+  statusCase_->setText(tr("Saving %1...").arg(path));
+  auto data = case_.data;
+  saveWatcher_.setFuture(QtConcurrent::run([data, path]() -> QString {
+    try {
+      saveCaseFile(*data, path);
+      return {};
+    } catch (const std::exception& e) {
+      return QString::fromUtf8(e.what());
+    }
+  }));
+}
+
+void MainWindow::save() {
+  if (currentPath_.isEmpty() || !isCaseFile(currentPath_)) saveAs();
+  else saveCaseAs(currentPath_);
+}
+
+void MainWindow::saveAs() {
+  QSettings s;
+  QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), s.value(QStringLiteral("lastDir")).toString(),
+                                              tr("Rehearse cases (*.rehearse)"));
+  if (path.isEmpty()) return;
+  if (!path.endsWith(QStringLiteral(".rehearse"))) path += QStringLiteral(".rehearse");
+  s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
+  saveCaseAs(path);
+}
+
+void MainWindow::openFileDialog() {
+  QSettings s;
+  const QString path = QFileDialog::getOpenFileName(this, tr("Open Case"), s.value(QStringLiteral("lastDir")).toString(),
+                                                    tr("Rehearse cases (*.rehearse);;All files (*)"));
+  if (path.isEmpty()) return;
+  s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
+  openCase(path);
+}
+
+void MainWindow::offerRecovery() {
+  if (!hasRecoverableAutosave()) return;
+  // Not modal: the view stays usable; the choice is also in the File menu.
+  auto* box = new QMessageBox(QMessageBox::Question, tr("Recover case"),
+                              tr("Rehearse did not close cleanly last time. Recover the case that was open then?"),
+                              QMessageBox::Yes | QMessageBox::No, this);
+  box->setAttribute(Qt::WA_DeleteOnClose);
+  box->setWindowModality(Qt::NonModal);
+  connect(box, &QMessageBox::finished, this, [this](int r) {
+    if (r == QMessageBox::Yes) openCase(autosavePath());
+  });
+  box->show();
+}
+
+void MainWindow::dragEnterEvent(QDragEnterEvent* e) {
+  if (e->mimeData()->hasUrls()) e->acceptProposedAction();
+}
+
+void MainWindow::dropEvent(QDropEvent* e) {
+  const auto urls = e->mimeData()->urls();
+  if (!urls.isEmpty() && urls.first().isLocalFile()) openCase(urls.first().toLocalFile());
 }
 
 void MainWindow::buildMenus() {
   QMenu* file = menuBar()->addMenu(tr("&File"));
-  QAction* open = file->addAction(tr("&Open Case Folder..."), this, [this] {
+  QAction* openFile = file->addAction(tr("&Open Case..."), this, &MainWindow::openFileDialog);
+  openFile->setShortcut(QKeySequence::Open);
+  QAction* open = file->addAction(tr("Open Case &Folder..."), this, [this] {
     QSettings s;
     const QString dir = QFileDialog::getExistingDirectory(this, tr("Open Case Folder"), s.value(QStringLiteral("lastDir")).toString());
     if (!dir.isEmpty()) {
@@ -82,9 +221,18 @@ void MainWindow::buildMenus() {
       openCase(dir);
     }
   });
-  open->setShortcut(QKeySequence::Open);
+  open->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_O));
+  recentMenu_ = file->addMenu(tr("Open &Recent"));
+  rebuildRecentMenu();
   QAction* builtin = file->addAction(tr("Open &Built-in Phantom"), this, [this] { openCase({}); });
   builtin->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
+  file->addSeparator();
+  QAction* saveAction = file->addAction(tr("&Save"), this, &MainWindow::save);
+  saveAction->setShortcut(QKeySequence::Save);
+  QAction* saveAsAction = file->addAction(tr("Save &As..."), this, &MainWindow::saveAs);
+  saveAsAction->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S));
+  recoverAction_ = file->addAction(tr("Recover &Autosaved Case"), this, [this] { openCase(autosavePath()); });
+  recoverAction_->setEnabled(hasRecoverableAutosave());
   file->addSeparator();
   QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
   quit->setShortcut(QKeySequence::Quit);
@@ -114,7 +262,8 @@ void MainWindow::buildMenus() {
 
   QToolBar* tools = addToolBar(tr("Main"));
   tools->setObjectName(QStringLiteral("mainToolbar"));
-  tools->addAction(open);
+  tools->addAction(openFile);
+  tools->addAction(saveAction);
   tools->addAction(builtin);
   tools->addAction(overlayAction_);
   tools->addAction(fit);
@@ -158,6 +307,8 @@ void MainWindow::onLoadFinished() {
     return;
   }
   case_ = std::move(loaded);
+  currentPath_ = isCaseFile(loadingDir_) && loadingDir_ != autosavePath() ? loadingDir_ : QString();
+  if (!currentPath_.isEmpty()) addRecent(currentPath_);
   view_->setFrame(case_.frame);
   view_->setOverlay(case_.organOverlay, case_.silhouette);
   showCaseInfo();
@@ -199,6 +350,9 @@ void MainWindow::showCaseInfo() {
 
 void MainWindow::closeEvent(QCloseEvent* e) {
   cancelLoading();
+  saveWatcher_.waitForFinished();
+  // A clean exit leaves no autosave behind: its presence at start means the last session crashed.
+  QFile::remove(autosavePath());
   QSettings settings;
   settings.setValue(QStringLiteral("window/geometry"), saveGeometry());
   settings.setValue(QStringLiteral("window/state"), saveState());

@@ -26,7 +26,7 @@ struct LoadedCase {
   bool cancelled = false;
 };
 
-/// Runs on a worker thread. `dir` empty = built-in phantom. Never throws: failures come back in `error`.
+/// Runs on a worker thread. `dir`: a case file (.rehearse), a case folder, or empty for the built-in phantom. Never throws: failures come back in `error`.
 LoadedCase loadCase(const QString& dir, const std::function<void(double, const QString&)>& progress,
                     const std::atomic<bool>* cancel);
 

@@ -5,6 +5,7 @@
 
 #include <QFutureWatcher>
 #include <QMainWindow>
+#include <QTimer>
 
 #include <atomic>
 
@@ -24,8 +25,20 @@ class MainWindow : public QMainWindow {
   explicit MainWindow(QWidget* parent = nullptr);
   ~MainWindow() override;
 
-  /// Loads a case folder, or the built-in phantom when `dir` is empty, on a worker thread.
-  void openCase(const QString& dir);
+  /// Loads a case file (.rehearse), a case folder, or the built-in phantom when `path` is empty, on a
+  /// worker thread. The current case stays until the new one has loaded.
+  void openCase(const QString& path);
+  /// Saves the current case to `path` on a worker thread (atomic write); emits caseSaved.
+  void saveCaseAs(const QString& path);
+  QString currentPath() const { return currentPath_; }
+  bool isSaving() const { return saveWatcher_.isRunning(); }
+  /// Where the periodic autosave goes, and whether one was left by a session that did not close cleanly.
+  static QString autosavePath();
+  static bool hasRecoverableAutosave();
+  /// Writes the autosave now (normally every minute while a case is open). Blocks until done.
+  void autosaveNow();
+  void setAutosaveInterval(int ms) { autosaveTimer_.setInterval(ms); }
+  QStringList recentFiles() const;
   bool isLoading() const { return watcher_.isRunning(); }
   const LoadedCase& currentCase() const { return case_; }
   FrameView* frameView() const { return view_; }
@@ -33,15 +46,25 @@ class MainWindow : public QMainWindow {
 
  signals:
   void caseLoaded(bool ok);
+  void caseSaved(bool ok, const QString& message);
 
  public slots:
   void cancelLoading();
+  /// Offers (without blocking) to reopen the autosave left by a session that did not close cleanly.
+  void offerRecovery();
 
  protected:
   void closeEvent(QCloseEvent*) override;
 
  private:
   void buildMenus();
+  void save();
+  void saveAs();
+  void openFileDialog();
+  void addRecent(const QString& path);
+  void rebuildRecentMenu();
+  void dragEnterEvent(QDragEnterEvent*) override;
+  void dropEvent(QDropEvent*) override;
   void onLoadFinished();
   void showCaseInfo();
   void setBusy(bool busy, const QString& message = {});
@@ -57,6 +80,12 @@ class MainWindow : public QMainWindow {
   std::atomic<bool> cancel_{false};
   LoadedCase case_;
   QString loadingDir_;
+  QString currentPath_;
+  QFutureWatcher<QString> saveWatcher_;
+  QString savingPath_;
+  QTimer autosaveTimer_;
+  QMenu* recentMenu_ = nullptr;
+  QAction* recoverAction_ = nullptr;
 };
 
 }  // namespace rehearse::ui

@@ -1,0 +1,276 @@
+#include "rehearse/ui/casefile.hpp"
+
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/simcore/meshio.hpp>
+
+#include <QCoreApplication>
+#include <QDateTime>
+#include <QFile>
+#include <QFileInfo>
+#include <QSqlDatabase>
+#include <QSqlError>
+#include <QSqlQuery>
+#include <QUuid>
+#include <QVariant>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cstdio>
+#include <stdexcept>
+
+#include <QDir>
+
+#include <cerrno>
+#include <csignal>
+
+#include <fcntl.h>
+#include <unistd.h>
+
+using nlohmann::json;
+
+namespace rehearse::ui {
+namespace {
+
+[[noreturn]] void fail(const QString& message) { throw std::runtime_error(message.toStdString()); }
+
+// A uniquely named connection that is removed when the scope ends.
+class Connection {
+ public:
+  explicit Connection(const QString& file) : name_(QUuid::createUuid().toString()) {
+    db_ = QSqlDatabase::addDatabase(QStringLiteral("QSQLITE"), name_);
+    db_.setDatabaseName(file);
+  }
+  ~Connection() {
+    db_.close();
+    db_ = QSqlDatabase();
+    QSqlDatabase::removeDatabase(name_);
+  }
+  QSqlDatabase& db() { return db_; }
+
+ private:
+  QString name_;
+  QSqlDatabase db_;
+};
+
+json poseJson(const Pose& p) {
+  return {{"R", {{p.R(0, 0), p.R(0, 1), p.R(0, 2)}, {p.R(1, 0), p.R(1, 1), p.R(1, 2)}, {p.R(2, 0), p.R(2, 1), p.R(2, 2)}}},
+          {"t", {p.t.x(), p.t.y(), p.t.z()}},
+          {"unit", "m"}};
+}
+Pose poseFrom(const json& j) {
+  Pose p;
+  for (int r = 0; r < 3; ++r) {
+    for (int k = 0; k < 3; ++k) p.R(r, k) = j.at("R").at(r).at(k).get<double>();
+    p.t[r] = j.at("t").at(r).get<double>();
+  }
+  return p;
+}
+json vec(const Eigen::Vector3d& v) { return {v.x(), v.y(), v.z()}; }
+Eigen::Vector3d vec3(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
+
+void fsyncFile(const QString& path) {
+  const int fd = ::open(QFile::encodeName(path).constData(), O_RDONLY);
+  if (fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
+
+void fsyncDirectoryOf(const QString& path) {
+  const int fd = ::open(QFile::encodeName(QFileInfo(path).absolutePath()).constData(), O_RDONLY | O_DIRECTORY);
+  if (fd >= 0) {
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
+
+}  // namespace
+
+bool isCaseFile(const QString& path) {
+  QFile f(path);
+  if (!f.open(QIODevice::ReadOnly)) return false;
+  return f.read(16) == QByteArray("SQLite format 3\0", 16);
+}
+
+void saveCaseFile(const phantom::Case& c, const QString& path) {
+  const QString tmp = path + QStringLiteral(".saving-") + QString::number(QCoreApplication::applicationPid());
+  QFile::remove(tmp);
+  {
+    Connection conn(tmp);
+    auto& db = conn.db();
+    if (!db.open()) fail(QStringLiteral("Cannot write %1 (%2); choose another folder.").arg(path, db.lastError().text()));
+    QSqlQuery q(db);
+    // The temporary file is renamed only once complete, so the journal can stay in memory.
+    q.exec(QStringLiteral("PRAGMA journal_mode=OFF"));
+    q.exec(QStringLiteral("PRAGMA synchronous=OFF"));
+    if (!q.exec(QStringLiteral("CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)")) ||
+        !q.exec(QStringLiteral("CREATE TABLE parts(name TEXT PRIMARY KEY, format TEXT NOT NULL, data BLOB NOT NULL, saved_utc TEXT NOT NULL)")))
+      fail(QStringLiteral("Cannot write %1 (%2).").arg(path, q.lastError().text()));
+    db.transaction();
+    const QString now = QDateTime::currentDateTimeUtc().toString(Qt::ISODateWithMs);
+    auto meta = [&](const QString& k, const QString& v) {
+      QSqlQuery m(db);
+      m.prepare(QStringLiteral("INSERT INTO meta(key, value) VALUES(?, ?)"));
+      m.addBindValue(k);
+      m.addBindValue(v);
+      if (!m.exec()) fail(QStringLiteral("Cannot write %1 (%2).").arg(path, m.lastError().text()));
+    };
+    meta(QStringLiteral("schema_version"), QString::number(kCaseSchemaVersion));
+    meta(QStringLiteral("app_version"), QStringLiteral(REHEARSE_VERSION));
+    meta(QStringLiteral("name"), QString::fromStdString(c.name));
+    meta(QStringLiteral("saved_utc"), now);
+    auto part = [&](const char* name, const char* format, const QByteArray& data) {
+      QSqlQuery p(db);
+      p.prepare(QStringLiteral("INSERT INTO parts(name, format, data, saved_utc) VALUES(?, ?, ?, ?)"));
+      p.addBindValue(QString::fromLatin1(name));
+      p.addBindValue(QString::fromLatin1(format));
+      p.addBindValue(data);
+      p.addBindValue(now);
+      if (!p.exec()) fail(QStringLiteral("Cannot write %1 (%2).").arg(path, p.lastError().text()));
+    };
+    auto bytes = [](const std::string& s) { return QByteArray(s.data(), static_cast<qsizetype>(s.size())); };
+    if (!c.volume.empty()) {
+      part("volume", "vtu", bytes(simcore::writeVtu(c.volume, false)));
+      json labels = json::array();
+      for (const auto& [l, n] : c.volume.labelNames) labels.push_back({{"label", l}, {"name", n}});
+      part("labels", "json", bytes(labels.dump()));
+    }
+    if (!c.frame.empty()) {
+      std::vector<uchar> png;
+      cv::imencode(".png", c.frame, png);
+      part("frame", "png", QByteArray(reinterpret_cast<const char*>(png.data()), static_cast<qsizetype>(png.size())));
+    }
+    if (c.camera.width > 0) {
+      const auto& k = c.camera;
+      json cam = {{"K", {{k.K(0, 0), k.K(0, 1), k.K(0, 2)}, {k.K(1, 0), k.K(1, 1), k.K(1, 2)}, {k.K(2, 0), k.K(2, 1), k.K(2, 2)}}},
+                  {"distortion", k.distortion},
+                  {"width", k.width},
+                  {"height", k.height}};
+      part("camera", "json", bytes(cam.dump()));
+    }
+    part("attachments", "json", bytes(json{{"nodes", c.attachments}}.dump()));
+    if (c.hasGroundTruth) {
+      json tree = json::array();
+      for (const auto& s : c.vesselTree) tree.push_back({{"a", vec(s.a)}, {"b", vec(s.b)}, {"radius", s.radius}});
+      const auto& a = c.trueAppearance;
+      json gt = {{"pose", poseJson(c.truePose)},
+                 {"appearance", {{"light_position", vec(a.lightPosition)}, {"kd", vec(a.kd)}, {"ks", vec(a.ks)}, {"roughness", a.roughness}}},
+                 {"vessel_tree", tree}};
+      part("ground_truth", "json", bytes(gt.dump()));
+    }
+    if (!db.commit()) fail(QStringLiteral("Cannot write %1 (%2).").arg(path, db.lastError().text()));
+  }
+  fsyncFile(tmp);
+  if (::rename(QFile::encodeName(tmp).constData(), QFile::encodeName(path).constData()) != 0) {
+    QFile::remove(tmp);
+    fail(QStringLiteral("Cannot replace %1; check that the folder is writable. The previous file is unchanged.").arg(path));
+  }
+  fsyncDirectoryOf(path);
+  // Temporary files left by saves that were killed (their process is gone) are removed.
+  const QFileInfo target(path);
+  const QString prefix = target.fileName() + QStringLiteral(".saving-");
+  for (const QFileInfo& f : QDir(target.absolutePath()).entryInfoList({prefix + QStringLiteral("*")}, QDir::Files)) {
+    bool ok = false;
+    const qint64 pid = f.fileName().mid(prefix.size()).toLongLong(&ok);
+    if (ok && pid != QCoreApplication::applicationPid() && ::kill(static_cast<pid_t>(pid), 0) != 0 && errno == ESRCH)
+      QFile::remove(f.absoluteFilePath());
+  }
+}
+
+phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
+  const QString name = QFileInfo(path).fileName();
+  if (!QFileInfo::exists(path)) fail(QStringLiteral("The case file %1 does not exist; check the path.").arg(path));
+  if (!isCaseFile(path)) fail(QStringLiteral("%1 is not a Rehearse case file (it is not an SQLite database).").arg(name));
+  Connection conn(path);
+  auto& db = conn.db();
+  db.setConnectOptions(QStringLiteral("QSQLITE_OPEN_READONLY"));
+  if (!db.open()) fail(QStringLiteral("%1 cannot be opened (%2).").arg(name, db.lastError().text()));
+  QSqlQuery q(db);
+  if (!q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'schema_version'")) || !q.next())
+    fail(QStringLiteral("%1 is damaged or not a Rehearse case (no schema version).").arg(name));
+  const int version = q.value(0).toInt();
+  if (version < 1) fail(QStringLiteral("%1 has an unknown schema version.").arg(name));
+  if (version > kCaseSchemaVersion)
+    fail(QStringLiteral("%1 was saved by a newer Rehearse (schema %2, this one reads up to %3); update Rehearse to open it.")
+             .arg(name).arg(version).arg(kCaseSchemaVersion));
+  // Migrations from older schemas go here (none yet: version 1 is the first).
+  phantom::Case c;
+  if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'name'")) && q.next()) c.name = q.value(0).toString().toStdString();
+  auto note = [&](const QString& s) {
+    if (notes) *notes << s;
+  };
+  auto read = [&](const char* part) -> QByteArray {
+    QSqlQuery p(db);
+    p.prepare(QStringLiteral("SELECT data FROM parts WHERE name = ?"));
+    p.addBindValue(QString::fromLatin1(part));
+    if (!p.exec()) {
+      note(QStringLiteral("The %1 could not be read (%2).").arg(QString::fromLatin1(part), p.lastError().text()));
+      return {};
+    }
+    return p.next() ? p.value(0).toByteArray() : QByteArray();
+  };
+  if (QByteArray v = read("volume"); !v.isEmpty()) {
+    try {
+      c.volume = simcore::parseVtu(std::string_view(v.constData(), static_cast<std::size_t>(v.size())));
+      simcore::validateMesh(c.volume, "the organ mesh");
+      if (QByteArray l = read("labels"); !l.isEmpty())
+        for (const auto& e : json::parse(l.toStdString())) c.volume.setLabelName(e.at("label").get<int>(), e.at("name").get<std::string>());
+      c.surface = simcore::boundaryTriangles(c.volume, false);
+    } catch (const std::exception& e) {
+      c.volume = {};
+      note(QStringLiteral("Organ mesh not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (QByteArray f = read("frame"); !f.isEmpty()) {
+    cv::Mat raw(1, static_cast<int>(f.size()), CV_8U, f.data());
+    c.frame = cv::imdecode(raw, cv::IMREAD_COLOR);
+    if (c.frame.empty()) note(QStringLiteral("Frame not loaded: the stored image is damaged."));
+  }
+  if (QByteArray k = read("camera"); !k.isEmpty()) {
+    try {
+      auto j = json::parse(k.toStdString());
+      for (int r = 0; r < 3; ++r)
+        for (int col = 0; col < 3; ++col) c.camera.K(r, col) = j.at("K").at(r).at(col).get<double>();
+      for (int i = 0; i < 5; ++i) c.camera.distortion[i] = j.at("distortion").at(i).get<double>();
+      c.camera.width = j.at("width").get<int>();
+      c.camera.height = j.at("height").get<int>();
+      if (auto p = c.camera.problem(); !p.empty()) throw std::runtime_error(p);
+    } catch (const std::exception& e) {
+      c.camera = {};
+      note(QStringLiteral("Camera not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (c.camera.width == 0 && !c.frame.empty()) c.camera = imaging::Camera::defaultFor(c.frame.cols, c.frame.rows);
+  if (QByteArray a = read("attachments"); !a.isEmpty()) {
+    try {
+      const json j = json::parse(a.toStdString());
+      for (const auto& n : j.at("nodes")) {
+        const int v = n.get<int>();
+        if (v < 0 || v >= static_cast<int>(c.volume.points.size())) throw std::out_of_range("node index out of range");
+        c.attachments.push_back(v);
+      }
+    } catch (const std::exception& e) {
+      c.attachments.clear();
+      note(QStringLiteral("Attachments not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (QByteArray g = read("ground_truth"); !g.isEmpty()) {
+    try {
+      const json j = json::parse(g.toStdString());
+      c.truePose = poseFrom(j.at("pose"));
+      const auto& a = j.at("appearance");
+      c.trueAppearance.lightPosition = vec3(a.at("light_position"));
+      c.trueAppearance.kd = vec3(a.at("kd"));
+      c.trueAppearance.ks = vec3(a.at("ks"));
+      c.trueAppearance.roughness = a.at("roughness").get<double>();
+      for (const auto& s : j.at("vessel_tree")) c.vesselTree.push_back({vec3(s.at("a")), vec3(s.at("b")), s.at("radius").get<double>()});
+      c.hasGroundTruth = true;
+    } catch (const std::exception& e) {
+      note(QStringLiteral("Ground truth not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  return c;
+}
+
+}  // namespace rehearse::ui
