@@ -95,7 +95,7 @@ Mesh tetrahedraliseImplicit(const LabelFunction& label, const Eigen::AlignedBox3
       throw MeshError("The target element count must be between 10 and " + std::to_string(kMaxMeshItems) + ".");
     // Edge of a regular tet with volume V/N; Mesh_3's cells come out smaller than the size bound,
     // so start larger and correct once from the count actually obtained.
-    size = 1.45 * std::cbrt(6.0 * std::sqrt(2.0) * volumeEstimate / static_cast<double>(o.targetTets));
+    size = 1.33 * std::cbrt(6.0 * std::sqrt(2.0) * volumeEstimate / static_cast<double>(o.targetTets));
   }
   std::atomic<long> calls{0};
   auto report = [&](double f, const char* stage) {
@@ -107,7 +107,7 @@ Mesh tetrahedraliseImplicit(const LabelFunction& label, const Eigen::AlignedBox3
   // correct the size up to twice and keep the closest result.
   for (int pass = 0; pass < 2 && o.cellSize <= 0 && !m.tets.empty(); ++pass) {
     const double ratio = static_cast<double>(m.tets.size()) / static_cast<double>(o.targetTets);
-    if (ratio > 0.9 && ratio < 1.1) break;
+    if (ratio > 0.85 && ratio < 1.18) break;
     report(0.35 + 0.3 * pass, "meshing (size corrected)");
     size *= std::cbrt(ratio);
     Mesh next = meshOnce(label, bounds, o, size, calls);
