@@ -1,0 +1,55 @@
+#pragma once
+// The organ contour an assistant sketches over the frame: one or more (possibly open) segments in pixels
+// of the undistorted frame. Files: our JSON {"image_size": [w, h], "segments": [{"points": [[u, v], ...],
+// "closed": false}]} and the P2ILF challenge's {"numOfContours": N, "contour": [{"contourType": ...,
+// "imagePoints": {"x": [...], "y": [...]}}]}.
+#include <rehearse/imaging/camera.hpp>
+
+#include <opencv2/core.hpp>
+
+#include <string>
+#include <vector>
+
+namespace rehearse::imaging {
+
+struct ContourSegment {
+  std::vector<Eigen::Vector2d> points;  ///< pixels
+  bool closed = false;
+  std::string type = "silhouette";      ///< silhouette, ridge or ligament (P2ILF's contour types)
+};
+
+struct Contour {
+  int width = 0, height = 0;  ///< image size the points refer to
+  std::vector<ContourSegment> segments;
+  std::size_t pointCount() const;
+  bool empty() const { return pointCount() == 0; }
+};
+
+/// Reads our JSON or the P2ILF JSON (detected from the keys). Throws InputError with one sentence.
+Contour loadContour(const std::string& path);
+void saveContour(const Contour& c, const std::string& path);
+
+/// Empty when the contour can be used for fitting; otherwise one sentence (empty, a single point,
+/// points outside the image, a segment that crosses itself).
+std::string contourProblem(const Contour& c);
+
+/// Points at uniform arc-length spacing (pixels) along the segment, ends kept.
+ContourSegment resampleSegment(const ContourSegment& s, double spacing);
+/// Moving-average smoothing (Taubin lambda/mu so the contour does not shrink); open ends stay fixed.
+ContourSegment smoothSegment(const ContourSegment& s, int iterations);
+/// True when two non-adjacent edges of the segment cross.
+bool segmentSelfIntersects(const ContourSegment& s);
+
+/// Distances (px) from the contour points to the outline of a mask: mean, RMS and maximum (Hausdorff
+/// from contour to silhouette). Returns false when the mask or the contour is empty.
+struct ContourDistance {
+  double mean = 0, rms = 0, max = 0;
+  std::size_t points = 0;
+};
+bool contourToMaskDistance(const Contour& c, const cv::Mat1b& mask, ContourDistance& out);
+
+/// Snaps a sketched polyline to image edges with OpenCV's intelligent scissors (live-wire) between
+/// successive anchor points. `image` is the frame (BGR). Returns the snapped polyline.
+std::vector<Eigen::Vector2d> snapToEdges(const cv::Mat3b& image, const std::vector<Eigen::Vector2d>& anchors);
+
+}  // namespace rehearse::imaging

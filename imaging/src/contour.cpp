@@ -1,0 +1,230 @@
+#include <rehearse/imaging/contour.hpp>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/imgproc/segmentation.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+using nlohmann::json;
+
+namespace rehearse::imaging {
+
+std::size_t Contour::pointCount() const {
+  std::size_t n = 0;
+  for (const auto& s : segments) n += s.points.size();
+  return n;
+}
+
+namespace {
+double num(const json& j) { return j.is_string() ? std::stod(j.get<std::string>()) : j.get<double>(); }
+}  // namespace
+
+Contour loadContour(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError("The contour file " + path + " cannot be opened; check the path.");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string name = std::filesystem::path(path).filename().string();
+  Contour c;
+  try {
+    const json j = json::parse(ss.str());
+    if (j.contains("segments")) {
+      if (j.contains("image_size")) {
+        c.width = j["image_size"].at(0).get<int>();
+        c.height = j["image_size"].at(1).get<int>();
+      }
+      for (const auto& s : j["segments"]) {
+        ContourSegment seg;
+        for (const auto& p : s.at("points")) seg.points.emplace_back(num(p.at(0)), num(p.at(1)));
+        seg.closed = s.value("closed", false);
+        seg.type = s.value("type", std::string("silhouette"));
+        c.segments.push_back(std::move(seg));
+      }
+    } else if (j.contains("contour")) {  // P2ILF
+      for (const auto& s : j["contour"]) {
+        ContourSegment seg;
+        std::string t = s.value("contourType", std::string("Silhouette"));
+        for (auto& ch : t) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+        seg.type = t;
+        const auto& xs = s.at("imagePoints").at("x");
+        const auto& ys = s.at("imagePoints").at("y");
+        if (xs.size() != ys.size()) throw InputError(name + ": a P2ILF contour has different numbers of x and y values.");
+        for (std::size_t i = 0; i < xs.size(); ++i) seg.points.emplace_back(num(xs[i]), num(ys[i]));
+        c.segments.push_back(std::move(seg));
+      }
+    } else {
+      throw InputError(name + " is not a contour file: it needs \"segments\" (Rehearse) or \"contour\" (P2ILF).");
+    }
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception&) {
+    throw InputError(name + " is not a valid contour file; see the contour format in the README.");
+  }
+  for (const auto& s : c.segments)
+    for (const auto& p : s.points)
+      if (!p.allFinite()) throw InputError(name + " has a point that is not a finite number.");
+  return c;
+}
+
+void saveContour(const Contour& c, const std::string& path) {
+  json j;
+  j["image_size"] = {c.width, c.height};
+  j["segments"] = json::array();
+  for (const auto& s : c.segments) {
+    json pts = json::array();
+    for (const auto& p : s.points) pts.push_back({p.x(), p.y()});
+    j["segments"].push_back({{"points", pts}, {"closed", s.closed}, {"type", s.type}});
+  }
+  writeFileAtomically(path, j.dump(1) + "\n");
+}
+
+bool segmentSelfIntersects(const ContourSegment& s) {
+  const auto& p = s.points;
+  const std::size_t n = p.size();
+  const std::size_t edges = s.closed ? n : (n ? n - 1 : 0);
+  auto cross = [](const Eigen::Vector2d& a, const Eigen::Vector2d& b) { return a.x() * b.y() - a.y() * b.x(); };
+  for (std::size_t i = 0; i < edges; ++i)
+    for (std::size_t j = i + 2; j < edges; ++j) {
+      if (s.closed && i == 0 && j == n - 1) continue;  // adjacent through the closing edge
+      const Eigen::Vector2d a = p[i], b = p[(i + 1) % n], c = p[j], d = p[(j + 1) % n];
+      const double d1 = cross(b - a, c - a), d2 = cross(b - a, d - a), d3 = cross(d - c, a - c), d4 = cross(d - c, b - c);
+      if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) return true;
+    }
+  return false;
+}
+
+std::string contourProblem(const Contour& c) {
+  if (c.empty()) return "The contour is empty; sketch the organ's outline over the frame first.";
+  if (c.pointCount() < 2) return "The contour has a single point; sketch at least a short stretch of the outline.";
+  for (std::size_t i = 0; i < c.segments.size(); ++i) {
+    const auto& s = c.segments[i];
+    if (c.width > 0 && c.height > 0)
+      for (const auto& p : s.points)
+        if (p.x() < -0.5 || p.y() < -0.5 || p.x() > c.width - 0.5 || p.y() > c.height - 0.5)
+          return "Segment " + std::to_string(i + 1) + " has points outside the image; redraw it inside the frame.";
+    if (segmentSelfIntersects(s))
+      return "Segment " + std::to_string(i + 1) + " crosses itself; an organ outline cannot, so erase the loop and redraw it.";
+  }
+  return {};
+}
+
+ContourSegment resampleSegment(const ContourSegment& s, double spacing) {
+  ContourSegment out = s;
+  if (s.points.size() < 2 || !(spacing > 0)) return out;
+  std::vector<Eigen::Vector2d> pts = s.points;
+  if (s.closed) pts.push_back(s.points.front());
+  std::vector<double> arc(pts.size(), 0.0);
+  for (std::size_t i = 1; i < pts.size(); ++i) arc[i] = arc[i - 1] + (pts[i] - pts[i - 1]).norm();
+  const double total = arc.back();
+  if (total <= 0) return out;
+  const int n = std::max(1, static_cast<int>(std::round(total / spacing)));
+  out.points.clear();
+  std::size_t k = 0;
+  for (int i = 0; i <= n; ++i) {
+    if (s.closed && i == n) break;
+    const double target = total * i / n;
+    while (k + 1 < arc.size() - 1 && arc[k + 1] < target) ++k;
+    const double len = arc[k + 1] - arc[k];
+    const double t = len > 0 ? (target - arc[k]) / len : 0;
+    out.points.push_back(pts[k] + t * (pts[k + 1] - pts[k]));
+  }
+  return out;
+}
+
+ContourSegment smoothSegment(const ContourSegment& s, int iterations) {
+  ContourSegment out = s;
+  const std::size_t n = s.points.size();
+  if (n < 3) return out;
+  auto pass = [&](double factor) {
+    std::vector<Eigen::Vector2d> next = out.points;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!s.closed && (i == 0 || i + 1 == n)) continue;
+      const auto& a = out.points[(i + n - 1) % n];
+      const auto& b = out.points[(i + 1) % n];
+      next[i] = out.points[i] + factor * (0.5 * (a + b) - out.points[i]);
+    }
+    out.points = std::move(next);
+  };
+  for (int it = 0; it < iterations; ++it) {
+    pass(0.5);    // shrink
+    pass(-0.53);  // inflate back (Taubin)
+  }
+  return out;
+}
+
+bool contourToMaskDistance(const Contour& c, const cv::Mat1b& mask, ContourDistance& out) {
+  out = {};
+  if (mask.empty() || c.empty() || cv::countNonZero(mask) == 0) return false;
+  // Outline pixels of the mask, then the distance from every pixel to the nearest outline pixel.
+  cv::Mat1b eroded, outline;
+  cv::erode(mask, eroded, cv::Mat());
+  outline = mask & ~eroded;
+  cv::Mat1f dist;
+  cv::distanceTransform(~outline, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  double sum = 0, sum2 = 0;
+  for (const auto& s : c.segments)
+    for (const auto& p : s.points) {
+      const int x = std::clamp(static_cast<int>(std::lround(p.x())), 0, mask.cols - 1);
+      const int y = std::clamp(static_cast<int>(std::lround(p.y())), 0, mask.rows - 1);
+      const double d = dist(y, x);
+      sum += d;
+      sum2 += d * d;
+      out.max = std::max(out.max, d);
+      ++out.points;
+    }
+  out.mean = sum / out.points;
+  out.rms = std::sqrt(sum2 / out.points);
+  return true;
+}
+
+std::vector<Eigen::Vector2d> snapToEdges(const cv::Mat3b& image, const std::vector<Eigen::Vector2d>& anchors) {
+  if (anchors.size() < 2 || image.empty()) return anchors;
+  cv::segmentation::IntelligentScissorsMB scissors;
+  scissors.setEdgeFeatureCannyParameters(32, 100);
+  scissors.setGradientMagnitudeMaxLimit(200);
+  scissors.applyImage(image);
+  std::vector<Eigen::Vector2d> out;
+  // Anchors first move to the strongest edge within a few pixels (the hand is never exactly on it).
+  cv::Mat gray, gx, gy, magnitude;
+  cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
+  cv::Sobel(gray, gx, CV_32F, 1, 0);
+  cv::Sobel(gray, gy, CV_32F, 0, 1);
+  cv::magnitude(gx, gy, magnitude);
+  constexpr int kSearch = 8;
+  auto clampPt = [&](const Eigen::Vector2d& p) {
+    const cv::Point c(std::clamp(static_cast<int>(std::lround(p.x())), 0, image.cols - 1),
+                      std::clamp(static_cast<int>(std::lround(p.y())), 0, image.rows - 1));
+    cv::Point best = c;
+    float bestValue = magnitude.at<float>(c);
+    for (int dy = -kSearch; dy <= kSearch; ++dy)
+      for (int dx = -kSearch; dx <= kSearch; ++dx) {
+        const cv::Point q(c.x + dx, c.y + dy);
+        if (q.x < 0 || q.y < 0 || q.x >= image.cols || q.y >= image.rows || dx * dx + dy * dy > kSearch * kSearch) continue;
+        if (magnitude.at<float>(q) > bestValue * 1.05f) {
+          bestValue = magnitude.at<float>(q);
+          best = q;
+        }
+      }
+    return best;
+  };
+  for (std::size_t i = 0; i + 1 < anchors.size(); ++i) {
+    scissors.buildMap(clampPt(anchors[i]));
+    std::vector<cv::Point> path;
+    scissors.getContour(clampPt(anchors[i + 1]), path);
+    if (path.empty()) {
+      out.push_back(anchors[i]);
+      continue;
+    }
+    // Order the path from this anchor to the next whatever order the library returns.
+    const cv::Point from = clampPt(anchors[i]);
+    if (cv::norm(path.front() - from) > cv::norm(path.back() - from)) std::reverse(path.begin(), path.end());
+    for (std::size_t k = (out.empty() ? 0 : 1); k < path.size(); ++k) out.emplace_back(path[k].x, path[k].y);
+  }
+  return out;
+}
+
+}  // namespace rehearse::imaging
