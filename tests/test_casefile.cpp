@@ -41,6 +41,17 @@ void compareCases(const phantom::Case& a, const phantom::Case& b) {
   QCOMPARE(b.trueAppearance.lightPosition, a.trueAppearance.lightPosition);
   QCOMPARE(b.trueAppearance.roughness, a.trueAppearance.roughness);
   QCOMPARE(b.vesselTree.size(), a.vesselTree.size());
+  QCOMPARE(b.hasPose, a.hasPose);
+  QCOMPARE(b.poseAligned, a.poseAligned);
+  QCOMPARE(b.pose.R, a.pose.R);
+  QCOMPARE(b.pose.t, a.pose.t);
+  QCOMPARE(b.contour.width, a.contour.width);
+  QCOMPARE(b.contour.segments.size(), a.contour.segments.size());
+  for (std::size_t s = 0; s < a.contour.segments.size(); ++s) {
+    QVERIFY(b.contour.segments[s].points == a.contour.segments[s].points);
+    QCOMPARE(b.contour.segments[s].closed, a.contour.segments[s].closed);
+    QCOMPARE(b.contour.segments[s].type, a.contour.segments[s].type);
+  }
 }
 }  // namespace
 
@@ -49,12 +60,20 @@ class TestCaseFile : public QObject {
  private slots:
   void saveAndReopenEveryField() {
     const QString path = QString::fromStdString(tempPath("phantom.rehearse"));
-    ui::saveCaseFile(phantomCase(), path);
+    phantom::Case edited = phantomCase();
+    edited.contour.width = 1280;
+    edited.contour.height = 720;
+    edited.contour.segments.push_back({{{100.25, 200.5}, {300, 400}, {512.125, 333}}, false, "silhouette"});
+    edited.contour.segments.push_back({{{10, 20}, {30, 40}}, true, "ridge"});
+    edited.pose.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized()).toRotationMatrix();
+    edited.pose.t = {0.0123, -0.004, 0.21};
+    edited.poseAligned = true;
+    ui::saveCaseFile(edited, path);
     QVERIFY(ui::isCaseFile(path));
     QStringList notes;
     auto back = ui::loadCaseFile(path, &notes);
     QVERIFY2(notes.isEmpty(), qPrintable(notes.join('\n')));
-    compareCases(phantomCase(), back);
+    compareCases(edited, back);
     // Saving again over it replaces it whole and leaves no temporary file behind.
     ui::saveCaseFile(back, path);
     QCOMPARE(QDir(QFileInfo(path).absolutePath()).entryList({"phantom.rehearse.saving-*"}).size(), 0);

@@ -142,6 +142,10 @@ Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) 
   } catch (const std::exception&) {
     note("Attachments not loaded: attachments.json is damaged.");
   }
+  if (!c.volume.empty()) {
+    c.pose = c.automaticPose();
+    c.hasPose = true;
+  }
   if (manifest.contains("ground_truth")) {
     try {
       const auto& gt = manifest["ground_truth"];

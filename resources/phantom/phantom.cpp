@@ -66,6 +66,30 @@ int phantomLabel(const Eigen::Vector3d& p) {
   return kParenchymaLabel;
 }
 
+Eigen::Vector3d Case::centreOfGravity() const {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  double total = 0;
+  for (const auto& t : volume.tets) {
+    const auto &a = volume.points[t[0]], &b = volume.points[t[1]], &c = volume.points[t[2]], &d = volume.points[t[3]];
+    const double v = std::abs(simcore::tetVolume(a, b, c, d));
+    sum += v * (a + b + c + d) / 4.0;
+    total += v;
+  }
+  if (total > 0) return sum / total;
+  if (volume.points.empty()) return Eigen::Vector3d::Zero();
+  return volume.bounds().center();
+}
+
+Pose Case::automaticPose() const {
+  Pose p;
+  const Eigen::Vector3d cog = centreOfGravity();
+  const double size = volume.points.empty() ? 0.1 : volume.bounds().sizes().maxCoeff();
+  const double fx = camera.width > 0 ? camera.fx() : 1000.0, width = camera.width > 0 ? camera.width : 1280.0;
+  const double depth = std::max(0.02, size * fx / (0.6 * width));
+  p.t = Eigen::Vector3d(0, 0, depth) - cog;
+  return p;
+}
+
 Case makePhantom(const PhantomOptions& options) {
   Case c;
   c.name = "Built-in liver phantom";
@@ -114,6 +138,8 @@ Case makePhantom(const PhantomOptions& options) {
   cv::Mat3b background = imaging::makeTissueBackground(options.width, options.height, options.seed);
   c.frame = imaging::renderShaded(c.camera, c.truePose, c.surfaceView(), c.trueAppearance, background, 2);
   imaging::applyScopeVignette(c.frame);
+  c.pose = c.automaticPose();
+  c.hasPose = true;
   return c;
 }
 

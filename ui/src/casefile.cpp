@@ -150,6 +150,17 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
       part("camera", "json", bytes(cam.dump()));
     }
     part("attachments", "json", bytes(json{{"nodes", c.attachments}}.dump()));
+    if (c.hasPose) part("pose", "json", bytes(json{{"pose", poseJson(c.pose)}, {"aligned", c.poseAligned}}.dump()));
+    if (!c.meshSource.empty()) meta(QStringLiteral("mesh_source"), QString::fromStdString(c.meshSource));
+    if (!c.contour.segments.empty()) {
+      json segs = json::array();
+      for (const auto& sgm : c.contour.segments) {
+        json pts = json::array();
+        for (const auto& p : sgm.points) pts.push_back({p.x(), p.y()});
+        segs.push_back({{"points", pts}, {"closed", sgm.closed}, {"type", sgm.type}});
+      }
+      part("contour", "json", bytes(json{{"image_size", {c.contour.width, c.contour.height}}, {"segments", segs}}.dump()));
+    }
     if (c.hasGroundTruth) {
       json tree = json::array();
       for (const auto& s : c.vesselTree) tree.push_back({{"a", vec(s.a)}, {"b", vec(s.b)}, {"radius", s.radius}});
@@ -253,6 +264,38 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
     } catch (const std::exception& e) {
       c.attachments.clear();
       note(QStringLiteral("Attachments not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (QByteArray p = read("pose"); !p.isEmpty()) {
+    try {
+      const json j = json::parse(p.toStdString());
+      c.pose = poseFrom(j.at("pose"));
+      c.poseAligned = j.value("aligned", false);
+      c.hasPose = true;
+    } catch (const std::exception& e) {
+      note(QStringLiteral("Pose not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (!c.hasPose && !c.volume.empty()) {
+    c.pose = c.automaticPose();
+    c.hasPose = true;
+  }
+  if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'mesh_source'")) && q.next()) c.meshSource = q.value(0).toString().toStdString();
+  if (QByteArray k = read("contour"); !k.isEmpty()) {
+    try {
+      const json j = json::parse(k.toStdString());
+      c.contour.width = j.at("image_size").at(0).get<int>();
+      c.contour.height = j.at("image_size").at(1).get<int>();
+      for (const auto& sj : j.at("segments")) {
+        imaging::ContourSegment sgm;
+        for (const auto& pt : sj.at("points")) sgm.points.emplace_back(pt.at(0).get<double>(), pt.at(1).get<double>());
+        sgm.closed = sj.value("closed", false);
+        sgm.type = sj.value("type", std::string("silhouette"));
+        c.contour.segments.push_back(std::move(sgm));
+      }
+    } catch (const std::exception& e) {
+      c.contour = {};
+      note(QStringLiteral("Contour not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
   if (QByteArray g = read("ground_truth"); !g.isEmpty()) {
