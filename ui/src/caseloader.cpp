@@ -39,22 +39,6 @@ LoadedCase loadCaseOrThrow(const QString& dir, const std::function<void(double, 
     cv::cvtColor(c->frame, rgb, cv::COLOR_BGR2RGB);
     out.frame = QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
   }
-  const bool posed = c->hasGroundTruth && !c->surface.empty() && c->camera.problem().empty();
-  if (posed) {
-    // The organ at the case pose (the phantom's ground truth until a registration exists).
-    cv::Mat4b overlay = imaging::renderOverlay(c->camera, c->truePose, c->surfaceView(), cv::Vec3b(150, 210, 120));
-    cv::Mat rgba;
-    cv::cvtColor(overlay, rgba, cv::COLOR_BGRA2RGBA);
-    out.organOverlay = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
-    cv::Mat1b mask = imaging::renderMask(c->camera, c->truePose, c->surfaceView());
-    std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-    for (const auto& ct : contours) {
-      QPolygonF poly;
-      for (const auto& p : ct) poly << QPointF(p.x + 0.5, p.y + 0.5);
-      out.silhouette << poly;
-    }
-  }
   if (!c->volume.empty()) out.qualityText = QString::fromStdString(simcore::formatQuality(simcore::computeQuality(c->volume)));
   out.data = std::move(c);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

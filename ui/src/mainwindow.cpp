@@ -1,31 +1,96 @@
 #include "rehearse/ui/mainwindow.hpp"
 
 #include "rehearse/ui/casefile.hpp"
-#include "rehearse/ui/frameview.hpp"
+
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/quality.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
 
 #include <QAction>
 #include <QApplication>
+#include <QCheckBox>
 #include <QCloseEvent>
+#include <QComboBox>
 #include <QDir>
+#include <QDockWidget>
+#include <QDoubleSpinBox>
 #include <QDragEnterEvent>
 #include <QDropEvent>
-#include <QFileInfo>
-#include <QMimeData>
-#include <QStandardPaths>
-#include <QDockWidget>
 #include <QFileDialog>
+#include <QFileInfo>
+#include <QFormLayout>
+#include <QGroupBox>
+#include <QHBoxLayout>
+#include <QHeaderView>
 #include <QLabel>
+#include <QListWidget>
 #include <QMenuBar>
 #include <QMessageBox>
+#include <QMimeData>
 #include <QPlainTextEdit>
 #include <QProgressBar>
+#include <QPushButton>
 #include <QSettings>
+#include <QSlider>
+#include <QSpinBox>
+#include <QStackedWidget>
+#include <QStandardPaths>
 #include <QStatusBar>
 #include <QToolBar>
 #include <QToolButton>
+#include <QTreeWidget>
+#include <QUndoCommand>
+#include <QVBoxLayout>
 #include <QtConcurrent/QtConcurrent>
 
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
 namespace rehearse::ui {
+namespace {
+
+// One undoable edit of the case: a snapshot before and after (cheap: frames are shared cv::Mats).
+class CaseCommand : public QUndoCommand {
+ public:
+  CaseCommand(MainWindow* w, std::shared_ptr<const phantom::Case> before, std::shared_ptr<const phantom::Case> after,
+              const QString& text, int mergeId)
+      : QUndoCommand(text), w_(w), before_(std::move(before)), after_(std::move(after)), merge_(mergeId) {}
+  void undo() override { w_->setCaseData(before_); }
+  void redo() override { w_->setCaseData(after_); }
+  int id() const override { return merge_ >= 0 ? 1 : -1; }
+  bool mergeWith(const QUndoCommand* other) override {
+    auto* o = dynamic_cast<const CaseCommand*>(other);
+    if (!o || o->merge_ != merge_) return false;
+    after_ = o->after_;
+    return true;
+  }
+
+ private:
+  MainWindow* w_;
+  std::shared_ptr<const phantom::Case> before_, after_;
+  int merge_;
+};
+
+QImage toQImage(const cv::Mat3b& bgr) {
+  if (bgr.empty()) return {};
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  return QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
+}
+
+QColor labelColour(int label) {
+  static const QColor c[] = {QColor(200, 120, 100), QColor(80, 140, 255), QColor(250, 200, 60), QColor(170, 90, 220),
+                             QColor(90, 220, 200), QColor(240, 120, 180)};
+  return c[std::abs(label) % 6];
+}
+
+const char* kStepNames[] = {"1  Organ mesh", "2  Endoscope frame", "3  Contour", "4  Rigid alignment",
+                            "5  Elastic fit", "6  Appearance", "7  Rehearse"};
+
+}  // namespace
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   setWindowTitle(tr("Rehearse"));
@@ -34,45 +99,78 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   view_->setObjectName(QStringLiteral("frameView"));
   setCentralWidget(view_);
 
-  auto* dock = new QDockWidget(tr("Case"), this);
-  dock->setObjectName(QStringLiteral("caseDock"));
-  info_ = new QPlainTextEdit(dock);
+  auto* infoDock = new QDockWidget(tr("Case"), this);
+  infoDock->setObjectName(QStringLiteral("caseDock"));
+  info_ = new QPlainTextEdit(infoDock);
   info_->setObjectName(QStringLiteral("caseInfo"));
   info_->setReadOnly(true);
-  info_->setMinimumWidth(400);
+  info_->setMinimumWidth(280);
   info_->setLineWrapMode(QPlainTextEdit::NoWrap);
   QFont mono(QStringLiteral("DejaVu Sans Mono"));
   mono.setStyleHint(QFont::Monospace);
   info_->setFont(mono);
-  dock->setWidget(info_);
-  addDockWidget(Qt::RightDockWidgetArea, dock);
+  infoDock->setWidget(info_);
+  addDockWidget(Qt::RightDockWidgetArea, infoDock);
 
   progress_ = new QProgressBar(this);
   progress_->setRange(0, 100);
-  progress_->setMaximumWidth(220);
+  progress_->setMaximumWidth(260);
   progress_->setVisible(false);
   cancelButton_ = new QToolButton(this);
   cancelButton_->setText(tr("Cancel"));
-  cancelButton_->setToolTip(tr("Cancel loading (Esc)"));
+  cancelButton_->setToolTip(tr("Cancel the running job (Esc)"));
   cancelButton_->setVisible(false);
   connect(cancelButton_, &QToolButton::clicked, this, &MainWindow::cancelLoading);
   statusCase_ = new QLabel(this);
   statusCursor_ = new QLabel(this);
+  statusDistance_ = new QLabel(this);
   statusBar()->addWidget(statusCase_, 1);
+  statusBar()->addPermanentWidget(statusDistance_);
   statusBar()->addPermanentWidget(statusCursor_);
   statusBar()->addPermanentWidget(progress_);
   statusBar()->addPermanentWidget(cancelButton_);
   connect(view_, &FrameView::cursorMoved, this, [this](QPointF p) {
     statusCursor_->setText(tr("u %1  v %2 px").arg(p.x(), 0, 'f', 1).arg(p.y(), 0, 'f', 1));
   });
+  connect(view_, &FrameView::contourEdited, this, [this](const imaging::Contour& c, const QString& text, int merge) {
+    editCase(text, [&c](phantom::Case& k) { k.contour = c; }, merge);
+  });
+  connect(view_, &FrameView::poseEdited, this, [this](const Pose& p, const QString& text, int merge) {
+    editCase(text, [&p](phantom::Case& k) {
+      k.pose = p;
+      k.hasPose = true;
+      k.poseAligned = true;
+    }, merge);
+  });
+  connect(view_, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {
+    landmarks_.push_back({m, {}, false});
+    view_->setLandmarks(landmarks_);
+    refreshPanels();
+    statusCase_->setText(tr("Landmark %1 on the organ; now click where it is in the frame.").arg(landmarks_.size()));
+  });
+  connect(view_, &FrameView::landmarkImagePicked, this, [this](const Eigen::Vector2d& p) {
+    if (landmarks_.empty()) return;
+    landmarks_.back().image = p;
+    landmarks_.back().hasImage = true;
+    view_->setLandmarks(landmarks_);
+    refreshPanels();
+    statusCase_->setText(tr("%1 landmark pairs; click the organ for the next, or solve (4 or more).").arg(landmarks_.size()));
+  });
 
+  buildWorkflowPanel();
   buildMenus();
   connect(&watcher_, &QFutureWatcher<LoadedCase>::finished, this, &MainWindow::onLoadFinished);
+  connect(&jobWatcher_, &QFutureWatcher<std::function<void()>>::finished, this, [this] {
+    setBusy(false);
+    auto finish = jobWatcher_.result();
+    if (finish) finish();
+  });
   connect(&saveWatcher_, &QFutureWatcher<QString>::finished, this, [this] {
     const QString error = saveWatcher_.result();
     if (error.isEmpty()) {
       currentPath_ = savingPath_;
       addRecent(savingPath_);
+      undo_.setClean();
       setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(savingPath_).fileName()));
       statusCase_->setText(tr("Saved %1").arg(savingPath_));
     } else {
@@ -80,12 +178,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     }
     emit caseSaved(error.isEmpty(), error);
   });
+  connect(&cameraTimer_, &QTimer::timeout, this, [this] { showVideoFrame(-1); });
   setAcceptDrops(true);
   autosaveTimer_.setInterval(60'000);
   connect(&autosaveTimer_, &QTimer::timeout, this, [this] {
     if (case_.data && !saveWatcher_.isRunning()) {
       auto data = case_.data;
-      // Off the GUI thread; the autosave file is written atomically like any save.
       (void)QtConcurrent::run([data] {
         try {
           QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
@@ -98,15 +196,881 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   autosaveTimer_.start();
 
   QSettings settings;
-  if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) resize(1500, 860);
+  if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) resize(1600, 900);
   restoreState(settings.value(QStringLiteral("window/state")).toByteArray());
+  setStep(Step::Mesh);
 }
 
 MainWindow::~MainWindow() {
   cancel_ = true;
+  cameraTimer_.stop();
   watcher_.waitForFinished();
+  jobWatcher_.waitForFinished();
   saveWatcher_.waitForFinished();
 }
+
+bool MainWindow::isBusy() const { return watcher_.isRunning() || jobWatcher_.isRunning() || saveWatcher_.isRunning(); }
+
+// ---------------------------------------------------------------------------------------------- panels
+
+void MainWindow::buildWorkflowPanel() {
+  auto* dock = new QDockWidget(tr("Workflow"), this);
+  dock->setObjectName(QStringLiteral("workflowDock"));
+  auto* host = new QWidget(dock);
+  auto* layout = new QVBoxLayout(host);
+  workflow_ = new QListWidget(host);
+  workflow_->setObjectName(QStringLiteral("workflowList"));
+  QFont big = workflow_->font();
+  big.setPointSizeF(big.pointSizeF() * 1.15);
+  workflow_->setFont(big);
+  for (int i = 0; i < 7; ++i) {
+    auto* item = new QListWidgetItem(tr(kStepNames[i]), workflow_);
+    item->setSizeHint(QSize(0, 34));
+    item->setToolTip(tr("Alt+%1").arg(i + 1));
+    if (i >= 4) {
+      item->setFlags(item->flags() & ~Qt::ItemIsEnabled);
+      item->setToolTip(tr("Comes in a later version"));
+    }
+  }
+  workflow_->setFixedHeight(7 * 34 + 8);
+  workflow_->setVerticalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  connect(workflow_, &QListWidget::currentRowChanged, this, [this](int row) {
+    if (row >= 0 && row < 4) setStep(static_cast<Step>(row));
+  });
+  layout->addWidget(workflow_);
+  steps_ = new QStackedWidget(host);
+  steps_->addWidget(buildMeshPage());
+  steps_->addWidget(buildFramePage());
+  steps_->addWidget(buildContourPage());
+  steps_->addWidget(buildRigidPage());
+  layout->addWidget(steps_, 1);
+  dock->setWidget(host);
+  dock->setMinimumWidth(330);
+  addDockWidget(Qt::LeftDockWidgetArea, dock);
+}
+
+QWidget* MainWindow::buildMeshPage() {
+  auto* page = new QWidget;
+  auto* l = new QVBoxLayout(page);
+  auto* importButton = new QPushButton(tr("Import Mesh... (Ctrl+I)"), page);
+  importButton->setMinimumHeight(36);
+  connect(importButton, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getOpenFileName(this, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
+                                                   tr("Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb)"));
+    if (!p.isEmpty()) importMesh(p);
+  });
+  l->addWidget(importButton);
+  auto* form = new QFormLayout;
+  targetTets_ = new QSpinBox(page);
+  targetTets_->setRange(200, 500000);
+  targetTets_->setSingleStep(500);
+  targetTets_->setValue(QSettings().value(QStringLiteral("mesh/targetTets"), 4000).toInt());
+  targetTets_->setToolTip(tr("Tetrahedra wanted when a surface is filled (size control)"));
+  form->addRow(tr("Target tetrahedra"), targetTets_);
+  meshUnit_ = new QComboBox(page);
+  meshUnit_->addItems({"mm", "cm", "dm", "m"});
+  meshUnit_->setToolTip(tr("Length unit of the file's coordinates"));
+  form->addRow(tr("File unit"), meshUnit_);
+  l->addLayout(form);
+  l->addWidget(new QLabel(tr("Labels (tick to show inner structures)"), page));
+  labels_ = new QTreeWidget(page);
+  labels_->setObjectName(QStringLiteral("labelList"));
+  labels_->setHeaderLabels({tr("Label"), tr("Elements")});
+  labels_->setRootIsDecorated(false);
+  connect(labels_, &QTreeWidget::itemChanged, this, [this](QTreeWidgetItem* item, int) {
+    if (updatingPanels_) return;
+    labelVisible_[item->data(0, Qt::UserRole).toInt()] = item->checkState(0) == Qt::Checked;
+    refreshOverlay();
+  });
+  l->addWidget(labels_, 1);
+  return page;
+}
+
+QWidget* MainWindow::buildFramePage() {
+  auto* page = new QWidget;
+  auto* l = new QVBoxLayout(page);
+  auto* open = new QPushButton(tr("Open Image or Video... (Ctrl+F)"), page);
+  open->setMinimumHeight(36);
+  connect(open, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getOpenFileName(this, tr("Open Endoscope Image or Video"), QSettings().value("lastDir").toString(),
+                                                   tr("Images and videos (*.png *.jpg *.jpeg *.bmp *.tif *.mp4 *.avi *.mkv *.mov)"));
+    if (!p.isEmpty()) openFrameSource(p);
+  });
+  l->addWidget(open);
+  auto* cam = new QHBoxLayout;
+  auto* device = new QSpinBox(page);
+  device->setRange(0, 9);
+  auto* openDevice = new QPushButton(tr("Live Camera"), page);
+  connect(openDevice, &QPushButton::clicked, this, [this, device] { openCameraDevice(device->value()); });
+  cam->addWidget(new QLabel(tr("Device"), page));
+  cam->addWidget(device);
+  cam->addWidget(openDevice, 1);
+  l->addLayout(cam);
+  auto* videoBox = new QGroupBox(tr("Video"), page);
+  auto* vl = new QVBoxLayout(videoBox);
+  videoSlider_ = new QSlider(Qt::Horizontal, videoBox);
+  videoSlider_->setObjectName(QStringLiteral("videoSlider"));
+  videoSlider_->setEnabled(false);
+  connect(videoSlider_, &QSlider::valueChanged, this, [this](int v) {
+    if (!updatingPanels_) showVideoFrame(v);
+  });
+  vl->addWidget(videoSlider_);
+  auto* row = new QHBoxLayout;
+  auto* prev = new QToolButton(videoBox);
+  prev->setText(QStringLiteral("<"));
+  prev->setToolTip(tr("Previous frame (,)"));
+  prev->setShortcut(QKeySequence(Qt::Key_Comma));
+  connect(prev, &QToolButton::clicked, this, [this] { if (videoFrames_ > 0) showVideoFrame(std::max(0, shownVideoFrame_ - 1)); });
+  auto* next = new QToolButton(videoBox);
+  next->setText(QStringLiteral(">"));
+  next->setToolTip(tr("Next frame (.)"));
+  next->setShortcut(QKeySequence(Qt::Key_Period));
+  connect(next, &QToolButton::clicked, this, [this] { if (videoFrames_ > 0) showVideoFrame(std::min(videoFrames_ - 1, shownVideoFrame_ + 1)); });
+  videoLabel_ = new QLabel(tr("no video"), videoBox);
+  row->addWidget(prev);
+  row->addWidget(videoLabel_, 1);
+  row->addWidget(next);
+  vl->addLayout(row);
+  useFrameButton_ = new QPushButton(tr("Use This Frame (Ctrl+Return)"), videoBox);
+  useFrameButton_->setEnabled(false);
+  useFrameButton_->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_Return));
+  connect(useFrameButton_, &QPushButton::clicked, this, &MainWindow::useShownFrame);
+  vl->addWidget(useFrameButton_);
+  l->addWidget(videoBox);
+  auto* camBox = new QGroupBox(tr("Camera intrinsics (px)"), page);
+  auto* form = new QFormLayout(camBox);
+  auto spin = [&](QDoubleSpinBox*& s, const QString& name) {
+    s = new QDoubleSpinBox(camBox);
+    s->setRange(0, 100000);
+    s->setDecimals(2);
+    s->setKeyboardTracking(false);
+    form->addRow(name, s);
+    connect(s, &QDoubleSpinBox::valueChanged, this, [this] {
+      if (updatingPanels_ || !case_.data) return;
+      const double fx = fx_->value(), fy = fy_->value(), cx = cx_->value(), cy = cy_->value();
+      editCase(tr("Edit intrinsics"), [=](phantom::Case& k) {
+        k.camera.K(0, 0) = fx;
+        k.camera.K(1, 1) = fy;
+        k.camera.K(0, 2) = cx;
+        k.camera.K(1, 2) = cy;
+      });
+    });
+  };
+  spin(fx_, tr("fx"));
+  spin(fy_, tr("fy"));
+  spin(cx_, tr("cx"));
+  spin(cy_, tr("cy"));
+  distortionLabel_ = new QLabel(camBox);
+  distortionLabel_->setWordWrap(true);
+  form->addRow(tr("Distortion"), distortionLabel_);
+  auto* loadCal = new QPushButton(tr("Load Calibration..."), camBox);
+  connect(loadCal, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getOpenFileName(this, tr("Load Camera Calibration"), QSettings().value("lastDir").toString(),
+                                                   tr("Calibrations (*.yaml *.yml *.xml *.json *.txt)"));
+    if (!p.isEmpty()) loadCalibration(p);
+  });
+  auto* defaults = new QPushButton(tr("Default From Image Size"), camBox);
+  connect(defaults, &QPushButton::clicked, this, [this] {
+    if (!case_.data || case_.data->frame.empty()) return;
+    editCase(tr("Default intrinsics"), [](phantom::Case& k) { k.camera = imaging::Camera::defaultFor(k.frame.cols, k.frame.rows); });
+  });
+  form->addRow(loadCal);
+  form->addRow(defaults);
+  l->addWidget(camBox);
+  l->addStretch(1);
+  return page;
+}
+
+QWidget* MainWindow::buildContourPage() {
+  auto* page = new QWidget;
+  auto* l = new QVBoxLayout(page);
+  auto* grid = new QGridLayout;
+  struct T {
+    Tool tool;
+    const char* name;
+    Qt::Key key;
+  };
+  const T tools[] = {{Tool::Freehand, "Freehand (F)", Qt::Key_F}, {Tool::ClickPoints, "Click points (C)", Qt::Key_C},
+                     {Tool::EditPoints, "Edit points (E)", Qt::Key_E}, {Tool::Erase, "Erase (X)", Qt::Key_X}};
+  int i = 0;
+  for (const auto& t : tools) {
+    auto* b = new QPushButton(tr(t.name), page);
+    b->setMinimumHeight(34);
+    b->setToolTip(tr("Middle button pans and the wheel zooms while drawing; Enter ends a click-by-click segment; "
+                     "in Edit, drag a point, Ctrl+click inserts, right-click deletes."));
+    const Tool tool = t.tool;
+    connect(b, &QPushButton::clicked, this, [this, tool] { view_->setTool(tool); });
+    auto* a = new QAction(this);
+    a->setShortcut(QKeySequence(t.key));
+    connect(a, &QAction::triggered, this, [this, tool] {
+      if (step_ == Step::Contour) view_->setTool(tool);
+    });
+    addAction(a);
+    grid->addWidget(b, i / 2, i % 2);
+    ++i;
+  }
+  l->addLayout(grid);
+  snap_ = new QCheckBox(tr("Snap to image edges"), page);
+  connect(snap_, &QCheckBox::toggled, view_, &FrameView::setSnapToEdges);
+  l->addWidget(snap_);
+  auto* rs = new QHBoxLayout;
+  spacing_ = new QDoubleSpinBox(page);
+  spacing_->setRange(1, 100);
+  spacing_->setValue(8);
+  spacing_->setSuffix(tr(" px"));
+  auto* resample = new QPushButton(tr("Resample"), page);
+  connect(resample, &QPushButton::clicked, this, [this] {
+    const double s = spacing_->value();
+    editCase(tr("Resample contour"), [s](phantom::Case& k) {
+      for (auto& seg : k.contour.segments) seg = imaging::resampleSegment(seg, s);
+    });
+  });
+  rs->addWidget(new QLabel(tr("Spacing"), page));
+  rs->addWidget(spacing_);
+  rs->addWidget(resample);
+  l->addLayout(rs);
+  auto* row = new QHBoxLayout;
+  auto* smooth = new QPushButton(tr("Smooth"), page);
+  connect(smooth, &QPushButton::clicked, this, [this] {
+    editCase(tr("Smooth contour"), [](phantom::Case& k) {
+      for (auto& seg : k.contour.segments) seg = imaging::smoothSegment(seg, 5);
+    });
+  });
+  auto* clear = new QPushButton(tr("Clear"), page);
+  connect(clear, &QPushButton::clicked, this, [this] { editCase(tr("Clear contour"), [](phantom::Case& k) { k.contour.segments.clear(); }); });
+  row->addWidget(smooth);
+  row->addWidget(clear);
+  l->addLayout(row);
+  auto* io = new QHBoxLayout;
+  auto* imp = new QPushButton(tr("Import..."), page);
+  connect(imp, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getOpenFileName(this, tr("Import Contour"), QSettings().value("lastDir").toString(), tr("Contours (*.json)"));
+    if (!p.isEmpty()) importContour(p);
+  });
+  auto* exp = new QPushButton(tr("Export..."), page);
+  connect(exp, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getSaveFileName(this, tr("Export Contour"), QSettings().value("lastDir").toString(), tr("Contours (*.json)"));
+    if (!p.isEmpty()) exportContour(p);
+  });
+  io->addWidget(imp);
+  io->addWidget(exp);
+  l->addLayout(io);
+  contourStatus_ = new QLabel(page);
+  contourStatus_->setWordWrap(true);
+  l->addWidget(contourStatus_);
+  l->addStretch(1);
+  return page;
+}
+
+QWidget* MainWindow::buildRigidPage() {
+  auto* page = new QWidget;
+  auto* l = new QVBoxLayout(page);
+  auto* gizmo = new QPushButton(tr("Gizmo (G)"), page);
+  gizmo->setMinimumHeight(34);
+  gizmo->setToolTip(tr("Drag X, Y, Z to move along the camera axes, rX, rY, rZ to turn about them through the organ's centre. "
+                       "Keys: arrows and PgUp/PgDn move 1 mm, W/S A/D Q/E turn 1 degree; Shift for 10 mm / 5 degrees."));
+  connect(gizmo, &QPushButton::clicked, this, [this] { view_->setTool(Tool::Align); });
+  auto* g = new QAction(this);
+  g->setShortcut(QKeySequence(Qt::Key_G));
+  connect(g, &QAction::triggered, this, [this] { setStep(Step::Rigid); view_->setTool(Tool::Align); });
+  addAction(g);
+  l->addWidget(gizmo);
+  auto* box = new QGroupBox(tr("Pose (camera frame)"), page);
+  auto* form = new QFormLayout(box);
+  const char* names[6] = {"tx (mm)", "ty (mm)", "tz (mm)", "rx (deg)", "ry (deg)", "rz (deg)"};
+  for (int k = 0; k < 6; ++k) {
+    auto* s = new QDoubleSpinBox(box);
+    s->setRange(k < 3 ? -5000 : -180, k < 3 ? 5000 : 180);
+    s->setDecimals(k < 3 ? 2 : 2);
+    s->setSingleStep(k < 3 ? 1.0 : 1.0);
+    s->setKeyboardTracking(false);
+    poseFields_[k] = s;
+    form->addRow(tr(names[k]), s);
+    connect(s, &QDoubleSpinBox::valueChanged, this, [this] {
+      if (updatingPanels_ || !case_.data) return;
+      Pose p;
+      p.t = Eigen::Vector3d(poseFields_[0]->value(), poseFields_[1]->value(), poseFields_[2]->value()) * 1e-3;
+      const double d = M_PI / 180;
+      p.R = (Eigen::AngleAxisd(poseFields_[5]->value() * d, Eigen::Vector3d::UnitZ()) *
+             Eigen::AngleAxisd(poseFields_[4]->value() * d, Eigen::Vector3d::UnitY()) *
+             Eigen::AngleAxisd(poseFields_[3]->value() * d, Eigen::Vector3d::UnitX()))
+                .toRotationMatrix();
+      editCase(tr("Edit pose"), [p](phantom::Case& k) {
+        k.pose = p;
+        k.hasPose = true;
+        k.poseAligned = true;
+      });
+    });
+  }
+  l->addWidget(box);
+  auto* reset = new QPushButton(tr("Reset to Automatic Placement"), page);
+  connect(reset, &QPushButton::clicked, this, [this] {
+    editCase(tr("Reset pose"), [](phantom::Case& k) {
+      k.pose = k.automaticPose();
+      k.hasPose = true;
+      k.poseAligned = false;
+    });
+  });
+  l->addWidget(reset);
+  auto* lmBox = new QGroupBox(tr("Landmark pairs (mesh point, then image point)"), page);
+  auto* ll = new QVBoxLayout(lmBox);
+  auto* pick = new QPushButton(tr("Pick Landmarks (L)"), lmBox);
+  connect(pick, &QPushButton::clicked, this, [this] { view_->setTool(Tool::Landmarks); });
+  auto* la = new QAction(this);
+  la->setShortcut(QKeySequence(Qt::Key_L));
+  connect(la, &QAction::triggered, this, [this] { setStep(Step::Rigid); view_->setTool(Tool::Landmarks); });
+  addAction(la);
+  ll->addWidget(pick);
+  landmarkList_ = new QListWidget(lmBox);
+  landmarkList_->setMaximumHeight(110);
+  ll->addWidget(landmarkList_);
+  auto* lrow = new QHBoxLayout;
+  pnpButton_ = new QPushButton(tr("Solve Pose"), lmBox);
+  pnpButton_->setEnabled(false);
+  connect(pnpButton_, &QPushButton::clicked, this, &MainWindow::solvePnP);
+  auto* clearLm = new QPushButton(tr("Clear"), lmBox);
+  connect(clearLm, &QPushButton::clicked, this, [this] {
+    landmarks_.clear();
+    view_->setLandmarks(landmarks_);
+    refreshPanels();
+  });
+  lrow->addWidget(pnpButton_);
+  lrow->addWidget(clearLm);
+  ll->addLayout(lrow);
+  l->addWidget(lmBox);
+  distanceLabel_ = new QLabel(page);
+  QFont f = distanceLabel_->font();
+  f.setPointSizeF(f.pointSizeF() * 1.3);
+  f.setBold(true);
+  distanceLabel_->setFont(f);
+  distanceLabel_->setWordWrap(true);
+  l->addWidget(distanceLabel_);
+  l->addStretch(1);
+  return page;
+}
+
+void MainWindow::setStep(Step s) {
+  step_ = s;
+  const int row = static_cast<int>(s);
+  if (row < 4) {
+    steps_->setCurrentIndex(row);
+    if (workflow_->currentRow() != row) workflow_->setCurrentRow(row);
+  }
+  if (s == Step::Contour && (view_->tool() == Tool::Navigate || view_->tool() == Tool::Align || view_->tool() == Tool::Landmarks))
+    view_->setTool(Tool::Freehand);
+  else if (s == Step::Rigid && view_->tool() != Tool::Landmarks)
+    view_->setTool(Tool::Align);
+  else if (s == Step::Mesh || s == Step::Frame)
+    view_->setTool(Tool::Navigate);
+  updateWorkflow();
+}
+
+bool MainWindow::stepDone(Step s) const {
+  const auto& c = case_.data;
+  if (!c) return false;
+  switch (s) {
+    case Step::Mesh: return !c->volume.tets.empty();
+    case Step::Frame: return !c->frame.empty() && c->camera.problem().empty();
+    case Step::Contour: return imaging::contourProblem(c->contour).empty();
+    case Step::Rigid: return c->hasPose && c->poseAligned;
+    default: return false;
+  }
+}
+
+void MainWindow::updateWorkflow() {
+  if (!workflow_) return;
+  int next = -1;
+  for (int i = 0; i < 4; ++i)
+    if (!stepDone(static_cast<Step>(i))) {
+      next = i;
+      break;
+    }
+  for (int i = 0; i < 7; ++i) {
+    auto* item = workflow_->item(i);
+    QString text = tr(kStepNames[i]);
+    QFont f = item->font();
+    f.setBold(i == next);
+    item->setFont(f);
+    if (i < 4 && stepDone(static_cast<Step>(i))) text += QStringLiteral("   \u2713");
+    else if (i == next) text += tr("   (next)");
+    item->setText(text);
+  }
+}
+
+// ----------------------------------------------------------------------------------- case and commands
+
+void MainWindow::editCase(const QString& text, const std::function<void(phantom::Case&)>& edit, int mergeId) {
+  if (!case_.data) return;
+  auto after = std::make_shared<phantom::Case>(*case_.data);
+  edit(*after);
+  undo_.push(new CaseCommand(this, case_.data, std::move(after), text, mergeId));
+}
+
+void MainWindow::setCaseData(std::shared_ptr<const phantom::Case> data) {
+  const bool frameChanged = !case_.data || case_.data->frame.data != data->frame.data;
+  const bool meshChanged = !case_.data || case_.data->volume.points.size() != data->volume.points.size() ||
+                           case_.data->volume.tets != data->volume.tets;
+  case_.data = std::move(data);
+  if (frameChanged) case_.frame = toQImage(case_.data->frame);
+  if (meshChanged && !case_.data->volume.empty())
+    case_.qualityText = QString::fromStdString(simcore::formatQuality(simcore::computeQuality(case_.data->volume)));
+  view_->setCase(case_.data);
+  if (frameChanged) view_->setFrame(case_.frame);
+  refreshOverlay();
+  showCaseInfo();
+  refreshPanels();
+  updateWorkflow();
+}
+
+void MainWindow::refreshOverlay() {
+  const auto& c = case_.data;
+  contourDistance_ = -1;
+  if (!c || c->surface.empty() || !c->hasPose || !c->camera.problem().empty()) {
+    view_->setOverlay({}, {});
+    view_->setInnerOverlay({});
+    statusDistance_->clear();
+    return;
+  }
+  cv::Mat4b overlay = imaging::renderOverlay(c->camera, c->pose, c->surfaceView(), cv::Vec3b(150, 210, 120));
+  cv::Mat rgba;
+  cv::cvtColor(overlay, rgba, cv::COLOR_BGRA2RGBA);
+  case_.organOverlay = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
+  cv::Mat1b mask;
+  cv::extractChannel(overlay, mask, 3);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  case_.silhouette.clear();
+  for (const auto& ct : contours) {
+    QPolygonF poly;
+    for (const auto& p : ct) poly << QPointF(p.x + 0.5, p.y + 0.5);
+    case_.silhouette << poly;
+  }
+  view_->setOverlay(case_.organOverlay, case_.silhouette);
+  // Inner structures the user ticked, drawn over the organ.
+  std::vector<int> labels;
+  auto faces = simcore::boundaryTriangles(c->volume, true, &labels);
+  std::vector<std::array<int, 3>> inner;
+  int innerLabel = -1;
+  for (std::size_t i = 0; i < faces.size(); ++i)
+    if (labels[i] != 1 && labelVisible_.count(labels[i]) && labelVisible_[labels[i]]) {
+      inner.push_back(faces[i]);
+      innerLabel = labels[i];
+    }
+  if (!inner.empty()) {
+    SurfaceView v = c->volume.surfaceView();
+    v.triangles = inner.front().data();
+    v.triangleCount = inner.size();
+    const QColor col = labelColour(innerLabel);
+    cv::Mat4b in = imaging::renderOverlay(c->camera, c->pose, v, cv::Vec3b(col.blue(), col.green(), col.red()));
+    cv::cvtColor(in, rgba, cv::COLOR_BGRA2RGBA);
+    view_->setInnerOverlay(QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy());
+  } else {
+    view_->setInnerOverlay({});
+  }
+  imaging::ContourDistance d;
+  if (imaging::contourToMaskDistance(c->contour, mask, d)) {
+    contourDistance_ = d.mean;
+    const QString text = tr("Contour to silhouette: mean %1 px, RMS %2 px, max %3 px").arg(d.mean, 0, 'f', 1).arg(d.rms, 0, 'f', 1).arg(d.max, 0, 'f', 1);
+    statusDistance_->setText(text);
+    if (distanceLabel_) distanceLabel_->setText(text);
+  } else {
+    statusDistance_->clear();
+    if (distanceLabel_) distanceLabel_->setText(tr("Sketch a contour (step 3) to see its distance to the silhouette."));
+  }
+}
+
+void MainWindow::refreshPanels() {
+  const auto& c = case_.data;
+  if (!c) return;
+  updatingPanels_ = true;
+  // Step 1: labels.
+  labels_->clear();
+  std::map<int, std::size_t> counts;
+  for (int l : c->volume.tetLabels) counts[l]++;
+  for (const auto& [label, n] : counts) {
+    auto* item = new QTreeWidgetItem(labels_);
+    const std::string name = c->volume.labelName(label);
+    item->setText(0, QStringLiteral("%1 %2").arg(label).arg(QString::fromStdString(name)));
+    item->setText(1, QString::number(n));
+    item->setData(0, Qt::UserRole, label);
+    item->setFlags(item->flags() | Qt::ItemIsUserCheckable);
+    if (!labelVisible_.count(label)) labelVisible_[label] = label == 1;
+    item->setCheckState(0, labelVisible_[label] ? Qt::Checked : Qt::Unchecked);
+    QPixmap swatch(14, 14);
+    swatch.fill(labelColour(label));
+    item->setIcon(0, QIcon(swatch));
+  }
+  // Step 2: camera.
+  fx_->setValue(c->camera.fx());
+  fy_->setValue(c->camera.fy());
+  cx_->setValue(c->camera.cx());
+  cy_->setValue(c->camera.cy());
+  const auto& d = c->camera.distortion;
+  distortionLabel_->setText(QStringLiteral("k1 %1  k2 %2  p1 %3  p2 %4  k3 %5").arg(d[0]).arg(d[1]).arg(d[2]).arg(d[3]).arg(d[4]));
+  // Step 3: contour status.
+  const std::string problem = imaging::contourProblem(c->contour);
+  contourStatus_->setText(tr("%1 segments, %2 points. %3")
+                              .arg(c->contour.segments.size())
+                              .arg(c->contour.pointCount())
+                              .arg(problem.empty() ? tr("Ready for fitting.") : QString::fromStdString(problem)));
+  // Step 4: pose fields (translation in mm, rotation as Z-Y-X Euler angles in degrees).
+  if (c->hasPose) {
+    const Eigen::Vector3d e = c->pose.R.eulerAngles(2, 1, 0) * 180 / M_PI;
+    const double vals[6] = {c->pose.t.x() * 1e3, c->pose.t.y() * 1e3, c->pose.t.z() * 1e3, e[2], e[1], e[0]};
+    for (int k = 0; k < 6; ++k) poseFields_[k]->setValue(vals[k]);
+  }
+  landmarkList_->clear();
+  int complete = 0;
+  for (std::size_t i = 0; i < landmarks_.size(); ++i) {
+    const auto& l = landmarks_[i];
+    complete += l.hasImage;
+    landmarkList_->addItem(QStringLiteral("%1: (%2, %3, %4) mm -> %5")
+                               .arg(i + 1)
+                               .arg(l.model.x() * 1e3, 0, 'f', 1)
+                               .arg(l.model.y() * 1e3, 0, 'f', 1)
+                               .arg(l.model.z() * 1e3, 0, 'f', 1)
+                               .arg(l.hasImage ? QStringLiteral("(%1, %2) px").arg(l.image.x(), 0, 'f', 1).arg(l.image.y(), 0, 'f', 1)
+                                               : tr("click the frame")));
+  }
+  pnpButton_->setEnabled(complete >= 4);
+  updatingPanels_ = false;
+}
+
+// ----------------------------------------------------------------------------------------- workflow jobs
+
+void MainWindow::runJob(const QString& message,
+                        const std::function<std::function<void()>(const std::atomic<bool>&, const std::function<void(double, QString)>&)>& job) {
+  if (jobWatcher_.isRunning()) {
+    statusCase_->setText(tr("Another job is running; wait for it or cancel it (Esc)."));
+    return;
+  }
+  cancel_ = false;
+  setBusy(true, message);
+  auto progress = [this](double f, QString stage) {
+    QMetaObject::invokeMethod(this, [this, f, stage] {
+      progress_->setValue(static_cast<int>(100 * f));
+      progress_->setFormat(stage + QStringLiteral(" %p%"));
+    }, Qt::QueuedConnection);
+  };
+  jobWatcher_.setFuture(QtConcurrent::run([this, job, progress]() -> std::function<void()> { return job(cancel_, progress); }));
+}
+
+int MainWindow::targetTets() const { return targetTets_->value(); }
+void MainWindow::setTargetTets(int n) { targetTets_->setValue(n); }
+void MainWindow::setMeshUnit(const QString& unit) { meshUnit_->setCurrentText(unit); }
+
+void MainWindow::importMesh(const QString& path) {
+  if (!case_.data) return;
+  const int target = targetTets_->value();
+  const std::string unit = meshUnit_->currentText().toStdString();
+  QSettings().setValue(QStringLiteral("mesh/targetTets"), target);
+  setStep(Step::Mesh);
+  runJob(tr("Importing %1...").arg(QFileInfo(path).fileName()), [this, path, target, unit](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
+    try {
+      std::vector<std::string> notes;
+      progress(0.02, QStringLiteral("reading"));
+      simcore::Mesh m = simcore::loadMesh(path.toStdString(), {unit}, &notes);
+      if (!m.isVolume()) {
+        simcore::TetrahedraliseOptions o;
+        o.targetTets = static_cast<std::size_t>(target);
+        o.cancel = &cancel;
+        o.progress = [&progress](double f, const std::string& s) { progress(0.05 + 0.9 * f, QString::fromStdString(s)); };
+        m = simcore::tetrahedraliseSurface(m, o, &notes);
+      }
+      m.triangles.clear();
+      m.triangleLabels.clear();
+      auto mesh = std::make_shared<simcore::Mesh>(std::move(m));
+      QStringList qnotes;
+      for (const auto& n : notes) qnotes << QString::fromStdString(n);
+      return [this, mesh, path, qnotes] {
+        editCase(tr("Import mesh"), [&](phantom::Case& k) {
+          k.volume = *mesh;
+          k.surface = simcore::boundaryTriangles(k.volume, false);
+          k.attachments.clear();
+          k.hasGroundTruth = false;
+          k.vesselTree.clear();
+          k.meshSource = path.toStdString();
+          k.pose = k.automaticPose();
+          k.hasPose = true;
+          k.poseAligned = false;
+        });
+        case_.notes = qnotes;
+        showCaseInfo();
+        statusCase_->setText(tr("Imported %1: %2 tetrahedra").arg(QFileInfo(path).fileName()).arg(case_.data->volume.tets.size()));
+        emit meshImported(true, {});
+      };
+    } catch (const simcore::Cancelled&) {
+      return [this] {
+        statusCase_->setText(tr("Import cancelled; the case is unchanged."));
+        emit meshImported(false, tr("cancelled"));
+      };
+    } catch (const std::exception& e) {
+      const QString msg = QString::fromUtf8(e.what());
+      return [this, msg] {
+        statusCase_->setText(msg);
+        emit meshImported(false, msg);
+      };
+    }
+  });
+}
+
+void MainWindow::openFrameSource(const QString& path) {
+  setStep(Step::Frame);
+  const QString ext = QFileInfo(path).suffix().toLower();
+  const bool isVideo = QStringList{"mp4", "avi", "mkv", "mov", "m4v", "mpg", "webm"}.contains(ext);
+  if (!isVideo) {
+    cv::Mat3b img = cv::imread(path.toStdString(), cv::IMREAD_COLOR);
+    if (img.empty()) {
+      const QString msg = tr("%1 is not a readable image; use PNG, JPEG, BMP or TIFF.").arg(QFileInfo(path).fileName());
+      statusCase_->setText(msg);
+      emit frameSourceOpened(false, msg);
+      return;
+    }
+    video_.reset();
+    videoFrames_ = 0;
+    videoSlider_->setEnabled(false);
+    videoLabel_->setText(tr("no video"));
+    shownFrame_ = img;
+    useShownFrame();
+    emit frameSourceOpened(true, {});
+    return;
+  }
+  // Opening a video probes the container and decoder: off the GUI thread.
+  auto mutex = videoMutex_;
+  runJob(tr("Opening video %1...").arg(QFileInfo(path).fileName()), [this, path, mutex](const std::atomic<bool>&, const auto&) -> std::function<void()> {
+    auto cap = std::make_shared<cv::VideoCapture>();
+    std::lock_guard<std::mutex> lock(*mutex);
+    if (!cap->open(path.toStdString()) || !cap->isOpened()) {
+      const QString msg = tr("%1 cannot be decoded as a video; check the file or convert it to MP4 (H.264).").arg(QFileInfo(path).fileName());
+      return [this, msg] {
+        statusCase_->setText(msg);
+        emit frameSourceOpened(false, msg);
+      };
+    }
+    const int frames = static_cast<int>(cap->get(cv::CAP_PROP_FRAME_COUNT));
+    return [this, cap, frames, path] {
+      cameraTimer_.stop();
+      video_ = cap;
+      videoFrames_ = std::max(0, frames);
+      updatingPanels_ = true;
+      videoSlider_->setRange(0, std::max(0, videoFrames_ - 1));
+      videoSlider_->setValue(0);
+      videoSlider_->setEnabled(videoFrames_ > 1);
+      updatingPanels_ = false;
+      useFrameButton_->setEnabled(true);
+      statusCase_->setText(tr("Video %1: %2 frames; scrub to pick the frame to work on.").arg(QFileInfo(path).fileName()).arg(videoFrames_));
+      emit frameSourceOpened(true, {});
+      showVideoFrame(0);
+    };
+  });
+}
+
+void MainWindow::openCameraDevice(int index) {
+  auto cap = std::make_shared<cv::VideoCapture>();
+  if (!cap->open(index) || !cap->isOpened()) {
+    statusCase_->setText(tr("Camera device %1 cannot be opened; check that it is connected and not in use.").arg(index));
+    emit frameSourceOpened(false, statusCase_->text());
+    return;
+  }
+  video_ = cap;
+  videoFrames_ = 0;
+  videoSlider_->setEnabled(false);
+  useFrameButton_->setEnabled(true);
+  videoLabel_->setText(tr("live camera %1").arg(index));
+  cameraTimer_.start(66);
+  emit frameSourceOpened(true, {});
+}
+
+void MainWindow::showVideoFrame(int index) {
+  if (!video_) return;
+  if (videoDecoding_) {
+    pendingVideoFrame_ = index;  // the latest request wins
+    return;
+  }
+  videoDecoding_ = true;
+  auto cap = video_;
+  auto mutex = videoMutex_;
+  auto watcher = new QFutureWatcher<cv::Mat>(this);
+  connect(watcher, &QFutureWatcher<cv::Mat>::finished, this, [this, watcher, index] {
+    cv::Mat frame = watcher->result();
+    watcher->deleteLater();
+    videoDecoding_ = false;
+    if (!frame.empty()) {
+      shownFrame_ = frame;
+      if (index >= 0) shownVideoFrame_ = index;
+      view_->setFrame(toQImage(frame));
+      videoLabel_->setText(index >= 0 ? tr("frame %1 of %2").arg(index).arg(videoFrames_) : videoLabel_->text());
+      updatingPanels_ = true;
+      if (index >= 0) videoSlider_->setValue(index);
+      updatingPanels_ = false;
+      if (index >= 0) emit videoFrameShown(index);
+    } else if (index >= 0) {
+      statusCase_->setText(tr("Frame %1 could not be decoded.").arg(index));
+    }
+    if (pendingVideoFrame_ >= 0 && pendingVideoFrame_ != index) {
+      const int next = pendingVideoFrame_;
+      pendingVideoFrame_ = -1;
+      showVideoFrame(next);
+    }
+  });
+  watcher->setFuture(QtConcurrent::run([cap, mutex, index]() -> cv::Mat {
+    std::lock_guard<std::mutex> lock(*mutex);
+    cv::Mat frame;
+    if (index >= 0) cap->set(cv::CAP_PROP_POS_FRAMES, index);
+    cap->read(frame);
+    if (!frame.empty() && frame.channels() != 3) cv::cvtColor(frame, frame, frame.channels() == 1 ? cv::COLOR_GRAY2BGR : cv::COLOR_BGRA2BGR);
+    return frame;
+  }));
+}
+
+void MainWindow::useShownFrame() {
+  if (shownFrame_.empty() || !case_.data) return;
+  cv::Mat3b frame = shownFrame_.clone();
+  const int shown = shownVideoFrame_;
+  const bool fromVideo = video_ != nullptr && videoFrames_ > 0;
+  editCase(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame](phantom::Case& k) {
+    if (k.camera.width != frame.cols || k.camera.height != frame.rows) {
+      // A frame of another size keeps no stale calibration: the stated default, editable in the panel.
+      k.camera = imaging::Camera::defaultFor(frame.cols, frame.rows);
+    }
+    const auto& d = k.camera.distortion;
+    if (d[0] != 0 || d[1] != 0 || d[2] != 0 || d[3] != 0 || d[4] != 0) {
+      cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) K.at<double>(r, c) = k.camera.K(r, c);
+      for (int i = 0; i < 5; ++i) D.at<double>(0, i) = d[i];
+      cv::Mat3b und;
+      cv::undistort(frame, und, K, D);
+      k.frame = und;
+    } else {
+      k.frame = frame;
+    }
+    k.contour.width = frame.cols;
+    k.contour.height = frame.rows;
+  });
+  statusCase_->setText(fromVideo ? tr("Using frame %1 of the video.").arg(shown) : tr("Frame opened."));
+}
+
+void MainWindow::loadCalibration(const QString& path) {
+  if (!case_.data) return;
+  try {
+    const int w = case_.data->frame.empty() ? 0 : case_.data->frame.cols, h = case_.data->frame.empty() ? 0 : case_.data->frame.rows;
+    imaging::Camera cam = imaging::loadCamera(path.toStdString(), w, h);
+    if (w > 0 && (cam.width != w || cam.height != h))
+      throw imaging::InputError(tr("The calibration is for %1x%2 images but the frame is %3x%4; choose the matching calibration.")
+                                    .arg(cam.width).arg(cam.height).arg(w).arg(h).toStdString());
+    editCase(tr("Load calibration"), [cam](phantom::Case& k) { k.camera = cam; });
+    statusCase_->setText(tr("Calibration loaded from %1.").arg(QFileInfo(path).fileName()));
+  } catch (const std::exception& e) {
+    statusCase_->setText(QString::fromUtf8(e.what()));
+  }
+}
+
+void MainWindow::importContour(const QString& path) {
+  try {
+    imaging::Contour c = imaging::loadContour(path.toStdString());
+    if (case_.data && !case_.data->frame.empty() && c.width == 0) {
+      c.width = case_.data->frame.cols;
+      c.height = case_.data->frame.rows;
+    }
+    editCase(tr("Import contour"), [&c](phantom::Case& k) { k.contour = c; });
+    setStep(Step::Contour);
+    statusCase_->setText(tr("Contour imported: %1 segments.").arg(c.segments.size()));
+  } catch (const std::exception& e) {
+    statusCase_->setText(QString::fromUtf8(e.what()));
+  }
+}
+
+void MainWindow::exportContour(const QString& path) {
+  if (!case_.data) return;
+  try {
+    imaging::saveContour(case_.data->contour, path.toStdString());
+    statusCase_->setText(tr("Contour exported to %1.").arg(path));
+  } catch (const std::exception& e) {
+    statusCase_->setText(QString::fromUtf8(e.what()));
+  }
+}
+
+void MainWindow::solvePnP() {
+  if (!case_.data) return;
+  std::vector<cv::Point3d> object;
+  std::vector<cv::Point2d> image;
+  for (const auto& l : landmarks_)
+    if (l.hasImage) {
+      object.emplace_back(l.model.x(), l.model.y(), l.model.z());
+      image.emplace_back(l.image.x(), l.image.y());
+    }
+  if (object.size() < 4) {
+    statusCase_->setText(tr("Pick at least 4 landmark pairs first."));
+    return;
+  }
+  const auto& cam = case_.data->camera;
+  cv::Mat K(3, 3, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) K.at<double>(r, c) = cam.K(r, c);
+  // The frame is undistorted, so no distortion here. Several solvers (SQPnP, EPnP, and Levenberg-Marquardt
+  // started from the current pose), each refined, and the one with the smallest reprojection error wins:
+  // a few landmarks on an organ's front are nearly coplanar, where single solvers can land on the mirror pose.
+  auto rms = [&](const cv::Mat& rv, const cv::Mat& tv) {
+    std::vector<cv::Point2d> reproj;
+    cv::projectPoints(object, rv, tv, K, cv::noArray(), reproj);
+    double sum = 0;
+    for (std::size_t i = 0; i < image.size(); ++i) sum += std::pow(cv::norm(reproj[i] - image[i]), 2);
+    return std::sqrt(sum / image.size());
+  };
+  cv::Mat rvec, tvec;
+  double best = std::numeric_limits<double>::infinity();
+  auto consider = [&](cv::Mat rv, cv::Mat tv) {
+    if (rv.empty() || tv.empty() || tv.at<double>(2) <= 0) return;
+    cv::solvePnPRefineLM(object, image, K, cv::noArray(), rv, tv);
+    const double e = rms(rv, tv);
+    if (e < best && tv.at<double>(2) > 0) {
+      best = e;
+      rvec = rv.clone();
+      tvec = tv.clone();
+    }
+  };
+  for (int method : {cv::SOLVEPNP_SQPNP, cv::SOLVEPNP_EPNP}) {
+    cv::Mat rv, tv;
+    try {
+      if (cv::solvePnP(object, image, K, cv::noArray(), rv, tv, false, method)) consider(rv, tv);
+    } catch (const cv::Exception&) {
+    }
+  }
+  {
+    cv::Mat R0(3, 3, CV_64F), rv, tv(3, 1, CV_64F);
+    const Pose& p0 = case_.data->pose;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) R0.at<double>(r, c) = p0.R(r, c);
+      tv.at<double>(r) = p0.t[r];
+    }
+    cv::Rodrigues(R0, rv);
+    try {
+      if (cv::solvePnP(object, image, K, cv::noArray(), rv, tv, true, cv::SOLVEPNP_ITERATIVE)) consider(rv, tv);
+    } catch (const cv::Exception&) {
+    }
+  }
+  if (rvec.empty()) {
+    statusCase_->setText(tr("The landmarks do not determine a pose; spread them over the organ and try again."));
+    return;
+  }
+  pnpError_ = best;
+  cv::Mat R;
+  cv::Rodrigues(rvec, R);
+  Pose p;
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) p.R(r, c) = R.at<double>(r, c);
+    p.t[r] = tvec.at<double>(r);
+  }
+  editCase(tr("Pose from landmarks"), [p](phantom::Case& k) {
+    k.pose = p;
+    k.hasPose = true;
+    k.poseAligned = true;
+  });
+  statusCase_->setText(tr("Pose from %1 landmark pairs: reprojection RMS %2 px.").arg(object.size()).arg(pnpError_, 0, 'f', 3));
+}
+
+// ------------------------------------------------------------------------------------------- files
 
 QString MainWindow::autosavePath() {
   return QStandardPaths::writableLocation(QStandardPaths::AppDataLocation) + QStringLiteral("/autosave.rehearse");
@@ -169,8 +1133,7 @@ void MainWindow::save() {
 
 void MainWindow::saveAs() {
   QSettings s;
-  QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), s.value(QStringLiteral("lastDir")).toString(),
-                                              tr("Rehearse cases (*.rehearse)"));
+  QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), s.value(QStringLiteral("lastDir")).toString(), tr("Rehearse cases (*.rehearse)"));
   if (path.isEmpty()) return;
   if (!path.endsWith(QStringLiteral(".rehearse"))) path += QStringLiteral(".rehearse");
   s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
@@ -188,7 +1151,6 @@ void MainWindow::openFileDialog() {
 
 void MainWindow::offerRecovery() {
   if (!hasRecoverableAutosave()) return;
-  // Not modal: the view stays usable; the choice is also in the File menu.
   auto* box = new QMessageBox(QMessageBox::Question, tr("Recover case"),
                               tr("Rehearse did not close cleanly last time. Recover the case that was open then?"),
                               QMessageBox::Yes | QMessageBox::No, this);
@@ -206,8 +1168,19 @@ void MainWindow::dragEnterEvent(QDragEnterEvent* e) {
 
 void MainWindow::dropEvent(QDropEvent* e) {
   const auto urls = e->mimeData()->urls();
-  if (!urls.isEmpty() && urls.first().isLocalFile()) openCase(urls.first().toLocalFile());
+  if (urls.isEmpty() || !urls.first().isLocalFile()) return;
+  const QString path = urls.first().toLocalFile();
+  const QString ext = QFileInfo(path).suffix().toLower();
+  // The dropped file's kind decides the step it belongs to.
+  if (QFileInfo(path).isDir() || ext == QLatin1String("rehearse")) openCase(path);
+  else if (QStringList{"msh", "vtk", "vtu", "mesh", "obj", "stl", "ply", "off", "gltf", "glb"}.contains(ext)) importMesh(path);
+  else if (QStringList{"png", "jpg", "jpeg", "bmp", "tif", "tiff", "mp4", "avi", "mkv", "mov"}.contains(ext)) openFrameSource(path);
+  else if (ext == QLatin1String("json")) importContour(path);
+  else if (QStringList{"yaml", "yml", "xml"}.contains(ext)) loadCalibration(path);
+  else statusCase_->setText(tr("%1: unknown file type.").arg(QFileInfo(path).fileName()));
 }
+
+// -------------------------------------------------------------------------------------------- menus
 
 void MainWindow::buildMenus() {
   QMenu* file = menuBar()->addMenu(tr("&File"));
@@ -227,6 +1200,19 @@ void MainWindow::buildMenus() {
   QAction* builtin = file->addAction(tr("Open &Built-in Phantom"), this, [this] { openCase({}); });
   builtin->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
   file->addSeparator();
+  QAction* importAction = file->addAction(tr("&Import Mesh..."), this, [this] {
+    const QString p = QFileDialog::getOpenFileName(this, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
+                                                   tr("Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb)"));
+    if (!p.isEmpty()) importMesh(p);
+  });
+  importAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_I));
+  QAction* frameAction = file->addAction(tr("Open &Frame or Video..."), this, [this] {
+    const QString p = QFileDialog::getOpenFileName(this, tr("Open Endoscope Image or Video"), QSettings().value("lastDir").toString(),
+                                                   tr("Images and videos (*.png *.jpg *.jpeg *.bmp *.tif *.mp4 *.avi *.mkv *.mov)"));
+    if (!p.isEmpty()) openFrameSource(p);
+  });
+  frameAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_F));
+  file->addSeparator();
   QAction* saveAction = file->addAction(tr("&Save"), this, &MainWindow::save);
   saveAction->setShortcut(QKeySequence::Save);
   QAction* saveAsAction = file->addAction(tr("Save &As..."), this, &MainWindow::saveAs);
@@ -237,6 +1223,20 @@ void MainWindow::buildMenus() {
   QAction* quit = file->addAction(tr("&Quit"), this, &QWidget::close);
   quit->setShortcut(QKeySequence::Quit);
 
+  QMenu* edit = menuBar()->addMenu(tr("&Edit"));
+  QAction* undo = undo_.createUndoAction(this, tr("&Undo"));
+  undo->setShortcut(QKeySequence::Undo);
+  QAction* redo = undo_.createRedoAction(this, tr("&Redo"));
+  redo->setShortcut(QKeySequence::Redo);
+  edit->addAction(undo);
+  edit->addAction(redo);
+
+  QMenu* stepMenu = menuBar()->addMenu(tr("&Step"));
+  for (int i = 0; i < 4; ++i) {
+    QAction* a = stepMenu->addAction(tr(kStepNames[i]), this, [this, i] { setStep(static_cast<Step>(i)); });
+    a->setShortcut(QKeySequence(Qt::ALT | static_cast<Qt::Key>(Qt::Key_1 + i)));
+  }
+
   QMenu* viewMenu = menuBar()->addMenu(tr("&View"));
   overlayAction_ = viewMenu->addAction(tr("Show &Organ"));
   overlayAction_->setCheckable(true);
@@ -245,6 +1245,12 @@ void MainWindow::buildMenus() {
   connect(overlayAction_, &QAction::toggled, view_, &FrameView::setOverlayVisible);
   QAction* fit = viewMenu->addAction(tr("&Fit Frame"), view_, &FrameView::fitToWindow);
   fit->setShortcut(QKeySequence(Qt::Key_Home));
+  QAction* more = viewMenu->addAction(tr("More Opaque Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() + 0.1); });
+  more->setShortcut(QKeySequence(Qt::Key_BracketRight));
+  QAction* less = viewMenu->addAction(tr("More Transparent Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() - 0.1); });
+  less->setShortcut(QKeySequence(Qt::Key_BracketLeft));
+  QAction* navigate = viewMenu->addAction(tr("&Navigate (pan and zoom)"), this, [this] { view_->setTool(Tool::Navigate); });
+  navigate->setShortcut(QKeySequence(Qt::Key_N));
 
   QAction* cancel = new QAction(tr("Cancel"), this);
   cancel->setShortcut(QKeySequence(Qt::Key_Escape));
@@ -262,12 +1268,20 @@ void MainWindow::buildMenus() {
 
   QToolBar* tools = addToolBar(tr("Main"));
   tools->setObjectName(QStringLiteral("mainToolbar"));
+  tools->setIconSize(QSize(28, 28));
   tools->addAction(openFile);
   tools->addAction(saveAction);
-  tools->addAction(builtin);
+  tools->addAction(importAction);
+  tools->addAction(frameAction);
+  tools->addSeparator();
+  tools->addAction(undo);
+  tools->addAction(redo);
+  tools->addSeparator();
   tools->addAction(overlayAction_);
   tools->addAction(fit);
 }
+
+// ------------------------------------------------------------------------------------------ loading
 
 void MainWindow::setBusy(bool busy, const QString& message) {
   progress_->setVisible(busy);
@@ -276,55 +1290,68 @@ void MainWindow::setBusy(bool busy, const QString& message) {
   if (!message.isEmpty()) statusCase_->setText(message);
 }
 
-void MainWindow::openCase(const QString& dir) {
+void MainWindow::openCase(const QString& path) {
   if (watcher_.isRunning()) {
     cancel_ = true;
     watcher_.waitForFinished();
   }
   cancel_ = false;
-  loadingDir_ = dir;
-  setBusy(true, dir.isEmpty() ? tr("Generating the built-in phantom case...") : tr("Opening %1...").arg(dir));
+  loadingDir_ = path;
+  setBusy(true, path.isEmpty() ? tr("Generating the built-in phantom case...") : tr("Opening %1...").arg(path));
   auto progress = [this](double f, const QString& stage) {
     QMetaObject::invokeMethod(this, [this, f, stage] {
       progress_->setValue(static_cast<int>(100 * f));
       progress_->setFormat(stage + QStringLiteral(" %p%"));
     }, Qt::QueuedConnection);
   };
-  watcher_.setFuture(QtConcurrent::run([dir, progress, this] { return loadCase(dir, progress, &cancel_); }));
+  watcher_.setFuture(QtConcurrent::run([path, progress, this] { return loadCase(path, progress, &cancel_); }));
 }
 
 void MainWindow::cancelLoading() {
-  if (watcher_.isRunning()) cancel_ = true;
+  if (watcher_.isRunning() || jobWatcher_.isRunning()) cancel_ = true;
 }
 
 void MainWindow::onLoadFinished() {
   setBusy(false);
   LoadedCase loaded = watcher_.result();
   if (!loaded.error.isEmpty()) {
-    // A failed or cancelled load leaves the current case untouched.
-    statusCase_->setText(loaded.error);
+    statusCase_->setText(loaded.error);  // the current case stays untouched
     emit caseLoaded(false);
     return;
   }
+  auto data = loaded.data;
   case_ = std::move(loaded);
+  case_.data = nullptr;  // setCaseData compares with the previous data
+  undo_.clear();
+  landmarks_.clear();
+  view_->setLandmarks(landmarks_);
+  labelVisible_.clear();
   currentPath_ = isCaseFile(loadingDir_) && loadingDir_ != autosavePath() ? loadingDir_ : QString();
   if (!currentPath_.isEmpty()) addRecent(currentPath_);
-  view_->setFrame(case_.frame);
-  view_->setOverlay(case_.organOverlay, case_.silhouette);
-  showCaseInfo();
-  const QString name = QString::fromStdString(case_.data->name);
+  setCaseData(data);
+  view_->fitToWindow();
+  const QString name = currentPath_.isEmpty() ? QString::fromStdString(case_.data->name) : QFileInfo(currentPath_).fileName();
   setWindowTitle(tr("%1 - Rehearse").arg(name));
   statusCase_->setText(tr("%1 loaded in %2 s").arg(name).arg(case_.seconds, 0, 'f', 2) +
                        (case_.notes.isEmpty() ? QString() : tr(" (%1 problems, see the Case panel)").arg(case_.notes.size())));
+  // Go to the first step that is not done yet.
+  for (int i = 0; i < 4; ++i)
+    if (!stepDone(static_cast<Step>(i))) {
+      setStep(static_cast<Step>(i));
+      break;
+    }
   emit caseLoaded(true);
 }
 
 QString MainWindow::infoText() const { return info_->toPlainText(); }
 
 void MainWindow::showCaseInfo() {
+  if (!case_.data) return;
   const auto& c = *case_.data;
   QString t;
-  t += tr("Case: %1\n\n").arg(QString::fromStdString(c.name));
+  t += tr("Case: %1\n").arg(QString::fromStdString(c.name));
+  if (!c.meshSource.empty()) t += tr("Mesh from: %1\n").arg(QString::fromStdString(c.meshSource));
+  t += QLatin1Char('\n');
   for (const auto& n : case_.notes) t += tr("! %1\n").arg(n);
   if (!case_.notes.isEmpty()) t += QLatin1Char('\n');
   t += tr("Organ mesh\n%1\n").arg(case_.qualityText);
@@ -334,12 +1361,16 @@ void MainWindow::showCaseInfo() {
            .arg(cam.width).arg(cam.height)
            .arg(cam.fx(), 0, 'f', 1).arg(cam.fy(), 0, 'f', 1).arg(cam.cx(), 0, 'f', 1).arg(cam.cy(), 0, 'f', 1)
            .arg(cam.distortion[0]).arg(cam.distortion[1]).arg(cam.distortion[2]).arg(cam.distortion[3]).arg(cam.distortion[4]);
-  if (c.hasGroundTruth) {
-    const auto& p = c.truePose;
-    t += tr("Pose (model to camera, ground truth)\n");
+  auto poseText = [](const Pose& p) {
+    QString s;
     for (int r = 0; r < 3; ++r)
-      t += QStringLiteral("[%1 %2 %3]  t %4 mm\n")
+      s += QStringLiteral("[%1 %2 %3]  t %4 mm\n")
                .arg(p.R(r, 0), 7, 'f', 4).arg(p.R(r, 1), 7, 'f', 4).arg(p.R(r, 2), 7, 'f', 4).arg(p.t[r] * 1e3, 8, 'f', 2);
+    return s;
+  };
+  if (c.hasPose) t += tr("Pose (model to camera, %1)\n%2\n").arg(c.poseAligned ? tr("aligned") : tr("automatic placement"), poseText(c.pose));
+  if (c.hasGroundTruth) {
+    t += tr("Ground-truth pose\n%1").arg(poseText(c.truePose));
     const auto& a = c.trueAppearance;
     t += tr("\nLight (ground truth)\nposition: %1, %2, %3 mm\nkd: %4 %5 %6\nks: %7 %8 %9\nroughness: %10 rad\n")
              .arg(a.lightPosition.x() * 1e3).arg(a.lightPosition.y() * 1e3).arg(a.lightPosition.z() * 1e3)
@@ -350,6 +1381,8 @@ void MainWindow::showCaseInfo() {
 
 void MainWindow::closeEvent(QCloseEvent* e) {
   cancelLoading();
+  cameraTimer_.stop();
+  jobWatcher_.waitForFinished();
   saveWatcher_.waitForFinished();
   // A clean exit leaves no autosave behind: its presence at start means the last session crashed.
   QFile::remove(autosavePath());

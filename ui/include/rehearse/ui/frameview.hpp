@@ -1,11 +1,30 @@
 #pragma once
-// Central view: the endoscope frame with the organ drawn over it. CPU (QPainter) rendering, so it
-// works over remote desktops and in offscreen tests. Mouse wheel zooms about the cursor, drag pans,
-// double-click or Home fits the frame.
+// Central view: the endoscope frame with the organ drawn over it through the camera, the sketched
+// contour, the rigid-alignment gizmo and landmark pairs. CPU (QPainter) rendering, so it works over
+// remote desktops and in offscreen tests. The wheel zooms about the cursor and the middle button pans
+// in every tool; Home fits the frame. Edits are not applied here: the view emits the edited contour or
+// pose and the window turns it into an undoable command.
+#include "phantom/phantom.hpp"
+
 #include <QImage>
 #include <QWidget>
 
+#include <memory>
+#include <optional>
+
 namespace rehearse::ui {
+
+enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks };
+
+/// Gizmo handles of the Align tool: translations along and rotations about the camera axes through
+/// the organ's centre of gravity.
+enum class GizmoHandle { None, TranslateX, TranslateY, TranslateZ, RotateX, RotateY, RotateZ };
+
+struct LandmarkPair {
+  Eigen::Vector3d model;    ///< point on the mesh, model frame (m)
+  Eigen::Vector2d image;    ///< where it is in the frame (px)
+  bool hasImage = false;
+};
 
 class FrameView : public QWidget {
   Q_OBJECT
@@ -13,16 +32,34 @@ class FrameView : public QWidget {
   explicit FrameView(QWidget* parent = nullptr);
   void setFrame(const QImage& frame);
   void setOverlay(const QImage& organ, const QList<QPolygonF>& silhouette);
+  void setInnerOverlay(const QImage& inner) { inner_ = inner; update(); }
+  void setCase(std::shared_ptr<const phantom::Case> c);
   void setOverlayVisible(bool visible);
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
+  double overlayOpacity() const { return opacity_; }
+  void setTool(Tool t);
+  Tool tool() const { return tool_; }
+  void setSnapToEdges(bool on) { snap_ = on; }
+  void setLandmarks(const std::vector<LandmarkPair>& l) { landmarks_ = l; update(); }
   double zoom() const { return zoom_; }
-  /// Frame pixel under a widget position.
+  /// Frame pixel under a widget position, and back.
   QPointF toFrame(const QPointF& widgetPos) const;
+  QPointF toWidget(const QPointF& framePos) const;
+  /// Widget position of a gizmo handle (for tests and tooltips); invalid when there is no pose.
+  QPointF handlePosition(GizmoHandle h) const;
+  /// Finishes the click-by-click segment being drawn (Enter does the same).
+  void finishSegment();
   void fitToWindow();
 
  signals:
   void cursorMoved(QPointF framePixel);
+  /// A new contour after an edit; edits with the same non-negative mergeId form one undo step.
+  void contourEdited(const rehearse::imaging::Contour& contour, const QString& text, int mergeId);
+  void poseEdited(const rehearse::Pose& pose, const QString& text, int mergeId);
+  /// Landmarks tool: a click on the organ (model point) or, after one, on the frame (image point).
+  void landmarkModelPicked(const Eigen::Vector3d& modelPoint);
+  void landmarkImagePicked(const Eigen::Vector2d& imagePoint);
 
  protected:
   void paintEvent(QPaintEvent*) override;
@@ -32,19 +69,41 @@ class FrameView : public QWidget {
   void mouseReleaseEvent(QMouseEvent*) override;
   void mouseDoubleClickEvent(QMouseEvent*) override;
   void keyPressEvent(QKeyEvent*) override;
-  void resizeEvent(QResizeEvent*) override;
 
  private:
   QTransform frameToWidget() const;
-  QImage frame_, overlay_;
+  imaging::Contour currentContour() const;
+  void commitContour(const imaging::Contour& c, const QString& text, int mergeId = -1);
+  std::optional<std::pair<int, int>> pointNear(const QPointF& widgetPos, double radius) const;
+  GizmoHandle handleAt(const QPointF& widgetPos) const;
+  Eigen::Vector3d cogCamera() const;
+  void dragGizmo(const QPointF& widgetPos);
+  void eraseAt(const QPointF& widgetPos);
+  std::vector<Eigen::Vector2d> maybeSnap(const std::vector<Eigen::Vector2d>& pts) const;
+
+  std::shared_ptr<const phantom::Case> case_;
+  QImage frame_, overlay_, inner_;
   QList<QPolygonF> silhouette_;
   bool overlayVisible_ = true;
   double opacity_ = 0.45;
-  double zoom_ = 1.0;     // relative to fit
-  QPointF pan_;           // widget pixels
-  bool fitted_ = true;
-  bool dragging_ = false;
+  double zoom_ = 1.0;
+  QPointF pan_;
+  Tool tool_ = Tool::Navigate;
+  bool snap_ = false;
+  // Interaction state.
+  bool panning_ = false;
   QPointF lastMouse_;
+  std::vector<Eigen::Vector2d> draft_;  // segment being drawn
+  bool drawing_ = false;
+  std::optional<std::pair<int, int>> dragPoint_;
+  imaging::Contour working_;            // contour during a point drag or an erase stroke
+  bool erasing_ = false;
+  GizmoHandle activeHandle_ = GizmoHandle::None;
+  Pose dragStartPose_;
+  QPointF dragStartMouse_;
+  int mergeCounter_ = 0;
+  int activeMerge_ = -1;
+  std::vector<LandmarkPair> landmarks_;
 };
 
 }  // namespace rehearse::ui

@@ -1,23 +1,43 @@
 #pragma once
-// The main window. At this stage: the case's frame with the organ drawn over it, a case info panel,
-// loading on a worker thread with progress and cancel. The workflow steps come next (issue 3).
+// The main window: a workflow panel (steps of a case in order, what is done and what is next), the
+// frame view with the organ over it, a panel for the current step, a case information panel and the
+// status bar. Every edit of the case is an undoable command (a drag is one undo step). Long work
+// (loading, meshing, decoding video, saving) runs on worker threads with progress and cancel.
 #include "rehearse/ui/caseloader.hpp"
+#include "rehearse/ui/frameview.hpp"
 
 #include <QFutureWatcher>
 #include <QMainWindow>
 #include <QTimer>
+#include <QUndoStack>
 
 #include <atomic>
+#include <functional>
+#include <mutex>
 
 class QLabel;
 class QPlainTextEdit;
 class QProgressBar;
 class QToolButton;
 class QAction;
+class QListWidget;
+class QStackedWidget;
+class QTreeWidget;
+class QSlider;
+class QDoubleSpinBox;
+class QSpinBox;
+class QComboBox;
+class QCheckBox;
+class QPushButton;
+
+namespace cv {
+class VideoCapture;
+}
 
 namespace rehearse::ui {
 
-class FrameView;
+/// Steps of the workflow, in the order a case is worked.
+enum class Step { Mesh = 0, Frame, Contour, Rigid, Elastic, Appearance, Rehearse };
 
 class MainWindow : public QMainWindow {
   Q_OBJECT
@@ -32,42 +52,83 @@ class MainWindow : public QMainWindow {
   void saveCaseAs(const QString& path);
   QString currentPath() const { return currentPath_; }
   bool isSaving() const { return saveWatcher_.isRunning(); }
-  /// Where the periodic autosave goes, and whether one was left by a session that did not close cleanly.
+  bool isLoading() const { return watcher_.isRunning(); }
+  bool isBusy() const;
   static QString autosavePath();
   static bool hasRecoverableAutosave();
-  /// Writes the autosave now (normally every minute while a case is open). Blocks until done.
   void autosaveNow();
-  void setAutosaveInterval(int ms) { autosaveTimer_.setInterval(ms); }
   QStringList recentFiles() const;
-  bool isLoading() const { return watcher_.isRunning(); }
+
+  // Workflow steps (also reachable from menus and the keyboard).
+  void importMesh(const QString& path);          ///< step 1: surface or volume; surfaces are tetrahedralised
+  void openFrameSource(const QString& path);     ///< step 2: image or video file
+  void openCameraDevice(int index);              ///< step 2: live camera
+  void showVideoFrame(int index);                ///< step 2: decode and preview frame `index`
+  void useShownFrame();                          ///< step 2: take the previewed frame for the case
+  void loadCalibration(const QString& path);     ///< step 2: intrinsics and distortion
+  void importContour(const QString& path);       ///< step 3
+  void exportContour(const QString& path);       ///< step 3
+  void solvePnP();                               ///< step 4: pose from landmark pairs
+  void setStep(Step s);
+  Step step() const { return step_; }
+
   const LoadedCase& currentCase() const { return case_; }
   FrameView* frameView() const { return view_; }
+  QUndoStack* undoStack() { return &undo_; }
   QString infoText() const;
+  int videoFrameCount() const { return videoFrames_; }
+  int shownVideoFrame() const { return shownVideoFrame_; }
+  const std::vector<LandmarkPair>& landmarks() const { return landmarks_; }
+  double lastPnPReprojectionError() const { return pnpError_; }
+  /// Contour to silhouette distance at the current pose (px); negative when it cannot be computed.
+  double contourDistance() const { return contourDistance_; }
+  bool stepDone(Step s) const;
+  int targetTets() const;
+  void setTargetTets(int n);
+  void setMeshUnit(const QString& unit);
+
+  /// Applies an edit to a copy of the case and pushes it as an undoable command. Edits with the same
+  /// non-negative mergeId (one drag) merge into one undo step.
+  void editCase(const QString& text, const std::function<void(phantom::Case&)>& edit, int mergeId = -1);
+  /// Replaces the displayed case (used by undo/redo).
+  void setCaseData(std::shared_ptr<const phantom::Case> data);
 
  signals:
   void caseLoaded(bool ok);
   void caseSaved(bool ok, const QString& message);
+  void meshImported(bool ok, const QString& message);
+  void videoFrameShown(int index);
+  void frameSourceOpened(bool ok, const QString& message);
 
  public slots:
   void cancelLoading();
-  /// Offers (without blocking) to reopen the autosave left by a session that did not close cleanly.
   void offerRecovery();
 
  protected:
   void closeEvent(QCloseEvent*) override;
+  void dragEnterEvent(QDragEnterEvent*) override;
+  void dropEvent(QDropEvent*) override;
 
  private:
   void buildMenus();
+  void buildWorkflowPanel();
+  QWidget* buildMeshPage();
+  QWidget* buildFramePage();
+  QWidget* buildContourPage();
+  QWidget* buildRigidPage();
   void save();
   void saveAs();
   void openFileDialog();
   void addRecent(const QString& path);
   void rebuildRecentMenu();
-  void dragEnterEvent(QDragEnterEvent*) override;
-  void dropEvent(QDropEvent*) override;
   void onLoadFinished();
   void showCaseInfo();
+  void refreshOverlay();
+  void refreshPanels();
+  void updateWorkflow();
   void setBusy(bool busy, const QString& message = {});
+  void runJob(const QString& message, const std::function<std::function<void()>(const std::atomic<bool>&,
+                                                                                const std::function<void(double, QString)>&)>& job);
 
   FrameView* view_ = nullptr;
   QPlainTextEdit* info_ = nullptr;
@@ -75,9 +136,52 @@ class MainWindow : public QMainWindow {
   QToolButton* cancelButton_ = nullptr;
   QLabel* statusCase_ = nullptr;
   QLabel* statusCursor_ = nullptr;
+  QLabel* statusDistance_ = nullptr;
   QAction* overlayAction_ = nullptr;
+  QListWidget* workflow_ = nullptr;
+  QStackedWidget* steps_ = nullptr;
+  Step step_ = Step::Mesh;
+  QUndoStack undo_;
+
+  // Step 1
+  QSpinBox* targetTets_ = nullptr;
+  QComboBox* meshUnit_ = nullptr;
+  QTreeWidget* labels_ = nullptr;
+  std::map<int, bool> labelVisible_;
+  // Step 2
+  QSlider* videoSlider_ = nullptr;
+  QLabel* videoLabel_ = nullptr;
+  QPushButton* useFrameButton_ = nullptr;
+  QDoubleSpinBox* fx_ = nullptr;
+  QDoubleSpinBox* fy_ = nullptr;
+  QDoubleSpinBox* cx_ = nullptr;
+  QDoubleSpinBox* cy_ = nullptr;
+  QLabel* distortionLabel_ = nullptr;
+  std::shared_ptr<cv::VideoCapture> video_;
+  std::shared_ptr<std::mutex> videoMutex_ = std::make_shared<std::mutex>();
+  int videoFrames_ = 0;
+  int shownVideoFrame_ = -1;
+  int pendingVideoFrame_ = -1;
+  bool videoDecoding_ = false;
+  cv::Mat shownFrame_;
+  QTimer cameraTimer_;
+  // Step 3
+  QLabel* contourStatus_ = nullptr;
+  QDoubleSpinBox* spacing_ = nullptr;
+  QCheckBox* snap_ = nullptr;
+  // Step 4
+  QDoubleSpinBox* poseFields_[6] = {};
+  QLabel* distanceLabel_ = nullptr;
+  QListWidget* landmarkList_ = nullptr;
+  QPushButton* pnpButton_ = nullptr;
+  std::vector<LandmarkPair> landmarks_;
+  double pnpError_ = -1;
+  double contourDistance_ = -1;
+  bool updatingPanels_ = false;
+
   QFutureWatcher<LoadedCase> watcher_;
   std::atomic<bool> cancel_{false};
+  QFutureWatcher<std::function<void()>> jobWatcher_;
   LoadedCase case_;
   QString loadingDir_;
   QString currentPath_;

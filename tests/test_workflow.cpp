@@ -1,0 +1,337 @@
+// Workflow steps 1-4 driven through the real main window with QTest mouse and key events (offscreen):
+// import a mesh, open a frame and a video and pick frame N, sketch a contour and edit a point, drag
+// each gizmo handle and check the pose change, undo and redo, PnP from landmark pairs, save and reopen.
+// With REHEARSE_SCREENSHOT_DIR set, it also saves a screenshot of each step there (for the README).
+#include "test_support.hpp"
+
+#include "phantom/phantom.hpp"
+#include "rehearse/ui/casefile.hpp"
+#include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/mainwindow.hpp"
+
+#include <rehearse/simcore/meshio.hpp>
+
+#include <QSignalSpy>
+#include <QStandardPaths>
+#include <QThread>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <numbers>
+
+using namespace rehearse;
+using ui::GizmoHandle;
+using ui::MainWindow;
+
+namespace {
+void shot(QWidget& w, const char* name) {
+  const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
+  if (dir.isEmpty()) return;
+  QTest::qWait(50);
+  w.grab().save(QString::fromLocal8Bit(dir) + "/" + name + ".png");
+}
+
+// Drags with the left button from a to b in steps (as a hand would).
+void drag(QWidget* target, QPointF a, QPointF b, int steps = 8, Qt::KeyboardModifiers mods = {}) {
+  QTest::mousePress(target, Qt::LeftButton, mods, a.toPoint());
+  for (int i = 1; i <= steps; ++i) QTest::mouseMove(target, (a + (b - a) * (double(i) / steps)).toPoint());
+  QTest::mouseRelease(target, Qt::LeftButton, mods, b.toPoint());
+}
+}  // namespace
+
+class TestWorkflow : public QObject {
+  Q_OBJECT
+  std::unique_ptr<MainWindow> w_;
+
+ private slots:
+  void initTestCase() {
+    QCoreApplication::setOrganizationName("RehearseWorkflowTest");
+    QStandardPaths::setTestModeEnabled(true);
+    w_ = std::make_unique<MainWindow>();
+    w_->resize(1600, 900);
+    w_->show();
+    QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
+    QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
+    w_->openCase({});
+    QVERIFY(loaded.wait(60000));
+  }
+
+  // Step 1: a surface is tetrahedralised on a worker thread with the size control; quality shown.
+  void step1ImportMesh() {
+    REQUIRE_SHARED("scikit-surgery/liver_downsample.stl");
+    w_->setTargetTets(3000);
+    w_->setMeshUnit("mm");
+    QSignalSpy imported(w_.get(), &MainWindow::meshImported);
+    // The GUI thread keeps serving events while the worker meshes: measure its longest stall.
+    QElapsedTimer clock;
+    clock.start();
+    qint64 last = 0, worst = 0;
+    QTimer ticker;
+    QObject::connect(&ticker, &QTimer::timeout, [&] {
+      worst = std::max(worst, clock.elapsed() - last);
+      last = clock.elapsed();
+    });
+    ticker.start(5);
+    w_->importMesh(QString::fromStdString(sharedData("scikit-surgery/liver_downsample.stl")));
+    QVERIFY(w_->isBusy());  // running off the GUI thread
+    QVERIFY(imported.wait(120000));
+    ticker.stop();
+    QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+    const auto& c = *w_->currentCase().data;
+    qInfo("imported liver_downsample.stl: %zu tets in %lld ms; longest GUI-thread stall %lld ms", c.volume.tets.size(),
+          clock.elapsed(), worst);
+    QVERIFY(c.volume.tets.size() > 2400 && c.volume.tets.size() < 3600);
+    QVERIFY(w_->infoText().contains("tetrahedra:"));
+    QVERIFY(w_->stepDone(ui::Step::Mesh));
+    QVERIFY(!c.hasGroundTruth);
+    shot(*w_, "step1-mesh");
+    // Undo brings the phantom back, redo the imported liver.
+    w_->undoStack()->undo();
+    QVERIFY(w_->currentCase().data->hasGroundTruth);
+    w_->undoStack()->redo();
+    QVERIFY(!w_->currentCase().data->hasGroundTruth);
+    w_->undoStack()->undo();
+    // A bad file: one clear sentence, nothing lost.
+    const std::string bad = tempPath("bad.stl");
+    writeFile(bad, "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nendloop\nendfacet\nendsolid\n");
+    imported.clear();
+    w_->importMesh(QString::fromStdString(bad));
+    QVERIFY(imported.wait(60000));
+    QCOMPARE(imported.first().at(0).toBool(), false);
+    QVERIFY(w_->currentCase().data->hasGroundTruth);
+  }
+
+  // Step 2: an image, then a video scrubbed to frame 17.
+  void step2FrameAndVideo() {
+    const std::string png = tempPath("frame.png");
+    cv::Mat3b img(720, 1280, cv::Vec3b(30, 60, 150));
+    cv::circle(img, {640, 360}, 200, cv::Scalar(80, 120, 220), cv::FILLED);
+    cv::imwrite(png, img);
+    QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
+    w_->openFrameSource(QString::fromStdString(png));
+    QCOMPARE(opened.count(), 1);
+    QCOMPARE(cv::norm(w_->currentCase().data->frame, img, cv::NORM_INF), 0.0);
+    // A video whose frame i has blue = 8 i (MJPEG, lossy by a few levels).
+    const std::string avi = tempPath("clip.avi");
+    {
+      cv::VideoWriter writer(avi, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 25, cv::Size(1280, 720));
+      QVERIFY(writer.isOpened());
+      for (int i = 0; i < 30; ++i) writer.write(cv::Mat3b(720, 1280, cv::Vec3b(uchar(8 * i), 100, 50)));
+    }
+    opened.clear();
+    w_->openFrameSource(QString::fromStdString(avi));
+    QVERIFY(w_->isBusy());
+    QVERIFY(opened.wait(60000));
+    QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
+    QCOMPARE(w_->videoFrameCount(), 30);
+    QSignalSpy shown(w_.get(), &MainWindow::videoFrameShown);
+    w_->showVideoFrame(17);
+    QVERIFY(shown.wait(30000) || w_->shownVideoFrame() == 17);
+    while (w_->shownVideoFrame() != 17) QVERIFY(shown.wait(30000));
+    w_->useShownFrame();
+    const cv::Vec3b px = w_->currentCase().data->frame(360, 640);
+    QVERIFY2(std::abs(int(px[0]) - 8 * 17) <= 6, qPrintable(QString::number(px[0])));
+    // Stepping with the keyboard: '.' shows the next frame.
+    w_->setStep(ui::Step::Frame);
+    QTest::keyClick(w_.get(), Qt::Key_Period);
+    while (w_->shownVideoFrame() != 18) QVERIFY(shown.wait(30000));
+    shot(*w_, "step2-frame");
+    // Back to the phantom's frame for the next steps.
+    for (int i = 0; i < 2; ++i) w_->undoStack()->undo();
+    QCOMPARE(w_->currentCase().data->frame.cols, 1280);
+    QVERIFY(w_->currentCase().data->hasGroundTruth);
+    QCOMPARE(cv::norm(w_->currentCase().data->frame, img, cv::NORM_INF) > 0, true);
+  }
+
+  // Step 3: a freehand segment drawn with the mouse, a point moved, undo and redo.
+  void step3SketchAndEdit() {
+    w_->setStep(ui::Step::Contour);
+    auto* view = w_->frameView();
+    view->setFocus();
+    QTest::keyClick(w_.get(), Qt::Key_F);
+    QCOMPARE(view->tool(), ui::Tool::Freehand);
+    const int before = w_->undoStack()->index();
+    // Trace the upper part of the true silhouette: points on an arc in frame pixels.
+    std::vector<QPointF> pts;
+    for (int i = 0; i <= 20; ++i) pts.push_back(view->toWidget(QPointF(330 + 30.0 * i, 260 - 80 * std::sin(std::numbers::pi * i / 20))));
+    QTest::mousePress(view, Qt::LeftButton, {}, pts.front().toPoint());
+    for (const auto& p : pts) QTest::mouseMove(view, p.toPoint());
+    QTest::mouseRelease(view, Qt::LeftButton, {}, pts.back().toPoint());
+    const auto& c1 = w_->currentCase().data->contour;
+    QCOMPARE(c1.segments.size(), std::size_t(1));
+    QVERIFY(c1.segments[0].points.size() >= 10);
+    QCOMPARE(w_->undoStack()->index(), before + 1);
+    const Eigen::Vector2d first = c1.segments[0].points.front();
+    QVERIFY((first - Eigen::Vector2d(330, 260)).norm() < 2.5);
+    // Click-by-click second segment, finished with Enter.
+    QTest::keyClick(w_.get(), Qt::Key_C);
+    for (QPointF f : {QPointF(400, 520), QPointF(500, 560), QPointF(600, 570)}) QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(f).toPoint());
+    QTest::keyClick(view, Qt::Key_Return);
+    QCOMPARE(w_->currentCase().data->contour.segments.size(), std::size_t(2));
+    QCOMPARE(w_->currentCase().data->contour.segments[1].points.size(), std::size_t(3));
+    // Edit: drag the middle point of segment 2 by (+30, -20) frame px; one undo step.
+    QTest::keyClick(w_.get(), Qt::Key_E);
+    const int beforeDrag = w_->undoStack()->index();
+    drag(view, view->toWidget(QPointF(500, 560)), view->toWidget(QPointF(530, 540)));
+    const auto& moved = w_->currentCase().data->contour.segments[1].points[1];
+    QVERIFY2((moved - Eigen::Vector2d(530, 540)).norm() < 2.5, qPrintable(QString("%1 %2").arg(moved.x()).arg(moved.y())));
+    QCOMPARE(w_->undoStack()->index(), beforeDrag + 1);
+    w_->undoStack()->undo();
+    QVERIFY((w_->currentCase().data->contour.segments[1].points[1] - Eigen::Vector2d(500, 560)).norm() < 2.5);
+    w_->undoStack()->redo();
+    QVERIFY((w_->currentCase().data->contour.segments[1].points[1] - Eigen::Vector2d(530, 540)).norm() < 2.5);
+    // Right-click deletes a point; Ctrl+click inserts one on an edge.
+    QTest::mouseClick(view, Qt::RightButton, {}, view->toWidget(QPointF(600, 570)).toPoint());
+    QCOMPARE(w_->currentCase().data->contour.segments[1].points.size(), std::size_t(2));
+    QTest::mouseClick(view, Qt::LeftButton, Qt::ControlModifier, view->toWidget(QPointF(465, 530)).toPoint());
+    QCOMPARE(w_->currentCase().data->contour.segments[1].points.size(), std::size_t(3));
+    // Zoom while drawing keeps the tool.
+    QWheelEvent wheel(view->rect().center(), view->mapToGlobal(QPointF(view->rect().center())), QPoint(), QPoint(0, 120), Qt::NoButton,
+                      Qt::NoModifier, Qt::NoScrollPhase, false);
+    QApplication::sendEvent(view, &wheel);
+    QCOMPARE(view->tool(), ui::Tool::EditPoints);
+    view->fitToWindow();
+    QVERIFY(w_->stepDone(ui::Step::Contour));
+    QVERIFY(w_->contourDistance() >= 0);
+    shot(*w_, "step3-contour");
+  }
+
+  // Step 4: each gizmo handle changes the pose by the expected amount; a drag is one undo step.
+  void step4Gizmos() {
+    w_->setStep(ui::Step::Rigid);
+    auto* view = w_->frameView();
+    QCOMPARE(view->tool(), ui::Tool::Align);
+    const auto cam = w_->currentCase().data->camera;
+    struct Case {
+      GizmoHandle h;
+      QPointF delta;  // widget px
+    };
+    for (auto [h, delta] : {Case{GizmoHandle::TranslateX, {100, 0}}, Case{GizmoHandle::TranslateY, {0, 60}},
+                            Case{GizmoHandle::TranslateZ, {0, -50}}, Case{GizmoHandle::RotateX, {0, 40}},
+                            Case{GizmoHandle::RotateY, {-70, 0}}, Case{GizmoHandle::RotateZ, {0, 0}}}) {
+      const auto c0 = w_->currentCase().data;
+      const Pose p0 = c0->pose;
+      const Eigen::Vector3d cog = c0->centreOfGravity();
+      const Eigen::Vector3d g0 = p0.apply(cog);
+      const QPointF a = view->handlePosition(h);
+      QPointF b = a + delta;
+      if (h == GizmoHandle::RotateZ) {  // swing the handle 30 degrees about the centre
+        const QPointF centre = view->handlePosition(GizmoHandle::None);
+        const QPointF r = a - centre;
+        const double t = 30 * std::numbers::pi / 180;
+        b = centre + QPointF(r.x() * std::cos(t) - r.y() * std::sin(t), r.x() * std::sin(t) + r.y() * std::cos(t));
+      }
+      const int count = w_->undoStack()->index();
+      drag(view, a, b, 10);
+      const Pose p1 = w_->currentCase().data->pose;
+      QCOMPARE(w_->undoStack()->index(), count + 1);
+      // The drag used integer widget positions: recompute the expected change from those.
+      const QPointF fa = view->toFrame(a.toPoint()), fb = view->toFrame(b.toPoint());
+      const double du = fb.x() - fa.x(), dv = fb.y() - fa.y();
+      Eigen::Vector3d expectT = p0.t;
+      Eigen::Matrix3d Q = Eigen::Matrix3d::Identity();
+      switch (h) {
+        case GizmoHandle::TranslateX: expectT.x() += du * g0.z() / cam.fx(); break;
+        case GizmoHandle::TranslateY: expectT.y() += dv * g0.z() / cam.fy(); break;
+        case GizmoHandle::TranslateZ: expectT.z() -= dv * g0.z() / cam.fy(); break;
+        case GizmoHandle::RotateX: Q = Eigen::AngleAxisd(dv * 0.005, Eigen::Vector3d::UnitX()).toRotationMatrix(); break;
+        case GizmoHandle::RotateY: Q = Eigen::AngleAxisd(du * 0.005, Eigen::Vector3d::UnitY()).toRotationMatrix(); break;
+        case GizmoHandle::RotateZ: {
+          const auto c = cam.project(g0);
+          const double a0 = std::atan2(fa.y() - c.y(), fa.x() - c.x()), a1 = std::atan2(fb.y() - c.y(), fb.x() - c.x());
+          Q = Eigen::AngleAxisd(std::remainder(a1 - a0, 2 * std::numbers::pi), Eigen::Vector3d::UnitZ()).toRotationMatrix();
+          QVERIFY(std::abs(std::abs(std::remainder(a1 - a0, 2 * std::numbers::pi)) - 30 * std::numbers::pi / 180) < 0.02);
+          break;
+        }
+        default: break;
+      }
+      if (h == GizmoHandle::RotateX || h == GizmoHandle::RotateY || h == GizmoHandle::RotateZ) {
+        QVERIFY((p1.R - Q * p0.R).norm() < 1e-9);
+        QVERIFY((p1.apply(cog) - g0).norm() < 1e-9);  // rotation about the centre of gravity
+        QVERIFY(Eigen::AngleAxisd(p1.R * p0.R.transpose()).angle() > 0.05);
+      } else {
+        QVERIFY((p1.R - p0.R).norm() < 1e-12);
+        QVERIFY2((p1.t - expectT).norm() < 1e-9, qPrintable(QString("%1").arg((p1.t - expectT).norm())));
+        QVERIFY((p1.t - p0.t).norm() > 1e-3);
+      }
+      // Undo restores the pose exactly; redo re-applies it.
+      w_->undoStack()->undo();
+      QVERIFY((w_->currentCase().data->pose.t - p0.t).norm() == 0 && (w_->currentCase().data->pose.R - p0.R).norm() == 0);
+      w_->undoStack()->redo();
+      QVERIFY((w_->currentCase().data->pose.t - p1.t).norm() == 0);
+    }
+    // Keyboard nudge: Right moves 1 mm along camera X.
+    const Pose before = w_->currentCase().data->pose;
+    view->setFocus();
+    QTest::keyClick(view, Qt::Key_Right);
+    QVERIFY(std::abs(w_->currentCase().data->pose.t.x() - before.t.x() - 0.001) < 1e-12);
+    QVERIFY(w_->stepDone(ui::Step::Rigid));
+    shot(*w_, "step4-gizmo");
+  }
+
+  // PnP: pick four organ points with the mouse, click where the ground-truth pose puts them, solve.
+  void step4LandmarksPnP() {
+    auto* view = w_->frameView();
+    QTest::keyClick(w_.get(), Qt::Key_L);
+    QCOMPARE(view->tool(), ui::Tool::Landmarks);
+    const auto c = w_->currentCase().data;
+    const Eigen::Vector3d cog = c->centreOfGravity();
+    const auto centre = c->camera.project(c->pose.apply(cog));
+    int pairs = 0;
+    for (QPointF offset : {QPointF(-150, -20), QPointF(120, -40), QPointF(60, 50), QPointF(-60, 40)}) {
+      const QPointF organPixel(centre.x() + offset.x(), centre.y() + offset.y());
+      const std::size_t n = w_->landmarks().size();
+      QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(organPixel).toPoint());
+      QCOMPARE(w_->landmarks().size(), n + 1);  // the click hit the organ
+      const Eigen::Vector3d m = w_->landmarks().back().model;
+      const Eigen::Vector2d target = c->camera.project(c->truePose.apply(m));
+      QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(QPointF(target.x(), target.y())).toPoint());
+      QVERIFY(w_->landmarks().back().hasImage);
+      ++pairs;
+    }
+    QCOMPARE(pairs, 4);
+    w_->solvePnP();
+    const auto& p = w_->currentCase().data->pose;
+    qInfo("PnP from %d pairs: reprojection RMS %.3f px; rotation error %.3f deg, translation error %.2f mm", pairs,
+          w_->lastPnPReprojectionError(), Eigen::AngleAxisd(p.R * c->truePose.R.transpose()).angle() * 180 / std::numbers::pi,
+          (p.t - c->truePose.t).norm() * 1e3);
+    QVERIFY(w_->lastPnPReprojectionError() >= 0 && w_->lastPnPReprojectionError() < 1.0);
+    QVERIFY(Eigen::AngleAxisd(p.R * c->truePose.R.transpose()).angle() < 2 * std::numbers::pi / 180);
+    QVERIFY((p.t - c->truePose.t).norm() < 0.005);
+    shot(*w_, "step4-pnp");
+  }
+
+  // Save and reopen: every field the user made comes back.
+  void saveAndReopen() {
+    const QString path = QString::fromStdString(tempPath("workflow.rehearse"));
+    QSignalSpy saved(w_.get(), &MainWindow::caseSaved);
+    w_->saveCaseAs(path);
+    QVERIFY(saved.count() == 1 || saved.wait(60000));
+    QVERIFY(saved.first().at(0).toBool());
+    const auto a = w_->currentCase().data;
+    MainWindow other;
+    other.show();
+    QSignalSpy loaded(&other, &MainWindow::caseLoaded);
+    other.openCase(path);
+    QVERIFY(loaded.wait(60000));
+    const auto b = other.currentCase().data;
+    QVERIFY(b->pose.R == a->pose.R && b->pose.t == a->pose.t);
+    QCOMPARE(b->poseAligned, a->poseAligned);
+    QCOMPARE(b->contour.segments.size(), a->contour.segments.size());
+    for (std::size_t s = 0; s < a->contour.segments.size(); ++s) QVERIFY(b->contour.segments[s].points == a->contour.segments[s].points);
+    QVERIFY(b->camera.K == a->camera.K);
+    QCOMPARE(cv::norm(b->frame, a->frame, cv::NORM_INF), 0.0);
+    QVERIFY(b->volume.tets == a->volume.tets);
+    for (int s = 0; s < 4; ++s) QCOMPARE(other.stepDone(static_cast<ui::Step>(s)), w_->stepDone(static_cast<ui::Step>(s)));
+  }
+
+  void cleanupTestCase() {
+    w_->close();
+    w_.reset();
+  }
+};
+
+QTEST_MAIN(TestWorkflow)
+#include "test_workflow.moc"
