@@ -19,6 +19,7 @@
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
 
+#include <map>
 #include <numbers>
 
 using namespace rehearse;
@@ -325,6 +326,151 @@ class TestWorkflow : public QObject {
     QCOMPARE(cv::norm(b->frame, a->frame, cv::NORM_INF), 0.0);
     QVERIFY(b->volume.tets == a->volume.tets);
     for (int s = 0; s < 4; ++s) QCOMPARE(other.stepDone(static_cast<ui::Step>(s)), w_->stepDone(static_cast<ui::Step>(s)));
+  }
+
+  // A surface of more than 100k triangles is tetrahedralised and a 4k video decoded while the GUI thread keeps
+  // serving events: a 5 ms timer must keep firing, and the longest gap between its ticks is reported.
+  void longJobsStayOffTheGuiThread() {
+    struct Monitor {
+      QElapsedTimer clock;
+      QTimer ticker;
+      qint64 last = 0, worst = 0;
+      int ticks = 0;
+      Monitor() {
+        clock.start();
+        QObject::connect(&ticker, &QTimer::timeout, [this] {
+          worst = std::max(worst, clock.elapsed() - last);
+          last = clock.elapsed();
+          ++ticks;
+        });
+        ticker.start(5);
+      }
+    };
+    // Outer sphere (81920 triangles) with an inner sphere (20480): 102400 triangles.
+    std::string obj;
+    int base = 0;
+    auto sphere = [&](double r, int levels) {
+      std::vector<Eigen::Vector3d> v = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
+      std::vector<std::array<int, 3>> f = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
+      for (int l = 0; l < levels; ++l) {
+        std::map<std::pair<int, int>, int> mid;
+        auto m = [&](int a, int b) {
+          auto k = std::minmax(a, b);
+          if (auto it = mid.find(k); it != mid.end()) return it->second;
+          v.push_back((v[a] + v[b]).normalized());
+          return mid[k] = int(v.size()) - 1;
+        };
+        std::vector<std::array<int, 3>> g;
+        for (auto [a, b, c] : f) {
+          int ab = m(a, b), bc = m(b, c), ca = m(c, a);
+          g.insert(g.end(), {{a, ab, ca}, {b, bc, ab}, {c, ca, bc}, {ab, bc, ca}});
+        }
+        f = g;
+      }
+      obj += "o sphere" + std::to_string(base) + "\n";
+      for (auto& p : v) obj += "v " + std::to_string(r * p.x()) + " " + std::to_string(r * p.y()) + " " + std::to_string(r * p.z()) + "\n";
+      for (auto [a, b, c] : f) obj += "f " + std::to_string(base + a + 1) + " " + std::to_string(base + b + 1) + " " + std::to_string(base + c + 1) + "\n";
+      base += int(v.size());
+      return f.size();
+    };
+    const std::size_t triangles = sphere(60, 7) + sphere(20, 6);
+    QCOMPARE(triangles, std::size_t(8 * 16384 + 8 * 4096));
+    const std::string path = tempPath("big.obj");
+    writeFile(path, obj);
+    w_->setTargetTets(20000);
+    w_->setMeshUnit("mm");
+    {
+      Monitor mon;
+      QSignalSpy imported(w_.get(), &MainWindow::meshImported);
+      w_->importMesh(QString::fromStdString(path));
+      QVERIFY(imported.wait(300000));
+      QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+      const qint64 total = mon.clock.elapsed();
+      qInfo("BENCH gui_stall,tetrahedralise %zu triangles to %zu tets,%lld ms,longest stall %lld ms,%d ticks", triangles,
+            w_->currentCase().data->volume.tets.size(), total, mon.worst, mon.ticks);
+      QVERIFY(mon.ticks > 20);
+      QVERIFY(mon.worst < total / 2);
+      QCOMPARE(w_->labelsShown(), 2);
+    }
+    // A 4k (3840x2160) MJPEG video, frames of different colours.
+    const std::string avi = tempPath("uhd.avi");
+    {
+      cv::VideoWriter writer(avi, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 25, cv::Size(3840, 2160));
+      QVERIFY(writer.isOpened());
+      for (int i = 0; i < 24; ++i) {
+        cv::Mat3b f(2160, 3840, cv::Vec3b(uchar(10 * i), 90, 40));
+        cv::circle(f, {1920, 1080}, 600, cv::Scalar(40, 80, 200), cv::FILLED);
+        writer.write(f);
+      }
+    }
+    {
+      Monitor mon;
+      QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
+      QSignalSpy shown(w_.get(), &MainWindow::videoFrameShown);
+      w_->openFrameSource(QString::fromStdString(avi));
+      QVERIFY(opened.wait(120000));
+      QVERIFY(opened.first().at(0).toBool());
+      w_->showVideoFrame(20);
+      while (w_->shownVideoFrame() != 20) QVERIFY(shown.wait(120000));
+      const qint64 total = mon.clock.elapsed();
+      qInfo("BENCH gui_stall,open a 4k video and decode frame 20,%lld ms,longest stall %lld ms,%d ticks", total, mon.worst, mon.ticks);
+      QVERIFY(mon.ticks > 5);
+      QElapsedTimer use;
+      use.start();
+      w_->useShownFrame();
+      qInfo("BENCH gui_stall,take the 4k frame (undistort + organ overlay on the GUI thread),%lld ms,-,-", use.elapsed());
+      QCOMPARE(w_->currentCase().data->frame.cols, 3840);
+      QCOMPARE(w_->currentCase().data->camera.width, 3840);
+    }
+    for (int i = 0; i < 2; ++i) w_->undoStack()->undo();
+  }
+
+  // Missing live camera, calibration files, P2ILF contours through the window; erase with the mouse.
+  void framesCalibrationAndContourFiles() {
+    w_->activateWindow();  // another window was open in an earlier test; shortcuts need the active window
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
+    w_->openCameraDevice(7);
+    QCOMPARE(opened.count(), 1);
+    QCOMPARE(opened.first().at(0).toBool(), false);
+    QVERIFY(opened.first().at(1).toString().contains("cannot be opened"));
+    // A calibration with distortion: the frame is undistorted with it, consistently with K.
+    const auto before = w_->currentCase().data;
+    imaging::Camera cam = before->camera;
+    cam.distortion = {-0.2, 0.05, 0, 0, 0};
+    const std::string yaml = tempPath("cal.yaml");
+    imaging::saveCamera(cam, yaml);
+    w_->loadCalibration(QString::fromStdString(yaml));
+    const auto after = w_->currentCase().data;
+    QCOMPARE(after->camera.distortion[0], -0.2);
+    QVERIFY(cv::norm(after->frame, before->frame, cv::NORM_L1) > 0);  // resampled
+    QCOMPARE(cv::norm(after->rawFrame, before->frame, cv::NORM_INF), 0.0);  // the captured frame is kept
+    // Undistortion moves a corner pixel inwards by the amount cv::undistortPoints says.
+    w_->undoStack()->undo();
+    QCOMPARE(w_->currentCase().data->camera.distortion[0], 0.0);
+    // A 3x3 text matrix for a different image size is refused with one sentence.
+    const std::string txt = tempPath("K.txt");
+    writeFile(txt, "1000 0 640\n0 1000 360\n0 0 1\n");
+    w_->loadCalibration(QString::fromStdString(txt));
+    QCOMPARE(w_->currentCase().data->camera.fx(), 1000.0);
+    w_->undoStack()->undo();
+    // P2ILF contour import, then erase part of it with a mouse stroke.
+    const std::string p2 = tempPath("p2ilf-contour.json");
+    writeFile(p2, R"({"numOfContours":1,"contour":[{"contourType":"Silhouette","imagePoints":{"x":[300,350,400,450,500,550,600],"y":[300,300,300,300,300,300,300]}}]})");
+    w_->importContour(QString::fromStdString(p2));
+    QCOMPARE(w_->currentCase().data->contour.segments.size(), std::size_t(1));
+    QCOMPARE(w_->currentCase().data->contour.segments[0].points.size(), std::size_t(7));
+    auto* view = w_->frameView();
+    view->setFocus();  // single-letter tool keys go to text fields when one has the focus
+    QTest::keyClick(view, Qt::Key_X);
+    QCOMPARE(view->tool(), ui::Tool::Erase);
+    drag(view, view->toWidget(QPointF(450, 260)), view->toWidget(QPointF(450, 340)));
+    const auto& c = w_->currentCase().data->contour;
+    QCOMPARE(c.segments.size(), std::size_t(2));  // split where the point was erased
+    QCOMPARE(c.segments[0].points.size() + c.segments[1].points.size(), std::size_t(6));
+    const std::string out = tempPath("exported.json");
+    w_->exportContour(QString::fromStdString(out));
+    QCOMPARE(imaging::loadContour(out).segments.size(), std::size_t(2));
   }
 
   void cleanupTestCase() {

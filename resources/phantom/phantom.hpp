@@ -30,7 +30,8 @@ struct Case {
   std::vector<std::array<int, 3>> surface;  ///< outer boundary triangles (indices into volume.points)
   std::vector<int> attachments;          ///< 0-based node indices fixed by ligaments (q(j) = 1)
   imaging::Camera camera;
-  cv::Mat3b frame;                       ///< undistorted endoscope frame, BGR
+  cv::Mat3b frame;                       ///< undistorted endoscope frame, BGR (what every step uses)
+  cv::Mat3b rawFrame;                    ///< the frame as captured, when it had to be undistorted (else empty)
   bool hasGroundTruth = false;
   Pose truePose;                         ///< model -> camera
   imaging::Appearance trueAppearance;

@@ -141,6 +141,11 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
       cv::imencode(".png", c.frame, png);
       part("frame", "png", QByteArray(reinterpret_cast<const char*>(png.data()), static_cast<qsizetype>(png.size())));
     }
+    if (!c.rawFrame.empty() && c.rawFrame.data != c.frame.data) {
+      std::vector<uchar> png;
+      cv::imencode(".png", c.rawFrame, png);
+      part("raw_frame", "png", QByteArray(reinterpret_cast<const char*>(png.data()), static_cast<qsizetype>(png.size())));
+    }
     if (c.camera.width > 0) {
       const auto& k = c.camera;
       json cam = {{"K", {{k.K(0, 0), k.K(0, 1), k.K(0, 2)}, {k.K(1, 0), k.K(1, 1), k.K(1, 2)}, {k.K(2, 0), k.K(2, 1), k.K(2, 2)}}},
@@ -237,6 +242,11 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
     cv::Mat raw(1, static_cast<int>(f.size()), CV_8U, f.data());
     c.frame = cv::imdecode(raw, cv::IMREAD_COLOR);
     if (c.frame.empty()) note(QStringLiteral("Frame not loaded: the stored image is damaged."));
+  }
+  if (QByteArray f = read("raw_frame"); !f.isEmpty()) {
+    cv::Mat raw(1, static_cast<int>(f.size()), CV_8U, f.data());
+    c.rawFrame = cv::imdecode(raw, cv::IMREAD_COLOR);
+    if (c.rawFrame.empty()) note(QStringLiteral("Captured frame not loaded: the stored image is damaged."));
   }
   if (QByteArray k = read("camera"); !k.isEmpty()) {
     try {

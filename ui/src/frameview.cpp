@@ -238,12 +238,12 @@ void FrameView::paintEvent(QPaintEvent*) {
   if (overlayVisible_) {
     if (!overlay_.isNull()) {
       painter.setOpacity(opacity_);
-      painter.drawImage(QPointF(0, 0), overlay_);
+      painter.drawImage(QRectF(QPointF(0, 0), QSizeF(frame_.size())), overlay_);  // the overlay may be at a lower resolution
       painter.setOpacity(1.0);
     }
     if (!inner_.isNull()) {
       painter.setOpacity(0.7);
-      painter.drawImage(QPointF(0, 0), inner_);
+      painter.drawImage(QRectF(QPointF(0, 0), QSizeF(frame_.size())), inner_);
       painter.setOpacity(1.0);
     }
     QPen pen(QColor(120, 255, 140), 2.0);

@@ -1,6 +1,7 @@
 #include "rehearse/ui/mainwindow.hpp"
 
 #include "rehearse/ui/casefile.hpp"
+#include "rehearse/ui/organview.hpp"
 
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/meshio.hpp>
@@ -81,6 +82,24 @@ QImage toQImage(const cv::Mat3b& bgr) {
   return QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
 }
 
+// The frame every step uses is the captured one undistorted with the case's camera (same K, so pixels
+// keep the pinhole model of the camera). Without distortion it is the captured frame itself.
+void undistortFrame(phantom::Case& k) {
+  if (k.rawFrame.empty()) return;
+  const auto& d = k.camera.distortion;
+  if (d[0] == 0 && d[1] == 0 && d[2] == 0 && d[3] == 0 && d[4] == 0) {
+    k.frame = k.rawFrame;
+    return;
+  }
+  cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) K.at<double>(r, c) = k.camera.K(r, c);
+  for (int i = 0; i < 5; ++i) D.at<double>(0, i) = d[i];
+  cv::Mat3b und;
+  cv::undistort(k.rawFrame, und, K, D);
+  k.frame = und;
+}
+
 QColor labelColour(int label) {
   static const QColor c[] = {QColor(200, 120, 100), QColor(80, 140, 255), QColor(250, 200, 60), QColor(170, 90, 220),
                              QColor(90, 220, 200), QColor(240, 120, 180)};
@@ -111,6 +130,13 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   info_->setFont(mono);
   infoDock->setWidget(info_);
   addDockWidget(Qt::RightDockWidgetArea, infoDock);
+  auto* organDock = new QDockWidget(tr("Organ 3D"), this);
+  organDock->setObjectName(QStringLiteral("organDock"));
+  organView_ = new OrganView(organDock);
+  organView_->setObjectName(QStringLiteral("organView"));
+  organDock->setWidget(organView_);
+  addDockWidget(Qt::RightDockWidgetArea, organDock);
+  splitDockWidget(infoDock, organDock, Qt::Vertical);
 
   progress_ = new QProgressBar(this);
   progress_->setRange(0, 100);
@@ -615,6 +641,7 @@ void MainWindow::setCaseData(std::shared_ptr<const phantom::Case> data) {
   if (meshChanged && !case_.data->volume.empty())
     case_.qualityText = QString::fromStdString(simcore::formatQuality(simcore::computeQuality(case_.data->volume)));
   view_->setCase(case_.data);
+  organView_->setCase(case_.data);
   if (frameChanged) view_->setFrame(case_.frame);
   refreshOverlay();
   showCaseInfo();
@@ -631,7 +658,18 @@ void MainWindow::refreshOverlay() {
     statusDistance_->clear();
     return;
   }
-  cv::Mat4b overlay = imaging::renderOverlay(c->camera, c->pose, c->surfaceView(), cv::Vec3b(150, 210, 120));
+  // Large frames (4k) get the overlay at a reduced resolution, drawn scaled: the GUI thread stays responsive.
+  const double s = std::min(1.0, 1600.0 / c->camera.width);
+  imaging::Camera cam = c->camera;
+  if (s < 1.0) {
+    cam.width = static_cast<int>(std::lround(c->camera.width * s));
+    cam.height = static_cast<int>(std::lround(c->camera.height * s));
+    cam.K.row(0) *= s;
+    cam.K.row(1) *= s;
+    cam.K(0, 2) = s * (c->camera.cx() + 0.5) - 0.5;
+    cam.K(1, 2) = s * (c->camera.cy() + 0.5) - 0.5;
+  }
+  cv::Mat4b overlay = imaging::renderOverlay(cam, c->pose, c->surfaceView(), cv::Vec3b(150, 210, 120));
   cv::Mat rgba;
   cv::cvtColor(overlay, rgba, cv::COLOR_BGRA2RGBA);
   case_.organOverlay = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
@@ -642,7 +680,7 @@ void MainWindow::refreshOverlay() {
   case_.silhouette.clear();
   for (const auto& ct : contours) {
     QPolygonF poly;
-    for (const auto& p : ct) poly << QPointF(p.x + 0.5, p.y + 0.5);
+    for (const auto& p : ct) poly << QPointF((p.x + 0.5) / s, (p.y + 0.5) / s);
     case_.silhouette << poly;
   }
   view_->setOverlay(case_.organOverlay, case_.silhouette);
@@ -661,14 +699,20 @@ void MainWindow::refreshOverlay() {
     v.triangles = inner.front().data();
     v.triangleCount = inner.size();
     const QColor col = labelColour(innerLabel);
-    cv::Mat4b in = imaging::renderOverlay(c->camera, c->pose, v, cv::Vec3b(col.blue(), col.green(), col.red()));
+    cv::Mat4b in = imaging::renderOverlay(cam, c->pose, v, cv::Vec3b(col.blue(), col.green(), col.red()));
     cv::cvtColor(in, rgba, cv::COLOR_BGRA2RGBA);
     view_->setInnerOverlay(QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy());
   } else {
     view_->setInnerOverlay({});
   }
+  imaging::Contour scaled = c->contour;
+  for (auto& seg : scaled.segments)
+    for (auto& p : seg.points) p = (p.array() + 0.5) * s - 0.5;
   imaging::ContourDistance d;
-  if (imaging::contourToMaskDistance(c->contour, mask, d)) {
+  if (imaging::contourToMaskDistance(scaled, mask, d)) {
+    d.mean /= s;
+    d.rms /= s;
+    d.max /= s;
     contourDistance_ = d.mean;
     const QString text = tr("Contour to silhouette: mean %1 px, RMS %2 px, max %3 px").arg(d.mean, 0, 'f', 1).arg(d.rms, 0, 'f', 1).arg(d.max, 0, 'f', 1);
     statusDistance_->setText(text);
@@ -755,6 +799,7 @@ void MainWindow::runJob(const QString& message,
   jobWatcher_.setFuture(QtConcurrent::run([this, job, progress]() -> std::function<void()> { return job(cancel_, progress); }));
 }
 
+int MainWindow::labelsShown() const { return labels_->topLevelItemCount(); }
 int MainWindow::targetTets() const { return targetTets_->value(); }
 void MainWindow::setTargetTets(int n) { targetTets_->setValue(n); }
 void MainWindow::setMeshUnit(const QString& unit) { meshUnit_->setCurrentText(unit); }
@@ -933,18 +978,8 @@ void MainWindow::useShownFrame() {
       // A frame of another size keeps no stale calibration: the stated default, editable in the panel.
       k.camera = imaging::Camera::defaultFor(frame.cols, frame.rows);
     }
-    const auto& d = k.camera.distortion;
-    if (d[0] != 0 || d[1] != 0 || d[2] != 0 || d[3] != 0 || d[4] != 0) {
-      cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) K.at<double>(r, c) = k.camera.K(r, c);
-      for (int i = 0; i < 5; ++i) D.at<double>(0, i) = d[i];
-      cv::Mat3b und;
-      cv::undistort(frame, und, K, D);
-      k.frame = und;
-    } else {
-      k.frame = frame;
-    }
+    k.rawFrame = frame;
+    undistortFrame(k);
     k.contour.width = frame.cols;
     k.contour.height = frame.rows;
   });
@@ -959,7 +994,11 @@ void MainWindow::loadCalibration(const QString& path) {
     if (w > 0 && (cam.width != w || cam.height != h))
       throw imaging::InputError(tr("The calibration is for %1x%2 images but the frame is %3x%4; choose the matching calibration.")
                                     .arg(cam.width).arg(cam.height).arg(w).arg(h).toStdString());
-    editCase(tr("Load calibration"), [cam](phantom::Case& k) { k.camera = cam; });
+    editCase(tr("Load calibration"), [cam](phantom::Case& k) {
+      if (k.rawFrame.empty()) k.rawFrame = k.frame;  // the frame so far was taken as captured
+      k.camera = cam;
+      undistortFrame(k);
+    });
     statusCase_->setText(tr("Calibration loaded from %1.").arg(QFileInfo(path).fileName()));
   } catch (const std::exception& e) {
     statusCase_->setText(QString::fromUtf8(e.what()));

@@ -36,6 +36,8 @@ class VideoCapture;
 
 namespace rehearse::ui {
 
+class OrganView;
+
 /// Steps of the workflow, in the order a case is worked.
 enum class Step { Mesh = 0, Frame, Contour, Rigid, Elastic, Appearance, Rehearse };
 
@@ -74,6 +76,7 @@ class MainWindow : public QMainWindow {
 
   const LoadedCase& currentCase() const { return case_; }
   FrameView* frameView() const { return view_; }
+  OrganView* organView() const { return organView_; }
   QUndoStack* undoStack() { return &undo_; }
   QString infoText() const;
   int videoFrameCount() const { return videoFrames_; }
@@ -83,6 +86,7 @@ class MainWindow : public QMainWindow {
   /// Contour to silhouette distance at the current pose (px); negative when it cannot be computed.
   double contourDistance() const { return contourDistance_; }
   bool stepDone(Step s) const;
+  int labelsShown() const;  ///< rows in the label list of step 1
   int targetTets() const;
   void setTargetTets(int n);
   void setMeshUnit(const QString& unit);
@@ -131,6 +135,7 @@ class MainWindow : public QMainWindow {
                                                                                 const std::function<void(double, QString)>&)>& job);
 
   FrameView* view_ = nullptr;
+  OrganView* organView_ = nullptr;
   QPlainTextEdit* info_ = nullptr;
   QProgressBar* progress_ = nullptr;
   QToolButton* cancelButton_ = nullptr;

@@ -1,0 +1,121 @@
+#include "rehearse/ui/organview.hpp"
+
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/mesh.hpp>
+
+#include <QMouseEvent>
+#include <QPainter>
+#include <QWheelEvent>
+
+#include <opencv2/imgproc.hpp>
+
+namespace rehearse::ui {
+
+OrganView::OrganView(QWidget* parent) : QWidget(parent) {
+  setMinimumSize(200, 160);
+  setAttribute(Qt::WA_OpaquePaintEvent);
+  setToolTip(tr("Drag to turn the organ, wheel to zoom, double-click to reset"));
+}
+
+void OrganView::setCase(std::shared_ptr<const phantom::Case> c) {
+  // Only the mesh matters here: skip re-rendering when only the contour or the pose changed.
+  if (case_ && c && case_->volume.tets == c->volume.tets && case_->volume.points.size() == c->volume.points.size() &&
+      case_->attachments == c->attachments) {
+    case_ = std::move(c);
+    return;
+  }
+  case_ = std::move(c);
+  dirty_ = true;
+  update();
+}
+
+void OrganView::render() {
+  dirty_ = false;
+  image_ = QImage();
+  if (!case_ || case_->surface.empty() || width() < 10 || height() < 10) return;
+  imaging::Camera cam;
+  cam.width = width();
+  cam.height = height();
+  const double f = 1.1 * std::min(width(), height());
+  cam.K << f, 0, (width() - 1) / 2.0, 0, f, (height() - 1) / 2.0, 0, 0, 1;
+  const Eigen::Vector3d cog = case_->centreOfGravity();
+  const double size = case_->volume.bounds().sizes().maxCoeff();
+  Pose p;
+  p.R = (Eigen::AngleAxisd(pitch_, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(yaw_, Eigen::Vector3d::UnitY())).toRotationMatrix();
+  p.t = Eigen::Vector3d(0, 0, 1.05 * size / zoom_) - p.R * cog;
+  cv::Mat4b organ = imaging::renderOverlay(cam, p, case_->surfaceView(), cv::Vec3b(120, 150, 215));
+  // Inner structures (labels other than the outer one), drawn over it half-transparent.
+  std::vector<int> labels;
+  auto faces = simcore::boundaryTriangles(case_->volume, true, &labels);
+  std::vector<std::array<int, 3>> inner;
+  for (std::size_t i = 0; i < faces.size(); ++i)
+    if (labels[i] != 1) inner.push_back(faces[i]);
+  cv::Mat rgba;
+  cv::cvtColor(organ, rgba, cv::COLOR_BGRA2RGBA);
+  image_ = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
+  QPainter painter(&image_);
+  if (!inner.empty()) {
+    SurfaceView v = case_->volume.surfaceView();
+    v.triangles = inner.front().data();
+    v.triangleCount = inner.size();
+    cv::Mat4b in = imaging::renderOverlay(cam, p, v, cv::Vec3b(255, 150, 80));
+    cv::cvtColor(in, rgba, cv::COLOR_BGRA2RGBA);
+    painter.setOpacity(0.45);
+    painter.drawImage(0, 0, QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888));
+    painter.setOpacity(1.0);
+  }
+  painter.setRenderHint(QPainter::Antialiasing);
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(QColor(255, 150, 40));
+  for (int a : case_->attachments) {
+    const Eigen::Vector3d x = p.apply(case_->volume.points[a]);
+    if (x.z() <= 0) continue;
+    const auto uv = cam.project(x);
+    painter.drawEllipse(QPointF(uv.x(), uv.y()), 2.5, 2.5);
+  }
+}
+
+void OrganView::paintEvent(QPaintEvent*) {
+  if (dirty_) render();
+  QPainter painter(this);
+  painter.fillRect(rect(), QColor(24, 25, 28));
+  if (image_.isNull()) {
+    painter.setPen(QColor(150, 150, 150));
+    painter.drawText(rect(), Qt::AlignCenter, tr("No organ mesh yet"));
+    return;
+  }
+  painter.drawImage(0, 0, image_);
+  painter.setPen(QColor(170, 170, 170));
+  painter.drawText(rect().adjusted(6, 4, -6, -4), Qt::AlignLeft | Qt::AlignBottom,
+                   tr("%1 tets, %2 attachments").arg(case_->volume.tets.size()).arg(case_->attachments.size()));
+}
+
+void OrganView::mousePressEvent(QMouseEvent* e) { last_ = e->position(); }
+
+void OrganView::mouseMoveEvent(QMouseEvent* e) {
+  if (!(e->buttons() & Qt::LeftButton)) return;
+  const QPointF d = e->position() - last_;
+  last_ = e->position();
+  yaw_ += d.x() * 0.01;
+  pitch_ = std::clamp(pitch_ - d.y() * 0.01, -1.5, 1.5);
+  dirty_ = true;
+  update();
+}
+
+void OrganView::mouseDoubleClickEvent(QMouseEvent*) {
+  yaw_ = 0;
+  pitch_ = -0.3;
+  zoom_ = 1;
+  dirty_ = true;
+  update();
+}
+
+void OrganView::wheelEvent(QWheelEvent* e) {
+  zoom_ = std::clamp(zoom_ * std::pow(1.0015, e->angleDelta().y()), 0.3, 8.0);
+  dirty_ = true;
+  update();
+}
+
+void OrganView::resizeEvent(QResizeEvent*) { dirty_ = true; }
+
+}  // namespace rehearse::ui
