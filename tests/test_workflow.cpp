@@ -7,6 +7,7 @@
 #include "phantom/phantom.hpp"
 #include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 
 #include <rehearse/simcore/meshio.hpp>
@@ -50,10 +51,13 @@ class TestWorkflow : public QObject {
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseWorkflowTest");
     QStandardPaths::setTestModeEnabled(true);
+    ui::applyDarkTheme(*qApp);  // as the application runs (and as the README screenshots show it)
     w_ = std::make_unique<MainWindow>();
     w_->resize(1600, 900);
     w_->show();
     QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
+    w_->activateWindow();  // keyboard shortcuts need the active window (under a real X server too)
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
     w_->openCase({});
     QVERIFY(loaded.wait(60000));

@@ -11,7 +11,6 @@
 #include <cstdio>
 
 namespace rehearse::ui {
-namespace {
 // Operating rooms are dim: a dark theme by default.
 void applyDarkTheme(QApplication& app) {
   app.setStyle(QStyleFactory::create(QStringLiteral("Fusion")));
@@ -35,7 +34,6 @@ void applyDarkTheme(QApplication& app) {
   f.setPointSizeF(std::max(11.0, f.pointSizeF()));
   app.setFont(f);
 }
-}  // namespace
 
 int runGui(int argc, char** argv) {
   QApplication app(argc, argv);

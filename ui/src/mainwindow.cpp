@@ -759,8 +759,11 @@ void MainWindow::refreshPanels() {
                               .arg(problem.empty() ? tr("Ready for fitting.") : QString::fromStdString(problem)));
   // Step 4: pose fields (translation in mm, rotation as Z-Y-X Euler angles in degrees).
   if (c->hasPose) {
-    const Eigen::Vector3d e = c->pose.R.eulerAngles(2, 1, 0) * 180 / M_PI;
-    const double vals[6] = {c->pose.t.x() * 1e3, c->pose.t.y() * 1e3, c->pose.t.z() * 1e3, e[2], e[1], e[0]};
+    // R = Rz(rz) Ry(ry) Rx(rx), angles in (-180, 180] with ry in [-90, 90] (the fields rebuild R the same way).
+    const auto& R = c->pose.R;
+    const double rz = std::atan2(R(1, 0), R(0, 0)), ry = std::asin(std::clamp(-R(2, 0), -1.0, 1.0)), rx = std::atan2(R(2, 1), R(2, 2));
+    const double d = 180 / M_PI;
+    const double vals[6] = {c->pose.t.x() * 1e3, c->pose.t.y() * 1e3, c->pose.t.z() * 1e3, rx * d, ry * d, rz * d};
     for (int k = 0; k < 6; ++k) poseFields_[k]->setValue(vals[k]);
   }
   landmarkList_->clear();
