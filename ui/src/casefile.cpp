@@ -88,6 +88,7 @@ void fsyncDirectoryOf(const QString& path) {
 }  // namespace
 
 bool isCaseFile(const QString& path) {
+  if (path.isEmpty() || !QFileInfo(path).isFile()) return false;
   QFile f(path);
   if (!f.open(QIODevice::ReadOnly)) return false;
   return f.read(16) == QByteArray("SQLite format 3\0", 16);

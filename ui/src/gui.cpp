@@ -63,6 +63,7 @@ int runGui(int argc, char** argv) {
     }
     caseDir = pos[1];
   }
+  MainWindow::setSoftwareRendering(parser.isSet(software));
   MainWindow window;
   const QString shot = parser.value(screenshot);
   int exitCode = 0;

@@ -1,6 +1,7 @@
 #include "rehearse/ui/mainwindow.hpp"
 
 #include "rehearse/ui/casefile.hpp"
+#include "rehearse/ui/organglview.hpp"
 #include "rehearse/ui/organview.hpp"
 
 #include <rehearse/imaging/render.hpp>
@@ -106,6 +107,12 @@ QColor labelColour(int label) {
   return c[std::abs(label) % 6];
 }
 
+bool& softwareRenderingFlag() {
+  static bool flag = false;
+  return flag;
+}
+bool softwareRendering() { return softwareRenderingFlag(); }
+
 const char* kStepNames[] = {"1  Organ mesh", "2  Endoscope frame", "3  Contour", "4  Rigid alignment",
                             "5  Elastic fit", "6  Appearance", "7  Rehearse"};
 
@@ -132,9 +139,15 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   addDockWidget(Qt::RightDockWidgetArea, infoDock);
   auto* organDock = new QDockWidget(tr("Organ 3D"), this);
   organDock->setObjectName(QStringLiteral("organDock"));
-  organView_ = new OrganView(organDock);
-  organView_->setObjectName(QStringLiteral("organView"));
-  organDock->setWidget(organView_);
+  if (!softwareRendering() && OrganGLView::openGLAvailable()) {
+    organGLView_ = new OrganGLView(organDock);
+    organGLView_->setObjectName(QStringLiteral("organView"));
+    organDock->setWidget(organGLView_);
+  } else {
+    organView_ = new OrganView(organDock);
+    organView_->setObjectName(QStringLiteral("organView"));
+    organDock->setWidget(organView_);
+  }
   addDockWidget(Qt::RightDockWidgetArea, organDock);
   splitDockWidget(infoDock, organDock, Qt::Vertical);
 
@@ -233,6 +246,13 @@ MainWindow::~MainWindow() {
   watcher_.waitForFinished();
   jobWatcher_.waitForFinished();
   saveWatcher_.waitForFinished();
+}
+
+void MainWindow::setSoftwareRendering(bool on) { softwareRenderingFlag() = on; }
+
+QWidget* MainWindow::organWidget() const {
+  if (organGLView_) return organGLView_;
+  return organView_;
 }
 
 bool MainWindow::isBusy() const { return watcher_.isRunning() || jobWatcher_.isRunning() || saveWatcher_.isRunning(); }
@@ -641,7 +661,8 @@ void MainWindow::setCaseData(std::shared_ptr<const phantom::Case> data) {
   if (meshChanged && !case_.data->volume.empty())
     case_.qualityText = QString::fromStdString(simcore::formatQuality(simcore::computeQuality(case_.data->volume)));
   view_->setCase(case_.data);
-  organView_->setCase(case_.data);
+  if (organView_) organView_->setCase(case_.data);
+  if (organGLView_) organGLView_->setCase(case_.data);
   if (frameChanged) view_->setFrame(case_.frame);
   refreshOverlay();
   showCaseInfo();

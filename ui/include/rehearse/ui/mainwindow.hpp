@@ -37,6 +37,7 @@ class VideoCapture;
 namespace rehearse::ui {
 
 class OrganView;
+class OrganGLView;
 
 /// Steps of the workflow, in the order a case is worked.
 enum class Step { Mesh = 0, Frame, Contour, Rigid, Elastic, Appearance, Rehearse };
@@ -76,7 +77,11 @@ class MainWindow : public QMainWindow {
 
   const LoadedCase& currentCase() const { return case_; }
   FrameView* frameView() const { return view_; }
-  OrganView* organView() const { return organView_; }
+  /// The 3D organ view: OpenGL when a context can be made (and --software was not given), else software.
+  QWidget* organWidget() const;
+  bool organViewUsesOpenGL() const { return organGLView_ != nullptr; }
+  /// Forces the software renderers (set before creating a window; `rehearse --software`).
+  static void setSoftwareRendering(bool on);
   QUndoStack* undoStack() { return &undo_; }
   QString infoText() const;
   int videoFrameCount() const { return videoFrames_; }
@@ -136,6 +141,7 @@ class MainWindow : public QMainWindow {
 
   FrameView* view_ = nullptr;
   OrganView* organView_ = nullptr;
+  OrganGLView* organGLView_ = nullptr;
   QPlainTextEdit* info_ = nullptr;
   QProgressBar* progress_ = nullptr;
   QToolButton* cancelButton_ = nullptr;

@@ -1,0 +1,49 @@
+#pragma once
+// The organ alone in 3D with OpenGL (used when a GL context can be made; OrganView is the software
+// fallback). Same controls: drag to turn, wheel to zoom, double-click to reset.
+#include "phantom/phantom.hpp"
+
+#include <QOpenGLBuffer>
+#include <QOpenGLFunctions>
+#include <QOpenGLShaderProgram>
+#include <QOpenGLVertexArrayObject>
+#include <QOpenGLWidget>
+
+#include <memory>
+
+namespace rehearse::ui {
+
+class OrganGLView : public QOpenGLWidget, protected QOpenGLFunctions {
+  Q_OBJECT
+ public:
+  explicit OrganGLView(QWidget* parent = nullptr);
+  ~OrganGLView() override;
+  void setCase(std::shared_ptr<const phantom::Case> c);
+  /// True once initializeGL ran with a working context and shaders.
+  bool glReady() const { return ready_; }
+  QString glVersion() const { return version_; }
+  /// True when this machine can make an OpenGL context (false on Qt's offscreen platform).
+  static bool openGLAvailable();
+
+ protected:
+  void initializeGL() override;
+  void paintGL() override;
+  void mousePressEvent(QMouseEvent*) override;
+  void mouseMoveEvent(QMouseEvent*) override;
+  void mouseDoubleClickEvent(QMouseEvent*) override;
+  void wheelEvent(QWheelEvent*) override;
+
+ private:
+  void upload();
+  std::shared_ptr<const phantom::Case> case_;
+  QOpenGLShaderProgram program_;
+  QOpenGLBuffer vbo_{QOpenGLBuffer::VertexBuffer};
+  QOpenGLVertexArrayObject vao_;
+  int vertexCount_ = 0, organCount_ = 0;
+  bool dirty_ = true, ready_ = false;
+  QString version_;
+  double yaw_ = 0, pitch_ = -0.3, zoom_ = 1.0;
+  QPointF last_;
+};
+
+}  // namespace rehearse::ui

@@ -1,0 +1,183 @@
+#include "rehearse/ui/organglview.hpp"
+
+#include <rehearse/simcore/mesh.hpp>
+
+#include <QGuiApplication>
+#include <QMatrix4x4>
+#include <QMouseEvent>
+#include <QOffscreenSurface>
+#include <QOpenGLContext>
+#include <QPainter>
+#include <QWheelEvent>
+
+namespace rehearse::ui {
+namespace {
+const char* kVertex = R"(#version 330 core
+layout(location = 0) in vec3 position;
+layout(location = 1) in vec3 normal;
+layout(location = 2) in vec3 colour;
+uniform mat4 mvp;
+uniform mat3 normalMatrix;
+out vec3 vNormal;
+out vec3 vColour;
+void main() {
+  vNormal = normalMatrix * normal;
+  vColour = colour;
+  gl_Position = mvp * vec4(position, 1.0);
+})";
+const char* kFragment = R"(#version 330 core
+in vec3 vNormal;
+in vec3 vColour;
+uniform float alpha;
+out vec4 fragColour;
+void main() {
+  vec3 n = normalize(vNormal);
+  float light = 0.25 + 0.75 * abs(n.z);
+  fragColour = vec4(vColour * light, alpha);
+})";
+}  // namespace
+
+OrganGLView::OrganGLView(QWidget* parent) : QOpenGLWidget(parent) {
+  setMinimumSize(200, 160);
+  setToolTip(tr("Drag to turn the organ, wheel to zoom, double-click to reset (OpenGL)"));
+}
+
+OrganGLView::~OrganGLView() {
+  makeCurrent();
+  vbo_.destroy();
+  vao_.destroy();
+  doneCurrent();
+}
+
+bool OrganGLView::openGLAvailable() {
+  if (QGuiApplication::platformName() == QLatin1String("offscreen") || QGuiApplication::platformName() == QLatin1String("minimal"))
+    return false;
+  QOpenGLContext ctx;
+  QSurfaceFormat f;
+  f.setVersion(3, 3);
+  f.setProfile(QSurfaceFormat::CoreProfile);
+  ctx.setFormat(f);
+  if (!ctx.create()) return false;
+  QOffscreenSurface surface;
+  surface.setFormat(ctx.format());
+  surface.create();
+  if (!ctx.makeCurrent(&surface)) return false;
+  const bool ok = ctx.format().majorVersion() > 3 || (ctx.format().majorVersion() == 3 && ctx.format().minorVersion() >= 3);
+  ctx.doneCurrent();
+  return ok;
+}
+
+void OrganGLView::setCase(std::shared_ptr<const phantom::Case> c) {
+  if (case_ && c && case_->volume.tets == c->volume.tets && case_->volume.points.size() == c->volume.points.size()) {
+    case_ = std::move(c);
+    return;
+  }
+  case_ = std::move(c);
+  dirty_ = true;
+  update();
+}
+
+void OrganGLView::initializeGL() {
+  initializeOpenGLFunctions();
+  version_ = QString::fromLatin1(reinterpret_cast<const char*>(glGetString(GL_VERSION)));
+  ready_ = program_.addShaderFromSourceCode(QOpenGLShader::Vertex, kVertex) &&
+           program_.addShaderFromSourceCode(QOpenGLShader::Fragment, kFragment) && program_.link();
+  vao_.create();
+  vbo_.create();
+  glEnable(GL_DEPTH_TEST);
+  dirty_ = true;
+}
+
+void OrganGLView::upload() {
+  dirty_ = false;
+  vertexCount_ = organCount_ = 0;
+  if (!case_ || case_->surface.empty()) return;
+  // Flat arrays: position, normal, colour per vertex; outer surface first, then inner structures.
+  std::vector<float> data;
+  std::vector<int> labels;
+  const auto faces = simcore::boundaryTriangles(case_->volume, true, &labels);
+  auto add = [&](const std::array<int, 3>& t, const Eigen::Vector3f& colour) {
+    const Eigen::Vector3d a = case_->volume.points[t[0]], b = case_->volume.points[t[1]], c = case_->volume.points[t[2]];
+    const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
+    for (const auto& p : {a, b, c}) {
+      data.insert(data.end(), {float(p.x()), float(p.y()), float(p.z()), float(n.x()), float(n.y()), float(n.z()), colour.x(),
+                               colour.y(), colour.z()});
+    }
+  };
+  for (const auto& t : case_->surface) add(t, {0.85f, 0.55f, 0.45f});
+  organCount_ = static_cast<int>(case_->surface.size() * 3);
+  for (std::size_t i = 0; i < faces.size(); ++i)
+    if (labels[i] != 1) add(faces[i], {0.35f, 0.55f, 1.0f});
+  vertexCount_ = static_cast<int>(data.size() / 9);
+  vao_.bind();
+  vbo_.bind();
+  vbo_.allocate(data.data(), static_cast<int>(data.size() * sizeof(float)));
+  program_.bind();
+  program_.enableAttributeArray(0);
+  program_.enableAttributeArray(1);
+  program_.enableAttributeArray(2);
+  program_.setAttributeBuffer(0, GL_FLOAT, 0, 3, 9 * sizeof(float));
+  program_.setAttributeBuffer(1, GL_FLOAT, 3 * sizeof(float), 3, 9 * sizeof(float));
+  program_.setAttributeBuffer(2, GL_FLOAT, 6 * sizeof(float), 3, 9 * sizeof(float));
+  vao_.release();
+}
+
+void OrganGLView::paintGL() {
+  glClearColor(24 / 255.f, 25 / 255.f, 28 / 255.f, 1);
+  glClear(GL_COLOR_BUFFER_BIT | GL_DEPTH_BUFFER_BIT);
+  if (!ready_) return;
+  if (dirty_) upload();
+  if (vertexCount_ == 0) return;
+  const Eigen::Vector3d cog = case_->centreOfGravity();
+  const double size = case_->volume.bounds().sizes().maxCoeff();
+  QMatrix4x4 proj, view;
+  proj.perspective(50.0f, float(width()) / std::max(1, height()), float(size * 0.05), float(size * 20));
+  // Camera looks down -z in OpenGL; turn the organ with yaw and pitch about its centre.
+  view.translate(0, 0, float(-1.15 * size / zoom_));
+  view.rotate(float(-pitch_ * 180 / M_PI), 1, 0, 0);
+  view.rotate(float(yaw_ * 180 / M_PI), 0, 1, 0);
+  view.rotate(180, 1, 0, 0);  // model y (inferior) points down on screen as in the frame
+  view.translate(float(-cog.x()), float(-cog.y()), float(-cog.z()));
+  program_.bind();
+  program_.setUniformValue("mvp", proj * view);
+  program_.setUniformValue("normalMatrix", view.normalMatrix());
+  vao_.bind();
+  program_.setUniformValue("alpha", 1.0f);
+  glDrawArrays(GL_TRIANGLES, 0, organCount_);
+  if (vertexCount_ > organCount_) {
+    // Inner structures shine through the organ.
+    glDisable(GL_DEPTH_TEST);
+    glEnable(GL_BLEND);
+    glBlendFunc(GL_SRC_ALPHA, GL_ONE_MINUS_SRC_ALPHA);
+    program_.setUniformValue("alpha", 0.45f);
+    glDrawArrays(GL_TRIANGLES, organCount_, vertexCount_ - organCount_);
+    glDisable(GL_BLEND);
+    glEnable(GL_DEPTH_TEST);
+  }
+  vao_.release();
+}
+
+void OrganGLView::mousePressEvent(QMouseEvent* e) { last_ = e->position(); }
+
+void OrganGLView::mouseMoveEvent(QMouseEvent* e) {
+  if (!(e->buttons() & Qt::LeftButton)) return;
+  const QPointF d = e->position() - last_;
+  last_ = e->position();
+  yaw_ += d.x() * 0.01;
+  pitch_ = std::clamp(pitch_ - d.y() * 0.01, -1.5, 1.5);
+  update();
+}
+
+void OrganGLView::mouseDoubleClickEvent(QMouseEvent*) {
+  yaw_ = 0;
+  pitch_ = -0.3;
+  zoom_ = 1;
+  update();
+}
+
+void OrganGLView::wheelEvent(QWheelEvent* e) {
+  zoom_ = std::clamp(zoom_ * std::pow(1.0015, e->angleDelta().y()), 0.3, 8.0);
+  update();
+}
+
+}  // namespace rehearse::ui
