@@ -9,6 +9,7 @@
 #include <QSqlDatabase>
 #include <QSqlQuery>
 
+#include <cstdio>
 #include <random>
 
 using namespace rehearse;
@@ -95,7 +96,10 @@ class TestCaseFile : public QObject {
       QProcess child;
       child.start(QCoreApplication::applicationFilePath(), {"--save-loop", path});
       QVERIFY(child.waitForStarted());
-      QTest::qWait(150 + static_cast<int>(rng() % 900));
+      // Wait until the child has built its case and is saving (slow on a loaded machine), then kill it
+      // after a random number of save durations.
+      QVERIFY(child.waitForReadyRead(120000));
+      QTest::qWait(static_cast<int>(std::max<qint64>(saveMs, 10) * (1 + rng() % 40) / 4));
       child.kill();  // SIGKILL
       child.waitForFinished();
       ++kills;
@@ -188,6 +192,8 @@ int main(int argc, char** argv) {
   if (argc == 3 && QByteArray(argv[1]) == "--save-loop") {
     // Child mode for killDuringSaveNeverCorrupts: save forever until killed.
     const phantom::Case& c = phantomCase();
+    std::fputs("ready\n", stdout);
+    std::fflush(stdout);
     for (;;) ui::saveCaseFile(c, QString::fromLocal8Bit(argv[2]));
   }
   TestCaseFile t;
