@@ -133,7 +133,7 @@ void OrganGLView::paintGL() {
   QMatrix4x4 proj, view;
   proj.perspective(50.0f, float(width()) / std::max(1, height()), float(size * 0.05), float(size * 20));
   // Camera looks down -z in OpenGL; turn the organ with yaw and pitch about its centre.
-  view.translate(0, 0, float(-1.15 * size / zoom_));
+  view.translate(0, 0, float(-1.5 * size / zoom_));
   view.rotate(float(-pitch_ * 180 / M_PI), 1, 0, 0);
   view.rotate(float(yaw_ * 180 / M_PI), 0, 1, 0);
   view.rotate(180, 1, 0, 0);  // model y (inferior) points down on screen as in the frame
