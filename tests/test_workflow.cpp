@@ -126,9 +126,8 @@ class TestWorkflow : public QObject {
       for (int i = 0; i < 30; ++i) writer.write(cv::Mat3b(720, 1280, cv::Vec3b(uchar(8 * i), 100, 50)));
     }
     opened.clear();
-    w_->openFrameSource(QString::fromStdString(avi));
-    QVERIFY(w_->isBusy());
-    QVERIFY(opened.wait(60000));
+    w_->openFrameSource(QString::fromStdString(avi));  // probes the video on a worker thread
+    QVERIFY(opened.count() == 1 || opened.wait(60000));
     QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
     QCOMPARE(w_->videoFrameCount(), 30);
     QSignalSpy shown(w_.get(), &MainWindow::videoFrameShown);
