@@ -4,8 +4,10 @@
 
 #include "phantom/phantom.hpp"
 #include "rehearse/ui/casefile.hpp"
+#include "rehearse/ui/mainwindow.hpp"
 
 #include <QProcess>
+#include <QStandardPaths>
 #include <QSqlDatabase>
 #include <QSqlQuery>
 
@@ -82,8 +84,18 @@ class TestCaseFile : public QObject {
 
   // A child process saves in a loop and is killed with SIGKILL at random moments; each time the file
   // on disk must open whole and equal to the case.
+  void killDuringSaveNeverCorrupts_data() {
+    QTest::addColumn<QString>("path");
+    QTest::addColumn<int>("rounds");
+    QTest::newRow("save") << QString::fromStdString(tempPath("killed.rehearse")) << 12;
+    // The autosave goes through the same atomic write, to the application's data folder.
+    QStandardPaths::setTestModeEnabled(true);
+    QTest::newRow("autosave") << ui::MainWindow::autosavePath() << 6;
+  }
   void killDuringSaveNeverCorrupts() {
-    const QString path = QString::fromStdString(tempPath("killed.rehearse"));
+    QFETCH(QString, path);
+    QFETCH(int, rounds);
+    QDir().mkpath(QFileInfo(path).absolutePath());
     ui::saveCaseFile(phantomCase(), path);
     QElapsedTimer saveTimer;
     saveTimer.start();
@@ -92,7 +104,7 @@ class TestCaseFile : public QObject {
     std::mt19937 rng(7);
     int kills = 0, midSave = 0;
     const QDir dir(QFileInfo(path).absolutePath());
-    for (int round = 0; round < 12; ++round) {
+    for (int round = 0; round < rounds; ++round) {
       QProcess child;
       child.start(QCoreApplication::applicationFilePath(), {"--save-loop", path});
       QVERIFY(child.waitForStarted());
@@ -103,7 +115,7 @@ class TestCaseFile : public QObject {
       child.kill();  // SIGKILL
       child.waitForFinished();
       ++kills;
-      midSave += dir.entryList({"killed.rehearse.saving-*"}).size() > 0;
+      midSave += dir.entryList({QFileInfo(path).fileName() + ".saving-*"}).size() > 0;
       QStringList notes;
       auto back = ui::loadCaseFile(path, &notes);
       QVERIFY2(notes.isEmpty(), qPrintable(notes.join('\n')));
@@ -114,7 +126,11 @@ class TestCaseFile : public QObject {
           "(a half-written temporary file was left); the case opened whole every time", saveMs, kills, midSave);
     QVERIFY(midSave >= kills / 2);  // the test really interrupts saves
     ui::saveCaseFile(phantomCase(), path);  // the next save clears the leftovers of killed ones
-    QCOMPARE(dir.entryList({"killed.rehearse.saving-*"}).size(), 0);
+    QCOMPARE(dir.entryList({QFileInfo(path).fileName() + ".saving-*"}).size(), 0);
+    if (path == ui::MainWindow::autosavePath()) {
+      QVERIFY(ui::MainWindow::hasRecoverableAutosave());  // what the next start offers back
+      QFile::remove(path);
+    }
   }
 
   void corruptFilesGiveClearMessages() {
@@ -196,6 +212,7 @@ int main(int argc, char** argv) {
     std::fflush(stdout);
     for (;;) ui::saveCaseFile(c, QString::fromLocal8Bit(argv[2]));
   }
+  QStandardPaths::setTestModeEnabled(true);
   TestCaseFile t;
   return QTest::qExec(&t, argc, argv);
 }

@@ -12,7 +12,11 @@
 
 #include <rehearse/simcore/meshio.hpp>
 
+#include <QDragEnterEvent>
+#include <QDropEvent>
+#include <QMimeData>
 #include <QSignalSpy>
+#include <QUrl>
 #include <QStandardPaths>
 #include <QThread>
 
@@ -79,7 +83,16 @@ class TestWorkflow : public QObject {
       last = clock.elapsed();
     });
     ticker.start(5);
-    w_->importMesh(QString::fromStdString(sharedData("scikit-surgery/liver_downsample.stl")));
+    // Dropped on the window, as a user drags it from the file manager.
+    {
+      QMimeData mime;
+      mime.setUrls({QUrl::fromLocalFile(QString::fromStdString(sharedData("scikit-surgery/liver_downsample.stl")))});
+      QDragEnterEvent enter(QPoint(600, 400), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
+      QApplication::sendEvent(w_.get(), &enter);
+      QVERIFY(enter.isAccepted());
+      QDropEvent drop(QPointF(600, 400), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
+      QApplication::sendEvent(w_.get(), &drop);
+    }
     QVERIFY(w_->isBusy());  // running off the GUI thread
     QVERIFY(imported.wait(120000));
     ticker.stop();
