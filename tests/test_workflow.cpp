@@ -461,10 +461,9 @@ class TestWorkflow : public QObject {
     QCOMPARE(after->camera.distortion[0], -0.2);
     QVERIFY(cv::norm(after->frame, before->frame, cv::NORM_L1) > 0);  // resampled
     QCOMPARE(cv::norm(after->rawFrame, before->frame, cv::NORM_INF), 0.0);  // the captured frame is kept
-    // Undistortion moves a corner pixel inwards by the amount cv::undistortPoints says.
     w_->undoStack()->undo();
     QCOMPARE(w_->currentCase().data->camera.distortion[0], 0.0);
-    // A 3x3 text matrix for a different image size is refused with one sentence.
+    // A 3x3 text matrix takes the frame's size.
     const std::string txt = tempPath("K.txt");
     writeFile(txt, "1000 0 640\n0 1000 360\n0 0 1\n");
     w_->loadCalibration(QString::fromStdString(txt));

@@ -387,7 +387,7 @@ QWidget* MainWindow::buildFramePage() {
   auto* form = new QFormLayout(camBox);
   auto spin = [&](QDoubleSpinBox*& s, const QString& name) {
     s = new QDoubleSpinBox(camBox);
-    s->setRange(0, 100000);
+    s->setRange(name.startsWith('f') ? 1 : -100000, 100000);  // a focal length of 0 is a degenerate camera
     s->setDecimals(2);
     s->setKeyboardTracking(false);
     form->addRow(name, s);
