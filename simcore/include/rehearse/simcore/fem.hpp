@@ -1,0 +1,44 @@
+#pragma once
+// Tetrahedral FEM, element level and assembly: the immutable model (rest shape, materials by label)
+// and, for nodal positions x (3n, metres, node-major xyz), the elastic energy (J), the nodal elastic
+// forces f = -dE/dx (N) and the stiffness K = d^2E/dx^2 (N/m). Integrators and solvers build on these.
+#include <rehearse/simcore/material.hpp>
+#include <rehearse/simcore/mesh.hpp>
+
+#include <Eigen/Sparse>
+
+#include <map>
+#include <vector>
+
+namespace rehearse::simcore {
+
+struct MaterialParams {
+  MaterialModel model = MaterialModel::Corotational;
+  double young = 3000;    ///< Pa
+  double poisson = 0.3;   ///< 0 <= nu < 0.5
+  double density = 1000;  ///< kg/m^3
+};
+
+struct FemModel {
+  std::vector<Eigen::Vector3d> rest;        ///< rest positions (m)
+  std::vector<std::array<int, 4>> tets;
+  std::vector<Eigen::Matrix3d> Bm;          ///< inverse rest edge matrix per tet
+  std::vector<double> restVolume;           ///< m^3 (positive)
+  std::vector<MaterialModel> model;         ///< per tet
+  std::vector<Lame> lame;                   ///< per tet
+  Eigen::VectorXd lumpedMass;               ///< per node (kg)
+
+  std::size_t nodeCount() const { return rest.size(); }
+  /// Builds from a volume mesh (metres): materials by tet label; labels not in the map use `fallback`.
+  /// Throws MeshError for empty meshes, degenerate rest elements or invalid parameters.
+  static FemModel build(const Mesh& mesh, const std::map<int, MaterialParams>& byLabel, const MaterialParams& fallback);
+  Eigen::VectorXd restVector() const;  ///< 3n
+};
+
+double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x);
+/// f = -dE/dx, size 3n.
+Eigen::VectorXd elasticForces(const FemModel& m, const Eigen::VectorXd& x);
+/// K = d^2E/dx^2 (symmetric), 3n x 3n.
+Eigen::SparseMatrix<double> elasticStiffness(const FemModel& m, const Eigen::VectorXd& x);
+
+}  // namespace rehearse::simcore

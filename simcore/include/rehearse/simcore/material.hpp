@@ -1,0 +1,40 @@
+#pragma once
+// Hyperelastic materials for tetrahedral FEM, written on the deformation gradient F (3x3):
+// energy density psi(F) (J/m^3), first Piola-Kirchhoff stress P = dpsi/dF (Pa) and its derivative
+// dP/dF applied to a direction (the tangent used for stiffness matrices).
+//   linear:        psi = mu |eps|^2 + lambda/2 tr(eps)^2,          eps = (F + F^T)/2 - I
+//   corotational:  psi = mu |F - R|^2 + lambda/2 tr(R^T F - I)^2,  F = R S (polar; SOFA's "large")
+//   StVK:          psi = mu |E|^2 + lambda/2 tr(E)^2,              E = (F^T F - I)/2
+//   Neo-Hookean:   stable form of Smith, de Goes, Kim (2018):
+//                  psi = mu'/2 (tr(F^T F) - 3) + lambda'/2 (J - alpha)^2, alpha = 1 + mu'/lambda',
+//                  mu' = mu, lambda' = lambda + mu (then it linearises to the same small-strain law);
+//                  defined for inverted elements (J <= 0).
+#include <Eigen/Core>
+
+#include <string>
+
+namespace rehearse::simcore {
+
+enum class MaterialModel { Linear, Corotational, StVK, NeoHookean };
+
+/// Parses "linear", "corotational", "stvk", "neohookean"; throws MeshError naming the accepted values.
+MaterialModel materialModelFromString(const std::string& name);
+std::string toString(MaterialModel m);
+
+struct Lame {
+  double mu = 0, lambda = 0;
+  /// From Young's modulus E (Pa) and Poisson's ratio nu (0 <= nu < 0.5).
+  static Lame fromYoung(double E, double nu) {
+    return {E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))};
+  }
+};
+
+double energyDensity(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F);
+Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F);
+/// dP = (dP/dF)[dF].
+Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const Eigen::Matrix3d& dF);
+
+/// Polar decomposition F = R S with R a rotation (det +1) even for inverted F.
+void polarDecomposition(const Eigen::Matrix3d& F, Eigen::Matrix3d& R, Eigen::Matrix3d& S);
+
+}  // namespace rehearse::simcore

@@ -1,0 +1,150 @@
+#include <rehearse/simcore/material.hpp>
+#include <rehearse/simcore/mesh.hpp>
+
+#include <Eigen/SVD>
+
+namespace rehearse::simcore {
+namespace {
+
+Eigen::Matrix3d cofactor(const Eigen::Matrix3d& F) {
+  Eigen::Matrix3d C;
+  C.col(0) = F.col(1).cross(F.col(2));
+  C.col(1) = F.col(2).cross(F.col(0));
+  C.col(2) = F.col(0).cross(F.col(1));
+  return C;
+}
+
+Eigen::Matrix3d cofactorDifferential(const Eigen::Matrix3d& F, const Eigen::Matrix3d& dF) {
+  Eigen::Matrix3d C;
+  C.col(0) = dF.col(1).cross(F.col(2)) + F.col(1).cross(dF.col(2));
+  C.col(1) = dF.col(2).cross(F.col(0)) + F.col(2).cross(dF.col(0));
+  C.col(2) = dF.col(0).cross(F.col(1)) + F.col(0).cross(dF.col(1));
+  return C;
+}
+
+Eigen::Matrix3d cross(const Eigen::Vector3d& w) {
+  Eigen::Matrix3d m;
+  m << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
+  return m;
+}
+
+// Parameters of the stable Neo-Hookean form without the log barrier: mu' = mu, lambda' = lambda + mu
+// linearise to the same small-strain behaviour as the other models (P ~ mu (H + H^T) + lambda tr(H) I).
+Lame stable(const Lame& p) { return {p.mu, p.lambda + p.mu}; }
+
+}  // namespace
+
+MaterialModel materialModelFromString(const std::string& n) {
+  if (n == "linear") return MaterialModel::Linear;
+  if (n == "corotational") return MaterialModel::Corotational;
+  if (n == "stvk") return MaterialModel::StVK;
+  if (n == "neohookean") return MaterialModel::NeoHookean;
+  throw MeshError("Unknown material '" + n + "'; use linear, corotational, stvk or neohookean.");
+}
+
+std::string toString(MaterialModel m) {
+  switch (m) {
+    case MaterialModel::Linear: return "linear";
+    case MaterialModel::Corotational: return "corotational";
+    case MaterialModel::StVK: return "stvk";
+    default: return "neohookean";
+  }
+}
+
+void polarDecomposition(const Eigen::Matrix3d& F, Eigen::Matrix3d& R, Eigen::Matrix3d& S) {
+  Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+  Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
+  // Rotation variant of the SVD: a reflection goes into the smallest singular value (inverted elements).
+  if (U.determinant() < 0) U.col(2) *= -1;
+  if (V.determinant() < 0) V.col(2) *= -1;
+  R = U * V.transpose();
+  S = R.transpose() * F;
+  S = 0.5 * (S + S.transpose());
+}
+
+double energyDensity(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F) {
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  switch (m) {
+    case MaterialModel::Linear: {
+      const Eigen::Matrix3d e = 0.5 * (F + F.transpose()) - I;
+      return p.mu * e.squaredNorm() + 0.5 * p.lambda * e.trace() * e.trace();
+    }
+    case MaterialModel::Corotational: {
+      Eigen::Matrix3d R, S;
+      polarDecomposition(F, R, S);
+      const double t = (S - I).trace();
+      return p.mu * (F - R).squaredNorm() + 0.5 * p.lambda * t * t;
+    }
+    case MaterialModel::StVK: {
+      const Eigen::Matrix3d E = 0.5 * (F.transpose() * F - I);
+      return p.mu * E.squaredNorm() + 0.5 * p.lambda * E.trace() * E.trace();
+    }
+    default: {
+      const Lame s = stable(p);
+      const double alpha = 1 + s.mu / s.lambda, J = F.determinant();
+      return 0.5 * s.mu * (F.squaredNorm() - 3) + 0.5 * s.lambda * (J - alpha) * (J - alpha);
+    }
+  }
+}
+
+Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F) {
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  switch (m) {
+    case MaterialModel::Linear: {
+      const Eigen::Matrix3d e = 0.5 * (F + F.transpose()) - I;
+      return 2 * p.mu * e + p.lambda * e.trace() * I;
+    }
+    case MaterialModel::Corotational: {
+      Eigen::Matrix3d R, S;
+      polarDecomposition(F, R, S);
+      return 2 * p.mu * (F - R) + p.lambda * (S - I).trace() * R;
+    }
+    case MaterialModel::StVK: {
+      const Eigen::Matrix3d E = 0.5 * (F.transpose() * F - I);
+      return F * (2 * p.mu * E + p.lambda * E.trace() * I);
+    }
+    default: {
+      const Lame s = stable(p);
+      const double alpha = 1 + s.mu / s.lambda, J = F.determinant();
+      return s.mu * F + s.lambda * (J - alpha) * cofactor(F);
+    }
+  }
+}
+
+Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const Eigen::Matrix3d& dF) {
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  switch (m) {
+    case MaterialModel::Linear: {
+      const Eigen::Matrix3d de = 0.5 * (dF + dF.transpose());
+      return 2 * p.mu * de + p.lambda * de.trace() * I;
+    }
+    case MaterialModel::Corotational: {
+      Eigen::Matrix3d R, S;
+      polarDecomposition(F, R, S);
+      // dR = R [w]x with (tr(S) I - S) w = axial(R^T dF - dF^T R).
+      const Eigen::Matrix3d A = R.transpose() * dF - dF.transpose() * R;
+      const Eigen::Vector3d axial(A(2, 1), A(0, 2), A(1, 0));
+      Eigen::Matrix3d G = S.trace() * I - S;
+      // Near-singular G (degenerate or inverted elements): regularise so the tangent stays finite.
+      if (std::abs(G.determinant()) < 1e-12 * std::max(1.0, std::pow(S.norm(), 3))) G += 1e-6 * std::max(1.0, S.norm()) * I;
+      const Eigen::Vector3d w = G.colPivHouseholderQr().solve(axial);
+      const Eigen::Matrix3d dR = R * cross(w);
+      return 2 * p.mu * (dF - dR) + p.lambda * (R.transpose() * dF).trace() * R + p.lambda * (S - I).trace() * dR;
+    }
+    case MaterialModel::StVK: {
+      const Eigen::Matrix3d E = 0.5 * (F.transpose() * F - I);
+      const Eigen::Matrix3d dE = 0.5 * (dF.transpose() * F + F.transpose() * dF);
+      const Eigen::Matrix3d Sst = 2 * p.mu * E + p.lambda * E.trace() * I;
+      const Eigen::Matrix3d dS = 2 * p.mu * dE + p.lambda * dE.trace() * I;
+      return dF * Sst + F * dS;
+    }
+    default: {
+      const Lame s = stable(p);
+      const double alpha = 1 + s.mu / s.lambda, J = F.determinant();
+      const Eigen::Matrix3d C = cofactor(F);
+      return s.mu * dF + s.lambda * (C.cwiseProduct(dF).sum()) * C + s.lambda * (J - alpha) * cofactorDifferential(F, dF);
+    }
+  }
+}
+
+}  // namespace rehearse::simcore

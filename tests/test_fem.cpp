@@ -1,0 +1,170 @@
+// FEM element level: every material's stress against finite differences of its energy and its
+// tangent against finite differences of its stress; assembled forces and stiffness against finite
+// differences on a real mesh; the patch test; rotation invariance; agreement at small strain.
+#include "test_support.hpp"
+
+#include "phantom/phantom.hpp"
+
+#include <rehearse/simcore/fem.hpp>
+
+#include <random>
+
+using namespace rehearse::simcore;
+
+namespace {
+const MaterialModel kModels[] = {MaterialModel::Linear, MaterialModel::Corotational, MaterialModel::StVK, MaterialModel::NeoHookean};
+
+Eigen::Matrix3d randomMatrix(std::mt19937& rng, double scale) {
+  std::uniform_real_distribution<double> u(-scale, scale);
+  Eigen::Matrix3d m;
+  for (int i = 0; i < 9; ++i) m(i) = u(rng);
+  return m;
+}
+
+// Deformation gradients to test at: near identity, large rotation with stretch, strong compression,
+// and (for the models defined there) inverted.
+std::vector<Eigen::Matrix3d> testGradients(std::mt19937& rng) {
+  std::vector<Eigen::Matrix3d> Fs;
+  Fs.push_back(Eigen::Matrix3d::Identity() + randomMatrix(rng, 0.05));
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(2.5, Eigen::Vector3d(1, -2, 0.5).normalized()).toRotationMatrix();
+  Fs.push_back(R * (Eigen::Matrix3d::Identity() * 1.2 + randomMatrix(rng, 0.2)));
+  Fs.push_back(Eigen::Vector3d(0.3, 1.4, 0.9).asDiagonal().toDenseMatrix() + randomMatrix(rng, 0.05));
+  Eigen::Matrix3d inv = Eigen::Matrix3d::Identity() + randomMatrix(rng, 0.1);
+  inv.col(2) *= -0.5;  // inverted: det < 0
+  Fs.push_back(inv);
+  return Fs;
+}
+}  // namespace
+
+class TestFem : public QObject {
+  Q_OBJECT
+ private slots:
+  void stressIsEnergyGradient() {
+    std::mt19937 rng(3);
+    const Lame p = Lame::fromYoung(27e3, 0.4);
+    for (auto m : kModels)
+      for (const auto& F : testGradients(rng)) {
+        const Eigen::Matrix3d P = firstPiola(m, p, F);
+        const double h = 1e-6;
+        Eigen::Matrix3d fd;
+        for (int i = 0; i < 9; ++i) {
+          Eigen::Matrix3d Fp = F, Fm = F;
+          Fp(i) += h;
+          Fm(i) -= h;
+          fd(i) = (energyDensity(m, p, Fp) - energyDensity(m, p, Fm)) / (2 * h);
+        }
+        const double err = (fd - P).norm() / std::max(1.0, P.norm());
+        QVERIFY2(err < 1e-6, qPrintable(QString("%1: relative error %2").arg(QString::fromStdString(toString(m))).arg(err)));
+        QVERIFY(P.allFinite());
+      }
+  }
+
+  void tangentIsStressDerivative() {
+    std::mt19937 rng(5);
+    const Lame p = Lame::fromYoung(250e3, 0.45);
+    for (auto m : kModels)
+      for (const auto& F : testGradients(rng)) {
+        const Eigen::Matrix3d dF = randomMatrix(rng, 1.0);
+        const double h = 1e-6;
+        const Eigen::Matrix3d fd = (firstPiola(m, p, F + h * dF) - firstPiola(m, p, F - h * dF)) / (2 * h);
+        const Eigen::Matrix3d an = firstPiolaDifferential(m, p, F, dF);
+        const double err = (fd - an).norm() / std::max(1.0, an.norm());
+        QVERIFY2(err < 1e-5, qPrintable(QString("%1: relative error %2").arg(QString::fromStdString(toString(m))).arg(err)));
+      }
+  }
+
+  // All nonlinear models are invariant to rotation: no stress in a rigidly rotated element.
+  void rigidRotationIsStressFree() {
+    const Lame p = Lame::fromYoung(1e6, 0.3);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(3.0, Eigen::Vector3d(0.3, 0.4, 1).normalized()).toRotationMatrix();
+    for (auto m : {MaterialModel::Corotational, MaterialModel::StVK, MaterialModel::NeoHookean})
+      QVERIFY2(firstPiola(m, p, R).norm() < 1e-6, qPrintable(QString::fromStdString(toString(m))));
+    // The linear model is not: a 180 degree rotation looks like a huge strain to it (why "large" exists).
+    QVERIFY(firstPiola(MaterialModel::Linear, p, R).norm() > 1e5);
+  }
+
+  // At small strain every model is linear elasticity with the same E and nu.
+  void smallStrainAgreement() {
+    std::mt19937 rng(9);
+    const Lame p = Lame::fromYoung(3e3, 0.3);
+    const Eigen::Matrix3d H = randomMatrix(rng, 1.0);
+    const double eps = 1e-6;
+    const Eigen::Matrix3d ref = firstPiola(MaterialModel::Linear, p, Eigen::Matrix3d::Identity() + eps * H) / eps;
+    for (auto m : kModels) {
+      const Eigen::Matrix3d P = firstPiola(m, p, Eigen::Matrix3d::Identity() + eps * H) / eps;
+      QVERIFY2((P - ref).norm() / ref.norm() < 1e-4, qPrintable(QString::fromStdString(toString(m))));
+    }
+  }
+
+  // Assembled forces and stiffness on the phantom's mesh (two materials, 1000:1) against finite differences.
+  void assemblyAgainstFiniteDifferences() {
+    auto c = rehearse::phantom::makePhantom();
+    std::mt19937 rng(13);
+    std::normal_distribution<double> n(0, 1);
+    for (auto model : kModels) {
+      MaterialParams soft{model, 27e3, 0.4, 1000}, stiff{model, 27e6, 0.45, 1100};
+      FemModel m = FemModel::build(c.volume, {{1, soft}, {2, stiff}}, soft);
+      Eigen::VectorXd x = m.restVector();
+      for (Eigen::Index i = 0; i < x.size(); ++i) x[i] += 0.002 * n(rng);  // 2 mm noise
+      const Eigen::VectorXd f = elasticForces(m, x);
+      Eigen::VectorXd v(x.size());
+      for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = n(rng);
+      const double h = 1e-7;
+      // Directional derivative of the energy equals -f.v; of the forces equals -K v.
+      const double dE = (elasticEnergy(m, x + h * v) - elasticEnergy(m, x - h * v)) / (2 * h);
+      QVERIFY2(std::abs(dE + f.dot(v)) / std::max(1.0, std::abs(dE)) < 1e-5, qPrintable(QString::fromStdString(toString(model))));
+      const Eigen::SparseMatrix<double> K = elasticStiffness(m, x);
+      const Eigen::VectorXd df = (elasticForces(m, x + h * v) - elasticForces(m, x - h * v)) / (2 * h);
+      const Eigen::VectorXd Kv = K * v;
+      const double err = (df + Kv).norm() / Kv.norm();
+      qInfo("%s: |df + K v| / |K v| = %.2e", toString(model).c_str(), err);
+      QVERIFY(err < 1e-5);
+      const Eigen::SparseMatrix<double> Kt = K.transpose();
+      QVERIFY((K - Kt).norm() / K.norm() < 1e-12);  // symmetric
+    }
+  }
+
+  // Patch test: under any affine deformation the forces on interior nodes vanish.
+  void patchTest() {
+    auto c = rehearse::phantom::makePhantom();
+    std::vector<char> boundary(c.volume.points.size(), 0);
+    for (const auto& t : c.surface)
+      for (int v : t) boundary[v] = 1;
+    Eigen::Matrix3d A;
+    A << 1.1, 0.2, -0.05, 0.03, 0.9, 0.1, -0.1, 0.05, 1.05;
+    const Eigen::Vector3d b(0.01, -0.02, 0.03);
+    for (auto model : kModels) {
+      FemModel m = FemModel::build(c.volume, {}, {model, 5e3, 0.35, 1000});
+      Eigen::VectorXd x(3 * m.nodeCount());
+      for (std::size_t i = 0; i < m.nodeCount(); ++i) x.segment<3>(3 * i) = A * m.rest[i] + b;
+      const Eigen::VectorXd f = elasticForces(m, x);
+      double interior = 0, boundaryMax = 0;
+      for (std::size_t i = 0; i < m.nodeCount(); ++i) {
+        const double fi = f.segment<3>(3 * i).norm();
+        if (boundary[i]) boundaryMax = std::max(boundaryMax, fi);
+        else interior = std::max(interior, fi);
+      }
+      qInfo("%s: largest interior force %.2e N, largest boundary force %.2e N", toString(model).c_str(), interior, boundaryMax);
+      QVERIFY(interior < 1e-9 * boundaryMax);
+    }
+  }
+
+  void invalidInputIsRefused() {
+    Mesh flat;
+    flat.points = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}, {1, 1, 0}};
+    flat.tets = {{0, 1, 2, 3}};
+    flat.tetLabels = {1};
+    QVERIFY_THROWS_EXCEPTION(MeshError, FemModel::build(flat, {}, {}));
+    Mesh ok = flat;
+    ok.points[3] = {0, 0, 1};
+    QVERIFY_THROWS_EXCEPTION(MeshError, FemModel::build(ok, {}, {MaterialModel::Linear, 1e3, 0.5, 1000}));
+    QVERIFY_THROWS_EXCEPTION(MeshError, FemModel::build(ok, {}, {MaterialModel::Linear, -1, 0.3, 1000}));
+    QVERIFY_THROWS_EXCEPTION(MeshError, FemModel::build(Mesh{}, {}, {}));
+    QVERIFY_THROWS_EXCEPTION(MeshError, materialModelFromString("rubber"));
+    const auto m = FemModel::build(ok, {}, {MaterialModel::Linear, 1e3, 0.3, 1000});
+    QVERIFY(std::abs(m.lumpedMass.sum() - 1000.0 / 6.0) < 1e-12);
+  }
+};
+
+QTEST_GUILESS_MAIN(TestFem)
+#include "test_fem.moc"
