@@ -2,15 +2,19 @@
 
 #include "phantom/phantom.hpp"
 
+#include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/quality.hpp>
+#include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
 
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
+#include <fstream>
 #include <map>
+#include <sstream>
 
 #include <unistd.h>
 
@@ -138,6 +142,179 @@ int cmdInfo(const std::vector<std::string>& args) {
   return 0;
 }
 
+Eigen::Vector3d parseVector(const std::string& s, const char* what) {
+  Eigen::Vector3d v;
+  char c1 = 0, c2 = 0;
+  std::istringstream in(s);
+  if (!(in >> v.x() >> c1 >> v.y() >> c2 >> v.z()) || c1 != ',' || c2 != ',' || !v.allFinite())
+    throw UsageError(std::string(what) + " must be three numbers separated by commas, such as 0,-9.81,0");
+  return v;
+}
+
+std::vector<int> parseNodes(const std::string& s) {
+  std::string text = s;
+  if (std::filesystem::exists(s)) {
+    std::ifstream in(s);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    text = ss.str();
+  }
+  std::vector<int> out;
+  std::istringstream in(text);
+  std::string tok;
+  while (in >> tok) {
+    for (auto& ch : tok)
+      if (ch == ',') ch = ' ';
+    std::istringstream t(tok);
+    long v;
+    while (t >> v) {
+      if (v < 0 || v > 100'000'000) throw UsageError("--fixed-nodes holds an impossible node index " + std::to_string(v));
+      out.push_back(static_cast<int>(v));
+    }
+  }
+  return out;
+}
+
+// Built-in presets: SOFA's liver.scn on its own mesh, and the four cases of DejaVu on the phantom's
+// geometry (density from the case's mass), hung by the phantom's attachment nodes.
+struct Preset {
+  simcore::Mesh mesh;
+  std::map<int, simcore::MaterialParams> materials;
+  simcore::MaterialParams fallback;
+  std::vector<int> fixed;
+  simcore::SimulationSettings settings;
+};
+
+Preset makePreset(const std::string& name) {
+  Preset p;
+  if (name == "sofa-liver") {
+    const std::string path = "../shared/data/sofa/liver.msh";
+    if (!std::filesystem::exists(path))
+      throw UsageError("the sofa-liver preset reads ../shared/data/sofa/liver.msh, which is absent here; run from the project folder");
+    p.mesh = simcore::loadMesh(path, {"m"});  // SOFA's scene uses the file's numbers as they are
+    p.fallback = {simcore::MaterialModel::Corotational, 3000, 0.3, 1.0};
+    p.fixed = {3, 39, 64};
+    p.settings.timeStep = 0.02;
+    p.settings.gravity = Eigen::Vector3d(0, -9.81, 0);
+    return p;
+  }
+  struct Case {
+    const char* name;
+    simcore::MaterialModel model;
+    double young, poisson, mass, vesselYoung, vesselPoisson;
+  };
+  static const Case cases[] = {{"eye", simcore::MaterialModel::Corotational, 150e3, 0.45, 0.007, 0, 0},
+                               {"kidney", simcore::MaterialModel::Linear, 250e3, 0.40, 0.115, 3200e3, 0.45},
+                               {"liver", simcore::MaterialModel::StVK, 27e3, 0.40, 1.2, 620e3, 0.45},
+                               {"uterus", simcore::MaterialModel::Corotational, 400e3, 0.35, 0.080, 0, 0}};
+  for (const auto& c : cases)
+    if (name == c.name) {
+      auto ph = phantom::makePhantom();
+      p.mesh = ph.volume;
+      double volume = 0;
+      for (const auto& t : p.mesh.tets)
+        volume += std::abs(simcore::tetVolume(p.mesh.points[t[0]], p.mesh.points[t[1]], p.mesh.points[t[2]], p.mesh.points[t[3]]));
+      const double density = c.mass / volume;
+      p.fallback = {c.model, c.young, c.poisson, density};
+      if (c.vesselYoung > 0) p.materials[phantom::kVesselLabel] = {c.model, c.vesselYoung, c.vesselPoisson, density};
+      p.fixed = ph.attachments;
+      p.settings.timeStep = 0.01;
+      p.settings.gravity = Eigen::Vector3d(0, 9.81, 0);  // the phantom's model y axis points down (inferior)
+      return p;
+    }
+  throw UsageError("unknown preset '" + name + "'; use eye, kidney, liver, uterus or sofa-liver");
+}
+
+int cmdSimulate(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2,
+                        {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity",
+                         "steps", "dt", "out", "report", "solver"},
+                        {"static"});
+  if (o.count("scene")) throw UsageError("--scene files are not supported yet; use --preset or --mesh with material flags");
+  if (!o.count("out")) throw UsageError("simulate needs --out OUT.vtu|OUT.vtk");
+  const std::string ext = std::filesystem::path(o["out"]).extension().string();
+  if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+  Preset p;
+  if (o.count("preset")) {
+    p = makePreset(o["preset"]);
+  } else if (o.count("mesh")) {
+    simcore::LoadOptions lo;
+    if (o.count("unit")) lo.unit = o["unit"];
+    p.mesh = simcore::loadMesh(o["mesh"], lo);
+    if (!p.mesh.isVolume()) {
+      simcore::TetrahedraliseOptions to;
+      p.mesh = simcore::tetrahedraliseSurface(p.mesh, to);
+    }
+  } else {
+    throw UsageError("simulate needs --preset NAME or --mesh FILE");
+  }
+  if (o.count("material")) p.fallback.model = simcore::materialModelFromString(o["material"]);
+  if (o.count("young")) p.fallback.young = parseNumber(o["young"], "--young");
+  if (o.count("poisson")) {
+    try {
+      p.fallback.poisson = std::stod(o["poisson"]);
+    } catch (const std::exception&) {
+      throw UsageError("--poisson must be a number in [0, 0.5)");
+    }
+  }
+  if (o.count("density")) p.fallback.density = parseNumber(o["density"], "--density");
+  if (o.count("fixed-nodes")) p.fixed = parseNodes(o["fixed-nodes"]);
+  if (o.count("gravity")) p.settings.gravity = parseVector(o["gravity"], "--gravity");
+  if (o.count("dt")) p.settings.timeStep = parseNumber(o["dt"], "--dt");
+  if (o.count("solver")) {
+    const std::string s = o["solver"];
+    p.settings.solver = s == "cholmod" ? simcore::LinearSolverKind::Cholmod
+                        : s == "cg"    ? simcore::LinearSolverKind::ConjugateGradient
+                        : s == "dense" ? simcore::LinearSolverKind::Dense
+                                       : throw UsageError("--solver must be cholmod, cg or dense");
+  }
+  const long steps = o.count("steps") ? parseCount(o["steps"], "--steps", 1, 1'000'000) : 100;
+  const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.fallback);
+  simcore::Integrator integrator(model, p.fixed, p.settings);
+  auto state = integrator.initialState();
+  std::vector<simcore::StepReport> reports;
+  if (o.count("static")) {
+    reports.push_back(integrator.solveStatic(state));
+  } else {
+    for (long i = 0; i < steps; ++i) reports.push_back(integrator.step(state));
+  }
+  simcore::Mesh out = p.mesh;
+  out.convertToMetres();
+  out.triangles.clear();
+  out.triangleLabels.clear();
+  for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = state.x.segment<3>(3 * i);
+  simcore::saveMesh(out, o["out"]);
+  if (o.count("report")) {
+    std::string json = "{\n  \"steps\": [\n";
+    char buf[512];
+    for (std::size_t i = 0; i < reports.size(); ++i) {
+      const auto& r = reports[i];
+      std::snprintf(buf, sizeof buf,
+                    "    {\"step\": %zu, \"wall_ms\": %.3f, \"newton_iterations\": %d, \"residual\": %.6g, \"energy\": %.9g, "
+                    "\"time_step\": %.6g, \"retries\": %d, \"ok\": %s, \"status\": \"%s\"}%s\n",
+                    i, r.wallMs, r.newtonIterations, r.residual, r.energy, r.timeStepUsed, r.retries, r.ok ? "true" : "false",
+                    r.status.c_str(), i + 1 < reports.size() ? "," : "");
+      json += buf;
+    }
+    json += "  ]\n}\n";
+    std::ofstream rep(o["report"]);
+    if (!rep) throw UsageError("cannot write the report " + o["report"]);
+    rep << json;
+  }
+  std::size_t failed = 0;
+  double wall = 0;
+  for (const auto& r : reports) {
+    failed += !r.ok;
+    wall += r.wallMs;
+  }
+  std::printf("%s: %zu nodes, %zu tets, %zu %s, %zu failed, mean %.2f ms per %s, written %s\n",
+              o.count("static") ? "static" : "dynamic", model.nodeCount(), model.tets.size(), reports.size(),
+              o.count("static") ? "solve" : "steps", failed, wall / reports.size(), o.count("static") ? "solve" : "step",
+              o["out"].c_str());
+  if (failed) std::fprintf(stderr, "rehearse: %zu steps failed; the last status: %s\n", failed, reports.back().status.c_str());
+  return failed ? 3 : 0;
+}
+
 }  // namespace
 
 std::string usage() {
@@ -153,6 +330,11 @@ std::string usage() {
          "                                   tetrahedralise a closed surface (inner closed parts become labels)\n"
          "  rehearse info FILE [--unit m|dm|cm|mm]\n"
          "                                   node, element and label counts, bounds and quality\n"
+         "  rehearse simulate --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
+         "                [--material linear|corotational|stvk|neohookean] [--young PA] [--poisson NU] [--density KG_M3]\n"
+         "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
+         "                [--solver cholmod|cg|dense] --out OUT.vtu|.vtk [--report R.json]\n"
+         "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL)\n"
          "Mesh formats: .msh (Gmsh 1, 2.2, 4.1), .vtk (legacy), .vtu, .mesh (Medit), .obj .stl .ply .off .gltf .glb.\n"
@@ -179,6 +361,7 @@ int runCli(const std::vector<std::string>& args, bool& handled) {
     if (cmd == "phantom") return cmdPhantom(args);
     if (cmd == "mesh") return cmdMesh(args);
     if (cmd == "info") return cmdInfo(args);
+    if (cmd == "simulate") return cmdSimulate(args);
     throw UsageError("unknown command '" + cmd + "'; see 'rehearse --help'");
   } catch (const UsageError& e) {
     std::fprintf(stderr, "rehearse: %s\n", e.what());

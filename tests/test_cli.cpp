@@ -1,6 +1,9 @@
 // The command line, run as a user would: exit codes, one-line errors, files written.
 #include "test_support.hpp"
 
+#include <QJsonArray>
+#include <QJsonDocument>
+#include <QJsonObject>
 #include <QProcess>
 
 namespace {
@@ -62,6 +65,35 @@ class TestCli : public QObject {
     QVERIFY(s.out.contains("closed: yes"));
     QVERIFY(s.out.contains("self-intersecting triangle pairs: 0"));
   }
+  void simulate() {
+    const QString out = QString::fromStdString(tempPath("sim.vtu")), report = QString::fromStdString(tempPath("sim.json"));
+    auto r = run({"simulate", "--preset", "liver", "--steps", "3", "--out", out, "--report", report});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    const QJsonDocument doc = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(report.toStdString())));
+    const QJsonArray steps = doc.object()["steps"].toArray();
+    QCOMPARE(steps.size(), 3);
+    for (const auto& s : steps) {
+      QVERIFY(s.toObject()["ok"].toBool());
+      QVERIFY(s.toObject()["newton_iterations"].toInt() >= 1);
+      QVERIFY(s.toObject()["wall_ms"].toDouble() > 0);
+    }
+    auto info = run({"info", out});
+    QVERIFY(info.out.contains("tetrahedra: "));
+    // One-off run on a mesh file with material flags; the output keeps the input node order.
+    if (QFile::exists(QString::fromStdString(sharedData("sofa/liver.msh")))) {
+      const QString o2 = QString::fromStdString(tempPath("sofa.vtk"));
+      auto s = run({"simulate", "--mesh", QString::fromStdString(sharedData("sofa/liver.msh")), "--material", "corotational", "--young",
+                    "3000", "--poisson", "0.3", "--density", "1", "--fixed-nodes", "3 39 64", "--gravity", "0,-9.81,0", "--dt", "0.02",
+                    "--steps", "5", "--out", o2});
+      QVERIFY2(s.code == 0, qPrintable(s.err));
+      QVERIFY(run({"info", o2}).out.contains("points: 181"));
+    }
+    expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "999999", "--out", out}), 1, "does not exist");
+    expectOneLineError(run({"simulate", "--preset", "spleen", "--out", out}), 2, "unknown preset");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--gravity", "down", "--out", out}), 2, "three numbers");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--material", "rubber", "--out", out}), 1, "Unknown material");
+  }
+
   void errorsAreOneLine() {
     expectOneLineError(run({"info", "/no/such/file.msh"}), 1, "does not exist");
     expectOneLineError(run({"frobnicate"}), 2, "unknown command");
