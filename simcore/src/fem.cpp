@@ -83,13 +83,14 @@ Eigen::SparseMatrix<double> elasticStiffness(const FemModel& m, const Eigen::Vec
     const auto& t = m.tets[e];
     const Eigen::Matrix3d F = deformationGradient(m, e, x);
     const Eigen::Matrix3d BmT = m.Bm[e].transpose();
+    const TangentCache cache = prepareTangent(m.model[e], F);
     for (int a = 0; a < 4; ++a)
       for (int d = 0; d < 3; ++d) {
         // Direction: node a moves along axis d.
         Eigen::Matrix3d dDs = Eigen::Matrix3d::Zero();
         if (a == 0) dDs.row(d).setConstant(-1.0);
         else dDs(d, a - 1) = 1.0;
-        const Eigen::Matrix3d dP = firstPiolaDifferential(m.model[e], m.lame[e], F, dDs * m.Bm[e]);
+        const Eigen::Matrix3d dP = firstPiolaDifferential(m.model[e], m.lame[e], F, cache, dDs * m.Bm[e]);
         const Eigen::Matrix3d dH = m.restVolume[e] * dP * BmT;  // change of dE/dx_{1..3}
         const int col = 3 * t[a] + d;
         Eigen::Vector3d sum = Eigen::Vector3d::Zero();

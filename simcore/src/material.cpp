@@ -118,19 +118,7 @@ Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eig
       const Eigen::Matrix3d de = 0.5 * (dF + dF.transpose());
       return 2 * p.mu * de + p.lambda * de.trace() * I;
     }
-    case MaterialModel::Corotational: {
-      Eigen::Matrix3d R, S;
-      polarDecomposition(F, R, S);
-      // dR = R [w]x with (tr(S) I - S) w = axial(R^T dF - dF^T R).
-      const Eigen::Matrix3d A = R.transpose() * dF - dF.transpose() * R;
-      const Eigen::Vector3d axial(A(2, 1), A(0, 2), A(1, 0));
-      Eigen::Matrix3d G = S.trace() * I - S;
-      // Near-singular G (degenerate or inverted elements): regularise so the tangent stays finite.
-      if (std::abs(G.determinant()) < 1e-12 * std::max(1.0, std::pow(S.norm(), 3))) G += 1e-6 * std::max(1.0, S.norm()) * I;
-      const Eigen::Vector3d w = G.colPivHouseholderQr().solve(axial);
-      const Eigen::Matrix3d dR = R * cross(w);
-      return 2 * p.mu * (dF - dR) + p.lambda * (R.transpose() * dF).trace() * R + p.lambda * (S - I).trace() * dR;
-    }
+    case MaterialModel::Corotational: return firstPiolaDifferential(m, p, F, prepareTangent(m, F), dF);
     case MaterialModel::StVK: {
       const Eigen::Matrix3d E = 0.5 * (F.transpose() * F - I);
       const Eigen::Matrix3d dE = 0.5 * (dF.transpose() * F + F.transpose() * dF);
@@ -145,6 +133,29 @@ Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eig
       return s.mu * dF + s.lambda * (C.cwiseProduct(dF).sum()) * C + s.lambda * (J - alpha) * cofactorDifferential(F, dF);
     }
   }
+}
+
+TangentCache prepareTangent(MaterialModel m, const Eigen::Matrix3d& F) {
+  TangentCache c;
+  if (m != MaterialModel::Corotational) return c;
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  polarDecomposition(F, c.R, c.S);
+  Eigen::Matrix3d G = c.S.trace() * I - c.S;
+  // Near-singular G (degenerate or inverted elements): regularise so the tangent stays finite.
+  if (std::abs(G.determinant()) < 1e-12 * std::max(1.0, std::pow(c.S.norm(), 3))) G += 1e-6 * std::max(1.0, c.S.norm()) * I;
+  c.Ginv = G.inverse();
+  return c;
+}
+
+Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const TangentCache& c,
+                                       const Eigen::Matrix3d& dF) {
+  if (m != MaterialModel::Corotational) return firstPiolaDifferential(m, p, F, dF);
+  const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
+  // dR = R [w]x with (tr(S) I - S) w = axial(R^T dF - dF^T R).
+  const Eigen::Matrix3d A = c.R.transpose() * dF - dF.transpose() * c.R;
+  const Eigen::Vector3d w = c.Ginv * Eigen::Vector3d(A(2, 1), A(0, 2), A(1, 0));
+  const Eigen::Matrix3d dR = c.R * cross(w);
+  return 2 * p.mu * (dF - dR) + p.lambda * (c.R.transpose() * dF).trace() * c.R + p.lambda * (c.S - I).trace() * dR;
 }
 
 }  // namespace rehearse::simcore

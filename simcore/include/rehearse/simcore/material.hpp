@@ -34,6 +34,15 @@ Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d
 /// dP = (dP/dF)[dF].
 Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const Eigen::Matrix3d& dF);
 
+/// What the tangent of one element needs that does not depend on the direction (the polar
+/// decomposition for the corotational model): prepare once, then apply to the 12 nodal directions.
+struct TangentCache {
+  Eigen::Matrix3d R, S, Ginv;
+};
+TangentCache prepareTangent(MaterialModel m, const Eigen::Matrix3d& F);
+Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const TangentCache& cache,
+                                       const Eigen::Matrix3d& dF);
+
 /// Polar decomposition F = R S with R a rotation (det +1) even for inverted F.
 void polarDecomposition(const Eigen::Matrix3d& F, Eigen::Matrix3d& R, Eigen::Matrix3d& S);
 
