@@ -23,7 +23,12 @@ namespace {
 void singleThreadedBlas() {
   static const bool done = [] {
     using Fn = void (*)(int);
-    if (auto fn = reinterpret_cast<Fn>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"))) fn(1);
+    auto fn = reinterpret_cast<Fn>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
+    // OpenBLAS is loaded as a dependency of the reference BLAS name; look it up by its own name too.
+    for (const char* lib : {"libopenblas.so.0", "libopenblas.so"})
+      if (!fn)
+        if (void* h = dlopen(lib, RTLD_NOLOAD | RTLD_LAZY)) fn = reinterpret_cast<Fn>(dlsym(h, "openblas_set_num_threads"));
+    if (fn) fn(1);
     return true;
   }();
   (void)done;
