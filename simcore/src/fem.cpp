@@ -3,6 +3,10 @@
 
 #include <Eigen/LU>
 
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+
+#include <algorithm>
 #include <cmath>
 
 namespace rehearse::simcore {
@@ -45,6 +49,32 @@ FemModel FemModel::build(const Mesh& mesh, const std::map<int, MaterialParams>& 
     m.lame.push_back(Lame::fromYoung(p.young, p.poisson));
     for (int v : t) m.lumpedMass[v] += p.density * std::abs(vol) / 4.0;
   }
+  // Sparsity pattern and element slots, computed once (the topology does not change while simulating).
+  const Eigen::Index n3 = static_cast<Eigen::Index>(3 * m.rest.size());
+  std::vector<Eigen::Triplet<double>> triplets;
+  triplets.reserve(m.tets.size() * 144);
+  for (const auto& t : m.tets)
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) triplets.emplace_back(3 * t[a] + i, 3 * t[b] + j, 0.0);
+  for (Eigen::Index i = 0; i < n3; ++i) triplets.emplace_back(i, i, 0.0);
+  m.pattern.resize(n3, n3);
+  m.pattern.setFromTriplets(triplets.begin(), triplets.end());
+  m.pattern.makeCompressed();
+  auto slotOf = [&](int row, int col) {
+    const int* inner = m.pattern.innerIndexPtr();
+    const int begin = m.pattern.outerIndexPtr()[col], end = m.pattern.outerIndexPtr()[col + 1];
+    return static_cast<int>(std::lower_bound(inner + begin, inner + end, row) - inner);
+  };
+  m.elementSlots.resize(m.tets.size());
+  for (std::size_t e = 0; e < m.tets.size(); ++e) {
+    const auto& t = m.tets[e];
+    for (int c = 0; c < 12; ++c)
+      for (int r = 0; r < 12; ++r) m.elementSlots[e][12 * c + r] = slotOf(3 * t[r / 3] + r % 3, 3 * t[c / 3] + c % 3);
+  }
+  m.diagonalSlot.resize(n3);
+  for (Eigen::Index i = 0; i < n3; ++i) m.diagonalSlot[i] = slotOf(static_cast<int>(i), static_cast<int>(i));
   return m;
 }
 
@@ -76,33 +106,53 @@ Eigen::VectorXd elasticForces(const FemModel& m, const Eigen::VectorXd& x) {
   return f;
 }
 
-Eigen::SparseMatrix<double> elasticStiffness(const FemModel& m, const Eigen::VectorXd& x) {
-  std::vector<Eigen::Triplet<double>> triplets;
-  triplets.reserve(m.tets.size() * 144);
-  for (std::size_t e = 0; e < m.tets.size(); ++e) {
-    const auto& t = m.tets[e];
-    const Eigen::Matrix3d F = deformationGradient(m, e, x);
-    const Eigen::Matrix3d BmT = m.Bm[e].transpose();
-    const TangentCache cache = prepareTangent(m.model[e], F);
-    for (int a = 0; a < 4; ++a)
-      for (int d = 0; d < 3; ++d) {
-        // Direction: node a moves along axis d.
-        Eigen::Matrix3d dDs = Eigen::Matrix3d::Zero();
-        if (a == 0) dDs.row(d).setConstant(-1.0);
-        else dDs(d, a - 1) = 1.0;
-        const Eigen::Matrix3d dP = firstPiolaDifferential(m.model[e], m.lame[e], F, cache, dDs * m.Bm[e]);
-        const Eigen::Matrix3d dH = m.restVolume[e] * dP * BmT;  // change of dE/dx_{1..3}
-        const int col = 3 * t[a] + d;
-        Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-        for (int k = 0; k < 3; ++k) {
-          for (int r = 0; r < 3; ++r) triplets.emplace_back(3 * t[k + 1] + r, col, dH(r, k));
-          sum += dH.col(k);
-        }
-        for (int r = 0; r < 3; ++r) triplets.emplace_back(3 * t[0] + r, col, -sum[r]);
+namespace {
+// 12x12 element stiffness, column-major (column = the moving dof: node a, axis d).
+void elementStiffness(const FemModel& m, std::size_t e, const Eigen::VectorXd& x, double* out) {
+  const Eigen::Matrix3d F = deformationGradient(m, e, x);
+  const Eigen::Matrix3d BmT = m.Bm[e].transpose();
+  const TangentCache cache = prepareTangent(m.model[e], F);
+  for (int a = 0; a < 4; ++a)
+    for (int d = 0; d < 3; ++d) {
+      Eigen::Matrix3d dDs = Eigen::Matrix3d::Zero();
+      if (a == 0) dDs.row(d).setConstant(-1.0);
+      else dDs(d, a - 1) = 1.0;
+      const Eigen::Matrix3d dP = firstPiolaDifferential(m.model[e], m.lame[e], F, cache, dDs * m.Bm[e]);
+      const Eigen::Matrix3d dH = m.restVolume[e] * dP * BmT;  // change of dE/dx_{1..3}
+      double* col = out + 12 * (3 * a + d);
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k) {
+        for (int r = 0; r < 3; ++r) col[3 * (k + 1) + r] = dH(r, k);
+        sum += dH.col(k);
       }
+      for (int r = 0; r < 3; ++r) col[r] = -sum[r];
+    }
+}
+}  // namespace
+
+void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K) {
+  if (K.nonZeros() != m.pattern.nonZeros() || K.rows() != m.pattern.rows()) K = m.pattern;
+  double* values = K.valuePtr();
+  std::fill(values, values + K.nonZeros(), 0.0);
+  // Elements in parallel into a buffer, then a serial scatter (no write conflicts, same result every run).
+  // The calling thread's buffer is reused between calls; the pointer (not the thread_local) goes to the workers.
+  thread_local std::vector<double> buffer;
+  buffer.resize(m.tets.size() * 144);
+  double* const buf = buffer.data();
+  const auto count = static_cast<long>(m.tets.size());
+  tbb::parallel_for(tbb::blocked_range<long>(0, count, 64), [&](const tbb::blocked_range<long>& r) {
+    for (long e = r.begin(); e < r.end(); ++e) elementStiffness(m, static_cast<std::size_t>(e), x, buf + 144 * e);
+  });
+  for (std::size_t e = 0; e < m.tets.size(); ++e) {
+    const double* b = buffer.data() + 144 * e;
+    const auto& slot = m.elementSlots[e];
+    for (int i = 0; i < 144; ++i) values[slot[i]] += b[i];
   }
-  Eigen::SparseMatrix<double> K(x.size(), x.size());
-  K.setFromTriplets(triplets.begin(), triplets.end());
+}
+
+Eigen::SparseMatrix<double> elasticStiffness(const FemModel& m, const Eigen::VectorXd& x) {
+  Eigen::SparseMatrix<double> K = m.pattern;
+  assembleStiffness(m, x, K);
   return K;
 }
 

@@ -13,6 +13,7 @@ namespace rehearse::simcore {
 
 struct Integrator::Solvers {
   Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> cholmod;
+  Eigen::SparseMatrix<double> K0, K, J;  // reused between steps (same pattern: no allocation)
   bool analysed = false;
   Eigen::Index patternNonZeros = -1;
   int analyses = 0;
@@ -124,7 +125,8 @@ StepReport Integrator::tryStep(SimulationState& state, double h) {
   const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
   const Eigen::VectorXd Mv0 = mass3_.cwiseProduct(v0);
   // Rayleigh damping with the stiffness at the start of the step, so the Newton tangent below is exact.
-  const Eigen::SparseMatrix<double> K0 = elasticStiffness(model_, x0);
+  Eigen::SparseMatrix<double>& K0 = solvers_->K0;
+  assembleStiffness(model_, x0, K0);
   auto residual = [&](const Eigen::VectorXd& vel) {
     const Eigen::VectorXd x = x0 + h * vel;
     Eigen::VectorXd r = (1 + h * alpha) * mass3_.cwiseProduct(vel) - Mv0 - h * (elasticForces(model_, x) + gravityForce_) +
@@ -142,9 +144,12 @@ StepReport Integrator::tryStep(SimulationState& state, double h) {
       break;
     }
     // J = (1 + h alpha) M + h beta K0 + h^2 K(x)
-    const Eigen::SparseMatrix<double> K = elasticStiffness(model_, x0 + h * v);
-    Eigen::SparseMatrix<double> J = h * beta * K0 + h * h * K;
-    for (Eigen::Index i = 0; i < J.rows(); ++i) J.coeffRef(i, i) += (1 + h * alpha) * mass3_[i];
+    Eigen::SparseMatrix<double>& K = solvers_->K;
+    assembleStiffness(model_, x0 + h * v, K);
+    Eigen::SparseMatrix<double>& J = solvers_->J;
+    if (J.nonZeros() != K.nonZeros()) J = model_.pattern;
+    for (Eigen::Index i = 0; i < J.nonZeros(); ++i) J.valuePtr()[i] = h * beta * K0.valuePtr()[i] + h * h * K.valuePtr()[i];
+    for (Eigen::Index i = 0; i < J.rows(); ++i) J.valuePtr()[model_.diagonalSlot[i]] += (1 + h * alpha) * mass3_[i];
     projectMatrix(J);
     Eigen::VectorXd dv;
     bool solved = solveLinear(J, -r, dv);

@@ -27,6 +27,11 @@ struct FemModel {
   std::vector<MaterialModel> model;         ///< per tet
   std::vector<Lame> lame;                   ///< per tet
   Eigen::VectorXd lumpedMass;               ///< per node (kg)
+  /// Sparsity pattern of the 3n x 3n stiffness (values zero), where each element's 12x12 block goes
+  /// (elementSlots[e][12 * col + row] indexes the pattern's value array), and where the diagonal entries are.
+  Eigen::SparseMatrix<double> pattern;
+  std::vector<std::array<int, 144>> elementSlots;
+  std::vector<int> diagonalSlot;
 
   std::size_t nodeCount() const { return rest.size(); }
   /// Builds from a volume mesh (metres): materials by tet label; labels not in the map use `fallback`.
@@ -38,7 +43,9 @@ struct FemModel {
 double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x);
 /// f = -dE/dx, size 3n.
 Eigen::VectorXd elasticForces(const FemModel& m, const Eigen::VectorXd& x);
-/// K = d^2E/dx^2 (symmetric), 3n x 3n.
+/// K = d^2E/dx^2 (symmetric), 3n x 3n, with the model's sparsity pattern.
 Eigen::SparseMatrix<double> elasticStiffness(const FemModel& m, const Eigen::VectorXd& x);
+/// Same, into an existing matrix that has the model's pattern (no allocation; elements in parallel).
+void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K);
 
 }  // namespace rehearse::simcore
