@@ -134,7 +134,11 @@ StepReport Integrator::tryStep(SimulationState& state, double h) {
     project(r);
     return r;
   };
-  const double scale = std::max({Mv0.norm(), h * gravityForce_.norm(), 1e-12});
+  // Residual scale: momentum, load and internal forces at the start, with a floor (an acceleration of
+  // 0.01 m/s^2 of the whole body) so a body at rest without load still has a meaningful tolerance.
+  Eigen::VectorXd f0 = elasticForces(model_, x0);
+  project(f0);
+  const double scale = std::max({Mv0.norm(), h * gravityForce_.norm(), h * f0.norm(), h * 1e-2 * model_.lumpedMass.sum()});
   Eigen::VectorXd r = residual(v);
   double rn = r.norm();
   for (int it = 0; it < settings_.maxNewtonIterations; ++it) {
@@ -250,7 +254,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   Eigen::VectorXd fext = gravityForce_;
   if (extra.size() == fext.size()) fext += extra;
   auto potential = [&](const Eigen::VectorXd& x) { return elasticEnergy(model_, x) - fext.dot(x - model_.restVector()); };
-  const double scale = std::max(fext.norm(), 1e-12);
+  const double scale = std::max(fext.norm(), 1e-2 * model_.lumpedMass.sum());
   Eigen::VectorXd x = state.x;
   for (int it = 0; it < std::max(settings_.maxNewtonIterations, 30); ++it) {
     Eigen::VectorXd r = elasticForces(model_, x) + fext;  // out-of-balance force
