@@ -3,6 +3,7 @@
 #include "phantom/phantom.hpp"
 
 #include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/scene.hpp>
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/quality.hpp>
 #include <rehearse/simcore/fem.hpp>
@@ -229,13 +230,28 @@ int cmdSimulate(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
                         {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity",
                          "steps", "dt", "out", "report", "solver"},
-                        {"static"});
-  if (o.count("scene")) throw UsageError("--scene files are not supported yet; use --preset or --mesh with material flags");
+                        {"static", "list-components"});
+  if (o.count("list-components")) {
+    std::printf("%s", simcore::describeSceneComponents().c_str());
+    return 0;
+  }
   if (!o.count("out")) throw UsageError("simulate needs --out OUT.vtu|OUT.vtk");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
   Preset p;
-  if (o.count("preset")) {
+  long sceneSteps = 100;
+  bool sceneStatic = false;
+  if (o.count("scene")) {
+    simcore::Scene sc = simcore::loadScene(o["scene"]);
+    p.mesh = std::move(sc.mesh);
+    p.materials = sc.materials;
+    p.fallback = sc.defaultMaterial;
+    p.fixed = sc.fixedNodes;
+    p.settings = sc.settings;
+    sceneSteps = sc.steps;
+    sceneStatic = sc.staticSolve;
+    if (!p.mesh.isVolume()) p.mesh = simcore::tetrahedraliseSurface(p.mesh, {});
+  } else if (o.count("preset")) {
     p = makePreset(o["preset"]);
   } else if (o.count("mesh")) {
     simcore::LoadOptions lo;
@@ -246,7 +262,7 @@ int cmdSimulate(const std::vector<std::string>& args) {
       p.mesh = simcore::tetrahedraliseSurface(p.mesh, to);
     }
   } else {
-    throw UsageError("simulate needs --preset NAME or --mesh FILE");
+    throw UsageError("simulate needs --scene S.json, --preset NAME or --mesh FILE");
   }
   if (o.count("material")) p.fallback.model = simcore::materialModelFromString(o["material"]);
   if (o.count("young")) p.fallback.young = parseNumber(o["young"], "--young");
@@ -268,7 +284,8 @@ int cmdSimulate(const std::vector<std::string>& args) {
                         : s == "dense" ? simcore::LinearSolverKind::Dense
                                        : throw UsageError("--solver must be cholmod, cg or dense");
   }
-  const long steps = o.count("steps") ? parseCount(o["steps"], "--steps", 1, 1'000'000) : 100;
+  const long steps = o.count("steps") ? parseCount(o["steps"], "--steps", 1, 1'000'000) : sceneSteps;
+  if (sceneStatic) o["static"] = "";
   const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.fallback);
   simcore::Integrator integrator(model, p.fixed, p.settings);
   auto state = integrator.initialState();
@@ -330,10 +347,11 @@ std::string usage() {
          "                                   tetrahedralise a closed surface (inner closed parts become labels)\n"
          "  rehearse info FILE [--unit m|dm|cm|mm]\n"
          "                                   node, element and label counts, bounds and quality\n"
-         "  rehearse simulate --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
+         "  rehearse simulate --scene S.json | --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
          "                [--material linear|corotational|stvk|neohookean] [--young PA] [--poisson NU] [--density KG_M3]\n"
          "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
          "                [--solver cholmod|cg|dense] --out OUT.vtu|.vtk [--report R.json]\n"
+         "  rehearse simulate --list-components   the scene components and their parameters\n"
          "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL)\n"

@@ -1,0 +1,160 @@
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/scene.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+using nlohmann::json;
+
+namespace rehearse::simcore {
+
+const std::vector<ComponentDecl>& sceneComponents() {
+  static const std::vector<ComponentDecl> decls = {
+      {"mesh", "The organ's volume mesh (a surface is tetrahedralised).",
+       {{"file", "string", "", "", "mesh file, relative to the scene"},
+        {"unit", "string", "\"m\"", "", "length unit of the file: m, dm, cm or mm"}}},
+      {"material", "Material of the elements with one label (label -1: every label without its own material).",
+       {{"label", "integer", "-1", "", "element label"},
+        {"model", "string", "\"corotational\"", "", "linear, corotational, stvk or neohookean"},
+        {"young", "number", "3000", "Pa", "Young's modulus"},
+        {"poisson", "number", "0.3", "", "Poisson's ratio, in [0, 0.5)"},
+        {"density", "number", "1000", "kg/m^3", "mass density"}},
+       true},
+      {"attachments", "Nodes held in place (the ligaments, q(j) = 1).",
+       {{"nodes", "integers", "", "", "0-based node indices in file order"}}},
+      {"gravity", "Gravity; without this component there is none.", {{"vector", "vector3", "[0, -9.81, 0]", "m/s^2", "acceleration"}}},
+      {"damping", "Rayleigh damping D = alpha M + beta K; without this component there is none.",
+       {{"rayleigh_mass", "number", "0.1", "1/s", "alpha"}, {"rayleigh_stiffness", "number", "0.1", "s", "beta"}}},
+      {"implicit_euler", "Implicit (backward) Euler time stepping with Newton iterations.",
+       {{"dt", "number", "0.01", "s", "time step"},
+        {"steps", "integer", "100", "", "number of steps"},
+        {"newton_iterations", "integer", "10", "", "Newton iterations per step at most"},
+        {"tolerance", "number", "1e-6", "", "relative residual"}}},
+      {"static", "Static equilibrium instead of time stepping (registration).",
+       {{"newton_iterations", "integer", "30", "", "Newton iterations at most"}, {"tolerance", "number", "1e-6", "", "relative residual"}}},
+      {"solver", "Linear solver.", {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"}}},
+  };
+  return decls;
+}
+
+std::string describeSceneComponents() {
+  std::string out;
+  for (const auto& c : sceneComponents()) {
+    out += c.type + (c.repeatable ? " (repeatable)" : "") + ": " + c.help + "\n";
+    for (const auto& p : c.parameters)
+      out += "  " + p.name + " (" + p.kind + (p.unit.empty() ? "" : ", " + p.unit) + ", " +
+             (p.defaultValue.empty() ? std::string("required") : "default " + p.defaultValue) + "): " + p.help + "\n";
+  }
+  return out;
+}
+
+namespace {
+[[noreturn]] void fail(const std::string& msg) { throw MeshError("Scene: " + msg); }
+
+// The value of a declared parameter: from the component, else its declared default.
+json value(const json& component, const ComponentDecl& decl, const std::string& name) {
+  for (const auto& p : decl.parameters)
+    if (p.name == name) {
+      if (component.contains(name)) return component[name];
+      if (p.defaultValue.empty()) fail("component '" + decl.type + "' needs the parameter '" + name + "' (" + p.help + ").");
+      return json::parse(p.defaultValue);
+    }
+  fail("internal: undeclared parameter " + name);
+}
+}  // namespace
+
+Scene parseScene(const std::string& text, const std::string& baseDir) {
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const std::exception&) {
+    fail("the file is not valid JSON.");
+  }
+  if (!root.is_object() || !root.contains("components") || !root["components"].is_array())
+    fail("it needs a \"components\" array; see 'rehearse simulate --list-components'.");
+  for (const auto& [k, v] : root.items())
+    if (k != "components") fail("unknown top-level key '" + k + "'.");
+  Scene s;
+  s.settings.gravity.setZero();  // only what is declared exists
+  s.settings.rayleighMass = 0;
+  s.settings.rayleighStiffness = 0;
+  std::set<std::string> seen;
+  bool haveMesh = false;
+  for (const auto& c : root["components"]) {
+    if (!c.is_object() || !c.contains("type") || !c["type"].is_string()) fail("every component needs a \"type\".");
+    const std::string type = c["type"].get<std::string>();
+    const ComponentDecl* decl = nullptr;
+    for (const auto& d : sceneComponents())
+      if (d.type == type) decl = &d;
+    if (!decl) fail("unknown component '" + type + "'; see 'rehearse simulate --list-components'.");
+    if (!decl->repeatable && !seen.insert(type).second) fail("component '" + type + "' appears twice.");
+    for (const auto& [k, v] : c.items()) {
+      if (k == "type") continue;
+      bool known = false;
+      for (const auto& p : decl->parameters) known |= p.name == k;
+      if (!known) fail("component '" + type + "' has no parameter '" + k + "'.");
+    }
+    try {
+      if (type == "mesh") {
+        std::filesystem::path file = value(c, *decl, "file").get<std::string>();
+        if (file.is_relative()) file = std::filesystem::path(baseDir) / file;
+        s.mesh = loadMesh(file.string(), {value(c, *decl, "unit").get<std::string>()});
+        haveMesh = true;
+        s.componentBytes += s.mesh.points.size() * sizeof(Eigen::Vector3d) + s.mesh.tets.size() * (sizeof(std::array<int, 4>) + sizeof(int));
+      } else if (type == "material") {
+        MaterialParams p{materialModelFromString(value(c, *decl, "model").get<std::string>()), value(c, *decl, "young").get<double>(),
+                         value(c, *decl, "poisson").get<double>(), value(c, *decl, "density").get<double>()};
+        const int label = value(c, *decl, "label").get<int>();
+        if (label < 0) s.defaultMaterial = p;
+        else s.materials[label] = p;
+        s.componentBytes += sizeof(MaterialParams);
+      } else if (type == "attachments") {
+        s.fixedNodes = value(c, *decl, "nodes").get<std::vector<int>>();
+        s.componentBytes += s.fixedNodes.size() * sizeof(int);
+      } else if (type == "gravity") {
+        const auto g = value(c, *decl, "vector").get<std::vector<double>>();
+        if (g.size() != 3) fail("gravity 'vector' needs three numbers.");
+        s.settings.gravity = Eigen::Vector3d(g[0], g[1], g[2]);
+      } else if (type == "damping") {
+        s.settings.rayleighMass = value(c, *decl, "rayleigh_mass").get<double>();
+        s.settings.rayleighStiffness = value(c, *decl, "rayleigh_stiffness").get<double>();
+      } else if (type == "implicit_euler") {
+        s.settings.timeStep = value(c, *decl, "dt").get<double>();
+        s.steps = value(c, *decl, "steps").get<long>();
+        s.settings.maxNewtonIterations = value(c, *decl, "newton_iterations").get<int>();
+        s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
+        if (!(s.settings.timeStep > 0) || s.steps < 1) fail("implicit_euler needs dt > 0 and steps >= 1.");
+      } else if (type == "static") {
+        s.staticSolve = true;
+        s.settings.maxNewtonIterations = value(c, *decl, "newton_iterations").get<int>();
+        s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
+      } else if (type == "solver") {
+        const std::string k = value(c, *decl, "kind").get<std::string>();
+        s.settings.solver = k == "cholmod" ? LinearSolverKind::Cholmod
+                            : k == "cg"    ? LinearSolverKind::ConjugateGradient
+                            : k == "dense" ? LinearSolverKind::Dense
+                                           : (fail("solver 'kind' must be cholmod, cg or dense."), LinearSolverKind::Dense);
+      }
+    } catch (const json::exception&) {
+      fail("a parameter of component '" + type + "' has the wrong kind of value; see 'rehearse simulate --list-components'.");
+    }
+    s.components.push_back(type);
+  }
+  if (!haveMesh) fail("it declares no 'mesh' component.");
+  if (seen.count("implicit_euler") && seen.count("static")) fail("declare either 'implicit_euler' or 'static', not both.");
+  return s;
+}
+
+Scene loadScene(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw MeshError("The scene file " + path + " cannot be opened; check the path.");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parseScene(ss.str(), std::filesystem::path(path).parent_path().string());
+}
+
+}  // namespace rehearse::simcore
