@@ -1,0 +1,163 @@
+// Against CalculiX (ccx, an independent FEM code) on the same C3D4 mesh: a cantilever under its own
+// weight, linear (small load) and geometrically nonlinear (NLGEOM with *ELASTIC is Saint Venant-Kirchhoff,
+// so it is compared with our StVK model). Skips when ccx is not installed.
+#include "test_support.hpp"
+
+#include <rehearse/simcore/integrator.hpp>
+
+#include <QProcess>
+
+#include <filesystem>
+#include <sstream>
+#include <QStandardPaths>
+
+using namespace rehearse::simcore;
+
+namespace {
+Mesh box(double L, double b, double h, int n, int m, int k) {
+  Mesh mesh;
+  auto id = [&](int i, int j, int l) { return (i * (m + 1) + j) * (k + 1) + l; };
+  for (int i = 0; i <= n; ++i)
+    for (int j = 0; j <= m; ++j)
+      for (int l = 0; l <= k; ++l) mesh.points.emplace_back(L * i / n, b * j / m, h * l / k);
+  static const int kuhn[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7}, {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7}};
+  for (int i = 0; i < n; ++i)
+    for (int j = 0; j < m; ++j)
+      for (int l = 0; l < k; ++l) {
+        int c[8];
+        for (int q = 0; q < 8; ++q) c[q] = id(i + (q & 1), j + ((q >> 1) & 1), l + ((q >> 2) & 1));
+        for (const auto& t : kuhn) {
+          std::array<int, 4> tet = {c[t[0]], c[t[1]], c[t[2]], c[t[3]]};
+          const auto& p = mesh.points;
+          if ((p[tet[1]] - p[tet[0]]).cross(p[tet[2]] - p[tet[0]]).dot(p[tet[3]] - p[tet[0]]) < 0) std::swap(tet[2], tet[3]);
+          mesh.tets.push_back(tet);
+          mesh.tetLabels.push_back(1);
+        }
+      }
+  return mesh;
+}
+
+// Runs ccx on the mesh (fixed at x = 0, gravity -z) and returns the nodal displacements (3n).
+Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, double g, bool nlgeom, const std::string& name) {
+  const std::string dir = tempPath("ccx-" + name);
+  std::filesystem::create_directories(dir);
+  std::string inp = "*NODE\n";
+  char buf[160];
+  for (std::size_t i = 0; i < mesh.points.size(); ++i) {
+    std::snprintf(buf, sizeof buf, "%zu, %.17g, %.17g, %.17g\n", i + 1, mesh.points[i].x(), mesh.points[i].y(), mesh.points[i].z());
+    inp += buf;
+  }
+  inp += "*ELEMENT, TYPE=C3D4, ELSET=EALL\n";
+  for (std::size_t e = 0; e < mesh.tets.size(); ++e) {
+    const auto& t = mesh.tets[e];
+    std::snprintf(buf, sizeof buf, "%zu, %d, %d, %d, %d\n", e + 1, t[0] + 1, t[1] + 1, t[2] + 1, t[3] + 1);
+    inp += buf;
+  }
+  inp += "*NSET, NSET=NALL, GENERATE\n1, " + std::to_string(mesh.points.size()) + ", 1\n*NSET, NSET=FIX\n";
+  for (std::size_t i = 0; i < mesh.points.size(); ++i)
+    if (mesh.points[i].x() == 0) inp += std::to_string(i + 1) + "\n";
+  std::snprintf(buf, sizeof buf, "*MATERIAL, NAME=M\n*ELASTIC\n%.17g, %.17g\n*DENSITY\n%.17g\n", E, nu, rho);
+  inp += "*BOUNDARY\nFIX, 1, 3\n" + std::string(buf) + "*SOLID SECTION, ELSET=EALL, MATERIAL=M\n";
+  inp += nlgeom ? "*STEP, NLGEOM, INC=200\n*STATIC\n0.05, 1.0, 1e-6, 0.1\n" : "*STEP\n*STATIC\n";
+  std::snprintf(buf, sizeof buf, "*DLOAD\nEALL, GRAV, %.17g, 0., 0., -1.\n", g);
+  inp += std::string(buf) + "*NODE PRINT, NSET=NALL\nU\n*END STEP\n";
+  writeFile(dir + "/job.inp", inp);
+  QProcess p;
+  p.setWorkingDirectory(QString::fromStdString(dir));
+  QProcessEnvironment env = QProcessEnvironment::systemEnvironment();
+  env.insert("OMP_NUM_THREADS", "1");
+  p.setProcessEnvironment(env);
+  p.start("ccx", {"-i", "job"});
+  if (!p.waitForFinished(300000) || p.exitCode() != 0) return {};
+  // The last displacement block of job.dat.
+  std::istringstream in(readFile(dir + "/job.dat"));
+  std::string line;
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * mesh.points.size());
+  bool inBlock = false;
+  int read = 0;
+  while (std::getline(in, line)) {
+    if (line.find("displacements (vx,vy,vz)") != std::string::npos) {
+      inBlock = true;
+      read = 0;
+      continue;
+    }
+    if (!inBlock) continue;
+    std::istringstream l(line);
+    long id;
+    double x, y, z;
+    if (l >> id >> x >> y >> z) {
+      u.segment<3>(3 * (id - 1)) = Eigen::Vector3d(x, y, z);
+      ++read;
+    } else if (read > 0) {
+      inBlock = false;
+    }
+  }
+  return u;
+}
+
+struct Result {
+  double tipOurs, tipCcx, fieldError;
+};
+
+Result compare(MaterialModel model, double E, bool nlgeom, const std::string& name) {
+  const double L = 0.1, b = 0.01, h = 0.01, nu = 0.3, rho = 1000, g = 9.81;
+  Mesh mesh = box(L, b, h, 20, 2, 2);
+  const Eigen::VectorXd ccx = runCalculix(mesh, E, nu, rho, g, nlgeom, name);
+  if (ccx.size() == 0) return {0, 0, -1};
+  FemModel m = FemModel::build(mesh, {}, {model, E, nu, rho});
+  std::vector<int> fixed;
+  for (std::size_t i = 0; i < mesh.points.size(); ++i)
+    if (mesh.points[i].x() == 0) fixed.push_back(static_cast<int>(i));
+  SimulationSettings s;
+  s.gravity = Eigen::Vector3d(0, 0, -g);
+  s.tolerance = 1e-8;
+  Integrator in(m, fixed, s);
+  auto st = in.initialState();
+  auto rep = in.solveStatic(st);
+  if (!rep.ok) return {0, 0, -2};
+  const Eigen::VectorXd u = st.x - m.restVector();
+  double tipO = 0, tipC = 0;
+  int n = 0;
+  for (std::size_t i = 0; i < mesh.points.size(); ++i)
+    if (std::abs(mesh.points[i].x() - L) < 1e-12) {
+      tipO += u[3 * i + 2];
+      tipC += ccx[3 * i + 2];
+      ++n;
+    }
+  return {tipO / n, tipC / n, (u - ccx).norm() / ccx.norm()};
+}
+}  // namespace
+
+class TestCalculix : public QObject {
+  Q_OBJECT
+ private slots:
+  void initTestCase() {
+    if (QStandardPaths::findExecutable("ccx").isEmpty()) QSKIP("CalculiX (ccx) is not installed; scripts/install-deps.sh installs calculix-ccx");
+  }
+
+  // Same mesh, same element, same load: linear elasticity must agree to solver precision.
+  void linearCantilever() {
+    const auto r = compare(MaterialModel::Linear, 1e7, false, "linear");
+    QVERIFY2(r.fieldError >= 0, r.fieldError == -1 ? "ccx failed" : "our static solve failed");
+    qInfo("linear: tip %.6f mm (ours) vs %.6f mm (CalculiX), relative L2 field difference %.2e", -r.tipOurs * 1e3, -r.tipCcx * 1e3,
+          r.fieldError);
+    QVERIFY(std::abs(r.tipOurs - r.tipCcx) / std::abs(r.tipCcx) < 1e-4);
+    QVERIFY(r.fieldError < 1e-4);
+  }
+
+  // Large deflection (about half the length): CalculiX NLGEOM (St Venant-Kirchhoff) against our StVK.
+  void nonlinearCantileverStVK() {
+    const auto r = compare(MaterialModel::StVK, 1.2e5, true, "nlgeom");
+    QVERIFY2(r.fieldError >= 0, r.fieldError == -1 ? "ccx failed" : "our static solve failed");
+    qInfo("StVK NLGEOM: tip %.4f mm (ours) vs %.4f mm (CalculiX), relative L2 field difference %.2e", -r.tipOurs * 1e3, -r.tipCcx * 1e3,
+          r.fieldError);
+    QVERIFY(std::abs(r.tipCcx) > 0.01);  // really large: more than 10 mm on a 100 mm beam
+    // The issue asks for 2 % on the tip and 5 % on the field; with the same mesh and element the two codes
+    // agree to solver precision, so hold them to that.
+    QVERIFY(std::abs(r.tipOurs - r.tipCcx) / std::abs(r.tipCcx) < 1e-4);
+    QVERIFY(r.fieldError < 1e-4);
+  }
+};
+
+QTEST_GUILESS_MAIN(TestCalculix)
+#include "test_calculix.moc"
