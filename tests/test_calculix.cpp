@@ -4,6 +4,10 @@
 #include "test_support.hpp"
 
 #include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/meshio.hpp>
+
+#include <algorithm>
+#include <numeric>
 
 #include <QProcess>
 
@@ -37,14 +41,19 @@ Mesh box(double L, double b, double h, int n, int m, int k) {
   return mesh;
 }
 
-// Runs ccx on the mesh (fixed at x = 0, gravity -z) and returns the nodal displacements (3n).
-Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, double g, bool nlgeom, const std::string& name) {
+// Runs ccx on the mesh (fixed nodes, gravity g along -z, or along `gdir`) and returns the nodal displacements (3n).
+Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, double g, bool nlgeom, const std::string& name,
+                            std::vector<int> fixed = {}, Eigen::Vector3d gdir = Eigen::Vector3d(0, 0, -1)) {
+  if (fixed.empty())
+    for (std::size_t i = 0; i < mesh.points.size(); ++i)
+      if (mesh.points[i].x() == 0) fixed.push_back(static_cast<int>(i));
   const std::string dir = tempPath("ccx-" + name);
   std::filesystem::create_directories(dir);
   std::string inp = "*NODE\n";
   char buf[160];
   for (std::size_t i = 0; i < mesh.points.size(); ++i) {
-    std::snprintf(buf, sizeof buf, "%zu, %.17g, %.17g, %.17g\n", i + 1, mesh.points[i].x(), mesh.points[i].y(), mesh.points[i].z());
+    // ccx reads at most 20 characters per number: 13 significant digits.
+    std::snprintf(buf, sizeof buf, "%zu, %.13g, %.13g, %.13g\n", i + 1, mesh.points[i].x(), mesh.points[i].y(), mesh.points[i].z());
     inp += buf;
   }
   inp += "*ELEMENT, TYPE=C3D4, ELSET=EALL\n";
@@ -54,12 +63,11 @@ Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, d
     inp += buf;
   }
   inp += "*NSET, NSET=NALL, GENERATE\n1, " + std::to_string(mesh.points.size()) + ", 1\n*NSET, NSET=FIX\n";
-  for (std::size_t i = 0; i < mesh.points.size(); ++i)
-    if (mesh.points[i].x() == 0) inp += std::to_string(i + 1) + "\n";
+  for (int i : fixed) inp += std::to_string(i + 1) + "\n";
   std::snprintf(buf, sizeof buf, "*MATERIAL, NAME=M\n*ELASTIC\n%.17g, %.17g\n*DENSITY\n%.17g\n", E, nu, rho);
   inp += "*BOUNDARY\nFIX, 1, 3\n" + std::string(buf) + "*SOLID SECTION, ELSET=EALL, MATERIAL=M\n";
   inp += nlgeom ? "*STEP, NLGEOM, INC=200\n*STATIC\n0.05, 1.0, 1e-6, 0.1\n" : "*STEP\n*STATIC\n";
-  std::snprintf(buf, sizeof buf, "*DLOAD\nEALL, GRAV, %.17g, 0., 0., -1.\n", g);
+  std::snprintf(buf, sizeof buf, "*DLOAD\nEALL, GRAV, %.17g, %.17g, %.17g, %.17g\n", g, gdir.x(), gdir.y(), gdir.z());
   inp += std::string(buf) + "*NODE PRINT, NSET=NALL\nU\n*END STEP\n";
   writeFile(dir + "/job.inp", inp);
   QProcess p;
@@ -68,7 +76,11 @@ Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, d
   env.insert("OMP_NUM_THREADS", "1");
   p.setProcessEnvironment(env);
   p.start("ccx", {"-i", "job"});
-  if (!p.waitForFinished(300000) || p.exitCode() != 0) return {};
+  if (!p.waitForFinished(300000) || p.exitCode() != 0) {
+    const QByteArray out = p.readAllStandardOutput();
+    qWarning("ccx failed: %s", out.right(1500).constData());
+    return {};
+  }
   // The last displacement block of job.dat.
   std::istringstream in(readFile(dir + "/job.dat"));
   std::string line;
@@ -156,6 +168,39 @@ class TestCalculix : public QObject {
     // agree to solver precision, so hold them to that.
     QVERIFY(std::abs(r.tipOurs - r.tipCcx) / std::abs(r.tipCcx) < 1e-4);
     QVERIFY(r.fieldError < 1e-4);
+  }
+
+  // SOFA's liver2.msh (read in dm: a 21 cm liver) hanging from its top nodes under gravity, soft StVK.
+  void hangingLiver2() {
+    REQUIRE_SHARED("sofa/liver2.msh");
+    Mesh mesh = loadMesh(sharedData("sofa/liver2.msh"), {"dm"});
+    mesh.triangles.clear();
+    mesh.triangleLabels.clear();
+    // Attachments: the highest 3 % of the nodes (along +y).
+    std::vector<int> order(mesh.points.size());
+    std::iota(order.begin(), order.end(), 0);
+    std::sort(order.begin(), order.end(), [&](int a, int b) { return mesh.points[a].y() > mesh.points[b].y(); });
+    std::vector<int> fixed(order.begin(), order.begin() + mesh.points.size() * 3 / 100);
+    const double E = 27e3, nu = 0.4, rho = 1000, g = 9.81;
+    const Eigen::VectorXd ccx = runCalculix(mesh, E, nu, rho, g, true, "liver2", fixed, Eigen::Vector3d(0, -1, 0));
+    QVERIFY2(ccx.size() > 0, "ccx failed");
+    FemModel m = FemModel::build(mesh, {}, {MaterialModel::StVK, E, nu, rho});
+    SimulationSettings s;
+    s.gravity = Eigen::Vector3d(0, -g, 0);
+    s.tolerance = 1e-8;
+    Integrator in(m, fixed, s);
+    auto st = in.initialState();
+    auto rep = in.solveStatic(st);
+    QVERIFY2(rep.ok, rep.status.c_str());
+    const Eigen::VectorXd u = st.x - m.restVector();
+    Eigen::Index worst = 0;
+    ccx.cwiseAbs().maxCoeff(&worst);
+    const double field = (u - ccx).norm() / ccx.norm();
+    qInfo("liver2 hanging (%zu tets, %zu fixed): largest displacement %.3f mm (ours) vs %.3f mm (CalculiX); relative L2 %.2e; %d Newton iterations",
+          m.tets.size(), fixed.size(), std::abs(u[worst]) * 1e3, std::abs(ccx[worst]) * 1e3, field, rep.newtonIterations);
+    QVERIFY(std::abs(ccx[worst]) > 1e-3);
+    QVERIFY(std::abs(u[worst] - ccx[worst]) / std::abs(ccx[worst]) < 0.02);
+    QVERIFY(field < 0.05);
   }
 };
 
