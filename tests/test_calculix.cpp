@@ -1,6 +1,7 @@
 // Against CalculiX (ccx, an independent FEM code) on the same C3D4 mesh: a cantilever under its own
 // weight, linear (small load) and geometrically nonlinear (NLGEOM with *ELASTIC is Saint Venant-Kirchhoff,
 // so it is compared with our StVK model). Skips when ccx is not installed.
+#include "box_mesh.hpp"
 #include "test_support.hpp"
 
 #include <rehearse/simcore/integrator.hpp>
@@ -18,35 +19,10 @@
 using namespace rehearse::simcore;
 
 namespace {
-Mesh box(double L, double b, double h, int n, int m, int k) {
-  Mesh mesh;
-  auto id = [&](int i, int j, int l) { return (i * (m + 1) + j) * (k + 1) + l; };
-  for (int i = 0; i <= n; ++i)
-    for (int j = 0; j <= m; ++j)
-      for (int l = 0; l <= k; ++l) mesh.points.emplace_back(L * i / n, b * j / m, h * l / k);
-  static const int kuhn[6][4] = {{0, 1, 3, 7}, {0, 1, 5, 7}, {0, 2, 3, 7}, {0, 2, 6, 7}, {0, 4, 5, 7}, {0, 4, 6, 7}};
-  for (int i = 0; i < n; ++i)
-    for (int j = 0; j < m; ++j)
-      for (int l = 0; l < k; ++l) {
-        int c[8];
-        for (int q = 0; q < 8; ++q) c[q] = id(i + (q & 1), j + ((q >> 1) & 1), l + ((q >> 2) & 1));
-        for (const auto& t : kuhn) {
-          std::array<int, 4> tet = {c[t[0]], c[t[1]], c[t[2]], c[t[3]]};
-          const auto& p = mesh.points;
-          if ((p[tet[1]] - p[tet[0]]).cross(p[tet[2]] - p[tet[0]]).dot(p[tet[3]] - p[tet[0]]) < 0) std::swap(tet[2], tet[3]);
-          mesh.tets.push_back(tet);
-          mesh.tetLabels.push_back(1);
-        }
-      }
-  return mesh;
-}
-
 // Runs ccx on the mesh (fixed nodes, gravity g along -z, or along `gdir`) and returns the nodal displacements (3n).
 Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, double g, bool nlgeom, const std::string& name,
                             std::vector<int> fixed = {}, Eigen::Vector3d gdir = Eigen::Vector3d(0, 0, -1)) {
-  if (fixed.empty())
-    for (std::size_t i = 0; i < mesh.points.size(); ++i)
-      if (mesh.points[i].x() == 0) fixed.push_back(static_cast<int>(i));
+  if (fixed.empty()) fixed = nodesAtX(mesh, 0);
   const std::string dir = tempPath("ccx-" + name);
   std::filesystem::create_directories(dir);
   std::string inp = "*NODE\n";
@@ -113,13 +89,11 @@ struct Result {
 
 Result compare(MaterialModel model, double E, bool nlgeom, const std::string& name) {
   const double L = 0.1, b = 0.01, h = 0.01, nu = 0.3, rho = 1000, g = 9.81;
-  Mesh mesh = box(L, b, h, 20, 2, 2);
+  Mesh mesh = boxMesh(L, b, h, 20, 2, 2);
   const Eigen::VectorXd ccx = runCalculix(mesh, E, nu, rho, g, nlgeom, name);
   if (ccx.size() == 0) return {0, 0, -1};
   FemModel m = FemModel::build(mesh, {}, {model, E, nu, rho});
-  std::vector<int> fixed;
-  for (std::size_t i = 0; i < mesh.points.size(); ++i)
-    if (mesh.points[i].x() == 0) fixed.push_back(static_cast<int>(i));
+  const std::vector<int> fixed = nodesAtX(mesh, 0);
   SimulationSettings s;
   s.gravity = Eigen::Vector3d(0, 0, -g);
   s.tolerance = 1e-8;

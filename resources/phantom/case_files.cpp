@@ -115,7 +115,7 @@ Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) 
   try {
     c.volume = simcore::loadMesh(path(files.value("volume", "organ.vtu")));
     for (const auto& l : manifest.value("labels", json::array())) c.volume.setLabelName(l.at("label").get<int>(), l.at("name").get<std::string>());
-    c.surface = simcore::boundaryTriangles(c.volume, false);
+    c.deriveFromVolume();
   } catch (const std::exception& e) {
     note(std::string("Organ mesh not loaded: ") + e.what());
   }

@@ -80,6 +80,23 @@ Eigen::Vector3d Case::centreOfGravity() const {
   return volume.bounds().center();
 }
 
+void Case::deriveFromVolume() {
+  surface.clear();
+  innerSurface.clear();
+  innerSurfaceLabels.clear();
+  quality = simcore::computeQuality(volume);
+  if (volume.tets.empty()) return;
+  surface = simcore::boundaryTriangles(volume, false);
+  // Faces of the other labels (interfaces carry the inner label): the structures drawn through the organ.
+  std::vector<int> labels;
+  const auto faces = simcore::boundaryTriangles(volume, true, &labels);
+  for (std::size_t i = 0; i < faces.size(); ++i)
+    if (labels[i] != kParenchymaLabel) {
+      innerSurface.push_back(faces[i]);
+      innerSurfaceLabels.push_back(labels[i]);
+    }
+}
+
 Pose Case::automaticPose() const {
   Pose p;
   const Eigen::Vector3d cog = centreOfGravity();
@@ -103,7 +120,7 @@ Case makePhantom(const PhantomOptions& options) {
   c.volume = simcore::tetrahedraliseImplicit(phantomLabel, bounds, mo, volumeEstimate);
   c.volume.setLabelName(kParenchymaLabel, "parenchyma");
   c.volume.setLabelName(kVesselLabel, "vessels");
-  c.surface = simcore::boundaryTriangles(c.volume, false);
+  c.deriveFromVolume();
 
   // 2. Ligament attachments: surface nodes near the superior-posterior (coronary ligament) band.
   std::vector<char> onSurface(c.volume.points.size(), 0);

@@ -6,6 +6,7 @@
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/mesh.hpp>
+#include <rehearse/simcore/quality.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
 
 #include <opencv2/core.hpp>
@@ -28,6 +29,8 @@ struct Case {
   std::string name;
   simcore::Mesh volume;                  ///< tets, labels 1 parenchyma / 2 vessels, metres, model frame
   std::vector<std::array<int, 3>> surface;  ///< outer boundary triangles (indices into volume.points)
+  std::vector<std::array<int, 3>> innerSurface;  ///< faces between labels (vessels, tumours), outward from the inner label
+  std::vector<int> innerSurfaceLabels;           ///< the inner label of each of those faces
   std::vector<int> attachments;          ///< 0-based node indices fixed by ligaments (q(j) = 1)
   imaging::Camera camera;
   cv::Mat3b frame;                       ///< undistorted endoscope frame, BGR (what every step uses)
@@ -49,6 +52,12 @@ struct Case {
   /// A first placement: the organ's centre on the optical axis, unrotated, at the distance where it
   /// spans about 60 % of the image width.
   Pose automaticPose() const;
+
+  simcore::QualityReport quality;        ///< of `volume`
+
+  /// Recomputes `surface`, `innerSurface` and `quality` from `volume`: once per mesh, where the mesh is
+  /// made (on a worker thread), so drawing and panels only read them.
+  void deriveFromVolume();
 
   SurfaceView surfaceView() const {
     SurfaceView v = volume.surfaceView();

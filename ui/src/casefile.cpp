@@ -233,7 +233,7 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
       simcore::validateMesh(c.volume, "the organ mesh");
       if (QByteArray l = read("labels"); !l.isEmpty())
         for (const auto& e : json::parse(l.toStdString())) c.volume.setLabelName(e.at("label").get<int>(), e.at("name").get<std::string>());
-      c.surface = simcore::boundaryTriangles(c.volume, false);
+      c.deriveFromVolume();
     } catch (const std::exception& e) {
       c.volume = {};
       note(QStringLiteral("Organ mesh not loaded: %1").arg(QString::fromUtf8(e.what())));

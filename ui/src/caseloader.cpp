@@ -39,7 +39,6 @@ LoadedCase loadCaseOrThrow(const QString& dir, const std::function<void(double, 
     cv::cvtColor(c->frame, rgb, cv::COLOR_BGR2RGB);
     out.frame = QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
   }
-  if (!c->volume.empty()) out.qualityText = QString::fromStdString(simcore::formatQuality(simcore::computeQuality(c->volume)));
   out.data = std::move(c);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   if (progress) progress(1.0, QStringLiteral("done"));

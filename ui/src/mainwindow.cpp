@@ -300,11 +300,7 @@ QWidget* MainWindow::buildMeshPage() {
   auto* l = new QVBoxLayout(page);
   auto* importButton = new QPushButton(tr("Import Mesh... (Ctrl+I)"), page);
   importButton->setMinimumHeight(36);
-  connect(importButton, &QPushButton::clicked, this, [this] {
-    const QString p = QFileDialog::getOpenFileName(this, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
-                                                   tr("Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb)"));
-    if (!p.isEmpty()) importMesh(p);
-  });
+  connect(importButton, &QPushButton::clicked, this, &MainWindow::importMeshDialog);
   l->addWidget(importButton);
   auto* form = new QFormLayout;
   targetTets_ = new QSpinBox(page);
@@ -337,11 +333,7 @@ QWidget* MainWindow::buildFramePage() {
   auto* l = new QVBoxLayout(page);
   auto* open = new QPushButton(tr("Open Image or Video... (Ctrl+F)"), page);
   open->setMinimumHeight(36);
-  connect(open, &QPushButton::clicked, this, [this] {
-    const QString p = QFileDialog::getOpenFileName(this, tr("Open Endoscope Image or Video"), QSettings().value("lastDir").toString(),
-                                                   tr("Images and videos (*.png *.jpg *.jpeg *.bmp *.tif *.mp4 *.avi *.mkv *.mov)"));
-    if (!p.isEmpty()) openFrameSource(p);
-  });
+  connect(open, &QPushButton::clicked, this, &MainWindow::openFrameDialog);
   l->addWidget(open);
   auto* cam = new QHBoxLayout;
   auto* device = new QSpinBox(page);
@@ -658,8 +650,7 @@ void MainWindow::setCaseData(std::shared_ptr<const phantom::Case> data) {
                            case_.data->volume.tets != data->volume.tets;
   case_.data = std::move(data);
   if (frameChanged) case_.frame = toQImage(case_.data->frame);
-  if (meshChanged && !case_.data->volume.empty())
-    case_.qualityText = QString::fromStdString(simcore::formatQuality(simcore::computeQuality(case_.data->volume)));
+  if (meshChanged) case_.qualityText = case_.data->volume.empty() ? QString() : QString::fromStdString(simcore::formatQuality(case_.data->quality));
   view_->setCase(case_.data);
   if (organView_) organView_->setCase(case_.data);
   if (organGLView_) organGLView_->setCase(case_.data);
@@ -706,15 +697,15 @@ void MainWindow::refreshOverlay() {
   }
   view_->setOverlay(case_.organOverlay, case_.silhouette);
   // Inner structures the user ticked, drawn over the organ.
-  std::vector<int> labels;
-  auto faces = simcore::boundaryTriangles(c->volume, true, &labels);
   std::vector<std::array<int, 3>> inner;
   int innerLabel = -1;
-  for (std::size_t i = 0; i < faces.size(); ++i)
-    if (labels[i] != 1 && labelVisible_.count(labels[i]) && labelVisible_[labels[i]]) {
-      inner.push_back(faces[i]);
-      innerLabel = labels[i];
+  for (std::size_t i = 0; i < c->innerSurface.size(); ++i) {
+    const int l = c->innerSurfaceLabels[i];
+    if (labelVisible_.count(l) && labelVisible_[l]) {
+      inner.push_back(c->innerSurface[i]);
+      innerLabel = l;
     }
+  }
   if (!inner.empty()) {
     SurfaceView v = c->volume.surfaceView();
     v.triangles = inner.front().data();
@@ -848,13 +839,19 @@ void MainWindow::importMesh(const QString& path) {
       }
       m.triangles.clear();
       m.triangleLabels.clear();
-      auto mesh = std::make_shared<simcore::Mesh>(std::move(m));
+      // Surfaces and quality of the new mesh are derived here, off the GUI thread.
+      auto prepared = std::make_shared<phantom::Case>();
+      prepared->volume = std::move(m);
+      prepared->deriveFromVolume();
       QStringList qnotes;
       for (const auto& n : notes) qnotes << QString::fromStdString(n);
-      return [this, mesh, path, qnotes] {
+      return [this, prepared, path, qnotes] {
         editCase(tr("Import mesh"), [&](phantom::Case& k) {
-          k.volume = *mesh;
-          k.surface = simcore::boundaryTriangles(k.volume, false);
+          k.volume = prepared->volume;
+          k.surface = prepared->surface;
+          k.innerSurface = prepared->innerSurface;
+          k.innerSurfaceLabels = prepared->innerSurfaceLabels;
+          k.quality = prepared->quality;
           k.attachments.clear();
           k.hasGroundTruth = false;
           k.vesselTree.clear();
@@ -1203,6 +1200,18 @@ void MainWindow::saveAs() {
   saveCaseAs(path);
 }
 
+void MainWindow::importMeshDialog() {
+  const QString p = QFileDialog::getOpenFileName(this, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
+                                                 tr("Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb)"));
+  if (!p.isEmpty()) importMesh(p);
+}
+
+void MainWindow::openFrameDialog() {
+  const QString p = QFileDialog::getOpenFileName(this, tr("Open Endoscope Image or Video"), QSettings().value("lastDir").toString(),
+                                                 tr("Images and videos (*.png *.jpg *.jpeg *.bmp *.tif *.mp4 *.avi *.mkv *.mov)"));
+  if (!p.isEmpty()) openFrameSource(p);
+}
+
 void MainWindow::openFileDialog() {
   QSettings s;
   const QString path = QFileDialog::getOpenFileName(this, tr("Open Case"), s.value(QStringLiteral("lastDir")).toString(),
@@ -1263,17 +1272,9 @@ void MainWindow::buildMenus() {
   QAction* builtin = file->addAction(tr("Open &Built-in Phantom"), this, [this] { openCase({}); });
   builtin->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
   file->addSeparator();
-  QAction* importAction = file->addAction(tr("&Import Mesh..."), this, [this] {
-    const QString p = QFileDialog::getOpenFileName(this, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
-                                                   tr("Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb)"));
-    if (!p.isEmpty()) importMesh(p);
-  });
+  QAction* importAction = file->addAction(tr("&Import Mesh..."), this, &MainWindow::importMeshDialog);
   importAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_I));
-  QAction* frameAction = file->addAction(tr("Open &Frame or Video..."), this, [this] {
-    const QString p = QFileDialog::getOpenFileName(this, tr("Open Endoscope Image or Video"), QSettings().value("lastDir").toString(),
-                                                   tr("Images and videos (*.png *.jpg *.jpeg *.bmp *.tif *.mp4 *.avi *.mkv *.mov)"));
-    if (!p.isEmpty()) openFrameSource(p);
-  });
+  QAction* frameAction = file->addAction(tr("Open &Frame or Video..."), this, &MainWindow::openFrameDialog);
   frameAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_F));
   file->addSeparator();
   QAction* saveAction = file->addAction(tr("&Save"), this, &MainWindow::save);

@@ -68,7 +68,7 @@ bool OrganGLView::openGLAvailable() {
 }
 
 void OrganGLView::setCase(std::shared_ptr<const phantom::Case> c) {
-  if (case_ && c && case_->volume.tets == c->volume.tets && case_->volume.points.size() == c->volume.points.size()) {
+  if (sameMesh(case_.get(), c.get())) {
     case_ = std::move(c);
     return;
   }
@@ -94,8 +94,6 @@ void OrganGLView::upload() {
   if (!case_ || case_->surface.empty()) return;
   // Flat arrays: position, normal, colour per vertex; outer surface first, then inner structures.
   std::vector<float> data;
-  std::vector<int> labels;
-  const auto faces = simcore::boundaryTriangles(case_->volume, true, &labels);
   auto add = [&](const std::array<int, 3>& t, const Eigen::Vector3f& colour) {
     const Eigen::Vector3d a = case_->volume.points[t[0]], b = case_->volume.points[t[1]], c = case_->volume.points[t[2]];
     const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
@@ -106,8 +104,7 @@ void OrganGLView::upload() {
   };
   for (const auto& t : case_->surface) add(t, {0.85f, 0.55f, 0.45f});
   organCount_ = static_cast<int>(case_->surface.size() * 3);
-  for (std::size_t i = 0; i < faces.size(); ++i)
-    if (labels[i] != 1) add(faces[i], {0.35f, 0.55f, 1.0f});
+  for (const auto& t : case_->innerSurface) add(t, {0.35f, 0.55f, 1.0f});
   vertexCount_ = static_cast<int>(data.size() / 9);
   vao_.bind();
   vbo_.bind();
@@ -133,9 +130,9 @@ void OrganGLView::paintGL() {
   QMatrix4x4 proj, view;
   proj.perspective(50.0f, float(width()) / std::max(1, height()), float(size * 0.05), float(size * 20));
   // Camera looks down -z in OpenGL; turn the organ with yaw and pitch about its centre.
-  view.translate(0, 0, float(-1.5 * size / zoom_));
-  view.rotate(float(-pitch_ * 180 / M_PI), 1, 0, 0);
-  view.rotate(float(yaw_ * 180 / M_PI), 0, 1, 0);
+  view.translate(0, 0, float(-1.5 * size / turntable_.zoom));
+  view.rotate(float(-turntable_.pitch * 180 / M_PI), 1, 0, 0);
+  view.rotate(float(turntable_.yaw * 180 / M_PI), 0, 1, 0);
   view.rotate(180, 1, 0, 0);  // model y (inferior) points down on screen as in the frame
   view.translate(float(-cog.x()), float(-cog.y()), float(-cog.z()));
   program_.bind();
@@ -157,26 +154,21 @@ void OrganGLView::paintGL() {
   vao_.release();
 }
 
-void OrganGLView::mousePressEvent(QMouseEvent* e) { last_ = e->position(); }
+void OrganGLView::mousePressEvent(QMouseEvent* e) { turntable_.press(e->position()); }
 
 void OrganGLView::mouseMoveEvent(QMouseEvent* e) {
   if (!(e->buttons() & Qt::LeftButton)) return;
-  const QPointF d = e->position() - last_;
-  last_ = e->position();
-  yaw_ += d.x() * 0.01;
-  pitch_ = std::clamp(pitch_ - d.y() * 0.01, -1.5, 1.5);
+  turntable_.drag(e->position());
   update();
 }
 
 void OrganGLView::mouseDoubleClickEvent(QMouseEvent*) {
-  yaw_ = 0;
-  pitch_ = -0.3;
-  zoom_ = 1;
+  turntable_.reset();
   update();
 }
 
 void OrganGLView::wheelEvent(QWheelEvent* e) {
-  zoom_ = std::clamp(zoom_ * std::pow(1.0015, e->angleDelta().y()), 0.3, 8.0);
+  turntable_.wheel(e->angleDelta().y());
   update();
 }
 

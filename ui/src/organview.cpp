@@ -19,8 +19,7 @@ OrganView::OrganView(QWidget* parent) : QWidget(parent) {
 
 void OrganView::setCase(std::shared_ptr<const phantom::Case> c) {
   // Only the mesh matters here: skip re-rendering when only the contour or the pose changed.
-  if (case_ && c && case_->volume.tets == c->volume.tets && case_->volume.points.size() == c->volume.points.size() &&
-      case_->attachments == c->attachments) {
+  if (sameMesh(case_.get(), c.get())) {
     case_ = std::move(c);
     return;
   }
@@ -41,15 +40,11 @@ void OrganView::render() {
   const Eigen::Vector3d cog = case_->centreOfGravity();
   const double size = case_->volume.bounds().sizes().maxCoeff();
   Pose p;
-  p.R = (Eigen::AngleAxisd(pitch_, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(yaw_, Eigen::Vector3d::UnitY())).toRotationMatrix();
-  p.t = Eigen::Vector3d(0, 0, 1.05 * size / zoom_) - p.R * cog;
+  p.R = (Eigen::AngleAxisd(turntable_.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(turntable_.yaw, Eigen::Vector3d::UnitY())).toRotationMatrix();
+  p.t = Eigen::Vector3d(0, 0, 1.05 * size / turntable_.zoom) - p.R * cog;
   cv::Mat4b organ = imaging::renderOverlay(cam, p, case_->surfaceView(), cv::Vec3b(120, 150, 215));
   // Inner structures (labels other than the outer one), drawn over it half-transparent.
-  std::vector<int> labels;
-  auto faces = simcore::boundaryTriangles(case_->volume, true, &labels);
-  std::vector<std::array<int, 3>> inner;
-  for (std::size_t i = 0; i < faces.size(); ++i)
-    if (labels[i] != 1) inner.push_back(faces[i]);
+  const auto& inner = case_->innerSurface;
   cv::Mat rgba;
   cv::cvtColor(organ, rgba, cv::COLOR_BGRA2RGBA);
   image_ = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
@@ -90,28 +85,23 @@ void OrganView::paintEvent(QPaintEvent*) {
                    tr("%1 tets, %2 attachments").arg(case_->volume.tets.size()).arg(case_->attachments.size()));
 }
 
-void OrganView::mousePressEvent(QMouseEvent* e) { last_ = e->position(); }
+void OrganView::mousePressEvent(QMouseEvent* e) { turntable_.press(e->position()); }
 
 void OrganView::mouseMoveEvent(QMouseEvent* e) {
   if (!(e->buttons() & Qt::LeftButton)) return;
-  const QPointF d = e->position() - last_;
-  last_ = e->position();
-  yaw_ += d.x() * 0.01;
-  pitch_ = std::clamp(pitch_ - d.y() * 0.01, -1.5, 1.5);
+  turntable_.drag(e->position());
   dirty_ = true;
   update();
 }
 
 void OrganView::mouseDoubleClickEvent(QMouseEvent*) {
-  yaw_ = 0;
-  pitch_ = -0.3;
-  zoom_ = 1;
+  turntable_.reset();
   dirty_ = true;
   update();
 }
 
 void OrganView::wheelEvent(QWheelEvent* e) {
-  zoom_ = std::clamp(zoom_ * std::pow(1.0015, e->angleDelta().y()), 0.3, 8.0);
+  turntable_.wheel(e->angleDelta().y());
   dirty_ = true;
   update();
 }

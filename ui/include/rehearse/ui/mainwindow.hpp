@@ -128,6 +128,8 @@ class MainWindow : public QMainWindow {
   void save();
   void saveAs();
   void openFileDialog();
+  void importMeshDialog();
+  void openFrameDialog();
   void addRecent(const QString& path);
   void rebuildRecentMenu();
   void onLoadFinished();

@@ -1,7 +1,7 @@
 #pragma once
 // The organ alone in 3D with OpenGL (used when a GL context can be made; OrganView is the software
 // fallback). Same controls: drag to turn, wheel to zoom, double-click to reset.
-#include "phantom/phantom.hpp"
+#include "rehearse/ui/organview.hpp"
 
 #include <QOpenGLBuffer>
 #include <QOpenGLFunctions>
@@ -42,8 +42,7 @@ class OrganGLView : public QOpenGLWidget, protected QOpenGLFunctions {
   int vertexCount_ = 0, organCount_ = 0;
   bool dirty_ = true, ready_ = false;
   QString version_;
-  double yaw_ = 0, pitch_ = -0.3, zoom_ = 1.0;
-  QPointF last_;
+  Turntable turntable_;
 };
 
 }  // namespace rehearse::ui

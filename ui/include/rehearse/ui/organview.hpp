@@ -7,17 +7,38 @@
 #include <QImage>
 #include <QWidget>
 
+#include <algorithm>
+#include <cmath>
 #include <memory>
 
 namespace rehearse::ui {
+
+/// Turntable controls shared by the software and OpenGL organ views (angles in radians).
+struct Turntable {
+  double yaw = 0, pitch = -0.3, zoom = 1.0;
+  QPointF last;
+  void press(const QPointF& p) { last = p; }
+  void drag(const QPointF& p) {
+    const QPointF d = p - last;
+    last = p;
+    yaw += d.x() * 0.01;
+    pitch = std::clamp(pitch - d.y() * 0.01, -1.5, 1.5);
+  }
+  void wheel(int angleDelta) { zoom = std::clamp(zoom * std::pow(1.0015, angleDelta), 0.3, 8.0); }
+  void reset() { *this = Turntable{}; }
+};
+
+/// True when two cases hold the same organ mesh (then a 3D view keeps what it built from it).
+inline bool sameMesh(const phantom::Case* a, const phantom::Case* b) {
+  return a && b && a->volume.points.size() == b->volume.points.size() && a->volume.tets == b->volume.tets &&
+         a->attachments == b->attachments;
+}
 
 class OrganView : public QWidget {
   Q_OBJECT
  public:
   explicit OrganView(QWidget* parent = nullptr);
   void setCase(std::shared_ptr<const phantom::Case> c);
-  double yaw() const { return yaw_; }
-  double pitch() const { return pitch_; }
   QSize sizeHint() const override { return {360, 280}; }
 
  protected:
@@ -33,8 +54,7 @@ class OrganView : public QWidget {
   std::shared_ptr<const phantom::Case> case_;
   QImage image_;
   bool dirty_ = true;
-  double yaw_ = 0, pitch_ = -0.3, zoom_ = 1.0;
-  QPointF last_;
+  Turntable turntable_;
 };
 
 }  // namespace rehearse::ui
