@@ -1,6 +1,7 @@
 #include "cli.hpp"
 
 #include "phantom/phantom.hpp"
+#include "phantom/presets.hpp"
 
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/scene.hpp>
@@ -176,60 +177,10 @@ std::vector<int> parseNodes(const std::string& s) {
   return out;
 }
 
-// Built-in presets: SOFA's liver.scn on its own mesh, and the four cases of DejaVu on the phantom's
-// geometry (density from the case's mass), hung by the phantom's attachment nodes.
-struct Preset {
-  simcore::Mesh mesh;
-  std::map<int, simcore::MaterialParams> materials;
-  simcore::MaterialParams fallback;
-  std::vector<int> fixed;
-  simcore::SimulationSettings settings;
-};
-
-Preset makePreset(const std::string& name) {
-  Preset p;
-  if (name == "sofa-liver") {
-    const std::string path = "../shared/data/sofa/liver.msh";
-    if (!std::filesystem::exists(path))
-      throw UsageError("the sofa-liver preset reads ../shared/data/sofa/liver.msh, which is absent here; run from the project folder");
-    p.mesh = simcore::loadMesh(path, {"m"});  // SOFA's scene uses the file's numbers as they are
-    p.fallback = {simcore::MaterialModel::Corotational, 3000, 0.3, 1.0};
-    p.fixed = {3, 39, 64};
-    p.settings.timeStep = 0.02;
-    p.settings.gravity = Eigen::Vector3d(0, -9.81, 0);
-    return p;
-  }
-  struct Case {
-    const char* name;
-    simcore::MaterialModel model;
-    double young, poisson, mass, vesselYoung, vesselPoisson;
-  };
-  static const Case cases[] = {{"eye", simcore::MaterialModel::Corotational, 150e3, 0.45, 0.007, 0, 0},
-                               {"kidney", simcore::MaterialModel::Linear, 250e3, 0.40, 0.115, 3200e3, 0.45},
-                               {"liver", simcore::MaterialModel::StVK, 27e3, 0.40, 1.2, 620e3, 0.45},
-                               {"uterus", simcore::MaterialModel::Corotational, 400e3, 0.35, 0.080, 0, 0}};
-  for (const auto& c : cases)
-    if (name == c.name) {
-      auto ph = phantom::makePhantom();
-      p.mesh = ph.volume;
-      double volume = 0;
-      for (const auto& t : p.mesh.tets)
-        volume += std::abs(simcore::tetVolume(p.mesh.points[t[0]], p.mesh.points[t[1]], p.mesh.points[t[2]], p.mesh.points[t[3]]));
-      const double density = c.mass / volume;
-      p.fallback = {c.model, c.young, c.poisson, density};
-      if (c.vesselYoung > 0) p.materials[phantom::kVesselLabel] = {c.model, c.vesselYoung, c.vesselPoisson, density};
-      p.fixed = ph.attachments;
-      p.settings.timeStep = 0.01;
-      p.settings.gravity = Eigen::Vector3d(0, 9.81, 0);  // the phantom's model y axis points down (inferior)
-      return p;
-    }
-  throw UsageError("unknown preset '" + name + "'; use eye, kidney, liver, uterus or sofa-liver");
-}
-
 int cmdSimulate(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
                         {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity",
-                         "steps", "dt", "out", "report", "solver"},
+                         "steps", "dt", "out", "report", "solver", "method", "attachments"},
                         {"static", "list-components"});
   if (o.count("list-components")) {
     std::printf("%s", simcore::describeSceneComponents().c_str());
@@ -238,21 +189,17 @@ int cmdSimulate(const std::vector<std::string>& args) {
   if (!o.count("out")) throw UsageError("simulate needs --out OUT.vtu|OUT.vtk");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
-  Preset p;
-  long sceneSteps = 100;
-  bool sceneStatic = false;
+  simcore::Scene p;
+  p.defaultMaterial = {};
   if (o.count("scene")) {
-    simcore::Scene sc = simcore::loadScene(o["scene"]);
-    p.mesh = std::move(sc.mesh);
-    p.materials = sc.materials;
-    p.fallback = sc.defaultMaterial;
-    p.fixed = sc.fixedNodes;
-    p.settings = sc.settings;
-    sceneSteps = sc.steps;
-    sceneStatic = sc.staticSolve;
+    p = simcore::loadScene(o["scene"]);
     if (!p.mesh.isVolume()) p.mesh = simcore::tetrahedraliseSurface(p.mesh, {});
   } else if (o.count("preset")) {
-    p = makePreset(o["preset"]);
+    try {
+      p = phantom::makePreset(o["preset"]);
+    } catch (const simcore::MeshError& e) {
+      throw UsageError(e.what());
+    }
   } else if (o.count("mesh")) {
     simcore::LoadOptions lo;
     if (o.count("unit")) lo.unit = o["unit"];
@@ -264,17 +211,17 @@ int cmdSimulate(const std::vector<std::string>& args) {
   } else {
     throw UsageError("simulate needs --scene S.json, --preset NAME or --mesh FILE");
   }
-  if (o.count("material")) p.fallback.model = simcore::materialModelFromString(o["material"]);
-  if (o.count("young")) p.fallback.young = parseNumber(o["young"], "--young");
+  if (o.count("material")) p.defaultMaterial.model = simcore::materialModelFromString(o["material"]);
+  if (o.count("young")) p.defaultMaterial.young = parseNumber(o["young"], "--young");
   if (o.count("poisson")) {
     try {
-      p.fallback.poisson = std::stod(o["poisson"]);
+      p.defaultMaterial.poisson = std::stod(o["poisson"]);
     } catch (const std::exception&) {
       throw UsageError("--poisson must be a number in [0, 0.5)");
     }
   }
-  if (o.count("density")) p.fallback.density = parseNumber(o["density"], "--density");
-  if (o.count("fixed-nodes")) p.fixed = parseNodes(o["fixed-nodes"]);
+  if (o.count("density")) p.defaultMaterial.density = parseNumber(o["density"], "--density");
+  if (o.count("fixed-nodes")) p.fixedNodes = parseNodes(o["fixed-nodes"]);
   if (o.count("gravity")) p.settings.gravity = parseVector(o["gravity"], "--gravity");
   if (o.count("dt")) p.settings.timeStep = parseNumber(o["dt"], "--dt");
   if (o.count("solver")) {
@@ -284,10 +231,15 @@ int cmdSimulate(const std::vector<std::string>& args) {
                         : s == "dense" ? simcore::LinearSolverKind::Dense
                                        : throw UsageError("--solver must be cholmod, cg or dense");
   }
-  const long steps = o.count("steps") ? parseCount(o["steps"], "--steps", 1, 1'000'000) : sceneSteps;
-  if (sceneStatic) o["static"] = "";
-  const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.fallback);
-  simcore::Integrator integrator(model, p.fixed, p.settings);
+  if (o.count("method")) p.settings.method = simcore::newtonMethodFromString(o["method"]);
+  if (o.count("attachments")) {
+    if (o["attachments"] != "projection" && o["attachments"] != "lagrange") throw UsageError("--attachments must be projection or lagrange");
+    p.settings.attachments = o["attachments"] == "lagrange" ? simcore::AttachmentMode::Lagrange : simcore::AttachmentMode::Projection;
+  }
+  const long steps = o.count("steps") ? parseCount(o["steps"], "--steps", 1, 1'000'000) : p.steps;
+  if (p.staticSolve) o["static"] = "";
+  const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial);
+  simcore::Integrator integrator(model, p.fixedNodes, p.settings);
   auto state = integrator.initialState();
   std::vector<simcore::StepReport> reports;
   if (o.count("static")) {
@@ -308,8 +260,8 @@ int cmdSimulate(const std::vector<std::string>& args) {
       const auto& r = reports[i];
       std::snprintf(buf, sizeof buf,
                     "    {\"step\": %zu, \"wall_ms\": %.3f, \"newton_iterations\": %d, \"residual\": %.6g, \"energy\": %.9g, "
-                    "\"time_step\": %.6g, \"retries\": %d, \"ok\": %s, \"status\": \"%s\"}%s\n",
-                    i, r.wallMs, r.newtonIterations, r.residual, r.energy, r.timeStepUsed, r.retries, r.ok ? "true" : "false",
+                    "\"time_step\": %.6g, \"retries\": %d, \"factorisations\": %d, \"ok\": %s, \"status\": \"%s\"}%s\n",
+                    i, r.wallMs, r.newtonIterations, r.residual, r.energy, r.timeStepUsed, r.retries, r.factorisations, r.ok ? "true" : "false",
                     r.status.c_str(), i + 1 < reports.size() ? "," : "");
       json += buf;
     }
@@ -350,7 +302,8 @@ std::string usage() {
          "  rehearse simulate --scene S.json | --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
          "                [--material linear|corotational|stvk|neohookean] [--young PA] [--poisson NU] [--density KG_M3]\n"
          "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
-         "                [--solver cholmod|cg|dense] --out OUT.vtu|.vtk [--report R.json]\n"
+         "                [--solver cholmod|cg|dense] [--method exact|lagged-pcg|chord|linearised]\n"
+         "                [--attachments projection|lagrange] --out OUT.vtu|.vtk [--report R.json]\n"
          "  rehearse simulate --list-components   the scene components and their parameters\n"
          "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n"
          "  rehearse --help | --version\n\n"

@@ -89,7 +89,7 @@ class TestCli : public QObject {
       QVERIFY(run({"info", o2}).out.contains("points: 181"));
     }
     expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "999999", "--out", out}), 1, "does not exist");
-    expectOneLineError(run({"simulate", "--preset", "spleen", "--out", out}), 2, "unknown preset");
+    expectOneLineError(run({"simulate", "--preset", "spleen", "--out", out}), 2, "preset 'spleen'");
     expectOneLineError(run({"simulate", "--preset", "liver", "--gravity", "down", "--out", out}), 2, "three numbers");
     expectOneLineError(run({"simulate", "--preset", "liver", "--material", "rubber", "--out", out}), 1, "Unknown material");
   }

@@ -121,6 +121,12 @@ class TestFem : public QObject {
       QVERIFY(err < 1e-5);
       const Eigen::SparseMatrix<double> Kt = K.transpose();
       QVERIFY((K - Kt).norm() / K.norm() < 1e-12);  // symmetric
+      // The matrix-free product (Rayleigh damping) equals the assembled one.
+      TangentState ts;
+      prepareTangentState(m, x, ts);
+      Eigen::VectorXd Kv2;
+      applyStiffness(m, ts, v, Kv2);
+      QVERIFY2((Kv2 - Kv).norm() / Kv.norm() < 1e-12, qPrintable(QString::number((Kv2 - Kv).norm() / Kv.norm())));
     }
   }
 

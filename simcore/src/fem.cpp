@@ -5,9 +5,11 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <cmath>
+#include <functional>
 
 namespace rehearse::simcore {
 namespace {
@@ -85,24 +87,79 @@ Eigen::VectorXd FemModel::restVector() const {
 }
 
 double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x) {
-  double e = 0;
-  for (std::size_t t = 0; t < m.tets.size(); ++t)
-    e += m.restVolume[t] * energyDensity(m.model[t], m.lame[t], deformationGradient(m, t, x));
-  return e;
+  // Deterministic parallel sum (the same value on every run, whatever the thread count).
+  return tbb::parallel_deterministic_reduce(
+      tbb::blocked_range<std::size_t>(0, m.tets.size(), 256), 0.0,
+      [&](const tbb::blocked_range<std::size_t>& r, double e) {
+        for (std::size_t t = r.begin(); t < r.end(); ++t)
+          e += m.restVolume[t] * energyDensity(m.model[t], m.lame[t], deformationGradient(m, t, x));
+        return e;
+      },
+      std::plus<double>());
 }
 
-Eigen::VectorXd elasticForces(const FemModel& m, const Eigen::VectorXd& x) {
-  Eigen::VectorXd f = Eigen::VectorXd::Zero(x.size());
+void elasticForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorXd& f) {
+  if (f.size() != x.size()) f.resize(x.size());
+  f.setZero();
+  // Element forces in parallel into a buffer, then a serial scatter (fixed order). The calling thread's
+  // buffer is reused between calls; the pointer (not the thread_local) goes to the workers.
+  thread_local std::vector<double> buffer;
+  buffer.resize(m.tets.size() * 9);
+  double* const buf = buffer.data();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 128), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t e = r.begin(); e < r.end(); ++e) {
+      const Eigen::Matrix3d P = firstPiola(m.model[e], m.lame[e], deformationGradient(m, e, x));
+      // dE/dx_{1..3} = V P Bm^T (columns); node 0 balances them.
+      Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) = -m.restVolume[e] * P * m.Bm[e].transpose();
+    }
+  });
   for (std::size_t e = 0; e < m.tets.size(); ++e) {
-    const Eigen::Matrix3d P = firstPiola(m.model[e], m.lame[e], deformationGradient(m, e, x));
-    // dE/dx_{1..3} = V P Bm^T (columns); node 0 balances them.
-    const Eigen::Matrix3d H = -m.restVolume[e] * P * m.Bm[e].transpose();
+    const Eigen::Map<const Eigen::Matrix3d> H(buf + 9 * e);
     const auto& t = m.tets[e];
     for (int k = 0; k < 3; ++k) {
       f.segment<3>(3 * t[k + 1]) += H.col(k);
       f.segment<3>(3 * t[0]) -= H.col(k);
     }
   }
+}
+
+void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state) {
+  state.F.resize(m.tets.size());
+  state.cache.resize(m.tets.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 128), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t e = r.begin(); e < r.end(); ++e) {
+      state.F[e] = deformationGradient(m, e, x);
+      state.cache[e] = prepareTangent(m.model[e], state.F[e]);
+    }
+  });
+}
+
+void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::VectorXd& v, Eigen::VectorXd& out) {
+  if (out.size() != v.size()) out.resize(v.size());
+  out.setZero();
+  thread_local std::vector<double> buffer;
+  buffer.resize(m.tets.size() * 9);
+  double* const buf = buffer.data();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 128), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t e = r.begin(); e < r.end(); ++e) {
+      const Eigen::Matrix3d dF = deformationGradient(m, e, v);  // the gradient of the direction field
+      const Eigen::Matrix3d dP = firstPiolaDifferential(m.model[e], m.lame[e], state.F[e], state.cache[e], dF);
+      Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) = m.restVolume[e] * dP * m.Bm[e].transpose();  // d(dE/dx_{1..3})
+    }
+  });
+  for (std::size_t e = 0; e < m.tets.size(); ++e) {
+    const Eigen::Map<const Eigen::Matrix3d> H(buf + 9 * e);
+    const auto& t = m.tets[e];
+    for (int k = 0; k < 3; ++k) {
+      out.segment<3>(3 * t[k + 1]) += H.col(k);
+      out.segment<3>(3 * t[0]) -= H.col(k);
+    }
+  }
+}
+
+Eigen::VectorXd elasticForces(const FemModel& m, const Eigen::VectorXd& x) {
+  Eigen::VectorXd f;
+  elasticForces(m, x, f);
   return f;
 }
 

@@ -1,6 +1,7 @@
 #include <rehearse/simcore/integrator.hpp>
 
-#include <Eigen/CholmodSupport>
+#include "cholmod_solver.hpp"
+
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
 
@@ -11,12 +12,42 @@
 
 namespace rehearse::simcore {
 
-struct Integrator::Solvers {
-  Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>> cholmod;
-  Eigen::SparseMatrix<double> K0, K, J;  // reused between steps (same pattern: no allocation)
-  bool analysed = false;
-  Eigen::Index patternNonZeros = -1;
-  int analyses = 0;
+NewtonMethod newtonMethodFromString(const std::string& name) {
+  if (name == "exact") return NewtonMethod::Exact;
+  if (name == "lagged-pcg") return NewtonMethod::LaggedPcg;
+  if (name == "chord") return NewtonMethod::Chord;
+  if (name == "linearised") return NewtonMethod::Linearised;
+  throw MeshError("Unknown Newton method '" + name + "' (use exact, lagged-pcg, chord or linearised).");
+}
+
+std::string toString(NewtonMethod m) {
+  switch (m) {
+    case NewtonMethod::Exact: return "exact";
+    case NewtonMethod::LaggedPcg: return "lagged-pcg";
+    case NewtonMethod::Chord: return "chord";
+    default: return "linearised";
+  }
+}
+
+// Everything a step needs, sized once: a step that converges does not allocate.
+struct Integrator::Work {
+  CholmodSolver chol;
+  TangentState tangent0;           // the tangent at the step start: Rayleigh damping beta K(x0) v, matrix-free
+  Eigen::SparseMatrix<double> Kd;  // K(x0) (exact method) or the lagged stiffness (lagged methods)
+  Eigen::SparseMatrix<double> K;   // tangent stiffness at the current iterate
+  Eigen::SparseMatrix<double> J;   // the factorised Newton matrix (exact, or lagged)
+  Eigen::VectorXd x0, v0, Mv0, v, vn, xt, r, rn, dv, f, tmp, savedX, savedV, stepX, stepV;
+  Eigen::VectorXd pr, pz, pp, pq, pk;  // PCG
+  // Constraints: H (m x 3n) as its transpose, dense (the multi right-hand-side solve wants it so),
+  // A = (factor)^-1 H^T, W = H A, multipliers.
+  Eigen::MatrixXd Ht, A;
+  Eigen::MatrixXd W;
+  Eigen::VectorXd e, lambda, lambdaOut;
+  bool schurValid = false;        // A and W belong to the current factor and constraints
+  double laggedStep = -1;         // h the lagged factor was built for (-1: none)
+  bool refresh = true;            // rebuild the lagged factor at the next opportunity
+  Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
+  bool forcesValid = false;
 };
 
 namespace {
@@ -34,16 +65,40 @@ void singleThreadedBlas() {
   }();
   (void)done;
 }
+
+void validate(const ScalarConstraint& c, std::size_t nodes) {
+  bool any = false;
+  for (int k = 0; k < 4; ++k) {
+    if (c.nodes[k] < 0) continue;
+    if (c.nodes[k] >= static_cast<int>(nodes))
+      throw MeshError("A constraint refers to node " + std::to_string(c.nodes[k]) + ", which does not exist (the mesh has " +
+                      std::to_string(nodes) + " nodes).");
+    any = true;
+  }
+  if (!any || !c.direction.allFinite() || c.direction.norm() == 0 || !std::isfinite(c.value))
+    throw MeshError("A constraint has no node, a zero or non-finite direction, or a non-finite value.");
+}
 }  // namespace
 
 Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, SimulationSettings settings)
-    : model_(model), fixed_(model.nodeCount(), 0), settings_(settings), solvers_(std::make_unique<Solvers>()) {
+    : model_(model), fixed_(model.nodeCount(), 0), settings_(settings), w_(std::make_unique<Work>()) {
   singleThreadedBlas();
   for (int n : fixedNodes) {
     if (n < 0 || n >= static_cast<int>(model.nodeCount()))
       throw MeshError("Fixed node " + std::to_string(n) + " does not exist (the mesh has " + std::to_string(model.nodeCount()) +
                       " nodes, numbered from 0).");
-    fixed_[n] = 1;
+    if (settings.attachments == AttachmentMode::Projection) {
+      fixed_[n] = 1;
+    } else {
+      for (int a = 0; a < 3; ++a) {
+        ScalarConstraint c;
+        c.nodes = {n, -1, -1, -1};
+        c.weights = {1, 0, 0, 0};
+        c.direction = Eigen::Vector3d::Unit(a);
+        c.value = model.rest[n][a];
+        attachmentConstraints_.push_back(c);
+      }
+    }
   }
   const auto n = static_cast<Eigen::Index>(model.nodeCount());
   mass3_.resize(3 * n);
@@ -52,15 +107,35 @@ Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, Simul
     mass3_.segment<3>(3 * i).setConstant(model.lumpedMass[i]);
     gravityForce_.segment<3>(3 * i) = model.lumpedMass[i] * settings.gravity;
   }
+  rest_ = model.restVector();
+  gravityWorkAtRest_ = gravityForce_.dot(rest_);
+  Work& w = *w_;
+  for (Eigen::VectorXd* vec : {&w.x0, &w.v0, &w.Mv0, &w.v, &w.vn, &w.xt, &w.r, &w.rn, &w.dv, &w.f, &w.tmp, &w.savedX, &w.savedV,
+                               &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk})
+    vec->setZero(3 * n);
+  w.Kd = w.K = w.J = model.pattern;
 }
 
 Integrator::~Integrator() = default;
 
-int Integrator::symbolicAnalyses() const { return solvers_->analyses; }
+int Integrator::symbolicAnalyses() const { return w_->chol.analyses(); }
+int Integrator::numericFactorisations() const { return w_->chol.factorisations(); }
+const Eigen::VectorXd& Integrator::multipliers() const { return w_->lambdaOut; }
+
+void Integrator::setConstraints(std::vector<ScalarConstraint> constraints) {
+  for (const auto& c : constraints) validate(c, model_.nodeCount());
+  constraints_ = std::move(constraints);
+  w_->schurValid = false;
+}
+
+void Integrator::invalidateFactorisation() {
+  w_->refresh = true;
+  w_->schurValid = false;
+}
 
 SimulationState Integrator::initialState() const {
   SimulationState s;
-  s.x = model_.restVector();
+  s.x = rest_;
   s.v = Eigen::VectorXd::Zero(s.x.size());
   return s;
 }
@@ -78,20 +153,11 @@ void Integrator::projectMatrix(Eigen::SparseMatrix<double>& A) const {
 }
 
 bool Integrator::solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd& y) {
+  w_->schurValid = false;
+  w_->refresh = true;
   switch (settings_.solver) {
-    case LinearSolverKind::Cholmod: {
-      auto& s = *solvers_;
-      if (!s.analysed || s.patternNonZeros != A.nonZeros()) {
-        s.cholmod.analyzePattern(A);
-        s.analysed = true;
-        s.patternNonZeros = A.nonZeros();
-        ++s.analyses;
-      }
-      s.cholmod.factorize(A);
-      if (s.cholmod.info() != Eigen::Success) return false;
-      y = s.cholmod.solve(b);
-      return s.cholmod.info() == Eigen::Success && y.allFinite();
-    }
+    case LinearSolverKind::Cholmod:
+      return w_->chol.factorise(A) && w_->chol.solve(b, y);
     case LinearSolverKind::ConjugateGradient: {
       Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper, Eigen::IncompleteCholesky<double>> cg;
       cg.setMaxIterations(settings_.cgMaxIterations);
@@ -111,185 +177,421 @@ bool Integrator::solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::
   }
 }
 
-double Integrator::totalEnergy(const SimulationState& s) const {
-  const Eigen::VectorXd u = s.x - model_.restVector();
-  return 0.5 * s.v.dot(mass3_.cwiseProduct(s.v)) + elasticEnergy(model_, s.x) - gravityForce_.dot(u);
+// Factorises A (CHOLMOD); when it is not positive definite (an indefinite tangent of a nonlinear
+// material under large deformation), shifts the diagonal until it factorises.
+bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep) {
+  Work& w = *w_;
+  w.schurValid = false;
+  ++rep.factorisations;
+  if (w.chol.factorise(A)) return true;
+  const double base = 1e-6 * A.diagonal().cwiseAbs().maxCoeff();
+  Eigen::SparseMatrix<double> shifted = A;  // rare path: allocation is fine here
+  for (double shift = base; shift < 1e12 * std::max(base, 1e-300); shift *= 10) {
+    for (Eigen::Index i = 0; i < shifted.rows(); ++i) shifted.valuePtr()[model_.diagonalSlot[i]] = A.valuePtr()[model_.diagonalSlot[i]] + shift;
+    ++rep.factorisations;
+    if (w.chol.factorise(shifted)) return true;
+  }
+  return false;
 }
 
-StepReport Integrator::tryStep(SimulationState& state, double h) {
-  StepReport rep;
-  rep.timeStepUsed = h;
-  const Eigen::VectorXd x0 = state.x, v0 = state.v;
-  Eigen::VectorXd v = v0;
-  project(v);
+double Integrator::constraintViolation(const Eigen::VectorXd& x) const {
+  double worst = 0;
+  for (const auto* list : {&attachmentConstraints_, &constraints_})
+    for (const auto& c : *list) {
+      double hx = 0;
+      for (int k = 0; k < 4; ++k)
+        if (c.nodes[k] >= 0) hx += c.weights[k] * c.direction.dot(x.segment<3>(3 * c.nodes[k]));
+      const double g = hx - c.value;
+      worst = std::max(worst, c.unilateral ? std::max(0.0, -g) : std::abs(g));
+    }
+  return worst;
+}
+
+// Solves (factor) dx = rhs + H^T mu with H (x + s dx) = value for the constraints, where s is the
+// position scale of dx (h for velocities, 1 for positions): the Schur complement W = H A^-1 H^T and
+// projected Gauss-Seidel on W mu = e - H dx_free. Without constraints: dx = A^-1 rhs. Uses the current
+// factor (the caller made it); mu (total, not incremental) ends in w.lambda.
+bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx,
+                                  StepReport& rep, bool freeGiven) {
+  Work& w = *w_;
+  if (!freeGiven && !w.chol.solve(rhs, dx)) return false;
+  project(dx);
+  const Eigen::Index m = static_cast<Eigen::Index>(attachmentConstraints_.size() + constraints_.size());
+  if (m == 0) return true;
+  auto constraint = [&](Eigen::Index i) -> const ScalarConstraint& {
+    const auto na = static_cast<Eigen::Index>(attachmentConstraints_.size());
+    return i < na ? attachmentConstraints_[i] : constraints_[i - na];
+  };
+  auto applyH = [&](const ScalarConstraint& c, const auto& vec) {
+    double out = 0;
+    for (int k = 0; k < 4; ++k)
+      if (c.nodes[k] >= 0) out += c.weights[k] * c.direction.dot(vec.template segment<3>(3 * c.nodes[k]));
+    return out;
+  };
+  const Eigen::Index n3 = rhs.size();
+  if (!w.schurValid || w.W.rows() != m) {
+    if (w.Ht.rows() != n3 || w.Ht.cols() != m) w.Ht.resize(n3, m);
+    w.Ht.setZero();
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const auto& c = constraint(i);
+      for (int k = 0; k < 4; ++k)
+        if (c.nodes[k] >= 0 && !fixed_[c.nodes[k]]) w.Ht.col(i).segment<3>(3 * c.nodes[k]) += c.weights[k] * c.direction;
+    }
+    if (!w.chol.solve(w.Ht, w.A)) return false;
+    if (w.W.rows() != m) w.W.resize(m, m);
+    for (Eigen::Index i = 0; i < m; ++i)
+      for (Eigen::Index j = 0; j < m; ++j) w.W(i, j) = applyH(constraint(i), w.A.col(j));
+    w.W = 0.5 * (w.W + w.W.transpose()).eval();
+    w.schurValid = true;
+  }
+  if (w.e.size() != m) w.e.resize(m);
+  if (w.lambda.size() != m) w.lambda.setZero(m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const auto& c = constraint(i);
+    w.e[i] = (c.value - applyH(c, x)) / s - applyH(c, dx);
+  }
+  // Projected Gauss-Seidel, warm-started from the previous multipliers. An ill-conditioned W (many
+  // close attachments on a body with nothing else holding it) can stall it: bilateral constraints then
+  // take a dense LDL^T of W (m x m, small), unilateral ones keep the best Gauss-Seidel iterate.
+  int sweep = 0;
+  bool converged = false, unilateral = false;
+  for (Eigen::Index i = 0; i < m; ++i) unilateral |= constraint(i).unilateral;
+  for (; sweep < settings_.gaussSeidelIterations; ++sweep) {
+    double change = 0, size = 0;
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const double d = w.W(i, i);
+      if (!(d > 0)) continue;
+      double li = w.lambda[i] + (w.e[i] - w.W.row(i).dot(w.lambda)) / d;
+      if (constraint(i).unilateral) li = std::max(0.0, li);
+      change = std::max(change, std::abs(li - w.lambda[i]));
+      size = std::max(size, std::abs(li));
+      w.lambda[i] = li;
+    }
+    if (!std::isfinite(change)) return false;
+    if (change <= settings_.gaussSeidelTolerance * std::max(size, 1e-300)) {
+      ++sweep;
+      converged = true;
+      break;
+    }
+  }
+  rep.innerIterations += sweep;
+  // Converged by its step size is not converged by its residual when W is ill-conditioned.
+  if (converged && !unilateral) converged = (w.W * w.lambda - w.e).norm() <= 1e-12 * std::max(w.e.norm(), 1e-300) * std::max(1.0, w.W.diagonal().maxCoeff() / std::max(w.W.diagonal().minCoeff(), 1e-300));
+  if (!converged && !unilateral) {
+    w.lambda = w.W.ldlt().solve(w.e);
+    if (!w.lambda.allFinite()) return false;
+  }
+  dx.noalias() += w.A * w.lambda;
+  return dx.allFinite();
+}
+
+double Integrator::totalEnergy(const SimulationState& s) const {
+  return 0.5 * s.v.dot(mass3_.cwiseProduct(s.v)) + elasticEnergy(model_, s.x) - (gravityForce_.dot(s.x) - gravityWorkAtRest_);
+}
+
+// One implicit Euler step of h from (x, v); on success x, v hold the new state.
+bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepReport& rep) {
+  Work& w = *w_;
   const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
-  const Eigen::VectorXd Mv0 = mass3_.cwiseProduct(v0);
-  // Rayleigh damping with the stiffness at the start of the step, so the Newton tangent below is exact.
-  Eigen::SparseMatrix<double>& K0 = solvers_->K0;
-  assembleStiffness(model_, x0, K0);
-  auto residual = [&](const Eigen::VectorXd& vel) {
-    const Eigen::VectorXd x = x0 + h * vel;
-    Eigen::VectorXd r = (1 + h * alpha) * mass3_.cwiseProduct(vel) - Mv0 - h * (elasticForces(model_, x) + gravityForce_) +
-                        h * beta * (K0 * vel);
-    project(r);
-    return r;
+  const bool lagged = settings_.method != NewtonMethod::Exact && settings_.solver == LinearSolverKind::Cholmod;
+  const bool hasConstraints = !attachmentConstraints_.empty() || !constraints_.empty();
+  w.x0 = x;
+  w.v0 = v;
+  w.v = v;
+  project(w.v);
+  w.Mv0 = mass3_.cwiseProduct(w.v0);
+
+  // The Newton matrix (1 + h alpha) M + h beta Kd + h^2 K into J: exact with Kd = K(x0); the lagged
+  // methods use one lagged K for both (leaving K(x0) out of the damping Jacobian costs the exact method
+  // many iterations: measured 6-9 instead of 2 per step on the liver preset).
+  auto buildNewtonMatrix = [&](const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J) {
+    double* out = J.valuePtr();
+    const double* kd = w.Kd.valuePtr();
+    const double* k = K.valuePtr();
+    for (Eigen::Index i = 0; i < J.nonZeros(); ++i) out[i] = h * beta * kd[i] + h * h * k[i];
+    for (Eigen::Index i = 0; i < J.rows(); ++i) out[model_.diagonalSlot[i]] += (1 + h * alpha) * mass3_[i];
+    projectMatrix(J);
+  };
+  auto refreshLagged = [&](const Eigen::VectorXd& at) {
+    assembleStiffness(model_, at, w.Kd);
+    buildNewtonMatrix(w.Kd, w.J);
+    w.laggedStep = h;
+    w.refresh = false;
+    return factoriseShifted(w.J, rep);
+  };
+  if (lagged) {
+    if (w.refresh || w.laggedStep != h || !w.chol.valid())
+      if (!refreshLagged(w.x0)) {
+        rep.status = "failed: the linear system could not be solved";
+        return false;
+      }
+  } else {
+    assembleStiffness(model_, w.x0, w.Kd);
+  }
+  // Rayleigh damping with the stiffness at the start of the step (every method: the same residual);
+  // the lagged methods have no K(x0) matrix and take the product matrix-free.
+  if (beta != 0 && lagged) prepareTangentState(model_, w.x0, w.tangent0);
+  // Residual of the velocity update, momentum units: (1 + h a) M v - M v0 - h (f(x0 + h v) + g) + h b K(x0) v.
+  auto residual = [&](const Eigen::VectorXd& vel, Eigen::VectorXd& out) {
+    w.xt = w.x0 + h * vel;
+    elasticForces(model_, w.xt, w.f);
+    if (beta == 0) w.tmp.setZero();
+    else if (lagged) applyStiffness(model_, w.tangent0, vel, w.tmp);
+    else w.tmp.noalias() = w.Kd * vel;
+    out = (1 + h * alpha) * mass3_.cwiseProduct(vel) - w.Mv0 - h * (w.f + gravityForce_) + (h * beta) * w.tmp;
+    project(out);
+  };
+  // Norm of the residual net of the constraint forces (the total multipliers of the last solve).
+  auto netNorm = [&](const Eigen::VectorXd& res) {
+    if (!hasConstraints || w.lambda.size() != w.Ht.cols() || w.Ht.rows() != res.size()) return res.norm();
+    w.pq = res;
+    w.pq.noalias() -= w.Ht * w.lambda;
+    return w.pq.norm();
   };
   // Residual scale: momentum, load and internal forces at the start, with a floor (an acceleration of
   // 0.01 m/s^2 of the whole body) so a body at rest without load still has a meaningful tolerance.
-  Eigen::VectorXd f0 = elasticForces(model_, x0);
-  project(f0);
-  const double scale = std::max({Mv0.norm(), h * gravityForce_.norm(), h * f0.norm(), h * 1e-2 * model_.lumpedMass.sum()});
-  Eigen::VectorXd r = residual(v);
-  double rn = r.norm();
-  for (int it = 0; it < settings_.maxNewtonIterations; ++it) {
+  if (w.forcesValid && w.forcesAt.size() == w.x0.size() && w.forcesAt == w.x0) {
+    w.f = w.forces;  // the last step ended here
+  } else {
+    elasticForces(model_, w.x0, w.f);
+    project(w.f);
+  }
+  const double scale = std::max({w.Mv0.norm(), h * gravityForce_.norm(), h * w.f.norm(), h * 1e-2 * model_.lumpedMass.sum()});
+  if (hasConstraints) w.lambda.setZero(static_cast<Eigen::Index>(attachmentConstraints_.size() + constraints_.size()));
+  residual(w.v, w.r);
+  double rn = w.r.norm();
+  const int maxIterations = settings_.method == NewtonMethod::Linearised && lagged ? 1
+                            : lagged                                           ? std::max(settings_.maxNewtonIterations, 30)
+                                                                               : settings_.maxNewtonIterations;
+  bool ok = false;
+  for (int it = 0; it < maxIterations; ++it) {
     if (!std::isfinite(rn)) break;
-    if (rn <= settings_.tolerance * scale) {
-      rep.ok = true;
+    if (rn <= settings_.tolerance * scale && !(hasConstraints && it == 0)) {
+      ok = true;
       break;
     }
-    // J = (1 + h alpha) M + h beta K0 + h^2 K(x)
-    Eigen::SparseMatrix<double>& K = solvers_->K;
-    assembleStiffness(model_, x0 + h * v, K);
-    Eigen::SparseMatrix<double>& J = solvers_->J;
-    if (J.nonZeros() != K.nonZeros()) J = model_.pattern;
-    for (Eigen::Index i = 0; i < J.nonZeros(); ++i) J.valuePtr()[i] = h * beta * K0.valuePtr()[i] + h * h * K.valuePtr()[i];
-    for (Eigen::Index i = 0; i < J.rows(); ++i) J.valuePtr()[model_.diagonalSlot[i]] += (1 + h * alpha) * mass3_[i];
-    projectMatrix(J);
-    Eigen::VectorXd dv;
-    bool solved = solveLinear(J, -r, dv);
-    // An indefinite tangent (large deformation of a nonlinear material): shift the diagonal until it factorises.
-    double shift = 0;
-    while (!solved && shift < 1e12) {
-      shift = shift == 0 ? 1e-6 * J.diagonal().cwiseAbs().maxCoeff() : shift * 10;
-      Eigen::SparseMatrix<double> Js = J;
-      for (Eigen::Index i = 0; i < Js.rows(); ++i) Js.coeffRef(i, i) += shift;
-      solved = solveLinear(Js, -r, dv);
+    // J dv = -r + H^T mu, with mu the total multipliers (momentum units).
+    w.tmp = -w.r;
+    w.xt = w.x0 + h * w.v;
+    bool solved = false;
+    if (!lagged) {
+      w.refresh = true;  // the factor holds this iteration's exact matrix, not a lagged one
+      assembleStiffness(model_, w.xt, w.K);
+      buildNewtonMatrix(w.K, w.J);
+      if (settings_.solver == LinearSolverKind::Cholmod) {
+        solved = factoriseShifted(w.J, rep) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
+      } else {
+        solved = solveLinear(w.J, w.tmp, w.dv);
+        project(w.dv);
+      }
+    } else if (settings_.method == NewtonMethod::LaggedPcg) {
+      // Exact tangent (1 + h alpha) M + h beta K(x0) + h^2 K(x), applied as products (K(x0) matrix-free,
+      // K(x) assembled), CG preconditioned by the lagged factor.
+      assembleStiffness(model_, w.xt, w.K);
+      auto applyJ = [&](const Eigen::VectorXd& in, Eigen::VectorXd& out) {
+        out.noalias() = (h * h) * (w.K * in);
+        if (beta != 0) {
+          applyStiffness(model_, w.tangent0, in, w.pk);
+          out += (h * beta) * w.pk;
+        }
+        out += (1 + h * alpha) * mass3_.cwiseProduct(in);
+        project(out);
+      };
+      w.dv.setZero();
+      w.pr = w.tmp;
+      const double bnorm = w.pr.norm();
+      solved = w.chol.solve(w.pr, w.pz);
+      w.pp = w.pz;
+      double rz = w.pr.dot(w.pz);
+      int k = 0;
+      for (; solved && k < settings_.cgMaxIterations && w.pr.norm() > 1e-8 * bnorm; ++k) {
+        applyJ(w.pp, w.pq);
+        const double a = rz / w.pp.dot(w.pq);
+        w.dv += a * w.pp;
+        w.pr -= a * w.pq;
+        solved = w.chol.solve(w.pr, w.pz);
+        const double rzn = w.pr.dot(w.pz);
+        w.pp = w.pz + (rzn / rz) * w.pp;
+        rz = rzn;
+      }
+      rep.innerIterations += k;
+      if (k > 20) w.refresh = true;  // the lagged factor has drifted: rebuild it at the next step
+      project(w.dv);
+      // The constraint correction uses the lagged factor (the Newton iterations absorb the difference).
+      if (solved && hasConstraints) solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep, true);
+    } else {
+      solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep);
     }
-    if (!solved) {
+    if (!solved || !w.dv.allFinite()) {
       rep.status = "failed: the linear system could not be solved";
       break;
     }
-    project(dv);
     double t = 1.0;
-    Eigen::VectorXd vn = v + dv, rnew = residual(vn);
-    if (settings_.lineSearch)
-      while ((!rnew.allFinite() || rnew.norm() > rn) && t > 1.0 / 64) {
+    w.vn = w.v + w.dv;
+    residual(w.vn, w.rn);
+    double rnew = netNorm(w.rn);
+    const bool searchable = settings_.lineSearch && !(settings_.method == NewtonMethod::Linearised && lagged);
+    if (searchable)
+      while ((!std::isfinite(rnew) || rnew > rn) && t > 1.0 / 64) {
         t *= 0.5;
-        vn = v + t * dv;
-        rnew = residual(vn);
+        w.vn = w.v + t * w.dv;
+        residual(w.vn, w.rn);
+        rnew = netNorm(w.rn);
       }
-    v = vn;
+    const double previous = rn;
+    w.v = w.vn;
     ++rep.newtonIterations;
-    r = rnew;
-    rn = r.norm();
+    std::swap(w.r, w.rn);
+    rn = rnew;
+    // A lagged factor that no longer contracts the residual well is rebuilt here, at the current iterate.
+    if (lagged && settings_.method == NewtonMethod::Chord && rn > 0.5 * previous && rn > settings_.tolerance * scale) {
+      w.xt = w.x0 + h * w.v;
+      if (!refreshLagged(w.xt)) break;
+    }
   }
-  if (!rep.ok && std::isfinite(rn) && rn <= settings_.tolerance * scale) rep.ok = true;
+  if (!ok && std::isfinite(rn) && rn <= settings_.tolerance * scale) ok = true;
+  if (settings_.method == NewtonMethod::Linearised && lagged && std::isfinite(rn)) {
+    ok = true;  // one solve by design; the residual is reported, and a large one refreshes the factor
+    if (rn > 1e-2 * scale) w.refresh = true;
+  }
   rep.residual = rn / scale;
-  if (!std::isfinite(rn) || !v.allFinite()) {
-    rep.ok = false;
+  if (!std::isfinite(rn) || !w.v.allFinite()) {
+    ok = false;
     rep.status = "failed: the state became NaN or infinite";
   }
-  if (rep.ok) {
-    state.v = v;
-    state.x = x0 + h * v;
-    state.time += h;
-    rep.status = "converged";
-  } else if (rep.status.empty()) {
-    rep.status = "not converged in " + std::to_string(settings_.maxNewtonIterations) + " Newton iterations";
+  if (ok) {
+    v = w.v;
+    x = w.x0 + h * w.v;
+    // The last residual evaluated the forces at x: the next step's scale reuses them.
+    w.forcesValid = w.xt.size() == x.size() && w.xt == x;
+    if (w.forcesValid) {
+      w.forcesAt = x;
+      w.forces = w.f;
+      project(w.forces);
+    }
+  } else {
+    w.refresh = true;
+    if (rep.status.empty())
+      rep.status = "not converged in " + std::to_string(maxIterations) + " Newton iterations";
   }
-  return rep;
+  if (hasConstraints) w.lambdaOut = w.lambda / h;  // momentum per step -> force (N)
+  return ok;
 }
 
 StepReport Integrator::step(SimulationState& state) {
   const auto t0 = std::chrono::steady_clock::now();
-  const SimulationState saved = state;
+  Work& w = *w_;
+  w.savedX = state.x;
+  w.savedV = state.v;
   StepReport rep;
   double h = settings_.timeStep;
   int retries = 0;
   for (;; ++retries) {
     // Sub-steps of h until the full time step is covered.
-    SimulationState s = saved;
+    w.stepX = w.savedX;
+    w.stepV = w.savedV;
     double done = 0;
-    StepReport sub;
-    int iterations = 0;
     bool ok = true;
+    StepReport sub;
     while (done < settings_.timeStep * (1 - 1e-9)) {
       const double hh = std::min(h, settings_.timeStep - done);
-      sub = tryStep(s, hh);
-      iterations += sub.newtonIterations;
-      if (!sub.ok) {
+      if (!tryStep(w.stepX, w.stepV, hh, sub)) {
         ok = false;
         break;
       }
       done += hh;
     }
-    rep = sub;
-    rep.newtonIterations = iterations;
+    rep.newtonIterations = sub.newtonIterations;
+    rep.factorisations = sub.factorisations;
+    rep.innerIterations = sub.innerIterations;
+    rep.residual = sub.residual;
     rep.timeStepUsed = h;
     if (ok) {
-      state = s;
+      state.x = w.stepX;
+      state.v = w.stepV;
+      state.time += settings_.timeStep;
       rep.ok = true;
-      rep.status = retries ? "converged with time step " + std::to_string(h) + " s after " + std::to_string(retries) + " retries"
-                           : "converged";
+      if (retries) rep.status = "converged with time step " + std::to_string(h) + " s after " + std::to_string(retries) + " retries";
+      else rep.status = "converged";
       break;
     }
     if (retries >= settings_.maxRetries) {
-      state = saved;  // rolled back
+      state.x = w.savedX;  // rolled back
+      state.v = w.savedV;
       rep.ok = false;
-      rep.status += "; the step was rolled back";
+      rep.status = sub.status + "; the step was rolled back";
       break;
     }
     h *= 0.5;
   }
   rep.retries = retries;
-  rep.energy = totalEnergy(state);
+  if (settings_.reportEnergy) rep.energy = totalEnergy(state);
+  rep.constraintViolation = constraintViolation(state.x);
   rep.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return rep;
 }
 
 StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd& extra) {
   const auto t0 = std::chrono::steady_clock::now();
+  Work& w = *w_;
   StepReport rep;
-  const SimulationState saved = state;
   Eigen::VectorXd fext = gravityForce_;
   if (extra.size() == fext.size()) fext += extra;
-  auto potential = [&](const Eigen::VectorXd& x) { return elasticEnergy(model_, x) - fext.dot(x - model_.restVector()); };
+  const bool hasConstraints = !attachmentConstraints_.empty() || !constraints_.empty();
+  auto potential = [&](const Eigen::VectorXd& x) { return elasticEnergy(model_, x) - fext.dot(x - rest_); };
   const double scale = std::max(fext.norm(), 1e-2 * model_.lumpedMass.sum());
-  Eigen::VectorXd x = state.x;
-  for (int it = 0; it < std::max(settings_.maxNewtonIterations, 30); ++it) {
-    Eigen::VectorXd r = elasticForces(model_, x) + fext;  // out-of-balance force
+  Eigen::VectorXd x = state.x, r, dx;
+  if (hasConstraints) w.lambda.setZero(static_cast<Eigen::Index>(attachmentConstraints_.size() + constraints_.size()));
+  // A body held only by constraints has a singular stiffness: the Newton matrix gets M / (1 s)^2, which
+  // only slows the softest modes (the residual below is the true one, so the equilibrium is unchanged).
+  const double regularisation = hasConstraints ? 1.0 : 0.0;
+  const int maxIterations = std::max(settings_.maxNewtonIterations, 30) + (hasConstraints ? 30 : 0);
+  for (int it = 0; it < maxIterations; ++it) {
+    elasticForces(model_, x, r);
+    r += fext;  // out-of-balance force
     project(r);
+    if (hasConstraints && it > 0) r.noalias() += w.Ht * w.lambda;
     rep.residual = r.norm() / scale;
     if (!std::isfinite(rep.residual)) break;
-    if (rep.residual <= settings_.tolerance) {
+    const double violation = hasConstraints ? constraintViolation(x) : 0.0;
+    if (rep.residual <= settings_.tolerance && (!hasConstraints || (it > 0 && violation <= 1e-9))) {
       rep.ok = true;
       break;
     }
-    Eigen::SparseMatrix<double> K = elasticStiffness(model_, x);
-    projectMatrix(K);
-    Eigen::VectorXd dx;
-    double shift = 0;
-    bool solved = solveLinear(K, r, dx);
-    // An indefinite tangent (large deformation): shift towards gradient descent until it factorises.
-    while (!solved && shift < 1e12) {
-      shift = shift == 0 ? 1e-6 * K.diagonal().cwiseAbs().maxCoeff() : shift * 10;
-      Eigen::SparseMatrix<double> Ks = K;
-      for (Eigen::Index i = 0; i < Ks.rows(); ++i) Ks.coeffRef(i, i) += shift;
-      solved = solveLinear(Ks, r, dx);
+    assembleStiffness(model_, x, w.K);
+    if (regularisation > 0)
+      for (Eigen::Index i = 0; i < w.K.rows(); ++i) w.K.valuePtr()[model_.diagonalSlot[i]] += regularisation * mass3_[i];
+    projectMatrix(w.K);
+    if (hasConstraints) r.noalias() -= w.Ht * w.lambda;  // solve for the total multipliers
+    bool solved = false;
+    if (settings_.solver == LinearSolverKind::Cholmod) {
+      solved = factoriseShifted(w.K, rep) && solveConstrained(r, x, 1.0, dx, rep);
+    } else {
+      solved = solveLinear(w.K, r, dx);
+      if (!solved) {
+        Eigen::SparseMatrix<double> Ks = w.K;
+        for (double shift = 1e-6 * Ks.diagonal().cwiseAbs().maxCoeff(); !solved && shift < 1e12; shift *= 10) {
+          for (Eigen::Index i = 0; i < Ks.rows(); ++i) Ks.valuePtr()[model_.diagonalSlot[i]] = w.K.valuePtr()[model_.diagonalSlot[i]] + shift;
+          solved = solveLinear(Ks, r, dx);
+        }
+      }
+      project(dx);
     }
     if (!solved) {
       rep.status = "failed: the stiffness matrix could not be factorised";
       break;
     }
-    project(dx);
-    const double e0 = potential(x);
     double t = 1.0;
     Eigen::VectorXd xn = x + dx;
-    if (settings_.lineSearch)
+    // Armijo on the potential; with constraints the constraint forces do work too, so the merit is the
+    // residual norm instead.
+    if (settings_.lineSearch && !hasConstraints) {
+      const double e0 = potential(x);
       while ((!std::isfinite(potential(xn)) || potential(xn) > e0 + 1e-4 * t * (-r.dot(dx))) && t > 1e-4) {
         t *= 0.5;
         xn = x + t * dx;
       }
+    }
     x = xn;
     ++rep.newtonIterations;
   }
@@ -298,11 +600,13 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     state.v.setZero();
     rep.status = "converged";
   } else {
-    state = saved;
     rep.ok = false;
     if (rep.status.empty()) rep.status = "not converged (relative residual " + std::to_string(rep.residual) + "); the state was rolled back";
   }
+  if (hasConstraints) w.lambdaOut = w.lambda;
+  w.refresh = true;  // the factor now holds the static tangent
   rep.energy = totalEnergy(state);
+  rep.constraintViolation = constraintViolation(state.x);
   rep.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return rep;
 }

@@ -52,6 +52,27 @@ std::string toString(MaterialModel m) {
 }
 
 void polarDecomposition(const Eigen::Matrix3d& F, Eigen::Matrix3d& R, Eigen::Matrix3d& S) {
+  // Well-conditioned, non-inverted F (nearly every element, nearly always): Higham's scaled Newton
+  // iteration X <- (g X + X^-T / g) / 2, quadratically convergent to the rotation factor and ~10x
+  // cheaper than a 3x3 SVD here. Inverted or nearly flat elements take the SVD below.
+  const double det = F.determinant(), size = F.squaredNorm();
+  if (det > 1e-3 * (size / 3) * std::sqrt(size / 3)) {
+    Eigen::Matrix3d X = F;
+    bool converged = false;
+    for (int it = 0; it < 30 && !converged; ++it) {
+      const Eigen::Matrix3d Xit = X.inverse().transpose();
+      const double g = std::sqrt(std::sqrt(Xit.squaredNorm() / X.squaredNorm()));
+      const Eigen::Matrix3d next = 0.5 * (g * X + Xit / g);
+      converged = (next - X).squaredNorm() < 1e-28 * 3;
+      X = next;
+    }
+    if (converged && X.allFinite()) {
+      R = X;
+      S = R.transpose() * F;
+      S = 0.5 * (S + S.transpose());
+      return;
+    }
+  }
   Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
   Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
   // Rotation variant of the SVD: a reflection goes into the smallest singular value (inverted elements).
@@ -142,7 +163,8 @@ TangentCache prepareTangent(MaterialModel m, const Eigen::Matrix3d& F) {
   polarDecomposition(F, c.R, c.S);
   Eigen::Matrix3d G = c.S.trace() * I - c.S;
   // Near-singular G (degenerate or inverted elements): regularise so the tangent stays finite.
-  if (std::abs(G.determinant()) < 1e-12 * std::max(1.0, std::pow(c.S.norm(), 3))) G += 1e-6 * std::max(1.0, c.S.norm()) * I;
+  const double sn = c.S.norm();
+  if (std::abs(G.determinant()) < 1e-12 * std::max(1.0, sn * sn * sn)) G += 1e-6 * std::max(1.0, c.S.norm()) * I;
   c.Ginv = G.inverse();
   return c;
 }

@@ -25,7 +25,8 @@ const std::vector<ComponentDecl>& sceneComponents() {
         {"density", "number", "1000", "kg/m^3", "mass density"}},
        true},
       {"attachments", "Nodes held in place (the ligaments, q(j) = 1).",
-       {{"nodes", "integers", "", "", "0-based node indices in file order"}}},
+       {{"nodes", "integers", "", "", "0-based node indices in file order"},
+        {"mode", "string", "\"projection\"", "", "projection (fixed dofs removed) or lagrange (multipliers, Gauss-Seidel)"}}},
       {"gravity", "Gravity; without this component there is none.", {{"vector", "vector3", "[0, -9.81, 0]", "m/s^2", "acceleration"}}},
       {"damping", "Rayleigh damping D = alpha M + beta K; without this component there is none.",
        {{"rayleigh_mass", "number", "0.1", "1/s", "alpha"}, {"rayleigh_stiffness", "number", "0.1", "s", "beta"}}},
@@ -36,7 +37,9 @@ const std::vector<ComponentDecl>& sceneComponents() {
         {"tolerance", "number", "1e-6", "", "relative residual"}}},
       {"static", "Static equilibrium instead of time stepping (registration).",
        {{"newton_iterations", "integer", "30", "", "Newton iterations at most"}, {"tolerance", "number", "1e-6", "", "relative residual"}}},
-      {"solver", "Linear solver.", {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"}}},
+      {"solver", "Linear solver and how Newton reuses its factorisation.",
+       {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
+        {"method", "string", "\"exact\"", "", "exact, lagged-pcg, chord or linearised (the last three reuse a cholmod factorisation)"}}},
   };
   return decls;
 }
@@ -114,6 +117,9 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.componentBytes += sizeof(MaterialParams);
       } else if (type == "attachments") {
         s.fixedNodes = value(c, *decl, "nodes").get<std::vector<int>>();
+        const std::string mode = value(c, *decl, "mode").get<std::string>();
+        if (mode != "projection" && mode != "lagrange") fail("attachments 'mode' must be projection or lagrange.");
+        s.settings.attachments = mode == "lagrange" ? AttachmentMode::Lagrange : AttachmentMode::Projection;
         s.componentBytes += s.fixedNodes.size() * sizeof(int);
       } else if (type == "gravity") {
         const auto g = value(c, *decl, "vector").get<std::vector<double>>();
@@ -138,6 +144,7 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
                             : k == "cg"    ? LinearSolverKind::ConjugateGradient
                             : k == "dense" ? LinearSolverKind::Dense
                                            : (fail("solver 'kind' must be cholmod, cg or dense."), LinearSolverKind::Dense);
+        s.settings.method = newtonMethodFromString(value(c, *decl, "method").get<std::string>());
       }
     } catch (const json::exception&) {
       fail("a parameter of component '" + type + "' has the wrong kind of value; see 'rehearse simulate --list-components'.");

@@ -43,8 +43,19 @@ struct FemModel {
 double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x);
 /// f = -dE/dx, size 3n.
 Eigen::VectorXd elasticForces(const FemModel& m, const Eigen::VectorXd& x);
+/// Same, into f (sized once, then reused; elements in parallel, summed in a fixed order).
+void elasticForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorXd& f);
 /// K = d^2E/dx^2 (symmetric), 3n x 3n, with the model's sparsity pattern.
 Eigen::SparseMatrix<double> elasticStiffness(const FemModel& m, const Eigen::VectorXd& x);
+/// Per-element tangent data at a configuration, for matrix-free products K(x) v: one pass of polar
+/// decompositions, then each product costs one stress differential per element (not 12 as assembly).
+struct TangentState {
+  std::vector<Eigen::Matrix3d> F;
+  std::vector<TangentCache> cache;
+};
+void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state);
+/// out = K(x) v for the configuration `state` was prepared at (out sized once, then reused).
+void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::VectorXd& v, Eigen::VectorXd& out);
 /// Same, into an existing matrix that has the model's pattern (no allocation; elements in parallel).
 void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K);
 

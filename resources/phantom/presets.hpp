@@ -1,0 +1,22 @@
+#pragma once
+// Simulation presets: the four cases of DejaVu (eye, kidney, liver, uterus; materials from its table,
+// geometry of the built-in phantom or of any loaded organ, density from the case's mass), hung by the
+// organ's attachment nodes, and SOFA's liver.scn on ../shared/data/sofa/liver.msh.
+#include "phantom/phantom.hpp"
+
+#include <rehearse/simcore/scene.hpp>
+
+#include <string>
+#include <vector>
+
+namespace rehearse::phantom {
+
+/// "eye", "kidney", "liver", "uterus", "sofa-liver".
+const std::vector<std::string>& presetNames();
+/// A preset on a given organ (volume mesh in metres, its attachments); gravity along the model's +y
+/// (the phantom's inferior direction). Throws simcore::MeshError for an unknown name.
+simcore::Scene makePreset(const std::string& name, const simcore::Mesh& organ, const std::vector<int>& attachments);
+/// A preset on the built-in phantom (or, for sofa-liver, on SOFA's file, looked up under `sharedData`).
+simcore::Scene makePreset(const std::string& name, const std::string& sharedData = "../shared/data");
+
+}  // namespace rehearse::phantom
