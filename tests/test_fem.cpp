@@ -130,6 +130,30 @@ class TestFem : public QObject {
     }
   }
 
+  // Von Mises under small uniaxial stretch equals the axial stress E * eps (linear material, nu = 0.3).
+  void vonMisesUniaxial() {
+    auto c = rehearse::phantom::makePhantom();
+    const double E = 27e3, nu = 0.3, eps = 1e-4;
+    FemModel m = FemModel::build(c.volume, {}, {MaterialModel::Linear, E, nu, 1000});
+    // Uniaxial stress: stretch x by eps, contract y and z by nu eps.
+    Eigen::VectorXd x = m.restVector();
+    for (std::size_t i = 0; i < m.nodeCount(); ++i) {
+      x[3 * i] *= 1 + eps;
+      x[3 * i + 1] *= 1 - nu * eps;
+      x[3 * i + 2] *= 1 - nu * eps;
+    }
+    std::vector<double> vm;
+    vonMisesStress(m, x, vm);
+    QCOMPARE(vm.size(), m.tets.size());
+    for (double v : vm) QVERIFY2(std::abs(v - E * eps) < 1e-3 * E * eps, qPrintable(QString::number(v)));
+    // A rigid rotation of the corotational model: no stress.
+    FemModel co = FemModel::build(c.volume, {}, {MaterialModel::Corotational, E, nu, 1000});
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(1.0, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    for (std::size_t i = 0; i < co.nodeCount(); ++i) x.segment<3>(3 * i) = R * co.rest[i];
+    vonMisesStress(co, x, vm);
+    for (double v : vm) QVERIFY(v < 1e-9 * E);
+  }
+
   // Patch test: under any affine deformation the forces on interior nodes vanish.
   void patchTest() {
     auto c = rehearse::phantom::makePhantom();

@@ -157,6 +157,21 @@ void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::V
   }
 }
 
+void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<double>& out) {
+  out.resize(m.tets.size());
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t e = r.begin(); e < r.end(); ++e) {
+      const Eigen::Matrix3d F = deformationGradient(m, e, x);
+      const Eigen::Matrix3d P = firstPiola(m.model[e], m.lame[e], F);
+      const double J = F.determinant();
+      Eigen::Matrix3d sigma = J > 1e-6 ? Eigen::Matrix3d(P * F.transpose() / J) : P;
+      sigma = 0.5 * (sigma + sigma.transpose()).eval();
+      const Eigen::Matrix3d dev = sigma - sigma.trace() / 3 * Eigen::Matrix3d::Identity();
+      out[e] = std::sqrt(1.5 * dev.squaredNorm());
+    }
+  });
+}
+
 Eigen::VectorXd elasticForces(const FemModel& m, const Eigen::VectorXd& x) {
   Eigen::VectorXd f;
   elasticForces(m, x, f);

@@ -3,6 +3,7 @@
 #include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/organglview.hpp"
 #include "rehearse/ui/organview.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
 
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/meshio.hpp>
@@ -150,6 +151,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   }
   addDockWidget(Qt::RightDockWidgetArea, organDock);
   splitDockWidget(infoDock, organDock, Qt::Vertical);
+  simulationDock_ = new QDockWidget(tr("Simulation"), this);
+  simulationDock_->setObjectName(QStringLiteral("simulationDock"));
+  simulation_ = new SimulationPanel(simulationDock_);
+  simulation_->setObjectName(QStringLiteral("simulationPanel"));
+  simulationDock_->setWidget(simulation_);
+  addDockWidget(Qt::RightDockWidgetArea, simulationDock_);
+  tabifyDockWidget(organDock, simulationDock_);
+  organDock->raise();
 
   progress_ = new QProgressBar(this);
   progress_->setRange(0, 100);
@@ -162,8 +171,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(cancelButton_, &QToolButton::clicked, this, &MainWindow::cancelLoading);
   statusCase_ = new QLabel(this);
   statusCursor_ = new QLabel(this);
+  statusSimulation_ = new QLabel(this);
+  statusSimulation_->setObjectName(QStringLiteral("statusSimulation"));
+  connect(simulation_, &SimulationPanel::statusChanged, statusSimulation_, &QLabel::setText);
   statusDistance_ = new QLabel(this);
   statusBar()->addWidget(statusCase_, 1);
+  statusBar()->addPermanentWidget(statusSimulation_);
   statusBar()->addPermanentWidget(statusDistance_);
   statusBar()->addPermanentWidget(statusCursor_);
   statusBar()->addPermanentWidget(progress_);
@@ -654,6 +667,7 @@ void MainWindow::setCaseData(std::shared_ptr<const phantom::Case> data) {
   view_->setCase(case_.data);
   if (organView_) organView_->setCase(case_.data);
   if (organGLView_) organGLView_->setCase(case_.data);
+  simulation_->setOrgan(case_.data);
   if (frameChanged) view_->setFrame(case_.frame);
   refreshOverlay();
   showCaseInfo();
@@ -1315,6 +1329,27 @@ void MainWindow::buildMenus() {
   less->setShortcut(QKeySequence(Qt::Key_BracketLeft));
   QAction* navigate = viewMenu->addAction(tr("&Navigate (pan and zoom)"), this, [this] { view_->setTool(Tool::Navigate); });
   navigate->setShortcut(QKeySequence(Qt::Key_N));
+
+  QMenu* simMenu = menuBar()->addMenu(tr("Si&mulate"));
+  QAction* showSim = simMenu->addAction(tr("Show &Simulation"), this, [this] {
+    simulationDock_->show();
+    simulationDock_->raise();
+  });
+  showSim->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_M));
+  QAction* playSim = simMenu->addAction(tr("&Play / Pause"), this, [this] {
+    simulationDock_->show();
+    simulationDock_->raise();
+    simulation_->togglePlay();
+  });
+  playSim->setShortcut(QKeySequence(Qt::Key_F5));
+  QAction* stepSim = simMenu->addAction(tr("Single S&tep"), this, [this] {
+    simulationDock_->show();
+    simulationDock_->raise();
+    simulation_->stepOnce();
+  });
+  stepSim->setShortcut(QKeySequence(Qt::Key_F6));
+  QAction* resetSim = simMenu->addAction(tr("&Reset"), this, [this] { simulation_->reset(); });
+  resetSim->setShortcut(QKeySequence(Qt::SHIFT | Qt::Key_F5));
 
   QAction* cancel = new QAction(tr("Cancel"), this);
   cancel->setShortcut(QKeySequence(Qt::Key_Escape));

@@ -56,6 +56,9 @@ struct TangentState {
 void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state);
 /// out = K(x) v for the configuration `state` was prepared at (out sized once, then reused).
 void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::VectorXd& v, Eigen::VectorXd& out);
+/// Von Mises equivalent of the Cauchy stress sigma = P F^T / J per element (Pa), for display. Inverted
+/// elements (J <= 0) report the first Piola-Kirchhoff stress's equivalent instead.
+void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<double>& out);
 /// Same, into an existing matrix that has the model's pattern (no allocation; elements in parallel).
 void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K);
 

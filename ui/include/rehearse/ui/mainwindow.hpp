@@ -38,6 +38,7 @@ namespace rehearse::ui {
 
 class OrganView;
 class OrganGLView;
+class SimulationPanel;
 
 /// Steps of the workflow, in the order a case is worked.
 enum class Step { Mesh = 0, Frame, Contour, Rigid, Elastic, Appearance, Rehearse };
@@ -79,6 +80,7 @@ class MainWindow : public QMainWindow {
   FrameView* frameView() const { return view_; }
   /// The 3D organ view: OpenGL when a context can be made (and --software was not given), else software.
   QWidget* organWidget() const;
+  SimulationPanel* simulationPanel() const { return simulation_; }
   bool organViewUsesOpenGL() const { return organGLView_ != nullptr; }
   /// Forces the software renderers (set before creating a window; `rehearse --software`).
   static void setSoftwareRendering(bool on);
@@ -144,6 +146,9 @@ class MainWindow : public QMainWindow {
   FrameView* view_ = nullptr;
   OrganView* organView_ = nullptr;
   OrganGLView* organGLView_ = nullptr;
+  SimulationPanel* simulation_ = nullptr;
+  class QDockWidget* simulationDock_ = nullptr;
+  QLabel* statusSimulation_ = nullptr;
   QPlainTextEdit* info_ = nullptr;
   QProgressBar* progress_ = nullptr;
   QToolButton* cancelButton_ = nullptr;

@@ -1,0 +1,150 @@
+// The simulation panel driven through the real main window (offscreen): single step with the mouse,
+// play and pause with the keyboard (F5), a live edit of Young's modulus taking effect at the next step
+// boundary, colouring by von Mises stress, reset. The simulation runs off the GUI thread (asserted).
+// With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot of the panel there (for the README).
+#include "test_support.hpp"
+
+#include "rehearse/ui/gui.hpp"
+#include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
+
+#include <QComboBox>
+#include <QDockWidget>
+#include <QDoubleSpinBox>
+#include <QLabel>
+#include <QPushButton>
+#include <QSignalSpy>
+#include <QRegularExpression>
+#include <QStandardPaths>
+
+using namespace rehearse;
+using ui::MainWindow;
+using ui::SimulationPanel;
+
+class TestSimulationGui : public QObject {
+  Q_OBJECT
+  std::unique_ptr<MainWindow> w_;
+  SimulationPanel* panel_ = nullptr;
+
+  // Waits until the panel shows a frame with more than `steps` steps.
+  bool waitForSteps(long steps, int ms = 30000) {
+    QElapsedTimer t;
+    t.start();
+    while (t.elapsed() < ms) {
+      if (panel_->lastFrame() && panel_->lastFrame()->steps > steps) return true;
+      QTest::qWait(10);
+    }
+    return false;
+  }
+
+ private slots:
+  void initTestCase() {
+    QCoreApplication::setOrganizationName("RehearseSimulationTest");
+    QStandardPaths::setTestModeEnabled(true);
+    ui::applyDarkTheme(*qApp);
+    MainWindow::setSoftwareRendering(true);
+    w_ = std::make_unique<MainWindow>();
+    w_->resize(1600, 900);
+    w_->show();
+    QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
+    w_->openCase({});
+    QVERIFY(loaded.wait(60000));
+    panel_ = w_->simulationPanel();
+    QVERIFY(panel_);
+    auto* dock = w_->findChild<QDockWidget*>("simulationDock");
+    QVERIFY(dock);
+    dock->raise();
+  }
+
+  void singleStepWithTheMouse() {
+    auto* preset = panel_->findChild<QComboBox*>("simPreset");
+    preset->setCurrentText("liver");
+    auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
+    QCOMPARE(young->value(), 27.0);  // DejaVu's liver: 27 kPa
+    auto* step = panel_->findChild<QPushButton*>("simStep");
+    QVERIFY(step->isEnabled());
+    QTest::mouseClick(step, Qt::LeftButton);
+    QVERIFY(waitForSteps(0));
+    const auto f = panel_->lastFrame();
+    QCOMPARE(f->steps, 1L);
+    QVERIFY(std::abs(f->time - 0.01) < 1e-12);  // one 10 ms step
+    QVERIFY(f->report.ok);
+    QVERIFY(f->thread != QThread::currentThreadId());  // stepped on the simulation thread
+    QVERIFY(f->valueMax > 0 && std::isfinite(f->valueMax));  // the organ moved under gravity (mm)
+    // The attachments did not move.
+    for (int a : f->organ->attachments) QVERIFY(f->value[a] < 1e-9);
+  }
+
+  void playAndPauseWithTheKeyboard() {
+    const long before = panel_->lastFrame()->steps;
+    w_->frameView()->setFocus();
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    QVERIFY(panel_->isPlaying());
+    QVERIFY(waitForSteps(before + 70));  // real time: 0.7 s
+    // Status bar: step time and frame rate, while playing.
+    auto* status = w_->findChild<QLabel*>("statusSimulation");
+    QVERIFY(status);
+    const QRegularExpressionMatch m = QRegularExpression(R"(step ([0-9.]+) ms · ([0-9]+) fps)").match(status->text());
+    QVERIFY2(m.hasMatch(), qPrintable(status->text()));
+    QVERIFY(m.captured(1).toDouble() > 0);
+    QVERIFY2(m.captured(2).toInt() > 0, qPrintable(status->text()));
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    QVERIFY(!panel_->isPlaying());
+    QTest::qWait(300);
+    const long paused = panel_->lastFrame()->steps;
+    QTest::qWait(300);
+    QCOMPARE(panel_->lastFrame()->steps, paused);  // nothing runs while paused
+    // Real time: ~1 simulated second per wall second at most.
+    qInfo("played to t = %.2f s; %s", panel_->lastFrame()->time, qPrintable(status->text()));
+  }
+
+  void liveEditAppliesAtTheNextStep() {
+    auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
+    young->setValue(54.0);
+    const long before = panel_->lastFrame()->steps;
+    QTest::keyClick(w_.get(), Qt::Key_F6);  // single step
+    QVERIFY(waitForSteps(before));
+    QCOMPARE(panel_->lastFrame()->youngInUse, 54e3);
+    QVERIFY(panel_->lastFrame()->steps == before + 1);  // the state was kept, not reset
+  }
+
+  void vonMisesColouring() {
+    auto* colouring = panel_->findChild<QComboBox*>("simColouring");
+    colouring->setCurrentIndex(1);
+    QElapsedTimer t;
+    t.start();
+    while (panel_->lastFrame()->colouring != 1 && t.elapsed() < 10000) QTest::qWait(10);
+    QCOMPARE(panel_->lastFrame()->colouring, 1);
+    const double vm = panel_->lastFrame()->valueMax;  // kPa
+    qInfo("largest nodal von Mises stress %.3f kPa", vm);
+    QVERIFY(vm > 0 && vm < 1000);
+    // Play for a moment for the screenshot.
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    QVERIFY(waitForSteps(panel_->lastFrame()->steps + 30));
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
+    if (!dir.isEmpty()) {
+      QTest::qWait(100);
+      w_->grab().save(QString::fromLocal8Bit(dir) + "/simulation.png");
+    }
+  }
+
+  void resetReturnsToRest() {
+    auto* reset = panel_->findChild<QPushButton*>("simReset");
+    QTest::mouseClick(reset, Qt::LeftButton);
+    QElapsedTimer t;
+    t.start();
+    while (panel_->lastFrame()->steps != 0 && t.elapsed() < 10000) QTest::qWait(10);
+    QCOMPARE(panel_->lastFrame()->steps, 0L);
+    QCOMPARE(panel_->lastFrame()->time, 0.0);
+    QVERIFY(panel_->lastFrame()->valueMax < 1e-12);
+  }
+
+  void cleanupTestCase() { w_.reset(); }
+};
+
+QTEST_MAIN(TestSimulationGui)
+#include "test_simulation_gui.moc"

@@ -1,0 +1,130 @@
+#pragma once
+// The simulation panel: the current organ simulated with the physics core on a worker thread (play,
+// pause, single step, reset), its parameters edited live (applied at the next step boundary), and a 3D
+// view of the deformed mesh coloured by displacement or von Mises stress. Works without OpenGL.
+#include "phantom/phantom.hpp"
+#include "rehearse/ui/organview.hpp"
+
+#include <rehearse/simcore/integrator.hpp>
+
+#include <QElapsedTimer>
+#include <QWidget>
+
+#include <memory>
+#include <vector>
+
+class QComboBox;
+class QDoubleSpinBox;
+class QLabel;
+class QPushButton;
+class QThread;
+
+namespace rehearse::ui {
+
+/// What the simulation runs: the organ (model frame, metres), its attachments and the parameters.
+struct SimulationSetup {
+  std::shared_ptr<const phantom::Case> organ;
+  simcore::MaterialModel model = simcore::MaterialModel::Corotational;
+  double young = 27e3;     ///< Pa, parenchyma
+  double poisson = 0.4;
+  double density = 1000;   ///< kg/m^3
+  double vesselYoung = 0;  ///< Pa, label 2 (0: as the parenchyma)
+  double timeStep = 0.01;  ///< s
+  simcore::NewtonMethod method = simcore::NewtonMethod::Linearised;
+  double gravity = 9.81;   ///< m/s^2 along the model's +y (inferior)
+};
+
+/// Published after each step: positions and the coloured quantity per node.
+struct SimulationFrame {
+  std::vector<Eigen::Vector3d> positions;  ///< per node, model frame (m)
+  std::vector<double> value;               ///< per node: displacement (mm) or von Mises (kPa)
+  double valueMax = 0;
+  double valueScale = 0;                   ///< top of the colour bar: the 98th percentile (stress peaks at attachments)
+  int colouring = 0;                       ///< 0 displacement, 1 von Mises
+  simcore::StepReport report;
+  double time = 0;                         ///< simulated time (s)
+  long steps = 0;
+  double youngInUse = 0;                   ///< Pa (shows when a live edit took effect)
+  Qt::HANDLE thread = nullptr;             ///< the thread that computed it (never the GUI thread)
+  std::shared_ptr<const phantom::Case> organ;
+};
+
+class SimulationWorker;
+
+/// Draws a SimulationFrame: the organ's surface with the frame's positions, per-vertex colours and a
+/// colour bar; turntable controls as in the organ view.
+class SimulationView : public QWidget {
+  Q_OBJECT
+ public:
+  explicit SimulationView(QWidget* parent = nullptr);
+  void setFrame(std::shared_ptr<const SimulationFrame> f);
+  QSize sizeHint() const override { return {420, 320}; }
+
+ protected:
+  void paintEvent(QPaintEvent*) override;
+  void mousePressEvent(QMouseEvent*) override;
+  void mouseMoveEvent(QMouseEvent*) override;
+  void mouseDoubleClickEvent(QMouseEvent*) override;
+  void wheelEvent(QWheelEvent*) override;
+
+ private:
+  std::shared_ptr<const SimulationFrame> frame_;
+  Turntable turntable_;
+};
+
+class SimulationPanel : public QWidget {
+  Q_OBJECT
+ public:
+  explicit SimulationPanel(QWidget* parent = nullptr);
+  ~SimulationPanel() override;
+
+  /// The organ to simulate (a new mesh resets the simulation; the same mesh keeps it running).
+  void setOrgan(std::shared_ptr<const phantom::Case> organ);
+  void play();
+  void pause();
+  void togglePlay();
+  void stepOnce();
+  void reset();
+  /// Fills the parameter fields from a DejaVu preset: eye, kidney, liver or uterus.
+  void applyPreset(const QString& name);
+  bool isPlaying() const { return playing_; }
+  std::shared_ptr<const SimulationFrame> lastFrame() const { return last_; }
+  SimulationSetup setup() const;
+  QString statusText() const;
+
+ signals:
+  void statusChanged(const QString& text);
+  void frameShown(long steps);
+
+ private:
+  void onFrame(std::shared_ptr<const SimulationFrame> f);
+  void onFailed(const QString& message);
+  void parametersEdited();
+  void updateButtons();
+
+  QThread* thread_ = nullptr;
+  SimulationWorker* worker_ = nullptr;
+  SimulationView* view_ = nullptr;
+  QComboBox* preset_ = nullptr;
+  QComboBox* model_ = nullptr;
+  QComboBox* method_ = nullptr;
+  QComboBox* colouring_ = nullptr;
+  QDoubleSpinBox* young_ = nullptr;
+  QDoubleSpinBox* poisson_ = nullptr;
+  QDoubleSpinBox* density_ = nullptr;
+  QDoubleSpinBox* timeStep_ = nullptr;
+  QPushButton* playButton_ = nullptr;
+  QPushButton* stepButton_ = nullptr;
+  QPushButton* resetButton_ = nullptr;
+  QLabel* status_ = nullptr;
+  std::shared_ptr<const phantom::Case> organ_;
+  std::shared_ptr<const SimulationFrame> last_;
+  bool playing_ = false;
+  bool filling_ = false;
+  QElapsedTimer fpsClock_;
+  int framesSinceClock_ = 0;
+  double fps_ = 0;
+  QString error_;
+};
+
+}  // namespace rehearse::ui

@@ -1,0 +1,523 @@
+#include "rehearse/ui/simulationpanel.hpp"
+
+#include "phantom/presets.hpp"
+
+#include <rehearse/simcore/fem.hpp>
+
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QFormLayout>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QLinearGradient>
+#include <QMouseEvent>
+#include <QPainter>
+#include <QPushButton>
+#include <QThread>
+#include <QTimer>
+#include <QVBoxLayout>
+#include <QWheelEvent>
+
+#include <algorithm>
+#include <cmath>
+
+Q_DECLARE_METATYPE(std::shared_ptr<const rehearse::ui::SimulationFrame>)
+
+namespace rehearse::ui {
+
+// ------------------------------------------------------------------------------------------ worker
+
+// Owns the model, the integrator and the state; lives on its own thread. Commands arrive as queued
+// calls, so they are applied between two steps (the step boundary).
+class SimulationWorker : public QObject {
+  Q_OBJECT
+ public:
+  void configure(const SimulationSetup& s, bool keepState) {
+    try {
+      const bool sameOrgan = setup_.organ && s.organ && sameMesh(setup_.organ.get(), s.organ.get());
+      setup_ = s;
+      if (!s.organ || s.organ->volume.tets.empty()) {
+        model_.reset();
+        integrator_.reset();
+        emit failed(tr("No organ volume to simulate; load or tetrahedralise a mesh first."));
+        return;
+      }
+      const simcore::MaterialParams parenchyma{s.model, s.young, s.poisson, s.density};
+      std::map<int, simcore::MaterialParams> byLabel;
+      if (s.vesselYoung > 0) byLabel[phantom::kVesselLabel] = {s.model, s.vesselYoung, std::min(s.poisson + 0.05, 0.45), s.density};
+      simcore::Mesh mesh = s.organ->volume;
+      mesh.convertToMetres();
+      auto model = std::make_unique<simcore::FemModel>(simcore::FemModel::build(mesh, byLabel, parenchyma));
+      simcore::SimulationSettings settings;
+      settings.timeStep = s.timeStep;
+      settings.method = s.method;
+      settings.gravity = Eigen::Vector3d(0, s.gravity, 0);
+      auto integrator = std::make_unique<simcore::Integrator>(*model, s.organ->attachments, settings);
+      const bool keep = keepState && sameOrgan && state_.x.size() == static_cast<Eigen::Index>(3 * model->nodeCount());
+      if (!keep) {
+        state_ = integrator->initialState();
+        steps_ = 0;
+      }
+      integrator_ = std::move(integrator);  // the integrator refers to the model: replace it first
+      model_ = std::move(model);
+      incidence_.assign(model_->nodeCount(), 0);
+      for (const auto& t : model_->tets)
+        for (int v : t) ++incidence_[v];
+      if (!keep) publish({});
+    } catch (const std::exception& e) {
+      playing_ = false;
+      emit failed(QString::fromStdString(e.what()));
+    }
+  }
+  void setPlaying(bool on) {
+    playing_ = on && integrator_;
+    if (playing_) {
+      wall_.start();
+      simAtStart_ = state_.time;
+      schedule(0);
+    }
+  }
+  void stepOnce() {
+    playing_ = false;
+    advance();
+  }
+  void reset() {
+    playing_ = false;
+    if (!integrator_) return;
+    state_ = integrator_->initialState();
+    integrator_->invalidateFactorisation();
+    steps_ = 0;
+    publish({});
+  }
+  void setColouring(int c) {
+    colouring_ = c;
+    if (integrator_) publish(last_);
+  }
+
+ signals:
+  void frame(std::shared_ptr<const rehearse::ui::SimulationFrame> f);
+  void failed(const QString& message);
+
+ private:
+  void schedule(int ms) {
+    if (!timer_) {
+      timer_ = new QTimer(this);
+      timer_->setSingleShot(true);
+      connect(timer_, &QTimer::timeout, this, [this] {
+        if (!playing_) return;
+        advance();
+        if (!playing_) return;
+        // Real time: wait while the simulation is ahead of the wall clock.
+        const double ahead = 1e3 * (state_.time - simAtStart_) - static_cast<double>(wall_.elapsed());
+        schedule(static_cast<int>(std::clamp(ahead, 0.0, 1000.0)));
+      });
+    }
+    timer_->start(ms);
+  }
+  void advance() {
+    if (!integrator_) return;
+    const simcore::StepReport rep = integrator_->step(state_);
+    ++steps_;
+    if (!rep.ok) playing_ = false;  // the step was rolled back; the status says why
+    publish(rep);
+  }
+  void publish(const simcore::StepReport& rep) {
+    last_ = rep;
+    auto f = std::make_shared<SimulationFrame>();
+    const std::size_t n = model_->nodeCount();
+    f->positions.resize(n);
+    f->value.assign(n, 0.0);
+    for (std::size_t i = 0; i < n; ++i) f->positions[i] = state_.x.segment<3>(3 * i);
+    if (colouring_ == 0) {
+      for (std::size_t i = 0; i < n; ++i) f->value[i] = 1e3 * (f->positions[i] - model_->rest[i]).norm();
+    } else {
+      simcore::vonMisesStress(*model_, state_.x, stress_);
+      for (std::size_t e = 0; e < model_->tets.size(); ++e)
+        for (int v : model_->tets[e]) f->value[v] += 1e-3 * stress_[e] / std::max(1, incidence_[v]);
+    }
+    f->valueMax = f->value.empty() ? 0 : *std::max_element(f->value.begin(), f->value.end());
+    if (!f->value.empty()) {
+      std::vector<double> sorted = f->value;
+      auto at = sorted.begin() + static_cast<std::ptrdiff_t>(0.98 * (sorted.size() - 1));
+      std::nth_element(sorted.begin(), at, sorted.end());
+      f->valueScale = *at > 0 ? *at : f->valueMax;
+    }
+    f->colouring = colouring_;
+    f->report = rep;
+    f->time = state_.time;
+    f->steps = steps_;
+    f->youngInUse = setup_.young;
+    f->thread = QThread::currentThreadId();
+    f->organ = setup_.organ;
+    emit frame(f);
+  }
+
+  SimulationSetup setup_;
+  std::unique_ptr<simcore::FemModel> model_;
+  std::unique_ptr<simcore::Integrator> integrator_;
+  simcore::SimulationState state_;
+  simcore::StepReport last_;
+  QTimer* timer_ = nullptr;
+  QElapsedTimer wall_;
+  double simAtStart_ = 0;
+  bool playing_ = false;
+  int colouring_ = 0;
+  long steps_ = 0;
+  std::vector<double> stress_;
+  std::vector<int> incidence_;
+};
+
+// -------------------------------------------------------------------------------------------- view
+
+namespace {
+// Blue - cyan - green - yellow - red.
+QColor colourMap(double t) {
+  static const double stops[5][3] = {{40, 70, 200}, {40, 190, 220}, {60, 200, 90}, {240, 220, 60}, {220, 50, 40}};
+  t = std::clamp(t, 0.0, 1.0) * 4;
+  const int i = std::min(3, static_cast<int>(t));
+  const double u = t - i;
+  return QColor::fromRgbF(((1 - u) * stops[i][0] + u * stops[i + 1][0]) / 255, ((1 - u) * stops[i][1] + u * stops[i + 1][1]) / 255,
+                          ((1 - u) * stops[i][2] + u * stops[i + 1][2]) / 255);
+}
+}  // namespace
+
+SimulationView::SimulationView(QWidget* parent) : QWidget(parent) {
+  setMinimumSize(240, 180);
+  setAttribute(Qt::WA_OpaquePaintEvent);
+  setToolTip(tr("Drag to turn, wheel to zoom, double-click to reset the view"));
+}
+
+void SimulationView::setFrame(std::shared_ptr<const SimulationFrame> f) {
+  frame_ = std::move(f);
+  update();
+}
+
+void SimulationView::paintEvent(QPaintEvent*) {
+  QPainter painter(this);
+  painter.fillRect(rect(), QColor(24, 25, 28));
+  if (!frame_ || !frame_->organ || frame_->positions.empty()) {
+    painter.setPen(QColor(150, 150, 150));
+    painter.drawText(rect(), Qt::AlignCenter, tr("No simulation yet: choose a preset and press Step or Play"));
+    return;
+  }
+  const phantom::Case& organ = *frame_->organ;
+  const double scale = organ.volume.unitToMetre;
+  const Eigen::Vector3d cog = organ.centreOfGravity() * scale;
+  const double size = organ.volume.bounds().sizes().maxCoeff() * scale;
+  const Eigen::Matrix3d R =
+      (Eigen::AngleAxisd(turntable_.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(turntable_.yaw, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
+  const Eigen::Vector3d t = Eigen::Vector3d(0, 0, 1.0 * size / turntable_.zoom) - R * cog;
+  const double f = 1.1 * std::min(width(), height()), cx = (width() - 70) / 2.0, cy = height() / 2.0;
+  std::vector<Eigen::Vector3d> cam(frame_->positions.size());
+  for (std::size_t i = 0; i < cam.size(); ++i) cam[i] = R * frame_->positions[i] + t;
+  auto project = [&](const Eigen::Vector3d& p) { return QPointF(cx + f * p.x() / p.z(), cy + f * p.y() / p.z()); };
+  // Painter's algorithm: far triangles first, Lambert-shaded by a light at the eye.
+  struct Tri {
+    double depth;
+    std::size_t index;
+  };
+  std::vector<Tri> order;
+  order.reserve(organ.surface.size());
+  for (std::size_t k = 0; k < organ.surface.size(); ++k) {
+    const auto& tri = organ.surface[k];
+    const double z = cam[tri[0]].z() + cam[tri[1]].z() + cam[tri[2]].z();
+    if (cam[tri[0]].z() > 1e-6 && cam[tri[1]].z() > 1e-6 && cam[tri[2]].z() > 1e-6) order.push_back({z, k});
+  }
+  std::sort(order.begin(), order.end(), [](const Tri& a, const Tri& b) { return a.depth > b.depth; });
+  const double vmax = std::max(frame_->valueScale, 1e-9);
+  painter.setRenderHint(QPainter::Antialiasing, false);
+  for (const Tri& o : order) {
+    const auto& tri = organ.surface[o.index];
+    const Eigen::Vector3d n = (cam[tri[1]] - cam[tri[0]]).cross(cam[tri[2]] - cam[tri[0]]).normalized();
+    const Eigen::Vector3d c = (cam[tri[0]] + cam[tri[1]] + cam[tri[2]]) / 3;
+    const double shade = 0.35 + 0.65 * std::abs(n.dot(c.normalized()));
+    const double v = (frame_->value[tri[0]] + frame_->value[tri[1]] + frame_->value[tri[2]]) / 3;
+    QColor col = colourMap(v / vmax);
+    col = QColor::fromRgbF(col.redF() * shade, col.greenF() * shade, col.blueF() * shade);
+    const QPointF pts[3] = {project(cam[tri[0]]), project(cam[tri[1]]), project(cam[tri[2]])};
+    painter.setPen(QPen(col, 0.8));
+    painter.setBrush(col);
+    painter.drawConvexPolygon(pts, 3);
+  }
+  painter.setRenderHint(QPainter::Antialiasing);
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(QColor(255, 150, 40));
+  for (int a : organ.attachments)
+    if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0) painter.drawEllipse(project(cam[a]), 2.5, 2.5);
+  // Colour bar with its unit.
+  const QRect bar(width() - 52, 30, 14, height() - 70);
+  QLinearGradient g(bar.bottomLeft(), bar.topLeft());
+  for (int i = 0; i <= 8; ++i) g.setColorAt(i / 8.0, colourMap(i / 8.0));
+  painter.fillRect(bar, g);
+  painter.setPen(QColor(200, 200, 200));
+  const QString unit = frame_->colouring == 0 ? tr("mm") : tr("kPa");
+  painter.drawText(QRect(width() - 70, 6, 68, 20), Qt::AlignCenter, frame_->colouring == 0 ? tr("|u|") : tr("σ vM"));
+  painter.drawText(QRect(width() - 36, bar.top() - 6, 36, 16), Qt::AlignLeft, QString::number(frame_->valueScale, 'g', 3));
+  painter.drawText(QRect(width() - 36, bar.bottom() - 8, 36, 16), Qt::AlignLeft, QStringLiteral("0"));
+  painter.drawText(QRect(width() - 70, bar.bottom() + 6, 68, 20), Qt::AlignCenter, unit);
+  painter.drawText(rect().adjusted(6, 4, -80, -4), Qt::AlignLeft | Qt::AlignTop,
+                   tr("t = %1 s, %2 steps").arg(frame_->time, 0, 'f', 2).arg(frame_->steps));
+}
+
+void SimulationView::mousePressEvent(QMouseEvent* e) { turntable_.press(e->position()); }
+void SimulationView::mouseMoveEvent(QMouseEvent* e) {
+  if (!(e->buttons() & Qt::LeftButton)) return;
+  turntable_.drag(e->position());
+  update();
+}
+void SimulationView::mouseDoubleClickEvent(QMouseEvent*) {
+  turntable_.reset();
+  update();
+}
+void SimulationView::wheelEvent(QWheelEvent* e) {
+  turntable_.wheel(e->angleDelta().y());
+  update();
+}
+
+// ------------------------------------------------------------------------------------------- panel
+
+SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
+  qRegisterMetaType<std::shared_ptr<const SimulationFrame>>();
+  auto* layout = new QVBoxLayout(this);
+  layout->setContentsMargins(4, 4, 4, 4);
+  view_ = new SimulationView(this);
+  view_->setObjectName(QStringLiteral("simulationView"));
+  layout->addWidget(view_, 1);
+
+  auto* form = new QFormLayout;
+  preset_ = new QComboBox(this);
+  preset_->setObjectName(QStringLiteral("simPreset"));
+  for (const char* p : {"liver", "kidney", "eye", "uterus"}) preset_->addItem(QString::fromLatin1(p));
+  preset_->setToolTip(tr("Materials of the DejaVu cases, on the current organ"));
+  form->addRow(tr("Preset"), preset_);
+  model_ = new QComboBox(this);
+  model_->setObjectName(QStringLiteral("simMaterial"));
+  model_->addItems({tr("linear"), tr("corotational"), tr("stvk"), tr("neohookean")});
+  form->addRow(tr("Material"), model_);
+  young_ = new QDoubleSpinBox(this);
+  young_->setObjectName(QStringLiteral("simYoung"));
+  young_->setRange(0.1, 100000);
+  young_->setDecimals(1);
+  young_->setSuffix(tr(" kPa"));
+  young_->setKeyboardTracking(false);
+  form->addRow(tr("Young's modulus"), young_);
+  poisson_ = new QDoubleSpinBox(this);
+  poisson_->setObjectName(QStringLiteral("simPoisson"));
+  poisson_->setRange(0, 0.499);
+  poisson_->setDecimals(3);
+  poisson_->setSingleStep(0.01);
+  poisson_->setKeyboardTracking(false);
+  form->addRow(tr("Poisson's ratio"), poisson_);
+  density_ = new QDoubleSpinBox(this);
+  density_->setObjectName(QStringLiteral("simDensity"));
+  density_->setRange(1, 20000);
+  density_->setDecimals(0);
+  density_->setSuffix(tr(" kg/m³"));
+  density_->setKeyboardTracking(false);
+  form->addRow(tr("Density"), density_);
+  timeStep_ = new QDoubleSpinBox(this);
+  timeStep_->setObjectName(QStringLiteral("simTimeStep"));
+  timeStep_->setRange(0.1, 100);
+  timeStep_->setDecimals(1);
+  timeStep_->setSuffix(tr(" ms"));
+  timeStep_->setValue(10);
+  timeStep_->setKeyboardTracking(false);
+  form->addRow(tr("Time step"), timeStep_);
+  method_ = new QComboBox(this);
+  method_->setObjectName(QStringLiteral("simMethod"));
+  method_->addItems({tr("exact Newton"), tr("lagged-PCG"), tr("chord"), tr("linearised (fastest)")});
+  method_->setCurrentIndex(3);
+  method_->setToolTip(tr("How the Newton iterations reuse the factorisation (see BENCHMARKS.md for their error)"));
+  form->addRow(tr("Solver"), method_);
+  colouring_ = new QComboBox(this);
+  colouring_->setObjectName(QStringLiteral("simColouring"));
+  colouring_->addItems({tr("displacement (mm)"), tr("von Mises stress (kPa)")});
+  form->addRow(tr("Colour by"), colouring_);
+  layout->addLayout(form);
+
+  auto* buttons = new QHBoxLayout;
+  playButton_ = new QPushButton(tr("Play"), this);
+  playButton_->setObjectName(QStringLiteral("simPlay"));
+  playButton_->setToolTip(tr("Play or pause the simulation (F5)"));
+  stepButton_ = new QPushButton(tr("Step"), this);
+  stepButton_->setObjectName(QStringLiteral("simStep"));
+  stepButton_->setToolTip(tr("One time step (F6)"));
+  resetButton_ = new QPushButton(tr("Reset"), this);
+  resetButton_->setObjectName(QStringLiteral("simReset"));
+  resetButton_->setToolTip(tr("Back to the rest shape (Shift+F5)"));
+  buttons->addWidget(playButton_);
+  buttons->addWidget(stepButton_);
+  buttons->addWidget(resetButton_);
+  layout->addLayout(buttons);
+  status_ = new QLabel(this);
+  status_->setObjectName(QStringLiteral("simStatus"));
+  status_->setWordWrap(true);
+  layout->addWidget(status_);
+
+  thread_ = new QThread(this);
+  thread_->setObjectName(QStringLiteral("simulation"));
+  worker_ = new SimulationWorker;
+  worker_->moveToThread(thread_);
+  connect(thread_, &QThread::finished, worker_, &QObject::deleteLater);
+  connect(worker_, &SimulationWorker::frame, this, &SimulationPanel::onFrame);
+  connect(worker_, &SimulationWorker::failed, this, &SimulationPanel::onFailed);
+  thread_->start();
+
+  connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
+  connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::stepOnce);
+  connect(resetButton_, &QPushButton::clicked, this, &SimulationPanel::reset);
+  connect(preset_, &QComboBox::currentTextChanged, this, &SimulationPanel::applyPreset);
+  for (QComboBox* c : {model_, method_}) connect(c, &QComboBox::currentIndexChanged, this, &SimulationPanel::parametersEdited);
+  for (QDoubleSpinBox* s : {young_, poisson_, density_, timeStep_})
+    connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::parametersEdited);
+  connect(colouring_, &QComboBox::currentIndexChanged, this, [this](int c) {
+    QMetaObject::invokeMethod(worker_, [w = worker_, c] { w->setColouring(c); }, Qt::QueuedConnection);
+  });
+  applyPreset(preset_->currentText());
+  updateButtons();
+}
+
+SimulationPanel::~SimulationPanel() {
+  QMetaObject::invokeMethod(worker_, [w = worker_] { w->setPlaying(false); }, Qt::QueuedConnection);
+  thread_->quit();
+  thread_->wait();
+}
+
+SimulationSetup SimulationPanel::setup() const {
+  SimulationSetup s;
+  s.organ = organ_;
+  s.model = static_cast<simcore::MaterialModel>(model_->currentIndex());
+  s.young = 1e3 * young_->value();
+  s.poisson = poisson_->value();
+  s.density = density_->value();
+  s.timeStep = 1e-3 * timeStep_->value();
+  s.method = static_cast<simcore::NewtonMethod>(method_->currentIndex());
+  const QVariant vessel = preset_->property("vesselYoung");
+  s.vesselYoung = vessel.isValid() ? vessel.toDouble() : 0;
+  return s;
+}
+
+void SimulationPanel::setOrgan(std::shared_ptr<const phantom::Case> organ) {
+  const bool same = sameMesh(organ_.get(), organ.get());
+  organ_ = std::move(organ);
+  if (same) return;
+  playing_ = false;
+  const bool presetOk = organ_ && !organ_->volume.tets.empty();
+  if (presetOk) applyPreset(preset_->currentText());  // density follows the organ's volume
+  const SimulationSetup s = setup();
+  QMetaObject::invokeMethod(worker_, [w = worker_, s] { w->setPlaying(false); w->configure(s, false); }, Qt::QueuedConnection);
+  updateButtons();
+}
+
+void SimulationPanel::applyPreset(const QString& name) {
+  if (!organ_ || organ_->volume.tets.empty()) return;
+  try {
+    const simcore::Scene p = phantom::makePreset(name.toStdString(), organ_->volume, organ_->attachments);
+    filling_ = true;
+    model_->setCurrentIndex(static_cast<int>(p.defaultMaterial.model));
+    young_->setValue(p.defaultMaterial.young / 1e3);
+    poisson_->setValue(p.defaultMaterial.poisson);
+    density_->setValue(p.defaultMaterial.density);
+    const auto vessel = p.materials.find(phantom::kVesselLabel);
+    preset_->setProperty("vesselYoung", vessel != p.materials.end() ? vessel->second.young : 0.0);
+    filling_ = false;
+    parametersEdited();
+  } catch (const std::exception& e) {
+    filling_ = false;
+    onFailed(QString::fromStdString(e.what()));
+  }
+}
+
+void SimulationPanel::parametersEdited() {
+  if (filling_ || !organ_) return;
+  // Applied by the worker at the next step boundary, keeping the current state.
+  const SimulationSetup s = setup();
+  QMetaObject::invokeMethod(worker_, [w = worker_, s] { w->configure(s, true); }, Qt::QueuedConnection);
+}
+
+void SimulationPanel::play() {
+  if (!organ_) return;
+  playing_ = true;
+  error_.clear();
+  fpsClock_.start();
+  framesSinceClock_ = 0;
+  QMetaObject::invokeMethod(worker_, [w = worker_] { w->setPlaying(true); }, Qt::QueuedConnection);
+  updateButtons();
+}
+
+void SimulationPanel::pause() {
+  playing_ = false;
+  QMetaObject::invokeMethod(worker_, [w = worker_] { w->setPlaying(false); }, Qt::QueuedConnection);
+  updateButtons();
+}
+
+void SimulationPanel::togglePlay() { playing_ ? pause() : play(); }
+
+void SimulationPanel::stepOnce() {
+  if (!organ_) return;
+  playing_ = false;
+  error_.clear();
+  QMetaObject::invokeMethod(worker_, [w = worker_] { w->stepOnce(); }, Qt::QueuedConnection);
+  updateButtons();
+}
+
+void SimulationPanel::reset() {
+  playing_ = false;
+  error_.clear();
+  QMetaObject::invokeMethod(worker_, [w = worker_] { w->reset(); }, Qt::QueuedConnection);
+  updateButtons();
+}
+
+void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
+  last_ = f;
+  view_->setFrame(f);
+  if (!f->report.ok && f->steps > 0) {
+    playing_ = false;  // the worker stopped on a failed step
+    updateButtons();
+  }
+  ++framesSinceClock_;
+  if (fpsClock_.isValid() && fpsClock_.elapsed() > 500) {
+    fps_ = 1e3 * framesSinceClock_ / static_cast<double>(fpsClock_.elapsed());
+    fpsClock_.restart();
+    framesSinceClock_ = 0;
+  }
+  const QString text = statusText();
+  status_->setText(text);
+  emit statusChanged(text);
+  emit frameShown(f->steps);
+}
+
+void SimulationPanel::onFailed(const QString& message) {
+  playing_ = false;
+  error_ = message;
+  status_->setText(message);
+  emit statusChanged(tr("Simulation: %1").arg(message));
+  updateButtons();
+}
+
+QString SimulationPanel::statusText() const {
+  if (!error_.isEmpty()) return error_;
+  if (!last_) return tr("Simulation ready");
+  const auto& r = last_->report;
+  if (last_->steps == 0) return tr("Simulation at rest (t = 0)");
+  const QString rate = playing_ ? tr(" · %1 fps").arg(fps_, 0, 'f', 0) : QString();
+  return tr("t = %1 s · step %2 ms%3 · %4 Newton · %5")
+      .arg(last_->time, 0, 'f', 2)
+      .arg(r.wallMs, 0, 'f', 1)
+      .arg(rate)
+      .arg(r.newtonIterations)
+      .arg(QString::fromStdString(r.status));
+}
+
+void SimulationPanel::updateButtons() {
+  playButton_->setText(playing_ ? tr("Pause") : tr("Play"));
+  const bool have = organ_ && !organ_->volume.tets.empty();
+  playButton_->setEnabled(have);
+  stepButton_->setEnabled(have);
+  resetButton_->setEnabled(have);
+}
+
+}  // namespace rehearse::ui
+
+#include "simulationpanel.moc"
