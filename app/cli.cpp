@@ -238,7 +238,9 @@ int cmdSimulate(const std::vector<std::string>& args) {
   }
   const long steps = o.count("steps") ? parseCount(o["steps"], "--steps", 1, 1'000'000) : p.steps;
   if (p.staticSolve) o["static"] = "";
-  const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial);
+  const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial, p.embedded);
+  for (const auto& e : model.embeddings)
+    if (e.outside) std::fprintf(stderr, "rehearse: note: %zu vertices of the embedded surface '%s' lie outside the organ\n", e.outside, e.name.c_str());
   simcore::Integrator integrator(model, p.fixedNodes, p.settings);
   auto state = integrator.initialState();
   std::vector<simcore::StepReport> reports;
@@ -253,6 +255,15 @@ int cmdSimulate(const std::vector<std::string>& args) {
   out.triangleLabels.clear();
   for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = state.x.segment<3>(3 * i);
   simcore::saveMesh(out, o["out"]);
+  // Embedded surfaces follow the organ: written beside the output as OUT.<name>.vtk.
+  for (std::size_t k = 0; k < model.embeddings.size(); ++k) {
+    simcore::Mesh surf;
+    const auto pts = simcore::mapEmbedded(model, k, state.x);
+    surf.points.assign(pts.begin(), pts.end());
+    surf.triangles = model.embeddings[k].triangles;
+    const auto path = std::filesystem::path(o["out"]).replace_extension("." + model.embeddings[k].name + ".vtk");
+    simcore::saveMesh(surf, path.string());
+  }
   if (o.count("report")) {
     std::string json = "{\n  \"steps\": [\n";
     char buf[512];

@@ -88,6 +88,21 @@ class TestCli : public QObject {
       QVERIFY2(s.code == 0, qPrintable(s.err));
       QVERIFY(run({"info", o2}).out.contains("points: 181"));
     }
+    // A scene with an embedded inner surface: the phantom's files, its vessel surface mapped into the organ.
+    const QString dir = QString::fromStdString(tempPath("embed-case"));
+    QVERIFY(run({"phantom", "--out", dir}).code == 0);
+    const std::string scene = tempPath("embed-case/scene.json");
+    writeFile(scene, R"({"components": [{"type": "mesh", "file": "organ.vtu"},
+      {"type": "material", "model": "linear", "young": 27000, "poisson": 0.4, "density": 1000},
+      {"type": "attachments", "nodes": [212, 213, 214, 300, 314, 315, 342, 364]},
+      {"type": "gravity", "vector": [0, 9.81, 0]}, {"type": "static"},
+      {"type": "embedded", "file": "vessels_surface.obj", "young": 620e3, "thickness": 0.001, "name": "vessels"}]})");
+    const QString o3 = QString::fromStdString(tempPath("embed-case/out.vtu"));
+    auto e = run({"simulate", "--scene", QString::fromStdString(scene), "--out", o3});
+    QVERIFY2(e.code == 0, qPrintable(e.err));
+    const QString mapped = QString::fromStdString(tempPath("embed-case/out.vessels.vtk"));
+    QVERIFY(QFile::exists(mapped));
+    QVERIFY(run({"info", mapped}).out.contains("triangles: "));
     expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "999999", "--out", out}), 1, "does not exist");
     expectOneLineError(run({"simulate", "--preset", "spleen", "--out", out}), 2, "preset 'spleen'");
     expectOneLineError(run({"simulate", "--preset", "liver", "--gravity", "down", "--out", out}), 2, "three numbers");

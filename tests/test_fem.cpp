@@ -7,6 +7,7 @@
 
 #include <rehearse/simcore/fem.hpp>
 
+#include <map>
 #include <random>
 
 using namespace rehearse::simcore;
@@ -152,6 +153,75 @@ class TestFem : public QObject {
     for (std::size_t i = 0; i < co.nodeCount(); ++i) x.segment<3>(3 * i) = R * co.rest[i];
     vonMisesStress(co, x, vm);
     for (double v : vm) QVERIFY(v < 1e-9 * E);
+  }
+
+  // Embedded inner surfaces: the mapping is exact for affine motion (both ways of the bi-directional
+  // mapping: positions down, forces up through J^T, checked against finite differences of the energy),
+  // and the embedded wall stiffens the organ.
+  void embeddedSurfaces() {
+    auto c = rehearse::phantom::makePhantom();
+    QVERIFY(!c.innerSurface.empty());
+    // The vessel wall as its own surface, shrunk by 10 % about its centre so its vertices fall inside tets.
+    Mesh wall;
+    std::map<int, int> index;
+    for (const auto& t : c.innerSurface) {
+      std::array<int, 3> tri;
+      for (int k = 0; k < 3; ++k) {
+        auto [it, added] = index.try_emplace(t[k], static_cast<int>(wall.points.size()));
+        if (added) wall.points.push_back(c.volume.points[t[k]]);
+        tri[k] = it->second;
+      }
+      wall.triangles.push_back(tri);
+    }
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const auto& p : wall.points) centre += p / wall.points.size();
+    for (auto& p : wall.points) p = centre + 0.9 * (p - centre);
+    Mesh organ = c.volume;
+    std::fill(organ.tetLabels.begin(), organ.tetLabels.end(), 1);  // no vessel label: the wall carries it
+    const MaterialParams soft{MaterialModel::Linear, 27e3, 0.4, 1000};
+    const FemModel m = FemModel::build(organ, {}, soft, {{wall, 620e3, 1e-3, "vessels"}});
+    QCOMPARE(m.embeddings.size(), std::size_t(1));
+    QVERIFY(!m.springs.empty());
+    qInfo("vessel wall: %zu vertices, %zu springs, %zu outside the volume", wall.points.size(), m.springs.size(), m.embeddings[0].outside);
+    QVERIFY(m.embeddings[0].outside < wall.points.size() / 50);
+    // Positions down: exact at rest and under an affine map.
+    std::vector<Eigen::Vector3d> mapped = mapEmbedded(m, 0, m.restVector());
+    double worst = 0;
+    for (std::size_t i = 0; i < mapped.size(); ++i) worst = std::max(worst, (mapped[i] - wall.points[i] * organ.unitToMetre).norm());
+    QVERIFY2(worst < 1e-12, qPrintable(QString::number(worst)));
+    Eigen::Matrix3d A;
+    A << 1.1, 0.2, -0.1, 0.05, 0.9, 0.3, -0.2, 0.1, 1.2;
+    const Eigen::Vector3d b(0.01, -0.02, 0.03);
+    Eigen::VectorXd x = m.restVector();
+    for (std::size_t i = 0; i < m.nodeCount(); ++i) x.segment<3>(3 * i) = A * m.rest[i] + b;
+    mapped = mapEmbedded(m, 0, x);
+    worst = 0;
+    for (std::size_t i = 0; i < mapped.size(); ++i) worst = std::max(worst, (mapped[i] - (A * wall.points[i] * organ.unitToMetre + b)).norm());
+    QVERIFY2(worst < 1e-12, qPrintable(QString::number(worst)));
+    // Forces up and stiffness: finite differences of the energy (springs included).
+    std::mt19937 rng(5);
+    std::normal_distribution<double> n(0, 1);
+    x = m.restVector();
+    for (Eigen::Index i = 0; i < x.size(); ++i) x[i] += 0.002 * n(rng);
+    Eigen::VectorXd v(x.size());
+    for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = n(rng);
+    const double h = 1e-7;
+    const Eigen::VectorXd f = elasticForces(m, x);
+    const double dE = (elasticEnergy(m, x + h * v) - elasticEnergy(m, x - h * v)) / (2 * h);
+    QVERIFY(std::abs(dE + f.dot(v)) / std::abs(dE) < 1e-6);
+    const Eigen::SparseMatrix<double> K = elasticStiffness(m, x);
+    const Eigen::VectorXd df = (elasticForces(m, x + h * v) - elasticForces(m, x - h * v)) / (2 * h);
+    const Eigen::VectorXd Kv = K * v;
+    QVERIFY2((df + Kv).norm() / Kv.norm() < 1e-5, qPrintable(QString::number((df + Kv).norm() / Kv.norm())));
+    TangentState ts;
+    prepareTangentState(m, x, ts);
+    Eigen::VectorXd Kv2;
+    applyStiffness(m, ts, v, Kv2);
+    QVERIFY((Kv2 - Kv).norm() / Kv.norm() < 1e-12);
+    // The springs' share of the stiffness is J^T K_s J: compare with the model without the wall.
+    const FemModel bare = FemModel::build(organ, {}, soft);
+    const Eigen::VectorXd springPart = K * v - elasticStiffness(bare, x) * v;
+    QVERIFY(springPart.norm() > 1e-3 * Kv.norm());
   }
 
   // Patch test: under any affine deformation the forces on interior nodes vanish.

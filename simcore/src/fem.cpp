@@ -22,9 +22,92 @@ Eigen::Matrix3d deformationGradient(const FemModel& m, std::size_t e, const Eige
   return Ds * m.Bm[e];
 }
 
+// Barycentric coordinates of p in tet e (rest shape).
+Eigen::Vector4d barycentric(const FemModel& m, std::size_t e, const Eigen::Vector3d& p) {
+  const Eigen::Vector3d l = m.Bm[e] * (p - m.rest[m.tets[e][0]]);
+  return {1 - l.sum(), l[0], l[1], l[2]};
+}
+
+// Locates every point in the rest mesh (a uniform grid over the tetrahedra's boxes); points outside
+// every tetrahedron take the one whose barycentric coordinates are least negative nearby.
+SurfaceEmbedding locate(const FemModel& m, const std::vector<Eigen::Vector3d>& points) {
+  SurfaceEmbedding out;
+  Eigen::AlignedBox3d box;
+  for (const auto& p : m.rest) box.extend(p);
+  const double cell = std::cbrt(box.volume() / std::max<std::size_t>(1, m.tets.size())) * 2 + 1e-12;
+  const Eigen::Array3i dims = ((box.sizes() / cell).array().ceil().cast<int>() + 1).max(1).min(256);
+  auto cellOf = [&](const Eigen::Vector3d& p) {
+    Eigen::Array3i c = ((p - box.min()).array() / cell).floor().cast<int>();
+    return c.max(0).min(dims - 1).eval();
+  };
+  std::vector<std::vector<int>> grid(static_cast<std::size_t>(dims.prod()));
+  auto index = [&](const Eigen::Array3i& c) { return static_cast<std::size_t>((c[0] * dims[1] + c[1]) * dims[2] + c[2]); };
+  for (std::size_t e = 0; e < m.tets.size(); ++e) {
+    Eigen::AlignedBox3d b;
+    for (int v : m.tets[e]) b.extend(m.rest[v]);
+    const Eigen::Array3i lo = cellOf(b.min()), hi = cellOf(b.max());
+    for (int i = lo[0]; i <= hi[0]; ++i)
+      for (int j = lo[1]; j <= hi[1]; ++j)
+        for (int k = lo[2]; k <= hi[2]; ++k) grid[index({i, j, k})].push_back(static_cast<int>(e));
+  }
+  for (const auto& p : points) {
+    int best = -1;
+    double bestMin = -1e300;
+    Eigen::Vector4d bestW;
+    auto consider = [&](int e) {
+      const Eigen::Vector4d w = barycentric(m, static_cast<std::size_t>(e), p);
+      if (w.minCoeff() > bestMin) {
+        bestMin = w.minCoeff();
+        best = e;
+        bestW = w;
+      }
+    };
+    for (int e : grid[index(cellOf(p))]) consider(e);
+    if (bestMin < -1e-9) {
+      // Outside (or at a cell border): widen the search to the neighbouring cells, then everything.
+      const Eigen::Array3i c = cellOf(p);
+      for (int i = std::max(0, c[0] - 1); i <= std::min(dims[0] - 1, c[0] + 1); ++i)
+        for (int j = std::max(0, c[1] - 1); j <= std::min(dims[1] - 1, c[1] + 1); ++j)
+          for (int k = std::max(0, c[2] - 1); k <= std::min(dims[2] - 1, c[2] + 1); ++k)
+            for (int e : grid[index({i, j, k})]) consider(e);
+      if (best < 0)
+        for (std::size_t e = 0; e < m.tets.size(); ++e) consider(static_cast<int>(e));
+    }
+    if (bestMin < -1e-9) ++out.outside;
+    out.nodes.push_back(m.tets[best]);
+    out.weights.push_back(bestW);
+  }
+  return out;
+}
+
+// Hessian of the spring energy k/2 (|d| - L)^2 with respect to d.
+Eigen::Matrix3d springHessian(const EmbeddedSpring& s, const Eigen::Vector3d& d) {
+  const double l = d.norm();
+  if (!(l > 1e-12 * std::max(s.restLength, 1e-12))) return s.stiffness * Eigen::Matrix3d::Identity();
+  const Eigen::Vector3d n = d / l;
+  return s.stiffness * ((1 - s.restLength / l) * Eigen::Matrix3d::Identity() + (s.restLength / l) * n * n.transpose());
+}
+
+Eigen::Vector3d springVector(const EmbeddedSpring& s, const Eigen::VectorXd& x) {
+  Eigen::Vector3d d = Eigen::Vector3d::Zero();
+  for (int k = 0; k < 8; ++k) d += s.weights[k] * x.segment<3>(3 * s.nodes[k]);
+  return d;
+}
+
 }  // namespace
 
-FemModel FemModel::build(const Mesh& mesh, const std::map<int, MaterialParams>& byLabel, const MaterialParams& fallback) {
+std::vector<Eigen::Vector3d> mapEmbedded(const FemModel& m, std::size_t which, const Eigen::VectorXd& x) {
+  const SurfaceEmbedding& e = m.embeddings.at(which);
+  std::vector<Eigen::Vector3d> out(e.nodes.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i].setZero();
+    for (int k = 0; k < 4; ++k) out[i] += e.weights[i][k] * x.segment<3>(3 * e.nodes[i][k]);
+  }
+  return out;
+}
+
+FemModel FemModel::build(const Mesh& mesh, const std::map<int, MaterialParams>& byLabel, const MaterialParams& fallback,
+                         const std::vector<EmbeddedSurface>& embedded) {
   if (mesh.tets.empty()) throw MeshError("The mesh has no tetrahedra; tetrahedralise the surface first.");
   FemModel m;
   m.rest.reserve(mesh.points.size());
@@ -51,6 +134,38 @@ FemModel FemModel::build(const Mesh& mesh, const std::map<int, MaterialParams>& 
     m.lame.push_back(Lame::fromYoung(p.young, p.poisson));
     for (int v : t) m.lumpedMass[v] += p.density * std::abs(vol) / 4.0;
   }
+  // Embedded surfaces: locate their vertices, then one spring per edge, k = sqrt(3)/4 E t (the
+  // spring network that matches a membrane of thickness t under uniform stretch, Van Gelder 1998).
+  for (const auto& es : embedded) {
+    if (es.surface.triangles.empty()) throw MeshError("The embedded surface '" + es.name + "' has no triangles.");
+    if (!(es.young > 0) || !(es.thickness > 0))
+      throw MeshError("The embedded surface '" + es.name + "' needs a positive Young's modulus and wall thickness.");
+    std::vector<Eigen::Vector3d> pts;
+    for (const auto& p : es.surface.points) pts.push_back(p * es.surface.unitToMetre);
+    SurfaceEmbedding emb = locate(m, pts);
+    emb.name = es.name;
+    emb.triangles = es.surface.triangles;
+    std::vector<std::pair<int, int>> edges;
+    for (const auto& t : es.surface.triangles)
+      for (int k = 0; k < 3; ++k) edges.emplace_back(std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3]));
+    std::sort(edges.begin(), edges.end());
+    edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+    const double k = std::sqrt(3.0) / 4 * es.young * es.thickness;
+    for (const auto& [a, b] : edges) {
+      if (a < 0 || b >= static_cast<int>(pts.size())) throw MeshError("The embedded surface '" + es.name + "' has an invalid triangle.");
+      EmbeddedSpring sp;
+      for (int q = 0; q < 4; ++q) {
+        sp.nodes[q] = emb.nodes[a][q];
+        sp.weights[q] = emb.weights[a][q];
+        sp.nodes[4 + q] = emb.nodes[b][q];
+        sp.weights[4 + q] = -emb.weights[b][q];
+      }
+      sp.stiffness = k;
+      sp.restLength = (pts[a] - pts[b]).norm();
+      if (sp.restLength > 0) m.springs.push_back(sp);
+    }
+    m.embeddings.push_back(std::move(emb));
+  }
   // Sparsity pattern and element slots, computed once (the topology does not change while simulating).
   const Eigen::Index n3 = static_cast<Eigen::Index>(3 * m.rest.size());
   std::vector<Eigen::Triplet<double>> triplets;
@@ -60,6 +175,11 @@ FemModel FemModel::build(const Mesh& mesh, const std::map<int, MaterialParams>& 
       for (int b = 0; b < 4; ++b)
         for (int i = 0; i < 3; ++i)
           for (int j = 0; j < 3; ++j) triplets.emplace_back(3 * t[a] + i, 3 * t[b] + j, 0.0);
+  for (const auto& sp : m.springs)
+    for (int a = 0; a < 8; ++a)
+      for (int b = 0; b < 8; ++b)
+        for (int i = 0; i < 3; ++i)
+          for (int j = 0; j < 3; ++j) triplets.emplace_back(3 * sp.nodes[a] + i, 3 * sp.nodes[b] + j, 0.0);
   for (Eigen::Index i = 0; i < n3; ++i) triplets.emplace_back(i, i, 0.0);
   m.pattern.resize(n3, n3);
   m.pattern.setFromTriplets(triplets.begin(), triplets.end());
@@ -74,6 +194,12 @@ FemModel FemModel::build(const Mesh& mesh, const std::map<int, MaterialParams>& 
     const auto& t = m.tets[e];
     for (int c = 0; c < 12; ++c)
       for (int r = 0; r < 12; ++r) m.elementSlots[e][12 * c + r] = slotOf(3 * t[r / 3] + r % 3, 3 * t[c / 3] + c % 3);
+  }
+  m.springSlots.resize(m.springs.size());
+  for (std::size_t e = 0; e < m.springs.size(); ++e) {
+    const auto& sp = m.springs[e];
+    for (int c = 0; c < 24; ++c)
+      for (int r = 0; r < 24; ++r) m.springSlots[e][24 * c + r] = slotOf(3 * sp.nodes[r / 3] + r % 3, 3 * sp.nodes[c / 3] + c % 3);
   }
   m.diagonalSlot.resize(n3);
   for (Eigen::Index i = 0; i < n3; ++i) m.diagonalSlot[i] = slotOf(static_cast<int>(i), static_cast<int>(i));
@@ -95,7 +221,14 @@ double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x) {
           e += m.restVolume[t] * energyDensity(m.model[t], m.lame[t], deformationGradient(m, t, x));
         return e;
       },
-      std::plus<double>());
+      std::plus<double>()) + [&] {
+        double e = 0;
+        for (const auto& sp : m.springs) {
+          const double l = springVector(sp, x).norm() - sp.restLength;
+          e += 0.5 * sp.stiffness * l * l;
+        }
+        return e;
+      }();
 }
 
 void elasticForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorXd& f) {
@@ -121,6 +254,13 @@ void elasticForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorXd&
       f.segment<3>(3 * t[0]) -= H.col(k);
     }
   }
+  for (const auto& sp : m.springs) {
+    const Eigen::Vector3d d = springVector(sp, x);
+    const double l = d.norm();
+    if (!(l > 0)) continue;
+    const Eigen::Vector3d g = sp.stiffness * (l - sp.restLength) / l * d;  // dE/d(p - q)
+    for (int k = 0; k < 8; ++k) f.segment<3>(3 * sp.nodes[k]) -= sp.weights[k] * g;
+  }
 }
 
 void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state) {
@@ -132,6 +272,8 @@ void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentSta
       state.cache[e] = prepareTangent(m.model[e], state.F[e]);
     }
   });
+  state.springHessian.resize(m.springs.size());
+  for (std::size_t i = 0; i < m.springs.size(); ++i) state.springHessian[i] = springHessian(m.springs[i], springVector(m.springs[i], x));
 }
 
 void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::VectorXd& v, Eigen::VectorXd& out) {
@@ -154,6 +296,11 @@ void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::V
       out.segment<3>(3 * t[k + 1]) += H.col(k);
       out.segment<3>(3 * t[0]) -= H.col(k);
     }
+  }
+  for (std::size_t i = 0; i < m.springs.size(); ++i) {
+    const auto& sp = m.springs[i];
+    const Eigen::Vector3d hd = state.springHessian[i] * springVector(sp, v);
+    for (int k = 0; k < 8; ++k) out.segment<3>(3 * sp.nodes[k]) += sp.weights[k] * hd;
   }
 }
 
@@ -219,6 +366,13 @@ void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::Spars
     const double* b = buffer.data() + 144 * e;
     const auto& slot = m.elementSlots[e];
     for (int i = 0; i < 144; ++i) values[slot[i]] += b[i];
+  }
+  for (std::size_t e = 0; e < m.springs.size(); ++e) {
+    const auto& sp = m.springs[e];
+    const Eigen::Matrix3d H = springHessian(sp, springVector(sp, x));
+    const auto& slot = m.springSlots[e];
+    for (int c = 0; c < 24; ++c)
+      for (int r = 0; r < 24; ++r) values[slot[24 * c + r]] += sp.weights[r / 3] * sp.weights[c / 3] * H(r % 3, c % 3);
   }
 }
 

@@ -37,6 +37,13 @@ const std::vector<ComponentDecl>& sceneComponents() {
         {"tolerance", "number", "1e-6", "", "relative residual"}}},
       {"static", "Static equilibrium instead of time stepping (registration).",
        {{"newton_iterations", "integer", "30", "", "Newton iterations at most"}, {"tolerance", "number", "1e-6", "", "relative residual"}}},
+      {"embedded", "An inner structure given as a surface (vessels, tumour), embedded by barycentric mapping; its wall stiffness acts on the organ.",
+       {{"file", "string", "", "", "surface file, relative to the scene"},
+        {"unit", "string", "\"m\"", "", "length unit of the file: m, dm, cm or mm"},
+        {"young", "number", "620e3", "Pa", "Young's modulus of the wall"},
+        {"thickness", "number", "0.001", "m", "wall thickness"},
+        {"name", "string", "\"inner\"", "", "name used in the output files"}},
+       true},
       {"solver", "Linear solver and how Newton reuses its factorisation.",
        {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
         {"method", "string", "\"exact\"", "", "exact, lagged-pcg, chord or linearised (the last three reuse a cholmod factorisation)"}}},
@@ -121,6 +128,17 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         if (mode != "projection" && mode != "lagrange") fail("attachments 'mode' must be projection or lagrange.");
         s.settings.attachments = mode == "lagrange" ? AttachmentMode::Lagrange : AttachmentMode::Projection;
         s.componentBytes += s.fixedNodes.size() * sizeof(int);
+      } else if (type == "embedded") {
+        std::filesystem::path file = value(c, *decl, "file").get<std::string>();
+        if (file.is_relative()) file = std::filesystem::path(baseDir) / file;
+        EmbeddedSurface e;
+        e.surface = loadMesh(file.string(), {value(c, *decl, "unit").get<std::string>()});
+        if (e.surface.triangles.empty()) fail("the embedded surface " + file.string() + " has no triangles.");
+        e.young = value(c, *decl, "young").get<double>();
+        e.thickness = value(c, *decl, "thickness").get<double>();
+        e.name = value(c, *decl, "name").get<std::string>();
+        s.componentBytes += e.surface.points.size() * sizeof(Eigen::Vector3d) + e.surface.triangles.size() * sizeof(std::array<int, 3>);
+        s.embedded.push_back(std::move(e));
       } else if (type == "gravity") {
         const auto g = value(c, *decl, "vector").get<std::vector<double>>();
         if (g.size() != 3) fail("gravity 'vector' needs three numbers.");

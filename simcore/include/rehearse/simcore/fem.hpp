@@ -8,6 +8,7 @@
 #include <Eigen/Sparse>
 
 #include <map>
+#include <string>
 #include <vector>
 
 namespace rehearse::simcore {
@@ -17,6 +18,34 @@ struct MaterialParams {
   double young = 3000;    ///< Pa
   double poisson = 0.3;   ///< 0 <= nu < 0.5
   double density = 1000;  ///< kg/m^3
+};
+
+/// An inner structure (vessels, a tumour) given as its own closed or open triangle surface, embedded in
+/// the volume by barycentric mapping: each surface vertex follows the tetrahedron that contains it
+/// (x_s = J x), and the surface's own stiffness, a membrane of edge springs, acts back on the volume's
+/// nodes (f += J^T f_s, K += J^T K_s J). The surface is massless.
+struct EmbeddedSurface {
+  Mesh surface;             ///< triangles; its unit as loaded
+  double young = 620e3;     ///< Pa, of the wall
+  double thickness = 1e-3;  ///< m, of the wall
+  std::string name;
+};
+
+/// Where each vertex of an embedded surface sits: a tetrahedron's nodes and barycentric weights.
+struct SurfaceEmbedding {
+  std::string name;
+  std::vector<std::array<int, 4>> nodes;
+  std::vector<Eigen::Vector4d> weights;
+  std::vector<std::array<int, 3>> triangles;
+  std::size_t outside = 0;  ///< vertices outside every tetrahedron (mapped to the nearest one, extrapolated)
+};
+
+/// A spring between two mapped points (p = sum w_i x_i over the first four nodes, q over the last four).
+struct EmbeddedSpring {
+  std::array<int, 8> nodes;
+  std::array<double, 8> weights;  ///< +w for p's nodes, -w for q's (so p - q = sum weights * x)
+  double stiffness = 0;           ///< N/m
+  double restLength = 0;          ///< m
 };
 
 struct FemModel {
@@ -32,13 +61,22 @@ struct FemModel {
   Eigen::SparseMatrix<double> pattern;
   std::vector<std::array<int, 144>> elementSlots;
   std::vector<int> diagonalSlot;
+  std::vector<SurfaceEmbedding> embeddings;
+  std::vector<EmbeddedSpring> springs;
+  std::vector<std::array<int, 576>> springSlots;  ///< 24x24 blocks, column-major, like elementSlots
 
   std::size_t nodeCount() const { return rest.size(); }
   /// Builds from a volume mesh (metres): materials by tet label; labels not in the map use `fallback`.
   /// Throws MeshError for empty meshes, degenerate rest elements or invalid parameters.
-  static FemModel build(const Mesh& mesh, const std::map<int, MaterialParams>& byLabel, const MaterialParams& fallback);
+  /// Embedded surfaces (optional) add their springs; their vertices must lie inside the volume (those
+  /// outside are mapped to the nearest tetrahedron and counted in SurfaceEmbedding::outside).
+  static FemModel build(const Mesh& mesh, const std::map<int, MaterialParams>& byLabel, const MaterialParams& fallback,
+                        const std::vector<EmbeddedSurface>& embedded = {});
   Eigen::VectorXd restVector() const;  ///< 3n
 };
+
+/// Positions of an embedded surface's vertices for nodal positions x (the mapping x_s = J x).
+std::vector<Eigen::Vector3d> mapEmbedded(const FemModel& m, std::size_t which, const Eigen::VectorXd& x);
 
 double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x);
 /// f = -dE/dx, size 3n.
@@ -52,6 +90,7 @@ Eigen::SparseMatrix<double> elasticStiffness(const FemModel& m, const Eigen::Vec
 struct TangentState {
   std::vector<Eigen::Matrix3d> F;
   std::vector<TangentCache> cache;
+  std::vector<Eigen::Matrix3d> springHessian;
 };
 void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state);
 /// out = K(x) v for the configuration `state` was prepared at (out sized once, then reused).

@@ -11,7 +11,8 @@
 //     {"type": "gravity", "vector": [0, -9.81, 0]},
 //     {"type": "damping", "rayleigh_mass": 0.1, "rayleigh_stiffness": 0.1},
 //     {"type": "implicit_euler", "dt": 0.02, "steps": 100},
-//     {"type": "solver", "kind": "cholmod"}]}
+//     {"type": "solver", "kind": "cholmod", "method": "exact"},
+//     {"type": "embedded", "file": "vessels.obj", "unit": "mm", "young": 620e3, "thickness": 0.001}]}
 #include <rehearse/simcore/integrator.hpp>
 
 #include <memory>
@@ -46,6 +47,7 @@ struct Scene {
   std::map<int, MaterialParams> materials;
   MaterialParams defaultMaterial;
   std::vector<int> fixedNodes;
+  std::vector<EmbeddedSurface> embedded;  ///< inner structures given as surfaces
   SimulationSettings settings;
   bool staticSolve = false;
   long steps = 100;
