@@ -1,6 +1,11 @@
 // Against CalculiX (ccx, an independent FEM code) on the same C3D4 mesh: a cantilever under its own
-// weight, linear (small load) and geometrically nonlinear (NLGEOM with *ELASTIC is Saint Venant-Kirchhoff,
-// so it is compared with our StVK model). Skips when ccx is not installed.
+// weight, linear (small load) and geometrically nonlinear. Like is compared with like:
+//   ccx *ELASTIC + NLGEOM is Saint Venant-Kirchhoff      <-> our stvk (and our corotational, which differs
+//                                                            from it only at finite strain: 2 % allowed);
+//   ccx *HYPERELASTIC, NEO HOOKE: C10 (I1bar - 3) + (J-1)^2/D1  <-> our neohookean-split (the same law), and
+//   our stable neohookean (mu/2 (I1 - 3) + lambda'/2 (J - alpha)^2, Smith et al. 2018), which shares the
+//   small-strain law but not the volumetric term: its difference is reported and held to 2 %/5 %.
+// Skips when ccx is not installed.
 #include "box_mesh.hpp"
 #include "test_support.hpp"
 
@@ -21,7 +26,7 @@ using namespace rehearse::simcore;
 namespace {
 // Runs ccx on the mesh (fixed nodes, gravity g along -z, or along `gdir`) and returns the nodal displacements (3n).
 Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, double g, bool nlgeom, const std::string& name,
-                            std::vector<int> fixed = {}, Eigen::Vector3d gdir = Eigen::Vector3d(0, 0, -1)) {
+                            std::vector<int> fixed = {}, Eigen::Vector3d gdir = Eigen::Vector3d(0, 0, -1), bool neoHooke = false) {
   if (fixed.empty()) fixed = nodesAtX(mesh, 0);
   const std::string dir = tempPath("ccx-" + name);
   std::filesystem::create_directories(dir);
@@ -40,7 +45,13 @@ Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, d
   }
   inp += "*NSET, NSET=NALL, GENERATE\n1, " + std::to_string(mesh.points.size()) + ", 1\n*NSET, NSET=FIX\n";
   for (int i : fixed) inp += std::to_string(i + 1) + "\n";
-  std::snprintf(buf, sizeof buf, "*MATERIAL, NAME=M\n*ELASTIC\n%.17g, %.17g\n*DENSITY\n%.17g\n", E, nu, rho);
+  if (neoHooke) {
+    const Lame l = Lame::fromYoung(E, nu);
+    const double C10 = l.mu / 2, D1 = 2 / (l.lambda + 2 * l.mu / 3);
+    std::snprintf(buf, sizeof buf, "*MATERIAL, NAME=M\n*HYPERELASTIC, NEO HOOKE\n%.13g, %.13g\n*DENSITY\n%.13g\n", C10, D1, rho);
+  } else {
+    std::snprintf(buf, sizeof buf, "*MATERIAL, NAME=M\n*ELASTIC\n%.17g, %.17g\n*DENSITY\n%.17g\n", E, nu, rho);
+  }
   inp += "*BOUNDARY\nFIX, 1, 3\n" + std::string(buf) + "*SOLID SECTION, ELSET=EALL, MATERIAL=M\n";
   inp += nlgeom ? "*STEP, NLGEOM, INC=200\n*STATIC\n0.05, 1.0, 1e-6, 0.1\n" : "*STEP\n*STATIC\n";
   std::snprintf(buf, sizeof buf, "*DLOAD\nEALL, GRAV, %.17g, %.17g, %.17g, %.17g\n", g, gdir.x(), gdir.y(), gdir.z());
@@ -87,10 +98,10 @@ struct Result {
   double tipOurs, tipCcx, fieldError;
 };
 
-Result compare(MaterialModel model, double E, bool nlgeom, const std::string& name) {
+Result compare(MaterialModel model, double E, bool nlgeom, const std::string& name, bool neoHooke = false) {
   const double L = 0.1, b = 0.01, h = 0.01, nu = 0.3, rho = 1000, g = 9.81;
   Mesh mesh = boxMesh(L, b, h, 20, 2, 2);
-  const Eigen::VectorXd ccx = runCalculix(mesh, E, nu, rho, g, nlgeom, name);
+  const Eigen::VectorXd ccx = runCalculix(mesh, E, nu, rho, g, nlgeom, name, {}, Eigen::Vector3d(0, 0, -1), neoHooke);
   if (ccx.size() == 0) return {0, 0, -1};
   FemModel m = FemModel::build(mesh, {}, {model, E, nu, rho});
   const std::vector<int> fixed = nodesAtX(mesh, 0);
@@ -144,6 +155,36 @@ class TestCalculix : public QObject {
     QVERIFY(r.fieldError < 1e-4);
   }
 
+  // The co-rotational model against the same NLGEOM run: large rotation, small strain, so within 2 %.
+  void nonlinearCantileverCorotational() {
+    const auto r = compare(MaterialModel::Corotational, 1.2e5, true, "corot");
+    QVERIFY2(r.fieldError >= 0, r.fieldError == -1 ? "ccx failed" : "our static solve failed");
+    const double tipError = std::abs(r.tipOurs - r.tipCcx) / std::abs(r.tipCcx);
+    qInfo("corotational vs CalculiX NLGEOM (StVK): tip %.4f mm vs %.4f mm (%.2f %%), relative L2 field difference %.2e", -r.tipOurs * 1e3,
+          -r.tipCcx * 1e3, 100 * tipError, r.fieldError);
+    QVERIFY(std::abs(r.tipCcx) > 0.01);
+    QVERIFY(tipError < 0.02);
+    QVERIFY(r.fieldError < 0.05);
+  }
+
+  // Neo-Hookean: CalculiX's *HYPERELASTIC, NEO HOOKE against the same law (neohookean-split), and our
+  // stable Neo-Hookean against it (different volumetric term: reported, within 2 % / 5 %).
+  void nonlinearCantileverNeoHookean() {
+    const auto same = compare(MaterialModel::NeoHookeanSplit, 1.2e5, true, "neohooke", true);
+    QVERIFY2(same.fieldError >= 0, same.fieldError == -1 ? "ccx failed" : "our static solve failed");
+    const auto stable = compare(MaterialModel::NeoHookean, 1.2e5, true, "neohooke-stable", true);
+    QVERIFY2(stable.fieldError >= 0, stable.fieldError == -1 ? "ccx failed" : "our static solve failed");
+    const double tipSame = std::abs(same.tipOurs - same.tipCcx) / std::abs(same.tipCcx);
+    const double tipStable = std::abs(stable.tipOurs - stable.tipCcx) / std::abs(stable.tipCcx);
+    qInfo("NEO HOOKE (CalculiX) tip %.4f mm; neohookean-split %.4f mm (%.2e, L2 %.2e); stable neohookean %.4f mm (%.2f %%, L2 %.2e)",
+          -same.tipCcx * 1e3, -same.tipOurs * 1e3, tipSame, same.fieldError, -stable.tipOurs * 1e3, 100 * tipStable, stable.fieldError);
+    QVERIFY(std::abs(same.tipCcx) > 0.01);
+    QVERIFY(tipSame < 1e-3);
+    QVERIFY(same.fieldError < 1e-3);
+    QVERIFY(tipStable < 0.02);
+    QVERIFY(stable.fieldError < 0.05);
+  }
+
   // SOFA's liver2.msh (read in dm: a 21 cm liver) hanging from its top nodes under gravity, soft StVK.
   void hangingLiver2() {
     REQUIRE_SHARED("sofa/liver2.msh");
@@ -156,25 +197,39 @@ class TestCalculix : public QObject {
     std::sort(order.begin(), order.end(), [&](int a, int b) { return mesh.points[a].y() > mesh.points[b].y(); });
     std::vector<int> fixed(order.begin(), order.begin() + mesh.points.size() * 3 / 100);
     const double E = 27e3, nu = 0.4, rho = 1000, g = 9.81;
-    const Eigen::VectorXd ccx = runCalculix(mesh, E, nu, rho, g, true, "liver2", fixed, Eigen::Vector3d(0, -1, 0));
-    QVERIFY2(ccx.size() > 0, "ccx failed");
-    FemModel m = FemModel::build(mesh, {}, {MaterialModel::StVK, E, nu, rho});
-    SimulationSettings s;
-    s.gravity = Eigen::Vector3d(0, -g, 0);
-    s.tolerance = 1e-8;
-    Integrator in(m, fixed, s);
-    auto st = in.initialState();
-    auto rep = in.solveStatic(st);
-    QVERIFY2(rep.ok, rep.status.c_str());
-    const Eigen::VectorXd u = st.x - m.restVector();
-    Eigen::Index worst = 0;
-    ccx.cwiseAbs().maxCoeff(&worst);
-    const double field = (u - ccx).norm() / ccx.norm();
-    qInfo("liver2 hanging (%zu tets, %zu fixed): largest displacement %.3f mm (ours) vs %.3f mm (CalculiX); relative L2 %.2e; %d Newton iterations",
-          m.tets.size(), fixed.size(), std::abs(u[worst]) * 1e3, std::abs(ccx[worst]) * 1e3, field, rep.newtonIterations);
-    QVERIFY(std::abs(ccx[worst]) > 1e-3);
-    QVERIFY(std::abs(u[worst] - ccx[worst]) / std::abs(ccx[worst]) < 0.02);
-    QVERIFY(field < 0.05);
+    const Eigen::VectorXd ccxElastic = runCalculix(mesh, E, nu, rho, g, true, "liver2", fixed, Eigen::Vector3d(0, -1, 0));
+    const Eigen::VectorXd ccxNeo = runCalculix(mesh, E, nu, rho, g, true, "liver2-neo", fixed, Eigen::Vector3d(0, -1, 0), true);
+    // The co-rotational law is not St Venant-Kirchhoff at finite strain (12 % apart at 27 kPa, where the
+    // strain near the attachments is large): like with like is the same sag geometry at small strain, 30x stiffer.
+    const Eigen::VectorXd ccxStiff = runCalculix(mesh, 30 * E, nu, rho, g, true, "liver2-stiff", fixed, Eigen::Vector3d(0, -1, 0));
+    QVERIFY2(ccxElastic.size() > 0 && ccxNeo.size() > 0 && ccxStiff.size() > 0, "ccx failed");
+    for (MaterialModel model : {MaterialModel::StVK, MaterialModel::Corotational, MaterialModel::NeoHookeanSplit, MaterialModel::NeoHookean}) {
+      const bool neo = model == MaterialModel::NeoHookeanSplit || model == MaterialModel::NeoHookean;
+      const bool corot = model == MaterialModel::Corotational;
+      const Eigen::VectorXd& ccx = neo ? ccxNeo : corot ? ccxStiff : ccxElastic;
+      FemModel m = FemModel::build(mesh, {}, {model, corot ? 30 * E : E, nu, rho});
+      SimulationSettings s;
+      s.gravity = Eigen::Vector3d(0, -g, 0);
+      s.tolerance = 1e-8;
+      Integrator in(m, fixed, s);
+      auto st = in.initialState();
+      auto rep = in.solveStatic(st);
+      QVERIFY2(rep.ok, rep.status.c_str());
+      const Eigen::VectorXd u = st.x - m.restVector();
+      Eigen::Index worst = 0;
+      ccx.cwiseAbs().maxCoeff(&worst);
+      const double field = (u - ccx).norm() / ccx.norm(), peak = std::abs(u[worst] - ccx[worst]) / std::abs(ccx[worst]);
+      qInfo("liver2 hanging (%zu tets, %zu fixed), %s vs CalculiX %s%s: largest displacement %.3f mm vs %.3f mm (%.2f %%); relative L2 %.2e; "
+            "%d Newton iterations",
+            m.tets.size(), fixed.size(), toString(model).c_str(), neo ? "NEO HOOKE" : "ELASTIC NLGEOM", corot ? " (E = 810 kPa)" : "",
+            std::abs(u[worst]) * 1e3,
+            std::abs(ccx[worst]) * 1e3, 100 * peak, field, rep.newtonIterations);
+      QVERIFY(std::abs(ccx[worst]) > 1e-3);
+      // Our stable Neo-Hookean is another law than ccx's NEO HOOKE (volumetric term): 2.6 % apart at this
+      // strain, reported and bounded by 5 %; the same law (neohookean-split) agrees to 1e-7.
+      QVERIFY(peak < (model == MaterialModel::NeoHookean ? 0.05 : 0.02));
+      QVERIFY(field < 0.05);
+    }
   }
 };
 

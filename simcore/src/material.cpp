@@ -3,6 +3,8 @@
 
 #include <Eigen/SVD>
 
+#include <cmath>
+
 namespace rehearse::simcore {
 namespace {
 
@@ -32,6 +34,25 @@ Eigen::Matrix3d cross(const Eigen::Vector3d& w) {
 // linearise to the same small-strain behaviour as the other models (P ~ mu (H + H^T) + lambda tr(H) I).
 Lame stable(const Lame& p) { return {p.mu, p.lambda + p.mu}; }
 
+// The split Neo-Hookean of CalculiX and Abaqus (*HYPERELASTIC, NEO HOOKE):
+//   W = C10 (J^-2/3 I1 - 3) + (J - 1)^2 / D1,  C10 = mu / 2,  D1 = 2 / K,  K = lambda + 2 mu / 3.
+// Not defined for inverted elements: J is clamped to a small positive value there.
+constexpr double kMinJ = 1e-6;
+struct Split {
+  double J, a, I1, C10, K;
+  Eigen::Matrix3d FinvT;
+};
+Split split(const Lame& p, const Eigen::Matrix3d& F) {
+  Split s;
+  s.J = std::max(F.determinant(), kMinJ);
+  s.a = std::pow(s.J, -2.0 / 3.0);
+  s.I1 = F.squaredNorm();
+  s.C10 = 0.5 * p.mu;
+  s.K = p.lambda + 2.0 / 3.0 * p.mu;
+  s.FinvT = cofactor(F) / s.J;  // F^-T = cof(F) / det F
+  return s;
+}
+
 }  // namespace
 
 MaterialModel materialModelFromString(const std::string& n) {
@@ -39,7 +60,8 @@ MaterialModel materialModelFromString(const std::string& n) {
   if (n == "corotational") return MaterialModel::Corotational;
   if (n == "stvk") return MaterialModel::StVK;
   if (n == "neohookean") return MaterialModel::NeoHookean;
-  throw MeshError("Unknown material '" + n + "'; use linear, corotational, stvk or neohookean.");
+  if (n == "neohookean-split") return MaterialModel::NeoHookeanSplit;
+  throw MeshError("Unknown material '" + n + "'; use linear, corotational, stvk, neohookean or neohookean-split.");
 }
 
 std::string toString(MaterialModel m) {
@@ -47,6 +69,7 @@ std::string toString(MaterialModel m) {
     case MaterialModel::Linear: return "linear";
     case MaterialModel::Corotational: return "corotational";
     case MaterialModel::StVK: return "stvk";
+    case MaterialModel::NeoHookeanSplit: return "neohookean-split";
     default: return "neohookean";
   }
 }
@@ -100,6 +123,10 @@ double energyDensity(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F) {
       const Eigen::Matrix3d E = 0.5 * (F.transpose() * F - I);
       return p.mu * E.squaredNorm() + 0.5 * p.lambda * E.trace() * E.trace();
     }
+    case MaterialModel::NeoHookeanSplit: {
+      const Split q = split(p, F);
+      return q.C10 * (q.a * q.I1 - 3) + 0.5 * q.K * (q.J - 1) * (q.J - 1);
+    }
     default: {
       const Lame s = stable(p);
       const double alpha = 1 + s.mu / s.lambda, J = F.determinant();
@@ -124,6 +151,10 @@ Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d
       const Eigen::Matrix3d E = 0.5 * (F.transpose() * F - I);
       return F * (2 * p.mu * E + p.lambda * E.trace() * I);
     }
+    case MaterialModel::NeoHookeanSplit: {
+      const Split q = split(p, F);
+      return q.C10 * (2 * q.a * F - (2.0 / 3.0) * q.a * q.I1 * q.FinvT) + q.K * (q.J - 1) * q.J * q.FinvT;
+    }
     default: {
       const Lame s = stable(p);
       const double alpha = 1 + s.mu / s.lambda, J = F.determinant();
@@ -146,6 +177,16 @@ Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eig
       const Eigen::Matrix3d Sst = 2 * p.mu * E + p.lambda * E.trace() * I;
       const Eigen::Matrix3d dS = 2 * p.mu * dE + p.lambda * dE.trace() * I;
       return dF * Sst + F * dS;
+    }
+    case MaterialModel::NeoHookeanSplit: {
+      const Split q = split(p, F);
+      const double tr = q.FinvT.cwiseProduct(dF).sum();  // tr(F^-1 dF)
+      const double dJ = q.J * tr, da = -2.0 / 3.0 * q.a * tr, dI1 = 2 * F.cwiseProduct(dF).sum();
+      const Eigen::Matrix3d dFinvT = -q.FinvT * dF.transpose() * q.FinvT;
+      const Eigen::Matrix3d dP1 = q.C10 * (2 * da * F + 2 * q.a * dF - (2.0 / 3.0) * (da * q.I1 + q.a * dI1) * q.FinvT -
+                                           (2.0 / 3.0) * q.a * q.I1 * dFinvT);
+      const Eigen::Matrix3d dP2 = q.K * ((2 * q.J - 1) * dJ * q.FinvT + (q.J * q.J - q.J) * dFinvT);
+      return dP1 + dP2;
     }
     default: {
       const Lame s = stable(p);

@@ -9,15 +9,18 @@
 //                  psi = mu'/2 (tr(F^T F) - 3) + lambda'/2 (J - alpha)^2, alpha = 1 + mu'/lambda',
 //                  mu' = mu, lambda' = lambda + mu (then it linearises to the same small-strain law);
 //                  defined for inverted elements (J <= 0).
+//   Neo-Hookean, split (CalculiX's and Abaqus' *HYPERELASTIC, NEO HOOKE), for validation:
+//                  psi = C10 (J^-2/3 I1 - 3) + (J - 1)^2 / D1, C10 = mu/2, D1 = 2/K, K = lambda + 2 mu/3;
+//                  the same small-strain law, but not defined for inverted elements (J clamped > 0).
 #include <Eigen/Core>
 
 #include <string>
 
 namespace rehearse::simcore {
 
-enum class MaterialModel { Linear, Corotational, StVK, NeoHookean };
+enum class MaterialModel { Linear, Corotational, StVK, NeoHookean, NeoHookeanSplit };
 
-/// Parses "linear", "corotational", "stvk", "neohookean"; throws MeshError naming the accepted values.
+/// Parses "linear", "corotational", "stvk", "neohookean", "neohookean-split"; throws MeshError naming the accepted values.
 MaterialModel materialModelFromString(const std::string& name);
 std::string toString(MaterialModel m);
 
