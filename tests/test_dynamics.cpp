@@ -51,15 +51,16 @@ class TestDynamics : public QObject {
   }
 
   // Cantilever (L/h = 20, nu = 0) under its own weight, linear material, static: tip deflection
-  // against Euler-Bernoulli q L^4 / (8 E I) (shear adds 0.2 % at this slenderness), mesh refined.
+  // against Euler-Bernoulli q L^4 / (8 E I) (shear adds 0.2 % at this slenderness), mesh refined along
+  // the length and through the thickness (with nu = 0 nothing varies across the width: one element).
   void cantileverAgainstBeamTheory() {
     const double L = 0.2, b = 0.01, h = 0.01, E = 1e8, rho = 1000, g = 9.81;  // tip sag about 1 % of L
     const double I = b * h * h * h / 12, q = rho * g * b * h;
     const double expected = q * L * L * L * L / (8 * E * I);
     double lastError = 1;
     std::vector<std::pair<int, double>> tips;
-    for (int k : {2, 4, 6}) {
-      Mesh box = boxMesh(L, b, h, 20 * k, k, k);
+    for (int k : {2, 4, 8, 16}) {
+      Mesh box = boxMesh(L, b, h, 20 * k, 1, k);
       FemModel m = FemModel::build(box, {}, {MaterialModel::Linear, E, 0.0, rho});
       SimulationSettings s;
       s.gravity = Eigen::Vector3d(0, 0, -g);
@@ -78,14 +79,14 @@ class TestDynamics : public QObject {
       lastError = err;
       tips.emplace_back(k, -tip);
     }
-    // Linear tetrahedra lock in bending (the error falls as h^2: 45 %, 17 %, 8.6 %); Richardson
-    // extrapolation of the two finest meshes gives the converged value, which must match beam theory.
-    const auto [k0, d0] = tips[1];
-    const auto [k1, d1] = tips[2];
+    // Linear tetrahedra lock in bending (the error falls as h^2: 43 %, 15 %, 4.2 %, 0.9 %); the finest
+    // mesh is within 2 %, and Richardson extrapolation of the two finest meshes converges further.
+    const auto [k0, d0] = tips[2];
+    const auto [k1, d1] = tips[3];
     const double extrapolated = (k1 * k1 * d1 - k0 * k0 * d0) / (k1 * k1 - k0 * k0);
     const double errEx = std::abs(extrapolated - expected) / expected;
     qInfo("Richardson-extrapolated tip %.4f mm: error %.2f %% against Euler-Bernoulli", extrapolated * 1e3, 100 * errEx);
-    QVERIFY(lastError < 0.10);
+    QVERIFY(lastError < 0.02);
     QVERIFY2(errEx < 0.02, qPrintable(QString::number(errEx)));
   }
 
@@ -143,6 +144,21 @@ class TestDynamics : public QObject {
     for (int i = 0; i < 10; ++i) {
       auto rep = in.step(state);
       QVERIFY2(rep.ok, qPrintable(QString("%1 (residual %2, retries %3)").arg(rep.status.c_str()).arg(rep.residual).arg(rep.retries)));
+    }
+    // Slender elements (aspect ratio 30) under a stiff material: the static residual stalls at round-off
+    // above the tolerance; the solve says so instead of failing.
+    {
+      Mesh thin = boxMesh(0.2, 0.01, 0.01, 600, 2, 4);
+      FemModel m = FemModel::build(thin, {}, {MaterialModel::Linear, 1e8, 0.0, 1000});
+      SimulationSettings s;
+      s.gravity = Eigen::Vector3d(0, 0, -9.81);
+      Integrator thinIn(m, nodesAtX(thin, 0), s);
+      auto st = thinIn.initialState();
+      const auto rep = thinIn.solveStatic(st);
+      qInfo("slender elements: %s after %d iterations", rep.status.c_str(), rep.newtonIterations);
+      QVERIFY2(rep.ok, rep.status.c_str());
+      QVERIFY(st.x.allFinite());
+      QVERIFY((st.x - m.restVector()).norm() > 0);
     }
     // A 180 degree flip of the initial state (rigid): the corotational model feels no force.
     FemModel co = FemModel::build(box, {}, {MaterialModel::Corotational, 1e4, 0.3, 1000});
