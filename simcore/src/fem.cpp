@@ -1,6 +1,7 @@
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/quality.hpp>
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include <tbb/blocked_range.h>
@@ -349,7 +350,7 @@ void elementStiffness(const FemModel& m, std::size_t e, const Eigen::VectorXd& x
 }
 }  // namespace
 
-void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K) {
+void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K, bool projectDefinite) {
   if (K.nonZeros() != m.pattern.nonZeros() || K.rows() != m.pattern.rows()) K = m.pattern;
   double* values = K.valuePtr();
   std::fill(values, values + K.nonZeros(), 0.0);
@@ -360,7 +361,17 @@ void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::Spars
   double* const buf = buffer.data();
   const auto count = static_cast<long>(m.tets.size());
   tbb::parallel_for(tbb::blocked_range<long>(0, count, 64), [&](const tbb::blocked_range<long>& r) {
-    for (long e = r.begin(); e < r.end(); ++e) elementStiffness(m, static_cast<std::size_t>(e), x, buf + 144 * e);
+    for (long e = r.begin(); e < r.end(); ++e) {
+      elementStiffness(m, static_cast<std::size_t>(e), x, buf + 144 * e);
+      if (projectDefinite) {
+        // Projected Newton: the element's tangent with its negative eigenvalues clamped to zero.
+        Eigen::Map<Eigen::Matrix<double, 12, 12>> Ke(buf + 144 * e);
+        const Eigen::Matrix<double, 12, 12> sym = 0.5 * (Ke + Ke.transpose());
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(sym);
+        if (eig.eigenvalues().minCoeff() < 0)
+          Ke = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+      }
+    }
   });
   for (std::size_t e = 0; e < m.tets.size(); ++e) {
     const double* b = buffer.data() + 144 * e;
@@ -369,7 +380,11 @@ void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::Spars
   }
   for (std::size_t e = 0; e < m.springs.size(); ++e) {
     const auto& sp = m.springs[e];
-    const Eigen::Matrix3d H = springHessian(sp, springVector(sp, x));
+    Eigen::Matrix3d H = springHessian(sp, springVector(sp, x));
+    if (projectDefinite) {
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(H);
+      H = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+    }
     const auto& slot = m.springSlots[e];
     for (int c = 0; c < 24; ++c)
       for (int r = 0; r < 24; ++r) values[slot[24 * c + r]] += sp.weights[r / 3] * sp.weights[c / 3] * H(r % 3, c % 3);

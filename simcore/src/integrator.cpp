@@ -317,6 +317,12 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     buildNewtonMatrix(w.Kd, w.J);
     w.laggedStep = h;
     w.refresh = false;
+    ++rep.factorisations;
+    w.schurValid = false;
+    if (w.chol.factorise(w.J)) return true;
+    // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
+    assembleStiffness(model_, at, w.Kd, true);
+    buildNewtonMatrix(w.Kd, w.J);
     return factoriseShifted(w.J, rep);
   };
   if (lagged) {
@@ -341,6 +347,16 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     out = (1 + h * alpha) * mass3_.cwiseProduct(vel) - w.Mv0 - h * (w.f + gravityForce_) + (h * beta) * w.tmp;
     project(out);
   };
+  // The incremental potential whose gradient is the residual:
+  //   Phi(v) = (1 + h a)/2 v.Mv - v.M v0 + E(x0 + h v) - h g.v + h b/2 v.K(x0) v.
+  auto potential = [&](const Eigen::VectorXd& vel) {
+    w.xt = w.x0 + h * vel;
+    if (beta == 0) w.pk.setZero();
+    else if (lagged) applyStiffness(model_, w.tangent0, vel, w.pk);
+    else w.pk.noalias() = w.Kd * vel;
+    return 0.5 * (1 + h * alpha) * vel.dot(mass3_.cwiseProduct(vel)) - vel.dot(w.Mv0) + elasticEnergy(model_, w.xt) -
+           h * gravityForce_.dot(vel) + 0.5 * h * beta * vel.dot(w.pk);
+  };
   // Norm of the residual net of the constraint forces (the total multipliers of the last solve).
   auto netNorm = [&](const Eigen::VectorXd& res) {
     if (!hasConstraints || w.lambda.size() != w.Ht.cols() || w.Ht.rows() != res.size()) return res.norm();
@@ -364,6 +380,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
                             : lagged                                           ? std::max(settings_.maxNewtonIterations, 30)
                                                                                : settings_.maxNewtonIterations;
   bool ok = false;
+  bool dampingProjected = false;
   for (int it = 0; it < maxIterations; ++it) {
     if (!std::isfinite(rn)) break;
     if (rn <= settings_.tolerance * scale && !(hasConstraints && it == 0)) {
@@ -379,7 +396,25 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       assembleStiffness(model_, w.xt, w.K);
       buildNewtonMatrix(w.K, w.J);
       if (settings_.solver == LinearSolverKind::Cholmod) {
-        solved = factoriseShifted(w.J, rep) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
+        ++rep.factorisations;
+        w.schurValid = false;
+        bool factorised = w.chol.factorise(w.J);
+        if (!factorised) {
+          // Indefinite tangent: projected Newton (element tangents clamped to PSD), then a diagonal shift.
+          // The damping matrix K(x0) is projected too (an indefinite one would inject energy and leave the
+          // incremental potential unbounded below); the residual follows it from here on.
+          if (!dampingProjected && beta != 0) {
+            assembleStiffness(model_, w.x0, w.Kd, true);
+            dampingProjected = true;
+            residual(w.v, w.r);
+            rn = w.r.norm();
+            w.tmp = -w.r;
+          }
+          assembleStiffness(model_, w.xt, w.K, true);
+          buildNewtonMatrix(w.K, w.J);
+          factorised = factoriseShifted(w.J, rep);
+        }
+        solved = factorised && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
       } else {
         solved = solveLinear(w.J, w.tmp, w.dv);
         project(w.dv);
@@ -431,13 +466,30 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     residual(w.vn, w.rn);
     double rnew = netNorm(w.rn);
     const bool searchable = settings_.lineSearch && !(settings_.method == NewtonMethod::Linearised && lagged);
-    if (searchable)
-      while ((!std::isfinite(rnew) || rnew > rn) && t > 1.0 / 64) {
-        t *= 0.5;
-        w.vn = w.v + t * w.dv;
+    if (searchable && (!std::isfinite(rnew) || rnew > rn)) {
+      // The full step does not reduce the residual. Without constraints the step minimises the
+      // incremental potential Phi (its gradient is the residual): Armijo backtracking on Phi, which
+      // accepts progress through non-convex regions where the residual norm rises.
+      const double slope = w.r.dot(w.dv);
+      if (!hasConstraints && slope < 0) {
+        const double phi0 = potential(w.v);
+        while (t > 1.0 / 1024) {
+          const double phi = potential(w.vn);
+          if (std::isfinite(phi) && phi <= phi0 + 1e-4 * t * slope) break;
+          t *= 0.5;
+          w.vn = w.v + t * w.dv;
+        }
         residual(w.vn, w.rn);
         rnew = netNorm(w.rn);
+      } else {
+        while ((!std::isfinite(rnew) || rnew > rn) && t > 1.0 / 64) {
+          t *= 0.5;
+          w.vn = w.v + t * w.dv;
+          residual(w.vn, w.rn);
+          rnew = netNorm(w.rn);
+        }
       }
+    }
     const double previous = rn;
     w.v = w.vn;
     ++rep.newtonIterations;
@@ -571,14 +623,24 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
       roundOff = true;
       break;
     }
-    assembleStiffness(model_, x, w.K);
-    if (regularisation > 0)
-      for (Eigen::Index i = 0; i < w.K.rows(); ++i) w.K.valuePtr()[model_.diagonalSlot[i]] += regularisation * mass3_[i];
-    projectMatrix(w.K);
+    auto buildTangent = [&](bool projected) {
+      assembleStiffness(model_, x, w.K, projected);
+      if (regularisation > 0)
+        for (Eigen::Index i = 0; i < w.K.rows(); ++i) w.K.valuePtr()[model_.diagonalSlot[i]] += regularisation * mass3_[i];
+      projectMatrix(w.K);
+    };
+    buildTangent(false);
     if (hasConstraints) r.noalias() -= w.Ht * w.lambda;  // solve for the total multipliers
     bool solved = false;
     if (settings_.solver == LinearSolverKind::Cholmod) {
-      solved = factoriseShifted(w.K, rep) && solveConstrained(r, x, 1.0, dx, rep);
+      ++rep.factorisations;
+      w.schurValid = false;
+      bool factorised = w.chol.factorise(w.K);
+      if (!factorised) {  // indefinite: projected Newton, then a diagonal shift
+        buildTangent(true);
+        factorised = factoriseShifted(w.K, rep);
+      }
+      solved = factorised && solveConstrained(r, x, 1.0, dx, rep);
     } else {
       solved = solveLinear(w.K, r, dx);
       if (!solved) {

@@ -99,6 +99,8 @@ void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::V
 /// elements (J <= 0) report the first Piola-Kirchhoff stress's equivalent instead.
 void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<double>& out);
 /// Same, into an existing matrix that has the model's pattern (no allocation; elements in parallel).
-void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K);
+/// With projectDefinite, each element's tangent has its negative eigenvalues clamped to zero (projected
+/// Newton: a positive semi-definite K for indefinite states such as inverted or strongly compressed elements).
+void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K, bool projectDefinite = false);
 
 }  // namespace rehearse::simcore
