@@ -264,15 +264,41 @@ void elasticForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorXd&
   }
 }
 
-void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state) {
+void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state, Eigen::VectorXd* forces) {
   state.F.resize(m.tets.size());
   state.cache.resize(m.tets.size());
+  thread_local std::vector<double> buffer;
+  if (forces) buffer.resize(m.tets.size() * 9);
+  double* const buf = buffer.data();
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 128), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t e = r.begin(); e < r.end(); ++e) {
       state.F[e] = deformationGradient(m, e, x);
       state.cache[e] = prepareTangent(m.model[e], state.F[e]);
+      if (forces)
+        Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) =
+            -m.restVolume[e] * firstPiola(m.model[e], m.lame[e], state.F[e], state.cache[e]) * m.Bm[e].transpose();
     }
   });
+  if (forces) {
+    Eigen::VectorXd& f = *forces;
+    if (f.size() != x.size()) f.resize(x.size());
+    f.setZero();
+    for (std::size_t e = 0; e < m.tets.size(); ++e) {
+      const Eigen::Map<const Eigen::Matrix3d> H(buf + 9 * e);
+      const auto& t = m.tets[e];
+      for (int k = 0; k < 3; ++k) {
+        f.segment<3>(3 * t[k + 1]) += H.col(k);
+        f.segment<3>(3 * t[0]) -= H.col(k);
+      }
+    }
+    for (const auto& sp : m.springs) {
+      const Eigen::Vector3d d = springVector(sp, x);
+      const double l = d.norm();
+      if (!(l > 0)) continue;
+      const Eigen::Vector3d g = sp.stiffness * (l - sp.restLength) / l * d;
+      for (int k = 0; k < 8; ++k) f.segment<3>(3 * sp.nodes[k]) -= sp.weights[k] * g;
+    }
+  }
   state.springHessian.resize(m.springs.size());
   for (std::size_t i = 0; i < m.springs.size(); ++i) state.springHessian[i] = springHessian(m.springs[i], springVector(m.springs[i], x));
 }

@@ -135,6 +135,11 @@ double energyDensity(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F) {
   }
 }
 
+Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const TangentCache& c) {
+  if (m != MaterialModel::Corotational) return firstPiola(m, p, F);
+  return 2 * p.mu * (F - c.R) + p.lambda * (c.S.trace() - 3) * c.R;
+}
+
 Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F) {
   const Eigen::Matrix3d I = Eigen::Matrix3d::Identity();
   switch (m) {

@@ -92,7 +92,8 @@ struct TangentState {
   std::vector<TangentCache> cache;
   std::vector<Eigen::Matrix3d> springHessian;
 };
-void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state);
+/// With `forces`, also the elastic forces at x from the same pass (f = -dE/dx, as elasticForces).
+void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state, Eigen::VectorXd* forces = nullptr);
 /// out = K(x) v for the configuration `state` was prepared at (out sized once, then reused).
 void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::VectorXd& v, Eigen::VectorXd& out);
 /// Von Mises equivalent of the Cauchy stress sigma = P F^T / J per element (Pa), for display. Inverted

@@ -64,6 +64,7 @@ struct SimulationSettings {
   int gaussSeidelIterations = 300;                     ///< sweeps; then bilateral sets take a dense solve of W
   double gaussSeidelTolerance = 1e-10;                 ///< relative change of the multipliers
   bool reportEnergy = true;                            ///< compute StepReport::energy (one more pass over the elements)
+  double refreshResidual = 1e-2;                       ///< linearised: re-factorise after a step whose relative residual exceeds this
 };
 
 struct SimulationState {

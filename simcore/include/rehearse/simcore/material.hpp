@@ -43,6 +43,8 @@ struct TangentCache {
   Eigen::Matrix3d R, S, Ginv;
 };
 TangentCache prepareTangent(MaterialModel m, const Eigen::Matrix3d& F);
+/// P from a prepared cache (no second polar decomposition for the corotational model).
+Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const TangentCache& cache);
 Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const TangentCache& cache,
                                        const Eigen::Matrix3d& dF);
 
