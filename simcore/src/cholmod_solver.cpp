@@ -115,6 +115,10 @@ bool CholmodSolver::solve(const Eigen::MatrixXd& b, Eigen::MatrixXd& x) {
 }
 
 int CholmodSolver::analyses() const { return d_->analyses; }
+std::size_t CholmodSolver::factorEntries() const {
+  if (!d_->factor) return 0;
+  return d_->factor->is_super ? d_->factor->xsize : d_->factor->nzmax;
+}
 int CholmodSolver::factorisations() const { return d_->factorisations; }
 
 }  // namespace rehearse::simcore

@@ -25,6 +25,8 @@ class CholmodSolver {
   bool solve(const Eigen::MatrixXd& B, Eigen::MatrixXd& X);
   int analyses() const;
   int factorisations() const;
+  /// Entries stored for the factor L (0 before the first factorisation).
+  std::size_t factorEntries() const;
 
  private:
   struct Impl;

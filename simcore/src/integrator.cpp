@@ -122,6 +122,20 @@ int Integrator::symbolicAnalyses() const { return w_->chol.analyses(); }
 int Integrator::numericFactorisations() const { return w_->chol.factorisations(); }
 const Eigen::VectorXd& Integrator::multipliers() const { return w_->lambdaOut; }
 
+std::size_t Integrator::memoryBytes() const {
+  const Work& w = *w_;
+  std::size_t bytes = 0;
+  for (const Eigen::VectorXd* v : {&w.x0, &w.v0, &w.Mv0, &w.v, &w.vn, &w.xt, &w.r, &w.rn, &w.dv, &w.f, &w.tmp, &w.savedX, &w.savedV,
+                                   &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk, &w.forcesAt, &w.forces})
+    bytes += sizeof(double) * static_cast<std::size_t>(v->size());
+  for (const Eigen::SparseMatrix<double>* m : {&w.Kd, &w.K, &w.J})
+    bytes += static_cast<std::size_t>(m->nonZeros()) * (sizeof(double) + sizeof(int)) + static_cast<std::size_t>(m->outerSize() + 1) * sizeof(int);
+  bytes += w.tangent0.F.size() * (sizeof(Eigen::Matrix3d) + sizeof(TangentCache));
+  bytes += sizeof(double) * static_cast<std::size_t>(w.Ht.size() + w.A.size() + w.W.size());
+  bytes += w.chol.factorEntries() * (sizeof(double) + sizeof(int));
+  return bytes;
+}
+
 void Integrator::setConstraints(std::vector<ScalarConstraint> constraints) {
   for (const auto& c : constraints) validate(c, model_.nodeCount());
   constraints_ = std::move(constraints);

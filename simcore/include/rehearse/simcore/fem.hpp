@@ -66,6 +66,13 @@ struct FemModel {
   std::vector<std::array<int, 576>> springSlots;  ///< 24x24 blocks, column-major, like elementSlots
 
   std::size_t nodeCount() const { return rest.size(); }
+  /// Bytes held by the model, including the per-element scratch of assembly (144 doubles per tet).
+  std::size_t memoryBytes() const {
+    return rest.size() * sizeof(Eigen::Vector3d) + tets.size() * (sizeof(std::array<int, 4>) + sizeof(Eigen::Matrix3d) + 2 * sizeof(double) +
+                                                                  sizeof(Lame) + 144 * (sizeof(int) + sizeof(double))) +
+           static_cast<std::size_t>(pattern.nonZeros()) * (sizeof(double) + sizeof(int)) + diagonalSlot.size() * sizeof(int) +
+           springs.size() * (sizeof(EmbeddedSpring) + 576 * sizeof(int));
+  }
   /// Builds from a volume mesh (metres): materials by tet label; labels not in the map use `fallback`.
   /// Throws MeshError for empty meshes, degenerate rest elements or invalid parameters.
   /// Embedded surfaces (optional) add their springs; their vertices must lie inside the volume (those

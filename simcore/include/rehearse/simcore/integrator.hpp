@@ -107,6 +107,8 @@ class Integrator {
   /// Times the CHOLMOD symbolic analysis ran (it is reused while the sparsity pattern is unchanged).
   int symbolicAnalyses() const;
   int numericFactorisations() const;
+  /// Bytes held by the integrator: its vectors and matrices and the factor (values and row indices).
+  std::size_t memoryBytes() const;
   /// Extra constraints (besides the attachments); replaces the previous ones. Validated (node indices).
   void setConstraints(std::vector<ScalarConstraint> constraints);
   const std::vector<ScalarConstraint>& constraints() const { return constraints_; }
