@@ -77,6 +77,16 @@ class TestCli : public QObject {
       QVERIFY(s.toObject()["newton_iterations"].toInt() >= 1);
       QVERIFY(s.toObject()["wall_ms"].toDouble() > 0);
     }
+    // The Newton variant and Lagrange attachments from the command line.
+    auto lin = run({"simulate", "--preset", "liver", "--steps", "3", "--method", "linearised", "--attachments", "lagrange", "--out", out,
+                    "--report", report});
+    QVERIFY2(lin.code == 0, qPrintable(lin.err));
+    const QJsonArray linSteps = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(report.toStdString()))).object()["steps"].toArray();
+    QCOMPARE(linSteps.size(), 3);
+    QCOMPARE(linSteps[0].toObject()["factorisations"].toInt(), 1);  // the first step builds the factor ...
+    QCOMPARE(linSteps[2].toObject()["newton_iterations"].toInt(), 1);  // ... and each step is one solve
+    expectOneLineError(run({"simulate", "--preset", "liver", "--method", "magic", "--out", out}), 1, "Newton method");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--attachments", "glue", "--out", out}), 2, "projection or lagrange");
     auto info = run({"info", out});
     QVERIFY(info.out.contains("tetrahedra: "));
     // One-off run on a mesh file with material flags; the output keeps the input node order.

@@ -19,7 +19,7 @@ const std::vector<ComponentDecl>& sceneComponents() {
         {"unit", "string", "\"m\"", "", "length unit of the file: m, dm, cm or mm"}}},
       {"material", "Material of the elements with one label (label -1: every label without its own material).",
        {{"label", "integer", "-1", "", "element label"},
-        {"model", "string", "\"corotational\"", "", "linear, corotational, stvk or neohookean"},
+        {"model", "string", "\"corotational\"", "", "linear, corotational, stvk, neohookean or neohookean-split"},
         {"young", "number", "3000", "Pa", "Young's modulus"},
         {"poisson", "number", "0.3", "", "Poisson's ratio, in [0, 0.5)"},
         {"density", "number", "1000", "kg/m^3", "mass density"}},

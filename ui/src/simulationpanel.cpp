@@ -3,6 +3,7 @@
 #include "phantom/presets.hpp"
 
 #include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/scene.hpp>
 
 #include <QComboBox>
 #include <QDoubleSpinBox>
@@ -170,6 +171,19 @@ class SimulationWorker : public QObject {
 // -------------------------------------------------------------------------------------------- view
 
 namespace {
+// The tooltip of a field, from the scene component's declaration (the one the loader and the command line
+// read): help, SI unit and default.
+QString declared(const char* component, const char* parameter) {
+  for (const auto& c : simcore::sceneComponents())
+    if (c.type == component)
+      for (const auto& p : c.parameters)
+        if (p.name == parameter)
+          return QStringLiteral("%1 (scene: %2.%3%4, default %5)")
+              .arg(QString::fromStdString(p.help), QString::fromLatin1(component), QString::fromLatin1(parameter),
+                   p.unit.empty() ? QString() : QStringLiteral(", ") + QString::fromStdString(p.unit), QString::fromStdString(p.defaultValue));
+  return {};
+}
+
 // Blue - cyan - green - yellow - red.
 QColor colourMap(double t) {
   static const double stops[5][3] = {{40, 70, 200}, {40, 190, 220}, {60, 200, 90}, {240, 220, 60}, {220, 50, 40}};
@@ -293,7 +307,8 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   form->addRow(tr("Preset"), preset_);
   model_ = new QComboBox(this);
   model_->setObjectName(QStringLiteral("simMaterial"));
-  model_->addItems({tr("linear"), tr("corotational"), tr("stvk"), tr("neohookean")});
+  model_->addItems({tr("linear"), tr("corotational"), tr("stvk"), tr("neohookean"), tr("neohookean-split")});
+  model_->setToolTip(declared("material", "model"));
   form->addRow(tr("Material"), model_);
   young_ = new QDoubleSpinBox(this);
   young_->setObjectName(QStringLiteral("simYoung"));
@@ -301,6 +316,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   young_->setDecimals(1);
   young_->setSuffix(tr(" kPa"));
   young_->setKeyboardTracking(false);
+  young_->setToolTip(declared("material", "young"));
   form->addRow(tr("Young's modulus"), young_);
   poisson_ = new QDoubleSpinBox(this);
   poisson_->setObjectName(QStringLiteral("simPoisson"));
@@ -308,6 +324,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   poisson_->setDecimals(3);
   poisson_->setSingleStep(0.01);
   poisson_->setKeyboardTracking(false);
+  poisson_->setToolTip(declared("material", "poisson"));
   form->addRow(tr("Poisson's ratio"), poisson_);
   density_ = new QDoubleSpinBox(this);
   density_->setObjectName(QStringLiteral("simDensity"));
@@ -315,6 +332,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   density_->setDecimals(0);
   density_->setSuffix(tr(" kg/m³"));
   density_->setKeyboardTracking(false);
+  density_->setToolTip(declared("material", "density"));
   form->addRow(tr("Density"), density_);
   timeStep_ = new QDoubleSpinBox(this);
   timeStep_->setObjectName(QStringLiteral("simTimeStep"));
@@ -323,12 +341,13 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   timeStep_->setSuffix(tr(" ms"));
   timeStep_->setValue(10);
   timeStep_->setKeyboardTracking(false);
+  timeStep_->setToolTip(declared("implicit_euler", "dt"));
   form->addRow(tr("Time step"), timeStep_);
   method_ = new QComboBox(this);
   method_->setObjectName(QStringLiteral("simMethod"));
   method_->addItems({tr("exact Newton"), tr("lagged-PCG"), tr("chord"), tr("linearised (fastest)")});
   method_->setCurrentIndex(3);
-  method_->setToolTip(tr("How the Newton iterations reuse the factorisation (see BENCHMARKS.md for their error)"));
+  method_->setToolTip(declared("solver", "method"));
   form->addRow(tr("Solver"), method_);
   colouring_ = new QComboBox(this);
   colouring_->setObjectName(QStringLiteral("simColouring"));
