@@ -650,7 +650,10 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   if (hasConstraints) w.lambda.setZero(static_cast<Eigen::Index>(attachmentConstraints_.size() + constraints_.size()));
   // A body held only by constraints has a singular stiffness: the Newton matrix gets M / (1 s)^2, which
   // only slows the softest modes (the residual below is the true one, so the equilibrium is unchanged).
-  const double regularisation = hasConstraints ? 1.0 : 0.0;
+  // (Not needed when nodes are fixed by projection: they hold the body, and the regularisation would make
+  // Newton converge only linearly in the softest modes.)
+  const bool heldByProjection = std::find(fixed_.begin(), fixed_.end(), 1) != fixed_.end();
+  const double regularisation = hasConstraints && !heldByProjection ? 1.0 : 0.0;
   const int maxIterations = std::max(settings_.maxNewtonIterations, 30) + (hasConstraints ? 30 : 0);
   double previousResidual = 1e300;
   int stalled = 0;

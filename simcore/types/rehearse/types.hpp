@@ -14,6 +14,19 @@ struct Pose {
   Eigen::Vector3d apply(const Eigen::Vector3d& x) const { return R * x + t; }
 };
 
+/// An ideal pinhole camera (undistorted pixels): intrinsics K in pixels and the image size.
+struct Pinhole {
+  Eigen::Matrix3d K = Eigen::Matrix3d::Identity();
+  int width = 0, height = 0;
+  /// Pixel of a camera-frame point (z > 0).
+  Eigen::Vector2d project(const Eigen::Vector3d& x) const {
+    const Eigen::Vector3d h = K * x;
+    return h.head<2>() / h.z();
+  }
+  /// Unit direction, in the camera frame, of the ray through a pixel.
+  Eigen::Vector3d ray(const Eigen::Vector2d& pixel) const { return (K.inverse() * pixel.homogeneous()).normalized(); }
+};
+
 /// Non-owning view of a triangle surface: vertices (n x 3, metres, row-major xyz),
 /// triangles (m x 3 vertex indices, counter-clockwise seen from outside).
 struct SurfaceView {

@@ -29,6 +29,14 @@ struct Camera {
   }
   /// Empty when usable; otherwise one sentence saying what is wrong.
   std::string problem() const;
+  /// The ideal pinhole of the undistorted frame (what simcore's registration projects through).
+  Pinhole pinhole() const {
+    Pinhole p;
+    p.K = K;
+    p.width = width;
+    p.height = height;
+    return p;
+  }
   /// The stated default when no calibration is given: principal point at the image centre,
   /// fx = fy = 0.8 * width (about a 64 degree horizontal field of view, typical of laparoscopes), no distortion.
   static Camera defaultFor(int width, int height);

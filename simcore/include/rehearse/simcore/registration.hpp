@@ -1,0 +1,81 @@
+#pragma once
+// Elastic registration of the organ onto a sketched silhouette (Adagolodjo et al. 2017, DESIGN.md):
+// the visible silhouette of the deformed surface is projected through the camera, every contour point is
+// bound to the nearest compatible silhouette point (2D normals, outliers rejected), and the bound points
+// are held on the rays through their contour points (constraints in the image plane only; the elastic
+// model alone decides depth) by the integrator's Lagrange-multiplier constraints, to static equilibrium.
+// Rebinding and solving repeat until the 2D residual settles. Attachments and embedded structures of the
+// model still apply. A rigid-only pre-pass (pose refined on the same bindings) is optional.
+#include <rehearse/simcore/integrator.hpp>
+#include <rehearse/types.hpp>
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace rehearse::simcore {
+
+/// A piece of the visible silhouette: the surface edge (nodes a, b) and its projection.
+struct SilhouetteEdge {
+  int a = -1, b = -1;
+  Eigen::Vector2d pa, pb;    ///< pixels
+  Eigen::Vector2d normal;    ///< unit 2D normal, pointing away from the visible face
+};
+
+/// The visible silhouette of a closed surface (triangles over the positions x, model frame, 3n) seen
+/// through `pose` and `camera`: front faces whose three vertices pass a depth-buffer test, and the edges
+/// between a visible face and a non-visible one (or the border of an open surface). Exact for non-convex
+/// organs up to the depth buffer's resolution (the image's). Throws MeshError when a vertex is behind the
+/// camera or the camera is unusable.
+std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 3>>& triangles, const Eigen::VectorXd& x,
+                                              const Pose& pose, const Pinhole& camera);
+
+/// Distances from contour points to the silhouette (pixels): mean, RMS and Hausdorff (the largest of
+/// the two directed distances, the silhouette side measured only near the contour's extent).
+struct Residual2D {
+  double mean = 0, rms = 0, hausdorff = 0;
+  std::size_t points = 0;
+};
+Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& contour, const std::vector<SilhouetteEdge>& silhouette);
+
+struct RegistrationIteration {
+  int iteration = 0;
+  double wallMs = 0;          ///< since the start
+  Residual2D residual;
+  std::size_t bound = 0;      ///< contour points bound to the silhouette
+  std::string stage;          ///< "start", "rigid", "elastic"
+};
+
+struct RegistrationOptions {
+  int maxIterations = 20;
+  double tolerance = 0.05;     ///< px: stop when the mean residual changes less than this
+  double normalDot = 0.5;      ///< |n_contour . n_silhouette| at least this to bind
+  double outlierFactor = 3.0;  ///< drop bindings further than this times the median (and than 2 % of the image diagonal)
+  double spacing = 6.0;        ///< px between the contour points used (the contour is resampled)
+  bool rigidPrepass = false;   ///< refine the pose on the bindings before deforming
+  bool elastic = true;         ///< false: rigid only
+  int rigidIterations = 15;
+  /// Called after every iteration with the current positions (model frame) and pose; false cancels.
+  std::function<bool(const RegistrationIteration&, const Eigen::VectorXd& x, const Pose& pose)> onIteration;
+};
+
+struct RegistrationResult {
+  bool ok = false;          ///< a usable result (possibly not converged; see status)
+  bool converged = false;
+  bool cancelled = false;
+  std::string status;       ///< one sentence
+  Eigen::VectorXd x;        ///< node positions, model frame (3n)
+  Pose pose;                ///< model -> camera
+  std::vector<RegistrationIteration> iterations;
+};
+
+/// Registers `model` (rest shape at the start) onto the contour (segments of pixels in the undistorted
+/// frame). `fixedNodes` and `settings` as for the Integrator (the solve is static; gravity as given).
+/// Throws MeshError for unusable input (empty or single-point contour, mesh behind the camera).
+RegistrationResult registerToContour(const FemModel& model, const std::vector<int>& fixedNodes, SimulationSettings settings,
+                                     const std::vector<std::array<int, 3>>& surface,
+                                     const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& start,
+                                     const Pinhole& camera, const RegistrationOptions& options = {});
+
+}  // namespace rehearse::simcore

@@ -1,0 +1,493 @@
+#include <rehearse/simcore/registration.hpp>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+
+namespace rehearse::simcore {
+namespace {
+
+void checkCamera(const Pinhole& c) {
+  if (!(c.K(0, 0) > 0) || !(c.K(1, 1) > 0) || c.width <= 0 || c.height <= 0 || !c.K.allFinite() || std::abs(c.K(2, 2) - 1) > 1e-9)
+    throw MeshError("The camera is unusable (its focal lengths and image size must be positive); load a calibration first.");
+}
+
+// Closest point of segment [a, b] to p: returns the parameter in [0, 1].
+double closestParameter(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& p) {
+  const Eigen::Vector2d d = b - a;
+  const double l2 = d.squaredNorm();
+  return l2 > 0 ? std::clamp((p - a).dot(d) / l2, 0.0, 1.0) : 0.0;
+}
+
+struct Sample {
+  Eigen::Vector2d pixel, normal;
+};
+
+// Contour points at uniform spacing with their 2D normals (perpendicular to the local tangent).
+std::vector<Sample> contourSamples(const std::vector<std::vector<Eigen::Vector2d>>& contour, double spacing) {
+  std::vector<Sample> out;
+  for (const auto& seg : contour) {
+    if (seg.size() < 2) continue;
+    std::vector<Eigen::Vector2d> pts{seg.front()};
+    double carry = 0;
+    for (std::size_t i = 1; i < seg.size(); ++i) {
+      const Eigen::Vector2d a = seg[i - 1], b = seg[i];
+      const double len = (b - a).norm();
+      double s = spacing - carry;
+      while (s <= len) {
+        pts.push_back(a + (b - a) * (s / len));
+        s += spacing;
+      }
+      carry = len - (s - spacing);
+    }
+    if ((pts.back() - seg.back()).norm() > 0.25 * spacing) pts.push_back(seg.back());
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const Eigen::Vector2d t = pts[std::min(i + 1, pts.size() - 1)] - pts[i > 0 ? i - 1 : 0];
+      const Eigen::Vector2d n = t.norm() > 0 ? Eigen::Vector2d(-t.y(), t.x()).normalized() : Eigen::Vector2d(0, 0);
+      out.push_back({pts[i], n});
+    }
+  }
+  return out;
+}
+
+struct Binding {
+  int a, b;
+  double t;                 // along the edge
+  Eigen::Vector2d contour;  // the contour point
+  double distance;          // px
+};
+
+// For the rigid pass: every contour point to the nearest compatible point of the silhouette edges (the
+// pose has six unknowns, so many correspondences anywhere on the edges are best), outliers dropped.
+std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std::vector<SilhouetteEdge>& sil, const RegistrationOptions& o) {
+  std::vector<Binding> out;
+  for (const auto& s : samples) {
+    double best = std::numeric_limits<double>::infinity();
+    Binding b{-1, -1, 0, s.pixel, 0};
+    for (const auto& e : sil) {
+      if (s.normal.squaredNorm() > 0 && std::abs(s.normal.dot(e.normal)) < o.normalDot) continue;
+      const double t = closestParameter(e.pa, e.pb, s.pixel);
+      const double d = (e.pa + t * (e.pb - e.pa) - s.pixel).norm();
+      if (d < best) {
+        best = d;
+        b = {e.a, e.b, t, s.pixel, d};
+      }
+    }
+    if (b.a >= 0) out.push_back(b);
+  }
+  if (out.empty()) return out;
+  std::vector<double> d;
+  for (const auto& b : out) d.push_back(b.distance);
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  const double limit = std::max(o.outlierFactor * d[d.size() / 2], 4.0);
+  out.erase(std::remove_if(out.begin(), out.end(), [&](const Binding& b) { return b.distance > limit; }), out.end());
+  return out;
+}
+
+// Binds the silhouette to the contour at the silhouette's vertices (the projected surface nodes on the
+// silhouette, with the mean normal of their silhouette edges): each vertex to the foot of its
+// perpendicular on the nearest compatible stretch of contour (so nothing pulls along the outline), vertices
+// whose nearest contour point is an open end of the contour are left free (a partial contour says nothing
+// beyond its ends), and far outliers are dropped. Binding at nodes keeps the constraints consistent: one
+// pair of constraints across the ray per node.
+std::vector<Binding> bindContour(const std::vector<Sample>& samples, const std::vector<std::size_t>& segmentStarts,
+                                 const std::vector<SilhouetteEdge>& sil, const std::vector<char>& fixed, const RegistrationOptions& o,
+                                 double floorPx) {
+  std::map<int, std::pair<Eigen::Vector2d, Eigen::Vector2d>> vertices;  // node -> pixel, summed normal
+  for (const auto& e : sil)
+    for (int k = 0; k < 2; ++k) {
+      const int node = k ? e.b : e.a;
+      if (fixed[node]) continue;  // held by the ligaments: cannot follow
+      auto [it, added] = vertices.try_emplace(node, k ? e.pb : e.pa, Eigen::Vector2d::Zero());
+      it->second.second += e.normal;
+    }
+  std::vector<Binding> out;
+  for (const auto& [node, pn] : vertices) {
+    const Eigen::Vector2d n = pn.second.norm() > 0 ? Eigen::Vector2d(pn.second.normalized()) : Eigen::Vector2d::Zero();
+    double best = std::numeric_limits<double>::infinity();
+    Eigen::Vector2d foot;
+    bool atEnd = false;
+    for (std::size_t sgi = 0; sgi < segmentStarts.size(); ++sgi) {
+      const std::size_t begin = segmentStarts[sgi], end = sgi + 1 < segmentStarts.size() ? segmentStarts[sgi + 1] : samples.size();
+      for (std::size_t i = begin; i + 1 < end; ++i) {
+        const Sample &p = samples[i], &q = samples[i + 1];
+        const Eigen::Vector2d tangent = q.pixel - p.pixel;
+        if (tangent.norm() == 0) continue;
+        const Eigen::Vector2d cn(-tangent.y() / tangent.norm(), tangent.x() / tangent.norm());
+        if (n.squaredNorm() > 0 && std::abs(cn.dot(n)) < o.normalDot) continue;
+        const double t = closestParameter(p.pixel, q.pixel, pn.first);
+        const Eigen::Vector2d f = p.pixel + t * tangent;
+        const double d = (f - pn.first).norm();
+        if (d < best) {
+          best = d;
+          foot = f;
+          atEnd = (i == begin && t == 0.0) || (i + 2 == end && t == 1.0);
+        }
+      }
+    }
+    if (std::isfinite(best) && !(atEnd && best > 2.0)) out.push_back({node, node, 0, foot, best});
+  }
+  if (out.empty()) return out;
+  // Outliers: far from the rest.
+  std::vector<double> d;
+  for (const auto& b : out) d.push_back(b.distance);
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  const double limit = std::max(o.outlierFactor * d[d.size() / 2], floorPx);
+  out.erase(std::remove_if(out.begin(), out.end(), [&](const Binding& b) { return b.distance > limit; }), out.end());
+  return out;
+}
+
+Eigen::Vector3d point(const Eigen::VectorXd& x, const Binding& b) {
+  return (1 - b.t) * x.segment<3>(3 * b.a) + b.t * x.segment<3>(3 * b.b);
+}
+
+// The bound point on the ray through its contour point: two constraints across the ray (model frame).
+void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, std::vector<ScalarConstraint>& out) {
+  const Eigen::Vector3d d = (pose.R.transpose() * cam.ray(b.contour)).normalized();
+  const Eigen::Vector3d origin = -pose.R.transpose() * pose.t;
+  Eigen::Vector3d helper = Eigen::Vector3d::Unit(0);
+  if (std::abs(d.x()) > 0.6) helper = Eigen::Vector3d::Unit(1);
+  const Eigen::Vector3d n1 = d.cross(helper).normalized(), n2 = d.cross(n1).normalized();
+  for (const Eigen::Vector3d& n : {n1, n2}) {
+    ScalarConstraint c;
+    c.nodes = {b.a, b.b, -1, -1};
+    c.weights = {1 - b.t, b.t, 0, 0};
+    c.direction = n;
+    c.value = n.dot(origin);
+    out.push_back(c);
+  }
+}
+
+Eigen::Matrix3d skew(const Eigen::Vector3d& w) {
+  Eigen::Matrix3d m;
+  m << 0, -w.z(), w.y(), w.z(), 0, -w.x(), -w.y(), w.x(), 0;
+  return m;
+}
+
+// Gauss-Newton (Levenberg-Marquardt) on the pose: projected bound points onto their contour points.
+Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam) {
+  double lambda = 1e-3;
+  auto cost = [&](const Pose& p) {
+    double c = 0;
+    for (const auto& b : bindings) {
+      const Eigen::Vector3d q = p.apply(point(x, b));
+      if (q.z() <= 0) return std::numeric_limits<double>::infinity();
+      c += (cam.project(q) - b.contour).squaredNorm();
+    }
+    return c;
+  };
+  double current = cost(pose);
+  for (int it = 0; it < 10; ++it) {
+    Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
+    Eigen::Matrix<double, 6, 1> Jtr = Eigen::Matrix<double, 6, 1>::Zero();
+    for (const auto& b : bindings) {
+      const Eigen::Vector3d q = pose.apply(point(x, b));
+      const Eigen::Vector2d r = cam.project(q) - b.contour;
+      Eigen::Matrix<double, 2, 3> dpi;
+      const double fx = cam.K(0, 0), fy = cam.K(1, 1), z = q.z();
+      dpi << fx / z, cam.K(0, 1) / z, -(fx * q.x() + cam.K(0, 1) * q.y()) / (z * z), 0, fy / z, -fy * q.y() / (z * z);
+      Eigen::Matrix<double, 3, 6> dq;
+      dq << -skew(q), Eigen::Matrix3d::Identity();
+      const Eigen::Matrix<double, 2, 6> J = dpi * dq;
+      JtJ += J.transpose() * J;
+      Jtr += J.transpose() * r;
+    }
+    bool improved = false;
+    for (int tries = 0; tries < 8 && !improved; ++tries) {
+      Eigen::Matrix<double, 6, 6> A = JtJ;
+      A.diagonal() *= 1 + lambda;
+      const Eigen::Matrix<double, 6, 1> delta = -A.ldlt().solve(Jtr);
+      if (!delta.allFinite()) break;
+      const Eigen::Vector3d w = delta.head<3>();
+      const Eigen::Matrix3d dR = w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() : Eigen::Matrix3d::Identity();
+      Pose trial;
+      trial.R = dR * pose.R;
+      trial.t = dR * pose.t + delta.tail<3>();
+      const double c = cost(trial);
+      if (c < current) {
+        pose = trial;
+        current = c;
+        lambda = std::max(lambda / 10, 1e-9);
+        improved = true;
+      } else {
+        lambda *= 10;
+      }
+    }
+    if (!improved) break;
+  }
+  return pose;
+}
+
+}  // namespace
+
+std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 3>>& triangles, const Eigen::VectorXd& x, const Pose& pose,
+                                              const Pinhole& camera) {
+  checkCamera(camera);
+  const std::size_t n = static_cast<std::size_t>(x.size() / 3);
+  std::vector<Eigen::Vector3d> pc(n);
+  std::vector<Eigen::Vector2d> pix(n);
+  std::vector<char> used(n, 0);
+  for (const auto& t : triangles)
+    for (int v : t) {
+      if (v < 0 || static_cast<std::size_t>(v) >= n) throw MeshError("A surface triangle refers to a node that does not exist.");
+      used[v] = 1;
+    }
+  for (std::size_t i = 0; i < n; ++i) {
+    pc[i] = pose.apply(x.segment<3>(3 * i));
+    if (!used[i]) continue;
+    if (!(pc[i].z() > 1e-6) || !pc[i].allFinite())
+      throw MeshError("The organ is behind the camera (or crosses its image plane); place it in front of the camera first.");
+    pix[i] = camera.project(pc[i]);
+  }
+  // Depth buffer at the image's resolution (at most 2048 pixels wide): the nearest depth per pixel.
+  const double scale = std::min(1.0, 2048.0 / std::max(camera.width, camera.height));
+  const int W = std::max(1, static_cast<int>(camera.width * scale)), H = std::max(1, static_cast<int>(camera.height * scale));
+  std::vector<float> depth(static_cast<std::size_t>(W) * H, std::numeric_limits<float>::infinity());
+  for (const auto& t : triangles) {
+    const Eigen::Vector2d a = pix[t[0]] * scale, b = pix[t[1]] * scale, c = pix[t[2]] * scale;
+    const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+    if (std::abs(area) < 1e-12) continue;
+    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a.x(), b.x(), c.x()})))),
+              x1 = std::min(W - 1, static_cast<int>(std::ceil(std::max({a.x(), b.x(), c.x()})))),
+              y0 = std::max(0, static_cast<int>(std::floor(std::min({a.y(), b.y(), c.y()})))),
+              y1 = std::min(H - 1, static_cast<int>(std::ceil(std::max({a.y(), b.y(), c.y()}))));
+    const double iz[3] = {1 / pc[t[0]].z(), 1 / pc[t[1]].z(), 1 / pc[t[2]].z()};
+    for (int py = y0; py <= y1; ++py)
+      for (int px = x0; px <= x1; ++px) {
+        const Eigen::Vector2d p(px + 0.5, py + 0.5);
+        const double w0 = ((b - p).x() * (c - p).y() - (b - p).y() * (c - p).x()) / area;
+        const double w1 = ((c - p).x() * (a - p).y() - (c - p).y() * (a - p).x()) / area;
+        const double w2 = 1 - w0 - w1;
+        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+        const float z = static_cast<float>(1 / (w0 * iz[0] + w1 * iz[1] + w2 * iz[2]));  // perspective-correct
+        float& d = depth[static_cast<std::size_t>(py) * W + px];
+        d = std::min(d, z);
+      }
+  }
+  // A vertex is visible unless a nearer surface covers all of its 3x3 pixel neighbourhood.
+  std::vector<char> visible(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!used[i]) continue;
+    const int px = static_cast<int>(std::floor(pix[i].x() * scale)), py = static_cast<int>(std::floor(pix[i].y() * scale));
+    const double eps = 2e-3 * pc[i].z() + 1e-4;
+    bool vis = px < 0 || py < 0 || px >= W || py >= H;  // outside the image: not occluded by anything drawn
+    for (int dy = -1; dy <= 1 && !vis; ++dy)
+      for (int dx = -1; dx <= 1 && !vis; ++dx) {
+        const int qx = px + dx, qy = py + dy;
+        if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
+        vis = depth[static_cast<std::size_t>(qy) * W + qx] >= pc[i].z() - eps;
+      }
+    visible[i] = vis;
+  }
+  // Visible faces: front-facing with three visible vertices.
+  std::vector<char> faceVisible(triangles.size(), 0);
+  for (std::size_t f = 0; f < triangles.size(); ++f) {
+    const auto& t = triangles[f];
+    const Eigen::Vector3d nrm = (pc[t[1]] - pc[t[0]]).cross(pc[t[2]] - pc[t[0]]);
+    faceVisible[f] = nrm.dot(pc[t[0]]) < 0 && visible[t[0]] && visible[t[1]] && visible[t[2]];
+  }
+  // Silhouette: edges between a visible face and a non-visible one (or no other face).
+  std::map<std::pair<int, int>, std::array<int, 2>> faces;
+  for (std::size_t f = 0; f < triangles.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = triangles[f][k], b = triangles[f][(k + 1) % 3];
+      auto [it, added] = faces.try_emplace({std::min(a, b), std::max(a, b)}, std::array<int, 2>{static_cast<int>(f), -1});
+      if (!added) it->second[1] = static_cast<int>(f);
+    }
+  std::vector<SilhouetteEdge> out;
+  for (const auto& [edge, fs] : faces) {
+    const bool v0 = faceVisible[fs[0]], v1 = fs[1] >= 0 && faceVisible[fs[1]];
+    if (v0 == v1) continue;
+    const int vf = v0 ? fs[0] : fs[1];
+    SilhouetteEdge e;
+    e.a = edge.first;
+    e.b = edge.second;
+    e.pa = pix[e.a];
+    e.pb = pix[e.b];
+    const Eigen::Vector2d d = e.pb - e.pa;
+    if (d.norm() < 1e-9) continue;
+    e.normal = Eigen::Vector2d(-d.y(), d.x()).normalized();
+    int third = triangles[vf][0];
+    for (int v : triangles[vf])
+      if (v != e.a && v != e.b) third = v;
+    if (e.normal.dot(pix[third] - e.pa) > 0) e.normal = -e.normal;  // away from the visible face
+    out.push_back(e);
+  }
+  return out;
+}
+
+Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& contour, const std::vector<SilhouetteEdge>& silhouette) {
+  Residual2D r;
+  double sum = 0, sum2 = 0;
+  for (const auto& seg : contour)
+    for (const auto& p : seg) {
+      double best = std::numeric_limits<double>::infinity();
+      for (const auto& e : silhouette) {
+        const double t = closestParameter(e.pa, e.pb, p);
+        best = std::min(best, (e.pa + t * (e.pb - e.pa) - p).norm());
+      }
+      sum += best;
+      sum2 += best * best;
+      r.hausdorff = std::max(r.hausdorff, best);
+      ++r.points;
+    }
+  if (r.points) {
+    r.mean = sum / r.points;
+    r.rms = std::sqrt(sum2 / r.points);
+  }
+  return r;
+}
+
+RegistrationResult registerToContour(const FemModel& model, const std::vector<int>& fixedNodes, SimulationSettings settings,
+                                     const std::vector<std::array<int, 3>>& surface,
+                                     const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& start, const Pinhole& camera,
+                                     const RegistrationOptions& o) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto elapsed = [&] { return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(); };
+  checkCamera(camera);
+  std::size_t points = 0;
+  for (const auto& seg : contour) {
+    points += seg.size();
+    for (const auto& p : seg)
+      if (!p.allFinite()) throw MeshError("The contour has a point that is not a number.");
+  }
+  if (points == 0) throw MeshError("The contour is empty; sketch the organ's outline first.");
+  if (points < 2) throw MeshError("The contour has a single point; sketch at least a short stretch of the outline.");
+  if (surface.empty()) throw MeshError("The organ has no surface triangles.");
+
+  std::vector<char> fixed(model.nodeCount(), 0);
+  for (int f : fixedNodes)
+    if (f >= 0 && static_cast<std::size_t>(f) < fixed.size()) fixed[f] = 1;
+  std::vector<std::size_t> segmentStarts;
+  std::vector<Sample> samples;
+  for (const auto& seg : contour) {
+    const auto one = contourSamples({seg}, o.spacing);
+    if (one.size() < 2) continue;
+    segmentStarts.push_back(samples.size());
+    samples.insert(samples.end(), one.begin(), one.end());
+  }
+  RegistrationResult res;
+  res.x = model.restVector();
+  res.pose = start;
+  auto record = [&](int it, const char* stage, std::size_t bound) {
+    RegistrationIteration ri;
+    ri.iteration = it;
+    ri.stage = stage;
+    ri.bound = bound;
+    ri.residual = contourResidual(contour, visibleSilhouette(surface, res.x, res.pose, camera));
+    ri.wallMs = elapsed();
+    res.iterations.push_back(ri);
+    if (o.onIteration && !o.onIteration(ri, res.x, res.pose)) res.cancelled = true;
+    return ri;
+  };
+  const RegistrationIteration first = record(0, "start", 0);
+  if (res.cancelled) {
+    res.status = "cancelled";
+    return res;
+  }
+  int iteration = 0;
+  // Rigid pre-pass: the pose refined on the bindings (ICP), the shape unchanged.
+  if (o.rigidPrepass || !o.elastic) {
+    double previous = first.residual.mean, bestMean = first.residual.mean;
+    Pose bestPose = res.pose;
+    for (int k = 0; k < o.rigidIterations; ++k) {
+      const auto bindings = bindForRigid(samples, visibleSilhouette(surface, res.x, res.pose, camera), o);
+      if (bindings.size() < 3) break;
+      res.pose = refinePose(res.x, bindings, res.pose, camera);
+      const auto ri = record(++iteration, "rigid", bindings.size());
+      if (ri.residual.mean < bestMean) {
+        bestMean = ri.residual.mean;
+        bestPose = res.pose;
+      }
+      if (res.cancelled || std::abs(previous - ri.residual.mean) < 0.1 * o.tolerance) break;
+      previous = ri.residual.mean;
+    }
+    res.pose = bestPose;
+  }
+  const Pose rigidPose = res.pose;
+  const Eigen::VectorXd rigidX = res.x;
+  const double rigidMean = res.iterations.back().residual.mean;
+  if (res.cancelled) {
+    res.status = "cancelled";
+    return res;
+  }
+  if (!o.elastic) {
+    res.ok = true;
+    res.converged = true;
+    res.status = "rigid fit: mean distance " + std::to_string(rigidMean) + " px";
+  } else {
+    // Elastic: bound points held on their rays (image plane only), static equilibrium, rebind, repeat.
+    Integrator integrator(model, fixedNodes, settings);
+    SimulationState state = integrator.initialState();
+    state.x = res.x;
+    double previous = rigidMean, bestMean = rigidMean;
+    // Bindings further than this are outliers: as far as the start was off (so parts of the silhouette that
+    // must travel are still bound), but at least 4 px and at most 2 % of the image diagonal.
+    const double outlierFloor = std::clamp(rigidMean, 4.0, 0.02 * std::hypot(camera.width, camera.height));
+    Eigen::VectorXd bestX = res.x;
+    std::string failure;
+    for (int k = 0; k < o.maxIterations; ++k) {
+      const auto bindings = bindContour(samples, segmentStarts, visibleSilhouette(surface, state.x, res.pose, camera), fixed, o, outlierFloor);
+      if (bindings.size() < 3) {
+        failure = "no part of the contour could be bound to the organ's silhouette (" + std::to_string(bindings.size()) +
+                  " points); the contour may belong to another organ or lie outside the organ's view";
+        break;
+      }
+      std::vector<ScalarConstraint> cs;
+      for (const auto& b : bindings) rayConstraints(b, res.pose, camera, cs);
+      integrator.setConstraints(cs);
+      const SimulationState before = state;
+      const StepReport rep = integrator.solveStatic(state);
+      if (!rep.ok) {
+        state = before;
+        failure = "the elastic solve did not converge (" + rep.status + ")";
+        break;
+      }
+      res.x = state.x;
+      const auto ri = record(++iteration, "elastic", bindings.size());
+      if (ri.residual.mean < bestMean) {
+        bestMean = ri.residual.mean;
+        bestX = res.x;
+      }
+      if (res.cancelled) break;
+      if (std::abs(previous - ri.residual.mean) < o.tolerance) {
+        res.converged = true;
+        break;
+      }
+      previous = ri.residual.mean;
+    }
+    res.x = bestX;
+    if (res.cancelled) {
+      res.status = "cancelled; the best result so far is kept";
+      res.ok = true;
+    } else if (bestMean >= rigidMean && iteration > 0 && failure.empty()) {
+      res.x = rigidX;
+      res.pose = rigidPose;
+      res.ok = true;
+      res.status = "the elastic fit did not improve on the rigid start (" + std::to_string(rigidMean) + " px); the start is kept";
+    } else if (!failure.empty() && bestMean >= rigidMean) {
+      res.ok = false;
+      res.status = "failed: " + failure;
+    } else {
+      res.ok = true;
+      res.status = (res.converged ? "converged" : failure.empty() ? "not converged in " + std::to_string(o.maxIterations) + " iterations"
+                                                                 : "stopped: " + failure) +
+                   ": mean distance " + std::to_string(bestMean) + " px (start " + std::to_string(first.residual.mean) + " px)";
+    }
+  }
+  // A fit that still leaves the contour far from the organ did not find it.
+  const double finalMean = contourResidual(contour, visibleSilhouette(surface, res.x, res.pose, camera)).mean;
+  const double diag = std::hypot(camera.width, camera.height);
+  if (res.ok && finalMean > 0.05 * diag) {
+    res.ok = false;
+    res.status = "failed: the contour stays " + std::to_string(static_cast<int>(finalMean)) +
+                 " px from the organ's silhouette on average; it may belong to another organ or the start pose is too far";
+  }
+  return res;
+}
+
+}  // namespace rehearse::simcore

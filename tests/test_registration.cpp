@@ -1,0 +1,190 @@
+// Elastic registration onto a silhouette (issue 5 engine): the visible silhouette of the phantom, the
+// ground-truth pose giving no correction, a rigid offset recovered, an elastic deformation recovered
+// better than the rigid start, and clear failures for unusable contours and poses. Contours are made
+// independently of the engine: OpenCV's border of the CPU renderer's mask of the organ.
+#include "test_support.hpp"
+
+#include "phantom/phantom.hpp"
+
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/registration.hpp>
+
+#include <opencv2/imgproc.hpp>
+
+using namespace rehearse;
+using namespace rehearse::simcore;
+
+namespace {
+// The organ's outline in the frame: the outer border of its rendered mask (pixel centres).
+std::vector<std::vector<Eigen::Vector2d>> outline(const phantom::Case& c, const Pose& pose, const SurfaceView& surface) {
+  const cv::Mat1b mask = imaging::renderMask(c.camera, pose, surface);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  std::vector<std::vector<Eigen::Vector2d>> out;
+  for (const auto& ct : contours) {
+    if (ct.size() < 20) continue;
+    std::vector<Eigen::Vector2d> seg;
+    for (const auto& p : ct) seg.emplace_back(p.x, p.y);
+    out.push_back(seg);
+  }
+  return out;
+}
+
+FemModel organModel(const phantom::Case& c) {
+  return FemModel::build(c.volume, {{2, {MaterialModel::Corotational, 620e3, 0.45, 1000}}}, {MaterialModel::Corotational, 27e3, 0.4, 1000});
+}
+
+Pose offset(const Pose& p, const Eigen::Vector3d& move, const Eigen::Vector3d& axis, double degrees, const Eigen::Vector3d& centre) {
+  // Rotation about the camera axis `axis` through the organ's centre (camera frame), then a translation.
+  const Eigen::Matrix3d dR = Eigen::AngleAxisd(degrees * M_PI / 180, axis.normalized()).toRotationMatrix();
+  const Eigen::Vector3d cc = p.apply(centre);
+  Pose q;
+  q.R = dR * p.R;
+  q.t = dR * (p.t - cc) + cc + move;
+  return q;
+}
+}  // namespace
+
+class TestRegistration : public QObject {
+  Q_OBJECT
+  phantom::Case c_;
+
+ private slots:
+  void initTestCase() { c_ = phantom::makePhantom(); }
+
+  // The silhouette at the true pose projects onto the rendered mask's border.
+  void silhouetteMatchesTheRenderedOutline() {
+    const FemModel m = organModel(c_);
+    const auto sil = visibleSilhouette(c_.surface, m.restVector(), c_.truePose, c_.camera.pinhole());
+    QVERIFY(sil.size() > 50);
+    const auto contour = outline(c_, c_.truePose, c_.surfaceView());
+    QVERIFY(!contour.empty());
+    const Residual2D r = contourResidual(contour, sil);
+    qInfo("%zu silhouette edges; rendered outline to silhouette: mean %.2f px, RMS %.2f px, max %.2f px", sil.size(), r.mean, r.rms, r.hausdorff);
+    QVERIFY(r.mean < 1.0);
+    QVERIFY(r.hausdorff < 3.0);
+  }
+
+  void groundTruthPoseNeedsNoCorrection() {
+    const FemModel m = organModel(c_);
+    const auto contour = outline(c_, c_.truePose, c_.surfaceView());
+    SimulationSettings s;
+    s.gravity.setZero();
+    const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, c_.camera.pinhole());
+    QVERIFY2(res.ok, res.status.c_str());
+    const double moved = (res.x - m.restVector()).cwiseAbs().maxCoeff();
+    qInfo("%s; largest node correction %.3f mm in %zu iterations", res.status.c_str(), 1e3 * moved, res.iterations.size());
+    QVERIFY(moved < 1e-3);  // under a millimetre: the outline is pixel-quantised
+    QVERIFY(res.iterations.back().residual.mean < 1.0);
+  }
+
+  void rigidOffsetIsRecovered() {
+    const FemModel m = organModel(c_);
+    const auto contour = outline(c_, c_.truePose, c_.surfaceView());
+    const Pose start = offset(c_.truePose, Eigen::Vector3d(0.006, -0.004, 0.0), Eigen::Vector3d::UnitZ(), 4.0, c_.centreOfGravity());
+    RegistrationOptions o;
+    o.elastic = false;
+    o.rigidIterations = 30;
+    SimulationSettings s;
+    s.gravity.setZero();
+    const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, start, c_.camera.pinhole(), o);
+    QVERIFY2(res.ok, res.status.c_str());
+    const double dt = (res.pose.t - c_.truePose.t).norm();
+    const double dr = Eigen::AngleAxisd(res.pose.R * c_.truePose.R.transpose()).angle() * 180 / M_PI;
+    qInfo("rigid: start %.2f px -> %.2f px; pose error %.2f mm, %.2f degrees (start 7.2 mm, 4 degrees)",
+          res.iterations.front().residual.mean, res.iterations.back().residual.mean, 1e3 * dt, dr);
+    QVERIFY(res.iterations.back().residual.mean < 1.0);
+    QVERIFY(dr < 1.0);
+    QVERIFY(dt < 0.003);
+  }
+
+  // The phantom deformed by its own weight along the camera's x axis (a load the registration does not
+  // know), seen at the true pose: the elastic fit from the undeformed model reduces the 3D error.
+  void elasticDeformationIsRecovered() {
+    const FemModel m = organModel(c_);
+    SimulationSettings load;
+    load.gravity = c_.truePose.R.transpose() * Eigen::Vector3d(9.81 * 3, 0, 0);  // 3 g sideways in the image
+    Integrator in(m, c_.attachments, load);
+    auto truth = in.initialState();
+    QVERIFY(in.solveStatic(truth).ok);
+    // The deformed surface, rendered for its outline.
+    std::vector<double> verts(truth.x.data(), truth.x.data() + truth.x.size());
+    SurfaceView deformed = c_.surfaceView();
+    deformed.vertices = verts.data();
+    const auto contour = outline(c_, c_.truePose, deformed);
+    SimulationSettings s;
+    s.gravity.setZero();
+    std::vector<double> errors;
+    auto meanError = [&](const Eigen::VectorXd& x) {
+      double e = 0;
+      std::size_t n = 0;
+      for (const auto& t : c_.surface)
+        for (int v : t) {
+          e += (x.segment<3>(3 * v) - truth.x.segment<3>(3 * v)).norm();
+          ++n;
+        }
+      return e / n;
+    };
+    RegistrationOptions o;
+    o.onIteration = [&](const RegistrationIteration& it, const Eigen::VectorXd& x, const Pose&) {
+      qInfo("  iteration %d (%s): %.2f px mean, %.2f px max, %zu bound, surface error %.2f mm, %.0f ms", it.iteration, it.stage.c_str(),
+            it.residual.mean, it.residual.hausdorff, it.bound, 1e3 * meanError(x), it.wallMs);
+      return true;
+    };
+    const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, c_.camera.pinhole(), o);
+    QVERIFY2(res.ok, res.status.c_str());
+    const double before = meanError(m.restVector()), after = meanError(res.x);
+    qInfo("elastic: %s; surface error %.2f mm -> %.2f mm; 2D %.2f px -> %.2f px in %zu iterations, %.0f ms", res.status.c_str(), 1e3 * before,
+          1e3 * after, res.iterations.front().residual.mean, res.iterations.back().residual.mean, res.iterations.size(),
+          res.iterations.back().wallMs);
+    // The silhouette only tells where the rim goes in the image; the 3D error over the whole surface
+    // (back side included) falls less than the 2D one. The benchmark measures markers (issue 5).
+    QVERIFY(after < 0.9 * before);
+    QVERIFY(res.iterations.back().residual.mean < 3.0);
+    QVERIFY(res.iterations.back().residual.mean < 0.2 * res.iterations.front().residual.mean);
+  }
+
+  void unusableInputGivesClearErrors() {
+    const FemModel m = organModel(c_);
+    SimulationSettings s;
+    s.gravity.setZero();
+    const Pinhole cam = c_.camera.pinhole();
+    auto expectThrow = [&](const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& pose, const char* fragment) {
+      try {
+        registerToContour(m, c_.attachments, s, c_.surface, contour, pose, cam);
+        QFAIL("no error");
+      } catch (const MeshError& e) {
+        QVERIFY2(std::string(e.what()).find(fragment) != std::string::npos, e.what());
+        QVERIFY(std::string(e.what()).find('\n') == std::string::npos);
+      }
+    };
+    expectThrow({}, c_.truePose, "empty");
+    expectThrow({{Eigen::Vector2d(10, 10)}}, c_.truePose, "single point");
+    Pose behind = c_.truePose;
+    behind.t.z() = -behind.t.z();
+    expectThrow(outline(c_, c_.truePose, c_.surfaceView()), behind, "behind the camera");
+    // A contour far outside the image binds to nothing useful: a failure status, not a result.
+    std::vector<Eigen::Vector2d> far;
+    for (int i = 0; i < 50; ++i) far.emplace_back(5000 + 10 * i, -3000 + 5 * i);
+    const auto res = registerToContour(m, c_.attachments, s, c_.surface, {far}, c_.truePose, cam);
+    qInfo("far contour: %s", res.status.c_str());
+    QVERIFY(!res.ok);
+    QVERIFY(res.status.rfind("failed", 0) == 0);
+  }
+
+  void cancelStopsEarly() {
+    const FemModel m = organModel(c_);
+    SimulationSettings s;
+    s.gravity.setZero();
+    RegistrationOptions o;
+    int calls = 0;
+    o.onIteration = [&](const RegistrationIteration&, const Eigen::VectorXd&, const Pose&) { return ++calls < 2; };
+    const Pose start = offset(c_.truePose, Eigen::Vector3d(0.004, 0, 0), Eigen::Vector3d::UnitZ(), 0, c_.centreOfGravity());
+    const auto res = registerToContour(m, c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()), start, c_.camera.pinhole(), o);
+    QVERIFY(res.cancelled);
+    QCOMPARE(calls, 2);
+  }
+};
+
+QTEST_GUILESS_MAIN(TestRegistration)
+#include "test_registration.moc"
