@@ -3,7 +3,10 @@
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
 
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/registration.hpp>
 #include <rehearse/simcore/scene.hpp>
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/quality.hpp>
@@ -177,18 +180,9 @@ std::vector<int> parseNodes(const std::string& s) {
   return out;
 }
 
-int cmdSimulate(const std::vector<std::string>& args) {
-  auto o = parseOptions(args, 2,
-                        {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity",
-                         "steps", "dt", "out", "report", "solver", "method", "attachments"},
-                        {"static", "list-components"});
-  if (o.count("list-components")) {
-    std::printf("%s", simcore::describeSceneComponents().c_str());
-    return 0;
-  }
-  if (!o.count("out")) throw UsageError("simulate needs --out OUT.vtu|OUT.vtk");
-  const std::string ext = std::filesystem::path(o["out"]).extension().string();
-  if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+// The organ model of a command: --scene, --preset or --mesh, then the material flags, --fixed-nodes and
+// --gravity over it (shared by simulate and register).
+simcore::Scene modelFromOptions(std::map<std::string, std::string>& o, const char* command) {
   simcore::Scene p;
   p.defaultMaterial = {};
   if (o.count("scene")) {
@@ -209,7 +203,7 @@ int cmdSimulate(const std::vector<std::string>& args) {
       p.mesh = simcore::tetrahedraliseSurface(p.mesh, to);
     }
   } else {
-    throw UsageError("simulate needs --scene S.json, --preset NAME or --mesh FILE");
+    throw UsageError(std::string(command) + " needs --scene S.json, --preset NAME or --mesh FILE");
   }
   if (o.count("material")) p.defaultMaterial.model = simcore::materialModelFromString(o["material"]);
   if (o.count("young")) p.defaultMaterial.young = parseNumber(o["young"], "--young");
@@ -223,6 +217,22 @@ int cmdSimulate(const std::vector<std::string>& args) {
   if (o.count("density")) p.defaultMaterial.density = parseNumber(o["density"], "--density");
   if (o.count("fixed-nodes")) p.fixedNodes = parseNodes(o["fixed-nodes"]);
   if (o.count("gravity")) p.settings.gravity = parseVector(o["gravity"], "--gravity");
+  return p;
+}
+
+int cmdSimulate(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2,
+                        {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity",
+                         "steps", "dt", "out", "report", "solver", "method", "attachments"},
+                        {"static", "list-components"});
+  if (o.count("list-components")) {
+    std::printf("%s", simcore::describeSceneComponents().c_str());
+    return 0;
+  }
+  if (!o.count("out")) throw UsageError("simulate needs --out OUT.vtu|OUT.vtk");
+  const std::string ext = std::filesystem::path(o["out"]).extension().string();
+  if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+  simcore::Scene p = modelFromOptions(o, "simulate");
   if (o.count("dt")) p.settings.timeStep = parseNumber(o["dt"], "--dt");
   if (o.count("solver")) {
     const std::string s = o["solver"];
@@ -295,6 +305,119 @@ int cmdSimulate(const std::vector<std::string>& args) {
   return failed ? 3 : 0;
 }
 
+
+// rehearse register: the organ fitted onto a sketched silhouette (issue 5).
+int cmdRegister(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2,
+                        {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity", "camera",
+                         "contour", "pose", "out", "pose-out", "report", "ground-truth", "iterations", "image-size"},
+                        {"rigid-prepass", "rigid-only", "distorted-contour"});
+  for (const char* need : {"camera", "contour", "pose", "out"})
+    if (!o.count(need)) throw UsageError(std::string("register needs --") + need);
+  const std::string ext = std::filesystem::path(o["out"]).extension().string();
+  if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+  const bool gravityGiven = o.count("gravity") > 0;
+  simcore::Scene p = modelFromOptions(o, "register");
+  // A registration has no gravity unless the scene or --gravity asks for it (the pre-operative shape is
+  // the organ as it lies).
+  if (!gravityGiven && !o.count("scene")) p.settings.gravity.setZero();
+  p.mesh.convertToMetres();
+  imaging::Contour contour = imaging::loadContour(o["contour"]);
+  int width = contour.width, height = contour.height;
+  if (o.count("image-size")) {
+    char x = 0;
+    std::istringstream in(o["image-size"]);
+    if (!(in >> width >> x >> height) || x != 'x' || width <= 0 || height <= 0) throw UsageError("--image-size must look like 1280x720");
+  }
+  const imaging::Camera camera = imaging::loadCamera(o["camera"], width, height);
+  if (const std::string problem = camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
+  if (contour.width == 0) contour.width = camera.width;
+  if (contour.height == 0) contour.height = camera.height;
+  if (o.count("distorted-contour")) contour = imaging::undistortContour(contour, camera);
+  if (const std::string problem = imaging::contourProblem(contour); !problem.empty()) throw simcore::MeshError(problem);
+  const Pose start = imaging::loadPose(o["pose"]);
+  std::vector<std::vector<Eigen::Vector2d>> segments;
+  for (const auto& seg : contour.segments)
+    if (seg.type == "silhouette" || seg.type.empty()) {
+      segments.push_back(seg.points);
+      if (seg.closed && !seg.points.empty()) segments.back().push_back(seg.points.front());
+    }
+  if (segments.empty()) throw simcore::MeshError("The contour has no silhouette segment (only ridges or ligaments).");
+  simcore::Mesh truth;
+  if (o.count("ground-truth")) {
+    simcore::LoadOptions lo;
+    if (o.count("unit")) lo.unit = o["unit"];
+    truth = simcore::loadMesh(o["ground-truth"], lo);
+    truth.convertToMetres();
+    if (truth.points.size() != p.mesh.points.size())
+      throw simcore::MeshError("The ground truth has " + std::to_string(truth.points.size()) + " nodes, the organ " +
+                               std::to_string(p.mesh.points.size()) + "; they must be the same mesh in the same order.");
+  }
+  const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial, p.embedded);
+  const auto surface = simcore::boundaryTriangles(p.mesh, false);
+  simcore::RegistrationOptions ro;
+  ro.rigidPrepass = o.count("rigid-prepass") > 0;
+  ro.elastic = o.count("rigid-only") == 0;
+  if (o.count("iterations")) ro.maxIterations = static_cast<int>(parseCount(o["iterations"], "--iterations", 1, 1000));
+  struct Row {
+    simcore::RegistrationIteration it;
+    double errMean = -1, errMax = -1;
+  };
+  std::vector<Row> rows;
+  ro.onIteration = [&](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
+    Row r{it};
+    if (!truth.points.empty()) {
+      double sum = 0, worst = 0;
+      for (std::size_t i = 0; i < truth.points.size(); ++i) {
+        const double e = (pose.apply(x.segment<3>(3 * i)) - truth.points[i]).norm();
+        sum += e;
+        worst = std::max(worst, e);
+      }
+      r.errMean = 1e3 * sum / truth.points.size();
+      r.errMax = 1e3 * worst;
+    }
+    rows.push_back(r);
+    return true;
+  };
+  const simcore::RegistrationResult res =
+      simcore::registerToContour(model, p.fixedNodes, p.settings, surface, segments, start, camera.pinhole(), ro);
+  // Registered nodes in the camera frame, input order.
+  simcore::Mesh out = p.mesh;
+  out.triangles.clear();
+  out.triangleLabels.clear();
+  for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = res.pose.apply(res.x.segment<3>(3 * i));
+  if (res.ok) {
+    simcore::saveMesh(out, o["out"]);
+    if (o.count("pose-out")) imaging::savePose(res.pose, o["pose-out"]);
+  }
+  if (o.count("report")) {
+    std::string json = "{\n  \"ok\": " + std::string(res.ok ? "true" : "false") + ",\n  \"converged\": " + (res.converged ? "true" : "false") +
+                       ",\n  \"status\": \"" + res.status + "\",\n  \"iterations\": [\n";
+    char buf[512];
+    for (std::size_t i = 0; i < rows.size(); ++i) {
+      const auto& r = rows[i];
+      std::snprintf(buf, sizeof buf,
+                    "    {\"iteration\": %d, \"stage\": \"%s\", \"wall_ms\": %.3f, \"mean_px\": %.4f, \"rms_px\": %.4f, "
+                    "\"hausdorff_px\": %.4f, \"bound\": %zu%s}%s\n",
+                    r.it.iteration, r.it.stage.c_str(), r.it.wallMs, r.it.residual.mean, r.it.residual.rms, r.it.residual.hausdorff, r.it.bound,
+                    r.errMean >= 0 ? (", \"error_mean_mm\": " + std::to_string(r.errMean) + ", \"error_max_mm\": " + std::to_string(r.errMax)).c_str()
+                                   : "",
+                    i + 1 < rows.size() ? "," : "");
+      json += buf;
+    }
+    json += "  ]\n}\n";
+    imaging::writeFileAtomically(o["report"], json);
+  }
+  const auto& last = rows.back().it;
+  std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(), rows.size(), last.wallMs,
+              last.residual.mean, rows.front().it.residual.mean,
+              rows.back().errMean >= 0 ? (", 3D error " + std::to_string(rows.back().errMean) + " mm").c_str() : "");
+  if (!res.ok) {
+    std::fprintf(stderr, "rehearse: %s\n", res.status.c_str());
+    return 3;
+  }
+  return 0;
+}
 }  // namespace
 
 std::string usage() {
@@ -318,6 +441,11 @@ std::string usage() {
          "                [--attachments projection|lagrange] --out OUT.vtu|.vtk [--report R.json]\n"
          "  rehearse simulate --list-components   the scene components and their parameters\n"
          "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n"
+         "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"
+         "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
+         "                [--ground-truth GT.vtu|.vtk] [--rigid-prepass] [--rigid-only] [--iterations N]\n"
+         "                [--image-size WxH] [--distorted-contour] [material flags of simulate]\n"
+         "                                   fit the organ onto a sketched silhouette (nodes written in the camera frame)\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL)\n"
          "Mesh formats: .msh (Gmsh 1, 2.2, 4.1), .vtk (legacy), .vtu, .mesh (Medit), .obj .stl .ply .off .gltf .glb.\n"
@@ -345,6 +473,7 @@ int runCli(const std::vector<std::string>& args, bool& handled) {
     if (cmd == "mesh") return cmdMesh(args);
     if (cmd == "info") return cmdInfo(args);
     if (cmd == "simulate") return cmdSimulate(args);
+    if (cmd == "register") return cmdRegister(args);
     throw UsageError("unknown command '" + cmd + "'; see 'rehearse --help'");
   } catch (const UsageError& e) {
     std::fprintf(stderr, "rehearse: %s\n", e.what());

@@ -9,6 +9,14 @@
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/registration.hpp>
 
+#include <rehearse/imaging/contour.hpp>
+#include <rehearse/simcore/meshio.hpp>
+
+#include <QJsonArray>
+#include <QJsonDocument>
+#include <QJsonObject>
+#include <QProcess>
+
 #include <opencv2/imgproc.hpp>
 
 using namespace rehearse;
@@ -170,6 +178,60 @@ class TestRegistration : public QObject {
     qInfo("far contour: %s", res.status.c_str());
     QVERIFY(!res.ok);
     QVERIFY(res.status.rfind("failed", 0) == 0);
+  }
+
+  // rehearse register on the phantom's own files: a contour of the organ deformed by a load the fit does
+  // not know, the true pose as the start, a ground truth in the camera frame; the report's 3D error falls.
+  void commandLine() {
+    const std::string dir = tempPath("register-case");
+    phantom::writeCaseDirectory(c_, dir);
+    const FemModel m = organModel(c_);
+    SimulationSettings load;
+    load.gravity = c_.truePose.R.transpose() * Eigen::Vector3d(9.81 * 3, 0, 0);
+    Integrator in(m, c_.attachments, load);
+    auto truth = in.initialState();
+    QVERIFY(in.solveStatic(truth).ok);
+    std::vector<double> verts(truth.x.data(), truth.x.data() + truth.x.size());
+    SurfaceView deformed = c_.surfaceView();
+    deformed.vertices = verts.data();
+    imaging::Contour contour;
+    contour.width = c_.camera.width;
+    contour.height = c_.camera.height;
+    for (const auto& seg : outline(c_, c_.truePose, deformed)) contour.segments.push_back({seg, true, "silhouette"});
+    imaging::saveContour(contour, dir + "/contour.json");
+    Mesh gt = c_.volume;
+    gt.convertToMetres();
+    for (std::size_t i = 0; i < gt.points.size(); ++i) gt.points[i] = c_.truePose.apply(truth.x.segment<3>(3 * i));
+    saveMesh(gt, dir + "/truth.vtu");
+    QString nodes;
+    for (int a : c_.attachments) nodes += QString::number(a) + " ";
+    const QString d = QString::fromStdString(dir);
+    auto run = [](const QStringList& args) {
+      QProcess p;
+      p.start(QStringLiteral(REHEARSE_BINARY), args);
+      p.waitForFinished(300000);
+      return std::make_tuple(p.exitCode(), QString::fromUtf8(p.readAllStandardOutput()), QString::fromUtf8(p.readAllStandardError()));
+    };
+    const QStringList common = {"register", "--mesh", d + "/organ.vtu", "--material", "corotational", "--young", "27000", "--poisson", "0.4",
+                                "--fixed-nodes", nodes, "--camera", d + "/camera.yaml", "--pose", d + "/pose.json"};
+    auto [code, out, err] = run(common + QStringList{"--contour", d + "/contour.json", "--out", d + "/registered.vtu", "--pose-out",
+                                                     d + "/pose-out.json", "--report", d + "/report.json", "--ground-truth", d + "/truth.vtu"});
+    QVERIFY2(code == 0, qPrintable(err));
+    qInfo("%s", qPrintable(out.trimmed()));
+    const QJsonObject report = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/report.json"))).object();
+    const QJsonArray its = report["iterations"].toArray();
+    QVERIFY(its.size() >= 2);
+    const double e0 = its.first().toObject()["error_mean_mm"].toDouble(), e1 = its.last().toObject()["error_mean_mm"].toDouble();
+    QVERIFY(e0 > 0 && e1 < e0);
+    QVERIFY(its.last().toObject()["mean_px"].toDouble() < its.first().toObject()["mean_px"].toDouble());
+    QVERIFY(its.last().toObject()["wall_ms"].toDouble() > 0);
+    const Mesh registered = loadMesh(dir + "/registered.vtu");
+    QCOMPARE(registered.points.size(), c_.volume.points.size());
+    // Unusable input: one line on stderr, a non-zero exit, nothing written.
+    writeFile(dir + "/empty.json", R"({"width": 1280, "height": 720, "segments": []})");
+    auto [c2, o2, e2] = run(common + QStringList{"--contour", d + "/empty.json", "--out", d + "/x.vtu"});
+    QVERIFY2(c2 != 0 && e2.trimmed().count('\n') == 0 && e2.contains("empty"), qPrintable(e2));
+    QVERIFY(!QFile::exists(d + "/x.vtu"));
   }
 
   void cancelStopsEarly() {

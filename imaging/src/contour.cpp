@@ -3,6 +3,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/imgproc/segmentation.hpp>
+#include <opencv2/calib3d.hpp>
 
 #include <cmath>
 #include <filesystem>
@@ -223,6 +224,29 @@ std::vector<Eigen::Vector2d> snapToEdges(const cv::Mat3b& image, const std::vect
     const cv::Point from = clampPt(anchors[i]);
     if (cv::norm(path.front() - from) > cv::norm(path.back() - from)) std::reverse(path.begin(), path.end());
     for (std::size_t k = (out.empty() ? 0 : 1); k < path.size(); ++k) out.emplace_back(path[k].x, path[k].y);
+  }
+  return out;
+}
+
+}  // namespace rehearse::imaging
+
+namespace rehearse::imaging {
+
+Contour undistortContour(const Contour& c, const Camera& camera) {
+  bool distorted = false;
+  for (double d : camera.distortion) distorted |= d != 0;
+  if (!distorted) return c;
+  cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) K.at<double>(r, k) = camera.K(r, k);
+  for (int k = 0; k < 5; ++k) D.at<double>(0, k) = camera.distortion[k];
+  Contour out = c;
+  for (auto& seg : out.segments) {
+    if (seg.points.empty()) continue;
+    std::vector<cv::Point2d> in, und;
+    for (const auto& p : seg.points) in.emplace_back(p.x(), p.y());
+    cv::undistortPoints(in, und, K, D, cv::noArray(), K);  // back to pixels of the undistorted frame
+    for (std::size_t i = 0; i < und.size(); ++i) seg.points[i] = Eigen::Vector2d(und[i].x, und[i].y);
   }
   return out;
 }

@@ -29,6 +29,10 @@ struct Contour {
 Contour loadContour(const std::string& path);
 void saveContour(const Contour& c, const std::string& path);
 
+/// The contour of a raw (distorted) image moved to the undistorted frame of `camera` (as P2ILF's contours,
+/// drawn on the raw images).
+Contour undistortContour(const Contour& c, const Camera& camera);
+
 /// Empty when the contour can be used for fitting; otherwise one sentence (empty, a single point,
 /// points outside the image, a segment that crosses itself).
 std::string contourProblem(const Contour& c);
