@@ -2,7 +2,8 @@
 # Runs the benchmarks and writes their CSVs to build/bench/ (summarised by hand in BENCHMARKS.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/build.sh --target bench_foundation bench_dynamics
+scripts/build.sh --target bench_foundation bench_dynamics bench_registration
 mkdir -p build/bench
 build/tests/bench_foundation build/bench/bench_foundation.csv
 build/tests/bench_dynamics build/bench
+build/tests/bench_registration build/bench

@@ -97,6 +97,17 @@ Eigen::Vector3d springVector(const EmbeddedSpring& s, const Eigen::VectorXd& x) 
 
 }  // namespace
 
+SurfaceEmbedding embedPoints(const FemModel& m, const std::vector<Eigen::Vector3d>& points) { return locate(m, points); }
+
+std::vector<Eigen::Vector3d> mapEmbedded(const SurfaceEmbedding& e, const Eigen::VectorXd& x) {
+  std::vector<Eigen::Vector3d> out(e.nodes.size());
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    out[i].setZero();
+    for (int k = 0; k < 4; ++k) out[i] += e.weights[i][k] * x.segment<3>(3 * e.nodes[i][k]);
+  }
+  return out;
+}
+
 std::vector<Eigen::Vector3d> mapEmbedded(const FemModel& m, std::size_t which, const Eigen::VectorXd& x) {
   const SurfaceEmbedding& e = m.embeddings.at(which);
   std::vector<Eigen::Vector3d> out(e.nodes.size());

@@ -259,7 +259,7 @@ bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::Vecto
     w.schurValid = true;
   }
   if (w.e.size() != m) w.e.resize(m);
-  if (w.lambda.size() != m) w.lambda.setZero(m);
+  if (w.lambda.size() != m || !w.lambda.allFinite()) w.lambda.setZero(m);
   for (Eigen::Index i = 0; i < m; ++i) {
     const auto& c = constraint(i);
     w.e[i] = (c.value - applyH(c, x)) / s - applyH(c, dx);
@@ -292,7 +292,8 @@ bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::Vecto
   // Converged by its step size is not converged by its residual when W is ill-conditioned.
   if (converged && !unilateral) converged = (w.W * w.lambda - w.e).norm() <= 1e-12 * std::max(w.e.norm(), 1e-300) * std::max(1.0, w.W.diagonal().maxCoeff() / std::max(w.W.diagonal().minCoeff(), 1e-300));
   if (!converged && !unilateral) {
-    w.lambda = w.W.ldlt().solve(w.e);
+    // Rank-deficient W (redundant constraints) is fine here: the least-norm multipliers.
+    w.lambda = w.W.completeOrthogonalDecomposition().solve(w.e);
     if (!w.lambda.allFinite()) return false;
   }
   dx.noalias() += w.A * w.lambda;
@@ -452,8 +453,10 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       if (settings_.solver == LinearSolverKind::Cholmod) {
         ++rep.factorisations;
         w.schurValid = false;
-        bool factorised = w.chol.factorise(w.J);
-        if (!factorised) {
+        bool factorised = w.chol.factorise(w.J) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
+        if (factorised) {
+          solved = true;
+        } else {
           // Indefinite tangent: projected Newton (element tangents clamped to PSD), then a diagonal shift.
           // The damping matrix K(x0) is projected too (an indefinite one would inject energy and leave the
           // incremental potential unbounded below); the residual follows it from here on.
@@ -466,9 +469,8 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
           }
           assembleStiffness(model_, w.xt, w.K, true);
           buildNewtonMatrix(w.K, w.J);
-          factorised = factoriseShifted(w.J, rep);
+          solved = factoriseShifted(w.J, rep) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
         }
-        solved = factorised && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
       } else {
         solved = solveLinear(w.J, w.tmp, w.dv);
         project(w.dv);
@@ -692,12 +694,11 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     if (settings_.solver == LinearSolverKind::Cholmod) {
       ++rep.factorisations;
       w.schurValid = false;
-      bool factorised = w.chol.factorise(w.K);
-      if (!factorised) {  // indefinite: projected Newton, then a diagonal shift
+      solved = w.chol.factorise(w.K) && solveConstrained(r, x, 1.0, dx, rep);
+      if (!solved) {  // indefinite (or a pivot so small the solution overflows): projected Newton, then a shift
         buildTangent(true);
-        factorised = factoriseShifted(w.K, rep);
+        solved = factoriseShifted(w.K, rep) && solveConstrained(r, x, 1.0, dx, rep);
       }
-      solved = factorised && solveConstrained(r, x, 1.0, dx, rep);
     } else {
       solved = solveLinear(w.K, r, dx);
       if (!solved) {
@@ -710,7 +711,8 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
       project(dx);
     }
     if (!solved) {
-      rep.status = "failed: the stiffness matrix could not be factorised";
+      rep.status = hasConstraints ? "failed: the stiffness matrix or the constraint system could not be solved"
+                                  : "failed: the stiffness matrix could not be factorised";
       break;
     }
     double t = 1.0;

@@ -84,6 +84,9 @@ struct FemModel {
 
 /// Positions of an embedded surface's vertices for nodal positions x (the mapping x_s = J x).
 std::vector<Eigen::Vector3d> mapEmbedded(const FemModel& m, std::size_t which, const Eigen::VectorXd& x);
+/// Barycentric embedding of points (metres, rest frame) in the model's tetrahedra (markers, probes).
+SurfaceEmbedding embedPoints(const FemModel& m, const std::vector<Eigen::Vector3d>& points);
+std::vector<Eigen::Vector3d> mapEmbedded(const SurfaceEmbedding& e, const Eigen::VectorXd& x);
 
 double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x);
 /// f = -dE/dx, size 3n.

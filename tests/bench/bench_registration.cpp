@@ -1,0 +1,204 @@
+// Benchmark of the elastic fit (issue 5) with the protocol of Adagolodjo et al.: a ground truth made by
+// the project without the inverse crime (a finer mesh of the phantom, another material law, loads the fit
+// does not know: sideways gravity and a tool pushing on the front), its silhouette rendered through the
+// camera, 40 visible surface markers; 12 starts (the true pose perturbed by +-2 cm along and +-20 degrees
+// about each camera axis) x 4 contour fractions (100/90/80/70 %). Writes registration.csv and
+// registration.png (marker error against wall time for each start at 100 %). Not a test.
+//   bench_registration [OUT_DIR] [--quick]
+#include "phantom/phantom.hpp"
+#include "plot.hpp"
+
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/registration.hpp>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <numeric>
+
+using namespace rehearse;
+using namespace rehearse::simcore;
+
+namespace {
+std::vector<Eigen::Vector2d> outline(const phantom::Case& c, const Pose& pose, const SurfaceView& surface) {
+  const cv::Mat1b mask = imaging::renderMask(c.camera, pose, surface);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  std::size_t best = 0;
+  for (std::size_t i = 1; i < contours.size(); ++i)
+    if (contours[i].size() > contours[best].size()) best = i;
+  std::vector<Eigen::Vector2d> out;
+  if (!contours.empty())
+    for (const auto& p : contours[best]) out.emplace_back(p.x, p.y);
+  return out;
+}
+
+Pose perturb(const Pose& p, const Eigen::Vector3d& move, int axis, double degrees, const Eigen::Vector3d& centre) {
+  const Eigen::Matrix3d dR = Eigen::AngleAxisd(degrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix();
+  const Eigen::Vector3d cc = p.apply(centre);
+  Pose q;
+  q.R = dR * p.R;
+  q.t = dR * (p.t - cc) + cc + move;
+  return q;
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out = ".";
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--quick") quick = true;
+    else out = a;
+  }
+  std::filesystem::create_directories(out);
+  // The model the fit uses: the built-in phantom, co-rotational, the DejaVu liver's parameters.
+  const phantom::Case coarse = phantom::makePhantom();
+  const FemModel model = FemModel::build(coarse.volume, {{phantom::kVesselLabel, {MaterialModel::Corotational, 620e3, 0.45, 1000}}},
+                                         {MaterialModel::Corotational, 27e3, 0.40, 1000});
+  // The ground truth: a finer mesh of the same organ, the stable Neo-Hookean law, other loads.
+  phantom::PhantomOptions fineOptions;
+  fineOptions.targetTets = quick ? 8000 : 16000;
+  const phantom::Case fine = phantom::makePhantom(fineOptions);
+  const FemModel fineModel = FemModel::build(fine.volume, {{phantom::kVesselLabel, {MaterialModel::NeoHookean, 620e3, 0.45, 1000}}},
+                                             {MaterialModel::NeoHookean, 27e3, 0.45, 1000});
+  const Pose truth = coarse.truePose;
+  SimulationSettings load;
+  load.gravity = truth.R.transpose() * Eigen::Vector3d(9.81, 0, 0);  // 1 g sideways in the image
+  Integrator gtIn(fineModel, fine.attachments, load);
+  auto gt = gtIn.initialState();
+  // A tool pushing the front surface near the organ's lower left: 0.3 N along the view direction.
+  Eigen::VectorXd tool = Eigen::VectorXd::Zero(gt.x.size());
+  {
+    const Eigen::Vector3d cog = fine.centreOfGravity();
+    int best = -1;
+    double score = -1e300;
+    for (const auto& t : fine.surface)
+      for (int v : t) {
+        const Eigen::Vector3d pc = truth.apply(fine.volume.points[v]);
+        const double s = -pc.z() + 0.5 * (pc.x() - truth.apply(cog).x()) * -1;  // near, and to the left
+        if (s > score) score = s, best = v;
+      }
+    tool.segment<3>(3 * best) = truth.R.transpose() * Eigen::Vector3d(0, 0, 0.3);
+  }
+  const auto gtRep = gtIn.solveStatic(gt, tool);
+  std::printf("ground truth: %zu tets (fit model %zu), stable Neo-Hookean, 1 g sideways + 0.3 N tool: %s, largest displacement %.1f mm\n",
+              fine.volume.tets.size(), coarse.volume.tets.size(), gtRep.status.c_str(), 1e3 * (gt.x - fineModel.restVector()).cwiseAbs().maxCoeff());
+  std::vector<double> gtVerts(gt.x.data(), gt.x.data() + gt.x.size());
+  SurfaceView gtSurface = fine.surfaceView();
+  gtSurface.vertices = gtVerts.data();
+  const std::vector<Eigen::Vector2d> fullContour = outline(fine, truth, gtSurface);
+  // Markers: 40 visible front-surface nodes of the fine mesh, spread by farthest-point sampling.
+  std::vector<int> candidates;
+  {
+    std::vector<char> seen(fine.volume.points.size(), 0);
+    for (const auto& t : fine.surface) {
+      const Eigen::Vector3d a = truth.apply(gt.x.segment<3>(3 * t[0])), b = truth.apply(gt.x.segment<3>(3 * t[1])),
+                            c = truth.apply(gt.x.segment<3>(3 * t[2]));
+      if ((b - a).cross(c - a).dot(a) >= 0) continue;  // back face
+      for (int v : t)
+        if (!seen[v]) seen[v] = 1, candidates.push_back(v);
+    }
+  }
+  std::vector<int> markers{candidates.front()};
+  while (markers.size() < 40 && markers.size() < candidates.size()) {
+    int best = -1;
+    double far = -1;
+    for (int v : candidates) {
+      double d = 1e300;
+      for (int m : markers) d = std::min(d, (fine.volume.points[v] - fine.volume.points[m]).norm());
+      if (d > far) far = d, best = v;
+    }
+    markers.push_back(best);
+  }
+  std::vector<Eigen::Vector3d> markerRest, markerTruth;
+  for (int v : markers) {
+    markerRest.push_back(fine.volume.points[v] * fine.volume.unitToMetre);
+    markerTruth.push_back(gt.x.segment<3>(3 * v));
+  }
+  const SurfaceEmbedding markerMap = embedPoints(model, markerRest);
+  auto markerError = [&](const Eigen::VectorXd& x, const Pose& pose) {
+    const auto pts = mapEmbedded(markerMap, x);
+    double sum = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) sum += (pose.apply(pts[i]) - truth.apply(markerTruth[i])).norm();
+    return 1e3 * sum / pts.size();
+  };
+  std::printf("%zu markers (%zu outside the fit model's volume), contour of %zu pixels; markers at the true pose, undeformed: %.2f mm\n",
+              markers.size(), markerMap.outside, fullContour.size(), markerError(model.restVector(), truth));
+
+  std::ofstream csv(out + "/registration.csv");
+  csv << "start,fraction,start_error_mm,end_error_mm,start_px,end_px,wall_ms,iterations,ok,status\n";
+  std::vector<PlotSeries> series;
+  const double cm = 0.02, deg = 20;
+  struct Start {
+    std::string name;
+    Eigen::Vector3d move;
+    int axis;
+    double degrees;
+  };
+  std::vector<Start> starts;
+  const char* axes = "XYZ";
+  for (int a = 0; a < 3; ++a)
+    for (int sgn : {1, -1}) {
+      starts.push_back({std::string(sgn > 0 ? "+" : "-") + "2cm " + axes[a], sgn * cm * Eigen::Vector3d::Unit(a), a, 0});
+      starts.push_back({std::string(sgn > 0 ? "+" : "-") + "20deg " + axes[a], Eigen::Vector3d::Zero(), a, sgn * deg});
+    }
+  if (quick) starts.resize(2);
+  const std::vector<double> fractions = quick ? std::vector<double>{1.0} : std::vector<double>{1.0, 0.9, 0.8, 0.7};
+  std::printf("\n%-10s %5s %10s %10s %9s %9s %9s  %s\n", "start", "kept", "start mm", "end mm", "start px", "end px", "ms", "status");
+  std::map<double, std::vector<double>> endErrors, times;
+  int worse = 0;
+  for (double fraction : fractions) {
+    // Keep a contiguous part of the outline (the rest is as if the assistant had not drawn it).
+    const std::size_t keep = static_cast<std::size_t>(fraction * fullContour.size());
+    std::vector<Eigen::Vector2d> part(fullContour.begin(), fullContour.begin() + keep);
+    for (const auto& s : starts) {
+      const Pose start = perturb(truth, s.move, s.axis, s.degrees, coarse.centreOfGravity());
+      PlotSeries ps;
+      ps.name = s.name;
+      RegistrationOptions o;
+      o.rigidPrepass = true;
+      o.onIteration = [&](const RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
+        ps.x.push_back(std::max(it.wallMs, 1.0));
+        ps.y.push_back(markerError(x, pose));
+        return true;
+      };
+      SimulationSettings settings;
+      settings.gravity.setZero();
+      RegistrationResult r;
+      try {
+        r = registerToContour(model, coarse.attachments, settings, coarse.surface, {part}, start, coarse.camera.pinhole(), o);
+      } catch (const std::exception& e) {
+        r.status = std::string("error: ") + e.what();
+      }
+      const double e0 = markerError(model.restVector(), start);
+      const double e1 = r.x.size() ? markerError(r.x, r.pose) : e0;
+      const double px0 = r.iterations.empty() ? 0 : r.iterations.front().residual.mean;
+      const double px1 = r.iterations.empty() ? 0 : r.iterations.back().residual.mean;
+      const double ms = r.iterations.empty() ? 0 : r.iterations.back().wallMs;
+      worse += e1 >= e0;
+      endErrors[fraction].push_back(e1);
+      times[fraction].push_back(ms);
+      std::printf("%-10s %4.0f%% %10.2f %10.2f %9.2f %9.2f %9.0f  %s\n", s.name.c_str(), 100 * fraction, e0, e1, px0, px1, ms, r.status.c_str());
+      csv << "\"" << s.name << "\"," << fraction << "," << e0 << "," << e1 << "," << px0 << "," << px1 << "," << ms << ","
+          << r.iterations.size() << "," << r.ok << ",\"" << r.status << "\"\n";
+      if (fraction == 1.0) series.push_back(ps);
+    }
+  }
+  std::printf("\nsummary (mean over %zu starts):\n", starts.size());
+  for (double f : fractions) {
+    const auto& e = endErrors[f];
+    const auto& t = times[f];
+    std::printf("  contour %3.0f %%: marker error %.2f mm (worst %.2f), wall time %.0f ms (worst %.0f)\n", 100 * f,
+                std::accumulate(e.begin(), e.end(), 0.0) / e.size(), *std::max_element(e.begin(), e.end()),
+                std::accumulate(t.begin(), t.end(), 0.0) / t.size(), *std::max_element(t.begin(), t.end()));
+  }
+  std::printf("  starts that ended worse than they began: %d\n", worse);
+  writeLogLogPlot(out + "/registration.png", "Elastic fit, 100 % contour: marker error against wall time per start", "wall time (ms)",
+                  "mean marker error (mm)", series);
+  std::printf("wrote %s/registration.csv and .png\n", out.c_str());
+  return 0;
+}
