@@ -4,11 +4,20 @@
 // With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot of the panel there (for the README).
 #include "test_support.hpp"
 
+#include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
+#include <QCheckBox>
 #include <QComboBox>
+#include <QUndoStack>
+#include <QtCharts/QChartView>
+#include <QtCharts/QLineSeries>
+
+#include <rehearse/imaging/render.hpp>
+
+#include <opencv2/imgproc.hpp>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QLabel>
@@ -141,6 +150,66 @@ class TestSimulationGui : public QObject {
     QCOMPARE(panel_->lastFrame()->steps, 0L);
     QCOMPARE(panel_->lastFrame()->time, 0.0);
     QVERIFY(panel_->lastFrame()->valueMax < 1e-12);
+  }
+
+  // Step 5: the elastic fit from the GUI: F9 runs it on a worker thread, the chart grows, the result
+  // is one undo step and is saved in the case file.
+  void elasticFitStep() {
+    const auto& c = *w_->currentCase().data;
+    // The assistant's contour: the organ's outline at the true pose; the rigid alignment: the true pose
+    // moved 3 mm sideways.
+    const cv::Mat1b mask = imaging::renderMask(c.camera, c.truePose, c.surfaceView());
+    std::vector<std::vector<cv::Point>> contours;
+    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+    QVERIFY(!contours.empty());
+    imaging::ContourSegment seg;
+    for (std::size_t i = 0; i < contours.front().size(); i += 3) seg.points.emplace_back(contours.front()[i].x, contours.front()[i].y);
+    w_->editCase("test: contour and pose", [&](phantom::Case& k) {
+      k.contour.width = k.camera.width;
+      k.contour.height = k.camera.height;
+      k.contour.segments = {seg};
+      k.pose = k.truePose;
+      k.pose.t.x() += 0.003;
+      k.hasPose = true;
+      k.poseAligned = true;
+    });
+    QVERIFY(w_->currentCase().data->fitted.empty());
+    w_->frameView()->setFocus();
+    QTest::keyClick(w_.get(), Qt::Key_5, Qt::AltModifier);
+    QCOMPARE(w_->step(), ui::Step::Elastic);
+    QTest::keyClick(w_.get(), Qt::Key_F9);
+    QElapsedTimer t;
+    t.start();
+    while (w_->currentCase().data->fitted.empty() && t.elapsed() < 120000) QTest::qWait(50);
+    QVERIFY2(!w_->currentCase().data->fitted.empty(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
+    auto* chart = w_->findChild<QChartView*>("fitChart");
+    QVERIFY(chart);
+    auto* series = qobject_cast<QLineSeries*>(chart->chart()->series().front());
+    QVERIFY(series->count() >= 2);
+    const double first = series->at(0).y(), last = series->at(series->count() - 1).y();
+    qInfo("fit: %s; chart %d points, %.2f px -> %.2f px", qPrintable(w_->findChild<QLabel*>("fitStatus")->text()), series->count(), first, last);
+    QVERIFY(last < first);
+    QVERIFY(w_->stepDone(ui::Step::Elastic));
+    const std::vector<Eigen::Vector3d> fitted = w_->currentCase().data->fitted;
+    // Revert and redo.
+    QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
+    QVERIFY(w_->currentCase().data->fitted.empty());
+    const QKeyCombination redo = QKeySequence::keyBindings(QKeySequence::Redo).front()[0];  // the platform's redo key
+    QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
+    QCOMPARE(w_->currentCase().data->fitted.size(), fitted.size());
+    // Stored in the case file.
+    const QString path = QString::fromStdString(tempPath("fit.rehearse"));
+    ui::saveCaseFile(*w_->currentCase().data, path);
+    const phantom::Case back = ui::loadCaseFile(path);
+    QCOMPARE(back.fitted.size(), fitted.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < fitted.size(); ++i) worst = std::max(worst, (back.fitted[i] - fitted[i]).norm());
+    QVERIFY(worst < 1e-12);
+    const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
+    if (!dir.isEmpty()) {
+      QTest::qWait(100);
+      w_->grab().save(QString::fromLocal8Bit(dir) + "/step5-fit.png");
+    }
   }
 
   void cleanupTestCase() { w_.reset(); }

@@ -46,6 +46,9 @@ struct Case {
   bool hasPose = false;                  ///< false until the organ has been placed (auto or by hand)
   bool poseAligned = false;              ///< true once the user aligned it (gizmos, fields or PnP)
   std::string meshSource;                ///< file the organ mesh came from ("" for the phantom)
+  // Step 5: the elastic fit onto the contour.
+  std::vector<Eigen::Vector3d> fitted;   ///< node positions after the fit (model frame, metres); empty: none
+  std::string fitStatus;                 ///< the fit's one-sentence status
 
   /// Centre of gravity of the organ (volume-weighted tet centroids; model frame, metres).
   Eigen::Vector3d centreOfGravity() const;
@@ -59,8 +62,10 @@ struct Case {
   /// made (on a worker thread), so drawing and panels only read them.
   void deriveFromVolume();
 
+  /// The organ's surface as drawn: the fitted shape once there is one.
   SurfaceView surfaceView() const {
     SurfaceView v = volume.surfaceView();
+    if (!fitted.empty() && fitted.size() == volume.points.size() && volume.unitToMetre == 1.0) v.vertices = fitted.front().data();
     v.triangles = surface.empty() ? nullptr : surface.front().data();
     v.triangleCount = surface.size();
     return v;

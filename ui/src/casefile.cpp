@@ -167,6 +167,11 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
       }
       part("contour", "json", bytes(json{{"image_size", {c.contour.width, c.contour.height}}, {"segments", segs}}.dump()));
     }
+    if (!c.fitted.empty()) {
+      json pts = json::array();
+      for (const auto& x : c.fitted) pts.push_back({x.x(), x.y(), x.z()});
+      part("elastic_fit", "json", bytes(json{{"positions", pts}, {"status", c.fitStatus}}.dump()));
+    }
     if (c.hasGroundTruth) {
       json tree = json::array();
       for (const auto& s : c.vesselTree) tree.push_back({{"a", vec(s.a)}, {"b", vec(s.b)}, {"radius", s.radius}});
@@ -307,6 +312,17 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
     } catch (const std::exception& e) {
       c.contour = {};
       note(QStringLiteral("Contour not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (QByteArray f = read("elastic_fit"); !f.isEmpty()) {
+    try {
+      const json j = json::parse(f.toStdString());
+      for (const auto& p : j.at("positions")) c.fitted.emplace_back(p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>());
+      c.fitStatus = j.value("status", std::string());
+      if (c.fitted.size() != c.volume.points.size()) throw std::runtime_error("it does not match the organ mesh");
+    } catch (const std::exception& e) {
+      c.fitted.clear();
+      note(QStringLiteral("Elastic fit not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
   if (QByteArray g = read("ground_truth"); !g.isEmpty()) {

@@ -5,6 +5,10 @@
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
+#include "phantom/presets.hpp"
+
+#include <rehearse/simcore/registration.hpp>
+
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/quality.hpp>
@@ -45,6 +49,10 @@
 #include <QTreeWidget>
 #include <QUndoCommand>
 #include <QVBoxLayout>
+#include <QtCharts/QChart>
+#include <QtCharts/QChartView>
+#include <QtCharts/QLineSeries>
+#include <QtCharts/QValueAxis>
 #include <QtConcurrent/QtConcurrent>
 
 #include <opencv2/calib3d.hpp>
@@ -286,7 +294,7 @@ void MainWindow::buildWorkflowPanel() {
     auto* item = new QListWidgetItem(tr(kStepNames[i]), workflow_);
     item->setSizeHint(QSize(0, 34));
     item->setToolTip(tr("Alt+%1").arg(i + 1));
-    if (i >= 4) {
+    if (i >= 5) {
       item->setFlags(item->flags() & ~Qt::ItemIsEnabled);
       item->setToolTip(tr("Comes in a later version"));
     }
@@ -294,7 +302,7 @@ void MainWindow::buildWorkflowPanel() {
   workflow_->setFixedHeight(7 * 34 + 8);
   workflow_->setVerticalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
   connect(workflow_, &QListWidget::currentRowChanged, this, [this](int row) {
-    if (row >= 0 && row < 4) setStep(static_cast<Step>(row));
+    if (row >= 0 && row < 5) setStep(static_cast<Step>(row));
   });
   layout->addWidget(workflow_);
   steps_ = new QStackedWidget(host);
@@ -302,6 +310,7 @@ void MainWindow::buildWorkflowPanel() {
   steps_->addWidget(buildFramePage());
   steps_->addWidget(buildContourPage());
   steps_->addWidget(buildRigidPage());
+  steps_->addWidget(buildFitPage());
   layout->addWidget(steps_, 1);
   dock->setWidget(host);
   dock->setMinimumWidth(330);
@@ -513,6 +522,148 @@ QWidget* MainWindow::buildContourPage() {
   return page;
 }
 
+QWidget* MainWindow::buildFitPage() {
+  auto* page = new QWidget;
+  auto* layout = new QVBoxLayout(page);
+  auto* intro = new QLabel(tr("Fit the organ onto the sketched contour: the silhouette is pulled onto it in the image plane and "
+                              "the elastic model (the liver's parameters, held by its ligaments) decides the rest. "
+                              "Undo (Ctrl+Z) reverts the fit."),
+                           page);
+  intro->setWordWrap(true);
+  layout->addWidget(intro);
+  fitRigid_ = new QCheckBox(tr("Rigid pre-pass (refine the pose first)"), page);
+  fitRigid_->setObjectName(QStringLiteral("fitRigid"));
+  fitRigid_->setChecked(true);
+  layout->addWidget(fitRigid_);
+  auto* row = new QHBoxLayout;
+  fitButton_ = new QPushButton(tr("Fit to Contour (F9)"), page);
+  fitButton_->setObjectName(QStringLiteral("fitButton"));
+  fitButton_->setShortcut(QKeySequence(Qt::Key_F9));
+  connect(fitButton_, &QPushButton::clicked, this, &MainWindow::runElasticFit);
+  auto* clear = new QPushButton(tr("Clear Fit"), page);
+  clear->setObjectName(QStringLiteral("fitClear"));
+  connect(clear, &QPushButton::clicked, this, [this] {
+    if (case_.data && !case_.data->fitted.empty()) editCase(tr("Clear elastic fit"), [](phantom::Case& k) {
+      k.fitted.clear();
+      k.fitStatus.clear();
+    });
+  });
+  row->addWidget(fitButton_);
+  row->addWidget(clear);
+  layout->addLayout(row);
+  fitStatus_ = new QLabel(page);
+  fitStatus_->setObjectName(QStringLiteral("fitStatus"));
+  fitStatus_->setWordWrap(true);
+  layout->addWidget(fitStatus_);
+  // Live chart: the contour-to-silhouette distance against run time.
+  fitSeries_ = new QLineSeries;
+  fitSeries_->setName(tr("mean distance (px)"));
+  auto* chart = new QChart;
+  chart->addSeries(fitSeries_);
+  chart->legend()->hide();
+  chart->setTitle(tr("Contour to silhouette (px) against time (s)"));
+  chart->setTheme(QChart::ChartThemeDark);
+  fitAxisX_ = new QValueAxis;
+  fitAxisX_->setTitleText(tr("s"));
+  fitAxisX_->setRange(0, 1);
+  fitAxisY_ = new QValueAxis;
+  fitAxisY_->setTitleText(tr("px"));
+  fitAxisY_->setRange(0, 10);
+  chart->addAxis(fitAxisX_, Qt::AlignBottom);
+  chart->addAxis(fitAxisY_, Qt::AlignLeft);
+  fitSeries_->attachAxis(fitAxisX_);
+  fitSeries_->attachAxis(fitAxisY_);
+  auto* chartView = new QChartView(chart, page);
+  chartView->setObjectName(QStringLiteral("fitChart"));
+  chartView->setRenderHint(QPainter::Antialiasing);
+  chartView->setMinimumHeight(220);
+  layout->addWidget(chartView, 1);
+  return page;
+}
+
+void MainWindow::runElasticFit() {
+  if (!case_.data) return;
+  const auto c = case_.data;
+  QString missing;
+  if (!stepDone(Step::Mesh)) missing = tr("an organ mesh (step 1)");
+  else if (!stepDone(Step::Frame)) missing = tr("a frame with its camera (step 2)");
+  else if (!stepDone(Step::Contour)) missing = tr("a contour (step 3): %1").arg(QString::fromStdString(imaging::contourProblem(c->contour)));
+  else if (!c->hasPose) missing = tr("a rigid alignment (step 4)");
+  if (!missing.isEmpty()) {
+    fitStatus_->setText(tr("The fit needs %1.").arg(missing));
+    return;
+  }
+  setStep(Step::Elastic);
+  fitSeries_->clear();
+  fitAxisY_->setRange(0, 10);
+  fitAxisX_->setRange(0, 1);
+  const bool rigid = fitRigid_->isChecked();
+  fitStatus_->setText(tr("Fitting... (Esc cancels)"));
+  runJob(tr("Elastic fit..."), [this, c, rigid](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
+    try {
+      simcore::Scene preset = phantom::makePreset("liver", c->volume, c->attachments);
+      preset.defaultMaterial.model = simcore::MaterialModel::Corotational;
+      for (auto& [label, m] : preset.materials) m.model = simcore::MaterialModel::Corotational;
+      const simcore::FemModel model = simcore::FemModel::build(preset.mesh, preset.materials, preset.defaultMaterial);
+      simcore::SimulationSettings settings;
+      settings.gravity.setZero();
+      std::vector<std::vector<Eigen::Vector2d>> segments;
+      for (const auto& sg : c->contour.segments)
+        if (sg.type == "silhouette" || sg.type.empty()) {
+          segments.push_back(sg.points);
+          if (sg.closed && !sg.points.empty()) segments.back().push_back(sg.points.front());
+        }
+      simcore::RegistrationOptions o;
+      o.rigidPrepass = rigid;
+      o.onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
+        // Live: the organ deforms over the frame and the chart grows (on the GUI thread).
+        auto preview = std::make_shared<phantom::Case>(*c);
+        preview->fitted.resize(preview->volume.points.size());
+        for (std::size_t i = 0; i < preview->fitted.size(); ++i) preview->fitted[i] = x.segment<3>(3 * i);
+        preview->pose = pose;
+        const double t = it.wallMs / 1000.0, px = it.residual.mean;
+        QMetaObject::invokeMethod(this, [this, preview, t, px] {
+          fitSeries_->append(t, px);
+          fitAxisX_->setRange(0, std::max(1.0, 1.2 * t));
+          fitAxisY_->setRange(0, std::max(fitAxisY_->max(), 1.1 * px));
+          view_->setCase(preview);
+        }, Qt::QueuedConnection);
+        progress(std::min(0.95, 0.05 + 0.045 * it.iteration), QStringLiteral("%1 px").arg(px, 0, 'f', 2));
+        return !cancel.load();
+      };
+      const simcore::RegistrationResult r =
+          simcore::registerToContour(model, c->attachments, settings, c->surface, segments, c->pose, c->camera.pinhole(), o);
+      const QString status = QString::fromStdString(r.status);
+      if (r.cancelled || !r.ok) {
+        return [this, status, cancelled = r.cancelled] {
+          view_->setCase(case_.data);  // back to the case as it was
+          fitStatus_->setText(cancelled ? tr("Cancelled; the case is unchanged.") : tr("The fit failed: %1").arg(status));
+          statusCase_->setText(fitStatus_->text());
+        };
+      }
+      std::vector<Eigen::Vector3d> fitted(static_cast<std::size_t>(r.x.size() / 3));
+      for (std::size_t i = 0; i < fitted.size(); ++i) fitted[i] = r.x.segment<3>(3 * i);
+      const Pose pose = r.pose;
+      const double ms = r.iterations.back().wallMs;
+      return [this, fitted, pose, status, ms] {
+        editCase(tr("Elastic fit"), [&](phantom::Case& k) {
+          k.fitted = fitted;
+          k.fitStatus = status.toStdString();
+          k.pose = pose;
+        });
+        fitStatus_->setText(tr("%1 (%2 s). Ctrl+Z reverts it.").arg(status).arg(ms / 1000.0, 0, 'f', 1));
+        statusCase_->setText(tr("Elastic fit: %1").arg(status));
+      };
+    } catch (const std::exception& e) {
+      const QString message = QString::fromUtf8(e.what());
+      return [this, message] {
+        view_->setCase(case_.data);
+        fitStatus_->setText(tr("The fit failed: %1").arg(message));
+      };
+    }
+  });
+}
+
 QWidget* MainWindow::buildRigidPage() {
   auto* page = new QWidget;
   auto* l = new QVBoxLayout(page);
@@ -603,7 +754,7 @@ QWidget* MainWindow::buildRigidPage() {
 void MainWindow::setStep(Step s) {
   step_ = s;
   const int row = static_cast<int>(s);
-  if (row < 4) {
+  if (row < 5) {
     steps_->setCurrentIndex(row);
     if (workflow_->currentRow() != row) workflow_->setCurrentRow(row);
   }
@@ -624,6 +775,7 @@ bool MainWindow::stepDone(Step s) const {
     case Step::Frame: return !c->frame.empty() && c->camera.problem().empty();
     case Step::Contour: return imaging::contourProblem(c->contour).empty();
     case Step::Rigid: return c->hasPose && c->poseAligned;
+    case Step::Elastic: return !c->fitted.empty();
     default: return false;
   }
 }
@@ -631,7 +783,7 @@ bool MainWindow::stepDone(Step s) const {
 void MainWindow::updateWorkflow() {
   if (!workflow_) return;
   int next = -1;
-  for (int i = 0; i < 4; ++i)
+  for (int i = 0; i < 5; ++i)
     if (!stepDone(static_cast<Step>(i))) {
       next = i;
       break;
@@ -642,7 +794,7 @@ void MainWindow::updateWorkflow() {
     QFont f = item->font();
     f.setBold(i == next);
     item->setFont(f);
-    if (i < 4 && stepDone(static_cast<Step>(i))) text += QStringLiteral("   \u2713");
+    if (i < 5 && stepDone(static_cast<Step>(i))) text += QStringLiteral("   \u2713");
     else if (i == next) text += tr("   (next)");
     item->setText(text);
   }
@@ -867,6 +1019,8 @@ void MainWindow::importMesh(const QString& path) {
           k.innerSurfaceLabels = prepared->innerSurfaceLabels;
           k.quality = prepared->quality;
           k.attachments.clear();
+          k.fitted.clear();
+          k.fitStatus.clear();
           k.hasGroundTruth = false;
           k.vesselTree.clear();
           k.meshSource = path.toStdString();
@@ -1310,7 +1464,7 @@ void MainWindow::buildMenus() {
   edit->addAction(redo);
 
   QMenu* stepMenu = menuBar()->addMenu(tr("&Step"));
-  for (int i = 0; i < 4; ++i) {
+  for (int i = 0; i < 5; ++i) {
     QAction* a = stepMenu->addAction(tr(kStepNames[i]), this, [this, i] { setStep(static_cast<Step>(i)); });
     a->setShortcut(QKeySequence(Qt::ALT | static_cast<Qt::Key>(Qt::Key_1 + i)));
   }

@@ -29,6 +29,8 @@ class QSpinBox;
 class QComboBox;
 class QCheckBox;
 class QPushButton;
+class QLineSeries;
+class QValueAxis;
 
 namespace cv {
 class VideoCapture;
@@ -73,6 +75,7 @@ class MainWindow : public QMainWindow {
   void importContour(const QString& path);       ///< step 3
   void exportContour(const QString& path);       ///< step 3
   void solvePnP();                               ///< step 4: pose from landmark pairs
+  void runElasticFit();                          ///< step 5: fit the organ onto the contour (worker thread; Esc cancels)
   void setStep(Step s);
   Step step() const { return step_; }
 
@@ -127,6 +130,7 @@ class MainWindow : public QMainWindow {
   QWidget* buildFramePage();
   QWidget* buildContourPage();
   QWidget* buildRigidPage();
+  QWidget* buildFitPage();
   void save();
   void saveAs();
   void openFileDialog();
@@ -187,6 +191,13 @@ class MainWindow : public QMainWindow {
   QLabel* contourStatus_ = nullptr;
   QDoubleSpinBox* spacing_ = nullptr;
   QCheckBox* snap_ = nullptr;
+  // Step 5
+  QCheckBox* fitRigid_ = nullptr;
+  QPushButton* fitButton_ = nullptr;
+  QLabel* fitStatus_ = nullptr;
+  QLineSeries* fitSeries_ = nullptr;
+  QValueAxis* fitAxisX_ = nullptr;
+  QValueAxis* fitAxisY_ = nullptr;
   // Step 4
   QDoubleSpinBox* poseFields_[6] = {};
   QLabel* distanceLabel_ = nullptr;
