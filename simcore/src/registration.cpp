@@ -392,8 +392,73 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   int iteration = 0;
   // Rigid pre-pass: the pose refined on the bindings (ICP), the shape unchanged.
   if (o.rigidPrepass || !o.elastic) {
+    // A few short ICP runs from the start and from candidates that the silhouette alone suggests (the
+    // projected organ's centroid moved onto the contour's, and +-15 degrees about the optical axis), to
+    // stay out of the local minima of a single ICP; the best continues below.
+    auto shortIcp = [&](Pose pose, int iterations) {
+      for (int k = 0; k < iterations; ++k) {
+        const auto bindings = bindForRigid(samples, visibleSilhouette(surface, res.x, pose, camera), o);
+        if (bindings.size() < 3) break;
+        pose = refinePose(res.x, bindings, pose, camera);
+      }
+      return std::make_pair(pose, contourResidual(contour, visibleSilhouette(surface, res.x, pose, camera)).mean);
+    };
+    {
+      const auto sil = visibleSilhouette(surface, res.x, res.pose, camera);
+      Eigen::Vector2d silCentre = Eigen::Vector2d::Zero(), contourCentre = Eigen::Vector2d::Zero();
+      double silLength = 0, contourLength = 0;
+      for (const auto& e : sil) {
+        const double l = (e.pb - e.pa).norm();
+        silCentre += 0.5 * l * (e.pa + e.pb);
+        silLength += l;
+      }
+      for (const auto& seg : contour)
+        for (std::size_t i = 1; i < seg.size(); ++i) {
+          const double l = (seg[i] - seg[i - 1]).norm();
+          contourCentre += 0.5 * l * (seg[i] + seg[i - 1]);
+          contourLength += l;
+        }
+      const Eigen::Vector3d organ = res.pose.apply(model.restVector().segment<3>(0) * 0 + [&] {
+        Eigen::Vector3d c = Eigen::Vector3d::Zero();
+        for (std::size_t i = 0; i < model.nodeCount(); ++i) c += model.rest[i] * model.lumpedMass[i];
+        return Eigen::Vector3d(c / model.lumpedMass.sum());
+      }());
+      std::vector<Pose> candidates{res.pose};
+      if (silLength > 0 && contourLength > 0) {
+        const Eigen::Vector2d shift = contourCentre / contourLength - silCentre / silLength;
+        Pose moved = res.pose;
+        moved.t += Eigen::Vector3d(shift.x() * organ.z() / camera.K(0, 0), shift.y() * organ.z() / camera.K(1, 1), 0);
+        candidates.push_back(moved);
+      }
+      const std::size_t base = candidates.size();
+      for (std::size_t i = 0; i < base; ++i)
+        for (double deg : {-15.0, 15.0}) {
+          const Eigen::Matrix3d dR = Eigen::AngleAxisd(deg * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+          const Eigen::Vector3d cc = candidates[i].apply(res.pose.R.transpose() * (organ - res.pose.t));
+          Pose q;
+          q.R = dR * candidates[i].R;
+          q.t = dR * (candidates[i].t - cc) + cc;
+          candidates.push_back(q);
+        }
+      double bestStart = std::numeric_limits<double>::infinity();
+      Pose chosen = res.pose;
+      for (const Pose& cand : candidates) {
+        const auto [pose, mean] = shortIcp(cand, 4);
+        if (mean < bestStart) {
+          bestStart = mean;
+          chosen = pose;
+        }
+      }
+      res.pose = chosen;
+    }
     double previous = first.residual.mean, bestMean = first.residual.mean;
     Pose bestPose = res.pose;
+    bestMean = contourResidual(contour, visibleSilhouette(surface, res.x, res.pose, camera)).mean;
+    if (bestMean >= first.residual.mean) {  // the candidates did not help: ICP from the start as given
+      res.pose = start;
+      bestMean = first.residual.mean;
+      bestPose = start;
+    }
     for (int k = 0; k < o.rigidIterations; ++k) {
       const auto bindings = bindForRigid(samples, visibleSilhouette(surface, res.x, res.pose, camera), o);
       if (bindings.size() < 3) break;

@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -147,7 +148,33 @@ int main(int argc, char** argv) {
       starts.push_back({std::string(sgn > 0 ? "+" : "-") + "20deg " + axes[a], Eigen::Vector3d::Zero(), a, sgn * deg});
     }
   if (quick) starts.resize(2);
-  const std::vector<double> fractions = quick ? std::vector<double>{1.0} : std::vector<double>{1.0, 0.9, 0.8, 0.7};
+  std::vector<double> fractions = quick ? std::vector<double>{1.0} : std::vector<double>{1.0, 0.9, 0.8, 0.7};
+  // Variants at 100 %: rigid only, elastic without the pre-pass (what each stage contributes).
+  if (std::getenv("REHEARSE_BENCH_VARIANTS")) {
+    for (int variant = 0; variant < 2; ++variant) {
+      double sum = 0;
+      for (const auto& st : starts) {
+        const Pose start = perturb(truth, st.move, st.axis, st.degrees, coarse.centreOfGravity());
+        RegistrationOptions o;
+        o.elastic = variant == 1;
+        o.rigidPrepass = false;
+        SimulationSettings settings;
+        settings.gravity.setZero();
+        RegistrationResult r;
+        try {
+          r = registerToContour(model, coarse.attachments, settings, coarse.surface, {fullContour}, start, coarse.camera.pinhole(), o);
+        } catch (const std::exception& e) {
+          r.status = e.what();
+        }
+        const double e1 = r.x.size() ? markerError(r.x, r.pose) : -1;
+        sum += e1;
+        std::printf("%-14s %-10s %8.2f mm -> %8.2f mm  %s\n", variant ? "elastic only" : "rigid only", st.name.c_str(),
+                    markerError(model.restVector(), start), e1, r.status.c_str());
+      }
+      std::printf("%s: mean %.2f mm\n", variant ? "elastic only" : "rigid only", sum / starts.size());
+    }
+    fractions = {1.0};
+  }
   std::printf("\n%-10s %5s %10s %10s %9s %9s %9s  %s\n", "start", "kept", "start mm", "end mm", "start px", "end px", "ms", "status");
   std::map<double, std::vector<double>> endErrors, times;
   int worse = 0;
