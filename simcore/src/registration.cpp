@@ -418,11 +418,10 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
           contourCentre += 0.5 * l * (seg[i] + seg[i - 1]);
           contourLength += l;
         }
-      const Eigen::Vector3d organ = res.pose.apply(model.restVector().segment<3>(0) * 0 + [&] {
-        Eigen::Vector3d c = Eigen::Vector3d::Zero();
-        for (std::size_t i = 0; i < model.nodeCount(); ++i) c += model.rest[i] * model.lumpedMass[i];
-        return Eigen::Vector3d(c / model.lumpedMass.sum());
-      }());
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
+      for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
+      centre /= model.lumpedMass.sum();
+      const Eigen::Vector3d organ = res.pose.apply(centre);
       std::vector<Pose> candidates{res.pose};
       if (silLength > 0 && contourLength > 0) {
         const Eigen::Vector2d shift = contourCentre / contourLength - silCentre / silLength;
@@ -434,7 +433,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       for (std::size_t i = 0; i < base; ++i)
         for (double deg : {-15.0, 15.0}) {
           const Eigen::Matrix3d dR = Eigen::AngleAxisd(deg * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-          const Eigen::Vector3d cc = candidates[i].apply(res.pose.R.transpose() * (organ - res.pose.t));
+          const Eigen::Vector3d cc = candidates[i].apply(centre);
           Pose q;
           q.R = dR * candidates[i].R;
           q.t = dR * (candidates[i].t - cc) + cc;
