@@ -9,6 +9,7 @@
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/registration.hpp>
 
+#include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/meshio.hpp>
 
@@ -231,6 +232,27 @@ class TestRegistration : public QObject {
     writeFile(dir + "/empty.json", R"({"width": 1280, "height": 720, "segments": []})");
     auto [c2, o2, e2] = run(common + QStringList{"--contour", d + "/empty.json", "--out", d + "/x.vtu"});
     QVERIFY2(c2 != 0 && e2.trimmed().count('\n') == 0 && e2.contains("empty"), qPrintable(e2));
+    QVERIFY(!QFile::exists(d + "/x.vtu"));
+    // A self-intersecting contour (a figure of eight) and a pose behind the camera.
+    imaging::Contour eight;
+    eight.width = 1280;
+    eight.height = 720;
+    imaging::ContourSegment loop;
+    for (int i = 0; i < 66; ++i) {  // past a full turn: the lobes meet at the centre
+      const double t = 2 * M_PI * (i + 0.25) / 60;
+      loop.points.emplace_back(640 + 200 * std::sin(t), 360 + 100 * std::sin(2 * t));
+    }
+    eight.segments.push_back(loop);
+    imaging::saveContour(eight, dir + "/eight.json");
+    auto [c3, o3, e3] = run(common + QStringList{"--contour", d + "/eight.json", "--out", d + "/x.vtu"});
+    QVERIFY2(c3 != 0 && e3.trimmed().count('\n') == 0 && e3.contains("crosses itself"), qPrintable(e3));
+    Pose behind = c_.truePose;
+    behind.t.z() = -behind.t.z();
+    imaging::savePose(behind, dir + "/behind.json");
+    QStringList args = common;
+    args[args.indexOf("--pose") + 1] = d + "/behind.json";
+    auto [c4, o4, e4] = run(args + QStringList{"--contour", d + "/contour.json", "--out", d + "/x.vtu"});
+    QVERIFY2(c4 != 0 && e4.trimmed().count('\n') == 0 && e4.contains("behind the camera"), qPrintable(e4));
     QVERIFY(!QFile::exists(d + "/x.vtu"));
   }
 
