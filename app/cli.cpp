@@ -336,12 +336,7 @@ int cmdRegister(const std::vector<std::string>& args) {
   if (o.count("distorted-contour")) contour = imaging::undistortContour(contour, camera);
   if (const std::string problem = imaging::contourProblem(contour); !problem.empty()) throw simcore::MeshError(problem);
   const Pose start = imaging::loadPose(o["pose"]);
-  std::vector<std::vector<Eigen::Vector2d>> segments;
-  for (const auto& seg : contour.segments)
-    if (seg.type == "silhouette" || seg.type.empty()) {
-      segments.push_back(seg.points);
-      if (seg.closed && !seg.points.empty()) segments.back().push_back(seg.points.front());
-    }
+  const auto segments = imaging::silhouetteSegments(contour);
   if (segments.empty()) throw simcore::MeshError("The contour has no silhouette segment (only ridges or ligaments).");
   simcore::Mesh truth;
   if (o.count("ground-truth")) {

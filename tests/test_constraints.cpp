@@ -11,7 +11,6 @@
 
 #include <Eigen/Dense>
 
-#include <map>
 
 using namespace rehearse::simcore;
 
@@ -114,17 +113,11 @@ class TestConstraints : public QObject {
   // vanishing wall changes nothing.
   void embeddedWallStiffensTheOrgan() {
     const auto c = rehearse::phantom::makePhantom();
-    Mesh wall;
-    std::map<int, int> index;
-    for (const auto& t : c.innerSurface) {
-      std::array<int, 3> tri;
-      for (int k = 0; k < 3; ++k) {
-        auto [it, added] = index.try_emplace(t[k], static_cast<int>(wall.points.size()));
-        if (added) wall.points.push_back(c.volume.points[t[k]]);
-        tri[k] = it->second;
-      }
-      wall.triangles.push_back(tri);
-    }
+    Mesh wall;  // the faces between the vessels and the parenchyma, with only the points they use
+    wall.points = c.volume.points;
+    wall.unitToMetre = c.volume.unitToMetre;
+    wall.triangles = c.innerSurface;
+    wall.compact();
     Mesh organ = c.volume;
     std::fill(organ.tetLabels.begin(), organ.tetLabels.end(), 1);
     const MaterialParams soft{MaterialModel::Linear, 27e3, 0.4, 1000};

@@ -7,7 +7,6 @@
 
 #include <rehearse/simcore/fem.hpp>
 
-#include <map>
 #include <random>
 
 using namespace rehearse::simcore;
@@ -168,17 +167,11 @@ class TestFem : public QObject {
     auto c = rehearse::phantom::makePhantom();
     QVERIFY(!c.innerSurface.empty());
     // The vessel wall as its own surface, shrunk by 10 % about its centre so its vertices fall inside tets.
-    Mesh wall;
-    std::map<int, int> index;
-    for (const auto& t : c.innerSurface) {
-      std::array<int, 3> tri;
-      for (int k = 0; k < 3; ++k) {
-        auto [it, added] = index.try_emplace(t[k], static_cast<int>(wall.points.size()));
-        if (added) wall.points.push_back(c.volume.points[t[k]]);
-        tri[k] = it->second;
-      }
-      wall.triangles.push_back(tri);
-    }
+    Mesh wall;  // the faces between the vessels and the parenchyma, with only the points they use
+    wall.points = c.volume.points;
+    wall.unitToMetre = c.volume.unitToMetre;
+    wall.triangles = c.innerSurface;
+    wall.compact();
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
     for (const auto& p : wall.points) centre += p / wall.points.size();
     for (auto& p : wall.points) p = centre + 0.9 * (p - centre);

@@ -18,7 +18,6 @@
 #include <QJsonObject>
 #include <QProcess>
 
-#include <opencv2/imgproc.hpp>
 
 using namespace rehearse;
 using namespace rehearse::simcore;
@@ -26,17 +25,21 @@ using namespace rehearse::simcore;
 namespace {
 // The organ's outline in the frame: the outer border of its rendered mask (pixel centres).
 std::vector<std::vector<Eigen::Vector2d>> outline(const phantom::Case& c, const Pose& pose, const SurfaceView& surface) {
-  const cv::Mat1b mask = imaging::renderMask(c.camera, pose, surface);
-  std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-  std::vector<std::vector<Eigen::Vector2d>> out;
-  for (const auto& ct : contours) {
-    if (ct.size() < 20) continue;
-    std::vector<Eigen::Vector2d> seg;
-    for (const auto& p : ct) seg.emplace_back(p.x, p.y);
-    out.push_back(seg);
-  }
-  return out;
+  return imaging::maskOutlines(imaging::renderMask(c.camera, pose, surface));
+}
+
+// The organ deformed by 3 g sideways in the image (a load the registration does not know), static.
+struct Deformed {
+  Eigen::VectorXd x;           // nodes, model frame
+  std::vector<double> vertices;  // the same, for a SurfaceView
+};
+Deformed deformSideways(const phantom::Case& c, const FemModel& m) {
+  SimulationSettings load;
+  load.gravity = c.truePose.R.transpose() * Eigen::Vector3d(9.81 * 3, 0, 0);
+  Integrator in(m, c.attachments, load);
+  auto truth = in.initialState();
+  if (!in.solveStatic(truth).ok) return {};
+  return {truth.x, std::vector<double>(truth.x.data(), truth.x.data() + truth.x.size())};
 }
 
 FemModel organModel(const phantom::Case& c) {
@@ -45,11 +48,8 @@ FemModel organModel(const phantom::Case& c) {
 
 Pose offset(const Pose& p, const Eigen::Vector3d& move, const Eigen::Vector3d& axis, double degrees, const Eigen::Vector3d& centre) {
   // Rotation about the camera axis `axis` through the organ's centre (camera frame), then a translation.
-  const Eigen::Matrix3d dR = Eigen::AngleAxisd(degrees * M_PI / 180, axis.normalized()).toRotationMatrix();
-  const Eigen::Vector3d cc = p.apply(centre);
-  Pose q;
-  q.R = dR * p.R;
-  q.t = dR * (p.t - cc) + cc + move;
+  Pose q = p.turnedAbout(Eigen::AngleAxisd(degrees * M_PI / 180, axis.normalized()).toRotationMatrix(), p.apply(centre));
+  q.t += move;
   return q;
 }
 }  // namespace
@@ -111,15 +111,11 @@ class TestRegistration : public QObject {
   // know), seen at the true pose: the elastic fit from the undeformed model reduces the 3D error.
   void elasticDeformationIsRecovered() {
     const FemModel m = organModel(c_);
-    SimulationSettings load;
-    load.gravity = c_.truePose.R.transpose() * Eigen::Vector3d(9.81 * 3, 0, 0);  // 3 g sideways in the image
-    Integrator in(m, c_.attachments, load);
-    auto truth = in.initialState();
-    QVERIFY(in.solveStatic(truth).ok);
+    const Deformed truth = deformSideways(c_, m);
+    QVERIFY(truth.x.size() > 0);
     // The deformed surface, rendered for its outline.
-    std::vector<double> verts(truth.x.data(), truth.x.data() + truth.x.size());
     SurfaceView deformed = c_.surfaceView();
-    deformed.vertices = verts.data();
+    deformed.vertices = truth.vertices.data();
     const auto contour = outline(c_, c_.truePose, deformed);
     SimulationSettings s;
     s.gravity.setZero();
@@ -187,14 +183,10 @@ class TestRegistration : public QObject {
     const std::string dir = tempPath("register-case");
     phantom::writeCaseDirectory(c_, dir);
     const FemModel m = organModel(c_);
-    SimulationSettings load;
-    load.gravity = c_.truePose.R.transpose() * Eigen::Vector3d(9.81 * 3, 0, 0);
-    Integrator in(m, c_.attachments, load);
-    auto truth = in.initialState();
-    QVERIFY(in.solveStatic(truth).ok);
-    std::vector<double> verts(truth.x.data(), truth.x.data() + truth.x.size());
+    const Deformed truth = deformSideways(c_, m);
+    QVERIFY(truth.x.size() > 0);
     SurfaceView deformed = c_.surfaceView();
-    deformed.vertices = verts.data();
+    deformed.vertices = truth.vertices.data();
     imaging::Contour contour;
     contour.width = c_.camera.width;
     contour.height = c_.camera.height;

@@ -15,9 +15,9 @@
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
 
+#include <rehearse/imaging/contour.hpp>
 #include <rehearse/imaging/render.hpp>
 
-#include <opencv2/imgproc.hpp>
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QLabel>
@@ -158,12 +158,10 @@ class TestSimulationGui : public QObject {
     const auto& c = *w_->currentCase().data;
     // The assistant's contour: the organ's outline at the true pose; the rigid alignment: the true pose
     // moved 3 mm sideways.
-    const cv::Mat1b mask = imaging::renderMask(c.camera, c.truePose, c.surfaceView());
-    std::vector<std::vector<cv::Point>> contours;
-    cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-    QVERIFY(!contours.empty());
+    const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, c.truePose, c.surfaceView()));
+    QVERIFY(!borders.empty());
     imaging::ContourSegment seg;
-    for (std::size_t i = 0; i < contours.front().size(); i += 3) seg.points.emplace_back(contours.front()[i].x, contours.front()[i].y);
+    for (std::size_t i = 0; i < borders.front().size(); i += 3) seg.points.push_back(borders.front()[i]);
     w_->editCase("test: contour and pose", [&](phantom::Case& k) {
       k.contour.width = k.camera.width;
       k.contour.height = k.camera.height;

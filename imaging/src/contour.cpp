@@ -5,6 +5,7 @@
 #include <opencv2/imgproc/segmentation.hpp>
 #include <opencv2/calib3d.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -231,6 +232,30 @@ std::vector<Eigen::Vector2d> snapToEdges(const cv::Mat3b& image, const std::vect
 }  // namespace rehearse::imaging
 
 namespace rehearse::imaging {
+
+std::vector<std::vector<Eigen::Vector2d>> maskOutlines(const cv::Mat1b& mask, std::size_t minPoints) {
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
+  std::sort(contours.begin(), contours.end(), [](const auto& a, const auto& b) { return a.size() > b.size(); });
+  std::vector<std::vector<Eigen::Vector2d>> out;
+  for (const auto& ct : contours) {
+    if (ct.size() < minPoints) continue;
+    std::vector<Eigen::Vector2d> seg;
+    for (const auto& p : ct) seg.emplace_back(p.x, p.y);
+    out.push_back(std::move(seg));
+  }
+  return out;
+}
+
+std::vector<std::vector<Eigen::Vector2d>> silhouetteSegments(const Contour& c) {
+  std::vector<std::vector<Eigen::Vector2d>> out;
+  for (const auto& seg : c.segments)
+    if (seg.type == "silhouette" || seg.type.empty()) {
+      out.push_back(seg.points);
+      if (seg.closed && !seg.points.empty()) out.back().push_back(seg.points.front());
+    }
+  return out;
+}
 
 Contour undistortContour(const Contour& c, const Camera& camera) {
   bool distorted = false;

@@ -46,6 +46,11 @@ simcore::Scene makePreset(const std::string& name, const simcore::Mesh& organ, c
   throw simcore::MeshError("Unknown preset '" + name + "'; use eye, kidney, liver, uterus or sofa-liver.");
 }
 
+void setMaterialModel(simcore::Scene& scene, simcore::MaterialModel model) {
+  scene.defaultMaterial.model = model;
+  for (auto& [label, m] : scene.materials) m.model = model;
+}
+
 simcore::Scene makePreset(const std::string& name, const std::string& sharedData) {
   if (name == "sofa-liver") {
     const std::string path = sharedData + "/sofa/liver.msh";

@@ -16,6 +16,9 @@ const std::vector<std::string>& presetNames();
 /// A preset on a given organ (volume mesh in metres, its attachments); gravity along the model's +y
 /// (the phantom's inferior direction). Throws simcore::MeshError for an unknown name.
 simcore::Scene makePreset(const std::string& name, const simcore::Mesh& organ, const std::vector<int>& attachments);
+/// The same parameters with another material law for every label (the benchmarks and the elastic fit use
+/// the co-rotational law with the DejaVu liver's moduli).
+void setMaterialModel(simcore::Scene& scene, simcore::MaterialModel model);
 /// A preset on the built-in phantom (or, for sofa-liver, on SOFA's file, looked up under `sharedData`).
 simcore::Scene makePreset(const std::string& name, const std::string& sharedData = "../shared/data");
 

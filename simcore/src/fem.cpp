@@ -95,6 +95,30 @@ Eigen::Vector3d springVector(const EmbeddedSpring& s, const Eigen::VectorXd& x) 
   return d;
 }
 
+// Adds per-element 3x3 blocks (columns: the vectors for nodes 1..3; node 0 takes minus their sum) into
+// the nodal vector `out`, in element order (the same sum on every run, whatever the thread count).
+void scatterElementVectors(const FemModel& m, const double* buf, Eigen::VectorXd& out) {
+  for (std::size_t e = 0; e < m.tets.size(); ++e) {
+    const Eigen::Map<const Eigen::Matrix3d> H(buf + 9 * e);
+    const auto& t = m.tets[e];
+    for (int k = 0; k < 3; ++k) {
+      out.segment<3>(3 * t[k + 1]) += H.col(k);
+      out.segment<3>(3 * t[0]) -= H.col(k);
+    }
+  }
+}
+
+// The embedded springs' forces -dE/dx added to f.
+void addSpringForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorXd& f) {
+  for (const auto& sp : m.springs) {
+    const Eigen::Vector3d d = springVector(sp, x);
+    const double l = d.norm();
+    if (!(l > 0)) continue;
+    const Eigen::Vector3d g = sp.stiffness * (l - sp.restLength) / l * d;  // dE/d(p - q)
+    for (int k = 0; k < 8; ++k) f.segment<3>(3 * sp.nodes[k]) -= sp.weights[k] * g;
+  }
+}
+
 }  // namespace
 
 SurfaceEmbedding embedPoints(const FemModel& m, const std::vector<Eigen::Vector3d>& points) { return locate(m, points); }
@@ -258,21 +282,8 @@ void elasticForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorXd&
       Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) = -m.restVolume[e] * P * m.Bm[e].transpose();
     }
   });
-  for (std::size_t e = 0; e < m.tets.size(); ++e) {
-    const Eigen::Map<const Eigen::Matrix3d> H(buf + 9 * e);
-    const auto& t = m.tets[e];
-    for (int k = 0; k < 3; ++k) {
-      f.segment<3>(3 * t[k + 1]) += H.col(k);
-      f.segment<3>(3 * t[0]) -= H.col(k);
-    }
-  }
-  for (const auto& sp : m.springs) {
-    const Eigen::Vector3d d = springVector(sp, x);
-    const double l = d.norm();
-    if (!(l > 0)) continue;
-    const Eigen::Vector3d g = sp.stiffness * (l - sp.restLength) / l * d;  // dE/d(p - q)
-    for (int k = 0; k < 8; ++k) f.segment<3>(3 * sp.nodes[k]) -= sp.weights[k] * g;
-  }
+  scatterElementVectors(m, buf, f);
+  addSpringForces(m, x, f);
 }
 
 void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state, Eigen::VectorXd* forces) {
@@ -294,21 +305,8 @@ void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentSta
     Eigen::VectorXd& f = *forces;
     if (f.size() != x.size()) f.resize(x.size());
     f.setZero();
-    for (std::size_t e = 0; e < m.tets.size(); ++e) {
-      const Eigen::Map<const Eigen::Matrix3d> H(buf + 9 * e);
-      const auto& t = m.tets[e];
-      for (int k = 0; k < 3; ++k) {
-        f.segment<3>(3 * t[k + 1]) += H.col(k);
-        f.segment<3>(3 * t[0]) -= H.col(k);
-      }
-    }
-    for (const auto& sp : m.springs) {
-      const Eigen::Vector3d d = springVector(sp, x);
-      const double l = d.norm();
-      if (!(l > 0)) continue;
-      const Eigen::Vector3d g = sp.stiffness * (l - sp.restLength) / l * d;
-      for (int k = 0; k < 8; ++k) f.segment<3>(3 * sp.nodes[k]) -= sp.weights[k] * g;
-    }
+    scatterElementVectors(m, buf, f);
+    addSpringForces(m, x, f);
   }
   state.springHessian.resize(m.springs.size());
   for (std::size_t i = 0; i < m.springs.size(); ++i) state.springHessian[i] = springHessian(m.springs[i], springVector(m.springs[i], x));
@@ -327,14 +325,7 @@ void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::V
       Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) = m.restVolume[e] * dP * m.Bm[e].transpose();  // d(dE/dx_{1..3})
     }
   });
-  for (std::size_t e = 0; e < m.tets.size(); ++e) {
-    const Eigen::Map<const Eigen::Matrix3d> H(buf + 9 * e);
-    const auto& t = m.tets[e];
-    for (int k = 0; k < 3; ++k) {
-      out.segment<3>(3 * t[k + 1]) += H.col(k);
-      out.segment<3>(3 * t[0]) -= H.col(k);
-    }
-  }
+  scatterElementVectors(m, buf, out);
   for (std::size_t i = 0; i < m.springs.size(); ++i) {
     const auto& sp = m.springs[i];
     const Eigen::Vector3d hd = state.springHessian[i] * springVector(sp, v);

@@ -61,6 +61,16 @@ struct Binding {
   double distance;          // px
 };
 
+// Bindings further than `factor` times the median distance (and than `floorPx`) are outliers.
+void dropOutliers(std::vector<Binding>& bindings, double factor, double floorPx) {
+  if (bindings.empty()) return;
+  std::vector<double> d;
+  for (const auto& b : bindings) d.push_back(b.distance);
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  const double limit = std::max(factor * d[d.size() / 2], floorPx);
+  bindings.erase(std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return b.distance > limit; }), bindings.end());
+}
+
 // For the rigid pass: every contour point to the nearest compatible point of the silhouette edges (the
 // pose has six unknowns, so many correspondences anywhere on the edges are best), outliers dropped.
 std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std::vector<SilhouetteEdge>& sil, const RegistrationOptions& o) {
@@ -79,12 +89,7 @@ std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std:
     }
     if (b.a >= 0) out.push_back(b);
   }
-  if (out.empty()) return out;
-  std::vector<double> d;
-  for (const auto& b : out) d.push_back(b.distance);
-  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-  const double limit = std::max(o.outlierFactor * d[d.size() / 2], 4.0);
-  out.erase(std::remove_if(out.begin(), out.end(), [&](const Binding& b) { return b.distance > limit; }), out.end());
+  dropOutliers(out, o.outlierFactor, 4.0);
   return out;
 }
 
@@ -131,13 +136,7 @@ std::vector<Binding> bindContour(const std::vector<Sample>& samples, const std::
     }
     if (std::isfinite(best) && !(atEnd && best > 2.0)) out.push_back({node, node, 0, foot, best});
   }
-  if (out.empty()) return out;
-  // Outliers: far from the rest.
-  std::vector<double> d;
-  for (const auto& b : out) d.push_back(b.distance);
-  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
-  const double limit = std::max(o.outlierFactor * d[d.size() / 2], floorPx);
-  out.erase(std::remove_if(out.begin(), out.end(), [&](const Binding& b) { return b.distance > limit; }), out.end());
+  dropOutliers(out, o.outlierFactor, floorPx);
   return out;
 }
 
@@ -370,6 +369,23 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     segmentStarts.push_back(samples.size());
     samples.insert(samples.end(), one.begin(), one.end());
   }
+  // The silhouette of the last state asked for: recording an iteration and binding the next one look at
+  // the same state, and the depth buffer is the costly part.
+  struct {
+    Eigen::VectorXd x;
+    Pose pose;
+    std::vector<SilhouetteEdge> edges;
+    bool valid = false;
+  } last;
+  auto silhouette = [&](const Eigen::VectorXd& x, const Pose& pose) -> const std::vector<SilhouetteEdge>& {
+    if (!(last.valid && last.x == x && last.pose.R == pose.R && last.pose.t == pose.t)) {
+      last.edges = visibleSilhouette(surface, x, pose, camera);
+      last.x = x;
+      last.pose = pose;
+      last.valid = true;
+    }
+    return last.edges;
+  };
   RegistrationResult res;
   res.x = model.restVector();
   res.pose = start;
@@ -378,7 +394,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     ri.iteration = it;
     ri.stage = stage;
     ri.bound = bound;
-    ri.residual = contourResidual(contour, visibleSilhouette(surface, res.x, res.pose, camera));
+    ri.residual = contourResidual(contour, silhouette(res.x, res.pose));
     ri.wallMs = elapsed();
     res.iterations.push_back(ri);
     if (o.onIteration && !o.onIteration(ri, res.x, res.pose)) res.cancelled = true;
@@ -397,14 +413,14 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // stay out of the local minima of a single ICP; the best continues below.
     auto shortIcp = [&](Pose pose, int iterations) {
       for (int k = 0; k < iterations; ++k) {
-        const auto bindings = bindForRigid(samples, visibleSilhouette(surface, res.x, pose, camera), o);
+        const auto bindings = bindForRigid(samples, silhouette(res.x, pose), o);
         if (bindings.size() < 3) break;
         pose = refinePose(res.x, bindings, pose, camera);
       }
-      return std::make_pair(pose, contourResidual(contour, visibleSilhouette(surface, res.x, pose, camera)).mean);
+      return std::make_pair(pose, contourResidual(contour, silhouette(res.x, pose)).mean);
     };
     {
-      const auto sil = visibleSilhouette(surface, res.x, res.pose, camera);
+      const auto sil = silhouette(res.x, res.pose);
       Eigen::Vector2d silCentre = Eigen::Vector2d::Zero(), contourCentre = Eigen::Vector2d::Zero();
       double silLength = 0, contourLength = 0;
       for (const auto& e : sil) {
@@ -433,11 +449,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       for (std::size_t i = 0; i < base; ++i)
         for (double deg : {-15.0, 15.0}) {
           const Eigen::Matrix3d dR = Eigen::AngleAxisd(deg * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
-          const Eigen::Vector3d cc = candidates[i].apply(centre);
-          Pose q;
-          q.R = dR * candidates[i].R;
-          q.t = dR * (candidates[i].t - cc) + cc;
-          candidates.push_back(q);
+          candidates.push_back(candidates[i].turnedAbout(dR, candidates[i].apply(centre)));
         }
       double bestStart = std::numeric_limits<double>::infinity();
       Pose chosen = res.pose;
@@ -452,14 +464,14 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     }
     double previous = first.residual.mean, bestMean = first.residual.mean;
     Pose bestPose = res.pose;
-    bestMean = contourResidual(contour, visibleSilhouette(surface, res.x, res.pose, camera)).mean;
+    bestMean = contourResidual(contour, silhouette(res.x, res.pose)).mean;
     if (bestMean >= first.residual.mean) {  // the candidates did not help: ICP from the start as given
       res.pose = start;
       bestMean = first.residual.mean;
       bestPose = start;
     }
     for (int k = 0; k < o.rigidIterations; ++k) {
-      const auto bindings = bindForRigid(samples, visibleSilhouette(surface, res.x, res.pose, camera), o);
+      const auto bindings = bindForRigid(samples, silhouette(res.x, res.pose), o);
       if (bindings.size() < 3) break;
       res.pose = refinePose(res.x, bindings, res.pose, camera);
       const auto ri = record(++iteration, "rigid", bindings.size());
@@ -495,7 +507,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     Eigen::VectorXd bestX = res.x;
     std::string failure;
     for (int k = 0; k < o.maxIterations; ++k) {
-      const auto bindings = bindContour(samples, segmentStarts, visibleSilhouette(surface, state.x, res.pose, camera), fixed, o, outlierFloor);
+      const auto bindings = bindContour(samples, segmentStarts, silhouette(state.x, res.pose), fixed, o, outlierFloor);
       if (bindings.size() < 3) {
         failure = "no part of the contour could be bound to the organ's silhouette (" + std::to_string(bindings.size()) +
                   " points); the contour may belong to another organ or lie outside the organ's view";
@@ -544,7 +556,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     }
   }
   // A fit that still leaves the contour far from the organ did not find it.
-  const double finalMean = contourResidual(contour, visibleSilhouette(surface, res.x, res.pose, camera)).mean;
+  const double finalMean = contourResidual(contour, silhouette(res.x, res.pose)).mean;
   const double diag = std::hypot(camera.width, camera.height);
   if (res.ok && finalMean > 0.05 * diag) {
     res.ok = false;

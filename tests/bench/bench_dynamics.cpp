@@ -81,8 +81,7 @@ int main(int argc, char** argv) {
     std::ofstream csv(out + "/dynamics_parts.csv");
     csv << "part,tets,median_ms\n";
     Scene sc = phantom::makePreset("liver");
-    sc.defaultMaterial.model = MaterialModel::Corotational;
-    for (auto& [label, p] : sc.materials) p.model = MaterialModel::Corotational;
+    phantom::setMaterialModel(sc, MaterialModel::Corotational);
     const FemModel m = FemModel::build(sc.mesh, sc.materials, sc.defaultMaterial);
     Integrator in(m, sc.fixedNodes, sc.settings);
     Eigen::VectorXd x = m.restVector(), f, y, v = Eigen::VectorXd::Ones(x.size());
@@ -131,8 +130,7 @@ int main(int argc, char** argv) {
     std::ofstream csv(out + "/dynamics_methods.csv");
     csv << "method,tets,steps,median_step_ms,mean_step_ms,factorisations,newton_iterations,failed,rel_l2_error,max_error_mm\n";
     Scene sc = phantom::makePreset("liver");
-    sc.defaultMaterial.model = MaterialModel::Corotational;
-    for (auto& [label, p] : sc.materials) p.model = MaterialModel::Corotational;
+    phantom::setMaterialModel(sc, MaterialModel::Corotational);
     const FemModel m = FemModel::build(sc.mesh, sc.materials, sc.defaultMaterial);
     const int steps = quick ? 30 : 100;
     SimulationSettings ref = sc.settings;
@@ -245,8 +243,7 @@ int main(int argc, char** argv) {
       po.height = 180;  // the frame is not used here
       const phantom::Case c = phantom::makePhantom(po);
       Scene sc = phantom::makePreset("liver", c.volume, c.attachments);
-      sc.defaultMaterial.model = MaterialModel::Corotational;
-      for (auto& [label, p] : sc.materials) p.model = MaterialModel::Corotational;
+      phantom::setMaterialModel(sc, MaterialModel::Corotational);
       for (NewtonMethod method : kMethods) {
         if (method == NewtonMethod::Chord) continue;
         double ms = 0, mib = 0;

@@ -11,7 +11,7 @@
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/registration.hpp>
 
-#include <opencv2/imgproc.hpp>
+#include <rehearse/imaging/contour.hpp>
 
 #include <algorithm>
 #include <cstdlib>
@@ -24,25 +24,16 @@ using namespace rehearse;
 using namespace rehearse::simcore;
 
 namespace {
+// The organ's outline in the frame: the longest border of its rendered mask.
 std::vector<Eigen::Vector2d> outline(const phantom::Case& c, const Pose& pose, const SurfaceView& surface) {
-  const cv::Mat1b mask = imaging::renderMask(c.camera, pose, surface);
-  std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-  std::size_t best = 0;
-  for (std::size_t i = 1; i < contours.size(); ++i)
-    if (contours[i].size() > contours[best].size()) best = i;
-  std::vector<Eigen::Vector2d> out;
-  if (!contours.empty())
-    for (const auto& p : contours[best]) out.emplace_back(p.x, p.y);
-  return out;
+  const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, pose, surface));
+  return borders.empty() ? std::vector<Eigen::Vector2d>{} : borders.front();
 }
 
+// Turned about the camera axis through the organ's centre, then moved (camera frame).
 Pose perturb(const Pose& p, const Eigen::Vector3d& move, int axis, double degrees, const Eigen::Vector3d& centre) {
-  const Eigen::Matrix3d dR = Eigen::AngleAxisd(degrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix();
-  const Eigen::Vector3d cc = p.apply(centre);
-  Pose q;
-  q.R = dR * p.R;
-  q.t = dR * (p.t - cc) + cc + move;
+  Pose q = p.turnedAbout(Eigen::AngleAxisd(degrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), p.apply(centre));
+  q.t += move;
   return q;
 }
 }  // namespace

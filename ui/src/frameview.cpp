@@ -153,11 +153,7 @@ void FrameView::dragGizmo(const QPointF& w) {
   const auto& cam = case_->camera;
   Pose p = p0;
   QString text;
-  auto rotate = [&](int axis, double angle) {
-    const Eigen::Matrix3d Q = axisRotation(axis, angle);
-    p.R = Q * p0.R;
-    p.t = Q * (p0.t - g0) + g0;  // about the centre of gravity, which stays put
-  };
+  auto rotate = [&](int axis, double angle) { p = p0.turnedAbout(axisRotation(axis, angle), g0); };  // the centre stays put
   switch (activeHandle_) {
     case GizmoHandle::TranslateX: p.t.x() += du * g0.z() / cam.fx(); text = tr("Move along camera X"); break;
     case GizmoHandle::TranslateY: p.t.y() += dv * g0.z() / cam.fy(); text = tr("Move along camera Y"); break;
@@ -513,11 +509,7 @@ void FrameView::keyPressEvent(QKeyEvent* e) {
     const double step = shift ? 0.010 : 0.001, angle = (shift ? 5.0 : 1.0) * M_PI / 180;
     Pose p = case_->pose;
     const Eigen::Vector3d g = p.apply(case_->centreOfGravity());
-    auto rotate = [&](int axis, double a) {
-      const Eigen::Matrix3d Q = axisRotation(axis, a);
-      p.R = Q * p.R;
-      p.t = Q * (p.t - g) + g;
-    };
+    auto rotate = [&](int axis, double a) { p = p.turnedAbout(axisRotation(axis, a), g); };
     bool handled = true;
     switch (e->key()) {
       case Qt::Key_Left: p.t.x() -= step; break;

@@ -602,17 +602,11 @@ void MainWindow::runElasticFit() {
   runJob(tr("Elastic fit..."), [this, c, rigid](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
     try {
       simcore::Scene preset = phantom::makePreset("liver", c->volume, c->attachments);
-      preset.defaultMaterial.model = simcore::MaterialModel::Corotational;
-      for (auto& [label, m] : preset.materials) m.model = simcore::MaterialModel::Corotational;
+      phantom::setMaterialModel(preset, simcore::MaterialModel::Corotational);
       const simcore::FemModel model = simcore::FemModel::build(preset.mesh, preset.materials, preset.defaultMaterial);
       simcore::SimulationSettings settings;
       settings.gravity.setZero();
-      std::vector<std::vector<Eigen::Vector2d>> segments;
-      for (const auto& sg : c->contour.segments)
-        if (sg.type == "silhouette" || sg.type.empty()) {
-          segments.push_back(sg.points);
-          if (sg.closed && !sg.points.empty()) segments.back().push_back(sg.points.front());
-        }
+      const auto segments = imaging::silhouetteSegments(c->contour);
       simcore::RegistrationOptions o;
       o.rigidPrepass = rigid;
       o.onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {

@@ -202,6 +202,12 @@ SimulationView::SimulationView(QWidget* parent) : QWidget(parent) {
 }
 
 void SimulationView::setFrame(std::shared_ptr<const SimulationFrame> f) {
+  // The organ's centre and size frame the view: computed once per organ, not on every paint.
+  if (f && f->organ && (!frame_ || !sameMesh(frame_->organ.get(), f->organ.get()))) {
+    const double scale = f->organ->volume.unitToMetre;
+    centre_ = f->organ->centreOfGravity() * scale;
+    size_ = f->organ->volume.bounds().sizes().maxCoeff() * scale;
+  }
   frame_ = std::move(f);
   update();
 }
@@ -215,14 +221,13 @@ void SimulationView::paintEvent(QPaintEvent*) {
     return;
   }
   const phantom::Case& organ = *frame_->organ;
-  const double scale = organ.volume.unitToMetre;
-  const Eigen::Vector3d cog = organ.centreOfGravity() * scale;
-  const double size = organ.volume.bounds().sizes().maxCoeff() * scale;
+  const Eigen::Vector3d& cog = centre_;
+  const double size = size_;
   const Eigen::Matrix3d R =
       (Eigen::AngleAxisd(turntable_.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(turntable_.yaw, Eigen::Vector3d::UnitY()))
           .toRotationMatrix();
   const Eigen::Vector3d t = Eigen::Vector3d(0, 0, 1.0 * size / turntable_.zoom) - R * cog;
-  const double f = 1.1 * std::min(width(), height()), cx = (width() - 70) / 2.0, cy = height() / 2.0;
+  const double f = 1.1 * std::min(width(), height()), cx = (width() - 80) / 2.0, cy = height() / 2.0;
   std::vector<Eigen::Vector3d> cam(frame_->positions.size());
   for (std::size_t i = 0; i < cam.size(); ++i) cam[i] = R * frame_->positions[i] + t;
   auto project = [&](const Eigen::Vector3d& p) { return QPointF(cx + f * p.x() / p.z(), cy + f * p.y() / p.z()); };
@@ -260,16 +265,16 @@ void SimulationView::paintEvent(QPaintEvent*) {
   for (int a : organ.attachments)
     if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0) painter.drawEllipse(project(cam[a]), 2.5, 2.5);
   // Colour bar with its unit.
-  const QRect bar(width() - 52, 30, 14, height() - 70);
+  const QRect bar(width() - 62, 30, 14, height() - 70);
   QLinearGradient g(bar.bottomLeft(), bar.topLeft());
   for (int i = 0; i <= 8; ++i) g.setColorAt(i / 8.0, colourMap(i / 8.0));
   painter.fillRect(bar, g);
   painter.setPen(QColor(200, 200, 200));
   const QString unit = frame_->colouring == 0 ? tr("mm") : tr("kPa");
-  painter.drawText(QRect(width() - 70, 6, 68, 20), Qt::AlignCenter, frame_->colouring == 0 ? tr("|u|") : tr("σ vM"));
-  painter.drawText(QRect(width() - 36, bar.top() - 6, 36, 16), Qt::AlignLeft, QString::number(frame_->valueScale, 'g', 3));
-  painter.drawText(QRect(width() - 36, bar.bottom() - 8, 36, 16), Qt::AlignLeft, QStringLiteral("0"));
-  painter.drawText(QRect(width() - 70, bar.bottom() + 6, 68, 20), Qt::AlignCenter, unit);
+  painter.drawText(QRect(width() - 80, 6, 78, 20), Qt::AlignCenter, frame_->colouring == 0 ? tr("|u|") : tr("σ vM"));
+  painter.drawText(QRect(width() - 46, bar.top() - 6, 46, 16), Qt::AlignLeft, QString::number(frame_->valueScale, 'g', 3));
+  painter.drawText(QRect(width() - 46, bar.bottom() - 8, 46, 16), Qt::AlignLeft, QStringLiteral("0"));
+  painter.drawText(QRect(width() - 80, bar.bottom() + 6, 78, 20), Qt::AlignCenter, unit);
   painter.drawText(rect().adjusted(6, 4, -80, -4), Qt::AlignLeft | Qt::AlignTop,
                    tr("t = %1 s, %2 steps").arg(frame_->time, 0, 'f', 2).arg(frame_->steps));
 }
@@ -310,39 +315,25 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   model_->addItems({tr("linear"), tr("corotational"), tr("stvk"), tr("neohookean"), tr("neohookean-split")});
   model_->setToolTip(declared("material", "model"));
   form->addRow(tr("Material"), model_);
-  young_ = new QDoubleSpinBox(this);
-  young_->setObjectName(QStringLiteral("simYoung"));
-  young_->setRange(0.1, 100000);
-  young_->setDecimals(1);
-  young_->setSuffix(tr(" kPa"));
-  young_->setKeyboardTracking(false);
-  young_->setToolTip(declared("material", "young"));
-  form->addRow(tr("Young's modulus"), young_);
-  poisson_ = new QDoubleSpinBox(this);
-  poisson_->setObjectName(QStringLiteral("simPoisson"));
-  poisson_->setRange(0, 0.499);
-  poisson_->setDecimals(3);
+  // A numeric field whose help comes from the scene declaration; edits apply when the value is committed.
+  auto field = [&](const char* name, const QString& label, double lo, double hi, int decimals, const QString& suffix,
+                   const char* component, const char* parameter) {
+    auto* f = new QDoubleSpinBox(this);
+    f->setObjectName(QString::fromLatin1(name));
+    f->setRange(lo, hi);
+    f->setDecimals(decimals);
+    f->setSuffix(suffix);
+    f->setKeyboardTracking(false);
+    f->setToolTip(declared(component, parameter));
+    form->addRow(label, f);
+    return f;
+  };
+  young_ = field("simYoung", tr("Young's modulus"), 0.1, 100000, 1, tr(" kPa"), "material", "young");
+  poisson_ = field("simPoisson", tr("Poisson's ratio"), 0, 0.499, 3, QString(), "material", "poisson");
   poisson_->setSingleStep(0.01);
-  poisson_->setKeyboardTracking(false);
-  poisson_->setToolTip(declared("material", "poisson"));
-  form->addRow(tr("Poisson's ratio"), poisson_);
-  density_ = new QDoubleSpinBox(this);
-  density_->setObjectName(QStringLiteral("simDensity"));
-  density_->setRange(1, 20000);
-  density_->setDecimals(0);
-  density_->setSuffix(tr(" kg/m³"));
-  density_->setKeyboardTracking(false);
-  density_->setToolTip(declared("material", "density"));
-  form->addRow(tr("Density"), density_);
-  timeStep_ = new QDoubleSpinBox(this);
-  timeStep_->setObjectName(QStringLiteral("simTimeStep"));
-  timeStep_->setRange(0.1, 100);
-  timeStep_->setDecimals(1);
-  timeStep_->setSuffix(tr(" ms"));
+  density_ = field("simDensity", tr("Density"), 1, 20000, 0, tr(" kg/m³"), "material", "density");
+  timeStep_ = field("simTimeStep", tr("Time step"), 0.1, 100, 1, tr(" ms"), "implicit_euler", "dt");
   timeStep_->setValue(10);
-  timeStep_->setKeyboardTracking(false);
-  timeStep_->setToolTip(declared("implicit_euler", "dt"));
-  form->addRow(tr("Time step"), timeStep_);
   method_ = new QComboBox(this);
   method_->setObjectName(QStringLiteral("simMethod"));
   method_->addItems({tr("exact Newton"), tr("lagged-PCG"), tr("chord"), tr("linearised (fastest)")});

@@ -12,6 +12,14 @@ struct Pose {
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
   Eigen::Vector3d apply(const Eigen::Vector3d& x) const { return R * x + t; }
+  /// The pose turned by the rotation Q (camera frame) about the camera-frame point `centre` (the gizmo's
+  /// rotations about camera axes through the organ's centre).
+  Pose turnedAbout(const Eigen::Matrix3d& Q, const Eigen::Vector3d& centre) const {
+    Pose p;
+    p.R = Q * R;
+    p.t = Q * (t - centre) + centre;
+    return p;
+  }
 };
 
 /// An ideal pinhole camera (undistorted pixels): intrinsics K in pixels and the image size.

@@ -29,6 +29,13 @@ struct Contour {
 Contour loadContour(const std::string& path);
 void saveContour(const Contour& c, const std::string& path);
 
+/// The outer borders of a binary mask (pixel centres), longest first; borders of fewer than `minPoints`
+/// pixels are dropped (the outline of a rendered organ, for tests and benchmarks of the fit).
+std::vector<std::vector<Eigen::Vector2d>> maskOutlines(const cv::Mat1b& mask, std::size_t minPoints = 20);
+/// The silhouette segments of a contour (not ridges or ligaments) as point lists, what the elastic fit
+/// uses; a closed segment repeats its first point at the end.
+std::vector<std::vector<Eigen::Vector2d>> silhouetteSegments(const Contour& c);
+
 /// The contour of a raw (distorted) image moved to the undistorted frame of `camera` (as P2ILF's contours,
 /// drawn on the raw images).
 Contour undistortContour(const Contour& c, const Camera& camera);

@@ -69,6 +69,8 @@ class SimulationView : public QWidget {
 
  private:
   std::shared_ptr<const SimulationFrame> frame_;
+  Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();  ///< the organ's centre of gravity (m)
+  double size_ = 0.1;                                 ///< its largest extent (m)
   Turntable turntable_;
 };
 
