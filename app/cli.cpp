@@ -182,7 +182,9 @@ std::vector<int> parseNodes(const std::string& s) {
 
 // The organ model of a command: --scene, --preset or --mesh, then the material flags, --fixed-nodes and
 // --gravity over it (shared by simulate and register).
-simcore::Scene modelFromOptions(std::map<std::string, std::string>& o, const char* command) {
+// When `surfaceIn` is given and the organ came as a surface that was tetrahedralised, it receives that
+// surface (in metres), so indices into it can be mapped onto the volume.
+simcore::Scene modelFromOptions(std::map<std::string, std::string>& o, const char* command, simcore::Mesh* surfaceIn = nullptr) {
   simcore::Scene p;
   p.defaultMaterial = {};
   if (o.count("scene")) {
@@ -199,6 +201,10 @@ simcore::Scene modelFromOptions(std::map<std::string, std::string>& o, const cha
     if (o.count("unit")) lo.unit = o["unit"];
     p.mesh = simcore::loadMesh(o["mesh"], lo);
     if (!p.mesh.isVolume()) {
+      if (surfaceIn) {
+        *surfaceIn = p.mesh;
+        surfaceIn->convertToMetres();
+      }
       simcore::TetrahedraliseOptions to;
       p.mesh = simcore::tetrahedraliseSurface(p.mesh, to);
     }
@@ -317,7 +323,8 @@ int cmdRegister(const std::vector<std::string>& args) {
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
   const bool gravityGiven = o.count("gravity") > 0;
-  simcore::Scene p = modelFromOptions(o, "register");
+  simcore::Mesh surfaceIn;
+  simcore::Scene p = modelFromOptions(o, "register", &surfaceIn);
   // A registration has no gravity unless the scene or --gravity asks for it (the pre-operative shape is
   // the organ as it lies).
   if (!gravityGiven && !o.count("scene")) p.settings.gravity.setZero();
@@ -337,7 +344,30 @@ int cmdRegister(const std::vector<std::string>& args) {
   if (const std::string problem = imaging::contourProblem(contour); !problem.empty()) throw simcore::MeshError(problem);
   const Pose start = imaging::loadPose(o["pose"]);
   const auto segments = imaging::silhouetteSegments(contour);
-  if (segments.empty()) throw simcore::MeshError("The contour has no silhouette segment (only ridges or ligaments).");
+  simcore::RegistrationOptions ro;
+  for (const auto& seg : imaging::anatomicalSegments(contour)) {
+    simcore::AnatomicalCurve curve{seg.modelVertices, seg.points, seg.type};
+    if (!surfaceIn.points.empty()) {
+      // The curve's vertices index the surface that was given: map them to the nearest surface node of the volume.
+      const auto boundary = simcore::boundaryTriangles(p.mesh, false);
+      std::vector<int> nodes;
+      for (const auto& t : boundary) nodes.insert(nodes.end(), t.begin(), t.end());
+      std::sort(nodes.begin(), nodes.end());
+      nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+      for (int& v : curve.nodes) {
+        if (v < 0 || static_cast<std::size_t>(v) >= surfaceIn.points.size())
+          throw simcore::MeshError("The " + seg.type + " curve refers to vertex " + std::to_string(v) + ", which the surface does not have.");
+        int best = nodes.front();
+        for (int n : nodes)
+          if ((p.mesh.points[n] - surfaceIn.points[v]).squaredNorm() < (p.mesh.points[best] - surfaceIn.points[v]).squaredNorm()) best = n;
+        v = best;
+      }
+      curve.nodes.erase(std::unique(curve.nodes.begin(), curve.nodes.end()), curve.nodes.end());
+    }
+    ro.curves.push_back(std::move(curve));
+  }
+  if (segments.empty() && ro.curves.empty())
+    throw simcore::MeshError("The contour has no silhouette segment and no ridge or ligament with its curve on the organ.");
   simcore::Mesh truth;
   if (o.count("ground-truth")) {
     simcore::LoadOptions lo;
@@ -350,7 +380,6 @@ int cmdRegister(const std::vector<std::string>& args) {
   }
   const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial, p.embedded);
   const auto surface = simcore::boundaryTriangles(p.mesh, false);
-  simcore::RegistrationOptions ro;
   ro.rigidPrepass = o.count("rigid-prepass") > 0;
   ro.elastic = o.count("rigid-only") == 0;
   if (o.count("iterations")) ro.maxIterations = static_cast<int>(parseCount(o["iterations"], "--iterations", 1, 1000));
@@ -393,8 +422,11 @@ int cmdRegister(const std::vector<std::string>& args) {
       const auto& r = rows[i];
       std::snprintf(buf, sizeof buf,
                     "    {\"iteration\": %d, \"stage\": \"%s\", \"wall_ms\": %.3f, \"mean_px\": %.4f, \"rms_px\": %.4f, "
-                    "\"hausdorff_px\": %.4f, \"bound\": %zu%s}%s\n",
+                    "\"hausdorff_px\": %.4f, \"bound\": %zu%s%s}%s\n",
                     r.it.iteration, r.it.stage.c_str(), r.it.wallMs, r.it.residual.mean, r.it.residual.rms, r.it.residual.hausdorff, r.it.bound,
+                    r.it.curves.points ? (", \"curve_mean_px\": " + std::to_string(r.it.curves.mean) + ", \"curve_hausdorff_px\": " +
+                                          std::to_string(r.it.curves.hausdorff)).c_str()
+                                       : "",
                     r.errMean >= 0 ? (", \"error_mean_mm\": " + std::to_string(r.errMean) + ", \"error_max_mm\": " + std::to_string(r.errMax)).c_str()
                                    : "",
                     i + 1 < rows.size() ? "," : "");
@@ -405,7 +437,7 @@ int cmdRegister(const std::vector<std::string>& args) {
   }
   const auto& last = rows.back().it;
   std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(), rows.size(), last.wallMs,
-              last.residual.mean, rows.front().it.residual.mean,
+              last.score(), rows.front().it.score(),
               rows.back().errMean >= 0 ? (", 3D error " + std::to_string(rows.back().errMean) + " mm").c_str() : "");
   if (!res.ok) {
     std::fprintf(stderr, "rehearse: %s\n", res.status.c_str());
@@ -440,7 +472,10 @@ std::string usage() {
          "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
          "                [--ground-truth GT.vtu|.vtk] [--rigid-prepass] [--rigid-only] [--iterations N]\n"
          "                [--image-size WxH] [--distorted-contour] [material flags of simulate]\n"
-         "                                   fit the organ onto a sketched silhouette (nodes written in the camera frame)\n"
+         "                                   fit the organ onto a sketched silhouette (nodes written in the camera frame);\n"
+         "                                   ridges and ligaments with their curve on the organ (P2ILF modelPoints, our\n"
+         "                                   model_vertices: node indices, or surface vertices when --mesh is a surface)\n"
+         "                                   are held onto their image curves too\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL)\n"
          "Mesh formats: .msh (Gmsh 1, 2.2, 4.1), .vtk (legacy), .vtu, .mesh (Medit), .obj .stl .ply .off .gltf .glb.\n"

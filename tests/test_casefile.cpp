@@ -54,6 +54,7 @@ void compareCases(const phantom::Case& a, const phantom::Case& b) {
     QVERIFY(b.contour.segments[s].points == a.contour.segments[s].points);
     QCOMPARE(b.contour.segments[s].closed, a.contour.segments[s].closed);
     QCOMPARE(b.contour.segments[s].type, a.contour.segments[s].type);
+    QVERIFY(b.contour.segments[s].modelVertices == a.contour.segments[s].modelVertices);
   }
 }
 }  // namespace
@@ -66,8 +67,8 @@ class TestCaseFile : public QObject {
     phantom::Case edited = phantomCase();
     edited.contour.width = 1280;
     edited.contour.height = 720;
-    edited.contour.segments.push_back({{{100.25, 200.5}, {300, 400}, {512.125, 333}}, false, "silhouette"});
-    edited.contour.segments.push_back({{{10, 20}, {30, 40}}, true, "ridge"});
+    edited.contour.segments.push_back({{{100.25, 200.5}, {300, 400}, {512.125, 333}}, false, "silhouette", {}});
+    edited.contour.segments.push_back({{{10, 20}, {30, 40}}, true, "ridge", {3, 7, 11}});
     edited.pose.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized()).toRotationMatrix();
     edited.pose.t = {0.0123, -0.004, 0.21};
     edited.poseAligned = true;

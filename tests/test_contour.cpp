@@ -31,22 +31,33 @@ class TestContour : public QObject {
     c.width = 1280;
     c.height = 720;
     c.segments.push_back(circle(600, 300, 100, 50, false));
-    c.segments.push_back({{{10, 10}, {20, 15.5}}, false, "ridge"});
+    c.segments.push_back({{{10, 10}, {20, 15.5}}, false, "ridge", {4, 9}});
     const std::string p = tempPath("contour.json");
     saveContour(c, p);
     auto r = loadContour(p);
     QCOMPARE(r.width, 1280);
     QCOMPARE(r.segments.size(), std::size_t(2));
     QCOMPARE(r.segments[1].type, std::string("ridge"));
+    QVERIFY(r.segments[1].modelVertices == std::vector<int>({4, 9}));
+    QCOMPARE(anatomicalSegments(r).size(), std::size_t(1));  // the ridge with its curve on the organ
     for (std::size_t i = 0; i < c.segments[0].points.size(); ++i) QCOMPARE(r.segments[0].points[i], c.segments[0].points[i]);
     const std::string p2 = tempPath("p2ilf.json");
     writeFile(p2, R"({"numOfContours":2,"contour":[{"contourType":"Silhouette","imagePoints":{"x":[1,2,3],"y":[4,5,6]}},
-                    {"contourType":"Ligament","imagePoints":{"x":["7.5"],"y":["8"]}}]})");
+                    {"contourType":"Ligament","imagePoints":{"x":["7.5"],"y":["8"]},"modelPoints":{"vertices":[12,"13",14]}}]})");
     auto q = loadContour(p2);
     QCOMPARE(q.segments.size(), std::size_t(2));
     QCOMPARE(q.segments[0].points[2], Eigen::Vector2d(3, 6));
     QCOMPARE(q.segments[1].type, std::string("ligament"));
     QCOMPARE(q.segments[1].points[0], Eigen::Vector2d(7.5, 8));
+    QVERIFY(q.segments[1].modelVertices == std::vector<int>({12, 13, 14}));
+    QVERIFY(q.segments[0].modelVertices.empty());
+    writeFile(p2, R"({"contour":[{"contourType":"Ridge","imagePoints":{"x":[1,2],"y":[4,5]},"modelPoints":{"vertices":[1,-2]}}]})");
+    try {
+      loadContour(p2);
+      QFAIL("a negative vertex index was accepted");
+    } catch (const InputError& e) {
+      QVERIFY2(QString(e.what()).contains("p2ilf.json") && QString(e.what()).contains("vertex"), e.what());
+    }
     writeFile(p2, R"({"contour":[{"imagePoints":{"x":[1,2],"y":[4]}}]})");
     QVERIFY_THROWS_EXCEPTION(InputError, loadContour(p2));
     writeFile(p2, "{not json");
@@ -58,7 +69,7 @@ class TestContour : public QObject {
     c.width = 100;
     c.height = 100;
     QVERIFY(QString::fromStdString(contourProblem(c)).contains("empty"));
-    c.segments.push_back({{{5, 5}}, false, "silhouette"});
+    c.segments.push_back({{{5, 5}}, false, "silhouette", {}});
     QVERIFY(QString::fromStdString(contourProblem(c)).contains("single point"));
     c.segments[0].points = {{10, 10}, {90, 90}, {90, 10}, {10, 90}};  // a bow tie crosses itself
     QVERIFY(QString::fromStdString(contourProblem(c)).contains("crosses itself"));
@@ -72,7 +83,7 @@ class TestContour : public QObject {
 
   void resampleAndSmooth() {
     // A straight polyline with uneven points resamples to exact uniform spacing.
-    ContourSegment line{{{0, 0}, {3, 0}, {3.5, 0}, {10, 0}}, false, "silhouette"};
+    ContourSegment line{{{0, 0}, {3, 0}, {3.5, 0}, {10, 0}}, false, "silhouette", {}};
     auto r = resampleSegment(line, 1.0);
     QCOMPARE(r.points.size(), std::size_t(11));
     for (std::size_t i = 0; i < r.points.size(); ++i) QVERIFY((r.points[i] - Eigen::Vector2d(double(i), 0)).norm() < 1e-12);
@@ -104,7 +115,7 @@ class TestContour : public QObject {
     cv::Mat1b mask(200, 200, uchar(0));
     cv::rectangle(mask, cv::Rect(50, 50, 101, 101), cv::Scalar(255), cv::FILLED);  // outline on x,y = 50 and 150
     Contour c;
-    c.segments.push_back({{{45, 100}, {100, 40}, {160, 100}}, false, "silhouette"});  // 5, 10 and 10 px away
+    c.segments.push_back({{{45, 100}, {100, 40}, {160, 100}}, false, "silhouette", {}});  // 5, 10 and 10 px away
     ContourDistance d;
     QVERIFY(contourToMaskDistance(c, mask, d));
     QVERIFY(std::abs(d.mean - 25.0 / 3) < 0.6);

@@ -18,6 +18,8 @@
 #include <QJsonObject>
 #include <QProcess>
 
+#include <map>
+
 
 using namespace rehearse;
 using namespace rehearse::simcore;
@@ -44,6 +46,38 @@ Deformed deformSideways(const phantom::Case& c, const FemModel& m) {
 
 FemModel organModel(const phantom::Case& c) {
   return FemModel::build(c.volume, {{2, {MaterialModel::Corotational, 620e3, 0.45, 1000}}}, {MaterialModel::Corotational, 27e3, 0.4, 1000});
+}
+
+// A ridge-like curve across the organ's visible side: in 25 px columns across its middle rows at the true
+// pose, the surface node nearest the camera; the image curve is where those nodes project in `truth`.
+AnatomicalCurve frontRidge(const phantom::Case& c, const FemModel& m, const Eigen::VectorXd& truth) {
+  const Pinhole cam = c.camera.pinhole();
+  std::vector<char> onSurface(m.nodeCount(), 0);
+  for (const auto& t : c.surface)
+    for (int v : t) onSurface[v] = 1;
+  double rowSum = 0;
+  int rowCount = 0;
+  for (std::size_t i = 0; i < m.nodeCount(); ++i)
+    if (onSurface[i]) {
+      rowSum += cam.project(c.truePose.apply(m.rest[i])).y();
+      ++rowCount;
+    }
+  const double row = rowSum / rowCount;
+  std::map<int, std::pair<double, int>> columns;  // column -> (depth, node)
+  for (std::size_t i = 0; i < m.nodeCount(); ++i) {
+    if (!onSurface[i]) continue;
+    const Eigen::Vector3d q = c.truePose.apply(m.rest[i]);
+    const Eigen::Vector2d uv = cam.project(q);
+    if (std::abs(uv.y() - row) > 30) continue;
+    auto [it, added] = columns.try_emplace(static_cast<int>(uv.x() / 25), q.z(), static_cast<int>(i));
+    if (!added && q.z() < it->second.first) it->second = {q.z(), static_cast<int>(i)};
+  }
+  AnatomicalCurve ridge;
+  for (const auto& [col, dn] : columns) {
+    ridge.nodes.push_back(dn.second);
+    ridge.image.push_back(cam.project(c.truePose.apply(truth.segment<3>(3 * dn.second))));
+  }
+  return ridge;
 }
 
 Pose offset(const Pose& p, const Eigen::Vector3d& move, const Eigen::Vector3d& axis, double degrees, const Eigen::Vector3d& centre) {
@@ -149,6 +183,89 @@ class TestRegistration : public QObject {
     QVERIFY(res.iterations.back().residual.mean < 0.2 * res.iterations.front().residual.mean);
   }
 
+  // An anatomical curve (a ridge across the organ's visible side, its nodes and their projections in the
+  // deformed truth) added to the silhouette: the fit follows it and the 3D error falls further than with
+  // the silhouette alone.
+  void anatomicalCurveConstrainsTheFit() {
+    const FemModel m = organModel(c_);
+    const Deformed truth = deformSideways(c_, m);
+    QVERIFY(truth.x.size() > 0);
+    SurfaceView deformed = c_.surfaceView();
+    deformed.vertices = truth.vertices.data();
+    const auto contour = outline(c_, c_.truePose, deformed);
+    const Pinhole cam = c_.camera.pinhole();
+    const AnatomicalCurve ridge = frontRidge(c_, m, truth.x);
+    QVERIFY(ridge.nodes.size() >= 8);
+    auto meanError = [&](const Eigen::VectorXd& x) {
+      double e = 0;
+      for (std::size_t i = 0; i < m.nodeCount(); ++i) e += (x.segment<3>(3 * i) - truth.x.segment<3>(3 * i)).norm();
+      return e / m.nodeCount();
+    };
+    SimulationSettings s;
+    s.gravity.setZero();
+    const auto plain = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, cam);
+    RegistrationOptions o;
+    o.curves = {ridge};
+    o.onIteration = [](const RegistrationIteration& it, const Eigen::VectorXd&, const Pose&) {
+      qInfo("  iteration %d: %.2f px, curve %.2f px, %zu bound, %.0f ms", it.iteration, it.residual.mean, it.curves.mean, it.bound, it.wallMs);
+      return true;
+    };
+    const auto withCurve = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, cam, o);
+    QVERIFY2(plain.ok && withCurve.ok, withCurve.status.c_str());
+    const auto& first = withCurve.iterations.front();
+    const auto& last = withCurve.iterations.back();
+    qInfo("ridge of %zu nodes: curve distance %.2f px -> %.2f px; node error %.2f mm (undeformed), %.2f mm (silhouette only), %.2f mm "
+          "(silhouette and ridge); %s; %.0f ms (silhouette only %.0f ms)", ridge.nodes.size(), first.curves.mean, last.curves.mean,
+          1e3 * meanError(m.restVector()), 1e3 * meanError(plain.x), 1e3 * meanError(withCurve.x), withCurve.status.c_str(), last.wallMs,
+          plain.iterations.back().wallMs);
+    QVERIFY(first.curves.points > 0);
+    QVERIFY(last.curves.mean < 0.5 * first.curves.mean);
+    QVERIFY(meanError(withCurve.x) < 0.9 * meanError(plain.x));
+    // The curve alone (no silhouette) is enough to fit; a curve node the organ does not have is refused.
+    const auto curveOnly = registerToContour(m, c_.attachments, s, c_.surface, {}, c_.truePose, cam, o);
+    QVERIFY2(curveOnly.ok, curveOnly.status.c_str());
+    QVERIFY(meanError(curveOnly.x) < meanError(m.restVector()));
+    o.curves[0].nodes.push_back(static_cast<int>(m.nodeCount()) + 5);
+    try {
+      registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, cam, o);
+      QFAIL("a curve node outside the mesh was accepted");
+    } catch (const MeshError& e) {
+      QVERIFY2(std::string(e.what()).find("does not have") != std::string::npos, e.what());
+    }
+  }
+
+  // The outline of another organ (BodyParts3D's left kidney, placed where the liver is) cannot be reached
+  // by a plausible deformation of the liver: a clear failure status, not a result.
+  void contourOfAnotherOrganFails() {
+    REQUIRE_SHARED("bodyparts3d/FMA7205_Left_Kidney.obj");
+    Mesh kidney = loadMesh(sharedData("bodyparts3d/FMA7205_Left_Kidney.obj"));
+    kidney.convertToMetres();
+    const Eigen::Vector3d centre = kidney.bounds().center();
+    std::vector<double> vertices;
+    std::vector<int> triangles;
+    // The kidney at the liver's depth, in the liver's place, seen from the side that shows its bean shape.
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
+    const Eigen::Vector3d liverCentre = c_.truePose.apply(c_.centreOfGravity());
+    for (const auto& p : kidney.points) {
+      const Eigen::Vector3d q = turn * (p - centre) + liverCentre;
+      vertices.insert(vertices.end(), {q.x(), q.y(), q.z()});
+    }
+    for (const auto& t : kidney.triangles) triangles.insert(triangles.end(), t.begin(), t.end());
+    SurfaceView view{vertices.data(), kidney.points.size(), triangles.data(), kidney.triangles.size()};
+    const auto contour = imaging::maskOutlines(imaging::renderMask(c_.camera, Pose{}, view));
+    QVERIFY(!contour.empty());
+    const FemModel m = organModel(c_);
+    SimulationSettings s;
+    s.gravity.setZero();
+    RegistrationOptions o;
+    o.rigidPrepass = true;
+    const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, c_.camera.pinhole(), o);
+    qInfo("kidney outline (%zu points) against the liver: %s", contour.front().size(), res.status.c_str());
+    QVERIFY(!res.ok);
+    QVERIFY(res.status.rfind("failed", 0) == 0);
+    QVERIFY(res.status.find('\n') == std::string::npos);
+  }
+
   void unusableInputGivesClearErrors() {
     const FemModel m = organModel(c_);
     SimulationSettings s;
@@ -190,7 +307,7 @@ class TestRegistration : public QObject {
     imaging::Contour contour;
     contour.width = c_.camera.width;
     contour.height = c_.camera.height;
-    for (const auto& seg : outline(c_, c_.truePose, deformed)) contour.segments.push_back({seg, true, "silhouette"});
+    for (const auto& seg : outline(c_, c_.truePose, deformed)) contour.segments.push_back({seg, true, "silhouette", {}});
     imaging::saveContour(contour, dir + "/contour.json");
     Mesh gt = c_.volume;
     gt.convertToMetres();
@@ -220,6 +337,36 @@ class TestRegistration : public QObject {
     QVERIFY(its.last().toObject()["wall_ms"].toDouble() > 0);
     const Mesh registered = loadMesh(dir + "/registered.vtu");
     QCOMPARE(registered.points.size(), c_.volume.points.size());
+    // With a ridge drawn on the frame and its nodes on the organ (P2ILF's form), the report measures the
+    // curve too and the 3D error falls further.
+    {
+      const AnatomicalCurve ridge = frontRidge(c_, m, truth.x);
+      QJsonArray xs, ys, vs;
+      for (const auto& p : ridge.image) {
+        xs.append(p.x());
+        ys.append(p.y());
+      }
+      for (int v : ridge.nodes) vs.append(QString::number(v));  // P2ILF writes numbers as strings
+      QJsonArray contours;
+      for (const auto& seg : contour.segments) {
+        QJsonArray sx, sy;
+        for (const auto& p : seg.points) {
+          sx.append(p.x());
+          sy.append(p.y());
+        }
+        contours.append(QJsonObject{{"contourType", "Silhouette"}, {"imagePoints", QJsonObject{{"x", sx}, {"y", sy}}}});
+      }
+      contours.append(QJsonObject{{"contourType", "Ridge"}, {"imagePoints", QJsonObject{{"x", xs}, {"y", ys}}}, {"modelPoints", QJsonObject{{"vertices", vs}}}});
+      writeFile(dir + "/p2ilf.json", QJsonDocument(QJsonObject{{"numOfContours", contours.size()}, {"contour", contours}}).toJson().toStdString());
+      auto [cr, outr, errr] = run(common + QStringList{"--contour", d + "/p2ilf.json", "--out", d + "/ridge.vtu", "--report", d + "/ridge.json",
+                                                       "--ground-truth", d + "/truth.vtu"});
+      QVERIFY2(cr == 0, qPrintable(errr));
+      qInfo("with the ridge: %s", qPrintable(outr.trimmed()));
+      const QJsonArray rits = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/ridge.json"))).object()["iterations"].toArray();
+      QVERIFY(rits.last().toObject().contains("curve_mean_px"));
+      QVERIFY(rits.last().toObject()["curve_mean_px"].toDouble() < rits.first().toObject()["curve_mean_px"].toDouble());
+      QVERIFY(rits.last().toObject()["error_mean_mm"].toDouble() < e1);
+    }
     // Unusable input: one line on stderr, a non-zero exit, nothing written.
     writeFile(dir + "/empty.json", R"({"width": 1280, "height": 720, "segments": []})");
     auto [c2, o2, e2] = run(common + QStringList{"--contour", d + "/empty.json", "--out", d + "/x.vtu"});

@@ -30,10 +30,25 @@ Contour loadContour(const std::string& path) {
   if (!in) throw InputError("The contour file " + path + " cannot be opened; check the path.");
   std::stringstream ss;
   ss << in.rdbuf();
-  const std::string name = std::filesystem::path(path).filename().string();
+  return parseContour(ss.str(), std::filesystem::path(path).filename().string());
+}
+
+namespace {
+std::vector<int> vertexList(const json& j) {
+  std::vector<int> out;
+  for (const auto& v : j) {
+    const double d = num(v);
+    if (!(d >= 0) || d > 1e9 || d != std::floor(d)) throw InputError("a model vertex index is not a non-negative whole number.");
+    out.push_back(static_cast<int>(d));
+  }
+  return out;
+}
+}  // namespace
+
+Contour parseContour(const std::string& text, const std::string& name) {
   Contour c;
   try {
-    const json j = json::parse(ss.str());
+    const json j = json::parse(text);
     if (j.contains("segments")) {
       if (j.contains("image_size")) {
         c.width = j["image_size"].at(0).get<int>();
@@ -44,6 +59,7 @@ Contour loadContour(const std::string& path) {
         for (const auto& p : s.at("points")) seg.points.emplace_back(num(p.at(0)), num(p.at(1)));
         seg.closed = s.value("closed", false);
         seg.type = s.value("type", std::string("silhouette"));
+        if (s.contains("model_vertices")) seg.modelVertices = vertexList(s["model_vertices"]);
         c.segments.push_back(std::move(seg));
       }
     } else if (j.contains("contour")) {  // P2ILF
@@ -56,13 +72,16 @@ Contour loadContour(const std::string& path) {
         const auto& ys = s.at("imagePoints").at("y");
         if (xs.size() != ys.size()) throw InputError(name + ": a P2ILF contour has different numbers of x and y values.");
         for (std::size_t i = 0; i < xs.size(); ++i) seg.points.emplace_back(num(xs[i]), num(ys[i]));
+        if (s.contains("modelPoints") && s["modelPoints"].contains("vertices")) seg.modelVertices = vertexList(s["modelPoints"]["vertices"]);
         c.segments.push_back(std::move(seg));
       }
     } else {
       throw InputError(name + " is not a contour file: it needs \"segments\" (Rehearse) or \"contour\" (P2ILF).");
     }
-  } catch (const InputError&) {
-    throw;
+  } catch (const InputError& e) {
+    const std::string what = e.what();
+    if (what.rfind(name, 0) == 0) throw;
+    throw InputError(name + ": " + what);
   } catch (const std::exception&) {
     throw InputError(name + " is not a valid contour file; see the contour format in the README.");
   }
@@ -72,17 +91,21 @@ Contour loadContour(const std::string& path) {
   return c;
 }
 
-void saveContour(const Contour& c, const std::string& path) {
+std::string contourToJson(const Contour& c) {
   json j;
   j["image_size"] = {c.width, c.height};
   j["segments"] = json::array();
   for (const auto& s : c.segments) {
     json pts = json::array();
     for (const auto& p : s.points) pts.push_back({p.x(), p.y()});
-    j["segments"].push_back({{"points", pts}, {"closed", s.closed}, {"type", s.type}});
+    json seg = {{"points", pts}, {"closed", s.closed}, {"type", s.type}};
+    if (!s.modelVertices.empty()) seg["model_vertices"] = s.modelVertices;
+    j["segments"].push_back(std::move(seg));
   }
-  writeFileAtomically(path, j.dump(1) + "\n");
+  return j.dump(1) + "\n";
 }
+
+void saveContour(const Contour& c, const std::string& path) { writeFileAtomically(path, contourToJson(c)); }
 
 bool segmentSelfIntersects(const ContourSegment& s) {
   const auto& p = s.points;
@@ -254,6 +277,13 @@ std::vector<std::vector<Eigen::Vector2d>> silhouetteSegments(const Contour& c) {
       out.push_back(seg.points);
       if (seg.closed && !seg.points.empty()) out.back().push_back(seg.points.front());
     }
+  return out;
+}
+
+std::vector<ContourSegment> anatomicalSegments(const Contour& c) {
+  std::vector<ContourSegment> out;
+  for (const auto& seg : c.segments)
+    if (seg.type != "silhouette" && !seg.type.empty() && !seg.modelVertices.empty()) out.push_back(seg);
   return out;
 }
 

@@ -659,7 +659,21 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   const int maxIterations = std::max(settings_.maxNewtonIterations, 30) + (hasConstraints ? 30 : 0);
   double previousResidual = 1e300;
   int stalled = 0;
-  bool roundOff = false;
+  bool roundOff = false, smallStep = false;
+  // A Newton step larger than ten times the organ is a near-singular solve, not a move: refused, and the
+  // projected tangent (then growing diagonal shifts) tried instead. Steps beyond a quarter of the organ are
+  // shortened to that (a trust region; the next iterations continue).
+  const double organSize = [&] {
+    Eigen::AlignedBox3d box;
+    for (Eigen::Index i = 0; i + 2 < rest_.size(); i += 3) box.extend(rest_.segment<3>(i));
+    return box.isEmpty() ? 1.0 : std::max(box.diagonal().norm(), 1e-6);
+  }();
+  auto usableStep = [&](Eigen::VectorXd& d) {
+    const double largest = d.size() ? d.cwiseAbs().maxCoeff() : 0.0;
+    if (!std::isfinite(largest) || largest > 10 * organSize) return false;
+    if (largest > 0.25 * organSize) d *= 0.25 * organSize / largest;
+    return true;
+  };
   for (int it = 0; it < maxIterations; ++it) {
     elasticForces(model_, x, r);
     r += fext;  // out-of-balance force
@@ -689,15 +703,33 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
       projectMatrix(w.K);
     };
     buildTangent(false);
-    if (hasConstraints) r.noalias() -= w.Ht * w.lambda;  // solve for the total multipliers
+    // Solve for the total multipliers (none yet in the first iteration, when Ht may still have the size of
+    // the previous solve's constraints).
+    if (hasConstraints && it > 0) r.noalias() -= w.Ht * w.lambda;
     bool solved = false;
     if (settings_.solver == LinearSolverKind::Cholmod) {
       ++rep.factorisations;
       w.schurValid = false;
-      solved = w.chol.factorise(w.K) && solveConstrained(r, x, 1.0, dx, rep);
+      // Each attempt starts from the same multipliers (a failed one can leave them absurd).
+      const Eigen::VectorXd lambdaStart = w.lambda;
+      solved = w.chol.factorise(w.K) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
       if (!solved) {  // indefinite (or a pivot so small the solution overflows): projected Newton, then a shift
         buildTangent(true);
-        solved = factoriseShifted(w.K, rep) && solveConstrained(r, x, 1.0, dx, rep);
+        w.lambda = lambdaStart;
+        solved = factoriseShifted(w.K, rep) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
+      }
+      if (!solved) {
+        // Nearly singular even projected (a soft mode with almost no stiffness): Levenberg-Marquardt shifts
+        // of the diagonal, growing until the step is usable.
+        Eigen::SparseMatrix<double> shifted = w.K;  // rare path: allocation is fine here
+        const double base = 1e-6 * std::max(w.K.diagonal().cwiseAbs().maxCoeff(), 1e-300);
+        for (double shift = base; !solved && shift < 1e6 * base; shift *= 10) {
+          for (Eigen::Index i = 0; i < shifted.rows(); ++i) shifted.valuePtr()[model_.diagonalSlot[i]] = w.K.valuePtr()[model_.diagonalSlot[i]] + shift;
+          ++rep.factorisations;
+          w.schurValid = false;
+          w.lambda = lambdaStart;
+          solved = w.chol.factorise(shifted) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
+        }
       }
     } else {
       solved = solveLinear(w.K, r, dx);
@@ -728,11 +760,20 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     }
     x = xn;
     ++rep.newtonIterations;
+    // Moves below the caller's resolution: converged for its purpose (a registration needs micrometres,
+    // not the force balance to round-off, and projected Newton converges only linearly).
+    if (settings_.staticStepTolerance > 0 && t * dx.cwiseAbs().maxCoeff() < settings_.staticStepTolerance && constraintViolation(x) <= 1e-9) {
+      rep.ok = true;
+      smallStep = true;
+      break;
+    }
   }
   if (rep.ok && x.allFinite()) {
     state.x = x;
     state.v.setZero();
-    rep.status = roundOff ? "converged to round-off (relative residual " + std::to_string(rep.residual) + ")" : "converged";
+    rep.status = roundOff    ? "converged to round-off (relative residual " + std::to_string(rep.residual) + ")"
+                 : smallStep ? "converged (the last Newton move was below " + std::to_string(1e6 * settings_.staticStepTolerance) + " micrometres)"
+                             : "converged";
   } else {
     rep.ok = false;
     if (rep.status.empty()) rep.status = "not converged (relative residual " + std::to_string(rep.residual) + "); the state was rolled back";

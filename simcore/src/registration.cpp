@@ -59,6 +59,7 @@ struct Binding {
   double t;                 // along the edge
   Eigen::Vector2d contour;  // the contour point
   double distance;          // px
+  Eigen::Vector2d normal = Eigen::Vector2d::Zero();  // unit normal of the contour there (for sliding)
 };
 
 // Bindings further than `factor` times the median distance (and than `floorPx`) are outliers.
@@ -114,7 +115,7 @@ std::vector<Binding> bindContour(const std::vector<Sample>& samples, const std::
   for (const auto& [node, pn] : vertices) {
     const Eigen::Vector2d n = pn.second.norm() > 0 ? Eigen::Vector2d(pn.second.normalized()) : Eigen::Vector2d::Zero();
     double best = std::numeric_limits<double>::infinity();
-    Eigen::Vector2d foot;
+    Eigen::Vector2d foot = Eigen::Vector2d::Zero(), footNormal = Eigen::Vector2d::Zero();
     bool atEnd = false;
     for (std::size_t sgi = 0; sgi < segmentStarts.size(); ++sgi) {
       const std::size_t begin = segmentStarts[sgi], end = sgi + 1 < segmentStarts.size() ? segmentStarts[sgi + 1] : samples.size();
@@ -130,13 +131,52 @@ std::vector<Binding> bindContour(const std::vector<Sample>& samples, const std::
         if (d < best) {
           best = d;
           foot = f;
+          footNormal = cn;
           atEnd = (i == begin && t == 0.0) || (i + 2 == end && t == 1.0);
         }
       }
     }
-    if (std::isfinite(best) && !(atEnd && best > 2.0)) out.push_back({node, node, 0, foot, best});
+    if (std::isfinite(best) && !(atEnd && best > 2.0)) out.push_back({node, node, 0, foot, best, footNormal});
   }
   dropOutliers(out, o.outlierFactor, floorPx);
+  return out;
+}
+
+// The nearest point of a polyline to p, and whether it is one of the polyline's ends.
+struct Foot {
+  Eigen::Vector2d point = Eigen::Vector2d::Zero(), normal = Eigen::Vector2d::Zero();
+  double distance = std::numeric_limits<double>::infinity();
+  bool atEnd = false;
+};
+Foot nearestOnPolyline(const std::vector<Eigen::Vector2d>& line, const Eigen::Vector2d& p) {
+  Foot f;
+  if (line.size() == 1) return {line[0], Eigen::Vector2d::Zero(), (line[0] - p).norm(), true};
+  for (std::size_t i = 0; i + 1 < line.size(); ++i) {
+    const Eigen::Vector2d tangent = line[i + 1] - line[i];
+    const double t = closestParameter(line[i], line[i + 1], p);
+    const Eigen::Vector2d q = line[i] + t * tangent;
+    const double d = (q - p).norm();
+    const Eigen::Vector2d n = tangent.norm() > 0 ? Eigen::Vector2d(-tangent.y(), tangent.x()).normalized() : Eigen::Vector2d::Zero();
+    if (d < f.distance) f = {q, n, d, (i == 0 && t == 0.0) || (i + 2 == line.size() && t == 1.0)};
+  }
+  return f;
+}
+
+// Every node of the anatomical curves to the nearest point of its image curve (one binding per node; nodes
+// whose nearest point is an open end, further than 2 px, are left free; fixed nodes too when given).
+std::vector<Binding> bindCurves(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose, const Pinhole& cam,
+                                const std::vector<char>* fixed) {
+  std::vector<Binding> out;
+  std::vector<char> seen(static_cast<std::size_t>(x.size() / 3), 0);
+  for (const auto& c : curves)
+    for (int node : c.nodes) {
+      if (seen[node] || (fixed && (*fixed)[node])) continue;
+      seen[node] = 1;
+      const Eigen::Vector3d q = pose.apply(x.segment<3>(3 * node));
+      if (!(q.z() > 1e-6)) continue;
+      const Foot f = nearestOnPolyline(c.image, cam.project(q));
+      if (std::isfinite(f.distance) && !(f.atEnd && f.distance > 2.0)) out.push_back({node, node, 0, f.point, f.distance, f.normal});
+    }
   return out;
 }
 
@@ -144,8 +184,21 @@ Eigen::Vector3d point(const Eigen::VectorXd& x, const Binding& b) {
   return (1 - b.t) * x.segment<3>(3 * b.a) + b.t * x.segment<3>(3 * b.b);
 }
 
-// The bound point on the ray through its contour point: two constraints across the ray (model frame).
-void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, std::vector<ScalarConstraint>& out) {
+// The bound point on the ray through its contour point: two constraints across the ray (model frame). When
+// sliding, one: the point on the plane through the camera centre and the contour's tangent line there, so
+// it is held across the contour and free along it.
+void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, bool sliding, std::vector<ScalarConstraint>& out) {
+  if (sliding && b.normal.squaredNorm() > 0) {
+    const Eigen::Vector3d line(b.normal.x(), b.normal.y(), -b.normal.dot(b.contour));  // the tangent line in the image
+    const Eigen::Vector3d plane = cam.K.transpose() * line;                              // camera frame, through the centre
+    ScalarConstraint c;
+    c.nodes = {b.a, b.b, -1, -1};
+    c.weights = {1 - b.t, b.t, 0, 0};
+    c.direction = (pose.R.transpose() * plane).normalized();
+    c.value = -plane.dot(pose.t) / plane.norm();
+    out.push_back(c);
+    return;
+  }
   const Eigen::Vector3d d = (pose.R.transpose() * cam.ray(b.contour)).normalized();
   const Eigen::Vector3d origin = -pose.R.transpose() * pose.t;
   Eigen::Vector3d helper = Eigen::Vector3d::Unit(0);
@@ -341,6 +394,33 @@ Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& cont
   return r;
 }
 
+Residual2D curveResidual(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera) {
+  Residual2D r;
+  double sum = 0, sum2 = 0;
+  std::vector<Eigen::Vector2d> projected;
+  for (const auto& c : curves) {
+    projected.clear();
+    for (int node : c.nodes) {
+      const Eigen::Vector3d q = pose.apply(x.segment<3>(3 * node));
+      if (!(q.z() > 1e-6)) throw MeshError("A node of an anatomical curve is behind the camera; place the organ in front of the camera first.");
+      projected.push_back(camera.project(q));
+    }
+    if (projected.empty()) continue;
+    for (const auto& p : c.image) {
+      const double d = nearestOnPolyline(projected, p).distance;
+      sum += d;
+      sum2 += d * d;
+      r.hausdorff = std::max(r.hausdorff, d);
+      ++r.points;
+    }
+  }
+  if (r.points) {
+    r.mean = sum / r.points;
+    r.rms = std::sqrt(sum2 / r.points);
+  }
+  return r;
+}
+
 RegistrationResult registerToContour(const FemModel& model, const std::vector<int>& fixedNodes, SimulationSettings settings,
                                      const std::vector<std::array<int, 3>>& surface,
                                      const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& start, const Pinhole& camera,
@@ -354,8 +434,22 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     for (const auto& p : seg)
       if (!p.allFinite()) throw MeshError("The contour has a point that is not a number.");
   }
-  if (points == 0) throw MeshError("The contour is empty; sketch the organ's outline first.");
-  if (points < 2) throw MeshError("The contour has a single point; sketch at least a short stretch of the outline.");
+  // Anatomical curves: checked, and their image curves resampled like the contour.
+  std::vector<AnatomicalCurve> curves = o.curves;
+  for (auto& c : curves) {
+    if (c.nodes.size() < 2 || c.image.size() < 2)
+      throw MeshError("An anatomical curve (" + c.type + ") needs at least two nodes on the organ and two points in the image.");
+    for (int node : c.nodes)
+      if (node < 0 || static_cast<std::size_t>(node) >= model.nodeCount())
+        throw MeshError("An anatomical curve (" + c.type + ") refers to node " + std::to_string(node) + ", which the organ does not have.");
+    for (const auto& p : c.image)
+      if (!p.allFinite()) throw MeshError("An anatomical curve (" + c.type + ") has an image point that is not a number.");
+    std::vector<Eigen::Vector2d> resampled;
+    for (const auto& sample : contourSamples({c.image}, o.spacing)) resampled.push_back(sample.pixel);
+    c.image = resampled;
+  }
+  if (points == 0 && curves.empty()) throw MeshError("The contour is empty; sketch the organ's outline first.");
+  if (points == 1 && curves.empty()) throw MeshError("The contour has a single point; sketch at least a short stretch of the outline.");
   if (surface.empty()) throw MeshError("The organ has no surface triangles.");
 
   std::vector<char> fixed(model.nodeCount(), 0);
@@ -395,10 +489,26 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     ri.stage = stage;
     ri.bound = bound;
     ri.residual = contourResidual(contour, silhouette(res.x, res.pose));
+    ri.curves = curveResidual(curves, res.x, res.pose, camera);
     ri.wallMs = elapsed();
     res.iterations.push_back(ri);
     if (o.onIteration && !o.onIteration(ri, res.x, res.pose)) res.cancelled = true;
     return ri;
+  };
+  // The mean distance over the silhouette contour and the curves, for a shape and a pose.
+  auto score = [&](const Eigen::VectorXd& x, const Pose& pose) {
+    RegistrationIteration r;
+    r.residual = contourResidual(contour, silhouette(x, pose));
+    r.curves = curveResidual(curves, x, pose, camera);
+    return r.score();
+  };
+  // Correspondences for the pose: the contour onto the silhouette's edges, the curves' nodes onto their
+  // image curves.
+  auto rigidBindings = [&](const Pose& pose) {
+    auto b = bindForRigid(samples, silhouette(res.x, pose), o);
+    const auto c = bindCurves(curves, res.x, pose, camera, nullptr);
+    b.insert(b.end(), c.begin(), c.end());
+    return b;
   };
   const RegistrationIteration first = record(0, "start", 0);
   if (res.cancelled) {
@@ -413,11 +523,11 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // stay out of the local minima of a single ICP; the best continues below.
     auto shortIcp = [&](Pose pose, int iterations) {
       for (int k = 0; k < iterations; ++k) {
-        const auto bindings = bindForRigid(samples, silhouette(res.x, pose), o);
+        const auto bindings = rigidBindings(pose);
         if (bindings.size() < 3) break;
         pose = refinePose(res.x, bindings, pose, camera);
       }
-      return std::make_pair(pose, contourResidual(contour, silhouette(res.x, pose)).mean);
+      return std::make_pair(pose, score(res.x, pose));
     };
     {
       const auto sil = silhouette(res.x, res.pose);
@@ -462,31 +572,31 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       }
       res.pose = chosen;
     }
-    double previous = first.residual.mean, bestMean = first.residual.mean;
+    double previous = first.score();
     Pose bestPose = res.pose;
-    bestMean = contourResidual(contour, silhouette(res.x, res.pose)).mean;
-    if (bestMean >= first.residual.mean) {  // the candidates did not help: ICP from the start as given
+    double bestMean = score(res.x, res.pose);
+    if (bestMean >= first.score()) {  // the candidates did not help: ICP from the start as given
       res.pose = start;
-      bestMean = first.residual.mean;
+      bestMean = first.score();
       bestPose = start;
     }
     for (int k = 0; k < o.rigidIterations; ++k) {
-      const auto bindings = bindForRigid(samples, silhouette(res.x, res.pose), o);
+      const auto bindings = rigidBindings(res.pose);
       if (bindings.size() < 3) break;
       res.pose = refinePose(res.x, bindings, res.pose, camera);
       const auto ri = record(++iteration, "rigid", bindings.size());
-      if (ri.residual.mean < bestMean) {
-        bestMean = ri.residual.mean;
+      if (ri.score() < bestMean) {
+        bestMean = ri.score();
         bestPose = res.pose;
       }
-      if (res.cancelled || std::abs(previous - ri.residual.mean) < 0.1 * o.tolerance) break;
-      previous = ri.residual.mean;
+      if (res.cancelled || std::abs(previous - ri.score()) < 0.1 * o.tolerance) break;
+      previous = ri.score();
     }
     res.pose = bestPose;
   }
   const Pose rigidPose = res.pose;
   const Eigen::VectorXd rigidX = res.x;
-  const double rigidMean = res.iterations.back().residual.mean;
+  const double rigidMean = res.iterations.back().score();
   if (res.cancelled) {
     res.status = "cancelled";
     return res;
@@ -497,6 +607,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     res.status = "rigid fit: mean distance " + std::to_string(rigidMean) + " px";
   } else {
     // Elastic: bound points held on their rays (image plane only), static equilibrium, rebind, repeat.
+    // Equilibrium to 10 micrometres is far below a pixel at endoscope distances (and projected Newton,
+    // which the constraints often need, converges only linearly to tighter tolerances).
+    if (settings.staticStepTolerance <= 0) settings.staticStepTolerance = 1e-5;
     Integrator integrator(model, fixedNodes, settings);
     SimulationState state = integrator.initialState();
     state.x = res.x;
@@ -507,17 +620,27 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     Eigen::VectorXd bestX = res.x;
     std::string failure;
     for (int k = 0; k < o.maxIterations; ++k) {
-      const auto bindings = bindContour(samples, segmentStarts, silhouette(state.x, res.pose), fixed, o, outlierFloor);
+      auto bindings = bindContour(samples, segmentStarts, silhouette(state.x, res.pose), fixed, o, outlierFloor);
+      if (!curves.empty()) {
+        // A node on a curve follows its curve (one pair of ray constraints per node).
+        auto curveBindings = bindCurves(curves, state.x, res.pose, camera, &fixed);
+        dropOutliers(curveBindings, o.outlierFactor, outlierFloor);
+        std::vector<char> onCurve(model.nodeCount(), 0);
+        for (const auto& b : curveBindings) onCurve[b.a] = 1;
+        bindings.erase(std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return onCurve[b.a] != 0; }), bindings.end());
+        bindings.insert(bindings.end(), curveBindings.begin(), curveBindings.end());
+      }
       if (bindings.size() < 3) {
         failure = "no part of the contour could be bound to the organ's silhouette (" + std::to_string(bindings.size()) +
                   " points); the contour may belong to another organ or lie outside the organ's view";
         break;
       }
       std::vector<ScalarConstraint> cs;
-      for (const auto& b : bindings) rayConstraints(b, res.pose, camera, cs);
+      for (const auto& b : bindings) rayConstraints(b, res.pose, camera, o.sliding, cs);
       integrator.setConstraints(cs);
       const SimulationState before = state;
       const StepReport rep = integrator.solveStatic(state);
+
       if (!rep.ok) {
         state = before;
         failure = "the elastic solve did not converge (" + rep.status + ")";
@@ -525,16 +648,16 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       }
       res.x = state.x;
       const auto ri = record(++iteration, "elastic", bindings.size());
-      if (ri.residual.mean < bestMean) {
-        bestMean = ri.residual.mean;
+      if (ri.score() < bestMean) {
+        bestMean = ri.score();
         bestX = res.x;
       }
       if (res.cancelled) break;
-      if (std::abs(previous - ri.residual.mean) < o.tolerance) {
+      if (std::abs(previous - ri.score()) < o.tolerance) {
         res.converged = true;
         break;
       }
-      previous = ri.residual.mean;
+      previous = ri.score();
     }
     res.x = bestX;
     if (res.cancelled) {
@@ -552,16 +675,35 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       res.ok = true;
       res.status = (res.converged ? "converged" : failure.empty() ? "not converged in " + std::to_string(o.maxIterations) + " iterations"
                                                                  : "stopped: " + failure) +
-                   ": mean distance " + std::to_string(bestMean) + " px (start " + std::to_string(first.residual.mean) + " px)";
+                   ": mean distance " + std::to_string(bestMean) + " px (start " + std::to_string(first.score()) + " px)";
     }
   }
   // A fit that still leaves the contour far from the organ did not find it.
-  const double finalMean = contourResidual(contour, silhouette(res.x, res.pose)).mean;
+  const double finalMean = score(res.x, res.pose);
   const double diag = std::hypot(camera.width, camera.height);
-  if (res.ok && finalMean > 0.05 * diag) {
+  if (res.ok && finalMean > 0.02 * diag) {
     res.ok = false;
     res.status = "failed: the contour stays " + std::to_string(static_cast<int>(finalMean)) +
                  " px from the organ's silhouette on average; it may belong to another organ or the start pose is too far";
+  }
+  // Nor did one that leaves most of the contour off the silhouette (the outline of another organ, reached
+  // only in part by stretching this one).
+  if (res.ok && points > 1) {
+    const double nearPx = std::max(8.0, 0.01 * diag);
+    const auto& sil = silhouette(res.x, res.pose);
+    std::size_t near = 0;
+    for (const auto& seg : contour)
+      for (const auto& p : seg) {
+        double best = std::numeric_limits<double>::infinity();
+        for (const auto& e : sil) best = std::min(best, (e.pa + closestParameter(e.pa, e.pb, p) * (e.pb - e.pa) - p).norm());
+        near += best <= nearPx;
+      }
+    const double share = static_cast<double>(near) / static_cast<double>(points);
+    if (share < 0.5) {
+      res.ok = false;
+      res.status = "failed: after the fit only " + std::to_string(static_cast<int>(100 * share)) + " % of the contour lies within " +
+                   std::to_string(static_cast<int>(nearPx)) + " px of the organ's silhouette; it may belong to another organ or the start pose is too far";
+    }
   }
   return res;
 }

@@ -158,15 +158,7 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
     part("attachments", "json", bytes(json{{"nodes", c.attachments}}.dump()));
     if (c.hasPose) part("pose", "json", bytes(json{{"pose", poseJson(c.pose)}, {"aligned", c.poseAligned}}.dump()));
     if (!c.meshSource.empty()) meta(QStringLiteral("mesh_source"), QString::fromStdString(c.meshSource));
-    if (!c.contour.segments.empty()) {
-      json segs = json::array();
-      for (const auto& sgm : c.contour.segments) {
-        json pts = json::array();
-        for (const auto& p : sgm.points) pts.push_back({p.x(), p.y()});
-        segs.push_back({{"points", pts}, {"closed", sgm.closed}, {"type", sgm.type}});
-      }
-      part("contour", "json", bytes(json{{"image_size", {c.contour.width, c.contour.height}}, {"segments", segs}}.dump()));
-    }
+    if (!c.contour.segments.empty()) part("contour", "json", bytes(imaging::contourToJson(c.contour)));
     if (!c.fitted.empty()) {
       json pts = json::array();
       for (const auto& x : c.fitted) pts.push_back({x.x(), x.y(), x.z()});
@@ -299,16 +291,7 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
   if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'mesh_source'")) && q.next()) c.meshSource = q.value(0).toString().toStdString();
   if (QByteArray k = read("contour"); !k.isEmpty()) {
     try {
-      const json j = json::parse(k.toStdString());
-      c.contour.width = j.at("image_size").at(0).get<int>();
-      c.contour.height = j.at("image_size").at(1).get<int>();
-      for (const auto& sj : j.at("segments")) {
-        imaging::ContourSegment sgm;
-        for (const auto& pt : sj.at("points")) sgm.points.emplace_back(pt.at(0).get<double>(), pt.at(1).get<double>());
-        sgm.closed = sj.value("closed", false);
-        sgm.type = sj.value("type", std::string("silhouette"));
-        c.contour.segments.push_back(std::move(sgm));
-      }
+      c.contour = imaging::parseContour(k.toStdString(), "the case's contour");
     } catch (const std::exception& e) {
       c.contour = {};
       note(QStringLiteral("Contour not loaded: %1").arg(QString::fromUtf8(e.what())));

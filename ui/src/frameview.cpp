@@ -200,7 +200,7 @@ void FrameView::eraseAt(const QPointF& w) {
 
 std::vector<Eigen::Vector2d> FrameView::maybeSnap(const std::vector<Eigen::Vector2d>& pts) const {
   if (!snap_ || !case_ || case_->frame.empty() || pts.size() < 2) return pts;
-  imaging::ContourSegment s{pts, false, "silhouette"};
+  imaging::ContourSegment s{pts, false, "silhouette", {}};
   auto anchors = imaging::resampleSegment(s, 30.0).points;
   return imaging::snapToEdges(case_->frame, anchors);
 }
@@ -208,7 +208,7 @@ std::vector<Eigen::Vector2d> FrameView::maybeSnap(const std::vector<Eigen::Vecto
 void FrameView::finishSegment() {
   if (draft_.size() >= 2) {
     imaging::Contour c = currentContour();
-    c.segments.push_back({maybeSnap(draft_), false, "silhouette"});
+    c.segments.push_back({maybeSnap(draft_), false, "silhouette", {}});
     commitContour(c, tool_ == Tool::Freehand ? tr("Draw segment") : tr("Add segment"));
   }
   draft_.clear();

@@ -16,6 +16,9 @@ struct ContourSegment {
   std::vector<Eigen::Vector2d> points;  ///< pixels
   bool closed = false;
   std::string type = "silhouette";      ///< silhouette, ridge or ligament (P2ILF's contour types)
+  /// For a ridge or a ligament: the same curve on the organ, as node indices of its mesh in order along it
+  /// (P2ILF's "modelPoints"), which makes it an anatomical curve constraint of the elastic fit.
+  std::vector<int> modelVertices;
 };
 
 struct Contour {
@@ -28,6 +31,9 @@ struct Contour {
 /// Reads our JSON or the P2ILF JSON (detected from the keys). Throws InputError with one sentence.
 Contour loadContour(const std::string& path);
 void saveContour(const Contour& c, const std::string& path);
+/// The same from and to text (`name` names the source in messages); what the case file stores.
+Contour parseContour(const std::string& text, const std::string& name);
+std::string contourToJson(const Contour& c);
 
 /// The outer borders of a binary mask (pixel centres), longest first; borders of fewer than `minPoints`
 /// pixels are dropped (the outline of a rendered organ, for tests and benchmarks of the fit).
@@ -35,6 +41,10 @@ std::vector<std::vector<Eigen::Vector2d>> maskOutlines(const cv::Mat1b& mask, st
 /// The silhouette segments of a contour (not ridges or ligaments) as point lists, what the elastic fit
 /// uses; a closed segment repeats its first point at the end.
 std::vector<std::vector<Eigen::Vector2d>> silhouetteSegments(const Contour& c);
+
+/// The ridge and ligament segments that carry their curve on the organ (modelVertices): the fit's anatomical
+/// curve constraints.
+std::vector<ContourSegment> anatomicalSegments(const Contour& c);
 
 /// The contour of a raw (distorted) image moved to the undistorted frame of `camera` (as P2ILF's contours,
 /// drawn on the raw images).

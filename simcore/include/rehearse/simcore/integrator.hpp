@@ -54,6 +54,7 @@ struct SimulationSettings {
   double rayleighStiffness = 0.1;                      ///< beta (s)
   int maxNewtonIterations = 10;
   double tolerance = 1e-6;                             ///< relative residual
+  double staticStepTolerance = 0;                      ///< m: a static solve also stops when Newton's largest node move is below this (0: off)
   bool lineSearch = true;
   LinearSolverKind solver = LinearSolverKind::Cholmod;
   int cgMaxIterations = 500;

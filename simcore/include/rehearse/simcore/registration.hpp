@@ -39,12 +39,33 @@ struct Residual2D {
 };
 Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& contour, const std::vector<SilhouetteEdge>& silhouette);
 
+/// An anatomical curve: a 3D curve picked on the organ (surface nodes in order along it, such as the
+/// liver's ridge or the falciform ligament) and the same curve drawn in the image (pixels, undistorted
+/// frame). Each of its nodes is held on the ray through the nearest point of the image curve, so, like the
+/// silhouette, it acts in the image plane only; nodes whose nearest point is an end of the image curve
+/// (the 3D curve picked longer than the drawn one) are left free.
+struct AnatomicalCurve {
+  std::vector<int> nodes;
+  std::vector<Eigen::Vector2d> image;
+  std::string type = "ridge";
+};
+
+/// Distances (px) from the points of the image curves to the projected 3D curves (polylines through the
+/// projected nodes), as contourResidual measures the silhouette.
+Residual2D curveResidual(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera);
+
 struct RegistrationIteration {
   int iteration = 0;
   double wallMs = 0;          ///< since the start
-  Residual2D residual;
-  std::size_t bound = 0;      ///< contour points bound to the silhouette
+  Residual2D residual;        ///< silhouette contour to the organ's silhouette
+  Residual2D curves;          ///< anatomical curves (when given)
+  std::size_t bound = 0;      ///< contour and curve points bound
   std::string stage;          ///< "start", "rigid", "elastic"
+  /// The mean distance over every silhouette and curve point: what the fit minimises and compares.
+  double score() const {
+    const std::size_t n = residual.points + curves.points;
+    return n ? (residual.mean * residual.points + curves.mean * curves.points) / n : 0.0;
+  }
 };
 
 struct RegistrationOptions {
@@ -56,6 +77,11 @@ struct RegistrationOptions {
   bool rigidPrepass = false;   ///< refine the pose on the bindings before deforming
   bool elastic = true;         ///< false: rigid only
   int rigidIterations = 15;
+  /// Bound points slide along the contour (one constraint across it per point) instead of being held at the
+  /// foot of their perpendicular (two, across the ray).
+  bool sliding = true;
+  /// Optional anatomical curve constraints, used by the rigid and the elastic stages.
+  std::vector<AnatomicalCurve> curves;
   /// Called after every iteration with the current positions (model frame) and pose; false cancels.
   std::function<bool(const RegistrationIteration&, const Eigen::VectorXd& x, const Pose& pose)> onIteration;
 };
@@ -72,7 +98,9 @@ struct RegistrationResult {
 
 /// Registers `model` (rest shape at the start) onto the contour (segments of pixels in the undistorted
 /// frame). `fixedNodes` and `settings` as for the Integrator (the solve is static; gravity as given).
-/// Throws MeshError for unusable input (empty or single-point contour, mesh behind the camera).
+/// The contour may be empty when anatomical curves are given. Throws MeshError for unusable input (empty or
+/// single-point contour without curves, a curve with fewer than two nodes or image points or with a node the
+/// model does not have, mesh behind the camera).
 RegistrationResult registerToContour(const FemModel& model, const std::vector<int>& fixedNodes, SimulationSettings settings,
                                      const std::vector<std::array<int, 3>>& surface,
                                      const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& start,
