@@ -121,6 +121,11 @@ class TestContour : public QObject {
     QVERIFY(std::abs(d.mean - 25.0 / 3) < 0.6);
     QVERIFY(std::abs(d.max - 10) < 0.6);
     QVERIFY(!contourToMaskDistance(c, cv::Mat1b(200, 200, uchar(0)), d));
+    // A ridge inside the outline is not part of the silhouette distance.
+    c.segments.push_back({{{100, 100}, {110, 100}}, false, "ridge", {}});
+    QVERIFY(contourToMaskDistance(c, mask, d));
+    QVERIFY(std::abs(d.max - 10) < 0.6);
+    QCOMPARE(d.points, std::size_t(3));
   }
 
   // A dark disc on a bright background: anchors placed 6 px off the edge snap onto it.

@@ -12,6 +12,7 @@
 #include <QCheckBox>
 #include <QComboBox>
 #include <QUndoStack>
+#include <set>
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
 
@@ -207,6 +208,77 @@ class TestSimulationGui : public QObject {
     if (!dir.isEmpty()) {
       QTest::qWait(100);
       w_->grab().save(QString::fromLocal8Bit(dir) + "/step5-fit.png");
+    }
+  }
+
+  // A ridge sketched on the frame (step 3, segment type Ridge, click by click), its curve clicked on the
+  // organ (step 5, K), one undo step, and the fit holding it.
+  void anatomicalCurveStep() {
+    w_->editCase("test: true pose, no fit", [](phantom::Case& k) {
+      k.fitted.clear();
+      k.pose = k.truePose;
+      k.hasPose = true;
+    });
+    const auto& c0 = *w_->currentCase().data;
+    const Eigen::Vector2d centre = c0.camera.project(c0.truePose.apply(c0.centreOfGravity()));
+    const std::vector<Eigen::Vector2d> along = {centre + Eigen::Vector2d(-160, 0), centre, centre + Eigen::Vector2d(160, 0)};
+    auto* view = w_->frameView();
+    auto click = [&](const Eigen::Vector2d& framePixel) {
+      QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, view->toWidget(QPointF(framePixel.x(), framePixel.y())).toPoint());
+    };
+    view->setFocus();
+    QTest::keyClick(w_.get(), Qt::Key_3, Qt::AltModifier);
+    QCOMPARE(w_->step(), ui::Step::Contour);
+    auto* type = w_->findChild<QComboBox*>("segmentType");
+    QVERIFY(type);
+    type->setFocus();
+    QTest::keyClick(type, Qt::Key_Down);  // Silhouette -> Ridge
+    QCOMPARE(type->currentData().toString(), QStringLiteral("ridge"));
+    view->setFocus();
+    QTest::keyClick(w_.get(), Qt::Key_C);  // click-by-click
+    const std::size_t before = w_->currentCase().data->contour.segments.size();
+    for (const auto& p : along) click(p);
+    QTest::keyClick(view, Qt::Key_Return);
+    const auto& segs = w_->currentCase().data->contour.segments;
+    QCOMPARE(segs.size(), before + 1);
+    QCOMPARE(QString::fromStdString(segs.back().type), QStringLiteral("ridge"));
+    QVERIFY(segs.back().modelVertices.empty());
+    // Step 5: the same curve on the organ, by three clicks.
+    QTest::keyClick(w_.get(), Qt::Key_5, Qt::AltModifier);
+    QTest::keyClick(w_.get(), Qt::Key_K);
+    QCOMPARE(view->tool(), ui::Tool::OrganCurve);
+    for (const auto& p : along) click(p);
+    QTest::keyClick(view, Qt::Key_Return);
+    const auto& c = *w_->currentCase().data;
+    const auto& nodes = c.contour.segments.back().modelVertices;
+    qInfo("organ curve: %zu nodes from 3 clicks; %s", nodes.size(), qPrintable(w_->findChild<QLabel*>("fitCurves")->text()));
+    QVERIFY(nodes.size() >= 5);
+    // A chain along the surface: consecutive nodes share a surface edge; its ends project near the clicks.
+    std::set<std::pair<int, int>> edges;
+    for (const auto& t : c.surface)
+      for (int k = 0; k < 3; ++k) edges.insert({std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])});
+    for (std::size_t i = 1; i < nodes.size(); ++i) QVERIFY(edges.count({std::min(nodes[i - 1], nodes[i]), std::max(nodes[i - 1], nodes[i])}));
+    const Eigen::Vector2d end = c.camera.project(c.pose.apply(c.volume.points[nodes.back()]));
+    // (the node nearest to the click on the triangle under it: within one surface edge, about 40 px here)
+    QVERIFY2((end - along.back()).norm() < 45, qPrintable(QString("last node projects %1 px from the last click").arg((end - along.back()).norm())));
+    QVERIFY(w_->findChild<QLabel*>("fitCurves")->text().contains("1 with their curve"));
+    // The picks are one undo step.
+    QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
+    QVERIFY(w_->currentCase().data->contour.segments.back().modelVertices.empty());
+    const QKeyCombination redo = QKeySequence::keyBindings(QKeySequence::Redo).front()[0];
+    QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
+    QCOMPARE(w_->currentCase().data->contour.segments.back().modelVertices.size(), nodes.size());
+    // The fit runs with the ridge held.
+    QTest::keyClick(w_.get(), Qt::Key_F9);
+    QElapsedTimer t;
+    t.start();
+    while (w_->currentCase().data->fitted.empty() && t.elapsed() < 120000) QTest::qWait(50);
+    QVERIFY2(!w_->currentCase().data->fitted.empty(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
+    qInfo("fit with the ridge: %s", qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
+    const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
+    if (!dir.isEmpty()) {
+      QTest::qWait(100);
+      w_->grab().save(QString::fromLocal8Bit(dir) + "/step5-ridge.png");
     }
   }
 

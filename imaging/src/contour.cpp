@@ -191,7 +191,8 @@ bool contourToMaskDistance(const Contour& c, const cv::Mat1b& mask, ContourDista
   cv::Mat1f dist;
   cv::distanceTransform(~outline, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
   double sum = 0, sum2 = 0;
-  for (const auto& s : c.segments)
+  for (const auto& s : c.segments) {
+    if (!s.type.empty() && s.type != "silhouette") continue;  // ridges and ligaments lie inside the outline
     for (const auto& p : s.points) {
       const int x = std::clamp(static_cast<int>(std::lround(p.x())), 0, mask.cols - 1);
       const int y = std::clamp(static_cast<int>(std::lround(p.y())), 0, mask.rows - 1);
@@ -201,6 +202,8 @@ bool contourToMaskDistance(const Contour& c, const cv::Mat1b& mask, ContourDista
       out.max = std::max(out.max, d);
       ++out.points;
     }
+  }
+  if (out.points == 0) return false;
   out.mean = sum / out.points;
   out.rms = std::sqrt(sum2 / out.points);
   return true;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <queue>
 
 namespace rehearse::simcore {
 namespace {
@@ -392,6 +393,45 @@ Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& cont
     r.rms = std::sqrt(sum2 / r.points);
   }
   return r;
+}
+
+std::vector<int> surfacePath(const std::vector<std::array<int, 3>>& triangles, const std::vector<Eigen::Vector3d>& points, int from, int to) {
+  const int n = static_cast<int>(points.size());
+  if (from < 0 || to < 0 || from >= n || to >= n) return {};
+  if (from == to) return {from};
+  std::vector<std::vector<int>> neighbours(points.size());
+  for (const auto& t : triangles)
+    for (int k = 0; k < 3; ++k) {
+      const int a = t[k], b = t[(k + 1) % 3];
+      if (a < 0 || b < 0 || a >= n || b >= n) continue;
+      neighbours[a].push_back(b);
+      neighbours[b].push_back(a);
+    }
+  std::vector<double> dist(points.size(), std::numeric_limits<double>::infinity());
+  std::vector<int> previous(points.size(), -1);
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+  dist[from] = 0;
+  queue.push({0.0, from});
+  while (!queue.empty()) {
+    const auto [d, v] = queue.top();
+    queue.pop();
+    if (d > dist[v]) continue;
+    if (v == to) break;
+    for (int w : neighbours[v]) {
+      const double nd = d + (points[w] - points[v]).norm();
+      if (nd < dist[w]) {
+        dist[w] = nd;
+        previous[w] = v;
+        queue.push({nd, w});
+      }
+    }
+  }
+  if (previous[to] < 0) return {};
+  std::vector<int> path{to};
+  while (path.back() != from) path.push_back(previous[path.back()]);
+  std::reverse(path.begin(), path.end());
+  return path;
 }
 
 Residual2D curveResidual(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera) {

@@ -1,6 +1,7 @@
 #include "rehearse/ui/frameview.hpp"
 
 #include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/registration.hpp>
 
 #include <QKeyEvent>
 #include <QMouseEvent>
@@ -24,6 +25,13 @@ QColor axisColour(int axis) {
   static const QColor c[3] = {QColor(235, 80, 80), QColor(90, 220, 90), QColor(90, 150, 255)};
   return c[axis];
 }
+// Contour segments by type: silhouettes yellow, ridges orange, ligaments violet.
+QColor segmentColour(const std::string& type) {
+  if (type == "ridge") return QColor(255, 130, 50);
+  if (type == "ligament") return QColor(200, 130, 255);
+  return QColor(255, 220, 40);
+}
+bool isAnatomical(const std::string& type) { return !type.empty() && type != "silhouette"; }
 }  // namespace
 
 FrameView::FrameView(QWidget* parent) : QWidget(parent) {
@@ -63,6 +71,9 @@ void FrameView::setOverlayOpacity(double opacity) {
 
 void FrameView::setTool(Tool t) {
   if (drawing_ && tool_ == Tool::ClickPoints) finishSegment();
+  if (tool_ == Tool::OrganCurve && t != Tool::OrganCurve) finishOrganCurve();
+  if (t == Tool::OrganCurve && tool_ != Tool::OrganCurve)
+    emit toolMessage(tr("Click along the ridge or ligament on the organ drawn over the frame; the nearest sketched one gets the curve."));
   tool_ = t;
   drawing_ = false;
   draft_.clear();
@@ -200,7 +211,7 @@ void FrameView::eraseAt(const QPointF& w) {
 
 std::vector<Eigen::Vector2d> FrameView::maybeSnap(const std::vector<Eigen::Vector2d>& pts) const {
   if (!snap_ || !case_ || case_->frame.empty() || pts.size() < 2) return pts;
-  imaging::ContourSegment s{pts, false, "silhouette", {}};
+  imaging::ContourSegment s{pts, false, newSegmentType_, {}};
   auto anchors = imaging::resampleSegment(s, 30.0).points;
   return imaging::snapToEdges(case_->frame, anchors);
 }
@@ -208,7 +219,7 @@ std::vector<Eigen::Vector2d> FrameView::maybeSnap(const std::vector<Eigen::Vecto
 void FrameView::finishSegment() {
   if (draft_.size() >= 2) {
     imaging::Contour c = currentContour();
-    c.segments.push_back({maybeSnap(draft_), false, "silhouette", {}});
+    c.segments.push_back({maybeSnap(draft_), false, newSegmentType_, {}});
     commitContour(c, tool_ == Tool::Freehand ? tr("Draw segment") : tr("Add segment"));
   }
   draft_.clear();
@@ -247,18 +258,39 @@ void FrameView::paintEvent(QPaintEvent*) {
     painter.setPen(pen);
     for (const auto& poly : silhouette_) painter.drawPolygon(poly);
   }
-  // Contour: segments in yellow, points when editing, the draft in cyan.
+  // Contour: segments coloured by type, points when editing, the draft in cyan.
   const auto contour = currentContour();
-  QPen cpen(QColor(255, 220, 40), 2.5);
-  cpen.setCosmetic(true);
   for (const auto& s : contour.segments) {
     QPolygonF poly;
     for (const auto& p : s.points) poly << QPointF(p.x(), p.y());
+    QPen cpen(segmentColour(s.type), 2.5);
+    cpen.setCosmetic(true);
     painter.setPen(cpen);
     if (s.closed) painter.drawPolygon(poly);
     else painter.drawPolyline(poly);
   }
   painter.resetTransform();
+  // The organ curves of ridges and ligaments, through the current pose and shape: dashed, with their nodes.
+  if (case_ && case_->hasPose) {
+    const SurfaceView sv = case_->surfaceView();
+    for (const auto& s : contour.segments) {
+      if (s.modelVertices.empty()) continue;
+      QPolygonF poly;
+      for (int v : s.modelVertices) {
+        if (v < 0 || static_cast<std::size_t>(v) >= sv.vertexCount) continue;
+        const Eigen::Vector3d xc = case_->pose.apply(sv.vertex(static_cast<std::size_t>(v)));
+        if (xc.z() <= 0) continue;
+        const auto uv = case_->camera.project(xc);
+        poly << toWidget(QPointF(uv.x(), uv.y()));
+      }
+      painter.setPen(QPen(segmentColour(s.type).lighter(130), 2, Qt::DashLine));
+      painter.setBrush(Qt::NoBrush);
+      painter.drawPolyline(poly);
+      painter.setBrush(segmentColour(s.type));
+      painter.setPen(QPen(QColor(30, 30, 30), 1));
+      for (const auto& q : poly) painter.drawEllipse(q, 2.5, 2.5);
+    }
+  }
   if (tool_ == Tool::EditPoints || tool_ == Tool::ClickPoints) {
     painter.setPen(QPen(QColor(30, 30, 30), 1));
     painter.setBrush(QColor(255, 220, 40));
@@ -436,18 +468,14 @@ void FrameView::mousePressEvent(QMouseEvent* e) {
       if (e->button() == Qt::LeftButton) {
         if (!landmarks_.empty() && !landmarks_.back().hasImage) {
           emit landmarkImagePicked(fp);
-        } else if (case_->hasPose && !case_->surface.empty()) {
-          // The organ point under the cursor, through the current pose.
-          auto r = imaging::rasterize(case_->camera, case_->pose, case_->surfaceView());
-          const int x = static_cast<int>(std::lround(fp.x())), y = static_cast<int>(std::lround(fp.y()));
-          if (x >= 0 && y >= 0 && x < r.triangle.cols && y < r.triangle.rows && r.triangle(y, x) >= 0) {
-            const double z = r.depth(y, x);
-            const Eigen::Vector3d xc((fp.x() - case_->camera.cx()) * z / case_->camera.fx(),
-                                     (fp.y() - case_->camera.cy()) * z / case_->camera.fy(), z);
-            emit landmarkModelPicked(case_->pose.R.transpose() * (xc - case_->pose.t));
-          }
+        } else if (const auto hit = organAt(fp)) {
+          emit landmarkModelPicked(hit->model);
         }
       }
+      break;
+    case Tool::OrganCurve:
+      if (e->button() == Qt::LeftButton) pickOrganCurve(fp);
+      else if (e->button() == Qt::RightButton) finishOrganCurve();
       break;
     default: break;
   }
@@ -494,6 +522,10 @@ void FrameView::mouseReleaseEvent(QMouseEvent* e) {
 }
 
 void FrameView::mouseDoubleClickEvent(QMouseEvent* e) {
+  if (tool_ == Tool::OrganCurve) {
+    finishOrganCurve();
+    return;
+  }
   if (tool_ == Tool::ClickPoints && drawing_) {
     finishSegment();
     return;
@@ -537,9 +569,28 @@ void FrameView::keyPressEvent(QKeyEvent* e) {
     case Qt::Key_Equal: zoom_ = std::min(32.0, zoom_ * 1.25); update(); break;
     case Qt::Key_Minus: zoom_ = std::max(0.25, zoom_ / 1.25); update(); break;
     case Qt::Key_Return:
-    case Qt::Key_Enter: finishSegment(); break;
+    case Qt::Key_Enter:
+      if (tool_ == Tool::OrganCurve) finishOrganCurve();
+      else finishSegment();
+      break;
+    case Qt::Key_Backspace:
+      if (tool_ == Tool::OrganCurve && curveSegment_ >= 0) {
+        // Take back the last click's stretch of the organ curve.
+        imaging::Contour c = currentContour();
+        if (curveSegment_ < static_cast<int>(c.segments.size()) && !c.segments[curveSegment_].modelVertices.empty()) {
+          auto& mv = c.segments[curveSegment_].modelVertices;
+          mv.resize(curveStops_.size() > 1 ? curveStops_[curveStops_.size() - 2] : 0);
+          if (!curveStops_.empty()) curveStops_.pop_back();
+          commitContour(c, tr("Pick organ curve"), curveMerge_);
+        }
+      } else {
+        QWidget::keyPressEvent(e);
+      }
+      break;
     case Qt::Key_Escape:
-      if (drawing_) {
+      if (tool_ == Tool::OrganCurve && curveSegment_ >= 0) {
+        finishOrganCurve();
+      } else if (drawing_) {
         draft_.clear();
         drawing_ = false;
         update();
@@ -549,6 +600,81 @@ void FrameView::keyPressEvent(QKeyEvent* e) {
       break;
     default: QWidget::keyPressEvent(e);
   }
+}
+
+std::optional<FrameView::OrganHit> FrameView::organAt(const Eigen::Vector2d& fp) const {
+  if (!case_ || !case_->hasPose || case_->surface.empty()) return std::nullopt;
+  const SurfaceView sv = case_->surfaceView();
+  const auto r = imaging::rasterize(case_->camera, case_->pose, sv);
+  const int x = static_cast<int>(std::lround(fp.x())), y = static_cast<int>(std::lround(fp.y()));
+  if (x < 0 || y < 0 || x >= r.triangle.cols || y >= r.triangle.rows || r.triangle(y, x) < 0) return std::nullopt;
+  const double z = r.depth(y, x);
+  const Eigen::Vector3d xc((fp.x() - case_->camera.cx()) * z / case_->camera.fx(), (fp.y() - case_->camera.cy()) * z / case_->camera.fy(), z);
+  OrganHit hit;
+  hit.model = case_->pose.R.transpose() * (xc - case_->pose.t);
+  const auto& tri = case_->surface[static_cast<std::size_t>(r.triangle(y, x))];
+  double best = std::numeric_limits<double>::infinity();
+  for (int v : tri) {
+    const double d = (sv.vertex(static_cast<std::size_t>(v)) - hit.model).norm();
+    if (d < best) {
+      best = d;
+      hit.node = v;
+    }
+  }
+  return hit;
+}
+
+void FrameView::pickOrganCurve(const Eigen::Vector2d& fp) {
+  const auto hit = organAt(fp);
+  if (!hit) {
+    emit toolMessage(tr("Click on the organ drawn over the frame, along the ridge or ligament."));
+    return;
+  }
+  imaging::Contour c = currentContour();
+  if (curveSegment_ < 0 || curveSegment_ >= static_cast<int>(c.segments.size())) {
+    // The first click chooses the sketched ridge or ligament nearest to it; its organ curve starts anew.
+    double best = std::numeric_limits<double>::infinity();
+    int target = -1;
+    for (int i = 0; i < static_cast<int>(c.segments.size()); ++i) {
+      if (!isAnatomical(c.segments[i].type)) continue;
+      for (const auto& p : c.segments[i].points)
+        if ((p - fp).norm() < best) {
+          best = (p - fp).norm();
+          target = i;
+        }
+    }
+    if (target < 0) {
+      emit toolMessage(tr("Sketch the ridge or ligament on the frame first (step 3, new segments: Ridge or Ligament)."));
+      return;
+    }
+    curveSegment_ = target;
+    curveMerge_ = ++mergeCounter_;
+    curveStops_.clear();
+    c.segments[target].modelVertices.clear();
+  }
+  auto& seg = c.segments[curveSegment_];
+  auto& mv = seg.modelVertices;
+  if (mv.empty()) {
+    mv.push_back(hit->node);
+  } else {
+    // Joined to the previous click by the shortest path along the surface (rest shape).
+    std::vector<Eigen::Vector3d> rest(case_->volume.points.size());
+    for (std::size_t i = 0; i < rest.size(); ++i) rest[i] = case_->volume.points[i];
+    const auto path = simcore::surfacePath(case_->surface, rest, mv.back(), hit->node);
+    if (path.size() > 1) mv.insert(mv.end(), path.begin() + 1, path.end());
+  }
+  curveStops_.push_back(mv.size());
+  commitContour(c, tr("Pick organ curve"), curveMerge_);
+  emit toolMessage(tr("%1: %2 nodes on the organ. Click on along it; Backspace takes back a click, Enter or a double click ends.")
+                       .arg(QString::fromStdString(seg.type))
+                       .arg(mv.size()));
+}
+
+void FrameView::finishOrganCurve() {
+  if (curveSegment_ >= 0) emit toolMessage(tr("Organ curve done; the fit (F9) holds it onto the sketched curve."));
+  curveSegment_ = -1;
+  curveMerge_ = -1;
+  curveStops_.clear();
 }
 
 }  // namespace rehearse::ui

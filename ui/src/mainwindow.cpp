@@ -202,6 +202,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       k.poseAligned = true;
     }, merge);
   });
+  connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {
     landmarks_.push_back({m, {}, false});
     view_->setLandmarks(landmarks_);
@@ -473,6 +474,20 @@ QWidget* MainWindow::buildContourPage() {
   snap_ = new QCheckBox(tr("Snap to image edges"), page);
   connect(snap_, &QCheckBox::toggled, view_, &FrameView::setSnapToEdges);
   l->addWidget(snap_);
+  // What new segments are: the organ's silhouette, or an anatomical curve (the ridge, the falciform
+  // ligament) that step 5 can also hold onto its curve on the organ.
+  auto* typeRow = new QHBoxLayout;
+  segmentType_ = new QComboBox(page);
+  segmentType_->setObjectName(QStringLiteral("segmentType"));
+  segmentType_->addItem(tr("Silhouette"), QStringLiteral("silhouette"));
+  segmentType_->addItem(tr("Ridge"), QStringLiteral("ridge"));
+  segmentType_->addItem(tr("Ligament"), QStringLiteral("ligament"));
+  segmentType_->setToolTip(tr("Silhouettes are drawn yellow, ridges orange, ligaments violet."));
+  connect(segmentType_, &QComboBox::currentIndexChanged, this,
+          [this](int i) { view_->setNewSegmentType(segmentType_->itemData(i).toString()); });
+  typeRow->addWidget(new QLabel(tr("New segments"), page));
+  typeRow->addWidget(segmentType_, 1);
+  l->addLayout(typeRow);
   auto* rs = new QHBoxLayout;
   spacing_ = new QDoubleSpinBox(page);
   spacing_->setRange(1, 100);
@@ -535,6 +550,25 @@ QWidget* MainWindow::buildFitPage() {
   fitRigid_->setObjectName(QStringLiteral("fitRigid"));
   fitRigid_->setChecked(true);
   layout->addWidget(fitRigid_);
+  // Anatomical curves: a ridge or ligament sketched in step 3, and the same curve clicked on the organ.
+  auto* curveRow = new QHBoxLayout;
+  auto* pickCurve = new QPushButton(tr("Pick Curve on Organ (K)"), page);
+  pickCurve->setObjectName(QStringLiteral("pickCurve"));
+  pickCurve->setToolTip(tr("Click along the ridge or ligament on the organ drawn over the frame; the sketched ridge or "
+                           "ligament nearest to the first click gets the curve. Enter ends, Backspace takes back a click."));
+  connect(pickCurve, &QPushButton::clicked, this, [this] { view_->setTool(Tool::OrganCurve); });
+  auto* pickAction = new QAction(this);
+  pickAction->setShortcut(QKeySequence(Qt::Key_K));
+  connect(pickAction, &QAction::triggered, this, [this] {
+    if (step_ == Step::Elastic) view_->setTool(Tool::OrganCurve);
+  });
+  addAction(pickAction);
+  curveRow->addWidget(pickCurve);
+  layout->addLayout(curveRow);
+  fitCurves_ = new QLabel(page);
+  fitCurves_->setObjectName(QStringLiteral("fitCurves"));
+  fitCurves_->setWordWrap(true);
+  layout->addWidget(fitCurves_);
   auto* row = new QHBoxLayout;
   fitButton_ = new QPushButton(tr("Fit to Contour (F9)"), page);
   fitButton_->setObjectName(QStringLiteral("fitButton"));
@@ -609,13 +643,14 @@ void MainWindow::runElasticFit() {
       const auto segments = imaging::silhouetteSegments(c->contour);
       simcore::RegistrationOptions o;
       o.rigidPrepass = rigid;
+      for (const auto& s : imaging::anatomicalSegments(c->contour)) o.curves.push_back({s.modelVertices, s.points, s.type});
       o.onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
         // Live: the organ deforms over the frame and the chart grows (on the GUI thread).
         auto preview = std::make_shared<phantom::Case>(*c);
         preview->fitted.resize(preview->volume.points.size());
         for (std::size_t i = 0; i < preview->fitted.size(); ++i) preview->fitted[i] = x.segment<3>(3 * i);
         preview->pose = pose;
-        const double t = it.wallMs / 1000.0, px = it.residual.mean;
+        const double t = it.wallMs / 1000.0, px = it.score();
         QMetaObject::invokeMethod(this, [this, preview, t, px] {
           fitSeries_->append(t, px);
           fitAxisX_->setRange(0, std::max(1.0, 1.2 * t));
@@ -929,6 +964,19 @@ void MainWindow::refreshPanels() {
                               .arg(c->contour.segments.size())
                               .arg(c->contour.pointCount())
                               .arg(problem.empty() ? tr("Ready for fitting.") : QString::fromStdString(problem)));
+  // Step 5: the anatomical curves.
+  {
+    int sketched = 0, onOrgan = 0;
+    for (const auto& s : c->contour.segments)
+      if (!s.type.empty() && s.type != "silhouette") {
+        ++sketched;
+        onOrgan += !s.modelVertices.empty();
+      }
+    fitCurves_->setText(sketched == 0 ? tr("No ridge or ligament sketched: the fit uses the silhouette alone.")
+                                      : tr("Ridges and ligaments: %1 sketched, %2 with their curve on the organ (held by the fit).")
+                                            .arg(sketched)
+                                            .arg(onOrgan));
+  }
   // Step 4: pose fields (translation in mm, rotation as Z-Y-X Euler angles in degrees).
   if (c->hasPose) {
     // R = Rz(rz) Ry(ry) Rx(rx), angles in (-180, 180] with ry in [-90, 90] (the fields rebuild R the same way).

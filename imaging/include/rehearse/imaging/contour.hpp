@@ -61,8 +61,8 @@ ContourSegment smoothSegment(const ContourSegment& s, int iterations);
 /// True when two non-adjacent edges of the segment cross.
 bool segmentSelfIntersects(const ContourSegment& s);
 
-/// Distances (px) from the contour points to the outline of a mask: mean, RMS and maximum (Hausdorff
-/// from contour to silhouette). Returns false when the mask or the contour is empty.
+/// Distances (px) from the contour's silhouette points to the outline of a mask: mean, RMS and maximum
+/// (Hausdorff from contour to silhouette). Returns false when the mask or the contour has none.
 struct ContourDistance {
   double mean = 0, rms = 0, max = 0;
   std::size_t points = 0;

@@ -50,6 +50,11 @@ struct AnatomicalCurve {
   std::string type = "ridge";
 };
 
+/// The shortest path along the surface's edges (lengths over `points`) from node `from` to node `to`, both
+/// included: how a curve picked by a few clicks on the organ becomes a chain of surface nodes. Empty when
+/// they are not connected.
+std::vector<int> surfacePath(const std::vector<std::array<int, 3>>& triangles, const std::vector<Eigen::Vector3d>& points, int from, int to);
+
 /// Distances (px) from the points of the image curves to the projected 3D curves (polylines through the
 /// projected nodes), as contourResidual measures the silhouette.
 Residual2D curveResidual(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera);

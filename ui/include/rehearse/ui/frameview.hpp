@@ -14,7 +14,9 @@
 
 namespace rehearse::ui {
 
-enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks };
+/// OrganCurve: clicks on the organ drawn over the frame pick the 3D curve of the nearest sketched ridge or
+/// ligament (surface nodes joined by shortest paths along the surface), for the elastic fit.
+enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks, OrganCurve };
 
 /// Gizmo handles of the Align tool: translations along and rotations about the camera axes through
 /// the organ's centre of gravity.
@@ -41,6 +43,11 @@ class FrameView : public QWidget {
   void setTool(Tool t);
   Tool tool() const { return tool_; }
   void setSnapToEdges(bool on) { snap_ = on; }
+  /// The type new segments get: "silhouette", "ridge" or "ligament".
+  void setNewSegmentType(const QString& type) { newSegmentType_ = type.toStdString(); }
+  QString newSegmentType() const { return QString::fromStdString(newSegmentType_); }
+  /// Ends the organ curve being picked (Enter, a double click or another tool do the same).
+  void finishOrganCurve();
   void setLandmarks(const std::vector<LandmarkPair>& l) { landmarks_ = l; update(); }
   double zoom() const { return zoom_; }
   /// Frame pixel under a widget position, and back.
@@ -60,6 +67,8 @@ class FrameView : public QWidget {
   /// Landmarks tool: a click on the organ (model point) or, after one, on the frame (image point).
   void landmarkModelPicked(const Eigen::Vector3d& modelPoint);
   void landmarkImagePicked(const Eigen::Vector2d& imagePoint);
+  /// A sentence for the status bar about the current tool (what to do next, or why a click did nothing).
+  void toolMessage(const QString& text);
 
  protected:
   void paintEvent(QPaintEvent*) override;
@@ -80,6 +89,13 @@ class FrameView : public QWidget {
   void dragGizmo(const QPointF& widgetPos);
   void eraseAt(const QPointF& widgetPos);
   std::vector<Eigen::Vector2d> maybeSnap(const std::vector<Eigen::Vector2d>& pts) const;
+  /// The organ under a frame pixel through the current pose: the model point and its nearest surface node.
+  struct OrganHit {
+    Eigen::Vector3d model;
+    int node = -1;
+  };
+  std::optional<OrganHit> organAt(const Eigen::Vector2d& framePixel) const;
+  void pickOrganCurve(const Eigen::Vector2d& framePixel);
 
   std::shared_ptr<const phantom::Case> case_;
   QImage frame_, overlay_, inner_;
@@ -104,6 +120,10 @@ class FrameView : public QWidget {
   int mergeCounter_ = 0;
   int activeMerge_ = -1;
   std::vector<LandmarkPair> landmarks_;
+  std::string newSegmentType_ = "silhouette";
+  int curveSegment_ = -1;  // the ridge or ligament whose organ curve is being picked
+  int curveMerge_ = -1;
+  std::vector<std::size_t> curveStops_;  // the curve's length after each click (for Backspace)
 };
 
 }  // namespace rehearse::ui

@@ -25,6 +25,7 @@ class QStackedWidget;
 class QTreeWidget;
 class QSlider;
 class QDoubleSpinBox;
+class QComboBox;
 class QSpinBox;
 class QComboBox;
 class QCheckBox;
@@ -191,7 +192,9 @@ class MainWindow : public QMainWindow {
   QLabel* contourStatus_ = nullptr;
   QDoubleSpinBox* spacing_ = nullptr;
   QCheckBox* snap_ = nullptr;
+  QComboBox* segmentType_ = nullptr;
   // Step 5
+  QLabel* fitCurves_ = nullptr;
   QCheckBox* fitRigid_ = nullptr;
   QPushButton* fitButton_ = nullptr;
   QLabel* fitStatus_ = nullptr;
