@@ -86,7 +86,7 @@ std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std:
       const double d = (e.pa + t * (e.pb - e.pa) - s.pixel).norm();
       if (d < best) {
         best = d;
-        b = {e.a, e.b, t, s.pixel, d};
+        b = {e.a, e.b, t, s.pixel, d, e.normal};
       }
     }
     if (b.a >= 0) out.push_back(b);
@@ -221,15 +221,18 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& w) {
   return m;
 }
 
-// Gauss-Newton (Levenberg-Marquardt) on the pose: projected bound points onto their contour points.
-Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam) {
+// Gauss-Newton (Levenberg-Marquardt) on the pose: projected bound points onto their contour points, or,
+// when `pointToLine`, onto the lines through them along the silhouette (the distance along the normal).
+Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam, bool pointToLine) {
   double lambda = 1e-3;
+  auto useLine = [&](const Binding& b) { return pointToLine && b.normal.squaredNorm() > 0; };
   auto cost = [&](const Pose& p) {
     double c = 0;
     for (const auto& b : bindings) {
       const Eigen::Vector3d q = p.apply(point(x, b));
       if (q.z() <= 0) return std::numeric_limits<double>::infinity();
-      c += (cam.project(q) - b.contour).squaredNorm();
+      const Eigen::Vector2d r = cam.project(q) - b.contour;
+      c += useLine(b) ? std::pow(b.normal.dot(r), 2) : r.squaredNorm();
     }
     return c;
   };
@@ -246,8 +249,14 @@ Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, 
       Eigen::Matrix<double, 3, 6> dq;
       dq << -skew(q), Eigen::Matrix3d::Identity();
       const Eigen::Matrix<double, 2, 6> J = dpi * dq;
-      JtJ += J.transpose() * J;
-      Jtr += J.transpose() * r;
+      if (useLine(b)) {
+        const Eigen::Matrix<double, 1, 6> Jn = b.normal.transpose() * J;
+        JtJ += Jn.transpose() * Jn;
+        Jtr += Jn.transpose() * b.normal.dot(r);
+      } else {
+        JtJ += J.transpose() * J;
+        Jtr += J.transpose() * r;
+      }
     }
     bool improved = false;
     for (int tries = 0; tries < 8 && !improved; ++tries) {
@@ -565,7 +574,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       for (int k = 0; k < iterations; ++k) {
         const auto bindings = rigidBindings(pose);
         if (bindings.size() < 3) break;
-        pose = refinePose(res.x, bindings, pose, camera);
+        pose = refinePose(res.x, bindings, pose, camera, o.sliding);
       }
       return std::make_pair(pose, score(res.x, pose));
     };
@@ -623,7 +632,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     for (int k = 0; k < o.rigidIterations; ++k) {
       const auto bindings = rigidBindings(res.pose);
       if (bindings.size() < 3) break;
-      res.pose = refinePose(res.x, bindings, res.pose, camera);
+      res.pose = refinePose(res.x, bindings, res.pose, camera, o.sliding);
       const auto ri = record(++iteration, "rigid", bindings.size());
       if (ri.score() < bestMean) {
         bestMean = ri.score();
