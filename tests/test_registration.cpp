@@ -34,6 +34,7 @@ std::vector<std::vector<Eigen::Vector2d>> outline(const phantom::Case& c, const 
 struct Deformed {
   Eigen::VectorXd x;           // nodes, model frame
   std::vector<double> vertices;  // the same, for a SurfaceView
+  std::vector<std::vector<Eigen::Vector2d>> contour;  // its outline at the true pose
 };
 Deformed deformSideways(const phantom::Case& c, const FemModel& m) {
   SimulationSettings load;
@@ -41,7 +42,11 @@ Deformed deformSideways(const phantom::Case& c, const FemModel& m) {
   Integrator in(m, c.attachments, load);
   auto truth = in.initialState();
   if (!in.solveStatic(truth).ok) return {};
-  return {truth.x, std::vector<double>(truth.x.data(), truth.x.data() + truth.x.size())};
+  Deformed d{truth.x, std::vector<double>(truth.x.data(), truth.x.data() + truth.x.size()), {}};
+  SurfaceView deformed = c.surfaceView();
+  deformed.vertices = d.vertices.data();
+  d.contour = outline(c, c.truePose, deformed);
+  return d;
 }
 
 FemModel organModel(const phantom::Case& c) {
@@ -147,10 +152,7 @@ class TestRegistration : public QObject {
     const FemModel m = organModel(c_);
     const Deformed truth = deformSideways(c_, m);
     QVERIFY(truth.x.size() > 0);
-    // The deformed surface, rendered for its outline.
-    SurfaceView deformed = c_.surfaceView();
-    deformed.vertices = truth.vertices.data();
-    const auto contour = outline(c_, c_.truePose, deformed);
+    const auto& contour = truth.contour;
     SimulationSettings s;
     s.gravity.setZero();
     std::vector<double> errors;
@@ -190,9 +192,7 @@ class TestRegistration : public QObject {
     const FemModel m = organModel(c_);
     const Deformed truth = deformSideways(c_, m);
     QVERIFY(truth.x.size() > 0);
-    SurfaceView deformed = c_.surfaceView();
-    deformed.vertices = truth.vertices.data();
-    const auto contour = outline(c_, c_.truePose, deformed);
+    const auto& contour = truth.contour;
     const Pinhole cam = c_.camera.pinhole();
     const AnatomicalCurve ridge = frontRidge(c_, m, truth.x);
     QVERIFY(ridge.nodes.size() >= 8);
@@ -302,12 +302,10 @@ class TestRegistration : public QObject {
     const FemModel m = organModel(c_);
     const Deformed truth = deformSideways(c_, m);
     QVERIFY(truth.x.size() > 0);
-    SurfaceView deformed = c_.surfaceView();
-    deformed.vertices = truth.vertices.data();
     imaging::Contour contour;
     contour.width = c_.camera.width;
     contour.height = c_.camera.height;
-    for (const auto& seg : outline(c_, c_.truePose, deformed)) contour.segments.push_back({seg, true, "silhouette", {}});
+    for (const auto& seg : truth.contour) contour.segments.push_back({seg, true, "silhouette", {}});
     imaging::saveContour(contour, dir + "/contour.json");
     Mesh gt = c_.volume;
     gt.convertToMetres();

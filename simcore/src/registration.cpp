@@ -24,6 +24,33 @@ double closestParameter(const Eigen::Vector2d& a, const Eigen::Vector2d& b, cons
   return l2 > 0 ? std::clamp((p - a).dot(d) / l2, 0.0, 1.0) : 0.0;
 }
 
+// Distance from p to the nearest silhouette edge (px).
+double distanceToSilhouette(const std::vector<SilhouetteEdge>& silhouette, const Eigen::Vector2d& p) {
+  double best = std::numeric_limits<double>::infinity();
+  for (const auto& e : silhouette) best = std::min(best, (e.pa + closestParameter(e.pa, e.pb, p) * (e.pb - e.pa) - p).norm());
+  return best;
+}
+
+// Mean, RMS and largest of a run of distances.
+struct ResidualSum {
+  Residual2D r;
+  double sum = 0, sum2 = 0;
+  void add(double d) {
+    sum += d;
+    sum2 += d * d;
+    r.hausdorff = std::max(r.hausdorff, d);
+    ++r.points;
+  }
+  Residual2D result() const {
+    Residual2D out = r;
+    if (out.points) {
+      out.mean = sum / out.points;
+      out.rms = std::sqrt(sum2 / out.points);
+    }
+    return out;
+  }
+};
+
 struct Sample {
   Eigen::Vector2d pixel, normal;
 };
@@ -383,25 +410,10 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
 }
 
 Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& contour, const std::vector<SilhouetteEdge>& silhouette) {
-  Residual2D r;
-  double sum = 0, sum2 = 0;
+  ResidualSum sum;
   for (const auto& seg : contour)
-    for (const auto& p : seg) {
-      double best = std::numeric_limits<double>::infinity();
-      for (const auto& e : silhouette) {
-        const double t = closestParameter(e.pa, e.pb, p);
-        best = std::min(best, (e.pa + t * (e.pb - e.pa) - p).norm());
-      }
-      sum += best;
-      sum2 += best * best;
-      r.hausdorff = std::max(r.hausdorff, best);
-      ++r.points;
-    }
-  if (r.points) {
-    r.mean = sum / r.points;
-    r.rms = std::sqrt(sum2 / r.points);
-  }
-  return r;
+    for (const auto& p : seg) sum.add(distanceToSilhouette(silhouette, p));
+  return sum.result();
 }
 
 std::vector<int> surfacePath(const std::vector<std::array<int, 3>>& triangles, const std::vector<Eigen::Vector3d>& points, int from, int to) {
@@ -444,8 +456,7 @@ std::vector<int> surfacePath(const std::vector<std::array<int, 3>>& triangles, c
 }
 
 Residual2D curveResidual(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera) {
-  Residual2D r;
-  double sum = 0, sum2 = 0;
+  ResidualSum sum;
   std::vector<Eigen::Vector2d> projected;
   for (const auto& c : curves) {
     projected.clear();
@@ -455,19 +466,9 @@ Residual2D curveResidual(const std::vector<AnatomicalCurve>& curves, const Eigen
       projected.push_back(camera.project(q));
     }
     if (projected.empty()) continue;
-    for (const auto& p : c.image) {
-      const double d = nearestOnPolyline(projected, p).distance;
-      sum += d;
-      sum2 += d * d;
-      r.hausdorff = std::max(r.hausdorff, d);
-      ++r.points;
-    }
+    for (const auto& p : c.image) sum.add(nearestOnPolyline(projected, p).distance);
   }
-  if (r.points) {
-    r.mean = sum / r.points;
-    r.rms = std::sqrt(sum2 / r.points);
-  }
-  return r;
+  return sum.result();
 }
 
 RegistrationResult registerToContour(const FemModel& model, const std::vector<int>& fixedNodes, SimulationSettings settings,
@@ -742,11 +743,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     const auto& sil = silhouette(res.x, res.pose);
     std::size_t near = 0;
     for (const auto& seg : contour)
-      for (const auto& p : seg) {
-        double best = std::numeric_limits<double>::infinity();
-        for (const auto& e : sil) best = std::min(best, (e.pa + closestParameter(e.pa, e.pb, p) * (e.pb - e.pa) - p).norm());
-        near += best <= nearPx;
-      }
+      for (const auto& p : seg) near += distanceToSilhouette(sil, p) <= nearPx;
     const double share = static_cast<double>(near) / static_cast<double>(points);
     if (share < 0.5) {
       res.ok = false;
