@@ -364,6 +364,38 @@ class TestRegistration : public QObject {
       QVERIFY(rits.last().toObject().contains("curve_mean_px"));
       QVERIFY(rits.last().toObject()["curve_mean_px"].toDouble() < rits.first().toObject()["curve_mean_px"].toDouble());
       QVERIFY(rits.last().toObject()["error_mean_mm"].toDouble() < e1);
+      // The organ given as a surface (tetrahedralised by the command): the curve's vertices index that
+      // surface and are mapped onto the new volume's surface nodes.
+      const Mesh obj = loadMesh(dir + "/organ_surface.obj");
+      QJsonArray objVertices;
+      for (int v : ridge.nodes) {
+        std::size_t best = 0;
+        for (std::size_t i = 1; i < obj.points.size(); ++i)
+          if ((obj.points[i] - m.rest[v]).squaredNorm() < (obj.points[best] - m.rest[v]).squaredNorm()) best = i;
+        objVertices.append(static_cast<int>(best));
+      }
+      QJsonObject ridgeEntry = contours.last().toObject();
+      ridgeEntry["modelPoints"] = QJsonObject{{"vertices", objVertices}};
+      contours[contours.size() - 1] = ridgeEntry;
+      writeFile(dir + "/p2ilf-surface.json", QJsonDocument(QJsonObject{{"numOfContours", contours.size()}, {"contour", contours}}).toJson().toStdString());
+      QStringList surfaceArgs = common;
+      surfaceArgs[surfaceArgs.indexOf("--mesh") + 1] = d + "/organ_surface.obj";
+      surfaceArgs.removeAt(surfaceArgs.indexOf("--fixed-nodes") + 1);  // node numbers of the other mesh
+      surfaceArgs.removeAt(surfaceArgs.indexOf("--fixed-nodes"));
+      auto [cs, outs, errs] = run(surfaceArgs + QStringList{"--contour", d + "/p2ilf-surface.json", "--out", d + "/surface-fit.vtu", "--report",
+                                                            d + "/surface.json", "--iterations", "4"});
+      QVERIFY2(cs == 0, qPrintable(errs));
+      qInfo("surface mesh with the ridge: %s", qPrintable(outs.trimmed()));
+      const QJsonArray sits = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/surface.json"))).object()["iterations"].toArray();
+      QVERIFY(sits.last().toObject()["curve_mean_px"].toDouble() < sits.first().toObject()["curve_mean_px"].toDouble());
+      // A vertex the surface does not have: one line, no output.
+      objVertices.append(999999);
+      ridgeEntry["modelPoints"] = QJsonObject{{"vertices", objVertices}};
+      contours[contours.size() - 1] = ridgeEntry;
+      writeFile(dir + "/p2ilf-bad.json", QJsonDocument(QJsonObject{{"numOfContours", contours.size()}, {"contour", contours}}).toJson().toStdString());
+      auto [cb, outb, errb] = run(surfaceArgs + QStringList{"--contour", d + "/p2ilf-bad.json", "--out", d + "/bad.vtu"});
+      QVERIFY2(cb != 0 && errb.trimmed().count('\n') == 0 && errb.contains("999999"), qPrintable(errb));
+      QVERIFY(!QFile::exists(d + "/bad.vtu"));
     }
     // Unusable input: one line on stderr, a non-zero exit, nothing written.
     writeFile(dir + "/empty.json", R"({"width": 1280, "height": 720, "segments": []})");
