@@ -260,7 +260,13 @@ class TestRegistration : public QObject {
     RegistrationOptions o;
     o.rigidPrepass = true;
     const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, c_.camera.pinhole(), o);
-    qInfo("kidney outline (%zu points) against the liver: %s", contour.front().size(), res.status.c_str());
+    double moved = 0;
+    for (std::size_t i = 0; i < m.nodeCount(); ++i) moved = std::max(moved, (res.x.segment<3>(3 * i) - m.rest[i]).norm());
+    double rigidPx = -1;
+    for (const auto& it : res.iterations)
+      if (it.stage == "rigid") rigidPx = it.score();
+    qInfo("kidney outline (%zu points) against the liver: %s; largest node move %.1f mm; after the rigid stage %.1f px", contour.front().size(),
+          res.status.c_str(), 1e3 * moved, rigidPx);
     QVERIFY(!res.ok);
     QVERIFY(res.status.rfind("failed", 0) == 0);
     QVERIFY(res.status.find('\n') == std::string::npos);

@@ -332,11 +332,20 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
       throw MeshError("The organ is behind the camera (or crosses its image plane); place it in front of the camera first.");
     pix[i] = camera.project(pc[i]);
   }
-  // Depth buffer at the image's resolution (at most 2048 pixels wide): the nearest depth per pixel.
-  const double scale = std::min(1.0, 2048.0 / std::max(camera.width, camera.height));
+  // Front faces (the nearest surface of a closed organ is always a front face, so only they are drawn).
+  std::vector<char> front(triangles.size(), 0);
+  for (std::size_t f = 0; f < triangles.size(); ++f) {
+    const auto& t = triangles[f];
+    front[f] = (pc[t[1]] - pc[t[0]]).cross(pc[t[2]] - pc[t[0]]).dot(pc[t[0]]) < 0;
+  }
+  // Depth buffer at up to 800 pixels across (it only decides which vertices are hidden; the silhouette's
+  // edges are the exact projected mesh edges): the nearest depth per pixel.
+  const double scale = std::min(1.0, 800.0 / std::max(camera.width, camera.height));
   const int W = std::max(1, static_cast<int>(camera.width * scale)), H = std::max(1, static_cast<int>(camera.height * scale));
   std::vector<float> depth(static_cast<std::size_t>(W) * H, std::numeric_limits<float>::infinity());
-  for (const auto& t : triangles) {
+  for (std::size_t f = 0; f < triangles.size(); ++f) {
+    if (!front[f]) continue;
+    const auto& t = triangles[f];
     const Eigen::Vector2d a = pix[t[0]] * scale, b = pix[t[1]] * scale, c = pix[t[2]] * scale;
     const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
     if (std::abs(area) < 1e-12) continue;
@@ -376,25 +385,31 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
   std::vector<char> faceVisible(triangles.size(), 0);
   for (std::size_t f = 0; f < triangles.size(); ++f) {
     const auto& t = triangles[f];
-    const Eigen::Vector3d nrm = (pc[t[1]] - pc[t[0]]).cross(pc[t[2]] - pc[t[0]]);
-    faceVisible[f] = nrm.dot(pc[t[0]]) < 0 && visible[t[0]] && visible[t[1]] && visible[t[2]];
+    faceVisible[f] = front[f] && visible[t[0]] && visible[t[1]] && visible[t[2]];
   }
-  // Silhouette: edges between a visible face and a non-visible one (or no other face).
-  std::map<std::pair<int, int>, std::array<int, 2>> faces;
+  // Silhouette: edges between a visible face and a non-visible one (or no other face). Edges as (low
+  // node, high node, face), sorted so the two faces of an edge are neighbours.
+  std::vector<std::array<int, 3>> halfEdges;
+  halfEdges.reserve(3 * triangles.size());
   for (std::size_t f = 0; f < triangles.size(); ++f)
     for (int k = 0; k < 3; ++k) {
       const int a = triangles[f][k], b = triangles[f][(k + 1) % 3];
-      auto [it, added] = faces.try_emplace({std::min(a, b), std::max(a, b)}, std::array<int, 2>{static_cast<int>(f), -1});
-      if (!added) it->second[1] = static_cast<int>(f);
+      halfEdges.push_back({std::min(a, b), std::max(a, b), static_cast<int>(f)});
     }
+  std::sort(halfEdges.begin(), halfEdges.end());
   std::vector<SilhouetteEdge> out;
-  for (const auto& [edge, fs] : faces) {
-    const bool v0 = faceVisible[fs[0]], v1 = fs[1] >= 0 && faceVisible[fs[1]];
+  for (std::size_t i = 0; i < halfEdges.size();) {
+    std::size_t j = i + 1;
+    while (j < halfEdges.size() && halfEdges[j][0] == halfEdges[i][0] && halfEdges[j][1] == halfEdges[i][1]) ++j;
+    const int f0 = halfEdges[i][2], f1 = j - i >= 2 ? halfEdges[i + 1][2] : -1;
+    const int edgeA = halfEdges[i][0], edgeB = halfEdges[i][1];
+    i = j;
+    const bool v0 = faceVisible[f0], v1 = f1 >= 0 && faceVisible[f1];
     if (v0 == v1) continue;
-    const int vf = v0 ? fs[0] : fs[1];
+    const int vf = v0 ? f0 : f1;
     SilhouetteEdge e;
-    e.a = edge.first;
-    e.b = edge.second;
+    e.a = edgeA;
+    e.b = edgeB;
     e.pa = pix[e.a];
     e.pb = pix[e.b];
     const Eigen::Vector2d d = e.pb - e.pa;
@@ -579,6 +594,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       }
       return std::make_pair(pose, score(res.x, pose));
     };
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
+    for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
+    centre /= model.lumpedMass.sum();
     {
       const auto sil = silhouette(res.x, res.pose);
       Eigen::Vector2d silCentre = Eigen::Vector2d::Zero(), contourCentre = Eigen::Vector2d::Zero();
@@ -594,9 +612,6 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
           contourCentre += 0.5 * l * (seg[i] + seg[i - 1]);
           contourLength += l;
         }
-      Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
-      for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
-      centre /= model.lumpedMass.sum();
       const Eigen::Vector3d organ = res.pose.apply(centre);
       std::vector<Pose> candidates{res.pose};
       if (silLength > 0 && contourLength > 0) {
@@ -643,12 +658,44 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       previous = ri.score();
     }
     res.pose = bestPose;
+    // Basin hopping: short ICP runs from small moves along and turns about the camera axes; a clearly
+    // better end continues (a partial contour leaves shallow local minima, the outline sliding along itself).
+    for (int round = 0; round < 3 && !res.cancelled && o.hops; ++round) {
+      Pose hopPose = res.pose;
+      double hopScore = bestMean;
+      for (int axis = 0; axis < 3; ++axis)
+        for (int sgn : {-1, 1}) {
+          Pose moved = res.pose;
+          moved.t += sgn * o.hopDistance * Eigen::Vector3d::Unit(axis);
+          const Pose turned = res.pose.turnedAbout(
+              Eigen::AngleAxisd(sgn * o.hopDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), res.pose.apply(centre));
+          for (const Pose& candidate : {moved, turned}) {
+            const auto [pose, score] = shortIcp(candidate, 3);
+            if (score < hopScore) {
+              hopScore = score;
+              hopPose = pose;
+            }
+          }
+        }
+      if (!(hopScore < bestMean - o.tolerance)) break;
+      res.pose = hopPose;
+      bestMean = hopScore;
+      record(++iteration, "rigid", 0);
+    }
   }
   const Pose rigidPose = res.pose;
   const Eigen::VectorXd rigidX = res.x;
   const double rigidMean = res.iterations.back().score();
   if (res.cancelled) {
     res.status = "cancelled";
+    return res;
+  }
+  const double diag = std::hypot(camera.width, camera.height);
+  if (o.elastic && o.rigidPrepass && rigidMean > 0.02 * diag) {
+    // No pose near the start brings the organ's outline near the contour: deforming it there would only
+    // stretch it onto another shape.
+    res.status = "failed: after the rigid fit the contour is still " + std::to_string(static_cast<int>(rigidMean)) +
+                 " px from the organ's silhouette on average; it may belong to another organ or the start pose is too far";
     return res;
   }
   if (!o.elastic) {
@@ -730,7 +777,6 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   }
   // A fit that still leaves the contour far from the organ did not find it.
   const double finalMean = score(res.x, res.pose);
-  const double diag = std::hypot(camera.width, camera.height);
   if (res.ok && finalMean > 0.02 * diag) {
     res.ok = false;
     res.status = "failed: the contour stays " + std::to_string(static_cast<int>(finalMean)) +

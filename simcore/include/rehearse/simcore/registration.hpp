@@ -82,6 +82,11 @@ struct RegistrationOptions {
   bool rigidPrepass = false;   ///< refine the pose on the bindings before deforming
   bool elastic = true;         ///< false: rigid only
   int rigidIterations = 15;
+  /// Rigid stage: after ICP, try short ICP runs from moves of hopDistance along and turns of hopDegrees
+  /// about each camera axis, and continue from a clearly better one (up to three rounds).
+  bool hops = true;
+  double hopDistance = 0.003;  ///< m
+  double hopDegrees = 3.0;
   /// Bound points slide along the contour (one constraint across it per point) instead of being held at the
   /// foot of their perpendicular (two, across the ray).
   bool sliding = true;
