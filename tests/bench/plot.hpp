@@ -17,7 +17,7 @@ struct PlotSeries {
 
 inline void writeLogLogPlot(const std::string& path, const std::string& title, const std::string& xLabel, const std::string& yLabel,
                             const std::vector<PlotSeries>& series) {
-  const int W = 900, H = 600, left = 90, right = 230, top = 50, bottom = 70;
+  const int W = 900, H = 620, left = 90, right = 230, top = 70, bottom = 70;
   cv::Mat3b img(H, W, cv::Vec3b(255, 255, 255));
   double x0 = 1e300, x1 = -1e300, y0 = 1e300, y1 = -1e300;
   for (const auto& s : series)
@@ -45,7 +45,7 @@ inline void writeLogLogPlot(const std::string& path, const std::string& title, c
     cv::putText(img, b, {8, int(py(d)) + 5}, cv::FONT_HERSHEY_SIMPLEX, 0.45, ink, 1, cv::LINE_AA);
   }
   cv::rectangle(img, {left, top}, {W - right, H - bottom}, ink);
-  cv::putText(img, title, {left, 30}, cv::FONT_HERSHEY_SIMPLEX, 0.6, ink, 1, cv::LINE_AA);
+  cv::putText(img, title, {left, 24}, cv::FONT_HERSHEY_SIMPLEX, 0.6, ink, 1, cv::LINE_AA);
   cv::putText(img, xLabel, {left + 150, H - 25}, cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
   cv::putText(img, yLabel, {8, top - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.5, ink, 1, cv::LINE_AA);
   static const cv::Scalar colours[] = {{200, 80, 30},  {40, 40, 200}, {40, 160, 40}, {160, 40, 160}, {0, 140, 220},
