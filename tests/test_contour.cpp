@@ -87,6 +87,9 @@ class TestContour : public QObject {
     auto r = resampleSegment(line, 1.0);
     QCOMPARE(r.points.size(), std::size_t(11));
     for (std::size_t i = 0; i < r.points.size(); ++i) QVERIFY((r.points[i] - Eigen::Vector2d(double(i), 0)).norm() < 1e-12);
+    // Absurd coordinates come back unchanged instead of as a trillion points.
+    ContourSegment huge{{{0, 0}, {1e12, 0}}, false, "silhouette", {}};
+    QCOMPARE(resampleSegment(huge, 1.0).points.size(), std::size_t(2));
     // A closed circle: spacing equal to the chord of the target spacing.
     auto c = resampleSegment(circle(0, 0, 50, 37), 5.0);
     const double perimeter = 2 * std::numbers::pi * 50;

@@ -298,6 +298,21 @@ class TestRegistration : public QObject {
     qInfo("far contour: %s", res.status.c_str());
     QVERIFY(!res.ok);
     QVERIFY(res.status.rfind("failed", 0) == 0);
+    // Absurd coordinates: refused at once (resampling them would not end).
+    expectThrow({{Eigen::Vector2d(1e12, 1e12), Eigen::Vector2d(2e12, -1e12)}}, c_.truePose, "far outside the image");
+    // Anatomical curves: a NaN image point and a curve made only of ligament-held nodes.
+    RegistrationOptions o;
+    o.curves = {{{c_.attachments[0], c_.attachments[1]}, {Eigen::Vector2d(100, 100), Eigen::Vector2d(std::nan(""), 3)}, "ridge"}};
+    try {
+      registerToContour(m, c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()), c_.truePose, cam, o);
+      QFAIL("a NaN curve point was accepted");
+    } catch (const MeshError& e) {
+      QVERIFY2(std::string(e.what()).find("not a number") != std::string::npos, e.what());
+    }
+    o.curves = {{{c_.attachments[0], c_.attachments[1], c_.attachments[2]}, {Eigen::Vector2d(600, 300), Eigen::Vector2d(700, 320)}, "ligament"}};
+    const auto held = registerToContour(m, c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()), c_.truePose, cam, o);
+    qInfo("a curve on held nodes only: %s", held.status.c_str());
+    QVERIFY(held.x.allFinite());
   }
 
   // rehearse register on the phantom's own files: a contour of the organ deformed by a load the fit does

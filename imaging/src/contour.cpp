@@ -146,6 +146,7 @@ ContourSegment resampleSegment(const ContourSegment& s, double spacing) {
   for (std::size_t i = 1; i < pts.size(); ++i) arc[i] = arc[i - 1] + (pts[i] - pts[i - 1]).norm();
   const double total = arc.back();
   if (total <= 0) return out;
+  if (!(total / spacing < 1e6)) return out;  // absurd coordinates (or spacing): left as they are
   const int n = std::max(1, static_cast<int>(std::round(total / spacing)));
   out.points.clear();
   std::size_t k = 0;

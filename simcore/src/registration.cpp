@@ -494,10 +494,15 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   auto elapsed = [&] { return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(); };
   checkCamera(camera);
   std::size_t points = 0;
+  // Points further than this from the image are not a sketch of it (and resampling them would take forever).
+  const double farPx = 100.0 * std::max(camera.width, camera.height);
+  auto farAway = [&](const Eigen::Vector2d& p) { return p.cwiseAbs().maxCoeff() > farPx; };
   for (const auto& seg : contour) {
     points += seg.size();
-    for (const auto& p : seg)
+    for (const auto& p : seg) {
       if (!p.allFinite()) throw MeshError("The contour has a point that is not a number.");
+      if (farAway(p)) throw MeshError("The contour has points far outside the image; check that it belongs to this frame.");
+    }
   }
   // Anatomical curves: checked, and their image curves resampled like the contour.
   std::vector<AnatomicalCurve> curves = o.curves;
@@ -507,8 +512,10 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     for (int node : c.nodes)
       if (node < 0 || static_cast<std::size_t>(node) >= model.nodeCount())
         throw MeshError("An anatomical curve (" + c.type + ") refers to node " + std::to_string(node) + ", which the organ does not have.");
-    for (const auto& p : c.image)
+    for (const auto& p : c.image) {
       if (!p.allFinite()) throw MeshError("An anatomical curve (" + c.type + ") has an image point that is not a number.");
+      if (farAway(p)) throw MeshError("An anatomical curve (" + c.type + ") has points far outside the image; check that it belongs to this frame.");
+    }
     std::vector<Eigen::Vector2d> resampled;
     for (const auto& sample : contourSamples({c.image}, o.spacing)) resampled.push_back(sample.pixel);
     c.image = resampled;

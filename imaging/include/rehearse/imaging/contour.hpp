@@ -54,7 +54,8 @@ Contour undistortContour(const Contour& c, const Camera& camera);
 /// points outside the image, a segment that crosses itself).
 std::string contourProblem(const Contour& c);
 
-/// Points at uniform arc-length spacing (pixels) along the segment, ends kept.
+/// Points at uniform arc-length spacing (pixels) along the segment, ends kept (unchanged when that would
+/// take a million points or more).
 ContourSegment resampleSegment(const ContourSegment& s, double spacing);
 /// Moving-average smoothing (Taubin lambda/mu so the contour does not shrink); open ends stay fixed.
 ContourSegment smoothSegment(const ContourSegment& s, int iterations);
