@@ -72,7 +72,9 @@ Mesh meshOnce(const LabelFunction& label, const Eigen::AlignedBox3d& bounds, con
   if (o.optimise)
     c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_lloyd(), CGAL::parameters::no_odt(),
                                    CGAL::parameters::no_perturb(),
-                                   CGAL::parameters::exude(CGAL::parameters::sliver_bound = 12),
+                                   // time_limit = 0: none. Left unset, CGAL stops exuding after as long as the
+                                   // refinement took, so a busy machine made a different mesh (1 run in 150).
+                                   CGAL::parameters::exude(CGAL::parameters::time_limit = 0, CGAL::parameters::sliver_bound = 12),
                                    opts);
   else
     c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_lloyd(), CGAL::parameters::no_odt(),
