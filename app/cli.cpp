@@ -346,20 +346,22 @@ int cmdRegister(const std::vector<std::string>& args) {
   const Pose start = imaging::loadPose(o["pose"]);
   const auto segments = imaging::silhouetteSegments(contour);
   simcore::RegistrationOptions ro;
+  // When the organ came as a surface, curve vertices index that surface: they go to the nearest surface
+  // node of the volume made from it.
+  std::vector<int> boundaryNodes;
+  if (!surfaceIn.points.empty()) {
+    for (const auto& t : simcore::boundaryTriangles(p.mesh, false)) boundaryNodes.insert(boundaryNodes.end(), t.begin(), t.end());
+    std::sort(boundaryNodes.begin(), boundaryNodes.end());
+    boundaryNodes.erase(std::unique(boundaryNodes.begin(), boundaryNodes.end()), boundaryNodes.end());
+  }
   for (const auto& seg : imaging::anatomicalSegments(contour)) {
     simcore::AnatomicalCurve curve{seg.modelVertices, seg.points, seg.type};
-    if (!surfaceIn.points.empty()) {
-      // The curve's vertices index the surface that was given: map them to the nearest surface node of the volume.
-      const auto boundary = simcore::boundaryTriangles(p.mesh, false);
-      std::vector<int> nodes;
-      for (const auto& t : boundary) nodes.insert(nodes.end(), t.begin(), t.end());
-      std::sort(nodes.begin(), nodes.end());
-      nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+    if (!boundaryNodes.empty()) {
       for (int& v : curve.nodes) {
         if (v < 0 || static_cast<std::size_t>(v) >= surfaceIn.points.size())
           throw simcore::MeshError("The " + seg.type + " curve refers to vertex " + std::to_string(v) + ", which the surface does not have.");
-        int best = nodes.front();
-        for (int n : nodes)
+        int best = boundaryNodes.front();
+        for (int n : boundaryNodes)
           if ((p.mesh.points[n] - surfaceIn.points[v]).squaredNorm() < (p.mesh.points[best] - surfaceIn.points[v]).squaredNorm()) best = n;
         v = best;
       }

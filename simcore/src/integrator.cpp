@@ -193,17 +193,19 @@ bool Integrator::solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::
 
 // Factorises A (CHOLMOD); when it is not positive definite (an indefinite tangent of a nonlinear
 // material under large deformation), shifts the diagonal until it factorises.
-bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep) {
+bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep, const std::function<bool()>& accept) {
   Work& w = *w_;
-  w.schurValid = false;
-  ++rep.factorisations;
-  if (w.chol.factorise(A)) return true;
+  auto attempt = [&](const Eigen::SparseMatrix<double>& M) {
+    w.schurValid = false;
+    ++rep.factorisations;
+    return w.chol.factorise(M) && (!accept || accept());
+  };
+  if (attempt(A)) return true;
   const double base = 1e-6 * A.diagonal().cwiseAbs().maxCoeff();
   Eigen::SparseMatrix<double> shifted = A;  // rare path: allocation is fine here
   for (double shift = base; shift < 1e12 * std::max(base, 1e-300); shift *= 10) {
     for (Eigen::Index i = 0; i < shifted.rows(); ++i) shifted.valuePtr()[model_.diagonalSlot[i]] = A.valuePtr()[model_.diagonalSlot[i]] + shift;
-    ++rep.factorisations;
-    if (w.chol.factorise(shifted)) return true;
+    if (attempt(shifted)) return true;
   }
   return false;
 }
@@ -713,23 +715,14 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
       // Each attempt starts from the same multipliers (a failed one can leave them absurd).
       const Eigen::VectorXd lambdaStart = w.lambda;
       solved = w.chol.factorise(w.K) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
-      if (!solved) {  // indefinite (or a pivot so small the solution overflows): projected Newton, then a shift
-        buildTangent(true);
-        w.lambda = lambdaStart;
-        solved = factoriseShifted(w.K, rep) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
-      }
       if (!solved) {
-        // Nearly singular even projected (a soft mode with almost no stiffness): Levenberg-Marquardt shifts
-        // of the diagonal, growing until the step is usable.
-        Eigen::SparseMatrix<double> shifted = w.K;  // rare path: allocation is fine here
-        const double base = 1e-6 * std::max(w.K.diagonal().cwiseAbs().maxCoeff(), 1e-300);
-        for (double shift = base; !solved && shift < 1e6 * base; shift *= 10) {
-          for (Eigen::Index i = 0; i < shifted.rows(); ++i) shifted.valuePtr()[model_.diagonalSlot[i]] = w.K.valuePtr()[model_.diagonalSlot[i]] + shift;
-          ++rep.factorisations;
-          w.schurValid = false;
+        // Indefinite, or nearly singular (a step the organ cannot make): projected Newton, then diagonal
+        // shifts (Levenberg-Marquardt) growing until the step is usable.
+        buildTangent(true);
+        solved = factoriseShifted(w.K, rep, [&] {
           w.lambda = lambdaStart;
-          solved = w.chol.factorise(shifted) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
-        }
+          return solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
+        });
       }
     } else {
       solved = solveLinear(w.K, r, dx);

@@ -677,9 +677,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
           const Pose turned = res.pose.turnedAbout(
               Eigen::AngleAxisd(sgn * o.hopDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), res.pose.apply(centre));
           for (const Pose& candidate : {moved, turned}) {
-            const auto [pose, score] = shortIcp(candidate, 3);
-            if (score < hopScore) {
-              hopScore = score;
+            const auto [pose, end] = shortIcp(candidate, 3);
+            if (end < hopScore) {
+              hopScore = end;
               hopPose = pose;
             }
           }
@@ -720,13 +720,13 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     double previous = rigidMean, bestMean = rigidMean;
     // Bindings further than this are outliers: as far as the start was off (so parts of the silhouette that
     // must travel are still bound), but at least 4 px and at most 2 % of the image diagonal.
-    const double outlierFloor = std::clamp(rigidMean, 4.0, 0.02 * std::hypot(camera.width, camera.height));
+    const double outlierFloor = std::clamp(rigidMean, 4.0, 0.02 * diag);
     Eigen::VectorXd bestX = res.x;
     std::string failure;
     for (int k = 0; k < o.maxIterations; ++k) {
       auto bindings = bindContour(samples, segmentStarts, silhouette(state.x, res.pose), fixed, o, outlierFloor);
       if (!curves.empty()) {
-        // A node on a curve follows its curve (one pair of ray constraints per node).
+        // A node on a curve follows its curve (one binding, hence one set of ray constraints, per node).
         auto curveBindings = bindCurves(curves, state.x, res.pose, camera, &fixed);
         dropOutliers(curveBindings, o.outlierFactor, outlierFloor);
         std::vector<char> onCurve(model.nodeCount(), 0);
@@ -744,7 +744,6 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       integrator.setConstraints(cs);
       const SimulationState before = state;
       const StepReport rep = integrator.solveStatic(state);
-
       if (!rep.ok) {
         state = before;
         failure = "the elastic solve did not converge (" + rep.status + ")";

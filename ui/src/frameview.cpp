@@ -658,9 +658,7 @@ void FrameView::pickOrganCurve(const Eigen::Vector2d& fp) {
     mv.push_back(hit->node);
   } else {
     // Joined to the previous click by the shortest path along the surface (rest shape).
-    std::vector<Eigen::Vector3d> rest(case_->volume.points.size());
-    for (std::size_t i = 0; i < rest.size(); ++i) rest[i] = case_->volume.points[i];
-    const auto path = simcore::surfacePath(case_->surface, rest, mv.back(), hit->node);
+    const auto path = simcore::surfacePath(case_->surface, case_->volume.points, mv.back(), hit->node);
     if (path.size() > 1) mv.insert(mv.end(), path.begin() + 1, path.end());
   }
   curveStops_.push_back(mv.size());

@@ -17,6 +17,7 @@
 #include <rehearse/simcore/fem.hpp>
 
 #include <array>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -124,7 +125,9 @@ class Integrator {
   double totalEnergy(const SimulationState& s) const;
   void project(Eigen::VectorXd& r) const;
   void projectMatrix(Eigen::SparseMatrix<double>& A) const;
-  bool factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep);
+  /// Factorises A, then A plus growing diagonal shifts, until it factorises and `accept` (when given; it
+  /// solves with the factor) takes the result.
+  bool factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep, const std::function<bool()>& accept = nullptr);
   bool solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double positionScale, Eigen::VectorXd& dx,
                         StepReport& rep, bool freeGiven = false);
   double constraintViolation(const Eigen::VectorXd& x) const;
