@@ -131,6 +131,33 @@ class TestContour : public QObject {
     QCOMPARE(d.points, std::size_t(3));
   }
 
+  // A mask's outline lies on its boundary with the background: a square of pixels 50..150 is bounded by
+  // 49.5 and 150.5, and a disc of the pixels whose centres lie within R of its centre by the circle R.
+  void maskOutlineOnTheBoundary() {
+    cv::Mat1b square(200, 200, uchar(0));
+    cv::rectangle(square, cv::Rect(50, 50, 101, 101), cv::Scalar(255), cv::FILLED);
+    const auto sq = maskOutlines(square);
+    QCOMPARE(sq.size(), std::size_t(1));
+    double minX = 1e9, maxX = -1e9, sideError = 0;
+    int sidePoints = 0;
+    for (const auto& p : sq.front()) {
+      minX = std::min(minX, p.x()), maxX = std::max(maxX, p.x());
+      if (p.y() > 60 && p.y() < 140) sideError = std::max(sideError, std::min(std::abs(p.x() - 49.5), std::abs(p.x() - 150.5))), ++sidePoints;
+    }
+    QVERIFY(sidePoints > 100);
+    QVERIFY2(sideError < 1e-9, qPrintable(QString::number(sideError)));
+    const double R = 60.3, c = 100;
+    cv::Mat1b disc(200, 200, uchar(0));
+    for (int y = 0; y < 200; ++y)
+      for (int x = 0; x < 200; ++x) disc(y, x) = std::hypot(x - c, y - c) <= R ? 255 : 0;
+    const auto dl = maskOutlines(disc);
+    QCOMPARE(dl.size(), std::size_t(1));
+    double mean = 0;
+    for (const auto& p : dl.front()) mean += std::hypot(p.x() - c, p.y() - c) / dl.front().size();
+    qInfo("square's sides at %.2f and %.2f; disc of radius %.1f: outline at %.3f px from its centre on average", minX, maxX, R, mean);
+    QVERIFY(std::abs(mean - R) < 0.15);
+  }
+
   // A dark disc on a bright background: anchors placed 6 px off the edge snap onto it.
   void snapFollowsTheEdge() {
     cv::Mat3b img(240, 320, cv::Vec3b(200, 200, 200));

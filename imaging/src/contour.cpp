@@ -267,8 +267,18 @@ std::vector<std::vector<Eigen::Vector2d>> maskOutlines(const cv::Mat1b& mask, st
   std::vector<std::vector<Eigen::Vector2d>> out;
   for (const auto& ct : contours) {
     if (ct.size() < minPoints) continue;
+    // findContours gives the border pixels' centres; the boundary lies half way to the outside pixels.
+    const std::size_t n = ct.size();
+    double area = 0;
+    for (std::size_t i = 0; i < n; ++i) area += double(ct[i].x) * ct[(i + 1) % n].y - double(ct[(i + 1) % n].x) * ct[i].y;
     std::vector<Eigen::Vector2d> seg;
-    for (const auto& p : ct) seg.emplace_back(p.x, p.y);
+    for (std::size_t i = 0; i < n; ++i) {
+      const cv::Point d = ct[(i + 2) % n] - ct[(i + n - 2) % n];
+      Eigen::Vector2d normal(d.y, -d.x);
+      if (area < 0) normal = -normal;
+      if (normal.norm() > 0) normal.normalize();
+      seg.push_back(Eigen::Vector2d(ct[i].x, ct[i].y) + 0.5 * normal.cwiseAbs().maxCoeff() * normal);
+    }
     out.push_back(std::move(seg));
   }
   return out;

@@ -27,7 +27,11 @@ double closestParameter(const Eigen::Vector2d& a, const Eigen::Vector2d& b, cons
 // Distance from p to the nearest silhouette edge (px).
 double distanceToSilhouette(const std::vector<SilhouetteEdge>& silhouette, const Eigen::Vector2d& p) {
   double best = std::numeric_limits<double>::infinity();
-  for (const auto& e : silhouette) best = std::min(best, (e.pa + closestParameter(e.pa, e.pb, p) * (e.pb - e.pa) - p).norm());
+  for (const auto& e : silhouette) {
+    double d;
+    e.nearest(p, &d);
+    best = std::min(best, d);
+  }
   return best;
 }
 
@@ -88,6 +92,7 @@ struct Binding {
   Eigen::Vector2d contour;  // the contour point
   double distance;          // px
   Eigen::Vector2d normal = Eigen::Vector2d::Zero();  // unit normal of the contour there (for sliding)
+  Eigen::Vector3d bulge = Eigen::Vector3d::Zero();   // the edge's bulge (SilhouetteEdge::bulge)
 };
 
 // Bindings further than `factor` times the median distance (and than `floorPx`) are outliers.
@@ -109,11 +114,11 @@ std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std:
     Binding b{-1, -1, 0, s.pixel, 0};
     for (const auto& e : sil) {
       if (s.normal.squaredNorm() > 0 && std::abs(s.normal.dot(e.normal)) < o.normalDot) continue;
-      const double t = closestParameter(e.pa, e.pb, s.pixel);
-      const double d = (e.pa + t * (e.pb - e.pa) - s.pixel).norm();
+      double d;
+      const double t = e.nearest(s.pixel, &d);
       if (d < best) {
         best = d;
-        b = {e.a, e.b, t, s.pixel, d, e.normal};
+        b = {e.a, e.b, t, s.pixel, d, e.normal, e.bulge};
       }
     }
     if (b.a >= 0) out.push_back(b);
@@ -209,7 +214,7 @@ std::vector<Binding> bindCurves(const std::vector<AnatomicalCurve>& curves, cons
 }
 
 Eigen::Vector3d point(const Eigen::VectorXd& x, const Binding& b) {
-  return (1 - b.t) * x.segment<3>(3 * b.a) + b.t * x.segment<3>(3 * b.b);
+  return (1 - b.t) * x.segment<3>(3 * b.a) + b.t * x.segment<3>(3 * b.b) + 4 * b.t * (1 - b.t) * b.bulge;
 }
 
 // The bound point on the ray through its contour point: two constraints across the ray (model frame). When
@@ -313,6 +318,13 @@ Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, 
 
 }  // namespace
 
+double SilhouetteEdge::nearest(const Eigen::Vector2d& p, double* distance) const {
+  const double s0 = closestParameter(pa, pm, p), s1 = closestParameter(pm, pb, p);
+  const double d0 = (pa + s0 * (pm - pa) - p).norm(), d1 = (pm + s1 * (pb - pm) - p).norm();
+  if (distance) *distance = std::min(d0, d1);
+  return d0 <= d1 ? 0.5 * s0 : 0.5 + 0.5 * s1;
+}
+
 std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 3>>& triangles, const Eigen::VectorXd& x, const Pose& pose,
                                               const Pinhole& camera) {
   checkCamera(camera);
@@ -332,6 +344,15 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
       throw MeshError("The organ is behind the camera (or crosses its image plane); place it in front of the camera first.");
     pix[i] = camera.project(pc[i]);
   }
+  // Vertex normals (area-weighted, model frame) for the edges' bulge.
+  std::vector<Eigen::Vector3d> normals(n, Eigen::Vector3d::Zero());
+  for (const auto& t : triangles) {
+    const Eigen::Vector3d a = x.segment<3>(3 * t[0]), b = x.segment<3>(3 * t[1]), c = x.segment<3>(3 * t[2]);
+    const Eigen::Vector3d fn = (b - a).cross(c - a);
+    for (int v : t) normals[v] += fn;
+  }
+  for (auto& nv : normals)
+    if (nv.norm() > 0) nv.normalize();
   // Front faces (the nearest surface of a closed organ is always a front face, so only they are drawn).
   std::vector<char> front(triangles.size(), 0);
   for (std::size_t f = 0; f < triangles.size(); ++f) {
@@ -419,6 +440,14 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
     for (int v : triangles[vf])
       if (v != e.a && v != e.b) third = v;
     if (e.normal.dot(pix[third] - e.pa) > 0) e.normal = -e.normal;  // away from the visible face
+    // PN-triangle edge: the middle of the cubic through the nodes tangent to their planes. At most a
+    // quarter of the edge's length (creases and bad normals would otherwise throw it far off).
+    const Eigen::Vector3d A = x.segment<3>(3 * e.a), B = x.segment<3>(3 * e.b);
+    e.bulge = -((B - A).dot(normals[e.a]) * normals[e.a] + (A - B).dot(normals[e.b]) * normals[e.b]) / 8;
+    const double cap = 0.25 * (B - A).norm();
+    if (!(e.bulge.norm() <= cap)) e.bulge = e.bulge.allFinite() && e.bulge.norm() > 0 ? Eigen::Vector3d(e.bulge.normalized() * cap) : Eigen::Vector3d::Zero();
+    const Eigen::Vector3d mid = pose.apply(0.5 * (A + B) + e.bulge);
+    e.pm = mid.z() > 1e-6 ? camera.project(mid) : Eigen::Vector2d(0.5 * (e.pa + e.pb));
     out.push_back(e);
   }
   return out;
@@ -717,7 +746,12 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     Integrator integrator(model, fixedNodes, settings);
     SimulationState state = integrator.initialState();
     state.x = res.x;
-    double previous = rigidMean, bestMean = rigidMean;
+    double bestMean = rigidMean;
+    // Converged when neither the silhouette's nor the curves' mean distance moves any more (their mixture,
+    // the score, can stand still while the curves still move), or when three iterations in a row did not
+    // improve on the best (rebinding can cycle between a few nearly equal states).
+    RegistrationIteration previous = res.iterations.back();
+    int stalled = 0;
     // Bindings further than this are outliers: as far as the start was off (so parts of the silhouette that
     // must travel are still bound), but at least 4 px and at most 2 % of the image diagonal.
     const double outlierFloor = std::clamp(rigidMean, 4.0, 0.02 * diag);
@@ -751,16 +785,18 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       }
       res.x = state.x;
       const auto ri = record(++iteration, "elastic", bindings.size());
+      stalled = ri.score() < bestMean - o.tolerance ? 0 : stalled + 1;
       if (ri.score() < bestMean) {
         bestMean = ri.score();
         bestX = res.x;
       }
       if (res.cancelled) break;
-      if (std::abs(previous - ri.score()) < o.tolerance) {
+      if ((std::abs(previous.residual.mean - ri.residual.mean) < o.tolerance && std::abs(previous.curves.mean - ri.curves.mean) < o.tolerance) ||
+          stalled >= 3) {
         res.converged = true;
         break;
       }
-      previous = ri.score();
+      previous = ri;
     }
     res.x = bestX;
     if (res.cancelled) {

@@ -5,6 +5,10 @@
 // about each camera axis) x 4 contour fractions (100/90/80/70 %). Writes registration.csv and
 // registration.png (marker error against wall time for each start at 100 %). Not a test.
 //   bench_registration [OUT_DIR] [--quick]
+// Environment: REHEARSE_BENCH_DIAG=1 first analyses the error at the true pose (by stage and camera axis,
+// the best rigid motion of the markers, the fit of undeformed outlines); REHEARSE_BENCH_VARIANTS=1 runs
+// the rigid-only and elastic-only variants; REHEARSE_BENCH_TRACE=1 prints every iteration;
+// REHEARSE_FIT_TETS=N builds the fit model with about N tets instead of the phantom's default.
 #include "phantom/phantom.hpp"
 #include "plot.hpp"
 
@@ -48,7 +52,9 @@ int main(int argc, char** argv) {
   }
   std::filesystem::create_directories(out);
   // The model the fit uses: the built-in phantom, co-rotational, the DejaVu liver's parameters.
-  const phantom::Case coarse = phantom::makePhantom();
+  phantom::PhantomOptions coarseOptions;
+  if (const char* t = std::getenv("REHEARSE_FIT_TETS")) coarseOptions.targetTets = std::atoi(t);
+  const phantom::Case coarse = phantom::makePhantom(coarseOptions);
   const FemModel model = FemModel::build(coarse.volume, {{phantom::kVesselLabel, {MaterialModel::Corotational, 620e3, 0.45, 1000}}},
                                          {MaterialModel::Corotational, 27e3, 0.40, 1000});
   // The ground truth: a finer mesh of the same organ, the stable Neo-Hookean law, other loads.
@@ -121,6 +127,64 @@ int main(int argc, char** argv) {
   std::printf("%zu markers (%zu outside the fit model's volume), contour of %zu pixels; markers at the true pose, undeformed: %.2f mm\n",
               markers.size(), markerMap.outside, fullContour.size(), markerError(model.restVector(), truth));
 
+  if (std::getenv("REHEARSE_BENCH_DIAG")) {
+    auto parts = [&](const char* what, const Eigen::VectorXd& x, const Pose& pose) {
+      const auto pts = mapEmbedded(markerMap, x);
+      double xy = 0, z = 0, all = 0;
+      for (std::size_t i = 0; i < pts.size(); ++i) {
+        const Eigen::Vector3d d = pose.apply(pts[i]) - truth.apply(markerTruth[i]);
+        xy += d.head<2>().norm(), z += std::abs(d.z()), all += d.norm();
+      }
+      const double n = pts.size();
+      std::printf("DIAG %-34s mean %.2f mm  |xy| %.2f  |z| %.2f\n", what, 1e3 * all / n, 1e3 * xy / n, 1e3 * z / n);
+    };
+    parts("undeformed at truth", model.restVector(), truth);
+    {
+      // The best rigid motion of the undeformed markers onto the true ones (Umeyama, no scale).
+      const auto pts = mapEmbedded(markerMap, model.restVector());
+      Eigen::Matrix3Xd a(3, pts.size()), b(3, pts.size());
+      for (std::size_t i = 0; i < pts.size(); ++i) a.col(i) = truth.apply(pts[i]), b.col(i) = truth.apply(markerTruth[i]);
+      const Eigen::Matrix4d T = Eigen::umeyama(a, b, false);
+      Pose p = truth;
+      p.R = T.topLeftCorner<3, 3>() * truth.R;
+      p.t = T.topLeftCorner<3, 3>() * truth.t + T.topRightCorner<3, 1>();
+      parts("best rigid of the markers (oracle)", model.restVector(), p);
+    }
+    for (int which = 0; which < 2; ++which) {
+      // Rigid fit from the truth onto the outline of an undeformed mesh: the coarse fit model itself, the fine one.
+      const phantom::Case& c = which ? fine : coarse;
+      const auto cont = outline(c, truth, c.surfaceView());
+      RegistrationOptions o;
+      o.elastic = false;
+      SimulationSettings settings;
+      settings.gravity.setZero();
+      const auto r = registerToContour(model, coarse.attachments, settings, coarse.surface, {cont}, truth, coarse.camera.pinhole(), o);
+      const Eigen::Vector3d c0 = truth.apply(coarse.centreOfGravity()), dc = r.pose.apply(coarse.centreOfGravity()) - c0;
+      std::printf("DIAG undeformed %s outline: centre moved %.2f %.2f %.2f mm, %.2f deg, residual %.2f px (at truth %.2f px), centre depth %.0f mm\n",
+                  which ? "fine" : "coarse", 1e3 * dc.x(), 1e3 * dc.y(), 1e3 * dc.z(), Eigen::AngleAxisd(r.pose.R * truth.R.transpose()).angle() * 180 / M_PI,
+                  r.iterations.back().residual.mean, r.iterations.front().residual.mean, 1e3 * c0.z());
+    }
+    // The stages from the true pose; with the true gravity told to the fit, the elastic stage alone, and
+    // after the rigid stage (which has already taken the sag for a move of the whole organ).
+    struct Variant {
+      const char* name;
+      bool rigid, elastic, gravity;
+    };
+    for (const Variant& v : {Variant{"rigid only from truth", true, false, false}, Variant{"elastic only from truth", false, true, false},
+                             Variant{"rigid+elastic from truth", true, true, false}, Variant{"elastic, true gravity", false, true, true},
+                             Variant{"rigid+elastic, true gravity", true, true, true}}) {
+      RegistrationOptions o;
+      o.elastic = v.elastic;
+      o.rigidPrepass = v.rigid;
+      SimulationSettings settings;
+      settings.gravity = v.gravity ? load.gravity : Eigen::Vector3d::Zero();
+      const auto r = registerToContour(model, coarse.attachments, settings, coarse.surface, {fullContour}, truth, coarse.camera.pinhole(), o);
+      parts(v.name, r.x, r.pose);
+      const Eigen::Vector3d dc = r.pose.apply(coarse.centreOfGravity()) - truth.apply(coarse.centreOfGravity());
+      std::printf("     centre moved %.2f %.2f %.2f mm, turned %.2f deg; residual %.2f px\n", 1e3 * dc.x(), 1e3 * dc.y(), 1e3 * dc.z(),
+                  Eigen::AngleAxisd(r.pose.R * truth.R.transpose()).angle() * 180 / M_PI, r.iterations.back().residual.mean);
+    }
+  }
   std::ofstream csv(out + "/registration.csv");
   csv << "start,fraction,start_error_mm,end_error_mm,start_px,end_px,wall_ms,iterations,ok,status\n";
   std::vector<PlotSeries> series;
@@ -182,6 +246,8 @@ int main(int argc, char** argv) {
       o.onIteration = [&](const RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
         ps.x.push_back(std::max(it.wallMs, 1.0));
         ps.y.push_back(markerError(x, pose));
+        if (std::getenv("REHEARSE_BENCH_TRACE"))
+          std::printf("  %s %.0f%% it %d %s %.0f ms %.2f px %.2f mm\n", s.name.c_str(), 100 * fraction, it.iteration, it.stage.c_str(), it.wallMs, it.score(), ps.y.back());
         return true;
       };
       SimulationSettings settings;

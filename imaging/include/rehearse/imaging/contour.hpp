@@ -35,8 +35,10 @@ void saveContour(const Contour& c, const std::string& path);
 Contour parseContour(const std::string& text, const std::string& name);
 std::string contourToJson(const Contour& c);
 
-/// The outer borders of a binary mask (pixel centres), longest first; borders of fewer than `minPoints`
-/// pixels are dropped (the outline of a rendered organ, for tests and benchmarks of the fit).
+/// The outer borders of a binary mask, longest first, on the boundary between the mask and the background:
+/// each border pixel's centre moved outwards half way to its outside neighbours (half a pixel across an
+/// axis-aligned border, 0.35 px across a diagonal one). Borders of fewer than `minPoints` pixels are dropped.
+/// The outline of a rendered organ, for tests and benchmarks of the fit.
 std::vector<std::vector<Eigen::Vector2d>> maskOutlines(const cv::Mat1b& mask, std::size_t minPoints = 20);
 /// The silhouette segments of a contour (not ridges or ligaments) as point lists, what the elastic fit
 /// uses; a closed segment repeats its first point at the end.

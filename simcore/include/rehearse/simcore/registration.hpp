@@ -21,6 +21,13 @@ struct SilhouetteEdge {
   int a = -1, b = -1;
   Eigen::Vector2d pa, pb;    ///< pixels
   Eigen::Vector2d normal;    ///< unit 2D normal, pointing away from the visible face
+  /// The smooth organ's outline is not the chord between two surface nodes: the edge bulges like the
+  /// curve of a PN triangle (cubic from the nodes' normals), by `bulge` at its middle (model frame, m); the
+  /// point at parameter s along the edge is lerp(a, b, s) + 4 s (1 - s) bulge, and `pm` is the middle's pixel.
+  Eigen::Vector3d bulge = Eigen::Vector3d::Zero();
+  Eigen::Vector2d pm = Eigen::Vector2d::Zero();
+  /// The point of the curved edge nearest to p: its parameter along the edge (two straight halves through pm).
+  double nearest(const Eigen::Vector2d& p, double* distance = nullptr) const;
 };
 
 /// The visible silhouette of a closed surface (triangles over the positions x, model frame, 3n) seen
