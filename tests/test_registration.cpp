@@ -394,7 +394,7 @@ class TestRegistration : public QObject {
     qInfo("%s", qPrintable(out.trimmed()));
     const QJsonObject report = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/report.json"))).object();
     const QJsonArray its = report["iterations"].toArray();
-    for (const auto& it : its) qInfo("TRACE %s %.3f px %.3f mm %.0f ms", qPrintable(it.toObject()["stage"].toString()), it.toObject()["mean_px"].toDouble(), it.toObject()["error_mean_mm"].toDouble(), it.toObject()["wall_ms"].toDouble());
+    for (const auto& it : its) qInfo("  report: %s, %.3f px, %.3f mm, %.0f ms", qPrintable(it.toObject()["stage"].toString()), it.toObject()["mean_px"].toDouble(), it.toObject()["error_mean_mm"].toDouble(), it.toObject()["wall_ms"].toDouble());
     QVERIFY(its.size() >= 2);
     const double e0 = its.first().toObject()["error_mean_mm"].toDouble(), e1 = its.last().toObject()["error_mean_mm"].toDouble();
     QVERIFY(e0 > 0 && e1 < e0);

@@ -46,6 +46,7 @@ struct Integrator::Work {
   bool schurValid = false;        // A and W belong to the current factor and constraints
   double laggedStep = -1;         // h the lagged factor was built for (-1: none)
   bool refresh = true;            // rebuild the lagged factor at the next opportunity
+  int staticFactor = -1;          // chol.factorisations() just after a static tangent was factorised
   Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
   bool forcesValid = false;
 };
@@ -661,6 +662,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   const int maxIterations = std::max(settings_.maxNewtonIterations, 30) + (hasConstraints ? 30 : 0);
   double previousResidual = 1e300;
   int stalled = 0;
+  double residualBefore = 1e300;  // the previous iteration's (chord)
   bool roundOff = false, smallStep = false;
   // A Newton step larger than ten times the organ is a near-singular solve, not a move: refused, and the
   // projected tangent (then growing diagonal shifts) tried instead. Steps beyond a quarter of the organ are
@@ -704,12 +706,24 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
         for (Eigen::Index i = 0; i < w.K.rows(); ++i) w.K.valuePtr()[model_.diagonalSlot[i]] += regularisation * mass3_[i];
       projectMatrix(w.K);
     };
-    buildTangent(false);
     // Solve for the total multipliers (none yet in the first iteration, when Ht may still have the size of
     // the previous solve's constraints).
     if (hasConstraints && it > 0) r.noalias() -= w.Ht * w.lambda;
     bool solved = false;
-    if (settings_.solver == LinearSolverKind::Cholmod) {
+    // Chord: the factor of an earlier static tangent (of this solve or the last one) while the residual
+    // still at least halves per iteration; a fresh tangent otherwise, or when the lagged step is unusable.
+    const bool chord = settings_.staticChord && settings_.solver == LinearSolverKind::Cholmod && w.chol.valid() &&
+                       w.staticFactor == w.chol.factorisations() && rep.residual < 0.5 * residualBefore;
+    residualBefore = rep.residual;
+    if (chord) {
+      const Eigen::VectorXd lambdaStart = w.lambda;
+      solved = solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
+      if (!solved) w.lambda = lambdaStart;
+    }
+    if (!solved) buildTangent(false);
+    if (solved) {
+      // the lagged step
+    } else if (settings_.solver == LinearSolverKind::Cholmod) {
       ++rep.factorisations;
       w.schurValid = false;
       // Each attempt starts from the same multipliers (a failed one can leave them absurd).
@@ -724,6 +738,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
           return solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
         });
       }
+      if (solved) w.staticFactor = w.chol.factorisations();
     } else {
       solved = solveLinear(w.K, r, dx);
       if (!solved) {

@@ -1,6 +1,7 @@
 #include <rehearse/simcore/registration.hpp>
 
 #include <Eigen/Dense>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
@@ -622,13 +623,28 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // A few short ICP runs from the start and from candidates that the silhouette alone suggests (the
     // projected organ's centroid moved onto the contour's, and +-15 degrees about the optical axis), to
     // stay out of the local minima of a single ICP; the best continues below.
+    // Safe to run on several threads at once (its own silhouettes, not the shared last one).
     auto shortIcp = [&](Pose pose, int iterations) {
       for (int k = 0; k < iterations; ++k) {
-        const auto bindings = rigidBindings(pose);
+        auto bindings = bindForRigid(samples, visibleSilhouette(surface, res.x, pose, camera), o);
+        const auto c = bindCurves(curves, res.x, pose, camera, nullptr);
+        bindings.insert(bindings.end(), c.begin(), c.end());
         if (bindings.size() < 3) break;
         pose = refinePose(res.x, bindings, pose, camera, o.sliding);
       }
-      return std::make_pair(pose, score(res.x, pose));
+      RegistrationIteration r;
+      r.residual = contourResidual(contour, visibleSilhouette(surface, res.x, pose, camera));
+      r.curves = curveResidual(curves, res.x, pose, camera);
+      return std::make_pair(pose, r.score());
+    };
+    // The best of short ICP runs from several poses (in parallel; the first of equal ends wins).
+    auto bestOf = [&](const std::vector<Pose>& starts, int iterations) {
+      std::vector<std::pair<Pose, double>> ends(starts.size());
+      tbb::parallel_for(std::size_t(0), starts.size(), [&](std::size_t i) { ends[i] = shortIcp(starts[i], iterations); });
+      std::size_t best = 0;
+      for (std::size_t i = 1; i < ends.size(); ++i)
+        if (ends[i].second < ends[best].second) best = i;
+      return ends[best];
     };
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
     for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
@@ -662,16 +678,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
           const Eigen::Matrix3d dR = Eigen::AngleAxisd(deg * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
           candidates.push_back(candidates[i].turnedAbout(dR, candidates[i].apply(centre)));
         }
-      double bestStart = std::numeric_limits<double>::infinity();
-      Pose chosen = res.pose;
-      for (const Pose& cand : candidates) {
-        const auto [pose, mean] = shortIcp(cand, 4);
-        if (mean < bestStart) {
-          bestStart = mean;
-          chosen = pose;
-        }
-      }
-      res.pose = chosen;
+      res.pose = bestOf(candidates, 4).first;
     }
     double previous = first.score();
     Pose bestPose = res.pose;
@@ -697,22 +704,16 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // Basin hopping: short ICP runs from small moves along and turns about the camera axes; a clearly
     // better end continues (a partial contour leaves shallow local minima, the outline sliding along itself).
     for (int round = 0; round < 3 && !res.cancelled && o.hops; ++round) {
-      Pose hopPose = res.pose;
-      double hopScore = bestMean;
+      std::vector<Pose> hops;
       for (int axis = 0; axis < 3; ++axis)
         for (int sgn : {-1, 1}) {
           Pose moved = res.pose;
           moved.t += sgn * o.hopDistance * Eigen::Vector3d::Unit(axis);
-          const Pose turned = res.pose.turnedAbout(
-              Eigen::AngleAxisd(sgn * o.hopDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), res.pose.apply(centre));
-          for (const Pose& candidate : {moved, turned}) {
-            const auto [pose, end] = shortIcp(candidate, 3);
-            if (end < hopScore) {
-              hopScore = end;
-              hopPose = pose;
-            }
-          }
+          hops.push_back(moved);
+          hops.push_back(res.pose.turnedAbout(
+              Eigen::AngleAxisd(sgn * o.hopDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), res.pose.apply(centre)));
         }
+      const auto [hopPose, hopScore] = bestOf(hops, 3);
       if (!(hopScore < bestMean - o.tolerance)) break;
       res.pose = hopPose;
       bestMean = hopScore;
@@ -743,6 +744,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // Equilibrium to 10 micrometres is far below a pixel at endoscope distances (and projected Newton,
     // which the constraints often need, converges only linearly to tighter tolerances).
     if (settings.staticStepTolerance <= 0) settings.staticStepTolerance = 1e-5;
+    // Each rebinding moves the organ a little: the last solve's factorisation serves the next ones.
+    settings.staticChord = true;
     Integrator integrator(model, fixedNodes, settings);
     SimulationState state = integrator.initialState();
     state.x = res.x;

@@ -56,6 +56,7 @@ struct SimulationSettings {
   int maxNewtonIterations = 10;
   double tolerance = 1e-6;                             ///< relative residual
   double staticStepTolerance = 0;                      ///< m: a static solve also stops when Newton's largest node move is below this (0: off)
+  bool staticChord = false;                            ///< static solves reuse an earlier static factorisation while the residual halves per iteration (CHOLMOD)
   bool lineSearch = true;
   LinearSolverKind solver = LinearSolverKind::Cholmod;
   int cgMaxIterations = 500;
