@@ -10,6 +10,8 @@
 #include <QStandardPaths>
 #include <QSqlDatabase>
 #include <QSqlQuery>
+#include <QSqlError>
+#include <QCryptographicHash>
 
 #include <cstdio>
 #include <random>
@@ -169,7 +171,12 @@ class TestCaseFile : public QObject {
       db.setDatabaseName(path);
       QVERIFY(db.open());
       QSqlQuery q(db);
-      QVERIFY(q.exec("UPDATE parts SET data = X'00112233' WHERE name = 'volume'"));
+      // The volume's garbage comes with a matching checksum (as a faulty writer would leave it: the
+      // decoder must refuse it); the frame's bytes change under their old checksum (damage on disk).
+      q.prepare("UPDATE parts SET data = ?, sha256 = ? WHERE name = 'volume'");
+      q.addBindValue(QByteArray::fromHex("00112233"));
+      q.addBindValue(QCryptographicHash::hash(QByteArray::fromHex("00112233"), QCryptographicHash::Sha256));
+      QVERIFY(q.exec());
       QVERIFY(q.exec("UPDATE parts SET data = X'89504E47' WHERE name = 'frame'"));
       db.close();
     }
@@ -179,8 +186,48 @@ class TestCaseFile : public QObject {
     QCOMPARE(notes.size(), 3);  // mesh, frame, and attachments that now refer to missing nodes
     QVERIFY(notes[0].startsWith("Organ mesh not loaded"));
     QVERIFY(notes[1].startsWith("Frame not loaded"));
+    QVERIFY2(notes[1].contains("checksum"), qPrintable(notes[1]));
+    QVERIFY2(!notes[0].contains("checksum"), qPrintable(notes[0]));
     QCOMPARE(c.camera.K, phantomCase().camera.K);
     QVERIFY(c.hasGroundTruth);
+  }
+
+  // A case saved with schema 1 (no checksum column, no elastic fit part) opens whole, and saving it again
+  // writes schema 2.
+  void schemaOneIsMigrated() {
+    const QString path = QString::fromStdString(tempPath("schema1.rehearse"));
+    phantom::Case edited = phantomCase();
+    edited.contour.segments.push_back({{{100.25, 200.5}, {300, 400}, {512.125, 333}}, false, "silhouette", {}});
+    ui::saveCaseFile(edited, path);
+    {
+      auto db = QSqlDatabase::addDatabase("QSQLITE", "old");
+      db.setDatabaseName(path);
+      QVERIFY(db.open());
+      QSqlQuery q(db);
+      QVERIFY(q.exec("UPDATE meta SET value = '1' WHERE key = 'schema_version'"));
+      QVERIFY2(q.exec("ALTER TABLE parts DROP COLUMN sha256"), qPrintable(q.lastError().text()));
+      QVERIFY(q.exec("DELETE FROM parts WHERE name = 'elastic_fit'"));
+      db.close();
+    }
+    QSqlDatabase::removeDatabase("old");
+    QStringList notes;
+    const auto back = ui::loadCaseFile(path, &notes);
+    QVERIFY2(notes.isEmpty(), qPrintable(notes.join('\n')));
+    compareCases(edited, back);
+    ui::saveCaseFile(back, path);
+    {
+      auto db = QSqlDatabase::addDatabase("QSQLITE", "new");
+      db.setDatabaseName(path);
+      QVERIFY(db.open());
+      QSqlQuery q(db);
+      QVERIFY(q.exec("SELECT value FROM meta WHERE key = 'schema_version'") && q.next());
+      QCOMPARE(q.value(0).toInt(), ui::kCaseSchemaVersion);
+      QVERIFY(q.exec("SELECT COUNT(*) FROM parts WHERE length(sha256) = 32") && q.next());
+      QVERIFY(q.value(0).toInt() >= 5);
+      db.close();
+    }
+    QSqlDatabase::removeDatabase("new");
+    compareCases(edited, ui::loadCaseFile(path));
   }
 
   void newerSchemaIsRefusedClearly() {

@@ -4,6 +4,7 @@
 #include <rehearse/simcore/meshio.hpp>
 
 #include <QCoreApplication>
+#include <QCryptographicHash>
 #include <QDateTime>
 #include <QFile>
 #include <QFileInfo>
@@ -17,6 +18,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <cstdio>
+#include <map>
 #include <stdexcept>
 
 #include <QDir>
@@ -106,7 +108,8 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
     q.exec(QStringLiteral("PRAGMA journal_mode=OFF"));
     q.exec(QStringLiteral("PRAGMA synchronous=OFF"));
     if (!q.exec(QStringLiteral("CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)")) ||
-        !q.exec(QStringLiteral("CREATE TABLE parts(name TEXT PRIMARY KEY, format TEXT NOT NULL, data BLOB NOT NULL, saved_utc TEXT NOT NULL)")))
+        !q.exec(QStringLiteral("CREATE TABLE parts(name TEXT PRIMARY KEY, format TEXT NOT NULL, data BLOB NOT NULL, sha256 BLOB NOT NULL, "
+                               "saved_utc TEXT NOT NULL)")))
       fail(QStringLiteral("Cannot write %1 (%2).").arg(path, q.lastError().text()));
     db.transaction();
     const QString now = QDateTime::currentDateTimeUtc().toString(Qt::ISODateWithMs);
@@ -123,10 +126,11 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
     meta(QStringLiteral("saved_utc"), now);
     auto part = [&](const char* name, const char* format, const QByteArray& data) {
       QSqlQuery p(db);
-      p.prepare(QStringLiteral("INSERT INTO parts(name, format, data, saved_utc) VALUES(?, ?, ?, ?)"));
+      p.prepare(QStringLiteral("INSERT INTO parts(name, format, data, sha256, saved_utc) VALUES(?, ?, ?, ?, ?)"));
       p.addBindValue(QString::fromLatin1(name));
       p.addBindValue(QString::fromLatin1(format));
       p.addBindValue(data);
+      p.addBindValue(QCryptographicHash::hash(data, QCryptographicHash::Sha256));
       p.addBindValue(now);
       if (!p.exec()) fail(QStringLiteral("Cannot write %1 (%2).").arg(path, p.lastError().text()));
     };
@@ -208,21 +212,38 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
   if (version > kCaseSchemaVersion)
     fail(QStringLiteral("%1 was saved by a newer Rehearse (schema %2, this one reads up to %3); update Rehearse to open it.")
              .arg(name).arg(version).arg(kCaseSchemaVersion));
-  // Migrations from older schemas go here (none yet: version 1 is the first).
+  // Migrations: schema 1 has no checksums (its parts are read as they are); the parts it lacks are simply
+  // absent. Nothing is written back: the next save writes the current schema.
+  const bool checksums = version >= 2;
   phantom::Case c;
   if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'name'")) && q.next()) c.name = q.value(0).toString().toStdString();
   auto note = [&](const QString& s) {
     if (notes) *notes << s;
   };
+  // What each part is called in messages ("<what> not loaded: ...").
+  const std::map<std::string, QString> partName = {
+      {"volume", QStringLiteral("Organ mesh")},        {"labels", QStringLiteral("Organ labels")},
+      {"frame", QStringLiteral("Frame")},              {"raw_frame", QStringLiteral("Captured frame")},
+      {"camera", QStringLiteral("Camera")},            {"attachments", QStringLiteral("Attachments")},
+      {"pose", QStringLiteral("Pose")},                {"contour", QStringLiteral("Contour")},
+      {"elastic_fit", QStringLiteral("Elastic fit")}, {"ground_truth", QStringLiteral("Ground truth")}};
   auto read = [&](const char* part) -> QByteArray {
     QSqlQuery p(db);
-    p.prepare(QStringLiteral("SELECT data FROM parts WHERE name = ?"));
+    p.prepare(checksums ? QStringLiteral("SELECT data, sha256 FROM parts WHERE name = ?") : QStringLiteral("SELECT data FROM parts WHERE name = ?"));
     p.addBindValue(QString::fromLatin1(part));
+    const auto named = partName.find(part);
+    const QString what = named != partName.end() ? named->second : QString::fromLatin1(part);
     if (!p.exec()) {
-      note(QStringLiteral("The %1 could not be read (%2).").arg(QString::fromLatin1(part), p.lastError().text()));
+      note(QStringLiteral("%1 not loaded: it could not be read (%2).").arg(what, p.lastError().text()));
       return {};
     }
-    return p.next() ? p.value(0).toByteArray() : QByteArray();
+    if (!p.next()) return {};
+    QByteArray data = p.value(0).toByteArray();
+    if (checksums && QCryptographicHash::hash(data, QCryptographicHash::Sha256) != p.value(1).toByteArray()) {
+      note(QStringLiteral("%1 not loaded: the stored data is damaged (it no longer matches its checksum).").arg(what));
+      return {};
+    }
+    return data;
   };
   if (QByteArray v = read("volume"); !v.isEmpty()) {
     try {

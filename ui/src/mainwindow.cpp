@@ -204,7 +204,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {
-    landmarks_.push_back({m, {}, false});
+    landmarks_.push_back({m, Eigen::Vector2d::Zero(), false});
     view_->setLandmarks(landmarks_);
     refreshPanels();
     statusCase_->setText(tr("Landmark %1 on the organ; now click where it is in the frame.").arg(landmarks_.size()));

@@ -3,10 +3,15 @@
 // database is written beside the target, flushed to disk, then renamed over it, so killing the program
 // at any moment leaves either the previous file or the new one, never a mix.
 //
-// Schema (version 1): meta(key, value) with schema_version, app_version, name, saved_utc;
-// parts(name, format, data, saved_utc): one row per part (volume as binary VTU, frame as PNG, camera,
-// pose, attachments and ground truth as JSON). A part that cannot be decoded is reported on its own;
-// the other parts still open.
+// Schema (version 2): meta(key, value) with schema_version, app_version, name, saved_utc;
+// parts(name, format, data, sha256, saved_utc): one row per part (volume as binary VTU, frame as PNG,
+// camera, pose, attachments, contour, elastic fit and ground truth as JSON) with the SHA-256 of its data. A
+// part that cannot be decoded, or whose data no longer matches its checksum, is reported on its own; the
+// other parts still open.
+// History: 1, the first (no checksums; no elastic_fit part, no model_vertices in the contour). Opening
+// an older case migrates it in memory (schema 1: parts read without a checksum); saving writes the current
+// schema. A newer schema than this build knows is refused with a sentence, so an older Rehearse never
+// re-saves a case without the parts it does not know.
 #include "phantom/phantom.hpp"
 
 #include <QString>
@@ -14,7 +19,7 @@
 
 namespace rehearse::ui {
 
-inline constexpr int kCaseSchemaVersion = 1;
+inline constexpr int kCaseSchemaVersion = 2;
 inline constexpr const char* kCaseSuffix = "rehearse";
 
 /// Writes `c` to `path` atomically. Throws std::runtime_error with one sentence; the file at `path`

@@ -23,8 +23,8 @@ enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Lan
 enum class GizmoHandle { None, TranslateX, TranslateY, TranslateZ, RotateX, RotateY, RotateZ };
 
 struct LandmarkPair {
-  Eigen::Vector3d model;    ///< point on the mesh, model frame (m)
-  Eigen::Vector2d image;    ///< where it is in the frame (px)
+  Eigen::Vector3d model = Eigen::Vector3d::Zero();  ///< point on the mesh, model frame (m)
+  Eigen::Vector2d image = Eigen::Vector2d::Zero();  ///< where it is in the frame (px)
   bool hasImage = false;
 };
 
