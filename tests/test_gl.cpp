@@ -1,13 +1,21 @@
 // Under Xvfb (OpenGL through Mesa's llvmpipe): the main window uses its OpenGL organ view and that view
-// draws the organ; with --software (or where no GL context can be made) the software view is used.
+// draws the organ; the frame view's overlay drawn with OpenGL matches the CPU rasteriser's; with
+// --software (or where no GL context can be made) the software view and the CPU overlay are used.
 #include <QtTest>
 
+#include "phantom/phantom.hpp"
+#include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/gloverlay.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/organglview.hpp"
 #include "rehearse/ui/organview.hpp"
 
 #include <QSignalSpy>
 #include <QStandardPaths>
+
+#include <rehearse/imaging/render.hpp>
+
+#include <opencv2/imgproc.hpp>
 
 using namespace rehearse;
 
@@ -53,10 +61,50 @@ class TestGl : public QObject {
     QVERIFY(turned != img);
   }
 
+  // The overlay through the frame's camera: OpenGL against the CPU rasteriser on the phantom at its true
+  // pose (same coverage and shading up to edge pixels and rounding).
+  void openGLOverlayMatchesTheCpuOne() {
+    const phantom::Case c = phantom::makePhantom();
+    ui::GLOverlay gl;
+    QVERIFY2(gl.valid(), "no OpenGL 3.3 context under Xvfb");
+    QImage image;
+    QVERIFY(gl.render(c.camera, c.truePose, c.surfaceView(), QColor(120, 210, 150), image));
+    QCOMPARE(image.size(), QSize(c.camera.width, c.camera.height));
+    const cv::Mat4b cpu = imaging::renderOverlay(c.camera, c.truePose, c.surfaceView(), cv::Vec3b(150, 210, 120));
+    int both = 0, either = 0;
+    double colourDiff = 0;
+    for (int y = 0; y < image.height(); ++y) {
+      const uchar* g = image.constScanLine(y);
+      for (int x = 0; x < image.width(); ++x) {
+        const cv::Vec4b p = cpu(y, x);
+        const bool inG = g[4 * x + 3] > 127, inC = p[3] > 127;
+        either += inG || inC;
+        if (inG && inC) {
+          ++both;
+          colourDiff += std::abs(g[4 * x] - p[2]) + std::abs(g[4 * x + 1] - p[1]) + std::abs(g[4 * x + 2] - p[0]);
+        }
+      }
+    }
+    const double iou = double(both) / either, meanDiff = colourDiff / (3.0 * both);
+    qInfo("OpenGL overlay against the CPU one: IoU %.4f over %d pixels, mean colour difference %.4f levels (%.0f in total)", iou, either, meanDiff, colourDiff);
+    QVERIFY(iou > 0.995);
+    QVERIFY(meanDiff < 2.0);
+    // The main window draws its overlay with it.
+    ui::MainWindow w;
+    w.resize(1400, 900);
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    QVERIFY(loaded.wait(60000));
+    QVERIFY(w.overlayUsesOpenGL());
+  }
+
   void softwareFallback() {
     ui::MainWindow::setSoftwareRendering(true);
     ui::MainWindow w;
     QVERIFY(!w.organViewUsesOpenGL());
+    QVERIFY(!w.overlayUsesOpenGL());
     QVERIFY(qobject_cast<ui::OrganView*>(w.organWidget()));
     ui::MainWindow::setSoftwareRendering(false);
   }

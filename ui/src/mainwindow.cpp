@@ -2,6 +2,7 @@
 
 #include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/organglview.hpp"
+#include "rehearse/ui/gloverlay.hpp"
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
@@ -149,6 +150,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   auto* organDock = new QDockWidget(tr("Organ 3D"), this);
   organDock->setObjectName(QStringLiteral("organDock"));
   if (!softwareRendering() && OrganGLView::openGLAvailable()) {
+    glOverlay_ = std::make_unique<GLOverlay>();
+    if (!glOverlay_->valid()) glOverlay_.reset();
     organGLView_ = new OrganGLView(organDock);
     organGLView_->setObjectName(QStringLiteral("organView"));
     organDock->setWidget(organGLView_);
@@ -260,6 +263,17 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) resize(1600, 900);
   restoreState(settings.value(QStringLiteral("window/state")).toByteArray());
   setStep(Step::Mesh);
+}
+
+bool MainWindow::overlayUsesOpenGL() const { return glOverlay_ != nullptr; }
+
+QImage MainWindow::organImage(const imaging::Camera& camera, const Pose& pose, const SurfaceView& surface, const QColor& colour) {
+  QImage image;
+  if (glOverlay_ && glOverlay_->render(camera, pose, surface, colour, image)) return image;
+  const cv::Mat4b overlay = imaging::renderOverlay(camera, pose, surface, cv::Vec3b(colour.blue(), colour.green(), colour.red()));
+  cv::Mat rgba;
+  cv::cvtColor(overlay, rgba, cv::COLOR_BGRA2RGBA);
+  return QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
 }
 
 MainWindow::~MainWindow() {
@@ -876,10 +890,9 @@ void MainWindow::refreshOverlay() {
     cam.K(0, 2) = s * (c->camera.cx() + 0.5) - 0.5;
     cam.K(1, 2) = s * (c->camera.cy() + 0.5) - 0.5;
   }
-  cv::Mat4b overlay = imaging::renderOverlay(cam, c->pose, c->surfaceView(), cv::Vec3b(150, 210, 120));
-  cv::Mat rgba;
-  cv::cvtColor(overlay, rgba, cv::COLOR_BGRA2RGBA);
-  case_.organOverlay = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
+  case_.organOverlay = organImage(cam, c->pose, c->surfaceView(), QColor(120, 210, 150));
+  const cv::Mat overlay(case_.organOverlay.height(), case_.organOverlay.width(), CV_8UC4, const_cast<uchar*>(case_.organOverlay.constBits()),
+                        static_cast<std::size_t>(case_.organOverlay.bytesPerLine()));
   cv::Mat1b mask;
   cv::extractChannel(overlay, mask, 3);
   std::vector<std::vector<cv::Point>> contours;
@@ -905,10 +918,7 @@ void MainWindow::refreshOverlay() {
     SurfaceView v = c->volume.surfaceView();
     v.triangles = inner.front().data();
     v.triangleCount = inner.size();
-    const QColor col = labelColour(innerLabel);
-    cv::Mat4b in = imaging::renderOverlay(cam, c->pose, v, cv::Vec3b(col.blue(), col.green(), col.red()));
-    cv::cvtColor(in, rgba, cv::COLOR_BGRA2RGBA);
-    view_->setInnerOverlay(QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy());
+    view_->setInnerOverlay(organImage(cam, c->pose, v, labelColour(innerLabel)));
   } else {
     view_->setInnerOverlay({});
   }

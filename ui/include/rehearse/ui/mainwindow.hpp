@@ -13,6 +13,7 @@
 
 #include <atomic>
 #include <functional>
+#include <memory>
 #include <mutex>
 
 class QLabel;
@@ -41,6 +42,7 @@ namespace rehearse::ui {
 
 class OrganView;
 class OrganGLView;
+class GLOverlay;
 class SimulationPanel;
 
 /// Steps of the workflow, in the order a case is worked.
@@ -86,6 +88,8 @@ class MainWindow : public QMainWindow {
   QWidget* organWidget() const;
   SimulationPanel* simulationPanel() const { return simulation_; }
   bool organViewUsesOpenGL() const { return organGLView_ != nullptr; }
+  /// True when the frame view's organ overlay is drawn with OpenGL (off screen), false for the CPU rasteriser.
+  bool overlayUsesOpenGL() const;
   /// Forces the software renderers (set before creating a window; `rehearse --software`).
   static void setSoftwareRendering(bool on);
   QUndoStack* undoStack() { return &undo_; }
@@ -151,6 +155,8 @@ class MainWindow : public QMainWindow {
   FrameView* view_ = nullptr;
   OrganView* organView_ = nullptr;
   OrganGLView* organGLView_ = nullptr;
+  std::unique_ptr<GLOverlay> glOverlay_;  // the frame view's overlay with OpenGL, when a context can be made
+  QImage organImage(const imaging::Camera& camera, const Pose& pose, const SurfaceView& surface, const QColor& colour);
   SimulationPanel* simulation_ = nullptr;
   class QDockWidget* simulationDock_ = nullptr;
   QLabel* statusSimulation_ = nullptr;
