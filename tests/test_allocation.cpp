@@ -96,8 +96,8 @@ class TestAllocation : public QObject {
       qInfo("%-11s heap allocations per step: %ld in total over 20 steps, at most %ld in one; %ld in steps that re-factorised, "
             "at most %ld in one that did not",
             toString(method).c_str(), total, worst, refreshing, quiet);
-      // A step that reuses the factorisation allocates nothing; a numeric factorisation may (CHOLMOD's
-      // supernodal workspace), which is reported above.
+      // A step that reuses the factorisation allocates nothing; a numeric factorisation does, inside
+      // CHOLMOD (its permuted transpose, and an OpenMP team per supernode from libgomp), reported above.
       QCOMPARE(quiet, 0L);
     }
   }

@@ -11,7 +11,12 @@
 #include "rehearse/ui/organview.hpp"
 
 #include <QSignalSpy>
+#include <QElapsedTimer>
 #include <QStandardPaths>
+
+#include <algorithm>
+#include <functional>
+#include <vector>
 
 #include <rehearse/imaging/render.hpp>
 
@@ -89,6 +94,21 @@ class TestGl : public QObject {
     qInfo("OpenGL overlay against the CPU one: IoU %.4f over %d pixels, mean colour difference %.4f levels (%.0f in total)", iou, either, meanDiff, colourDiff);
     QVERIFY(iou > 0.995);
     QVERIFY(meanDiff < 2.0);
+    // How long each takes (reported, not asserted: this machine is shared): medians of 7.
+    auto median = [](const std::function<void()>& f) {
+      std::vector<double> ms;
+      for (int i = 0; i < 7; ++i) {
+        QElapsedTimer t;
+        t.start();
+        f();
+        ms.push_back(t.nsecsElapsed() / 1e6);
+      }
+      std::sort(ms.begin(), ms.end());
+      return ms[3];
+    };
+    const double glMs = median([&] { gl.render(c.camera, c.truePose, c.surfaceView(), QColor(120, 210, 150), image); });
+    const double cpuMs = median([&] { imaging::renderOverlay(c.camera, c.truePose, c.surfaceView(), cv::Vec3b(150, 210, 120)); });
+    qInfo("1280x720 overlay: OpenGL %.1f ms, CPU %.1f ms (medians of 7, including the read-back)", glMs, cpuMs);
     // The main window draws its overlay with it.
     ui::MainWindow w;
     w.resize(1400, 900);
