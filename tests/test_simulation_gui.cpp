@@ -18,6 +18,7 @@
 
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/integrator.hpp>
 
 #include <QDockWidget>
 #include <QDoubleSpinBox>
@@ -157,9 +158,17 @@ class TestSimulationGui : public QObject {
   // is one undo step and is saved in the case file.
   void elasticFitStep() {
     const auto& c = *w_->currentCase().data;
-    // The assistant's contour: the organ's outline at the true pose; the rigid alignment: the true pose
-    // moved 3 mm sideways.
-    const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, c.truePose, c.surfaceView()));
+    // The assistant's contour: the outline at the true pose of the organ sagging 2 g sideways (a
+    // deformation the fit must find); the rigid alignment: the true pose moved 3 mm sideways.
+    const simcore::FemModel model = simcore::FemModel::build(c.volume, {}, {simcore::MaterialModel::Corotational, 27e3, 0.4, 1000});
+    simcore::SimulationSettings load;
+    load.gravity = c.truePose.R.transpose() * Eigen::Vector3d(2 * 9.81, 0, 0);
+    simcore::Integrator sag(model, c.attachments, load);
+    auto sagged = sag.initialState();
+    QVERIFY(sag.solveStatic(sagged).ok);
+    SurfaceView deformed = c.surfaceView();
+    deformed.vertices = sagged.x.data();
+    const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, c.truePose, deformed));
     QVERIFY(!borders.empty());
     imaging::ContourSegment seg;
     for (std::size_t i = 0; i < borders.front().size(); i += 3) seg.points.push_back(borders.front()[i]);

@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -16,6 +17,13 @@ namespace {
 void checkCamera(const Pinhole& c) {
   if (!(c.K(0, 0) > 0) || !(c.K(1, 1) > 0) || c.width <= 0 || c.height <= 0 || !c.K.allFinite() || std::abs(c.K(2, 2) - 1) > 1e-9)
     throw MeshError("The camera is unusable (its focal lengths and image size must be positive); load a calibration first.");
+}
+
+// "0.57 px", for statuses.
+std::string pixels(double px) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.2f px", px);
+  return text;
 }
 
 // Closest point of segment [a, b] to p: returns the parameter in [0, 1].
@@ -738,7 +746,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   if (!o.elastic) {
     res.ok = true;
     res.converged = true;
-    res.status = "rigid fit: mean distance " + std::to_string(rigidMean) + " px";
+    res.status = "rigid fit: mean distance " + pixels(rigidMean);
   } else {
     // Elastic: bound points held on their rays (image plane only), static equilibrium, rebind, repeat.
     // Equilibrium to 10 micrometres is far below a pixel at endoscope distances (and projected Newton,
@@ -809,7 +817,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       res.x = rigidX;
       res.pose = rigidPose;
       res.ok = true;
-      res.status = "the elastic fit did not improve on the rigid start (" + std::to_string(rigidMean) + " px); the start is kept";
+      res.status = "the elastic fit did not improve on the rigid start (" + pixels(rigidMean) + "); the start is kept";
     } else if (!failure.empty() && bestMean >= rigidMean) {
       res.ok = false;
       res.status = "failed: " + failure;
@@ -817,7 +825,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       res.ok = true;
       res.status = (res.converged ? "converged" : failure.empty() ? "not converged in " + std::to_string(o.maxIterations) + " iterations"
                                                                  : "stopped: " + failure) +
-                   ": mean distance " + std::to_string(bestMean) + " px (start " + std::to_string(first.score()) + " px)";
+                   ": mean distance " + pixels(bestMean) + " (start " + pixels(first.score()) + ")";
     }
   }
   // A fit that still leaves the contour far from the organ did not find it.

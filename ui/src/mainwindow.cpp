@@ -922,16 +922,23 @@ void MainWindow::refreshOverlay() {
   } else {
     view_->setInnerOverlay({});
   }
-  imaging::Contour scaled = c->contour;
-  for (auto& seg : scaled.segments)
-    for (auto& p : seg.points) p = (p.array() + 0.5) * s - 0.5;
-  imaging::ContourDistance d;
-  if (imaging::contourToMaskDistance(scaled, mask, d)) {
-    d.mean /= s;
-    d.rms /= s;
-    d.max /= s;
+  // The distance the elastic fit measures: the silhouette contour's points to the organ's visible
+  // silhouette (its bent edges), in pixels of the frame.
+  simcore::Residual2D d;
+  if (const auto segments = imaging::silhouetteSegments(c->contour); !segments.empty()) {
+    const SurfaceView sv = c->surfaceView();
+    Eigen::VectorXd x(3 * static_cast<Eigen::Index>(sv.vertexCount));
+    for (std::size_t i = 0; i < sv.vertexCount; ++i) x.segment<3>(3 * static_cast<Eigen::Index>(i)) = sv.vertex(i);
+    try {
+      d = simcore::contourResidual(segments, simcore::visibleSilhouette(c->surface, x, c->pose, c->camera.pinhole()));
+    } catch (const std::exception&) {
+      d = {};  // behind the camera: no distance to show
+    }
+  }
+  if (d.points > 0 && std::isfinite(d.mean)) {
     contourDistance_ = d.mean;
-    const QString text = tr("Contour to silhouette: mean %1 px, RMS %2 px, max %3 px").arg(d.mean, 0, 'f', 1).arg(d.rms, 0, 'f', 1).arg(d.max, 0, 'f', 1);
+    const QString text =
+        tr("Contour to silhouette: mean %1 px, RMS %2 px, max %3 px").arg(d.mean, 0, 'f', 1).arg(d.rms, 0, 'f', 1).arg(d.hausdorff, 0, 'f', 1);
     statusDistance_->setText(text);
     if (distanceLabel_) distanceLabel_->setText(text);
   } else {
