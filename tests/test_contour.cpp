@@ -1,5 +1,5 @@
 // Contours: files (ours and P2ILF), resampling and smoothing against geometry, self-intersection,
-// distances to a silhouette, and edge snapping on a synthetic image with a known edge.
+// outlines of masks, the silhouette segments, and edge snapping on a synthetic image with a known edge.
 #include "test_support.hpp"
 
 #include <rehearse/imaging/contour.hpp>
@@ -114,21 +114,20 @@ class TestContour : public QObject {
     QVERIFY(std::abs(r1 - 50) < 0.5);
   }
 
-  void distanceToMask() {
-    cv::Mat1b mask(200, 200, uchar(0));
-    cv::rectangle(mask, cv::Rect(50, 50, 101, 101), cv::Scalar(255), cv::FILLED);  // outline on x,y = 50 and 150
+  // What the fit and the live readout measure: the silhouette segments only (ridges and ligaments lie
+  // inside the outline), closed ones closed.
+  void silhouetteSegmentsOnly() {
     Contour c;
-    c.segments.push_back({{{45, 100}, {100, 40}, {160, 100}}, false, "silhouette", {}});  // 5, 10 and 10 px away
-    ContourDistance d;
-    QVERIFY(contourToMaskDistance(c, mask, d));
-    QVERIFY(std::abs(d.mean - 25.0 / 3) < 0.6);
-    QVERIFY(std::abs(d.max - 10) < 0.6);
-    QVERIFY(!contourToMaskDistance(c, cv::Mat1b(200, 200, uchar(0)), d));
-    // A ridge inside the outline is not part of the silhouette distance.
+    c.segments.push_back({{{45, 100}, {100, 40}, {160, 100}}, true, "silhouette", {}});
     c.segments.push_back({{{100, 100}, {110, 100}}, false, "ridge", {}});
-    QVERIFY(contourToMaskDistance(c, mask, d));
-    QVERIFY(std::abs(d.max - 10) < 0.6);
-    QCOMPARE(d.points, std::size_t(3));
+    c.segments.push_back({{{1, 2}, {3, 4}}, false, "", {}});
+    c.segments.push_back({{{5, 6}, {7, 8}}, false, "ligament", {3, 4}});
+    const auto s = silhouetteSegments(c);
+    QCOMPARE(s.size(), std::size_t(2));
+    QCOMPARE(s[0].size(), std::size_t(4));  // closed: the first point again at the end
+    QCOMPARE(s[0].back(), s[0].front());
+    QCOMPARE(s[1].size(), std::size_t(2));
+    QCOMPARE(anatomicalSegments(c).size(), std::size_t(1));  // the ligament with its curve on the organ
   }
 
   // A mask's outline lies on its boundary with the background: a square of pixels 50..150 is bounded by

@@ -182,34 +182,6 @@ ContourSegment smoothSegment(const ContourSegment& s, int iterations) {
   return out;
 }
 
-bool contourToMaskDistance(const Contour& c, const cv::Mat1b& mask, ContourDistance& out) {
-  out = {};
-  if (mask.empty() || c.empty() || cv::countNonZero(mask) == 0) return false;
-  // Outline pixels of the mask, then the distance from every pixel to the nearest outline pixel.
-  cv::Mat1b eroded, outline;
-  cv::erode(mask, eroded, cv::Mat());
-  outline = mask & ~eroded;
-  cv::Mat1f dist;
-  cv::distanceTransform(~outline, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-  double sum = 0, sum2 = 0;
-  for (const auto& s : c.segments) {
-    if (!s.type.empty() && s.type != "silhouette") continue;  // ridges and ligaments lie inside the outline
-    for (const auto& p : s.points) {
-      const int x = std::clamp(static_cast<int>(std::lround(p.x())), 0, mask.cols - 1);
-      const int y = std::clamp(static_cast<int>(std::lround(p.y())), 0, mask.rows - 1);
-      const double d = dist(y, x);
-      sum += d;
-      sum2 += d * d;
-      out.max = std::max(out.max, d);
-      ++out.points;
-    }
-  }
-  if (out.points == 0) return false;
-  out.mean = sum / out.points;
-  out.rms = std::sqrt(sum2 / out.points);
-  return true;
-}
-
 std::vector<Eigen::Vector2d> snapToEdges(const cv::Mat3b& image, const std::vector<Eigen::Vector2d>& anchors) {
   if (anchors.size() < 2 || image.empty()) return anchors;
   cv::segmentation::IntelligentScissorsMB scissors;

@@ -64,14 +64,6 @@ ContourSegment smoothSegment(const ContourSegment& s, int iterations);
 /// True when two non-adjacent edges of the segment cross.
 bool segmentSelfIntersects(const ContourSegment& s);
 
-/// Distances (px) from the contour's silhouette points to the outline of a mask: mean, RMS and maximum
-/// (Hausdorff from contour to silhouette). Returns false when the mask or the contour has none.
-struct ContourDistance {
-  double mean = 0, rms = 0, max = 0;
-  std::size_t points = 0;
-};
-bool contourToMaskDistance(const Contour& c, const cv::Mat1b& mask, ContourDistance& out);
-
 /// Snaps a sketched polyline to image edges with OpenCV's intelligent scissors (live-wire) between
 /// successive anchor points. `image` is the frame (BGR). Returns the snapped polyline.
 std::vector<Eigen::Vector2d> snapToEdges(const cv::Mat3b& image, const std::vector<Eigen::Vector2d>& anchors);
