@@ -42,6 +42,7 @@ class TestGl : public QObject {
     w.openCase({});
     QVERIFY(loaded.wait(60000));
     QVERIFY(w.organViewUsesOpenGL());
+    QVERIFY(w.overlayUsesOpenGL());  // the frame view's overlay too
     auto* gl = qobject_cast<ui::OrganGLView*>(w.organWidget());
     QVERIFY(gl);
     QTRY_VERIFY_WITH_TIMEOUT(gl->glReady(), 10000);
@@ -109,15 +110,6 @@ class TestGl : public QObject {
     const double glMs = median([&] { gl.render(c.camera, c.truePose, c.surfaceView(), QColor(120, 210, 150), image); });
     const double cpuMs = median([&] { imaging::renderOverlay(c.camera, c.truePose, c.surfaceView(), cv::Vec3b(150, 210, 120)); });
     qInfo("1280x720 overlay: OpenGL %.1f ms, CPU %.1f ms (medians of 7, including the read-back)", glMs, cpuMs);
-    // The main window draws its overlay with it.
-    ui::MainWindow w;
-    w.resize(1400, 900);
-    w.show();
-    QVERIFY(QTest::qWaitForWindowExposed(&w));
-    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
-    w.openCase({});
-    QVERIFY(loaded.wait(60000));
-    QVERIFY(w.overlayUsesOpenGL());
   }
 
   void softwareFallback() {
