@@ -721,9 +721,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
       if (!solved) w.lambda = lambdaStart;
     }
     if (!solved) buildTangent(false);
-    if (solved) {
-      // the lagged step
-    } else if (settings_.solver == LinearSolverKind::Cholmod) {
+    if (!solved && settings_.solver == LinearSolverKind::Cholmod) {
       ++rep.factorisations;
       w.schurValid = false;
       // Each attempt starts from the same multipliers (a failed one can leave them absurd).
@@ -739,7 +737,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
         });
       }
       if (solved) w.staticFactor = w.chol.factorisations();
-    } else {
+    } else if (!solved) {
       solved = solveLinear(w.K, r, dx);
       if (!solved) {
         Eigen::SparseMatrix<double> Ks = w.K;
