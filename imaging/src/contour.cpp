@@ -259,7 +259,7 @@ std::vector<std::vector<Eigen::Vector2d>> maskOutlines(const cv::Mat1b& mask, st
 std::vector<std::vector<Eigen::Vector2d>> silhouetteSegments(const Contour& c) {
   std::vector<std::vector<Eigen::Vector2d>> out;
   for (const auto& seg : c.segments)
-    if (seg.type == "silhouette" || seg.type.empty()) {
+    if (seg.isSilhouette()) {
       out.push_back(seg.points);
       if (seg.closed && !seg.points.empty()) out.back().push_back(seg.points.front());
     }
@@ -269,7 +269,7 @@ std::vector<std::vector<Eigen::Vector2d>> silhouetteSegments(const Contour& c) {
 std::vector<ContourSegment> anatomicalSegments(const Contour& c) {
   std::vector<ContourSegment> out;
   for (const auto& seg : c.segments)
-    if (seg.type != "silhouette" && !seg.type.empty() && !seg.modelVertices.empty()) out.push_back(seg);
+    if (!seg.isSilhouette() && !seg.modelVertices.empty()) out.push_back(seg);
   return out;
 }
 

@@ -6,6 +6,7 @@
 #include <Eigen/IterativeLinearSolvers>
 
 #include <chrono>
+#include <cstdio>
 #include <cmath>
 
 #include <dlfcn.h>
@@ -52,6 +53,13 @@ struct Integrator::Work {
 };
 
 namespace {
+// "10 micrometres", for statuses.
+std::string micrometres(double metres) {
+  char text[48];
+  std::snprintf(text, sizeof text, "%g micrometres", 1e6 * metres);
+  return text;
+}
+
 // OpenBLAS on one thread: factorising these sparse systems was 2x faster than on two here (DESIGN.md).
 void singleThreadedBlas() {
   static const bool done = [] {
@@ -110,6 +118,11 @@ Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, Simul
   }
   rest_ = model.restVector();
   gravityWorkAtRest_ = gravityForce_.dot(rest_);
+  {
+    Eigen::AlignedBox3d box;
+    for (Eigen::Index i = 0; i + 2 < rest_.size(); i += 3) box.extend(rest_.segment<3>(i));
+    organSize_ = box.isEmpty() ? 1.0 : std::max(box.diagonal().norm(), 1e-6);
+  }
   Work& w = *w_;
   for (Eigen::VectorXd* vec : {&w.x0, &w.v0, &w.Mv0, &w.v, &w.vn, &w.xt, &w.r, &w.rn, &w.dv, &w.f, &w.tmp, &w.savedX, &w.savedV,
                                &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk})
@@ -667,11 +680,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   // A Newton step larger than ten times the organ is a near-singular solve, not a move: refused, and the
   // projected tangent (then growing diagonal shifts) tried instead. Steps beyond a quarter of the organ are
   // shortened to that (a trust region; the next iterations continue).
-  const double organSize = [&] {
-    Eigen::AlignedBox3d box;
-    for (Eigen::Index i = 0; i + 2 < rest_.size(); i += 3) box.extend(rest_.segment<3>(i));
-    return box.isEmpty() ? 1.0 : std::max(box.diagonal().norm(), 1e-6);
-  }();
+  const double organSize = organSize_;
   auto usableStep = [&](Eigen::VectorXd& d) {
     const double largest = d.size() ? d.cwiseAbs().maxCoeff() : 0.0;
     if (!std::isfinite(largest) || largest > 10 * organSize) return false;
@@ -778,7 +787,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     state.x = x;
     state.v.setZero();
     rep.status = roundOff    ? "converged to round-off (relative residual " + std::to_string(rep.residual) + ")"
-                 : smallStep ? "converged (the last Newton move was below " + std::to_string(1e6 * settings_.staticStepTolerance) + " micrometres)"
+                 : smallStep ? "converged (the last Newton move was below " + micrometres(settings_.staticStepTolerance) + ")"
                              : "converged";
   } else {
     rep.ok = false;

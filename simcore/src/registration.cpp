@@ -593,29 +593,29 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   RegistrationResult res;
   res.x = model.restVector();
   res.pose = start;
+  // The distances of the silhouette contour and of the curves, for a shape, a pose and its silhouette.
+  auto measure = [&](const std::vector<SilhouetteEdge>& sil, const Eigen::VectorXd& x, const Pose& pose) {
+    RegistrationIteration r;
+    r.residual = contourResidual(contour, sil);
+    r.curves = curveResidual(curves, x, pose, camera);
+    return r;
+  };
   auto record = [&](int it, const char* stage, std::size_t bound) {
-    RegistrationIteration ri;
+    RegistrationIteration ri = measure(silhouette(res.x, res.pose), res.x, res.pose);
     ri.iteration = it;
     ri.stage = stage;
     ri.bound = bound;
-    ri.residual = contourResidual(contour, silhouette(res.x, res.pose));
-    ri.curves = curveResidual(curves, res.x, res.pose, camera);
     ri.wallMs = elapsed();
     res.iterations.push_back(ri);
     if (o.onIteration && !o.onIteration(ri, res.x, res.pose)) res.cancelled = true;
     return ri;
   };
   // The mean distance over the silhouette contour and the curves, for a shape and a pose.
-  auto score = [&](const Eigen::VectorXd& x, const Pose& pose) {
-    RegistrationIteration r;
-    r.residual = contourResidual(contour, silhouette(x, pose));
-    r.curves = curveResidual(curves, x, pose, camera);
-    return r.score();
-  };
-  // Correspondences for the pose: the contour onto the silhouette's edges, the curves' nodes onto their
-  // image curves.
-  auto rigidBindings = [&](const Pose& pose) {
-    auto b = bindForRigid(samples, silhouette(res.x, pose), o);
+  auto score = [&](const Eigen::VectorXd& x, const Pose& pose) { return measure(silhouette(x, pose), x, pose).score(); };
+  // Correspondences for the pose (the shape is res.x): the contour onto the silhouette's edges, the curves'
+  // nodes onto their image curves.
+  auto rigidBindings = [&](const std::vector<SilhouetteEdge>& sil, const Pose& pose) {
+    auto b = bindForRigid(samples, sil, o);
     const auto c = bindCurves(curves, res.x, pose, camera, nullptr);
     b.insert(b.end(), c.begin(), c.end());
     return b;
@@ -634,16 +634,11 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // Safe to run on several threads at once (its own silhouettes, not the shared last one).
     auto shortIcp = [&](Pose pose, int iterations) {
       for (int k = 0; k < iterations; ++k) {
-        auto bindings = bindForRigid(samples, visibleSilhouette(surface, res.x, pose, camera), o);
-        const auto c = bindCurves(curves, res.x, pose, camera, nullptr);
-        bindings.insert(bindings.end(), c.begin(), c.end());
+        const auto bindings = rigidBindings(visibleSilhouette(surface, res.x, pose, camera), pose);
         if (bindings.size() < 3) break;
         pose = refinePose(res.x, bindings, pose, camera, o.sliding);
       }
-      RegistrationIteration r;
-      r.residual = contourResidual(contour, visibleSilhouette(surface, res.x, pose, camera));
-      r.curves = curveResidual(curves, res.x, pose, camera);
-      return std::make_pair(pose, r.score());
+      return std::make_pair(pose, measure(visibleSilhouette(surface, res.x, pose, camera), res.x, pose).score());
     };
     // The best of short ICP runs from several poses (in parallel; the first of equal ends wins).
     auto bestOf = [&](const std::vector<Pose>& starts, int iterations) {
@@ -697,7 +692,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       bestPose = start;
     }
     for (int k = 0; k < o.rigidIterations; ++k) {
-      const auto bindings = rigidBindings(res.pose);
+      const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.pose);
       if (bindings.size() < 3) break;
       res.pose = refinePose(res.x, bindings, res.pose, camera, o.sliding);
       const auto ri = record(++iteration, "rigid", bindings.size());

@@ -31,7 +31,6 @@ QColor segmentColour(const std::string& type) {
   if (type == "ligament") return QColor(200, 130, 255);
   return QColor(255, 220, 40);
 }
-bool isAnatomical(const std::string& type) { return !type.empty() && type != "silhouette"; }
 }  // namespace
 
 FrameView::FrameView(QWidget* parent) : QWidget(parent) {
@@ -636,7 +635,7 @@ void FrameView::pickOrganCurve(const Eigen::Vector2d& fp) {
     double best = std::numeric_limits<double>::infinity();
     int target = -1;
     for (int i = 0; i < static_cast<int>(c.segments.size()); ++i) {
-      if (!isAnatomical(c.segments[i].type)) continue;
+      if (c.segments[i].isSilhouette()) continue;
       for (const auto& p : c.segments[i].points)
         if ((p - fp).norm() < best) {
           best = (p - fp).norm();

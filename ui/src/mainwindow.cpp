@@ -565,7 +565,6 @@ QWidget* MainWindow::buildFitPage() {
   fitRigid_->setChecked(true);
   layout->addWidget(fitRigid_);
   // Anatomical curves: a ridge or ligament sketched in step 3, and the same curve clicked on the organ.
-  auto* curveRow = new QHBoxLayout;
   auto* pickCurve = new QPushButton(tr("Pick Curve on Organ (K)"), page);
   pickCurve->setObjectName(QStringLiteral("pickCurve"));
   pickCurve->setToolTip(tr("Click along the ridge or ligament on the organ drawn over the frame; the sketched ridge or "
@@ -577,8 +576,7 @@ QWidget* MainWindow::buildFitPage() {
     if (step_ == Step::Elastic) view_->setTool(Tool::OrganCurve);
   });
   addAction(pickAction);
-  curveRow->addWidget(pickCurve);
-  layout->addLayout(curveRow);
+  layout->addWidget(pickCurve);
   fitCurves_ = new QLabel(page);
   fitCurves_->setObjectName(QStringLiteral("fitCurves"));
   fitCurves_->setWordWrap(true);
@@ -985,7 +983,7 @@ void MainWindow::refreshPanels() {
   {
     int sketched = 0, onOrgan = 0;
     for (const auto& s : c->contour.segments)
-      if (!s.type.empty() && s.type != "silhouette") {
+      if (!s.isSilhouette()) {
         ++sketched;
         onOrgan += !s.modelVertices.empty();
       }

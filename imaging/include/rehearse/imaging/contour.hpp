@@ -19,6 +19,8 @@ struct ContourSegment {
   /// For a ridge or a ligament: the same curve on the organ, as node indices of its mesh in order along it
   /// (P2ILF's "modelPoints"), which makes it an anatomical curve constraint of the elastic fit.
   std::vector<int> modelVertices;
+  /// Part of the organ's outline (a silhouette, or untyped), not a ridge or ligament inside it.
+  bool isSilhouette() const { return type.empty() || type == "silhouette"; }
 };
 
 struct Contour {

@@ -139,6 +139,7 @@ class Integrator {
   SimulationSettings settings_;
   Eigen::VectorXd mass3_, gravityForce_, rest_;
   double gravityWorkAtRest_ = 0;
+  double organSize_ = 1;  ///< m: the rest shape's bounding-box diagonal (the static solve's trust region)
   std::unique_ptr<Work> w_;
 };
 

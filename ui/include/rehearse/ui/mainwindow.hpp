@@ -26,7 +26,6 @@ class QStackedWidget;
 class QTreeWidget;
 class QSlider;
 class QDoubleSpinBox;
-class QComboBox;
 class QSpinBox;
 class QComboBox;
 class QCheckBox;
