@@ -1,4 +1,5 @@
 // Camera convention, projection, camera/pose files and the CPU renderer.
+#include "icosphere.hpp"
 #include "test_support.hpp"
 
 #include <rehearse/imaging/render.hpp>
@@ -8,6 +9,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <chrono>
 #include <numbers>
 
 using namespace rehearse;
@@ -159,6 +161,53 @@ class TestCamera : public QObject {
   }
 
   // A mesh behind the camera renders nothing (no crash); a mesh crossing the image plane is clipped.
+  // Picking a point on the organ (landmarks, curves on the organ) casts one ray; it must see what the
+  // depth buffer sees: two spheres, the near one hiding part of the far one, turned 30 degrees.
+  void pickAgreesWithTheDepthBuffer() {
+    simcore::Mesh m;
+    addIcosphere(m, {0.0, 0.0, 0.0}, 0.03, 3, 1);
+    addIcosphere(m, {0.02, 0.01, 0.05}, 0.04, 3, 2);
+    imaging::Camera c = imaging::Camera::defaultFor(320, 240);
+    Pose pose;
+    pose.R = Eigen::AngleAxisd(0.5, Eigen::Vector3d(1, 2, 0.5).normalized()).toRotationMatrix();
+    pose.t = {-0.005, 0.0, 0.2};
+    const SurfaceView s = m.surfaceView();
+    const auto r = imaging::rasterize(c, pose, s);
+    int covered = 0, agree = 0, edge = 0, far = 0;
+    double worstDepth = 0, pickSeconds = 0;
+    for (int y = 0; y < c.height; y += 2)
+      for (int x = 0; x < c.width; x += 2) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const auto p = imaging::pickSurface(c, pose, s, Eigen::Vector2d(x, y));
+        pickSeconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        const bool inBuffer = r.triangle(y, x) >= 0;
+        if (inBuffer != p.has_value()) {
+          ++edge;  // a pixel centre exactly on the outline: both are right
+          continue;
+        }
+        if (!p) continue;
+        ++covered;
+        worstDepth = std::max(worstDepth, std::abs(p->depth - r.depth(y, x)));
+        if (p->triangle == r.triangle(y, x)) ++agree;
+        if (m.triangleLabels[static_cast<std::size_t>(p->triangle)] == 2) ++far;
+        QVERIFY(std::abs(pose.apply(p->model).z() - p->depth) < 1e-12);
+        QVERIFY(p->nearestVertex >= 0 && (pose.apply(m.points[static_cast<std::size_t>(p->nearestVertex)]) -
+                                          pose.apply(p->model)).norm() < 0.01);
+      }
+    qInfo("pick vs depth buffer: %d covered samples, %d same triangle, %d on the outline, worst depth %.2g m, "
+          "%d on the hidden sphere; %.1f us per pick (%zu triangles)",
+          covered, agree, edge, worstDepth, far, 1e6 * pickSeconds / (c.width * c.height / 4), s.triangleCount);
+    QVERIFY(covered > 2000);
+    QVERIFY(far > 200);                        // the far sphere shows beside the near one
+    QVERIFY(edge <= covered / 500);            // only pixel centres that fall on an edge
+    QVERIFY(agree >= covered - covered / 200);  // ties on shared edges may pick the neighbour, at equal depth
+    QVERIFY(worstDepth < 1e-6);                // float depth buffer
+    QVERIFY(!imaging::pickSurface(c, pose, s, Eigen::Vector2d(2, 2)));  // beside the organ
+    Pose behind = pose;
+    behind.t.z() = -0.2;
+    QVERIFY(!imaging::pickSurface(c, behind, s, Eigen::Vector2d(160, 120)));
+  }
+
   void meshBehindCameraRendersNothing() {
     imaging::Camera c = imaging::Camera::defaultFor(64, 48);
     std::vector<double> v = {-0.1, -0.1, -1, 0.1, -0.1, -1, 0.1, 0.1, -1};

@@ -120,6 +120,47 @@ Rasterization rasterize(const Camera& camera, const Pose& pose, const SurfaceVie
   return rasterizePosed(camera, pose3(pose, surface, false), surface, std::max(1, scale), nearPlane);
 }
 
+std::optional<SurfacePick> pickSurface(const Camera& camera, const Pose& pose, const SurfaceView& s, const Eigen::Vector2d& pixel,
+                                       double nearPlane) {
+  checkCamera(camera);
+  // Moller-Trumbore in the camera frame, ray from the centre through the pixel (z = 1 at the image plane).
+  const Eigen::Vector3d d = scaledK(camera, 1).inverse() * pixel.homogeneous();
+  const Posed P = pose3(pose, s, false);
+  std::optional<SurfacePick> best;
+  for (std::size_t t = 0; t < s.triangleCount; ++t) {
+    const int* tri = s.triangles + 3 * t;
+    const Eigen::Vector3d &a = P.x[tri[0]], &b = P.x[tri[1]], &c = P.x[tri[2]];
+    if (a.z() <= nearPlane || b.z() <= nearPlane || c.z() <= nearPlane) continue;  // as the rasteriser
+    const Eigen::Vector3d e1 = b - a, e2 = c - a, p = d.cross(e2);
+    const double det = e1.dot(p);
+    if (std::abs(det) < 1e-300) continue;
+    const double inv = 1 / det;
+    const double u = -a.dot(p) * inv;
+    if (u < 0 || u > 1) continue;
+    const Eigen::Vector3d q = (-a).cross(e1);
+    const double v = d.dot(q) * inv;
+    if (v < 0 || u + v > 1) continue;
+    const double z = e2.dot(q) * inv;  // d has z = 1, so the ray parameter is the depth
+    if (z <= 0 || (best && z >= best->depth)) continue;
+    if (!best) best.emplace();
+    best->triangle = static_cast<int>(t);
+    best->depth = z;
+  }
+  if (!best) return best;
+  const Eigen::Vector3d xc = d * best->depth;
+  best->model = pose.R.transpose() * (xc - pose.t);
+  const int* tri = s.triangles + 3 * best->triangle;
+  double nearest = std::numeric_limits<double>::infinity();
+  for (int k = 0; k < 3; ++k) {
+    const double dist = (P.x[tri[k]] - xc).norm();
+    if (dist < nearest) {
+      nearest = dist;
+      best->nearestVertex = tri[k];
+    }
+  }
+  return best;
+}
+
 cv::Mat1b renderMask(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale) {
   auto r = rasterize(camera, pose, surface, scale);
   cv::Mat1b full = r.triangle >= 0;

@@ -603,23 +603,12 @@ void FrameView::keyPressEvent(QKeyEvent* e) {
 
 std::optional<FrameView::OrganHit> FrameView::organAt(const Eigen::Vector2d& fp) const {
   if (!case_ || !case_->hasPose || case_->surface.empty()) return std::nullopt;
-  const SurfaceView sv = case_->surfaceView();
-  const auto r = imaging::rasterize(case_->camera, case_->pose, sv);
-  const int x = static_cast<int>(std::lround(fp.x())), y = static_cast<int>(std::lround(fp.y()));
-  if (x < 0 || y < 0 || x >= r.triangle.cols || y >= r.triangle.rows || r.triangle(y, x) < 0) return std::nullopt;
-  const double z = r.depth(y, x);
-  const Eigen::Vector3d xc((fp.x() - case_->camera.cx()) * z / case_->camera.fx(), (fp.y() - case_->camera.cy()) * z / case_->camera.fy(), z);
+  // One ray through the clicked point (microseconds), not a render of the frame.
+  const auto pick = imaging::pickSurface(case_->camera, case_->pose, case_->surfaceView(), fp);
+  if (!pick) return std::nullopt;
   OrganHit hit;
-  hit.model = case_->pose.R.transpose() * (xc - case_->pose.t);
-  const auto& tri = case_->surface[static_cast<std::size_t>(r.triangle(y, x))];
-  double best = std::numeric_limits<double>::infinity();
-  for (int v : tri) {
-    const double d = (sv.vertex(static_cast<std::size_t>(v)) - hit.model).norm();
-    if (d < best) {
-      best = d;
-      hit.node = v;
-    }
-  }
+  hit.model = pick->model;
+  hit.node = pick->nearestVertex;
   return hit;
 }
 

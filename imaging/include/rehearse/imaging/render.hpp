@@ -6,6 +6,8 @@
 
 #include <opencv2/core.hpp>
 
+#include <optional>
+
 namespace rehearse::imaging {
 
 /// Per-pixel visibility: nearest triangle id (-1 for none) and its depth (camera z, metres).
@@ -19,6 +21,20 @@ struct Rasterization {
 /// Triangles crossing the plane z = nearPlane are dropped. Throws InputError for a bad camera.
 Rasterization rasterize(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale = 1,
                         double nearPlane = 1e-3);
+
+/// What the camera sees through one pixel: the nearest surface point on the ray (the triangle a depth buffer
+/// would keep there, without rasterising the frame).
+struct SurfacePick {
+  int triangle = -1;
+  double depth = 0;                                ///< camera z, metres
+  Eigen::Vector3d model = Eigen::Vector3d::Zero();  ///< the point in the model frame
+  int nearestVertex = -1;                           ///< the triangle's vertex nearest to it
+};
+
+/// Casts the ray through `pixel` (undistorted image coordinates, pixel centres at integers) against every
+/// triangle in front of z = nearPlane; nothing when it misses. Throws InputError for a bad camera.
+std::optional<SurfacePick> pickSurface(const Camera& camera, const Pose& pose, const SurfaceView& surface,
+                                       const Eigen::Vector2d& pixel, double nearPlane = 1e-3);
 
 /// 8-bit mask (255 where the surface covers the pixel centre) at the camera's resolution.
 cv::Mat1b renderMask(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale = 1);
