@@ -130,7 +130,13 @@ QualityReport computeQuality(const Mesh& m) {
 std::string formatQuality(const QualityReport& q) {
   char buf[512];
   std::string out;
-  std::snprintf(buf, sizeof buf, "points: %zu\ntriangles: %zu\ntetrahedra: %zu\n", q.points, q.triangles, q.tets);
+  // A volume's boundary is listed by whoever extracts it; a volume file's own triangles only when it has some.
+  if (q.tets && !q.triangles)
+    std::snprintf(buf, sizeof buf, "points: %zu\ntetrahedra: %zu\n", q.points, q.tets);
+  else if (!q.tets)
+    std::snprintf(buf, sizeof buf, "points: %zu\ntriangles: %zu\n", q.points, q.triangles);
+  else
+    std::snprintf(buf, sizeof buf, "points: %zu\ntriangles: %zu\ntetrahedra: %zu\n", q.points, q.triangles, q.tets);
   out += buf;
   if (!q.bounds.isEmpty()) {
     Eigen::Vector3d a = q.bounds.min() * 1e3, b = q.bounds.max() * 1e3, s = b - a;
