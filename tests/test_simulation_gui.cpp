@@ -75,6 +75,9 @@ class TestSimulationGui : public QObject {
     preset->setCurrentText("liver");
     auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
     QCOMPARE(young->value(), 27.0);  // DejaVu's liver: 27 kPa
+    // ... and 1.2 kg: the preset's density is what gives the organ that mass (shown beside it).
+    auto* mass = panel_->findChild<QLabel*>("simMass");
+    QVERIFY2(mass->text().startsWith("1200 g"), qPrintable(mass->text()));
     auto* step = panel_->findChild<QPushButton*>("simStep");
     QVERIFY(step->isEnabled());
     QTest::mouseClick(step, Qt::LeftButton);

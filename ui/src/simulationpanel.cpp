@@ -3,6 +3,7 @@
 #include "phantom/presets.hpp"
 
 #include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/quality.hpp>
 #include <rehearse/simcore/scene.hpp>
 
 #include <QComboBox>
@@ -332,6 +333,10 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   poisson_ = field("simPoisson", tr("Poisson's ratio"), 0, 0.499, 3, QString(), "material", "poisson");
   poisson_->setSingleStep(0.01);
   density_ = field("simDensity", tr("Density"), 1, 20000, 0, tr(" kg/m³"), "material", "density");
+  density_->setToolTip(density_->toolTip() + tr("\nThe DejaVu presets set it so that the organ weighs the paper's mass."));
+  mass_ = new QLabel(this);
+  mass_->setObjectName(QStringLiteral("simMass"));
+  form->addRow(tr("Organ mass"), mass_);
   timeStep_ = field("simTimeStep", tr("Time step"), 0.1, 100, 1, tr(" ms"), "implicit_euler", "dt");
   timeStep_->setValue(10);
   method_ = new QComboBox(this);
@@ -381,6 +386,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   for (QComboBox* c : {model_, method_}) connect(c, &QComboBox::currentIndexChanged, this, &SimulationPanel::parametersEdited);
   for (QDoubleSpinBox* s : {young_, poisson_, density_, timeStep_})
     connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::parametersEdited);
+  connect(density_, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::updateMass);
   connect(colouring_, &QComboBox::currentIndexChanged, this, [this](int c) {
     QMetaObject::invokeMethod(worker_, [w = worker_, c] { w->setColouring(c); }, Qt::QueuedConnection);
   });
@@ -413,6 +419,13 @@ void SimulationPanel::setOrgan(std::shared_ptr<const phantom::Case> organ) {
   organ_ = std::move(organ);
   if (same) return;
   playing_ = false;
+  organVolume_ = 0;
+  if (organ_)
+    for (const auto& t : organ_->volume.tets)
+      organVolume_ += std::abs(simcore::tetVolume(organ_->volume.points[t[0]], organ_->volume.points[t[1]],
+                                                  organ_->volume.points[t[2]], organ_->volume.points[t[3]]));
+  organVolume_ *= organ_ ? std::pow(organ_->volume.unitToMetre, 3) : 0.0;
+  updateMass();
   const bool presetOk = organ_ && !organ_->volume.tets.empty();
   if (presetOk) applyPreset(preset_->currentText());  // density follows the organ's volume
   const SimulationSetup s = setup();
@@ -437,6 +450,12 @@ void SimulationPanel::applyPreset(const QString& name) {
     filling_ = false;
     onFailed(QString::fromStdString(e.what()));
   }
+}
+
+void SimulationPanel::updateMass() {
+  mass_->setText(organVolume_ > 0 ? tr("%1 g (%2 cm³ x density)").arg(organVolume_ * density_->value() * 1e3, 0, 'f', 0)
+                                        .arg(organVolume_ * 1e6, 0, 'f', 1)
+                                  : tr("no volume mesh"));
 }
 
 void SimulationPanel::parametersEdited() {
