@@ -11,8 +11,9 @@ struct Run {
   int code;
   QString out, err;
 };
-Run run(const QStringList& args, int timeoutMs = 300000) {
+Run run(const QStringList& args, int timeoutMs = 300000, const QProcessEnvironment* env = nullptr) {
   QProcess p;
+  if (env) p.setProcessEnvironment(*env);
   p.start(QStringLiteral(REHEARSE_BINARY), args);
   p.waitForFinished(timeoutMs);
   return {p.exitStatus() == QProcess::NormalExit ? p.exitCode() : -1, QString::fromUtf8(p.readAllStandardOutput()),
@@ -123,6 +124,10 @@ class TestCli : public QObject {
   void errorsAreOneLine() {
     expectOneLineError(run({"info", "/no/such/file.msh"}), 1, "does not exist");
     expectOneLineError(run({"frobnicate"}), 2, "unknown command");
+    // The GUI without any display: one line (Qt itself would abort with a page about platform plugins).
+    QProcessEnvironment headless = QProcessEnvironment::systemEnvironment();
+    for (const char* v : {"DISPLAY", "WAYLAND_DISPLAY", "QT_QPA_PLATFORM"}) headless.remove(QString::fromLatin1(v));
+    expectOneLineError(run({"open", "/no/such/case.rehearse"}, 60000, &headless), 1, "no display");
     expectOneLineError(run({"mesh", "--in", "x.stl"}), 2, "--out");
     expectOneLineError(run({"mesh", "--in", "x.stl", "--out", "y.txt"}), 2, "--out must end");
     expectOneLineError(run({"phantom", "--out", "/tmp/x", "--tets", "many"}), 2, "whole number");

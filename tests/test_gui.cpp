@@ -6,6 +6,7 @@
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 
+#include <QLabel>
 #include <QSignalSpy>
 #include <QStandardPaths>
 
@@ -119,6 +120,14 @@ class TestGui : public QObject {
     w.openCase(QString::fromStdString(tempPath("not-a-case")));
     QVERIFY(loaded.wait(60000));
     QCOMPARE(loaded.takeFirst().at(0).toBool(), false);
+    QVERIFY(w.infoText().contains("Frame not loaded"));
+    // A case file that is not there (a stale recent file): said so, and the current case stays.
+    w.openCase(QString::fromStdString(tempPath("gone.rehearse")));
+    QVERIFY(loaded.wait(60000));
+    QCOMPARE(loaded.takeFirst().at(0).toBool(), false);
+    auto* status = w.findChild<QLabel*>("caseStatus");
+    QVERIFY(status);
+    QVERIFY2(status->text().endsWith("gone.rehearse does not exist."), qPrintable(status->text()));
     QVERIFY(w.infoText().contains("Frame not loaded"));
   }
 

@@ -26,6 +26,8 @@ LoadedCase loadCaseOrThrow(const QString& dir, const std::function<void(double, 
       if (progress) progress(0.9 * f, QString::fromStdString(stage));
     };
     *c = phantom::makePhantom(po);
+  } else if (!QFileInfo::exists(dir)) {
+    throw imaging::InputError(QStringLiteral("%1 does not exist.").arg(dir).toStdString());
   } else if (QFileInfo(dir).isFile()) {
     *c = loadCaseFile(dir, &out.notes);
   } else {

@@ -9,6 +9,7 @@
 #include <QTimer>
 
 #include <cstdio>
+#include <cstdlib>
 
 namespace rehearse::ui {
 // Operating rooms are dim: a dark theme by default.
@@ -36,6 +37,18 @@ void applyDarkTheme(QApplication& app) {
 }
 
 int runGui(int argc, char** argv) {
+#if defined(__linux__)
+  // Without a display Qt aborts with a page about platform plugins; say it in one line instead.
+  const auto unset = [](const char* name) {
+    const char* v = std::getenv(name);
+    return !v || !*v;
+  };
+  if (unset("DISPLAY") && unset("WAYLAND_DISPLAY") && unset("QT_QPA_PLATFORM")) {
+    std::fprintf(stderr, "rehearse: no display to open the window on (DISPLAY is not set); run it under xvfb-run, or "
+                         "use scripts/run.sh, which does\n");
+    return 1;
+  }
+#endif
   QApplication app(argc, argv);
   QApplication::setOrganizationName(QStringLiteral("Rehearse"));
   QApplication::setApplicationName(QStringLiteral("Rehearse"));

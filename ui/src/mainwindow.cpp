@@ -181,6 +181,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   cancelButton_->setVisible(false);
   connect(cancelButton_, &QToolButton::clicked, this, &MainWindow::cancelLoading);
   statusCase_ = new QLabel(this);
+  statusCase_->setObjectName(QStringLiteral("caseStatus"));
   statusCursor_ = new QLabel(this);
   statusSimulation_ = new QLabel(this);
   statusSimulation_->setObjectName(QStringLiteral("statusSimulation"));

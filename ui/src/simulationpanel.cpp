@@ -218,7 +218,7 @@ void SimulationView::paintEvent(QPaintEvent*) {
   painter.fillRect(rect(), QColor(24, 25, 28));
   if (!frame_ || !frame_->organ || frame_->positions.empty()) {
     painter.setPen(QColor(150, 150, 150));
-    painter.drawText(rect(), Qt::AlignCenter, tr("No simulation yet: choose a preset and press Step or Play"));
+    painter.drawText(rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap, tr("No simulation yet: choose a preset and press Step or Play"));
     return;
   }
   const phantom::Case& organ = *frame_->organ;
@@ -390,6 +390,15 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   connect(colouring_, &QComboBox::currentIndexChanged, this, [this](int c) {
     QMetaObject::invokeMethod(worker_, [w = worker_, c] { w->setColouring(c); }, Qt::QueuedConnection);
   });
+  // Plausible soft-tissue values until an organ arrives and its preset fills them (the density then
+  // follows the organ's volume).
+  filling_ = true;
+  model_->setCurrentIndex(static_cast<int>(simcore::MaterialModel::Corotational));
+  young_->setValue(27);
+  poisson_->setValue(0.4);
+  density_->setValue(1060);
+  filling_ = false;
+  updateMass();
   applyPreset(preset_->currentText());
   updateButtons();
 }
