@@ -202,11 +202,29 @@ class TestSimulationGui : public QObject {
     QVERIFY(last < first);
     QVERIFY(w_->stepDone(ui::Step::Elastic));
     const std::vector<Eigen::Vector3d> fitted = w_->currentCase().data->fitted;
-    // Revert and redo.
+    // Keep or revert: offered while the fit is the last edit. Revert by key and redo, then by the button.
+    auto* keep = w_->findChild<QPushButton*>("fitKeep");
+    auto* revert = w_->findChild<QPushButton*>("fitRevert");
+    QVERIFY(keep && revert && keep->isEnabled() && revert->isEnabled());
+    const Pose fittedPose = w_->currentCase().data->pose;
     QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
     QVERIFY(w_->currentCase().data->fitted.empty());
+    QVERIFY(!revert->isEnabled());
     const QKeyCombination redo = QKeySequence::keyBindings(QKeySequence::Redo).front()[0];  // the platform's redo key
     QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
+    QCOMPARE(w_->currentCase().data->fitted.size(), fitted.size());
+    QVERIFY(revert->isEnabled());
+    QTest::mouseClick(revert, Qt::LeftButton);
+    QVERIFY(w_->currentCase().data->fitted.empty());
+    const Pose& before = w_->currentCase().data->pose;  // the rigid pre-pass's change is reverted too
+    QVERIFY((before.t - (c.truePose.t + Eigen::Vector3d(0.003, 0, 0))).norm() < 1e-12);
+    QVERIFY((before.R - c.truePose.R).norm() < 1e-12);
+    QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
+    QCOMPARE(w_->currentCase().data->fitted.size(), fitted.size());
+    QVERIFY((w_->currentCase().data->pose.t - fittedPose.t).norm() < 1e-12);
+    QTest::mouseClick(keep, Qt::LeftButton);
+    QVERIFY(!keep->isEnabled() && !revert->isEnabled());
+    QVERIFY(w_->findChild<QLabel*>("fitStatus")->text().startsWith("Fit kept"));
     QCOMPARE(w_->currentCase().data->fitted.size(), fitted.size());
     // Stored in the case file.
     const QString path = QString::fromStdString(tempPath("fit.rehearse"));

@@ -557,7 +557,7 @@ QWidget* MainWindow::buildFitPage() {
   auto* layout = new QVBoxLayout(page);
   auto* intro = new QLabel(tr("Fit the organ onto the sketched contour: the silhouette is pulled onto it in the image plane and "
                               "the elastic model (the liver's parameters, held by its ligaments) decides the rest. "
-                              "Undo (Ctrl+Z) reverts the fit."),
+                              "Afterwards keep the fit, or revert it (Ctrl+Z)."),
                            page);
   intro->setWordWrap(true);
   layout->addWidget(intro);
@@ -598,6 +598,35 @@ QWidget* MainWindow::buildFitPage() {
   row->addWidget(fitButton_);
   row->addWidget(clear);
   layout->addLayout(row);
+  // After a fit: keep it, or revert it (its undo step) -- offered while it is the last edit.
+  auto* decide = new QHBoxLayout;
+  fitKeep_ = new QPushButton(tr("Keep Fit"), page);
+  fitKeep_->setObjectName(QStringLiteral("fitKeep"));
+  fitRevert_ = new QPushButton(tr("Revert Fit (Ctrl+Z)"), page);
+  fitRevert_->setObjectName(QStringLiteral("fitRevert"));
+  fitRevert_->setToolTip(tr("Back to the organ and pose before the fit; Redo brings the fit back."));
+  connect(fitKeep_, &QPushButton::clicked, this, [this] {
+    if (fitUndoIndex_ != undo_.index()) return;
+    fitUndoIndex_ = -1;
+    fitKeep_->setEnabled(false);
+    fitRevert_->setEnabled(false);
+    fitStatus_->setText(tr("Fit kept: %1").arg(QString::fromStdString(case_.data->fitStatus)));
+  });
+  connect(fitRevert_, &QPushButton::clicked, this, [this] {
+    if (fitUndoIndex_ != undo_.index()) return;
+    undo_.undo();  // Redo brings the fit back, and with it this choice
+    fitStatus_->setText(tr("Fit reverted: the organ and the pose are as before it (Ctrl+Shift+Z brings it back)."));
+  });
+  connect(&undo_, &QUndoStack::indexChanged, this, [this](int index) {
+    const bool open = fitUndoIndex_ >= 0 && index == fitUndoIndex_;
+    fitKeep_->setEnabled(open);
+    fitRevert_->setEnabled(open);
+  });
+  fitKeep_->setEnabled(false);
+  fitRevert_->setEnabled(false);
+  decide->addWidget(fitKeep_);
+  decide->addWidget(fitRevert_);
+  layout->addLayout(decide);
   fitStatus_ = new QLabel(page);
   fitStatus_->setObjectName(QStringLiteral("fitStatus"));
   fitStatus_->setWordWrap(true);
@@ -668,6 +697,7 @@ void MainWindow::runElasticFit() {
           fitSeries_->append(t, px);
           fitAxisX_->setRange(0, std::max(1.0, 1.2 * t));
           fitAxisY_->setRange(0, std::max(fitAxisY_->max(), 1.1 * px));
+          fitAxisY_->applyNiceNumbers();  // round ticks (0, 2, 4, ...)
           view_->setCase(preview);
         }, Qt::QueuedConnection);
         progress(std::min(0.95, 0.05 + 0.045 * it.iteration), QStringLiteral("%1 px").arg(px, 0, 'f', 2));
@@ -693,7 +723,10 @@ void MainWindow::runElasticFit() {
           k.fitStatus = status.toStdString();
           k.pose = pose;
         });
-        fitStatus_->setText(tr("%1 (%2 s). Ctrl+Z reverts it.").arg(status).arg(ms / 1000.0, 0, 'f', 1));
+        fitUndoIndex_ = undo_.index();
+        fitKeep_->setEnabled(true);
+        fitRevert_->setEnabled(true);
+        fitStatus_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).").arg(status).arg(ms / 1000.0, 0, 'f', 1));
         statusCase_->setText(tr("Elastic fit: %1").arg(status));
       };
     } catch (const std::exception& e) {
@@ -1634,6 +1667,7 @@ void MainWindow::onLoadFinished() {
   case_ = std::move(loaded);
   case_.data = nullptr;  // setCaseData compares with the previous data
   undo_.clear();
+  fitUndoIndex_ = -1;
   landmarks_.clear();
   view_->setLandmarks(landmarks_);
   labelVisible_.clear();

@@ -186,6 +186,9 @@ QString declared(const char* component, const char* parameter) {
 }
 
 // Blue - cyan - green - yellow - red.
+// The colour bar's top value in at most five characters (at rest it is round-off: 0.00).
+QString scaleLabel(double v) { return QString::number(v < 0.005 ? 0.0 : v, 'f', v >= 100 ? 0 : v >= 10 ? 1 : 2); }
+
 QColor colourMap(double t) {
   static const double stops[5][3] = {{40, 70, 200}, {40, 190, 220}, {60, 200, 90}, {240, 220, 60}, {220, 50, 40}};
   t = std::clamp(t, 0.0, 1.0) * 4;
@@ -273,7 +276,7 @@ void SimulationView::paintEvent(QPaintEvent*) {
   painter.setPen(QColor(200, 200, 200));
   const QString unit = frame_->colouring == 0 ? tr("mm") : tr("kPa");
   painter.drawText(QRect(width() - 80, 6, 78, 20), Qt::AlignCenter, frame_->colouring == 0 ? tr("|u|") : tr("σ vM"));
-  painter.drawText(QRect(width() - 46, bar.top() - 6, 46, 16), Qt::AlignLeft, QString::number(frame_->valueScale, 'g', 3));
+  painter.drawText(QRect(width() - 46, bar.top() - 6, 46, 16), Qt::AlignLeft, scaleLabel(frame_->valueScale));
   painter.drawText(QRect(width() - 46, bar.bottom() - 8, 46, 16), Qt::AlignLeft, QStringLiteral("0"));
   painter.drawText(QRect(width() - 80, bar.bottom() + 6, 78, 20), Qt::AlignCenter, unit);
   painter.drawText(rect().adjusted(6, 4, -80, -4), Qt::AlignLeft | Qt::AlignTop,

@@ -203,6 +203,9 @@ class MainWindow : public QMainWindow {
   QCheckBox* fitRigid_ = nullptr;
   QPushButton* fitButton_ = nullptr;
   QLabel* fitStatus_ = nullptr;
+  QPushButton* fitKeep_ = nullptr;    ///< accept the fit just made ...
+  QPushButton* fitRevert_ = nullptr;  ///< ... or revert it (its undo step), while it is the last edit
+  int fitUndoIndex_ = -1;             ///< the undo index right after the fit awaiting a decision, -1 for none
   QLineSeries* fitSeries_ = nullptr;
   QValueAxis* fitAxisX_ = nullptr;
   QValueAxis* fitAxisY_ = nullptr;
