@@ -140,8 +140,9 @@ std::string formatQuality(const QualityReport& q) {
   out += buf;
   if (!q.bounds.isEmpty()) {
     Eigen::Vector3d a = q.bounds.min() * 1e3, b = q.bounds.max() * 1e3, s = b - a;
-    std::snprintf(buf, sizeof buf, "bounds (mm): [%.2f, %.2f, %.2f] to [%.2f, %.2f, %.2f] (size %.2f x %.2f x %.2f)\n",
-                  a.x(), a.y(), a.z(), b.x(), b.y(), b.z(), s.x(), s.y(), s.z());
+    // Three short lines: they fit the case panel without scrolling sideways.
+    std::snprintf(buf, sizeof buf, "bounds (mm): %.2f x %.2f x %.2f\n  from [%.2f, %.2f, %.2f]\n  to   [%.2f, %.2f, %.2f]\n",
+                  s.x(), s.y(), s.z(), a.x(), a.y(), a.z(), b.x(), b.y(), b.z());
     out += buf;
   }
   std::snprintf(buf, sizeof buf, "volume: %.3f cm^3\nmean edge: %.3f mm\n", q.volume * 1e6, q.meanEdge * 1e3);
