@@ -357,6 +357,9 @@ QWidget* MainWindow::buildMeshPage() {
   labels_->setObjectName(QStringLiteral("labelList"));
   labels_->setHeaderLabels({tr("Label"), tr("Elements")});
   labels_->setRootIsDecorated(false);
+  labels_->header()->setStretchLastSection(false);
+  labels_->header()->setSectionResizeMode(0, QHeaderView::Stretch);
+  labels_->header()->setSectionResizeMode(1, QHeaderView::ResizeToContents);
   connect(labels_, &QTreeWidget::itemChanged, this, [this](QTreeWidgetItem* item, int) {
     if (updatingPanels_) return;
     labelVisible_[item->data(0, Qt::UserRole).toInt()] = item->checkState(0) == Qt::Checked;
