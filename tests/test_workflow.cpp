@@ -12,6 +12,7 @@
 
 #include <rehearse/simcore/meshio.hpp>
 
+#include <QLabel>
 #include <QDragEnterEvent>
 #include <QDropEvent>
 #include <QMimeData>
@@ -104,6 +105,10 @@ class TestWorkflow : public QObject {
     QVERIFY(w_->infoText().contains("tetrahedra:"));
     QVERIFY(w_->stepDone(ui::Step::Mesh));
     QVERIFY(!c.hasGroundTruth);
+    // An imported organ has no ligament nodes: the simulation panel says it will fall freely.
+    auto* simStatus = w_->findChild<QLabel*>("simStatus");
+    QVERIFY(simStatus);
+    QTRY_VERIFY_WITH_TIMEOUT(simStatus->text().contains("no attachment nodes"), 20000);
     shot(*w_, "step1-mesh");
     // Undo brings the phantom back, redo the imported liver.
     w_->undoStack()->undo();

@@ -541,7 +541,10 @@ QString SimulationPanel::statusText() const {
   if (!error_.isEmpty()) return error_;
   if (!last_) return tr("Simulation ready");
   const auto& r = last_->report;
-  if (last_->steps == 0) return tr("Simulation at rest (t = 0)");
+  const bool loose = organ_ && organ_->attachments.empty();  // an imported organ has no ligament nodes
+  if (last_->steps == 0)
+    return loose ? tr("Simulation at rest (t = 0). This organ has no attachment nodes: it will fall freely under gravity.")
+                 : tr("Simulation at rest (t = 0)");
   const QString rate = playing_ ? tr(" · %1 fps").arg(fps_, 0, 'f', 0) : QString();
   return tr("t = %1 s · step %2 ms%3 · %4 Newton · %5")
       .arg(last_->time, 0, 'f', 2)
