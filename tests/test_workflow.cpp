@@ -221,6 +221,43 @@ class TestWorkflow : public QObject {
   }
 
   // Step 4: each gizmo handle changes the pose by the expected amount; a drag is one undo step.
+  // The organ over the frame: shaded, wireframe or outline only (V cycles). Against the outline alone,
+  // the shaded organ changes every pixel inside it, the wireframe only those under its edges.
+  void step4OverlayStyles() {
+    auto* view = w_->frameView();
+    view->setFocus();
+    QCOMPARE(view->overlayStyle(), ui::OverlayStyle::Shaded);
+    auto grabView = [&] {
+      QTest::qWait(20);
+      return view->grab().toImage().convertToFormat(QImage::Format_RGB32);
+    };
+    const QImage shaded = grabView();
+    QTest::keyClick(w_.get(), Qt::Key_V);
+    QCOMPARE(view->overlayStyle(), ui::OverlayStyle::Wireframe);
+    const QImage wire = grabView();
+    shot(*w_, "step4-wireframe");
+    QTest::keyClick(w_.get(), Qt::Key_V);
+    QCOMPARE(view->overlayStyle(), ui::OverlayStyle::Silhouette);
+    const QImage outline = grabView();
+    QTest::keyClick(w_.get(), Qt::Key_V);
+    QCOMPARE(view->overlayStyle(), ui::OverlayStyle::Shaded);
+    auto differing = [](const QImage& a, const QImage& b) {
+      int n = 0;
+      for (int y = 0; y < a.height(); ++y) {
+        const QRgb* pa = reinterpret_cast<const QRgb*>(a.constScanLine(y));
+        const QRgb* pb = reinterpret_cast<const QRgb*>(b.constScanLine(y));
+        for (int x = 0; x < a.width(); ++x)
+          if (std::abs(qRed(pa[x]) - qRed(pb[x])) + std::abs(qGreen(pa[x]) - qGreen(pb[x])) + std::abs(qBlue(pa[x]) - qBlue(pb[x])) > 24) ++n;
+      }
+      return n;
+    };
+    const int byShading = differing(shaded, outline), byWire = differing(wire, outline);
+    qInfo("pixels changed against the outline alone: shaded %d, wireframe %d", byShading, byWire);
+    QVERIFY(byShading > 20000);
+    QVERIFY(byWire > 2000);
+    QVERIFY(byWire < byShading / 2);
+  }
+
   void step4Gizmos() {
     w_->setStep(ui::Step::Rigid);
     auto* view = w_->frameView();

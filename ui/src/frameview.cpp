@@ -9,7 +9,9 @@
 #include <QPainterPath>
 #include <QWheelEvent>
 
+#include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace rehearse::ui {
 namespace {
@@ -55,7 +57,38 @@ void FrameView::setOverlay(const QImage& organ, const QList<QPolygonF>& silhouet
 
 void FrameView::setCase(std::shared_ptr<const phantom::Case> c) {
   case_ = std::move(c);
+  wireStale_ = true;
   update();
+}
+
+void FrameView::setOverlayStyle(OverlayStyle style) {
+  style_ = style;
+  update();
+}
+
+void FrameView::rebuildWireframe() {
+  wireStale_ = false;
+  wire_.clear();
+  if (!case_ || !case_->hasPose || case_->surface.empty() || !case_->camera.problem().empty()) return;
+  // The edges of the triangles that face the camera (all in front of it), each once.
+  const SurfaceView sv = case_->surfaceView();
+  const Pinhole cam = case_->camera.pinhole();
+  std::vector<Eigen::Vector3d> x(sv.vertexCount);
+  for (std::size_t i = 0; i < sv.vertexCount; ++i) x[i] = case_->pose.apply(sv.vertex(i));
+  std::vector<std::pair<int, int>> edges;
+  for (const auto& t : case_->surface) {
+    const Eigen::Vector3d &a = x[t[0]], &b = x[t[1]], &c = x[t[2]];
+    if (a.z() <= 1e-3 || b.z() <= 1e-3 || c.z() <= 1e-3) continue;
+    if ((b - a).cross(c - a).dot(a) >= 0) continue;  // turned away from the camera
+    for (int k = 0; k < 3; ++k) edges.emplace_back(std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3]));
+  }
+  std::sort(edges.begin(), edges.end());
+  edges.erase(std::unique(edges.begin(), edges.end()), edges.end());
+  wire_.reserve(static_cast<qsizetype>(edges.size()));
+  for (const auto& [i, j] : edges) {
+    const Eigen::Vector2d p = cam.project(x[static_cast<std::size_t>(i)]), q = cam.project(x[static_cast<std::size_t>(j)]);
+    wire_.append(QLineF(p.x(), p.y(), q.x(), q.y()));
+  }
 }
 
 void FrameView::setOverlayVisible(bool visible) {
@@ -242,7 +275,7 @@ void FrameView::paintEvent(QPaintEvent*) {
   painter.setTransform(frameToWidget());
   painter.drawImage(QPointF(0, 0), frame_);
   if (overlayVisible_) {
-    if (!overlay_.isNull()) {
+    if (!overlay_.isNull() && style_ == OverlayStyle::Shaded) {
       painter.setOpacity(opacity_);
       painter.drawImage(QRectF(QPointF(0, 0), QSizeF(frame_.size())), overlay_);  // the overlay may be at a lower resolution
       painter.setOpacity(1.0);
@@ -252,9 +285,17 @@ void FrameView::paintEvent(QPaintEvent*) {
       painter.drawImage(QRectF(QPointF(0, 0), QSizeF(frame_.size())), inner_);
       painter.setOpacity(1.0);
     }
+    if (style_ == OverlayStyle::Wireframe) {
+      if (wireStale_) rebuildWireframe();
+      QPen wire(QColor(150, 235, 170, static_cast<int>(std::lround(255 * std::clamp(opacity_ + 0.3, 0.3, 1.0)))), 1.0);
+      wire.setCosmetic(true);
+      painter.setPen(wire);
+      painter.drawLines(wire_);
+    }
     QPen pen(QColor(120, 255, 140), 2.0);
     pen.setCosmetic(true);
     painter.setPen(pen);
+    painter.setBrush(Qt::NoBrush);
     for (const auto& poly : silhouette_) painter.drawPolygon(poly);
   }
   // Contour: segments coloured by type, points when editing, the draft in cyan.

@@ -30,6 +30,7 @@
 #include <QFormLayout>
 #include <QGroupBox>
 #include <QHBoxLayout>
+#include <QActionGroup>
 #include <QHeaderView>
 #include <QLabel>
 #include <QListWidget>
@@ -1575,6 +1576,31 @@ void MainWindow::buildMenus() {
   more->setShortcut(QKeySequence(Qt::Key_BracketRight));
   QAction* less = viewMenu->addAction(tr("More Transparent Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() - 0.1); });
   less->setShortcut(QKeySequence(Qt::Key_BracketLeft));
+  // Shaded, wireframe or outline only; V cycles, the choice is kept between runs.
+  viewMenu->addSeparator();
+  auto* styles = new QActionGroup(this);
+  const std::pair<QString, OverlayStyle> styleNames[] = {{tr("Organ &Shaded"), OverlayStyle::Shaded},
+                                                         {tr("Organ &Wireframe"), OverlayStyle::Wireframe},
+                                                         {tr("Organ Silhouette &Only"), OverlayStyle::Silhouette}};
+  const int savedStyle = std::clamp(QSettings().value(QStringLiteral("overlayStyle"), 0).toInt(), 0, 2);
+  for (const auto& [name, style] : styleNames) {
+    QAction* a = viewMenu->addAction(name);
+    a->setCheckable(true);
+    a->setData(static_cast<int>(style));
+    a->setChecked(static_cast<int>(style) == savedStyle);
+    styles->addAction(a);
+    connect(a, &QAction::triggered, this, [this, style = style] {
+      view_->setOverlayStyle(style);
+      QSettings().setValue(QStringLiteral("overlayStyle"), static_cast<int>(style));
+    });
+  }
+  view_->setOverlayStyle(static_cast<OverlayStyle>(savedStyle));
+  QAction* cycle = viewMenu->addAction(tr("Next Organ Style"), this, [this, styles] {
+    const int next = (static_cast<int>(view_->overlayStyle()) + 1) % 3;
+    styles->actions().at(next)->trigger();
+  });
+  cycle->setShortcut(QKeySequence(Qt::Key_V));
+  viewMenu->addSeparator();
   QAction* navigate = viewMenu->addAction(tr("&Navigate (pan and zoom)"), this, [this] { view_->setTool(Tool::Navigate); });
   navigate->setShortcut(QKeySequence(Qt::Key_N));
 

@@ -22,6 +22,10 @@ enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Lan
 /// the organ's centre of gravity.
 enum class GizmoHandle { None, TranslateX, TranslateY, TranslateZ, RotateX, RotateY, RotateZ };
 
+/// How the organ is drawn over the frame: shaded (tinted, with its outline), its visible wireframe (edges
+/// of the triangles facing the camera) with the outline, or the outline alone.
+enum class OverlayStyle { Shaded, Wireframe, Silhouette };
+
 struct LandmarkPair {
   Eigen::Vector3d model = Eigen::Vector3d::Zero();  ///< point on the mesh, model frame (m)
   Eigen::Vector2d image = Eigen::Vector2d::Zero();  ///< where it is in the frame (px)
@@ -40,6 +44,8 @@ class FrameView : public QWidget {
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
   double overlayOpacity() const { return opacity_; }
+  void setOverlayStyle(OverlayStyle style);
+  OverlayStyle overlayStyle() const { return style_; }
   void setTool(Tool t);
   Tool tool() const { return tool_; }
   void setSnapToEdges(bool on) { snap_ = on; }
@@ -102,6 +108,10 @@ class FrameView : public QWidget {
   QList<QPolygonF> silhouette_;
   bool overlayVisible_ = true;
   double opacity_ = 0.45;
+  OverlayStyle style_ = OverlayStyle::Shaded;
+  QVector<QLineF> wire_;  // frame pixels; rebuilt when the case (pose, shape) changes
+  bool wireStale_ = true;
+  void rebuildWireframe();
   double zoom_ = 1.0;
   QPointF pan_;
   Tool tool_ = Tool::Navigate;
