@@ -5,6 +5,7 @@
 #include "phantom/phantom.hpp"
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/organview.hpp"
 
 #include <QLabel>
 #include <QSignalSpy>
@@ -87,9 +88,21 @@ class TestGui : public QObject {
     QVERIFY(!view->overlayVisible());
     const QImage without = view->grab().toImage();
     const QPoint centre = view->rect().center();
-    QVERIFY(withOrgan.pixel(centre) != without.pixel(centre));
+    const QPoint centrePx = centre * view->devicePixelRatioF();  // grabs are in device pixels
+    QVERIFY(withOrgan.pixel(centrePx) != without.pixel(centrePx));
     QTest::keyClick(&w, Qt::Key_O);
     QVERIFY(view->overlayVisible());
+
+    // The organ alone, rendered in device pixels (test_gui_hidpi runs this at QT_SCALE_FACTOR=2).
+    if (auto* organ = qobject_cast<ui::OrganView*>(w.organWidget())) {
+      organ->grab();
+      const double dpr = organ->devicePixelRatioF();
+      qInfo("organ view: %d x %d widget, %d x %d rendered (device pixel ratio %.1f)", organ->width(), organ->height(),
+            organ->rendered().width(), organ->rendered().height(), dpr);
+      QCOMPARE(organ->rendered().size(), QSize(static_cast<int>(std::lround(organ->width() * dpr)),
+                                               static_cast<int>(std::lround(organ->height() * dpr))));
+      QCOMPARE(organ->rendered().devicePixelRatio(), dpr);
+    }
 
     // Zoom about the cursor with the wheel, Home fits again.
     const QPointF before = view->toFrame(centre);

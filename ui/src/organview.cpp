@@ -9,6 +9,9 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
+#include <cmath>
+
 namespace rehearse::ui {
 
 OrganView::OrganView(QWidget* parent) : QWidget(parent) {
@@ -32,11 +35,14 @@ void OrganView::render() {
   dirty_ = false;
   image_ = QImage();
   if (!case_ || case_->surface.empty() || width() < 10 || height() < 10) return;
+  // Rendered in device pixels (sharp on HiDPI screens), drawn at the widget's logical size.
+  const double dpr = std::max(1.0, devicePixelRatioF());
+  const int W = static_cast<int>(std::lround(width() * dpr)), H = static_cast<int>(std::lround(height() * dpr));
   imaging::Camera cam;
-  cam.width = width();
-  cam.height = height();
-  const double f = 1.1 * std::min(width(), height());
-  cam.K << f, 0, (width() - 1) / 2.0, 0, f, (height() - 1) / 2.0, 0, 0, 1;
+  cam.width = W;
+  cam.height = H;
+  const double f = 1.1 * std::min(W, H);
+  cam.K << f, 0, (W - 1) / 2.0, 0, f, (H - 1) / 2.0, 0, 0, 1;
   const Eigen::Vector3d cog = case_->centreOfGravity();
   const double size = case_->volume.bounds().sizes().maxCoeff();
   Pose p;
@@ -66,8 +72,10 @@ void OrganView::render() {
     const Eigen::Vector3d x = p.apply(case_->volume.points[a]);
     if (x.z() <= 0) continue;
     const auto uv = cam.project(x);
-    painter.drawEllipse(QPointF(uv.x(), uv.y()), 2.5, 2.5);
+    painter.drawEllipse(QPointF(uv.x(), uv.y()), 2.5 * dpr, 2.5 * dpr);
   }
+  painter.end();
+  image_.setDevicePixelRatio(dpr);
 }
 
 void OrganView::paintEvent(QPaintEvent*) {

@@ -40,6 +40,8 @@ class OrganView : public QWidget {
   explicit OrganView(QWidget* parent = nullptr);
   void setCase(std::shared_ptr<const phantom::Case> c);
   QSize sizeHint() const override { return {360, 280}; }
+  /// The last render, in device pixels (widget size x device pixel ratio; empty before the first paint).
+  const QImage& rendered() const { return image_; }
 
  protected:
   void paintEvent(QPaintEvent*) override;
