@@ -11,10 +11,13 @@
 #include <rehearse/simcore/integrator.hpp>
 
 #include <dlfcn.h>
+#include <malloc.h>
 
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <functional>
@@ -57,7 +60,19 @@ Run simulate(const FemModel& m, const std::vector<int>& fixed, SimulationSetting
   return r;
 }
 
-// Peak resident memory since the last reset (Linux: writing 5 to clear_refs resets VmHWM).
+// Resident memory, MiB, from /proc/self/status: "VmRSS" now, "VmHWM" the peak since the last reset
+// (Linux: writing 5 to /proc/self/clear_refs resets the peak). -1 where unavailable.
+double residentMiB(const char* field) {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line))
+    if (line.rfind(field, 0) == 0) return std::atof(line.c_str() + std::strlen(field) + 1) / 1024.0;
+  return -1;
+}
+void resetPeakResident() {
+  malloc_trim(0);  // give freed memory back first, so that the next run's pages count
+  std::ofstream("/proc/self/clear_refs") << "5";
+}
 
 const NewtonMethod kMethods[] = {NewtonMethod::Exact, NewtonMethod::LaggedPcg, NewtonMethod::Chord, NewtonMethod::Linearised};
 const MaterialModel kMaterials[] = {MaterialModel::Linear, MaterialModel::Corotational, MaterialModel::StVK, MaterialModel::NeoHookean};
@@ -231,11 +246,11 @@ int main(int argc, char** argv) {
   //    method and memory.
   if (run("scaling")) {
     std::ofstream csv(out + "/dynamics_scaling.csv");
-    csv << "target_tets,tets,nodes,method,median_step_ms,model_and_solver_mib\n";
+    csv << "target_tets,tets,nodes,method,median_step_ms,model_and_solver_mib,peak_rss_increase_mib\n";
     const std::vector<std::size_t> sizes =
         quick ? std::vector<std::size_t>{1000, 4000} : std::vector<std::size_t>{1000, 2000, 5000, 10000, 20000, 50000};
     std::map<NewtonMethod, PlotSeries> series;
-    std::printf("\n== scaling: phantom liver, corotational (median step ms over 0.2-0.6 s; memory held by the model, the integrator and the factor)\n");
+    std::printf("\n== scaling: phantom liver, corotational (median step ms over 0.2-0.6 s; memory held by the model, the integrator and the factor, and the measured peak resident increase)\n");
     for (std::size_t target : sizes) {
       phantom::PhantomOptions po;
       po.targetTets = target;
@@ -246,7 +261,9 @@ int main(int argc, char** argv) {
       phantom::setMaterialModel(sc, MaterialModel::Corotational);
       for (NewtonMethod method : kMethods) {
         if (method == NewtonMethod::Chord) continue;
-        double ms = 0, mib = 0;
+        double ms = 0, mib = 0, peak = -1;
+        resetPeakResident();
+        const double before = residentMiB("VmRSS");
         {
           const FemModel m = FemModel::build(sc.mesh, sc.materials, sc.defaultMaterial);
           SimulationSettings s = sc.settings;
@@ -255,10 +272,13 @@ int main(int argc, char** argv) {
           const Run r = simulate(m, sc.fixedNodes, s, quick ? 10 : 60);
           ms = median(std::vector<double>(r.stepMs.begin() + r.stepMs.size() / 3, r.stepMs.end()));
           mib = static_cast<double>(m.memoryBytes() + r.integratorBytes) / (1 << 20);  // model, integrator, factor
+          // Measured: the process's peak resident memory while building and running, above where it began.
+          if (const double hwm = residentMiB("VmHWM"); hwm > 0 && before > 0) peak = hwm - before;
         }
         const std::size_t tets = sc.mesh.tets.size(), nodes = sc.mesh.points.size();
-        std::printf("%6zu tets %5zu nodes %-11s %9.2f ms %8.1f MiB\n", tets, nodes, toString(method).c_str(), ms, mib);
-        csv << target << "," << tets << "," << nodes << "," << toString(method) << "," << ms << "," << mib << "\n";
+        std::printf("%6zu tets %5zu nodes %-11s %9.2f ms %8.1f MiB held %8.1f MiB peak\n", tets, nodes, toString(method).c_str(), ms, mib,
+                    peak);
+        csv << target << "," << tets << "," << nodes << "," << toString(method) << "," << ms << "," << mib << "," << peak << "\n";
         series[method].name = toString(method);
         series[method].x.push_back(static_cast<double>(tets));
         series[method].y.push_back(ms);
