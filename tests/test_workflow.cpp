@@ -12,6 +12,7 @@
 
 #include <rehearse/simcore/meshio.hpp>
 
+#include <QDoubleSpinBox>
 #include <QLabel>
 #include <QDragEnterEvent>
 #include <QDropEvent>
@@ -109,6 +110,43 @@ class TestWorkflow : public QObject {
     auto* simStatus = w_->findChild<QLabel*>("simStatus");
     QVERIFY(simStatus);
     QTRY_VERIFY_WITH_TIMEOUT(simStatus->text().contains("no attachment nodes"), 20000);
+    // Attachments picked on the organ over the frame (H, then a click): the surface nodes around the click,
+    // one undo step; a second click there releases them.
+    {
+      auto* view = w_->frameView();
+      view->setFocus();
+      QTest::keyClick(w_.get(), Qt::Key_H);
+      QCOMPARE(view->tool(), ui::Tool::Attachments);
+      auto* radius = w_->findChild<QDoubleSpinBox*>("attachmentRadius");
+      QVERIFY(radius);
+      const double radiusBefore = radius->value();
+      radius->setValue(25);  // a patch of this coarse liver's nodes (edges of about 15 mm)
+      QCOMPARE(view->attachmentRadius(), 0.025);
+      const auto k0 = w_->currentCase().data;
+      const Eigen::Vector2d centre = k0->camera.project(k0->pose.apply(k0->centreOfGravity()));
+      const QPoint at = view->toWidget(QPointF(centre.x(), centre.y())).toPoint();
+      const int index = w_->undoStack()->index();
+      QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, at);
+      const std::vector<int> attached = w_->currentCase().data->attachments;
+      QCOMPARE(w_->undoStack()->index(), index + 1);
+      QVERIFY(attached.size() >= 2);
+      const SurfaceView sv = w_->currentCase().data->surfaceView();
+      double spread = 0;
+      for (int a : attached) spread = std::max(spread, (sv.vertex(static_cast<std::size_t>(a)) - sv.vertex(static_cast<std::size_t>(attached.front()))).norm());
+      qInfo("attachments: %zu nodes from one click, spread %.1f mm", attached.size(), spread * 1e3);
+      QVERIFY(spread <= 2 * view->attachmentRadius() + 1e-9);
+      QVERIFY(w_->findChild<QLabel*>("attachmentsLabel")->text().contains(QString::number(attached.size())));
+      QTRY_VERIFY_WITH_TIMEOUT(!simStatus->text().contains("no attachment nodes"), 20000);
+      QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, at);
+      QVERIFY(w_->currentCase().data->attachments.empty());
+      w_->undoStack()->undo();
+      QCOMPARE(w_->currentCase().data->attachments, attached);
+      w_->undoStack()->undo();
+      QVERIFY(w_->currentCase().data->attachments.empty());
+      QCOMPARE(w_->undoStack()->index(), index);
+      radius->setValue(radiusBefore);
+      w_->setStep(ui::Step::Mesh);
+    }
     shot(*w_, "step1-mesh");
     // Undo brings the phantom back, redo the imported liver.
     w_->undoStack()->undo();

@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <vector>
 
 namespace rehearse::ui {
@@ -344,6 +345,19 @@ void FrameView::paintEvent(QPaintEvent*) {
     painter.setBrush(Qt::NoBrush);
     painter.drawPolyline(poly);
   }
+  // Attachment nodes through the current pose and shape (orange), while they are being picked.
+  if (tool_ == Tool::Attachments && case_ && case_->hasPose) {
+    const SurfaceView sv = case_->surfaceView();
+    painter.setPen(QPen(QColor(30, 30, 30), 1));
+    painter.setBrush(QColor(255, 150, 40));
+    for (int a : case_->attachments) {
+      if (a < 0 || static_cast<std::size_t>(a) >= sv.vertexCount) continue;
+      const Eigen::Vector3d xc = case_->pose.apply(sv.vertex(static_cast<std::size_t>(a)));
+      if (xc.z() <= 0) continue;
+      const auto uv = case_->camera.project(xc);
+      painter.drawEllipse(toWidget(QPointF(uv.x(), uv.y())), 3.5, 3.5);
+    }
+  }
   // Landmarks: model points through the current pose (orange) and their image points (cyan).
   if (case_ && case_->hasPose) {
     for (std::size_t i = 0; i < landmarks_.size(); ++i) {
@@ -513,6 +527,9 @@ void FrameView::mousePressEvent(QMouseEvent* e) {
         }
       }
       break;
+    case Tool::Attachments:
+      if (e->button() == Qt::LeftButton) toggleAttachmentsAt(fp);
+      break;
     case Tool::OrganCurve:
       if (e->button() == Qt::LeftButton) pickOrganCurve(fp);
       else if (e->button() == Qt::RightButton) finishOrganCurve();
@@ -651,6 +668,39 @@ std::optional<FrameView::OrganHit> FrameView::organAt(const Eigen::Vector2d& fp)
   hit.model = pick->model;
   hit.node = pick->nearestVertex;
   return hit;
+}
+
+void FrameView::toggleAttachmentsAt(const Eigen::Vector2d& fp) {
+  if (!case_ || !case_->hasPose) {
+    emit toolMessage(tr("Attachments are picked on the organ drawn over the frame: open a frame (step 2) first."));
+    return;
+  }
+  const auto hit = organAt(fp);
+  if (!hit) {
+    emit toolMessage(tr("Click on the organ drawn over the frame where a ligament holds it."));
+    return;
+  }
+  // The surface nodes within the radius of the clicked point (the clicked node at least).
+  const SurfaceView sv = case_->surfaceView();
+  std::vector<int> patch;
+  std::vector<char> seen(sv.vertexCount, 0);
+  for (const auto& t : case_->surface)
+    for (int v : t) {
+      if (seen[static_cast<std::size_t>(v)]) continue;
+      seen[static_cast<std::size_t>(v)] = 1;
+      if ((sv.vertex(static_cast<std::size_t>(v)) - hit->model).norm() <= attachRadius_) patch.push_back(v);
+    }
+  if (patch.empty()) patch.push_back(hit->node);
+  std::vector<int> nodes = case_->attachments;
+  std::sort(nodes.begin(), nodes.end());
+  std::sort(patch.begin(), patch.end());
+  const bool release = std::any_of(patch.begin(), patch.end(), [&](int v) { return std::binary_search(nodes.begin(), nodes.end(), v); });
+  std::vector<int> result;
+  if (release) std::set_difference(nodes.begin(), nodes.end(), patch.begin(), patch.end(), std::back_inserter(result));
+  else std::set_union(nodes.begin(), nodes.end(), patch.begin(), patch.end(), std::back_inserter(result));
+  const auto changed = static_cast<long>(std::max(result.size(), nodes.size()) - std::min(result.size(), nodes.size()));
+  emit attachmentsEdited(result, release ? tr("Release %n attachment node(s)", nullptr, static_cast<int>(changed))
+                                         : tr("Attach %n node(s)", nullptr, static_cast<int>(changed)));
 }
 
 void FrameView::pickOrganCurve(const Eigen::Vector2d& fp) {

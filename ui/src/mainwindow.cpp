@@ -208,6 +208,9 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     }, merge);
   });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
+  connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
+    editCase(text, [&](phantom::Case& k) { k.attachments = nodes; });
+  });
   connect(view_, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {
     landmarks_.push_back({m, Eigen::Vector2d::Zero(), false});
     view_->setLandmarks(landmarks_);
@@ -367,6 +370,49 @@ QWidget* MainWindow::buildMeshPage() {
     refreshOverlay();
   });
   l->addWidget(labels_, 1);
+  // Ligament attachments: the nodes that hold the organ in the simulation and the fit. An imported organ
+  // has none until they are picked on it.
+  attachmentsLabel_ = new QLabel(page);
+  attachmentsLabel_->setObjectName(QStringLiteral("attachmentsLabel"));
+  attachmentsLabel_->setWordWrap(true);
+  l->addWidget(attachmentsLabel_);
+  auto* attachRow = new QHBoxLayout;
+  auto* pickAttach = new QPushButton(tr("Pick Attachments (H)"), page);
+  pickAttach->setObjectName(QStringLiteral("pickAttachments"));
+  pickAttach->setToolTip(tr("Click on the organ drawn over the frame where a ligament holds it: the surface nodes within "
+                            "the patch radius are attached; a click on attached nodes releases them. Each click is one undo step."));
+  connect(pickAttach, &QPushButton::clicked, this, [this] { view_->setTool(Tool::Attachments); });
+  auto* pickAttachKey = new QAction(this);
+  pickAttachKey->setShortcut(QKeySequence(Qt::Key_H));
+  connect(pickAttachKey, &QAction::triggered, this, [this] {
+    setStep(Step::Mesh);
+    view_->setTool(Tool::Attachments);
+  });
+  addAction(pickAttachKey);
+  auto* clearAttach = new QPushButton(tr("Release All"), page);
+  clearAttach->setObjectName(QStringLiteral("clearAttachments"));
+  connect(clearAttach, &QPushButton::clicked, this, [this] {
+    if (case_.data && !case_.data->attachments.empty())
+      editCase(tr("Release all attachments"), [](phantom::Case& k) { k.attachments.clear(); });
+  });
+  attachRow->addWidget(pickAttach, 2);
+  attachRow->addWidget(clearAttach, 1);
+  l->addLayout(attachRow);
+  auto* radiusForm = new QFormLayout;
+  auto* radius = new QDoubleSpinBox(page);
+  radius->setObjectName(QStringLiteral("attachmentRadius"));
+  radius->setRange(1, 50);
+  radius->setDecimals(0);
+  radius->setSuffix(tr(" mm"));
+  radius->setToolTip(tr("Surface nodes within this distance of a click are attached or released together"));
+  connect(radius, &QDoubleSpinBox::valueChanged, this, [this](double mm) {
+    view_->setAttachmentRadius(mm * 1e-3);
+    QSettings().setValue(QStringLiteral("mesh/attachmentRadiusMm"), mm);
+  });
+  radius->setValue(QSettings().value(QStringLiteral("mesh/attachmentRadiusMm"), 10.0).toDouble());
+  view_->setAttachmentRadius(radius->value() * 1e-3);
+  radiusForm->addRow(tr("Attachment patch radius"), radius);
+  l->addLayout(radiusForm);
   return page;
 }
 
@@ -987,7 +1033,10 @@ void MainWindow::refreshPanels() {
   const auto& c = case_.data;
   if (!c) return;
   updatingPanels_ = true;
-  // Step 1: labels.
+  // Step 1: labels and attachments.
+  attachmentsLabel_->setText(c->attachments.empty()
+                                 ? tr("No ligament attachments: the organ is free (it falls in the simulation).")
+                                 : tr("Ligament attachments: %n node(s).", nullptr, static_cast<int>(c->attachments.size())));
   labels_->clear();
   std::map<int, std::size_t> counts;
   for (int l : c->volume.tetLabels) counts[l]++;

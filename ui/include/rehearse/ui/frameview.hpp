@@ -16,7 +16,9 @@ namespace rehearse::ui {
 
 /// OrganCurve: clicks on the organ drawn over the frame pick the 3D curve of the nearest sketched ridge or
 /// ligament (surface nodes joined by shortest paths along the surface), for the elastic fit.
-enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks, OrganCurve };
+/// Attachments: a click on the organ drawn over the frame holds the surface nodes around it (ligament
+/// attachments for the simulation and the fit); a click on held ones releases them.
+enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks, OrganCurve, Attachments };
 
 /// Gizmo handles of the Align tool: translations along and rotations about the camera axes through
 /// the organ's centre of gravity.
@@ -55,6 +57,9 @@ class FrameView : public QWidget {
   /// Ends the organ curve being picked (Enter, a double click or another tool do the same).
   void finishOrganCurve();
   void setLandmarks(const std::vector<LandmarkPair>& l) { landmarks_ = l; update(); }
+  /// Radius (m) of the patch of surface nodes one click of the Attachments tool holds or releases.
+  void setAttachmentRadius(double metres) { attachRadius_ = metres; }
+  double attachmentRadius() const { return attachRadius_; }
   double zoom() const { return zoom_; }
   /// Frame pixel under a widget position, and back.
   QPointF toFrame(const QPointF& widgetPos) const;
@@ -75,6 +80,8 @@ class FrameView : public QWidget {
   void landmarkImagePicked(const Eigen::Vector2d& imagePoint);
   /// A sentence for the status bar about the current tool (what to do next, or why a click did nothing).
   void toolMessage(const QString& text);
+  /// Attachments tool: the organ's new attachment nodes (sorted volume node indices) after a click.
+  void attachmentsEdited(const std::vector<int>& nodes, const QString& text);
 
  protected:
   void paintEvent(QPaintEvent*) override;
@@ -102,6 +109,7 @@ class FrameView : public QWidget {
   };
   std::optional<OrganHit> organAt(const Eigen::Vector2d& framePixel) const;
   void pickOrganCurve(const Eigen::Vector2d& framePixel);
+  void toggleAttachmentsAt(const Eigen::Vector2d& framePixel);
 
   std::shared_ptr<const phantom::Case> case_;
   QImage frame_, overlay_, inner_;
@@ -130,6 +138,7 @@ class FrameView : public QWidget {
   int mergeCounter_ = 0;
   int activeMerge_ = -1;
   std::vector<LandmarkPair> landmarks_;
+  double attachRadius_ = 0.010;
   std::string newSegmentType_ = "silhouette";
   int curveSegment_ = -1;  // the ridge or ligament whose organ curve is being picked
   int curveMerge_ = -1;

@@ -195,6 +195,7 @@ class MainWindow : public QMainWindow {
   QTimer cameraTimer_;
   // Step 3
   QLabel* contourStatus_ = nullptr;
+  QLabel* attachmentsLabel_ = nullptr;
   QDoubleSpinBox* spacing_ = nullptr;
   QCheckBox* snap_ = nullptr;
   QComboBox* segmentType_ = nullptr;
