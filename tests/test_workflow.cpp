@@ -9,6 +9,7 @@
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
 
 #include <rehearse/simcore/meshio.hpp>
 
@@ -146,6 +147,10 @@ class TestWorkflow : public QObject {
       QCOMPARE(w_->undoStack()->index(), index);
       radius->setValue(radiusBefore);
       w_->setStep(ui::Step::Mesh);
+      // The simulation worker follows (its organ is rebuilt at each change, off the GUI thread).
+      QTRY_VERIFY_WITH_TIMEOUT(w_->simulationPanel()->lastFrame() && w_->simulationPanel()->lastFrame()->organ &&
+                                   w_->simulationPanel()->lastFrame()->organ->attachments.empty(),
+                               20000);
     }
     shot(*w_, "step1-mesh");
     // Undo brings the phantom back, redo the imported liver.
