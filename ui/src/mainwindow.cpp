@@ -300,6 +300,21 @@ bool MainWindow::isBusy() const { return watcher_.isRunning() || jobWatcher_.isR
 
 // ---------------------------------------------------------------------------------------------- panels
 
+QPushButton* MainWindow::toolButton(QWidget* parent, const QString& text, const QString& tip, Step step, Tool tool, Qt::Key key) {
+  // The button chooses the tool; its key also goes to the tool's step first (from anywhere in the window).
+  auto* button = new QPushButton(text, parent);
+  button->setToolTip(tip);
+  connect(button, &QPushButton::clicked, this, [this, tool] { view_->setTool(tool); });
+  auto* shortcut = new QAction(this);
+  shortcut->setShortcut(QKeySequence(key));
+  connect(shortcut, &QAction::triggered, this, [this, step, tool] {
+    setStep(step);
+    view_->setTool(tool);
+  });
+  addAction(shortcut);
+  return button;
+}
+
 void MainWindow::buildWorkflowPanel() {
   auto* dock = new QDockWidget(tr("Workflow"), this);
   dock->setObjectName(QStringLiteral("workflowDock"));
@@ -377,18 +392,11 @@ QWidget* MainWindow::buildMeshPage() {
   attachmentsLabel_->setWordWrap(true);
   l->addWidget(attachmentsLabel_);
   auto* attachRow = new QHBoxLayout;
-  auto* pickAttach = new QPushButton(tr("Pick Attachments (H)"), page);
+  auto* pickAttach = toolButton(page, tr("Pick Attachments (H)"),
+                                tr("Click on the organ drawn over the frame where a ligament holds it: the surface nodes within "
+                                   "the patch radius are attached; a click on attached nodes releases them. Each click is one undo step."),
+                                Step::Mesh, Tool::Attachments, Qt::Key_H);
   pickAttach->setObjectName(QStringLiteral("pickAttachments"));
-  pickAttach->setToolTip(tr("Click on the organ drawn over the frame where a ligament holds it: the surface nodes within "
-                            "the patch radius are attached; a click on attached nodes releases them. Each click is one undo step."));
-  connect(pickAttach, &QPushButton::clicked, this, [this] { view_->setTool(Tool::Attachments); });
-  auto* pickAttachKey = new QAction(this);
-  pickAttachKey->setShortcut(QKeySequence(Qt::Key_H));
-  connect(pickAttachKey, &QAction::triggered, this, [this] {
-    setStep(Step::Mesh);
-    view_->setTool(Tool::Attachments);
-  });
-  addAction(pickAttachKey);
   auto* clearAttach = new QPushButton(tr("Release All"), page);
   clearAttach->setObjectName(QStringLiteral("clearAttachments"));
   connect(clearAttach, &QPushButton::clicked, this, [this] {
@@ -616,17 +624,11 @@ QWidget* MainWindow::buildFitPage() {
   fitRigid_->setChecked(true);
   layout->addWidget(fitRigid_);
   // Anatomical curves: a ridge or ligament sketched in step 3, and the same curve clicked on the organ.
-  auto* pickCurve = new QPushButton(tr("Pick Curve on Organ (K)"), page);
+  auto* pickCurve = toolButton(page, tr("Pick Curve on Organ (K)"),
+                               tr("Click along the ridge or ligament on the organ drawn over the frame; the sketched ridge or "
+                                  "ligament nearest to the first click gets the curve. Enter ends, Backspace takes back a click."),
+                               Step::Elastic, Tool::OrganCurve, Qt::Key_K);
   pickCurve->setObjectName(QStringLiteral("pickCurve"));
-  pickCurve->setToolTip(tr("Click along the ridge or ligament on the organ drawn over the frame; the sketched ridge or "
-                           "ligament nearest to the first click gets the curve. Enter ends, Backspace takes back a click."));
-  connect(pickCurve, &QPushButton::clicked, this, [this] { view_->setTool(Tool::OrganCurve); });
-  auto* pickAction = new QAction(this);
-  pickAction->setShortcut(QKeySequence(Qt::Key_K));
-  connect(pickAction, &QAction::triggered, this, [this] {
-    if (step_ == Step::Elastic) view_->setTool(Tool::OrganCurve);
-  });
-  addAction(pickAction);
   layout->addWidget(pickCurve);
   fitCurves_ = new QLabel(page);
   fitCurves_->setObjectName(QStringLiteral("fitCurves"));
@@ -792,15 +794,11 @@ void MainWindow::runElasticFit() {
 QWidget* MainWindow::buildRigidPage() {
   auto* page = new QWidget;
   auto* l = new QVBoxLayout(page);
-  auto* gizmo = new QPushButton(tr("Gizmo (G)"), page);
+  auto* gizmo = toolButton(page, tr("Gizmo (G)"),
+                           tr("Drag X, Y, Z to move along the camera axes, rX, rY, rZ to turn about them through the organ's centre. "
+                              "Keys: arrows and PgUp/PgDn move 1 mm, W/S A/D Q/E turn 1 degree; Shift for 10 mm / 5 degrees."),
+                           Step::Rigid, Tool::Align, Qt::Key_G);
   gizmo->setMinimumHeight(34);
-  gizmo->setToolTip(tr("Drag X, Y, Z to move along the camera axes, rX, rY, rZ to turn about them through the organ's centre. "
-                       "Keys: arrows and PgUp/PgDn move 1 mm, W/S A/D Q/E turn 1 degree; Shift for 10 mm / 5 degrees."));
-  connect(gizmo, &QPushButton::clicked, this, [this] { view_->setTool(Tool::Align); });
-  auto* g = new QAction(this);
-  g->setShortcut(QKeySequence(Qt::Key_G));
-  connect(g, &QAction::triggered, this, [this] { setStep(Step::Rigid); view_->setTool(Tool::Align); });
-  addAction(g);
   l->addWidget(gizmo);
   auto* box = new QGroupBox(tr("Pose (camera frame)"), page);
   auto* form = new QFormLayout(box);
@@ -841,12 +839,8 @@ QWidget* MainWindow::buildRigidPage() {
   l->addWidget(reset);
   auto* lmBox = new QGroupBox(tr("Landmark pairs (mesh point, then image point)"), page);
   auto* ll = new QVBoxLayout(lmBox);
-  auto* pick = new QPushButton(tr("Pick Landmarks (L)"), lmBox);
-  connect(pick, &QPushButton::clicked, this, [this] { view_->setTool(Tool::Landmarks); });
-  auto* la = new QAction(this);
-  la->setShortcut(QKeySequence(Qt::Key_L));
-  connect(la, &QAction::triggered, this, [this] { setStep(Step::Rigid); view_->setTool(Tool::Landmarks); });
-  addAction(la);
+  auto* pick = toolButton(lmBox, tr("Pick Landmarks (L)"), tr("Click a point on the organ, then where it is in the frame; 4 pairs or more"),
+                          Step::Rigid, Tool::Landmarks, Qt::Key_L);
   ll->addWidget(pick);
   landmarkList_ = new QListWidget(lmBox);
   landmarkList_->setMaximumHeight(110);

@@ -135,6 +135,8 @@ class MainWindow : public QMainWindow {
   QWidget* buildContourPage();
   QWidget* buildRigidPage();
   QWidget* buildFitPage();
+  /// A button that picks `tool` in the frame view; `key` does the same from anywhere, after going to `step`.
+  QPushButton* toolButton(QWidget* parent, const QString& text, const QString& tip, Step step, Tool tool, Qt::Key key);
   void save();
   void saveAs();
   void openFileDialog();
