@@ -573,6 +573,40 @@ class TestWorkflow : public QObject {
     QCOMPARE(imaging::loadContour(out).segments.size(), std::size_t(2));
   }
 
+  // A real case: the in-vivo laparoscopic frame (1920x1080) with its intrinsics, and a patient's liver
+  // surface (VTK polydata, mm) tetrahedralised on a worker: the organ is drawn over the real frame.
+  void realFrameAndPatientLiver() {
+    REQUIRE_SHARED("scikit-surgery/laparoscopy-liver-frame.jpg");
+    REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
+    const int index = w_->undoStack()->index();
+    QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
+    w_->openFrameSource(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")));
+    QVERIFY(opened.count() == 1 || opened.wait(60000));
+    QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
+    QCOMPARE(w_->currentCase().data->frame.cols, 1920);
+    QCOMPARE(w_->currentCase().data->frame.rows, 1080);
+    w_->loadCalibration(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));
+    QCOMPARE(w_->currentCase().data->camera.fx(), 2012.186314);
+    QCOMPARE(w_->currentCase().data->camera.cy(), 617.1093984);
+    w_->setMeshUnit("mm");
+    w_->setTargetTets(3000);
+    QSignalSpy imported(w_.get(), &MainWindow::meshImported);
+    w_->importMesh(QString::fromStdString(sharedData("scikit-surgery/patient-liver/liver.vtk")));
+    QVERIFY(imported.wait(180000));
+    QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+    const auto& c = *w_->currentCase().data;
+    qInfo("patient liver: %zu tets, %zu surface triangles over the real frame; organ outline %lld polygon(s)", c.volume.tets.size(),
+          c.surface.size(), static_cast<long long>(w_->currentCase().silhouette.size()));
+    QVERIFY(c.volume.tets.size() > 2000);
+    QVERIFY(!w_->currentCase().organOverlay.isNull());
+    QVERIFY(!w_->currentCase().silhouette.isEmpty());  // placed in front of the camera, in view
+    QVERIFY(w_->stepDone(ui::Step::Mesh) && w_->stepDone(ui::Step::Frame));
+    w_->setStep(ui::Step::Rigid);
+    shot(*w_, "real-frame");
+    while (w_->undoStack()->index() > index) w_->undoStack()->undo();
+    QVERIFY(w_->currentCase().data->hasGroundTruth);
+  }
+
   void cleanupTestCase() {
     w_->close();
     w_.reset();
