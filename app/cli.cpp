@@ -229,7 +229,7 @@ simcore::Scene modelFromOptions(std::map<std::string, std::string>& o, const cha
 int cmdSimulate(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
                         {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity",
-                         "steps", "dt", "out", "report", "solver", "method", "attachments"},
+                         "steps", "dt", "out", "report", "solver", "method", "attachments", "factor"},
                         {"static", "list-components"});
   if (o.count("list-components")) {
     std::printf("%s", simcore::describeSceneComponents().c_str());
@@ -248,6 +248,10 @@ int cmdSimulate(const std::vector<std::string>& args) {
                                        : throw UsageError("--solver must be cholmod, cg or dense");
   }
   if (o.count("method")) p.settings.method = simcore::newtonMethodFromString(o["method"]);
+  if (o.count("factor")) {
+    if (o["factor"] != "supernodal" && o["factor"] != "simplicial") throw UsageError("--factor must be supernodal or simplicial");
+    p.settings.simplicialFactor = o["factor"] == "simplicial";
+  }
   if (o.count("attachments")) {
     if (o["attachments"] != "projection" && o["attachments"] != "lagrange") throw UsageError("--attachments must be projection or lagrange");
     p.settings.attachments = o["attachments"] == "lagrange" ? simcore::AttachmentMode::Lagrange : simcore::AttachmentMode::Projection;
@@ -470,7 +474,8 @@ std::string usage() {
          "                [--density KG_M3]\n"
          "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
          "                [--solver cholmod|cg|dense] [--method exact|lagged-pcg|chord|linearised]\n"
-         "                [--attachments projection|lagrange] --out OUT.vtu|.vtk [--report R.json]\n"
+         "                [--factor supernodal|simplicial] [--attachments projection|lagrange]\n"
+         "                --out OUT.vtu|.vtk [--report R.json]\n"
          "  rehearse simulate --list-components   the scene components and their parameters\n"
          "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n"
          "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"

@@ -6,6 +6,8 @@
 #include <QJsonObject>
 #include <QProcess>
 
+#include <sstream>
+
 namespace {
 struct Run {
   int code;
@@ -87,6 +89,34 @@ class TestCli : public QObject {
     QCOMPARE(linSteps.size(), 3);
     QCOMPARE(linSteps[0].toObject()["factorisations"].toInt(), 1);  // the first step builds the factor ...
     QCOMPARE(linSteps[2].toObject()["newton_iterations"].toInt(), 1);  // ... and each step is one solve
+    // The allocation-free simplicial factor gives the same motion as the supernodal one.
+    const QString outSimplicial = QString::fromStdString(tempPath("sim-simplicial.msh")), outSupernodal = QString::fromStdString(tempPath("sim-supernodal.msh"));
+    for (const auto& [factor, file] : {std::pair{QStringLiteral("simplicial"), outSimplicial}, std::pair{QStringLiteral("supernodal"), outSupernodal}}) {
+      auto f = run({"simulate", "--preset", "liver", "--steps", "3", "--method", "exact", "--factor", factor, "--out", file});
+      QVERIFY2(f.code == 0, qPrintable(f.err));
+    }
+    {
+      // MSH 2.2 ascii: "$Nodes", the count, then "id x y z" per node
+      auto nodes = [](const std::string& text) {
+        std::vector<double> v;
+        std::istringstream in(text.substr(text.find("$Nodes") + 6));
+        std::size_t n = 0;
+        in >> n;
+        for (std::size_t k = 0; k < 4 * n; ++k) {
+          double x;
+          in >> x;
+          if (k % 4) v.push_back(x);
+        }
+        return v;
+      };
+      const auto a = nodes(readFile(outSimplicial.toStdString())), b = nodes(readFile(outSupernodal.toStdString()));
+      QVERIFY(a.size() > 2000 && a.size() == b.size());
+      double worst = 0;
+      for (std::size_t i = 0; i < a.size(); ++i) worst = std::max(worst, std::abs(a[i] - b[i]));
+      qInfo("simplicial vs supernodal factor after 3 exact steps: largest coordinate difference %.2e m", worst);
+      QVERIFY2(worst < 1e-9, qPrintable(QString::number(worst)));
+    }
+    expectOneLineError(run({"simulate", "--preset", "liver", "--factor", "dense", "--out", out}), 2, "supernodal or simplicial");
     expectOneLineError(run({"simulate", "--preset", "liver", "--method", "magic", "--out", out}), 1, "Newton method");
     expectOneLineError(run({"simulate", "--preset", "liver", "--attachments", "glue", "--out", out}), 2, "projection or lagrange");
     auto info = run({"info", out});

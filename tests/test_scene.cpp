@@ -60,6 +60,7 @@ class TestScene : public QObject {
     expect(R"({"components": [{"type": "gravity"}]})", "no 'mesh'");
     expect(R"({"components": [{"type": "mesh", "file": "sofa/liver.msh"}, {"type": "gravity", "vector": "down"}]})", "wrong kind");
     expect(R"({"components": [{"type": "mesh", "file": "sofa/liver.msh"}, {"type": "solver", "kind": "magic"}]})", "cholmod, cg or dense");
+    expect(R"({"components": [{"type": "mesh", "file": "sofa/liver.msh"}, {"type": "solver", "factor": "magic"}]})", "supernodal or simplicial");
     expect(R"({"components": 3})", "components");
     expect("{oops", "not valid JSON");
   }

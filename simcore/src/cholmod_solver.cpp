@@ -2,20 +2,34 @@
 
 #include <cholmod.h>
 
+#include <algorithm>
 #include <cstring>
+#include <vector>
 
 namespace rehearse::simcore {
 
 struct CholmodSolver::Impl {
   cholmod_common common{};
   cholmod_factor* factor = nullptr;
-  cholmod_dense* x = nullptr;  // cholmod_solve2 reuses these while the sizes match
-  cholmod_dense* y = nullptr;
-  cholmod_dense* e = nullptr;
+  // cholmod_solve2's result and workspace, reused while their shapes match: one set for single vectors
+  // and one for blocks of right-hand sides, so that alternating the two re-allocates nothing.
+  struct Buffers {
+    cholmod_dense* x = nullptr;
+    cholmod_dense* y = nullptr;
+    cholmod_dense* e = nullptr;
+  } single, block;
   Eigen::Index rows = -1, nonZeros = -1;
   std::size_t patternHash = 0;
   bool ok = false;
   int analyses = 0, factorisations = 0;
+  // Simplicial mode: C = P A P' (upper triangle, column form) with a fixed pattern, filled through `slot`
+  // (the position in C of each lower-triangle entry of A, in A's storage order); `inverse` maps a row of
+  // A to its row in C.
+  bool wantSimplicial = false, isSimplicial = false;
+  std::vector<int> inverse, cp, ci, slot;
+  std::vector<double> cx;
+  Eigen::VectorXd bp;
+  Eigen::MatrixXd Bp;
 
   static cholmod_sparse view(const Eigen::SparseMatrix<double>& A) {
     cholmod_sparse s{};
@@ -38,9 +52,102 @@ struct CholmodSolver::Impl {
       h = (h ^ static_cast<std::size_t>(A.outerIndexPtr()[k])) * 1099511628211ull;
     return h;
   }
-  bool solveView(cholmod_dense& b) {
+  bool solveView(cholmod_dense& b, Buffers& w) {
     if (!ok) return false;
-    return cholmod_solve2(CHOLMOD_A, factor, &b, nullptr, &x, nullptr, &y, &e, &common) != 0;
+    return cholmod_solve2(CHOLMOD_A, factor, &b, nullptr, &w.x, nullptr, &w.y, &w.e, &common) != 0;
+  }
+  void release(Buffers& w) {
+    cholmod_free_dense(&w.x, &common);
+    cholmod_free_dense(&w.y, &common);
+    cholmod_free_dense(&w.e, &common);
+  }
+  cholmod_sparse permutedView() {
+    cholmod_sparse c{};
+    c.nrow = c.ncol = static_cast<size_t>(rows);
+    c.nzmax = cx.size();
+    c.p = cp.data();
+    c.i = ci.data();
+    c.x = cx.data();
+    c.stype = 1;  // upper triangle: with the natural ordering CHOLMOD factorises it in place
+    c.itype = CHOLMOD_INT;
+    c.xtype = CHOLMOD_REAL;
+    c.dtype = CHOLMOD_DOUBLE;
+    c.sorted = 1;
+    c.packed = 1;
+    return c;
+  }
+  // AMD ordering of A, the pattern of C and the slots; then CHOLMOD's analysis of C in its natural order.
+  cholmod_factor* analyseSimplicial(const Eigen::SparseMatrix<double>& A, cholmod_sparse& s) {
+    const int n = static_cast<int>(A.rows());
+    std::vector<int> perm(static_cast<std::size_t>(n));
+    if (!cholmod_amd(&s, nullptr, 0, perm.data(), &common)) return nullptr;
+    inverse.assign(static_cast<std::size_t>(n), 0);
+    for (int k = 0; k < n; ++k) inverse[static_cast<std::size_t>(perm[static_cast<std::size_t>(k)])] = k;
+    struct Entry {
+      int col, row, source;
+    };
+    std::vector<Entry> entries;
+    int source = 0;
+    for (int j = 0; j < n; ++j)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it) {
+        if (it.row() < j) continue;
+        const int a = inverse[static_cast<std::size_t>(it.row())], b = inverse[static_cast<std::size_t>(j)];
+        entries.push_back({std::max(a, b), std::min(a, b), source++});
+      }
+    std::sort(entries.begin(), entries.end(), [](const Entry& l, const Entry& r) { return l.col != r.col ? l.col < r.col : l.row < r.row; });
+    cp.assign(static_cast<std::size_t>(n) + 1, 0);
+    ci.resize(entries.size());
+    cx.assign(entries.size(), 0.0);
+    slot.assign(entries.size(), 0);
+    for (std::size_t k = 0; k < entries.size(); ++k) {
+      ++cp[static_cast<std::size_t>(entries[k].col) + 1];
+      ci[k] = entries[k].row;
+      slot[static_cast<std::size_t>(entries[k].source)] = static_cast<int>(k);
+    }
+    for (int j = 0; j < n; ++j) cp[static_cast<std::size_t>(j) + 1] += cp[static_cast<std::size_t>(j)];
+    bp.resize(n);
+    cholmod_sparse c = permutedView();
+    const int methods = common.nmethods, ordering = common.method[0].ordering, postorder = common.postorder,
+              supernodal = common.supernodal;
+    common.nmethods = 1;
+    common.method[0].ordering = CHOLMOD_NATURAL;
+    common.postorder = 0;
+    common.supernodal = CHOLMOD_SIMPLICIAL;
+    cholmod_factor* f = cholmod_analyze(&c, &common);
+    common.nmethods = methods;
+    common.method[0].ordering = ordering;
+    common.postorder = postorder;
+    common.supernodal = supernodal;
+    if (f && (f->is_super || f->ordering != CHOLMOD_NATURAL)) cholmod_free_factor(&f, &common);
+    return f;
+  }
+  // v = C^-1 v in place with the simplicial L L' (columns: the diagonal first, then rows below it). Our own
+  // two triangular sweeps: cholmod_solve2 re-allocates its workspace at every call for this factor kind.
+  bool solvePermutedInPlace(double* v) const {
+    if (!ok || !factor || factor->is_super || !factor->is_ll) return false;
+    const int* p = static_cast<const int*>(factor->p);
+    const int* i = static_cast<const int*>(factor->i);
+    const int* nz = static_cast<const int*>(factor->nz);
+    const double* lx = static_cast<const double*>(factor->x);
+    const int n = static_cast<int>(factor->n);
+    for (int j = 0; j < n; ++j) {
+      const int start = p[j], end = p[j] + nz[j];
+      v[j] /= lx[start];
+      for (int k = start + 1; k < end; ++k) v[i[k]] -= lx[k] * v[j];
+    }
+    for (int j = n - 1; j >= 0; --j) {
+      const int start = p[j], end = p[j] + nz[j];
+      double t = v[j];
+      for (int k = start + 1; k < end; ++k) t -= lx[k] * v[i[k]];
+      v[j] = t / lx[start];
+    }
+    return true;
+  }
+  void fillPermuted(const Eigen::SparseMatrix<double>& A) {
+    int source = 0;
+    for (Eigen::Index j = 0; j < A.outerSize(); ++j)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(A, j); it; ++it)
+        if (it.row() >= j) cx[static_cast<std::size_t>(slot[static_cast<std::size_t>(source++)])] = it.value();
   }
 };
 
@@ -48,33 +155,44 @@ CholmodSolver::CholmodSolver() : d_(std::make_unique<Impl>()) {
   cholmod_start(&d_->common);
   d_->common.supernodal = CHOLMOD_SUPERNODAL;  // measured: simplicial 2x, auto 1.3x slower here
   d_->common.final_asis = 1;
+  d_->common.final_ll = 1;  // simplicial mode: LL', so that a matrix that is not positive definite is reported
   d_->common.print = 0;
   d_->common.error_handler = nullptr;
 }
 
 CholmodSolver::~CholmodSolver() {
   cholmod_free_factor(&d_->factor, &d_->common);
-  cholmod_free_dense(&d_->x, &d_->common);
-  cholmod_free_dense(&d_->y, &d_->common);
-  cholmod_free_dense(&d_->e, &d_->common);
+  d_->release(d_->single);
+  d_->release(d_->block);
   cholmod_finish(&d_->common);
 }
+
+void CholmodSolver::setSimplicial(bool on) { d_->wantSimplicial = on; }
+bool CholmodSolver::simplicial() const { return d_->wantSimplicial; }
 
 bool CholmodSolver::factorise(const Eigen::SparseMatrix<double>& A) {
   Impl& d = *d_;
   cholmod_sparse s = Impl::view(A);
   const std::size_t h = Impl::hashPattern(A);
-  if (!d.factor || d.rows != A.rows() || d.nonZeros != A.nonZeros() || d.patternHash != h) {
+  if (!d.factor || d.rows != A.rows() || d.nonZeros != A.nonZeros() || d.patternHash != h || d.isSimplicial != d.wantSimplicial) {
     cholmod_free_factor(&d.factor, &d.common);
-    d.factor = cholmod_analyze(&s, &d.common);
-    if (!d.factor) return d.ok = false;
     d.rows = A.rows();
+    d.factor = d.wantSimplicial ? d.analyseSimplicial(A, s) : cholmod_analyze(&s, &d.common);
+    if (!d.factor) return d.ok = false;
+    d.isSimplicial = d.wantSimplicial;
     d.nonZeros = A.nonZeros();
     d.patternHash = h;
     ++d.analyses;
   }
   ++d.factorisations;
-  const int status = cholmod_factorize(&s, d.factor, &d.common);
+  int status = 0;
+  if (d.isSimplicial) {
+    d.fillPermuted(A);
+    cholmod_sparse c = d.permutedView();
+    status = cholmod_factorize(&c, d.factor, &d.common);
+  } else {
+    status = cholmod_factorize(&s, d.factor, &d.common);
+  }
   d.ok = status != 0 && d.common.status == CHOLMOD_OK && d.factor->minor >= d.factor->n;
   return d.ok;
 }
@@ -82,6 +200,15 @@ bool CholmodSolver::factorise(const Eigen::SparseMatrix<double>& A) {
 bool CholmodSolver::valid() const { return d_->ok; }
 
 bool CholmodSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
+  Impl& d = *d_;
+  if (d.isSimplicial) {
+    if (!d.ok || b.size() != d.rows) return false;
+    for (Eigen::Index i = 0; i < b.size(); ++i) d.bp[d.inverse[static_cast<std::size_t>(i)]] = b[i];
+    if (!d.solvePermutedInPlace(d.bp.data())) return false;
+    if (x.size() != b.size()) x.resize(b.size());
+    for (Eigen::Index i = 0; i < b.size(); ++i) x[i] = d.bp[d.inverse[static_cast<std::size_t>(i)]];
+    return x.allFinite();
+  }
   cholmod_dense B{};
   B.nrow = static_cast<size_t>(b.size());
   B.ncol = 1;
@@ -89,9 +216,9 @@ bool CholmodSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   B.x = const_cast<double*>(b.data());
   B.xtype = CHOLMOD_REAL;
   B.dtype = CHOLMOD_DOUBLE;
-  if (!d_->solveView(B)) return false;
+  if (!d.solveView(B, d.single)) return false;
   if (x.size() != b.size()) x.resize(b.size());
-  std::memcpy(x.data(), d_->x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
+  std::memcpy(x.data(), d.single.x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
   return x.allFinite();
 }
 
@@ -99,6 +226,17 @@ bool CholmodSolver::solve(const Eigen::MatrixXd& b, Eigen::MatrixXd& x) {
   if (b.cols() == 0) {
     x.resize(b.rows(), 0);
     return true;
+  }
+  Impl& d = *d_;
+  if (d.isSimplicial) {
+    if (!d.ok || b.rows() != d.rows) return false;
+    if (d.Bp.rows() != b.rows() || d.Bp.cols() != b.cols()) d.Bp.resize(b.rows(), b.cols());
+    for (Eigen::Index i = 0; i < b.rows(); ++i) d.Bp.row(d.inverse[static_cast<std::size_t>(i)]) = b.row(i);
+    for (Eigen::Index c = 0; c < b.cols(); ++c)
+      if (!d.solvePermutedInPlace(d.Bp.col(c).data())) return false;
+    if (x.rows() != b.rows() || x.cols() != b.cols()) x.resize(b.rows(), b.cols());
+    for (Eigen::Index i = 0; i < b.rows(); ++i) x.row(i) = d.Bp.row(d.inverse[static_cast<std::size_t>(i)]);
+    return x.allFinite();
   }
   cholmod_dense B{};
   B.nrow = static_cast<size_t>(b.rows());
@@ -108,9 +246,9 @@ bool CholmodSolver::solve(const Eigen::MatrixXd& b, Eigen::MatrixXd& x) {
   B.x = const_cast<double*>(b.data());
   B.xtype = CHOLMOD_REAL;
   B.dtype = CHOLMOD_DOUBLE;
-  if (!d_->solveView(B)) return false;
+  if (!d.solveView(B, d.block)) return false;
   if (x.rows() != b.rows() || x.cols() != b.cols()) x.resize(b.rows(), b.cols());
-  std::memcpy(x.data(), d_->x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
+  std::memcpy(x.data(), d.block.x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
   return x.allFinite();
 }
 

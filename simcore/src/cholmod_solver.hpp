@@ -15,6 +15,13 @@ class CholmodSolver {
   CholmodSolver(const CholmodSolver&) = delete;
   CholmodSolver& operator=(const CholmodSolver&) = delete;
 
+  /// Simplicial LL' on a copy of the matrix that we permute ourselves (AMD, once per pattern) instead of
+  /// the supernodal factorisation: CHOLMOD then neither transposes the matrix nor starts OpenMP teams, so
+  /// a re-factorisation allocates nothing; it costs about twice the supernodal one. Takes effect at the
+  /// next factorisation (a new analysis).
+  void setSimplicial(bool on);
+  bool simplicial() const;
+
   /// Numeric factorisation of a symmetric matrix (both triangles stored, the lower one is read).
   /// Returns false when it is not positive definite.
   bool factorise(const Eigen::SparseMatrix<double>& A);

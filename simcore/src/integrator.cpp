@@ -53,6 +53,12 @@ struct Integrator::Work {
 };
 
 namespace {
+
+// Every numeric factorisation goes through here, so the factor kind follows the settings as they are now.
+bool factoriseWith(CholmodSolver& chol, const SimulationSettings& settings, const Eigen::SparseMatrix<double>& M) {
+  chol.setSimplicial(settings.simplicialFactor);
+  return chol.factorise(M);
+}
 // "10 micrometres", for statuses.
 std::string micrometres(double metres) {
   char text[48];
@@ -185,7 +191,7 @@ bool Integrator::solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::
   w_->refresh = true;
   switch (settings_.solver) {
     case LinearSolverKind::Cholmod:
-      return w_->chol.factorise(A) && w_->chol.solve(b, y);
+      return factoriseWith(w_->chol, settings_, A) && w_->chol.solve(b, y);
     case LinearSolverKind::ConjugateGradient: {
       Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper, Eigen::IncompleteCholesky<double>> cg;
       cg.setMaxIterations(settings_.cgMaxIterations);
@@ -212,7 +218,7 @@ bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepRepo
   auto attempt = [&](const Eigen::SparseMatrix<double>& M) {
     w.schurValid = false;
     ++rep.factorisations;
-    return w.chol.factorise(M) && (!accept || accept());
+    return factoriseWith(w.chol, settings_, M) && (!accept || accept());
   };
   if (attempt(A)) return true;
   const double base = 1e-6 * A.diagonal().cwiseAbs().maxCoeff();
@@ -350,7 +356,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     w.refresh = false;
     ++rep.factorisations;
     w.schurValid = false;
-    if (w.chol.factorise(w.J)) return true;
+    if (factoriseWith(w.chol, settings_, w.J)) return true;
     // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
     assembleStiffness(model_, at, w.Kd, true);
     buildNewtonMatrix(w.Kd, w.J);
@@ -469,7 +475,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       if (settings_.solver == LinearSolverKind::Cholmod) {
         ++rep.factorisations;
         w.schurValid = false;
-        bool factorised = w.chol.factorise(w.J) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
+        bool factorised = factoriseWith(w.chol, settings_, w.J) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
         if (factorised) {
           solved = true;
         } else {
@@ -735,7 +741,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
       w.schurValid = false;
       // Each attempt starts from the same multipliers (a failed one can leave them absurd).
       const Eigen::VectorXd lambdaStart = w.lambda;
-      solved = w.chol.factorise(w.K) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
+      solved = factoriseWith(w.chol, settings_, w.K) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
       if (!solved) {
         // Indefinite, or nearly singular (a step the organ cannot make): projected Newton, then diagonal
         // shifts (Levenberg-Marquardt) growing until the step is usable.

@@ -46,7 +46,8 @@ const std::vector<ComponentDecl>& sceneComponents() {
        true},
       {"solver", "Linear solver and how Newton reuses its factorisation.",
        {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
-        {"method", "string", "\"exact\"", "", "exact, lagged-pcg, chord or linearised (the last three reuse a cholmod factorisation)"}}},
+        {"method", "string", "\"exact\"", "", "exact, lagged-pcg, chord or linearised (the last three reuse a cholmod factorisation)"},
+        {"factor", "string", "\"supernodal\"", "", "cholmod factor: supernodal (fastest) or simplicial (re-factorising allocates nothing; about 1.8x slower)"}}},
   };
   return decls;
 }
@@ -163,6 +164,9 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
                             : k == "dense" ? LinearSolverKind::Dense
                                            : (fail("solver 'kind' must be cholmod, cg or dense."), LinearSolverKind::Dense);
         s.settings.method = newtonMethodFromString(value(c, *decl, "method").get<std::string>());
+        const std::string f = value(c, *decl, "factor").get<std::string>();
+        if (f != "supernodal" && f != "simplicial") fail("solver 'factor' must be supernodal or simplicial.");
+        s.settings.simplicialFactor = f == "simplicial";
       }
     } catch (const json::exception&) {
       fail("a parameter of component '" + type + "' has the wrong kind of value; see 'rehearse simulate --list-components'.");

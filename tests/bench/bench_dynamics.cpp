@@ -159,15 +159,20 @@ int main(int argc, char** argv) {
       NewtonMethod method;
       double refresh;
       std::string name;
+      bool simplicial = false;
     };
     std::vector<Variant> variants;
     for (NewtonMethod method : kMethods) variants.push_back({method, 1e-2, toString(method)});
     for (double r : {1e-3, 1e-1, 1.0}) variants.push_back({NewtonMethod::Linearised, r, "linearised, refresh at " + std::to_string(r).substr(0, 5)});
+    // The allocation-free factor (simplicial LL' of the matrix permuted by us) beside the supernodal one.
+    variants.push_back({NewtonMethod::Exact, 1e-2, "exact, simplicial factor", true});
+    variants.push_back({NewtonMethod::Linearised, 1e-2, "linearised, simplicial factor", true});
     for (const Variant& var : variants) {
       const NewtonMethod method = var.method;
       SimulationSettings s = sc.settings;
       s.method = method;
       s.refreshResidual = var.refresh;
+      s.simplicialFactor = var.simplicial;
       std::vector<double> medians;
       Run r;
       for (int rep = 0; rep < (quick ? 1 : 3); ++rep) {  // the median of three runs' medians

@@ -59,6 +59,7 @@ struct SimulationSettings {
   bool staticChord = false;                            ///< static solves reuse an earlier static factorisation while the residual halves per iteration (CHOLMOD)
   bool lineSearch = true;
   LinearSolverKind solver = LinearSolverKind::Cholmod;
+  bool simplicialFactor = false;                       ///< CHOLMOD: simplicial LL' on a matrix permuted here (re-factorising allocates nothing; about 2x the supernodal cost)
   int cgMaxIterations = 500;
   double cgTolerance = 1e-10;
   int maxRetries = 4;                                  ///< halvings of the time step after a failed step
