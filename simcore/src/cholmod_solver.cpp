@@ -31,20 +31,25 @@ struct CholmodSolver::Impl {
   Eigen::VectorXd bp;
   Eigen::MatrixXd Bp;
 
-  static cholmod_sparse view(const Eigen::SparseMatrix<double>& A) {
+  // A symmetric matrix in compressed columns, seen by CHOLMOD without a copy; stype -1 reads the lower
+  // triangle, +1 the upper one.
+  static cholmod_sparse symmetricView(Eigen::Index n, std::size_t nonZeros, const int* p, const int* i, const double* x, int stype) {
     cholmod_sparse s{};
-    s.nrow = s.ncol = static_cast<size_t>(A.rows());
-    s.nzmax = static_cast<size_t>(A.nonZeros());
-    s.p = const_cast<int*>(A.outerIndexPtr());
-    s.i = const_cast<int*>(A.innerIndexPtr());
-    s.x = const_cast<double*>(A.valuePtr());
-    s.stype = -1;  // symmetric, lower triangle used
+    s.nrow = s.ncol = static_cast<size_t>(n);
+    s.nzmax = nonZeros;
+    s.p = const_cast<int*>(p);
+    s.i = const_cast<int*>(i);
+    s.x = const_cast<double*>(x);
+    s.stype = stype;
     s.itype = CHOLMOD_INT;
     s.xtype = CHOLMOD_REAL;
     s.dtype = CHOLMOD_DOUBLE;
     s.sorted = 1;
     s.packed = 1;
     return s;
+  }
+  static cholmod_sparse view(const Eigen::SparseMatrix<double>& A) {
+    return symmetricView(A.rows(), static_cast<std::size_t>(A.nonZeros()), A.outerIndexPtr(), A.innerIndexPtr(), A.valuePtr(), -1);
   }
   static std::size_t hashPattern(const Eigen::SparseMatrix<double>& A) {
     std::size_t h = 1469598103934665603ull;
@@ -61,21 +66,8 @@ struct CholmodSolver::Impl {
     cholmod_free_dense(&w.y, &common);
     cholmod_free_dense(&w.e, &common);
   }
-  cholmod_sparse permutedView() {
-    cholmod_sparse c{};
-    c.nrow = c.ncol = static_cast<size_t>(rows);
-    c.nzmax = cx.size();
-    c.p = cp.data();
-    c.i = ci.data();
-    c.x = cx.data();
-    c.stype = 1;  // upper triangle: with the natural ordering CHOLMOD factorises it in place
-    c.itype = CHOLMOD_INT;
-    c.xtype = CHOLMOD_REAL;
-    c.dtype = CHOLMOD_DOUBLE;
-    c.sorted = 1;
-    c.packed = 1;
-    return c;
-  }
+  // Upper triangle: with the natural ordering CHOLMOD factorises it in place (no transposed copy).
+  cholmod_sparse permutedView() { return symmetricView(rows, cx.size(), cp.data(), ci.data(), cx.data(), 1); }
   // AMD ordering of A, the pattern of C and the slots; then CHOLMOD's analysis of C in its natural order.
   cholmod_factor* analyseSimplicial(const Eigen::SparseMatrix<double>& A, cholmod_sparse& s) {
     const int n = static_cast<int>(A.rows());
