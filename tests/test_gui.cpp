@@ -7,7 +7,9 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/organview.hpp"
 
+#include <QDoubleSpinBox>
 #include <QLabel>
+#include <QSettings>
 #include <QSignalSpy>
 #include <QStandardPaths>
 
@@ -142,6 +144,37 @@ class TestGui : public QObject {
     QVERIFY(status);
     QVERIFY2(status->text().endsWith("gone.rehearse does not exist."), qPrintable(status->text()));
     QVERIFY(w.infoText().contains("Frame not loaded"));
+  }
+
+  // Choices kept between runs: the organ's drawing style (V) and the attachment patch radius come back in
+  // a new window. (Settings of their own: test_gui_hidpi may run beside this test.)
+  void settingsKeptBetweenRuns() {
+    const QString organisation = QCoreApplication::organizationName();
+    QCoreApplication::setOrganizationName("RehearseSettingsTest");
+    QSettings().clear();
+    {
+      ui::MainWindow w;
+      w.show();
+      QVERIFY(QTest::qWaitForWindowExposed(&w));
+      const auto first = w.frameView()->overlayStyle();
+      QTest::keyClick(&w, Qt::Key_V);
+      QVERIFY(w.frameView()->overlayStyle() != first);
+      QTest::keyClick(&w, Qt::Key_V);
+      QCOMPARE(w.frameView()->overlayStyle(), ui::OverlayStyle::Silhouette);
+      w.findChild<QDoubleSpinBox*>("attachmentRadius")->setValue(17);
+    }
+    {
+      ui::MainWindow w;
+      QCOMPARE(w.frameView()->overlayStyle(), ui::OverlayStyle::Silhouette);
+      QCOMPARE(w.frameView()->attachmentRadius(), 0.017);
+      QCOMPARE(w.findChild<QDoubleSpinBox*>("attachmentRadius")->value(), 17.0);
+      w.show();
+      QVERIFY(QTest::qWaitForWindowExposed(&w));
+      QTest::keyClick(&w, Qt::Key_V);
+      QCOMPARE(w.frameView()->overlayStyle(), ui::OverlayStyle::Shaded);
+    }
+    QSettings().clear();
+    QCoreApplication::setOrganizationName(organisation);
   }
 
   void cancelKeepsTheWindowUsable() {
