@@ -11,13 +11,9 @@ namespace rehearse::simcore {
 struct CholmodSolver::Impl {
   cholmod_common common{};
   cholmod_factor* factor = nullptr;
-  // cholmod_solve2's result and workspace, reused while their shapes match: one set for single vectors
-  // and one for blocks of right-hand sides, so that alternating the two re-allocates nothing.
-  struct Buffers {
-    cholmod_dense* x = nullptr;
-    cholmod_dense* y = nullptr;
-    cholmod_dense* e = nullptr;
-  } single, block;
+  cholmod_dense* x = nullptr;  // cholmod_solve2 reuses these while the sizes match
+  cholmod_dense* y = nullptr;
+  cholmod_dense* e = nullptr;
   Eigen::Index rows = -1, nonZeros = -1;
   std::size_t patternHash = 0;
   bool ok = false;
@@ -57,14 +53,9 @@ struct CholmodSolver::Impl {
       h = (h ^ static_cast<std::size_t>(A.outerIndexPtr()[k])) * 1099511628211ull;
     return h;
   }
-  bool solveView(cholmod_dense& b, Buffers& w) {
+  bool solveView(cholmod_dense& b) {
     if (!ok) return false;
-    return cholmod_solve2(CHOLMOD_A, factor, &b, nullptr, &w.x, nullptr, &w.y, &w.e, &common) != 0;
-  }
-  void release(Buffers& w) {
-    cholmod_free_dense(&w.x, &common);
-    cholmod_free_dense(&w.y, &common);
-    cholmod_free_dense(&w.e, &common);
+    return cholmod_solve2(CHOLMOD_A, factor, &b, nullptr, &x, nullptr, &y, &e, &common) != 0;
   }
   // Upper triangle: with the natural ordering CHOLMOD factorises it in place (no transposed copy).
   cholmod_sparse permutedView() { return symmetricView(rows, cx.size(), cp.data(), ci.data(), cx.data(), 1); }
@@ -154,13 +145,13 @@ CholmodSolver::CholmodSolver() : d_(std::make_unique<Impl>()) {
 
 CholmodSolver::~CholmodSolver() {
   cholmod_free_factor(&d_->factor, &d_->common);
-  d_->release(d_->single);
-  d_->release(d_->block);
+  cholmod_free_dense(&d_->x, &d_->common);
+  cholmod_free_dense(&d_->y, &d_->common);
+  cholmod_free_dense(&d_->e, &d_->common);
   cholmod_finish(&d_->common);
 }
 
 void CholmodSolver::setSimplicial(bool on) { d_->wantSimplicial = on; }
-bool CholmodSolver::simplicial() const { return d_->wantSimplicial; }
 
 bool CholmodSolver::factorise(const Eigen::SparseMatrix<double>& A) {
   Impl& d = *d_;
@@ -208,9 +199,9 @@ bool CholmodSolver::solve(const Eigen::VectorXd& b, Eigen::VectorXd& x) {
   B.x = const_cast<double*>(b.data());
   B.xtype = CHOLMOD_REAL;
   B.dtype = CHOLMOD_DOUBLE;
-  if (!d.solveView(B, d.single)) return false;
+  if (!d.solveView(B)) return false;
   if (x.size() != b.size()) x.resize(b.size());
-  std::memcpy(x.data(), d.single.x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
+  std::memcpy(x.data(), d.x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
   return x.allFinite();
 }
 
@@ -238,9 +229,9 @@ bool CholmodSolver::solve(const Eigen::MatrixXd& b, Eigen::MatrixXd& x) {
   B.x = const_cast<double*>(b.data());
   B.xtype = CHOLMOD_REAL;
   B.dtype = CHOLMOD_DOUBLE;
-  if (!d.solveView(B, d.block)) return false;
+  if (!d.solveView(B)) return false;
   if (x.rows() != b.rows() || x.cols() != b.cols()) x.resize(b.rows(), b.cols());
-  std::memcpy(x.data(), d.block.x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
+  std::memcpy(x.data(), d.x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
   return x.allFinite();
 }
 

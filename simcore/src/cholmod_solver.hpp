@@ -20,7 +20,6 @@ class CholmodSolver {
   /// a re-factorisation allocates nothing; it costs about twice the supernodal one. Takes effect at the
   /// next factorisation (a new analysis).
   void setSimplicial(bool on);
-  bool simplicial() const;
 
   /// Numeric factorisation of a symmetric matrix (both triangles stored, the lower one is read).
   /// Returns false when it is not positive definite.
