@@ -78,13 +78,22 @@ class TestAllocation : public QObject {
     struct Variant {
       NewtonMethod method;
       bool simplicial;
+      AttachmentMode attachments = AttachmentMode::Projection;
     };
-    for (auto [method, simplicial] : {Variant{NewtonMethod::Exact, false}, Variant{NewtonMethod::LaggedPcg, false}, Variant{NewtonMethod::Chord, false},
-                                      Variant{NewtonMethod::Linearised, false}, Variant{NewtonMethod::Exact, true},
-                                      Variant{NewtonMethod::Linearised, true}}) {
+    const Variant variants[] = {{NewtonMethod::Exact, false},
+                                {NewtonMethod::LaggedPcg, false},
+                                {NewtonMethod::Chord, false},
+                                {NewtonMethod::Linearised, false},
+                                {NewtonMethod::Exact, true},
+                                {NewtonMethod::Linearised, true},
+                                // Attachments by Lagrange multipliers: the Schur complement and its solves too.
+                                {NewtonMethod::LaggedPcg, false, AttachmentMode::Lagrange},
+                                {NewtonMethod::Exact, true, AttachmentMode::Lagrange}};
+    for (const auto& [method, simplicial, attachments] : variants) {
       SimulationSettings s;
       s.method = method;
       s.simplicialFactor = simplicial;
+      s.attachments = attachments;
       Integrator in(m, c.attachments, s);
       auto state = in.initialState();
       for (int i = 0; i < 30; ++i) in.step(state);  // warm-up: buffers sized, the factor built
@@ -103,9 +112,10 @@ class TestAllocation : public QObject {
         }
         else quiet = std::max(quiet, allocations.load());
       }
-      qInfo("%-11s %-10s heap allocations per step: %ld in total over 20 steps, at most %ld in one; %ld in steps that re-factorised, "
+      qInfo("%-11s %-10s %-10s heap allocations per step: %ld in total over 20 steps, at most %ld in one; %ld in steps that re-factorised, "
             "at most %ld in one that did not (%ld of 20 steps re-factorised)",
-            toString(method).c_str(), simplicial ? "simplicial" : "supernodal", total, worst, refreshing, quiet, factorising);
+            toString(method).c_str(), simplicial ? "simplicial" : "supernodal",
+            attachments == AttachmentMode::Lagrange ? "lagrange" : "projection", total, worst, refreshing, quiet, factorising);
       // A step that reuses the factorisation allocates nothing. A supernodal numeric factorisation does,
       // inside CHOLMOD (its permuted transpose, and an OpenMP team per supernode from libgomp), reported
       // above; the simplicial factor of the matrix we permute ourselves allocates nothing at all.

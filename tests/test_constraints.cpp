@@ -106,6 +106,18 @@ class TestConstraints : public QObject {
       const double dd = (xa - xb).norm() / (xa - m.restVector()).norm();
       qInfo("%s, 10 implicit steps: relative difference %.2e", toString(model).c_str(), dd);
       QVERIFY(dd < 1e-5);
+      // The methods that reuse a lagged factor hold the same attachments by Lagrange multipliers too.
+      for (NewtonMethod method : {NewtonMethod::LaggedPcg, NewtonMethod::Chord}) {
+        d.method = method;
+        int failures = -1;
+        const Eigen::VectorXd xl = run(m, c.attachments, d, 10, nullptr, &failures);
+        QVERIFY(xl.size() > 0);
+        const double dl = (xa - xl).norm() / (xa - m.restVector()).norm();
+        qInfo("%s, %s with Lagrange attachments: %d failed steps, relative difference %.2e", toString(model).c_str(),
+              toString(method).c_str(), failures, dl);
+        QCOMPARE(failures, 0);
+        QVERIFY(dl < 1e-5);
+      }
     }
   }
 

@@ -44,6 +44,10 @@ struct Integrator::Work {
   Eigen::MatrixXd Ht, A;
   Eigen::MatrixXd W;
   Eigen::VectorXd e, lambda, lambdaOut;
+  Eigen::VectorXd lambdaCarried;  // lagged-pcg: the multipliers whose forces the free solve already holds
+  Eigen::LDLT<Eigen::MatrixXd> Wfactor;  // W's dense factorisation, when Gauss-Seidel stalls on it
+  bool WfactorValid = false;
+  Eigen::VectorXd Wlambda;  // W lambda - e (the multipliers' residual)
   bool schurValid = false;        // A and W belong to the current factor and constraints
   double laggedStep = -1;         // h the lagged factor was built for (-1: none)
   bool refresh = true;            // rebuild the lagged factor at the next opportunity
@@ -248,7 +252,7 @@ double Integrator::constraintViolation(const Eigen::VectorXd& x) const {
 // projected Gauss-Seidel on W mu = e - H dx_free. Without constraints: dx = A^-1 rhs. Uses the current
 // factor (the caller made it); mu (total, not incremental) ends in w.lambda.
 bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx,
-                                  StepReport& rep, bool freeGiven) {
+                                  StepReport& rep, bool freeGiven, const Eigen::VectorXd* carried) {
   Work& w = *w_;
   if (!freeGiven && !w.chol.solve(rhs, dx)) return false;
   project(dx);
@@ -277,15 +281,22 @@ bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::Vecto
     if (w.W.rows() != m) w.W.resize(m, m);
     for (Eigen::Index i = 0; i < m; ++i)
       for (Eigen::Index j = 0; j < m; ++j) w.W(i, j) = applyH(constraint(i), w.A.col(j));
-    w.W = 0.5 * (w.W + w.W.transpose()).eval();
+    for (Eigen::Index i = 0; i < m; ++i)  // symmetric up to round-off: made exactly so, in place
+      for (Eigen::Index j = i + 1; j < m; ++j) w.W(i, j) = w.W(j, i) = 0.5 * (w.W(i, j) + w.W(j, i));
     w.schurValid = true;
+    w.WfactorValid = false;
   }
   if (w.e.size() != m) w.e.resize(m);
+  if (w.Wlambda.size() != m) w.Wlambda.resize(m);
   if (w.lambda.size() != m || !w.lambda.allFinite()) w.lambda.setZero(m);
   for (Eigen::Index i = 0; i < m; ++i) {
     const auto& c = constraint(i);
     w.e[i] = (c.value - applyH(c, x)) / s - applyH(c, dx);
   }
+  // dx already holds the response to the forces of `carried` multipliers (through another operator than
+  // the factor's): solve for the total ones, and let the factor move dx by the change only.
+  const bool carry = carried && carried->size() == m;
+  if (carry) w.e.noalias() += w.W * *carried;
   // Projected Gauss-Seidel, warm-started from the previous multipliers. An ill-conditioned W (many
   // close attachments on a body with nothing else holding it) can stall it: bilateral constraints then
   // take a dense LDL^T of W (m x m, small), unilateral ones keep the best Gauss-Seidel iterate.
@@ -312,13 +323,23 @@ bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::Vecto
   }
   rep.innerIterations += sweep;
   // Converged by its step size is not converged by its residual when W is ill-conditioned.
-  if (converged && !unilateral) converged = (w.W * w.lambda - w.e).norm() <= 1e-12 * std::max(w.e.norm(), 1e-300) * std::max(1.0, w.W.diagonal().maxCoeff() / std::max(w.W.diagonal().minCoeff(), 1e-300));
+  if (converged && !unilateral) {
+    w.Wlambda.noalias() = w.W * w.lambda;  // sized once: no temporary
+    w.Wlambda -= w.e;
+  }
+  if (converged && !unilateral) converged = w.Wlambda.norm() <= 1e-12 * std::max(w.e.norm(), 1e-300) * std::max(1.0, w.W.diagonal().maxCoeff() / std::max(w.W.diagonal().minCoeff(), 1e-300));
   if (!converged && !unilateral) {
-    // Rank-deficient W (redundant constraints) is fine here: the least-norm multipliers.
-    w.lambda = w.W.completeOrthogonalDecomposition().solve(w.e);
+    // Rank-deficient W (redundant constraints) is fine here: the pivoted LDL^T leaves the multipliers of
+    // zero pivots at zero. Factorised once per W (the lagged methods keep W for many iterations).
+    if (!w.WfactorValid) {
+      w.Wfactor.compute(w.W);
+      w.WfactorValid = true;
+    }
+    w.lambda = w.Wfactor.solve(w.e);
     if (!w.lambda.allFinite()) return false;
   }
   dx.noalias() += w.A * w.lambda;
+  if (carry) dx.noalias() -= w.A * *carried;
   return dx.allFinite();
 }
 
@@ -512,6 +533,14 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       };
       w.dv.setZero();
       w.pr = w.tmp;
+      // The constraint forces of the last iteration's multipliers go into the CG right-hand side (the exact
+      // tangent answers them); the lagged factor then corrects only their change, which vanishes as Newton
+      // converges. (With the lagged factor for the whole force, the step never satisfied the exact equations.)
+      const bool carry = hasConstraints && w.lambda.size() == w.Ht.cols() && w.Ht.rows() == w.pr.size();
+      if (carry) {
+        w.pr.noalias() += w.Ht * w.lambda;
+        w.lambdaCarried = w.lambda;
+      }
       const double bnorm = w.pr.norm();
       solved = w.chol.solve(w.pr, w.pz);
       w.pp = w.pz;
@@ -530,8 +559,8 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       rep.innerIterations += k;
       if (k > 20) w.refresh = true;  // the lagged factor has drifted: rebuild it at the next step
       project(w.dv);
-      // The constraint correction uses the lagged factor (the Newton iterations absorb the difference).
-      if (solved && hasConstraints) solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep, true);
+      // The constraint correction (of the multipliers' change) uses the lagged factor.
+      if (solved && hasConstraints) solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep, true, carry ? &w.lambdaCarried : nullptr);
     } else {
       solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep);
     }

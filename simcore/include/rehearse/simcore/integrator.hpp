@@ -131,7 +131,7 @@ class Integrator {
   /// solves with the factor) takes the result.
   bool factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep, const std::function<bool()>& accept = nullptr);
   bool solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double positionScale, Eigen::VectorXd& dx,
-                        StepReport& rep, bool freeGiven = false);
+                        StepReport& rep, bool freeGiven = false, const Eigen::VectorXd* carried = nullptr);
   double constraintViolation(const Eigen::VectorXd& x) const;
 
   const FemModel& model_;
