@@ -3,7 +3,6 @@
 #include "phantom/presets.hpp"
 
 #include <rehearse/simcore/fem.hpp>
-#include <rehearse/simcore/quality.hpp>
 #include <rehearse/simcore/scene.hpp>
 
 #include <QComboBox>
@@ -431,12 +430,6 @@ void SimulationPanel::setOrgan(std::shared_ptr<const phantom::Case> organ) {
   organ_ = std::move(organ);
   if (same) return;
   playing_ = false;
-  organVolume_ = 0;
-  if (organ_)
-    for (const auto& t : organ_->volume.tets)
-      organVolume_ += std::abs(simcore::tetVolume(organ_->volume.points[t[0]], organ_->volume.points[t[1]],
-                                                  organ_->volume.points[t[2]], organ_->volume.points[t[3]]));
-  organVolume_ *= organ_ ? std::pow(organ_->volume.unitToMetre, 3) : 0.0;
   updateMass();
   const bool presetOk = organ_ && !organ_->volume.tets.empty();
   if (presetOk) applyPreset(preset_->currentText());  // density follows the organ's volume
@@ -465,9 +458,9 @@ void SimulationPanel::applyPreset(const QString& name) {
 }
 
 void SimulationPanel::updateMass() {
-  mass_->setText(organVolume_ > 0 ? tr("%1 g (%2 cm³ x density)").arg(organVolume_ * density_->value() * 1e3, 0, 'f', 0)
-                                        .arg(organVolume_ * 1e6, 0, 'f', 1)
-                                  : tr("no volume mesh"));
+  const double volume = organ_ && !organ_->volume.tets.empty() ? organ_->quality.volume : 0.0;  // m^3, as the case panel shows it
+  mass_->setText(volume > 0 ? tr("%1 g (%2 cm³ x density)").arg(volume * density_->value() * 1e3, 0, 'f', 0).arg(volume * 1e6, 0, 'f', 1)
+                            : tr("no volume mesh"));
 }
 
 void SimulationPanel::parametersEdited() {

@@ -120,8 +120,7 @@ class SimulationPanel : public QWidget {
   QPushButton* stepButton_ = nullptr;
   QPushButton* resetButton_ = nullptr;
   QLabel* status_ = nullptr;
-  QLabel* mass_ = nullptr;      ///< density x the organ's volume, so a preset's density reads as the mass it gives
-  double organVolume_ = 0;      ///< m^3
+  QLabel* mass_ = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
   std::shared_ptr<const phantom::Case> organ_;
   std::shared_ptr<const SimulationFrame> last_;
   bool playing_ = false;
