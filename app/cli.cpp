@@ -2,6 +2,8 @@
 
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
+#include "rehearse/app/casefolder.hpp"
+#include "rehearse/app/elasticfit.hpp"
 
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
@@ -87,8 +89,8 @@ int cmdPhantom(const std::vector<std::string>& args) {
   if (o.count("tets")) po.targetTets = parseCount(o["tets"], "--tets", 100, 2'000'000);
   if (o.count("seed")) po.seed = static_cast<unsigned>(parseCount(o["seed"], "--seed", 0, 1'000'000));
   auto t0 = std::chrono::steady_clock::now();
-  auto c = phantom::makePhantom(po);
-  phantom::writeCaseDirectory(c, o["out"]);
+  const auto c = phantom::makePhantom(po);
+  writeCaseDirectory(caseFromPhantom(c), o["out"]);
   double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf("phantom written to %s: %zu nodes, %zu tets, %zu surface triangles, %zu attachment nodes, frame %dx%d (%.2f s)\n",
               o["out"].c_str(), c.volume.points.size(), c.volume.tets.size(), c.surface.size(), c.attachments.size(),
@@ -221,6 +223,14 @@ simcore::Scene modelFromOptions(std::map<std::string, std::string>& o, const cha
     }
   }
   if (o.count("density")) p.defaultMaterial.density = parseNumber(o["density"], "--density");
+  if (o.count("vessel-young")) {
+    // The case's vessel material as the GUI sets it (app::labelMaterials): the parenchyma's law and density.
+    MaterialSettings m = materialFromScene(p);
+    m.vesselYoung = parseNumber(o["vessel-young"], "--vessel-young");
+    const LabelMaterials lm = labelMaterials(m);
+    p.defaultMaterial = lm.fallback;
+    p.materials = lm.byLabel;
+  }
   if (o.count("fixed-nodes")) p.fixedNodes = parseNodes(o["fixed-nodes"]);
   if (o.count("gravity")) p.settings.gravity = parseVector(o["gravity"], "--gravity");
   return p;
@@ -228,7 +238,7 @@ simcore::Scene modelFromOptions(std::map<std::string, std::string>& o, const cha
 
 int cmdSimulate(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
-                        {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity",
+                        {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes", "gravity",
                          "steps", "dt", "out", "report", "solver", "method", "attachments", "factor"},
                         {"static", "list-components"});
   if (o.count("list-components")) {
@@ -240,21 +250,15 @@ int cmdSimulate(const std::vector<std::string>& args) {
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
   simcore::Scene p = modelFromOptions(o, "simulate");
   if (o.count("dt")) p.settings.timeStep = parseNumber(o["dt"], "--dt");
-  if (o.count("solver")) {
-    const std::string s = o["solver"];
-    p.settings.solver = s == "cholmod" ? simcore::LinearSolverKind::Cholmod
-                        : s == "cg"    ? simcore::LinearSolverKind::ConjugateGradient
-                        : s == "dense" ? simcore::LinearSolverKind::Dense
-                                       : throw UsageError("--solver must be cholmod, cg or dense");
-  }
+  // Names parsed by simcore's one set of parsers (as scenes are); their sentences become usage errors
+  // (the Newton method's stays a model error, exit 1, as before).
   if (o.count("method")) p.settings.method = simcore::newtonMethodFromString(o["method"]);
-  if (o.count("factor")) {
-    if (o["factor"] != "supernodal" && o["factor"] != "simplicial") throw UsageError("--factor must be supernodal or simplicial");
-    p.settings.simplicialFactor = o["factor"] == "simplicial";
-  }
-  if (o.count("attachments")) {
-    if (o["attachments"] != "projection" && o["attachments"] != "lagrange") throw UsageError("--attachments must be projection or lagrange");
-    p.settings.attachments = o["attachments"] == "lagrange" ? simcore::AttachmentMode::Lagrange : simcore::AttachmentMode::Projection;
+  try {
+    if (o.count("solver")) p.settings.solver = simcore::linearSolverFromString(o["solver"]);
+    if (o.count("factor")) p.settings.simplicialFactor = simcore::simplicialFactorFromString(o["factor"]);
+    if (o.count("attachments")) p.settings.attachments = simcore::attachmentModeFromString(o["attachments"]);
+  } catch (const simcore::MeshError& e) {
+    throw UsageError(e.what());
   }
   const long steps = o.count("steps") ? parseCount(o["steps"], "--steps", 1, 1'000'000) : p.steps;
   if (p.staticSolve) o["static"] = "";
@@ -319,7 +323,7 @@ int cmdSimulate(const std::vector<std::string>& args) {
 // rehearse register: the organ fitted onto a sketched silhouette (issue 5).
 int cmdRegister(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
-                        {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "fixed-nodes", "gravity", "camera",
+                        {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes", "gravity", "camera",
                          "contour", "pose", "out", "pose-out", "report", "ground-truth", "iterations", "image-size"},
                         {"rigid-prepass", "no-rigid-prepass", "rigid-only", "distorted-contour"});
   for (const char* need : {"camera", "contour", "pose", "out"})
@@ -348,8 +352,6 @@ int cmdRegister(const std::vector<std::string>& args) {
   if (o.count("distorted-contour")) contour = imaging::undistortContour(contour, camera);
   if (const std::string problem = imaging::contourProblem(contour); !problem.empty()) throw simcore::MeshError(problem);
   const Pose start = imaging::loadPose(o["pose"]);
-  const auto segments = imaging::silhouetteSegments(contour);
-  simcore::RegistrationOptions ro;
   // When the organ came as a surface, curve vertices index that surface: they go to the nearest surface
   // node of the volume made from it.
   std::vector<int> boundaryNodes;
@@ -358,23 +360,18 @@ int cmdRegister(const std::vector<std::string>& args) {
     std::sort(boundaryNodes.begin(), boundaryNodes.end());
     boundaryNodes.erase(std::unique(boundaryNodes.begin(), boundaryNodes.end()), boundaryNodes.end());
   }
-  for (const auto& seg : imaging::anatomicalSegments(contour)) {
-    simcore::AnatomicalCurve curve{seg.modelVertices, seg.points, seg.type};
-    if (!boundaryNodes.empty()) {
-      for (int& v : curve.nodes) {
-        if (v < 0 || static_cast<std::size_t>(v) >= surfaceIn.points.size())
-          throw simcore::MeshError("The " + seg.type + " curve refers to vertex " + std::to_string(v) + ", which the surface does not have.");
-        int best = boundaryNodes.front();
-        for (int n : boundaryNodes)
-          if ((p.mesh.points[n] - surfaceIn.points[v]).squaredNorm() < (p.mesh.points[best] - surfaceIn.points[v]).squaredNorm()) best = n;
-        v = best;
-      }
-      curve.nodes.erase(std::unique(curve.nodes.begin(), curve.nodes.end()), curve.nodes.end());
+  for (auto& seg : contour.segments) {
+    if (seg.isSilhouette() || boundaryNodes.empty()) continue;
+    for (int& v : seg.modelVertices) {
+      if (v < 0 || static_cast<std::size_t>(v) >= surfaceIn.points.size())
+        throw simcore::MeshError("The " + seg.type + " curve refers to vertex " + std::to_string(v) + ", which the surface does not have.");
+      int best = boundaryNodes.front();
+      for (int n : boundaryNodes)
+        if ((p.mesh.points[n] - surfaceIn.points[v]).squaredNorm() < (p.mesh.points[best] - surfaceIn.points[v]).squaredNorm()) best = n;
+      v = best;
     }
-    ro.curves.push_back(std::move(curve));
+    seg.modelVertices.erase(std::unique(seg.modelVertices.begin(), seg.modelVertices.end()), seg.modelVertices.end());
   }
-  if (segments.empty() && ro.curves.empty())
-    throw simcore::MeshError("The contour has no silhouette segment and no ridge or ligament with its curve on the organ.");
   simcore::Mesh truth;
   if (o.count("ground-truth")) {
     simcore::LoadOptions lo;
@@ -385,19 +382,27 @@ int cmdRegister(const std::vector<std::string>& args) {
       throw simcore::MeshError("The ground truth has " + std::to_string(truth.points.size()) + " nodes, the organ " +
                                std::to_string(p.mesh.points.size()) + "; they must be the same mesh in the same order.");
   }
-  const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial, p.embedded);
-  const auto surface = simcore::boundaryTriangles(p.mesh, false);
+  // The one fit pipeline the GUI uses too (app/elasticfit.hpp).
+  FitInput in;
+  in.organ = Organ::fromVolume(p.mesh);
+  in.attachments = p.fixedNodes;
+  in.materials = {p.defaultMaterial, p.materials};
+  in.embedded = p.embedded;
+  in.settings = p.settings;
+  in.contour = contour;
+  in.camera = camera.pinhole();
+  in.start = start;
   // The rigid stage runs first unless asked not to (as in the GUI): the elastic stage alone cannot recover
   // a pose that is centimetres off (BENCHMARKS.md).
-  ro.rigidPrepass = o.count("no-rigid-prepass") == 0;
-  ro.elastic = o.count("rigid-only") == 0;
-  if (o.count("iterations")) ro.maxIterations = static_cast<int>(parseCount(o["iterations"], "--iterations", 1, 1000));
+  in.rigidPrepass = o.count("no-rigid-prepass") == 0;
+  in.elastic = o.count("rigid-only") == 0;
+  if (o.count("iterations")) in.maxIterations = static_cast<int>(parseCount(o["iterations"], "--iterations", 1, 1000));
   struct Row {
     simcore::RegistrationIteration it;
     double errMean = -1, errMax = -1;
   };
   std::vector<Row> rows;
-  ro.onIteration = [&](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
+  const FitProgress record = [&](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
     Row r{it};
     if (!truth.points.empty()) {
       double sum = 0, worst = 0;
@@ -412,8 +417,7 @@ int cmdRegister(const std::vector<std::string>& args) {
     rows.push_back(r);
     return true;
   };
-  const simcore::RegistrationResult res =
-      simcore::registerToContour(model, p.fixedNodes, p.settings, surface, segments, start, camera.pinhole(), ro);
+  const simcore::RegistrationResult res = runElasticFit(in, record);
   // Registered nodes in the camera frame, input order.
   simcore::Mesh out = p.mesh;
   out.triangles.clear();
@@ -471,7 +475,7 @@ std::string usage() {
          "                                   node, element and label counts, bounds and quality\n"
          "  rehearse simulate --scene S.json | --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
          "                [--material linear|corotational|stvk|neohookean|neohookean-split] [--young PA] [--poisson NU]\n"
-         "                [--density KG_M3]\n"
+         "                [--density KG_M3] [--vessel-young PA]\n"
          "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
          "                [--solver cholmod|cg|dense] [--method exact|lagged-pcg|chord|linearised]\n"
          "                [--factor supernodal|simplicial] [--attachments projection|lagrange]\n"

@@ -19,33 +19,33 @@
 using namespace rehearse;
 
 namespace {
-const phantom::Case& phantomCase() {
-  static const phantom::Case c = phantom::makePhantom();
+const app::Case& phantomCase() {
+  static const app::Case c = app::caseFromPhantom(phantom::makePhantom());
   return c;
 }
 
-void compareCases(const phantom::Case& a, const phantom::Case& b) {
+void compareCases(const app::Case& a, const app::Case& b) {
   QCOMPARE(QString::fromStdString(b.name), QString::fromStdString(a.name));
-  QCOMPARE(b.volume.points.size(), a.volume.points.size());
-  for (std::size_t i = 0; i < a.volume.points.size(); ++i) QCOMPARE(b.volume.points[i], a.volume.points[i]);
-  QVERIFY(b.volume.tets == a.volume.tets);
-  QVERIFY(b.volume.tetLabels == a.volume.tetLabels);
-  QVERIFY(b.volume.labelNames == a.volume.labelNames);
-  QVERIFY(b.surface == a.surface);
+  QCOMPARE(b.organ->volume.points.size(), a.organ->volume.points.size());
+  for (std::size_t i = 0; i < a.organ->volume.points.size(); ++i) QCOMPARE(b.organ->volume.points[i], a.organ->volume.points[i]);
+  QVERIFY(b.organ->volume.tets == a.organ->volume.tets);
+  QVERIFY(b.organ->volume.tetLabels == a.organ->volume.tetLabels);
+  QVERIFY(b.organ->volume.labelNames == a.organ->volume.labelNames);
+  QVERIFY(b.organ->surface == a.organ->surface);
   QVERIFY(b.attachments == a.attachments);
   QCOMPARE(b.camera.K, a.camera.K);
   QVERIFY(b.camera.distortion == a.camera.distortion);
   QCOMPARE(b.camera.width, a.camera.width);
   QCOMPARE(b.camera.height, a.camera.height);
   QCOMPARE(cv::norm(b.frame, a.frame, cv::NORM_INF), 0.0);
-  QCOMPARE(b.hasGroundTruth, a.hasGroundTruth);
-  QCOMPARE(b.truePose.R, a.truePose.R);
-  QCOMPARE(b.truePose.t, a.truePose.t);
-  QCOMPARE(b.trueAppearance.kd, a.trueAppearance.kd);
-  QCOMPARE(b.trueAppearance.ks, a.trueAppearance.ks);
-  QCOMPARE(b.trueAppearance.lightPosition, a.trueAppearance.lightPosition);
-  QCOMPARE(b.trueAppearance.roughness, a.trueAppearance.roughness);
-  QCOMPARE(b.vesselTree.size(), a.vesselTree.size());
+  QCOMPARE(b.groundTruth != nullptr, a.groundTruth != nullptr);
+  QCOMPARE(b.groundTruth->pose.R, a.groundTruth->pose.R);
+  QCOMPARE(b.groundTruth->pose.t, a.groundTruth->pose.t);
+  QCOMPARE(b.groundTruth->appearance.kd, a.groundTruth->appearance.kd);
+  QCOMPARE(b.groundTruth->appearance.ks, a.groundTruth->appearance.ks);
+  QCOMPARE(b.groundTruth->appearance.lightPosition, a.groundTruth->appearance.lightPosition);
+  QCOMPARE(b.groundTruth->appearance.roughness, a.groundTruth->appearance.roughness);
+  QCOMPARE(b.groundTruth->vesselAxes.size(), a.groundTruth->vesselAxes.size());
   QCOMPARE(b.hasPose, a.hasPose);
   QCOMPARE(b.poseAligned, a.poseAligned);
   QCOMPARE(b.pose.R, a.pose.R);
@@ -66,7 +66,7 @@ class TestCaseFile : public QObject {
  private slots:
   void saveAndReopenEveryField() {
     const QString path = QString::fromStdString(tempPath("phantom.rehearse"));
-    phantom::Case edited = phantomCase();
+    app::Case edited = phantomCase();
     edited.contour.width = 1280;
     edited.contour.height = 720;
     edited.contour.segments.push_back({{{100.25, 200.5}, {300, 400}, {512.125, 333}}, false, "silhouette", {}});
@@ -103,7 +103,7 @@ class TestCaseFile : public QObject {
     // does not depend on two processes generating the phantom identically.
     const QString source = QString::fromStdString(tempPath("kill-source.rehearse"));
     ui::saveCaseFile(phantomCase(), source);
-    const phantom::Case expected = ui::loadCaseFile(source);
+    const app::Case expected = ui::loadCaseFile(source);
     ui::saveCaseFile(phantomCase(), path);
     QElapsedTimer saveTimer;
     saveTimer.start();
@@ -182,7 +182,7 @@ class TestCaseFile : public QObject {
       writeFile(path.toStdString(), damaged);
       try {
         QStringList notes;
-        const phantom::Case c = ui::loadCaseFile(path, &notes);
+        const app::Case c = ui::loadCaseFile(path, &notes);
         if (notes.isEmpty()) ++whole;
         else ++noted;
         for (const auto& n : notes) QVERIFY2(!n.contains('\n'), qPrintable(n));
@@ -224,14 +224,14 @@ class TestCaseFile : public QObject {
     QVERIFY2(notes[1].contains("checksum"), qPrintable(notes[1]));
     QVERIFY2(!notes[0].contains("checksum"), qPrintable(notes[0]));
     QCOMPARE(c.camera.K, phantomCase().camera.K);
-    QVERIFY(c.hasGroundTruth);
+    QVERIFY(c.groundTruth != nullptr);
   }
 
   // A case saved with schema 1 (no checksum column, no elastic fit part) opens whole, and saving it again
   // writes schema 2.
   void schemaOneIsMigrated() {
     const QString path = QString::fromStdString(tempPath("schema1.rehearse"));
-    phantom::Case edited = phantomCase();
+    app::Case edited = phantomCase();
     edited.contour.segments.push_back({{{100.25, 200.5}, {300, 400}, {512.125, 333}}, false, "silhouette", {}});
     ui::saveCaseFile(edited, path);
     {
@@ -295,7 +295,7 @@ int main(int argc, char** argv) {
   QCoreApplication app(argc, argv);
   if (argc == 4 && QByteArray(argv[1]) == "--save-loop") {
     // Child mode for killDuringSaveNeverCorrupts: save the given case forever until killed.
-    const phantom::Case c = ui::loadCaseFile(QString::fromLocal8Bit(argv[2]));
+    const app::Case c = ui::loadCaseFile(QString::fromLocal8Bit(argv[2]));
     std::fputs("ready\n", stdout);
     std::fflush(stdout);
     for (;;) ui::saveCaseFile(c, QString::fromLocal8Bit(argv[3]));

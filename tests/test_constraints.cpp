@@ -15,7 +15,7 @@
 using namespace rehearse::simcore;
 
 namespace {
-FemModel phantomModel(const rehearse::phantom::Case& c, MaterialModel model = MaterialModel::Corotational) {
+FemModel phantomModel(const rehearse::phantom::Phantom& c, MaterialModel model = MaterialModel::Corotational) {
   return FemModel::build(c.volume, {{2, {model, 620e3, 0.45, 1100}}}, {model, 27e3, 0.40, 1000});
 }
 

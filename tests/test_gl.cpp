@@ -70,7 +70,7 @@ class TestGl : public QObject {
   // The overlay through the frame's camera: OpenGL against the CPU rasteriser on the phantom at its true
   // pose (same coverage and shading up to edge pixels and rounding).
   void openGLOverlayMatchesTheCpuOne() {
-    const phantom::Case c = phantom::makePhantom();
+    const phantom::Phantom c = phantom::makePhantom();
     ui::GLOverlay gl;
     QVERIFY2(gl.valid(), "no OpenGL 3.3 context under Xvfb");
     QImage image;

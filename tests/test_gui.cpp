@@ -3,6 +3,7 @@
 #include "test_support.hpp"
 
 #include "phantom/phantom.hpp"
+#include <rehearse/app/casefolder.hpp>
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/organview.hpp"
@@ -34,7 +35,7 @@ class TestGui : public QObject {
       QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
       w.openCase({});
       QVERIFY(loaded.wait(60000));
-      tets = w.currentCase().data->volume.tets.size();
+      tets = w.caseData()->organ->volume.tets.size();
       QSignalSpy saved(&w, &ui::MainWindow::caseSaved);
       w.saveCaseAs(path);
       QVERIFY(w.isSaving() || saved.count() == 1);  // the save runs off the GUI thread
@@ -54,9 +55,9 @@ class TestGui : public QObject {
     w2.openCase(path);
     QVERIFY(loaded2.wait(60000));
     QCOMPARE(loaded2.first().at(0).toBool(), true);
-    QCOMPARE(w2.currentCase().data->volume.tets.size(), tets);
+    QCOMPARE(w2.caseData()->organ->volume.tets.size(), tets);
     QCOMPARE(w2.currentPath(), path);
-    QCOMPARE(w2.currentCase().frame.size(), QSize(1280, 720));
+    QCOMPARE(w2.document()->frameImage().size(), QSize(1280, 720));
     // Saving where it cannot be written keeps the case and says so.
     QSignalSpy saved2(&w2, &ui::MainWindow::caseSaved);
     w2.saveCaseAs("/proc/no-such-dir/x.rehearse");
@@ -76,10 +77,9 @@ class TestGui : public QObject {
     QVERIFY(w.isLoading());  // the work runs off the GUI thread
     QVERIFY(loaded.wait(60000));
     QCOMPARE(loaded.takeFirst().at(0).toBool(), true);
-    const auto& c = w.currentCase();
-    QCOMPARE(c.frame.size(), QSize(1280, 720));
-    QVERIFY(!c.organOverlay.isNull());
-    QVERIFY(!c.silhouette.isEmpty());
+    QCOMPARE(w.document()->frameImage().size(), QSize(1280, 720));
+    QVERIFY(!w.organOverlay().isNull());
+    QVERIFY(!w.silhouette().isEmpty());
     QVERIFY(w.infoText().contains("tetrahedra:"));
     QVERIFY(w.windowTitle().contains("phantom"));
 
@@ -121,7 +121,7 @@ class TestGui : public QObject {
   void damagedCaseFolderOpensWithMessage() {
     const std::string dir = tempPath("gui-case");
     auto c = phantom::makePhantom();
-    phantom::writeCaseDirectory(c, dir);
+    app::writeCaseDirectory(app::caseFromPhantom(c), dir);
     QFile::remove(QString::fromStdString(dir + "/frame.png"));
     ui::MainWindow w;
     w.show();

@@ -3,6 +3,7 @@
 #include "test_support.hpp"
 
 #include "phantom/phantom.hpp"
+#include <rehearse/app/casefolder.hpp>
 
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/meshio.hpp>
@@ -19,7 +20,7 @@ using namespace rehearse;
 
 class TestPhantom : public QObject {
   Q_OBJECT
-  phantom::Case c_;
+  phantom::Phantom c_;
 
  private slots:
   void initTestCase() { c_ = phantom::makePhantom(); }
@@ -104,21 +105,21 @@ class TestPhantom : public QObject {
 
   void caseFolderRoundTrip() {
     const std::string dir = tempPath("phantom-case");
-    phantom::writeCaseDirectory(c_, dir);
+    app::writeCaseDirectory(app::caseFromPhantom(c_), dir);
     std::vector<std::string> notes;
-    auto r = phantom::loadCaseDirectory(dir, &notes);
+    auto r = app::loadCaseDirectory(dir, &notes);
     QVERIFY(notes.empty());
-    QCOMPARE(r.volume.points.size(), c_.volume.points.size());
-    QVERIFY(r.volume.tets == c_.volume.tets);
-    QVERIFY(r.volume.tetLabels == c_.volume.tetLabels);
-    QCOMPARE(r.surface.size(), c_.surface.size());
+    QCOMPARE(r.organ->volume.points.size(), c_.volume.points.size());
+    QVERIFY(r.organ->volume.tets == c_.volume.tets);
+    QVERIFY(r.organ->volume.tetLabels == c_.volume.tetLabels);
+    QCOMPARE(r.organ->surface.size(), c_.surface.size());
     QCOMPARE(r.attachments.size(), c_.attachments.size());
     QVERIFY(r.attachments == c_.attachments);
     QVERIFY((r.camera.K - c_.camera.K).norm() < 1e-12);
-    QVERIFY((r.truePose.R - c_.truePose.R).norm() < 1e-12 && (r.truePose.t - c_.truePose.t).norm() < 1e-15);
-    QCOMPARE(r.trueAppearance.roughness, c_.trueAppearance.roughness);
+    QVERIFY((r.groundTruth->pose.R - c_.truePose.R).norm() < 1e-12 && (r.groundTruth->pose.t - c_.truePose.t).norm() < 1e-15);
+    QCOMPARE(r.groundTruth->appearance.roughness, c_.trueAppearance.roughness);
     QCOMPARE(cv::norm(r.frame, c_.frame, cv::NORM_INF), 0.0);  // PNG is lossless
-    QCOMPARE(r.vesselTree.size(), c_.vesselTree.size());
+    QCOMPARE(r.groundTruth->vesselAxes.size(), c_.vesselTree.size());
     // The surface file written beside it is the same closed surface.
     auto obj = simcore::loadMesh(dir + "/organ_surface.obj");
     QCOMPARE(obj.triangles.size(), c_.surface.size());
@@ -127,17 +128,17 @@ class TestPhantom : public QObject {
 
   void damagedPartLeavesTheRestIntact() {
     const std::string dir = tempPath("damaged-case");
-    phantom::writeCaseDirectory(c_, dir);
+    app::writeCaseDirectory(app::caseFromPhantom(c_), dir);
     writeFile(dir + "/camera.yaml", "%YAML:1.0\ncamera_matrix: [this is not a matrix\n");
     std::vector<std::string> notes;
-    auto r = phantom::loadCaseDirectory(dir, &notes);
+    auto r = app::loadCaseDirectory(dir, &notes);
     QCOMPARE(notes.size(), std::size_t(1));
     QVERIFY(QString::fromStdString(notes[0]).startsWith("Camera not loaded"));
-    QCOMPARE(r.volume.tets.size(), c_.volume.tets.size());
+    QCOMPARE(r.organ->volume.tets.size(), c_.volume.tets.size());
     QCOMPARE(r.frame.cols, 1280);
     QCOMPARE(r.camera.width, 1280);  // default camera from the frame size
     // No manifest at all: a clear error.
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, phantom::loadCaseDirectory(tempPath("no-such-case")));
+    QVERIFY_THROWS_EXCEPTION(imaging::InputError, app::loadCaseDirectory(tempPath("no-such-case")));
   }
 };
 

@@ -6,6 +6,7 @@
 #include "icosphere.hpp"
 
 #include "phantom/phantom.hpp"
+#include <rehearse/app/casefolder.hpp>
 
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/registration.hpp>
@@ -27,7 +28,7 @@ using namespace rehearse::simcore;
 
 namespace {
 // The organ's outline in the frame: the outer border of its rendered mask (pixel centres).
-std::vector<std::vector<Eigen::Vector2d>> outline(const phantom::Case& c, const Pose& pose, const SurfaceView& surface) {
+std::vector<std::vector<Eigen::Vector2d>> outline(const phantom::Phantom& c, const Pose& pose, const SurfaceView& surface) {
   return imaging::maskOutlines(imaging::renderMask(c.camera, pose, surface));
 }
 
@@ -37,7 +38,7 @@ struct Deformed {
   std::vector<double> vertices;  // the same, for a SurfaceView
   std::vector<std::vector<Eigen::Vector2d>> contour;  // its outline at the true pose
 };
-Deformed deformSideways(const phantom::Case& c, const FemModel& m) {
+Deformed deformSideways(const phantom::Phantom& c, const FemModel& m) {
   SimulationSettings load;
   load.gravity = c.truePose.R.transpose() * Eigen::Vector3d(9.81 * 3, 0, 0);
   Integrator in(m, c.attachments, load);
@@ -50,14 +51,14 @@ Deformed deformSideways(const phantom::Case& c, const FemModel& m) {
   return d;
 }
 
-FemModel organModel(const phantom::Case& c) {
+FemModel organModel(const phantom::Phantom& c) {
   return FemModel::build(c.volume, {{2, {MaterialModel::Corotational, 620e3, 0.45, 1000}}}, {MaterialModel::Corotational, 27e3, 0.4, 1000});
 }
 
 // A ridge-like curve down the organ's visible side, across the sideways sag of deformSideways (a curve
 // along the sag would only slide along itself): in 25 px rows across its middle columns at the true pose,
 // the surface node nearest the camera; the image curve is where those nodes project in `truth`.
-AnatomicalCurve frontRidge(const phantom::Case& c, const FemModel& m, const Eigen::VectorXd& truth) {
+AnatomicalCurve frontRidge(const phantom::Phantom& c, const FemModel& m, const Eigen::VectorXd& truth) {
   const Pinhole cam = c.camera.pinhole();
   std::vector<char> onSurface(m.nodeCount(), 0);
   for (const auto& t : c.surface)
@@ -97,7 +98,7 @@ Pose offset(const Pose& p, const Eigen::Vector3d& move, const Eigen::Vector3d& a
 
 class TestRegistration : public QObject {
   Q_OBJECT
-  phantom::Case c_;
+  phantom::Phantom c_;
 
  private slots:
   void initTestCase() { c_ = phantom::makePhantom(); }
@@ -119,7 +120,7 @@ class TestRegistration : public QObject {
     QVERIFY(r.hausdorff < 3.0);
     phantom::PhantomOptions fineOptions;
     fineOptions.targetTets = 16000;
-    const phantom::Case fine = phantom::makePhantom(fineOptions);
+    const phantom::Phantom fine = phantom::makePhantom(fineOptions);
     const auto fineOutline = outline(fine, c_.truePose, fine.surfaceView());
     const Residual2D toChords = contourResidual(fineOutline, chords), toCurved = contourResidual(fineOutline, sil);
     double bulge = 0;
@@ -400,7 +401,7 @@ class TestRegistration : public QObject {
   // not know, the true pose as the start, a ground truth in the camera frame; the report's 3D error falls.
   void commandLine() {
     const std::string dir = tempPath("register-case");
-    phantom::writeCaseDirectory(c_, dir);
+    app::writeCaseDirectory(app::caseFromPhantom(c_), dir);
     const FemModel m = organModel(c_);
     const Deformed truth = deformSideways(c_, m);
     QVERIFY(truth.x.size() > 0);

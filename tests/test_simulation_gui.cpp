@@ -160,39 +160,39 @@ class TestSimulationGui : public QObject {
   // Step 5: the elastic fit from the GUI: F9 runs it on a worker thread, the chart grows, the result
   // is one undo step and is saved in the case file.
   void elasticFitStep() {
-    const auto& c = *w_->currentCase().data;
+    const auto& c = *w_->caseData();
     // The assistant's contour: the outline at the true pose of the organ sagging 2 g sideways (a
     // deformation the fit must find); the rigid alignment: the true pose moved 3 mm sideways.
-    const simcore::FemModel model = simcore::FemModel::build(c.volume, {}, {simcore::MaterialModel::Corotational, 27e3, 0.4, 1000});
+    const simcore::FemModel model = simcore::FemModel::build(c.organ->volume, {}, {simcore::MaterialModel::Corotational, 27e3, 0.4, 1000});
     simcore::SimulationSettings load;
-    load.gravity = c.truePose.R.transpose() * Eigen::Vector3d(2 * 9.81, 0, 0);
+    load.gravity = c.groundTruth->pose.R.transpose() * Eigen::Vector3d(2 * 9.81, 0, 0);
     simcore::Integrator sag(model, c.attachments, load);
     auto sagged = sag.initialState();
     QVERIFY(sag.solveStatic(sagged).ok);
     SurfaceView deformed = c.surfaceView();
     deformed.vertices = sagged.x.data();
-    const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, c.truePose, deformed));
+    const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, c.groundTruth->pose, deformed));
     QVERIFY(!borders.empty());
     imaging::ContourSegment seg;
     for (std::size_t i = 0; i < borders.front().size(); i += 3) seg.points.push_back(borders.front()[i]);
-    w_->editCase("test: contour and pose", [&](phantom::Case& k) {
+    w_->editCase("test: contour and pose", [&](app::Case& k) {
       k.contour.width = k.camera.width;
       k.contour.height = k.camera.height;
       k.contour.segments = {seg};
-      k.pose = k.truePose;
+      k.pose = k.groundTruth->pose;
       k.pose.t.x() += 0.003;
       k.hasPose = true;
       k.poseAligned = true;
     });
-    QVERIFY(w_->currentCase().data->fitted.empty());
+    QVERIFY(!w_->caseData()->hasFit());
     w_->frameView()->setFocus();
     QTest::keyClick(w_.get(), Qt::Key_5, Qt::AltModifier);
     QCOMPARE(w_->step(), ui::Step::Elastic);
     QTest::keyClick(w_.get(), Qt::Key_F9);
     QElapsedTimer t;
     t.start();
-    while (w_->currentCase().data->fitted.empty() && t.elapsed() < 120000) QTest::qWait(50);
-    QVERIFY2(!w_->currentCase().data->fitted.empty(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
+    while (!w_->caseData()->hasFit() && t.elapsed() < 120000) QTest::qWait(50);
+    QVERIFY2(w_->caseData()->hasFit(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
     auto* chart = w_->findChild<QChartView*>("fitChart");
     QVERIFY(chart);
     auto* series = qobject_cast<QLineSeries*>(chart->chart()->series().front());
@@ -201,38 +201,39 @@ class TestSimulationGui : public QObject {
     qInfo("fit: %s; chart %d points, %.2f px -> %.2f px", qPrintable(w_->findChild<QLabel*>("fitStatus")->text()), series->count(), first, last);
     QVERIFY(last < first);
     QVERIFY(w_->stepDone(ui::Step::Elastic));
-    const std::vector<Eigen::Vector3d> fitted = w_->currentCase().data->fitted;
+    const std::vector<Eigen::Vector3d> fitted = w_->caseData()->fit->nodes;
     // Keep or revert: offered while the fit is the last edit. Revert by key and redo, then by the button.
     auto* keep = w_->findChild<QPushButton*>("fitKeep");
     auto* revert = w_->findChild<QPushButton*>("fitRevert");
     QVERIFY(keep && revert && keep->isEnabled() && revert->isEnabled());
-    const Pose fittedPose = w_->currentCase().data->pose;
+    const Pose fittedPose = w_->caseData()->pose;
     QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
-    QVERIFY(w_->currentCase().data->fitted.empty());
+    QVERIFY(!w_->caseData()->hasFit());
     QVERIFY(!revert->isEnabled());
     const QKeyCombination redo = QKeySequence::keyBindings(QKeySequence::Redo).front()[0];  // the platform's redo key
     QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
-    QCOMPARE(w_->currentCase().data->fitted.size(), fitted.size());
+    QCOMPARE(w_->caseData()->fit->nodes.size(), fitted.size());
     QVERIFY(revert->isEnabled());
     QTest::mouseClick(revert, Qt::LeftButton);
-    QVERIFY(w_->currentCase().data->fitted.empty());
-    const Pose& before = w_->currentCase().data->pose;  // the rigid pre-pass's change is reverted too
-    QVERIFY((before.t - (c.truePose.t + Eigen::Vector3d(0.003, 0, 0))).norm() < 1e-12);
-    QVERIFY((before.R - c.truePose.R).norm() < 1e-12);
+    QVERIFY(!w_->caseData()->hasFit());
+    const Pose& before = w_->caseData()->pose;  // the rigid pre-pass's change is reverted too
+    QVERIFY((before.t - (c.groundTruth->pose.t + Eigen::Vector3d(0.003, 0, 0))).norm() < 1e-12);
+    QVERIFY((before.R - c.groundTruth->pose.R).norm() < 1e-12);
     QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
-    QCOMPARE(w_->currentCase().data->fitted.size(), fitted.size());
-    QVERIFY((w_->currentCase().data->pose.t - fittedPose.t).norm() < 1e-12);
+    QCOMPARE(w_->caseData()->fit->nodes.size(), fitted.size());
+    QVERIFY((w_->caseData()->pose.t - fittedPose.t).norm() < 1e-12);
     QTest::mouseClick(keep, Qt::LeftButton);
     QVERIFY(!keep->isEnabled() && !revert->isEnabled());
     QVERIFY(w_->findChild<QLabel*>("fitStatus")->text().startsWith("Fit kept"));
-    QCOMPARE(w_->currentCase().data->fitted.size(), fitted.size());
+    QCOMPARE(w_->caseData()->fit->nodes.size(), fitted.size());
     // Stored in the case file.
     const QString path = QString::fromStdString(tempPath("fit.rehearse"));
-    ui::saveCaseFile(*w_->currentCase().data, path);
-    const phantom::Case back = ui::loadCaseFile(path);
-    QCOMPARE(back.fitted.size(), fitted.size());
+    ui::saveCaseFile(*w_->caseData(), path);
+    const app::Case back = ui::loadCaseFile(path);
+    QVERIFY(back.hasFit());
+    QCOMPARE(back.fit->nodes.size(), fitted.size());
     double worst = 0;
-    for (std::size_t i = 0; i < fitted.size(); ++i) worst = std::max(worst, (back.fitted[i] - fitted[i]).norm());
+    for (std::size_t i = 0; i < fitted.size(); ++i) worst = std::max(worst, (back.fit->nodes[i] - fitted[i]).norm());
     QVERIFY(worst < 1e-12);
     const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
     if (!dir.isEmpty()) {
@@ -244,13 +245,13 @@ class TestSimulationGui : public QObject {
   // A ridge sketched on the frame (step 3, segment type Ridge, click by click), its curve clicked on the
   // organ (step 5, K), one undo step, and the fit holding it.
   void anatomicalCurveStep() {
-    w_->editCase("test: true pose, no fit", [](phantom::Case& k) {
-      k.fitted.clear();
-      k.pose = k.truePose;
+    w_->editCase("test: true pose, no fit", [](app::Case& k) {
+      k.fit.reset();
+      k.pose = k.groundTruth->pose;
       k.hasPose = true;
     });
-    const auto& c0 = *w_->currentCase().data;
-    const Eigen::Vector2d centre = c0.camera.project(c0.truePose.apply(c0.centreOfGravity()));
+    const auto& c0 = *w_->caseData();
+    const Eigen::Vector2d centre = c0.camera.project(c0.groundTruth->pose.apply(c0.organ->centreOfGravity));
     const std::vector<Eigen::Vector2d> along = {centre + Eigen::Vector2d(-160, 0), centre, centre + Eigen::Vector2d(160, 0)};
     auto* view = w_->frameView();
     auto click = [&](const Eigen::Vector2d& framePixel) {
@@ -266,10 +267,10 @@ class TestSimulationGui : public QObject {
     QCOMPARE(type->currentData().toString(), QStringLiteral("ridge"));
     view->setFocus();
     QTest::keyClick(w_.get(), Qt::Key_C);  // click-by-click
-    const std::size_t before = w_->currentCase().data->contour.segments.size();
+    const std::size_t before = w_->caseData()->contour.segments.size();
     for (const auto& p : along) click(p);
     QTest::keyClick(view, Qt::Key_Return);
-    const auto& segs = w_->currentCase().data->contour.segments;
+    const auto& segs = w_->caseData()->contour.segments;
     QCOMPARE(segs.size(), before + 1);
     QCOMPARE(QString::fromStdString(segs.back().type), QStringLiteral("ridge"));
     QVERIFY(segs.back().modelVertices.empty());
@@ -279,31 +280,31 @@ class TestSimulationGui : public QObject {
     QCOMPARE(view->tool(), ui::Tool::OrganCurve);
     for (const auto& p : along) click(p);
     QTest::keyClick(view, Qt::Key_Return);
-    const auto& c = *w_->currentCase().data;
+    const auto& c = *w_->caseData();
     const auto& nodes = c.contour.segments.back().modelVertices;
     qInfo("organ curve: %zu nodes from 3 clicks; %s", nodes.size(), qPrintable(w_->findChild<QLabel*>("fitCurves")->text()));
     QVERIFY(nodes.size() >= 5);
     // A chain along the surface: consecutive nodes share a surface edge; its ends project near the clicks.
     std::set<std::pair<int, int>> edges;
-    for (const auto& t : c.surface)
+    for (const auto& t : c.organ->surface)
       for (int k = 0; k < 3; ++k) edges.insert({std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])});
     for (std::size_t i = 1; i < nodes.size(); ++i) QVERIFY(edges.count({std::min(nodes[i - 1], nodes[i]), std::max(nodes[i - 1], nodes[i])}));
-    const Eigen::Vector2d end = c.camera.project(c.pose.apply(c.volume.points[nodes.back()]));
+    const Eigen::Vector2d end = c.camera.project(c.pose.apply(c.organ->volume.points[nodes.back()]));
     // (the node nearest to the click on the triangle under it: within one surface edge, about 40 px here)
     QVERIFY2((end - along.back()).norm() < 45, qPrintable(QString("last node projects %1 px from the last click").arg((end - along.back()).norm())));
     QVERIFY(w_->findChild<QLabel*>("fitCurves")->text().contains("1 with their curve"));
     // The picks are one undo step.
     QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
-    QVERIFY(w_->currentCase().data->contour.segments.back().modelVertices.empty());
+    QVERIFY(w_->caseData()->contour.segments.back().modelVertices.empty());
     const QKeyCombination redo = QKeySequence::keyBindings(QKeySequence::Redo).front()[0];
     QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
-    QCOMPARE(w_->currentCase().data->contour.segments.back().modelVertices.size(), nodes.size());
+    QCOMPARE(w_->caseData()->contour.segments.back().modelVertices.size(), nodes.size());
     // The fit runs with the ridge held.
     QTest::keyClick(w_.get(), Qt::Key_F9);
     QElapsedTimer t;
     t.start();
-    while (w_->currentCase().data->fitted.empty() && t.elapsed() < 120000) QTest::qWait(50);
-    QVERIFY2(!w_->currentCase().data->fitted.empty(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
+    while (!w_->caseData()->hasFit() && t.elapsed() < 120000) QTest::qWait(50);
+    QVERIFY2(w_->caseData()->hasFit(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
     qInfo("fit with the ridge: %s", qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
     const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
     if (!dir.isEmpty()) {

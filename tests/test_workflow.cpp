@@ -100,13 +100,13 @@ class TestWorkflow : public QObject {
     QVERIFY(imported.wait(120000));
     ticker.stop();
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
-    const auto& c = *w_->currentCase().data;
-    qInfo("imported liver_downsample.stl: %zu tets in %lld ms; longest GUI-thread stall %lld ms", c.volume.tets.size(),
+    const auto& c = *w_->caseData();
+    qInfo("imported liver_downsample.stl: %zu tets in %lld ms; longest GUI-thread stall %lld ms", c.organ->volume.tets.size(),
           clock.elapsed(), worst);
-    QVERIFY(c.volume.tets.size() > 2400 && c.volume.tets.size() < 3600);
+    QVERIFY(c.organ->volume.tets.size() > 2400 && c.organ->volume.tets.size() < 3600);
     QVERIFY(w_->infoText().contains("tetrahedra:"));
     QVERIFY(w_->stepDone(ui::Step::Mesh));
-    QVERIFY(!c.hasGroundTruth);
+    QVERIFY(!c.groundTruth);
     // An imported organ has no ligament nodes: the simulation panel says it will fall freely.
     auto* simStatus = w_->findChild<QLabel*>("simStatus");
     QVERIFY(simStatus);
@@ -123,15 +123,15 @@ class TestWorkflow : public QObject {
       const double radiusBefore = radius->value();
       radius->setValue(25);  // a patch of this coarse liver's nodes (edges of about 15 mm)
       QCOMPARE(view->attachmentRadius(), 0.025);
-      const auto k0 = w_->currentCase().data;
-      const Eigen::Vector2d centre = k0->camera.project(k0->pose.apply(k0->centreOfGravity()));
+      const auto k0 = w_->caseData();
+      const Eigen::Vector2d centre = k0->camera.project(k0->pose.apply(k0->organ->centreOfGravity));
       const QPoint at = view->toWidget(QPointF(centre.x(), centre.y())).toPoint();
       const int index = w_->undoStack()->index();
       QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, at);
-      const std::vector<int> attached = w_->currentCase().data->attachments;
+      const std::vector<int> attached = w_->caseData()->attachments;
       QCOMPARE(w_->undoStack()->index(), index + 1);
       QVERIFY(attached.size() >= 2);
-      const SurfaceView sv = w_->currentCase().data->surfaceView();
+      const SurfaceView sv = w_->caseData()->surfaceView();
       double spread = 0;
       for (int a : attached) spread = std::max(spread, (sv.vertex(static_cast<std::size_t>(a)) - sv.vertex(static_cast<std::size_t>(attached.front()))).norm());
       qInfo("attachments: %zu nodes from one click, spread %.1f mm", attached.size(), spread * 1e3);
@@ -139,11 +139,11 @@ class TestWorkflow : public QObject {
       QVERIFY(w_->findChild<QLabel*>("attachmentsLabel")->text().contains(QString::number(attached.size())));
       QTRY_VERIFY_WITH_TIMEOUT(!simStatus->text().contains("no attachment nodes"), 20000);
       QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, at);
-      QVERIFY(w_->currentCase().data->attachments.empty());
+      QVERIFY(w_->caseData()->attachments.empty());
       w_->undoStack()->undo();
-      QCOMPARE(w_->currentCase().data->attachments, attached);
+      QCOMPARE(w_->caseData()->attachments, attached);
       w_->undoStack()->undo();
-      QVERIFY(w_->currentCase().data->attachments.empty());
+      QVERIFY(w_->caseData()->attachments.empty());
       QCOMPARE(w_->undoStack()->index(), index);
       radius->setValue(radiusBefore);
       w_->setStep(ui::Step::Mesh);
@@ -155,9 +155,9 @@ class TestWorkflow : public QObject {
     shot(*w_, "step1-mesh");
     // Undo brings the phantom back, redo the imported liver.
     w_->undoStack()->undo();
-    QVERIFY(w_->currentCase().data->hasGroundTruth);
+    QVERIFY((w_->caseData()->groundTruth != nullptr));
     w_->undoStack()->redo();
-    QVERIFY(!w_->currentCase().data->hasGroundTruth);
+    QVERIFY(!(w_->caseData()->groundTruth != nullptr));
     w_->undoStack()->undo();
     // A bad file: one clear sentence, nothing lost.
     const std::string bad = tempPath("bad.stl");
@@ -166,7 +166,7 @@ class TestWorkflow : public QObject {
     w_->importMesh(QString::fromStdString(bad));
     QVERIFY(imported.wait(60000));
     QCOMPARE(imported.first().at(0).toBool(), false);
-    QVERIFY(w_->currentCase().data->hasGroundTruth);
+    QVERIFY((w_->caseData()->groundTruth != nullptr));
   }
 
   // Step 2: an image, then a video scrubbed to frame 17.
@@ -178,7 +178,7 @@ class TestWorkflow : public QObject {
     QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
     w_->openFrameSource(QString::fromStdString(png));
     QCOMPARE(opened.count(), 1);
-    QCOMPARE(cv::norm(w_->currentCase().data->frame, img, cv::NORM_INF), 0.0);
+    QCOMPARE(cv::norm(w_->caseData()->frame, img, cv::NORM_INF), 0.0);
     // A video whose frame i has blue = 8 i (MJPEG, lossy by a few levels).
     const std::string avi = tempPath("clip.avi");
     {
@@ -196,7 +196,7 @@ class TestWorkflow : public QObject {
     QVERIFY(shown.wait(30000) || w_->shownVideoFrame() == 17);
     while (w_->shownVideoFrame() != 17) QVERIFY(shown.wait(30000));
     w_->useShownFrame();
-    const cv::Vec3b px = w_->currentCase().data->frame(360, 640);
+    const cv::Vec3b px = w_->caseData()->frame(360, 640);
     QVERIFY2(std::abs(int(px[0]) - 8 * 17) <= 6, qPrintable(QString::number(px[0])));
     // Stepping with the keyboard: '.' shows the next frame.
     w_->setStep(ui::Step::Frame);
@@ -205,9 +205,9 @@ class TestWorkflow : public QObject {
     shot(*w_, "step2-frame");
     // Back to the phantom's frame for the next steps.
     for (int i = 0; i < 2; ++i) w_->undoStack()->undo();
-    QCOMPARE(w_->currentCase().data->frame.cols, 1280);
-    QVERIFY(w_->currentCase().data->hasGroundTruth);
-    QCOMPARE(cv::norm(w_->currentCase().data->frame, img, cv::NORM_INF) > 0, true);
+    QCOMPARE(w_->caseData()->frame.cols, 1280);
+    QVERIFY((w_->caseData()->groundTruth != nullptr));
+    QCOMPARE(cv::norm(w_->caseData()->frame, img, cv::NORM_INF) > 0, true);
   }
 
   // Step 3: a freehand segment drawn with the mouse, a point moved, undo and redo.
@@ -224,7 +224,7 @@ class TestWorkflow : public QObject {
     QTest::mousePress(view, Qt::LeftButton, {}, pts.front().toPoint());
     for (const auto& p : pts) QTest::mouseMove(view, p.toPoint());
     QTest::mouseRelease(view, Qt::LeftButton, {}, pts.back().toPoint());
-    const auto& c1 = w_->currentCase().data->contour;
+    const auto& c1 = w_->caseData()->contour;
     QCOMPARE(c1.segments.size(), std::size_t(1));
     QVERIFY(c1.segments[0].points.size() >= 10);
     QCOMPARE(w_->undoStack()->index(), before + 1);
@@ -234,24 +234,24 @@ class TestWorkflow : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_C);
     for (QPointF f : {QPointF(400, 520), QPointF(500, 560), QPointF(600, 570)}) QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(f).toPoint());
     QTest::keyClick(view, Qt::Key_Return);
-    QCOMPARE(w_->currentCase().data->contour.segments.size(), std::size_t(2));
-    QCOMPARE(w_->currentCase().data->contour.segments[1].points.size(), std::size_t(3));
+    QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(2));
+    QCOMPARE(w_->caseData()->contour.segments[1].points.size(), std::size_t(3));
     // Edit: drag the middle point of segment 2 by (+30, -20) frame px; one undo step.
     QTest::keyClick(w_.get(), Qt::Key_E);
     const int beforeDrag = w_->undoStack()->index();
     drag(view, view->toWidget(QPointF(500, 560)), view->toWidget(QPointF(530, 540)));
-    const auto& moved = w_->currentCase().data->contour.segments[1].points[1];
+    const auto& moved = w_->caseData()->contour.segments[1].points[1];
     QVERIFY2((moved - Eigen::Vector2d(530, 540)).norm() < 2.5, qPrintable(QString("%1 %2").arg(moved.x()).arg(moved.y())));
     QCOMPARE(w_->undoStack()->index(), beforeDrag + 1);
     w_->undoStack()->undo();
-    QVERIFY((w_->currentCase().data->contour.segments[1].points[1] - Eigen::Vector2d(500, 560)).norm() < 2.5);
+    QVERIFY((w_->caseData()->contour.segments[1].points[1] - Eigen::Vector2d(500, 560)).norm() < 2.5);
     w_->undoStack()->redo();
-    QVERIFY((w_->currentCase().data->contour.segments[1].points[1] - Eigen::Vector2d(530, 540)).norm() < 2.5);
+    QVERIFY((w_->caseData()->contour.segments[1].points[1] - Eigen::Vector2d(530, 540)).norm() < 2.5);
     // Right-click deletes a point; Ctrl+click inserts one on an edge.
     QTest::mouseClick(view, Qt::RightButton, {}, view->toWidget(QPointF(600, 570)).toPoint());
-    QCOMPARE(w_->currentCase().data->contour.segments[1].points.size(), std::size_t(2));
+    QCOMPARE(w_->caseData()->contour.segments[1].points.size(), std::size_t(2));
     QTest::mouseClick(view, Qt::LeftButton, Qt::ControlModifier, view->toWidget(QPointF(465, 530)).toPoint());
-    QCOMPARE(w_->currentCase().data->contour.segments[1].points.size(), std::size_t(3));
+    QCOMPARE(w_->caseData()->contour.segments[1].points.size(), std::size_t(3));
     // Zoom while drawing keeps the tool.
     QWheelEvent wheel(view->rect().center(), view->mapToGlobal(QPointF(view->rect().center())), QPoint(), QPoint(0, 120), Qt::NoButton,
                       Qt::NoModifier, Qt::NoScrollPhase, false);
@@ -305,7 +305,7 @@ class TestWorkflow : public QObject {
     w_->setStep(ui::Step::Rigid);
     auto* view = w_->frameView();
     QCOMPARE(view->tool(), ui::Tool::Align);
-    const auto cam = w_->currentCase().data->camera;
+    const auto cam = w_->caseData()->camera;
     struct Case {
       GizmoHandle h;
       QPointF delta;  // widget px
@@ -313,9 +313,9 @@ class TestWorkflow : public QObject {
     for (auto [h, delta] : {Case{GizmoHandle::TranslateX, {100, 0}}, Case{GizmoHandle::TranslateY, {0, 60}},
                             Case{GizmoHandle::TranslateZ, {0, -50}}, Case{GizmoHandle::RotateX, {0, 40}},
                             Case{GizmoHandle::RotateY, {-70, 0}}, Case{GizmoHandle::RotateZ, {0, 0}}}) {
-      const auto c0 = w_->currentCase().data;
+      const auto c0 = w_->caseData();
       const Pose p0 = c0->pose;
-      const Eigen::Vector3d cog = c0->centreOfGravity();
+      const Eigen::Vector3d cog = c0->organ->centreOfGravity;
       const Eigen::Vector3d g0 = p0.apply(cog);
       const QPointF a = view->handlePosition(h);
       QPointF b = a + delta;
@@ -327,7 +327,7 @@ class TestWorkflow : public QObject {
       }
       const int count = w_->undoStack()->index();
       drag(view, a, b, 10);
-      const Pose p1 = w_->currentCase().data->pose;
+      const Pose p1 = w_->caseData()->pose;
       QCOMPARE(w_->undoStack()->index(), count + 1);
       // The drag used integer widget positions: recompute the expected change from those.
       const QPointF fa = view->toFrame(a.toPoint()), fb = view->toFrame(b.toPoint());
@@ -360,15 +360,15 @@ class TestWorkflow : public QObject {
       }
       // Undo restores the pose exactly; redo re-applies it.
       w_->undoStack()->undo();
-      QVERIFY((w_->currentCase().data->pose.t - p0.t).norm() == 0 && (w_->currentCase().data->pose.R - p0.R).norm() == 0);
+      QVERIFY((w_->caseData()->pose.t - p0.t).norm() == 0 && (w_->caseData()->pose.R - p0.R).norm() == 0);
       w_->undoStack()->redo();
-      QVERIFY((w_->currentCase().data->pose.t - p1.t).norm() == 0);
+      QVERIFY((w_->caseData()->pose.t - p1.t).norm() == 0);
     }
     // Keyboard nudge: Right moves 1 mm along camera X.
-    const Pose before = w_->currentCase().data->pose;
+    const Pose before = w_->caseData()->pose;
     view->setFocus();
     QTest::keyClick(view, Qt::Key_Right);
-    QVERIFY(std::abs(w_->currentCase().data->pose.t.x() - before.t.x() - 0.001) < 1e-12);
+    QVERIFY(std::abs(w_->caseData()->pose.t.x() - before.t.x() - 0.001) < 1e-12);
     QVERIFY(w_->stepDone(ui::Step::Rigid));
     shot(*w_, "step4-gizmo");
   }
@@ -378,8 +378,8 @@ class TestWorkflow : public QObject {
     auto* view = w_->frameView();
     QTest::keyClick(w_.get(), Qt::Key_L);
     QCOMPARE(view->tool(), ui::Tool::Landmarks);
-    const auto c = w_->currentCase().data;
-    const Eigen::Vector3d cog = c->centreOfGravity();
+    const auto c = w_->caseData();
+    const Eigen::Vector3d cog = c->organ->centreOfGravity;
     const auto centre = c->camera.project(c->pose.apply(cog));
     int pairs = 0;
     for (QPointF offset : {QPointF(-150, -20), QPointF(120, -40), QPointF(60, 50), QPointF(-60, 40)}) {
@@ -388,20 +388,20 @@ class TestWorkflow : public QObject {
       QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(organPixel).toPoint());
       QCOMPARE(w_->landmarks().size(), n + 1);  // the click hit the organ
       const Eigen::Vector3d m = w_->landmarks().back().model;
-      const Eigen::Vector2d target = c->camera.project(c->truePose.apply(m));
+      const Eigen::Vector2d target = c->camera.project(c->groundTruth->pose.apply(m));
       QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(QPointF(target.x(), target.y())).toPoint());
       QVERIFY(w_->landmarks().back().hasImage);
       ++pairs;
     }
     QCOMPARE(pairs, 4);
     w_->solvePnP();
-    const auto& p = w_->currentCase().data->pose;
+    const auto& p = w_->caseData()->pose;
     qInfo("PnP from %d pairs: reprojection RMS %.3f px; rotation error %.3f deg, translation error %.2f mm", pairs,
-          w_->lastPnPReprojectionError(), Eigen::AngleAxisd(p.R * c->truePose.R.transpose()).angle() * 180 / std::numbers::pi,
-          (p.t - c->truePose.t).norm() * 1e3);
+          w_->lastPnPReprojectionError(), Eigen::AngleAxisd(p.R * c->groundTruth->pose.R.transpose()).angle() * 180 / std::numbers::pi,
+          (p.t - c->groundTruth->pose.t).norm() * 1e3);
     QVERIFY(w_->lastPnPReprojectionError() >= 0 && w_->lastPnPReprojectionError() < 1.0);
-    QVERIFY(Eigen::AngleAxisd(p.R * c->truePose.R.transpose()).angle() < 2 * std::numbers::pi / 180);
-    QVERIFY((p.t - c->truePose.t).norm() < 0.005);
+    QVERIFY(Eigen::AngleAxisd(p.R * c->groundTruth->pose.R.transpose()).angle() < 2 * std::numbers::pi / 180);
+    QVERIFY((p.t - c->groundTruth->pose.t).norm() < 0.005);
     shot(*w_, "step4-pnp");
   }
 
@@ -412,20 +412,20 @@ class TestWorkflow : public QObject {
     w_->saveCaseAs(path);
     QVERIFY(saved.count() == 1 || saved.wait(60000));
     QVERIFY(saved.first().at(0).toBool());
-    const auto a = w_->currentCase().data;
+    const auto a = w_->caseData();
     MainWindow other;
     other.show();
     QSignalSpy loaded(&other, &MainWindow::caseLoaded);
     other.openCase(path);
     QVERIFY(loaded.wait(60000));
-    const auto b = other.currentCase().data;
+    const auto b = other.caseData();
     QVERIFY(b->pose.R == a->pose.R && b->pose.t == a->pose.t);
     QCOMPARE(b->poseAligned, a->poseAligned);
     QCOMPARE(b->contour.segments.size(), a->contour.segments.size());
     for (std::size_t s = 0; s < a->contour.segments.size(); ++s) QVERIFY(b->contour.segments[s].points == a->contour.segments[s].points);
     QVERIFY(b->camera.K == a->camera.K);
     QCOMPARE(cv::norm(b->frame, a->frame, cv::NORM_INF), 0.0);
-    QVERIFY(b->volume.tets == a->volume.tets);
+    QVERIFY(b->organ->volume.tets == a->organ->volume.tets);
     for (int s = 0; s < 4; ++s) QCOMPARE(other.stepDone(static_cast<ui::Step>(s)), w_->stepDone(static_cast<ui::Step>(s)));
   }
 
@@ -488,7 +488,7 @@ class TestWorkflow : public QObject {
       QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
       const qint64 total = mon.clock.elapsed();
       qInfo("BENCH gui_stall,tetrahedralise %zu triangles to %zu tets,%lld ms,longest stall %lld ms,%d ticks", triangles,
-            w_->currentCase().data->volume.tets.size(), total, mon.worst, mon.ticks);
+            w_->caseData()->organ->volume.tets.size(), total, mon.worst, mon.ticks);
       QVERIFY(mon.ticks > 20);
       QVERIFY(mon.worst < total / 2);
       QCOMPARE(w_->labelsShown(), 2);
@@ -520,8 +520,8 @@ class TestWorkflow : public QObject {
       use.start();
       w_->useShownFrame();
       qInfo("BENCH gui_stall,take the 4k frame (undistort + organ overlay on the GUI thread),%lld ms,-,-", use.elapsed());
-      QCOMPARE(w_->currentCase().data->frame.cols, 3840);
-      QCOMPARE(w_->currentCase().data->camera.width, 3840);
+      QCOMPARE(w_->caseData()->frame.cols, 3840);
+      QCOMPARE(w_->caseData()->camera.width, 3840);
     }
     for (int i = 0; i < 2; ++i) w_->undoStack()->undo();
   }
@@ -536,36 +536,36 @@ class TestWorkflow : public QObject {
     QCOMPARE(opened.first().at(0).toBool(), false);
     QVERIFY(opened.first().at(1).toString().contains("cannot be opened"));
     // A calibration with distortion: the frame is undistorted with it, consistently with K.
-    const auto before = w_->currentCase().data;
+    const auto before = w_->caseData();
     imaging::Camera cam = before->camera;
     cam.distortion = {-0.2, 0.05, 0, 0, 0};
     const std::string yaml = tempPath("cal.yaml");
     imaging::saveCamera(cam, yaml);
     w_->loadCalibration(QString::fromStdString(yaml));
-    const auto after = w_->currentCase().data;
+    const auto after = w_->caseData();
     QCOMPARE(after->camera.distortion[0], -0.2);
     QVERIFY(cv::norm(after->frame, before->frame, cv::NORM_L1) > 0);  // resampled
     QCOMPARE(cv::norm(after->rawFrame, before->frame, cv::NORM_INF), 0.0);  // the captured frame is kept
     w_->undoStack()->undo();
-    QCOMPARE(w_->currentCase().data->camera.distortion[0], 0.0);
+    QCOMPARE(w_->caseData()->camera.distortion[0], 0.0);
     // A 3x3 text matrix takes the frame's size.
     const std::string txt = tempPath("K.txt");
     writeFile(txt, "1000 0 640\n0 1000 360\n0 0 1\n");
     w_->loadCalibration(QString::fromStdString(txt));
-    QCOMPARE(w_->currentCase().data->camera.fx(), 1000.0);
+    QCOMPARE(w_->caseData()->camera.fx(), 1000.0);
     w_->undoStack()->undo();
     // P2ILF contour import, then erase part of it with a mouse stroke.
     const std::string p2 = tempPath("p2ilf-contour.json");
     writeFile(p2, R"({"numOfContours":1,"contour":[{"contourType":"Silhouette","imagePoints":{"x":[300,350,400,450,500,550,600],"y":[300,300,300,300,300,300,300]}}]})");
     w_->importContour(QString::fromStdString(p2));
-    QCOMPARE(w_->currentCase().data->contour.segments.size(), std::size_t(1));
-    QCOMPARE(w_->currentCase().data->contour.segments[0].points.size(), std::size_t(7));
+    QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(1));
+    QCOMPARE(w_->caseData()->contour.segments[0].points.size(), std::size_t(7));
     auto* view = w_->frameView();
     view->setFocus();  // single-letter tool keys go to text fields when one has the focus
     QTest::keyClick(view, Qt::Key_X);
     QCOMPARE(view->tool(), ui::Tool::Erase);
     drag(view, view->toWidget(QPointF(450, 260)), view->toWidget(QPointF(450, 340)));
-    const auto& c = w_->currentCase().data->contour;
+    const auto& c = w_->caseData()->contour;
     QCOMPARE(c.segments.size(), std::size_t(2));  // split where the point was erased
     QCOMPARE(c.segments[0].points.size() + c.segments[1].points.size(), std::size_t(6));
     const std::string out = tempPath("exported.json");
@@ -583,27 +583,27 @@ class TestWorkflow : public QObject {
     w_->openFrameSource(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")));
     QVERIFY(opened.count() == 1 || opened.wait(60000));
     QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
-    QCOMPARE(w_->currentCase().data->frame.cols, 1920);
-    QCOMPARE(w_->currentCase().data->frame.rows, 1080);
+    QCOMPARE(w_->caseData()->frame.cols, 1920);
+    QCOMPARE(w_->caseData()->frame.rows, 1080);
     w_->loadCalibration(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));
-    QCOMPARE(w_->currentCase().data->camera.fx(), 2012.186314);
-    QCOMPARE(w_->currentCase().data->camera.cy(), 617.1093984);
+    QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);
+    QCOMPARE(w_->caseData()->camera.cy(), 617.1093984);
     w_->setMeshUnit("mm");
     w_->setTargetTets(3000);
     QSignalSpy imported(w_.get(), &MainWindow::meshImported);
     w_->importMesh(QString::fromStdString(sharedData("scikit-surgery/patient-liver/liver.vtk")));
     QVERIFY(imported.wait(180000));
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
-    const auto& c = *w_->currentCase().data;
-    qInfo("patient liver: %zu tets, %zu surface triangles over the real frame; organ outline %lld polygon(s)", c.volume.tets.size(),
-          c.surface.size(), static_cast<long long>(w_->currentCase().silhouette.size()));
-    QVERIFY(c.volume.tets.size() > 2000);
-    QVERIFY(!w_->currentCase().organOverlay.isNull());
-    QVERIFY(!w_->currentCase().silhouette.isEmpty());  // placed in front of the camera, in view
+    const auto& c = *w_->caseData();
+    qInfo("patient liver: %zu tets, %zu surface triangles over the real frame; organ outline %lld polygon(s)", c.organ->volume.tets.size(),
+          c.organ->surface.size(), static_cast<long long>(w_->silhouette().size()));
+    QVERIFY(c.organ->volume.tets.size() > 2000);
+    QVERIFY(!w_->organOverlay().isNull());
+    QVERIFY(!w_->silhouette().isEmpty());  // placed in front of the camera, in view
     QVERIFY(w_->stepDone(ui::Step::Mesh) && w_->stepDone(ui::Step::Frame));
     // No screenshot for the README: the frame is another project's file, not to be copied into this one.
     while (w_->undoStack()->index() > index) w_->undoStack()->undo();
-    QVERIFY(w_->currentCase().data->hasGroundTruth);
+    QVERIFY((w_->caseData()->groundTruth != nullptr));
   }
 
   void cleanupTestCase() {

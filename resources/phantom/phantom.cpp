@@ -66,7 +66,7 @@ int phantomLabel(const Eigen::Vector3d& p) {
   return kParenchymaLabel;
 }
 
-Eigen::Vector3d Case::centreOfGravity() const {
+Eigen::Vector3d centreOfGravity(const simcore::Mesh& volume) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
   double total = 0;
   for (const auto& t : volume.tets) {
@@ -80,35 +80,10 @@ Eigen::Vector3d Case::centreOfGravity() const {
   return volume.bounds().center();
 }
 
-void Case::deriveFromVolume() {
-  surface.clear();
-  innerSurface.clear();
-  innerSurfaceLabels.clear();
-  quality = simcore::computeQuality(volume);
-  if (volume.tets.empty()) return;
-  surface = simcore::boundaryTriangles(volume, false);
-  // Faces of the other labels (interfaces carry the inner label): the structures drawn through the organ.
-  std::vector<int> labels;
-  const auto faces = simcore::boundaryTriangles(volume, true, &labels);
-  for (std::size_t i = 0; i < faces.size(); ++i)
-    if (labels[i] != kParenchymaLabel) {
-      innerSurface.push_back(faces[i]);
-      innerSurfaceLabels.push_back(labels[i]);
-    }
-}
+Eigen::Vector3d Phantom::centreOfGravity() const { return phantom::centreOfGravity(volume); }
 
-Pose Case::automaticPose() const {
-  Pose p;
-  const Eigen::Vector3d cog = centreOfGravity();
-  const double size = volume.points.empty() ? 0.1 : volume.bounds().sizes().maxCoeff();
-  const double fx = camera.width > 0 ? camera.fx() : 1000.0, width = camera.width > 0 ? camera.width : 1280.0;
-  const double depth = std::max(0.02, size * fx / (0.6 * width));
-  p.t = Eigen::Vector3d(0, 0, depth) - cog;
-  return p;
-}
-
-Case makePhantom(const PhantomOptions& options) {
-  Case c;
+Phantom makePhantom(const PhantomOptions& options) {
+  Phantom c;
   c.name = "Built-in liver phantom";
   c.vesselTree = phantomVesselTree();
   // 1. Volume mesh of the labelled implicit organ.
@@ -120,7 +95,13 @@ Case makePhantom(const PhantomOptions& options) {
   c.volume = simcore::tetrahedraliseImplicit(phantomLabel, bounds, mo, volumeEstimate);
   c.volume.setLabelName(kParenchymaLabel, "parenchyma");
   c.volume.setLabelName(kVesselLabel, "vessels");
-  c.deriveFromVolume();
+  c.surface = simcore::boundaryTriangles(c.volume, false);
+  {
+    std::vector<int> labels;
+    const auto faces = simcore::boundaryTriangles(c.volume, true, &labels);
+    for (std::size_t i = 0; i < faces.size(); ++i)
+      if (labels[i] == kVesselLabel) c.innerSurface.push_back(faces[i]);
+  }
 
   // 2. Ligament attachments: surface nodes near the superior-posterior (coronary ligament) band.
   std::vector<char> onSurface(c.volume.points.size(), 0);
@@ -148,15 +129,12 @@ Case makePhantom(const PhantomOptions& options) {
   c.trueAppearance.kd = Eigen::Vector3d(0.0290, 0.0112, 0.0090);
   c.trueAppearance.ks = Eigen::Vector3d(0.0120, 0.0115, 0.0110);
   c.trueAppearance.roughness = 0.09;
-  c.hasGroundTruth = true;
 
   // 4. The frame: tissue background, the organ rendered with the known appearance, scope vignette.
   if (options.meshing.progress) options.meshing.progress(0.95, "rendering the frame");
   cv::Mat3b background = imaging::makeTissueBackground(options.width, options.height, options.seed);
   c.frame = imaging::renderShaded(c.camera, c.truePose, c.surfaceView(), c.trueAppearance, background, 2);
   imaging::applyScopeVignette(c.frame);
-  c.pose = c.automaticPose();
-  c.hasPose = true;
   return c;
 }
 

@@ -68,7 +68,7 @@ simcore::Scene makePreset(const std::string& name, const std::string& sharedData
   bool known = false;
   for (const auto& n : presetNames()) known |= n == name;
   if (!known) throw simcore::MeshError("Unknown preset '" + name + "'; use eye, kidney, liver, uterus or sofa-liver.");
-  const Case ph = makePhantom();
+  const Phantom ph = makePhantom();
   return makePreset(name, ph.volume, ph.attachments);
 }
 

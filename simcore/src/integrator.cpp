@@ -50,6 +50,8 @@ struct Integrator::Work {
   Eigen::VectorXd Wlambda;  // W lambda - e (the multipliers' residual)
   bool schurValid = false;        // A and W belong to the current factor and constraints
   double laggedStep = -1;         // h the lagged factor was built for (-1: none)
+  Eigen::VectorXd laggedAt;       // positions it was built at (with laggedStep: its identity)
+  bool invalidated = false;       // invalidateFactorisation() was called: rebuild at the next step
   bool refresh = true;            // rebuild the lagged factor at the next opportunity
   int staticFactor = -1;          // chol.factorisations() just after a static tangent was factorised
   Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
@@ -168,6 +170,7 @@ void Integrator::setConstraints(std::vector<ScalarConstraint> constraints) {
 
 void Integrator::invalidateFactorisation() {
   w_->refresh = true;
+  w_->invalidated = true;
   w_->schurValid = false;
 }
 
@@ -348,6 +351,74 @@ double Integrator::totalEnergy(const SimulationState& s) const {
 }
 
 // One implicit Euler step of h from (x, v); on success x, v hold the new state.
+void Integrator::newtonMatrix(const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h) const {
+  const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
+  double* out = J.valuePtr();
+  const double* kd = w_->Kd.valuePtr();
+  const double* k = K.valuePtr();
+  for (Eigen::Index i = 0; i < J.nonZeros(); ++i) out[i] = h * beta * kd[i] + h * h * k[i];
+  for (Eigen::Index i = 0; i < J.rows(); ++i) out[model_.diagonalSlot[i]] += (1 + h * alpha) * mass3_[i];
+  projectMatrix(J);
+}
+
+bool Integrator::refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep) {
+  Work& w = *w_;
+  assembleStiffness(model_, at, w.Kd);
+  newtonMatrix(w.Kd, w.J, h);
+  w.laggedStep = h;
+  w.laggedAt = at;  // the factor's identity, part of the complete state (SimulationState::lagged)
+  w.refresh = false;
+  ++rep.factorisations;
+  w.schurValid = false;
+  if (factoriseWith(w.chol, settings_, w.J)) return true;
+  // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
+  assembleStiffness(model_, at, w.Kd, true);
+  newtonMatrix(w.Kd, w.J, h);
+  return factoriseShifted(w.J, rep);
+}
+
+// The complete state in, before a step: the lagged factor it names is the one this step uses (rebuilt
+// when the integrator holds another one, e.g. after restoring a checkpoint or in a second integrator),
+// and the forces it carries at x are the ones the residual scale uses.
+bool Integrator::adopt(const SimulationState& state, StepReport& rep) {
+  Work& w = *w_;
+  w.forcesValid = state.forcesValid && state.forces.size() == state.x.size() && state.x.size() > 0;
+  if (w.forcesValid) {
+    w.forcesAt = state.x;
+    w.forces = state.forces;
+  }
+  const bool refresh = state.lagged.refresh || w.invalidated;
+  w.invalidated = false;
+  const bool lagged = settings_.method != NewtonMethod::Exact && settings_.solver == LinearSolverKind::Cholmod;
+  if (!lagged) {
+    w.refresh = true;
+    return true;
+  }
+  if (!state.lagged.valid || state.lagged.at.size() != state.x.size() || state.lagged.step <= 0) {
+    w.refresh = true;  // a state without a lagged factor (fresh, or from an exact step): build one at its start
+    return true;
+  }
+  const bool same = w.chol.valid() && w.laggedStep == state.lagged.step && w.laggedAt.size() == state.lagged.at.size() &&
+                    w.laggedAt == state.lagged.at && !w.refresh;  // refresh: the factor holds another matrix or is stale
+  if (!same && !refresh) {
+    if (!refreshLaggedAt(state.lagged.at, state.lagged.step, rep)) return false;
+  }
+  w.refresh = refresh;
+  return true;
+}
+
+void Integrator::record(SimulationState& state) const {
+  const Work& w = *w_;
+  state.lagged.refresh = w.refresh;
+  state.lagged.valid = w.laggedStep > 0 && !w.refresh;
+  if (state.lagged.valid) {
+    state.lagged.at = w.laggedAt;  // same size from the second step on: no allocation
+    state.lagged.step = w.laggedStep;
+  }
+  state.forcesValid = w.forcesValid && w.forcesAt.size() == state.x.size() && w.forcesAt == state.x;
+  if (state.forcesValid) state.forces = w.forces;
+}
+
 bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepReport& rep) {
   Work& w = *w_;
   const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
@@ -362,27 +433,8 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
   // The Newton matrix (1 + h alpha) M + h beta Kd + h^2 K into J: exact with Kd = K(x0); the lagged
   // methods use one lagged K for both (leaving K(x0) out of the damping Jacobian costs the exact method
   // many iterations: measured 6-9 instead of 2 per step on the liver preset).
-  auto buildNewtonMatrix = [&](const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J) {
-    double* out = J.valuePtr();
-    const double* kd = w.Kd.valuePtr();
-    const double* k = K.valuePtr();
-    for (Eigen::Index i = 0; i < J.nonZeros(); ++i) out[i] = h * beta * kd[i] + h * h * k[i];
-    for (Eigen::Index i = 0; i < J.rows(); ++i) out[model_.diagonalSlot[i]] += (1 + h * alpha) * mass3_[i];
-    projectMatrix(J);
-  };
-  auto refreshLagged = [&](const Eigen::VectorXd& at) {
-    assembleStiffness(model_, at, w.Kd);
-    buildNewtonMatrix(w.Kd, w.J);
-    w.laggedStep = h;
-    w.refresh = false;
-    ++rep.factorisations;
-    w.schurValid = false;
-    if (factoriseWith(w.chol, settings_, w.J)) return true;
-    // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
-    assembleStiffness(model_, at, w.Kd, true);
-    buildNewtonMatrix(w.Kd, w.J);
-    return factoriseShifted(w.J, rep);
-  };
+  auto buildNewtonMatrix = [&](const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J) { newtonMatrix(K, J, h); };
+  auto refreshLagged = [&](const Eigen::VectorXd& at) { return refreshLaggedAt(at, h, rep); };
   if (lagged) {
     if (w.refresh || w.laggedStep != h || !w.chol.valid())
       if (!refreshLagged(w.x0)) {
@@ -643,6 +695,11 @@ StepReport Integrator::step(SimulationState& state) {
   w.savedX = state.x;
   w.savedV = state.v;
   StepReport rep;
+  if (!adopt(state, rep)) {
+    rep.status = "failed: the lagged factorisation of the restored state could not be rebuilt";
+    record(state);
+    return rep;
+  }
   double h = settings_.timeStep;
   int retries = 0;
   for (;; ++retries) {
@@ -684,6 +741,7 @@ StepReport Integrator::step(SimulationState& state) {
     h *= 0.5;
   }
   rep.retries = retries;
+  record(state);
   if (settings_.reportEnergy) rep.energy = totalEnergy(state);
   rep.constraintViolation = constraintViolation(state.x);
   rep.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();

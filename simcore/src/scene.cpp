@@ -12,6 +12,25 @@ using nlohmann::json;
 
 namespace rehearse::simcore {
 
+LinearSolverKind linearSolverFromString(const std::string& name) {
+  if (name == "cholmod") return LinearSolverKind::Cholmod;
+  if (name == "cg") return LinearSolverKind::ConjugateGradient;
+  if (name == "dense") return LinearSolverKind::Dense;
+  throw MeshError("The solver kind must be cholmod, cg or dense, not '" + name + "'.");
+}
+
+bool simplicialFactorFromString(const std::string& name) {
+  if (name == "supernodal") return false;
+  if (name == "simplicial") return true;
+  throw MeshError("The factor must be supernodal or simplicial, not '" + name + "'.");
+}
+
+AttachmentMode attachmentModeFromString(const std::string& name) {
+  if (name == "projection") return AttachmentMode::Projection;
+  if (name == "lagrange") return AttachmentMode::Lagrange;
+  throw MeshError("The attachment mode must be projection or lagrange, not '" + name + "'.");
+}
+
 const std::vector<ComponentDecl>& sceneComponents() {
   static const std::vector<ComponentDecl> decls = {
       {"mesh", "The organ's volume mesh (a surface is tetrahedralised).",
@@ -67,6 +86,16 @@ namespace {
 [[noreturn]] void fail(const std::string& msg) { throw MeshError("Scene: " + msg); }
 
 // The value of a declared parameter: from the component, else its declared default.
+// A name parsed by one of the shared parsers, its sentence prefixed as the scene's other errors are.
+template <typename F>
+auto named(F f) {
+  try {
+    return f();
+  } catch (const MeshError& e) {
+    fail(e.what());
+  }
+}
+
 json value(const json& component, const ComponentDecl& decl, const std::string& name) {
   for (const auto& p : decl.parameters)
     if (p.name == name) {
@@ -125,9 +154,7 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.componentBytes += sizeof(MaterialParams);
       } else if (type == "attachments") {
         s.fixedNodes = value(c, *decl, "nodes").get<std::vector<int>>();
-        const std::string mode = value(c, *decl, "mode").get<std::string>();
-        if (mode != "projection" && mode != "lagrange") fail("attachments 'mode' must be projection or lagrange.");
-        s.settings.attachments = mode == "lagrange" ? AttachmentMode::Lagrange : AttachmentMode::Projection;
+        s.settings.attachments = named([&] { return attachmentModeFromString(value(c, *decl, "mode").get<std::string>()); });
         s.componentBytes += s.fixedNodes.size() * sizeof(int);
       } else if (type == "embedded") {
         std::filesystem::path file = value(c, *decl, "file").get<std::string>();
@@ -158,15 +185,9 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.settings.maxNewtonIterations = value(c, *decl, "newton_iterations").get<int>();
         s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
       } else if (type == "solver") {
-        const std::string k = value(c, *decl, "kind").get<std::string>();
-        s.settings.solver = k == "cholmod" ? LinearSolverKind::Cholmod
-                            : k == "cg"    ? LinearSolverKind::ConjugateGradient
-                            : k == "dense" ? LinearSolverKind::Dense
-                                           : (fail("solver 'kind' must be cholmod, cg or dense."), LinearSolverKind::Dense);
-        s.settings.method = newtonMethodFromString(value(c, *decl, "method").get<std::string>());
-        const std::string f = value(c, *decl, "factor").get<std::string>();
-        if (f != "supernodal" && f != "simplicial") fail("solver 'factor' must be supernodal or simplicial.");
-        s.settings.simplicialFactor = f == "simplicial";
+        s.settings.solver = named([&] { return linearSolverFromString(value(c, *decl, "kind").get<std::string>()); });
+        s.settings.method = named([&] { return newtonMethodFromString(value(c, *decl, "method").get<std::string>()); });
+        s.settings.simplicialFactor = named([&] { return simplicialFactorFromString(value(c, *decl, "factor").get<std::string>()); });
       }
     } catch (const json::exception&) {
       fail("a parameter of component '" + type + "' has the wrong kind of value; see 'rehearse simulate --list-components'.");

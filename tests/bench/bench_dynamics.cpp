@@ -261,7 +261,7 @@ int main(int argc, char** argv) {
       po.targetTets = target;
       po.width = 320;
       po.height = 180;  // the frame is not used here
-      const phantom::Case c = phantom::makePhantom(po);
+      const phantom::Phantom c = phantom::makePhantom(po);
       Scene sc = phantom::makePreset("liver", c.volume, c.attachments);
       phantom::setMaterialModel(sc, MaterialModel::Corotational);
       for (NewtonMethod method : kMethods) {

@@ -50,7 +50,7 @@ int main(int argc, char** argv) {
       row("tetrahedralise", "liver_downsample.stl target " + std::to_string(target), got, ms, 5);
     }
   }
-  phantom::Case c;
+  phantom::Phantom c;
   double ms = medianMs(5, [&] { c = phantom::makePhantom(); });
   row("phantom", "generate (mesh + frame)", c.volume.tets.size(), ms, 5);
   cv::Mat3b bg(720, 1280, cv::Vec3b(40, 40, 120));

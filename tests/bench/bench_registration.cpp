@@ -29,7 +29,7 @@ using namespace rehearse::simcore;
 
 namespace {
 // The organ's outline in the frame: the longest border of its rendered mask.
-std::vector<Eigen::Vector2d> outline(const phantom::Case& c, const Pose& pose, const SurfaceView& surface) {
+std::vector<Eigen::Vector2d> outline(const phantom::Phantom& c, const Pose& pose, const SurfaceView& surface) {
   const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, pose, surface));
   return borders.empty() ? std::vector<Eigen::Vector2d>{} : borders.front();
 }
@@ -54,13 +54,13 @@ int main(int argc, char** argv) {
   // The model the fit uses: the built-in phantom, co-rotational, the DejaVu liver's parameters.
   phantom::PhantomOptions coarseOptions;
   if (const char* t = std::getenv("REHEARSE_FIT_TETS")) coarseOptions.targetTets = std::atoi(t);
-  const phantom::Case coarse = phantom::makePhantom(coarseOptions);
+  const phantom::Phantom coarse = phantom::makePhantom(coarseOptions);
   const FemModel model = FemModel::build(coarse.volume, {{phantom::kVesselLabel, {MaterialModel::Corotational, 620e3, 0.45, 1000}}},
                                          {MaterialModel::Corotational, 27e3, 0.40, 1000});
   // The ground truth: a finer mesh of the same organ, the stable Neo-Hookean law, other loads.
   phantom::PhantomOptions fineOptions;
   fineOptions.targetTets = quick ? 8000 : 16000;
-  const phantom::Case fine = phantom::makePhantom(fineOptions);
+  const phantom::Phantom fine = phantom::makePhantom(fineOptions);
   const FemModel fineModel = FemModel::build(fine.volume, {{phantom::kVesselLabel, {MaterialModel::NeoHookean, 620e3, 0.45, 1000}}},
                                              {MaterialModel::NeoHookean, 27e3, 0.45, 1000});
   const Pose truth = coarse.truePose;
@@ -152,7 +152,7 @@ int main(int argc, char** argv) {
     }
     for (int which = 0; which < 2; ++which) {
       // Rigid fit from the truth onto the outline of an undeformed mesh: the coarse fit model itself, the fine one.
-      const phantom::Case& c = which ? fine : coarse;
+      const phantom::Phantom& c = which ? fine : coarse;
       const auto cont = outline(c, truth, c.surfaceView());
       RegistrationOptions o;
       o.elastic = false;

@@ -1,5 +1,6 @@
 #include "rehearse/ui/casefile.hpp"
 
+#include <rehearse/app/materials.hpp>
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/simcore/meshio.hpp>
 
@@ -96,7 +97,7 @@ bool isCaseFile(const QString& path) {
   return f.read(16) == QByteArray("SQLite format 3\0", 16);
 }
 
-void saveCaseFile(const phantom::Case& c, const QString& path) {
+void saveCaseFile(const app::Case& c, const QString& path) {
   const QString tmp = path + QStringLiteral(".saving-") + QString::number(QCoreApplication::applicationPid());
   QFile::remove(tmp);
   {
@@ -135,10 +136,11 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
       if (!p.exec()) fail(QStringLiteral("Cannot write %1 (%2).").arg(path, p.lastError().text()));
     };
     auto bytes = [](const std::string& s) { return QByteArray(s.data(), static_cast<qsizetype>(s.size())); };
-    if (!c.volume.empty()) {
-      part("volume", "vtu", bytes(simcore::writeVtu(c.volume, false)));
+    const simcore::Mesh& volume = c.organ->volume;
+    if (!volume.empty()) {
+      part("volume", "vtu", bytes(simcore::writeVtu(volume, false)));
       json labels = json::array();
-      for (const auto& [l, n] : c.volume.labelNames) labels.push_back({{"label", l}, {"name", n}});
+      for (const auto& [l, n] : volume.labelNames) labels.push_back({{"label", l}, {"name", n}});
       part("labels", "json", bytes(labels.dump()));
     }
     if (!c.frame.empty()) {
@@ -161,18 +163,26 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
     }
     part("attachments", "json", bytes(json{{"nodes", c.attachments}}.dump()));
     if (c.hasPose) part("pose", "json", bytes(json{{"pose", poseJson(c.pose)}, {"aligned", c.poseAligned}}.dump()));
-    if (!c.meshSource.empty()) meta(QStringLiteral("mesh_source"), QString::fromStdString(c.meshSource));
-    if (!c.contour.segments.empty()) part("contour", "json", bytes(imaging::contourToJson(c.contour)));
-    if (!c.fitted.empty()) {
-      json pts = json::array();
-      for (const auto& x : c.fitted) pts.push_back({x.x(), x.y(), x.z()});
-      part("elastic_fit", "json", bytes(json{{"positions", pts}, {"status", c.fitStatus}}.dump()));
+    if (!c.organ->source.empty()) meta(QStringLiteral("mesh_source"), QString::fromStdString(c.organ->source));
+    {
+      const auto& m = c.material;
+      part("material", "json", bytes(json{{"model", simcore::toString(m.model)}, {"young", m.young}, {"poisson", m.poisson},
+                                          {"density", m.density}, {"vessel_young", m.vesselYoung}, {"vessel_poisson", m.vesselPoisson}}
+                                         .dump()));
     }
-    if (c.hasGroundTruth) {
+    if (!c.contour.segments.empty()) part("contour", "json", bytes(imaging::contourToJson(c.contour)));
+    if (c.fit) {
+      json pts = json::array();
+      for (const auto& x : c.fit->nodes) pts.push_back({x.x(), x.y(), x.z()});
+      part("elastic_fit", "json", bytes(json{{"positions", pts}, {"status", c.fit->status}}.dump()));
+    }
+    if (c.groundTruth) {
+      const app::GroundTruth& t = *c.groundTruth;
       json tree = json::array();
-      for (const auto& s : c.vesselTree) tree.push_back({{"a", vec(s.a)}, {"b", vec(s.b)}, {"radius", s.radius}});
-      const auto& a = c.trueAppearance;
-      json gt = {{"pose", poseJson(c.truePose)},
+      for (std::size_t i = 0; i < t.vesselAxes.size(); ++i)
+        tree.push_back({{"a", vec(t.vesselAxes[i].first)}, {"b", vec(t.vesselAxes[i].second)}, {"radius", t.vesselRadii[i]}});
+      const auto& a = t.appearance;
+      json gt = {{"pose", poseJson(t.pose)},
                  {"appearance", {{"light_position", vec(a.lightPosition)}, {"kd", vec(a.kd)}, {"ks", vec(a.ks)}, {"roughness", a.roughness}}},
                  {"vessel_tree", tree}};
       part("ground_truth", "json", bytes(gt.dump()));
@@ -196,7 +206,7 @@ void saveCaseFile(const phantom::Case& c, const QString& path) {
   }
 }
 
-phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
+app::Case loadCaseFile(const QString& path, QStringList* notes) {
   const QString name = QFileInfo(path).fileName();
   if (!QFileInfo::exists(path)) fail(QStringLiteral("The case file %1 does not exist; check the path.").arg(path));
   if (!isCaseFile(path)) fail(QStringLiteral("%1 is not a Rehearse case file (it is not an SQLite database).").arg(name));
@@ -215,7 +225,7 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
   // Migrations: schema 1 has no checksums (its parts are read as they are); the parts it lacks are simply
   // absent. Nothing is written back: the next save writes the current schema.
   const bool checksums = version >= 2;
-  phantom::Case c;
+  app::Case c;
   if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'name'")) && q.next()) c.name = q.value(0).toString().toStdString();
   auto note = [&](const QString& s) {
     if (notes) *notes << s;
@@ -247,13 +257,13 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
   };
   if (QByteArray v = read("volume"); !v.isEmpty()) {
     try {
-      c.volume = simcore::parseVtu(std::string_view(v.constData(), static_cast<std::size_t>(v.size())));
-      simcore::validateMesh(c.volume, "the organ mesh");
+      simcore::Mesh volume = simcore::parseVtu(std::string_view(v.constData(), static_cast<std::size_t>(v.size())));
+      simcore::validateMesh(volume, "the organ mesh");
       if (QByteArray l = read("labels"); !l.isEmpty())
-        for (const auto& e : json::parse(l.toStdString())) c.volume.setLabelName(e.at("label").get<int>(), e.at("name").get<std::string>());
-      c.deriveFromVolume();
+        for (const auto& e : json::parse(l.toStdString())) volume.setLabelName(e.at("label").get<int>(), e.at("name").get<std::string>());
+      c.organ = app::Organ::fromVolume(std::move(volume));
     } catch (const std::exception& e) {
-      c.volume = {};
+      c.organ = std::make_shared<app::Organ>();
       note(QStringLiteral("Organ mesh not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
@@ -287,7 +297,7 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
       const json j = json::parse(a.toStdString());
       for (const auto& n : j.at("nodes")) {
         const int v = n.get<int>();
-        if (v < 0 || v >= static_cast<int>(c.volume.points.size())) throw std::out_of_range("node index out of range");
+        if (v < 0 || v >= static_cast<int>(c.organ->volume.points.size())) throw std::out_of_range("node index out of range");
         c.attachments.push_back(v);
       }
     } catch (const std::exception& e) {
@@ -305,11 +315,32 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
       note(QStringLiteral("Pose not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
-  if (!c.hasPose && !c.volume.empty()) {
+  if (!c.hasPose && !c.organ->empty()) {
     c.pose = c.automaticPose();
     c.hasPose = true;
   }
-  if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'mesh_source'")) && q.next()) c.meshSource = q.value(0).toString().toStdString();
+  if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'mesh_source'")) && q.next() && !c.organ->empty()) {
+    auto organ = std::make_shared<app::Organ>(*c.organ);  // once, while loading
+    organ->source = q.value(0).toString().toStdString();
+    c.organ = organ;
+  }
+  if (QByteArray m = read("material"); !m.isEmpty()) {
+    try {
+      const json j = json::parse(m.toStdString());
+      app::MaterialSettings s;
+      s.model = simcore::materialModelFromString(j.at("model").get<std::string>());
+      s.young = j.at("young").get<double>();
+      s.poisson = j.at("poisson").get<double>();
+      s.density = j.at("density").get<double>();
+      s.vesselYoung = j.value("vessel_young", 0.0);
+      s.vesselPoisson = j.value("vessel_poisson", 0.45);
+      c.material = s;
+    } catch (const std::exception& e) {
+      note(QStringLiteral("Material not loaded (the default is used): %1").arg(QString::fromUtf8(e.what())));
+    }
+  } else if (!c.organ->empty()) {
+    c.material = app::defaultMaterial(*c.organ);  // cases saved before the material was part of them
+  }
   if (QByteArray k = read("contour"); !k.isEmpty()) {
     try {
       c.contour = imaging::parseContour(k.toStdString(), "the case's contour");
@@ -321,25 +352,30 @@ phantom::Case loadCaseFile(const QString& path, QStringList* notes) {
   if (QByteArray f = read("elastic_fit"); !f.isEmpty()) {
     try {
       const json j = json::parse(f.toStdString());
-      for (const auto& p : j.at("positions")) c.fitted.emplace_back(p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>());
-      c.fitStatus = j.value("status", std::string());
-      if (c.fitted.size() != c.volume.points.size()) throw std::runtime_error("it does not match the organ mesh");
+      auto fit = std::make_shared<app::ElasticFit>();
+      for (const auto& p : j.at("positions")) fit->nodes.emplace_back(p.at(0).get<double>(), p.at(1).get<double>(), p.at(2).get<double>());
+      fit->status = j.value("status", std::string());
+      if (fit->nodes.size() != c.organ->volume.points.size()) throw std::runtime_error("it does not match the organ mesh");
+      c.fit = fit;
     } catch (const std::exception& e) {
-      c.fitted.clear();
       note(QStringLiteral("Elastic fit not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
   if (QByteArray g = read("ground_truth"); !g.isEmpty()) {
     try {
       const json j = json::parse(g.toStdString());
-      c.truePose = poseFrom(j.at("pose"));
+      auto t = std::make_shared<app::GroundTruth>();
+      t->pose = poseFrom(j.at("pose"));
       const auto& a = j.at("appearance");
-      c.trueAppearance.lightPosition = vec3(a.at("light_position"));
-      c.trueAppearance.kd = vec3(a.at("kd"));
-      c.trueAppearance.ks = vec3(a.at("ks"));
-      c.trueAppearance.roughness = a.at("roughness").get<double>();
-      for (const auto& s : j.at("vessel_tree")) c.vesselTree.push_back({vec3(s.at("a")), vec3(s.at("b")), s.at("radius").get<double>()});
-      c.hasGroundTruth = true;
+      t->appearance.lightPosition = vec3(a.at("light_position"));
+      t->appearance.kd = vec3(a.at("kd"));
+      t->appearance.ks = vec3(a.at("ks"));
+      t->appearance.roughness = a.at("roughness").get<double>();
+      for (const auto& s : j.at("vessel_tree")) {
+        t->vesselAxes.emplace_back(vec3(s.at("a")), vec3(s.at("b")));
+        t->vesselRadii.push_back(s.at("radius").get<double>());
+      }
+      c.groundTruth = t;
     } catch (const std::exception& e) {
       note(QStringLiteral("Ground truth not loaded: %1").arg(QString::fromUtf8(e.what())));
     }

@@ -2,6 +2,9 @@
 
 #include "rehearse/ui/casefile.hpp"
 
+#include "phantom/phantom.hpp"
+#include <rehearse/app/casefolder.hpp>
+
 #include <QFileInfo>
 
 #include <rehearse/imaging/render.hpp>
@@ -18,21 +21,21 @@ LoadedCase loadCaseOrThrow(const QString& dir, const std::function<void(double, 
                            const std::atomic<bool>* cancel) {
   const auto t0 = std::chrono::steady_clock::now();
   LoadedCase out;
-  auto c = std::make_shared<phantom::Case>();
+  auto c = std::make_shared<app::Case>();
   if (dir.isEmpty()) {
     phantom::PhantomOptions po;
     po.meshing.cancel = cancel;
     po.meshing.progress = [&](double f, const std::string& stage) {
       if (progress) progress(0.9 * f, QString::fromStdString(stage));
     };
-    *c = phantom::makePhantom(po);
+    *c = app::caseFromPhantom(phantom::makePhantom(po));
   } else if (!QFileInfo::exists(dir)) {
     throw imaging::InputError(QStringLiteral("%1 does not exist.").arg(dir).toStdString());
   } else if (QFileInfo(dir).isFile()) {
     *c = loadCaseFile(dir, &out.notes);
   } else {
     std::vector<std::string> notes;
-    *c = phantom::loadCaseDirectory(dir.toStdString(), &notes);
+    *c = app::loadCaseDirectory(dir.toStdString(), &notes);
     for (const auto& n : notes) out.notes << QString::fromStdString(n);
   }
   if (progress) progress(0.92, QStringLiteral("drawing the organ"));

@@ -56,7 +56,7 @@ void FrameView::setOverlay(const QImage& organ, const QList<QPolygonF>& silhouet
   update();
 }
 
-void FrameView::setCase(std::shared_ptr<const phantom::Case> c) {
+void FrameView::setCase(std::shared_ptr<const app::Case> c) {
   case_ = std::move(c);
   wireStale_ = true;
   update();
@@ -70,14 +70,14 @@ void FrameView::setOverlayStyle(OverlayStyle style) {
 void FrameView::rebuildWireframe() {
   wireStale_ = false;
   wire_.clear();
-  if (!case_ || !case_->hasPose || case_->surface.empty() || !case_->camera.problem().empty()) return;
+  if (!case_ || !case_->hasPose || case_->organ->surface.empty() || !case_->camera.problem().empty()) return;
   // The edges of the triangles that face the camera (all in front of it), each once.
   const SurfaceView sv = case_->surfaceView();
   const Pinhole cam = case_->camera.pinhole();
   std::vector<Eigen::Vector3d> x(sv.vertexCount);
   for (std::size_t i = 0; i < sv.vertexCount; ++i) x[i] = case_->pose.apply(sv.vertex(i));
   std::vector<std::pair<int, int>> edges;
-  for (const auto& t : case_->surface) {
+  for (const auto& t : case_->organ->surface) {
     const Eigen::Vector3d &a = x[t[0]], &b = x[t[1]], &c = x[t[2]];
     if (a.z() <= 1e-3 || b.z() <= 1e-3 || c.z() <= 1e-3) continue;
     if ((b - a).cross(c - a).dot(a) >= 0) continue;  // turned away from the camera
@@ -161,7 +161,7 @@ std::optional<std::pair<int, int>> FrameView::pointNear(const QPointF& w, double
 
 Eigen::Vector3d FrameView::cogCamera() const {
   if (!case_ || !case_->hasPose) return Eigen::Vector3d(0, 0, -1);
-  return case_->pose.apply(case_->centreOfGravity());
+  return case_->pose.apply(case_->organ->centreOfGravity);
 }
 
 QPointF FrameView::handlePosition(GizmoHandle h) const {
@@ -191,7 +191,7 @@ GizmoHandle FrameView::handleAt(const QPointF& w) const {
 
 void FrameView::dragGizmo(const QPointF& w) {
   const Pose& p0 = dragStartPose_;
-  const Eigen::Vector3d g0 = p0.apply(case_->centreOfGravity());
+  const Eigen::Vector3d g0 = p0.apply(case_->organ->centreOfGravity);
   const QPointF a = toFrame(dragStartMouse_), b = toFrame(w);
   const double du = b.x() - a.x(), dv = b.y() - a.y();
   const auto& cam = case_->camera;
@@ -597,7 +597,7 @@ void FrameView::keyPressEvent(QKeyEvent* e) {
     // Keyboard nudges: 1 mm (10 mm with Shift) along camera axes, 1 degree (5) about them.
     const double step = shift ? 0.010 : 0.001, angle = (shift ? 5.0 : 1.0) * M_PI / 180;
     Pose p = case_->pose;
-    const Eigen::Vector3d g = p.apply(case_->centreOfGravity());
+    const Eigen::Vector3d g = p.apply(case_->organ->centreOfGravity);
     auto rotate = [&](int axis, double a) { p = p.turnedAbout(axisRotation(axis, a), g); };
     bool handled = true;
     switch (e->key()) {
@@ -660,7 +660,7 @@ void FrameView::keyPressEvent(QKeyEvent* e) {
 }
 
 std::optional<FrameView::OrganHit> FrameView::organAt(const Eigen::Vector2d& fp) const {
-  if (!case_ || !case_->hasPose || case_->surface.empty()) return std::nullopt;
+  if (!case_ || !case_->hasPose || case_->organ->surface.empty()) return std::nullopt;
   // One ray through the clicked point (microseconds), not a render of the frame.
   const auto pick = imaging::pickSurface(case_->camera, case_->pose, case_->surfaceView(), fp);
   if (!pick) return std::nullopt;
@@ -684,7 +684,7 @@ void FrameView::toggleAttachmentsAt(const Eigen::Vector2d& fp) {
   const SurfaceView sv = case_->surfaceView();
   std::vector<int> patch;
   std::vector<char> seen(sv.vertexCount, 0);
-  for (const auto& t : case_->surface)
+  for (const auto& t : case_->organ->surface)
     for (int v : t) {
       if (seen[static_cast<std::size_t>(v)]) continue;
       seen[static_cast<std::size_t>(v)] = 1;
@@ -737,7 +737,7 @@ void FrameView::pickOrganCurve(const Eigen::Vector2d& fp) {
     mv.push_back(hit->node);
   } else {
     // Joined to the previous click by the shortest path along the surface (rest shape).
-    const auto path = simcore::surfacePath(case_->surface, case_->volume.points, mv.back(), hit->node);
+    const auto path = simcore::surfacePath(case_->organ->surface, case_->organ->volume.points, mv.back(), hit->node);
     if (path.size() > 1) mv.insert(mv.end(), path.begin() + 1, path.end());
   }
   curveStops_.push_back(mv.size());

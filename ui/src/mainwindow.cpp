@@ -6,7 +6,8 @@
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
-#include "phantom/presets.hpp"
+#include <rehearse/app/elasticfit.hpp>
+#include <rehearse/app/workflow.hpp>
 
 #include <rehearse/simcore/registration.hpp>
 
@@ -65,51 +66,11 @@
 namespace rehearse::ui {
 namespace {
 
-// One undoable edit of the case: a snapshot before and after (cheap: frames are shared cv::Mats).
-class CaseCommand : public QUndoCommand {
- public:
-  CaseCommand(MainWindow* w, std::shared_ptr<const phantom::Case> before, std::shared_ptr<const phantom::Case> after,
-              const QString& text, int mergeId)
-      : QUndoCommand(text), w_(w), before_(std::move(before)), after_(std::move(after)), merge_(mergeId) {}
-  void undo() override { w_->setCaseData(before_); }
-  void redo() override { w_->setCaseData(after_); }
-  int id() const override { return merge_ >= 0 ? 1 : -1; }
-  bool mergeWith(const QUndoCommand* other) override {
-    auto* o = dynamic_cast<const CaseCommand*>(other);
-    if (!o || o->merge_ != merge_) return false;
-    after_ = o->after_;
-    return true;
-  }
-
- private:
-  MainWindow* w_;
-  std::shared_ptr<const phantom::Case> before_, after_;
-  int merge_;
-};
-
 QImage toQImage(const cv::Mat3b& bgr) {
   if (bgr.empty()) return {};
   cv::Mat rgb;
   cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
   return QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
-}
-
-// The frame every step uses is the captured one undistorted with the case's camera (same K, so pixels
-// keep the pinhole model of the camera). Without distortion it is the captured frame itself.
-void undistortFrame(phantom::Case& k) {
-  if (k.rawFrame.empty()) return;
-  const auto& d = k.camera.distortion;
-  if (d[0] == 0 && d[1] == 0 && d[2] == 0 && d[3] == 0 && d[4] == 0) {
-    k.frame = k.rawFrame;
-    return;
-  }
-  cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) K.at<double>(r, c) = k.camera.K(r, c);
-  for (int i = 0; i < 5; ++i) D.at<double>(0, i) = d[i];
-  cv::Mat3b und;
-  cv::undistort(k.rawFrame, und, K, D);
-  k.frame = und;
 }
 
 QColor labelColour(int label) {
@@ -124,14 +85,14 @@ bool& softwareRenderingFlag() {
 }
 bool softwareRendering() { return softwareRenderingFlag(); }
 
-const char* kStepNames[] = {"1  Organ mesh", "2  Endoscope frame", "3  Contour", "4  Rigid alignment",
-                            "5  Elastic fit", "6  Appearance", "7  Rehearse"};
+QString stepName(int i) { return QStringLiteral("%1  %2").arg(i + 1).arg(QCoreApplication::translate("Step", app::kSteps[static_cast<std::size_t>(i)].title)); }
 
 }  // namespace
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   setWindowTitle(tr("Rehearse"));
   setObjectName(QStringLiteral("MainWindow"));
+  doc_ = new CaseDocument(this);
   view_ = new FrameView(this);
   view_->setObjectName(QStringLiteral("frameView"));
   setCentralWidget(view_);
@@ -187,6 +148,9 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   statusSimulation_ = new QLabel(this);
   statusSimulation_->setObjectName(QStringLiteral("statusSimulation"));
   connect(simulation_, &SimulationPanel::statusChanged, statusSimulation_, &QLabel::setText);
+  connect(simulation_, &SimulationPanel::materialEdited, this, [this](const app::MaterialSettings& m) {
+    doc_->edit(tr("Edit material"), [m](app::Case& k) { k.material = m; });
+  });
   statusDistance_ = new QLabel(this);
   statusBar()->addWidget(statusCase_, 1);
   statusBar()->addPermanentWidget(statusSimulation_);
@@ -198,10 +162,10 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     statusCursor_->setText(tr("u %1  v %2 px").arg(p.x(), 0, 'f', 1).arg(p.y(), 0, 'f', 1));
   });
   connect(view_, &FrameView::contourEdited, this, [this](const imaging::Contour& c, const QString& text, int merge) {
-    editCase(text, [&c](phantom::Case& k) { k.contour = c; }, merge);
+    doc_->edit(text, [&c](app::Case& k) { k.contour = c; }, merge);
   });
   connect(view_, &FrameView::poseEdited, this, [this](const Pose& p, const QString& text, int merge) {
-    editCase(text, [&p](phantom::Case& k) {
+    doc_->edit(text, [&p](app::Case& k) {
       k.pose = p;
       k.hasPose = true;
       k.poseAligned = true;
@@ -209,7 +173,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
-    editCase(text, [&](phantom::Case& k) { k.attachments = nodes; });
+    doc_->edit(text, [&](app::Case& k) { k.attachments = nodes; });
   });
   connect(view_, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {
     landmarks_.push_back({m, Eigen::Vector2d::Zero(), false});
@@ -228,41 +192,25 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
 
   buildWorkflowPanel();
   buildMenus();
-  connect(&watcher_, &QFutureWatcher<LoadedCase>::finished, this, &MainWindow::onLoadFinished);
   connect(&jobWatcher_, &QFutureWatcher<std::function<void()>>::finished, this, [this] {
     setBusy(false);
     auto finish = jobWatcher_.result();
     if (finish) finish();
   });
-  connect(&saveWatcher_, &QFutureWatcher<QString>::finished, this, [this] {
-    const QString error = saveWatcher_.result();
-    if (error.isEmpty()) {
-      currentPath_ = savingPath_;
-      addRecent(savingPath_);
-      undo_.setClean();
-      setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(savingPath_).fileName()));
-      statusCase_->setText(tr("Saved %1").arg(savingPath_));
-    } else {
-      statusCase_->setText(error);
-    }
-    emit caseSaved(error.isEmpty(), error);
+  connect(doc_, &CaseDocument::changed, this, &MainWindow::onCaseChanged);
+  connect(doc_, &CaseDocument::loaded, this, &MainWindow::onLoadFinished);
+  connect(doc_, &CaseDocument::progress, this, [this](double f, const QString& stage) {
+    progress_->setValue(static_cast<int>(100 * f));
+    progress_->setFormat(stage + QStringLiteral(" %p%"));
   });
+  connect(doc_, &CaseDocument::saved, this, [this](bool ok, const QString& message) {
+    if (ok) setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(doc_->path()).fileName()));
+    statusCase_->setText(message);
+    emit caseSaved(ok, ok ? QString() : message);
+  });
+  connect(doc_, &CaseDocument::recentFilesChanged, this, &MainWindow::rebuildRecentMenu);
   connect(&cameraTimer_, &QTimer::timeout, this, [this] { showVideoFrame(-1); });
   setAcceptDrops(true);
-  autosaveTimer_.setInterval(60'000);
-  connect(&autosaveTimer_, &QTimer::timeout, this, [this] {
-    if (case_.data && !saveWatcher_.isRunning()) {
-      auto data = case_.data;
-      (void)QtConcurrent::run([data] {
-        try {
-          QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
-          saveCaseFile(*data, autosavePath());
-        } catch (const std::exception&) {
-        }
-      });
-    }
-  });
-  autosaveTimer_.start();
 
   QSettings settings;
   if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) resize(1600, 900);
@@ -284,9 +232,7 @@ QImage MainWindow::organImage(const imaging::Camera& camera, const Pose& pose, c
 MainWindow::~MainWindow() {
   cancel_ = true;
   cameraTimer_.stop();
-  watcher_.waitForFinished();
   jobWatcher_.waitForFinished();
-  saveWatcher_.waitForFinished();
 }
 
 void MainWindow::setSoftwareRendering(bool on) { softwareRenderingFlag() = on; }
@@ -296,7 +242,7 @@ QWidget* MainWindow::organWidget() const {
   return organView_;
 }
 
-bool MainWindow::isBusy() const { return watcher_.isRunning() || jobWatcher_.isRunning() || saveWatcher_.isRunning(); }
+bool MainWindow::isBusy() const { return doc_->isLoading() || jobWatcher_.isRunning() || doc_->isSaving(); }
 
 // ---------------------------------------------------------------------------------------------- panels
 
@@ -325,19 +271,19 @@ void MainWindow::buildWorkflowPanel() {
   QFont big = workflow_->font();
   big.setPointSizeF(big.pointSizeF() * 1.15);
   workflow_->setFont(big);
-  for (int i = 0; i < 7; ++i) {
-    auto* item = new QListWidgetItem(tr(kStepNames[i]), workflow_);
+  for (int i = 0; i < app::kStepCount; ++i) {
+    auto* item = new QListWidgetItem(stepName(i), workflow_);
     item->setSizeHint(QSize(0, 34));
     item->setToolTip(tr("Alt+%1").arg(i + 1));
-    if (i >= 5) {
+    if (!app::kSteps[static_cast<std::size_t>(i)].available) {
       item->setFlags(item->flags() & ~Qt::ItemIsEnabled);
       item->setToolTip(tr("Comes in a later version"));
     }
   }
-  workflow_->setFixedHeight(7 * 34 + 8);
+  workflow_->setFixedHeight(app::kStepCount * 34 + 8);
   workflow_->setVerticalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
   connect(workflow_, &QListWidget::currentRowChanged, this, [this](int row) {
-    if (row >= 0 && row < 5) setStep(static_cast<Step>(row));
+    if (row >= 0 && row < app::kStepCount && app::kSteps[static_cast<std::size_t>(row)].available) setStep(static_cast<Step>(row));
   });
   layout->addWidget(workflow_);
   steps_ = new QStackedWidget(host);
@@ -400,8 +346,8 @@ QWidget* MainWindow::buildMeshPage() {
   auto* clearAttach = new QPushButton(tr("Release All"), page);
   clearAttach->setObjectName(QStringLiteral("clearAttachments"));
   connect(clearAttach, &QPushButton::clicked, this, [this] {
-    if (case_.data && !case_.data->attachments.empty())
-      editCase(tr("Release all attachments"), [](phantom::Case& k) { k.attachments.clear(); });
+    if (doc_->data() && !doc_->data()->attachments.empty())
+      doc_->edit(tr("Release all attachments"), [](app::Case& k) { k.attachments.clear(); });
   });
   attachRow->addWidget(pickAttach, 2);
   attachRow->addWidget(clearAttach, 1);
@@ -480,9 +426,9 @@ QWidget* MainWindow::buildFramePage() {
     s->setKeyboardTracking(false);
     form->addRow(name, s);
     connect(s, &QDoubleSpinBox::valueChanged, this, [this] {
-      if (updatingPanels_ || !case_.data) return;
+      if (updatingPanels_ || !doc_->data()) return;
       const double fx = fx_->value(), fy = fy_->value(), cx = cx_->value(), cy = cy_->value();
-      editCase(tr("Edit intrinsics"), [=](phantom::Case& k) {
+      doc_->edit(tr("Edit intrinsics"), [=](app::Case& k) {
         k.camera.K(0, 0) = fx;
         k.camera.K(1, 1) = fy;
         k.camera.K(0, 2) = cx;
@@ -505,8 +451,8 @@ QWidget* MainWindow::buildFramePage() {
   });
   auto* defaults = new QPushButton(tr("Default From Image Size"), camBox);
   connect(defaults, &QPushButton::clicked, this, [this] {
-    if (!case_.data || case_.data->frame.empty()) return;
-    editCase(tr("Default intrinsics"), [](phantom::Case& k) { k.camera = imaging::Camera::defaultFor(k.frame.cols, k.frame.rows); });
+    if (!doc_->data() || doc_->data()->frame.empty()) return;
+    doc_->edit(tr("Default intrinsics"), [](app::Case& k) { k.camera = imaging::Camera::defaultFor(k.frame.cols, k.frame.rows); });
   });
   form->addRow(loadCal);
   form->addRow(defaults);
@@ -569,7 +515,7 @@ QWidget* MainWindow::buildContourPage() {
   auto* resample = new QPushButton(tr("Resample"), page);
   connect(resample, &QPushButton::clicked, this, [this] {
     const double s = spacing_->value();
-    editCase(tr("Resample contour"), [s](phantom::Case& k) {
+    doc_->edit(tr("Resample contour"), [s](app::Case& k) {
       for (auto& seg : k.contour.segments) seg = imaging::resampleSegment(seg, s);
     });
   });
@@ -580,12 +526,12 @@ QWidget* MainWindow::buildContourPage() {
   auto* row = new QHBoxLayout;
   auto* smooth = new QPushButton(tr("Smooth"), page);
   connect(smooth, &QPushButton::clicked, this, [this] {
-    editCase(tr("Smooth contour"), [](phantom::Case& k) {
+    doc_->edit(tr("Smooth contour"), [](app::Case& k) {
       for (auto& seg : k.contour.segments) seg = imaging::smoothSegment(seg, 5);
     });
   });
   auto* clear = new QPushButton(tr("Clear"), page);
-  connect(clear, &QPushButton::clicked, this, [this] { editCase(tr("Clear contour"), [](phantom::Case& k) { k.contour.segments.clear(); }); });
+  connect(clear, &QPushButton::clicked, this, [this] { doc_->edit(tr("Clear contour"), [](app::Case& k) { k.contour.segments.clear(); }); });
   row->addWidget(smooth);
   row->addWidget(clear);
   l->addLayout(row);
@@ -642,9 +588,8 @@ QWidget* MainWindow::buildFitPage() {
   auto* clear = new QPushButton(tr("Clear Fit"), page);
   clear->setObjectName(QStringLiteral("fitClear"));
   connect(clear, &QPushButton::clicked, this, [this] {
-    if (case_.data && !case_.data->fitted.empty()) editCase(tr("Clear elastic fit"), [](phantom::Case& k) {
-      k.fitted.clear();
-      k.fitStatus.clear();
+    if (doc_->data() && doc_->data()->fit) doc_->edit(tr("Clear elastic fit"), [](app::Case& k) {
+      k.fit.reset();
     });
   });
   row->addWidget(fitButton_);
@@ -658,18 +603,18 @@ QWidget* MainWindow::buildFitPage() {
   fitRevert_->setObjectName(QStringLiteral("fitRevert"));
   fitRevert_->setToolTip(tr("Back to the organ and pose before the fit; Redo brings the fit back."));
   connect(fitKeep_, &QPushButton::clicked, this, [this] {
-    if (fitUndoIndex_ != undo_.index()) return;
+    if (fitUndoIndex_ != doc_->undoStack()->index()) return;
     fitUndoIndex_ = -1;
     fitKeep_->setEnabled(false);
     fitRevert_->setEnabled(false);
-    fitStatus_->setText(tr("Fit kept: %1").arg(QString::fromStdString(case_.data->fitStatus)));
+    fitStatus_->setText(tr("Fit kept: %1").arg(QString::fromStdString(doc_->data()->fit ? doc_->data()->fit->status : std::string())));
   });
   connect(fitRevert_, &QPushButton::clicked, this, [this] {
-    if (fitUndoIndex_ != undo_.index()) return;
-    undo_.undo();  // Redo brings the fit back, and with it this choice
+    if (fitUndoIndex_ != doc_->undoStack()->index()) return;
+    doc_->undoStack()->undo();  // Redo brings the fit back, and with it this choice
     fitStatus_->setText(tr("Fit reverted: the organ and the pose are as before it (Ctrl+Shift+Z brings it back)."));
   });
-  connect(&undo_, &QUndoStack::indexChanged, this, [this](int index) {
+  connect(doc_->undoStack(), &QUndoStack::indexChanged, this, [this](int index) {
     const bool open = fitUndoIndex_ >= 0 && index == fitUndoIndex_;
     fitKeep_->setEnabled(open);
     fitRevert_->setEnabled(open);
@@ -710,39 +655,28 @@ QWidget* MainWindow::buildFitPage() {
 }
 
 void MainWindow::runElasticFit() {
-  if (!case_.data) return;
-  const auto c = case_.data;
-  QString missing;
-  if (!stepDone(Step::Mesh)) missing = tr("an organ mesh (step 1)");
-  else if (!stepDone(Step::Frame)) missing = tr("a frame with its camera (step 2)");
-  else if (!stepDone(Step::Contour)) missing = tr("a contour (step 3): %1").arg(QString::fromStdString(imaging::contourProblem(c->contour)));
-  else if (!c->hasPose) missing = tr("a rigid alignment (step 4)");
-  if (!missing.isEmpty()) {
-    fitStatus_->setText(tr("The fit needs %1.").arg(missing));
+  if (!doc_->hasCase()) return;
+  const auto c = doc_->data();
+  if (const std::string missing = app::missingFor(*c, Step::Elastic); !missing.empty()) {
+    fitStatus_->setText(tr("The fit needs %1.").arg(QString::fromStdString(missing)));
     return;
   }
   setStep(Step::Elastic);
   fitSeries_->clear();
   fitAxisY_->setRange(0, 10);
   fitAxisX_->setRange(0, 1);
-  const bool rigid = fitRigid_->isChecked();
+  // The case's organ, attachments and material (the Simulation panel's), through the one fit pipeline.
+  app::FitInput input = app::fitInputFromCase(*c);
+  input.rigidPrepass = fitRigid_->isChecked();
   fitStatus_->setText(tr("Fitting... (Esc cancels)"));
-  runJob(tr("Elastic fit..."), [this, c, rigid](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
+  runJob(tr("Elastic fit..."), [this, c, input](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
     try {
-      simcore::Scene preset = phantom::makePreset("liver", c->volume, c->attachments);
-      phantom::setMaterialModel(preset, simcore::MaterialModel::Corotational);
-      const simcore::FemModel model = simcore::FemModel::build(preset.mesh, preset.materials, preset.defaultMaterial);
-      simcore::SimulationSettings settings;
-      settings.gravity.setZero();
-      const auto segments = imaging::silhouetteSegments(c->contour);
-      simcore::RegistrationOptions o;
-      o.rigidPrepass = rigid;
-      for (const auto& s : imaging::anatomicalSegments(c->contour)) o.curves.push_back({s.modelVertices, s.points, s.type});
-      o.onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
-        // Live: the organ deforms over the frame and the chart grows (on the GUI thread).
-        auto preview = std::make_shared<phantom::Case>(*c);
-        preview->fitted.resize(preview->volume.points.size());
-        for (std::size_t i = 0; i < preview->fitted.size(); ++i) preview->fitted[i] = x.segment<3>(3 * i);
+      auto onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
+        // Live: the organ deforms over the frame and the chart grows (on the GUI thread), as a preview.
+        auto preview = std::make_shared<app::Case>(*c);
+        simcore::RegistrationResult partial;
+        partial.x = x;
+        preview->fit = app::toCasePart(partial);
         preview->pose = pose;
         const double t = it.wallMs / 1000.0, px = it.score();
         QMetaObject::invokeMethod(this, [this, preview, t, px] {
@@ -755,27 +689,24 @@ void MainWindow::runElasticFit() {
         progress(std::min(0.95, 0.05 + 0.045 * it.iteration), QStringLiteral("%1 px").arg(px, 0, 'f', 2));
         return !cancel.load();
       };
-      const simcore::RegistrationResult r =
-          simcore::registerToContour(model, c->attachments, settings, c->surface, segments, c->pose, c->camera.pinhole(), o);
+      const simcore::RegistrationResult r = app::runElasticFit(input, onIteration);
       const QString status = QString::fromStdString(r.status);
       if (r.cancelled || !r.ok) {
         return [this, status, cancelled = r.cancelled] {
-          view_->setCase(case_.data);  // back to the case as it was
+          view_->setCase(doc_->data());  // back to the case as it was
           fitStatus_->setText(cancelled ? tr("Cancelled; the case is unchanged.") : tr("The fit failed: %1").arg(status));
           statusCase_->setText(fitStatus_->text());
         };
       }
-      std::vector<Eigen::Vector3d> fitted(static_cast<std::size_t>(r.x.size() / 3));
-      for (std::size_t i = 0; i < fitted.size(); ++i) fitted[i] = r.x.segment<3>(3 * i);
+      auto fit = app::toCasePart(r);
       const Pose pose = r.pose;
       const double ms = r.iterations.back().wallMs;
-      return [this, fitted, pose, status, ms] {
-        editCase(tr("Elastic fit"), [&](phantom::Case& k) {
-          k.fitted = fitted;
-          k.fitStatus = status.toStdString();
+      return [this, fit, pose, status, ms] {
+        doc_->edit(tr("Elastic fit"), [&](app::Case& k) {
+          k.fit = fit;
           k.pose = pose;
         });
-        fitUndoIndex_ = undo_.index();
+        fitUndoIndex_ = doc_->undoStack()->index();
         fitKeep_->setEnabled(true);
         fitRevert_->setEnabled(true);
         fitStatus_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).").arg(status).arg(ms / 1000.0, 0, 'f', 1));
@@ -784,7 +715,7 @@ void MainWindow::runElasticFit() {
     } catch (const std::exception& e) {
       const QString message = QString::fromUtf8(e.what());
       return [this, message] {
-        view_->setCase(case_.data);
+        view_->setCase(doc_->data());
         fitStatus_->setText(tr("The fit failed: %1").arg(message));
       };
     }
@@ -812,7 +743,7 @@ QWidget* MainWindow::buildRigidPage() {
     poseFields_[k] = s;
     form->addRow(tr(names[k]), s);
     connect(s, &QDoubleSpinBox::valueChanged, this, [this] {
-      if (updatingPanels_ || !case_.data) return;
+      if (updatingPanels_ || !doc_->data()) return;
       Pose p;
       p.t = Eigen::Vector3d(poseFields_[0]->value(), poseFields_[1]->value(), poseFields_[2]->value()) * 1e-3;
       const double d = M_PI / 180;
@@ -820,7 +751,7 @@ QWidget* MainWindow::buildRigidPage() {
              Eigen::AngleAxisd(poseFields_[4]->value() * d, Eigen::Vector3d::UnitY()) *
              Eigen::AngleAxisd(poseFields_[3]->value() * d, Eigen::Vector3d::UnitX()))
                 .toRotationMatrix();
-      editCase(tr("Edit pose"), [p](phantom::Case& k) {
+      doc_->edit(tr("Edit pose"), [p](app::Case& k) {
         k.pose = p;
         k.hasPose = true;
         k.poseAligned = true;
@@ -830,7 +761,7 @@ QWidget* MainWindow::buildRigidPage() {
   l->addWidget(box);
   auto* reset = new QPushButton(tr("Reset to Automatic Placement"), page);
   connect(reset, &QPushButton::clicked, this, [this] {
-    editCase(tr("Reset pose"), [](phantom::Case& k) {
+    doc_->edit(tr("Reset pose"), [](app::Case& k) {
       k.pose = k.automaticPose();
       k.hasPose = true;
       k.poseAligned = false;
@@ -873,7 +804,7 @@ QWidget* MainWindow::buildRigidPage() {
 void MainWindow::setStep(Step s) {
   step_ = s;
   const int row = static_cast<int>(s);
-  if (row < 5) {
+  if (row < steps_->count()) {
     steps_->setCurrentIndex(row);
     if (workflow_->currentRow() != row) workflow_->setCurrentRow(row);
   }
@@ -886,34 +817,19 @@ void MainWindow::setStep(Step s) {
   updateWorkflow();
 }
 
-bool MainWindow::stepDone(Step s) const {
-  const auto& c = case_.data;
-  if (!c) return false;
-  switch (s) {
-    case Step::Mesh: return !c->volume.tets.empty();
-    case Step::Frame: return !c->frame.empty() && c->camera.problem().empty();
-    case Step::Contour: return imaging::contourProblem(c->contour).empty();
-    case Step::Rigid: return c->hasPose && c->poseAligned;
-    case Step::Elastic: return !c->fitted.empty();
-    default: return false;
-  }
-}
+bool MainWindow::stepDone(Step s) const { return doc_->hasCase() && app::stepDone(*doc_->data(), s); }
 
 void MainWindow::updateWorkflow() {
-  if (!workflow_) return;
-  int next = -1;
-  for (int i = 0; i < 5; ++i)
-    if (!stepDone(static_cast<Step>(i))) {
-      next = i;
-      break;
-    }
-  for (int i = 0; i < 7; ++i) {
+  if (!workflow_ || !doc_->hasCase()) return;
+  const int next = app::nextStep(*doc_->data());
+  for (int i = 0; i < app::kStepCount; ++i) {
     auto* item = workflow_->item(i);
-    QString text = tr(kStepNames[i]);
+    const auto& info = app::kSteps[static_cast<std::size_t>(i)];
+    QString text = stepName(i);
     QFont f = item->font();
     f.setBold(i == next);
     item->setFont(f);
-    if (i < 5 && stepDone(static_cast<Step>(i))) text += QStringLiteral("   \u2713");
+    if (info.available && stepDone(info.step)) text += QStringLiteral("   \u2713");
     else if (i == next) text += tr("   (next)");
     item->setText(text);
   }
@@ -921,25 +837,14 @@ void MainWindow::updateWorkflow() {
 
 // ----------------------------------------------------------------------------------- case and commands
 
-void MainWindow::editCase(const QString& text, const std::function<void(phantom::Case&)>& edit, int mergeId) {
-  if (!case_.data) return;
-  auto after = std::make_shared<phantom::Case>(*case_.data);
-  edit(*after);
-  undo_.push(new CaseCommand(this, case_.data, std::move(after), text, mergeId));
-}
-
-void MainWindow::setCaseData(std::shared_ptr<const phantom::Case> data) {
-  const bool frameChanged = !case_.data || case_.data->frame.data != data->frame.data;
-  const bool meshChanged = !case_.data || case_.data->volume.points.size() != data->volume.points.size() ||
-                           case_.data->volume.tets != data->volume.tets;
-  case_.data = std::move(data);
-  if (frameChanged) case_.frame = toQImage(case_.data->frame);
-  if (meshChanged) case_.qualityText = case_.data->volume.empty() ? QString() : QString::fromStdString(simcore::formatQuality(case_.data->quality));
-  view_->setCase(case_.data);
-  if (organView_) organView_->setCase(case_.data);
-  if (organGLView_) organGLView_->setCase(case_.data);
-  simulation_->setOrgan(case_.data);
-  if (frameChanged) view_->setFrame(case_.frame);
+void MainWindow::onCaseChanged(CaseDocument::Parts parts) {
+  const auto& data = doc_->data();
+  if (parts & CaseDocument::OrganPart) labelVisible_.clear();
+  view_->setCase(data);
+  if (organView_) organView_->setCase(data);
+  if (organGLView_) organGLView_->setCase(data);
+  simulation_->setCase(data);
+  if (parts & CaseDocument::FramePart) view_->setFrame(doc_->frameImage());
   refreshOverlay();
   showCaseInfo();
   refreshPanels();
@@ -947,9 +852,9 @@ void MainWindow::setCaseData(std::shared_ptr<const phantom::Case> data) {
 }
 
 void MainWindow::refreshOverlay() {
-  const auto& c = case_.data;
+  const auto& c = doc_->data();
   contourDistance_ = -1;
-  if (!c || c->surface.empty() || !c->hasPose || !c->camera.problem().empty()) {
+  if (!c || c->organ->surface.empty() || !c->hasPose || !c->camera.problem().empty()) {
     view_->setOverlay({}, {});
     view_->setInnerOverlay({});
     statusDistance_->clear();
@@ -966,38 +871,28 @@ void MainWindow::refreshOverlay() {
     cam.K(0, 2) = s * (c->camera.cx() + 0.5) - 0.5;
     cam.K(1, 2) = s * (c->camera.cy() + 0.5) - 0.5;
   }
-  case_.organOverlay = organImage(cam, c->pose, c->surfaceView(), QColor(120, 210, 150));
-  const cv::Mat overlay(case_.organOverlay.height(), case_.organOverlay.width(), CV_8UC4, const_cast<uchar*>(case_.organOverlay.constBits()),
-                        static_cast<std::size_t>(case_.organOverlay.bytesPerLine()));
+  organOverlay_ = organImage(cam, c->pose, c->surfaceView(), QColor(120, 210, 150));
+  const cv::Mat overlay(organOverlay_.height(), organOverlay_.width(), CV_8UC4, const_cast<uchar*>(organOverlay_.constBits()),
+                        static_cast<std::size_t>(organOverlay_.bytesPerLine()));
   cv::Mat1b mask;
   cv::extractChannel(overlay, mask, 3);
   std::vector<std::vector<cv::Point>> contours;
   cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-  case_.silhouette.clear();
+  silhouette_.clear();
   for (const auto& ct : contours) {
     QPolygonF poly;
     for (const auto& p : ct) poly << QPointF((p.x + 0.5) / s, (p.y + 0.5) / s);
-    case_.silhouette << poly;
+    silhouette_ << poly;
   }
-  view_->setOverlay(case_.organOverlay, case_.silhouette);
-  // Inner structures the user ticked, drawn over the organ.
+  view_->setOverlay(organOverlay_, silhouette_);
+  // Inner structures the user ticked, drawn over the organ, on the organ's current shape (fitted or rest).
+  std::vector<int> shown;
+  for (const auto& [label, visible] : labelVisible_)
+    if (visible && label != app::kParenchymaLabel) shown.push_back(label);
   std::vector<std::array<int, 3>> inner;
-  int innerLabel = -1;
-  for (std::size_t i = 0; i < c->innerSurface.size(); ++i) {
-    const int l = c->innerSurfaceLabels[i];
-    if (labelVisible_.count(l) && labelVisible_[l]) {
-      inner.push_back(c->innerSurface[i]);
-      innerLabel = l;
-    }
-  }
-  if (!inner.empty()) {
-    SurfaceView v = c->volume.surfaceView();
-    v.triangles = inner.front().data();
-    v.triangleCount = inner.size();
-    view_->setInnerOverlay(organImage(cam, c->pose, v, labelColour(innerLabel)));
-  } else {
-    view_->setInnerOverlay({});
-  }
+  const SurfaceView innerView = c->innerSurfaceView(shown, inner);
+  if (!inner.empty()) view_->setInnerOverlay(organImage(cam, c->pose, innerView, labelColour(shown.back())));
+  else view_->setInnerOverlay({});
   // The distance the elastic fit measures: the silhouette contour's points to the organ's visible
   // silhouette (its bent edges), in pixels of the frame.
   simcore::Residual2D d;
@@ -1006,7 +901,7 @@ void MainWindow::refreshOverlay() {
     Eigen::VectorXd x(3 * static_cast<Eigen::Index>(sv.vertexCount));
     for (std::size_t i = 0; i < sv.vertexCount; ++i) x.segment<3>(3 * static_cast<Eigen::Index>(i)) = sv.vertex(i);
     try {
-      d = simcore::contourResidual(segments, simcore::visibleSilhouette(c->surface, x, c->pose, c->camera.pinhole()));
+      d = simcore::contourResidual(segments, simcore::visibleSilhouette(c->organ->surface, x, c->pose, c->camera.pinhole()));
     } catch (const std::exception&) {
       d = {};  // behind the camera: no distance to show
     }
@@ -1024,7 +919,7 @@ void MainWindow::refreshOverlay() {
 }
 
 void MainWindow::refreshPanels() {
-  const auto& c = case_.data;
+  const auto& c = doc_->data();
   if (!c) return;
   updatingPanels_ = true;
   // Step 1: labels and attachments.
@@ -1033,10 +928,10 @@ void MainWindow::refreshPanels() {
                                  : tr("Ligament attachments: %n node(s).", nullptr, static_cast<int>(c->attachments.size())));
   labels_->clear();
   std::map<int, std::size_t> counts;
-  for (int l : c->volume.tetLabels) counts[l]++;
+  for (int l : c->organ->volume.tetLabels) counts[l]++;
   for (const auto& [label, n] : counts) {
     auto* item = new QTreeWidgetItem(labels_);
-    const std::string name = c->volume.labelName(label);
+    const std::string name = c->organ->volume.labelName(label);
     item->setText(0, QStringLiteral("%1 %2").arg(label).arg(QString::fromStdString(name)));
     item->setText(1, QString::number(n));
     item->setData(0, Qt::UserRole, label);
@@ -1124,7 +1019,7 @@ void MainWindow::setTargetTets(int n) { targetTets_->setValue(n); }
 void MainWindow::setMeshUnit(const QString& unit) { meshUnit_->setCurrentText(unit); }
 
 void MainWindow::importMesh(const QString& path) {
-  if (!case_.data) return;
+  if (!doc_->data()) return;
   const int target = targetTets_->value();
   const std::string unit = meshUnit_->currentText().toStdString();
   QSettings().setValue(QStringLiteral("mesh/targetTets"), target);
@@ -1144,31 +1039,14 @@ void MainWindow::importMesh(const QString& path) {
       m.triangles.clear();
       m.triangleLabels.clear();
       // Surfaces and quality of the new mesh are derived here, off the GUI thread.
-      auto prepared = std::make_shared<phantom::Case>();
-      prepared->volume = std::move(m);
-      prepared->deriveFromVolume();
+      auto prepared = app::Organ::fromVolume(std::move(m), path.toStdString());
       QStringList qnotes;
       for (const auto& n : notes) qnotes << QString::fromStdString(n);
       return [this, prepared, path, qnotes] {
-        editCase(tr("Import mesh"), [&](phantom::Case& k) {
-          k.volume = prepared->volume;
-          k.surface = prepared->surface;
-          k.innerSurface = prepared->innerSurface;
-          k.innerSurfaceLabels = prepared->innerSurfaceLabels;
-          k.quality = prepared->quality;
-          k.attachments.clear();
-          k.fitted.clear();
-          k.fitStatus.clear();
-          k.hasGroundTruth = false;
-          k.vesselTree.clear();
-          k.meshSource = path.toStdString();
-          k.pose = k.automaticPose();
-          k.hasPose = true;
-          k.poseAligned = false;
-        });
-        case_.notes = qnotes;
+        doc_->edit(tr("Import mesh"), [&](app::Case& k) { k.setOrgan(prepared); });
+        importNotes_ = qnotes;
         showCaseInfo();
-        statusCase_->setText(tr("Imported %1: %2 tetrahedra").arg(QFileInfo(path).fileName()).arg(case_.data->volume.tets.size()));
+        statusCase_->setText(tr("Imported %1: %2 tetrahedra").arg(QFileInfo(path).fileName()).arg(doc_->data()->organ->volume.tets.size()));
         emit meshImported(true, {});
       };
     } catch (const simcore::Cancelled&) {
@@ -1296,17 +1174,17 @@ void MainWindow::showVideoFrame(int index) {
 }
 
 void MainWindow::useShownFrame() {
-  if (shownFrame_.empty() || !case_.data) return;
+  if (shownFrame_.empty() || !doc_->data()) return;
   cv::Mat3b frame = shownFrame_.clone();
   const int shown = shownVideoFrame_;
   const bool fromVideo = video_ != nullptr && videoFrames_ > 0;
-  editCase(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame](phantom::Case& k) {
+  doc_->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame](app::Case& k) {
     if (k.camera.width != frame.cols || k.camera.height != frame.rows) {
       // A frame of another size keeps no stale calibration: the stated default, editable in the panel.
       k.camera = imaging::Camera::defaultFor(frame.cols, frame.rows);
     }
     k.rawFrame = frame;
-    undistortFrame(k);
+    app::undistortFrame(k);
     k.contour.width = frame.cols;
     k.contour.height = frame.rows;
   });
@@ -1314,17 +1192,17 @@ void MainWindow::useShownFrame() {
 }
 
 void MainWindow::loadCalibration(const QString& path) {
-  if (!case_.data) return;
+  if (!doc_->data()) return;
   try {
-    const int w = case_.data->frame.empty() ? 0 : case_.data->frame.cols, h = case_.data->frame.empty() ? 0 : case_.data->frame.rows;
+    const int w = doc_->data()->frame.empty() ? 0 : doc_->data()->frame.cols, h = doc_->data()->frame.empty() ? 0 : doc_->data()->frame.rows;
     imaging::Camera cam = imaging::loadCamera(path.toStdString(), w, h);
     if (w > 0 && (cam.width != w || cam.height != h))
       throw imaging::InputError(tr("The calibration is for %1x%2 images but the frame is %3x%4; choose the matching calibration.")
                                     .arg(cam.width).arg(cam.height).arg(w).arg(h).toStdString());
-    editCase(tr("Load calibration"), [cam](phantom::Case& k) {
+    doc_->edit(tr("Load calibration"), [cam](app::Case& k) {
       if (k.rawFrame.empty()) k.rawFrame = k.frame;  // the frame so far was taken as captured
       k.camera = cam;
-      undistortFrame(k);
+      app::undistortFrame(k);
     });
     statusCase_->setText(tr("Calibration loaded from %1.").arg(QFileInfo(path).fileName()));
   } catch (const std::exception& e) {
@@ -1335,11 +1213,11 @@ void MainWindow::loadCalibration(const QString& path) {
 void MainWindow::importContour(const QString& path) {
   try {
     imaging::Contour c = imaging::loadContour(path.toStdString());
-    if (case_.data && !case_.data->frame.empty() && c.width == 0) {
-      c.width = case_.data->frame.cols;
-      c.height = case_.data->frame.rows;
+    if (doc_->data() && !doc_->data()->frame.empty() && c.width == 0) {
+      c.width = doc_->data()->frame.cols;
+      c.height = doc_->data()->frame.rows;
     }
-    editCase(tr("Import contour"), [&c](phantom::Case& k) { k.contour = c; });
+    doc_->edit(tr("Import contour"), [&c](app::Case& k) { k.contour = c; });
     setStep(Step::Contour);
     statusCase_->setText(tr("Contour imported: %1 segments.").arg(c.segments.size()));
   } catch (const std::exception& e) {
@@ -1348,9 +1226,9 @@ void MainWindow::importContour(const QString& path) {
 }
 
 void MainWindow::exportContour(const QString& path) {
-  if (!case_.data) return;
+  if (!doc_->data()) return;
   try {
-    imaging::saveContour(case_.data->contour, path.toStdString());
+    imaging::saveContour(doc_->data()->contour, path.toStdString());
     statusCase_->setText(tr("Contour exported to %1.").arg(path));
   } catch (const std::exception& e) {
     statusCase_->setText(QString::fromUtf8(e.what()));
@@ -1358,7 +1236,7 @@ void MainWindow::exportContour(const QString& path) {
 }
 
 void MainWindow::solvePnP() {
-  if (!case_.data) return;
+  if (!doc_->data()) return;
   std::vector<cv::Point3d> object;
   std::vector<cv::Point2d> image;
   for (const auto& l : landmarks_)
@@ -1370,7 +1248,7 @@ void MainWindow::solvePnP() {
     statusCase_->setText(tr("Pick at least 4 landmark pairs first."));
     return;
   }
-  const auto& cam = case_.data->camera;
+  const auto& cam = doc_->data()->camera;
   cv::Mat K(3, 3, CV_64F);
   for (int r = 0; r < 3; ++r)
     for (int c = 0; c < 3; ++c) K.at<double>(r, c) = cam.K(r, c);
@@ -1405,7 +1283,7 @@ void MainWindow::solvePnP() {
   }
   {
     cv::Mat R0(3, 3, CV_64F), rv, tv(3, 1, CV_64F);
-    const Pose& p0 = case_.data->pose;
+    const Pose& p0 = doc_->data()->pose;
     for (int r = 0; r < 3; ++r) {
       for (int c = 0; c < 3; ++c) R0.at<double>(r, c) = p0.R(r, c);
       tv.at<double>(r) = p0.t[r];
@@ -1428,7 +1306,7 @@ void MainWindow::solvePnP() {
     for (int c = 0; c < 3; ++c) p.R(r, c) = R.at<double>(r, c);
     p.t[r] = tvec.at<double>(r);
   }
-  editCase(tr("Pose from landmarks"), [p](phantom::Case& k) {
+  doc_->edit(tr("Pose from landmarks"), [p](app::Case& k) {
     k.pose = p;
     k.hasPose = true;
     k.poseAligned = true;
@@ -1438,29 +1316,10 @@ void MainWindow::solvePnP() {
 
 // ------------------------------------------------------------------------------------------- files
 
-QString MainWindow::autosavePath() {
-  return QStandardPaths::writableLocation(QStandardPaths::AppDataLocation) + QStringLiteral("/autosave.rehearse");
-}
-
-bool MainWindow::hasRecoverableAutosave() { return isCaseFile(autosavePath()); }
-
-void MainWindow::autosaveNow() {
-  if (!case_.data) return;
-  QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
-  saveCaseFile(*case_.data, autosavePath());
-}
-
-QStringList MainWindow::recentFiles() const { return QSettings().value(QStringLiteral("recentFiles")).toStringList(); }
-
-void MainWindow::addRecent(const QString& path) {
-  QSettings s;
-  QStringList list = s.value(QStringLiteral("recentFiles")).toStringList();
-  list.removeAll(path);
-  list.prepend(path);
-  while (list.size() > 8) list.removeLast();
-  s.setValue(QStringLiteral("recentFiles"), list);
-  rebuildRecentMenu();
-}
+QString MainWindow::autosavePath() { return CaseDocument::autosavePath(); }
+bool MainWindow::hasRecoverableAutosave() { return CaseDocument::hasRecoverableAutosave(); }
+void MainWindow::autosaveNow() { doc_->autosaveNow(); }
+QStringList MainWindow::recentFiles() const { return doc_->recentFiles(); }
 
 void MainWindow::rebuildRecentMenu() {
   if (!recentMenu_) return;
@@ -1475,26 +1334,13 @@ void MainWindow::rebuildRecentMenu() {
 }
 
 void MainWindow::saveCaseAs(const QString& path) {
-  if (!case_.data || saveWatcher_.isRunning()) {
-    emit caseSaved(false, tr("Nothing to save yet."));
-    return;
-  }
-  savingPath_ = path;
-  statusCase_->setText(tr("Saving %1...").arg(path));
-  auto data = case_.data;
-  saveWatcher_.setFuture(QtConcurrent::run([data, path]() -> QString {
-    try {
-      saveCaseFile(*data, path);
-      return {};
-    } catch (const std::exception& e) {
-      return QString::fromUtf8(e.what());
-    }
-  }));
+  if (doc_->hasCase() && !doc_->isSaving()) statusCase_->setText(tr("Saving %1...").arg(path));
+  doc_->saveAs(path);
 }
 
 void MainWindow::save() {
-  if (currentPath_.isEmpty() || !isCaseFile(currentPath_)) saveAs();
-  else saveCaseAs(currentPath_);
+  if (doc_->path().isEmpty() || !isCaseFile(doc_->path())) saveAs();
+  else saveCaseAs(doc_->path());
 }
 
 void MainWindow::saveAs() {
@@ -1594,16 +1440,17 @@ void MainWindow::buildMenus() {
   quit->setShortcut(QKeySequence::Quit);
 
   QMenu* edit = menuBar()->addMenu(tr("&Edit"));
-  QAction* undo = undo_.createUndoAction(this, tr("&Undo"));
+  QAction* undo = doc_->undoStack()->createUndoAction(this, tr("&Undo"));
   undo->setShortcut(QKeySequence::Undo);
-  QAction* redo = undo_.createRedoAction(this, tr("&Redo"));
+  QAction* redo = doc_->undoStack()->createRedoAction(this, tr("&Redo"));
   redo->setShortcut(QKeySequence::Redo);
   edit->addAction(undo);
   edit->addAction(redo);
 
   QMenu* stepMenu = menuBar()->addMenu(tr("&Step"));
-  for (int i = 0; i < 5; ++i) {
-    QAction* a = stepMenu->addAction(tr(kStepNames[i]), this, [this, i] { setStep(static_cast<Step>(i)); });
+  for (int i = 0; i < app::kStepCount; ++i) {
+    if (!app::kSteps[static_cast<std::size_t>(i)].available) continue;
+    QAction* a = stepMenu->addAction(stepName(i), this, [this, i] { setStep(static_cast<Step>(i)); });
     a->setShortcut(QKeySequence(Qt::ALT | static_cast<Qt::Key>(Qt::Key_1 + i)));
   }
 
@@ -1707,72 +1554,52 @@ void MainWindow::setBusy(bool busy, const QString& message) {
 }
 
 void MainWindow::openCase(const QString& path) {
-  if (watcher_.isRunning()) {
-    cancel_ = true;
-    watcher_.waitForFinished();
-  }
-  cancel_ = false;
-  loadingDir_ = path;
   setBusy(true, path.isEmpty() ? tr("Generating the built-in phantom case...") : tr("Opening %1...").arg(path));
-  auto progress = [this](double f, const QString& stage) {
-    QMetaObject::invokeMethod(this, [this, f, stage] {
-      progress_->setValue(static_cast<int>(100 * f));
-      progress_->setFormat(stage + QStringLiteral(" %p%"));
-    }, Qt::QueuedConnection);
-  };
-  watcher_.setFuture(QtConcurrent::run([path, progress, this] { return loadCase(path, progress, &cancel_); }));
+  doc_->open(path);
 }
 
 void MainWindow::cancelLoading() {
-  if (watcher_.isRunning() || jobWatcher_.isRunning()) cancel_ = true;
+  doc_->cancelLoading();
+  if (jobWatcher_.isRunning()) cancel_ = true;
 }
 
-void MainWindow::onLoadFinished() {
+void MainWindow::onLoadFinished(bool ok, const QString& error) {
   setBusy(false);
-  LoadedCase loaded = watcher_.result();
-  if (!loaded.error.isEmpty()) {
-    statusCase_->setText(loaded.error);  // the current case stays untouched
+  if (!ok) {
+    statusCase_->setText(error);  // the current case stays untouched
     emit caseLoaded(false);
     return;
   }
-  auto data = loaded.data;
-  case_ = std::move(loaded);
-  case_.data = nullptr;  // setCaseData compares with the previous data
-  undo_.clear();
   fitUndoIndex_ = -1;
+  importNotes_.clear();
+  showCaseInfo();
   landmarks_.clear();
   view_->setLandmarks(landmarks_);
-  labelVisible_.clear();
-  currentPath_ = isCaseFile(loadingDir_) && loadingDir_ != autosavePath() ? loadingDir_ : QString();
-  if (!currentPath_.isEmpty()) addRecent(currentPath_);
-  setCaseData(data);
   view_->fitToWindow();
-  const QString name = currentPath_.isEmpty() ? QString::fromStdString(case_.data->name) : QFileInfo(currentPath_).fileName();
+  const QString name = doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
   setWindowTitle(tr("%1 - Rehearse").arg(name));
-  statusCase_->setText(tr("%1 loaded in %2 s").arg(name).arg(case_.seconds, 0, 'f', 2) +
-                       (case_.notes.isEmpty() ? QString() : tr(" (%1 problems, see the Case panel)").arg(case_.notes.size())));
+  statusCase_->setText(tr("%1 loaded in %2 s").arg(name).arg(doc_->loadSeconds(), 0, 'f', 2) +
+                       (doc_->notes().isEmpty() ? QString() : tr(" (%1 problems, see the Case panel)").arg(doc_->notes().size())));
   // Go to the first step that is not done yet.
-  for (int i = 0; i < 4; ++i)
-    if (!stepDone(static_cast<Step>(i))) {
-      setStep(static_cast<Step>(i));
-      break;
-    }
+  const int next = app::nextStep(*doc_->data());
+  if (next < app::index(Step::Elastic)) setStep(static_cast<Step>(next));
   emit caseLoaded(true);
 }
 
 QString MainWindow::infoText() const { return info_->toPlainText(); }
 
 void MainWindow::showCaseInfo() {
-  if (!case_.data) return;
-  const auto& c = *case_.data;
+  if (!doc_->data()) return;
+  const auto& c = *doc_->data();
   QString t;
   t += tr("Case: %1\n").arg(QString::fromStdString(c.name));
-  if (!c.meshSource.empty()) t += tr("Mesh from: %1\n").arg(QString::fromStdString(c.meshSource));
+  if (!c.organ->source.empty()) t += tr("Mesh from: %1\n").arg(QString::fromStdString(c.organ->source));
   t += QLatin1Char('\n');
-  for (const auto& n : case_.notes) t += tr("! %1\n").arg(n);
-  if (!case_.notes.isEmpty()) t += QLatin1Char('\n');
-  t += tr("Organ mesh\n%1\n").arg(case_.qualityText);
-  t += tr("surface triangles: %1\nattachment nodes: %2\n\n").arg(c.surface.size()).arg(c.attachments.size());
+  const QStringList notes = doc_->notes() + importNotes_;
+  for (const auto& n : notes) t += tr("! %1\n").arg(n);
+  if (!notes.isEmpty()) t += QLatin1Char('\n');
+  t += tr("Organ mesh\n%1\n").arg(doc_->qualityText());
+  t += tr("surface triangles: %1\nattachment nodes: %2\n\n").arg(c.organ->surface.size()).arg(c.attachments.size());
   const auto& cam = c.camera;
   t += tr("Camera\nimage: %1 x %2 px\nfx %3  fy %4 px\ncx %5  cy %6 px\ndistortion: %7 %8 %9 %10 %11\n\n")
            .arg(cam.width).arg(cam.height)
@@ -1786,9 +1613,9 @@ void MainWindow::showCaseInfo() {
     return s;
   };
   if (c.hasPose) t += tr("Pose (model to camera, %1)\n%2\n").arg(c.poseAligned ? tr("aligned") : tr("automatic placement"), poseText(c.pose));
-  if (c.hasGroundTruth) {
-    t += tr("Ground-truth pose\n%1").arg(poseText(c.truePose));
-    const auto& a = c.trueAppearance;
+  if (c.groundTruth) {
+    t += tr("Ground-truth pose\n%1").arg(poseText(c.groundTruth->pose));
+    const auto& a = c.groundTruth->appearance;
     t += tr("\nLight (ground truth)\nposition: %1, %2, %3 mm\nkd: %4 %5 %6\nks: %7 %8 %9\nroughness: %10 rad\n")
              .arg(a.lightPosition.x() * 1e3).arg(a.lightPosition.y() * 1e3).arg(a.lightPosition.z() * 1e3)
              .arg(a.kd.x()).arg(a.kd.y()).arg(a.kd.z()).arg(a.ks.x()).arg(a.ks.y()).arg(a.ks.z()).arg(a.roughness);
@@ -1800,9 +1627,9 @@ void MainWindow::closeEvent(QCloseEvent* e) {
   cancelLoading();
   cameraTimer_.stop();
   jobWatcher_.waitForFinished();
-  saveWatcher_.waitForFinished();
-  // A clean exit leaves no autosave behind: its presence at start means the last session crashed.
-  QFile::remove(autosavePath());
+  // A clean exit leaves no autosave behind (after waiting for one being written): its presence at start
+  // means the last session crashed.
+  doc_->closeCleanly();
   QSettings settings;
   settings.setValue(QStringLiteral("window/geometry"), saveGeometry());
   settings.setValue(QStringLiteral("window/state"), saveState());

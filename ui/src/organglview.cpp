@@ -67,7 +67,7 @@ bool OrganGLView::openGLAvailable() {
   return ok;
 }
 
-void OrganGLView::setCase(std::shared_ptr<const phantom::Case> c) {
+void OrganGLView::setCase(std::shared_ptr<const app::Case> c) {
   if (sameMesh(case_.get(), c.get())) {
     case_ = std::move(c);
     return;
@@ -91,20 +91,20 @@ void OrganGLView::initializeGL() {
 void OrganGLView::upload() {
   dirty_ = false;
   vertexCount_ = organCount_ = 0;
-  if (!case_ || case_->surface.empty()) return;
+  if (!case_ || case_->organ->surface.empty()) return;
   // Flat arrays: position, normal, colour per vertex; outer surface first, then inner structures.
   std::vector<float> data;
   auto add = [&](const std::array<int, 3>& t, const Eigen::Vector3f& colour) {
-    const Eigen::Vector3d a = case_->volume.points[t[0]], b = case_->volume.points[t[1]], c = case_->volume.points[t[2]];
+    const Eigen::Vector3d a = case_->shapeNodes()[t[0]], b = case_->shapeNodes()[t[1]], c = case_->shapeNodes()[t[2]];
     const Eigen::Vector3d n = (b - a).cross(c - a).normalized();
     for (const auto& p : {a, b, c}) {
       data.insert(data.end(), {float(p.x()), float(p.y()), float(p.z()), float(n.x()), float(n.y()), float(n.z()), colour.x(),
                                colour.y(), colour.z()});
     }
   };
-  for (const auto& t : case_->surface) add(t, {0.85f, 0.55f, 0.45f});
-  organCount_ = static_cast<int>(case_->surface.size() * 3);
-  for (const auto& t : case_->innerSurface) add(t, {0.35f, 0.55f, 1.0f});
+  for (const auto& t : case_->organ->surface) add(t, {0.85f, 0.55f, 0.45f});
+  organCount_ = static_cast<int>(case_->organ->surface.size() * 3);
+  for (const auto& t : case_->organ->innerSurface) add(t, {0.35f, 0.55f, 1.0f});
   vertexCount_ = static_cast<int>(data.size() / 9);
   vao_.bind();
   vbo_.bind();
@@ -125,8 +125,8 @@ void OrganGLView::paintGL() {
   if (!ready_) return;
   if (dirty_) upload();
   if (vertexCount_ == 0) return;
-  const Eigen::Vector3d cog = case_->centreOfGravity();
-  const double size = case_->volume.bounds().sizes().maxCoeff();
+  const Eigen::Vector3d cog = case_->organ->centreOfGravity;
+  const double size = case_->organ->volume.bounds().sizes().maxCoeff();
   QMatrix4x4 proj, view;
   proj.perspective(50.0f, float(width()) / std::max(1, height()), float(size * 0.05), float(size * 20));
   // Camera looks down -z in OpenGL; turn the organ with yaw and pitch about its centre.

@@ -20,7 +20,7 @@ OrganView::OrganView(QWidget* parent) : QWidget(parent) {
   setToolTip(tr("Drag to turn the organ, wheel to zoom, double-click to reset"));
 }
 
-void OrganView::setCase(std::shared_ptr<const phantom::Case> c) {
+void OrganView::setCase(std::shared_ptr<const app::Case> c) {
   // Only the mesh matters here: skip re-rendering when only the contour or the pose changed.
   if (sameMesh(case_.get(), c.get())) {
     case_ = std::move(c);
@@ -34,7 +34,7 @@ void OrganView::setCase(std::shared_ptr<const phantom::Case> c) {
 void OrganView::render() {
   dirty_ = false;
   image_ = QImage();
-  if (!case_ || case_->surface.empty() || width() < 10 || height() < 10) return;
+  if (!case_ || case_->organ->surface.empty() || width() < 10 || height() < 10) return;
   // Rendered in device pixels (sharp on HiDPI screens), drawn at the widget's logical size.
   const double dpr = std::max(1.0, devicePixelRatioF());
   const int W = static_cast<int>(std::lround(width() * dpr)), H = static_cast<int>(std::lround(height() * dpr));
@@ -43,20 +43,20 @@ void OrganView::render() {
   cam.height = H;
   const double f = 1.1 * std::min(W, H);
   cam.K << f, 0, (W - 1) / 2.0, 0, f, (H - 1) / 2.0, 0, 0, 1;
-  const Eigen::Vector3d cog = case_->centreOfGravity();
-  const double size = case_->volume.bounds().sizes().maxCoeff();
+  const Eigen::Vector3d cog = case_->organ->centreOfGravity;
+  const double size = case_->organ->volume.bounds().sizes().maxCoeff();
   Pose p;
   p.R = (Eigen::AngleAxisd(turntable_.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(turntable_.yaw, Eigen::Vector3d::UnitY())).toRotationMatrix();
   p.t = Eigen::Vector3d(0, 0, 1.05 * size / turntable_.zoom) - p.R * cog;
   cv::Mat4b organ = imaging::renderOverlay(cam, p, case_->surfaceView(), cv::Vec3b(120, 150, 215));
   // Inner structures (labels other than the outer one), drawn over it half-transparent.
-  const auto& inner = case_->innerSurface;
+  const auto& inner = case_->organ->innerSurface;
   cv::Mat rgba;
   cv::cvtColor(organ, rgba, cv::COLOR_BGRA2RGBA);
   image_ = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
   QPainter painter(&image_);
   if (!inner.empty()) {
-    SurfaceView v = case_->volume.surfaceView();
+    SurfaceView v = case_->surfaceView();  // the organ's current shape (fitted or rest)
     v.triangles = inner.front().data();
     v.triangleCount = inner.size();
     cv::Mat4b in = imaging::renderOverlay(cam, p, v, cv::Vec3b(255, 150, 80));
@@ -69,7 +69,7 @@ void OrganView::render() {
   painter.setPen(Qt::NoPen);
   painter.setBrush(QColor(255, 150, 40));
   for (int a : case_->attachments) {
-    const Eigen::Vector3d x = p.apply(case_->volume.points[a]);
+    const Eigen::Vector3d x = p.apply(case_->shapeNodes()[a]);
     if (x.z() <= 0) continue;
     const auto uv = cam.project(x);
     painter.drawEllipse(QPointF(uv.x(), uv.y()), 2.5 * dpr, 2.5 * dpr);
@@ -90,7 +90,7 @@ void OrganView::paintEvent(QPaintEvent*) {
   painter.drawImage(0, 0, image_);
   painter.setPen(QColor(170, 170, 170));
   painter.drawText(rect().adjusted(6, 4, -6, -4), Qt::AlignLeft | Qt::AlignBottom,
-                   tr("%1 tets, %2 attachments").arg(case_->volume.tets.size()).arg(case_->attachments.size()));
+                   tr("%1 tets, %2 attachments").arg(case_->organ->volume.tets.size()).arg(case_->attachments.size()));
 }
 
 void OrganView::mousePressEvent(QMouseEvent* e) { turntable_.press(e->position()); }

@@ -1,6 +1,6 @@
 #include "rehearse/ui/simulationpanel.hpp"
 
-#include "phantom/presets.hpp"
+#include <rehearse/app/materials.hpp>
 
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/scene.hpp>
@@ -35,24 +35,28 @@ class SimulationWorker : public QObject {
  public:
   void configure(const SimulationSetup& s, bool keepState) {
     try {
-      const bool sameOrgan = setup_.organ && s.organ && sameMesh(setup_.organ.get(), s.organ.get());
+      const bool sameOrgan = setup_.organ && s.organ && sameMesh(setup_.organ.get(), s.organ.get()) &&
+                             setup_.organ->pose.R == s.organ->pose.R && setup_.organ->pose.t == s.organ->pose.t;
       setup_ = s;
-      if (!s.organ || s.organ->volume.tets.empty()) {
+      if (!s.organ || s.organ->organ->empty()) {
         model_.reset();
         integrator_.reset();
         emit failed(tr("No organ volume to simulate; load or tetrahedralise a mesh first."));
         return;
       }
-      const simcore::MaterialParams parenchyma{s.model, s.young, s.poisson, s.density};
-      std::map<int, simcore::MaterialParams> byLabel;
-      if (s.vesselYoung > 0) byLabel[phantom::kVesselLabel] = {s.model, s.vesselYoung, std::min(s.poisson + 0.05, 0.45), s.density};
-      simcore::Mesh mesh = s.organ->volume;
+      const app::LabelMaterials materials = labelMaterials(app::MaterialSettings{s.model, s.young, s.poisson, s.density, s.vesselYoung, s.vesselPoisson});
+      const simcore::MaterialParams& parenchyma = materials.fallback;
+      const auto& byLabel = materials.byLabel;
+      // The organ the surgeon sees: its current shape (fitted or rest) posed in the camera frame.
+      simcore::Mesh mesh = s.organ->organ->volume;
       mesh.convertToMetres();
+      const auto& shape = s.organ->shapeNodes();
+      for (std::size_t i = 0; i < mesh.points.size(); ++i) mesh.points[i] = s.organ->pose.apply(shape[i]);
       auto model = std::make_unique<simcore::FemModel>(simcore::FemModel::build(mesh, byLabel, parenchyma));
       simcore::SimulationSettings settings;
       settings.timeStep = s.timeStep;
       settings.method = s.method;
-      settings.gravity = Eigen::Vector3d(0, s.gravity, 0);
+      settings.gravity = s.gravity;
       auto integrator = std::make_unique<simcore::Integrator>(*model, s.organ->attachments, settings);
       const bool keep = keepState && sameOrgan && state_.x.size() == static_cast<Eigen::Index>(3 * model->nodeCount());
       if (!keep) {
@@ -206,10 +210,11 @@ SimulationView::SimulationView(QWidget* parent) : QWidget(parent) {
 
 void SimulationView::setFrame(std::shared_ptr<const SimulationFrame> f) {
   // The organ's centre and size frame the view: computed once per organ, not on every paint.
-  if (f && f->organ && (!frame_ || !sameMesh(frame_->organ.get(), f->organ.get()))) {
-    const double scale = f->organ->volume.unitToMetre;
-    centre_ = f->organ->centreOfGravity() * scale;
-    size_ = f->organ->volume.bounds().sizes().maxCoeff() * scale;
+  if (f && f->organ && !f->positions.empty() && (!frame_ || frame_->organ != f->organ)) {
+    Eigen::AlignedBox3d box;
+    for (const auto& p : f->positions) box.extend(p);
+    centre_ = box.center();
+    size_ = box.sizes().maxCoeff();
   }
   frame_ = std::move(f);
   update();
@@ -223,7 +228,8 @@ void SimulationView::paintEvent(QPaintEvent*) {
     painter.drawText(rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap, tr("No simulation yet: choose a preset and press Step or Play"));
     return;
   }
-  const phantom::Case& organ = *frame_->organ;
+  const app::Case& organCase = *frame_->organ;
+  const auto& organ = *organCase.organ;
   const Eigen::Vector3d& cog = centre_;
   const double size = size_;
   const Eigen::Matrix3d R =
@@ -265,7 +271,7 @@ void SimulationView::paintEvent(QPaintEvent*) {
   painter.setRenderHint(QPainter::Antialiasing);
   painter.setPen(Qt::NoPen);
   painter.setBrush(QColor(255, 150, 40));
-  for (int a : organ.attachments)
+  for (int a : organCase.attachments)
     if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0) painter.drawEllipse(project(cam[a]), 2.5, 2.5);
   // Colour bar with its unit.
   const QRect bar(width() - 62, 30, 14, height() - 70);
@@ -347,6 +353,12 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   method_->setCurrentIndex(3);
   method_->setToolTip(declared("solver", "method"));
   form->addRow(tr("Solver"), method_);
+  gravity_ = new QComboBox(this);
+  gravity_->setObjectName(QStringLiteral("simGravity"));
+  gravity_->addItems({tr("down in the image"), tr("into the scene"), tr("off")});
+  gravity_->setToolTip(tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it"));
+  form->addRow(tr("Gravity"), gravity_);
+  connect(gravity_, &QComboBox::currentIndexChanged, this, &SimulationPanel::parametersEdited);
   colouring_ = new QComboBox(this);
   colouring_->setObjectName(QStringLiteral("simColouring"));
   colouring_->addItems({tr("displacement (mm)"), tr("von Mises stress (kPa)")});
@@ -392,16 +404,8 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   connect(colouring_, &QComboBox::currentIndexChanged, this, [this](int c) {
     QMetaObject::invokeMethod(worker_, [w = worker_, c] { w->setColouring(c); }, Qt::QueuedConnection);
   });
-  // Plausible soft-tissue values until an organ arrives and its preset fills them (the density then
-  // follows the organ's volume).
-  filling_ = true;
-  model_->setCurrentIndex(static_cast<int>(simcore::MaterialModel::Corotational));
-  young_->setValue(27);
-  poisson_->setValue(0.4);
-  density_->setValue(1060);
-  filling_ = false;
-  updateMass();
-  applyPreset(preset_->currentText());
+  // Plausible soft-tissue values until a case arrives with its material.
+  fillMaterial(app::MaterialSettings{simcore::MaterialModel::Corotational, 27e3, 0.4, 1060});
   updateButtons();
 }
 
@@ -414,58 +418,83 @@ SimulationPanel::~SimulationPanel() {
 SimulationSetup SimulationPanel::setup() const {
   SimulationSetup s;
   s.organ = organ_;
-  s.model = static_cast<simcore::MaterialModel>(model_->currentIndex());
-  s.young = 1e3 * young_->value();
-  s.poisson = poisson_->value();
-  s.density = density_->value();
+  if (organ_) {
+    const auto& m = organ_->material;  // the case's material: what the fields show once the window applied them
+    s.model = m.model;
+    s.young = m.young;
+    s.poisson = m.poisson;
+    s.density = m.density;
+    s.vesselYoung = m.vesselYoung;
+    s.vesselPoisson = m.vesselPoisson;
+  }
   s.timeStep = 1e-3 * timeStep_->value();
   s.method = static_cast<simcore::NewtonMethod>(method_->currentIndex());
-  const QVariant vessel = preset_->property("vesselYoung");
-  s.vesselYoung = vessel.isValid() ? vessel.toDouble() : 0;
+  static const Eigen::Vector3d directions[] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
+  s.gravity = 9.81 * directions[std::clamp(gravity_->currentIndex(), 0, 2)];
   return s;
 }
 
-void SimulationPanel::setOrgan(std::shared_ptr<const phantom::Case> organ) {
-  const bool same = sameMesh(organ_.get(), organ.get());
-  organ_ = std::move(organ);
-  if (same) return;
-  playing_ = false;
+void SimulationPanel::fillMaterial(const app::MaterialSettings& m) {
+  filling_ = true;
+  model_->setCurrentIndex(static_cast<int>(m.model));
+  young_->setValue(m.young / 1e3);
+  poisson_->setValue(m.poisson);
+  density_->setValue(m.density);
+  filling_ = false;
   updateMass();
-  const bool presetOk = organ_ && !organ_->volume.tets.empty();
-  if (presetOk) applyPreset(preset_->currentText());  // density follows the organ's volume
+}
+
+app::MaterialSettings SimulationPanel::fieldsMaterial() const {
+  app::MaterialSettings m = organ_ ? organ_->material : app::MaterialSettings{};
+  m.model = static_cast<simcore::MaterialModel>(model_->currentIndex());
+  m.young = 1e3 * young_->value();
+  m.poisson = poisson_->value();
+  m.density = density_->value();
+  return m;
+}
+
+void SimulationPanel::setCase(std::shared_ptr<const app::Case> c) {
+  const auto previous = organ_;
+  organ_ = std::move(c);
+  if (organ_) fillMaterial(organ_->material);
+  // The same organ in the same shape, place and attachments keeps running; anything else starts again.
+  const bool same = previous && organ_ && sameMesh(previous.get(), organ_.get()) && previous->pose.R == organ_->pose.R &&
+                    previous->pose.t == organ_->pose.t;
   const SimulationSetup s = setup();
+  if (same) {
+    if (!(previous->material == organ_->material))
+      QMetaObject::invokeMethod(worker_, [w = worker_, s] { w->configure(s, true); }, Qt::QueuedConnection);
+    return;
+  }
+  playing_ = false;
   QMetaObject::invokeMethod(worker_, [w = worker_, s] { w->setPlaying(false); w->configure(s, false); }, Qt::QueuedConnection);
   updateButtons();
 }
 
 void SimulationPanel::applyPreset(const QString& name) {
-  if (!organ_ || organ_->volume.tets.empty()) return;
+  if (!organ_ || organ_->organ->empty()) return;
   try {
-    const simcore::Scene p = phantom::makePreset(name.toStdString(), organ_->volume, organ_->attachments);
-    filling_ = true;
-    model_->setCurrentIndex(static_cast<int>(p.defaultMaterial.model));
-    young_->setValue(p.defaultMaterial.young / 1e3);
-    poisson_->setValue(p.defaultMaterial.poisson);
-    density_->setValue(p.defaultMaterial.density);
-    const auto vessel = p.materials.find(phantom::kVesselLabel);
-    preset_->setProperty("vesselYoung", vessel != p.materials.end() ? vessel->second.young : 0.0);
-    filling_ = false;
-    parametersEdited();
+    emit materialEdited(app::presetMaterial(name.toStdString(), *organ_->organ));
   } catch (const std::exception& e) {
-    filling_ = false;
     onFailed(QString::fromStdString(e.what()));
   }
 }
 
 void SimulationPanel::updateMass() {
-  const double volume = organ_ && !organ_->volume.tets.empty() ? organ_->quality.volume : 0.0;  // m^3, as the case panel shows it
+  const double volume = organ_ && !organ_->organ->empty() ? organ_->organ->quality.volume : 0.0;  // m^3, as the case panel shows it
   mass_->setText(volume > 0 ? tr("%1 g (%2 cm³ x density)").arg(volume * density_->value() * 1e3, 0, 'f', 0).arg(volume * 1e6, 0, 'f', 1)
                             : tr("no volume mesh"));
 }
 
 void SimulationPanel::parametersEdited() {
   if (filling_ || !organ_) return;
-  // Applied by the worker at the next step boundary, keeping the current state.
+  // The material belongs to the case (the fit uses it too): an undoable edit, applied back through setCase.
+  const app::MaterialSettings m = fieldsMaterial();
+  if (!(m == organ_->material)) {
+    emit materialEdited(m);
+    return;
+  }
+  // Run parameters (time step, solver, gravity): applied by the worker at the next step boundary, keeping the state.
   const SimulationSetup s = setup();
   QMetaObject::invokeMethod(worker_, [w = worker_, s] { w->configure(s, true); }, Qt::QueuedConnection);
 }
@@ -549,7 +578,7 @@ QString SimulationPanel::statusText() const {
 
 void SimulationPanel::updateButtons() {
   playButton_->setText(playing_ ? tr("Pause") : tr("Play"));
-  const bool have = organ_ && !organ_->volume.tets.empty();
+  const bool have = organ_ && !organ_->organ->empty();
   playButton_->setEnabled(have);
   stepButton_->setEnabled(have);
   resetButton_->setEnabled(have);

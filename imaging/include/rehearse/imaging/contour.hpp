@@ -21,6 +21,7 @@ struct ContourSegment {
   std::vector<int> modelVertices;
   /// Part of the organ's outline (a silhouette, or untyped), not a ridge or ligament inside it.
   bool isSilhouette() const { return type.empty() || type == "silhouette"; }
+  bool operator==(const ContourSegment&) const = default;
 };
 
 struct Contour {
@@ -28,6 +29,7 @@ struct Contour {
   std::vector<ContourSegment> segments;
   std::size_t pointCount() const;
   bool empty() const { return pointCount() == 0; }
+  bool operator==(const Contour&) const = default;
 };
 
 /// Reads our JSON or the P2ILF JSON (detected from the keys). Throws InputError with one sentence.

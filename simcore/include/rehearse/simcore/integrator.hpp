@@ -71,9 +71,22 @@ struct SimulationSettings {
   double refreshResidual = 1e-2;                       ///< linearised: re-factorise after a step whose relative residual exceeds this
 };
 
+/// The complete state of a simulated body: everything that decides the next step's result, so that a
+/// copy of it restores a run exactly (replay, seeking, checkpoints). Besides positions, velocities and
+/// time, that is the lagged factorisation's identity (the positions and time step it was built at: a
+/// restored state rebuilds the same factor, bit for bit) and the elastic forces the last step ended with
+/// (they set the next step's residual scale). Integrator::step reads and writes all of it.
 struct SimulationState {
   Eigen::VectorXd x, v;  ///< positions (m) and velocities (m/s), 3n, node-major
   double time = 0;       ///< s
+  struct Lagged {
+    bool valid = false;  ///< a lagged factor is named (sized vectors are kept: recording allocates nothing)
+    Eigen::VectorXd at;  ///< 3n positions the lagged factor was built at
+    double step = -1;    ///< s, the time step it was built for
+    bool refresh = true; ///< rebuild it at the next step's start
+  } lagged;
+  Eigen::VectorXd forces;  ///< elastic forces at x from the last step (3n, projected), when forcesValid
+  bool forcesValid = false;
 };
 
 struct StepReport {
@@ -124,6 +137,10 @@ class Integrator {
  private:
   struct Work;
   bool tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepReport& rep);
+  bool adopt(const SimulationState& state, StepReport& rep);
+  void record(SimulationState& state) const;
+  void newtonMatrix(const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h) const;
+  bool refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep);
   double totalEnergy(const SimulationState& s) const;
   void project(Eigen::VectorXd& r) const;
   void projectMatrix(Eigen::SparseMatrix<double>& A) const;

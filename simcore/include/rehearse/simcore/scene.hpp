@@ -36,6 +36,12 @@ struct ComponentDecl {
   bool repeatable = false;  ///< may appear more than once (materials by label)
 };
 
+/// The names of solver settings, parsed in one place for scenes, the command line and the panels. Each
+/// throws MeshError naming the accepted values.
+LinearSolverKind linearSolverFromString(const std::string& name);       ///< "cholmod", "cg", "dense"
+bool simplicialFactorFromString(const std::string& name);               ///< "supernodal" (false), "simplicial" (true)
+AttachmentMode attachmentModeFromString(const std::string& name);       ///< "projection", "lagrange"
+
 /// Every component a scene may declare.
 const std::vector<ComponentDecl>& sceneComponents();
 /// Human-readable list of the components and their parameters (for `rehearse simulate --list-components`).

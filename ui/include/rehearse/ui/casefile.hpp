@@ -5,14 +5,14 @@
 //
 // Schema (version 2): meta(key, value) with schema_version, app_version, name, saved_utc;
 // parts(name, format, data, sha256, saved_utc): one row per part (volume as binary VTU, frame as PNG,
-// camera, pose, attachments, contour, elastic fit and ground truth as JSON) with the SHA-256 of its data. A
+// camera, pose, attachments, material, contour, elastic fit and ground truth as JSON) with the SHA-256 of its data. A
 // part that cannot be decoded, or whose data no longer matches its checksum, is reported on its own; the
 // other parts still open.
 // History: 1, the first (no checksums; no elastic_fit part, no model_vertices in the contour). Opening
 // an older case migrates it in memory (schema 1: parts read without a checksum); saving writes the current
 // schema. A newer schema than this build knows is refused with a sentence, so an older Rehearse never
 // re-saves a case without the parts it does not know.
-#include "phantom/phantom.hpp"
+#include <rehearse/app/case.hpp>
 
 #include <QString>
 #include <QStringList>
@@ -24,11 +24,11 @@ inline constexpr const char* kCaseSuffix = "rehearse";
 
 /// Writes `c` to `path` atomically. Throws std::runtime_error with one sentence; the file at `path`
 /// is then unchanged.
-void saveCaseFile(const phantom::Case& c, const QString& path);
+void saveCaseFile(const app::Case& c, const QString& path);
 
 /// Reads a case file. Parts that cannot be read are described in `notes` and left empty. Throws
 /// std::runtime_error with one sentence when the file is not a readable case at all.
-phantom::Case loadCaseFile(const QString& path, QStringList* notes = nullptr);
+app::Case loadCaseFile(const QString& path, QStringList* notes = nullptr);
 
 /// True when `path` looks like a case file (SQLite header), without opening it as a database.
 bool isCaseFile(const QString& path);

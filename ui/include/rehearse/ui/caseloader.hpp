@@ -1,7 +1,7 @@
 #pragma once
 // Loads a case (the built-in phantom or a case folder) off the GUI thread and prepares what the
 // view draws: the frame and the organ overlay, as QImages.
-#include "phantom/phantom.hpp"
+#include <rehearse/app/case.hpp>
 
 #include <QImage>
 #include <QPolygonF>
@@ -15,11 +15,8 @@
 namespace rehearse::ui {
 
 struct LoadedCase {
-  std::shared_ptr<const phantom::Case> data;
+  std::shared_ptr<const app::Case> data;
   QImage frame;                  ///< RGB888 copy of the case frame
-  QImage organOverlay;           ///< ARGB32, shaded organ through the camera at the case pose
-  QList<QPolygonF> silhouette;   ///< outline of the organ in frame pixels
-  QString qualityText;           ///< mesh quality report
   QStringList notes;             ///< parts that could not be loaded, repairs made
   double seconds = 0;            ///< load time
   QString error;                 ///< non-empty when loading failed (one sentence); nothing else is set then

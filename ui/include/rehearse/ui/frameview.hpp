@@ -4,7 +4,7 @@
 // remote desktops and in offscreen tests. The wheel zooms about the cursor and the middle button pans
 // in every tool; Home fits the frame. Edits are not applied here: the view emits the edited contour or
 // pose and the window turns it into an undoable command.
-#include "phantom/phantom.hpp"
+#include <rehearse/app/case.hpp>
 
 #include <QImage>
 #include <QWidget>
@@ -41,7 +41,7 @@ class FrameView : public QWidget {
   void setFrame(const QImage& frame);
   void setOverlay(const QImage& organ, const QList<QPolygonF>& silhouette);
   void setInnerOverlay(const QImage& inner) { inner_ = inner; update(); }
-  void setCase(std::shared_ptr<const phantom::Case> c);
+  void setCase(std::shared_ptr<const app::Case> c);
   void setOverlayVisible(bool visible);
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
@@ -111,7 +111,7 @@ class FrameView : public QWidget {
   void pickOrganCurve(const Eigen::Vector2d& framePixel);
   void toggleAttachmentsAt(const Eigen::Vector2d& framePixel);
 
-  std::shared_ptr<const phantom::Case> case_;
+  std::shared_ptr<const app::Case> case_;
   QImage frame_, overlay_, inner_;
   QList<QPolygonF> silhouette_;
   bool overlayVisible_ = true;

@@ -3,8 +3,10 @@
 // frame view with the organ over it, a panel for the current step, a case information panel and the
 // status bar. Every edit of the case is an undoable command (a drag is one undo step). Long work
 // (loading, meshing, decoding video, saving) runs on worker threads with progress and cancel.
-#include "rehearse/ui/caseloader.hpp"
+#include "rehearse/ui/casedocument.hpp"
 #include "rehearse/ui/frameview.hpp"
+
+#include <rehearse/app/workflow.hpp>
 
 #include <QFutureWatcher>
 #include <QMainWindow>
@@ -44,8 +46,7 @@ class OrganGLView;
 class GLOverlay;
 class SimulationPanel;
 
-/// Steps of the workflow, in the order a case is worked.
-enum class Step { Mesh = 0, Frame, Contour, Rigid, Elastic, Appearance, Rehearse };
+using Step = app::Step;
 
 class MainWindow : public QMainWindow {
   Q_OBJECT
@@ -58,9 +59,9 @@ class MainWindow : public QMainWindow {
   void openCase(const QString& path);
   /// Saves the current case to `path` on a worker thread (atomic write); emits caseSaved.
   void saveCaseAs(const QString& path);
-  QString currentPath() const { return currentPath_; }
-  bool isSaving() const { return saveWatcher_.isRunning(); }
-  bool isLoading() const { return watcher_.isRunning(); }
+  QString currentPath() const { return doc_->path(); }
+  bool isSaving() const { return doc_->isSaving(); }
+  bool isLoading() const { return doc_->isLoading(); }
   bool isBusy() const;
   static QString autosavePath();
   static bool hasRecoverableAutosave();
@@ -81,7 +82,12 @@ class MainWindow : public QMainWindow {
   void setStep(Step s);
   Step step() const { return step_; }
 
-  const LoadedCase& currentCase() const { return case_; }
+  CaseDocument* document() const { return doc_; }
+  /// The organ over the frame as last drawn, and its outline (frame pixels).
+  const QImage& organOverlay() const { return organOverlay_; }
+  const QList<QPolygonF>& silhouette() const { return silhouette_; }
+  /// The case as it is now (never null once a case has loaded).
+  const std::shared_ptr<const app::Case>& caseData() const { return doc_->data(); }
   FrameView* frameView() const { return view_; }
   /// The 3D organ view: OpenGL when a context can be made (and --software was not given), else software.
   QWidget* organWidget() const;
@@ -91,7 +97,7 @@ class MainWindow : public QMainWindow {
   bool overlayUsesOpenGL() const;
   /// Forces the software renderers (set before creating a window; `rehearse --software`).
   static void setSoftwareRendering(bool on);
-  QUndoStack* undoStack() { return &undo_; }
+  QUndoStack* undoStack() { return doc_->undoStack(); }
   QString infoText() const;
   int videoFrameCount() const { return videoFrames_; }
   int shownVideoFrame() const { return shownVideoFrame_; }
@@ -107,9 +113,7 @@ class MainWindow : public QMainWindow {
 
   /// Applies an edit to a copy of the case and pushes it as an undoable command. Edits with the same
   /// non-negative mergeId (one drag) merge into one undo step.
-  void editCase(const QString& text, const std::function<void(phantom::Case&)>& edit, int mergeId = -1);
-  /// Replaces the displayed case (used by undo/redo).
-  void setCaseData(std::shared_ptr<const phantom::Case> data);
+  void editCase(const QString& text, const std::function<void(app::Case&)>& edit, int mergeId = -1) { doc_->edit(text, edit, mergeId); }
 
  signals:
   void caseLoaded(bool ok);
@@ -142,9 +146,9 @@ class MainWindow : public QMainWindow {
   void openFileDialog();
   void importMeshDialog();
   void openFrameDialog();
-  void addRecent(const QString& path);
   void rebuildRecentMenu();
-  void onLoadFinished();
+  void onLoadFinished(bool ok, const QString& error);
+  void onCaseChanged(CaseDocument::Parts parts);
   void showCaseInfo();
   void refreshOverlay();
   void refreshPanels();
@@ -171,7 +175,10 @@ class MainWindow : public QMainWindow {
   QListWidget* workflow_ = nullptr;
   QStackedWidget* steps_ = nullptr;
   Step step_ = Step::Mesh;
-  QUndoStack undo_;
+  CaseDocument* doc_ = nullptr;
+  QImage organOverlay_;
+  QList<QPolygonF> silhouette_;
+  QStringList importNotes_;
 
   // Step 1
   QSpinBox* targetTets_ = nullptr;
@@ -222,15 +229,8 @@ class MainWindow : public QMainWindow {
   double contourDistance_ = -1;
   bool updatingPanels_ = false;
 
-  QFutureWatcher<LoadedCase> watcher_;
   std::atomic<bool> cancel_{false};
   QFutureWatcher<std::function<void()>> jobWatcher_;
-  LoadedCase case_;
-  QString loadingDir_;
-  QString currentPath_;
-  QFutureWatcher<QString> saveWatcher_;
-  QString savingPath_;
-  QTimer autosaveTimer_;
   QMenu* recentMenu_ = nullptr;
   QAction* recoverAction_ = nullptr;
 };

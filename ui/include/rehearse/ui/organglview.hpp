@@ -18,7 +18,7 @@ class OrganGLView : public QOpenGLWidget, protected QOpenGLFunctions {
  public:
   explicit OrganGLView(QWidget* parent = nullptr);
   ~OrganGLView() override;
-  void setCase(std::shared_ptr<const phantom::Case> c);
+  void setCase(std::shared_ptr<const app::Case> c);
   /// True once initializeGL ran with a working context and shaders.
   bool glReady() const { return ready_; }
   QString glVersion() const { return version_; }
@@ -35,7 +35,7 @@ class OrganGLView : public QOpenGLWidget, protected QOpenGLFunctions {
 
  private:
   void upload();
-  std::shared_ptr<const phantom::Case> case_;
+  std::shared_ptr<const app::Case> case_;
   QOpenGLShaderProgram program_;
   QOpenGLBuffer vbo_{QOpenGLBuffer::VertexBuffer};
   QOpenGLVertexArrayObject vao_;

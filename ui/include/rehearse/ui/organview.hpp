@@ -2,7 +2,7 @@
 // The organ alone in 3D, turntable style: drag to turn, wheel to zoom, double-click to reset.
 // Software rendering through the CPU renderer (works without OpenGL); ligament attachment nodes are
 // drawn as orange dots and the inner structures (other labels) shine through in their colours.
-#include "phantom/phantom.hpp"
+#include <rehearse/app/case.hpp>
 
 #include <QImage>
 #include <QWidget>
@@ -28,17 +28,17 @@ struct Turntable {
   void reset() { *this = Turntable{}; }
 };
 
-/// True when two cases hold the same organ mesh (then a 3D view keeps what it built from it).
-inline bool sameMesh(const phantom::Case* a, const phantom::Case* b) {
-  return a && b && a->volume.points.size() == b->volume.points.size() && a->volume.tets == b->volume.tets &&
-         a->attachments == b->attachments;
+/// True when two versions of a case show the same organ in the same shape with the same attachments
+/// (then a 3D view keeps what it built from it).
+inline bool sameMesh(const app::Case* a, const app::Case* b) {
+  return a && b && a->organ == b->organ && a->fit == b->fit && a->attachments == b->attachments;
 }
 
 class OrganView : public QWidget {
   Q_OBJECT
  public:
   explicit OrganView(QWidget* parent = nullptr);
-  void setCase(std::shared_ptr<const phantom::Case> c);
+  void setCase(std::shared_ptr<const app::Case> c);
   QSize sizeHint() const override { return {360, 280}; }
   /// The last render, in device pixels (widget size x device pixel ratio; empty before the first paint).
   const QImage& rendered() const { return image_; }
@@ -53,7 +53,7 @@ class OrganView : public QWidget {
 
  private:
   void render();
-  std::shared_ptr<const phantom::Case> case_;
+  std::shared_ptr<const app::Case> case_;
   QImage image_;
   bool dirty_ = true;
   Turntable turntable_;

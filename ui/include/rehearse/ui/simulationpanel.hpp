@@ -2,7 +2,7 @@
 // The simulation panel: the current organ simulated with the physics core on a worker thread (play,
 // pause, single step, reset), its parameters edited live (applied at the next step boundary), and a 3D
 // view of the deformed mesh coloured by displacement or von Mises stress. Works without OpenGL.
-#include "phantom/phantom.hpp"
+#include <rehearse/app/case.hpp>
 #include "rehearse/ui/organview.hpp"
 
 #include <rehearse/simcore/integrator.hpp>
@@ -21,9 +21,10 @@ class QThread;
 
 namespace rehearse::ui {
 
-/// What the simulation runs: the organ (model frame, metres), its attachments and the parameters.
+/// What the simulation runs: the case's organ as the frame shows it (its fitted shape once there is one,
+/// posed in the camera frame, metres), its attachments, the case's material and the run's parameters.
 struct SimulationSetup {
-  std::shared_ptr<const phantom::Case> organ;
+  std::shared_ptr<const app::Case> organ;
   simcore::MaterialModel model = simcore::MaterialModel::Corotational;
   double young = 27e3;     ///< Pa, parenchyma
   double poisson = 0.4;
@@ -31,12 +32,13 @@ struct SimulationSetup {
   double vesselYoung = 0;  ///< Pa, label 2 (0: as the parenchyma)
   double timeStep = 0.01;  ///< s
   simcore::NewtonMethod method = simcore::NewtonMethod::Linearised;
-  double gravity = 9.81;   ///< m/s^2 along the model's +y (inferior)
+  double vesselPoisson = 0.45;
+  Eigen::Vector3d gravity = Eigen::Vector3d(0, 9.81, 0);  ///< m/s^2 in the camera frame (default: down in the image)
 };
 
 /// Published after each step: positions and the coloured quantity per node.
 struct SimulationFrame {
-  std::vector<Eigen::Vector3d> positions;  ///< per node, model frame (m)
+  std::vector<Eigen::Vector3d> positions;  ///< per node, camera frame (m)
   std::vector<double> value;               ///< per node: displacement (mm) or von Mises (kPa)
   double valueMax = 0;
   double valueScale = 0;                   ///< top of the colour bar: the 98th percentile (stress peaks at attachments)
@@ -46,7 +48,7 @@ struct SimulationFrame {
   long steps = 0;
   double youngInUse = 0;                   ///< Pa (shows when a live edit took effect)
   Qt::HANDLE thread = nullptr;             ///< the thread that computed it (never the GUI thread)
-  std::shared_ptr<const phantom::Case> organ;
+  std::shared_ptr<const app::Case> organ;
 };
 
 class SimulationWorker;
@@ -80,14 +82,15 @@ class SimulationPanel : public QWidget {
   explicit SimulationPanel(QWidget* parent = nullptr);
   ~SimulationPanel() override;
 
-  /// The organ to simulate (a new mesh resets the simulation; the same mesh keeps it running).
-  void setOrgan(std::shared_ptr<const phantom::Case> organ);
+  /// The case to simulate: a new organ, shape, pose or attachments resets the simulation; a new
+  /// material is applied at the next step boundary, keeping the state.
+  void setCase(std::shared_ptr<const app::Case> c);
   void play();
   void pause();
   void togglePlay();
   void stepOnce();
   void reset();
-  /// Fills the parameter fields from a DejaVu preset: eye, kidney, liver or uterus.
+  /// The case's material from a DejaVu preset (eye, kidney, liver or uterus) on its organ: emits materialEdited.
   void applyPreset(const QString& name);
   bool isPlaying() const { return playing_; }
   std::shared_ptr<const SimulationFrame> lastFrame() const { return last_; }
@@ -96,6 +99,8 @@ class SimulationPanel : public QWidget {
 
  signals:
   void statusChanged(const QString& text);
+  /// The user edited the material (fields or preset): the window makes it an undoable edit of the case.
+  void materialEdited(const rehearse::app::MaterialSettings& material);
   void frameShown(long steps);
 
  private:
@@ -121,7 +126,10 @@ class SimulationPanel : public QWidget {
   QPushButton* resetButton_ = nullptr;
   QLabel* status_ = nullptr;
   QLabel* mass_ = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
-  std::shared_ptr<const phantom::Case> organ_;
+  std::shared_ptr<const app::Case> organ_;
+  QComboBox* gravity_ = nullptr;
+  void fillMaterial(const app::MaterialSettings& m);
+  app::MaterialSettings fieldsMaterial() const;
   std::shared_ptr<const SimulationFrame> last_;
   bool playing_ = false;
   bool filling_ = false;

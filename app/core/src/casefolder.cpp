@@ -1,5 +1,6 @@
 // A case as a folder of ordinary files (what `rehearse phantom --out DIR` writes and `rehearse open DIR` reads).
-#include "phantom/phantom.hpp"
+#include "rehearse/app/casefolder.hpp"
+#include "rehearse/app/materials.hpp"
 
 #include <rehearse/simcore/meshio.hpp>
 
@@ -14,7 +15,7 @@
 namespace fs = std::filesystem;
 using nlohmann::json;
 
-namespace rehearse::phantom {
+namespace rehearse::app {
 namespace {
 
 std::string objText(const simcore::Mesh& m, const std::vector<std::array<int, 3>>& tris, const char* comment) {
@@ -50,19 +51,20 @@ void writeCaseDirectory(const Case& c, const std::string& dir) {
   fs::create_directories(dir, ec);
   if (ec) throw imaging::InputError("Cannot create the folder " + dir + " (" + ec.message() + ").");
   auto path = [&](const char* f) { return (fs::path(dir) / f).string(); };
+  const simcore::Mesh& volume = c.organ->volume;
   try {
-    simcore::saveMesh(c.volume, path("organ.vtu"));
-    simcore::saveMesh(c.volume, path("organ.msh"));
+    simcore::saveMesh(volume, path("organ.vtu"));
+    simcore::saveMesh(volume, path("organ.msh"));
   } catch (const simcore::MeshError& e) {
     throw imaging::InputError(e.what());
   }
-  imaging::writeFileAtomically(path("organ_surface.obj"), objText(c.volume, c.surface, "organ outer surface"));
+  imaging::writeFileAtomically(path("organ_surface.obj"), objText(volume, c.organ->surface, "organ outer surface"));
   std::vector<int> labels;
-  auto all = simcore::boundaryTriangles(c.volume, true, &labels);
+  auto all = simcore::boundaryTriangles(volume, true, &labels);
   std::vector<std::array<int, 3>> vessel;
   for (std::size_t i = 0; i < all.size(); ++i)
     if (labels[i] == kVesselLabel) vessel.push_back(all[i]);
-  imaging::writeFileAtomically(path("vessels_surface.obj"), objText(c.volume, vessel, "vessel tree surface"));
+  imaging::writeFileAtomically(path("vessels_surface.obj"), objText(volume, vessel, "vessel tree surface"));
   imaging::saveCamera(c.camera, path("camera.yaml"));
   std::vector<uchar> png;
   if (!cv::imencode(".png", c.frame, png)) throw imaging::InputError("The frame could not be encoded as PNG.");
@@ -78,13 +80,15 @@ void writeCaseDirectory(const Case& c, const std::string& dir) {
                        {"vessels", "vessels_surface.obj"}, {"camera", "camera.yaml"}, {"frame", "frame.png"},
                        {"attachments", "attachments.json"}};
   json labelsJson = json::array();
-  for (const auto& [l, n] : c.volume.labelNames) labelsJson.push_back({{"label", l}, {"name", n}});
+  for (const auto& [l, n] : volume.labelNames) labelsJson.push_back({{"label", l}, {"name", n}});
   manifest["labels"] = labelsJson;
-  if (c.hasGroundTruth) {
-    imaging::savePose(c.truePose, path("pose.json"));
-    imaging::saveAppearance(c.trueAppearance, path("appearance.json"));
+  if (c.groundTruth) {
+    const GroundTruth& gt = *c.groundTruth;
+    imaging::savePose(gt.pose, path("pose.json"));
+    imaging::saveAppearance(gt.appearance, path("appearance.json"));
     json tree = json::array();
-    for (const auto& s : c.vesselTree) tree.push_back({{"a", vec(s.a)}, {"b", vec(s.b)}, {"radius", s.radius}});
+    for (std::size_t i = 0; i < gt.vesselAxes.size(); ++i)
+      tree.push_back({{"a", vec(gt.vesselAxes[i].first)}, {"b", vec(gt.vesselAxes[i].second)}, {"radius", gt.vesselRadii[i]}});
     manifest["ground_truth"] = {{"pose", "pose.json"}, {"appearance", "appearance.json"}, {"vessel_tree", tree},
                                 {"note", "frame.png was rendered from organ_surface.obj at pose.json with appearance.json"}};
   }
@@ -113,9 +117,10 @@ Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) 
   const json files = manifest.value("files", json::object());
   // Each part loads on its own: a damaged part is reported and the rest stays usable.
   try {
-    c.volume = simcore::loadMesh(path(files.value("volume", "organ.vtu")));
-    for (const auto& l : manifest.value("labels", json::array())) c.volume.setLabelName(l.at("label").get<int>(), l.at("name").get<std::string>());
-    c.deriveFromVolume();
+    simcore::Mesh volume = simcore::loadMesh(path(files.value("volume", "organ.vtu")));
+    for (const auto& l : manifest.value("labels", json::array())) volume.setLabelName(l.at("label").get<int>(), l.at("name").get<std::string>());
+    c.organ = Organ::fromVolume(std::move(volume));
+    c.material = defaultMaterial(*c.organ);
   } catch (const std::exception& e) {
     note(std::string("Organ mesh not loaded: ") + e.what());
   }
@@ -135,25 +140,28 @@ Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) 
       const json parsed = json::parse(as.str());  // keep it alive: the loop below iterates into it
       for (const auto& n : parsed.at("nodes")) {
         const int v = n.get<int>();
-        if (v < 0 || v >= static_cast<int>(c.volume.points.size())) throw std::out_of_range("node index");
+        if (v < 0 || v >= static_cast<int>(c.organ->volume.points.size())) throw std::out_of_range("node index");
         c.attachments.push_back(v);
       }
     }
   } catch (const std::exception&) {
     note("Attachments not loaded: attachments.json is damaged.");
   }
-  if (!c.volume.empty()) {
+  if (!c.organ->volume.empty()) {
     c.pose = c.automaticPose();
     c.hasPose = true;
   }
   if (manifest.contains("ground_truth")) {
     try {
       const auto& gt = manifest["ground_truth"];
-      c.truePose = imaging::loadPose(path(gt.value("pose", "pose.json")));
-      c.trueAppearance = imaging::loadAppearance(path(gt.value("appearance", "appearance.json")));
-      for (const auto& s : gt.value("vessel_tree", json::array()))
-        c.vesselTree.push_back({vec3(s.at("a")), vec3(s.at("b")), s.at("radius").get<double>()});
-      c.hasGroundTruth = true;
+      auto truth = std::make_shared<GroundTruth>();
+      truth->pose = imaging::loadPose(path(gt.value("pose", "pose.json")));
+      truth->appearance = imaging::loadAppearance(path(gt.value("appearance", "appearance.json")));
+      for (const auto& s : gt.value("vessel_tree", json::array())) {
+        truth->vesselAxes.emplace_back(vec3(s.at("a")), vec3(s.at("b")));
+        truth->vesselRadii.push_back(s.at("radius").get<double>());
+      }
+      c.groundTruth = truth;
     } catch (const std::exception& e) {
       note(std::string("Ground truth not loaded: ") + e.what());
     }
@@ -161,4 +169,4 @@ Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) 
   return c;
 }
 
-}  // namespace rehearse::phantom
+}  // namespace rehearse::app

@@ -1,0 +1,124 @@
+#pragma once
+// The case document: everything the user made for one case, and nothing the program merely derived for
+// drawing. It is a value (copied for each undo state), so that undo, autosave on a worker thread and the
+// simulation session can all hold a consistent version of it without locks. Large immutable parts are
+// shared between versions instead of copied: the organ (mesh, surfaces, quality), the frame (cv::Mat is
+// reference-counted), the ground truth and the elastic fit's nodes. An edit therefore copies only what it
+// changes: a pose edit on a 20k-tet organ copies a few kilobytes, not the mesh.
+//
+// Where things live (the "rooms", see README "Code layout"):
+//   app::Case                 this file: the document's parts
+//   app/workflow.hpp          the steps (what each needs, done, next), no hard-coded counts
+//   app/elasticfit.hpp        step 5, the one elastic-fit pipeline (GUI and `rehearse register`)
+//   app/casefolder.hpp        a case as a folder of ordinary files; the case file (SQLite) is ui/casefile
+//   app/materials.hpp         the case's material -> simcore materials by label (fit and simulation)
+// Appearance (step 6) adds a shared `appearance` part here; rehearsal recordings (step 7, replay) add a
+// list of recorded sessions; each is a shared_ptr<const ...> part like `fit`.
+// No Qt here (tests/check_layering.cmake).
+#include <rehearse/imaging/appearance.hpp>
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
+#include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/mesh.hpp>
+#include <rehearse/simcore/quality.hpp>
+
+#include <opencv2/core.hpp>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace rehearse::phantom {
+struct Phantom;
+struct VesselSegment;
+}  // namespace rehearse::phantom
+
+namespace rehearse::app {
+
+inline constexpr int kParenchymaLabel = 1;
+inline constexpr int kVesselLabel = 2;
+
+/// The organ: its volume mesh and what is derived from it once, where it is made (on a worker thread).
+/// Immutable once built; shared between undo states.
+struct Organ {
+  simcore::Mesh volume;                          ///< tets with labels (1 parenchyma, others inner structures); model frame
+  std::vector<std::array<int, 3>> surface;       ///< outer boundary triangles (indices into volume.points)
+  std::vector<std::array<int, 3>> innerSurface;  ///< faces between labels, outward from the inner label
+  std::vector<int> innerSurfaceLabels;           ///< the inner label of each of those faces
+  simcore::QualityReport quality;
+  Eigen::Vector3d centreOfGravity = Eigen::Vector3d::Zero();  ///< volume-weighted, model frame, mesh unit
+  std::string source;                            ///< file it came from ("" for the built-in phantom)
+
+  bool empty() const { return volume.tets.empty(); }
+  /// Derives surfaces, quality and centre from `volume` (the expensive part of making an organ).
+  static std::shared_ptr<const Organ> fromVolume(simcore::Mesh volume, std::string source = {});
+};
+
+/// What a case knows independently of the user (the phantom's, or a study's): kept apart from the user's work.
+struct GroundTruth {
+  Pose pose;                                   ///< model -> camera
+  imaging::Appearance appearance;
+  std::vector<std::pair<Eigen::Vector3d, Eigen::Vector3d>> vesselAxes;  ///< vessel centre-line segments (model frame, m)
+  std::vector<double> vesselRadii;             ///< m, one per segment
+};
+
+/// Step 5's result: the organ's nodes after the fit (model frame, metres, volume node order) and its status.
+struct ElasticFit {
+  std::vector<Eigen::Vector3d> nodes;
+  std::string status;
+};
+
+/// The case's material, set in the Simulation panel and used by both the elastic fit and the simulation.
+struct MaterialSettings {
+  simcore::MaterialModel model = simcore::MaterialModel::Corotational;
+  double young = 27e3;      ///< Pa, parenchyma (label 1 and unlisted labels)
+  double poisson = 0.4;
+  double density = 1000;    ///< kg/m^3
+  double vesselYoung = 0;   ///< Pa for kVesselLabel (0: as the parenchyma)
+  double vesselPoisson = 0.45;
+  bool operator==(const MaterialSettings&) const = default;
+};
+
+struct Case {
+  std::string name;
+  std::shared_ptr<const Organ> organ = std::make_shared<Organ>();  ///< never null (an empty organ before step 1)
+  std::vector<int> attachments;          ///< 0-based volume node indices held by ligaments (q(j) = 1)
+  MaterialSettings material;
+  imaging::Camera camera;
+  cv::Mat3b frame;                       ///< undistorted endoscope frame, BGR (what every step uses)
+  cv::Mat3b rawFrame;                    ///< the frame as captured, when it had to be undistorted (else empty)
+  imaging::Contour contour;              ///< sketched organ outline (pixels of the undistorted frame)
+  Pose pose;                             ///< current rigid alignment, model -> camera
+  bool hasPose = false;                  ///< false until the organ has been placed (auto or by hand)
+  bool poseAligned = false;              ///< true once the user aligned it (gizmos, fields or PnP)
+  std::shared_ptr<const ElasticFit> fit;           ///< null until step 5 ran
+  std::shared_ptr<const GroundTruth> groundTruth;  ///< null unless the case came with one
+
+  /// The organ's node positions as the user sees them (model frame): the fitted ones after step 5,
+  /// the rest shape before. Sized like organ->volume.points.
+  const std::vector<Eigen::Vector3d>& shapeNodes() const;
+  bool hasFit() const { return fit && fit->nodes.size() == organ->volume.points.size(); }
+  /// The organ's outer surface as drawn (the fitted shape once there is one).
+  SurfaceView surfaceView() const;
+  /// Same vertices, inner-structure triangles (the faces with one of `labels`); `storage` keeps them alive.
+  SurfaceView innerSurfaceView(const std::vector<int>& labels, std::vector<std::array<int, 3>>& storage) const;
+  /// A first placement: the organ's centre on the optical axis, unrotated, at the distance where it
+  /// spans about 60 % of the image width.
+  Pose automaticPose() const;
+  /// Replaces the organ: clears everything that referred to the old one (attachments, fit) and places it.
+  void setOrgan(std::shared_ptr<const Organ> organ);
+  /// Bytes this version holds on its own (not counting parts it shares with other versions).
+  std::size_t ownBytes() const;
+  /// Bytes of the shared parts (organ, fit, frames).
+  std::size_t sharedBytes() const;
+};
+
+/// A case from the built-in phantom: the organ, its attachments, camera, frame and ground truth;
+/// the organ placed automatically.
+Case caseFromPhantom(const phantom::Phantom& p);
+
+/// The frame every step uses: the captured one undistorted with the case's camera (same K, so pixels keep
+/// the pinhole model). Without distortion it is the captured frame itself. Needs rawFrame.
+void undistortFrame(Case& c);
+
+}  // namespace rehearse::app

@@ -1,0 +1,46 @@
+#pragma once
+// Step 5, the one elastic-fit pipeline: a case's organ, attachments, material (by label), embedded
+// surfaces and contour -> simcore::registerToContour. `rehearse register` and the GUI's fit page both
+// build a FitInput and call runElasticFit, so the material, attachments and vessels the user set are
+// the ones the fit uses, whichever door the fit came in by.
+#include "rehearse/app/case.hpp"
+#include "rehearse/app/materials.hpp"
+
+#include <rehearse/simcore/registration.hpp>
+
+#include <functional>
+#include <memory>
+
+namespace rehearse::app {
+
+struct FitInput {
+  std::shared_ptr<const Organ> organ;           ///< volume in metres, model frame
+  std::vector<int> attachments;                 ///< held nodes
+  LabelMaterials materials;
+  std::vector<simcore::EmbeddedSurface> embedded;
+  simcore::SimulationSettings settings;         ///< solver settings; gravity (model frame) off by default
+  imaging::Contour contour;                     ///< undistorted pixels; anatomical segments' modelVertices are volume nodes
+  Pinhole camera;
+  Pose start;
+  bool rigidPrepass = true;
+  bool elastic = true;
+  int maxIterations = 20;
+  FitInput() { settings.gravity.setZero(); }
+};
+
+/// What the GUI fits: the case as it is (its organ, attachments, material, contour, camera and pose).
+FitInput fitInputFromCase(const Case& c);
+
+/// The FEM model the fit deforms (also what a test inspects to check the material reached the fit).
+simcore::FemModel fitModel(const FitInput& in);
+
+using FitProgress = std::function<bool(const simcore::RegistrationIteration&, const Eigen::VectorXd& x, const Pose& pose)>;
+
+/// Runs the fit. Throws simcore::MeshError / imaging::InputError with one sentence for unusable input
+/// (no silhouette segment and no curve on the organ, a mesh behind the camera, ...).
+simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress& progress = {});
+
+/// The fit's result as the case part (model frame nodes and the status).
+std::shared_ptr<const ElasticFit> toCasePart(const simcore::RegistrationResult& r);
+
+}  // namespace rehearse::app

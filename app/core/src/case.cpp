@@ -1,0 +1,126 @@
+#include "rehearse/app/case.hpp"
+
+#include "phantom/phantom.hpp"
+#include "rehearse/app/materials.hpp"
+
+#include <opencv2/calib3d.hpp>
+
+#include <algorithm>
+
+namespace rehearse::app {
+
+std::shared_ptr<const Organ> Organ::fromVolume(simcore::Mesh volume, std::string source) {
+  auto o = std::make_shared<Organ>();
+  o->volume = std::move(volume);
+  o->source = std::move(source);
+  o->quality = simcore::computeQuality(o->volume);
+  o->centreOfGravity = phantom::centreOfGravity(o->volume);
+  if (o->volume.tets.empty()) return o;
+  o->surface = simcore::boundaryTriangles(o->volume, false);
+  // Faces of the other labels (interfaces carry the inner label): the structures drawn through the organ.
+  std::vector<int> labels;
+  const auto faces = simcore::boundaryTriangles(o->volume, true, &labels);
+  for (std::size_t i = 0; i < faces.size(); ++i)
+    if (labels[i] != kParenchymaLabel) {
+      o->innerSurface.push_back(faces[i]);
+      o->innerSurfaceLabels.push_back(labels[i]);
+    }
+  return o;
+}
+
+const std::vector<Eigen::Vector3d>& Case::shapeNodes() const { return hasFit() ? fit->nodes : organ->volume.points; }
+
+SurfaceView Case::surfaceView() const {
+  SurfaceView v = organ->volume.surfaceView();
+  if (hasFit()) v.vertices = fit->nodes.front().data();
+  v.triangles = organ->surface.empty() ? nullptr : organ->surface.front().data();
+  v.triangleCount = organ->surface.size();
+  return v;
+}
+
+SurfaceView Case::innerSurfaceView(const std::vector<int>& labels, std::vector<std::array<int, 3>>& storage) const {
+  storage.clear();
+  for (std::size_t i = 0; i < organ->innerSurface.size(); ++i)
+    if (std::find(labels.begin(), labels.end(), organ->innerSurfaceLabels[i]) != labels.end()) storage.push_back(organ->innerSurface[i]);
+  SurfaceView v = surfaceView();
+  v.triangles = storage.empty() ? nullptr : storage.front().data();
+  v.triangleCount = storage.size();
+  return v;
+}
+
+Pose Case::automaticPose() const {
+  Pose p;
+  const Eigen::Vector3d cog = organ->centreOfGravity;
+  const auto& volume = organ->volume;
+  const double size = volume.points.empty() ? 0.1 : volume.bounds().sizes().maxCoeff();
+  const double fx = camera.width > 0 ? camera.fx() : 1000.0, width = camera.width > 0 ? camera.width : 1280.0;
+  const double depth = std::max(0.02, size * fx / (0.6 * width));
+  p.t = Eigen::Vector3d(0, 0, depth) - cog;
+  return p;
+}
+
+void Case::setOrgan(std::shared_ptr<const Organ> o) {
+  organ = o ? std::move(o) : std::make_shared<Organ>();
+  attachments.clear();
+  fit.reset();
+  groundTruth.reset();
+  material = defaultMaterial(*organ);
+  pose = automaticPose();
+  hasPose = !organ->empty();
+  poseAligned = false;
+}
+
+std::size_t Case::ownBytes() const {
+  std::size_t bytes = sizeof(Case) + name.size() + attachments.size() * sizeof(int);
+  for (const auto& s : contour.segments) bytes += sizeof(s) + s.points.size() * sizeof(Eigen::Vector2d) + s.modelVertices.size() * sizeof(int);
+  return bytes;
+}
+
+std::size_t Case::sharedBytes() const {
+  const auto& v = organ->volume;
+  std::size_t bytes = v.points.size() * sizeof(Eigen::Vector3d) + v.tets.size() * (sizeof(std::array<int, 4>) + sizeof(int)) +
+                      v.triangles.size() * (sizeof(std::array<int, 3>) + sizeof(int)) +
+                      (organ->surface.size() + organ->innerSurface.size()) * sizeof(std::array<int, 3>) + organ->innerSurfaceLabels.size() * sizeof(int);
+  if (fit) bytes += fit->nodes.size() * sizeof(Eigen::Vector3d);
+  bytes += frame.total() * frame.elemSize() + rawFrame.total() * rawFrame.elemSize();
+  return bytes;
+}
+
+Case caseFromPhantom(const phantom::Phantom& p) {
+  Case c;
+  c.name = p.name;
+  c.organ = Organ::fromVolume(p.volume);
+  c.attachments = p.attachments;
+  c.material = defaultMaterial(*c.organ);
+  c.camera = p.camera;
+  c.frame = p.frame;
+  auto truth = std::make_shared<GroundTruth>();
+  truth->pose = p.truePose;
+  truth->appearance = p.trueAppearance;
+  for (const auto& s : p.vesselTree) {
+    truth->vesselAxes.emplace_back(s.a, s.b);
+    truth->vesselRadii.push_back(s.radius);
+  }
+  c.groundTruth = truth;
+  c.pose = c.automaticPose();
+  c.hasPose = !c.organ->empty();
+  return c;
+}
+
+void undistortFrame(Case& k) {
+  if (k.rawFrame.empty()) return;
+  const auto& d = k.camera.distortion;
+  if (d[0] == 0 && d[1] == 0 && d[2] == 0 && d[3] == 0 && d[4] == 0) {
+    k.frame = k.rawFrame;
+    return;
+  }
+  cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) K.at<double>(r, c) = k.camera.K(r, c);
+  for (int i = 0; i < 5; ++i) D.at<double>(0, i) = d[i];
+  cv::Mat3b und;
+  cv::undistort(k.rawFrame, und, K, D);
+  k.frame = und;
+}
+
+}  // namespace rehearse::app

@@ -1,0 +1,48 @@
+#include "rehearse/app/elasticfit.hpp"
+
+namespace rehearse::app {
+
+FitInput fitInputFromCase(const Case& c) {
+  FitInput in;
+  in.organ = c.organ;
+  in.attachments = c.attachments;
+  in.materials = labelMaterials(c.material);
+  in.contour = c.contour;
+  in.camera = c.camera.pinhole();
+  in.start = c.pose;
+  return in;
+}
+
+simcore::FemModel fitModel(const FitInput& in) {
+  if (!in.organ || in.organ->empty()) throw simcore::MeshError("The fit needs an organ volume; import or tetrahedralise a mesh first (step 1).");
+  if (in.organ->volume.unitToMetre != 1.0) {
+    simcore::Mesh metres = in.organ->volume;
+    metres.convertToMetres();
+    return simcore::FemModel::build(metres, in.materials.byLabel, in.materials.fallback, in.embedded);
+  }
+  return simcore::FemModel::build(in.organ->volume, in.materials.byLabel, in.materials.fallback, in.embedded);
+}
+
+simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress& progress) {
+  const simcore::FemModel model = fitModel(in);
+  const auto segments = imaging::silhouetteSegments(in.contour);
+  simcore::RegistrationOptions o;
+  o.rigidPrepass = in.rigidPrepass;
+  o.elastic = in.elastic;
+  o.maxIterations = in.maxIterations;
+  for (const auto& s : imaging::anatomicalSegments(in.contour)) o.curves.push_back({s.modelVertices, s.points, s.type});
+  if (segments.empty() && o.curves.empty())
+    throw simcore::MeshError("The contour has no silhouette segment and no ridge or ligament with its curve on the organ.");
+  o.onIteration = progress;
+  return simcore::registerToContour(model, in.attachments, in.settings, in.organ->surface, segments, in.start, in.camera, o);
+}
+
+std::shared_ptr<const ElasticFit> toCasePart(const simcore::RegistrationResult& r) {
+  auto f = std::make_shared<ElasticFit>();
+  f->nodes.resize(static_cast<std::size_t>(r.x.size() / 3));
+  for (std::size_t i = 0; i < f->nodes.size(); ++i) f->nodes[i] = r.x.segment<3>(3 * static_cast<Eigen::Index>(i));
+  f->status = r.status;
+  return f;
+}
+
+}  // namespace rehearse::app

@@ -1,0 +1,30 @@
+#include "rehearse/app/workflow.hpp"
+
+namespace rehearse::app {
+
+bool stepDone(const Case& c, Step s) {
+  switch (s) {
+    case Step::Mesh: return !c.organ->empty();
+    case Step::Frame: return !c.frame.empty() && c.camera.problem().empty();
+    case Step::Contour: return imaging::contourProblem(c.contour).empty();
+    case Step::Rigid: return c.hasPose && c.poseAligned;
+    case Step::Elastic: return c.hasFit();
+    default: return false;
+  }
+}
+
+int nextStep(const Case& c) {
+  for (const auto& s : kSteps)
+    if (s.available && !stepDone(c, s.step)) return index(s.step);
+  return kStepCount;
+}
+
+std::string missingFor(const Case& c, Step s) {
+  if (index(s) > index(Step::Mesh) && !stepDone(c, Step::Mesh)) return "an organ mesh (step 1)";
+  if (index(s) > index(Step::Frame) && !stepDone(c, Step::Frame)) return "a frame with its camera (step 2)";
+  if (index(s) > index(Step::Contour) && !stepDone(c, Step::Contour)) return "a contour (step 3): " + imaging::contourProblem(c.contour);
+  if (index(s) > index(Step::Rigid) && !c.hasPose) return "a rigid alignment (step 4)";
+  return {};
+}
+
+}  // namespace rehearse::app

@@ -1,0 +1,143 @@
+#pragma once
+// The simulation session (no Qt): owns a deformable body and its complete state on its own thread, takes
+// timestamped input events through a mailbox (applied at the next step boundary, in order), publishes a
+// snapshot after every step for the views, and records every applied event with the step it applied at,
+// so that a replay of the recording from the same start gives the same states bit for bit.
+//
+// This is the room for the rest of rehearsal: the tool-force loop (a second, faster loop reading the
+// body's snapshot, issue 15), topology changes (a cut replaces the body, carrying the state across,
+// applied at a step boundary like any event), and recording into the case file (checkpoints every N
+// steps + the event list, issue 16). The GUI's Simulation panel and the rehearse step drive a Session;
+// tests drive it without its thread through advance().
+#include <rehearse/simcore/session/body.hpp>
+
+#include <atomic>
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <thread>
+
+namespace rehearse::simcore {
+
+enum class InputKind {
+  ToolPose,   ///< the tool tip moved to `position` (m, body frame)
+  Jaw,        ///< the jaws closed (`on`) or opened
+  Cut,        ///< the cutting instrument on (`on`) or off
+  Parameter,  ///< `name` ("young", "poisson", "density", "dt", "method") set to `value` (SI; method: NewtonMethod index)
+  Gravity,    ///< gravity set to `vector` (m/s^2, body frame)
+};
+
+struct InputEvent {
+  InputKind kind = InputKind::ToolPose;
+  double wallTime = 0;  ///< s since the session started, when posted (for review; replay goes by `step`)
+  long step = -1;       ///< the step boundary it applies at: set by the session when applied; a replay posts it
+  int tool = 0;
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  Eigen::Vector3d vector = Eigen::Vector3d::Zero();
+  bool on = false;
+  std::string name;
+  double value = 0;
+  bool operator==(const InputEvent&) const = default;
+};
+
+/// What the tools hold between steps (part of a checkpoint: it decides the next step's constraints).
+struct ToolState {
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();
+  bool jawClosed = false;
+  int heldNode = -1;  ///< the node the jaws hold (-1: none)
+  bool cutting = false;
+};
+
+/// Published after every step (and after reset): read by the views on any thread.
+struct Snapshot {
+  long step = 0;
+  double time = 0;                         ///< s, simulated
+  std::vector<Eigen::Vector3d> positions;  ///< per node, body frame (m)
+  StepReport report;                       ///< of the last step (ok at rest)
+  int topologyVersion = 0;
+  ToolState tool;
+  MaterialParams material;                 ///< in use (shows when a live edit took effect)
+  std::string message;                     ///< a sentence about the last applied input, when it needs one
+};
+
+/// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
+/// far), the complete state and the tools.
+struct Checkpoint {
+  long step = 0;
+  BodySetup setup;
+  SimulationState state;
+  ToolState tool;
+};
+
+class Session {
+ public:
+  /// Builds the body (throws MeshError with one sentence for an unusable setup).
+  explicit Session(BodySetup setup);
+  ~Session();  ///< stops the thread (waits for the step in progress)
+  Session(const Session&) = delete;
+  Session& operator=(const Session&) = delete;
+
+  /// Any thread: an input for the next step boundary (its wallTime is set here when left at 0).
+  void post(InputEvent e);
+  /// Any thread: play paced to real time on the session's thread, pause, one step, back to rest.
+  void play();
+  void pause();
+  void stepOnce();
+  void reset();
+  bool playing() const { return playing_; }
+  /// Any thread: the last published snapshot (never null).
+  std::shared_ptr<const Snapshot> snapshot() const;
+  /// Called on the session's thread after each publish (the GUI queues a repaint from it). Set before play.
+  void setPublishedCallback(std::function<void()> f);
+
+  /// The deterministic core: applies the events due at this boundary, then one step, then publishes.
+  /// The thread calls it; tests call it directly (never both at once: it locks).
+  StepReport advance();
+  /// The events applied so far, with their steps (the recording).
+  std::vector<InputEvent> recorded() const;
+  Checkpoint checkpoint() const;
+  /// Continues from a checkpoint (the body is rebuilt from its setup when that differs).
+  void restore(const Checkpoint& c);
+  /// The complete state (a copy, under the lock).
+  SimulationState state() const;
+  const BodySetup& setup() const { return setup_; }
+  /// Radius (m) within which closing the jaws grasps the nearest node.
+  static constexpr double kGraspRadius = 0.006;
+
+ private:
+  void apply(const InputEvent& e, std::string& message);
+  void rebuildBody();
+  void updateToolConstraints();
+  void publish(const StepReport& rep, const std::string& message);
+  void run();
+
+  BodySetup setup_;
+  std::unique_ptr<DeformableBody> body_;
+  SimulationState state_;
+  ToolState tool_;
+  long steps_ = 0;
+  std::vector<InputEvent> recorded_;
+  std::chrono::steady_clock::time_point started_;
+
+  mutable std::mutex stepMutex_;     // body, state, tools, recording
+  mutable std::mutex mailboxMutex_;  // mailbox, snapshot, control flags
+  std::deque<InputEvent> mailbox_;
+  std::shared_ptr<const Snapshot> snapshot_;
+  std::function<void()> published_;
+  std::condition_variable wake_;
+  std::atomic<bool> playing_{false};
+  int pendingSteps_ = 0;
+  bool pendingReset_ = false;
+  bool quit_ = false;
+  std::thread thread_;
+};
+
+/// Runs a body from rest through `steps` steps with a recorded list of events (each applied at its
+/// `step`); calls `each` after every step with the complete state. Deterministic: the same inputs give
+/// bit-identical states.
+void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
+            const std::function<void(long step, const SimulationState&)>& each);
+
+}  // namespace rehearse::simcore

@@ -1,0 +1,295 @@
+#include <rehearse/simcore/session/session.hpp>
+
+#include <algorithm>
+#include <chrono>
+
+namespace rehearse::simcore {
+
+Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chrono::steady_clock::now()) {
+  body_ = makeFemBody(setup_);
+  state_ = body_->initialState();
+  publish({true}, {});
+  thread_ = std::thread([this] { run(); });
+}
+
+Session::~Session() {
+  {
+    std::lock_guard<std::mutex> lock(mailboxMutex_);
+    quit_ = true;
+    playing_ = false;
+  }
+  wake_.notify_all();
+  thread_.join();
+}
+
+void Session::post(InputEvent e) {
+  if (e.wallTime == 0) e.wallTime = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  std::lock_guard<std::mutex> lock(mailboxMutex_);
+  mailbox_.push_back(std::move(e));
+}
+
+void Session::play() {
+  {
+    std::lock_guard<std::mutex> lock(mailboxMutex_);
+    playing_ = true;
+  }
+  wake_.notify_all();
+}
+
+void Session::pause() {
+  playing_ = false;
+  wake_.notify_all();
+}
+
+void Session::stepOnce() {
+  {
+    std::lock_guard<std::mutex> lock(mailboxMutex_);
+    playing_ = false;
+    ++pendingSteps_;
+  }
+  wake_.notify_all();
+}
+
+void Session::reset() {
+  {
+    std::lock_guard<std::mutex> lock(mailboxMutex_);
+    playing_ = false;
+    pendingReset_ = true;
+  }
+  wake_.notify_all();
+}
+
+std::shared_ptr<const Snapshot> Session::snapshot() const {
+  std::lock_guard<std::mutex> lock(mailboxMutex_);
+  return snapshot_;
+}
+
+void Session::setPublishedCallback(std::function<void()> f) {
+  std::lock_guard<std::mutex> lock(mailboxMutex_);
+  published_ = std::move(f);
+}
+
+void Session::rebuildBody() {
+  // A parameter edit: a new body with the same nodes; the state (positions, velocities, time) carries over,
+  // the lagged factor is rebuilt at the next step (the old one belongs to the old parameters).
+  auto body = makeFemBody(setup_);
+  body_ = std::move(body);
+  state_.lagged.valid = false;
+  state_.forcesValid = false;
+  updateToolConstraints();
+}
+
+void Session::updateToolConstraints() {
+  std::vector<ScalarConstraint> c;
+  if (tool_.jawClosed && tool_.heldNode >= 0) {
+    // The held node follows the tip: three bilateral constraints along the body frame's axes.
+    for (int axis = 0; axis < 3; ++axis) {
+      ScalarConstraint s;
+      s.nodes = {tool_.heldNode, -1, -1, -1};
+      s.weights = {1, 0, 0, 0};
+      s.direction = Eigen::Vector3d::Unit(axis);
+      s.value = tool_.tip[axis];
+      c.push_back(s);
+    }
+  }
+  body_->setToolConstraints(std::move(c));
+}
+
+void Session::apply(const InputEvent& e, std::string& message) {
+  switch (e.kind) {
+    case InputKind::ToolPose:
+      tool_.tip = e.position;
+      break;
+    case InputKind::Jaw:
+      tool_.jawClosed = e.on;
+      tool_.heldNode = -1;
+      if (e.on) {
+        // Grasp the node nearest to the tip, when one is within reach.
+        double best = kGraspRadius * kGraspRadius;
+        for (std::size_t i = 0; i < body_->nodeCount(); ++i) {
+          const double d = (state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool_.tip).squaredNorm();
+          if (d <= best) {
+            best = d;
+            tool_.heldNode = static_cast<int>(i);
+          }
+        }
+        if (tool_.heldNode < 0) message = "The jaws closed on nothing: no tissue within 6 mm of the tip.";
+      }
+      break;
+    case InputKind::Cut:
+      tool_.cutting = e.on;
+      if (e.on) message = "Cutting is not available yet: the cut was recorded but the tissue is not separated.";
+      break;
+    case InputKind::Parameter: {
+      BodySetup before = setup_;
+      if (e.name == "young") setup_.material.young = e.value;
+      else if (e.name == "poisson") setup_.material.poisson = e.value;
+      else if (e.name == "density") setup_.material.density = e.value;
+      else if (e.name == "dt") setup_.settings.timeStep = e.value;
+      else if (e.name == "method") setup_.settings.method = static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 3));
+      else if (e.name == "model") setup_.material.model = static_cast<MaterialModel>(static_cast<int>(e.value));
+      else {
+        message = "Unknown parameter '" + e.name + "'; it was not applied.";
+        break;
+      }
+      for (auto& [label, m] : setup_.byLabel) {
+        m.model = setup_.material.model;
+        m.density = setup_.material.density;
+      }
+      try {
+        rebuildBody();
+      } catch (const std::exception& ex) {
+        setup_ = std::move(before);
+        rebuildBody();
+        message = std::string("The edit was refused: ") + ex.what();
+      }
+      break;
+    }
+    case InputKind::Gravity:
+      setup_.settings.gravity = e.vector;
+      rebuildBody();
+      break;
+  }
+  updateToolConstraints();
+}
+
+StepReport Session::advance() {
+  std::lock_guard<std::mutex> stepLock(stepMutex_);
+  // The events due at this boundary, in the order they were posted.
+  std::vector<InputEvent> due;
+  {
+    std::lock_guard<std::mutex> lock(mailboxMutex_);
+    for (auto it = mailbox_.begin(); it != mailbox_.end();) {
+      if (it->step < 0 || it->step <= steps_) {
+        due.push_back(std::move(*it));
+        it = mailbox_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+  }
+  std::string message;
+  for (auto& e : due) {
+    e.step = steps_;
+    apply(e, message);
+    recorded_.push_back(e);
+  }
+  const StepReport rep = body_->step(state_);
+  ++steps_;
+  publish(rep, message);
+  return rep;
+}
+
+void Session::publish(const StepReport& rep, const std::string& message) {
+  auto s = std::make_shared<Snapshot>();
+  const std::size_t n = body_->nodeCount();
+  s->positions.resize(n);
+  for (std::size_t i = 0; i < n; ++i) s->positions[i] = state_.x.segment<3>(3 * static_cast<Eigen::Index>(i));
+  s->step = steps_;
+  s->time = state_.time;
+  s->report = rep;
+  s->topologyVersion = body_->topologyVersion();
+  s->tool = tool_;
+  s->material = setup_.material;
+  s->message = message;
+  std::function<void()> callback;
+  {
+    std::lock_guard<std::mutex> lock(mailboxMutex_);
+    snapshot_ = std::move(s);
+    callback = published_;
+  }
+  if (callback) callback();
+}
+
+std::vector<InputEvent> Session::recorded() const {
+  std::lock_guard<std::mutex> lock(stepMutex_);
+  return recorded_;
+}
+
+Checkpoint Session::checkpoint() const {
+  std::lock_guard<std::mutex> lock(stepMutex_);
+  return {steps_, setup_, state_, tool_};
+}
+
+void Session::restore(const Checkpoint& c) {
+  std::lock_guard<std::mutex> lock(stepMutex_);
+  setup_ = c.setup;
+  body_ = makeFemBody(setup_);
+  state_ = c.state;
+  tool_ = c.tool;
+  steps_ = c.step;
+  updateToolConstraints();
+  StepReport rest;
+  rest.ok = true;
+  publish(rest, {});
+}
+
+SimulationState Session::state() const {
+  std::lock_guard<std::mutex> lock(stepMutex_);
+  return state_;
+}
+
+void Session::run() {
+  using clock = std::chrono::steady_clock;
+  clock::time_point playStart{};
+  double simAtStart = 0;
+  bool wasPlaying = false;
+  for (;;) {
+    bool doReset = false, doStep = false;
+    {
+      std::unique_lock<std::mutex> lock(mailboxMutex_);
+      wake_.wait(lock, [this] { return quit_ || playing_ || pendingSteps_ > 0 || pendingReset_; });
+      if (quit_) return;
+      doReset = pendingReset_;
+      pendingReset_ = false;
+      if (!doReset && pendingSteps_ > 0) {
+        --pendingSteps_;
+        doStep = true;
+      }
+    }
+    if (doReset) {
+      std::lock_guard<std::mutex> stepLock(stepMutex_);
+      state_ = body_->initialState();
+      steps_ = 0;
+      tool_ = {};
+      updateToolConstraints();
+      StepReport rest;
+      rest.ok = true;
+      publish(rest, {});
+      wasPlaying = false;
+      continue;
+    }
+    const bool play = playing_ && !doStep;
+    if (play && !wasPlaying) {
+      playStart = clock::now();
+      simAtStart = state().time;
+    }
+    wasPlaying = play;
+    const StepReport rep = advance();
+    if (!rep.ok) {
+      playing_ = false;  // the step was rolled back; the snapshot's status says why
+      wasPlaying = false;
+      continue;
+    }
+    if (play) {
+      // Real time: wait while the simulation is ahead of the wall clock (woken early by pause or quit).
+      const double ahead = (state().time - simAtStart) - std::chrono::duration<double>(clock::now() - playStart).count();
+      if (ahead > 0) {
+        std::unique_lock<std::mutex> lock(mailboxMutex_);
+        wake_.wait_for(lock, std::chrono::duration<double>(std::min(ahead, 1.0)), [this] { return quit_ || !playing_ || pendingReset_; });
+      }
+    }
+  }
+}
+
+void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
+            const std::function<void(long, const SimulationState&)>& each) {
+  Session s(setup);
+  for (const auto& e : events) s.post(e);
+  for (long k = 0; k < steps; ++k) {
+    s.advance();
+    if (each) each(k + 1, s.state());
+  }
+}
+
+}  // namespace rehearse::simcore

@@ -1,0 +1,252 @@
+// The simulation session: determinism of a recorded run (every Newton method, the lagged ones included),
+// exact continuation from a checkpoint of the complete state, the grasp holding a node on the tool tip,
+// inputs applied at step boundaries on the session's own thread, and honest statuses for what it cannot do.
+#include "test_support.hpp"
+
+#include "phantom/phantom.hpp"
+
+#include <rehearse/simcore/session/session.hpp>
+
+#include <QThread>
+#include <cstring>
+
+using namespace rehearse;
+using namespace rehearse::simcore;
+
+namespace {
+
+bool bitIdentical(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), sizeof(double) * static_cast<std::size_t>(a.size())) == 0;
+}
+
+const phantom::Phantom& organ() {
+  static const phantom::Phantom p = [] {
+    phantom::PhantomOptions o;
+    o.targetTets = 1500;
+    o.width = 320;
+    o.height = 180;
+    return phantom::makePhantom(o);
+  }();
+  return p;
+}
+
+BodySetup setupFor(NewtonMethod method) {
+  BodySetup s;
+  s.mesh = organ().volume;
+  s.fixedNodes = organ().attachments;
+  s.material = {MaterialModel::StVK, 27e3, 0.4, 1000};  // nonlinear: the lagged methods differ from exact
+  s.settings.method = method;
+  s.settings.timeStep = 0.01;
+  s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);
+  return s;
+}
+
+InputEvent toolAt(const Eigen::Vector3d& p) {
+  InputEvent e;
+  e.kind = InputKind::ToolPose;
+  e.position = p;
+  return e;
+}
+InputEvent jaw(bool closed) {
+  InputEvent e;
+  e.kind = InputKind::Jaw;
+  e.on = closed;
+  return e;
+}
+InputEvent cut(bool on) {
+  InputEvent e;
+  e.kind = InputKind::Cut;
+  e.on = on;
+  return e;
+}
+InputEvent parameter(const char* name, double value) {
+  InputEvent e;
+  e.kind = InputKind::Parameter;
+  e.name = name;
+  e.value = value;
+  return e;
+}
+InputEvent gravity(const Eigen::Vector3d& g) {
+  InputEvent e;
+  e.kind = InputKind::Gravity;
+  e.vector = g;
+  return e;
+}
+
+// The surface node farthest from the attachments along x: free to be grasped and pulled.
+int freeNode() {
+  const auto& v = organ().volume;
+  int best = -1;
+  for (const auto& t : organ().surface)
+    for (int n : t)
+      if (best < 0 || v.points[n].x() > v.points[best].x()) best = n;
+  return best;
+}
+
+// A recorded rehearsal: grasp at step 4, pull 1 mm per step, a stiffness edit, a gravity change, release.
+std::vector<InputEvent> script() {
+  const Eigen::Vector3d start = organ().volume.points[freeNode()];
+  std::vector<InputEvent> ev;
+  auto add = [&](long step, InputEvent e) {
+    e.step = step;
+    e.wallTime = 0.01 * step + 1e-6;
+    ev.push_back(e);
+  };
+  add(3, toolAt(start));
+  add(4, jaw(true));
+  for (long k = 5; k <= 13; ++k) add(k, toolAt(start + Eigen::Vector3d(0.001 * (k - 4), -0.0005 * (k - 4), 0)));
+  add(10, parameter("young", 40e3));
+  add(15, gravity(Eigen::Vector3d(2.0, 9.0, 0.5)));
+  add(18, jaw(false));
+  return ev;
+}
+
+constexpr long kSteps = 24;
+
+std::vector<SimulationState> run(NewtonMethod m) {
+  std::vector<SimulationState> states;
+  replay(setupFor(m), script(), kSteps, [&](long, const SimulationState& s) { states.push_back(s); });
+  return states;
+}
+
+}  // namespace
+
+class TestSession : public QObject {
+  Q_OBJECT
+ private slots:
+  void recordedRunIsBitIdentical_data() {
+    QTest::addColumn<int>("method");
+    QTest::newRow("exact") << static_cast<int>(NewtonMethod::Exact);
+    QTest::newRow("lagged-pcg") << static_cast<int>(NewtonMethod::LaggedPcg);
+    QTest::newRow("chord") << static_cast<int>(NewtonMethod::Chord);
+    QTest::newRow("linearised") << static_cast<int>(NewtonMethod::Linearised);
+  }
+  void recordedRunIsBitIdentical() {
+    QFETCH(int, method);
+    const auto m = static_cast<NewtonMethod>(method);
+    const auto a = run(m), b = run(m);
+    QCOMPARE(a.size(), static_cast<std::size_t>(kSteps));
+    QCOMPARE(b.size(), a.size());
+    for (std::size_t k = 0; k < a.size(); ++k) {
+      QVERIFY2(a[k].x.allFinite(), qPrintable(QStringLiteral("step %1").arg(k + 1)));
+      QVERIFY2(bitIdentical(a[k].x, b[k].x) && bitIdentical(a[k].v, b[k].v) && a[k].time == b[k].time,
+               qPrintable(QStringLiteral("step %1 differs between two replays").arg(k + 1)));
+    }
+    // The script did something: the grasped node followed the tip (bilateral constraints), and the body moved.
+    const int node = freeNode();
+    const Eigen::Vector3d tip = organ().volume.points[node] + Eigen::Vector3d(0.009, -0.0045, 0);
+    const Eigen::Vector3d held = a[13].x.segment<3>(3 * node);  // after step 14: the tip's last move applied at 13
+    QVERIFY2((held - tip).norm() < 2e-4, qPrintable(QStringLiteral("held node %1 mm from the tip").arg(1e3 * (held - tip).norm())));
+  }
+
+  void checkpointContinuesExactly_data() { recordedRunIsBitIdentical_data(); }
+  void checkpointContinuesExactly() {
+    QFETCH(int, method);
+    const auto m = static_cast<NewtonMethod>(method);
+    const auto events = script();
+    constexpr long kAt = 12;  // mid-grasp, after the stiffness edit (step 10), before the gravity change (15)
+    Checkpoint cp;
+    std::vector<SimulationState> uninterrupted;
+    {
+      Session s(setupFor(m));
+      for (const auto& e : events) s.post(e);
+      for (long k = 0; k < kSteps; ++k) {
+        if (k == kAt) cp = s.checkpoint();
+        s.advance();
+        uninterrupted.push_back(s.state());
+      }
+    }
+    QCOMPARE(cp.step, kAt);
+    auto continueFrom = [&](const Checkpoint& c) {
+      std::vector<SimulationState> out;
+      Session s(setupFor(m));  // a new session with the original setup: restore brings the edited one
+      s.restore(c);
+      for (const auto& e : events)
+        if (e.step >= c.step) s.post(e);
+      for (long k = c.step; k < kSteps; ++k) {
+        s.advance();
+        out.push_back(s.state());
+      }
+      return out;
+    };
+    const auto restored = continueFrom(cp);
+    QCOMPARE(static_cast<long>(restored.size()), kSteps - kAt);
+    for (long k = kAt; k < kSteps; ++k)
+      QVERIFY2(bitIdentical(restored[k - kAt].x, uninterrupted[k].x) && bitIdentical(restored[k - kAt].v, uninterrupted[k].v),
+               qPrintable(QStringLiteral("step %1 differs after restoring the checkpoint of step %2").arg(k + 1).arg(kAt)));
+    // What makes the state complete matters: without the lagged factor's identity and the carried forces,
+    // a lagged method continues differently (so the comparison above can fail).
+    // (Chord keeps its factor across these steps; linearised may have just refreshed, then there is nothing to strip.)
+    if (m == NewtonMethod::Chord) QVERIFY(cp.state.lagged.valid);
+    if (m != NewtonMethod::Exact && cp.state.lagged.valid) {
+      Checkpoint partial = cp;
+      partial.state.lagged.valid = false;
+      partial.state.forcesValid = false;
+      const auto other = continueFrom(partial);
+      bool anyDifferent = false;
+      for (long k = kAt; k < kSteps; ++k) anyDifferent |= !bitIdentical(other[k - kAt].x, uninterrupted[k].x);
+      QVERIFY2(anyDifferent, "positions and velocities alone reproduced a lagged run: the test would not see a missing part");
+    }
+  }
+
+  void recordingHoldsEveryEventWithItsStep() {
+    Session s(setupFor(NewtonMethod::Linearised));
+    for (const auto& e : script()) s.post(e);
+    for (long k = 0; k < kSteps; ++k) s.advance();
+    const auto rec = s.recorded();
+    const auto ev = script();
+    QCOMPARE(rec.size(), ev.size());
+    // Applied in step order (stable for events of one step), each at the boundary it named.
+    std::vector<InputEvent> sorted = ev;
+    std::stable_sort(sorted.begin(), sorted.end(), [](const InputEvent& a, const InputEvent& b) { return a.step < b.step; });
+    for (std::size_t i = 0; i < rec.size(); ++i) QVERIFY(rec[i] == sorted[i]);
+  }
+
+  void threadPlaysAndAppliesInputsAtBoundaries() {
+    Session s(setupFor(NewtonMethod::Linearised));
+    std::atomic<int> published{0};
+    std::atomic<Qt::HANDLE> where{nullptr};
+    s.setPublishedCallback([&] {
+      where = QThread::currentThreadId();
+      ++published;
+    });
+    s.play();
+    QTRY_VERIFY_WITH_TIMEOUT(s.snapshot()->step >= 5, 20000);
+    s.post(parameter("young", 54e3));
+    QTRY_VERIFY_WITH_TIMEOUT(s.snapshot()->material.young == 54e3, 20000);
+    s.pause();
+    QVERIFY(where.load() != QThread::currentThreadId());  // stepped on the session's thread
+    const long at = s.snapshot()->step;
+    QTest::qWait(200);
+    QVERIFY(s.snapshot()->step <= at + 1);  // paused (at most the step in progress finished)
+    s.reset();
+    QTRY_COMPARE_WITH_TIMEOUT(s.snapshot()->step, 0L, 20000);
+    QVERIFY(published.load() > 5);
+    QVERIFY(s.recorded().back().name == "young");
+  }
+
+  void unsupportedInputsSaySo() {
+    Session s(setupFor(NewtonMethod::Linearised));
+    s.post(cut(true));
+    s.advance();
+    QVERIFY(QString::fromStdString(s.snapshot()->message).contains("not available"));
+    s.post(parameter("viscosity", 1));
+    s.advance();
+    QVERIFY(QString::fromStdString(s.snapshot()->message).contains("Unknown parameter"));
+    // Jaws closing far from any tissue grasp nothing, and say so.
+    s.post(toolAt(Eigen::Vector3d(1, 1, 1)));
+    s.post(jaw(true));
+    s.advance();
+    QCOMPARE(s.snapshot()->tool.heldNode, -1);
+    QVERIFY(QString::fromStdString(s.snapshot()->message).contains("nothing"));
+    // A refused edit (Poisson's ratio 0.5) keeps the previous material and the run going.
+    s.post(parameter("poisson", 0.5));
+    const StepReport r = s.advance();
+    QVERIFY(r.ok);
+    QCOMPARE(s.snapshot()->material.poisson, 0.4);
+    QVERIFY(QString::fromStdString(s.snapshot()->message).contains("refused"));
+  }
+};
+
+QTEST_GUILESS_MAIN(TestSession)
+#include "test_session.moc"

@@ -1,0 +1,112 @@
+#pragma once
+// The open case as the GUI holds it: the current version of app::Case, its undo stack, where it lives on
+// disk (open, save, save as, autosave, recent files) and a changed(parts) signal that every view and
+// page observes instead of being pushed by hand. Each edit is a copy of the case with the change applied
+// (large parts are shared, app/case.hpp), pushed as an undoable command; edits with the same mergeId
+// (one drag) are one undo step. Loading and saving run on worker threads; the autosave writes only when
+// something changed since the last one, and closing waits for it.
+#include "rehearse/ui/caseloader.hpp"
+
+#include <rehearse/app/case.hpp>
+
+#include <QFutureWatcher>
+#include <QImage>
+#include <QObject>
+#include <QStringList>
+#include <QTimer>
+#include <QUndoStack>
+
+#include <atomic>
+#include <functional>
+#include <memory>
+
+namespace rehearse::ui {
+
+class CaseDocument : public QObject {
+  Q_OBJECT
+ public:
+  enum Part {
+    OrganPart = 1,
+    FramePart = 2,
+    CameraPart = 4,
+    ContourPart = 8,
+    PosePart = 16,
+    FitPart = 32,
+    AttachmentsPart = 64,
+    MaterialPart = 128,
+    AllParts = 255
+  };
+  Q_DECLARE_FLAGS(Parts, Part)
+
+  explicit CaseDocument(QObject* parent = nullptr);
+  ~CaseDocument() override;
+
+  /// The current version (null before the first case has loaded).
+  const std::shared_ptr<const app::Case>& data() const { return case_; }
+  bool hasCase() const { return case_ != nullptr; }
+  QUndoStack* undoStack() { return &undo_; }
+
+  /// Applies `edit` to a copy of the case and pushes it as one undoable command.
+  void edit(const QString& text, const std::function<void(app::Case&)>& edit, int mergeId = -1);
+  /// Shows a version without making it an edit (a live preview, e.g. the fit as it runs); the next
+  /// setVersion or edit replaces it. Emits changed().
+  void preview(std::shared_ptr<const app::Case> version);
+  /// Replaces the displayed version (undo/redo, the end of a preview).
+  void setVersion(std::shared_ptr<const app::Case> version);
+
+  /// Loads a case file, a case folder, or the built-in phantom when `path` is empty, on a worker thread.
+  /// The current case stays until the new one has loaded. Emits loaded().
+  void open(const QString& path);
+  void cancelLoading();
+  bool isLoading() const { return loadWatcher_.isRunning(); }
+  /// Saves to `path` on a worker thread (atomic write). Emits saved().
+  void saveAs(const QString& path);
+  bool isSaving() const { return saveWatcher_.isRunning(); }
+  QString path() const { return path_; }
+  QStringList notes() const { return notes_; }
+  double loadSeconds() const { return loadSeconds_; }
+  QImage frameImage() const { return frameImage_; }
+  QString qualityText() const { return qualityText_; }
+
+  static QString autosavePath();
+  static bool hasRecoverableAutosave();
+  /// Writes the autosave now, on this thread.
+  void autosaveNow();
+  /// Starts an autosave on a worker when something changed since the last one; false when none was needed.
+  bool autosaveIfChanged();
+  /// Waits for a running autosave (closing the window calls it before removing the file).
+  void waitForAutosave();
+  /// A clean exit: waits for the workers and removes the autosave (its presence at start means a crash).
+  void closeCleanly();
+  QStringList recentFiles() const;
+
+ signals:
+  void changed(rehearse::ui::CaseDocument::Parts parts);
+  void loaded(bool ok, const QString& message);
+  void saved(bool ok, const QString& message);
+  void progress(double fraction, const QString& stage);
+  void recentFilesChanged();
+
+ private:
+  void addRecent(const QString& path);
+  void onLoaded();
+
+  std::shared_ptr<const app::Case> case_;
+  QUndoStack undo_;
+  QString path_, loadingPath_, savingPath_;
+  QStringList notes_;
+  double loadSeconds_ = 0;
+  QImage frameImage_;
+  QString qualityText_;
+  std::atomic<bool> cancel_{false};
+  QFutureWatcher<LoadedCase> loadWatcher_;
+  QFutureWatcher<QString> saveWatcher_;
+  QFutureWatcher<void> autosaveWatcher_;
+  int autosavedIndex_ = -1;  ///< undo index of the last autosave (-1: none)
+  const void* autosavedCase_ = nullptr;
+  QTimer autosaveTimer_;
+};
+
+}  // namespace rehearse::ui
+
+Q_DECLARE_OPERATORS_FOR_FLAGS(rehearse::ui::CaseDocument::Parts)
