@@ -384,7 +384,7 @@ int cmdRegister(const std::vector<std::string>& args) {
   }
   // The one fit pipeline the GUI uses too (app/elasticfit.hpp).
   FitInput in;
-  in.organ = Organ::fromVolume(p.mesh);
+  in.organ = Organ::fromVolume(std::move(p.mesh));  // moved: the output below copies it from the organ
   in.attachments = p.fixedNodes;
   in.materials = {p.defaultMaterial, p.materials};
   in.embedded = p.embedded;
@@ -419,7 +419,7 @@ int cmdRegister(const std::vector<std::string>& args) {
   };
   const simcore::RegistrationResult res = runElasticFit(in, record);
   // Registered nodes in the camera frame, input order.
-  simcore::Mesh out = p.mesh;
+  simcore::Mesh out = in.organ->volume;
   out.triangles.clear();
   out.triangleLabels.clear();
   for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = res.pose.apply(res.x.segment<3>(3 * i));

@@ -41,34 +41,27 @@ BodySetup setupFor(NewtonMethod method) {
   return s;
 }
 
-InputEvent toolAt(const Eigen::Vector3d& p) {
+InputEvent event(InputKind kind, bool on = false) {
   InputEvent e;
-  e.kind = InputKind::ToolPose;
-  e.position = p;
-  return e;
-}
-InputEvent jaw(bool closed) {
-  InputEvent e;
-  e.kind = InputKind::Jaw;
-  e.on = closed;
-  return e;
-}
-InputEvent cut(bool on) {
-  InputEvent e;
-  e.kind = InputKind::Cut;
+  e.kind = kind;
   e.on = on;
   return e;
 }
+InputEvent toolAt(const Eigen::Vector3d& p) {
+  InputEvent e = event(InputKind::ToolPose);
+  e.position = p;
+  return e;
+}
+InputEvent jaw(bool closed) { return event(InputKind::Jaw, closed); }
+InputEvent cut(bool on) { return event(InputKind::Cut, on); }
 InputEvent parameter(const char* name, double value) {
-  InputEvent e;
-  e.kind = InputKind::Parameter;
+  InputEvent e = event(InputKind::Parameter);
   e.name = name;
   e.value = value;
   return e;
 }
 InputEvent gravity(const Eigen::Vector3d& g) {
-  InputEvent e;
-  e.kind = InputKind::Gravity;
+  InputEvent e = event(InputKind::Gravity);
   e.vector = g;
   return e;
 }

@@ -37,13 +37,6 @@ class CaseCommand : public QUndoCommand {
   int merge_;
 };
 
-QImage toQImage(const cv::Mat3b& bgr) {
-  if (bgr.empty()) return {};
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  return QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
-}
-
 CaseDocument::Parts difference(const app::Case* a, const app::Case& b) {
   if (!a) return CaseDocument::AllParts;
   CaseDocument::Parts p;
@@ -61,6 +54,13 @@ CaseDocument::Parts difference(const app::Case* a, const app::Case& b) {
 }
 
 }  // namespace
+
+QImage frameToQImage(const cv::Mat3b& bgr) {
+  if (bgr.empty()) return {};
+  cv::Mat rgb;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  return QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
+}
 
 CaseDocument::CaseDocument(QObject* parent) : QObject(parent) {
   connect(&loadWatcher_, &QFutureWatcher<LoadedCase>::finished, this, &CaseDocument::onLoaded);
@@ -92,12 +92,10 @@ void CaseDocument::edit(const QString& text, const std::function<void(app::Case&
   undo_.push(new CaseCommand(this, case_, std::move(after), text, mergeId));
 }
 
-void CaseDocument::preview(std::shared_ptr<const app::Case> version) { setVersion(std::move(version)); }
-
 void CaseDocument::setVersion(std::shared_ptr<const app::Case> version) {
   if (!version) return;
   const Parts parts = difference(case_.get(), *version);
-  if (parts & FramePart) frameImage_ = toQImage(version->frame);
+  if (parts & FramePart) frameImage_ = frameToQImage(version->frame);
   if (parts & OrganPart) qualityText_ = version->organ->empty() ? QString() : QString::fromStdString(simcore::formatQuality(version->organ->quality));
   case_ = std::move(version);
   if (parts) emit changed(parts);
@@ -132,9 +130,8 @@ void CaseDocument::onLoaded() {
   path_ = isCaseFile(loadingPath_) && loadingPath_ != autosavePath() ? loadingPath_ : QString();
   if (!path_.isEmpty()) addRecent(path_);
   case_.reset();  // everything changed
-  autosavedIndex_ = 0;
   setVersion(result.data);
-  autosavedCase_ = case_.get();
+  autosaved_ = case_;
   emit loaded(true, {});
 }
 
@@ -166,14 +163,14 @@ void CaseDocument::autosaveNow() {
   waitForAutosave();
   QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
   saveCaseFile(*case_, autosavePath());
-  autosavedCase_ = case_.get();
+  autosaved_ = case_;
 }
 
 bool CaseDocument::autosaveIfChanged() {
   if (!case_ || saveWatcher_.isRunning() || autosaveWatcher_.isRunning()) return false;
-  if (autosavedCase_ == case_.get()) return false;  // nothing changed since the last autosave (or the load)
+  if (autosaved_.lock() == case_) return false;  // nothing changed since the last autosave (or the load)
   auto data = case_;
-  autosavedCase_ = case_.get();
+  autosaved_ = case_;
   autosaveWatcher_.setFuture(QtConcurrent::run([data] {
     try {
       QDir().mkpath(QFileInfo(autosavePath()).absolutePath());

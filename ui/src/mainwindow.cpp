@@ -66,12 +66,6 @@
 namespace rehearse::ui {
 namespace {
 
-QImage toQImage(const cv::Mat3b& bgr) {
-  if (bgr.empty()) return {};
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  return QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
-}
 
 QColor labelColour(int label) {
   static const QColor c[] = {QColor(200, 120, 100), QColor(80, 140, 255), QColor(250, 200, 60), QColor(170, 90, 220),
@@ -1148,7 +1142,7 @@ void MainWindow::showVideoFrame(int index) {
     if (!frame.empty()) {
       shownFrame_ = frame;
       if (index >= 0) shownVideoFrame_ = index;
-      view_->setFrame(toQImage(frame));
+      view_->setFrame(frameToQImage(frame));
       videoLabel_->setText(index >= 0 ? tr("frame %1 of %2").arg(index).arg(videoFrames_) : videoLabel_->text());
       updatingPanels_ = true;
       if (index >= 0) videoSlider_->setValue(index);

@@ -150,7 +150,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
       rebuildBody();
       break;
   }
-  updateToolConstraints();
+  if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw) updateToolConstraints();  // rebuildBody did it for the others
 }
 
 StepReport Session::advance() {

@@ -22,6 +22,9 @@
 
 namespace rehearse::ui {
 
+/// An RGB888 copy of a BGR frame (empty for an empty frame).
+QImage frameToQImage(const cv::Mat3b& bgr);
+
 class CaseDocument : public QObject {
   Q_OBJECT
  public:
@@ -48,9 +51,6 @@ class CaseDocument : public QObject {
 
   /// Applies `edit` to a copy of the case and pushes it as one undoable command.
   void edit(const QString& text, const std::function<void(app::Case&)>& edit, int mergeId = -1);
-  /// Shows a version without making it an edit (a live preview, e.g. the fit as it runs); the next
-  /// setVersion or edit replaces it. Emits changed().
-  void preview(std::shared_ptr<const app::Case> version);
   /// Replaces the displayed version (undo/redo, the end of a preview).
   void setVersion(std::shared_ptr<const app::Case> version);
 
@@ -102,8 +102,7 @@ class CaseDocument : public QObject {
   QFutureWatcher<LoadedCase> loadWatcher_;
   QFutureWatcher<QString> saveWatcher_;
   QFutureWatcher<void> autosaveWatcher_;
-  int autosavedIndex_ = -1;  ///< undo index of the last autosave (-1: none)
-  const void* autosavedCase_ = nullptr;
+  std::weak_ptr<const app::Case> autosaved_;  ///< the version last autosaved (or loaded): nothing to write while it is current
   QTimer autosaveTimer_;
 };
 
