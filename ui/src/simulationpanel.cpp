@@ -14,8 +14,9 @@
 #include <QMouseEvent>
 #include <QPainter>
 #include <QPushButton>
+#include <QFutureWatcher>
 #include <QThread>
-#include <QTimer>
+#include <QtConcurrent/QtConcurrent>
 #include <QVBoxLayout>
 #include <QWheelEvent>
 
@@ -26,151 +27,139 @@ Q_DECLARE_METATYPE(std::shared_ptr<const rehearse::ui::SimulationFrame>)
 
 namespace rehearse::ui {
 
-// ------------------------------------------------------------------------------------------ worker
+// ------------------------------------------------------------------------------------ session glue
 
-// Owns the model, the integrator and the state; lives on its own thread. Commands arrive as queued
-// calls, so they are applied between two steps (the step boundary).
-class SimulationWorker : public QObject {
-  Q_OBJECT
- public:
-  void configure(const SimulationSetup& s, bool keepState) {
-    try {
-      const bool sameOrgan = setup_.organ && s.organ && sameMesh(setup_.organ.get(), s.organ.get()) &&
-                             setup_.organ->pose.R == s.organ->pose.R && setup_.organ->pose.t == s.organ->pose.t;
-      setup_ = s;
-      if (!s.organ || s.organ->organ->empty()) {
-        model_.reset();
-        integrator_.reset();
-        emit failed(tr("No organ volume to simulate; load or tetrahedralise a mesh first."));
-        return;
-      }
-      const app::LabelMaterials materials = labelMaterials(app::MaterialSettings{s.model, s.young, s.poisson, s.density, s.vesselYoung, s.vesselPoisson});
-      const simcore::MaterialParams& parenchyma = materials.fallback;
-      const auto& byLabel = materials.byLabel;
-      // The organ the surgeon sees: its current shape (fitted or rest) posed in the camera frame.
-      simcore::Mesh mesh = s.organ->organ->volume;
-      mesh.convertToMetres();
-      const auto& shape = s.organ->shapeNodes();
-      for (std::size_t i = 0; i < mesh.points.size(); ++i) mesh.points[i] = s.organ->pose.apply(shape[i]);
-      auto model = std::make_unique<simcore::FemModel>(simcore::FemModel::build(mesh, byLabel, parenchyma));
-      simcore::SimulationSettings settings;
-      settings.timeStep = s.timeStep;
-      settings.method = s.method;
-      settings.gravity = s.gravity;
-      auto integrator = std::make_unique<simcore::Integrator>(*model, s.organ->attachments, settings);
-      const bool keep = keepState && sameOrgan && state_.x.size() == static_cast<Eigen::Index>(3 * model->nodeCount());
-      if (!keep) {
-        state_ = integrator->initialState();
-        steps_ = 0;
-      }
-      integrator_ = std::move(integrator);  // the integrator refers to the model: replace it first
-      model_ = std::move(model);
-      incidence_.assign(model_->nodeCount(), 0);
-      for (const auto& t : model_->tets)
-        for (int v : t) ++incidence_[v];
-      if (!keep) publish({});
-    } catch (const std::exception& e) {
-      playing_ = false;
-      emit failed(QString::fromStdString(e.what()));
-    }
-  }
-  void setPlaying(bool on) {
-    playing_ = on && integrator_;
-    if (playing_) {
-      wall_.start();
-      simAtStart_ = state_.time;
-      schedule(0);
-    }
-  }
-  void stepOnce() {
-    playing_ = false;
-    advance();
-  }
-  void reset() {
-    playing_ = false;
-    if (!integrator_) return;
-    state_ = integrator_->initialState();
-    integrator_->invalidateFactorisation();
-    steps_ = 0;
-    publish({});
-  }
-  void setColouring(int c) {
-    colouring_ = c;
-    if (integrator_) publish(last_);
-  }
-
- signals:
-  void frame(std::shared_ptr<const rehearse::ui::SimulationFrame> f);
-  void failed(const QString& message);
-
- private:
-  void schedule(int ms) {
-    if (!timer_) {
-      timer_ = new QTimer(this);
-      timer_->setSingleShot(true);
-      connect(timer_, &QTimer::timeout, this, [this] {
-        if (!playing_) return;
-        advance();
-        if (!playing_) return;
-        // Real time: wait while the simulation is ahead of the wall clock.
-        const double ahead = 1e3 * (state_.time - simAtStart_) - static_cast<double>(wall_.elapsed());
-        schedule(static_cast<int>(std::clamp(ahead, 0.0, 1000.0)));
-      });
-    }
-    timer_->start(ms);
-  }
-  void advance() {
-    if (!integrator_) return;
-    const simcore::StepReport rep = integrator_->step(state_);
-    ++steps_;
-    if (!rep.ok) playing_ = false;  // the step was rolled back; the status says why
-    publish(rep);
-  }
-  void publish(const simcore::StepReport& rep) {
-    last_ = rep;
-    auto f = std::make_shared<SimulationFrame>();
-    const std::size_t n = model_->nodeCount();
-    f->positions.resize(n);
-    f->value.assign(n, 0.0);
-    for (std::size_t i = 0; i < n; ++i) f->positions[i] = state_.x.segment<3>(3 * i);
-    if (colouring_ == 0) {
-      for (std::size_t i = 0; i < n; ++i) f->value[i] = 1e3 * (f->positions[i] - model_->rest[i]).norm();
-    } else {
-      simcore::vonMisesStress(*model_, state_.x, stress_);
-      for (std::size_t e = 0; e < model_->tets.size(); ++e)
-        for (int v : model_->tets[e]) f->value[v] += 1e-3 * stress_[e] / std::max(1, incidence_[v]);
-    }
-    f->valueMax = f->value.empty() ? 0 : *std::max_element(f->value.begin(), f->value.end());
-    if (!f->value.empty()) {
-      std::vector<double> sorted = f->value;
-      auto at = sorted.begin() + static_cast<std::ptrdiff_t>(0.98 * (sorted.size() - 1));
-      std::nth_element(sorted.begin(), at, sorted.end());
-      f->valueScale = *at > 0 ? *at : f->valueMax;
-    }
-    f->colouring = colouring_;
-    f->report = rep;
-    f->time = state_.time;
-    f->steps = steps_;
-    f->youngInUse = setup_.young;
-    f->thread = QThread::currentThreadId();
-    f->organ = setup_.organ;
-    emit frame(f);
-  }
-
-  SimulationSetup setup_;
-  std::unique_ptr<simcore::FemModel> model_;
-  std::unique_ptr<simcore::Integrator> integrator_;
-  simcore::SimulationState state_;
-  simcore::StepReport last_;
-  QTimer* timer_ = nullptr;
-  QElapsedTimer wall_;
-  double simAtStart_ = 0;
-  bool playing_ = false;
-  int colouring_ = 0;
-  long steps_ = 0;
-  std::vector<double> stress_;
-  std::vector<int> incidence_;
+// What turns the session's snapshots into frames for this panel: fixed for one organ (one session), read
+// on the session's thread.
+struct SimulationPanel::FrameContext {
+  std::shared_ptr<const app::Case> organ;
+  std::vector<Eigen::Vector3d> rest;  ///< camera frame (m)
+  std::vector<std::array<int, 4>> tets;
+  std::vector<int> incidence;         ///< elements per node (stress averaged onto nodes)
+  long generation = 0;                ///< frames of an older session are dropped
 };
+
+namespace {
+
+// The body the session simulates: the case's organ as the frame shows it (current shape, posed in the
+// camera frame), its attachments and material by label, the run's settings.
+simcore::BodySetup bodySetup(const SimulationSetup& s) {
+  simcore::BodySetup b;
+  b.mesh = s.organ->organ->volume;
+  b.mesh.convertToMetres();
+  const auto& shape = s.organ->shapeNodes();
+  b.rest.resize(shape.size());
+  for (std::size_t i = 0; i < shape.size(); ++i) b.rest[i] = s.organ->pose.apply(shape[i]);
+  b.fixedNodes = s.organ->attachments;
+  const app::LabelMaterials m = app::labelMaterials(app::MaterialSettings{s.model, s.young, s.poisson, s.density, s.vesselYoung, s.vesselPoisson});
+  b.material = m.fallback;
+  b.byLabel = m.byLabel;
+  b.settings.timeStep = s.timeStep;
+  b.settings.method = s.method;
+  b.settings.gravity = s.gravity;
+  return b;
+}
+
+simcore::InputEvent parameter(const std::string& name, double value, int label = 0) {
+  simcore::InputEvent e;
+  e.kind = simcore::InputKind::Parameter;
+  e.name = name;
+  e.value = value;
+  e.label = label;
+  return e;
+}
+
+// The same organ in the same shape, place and attachments (then a material or run edit keeps the state).
+bool sameBody(const app::Case* a, const app::Case* b) {
+  return a && b && a->organ == b->organ && a->shapeNodes() == b->shapeNodes() && a->attachments == b->attachments &&
+         a->pose.R == b->pose.R && a->pose.t == b->pose.t;
+}
+
+}  // namespace
+
+std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameContext& ctx, const simcore::Snapshot& snap, int colouring) {
+  auto f = std::make_shared<SimulationFrame>();
+  const std::size_t n = snap.positions.size();
+  f->positions = snap.positions;
+  f->value.assign(n, 0.0);
+  if (colouring == 0 || snap.stress.size() != ctx.tets.size()) {
+    for (std::size_t i = 0; i < n && i < ctx.rest.size(); ++i) f->value[i] = 1e3 * (f->positions[i] - ctx.rest[i]).norm();
+    colouring = 0;
+  } else {
+    for (std::size_t e = 0; e < ctx.tets.size(); ++e)
+      for (int v : ctx.tets[e]) f->value[v] += 1e-3 * snap.stress[e] / std::max(1, ctx.incidence[v]);
+  }
+  f->valueMax = f->value.empty() ? 0 : *std::max_element(f->value.begin(), f->value.end());
+  if (!f->value.empty()) {
+    std::vector<double> sorted = f->value;
+    auto at = sorted.begin() + static_cast<std::ptrdiff_t>(0.98 * (sorted.size() - 1));
+    std::nth_element(sorted.begin(), at, sorted.end());
+    f->valueScale = *at > 0 ? *at : f->valueMax;
+  }
+  f->colouring = colouring;
+  f->report = snap.report;
+  f->time = snap.time;
+  f->steps = snap.step;
+  f->youngInUse = snap.material.young;
+  f->thread = QThread::currentThreadId();
+  f->organ = ctx.organ;
+  f->message = QString::fromStdString(snap.message);
+  return f;
+}
+
+void SimulationPanel::startSession(const SimulationSetup& s) {
+  // Building the body (model, first factorisation) takes a while on a large organ: on a worker; the old
+  // session keeps its thread until the new one is ready. Commands given meanwhile apply to the new one.
+  session_.reset();
+  const long generation = ++generation_;
+  if (!s.organ || s.organ->organ->empty()) {
+    onFailed(tr("No organ volume to simulate; load or tetrahedralise a mesh first."));
+    return;
+  }
+  builtWith_ = s.organ->material;
+  pendingSteps_ = 0;
+  auto* watcher = new QFutureWatcher<void>(this);
+  auto result = std::make_shared<std::pair<std::shared_ptr<simcore::Session>, QString>>();
+  auto ctx = std::make_shared<FrameContext>();
+  connect(watcher, &QFutureWatcher<void>::finished, this, [this, watcher, result, ctx, generation] {
+    watcher->deleteLater();
+    if (generation != generation_) return;  // a newer organ arrived meanwhile
+    if (!result->first) {
+      onFailed(result->second);
+      return;
+    }
+    session_ = std::move(result->first);
+    session_->setPublishedCallback([this, s = session_.get(), ctx]() {
+      // On the session's thread: the frame is made here, the GUI thread only draws it.
+      auto frame = makeFrame(*ctx, *s->snapshot(), colouring_.load());
+      QMetaObject::invokeMethod(this, [this, frame, generation = ctx->generation] {
+        if (generation == generation_) onFrame(frame);
+      }, Qt::QueuedConnection);
+    });
+    session_->setPublishStress(colouring_ == 1);  // publishes the state at rest with this panel's colouring
+    // What was asked while the body was being built: edits first (they apply at the first step), then the run.
+    if (organ_ && !(organ_->material == builtWith_)) postMaterial(builtWith_, organ_->material);
+    postRunParameters();
+    for (; pendingSteps_ > 0; --pendingSteps_) session_->stepOnce();
+    if (pendingPlay_) session_->play();
+    pendingPlay_ = false;
+  });
+  watcher->setFuture(QtConcurrent::run([s, result, ctx, generation] {
+    try {
+      simcore::BodySetup b = bodySetup(s);
+      ctx->organ = s.organ;
+      ctx->rest = b.rest;
+      ctx->tets = b.mesh.tets;
+      ctx->incidence.assign(b.rest.size(), 0);
+      for (const auto& t : ctx->tets)
+        for (int v : t) ++ctx->incidence[static_cast<std::size_t>(v)];
+      ctx->generation = generation;
+      result->first = std::make_shared<simcore::Session>(std::move(b));
+    } catch (const std::exception& e) {
+      result->second = QString::fromStdString(e.what());
+    }
+  }));
+}
 
 // -------------------------------------------------------------------------------------------- view
 
@@ -358,11 +347,11 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   gravity_->addItems({tr("down in the image"), tr("into the scene"), tr("off")});
   gravity_->setToolTip(tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it"));
   form->addRow(tr("Gravity"), gravity_);
-  connect(gravity_, &QComboBox::currentIndexChanged, this, &SimulationPanel::parametersEdited);
-  colouring_ = new QComboBox(this);
-  colouring_->setObjectName(QStringLiteral("simColouring"));
-  colouring_->addItems({tr("displacement (mm)"), tr("von Mises stress (kPa)")});
-  form->addRow(tr("Colour by"), colouring_);
+  connect(gravity_, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
+  colouringBox_ = new QComboBox(this);
+  colouringBox_->setObjectName(QStringLiteral("simColouring"));
+  colouringBox_->addItems({tr("displacement (mm)"), tr("von Mises stress (kPa)")});
+  form->addRow(tr("Colour by"), colouringBox_);
   layout->addLayout(form);
 
   auto* buttons = new QHBoxLayout;
@@ -384,25 +373,19 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   status_->setWordWrap(true);
   layout->addWidget(status_);
 
-  thread_ = new QThread(this);
-  thread_->setObjectName(QStringLiteral("simulation"));
-  worker_ = new SimulationWorker;
-  worker_->moveToThread(thread_);
-  connect(thread_, &QThread::finished, worker_, &QObject::deleteLater);
-  connect(worker_, &SimulationWorker::frame, this, &SimulationPanel::onFrame);
-  connect(worker_, &SimulationWorker::failed, this, &SimulationPanel::onFailed);
-  thread_->start();
-
   connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
   connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::stepOnce);
   connect(resetButton_, &QPushButton::clicked, this, &SimulationPanel::reset);
   connect(preset_, &QComboBox::currentTextChanged, this, &SimulationPanel::applyPreset);
-  for (QComboBox* c : {model_, method_}) connect(c, &QComboBox::currentIndexChanged, this, &SimulationPanel::parametersEdited);
-  for (QDoubleSpinBox* s : {young_, poisson_, density_, timeStep_})
-    connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::parametersEdited);
+  connect(model_, &QComboBox::currentIndexChanged, this, &SimulationPanel::materialFieldsEdited);
+  connect(method_, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
+  connect(timeStep_, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
+  for (QDoubleSpinBox* s : {young_, poisson_, density_})
+    connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::materialFieldsEdited);
   connect(density_, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::updateMass);
-  connect(colouring_, &QComboBox::currentIndexChanged, this, [this](int c) {
-    QMetaObject::invokeMethod(worker_, [w = worker_, c] { w->setColouring(c); }, Qt::QueuedConnection);
+  connect(colouringBox_, &QComboBox::currentIndexChanged, this, [this](int c) {
+    colouring_ = c;
+    if (session_) session_->setPublishStress(c == 1);  // republishes the current state coloured this way
   });
   // Plausible soft-tissue values until a case arrives with its material.
   fillMaterial(app::MaterialSettings{simcore::MaterialModel::Corotational, 27e3, 0.4, 1060});
@@ -410,9 +393,8 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
 }
 
 SimulationPanel::~SimulationPanel() {
-  QMetaObject::invokeMethod(worker_, [w = worker_] { w->setPlaying(false); }, Qt::QueuedConnection);
-  thread_->quit();
-  thread_->wait();
+  ++generation_;
+  session_.reset();  // joins the session's thread before the panel goes
 }
 
 SimulationSetup SimulationPanel::setup() const {
@@ -446,10 +428,15 @@ void SimulationPanel::fillMaterial(const app::MaterialSettings& m) {
 
 app::MaterialSettings SimulationPanel::fieldsMaterial() const {
   app::MaterialSettings m = organ_ ? organ_->material : app::MaterialSettings{};
+  // A field the user did not touch keeps the case's exact value (a field shows it rounded to its decimals).
+  auto take = [](const QDoubleSpinBox* field, double caseValue, double scale) {
+    const double shown = caseValue / scale;
+    return std::abs(field->value() - shown) > 0.5 * std::pow(10.0, -field->decimals()) ? scale * field->value() : caseValue;
+  };
   m.model = static_cast<simcore::MaterialModel>(model_->currentIndex());
-  m.young = 1e3 * young_->value();
-  m.poisson = poisson_->value();
-  m.density = density_->value();
+  m.young = take(young_, m.young, 1e3);
+  m.poisson = take(poisson_, m.poisson, 1.0);
+  m.density = take(density_, m.density, 1.0);
   return m;
 }
 
@@ -457,18 +444,29 @@ void SimulationPanel::setCase(std::shared_ptr<const app::Case> c) {
   const auto previous = organ_;
   organ_ = std::move(c);
   if (organ_) fillMaterial(organ_->material);
-  // The same organ in the same shape, place and attachments keeps running; anything else starts again.
-  const bool same = previous && organ_ && sameMesh(previous.get(), organ_.get()) && previous->pose.R == organ_->pose.R &&
-                    previous->pose.t == organ_->pose.t;
-  const SimulationSetup s = setup();
-  if (same) {
-    if (!(previous->material == organ_->material))
-      QMetaObject::invokeMethod(worker_, [w = worker_, s] { w->configure(s, true); }, Qt::QueuedConnection);
+  if (sameBody(previous.get(), organ_.get())) {
+    // The same organ in the same shape, place and attachments keeps running; a material edit is applied
+    // at the next step boundary, keeping the state.
+    if (!(previous->material == organ_->material)) postMaterial(previous->material, organ_->material);
     return;
   }
   playing_ = false;
-  QMetaObject::invokeMethod(worker_, [w = worker_, s] { w->setPlaying(false); w->configure(s, false); }, Qt::QueuedConnection);
+  pendingPlay_ = false;
+  startSession(setup());
   updateButtons();
+}
+
+void SimulationPanel::postMaterial(const app::MaterialSettings& before, const app::MaterialSettings& m) {
+  if (!session_) return;
+  // As timestamped events through the session's mailbox (recorded with the run, like any input).
+  if (m.model != before.model) session_->post(parameter("model", static_cast<double>(m.model)));
+  if (m.young != before.young) session_->post(parameter("young", m.young));
+  if (m.poisson != before.poisson) session_->post(parameter("poisson", m.poisson));
+  if (m.density != before.density) session_->post(parameter("density", m.density));
+  if (m.vesselYoung != before.vesselYoung || m.vesselPoisson != before.vesselPoisson) {
+    session_->post(parameter("young", m.vesselYoung, app::kVesselLabel));
+    if (m.vesselYoung > 0) session_->post(parameter("poisson", m.vesselPoisson, app::kVesselLabel));
+  }
 }
 
 void SimulationPanel::applyPreset(const QString& name) {
@@ -486,32 +484,43 @@ void SimulationPanel::updateMass() {
                             : tr("no volume mesh"));
 }
 
-void SimulationPanel::parametersEdited() {
+void SimulationPanel::materialFieldsEdited() {
   if (filling_ || !organ_) return;
   // The material belongs to the case (the fit uses it too): an undoable edit, applied back through setCase.
   const app::MaterialSettings m = fieldsMaterial();
-  if (!(m == organ_->material)) {
-    emit materialEdited(m);
-    return;
-  }
-  // Run parameters (time step, solver, gravity): applied by the worker at the next step boundary, keeping the state.
+  if (!(m == organ_->material)) emit materialEdited(m);
+}
+
+void SimulationPanel::postRunParameters() {
+  // Run parameters (time step, solver, gravity): events applied at the next step boundary, keeping the state.
+  if (!session_) return;
   const SimulationSetup s = setup();
-  QMetaObject::invokeMethod(worker_, [w = worker_, s] { w->configure(s, true); }, Qt::QueuedConnection);
+  const auto& now = session_->setup().settings;
+  if (s.timeStep != now.timeStep) session_->post(parameter("dt", s.timeStep));
+  if (s.method != now.method) session_->post(parameter("method", static_cast<double>(s.method)));
+  if (s.gravity != now.gravity) {
+    simcore::InputEvent g;
+    g.kind = simcore::InputKind::Gravity;
+    g.vector = s.gravity;
+    session_->post(g);
+  }
 }
 
 void SimulationPanel::play() {
   if (!organ_) return;
   playing_ = true;
   error_.clear();
-  fpsClock_.start();
-  framesSinceClock_ = 0;
-  QMetaObject::invokeMethod(worker_, [w = worker_] { w->setPlaying(true); }, Qt::QueuedConnection);
+  rate_.clock.start();
+  rate_.frames = 0;
+  if (session_) session_->play();
+  else pendingPlay_ = true;
   updateButtons();
 }
 
 void SimulationPanel::pause() {
   playing_ = false;
-  QMetaObject::invokeMethod(worker_, [w = worker_] { w->setPlaying(false); }, Qt::QueuedConnection);
+  pendingPlay_ = false;
+  if (session_) session_->pause();
   updateButtons();
 }
 
@@ -521,14 +530,17 @@ void SimulationPanel::stepOnce() {
   if (!organ_) return;
   playing_ = false;
   error_.clear();
-  QMetaObject::invokeMethod(worker_, [w = worker_] { w->stepOnce(); }, Qt::QueuedConnection);
+  if (session_) session_->stepOnce();
+  else ++pendingSteps_;  // the body is still being built: the step runs when it is ready
   updateButtons();
 }
 
 void SimulationPanel::reset() {
   playing_ = false;
+  pendingPlay_ = false;
+  pendingSteps_ = 0;
   error_.clear();
-  QMetaObject::invokeMethod(worker_, [w = worker_] { w->reset(); }, Qt::QueuedConnection);
+  if (session_) session_->reset();
   updateButtons();
 }
 
@@ -539,11 +551,11 @@ void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
     playing_ = false;  // the worker stopped on a failed step
     updateButtons();
   }
-  ++framesSinceClock_;
-  if (fpsClock_.isValid() && fpsClock_.elapsed() > 500) {
-    fps_ = 1e3 * framesSinceClock_ / static_cast<double>(fpsClock_.elapsed());
-    fpsClock_.restart();
-    framesSinceClock_ = 0;
+  ++rate_.frames;
+  if (rate_.clock.isValid() && rate_.clock.elapsed() > 500) {
+    rate_.fps = 1e3 * rate_.frames / static_cast<double>(rate_.clock.elapsed());
+    rate_.clock.restart();
+    rate_.frames = 0;
   }
   const QString text = statusText();
   status_->setText(text);
@@ -567,7 +579,8 @@ QString SimulationPanel::statusText() const {
   if (last_->steps == 0)
     return loose ? tr("Simulation at rest (t = 0). This organ has no attachment nodes: it will fall freely under gravity.")
                  : tr("Simulation at rest (t = 0)");
-  const QString rate = playing_ ? tr(" · %1 fps").arg(fps_, 0, 'f', 0) : QString();
+  if (!last_->message.isEmpty()) return last_->message;
+  const QString rate = playing_ ? tr(" · %1 fps").arg(rate_.fps, 0, 'f', 0) : QString();
   return tr("t = %1 s · step %2 ms%3 · %4 Newton · %5")
       .arg(last_->time, 0, 'f', 2)
       .arg(r.wallMs, 0, 'f', 1)
@@ -586,4 +599,3 @@ void SimulationPanel::updateButtons() {
 
 }  // namespace rehearse::ui
 
-#include "simulationpanel.moc"

@@ -69,6 +69,15 @@ void Session::setPublishedCallback(std::function<void()> f) {
   published_ = std::move(f);
 }
 
+void Session::setPublishStress(bool on) {
+  publishStress_ = on;
+  {
+    std::lock_guard<std::mutex> lock(mailboxMutex_);
+    republish_ = true;
+  }
+  wake_.notify_all();
+}
+
 void Session::rebuildBody() {
   // A parameter edit: a new body with the same nodes; the state (positions, velocities, time) carries over,
   // the lagged factor is rebuilt at the next step (the old one belongs to the old parameters).
@@ -122,7 +131,15 @@ void Session::apply(const InputEvent& e, std::string& message) {
       break;
     case InputKind::Parameter: {
       BodySetup before = setup_;
-      if (e.name == "young") setup_.material.young = e.value;
+      if (e.label > 0 && (e.name == "young" || e.name == "poisson")) {
+        // One label's own material (e.g. the vessels'), starting from the parenchyma's when it had none.
+        if (e.name == "young" && e.value == 0) {
+          setup_.byLabel.erase(e.label);
+        } else {
+          auto it = setup_.byLabel.try_emplace(e.label, setup_.material).first;
+          (e.name == "young" ? it->second.young : it->second.poisson) = e.value;
+        }
+      } else if (e.name == "young") setup_.material.young = e.value;
       else if (e.name == "poisson") setup_.material.poisson = e.value;
       else if (e.name == "density") setup_.material.density = e.value;
       else if (e.name == "dt") setup_.settings.timeStep = e.value;
@@ -192,6 +209,7 @@ void Session::publish(const StepReport& rep, const std::string& message) {
   s->tool = tool_;
   s->material = setup_.material;
   s->message = message;
+  if (publishStress_) body_->stress(state_, s->stress);
   std::function<void()> callback;
   {
     std::lock_guard<std::mutex> lock(mailboxMutex_);
@@ -238,8 +256,17 @@ void Session::run() {
     bool doReset = false, doStep = false;
     {
       std::unique_lock<std::mutex> lock(mailboxMutex_);
-      wake_.wait(lock, [this] { return quit_ || playing_ || pendingSteps_ > 0 || pendingReset_; });
+      wake_.wait(lock, [this] { return quit_ || playing_ || pendingSteps_ > 0 || pendingReset_ || republish_; });
       if (quit_) return;
+      if (republish_ && !playing_ && pendingSteps_ == 0 && !pendingReset_) {
+        republish_ = false;
+        lock.unlock();
+        std::lock_guard<std::mutex> stepLock(stepMutex_);
+        const auto last = snapshot();
+        publish(last->report, last->message);
+        continue;
+      }
+      republish_ = false;
       doReset = pendingReset_;
       pendingReset_ = false;
       if (!doReset && pendingSteps_ > 0) {

@@ -1,14 +1,19 @@
 #pragma once
 // Central view: the endoscope frame with the organ drawn over it through the camera, the sketched
-// contour, the rigid-alignment gizmo and landmark pairs. CPU (QPainter) rendering, so it works over
-// remote desktops and in offscreen tests. The wheel zooms about the cursor and the middle button pans
-// in every tool; Home fits the frame. Edits are not applied here: the view emits the edited contour or
-// pose and the window turns it into an undoable command.
+// contour, the organ curves, attachments and landmark pairs, and whatever the current tool draws (the
+// gizmo, a draft segment). CPU (QPainter) rendering, so it works over remote desktops and in offscreen
+// tests. The wheel zooms about the cursor and the middle button pans in every tool; Home fits the frame.
+// What a click does belongs to the current tool (frametool.hpp, one class per tool in src/tools/). Edits
+// are not applied here: the tools emit the edited contour, pose or attachments through this view's
+// signals and the window turns them into undoable commands.
+#include "rehearse/ui/frametool.hpp"
+
 #include <rehearse/app/case.hpp>
 
 #include <QImage>
 #include <QWidget>
 
+#include <map>
 #include <memory>
 #include <optional>
 
@@ -34,14 +39,29 @@ struct LandmarkPair {
   bool hasImage = false;
 };
 
+/// What tools share: set from the step pages, read by the tools.
+struct ToolSettings {
+  bool snapToEdges = false;                ///< new contour segments snap to image edges (intelligent scissors)
+  std::string newSegmentType = "silhouette";  ///< "silhouette", "ridge" or "ligament"
+  double attachmentRadius = 0.010;         ///< m: the patch one click of the Attachments tool holds or releases
+};
+
+/// The organ under a frame pixel through the current pose: the model point and its nearest surface node.
+struct OrganHit {
+  Eigen::Vector3d model;
+  int node = -1;
+};
+
 class FrameView : public QWidget {
   Q_OBJECT
  public:
   explicit FrameView(QWidget* parent = nullptr);
+  ~FrameView() override;
   void setFrame(const QImage& frame);
   void setOverlay(const QImage& organ, const QList<QPolygonF>& silhouette);
   void setInnerOverlay(const QImage& inner) { inner_ = inner; update(); }
   void setCase(std::shared_ptr<const app::Case> c);
+  const std::shared_ptr<const app::Case>& caseData() const { return case_; }
   void setOverlayVisible(bool visible);
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
@@ -50,25 +70,37 @@ class FrameView : public QWidget {
   OverlayStyle overlayStyle() const { return style_; }
   void setTool(Tool t);
   Tool tool() const { return tool_; }
-  void setSnapToEdges(bool on) { snap_ = on; }
+  void setSnapToEdges(bool on) { settings_.snapToEdges = on; }
   /// The type new segments get: "silhouette", "ridge" or "ligament".
-  void setNewSegmentType(const QString& type) { newSegmentType_ = type.toStdString(); }
-  QString newSegmentType() const { return QString::fromStdString(newSegmentType_); }
+  void setNewSegmentType(const QString& type) { settings_.newSegmentType = type.toStdString(); }
+  QString newSegmentType() const { return QString::fromStdString(settings_.newSegmentType); }
+  /// Radius (m) of the patch of surface nodes one click of the Attachments tool holds or releases.
+  void setAttachmentRadius(double metres) { settings_.attachmentRadius = metres; }
+  double attachmentRadius() const { return settings_.attachmentRadius; }
+  const ToolSettings& toolSettings() const { return settings_; }
   /// Ends the organ curve being picked (Enter, a double click or another tool do the same).
   void finishOrganCurve();
+  /// Finishes the click-by-click segment being drawn (Enter does the same).
+  void finishSegment();
   void setLandmarks(const std::vector<LandmarkPair>& l) { landmarks_ = l; update(); }
-  /// Radius (m) of the patch of surface nodes one click of the Attachments tool holds or releases.
-  void setAttachmentRadius(double metres) { attachRadius_ = metres; }
-  double attachmentRadius() const { return attachRadius_; }
+  const std::vector<LandmarkPair>& landmarks() const { return landmarks_; }
   double zoom() const { return zoom_; }
   /// Frame pixel under a widget position, and back.
   QPointF toFrame(const QPointF& widgetPos) const;
   QPointF toWidget(const QPointF& framePos) const;
+  /// Widget pixels per frame pixel at the current zoom.
+  double scale() const;
   /// Widget position of a gizmo handle (for tests and tooltips); invalid when there is no pose.
   QPointF handlePosition(GizmoHandle h) const;
-  /// Finishes the click-by-click segment being drawn (Enter does the same).
-  void finishSegment();
   void fitToWindow();
+  bool hasFrame() const { return !frame_.isNull(); }
+
+  // For the tools.
+  /// The case's contour sized to the frame.
+  imaging::Contour currentContour() const;
+  /// A new id for the undo steps of one drag (they merge into one).
+  int nextMergeId() { return ++mergeCounter_; }
+  std::optional<OrganHit> organAt(const Eigen::Vector2d& framePixel) const;
 
  signals:
   void cursorMoved(QPointF framePixel);
@@ -94,22 +126,10 @@ class FrameView : public QWidget {
 
  private:
   QTransform frameToWidget() const;
-  imaging::Contour currentContour() const;
-  void commitContour(const imaging::Contour& c, const QString& text, int mergeId = -1);
-  std::optional<std::pair<int, int>> pointNear(const QPointF& widgetPos, double radius) const;
-  GizmoHandle handleAt(const QPointF& widgetPos) const;
-  Eigen::Vector3d cogCamera() const;
-  void dragGizmo(const QPointF& widgetPos);
-  void eraseAt(const QPointF& widgetPos);
-  std::vector<Eigen::Vector2d> maybeSnap(const std::vector<Eigen::Vector2d>& pts) const;
-  /// The organ under a frame pixel through the current pose: the model point and its nearest surface node.
-  struct OrganHit {
-    Eigen::Vector3d model;
-    int node = -1;
-  };
-  std::optional<OrganHit> organAt(const Eigen::Vector2d& framePixel) const;
-  void pickOrganCurve(const Eigen::Vector2d& framePixel);
-  void toggleAttachmentsAt(const Eigen::Vector2d& framePixel);
+  FrameTool* current() const;
+  void rebuildWireframe();
+  void paintOverlay(QPainter& painter);
+  void paintOrganMarks(QPainter& painter, const imaging::Contour& contour);
 
   std::shared_ptr<const app::Case> case_;
   QImage frame_, overlay_, inner_;
@@ -119,30 +139,15 @@ class FrameView : public QWidget {
   OverlayStyle style_ = OverlayStyle::Shaded;
   QVector<QLineF> wire_;  // frame pixels; rebuilt when the case (pose, shape) changes
   bool wireStale_ = true;
-  void rebuildWireframe();
   double zoom_ = 1.0;
   QPointF pan_;
-  Tool tool_ = Tool::Navigate;
-  bool snap_ = false;
-  // Interaction state.
   bool panning_ = false;
   QPointF lastMouse_;
-  std::vector<Eigen::Vector2d> draft_;  // segment being drawn
-  bool drawing_ = false;
-  std::optional<std::pair<int, int>> dragPoint_;
-  imaging::Contour working_;            // contour during a point drag or an erase stroke
-  bool erasing_ = false;
-  GizmoHandle activeHandle_ = GizmoHandle::None;
-  Pose dragStartPose_;
-  QPointF dragStartMouse_;
+  Tool tool_ = Tool::Navigate;
+  std::map<Tool, std::unique_ptr<FrameTool>> tools_;
+  ToolSettings settings_;
   int mergeCounter_ = 0;
-  int activeMerge_ = -1;
   std::vector<LandmarkPair> landmarks_;
-  double attachRadius_ = 0.010;
-  std::string newSegmentType_ = "silhouette";
-  int curveSegment_ = -1;  // the ridge or ligament whose organ curve is being picked
-  int curveMerge_ = -1;
-  std::vector<std::size_t> curveStops_;  // the curve's length after each click (for Backspace)
 };
 
 }  // namespace rehearse::ui

@@ -1,15 +1,18 @@
 #pragma once
-// The simulation panel: the current organ simulated with the physics core on a worker thread (play,
-// pause, single step, reset), its parameters edited live (applied at the next step boundary), and a 3D
-// view of the deformed mesh coloured by displacement or von Mises stress. Works without OpenGL.
+// The simulation panel: the case's organ as the frame shows it (fitted shape, camera frame) simulated by a
+// simcore::Session on the session's own thread (play, pause, single step, reset); material and run
+// parameters edited live go to the session as timestamped input events (applied at the next step
+// boundary, recorded with the run); a 3D view of the deformed mesh coloured by displacement or von Mises
+// stress. No simulation state lives here: the panel only draws the session's published snapshots.
 #include <rehearse/app/case.hpp>
 #include "rehearse/ui/organview.hpp"
 
-#include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/session/session.hpp>
 
 #include <QElapsedTimer>
 #include <QWidget>
 
+#include <atomic>
 #include <memory>
 #include <vector>
 
@@ -17,7 +20,6 @@ class QComboBox;
 class QDoubleSpinBox;
 class QLabel;
 class QPushButton;
-class QThread;
 
 namespace rehearse::ui {
 
@@ -49,9 +51,8 @@ struct SimulationFrame {
   double youngInUse = 0;                   ///< Pa (shows when a live edit took effect)
   Qt::HANDLE thread = nullptr;             ///< the thread that computed it (never the GUI thread)
   std::shared_ptr<const app::Case> organ;
+  QString message;                         ///< the session's sentence about the last applied input, if any
 };
-
-class SimulationWorker;
 
 /// Draws a SimulationFrame: the organ's surface with the frame's positions, per-vertex colours and a
 /// colour bar; turntable controls as in the organ view.
@@ -94,6 +95,8 @@ class SimulationPanel : public QWidget {
   void applyPreset(const QString& name);
   bool isPlaying() const { return playing_; }
   std::shared_ptr<const SimulationFrame> lastFrame() const { return last_; }
+  /// The running session (null until the body is built, or without an organ).
+  std::shared_ptr<simcore::Session> session() const { return session_; }
   SimulationSetup setup() const;
   QString statusText() const;
 
@@ -104,19 +107,31 @@ class SimulationPanel : public QWidget {
   void frameShown(long steps);
 
  private:
+  struct FrameContext;
+  static std::shared_ptr<const SimulationFrame> makeFrame(const FrameContext& ctx, const simcore::Snapshot& snap, int colouring);
+  void startSession(const SimulationSetup& s);
+  void postMaterial(const app::MaterialSettings& before, const app::MaterialSettings& m);
   void onFrame(std::shared_ptr<const SimulationFrame> f);
   void onFailed(const QString& message);
-  void parametersEdited();
+  void materialFieldsEdited();
+  void postRunParameters();
   void updateMass();
   void updateButtons();
+  void fillMaterial(const app::MaterialSettings& m);
+  app::MaterialSettings fieldsMaterial() const;
 
-  QThread* thread_ = nullptr;
-  SimulationWorker* worker_ = nullptr;
+  std::shared_ptr<simcore::Session> session_;
+  long generation_ = 0;          ///< bumped per session: frames of an older one are dropped
+  std::atomic<int> colouring_{0};
+  bool pendingPlay_ = false;     ///< Play pressed while the session was being built ...
+  int pendingSteps_ = 0;         ///< ... and single steps
+  app::MaterialSettings builtWith_;  ///< the material the session's body was built with
   SimulationView* view_ = nullptr;
   QComboBox* preset_ = nullptr;
   QComboBox* model_ = nullptr;
   QComboBox* method_ = nullptr;
-  QComboBox* colouring_ = nullptr;
+  QComboBox* colouringBox_ = nullptr;
+  QComboBox* gravity_ = nullptr;
   QDoubleSpinBox* young_ = nullptr;
   QDoubleSpinBox* poisson_ = nullptr;
   QDoubleSpinBox* density_ = nullptr;
@@ -127,15 +142,14 @@ class SimulationPanel : public QWidget {
   QLabel* status_ = nullptr;
   QLabel* mass_ = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
   std::shared_ptr<const app::Case> organ_;
-  QComboBox* gravity_ = nullptr;
-  void fillMaterial(const app::MaterialSettings& m);
-  app::MaterialSettings fieldsMaterial() const;
   std::shared_ptr<const SimulationFrame> last_;
   bool playing_ = false;
   bool filling_ = false;
-  QElapsedTimer fpsClock_;
-  int framesSinceClock_ = 0;
-  double fps_ = 0;
+  struct {
+    QElapsedTimer clock;
+    int frames = 0;
+    double fps = 0;
+  } rate_;
   QString error_;
 };
 

@@ -25,7 +25,9 @@ enum class InputKind {
   ToolPose,   ///< the tool tip moved to `position` (m, body frame)
   Jaw,        ///< the jaws closed (`on`) or opened
   Cut,        ///< the cutting instrument on (`on`) or off
-  Parameter,  ///< `name` ("young", "poisson", "density", "dt", "method") set to `value` (SI; method: NewtonMethod index)
+  Parameter,  ///< `name` ("young", "poisson", "density", "model", "dt", "method") set to `value` (SI; model and method:
+              ///< MaterialModel / NewtonMethod index); with `label` > 0, "young" and "poisson" of that label's
+              ///< material (e.g. the vessels'; "young" 0 removes it: the label then uses the parenchyma's)
   Gravity,    ///< gravity set to `vector` (m/s^2, body frame)
 };
 
@@ -34,6 +36,7 @@ struct InputEvent {
   double wallTime = 0;  ///< s since the session started, when posted (for review; replay goes by `step`)
   long step = -1;       ///< the step boundary it applies at: set by the session when applied; a replay posts it
   int tool = 0;
+  int label = 0;        ///< Parameter: 0 the parenchyma (and unlisted labels), else an element label
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Vector3d vector = Eigen::Vector3d::Zero();
   bool on = false;
@@ -60,6 +63,7 @@ struct Snapshot {
   ToolState tool;
   MaterialParams material;                 ///< in use (shows when a live edit took effect)
   std::string message;                     ///< a sentence about the last applied input, when it needs one
+  std::vector<double> stress;              ///< per element von Mises stress (Pa), only while setPublishStress(true)
 };
 
 /// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
@@ -91,6 +95,9 @@ class Session {
   std::shared_ptr<const Snapshot> snapshot() const;
   /// Called on the session's thread after each publish (the GUI queues a repaint from it). Set before play.
   void setPublishedCallback(std::function<void()> f);
+  /// Any thread: whether snapshots carry the elements' von Mises stress (costs one pass over the elements).
+  /// The next snapshot is published at once with it.
+  void setPublishStress(bool on);
 
   /// The deterministic core: applies the events due at this boundary, then one step, then publishes.
   /// The thread calls it; tests call it directly (never both at once: it locks).
@@ -128,6 +135,8 @@ class Session {
   std::function<void()> published_;
   std::condition_variable wake_;
   std::atomic<bool> playing_{false};
+  std::atomic<bool> publishStress_{false};
+  bool republish_ = false;
   int pendingSteps_ = 0;
   bool pendingReset_ = false;
   bool quit_ = false;

@@ -1,0 +1,41 @@
+#pragma once
+// The organ over the frame, as the frame view shows it: the organ drawn through the case's camera at its
+// pose and current shape (fitted or rest), with OpenGL off screen when a context can be made and by the
+// CPU rasteriser otherwise; its outline; the inner structures the user ticked, each label in its own
+// colour; and the contour-to-silhouette distance the elastic fit measures.
+#include <rehearse/app/case.hpp>
+
+#include <QImage>
+#include <QList>
+#include <QPolygonF>
+
+#include <memory>
+#include <vector>
+
+namespace rehearse::ui {
+
+class GLOverlay;
+
+struct OverlayPicture {
+  QImage organ;                  ///< RGBA, possibly at a reduced resolution (drawn scaled onto the frame)
+  QList<QPolygonF> silhouette;   ///< frame pixels
+  QImage inner;                  ///< inner structures, same size as `organ` (null when none is shown)
+  double meanDistance = -1;      ///< px; negative when it cannot be computed (no contour, behind the camera)
+  double rmsDistance = -1, maxDistance = -1;
+};
+
+class OrganOverlay {
+ public:
+  /// `openGL`: try an off-screen OpenGL context (falls back to the CPU rasteriser when none can be made).
+  explicit OrganOverlay(bool openGL);
+  ~OrganOverlay();
+  bool usesOpenGL() const { return gl_ != nullptr; }
+  /// Empty picture when the case has no organ, no pose or an unusable camera.
+  OverlayPicture render(const app::Case& c, const std::vector<int>& innerLabels);
+
+ private:
+  QImage organImage(const imaging::Camera& camera, const Pose& pose, const SurfaceView& surface, const QColor& colour);
+  std::unique_ptr<GLOverlay> gl_;
+};
+
+}  // namespace rehearse::ui

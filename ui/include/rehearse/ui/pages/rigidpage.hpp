@@ -1,0 +1,37 @@
+#pragma once
+// Step 4, the rigid alignment: the gizmo (G; translations along and rotations about the camera axes through
+// the organ's centre), the pose typed in, a reset to the automatic placement, landmark pairs (L) solved by
+// PnP, and the live contour-to-silhouette distance.
+#include "rehearse/ui/pages/steppage.hpp"
+
+class QDoubleSpinBox;
+class QLabel;
+class QListWidget;
+
+namespace rehearse::ui {
+
+class RigidPage : public StepPage {
+  Q_OBJECT
+ public:
+  RigidPage(Workbench& wb, QWidget* parent = nullptr);
+  void refresh(const app::Case& c) override;
+  void caseLoaded() override;
+  /// Pose from the landmark pairs (4 or more), one undoable edit.
+  void solvePnP();
+  const std::vector<LandmarkPair>& landmarks() const { return landmarks_; }
+  double lastPnPReprojectionError() const { return pnpError_; }
+  /// The distance line under the fields (the window computes it with the overlay).
+  void setDistanceText(const QString& text);
+
+ private:
+  void setLandmarks(std::vector<LandmarkPair> l);
+
+  QDoubleSpinBox* poseFields_[6] = {};
+  QLabel* distanceLabel_ = nullptr;
+  QListWidget* landmarkList_ = nullptr;
+  QPushButton* pnpButton_ = nullptr;
+  std::vector<LandmarkPair> landmarks_;
+  double pnpError_ = -1;
+};
+
+}  // namespace rehearse::ui

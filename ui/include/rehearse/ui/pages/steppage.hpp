@@ -1,0 +1,56 @@
+#pragma once
+// A step page: the panel of one workflow step (app::kSteps), one class each (pages/meshpage.hpp ...).
+// A page edits the case only through the CaseDocument (undoable), starts long work through the JobRunner,
+// picks frame-view tools, and redraws itself from the case in refresh(). A new step (appearance,
+// rehearsal) is one more StepPage subclass and one row of app::kSteps; the main window only stacks them.
+#include "rehearse/ui/casedocument.hpp"
+#include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/jobrunner.hpp"
+
+#include <rehearse/app/workflow.hpp>
+
+#include <QWidget>
+
+#include <functional>
+
+class QPushButton;
+
+namespace rehearse::ui {
+
+/// What every page works with (owned by the main window, which outlives the pages).
+struct Workbench {
+  CaseDocument* doc = nullptr;
+  FrameView* view = nullptr;
+  JobRunner* jobs = nullptr;
+  QWidget* window = nullptr;                        ///< for dialogs and window-wide shortcuts
+  std::function<void(const QString&)> status;       ///< a sentence for the status bar
+  std::function<void(app::Step)> goToStep;          ///< shows a step's page (and its default tool)
+  std::function<app::Step()> currentStep;
+};
+
+class StepPage : public QWidget {
+  Q_OBJECT
+ public:
+  StepPage(Workbench& wb, app::Step step, QWidget* parent = nullptr);
+  app::Step step() const { return step_; }
+  /// Redraws the page's fields from the case (called on every change of the case; no edits from here).
+  virtual void refresh(const app::Case& c) = 0;
+  /// A new case was loaded (forget per-case transient state such as landmarks or a pending fit).
+  virtual void caseLoaded() {}
+
+ protected:
+  /// A button that picks `tool` in the frame view; `key` does the same from anywhere, after going to
+  /// this page's step.
+  QPushButton* toolButton(QWidget* parent, const QString& text, const QString& tip, Tool tool, Qt::Key key);
+  /// A key that picks `tool` only while this page's step is shown.
+  void stepKey(Qt::Key key, Tool tool);
+  const std::shared_ptr<const app::Case>& data() const { return wb_.doc->data(); }
+
+  Workbench& wb_;
+  bool updating_ = false;  ///< true while refresh() fills fields (their change signals are not edits)
+
+ private:
+  app::Step step_;
+};
+
+}  // namespace rehearse::ui

@@ -1,0 +1,92 @@
+#include "rehearse/ui/organoverlay.hpp"
+
+#include "rehearse/ui/gloverlay.hpp"
+#include "rehearse/ui/pages/meshpage.hpp"
+
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/registration.hpp>
+
+#include <QPainter>
+
+#include <opencv2/imgproc.hpp>
+
+namespace rehearse::ui {
+
+OrganOverlay::OrganOverlay(bool openGL) {
+  if (!openGL) return;
+  gl_ = std::make_unique<GLOverlay>();
+  if (!gl_->valid()) gl_.reset();
+}
+
+OrganOverlay::~OrganOverlay() = default;
+
+QImage OrganOverlay::organImage(const imaging::Camera& camera, const Pose& pose, const SurfaceView& surface, const QColor& colour) {
+  QImage image;
+  if (gl_ && gl_->render(camera, pose, surface, colour, image)) return image;
+  const cv::Mat4b overlay = imaging::renderOverlay(camera, pose, surface, cv::Vec3b(colour.blue(), colour.green(), colour.red()));
+  cv::Mat rgba;
+  cv::cvtColor(overlay, rgba, cv::COLOR_BGRA2RGBA);
+  return QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
+}
+
+OverlayPicture OrganOverlay::render(const app::Case& c, const std::vector<int>& innerLabels) {
+  OverlayPicture out;
+  if (c.organ->surface.empty() || !c.hasPose || !c.camera.problem().empty()) return out;
+  // Large frames (4k) get the overlay at a reduced resolution, drawn scaled: the GUI thread stays responsive.
+  const double s = std::min(1.0, 1600.0 / c.camera.width);
+  imaging::Camera cam = c.camera;
+  if (s < 1.0) {
+    cam.width = static_cast<int>(std::lround(c.camera.width * s));
+    cam.height = static_cast<int>(std::lround(c.camera.height * s));
+    cam.K.row(0) *= s;
+    cam.K.row(1) *= s;
+    cam.K(0, 2) = s * (c.camera.cx() + 0.5) - 0.5;
+    cam.K(1, 2) = s * (c.camera.cy() + 0.5) - 0.5;
+  }
+  out.organ = organImage(cam, c.pose, c.surfaceView(), QColor(120, 210, 150));
+  const cv::Mat overlay(out.organ.height(), out.organ.width(), CV_8UC4, const_cast<uchar*>(out.organ.constBits()),
+                        static_cast<std::size_t>(out.organ.bytesPerLine()));
+  cv::Mat1b mask;
+  cv::extractChannel(overlay, mask, 3);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  for (const auto& ct : contours) {
+    QPolygonF poly;
+    for (const auto& p : ct) poly << QPointF((p.x + 0.5) / s, (p.y + 0.5) / s);
+    out.silhouette << poly;
+  }
+  // Inner structures the user ticked, on the organ's current shape (fitted or rest), each label in its own
+  // colour (one render per label, composed in label order).
+  for (int label : innerLabels) {
+    std::vector<std::array<int, 3>> storage;
+    const SurfaceView view = c.innerSurfaceView({label}, storage);
+    if (storage.empty()) continue;
+    const QImage layer = organImage(cam, c.pose, view, labelColour(label));
+    if (out.inner.isNull()) {
+      out.inner = layer;
+    } else {
+      QPainter p(&out.inner);
+      p.drawImage(0, 0, layer);
+    }
+  }
+  // The distance the elastic fit measures: the silhouette contour's points to the organ's visible
+  // silhouette (its bent edges), in pixels of the frame.
+  if (const auto segments = imaging::silhouetteSegments(c.contour); !segments.empty()) {
+    const SurfaceView sv = c.surfaceView();
+    Eigen::VectorXd x(3 * static_cast<Eigen::Index>(sv.vertexCount));
+    for (std::size_t i = 0; i < sv.vertexCount; ++i) x.segment<3>(3 * static_cast<Eigen::Index>(i)) = sv.vertex(i);
+    try {
+      const auto d = simcore::contourResidual(segments, simcore::visibleSilhouette(c.organ->surface, x, c.pose, c.camera.pinhole()));
+      if (d.points > 0 && std::isfinite(d.mean)) {
+        out.meanDistance = d.mean;
+        out.rmsDistance = d.rms;
+        out.maxDistance = d.hausdorff;
+      }
+    } catch (const std::exception&) {
+      // behind the camera: no distance to show
+    }
+  }
+  return out;
+}
+
+}  // namespace rehearse::ui

@@ -1,0 +1,137 @@
+#include "rehearse/ui/pages/contourpage.hpp"
+
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QFileDialog>
+#include <QGridLayout>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QPushButton>
+#include <QSettings>
+#include <QVBoxLayout>
+
+namespace rehearse::ui {
+
+ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Contour, parent) {
+  auto* l = new QVBoxLayout(this);
+  auto* grid = new QGridLayout;
+  struct T {
+    Tool tool;
+    const char* name;
+    Qt::Key key;
+  };
+  const T tools[] = {{Tool::Freehand, "Freehand (F)", Qt::Key_F}, {Tool::ClickPoints, "Click points (C)", Qt::Key_C},
+                     {Tool::EditPoints, "Edit points (E)", Qt::Key_E}, {Tool::Erase, "Erase (X)", Qt::Key_X}};
+  int i = 0;
+  for (const auto& t : tools) {
+    auto* b = new QPushButton(tr(t.name), this);
+    b->setMinimumHeight(34);
+    b->setToolTip(tr("Middle button pans and the wheel zooms while drawing; Enter ends a click-by-click segment; "
+                     "in Edit, drag a point, Ctrl+click inserts, right-click deletes."));
+    const Tool tool = t.tool;
+    connect(b, &QPushButton::clicked, this, [this, tool] { wb_.view->setTool(tool); });
+    stepKey(t.key, tool);
+    grid->addWidget(b, i / 2, i % 2);
+    ++i;
+  }
+  l->addLayout(grid);
+  auto* snap = new QCheckBox(tr("Snap to image edges"), this);
+  connect(snap, &QCheckBox::toggled, wb_.view, &FrameView::setSnapToEdges);
+  l->addWidget(snap);
+  // What new segments are: the organ's silhouette, or an anatomical curve (the ridge, the falciform
+  // ligament) that step 5 can also hold onto its curve on the organ.
+  auto* typeRow = new QHBoxLayout;
+  segmentType_ = new QComboBox(this);
+  segmentType_->setObjectName(QStringLiteral("segmentType"));
+  segmentType_->addItem(tr("Silhouette"), QStringLiteral("silhouette"));
+  segmentType_->addItem(tr("Ridge"), QStringLiteral("ridge"));
+  segmentType_->addItem(tr("Ligament"), QStringLiteral("ligament"));
+  segmentType_->setToolTip(tr("Silhouettes are drawn yellow, ridges orange, ligaments violet."));
+  connect(segmentType_, &QComboBox::currentIndexChanged, this,
+          [this](int i) { wb_.view->setNewSegmentType(segmentType_->itemData(i).toString()); });
+  typeRow->addWidget(new QLabel(tr("New segments"), this));
+  typeRow->addWidget(segmentType_, 1);
+  l->addLayout(typeRow);
+  auto* rs = new QHBoxLayout;
+  spacing_ = new QDoubleSpinBox(this);
+  spacing_->setRange(1, 100);
+  spacing_->setValue(8);
+  spacing_->setSuffix(tr(" px"));
+  auto* resample = new QPushButton(tr("Resample"), this);
+  connect(resample, &QPushButton::clicked, this, [this] {
+    const double s = spacing_->value();
+    wb_.doc->edit(tr("Resample contour"), [s](app::Case& k) {
+      for (auto& seg : k.contour.segments) seg = imaging::resampleSegment(seg, s);
+    });
+  });
+  rs->addWidget(new QLabel(tr("Spacing"), this));
+  rs->addWidget(spacing_);
+  rs->addWidget(resample);
+  l->addLayout(rs);
+  auto* row = new QHBoxLayout;
+  auto* smooth = new QPushButton(tr("Smooth"), this);
+  connect(smooth, &QPushButton::clicked, this, [this] {
+    wb_.doc->edit(tr("Smooth contour"), [](app::Case& k) {
+      for (auto& seg : k.contour.segments) seg = imaging::smoothSegment(seg, 5);
+    });
+  });
+  auto* clear = new QPushButton(tr("Clear"), this);
+  connect(clear, &QPushButton::clicked, this, [this] { wb_.doc->edit(tr("Clear contour"), [](app::Case& k) { k.contour.segments.clear(); }); });
+  row->addWidget(smooth);
+  row->addWidget(clear);
+  l->addLayout(row);
+  auto* io = new QHBoxLayout;
+  auto* imp = new QPushButton(tr("Import..."), this);
+  connect(imp, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Import Contour"), QSettings().value("lastDir").toString(), tr("Contours (*.json)"));
+    if (!p.isEmpty()) importContour(p);
+  });
+  auto* exp = new QPushButton(tr("Export..."), this);
+  connect(exp, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getSaveFileName(wb_.window, tr("Export Contour"), QSettings().value("lastDir").toString(), tr("Contours (*.json)"));
+    if (!p.isEmpty()) exportContour(p);
+  });
+  io->addWidget(imp);
+  io->addWidget(exp);
+  l->addLayout(io);
+  status_ = new QLabel(this);
+  status_->setWordWrap(true);
+  l->addWidget(status_);
+  l->addStretch(1);
+}
+
+void ContourPage::refresh(const app::Case& c) {
+  const std::string problem = imaging::contourProblem(c.contour);
+  status_->setText(tr("%1 segments, %2 points. %3")
+                       .arg(c.contour.segments.size())
+                       .arg(c.contour.pointCount())
+                       .arg(problem.empty() ? tr("Ready for fitting.") : QString::fromStdString(problem)));
+}
+
+void ContourPage::importContour(const QString& path) {
+  try {
+    imaging::Contour c = imaging::loadContour(path.toStdString());
+    if (data() && !data()->frame.empty() && c.width == 0) {
+      c.width = data()->frame.cols;
+      c.height = data()->frame.rows;
+    }
+    wb_.doc->edit(tr("Import contour"), [&c](app::Case& k) { k.contour = c; });
+    wb_.goToStep(app::Step::Contour);
+    wb_.status(tr("Contour imported: %1 segments.").arg(c.segments.size()));
+  } catch (const std::exception& e) {
+    wb_.status(QString::fromUtf8(e.what()));
+  }
+}
+
+void ContourPage::exportContour(const QString& path) {
+  if (!data()) return;
+  try {
+    imaging::saveContour(data()->contour, path.toStdString());
+    wb_.status(tr("Contour exported to %1.").arg(path));
+  } catch (const std::exception& e) {
+    wb_.status(QString::fromUtf8(e.what()));
+  }
+}
+
+}  // namespace rehearse::ui

@@ -1,0 +1,195 @@
+#include "rehearse/ui/pages/fitpage.hpp"
+
+#include <rehearse/app/elasticfit.hpp>
+
+#include <QCheckBox>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QPushButton>
+#include <QVBoxLayout>
+#include <QtCharts/QChart>
+#include <QtCharts/QChartView>
+#include <QtCharts/QLineSeries>
+#include <QtCharts/QValueAxis>
+
+namespace rehearse::ui {
+
+FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elastic, parent) {
+  auto* layout = new QVBoxLayout(this);
+  auto* intro = new QLabel(tr("Fit the organ onto the sketched contour: the silhouette is pulled onto it in the image plane and "
+                              "the elastic model (the case's material, see the Simulation panel, held by its ligaments) decides the rest. "
+                              "Afterwards keep the fit, or revert it (Ctrl+Z)."),
+                           this);
+  intro->setWordWrap(true);
+  layout->addWidget(intro);
+  rigid_ = new QCheckBox(tr("Rigid pre-pass (refine the pose first)"), this);
+  rigid_->setObjectName(QStringLiteral("fitRigid"));
+  rigid_->setChecked(true);
+  layout->addWidget(rigid_);
+  // Anatomical curves: a ridge or ligament sketched in step 3, and the same curve clicked on the organ.
+  auto* pickCurve = toolButton(this, tr("Pick Curve on Organ (K)"),
+                               tr("Click along the ridge or ligament on the organ drawn over the frame; the sketched ridge or "
+                                  "ligament nearest to the first click gets the curve. Enter ends, Backspace takes back a click."),
+                               Tool::OrganCurve, Qt::Key_K);
+  pickCurve->setObjectName(QStringLiteral("pickCurve"));
+  layout->addWidget(pickCurve);
+  curves_ = new QLabel(this);
+  curves_->setObjectName(QStringLiteral("fitCurves"));
+  curves_->setWordWrap(true);
+  layout->addWidget(curves_);
+  auto* row = new QHBoxLayout;
+  auto* fit = new QPushButton(tr("Fit to Contour (F9)"), this);
+  fit->setObjectName(QStringLiteral("fitButton"));
+  fit->setShortcut(QKeySequence(Qt::Key_F9));
+  connect(fit, &QPushButton::clicked, this, &FitPage::runElasticFit);
+  auto* clear = new QPushButton(tr("Clear Fit"), this);
+  clear->setObjectName(QStringLiteral("fitClear"));
+  connect(clear, &QPushButton::clicked, this, [this] {
+    if (data() && data()->fit) wb_.doc->edit(tr("Clear elastic fit"), [](app::Case& k) { k.fit.reset(); });
+  });
+  row->addWidget(fit);
+  row->addWidget(clear);
+  layout->addLayout(row);
+  // After a fit: keep it, or revert it (its undo step) -- offered while it is the last edit.
+  auto* decide = new QHBoxLayout;
+  keep_ = new QPushButton(tr("Keep Fit"), this);
+  keep_->setObjectName(QStringLiteral("fitKeep"));
+  revert_ = new QPushButton(tr("Revert Fit (Ctrl+Z)"), this);
+  revert_->setObjectName(QStringLiteral("fitRevert"));
+  revert_->setToolTip(tr("Back to the organ and pose before the fit; Redo brings the fit back."));
+  connect(keep_, &QPushButton::clicked, this, [this] {
+    if (fitUndoIndex_ != wb_.doc->undoStack()->index()) return;
+    fitUndoIndex_ = -1;
+    keep_->setEnabled(false);
+    revert_->setEnabled(false);
+    status_->setText(tr("Fit kept: %1").arg(QString::fromStdString(data()->fit ? data()->fit->status : std::string())));
+  });
+  connect(revert_, &QPushButton::clicked, this, [this] {
+    if (fitUndoIndex_ != wb_.doc->undoStack()->index()) return;
+    wb_.doc->undoStack()->undo();  // Redo brings the fit back, and with it this choice
+    status_->setText(tr("Fit reverted: the organ and the pose are as before it (Ctrl+Shift+Z brings it back)."));
+  });
+  connect(wb_.doc->undoStack(), &QUndoStack::indexChanged, this, [this](int index) {
+    const bool open = fitUndoIndex_ >= 0 && index == fitUndoIndex_;
+    keep_->setEnabled(open);
+    revert_->setEnabled(open);
+  });
+  keep_->setEnabled(false);
+  revert_->setEnabled(false);
+  decide->addWidget(keep_);
+  decide->addWidget(revert_);
+  layout->addLayout(decide);
+  status_ = new QLabel(this);
+  status_->setObjectName(QStringLiteral("fitStatus"));
+  status_->setWordWrap(true);
+  layout->addWidget(status_);
+  // Live chart: the contour-to-silhouette distance against run time.
+  series_ = new QLineSeries;
+  series_->setName(tr("mean distance (px)"));
+  auto* chart = new QChart;
+  chart->addSeries(series_);
+  chart->legend()->hide();
+  chart->setTitle(tr("Contour to silhouette (px) against time (s)"));
+  chart->setTheme(QChart::ChartThemeDark);
+  axisX_ = new QValueAxis;
+  axisX_->setTitleText(tr("s"));
+  axisX_->setRange(0, 1);
+  axisY_ = new QValueAxis;
+  axisY_->setTitleText(tr("px"));
+  axisY_->setRange(0, 10);
+  chart->addAxis(axisX_, Qt::AlignBottom);
+  chart->addAxis(axisY_, Qt::AlignLeft);
+  series_->attachAxis(axisX_);
+  series_->attachAxis(axisY_);
+  auto* chartView = new QChartView(chart, this);
+  chartView->setObjectName(QStringLiteral("fitChart"));
+  chartView->setRenderHint(QPainter::Antialiasing);
+  chartView->setMinimumHeight(220);
+  layout->addWidget(chartView, 1);
+}
+
+void FitPage::refresh(const app::Case& c) {
+  int sketched = 0, onOrgan = 0;
+  for (const auto& s : c.contour.segments)
+    if (!s.isSilhouette()) {
+      ++sketched;
+      onOrgan += !s.modelVertices.empty();
+    }
+  curves_->setText(sketched == 0 ? tr("No ridge or ligament sketched: the fit uses the silhouette alone.")
+                                 : tr("Ridges and ligaments: %1 sketched, %2 with their curve on the organ (held by the fit).")
+                                       .arg(sketched)
+                                       .arg(onOrgan));
+}
+
+void FitPage::runElasticFit() {
+  if (!wb_.doc->hasCase()) return;
+  const auto c = data();
+  if (const std::string missing = app::missingFor(*c, app::Step::Elastic); !missing.empty()) {
+    status_->setText(tr("The fit needs %1.").arg(QString::fromStdString(missing)));
+    return;
+  }
+  wb_.goToStep(app::Step::Elastic);
+  series_->clear();
+  axisY_->setRange(0, 10);
+  axisX_->setRange(0, 1);
+  // The case's organ, attachments and material (the Simulation panel's), through the one fit pipeline.
+  app::FitInput input = app::fitInputFromCase(*c);
+  input.rigidPrepass = rigid_->isChecked();
+  status_->setText(tr("Fitting... (Esc cancels)"));
+  wb_.jobs->run(tr("Elastic fit..."), [this, c, input](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
+    try {
+      auto onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
+        // Live: the organ deforms over the frame and the chart grows (on the GUI thread), as a preview.
+        auto preview = std::make_shared<app::Case>(*c);
+        simcore::RegistrationResult partial;
+        partial.x = x;
+        preview->fit = app::toCasePart(partial);
+        preview->pose = pose;
+        const double t = it.wallMs / 1000.0, px = it.score();
+        QMetaObject::invokeMethod(this, [this, preview, t, px] {
+          series_->append(t, px);
+          axisX_->setRange(0, std::max(1.0, 1.2 * t));
+          axisY_->setRange(0, std::max(axisY_->max(), 1.1 * px));
+          axisY_->applyNiceNumbers();  // round ticks (0, 2, 4, ...)
+          wb_.view->setCase(preview);
+        }, Qt::QueuedConnection);
+        progress(std::min(0.95, 0.05 + 0.045 * it.iteration), QStringLiteral("%1 px").arg(px, 0, 'f', 2));
+        return !cancel.load();
+      };
+      const simcore::RegistrationResult r = app::runElasticFit(input, onIteration);
+      const QString status = QString::fromStdString(r.status);
+      if (r.cancelled || !r.ok) {
+        return [this, status, cancelled = r.cancelled] {
+          wb_.view->setCase(data());  // back to the case as it was
+          status_->setText(cancelled ? tr("Cancelled; the case is unchanged.") : tr("The fit failed: %1").arg(status));
+          wb_.status(status_->text());
+          emit fitFinished(false, status_->text());
+        };
+      }
+      auto fit = app::toCasePart(r);
+      const Pose pose = r.pose;
+      const double ms = r.iterations.empty() ? 0.0 : r.iterations.back().wallMs;
+      return [this, fit, pose, status, ms] {
+        wb_.doc->edit(tr("Elastic fit"), [&](app::Case& k) {
+          k.fit = fit;
+          k.pose = pose;
+        });
+        fitUndoIndex_ = wb_.doc->undoStack()->index();
+        keep_->setEnabled(true);
+        revert_->setEnabled(true);
+        status_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).").arg(status).arg(ms / 1000.0, 0, 'f', 1));
+        wb_.status(tr("Elastic fit: %1").arg(status));
+        emit fitFinished(true, status);
+      };
+    } catch (const std::exception& e) {
+      const QString message = QString::fromUtf8(e.what());
+      return [this, message] {
+        wb_.view->setCase(data());
+        status_->setText(tr("The fit failed: %1").arg(message));
+        emit fitFinished(false, status_->text());
+      };
+    }
+  });
+}
+
+}  // namespace rehearse::ui

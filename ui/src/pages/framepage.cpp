@@ -1,0 +1,287 @@
+#include "rehearse/ui/pages/framepage.hpp"
+
+#include <QDoubleSpinBox>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QFormLayout>
+#include <QFutureWatcher>
+#include <QGroupBox>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QPushButton>
+#include <QSettings>
+#include <QSlider>
+#include <QSpinBox>
+#include <QToolButton>
+#include <QVBoxLayout>
+#include <QtConcurrent/QtConcurrent>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/videoio.hpp>
+
+namespace rehearse::ui {
+
+FramePage::FramePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Frame, parent) {
+  auto* l = new QVBoxLayout(this);
+  auto* open = new QPushButton(tr("Open Image or Video... (Ctrl+F)"), this);
+  open->setMinimumHeight(36);
+  connect(open, &QPushButton::clicked, this, &FramePage::openFrameDialog);
+  l->addWidget(open);
+  auto* cam = new QHBoxLayout;
+  auto* device = new QSpinBox(this);
+  device->setRange(0, 9);
+  auto* openDevice = new QPushButton(tr("Live Camera"), this);
+  connect(openDevice, &QPushButton::clicked, this, [this, device] { openCameraDevice(device->value()); });
+  cam->addWidget(new QLabel(tr("Device"), this));
+  cam->addWidget(device);
+  cam->addWidget(openDevice, 1);
+  l->addLayout(cam);
+  auto* videoBox = new QGroupBox(tr("Video"), this);
+  auto* vl = new QVBoxLayout(videoBox);
+  videoSlider_ = new QSlider(Qt::Horizontal, videoBox);
+  videoSlider_->setObjectName(QStringLiteral("videoSlider"));
+  videoSlider_->setEnabled(false);
+  connect(videoSlider_, &QSlider::valueChanged, this, [this](int v) {
+    if (!updating_) showVideoFrame(v);
+  });
+  vl->addWidget(videoSlider_);
+  auto* row = new QHBoxLayout;
+  auto* prev = new QToolButton(videoBox);
+  prev->setText(QStringLiteral("<"));
+  prev->setToolTip(tr("Previous frame (,)"));
+  prev->setShortcut(QKeySequence(Qt::Key_Comma));
+  connect(prev, &QToolButton::clicked, this, [this] { if (videoFrames_ > 0) showVideoFrame(std::max(0, shownVideoFrame_ - 1)); });
+  auto* next = new QToolButton(videoBox);
+  next->setText(QStringLiteral(">"));
+  next->setToolTip(tr("Next frame (.)"));
+  next->setShortcut(QKeySequence(Qt::Key_Period));
+  connect(next, &QToolButton::clicked, this, [this] { if (videoFrames_ > 0) showVideoFrame(std::min(videoFrames_ - 1, shownVideoFrame_ + 1)); });
+  videoLabel_ = new QLabel(tr("no video"), videoBox);
+  row->addWidget(prev);
+  row->addWidget(videoLabel_, 1);
+  row->addWidget(next);
+  vl->addLayout(row);
+  useFrameButton_ = new QPushButton(tr("Use This Frame (Ctrl+Return)"), videoBox);
+  useFrameButton_->setEnabled(false);
+  useFrameButton_->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_Return));
+  connect(useFrameButton_, &QPushButton::clicked, this, &FramePage::useShownFrame);
+  vl->addWidget(useFrameButton_);
+  l->addWidget(videoBox);
+  auto* camBox = new QGroupBox(tr("Camera intrinsics (px)"), this);
+  auto* form = new QFormLayout(camBox);
+  const QString names[4] = {tr("fx"), tr("fy"), tr("cx"), tr("cy")};
+  for (int k = 0; k < 4; ++k) {
+    auto* s = new QDoubleSpinBox(camBox);
+    s->setRange(k < 2 ? 1 : -100000, 100000);  // a focal length of 0 is a degenerate camera
+    s->setDecimals(2);
+    s->setKeyboardTracking(false);
+    form->addRow(names[k], s);
+    intrinsics_[k] = s;
+    connect(s, &QDoubleSpinBox::valueChanged, this, [this] {
+      if (updating_ || !data()) return;
+      const double fx = intrinsics_[0]->value(), fy = intrinsics_[1]->value(), cx = intrinsics_[2]->value(), cy = intrinsics_[3]->value();
+      wb_.doc->edit(tr("Edit intrinsics"), [=](app::Case& k) {
+        k.camera.K(0, 0) = fx;
+        k.camera.K(1, 1) = fy;
+        k.camera.K(0, 2) = cx;
+        k.camera.K(1, 2) = cy;
+      });
+    });
+  }
+  distortionLabel_ = new QLabel(camBox);
+  distortionLabel_->setWordWrap(true);
+  form->addRow(tr("Distortion"), distortionLabel_);
+  auto* loadCal = new QPushButton(tr("Load Calibration..."), camBox);
+  connect(loadCal, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Load Camera Calibration"), QSettings().value("lastDir").toString(),
+                                                   tr("Calibrations (*.yaml *.yml *.xml *.json *.txt)"));
+    if (!p.isEmpty()) loadCalibration(p);
+  });
+  auto* defaults = new QPushButton(tr("Default From Image Size"), camBox);
+  connect(defaults, &QPushButton::clicked, this, [this] {
+    if (!data() || data()->frame.empty()) return;
+    wb_.doc->edit(tr("Default intrinsics"), [](app::Case& k) { k.camera = imaging::Camera::defaultFor(k.frame.cols, k.frame.rows); });
+  });
+  form->addRow(loadCal);
+  form->addRow(defaults);
+  l->addWidget(camBox);
+  l->addStretch(1);
+  connect(&cameraTimer_, &QTimer::timeout, this, [this] { showVideoFrame(-1); });
+}
+
+FramePage::~FramePage() { cameraTimer_.stop(); }
+
+void FramePage::refresh(const app::Case& c) {
+  updating_ = true;
+  const double values[4] = {c.camera.fx(), c.camera.fy(), c.camera.cx(), c.camera.cy()};
+  for (int k = 0; k < 4; ++k) intrinsics_[k]->setValue(values[k]);
+  const auto& d = c.camera.distortion;
+  distortionLabel_->setText(QStringLiteral("k1 %1  k2 %2  p1 %3  p2 %4  k3 %5").arg(d[0]).arg(d[1]).arg(d[2]).arg(d[3]).arg(d[4]));
+  updating_ = false;
+}
+
+void FramePage::openFrameDialog() {
+  const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Open Endoscope Image or Video"), QSettings().value("lastDir").toString(),
+                                                 tr("Images and videos (*.png *.jpg *.jpeg *.bmp *.tif *.mp4 *.avi *.mkv *.mov)"));
+  if (!p.isEmpty()) openFrameSource(p);
+}
+
+void FramePage::openFrameSource(const QString& path) {
+  wb_.goToStep(app::Step::Frame);
+  const QString ext = QFileInfo(path).suffix().toLower();
+  const bool isVideo = QStringList{"mp4", "avi", "mkv", "mov", "m4v", "mpg", "webm"}.contains(ext);
+  if (!isVideo) {
+    cv::Mat3b img = cv::imread(path.toStdString(), cv::IMREAD_COLOR);
+    if (img.empty()) {
+      const QString msg = tr("%1 is not a readable image; use PNG, JPEG, BMP or TIFF.").arg(QFileInfo(path).fileName());
+      wb_.status(msg);
+      emit frameSourceOpened(false, msg);
+      return;
+    }
+    cameraTimer_.stop();
+    video_.reset();
+    videoFrames_ = 0;
+    videoSlider_->setEnabled(false);
+    videoLabel_->setText(tr("no video"));
+    shownFrame_ = img;
+    useShownFrame();
+    emit frameSourceOpened(true, {});
+    return;
+  }
+  // Opening a video probes the container and decoder: off the GUI thread.
+  auto mutex = videoMutex_;
+  wb_.jobs->run(tr("Opening video %1...").arg(QFileInfo(path).fileName()), [this, path, mutex](const std::atomic<bool>&, const auto&) -> std::function<void()> {
+    auto cap = std::make_shared<cv::VideoCapture>();
+    std::lock_guard<std::mutex> lock(*mutex);
+    if (!cap->open(path.toStdString()) || !cap->isOpened()) {
+      const QString msg = tr("%1 cannot be decoded as a video; check the file or convert it to MP4 (H.264).").arg(QFileInfo(path).fileName());
+      return [this, msg] {
+        wb_.status(msg);
+        emit frameSourceOpened(false, msg);
+      };
+    }
+    const int frames = static_cast<int>(cap->get(cv::CAP_PROP_FRAME_COUNT));
+    return [this, cap, frames, path] {
+      useVideo(cap, std::max(0, frames), {});
+      wb_.status(tr("Video %1: %2 frames; scrub to pick the frame to work on.").arg(QFileInfo(path).fileName()).arg(videoFrames_));
+      emit frameSourceOpened(true, {});
+      showVideoFrame(0);
+    };
+  });
+}
+
+void FramePage::useVideo(std::shared_ptr<cv::VideoCapture> cap, int frames, const QString& label) {
+  cameraTimer_.stop();
+  video_ = std::move(cap);
+  videoFrames_ = frames;
+  updating_ = true;
+  videoSlider_->setRange(0, std::max(0, videoFrames_ - 1));
+  videoSlider_->setValue(0);
+  videoSlider_->setEnabled(videoFrames_ > 1);
+  updating_ = false;
+  useFrameButton_->setEnabled(true);
+  if (!label.isEmpty()) videoLabel_->setText(label);
+}
+
+void FramePage::openCameraDevice(int index) {
+  // Opening a device can take seconds (or hang on a busy driver): off the GUI thread, like a video.
+  auto mutex = videoMutex_;
+  wb_.jobs->run(tr("Opening camera %1...").arg(index), [this, index, mutex](const std::atomic<bool>&, const auto&) -> std::function<void()> {
+    auto cap = std::make_shared<cv::VideoCapture>();
+    std::lock_guard<std::mutex> lock(*mutex);
+    if (!cap->open(index) || !cap->isOpened()) {
+      return [this, index] {
+        const QString msg = tr("Camera device %1 cannot be opened; check that it is connected and not in use.").arg(index);
+        wb_.status(msg);
+        emit frameSourceOpened(false, msg);
+      };
+    }
+    return [this, cap, index] {
+      useVideo(cap, 0, tr("live camera %1").arg(index));
+      cameraTimer_.start(66);
+      emit frameSourceOpened(true, {});
+    };
+  });
+}
+
+void FramePage::showVideoFrame(int index) {
+  if (!video_) return;
+  if (videoDecoding_) {
+    pendingVideoFrame_ = index;  // the latest request wins
+    return;
+  }
+  videoDecoding_ = true;
+  auto cap = video_;
+  auto mutex = videoMutex_;
+  auto watcher = new QFutureWatcher<cv::Mat>(this);
+  connect(watcher, &QFutureWatcher<cv::Mat>::finished, this, [this, watcher, index] {
+    cv::Mat frame = watcher->result();
+    watcher->deleteLater();
+    videoDecoding_ = false;
+    if (!frame.empty()) {
+      shownFrame_ = frame;
+      if (index >= 0) shownVideoFrame_ = index;
+      wb_.view->setFrame(frameToQImage(frame));
+      if (index >= 0) videoLabel_->setText(tr("frame %1 of %2").arg(index).arg(videoFrames_));
+      updating_ = true;
+      if (index >= 0) videoSlider_->setValue(index);
+      updating_ = false;
+      if (index >= 0) emit videoFrameShown(index);
+    } else if (index >= 0) {
+      wb_.status(tr("Frame %1 could not be decoded.").arg(index));
+    }
+    if (pendingVideoFrame_ >= 0 && pendingVideoFrame_ != index) {
+      const int next = pendingVideoFrame_;
+      pendingVideoFrame_ = -1;
+      showVideoFrame(next);
+    }
+  });
+  watcher->setFuture(QtConcurrent::run([cap, mutex, index]() -> cv::Mat {
+    std::lock_guard<std::mutex> lock(*mutex);
+    cv::Mat frame;
+    if (index >= 0) cap->set(cv::CAP_PROP_POS_FRAMES, index);
+    cap->read(frame);
+    if (!frame.empty() && frame.channels() != 3) cv::cvtColor(frame, frame, frame.channels() == 1 ? cv::COLOR_GRAY2BGR : cv::COLOR_BGRA2BGR);
+    return frame;
+  }));
+}
+
+void FramePage::useShownFrame() {
+  if (shownFrame_.empty() || !data()) return;
+  cv::Mat3b frame = shownFrame_.clone();
+  const int shown = shownVideoFrame_;
+  const bool fromVideo = video_ != nullptr && videoFrames_ > 0;
+  wb_.doc->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame](app::Case& k) {
+    if (k.camera.width != frame.cols || k.camera.height != frame.rows) {
+      // A frame of another size keeps no stale calibration: the stated default, editable in the panel.
+      k.camera = imaging::Camera::defaultFor(frame.cols, frame.rows);
+    }
+    k.rawFrame = frame;
+    app::undistortFrame(k);
+    k.contour.width = frame.cols;
+    k.contour.height = frame.rows;
+  });
+  wb_.status(fromVideo ? tr("Using frame %1 of the video.").arg(shown) : tr("Frame opened."));
+}
+
+void FramePage::loadCalibration(const QString& path) {
+  if (!data()) return;
+  try {
+    const int w = data()->frame.empty() ? 0 : data()->frame.cols, h = data()->frame.empty() ? 0 : data()->frame.rows;
+    imaging::Camera cam = imaging::loadCamera(path.toStdString(), w, h);
+    if (w > 0 && (cam.width != w || cam.height != h))
+      throw imaging::InputError(tr("The calibration is for %1x%2 images but the frame is %3x%4; choose the matching calibration.")
+                                    .arg(cam.width).arg(cam.height).arg(w).arg(h).toStdString());
+    wb_.doc->edit(tr("Load calibration"), [cam](app::Case& k) {
+      if (k.rawFrame.empty()) k.rawFrame = k.frame;  // the frame so far was taken as captured
+      k.camera = cam;
+      app::undistortFrame(k);
+    });
+    wb_.status(tr("Calibration loaded from %1.").arg(QFileInfo(path).fileName()));
+  } catch (const std::exception& e) {
+    wb_.status(QString::fromUtf8(e.what()));
+  }
+}
+
+}  // namespace rehearse::ui

@@ -1,0 +1,195 @@
+#include "rehearse/ui/pages/meshpage.hpp"
+
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
+
+#include <QComboBox>
+#include <QDoubleSpinBox>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QFormLayout>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QPushButton>
+#include <QSettings>
+#include <QSpinBox>
+#include <QTreeWidget>
+#include <QVBoxLayout>
+
+namespace rehearse::ui {
+
+QColor labelColour(int label) {
+  static const QColor c[] = {QColor(200, 120, 100), QColor(80, 140, 255), QColor(250, 200, 60), QColor(170, 90, 220),
+                             QColor(90, 220, 200), QColor(240, 120, 180)};
+  return c[std::abs(label) % 6];
+}
+
+MeshPage::MeshPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Mesh, parent) {
+  auto* l = new QVBoxLayout(this);
+  auto* importButton = new QPushButton(tr("Import Mesh... (Ctrl+I)"), this);
+  importButton->setMinimumHeight(36);
+  connect(importButton, &QPushButton::clicked, this, &MeshPage::importMeshDialog);
+  l->addWidget(importButton);
+  auto* form = new QFormLayout;
+  targetTets_ = new QSpinBox(this);
+  targetTets_->setRange(200, 500000);
+  targetTets_->setSingleStep(500);
+  targetTets_->setValue(QSettings().value(QStringLiteral("mesh/targetTets"), 4000).toInt());
+  targetTets_->setToolTip(tr("Tetrahedra wanted when a surface is filled (size control)"));
+  form->addRow(tr("Target tetrahedra"), targetTets_);
+  meshUnit_ = new QComboBox(this);
+  meshUnit_->addItems({"mm", "cm", "dm", "m"});
+  meshUnit_->setToolTip(tr("Length unit of the file's coordinates"));
+  form->addRow(tr("File unit"), meshUnit_);
+  l->addLayout(form);
+  l->addWidget(new QLabel(tr("Labels (tick to show inner structures)"), this));
+  labels_ = new QTreeWidget(this);
+  labels_->setObjectName(QStringLiteral("labelList"));
+  labels_->setHeaderLabels({tr("Label"), tr("Elements")});
+  labels_->setRootIsDecorated(false);
+  labels_->header()->setStretchLastSection(false);
+  labels_->header()->setSectionResizeMode(0, QHeaderView::Stretch);
+  labels_->header()->setSectionResizeMode(1, QHeaderView::ResizeToContents);
+  connect(labels_, &QTreeWidget::itemChanged, this, [this](QTreeWidgetItem* item, int) {
+    if (updating_) return;
+    labelVisible_[item->data(0, Qt::UserRole).toInt()] = item->checkState(0) == Qt::Checked;
+    emit shownLabelsChanged();
+  });
+  l->addWidget(labels_, 1);
+  // Ligament attachments: the nodes that hold the organ in the simulation and the fit. An imported organ
+  // has none until they are picked on it.
+  attachmentsLabel_ = new QLabel(this);
+  attachmentsLabel_->setObjectName(QStringLiteral("attachmentsLabel"));
+  attachmentsLabel_->setWordWrap(true);
+  l->addWidget(attachmentsLabel_);
+  auto* attachRow = new QHBoxLayout;
+  auto* pickAttach = toolButton(this, tr("Pick Attachments (H)"),
+                                tr("Click on the organ drawn over the frame where a ligament holds it: the surface nodes within "
+                                   "the patch radius are attached; a click on attached nodes releases them. Each click is one undo step."),
+                                Tool::Attachments, Qt::Key_H);
+  pickAttach->setObjectName(QStringLiteral("pickAttachments"));
+  auto* clearAttach = new QPushButton(tr("Release All"), this);
+  clearAttach->setObjectName(QStringLiteral("clearAttachments"));
+  connect(clearAttach, &QPushButton::clicked, this, [this] {
+    if (data() && !data()->attachments.empty())
+      wb_.doc->edit(tr("Release all attachments"), [](app::Case& k) { k.attachments.clear(); });
+  });
+  attachRow->addWidget(pickAttach, 2);
+  attachRow->addWidget(clearAttach, 1);
+  l->addLayout(attachRow);
+  auto* radiusForm = new QFormLayout;
+  auto* radius = new QDoubleSpinBox(this);
+  radius->setObjectName(QStringLiteral("attachmentRadius"));
+  radius->setRange(1, 50);
+  radius->setDecimals(0);
+  radius->setSuffix(tr(" mm"));
+  radius->setToolTip(tr("Surface nodes within this distance of a click are attached or released together"));
+  connect(radius, &QDoubleSpinBox::valueChanged, this, [this](double mm) {
+    wb_.view->setAttachmentRadius(mm * 1e-3);
+    QSettings().setValue(QStringLiteral("mesh/attachmentRadiusMm"), mm);
+  });
+  radius->setValue(QSettings().value(QStringLiteral("mesh/attachmentRadiusMm"), 10.0).toDouble());
+  wb_.view->setAttachmentRadius(radius->value() * 1e-3);
+  radiusForm->addRow(tr("Attachment patch radius"), radius);
+  l->addLayout(radiusForm);
+}
+
+int MeshPage::labelsShown() const { return labels_->topLevelItemCount(); }
+int MeshPage::targetTets() const { return targetTets_->value(); }
+void MeshPage::setTargetTets(int n) { targetTets_->setValue(n); }
+void MeshPage::setMeshUnit(const QString& unit) { meshUnit_->setCurrentText(unit); }
+
+std::vector<int> MeshPage::shownInnerLabels() const {
+  std::vector<int> shown;
+  for (const auto& [label, visible] : labelVisible_)
+    if (visible && label != app::kParenchymaLabel) shown.push_back(label);
+  return shown;
+}
+
+void MeshPage::caseLoaded() {
+  importNotes_.clear();
+  emit importNotesChanged();
+}
+
+void MeshPage::refresh(const app::Case& c) {
+  updating_ = true;
+  if (labelsFor_ != c.organ) {
+    labelVisible_.clear();
+    labelsFor_ = c.organ;
+  }
+  attachmentsLabel_->setText(c.attachments.empty()
+                                 ? tr("No ligament attachments: the organ is free (it falls in the simulation).")
+                                 : tr("Ligament attachments: %n node(s).", nullptr, static_cast<int>(c.attachments.size())));
+  labels_->clear();
+  std::map<int, std::size_t> counts;
+  for (int l : c.organ->volume.tetLabels) counts[l]++;
+  for (const auto& [label, n] : counts) {
+    auto* item = new QTreeWidgetItem(labels_);
+    const std::string name = c.organ->volume.labelName(label);
+    item->setText(0, QStringLiteral("%1 %2").arg(label).arg(QString::fromStdString(name)));
+    item->setText(1, QString::number(n));
+    item->setData(0, Qt::UserRole, label);
+    item->setFlags(item->flags() | Qt::ItemIsUserCheckable);
+    if (!labelVisible_.count(label)) labelVisible_[label] = label == 1;
+    item->setCheckState(0, labelVisible_[label] ? Qt::Checked : Qt::Unchecked);
+    QPixmap swatch(14, 14);
+    swatch.fill(labelColour(label));
+    item->setIcon(0, QIcon(swatch));
+  }
+  updating_ = false;
+}
+
+void MeshPage::importMeshDialog() {
+  const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
+                                                 tr("Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb)"));
+  if (!p.isEmpty()) importMesh(p);
+}
+
+void MeshPage::importMesh(const QString& path) {
+  if (!data()) return;
+  const int target = targetTets_->value();
+  const std::string unit = meshUnit_->currentText().toStdString();
+  QSettings().setValue(QStringLiteral("mesh/targetTets"), target);
+  wb_.goToStep(app::Step::Mesh);
+  wb_.jobs->run(tr("Importing %1...").arg(QFileInfo(path).fileName()), [this, path, target, unit](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
+    try {
+      std::vector<std::string> notes;
+      progress(0.02, QStringLiteral("reading"));
+      simcore::Mesh m = simcore::loadMesh(path.toStdString(), {unit}, &notes);
+      if (!m.isVolume()) {
+        simcore::TetrahedraliseOptions o;
+        o.targetTets = static_cast<std::size_t>(target);
+        o.cancel = &cancel;
+        o.progress = [&progress](double f, const std::string& s) { progress(0.05 + 0.9 * f, QString::fromStdString(s)); };
+        m = simcore::tetrahedraliseSurface(m, o, &notes);
+      }
+      m.triangles.clear();
+      m.triangleLabels.clear();
+      // Surfaces and quality of the new mesh are derived here, off the GUI thread.
+      auto prepared = app::Organ::fromVolume(std::move(m), path.toStdString());
+      QStringList qnotes;
+      for (const auto& n : notes) qnotes << QString::fromStdString(n);
+      return [this, prepared, path, qnotes] {
+        importNotes_ = qnotes;
+        wb_.doc->edit(tr("Import mesh"), [&](app::Case& k) { k.setOrgan(prepared); });
+        emit importNotesChanged();
+        wb_.status(tr("Imported %1: %2 tetrahedra").arg(QFileInfo(path).fileName()).arg(data()->organ->volume.tets.size()));
+        emit meshImported(true, {});
+      };
+    } catch (const simcore::Cancelled&) {
+      return [this] {
+        wb_.status(tr("Import cancelled; the case is unchanged."));
+        emit meshImported(false, tr("cancelled"));
+      };
+    } catch (const std::exception& e) {
+      const QString msg = QString::fromUtf8(e.what());
+      return [this, msg] {
+        wb_.status(msg);
+        emit meshImported(false, msg);
+      };
+    }
+  });
+}
+
+}  // namespace rehearse::ui

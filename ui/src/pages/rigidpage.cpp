@@ -1,0 +1,170 @@
+#include "rehearse/ui/pages/rigidpage.hpp"
+
+#include <rehearse/imaging/pnp.hpp>
+
+#include <QDoubleSpinBox>
+#include <QFormLayout>
+#include <QGroupBox>
+#include <QHBoxLayout>
+#include <QLabel>
+#include <QListWidget>
+#include <QPushButton>
+#include <QVBoxLayout>
+
+#include <cmath>
+
+namespace rehearse::ui {
+
+RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Rigid, parent) {
+  auto* l = new QVBoxLayout(this);
+  auto* gizmo = toolButton(this, tr("Gizmo (G)"),
+                           tr("Drag X, Y, Z to move along the camera axes, rX, rY, rZ to turn about them through the organ's centre. "
+                              "Keys: arrows and PgUp/PgDn move 1 mm, W/S A/D Q/E turn 1 degree; Shift for 10 mm / 5 degrees."),
+                           Tool::Align, Qt::Key_G);
+  gizmo->setMinimumHeight(34);
+  l->addWidget(gizmo);
+  auto* box = new QGroupBox(tr("Pose (camera frame)"), this);
+  auto* form = new QFormLayout(box);
+  const char* names[6] = {"tx (mm)", "ty (mm)", "tz (mm)", "rx (deg)", "ry (deg)", "rz (deg)"};
+  for (int k = 0; k < 6; ++k) {
+    auto* s = new QDoubleSpinBox(box);
+    s->setRange(k < 3 ? -5000 : -180, k < 3 ? 5000 : 180);
+    s->setDecimals(2);
+    s->setSingleStep(1.0);
+    s->setKeyboardTracking(false);
+    poseFields_[k] = s;
+    form->addRow(tr(names[k]), s);
+    connect(s, &QDoubleSpinBox::valueChanged, this, [this] {
+      if (updating_ || !data()) return;
+      Pose p;
+      p.t = Eigen::Vector3d(poseFields_[0]->value(), poseFields_[1]->value(), poseFields_[2]->value()) * 1e-3;
+      const double d = M_PI / 180;
+      p.R = (Eigen::AngleAxisd(poseFields_[5]->value() * d, Eigen::Vector3d::UnitZ()) *
+             Eigen::AngleAxisd(poseFields_[4]->value() * d, Eigen::Vector3d::UnitY()) *
+             Eigen::AngleAxisd(poseFields_[3]->value() * d, Eigen::Vector3d::UnitX()))
+                .toRotationMatrix();
+      wb_.doc->edit(tr("Edit pose"), [p](app::Case& k) {
+        k.pose = p;
+        k.hasPose = true;
+        k.poseAligned = true;
+      });
+    });
+  }
+  l->addWidget(box);
+  auto* reset = new QPushButton(tr("Reset to Automatic Placement"), this);
+  connect(reset, &QPushButton::clicked, this, [this] {
+    wb_.doc->edit(tr("Reset pose"), [](app::Case& k) {
+      k.pose = k.automaticPose();
+      k.hasPose = true;
+      k.poseAligned = false;
+    });
+  });
+  l->addWidget(reset);
+  auto* lmBox = new QGroupBox(tr("Landmark pairs (mesh point, then image point)"), this);
+  auto* ll = new QVBoxLayout(lmBox);
+  ll->addWidget(toolButton(lmBox, tr("Pick Landmarks (L)"), tr("Click a point on the organ, then where it is in the frame; 4 pairs or more"),
+                           Tool::Landmarks, Qt::Key_L));
+  landmarkList_ = new QListWidget(lmBox);
+  landmarkList_->setMaximumHeight(110);
+  ll->addWidget(landmarkList_);
+  auto* lrow = new QHBoxLayout;
+  pnpButton_ = new QPushButton(tr("Solve Pose"), lmBox);
+  pnpButton_->setEnabled(false);
+  connect(pnpButton_, &QPushButton::clicked, this, &RigidPage::solvePnP);
+  auto* clearLm = new QPushButton(tr("Clear"), lmBox);
+  connect(clearLm, &QPushButton::clicked, this, [this] { setLandmarks({}); });
+  lrow->addWidget(pnpButton_);
+  lrow->addWidget(clearLm);
+  ll->addLayout(lrow);
+  l->addWidget(lmBox);
+  distanceLabel_ = new QLabel(this);
+  QFont f = distanceLabel_->font();
+  f.setPointSizeF(f.pointSizeF() * 1.3);
+  f.setBold(true);
+  distanceLabel_->setFont(f);
+  distanceLabel_->setWordWrap(true);
+  l->addWidget(distanceLabel_);
+  l->addStretch(1);
+
+  // The Landmarks tool reports its clicks; the pairs live here until the pose is solved.
+  connect(wb_.view, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {
+    auto l = landmarks_;
+    l.push_back({m, Eigen::Vector2d::Zero(), false});
+    setLandmarks(std::move(l));
+    wb_.status(tr("Landmark %1 on the organ; now click where it is in the frame.").arg(landmarks_.size()));
+  });
+  connect(wb_.view, &FrameView::landmarkImagePicked, this, [this](const Eigen::Vector2d& p) {
+    if (landmarks_.empty()) return;
+    auto l = landmarks_;
+    l.back().image = p;
+    l.back().hasImage = true;
+    setLandmarks(std::move(l));
+    wb_.status(tr("%1 landmark pairs; click the organ for the next, or solve (4 or more).").arg(landmarks_.size()));
+  });
+}
+
+void RigidPage::caseLoaded() { setLandmarks({}); }
+
+void RigidPage::setDistanceText(const QString& text) { distanceLabel_->setText(text); }
+
+void RigidPage::setLandmarks(std::vector<LandmarkPair> l) {
+  landmarks_ = std::move(l);
+  wb_.view->setLandmarks(landmarks_);
+  landmarkList_->clear();
+  int complete = 0;
+  for (std::size_t i = 0; i < landmarks_.size(); ++i) {
+    const auto& p = landmarks_[i];
+    complete += p.hasImage;
+    landmarkList_->addItem(QStringLiteral("%1: (%2, %3, %4) mm -> %5")
+                               .arg(i + 1)
+                               .arg(p.model.x() * 1e3, 0, 'f', 1)
+                               .arg(p.model.y() * 1e3, 0, 'f', 1)
+                               .arg(p.model.z() * 1e3, 0, 'f', 1)
+                               .arg(p.hasImage ? QStringLiteral("(%1, %2) px").arg(p.image.x(), 0, 'f', 1).arg(p.image.y(), 0, 'f', 1)
+                                               : tr("click the frame")));
+  }
+  pnpButton_->setEnabled(complete >= 4);
+}
+
+void RigidPage::refresh(const app::Case& c) {
+  if (!c.hasPose) return;
+  updating_ = true;
+  // Translation in mm, rotation as Z-Y-X Euler angles in degrees: R = Rz(rz) Ry(ry) Rx(rx), angles in
+  // (-180, 180] with ry in [-90, 90] (the fields rebuild R the same way).
+  const auto& R = c.pose.R;
+  const double rz = std::atan2(R(1, 0), R(0, 0)), ry = std::asin(std::clamp(-R(2, 0), -1.0, 1.0)), rx = std::atan2(R(2, 1), R(2, 2));
+  const double d = 180 / M_PI;
+  const double vals[6] = {c.pose.t.x() * 1e3, c.pose.t.y() * 1e3, c.pose.t.z() * 1e3, rx * d, ry * d, rz * d};
+  for (int k = 0; k < 6; ++k) poseFields_[k]->setValue(vals[k]);
+  updating_ = false;
+}
+
+void RigidPage::solvePnP() {
+  if (!data()) return;
+  std::vector<Eigen::Vector3d> model;
+  std::vector<Eigen::Vector2d> image;
+  for (const auto& l : landmarks_)
+    if (l.hasImage) {
+      model.push_back(l.model);
+      image.push_back(l.image);
+    }
+  if (model.size() < 4) {
+    wb_.status(tr("Pick at least 4 landmark pairs first."));
+    return;
+  }
+  const auto result = imaging::poseFromLandmarks(data()->camera, model, image, data()->pose);
+  if (!result) {
+    wb_.status(tr("The landmarks do not determine a pose; spread them over the organ and try again."));
+    return;
+  }
+  pnpError_ = result->rmsPixels;
+  const Pose p = result->pose;
+  wb_.doc->edit(tr("Pose from landmarks"), [p](app::Case& k) {
+    k.pose = p;
+    k.hasPose = true;
+    k.poseAligned = true;
+  });
+  wb_.status(tr("Pose from %1 landmark pairs: reprojection RMS %2 px.").arg(model.size()).arg(pnpError_, 0, 'f', 3));
+}
+
+}  // namespace rehearse::ui
