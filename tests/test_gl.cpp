@@ -9,6 +9,11 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/organglview.hpp"
 #include "rehearse/ui/organview.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
+
+#include <rehearse/simcore/integrator.hpp>
+
+#include <QTreeWidget>
 
 #include <QSignalSpy>
 #include <QElapsedTimer>
@@ -18,6 +23,7 @@
 #include <functional>
 #include <vector>
 
+#include <rehearse/imaging/contour.hpp>
 #include <rehearse/imaging/render.hpp>
 
 #include <opencv2/imgproc.hpp>
@@ -110,6 +116,128 @@ class TestGl : public QObject {
     const double glMs = median([&] { gl.render(c.camera, c.truePose, c.surfaceView(), QColor(120, 210, 150), image); });
     const double cpuMs = median([&] { imaging::renderOverlay(c.camera, c.truePose, c.surfaceView(), cv::Vec3b(150, 210, 120)); });
     qInfo("1280x720 overlay: OpenGL %.1f ms, CPU %.1f ms (medians of 7, including the read-back)", glMs, cpuMs);
+  }
+
+
+  // After an elastic fit made in the GUI (F9), every view shows the fitted organ where the fit put it: the
+  // organ and its vessels over the frame, the 3D organ view (OpenGL, then software), and the Simulation
+  // panel, whose run starts from it. Reference: the fit's own nodes drawn by the CPU rasteriser through the
+  // same cameras.
+  void fittedOrganShownEverywhere() {
+    for (const bool software : {false, true}) {
+      ui::MainWindow::setSoftwareRendering(software);
+      ui::MainWindow w;
+      ui::MainWindow::setSoftwareRendering(false);
+      w.resize(1400, 900);
+      w.show();
+      QVERIFY(QTest::qWaitForWindowExposed(&w));
+      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+      w.openCase({});
+      QVERIFY(loaded.wait(60000));
+      QCOMPARE(w.organViewUsesOpenGL(), !software);
+      // The contour: the outline of the organ sagging 10 g sideways at its true pose; the rigid start 3 mm off.
+      const auto& c0 = *w.caseData();
+      const simcore::FemModel model = simcore::FemModel::build(c0.organ->volume, {}, {simcore::MaterialModel::Corotational, 27e3, 0.4, 1000});
+      simcore::SimulationSettings load;
+      load.gravity = c0.groundTruth->pose.R.transpose() * Eigen::Vector3d(10 * 9.81, 0, 0);
+      simcore::Integrator sag(model, c0.attachments, load);
+      auto sagged = sag.initialState();
+      QVERIFY(sag.solveStatic(sagged).ok);
+      SurfaceView deformed = c0.surfaceView();
+      deformed.vertices = sagged.x.data();
+      const auto borders = imaging::maskOutlines(imaging::renderMask(c0.camera, c0.groundTruth->pose, deformed));
+      QVERIFY(!borders.empty());
+      imaging::ContourSegment seg;
+      for (std::size_t i = 0; i < borders.front().size(); i += 3) seg.points.push_back(borders.front()[i]);
+      w.editCase("test: contour and pose", [&](app::Case& k) {
+        k.contour.width = k.camera.width;
+        k.contour.height = k.camera.height;
+        k.contour.segments = {seg};
+        k.pose = k.groundTruth->pose;
+        k.pose.t.x() += 0.003;
+      });
+      // Tick the vessels (label 2) in step 1's label list.
+      auto* labels = w.findChild<QTreeWidget*>("labelList");
+      QVERIFY(labels);
+      for (int i = 0; i < labels->topLevelItemCount(); ++i)
+        if (labels->topLevelItem(i)->data(0, Qt::UserRole).toInt() == app::kVesselLabel) labels->topLevelItem(i)->setCheckState(0, Qt::Checked);
+      w.runElasticFit();
+      QTRY_VERIFY_WITH_TIMEOUT(w.caseData()->hasFit(), 120000);
+      const auto c = w.caseData();
+      // Reference surfaces: the fit's nodes (model frame), the organ's outer and vessel triangles.
+      const std::vector<Eigen::Vector3d>& nodes = c->fit->nodes;
+      double moved = 0;
+      for (std::size_t i = 0; i < nodes.size(); ++i) moved = std::max(moved, (nodes[i] - c0.organ->volume.points[i]).norm());
+      QVERIFY2(moved > 1e-3, qPrintable(QString("the fit moved nodes by %1 m only").arg(moved)));
+      SurfaceView outer{nodes.front().data(), nodes.size(), c->organ->surface.front().data(), c->organ->surface.size()};
+      std::vector<std::array<int, 3>> vesselTriangles;
+      for (std::size_t i = 0; i < c->organ->innerSurface.size(); ++i)
+        if (c->organ->innerSurfaceLabels[i] == app::kVesselLabel) vesselTriangles.push_back(c->organ->innerSurface[i]);
+      QVERIFY(!vesselTriangles.empty());
+      SurfaceView vessels{nodes.front().data(), nodes.size(), vesselTriangles.front().data(), vesselTriangles.size()};
+      auto alphaMask = [](const QImage& img, const cv::Size& size) {
+        cv::Mat1b m(img.height(), img.width());
+        const QImage rgba = img.convertToFormat(QImage::Format_RGBA8888);
+        for (int y = 0; y < m.rows; ++y)
+          for (int x = 0; x < m.cols; ++x) m(y, x) = rgba.constScanLine(y)[4 * x + 3] > 127 ? 255 : 0;
+        if (m.size() != size) cv::resize(m, m, size, 0, 0, cv::INTER_NEAREST);
+        return m;
+      };
+      const cv::Size frame(c->camera.width, c->camera.height);
+      const double organIoU = imaging::maskIoU(alphaMask(w.organOverlay(), frame), imaging::renderMask(c->camera, c->pose, outer));
+      QVERIFY(!w.innerOverlay().isNull());
+      const double vesselIoU = imaging::maskIoU(alphaMask(w.innerOverlay(), frame), imaging::renderMask(c->camera, c->pose, vessels));
+      // The 3D view through its own camera (turntable at rest: the endoscope's side).
+      double viewIoU = 0;
+      if (!software) {
+        auto* gl = qobject_cast<ui::OrganGLView*>(w.organWidget());
+        QVERIFY(gl);
+        QTRY_VERIFY_WITH_TIMEOUT(gl->glReady(), 10000);
+        const QImage img = gl->grabFramebuffer();
+        cv::Mat1b seen(img.height(), img.width());
+        for (int y = 0; y < img.height(); ++y)
+          for (int x = 0; x < img.width(); ++x) {
+            const QColor p = img.pixelColor(x, y);
+            seen(y, x) = std::abs(p.red() - 24) + std::abs(p.green() - 25) + std::abs(p.blue() - 28) > 6 ? 255 : 0;
+          }
+        imaging::Camera cam;
+        Pose pose;
+        ui::turntableView(*c, ui::Turntable{}, img.width(), img.height(), cam, pose);
+        viewIoU = imaging::maskIoU(seen, imaging::renderMask(cam, pose, outer));
+      } else {
+        auto* view = qobject_cast<ui::OrganView*>(w.organWidget());
+        QVERIFY(view);
+        view->repaint();
+        const QImage img = view->rendered();
+        QVERIFY(!img.isNull());
+        imaging::Camera cam;
+        Pose pose;
+        ui::turntableView(*c, ui::Turntable{}, img.width(), img.height(), cam, pose);
+        viewIoU = imaging::maskIoU(alphaMask(img, {img.width(), img.height()}), imaging::renderMask(cam, pose, outer));
+      }
+      // The Simulation panel's body at rest is the fitted organ in the camera frame: Play starts from it.
+      auto* panel = w.simulationPanel();
+      QTRY_VERIFY_WITH_TIMEOUT(panel->lastFrame() && panel->lastFrame()->organ == c && panel->lastFrame()->steps == 0, 30000);
+      double worst = 0;
+      for (std::size_t i = 0; i < nodes.size(); ++i) worst = std::max(worst, (panel->lastFrame()->positions[i] - c->pose.apply(nodes[i])).norm());
+      qInfo("%s: fitted organ over the frame IoU %.4f, vessels %.4f, 3D view %.4f; simulation at rest %.2e m from the fit (fit moved nodes up to %.1f mm)",
+            software ? "software" : "OpenGL", organIoU, vesselIoU, viewIoU, worst, 1e3 * moved);
+      // Control: the organ at rest at the same pose is not what is shown (the test can tell the shapes apart).
+      SurfaceView rest{c->organ->volume.points.front().data(), nodes.size(), c->organ->surface.front().data(), c->organ->surface.size()};
+      const double restIoU = imaging::maskIoU(alphaMask(w.organOverlay(), frame), imaging::renderMask(c->camera, c->pose, rest));
+      qInfo("control: the rest shape at the fitted pose against the overlay: IoU %.4f", restIoU);
+      QVERIFY(restIoU < 0.98);
+      QVERIFY(organIoU >= 0.98);
+      QVERIFY(vesselIoU >= 0.98);
+      QVERIFY(viewIoU >= 0.98);
+      QVERIFY(worst < 1e-9);
+      // One step from there: it moves on from the fitted shape (not from the rest shape).
+      panel->stepOnce();
+      QTRY_VERIFY_WITH_TIMEOUT(panel->lastFrame()->steps == 1, 30000);
+      double step = 0;
+      for (std::size_t i = 0; i < nodes.size(); ++i) step = std::max(step, (panel->lastFrame()->positions[i] - c->pose.apply(nodes[i])).norm());
+      QVERIFY2(step < 0.002, qPrintable(QString::number(step)));
+    }
   }
 
   void softwareFallback() {

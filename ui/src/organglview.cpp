@@ -125,16 +125,23 @@ void OrganGLView::paintGL() {
   if (!ready_) return;
   if (dirty_) upload();
   if (vertexCount_ == 0) return;
-  const Eigen::Vector3d cog = case_->organ->centreOfGravity;
+  // The same camera as the software view (turntableView), as an OpenGL projection: OpenCV's camera axes
+  // (x right, y down, z forward, pixel centres at integers) to clip space, depth between size/20 and 20 size.
+  const double dpr = devicePixelRatioF();
+  const int W = static_cast<int>(std::lround(width() * dpr)), H = static_cast<int>(std::lround(height() * dpr));
+  imaging::Camera cam;
+  Pose pose;
+  turntableView(*case_, turntable_, W, H, cam, pose);
   const double size = case_->organ->volume.bounds().sizes().maxCoeff();
-  QMatrix4x4 proj, view;
-  proj.perspective(50.0f, float(width()) / std::max(1, height()), float(size * 0.05), float(size * 20));
-  // Camera looks down -z in OpenGL; turn the organ with yaw and pitch about its centre.
-  view.translate(0, 0, float(-1.5 * size / turntable_.zoom));
-  view.rotate(float(-turntable_.pitch * 180 / M_PI), 1, 0, 0);
-  view.rotate(float(turntable_.yaw * 180 / M_PI), 0, 1, 0);
-  view.rotate(180, 1, 0, 0);  // model y (inferior) points down on screen as in the frame
-  view.translate(float(-cog.x()), float(-cog.y()), float(-cog.z()));
+  const double n = 0.05 * size, far = 20 * size;
+  QMatrix4x4 proj(float(2 * cam.fx() / W), 0, float(2 * (cam.cx() + 0.5) / W - 1), 0,  //
+                  0, float(-2 * cam.fy() / H), float(1 - 2 * (cam.cy() + 0.5) / H), 0,  //
+                  0, 0, float((far + n) / (far - n)), float(-2 * far * n / (far - n)),  //
+                  0, 0, 1, 0);
+  QMatrix4x4 view(float(pose.R(0, 0)), float(pose.R(0, 1)), float(pose.R(0, 2)), float(pose.t.x()),  //
+                  float(pose.R(1, 0)), float(pose.R(1, 1)), float(pose.R(1, 2)), float(pose.t.y()),  //
+                  float(pose.R(2, 0)), float(pose.R(2, 1)), float(pose.R(2, 2)), float(pose.t.z()),  //
+                  0, 0, 0, 1);
   program_.bind();
   program_.setUniformValue("mvp", proj * view);
   program_.setUniformValue("normalMatrix", view.normalMatrix());

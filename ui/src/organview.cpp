@@ -20,6 +20,19 @@ OrganView::OrganView(QWidget* parent) : QWidget(parent) {
   setToolTip(tr("Drag to turn the organ, wheel to zoom, double-click to reset"));
 }
 
+void turntableView(const app::Case& c, const Turntable& t, int W, int H, imaging::Camera& camera, Pose& pose) {
+  camera.width = W;
+  camera.height = H;
+  const double f = 1.1 * std::min(W, H);
+  camera.K << f, 0, (W - 1) / 2.0, 0, f, (H - 1) / 2.0, 0, 0, 1;
+  camera.distortion.fill(0);
+  const Eigen::Vector3d cog = c.organ->centreOfGravity;
+  const double size = c.organ->volume.bounds().sizes().maxCoeff();
+  const Eigen::Matrix3d start = c.hasPose ? c.pose.R : Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  pose.R = (Eigen::AngleAxisd(t.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(t.yaw, Eigen::Vector3d::UnitY())).toRotationMatrix() * start;
+  pose.t = Eigen::Vector3d(0, 0, 1.05 * size / t.zoom) - pose.R * cog;
+}
+
 void OrganView::setCase(std::shared_ptr<const app::Case> c) {
   // Only the mesh matters here: skip re-rendering when only the contour or the pose changed.
   if (sameMesh(case_.get(), c.get())) {
@@ -39,15 +52,8 @@ void OrganView::render() {
   const double dpr = std::max(1.0, devicePixelRatioF());
   const int W = static_cast<int>(std::lround(width() * dpr)), H = static_cast<int>(std::lround(height() * dpr));
   imaging::Camera cam;
-  cam.width = W;
-  cam.height = H;
-  const double f = 1.1 * std::min(W, H);
-  cam.K << f, 0, (W - 1) / 2.0, 0, f, (H - 1) / 2.0, 0, 0, 1;
-  const Eigen::Vector3d cog = case_->organ->centreOfGravity;
-  const double size = case_->organ->volume.bounds().sizes().maxCoeff();
   Pose p;
-  p.R = (Eigen::AngleAxisd(turntable_.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(turntable_.yaw, Eigen::Vector3d::UnitY())).toRotationMatrix();
-  p.t = Eigen::Vector3d(0, 0, 1.05 * size / turntable_.zoom) - p.R * cog;
+  turntableView(*case_, turntable_, W, H, cam, p);
   cv::Mat4b organ = imaging::renderOverlay(cam, p, case_->surfaceView(), cv::Vec3b(120, 150, 215));
   // Inner structures (labels other than the outer one), drawn over it half-transparent.
   const auto& inner = case_->organ->innerSurface;

@@ -95,6 +95,8 @@ class MainWindow : public QMainWindow {
   /// The organ over the frame as last drawn, and its outline (frame pixels).
   const QImage& organOverlay() const { return picture_.organ; }
   const QList<QPolygonF>& silhouette() const { return picture_.silhouette; }
+  /// The ticked inner structures (vessels, tumours) over the frame as last drawn (null when none is shown).
+  const QImage& innerOverlay() const { return picture_.inner; }
   /// Contour to silhouette distance at the current pose (px); negative when it cannot be computed.
   double contourDistance() const { return picture_.meanDistance; }
   FrameView* frameView() const { return view_; }

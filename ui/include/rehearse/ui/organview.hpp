@@ -15,7 +15,7 @@ namespace rehearse::ui {
 
 /// Turntable controls shared by the software and OpenGL organ views (angles in radians).
 struct Turntable {
-  double yaw = 0, pitch = -0.3, zoom = 1.0;
+  double yaw = 0, pitch = 0, zoom = 1.0;
   QPointF last;
   void press(const QPointF& p) { last = p; }
   void drag(const QPointF& p) {
@@ -28,10 +28,17 @@ struct Turntable {
   void reset() { *this = Turntable{}; }
 };
 
+/// The 3D organ views' camera (OpenCV pinhole, W x H pixels) and pose: the organ's current shape (fitted
+/// or rest) seen from the endoscope's side when the case has a pose (the view first shows the organ as the
+/// frame does, turned by the turntable about its centre and framed to fit), else from a fixed angle. Both
+/// the software and the OpenGL view draw through it, so they show the same picture.
+void turntableView(const app::Case& c, const Turntable& t, int W, int H, imaging::Camera& camera, Pose& pose);
+
 /// True when two versions of a case show the same organ in the same shape with the same attachments
 /// (then a 3D view keeps what it built from it).
 inline bool sameMesh(const app::Case* a, const app::Case* b) {
-  return a && b && a->organ == b->organ && a->fit == b->fit && a->attachments == b->attachments;
+  return a && b && a->organ == b->organ && a->fit == b->fit && a->attachments == b->attachments && a->hasPose == b->hasPose &&
+         a->pose.R == b->pose.R;
 }
 
 class OrganView : public QWidget {
