@@ -16,7 +16,12 @@
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
 
+#include <rehearse/app/elasticfit.hpp>
+#include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
+#include <rehearse/simcore/meshio.hpp>
+
+#include <QProcess>
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/integrator.hpp>
 
@@ -311,6 +316,62 @@ class TestSimulationGui : public QObject {
       QTest::qWait(100);
       w_->grab().save(QString::fromLocal8Bit(dir) + "/step5-ridge.png");
     }
+  }
+
+
+  // The material set in the Simulation panel is the one the GUI's fit uses, and the GUI's fit and
+  // `rehearse register` (the same inputs written to files) give the same registered nodes.
+  void guiFitUsesTheCaseMaterialAndMatchesTheCommandLine() {
+    auto* model = panel_->findChild<QComboBox*>("simMaterial");
+    auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
+    QVERIFY(model && young);
+    model->setCurrentIndex(static_cast<int>(simcore::MaterialModel::StVK));
+    young->setValue(54.0);
+    const auto& c = w_->caseData();
+    QVERIFY(c->material.model == simcore::MaterialModel::StVK);
+    QCOMPARE(c->material.young, 54e3);
+    // What the fit would build from the case: every parenchyma element StVK at 54 kPa (Lame mu = E / 2(1 + nu)).
+    const simcore::FemModel fm = app::fitModel(app::fitInputFromCase(*c));
+    const double mu = 54e3 / (2 * (1 + c->material.poisson));
+    int parenchyma = 0;
+    for (std::size_t e = 0; e < fm.tets.size(); ++e) {
+      if (c->organ->volume.tetLabels[e] != app::kParenchymaLabel) continue;
+      ++parenchyma;
+      QVERIFY(fm.model[e] == simcore::MaterialModel::StVK);
+      QVERIFY(std::abs(fm.lame[e].mu - mu) < 1e-9 * mu);
+    }
+    QVERIFY(parenchyma > 1000);
+    // The GUI fit (F9) from the current contour and pose.
+    w_->editCase("test: no fit", [](app::Case& k) { k.fit.reset(); });
+    QTest::keyClick(w_.get(), Qt::Key_F9);
+    QTRY_VERIFY_WITH_TIMEOUT(w_->caseData()->hasFit(), 120000);
+    const auto fitted = w_->caseData();
+    // The same inputs as files, through the command line.
+    const std::string dir = tempPath("gui-vs-cli");
+    std::filesystem::create_directories(dir);
+    simcore::saveMesh(c->organ->volume, dir + "/organ.vtu");
+    imaging::saveCamera(c->camera, dir + "/camera.yaml");
+    imaging::savePose(c->pose, dir + "/pose.json");
+    imaging::saveContour(c->contour, dir + "/contour.json");
+    QString nodes;
+    for (int a : c->attachments) nodes += QString::number(a) + " ";
+    const QString d = QString::fromStdString(dir);
+    QProcess p;
+    p.start(QStringLiteral(REHEARSE_BINARY),
+            {"register", "--mesh", d + "/organ.vtu", "--material", "stvk", "--young", QString::number(c->material.young, 'g', 17), "--poisson",
+             QString::number(c->material.poisson, 'g', 17), "--density", QString::number(c->material.density, 'g', 17), "--vessel-young",
+             QString::number(c->material.vesselYoung, 'g', 17), "--fixed-nodes", nodes.trimmed(), "--camera", d + "/camera.yaml", "--pose",
+             d + "/pose.json", "--contour", d + "/contour.json", "--out", d + "/registered.vtu"});
+    QVERIFY(p.waitForFinished(300000));
+    QVERIFY2(p.exitCode() == 0, qPrintable(QString::fromUtf8(p.readAllStandardError())));
+    const simcore::Mesh registered = simcore::loadMesh(dir + "/registered.vtu");
+    QCOMPARE(registered.points.size(), fitted->fit->nodes.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < registered.points.size(); ++i)
+      worst = std::max(worst, (registered.points[i] - fitted->pose.apply(fitted->fit->nodes[i])).norm());
+    qInfo("GUI fit (StVK, 54 kPa) against rehearse register on the same inputs: largest node difference %.2e m; %s", worst,
+          fitted->fit->status.c_str());
+    QVERIFY2(worst < 1e-9, qPrintable(QString::number(worst)));
   }
 
   void cleanupTestCase() { w_.reset(); }
