@@ -5,6 +5,9 @@
 #include "phantom/phantom.hpp"
 #include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/mainwindow.hpp"
+#include "box_mesh.hpp"
+
+#include <malloc.h>
 
 #include <QProcess>
 #include <QStandardPaths>
@@ -64,6 +67,39 @@ void compareCases(const app::Case& a, const app::Case& b) {
 class TestCaseFile : public QObject {
   Q_OBJECT
  private slots:
+  // Undo memory: 200 pose edits (one drag each) of a 20k-tet organ with a 1280x720 frame hold less than one
+  // more case: the organ, the frame and the fit are shared between undo states. Measured as the heap in
+  // use (glibc's mallinfo2), not by the code's own byte counter.
+  void undoStatesShareTheOrgan() {
+    auto heap = [] {
+      malloc_trim(0);
+      const auto m = mallinfo2();
+      return static_cast<double>(m.uordblks + m.hblkhd);  // small blocks in use + large (mmapped) ones
+    };
+    const double start = heap();
+    ui::CaseDocument doc;
+    {
+      app::Case c;
+      c.name = "memory";
+      c.organ = app::Organ::fromVolume(boxMesh(0.12, 0.10, 0.08, 15, 15, 15));
+      c.camera = imaging::Camera::defaultFor(1280, 720);
+      c.frame = cv::Mat3b(720, 1280, cv::Vec3b(40, 60, 160));
+      c.pose = c.automaticPose();
+      c.hasPose = true;
+      QCOMPARE(c.organ->volume.tets.size(), std::size_t(20250));
+      doc.setVersion(std::make_shared<const app::Case>(std::move(c)));
+    }
+    const double oneCase = heap() - start;
+    for (int i = 0; i < 200; ++i)
+      doc.edit(QStringLiteral("Move"), [i](app::Case& k) { k.pose.t.x() += 1e-4 * (i + 1); }, -1);
+    QCOMPARE(doc.undoStack()->count(), 200);
+    const double all = heap() - start;
+    qInfo("one case %.1f MB; with 200 pose edits on its undo stack %.1f MB (%.3fx, %.1f kB per edit)", oneCase / 1e6, all / 1e6, all / oneCase,
+          (all - oneCase) / 200 / 1e3);
+    QVERIFY(oneCase > 1e6);
+    QVERIFY(all < 2 * oneCase);
+  }
+
   void saveAndReopenEveryField() {
     const QString path = QString::fromStdString(tempPath("phantom.rehearse"));
     app::Case edited = phantomCase();
