@@ -2,7 +2,7 @@
 // and mesh resolution; step time and peak memory from 1k to 50k tetrahedra. Medians of repeated steps.
 // Writes CSVs and PNG plots into the directory given (default "."), and prints the tables.
 //   bench_dynamics [OUT_DIR] [--quick]
-#include "../box_mesh.hpp"
+#include "box_mesh.hpp"
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
 #include "plot.hpp"
