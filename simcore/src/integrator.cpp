@@ -1,6 +1,5 @@
 #include <rehearse/simcore/integrator.hpp>
 
-#include "cholmod_solver.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
@@ -9,7 +8,6 @@
 #include <cstdio>
 #include <cmath>
 
-#include <dlfcn.h>
 
 namespace rehearse::simcore {
 
@@ -39,16 +37,9 @@ struct Integrator::Work {
   Eigen::SparseMatrix<double> J;   // the factorised Newton matrix (exact, or lagged)
   Eigen::VectorXd x0, v0, Mv0, v, vn, xt, r, rn, dv, f, tmp, savedX, savedV, stepX, stepV;
   Eigen::VectorXd pr, pz, pp, pq, pk;  // PCG
-  // Constraints: H (m x 3n) as its transpose, dense (the multi right-hand-side solve wants it so),
-  // A = (factor)^-1 H^T, W = H A, multipliers.
-  Eigen::MatrixXd Ht, A;
-  Eigen::MatrixXd W;
-  Eigen::VectorXd e, lambda, lambdaOut;
+  ConstraintSolver cons;           // attachments (Lagrange mode) then the extra constraints
+  Eigen::VectorXd lambdaOut;       // multipliers of the last solve, as forces (N)
   Eigen::VectorXd lambdaCarried;  // lagged-pcg: the multipliers whose forces the free solve already holds
-  Eigen::LDLT<Eigen::MatrixXd> Wfactor;  // W's dense factorisation, when Gauss-Seidel stalls on it
-  bool WfactorValid = false;
-  Eigen::VectorXd Wlambda;  // W lambda - e (the multipliers' residual)
-  bool schurValid = false;        // A and W belong to the current factor and constraints
   double laggedStep = -1;         // h the lagged factor was built for (-1: none)
   Eigen::VectorXd laggedAt;       // positions it was built at (with laggedStep: its identity)
   bool invalidated = false;       // invalidateFactorisation() was called: rebuild at the next step
@@ -72,38 +63,10 @@ std::string micrometres(double metres) {
   return text;
 }
 
-// OpenBLAS on one thread: factorising these sparse systems was 2x faster than on two here (DESIGN.md).
-void singleThreadedBlas() {
-  static const bool done = [] {
-    using Fn = void (*)(int);
-    auto fn = reinterpret_cast<Fn>(dlsym(RTLD_DEFAULT, "openblas_set_num_threads"));
-    // OpenBLAS is loaded as a dependency of the reference BLAS name; look it up by its own name too.
-    for (const char* lib : {"libopenblas.so.0", "libopenblas.so"})
-      if (!fn)
-        if (void* h = dlopen(lib, RTLD_NOLOAD | RTLD_LAZY)) fn = reinterpret_cast<Fn>(dlsym(h, "openblas_set_num_threads"));
-    if (fn) fn(1);
-    return true;
-  }();
-  (void)done;
-}
-
-void validate(const ScalarConstraint& c, std::size_t nodes) {
-  bool any = false;
-  for (int k = 0; k < 4; ++k) {
-    if (c.nodes[k] < 0) continue;
-    if (c.nodes[k] >= static_cast<int>(nodes))
-      throw MeshError("A constraint refers to node " + std::to_string(c.nodes[k]) + ", which does not exist (the mesh has " +
-                      std::to_string(nodes) + " nodes).");
-    any = true;
-  }
-  if (!any || !c.direction.allFinite() || c.direction.norm() == 0 || !std::isfinite(c.value))
-    throw MeshError("A constraint has no node, a zero or non-finite direction, or a non-finite value.");
-}
 }  // namespace
 
 Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, SimulationSettings settings)
     : model_(model), fixed_(model.nodeCount(), 0), settings_(settings), w_(std::make_unique<Work>()) {
-  singleThreadedBlas();
   for (int n : fixedNodes) {
     if (n < 0 || n >= static_cast<int>(model.nodeCount()))
       throw MeshError("Fixed node " + std::to_string(n) + " does not exist (the mesh has " + std::to_string(model.nodeCount()) +
@@ -140,6 +103,7 @@ Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, Simul
                                &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk})
     vec->setZero(3 * n);
   w.Kd = w.K = w.J = model.pattern;
+  w.cons.setConstraints(attachmentConstraints_, fixed_);
 }
 
 Integrator::~Integrator() = default;
@@ -157,21 +121,22 @@ std::size_t Integrator::memoryBytes() const {
   for (const Eigen::SparseMatrix<double>* m : {&w.Kd, &w.K, &w.J})
     bytes += static_cast<std::size_t>(m->nonZeros()) * (sizeof(double) + sizeof(int)) + static_cast<std::size_t>(m->outerSize() + 1) * sizeof(int);
   bytes += w.tangent0.F.size() * (sizeof(Eigen::Matrix3d) + sizeof(TangentCache));
-  bytes += sizeof(double) * static_cast<std::size_t>(w.Ht.size() + w.A.size() + w.W.size());
+  bytes += w.cons.memoryBytes();
   bytes += w.chol.factorEntries() * (sizeof(double) + sizeof(int));
   return bytes;
 }
 
 void Integrator::setConstraints(std::vector<ScalarConstraint> constraints) {
-  for (const auto& c : constraints) validate(c, model_.nodeCount());
+  std::vector<ScalarConstraint> all = attachmentConstraints_;
+  all.insert(all.end(), constraints.begin(), constraints.end());
+  w_->cons.setConstraints(std::move(all), fixed_);  // validates them (one sentence for a bad one)
   constraints_ = std::move(constraints);
-  w_->schurValid = false;
 }
 
 void Integrator::invalidateFactorisation() {
   w_->refresh = true;
   w_->invalidated = true;
-  w_->schurValid = false;
+  w_->cons.invalidate();
 }
 
 SimulationState Integrator::initialState() const {
@@ -194,156 +159,32 @@ void Integrator::projectMatrix(Eigen::SparseMatrix<double>& A) const {
 }
 
 bool Integrator::solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd& y) {
-  w_->schurValid = false;
+  w_->cons.invalidate();
   w_->refresh = true;
-  switch (settings_.solver) {
-    case LinearSolverKind::Cholmod:
-      return factoriseWith(w_->chol, settings_, A) && w_->chol.solve(b, y);
-    case LinearSolverKind::ConjugateGradient: {
-      Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper, Eigen::IncompleteCholesky<double>> cg;
-      cg.setMaxIterations(settings_.cgMaxIterations);
-      cg.setTolerance(settings_.cgTolerance);
-      cg.compute(A);
-      if (cg.info() != Eigen::Success) return false;
-      y = cg.solve(b);
-      return y.allFinite();
-    }
-    default: {
-      const Eigen::MatrixXd dense(A);
-      Eigen::LDLT<Eigen::MatrixXd> ldlt(dense);
-      if (ldlt.info() != Eigen::Success) return false;
-      y = ldlt.solve(b);
-      return y.allFinite();
-    }
-  }
+  w_->chol.setSimplicial(settings_.simplicialFactor);
+  return solveOnce(settings_.solver, A, b, y, w_->chol, settings_.cgMaxIterations, settings_.cgTolerance);
 }
 
-// Factorises A (CHOLMOD); when it is not positive definite (an indefinite tangent of a nonlinear
-// material under large deformation), shifts the diagonal until it factorises.
 bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep, const std::function<bool()>& accept) {
-  Work& w = *w_;
-  auto attempt = [&](const Eigen::SparseMatrix<double>& M) {
-    w.schurValid = false;
-    ++rep.factorisations;
-    return factoriseWith(w.chol, settings_, M) && (!accept || accept());
-  };
-  if (attempt(A)) return true;
-  const double base = 1e-6 * A.diagonal().cwiseAbs().maxCoeff();
-  Eigen::SparseMatrix<double> shifted = A;  // rare path: allocation is fine here
-  for (double shift = base; shift < 1e12 * std::max(base, 1e-300); shift *= 10) {
-    for (Eigen::Index i = 0; i < shifted.rows(); ++i) shifted.valuePtr()[model_.diagonalSlot[i]] = A.valuePtr()[model_.diagonalSlot[i]] + shift;
-    if (attempt(shifted)) return true;
-  }
-  return false;
+  w_->cons.invalidate();
+  w_->chol.setSimplicial(settings_.simplicialFactor);
+  return simcore::factoriseShifted(w_->chol, A, model_.diagonalSlot, rep.factorisations, [&] {
+    w_->cons.invalidate();  // each attempt is a new factor
+    return !accept || accept();
+  });
 }
 
-double Integrator::constraintViolation(const Eigen::VectorXd& x) const {
-  double worst = 0;
-  for (const auto* list : {&attachmentConstraints_, &constraints_})
-    for (const auto& c : *list) {
-      double hx = 0;
-      for (int k = 0; k < 4; ++k)
-        if (c.nodes[k] >= 0) hx += c.weights[k] * c.direction.dot(x.segment<3>(3 * c.nodes[k]));
-      const double g = hx - c.value;
-      worst = std::max(worst, c.unilateral ? std::max(0.0, -g) : std::abs(g));
-    }
-  return worst;
-}
-
-// Solves (factor) dx = rhs + H^T mu with H (x + s dx) = value for the constraints, where s is the
-// position scale of dx (h for velocities, 1 for positions): the Schur complement W = H A^-1 H^T and
-// projected Gauss-Seidel on W mu = e - H dx_free. Without constraints: dx = A^-1 rhs. Uses the current
-// factor (the caller made it); mu (total, not incremental) ends in w.lambda.
+// Solves (factor) dx = rhs + H^T mu with H (x + s dx) = value for the constraints (constraint_solver.hpp),
+// where s is the position scale of dx (h for velocities, 1 for positions). Without constraints:
+// dx = A^-1 rhs. Uses the current factor (the caller made it); mu (total) ends in w.cons.multipliers().
 bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx,
                                   StepReport& rep, bool freeGiven, const Eigen::VectorXd* carried) {
   Work& w = *w_;
   if (!freeGiven && !w.chol.solve(rhs, dx)) return false;
   project(dx);
-  const Eigen::Index m = static_cast<Eigen::Index>(attachmentConstraints_.size() + constraints_.size());
-  if (m == 0) return true;
-  auto constraint = [&](Eigen::Index i) -> const ScalarConstraint& {
-    const auto na = static_cast<Eigen::Index>(attachmentConstraints_.size());
-    return i < na ? attachmentConstraints_[i] : constraints_[i - na];
-  };
-  auto applyH = [&](const ScalarConstraint& c, const auto& vec) {
-    double out = 0;
-    for (int k = 0; k < 4; ++k)
-      if (c.nodes[k] >= 0) out += c.weights[k] * c.direction.dot(vec.template segment<3>(3 * c.nodes[k]));
-    return out;
-  };
-  const Eigen::Index n3 = rhs.size();
-  if (!w.schurValid || w.W.rows() != m) {
-    if (w.Ht.rows() != n3 || w.Ht.cols() != m) w.Ht.resize(n3, m);
-    w.Ht.setZero();
-    for (Eigen::Index i = 0; i < m; ++i) {
-      const auto& c = constraint(i);
-      for (int k = 0; k < 4; ++k)
-        if (c.nodes[k] >= 0 && !fixed_[c.nodes[k]]) w.Ht.col(i).segment<3>(3 * c.nodes[k]) += c.weights[k] * c.direction;
-    }
-    if (!w.chol.solve(w.Ht, w.A)) return false;
-    if (w.W.rows() != m) w.W.resize(m, m);
-    for (Eigen::Index i = 0; i < m; ++i)
-      for (Eigen::Index j = 0; j < m; ++j) w.W(i, j) = applyH(constraint(i), w.A.col(j));
-    for (Eigen::Index i = 0; i < m; ++i)  // symmetric up to round-off: made exactly so, in place
-      for (Eigen::Index j = i + 1; j < m; ++j) w.W(i, j) = w.W(j, i) = 0.5 * (w.W(i, j) + w.W(j, i));
-    w.schurValid = true;
-    w.WfactorValid = false;
-  }
-  if (w.e.size() != m) w.e.resize(m);
-  if (w.Wlambda.size() != m) w.Wlambda.resize(m);
-  if (w.lambda.size() != m || !w.lambda.allFinite()) w.lambda.setZero(m);
-  for (Eigen::Index i = 0; i < m; ++i) {
-    const auto& c = constraint(i);
-    w.e[i] = (c.value - applyH(c, x)) / s - applyH(c, dx);
-  }
-  // dx already holds the response to the forces of `carried` multipliers (through another operator than
-  // the factor's): solve for the total ones, and let the factor move dx by the change only.
-  const bool carry = carried && carried->size() == m;
-  if (carry) w.e.noalias() += w.W * *carried;
-  // Projected Gauss-Seidel, warm-started from the previous multipliers. An ill-conditioned W (many
-  // close attachments on a body with nothing else holding it) can stall it: bilateral constraints then
-  // take a dense LDL^T of W (m x m, small), unilateral ones keep the best Gauss-Seidel iterate.
-  int sweep = 0;
-  bool converged = false, unilateral = false;
-  for (Eigen::Index i = 0; i < m; ++i) unilateral |= constraint(i).unilateral;
-  for (; sweep < settings_.gaussSeidelIterations; ++sweep) {
-    double change = 0, size = 0;
-    for (Eigen::Index i = 0; i < m; ++i) {
-      const double d = w.W(i, i);
-      if (!(d > 0)) continue;
-      double li = w.lambda[i] + (w.e[i] - w.W.row(i).dot(w.lambda)) / d;
-      if (constraint(i).unilateral) li = std::max(0.0, li);
-      change = std::max(change, std::abs(li - w.lambda[i]));
-      size = std::max(size, std::abs(li));
-      w.lambda[i] = li;
-    }
-    if (!std::isfinite(change)) return false;
-    if (change <= settings_.gaussSeidelTolerance * std::max(size, 1e-300)) {
-      ++sweep;
-      converged = true;
-      break;
-    }
-  }
-  rep.innerIterations += sweep;
-  // Converged by its step size is not converged by its residual when W is ill-conditioned.
-  if (converged && !unilateral) {
-    w.Wlambda.noalias() = w.W * w.lambda;  // sized once: no temporary
-    w.Wlambda -= w.e;
-  }
-  if (converged && !unilateral) converged = w.Wlambda.norm() <= 1e-12 * std::max(w.e.norm(), 1e-300) * std::max(1.0, w.W.diagonal().maxCoeff() / std::max(w.W.diagonal().minCoeff(), 1e-300));
-  if (!converged && !unilateral) {
-    // Rank-deficient W (redundant constraints) is fine here: the pivoted LDL^T leaves the multipliers of
-    // zero pivots at zero. Factorised once per W (the lagged methods keep W for many iterations).
-    if (!w.WfactorValid) {
-      w.Wfactor.compute(w.W);
-      w.WfactorValid = true;
-    }
-    w.lambda = w.Wfactor.solve(w.e);
-    if (!w.lambda.allFinite()) return false;
-  }
-  dx.noalias() += w.A * w.lambda;
-  if (carry) dx.noalias() -= w.A * *carried;
-  return dx.allFinite();
+  w.cons.gaussSeidelIterations = settings_.gaussSeidelIterations;
+  w.cons.gaussSeidelTolerance = settings_.gaussSeidelTolerance;
+  return w.cons.solve(w.chol, x, s, dx, rep.innerIterations, carried);
 }
 
 double Integrator::totalEnergy(const SimulationState& s) const {
@@ -369,7 +210,7 @@ bool Integrator::refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport
   w.laggedAt = at;  // the factor's identity, part of the complete state (SimulationState::lagged)
   w.refresh = false;
   ++rep.factorisations;
-  w.schurValid = false;
+  w.cons.invalidate();
   if (factoriseWith(w.chol, settings_, w.J)) return true;
   // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
   assembleStiffness(model_, at, w.Kd, true);
@@ -457,7 +298,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     project(w.r);
     w.tmp = -w.r;
     w.xt = w.x0 + h * w.v;
-    if (hasConstraints) w.lambda.setZero(static_cast<Eigen::Index>(attachmentConstraints_.size() + constraints_.size()));
+    if (hasConstraints) w.cons.multipliers().setZero(w.cons.size());
     if (!solveConstrained(w.tmp, w.xt, h, w.dv, rep) || !w.dv.allFinite()) {
       rep.status = "failed: the linear system could not be solved";
       w.refresh = true;
@@ -467,7 +308,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     // linearised equations with the exact matrix, relative to the scale; a large one refreshes the factor.
     applyStiffness(model_, w.tangent0, w.dv, w.pk);
     w.rn = (1 + h * alpha) * mass3_.cwiseProduct(w.dv) + (h * h + h * beta) * w.pk + w.r;
-    if (hasConstraints) w.rn.noalias() -= w.Ht * w.lambda;
+    if (hasConstraints) w.rn.noalias() -= w.cons.transposedH() * w.cons.multipliers();
     project(w.rn);
     rep.residual = w.rn.norm() / scale;
     ++rep.newtonIterations;
@@ -481,7 +322,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     v = w.v;
     x = w.x0 + h * w.v;
     w.forcesValid = false;
-    if (hasConstraints) w.lambdaOut = w.lambda / h;
+    if (hasConstraints) w.lambdaOut = w.cons.multipliers() / h;
     return true;
   }
   // Rayleigh damping with the stiffness at the start of the step (every method: the same residual);
@@ -509,9 +350,9 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
   };
   // Norm of the residual net of the constraint forces (the total multipliers of the last solve).
   auto netNorm = [&](const Eigen::VectorXd& res) {
-    if (!hasConstraints || w.lambda.size() != w.Ht.cols() || w.Ht.rows() != res.size()) return res.norm();
+    if (!hasConstraints || w.cons.multipliers().size() != w.cons.transposedH().cols() || w.cons.transposedH().rows() != res.size()) return res.norm();
     w.pq = res;
-    w.pq.noalias() -= w.Ht * w.lambda;
+    w.pq.noalias() -= w.cons.transposedH() * w.cons.multipliers();
     return w.pq.norm();
   };
   // Residual scale: momentum, load and internal forces at the start, with a floor (an acceleration of
@@ -523,7 +364,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     project(w.f);
   }
   const double scale = std::max({w.Mv0.norm(), h * gravityForce_.norm(), h * w.f.norm(), h * 1e-2 * model_.lumpedMass.sum()});
-  if (hasConstraints) w.lambda.setZero(static_cast<Eigen::Index>(attachmentConstraints_.size() + constraints_.size()));
+  if (hasConstraints) w.cons.multipliers().setZero(w.cons.size());
   residual(w.v, w.r);
   double rn = w.r.norm();
   const int maxIterations = settings_.method == NewtonMethod::Linearised && lagged ? 1
@@ -547,7 +388,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       buildNewtonMatrix(w.K, w.J);
       if (settings_.solver == LinearSolverKind::Cholmod) {
         ++rep.factorisations;
-        w.schurValid = false;
+        w.cons.invalidate();
         bool factorised = factoriseWith(w.chol, settings_, w.J) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
         if (factorised) {
           solved = true;
@@ -588,10 +429,10 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       // The constraint forces of the last iteration's multipliers go into the CG right-hand side (the exact
       // tangent answers them); the lagged factor then corrects only their change, which vanishes as Newton
       // converges. (With the lagged factor for the whole force, the step never satisfied the exact equations.)
-      const bool carry = hasConstraints && w.lambda.size() == w.Ht.cols() && w.Ht.rows() == w.pr.size();
+      const bool carry = hasConstraints && w.cons.multipliers().size() == w.cons.transposedH().cols() && w.cons.transposedH().rows() == w.pr.size();
       if (carry) {
-        w.pr.noalias() += w.Ht * w.lambda;
-        w.lambdaCarried = w.lambda;
+        w.pr.noalias() += w.cons.transposedH() * w.cons.multipliers();
+        w.lambdaCarried = w.cons.multipliers();
       }
       const double bnorm = w.pr.norm();
       solved = w.chol.solve(w.pr, w.pz);
@@ -685,7 +526,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     if (rep.status.empty())
       rep.status = "not converged in " + std::to_string(maxIterations) + " Newton iterations";
   }
-  if (hasConstraints) w.lambdaOut = w.lambda / h;  // momentum per step -> force (N)
+  if (hasConstraints) w.lambdaOut = w.cons.multipliers() / h;  // momentum per step -> force (N)
   return ok;
 }
 
@@ -743,7 +584,7 @@ StepReport Integrator::step(SimulationState& state) {
   rep.retries = retries;
   record(state);
   if (settings_.reportEnergy) rep.energy = totalEnergy(state);
-  rep.constraintViolation = constraintViolation(state.x);
+  rep.constraintViolation = w_->cons.violation(state.x);
   rep.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return rep;
 }
@@ -758,7 +599,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   auto potential = [&](const Eigen::VectorXd& x) { return elasticEnergy(model_, x) - fext.dot(x - rest_); };
   const double scale = std::max(fext.norm(), 1e-2 * model_.lumpedMass.sum());
   Eigen::VectorXd x = state.x, r, dx;
-  if (hasConstraints) w.lambda.setZero(static_cast<Eigen::Index>(attachmentConstraints_.size() + constraints_.size()));
+  if (hasConstraints) w.cons.multipliers().setZero(w.cons.size());
   // A body held only by constraints has a singular stiffness: the Newton matrix gets M / (1 s)^2, which
   // only slows the softest modes (the residual below is the true one, so the equilibrium is unchanged).
   // (Not needed when nodes are fixed by projection: they hold the body, and the regularisation would make
@@ -784,10 +625,10 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     elasticForces(model_, x, r);
     r += fext;  // out-of-balance force
     project(r);
-    if (hasConstraints && it > 0) r.noalias() += w.Ht * w.lambda;
+    if (hasConstraints && it > 0) r.noalias() += w.cons.transposedH() * w.cons.multipliers();
     rep.residual = r.norm() / scale;
     if (!std::isfinite(rep.residual)) break;
-    const double violation = hasConstraints ? constraintViolation(x) : 0.0;
+    const double violation = hasConstraints ? w_->cons.violation(x) : 0.0;
     if (rep.residual <= settings_.tolerance && (!hasConstraints || (it > 0 && violation <= 1e-9))) {
       rep.ok = true;
       break;
@@ -810,7 +651,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     };
     // Solve for the total multipliers (none yet in the first iteration, when Ht may still have the size of
     // the previous solve's constraints).
-    if (hasConstraints && it > 0) r.noalias() -= w.Ht * w.lambda;
+    if (hasConstraints && it > 0) r.noalias() -= w.cons.transposedH() * w.cons.multipliers();
     bool solved = false;
     // Chord: the factor of an earlier static tangent (of this solve or the last one) while the residual
     // still at least halves per iteration; a fresh tangent otherwise, or when the lagged step is unusable.
@@ -818,23 +659,23 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
                        w.staticFactor == w.chol.factorisations() && rep.residual < 0.5 * residualBefore;
     residualBefore = rep.residual;
     if (chord) {
-      const Eigen::VectorXd lambdaStart = w.lambda;
+      const Eigen::VectorXd lambdaStart = w.cons.multipliers();
       solved = solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
-      if (!solved) w.lambda = lambdaStart;
+      if (!solved) w.cons.multipliers() = lambdaStart;
     }
     if (!solved) buildTangent(false);
     if (!solved && settings_.solver == LinearSolverKind::Cholmod) {
       ++rep.factorisations;
-      w.schurValid = false;
+      w.cons.invalidate();
       // Each attempt starts from the same multipliers (a failed one can leave them absurd).
-      const Eigen::VectorXd lambdaStart = w.lambda;
+      const Eigen::VectorXd lambdaStart = w.cons.multipliers();
       solved = factoriseWith(w.chol, settings_, w.K) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
       if (!solved) {
         // Indefinite, or nearly singular (a step the organ cannot make): projected Newton, then diagonal
         // shifts (Levenberg-Marquardt) growing until the step is usable.
         buildTangent(true);
         solved = factoriseShifted(w.K, rep, [&] {
-          w.lambda = lambdaStart;
+          w.cons.multipliers() = lambdaStart;
           return solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
         });
       }
@@ -870,7 +711,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     ++rep.newtonIterations;
     // Moves below the caller's resolution: converged for its purpose (a registration needs micrometres,
     // not the force balance to round-off, and projected Newton converges only linearly).
-    if (settings_.staticStepTolerance > 0 && t * dx.cwiseAbs().maxCoeff() < settings_.staticStepTolerance && constraintViolation(x) <= 1e-9) {
+    if (settings_.staticStepTolerance > 0 && t * dx.cwiseAbs().maxCoeff() < settings_.staticStepTolerance && w_->cons.violation(x) <= 1e-9) {
       rep.ok = true;
       smallStep = true;
       break;
@@ -886,10 +727,10 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     rep.ok = false;
     if (rep.status.empty()) rep.status = "not converged (relative residual " + std::to_string(rep.residual) + "); the state was rolled back";
   }
-  if (hasConstraints) w.lambdaOut = w.lambda;
+  if (hasConstraints) w.lambdaOut = w.cons.multipliers();
   w.refresh = true;  // the factor now holds the static tangent
   rep.energy = totalEnergy(state);
-  rep.constraintViolation = constraintViolation(state.x);
+  rep.constraintViolation = w_->cons.violation(state.x);
   rep.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return rep;
 }

@@ -14,7 +14,13 @@
 // Constraints: fixed nodes by projection (default) or as Lagrange multipliers, plus any scalar linear
 // constraints on the positions (contour and tool constraints build on these), solved through the Schur
 // complement W = H A^-1 H^T with projected Gauss-Seidel, as SOFA's constraint correction does.
+//
+// The parts, each tested on its own: linear_solver.hpp (CHOLMOD, CG, dense; shifted factorisation),
+// constraint_solver.hpp (Schur complement and Gauss-Seidel), this file (implicit Euler with Newton and a
+// line search, the lagged-factor policy, the static solve), and SimulationState (the complete state).
+#include <rehearse/simcore/constraint_solver.hpp>
 #include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/linear_solver.hpp>
 
 #include <array>
 #include <functional>
@@ -23,8 +29,6 @@
 #include <vector>
 
 namespace rehearse::simcore {
-
-enum class LinearSolverKind { Cholmod, ConjugateGradient, Dense };
 
 enum class NewtonMethod {
   Exact,       ///< assemble and factorise the exact tangent at every Newton iteration
@@ -37,16 +41,6 @@ NewtonMethod newtonMethodFromString(const std::string& name);
 std::string toString(NewtonMethod m);
 
 enum class AttachmentMode { Projection, Lagrange };
-
-/// One scalar linear constraint on positions: sum_k weights[k] * direction . x[nodes[k]] = value
-/// (unused slots have node -1). Unilateral constraints only push (>=), bilateral ones hold (=).
-struct ScalarConstraint {
-  std::array<int, 4> nodes{-1, -1, -1, -1};
-  std::array<double, 4> weights{0, 0, 0, 0};
-  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
-  double value = 0;  ///< m
-  bool unilateral = false;
-};
 
 struct SimulationSettings {
   double timeStep = 0.01;                              ///< s
@@ -144,12 +138,10 @@ class Integrator {
   double totalEnergy(const SimulationState& s) const;
   void project(Eigen::VectorXd& r) const;
   void projectMatrix(Eigen::SparseMatrix<double>& A) const;
-  /// Factorises A, then A plus growing diagonal shifts, until it factorises and `accept` (when given; it
-  /// solves with the factor) takes the result.
+  /// factoriseShifted (linear_solver.hpp) with the settings' factor kind, counting into `rep`.
   bool factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep, const std::function<bool()>& accept = nullptr);
   bool solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double positionScale, Eigen::VectorXd& dx,
                         StepReport& rep, bool freeGiven = false, const Eigen::VectorXd* carried = nullptr);
-  double constraintViolation(const Eigen::VectorXd& x) const;
 
   const FemModel& model_;
   std::vector<char> fixed_;

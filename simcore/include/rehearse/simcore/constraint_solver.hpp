@@ -1,0 +1,69 @@
+#pragma once
+// The constraint solver of the FEM (one part of the integrator, tested alone against a dense KKT solve in
+// tests/simcore/test_constraint_solver.cpp): scalar linear constraints on node positions (attachments as
+// Lagrange multipliers, the elastic fit's image-plane constraints, tool grasps and contacts), solved as SOFA's
+// constraint correction does: with A factorised (the caller's Newton matrix) and dx_free = A^-1 rhs,
+//   A dx = rhs + H^T mu,   H (x + s dx) = value  (bilateral)  or  >= value with mu >= 0 (unilateral),
+// through the Schur complement W = H A^-1 H^T and projected Gauss-Seidel on W mu = e, e = (value - H x)/s - H dx_free;
+// a bilateral set that Gauss-Seidel cannot settle (ill-conditioned W) takes a dense LDL^T of W (m x m).
+// Nodes fixed by projection take no constraint force. Sized once: a solve with the same constraints and
+// factor allocates nothing.
+#include <rehearse/simcore/linear_solver.hpp>
+
+#include <Eigen/Dense>
+
+#include <array>
+#include <vector>
+
+namespace rehearse::simcore {
+
+/// One scalar linear constraint on positions: sum_k weights[k] * direction . x[nodes[k]] = value
+/// (unused slots have node -1). Unilateral constraints only push (>=), bilateral ones hold (=).
+struct ScalarConstraint {
+  std::array<int, 4> nodes{-1, -1, -1, -1};
+  std::array<double, 4> weights{0, 0, 0, 0};
+  Eigen::Vector3d direction = Eigen::Vector3d::UnitX();
+  double value = 0;  ///< m
+  bool unilateral = false;
+};
+
+/// Throws MeshError with one sentence for a constraint on a missing node, or without node, direction or value.
+void validateConstraint(const ScalarConstraint& c, std::size_t nodeCount);
+
+class ConstraintSolver {
+ public:
+  /// The constraints (checked with validateConstraint) and the nodes fixed by projection (1: fixed).
+  void setConstraints(std::vector<ScalarConstraint> constraints, const std::vector<char>& fixed);
+  const std::vector<ScalarConstraint>& constraints() const { return constraints_; }
+  Eigen::Index size() const { return static_cast<Eigen::Index>(constraints_.size()); }
+  /// The factor changed: W is rebuilt at the next solve.
+  void invalidate() { schurValid_ = false; }
+  /// Corrects `dx` (in: the free solution A^-1 rhs, projected; out: the constrained one) with the factor
+  /// `A` of the caller's matrix; `x` the current positions, `s` the position scale of dx (the time step for
+  /// velocities, 1 for positions). `carried`: multipliers whose forces dx already holds (through another
+  /// operator than the factor): the total ones are solved for and dx moves by the change only.
+  /// Gauss-Seidel sweeps are added to `sweeps`. False when a solve failed or gave non-finite values.
+  bool solve(CholmodSolver& A, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx, int& sweeps,
+             const Eigen::VectorXd* carried = nullptr);
+  /// The multipliers (total, N·s/m... in the units of rhs) of the last solve; the next solve starts from
+  /// them (warm start). Reset them with multipliers().setZero(size()).
+  Eigen::VectorXd& multipliers() { return lambda_; }
+  /// H^T (3n x m, dense) as of the last solve (empty before it).
+  const Eigen::MatrixXd& transposedH() const { return Ht_; }
+  /// Largest |H x - value| (bilateral) or max(0, value - H x) (unilateral), m.
+  double violation(const Eigen::VectorXd& x) const;
+  int gaussSeidelIterations = 300;      ///< sweeps; then bilateral sets take a dense solve of W
+  double gaussSeidelTolerance = 1e-10;  ///< relative change of the multipliers
+  std::size_t memoryBytes() const { return sizeof(double) * static_cast<std::size_t>(Ht_.size() + A_.size() + W_.size()); }
+
+ private:
+  std::vector<ScalarConstraint> constraints_;
+  std::vector<char> fixed_;
+  Eigen::MatrixXd Ht_, A_, W_;     // H^T, A^-1 H^T, W = H A^-1 H^T
+  Eigen::VectorXd e_, lambda_, Wlambda_;
+  Eigen::LDLT<Eigen::MatrixXd> Wfactor_;  // W's dense factorisation, when Gauss-Seidel stalls on it
+  bool WfactorValid_ = false;
+  bool schurValid_ = false;        // A_ and W_ belong to the current factor and constraints
+};
+
+}  // namespace rehearse::simcore

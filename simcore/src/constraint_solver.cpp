@@ -1,0 +1,127 @@
+#include <rehearse/simcore/constraint_solver.hpp>
+
+#include <rehearse/simcore/mesh.hpp>
+
+#include <cmath>
+#include <string>
+
+namespace rehearse::simcore {
+namespace {
+// H's row of one constraint applied to a 3n vector (or a column view: no temporary).
+template <typename Vec>
+double applyRow(const ScalarConstraint& c, const Vec& v) {
+  double out = 0;
+  for (int k = 0; k < 4; ++k)
+    if (c.nodes[k] >= 0) out += c.weights[k] * c.direction.dot(v.template segment<3>(3 * c.nodes[k]));
+  return out;
+}
+}  // namespace
+
+void validateConstraint(const ScalarConstraint& c, std::size_t nodes) {
+  bool any = false;
+  for (int k = 0; k < 4; ++k) {
+    if (c.nodes[k] < 0) continue;
+    if (c.nodes[k] >= static_cast<int>(nodes))
+      throw MeshError("A constraint refers to node " + std::to_string(c.nodes[k]) + ", which does not exist (the mesh has " +
+                      std::to_string(nodes) + " nodes).");
+    any = true;
+  }
+  if (!any || !c.direction.allFinite() || c.direction.norm() == 0 || !std::isfinite(c.value))
+    throw MeshError("A constraint has no node, a zero or non-finite direction, or a non-finite value.");
+}
+
+void ConstraintSolver::setConstraints(std::vector<ScalarConstraint> constraints, const std::vector<char>& fixed) {
+  for (const auto& c : constraints) validateConstraint(c, fixed.size());
+  constraints_ = std::move(constraints);
+  fixed_ = fixed;
+  schurValid_ = false;
+}
+
+double ConstraintSolver::violation(const Eigen::VectorXd& x) const {
+  double worst = 0;
+  for (const auto& c : constraints_) {
+    const double g = applyRow(c, x) - c.value;
+    worst = std::max(worst, c.unilateral ? std::max(0.0, -g) : std::abs(g));
+  }
+  return worst;
+}
+
+bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx, int& sweeps,
+                             const Eigen::VectorXd* carried) {
+  const Eigen::Index m = size();
+  if (m == 0) return true;
+  const Eigen::Index n3 = dx.size();
+  if (!schurValid_ || W_.rows() != m || Ht_.rows() != n3) {
+    if (Ht_.rows() != n3 || Ht_.cols() != m) Ht_.resize(n3, m);
+    Ht_.setZero();
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const auto& c = constraints_[static_cast<std::size_t>(i)];
+      for (int k = 0; k < 4; ++k)
+        if (c.nodes[k] >= 0 && !fixed_[static_cast<std::size_t>(c.nodes[k])]) Ht_.col(i).segment<3>(3 * c.nodes[k]) += c.weights[k] * c.direction;
+    }
+    if (!factor.solve(Ht_, A_)) return false;
+    if (W_.rows() != m) W_.resize(m, m);
+    for (Eigen::Index i = 0; i < m; ++i)
+      for (Eigen::Index j = 0; j < m; ++j) W_(i, j) = applyRow(constraints_[static_cast<std::size_t>(i)], A_.col(j));
+    for (Eigen::Index i = 0; i < m; ++i)  // symmetric up to round-off: made exactly so, in place
+      for (Eigen::Index j = i + 1; j < m; ++j) W_(i, j) = W_(j, i) = 0.5 * (W_(i, j) + W_(j, i));
+    schurValid_ = true;
+    WfactorValid_ = false;
+  }
+  if (e_.size() != m) e_.resize(m);
+  if (Wlambda_.size() != m) Wlambda_.resize(m);
+  if (lambda_.size() != m || !lambda_.allFinite()) lambda_.setZero(m);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    const auto& c = constraints_[static_cast<std::size_t>(i)];
+    e_[i] = (c.value - applyRow(c, x)) / s - applyRow(c, dx);
+  }
+  const bool carry = carried && carried->size() == m;
+  if (carry) e_.noalias() += W_ * *carried;
+  // Projected Gauss-Seidel, warm-started from the previous multipliers. An ill-conditioned W (many
+  // close attachments on a body with nothing else holding it) can stall it: bilateral constraints then
+  // take a dense LDL^T of W (m x m, small), unilateral ones keep the best Gauss-Seidel iterate.
+  int sweep = 0;
+  bool converged = false, unilateral = false;
+  for (const auto& c : constraints_) unilateral |= c.unilateral;
+  for (; sweep < gaussSeidelIterations; ++sweep) {
+    double change = 0, size = 0;
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const double d = W_(i, i);
+      if (!(d > 0)) continue;
+      double li = lambda_[i] + (e_[i] - W_.row(i).dot(lambda_)) / d;
+      if (constraints_[static_cast<std::size_t>(i)].unilateral) li = std::max(0.0, li);
+      change = std::max(change, std::abs(li - lambda_[i]));
+      size = std::max(size, std::abs(li));
+      lambda_[i] = li;
+    }
+    if (!std::isfinite(change)) return false;
+    if (change <= gaussSeidelTolerance * std::max(size, 1e-300)) {
+      ++sweep;
+      converged = true;
+      break;
+    }
+  }
+  sweeps += sweep;
+  // Converged by its step size is not converged by its residual when W is ill-conditioned.
+  if (converged && !unilateral) {
+    Wlambda_.noalias() = W_ * lambda_;  // sized once: no temporary
+    Wlambda_ -= e_;
+    converged = Wlambda_.norm() <= 1e-12 * std::max(e_.norm(), 1e-300) *
+                                       std::max(1.0, W_.diagonal().maxCoeff() / std::max(W_.diagonal().minCoeff(), 1e-300));
+  }
+  if (!converged && !unilateral) {
+    // Rank-deficient W (redundant constraints) is fine here: the pivoted LDL^T leaves the multipliers of
+    // zero pivots at zero. Factorised once per W (the lagged methods keep W for many iterations).
+    if (!WfactorValid_) {
+      Wfactor_.compute(W_);
+      WfactorValid_ = true;
+    }
+    lambda_ = Wfactor_.solve(e_);
+    if (!lambda_.allFinite()) return false;
+  }
+  dx.noalias() += A_ * lambda_;
+  if (carry) dx.noalias() -= A_ * *carried;
+  return dx.allFinite();
+}
+
+}  // namespace rehearse::simcore

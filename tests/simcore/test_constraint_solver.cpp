@@ -1,0 +1,183 @@
+// The constraint solver alone (simcore/constraint_solver.hpp), against a dense solve of the KKT system
+//   [A  -H^T] [dx]   [rhs            ]
+//   [H   0  ] [mu] = [(value - H x)/s]
+// for bilateral constraints, including redundant ones (the dense fallback) and nodes fixed by projection;
+// unilateral constraints checked by the complementarity conditions (mu >= 0, gap >= 0, mu gap = 0).
+#include <QtTest>
+
+#include <rehearse/simcore/constraint_solver.hpp>
+#include <rehearse/simcore/mesh.hpp>
+
+#include <Eigen/Dense>
+
+#include <random>
+
+using namespace rehearse::simcore;
+
+namespace {
+// A chain of n nodes (3 dofs each) joined by springs plus a small tie to the origin: symmetric positive definite.
+Eigen::SparseMatrix<double> chainMatrix(int n) {
+  std::vector<Eigen::Triplet<double>> t;
+  for (int a = 0; a < n; ++a)
+    for (int d = 0; d < 3; ++d) {
+      t.emplace_back(3 * a + d, 3 * a + d, 0.01);
+      if (a + 1 < n) {
+        const int b = a + 1;
+        const double w = 1.0 + 0.2 * d + 0.01 * a;
+        t.emplace_back(3 * a + d, 3 * a + d, w);
+        t.emplace_back(3 * b + d, 3 * b + d, w);
+        t.emplace_back(3 * a + d, 3 * b + d, -w);
+        t.emplace_back(3 * b + d, 3 * a + d, -w);
+      }
+    }
+  Eigen::SparseMatrix<double> A(3 * n, 3 * n);
+  A.setFromTriplets(t.begin(), t.end());
+  A.makeCompressed();
+  return A;
+}
+
+double row(const ScalarConstraint& c, const Eigen::VectorXd& v) {
+  double out = 0;
+  for (int k = 0; k < 4; ++k)
+    if (c.nodes[k] >= 0) out += c.weights[k] * c.direction.dot(v.segment<3>(3 * c.nodes[k]));
+  return out;
+}
+
+ScalarConstraint constraintOn(std::initializer_list<int> nodes, const Eigen::Vector3d& dir, double value, bool unilateral = false) {
+  ScalarConstraint c;
+  int k = 0;
+  for (int n : nodes) {
+    c.nodes[k] = n;
+    c.weights[k] = 1.0 / static_cast<double>(nodes.size());
+    ++k;
+  }
+  c.direction = dir.normalized();
+  c.value = value;
+  c.unilateral = unilateral;
+  return c;
+}
+}  // namespace
+
+class TestConstraintSolver : public QObject {
+  Q_OBJECT
+ private slots:
+  void bilateralMatchesDenseKkt() {
+    const int n = 40;
+    const auto A = chainMatrix(n);
+    std::mt19937 rng(7);
+    std::uniform_real_distribution<double> u(-1, 1);
+    Eigen::VectorXd rhs(3 * n), x(3 * n);
+    for (Eigen::Index i = 0; i < rhs.size(); ++i) {
+      rhs[i] = u(rng);
+      x[i] = 0.01 * u(rng);
+    }
+    std::vector<ScalarConstraint> cs = {constraintOn({0}, {1, 0, 0}, 0.02), constraintOn({5, 6}, {0, 1, 1}, -0.01),
+                                        constraintOn({12, 20, 30}, {1, 2, 3}, 0.005), constraintOn({39}, {0, 0, 1}, 0.03)};
+    for (const double s : {1.0, 0.01}) {
+      ConstraintSolver solver;
+      solver.setConstraints(cs, std::vector<char>(n, 0));
+      CholmodSolver chol;
+      QVERIFY(chol.factorise(A));
+      Eigen::VectorXd dx;
+      QVERIFY(chol.solve(rhs, dx));
+      int sweeps = 0;
+      QVERIFY(solver.solve(chol, x, s, dx, sweeps));
+      // Reference: the dense KKT system.
+      const Eigen::Index m = static_cast<Eigen::Index>(cs.size());
+      Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3 * n + m, 3 * n + m);
+      K.topLeftCorner(3 * n, 3 * n) = Eigen::MatrixXd(A);
+      Eigen::VectorXd f(3 * n + m);
+      f.head(3 * n) = rhs;
+      for (Eigen::Index i = 0; i < m; ++i) {
+        const auto& c = cs[static_cast<std::size_t>(i)];
+        for (int k = 0; k < 4; ++k)
+          if (c.nodes[k] >= 0)
+            for (int d = 0; d < 3; ++d) {
+              K(3 * n + i, 3 * c.nodes[k] + d) += c.weights[k] * c.direction[d];
+              K(3 * c.nodes[k] + d, 3 * n + i) -= c.weights[k] * c.direction[d];
+            }
+        f[3 * n + i] = (c.value - row(c, x)) / s;
+      }
+      const Eigen::VectorXd ref = K.fullPivLu().solve(f);
+      const double dxErr = (dx - ref.head(3 * n)).norm() / ref.head(3 * n).norm();
+      const double muErr = (solver.multipliers() - ref.tail(m)).norm() / ref.tail(m).norm();
+      qInfo("s = %g: dx %.2e, multipliers %.2e from the dense KKT solve; %d Gauss-Seidel sweeps; violation %.2e m", s, dxErr, muErr,
+            sweeps, solver.violation(x + s * dx));
+      QVERIFY(dxErr < 1e-8);
+      QVERIFY(muErr < 1e-8);
+      QVERIFY(solver.violation(x + s * dx) < 1e-10);
+    }
+  }
+
+  void redundantAndFixed() {
+    const int n = 20;
+    const auto A = chainMatrix(n);
+    const Eigen::VectorXd rhs = Eigen::VectorXd::Constant(3 * n, 0.5), x = Eigen::VectorXd::Zero(3 * n);
+    // The same constraint twice (W singular): the dense fallback holds it; node 3 is fixed by projection.
+    std::vector<ScalarConstraint> cs = {constraintOn({10}, {1, 0, 0}, 0.1), constraintOn({10}, {1, 0, 0}, 0.1),
+                                        constraintOn({3, 4}, {0, 1, 0}, 0.05)};
+    std::vector<char> fixed(n, 0);
+    fixed[3] = 1;
+    // The caller's matrix with the fixed dofs as identity rows and columns, and a projected free solution.
+    Eigen::SparseMatrix<double> P = A;
+    for (int k = 0; k < P.outerSize(); ++k)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(P, k); it; ++it)
+        if (fixed[it.row() / 3] || fixed[it.col() / 3]) it.valueRef() = it.row() == it.col() ? 1.0 : 0.0;
+    CholmodSolver chol;
+    QVERIFY(chol.factorise(P));
+    Eigen::VectorXd dx;
+    QVERIFY(chol.solve(rhs, dx));
+    dx.segment<3>(9).setZero();
+    ConstraintSolver solver;
+    solver.setConstraints(cs, fixed);
+    int sweeps = 0;
+    QVERIFY(solver.solve(chol, x, 1.0, dx, sweeps));
+    QVERIFY(dx.allFinite());
+    QVERIFY(dx.segment<3>(9).norm() == 0);  // the fixed node took no constraint force
+    QVERIFY(std::abs(row(cs[0], dx) - 0.1) < 1e-10);
+    QVERIFY(std::abs(row(cs[2], dx) - 0.05) < 1e-10);  // held by node 4 alone (node 3 does not move)
+    // A bad constraint is refused with a sentence.
+    QVERIFY_THROWS_EXCEPTION(MeshError, solver.setConstraints({constraintOn({n + 5}, {1, 0, 0}, 0)}, fixed));
+  }
+
+  void unilateralComplementarity() {
+    const int n = 30;
+    const auto A = chainMatrix(n);
+    Eigen::VectorXd rhs = Eigen::VectorXd::Zero(3 * n);
+    for (int a = 0; a < n; ++a) rhs[3 * a + 2] = -1.0;  // pushed down in z
+    const Eigen::VectorXd x = Eigen::VectorXd::Zero(3 * n);
+    // A floor at z >= -0.5 under every other node, and one far below that never touches.
+    std::vector<ScalarConstraint> cs;
+    for (int a = 0; a < n; a += 2) cs.push_back(constraintOn({a}, {0, 0, 1}, -0.5, true));
+    cs.push_back(constraintOn({1}, {0, 0, 1}, -1e6, true));
+    CholmodSolver chol;
+    QVERIFY(chol.factorise(A));
+    Eigen::VectorXd dx;
+    QVERIFY(chol.solve(rhs, dx));
+    const double freeLowest = dx.minCoeff();
+    ConstraintSolver solver;
+    solver.setConstraints(cs, std::vector<char>(n, 0));
+    int sweeps = 0;
+    QVERIFY(solver.solve(chol, x, 1.0, dx, sweeps));
+    const auto& mu = solver.multipliers();
+    double worstComplementarity = 0, worstGap = 0;
+    int active = 0;
+    for (std::size_t i = 0; i < cs.size(); ++i) {
+      const double gap = row(cs[i], dx) - cs[i].value;
+      QVERIFY(mu[static_cast<Eigen::Index>(i)] >= 0);
+      worstGap = std::min(worstGap, gap);
+      worstComplementarity = std::max(worstComplementarity, std::abs(mu[static_cast<Eigen::Index>(i)] * gap));
+      active += mu[static_cast<Eigen::Index>(i)] > 0;
+    }
+    qInfo("free solution reaches z = %.2f; with the floor: %d of %zu contacts active, worst gap %.2e, worst mu*gap %.2e, %d sweeps",
+          freeLowest, active, cs.size(), worstGap, worstComplementarity, sweeps);
+    QVERIFY(freeLowest < -0.5);  // the floor matters
+    QVERIFY(active > 0);
+    QCOMPARE(mu[static_cast<Eigen::Index>(cs.size() - 1)], 0.0);  // the far floor never pushes
+    QVERIFY(worstGap > -1e-8);
+    QVERIFY(worstComplementarity < 1e-8);
+  }
+};
+
+QTEST_MAIN(TestConstraintSolver)
+#include "test_constraint_solver.moc"
