@@ -15,6 +15,8 @@
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
 
+#include <nlohmann/json.hpp>
+
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
@@ -31,6 +33,9 @@
 
 namespace rehearse::app {
 namespace {
+
+// A JSON report, written atomically (a reader never sees half of it).
+void writeReport(const std::string& path, const nlohmann::json& report) { imaging::writeFileAtomically(path, report.dump(2) + "\n"); }
 
 struct UsageError : std::runtime_error {
   using std::runtime_error::runtime_error;
@@ -289,21 +294,14 @@ int cmdSimulate(const std::vector<std::string>& args) {
     simcore::saveMesh(surf, path.string());
   }
   if (o.count("report")) {
-    std::string json = "{\n  \"steps\": [\n";
-    char buf[512];
+    nlohmann::json steps = nlohmann::json::array();
     for (std::size_t i = 0; i < reports.size(); ++i) {
       const auto& r = reports[i];
-      std::snprintf(buf, sizeof buf,
-                    "    {\"step\": %zu, \"wall_ms\": %.3f, \"newton_iterations\": %d, \"residual\": %.6g, \"energy\": %.9g, "
-                    "\"time_step\": %.6g, \"retries\": %d, \"factorisations\": %d, \"ok\": %s, \"status\": \"%s\"}%s\n",
-                    i, r.wallMs, r.newtonIterations, r.residual, r.energy, r.timeStepUsed, r.retries, r.factorisations, r.ok ? "true" : "false",
-                    r.status.c_str(), i + 1 < reports.size() ? "," : "");
-      json += buf;
+      steps.push_back({{"step", i}, {"wall_ms", r.wallMs}, {"newton_iterations", r.newtonIterations}, {"residual", r.residual},
+                       {"energy", r.energy}, {"time_step", r.timeStepUsed}, {"retries", r.retries}, {"factorisations", r.factorisations},
+                       {"ok", r.ok}, {"status", r.status}});
     }
-    json += "  ]\n}\n";
-    std::ofstream rep(o["report"]);
-    if (!rep) throw UsageError("cannot write the report " + o["report"]);
-    rep << json;
+    writeReport(o["report"], {{"steps", steps}});
   }
   std::size_t failed = 0;
   double wall = 0;
@@ -428,25 +426,21 @@ int cmdRegister(const std::vector<std::string>& args) {
     if (o.count("pose-out")) imaging::savePose(res.pose, o["pose-out"]);
   }
   if (o.count("report")) {
-    std::string json = "{\n  \"ok\": " + std::string(res.ok ? "true" : "false") + ",\n  \"converged\": " + (res.converged ? "true" : "false") +
-                       ",\n  \"status\": \"" + res.status + "\",\n  \"iterations\": [\n";
-    char buf[512];
-    for (std::size_t i = 0; i < rows.size(); ++i) {
-      const auto& r = rows[i];
-      std::snprintf(buf, sizeof buf,
-                    "    {\"iteration\": %d, \"stage\": \"%s\", \"wall_ms\": %.3f, \"mean_px\": %.4f, \"rms_px\": %.4f, "
-                    "\"hausdorff_px\": %.4f, \"bound\": %zu%s%s}%s\n",
-                    r.it.iteration, r.it.stage.c_str(), r.it.wallMs, r.it.residual.mean, r.it.residual.rms, r.it.residual.hausdorff, r.it.bound,
-                    r.it.curves.points ? (", \"curve_mean_px\": " + std::to_string(r.it.curves.mean) + ", \"curve_hausdorff_px\": " +
-                                          std::to_string(r.it.curves.hausdorff)).c_str()
-                                       : "",
-                    r.errMean >= 0 ? (", \"error_mean_mm\": " + std::to_string(r.errMean) + ", \"error_max_mm\": " + std::to_string(r.errMax)).c_str()
-                                   : "",
-                    i + 1 < rows.size() ? "," : "");
-      json += buf;
+    nlohmann::json iterations = nlohmann::json::array();
+    for (const auto& r : rows) {
+      nlohmann::json row = {{"iteration", r.it.iteration}, {"stage", r.it.stage}, {"wall_ms", r.it.wallMs}, {"mean_px", r.it.residual.mean},
+                            {"rms_px", r.it.residual.rms}, {"hausdorff_px", r.it.residual.hausdorff}, {"bound", r.it.bound}};
+      if (r.it.curves.points) {
+        row["curve_mean_px"] = r.it.curves.mean;
+        row["curve_hausdorff_px"] = r.it.curves.hausdorff;
+      }
+      if (r.errMean >= 0) {
+        row["error_mean_mm"] = r.errMean;
+        row["error_max_mm"] = r.errMax;
+      }
+      iterations.push_back(std::move(row));
     }
-    json += "  ]\n}\n";
-    imaging::writeFileAtomically(o["report"], json);
+    writeReport(o["report"], {{"ok", res.ok}, {"converged", res.converged}, {"status", res.status}, {"iterations", iterations}});
   }
   const auto& last = rows.back().it;
   std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(), rows.size(), last.wallMs,

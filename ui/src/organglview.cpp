@@ -68,11 +68,7 @@ bool OrganGLView::openGLAvailable() {
 }
 
 void OrganGLView::setCase(std::shared_ptr<const app::Case> c) {
-  if (sameMesh(case_.get(), c.get())) {
-    case_ = std::move(c);
-    return;
-  }
-  case_ = std::move(c);
+  if (!takeCase(case_, std::move(c))) return;
   dirty_ = true;
   update();
 }

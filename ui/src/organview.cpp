@@ -34,12 +34,7 @@ void turntableView(const app::Case& c, const Turntable& t, int W, int H, imaging
 }
 
 void OrganView::setCase(std::shared_ptr<const app::Case> c) {
-  // Only the mesh matters here: skip re-rendering when only the contour or the pose changed.
-  if (sameMesh(case_.get(), c.get())) {
-    case_ = std::move(c);
-    return;
-  }
-  case_ = std::move(c);
+  if (!takeCase(case_, std::move(c))) return;
   dirty_ = true;
   update();
 }

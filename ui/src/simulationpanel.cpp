@@ -303,16 +303,16 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   layout->addWidget(view_, 1);
 
   auto* form = new QFormLayout;
-  preset_ = new QComboBox(this);
-  preset_->setObjectName(QStringLiteral("simPreset"));
-  for (const char* p : {"liver", "kidney", "eye", "uterus"}) preset_->addItem(QString::fromLatin1(p));
-  preset_->setToolTip(tr("Materials of the DejaVu cases, on the current organ"));
-  form->addRow(tr("Preset"), preset_);
-  model_ = new QComboBox(this);
-  model_->setObjectName(QStringLiteral("simMaterial"));
-  model_->addItems({tr("linear"), tr("corotational"), tr("stvk"), tr("neohookean"), tr("neohookean-split")});
-  model_->setToolTip(declared("material", "model"));
-  form->addRow(tr("Material"), model_);
+  form_.preset = new QComboBox(this);
+  form_.preset->setObjectName(QStringLiteral("simPreset"));
+  for (const char* p : {"liver", "kidney", "eye", "uterus"}) form_.preset->addItem(QString::fromLatin1(p));
+  form_.preset->setToolTip(tr("Materials of the DejaVu cases, on the current organ"));
+  form->addRow(tr("Preset"), form_.preset);
+  form_.model = new QComboBox(this);
+  form_.model->setObjectName(QStringLiteral("simMaterial"));
+  form_.model->addItems({tr("linear"), tr("corotational"), tr("stvk"), tr("neohookean"), tr("neohookean-split")});
+  form_.model->setToolTip(declared("material", "model"));
+  form->addRow(tr("Material"), form_.model);
   // A numeric field whose help comes from the scene declaration; edits apply when the value is committed.
   auto field = [&](const char* name, const QString& label, double lo, double hi, int decimals, const QString& suffix,
                    const char* component, const char* parameter) {
@@ -326,32 +326,32 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
     form->addRow(label, f);
     return f;
   };
-  young_ = field("simYoung", tr("Young's modulus"), 0.1, 100000, 1, tr(" kPa"), "material", "young");
-  poisson_ = field("simPoisson", tr("Poisson's ratio"), 0, 0.499, 3, QString(), "material", "poisson");
-  poisson_->setSingleStep(0.01);
-  density_ = field("simDensity", tr("Density"), 1, 20000, 0, tr(" kg/m³"), "material", "density");
-  density_->setToolTip(density_->toolTip() + tr("\nThe DejaVu presets set it so that the organ weighs the paper's mass."));
-  mass_ = new QLabel(this);
-  mass_->setObjectName(QStringLiteral("simMass"));
-  form->addRow(tr("Organ mass"), mass_);
-  timeStep_ = field("simTimeStep", tr("Time step"), 0.1, 100, 1, tr(" ms"), "implicit_euler", "dt");
-  timeStep_->setValue(10);
-  method_ = new QComboBox(this);
-  method_->setObjectName(QStringLiteral("simMethod"));
-  method_->addItems({tr("exact Newton"), tr("lagged-PCG"), tr("chord"), tr("linearised (fastest)")});
-  method_->setCurrentIndex(3);
-  method_->setToolTip(declared("solver", "method"));
-  form->addRow(tr("Solver"), method_);
-  gravity_ = new QComboBox(this);
-  gravity_->setObjectName(QStringLiteral("simGravity"));
-  gravity_->addItems({tr("down in the image"), tr("into the scene"), tr("off")});
-  gravity_->setToolTip(tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it"));
-  form->addRow(tr("Gravity"), gravity_);
-  connect(gravity_, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
-  colouringBox_ = new QComboBox(this);
-  colouringBox_->setObjectName(QStringLiteral("simColouring"));
-  colouringBox_->addItems({tr("displacement (mm)"), tr("von Mises stress (kPa)")});
-  form->addRow(tr("Colour by"), colouringBox_);
+  form_.young = field("simYoung", tr("Young's modulus"), 0.1, 100000, 1, tr(" kPa"), "material", "young");
+  form_.poisson = field("simPoisson", tr("Poisson's ratio"), 0, 0.499, 3, QString(), "material", "poisson");
+  form_.poisson->setSingleStep(0.01);
+  form_.density = field("simDensity", tr("Density"), 1, 20000, 0, tr(" kg/m³"), "material", "density");
+  form_.density->setToolTip(form_.density->toolTip() + tr("\nThe DejaVu presets set it so that the organ weighs the paper's mass."));
+  form_.mass = new QLabel(this);
+  form_.mass->setObjectName(QStringLiteral("simMass"));
+  form->addRow(tr("Organ mass"), form_.mass);
+  form_.timeStep = field("simTimeStep", tr("Time step"), 0.1, 100, 1, tr(" ms"), "implicit_euler", "dt");
+  form_.timeStep->setValue(10);
+  form_.method = new QComboBox(this);
+  form_.method->setObjectName(QStringLiteral("simMethod"));
+  form_.method->addItems({tr("exact Newton"), tr("lagged-PCG"), tr("chord"), tr("linearised (fastest)")});
+  form_.method->setCurrentIndex(3);
+  form_.method->setToolTip(declared("solver", "method"));
+  form->addRow(tr("Solver"), form_.method);
+  form_.gravity = new QComboBox(this);
+  form_.gravity->setObjectName(QStringLiteral("simGravity"));
+  form_.gravity->addItems({tr("down in the image"), tr("into the scene"), tr("off")});
+  form_.gravity->setToolTip(tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it"));
+  form->addRow(tr("Gravity"), form_.gravity);
+  connect(form_.gravity, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
+  form_.colouring = new QComboBox(this);
+  form_.colouring->setObjectName(QStringLiteral("simColouring"));
+  form_.colouring->addItems({tr("displacement (mm)"), tr("von Mises stress (kPa)")});
+  form->addRow(tr("Colour by"), form_.colouring);
   layout->addLayout(form);
 
   auto* buttons = new QHBoxLayout;
@@ -376,14 +376,14 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
   connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::stepOnce);
   connect(resetButton_, &QPushButton::clicked, this, &SimulationPanel::reset);
-  connect(preset_, &QComboBox::currentTextChanged, this, &SimulationPanel::applyPreset);
-  connect(model_, &QComboBox::currentIndexChanged, this, &SimulationPanel::materialFieldsEdited);
-  connect(method_, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
-  connect(timeStep_, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
-  for (QDoubleSpinBox* s : {young_, poisson_, density_})
+  connect(form_.preset, &QComboBox::currentTextChanged, this, &SimulationPanel::applyPreset);
+  connect(form_.model, &QComboBox::currentIndexChanged, this, &SimulationPanel::materialFieldsEdited);
+  connect(form_.method, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
+  connect(form_.timeStep, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
+  for (QDoubleSpinBox* s : {form_.young, form_.poisson, form_.density})
     connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::materialFieldsEdited);
-  connect(density_, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::updateMass);
-  connect(colouringBox_, &QComboBox::currentIndexChanged, this, [this](int c) {
+  connect(form_.density, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::updateMass);
+  connect(form_.colouring, &QComboBox::currentIndexChanged, this, [this](int c) {
     colouring_ = c;
     if (session_) session_->setPublishStress(c == 1);  // republishes the current state coloured this way
   });
@@ -409,19 +409,19 @@ SimulationSetup SimulationPanel::setup() const {
     s.vesselYoung = m.vesselYoung;
     s.vesselPoisson = m.vesselPoisson;
   }
-  s.timeStep = 1e-3 * timeStep_->value();
-  s.method = static_cast<simcore::NewtonMethod>(method_->currentIndex());
+  s.timeStep = 1e-3 * form_.timeStep->value();
+  s.method = static_cast<simcore::NewtonMethod>(form_.method->currentIndex());
   static const Eigen::Vector3d directions[] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
-  s.gravity = 9.81 * directions[std::clamp(gravity_->currentIndex(), 0, 2)];
+  s.gravity = 9.81 * directions[std::clamp(form_.gravity->currentIndex(), 0, 2)];
   return s;
 }
 
 void SimulationPanel::fillMaterial(const app::MaterialSettings& m) {
   filling_ = true;
-  model_->setCurrentIndex(static_cast<int>(m.model));
-  young_->setValue(m.young / 1e3);
-  poisson_->setValue(m.poisson);
-  density_->setValue(m.density);
+  form_.model->setCurrentIndex(static_cast<int>(m.model));
+  form_.young->setValue(m.young / 1e3);
+  form_.poisson->setValue(m.poisson);
+  form_.density->setValue(m.density);
   filling_ = false;
   updateMass();
 }
@@ -433,10 +433,10 @@ app::MaterialSettings SimulationPanel::fieldsMaterial() const {
     const double shown = caseValue / scale;
     return std::abs(field->value() - shown) > 0.5 * std::pow(10.0, -field->decimals()) ? scale * field->value() : caseValue;
   };
-  m.model = static_cast<simcore::MaterialModel>(model_->currentIndex());
-  m.young = take(young_, m.young, 1e3);
-  m.poisson = take(poisson_, m.poisson, 1.0);
-  m.density = take(density_, m.density, 1.0);
+  m.model = static_cast<simcore::MaterialModel>(form_.model->currentIndex());
+  m.young = take(form_.young, m.young, 1e3);
+  m.poisson = take(form_.poisson, m.poisson, 1.0);
+  m.density = take(form_.density, m.density, 1.0);
   return m;
 }
 
@@ -480,7 +480,7 @@ void SimulationPanel::applyPreset(const QString& name) {
 
 void SimulationPanel::updateMass() {
   const double volume = organ_ && !organ_->organ->empty() ? organ_->organ->quality.volume : 0.0;  // m^3, as the case panel shows it
-  mass_->setText(volume > 0 ? tr("%1 g (%2 cm³ x density)").arg(volume * density_->value() * 1e3, 0, 'f', 0).arg(volume * 1e6, 0, 'f', 1)
+  form_.mass->setText(volume > 0 ? tr("%1 g (%2 cm³ x density)").arg(volume * form_.density->value() * 1e3, 0, 'f', 0).arg(volume * 1e6, 0, 'f', 1)
                             : tr("no volume mesh"));
 }
 

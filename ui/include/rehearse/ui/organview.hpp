@@ -41,6 +41,14 @@ inline bool sameMesh(const app::Case* a, const app::Case* b) {
          a->pose.R == b->pose.R;
 }
 
+/// Takes a new version of the case into a 3D view's `held`; true when what the view draws changed (then
+/// it redraws; a contour or a translation alone does not).
+inline bool takeCase(std::shared_ptr<const app::Case>& held, std::shared_ptr<const app::Case> next) {
+  const bool same = sameMesh(held.get(), next.get());
+  held = std::move(next);
+  return !same;
+}
+
 class OrganView : public QWidget {
   Q_OBJECT
  public:

@@ -127,20 +127,23 @@ class SimulationPanel : public QWidget {
   int pendingSteps_ = 0;         ///< ... and single steps
   app::MaterialSettings builtWith_;  ///< the material the session's body was built with
   SimulationView* view_ = nullptr;
-  QComboBox* preset_ = nullptr;
-  QComboBox* model_ = nullptr;
-  QComboBox* method_ = nullptr;
-  QComboBox* colouringBox_ = nullptr;
-  QComboBox* gravity_ = nullptr;
-  QDoubleSpinBox* young_ = nullptr;
-  QDoubleSpinBox* poisson_ = nullptr;
-  QDoubleSpinBox* density_ = nullptr;
-  QDoubleSpinBox* timeStep_ = nullptr;
+  /// The parameter form: material (the case's), run settings (the session's) and colouring.
+  struct Form {
+    QComboBox* preset = nullptr;
+    QComboBox* model = nullptr;
+    QComboBox* method = nullptr;
+    QComboBox* colouring = nullptr;
+    QComboBox* gravity = nullptr;
+    QDoubleSpinBox* young = nullptr;
+    QDoubleSpinBox* poisson = nullptr;
+    QDoubleSpinBox* density = nullptr;
+    QDoubleSpinBox* timeStep = nullptr;
+    QLabel* mass = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
+  } form_;
   QPushButton* playButton_ = nullptr;
   QPushButton* stepButton_ = nullptr;
   QPushButton* resetButton_ = nullptr;
   QLabel* status_ = nullptr;
-  QLabel* mass_ = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
   std::shared_ptr<const app::Case> organ_;
   std::shared_ptr<const SimulationFrame> last_;
   bool playing_ = false;
