@@ -26,11 +26,15 @@ void turntableView(const app::Case& c, const Turntable& t, int W, int H, imaging
   const double f = 1.1 * std::min(W, H);
   camera.K << f, 0, (W - 1) / 2.0, 0, f, (H - 1) / 2.0, 0, 0, 1;
   camera.distortion.fill(0);
-  const Eigen::Vector3d cog = c.organ->centreOfGravity;
-  const double size = c.organ->volume.bounds().sizes().maxCoeff();
+  // Framed so that the outline of the organ's bounding sphere (radius r f / sqrt(d^2 - r^2) in pixels at
+  // distance d) spans 80 % of the view's smaller side, whichever way the organ turns.
+  const auto box = c.organ->volume.bounds();
+  const Eigen::Vector3d centre = box.center();
+  const double radius = std::max(0.5 * box.diagonal().norm(), 1e-9);
   const Eigen::Matrix3d start = c.hasPose ? c.pose.R : Eigen::AngleAxisd(-0.3, Eigen::Vector3d::UnitX()).toRotationMatrix();
   pose.R = (Eigen::AngleAxisd(t.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(t.yaw, Eigen::Vector3d::UnitY())).toRotationMatrix() * start;
-  pose.t = Eigen::Vector3d(0, 0, 1.05 * size / t.zoom) - pose.R * cog;
+  const double ratio = f / (0.4 * std::min(W, H));
+  pose.t = Eigen::Vector3d(0, 0, radius * std::sqrt(1 + ratio * ratio) / t.zoom) - pose.R * centre;
 }
 
 void OrganView::setCase(std::shared_ptr<const app::Case> c) {
