@@ -163,26 +163,30 @@ Eigen::Vector3d parseVector(const std::string& s, const char* what) {
   return v;
 }
 
+// --fixed-nodes: a list of node indices ("3 39 64" or "3,39,64") or a file holding one; decided by content
+// (a list of digits is never taken for a file name). Every token must be an index: nothing is dropped.
 std::vector<int> parseNodes(const std::string& s) {
+  const bool isList = !s.empty() && s.find_first_not_of("0123456789, \t\r\n") == std::string::npos;
   std::string text = s;
-  if (std::filesystem::exists(s)) {
+  if (!isList) {
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(s, ec))
+      throw UsageError("--fixed-nodes takes node indices (\"3 39 64\") or a file of them; '" + s.substr(0, 40) +
+                       (s.size() > 40 ? "...'" : "'") + " is neither");
     std::ifstream in(s);
     std::stringstream ss;
     ss << in.rdbuf();
     text = ss.str();
   }
+  for (auto& ch : text)
+    if (ch == ',') ch = ' ';
   std::vector<int> out;
   std::istringstream in(text);
   std::string tok;
   while (in >> tok) {
-    for (auto& ch : tok)
-      if (ch == ',') ch = ' ';
-    std::istringstream t(tok);
-    long v;
-    while (t >> v) {
-      if (v < 0 || v > 100'000'000) throw UsageError("--fixed-nodes holds an impossible node index " + std::to_string(v));
-      out.push_back(static_cast<int>(v));
-    }
+    if (tok.find_first_not_of("0123456789") != std::string::npos || tok.size() > 9)
+      throw UsageError("--fixed-nodes holds '" + tok.substr(0, 20) + "', which is not a node index (0, 1, 2, ...)");
+    out.push_back(std::stoi(tok));
   }
   return out;
 }
@@ -521,6 +525,13 @@ int runCli(const std::vector<std::string>& args, bool& handled) {
     return 130;
   } catch (const std::bad_alloc&) {
     std::fprintf(stderr, "rehearse: error: out of memory; try a smaller mesh or target\n");
+    return 1;
+  } catch (const std::filesystem::filesystem_error& e) {
+    // In our words, not the library's ("filesystem error: status: ... [path]").
+    std::fprintf(stderr, "rehearse: error: cannot access %s: %s\n", e.path1().string().c_str(), e.code().message().c_str());
+    return 1;
+  } catch (const nlohmann::json::exception& e) {
+    std::fprintf(stderr, "rehearse: error: a JSON input is not in the expected form (%s); see the formats in the README\n", e.what());
     return 1;
   } catch (const std::exception& e) {
     std::string msg = e.what();

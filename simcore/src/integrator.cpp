@@ -65,8 +65,21 @@ std::string micrometres(double metres) {
 
 }  // namespace
 
+std::string settingsProblem(const SimulationSettings& s, bool constrained) {
+  if (s.solver == LinearSolverKind::Cholmod) return {};
+  const char* name = s.solver == LinearSolverKind::ConjugateGradient ? "cg" : "dense";
+  if (s.attachments == AttachmentMode::Lagrange || constrained)
+    return std::string("Constraints (Lagrange attachments, tool or fit constraints) are solved on CHOLMOD's factorisation, not with the ") +
+           name + " solver; use the cholmod solver, or projected attachments without constraints.";
+  if (s.method != NewtonMethod::Exact)
+    return std::string("The ") + toString(s.method) + " method reuses CHOLMOD's factorisation; with the " + name +
+           " solver use the exact method (or the cholmod solver).";
+  return {};
+}
+
 Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, SimulationSettings settings)
     : model_(model), fixed_(model.nodeCount(), 0), settings_(settings), w_(std::make_unique<Work>()) {
+  if (const std::string problem = settingsProblem(settings, false); !problem.empty()) throw MeshError(problem);
   for (int n : fixedNodes) {
     if (n < 0 || n >= static_cast<int>(model.nodeCount()))
       throw MeshError("Fixed node " + std::to_string(n) + " does not exist (the mesh has " + std::to_string(model.nodeCount()) +
@@ -127,6 +140,7 @@ std::size_t Integrator::memoryBytes() const {
 }
 
 void Integrator::setConstraints(std::vector<ScalarConstraint> constraints) {
+  if (const std::string problem = settingsProblem(settings_, !constraints.empty()); !problem.empty()) throw MeshError(problem);
   std::vector<ScalarConstraint> all = attachmentConstraints_;
   all.insert(all.end(), constraints.begin(), constraints.end());
   w_->cons.setConstraints(std::move(all), fixed_);  // validates them (one sentence for a bad one)
@@ -536,6 +550,11 @@ StepReport Integrator::step(SimulationState& state) {
   w.savedX = state.x;
   w.savedV = state.v;
   StepReport rep;
+  // Settings edited after construction are checked again: refused, never silently changed.
+  if (const std::string problem = settingsProblem(settings_, !constraints_.empty()); !problem.empty()) {
+    rep.status = "refused: " + problem;
+    return rep;
+  }
   if (!adopt(state, rep)) {
     rep.status = "failed: the lagged factorisation of the restored state could not be rebuilt";
     record(state);
@@ -593,6 +612,10 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   const auto t0 = std::chrono::steady_clock::now();
   Work& w = *w_;
   StepReport rep;
+  if (const std::string problem = settingsProblem(settings_, !constraints_.empty()); !problem.empty()) {
+    rep.status = "refused: " + problem;
+    return rep;
+  }
   Eigen::VectorXd fext = gravityForce_;
   if (extra.size() == fext.size()) fext += extra;
   const bool hasConstraints = !attachmentConstraints_.empty() || !constraints_.empty();

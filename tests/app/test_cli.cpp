@@ -117,6 +117,20 @@ class TestCli : public QObject {
       QVERIFY2(worst < 1e-9, qPrintable(QString::number(worst)));
     }
     expectOneLineError(run({"simulate", "--preset", "liver", "--factor", "dense", "--out", out}), 2, "supernodal or simplicial");
+    // A solver that cannot honour the attachments or the method is refused, not run another way.
+    expectOneLineError(run({"simulate", "--preset", "liver", "--solver", "cg", "--attachments", "lagrange", "--out", out}), 1, "CHOLMOD");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--solver", "dense", "--method", "chord", "--out", out}), 1, "exact method");
+    // A long list of fixed nodes is a list (not a file name too long), and a token that is not an index is refused.
+    {
+      QString many;
+      for (int i = 0; i < 400; ++i) many += QString::number(i) + " ";
+      auto ok = run({"simulate", "--preset", "liver", "--fixed-nodes", many, "--steps", "1", "--out", out});
+      QVERIFY2(ok.code == 0, qPrintable(ok.err));
+      const std::string bad = tempPath("bad-nodes.txt");
+      writeFile(bad, "3 x 5\n");
+      expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", QString::fromStdString(bad), "--out", out}), 2, "not a node index");
+      expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "nodes-nowhere.txt", "--out", out}), 2, "is neither");
+    }
     expectOneLineError(run({"simulate", "--preset", "liver", "--method", "magic", "--out", out}), 1, "Newton method");
     expectOneLineError(run({"simulate", "--preset", "liver", "--attachments", "glue", "--out", out}), 2, "projection or lagrange");
     auto info = run({"info", out});

@@ -161,7 +161,7 @@ class TestGl : public QObject {
       QVERIFY(labels);
       for (int i = 0; i < labels->topLevelItemCount(); ++i)
         if (labels->topLevelItem(i)->data(0, Qt::UserRole).toInt() == app::kVesselLabel) labels->topLevelItem(i)->setCheckState(0, Qt::Checked);
-      w.runElasticFit();
+      w.fitPage()->runElasticFit();
       QTRY_VERIFY_WITH_TIMEOUT(w.caseData()->hasFit(), 120000);
       const auto c = w.caseData();
       // Reference surfaces: the fit's nodes (model frame), the organ's outer and vessel triangles.

@@ -73,8 +73,8 @@ class TestWorkflow : public QObject {
   // Step 1: a surface is tetrahedralised on a worker thread with the size control; quality shown.
   void step1ImportMesh() {
     REQUIRE_SHARED("scikit-surgery/liver_downsample.stl");
-    w_->setTargetTets(3000);
-    w_->setMeshUnit("mm");
+    w_->meshPage()->setTargetTets(3000);
+    w_->meshPage()->setMeshUnit("mm");
     QSignalSpy imported(w_.get(), &MainWindow::meshImported);
     // The GUI thread keeps serving events while the worker meshes: measure its longest stall.
     QElapsedTimer clock;
@@ -163,7 +163,7 @@ class TestWorkflow : public QObject {
     const std::string bad = tempPath("bad.stl");
     writeFile(bad, "solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nendloop\nendfacet\nendsolid\n");
     imported.clear();
-    w_->importMesh(QString::fromStdString(bad));
+    w_->meshPage()->importMesh(QString::fromStdString(bad));
     QVERIFY(imported.wait(60000));
     QCOMPARE(imported.first().at(0).toBool(), false);
     QVERIFY((w_->caseData()->groundTruth != nullptr));
@@ -176,7 +176,7 @@ class TestWorkflow : public QObject {
     cv::circle(img, {640, 360}, 200, cv::Scalar(80, 120, 220), cv::FILLED);
     cv::imwrite(png, img);
     QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
-    w_->openFrameSource(QString::fromStdString(png));
+    w_->framePage()->openFrameSource(QString::fromStdString(png));
     QCOMPARE(opened.count(), 1);
     QCOMPARE(cv::norm(w_->caseData()->frame, img, cv::NORM_INF), 0.0);
     // A video whose frame i has blue = 8 i (MJPEG, lossy by a few levels).
@@ -187,21 +187,21 @@ class TestWorkflow : public QObject {
       for (int i = 0; i < 30; ++i) writer.write(cv::Mat3b(720, 1280, cv::Vec3b(uchar(8 * i), 100, 50)));
     }
     opened.clear();
-    w_->openFrameSource(QString::fromStdString(avi));  // probes the video on a worker thread
+    w_->framePage()->openFrameSource(QString::fromStdString(avi));  // probes the video on a worker thread
     QVERIFY(opened.count() == 1 || opened.wait(60000));
     QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
-    QCOMPARE(w_->videoFrameCount(), 30);
+    QCOMPARE(w_->framePage()->videoFrameCount(), 30);
     QSignalSpy shown(w_.get(), &MainWindow::videoFrameShown);
-    w_->showVideoFrame(17);
-    QVERIFY(shown.wait(30000) || w_->shownVideoFrame() == 17);
-    while (w_->shownVideoFrame() != 17) QVERIFY(shown.wait(30000));
-    w_->useShownFrame();
+    w_->framePage()->showVideoFrame(17);
+    QVERIFY(shown.wait(30000) || w_->framePage()->shownVideoFrame() == 17);
+    while (w_->framePage()->shownVideoFrame() != 17) QVERIFY(shown.wait(30000));
+    w_->framePage()->useShownFrame();
     const cv::Vec3b px = w_->caseData()->frame(360, 640);
     QVERIFY2(std::abs(int(px[0]) - 8 * 17) <= 6, qPrintable(QString::number(px[0])));
     // Stepping with the keyboard: '.' shows the next frame.
     w_->setStep(ui::Step::Frame);
     QTest::keyClick(w_.get(), Qt::Key_Period);
-    while (w_->shownVideoFrame() != 18) QVERIFY(shown.wait(30000));
+    while (w_->framePage()->shownVideoFrame() != 18) QVERIFY(shown.wait(30000));
     shot(*w_, "step2-frame");
     // Back to the phantom's frame for the next steps.
     for (int i = 0; i < 2; ++i) w_->undoStack()->undo();
@@ -384,22 +384,22 @@ class TestWorkflow : public QObject {
     int pairs = 0;
     for (QPointF offset : {QPointF(-150, -20), QPointF(120, -40), QPointF(60, 50), QPointF(-60, 40)}) {
       const QPointF organPixel(centre.x() + offset.x(), centre.y() + offset.y());
-      const std::size_t n = w_->landmarks().size();
+      const std::size_t n = w_->rigidPage()->landmarks().size();
       QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(organPixel).toPoint());
-      QCOMPARE(w_->landmarks().size(), n + 1);  // the click hit the organ
-      const Eigen::Vector3d m = w_->landmarks().back().model;
+      QCOMPARE(w_->rigidPage()->landmarks().size(), n + 1);  // the click hit the organ
+      const Eigen::Vector3d m = w_->rigidPage()->landmarks().back().model;
       const Eigen::Vector2d target = c->camera.project(c->groundTruth->pose.apply(m));
       QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(QPointF(target.x(), target.y())).toPoint());
-      QVERIFY(w_->landmarks().back().hasImage);
+      QVERIFY(w_->rigidPage()->landmarks().back().hasImage);
       ++pairs;
     }
     QCOMPARE(pairs, 4);
-    w_->solvePnP();
+    w_->rigidPage()->solvePnP();
     const auto& p = w_->caseData()->pose;
     qInfo("PnP from %d pairs: reprojection RMS %.3f px; rotation error %.3f deg, translation error %.2f mm", pairs,
-          w_->lastPnPReprojectionError(), Eigen::AngleAxisd(p.R * c->groundTruth->pose.R.transpose()).angle() * 180 / std::numbers::pi,
+          w_->rigidPage()->lastPnPReprojectionError(), Eigen::AngleAxisd(p.R * c->groundTruth->pose.R.transpose()).angle() * 180 / std::numbers::pi,
           (p.t - c->groundTruth->pose.t).norm() * 1e3);
-    QVERIFY(w_->lastPnPReprojectionError() >= 0 && w_->lastPnPReprojectionError() < 1.0);
+    QVERIFY(w_->rigidPage()->lastPnPReprojectionError() >= 0 && w_->rigidPage()->lastPnPReprojectionError() < 1.0);
     QVERIFY(Eigen::AngleAxisd(p.R * c->groundTruth->pose.R.transpose()).angle() < 2 * std::numbers::pi / 180);
     QVERIFY((p.t - c->groundTruth->pose.t).norm() < 0.005);
     shot(*w_, "step4-pnp");
@@ -478,12 +478,12 @@ class TestWorkflow : public QObject {
     QCOMPARE(triangles, std::size_t(8 * 16384 + 8 * 4096));
     const std::string path = tempPath("big.obj");
     writeFile(path, obj);
-    w_->setTargetTets(20000);
-    w_->setMeshUnit("mm");
+    w_->meshPage()->setTargetTets(20000);
+    w_->meshPage()->setMeshUnit("mm");
     {
       Monitor mon;
       QSignalSpy imported(w_.get(), &MainWindow::meshImported);
-      w_->importMesh(QString::fromStdString(path));
+      w_->meshPage()->importMesh(QString::fromStdString(path));
       QVERIFY(imported.wait(300000));
       QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
       const qint64 total = mon.clock.elapsed();
@@ -491,7 +491,7 @@ class TestWorkflow : public QObject {
             w_->caseData()->organ->volume.tets.size(), total, mon.worst, mon.ticks);
       QVERIFY(mon.ticks > 20);
       QVERIFY(mon.worst < total / 2);
-      QCOMPARE(w_->labelsShown(), 2);
+      QCOMPARE(w_->meshPage()->labelsShown(), 2);
     }
     // A 4k (3840x2160) MJPEG video, frames of different colours.
     const std::string avi = tempPath("uhd.avi");
@@ -508,17 +508,17 @@ class TestWorkflow : public QObject {
       Monitor mon;
       QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
       QSignalSpy shown(w_.get(), &MainWindow::videoFrameShown);
-      w_->openFrameSource(QString::fromStdString(avi));
+      w_->framePage()->openFrameSource(QString::fromStdString(avi));
       QVERIFY(opened.wait(120000));
       QVERIFY(opened.first().at(0).toBool());
-      w_->showVideoFrame(20);
-      while (w_->shownVideoFrame() != 20) QVERIFY(shown.wait(120000));
+      w_->framePage()->showVideoFrame(20);
+      while (w_->framePage()->shownVideoFrame() != 20) QVERIFY(shown.wait(120000));
       const qint64 total = mon.clock.elapsed();
       qInfo("BENCH gui_stall,open a 4k video and decode frame 20,%lld ms,longest stall %lld ms,%d ticks", total, mon.worst, mon.ticks);
       QVERIFY(mon.ticks > 5);
       QElapsedTimer use;
       use.start();
-      w_->useShownFrame();
+      w_->framePage()->useShownFrame();
       qInfo("BENCH gui_stall,take the 4k frame (undistort + organ overlay on the GUI thread),%lld ms,-,-", use.elapsed());
       QCOMPARE(w_->caseData()->frame.cols, 3840);
       QCOMPARE(w_->caseData()->camera.width, 3840);
@@ -531,7 +531,7 @@ class TestWorkflow : public QObject {
     w_->activateWindow();  // another window was open in an earlier test; shortcuts need the active window
     QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
-    w_->openCameraDevice(7);  // opened on a worker: the GUI thread never waits for a device
+    w_->framePage()->openCameraDevice(7);  // opened on a worker: the GUI thread never waits for a device
     QTRY_COMPARE_WITH_TIMEOUT(opened.count(), 1, 20000);
     QCOMPARE(opened.first().at(0).toBool(), false);
     QVERIFY(opened.first().at(1).toString().contains("cannot be opened"));
@@ -541,7 +541,7 @@ class TestWorkflow : public QObject {
     cam.distortion = {-0.2, 0.05, 0, 0, 0};
     const std::string yaml = tempPath("cal.yaml");
     imaging::saveCamera(cam, yaml);
-    w_->loadCalibration(QString::fromStdString(yaml));
+    w_->framePage()->loadCalibration(QString::fromStdString(yaml));
     const auto after = w_->caseData();
     QCOMPARE(after->camera.distortion[0], -0.2);
     QVERIFY(cv::norm(after->frame, before->frame, cv::NORM_L1) > 0);  // resampled
@@ -551,13 +551,13 @@ class TestWorkflow : public QObject {
     // A 3x3 text matrix takes the frame's size.
     const std::string txt = tempPath("K.txt");
     writeFile(txt, "1000 0 640\n0 1000 360\n0 0 1\n");
-    w_->loadCalibration(QString::fromStdString(txt));
+    w_->framePage()->loadCalibration(QString::fromStdString(txt));
     QCOMPARE(w_->caseData()->camera.fx(), 1000.0);
     w_->undoStack()->undo();
     // P2ILF contour import, then erase part of it with a mouse stroke.
     const std::string p2 = tempPath("p2ilf-contour.json");
     writeFile(p2, R"({"numOfContours":1,"contour":[{"contourType":"Silhouette","imagePoints":{"x":[300,350,400,450,500,550,600],"y":[300,300,300,300,300,300,300]}}]})");
-    w_->importContour(QString::fromStdString(p2));
+    w_->contourPage()->importContour(QString::fromStdString(p2));
     QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(1));
     QCOMPARE(w_->caseData()->contour.segments[0].points.size(), std::size_t(7));
     auto* view = w_->frameView();
@@ -569,7 +569,7 @@ class TestWorkflow : public QObject {
     QCOMPARE(c.segments.size(), std::size_t(2));  // split where the point was erased
     QCOMPARE(c.segments[0].points.size() + c.segments[1].points.size(), std::size_t(6));
     const std::string out = tempPath("exported.json");
-    w_->exportContour(QString::fromStdString(out));
+    w_->contourPage()->exportContour(QString::fromStdString(out));
     QCOMPARE(imaging::loadContour(out).segments.size(), std::size_t(2));
   }
 
@@ -580,18 +580,18 @@ class TestWorkflow : public QObject {
     REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
     const int index = w_->undoStack()->index();
     QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
-    w_->openFrameSource(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")));
+    w_->framePage()->openFrameSource(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")));
     QVERIFY(opened.count() == 1 || opened.wait(60000));
     QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
     QCOMPARE(w_->caseData()->frame.cols, 1920);
     QCOMPARE(w_->caseData()->frame.rows, 1080);
-    w_->loadCalibration(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));
+    w_->framePage()->loadCalibration(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));
     QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);
     QCOMPARE(w_->caseData()->camera.cy(), 617.1093984);
-    w_->setMeshUnit("mm");
-    w_->setTargetTets(3000);
+    w_->meshPage()->setMeshUnit("mm");
+    w_->meshPage()->setTargetTets(3000);
     QSignalSpy imported(w_.get(), &MainWindow::meshImported);
-    w_->importMesh(QString::fromStdString(sharedData("scikit-surgery/patient-liver/liver.vtk")));
+    w_->meshPage()->importMesh(QString::fromStdString(sharedData("scikit-surgery/patient-liver/liver.vtk")));
     QVERIFY(imported.wait(180000));
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
     const auto& c = *w_->caseData();

@@ -359,10 +359,10 @@ void MainWindow::dropEvent(QDropEvent* e) {
   const QString ext = QFileInfo(path).suffix().toLower();
   // The dropped file's kind decides the step it belongs to.
   if (QFileInfo(path).isDir() || ext == QLatin1String("rehearse")) openCase(path);
-  else if (QStringList{"msh", "vtk", "vtu", "mesh", "obj", "stl", "ply", "off", "gltf", "glb"}.contains(ext)) importMesh(path);
-  else if (QStringList{"png", "jpg", "jpeg", "bmp", "tif", "tiff", "mp4", "avi", "mkv", "mov"}.contains(ext)) openFrameSource(path);
-  else if (ext == QLatin1String("json")) importContour(path);
-  else if (QStringList{"yaml", "yml", "xml"}.contains(ext)) loadCalibration(path);
+  else if (QStringList{"msh", "vtk", "vtu", "mesh", "obj", "stl", "ply", "off", "gltf", "glb"}.contains(ext)) pages_.mesh->importMesh(path);
+  else if (QStringList{"png", "jpg", "jpeg", "bmp", "tif", "tiff", "mp4", "avi", "mkv", "mov"}.contains(ext)) pages_.frame->openFrameSource(path);
+  else if (ext == QLatin1String("json")) pages_.contour->importContour(path);
+  else if (QStringList{"yaml", "yml", "xml"}.contains(ext)) pages_.frame->loadCalibration(path);
   else status_.caseText->setText(tr("%1: unknown file type.").arg(QFileInfo(path).fileName()));
 }
 

@@ -97,9 +97,15 @@ struct StepReport {
   std::string status;       ///< "converged", "not converged (...)", "failed: ...", one sentence
 };
 
+/// Why these settings cannot run, in one sentence ("" when they can): the constraint solver (Lagrange
+/// attachments, tool and fit constraints: `constrained`) and the lagged Newton methods work on CHOLMOD's
+/// factorisation, so CG and the dense solver take only projected attachments with the exact method.
+std::string settingsProblem(const SimulationSettings& s, bool constrained);
+
 class Integrator {
  public:
-  /// `fixedNodes`: 0-based node indices held at their current position.
+  /// `fixedNodes`: 0-based node indices held at their current position. Throws MeshError with one sentence
+  /// for a missing node or settings that cannot run (settingsProblem).
   Integrator(const FemModel& model, std::vector<int> fixedNodes, SimulationSettings settings);
   ~Integrator();
   Integrator(const Integrator&) = delete;
@@ -120,7 +126,8 @@ class Integrator {
   int numericFactorisations() const;
   /// Bytes held by the integrator: its vectors and matrices and the factor (values and row indices).
   std::size_t memoryBytes() const;
-  /// Extra constraints (besides the attachments); replaces the previous ones. Validated (node indices).
+  /// Extra constraints (besides the attachments); replaces the previous ones. Validated (node indices);
+  /// refused (MeshError) with a solver that cannot honour them (settingsProblem).
   void setConstraints(std::vector<ScalarConstraint> constraints);
   const std::vector<ScalarConstraint>& constraints() const { return constraints_; }
   /// Forces the lagged factorisation to be rebuilt at the next step (after a parameter change).

@@ -66,26 +66,6 @@ class MainWindow : public QMainWindow {
   ContourPage* contourPage() const { return pages_.contour; }
   RigidPage* rigidPage() const { return pages_.rigid; }
   FitPage* fitPage() const { return pages_.fit; }
-  // The workflow's actions, by the page that owns each (menus, drops and tests call them here).
-  void importMesh(const QString& path) { pages_.mesh->importMesh(path); }
-  void openFrameSource(const QString& path) { pages_.frame->openFrameSource(path); }
-  void openCameraDevice(int index) { pages_.frame->openCameraDevice(index); }
-  void showVideoFrame(int index) { pages_.frame->showVideoFrame(index); }
-  void useShownFrame() { pages_.frame->useShownFrame(); }
-  void loadCalibration(const QString& path) { pages_.frame->loadCalibration(path); }
-  void importContour(const QString& path) { pages_.contour->importContour(path); }
-  void exportContour(const QString& path) { pages_.contour->exportContour(path); }
-  void solvePnP() { pages_.rigid->solvePnP(); }
-  void runElasticFit() { pages_.fit->runElasticFit(); }
-  int videoFrameCount() const { return pages_.frame->videoFrameCount(); }
-  int shownVideoFrame() const { return pages_.frame->shownVideoFrame(); }
-  const std::vector<LandmarkPair>& landmarks() const { return pages_.rigid->landmarks(); }
-  double lastPnPReprojectionError() const { return pages_.rigid->lastPnPReprojectionError(); }
-  int labelsShown() const { return pages_.mesh->labelsShown(); }
-  int targetTets() const { return pages_.mesh->targetTets(); }
-  void setTargetTets(int n) { pages_.mesh->setTargetTets(n); }
-  void setMeshUnit(const QString& unit) { pages_.mesh->setMeshUnit(unit); }
-
   CaseDocument* document() const { return doc_; }
   /// The case as it is now (never null once a case has loaded).
   const std::shared_ptr<const app::Case>& caseData() const { return doc_->data(); }
