@@ -18,6 +18,7 @@
 #include <QDragEnterEvent>
 #include <QDropEvent>
 #include <QMimeData>
+#include <QListWidget>
 #include <QSignalSpy>
 #include <QUrl>
 #include <QStandardPaths>
@@ -374,6 +375,42 @@ class TestWorkflow : public QObject {
   }
 
   // PnP: pick four organ points with the mouse, click where the ground-truth pose puts them, solve.
+  // Each key does one thing per step, wherever the focus is: E turns the organ 1 degree about the camera's Z
+  // axis in step 4 (Q the other way) and picks Edit points in step 3; the arrows nudge the pose in step 4
+  // even from the workflow list.
+  void keysMeanOneThingPerStep() {
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    w_->setStep(ui::Step::Rigid);
+    auto* list = w_->findChild<QListWidget*>("workflowList");
+    QVERIFY(list);
+    list->setFocus();
+    const auto c0 = w_->caseData();
+    QTest::keyClick(w_.get(), Qt::Key_E);
+    const auto c1 = w_->caseData();
+    QCOMPARE(w_->step(), ui::Step::Rigid);
+    QCOMPARE(w_->frameView()->tool(), ui::Tool::Align);
+    const Eigen::AngleAxisd turn(c1->pose.R * c0->pose.R.transpose());
+    QVERIFY2(std::abs(turn.angle() - M_PI / 180) < 1e-9, qPrintable(QString::number(turn.angle())));
+    QVERIFY(std::abs(std::abs(turn.axis().z()) - 1) < 1e-9);
+    // The centre of gravity stays where it was.
+    const Eigen::Vector3d g = c0->organ->centreOfGravity;
+    QVERIFY((c1->pose.apply(g) - c0->pose.apply(g)).norm() < 1e-12);
+    QTest::keyClick(w_.get(), Qt::Key_Right);
+    const auto c2 = w_->caseData();
+    QVERIFY((c2->pose.t - c1->pose.t - Eigen::Vector3d(0.001, 0, 0)).norm() < 1e-12);
+    QCOMPARE(w_->step(), ui::Step::Rigid);
+    w_->undoStack()->undo();
+    w_->undoStack()->undo();
+    QVERIFY((w_->caseData()->pose.t - c0->pose.t).norm() < 1e-15);
+    // Step 3: E is Edit points, and the pose does not move.
+    w_->setStep(ui::Step::Contour);
+    const auto c3 = w_->caseData();
+    QTest::keyClick(w_.get(), Qt::Key_E);
+    QCOMPARE(w_->frameView()->tool(), ui::Tool::EditPoints);
+    QVERIFY(w_->caseData()->pose.R == c3->pose.R);
+  }
+
   void step4LandmarksPnP() {
     auto* view = w_->frameView();
     QTest::keyClick(w_.get(), Qt::Key_L);

@@ -58,6 +58,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   wb_.status = [this](const QString& text) { status_.caseText->setText(text); };
   wb_.goToStep = [this](Step s) { setStep(s); };
   wb_.currentStep = [this] { return step_; };
+  keys_ = std::make_unique<StepKeys>(this, wb_.currentStep);
+  wb_.keys = keys_.get();
   buildWorkflowPanel();
   buildMenus();
 

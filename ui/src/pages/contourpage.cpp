@@ -31,7 +31,7 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
                      "in Edit, drag a point, Ctrl+click inserts, right-click deletes."));
     const Tool tool = t.tool;
     connect(b, &QPushButton::clicked, this, [this, tool] { wb_.view->setTool(tool); });
-    stepKey(t.key, tool);
+    stepKey(QKeySequence(t.key), [this, tool] { wb_.view->setTool(tool); });
     grid->addWidget(b, i / 2, i % 2);
     ++i;
   }

@@ -86,6 +86,21 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
   l->addWidget(distanceLabel_);
   l->addStretch(1);
 
+  // Keyboard nudges from anywhere in the window while step 4 is shown (each key one thing per step: E turns
+  // the organ here and picks Edit points in step 3).
+  for (const Qt::Key key : {Qt::Key_Left, Qt::Key_Right, Qt::Key_Up, Qt::Key_Down, Qt::Key_PageUp, Qt::Key_PageDown, Qt::Key_W, Qt::Key_S,
+                            Qt::Key_A, Qt::Key_D, Qt::Key_Q, Qt::Key_E})
+    for (const bool shift : {false, true})
+      stepKey(QKeySequence(shift ? (Qt::SHIFT | key) : QKeyCombination(key)), [this, key, shift] {
+        if (!data()) return;
+        if (const auto p = nudgedPose(*data(), key, shift))
+          wb_.doc->edit(tr("Nudge"), [&](app::Case& k) {
+            k.pose = *p;
+            k.hasPose = true;
+            k.poseAligned = true;
+          });
+      });
+
   // The Landmarks tool reports its clicks; the pairs live here until the pose is solved.
   connect(wb_.view, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {
     auto l = landmarks_;

@@ -21,13 +21,21 @@ QPushButton* StepPage::toolButton(QWidget* parent, const QString& text, const QS
   return button;
 }
 
-void StepPage::stepKey(Qt::Key key, Tool tool) {
-  auto* a = new QAction(this);
-  a->setShortcut(QKeySequence(key));
-  connect(a, &QAction::triggered, this, [this, tool] {
-    if (wb_.currentStep() == step_) wb_.view->setTool(tool);
-  });
-  wb_.window->addAction(a);
+void StepPage::stepKey(const QKeySequence& key, std::function<void()> handler) { wb_.keys->bind(key, step_, std::move(handler)); }
+
+void StepKeys::bind(const QKeySequence& key, app::Step step, std::function<void()> handler) {
+  const QString text = key.toString();
+  auto& byStep = handlers_[text];
+  if (byStep.empty()) {
+    auto* a = new QAction(window_);
+    a->setShortcut(key);
+    QObject::connect(a, &QAction::triggered, window_, [this, text] {
+      const auto& h = handlers_[text];
+      if (auto it = h.find(current_()); it != h.end()) it->second();
+    });
+    window_->addAction(a);
+  }
+  byStep[step] = std::move(handler);
 }
 
 }  // namespace rehearse::ui

@@ -50,28 +50,10 @@ class GizmoTool final : public FrameTool {
   }
   bool key(QKeyEvent* e) override {
     const auto& c = view_.caseData();
-    if (!c || !c->hasPose) return false;
-    const bool shift = e->modifiers() & Qt::ShiftModifier;
-    const double step = shift ? 0.010 : 0.001, angle = (shift ? 5.0 : 1.0) * M_PI / 180;
-    Pose p = c->pose;
-    const Eigen::Vector3d g = p.apply(c->organ->centreOfGravity);
-    auto rotate = [&](int axis, double a) { p = p.turnedAbout(axisRotation(axis, a), g); };
-    switch (e->key()) {
-      case Qt::Key_Left: p.t.x() -= step; break;
-      case Qt::Key_Right: p.t.x() += step; break;
-      case Qt::Key_Up: p.t.y() -= step; break;
-      case Qt::Key_Down: p.t.y() += step; break;
-      case Qt::Key_PageUp: p.t.z() += step; break;
-      case Qt::Key_PageDown: p.t.z() -= step; break;
-      case Qt::Key_W: rotate(0, -angle); break;
-      case Qt::Key_S: rotate(0, angle); break;
-      case Qt::Key_A: rotate(1, -angle); break;
-      case Qt::Key_D: rotate(1, angle); break;
-      case Qt::Key_Q: rotate(2, -angle); break;
-      case Qt::Key_E: rotate(2, angle); break;
-      default: return false;
-    }
-    emit view_.poseEdited(p, QObject::tr("Nudge"), -1);
+    if (!c) return false;
+    const auto p = nudgedPose(*c, e->key(), e->modifiers() & Qt::ShiftModifier);
+    if (!p) return false;
+    emit view_.poseEdited(*p, QObject::tr("Nudge"), -1);
     return true;
   }
   void paint(QPainter& painter) override {
@@ -153,6 +135,37 @@ class GizmoTool final : public FrameTool {
 };
 
 }  // namespace
+}  // namespace rehearse::ui::tools
+
+namespace rehearse::ui {
+
+std::optional<Pose> nudgedPose(const app::Case& c, int key, bool shift) {
+  if (!c.hasPose) return std::nullopt;
+  const double step = shift ? 0.010 : 0.001, angle = (shift ? 5.0 : 1.0) * M_PI / 180;
+  Pose p = c.pose;
+  const Eigen::Vector3d g = p.apply(c.organ->centreOfGravity);
+  auto rotate = [&](int axis, double a) { p = p.turnedAbout(tools::axisRotation(axis, a), g); };
+  switch (key) {
+    case Qt::Key_Left: p.t.x() -= step; break;
+    case Qt::Key_Right: p.t.x() += step; break;
+    case Qt::Key_Up: p.t.y() -= step; break;
+    case Qt::Key_Down: p.t.y() += step; break;
+    case Qt::Key_PageUp: p.t.z() += step; break;
+    case Qt::Key_PageDown: p.t.z() -= step; break;
+    case Qt::Key_W: rotate(0, -angle); break;
+    case Qt::Key_S: rotate(0, angle); break;
+    case Qt::Key_A: rotate(1, -angle); break;
+    case Qt::Key_D: rotate(1, angle); break;
+    case Qt::Key_Q: rotate(2, -angle); break;
+    case Qt::Key_E: rotate(2, angle); break;
+    default: return std::nullopt;
+  }
+  return p;
+}
+
+}  // namespace rehearse::ui
+
+namespace rehearse::ui::tools {
 
 std::unique_ptr<FrameTool> makeGizmoTool(FrameView& view) { return std::make_unique<GizmoTool>(view); }
 

@@ -39,6 +39,11 @@ struct LandmarkPair {
   bool hasImage = false;
 };
 
+/// Step 4's keyboard nudges of the pose: arrows and PgUp/PgDn move 1 mm along the camera axes (10 mm with
+/// Shift), W/S, A/D, Q/E turn 1 degree (5 with Shift) about them through the organ's centre of gravity.
+/// Empty for another key or a case without pose.
+std::optional<Pose> nudgedPose(const app::Case& c, int key, bool shift);
+
 /// What tools share: set from the step pages, read by the tools.
 struct ToolSettings {
   bool snapToEdges = false;                ///< new contour segments snap to image edges (intelligent scissors)

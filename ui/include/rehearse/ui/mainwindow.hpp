@@ -157,6 +157,7 @@ class MainWindow : public QMainWindow {
   QStackedWidget* stepStack_ = nullptr;
   Step step_ = Step::Mesh;
   Workbench wb_;
+  std::unique_ptr<StepKeys> keys_;
   Pages pages_;
   QMenu* recentMenu_ = nullptr;
   QAction* recoverAction_ = nullptr;

@@ -11,11 +11,28 @@
 
 #include <QWidget>
 
-#include <functional>
+#include <QKeySequence>
 
+#include <functional>
+#include <map>
+
+class QAction;
 class QPushButton;
 
 namespace rehearse::ui {
+
+/// Keys that mean one thing per step (E edits points in step 3 and turns the organ in step 4): one
+/// window-wide action per key, which calls the handler of the step shown, wherever the focus is.
+class StepKeys {
+ public:
+  StepKeys(QWidget* window, std::function<app::Step()> currentStep) : window_(window), current_(std::move(currentStep)) {}
+  void bind(const QKeySequence& key, app::Step step, std::function<void()> handler);
+
+ private:
+  QWidget* window_;
+  std::function<app::Step()> current_;
+  std::map<QString, std::map<app::Step, std::function<void()>>> handlers_;  ///< by key text
+};
 
 /// What every page works with (owned by the main window, which outlives the pages).
 struct Workbench {
@@ -26,6 +43,7 @@ struct Workbench {
   std::function<void(const QString&)> status;       ///< a sentence for the status bar
   std::function<void(app::Step)> goToStep;          ///< shows a step's page (and its default tool)
   std::function<app::Step()> currentStep;
+  StepKeys* keys = nullptr;
 };
 
 class StepPage : public QWidget {
@@ -42,8 +60,8 @@ class StepPage : public QWidget {
   /// A button that picks `tool` in the frame view; `key` does the same from anywhere, after going to
   /// this page's step.
   QPushButton* toolButton(QWidget* parent, const QString& text, const QString& tip, Tool tool, Qt::Key key);
-  /// A key that picks `tool` only while this page's step is shown.
-  void stepKey(Qt::Key key, Tool tool);
+  /// A key that does `handler` while this page's step is shown (StepKeys).
+  void stepKey(const QKeySequence& key, std::function<void()> handler);
   const std::shared_ptr<const app::Case>& data() const { return wb_.doc->data(); }
 
   Workbench& wb_;
