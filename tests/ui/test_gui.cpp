@@ -7,6 +7,8 @@
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/organview.hpp"
+#include "rehearse/ui/organoverlay.hpp"
+#include "rehearse/ui/pages/meshpage.hpp"
 
 #include <QDoubleSpinBox>
 #include <QLabel>
@@ -19,6 +21,42 @@ using namespace rehearse;
 class TestGui : public QObject {
   Q_OBJECT
  private slots:
+  // Several ticked inner structures are each drawn in their own colour: the phantom's vessel elements split
+  // into two labels (2 and 3) give pixels of both label colours, where one colour was drawn before.
+  void innerLabelsKeepTheirColours() {
+    const auto p = phantom::makePhantom();
+    app::Case c = app::caseFromPhantom(p);
+    simcore::Mesh v = c.organ->volume;
+    int relabelled = 0, vessels = 0;
+    for (std::size_t e = 0; e < v.tets.size(); ++e)
+      if (v.tetLabels[e] == app::kVesselLabel && (++vessels % 2 == 0)) {
+        v.tetLabels[e] = 3;
+        ++relabelled;
+      }
+    QVERIFY(relabelled > 10);
+    c.organ = app::Organ::fromVolume(std::move(v));
+    c.pose = p.truePose;
+    c.hasPose = true;
+    ui::OrganOverlay overlay(false);
+    const ui::OverlayPicture pic = overlay.render(c, {2, 3});
+    QVERIFY(!pic.inner.isNull());
+    // Classify the drawn pixels by the nearer label colour (direction in RGB: the shading scales it).
+    auto direction = [](const QColor& q) { return Eigen::Vector3d(q.red(), q.green(), q.blue()).normalized(); };
+    const Eigen::Vector3d two = direction(ui::labelColour(2)), three = direction(ui::labelColour(3));
+    int nearTwo = 0, nearThree = 0;
+    const QImage img = pic.inner.convertToFormat(QImage::Format_RGBA8888);
+    for (int y = 0; y < img.height(); ++y)
+      for (int x = 0; x < img.width(); ++x) {
+        const uchar* px = img.constScanLine(y) + 4 * x;
+        if (px[3] < 128) continue;
+        const Eigen::Vector3d d = Eigen::Vector3d(px[0], px[1], px[2]).normalized();
+        (d.dot(two) > d.dot(three) ? nearTwo : nearThree)++;
+      }
+    qInfo("inner structures: %d pixels in label 2's colour, %d in label 3's", nearTwo, nearThree);
+    QVERIFY(nearTwo > 100);
+    QVERIFY(nearThree > 100);
+  }
+
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseTest");
     QStandardPaths::setTestModeEnabled(true);  // settings and autosave go to a test location
