@@ -179,7 +179,12 @@ void RigidPage::solvePnP() {
     k.hasPose = true;
     k.poseAligned = true;
   });
-  wb_.status(tr("Pose from %1 landmark pairs: reprojection RMS %2 px.").arg(model.size()).arg(pnpError_, 0, 'f', 3));
+  if (result->ambiguous)
+    wb_.status(tr("Pose from %1 landmark pairs: reprojection RMS %2 px, but another pose fits nearly as well (%3 px): "
+                  "the landmarks do not decide; add pairs away from the others.")
+                   .arg(model.size()).arg(pnpError_, 0, 'f', 3).arg(result->alternativeRmsPixels, 0, 'f', 3));
+  else
+    wb_.status(tr("Pose from %1 landmark pairs: reprojection RMS %2 px.").arg(model.size()).arg(pnpError_, 0, 'f', 3));
 }
 
 }  // namespace rehearse::ui

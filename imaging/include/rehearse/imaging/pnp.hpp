@@ -13,6 +13,10 @@ namespace rehearse::imaging {
 struct PnPResult {
   Pose pose;                 ///< model -> camera
   double rmsPixels = 0;      ///< reprojection error (px)
+  /// Another pose, turned more than 10 degrees from this one, reprojects nearly as well (within 1 px RMS or
+  /// twice this one's): the landmarks do not decide between them (few, close to a plane); add landmarks.
+  bool ambiguous = false;
+  double alternativeRmsPixels = -1;  ///< that pose's RMS (px), when ambiguous
 };
 
 /// Needs 4 pairs or more; nullopt when no solver finds a pose in front of the camera (the landmarks do not
