@@ -431,6 +431,16 @@ class TestWorkflow : public QObject {
       ++pairs;
     }
     QCOMPARE(pairs, 4);
+    // The pairs are the user's work: each click is an undo step, and they are saved with the case (saveAndReopen).
+    const auto withPairs = w_->caseData()->landmarks;
+    w_->undoStack()->undo();
+    QCOMPARE(w_->caseData()->landmarks.size(), std::size_t(4));
+    QVERIFY(!w_->caseData()->landmarks.back().hasImage);
+    w_->undoStack()->undo();
+    QCOMPARE(w_->caseData()->landmarks.size(), std::size_t(3));
+    w_->undoStack()->redo();
+    w_->undoStack()->redo();
+    QVERIFY(w_->caseData()->landmarks == withPairs);
     w_->rigidPage()->solvePnP();
     const auto& p = w_->caseData()->pose;
     qInfo("PnP from %d pairs: reprojection RMS %.3f px; rotation error %.3f deg, translation error %.2f mm", pairs,
@@ -458,6 +468,8 @@ class TestWorkflow : public QObject {
     const auto b = other.caseData();
     QVERIFY(b->pose.R == a->pose.R && b->pose.t == a->pose.t);
     QCOMPARE(b->poseAligned, a->poseAligned);
+    QCOMPARE(b->landmarks.size(), std::size_t(4));
+    QVERIFY(b->landmarks == a->landmarks);
     QCOMPARE(b->contour.segments.size(), a->contour.segments.size());
     for (std::size_t s = 0; s < a->contour.segments.size(); ++s) QVERIFY(b->contour.segments[s].points == a->contour.segments[s].points);
     QVERIFY(b->camera.K == a->camera.K);

@@ -50,6 +50,7 @@ CaseDocument::Parts difference(const app::Case* a, const app::Case& b) {
   if (a->fit != b.fit) p |= CaseDocument::FitPart;
   if (a->attachments != b.attachments) p |= CaseDocument::AttachmentsPart;
   if (!(a->material == b.material)) p |= CaseDocument::MaterialPart;
+  if (a->landmarks != b.landmarks) p |= CaseDocument::LandmarksPart;
   return p;
 }
 

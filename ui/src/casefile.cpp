@@ -171,6 +171,12 @@ void saveCaseFile(const app::Case& c, const QString& path) {
                                          .dump()));
     }
     if (!c.contour.segments.empty()) part("contour", "json", bytes(imaging::contourToJson(c.contour)));
+    if (!c.landmarks.empty()) {
+      json pairs = json::array();
+      for (const auto& l : c.landmarks)
+        pairs.push_back({{"model", {l.model.x(), l.model.y(), l.model.z()}}, {"image", {l.image.x(), l.image.y()}}, {"has_image", l.hasImage}});
+      part("landmarks", "json", bytes(json{{"pairs", pairs}, {"unit", "m (model), px (image)"}}.dump()));
+    }
     if (c.fit) {
       json pts = json::array();
       for (const auto& x : c.fit->nodes) pts.push_back({x.x(), x.y(), x.z()});
@@ -236,7 +242,8 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
       {"frame", QStringLiteral("Frame")},              {"raw_frame", QStringLiteral("Captured frame")},
       {"camera", QStringLiteral("Camera")},            {"attachments", QStringLiteral("Attachments")},
       {"pose", QStringLiteral("Pose")},                {"contour", QStringLiteral("Contour")},
-      {"elastic_fit", QStringLiteral("Elastic fit")}, {"ground_truth", QStringLiteral("Ground truth")}};
+      {"elastic_fit", QStringLiteral("Elastic fit")}, {"ground_truth", QStringLiteral("Ground truth")},
+      {"landmarks", QStringLiteral("Landmark pairs")}};
   auto read = [&](const char* part) -> QByteArray {
     QSqlQuery p(db);
     p.prepare(checksums ? QStringLiteral("SELECT data, sha256 FROM parts WHERE name = ?") : QStringLiteral("SELECT data FROM parts WHERE name = ?"));
@@ -347,6 +354,22 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
     } catch (const std::exception& e) {
       c.contour = {};
       note(QStringLiteral("Contour not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (QByteArray l = read("landmarks"); !l.isEmpty()) {
+    try {
+      const json j = json::parse(l.toStdString());
+      for (const auto& p : j.at("pairs")) {
+        app::LandmarkPair pair;
+        pair.model = vec3(p.at("model"));
+        pair.image = {p.at("image").at(0).get<double>(), p.at("image").at(1).get<double>()};
+        pair.hasImage = p.at("has_image").get<bool>();
+        if (!pair.model.allFinite() || !pair.image.allFinite()) throw std::runtime_error("a pair holds a number that is not finite");
+        c.landmarks.push_back(pair);
+      }
+    } catch (const std::exception& e) {
+      c.landmarks.clear();
+      note(QStringLiteral("Landmark pairs not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
   if (QByteArray f = read("elastic_fit"); !f.isEmpty()) {

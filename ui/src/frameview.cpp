@@ -111,6 +111,11 @@ void FrameView::finishSegment() {
 
 void FrameView::finishOrganCurve() { tools_.at(Tool::OrganCurve)->finish(); }
 
+const std::vector<LandmarkPair>& FrameView::landmarks() const {
+  static const std::vector<LandmarkPair> none;
+  return case_ ? case_->landmarks : none;
+}
+
 QPointF FrameView::handlePosition(GizmoHandle h) const { return tools::gizmoHandlePosition(*this, h); }
 
 void FrameView::fitToWindow() {
@@ -231,8 +236,8 @@ void FrameView::paintOrganMarks(QPainter& painter, const imaging::Contour& conto
     for (const auto& q : poly) painter.drawEllipse(q, 2.5, 2.5);
   }
   // Landmarks: model points through the current pose (orange) and their image points (cyan).
-  for (std::size_t i = 0; i < landmarks_.size(); ++i) {
-    const auto& l = landmarks_[i];
+  for (std::size_t i = 0; i < case_->landmarks.size(); ++i) {
+    const auto& l = case_->landmarks[i];
     const Eigen::Vector3d xc = case_->pose.apply(l.model);
     QPointF m;
     if (xc.z() > 0) {

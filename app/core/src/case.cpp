@@ -62,6 +62,7 @@ Pose Case::automaticPose() const {
 void Case::setOrgan(std::shared_ptr<const Organ> o) {
   organ = o ? std::move(o) : std::make_shared<Organ>();
   attachments.clear();
+  landmarks.clear();  // their model points were on the old organ
   fit.reset();
   groundTruth.reset();
   material = defaultMaterial(*organ);
@@ -71,7 +72,7 @@ void Case::setOrgan(std::shared_ptr<const Organ> o) {
 }
 
 std::size_t Case::ownBytes() const {
-  std::size_t bytes = sizeof(Case) + name.size() + attachments.size() * sizeof(int);
+  std::size_t bytes = sizeof(Case) + name.size() + attachments.size() * sizeof(int) + landmarks.size() * sizeof(LandmarkPair);
   for (const auto& s : contour.segments) bytes += sizeof(s) + s.points.size() * sizeof(Eigen::Vector2d) + s.modelVertices.size() * sizeof(int);
   return bytes;
 }

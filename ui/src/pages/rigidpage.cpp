@@ -72,7 +72,9 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
   pnpButton_->setEnabled(false);
   connect(pnpButton_, &QPushButton::clicked, this, &RigidPage::solvePnP);
   auto* clearLm = new QPushButton(tr("Clear"), lmBox);
-  connect(clearLm, &QPushButton::clicked, this, [this] { setLandmarks({}); });
+  connect(clearLm, &QPushButton::clicked, this, [this] {
+    if (data() && !data()->landmarks.empty()) editLandmarks({}, tr("Clear landmarks"));
+  });
   lrow->addWidget(pnpButton_);
   lrow->addWidget(clearLm);
   ll->addLayout(lrow);
@@ -103,32 +105,33 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
 
   // The Landmarks tool reports its clicks; the pairs live here until the pose is solved.
   connect(wb_.view, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {
-    auto l = landmarks_;
+    if (!data()) return;
+    auto l = data()->landmarks;
     l.push_back({m, Eigen::Vector2d::Zero(), false});
-    setLandmarks(std::move(l));
-    wb_.status(tr("Landmark %1 on the organ; now click where it is in the frame.").arg(landmarks_.size()));
+    editLandmarks(std::move(l), tr("Landmark on the organ"));
+    wb_.status(tr("Landmark %1 on the organ; now click where it is in the frame.").arg(landmarks().size()));
   });
   connect(wb_.view, &FrameView::landmarkImagePicked, this, [this](const Eigen::Vector2d& p) {
-    if (landmarks_.empty()) return;
-    auto l = landmarks_;
+    if (!data() || data()->landmarks.empty()) return;
+    auto l = data()->landmarks;
     l.back().image = p;
     l.back().hasImage = true;
-    setLandmarks(std::move(l));
-    wb_.status(tr("%1 landmark pairs; click the organ for the next, or solve (4 or more).").arg(landmarks_.size()));
+    editLandmarks(std::move(l), tr("Landmark in the frame"));
+    wb_.status(tr("%1 landmark pairs; click the organ for the next, or solve (4 or more).").arg(landmarks().size()));
   });
 }
 
-void RigidPage::caseLoaded() { setLandmarks({}); }
+void RigidPage::editLandmarks(std::vector<LandmarkPair> l, const QString& text) {
+  wb_.doc->edit(text, [&l](app::Case& k) { k.landmarks = std::move(l); });
+}
 
 void RigidPage::setDistanceText(const QString& text) { distanceLabel_->setText(text); }
 
-void RigidPage::setLandmarks(std::vector<LandmarkPair> l) {
-  landmarks_ = std::move(l);
-  wb_.view->setLandmarks(landmarks_);
+void RigidPage::refreshLandmarks(const app::Case& c) {
   landmarkList_->clear();
   int complete = 0;
-  for (std::size_t i = 0; i < landmarks_.size(); ++i) {
-    const auto& p = landmarks_[i];
+  for (std::size_t i = 0; i < c.landmarks.size(); ++i) {
+    const auto& p = c.landmarks[i];
     complete += p.hasImage;
     landmarkList_->addItem(QStringLiteral("%1: (%2, %3, %4) mm -> %5")
                                .arg(i + 1)
@@ -142,6 +145,7 @@ void RigidPage::setLandmarks(std::vector<LandmarkPair> l) {
 }
 
 void RigidPage::refresh(const app::Case& c) {
+  refreshLandmarks(c);
   if (!c.hasPose) return;
   updating_ = true;
   // Translation in mm, rotation as Z-Y-X Euler angles in degrees: R = Rz(rz) Ry(ry) Rx(rx), angles in
@@ -158,7 +162,7 @@ void RigidPage::solvePnP() {
   if (!data()) return;
   std::vector<Eigen::Vector3d> model;
   std::vector<Eigen::Vector2d> image;
-  for (const auto& l : landmarks_)
+  for (const auto& l : data()->landmarks)
     if (l.hasImage) {
       model.push_back(l.model);
       image.push_back(l.image);

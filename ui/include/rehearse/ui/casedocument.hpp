@@ -37,7 +37,8 @@ class CaseDocument : public QObject {
     FitPart = 32,
     AttachmentsPart = 64,
     MaterialPart = 128,
-    AllParts = 255
+    LandmarksPart = 256,
+    AllParts = 511
   };
   Q_DECLARE_FLAGS(Parts, Part)
 

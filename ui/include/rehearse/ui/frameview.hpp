@@ -33,11 +33,7 @@ enum class GizmoHandle { None, TranslateX, TranslateY, TranslateZ, RotateX, Rota
 /// of the triangles facing the camera) with the outline, or the outline alone.
 enum class OverlayStyle { Shaded, Wireframe, Silhouette };
 
-struct LandmarkPair {
-  Eigen::Vector3d model = Eigen::Vector3d::Zero();  ///< point on the mesh, model frame (m)
-  Eigen::Vector2d image = Eigen::Vector2d::Zero();  ///< where it is in the frame (px)
-  bool hasImage = false;
-};
+using LandmarkPair = app::LandmarkPair;
 
 /// Step 4's keyboard nudges of the pose: arrows and PgUp/PgDn move 1 mm along the camera axes (10 mm with
 /// Shift), W/S, A/D, Q/E turn 1 degree (5 with Shift) about them through the organ's centre of gravity.
@@ -87,8 +83,8 @@ class FrameView : public QWidget {
   void finishOrganCurve();
   /// Finishes the click-by-click segment being drawn (Enter does the same).
   void finishSegment();
-  void setLandmarks(const std::vector<LandmarkPair>& l) { landmarks_ = l; update(); }
-  const std::vector<LandmarkPair>& landmarks() const { return landmarks_; }
+  /// The case's landmark pairs (step 4), drawn over the frame.
+  const std::vector<LandmarkPair>& landmarks() const;
   double zoom() const { return zoom_; }
   /// Frame pixel under a widget position, and back.
   QPointF toFrame(const QPointF& widgetPos) const;
@@ -152,7 +148,6 @@ class FrameView : public QWidget {
   std::map<Tool, std::unique_ptr<FrameTool>> tools_;
   ToolSettings settings_;
   int mergeCounter_ = 0;
-  std::vector<LandmarkPair> landmarks_;
 };
 
 }  // namespace rehearse::ui

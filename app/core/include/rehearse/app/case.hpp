@@ -79,6 +79,14 @@ struct MaterialSettings {
   bool operator==(const MaterialSettings&) const = default;
 };
 
+/// Step 4's landmark pair: a point on the organ and where it is in the frame (the user's work: saved, undoable).
+struct LandmarkPair {
+  Eigen::Vector3d model = Eigen::Vector3d::Zero();  ///< point on the mesh, model frame (m)
+  Eigen::Vector2d image = Eigen::Vector2d::Zero();  ///< where it is in the undistorted frame (px)
+  bool hasImage = false;
+  bool operator==(const LandmarkPair&) const = default;
+};
+
 struct Case {
   std::string name;
   std::shared_ptr<const Organ> organ = std::make_shared<Organ>();  ///< never null (an empty organ before step 1)
@@ -91,6 +99,7 @@ struct Case {
   Pose pose;                             ///< current rigid alignment, model -> camera
   bool hasPose = false;                  ///< false until the organ has been placed (auto or by hand)
   bool poseAligned = false;              ///< true once the user aligned it (gizmos, fields or PnP)
+  std::vector<LandmarkPair> landmarks;  ///< step 4's pairs (model points on the rest shape)
   std::shared_ptr<const ElasticFit> fit;           ///< null until step 5 ran
   std::shared_ptr<const GroundTruth> groundTruth;  ///< null unless the case came with one
 

@@ -15,22 +15,22 @@ class RigidPage : public StepPage {
  public:
   RigidPage(Workbench& wb, QWidget* parent = nullptr);
   void refresh(const app::Case& c) override;
-  void caseLoaded() override;
   /// Pose from the landmark pairs (4 or more), one undoable edit.
   void solvePnP();
-  const std::vector<LandmarkPair>& landmarks() const { return landmarks_; }
+  const std::vector<LandmarkPair>& landmarks() const { return wb_.view->landmarks(); }
   double lastPnPReprojectionError() const { return pnpError_; }
   /// The distance line under the fields (the window computes it with the overlay).
   void setDistanceText(const QString& text);
 
  private:
-  void setLandmarks(std::vector<LandmarkPair> l);
+  void refreshLandmarks(const app::Case& c);
+  /// The case's pairs replaced by `l`, one undoable edit.
+  void editLandmarks(std::vector<LandmarkPair> l, const QString& text);
 
   QDoubleSpinBox* poseFields_[6] = {};
   QLabel* distanceLabel_ = nullptr;
   QListWidget* landmarkList_ = nullptr;
   QPushButton* pnpButton_ = nullptr;
-  std::vector<LandmarkPair> landmarks_;
   double pnpError_ = -1;
 };
 
