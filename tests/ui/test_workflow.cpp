@@ -171,6 +171,34 @@ class TestWorkflow : public QObject {
   }
 
   // Step 2: an image, then a video scrubbed to frame 17.
+  // The unit trap: a volume in metres imported as millimetres would be a 0.17 mm dot. It is refused with the
+  // likely unit, and the case keeps its organ.
+  void importWithTheWrongUnitSaysSo() {
+    const std::string path = tempPath("organ-in-metres.vtu");
+    simcore::Mesh volume = w_->caseData()->organ->volume;
+    volume.convertToMetres();
+    simcore::saveMesh(volume, path);
+    const auto organ = w_->caseData()->organ;
+    w_->meshPage()->setMeshUnit("mm");
+    QSignalSpy imported(w_.get(), &MainWindow::meshImported);
+    w_->meshPage()->importMesh(QString::fromStdString(path));
+    QVERIFY(imported.wait(60000));
+    QCOMPARE(imported.first().at(0).toBool(), false);
+    const QString message = imported.first().at(1).toString();
+    qInfo("%s", qPrintable(message));
+    QVERIFY(message.contains("probably in m "));
+    QVERIFY(w_->caseData()->organ == organ);
+    // With the unit it names, it imports.
+    imported.clear();
+    w_->meshPage()->setMeshUnit("m");
+    w_->meshPage()->importMesh(QString::fromStdString(path));
+    QVERIFY(imported.wait(60000));
+    QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+    QCOMPARE(w_->caseData()->organ->volume.tets.size(), volume.tets.size());
+    w_->undoStack()->undo();
+    QVERIFY(w_->caseData()->organ == organ);
+  }
+
   void step2FrameAndVideo() {
     const std::string png = tempPath("frame.png");
     cv::Mat3b img(720, 1280, cv::Vec3b(30, 60, 150));

@@ -431,8 +431,9 @@ void MainWindow::buildMenus() {
   QMenu* help = menuBar()->addMenu(tr("&Help"));
   QAction* about = help->addAction(tr("&About Rehearse"), this, [this] {
     QMessageBox::about(this, tr("About Rehearse"),
-                       tr("<b>Rehearse %1</b><p>Intra-operative surgical gesture rehearsal: register the pre-operative "
-                          "organ onto an endoscope frame, then grasp, pull and cut it in a view that looks like the frame.</p>")
+                       tr("<b>Rehearse %1</b><p>Intra-operative surgical gesture rehearsal. This version registers the "
+                          "pre-operative organ onto an endoscope frame (steps 1-5) and simulates it there. Appearance "
+                          "estimation, grasping, pulling and cutting, and the replay of rehearsals come in later versions.</p>")
                            .arg(QStringLiteral(REHEARSE_VERSION)));
   });
   about->setShortcut(QKeySequence::HelpContents);

@@ -157,6 +157,26 @@ void MeshPage::importMesh(const QString& path) {
       std::vector<std::string> notes;
       progress(0.02, QStringLiteral("reading"));
       simcore::Mesh m = simcore::loadMesh(path.toStdString(), {unit}, &notes);
+      // A size no organ has (under 1 cm or over 1 m across) is a wrong unit, not an organ: refused with the
+      // likely unit, before anything is built (the case is unchanged).
+      if (!m.points.empty()) {
+        m.convertToMetres();
+        const double size = m.bounds().sizes().maxCoeff();
+        if (!(size >= 0.01 && size <= 1.0)) {
+          const std::pair<const char*, double> units[] = {{"m", 1.0}, {"dm", 0.1}, {"cm", 0.01}, {"mm", 0.001}};
+          const double perUnit = size / std::find_if(std::begin(units), std::end(units), [&](const auto& u) { return u.first == unit; })->second;
+          QString likely;
+          for (const auto& [name, metres] : units)
+            if (perUnit * metres >= 0.03 && perUnit * metres <= 0.5) likely = QString::fromLatin1(name);
+          const QString what = tr("With the file unit %1 this organ would measure %2 mm across; organs measure 10 to 1000 mm.")
+                                   .arg(QString::fromStdString(unit)).arg(size * 1e3, 0, 'g', 3);
+          throw simcore::MeshError((likely.isEmpty() ? what + tr(" Check the file.")
+                                                     : what + tr(" The file is probably in %1 (%2 mm across): choose that file unit and import again.")
+                                                                  .arg(likely)
+                                                                  .arg(perUnit * std::find_if(std::begin(units), std::end(units), [&](const auto& u) { return likely == QLatin1String(u.first); })->second * 1e3, 0, 'f', 0))
+                                       .toStdString());
+        }
+      }
       if (!m.isVolume()) {
         simcore::TetrahedraliseOptions o;
         o.targetTets = static_cast<std::size_t>(target);
