@@ -1,6 +1,9 @@
 // The real main window, driven with QTest events offscreen: the built-in case loads on a worker thread
 // and the frame shows the organ over it; keys toggle the overlay; a damaged case folder opens with a message.
 #include "test_support.hpp"
+#include "icosphere.hpp"
+
+#include <QUndoStack>
 
 #include "phantom/phantom.hpp"
 #include <rehearse/app/casefolder.hpp>
@@ -215,17 +218,44 @@ class TestGui : public QObject {
     QCoreApplication::setOrganizationName(organisation);
   }
 
+  // Cancel (Esc) of a long job: an import whose meshing is cancelled leaves the case exactly as it was, says
+  // so, and the window goes on working (a second import of the same file completes).
   void cancelKeepsTheWindowUsable() {
     ui::MainWindow w;
     w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    w.activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(&w));
     QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
     w.openCase({});
-    QTest::keyClick(&w, Qt::Key_Escape);
     QVERIFY(loaded.wait(60000));
-    // Either the load finished before Esc arrived or it was cancelled; both leave a working window.
-    w.openCase({});
-    QVERIFY(loaded.wait(60000));
-    QCOMPARE(loaded.last().at(0).toBool(), true);
+    const auto before = w.caseData();
+    const int undoIndex = w.undoStack()->index();
+    // A sphere surface (20480 triangles) to fill with 20k tetrahedra: seconds of meshing, cancellable.
+    simcore::Mesh sphere;
+    addIcosphere(sphere, Eigen::Vector3d::Zero(), 0.05, 5, 1);
+    const std::string path = tempPath("sphere.obj");
+    {
+      std::string obj;
+      for (const auto& p : sphere.points) obj += "v " + std::to_string(p.x()) + " " + std::to_string(p.y()) + " " + std::to_string(p.z()) + "\n";
+      for (const auto& t : sphere.triangles) obj += "f " + std::to_string(t[0] + 1) + " " + std::to_string(t[1] + 1) + " " + std::to_string(t[2] + 1) + "\n";
+      writeFile(path, obj);
+    }
+    w.meshPage()->setMeshUnit("m");
+    w.meshPage()->setTargetTets(20000);
+    QSignalSpy imported(&w, &ui::MainWindow::meshImported);
+    w.meshPage()->importMesh(QString::fromStdString(path));
+    QTest::keyClick(&w, Qt::Key_Escape);  // the job has just started: its meshing sees the cancel
+    QVERIFY(imported.wait(60000));
+    QCOMPARE(imported.first().at(0).toBool(), false);
+    QCOMPARE(imported.first().at(1).toString(), QStringLiteral("cancelled"));
+    QVERIFY(w.caseData() == before);  // the very same version: nothing changed
+    QCOMPARE(w.undoStack()->index(), undoIndex);
+    imported.clear();
+    w.meshPage()->importMesh(QString::fromStdString(path));
+    QVERIFY(imported.wait(120000));
+    QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+    QVERIFY(w.caseData()->organ->volume.tets.size() > 5000);
   }
 };
 
