@@ -9,6 +9,8 @@
 
 #include <malloc.h>
 
+#include <QDir>
+#include <QFile>
 #include <QProcess>
 #include <QStandardPaths>
 #include <QSqlDatabase>
@@ -191,10 +193,16 @@ class TestCaseFile : public QObject {
     std::string bytes = readFile(path.toStdString());
     writeFile(path.toStdString(), bytes.substr(0, bytes.size() / 3));
     try {
-      auto c = ui::loadCaseFile(path);
-      // If SQLite still opens the first pages, whatever is missing must be reported, not crash.
+      // If SQLite still opens the first pages, every part that is missing or damaged is reported in a note.
+      QStringList notes;
+      const auto c = ui::loadCaseFile(path, &notes);
+      const bool whole = !c.organ->empty() && !c.frame.empty() && c.camera.width > 0;
+      QVERIFY2(!whole || notes.isEmpty(), "a whole case with notes");
+      QVERIFY2(whole || !notes.isEmpty(), "parts went missing without a note");
+      for (const auto& n : notes) QCOMPARE(n.count('\n'), 0);
     } catch (const std::runtime_error& e) {
       QVERIFY(!QString(e.what()).isEmpty());
+      QVERIFY(!QString(e.what()).contains('\n'));
     }
     QVERIFY_THROWS_EXCEPTION(std::runtime_error, ui::loadCaseFile(QString::fromStdString(tempPath("missing.rehearse"))));
   }
@@ -321,9 +329,31 @@ class TestCaseFile : public QObject {
     }
   }
 
+  // A save that cannot complete leaves the previous file byte for byte: after a first save, a folder stands
+  // where the new file is written before it replaces the old one (works as root too, unlike permissions).
   void unwritableTargetKeepsPreviousFile() {
-    const QString path = QString::fromStdString(tempPath("nowhere/sub/case.rehearse"));
-    QVERIFY_THROWS_EXCEPTION(std::runtime_error, ui::saveCaseFile(phantomCase(), path));
+    const std::string dir = tempPath("blocked-case");
+    std::filesystem::create_directories(dir);
+    const QString path = QString::fromStdString(dir + "/case.rehearse");
+    ui::saveCaseFile(phantomCase(), path);
+    const std::string before = readFile(path.toStdString());
+    QVERIFY(before.size() > 1000);
+    const QString blocker = path + QStringLiteral(".saving-") + QString::number(QCoreApplication::applicationPid());
+    QVERIFY(QDir().mkpath(blocker));
+    QFile(blocker + "/keep").open(QIODevice::WriteOnly);  // not an empty folder: it cannot be removed as a file
+    app::Case changed = phantomCase();
+    changed.name = "changed";
+    try {
+      ui::saveCaseFile(changed, path);
+      QFAIL("the save reported success although its file could not be written");
+    } catch (const std::runtime_error& e) {
+      qInfo("refused: %s", e.what());
+      QVERIFY(!QString(e.what()).contains('\n'));
+    }
+    QCOMPARE(readFile(path.toStdString()), before);
+    QCOMPARE(QString::fromStdString(ui::loadCaseFile(path).name), QString::fromStdString(phantomCase().name));
+    QDir(blocker).removeRecursively();
+    QVERIFY_THROWS_EXCEPTION(std::runtime_error, ui::saveCaseFile(phantomCase(), QString::fromStdString(tempPath("nowhere/sub/case.rehearse"))));
   }
 };
 
