@@ -11,6 +11,7 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
+#include <rehearse/imaging/camera.hpp>
 #include <rehearse/simcore/meshio.hpp>
 
 #include <QDoubleSpinBox>
@@ -437,6 +438,29 @@ class TestWorkflow : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_E);
     QCOMPARE(w_->frameView()->tool(), ui::Tool::EditPoints);
     QVERIFY(w_->caseData()->pose.R == c3->pose.R);
+  }
+
+  // Step 4 loads a pose file (as `rehearse register --pose` does), one undo step; a bad file changes nothing.
+  // Step 5 does not keep the gizmo over the organ.
+  void step4LoadPoseFile() {
+    w_->setStep(ui::Step::Rigid);
+    const auto c0 = w_->caseData();
+    const std::string path = tempPath("pose.json");
+    imaging::savePose(c0->groundTruth->pose, path);
+    w_->rigidPage()->loadPose(QString::fromStdString(path));
+    QVERIFY((w_->caseData()->pose.t - c0->groundTruth->pose.t).norm() < 1e-12);
+    QVERIFY((w_->caseData()->pose.R - c0->groundTruth->pose.R).norm() < 1e-12);
+    w_->undoStack()->undo();
+    QVERIFY(w_->caseData()->pose.t == c0->pose.t);
+    const std::string bad = tempPath("bad-pose.json");
+    writeFile(bad, "{\"R\": [[1, 0]], \"t\": [0, 0]}");
+    const auto c1 = w_->caseData();
+    w_->rigidPage()->loadPose(QString::fromStdString(bad));
+    QVERIFY(w_->caseData() == c1);
+    QVERIFY(!w_->findChild<QLabel*>("caseStatus")->text().isEmpty());
+    w_->setStep(ui::Step::Elastic);
+    QVERIFY(w_->frameView()->tool() != ui::Tool::Align);
+    w_->setStep(ui::Step::Rigid);
   }
 
   void step4LandmarksPnP() {

@@ -242,6 +242,7 @@ void MainWindow::setStep(Step s) {
   if (s == Step::Contour && (t == Tool::Navigate || t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Freehand);
   else if (s == Step::Rigid && t != Tool::Landmarks) view_->setTool(Tool::Align);
   else if (s == Step::Mesh || s == Step::Frame) view_->setTool(Tool::Navigate);
+  else if (s == Step::Elastic && (t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Navigate);  // no gizmo over the fit
   updateWorkflow();
 }
 

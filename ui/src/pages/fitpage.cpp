@@ -109,6 +109,9 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
 }
 
 void FitPage::refresh(const app::Case& c) {
+  // No stale word about a fit that is no longer there (undone or cleared).
+  if (!c.hasFit() && !wb_.jobs->isRunning() && !status_->text().isEmpty() && !status_->text().startsWith(tr("Fit reverted")))
+    status_->setText(tr("No elastic fit yet: F9 fits the organ onto the contour."));
   int sketched = 0, onOrgan = 0;
   for (const auto& s : c.contour.segments)
     if (!s.isSilhouette()) {

@@ -1,8 +1,12 @@
 #include "rehearse/ui/pages/rigidpage.hpp"
 
+#include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/pnp.hpp>
 
 #include <QDoubleSpinBox>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QSettings>
 #include <QFormLayout>
 #include <QGroupBox>
 #include <QHBoxLayout>
@@ -23,7 +27,9 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
                            Tool::Align, Qt::Key_G);
   gizmo->setMinimumHeight(34);
   l->addWidget(gizmo);
-  auto* box = new QGroupBox(tr("Pose (camera frame)"), this);
+  auto* box = new QGroupBox(tr("Pose (camera frame; R = Rz Ry Rx)"), this);
+  box->setToolTip(tr("Model to camera: translation in mm; rotation as angles about the camera's Z, Y and X axes in degrees, "
+                     "applied X first (R = Rz(rz) Ry(ry) Rx(rx)). Camera axes: x right, y down, z forward."));
   auto* form = new QFormLayout(box);
   const char* names[6] = {"tx (mm)", "ty (mm)", "tz (mm)", "rx (deg)", "ry (deg)", "rz (deg)"};
   for (int k = 0; k < 6; ++k) {
@@ -60,6 +66,14 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
     });
   });
   l->addWidget(reset);
+  auto* load = new QPushButton(tr("Load Pose..."), this);
+  load->setObjectName(QStringLiteral("loadPose"));
+  load->setToolTip(tr("A pose file: JSON {\"R\": [[...]], \"t\": [...], \"unit\": \"m\"} or a 4x4 text matrix in the mesh's unit"));
+  connect(load, &QPushButton::clicked, this, [this] {
+    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Load Pose"), QSettings().value("lastDir").toString(), tr("Poses (*.json *.txt)"));
+    if (!p.isEmpty()) loadPose(p);
+  });
+  l->addWidget(load);
   auto* lmBox = new QGroupBox(tr("Landmark pairs (mesh point, then image point)"), this);
   auto* ll = new QVBoxLayout(lmBox);
   ll->addWidget(toolButton(lmBox, tr("Pick Landmarks (L)"), tr("Click a point on the organ, then where it is in the frame; 4 pairs or more"),
@@ -156,6 +170,22 @@ void RigidPage::refresh(const app::Case& c) {
   const double vals[6] = {c.pose.t.x() * 1e3, c.pose.t.y() * 1e3, c.pose.t.z() * 1e3, rx * d, ry * d, rz * d};
   for (int k = 0; k < 6; ++k) poseFields_[k]->setValue(vals[k]);
   updating_ = false;
+}
+
+void RigidPage::loadPose(const QString& path) {
+  if (!data()) return;
+  try {
+    const double unit = data()->organ->volume.unitToMetre;
+    const Pose p = imaging::loadPose(path.toStdString(), unit);
+    wb_.doc->edit(tr("Load pose"), [&p](app::Case& k) {
+      k.pose = p;
+      k.hasPose = true;
+      k.poseAligned = true;
+    });
+    wb_.status(tr("Pose loaded from %1.").arg(QFileInfo(path).fileName()));
+  } catch (const std::exception& e) {
+    wb_.status(QString::fromUtf8(e.what()));
+  }
 }
 
 void RigidPage::solvePnP() {

@@ -15,6 +15,8 @@ class RigidPage : public StepPage {
  public:
   RigidPage(Workbench& wb, QWidget* parent = nullptr);
   void refresh(const app::Case& c) override;
+  /// A pose file (JSON, or a 4x4 text matrix in the mesh's unit), one undoable edit; a bad file is one sentence.
+  void loadPose(const QString& path);
   /// Pose from the landmark pairs (4 or more), one undoable edit.
   void solvePnP();
   const std::vector<LandmarkPair>& landmarks() const { return wb_.view->landmarks(); }
