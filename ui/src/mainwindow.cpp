@@ -233,6 +233,7 @@ void MainWindow::buildWorkflowPanel() {
 
 void MainWindow::setStep(Step s) {
   step_ = s;
+  keys_->stepShown(s);
   const int row = app::index(s);
   for (int i = 0; i < static_cast<int>(pages_.all.size()); ++i)
     if (pages_.all[static_cast<std::size_t>(i)]->step() == s) stepStack_->setCurrentIndex(i);

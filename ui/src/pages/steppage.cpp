@@ -34,8 +34,14 @@ void StepKeys::bind(const QKeySequence& key, app::Step step, std::function<void(
       if (auto it = h.find(current_()); it != h.end()) it->second();
     });
     window_->addAction(a);
+    actions_[text] = a;
   }
   byStep[step] = std::move(handler);
+  actions_[text]->setEnabled(current_() == step || byStep.count(current_()));
+}
+
+void StepKeys::stepShown(app::Step step) {
+  for (const auto& [text, action] : actions_) action->setEnabled(handlers_[text].count(step) > 0);
 }
 
 }  // namespace rehearse::ui

@@ -27,11 +27,15 @@ class StepKeys {
  public:
   StepKeys(QWidget* window, std::function<app::Step()> currentStep) : window_(window), current_(std::move(currentStep)) {}
   void bind(const QKeySequence& key, app::Step step, std::function<void()> handler);
+  /// A step is shown: only its keys are live (a key no step uses here goes to the focused widget: the
+  /// arrows to a list or a combo box in step 3, to the pose nudges in step 4).
+  void stepShown(app::Step step);
 
  private:
   QWidget* window_;
   std::function<app::Step()> current_;
   std::map<QString, std::map<app::Step, std::function<void()>>> handlers_;  ///< by key text
+  std::map<QString, QAction*> actions_;
 };
 
 /// What every page works with (owned by the main window, which outlives the pages).
