@@ -531,7 +531,7 @@ int runCli(const std::vector<std::string>& args, bool& handled) {
     std::fprintf(stderr, "rehearse: error: cannot access %s: %s\n", e.path1().string().c_str(), e.code().message().c_str());
     return 1;
   } catch (const nlohmann::json::exception& e) {
-    std::fprintf(stderr, "rehearse: error: a JSON input is not in the expected form (%s); see "File formats" in the README\n", e.what());
+    std::fprintf(stderr, "rehearse: error: a JSON input is not in the expected form (%s); see \"File formats\" in the README\n", e.what());
     return 1;
   } catch (const std::exception& e) {
     std::string msg = e.what();

@@ -111,7 +111,7 @@ Camera loadCamera(const std::string& path, int width, int height) {
         for (int k = 0; k < 5; ++k)
           if (j.contains(keys[k])) c.distortion[k] = num(j[keys[k]]);
       } else {
-        throw InputError(name + " has neither \"K\" nor \"fx\"; see "File formats" in the README.");
+        throw InputError(name + " has neither \"K\" nor \"fx\"; see \"File formats\" in the README.");
       }
       if (j.contains("width")) c.width = static_cast<int>(num(j["width"]));
       if (j.contains("height")) c.height = static_cast<int>(num(j["height"]));

@@ -83,7 +83,7 @@ Contour parseContour(const std::string& text, const std::string& name) {
     if (what.rfind(name, 0) == 0) throw;
     throw InputError(name + ": " + what);
   } catch (const std::exception&) {
-    throw InputError(name + " is not a valid contour file; see "File formats" in the README.");
+    throw InputError(name + " is not a valid contour file; see \"File formats\" in the README.");
   }
   for (const auto& s : c.segments)
     for (const auto& p : s.points)
