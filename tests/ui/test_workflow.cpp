@@ -196,8 +196,14 @@ class TestWorkflow : public QObject {
     QVERIFY(imported.wait(60000));
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
     QCOMPARE(w_->caseData()->organ->volume.tets.size(), volume.tets.size());
-    w_->undoStack()->undo();
+    auto* status = w_->findChild<QLabel*>("caseStatus");
+    QVERIFY(status->text().startsWith("Imported"));
+    // Ctrl+Z: the organ comes back and the status bar says what was undone (not "Imported ..." any more).
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
     QVERIFY(w_->caseData()->organ == organ);
+    QCOMPARE(status->text(), QStringLiteral("Undone: Import mesh"));
   }
 
   void step2FrameAndVideo() {

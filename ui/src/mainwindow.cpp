@@ -27,6 +27,7 @@
 #include <QStatusBar>
 #include <QToolBar>
 #include <QToolButton>
+#include <QUndoStack>
 #include <QVBoxLayout>
 
 namespace rehearse::ui {
@@ -408,6 +409,15 @@ void MainWindow::buildMenus() {
   redo->setShortcut(QKeySequence::Redo);
   edit->addAction(undo);
   edit->addAction(redo);
+  // Undo and redo say what they did, so that no older sentence ("Imported ...") stays in the status bar.
+  connect(undo, &QAction::triggered, this, [this] {
+    const QUndoStack* stack = doc_->undoStack();
+    status_.caseText->setText(tr("Undone: %1").arg(stack->text(stack->index())));
+  });
+  connect(redo, &QAction::triggered, this, [this] {
+    const QUndoStack* stack = doc_->undoStack();
+    if (stack->index() > 0) status_.caseText->setText(tr("Redone: %1").arg(stack->text(stack->index() - 1)));
+  });
 
   QMenu* stepMenu = menuBar()->addMenu(tr("&Step"));
   for (int i = 0; i < app::kStepCount; ++i) {
