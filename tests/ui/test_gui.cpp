@@ -4,6 +4,8 @@
 #include "icosphere.hpp"
 
 #include <QUndoStack>
+#include <QFileInfo>
+#include <QDir>
 
 #include "phantom/phantom.hpp"
 #include <rehearse/app/casefolder.hpp>
@@ -216,6 +218,25 @@ class TestGui : public QObject {
     }
     QSettings().clear();
     QCoreApplication::setOrganizationName(organisation);
+  }
+
+  // Closing the window while an autosave is being written waits for it, then removes the autosave: no file
+  // and no half-written temporary is left (five times); an autosave with nothing changed writes nothing.
+  void closeDuringAutosave() {
+    const QDir folder(QFileInfo(ui::MainWindow::autosavePath()).absolutePath());
+    for (int i = 0; i < 5; ++i) {
+      ui::MainWindow w;
+      w.show();
+      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+      w.openCase({});
+      QVERIFY(loaded.wait(60000));
+      QVERIFY(!w.document()->autosaveIfChanged());  // just loaded: nothing to write
+      w.editCase("test: move", [i](app::Case& k) { k.pose.t.x() += 1e-3 * (i + 1); });
+      QVERIFY(w.document()->autosaveIfChanged());   // started on a worker ...
+      w.close();                                    // ... and the window closes at once
+      QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
+      QVERIFY2(folder.entryList({"*.saving-*"}, QDir::Files | QDir::Hidden).isEmpty(), "a temporary autosave was left behind");
+    }
   }
 
   // Cancel (Esc) of a long job: an import whose meshing is cancelled leaves the case exactly as it was, says
