@@ -17,6 +17,8 @@
 #include <QTreeWidget>
 #include <QVBoxLayout>
 
+#include <map>
+
 namespace rehearse::ui {
 
 QColor labelColour(int label) {
@@ -163,17 +165,22 @@ void MeshPage::importMesh(const QString& path) {
         m.convertToMetres();
         const double size = m.bounds().sizes().maxCoeff();
         if (!(size >= 0.01 && size <= 1.0)) {
-          const std::pair<const char*, double> units[] = {{"m", 1.0}, {"dm", 0.1}, {"cm", 0.01}, {"mm", 0.001}};
-          const double perUnit = size / std::find_if(std::begin(units), std::end(units), [&](const auto& u) { return u.first == unit; })->second;
+          // The file's coordinates in its own unit, and the units that would make it 3 to 50 cm across.
+          const std::map<std::string, double> metresPer = {{"m", 1.0}, {"dm", 0.1}, {"cm", 0.01}, {"mm", 0.001}};
+          const auto chosen = metresPer.find(unit);
+          const double perUnit = size / (chosen != metresPer.end() ? chosen->second : 1.0);
           QString likely;
-          for (const auto& [name, metres] : units)
-            if (perUnit * metres >= 0.03 && perUnit * metres <= 0.5) likely = QString::fromLatin1(name);
+          double likelySize = 0;
+          for (const auto& [name, metres] : metresPer)
+            if (perUnit * metres >= 0.03 && perUnit * metres <= 0.5) {
+              likely = QString::fromStdString(name);
+              likelySize = perUnit * metres;
+            }
           const QString what = tr("With the file unit %1 this organ would measure %2 mm across; organs measure 10 to 1000 mm.")
                                    .arg(QString::fromStdString(unit)).arg(size * 1e3, 0, 'g', 3);
           throw simcore::MeshError((likely.isEmpty() ? what + tr(" Check the file.")
                                                      : what + tr(" The file is probably in %1 (%2 mm across): choose that file unit and import again.")
-                                                                  .arg(likely)
-                                                                  .arg(perUnit * std::find_if(std::begin(units), std::end(units), [&](const auto& u) { return likely == QLatin1String(u.first); })->second * 1e3, 0, 'f', 0))
+                                                                  .arg(likely).arg(likelySize * 1e3, 0, 'f', 0))
                                        .toStdString());
         }
       }

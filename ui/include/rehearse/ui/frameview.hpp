@@ -94,7 +94,6 @@ class FrameView : public QWidget {
   /// Widget position of a gizmo handle (for tests and tooltips); invalid when there is no pose.
   QPointF handlePosition(GizmoHandle h) const;
   void fitToWindow();
-  bool hasFrame() const { return !frame_.isNull(); }
 
   // For the tools.
   /// The case's contour sized to the frame.

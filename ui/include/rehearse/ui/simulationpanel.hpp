@@ -95,8 +95,6 @@ class SimulationPanel : public QWidget {
   void applyPreset(const QString& name);
   bool isPlaying() const { return playing_; }
   std::shared_ptr<const SimulationFrame> lastFrame() const { return last_; }
-  /// The running session (null until the body is built, or without an organ).
-  std::shared_ptr<simcore::Session> session() const { return session_; }
   SimulationSetup setup() const;
   QString statusText() const;
 
