@@ -25,12 +25,12 @@ namespace {
 double num(const json& j) { return j.is_string() ? std::stod(j.get<std::string>()) : j.get<double>(); }
 }  // namespace
 
-Contour loadContour(const std::string& path) {
+Contour loadContour(const std::string& path, ContourFormat* format) {
   std::ifstream in(path);
   if (!in) throw InputError("The contour file " + path + " cannot be opened; check the path.");
   std::stringstream ss;
   ss << in.rdbuf();
-  return parseContour(ss.str(), std::filesystem::path(path).filename().string());
+  return parseContour(ss.str(), std::filesystem::path(path).filename().string(), format);
 }
 
 namespace {
@@ -45,10 +45,11 @@ std::vector<int> vertexList(const json& j) {
 }
 }  // namespace
 
-Contour parseContour(const std::string& text, const std::string& name) {
+Contour parseContour(const std::string& text, const std::string& name, ContourFormat* format) {
   Contour c;
   try {
     const json j = json::parse(text);
+    if (format) *format = j.contains("segments") ? ContourFormat::Rehearse : ContourFormat::P2ILF;
     if (j.contains("segments")) {
       if (j.contains("image_size")) {
         c.width = j["image_size"].at(0).get<int>();
@@ -106,6 +107,27 @@ std::string contourToJson(const Contour& c) {
 }
 
 void saveContour(const Contour& c, const std::string& path) { writeFileAtomically(path, contourToJson(c)); }
+
+std::string contourToP2ILF(const Contour& c) {
+  json j;
+  j["numOfContours"] = c.segments.size();
+  j["contour"] = json::array();
+  for (const auto& s : c.segments) {
+    json xs = json::array(), ys = json::array();
+    for (const auto& p : s.points) {
+      xs.push_back(p.x());
+      ys.push_back(p.y());
+    }
+    std::string type = s.type.empty() ? std::string("silhouette") : s.type;
+    type[0] = static_cast<char>(std::toupper(static_cast<unsigned char>(type[0])));
+    json seg = {{"contourType", type}, {"imagePoints", {{"x", xs}, {"y", ys}}}};
+    if (!s.modelVertices.empty()) seg["modelPoints"] = {{"vertices", s.modelVertices}};
+    j["contour"].push_back(std::move(seg));
+  }
+  return j.dump(1) + "\n";
+}
+
+void saveContourP2ILF(const Contour& c, const std::string& path) { writeFileAtomically(path, contourToP2ILF(c)); }
 
 bool segmentSelfIntersects(const ContourSegment& s) {
   const auto& p = s.points;
@@ -273,10 +295,14 @@ std::vector<ContourSegment> anatomicalSegments(const Contour& c) {
   return out;
 }
 
-Contour undistortContour(const Contour& c, const Camera& camera) {
+bool hasDistortion(const Camera& camera) {
   bool distorted = false;
   for (double d : camera.distortion) distorted |= d != 0;
-  if (!distorted) return c;
+  return distorted;
+}
+
+Contour undistortContour(const Contour& c, const Camera& camera) {
+  if (!hasDistortion(camera)) return c;
   cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
   for (int r = 0; r < 3; ++r)
     for (int k = 0; k < 3; ++k) K.at<double>(r, k) = camera.K(r, k);
@@ -288,6 +314,28 @@ Contour undistortContour(const Contour& c, const Camera& camera) {
     for (const auto& p : seg.points) in.emplace_back(p.x(), p.y());
     cv::undistortPoints(in, und, K, D, cv::noArray(), K);  // back to pixels of the undistorted frame
     for (std::size_t i = 0; i < und.size(); ++i) seg.points[i] = Eigen::Vector2d(und[i].x, und[i].y);
+  }
+  return out;
+}
+
+Contour distortContour(const Contour& c, const Camera& camera) {
+  if (!hasDistortion(camera)) return c;
+  cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int k = 0; k < 3; ++k) K.at<double>(r, k) = camera.K(r, k);
+  for (int k = 0; k < 5; ++k) D.at<double>(0, k) = camera.distortion[k];
+  const Eigen::Matrix3d Kinv = camera.K.inverse();
+  Contour out = c;
+  for (auto& seg : out.segments) {
+    if (seg.points.empty()) continue;
+    std::vector<cv::Point3d> rays;  // the pixel's ray at unit depth
+    for (const auto& p : seg.points) {
+      const Eigen::Vector3d r = Kinv * Eigen::Vector3d(p.x(), p.y(), 1.0);
+      rays.emplace_back(r.x() / r.z(), r.y() / r.z(), 1.0);
+    }
+    std::vector<cv::Point2d> raw;
+    cv::projectPoints(rays, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K, D, raw);
+    for (std::size_t i = 0; i < raw.size(); ++i) seg.points[i] = Eigen::Vector2d(raw[i].x, raw[i].y);
   }
   return out;
 }

@@ -15,7 +15,11 @@
 #include "rehearse/ui/organoverlay.hpp"
 #include "rehearse/ui/pages/meshpage.hpp"
 
+#include <QDockWidget>
 #include <QDoubleSpinBox>
+#include <QPlainTextEdit>
+#include <QScrollBar>
+#include <QStatusBar>
 #include <QLabel>
 #include <QSettings>
 #include <QSignalSpy>
@@ -138,6 +142,27 @@ class TestGui : public QObject {
     QTest::keyClick(&w, Qt::Key_O);
     QVERIFY(view->overlayVisible());
 
+    // The legend names the colours drawn: its swatch for the organ outline is the colour the outline is
+    // drawn in (found on the frame, outside the legend), and it lists each contour type present.
+    const auto legend = view->legend();
+    QVERIFY(!legend.isEmpty());
+    QCOMPARE(legend.first().colour, ui::palette::organOutline());
+    const QRect box = view->legendRect();
+    QVERIFY(!box.isEmpty());
+    const QImage shown = view->grab().toImage();
+    const double dpr = view->devicePixelRatioF();
+    const QFontMetrics fm(view->font());
+    const QPoint swatch(box.left() + 16, box.top() + 5 + (fm.height() + 4) / 2);
+    QCOMPARE(QColor(shown.pixel(swatch * dpr)), ui::palette::organOutline());
+    int outlinePixels = 0;
+    for (int y = 0; y < shown.height(); ++y)
+      for (int x = 0; x < shown.width(); ++x)
+        if (!box.contains(QPoint(x, y) / dpr) && QColor(shown.pixel(x, y)) == ui::palette::organOutline()) ++outlinePixels;
+    QVERIFY2(outlinePixels > 50, qPrintable(QString::number(outlinePixels)));
+    bool silhouetteListed = false;
+    for (const auto& e : legend) silhouetteListed |= e.text.contains("silhouette");
+    QCOMPARE(silhouetteListed, !w.caseData()->contour.segments.empty());
+
     // The organ alone, rendered in device pixels (test_gui_hidpi runs this at QT_SCALE_FACTOR=2).
     if (auto* organ = qobject_cast<ui::OrganView*>(w.organWidget())) {
       organ->grab();
@@ -159,6 +184,39 @@ class TestGui : public QObject {
     view->setFocus();
     QTest::keyClick(view, Qt::Key_Home);
     QCOMPARE(view->zoom(), 1.0);
+  }
+
+  // Messages are read whole: a long error is shortened in the status bar, never pushes the widgets beside
+  // it out, and is whole in the label's tooltip and in the Messages panel (Ctrl+L). The Case panel wraps
+  // its lines instead of clipping them.
+  void messagesAreReadWhole() {
+    ui::MainWindow w;
+    w.resize(1000, 700);
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    QVERIFY(loaded.wait(60000));
+    const std::string empty = tempPath("empty-contour-with-a-rather-long-name-as-people-give-them.json");
+    writeFile(empty, "");
+    w.contourPage()->importContour(QString::fromStdString(empty));
+    const QString sentence = w.statusText();
+    QVERIFY2(sentence.contains("empty-contour-with") && sentence.endsWith("."), qPrintable(sentence));
+    auto* status = w.findChild<QLabel*>("caseStatus");
+    QCOMPARE(status->toolTip(), sentence);
+    QVERIFY(status->fontMetrics().horizontalAdvance(sentence) > status->width());  // the test shows a long one
+    QVERIFY(w.statusBar()->minimumSizeHint().width() <= w.width());
+    QVERIFY2(!w.messageLog().isEmpty() && w.messageLog().last().endsWith(sentence), qPrintable(w.messageLog().join("\n")));
+    auto* dock = w.findChild<QDockWidget*>("messagesDock");
+    QVERIFY(dock);
+    QTest::keyClick(&w, Qt::Key_L, Qt::ControlModifier);
+    QTRY_VERIFY(dock->isVisible() && !dock->visibleRegion().isEmpty());
+    QVERIFY(w.findChild<QPlainTextEdit*>("messageLog")->toPlainText().contains(sentence));
+    auto* info = w.findChild<QPlainTextEdit*>("caseInfo");
+    info->parentWidget()->show();
+    info->parentWidget()->raise();
+    QTRY_VERIFY(info->isVisible());
+    QCOMPARE(info->horizontalScrollBar()->maximum(), 0);
   }
 
   void damagedCaseFolderOpensWithMessage() {

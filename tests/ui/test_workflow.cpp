@@ -25,6 +25,8 @@
 #include <QStandardPaths>
 #include <QThread>
 
+#include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <opencv2/videoio.hpp>
@@ -678,6 +680,72 @@ class TestWorkflow : public QObject {
     const std::string out = tempPath("exported.json");
     w_->contourPage()->exportContour(QString::fromStdString(out));
     QCOMPARE(imaging::loadContour(out).segments.size(), std::size_t(2));
+  }
+
+  // P2ILF's contours are drawn on the raw (distorted) image. Reference by geometry, not by our code: points
+  // in front of the camera projected by OpenCV with the distortion (raw pixels, what the file holds) and
+  // without it (where they are in the undistorted frame every step uses).
+  void p2ilfContourOnTheRawFrame() {
+    const int index = w_->undoStack()->index();
+    imaging::Camera cam = w_->caseData()->camera;
+    cam.distortion = {-0.25, 0.08, 0.001, -0.0005, 0};
+    const std::string yaml = tempPath("cal-distorted.yaml");
+    imaging::saveCamera(cam, yaml);
+    w_->framePage()->loadCalibration(QString::fromStdString(yaml));
+    QCOMPARE(w_->caseData()->camera.distortion[0], -0.25);
+    cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
+    for (int r = 0; r < 3; ++r)
+      for (int k = 0; k < 3; ++k) K.at<double>(r, k) = cam.K(r, k);
+    for (int k = 0; k < 5; ++k) D.at<double>(0, k) = cam.distortion[k];
+    std::vector<cv::Point3d> pts;  // a ring reaching out towards the image corners, where distortion is large
+    for (int i = 0; i < 24; ++i) {
+      const double a = 2 * std::numbers::pi * i / 24;
+      pts.emplace_back(0.045 * std::cos(a), 0.028 * std::sin(a), 0.12);
+    }
+    std::vector<cv::Point2d> raw, ideal;
+    cv::projectPoints(pts, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K, D, raw);
+    cv::projectPoints(pts, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K, cv::noArray(), ideal);
+    double shift = 0;
+    for (std::size_t i = 0; i < raw.size(); ++i) shift = std::max(shift, cv::norm(raw[i] - ideal[i]));
+    QVERIFY2(shift > 10, qPrintable(QString::number(shift)));  // the test can tell raw from undistorted
+    std::string xs, ys;
+    for (const auto& p : raw) {
+      xs += (xs.empty() ? "" : ",") + std::to_string(p.x);
+      ys += (ys.empty() ? "" : ",") + std::to_string(p.y);
+    }
+    const std::string file = tempPath("p2ilf-raw.json");
+    writeFile(file, R"({"numOfContours":1,"contour":[{"contourType":"Ridge","imagePoints":{"x":[)" + xs + R"(],"y":[)" + ys + "]}}]}");
+    w_->contourPage()->importContour(QString::fromStdString(file));
+    const auto& seg = w_->caseData()->contour.segments.at(0);
+    QCOMPARE(seg.type, std::string("ridge"));
+    QCOMPARE(seg.points.size(), ideal.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < ideal.size(); ++i) worst = std::max(worst, (seg.points[i] - Eigen::Vector2d(ideal[i].x, ideal[i].y)).norm());
+    QVERIFY2(worst < 0.01, qPrintable(QStringLiteral("undistorted import off by %1 px").arg(worst)));
+    QVERIFY(w_->statusText().contains("undistorted with the case's camera"));
+    // Export in P2ILF's layout puts the points back on the raw image; ours keeps the undistorted ones.
+    const std::string out = tempPath("p2ilf-out.json");
+    w_->contourPage()->exportContour(QString::fromStdString(out), imaging::ContourFormat::P2ILF);
+    const auto written = nlohmann::json::parse(readFile(out));
+    QCOMPARE(written.at("numOfContours").get<int>(), 1);
+    QCOMPARE(written.at("contour").at(0).at("contourType").get<std::string>(), std::string("Ridge"));
+    const auto& wx = written.at("contour").at(0).at("imagePoints").at("x");
+    const auto& wy = written.at("contour").at(0).at("imagePoints").at("y");
+    QCOMPARE(wx.size(), raw.size());
+    worst = 0;
+    for (std::size_t i = 0; i < raw.size(); ++i) worst = std::max(worst, std::hypot(wx[i].get<double>() - raw[i].x, wy[i].get<double>() - raw[i].y));
+    QVERIFY2(worst < 0.01, qPrintable(QStringLiteral("P2ILF export off the raw points by %1 px").arg(worst)));
+    const std::string ours = tempPath("ours-out.json");
+    w_->contourPage()->exportContour(QString::fromStdString(ours));
+    QCOMPARE(imaging::loadContour(ours).segments.at(0).points, seg.points);
+    // The user can say where a file's points are: ours, declared as on the raw frame, is undistorted too;
+    // the P2ILF file declared as on the undistorted frame is taken as it is.
+    w_->contourPage()->setImportedPointsOn(ui::ContourPage::PointsOn::UndistortedFrame);
+    w_->contourPage()->importContour(QString::fromStdString(file));
+    QCOMPARE(w_->caseData()->contour.segments.at(0).points.at(3), Eigen::Vector2d(std::stod(std::to_string(raw[3].x)), std::stod(std::to_string(raw[3].y))));
+    w_->contourPage()->setImportedPointsOn(ui::ContourPage::PointsOn::FileConvention);
+    while (w_->undoStack()->index() > index) w_->undoStack()->undo();
+    QCOMPARE(w_->caseData()->camera.distortion[0], 0.0);
   }
 
   // A real case: the in-vivo laparoscopic frame (1920x1080) with its intrinsics, and a patient's liver

@@ -186,6 +186,63 @@ void FrameView::paintEvent(QPaintEvent*) {
   painter.resetTransform();
   paintOrganMarks(painter, contour);
   if (FrameTool* t = current()) t->paint(painter);
+  paintLegend(painter);
+}
+
+QList<LegendEntry> FrameView::legend() const {
+  QList<LegendEntry> out;
+  if (frame_.isNull()) return out;
+  if (overlayVisible_ && !silhouette_.isEmpty()) out.push_back({palette::organOutline(), tr("organ outline (O hides)")});
+  if (overlayVisible_ && !inner_.isNull()) out.push_back({QColor(200, 60, 60), tr("inner structures: colours as in step 1")});
+  std::vector<std::string> types;
+  if (case_)
+    for (const auto& seg : case_->contour.segments)
+      if (std::find(types.begin(), types.end(), seg.type) == types.end()) types.push_back(seg.type);
+  for (const char* t : {"silhouette", "ridge", "ligament"})
+    if (std::find(types.begin(), types.end(), std::string(t)) != types.end())
+      out.push_back({tools::segmentColour(t), tr("contour: %1").arg(tr(t))});
+  if (case_ && !case_->landmarks.empty()) {
+    out.push_back({palette::landmarkOnOrgan(), tr("landmark on the organ")});
+    out.push_back({palette::landmarkInFrame(), tr("landmark in the frame")});
+  }
+  return out;
+}
+
+QRect FrameView::legendRect() const {
+  const auto entries = legend();
+  if (!legendVisible_ || entries.isEmpty()) return {};
+  const QFontMetrics fm(font());
+  int w = 0;
+  for (const auto& e : entries) w = std::max(w, fm.horizontalAdvance(e.text));
+  const int line = fm.height() + 4;
+  const QSize size(w + 36, line * static_cast<int>(entries.size()) + 10);
+  return QRect(QPoint(8, height() - 8 - size.height()), size);
+}
+
+void FrameView::setLegendVisible(bool visible) {
+  legendVisible_ = visible;
+  update();
+}
+
+void FrameView::paintLegend(QPainter& painter) {
+  const QRect box = legendRect();
+  if (box.isEmpty()) return;
+  painter.resetTransform();
+  painter.setOpacity(1.0);
+  painter.setRenderHint(QPainter::Antialiasing, false);
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(QColor(0, 0, 0, 170));
+  painter.drawRect(box);
+  const QFontMetrics fm(font());
+  const int line = fm.height() + 4;
+  int y = box.top() + 5;
+  for (const auto& e : legend()) {
+    painter.fillRect(QRect(box.left() + 8, y + line / 2 - 6, 16, 12), e.colour);  // the swatch, solid
+    painter.setPen(QColor(235, 235, 235));
+    painter.drawText(QRect(box.left() + 30, y, box.width() - 32, line), Qt::AlignVCenter | Qt::AlignLeft, e.text);
+    y += line;
+  }
+  painter.setRenderHint(QPainter::Antialiasing);
 }
 
 void FrameView::paintOverlay(QPainter& painter) {
@@ -206,7 +263,7 @@ void FrameView::paintOverlay(QPainter& painter) {
     painter.setPen(wire);
     painter.drawLines(wire_);
   }
-  QPen pen(QColor(120, 255, 140), 2.0);
+  QPen pen(palette::organOutline(), 2.0);
   pen.setCosmetic(true);
   painter.setPen(pen);
   painter.setBrush(Qt::NoBrush);
@@ -243,14 +300,14 @@ void FrameView::paintOrganMarks(QPainter& painter, const imaging::Contour& conto
     if (xc.z() > 0) {
       const auto uv = case_->camera.project(xc);
       m = toWidget(QPointF(uv.x(), uv.y()));
-      painter.setPen(QPen(QColor(255, 150, 40), 2));
+      painter.setPen(QPen(palette::landmarkOnOrgan(), 2));
       painter.setBrush(Qt::NoBrush);
       painter.drawEllipse(m, 6, 6);
       painter.drawText(m + QPointF(8, -8), QString::number(i + 1));
     }
     if (!l.hasImage) continue;
     const QPointF q = toWidget(QPointF(l.image.x(), l.image.y()));
-    painter.setPen(QPen(QColor(60, 230, 255), 2));
+    painter.setPen(QPen(palette::landmarkInFrame(), 2));
     painter.drawLine(q + QPointF(-6, 0), q + QPointF(6, 0));
     painter.drawLine(q + QPointF(0, -6), q + QPointF(0, 6));
     painter.drawText(q + QPointF(8, 14), QString::number(i + 1));

@@ -12,6 +12,7 @@
 #include <QCloseEvent>
 #include <QDockWidget>
 #include <QDragEnterEvent>
+#include <QDateTime>
 #include <QDropEvent>
 #include <QFileDialog>
 #include <QFileInfo>
@@ -21,6 +22,7 @@
 #include <QMessageBox>
 #include <QMimeData>
 #include <QPlainTextEdit>
+#include <QPainter>
 #include <QProgressBar>
 #include <QSettings>
 #include <QStackedWidget>
@@ -37,6 +39,23 @@ bool& softwareRenderingFlag() {
   static bool flag = false;
   return flag;
 }
+
+// A status-bar label that never widens the bar: it shows as much of its sentence as fits, ending in an
+// ellipsis, and the whole sentence in its tooltip (and in the Messages panel).
+class SentenceLabel : public QLabel {
+ public:
+  using QLabel::QLabel;
+  QSize minimumSizeHint() const override { return {60, QLabel::minimumSizeHint().height()}; }
+  QSize sizeHint() const override { return {200, QLabel::sizeHint().height()}; }
+
+ protected:
+  void paintEvent(QPaintEvent*) override {
+    QPainter p(this);
+    const QRect r = contentsRect();
+    p.setPen(palette().color(QPalette::WindowText));
+    p.drawText(r, Qt::AlignLeft | Qt::AlignVCenter, fontMetrics().elidedText(text(), Qt::ElideRight, r.width()));
+  }
+};
 
 QString stepName(int i) { return QStringLiteral("%1  %2").arg(i + 1).arg(QCoreApplication::translate("Step", app::kSteps[static_cast<std::size_t>(i)].title)); }
 
@@ -56,7 +75,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   wb_.view = view_;
   wb_.jobs = jobs_;
   wb_.window = this;
-  wb_.status = [this](const QString& text) { status_.caseText->setText(text); };
+  wb_.status = [this](const QString& text) { say(text); };
   wb_.goToStep = [this](Step s) { setStep(s); };
   wb_.currentStep = [this] { return step_; };
   keys_ = std::make_unique<StepKeys>(this, wb_.currentStep);
@@ -82,7 +101,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     doc_->edit(text, [&](app::Case& k) { k.attachments = nodes; });
   });
   connect(jobs_, &JobRunner::busyChanged, this, &MainWindow::setBusy);
-  connect(jobs_, &JobRunner::refused, status_.caseText, &QLabel::setText);
+  connect(jobs_, &JobRunner::refused, this, &MainWindow::say);
   connect(doc_, &CaseDocument::changed, this, &MainWindow::onCaseChanged);
   connect(doc_, &CaseDocument::loaded, this, &MainWindow::onLoadFinished);
   auto showProgress = [this](double f, const QString& stage) {
@@ -93,7 +112,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(jobs_, &JobRunner::progress, this, showProgress);
   connect(doc_, &CaseDocument::saved, this, [this](bool ok, const QString& message) {
     if (ok) setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(doc_->path()).fileName()));
-    status_.caseText->setText(message);
+    say(message);
     emit caseSaved(ok, ok ? QString() : message);
   });
   connect(doc_, &CaseDocument::recentFilesChanged, this, &MainWindow::rebuildRecentMenu);
@@ -127,12 +146,23 @@ void MainWindow::buildDocks() {
   info_->setObjectName(QStringLiteral("caseInfo"));
   info_->setReadOnly(true);
   info_->setMinimumWidth(280);
-  info_->setLineWrapMode(QPlainTextEdit::NoWrap);
+  info_->setLineWrapMode(QPlainTextEdit::WidgetWidth);  // problem lines wrap instead of running off the side
+  info_->setWordWrapMode(QTextOption::WrapAtWordBoundaryOrAnywhere);
   QFont mono(QStringLiteral("DejaVu Sans Mono"));
   mono.setStyleHint(QFont::Monospace);
   info_->setFont(mono);
   infoDock->setWidget(info_);
   addDockWidget(Qt::RightDockWidgetArea, infoDock);
+  messagesDock_ = new QDockWidget(tr("Messages"), this);
+  messagesDock_->setObjectName(QStringLiteral("messagesDock"));
+  messages_ = new QPlainTextEdit(messagesDock_);
+  messages_->setObjectName(QStringLiteral("messageLog"));
+  messages_->setReadOnly(true);
+  messages_->setMaximumBlockCount(5000);
+  messagesDock_->setWidget(messages_);
+  addDockWidget(Qt::RightDockWidgetArea, messagesDock_);
+  tabifyDockWidget(infoDock, messagesDock_);
+  infoDock->raise();
   auto* organDock = new QDockWidget(tr("Organ 3D"), this);
   organDock->setObjectName(QStringLiteral("organDock"));
   const bool openGL = !softwareRenderingFlag() && OrganGLView::openGLAvailable();
@@ -172,13 +202,23 @@ void MainWindow::buildStatusBar() {
   status_.cancel->setToolTip(tr("Cancel the running job (Esc)"));
   status_.cancel->setVisible(false);
   connect(status_.cancel, &QToolButton::clicked, this, &MainWindow::cancelLoading);
-  status_.caseText = new QLabel(this);
+  status_.caseText = new SentenceLabel(this);
   status_.caseText->setObjectName(QStringLiteral("caseStatus"));
+  auto* log = new QToolButton(this);
+  log->setObjectName(QStringLiteral("showMessages"));
+  log->setText(tr("Messages"));
+  log->setToolTip(tr("Every message of this session, whole (Ctrl+L)"));
+  log->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_L));
+  connect(log, &QToolButton::clicked, this, [this] {
+    messagesDock_->show();
+    messagesDock_->raise();
+  });
   status_.cursor = new QLabel(this);
   status_.simulation = new QLabel(this);
   status_.simulation->setObjectName(QStringLiteral("statusSimulation"));
   status_.distance = new QLabel(this);
   statusBar()->addWidget(status_.caseText, 1);
+  statusBar()->addWidget(log);
   statusBar()->addPermanentWidget(status_.simulation);
   statusBar()->addPermanentWidget(status_.distance);
   statusBar()->addPermanentWidget(status_.cursor);
@@ -313,7 +353,7 @@ void MainWindow::rebuildRecentMenu() {
 }
 
 void MainWindow::saveCaseAs(const QString& path) {
-  if (doc_->hasCase() && !doc_->isSaving()) status_.caseText->setText(tr("Saving %1...").arg(path));
+  if (doc_->hasCase() && !doc_->isSaving()) say(tr("Saving %1...").arg(path));
   doc_->saveAs(path);
 }
 
@@ -368,7 +408,7 @@ void MainWindow::dropEvent(QDropEvent* e) {
   else if (QStringList{"png", "jpg", "jpeg", "bmp", "tif", "tiff", "mp4", "avi", "mkv", "mov"}.contains(ext)) pages_.frame->openFrameSource(path);
   else if (ext == QLatin1String("json")) pages_.contour->importContour(path);
   else if (QStringList{"yaml", "yml", "xml"}.contains(ext)) pages_.frame->loadCalibration(path);
-  else status_.caseText->setText(tr("%1: unknown file type.").arg(QFileInfo(path).fileName()));
+  else say(tr("%1: unknown file type.").arg(QFileInfo(path).fileName()));
 }
 
 // -------------------------------------------------------------------------------------------- menus
@@ -412,11 +452,11 @@ void MainWindow::buildMenus() {
   // Undo and redo say what they did, so that no older sentence ("Imported ...") stays in the status bar.
   connect(undo, &QAction::triggered, this, [this] {
     const QUndoStack* stack = doc_->undoStack();
-    status_.caseText->setText(tr("Undone: %1").arg(stack->text(stack->index())));
+    say(tr("Undone: %1").arg(stack->text(stack->index())));
   });
   connect(redo, &QAction::triggered, this, [this] {
     const QUndoStack* stack = doc_->undoStack();
-    if (stack->index() > 0) status_.caseText->setText(tr("Redone: %1").arg(stack->text(stack->index() - 1)));
+    if (stack->index() > 0) say(tr("Redone: %1").arg(stack->text(stack->index() - 1)));
   });
 
   QMenu* stepMenu = menuBar()->addMenu(tr("&Step"));
@@ -486,6 +526,14 @@ void MainWindow::buildViewMenu() {
   viewMenu->addAction(tr("Next Organ Style"), this, [this, styles] {
     styles->actions().at((static_cast<int>(view_->overlayStyle()) + 1) % 3)->trigger();
   })->setShortcut(QKeySequence(Qt::Key_V));
+  QAction* legend = viewMenu->addAction(tr("&Legend"));
+  legend->setCheckable(true);
+  legend->setChecked(QSettings().value(QStringLiteral("legend"), true).toBool());
+  view_->setLegendVisible(legend->isChecked());
+  connect(legend, &QAction::toggled, this, [this](bool on) {
+    view_->setLegendVisible(on);
+    QSettings().setValue(QStringLiteral("legend"), on);
+  });
   viewMenu->addSeparator();
   viewMenu->addAction(tr("&Navigate (pan and zoom)"), this, [this] { view_->setTool(Tool::Navigate); })->setShortcut(QKeySequence(Qt::Key_N));
   if (auto* bar = findChild<QToolBar*>(QStringLiteral("mainToolbar"))) {
@@ -513,13 +561,25 @@ void MainWindow::buildSimulationMenu() {
   simMenu->addAction(tr("&Reset"), this, [this] { simulation_->reset(); })->setShortcut(QKeySequence(Qt::SHIFT | Qt::Key_F5));
 }
 
+// ------------------------------------------------------------------------------------------ messages
+
+void MainWindow::say(const QString& text) {
+  status_.caseText->setText(text);
+  status_.caseText->setToolTip(text);
+  if (!text.isEmpty()) messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + text);
+}
+
+QString MainWindow::statusText() const { return status_.caseText->text(); }
+
+QStringList MainWindow::messageLog() const { return messages_->toPlainText().split(QLatin1Char('\n'), Qt::SkipEmptyParts); }
+
 // ------------------------------------------------------------------------------------------ loading
 
 void MainWindow::setBusy(bool busy, const QString& message) {
   status_.progress->setVisible(busy);
   status_.cancel->setVisible(busy);
   if (busy) status_.progress->setValue(0);
-  if (!message.isEmpty()) status_.caseText->setText(message);
+  if (!message.isEmpty()) say(message);
 }
 
 void MainWindow::openCase(const QString& path) {
@@ -535,7 +595,7 @@ void MainWindow::cancelLoading() {
 void MainWindow::onLoadFinished(bool ok, const QString& error) {
   setBusy(false);
   if (!ok) {
-    status_.caseText->setText(error);  // the current case stays untouched
+    say(error);  // the current case stays untouched
     emit caseLoaded(false);
     return;
   }
@@ -544,7 +604,7 @@ void MainWindow::onLoadFinished(bool ok, const QString& error) {
   view_->fitToWindow();
   const QString name = doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
   setWindowTitle(tr("%1 - Rehearse").arg(name));
-  status_.caseText->setText(tr("%1 loaded in %2 s").arg(name).arg(doc_->loadSeconds(), 0, 'f', 2) +
+  say(tr("%1 loaded in %2 s").arg(name).arg(doc_->loadSeconds(), 0, 'f', 2) +
                             (doc_->notes().isEmpty() ? QString() : tr(" (%1 problems, see the Case panel)").arg(doc_->notes().size())));
   // Go to the first step that is not done yet.
   const int next = app::nextStep(*doc_->data());

@@ -43,7 +43,7 @@ OverlayPicture OrganOverlay::render(const app::Case& c, const std::vector<int>& 
     cam.K(0, 2) = s * (c.camera.cx() + 0.5) - 0.5;
     cam.K(1, 2) = s * (c.camera.cy() + 0.5) - 0.5;
   }
-  out.organ = organImage(cam, c.pose, c.surfaceView(), QColor(120, 210, 150));
+  out.organ = organImage(cam, c.pose, c.surfaceView(), palette::organFill());
   const cv::Mat overlay(out.organ.height(), out.organ.width(), CV_8UC4, const_cast<uchar*>(out.organ.constBits()),
                         static_cast<std::size_t>(out.organ.bytesPerLine()));
   cv::Mat1b mask;

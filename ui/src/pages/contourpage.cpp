@@ -81,6 +81,17 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
   row->addWidget(smooth);
   row->addWidget(clear);
   l->addLayout(row);
+  auto* onRow = new QHBoxLayout;
+  pointsOn_ = new QComboBox(this);
+  pointsOn_->setObjectName(QStringLiteral("importedPointsOn"));
+  pointsOn_->addItem(tr("as the file says (P2ILF: raw)"));
+  pointsOn_->addItem(tr("the raw frame"));
+  pointsOn_->addItem(tr("the undistorted frame"));
+  pointsOn_->setToolTip(tr("Where an imported contour's points were drawn. Points on the raw (distorted) frame are "
+                           "undistorted with the case's camera; P2ILF's contours are on the raw frame."));
+  onRow->addWidget(new QLabel(tr("Imported points on"), this));
+  onRow->addWidget(pointsOn_, 1);
+  l->addLayout(onRow);
   auto* io = new QHBoxLayout;
   auto* imp = new QPushButton(tr("Import..."), this);
   connect(imp, &QPushButton::clicked, this, [this] {
@@ -89,8 +100,12 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
   });
   auto* exp = new QPushButton(tr("Export..."), this);
   connect(exp, &QPushButton::clicked, this, [this] {
-    const QString p = QFileDialog::getSaveFileName(wb_.window, tr("Export Contour"), QSettings().value("lastDir").toString(), tr("Contours (*.json)"));
-    if (!p.isEmpty()) exportContour(p);
+    const QString ours = tr("Rehearse contour, undistorted frame (*.json)");
+    const QString p2ilf = tr("P2ILF contour, raw frame (*.json)");
+    QString filter = ours;
+    const QString p = QFileDialog::getSaveFileName(wb_.window, tr("Export Contour"), QSettings().value("lastDir").toString(),
+                                                   ours + QStringLiteral(";;") + p2ilf, &filter);
+    if (!p.isEmpty()) exportContour(p, filter == p2ilf ? imaging::ContourFormat::P2ILF : imaging::ContourFormat::Rehearse);
   });
   io->addWidget(imp);
   io->addWidget(exp);
@@ -109,26 +124,43 @@ void ContourPage::refresh(const app::Case& c) {
                        .arg(problem.empty() ? tr("Ready for fitting.") : QString::fromStdString(problem)));
 }
 
+void ContourPage::setImportedPointsOn(PointsOn where) { pointsOn_->setCurrentIndex(static_cast<int>(where)); }
+
 void ContourPage::importContour(const QString& path) {
   try {
-    imaging::Contour c = imaging::loadContour(path.toStdString());
+    imaging::ContourFormat format = imaging::ContourFormat::Rehearse;
+    imaging::Contour c = imaging::loadContour(path.toStdString(), &format);
+    const auto where = static_cast<PointsOn>(pointsOn_->currentIndex());
+    const bool raw = where == PointsOn::RawFrame || (where == PointsOn::FileConvention && format == imaging::ContourFormat::P2ILF);
+    QString how;
+    if (raw && data() && imaging::hasDistortion(data()->camera)) {
+      c = imaging::undistortContour(c, data()->camera);
+      how = tr(" Its points were on the raw frame and are undistorted with the case's camera.");
+    } else if (raw) {
+      how = tr(" Its points are on the raw frame; the camera has no distortion, so they are used as they are.");
+    }
     if (data() && !data()->frame.empty() && c.width == 0) {
       c.width = data()->frame.cols;
       c.height = data()->frame.rows;
     }
     wb_.doc->edit(tr("Import contour"), [&c](app::Case& k) { k.contour = c; });
     wb_.goToStep(app::Step::Contour);
-    wb_.status(tr("Contour imported: %1 segments.").arg(c.segments.size()));
+    wb_.status(tr("Contour imported: %1 segments.").arg(c.segments.size()) + how);
   } catch (const std::exception& e) {
     wb_.status(QString::fromUtf8(e.what()));
   }
 }
 
-void ContourPage::exportContour(const QString& path) {
+void ContourPage::exportContour(const QString& path, imaging::ContourFormat format) {
   if (!data()) return;
   try {
-    imaging::saveContour(data()->contour, path.toStdString());
-    wb_.status(tr("Contour exported to %1.").arg(path));
+    if (format == imaging::ContourFormat::P2ILF) {
+      imaging::saveContourP2ILF(imaging::distortContour(data()->contour, data()->camera), path.toStdString());
+      wb_.status(tr("Contour exported to %1 in P2ILF's layout, its points on the raw frame.").arg(path));
+    } else {
+      imaging::saveContour(data()->contour, path.toStdString());
+      wb_.status(tr("Contour exported to %1.").arg(path));
+    }
   } catch (const std::exception& e) {
     wb_.status(QString::fromUtf8(e.what()));
   }

@@ -32,12 +32,21 @@ struct Contour {
   bool operator==(const Contour&) const = default;
 };
 
-/// Reads our JSON or the P2ILF JSON (detected from the keys). Throws InputError with one sentence.
-Contour loadContour(const std::string& path);
+/// Which file layout a contour came from. P2ILF's contours are drawn on the raw (distorted) images.
+enum class ContourFormat { Rehearse, P2ILF };
+
+/// Reads our JSON or the P2ILF JSON (detected from the keys; `format`, when given, says which). Throws
+/// InputError with one sentence.
+Contour loadContour(const std::string& path, ContourFormat* format = nullptr);
 void saveContour(const Contour& c, const std::string& path);
 /// The same from and to text (`name` names the source in messages); what the case file stores.
-Contour parseContour(const std::string& text, const std::string& name);
+Contour parseContour(const std::string& text, const std::string& name, ContourFormat* format = nullptr);
 std::string contourToJson(const Contour& c);
+/// P2ILF's layout: {"numOfContours": N, "contour": [{"contourType": "Silhouette" | "Ridge" | "Ligament",
+/// "imagePoints": {"x": [...], "y": [...]}, "modelPoints": {"vertices": [...]}}]}. The points are written as
+/// given: pass the contour through distortContour first to put them on the raw image, as P2ILF does.
+std::string contourToP2ILF(const Contour& c);
+void saveContourP2ILF(const Contour& c, const std::string& path);
 
 /// The outer borders of a binary mask, longest first, on the boundary between the mask and the background:
 /// each border pixel's centre moved outwards half way to its outside neighbours (half a pixel across an
@@ -55,6 +64,11 @@ std::vector<ContourSegment> anatomicalSegments(const Contour& c);
 /// The contour of a raw (distorted) image moved to the undistorted frame of `camera` (as P2ILF's contours,
 /// drawn on the raw images).
 Contour undistortContour(const Contour& c, const Camera& camera);
+/// The inverse: a contour of the undistorted frame moved onto the raw image through the camera's distortion
+/// (what a P2ILF export holds). Unchanged when the camera has no distortion.
+Contour distortContour(const Contour& c, const Camera& camera);
+/// True when any distortion coefficient of the camera is non-zero.
+bool hasDistortion(const Camera& camera);
 
 /// Empty when the contour can be used for fitting; otherwise one sentence (empty, a single point,
 /// points outside the image, a segment that crosses itself).

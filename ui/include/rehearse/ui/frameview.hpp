@@ -10,6 +10,7 @@
 
 #include <rehearse/app/case.hpp>
 
+#include <QColor>
 #include <QImage>
 #include <QWidget>
 
@@ -53,6 +54,20 @@ struct OrganHit {
   int node = -1;
 };
 
+/// One line of the frame view's legend: a colour and what it marks.
+struct LegendEntry {
+  QColor colour;
+  QString text;
+};
+
+/// The frame view's marks (the legend names them; the drawing code uses these).
+namespace palette {
+inline QColor organOutline() { return QColor(120, 255, 140); }
+inline QColor organFill() { return QColor(120, 210, 150); }
+inline QColor landmarkOnOrgan() { return QColor(255, 150, 40); }
+inline QColor landmarkInFrame() { return QColor(60, 230, 255); }
+}  // namespace palette
+
 class FrameView : public QWidget {
   Q_OBJECT
  public:
@@ -94,6 +109,12 @@ class FrameView : public QWidget {
   /// Widget position of a gizmo handle (for tests and tooltips); invalid when there is no pose.
   QPointF handlePosition(GizmoHandle h) const;
   void fitToWindow();
+  /// What the colours drawn now mean (the organ, each contour type present, landmarks when there are some).
+  QList<LegendEntry> legend() const;
+  /// The legend box in the view's bottom-left corner (widget pixels; empty when hidden or nothing is drawn).
+  QRect legendRect() const;
+  void setLegendVisible(bool visible);
+  bool legendVisible() const { return legendVisible_; }
 
   // For the tools.
   /// The case's contour sized to the frame.
@@ -130,11 +151,13 @@ class FrameView : public QWidget {
   void rebuildWireframe();
   void paintOverlay(QPainter& painter);
   void paintOrganMarks(QPainter& painter, const imaging::Contour& contour);
+  void paintLegend(QPainter& painter);
 
   std::shared_ptr<const app::Case> case_;
   QImage frame_, overlay_, inner_;
   QList<QPolygonF> silhouette_;
   bool overlayVisible_ = true;
+  bool legendVisible_ = true;
   double opacity_ = 0.45;
   OverlayStyle style_ = OverlayStyle::Shaded;
   QVector<QLineF> wire_;  // frame pixels; rebuilt when the case (pose, shape) changes

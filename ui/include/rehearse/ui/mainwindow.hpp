@@ -89,6 +89,11 @@ class MainWindow : public QMainWindow {
   /// Forces the software renderers (set before creating a window; `rehearse --software`).
   static void setSoftwareRendering(bool on);
   QString infoText() const;
+  /// The last sentence shown in the status bar, whole (the bar may show it shortened; its tooltip and the
+  /// Messages panel hold all of it).
+  QString statusText() const;
+  /// Every sentence shown this session, oldest first, each with its time ("hh:mm:ss  sentence").
+  QStringList messageLog() const;
 
  signals:
   void caseLoaded(bool ok);
@@ -123,6 +128,8 @@ class MainWindow : public QMainWindow {
   void refreshOverlay();
   void updateWorkflow();
   void setBusy(bool busy, const QString& message = {});
+  /// Shows a sentence in the status bar and adds it to the Messages panel.
+  void say(const QString& text);
 
   struct Pages {
     MeshPage* mesh = nullptr;
@@ -152,6 +159,8 @@ class MainWindow : public QMainWindow {
   SimulationPanel* simulation_ = nullptr;
   QDockWidget* simulationDock_ = nullptr;
   QPlainTextEdit* info_ = nullptr;
+  QPlainTextEdit* messages_ = nullptr;
+  QDockWidget* messagesDock_ = nullptr;
   StatusParts status_;
   QListWidget* workflow_ = nullptr;
   QStackedWidget* stepStack_ = nullptr;
