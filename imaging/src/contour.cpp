@@ -206,44 +206,60 @@ ContourSegment smoothSegment(const ContourSegment& s, int iterations) {
 
 std::vector<Eigen::Vector2d> snapToEdges(const cv::Mat3b& image, const std::vector<Eigen::Vector2d>& anchors) {
   if (anchors.size() < 2 || image.empty()) return anchors;
-  cv::segmentation::IntelligentScissorsMB scissors;
-  scissors.setEdgeFeatureCannyParameters(32, 100);
-  scissors.setGradientMagnitudeMaxLimit(200);
-  scissors.applyImage(image);
-  std::vector<Eigen::Vector2d> out;
-  // Anchors first move to the strongest edge within a few pixels (the hand is never exactly on it).
-  cv::Mat gray, gx, gy, magnitude;
-  cv::cvtColor(image, gray, cv::COLOR_BGR2GRAY);
-  cv::Sobel(gray, gx, CV_32F, 1, 0);
-  cv::Sobel(gray, gy, CV_32F, 0, 1);
-  cv::magnitude(gx, gy, magnitude);
-  constexpr int kSearch = 8;
+  // Each stretch between two anchors is solved in a window around them (the anchors' box and a margin),
+  // not on the whole frame: the live-wire's shortest-path map costs in proportion to the pixels it covers,
+  // which on a 4k frame made one stroke take minutes, and the path has no business far from the stroke.
+  constexpr int kSearch = 12;  // anchors first move to the strongest edge this close (the hand is never on it)
+  constexpr int kMargin = 24;
   auto clampPt = [&](const Eigen::Vector2d& p) {
-    const cv::Point c(std::clamp(static_cast<int>(std::lround(p.x())), 0, image.cols - 1),
-                      std::clamp(static_cast<int>(std::lround(p.y())), 0, image.rows - 1));
+    return cv::Point(std::clamp(static_cast<int>(std::lround(p.x())), 0, image.cols - 1),
+                     std::clamp(static_cast<int>(std::lround(p.y())), 0, image.rows - 1));
+  };
+  auto strongestNear = [&](const cv::Point& c) {
+    const cv::Rect box = cv::Rect(c.x - kSearch - 1, c.y - kSearch - 1, 2 * kSearch + 3, 2 * kSearch + 3) & cv::Rect(0, 0, image.cols, image.rows);
+    cv::Mat gray, gx, gy, magnitude;
+    cv::cvtColor(image(box), gray, cv::COLOR_BGR2GRAY);
+    cv::Sobel(gray, gx, CV_32F, 1, 0);
+    cv::Sobel(gray, gy, CV_32F, 0, 1);
+    cv::magnitude(gx, gy, magnitude);
     cv::Point best = c;
-    float bestValue = magnitude.at<float>(c);
+    float bestValue = magnitude.at<float>(c - box.tl());
     for (int dy = -kSearch; dy <= kSearch; ++dy)
       for (int dx = -kSearch; dx <= kSearch; ++dx) {
         const cv::Point q(c.x + dx, c.y + dy);
-        if (q.x < 0 || q.y < 0 || q.x >= image.cols || q.y >= image.rows || dx * dx + dy * dy > kSearch * kSearch) continue;
-        if (magnitude.at<float>(q) > bestValue * 1.05f) {
-          bestValue = magnitude.at<float>(q);
+        if (!box.contains(q) || q.x == box.x || q.y == box.y || q.x == box.br().x - 1 || q.y == box.br().y - 1 ||
+            dx * dx + dy * dy > kSearch * kSearch)
+          continue;  // the window's border has one-sided gradients
+        const float m = magnitude.at<float>(q - box.tl());
+        if (m > bestValue * 1.05f) {
+          bestValue = m;
           best = q;
         }
       }
     return best;
   };
-  for (std::size_t i = 0; i + 1 < anchors.size(); ++i) {
-    scissors.buildMap(clampPt(anchors[i]));
+  std::vector<cv::Point> snappedAnchors;
+  for (const auto& a : anchors) snappedAnchors.push_back(strongestNear(clampPt(a)));
+  std::vector<Eigen::Vector2d> out;
+  for (std::size_t i = 0; i + 1 < snappedAnchors.size(); ++i) {
+    const cv::Point from = snappedAnchors[i], to = snappedAnchors[i + 1];
+    const cv::Rect window = (cv::Rect(std::min(from.x, to.x) - kMargin, std::min(from.y, to.y) - kMargin,
+                                      std::abs(from.x - to.x) + 2 * kMargin + 1, std::abs(from.y - to.y) + 2 * kMargin + 1)) &
+                            cv::Rect(0, 0, image.cols, image.rows);
+    cv::segmentation::IntelligentScissorsMB scissors;
+    scissors.setEdgeFeatureCannyParameters(32, 100);
+    scissors.setGradientMagnitudeMaxLimit(200);
+    scissors.applyImage(image(window).clone());
+    scissors.buildMap(from - window.tl());
     std::vector<cv::Point> path;
-    scissors.getContour(clampPt(anchors[i + 1]), path);
+    scissors.getContour(to - window.tl(), path);
     if (path.empty()) {
-      out.push_back(anchors[i]);
+      if (out.empty()) out.emplace_back(from.x, from.y);
+      out.emplace_back(to.x, to.y);
       continue;
     }
+    for (auto& q : path) q += window.tl();
     // Order the path from this anchor to the next whatever order the library returns.
-    const cv::Point from = clampPt(anchors[i]);
     if (cv::norm(path.front() - from) > cv::norm(path.back() - from)) std::reverse(path.begin(), path.end());
     for (std::size_t k = (out.empty() ? 0 : 1); k < path.size(); ++k) out.emplace_back(path[k].x, path[k].y);
   }

@@ -14,6 +14,7 @@
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/simcore/meshio.hpp>
 
+#include <QCheckBox>
 #include <QDoubleSpinBox>
 #include <QLabel>
 #include <QDragEnterEvent>
@@ -631,6 +632,42 @@ class TestWorkflow : public QObject {
       qInfo("BENCH gui_stall,take the 4k frame (undistort + organ overlay on the GUI thread),%lld ms,-,-", use.elapsed());
       QCOMPARE(w_->caseData()->frame.cols, 3840);
       QCOMPARE(w_->caseData()->camera.width, 3840);
+    }
+    // Snapping a stroke to the 4k frame's edges (intelligent scissors) runs on a worker: the release returns
+    // at once, the segment arrives later as one undo step, on the disc's edge the video drew (radius 600 px).
+    {
+      auto* view = w_->frameView();
+      w_->setStep(ui::Step::Contour);
+      auto* snap = w_->contourPage()->findChild<QCheckBox*>();
+      QVERIFY(snap);
+      snap->setChecked(true);
+      view->setTool(ui::Tool::Freehand);
+      const std::size_t before = w_->caseData()->contour.segments.size();
+      const int undoBefore = w_->undoStack()->index();
+      auto at = [&](double deg, double r) {
+        const double a = deg * std::numbers::pi / 180;
+        return view->toWidget(QPointF(1920 + r * std::cos(a), 1080 + r * std::sin(a))).toPoint();
+      };
+      Monitor mon;
+      QTest::mousePress(view, Qt::LeftButton, {}, at(200, 610));
+      for (int d = 200; d <= 300; d += 4) QTest::mouseMove(view, at(d, d % 8 ? 610 : 591));  // a hand 10 px either side of the edge
+      QTest::mouseRelease(view, Qt::LeftButton, {}, at(300, 591));
+      const qint64 released = mon.clock.elapsed();
+      QVERIFY(view->toolsBusy());
+      QCOMPARE(w_->caseData()->contour.segments.size(), before);
+      QTRY_VERIFY_WITH_TIMEOUT(!view->toolsBusy(), 120000);
+      const qint64 total = mon.clock.elapsed();
+      qInfo("BENCH gui_stall,snap a stroke to the 4k frame's edges,%lld ms,longest stall %lld ms,%d ticks (release returned after %lld ms)",
+            total, mon.worst, mon.ticks, released);
+      QCOMPARE(w_->caseData()->contour.segments.size(), before + 1);
+      QCOMPARE(w_->undoStack()->index(), undoBefore + 1);
+      const auto& seg = w_->caseData()->contour.segments.back();
+      QVERIFY(seg.points.size() > 20);
+      double worst = 0;
+      for (const auto& p : seg.points) worst = std::max(worst, std::abs((p - Eigen::Vector2d(1920, 1080)).norm() - 600));
+      QVERIFY2(worst < 4, qPrintable(QStringLiteral("snapped points up to %1 px off the disc's edge").arg(worst)));
+      snap->setChecked(false);
+      w_->undoStack()->undo();
     }
     for (int i = 0; i < 2; ++i) w_->undoStack()->undo();
   }

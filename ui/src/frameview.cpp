@@ -189,6 +189,12 @@ void FrameView::paintEvent(QPaintEvent*) {
   paintLegend(painter);
 }
 
+bool FrameView::toolsBusy() const {
+  for (const auto& [tool, t] : tools_)
+    if (t && t->busy()) return true;
+  return false;
+}
+
 QList<LegendEntry> FrameView::legend() const {
   QList<LegendEntry> out;
   if (frame_.isNull()) return out;

@@ -1,10 +1,15 @@
 // Drawing a contour segment: freehand (press, drag, release) or click by click (Enter, a double click or
 // another tool ends it; right click takes back the last point). Segments get the type set in step 3 and,
-// when asked, snap to image edges.
+// when asked, snap to image edges: on a worker (intelligent scissors take seconds on a 4k frame), the
+// stroke drawn dashed until its snapped segment joins the contour as one undo step.
 #include "tools.hpp"
 
+#include <QFutureWatcher>
 #include <QMouseEvent>
 #include <QPainter>
+#include <QtConcurrent/QtConcurrent>
+
+#include <list>
 
 namespace rehearse::ui::tools {
 namespace {
@@ -44,9 +49,9 @@ class DrawTool final : public FrameTool {
   }
   void finish() override {
     if (draft_.size() >= 2) {
-      imaging::Contour c = view_.currentContour();
-      c.segments.push_back({snapped(draft_), false, view_.toolSettings().newSegmentType, {}});
-      emit view_.contourEdited(c, freehand_ ? QObject::tr("Draw segment") : QObject::tr("Add segment"), -1);
+      const auto& c = view_.caseData();
+      if (view_.toolSettings().snapToEdges && c && !c->frame.empty()) snapOnWorker(c->frame, draft_);
+      else addSegment(draft_, freehand_ ? QObject::tr("Draw segment") : QObject::tr("Add segment"));
     }
     draft_.clear();
     drawing_ = false;
@@ -59,8 +64,16 @@ class DrawTool final : public FrameTool {
     view_.update();
     return true;
   }
+  bool busy() const override { return !snapping_.empty(); }
   void paint(QPainter& p) override {
     if (!freehand_) paintContourPoints(view_, p);
+    for (const auto& s : snapping_) {  // strokes waiting for their snapped segment
+      QPolygonF poly;
+      for (const auto& q : s.stroke) poly << view_.toWidget(QPointF(q.x(), q.y()));
+      p.setPen(QPen(QColor(60, 230, 255), 2.0, Qt::DashLine));
+      p.setBrush(Qt::NoBrush);
+      p.drawPolyline(poly);
+    }
     if (draft_.empty()) return;
     QPolygonF poly;
     for (const auto& q : draft_) poly << view_.toWidget(QPointF(q.x(), q.y()));
@@ -70,14 +83,52 @@ class DrawTool final : public FrameTool {
   }
 
  private:
-  std::vector<Eigen::Vector2d> snapped(const std::vector<Eigen::Vector2d>& pts) const {
-    const auto& c = view_.caseData();
-    if (!view_.toolSettings().snapToEdges || !c || c->frame.empty() || pts.size() < 2) return pts;
-    imaging::ContourSegment s{pts, false, view_.toolSettings().newSegmentType, {}};
-    return imaging::snapToEdges(c->frame, imaging::resampleSegment(s, 30.0).points);
+  struct Snapping {
+    std::vector<Eigen::Vector2d> stroke;
+    const uchar* frame = nullptr;  ///< which frame it snaps to (the segment is dropped if the frame changes)
+    std::string type;
+  };
+
+  void addSegment(const std::vector<Eigen::Vector2d>& points, const QString& text, const std::string& type = {}) {
+    imaging::Contour c = view_.currentContour();
+    c.segments.push_back({points, false, type.empty() ? view_.toolSettings().newSegmentType : type, {}});
+    emit view_.contourEdited(c, text, -1);
+  }
+
+  void snapOnWorker(const cv::Mat3b& frame, const std::vector<Eigen::Vector2d>& stroke) {
+    imaging::ContourSegment s{stroke, false, view_.toolSettings().newSegmentType, {}};
+    const auto anchors = imaging::resampleSegment(s, 30.0).points;
+    auto it = snapping_.insert(snapping_.end(), Snapping{stroke, frame.data, s.type});
+    auto* watcher = new QFutureWatcher<std::vector<Eigen::Vector2d>>(&guard_);
+    QObject::connect(watcher, &QFutureWatcherBase::finished, &guard_, [this, watcher, it] {
+      watcher->deleteLater();
+      const Snapping job = *it;
+      snapping_.erase(it);
+      const auto& c = view_.caseData();
+      std::vector<Eigen::Vector2d> points;
+      try {
+        points = watcher->result();
+      } catch (const std::exception&) {
+        points.clear();
+      }
+      if (!c || c->frame.data != job.frame) {
+        emit view_.toolMessage(QObject::tr("The frame changed while the stroke was snapping to its edges; draw it again."));
+      } else if (points.size() < 2) {
+        addSegment(job.stroke, QObject::tr("Draw segment"), job.type);
+        emit view_.toolMessage(QObject::tr("No image edge was found along the stroke; it was kept as drawn."));
+      } else {
+        addSegment(points, QObject::tr("Draw segment (snapped to edges)"), job.type);
+      }
+      view_.update();
+    });
+    cv::Mat3b image = frame;  // shares the pixels (reference counted); the case never writes a frame in place
+    watcher->setFuture(QtConcurrent::run([image, anchors] { return imaging::snapToEdges(image, anchors); }));
+    emit view_.toolMessage(QObject::tr("Snapping the stroke to image edges..."));
   }
 
   bool freehand_;
+  QObject guard_;  ///< owns the snapping watchers: they go with the tool
+  std::list<Snapping> snapping_;
   bool drawing_ = false;
   std::vector<Eigen::Vector2d> draft_;  ///< frame pixels
 };

@@ -83,7 +83,9 @@ ContourSegment smoothSegment(const ContourSegment& s, int iterations);
 bool segmentSelfIntersects(const ContourSegment& s);
 
 /// Snaps a sketched polyline to image edges with OpenCV's intelligent scissors (live-wire) between
-/// successive anchor points. `image` is the frame (BGR). Returns the snapped polyline.
+/// successive anchor points, each anchor first moved to the strongest edge within 12 px, each stretch
+/// solved in a window 24 px around its two anchors (cost independent of the frame's size). `image` is the
+/// frame (BGR). Returns the snapped polyline.
 std::vector<Eigen::Vector2d> snapToEdges(const cv::Mat3b& image, const std::vector<Eigen::Vector2d>& anchors);
 
 }  // namespace rehearse::imaging

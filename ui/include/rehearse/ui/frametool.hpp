@@ -40,6 +40,8 @@ class FrameTool {
   /// Draws over the frame, in widget coordinates.
   virtual void paint(QPainter& /*p*/) {}
   virtual Qt::CursorShape cursor() const { return Qt::CrossCursor; }
+  /// True while work the tool started runs on a worker (a stroke snapping to image edges).
+  virtual bool busy() const { return false; }
 
  protected:
   FrameView& view_;

@@ -109,6 +109,8 @@ class FrameView : public QWidget {
   /// Widget position of a gizmo handle (for tests and tooltips); invalid when there is no pose.
   QPointF handlePosition(GizmoHandle h) const;
   void fitToWindow();
+  /// True while a tool's work runs on a worker (a stroke snapping to image edges).
+  bool toolsBusy() const;
   /// What the colours drawn now mean (the organ, each contour type present, landmarks when there are some).
   QList<LegendEntry> legend() const;
   /// The legend box in the view's bottom-left corner (widget pixels; empty when hidden or nothing is drawn).
