@@ -126,7 +126,10 @@ int cmdMesh(const std::vector<std::string>& args) {
     if (o.count("size")) to.cellSize = parseNumber(o["size"], "--size") * 1e-3;
     to.allowSelfIntersections = o.count("allow-self-intersections") > 0;
     if (isatty(fileno(stderr)))
-      to.progress = [](double f, const std::string& stage) { std::fprintf(stderr, "\r%3.0f%% %-40s", 100 * f, stage.c_str()); };
+      to.progress = [](double f, const std::string& stage) {
+        if (f < 0) std::fprintf(stderr, "\r     %-64s", stage.c_str());  // a stage of unknown length: its counts
+        else std::fprintf(stderr, "\r%3.0f%% %-64s", 100 * f, stage.c_str());
+      };
     volume = simcore::tetrahedraliseSurface(input, to, &notes);
   }
   double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -12,6 +12,8 @@
 #include <CGAL/Mesh_triangulation_3.h>
 #include <CGAL/Side_of_triangle_mesh.h>
 #include <CGAL/make_mesh_3.h>
+
+#include <cstdio>
 #include <CGAL/Polygon_mesh_processing/measure.h>
 
 #include <cmath>
@@ -48,12 +50,24 @@ Mesh extract(const C3t3& c3t3) {
   return m;
 }
 
+std::string thousands(long n) {
+  char text[32];
+  if (n >= 1000000) std::snprintf(text, sizeof text, "%.1f M", static_cast<double>(n) / 1e6);
+  else std::snprintf(text, sizeof text, "%ld k", n / 1000);
+  return text;
+}
+
 Mesh meshOnce(const LabelFunction& label, const Eigen::AlignedBox3d& bounds, const TetrahedraliseOptions& o,
-              double size, std::atomic<long>& calls) {
+              double size, std::atomic<long>& calls, int pass) {
   const std::atomic<bool>* cancel = o.cancel;
-  auto f = [&label, &calls, cancel](const K::Point_3& p) -> int {
+  long queries = 0;
+  const std::string refining = "refining the mesh (pass " + std::to_string(pass) + "): ";
+  auto f = [&label, &calls, &queries, &o, &refining, cancel](const K::Point_3& p) -> int {
+    ++calls;
     // Cancel also during initialisation, which the stop flag does not reach.
-    if ((++calls & 1023) == 0 && cancel && cancel->load()) throw Cancelled();
+    if ((++queries & 1023) == 0 && cancel && cancel->load()) throw Cancelled();
+    // Mesh_3 has no progress of its own; its inside/outside queries are the work it does, so say how many.
+    if ((queries & 65535) == 0 && o.progress) o.progress(-1, refining + thousands(queries) + " inside/outside queries");
     return label(Eigen::Vector3d(p.x(), p.y(), p.z()));
   };
   const Eigen::Vector3d lo = bounds.min(), hi = bounds.max();
@@ -69,17 +83,18 @@ Mesh meshOnce(const LabelFunction& label, const Eigen::AlignedBox3d& bounds, con
   C3t3 c3t3;
   auto opts = CGAL::parameters::mesh_3_options(CGAL::parameters::pointer_to_stop_atomic_boolean = stopPtr,
                                                CGAL::parameters::maximal_number_of_vertices = kMaxMeshItems / 4);
-  if (o.optimise)
-    c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_lloyd(), CGAL::parameters::no_odt(),
-                                   CGAL::parameters::no_perturb(),
-                                   // time_limit = 0: none. Left unset, CGAL stops exuding after as long as the
-                                   // refinement took, so a busy machine made a different mesh (1 run in 150).
-                                   CGAL::parameters::exude(CGAL::parameters::time_limit = 0, CGAL::parameters::sliver_bound = 12),
-                                   opts);
-  else
-    c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_lloyd(), CGAL::parameters::no_odt(),
-                                   CGAL::parameters::no_perturb(), CGAL::parameters::no_exude(), opts);
+  if (o.progress) o.progress(-1, refining + "starting");
+  c3t3 = CGAL::make_mesh_3<C3t3>(domain, criteria, CGAL::parameters::no_lloyd(), CGAL::parameters::no_odt(),
+                                 CGAL::parameters::no_perturb(), CGAL::parameters::no_exude(), opts);
   if (o.cancel && o.cancel->load()) throw Cancelled();
+  if (o.optimise) {
+    // Exudation as its own stage (what make_mesh_3 would run last), so it can be reported. time_limit = 0:
+    // none. Left unset, CGAL stops exuding after as long as the refinement took, so a busy machine made a
+    // different mesh (1 run in 150).
+    if (o.progress)
+      o.progress(-1, "removing slivers (exudation) from " + std::to_string(c3t3.number_of_cells_in_complex()) + " tetrahedra");
+    CGAL::exude_mesh_3(c3t3, CGAL::parameters::time_limit = 0, CGAL::parameters::sliver_bound = 12);
+  }
   Mesh m = extract(c3t3);
   repairVolume(m);  // CGAL cells are positively oriented; this only drops (rare) flat cells
   return m;
@@ -104,7 +119,7 @@ Mesh tetrahedraliseImplicit(const LabelFunction& label, const Eigen::AlignedBox3
     if (o.progress) o.progress(f, stage);
   };
   report(0.05, "meshing");
-  Mesh m = meshOnce(label, bounds, o, size, calls);
+  Mesh m = meshOnce(label, bounds, o, size, calls, 1);
   // The count is not exactly proportional to size^-3 (the surface refines on its own criteria):
   // correct the size up to twice and keep the closest result.
   for (int pass = 0; pass < 2 && o.cellSize <= 0 && !m.tets.empty(); ++pass) {
@@ -112,7 +127,7 @@ Mesh tetrahedraliseImplicit(const LabelFunction& label, const Eigen::AlignedBox3
     if (ratio > 0.85 && ratio < 1.18) break;
     report(0.35 + 0.3 * pass, "meshing (size corrected)");
     size *= std::cbrt(ratio);
-    Mesh next = meshOnce(label, bounds, o, size, calls);
+    Mesh next = meshOnce(label, bounds, o, size, calls, pass + 2);
     const double nextRatio = static_cast<double>(next.tets.size()) / static_cast<double>(o.targetTets);
     if (std::abs(std::log(nextRatio)) < std::abs(std::log(ratio))) m = std::move(next);
   }

@@ -80,7 +80,10 @@ class TestTetrahedralise : public QObject {
     o.targetTets = 6500;
     int calls = 0;
     double last = -1;
-    o.progress = [&](double f, const std::string&) {
+    std::vector<std::string> stages;
+    o.progress = [&](double f, const std::string& stage) {
+      stages.push_back(stage);
+      if (f < 0) return;  // a stage of unknown length: its counts are in the words
       QVERIFY(f >= last);
       last = f;
       ++calls;
@@ -96,6 +99,22 @@ class TestTetrahedralise : public QObject {
     QVERIFY(m.tets.size() > 6500 * 0.8 && m.tets.size() < 6500 * 1.2);
     QVERIFY(calls >= 2);
     QCOMPARE(last, 1.0);
+    // The refinement says how far it got (its query count rising), then the exudation and what it works on.
+    long lastQueries = 0;
+    int queryReports = 0;
+    bool exudation = false;
+    for (const auto& st : stages) {
+      if (st.find("inside/outside queries") != std::string::npos && st.find("(pass 1)") != std::string::npos) {
+        const long k = std::stol(st.substr(st.find("): ") + 3));
+        QVERIFY2(k > lastQueries || st.find(" M ") != std::string::npos, st.c_str());
+        lastQueries = k;
+        ++queryReports;
+      }
+      exudation |= st.rfind("removing slivers (exudation) from ", 0) == 0;
+    }
+    qInfo("%d query-count reports in pass 1, last %ld k", queryReports, lastQueries);
+    QVERIFY(queryReports >= 3);
+    QVERIFY(exudation);
     QVERIFY(s.bounds().exteriorDistance(m.bounds().min()) < 1e-9 && s.bounds().exteriorDistance(m.bounds().max()) < 1e-9);
   }
 

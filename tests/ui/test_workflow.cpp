@@ -21,6 +21,9 @@
 #include <QDropEvent>
 #include <QMimeData>
 #include <QListWidget>
+#include <QProgressBar>
+#include <QRegularExpression>
+#include <QTimer>
 #include <QSignalSpy>
 #include <QUrl>
 #include <QStandardPaths>
@@ -592,9 +595,33 @@ class TestWorkflow : public QObject {
     w_->meshPage()->setMeshUnit("mm");
     {
       Monitor mon;
+      // What the status bar shows while meshing, sampled as a user would glance at it: the stage in words
+      // with its counts and the elapsed time, the bar busy (no fraction) while the length is unknown.
+      auto* stage = w_->findChild<QLabel*>("progressStage");
+      auto* bar = w_->findChild<QProgressBar*>();
+      QVERIFY(stage && bar);
+      QStringList seen;
+      bool busyBar = false;
+      QTimer glance;
+      QObject::connect(&glance, &QTimer::timeout, [&] {
+        if (stage->isVisible() && (seen.isEmpty() || seen.last() != stage->text())) seen << stage->text();
+        busyBar |= bar->isVisible() && bar->maximum() == 0;
+      });
+      glance.start(20);
       QSignalSpy imported(w_.get(), &MainWindow::meshImported);
       w_->meshPage()->importMesh(QString::fromStdString(path));
       QVERIFY(imported.wait(300000));
+      glance.stop();
+      QVERIFY(busyBar);
+      int queryTexts = 0, exudation = 0, elapsed = 0;
+      for (const auto& t : seen) {
+        queryTexts += t.contains(QRegularExpression("refining the mesh \\(pass [1-3]\\): [0-9.]+ [kM] inside/outside queries"));
+        exudation += t.contains(QRegularExpression("removing slivers \\(exudation\\) from [0-9]+ tetrahedra"));
+        elapsed += t.contains(QRegularExpression("· [1-9][0-9]* s$"));
+      }
+      qInfo("meshing as the status bar showed it: %lld texts, %d query counts, %d exudation, %d with seconds > 0 (last: %s)",
+            static_cast<long long>(seen.size()), queryTexts, exudation, elapsed, qPrintable(seen.isEmpty() ? QString() : seen.last()));
+      QVERIFY2(queryTexts >= 3 && exudation >= 1 && elapsed >= 1, qPrintable(seen.join(" | ")));
       QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
       const qint64 total = mon.clock.elapsed();
       qInfo("BENCH gui_stall,tetrahedralise %zu triangles to %zu tets,%lld ms,longest stall %lld ms,%d ticks", triangles,

@@ -26,7 +26,7 @@ LoadedCase loadCaseOrThrow(const QString& dir, const std::function<void(double, 
     phantom::PhantomOptions po;
     po.meshing.cancel = cancel;
     po.meshing.progress = [&](double f, const std::string& stage) {
-      if (progress) progress(0.9 * f, QString::fromStdString(stage));
+      if (progress) progress(f < 0 ? f : 0.9 * f, QString::fromStdString(stage));
     };
     *c = app::caseFromPhantom(phantom::makePhantom(po));
   } else if (!QFileInfo::exists(dir)) {

@@ -27,6 +27,7 @@
 #include <QSettings>
 #include <QStackedWidget>
 #include <QStatusBar>
+#include <QTimer>
 #include <QToolBar>
 #include <QToolButton>
 #include <QUndoStack>
@@ -104,12 +105,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(jobs_, &JobRunner::refused, this, &MainWindow::say);
   connect(doc_, &CaseDocument::changed, this, &MainWindow::onCaseChanged);
   connect(doc_, &CaseDocument::loaded, this, &MainWindow::onLoadFinished);
-  auto showProgress = [this](double f, const QString& stage) {
-    status_.progress->setValue(static_cast<int>(100 * f));
-    status_.progress->setFormat(stage + QStringLiteral(" %p%"));
-  };
-  connect(doc_, &CaseDocument::progress, this, showProgress);
-  connect(jobs_, &JobRunner::progress, this, showProgress);
+  connect(doc_, &CaseDocument::progress, this, &MainWindow::showProgress);
+  connect(jobs_, &JobRunner::progress, this, &MainWindow::showProgress);
   connect(doc_, &CaseDocument::saved, this, [this](bool ok, const QString& message) {
     if (ok) setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(doc_->path()).fileName()));
     say(message);
@@ -197,6 +194,14 @@ void MainWindow::buildStatusBar() {
   status_.progress->setRange(0, 100);
   status_.progress->setMaximumWidth(260);
   status_.progress->setVisible(false);
+  status_.progress->setTextVisible(true);
+  status_.progress->setFormat(QStringLiteral("%p%"));
+  status_.stage = new QLabel(this);
+  status_.stage->setObjectName(QStringLiteral("progressStage"));
+  status_.stage->setVisible(false);
+  status_.tick = new QTimer(this);
+  status_.tick->setInterval(1000);
+  connect(status_.tick, &QTimer::timeout, this, [this] { showProgress(status_.progress->maximum() == 0 ? -1 : status_.progress->value() / 100.0, {}); });
   status_.cancel = new QToolButton(this);
   status_.cancel->setText(tr("Cancel"));
   status_.cancel->setToolTip(tr("Cancel the running job (Esc)"));
@@ -222,6 +227,7 @@ void MainWindow::buildStatusBar() {
   statusBar()->addPermanentWidget(status_.simulation);
   statusBar()->addPermanentWidget(status_.distance);
   statusBar()->addPermanentWidget(status_.cursor);
+  statusBar()->addPermanentWidget(status_.stage);
   statusBar()->addPermanentWidget(status_.progress);
   statusBar()->addPermanentWidget(status_.cancel);
 }
@@ -577,9 +583,31 @@ QStringList MainWindow::messageLog() const { return messages_->toPlainText().spl
 
 void MainWindow::setBusy(bool busy, const QString& message) {
   status_.progress->setVisible(busy);
+  status_.stage->setVisible(busy);
   status_.cancel->setVisible(busy);
-  if (busy) status_.progress->setValue(0);
+  if (busy) {
+    status_.progress->setRange(0, 100);
+    status_.progress->setValue(0);
+    status_.stageText.clear();
+    status_.clock.start();
+    status_.tick->start();
+    showProgress(0, {});
+  } else {
+    status_.tick->stop();
+  }
   if (!message.isEmpty()) say(message);
+}
+
+void MainWindow::showProgress(double fraction, const QString& stage) {
+  if (fraction < 0) {
+    status_.progress->setRange(0, 0);  // busy: this stage's length is not known, its words say how far it got
+  } else {
+    status_.progress->setRange(0, 100);
+    status_.progress->setValue(static_cast<int>(100 * fraction));
+  }
+  if (!stage.isEmpty()) status_.stageText = stage;
+  const qint64 seconds = status_.clock.isValid() ? status_.clock.elapsed() / 1000 : 0;
+  status_.stage->setText(status_.stageText.isEmpty() ? tr("%1 s").arg(seconds) : tr("%1 · %2 s").arg(status_.stageText).arg(seconds));
 }
 
 void MainWindow::openCase(const QString& path) {

@@ -188,7 +188,7 @@ void MeshPage::importMesh(const QString& path) {
         simcore::TetrahedraliseOptions o;
         o.targetTets = static_cast<std::size_t>(target);
         o.cancel = &cancel;
-        o.progress = [&progress](double f, const std::string& s) { progress(0.05 + 0.9 * f, QString::fromStdString(s)); };
+        o.progress = [&progress](double f, const std::string& s) { progress(f < 0 ? f : 0.05 + 0.9 * f, QString::fromStdString(s)); };
         m = simcore::tetrahedraliseSurface(m, o, &notes);
       }
       m.triangles.clear();

@@ -22,7 +22,9 @@ struct TetrahedraliseOptions {
   unsigned seed = 0;              ///< Mesh_3's random seed: same input and seed give the same mesh
   /// Mesh surfaces whose outer part intersects itself (inside decided by ray parity) instead of refusing them.
   bool allowSelfIntersections = false;
-  /// Called with a fraction in [0, 1] and a stage name; may be called often. Thread: the caller's.
+  /// Called with a fraction in [0, 1] (never decreasing) and a stage name, or with a negative fraction
+  /// while a stage of unknown length runs (refinement: its query count; exudation: its element count);
+  /// may be called often. Thread: the caller's.
   std::function<void(double, const std::string&)> progress;
   /// Set to true from any thread to cancel; the call then throws Cancelled.
   const std::atomic<bool>* cancel = nullptr;

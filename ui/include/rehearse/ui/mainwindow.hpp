@@ -15,6 +15,7 @@
 
 #include <rehearse/app/workflow.hpp>
 
+#include <QElapsedTimer>
 #include <QMainWindow>
 
 #include <memory>
@@ -27,6 +28,7 @@ class QMenu;
 class QPlainTextEdit;
 class QProgressBar;
 class QStackedWidget;
+class QTimer;
 class QToolButton;
 
 namespace rehearse::ui {
@@ -128,6 +130,7 @@ class MainWindow : public QMainWindow {
   void refreshOverlay();
   void updateWorkflow();
   void setBusy(bool busy, const QString& message = {});
+  void showProgress(double fraction, const QString& stage);
   /// Shows a sentence in the status bar and adds it to the Messages panel.
   void say(const QString& text);
 
@@ -145,7 +148,11 @@ class MainWindow : public QMainWindow {
     QLabel* simulation = nullptr;
     QLabel* distance = nullptr;
     QLabel* cursor = nullptr;
-    QProgressBar* progress = nullptr;
+    QProgressBar* progress = nullptr;   ///< a fraction, or busy (no fraction) while a stage of unknown length runs
+    QLabel* stage = nullptr;            ///< the running stage in words and the time since the job began
+    QString stageText;
+    QElapsedTimer clock;
+    QTimer* tick = nullptr;             ///< refreshes the elapsed time once a second while busy
     QToolButton* cancel = nullptr;
   };
 
