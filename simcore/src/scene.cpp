@@ -144,18 +144,15 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         if (file.is_relative()) file = std::filesystem::path(baseDir) / file;
         s.mesh = loadMesh(file.string(), {value(c, *decl, "unit").get<std::string>()});
         haveMesh = true;
-        s.componentBytes += s.mesh.points.size() * sizeof(Eigen::Vector3d) + s.mesh.tets.size() * (sizeof(std::array<int, 4>) + sizeof(int));
       } else if (type == "material") {
         MaterialParams p{materialModelFromString(value(c, *decl, "model").get<std::string>()), value(c, *decl, "young").get<double>(),
                          value(c, *decl, "poisson").get<double>(), value(c, *decl, "density").get<double>()};
         const int label = value(c, *decl, "label").get<int>();
         if (label < 0) s.defaultMaterial = p;
         else s.materials[label] = p;
-        s.componentBytes += sizeof(MaterialParams);
       } else if (type == "attachments") {
         s.fixedNodes = value(c, *decl, "nodes").get<std::vector<int>>();
         s.settings.attachments = named([&] { return attachmentModeFromString(value(c, *decl, "mode").get<std::string>()); });
-        s.componentBytes += s.fixedNodes.size() * sizeof(int);
       } else if (type == "embedded") {
         std::filesystem::path file = value(c, *decl, "file").get<std::string>();
         if (file.is_relative()) file = std::filesystem::path(baseDir) / file;
@@ -165,7 +162,6 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         e.young = value(c, *decl, "young").get<double>();
         e.thickness = value(c, *decl, "thickness").get<double>();
         e.name = value(c, *decl, "name").get<std::string>();
-        s.componentBytes += e.surface.points.size() * sizeof(Eigen::Vector3d) + e.surface.triangles.size() * sizeof(std::array<int, 3>);
         s.embedded.push_back(std::move(e));
       } else if (type == "gravity") {
         const auto g = value(c, *decl, "vector").get<std::vector<double>>();

@@ -58,7 +58,6 @@ struct Scene {
   bool staticSolve = false;
   long steps = 100;
   std::vector<std::string> components;  ///< the components built, in declaration order
-  std::size_t componentBytes = 0;       ///< memory held by what the components built (approximate)
 };
 
 /// Reads a scene file; relative mesh paths are relative to the scene file. Throws MeshError with one
