@@ -1,6 +1,7 @@
 // The built-in phantom case: deterministic, the stated contents, a frame consistent with its ground truth,
 // and case folders that round-trip and survive a damaged part.
 #include "test_support.hpp"
+#include "icosphere.hpp"
 
 #include "phantom/phantom.hpp"
 #include <rehearse/app/casefolder.hpp>
@@ -92,6 +93,63 @@ class TestPhantom : public QObject {
     QVERIFY(maxV >= 230);
     QCOMPARE(c_.frame(0, 0), cv::Vec3b(0, 0, 0));
     QCOMPARE(c_.frame(719, 1279), cv::Vec3b(0, 0, 0));
+  }
+
+  // The renderer that makes the phantom frame, against an independent reference: a sphere shaded in
+  // closed form (ray-sphere intersection, the sphere's exact normal, DESIGN.md's simplified Torrance-Sparrow
+  // written out here, radiance 1 = level 255). The frame check above shows the frame is that renderer
+  // with the stored truth; this shows the renderer is the model.
+  void rendererMatchesAnalyticSphere() {
+    simcore::Mesh sphere;
+    const Eigen::Vector3d centre(0.006, -0.004, 0.15);
+    const double R = 0.03;
+    addIcosphere(sphere, centre, R, 5, 0);
+    imaging::Camera cam = imaging::Camera::defaultFor(640, 480);
+    imaging::Appearance a;
+    a.lightPosition = Eigen::Vector3d(0.012, -0.01, 0.0);
+    a.kd = Eigen::Vector3d(0.016, 0.009, 0.007);
+    a.ks = Eigen::Vector3d(0.006, 0.006, 0.006);
+    a.roughness = 0.22;
+    const cv::Mat3b shown = imaging::renderShaded(cam, Pose{}, sphere.surfaceView(), a, cv::Mat3b(480, 640, cv::Vec3b(0, 0, 0)), 1);
+    const Eigen::Matrix3d Kinv = cam.K.inverse();
+    double worst = 0, sum = 0, peakSpecular = 0;
+    int n = 0, coveredBoth = 0, coveredOne = 0;
+    for (int y = 0; y < 480; ++y)
+      for (int x = 0; x < 640; ++x) {
+        const Eigen::Vector3d d = (Kinv * Eigen::Vector3d(x, y, 1)).normalized();
+        const double b = d.dot(centre), disc = b * b - (centre.squaredNorm() - R * R);
+        const bool hit = disc > 0;
+        const bool drawn = shown(y, x) != cv::Vec3b(0, 0, 0);
+        if (hit != drawn) ++coveredOne;
+        if (!hit) continue;
+        ++coveredBoth;
+        if (disc < std::pow(0.004, 2)) continue;  // within about a pixel of the limb: facets decide there
+        const Eigen::Vector3d p = (b - std::sqrt(disc)) * d;
+        const Eigen::Vector3d nrm = (p - centre) / R;
+        const Eigen::Vector3d toLight = a.lightPosition - p;
+        const double r2 = toLight.squaredNorm();
+        const Eigen::Vector3d l = toLight.normalized(), view = -p.normalized();
+        const double cosI = nrm.dot(l), cosR = nrm.dot(view);
+        if (cosI <= 0.05 || cosR <= 0.05) continue;
+        const double alpha = std::acos(std::min(1.0, nrm.dot((l + view).normalized())));
+        const double specular = std::exp(-alpha * alpha / (2 * a.roughness * a.roughness)) / (r2 * cosR);
+        const Eigen::Vector3d J = a.kd * cosI / r2 + a.ks * specular;
+        peakSpecular = std::max(peakSpecular, 255 * a.ks.x() * specular);
+        for (int k = 0; k < 3; ++k) {
+          const double expected = std::clamp(255 * J[2 - k], 0.0, 255.0);  // BGR
+          const double diff = std::abs(expected - shown(y, x)[k]);
+          worst = std::max(worst, diff);
+          sum += diff;
+        }
+        ++n;
+      }
+    qInfo("analytic sphere: %d pixels compared, mean |difference| %.3f, worst %.1f levels (specular peak %.0f levels); "
+          "coverage differs on %d of %d pixels", n, sum / (3 * n), worst, peakSpecular, coveredOne, coveredBoth);
+    QVERIFY(n > 20000);
+    QVERIFY(peakSpecular > 60);  // the specular lobe is there to be checked
+    QVERIFY2(sum / (3 * n) < 0.5, qPrintable(QString::number(sum / (3 * n))));
+    QVERIFY2(worst <= 2, qPrintable(QString::number(worst)));
+    QVERIFY(coveredOne < 0.01 * coveredBoth);
   }
 
   void deterministic() {

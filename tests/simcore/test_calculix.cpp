@@ -7,6 +7,7 @@
 //   small-strain law but not the volumetric term: its difference is reported and held to 2 %/5 %.
 // Fails when ccx is not installed (scripts/install-deps.sh installs calculix-ccx).
 #include "box_mesh.hpp"
+#include "calculix.hpp"
 #include "test_support.hpp"
 
 #include <rehearse/simcore/integrator.hpp>
@@ -24,74 +25,11 @@
 using namespace rehearse::simcore;
 
 namespace {
-// Runs ccx on the mesh (fixed nodes, gravity g along -z, or along `gdir`) and returns the nodal displacements (3n).
+// The cantilever's runs: one material, fixed nodes (default: the face x = 0), gravity g along `gdir`.
 Eigen::VectorXd runCalculix(const Mesh& mesh, double E, double nu, double rho, double g, bool nlgeom, const std::string& name,
                             std::vector<int> fixed = {}, Eigen::Vector3d gdir = Eigen::Vector3d(0, 0, -1), bool neoHooke = false) {
   if (fixed.empty()) fixed = nodesAtX(mesh, 0);
-  const std::string dir = tempPath("ccx-" + name);
-  std::filesystem::create_directories(dir);
-  std::string inp = "*NODE\n";
-  char buf[160];
-  for (std::size_t i = 0; i < mesh.points.size(); ++i) {
-    // ccx reads at most 20 characters per number: 13 significant digits.
-    std::snprintf(buf, sizeof buf, "%zu, %.13g, %.13g, %.13g\n", i + 1, mesh.points[i].x(), mesh.points[i].y(), mesh.points[i].z());
-    inp += buf;
-  }
-  inp += "*ELEMENT, TYPE=C3D4, ELSET=EALL\n";
-  for (std::size_t e = 0; e < mesh.tets.size(); ++e) {
-    const auto& t = mesh.tets[e];
-    std::snprintf(buf, sizeof buf, "%zu, %d, %d, %d, %d\n", e + 1, t[0] + 1, t[1] + 1, t[2] + 1, t[3] + 1);
-    inp += buf;
-  }
-  inp += "*NSET, NSET=NALL, GENERATE\n1, " + std::to_string(mesh.points.size()) + ", 1\n*NSET, NSET=FIX\n";
-  for (int i : fixed) inp += std::to_string(i + 1) + "\n";
-  if (neoHooke) {
-    const Lame l = Lame::fromYoung(E, nu);
-    const double C10 = l.mu / 2, D1 = 2 / (l.lambda + 2 * l.mu / 3);
-    std::snprintf(buf, sizeof buf, "*MATERIAL, NAME=M\n*HYPERELASTIC, NEO HOOKE\n%.13g, %.13g\n*DENSITY\n%.13g\n", C10, D1, rho);
-  } else {
-    std::snprintf(buf, sizeof buf, "*MATERIAL, NAME=M\n*ELASTIC\n%.17g, %.17g\n*DENSITY\n%.17g\n", E, nu, rho);
-  }
-  inp += "*BOUNDARY\nFIX, 1, 3\n" + std::string(buf) + "*SOLID SECTION, ELSET=EALL, MATERIAL=M\n";
-  inp += nlgeom ? "*STEP, NLGEOM, INC=200\n*STATIC\n0.05, 1.0, 1e-6, 0.1\n" : "*STEP\n*STATIC\n";
-  std::snprintf(buf, sizeof buf, "*DLOAD\nEALL, GRAV, %.17g, %.17g, %.17g, %.17g\n", g, gdir.x(), gdir.y(), gdir.z());
-  inp += std::string(buf) + "*NODE PRINT, NSET=NALL\nU\n*END STEP\n";
-  writeFile(dir + "/job.inp", inp);
-  QProcess p;
-  p.setWorkingDirectory(QString::fromStdString(dir));
-  QProcessEnvironment env = QProcessEnvironment::systemEnvironment();
-  env.insert("OMP_NUM_THREADS", "1");
-  p.setProcessEnvironment(env);
-  p.start("ccx", {"-i", "job"});
-  if (!p.waitForFinished(300000) || p.exitCode() != 0) {
-    const QByteArray out = p.readAllStandardOutput();
-    qWarning("ccx failed: %s", out.right(1500).constData());
-    return {};
-  }
-  // The last displacement block of job.dat.
-  std::istringstream in(readFile(dir + "/job.dat"));
-  std::string line;
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * mesh.points.size());
-  bool inBlock = false;
-  int read = 0;
-  while (std::getline(in, line)) {
-    if (line.find("displacements (vx,vy,vz)") != std::string::npos) {
-      inBlock = true;
-      read = 0;
-      continue;
-    }
-    if (!inBlock) continue;
-    std::istringstream l(line);
-    long id;
-    double x, y, z;
-    if (l >> id >> x >> y >> z) {
-      u.segment<3>(3 * (id - 1)) = Eigen::Vector3d(x, y, z);
-      ++read;
-    } else if (read > 0) {
-      inBlock = false;
-    }
-  }
-  return u;
+  return runCalculixStatic(mesh, {}, {E, nu, rho, neoHooke}, g * gdir, nlgeom, fixed, name);
 }
 
 struct Result {

@@ -1,9 +1,10 @@
 // Elastic registration onto a silhouette (issue 5 engine): the visible silhouette of the phantom, the
 // ground-truth pose giving no correction, a rigid offset recovered, an elastic deformation recovered
-// better than the rigid start, and clear failures for unusable contours and poses. Contours are made
+// (against CalculiX on a finer mesh), and clear failures for unusable contours and poses. Contours are made
 // independently of the engine: OpenCV's border of the CPU renderer's mask of the organ.
 #include "test_support.hpp"
 #include "icosphere.hpp"
+#include "calculix.hpp"
 
 #include "phantom/phantom.hpp"
 #include <rehearse/app/casefolder.hpp>
@@ -21,6 +22,9 @@
 #include <QProcess>
 
 #include <map>
+#include <set>
+
+#include <QStandardPaths>
 
 
 using namespace rehearse;
@@ -192,43 +196,101 @@ class TestRegistration : public QObject {
     QVERIFY(dt < 0.003);
   }
 
-  // The phantom deformed by its own weight along the camera's x axis (a load the registration does not
-  // know), seen at the true pose: the elastic fit from the undeformed model reduces the 3D error.
-  void elasticDeformationIsRecovered() {
+  // The elastic deformation recovered, against ground truth that is not our model: the phantom meshed again 2.5x finer, sagged 3 g sideways in the
+  // image on its ligaments by CalculiX (Neo-Hookean, vessels 23x stiffer), its outline rendered at the true
+  // pose as the contour. The fit (our co-rotational model on the coarse mesh, from the rest shape) must
+  // bring the organ's visible surface within a stated distance of the truth, interpolated at our nodes.
+  void calculixSagIsRecovered() {
+    if (QStandardPaths::findExecutable("ccx").isEmpty()) QFAIL("CalculiX (ccx) is not installed; scripts/install-deps.sh installs calculix-ccx");
+    phantom::PhantomOptions po;
+    po.targetTets = 10000;
+    const phantom::Phantom fine = phantom::makePhantom(po);
+    QVERIFY(fine.volume.tets.size() > 2 * c_.volume.tets.size());
+    const Eigen::Vector3d g = c_.truePose.R.transpose() * Eigen::Vector3d(3 * 9.81, 0, 0);
+    const Eigen::VectorXd u = runCalculixStatic(fine.volume, {{phantom::kVesselLabel, {620e3, 0.45, 1000, true}}}, {27e3, 0.4, 1000, true}, g,
+                                                true, fine.attachments, "phantom-sag");
+    QVERIFY2(u.size() > 0, "ccx failed");
+    std::vector<double> deformed(3 * fine.volume.points.size());
+    for (std::size_t i = 0; i < fine.volume.points.size(); ++i)
+      for (int k = 0; k < 3; ++k) deformed[3 * i + k] = fine.volume.points[i][k] + u[3 * static_cast<Eigen::Index>(i) + k];
+    SurfaceView fineDeformed = fine.surfaceView();
+    fineDeformed.vertices = deformed.data();
+    const auto contour = outline(fine, fine.truePose, fineDeformed);
+    QVERIFY(!contour.empty());
+    // The truth at our nodes: CalculiX's displacement interpolated in the fine tetrahedron holding the
+    // node's rest position (the nearest one for nodes just outside the finer surface).
     const FemModel m = organModel(c_);
-    const Deformed truth = deformSideways(c_, m);
-    QVERIFY(truth.x.size() > 0);
-    const auto& contour = truth.contour;
+    std::vector<int> nodes;
+    {
+      std::set<int> onSurface;
+      for (const auto& t : c_.surface) onSurface.insert(t.begin(), t.end());
+      nodes.assign(onSurface.begin(), onSurface.end());
+    }
+    std::vector<Eigen::Vector3d> truth(c_.volume.points.size());
+    for (int v : nodes) {
+      const Eigen::Vector3d p = c_.volume.points[v];
+      double bestInside = -1e9;
+      Eigen::Vector3d best = Eigen::Vector3d::Zero();
+      for (const auto& t : fine.volume.tets) {
+        const auto& P = fine.volume.points;
+        Eigen::Matrix3d A;
+        A << P[t[1]] - P[t[0]], P[t[2]] - P[t[0]], P[t[3]] - P[t[0]];
+        const Eigen::Vector3d b = A.partialPivLu().solve(p - P[t[0]]);
+        const double w[4] = {1 - b.sum(), b.x(), b.y(), b.z()};
+        const double inside = *std::min_element(w, w + 4);
+        if (inside <= bestInside) continue;
+        bestInside = inside;
+        best.setZero();
+        for (int k = 0; k < 4; ++k) best += std::clamp(w[k], 0.0, 1.0) * u.segment<3>(3 * t[k]);
+        best /= std::clamp(w[0], 0.0, 1.0) + std::clamp(w[1], 0.0, 1.0) + std::clamp(w[2], 0.0, 1.0) + std::clamp(w[3], 0.0, 1.0);
+      }
+      truth[v] = p + best;
+    }
+    // The visible surface: nodes the camera sees at the true pose (depth test against the rest render).
+    const auto ras = imaging::rasterize(c_.camera, c_.truePose, c_.surfaceView());
+    std::vector<int> visible;
+    for (int v : nodes) {
+      const Eigen::Vector3d xc = c_.truePose.apply(c_.volume.points[v]);
+      const Eigen::Vector2d px = c_.camera.project(xc);
+      const int x = static_cast<int>(std::lround(px.x())), y = static_cast<int>(std::lround(px.y()));
+      if (x < 0 || y < 0 || x >= ras.depth.cols || y >= ras.depth.rows) continue;
+      if (ras.triangle(y, x) >= 0 && xc.z() <= ras.depth(y, x) + 1e-3) visible.push_back(v);
+    }
+    QVERIFY(visible.size() > 100);
+    // The error in the camera frame: across the view (what a silhouette shows) and along it (depth).
+    // In the camera frame: the fit may have moved the pose too (its rigid pre-pass).
+    auto meanError = [&](const Eigen::VectorXd& x, const std::vector<int>& which, int part = 0, const Pose* pose = nullptr) {
+      const Pose& at = pose ? *pose : c_.truePose;
+      double e = 0;
+      for (int v : which) {
+        const Eigen::Vector3d d = at.apply(x.segment<3>(3 * v)) - c_.truePose.apply(truth[v]);
+        e += part == 0 ? d.norm() : part == 1 ? d.head<2>().norm() : std::abs(d.z());
+      }
+      return e / which.size();
+    };
+    double sag = 0;
+    for (int v : nodes) sag = std::max(sag, (truth[v] - c_.volume.points[v]).norm());
     SimulationSettings s;
     s.gravity.setZero();
-    std::vector<double> errors;
-    auto meanError = [&](const Eigen::VectorXd& x) {
-      double e = 0;
-      std::size_t n = 0;
-      for (const auto& t : c_.surface)
-        for (int v : t) {
-          e += (x.segment<3>(3 * v) - truth.x.segment<3>(3 * v)).norm();
-          ++n;
-        }
-      return e / n;
-    };
-    RegistrationOptions o;
-    o.onIteration = [&](const RegistrationIteration& it, const Eigen::VectorXd& x, const Pose&) {
-      qInfo("  iteration %d (%s): %.2f px mean, %.2f px max, %zu bound, surface error %.2f mm, %.0f ms", it.iteration, it.stage.c_str(),
-            it.residual.mean, it.residual.hausdorff, it.bound, 1e3 * meanError(x), it.wallMs);
-      return true;
-    };
-    const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, c_.camera.pinhole(), o);
+    const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, c_.camera.pinhole());
     QVERIFY2(res.ok, res.status.c_str());
-    const double before = meanError(m.restVector()), after = meanError(res.x);
-    qInfo("elastic: %s; surface error %.2f mm -> %.2f mm; 2D %.2f px -> %.2f px in %zu iterations, %.0f ms", res.status.c_str(), 1e3 * before,
-          1e3 * after, res.iterations.front().residual.mean, res.iterations.back().residual.mean, res.iterations.size(),
-          res.iterations.back().wallMs);
-    // The silhouette only tells where the rim goes in the image; the 3D error over the whole surface
-    // (back side included) falls less than the 2D one. The benchmark measures markers (issue 5).
-    QVERIFY(after < 0.9 * before);
-    QVERIFY(res.iterations.back().residual.mean < 3.0);
-    QVERIFY(res.iterations.back().residual.mean < 0.2 * res.iterations.front().residual.mean);
+    const Eigen::VectorXd rest = m.restVector();
+    const double visibleBefore = meanError(rest, visible), visibleAfter = meanError(res.x, visible, 0, &res.pose);
+    const double allBefore = meanError(rest, nodes), allAfter = meanError(res.x, nodes, 0, &res.pose);
+    qInfo("CalculiX sag (%zu fine tets, largest %.1f mm) fitted on %zu tets: %s; visible surface %.2f -> %.2f mm, whole surface %.2f -> %.2f mm; "
+          "2D %.2f -> %.2f px",
+          fine.volume.tets.size(), 1e3 * sag, c_.volume.tets.size(), res.status.c_str(), 1e3 * visibleBefore, 1e3 * visibleAfter,
+          1e3 * allBefore, 1e3 * allAfter, res.iterations.front().residual.mean, res.iterations.back().residual.mean);
+    qInfo("  visible surface across the view %.2f -> %.2f mm, in depth %.2f -> %.2f mm", 1e3 * meanError(rest, visible, 1),
+          1e3 * meanError(res.x, visible, 1, &res.pose), 1e3 * meanError(rest, visible, 2), 1e3 * meanError(res.x, visible, 2, &res.pose));
+    qInfo("  pose moved by %.2f mm", 1e3 * (res.pose.t - c_.truePose.t).norm());
+    QVERIFY(sag > 0.008);  // a real sag to recover
+    // Measured 12.5 -> 6.6 mm (visible), 9.7 -> 5.2 mm (whole surface), 18.6 -> 0.8 px: a silhouette pins
+    // the rim across the view, not where the surface slides along it or in depth (issue 13 works on that).
+    QVERIFY2(visibleAfter < 0.008, "the visible surface ended more than 8 mm from CalculiX's");
+    QVERIFY(visibleAfter < 0.6 * visibleBefore);
+    QVERIFY(allAfter < 0.7 * allBefore);
+    QVERIFY(res.iterations.back().residual.mean < 1.5);
   }
 
   // Stiff and extreme models under the same fit: near-incompressible parenchyma, a 1000x vessel/parenchyma
