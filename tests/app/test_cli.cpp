@@ -148,9 +148,17 @@ class TestCli : public QObject {
     const QString dir = QString::fromStdString(tempPath("embed-case"));
     QVERIFY(run({"phantom", "--out", dir}).code == 0);
     const std::string scene = tempPath("embed-case/scene.json");
+    // The case's own ligament nodes, from its attachments file (not a list copied from an earlier run).
+    const QJsonArray held = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(tempPath("embed-case/attachments.json"))))
+                                .object()
+                                .value("nodes")
+                                .toArray();
+    QVERIFY(held.size() >= 8);
+    QString nodes;
+    for (const auto& n : held) nodes += (nodes.isEmpty() ? "" : ", ") + QString::number(n.toInt());
     writeFile(scene, R"({"components": [{"type": "mesh", "file": "organ.vtu"},
       {"type": "material", "model": "linear", "young": 27000, "poisson": 0.4, "density": 1000},
-      {"type": "attachments", "nodes": [212, 213, 214, 300, 314, 315, 342, 364]},
+      {"type": "attachments", "nodes": [)" + nodes.toStdString() + R"(]},
       {"type": "gravity", "vector": [0, 9.81, 0]}, {"type": "static"},
       {"type": "embedded", "file": "vessels_surface.obj", "young": 620e3, "thickness": 0.001, "name": "vessels"}]})");
     const QString o3 = QString::fromStdString(tempPath("embed-case/out.vtu"));
