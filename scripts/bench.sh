@@ -6,4 +6,4 @@ scripts/build.sh --target bench_foundation bench_dynamics bench_registration
 mkdir -p build/bench
 build/tests/bench_foundation build/bench/bench_foundation.csv
 build/tests/bench_dynamics build/bench
-build/tests/bench_registration build/bench
+build/tests/bench_registration build/bench --repeat 3

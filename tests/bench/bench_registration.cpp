@@ -4,7 +4,9 @@
 // camera, 40 visible surface markers; 12 starts (the true pose perturbed by +-2 cm along and +-20 degrees
 // about each camera axis) x 4 contour fractions (100/90/80/70 %). Writes registration.csv and
 // registration.png (marker error against wall time for each start at 100 %). Not a test.
-//   bench_registration [OUT_DIR] [--quick]
+//   bench_registration [OUT_DIR] [--quick] [--repeat N]
+// --repeat N runs every start N times (the errors are the same each time: the fit is deterministic) and
+// reports each run's mean wall time, so the spread a shared machine adds can be seen.
 // Environment: REHEARSE_BENCH_DIAG=1 first analyses the error at the true pose (by stage and camera axis,
 // the best rigid motion of the markers, the fit of undeformed outlines); REHEARSE_BENCH_VARIANTS=1 runs
 // the rigid-only and elastic-only variants; REHEARSE_BENCH_TRACE=1 prints every iteration;
@@ -45,9 +47,11 @@ Pose perturb(const Pose& p, const Eigen::Vector3d& move, int axis, double degree
 int main(int argc, char** argv) {
   std::string out = ".";
   bool quick = false;
+  int repeat = 1;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
+    else if (a == "--repeat" && i + 1 < argc) repeat = std::max(1, std::atoi(argv[++i]));
     else out = a;
   }
   std::filesystem::create_directories(out);
@@ -232,6 +236,7 @@ int main(int argc, char** argv) {
   }
   std::printf("\n%-10s %5s %10s %10s %9s %9s %9s  %s\n", "start", "kept", "start mm", "end mm", "start px", "end px", "ms", "status");
   std::map<double, std::vector<double>> endErrors, times;
+  std::map<double, std::vector<std::vector<double>>> runTimes;  // per fraction, per run: each start's wall time
   int worse = 0;
   for (double fraction : fractions) {
     // Keep a contiguous part of the outline (the rest is as if the assistant had not drawn it).
@@ -253,10 +258,17 @@ int main(int argc, char** argv) {
       SimulationSettings settings;
       settings.gravity.setZero();
       RegistrationResult r;
-      try {
-        r = registerToContour(model, coarse.attachments, settings, coarse.surface, {part}, start, coarse.camera.pinhole(), o);
-      } catch (const std::exception& e) {
-        r.status = std::string("error: ") + e.what();
+      for (int run = 0; run < repeat; ++run) {
+        if (run > 0) o.onIteration = nullptr;  // the series is the first run's
+        RegistrationResult again;
+        try {
+          again = registerToContour(model, coarse.attachments, settings, coarse.surface, {part}, start, coarse.camera.pinhole(), o);
+        } catch (const std::exception& e) {
+          again.status = std::string("error: ") + e.what();
+        }
+        runTimes[fraction].resize(static_cast<std::size_t>(repeat));
+        runTimes[fraction][static_cast<std::size_t>(run)].push_back(again.iterations.empty() ? 0 : again.iterations.back().wallMs);
+        if (run == 0) r = std::move(again);
       }
       const double e0 = markerError(model.restVector(), start);
       const double e1 = r.x.size() ? markerError(r.x, r.pose) : e0;
@@ -276,9 +288,19 @@ int main(int argc, char** argv) {
   for (double f : fractions) {
     const auto& e = endErrors[f];
     const auto& t = times[f];
-    std::printf("  contour %3.0f %%: marker error %.2f mm (worst %.2f), wall time %.0f ms (worst %.0f)\n", 100 * f,
+    std::printf("  contour %3.0f %%: marker error %.2f mm (worst %.2f), wall time %.0f ms (worst %.0f)", 100 * f,
                 std::accumulate(e.begin(), e.end(), 0.0) / e.size(), *std::max_element(e.begin(), e.end()),
                 std::accumulate(t.begin(), t.end(), 0.0) / t.size(), *std::max_element(t.begin(), t.end()));
+    if (repeat > 1) {
+      std::printf("; mean of each of %d runs:", repeat);
+      double worstRun = 0;
+      for (const auto& run : runTimes[f]) {
+        std::printf(" %.0f", std::accumulate(run.begin(), run.end(), 0.0) / run.size());
+        worstRun = std::max(worstRun, *std::max_element(run.begin(), run.end()));
+      }
+      std::printf(" ms (worst single start %.0f ms)", worstRun);
+    }
+    std::printf("\n");
   }
   std::printf("  starts that ended worse than they began: %d\n", worse);
   writeLogLogPlot(out + "/registration.png", "Elastic fit, 100 % contour: marker error against wall time per start", "wall time (ms)",
