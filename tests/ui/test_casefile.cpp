@@ -102,6 +102,35 @@ class TestCaseFile : public QObject {
     QVERIFY(all < 2 * oneCase);
   }
 
+  // The first automatic placement keeps any organ inside the image: wide, tall (a 16:9 image is lower than
+  // wide) and deep ones (the near side is closer than the centre), checked by projecting every node.
+  void automaticPlacementKeepsTheOrganInTheImage() {
+    struct Shape {
+      const char* name;
+      double x, y, z;
+    };
+    for (const Shape& sh : {Shape{"wide", 0.30, 0.10, 0.06}, Shape{"tall", 0.10, 0.22, 0.06}, Shape{"deep", 0.12, 0.12, 0.30},
+                            Shape{"large", 0.25, 0.20, 0.18}}) {
+      app::Case c;
+      c.organ = app::Organ::fromVolume(boxMesh(sh.x, sh.y, sh.z, 6, 6, 6));
+      c.camera = imaging::Camera::defaultFor(1280, 720);
+      c.pose = c.automaticPose();
+      Eigen::AlignedBox2d box;
+      double nearest = 1e9;
+      for (const auto& x : c.organ->volume.points) {
+        const Eigen::Vector3d xc = c.pose.apply(x);
+        nearest = std::min(nearest, xc.z());
+        if (xc.z() > 0) box.extend(c.camera.project(xc));
+      }
+      qInfo("%-5s organ %.0f x %.0f x %.0f mm: centre at %.0f mm, nearest node %.0f mm; spans u %.0f..%.0f, v %.0f..%.0f px", sh.name,
+            1e3 * sh.x, 1e3 * sh.y, 1e3 * sh.z, 1e3 * c.pose.apply(c.organ->centreOfGravity).z(), 1e3 * nearest, box.min().x(), box.max().x(),
+            box.min().y(), box.max().y());
+      QVERIFY(nearest > 0.01);
+      QVERIFY2(box.min().x() >= 0 && box.max().x() <= 1280 && box.min().y() >= 0 && box.max().y() <= 720, sh.name);
+      QVERIFY2(box.sizes().maxCoeff() > 0.3 * 720, sh.name);  // not a dot either
+    }
+  }
+
   void saveAndReopenEveryField() {
     const QString path = QString::fromStdString(tempPath("phantom.rehearse"));
     app::Case edited = phantomCase();

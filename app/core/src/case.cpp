@@ -54,8 +54,31 @@ Pose Case::automaticPose() const {
   const auto& volume = organ->volume;
   const double size = volume.points.empty() ? 0.1 : volume.bounds().sizes().maxCoeff();
   const double fx = camera.width > 0 ? camera.fx() : 1000.0, width = camera.width > 0 ? camera.width : 1280.0;
-  const double depth = std::max(0.02, size * fx / (0.6 * width));
+  double depth = std::max(0.02, size * fx / (0.6 * width));
   p.t = Eigen::Vector3d(0, 0, depth) - cog;
+  // A large, deep or tall organ at that depth can still overflow the image (its near side is closer than
+  // its centre; a 16:9 image is lower than wide): move it away until all of it projects inside the middle
+  // 90 % of the image both ways.
+  if (camera.width > 0 && camera.height > 0 && !volume.points.empty()) {
+    const Pinhole cam = camera.pinhole();
+    for (int i = 0; i < 60; ++i) {
+      Eigen::AlignedBox2d box;
+      bool inFront = true;
+      for (const auto& x : volume.points) {
+        const Eigen::Vector3d xc = p.apply(x);
+        if (xc.z() < 0.01) {
+          inFront = false;
+          break;
+        }
+        box.extend(cam.project(xc));
+      }
+      if (inFront && box.min().x() >= 0.05 * camera.width && box.max().x() <= 0.95 * camera.width &&
+          box.min().y() >= 0.05 * camera.height && box.max().y() <= 0.95 * camera.height)
+        break;
+      depth *= 1.1;
+      p.t = Eigen::Vector3d(0, 0, depth) - cog;
+    }
+  }
   return p;
 }
 

@@ -112,7 +112,8 @@ struct Case {
   /// Same vertices, inner-structure triangles (the faces with one of `labels`); `storage` keeps them alive.
   SurfaceView innerSurfaceView(const std::vector<int>& labels, std::vector<std::array<int, 3>>& storage) const;
   /// A first placement: the organ's centre on the optical axis, unrotated, at the distance where it
-  /// spans about 60 % of the image width.
+  /// spans about 60 % of the image width, or farther when that would take it out of the middle 90 % of
+  /// the image either way (a large, deep or tall organ).
   Pose automaticPose() const;
   /// Replaces the organ: clears everything that referred to the old one (attachments, fit) and places it.
   void setOrgan(std::shared_ptr<const Organ> organ);
