@@ -120,6 +120,33 @@ class TestSimulationGui : public QObject {
     qInfo("played to t = %.2f s; %s", panel_->lastFrame()->time, qPrintable(status->text()));
   }
 
+  // The simulation view shows the whole organ without zooming: its drawing area's border (left of the
+  // colour bar, below the text line) is background all round, at two sizes of the dock.
+  void simulationViewShowsTheWholeOrgan() {
+    auto* view = w_->findChild<ui::SimulationView*>();
+    QVERIFY(view && panel_->lastFrame());
+    for (const QSize size : {QSize(420, 320), QSize(300, 520)}) {
+      view->setFixedSize(size);
+      QTest::qWait(50);
+      const QImage img = view->grab().toImage().convertToFormat(QImage::Format_RGB32);
+      const double dpr = view->devicePixelRatioF();
+      const QRgb background = qRgb(24, 25, 28);
+      const int W = static_cast<int>((size.width() - 80) * dpr), H = img.height(), top = static_cast<int>(30 * dpr);
+      int organ = 0, onBorder = 0;
+      for (int y = top; y < H; ++y)
+        for (int x = 0; x < W; ++x) {
+          if (img.pixel(x, y) == background) continue;
+          ++organ;
+          onBorder += x < 3 || x >= W - 3 || y >= H - 3 || y < top + 3;
+        }
+      qInfo("simulation view %dx%d: %d organ pixels, %d on the drawing area's border", size.width(), size.height(), organ, onBorder);
+      QVERIFY(organ > 0.05 * W * (H - top));  // not a dot
+      QCOMPARE(onBorder, 0);
+    }
+    view->setMinimumSize(0, 0);
+    view->setMaximumSize(QWIDGETSIZE_MAX, QWIDGETSIZE_MAX);
+  }
+
   void liveEditAppliesAtTheNextStep() {
     auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
     young->setValue(54.0);

@@ -203,7 +203,7 @@ void SimulationView::setFrame(std::shared_ptr<const SimulationFrame> f) {
     Eigen::AlignedBox3d box;
     for (const auto& p : f->positions) box.extend(p);
     centre_ = box.center();
-    size_ = box.sizes().maxCoeff();
+    size_ = 0.5 * box.diagonal().norm();  // the bounding sphere's radius
   }
   frame_ = std::move(f);
   update();
@@ -224,8 +224,13 @@ void SimulationView::paintEvent(QPaintEvent*) {
   const Eigen::Matrix3d R =
       (Eigen::AngleAxisd(turntable_.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(turntable_.yaw, Eigen::Vector3d::UnitY()))
           .toRotationMatrix();
-  const Eigen::Vector3d t = Eigen::Vector3d(0, 0, 1.0 * size / turntable_.zoom) - R * cog;
-  const double f = 1.1 * std::min(width(), height()), cx = (width() - 80) / 2.0, cy = height() / 2.0;
+  // Framed like the 3D organ view (turntableView): the bounding sphere's outline spans 80 % of the smaller
+  // side of the drawing area (left of the colour bar) whichever way the organ turns; the sphere is taken
+  // from the first frame, and the organ sags within it.
+  const double W = std::max(width() - 80, 10), H = std::max(height(), 10);
+  const double f = 1.1 * std::min(W, H), cx = W / 2.0, cy = H / 2.0;
+  const double ratio = f / (0.4 * std::min(W, H));
+  const Eigen::Vector3d t = Eigen::Vector3d(0, 0, size * std::sqrt(1 + ratio * ratio) / turntable_.zoom) - R * cog;
   std::vector<Eigen::Vector3d> cam(frame_->positions.size());
   for (std::size_t i = 0; i < cam.size(); ++i) cam[i] = R * frame_->positions[i] + t;
   auto project = [&](const Eigen::Vector3d& p) { return QPointF(cx + f * p.x() / p.z(), cy + f * p.y() / p.z()); };

@@ -73,7 +73,7 @@ class SimulationView : public QWidget {
  private:
   std::shared_ptr<const SimulationFrame> frame_;
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();  ///< the organ's centre of gravity (m)
-  double size_ = 0.1;                                 ///< its largest extent (m)
+  double size_ = 0.05;                                ///< its bounding sphere's radius (m), from the first frame
   Turntable turntable_;
 };
 
