@@ -441,9 +441,36 @@ class TestWorkflow : public QObject {
     const auto c2 = w_->caseData();
     QVERIFY((c2->pose.t - c1->pose.t - Eigen::Vector3d(0.001, 0, 0)).norm() < 1e-12);
     QCOMPARE(w_->step(), ui::Step::Rigid);
+    list->setFocus();
+    QTest::keyClick(list, Qt::Key_Down);  // from the workflow list too: a nudge, not the next step
+    QCOMPARE(w_->step(), ui::Step::Rigid);
+    QVERIFY((w_->caseData()->pose.t - c2->pose.t - Eigen::Vector3d(0, 0.001, 0)).norm() < 1e-12);
+    w_->undoStack()->undo();
     w_->undoStack()->undo();
     w_->undoStack()->undo();
     QVERIFY((w_->caseData()->pose.t - c0->pose.t).norm() < 1e-15);
+    // Typing the pose fields one after another is one undo step.
+    {
+      QList<QDoubleSpinBox*> fields;
+      for (auto* sb : w_->rigidPage()->findChildren<QDoubleSpinBox*>())
+        if (sb->parentWidget() && sb->parentWidget()->inherits("QGroupBox")) fields << sb;
+      QVERIFY(fields.size() >= 3);
+      const int count = w_->undoStack()->count();
+      const int index = w_->undoStack()->index();
+      const auto before = w_->caseData();
+      for (int k = 0; k < 3; ++k) {
+        fields[k]->setFocus();
+        fields[k]->selectAll();
+        QTest::keyClicks(fields[k], QString::number(fields[k]->value() + 5.0, 'f', 2));
+        QTest::keyClick(fields[k], Qt::Key_Return);
+      }
+      QVERIFY2((w_->caseData()->pose.t - before->pose.t - Eigen::Vector3d(0.005, 0.005, 0.005)).norm() < 2e-5,  // fields show 0.01 mm
+               qPrintable(QString::number(1e3 * (w_->caseData()->pose.t - before->pose.t).x())));
+      QCOMPARE(w_->undoStack()->index(), index + 1);
+      QVERIFY(w_->undoStack()->count() <= count + 1);
+      w_->undoStack()->undo();
+      QVERIFY((w_->caseData()->pose.t - before->pose.t).norm() < 1e-15);
+    }
     // Step 3: E is Edit points, and the pose does not move.
     w_->setStep(ui::Step::Contour);
     const auto c3 = w_->caseData();

@@ -13,6 +13,7 @@
 #include <QLabel>
 #include <QListWidget>
 #include <QPushButton>
+#include <QUndoStack>
 #include <QVBoxLayout>
 
 #include <cmath>
@@ -49,11 +50,15 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
              Eigen::AngleAxisd(poseFields_[4]->value() * d, Eigen::Vector3d::UnitY()) *
              Eigen::AngleAxisd(poseFields_[3]->value() * d, Eigen::Vector3d::UnitX()))
                 .toRotationMatrix();
-      wb_.doc->edit(tr("Edit pose"), [p](app::Case& k) {
+      // Typing one field after another is one undo step, until anything else is done in between.
+      QUndoStack* stack = wb_.doc->undoStack();
+      if (stack->index() != fieldsEditIndex_ || stack->index() != stack->count()) fieldsMergeId_ = wb_.view->nextMergeId();
+      wb_.doc->edit(tr("Edit pose fields"), [p](app::Case& k) {
         k.pose = p;
         k.hasPose = true;
         k.poseAligned = true;
-      });
+      }, fieldsMergeId_);
+      fieldsEditIndex_ = stack->index();
     });
   }
   l->addWidget(box);

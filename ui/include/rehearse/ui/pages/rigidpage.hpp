@@ -30,6 +30,8 @@ class RigidPage : public StepPage {
   void editLandmarks(std::vector<LandmarkPair> l, const QString& text);
 
   QDoubleSpinBox* poseFields_[6] = {};
+  int fieldsMergeId_ = -1;    ///< the undo step that typed pose fields join
+  int fieldsEditIndex_ = -1;  ///< the undo stack's index after the last field edit
   QLabel* distanceLabel_ = nullptr;
   QListWidget* landmarkList_ = nullptr;
   QPushButton* pnpButton_ = nullptr;
