@@ -88,6 +88,23 @@ void fsyncDirectoryOf(const QString& path) {
   }
 }
 
+
+// Why SQLite failed, in our words (its own text, e.g. "unable to open database file Error opening
+// database", names no cause a user can act on). The codes are SQLite's primary result codes.
+QString sqlProblem(const QSqlError& e) {
+  bool ok = false;
+  const int code = e.nativeErrorCode().toInt(&ok) & 0xff;
+  if (!ok) return QStringLiteral("the database reported an error");
+  switch (code) {
+    case 13: return QStringLiteral("the disk is full");                              // SQLITE_FULL
+    case 8: case 3: return QStringLiteral("the folder or file is read-only");       // SQLITE_READONLY, SQLITE_PERM
+    case 14: return QStringLiteral("the file cannot be created there (a folder missing or not writable)");  // SQLITE_CANTOPEN
+    case 10: return QStringLiteral("the disk reported an input/output error");       // SQLITE_IOERR
+    case 11: case 26: return QStringLiteral("the file is damaged or not a database"); // SQLITE_CORRUPT, SQLITE_NOTADB
+    case 5: case 6: return QStringLiteral("another program holds the file");         // SQLITE_BUSY, SQLITE_LOCKED
+    default: return QStringLiteral("the database reported error %1").arg(code);
+  }
+}
 }  // namespace
 
 bool isCaseFile(const QString& path) {
@@ -103,7 +120,7 @@ void saveCaseFile(const app::Case& c, const QString& path) {
   {
     Connection conn(tmp);
     auto& db = conn.db();
-    if (!db.open()) fail(QStringLiteral("Cannot write %1 (%2); choose another folder.").arg(path, db.lastError().text()));
+    if (!db.open()) fail(QStringLiteral("Cannot write %1: %2; choose another folder.").arg(path, sqlProblem(db.lastError())));
     QSqlQuery q(db);
     // The temporary file is renamed only once complete, so the journal can stay in memory.
     q.exec(QStringLiteral("PRAGMA journal_mode=OFF"));
@@ -111,7 +128,7 @@ void saveCaseFile(const app::Case& c, const QString& path) {
     if (!q.exec(QStringLiteral("CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT NOT NULL)")) ||
         !q.exec(QStringLiteral("CREATE TABLE parts(name TEXT PRIMARY KEY, format TEXT NOT NULL, data BLOB NOT NULL, sha256 BLOB NOT NULL, "
                                "saved_utc TEXT NOT NULL)")))
-      fail(QStringLiteral("Cannot write %1 (%2).").arg(path, q.lastError().text()));
+      fail(QStringLiteral("Cannot write %1: %2.").arg(path, sqlProblem(q.lastError())));
     db.transaction();
     const QString now = QDateTime::currentDateTimeUtc().toString(Qt::ISODateWithMs);
     auto meta = [&](const QString& k, const QString& v) {
@@ -119,7 +136,7 @@ void saveCaseFile(const app::Case& c, const QString& path) {
       m.prepare(QStringLiteral("INSERT INTO meta(key, value) VALUES(?, ?)"));
       m.addBindValue(k);
       m.addBindValue(v);
-      if (!m.exec()) fail(QStringLiteral("Cannot write %1 (%2).").arg(path, m.lastError().text()));
+      if (!m.exec()) fail(QStringLiteral("Cannot write %1: %2.").arg(path, sqlProblem(m.lastError())));
     };
     meta(QStringLiteral("schema_version"), QString::number(kCaseSchemaVersion));
     meta(QStringLiteral("app_version"), QStringLiteral(REHEARSE_VERSION));
@@ -133,7 +150,7 @@ void saveCaseFile(const app::Case& c, const QString& path) {
       p.addBindValue(data);
       p.addBindValue(QCryptographicHash::hash(data, QCryptographicHash::Sha256));
       p.addBindValue(now);
-      if (!p.exec()) fail(QStringLiteral("Cannot write %1 (%2).").arg(path, p.lastError().text()));
+      if (!p.exec()) fail(QStringLiteral("Cannot write %1: %2.").arg(path, sqlProblem(p.lastError())));
     };
     auto bytes = [](const std::string& s) { return QByteArray(s.data(), static_cast<qsizetype>(s.size())); };
     const simcore::Mesh& volume = c.organ->volume;
@@ -193,7 +210,7 @@ void saveCaseFile(const app::Case& c, const QString& path) {
                  {"vessel_tree", tree}};
       part("ground_truth", "json", bytes(gt.dump()));
     }
-    if (!db.commit()) fail(QStringLiteral("Cannot write %1 (%2).").arg(path, db.lastError().text()));
+    if (!db.commit()) fail(QStringLiteral("Cannot write %1: %2.").arg(path, sqlProblem(db.lastError())));
   }
   fsyncFile(tmp);
   if (::rename(QFile::encodeName(tmp).constData(), QFile::encodeName(path).constData()) != 0) {
@@ -219,7 +236,7 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
   Connection conn(path);
   auto& db = conn.db();
   db.setConnectOptions(QStringLiteral("QSQLITE_OPEN_READONLY"));
-  if (!db.open()) fail(QStringLiteral("%1 cannot be opened (%2).").arg(name, db.lastError().text()));
+  if (!db.open()) fail(QStringLiteral("%1 cannot be opened: %2.").arg(name, sqlProblem(db.lastError())));
   QSqlQuery q(db);
   if (!q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'schema_version'")) || !q.next())
     fail(QStringLiteral("%1 is damaged or not a Rehearse case (no schema version).").arg(name));
@@ -251,7 +268,7 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
     const auto named = partName.find(part);
     const QString what = named != partName.end() ? named->second : QString::fromLatin1(part);
     if (!p.exec()) {
-      note(QStringLiteral("%1 not loaded: it could not be read (%2).").arg(what, p.lastError().text()));
+      note(QStringLiteral("%1 not loaded: it could not be read (%2).").arg(what, sqlProblem(p.lastError())));
       return {};
     }
     if (!p.next()) return {};
