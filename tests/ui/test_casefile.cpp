@@ -141,12 +141,18 @@ class TestCaseFile : public QObject {
     edited.pose.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized()).toRotationMatrix();
     edited.pose.t = {0.0123, -0.004, 0.21};
     edited.poseAligned = true;
+    {
+      auto organ = std::make_shared<app::Organ>(*edited.organ);
+      organ->sourceUnitToMetre = 0.001;  // imported from a file in mm
+      edited.organ = organ;
+    }
     ui::saveCaseFile(edited, path);
     QVERIFY(ui::isCaseFile(path));
     QStringList notes;
     auto back = ui::loadCaseFile(path, &notes);
     QVERIFY2(notes.isEmpty(), qPrintable(notes.join('\n')));
     compareCases(edited, back);
+    QCOMPARE(back.organ->sourceUnitToMetre, 0.001);
     // Saving again over it replaces it whole and leaves no temporary file behind.
     ui::saveCaseFile(back, path);
     QCOMPARE(QDir(QFileInfo(path).absolutePath()).entryList({"phantom.rehearse.saving-*"}).size(), 0);

@@ -657,6 +657,15 @@ class TestWorkflow : public QObject {
       QVERIFY(mon.worst < total / 2);
       QCOMPARE(w_->meshPage()->labelsShown(), 2);
     }
+    // That organ came from a file in mm: a 4x4 pose matrix (no unit of its own) is read in mm too.
+    {
+      QCOMPARE(w_->caseData()->organ->sourceUnitToMetre, 0.001);
+      const std::string matrix = tempPath("pose-mm.txt");
+      writeFile(matrix, "1 0 0 12\n0 1 0 -7\n0 0 1 350\n0 0 0 1\n");
+      w_->rigidPage()->loadPose(QString::fromStdString(matrix));
+      QVERIFY2((w_->caseData()->pose.t - Eigen::Vector3d(0.012, -0.007, 0.35)).norm() < 1e-12, qPrintable(w_->statusText()));
+      w_->undoStack()->undo();
+    }
     // A 4k (3840x2160) MJPEG video, frames of different colours.
     const std::string avi = tempPath("uhd.avi");
     {

@@ -25,6 +25,7 @@
 #include <QDir>
 
 #include <cerrno>
+#include <cmath>
 #include <csignal>
 
 #include <fcntl.h>
@@ -181,6 +182,7 @@ void saveCaseFile(const app::Case& c, const QString& path) {
     part("attachments", "json", bytes(json{{"nodes", c.attachments}}.dump()));
     if (c.hasPose) part("pose", "json", bytes(json{{"pose", poseJson(c.pose)}, {"aligned", c.poseAligned}}.dump()));
     if (!c.organ->source.empty()) meta(QStringLiteral("mesh_source"), QString::fromStdString(c.organ->source));
+    meta(QStringLiteral("mesh_source_unit_m"), QString::number(c.organ->sourceUnitToMetre, 'g', 17));
     {
       const auto& m = c.material;
       part("material", "json", bytes(json{{"model", simcore::toString(m.model)}, {"young", m.young}, {"poisson", m.poisson},
@@ -343,9 +345,14 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
     c.pose = c.automaticPose();
     c.hasPose = true;
   }
-  if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'mesh_source'")) && q.next() && !c.organ->empty()) {
+  if (!c.organ->empty()) {
     auto organ = std::make_shared<app::Organ>(*c.organ);  // once, while loading
-    organ->source = q.value(0).toString().toStdString();
+    if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'mesh_source'")) && q.next()) organ->source = q.value(0).toString().toStdString();
+    if (q.exec(QStringLiteral("SELECT value FROM meta WHERE key = 'mesh_source_unit_m'")) && q.next()) {
+      bool ok = false;
+      const double unit = q.value(0).toDouble(&ok);
+      if (ok && unit > 0 && std::isfinite(unit)) organ->sourceUnitToMetre = unit;  // absent in older files: metres
+    }
     c.organ = organ;
   }
   if (QByteArray m = read("material"); !m.isEmpty()) {

@@ -9,10 +9,11 @@
 
 namespace rehearse::app {
 
-std::shared_ptr<const Organ> Organ::fromVolume(simcore::Mesh volume, std::string source) {
+std::shared_ptr<const Organ> Organ::fromVolume(simcore::Mesh volume, std::string source, double sourceUnitToMetre) {
   auto o = std::make_shared<Organ>();
   o->volume = std::move(volume);
   o->source = std::move(source);
+  o->sourceUnitToMetre = sourceUnitToMetre > 0 ? sourceUnitToMetre : 1.0;
   o->quality = simcore::computeQuality(o->volume);
   o->centreOfGravity = phantom::centreOfGravity(o->volume);
   if (o->volume.tets.empty()) return o;

@@ -180,7 +180,8 @@ void RigidPage::refresh(const app::Case& c) {
 void RigidPage::loadPose(const QString& path) {
   if (!data()) return;
   try {
-    const double unit = data()->organ->volume.unitToMetre;
+    // A 4x4 matrix has no unit: it is read in the organ file's (JSON poses say theirs).
+    const double unit = data()->organ->sourceUnitToMetre;
     const Pose p = imaging::loadPose(path.toStdString(), unit);
     wb_.doc->edit(tr("Load pose"), [&p](app::Case& k) {
       k.pose = p;

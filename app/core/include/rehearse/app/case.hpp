@@ -48,10 +48,13 @@ struct Organ {
   simcore::QualityReport quality;
   Eigen::Vector3d centreOfGravity = Eigen::Vector3d::Zero();  ///< volume-weighted, model frame, mesh unit
   std::string source;                            ///< file it came from ("" for the built-in phantom)
+  /// Metres per length unit of that file (the volume itself is in metres): a 4x4 pose matrix, which has no
+  /// unit of its own, is read in it, as `rehearse register --unit` does.
+  double sourceUnitToMetre = 1.0;
 
   bool empty() const { return volume.tets.empty(); }
   /// Derives surfaces, quality and centre from `volume` (the expensive part of making an organ).
-  static std::shared_ptr<const Organ> fromVolume(simcore::Mesh volume, std::string source = {});
+  static std::shared_ptr<const Organ> fromVolume(simcore::Mesh volume, std::string source = {}, double sourceUnitToMetre = 1.0);
 };
 
 /// What a case knows independently of the user (the phantom's, or a study's): kept apart from the user's work.
