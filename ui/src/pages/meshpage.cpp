@@ -159,7 +159,7 @@ void MeshPage::importMesh(const QString& path) {
       std::vector<std::string> notes;
       progress(0.02, QStringLiteral("reading"));
       simcore::Mesh m = simcore::loadMesh(path.toStdString(), {unit}, &notes);
-      const double fileUnit = m.unitToMetre;  // kept with the organ (a 4x4 pose matrix is read in it)
+      const double fileUnit = simcore::metresPerUnit(unit);  // kept with the organ (a 4x4 pose matrix is read in it)
       // A size no organ has (under 1 cm or over 1 m across) is a wrong unit, not an organ: refused with the
       // likely unit, before anything is built (the case is unchanged).
       if (!m.points.empty()) {
