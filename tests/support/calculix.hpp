@@ -25,9 +25,11 @@ struct CcxMaterial {
 
 /// Nodal displacements (3n, metres) of the static equilibrium under gravity `g` (m/s^2, a vector), the
 /// `fixed` nodes (0-based) held; elements with a label in `byLabel` take that material, the others
-/// `fallback`. Empty when ccx failed (its output's end is logged).
+/// `fallback`; `forces` (N, by 0-based node) are applied as point loads. Empty when ccx failed (its
+/// output's end is logged).
 inline Eigen::VectorXd runCalculixStatic(const rehearse::simcore::Mesh& mesh, const std::map<int, CcxMaterial>& byLabel, const CcxMaterial& fallback,
-                                         const Eigen::Vector3d& g, bool nlgeom, const std::vector<int>& fixed, const std::string& name) {
+                                         const Eigen::Vector3d& g, bool nlgeom, const std::vector<int>& fixed, const std::string& name,
+                                         const std::map<int, Eigen::Vector3d>& forces = {}) {
   const std::string dir = tempPath("ccx-" + name);
   std::filesystem::create_directories(dir);
   std::string inp = "*NODE\n";
@@ -72,6 +74,15 @@ inline Eigen::VectorXd runCalculixStatic(const rehearse::simcore::Mesh& mesh, co
   for (const auto& [label, elements] : groups) {
     std::snprintf(buf, sizeof buf, "E%d, GRAV, %.17g, %.17g, %.17g, %.17g\n", label + 1, gn, g.x() / gn, g.y() / gn, g.z() / gn);
     inp += buf;
+  }
+  if (!forces.empty()) {
+    inp += "*CLOAD\n";
+    for (const auto& [node, f] : forces)
+      for (int k = 0; k < 3; ++k)
+        if (f[k] != 0) {
+          std::snprintf(buf, sizeof buf, "%d, %d, %.13g\n", node + 1, k + 1, f[k]);
+          inp += buf;
+        }
   }
   inp += "*NODE PRINT, NSET=NALL\nU\n*END STEP\n";
   writeFile(dir + "/job.inp", inp);
