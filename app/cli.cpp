@@ -447,7 +447,23 @@ int cmdRegister(const std::vector<std::string>& args) {
       }
       iterations.push_back(std::move(row));
     }
-    writeReport(o["report"], {{"ok", res.ok}, {"converged", res.converged}, {"status", res.status}, {"iterations", iterations}});
+    nlohmann::json alternatives = nlohmann::json::array();
+    for (const auto& a : res.alternatives)
+      alternatives.push_back({{"pose",
+                               {{"R", {{a.pose.R(0, 0), a.pose.R(0, 1), a.pose.R(0, 2)},
+                                       {a.pose.R(1, 0), a.pose.R(1, 1), a.pose.R(1, 2)},
+                                       {a.pose.R(2, 0), a.pose.R(2, 1), a.pose.R(2, 2)}}},
+                                {"t", {a.pose.t.x(), a.pose.t.y(), a.pose.t.z()}},
+                                {"unit", "m"}}},
+                              {"mean_px", a.score},
+                              {"apart_mm", a.apartMm}});
+    writeReport(o["report"], {{"ok", res.ok},
+                              {"converged", res.converged},
+                              {"determined", res.ok && !res.ambiguous},
+                              {"ambiguous", res.ambiguous},
+                              {"alternatives", alternatives},
+                              {"status", res.status},
+                              {"iterations", iterations}});
   }
   const auto& last = rows.back().it;
   std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(), rows.size(), last.wallMs,
@@ -456,6 +472,11 @@ int cmdRegister(const std::vector<std::string>& args) {
   if (!res.ok) {
     std::fprintf(stderr, "rehearse: %s\n", res.status.c_str());
     return 3;
+  }
+  if (res.ambiguous) {
+    // The best fit is written, but the contour does not determine it: not a success.
+    std::fprintf(stderr, "rehearse: %s\n", res.status.c_str());
+    return 4;
   }
   return 0;
 }
@@ -490,7 +511,9 @@ std::string usage() {
          "                                   fit the organ onto a sketched silhouette (nodes written in the camera frame);\n"
          "                                   ridges and ligaments with their curve on the organ (P2ILF modelPoints, our\n"
          "                                   model_vertices: node indices, or surface vertices when --mesh is a surface)\n"
-         "                                   are held onto their image curves too\n"
+         "                                   are held onto their image curves too. Exit 0: a determined fit;\n"
+         "                                   4: ambiguous (the best fit is written; the report names the other\n"
+         "                                   poses that fit the contour nearly as well); 3: failed\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL)\n"
          "Mesh formats: .msh (Gmsh 1, 2.2, 4.1), .vtk (legacy), .vtu, .mesh (Medit), .obj .stl .ply .off .gltf .glb.\n"

@@ -723,6 +723,66 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       record(++iteration, "rigid", 0);
     }
   }
+  // Does the contour determine the pose? Short rigid fits from poses spread around the result: an end that
+  // fits nearly as well with the organ elsewhere is an alternative the contour cannot tell from it.
+  double probedScore = 0;  // the rigid result's, which the alternatives' are compared with
+  if ((o.rigidPrepass || !o.elastic) && o.probeAmbiguity && !res.cancelled) {
+    std::vector<Eigen::Vector3d> sample;  // up to 400 nodes, to measure how far apart two poses put the organ
+    const std::size_t stride = std::max<std::size_t>(1, model.nodeCount() / 400);
+    for (std::size_t i = 0; i < model.nodeCount(); i += stride) sample.push_back(res.x.segment<3>(3 * i));
+    auto apart = [&](const Pose& a, const Pose& b) {
+      double sum = 0;
+      for (const auto& p : sample) sum += (a.apply(p) - b.apply(p)).norm();
+      return sum / static_cast<double>(sample.size());
+    };
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
+    centre /= model.lumpedMass.sum();
+    std::vector<Pose> probes;
+    for (int axis = 0; axis < 3; ++axis)
+      for (int sgn : {-1, 1}) {
+        Pose moved = res.pose;
+        moved.t += sgn * o.probeDistance * Eigen::Vector3d::Unit(axis);
+        probes.push_back(moved);
+        probes.push_back(res.pose.turnedAbout(Eigen::AngleAxisd(sgn * o.probeDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(),
+                                              res.pose.apply(centre)));
+      }
+    std::vector<std::pair<Pose, double>> ends(probes.size());
+    tbb::parallel_for(std::size_t(0), probes.size(), [&](std::size_t i) {
+      Pose pose = probes[i];
+      double best = std::numeric_limits<double>::infinity();
+      Pose bestPose = pose;
+      try {
+        for (int k = 0; k < 6; ++k) {
+          const auto sil = visibleSilhouette(surface, res.x, pose, camera);
+          const double sc = measure(sil, res.x, pose).score();
+          if (sc < best) best = sc, bestPose = pose;
+          auto b = bindForRigid(samples, sil, o);
+          const auto c = bindCurves(curves, res.x, pose, camera, nullptr);
+          b.insert(b.end(), c.begin(), c.end());
+          if (b.size() < 3) break;
+          pose = refinePose(res.x, b, pose, camera, o.sliding);
+        }
+        const double sc = measure(visibleSilhouette(surface, res.x, pose, camera), res.x, pose).score();
+        if (sc < best) best = sc, bestPose = pose;
+      } catch (const MeshError&) {
+        // moved behind the camera: not an alternative
+      }
+      ends[i] = {bestPose, best};
+    });
+    const double resultScore = probedScore = score(res.x, res.pose);
+    const double limit = std::max(resultScore + o.ambiguityPx, resultScore * (1 + o.ambiguityShare));
+    for (const auto& [pose, sc] : ends) {
+      if (!(sc <= limit)) continue;
+      const double mm = 1e3 * apart(pose, res.pose);
+      if (mm <= o.ambiguityMm) continue;
+      bool known = false;  // one alternative per place
+      for (const auto& a : res.alternatives) known |= 1e3 * apart(a.pose, pose) <= o.ambiguityMm;
+      if (!known) res.alternatives.push_back({pose, sc, mm});
+    }
+    std::sort(res.alternatives.begin(), res.alternatives.end(), [](const auto& a, const auto& b) { return a.score < b.score; });
+    if (res.alternatives.size() > 3) res.alternatives.resize(3);
+  }
   const Pose rigidPose = res.pose;
   const Eigen::VectorXd rigidX = res.x;
   const double rigidMean = res.iterations.back().score();
@@ -844,6 +904,53 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       res.status = "failed: after the fit only " + std::to_string(static_cast<int>(100 * share)) + " % of the contour lies within " +
                    std::to_string(static_cast<int>(nearPx)) + " px of the organ's silhouette; it may belong to another organ or the start pose is too far";
     }
+  }
+  if (res.ok && !res.alternatives.empty()) {
+    // Say which alternatives, and what would decide: the stretch of the organ's outline that no contour
+    // covers (named by where it lies on the organ), or a curve on the organ when the outline is whole.
+    res.ambiguous = true;
+    const auto& alt = res.alternatives.front();
+    char text[240];
+    if (res.alternatives.size() == 1) {
+      std::snprintf(text, sizeof text, "ambiguous: another pose %.0f mm away fits the contour nearly as well as the rigid fit (%.2f px against %.2f px)",
+                    alt.apartMm, alt.score, probedScore);
+    } else {
+      double nearest = alt.apartMm;
+      for (const auto& a : res.alternatives) nearest = std::min(nearest, a.apartMm);
+      std::snprintf(text, sizeof text,
+                    "ambiguous: %zu other poses, %.0f mm or more away, fit the contour nearly as well as the rigid fit (the best %.2f px against %.2f px)",
+                    res.alternatives.size(), nearest, alt.score, probedScore);
+    }
+    std::string decide;
+    const auto& sil = silhouette(res.x, res.pose);
+    Eigen::Vector2d all = Eigen::Vector2d::Zero(), open = Eigen::Vector2d::Zero();
+    double allLength = 0, openLength = 0;
+    const double gapPx = std::max(10.0, 0.01 * diag);
+    for (const auto& e : sil) {
+      const double l = (e.pb - e.pa).norm();
+      const Eigen::Vector2d mid = e.pm;
+      all += l * mid;
+      allLength += l;
+      double nearest = std::numeric_limits<double>::infinity();
+      for (const auto& seg : contour)
+        for (const auto& p : seg) nearest = std::min(nearest, (p - mid).norm());
+      if (nearest > gapPx) open += l * mid, openLength += l;
+    }
+    if (allLength > 0 && openLength > 0.1 * allLength) {
+      const Eigen::Vector2d d = open / openLength - all / allLength;
+      const char* vertical = d.y() < -0.4 * d.norm() ? "upper " : d.y() > 0.4 * d.norm() ? "lower " : "";
+      const char* horizontal = d.x() < -0.4 * d.norm() ? "left" : d.x() > 0.4 * d.norm() ? "right" : "";
+      std::string where = std::string(vertical) + horizontal;
+      if (where.empty()) where = "undrawn";
+      if (where.back() == ' ') where.pop_back();
+      if (where == "upper") where = "top";
+      if (where == "lower") where = "bottom";
+      decide = "; the contour along the organ's " + where + " side (" + std::to_string(static_cast<int>(100 * openLength / allLength)) +
+               " % of its outline is not drawn), or a ridge or ligament curve, would decide it";
+    } else {
+      decide = "; a ridge or ligament curve drawn on the organ (step 3) would decide it";
+    }
+    res.status = text + decide;
   }
   return res;
 }

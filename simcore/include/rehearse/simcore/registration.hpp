@@ -97,14 +97,36 @@ struct RegistrationOptions {
   /// Bound points slide along the contour (one constraint across it per point) instead of being held at the
   /// foot of their perpendicular (two, across the ray).
   bool sliding = true;
+  /// After the rigid stage, short rigid fits from poses spread around its result (moves of probeDistance
+  /// along and turns of probeDegrees about each camera axis): an end that fits the contour nearly as well
+  /// (mean distance within ambiguityPx or ambiguityShare of the result's) with the organ's nodes more than
+  /// ambiguityMm from the result's on average makes the fit ambiguous.
+  bool probeAmbiguity = true;
+  double probeDistance = 0.015;  ///< m
+  double probeDegrees = 15.0;
+  double ambiguityPx = 0.5;
+  double ambiguityShare = 0.25;
+  double ambiguityMm = 5.0;
   /// Optional anatomical curve constraints, used by the rigid and the elastic stages.
   std::vector<AnatomicalCurve> curves;
   /// Called after every iteration with the current positions (model frame) and pose; false cancels.
   std::function<bool(const RegistrationIteration&, const Eigen::VectorXd& x, const Pose& pose)> onIteration;
 };
 
+/// Another pose the contour allows nearly as well as the result's (an ambiguous fit's alternatives).
+struct RegistrationAlternative {
+  Pose pose;                ///< model -> camera (the shape is the rest shape)
+  double score = 0;         ///< px, as RegistrationIteration::score, after a rigid fit from it
+  double apartMm = 0;       ///< mean distance of the organ's nodes between this pose and the result's
+};
+
 struct RegistrationResult {
   bool ok = false;          ///< a usable result (possibly not converged; see status)
+  /// Usable, but the contour does not determine the pose: `alternatives` fit it nearly as well far from
+  /// the result (or the pose has a direction the contour does not constrain); `status` says which and what
+  /// would decide it. `rehearse register` exits 4.
+  bool ambiguous = false;
+  std::vector<RegistrationAlternative> alternatives;
   bool converged = false;
   bool cancelled = false;
   std::string status;       ///< one sentence
