@@ -8,7 +8,7 @@
 // from the paper's 12 perturbations (+-2 cm along, +-20 degrees about each camera axis) and 4 combined
 // ones. Markers: 40 visible surface points and one inner target. Writes registration-real.csv (one row
 // per fit) and registration-real-<organ>.png (marker error against wall time at 100 %). Not a test.
-//   bench_registration_real [OUT_DIR] [--quick] [--organ NAME] [--no-attachments]
+//   bench_registration_real [OUT_DIR] [--quick] [--organ NAME] [--no-attachments] [--fractions 1,0.7,0.5]
 // The fine meshes and CalculiX's answers are cached in OUT_DIR (delete them to recompute).
 #include "calculix.hpp"
 #include "plot.hpp"
@@ -30,6 +30,7 @@
 #include <map>
 #include <numeric>
 #include <random>
+#include <sstream>
 
 using namespace rehearse;
 using namespace rehearse::simcore;
@@ -120,11 +121,17 @@ int main(int argc, char** argv) {
   std::string out = ".";
   std::string only;
   bool quick = false, attachments = true;
+  std::vector<double> fractionsAsked;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
     else if (a == "--organ" && i + 1 < argc) only = argv[++i];
     else if (a == "--no-attachments") attachments = false;
+    else if (a == "--fractions" && i + 1 < argc) {
+      std::stringstream list(argv[++i]);
+      std::string item;
+      while (std::getline(list, item, ',')) fractionsAsked.push_back(std::atof(item.c_str()));
+    }
     else out = a;
   }
   std::filesystem::create_directories(out);
@@ -392,6 +399,7 @@ int main(int argc, char** argv) {
     // Contours: the outline kept at each share, the missing arc centred on the top, right, bottom or left
     // of the organ; +-2 px noise; 1 % of the points (at least 3) thrown 15-40 px off.
     std::vector<double> fractions = quick ? std::vector<double>{1.0, 0.7} : std::vector<double>{1.0, 0.9, 0.8, 0.7, 0.6, 0.5};
+    if (!fractionsAsked.empty()) fractions = fractionsAsked;
     const char* sideNames[] = {"top", "right", "bottom", "left"};
     std::size_t sideAt[4] = {0, 0, 0, 0};
     for (std::size_t i = 0; i < outline.size(); ++i) {

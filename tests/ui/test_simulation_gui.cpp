@@ -24,6 +24,7 @@
 #include <QProcess>
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
 
 #include <QDockWidget>
 #include <QDoubleSpinBox>
@@ -399,6 +400,73 @@ class TestSimulationGui : public QObject {
     qInfo("GUI fit (StVK, 54 kPa) against rehearse register on the same inputs: largest node difference %.2e m; %s", worst,
           fitted->fit->status.c_str());
     QVERIFY2(worst < 1e-9, qPrintable(QString::number(worst)));
+  }
+
+  // An ambiguous fit, driven as an assistant would: an organ symmetric about the view axis (an oblate
+  // spheroid) outlined whole, F9. The word comes first in capitals, the alternatives are listed; choosing one
+  // shows the organ there over the frame; Fit from It puts the organ there (one undo step) and fits from it.
+  void ambiguousFitOffersItsAlternatives() {
+    const Eigen::Vector3d radii(0.05, 0.05, 0.025);
+    simcore::TetrahedraliseOptions to;
+    to.targetTets = 3000;
+    simcore::Mesh volume = simcore::tetrahedraliseImplicit(
+        [radii](const Eigen::Vector3d& p) { return p.cwiseQuotient(radii).norm() < 1 ? 1 : 0; }, Eigen::AlignedBox3d(-radii * 1.1, radii * 1.1), to,
+        4.0 / 3 * M_PI * radii.prod());
+    auto organ = app::Organ::fromVolume(std::move(volume), "spheroid");
+    Pose pose;
+    pose.t = Eigen::Vector3d(0, 0, 0.35);
+    app::Case probe = *w_->caseData();
+    probe.organ = organ;
+    probe.fit.reset();
+    const auto borders = imaging::maskOutlines(imaging::renderMask(probe.camera, pose, probe.surfaceView()));
+    QVERIFY(!borders.empty());
+    imaging::ContourSegment seg;
+    for (std::size_t i = 0; i < borders.front().size(); i += 3) seg.points.push_back(borders.front()[i]);
+    seg.closed = true;
+    w_->editCase("test: a spheroid, its outline and pose", [&](app::Case& k) {
+      k.organ = organ;
+      k.attachments.clear();
+      k.fit.reset();
+      k.contour.width = k.camera.width;
+      k.contour.height = k.camera.height;
+      k.contour.segments = {seg};
+      k.pose = pose;
+      k.hasPose = true;
+      k.poseAligned = true;
+    });
+    w_->frameView()->setFocus();
+    QTest::keyClick(w_.get(), Qt::Key_5, Qt::AltModifier);
+    QTest::keyClick(w_.get(), Qt::Key_F9);
+    QTRY_VERIFY_WITH_TIMEOUT(w_->caseData()->hasFit(), 120000);
+    auto* status = w_->findChild<QLabel*>("fitStatus");
+    qInfo("%s", qPrintable(status->text()));
+    QVERIFY2(status->text().startsWith("AMBIGUOUS: "), qPrintable(status->text()));
+    auto* list = w_->findChild<QComboBox*>("fitAlternatives");
+    QVERIFY(list && list->isVisible());
+    const auto alternatives = w_->fitPage()->alternatives();
+    QCOMPARE(list->count(), static_cast<int>(alternatives.size()) + 1);
+    QVERIFY(!alternatives.empty());
+    // Choosing the first alternative by keyboard shows the organ there over the frame.
+    list->setFocus();
+    QTest::keyClick(list, Qt::Key_Down);
+    QCOMPARE(list->currentIndex(), 1);
+    QVERIFY((w_->frameView()->caseData()->pose.t - alternatives[0].t).norm() < 1e-12);
+    QVERIFY((w_->frameView()->caseData()->pose.R - alternatives[0].R).norm() < 1e-12);
+    QVERIFY((w_->caseData()->pose.R - alternatives[0].R).norm() > 0.1);  // the case itself is unchanged
+    const int undoBefore = w_->undoStack()->index();
+    const Pose firstFit = w_->caseData()->pose;
+    QTest::mouseClick(w_->findChild<QPushButton*>("fitFromAlternative"), Qt::LeftButton);
+    QTRY_VERIFY_WITH_TIMEOUT(w_->caseData()->hasFit() && !status->text().startsWith("Fitting"), 120000);
+    // From there without the rigid stage: the organ stays turned as the alternative put it.
+    QVERIFY2((w_->caseData()->pose.R - alternatives[0].R).norm() < 1e-9, qPrintable(status->text()));
+    QVERIFY(w_->undoStack()->index() >= undoBefore + 2);  // the pose, then the fit
+    w_->undoStack()->undo();
+    w_->undoStack()->undo();
+    QVERIFY(w_->caseData()->hasFit());  // the first fit, at its pose
+    QVERIFY((w_->caseData()->pose.R - firstFit.R).norm() < 1e-12);
+    w_->undoStack()->undo();
+    QVERIFY(!w_->caseData()->hasFit());
+    QVERIFY(!list->isVisible());
   }
 
   void cleanupTestCase() { w_.reset(); }

@@ -3,6 +3,7 @@
 #include <rehearse/app/elasticfit.hpp>
 
 #include <QCheckBox>
+#include <QComboBox>
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QPushButton>
@@ -83,6 +84,32 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   status_->setObjectName(QStringLiteral("fitStatus"));
   status_->setWordWrap(true);
   layout->addWidget(status_);
+  // An ambiguous fit's alternatives: choosing one previews the organ there over the frame.
+  alternativesBox_ = new QWidget(this);
+  auto* altRow = new QHBoxLayout(alternativesBox_);
+  altRow->setContentsMargins(0, 0, 0, 0);
+  alternativesList_ = new QComboBox(alternativesBox_);
+  alternativesList_->setObjectName(QStringLiteral("fitAlternatives"));
+  alternativesList_->setToolTip(tr("Poses that fit the contour nearly as well as the fit: choose one to see the organ there"));
+  auto* useAlt = new QPushButton(tr("Fit from It"), alternativesBox_);
+  useAlt->setObjectName(QStringLiteral("fitFromAlternative"));
+  useAlt->setToolTip(tr("Put the organ at the chosen pose (one undo step) and fit from there without the rigid stage"));
+  altRow->addWidget(alternativesList_, 1);
+  altRow->addWidget(useAlt);
+  alternativesBox_->setVisible(false);
+  layout->addWidget(alternativesBox_);
+  connect(alternativesList_, &QComboBox::currentIndexChanged, this, [this](int index) {
+    if (!data()) return;
+    if (index <= 0 || index > static_cast<int>(alternativePoses_.size())) {
+      wb_.view->setCase(data());
+      return;
+    }
+    auto preview = std::make_shared<app::Case>(*data());
+    preview->fit.reset();
+    preview->pose = alternativePoses_[static_cast<std::size_t>(index - 1)];
+    wb_.view->setCase(preview);
+  });
+  connect(useAlt, &QPushButton::clicked, this, [this] { useAlternative(alternativesList_->currentIndex() - 1); });
   // Live chart: the contour-to-silhouette distance against run time.
   series_ = new QLineSeries;
   series_->setName(tr("mean distance (px)"));
@@ -108,7 +135,33 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   layout->addWidget(chartView, 1);
 }
 
+void FitPage::showAlternatives(const std::vector<simcore::RegistrationAlternative>& alternatives) {
+  const QSignalBlocker block(alternativesList_);
+  alternativesList_->clear();
+  alternativePoses_.clear();
+  alternativesList_->addItem(tr("The fit"));
+  for (const auto& a : alternatives) {
+    alternativePoses_.push_back(a.pose);
+    alternativesList_->addItem(tr("Alternative %1: %2 mm away, %3 px").arg(alternativePoses_.size()).arg(a.apartMm, 0, 'f', 0).arg(a.score, 0, 'f', 2));
+  }
+  alternativesBox_->setVisible(!alternatives.empty());
+}
+
+void FitPage::useAlternative(int index) {
+  if (!data() || index < 0 || index >= static_cast<int>(alternativePoses_.size())) return;
+  const Pose pose = alternativePoses_[static_cast<std::size_t>(index)];
+  wb_.doc->edit(tr("Use alternative pose"), [&pose](app::Case& k) {
+    k.pose = pose;
+    k.fit.reset();
+  });
+  runFit(false);
+}
+
 void FitPage::refresh(const app::Case& c) {
+  if (!c.hasFit() && !wb_.jobs->isRunning()) {
+    alternativePoses_.clear();
+    alternativesBox_->setVisible(false);
+  }
   // No stale word about a fit that is no longer there (undone or cleared).
   if (!c.hasFit() && !wb_.jobs->isRunning() && !status_->text().isEmpty() && !status_->text().startsWith(tr("Fit reverted")))
     status_->setText(tr("No elastic fit yet: F9 fits the organ onto the contour."));
@@ -124,7 +177,9 @@ void FitPage::refresh(const app::Case& c) {
                                        .arg(onOrgan));
 }
 
-void FitPage::runElasticFit() {
+void FitPage::runElasticFit() { runFit(rigid_->isChecked()); }
+
+void FitPage::runFit(bool rigidPrepass) {
   if (!wb_.doc->hasCase()) return;
   const auto c = data();
   if (const std::string missing = app::missingFor(*c, app::Step::Elastic); !missing.empty()) {
@@ -137,8 +192,9 @@ void FitPage::runElasticFit() {
   axisX_->setRange(0, 1);
   // The case's organ, attachments and material (the Simulation panel's), through the one fit pipeline.
   app::FitInput input = app::fitInputFromCase(*c);
-  input.rigidPrepass = rigid_->isChecked();
+  input.rigidPrepass = rigidPrepass;
   status_->setText(tr("Fitting... (Esc cancels)"));
+  showAlternatives({});
   wb_.jobs->run(tr("Elastic fit..."), [this, c, input](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
     try {
       auto onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
@@ -172,7 +228,7 @@ void FitPage::runElasticFit() {
       auto fit = app::toCasePart(r);
       const Pose pose = r.pose;
       const double ms = r.iterations.empty() ? 0.0 : r.iterations.back().wallMs;
-      return [this, fit, pose, status, ms] {
+      return [this, fit, pose, status, ms, alternatives = r.alternatives] {
         wb_.doc->edit(tr("Elastic fit"), [&](app::Case& k) {
           k.fit = fit;
           k.pose = pose;
@@ -180,8 +236,12 @@ void FitPage::runElasticFit() {
         fitUndoIndex_ = wb_.doc->undoStack()->index();
         keep_->setEnabled(true);
         revert_->setEnabled(true);
-        status_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).").arg(status).arg(ms / 1000.0, 0, 'f', 1));
-        wb_.status(tr("Elastic fit: %1").arg(status));
+        // An ambiguous fit begins with the word, in capitals: the overlay may be wrong.
+        QString said = status;
+        if (!alternatives.empty() && said.startsWith(QStringLiteral("ambiguous: "))) said = tr("AMBIGUOUS: %1").arg(said.mid(11));
+        status_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).").arg(said).arg(ms / 1000.0, 0, 'f', 1));
+        showAlternatives(alternatives);
+        wb_.status(tr("Elastic fit: %1").arg(said));
         emit fitFinished(true, status);
       };
     } catch (const std::exception& e) {

@@ -2,10 +2,17 @@
 // Step 5, the elastic fit: the organ's silhouette slides onto the contour on a worker (the one pipeline,
 // app::runElasticFit, with the case's organ, attachments and material), the organ deforms over the frame
 // as it goes and a chart plots the distance against time; Esc cancels; the result is one undo step, kept
-// or reverted. Ridges and ligaments hold once their curve on the organ is picked (K).
+// or reverted. Ridges and ligaments hold once their curve on the organ is picked (K). An ambiguous fit (the
+// contour does not determine the pose) says so and lists the other poses: choosing one shows the organ
+// there over the frame, and *Fit from It* continues from it.
 #include "rehearse/ui/pages/steppage.hpp"
 
+#include <rehearse/simcore/registration.hpp>
+
+#include <vector>
+
 class QCheckBox;
+class QComboBox;
 class QLabel;
 class QLineSeries;
 class QValueAxis;
@@ -20,6 +27,10 @@ class FitPage : public StepPage {
   void caseLoaded() override { fitUndoIndex_ = -1; }
   /// Fits the organ onto the contour on a worker (Esc cancels); emits fitFinished.
   void runElasticFit();
+  /// After an ambiguous fit: the other poses that fit the contour nearly as well (rest shape, rigid).
+  const std::vector<Pose>& alternatives() const { return alternativePoses_; }
+  /// Puts the organ at alternative `index` (one undo step) and fits from there without the rigid stage.
+  void useAlternative(int index);
 
  signals:
   void fitFinished(bool ok, const QString& status);
@@ -31,6 +42,11 @@ class FitPage : public StepPage {
   QPushButton* keep_ = nullptr;    ///< accept the fit just made ...
   QPushButton* revert_ = nullptr;  ///< ... or revert it (its undo step), while it is the last edit
   int fitUndoIndex_ = -1;          ///< the undo index right after the fit awaiting a decision, -1 for none
+  void runFit(bool rigidPrepass);
+  void showAlternatives(const std::vector<simcore::RegistrationAlternative>& alternatives);
+  QWidget* alternativesBox_ = nullptr;
+  QComboBox* alternativesList_ = nullptr;
+  std::vector<Pose> alternativePoses_;
   QLineSeries* series_ = nullptr;
   QValueAxis* axisX_ = nullptr;
   QValueAxis* axisY_ = nullptr;
