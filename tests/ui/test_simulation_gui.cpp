@@ -6,6 +6,7 @@
 
 #include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/gui.hpp"
+#include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
@@ -441,6 +442,7 @@ class TestSimulationGui : public QObject {
     auto* status = w_->findChild<QLabel*>("fitStatus");
     qInfo("%s", qPrintable(status->text()));
     QVERIFY2(status->text().startsWith("AMBIGUOUS: "), qPrintable(status->text()));
+    QCOMPARE(status->palette().color(QPalette::WindowText), ui::palette::warning());  // it stands out
     auto* list = w_->findChild<QComboBox*>("fitAlternatives");
     QVERIFY(list && list->isVisible());
     const auto alternatives = w_->fitPage()->alternatives();
@@ -467,6 +469,7 @@ class TestSimulationGui : public QObject {
     w_->undoStack()->undo();
     QVERIFY(!w_->caseData()->hasFit());
     QVERIFY(!list->isVisible());
+    QVERIFY(status->palette().color(QPalette::WindowText) != ui::palette::warning());
   }
 
   void cleanupTestCase() { w_.reset(); }

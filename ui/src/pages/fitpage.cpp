@@ -1,5 +1,7 @@
 #include "rehearse/ui/pages/fitpage.hpp"
 
+#include "rehearse/ui/frameview.hpp"
+
 #include <rehearse/app/elasticfit.hpp>
 
 #include <QCheckBox>
@@ -145,6 +147,9 @@ void FitPage::showAlternatives(const std::vector<simcore::RegistrationAlternativ
     alternativesList_->addItem(tr("Alternative %1: %2 mm away, %3 px").arg(alternativePoses_.size()).arg(a.apartMm, 0, 'f', 0).arg(a.score, 0, 'f', 2));
   }
   alternativesBox_->setVisible(!alternatives.empty());
+  // The word that the overlay may be wrong stands out (orange, bold) while the fit is ambiguous.
+  status_->setStyleSheet(alternatives.empty() ? QString()
+                                              : QStringLiteral("color: %1; font-weight: bold;").arg(palette::warning().name()));
 }
 
 void FitPage::useAlternative(int index) {
@@ -161,6 +166,7 @@ void FitPage::refresh(const app::Case& c) {
   if (!c.hasFit() && !wb_.jobs->isRunning()) {
     alternativePoses_.clear();
     alternativesBox_->setVisible(false);
+    status_->setStyleSheet(QString());
   }
   // No stale word about a fit that is no longer there (undone or cleared).
   if (!c.hasFit() && !wb_.jobs->isRunning() && !status_->text().isEmpty() && !status_->text().startsWith(tr("Fit reverted")))

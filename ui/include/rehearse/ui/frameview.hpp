@@ -66,6 +66,7 @@ inline QColor organOutline() { return QColor(120, 255, 140); }
 inline QColor organFill() { return QColor(120, 210, 150); }
 inline QColor landmarkOnOrgan() { return QColor(255, 150, 40); }
 inline QColor landmarkInFrame() { return QColor(60, 230, 255); }
+inline QColor warning() { return QColor(255, 170, 60); }  ///< a result that may be wrong (an ambiguous fit)
 }  // namespace palette
 
 class FrameView : public QWidget {
