@@ -625,21 +625,25 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     res.status = "cancelled";
     return res;
   }
+  // A short ICP run from `pose` (the shape is res.x): its end and score. Safe to run on several threads at
+  // once (its own silhouettes, not the shared last one).
+  auto shortIcp = [&](Pose pose, int iterations) {
+    for (int k = 0; k < iterations; ++k) {
+      const auto bindings = rigidBindings(visibleSilhouette(surface, res.x, pose, camera), pose);
+      if (bindings.size() < 3) break;
+      pose = refinePose(res.x, bindings, pose, camera, o.sliding);
+    }
+    return std::make_pair(pose, measure(visibleSilhouette(surface, res.x, pose, camera), res.x, pose).score());
+  };
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
+  for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
+  centre /= model.lumpedMass.sum();
   int iteration = 0;
   // Rigid pre-pass: the pose refined on the bindings (ICP), the shape unchanged.
   if (o.rigidPrepass || !o.elastic) {
     // A few short ICP runs from the start and from candidates that the silhouette alone suggests (the
     // projected organ's centroid moved onto the contour's, and +-15 degrees about the optical axis), to
     // stay out of the local minima of a single ICP; the best continues below.
-    // Safe to run on several threads at once (its own silhouettes, not the shared last one).
-    auto shortIcp = [&](Pose pose, int iterations) {
-      for (int k = 0; k < iterations; ++k) {
-        const auto bindings = rigidBindings(visibleSilhouette(surface, res.x, pose, camera), pose);
-        if (bindings.size() < 3) break;
-        pose = refinePose(res.x, bindings, pose, camera, o.sliding);
-      }
-      return std::make_pair(pose, measure(visibleSilhouette(surface, res.x, pose, camera), res.x, pose).score());
-    };
     // The best of short ICP runs from several poses (in parallel; the first of equal ends wins).
     auto bestOf = [&](const std::vector<Pose>& starts, int iterations) {
       std::vector<std::pair<Pose, double>> ends(starts.size());
@@ -649,9 +653,6 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         if (ends[i].second < ends[best].second) best = i;
       return ends[best];
     };
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
-    for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
-    centre /= model.lumpedMass.sum();
     {
       const auto sil = silhouette(res.x, res.pose);
       Eigen::Vector2d silCentre = Eigen::Vector2d::Zero(), contourCentre = Eigen::Vector2d::Zero();
@@ -735,9 +736,6 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       for (const auto& p : sample) sum += (a.apply(p) - b.apply(p)).norm();
       return sum / static_cast<double>(sample.size());
     };
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
-    centre /= model.lumpedMass.sum();
     std::vector<Pose> probes;
     for (int axis = 0; axis < 3; ++axis)
       for (int sgn : {-1, 1}) {
@@ -749,26 +747,11 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       }
     std::vector<std::pair<Pose, double>> ends(probes.size());
     tbb::parallel_for(std::size_t(0), probes.size(), [&](std::size_t i) {
-      Pose pose = probes[i];
-      double best = std::numeric_limits<double>::infinity();
-      Pose bestPose = pose;
       try {
-        for (int k = 0; k < 6; ++k) {
-          const auto sil = visibleSilhouette(surface, res.x, pose, camera);
-          const double sc = measure(sil, res.x, pose).score();
-          if (sc < best) best = sc, bestPose = pose;
-          auto b = bindForRigid(samples, sil, o);
-          const auto c = bindCurves(curves, res.x, pose, camera, nullptr);
-          b.insert(b.end(), c.begin(), c.end());
-          if (b.size() < 3) break;
-          pose = refinePose(res.x, b, pose, camera, o.sliding);
-        }
-        const double sc = measure(visibleSilhouette(surface, res.x, pose, camera), res.x, pose).score();
-        if (sc < best) best = sc, bestPose = pose;
+        ends[i] = shortIcp(probes[i], 6);
       } catch (const MeshError&) {
-        // moved behind the camera: not an alternative
+        ends[i] = {probes[i], std::numeric_limits<double>::infinity()};  // moved behind the camera: not an alternative
       }
-      ends[i] = {bestPose, best};
     });
     const double resultScore = probedScore = score(res.x, res.pose);
     const double limit = std::max(resultScore + o.ambiguityPx, resultScore * (1 + o.ambiguityShare));
@@ -950,7 +933,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     } else {
       decide = "; a ridge or ligament curve drawn on the organ (step 3) would decide it";
     }
-    res.status = text + decide;
+    res.status = text + decide + " (the fit: " + res.status + ")";
   }
   return res;
 }
