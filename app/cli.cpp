@@ -449,14 +449,7 @@ int cmdRegister(const std::vector<std::string>& args) {
     }
     nlohmann::json alternatives = nlohmann::json::array();
     for (const auto& a : res.alternatives)
-      alternatives.push_back({{"pose",
-                               {{"R", {{a.pose.R(0, 0), a.pose.R(0, 1), a.pose.R(0, 2)},
-                                       {a.pose.R(1, 0), a.pose.R(1, 1), a.pose.R(1, 2)},
-                                       {a.pose.R(2, 0), a.pose.R(2, 1), a.pose.R(2, 2)}}},
-                                {"t", {a.pose.t.x(), a.pose.t.y(), a.pose.t.z()}},
-                                {"unit", "m"}}},
-                              {"mean_px", a.score},
-                              {"apart_mm", a.apartMm}});
+      alternatives.push_back({{"pose", nlohmann::json::parse(imaging::poseToJson(a.pose))}, {"mean_px", a.score}, {"apart_mm", a.apartMm}});
     writeReport(o["report"], {{"ok", res.ok},
                               {"converged", res.converged},
                               {"determined", res.ok && !res.ambiguous},

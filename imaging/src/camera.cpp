@@ -187,13 +187,15 @@ Pose loadPose(const std::string& path, double matrixUnitToMetre) {
   return p;
 }
 
-void savePose(const Pose& p, const std::string& path) {
+std::string poseToJson(const Pose& p) {
   nlohmann::json j;
   j["R"] = {{p.R(0, 0), p.R(0, 1), p.R(0, 2)}, {p.R(1, 0), p.R(1, 1), p.R(1, 2)}, {p.R(2, 0), p.R(2, 1), p.R(2, 2)}};
   j["t"] = {p.t.x(), p.t.y(), p.t.z()};
   j["unit"] = "m";
-  writeFileAtomically(path, j.dump(2) + "\n");
+  return j.dump(2);
 }
+
+void savePose(const Pose& p, const std::string& path) { writeFileAtomically(path, poseToJson(p) + "\n"); }
 
 void writeFileAtomically(const std::string& path, const std::string& bytes) {
   const std::string tmp = path + ".part";

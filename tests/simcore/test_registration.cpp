@@ -22,6 +22,7 @@
 #include <QJsonObject>
 #include <QProcess>
 
+#include <filesystem>
 #include <map>
 #include <set>
 
@@ -428,6 +429,36 @@ class TestRegistration : public QObject {
       turnAboutView |= aboutView > 10 && across < 6 && (a.pose.t - res.pose.t).norm() < 0.002;
     }
     QVERIFY(turnAboutView);  // the symmetry itself is among them
+    // The command line: the best fit is written, the report names the alternatives, the exit code is 4.
+    const std::string dir = tempPath("register-spheroid");
+    std::filesystem::create_directories(dir);
+    saveMesh(volume, dir + "/spheroid.vtu");
+    imaging::saveCamera(c_.camera, dir + "/camera.json");
+    imaging::Contour file;
+    file.width = c_.camera.width;
+    file.height = c_.camera.height;
+    for (const auto& seg : contour) file.segments.push_back({seg, true, "silhouette", {}});
+    imaging::saveContour(file, dir + "/contour.json");
+    imaging::savePose(truth, dir + "/pose.json");
+    QProcess p;
+    p.start(QStringLiteral(REHEARSE_BINARY),
+            {"register", "--mesh", QString::fromStdString(dir + "/spheroid.vtu"), "--camera", QString::fromStdString(dir + "/camera.json"), "--contour",
+             QString::fromStdString(dir + "/contour.json"), "--pose", QString::fromStdString(dir + "/pose.json"), "--rigid-only", "--out",
+             QString::fromStdString(dir + "/registered.vtu"), "--report", QString::fromStdString(dir + "/report.json")});
+    QVERIFY(p.waitForFinished(300000));
+    const QString err = QString::fromUtf8(p.readAllStandardError());
+    QCOMPARE(p.exitCode(), 4);
+    QVERIFY2(err.startsWith("rehearse: ambiguous: "), qPrintable(err));
+    QVERIFY(std::filesystem::exists(dir + "/registered.vtu"));
+    const QJsonObject report = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/report.json"))).object();
+    QVERIFY(report["ok"].toBool() && report["ambiguous"].toBool() && !report["determined"].toBool());
+    const QJsonArray alternatives = report["alternatives"].toArray();
+    QVERIFY(!alternatives.isEmpty());
+    for (const auto& a : alternatives) {
+      QVERIFY(a.toObject()["apart_mm"].toDouble() > 5);
+      QCOMPARE(a.toObject()["pose"].toObject()["t"].toArray().size(), 3);
+      QCOMPARE(a.toObject()["pose"].toObject()["R"].toArray().size(), 3);
+    }
   }
 
   void contourOfAnotherOrganFails() {
@@ -542,6 +573,7 @@ class TestRegistration : public QObject {
     QVERIFY2(code == 0, qPrintable(err));
     qInfo("%s", qPrintable(out.trimmed()));
     const QJsonObject report = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/report.json"))).object();
+    QVERIFY(report["determined"].toBool() && !report["ambiguous"].toBool() && report["alternatives"].toArray().isEmpty());
     const QJsonArray its = report["iterations"].toArray();
     for (const auto& it : its) qInfo("  report: %s, %.3f px, %.3f mm, %.0f ms", qPrintable(it.toObject()["stage"].toString()), it.toObject()["mean_px"].toDouble(), it.toObject()["error_mean_mm"].toDouble(), it.toObject()["wall_ms"].toDouble());
     QVERIFY(its.size() >= 2);

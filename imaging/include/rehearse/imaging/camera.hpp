@@ -54,6 +54,8 @@ void saveCamera(const Camera& camera, const std::string& path);
 /// `matrixUnit` (metres per unit). Returns metres. Throws InputError (also for a non-rotation R).
 Pose loadPose(const std::string& path, double matrixUnitToMetre = 1.0);
 void savePose(const Pose& pose, const std::string& path);
+/// The pose as savePose writes it (JSON text, metres).
+std::string poseToJson(const Pose& pose);
 
 /// Writes bytes to `path` through a temporary file and a rename (never half-written). Throws InputError.
 void writeFileAtomically(const std::string& path, const std::string& bytes);
