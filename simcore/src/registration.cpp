@@ -325,6 +325,80 @@ Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, 
   return pose;
 }
 
+// The pose and the sag together: the shape is rest + U a (U: 3n x 3, the held model's linear response to a
+// unit body acceleration along each model axis; a: the load, m/s^2), the bound points' projections onto
+// their contour lines as in refinePose, and a prior pulling a towards a0 (weight per (m/s^2)^2).
+void refinePoseAndSag(const Eigen::VectorXd& rest, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings, Pose& pose,
+                      Eigen::Vector3d& a, const Eigen::Vector3d& a0, double priorWeight, const Pinhole& cam, bool pointToLine) {
+  double lambda = 1e-3;
+  auto useLine = [&](const Binding& b) { return pointToLine && b.normal.squaredNorm() > 0; };
+  auto basis = [&](const Binding& b) -> Eigen::Matrix3d {
+    return (1 - b.t) * U.middleRows<3>(3 * b.a) + b.t * U.middleRows<3>(3 * b.b);
+  };
+  auto at = [&](const Binding& b, const Eigen::Vector3d& load) {
+    return Eigen::Vector3d((1 - b.t) * rest.segment<3>(3 * b.a) + b.t * rest.segment<3>(3 * b.b) + 4 * b.t * (1 - b.t) * b.bulge + basis(b) * load);
+  };
+  auto cost = [&](const Pose& p, const Eigen::Vector3d& load) {
+    double c = priorWeight * (load - a0).squaredNorm();
+    for (const auto& b : bindings) {
+      const Eigen::Vector3d q = p.apply(at(b, load));
+      if (q.z() <= 0) return std::numeric_limits<double>::infinity();
+      const Eigen::Vector2d r = cam.project(q) - b.contour;
+      c += useLine(b) ? std::pow(b.normal.dot(r), 2) : r.squaredNorm();
+    }
+    return c;
+  };
+  double current = cost(pose, a);
+  for (int it = 0; it < 10; ++it) {
+    Eigen::Matrix<double, 9, 9> JtJ = Eigen::Matrix<double, 9, 9>::Zero();
+    Eigen::Matrix<double, 9, 1> Jtr = Eigen::Matrix<double, 9, 1>::Zero();
+    for (const auto& b : bindings) {
+      const Eigen::Vector3d q = pose.apply(at(b, a));
+      const Eigen::Vector2d r = cam.project(q) - b.contour;
+      Eigen::Matrix<double, 2, 3> dpi;
+      const double fx = cam.K(0, 0), fy = cam.K(1, 1), z = q.z();
+      dpi << fx / z, cam.K(0, 1) / z, -(fx * q.x() + cam.K(0, 1) * q.y()) / (z * z), 0, fy / z, -fy * q.y() / (z * z);
+      Eigen::Matrix<double, 3, 9> dq;
+      dq << -skew(q), Eigen::Matrix3d::Identity(), pose.R * basis(b);
+      const Eigen::Matrix<double, 2, 9> J = dpi * dq;
+      if (useLine(b)) {
+        const Eigen::Matrix<double, 1, 9> Jn = b.normal.transpose() * J;
+        JtJ += Jn.transpose() * Jn;
+        Jtr += Jn.transpose() * b.normal.dot(r);
+      } else {
+        JtJ += J.transpose() * J;
+        Jtr += J.transpose() * r;
+      }
+    }
+    JtJ.bottomRightCorner<3, 3>().diagonal().array() += priorWeight;
+    Jtr.tail<3>() += priorWeight * (a - a0);
+    bool improved = false;
+    for (int tries = 0; tries < 8 && !improved; ++tries) {
+      Eigen::Matrix<double, 9, 9> A = JtJ;
+      A.diagonal() *= 1 + lambda;
+      const Eigen::Matrix<double, 9, 1> delta = -A.ldlt().solve(Jtr);
+      if (!delta.allFinite()) break;
+      const Eigen::Vector3d w = delta.head<3>();
+      const Eigen::Matrix3d dR = w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() : Eigen::Matrix3d::Identity();
+      Pose trial;
+      trial.R = dR * pose.R;
+      trial.t = dR * pose.t + delta.segment<3>(3);
+      const Eigen::Vector3d load = a + delta.tail<3>();
+      const double c = cost(trial, load);
+      if (c < current) {
+        pose = trial;
+        a = load;
+        current = c;
+        lambda = std::max(lambda / 10, 1e-9);
+        improved = true;
+      } else {
+        lambda *= 10;
+      }
+    }
+    if (!improved) break;
+  }
+}
+
 }  // namespace
 
 double SilhouetteEdge::nearest(const Eigen::Vector2d& p, double* distance) const {
@@ -614,12 +688,54 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   auto score = [&](const Eigen::VectorXd& x, const Pose& pose) { return measure(silhouette(x, pose), x, pose).score(); };
   // Correspondences for the pose (the shape is res.x): the contour onto the silhouette's edges, the curves'
   // nodes onto their image curves.
-  auto rigidBindings = [&](const std::vector<SilhouetteEdge>& sil, const Pose& pose) {
+  auto rigidBindings = [&](const std::vector<SilhouetteEdge>& sil, const Eigen::VectorXd& x, const Pose& pose) {
     auto b = bindForRigid(samples, sil, o);
-    const auto c = bindCurves(curves, res.x, pose, camera, nullptr);
+    const auto c = bindCurves(curves, x, pose, camera, nullptr);
     b.insert(b.end(), c.begin(), c.end());
     return b;
   };
+  // The sag (see RegistrationOptions::estimateSag): the held model's linear responses to a small body
+  // acceleration along each model axis, scaled to 1 m/s^2; the rigid stage then fits the pose and the load
+  // (the shape rest + U load) together.
+  const Eigen::VectorXd rest = model.restVector();
+  Eigen::Vector3d load = settings.gravity.allFinite() ? settings.gravity : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d givenLoad = load;
+  Eigen::MatrixXd U;  // empty: the shape stays the rest shape in the rigid stage
+  const bool held = std::find(fixed.begin(), fixed.end(), 1) != fixed.end();
+  if (o.rigidPrepass && o.elastic && o.estimateSag && held) {
+    SimulationSettings linear = settings;
+    linear.gravity.setZero();
+    if (linear.staticStepTolerance <= 0) linear.staticStepTolerance = 1e-9;
+    Integrator responses(model, fixedNodes, linear);
+    const double small = 0.01;  // m/s^2: a sag of micrometres, where the model is linear
+    Eigen::MatrixXd basis(rest.size(), 3);
+    bool usable = true;
+    for (int axis = 0; axis < 3 && usable; ++axis) {
+      SimulationState st = responses.initialState();
+      Eigen::VectorXd f = Eigen::VectorXd::Zero(rest.size());
+      for (std::size_t i = 0; i < model.nodeCount(); ++i)
+        f.segment<3>(3 * static_cast<Eigen::Index>(i)) = model.lumpedMass[i] * small * Eigen::Vector3d::Unit(axis);
+      const StepReport rep = responses.solveStatic(st, f);
+      usable = rep.ok && st.x.allFinite();
+      if (usable) basis.col(axis) = (st.x - rest) / small;
+    }
+    if (usable) U = basis;
+  }
+  // The prior's weight per bound point and (m/s^2)^2: the RMS node move per unit load over sagScaleMm.
+  const double sagPerLoad = U.size() ? U.norm() / std::sqrt(static_cast<double>(rest.size())) : 0.0;
+  const double sagWeight = std::pow(sagPerLoad / (1e-3 * o.sagScaleMm), 2);
+  auto shapeOf = [&](const Eigen::Vector3d& a) -> Eigen::VectorXd { return U.size() ? Eigen::VectorXd(rest + U * a) : Eigen::VectorXd(rest); };
+  res.x = shapeOf(load);
+  // One ICP iteration's update of the pose (and of the load, with the sag) on its bindings.
+  auto refine = [&](const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose& pose, Eigen::Vector3d& a) {
+    if (!U.size()) {
+      pose = refinePose(x, bindings, pose, camera, o.sliding);
+      return;
+    }
+    const double weight = sagWeight * static_cast<double>(bindings.size());
+    refinePoseAndSag(rest, U, bindings, pose, a, givenLoad, weight, camera, o.sliding);
+  };
+  const std::size_t fewest = U.size() ? 6 : 3;  // bindings an update needs
   const RegistrationIteration first = record(0, "start", 0);
   if (res.cancelled) {
     res.status = "cancelled";
@@ -627,13 +743,28 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   }
   // A short ICP run from `pose` (the shape is res.x): its end and score. Safe to run on several threads at
   // once (its own silhouettes, not the shared last one).
-  auto shortIcp = [&](Pose pose, int iterations) {
+  struct IcpEnd {
+    Pose pose;
+    Eigen::Vector3d load;
+    double score;
+  };
+  auto shortIcpHeld = [&](Pose pose, int iterations) {
     for (int k = 0; k < iterations; ++k) {
-      const auto bindings = rigidBindings(visibleSilhouette(surface, res.x, pose, camera), pose);
+      const auto bindings = rigidBindings(visibleSilhouette(surface, res.x, pose, camera), res.x, pose);
       if (bindings.size() < 3) break;
       pose = refinePose(res.x, bindings, pose, camera, o.sliding);
     }
     return std::make_pair(pose, measure(visibleSilhouette(surface, res.x, pose, camera), res.x, pose).score());
+  };
+  auto shortIcp = [&](Pose pose, Eigen::Vector3d a, int iterations) {
+    for (int k = 0; k < iterations; ++k) {
+      const Eigen::VectorXd x = shapeOf(a);
+      const auto bindings = rigidBindings(visibleSilhouette(surface, x, pose, camera), x, pose);
+      if (bindings.size() < fewest) break;
+      refine(x, bindings, pose, a);
+    }
+    const Eigen::VectorXd x = shapeOf(a);
+    return IcpEnd{pose, a, measure(visibleSilhouette(surface, x, pose, camera), x, pose).score()};
   };
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
   for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
@@ -645,12 +776,12 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // projected organ's centroid moved onto the contour's, and +-15 degrees about the optical axis), to
     // stay out of the local minima of a single ICP; the best continues below.
     // The best of short ICP runs from several poses (in parallel; the first of equal ends wins).
-    auto bestOf = [&](const std::vector<Pose>& starts, int iterations) {
-      std::vector<std::pair<Pose, double>> ends(starts.size());
-      tbb::parallel_for(std::size_t(0), starts.size(), [&](std::size_t i) { ends[i] = shortIcp(starts[i], iterations); });
+    auto bestOf = [&](const std::vector<Pose>& starts, const Eigen::Vector3d& a, int iterations) {
+      std::vector<IcpEnd> ends(starts.size());
+      tbb::parallel_for(std::size_t(0), starts.size(), [&](std::size_t i) { ends[i] = shortIcp(starts[i], a, iterations); });
       std::size_t best = 0;
       for (std::size_t i = 1; i < ends.size(); ++i)
-        if (ends[i].second < ends[best].second) best = i;
+        if (ends[i].score < ends[best].score) best = i;
       return ends[best];
     };
     {
@@ -682,29 +813,39 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
           const Eigen::Matrix3d dR = Eigen::AngleAxisd(deg * M_PI / 180, Eigen::Vector3d::UnitZ()).toRotationMatrix();
           candidates.push_back(candidates[i].turnedAbout(dR, candidates[i].apply(centre)));
         }
-      res.pose = bestOf(candidates, 4).first;
+      const IcpEnd end = bestOf(candidates, load, 4);
+      res.pose = end.pose;
+      load = end.load;
+      res.x = shapeOf(load);
     }
     double previous = first.score();
     Pose bestPose = res.pose;
     double bestMean = score(res.x, res.pose);
+    Eigen::Vector3d bestLoad = load;
     if (bestMean >= first.score()) {  // the candidates did not help: ICP from the start as given
       res.pose = start;
       bestMean = first.score();
       bestPose = start;
+      load = bestLoad = givenLoad;
+      res.x = shapeOf(load);
     }
     for (int k = 0; k < o.rigidIterations; ++k) {
-      const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.pose);
-      if (bindings.size() < 3) break;
-      res.pose = refinePose(res.x, bindings, res.pose, camera, o.sliding);
+      const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.x, res.pose);
+      if (bindings.size() < fewest) break;
+      refine(res.x, bindings, res.pose, load);
+      res.x = shapeOf(load);
       const auto ri = record(++iteration, "rigid", bindings.size());
       if (ri.score() < bestMean) {
         bestMean = ri.score();
         bestPose = res.pose;
+        bestLoad = load;
       }
       if (res.cancelled || std::abs(previous - ri.score()) < 0.1 * o.tolerance) break;
       previous = ri.score();
     }
     res.pose = bestPose;
+    load = bestLoad;
+    res.x = shapeOf(load);
     // Basin hopping: short ICP runs from small moves along and turns about the camera axes; a clearly
     // better end continues (a partial contour leaves shallow local minima, the outline sliding along itself).
     for (int round = 0; round < 3 && !res.cancelled && o.hops; ++round) {
@@ -717,13 +858,17 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
           hops.push_back(res.pose.turnedAbout(
               Eigen::AngleAxisd(sgn * o.hopDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), res.pose.apply(centre)));
         }
-      const auto [hopPose, hopScore] = bestOf(hops, 3);
-      if (!(hopScore < bestMean - o.tolerance)) break;
-      res.pose = hopPose;
-      bestMean = hopScore;
+      const IcpEnd hop = bestOf(hops, load, 3);
+      if (!(hop.score < bestMean - o.tolerance)) break;
+      res.pose = hop.pose;
+      load = hop.load;
+      res.x = shapeOf(load);
+      bestMean = hop.score;
       record(++iteration, "rigid", 0);
     }
   }
+  settings.gravity = load;
+  res.load = load;
   // Does the contour determine the pose? Short rigid fits from poses spread around the result: an end that
   // fits nearly as well with the organ elsewhere is an alternative the contour cannot tell from it.
   double probedScore = 0;  // the rigid result's, which the alternatives' are compared with
@@ -748,7 +893,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     std::vector<std::pair<Pose, double>> ends(probes.size());
     tbb::parallel_for(std::size_t(0), probes.size(), [&](std::size_t i) {
       try {
-        ends[i] = shortIcp(probes[i], 6);
+        // The shape as fitted (the load held): an alternative is another place for the same organ.
+        ends[i] = shortIcpHeld(probes[i], 6);
       } catch (const MeshError&) {
         ends[i] = {probes[i], std::numeric_limits<double>::infinity()};  // moved behind the camera: not an alternative
       }
@@ -768,7 +914,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   }
   const Pose rigidPose = res.pose;
   const Eigen::VectorXd rigidX = res.x;
-  const double rigidMean = res.iterations.back().score();
+  const double rigidMean = score(res.x, res.pose);
   if (res.cancelled) {
     res.status = "cancelled";
     return res;
@@ -804,10 +950,17 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // Bindings further than this are outliers: as far as the start was off (so parts of the silhouette that
     // must travel are still bound), but at least 4 px and at most 2 % of the image diagonal.
     const double outlierFloor = std::clamp(rigidMean, 4.0, 0.02 * diag);
+    // And a hard cap, whatever the median: after the rigid stage the drawn contour lies within a few pixels
+    // of the silhouette, so a silhouette vertex much further from it is on the part of the outline that was
+    // not drawn (or on an occluding fold inside it), and binding it would drag it across the organ. Such a
+    // vertex is free (costs nothing); it is bound again once the deformation brings it near the contour.
+    // (Without the rigid stage the start may be off by more: no cap then.)
+    const double cap = o.rigidPrepass ? std::clamp(4 * rigidMean, 8.0, 0.02 * diag) : std::numeric_limits<double>::infinity();
     Eigen::VectorXd bestX = res.x;
     std::string failure;
     for (int k = 0; k < o.maxIterations; ++k) {
       auto bindings = bindContour(samples, segmentStarts, silhouette(state.x, res.pose), fixed, o, outlierFloor);
+      bindings.erase(std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return b.distance > cap; }), bindings.end());
       if (!curves.empty()) {
         // A node on a curve follows its curve (one binding, hence one set of ray constraints, per node).
         auto curveBindings = bindCurves(curves, state.x, res.pose, camera, &fixed);

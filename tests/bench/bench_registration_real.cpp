@@ -425,6 +425,7 @@ int main(int argc, char** argv) {
     starts.push_back({"+1cm Z +10deg Z", {0, 0, 0.01}, {0, 0, 10}});
     starts.push_back({"-1cm X +10deg X -10deg Y", {-0.01, 0, 0}, {10, -10, 0}});
     if (quick) starts = {starts[0], starts[3], starts[8], starts[12]};
+    if (std::getenv("REHEARSE_BENCH_ONE_START")) starts.resize(1);
     const Eigen::Vector3d cog = organ->centreOfGravity;
     std::vector<PlotSeries> series;
     std::mt19937 rng(13);

@@ -107,6 +107,16 @@ struct RegistrationOptions {
   double ambiguityPx = 0.5;
   double ambiguityShare = 0.25;
   double ambiguityMm = 5.0;
+  /// After the rigid stage, when the organ is held (fixed nodes), the pose is refined together with the
+  /// organ's sag under an unknown steady load (gravity, whose direction and size relative to the organ's
+  /// stiffness the fit cannot know): three linear responses of the held model to a unit body acceleration
+  /// along the model's axes, combined by the contour. The sag found is the load of the elastic stage. Without
+  /// it a sagging organ's outline is explained by a wrong pose (moved and turned, mostly along the view).
+  bool estimateSag = true;
+  /// Prior on the sag: a load (away from the given gravity) whose sag moves the organ's nodes by this much
+  /// on average (RMS, mm) costs as much as one pixel at every bound contour point, so a sag the contour
+  /// does not show stays small.
+  double sagScaleMm = 5.0;
   /// Optional anatomical curve constraints, used by the rigid and the elastic stages.
   std::vector<AnatomicalCurve> curves;
   /// Called after every iteration with the current positions (model frame) and pose; false cancels.
@@ -133,6 +143,9 @@ struct RegistrationResult {
   Eigen::VectorXd x;        ///< node positions, model frame (3n)
   Pose pose;                ///< model -> camera
   std::vector<RegistrationIteration> iterations;
+  /// The steady load the fit settled on (model frame, m/s^2): the given gravity, or the one estimated with
+  /// the sag (RegistrationOptions::estimateSag).
+  Eigen::Vector3d load = Eigen::Vector3d::Zero();
 };
 
 /// Registers `model` (rest shape at the start) onto the contour (segments of pixels in the undistorted
