@@ -329,7 +329,7 @@ int cmdSimulate(const std::vector<std::string>& args) {
 int cmdRegister(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
                         {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes", "gravity", "camera",
-                         "contour", "pose", "out", "pose-out", "report", "ground-truth", "iterations", "image-size"},
+                         "contour", "pose", "out", "pose-out", "report", "ground-truth", "iterations", "image-size", "gravity-camera"},
                         {"rigid-prepass", "no-rigid-prepass", "rigid-only", "distorted-contour"});
   for (const char* need : {"camera", "contour", "pose", "out"})
     if (!o.count(need)) throw UsageError(std::string("register needs --") + need);
@@ -402,6 +402,11 @@ int cmdRegister(const std::vector<std::string>& args) {
   in.rigidPrepass = o.count("no-rigid-prepass") == 0;
   in.elastic = o.count("rigid-only") == 0;
   if (o.count("iterations")) in.maxIterations = static_cast<int>(parseCount(o["iterations"], "--iterations", 1, 1000));
+  if (o.count("gravity-camera")) {
+    if (gravityGiven) throw UsageError("--gravity (model frame) and --gravity-camera (camera frame) say the same thing twice; give one");
+    in.gravityCamera = parseVector(o["gravity-camera"], "--gravity-camera");
+    if (!(in.gravityCamera.norm() > 0)) throw UsageError("--gravity-camera must not be zero (leave it out when down is not known)");
+  }
   struct Row {
     simcore::RegistrationIteration it;
     double errMean = -1, errMax = -1;
@@ -455,6 +460,8 @@ int cmdRegister(const std::vector<std::string>& args) {
                               {"determined", res.ok && !res.ambiguous},
                               {"ambiguous", res.ambiguous},
                               {"alternatives", alternatives},
+                              {"load_model_m_s2", {res.load.x(), res.load.y(), res.load.z()}},
+                              {"load_camera_m_s2", {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
                               {"status", res.status},
                               {"iterations", iterations}});
   }
@@ -500,8 +507,10 @@ std::string usage() {
          "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"
          "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
          "                [--ground-truth GT.vtu|.vtk] [--no-rigid-prepass] [--rigid-only] [--iterations N]\n"
-         "                [--image-size WxH] [--distorted-contour] [material flags of simulate]\n"
+         "                [--image-size WxH] [--distorted-contour] [--gravity-camera X,Y,Z] [material flags of simulate]\n"
          "                                   fit the organ onto a sketched silhouette (nodes written in the camera frame);\n"
+         "                                   the organ's sag under a steady load is estimated with its pose (held organs;\n"
+         "                                   --gravity-camera: which way is down in the camera frame, m/s^2, when known);\n"
          "                                   ridges and ligaments with their curve on the organ (P2ILF modelPoints, our\n"
          "                                   model_vertices: node indices, or surface vertices when --mesh is a surface)\n"
          "                                   are held onto their image curves too. Exit 0: a determined fit;\n"

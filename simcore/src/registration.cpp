@@ -698,7 +698,14 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   // acceleration along each model axis, scaled to 1 m/s^2; the rigid stage then fits the pose and the load
   // (the shape rest + U load) together.
   const Eigen::VectorXd rest = model.restVector();
-  Eigen::Vector3d load = settings.gravity.allFinite() ? settings.gravity : Eigen::Vector3d::Zero();
+  const bool downKnown = o.gravityCamera.allFinite() && o.gravityCamera.norm() > 0;
+  // The prior's centre for a pose: the gravity told in the camera frame, turned into the model's, or the
+  // given gravity (model frame).
+  auto priorLoad = [&](const Pose& pose) -> Eigen::Vector3d {
+    if (downKnown) return pose.R.transpose() * o.gravityCamera;
+    return settings.gravity.allFinite() ? settings.gravity : Eigen::Vector3d::Zero();
+  };
+  Eigen::Vector3d load = priorLoad(start);
   const Eigen::Vector3d givenLoad = load;
   Eigen::MatrixXd U;  // empty: the shape stays the rest shape in the rigid stage
   const bool held = std::find(fixed.begin(), fixed.end(), 1) != fixed.end();
@@ -733,7 +740,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       return;
     }
     const double weight = sagWeight * static_cast<double>(bindings.size());
-    refinePoseAndSag(rest, U, bindings, pose, a, givenLoad, weight, camera, o.sliding);
+    refinePoseAndSag(rest, U, bindings, pose, a, priorLoad(pose), weight, camera, o.sliding);
   };
   const std::size_t fewest = U.size() ? 6 : 3;  // bindings an update needs
   const RegistrationIteration first = record(0, "start", 0);
@@ -756,6 +763,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     }
     return std::make_pair(pose, measure(visibleSilhouette(surface, res.x, pose, camera), res.x, pose).score());
   };
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
+  for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
+  centre /= model.lumpedMass.sum();
   auto shortIcp = [&](Pose pose, Eigen::Vector3d a, int iterations) {
     for (int k = 0; k < iterations; ++k) {
       const Eigen::VectorXd x = shapeOf(a);
@@ -766,9 +776,6 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     const Eigen::VectorXd x = shapeOf(a);
     return IcpEnd{pose, a, measure(visibleSilhouette(surface, x, pose, camera), x, pose).score()};
   };
-  Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
-  for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
-  centre /= model.lumpedMass.sum();
   int iteration = 0;
   // Rigid pre-pass: the pose refined on the bindings (ICP), the shape unchanged.
   if (o.rigidPrepass || !o.elastic) {
@@ -867,6 +874,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       record(++iteration, "rigid", 0);
     }
   }
+  if (!U.size() && downKnown) load = priorLoad(res.pose);  // the told gravity, in the frame of the pose found
   settings.gravity = load;
   res.load = load;
   // Does the contour determine the pose? Short rigid fits from poses spread around the result: an end that

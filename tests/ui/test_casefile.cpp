@@ -53,6 +53,7 @@ void compareCases(const app::Case& a, const app::Case& b) {
   QCOMPARE(b.groundTruth->vesselAxes.size(), a.groundTruth->vesselAxes.size());
   QCOMPARE(b.hasPose, a.hasPose);
   QCOMPARE(b.poseAligned, a.poseAligned);
+  QVERIFY((b.down - a.down).norm() < 1e-15);
   QCOMPARE(b.pose.R, a.pose.R);
   QCOMPARE(b.pose.t, a.pose.t);
   QCOMPARE(b.contour.width, a.contour.width);
@@ -141,6 +142,7 @@ class TestCaseFile : public QObject {
     edited.pose.R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(0.2, 1, 0.1).normalized()).toRotationMatrix();
     edited.pose.t = {0.0123, -0.004, 0.21};
     edited.poseAligned = true;
+    edited.down = Eigen::Vector3d(0.6, 0.8, 0);
     {
       auto organ = std::make_shared<app::Organ>(*edited.organ);
       organ->sourceUnitToMetre = 0.001;  // imported from a file in mm

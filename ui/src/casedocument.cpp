@@ -43,7 +43,7 @@ CaseDocument::Parts difference(const app::Case* a, const app::Case& b) {
   if (a->organ != b.organ) p |= CaseDocument::OrganPart;
   if (a->frame.data != b.frame.data || a->rawFrame.data != b.rawFrame.data) p |= CaseDocument::FramePart;
   if (a->camera.K != b.camera.K || a->camera.width != b.camera.width || a->camera.height != b.camera.height ||
-      a->camera.distortion != b.camera.distortion)
+      a->camera.distortion != b.camera.distortion || a->down != b.down)
     p |= CaseDocument::CameraPart;
   if (!(a->contour == b.contour)) p |= CaseDocument::ContourPart;
   if (a->pose.R != b.pose.R || a->pose.t != b.pose.t || a->hasPose != b.hasPose || a->poseAligned != b.poseAligned) p |= CaseDocument::PosePart;

@@ -177,6 +177,7 @@ void saveCaseFile(const app::Case& c, const QString& path) {
                   {"distortion", k.distortion},
                   {"width", k.width},
                   {"height", k.height}};
+      if (c.down.norm() > 0) cam["down"] = {c.down.x(), c.down.y(), c.down.z()};
       part("camera", "json", bytes(cam.dump()));
     }
     part("attachments", "json", bytes(json{{"nodes", c.attachments}}.dump()));
@@ -315,6 +316,17 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
     } catch (const std::exception& e) {
       c.camera = {};
       note(QStringLiteral("Camera not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+    try {  // which way is down, told on the fit page (its own part of the camera's record)
+      const auto j = json::parse(k.toStdString());
+      if (j.contains("down")) {
+        const Eigen::Vector3d d(j.at("down").at(0).get<double>(), j.at("down").at(1).get<double>(), j.at("down").at(2).get<double>());
+        if (!(d.allFinite() && d.norm() > 0.5 && d.norm() < 2)) throw std::runtime_error("it is not a direction");
+        c.down = d.normalized();
+      }
+    } catch (const std::exception& e) {
+      c.down.setZero();
+      note(QStringLiteral("Which way is down not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
   if (c.camera.width == 0 && !c.frame.empty()) c.camera = imaging::Camera::defaultFor(c.frame.cols, c.frame.rows);

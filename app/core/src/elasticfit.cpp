@@ -10,6 +10,7 @@ FitInput fitInputFromCase(const Case& c) {
   in.contour = c.contour;
   in.camera = c.camera.pinhole();
   in.start = c.pose;
+  in.gravityCamera = 9.81 * c.down;
   return in;
 }
 
@@ -30,6 +31,7 @@ simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress&
   o.rigidPrepass = in.rigidPrepass;
   o.elastic = in.elastic;
   o.maxIterations = in.maxIterations;
+  o.gravityCamera = in.gravityCamera;
   for (const auto& s : imaging::anatomicalSegments(in.contour)) o.curves.push_back({s.modelVertices, s.points, s.type});
   if (segments.empty() && o.curves.empty())
     throw simcore::MeshError("The contour has no silhouette segment and no ridge or ligament with its curve on the organ.");

@@ -29,6 +29,32 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   rigid_->setObjectName(QStringLiteral("fitRigid"));
   rigid_->setChecked(true);
   layout->addWidget(rigid_);
+  // Which way is down: the fit estimates the organ's sag with its pose; told the direction of gravity it
+  // also finds the part of the sag along the view, which the outline cannot show.
+  auto* downRow = new QHBoxLayout;
+  auto* downLabel = new QLabel(tr("&Down (gravity):"), this);
+  down_ = new QComboBox(this);
+  down_->setObjectName(QStringLiteral("fitDown"));
+  down_->setToolTip(tr("Which way gravity points in this view, if known: the fit then also finds how the organ sags towards or "
+                       "away from the camera, which the outline alone cannot show. Its size is still the fit's to find."));
+  const std::pair<QString, Eigen::Vector3d> downs[] = {{tr("Not known"), Eigen::Vector3d::Zero()},
+                                                       {tr("Towards the image bottom"), Eigen::Vector3d::UnitY()},
+                                                       {tr("Towards the image top"), -Eigen::Vector3d::UnitY()},
+                                                       {tr("Towards the image left"), -Eigen::Vector3d::UnitX()},
+                                                       {tr("Towards the image right"), Eigen::Vector3d::UnitX()},
+                                                       {tr("Away from the camera"), Eigen::Vector3d::UnitZ()},
+                                                       {tr("Towards the camera"), -Eigen::Vector3d::UnitZ()}};
+  for (const auto& [name, d] : downs) down_->addItem(name, QVariant::fromValue(QList<double>{d.x(), d.y(), d.z()}));
+  downLabel->setBuddy(down_);
+  connect(down_, &QComboBox::activated, this, [this](int index) {
+    const QList<double> v = down_->itemData(index).value<QList<double>>();
+    const Eigen::Vector3d d(v.value(0), v.value(1), v.value(2));
+    if (!data() || (data()->down - d).norm() < 1e-12) return;
+    wb_.doc->edit(tr("Set which way is down"), [&d](app::Case& k) { k.down = d; });
+  });
+  downRow->addWidget(downLabel);
+  downRow->addWidget(down_, 1);
+  layout->addLayout(downRow);
   // Anatomical curves: a ridge or ligament sketched in step 3, and the same curve clicked on the organ.
   auto* pickCurve = toolButton(this, tr("Pick Curve on Organ (K)"),
                                tr("Click along the ridge or ligament on the organ drawn over the frame; the sketched ridge or "
@@ -171,6 +197,21 @@ void FitPage::refresh(const app::Case& c) {
   // No stale word about a fit that is no longer there (undone or cleared).
   if (!c.hasFit() && !wb_.jobs->isRunning() && !status_->text().isEmpty() && !status_->text().startsWith(tr("Fit reverted")))
     status_->setText(tr("No elastic fit yet: F9 fits the organ onto the contour."));
+  {
+    // The case's direction: one of the list's, or an entry of its own (a case written by hand).
+    const QSignalBlocker block(down_);
+    int found = -1;
+    for (int i = 0; i < down_->count() && found < 0; ++i) {
+      const QList<double> v = down_->itemData(i).value<QList<double>>();
+      if ((Eigen::Vector3d(v.value(0), v.value(1), v.value(2)) - c.down).norm() < 1e-9) found = i;
+    }
+    if (found < 0) {
+      down_->addItem(tr("(%1, %2, %3) in the camera frame").arg(c.down.x(), 0, 'f', 2).arg(c.down.y(), 0, 'f', 2).arg(c.down.z(), 0, 'f', 2),
+                     QVariant::fromValue(QList<double>{c.down.x(), c.down.y(), c.down.z()}));
+      found = down_->count() - 1;
+    }
+    down_->setCurrentIndex(found);
+  }
   int sketched = 0, onOrgan = 0;
   for (const auto& s : c.contour.segments)
     if (!s.isSilhouette()) {

@@ -117,6 +117,11 @@ struct RegistrationOptions {
   /// on average (RMS, mm) costs as much as one pixel at every bound contour point, so a sag the contour
   /// does not show stays small.
   double sagScaleMm = 5.0;
+  /// Which way is down, when known: gravity in the camera frame (m/s^2; zero: not known). The sag's load
+  /// starts from it and its prior is centred on it (turned with the pose as the fit turns the organ); its
+  /// size is still the fit's to find (the organ's stiffness is not known). Without it the prior is centred
+  /// on the given gravity (SimulationSettings::gravity, model frame), usually none.
+  Eigen::Vector3d gravityCamera = Eigen::Vector3d::Zero();
   /// Optional anatomical curve constraints, used by the rigid and the elastic stages.
   std::vector<AnatomicalCurve> curves;
   /// Called after every iteration with the current positions (model frame) and pose; false cancels.

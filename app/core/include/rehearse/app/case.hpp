@@ -96,6 +96,9 @@ struct Case {
   std::vector<int> attachments;          ///< 0-based volume node indices held by ligaments (q(j) = 1)
   MaterialSettings material;
   imaging::Camera camera;
+  /// Which way gravity points in the camera frame (a unit vector; zero: not known), as the user said on
+  /// the fit page: the elastic fit then also finds the organ's sag along the view.
+  Eigen::Vector3d down = Eigen::Vector3d::Zero();
   cv::Mat3b frame;                       ///< undistorted endoscope frame, BGR (what every step uses)
   cv::Mat3b rawFrame;                    ///< the frame as captured, when it had to be undistorted (else empty)
   imaging::Contour contour;              ///< sketched organ outline (pixels of the undistorted frame)

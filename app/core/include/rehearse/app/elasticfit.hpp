@@ -19,6 +19,10 @@ struct FitInput {
   LabelMaterials materials;
   std::vector<simcore::EmbeddedSurface> embedded;
   simcore::SimulationSettings settings;         ///< solver settings; gravity (model frame) off by default
+  /// Which way is down, when known: gravity in the camera frame (m/s^2; zero: not known). The fit
+  /// estimates the organ's sag with its pose either way; told this, also the sag along the view, which
+  /// the outline cannot show (simcore::RegistrationOptions::gravityCamera).
+  Eigen::Vector3d gravityCamera = Eigen::Vector3d::Zero();
   imaging::Contour contour;                     ///< undistorted pixels; anatomical segments' modelVertices are volume nodes
   Pinhole camera;
   Pose start;

@@ -38,6 +38,7 @@ class FitPage : public StepPage {
  private:
   QLabel* curves_ = nullptr;
   QCheckBox* rigid_ = nullptr;
+  QComboBox* down_ = nullptr;  ///< which way is down in the image (the case's `down`)
   QLabel* status_ = nullptr;
   QPushButton* keep_ = nullptr;    ///< accept the fit just made ...
   QPushButton* revert_ = nullptr;  ///< ... or revert it (its undo step), while it is the last edit

@@ -1,0 +1,138 @@
+#pragma once
+// A real organ seen through a real laparoscope, for the elastic fit's test and benchmark (issue 13): the
+// organ's surface from ../shared/data in metres, the scikit-surgery camera, the view of the organ's broad
+// face, the region that holds it (its back), and markers on the surface the camera sees.
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/meshio.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+namespace rehearse::testing {
+
+/// Metres, whatever the file's unit (the files are in mm or m; no organ is over 2 m or under 2 cm across);
+/// only the labelled part `part` when given.
+inline simcore::Mesh loadOrganSurface(const std::string& path, const std::string& part = {}) {
+  simcore::Mesh m = simcore::loadMesh(path, {"m"});
+  if (!part.empty()) {
+    std::vector<std::array<int, 3>> kept;
+    for (std::size_t i = 0; i < m.triangles.size(); ++i)
+      if (m.labelName(m.triangleLabels[i]) == part) kept.push_back(m.triangles[i]);
+    if (kept.empty()) throw simcore::MeshError(path + " has no part named " + part);
+    m.triangles = kept;
+    m.triangleLabels.assign(kept.size(), 1);
+    m.labelNames = {{1, part}};
+    m.compact();
+  }
+  m.convertToMetres();
+  Eigen::AlignedBox3d box;
+  for (const auto& p : m.points) box.extend(p);
+  if (box.diagonal().norm() > 2)
+    for (auto& p : m.points) p *= 1e-3;
+  return m;
+}
+
+/// The scikit-surgery laparoscope (its calibration of the 1920x1080 frame in ../shared/data).
+inline imaging::Camera scikitSurgeryCamera() {
+  imaging::Camera cam;
+  cam.K << 2012.186314, 0, 944.7173708, 0, 2017.966019, 617.1093984, 0, 0, 1;
+  cam.width = 1920;
+  cam.height = 1080;
+  return cam;
+}
+
+/// The organ's broadest face towards the camera (principal axes: largest along the image's x, smallest
+/// along the view), tilted 15 and 10 degrees so it is not a textbook view, at the depth where it spans 70 %
+/// of the image, its centre on the image's centre.
+inline Pose broadsideView(const simcore::Mesh& volume, const imaging::Camera& cam) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : volume.points) c += p;
+  c /= static_cast<double>(volume.points.size());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const auto& p : volume.points) cov += (p - c) * (p - c).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  Eigen::Matrix3d R0;
+  R0.row(0) = es.eigenvectors().col(2).transpose();
+  R0.row(1) = es.eigenvectors().col(1).transpose();
+  R0.row(2) = es.eigenvectors().col(0).transpose();
+  if (R0.determinant() < 0) R0.row(2) *= -1;
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(15 * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix() *
+                            Eigen::AngleAxisd(10 * M_PI / 180, Eigen::Vector3d::UnitY()).toRotationMatrix() * R0;
+  double ex = 0, ey = 0, ez = 0;
+  for (const auto& p : volume.points) {
+    const Eigen::Vector3d q = R * (p - c);
+    ex = std::max(ex, std::abs(q.x())), ey = std::max(ey, std::abs(q.y())), ez = std::max(ez, std::abs(q.z()));
+  }
+  const double z = std::max(2 * ex * cam.fx() / (0.7 * cam.width), 2 * ey * cam.fy() / (0.7 * cam.height)) + ez;
+  Pose pose;
+  pose.R = R;
+  pose.t = Eigen::Vector3d(0, 0, z) - R * c;
+  pose.t.x() += (0.5 * cam.width - cam.cx()) * z / cam.fx();
+  pose.t.y() += (0.5 * cam.height - cam.cy()) * z / cam.fy();
+  return pose;
+}
+
+/// The nodes on a volume mesh's surface, sorted.
+inline std::vector<int> surfaceNodes(const simcore::Mesh& v) {
+  std::vector<int> nodes;
+  for (const auto& t : simcore::boundaryTriangles(v, false)) nodes.insert(nodes.end(), t.begin(), t.end());
+  std::sort(nodes.begin(), nodes.end());
+  nodes.erase(std::unique(nodes.begin(), nodes.end()), nodes.end());
+  return nodes;
+}
+
+/// The depth (m, camera frame at `pose`) beyond which lie the `share` of the surface nodes farthest from
+/// the camera.
+inline double farthestShareDepth(const simcore::Mesh& v, const Pose& pose, double share) {
+  std::vector<double> z;
+  for (int n : surfaceNodes(v)) z.push_back(pose.apply(v.points[n]).z());
+  std::sort(z.begin(), z.end());
+  z.erase(std::unique(z.begin(), z.end()), z.end());
+  return z[std::min(z.size() - 1, static_cast<std::size_t>(static_cast<double>(z.size()) * (1 - share)))];
+}
+
+/// Surface nodes at or beyond `depth` (the held back of the organ).
+inline std::vector<int> surfaceNodesBeyond(const simcore::Mesh& v, const Pose& pose, double depth) {
+  std::vector<int> held;
+  for (int n : surfaceNodes(v))
+    if (pose.apply(v.points[n]).z() >= depth) held.push_back(n);
+  return held;
+}
+
+/// Up to `count` of the surface nodes the camera sees on the deformed mesh (`deformed`: positions per
+/// node), spread by farthest-point sampling over the rest positions.
+inline std::vector<int> visibleMarkers(const simcore::Mesh& rest, const std::vector<Eigen::Vector3d>& deformed, const Pose& pose,
+                                       const imaging::Camera& cam, std::size_t count) {
+  const auto tris = simcore::boundaryTriangles(rest, false);
+  std::vector<double> verts;
+  for (const auto& p : deformed) verts.insert(verts.end(), {p.x(), p.y(), p.z()});
+  const SurfaceView view{verts.data(), deformed.size(), tris.front().data(), tris.size()};
+  const imaging::Rasterization ras = imaging::rasterize(cam, pose, view);
+  std::vector<int> visible;
+  for (int n : surfaceNodes(rest)) {
+    const Eigen::Vector3d q = pose.apply(deformed[n]);
+    const Eigen::Vector2d px = cam.project(q);
+    const int x = static_cast<int>(px.x()), y = static_cast<int>(px.y());
+    if (x < 0 || y < 0 || x >= cam.width || y >= cam.height) continue;
+    if (std::abs(ras.depth(y, x) - q.z()) < 0.002) visible.push_back(n);
+  }
+  if (visible.empty()) return {};
+  std::vector<int> markers{visible.front()};
+  std::vector<double> nearest(visible.size(), 1e300);
+  while (markers.size() < count && markers.size() < visible.size()) {
+    int best = -1;
+    double far = -1;
+    for (std::size_t i = 0; i < visible.size(); ++i) {
+      nearest[i] = std::min(nearest[i], (rest.points[visible[i]] - rest.points[markers.back()]).norm());
+      if (nearest[i] > far) far = nearest[i], best = visible[i];
+    }
+    markers.push_back(best);
+  }
+  return markers;
+}
+
+}  // namespace rehearse::testing
