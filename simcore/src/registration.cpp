@@ -262,128 +262,90 @@ Eigen::Matrix3d skew(const Eigen::Vector3d& w) {
   return m;
 }
 
-// Gauss-Newton (Levenberg-Marquardt) on the pose: projected bound points onto their contour points, or,
-// when `pointToLine`, onto the lines through them along the silhouette (the distance along the normal).
-Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam, bool pointToLine) {
-  double lambda = 1e-3;
-  auto useLine = [&](const Binding& b) { return pointToLine && b.normal.squaredNorm() > 0; };
-  auto cost = [&](const Pose& p) {
+// The pose and, when U has columns, the sag with it: the bound point is base + U a (base: the shape's
+// bound point; U: 3n x k, k = 0 or 3, the held model's linear response to a unit body acceleration along
+// each model axis; a: the load, m/s^2), its projection compared with its contour point, or, when
+// `pointToLine`, with the line through it along the contour (the distance along the normal).
+struct PoseSagProblem {
+  const Eigen::VectorXd& base;
+  const Eigen::MatrixXd& U;
+  const std::vector<Binding>& bindings;
+  const Pinhole& cam;
+  bool pointToLine;
+
+  Eigen::Index size() const { return 6 + U.cols(); }
+  bool useLine(const Binding& b) const { return pointToLine && b.normal.squaredNorm() > 0; }
+  Eigen::MatrixXd basis(const Binding& b) const { return (1 - b.t) * U.middleRows(3 * b.a, 3) + b.t * U.middleRows(3 * b.b, 3); }
+  Eigen::Vector3d at(const Binding& b, const Eigen::Vector3d& load) const {
+    Eigen::Vector3d p = point(base, b);
+    if (U.cols()) p += basis(b) * load;
+    return p;
+  }
+  // The sum of squared distances (px^2); infinite when a point is behind the camera.
+  double cost(const Pose& pose, const Eigen::Vector3d& load) const {
     double c = 0;
     for (const auto& b : bindings) {
-      const Eigen::Vector3d q = p.apply(point(x, b));
+      const Eigen::Vector3d q = pose.apply(at(b, load));
       if (q.z() <= 0) return std::numeric_limits<double>::infinity();
       const Eigen::Vector2d r = cam.project(q) - b.contour;
       c += useLine(b) ? std::pow(b.normal.dot(r), 2) : r.squaredNorm();
     }
     return c;
-  };
-  double current = cost(pose);
-  for (int it = 0; it < 10; ++it) {
-    Eigen::Matrix<double, 6, 6> JtJ = Eigen::Matrix<double, 6, 6>::Zero();
-    Eigen::Matrix<double, 6, 1> Jtr = Eigen::Matrix<double, 6, 1>::Zero();
-    for (const auto& b : bindings) {
-      const Eigen::Vector3d q = pose.apply(point(x, b));
-      const Eigen::Vector2d r = cam.project(q) - b.contour;
-      Eigen::Matrix<double, 2, 3> dpi;
-      const double fx = cam.K(0, 0), fy = cam.K(1, 1), z = q.z();
-      dpi << fx / z, cam.K(0, 1) / z, -(fx * q.x() + cam.K(0, 1) * q.y()) / (z * z), 0, fy / z, -fy * q.y() / (z * z);
-      Eigen::Matrix<double, 3, 6> dq;
-      dq << -skew(q), Eigen::Matrix3d::Identity();
-      const Eigen::Matrix<double, 2, 6> J = dpi * dq;
-      if (useLine(b)) {
-        const Eigen::Matrix<double, 1, 6> Jn = b.normal.transpose() * J;
-        JtJ += Jn.transpose() * Jn;
-        Jtr += Jn.transpose() * b.normal.dot(r);
-      } else {
-        JtJ += J.transpose() * J;
-        Jtr += J.transpose() * r;
-      }
-    }
-    bool improved = false;
-    for (int tries = 0; tries < 8 && !improved; ++tries) {
-      Eigen::Matrix<double, 6, 6> A = JtJ;
-      A.diagonal() *= 1 + lambda;
-      const Eigen::Matrix<double, 6, 1> delta = -A.ldlt().solve(Jtr);
-      if (!delta.allFinite()) break;
-      const Eigen::Vector3d w = delta.head<3>();
-      const Eigen::Matrix3d dR = w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() : Eigen::Matrix3d::Identity();
-      Pose trial;
-      trial.R = dR * pose.R;
-      trial.t = dR * pose.t + delta.tail<3>();
-      const double c = cost(trial);
-      if (c < current) {
-        pose = trial;
-        current = c;
-        lambda = std::max(lambda / 10, 1e-9);
-        improved = true;
-      } else {
-        lambda *= 10;
-      }
-    }
-    if (!improved) break;
   }
-  return pose;
-}
-
-// The pose and the sag together: the shape is rest + U a (U: 3n x 3, the held model's linear response to a
-// unit body acceleration along each model axis; a: the load, m/s^2), the bound points' projections onto
-// their contour lines as in refinePose, and a prior pulling a towards a0 (weight per (m/s^2)^2).
-void refinePoseAndSag(const Eigen::VectorXd& rest, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings, Pose& pose,
-                      Eigen::Vector3d& a, const Eigen::Vector3d& a0, double priorWeight, const Pinhole& cam, bool pointToLine) {
-  double lambda = 1e-3;
-  auto useLine = [&](const Binding& b) { return pointToLine && b.normal.squaredNorm() > 0; };
-  auto basis = [&](const Binding& b) -> Eigen::Matrix3d {
-    return (1 - b.t) * U.middleRows<3>(3 * b.a) + b.t * U.middleRows<3>(3 * b.b);
-  };
-  auto at = [&](const Binding& b, const Eigen::Vector3d& load) {
-    return Eigen::Vector3d((1 - b.t) * rest.segment<3>(3 * b.a) + b.t * rest.segment<3>(3 * b.b) + 4 * b.t * (1 - b.t) * b.bulge + basis(b) * load);
-  };
-  auto cost = [&](const Pose& p, const Eigen::Vector3d& load) {
-    double c = priorWeight * (load - a0).squaredNorm();
+  // Gauss-Newton's normal equations in (rotation increment, translation, load), camera frame increments.
+  void normalEquations(const Pose& pose, const Eigen::Vector3d& load, Eigen::MatrixXd& JtJ, Eigen::VectorXd& Jtr) const {
+    const Eigen::Index n = size();
+    JtJ = Eigen::MatrixXd::Zero(n, n);
+    Jtr = Eigen::VectorXd::Zero(n);
+    Eigen::MatrixXd dq(3, n), J(2, n);
     for (const auto& b : bindings) {
-      const Eigen::Vector3d q = p.apply(at(b, load));
-      if (q.z() <= 0) return std::numeric_limits<double>::infinity();
-      const Eigen::Vector2d r = cam.project(q) - b.contour;
-      c += useLine(b) ? std::pow(b.normal.dot(r), 2) : r.squaredNorm();
-    }
-    return c;
-  };
-  double current = cost(pose, a);
-  for (int it = 0; it < 10; ++it) {
-    Eigen::Matrix<double, 9, 9> JtJ = Eigen::Matrix<double, 9, 9>::Zero();
-    Eigen::Matrix<double, 9, 1> Jtr = Eigen::Matrix<double, 9, 1>::Zero();
-    for (const auto& b : bindings) {
-      const Eigen::Vector3d q = pose.apply(at(b, a));
+      const Eigen::Vector3d q = pose.apply(at(b, load));
       const Eigen::Vector2d r = cam.project(q) - b.contour;
       Eigen::Matrix<double, 2, 3> dpi;
       const double fx = cam.K(0, 0), fy = cam.K(1, 1), z = q.z();
       dpi << fx / z, cam.K(0, 1) / z, -(fx * q.x() + cam.K(0, 1) * q.y()) / (z * z), 0, fy / z, -fy * q.y() / (z * z);
-      Eigen::Matrix<double, 3, 9> dq;
-      dq << -skew(q), Eigen::Matrix3d::Identity(), pose.R * basis(b);
-      const Eigen::Matrix<double, 2, 9> J = dpi * dq;
+      dq.leftCols<3>() = -skew(q);
+      dq.middleCols<3>(3).setIdentity();
+      if (U.cols()) dq.rightCols(U.cols()) = pose.R * basis(b);
+      J.noalias() = dpi * dq;
       if (useLine(b)) {
-        const Eigen::Matrix<double, 1, 9> Jn = b.normal.transpose() * J;
-        JtJ += Jn.transpose() * Jn;
-        Jtr += Jn.transpose() * b.normal.dot(r);
+        const Eigen::RowVectorXd Jn = b.normal.transpose() * J;
+        JtJ.noalias() += Jn.transpose() * Jn;
+        Jtr.noalias() += Jn.transpose() * b.normal.dot(r);
       } else {
-        JtJ += J.transpose() * J;
-        Jtr += J.transpose() * r;
+        JtJ.noalias() += J.transpose() * J;
+        Jtr.noalias() += J.transpose() * r;
       }
     }
-    JtJ.bottomRightCorner<3, 3>().diagonal().array() += priorWeight;
-    Jtr.tail<3>() += priorWeight * (a - a0);
+  }
+};
+
+// Levenberg-Marquardt on the problem, with a prior (a - a0)' P (a - a0) on the load (P per (m/s^2)^2).
+void refinePoseAndSag(const PoseSagProblem& pr, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0, const Eigen::Matrix3d& prior) {
+  const bool sag = pr.U.cols() > 0;
+  auto cost = [&](const Pose& p, const Eigen::Vector3d& load) { return pr.cost(p, load) + (sag ? (load - a0).dot(prior * (load - a0)) : 0.0); };
+  double lambda = 1e-3;
+  double current = cost(pose, a);
+  Eigen::MatrixXd JtJ;
+  Eigen::VectorXd Jtr;
+  for (int it = 0; it < 10; ++it) {
+    pr.normalEquations(pose, a, JtJ, Jtr);
+    if (sag) {
+      JtJ.bottomRightCorner<3, 3>() += prior;
+      Jtr.tail<3>() += prior * (a - a0);
+    }
     bool improved = false;
     for (int tries = 0; tries < 8 && !improved; ++tries) {
-      Eigen::Matrix<double, 9, 9> A = JtJ;
+      Eigen::MatrixXd A = JtJ;
       A.diagonal() *= 1 + lambda;
-      const Eigen::Matrix<double, 9, 1> delta = -A.ldlt().solve(Jtr);
+      const Eigen::VectorXd delta = -A.ldlt().solve(Jtr);
       if (!delta.allFinite()) break;
       const Eigen::Vector3d w = delta.head<3>();
       const Eigen::Matrix3d dR = w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() : Eigen::Matrix3d::Identity();
       Pose trial;
       trial.R = dR * pose.R;
       trial.t = dR * pose.t + delta.segment<3>(3);
-      const Eigen::Vector3d load = a + delta.tail<3>();
+      const Eigen::Vector3d load = sag ? Eigen::Vector3d(a + delta.tail<3>()) : a;
       const double c = cost(trial, load);
       if (c < current) {
         pose = trial;
@@ -397,6 +359,14 @@ void refinePoseAndSag(const Eigen::VectorXd& rest, const Eigen::MatrixXd& U, con
     }
     if (!improved) break;
   }
+}
+
+// The pose alone, the shape x as it is.
+Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam, bool pointToLine) {
+  static const Eigen::MatrixXd none;
+  Eigen::Vector3d a = Eigen::Vector3d::Zero();
+  refinePoseAndSag(PoseSagProblem{x, none, bindings, cam, pointToLine}, pose, a, a, Eigen::Matrix3d::Zero());
+  return pose;
 }
 
 }  // namespace
@@ -699,12 +669,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   // (the shape rest + U load) together.
   const Eigen::VectorXd rest = model.restVector();
   const bool downKnown = o.gravityCamera.allFinite() && o.gravityCamera.norm() > 0;
-  // The prior's centre for a pose: the gravity told in the camera frame, turned into the model's, or the
-  // given gravity (model frame).
-  auto priorLoad = [&](const Pose& pose) -> Eigen::Vector3d {
-    if (downKnown) return pose.R.transpose() * o.gravityCamera;
-    return settings.gravity.allFinite() ? settings.gravity : Eigen::Vector3d::Zero();
-  };
+  // The prior's centre: the given gravity (model frame), usually none. The gravity told in the camera frame
+  // gives the sag's direction only (how far the organ sags depends on a stiffness the fit does not know).
+  auto priorLoad = [&](const Pose&) -> Eigen::Vector3d { return settings.gravity.allFinite() ? settings.gravity : Eigen::Vector3d::Zero(); };
   Eigen::Vector3d load = priorLoad(start);
   const Eigen::Vector3d givenLoad = load;
   Eigen::MatrixXd U;  // empty: the shape stays the rest shape in the rigid stage
@@ -731,6 +698,15 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   // The prior's weight per bound point and (m/s^2)^2: the RMS node move per unit load over sagScaleMm.
   const double sagPerLoad = U.size() ? U.norm() / std::sqrt(static_cast<double>(rest.size())) : 0.0;
   const double sagWeight = std::pow(sagPerLoad / (1e-3 * o.sagScaleMm), 2);
+  // The prior's matrix for a pose and a number of bound points: isotropic, or, told which way is down, a
+  // sag across that direction costs downAcross^2 times more.
+  auto priorMatrix = [&](const Pose& pose, std::size_t bound) -> Eigen::Matrix3d {
+    const double w = sagWeight * static_cast<double>(bound);
+    if (!downKnown) return w * Eigen::Matrix3d::Identity();
+    const Eigen::Vector3d d = (pose.R.transpose() * o.gravityCamera).normalized();
+    const Eigen::Matrix3d along = d * d.transpose();
+    return w * (along + o.downAcross * o.downAcross * (Eigen::Matrix3d::Identity() - along));
+  };
   auto shapeOf = [&](const Eigen::Vector3d& a) -> Eigen::VectorXd { return U.size() ? Eigen::VectorXd(rest + U * a) : Eigen::VectorXd(rest); };
   res.x = shapeOf(load);
   // One ICP iteration's update of the pose (and of the load, with the sag) on its bindings.
@@ -739,8 +715,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       pose = refinePose(x, bindings, pose, camera, o.sliding);
       return;
     }
-    const double weight = sagWeight * static_cast<double>(bindings.size());
-    refinePoseAndSag(rest, U, bindings, pose, a, priorLoad(pose), weight, camera, o.sliding);
+    refinePoseAndSag(PoseSagProblem{rest, U, bindings, camera, o.sliding}, pose, a, priorLoad(pose), priorMatrix(pose, bindings.size()));
   };
   const std::size_t fewest = U.size() ? 6 : 3;  // bindings an update needs
   const RegistrationIteration first = record(0, "start", 0);
@@ -874,7 +849,35 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       record(++iteration, "rigid", 0);
     }
   }
-  if (!U.size() && downKnown) load = priorLoad(res.pose);  // the told gravity, in the frame of the pose found
+  // Does the contour determine the sag? The rigid fit again with the sag's prior loosened: when the load
+  // the contour alone asks for is more than twice the one found (the prior, not the contour, decided most
+  // of the sag) and the two put the organ more than sagDecisiveMm apart, the contour does not show how far
+  // the organ sags (typically its sagging side is not drawn), and the depth of the pose with it.
+  struct {
+    bool undetermined = false;
+    double share = 1, apartMm = 0;
+  } sagProbe;
+  if (U.size() && o.probeAmbiguity && !res.cancelled) {
+    Pose p = res.pose;
+    Eigen::Vector3d a = load;
+    for (int k = 0; k < 8; ++k) {
+      const Eigen::VectorXd x = shapeOf(a);
+      const auto bindings = rigidBindings(visibleSilhouette(surface, x, p, camera), x, p);
+      if (bindings.size() < fewest) break;
+      refinePoseAndSag(PoseSagProblem{rest, U, bindings, camera, o.sliding}, p, a, priorLoad(p), priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
+    }
+    const Eigen::VectorXd x = shapeOf(a);
+    double sum = 0;
+    for (std::size_t i = 0; i < model.nodeCount(); ++i) sum += (p.apply(x.segment<3>(3 * i)) - res.pose.apply(res.x.segment<3>(3 * i))).norm();
+    sagProbe.apartMm = 1e3 * sum / static_cast<double>(model.nodeCount());
+    const double found = (load - priorLoad(res.pose)).norm(), alone = (a - priorLoad(p)).norm();
+    sagProbe.share = alone > 0 ? found / alone : 1.0;
+    sagProbe.undetermined = sagProbe.share < o.sagDeterminedShare && sagProbe.apartMm > o.sagDecisiveMm;
+    res.sagDetermined = !sagProbe.undetermined;
+    res.sagShare = sagProbe.share;
+    res.sagApartMm = sagProbe.apartMm;
+  }
+  if (!U.size() && downKnown) load = res.pose.R.transpose() * o.gravityCamera;  // the told gravity, in the frame of the pose found
   settings.gravity = load;
   res.load = load;
   // Does the contour determine the pose? Short rigid fits from poses spread around the result: an end that
@@ -1049,16 +1052,22 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
                    std::to_string(static_cast<int>(nearPx)) + " px of the organ's silhouette; it may belong to another organ or the start pose is too far";
     }
   }
-  if (res.ok && !res.alternatives.empty()) {
+  if (res.ok && (!res.alternatives.empty() || sagProbe.undetermined)) {
     // Say which alternatives, and what would decide: the stretch of the organ's outline that no contour
     // covers (named by where it lies on the organ), or a curve on the organ when the outline is whole.
     res.ambiguous = true;
-    const auto& alt = res.alternatives.front();
     char text[240];
-    if (res.alternatives.size() == 1) {
+    if (res.alternatives.empty()) {
+      std::snprintf(text, sizeof text,
+                    "ambiguous: the contour does not show how far the organ sags (the sag found is %.0f %% of what the contour alone asks for, "
+                    "and the two put the organ %.1f mm apart)",
+                    100 * sagProbe.share, sagProbe.apartMm);
+    } else if (res.alternatives.size() == 1) {
+      const auto& alt = res.alternatives.front();
       std::snprintf(text, sizeof text, "ambiguous: another pose %.0f mm away fits the contour nearly as well as the rigid fit (%.2f px against %.2f px)",
                     alt.apartMm, alt.score, probedScore);
     } else {
+      const auto& alt = res.alternatives.front();
       double nearest = alt.apartMm;
       for (const auto& a : res.alternatives) nearest = std::min(nearest, a.apartMm);
       std::snprintf(text, sizeof text,

@@ -242,6 +242,8 @@ int main(int argc, char** argv) {
     in.camera = cam.pinhole();
     // The fit told the true gravity (the OR knows which way is down in the camera's frame), as a variant.
     if (std::getenv("REHEARSE_BENCH_FIT_GRAVITY")) in.settings.gravity = truth.R.transpose() * gCam;
+    // Or told only which way is down (gravity in the camera frame, as the fit page's Down list gives it).
+    if (std::getenv("REHEARSE_BENCH_TOLD_DOWN")) in.gravityCamera = gCam;
     const FemModel model = app::fitModel(in);
     const SurfaceEmbedding markerMap = embedPoints(model, markerRest);
     struct Error {

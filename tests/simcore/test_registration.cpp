@@ -108,6 +108,106 @@ class TestRegistration : public QObject {
   Q_OBJECT
   phantom::Phantom c_;
 
+  // The BodyParts3D liver sagged by CalculiX (see realLiverSagIsEstimatedWithThePose), built once.
+  struct SaggedLiver {
+    std::shared_ptr<const app::Organ> organ;
+    FemModel model;
+    std::vector<int> attachments;
+    imaging::Camera cam;
+    Pose truth, start;
+    Eigen::Vector3d gCamera;
+    std::vector<Eigen::Vector2d> outline;
+    std::vector<Eigen::Vector3d> markerTruth;  // camera frame
+    SurfaceEmbedding embedded;
+    double sag = 0;
+    std::size_t fineTets = 0;
+    // The mean distance of the markers (visible surface) from CalculiX's, m.
+    double error(const RegistrationResult& r) const {
+      const auto at = mapEmbedded(embedded, r.x);
+      double e = 0;
+      for (std::size_t i = 0; i < markerTruth.size(); ++i) e += (r.pose.apply(at[i]) - markerTruth[i]).norm();
+      return e / static_cast<double>(markerTruth.size());
+    }
+    RegistrationResult fit(const std::vector<Eigen::Vector2d>& contour, const RegistrationOptions& o) const {
+      SimulationSettings s;
+      s.gravity.setZero();
+      return registerToContour(model, attachments, s, organ->surface, {contour}, start, cam.pinhole(), o);
+    }
+  };
+  std::unique_ptr<SaggedLiver> sagged_;
+  // The fixture, or null with why ("absent: ..." when the data set is not there).
+  const SaggedLiver* saggedLiver(QString& why) {
+    if (sagged_) return sagged_.get();
+    const std::string path = std::string(REHEARSE_SHARED_DATA) + "/bodyparts3d/FMA7197_Liver.obj";
+    if (!std::filesystem::exists(path)) {
+      why = QStringLiteral("absent: ../shared/data/bodyparts3d/FMA7197_Liver.obj");
+      return nullptr;
+    }
+    if (QStandardPaths::findExecutable("ccx").isEmpty()) {
+      why = QStringLiteral("CalculiX (ccx) is not installed; scripts/install-deps.sh installs calculix-ccx");
+      return nullptr;
+    }
+    auto L = std::make_unique<SaggedLiver>();
+    const Mesh surface = testing::loadOrganSurface(path);
+    TetrahedraliseOptions to;
+    to.allowSelfIntersections = true;
+    to.targetTets = 8000;
+    to.seed = 7;
+    const Mesh fine = tetrahedraliseSurface(surface, to);
+    to.targetTets = 2500;
+    to.seed = 0;
+    L->organ = app::Organ::fromVolume(tetrahedraliseSurface(surface, to), path);
+    if (!(fine.tets.size() > 2 * L->organ->volume.tets.size())) {
+      why = QStringLiteral("the CalculiX mesh is not finer than the fit's");
+      return nullptr;
+    }
+    L->fineTets = fine.tets.size();
+    L->cam = testing::scikitSurgeryCamera();
+    L->truth = testing::broadsideView(fine, L->cam);
+    const double heldDepth = testing::farthestShareDepth(fine, L->truth, 0.12);
+    L->gCamera = 9.81 * Eigen::Vector3d(0.2, 1.0, 0.3).normalized();
+    const Eigen::VectorXd u = runCalculixStatic(fine, {}, {15e3, 0.45, 1060, true}, L->truth.R.transpose() * L->gCamera, true,
+                                                testing::surfaceNodesBeyond(fine, L->truth, heldDepth), "bodyparts3d-sag");
+    if (u.size() == 0) {
+      why = QStringLiteral("ccx failed");
+      return nullptr;
+    }
+    std::vector<Eigen::Vector3d> deformed(fine.points.size());
+    for (std::size_t i = 0; i < deformed.size(); ++i) {
+      deformed[i] = fine.points[i] + u.segment<3>(3 * static_cast<Eigen::Index>(i));
+      L->sag = std::max(L->sag, u.segment<3>(3 * static_cast<Eigen::Index>(i)).norm());
+    }
+    const auto tris = boundaryTriangles(fine, false);
+    std::vector<double> verts;
+    for (const auto& p : deformed) verts.insert(verts.end(), {p.x(), p.y(), p.z()});
+    const auto outlines = imaging::maskOutlines(imaging::renderMask(L->cam, L->truth, {verts.data(), deformed.size(), tris.front().data(), tris.size()}));
+    if (outlines.empty()) {
+      why = QStringLiteral("the sagged liver has no outline in the view");
+      return nullptr;
+    }
+    L->outline = outlines.front();
+    const std::vector<int> markers = testing::visibleMarkers(fine, deformed, L->truth, L->cam, 40);
+    if (markers.size() != 40) {
+      why = QStringLiteral("fewer than 40 visible markers");
+      return nullptr;
+    }
+    app::FitInput in;
+    in.organ = L->organ;
+    in.attachments = L->attachments = testing::surfaceNodesBeyond(L->organ->volume, L->truth, heldDepth);
+    in.materials = app::labelMaterials(app::defaultMaterial(*L->organ));
+    L->model = app::fitModel(in);
+    std::vector<Eigen::Vector3d> markerRest;
+    for (int m : markers) {
+      markerRest.push_back(fine.points[m]);
+      L->markerTruth.push_back(L->truth.apply(deformed[m]));
+    }
+    L->embedded = embedPoints(L->model, markerRest);
+    L->start = L->truth;
+    L->start.t.x() += 0.02;
+    sagged_ = std::move(L);
+    return sagged_.get();
+  }
+
  private slots:
   void initTestCase() { c_ = phantom::makePhantom(); }
 
@@ -306,91 +406,49 @@ class TestRegistration : public QObject {
   // in the wrong place (the outline's sag taken for a move and a turn); with the sag, the visible surface
   // ends nearer CalculiX's and the load found points down the image as CalculiX's did.
   void realLiverSagIsEstimatedWithThePose() {
-    const std::string path = std::string(REHEARSE_SHARED_DATA) + "/bodyparts3d/FMA7197_Liver.obj";
-    if (!std::filesystem::exists(path)) QSKIP("../shared/data/bodyparts3d/FMA7197_Liver.obj is absent");
-    if (QStandardPaths::findExecutable("ccx").isEmpty()) QFAIL("CalculiX (ccx) is not installed; scripts/install-deps.sh installs calculix-ccx");
-    const Mesh surface = testing::loadOrganSurface(path);
-    TetrahedraliseOptions to;
-    to.allowSelfIntersections = true;
-    to.targetTets = 8000;
-    to.seed = 7;
-    const Mesh fine = tetrahedraliseSurface(surface, to);
-    to.targetTets = 2500;
-    to.seed = 0;
-    const auto organ = app::Organ::fromVolume(tetrahedraliseSurface(surface, to), path);
-    QVERIFY(fine.tets.size() > 2 * organ->volume.tets.size());
-    const imaging::Camera cam = testing::scikitSurgeryCamera();
-    const Pose truth = testing::broadsideView(fine, cam);
-    const double heldDepth = testing::farthestShareDepth(fine, truth, 0.12);
-    const Eigen::Vector3d gCamera = 9.81 * Eigen::Vector3d(0.2, 1.0, 0.3).normalized();
-    const Eigen::VectorXd u = runCalculixStatic(fine, {}, {15e3, 0.45, 1060, true}, truth.R.transpose() * gCamera, true,
-                                                testing::surfaceNodesBeyond(fine, truth, heldDepth), "bodyparts3d-sag");
-    QVERIFY2(u.size() > 0, "ccx failed");
-    std::vector<Eigen::Vector3d> deformed(fine.points.size());
-    double sag = 0;
-    for (std::size_t i = 0; i < deformed.size(); ++i) {
-      deformed[i] = fine.points[i] + u.segment<3>(3 * static_cast<Eigen::Index>(i));
-      sag = std::max(sag, u.segment<3>(3 * static_cast<Eigen::Index>(i)).norm());
+    QString why;
+    const SaggedLiver* L = saggedLiver(why);
+    if (!L) {
+      if (why.startsWith(QStringLiteral("absent"))) QSKIP(qPrintable(why));
+      QFAIL(qPrintable(why));
     }
-    const auto tris = boundaryTriangles(fine, false);
-    std::vector<double> verts;
-    for (const auto& p : deformed) verts.insert(verts.end(), {p.x(), p.y(), p.z()});
-    const auto outlines = imaging::maskOutlines(imaging::renderMask(cam, truth, {verts.data(), deformed.size(), tris.front().data(), tris.size()}));
-    QVERIFY(!outlines.empty());
-    const std::vector<int> markers = testing::visibleMarkers(fine, deformed, truth, cam, 40);
-    QCOMPARE(markers.size(), std::size_t(40));
-    app::FitInput in;
-    in.organ = organ;
-    in.attachments = testing::surfaceNodesBeyond(organ->volume, truth, heldDepth);
-    in.materials = app::labelMaterials(app::defaultMaterial(*organ));
-    const FemModel model = app::fitModel(in);
-    std::vector<Eigen::Vector3d> markerRest;
-    for (int m : markers) markerRest.push_back(fine.points[m]);
-    const SurfaceEmbedding embedded = embedPoints(model, markerRest);
-    auto error = [&](const RegistrationResult& r) {
-      const auto at = mapEmbedded(embedded, r.x);
-      double e = 0;
-      for (std::size_t i = 0; i < markers.size(); ++i) e += (r.pose.apply(at[i]) - truth.apply(deformed[markers[i]])).norm();
-      return e / static_cast<double>(markers.size());
-    };
-    SimulationSettings s;
-    s.gravity.setZero();
+    const auto& organ = L->organ;
     RegistrationOptions o;
     o.rigidPrepass = true;
-    Pose start = truth;
-    start.t.x() += 0.02;
-    const auto withSag = registerToContour(model, in.attachments, s, organ->surface, {outlines.front()}, start, cam.pinhole(), o);
+    const auto withSag = L->fit(L->outline, o);
     o.estimateSag = false;
-    const auto poseOnly = registerToContour(model, in.attachments, s, organ->surface, {outlines.front()}, start, cam.pinhole(), o);
+    const auto poseOnly = L->fit(L->outline, o);
     QVERIFY2(withSag.ok && poseOnly.ok, (withSag.status + " / " + poseOnly.status).c_str());
     const Eigen::Vector3d load = withSag.pose.R * withSag.load;
-    const double cosine = load.normalized().dot(gCamera.normalized());
+    const double cosine = load.normalized().dot(L->gCamera.normalized());
     RegistrationResult undeformed;
-    undeformed.x = model.restVector();
-    undeformed.pose = truth;
+    undeformed.x = L->model.restVector();
+    undeformed.pose = L->truth;
     qInfo("BodyParts3D liver (%zu tets for CalculiX, %zu for the fit), sagged %.1f mm: undeformed at the true pose %.2f mm; fit with the sag %.2f mm "
           "(%s; load %.2f %.2f %.2f m/s^2 in the camera frame, %.0f degrees from CalculiX's), with the pose alone %.2f mm",
-          fine.tets.size(), organ->volume.tets.size(), 1e3 * sag, 1e3 * error(undeformed), 1e3 * error(withSag), withSag.status.c_str(), load.x(),
-          load.y(), load.z(), std::acos(std::clamp(cosine, -1.0, 1.0)) * 180 / M_PI, 1e3 * error(poseOnly));
-    QVERIFY(sag > 0.015);
+          L->fineTets, organ->volume.tets.size(), 1e3 * L->sag, 1e3 * L->error(undeformed), 1e3 * L->error(withSag), withSag.status.c_str(), load.x(),
+          load.y(), load.z(), std::acos(std::clamp(cosine, -1.0, 1.0)) * 180 / M_PI, 1e3 * L->error(poseOnly));
+    QVERIFY(L->sag > 0.015);
     QCOMPARE(poseOnly.load.norm(), 0.0);  // not estimated: the given gravity (none)
     QVERIFY(cosine > 0.8);
-    QVERIFY(error(withSag) < 0.9 * error(poseOnly));
+    QVERIFY(L->error(withSag) < 0.9 * L->error(poseOnly));
+    // Not told which way is down, the outline does not show the part of the sag along the view: the probe
+    // with a weaker prior may say so, but only for a fit that is indeed more than 3 mm off (no false alarm).
+    QVERIFY2(!withSag.ambiguous || L->error(withSag) > 0.003, withSag.status.c_str());
     // The part of the sag along the view is what the outline cannot show: told which way is down (the
     // gravity's direction in the camera frame, its size left to the fit), the sag found takes it too.
     o.estimateSag = true;
-    o.gravityCamera = gCamera;
-    const auto toldDown = registerToContour(model, in.attachments, s, organ->surface, {outlines.front()}, start, cam.pinhole(), o);
-    o.estimateSag = false;
-    const auto toldDownPoseOnly = registerToContour(model, in.attachments, s, organ->surface, {outlines.front()}, start, cam.pinhole(), o);
+    o.gravityCamera = L->gCamera;
+    const auto toldDown = L->fit(L->outline, o);
     const Eigen::Vector3d toldLoad = toldDown.pose.R * toldDown.load;
-    qInfo("  told which way is down: with the sag %.2f mm (load %.2f %.2f %.2f m/s^2, %.0f degrees from CalculiX's), gravity held at 1 g %.2f mm",
-          1e3 * error(toldDown), toldLoad.x(), toldLoad.y(), toldLoad.z(),
-          std::acos(std::clamp(toldLoad.normalized().dot(gCamera.normalized()), -1.0, 1.0)) * 180 / M_PI, 1e3 * error(toldDownPoseOnly));
-    QVERIFY2(toldDown.ok, toldDown.status.c_str());
-    QVERIFY(error(toldDown) < 0.003);
-    QVERIFY(error(toldDown) < 0.7 * error(withSag));
-    QVERIFY(toldLoad.normalized().dot(gCamera.normalized()) > 0.95);
+    qInfo("  told which way is down: with the sag %.2f mm (load %.2f %.2f %.2f m/s^2, %.0f degrees from CalculiX's)", 1e3 * L->error(toldDown),
+          toldLoad.x(), toldLoad.y(), toldLoad.z(), std::acos(std::clamp(toldLoad.normalized().dot(L->gCamera.normalized()), -1.0, 1.0)) * 180 / M_PI);
+    QVERIFY2(toldDown.ok && !toldDown.ambiguous && toldDown.sagDetermined, toldDown.status.c_str());
+    // (Its size is not used: centring the sag on 1 g gave 2.48 mm here but put the kidney of
+    // bench_registration_real, whose fit model sags ten times more per unit load than CalculiX's, 36 mm off.)
+    QVERIFY(L->error(toldDown) < 0.004);
+    QVERIFY(L->error(toldDown) < 0.9 * L->error(withSag));
+    QVERIFY(toldLoad.normalized().dot(L->gCamera.normalized()) > 0.95);
   }
 
   // Stiff and extreme models under the same fit: near-incompressible parenchyma, a 1000x vessel/parenchyma

@@ -163,7 +163,7 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   layout->addWidget(chartView, 1);
 }
 
-void FitPage::showAlternatives(const std::vector<simcore::RegistrationAlternative>& alternatives) {
+void FitPage::showAlternatives(const std::vector<simcore::RegistrationAlternative>& alternatives, bool ambiguous) {
   const QSignalBlocker block(alternativesList_);
   alternativesList_->clear();
   alternativePoses_.clear();
@@ -174,8 +174,7 @@ void FitPage::showAlternatives(const std::vector<simcore::RegistrationAlternativ
   }
   alternativesBox_->setVisible(!alternatives.empty());
   // The word that the overlay may be wrong stands out (orange, bold) while the fit is ambiguous.
-  status_->setStyleSheet(alternatives.empty() ? QString()
-                                              : QStringLiteral("color: %1; font-weight: bold;").arg(palette::warning().name()));
+  status_->setStyleSheet(ambiguous ? QStringLiteral("color: %1; font-weight: bold;").arg(palette::warning().name()) : QString());
 }
 
 void FitPage::useAlternative(int index) {
@@ -241,7 +240,7 @@ void FitPage::runFit(bool rigidPrepass) {
   app::FitInput input = app::fitInputFromCase(*c);
   input.rigidPrepass = rigidPrepass;
   status_->setText(tr("Fitting... (Esc cancels)"));
-  showAlternatives({});
+  showAlternatives({}, false);
   wb_.jobs->run(tr("Elastic fit..."), [this, c, input](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
     try {
       auto onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
@@ -275,7 +274,7 @@ void FitPage::runFit(bool rigidPrepass) {
       auto fit = app::toCasePart(r);
       const Pose pose = r.pose;
       const double ms = r.iterations.empty() ? 0.0 : r.iterations.back().wallMs;
-      return [this, fit, pose, status, ms, alternatives = r.alternatives] {
+      return [this, fit, pose, status, ms, ambiguous = r.ambiguous, alternatives = r.alternatives] {
         wb_.doc->edit(tr("Elastic fit"), [&](app::Case& k) {
           k.fit = fit;
           k.pose = pose;
@@ -285,9 +284,9 @@ void FitPage::runFit(bool rigidPrepass) {
         revert_->setEnabled(true);
         // An ambiguous fit begins with the word, in capitals: the overlay may be wrong.
         QString said = status;
-        if (!alternatives.empty() && said.startsWith(QStringLiteral("ambiguous: "))) said = tr("AMBIGUOUS: %1").arg(said.mid(11));
+        if (ambiguous && said.startsWith(QStringLiteral("ambiguous: "))) said = tr("AMBIGUOUS: %1").arg(said.mid(11));
         status_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).").arg(said).arg(ms / 1000.0, 0, 'f', 1));
-        showAlternatives(alternatives);
+        showAlternatives(alternatives, ambiguous);
         wb_.status(tr("Elastic fit: %1").arg(said));
         emit fitFinished(true, status);
       };

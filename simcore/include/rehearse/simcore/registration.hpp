@@ -117,11 +117,20 @@ struct RegistrationOptions {
   /// on average (RMS, mm) costs as much as one pixel at every bound contour point, so a sag the contour
   /// does not show stays small.
   double sagScaleMm = 5.0;
-  /// Which way is down, when known: gravity in the camera frame (m/s^2; zero: not known). The sag's load
-  /// starts from it and its prior is centred on it (turned with the pose as the fit turns the organ); its
-  /// size is still the fit's to find (the organ's stiffness is not known). Without it the prior is centred
-  /// on the given gravity (SimulationSettings::gravity, model frame), usually none.
+  /// With probeAmbiguity and the sag estimated: the rigid fit is run again with the sag's prior
+  /// sagProbeLoosen times weaker. When the sag found is less than sagDeterminedShare of the one the contour
+  /// alone asks for (the prior decided most of it) and the two fits put the organ's nodes more than
+  /// sagDecisiveMm apart on average, the contour does not show how far the organ sags: ambiguous.
+  double sagProbeLoosen = 16.0;
+  double sagDeterminedShare = 0.5;
+  double sagDecisiveMm = 2.0;
+  /// Which way is down, when known: gravity in the camera frame (m/s^2; zero: not known). Its direction
+  /// (turned with the pose as the fit turns the organ) is the sag's: a sag across it costs downAcross^2
+  /// times more. Its size does not count: how far the organ sags depends on a stiffness the fit does not
+  /// know, so that is the contour's to find as without it. For an organ the fit does not hold, it is the
+  /// elastic stage's gravity.
   Eigen::Vector3d gravityCamera = Eigen::Vector3d::Zero();
+  double downAcross = 4.0;
   /// Optional anatomical curve constraints, used by the rigid and the elastic stages.
   std::vector<AnatomicalCurve> curves;
   /// Called after every iteration with the current positions (model frame) and pose; false cancels.
@@ -151,6 +160,11 @@ struct RegistrationResult {
   /// The steady load the fit settled on (model frame, m/s^2): the given gravity, or the one estimated with
   /// the sag (RegistrationOptions::estimateSag).
   Eigen::Vector3d load = Eigen::Vector3d::Zero();
+  /// Whether the contour shows the sag (RegistrationOptions::sagDeterminedShare; true when not probed), the
+  /// share of the sag the contour alone asks for that the fit found, and how far apart the two put the organ.
+  bool sagDetermined = true;
+  double sagShare = 1.0;
+  double sagApartMm = 0.0;
 };
 
 /// Registers `model` (rest shape at the start) onto the contour (segments of pixels in the undistorted

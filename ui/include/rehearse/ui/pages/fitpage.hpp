@@ -44,7 +44,8 @@ class FitPage : public StepPage {
   QPushButton* revert_ = nullptr;  ///< ... or revert it (its undo step), while it is the last edit
   int fitUndoIndex_ = -1;          ///< the undo index right after the fit awaiting a decision, -1 for none
   void runFit(bool rigidPrepass);
-  void showAlternatives(const std::vector<simcore::RegistrationAlternative>& alternatives);
+  /// The alternatives list (hidden when empty); the status stands out while the fit is ambiguous.
+  void showAlternatives(const std::vector<simcore::RegistrationAlternative>& alternatives, bool ambiguous);
   QWidget* alternativesBox_ = nullptr;
   QComboBox* alternativesList_ = nullptr;
   std::vector<Pose> alternativePoses_;
