@@ -275,7 +275,10 @@ struct PoseSagProblem {
 
   Eigen::Index size() const { return 6 + U.cols(); }
   bool useLine(const Binding& b) const { return pointToLine && b.normal.squaredNorm() > 0; }
-  Eigen::MatrixXd basis(const Binding& b) const { return (1 - b.t) * U.middleRows(3 * b.a, 3) + b.t * U.middleRows(3 * b.b, 3); }
+  // At most 9 unknowns: fixed-capacity matrices, no heap allocation per bound point.
+  using Basis = Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 3>;
+  using Row = Eigen::Matrix<double, 1, Eigen::Dynamic, Eigen::RowMajor, 1, 9>;
+  Basis basis(const Binding& b) const { return (1 - b.t) * U.middleRows(3 * b.a, 3) + b.t * U.middleRows(3 * b.b, 3); }
   Eigen::Vector3d at(const Binding& b, const Eigen::Vector3d& load) const {
     Eigen::Vector3d p = point(base, b);
     if (U.cols()) p += basis(b) * load;
@@ -297,7 +300,8 @@ struct PoseSagProblem {
     const Eigen::Index n = size();
     JtJ = Eigen::MatrixXd::Zero(n, n);
     Jtr = Eigen::VectorXd::Zero(n);
-    Eigen::MatrixXd dq(3, n), J(2, n);
+    Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 9> dq(3, n);
+    Eigen::Matrix<double, 2, Eigen::Dynamic, 0, 2, 9> J(2, n);
     for (const auto& b : bindings) {
       const Eigen::Vector3d q = pose.apply(at(b, load));
       const Eigen::Vector2d r = cam.project(q) - b.contour;
@@ -309,7 +313,7 @@ struct PoseSagProblem {
       if (U.cols()) dq.rightCols(U.cols()) = pose.R * basis(b);
       J.noalias() = dpi * dq;
       if (useLine(b)) {
-        const Eigen::RowVectorXd Jn = b.normal.transpose() * J;
+        const Row Jn = b.normal.transpose() * J;
         JtJ.noalias() += Jn.transpose() * Jn;
         Jtr.noalias() += Jn.transpose() * b.normal.dot(r);
       } else {
@@ -671,9 +675,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   const bool downKnown = o.gravityCamera.allFinite() && o.gravityCamera.norm() > 0;
   // The prior's centre: the given gravity (model frame), usually none. The gravity told in the camera frame
   // gives the sag's direction only (how far the organ sags depends on a stiffness the fit does not know).
-  auto priorLoad = [&](const Pose&) -> Eigen::Vector3d { return settings.gravity.allFinite() ? settings.gravity : Eigen::Vector3d::Zero(); };
-  Eigen::Vector3d load = priorLoad(start);
-  const Eigen::Vector3d givenLoad = load;
+  const Eigen::Vector3d givenLoad = settings.gravity.allFinite() ? settings.gravity : Eigen::Vector3d::Zero();
+  Eigen::Vector3d load = givenLoad;
   Eigen::MatrixXd U;  // empty: the shape stays the rest shape in the rigid stage
   const bool held = std::find(fixed.begin(), fixed.end(), 1) != fixed.end();
   if (o.rigidPrepass && o.elastic && o.estimateSag && held) {
@@ -715,7 +718,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       pose = refinePose(x, bindings, pose, camera, o.sliding);
       return;
     }
-    refinePoseAndSag(PoseSagProblem{rest, U, bindings, camera, o.sliding}, pose, a, priorLoad(pose), priorMatrix(pose, bindings.size()));
+    refinePoseAndSag(PoseSagProblem{rest, U, bindings, camera, o.sliding}, pose, a, givenLoad, priorMatrix(pose, bindings.size()));
   };
   const std::size_t fewest = U.size() ? 6 : 3;  // bindings an update needs
   const RegistrationIteration first = record(0, "start", 0);
@@ -864,13 +867,13 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       const Eigen::VectorXd x = shapeOf(a);
       const auto bindings = rigidBindings(visibleSilhouette(surface, x, p, camera), x, p);
       if (bindings.size() < fewest) break;
-      refinePoseAndSag(PoseSagProblem{rest, U, bindings, camera, o.sliding}, p, a, priorLoad(p), priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
+      refinePoseAndSag(PoseSagProblem{rest, U, bindings, camera, o.sliding}, p, a, givenLoad, priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
     }
     const Eigen::VectorXd x = shapeOf(a);
     double sum = 0;
     for (std::size_t i = 0; i < model.nodeCount(); ++i) sum += (p.apply(x.segment<3>(3 * i)) - res.pose.apply(res.x.segment<3>(3 * i))).norm();
     sagProbe.apartMm = 1e3 * sum / static_cast<double>(model.nodeCount());
-    const double found = (load - priorLoad(res.pose)).norm(), alone = (a - priorLoad(p)).norm();
+    const double found = (load - givenLoad).norm(), alone = (a - givenLoad).norm();
     sagProbe.share = alone > 0 ? found / alone : 1.0;
     sagProbe.undetermined = sagProbe.share < o.sagDeterminedShare && sagProbe.apartMm > o.sagDecisiveMm;
     res.sagDetermined = !sagProbe.undetermined;
