@@ -463,6 +463,7 @@ int cmdRegister(const std::vector<std::string>& args) {
                               {"sag_determined", res.sagDetermined},
                               {"sag_share", res.sagShare},
                               {"sag_apart_mm", res.sagApartMm},
+                              {"deeper_minima_taken", res.adopted},
                               {"load_model_m_s2", {res.load.x(), res.load.y(), res.load.z()}},
                               {"load_camera_m_s2", {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
                               {"status", res.status},

@@ -755,20 +755,62 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     return IcpEnd{pose, a, measure(visibleSilhouette(surface, x, pose, camera), x, pose).score()};
   };
   int iteration = 0;
+  // The best of short ICP runs from several poses (in parallel; the first of equal ends wins).
+  auto bestOf = [&](const std::vector<Pose>& starts, const Eigen::Vector3d& a, int iterations) {
+    std::vector<IcpEnd> ends(starts.size());
+    tbb::parallel_for(std::size_t(0), starts.size(), [&](std::size_t i) { ends[i] = shortIcp(starts[i], a, iterations); });
+    std::size_t best = 0;
+    for (std::size_t i = 1; i < ends.size(); ++i)
+      if (ends[i].score < ends[best].score) best = i;
+    return ends[best];
+  };
+  // ICP from res.pose (pose and sag) until it settles, keeping the best; then basin hopping: short ICP
+  // runs from small moves along and turns about the camera axes, a clearly better end continues (a partial
+  // contour leaves shallow local minima, the outline sliding along itself). `bestMean` is the score to beat.
+  auto polish = [&](double previous, double bestMean) {
+    Pose bestPose = res.pose;
+    Eigen::Vector3d bestLoad = load;
+    for (int k = 0; k < o.rigidIterations; ++k) {
+      const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.x, res.pose);
+      if (bindings.size() < fewest) break;
+      refine(res.x, bindings, res.pose, load);
+      res.x = shapeOf(load);
+      const auto ri = record(++iteration, "rigid", bindings.size());
+      if (ri.score() < bestMean) {
+        bestMean = ri.score();
+        bestPose = res.pose;
+        bestLoad = load;
+      }
+      if (res.cancelled || std::abs(previous - ri.score()) < 0.1 * o.tolerance) break;
+      previous = ri.score();
+    }
+    res.pose = bestPose;
+    load = bestLoad;
+    res.x = shapeOf(load);
+    for (int round = 0; round < 3 && !res.cancelled && o.hops; ++round) {
+      std::vector<Pose> hops;
+      for (int axis = 0; axis < 3; ++axis)
+        for (int sgn : {-1, 1}) {
+          Pose moved = res.pose;
+          moved.t += sgn * o.hopDistance * Eigen::Vector3d::Unit(axis);
+          hops.push_back(moved);
+          hops.push_back(res.pose.turnedAbout(
+              Eigen::AngleAxisd(sgn * o.hopDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), res.pose.apply(centre)));
+        }
+      const IcpEnd hop = bestOf(hops, load, 3);
+      if (!(hop.score < bestMean - o.tolerance)) break;
+      res.pose = hop.pose;
+      load = hop.load;
+      res.x = shapeOf(load);
+      bestMean = hop.score;
+      record(++iteration, "rigid", 0);
+    }
+  };
   // Rigid pre-pass: the pose refined on the bindings (ICP), the shape unchanged.
   if (o.rigidPrepass || !o.elastic) {
     // A few short ICP runs from the start and from candidates that the silhouette alone suggests (the
     // projected organ's centroid moved onto the contour's, and +-15 degrees about the optical axis), to
     // stay out of the local minima of a single ICP; the best continues below.
-    // The best of short ICP runs from several poses (in parallel; the first of equal ends wins).
-    auto bestOf = [&](const std::vector<Pose>& starts, const Eigen::Vector3d& a, int iterations) {
-      std::vector<IcpEnd> ends(starts.size());
-      tbb::parallel_for(std::size_t(0), starts.size(), [&](std::size_t i) { ends[i] = shortIcp(starts[i], a, iterations); });
-      std::size_t best = 0;
-      for (std::size_t i = 1; i < ends.size(); ++i)
-        if (ends[i].score < ends[best].score) best = i;
-      return ends[best];
-    };
     {
       const auto sil = silhouette(res.x, res.pose);
       Eigen::Vector2d silCentre = Eigen::Vector2d::Zero(), contourCentre = Eigen::Vector2d::Zero();
@@ -803,90 +845,22 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       load = end.load;
       res.x = shapeOf(load);
     }
-    double previous = first.score();
-    Pose bestPose = res.pose;
     double bestMean = score(res.x, res.pose);
-    Eigen::Vector3d bestLoad = load;
     if (bestMean >= first.score()) {  // the candidates did not help: ICP from the start as given
       res.pose = start;
       bestMean = first.score();
-      bestPose = start;
-      load = bestLoad = givenLoad;
+      load = givenLoad;
       res.x = shapeOf(load);
     }
-    for (int k = 0; k < o.rigidIterations; ++k) {
-      const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.x, res.pose);
-      if (bindings.size() < fewest) break;
-      refine(res.x, bindings, res.pose, load);
-      res.x = shapeOf(load);
-      const auto ri = record(++iteration, "rigid", bindings.size());
-      if (ri.score() < bestMean) {
-        bestMean = ri.score();
-        bestPose = res.pose;
-        bestLoad = load;
-      }
-      if (res.cancelled || std::abs(previous - ri.score()) < 0.1 * o.tolerance) break;
-      previous = ri.score();
-    }
-    res.pose = bestPose;
-    load = bestLoad;
-    res.x = shapeOf(load);
-    // Basin hopping: short ICP runs from small moves along and turns about the camera axes; a clearly
-    // better end continues (a partial contour leaves shallow local minima, the outline sliding along itself).
-    for (int round = 0; round < 3 && !res.cancelled && o.hops; ++round) {
-      std::vector<Pose> hops;
-      for (int axis = 0; axis < 3; ++axis)
-        for (int sgn : {-1, 1}) {
-          Pose moved = res.pose;
-          moved.t += sgn * o.hopDistance * Eigen::Vector3d::Unit(axis);
-          hops.push_back(moved);
-          hops.push_back(res.pose.turnedAbout(
-              Eigen::AngleAxisd(sgn * o.hopDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), res.pose.apply(centre)));
-        }
-      const IcpEnd hop = bestOf(hops, load, 3);
-      if (!(hop.score < bestMean - o.tolerance)) break;
-      res.pose = hop.pose;
-      load = hop.load;
-      res.x = shapeOf(load);
-      bestMean = hop.score;
-      record(++iteration, "rigid", 0);
-    }
+    polish(first.score(), bestMean);
   }
-  // Does the contour determine the sag? The rigid fit again with the sag's prior loosened: when the load
-  // the contour alone asks for is more than twice the one found (the prior, not the contour, decided most
-  // of the sag) and the two put the organ more than sagDecisiveMm apart, the contour does not show how far
-  // the organ sags (typically its sagging side is not drawn), and the depth of the pose with it.
-  struct {
-    bool undetermined = false;
-    double share = 1, apartMm = 0;
-  } sagProbe;
-  if (U.size() && o.probeAmbiguity && !res.cancelled) {
-    Pose p = res.pose;
-    Eigen::Vector3d a = load;
-    for (int k = 0; k < 8; ++k) {
-      const Eigen::VectorXd x = shapeOf(a);
-      const auto bindings = rigidBindings(visibleSilhouette(surface, x, p, camera), x, p);
-      if (bindings.size() < fewest) break;
-      refinePoseAndSag(PoseSagProblem{rest, U, bindings, camera, o.sliding}, p, a, givenLoad, priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
-    }
-    const Eigen::VectorXd x = shapeOf(a);
-    double sum = 0;
-    for (std::size_t i = 0; i < model.nodeCount(); ++i) sum += (p.apply(x.segment<3>(3 * i)) - res.pose.apply(res.x.segment<3>(3 * i))).norm();
-    sagProbe.apartMm = 1e3 * sum / static_cast<double>(model.nodeCount());
-    const double found = (load - givenLoad).norm(), alone = (a - givenLoad).norm();
-    sagProbe.share = alone > 0 ? found / alone : 1.0;
-    sagProbe.undetermined = sagProbe.share < o.sagDeterminedShare && sagProbe.apartMm > o.sagDecisiveMm;
-    res.sagDetermined = !sagProbe.undetermined;
-    res.sagShare = sagProbe.share;
-    res.sagApartMm = sagProbe.apartMm;
-  }
-  if (!U.size() && downKnown) load = res.pose.R.transpose() * o.gravityCamera;  // the told gravity, in the frame of the pose found
-  settings.gravity = load;
-  res.load = load;
   // Does the contour determine the pose? Short rigid fits from poses spread around the result: an end that
-  // fits nearly as well with the organ elsewhere is an alternative the contour cannot tell from it.
+  // fits nearly as well with the organ elsewhere is an alternative the contour cannot tell from it; one that
+  // fits clearly better (by more than adoptShare) is a deeper minimum the rigid stage missed (the start was
+  // in another basin): the fit continues from there (up to adoptRounds times) and is probed again.
   double probedScore = 0;  // the rigid result's, which the alternatives' are compared with
-  if ((o.rigidPrepass || !o.elastic) && o.probeAmbiguity && !res.cancelled) {
+  for (int round = 0; (o.rigidPrepass || !o.elastic) && o.probeAmbiguity && !res.cancelled; ++round) {
+    res.alternatives.clear();
     std::vector<Eigen::Vector3d> sample;  // up to 400 nodes, to measure how far apart two poses put the organ
     const std::size_t stride = std::max<std::size_t>(1, model.nodeCount() / 400);
     for (std::size_t i = 0; i < model.nodeCount(); i += stride) sample.push_back(res.x.segment<3>(3 * i));
@@ -925,7 +899,43 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     }
     std::sort(res.alternatives.begin(), res.alternatives.end(), [](const auto& a, const auto& b) { return a.score < b.score; });
     if (res.alternatives.size() > 3) res.alternatives.resize(3);
+    const auto deeper = std::min_element(ends.begin(), ends.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    if (round >= o.adoptRounds || deeper == ends.end() || !(deeper->second < resultScore * (1 - o.adoptShare))) break;
+    res.pose = deeper->first;
+    ++res.adopted;
+    polish(deeper->second, score(res.x, res.pose));
   }
+  // Does the contour determine the sag? The rigid fit again with the sag's prior loosened: when the load
+  // the contour alone asks for is more than twice the one found (the prior, not the contour, decided most
+  // of the sag) and the two put the organ more than sagDecisiveMm apart, the contour does not show how far
+  // the organ sags (typically its sagging side is not drawn), and the depth of the pose with it.
+  struct {
+    bool undetermined = false;
+    double share = 1, apartMm = 0;
+  } sagProbe;
+  if (U.size() && o.probeAmbiguity && !res.cancelled) {
+    Pose p = res.pose;
+    Eigen::Vector3d a = load;
+    for (int k = 0; k < 8; ++k) {
+      const Eigen::VectorXd x = shapeOf(a);
+      const auto bindings = rigidBindings(visibleSilhouette(surface, x, p, camera), x, p);
+      if (bindings.size() < fewest) break;
+      refinePoseAndSag(PoseSagProblem{rest, U, bindings, camera, o.sliding}, p, a, givenLoad, priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
+    }
+    const Eigen::VectorXd x = shapeOf(a);
+    double sum = 0;
+    for (std::size_t i = 0; i < model.nodeCount(); ++i) sum += (p.apply(x.segment<3>(3 * i)) - res.pose.apply(res.x.segment<3>(3 * i))).norm();
+    sagProbe.apartMm = 1e3 * sum / static_cast<double>(model.nodeCount());
+    const double found = (load - givenLoad).norm(), alone = (a - givenLoad).norm();
+    sagProbe.share = alone > 0 ? found / alone : 1.0;
+    sagProbe.undetermined = sagProbe.share < o.sagDeterminedShare && sagProbe.apartMm > o.sagDecisiveMm;
+    res.sagDetermined = !sagProbe.undetermined;
+    res.sagShare = sagProbe.share;
+    res.sagApartMm = sagProbe.apartMm;
+  }
+  if (!U.size() && downKnown) load = res.pose.R.transpose() * o.gravityCamera;  // the told gravity, in the frame of the pose found
+  settings.gravity = load;
+  res.load = load;
   const Pose rigidPose = res.pose;
   const Eigen::VectorXd rigidX = res.x;
   const double rigidMean = score(res.x, res.pose);

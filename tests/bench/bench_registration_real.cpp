@@ -103,7 +103,7 @@ int main(int argc, char** argv) {
   const imaging::Camera cam = testing::scikitSurgeryCamera();
 
   std::ofstream csv(out + "/registration-real.csv");
-  csv << "organ,fraction,side,start,start_error_mm,rigid_stage_error_mm,surface_error_mm,target_error_mm,worst_marker_mm,start_px,end_px,wall_ms,exit,status\n";
+  csv << "organ,fraction,side,start,start_error_mm,rigid_stage_error_mm,surface_error_mm,target_error_mm,worst_marker_mm,start_px,end_px,wall_ms,exit,sag_share,sag_apart_mm,status\n";
   struct Cell {
     std::vector<double> err, target, ms, rigid;
     int silentWrong = 0, wrong = 0, flaggedGood = 0, good = 0, failed = 0, ambiguous = 0;
@@ -418,7 +418,7 @@ int main(int argc, char** argv) {
           std::fflush(stdout);
           csv << spec.name << "," << fraction << "," << (fraction < 1 ? sideNames[side] : "-") << ",\"" << s.name << "\"," << e0.surface << "," << rigidError << ","
               << e1.surface << "," << e1.target << "," << e1.worst << "," << (r.iterations.empty() ? 0 : r.iterations.front().score()) << "," << px
-              << "," << ms << "," << code << ",\"" << r.status << "\"\n";
+              << "," << ms << "," << code << "," << r.sagShare << "," << r.sagApartMm << ",\"" << r.status << "\"\n";
           if (fraction == 1.0) series.push_back(ps);
         }
       }

@@ -300,6 +300,42 @@ class TestRegistration : public QObject {
     QVERIFY(dt < 0.003);
   }
 
+  // A rigid stage stopped early (one ICP iteration, no hops) from a start far off ends in a poor place; the
+  // ambiguity probes' short fits from around it find poses that fit the contour clearly better, and the fit
+  // continues from the best of them instead of reporting the poor one (or calling the better ones
+  // alternatives). Without adoption (adoptRounds = 0) the same fit stays where it stopped.
+  void clearlyBetterProbeIsAdopted() {
+    const FemModel m = organModel(c_);
+    const auto contour = outline(c_, c_.truePose, c_.surfaceView());
+    // 3 cm right, 2 cm deeper and turned 40 degrees about the camera's x axis: one ICP iteration leaves the
+    // organ about 2.5 mm off (about 2 px); the whole rigid stage reaches 0.7 mm from it.
+    const Pose start = offset(c_.truePose, Eigen::Vector3d(0.03, 0.0, 0.02), Eigen::Vector3d::UnitX(), 40.0, c_.centreOfGravity());
+    RegistrationOptions o;
+    o.elastic = false;
+    o.rigidIterations = 1;
+    o.hops = false;
+    SimulationSettings s;
+    s.gravity.setZero();
+    RegistrationOptions without = o;
+    without.adoptRounds = 0;
+    const auto stopped = registerToContour(m, c_.attachments, s, c_.surface, contour, start, c_.camera.pinhole(), without);
+    const auto adopted = registerToContour(m, c_.attachments, s, c_.surface, contour, start, c_.camera.pinhole(), o);
+    QVERIFY2(stopped.ok && adopted.ok, (stopped.status + " / " + adopted.status).c_str());
+    auto poseError = [&](const Pose& p) {
+      double sum = 0;
+      for (const auto& q : c_.volume.points) sum += (p.apply(q) - c_.truePose.apply(q)).norm();
+      return 1e3 * sum / static_cast<double>(c_.volume.points.size());
+    };
+    const double before = stopped.iterations.back().score(), after = adopted.iterations.back().score();
+    qInfo("stopped early: %.2f px, organ %.2f mm from the truth; with adoption (%d): %.2f px, %.2f mm", before, poseError(stopped.pose), adopted.adopted,
+          after, poseError(adopted.pose));
+    QCOMPARE(stopped.adopted, 0);
+    QVERIFY(adopted.adopted >= 1);
+    QVERIFY(after < 0.85 * before);
+    QVERIFY(poseError(adopted.pose) < 0.5 * poseError(stopped.pose));
+    QVERIFY(poseError(adopted.pose) < 2.0);
+  }
+
   // The elastic deformation recovered, against ground truth that is not our model: the phantom meshed again 2.5x finer, sagged 3 g sideways in the
   // image on its ligaments by CalculiX (Neo-Hookean, vessels 23x stiffer), its outline rendered at the true
   // pose as the contour. The fit (our co-rotational model on the coarse mesh, from the rest shape) must

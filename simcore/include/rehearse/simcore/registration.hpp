@@ -107,6 +107,10 @@ struct RegistrationOptions {
   double ambiguityPx = 0.5;
   double ambiguityShare = 0.25;
   double ambiguityMm = 5.0;
+  /// A probe's end that fits the contour more than adoptShare better than the rigid result is a deeper
+  /// minimum the rigid stage missed: the fit continues from it, up to adoptRounds times.
+  double adoptShare = 0.15;
+  int adoptRounds = 2;
   /// After the rigid stage, when the organ is held (fixed nodes), the pose is refined together with the
   /// organ's sag under an unknown steady load (gravity, whose direction and size relative to the organ's
   /// stiffness the fit cannot know): three linear responses of the held model to a unit body acceleration
@@ -163,6 +167,8 @@ struct RegistrationResult {
   /// Whether the contour shows the sag (RegistrationOptions::sagDeterminedShare; true when not probed), the
   /// share of the sag the contour alone asks for that the fit found, and how far apart the two put the organ.
   bool sagDetermined = true;
+  /// How many times a probe found a clearly deeper minimum and the fit continued from it.
+  int adopted = 0;
   double sagShare = 1.0;
   double sagApartMm = 0.0;
 };
