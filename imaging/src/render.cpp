@@ -161,6 +161,43 @@ std::optional<SurfacePick> pickSurface(const Camera& camera, const Pose& pose, c
   return best;
 }
 
+SurfaceGeometry surfaceGeometry(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale) {
+  checkCamera(camera);
+  scale = std::max(1, scale);
+  const Posed P = pose3(pose, surface, true);
+  bool inFront = false;
+  for (const auto& x : P.x) inFront |= x.z() > 1e-3;
+  if (!inFront) throw InputError("The organ lies behind the camera; check the pose (z must be positive in the camera frame).");
+  Rasterization r = rasterizePosed(camera, P, surface, scale, 1e-3);
+  const Eigen::Matrix3d Kinv = scaledK(camera, scale).inverse();
+  SurfaceGeometry g;
+  g.triangle = r.triangle;
+  g.position = cv::Mat3f(r.triangle.size(), cv::Vec3f(0, 0, 0));
+  g.normal = cv::Mat3f(r.triangle.size(), cv::Vec3f(0, 0, 0));
+  g.barycentric = cv::Mat3f(r.triangle.size(), cv::Vec3f(0, 0, 0));
+  cv::parallel_for_(cv::Range(0, g.triangle.rows), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < g.triangle.cols; ++x) {
+        const int t = g.triangle(y, x);
+        if (t < 0) continue;
+        Eigen::Vector3d p, n;
+        if (!surfacePoint(Kinv, P, surface, t, x, y, p, n)) {
+          g.triangle(y, x) = -1;
+          continue;
+        }
+        const int* tri = surface.triangles + 3 * t;
+        const Eigen::Vector3d &a = P.x[tri[0]], &b = P.x[tri[1]], &c = P.x[tri[2]];
+        const Eigen::Vector3d fn = (b - a).cross(c - a);
+        const double nn = fn.squaredNorm();
+        const double wa = (c - b).cross(p - b).dot(fn) / nn, wb = (a - c).cross(p - c).dot(fn) / nn;
+        g.position(y, x) = cv::Vec3f(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
+        g.normal(y, x) = cv::Vec3f(static_cast<float>(n.x()), static_cast<float>(n.y()), static_cast<float>(n.z()));
+        g.barycentric(y, x) = cv::Vec3f(static_cast<float>(wa), static_cast<float>(wb), static_cast<float>(1 - wa - wb));
+      }
+  });
+  return g;
+}
+
 cv::Mat1b renderMask(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale) {
   auto r = rasterize(camera, pose, surface, scale);
   cv::Mat1b full = r.triangle >= 0;

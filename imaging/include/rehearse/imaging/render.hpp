@@ -36,6 +36,20 @@ struct SurfacePick {
 std::optional<SurfacePick> pickSurface(const Camera& camera, const Pose& pose, const SurfaceView& surface,
                                        const Eigen::Vector2d& pixel, double nearPlane = 1e-3);
 
+/// What the camera sees of the surface at every pixel centre: the nearest triangle (-1 for none), the
+/// camera-frame point and smooth (area-weighted vertex) unit normal there, and the point's barycentric
+/// coordinates in its triangle (for texture lookups). Camera frame, metres.
+struct SurfaceGeometry {
+  cv::Mat1i triangle;
+  cv::Mat3f position;
+  cv::Mat3f normal;
+  cv::Mat3f barycentric;
+  cv::Mat1b mask() const { return triangle >= 0; }
+};
+/// The surface's geometry through the camera at `scale` times its resolution. Throws InputError for a bad
+/// camera or when no vertex is in front of the camera.
+SurfaceGeometry surfaceGeometry(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale = 1);
+
 /// 8-bit mask (255 where the surface covers the pixel centre) at the camera's resolution.
 cv::Mat1b renderMask(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale = 1);
 

@@ -1,0 +1,109 @@
+#pragma once
+// Appearance estimation and composition (DejaVu's step 6, DESIGN.md): the organ's reflectance and the
+// scene's light (Theta of the simplified Torrance-Sparrow model, appearance.hpp) fitted to the frame
+// through the registered organ's per-pixel geometry, in the paper's stages (light position from the
+// specular peaks, then diffuse on the specular-free image, then specular and roughness on the frame); the
+// background behind the organ filled by inpainting; and the composition J: the deformed organ re-shaded
+// with Theta and its albedo over that background. CPU only (the reference the GUI's shader path is
+// compared with).
+#include <rehearse/imaging/appearance.hpp>
+#include <rehearse/imaging/render.hpp>
+
+#include <array>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace rehearse::imaging {
+
+/// Pixels that can be trusted for fitting: inside `organ` away from its 2 px rim (where organ and
+/// background mix), not saturated in every channel (>= 250; a single clipped channel is left out of the fit
+/// per pixel), and not in the dark border of a circular scope view (near-black pixels connected to the
+/// image's edge) nor within `borderPx` of it.
+cv::Mat1b usablePixels(const cv::Mat3b& frame, const cv::Mat1b& organ, int borderPx = 12);
+
+/// Specular highlights and the specular-free (diffuse) image I_D, for a white light: a pixel is the
+/// organ's diffuse colour scaled by its shading plus the same specular amount S in every channel. With the
+/// organ's diffuse chromaticity taken as the median ratio r of its smallest to its largest channel,
+/// S = (min - r max) / (1 - r) per pixel (the idea of Tan and Ikeuchi's specular-free image, for an organ of
+/// one dominant colour); highlights are where S stands above the organ's noise (median + max(10 levels,
+/// 5 MADs)) with the lobe around them; I_D is the frame minus S there, with clipped pixels inpainted.
+struct SpecularSeparation {
+  cv::Mat1b highlights;  ///< 255 on highlight pixels
+  cv::Mat3b diffuse;     ///< I_D
+  int count = 0;         ///< highlight pixels
+  int blobs = 0;         ///< connected highlights
+};
+SpecularSeparation separateSpecular(const cv::Mat3b& frame, const cv::Mat1b& organ);
+
+/// How the background behind the organ is filled: OpenCV's Telea and Navier-Stokes (cv::inpaint), and
+/// xphoto's shift-map and fast frequency-selective reconstruction (cv::xphoto::inpaint).
+enum class InpaintMethod { Telea, NavierStokes, ShiftMap, FsrFast };
+/// "telea", "ns", "shiftmap", "fsr"; throws InputError naming the choices.
+InpaintMethod parseInpaintMethod(const std::string& name);
+const char* inpaintMethodName(InpaintMethod m);
+/// The frame with `region` (grown by `growPx`) filled: the background I_B a moved organ uncovers.
+cv::Mat3b inpaintRegion(const cv::Mat3b& frame, const cv::Mat1b& region, InpaintMethod method = InpaintMethod::Telea, int growPx = 4);
+
+struct AppearanceStage {
+  std::string name;
+  double rms = 0;          ///< residual, grey levels (0..255) per channel
+  double ms = 0;           ///< wall time
+  std::size_t pixels = 0;  ///< samples used
+};
+
+struct AppearanceFitOptions {
+  std::size_t maxSamples = 40000;  ///< pixels per stage (a regular subsample of the usable ones)
+  double poorShare = 0.5;          ///< below this share of the organ's variance explained: texture mapping only
+  /// Called between stages (share done, stage name); false cancels (throws simcore-free Cancelled below).
+  std::function<bool(double, const std::string&)> progress;
+};
+
+struct AppearanceFitResult {
+  Appearance theta;
+  bool highlightFound = false;  ///< false: the light started at (0, 0, 100 mm) and the specular part is not determined (ks = 0)
+  bool textureOnly = false;     ///< the model explains too little of the frame: show the frame's texture, not re-shaded
+  double explained = 0;         ///< share of the organ's pixel variance (I_D) that the diffuse model explains
+  /// Per channel (RGB): false when the channel is clipped wherever its specular term matters, so its ks is
+  /// not in the frame (it is then the measured channels' mean, and the status says so).
+  std::array<bool, 3> ksMeasured{true, true, true};
+  std::string status;           ///< one sentence
+  std::vector<AppearanceStage> stages;
+  SpecularSeparation separation;
+  cv::Mat1b usable;
+};
+
+/// The fit was cancelled through AppearanceFitOptions::progress.
+struct AppearanceCancelled : std::runtime_error {
+  AppearanceCancelled() : std::runtime_error("cancelled") {}
+};
+
+/// Fits Theta to `frame` (8-bit BGR, camera size) through `geometry` (surfaceGeometry of the registered
+/// organ at scale 1). Throws InputError when the organ covers too few usable pixels to fit anything.
+AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry& geometry, const AppearanceFitOptions& options = {});
+
+/// Per-pixel albedo (RGB ratios to Theta's kd, float): the diffuse image over the fitted diffuse shading at
+/// rest, so that a deformed organ keeps its texture while its shading follows its normals; 1 where the rest
+/// shading is too dark to divide by or the pixel is not usable.
+cv::Mat3f albedoRatio(const cv::Mat3b& diffuse, const SurfaceGeometry& rest, const Appearance& theta, const cv::Mat1b& usable);
+
+/// What composition needs. `rest` and `deformed` are the same surface (same triangles, same vertex order;
+/// model frame, metres); the texture is looked up where each point was at rest.
+struct CompositionInput {
+  Camera camera;
+  Pose pose;
+  SurfaceView rest, deformed;
+  cv::Mat3b frame;       ///< the frame the texture comes from
+  cv::Mat3b background;  ///< I_B (inpainted frame)
+  cv::Mat3f albedo;      ///< albedoRatio at rest
+  Appearance theta;
+  bool textureOnly = false;  ///< no re-shading: the frame's own colours follow the tissue
+};
+/// The composited image J (8-bit BGR): I_B, the deformed organ re-shaded (or texture-mapped) over it with
+/// edges anti-aliased by `scale` x supersampling; what the deformation uncovers shows I_B.
+cv::Mat3b compose(const CompositionInput& in, int scale = 2);
+
+/// Peak signal-to-noise ratio (dB) of b against a (8-bit, same size), over `mask` when given.
+double psnr(const cv::Mat3b& a, const cv::Mat3b& b, const cv::Mat1b& mask = {});
+
+}  // namespace rehearse::imaging

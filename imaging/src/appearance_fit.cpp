@@ -1,0 +1,620 @@
+#include <rehearse/imaging/appearance_fit.hpp>
+
+#include <opencv2/imgproc.hpp>
+#include <opencv2/photo.hpp>
+#include <opencv2/xphoto/inpainting.hpp>
+
+#include <unsupported/Eigen/NonLinearOptimization>
+#include <unsupported/Eigen/NumericalDiff>
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <numeric>
+
+namespace rehearse::imaging {
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+// One fitting sample: the camera-frame point and normal at a pixel, and the pixel's value (RGB, 0..1).
+struct Sample {
+  Eigen::Vector3d p, n, rgb;
+  Eigen::Vector3d weight = Eigen::Vector3d::Ones();  ///< 0 for a channel near clipping (>= 235: its true value is unknown, or averaged with clipped neighbours)
+};
+
+std::vector<Sample> collect(const cv::Mat3b& image, const SurfaceGeometry& g, const cv::Mat1b& use, std::size_t maxSamples) {
+  std::vector<cv::Point> where;
+  cv::findNonZero(use, where);
+  const std::size_t stride = std::max<std::size_t>(1, where.size() / std::max<std::size_t>(1, maxSamples));
+  std::vector<Sample> out;
+  out.reserve(where.size() / stride + 1);
+  for (std::size_t i = 0; i < where.size(); i += stride) {
+    const cv::Point& q = where[i];
+    const cv::Vec3f p = g.position(q), n = g.normal(q);
+    const cv::Vec3b c = image(q);
+    out.push_back({Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d(c[2], c[1], c[0]) / 255.0,
+                   Eigen::Vector3d(c[2] < 235, c[1] < 235, c[0] < 235)});
+  }
+  return out;
+}
+
+// The model's two basis terms at a sample for a light and a roughness: diffuse cos(theta_i) / r^2 and
+// specular exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r)) (appearance.hpp), zero where the light is behind.
+void basis(const Sample& s, const Eigen::Vector3d& light, double sigma, double& diffuse, double& specular) {
+  const Eigen::Vector3d toLight = light - s.p;
+  const double r2 = std::max(toLight.squaredNorm(), 1e-12);
+  const Eigen::Vector3d l = toLight / std::sqrt(r2);
+  const double cosI = s.n.dot(l);
+  if (cosI <= 0) {
+    diffuse = specular = 0;
+    return;
+  }
+  const Eigen::Vector3d v = (-s.p).normalized();
+  const double cosR = std::max(s.n.dot(v), 1e-3);
+  const double alpha = std::acos(std::clamp(s.n.dot((l + v).normalized()), -1.0, 1.0));
+  diffuse = cosI / r2;
+  specular = sigma > 0 ? std::exp(-alpha * alpha / (2 * sigma * sigma)) / (r2 * cosR) : 0.0;
+}
+
+// Variable projection: for a light position and a roughness, kd (and ks when `specular`) per channel are
+// linear and solved in closed form (non-negative); the residuals are what is left.
+struct Projected {
+  Eigen::Vector3d kd = Eigen::Vector3d::Zero(), ks = Eigen::Vector3d::Zero();
+};
+
+Projected solveLinear(const std::vector<Sample>& samples, const Eigen::Vector3d& light, double sigma, bool specular, Eigen::VectorXd* residual) {
+  std::array<Eigen::Matrix2d, 3> A;
+  std::array<Eigen::Vector2d, 3> b;
+  for (int c = 0; c < 3; ++c) A[c].setZero(), b[c].setZero();
+  std::vector<std::pair<double, double>> terms(samples.size());
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    double d, s;
+    basis(samples[i], light, sigma, d, s);
+    if (!specular) s = 0;
+    terms[i] = {d, s};
+    const Eigen::Vector2d phi(d, s);
+    for (int c = 0; c < 3; ++c) {
+      const double w = samples[i].weight[c];
+      A[c] += w * phi * phi.transpose();
+      b[c] += w * phi * samples[i].rgb[c];
+    }
+  }
+  Projected out;
+  for (int c = 0; c < 3; ++c) {
+    const Eigen::Matrix2d& M = A[c];
+    Eigen::Vector2d x = Eigen::Vector2d::Zero();
+    if (specular && M.determinant() > 1e-18 * std::max(1.0, M(0, 0) * M(1, 1))) x = M.ldlt().solve(b[c]);
+    else if (M(0, 0) > 0) x = Eigen::Vector2d(b[c](0) / M(0, 0), 0);
+    // Non-negative: a negative coefficient is dropped and the other refitted alone.
+    if (x.y() < 0) x = Eigen::Vector2d(M(0, 0) > 0 ? b[c](0) / M(0, 0) : 0, 0);
+    if (x.x() < 0) x = Eigen::Vector2d(0, M(1, 1) > 0 ? std::max(0.0, b[c](1) / M(1, 1)) : 0);
+    out.kd[c] = x.x();
+    out.ks[c] = x.y();
+  }
+  if (residual) {
+    residual->resize(3 * static_cast<Eigen::Index>(samples.size()));
+    for (std::size_t i = 0; i < samples.size(); ++i) {
+      const Eigen::Vector3d model = out.kd * terms[i].first + out.ks * terms[i].second;
+      residual->segment<3>(3 * static_cast<Eigen::Index>(i)) = (samples[i].rgb - model).cwiseProduct(samples[i].weight);
+    }
+  }
+  return out;
+}
+
+// Levenberg-Marquardt on the nonlinear unknowns: the light (decimetres, camera frame) and, when
+// `specular`, log(sigma).
+struct VarProFunctor {
+  using Scalar = double;
+  enum { InputsAtCompileTime = Eigen::Dynamic, ValuesAtCompileTime = Eigen::Dynamic };
+  using InputType = Eigen::VectorXd;
+  using ValueType = Eigen::VectorXd;
+  using JacobianType = Eigen::MatrixXd;
+  const std::vector<Sample>* samples;
+  bool specular;
+  int inputs() const { return specular ? 4 : 3; }
+  int values() const { return 3 * static_cast<int>(samples->size()); }
+  int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& f) const {
+    const double sigma = specular ? std::exp(x[3]) : 0.0;
+    solveLinear(*samples, 0.1 * x.head<3>(), sigma, specular, &f);
+    return 0;
+  }
+};
+
+void refine(const std::vector<Sample>& samples, Eigen::Vector3d& light, double& sigma, bool specular) {
+  VarProFunctor f{&samples, specular};
+  Eigen::VectorXd x(specular ? 4 : 3);
+  x.head<3>() = 10.0 * light;
+  if (specular) x[3] = std::log(sigma);
+  Eigen::NumericalDiff<VarProFunctor> nd(f, 1e-6);
+  Eigen::LevenbergMarquardt<Eigen::NumericalDiff<VarProFunctor>> lm(nd);
+  lm.parameters.maxfev = 400;
+  lm.parameters.xtol = 1e-10;
+  lm.parameters.ftol = 1e-12;
+  lm.minimize(x);
+  if (x.allFinite()) {
+    light = 0.1 * x.head<3>();
+    if (specular) sigma = std::clamp(std::exp(x[3]), 0.005, 1.5);
+  }
+}
+
+// Drops samples whose residual is far beyond the typical one (texture, vessels, a tool in the way).
+std::vector<Sample> trimmed(const std::vector<Sample>& samples, const Eigen::Vector3d& light, double sigma, bool specular) {
+  Eigen::VectorXd r;
+  solveLinear(samples, light, sigma, specular, &r);
+  std::vector<double> mag(samples.size());
+  for (std::size_t i = 0; i < samples.size(); ++i) mag[i] = r.segment<3>(3 * static_cast<Eigen::Index>(i)).norm();
+  const double med = median(mag);
+  std::vector<double> dev(mag.size());
+  for (std::size_t i = 0; i < mag.size(); ++i) dev[i] = std::abs(mag[i] - med);
+  const double limit = med + 3 * 1.4826 * std::max(median(dev), 1e-6);
+  std::vector<Sample> out;
+  for (std::size_t i = 0; i < samples.size(); ++i)
+    if (mag[i] <= limit) out.push_back(samples[i]);
+  return out.size() >= 50 ? out : samples;
+}
+
+double rmsLevels(const std::vector<Sample>& samples, const Eigen::Vector3d& light, double sigma, bool specular) {
+  Eigen::VectorXd r;
+  solveLinear(samples, light, sigma, specular, &r);
+  return r.size() ? 255.0 * std::sqrt(r.squaredNorm() / static_cast<double>(r.size())) : 0.0;
+}
+
+// Bilinear lookup of a 3-channel image at a sub-pixel point (clamped to the image).
+template <typename T>
+cv::Vec3f bilinear(const cv::Mat_<cv::Vec<T, 3>>& img, const Eigen::Vector2d& q) {
+  const double x = std::clamp(q.x(), 0.0, img.cols - 1.0), y = std::clamp(q.y(), 0.0, img.rows - 1.0);
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
+  const double fx = x - x0, fy = y - y0;
+  cv::Vec3f out;
+  for (int k = 0; k < 3; ++k)
+    out[k] = static_cast<float>((1 - fy) * ((1 - fx) * img(y0, x0)[k] + fx * img(y0, x1)[k]) + fy * ((1 - fx) * img(y1, x0)[k] + fx * img(y1, x1)[k]));
+  return out;
+}
+
+}  // namespace
+
+cv::Mat1b usablePixels(const cv::Mat3b& frame, const cv::Mat1b& organ, int borderPx) {
+  if (frame.size() != organ.size()) throw InputError("The frame and the organ's mask differ in size.");
+  cv::Mat1b out;
+  cv::erode(organ, out, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));  // the rim mixes organ and background
+  std::vector<cv::Mat1b> ch;
+  cv::split(frame, ch);
+  cv::Mat1b saturated = (ch[0] >= 250) & (ch[1] >= 250) & (ch[2] >= 250);  // a clipped channel alone is dropped per sample
+  out.setTo(0, saturated);
+  // The scope's dark border: near-black pixels connected to the image's edge.
+  cv::Mat1b grey;
+  cv::cvtColor(frame, grey, cv::COLOR_BGR2GRAY);
+  cv::Mat1b dark = grey < 10;
+  cv::Mat1i labels;
+  const int n = cv::connectedComponents(dark, labels, 8, CV_32S);
+  std::vector<char> touches(static_cast<std::size_t>(n), 0);
+  for (int x = 0; x < labels.cols; ++x) touches[labels(0, x)] = touches[labels(labels.rows - 1, x)] = 1;
+  for (int y = 0; y < labels.rows; ++y) touches[labels(y, 0)] = touches[labels(y, labels.cols - 1)] = 1;
+  cv::Mat1b border(frame.size(), uchar(0));
+  for (int y = 0; y < labels.rows; ++y)
+    for (int x = 0; x < labels.cols; ++x)
+      if (labels(y, x) > 0 && touches[labels(y, x)]) border(y, x) = 255;
+  if (borderPx > 0 && cv::countNonZero(border) > 0)
+    cv::dilate(border, border, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * borderPx + 1, 2 * borderPx + 1)));
+  out.setTo(0, border);
+  return out;
+}
+
+SpecularSeparation separateSpecular(const cv::Mat3b& frame, const cv::Mat1b& organ) {
+  SpecularSeparation s;
+  s.highlights = cv::Mat1b(frame.size(), uchar(0));
+  s.diffuse = frame.clone();
+  // The organ's diffuse chromaticity: which channel is typically its largest, middle and smallest, and the
+  // median ratios smallest / largest (r) and smallest / middle (q). A pixel c = D chroma + S (1, 1, 1) has
+  // c_min - r c_max = S (1 - r): its specular part S; where the largest channel is clipped, the middle one
+  // stands in (c_min - q c_mid = S (1 - q)).
+  cv::Scalar meanColour = cv::mean(frame, organ);
+  std::array<int, 3> order{0, 1, 2};  // BGR indices, largest first
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return meanColour[a] > meanColour[b]; });
+  const int hiC = order[0], midC = order[1], loC = order[2];
+  std::vector<double> ratios, midRatios;
+  for (int y = 0; y < frame.rows; ++y)
+    for (int x = 0; x < frame.cols; ++x)
+      if (organ(y, x)) {
+        const cv::Vec3b c = frame(y, x);
+        if (c[hiC] >= 20 && c[hiC] < 250) ratios.push_back(static_cast<double>(c[loC]) / c[hiC]);
+        if (c[midC] >= 20 && c[midC] < 250) midRatios.push_back(static_cast<double>(c[loC]) / c[midC]);
+      }
+  if (ratios.size() < 20) return s;
+  const double r = std::min(median(ratios), 0.9), q = midRatios.size() >= 20 ? median(midRatios) : 1.0;
+  cv::Mat1f spec(frame.size(), 0.0f);
+  std::vector<double> values;
+  for (int y = 0; y < frame.rows; ++y)
+    for (int x = 0; x < frame.cols; ++x)
+      if (organ(y, x)) {
+        const cv::Vec3b c = frame(y, x);
+        double v = 0;
+        if (c[hiC] < 250) v = (c[loC] - r * c[hiC]) / (1 - r);
+        else if (q < 0.9) v = (c[loC] - q * c[midC]) / (1 - q);
+        else v = c[loC] >= 250 ? 255.0 : 0.0;  // a grey organ's clipped pixel: specular only when all channels clip
+        v = std::max(0.0, v);
+        spec(y, x) = static_cast<float>(v);
+        values.push_back(v);
+      }
+  const double med = median(values);
+  std::vector<double> dev(values.size());
+  for (std::size_t i = 0; i < values.size(); ++i) dev[i] = std::abs(values[i] - med);
+  const double floor = med + std::max(10.0, 5 * 1.4826 * median(dev));
+  cv::Mat1b peak = (spec > floor) & organ;
+  cv::morphologyEx(peak, peak, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(3, 3)));  // isolated pixels are noise
+  cv::Mat1i labels;
+  s.blobs = std::max(0, cv::connectedComponents(peak, labels, 8, CV_32S) - 1);
+  if (s.blobs == 0) return s;
+  // The highlight: the peaks and the lobe around them where the specular part is above the noise.
+  cv::Mat1b lobe = (spec > med + std::max(3.0, 2 * 1.4826 * median(dev))) & organ;
+  cv::dilate(peak, s.highlights, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(15, 15)));
+  s.highlights &= lobe;
+  s.highlights |= peak;
+  s.count = cv::countNonZero(s.highlights);
+  // I_D: the specular part taken off every channel; clipped pixels (whose true value is unknown) filled.
+  cv::Mat1b clipped(frame.size(), uchar(0));
+  for (int y = 0; y < frame.rows; ++y)
+    for (int x = 0; x < frame.cols; ++x) {
+      if (!s.highlights(y, x)) continue;
+      cv::Vec3b& d = s.diffuse(y, x);
+      const cv::Vec3b c = frame(y, x);
+      if (std::max({c[0], c[1], c[2]}) >= 250) clipped(y, x) = 255;
+      for (int k = 0; k < 3; ++k) d[k] = cv::saturate_cast<uchar>(c[k] - spec(y, x));
+    }
+  if (cv::countNonZero(clipped) > 0) {
+    cv::dilate(clipped, clipped, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+    cv::Mat3b filled;
+    cv::inpaint(s.diffuse, clipped, filled, 5, cv::INPAINT_TELEA);
+    s.diffuse = filled;
+  }
+  return s;
+}
+
+InpaintMethod parseInpaintMethod(const std::string& name) {
+  if (name == "telea") return InpaintMethod::Telea;
+  if (name == "ns") return InpaintMethod::NavierStokes;
+  if (name == "shiftmap") return InpaintMethod::ShiftMap;
+  if (name == "fsr") return InpaintMethod::FsrFast;
+  throw InputError("Unknown inpainting method '" + name + "'; choose telea, ns, shiftmap or fsr.");
+}
+
+const char* inpaintMethodName(InpaintMethod m) {
+  switch (m) {
+    case InpaintMethod::Telea: return "telea";
+    case InpaintMethod::NavierStokes: return "ns";
+    case InpaintMethod::ShiftMap: return "shiftmap";
+    case InpaintMethod::FsrFast: return "fsr";
+  }
+  return "telea";
+}
+
+cv::Mat3b inpaintRegion(const cv::Mat3b& frame, const cv::Mat1b& region, InpaintMethod method, int growPx) {
+  if (frame.size() != region.size()) throw InputError("The frame and the region to fill differ in size.");
+  cv::Mat1b hole = region.clone();
+  if (growPx > 0) cv::dilate(hole, hole, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * growPx + 1, 2 * growPx + 1)));
+  if (cv::countNonZero(hole) == 0) return frame.clone();
+  cv::Mat3b out;
+  switch (method) {
+    case InpaintMethod::Telea: cv::inpaint(frame, hole, out, 5, cv::INPAINT_TELEA); break;
+    case InpaintMethod::NavierStokes: cv::inpaint(frame, hole, out, 5, cv::INPAINT_NS); break;
+    case InpaintMethod::ShiftMap:
+    case InpaintMethod::FsrFast: {
+      // xphoto marks the known pixels (non-zero), not the hole.
+      cv::Mat1b known = hole == 0;
+      cv::Mat work = frame.clone(), result;
+      if (method == InpaintMethod::ShiftMap) {
+        cv::Mat lab;
+        cv::cvtColor(frame, lab, cv::COLOR_BGR2Lab);  // shift-map works on Lab images
+        cv::xphoto::inpaint(lab, known, result, cv::xphoto::INPAINT_SHIFTMAP);
+        cv::cvtColor(result, result, cv::COLOR_Lab2BGR);
+      } else {
+        cv::xphoto::inpaint(work, known, result, cv::xphoto::INPAINT_FSR_FAST);
+      }
+      out = result;
+      break;
+    }
+  }
+  return out;
+}
+
+AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry& g, const AppearanceFitOptions& o) {
+  if (frame.empty() || frame.size() != g.triangle.size()) throw InputError("The frame and the organ's geometry differ in size; use the camera of this frame.");
+  auto tick = [] { return std::chrono::steady_clock::now(); };
+  auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };
+  auto report = [&](double share, const std::string& what) {
+    if (o.progress && !o.progress(share, what)) throw AppearanceCancelled();
+  };
+  AppearanceFitResult res;
+  const cv::Mat1b organ = g.mask();
+  res.usable = usablePixels(frame, organ);
+  if (cv::countNonZero(res.usable) < 200)
+    throw InputError("The organ covers fewer than 200 usable pixels of the frame (outside the scope's view, saturated or too small); check the pose and the frame.");
+
+  // Stage 1: the light from the specular peaks. At each highlight's brightest pixel the light lies on the
+  // view ray mirrored about the normal; a scope carries its light beside the lens, so the point of that
+  // ray nearest the camera (or the point nearest all such rays) is the start.
+  auto t0 = tick();
+  report(0.0, "finding specular highlights");
+  res.separation = separateSpecular(frame, res.usable);
+  Eigen::Vector3d light(0, 0, 0.1);
+  res.highlightFound = res.separation.count > 0;
+  if (res.highlightFound) {
+    cv::Mat1i labels;
+    const int n = cv::connectedComponents(res.separation.highlights, labels, 8, CV_32S);
+    std::vector<int> bestValue(static_cast<std::size_t>(n), -1);
+    std::vector<cv::Point> bestAt(static_cast<std::size_t>(n));
+    for (int y = 0; y < labels.rows; ++y)
+      for (int x = 0; x < labels.cols; ++x) {
+        const int l = labels(y, x);
+        if (l <= 0 || g.triangle(y, x) < 0) continue;
+        const cv::Vec3b c = frame(y, x);
+        const int v = std::min({c[0], c[1], c[2]});
+        if (v > bestValue[l]) bestValue[l] = v, bestAt[l] = {x, y};
+      }
+    Eigen::Matrix3d A = 1e-3 * Eigen::Matrix3d::Identity();  // a weak pull towards the camera keeps one ray's problem well posed
+    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    for (int l = 1; l < n; ++l) {
+      if (bestValue[l] < 0) continue;
+      const cv::Vec3f pf = g.position(bestAt[l]), nf = g.normal(bestAt[l]);
+      const Eigen::Vector3d p(pf[0], pf[1], pf[2]), nn(nf[0], nf[1], nf[2]);
+      const Eigen::Vector3d v = (-p).normalized();
+      const Eigen::Vector3d r = (2 * nn.dot(v) * nn - v).normalized();
+      const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - r * r.transpose();
+      A += across;
+      b += across * p;
+    }
+    light = A.ldlt().solve(b);
+    if (!light.allFinite()) light = Eigen::Vector3d(0, 0, 0.1);
+  }
+  res.stages.push_back({"light from highlights", 0, ms(t0, tick()), static_cast<std::size_t>(res.separation.count)});
+
+  // Stage 2: the light and kd on the specular-free image, away from the highlights.
+  t0 = tick();
+  report(0.3, "fitting the light and the diffuse reflectance");
+  cv::Mat1b away = res.usable.clone();
+  if (res.highlightFound) {
+    cv::Mat1b grown;
+    cv::dilate(res.separation.highlights, grown, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(9, 9)));
+    away.setTo(0, grown);
+  }
+  std::vector<Sample> diffuseSamples = collect(res.separation.diffuse, g, away, o.maxSamples);
+  if (diffuseSamples.size() < 50) throw InputError("Too few organ pixels away from the highlights to fit the diffuse reflectance.");
+  double sigma = 0.1;
+  refine(diffuseSamples, light, sigma, false);
+  diffuseSamples = trimmed(diffuseSamples, light, sigma, false);
+  refine(diffuseSamples, light, sigma, false);
+  {
+    Eigen::VectorXd r;
+    solveLinear(diffuseSamples, light, sigma, false, &r);
+    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+    for (const auto& s : diffuseSamples) mean += s.rgb;
+    mean /= static_cast<double>(diffuseSamples.size());
+    double total = 0;
+    for (const auto& s : diffuseSamples) total += (s.rgb - mean).squaredNorm();
+    res.explained = total > 0 ? 1 - r.squaredNorm() / total : 0;
+  }
+  res.stages.push_back({"light and diffuse (I_D)", rmsLevels(diffuseSamples, light, sigma, false), ms(t0, tick()), diffuseSamples.size()});
+
+  // Stage 3: ks and the roughness on the frame itself, the light and kd refined with them; the highlights
+  // and their surroundings all count, the rest of the organ subsampled.
+  t0 = tick();
+  report(0.7, "fitting the specular reflectance and roughness");
+  Projected lin;
+  if (res.highlightFound) {
+    cv::Mat1b near;
+    cv::dilate(res.separation.highlights, near, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(61, 61)));
+    near &= res.usable;
+    std::vector<Sample> specSamples = collect(frame, g, near, o.maxSamples / 2);
+    const std::vector<Sample> rest = collect(frame, g, res.usable & ~near, o.maxSamples / 2);
+    specSamples.insert(specSamples.end(), rest.begin(), rest.end());
+    // The roughness first on a log grid (the cost is not convex in it), then everything together.
+    double bestCost = std::numeric_limits<double>::infinity();
+    for (double s = 0.02; s <= 1.0; s *= 1.25) {
+      Eigen::VectorXd r;
+      solveLinear(specSamples, light, s, true, &r);
+      if (r.squaredNorm() < bestCost) bestCost = r.squaredNorm(), sigma = s;
+    }
+    refine(specSamples, light, sigma, true);
+    lin = solveLinear(specSamples, light, sigma, true, nullptr);
+    // A channel clipped at the highlight (left out of the solve above) still says something: the model must
+    // reach at least the clipped value there. Its ks is refitted with that as a one-sided (censored) term.
+    for (int c = 0; c < 3; ++c) {
+      std::vector<std::array<double, 4>> terms;  // diffuse, specular, value, clipped
+      std::size_t clipped = 0;
+      for (const auto& smp : specSamples) {
+        double d, sp;
+        basis(smp, light, sigma, d, sp);
+        terms.push_back({d, sp, smp.rgb[c], smp.weight[c] == 0 ? 1.0 : 0.0});
+        clipped += smp.weight[c] == 0 && sp > 0;
+      }
+      if (clipped < 20) continue;
+      auto cost = [&](double ks) {
+        double sum = 0;
+        for (const auto& t : terms) {
+          const double e = t[2] - (lin.kd[c] * t[0] + ks * t[1]);
+          sum += t[3] > 0 ? (e > 0 ? e * e : 0.0) : e * e;
+        }
+        return sum;
+      };
+      // Unclipped samples where the specular term matters: without them the channel's ks is not measured.
+      double spMax = 0;
+      std::size_t informative = 0;
+      for (const auto& t : terms) spMax = std::max(spMax, t[1]);
+      for (const auto& t : terms) informative += t[3] == 0 && t[1] > 0.05 * spMax;
+      if (informative < 20) {
+        res.ksMeasured[static_cast<std::size_t>(c)] = false;
+        continue;
+      }
+      double lo = 0, hi = 4 * std::max({lin.ks.maxCoeff(), lin.ks[c], 1e-4});
+      for (int it = 0; it < 80; ++it) {  // golden section: the cost is convex in ks
+        const double a = hi - 0.618 * (hi - lo), b = lo + 0.618 * (hi - lo);
+        if (cost(a) < cost(b)) hi = b;
+        else lo = a;
+      }
+      lin.ks[c] = 0.5 * (lo + hi);
+    }
+    res.stages.push_back({"specular and roughness (I)", rmsLevels(specSamples, light, sigma, true), ms(t0, tick()), specSamples.size()});
+  } else {
+    lin = solveLinear(diffuseSamples, light, sigma, false, nullptr);
+    res.stages.push_back({"specular and roughness (I)", 0, ms(t0, tick()), 0});
+  }
+  // A channel clipped all over its highlight: its ks is not in the frame. A highlight has the light's
+  // colour (the specular reflection of tissue does not tint it much), so it takes the measured channels'
+  // mean, and the status says so.
+  std::string unmeasured;
+  if (res.highlightFound) {
+    double sum = 0;
+    int n = 0;
+    for (int c = 0; c < 3; ++c)
+      if (res.ksMeasured[static_cast<std::size_t>(c)]) sum += lin.ks[c], ++n;
+    const char* names[] = {"red", "green", "blue"};
+    for (int c = 0; c < 3; ++c)
+      if (!res.ksMeasured[static_cast<std::size_t>(c)]) {
+        lin.ks[c] = n ? sum / n : 0.0;
+        unmeasured += std::string(unmeasured.empty() ? "" : " and ") + names[c];
+      }
+  }
+  res.theta.lightPosition = light;
+  res.theta.kd = lin.kd;
+  res.theta.ks = res.highlightFound ? lin.ks : Eigen::Vector3d::Zero();
+  res.theta.roughness = sigma;
+  res.textureOnly = res.explained < o.poorShare;
+  char text[400];
+  std::snprintf(text, sizeof text, "%s; the diffuse model explains %.0f %% of the organ's shading%s",
+                res.highlightFound ? "fitted" : "no specular highlight found: the light started at (0, 0, 100 mm) and the specular part is not determined (ks = 0)",
+                100 * res.explained,
+                res.textureOnly ? ": too little, so the organ is shown with the frame's own texture, not re-shaded" : "");
+  res.status = text;
+  if (!unmeasured.empty())
+    res.status += "; the " + unmeasured + " channel is clipped all over the highlight, so its specular reflectance is not measured: taken as the other channels' mean";
+  report(1.0, "done");
+  return res;
+}
+
+cv::Mat3f albedoRatio(const cv::Mat3b& diffuse, const SurfaceGeometry& rest, const Appearance& theta, const cv::Mat1b& usable) {
+  cv::Mat3f out(diffuse.size(), cv::Vec3f(1, 1, 1));
+  double peak = 0;
+  for (int y = 0; y < diffuse.rows; ++y)
+    for (int x = 0; x < diffuse.cols; ++x) {
+      if (rest.triangle(y, x) < 0) continue;
+      const cv::Vec3f p = rest.position(y, x), n = rest.normal(y, x);
+      Sample s{Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d::Zero()};
+      double d, sp;
+      basis(s, theta.lightPosition, theta.roughness, d, sp);
+      peak = std::max(peak, d);
+    }
+  for (int y = 0; y < diffuse.rows; ++y)
+    for (int x = 0; x < diffuse.cols; ++x) {
+      if (rest.triangle(y, x) < 0 || !usable(y, x)) continue;
+      const cv::Vec3f p = rest.position(y, x), n = rest.normal(y, x);
+      Sample s{Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d::Zero()};
+      double d, sp;
+      basis(s, theta.lightPosition, theta.roughness, d, sp);
+      if (d < 0.05 * peak) continue;
+      const cv::Vec3b c = diffuse(y, x);
+      for (int k = 0; k < 3; ++k) {
+        const double kd = theta.kd[2 - k];  // BGR pixel, RGB kd
+        if (kd > 0) out(y, x)[k] = static_cast<float>(std::clamp(c[k] / 255.0 / (kd * d), 0.0, 5.0));
+      }
+    }
+  return out;
+}
+
+cv::Mat3b compose(const CompositionInput& in, int scale) {
+  if (auto p = in.camera.problem(); !p.empty()) throw InputError(p);
+  if (in.rest.vertexCount != in.deformed.vertexCount || in.rest.triangleCount != in.deformed.triangleCount)
+    throw InputError("The deformed organ has " + std::to_string(in.deformed.vertexCount) + " vertices, the registered one " +
+                     std::to_string(in.rest.vertexCount) + "; they must be the same mesh in the same order.");
+  const cv::Size size(in.camera.width, in.camera.height);
+  if (in.frame.size() != size || in.background.size() != size) throw InputError("The frame's size is not the camera's.");
+  scale = std::max(1, scale);
+  // Where each vertex was at rest (camera frame): a point of a deformed triangle was, at rest, at the same
+  // barycentric coordinates in the rest triangle, and its texture is the frame's pixel there (projected
+  // exactly, not interpolated between the vertices' pixels, which is off by up to a pixel on a steep triangle).
+  std::vector<Eigen::Vector3d> restCam(in.rest.vertexCount);
+  for (std::size_t i = 0; i < in.rest.vertexCount; ++i) restCam[i] = in.pose.apply(in.rest.vertex(i));
+  const SurfaceGeometry restGeo = surfaceGeometry(in.camera, in.pose, in.rest, 1);
+  const SurfaceGeometry now = surfaceGeometry(in.camera, in.pose, in.deformed, scale);
+  cv::Mat3b full;
+  cv::resize(in.background, full, cv::Size(size.width * scale, size.height * scale), 0, 0, cv::INTER_LINEAR);
+  // The albedo where the tissue was not seen at rest (its back, the inside of a cut): the organ's median.
+  cv::Vec3f typical(1, 1, 1);
+  cv::parallel_for_(cv::Range(0, full.rows), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < full.cols; ++x) {
+        const int t = now.triangle(y, x);
+        if (t < 0) continue;
+        const int* tri = in.deformed.triangles + 3 * t;
+        const cv::Vec3f w = now.barycentric(y, x);
+        const Eigen::Vector3d atRest = w[0] * restCam[tri[0]] + w[1] * restCam[tri[1]] + w[2] * restCam[tri[2]];
+        const double depthAtRest = atRest.z();
+        const Eigen::Vector2d q = depthAtRest > 0 ? Eigen::Vector2d(in.camera.K(0, 0) * atRest.x() / depthAtRest + in.camera.K(0, 1) * atRest.y() / depthAtRest +
+                                                                        in.camera.K(0, 2),
+                                                                    in.camera.K(1, 1) * atRest.y() / depthAtRest + in.camera.K(1, 2))
+                                                  : Eigen::Vector2d(-1, -1);
+        const int qx = static_cast<int>(std::lround(q.x())), qy = static_cast<int>(std::lround(q.y()));
+        // Seen at rest: the frame shows this triangle (or one sharing a vertex with it) there, or a surface no
+        // nearer than 2 mm in front of the point (not hidden behind another part of the organ).
+        bool seen = false;
+        if (qx >= 0 && qy >= 0 && qx < size.width && qy < size.height && restGeo.triangle(qy, qx) >= 0) {
+          const int* shown = in.rest.triangles + 3 * restGeo.triangle(qy, qx);
+          for (int a = 0; a < 3; ++a)
+            for (int b = 0; b < 3; ++b) seen |= shown[a] == tri[b];
+          seen |= restGeo.position(qy, qx)[2] > depthAtRest - 0.002;
+        }
+        cv::Vec3f albedo = typical;
+        cv::Vec3b texture(0, 0, 0);
+        if (seen) {
+          albedo = bilinear(in.albedo, q);
+          const cv::Vec3f t3 = bilinear(in.frame, q);
+          texture = cv::Vec3b(cv::saturate_cast<uchar>(t3[0]), cv::saturate_cast<uchar>(t3[1]), cv::saturate_cast<uchar>(t3[2]));
+        }
+        if (in.textureOnly) {
+          if (seen) full(y, x) = texture;
+          continue;
+        }
+        const cv::Vec3f p = now.position(y, x), n = now.normal(y, x);
+        Sample s{Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d::Zero()};
+        double d, sp;
+        basis(s, in.theta.lightPosition, in.theta.roughness, d, sp);
+        cv::Vec3b out;
+        for (int k = 0; k < 3; ++k) {
+          const double value = albedo[k] * in.theta.kd[2 - k] * d + in.theta.ks[2 - k] * sp;
+          out[k] = cv::saturate_cast<uchar>(value * 255.0);
+        }
+        full(y, x) = out;
+      }
+  });
+  if (scale == 1) return full;
+  cv::Mat3b small;
+  cv::resize(full, small, size, 0, 0, cv::INTER_AREA);
+  return small;
+}
+
+double psnr(const cv::Mat3b& a, const cv::Mat3b& b, const cv::Mat1b& mask) {
+  if (a.size() != b.size()) throw InputError("Images of different sizes cannot be compared.");
+  double sum = 0;
+  std::size_t n = 0;
+  for (int y = 0; y < a.rows; ++y)
+    for (int x = 0; x < a.cols; ++x) {
+      if (!mask.empty() && !mask(y, x)) continue;
+      for (int k = 0; k < 3; ++k) {
+        const double d = static_cast<double>(a(y, x)[k]) - b(y, x)[k];
+        sum += d * d;
+      }
+      n += 3;
+    }
+  if (n == 0) return 0;
+  const double mse = sum / static_cast<double>(n);
+  return mse > 0 ? 10 * std::log10(255.0 * 255.0 / mse) : 99.0;
+}
+
+}  // namespace rehearse::imaging
