@@ -399,7 +399,7 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
     mean /= static_cast<double>(diffuseSamples.size());
     double total = 0;
     for (const auto& s : diffuseSamples) total += (s.rgb - mean).squaredNorm();
-    res.explained = total > 0 ? 1 - r.squaredNorm() / total : 0;
+    res.explained = total > 0 ? std::clamp(1 - r.squaredNorm() / total, 0.0, 1.0) : 0;
   }
   res.stages.push_back({"light and diffuse (I_D)", rmsLevels(diffuseSamples, light, sigma, false), ms(t0, tick()), diffuseSamples.size()});
 

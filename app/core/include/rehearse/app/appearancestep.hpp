@@ -1,0 +1,39 @@
+#pragma once
+// Step 6, the one appearance pipeline the GUI and the command line share: the registered organ's geometry
+// through the camera, Theta fitted to the frame (imaging/appearance_fit.hpp), the background behind the
+// organ inpainted, the albedo at rest; and composition of a deformed organ from them.
+#include <rehearse/imaging/appearance_fit.hpp>
+
+#include <functional>
+#include <vector>
+
+namespace rehearse::app {
+
+struct AppearanceInput {
+  imaging::Camera camera;
+  Pose pose;                      ///< model -> camera, as registered
+  std::vector<double> vertices;   ///< the organ's surface at rest (registered shape), model frame, metres, 3n
+  std::vector<std::array<int, 3>> triangles;
+  cv::Mat3b frame;                ///< undistorted, BGR
+  imaging::InpaintMethod inpaint = imaging::InpaintMethod::Telea;
+  std::function<bool(double, const std::string&)> progress;  ///< false cancels (imaging::AppearanceCancelled)
+  SurfaceView surface() const { return {vertices.data(), vertices.size() / 3, triangles.empty() ? nullptr : triangles.front().data(), triangles.size()}; }
+};
+
+struct AppearanceOutput {
+  imaging::AppearanceFitResult fit;
+  cv::Mat3b background;  ///< I_B
+  cv::Mat3f albedo;      ///< albedo ratios at rest
+  double inpaintMs = 0, totalMs = 0;
+  double restPsnr = 0;   ///< the organ composed at rest against the frame, inside its mask (dB)
+};
+
+/// Throws imaging::InputError with one sentence for unusable input (organ behind the camera or off the
+/// frame, a frame of another size, nothing usable to fit).
+AppearanceOutput runAppearance(const AppearanceInput& in);
+
+/// J for the organ's surface moved to `deformedVertices` (same vertex order, model frame, 3n; empty: at rest).
+cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance& theta, const cv::Mat3b& background, const cv::Mat3f& albedo,
+                            bool textureOnly, const std::vector<double>& deformedVertices = {});
+
+}  // namespace rehearse::app
