@@ -15,7 +15,7 @@ struct AppearanceInput {
   std::vector<double> vertices;   ///< the organ's surface at rest (registered shape), model frame, metres, 3n
   std::vector<std::array<int, 3>> triangles;
   cv::Mat3b frame;                ///< undistorted, BGR
-  imaging::InpaintMethod inpaint = imaging::InpaintMethod::Telea;
+  imaging::InpaintMethod inpaint = imaging::InpaintMethod::NavierStokes;  ///< the best trade-off measured (BENCHMARKS.md)
   std::function<bool(double, const std::string&)> progress;  ///< false cancels (imaging::AppearanceCancelled)
   SurfaceView surface() const { return {vertices.data(), vertices.size() / 3, triangles.empty() ? nullptr : triangles.front().data(), triangles.size()}; }
 };
