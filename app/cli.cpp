@@ -184,6 +184,19 @@ std::vector<int> parseNodes(const std::string& s) {
     std::stringstream ss;
     ss << in.rdbuf();
     text = ss.str();
+    // A case folder's attachments.json ({"nodes": [...], "indexing": "0-based ..."}): its node list.
+    if (text.find_first_not_of(" \t\r\n") != std::string::npos && text[text.find_first_not_of(" \t\r\n")] == '{') {
+      const auto j = nlohmann::json::parse(text, nullptr, false);
+      if (j.is_discarded() || !j.contains("nodes") || !j["nodes"].is_array())
+        throw UsageError("--fixed-nodes: " + s + " is JSON but has no \"nodes\" list of node indices");
+      std::vector<int> out;
+      for (const auto& v : j["nodes"]) {
+        if (!v.is_number_integer() || v.get<long long>() < 0)
+          throw UsageError("--fixed-nodes: " + s + " lists something that is not a node index (0, 1, 2, ...)");
+        out.push_back(v.get<int>());
+      }
+      return out;
+    }
   }
   for (auto& ch : text)
     if (ch == ',') ch = ' ';

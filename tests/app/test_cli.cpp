@@ -80,6 +80,8 @@ class TestCli : public QObject {
     // Compose a sag simulated on the same mesh (the liver preset is the built-in phantom hung by its
     // ligaments; nodes in the input order).
     QCOMPARE(run({"simulate", "--preset", "liver", "--steps", "10", "--out", dir + "/sag.vtu"}).code, 0);
+    // The case folder's own attachments.json is read by --fixed-nodes too (it was refused before).
+    QCOMPARE(run({"simulate", "--mesh", dir + "/organ.vtu", "--fixed-nodes", dir + "/attachments.json", "--steps", "2", "--out", dir + "/held.vtu"}).code, 0);
     r = run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image", dir + "/frame.png",
              "--theta", dir + "/theta.json", "--deformed", dir + "/sag.vtu", "--out", dir + "/j.png"});
     QVERIFY2(r.code == 0, qPrintable(r.err));
