@@ -2,10 +2,11 @@
 # Runs the benchmarks and writes their CSVs to build/bench/ (summarised by hand in BENCHMARKS.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/build.sh --target bench_foundation bench_dynamics bench_registration bench_registration_real bench_inpainting
+scripts/build.sh --target bench_foundation bench_dynamics bench_registration bench_registration_real bench_inpainting bench_appearance
 mkdir -p build/bench
 build/tests/bench_foundation build/bench/bench_foundation.csv
 build/tests/bench_dynamics build/bench
 build/tests/bench_registration build/bench --repeat 3
 build/tests/bench_registration_real build/bench --fractions 1,0.7,0.5
 build/tests/bench_inpainting build/bench
+build/tests/bench_appearance build/bench

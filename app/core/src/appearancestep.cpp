@@ -25,7 +25,7 @@ AppearanceOutput runAppearance(const AppearanceInput& in) {
   out.background = imaging::inpaintRegion(in.frame, g.mask(), in.inpaint);
   out.inpaintMs = since(t1);
   out.albedo = imaging::albedoRatio(out.fit.separation.diffuse, g, out.fit.theta, out.fit.usable);
-  const cv::Mat3b rest = composeAppearance(in, out.fit.theta, out.background, out.albedo, out.fit.textureOnly);
+  const cv::Mat3b rest = composeAppearance(in, out.fit.theta, out.background, out.albedo, out.fit.textureOnly, {}, 1);  // the rim is not measured: no supersampling
   cv::Mat1b inner;
   cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
   out.restPsnr = imaging::psnr(in.frame, rest, inner);
@@ -35,7 +35,7 @@ AppearanceOutput runAppearance(const AppearanceInput& in) {
 }
 
 cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance& theta, const cv::Mat3b& background, const cv::Mat3f& albedo,
-                            bool textureOnly, const std::vector<double>& deformedVertices) {
+                            bool textureOnly, const std::vector<double>& deformedVertices, int supersampling) {
   if (!deformedVertices.empty() && deformedVertices.size() != in.vertices.size())
     throw imaging::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) + " nodes, the registered one " +
                               std::to_string(in.vertices.size() / 3) + "; they must be the same mesh in the same order.");
@@ -50,7 +50,7 @@ cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance
   c.albedo = albedo;
   c.theta = theta;
   c.textureOnly = textureOnly;
-  return imaging::compose(c);
+  return imaging::compose(c, supersampling);
 }
 
 }  // namespace rehearse::app

@@ -42,7 +42,8 @@ enum class InpaintMethod { Telea, NavierStokes, ShiftMap, FsrFast };
 /// "telea", "ns", "shiftmap", "fsr"; throws InputError naming the choices.
 InpaintMethod parseInpaintMethod(const std::string& name);
 const char* inpaintMethodName(InpaintMethod m);
-/// The frame with `region` (grown by `growPx`) filled: the background I_B a moved organ uncovers.
+/// The frame with `region` (grown by `growPx`) filled: the background I_B a moved organ uncovers. Holes over
+/// 150,000 px are filled at half resolution by the diffusion methods (a quarter of the time).
 cv::Mat3b inpaintRegion(const cv::Mat3b& frame, const cv::Mat1b& region, InpaintMethod method = InpaintMethod::NavierStokes, int growPx = 4);
 
 struct AppearanceStage {
@@ -53,7 +54,7 @@ struct AppearanceStage {
 };
 
 struct AppearanceFitOptions {
-  std::size_t maxSamples = 40000;  ///< pixels per stage (a regular subsample of the usable ones)
+  std::size_t maxSamples = 10000;  ///< pixels per stage (a regular subsample of the usable ones; 2,500-80,000 fit the phantom equally well, BENCHMARKS.md)
   double poorShare = 0.5;          ///< below this share of the organ's variance explained: texture mapping only
   /// Called between stages (share done, stage name); false cancels (throws simcore-free Cancelled below).
   std::function<bool(double, const std::string&)> progress;

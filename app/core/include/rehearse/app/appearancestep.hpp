@@ -32,8 +32,9 @@ struct AppearanceOutput {
 /// frame, a frame of another size, nothing usable to fit).
 AppearanceOutput runAppearance(const AppearanceInput& in);
 
-/// J for the organ's surface moved to `deformedVertices` (same vertex order, model frame, 3n; empty: at rest).
+/// J for the organ's surface moved to `deformedVertices` (same vertex order, model frame, 3n; empty: at rest),
+/// its edges anti-aliased by `supersampling`.
 cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance& theta, const cv::Mat3b& background, const cv::Mat3f& albedo,
-                            bool textureOnly, const std::vector<double>& deformedVertices = {});
+                            bool textureOnly, const std::vector<double>& deformedVertices = {}, int supersampling = 2);
 
 }  // namespace rehearse::app

@@ -1,0 +1,92 @@
+// Benchmark of the appearance step (issue 14): the built-in phantom generated at 1920x1080 (its frame
+// rendered with a known light and reflectance, then sensor noise and JPEG at quality 85), Theta fitted
+// from it at several sample budgets; parameter errors against the fit's time, and the whole step (fit,
+// inpainting, albedo, the rest-pose composition) against the 2 s target. Median of repeated runs. Not a test.
+//   bench_appearance [OUT_DIR] [--repeat N]
+#include "phantom/phantom.hpp"
+
+#include <rehearse/app/appearancestep.hpp>
+
+#include <opencv2/imgcodecs.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+using namespace rehearse;
+
+int main(int argc, char** argv) {
+  std::string out = ".";
+  int repeat = 3;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--repeat" && i + 1 < argc) repeat = std::max(1, std::atoi(argv[++i]));
+    else out = a;
+  }
+  std::filesystem::create_directories(out);
+  phantom::PhantomOptions po;
+  po.width = 1920;
+  po.height = 1080;
+  const phantom::Phantom c = phantom::makePhantom(po);
+  cv::Mat noise(c.frame.size(), CV_32FC3), f;
+  cv::RNG rng(14);
+  rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
+  c.frame.convertTo(f, CV_32FC3);
+  f += noise;
+  cv::Mat3b noisy;
+  f.convertTo(noisy, CV_8UC3);
+  std::vector<uchar> buf;
+  cv::imencode(".jpg", noisy, buf, {cv::IMWRITE_JPEG_QUALITY, 85});
+  const cv::Mat3b frame = cv::imdecode(buf, cv::IMREAD_COLOR);
+  const auto& t = c.trueAppearance;
+  const double distance = (t.lightPosition - c.truePose.apply(phantom::centreOfGravity(c.volume))).norm();
+  const auto g = imaging::surfaceGeometry(c.camera, c.truePose, c.surfaceView());
+  std::ofstream csv(out + "/appearance.csv");
+  csv << "samples,fit_ms_median,light_error_pct_of_distance,kd_error_pct_max,ks_error_pct_max_measured,roughness_error_pct\n";
+  std::printf("phantom at %dx%d, %zu tets; light %.0f mm from the organ\n", c.camera.width, c.camera.height, c.volume.tets.size(), 1e3 * distance);
+  std::printf("%8s %9s %10s %8s %8s %10s\n", "samples", "fit ms", "light %", "kd %", "ks %", "sigma %");
+  for (std::size_t samples : {2500, 5000, 10000, 20000, 40000, 80000}) {
+    std::vector<double> ms;
+    imaging::AppearanceFitResult r;
+    for (int k = 0; k < repeat; ++k) {
+      imaging::AppearanceFitOptions o;
+      o.maxSamples = samples;
+      const auto t0 = std::chrono::steady_clock::now();
+      r = imaging::fitAppearance(frame, g, o);
+      ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    }
+    std::sort(ms.begin(), ms.end());
+    double kd = 0, ks = 0;
+    for (int ch = 0; ch < 3; ++ch) {
+      kd = std::max(kd, 100 * std::abs(r.theta.kd[ch] - t.kd[ch]) / t.kd[ch]);
+      if (r.ksMeasured[static_cast<std::size_t>(ch)]) ks = std::max(ks, 100 * std::abs(r.theta.ks[ch] - t.ks[ch]) / t.ks[ch]);
+    }
+    const double light = 100 * (r.theta.lightPosition - t.lightPosition).norm() / distance;
+    const double sigma = 100 * std::abs(r.theta.roughness - t.roughness) / t.roughness;
+    std::printf("%8zu %9.0f %10.3f %8.2f %8.2f %10.2f\n", samples, ms[ms.size() / 2], light, kd, ks, sigma);
+    csv << samples << "," << ms[ms.size() / 2] << "," << light << "," << kd << "," << ks << "," << sigma << "\n";
+  }
+  // The whole step as the GUI and `rehearse appearance` run it.
+  app::AppearanceInput in;
+  in.camera = c.camera;
+  in.pose = c.truePose;
+  const SurfaceView v = c.surfaceView();
+  in.vertices.assign(v.vertices, v.vertices + 3 * v.vertexCount);
+  in.triangles = c.surface;
+  in.frame = frame;
+  std::vector<double> total, inpaint;
+  app::AppearanceOutput o;
+  for (int k = 0; k < repeat; ++k) {
+    o = app::runAppearance(in);
+    total.push_back(o.totalMs);
+    inpaint.push_back(o.inpaintMs);
+  }
+  std::sort(total.begin(), total.end());
+  std::sort(inpaint.begin(), inpaint.end());
+  std::printf("whole step at 1920x1080: %.0f ms median (inpainting %.0f ms); composed at rest %.1f dB inside the organ; %s\n", total[total.size() / 2],
+              inpaint[inpaint.size() / 2], o.restPsnr, o.fit.status.c_str());
+  std::printf("wrote %s/appearance.csv\n", out.c_str());
+  return 0;
+}
