@@ -243,6 +243,35 @@ class TestAppearance : public QObject {
     QVERIFY(worst <= 1.0);
   }
 
+  // A mesh whose triangles are wound the other way (normals pointing in): the same Theta, since the normal
+  // seen is the one facing the camera.
+  void flippedNormalsGiveTheSameTheta() {
+    std::vector<std::array<int, 3>> flipped = c_.surface;
+    for (auto& t : flipped) std::swap(t[1], t[2]);
+    SurfaceView v = c_.surfaceView();
+    v.triangles = flipped.front().data();
+    const auto g0 = imaging::surfaceGeometry(c_.camera, c_.truePose, c_.surfaceView());
+    const auto g1 = imaging::surfaceGeometry(c_.camera, c_.truePose, v);
+    const auto a = imaging::fitAppearance(c_.frame, g0), b = imaging::fitAppearance(c_.frame, g1);
+    qInfo("light %.3f mm apart, kd %.2e apart", 1e3 * (a.theta.lightPosition - b.theta.lightPosition).norm(), (a.theta.kd - b.theta.kd).norm());
+    QVERIFY((a.theta.lightPosition - b.theta.lightPosition).norm() < 1e-4);
+    QVERIFY((a.theta.kd - b.theta.kd).norm() < 1e-3 * a.theta.kd.norm());
+  }
+
+  // An organ so far away that it covers a few pixels: one sentence, no fit.
+  void tinyOrganSaysSo() {
+    Pose far = c_.truePose;
+    far.t.z() += 20.0;
+    const auto g = imaging::surfaceGeometry(c_.camera, far, c_.surfaceView());
+    QVERIFY(cv::countNonZero(g.mask()) < 200);
+    try {
+      imaging::fitAppearance(c_.frame, g);
+      QFAIL("a few pixels were fitted");
+    } catch (const imaging::InputError& e) {
+      QVERIFY(std::string(e.what()).find("fewer than 200 usable pixels") != std::string::npos);
+    }
+  }
+
   void badInputSaysSo() {
     // Behind the camera.
     Pose behind = c_.truePose;
