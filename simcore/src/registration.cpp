@@ -764,6 +764,19 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       if (ends[i].score < ends[best].score) best = i;
     return ends[best];
   };
+  // Twelve poses around `pose`: moved by +-distance (m) along and turned by +-degrees about each camera axis
+  // (turns about the organ's centre of mass), in that order.
+  auto posesAround = [&](const Pose& pose, double distance, double degrees) {
+    std::vector<Pose> out;
+    for (int axis = 0; axis < 3; ++axis)
+      for (int sgn : {-1, 1}) {
+        Pose moved = pose;
+        moved.t += sgn * distance * Eigen::Vector3d::Unit(axis);
+        out.push_back(moved);
+        out.push_back(pose.turnedAbout(Eigen::AngleAxisd(sgn * degrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), pose.apply(centre)));
+      }
+    return out;
+  };
   // ICP from res.pose (pose and sag) until it settles, keeping the best; then basin hopping: short ICP
   // runs from small moves along and turns about the camera axes, a clearly better end continues (a partial
   // contour leaves shallow local minima, the outline sliding along itself). `bestMean` is the score to beat.
@@ -788,16 +801,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     load = bestLoad;
     res.x = shapeOf(load);
     for (int round = 0; round < 3 && !res.cancelled && o.hops; ++round) {
-      std::vector<Pose> hops;
-      for (int axis = 0; axis < 3; ++axis)
-        for (int sgn : {-1, 1}) {
-          Pose moved = res.pose;
-          moved.t += sgn * o.hopDistance * Eigen::Vector3d::Unit(axis);
-          hops.push_back(moved);
-          hops.push_back(res.pose.turnedAbout(
-              Eigen::AngleAxisd(sgn * o.hopDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), res.pose.apply(centre)));
-        }
-      const IcpEnd hop = bestOf(hops, load, 3);
+      const IcpEnd hop = bestOf(posesAround(res.pose, o.hopDistance, o.hopDegrees), load, 3);
       if (!(hop.score < bestMean - o.tolerance)) break;
       res.pose = hop.pose;
       load = hop.load;
@@ -869,15 +873,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       for (const auto& p : sample) sum += (a.apply(p) - b.apply(p)).norm();
       return sum / static_cast<double>(sample.size());
     };
-    std::vector<Pose> probes;
-    for (int axis = 0; axis < 3; ++axis)
-      for (int sgn : {-1, 1}) {
-        Pose moved = res.pose;
-        moved.t += sgn * o.probeDistance * Eigen::Vector3d::Unit(axis);
-        probes.push_back(moved);
-        probes.push_back(res.pose.turnedAbout(Eigen::AngleAxisd(sgn * o.probeDegrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(),
-                                              res.pose.apply(centre)));
-      }
+    const std::vector<Pose> probes = posesAround(res.pose, o.probeDistance, o.probeDegrees);
     std::vector<std::pair<Pose, double>> ends(probes.size());
     tbb::parallel_for(std::size_t(0), probes.size(), [&](std::size_t i) {
       try {
