@@ -601,12 +601,6 @@ int cmdCompose(const std::vector<std::string>& args) {
   if (ext != ".png" && ext != ".jpg" && ext != ".jpeg") throw UsageError("--out must end in .png or .jpg");
   const AppearanceInput in = appearanceInput(o, "compose");
   const imaging::Appearance theta = imaging::loadAppearance(o["theta"]);
-  const imaging::SurfaceGeometry g = imaging::surfaceGeometry(in.camera, in.pose, in.surface());
-  if (cv::countNonZero(g.mask()) == 0) throw simcore::MeshError("The organ is not in the frame at this pose; check --pose.");
-  // The albedo and the background from the frame at rest, with the given Theta (no fitting).
-  const imaging::SpecularSeparation sep = imaging::separateSpecular(in.frame, imaging::usablePixels(in.frame, g.mask()));
-  const cv::Mat3f albedo = imaging::albedoRatio(sep.diffuse, g, theta, imaging::usablePixels(in.frame, g.mask()));
-  const cv::Mat3b background = imaging::inpaintRegion(in.frame, g.mask(), in.inpaint);
   std::vector<double> deformed;
   if (o.count("deformed")) {
     simcore::LoadOptions lo;
@@ -615,7 +609,7 @@ int cmdCompose(const std::vector<std::string>& args) {
     d.convertToMetres();
     for (const auto& p : d.points) deformed.insert(deformed.end(), {p.x(), p.y(), p.z()});
   }
-  const cv::Mat3b j = composeAppearance(in, theta, background, albedo, false, deformed);
+  const cv::Mat3b j = composeWithTheta(in, theta, deformed);
   std::vector<uchar> buf;
   cv::imencode(ext, j, buf);
   imaging::writeFileAtomically(o["out"], std::string(buf.begin(), buf.end()));

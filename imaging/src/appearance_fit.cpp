@@ -127,7 +127,8 @@ struct VarProFunctor {
   }
 };
 
-void refine(const std::vector<Sample>& samples, Eigen::Vector3d& light, double& sigma, bool specular) {
+// Returns false when it did not settle (the evaluation budget ran out or the values went non-finite).
+bool refine(const std::vector<Sample>& samples, Eigen::Vector3d& light, double& sigma, bool specular) {
   VarProFunctor f{&samples, specular};
   Eigen::VectorXd x(specular ? 4 : 3);
   x.head<3>() = 10.0 * light;
@@ -137,11 +138,11 @@ void refine(const std::vector<Sample>& samples, Eigen::Vector3d& light, double& 
   lm.parameters.maxfev = 400;
   lm.parameters.xtol = 1e-10;
   lm.parameters.ftol = 1e-12;
-  lm.minimize(x);
-  if (x.allFinite()) {
-    light = 0.1 * x.head<3>();
-    if (specular) sigma = std::clamp(std::exp(x[3]), 0.005, 1.5);
-  }
+  const auto status = lm.minimize(x);
+  if (!x.allFinite()) return false;
+  light = 0.1 * x.head<3>();
+  if (specular) sigma = std::clamp(std::exp(x[3]), 0.005, 1.5);
+  return status != Eigen::LevenbergMarquardtSpace::TooManyFunctionEvaluation && status != Eigen::LevenbergMarquardtSpace::ImproperInputParameters;
 }
 
 // Drops samples whose residual is far beyond the typical one (texture, vessels, a tool in the way).
@@ -389,7 +390,7 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
     light = A.ldlt().solve(b);
     if (!light.allFinite()) light = Eigen::Vector3d(0, 0, 0.1);
   }
-  res.stages.push_back({"light from highlights", 0, ms(t0, tick()), static_cast<std::size_t>(res.separation.count)});
+  res.stages.push_back({"light from highlights", 0, ms(t0, tick()), 0});  // its residual: at the start of the next stage
 
   // Stage 2: the light and kd on the specular-free image, away from the highlights.
   t0 = tick();
@@ -403,9 +404,11 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
   std::vector<Sample> diffuseSamples = collect(res.separation.diffuse, g, away, o.maxSamples);
   if (diffuseSamples.size() < 50) throw InputError("Too few organ pixels away from the highlights to fit the diffuse reflectance.");
   double sigma = 0.1;
-  refine(diffuseSamples, light, sigma, false);
+  res.stages.front().rms = rmsLevels(diffuseSamples, light, sigma, false);  // what the start light leaves on I_D
+  res.stages.front().pixels = diffuseSamples.size();
+  bool settled = refine(diffuseSamples, light, sigma, false);
   diffuseSamples = trimmed(diffuseSamples, light, sigma, false);
-  refine(diffuseSamples, light, sigma, false);
+  settled = refine(diffuseSamples, light, sigma, false) && settled;
   {
     Eigen::VectorXd r;
     solveLinear(diffuseSamples, light, sigma, false, &r);
@@ -437,7 +440,7 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
       solveLinear(specSamples, light, s, true, &r);
       if (r.squaredNorm() < bestCost) bestCost = r.squaredNorm(), sigma = s;
     }
-    refine(specSamples, light, sigma, true);
+    settled = refine(specSamples, light, sigma, true) && settled;
     lin = solveLinear(specSamples, light, sigma, true, nullptr);
     // A channel clipped at the highlight (left out of the solve above) still says something: the model must
     // reach at least the clipped value there. Its ks is refitted with that as a one-sided (censored) term.
@@ -479,7 +482,9 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
     res.stages.push_back({"specular and roughness (I)", rmsLevels(specSamples, light, sigma, true), ms(t0, tick()), specSamples.size()});
   } else {
     lin = solveLinear(diffuseSamples, light, sigma, false, nullptr);
-    res.stages.push_back({"specular and roughness (I)", 0, ms(t0, tick()), 0});
+    // No specular part to fit: the residual is the diffuse model's on the frame itself.
+    const std::vector<Sample> onFrame = collect(frame, g, res.usable, o.maxSamples);
+    res.stages.push_back({"specular and roughness (I)", rmsLevels(onFrame, light, sigma, false), ms(t0, tick()), onFrame.size()});
   }
   // A channel clipped all over its highlight: its ks is not in the frame. A highlight has the light's
   // colour (the specular reflection of tissue does not tint it much), so it takes the measured channels'
@@ -508,6 +513,7 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
                 100 * res.explained,
                 res.textureOnly ? ": too little, so the organ is shown with the frame's own texture, not re-shaded" : "");
   res.status = text;
+  if (!settled) res.status += "; the fit did not settle within its evaluation budget: the values are the last it reached";
   if (!unmeasured.empty())
     res.status += "; the " + unmeasured + " channel is clipped all over the highlight, so its specular reflectance is not measured: taken as the other channels' mean";
   report(1.0, "done");
@@ -560,8 +566,8 @@ cv::Mat3b compose(const CompositionInput& in, int scale) {
   const SurfaceGeometry now = surfaceGeometry(in.camera, in.pose, in.deformed, scale);
   cv::Mat3b full;
   cv::resize(in.background, full, cv::Size(size.width * scale, size.height * scale), 0, 0, cv::INTER_LINEAR);
-  // The albedo where the tissue was not seen at rest (its back, the inside of a cut): the organ's median.
-  cv::Vec3f typical(1, 1, 1);
+  // The albedo where the tissue was not seen at rest (its back, the inside of a cut): ratio 1, the fitted kd.
+  const cv::Vec3f typical(1, 1, 1);
   cv::parallel_for_(cv::Range(0, full.rows), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y)
       for (int x = 0; x < full.cols; ++x) {

@@ -48,9 +48,11 @@ cv::Mat3b inpaintRegion(const cv::Mat3b& frame, const cv::Mat1b& region, Inpaint
 
 struct AppearanceStage {
   std::string name;
-  double rms = 0;          ///< residual, grey levels (0..255) per channel
+  /// Residual, grey levels (0..255) per channel: on I_D at the light the highlights gave (first stage), on
+  /// I_D after the diffuse fit, on I after the specular fit (or of the diffuse model alone without a highlight).
+  double rms = 0;
   double ms = 0;           ///< wall time
-  std::size_t pixels = 0;  ///< samples used
+  std::size_t pixels = 0;  ///< samples the residual is over
 };
 
 struct AppearanceFitOptions {

@@ -37,4 +37,8 @@ AppearanceOutput runAppearance(const AppearanceInput& in);
 cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance& theta, const cv::Mat3b& background, const cv::Mat3f& albedo,
                             bool textureOnly, const std::vector<double>& deformedVertices = {}, int supersampling = 2);
 
+/// J with a Theta given (no fitting): the background and albedo taken from the frame at rest, the organ moved
+/// to `deformedVertices` (empty: at rest). Throws imaging::InputError as runAppearance does.
+cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices = {});
+
 }  // namespace rehearse::app
