@@ -167,19 +167,6 @@ double rmsLevels(const std::vector<Sample>& samples, const Eigen::Vector3d& ligh
   return r.size() ? 255.0 * std::sqrt(r.squaredNorm() / static_cast<double>(r.size())) : 0.0;
 }
 
-// Bilinear lookup of a 3-channel image at a sub-pixel point (clamped to the image).
-template <typename T>
-cv::Vec3f bilinear(const cv::Mat_<cv::Vec<T, 3>>& img, const Eigen::Vector2d& q) {
-  const double x = std::clamp(q.x(), 0.0, img.cols - 1.0), y = std::clamp(q.y(), 0.0, img.rows - 1.0);
-  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  const int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
-  const double fx = x - x0, fy = y - y0;
-  cv::Vec3f out;
-  for (int k = 0; k < 3; ++k)
-    out[k] = static_cast<float>((1 - fy) * ((1 - fx) * img(y0, x0)[k] + fx * img(y0, x1)[k]) + fy * ((1 - fx) * img(y1, x0)[k] + fx * img(y1, x1)[k]));
-  return out;
-}
-
 }  // namespace
 
 cv::Mat1b usablePixels(const cv::Mat3b& frame, const cv::Mat1b& organ, int borderPx) {
@@ -549,76 +536,7 @@ cv::Mat3f albedoRatio(const cv::Mat3b& diffuse, const SurfaceGeometry& rest, con
   return out;
 }
 
-cv::Mat3b compose(const CompositionInput& in, int scale) {
-  if (auto p = in.camera.problem(); !p.empty()) throw InputError(p);
-  if (in.rest.vertexCount != in.deformed.vertexCount || in.rest.triangleCount != in.deformed.triangleCount)
-    throw InputError("The deformed organ has " + std::to_string(in.deformed.vertexCount) + " vertices, the registered one " +
-                     std::to_string(in.rest.vertexCount) + "; they must be the same mesh in the same order.");
-  const cv::Size size(in.camera.width, in.camera.height);
-  if (in.frame.size() != size || in.background.size() != size) throw InputError("The frame's size is not the camera's.");
-  scale = std::max(1, scale);
-  // Where each vertex was at rest (camera frame): a point of a deformed triangle was, at rest, at the same
-  // barycentric coordinates in the rest triangle, and its texture is the frame's pixel there (projected
-  // exactly, not interpolated between the vertices' pixels, which is off by up to a pixel on a steep triangle).
-  std::vector<Eigen::Vector3d> restCam(in.rest.vertexCount);
-  for (std::size_t i = 0; i < in.rest.vertexCount; ++i) restCam[i] = in.pose.apply(in.rest.vertex(i));
-  const SurfaceGeometry restGeo = surfaceGeometry(in.camera, in.pose, in.rest, 1);
-  const SurfaceGeometry now = surfaceGeometry(in.camera, in.pose, in.deformed, scale);
-  cv::Mat3b full;
-  cv::resize(in.background, full, cv::Size(size.width * scale, size.height * scale), 0, 0, cv::INTER_LINEAR);
-  // The albedo where the tissue was not seen at rest (its back, the inside of a cut): ratio 1, the fitted kd.
-  const cv::Vec3f typical(1, 1, 1);
-  cv::parallel_for_(cv::Range(0, full.rows), [&](const cv::Range& rows) {
-    for (int y = rows.start; y < rows.end; ++y)
-      for (int x = 0; x < full.cols; ++x) {
-        const int t = now.triangle(y, x);
-        if (t < 0) continue;
-        const int* tri = in.deformed.triangles + 3 * t;
-        const cv::Vec3f w = now.barycentric(y, x);
-        const Eigen::Vector3d atRest = w[0] * restCam[tri[0]] + w[1] * restCam[tri[1]] + w[2] * restCam[tri[2]];
-        const double depthAtRest = atRest.z();
-        const Eigen::Vector2d q = depthAtRest > 0 ? Eigen::Vector2d(in.camera.K(0, 0) * atRest.x() / depthAtRest + in.camera.K(0, 1) * atRest.y() / depthAtRest +
-                                                                        in.camera.K(0, 2),
-                                                                    in.camera.K(1, 1) * atRest.y() / depthAtRest + in.camera.K(1, 2))
-                                                  : Eigen::Vector2d(-1, -1);
-        const int qx = static_cast<int>(std::lround(q.x())), qy = static_cast<int>(std::lround(q.y()));
-        // Seen at rest: the frame shows this triangle (or one sharing a vertex with it) there, or a surface no
-        // nearer than 2 mm in front of the point (not hidden behind another part of the organ).
-        bool seen = false;
-        if (qx >= 0 && qy >= 0 && qx < size.width && qy < size.height && restGeo.triangle(qy, qx) >= 0) {
-          const int* shown = in.rest.triangles + 3 * restGeo.triangle(qy, qx);
-          for (int a = 0; a < 3; ++a)
-            for (int b = 0; b < 3; ++b) seen |= shown[a] == tri[b];
-          seen |= restGeo.position(qy, qx)[2] > depthAtRest - 0.002;
-        }
-        cv::Vec3f albedo = typical;
-        cv::Vec3b texture(0, 0, 0);
-        if (seen) {
-          albedo = bilinear(in.albedo, q);
-          const cv::Vec3f t3 = bilinear(in.frame, q);
-          texture = cv::Vec3b(cv::saturate_cast<uchar>(t3[0]), cv::saturate_cast<uchar>(t3[1]), cv::saturate_cast<uchar>(t3[2]));
-        }
-        if (in.textureOnly) {
-          if (seen) full(y, x) = texture;
-          continue;
-        }
-        const cv::Vec3f p = now.position(y, x), n = now.normal(y, x);
-        Sample s{Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d::Zero()};
-        double d, sp;
-        basis(s, in.theta.lightPosition, in.theta.roughness, d, sp);
-        cv::Vec3b out;
-        for (int k = 0; k < 3; ++k) {
-          const double value = albedo[k] * in.theta.kd[2 - k] * d + in.theta.ks[2 - k] * sp;
-          out[k] = cv::saturate_cast<uchar>(value * 255.0);
-        }
-        full(y, x) = out;
-      }
-  });
-  if (scale == 1) return full;
-  cv::Mat3b small;
-  cv::resize(full, small, size, 0, 0, cv::INTER_AREA);
-  return small;
-}
+cv::Mat3b compose(const CompositionInput& in, int scale) { return Compositor(in).compose(in.deformed, scale); }
 
 double psnr(const cv::Mat3b& a, const cv::Mat3b& b, const cv::Mat1b& mask) {
   if (a.size() != b.size()) throw InputError("Images of different sizes cannot be compared.");

@@ -7,6 +7,21 @@
 #include <limits>
 
 namespace rehearse::imaging {
+
+std::vector<Eigen::Vector3d> vertexNormals(const std::vector<Eigen::Vector3d>& x, const SurfaceView& s) {
+  std::vector<Eigen::Vector3d> normal(x.size(), Eigen::Vector3d::Zero());
+  for (std::size_t t = 0; t < s.triangleCount; ++t) {
+    const int* tri = s.triangles + 3 * t;
+    const Eigen::Vector3d n = (x[tri[1]] - x[tri[0]]).cross(x[tri[2]] - x[tri[0]]);
+    for (int k = 0; k < 3; ++k) normal[tri[k]] += n;
+  }
+  for (auto& n : normal) {
+    const double l = n.norm();
+    n = l > 0 ? Eigen::Vector3d(n / l) : Eigen::Vector3d(0, 0, -1);
+  }
+  return normal;
+}
+
 namespace {
 
 struct Posed {
@@ -18,18 +33,7 @@ Posed pose3(const Pose& pose, const SurfaceView& s, bool normals) {
   Posed p;
   p.x.resize(s.vertexCount);
   for (std::size_t i = 0; i < s.vertexCount; ++i) p.x[i] = pose.apply(s.vertex(i));
-  if (normals) {
-    p.normal.assign(s.vertexCount, Eigen::Vector3d::Zero());
-    for (std::size_t t = 0; t < s.triangleCount; ++t) {
-      const int* tri = s.triangles + 3 * t;
-      Eigen::Vector3d n = (p.x[tri[1]] - p.x[tri[0]]).cross(p.x[tri[2]] - p.x[tri[0]]);
-      for (int k = 0; k < 3; ++k) p.normal[tri[k]] += n;
-    }
-    for (auto& n : p.normal) {
-      double l = n.norm();
-      n = l > 0 ? Eigen::Vector3d(n / l) : Eigen::Vector3d(0, 0, -1);
-    }
-  }
+  if (normals) p.normal = vertexNormals(p.x, s);
   return p;
 }
 
@@ -47,7 +51,12 @@ void checkCamera(const Camera& c) {
   if (auto p = c.problem(); !p.empty()) throw InputError(p);
 }
 
-Rasterization rasterizePosed(const Camera& camera, const Posed& P, const SurfaceView& s, int scale, double nearPlane) {
+}  // namespace
+
+Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen::Vector3d>& pts, const SurfaceView& s, int scale, double nearPlane) {
+  checkCamera(camera);
+  scale = std::max(1, scale);
+  if (pts.size() != s.vertexCount) throw InputError("The posed surface has " + std::to_string(pts.size()) + " points for " + std::to_string(s.vertexCount) + " vertices.");
   const int W = camera.width * scale, H = camera.height * scale;
   Rasterization r;
   r.scale = scale;
@@ -56,28 +65,50 @@ Rasterization rasterizePosed(const Camera& camera, const Posed& P, const Surface
   const Eigen::Matrix3d K = scaledK(camera, scale);
   std::vector<Eigen::Vector2d> uv(s.vertexCount);
   for (std::size_t i = 0; i < s.vertexCount; ++i) {
-    const auto& x = P.x[i];
-    uv[i] = x.z() > 0 ? Eigen::Vector2d(K(0, 0) * x.x() / x.z() + K(0, 1) * x.y() / x.z() + K(0, 2),
-                                        K(1, 1) * x.y() / x.z() + K(1, 2))
+    const auto& xi = pts[i];
+    uv[i] = xi.z() > 0 ? Eigen::Vector2d(K(0, 0) * xi.x() / xi.z() + K(0, 1) * xi.y() / xi.z() + K(0, 2),
+                                         K(1, 1) * xi.y() / xi.z() + K(1, 2))
                       : Eigen::Vector2d(0, 0);
   }
+  // Bands of rows in parallel, each drawing every triangle in its rows: each pixel is drawn by one thread in
+  // triangle order, so the result does not depend on the threads.
+  const int bands = std::max(1, std::min(H, 4 * cv::getNumThreads()));
+  cv::parallel_for_(cv::Range(0, bands), [&](const cv::Range& range) {
+   for (int band = range.start; band < range.end; ++band) {
+    const int bandTop = static_cast<int>(static_cast<long>(H) * band / bands), bandEnd = static_cast<int>(static_cast<long>(H) * (band + 1) / bands) - 1;
   for (std::size_t t = 0; t < s.triangleCount; ++t) {
     const int* tri = s.triangles + 3 * t;
-    const double z0 = P.x[tri[0]].z(), z1 = P.x[tri[1]].z(), z2 = P.x[tri[2]].z();
+    const double z0 = pts[tri[0]].z(), z1 = pts[tri[1]].z(), z2 = pts[tri[2]].z();
     if (z0 <= nearPlane || z1 <= nearPlane || z2 <= nearPlane) continue;
     const Eigen::Vector2d a = uv[tri[0]], b = uv[tri[1]], c = uv[tri[2]];
     const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
     if (std::abs(area) < 1e-12) continue;
     const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), c.x()}))));
     const int x1 = std::min(W - 1, static_cast<int>(std::floor(std::max({a.x(), b.x(), c.x()}))));
-    const int y0 = std::max(0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}))));
-    const int y1 = std::min(H - 1, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}))));
+    const int y0 = std::max(bandTop, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}))));
+    const int y1 = std::min(bandEnd, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}))));
     const double inv = 1.0 / area;
+    // The barycentric weights are linear along a row: each row's span is solved for (widened by a pixel),
+    // and only it is walked, with the weights computed and tested per pixel as before.
+    const double g0 = (b.y() - c.y()) * inv, g1 = (c.y() - a.y()) * inv, g2 = -g0 - g1;
     for (int y = y0; y <= y1; ++y) {
       int* tid = r.triangle.ptr<int>(y);
       float* dep = r.depth.ptr<float>(y);
-      for (int x = x0; x <= x1; ++x) {
-        const double px = x, py = y;
+      const double py = y, px0 = x0;
+      const double w0s = ((b.x() - px0) * (c.y() - py) - (b.y() - py) * (c.x() - px0)) * inv;
+      const double w1s = ((c.x() - px0) * (a.y() - py) - (c.y() - py) * (a.x() - px0)) * inv;
+      const double w2s = 1.0 - w0s - w1s;
+      double lo = x0, hi = x1;
+      bool empty = false;
+      for (const auto& [w, g] : {std::pair{w0s, g0}, std::pair{w1s, g1}, std::pair{w2s, g2}}) {
+        if (g > 0) lo = std::max(lo, x0 - w / g);
+        else if (g < 0) hi = std::min(hi, x0 - w / g);
+        else empty |= w < 0;
+      }
+      if (empty) continue;
+      const int xs = std::max(x0, static_cast<int>(std::ceil(lo)) - 1), xe = std::min(x1, static_cast<int>(std::floor(hi)) + 1);
+      for (int x = xs; x <= xe; ++x) {
+        const double px = x;
         const double w0 = ((b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px)) * inv;
         const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) * inv;
         const double w2 = 1.0 - w0 - w1;
@@ -90,8 +121,12 @@ Rasterization rasterizePosed(const Camera& camera, const Posed& P, const Surface
       }
     }
   }
+   }
+  });
   return r;
 }
+
+namespace {
 
 // Camera-frame point and smooth normal seen at pixel (x, y) of a rasterization.
 bool surfacePoint(const Eigen::Matrix3d& Kinv, const Posed& P, const SurfaceView& s, int tid, int x, int y,
@@ -117,7 +152,7 @@ bool surfacePoint(const Eigen::Matrix3d& Kinv, const Posed& P, const SurfaceView
 
 Rasterization rasterize(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale, double nearPlane) {
   checkCamera(camera);
-  return rasterizePosed(camera, pose3(pose, surface, false), surface, std::max(1, scale), nearPlane);
+  return rasterizeCameraFrame(camera, pose3(pose, surface, false).x, surface, scale, nearPlane);
 }
 
 std::optional<SurfacePick> pickSurface(const Camera& camera, const Pose& pose, const SurfaceView& s, const Eigen::Vector2d& pixel,
@@ -168,7 +203,7 @@ SurfaceGeometry surfaceGeometry(const Camera& camera, const Pose& pose, const Su
   bool inFront = false;
   for (const auto& x : P.x) inFront |= x.z() > 1e-3;
   if (!inFront) throw InputError("The organ lies behind the camera; check the pose (z must be positive in the camera frame).");
-  Rasterization r = rasterizePosed(camera, P, surface, scale, 1e-3);
+  Rasterization r = rasterizeCameraFrame(camera, P.x, surface, scale, 1e-3);
   const Eigen::Matrix3d Kinv = scaledK(camera, scale).inverse();
   SurfaceGeometry g;
   g.triangle = r.triangle;
@@ -212,7 +247,7 @@ cv::Mat3b renderShaded(const Camera& camera, const Pose& pose, const SurfaceView
   checkCamera(camera);
   scale = std::max(1, scale);
   const Posed P = pose3(pose, surface, true);
-  const Rasterization r = rasterizePosed(camera, P, surface, scale, 1e-3);
+  const Rasterization r = rasterizeCameraFrame(camera, P.x, surface, scale, 1e-3);
   const Eigen::Matrix3d Kinv = scaledK(camera, scale).inverse();
   cv::Mat3b bg;
   if (background.empty()) bg = cv::Mat3b(camera.height, camera.width, cv::Vec3b(0, 0, 0));
@@ -242,7 +277,7 @@ cv::Mat3b renderShaded(const Camera& camera, const Pose& pose, const SurfaceView
 cv::Mat4b renderOverlay(const Camera& camera, const Pose& pose, const SurfaceView& surface, const cv::Vec3b& colour) {
   checkCamera(camera);
   const Posed P = pose3(pose, surface, true);
-  const Rasterization r = rasterizePosed(camera, P, surface, 1, 1e-3);
+  const Rasterization r = rasterizeCameraFrame(camera, P.x, surface, 1, 1e-3);
   const Eigen::Matrix3d Kinv = camera.K.inverse();
   cv::Mat4b out(camera.height, camera.width, cv::Vec4b(0, 0, 0, 0));
   cv::parallel_for_(cv::Range(0, out.rows), [&](const cv::Range& rows) {

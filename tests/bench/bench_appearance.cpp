@@ -9,6 +9,7 @@
 #include <rehearse/app/appearancestep.hpp>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -88,19 +89,51 @@ int main(int argc, char** argv) {
   std::sort(inpaint.begin(), inpaint.end());
   std::printf("whole step at 1920x1080: %.0f ms median (inpainting %.0f ms); composed at rest %.1f dB inside the organ; %s\n", total[total.size() / 2],
               inpaint[inpaint.size() / 2], o.restPsnr, o.fit.status.c_str());
-  // The CPU composition of a moved organ (the fallback viewport's and `compose`'s path), with and without
-  // edge supersampling.
-  std::vector<double> moved(in.vertices);
-  for (std::size_t i = 1; i < moved.size(); i += 3) moved[i] += 0.003;
-  for (int ss : {1, 2}) {
-    std::vector<double> cms;
-    for (int k = 0; k < repeat; ++k) {
-      const auto t0 = std::chrono::steady_clock::now();
-      const cv::Mat3b j = app::composeAppearance(in, o.fit.theta, o.background, o.albedo, false, moved, ss);
-      cms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  // The CPU composition as the viewport uses it (imaging::Compositor, prepared once per registered organ,
+  // then one deformed shape per frame) at 1280x720: the phantom and each real organ shape below, moved
+  // 3 mm and bent, with no anti-aliasing and with 2x2 and 4x4 samples on the rim.
+  std::ofstream ccsv(out + "/compose.csv");
+  ccsv << "organ,triangles,width,height,rim_samples,organ_pixels,compose_ms_median\n";
+  auto viewport = [&](const std::string& name, const imaging::Camera& cam720, const Pose& pose, const SurfaceView& sv, const cv::Mat3b& frame720,
+                      const imaging::Appearance& theta) {
+    imaging::CompositionInput ci;
+    ci.camera = cam720;
+    ci.pose = pose;
+    ci.rest = ci.deformed = sv;
+    ci.frame = frame720;
+    const auto geo = imaging::surfaceGeometry(cam720, pose, sv);
+    ci.background = imaging::inpaintRegion(frame720, geo.mask());
+    ci.albedo = cv::Mat3f(frame720.size(), cv::Vec3f(1, 1, 1));
+    ci.theta = theta;
+    const imaging::Compositor compositor(ci);
+    double lo = 1e30, hi = -1e30;
+    for (std::size_t i = 0; i < sv.vertexCount; ++i) lo = std::min(lo, sv.vertex(i).x()), hi = std::max(hi, sv.vertex(i).x());
+    std::vector<double> moved(sv.vertices, sv.vertices + 3 * sv.vertexCount);
+    for (std::size_t i = 0; i < sv.vertexCount; ++i) {
+      const double u = (moved[3 * i] - lo) / std::max(hi - lo, 1e-9);
+      moved[3 * i + 1] += 0.003 + 0.01 * u * u;
     }
-    std::sort(cms.begin(), cms.end());
-    std::printf("compose at 1920x1080, %zu triangles, %dx supersampling: %.0f ms median\n", in.triangles.size(), ss, cms[cms.size() / 2]);
+    const int covered = cv::countNonZero(geo.mask());
+    for (int rim : {1, 2, 4}) {
+      std::vector<double> cms;
+      for (int k = 0; k < std::max(repeat, 15); ++k) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const cv::Mat3b j = compositor.compose(moved, rim);
+        cms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      }
+      std::sort(cms.begin(), cms.end());
+      std::printf("viewport compose, %s, %zu triangles, %dx%d, %d px of organ, rim %dx%d: %.1f ms median\n", name.c_str(), sv.triangleCount, cam720.width,
+                  cam720.height, covered, rim, rim, cms[cms.size() / 2]);
+      ccsv << name << "," << sv.triangleCount << "," << cam720.width << "," << cam720.height << "," << rim * rim << "," << covered << "," << cms[cms.size() / 2]
+           << "\n";
+    }
+  };
+  {
+    phantom::PhantomOptions p720;
+    p720.width = 1280;
+    p720.height = 720;
+    const phantom::Phantom c720 = phantom::makePhantom(p720);
+    viewport("phantom", c720.camera, c720.truePose, c720.surfaceView(), c720.frame, c720.trueAppearance);
   }
   // Real organ shapes (not our smooth phantom): each surface seen broadside through the scikit-surgery
   // laparoscope (1920x1080), rendered with the phantom's light beside the lens and its reflectance (kd
@@ -148,7 +181,16 @@ int main(int argc, char** argv) {
                 name.c_str(), organ.triangles.size(), 1e3 * centre.z(), 100 * (r.theta.lightPosition - truth.lightPosition).norm() / (truth.lightPosition - centre).norm(),
                 kd, ks, r.ksMeasured[0], r.ksMeasured[1], r.ksMeasured[2], 100 * std::abs(r.theta.roughness - truth.roughness) / truth.roughness, fitMs,
                 r.status.c_str());
+    imaging::Camera cam720 = cam;  // the same view at 1280x720
+    const double k = 1280.0 / cam.width;
+    cam720.K.row(0) *= k;
+    cam720.K.row(1) *= k;
+    cam720.width = 1280;
+    cam720.height = static_cast<int>(std::lround(cam.height * k));
+    cv::Mat3b seen720;
+    cv::resize(seen, seen720, cv::Size(cam720.width, cam720.height), 0, 0, cv::INTER_AREA);
+    viewport(name, cam720, pose, sv, seen720, r.theta);
   }
-  std::printf("wrote %s/appearance.csv\n", out.c_str());
+  std::printf("wrote %s/appearance.csv and %s/compose.csv\n", out.c_str(), out.c_str());
   return 0;
 }

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -102,9 +103,34 @@ struct CompositionInput {
   Appearance theta;
   bool textureOnly = false;  ///< no re-shading: the frame's own colours follow the tissue
 };
-/// The composited image J (8-bit BGR): I_B, the deformed organ re-shaded (or texture-mapped) over it with
-/// edges anti-aliased by `scale` x supersampling; what the deformation uncovers shows I_B.
+/// The composited image J (8-bit BGR): I_B, the deformed organ re-shaded (or texture-mapped) over it, its
+/// rim anti-aliased with `scale` x `scale` samples per rim pixel (1: none); what the deformation uncovers
+/// shows I_B. One Compositor, used once.
 cv::Mat3b compose(const CompositionInput& in, int scale = 2);
+
+/// Composition prepared once for a registered organ at rest, for a stream of deformed shapes (the viewport
+/// following a simulation, a replay): the rest geometry through the camera, the frame's texture, the albedo
+/// and the background are kept; each shape then costs its own rasterisation at the frame's resolution,
+/// one shading per covered pixel, and scale x scale samples only on the pixels of its rim. Safe to call
+/// compose() from several threads at once.
+class Compositor {
+ public:
+  /// Everything in `in` but `deformed` (which may be left equal to `rest`). Throws InputError for a bad
+  /// camera, images of another size, or an organ entirely behind the camera.
+  explicit Compositor(const CompositionInput& in);
+  ~Compositor();
+  Compositor(const Compositor&) = delete;
+  Compositor& operator=(const Compositor&) = delete;
+  /// J for the surface moved to `deformed` (the rest's triangles and vertex order, model frame, metres).
+  cv::Mat3b compose(const SurfaceView& deformed, int scale = 2) const;
+  /// The same with the deformed vertices given as 3n model-frame coordinates (empty: the rest shape).
+  cv::Mat3b compose(const std::vector<double>& deformedVertices, int scale = 2) const;
+  const Camera& camera() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> d_;
+};
 
 /// Peak signal-to-noise ratio (dB) of b against a (8-bit, same size), over `mask` when given.
 double psnr(const cv::Mat3b& a, const cv::Mat3b& b, const cv::Mat1b& mask = {});

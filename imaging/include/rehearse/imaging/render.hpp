@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 
 #include <optional>
+#include <vector>
 
 namespace rehearse::imaging {
 
@@ -21,6 +22,14 @@ struct Rasterization {
 /// Triangles crossing the plane z = nearPlane are dropped. Throws InputError for a bad camera.
 Rasterization rasterize(const Camera& camera, const Pose& pose, const SurfaceView& surface, int scale = 1,
                         double nearPlane = 1e-3);
+
+/// The same for vertices already in the camera frame (one per surface vertex): for renderers that move the
+/// surface themselves (the compositor).
+Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen::Vector3d>& cameraPoints, const SurfaceView& surface,
+                                   int scale = 1, double nearPlane = 1e-3);
+
+/// Smooth unit vertex normals (area-weighted face normals; (0, 0, -1) for a vertex of no area).
+std::vector<Eigen::Vector3d> vertexNormals(const std::vector<Eigen::Vector3d>& points, const SurfaceView& surface);
 
 /// What the camera sees through one pixel: the nearest surface point on the ray (the triangle a depth buffer
 /// would keep there, without rasterising the frame).

@@ -1,0 +1,281 @@
+// The composition J (appearance_fit.hpp): I_B, and over it the deformed organ re-shaded with Theta and its
+// albedo, its texture looked up where each of its points was at rest. Prepared once per registered organ;
+// each deformed shape is rasterised at the frame's resolution, shaded once per covered pixel, and only its
+// rim is supersampled.
+#include <rehearse/imaging/appearance_fit.hpp>
+
+#include <opencv2/core/utility.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+
+namespace rehearse::imaging {
+namespace {
+
+template <typename T>
+cv::Vec3f bilinear(const cv::Mat_<cv::Vec<T, 3>>& img, double qx, double qy) {
+  const double x = std::clamp(qx, 0.0, img.cols - 1.0), y = std::clamp(qy, 0.0, img.rows - 1.0);
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const auto &a = img(y0, x0), &b = img(y0, x1), &c = img(y1, x0), &d = img(y1, x1);
+  cv::Vec3f out;
+  for (int k = 0; k < 3; ++k)
+    out[k] = (1 - fy) * ((1 - fx) * static_cast<float>(a[k]) + fx * static_cast<float>(b[k])) + fy * ((1 - fx) * static_cast<float>(c[k]) + fx * static_cast<float>(d[k]));
+  return out;
+}
+
+}  // namespace
+
+struct Compositor::Impl {
+  Camera camera;
+  Pose pose;
+  Eigen::Matrix3d Kinv;
+  std::vector<int> triangles;  ///< 3 per triangle (the rest's; a deformed shape must have the same)
+  std::size_t vertexCount = 0;
+  std::vector<double> restVertices;  ///< model frame, 3n (compose() with no shape)
+  std::vector<Eigen::Vector3d> restCam;  ///< rest vertices, camera frame
+  Rasterization restSeen;                ///< what the frame shows of the organ at rest (triangle, depth)
+  cv::Mat3b frame, background;
+  cv::Mat3f albedo;
+  Appearance theta;
+  bool textureOnly = false;
+  /// exp(-alpha^2 / 2 sigma^2) against cos(alpha) in [0, 1] (the specular lobe), linearly interpolated.
+  std::vector<float> lobe;
+
+  float lobeAt(double cosAlpha) const {
+    const double u = std::clamp(cosAlpha, 0.0, 1.0) * static_cast<double>(lobe.size() - 1);
+    const std::size_t i = std::min(static_cast<std::size_t>(u), lobe.size() - 2);
+    const double f = u - static_cast<double>(i);
+    return static_cast<float>((1 - f) * lobe[i] + f * lobe[i + 1]);
+  }
+
+  /// A deformed triangle's plane (n . x = offset) and its barycentric gradients (w_a = ga . (p - b),
+  /// w_b = gb . (p - c)), made once per shape instead of once per pixel.
+  struct Plane {
+    Eigen::Vector3d n, ga, gb;
+    double offset = 0;
+  };
+  static std::vector<Plane> planes(const std::vector<Eigen::Vector3d>& X, const std::vector<int>& triangles) {
+    std::vector<Plane> out(triangles.size() / 3);
+    cv::parallel_for_(cv::Range(0, static_cast<int>(out.size())), [&](const cv::Range& range) {
+      for (int t = range.start; t < range.end; ++t) {
+        const int* tri = triangles.data() + 3 * t;
+        const Eigen::Vector3d &a = X[tri[0]], &b = X[tri[1]], &c = X[tri[2]];
+        Plane& q = out[static_cast<std::size_t>(t)];
+        q.n = (b - a).cross(c - a);
+        const double nn = q.n.squaredNorm();
+        if (nn <= 0) continue;
+        q.offset = q.n.dot(a);
+        q.ga = q.n.cross(c - b) / nn;  // ((c - b) x (p - b)) . n = (n x (c - b)) . (p - b)
+        q.gb = q.n.cross(a - c) / nn;
+      }
+    });
+    return out;
+  }
+
+  /// The colour (BGR, 0..255 floats) of the deformed surface's triangle `t` seen through image point
+  /// (px, py); false where the ray grazes the triangle (the caller keeps the background).
+  bool shadeAt(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector3d>& N, const std::vector<Plane>& P, int t, double px, double py,
+               cv::Vec3f& bgr) const {
+    const int* tri = triangles.data() + 3 * t;
+    const Plane& q = P[static_cast<std::size_t>(t)];
+    const Eigen::Vector3d d = Kinv * Eigen::Vector3d(px, py, 1);
+    const double denom = q.n.dot(d);
+    if (std::abs(denom) < 1e-300) return false;
+    const Eigen::Vector3d p = d * (q.offset / denom);
+    const double wa = q.ga.dot(p - X[tri[1]]), wb = q.gb.dot(p - X[tri[2]]), wc = 1 - wa - wb;
+    // Where the point was at rest, and whether the frame showed it there (the triangle, one sharing a vertex
+    // with it, or a surface no nearer than 2 mm in front of it: not hidden behind another part of the organ).
+    const Eigen::Vector3d r = wa * restCam[tri[0]] + wb * restCam[tri[1]] + wc * restCam[tri[2]];
+    bool seen = false;
+    double qx = -1, qy = -1;
+    if (r.z() > 0) {
+      qx = camera.K(0, 0) * r.x() / r.z() + camera.K(0, 1) * r.y() / r.z() + camera.K(0, 2);
+      qy = camera.K(1, 1) * r.y() / r.z() + camera.K(1, 2);
+      const int ix = static_cast<int>(std::lround(qx)), iy = static_cast<int>(std::lround(qy));
+      if (ix >= 0 && iy >= 0 && ix < camera.width && iy < camera.height) {
+        const int shownTriangle = restSeen.triangle(iy, ix);
+        if (shownTriangle >= 0) {
+          const int* shown = triangles.data() + 3 * shownTriangle;
+          for (int i = 0; i < 3 && !seen; ++i)
+            for (int j = 0; j < 3; ++j) seen |= shown[i] == tri[j];
+          seen |= restSeen.depth(iy, ix) > r.z() - 0.002;
+        }
+      }
+    }
+    if (textureOnly) {
+      if (!seen) return false;
+      bgr = bilinear(frame, qx, qy);
+      return true;
+    }
+    // The albedo where the tissue was not seen at rest (its back, the inside of a cut): ratio 1, the fitted kd.
+    const cv::Vec3f albedoHere = seen ? bilinear(albedo, qx, qy) : cv::Vec3f(1, 1, 1);
+    Eigen::Vector3d normal = (wa * N[tri[0]] + wb * N[tri[1]] + wc * N[tri[2]]).normalized();
+    if (normal.dot(-p) < 0) normal = -normal;  // an open surface seen from inside
+    if (!normal.allFinite()) return false;
+    // Theta's model (appearance.hpp): kd cos(theta_i) / r^2 + ks exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r)).
+    const Eigen::Vector3d toLight = theta.lightPosition - p;
+    const double r2 = std::max(toLight.squaredNorm(), 1e-12);
+    const Eigen::Vector3d l = toLight / std::sqrt(r2);
+    const double cosI = normal.dot(l);
+    double diffuse = 0, specular = 0;
+    if (cosI > 0) {
+      const Eigen::Vector3d v = -p / p.norm();
+      const double cosR = std::max(normal.dot(v), 1e-3);
+      diffuse = cosI / r2;
+      specular = theta.roughness > 0 ? lobeAt(normal.dot((l + v).normalized())) / (r2 * cosR) : 0.0;
+    }
+    for (int k = 0; k < 3; ++k) bgr[k] = static_cast<float>(255.0 * (albedoHere[k] * theta.kd[2 - k] * diffuse + theta.ks[2 - k] * specular));
+    return true;
+  }
+};
+
+Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()) {
+  if (auto p = in.camera.problem(); !p.empty()) throw InputError(p);
+  const cv::Size size(in.camera.width, in.camera.height);
+  if (in.frame.size() != size || in.background.size() != size) throw InputError("The frame's size is not the camera's.");
+  if (!in.textureOnly && in.albedo.size() != size) throw InputError("The albedo's size is not the camera's.");
+  Impl& d = *d_;
+  d.camera = in.camera;
+  d.pose = in.pose;
+  d.Kinv = in.camera.K.inverse();
+  d.triangles.assign(in.rest.triangles, in.rest.triangles + 3 * in.rest.triangleCount);
+  d.vertexCount = in.rest.vertexCount;
+  d.restVertices.assign(in.rest.vertices, in.rest.vertices + 3 * in.rest.vertexCount);
+  d.restCam.resize(in.rest.vertexCount);
+  for (std::size_t i = 0; i < in.rest.vertexCount; ++i) d.restCam[i] = in.pose.apply(in.rest.vertex(i));
+  d.restSeen = rasterizeCameraFrame(in.camera, d.restCam, in.rest, 1);
+  d.frame = in.frame;
+  d.background = in.background;
+  d.albedo = in.albedo.empty() ? cv::Mat3f(size, cv::Vec3f(1, 1, 1)) : in.albedo;
+  d.theta = in.theta;
+  d.textureOnly = in.textureOnly;
+  // The lobe as a function of cos(alpha): 4,097 entries keep it within 1e-4 of exp(-acos(c)^2 / 2 sigma^2)
+  // for sigma >= 0.02 rad (test_appearance compares it with Appearance::shade).
+  d.lobe.resize(4097);
+  const double sigma = std::max(in.theta.roughness, 1e-6);
+  for (std::size_t i = 0; i < d.lobe.size(); ++i) {
+    const double alpha = std::acos(static_cast<double>(i) / static_cast<double>(d.lobe.size() - 1));
+    d.lobe[i] = static_cast<float>(std::exp(-alpha * alpha / (2 * sigma * sigma)));
+  }
+}
+
+Compositor::~Compositor() = default;
+
+const Camera& Compositor::camera() const { return d_->camera; }
+
+cv::Mat3b Compositor::compose(const std::vector<double>& deformedVertices, int scale) const {
+  const Impl& d = *d_;
+  const std::vector<double>& v = deformedVertices.empty() ? d.restVertices : deformedVertices;
+  if (v.size() != 3 * d.vertexCount)
+    throw InputError("The deformed organ has " + std::to_string(v.size() / 3) + " nodes, the registered one " + std::to_string(d.vertexCount) +
+                     "; they must be the same mesh in the same order.");
+  return compose(SurfaceView{v.data(), d.vertexCount, d.triangles.data(), d.triangles.size() / 3}, scale);
+}
+
+cv::Mat3b Compositor::compose(const SurfaceView& deformed, int scale) const {
+  const Impl& d = *d_;
+  if (deformed.vertexCount != d.vertexCount || deformed.triangleCount * 3 != d.triangles.size())
+    throw InputError("The deformed organ has " + std::to_string(deformed.vertexCount) + " vertices, the registered one " + std::to_string(d.vertexCount) +
+                     "; they must be the same mesh in the same order.");
+  const SurfaceView surface{deformed.vertices, deformed.vertexCount, d.triangles.data(), deformed.triangleCount};
+  std::vector<Eigen::Vector3d> X(d.vertexCount);
+  for (std::size_t i = 0; i < d.vertexCount; ++i) X[i] = d.pose.apply(surface.vertex(i));
+  const std::vector<Eigen::Vector3d> N = vertexNormals(X, surface);
+  const Rasterization seen = rasterizeCameraFrame(d.camera, X, surface, 1);
+  const std::vector<Impl::Plane> P = Impl::planes(X, d.triangles);
+  cv::Mat3b out = d.background.clone();
+  auto put = [](const cv::Vec3f& c) { return cv::Vec3b(cv::saturate_cast<uchar>(c[0]), cv::saturate_cast<uchar>(c[1]), cv::saturate_cast<uchar>(c[2])); };
+  cv::parallel_for_(cv::Range(0, out.rows), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const int* tid = seen.triangle.ptr<int>(y);
+      cv::Vec3b* row = out.ptr<cv::Vec3b>(y);
+      for (int x = 0; x < out.cols; ++x) {
+        cv::Vec3f c;
+        if (tid[x] >= 0 && d.shadeAt(X, N, P, tid[x], x, y, c)) row[x] = put(c);
+      }
+    }
+  });
+  if (scale <= 1) return out;
+  // The rim: pixels with the organ on one side and the background (or a farther part of the organ) on the
+  // other. Each gets scale x scale samples; a sample takes the nearest of the triangles its 3x3
+  // neighbourhood shows that covers it, or the background.
+  std::vector<Eigen::Vector2d> uv(d.vertexCount);
+  for (std::size_t i = 0; i < d.vertexCount; ++i)
+    uv[i] = X[i].z() > 0 ? Eigen::Vector2d(d.camera.K(0, 0) * X[i].x() / X[i].z() + d.camera.K(0, 1) * X[i].y() / X[i].z() + d.camera.K(0, 2),
+                                           d.camera.K(1, 1) * X[i].y() / X[i].z() + d.camera.K(1, 2))
+                         : Eigen::Vector2d(-1e9, -1e9);
+  // Only inside the organ's box on the image (a pixel beyond it, and its neighbours, show no organ).
+  cv::Rect box(0, 0, 0, 0);
+  {
+    double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+    for (std::size_t i = 0; i < d.vertexCount; ++i)
+      if (X[i].z() > 0) x0 = std::min(x0, uv[i].x()), x1 = std::max(x1, uv[i].x()), y0 = std::min(y0, uv[i].y()), y1 = std::max(y1, uv[i].y());
+    if (x1 >= x0)
+      box = cv::Rect(cv::Point(static_cast<int>(std::max(-1.0, std::floor(x0) - 2)), static_cast<int>(std::max(-1.0, std::floor(y0) - 2))),
+                     cv::Point(static_cast<int>(std::min(out.cols + 1.0, std::ceil(x1) + 3)), static_cast<int>(std::min(out.rows + 1.0, std::ceil(y1) + 3)))) &
+            cv::Rect(0, 0, out.cols, out.rows);
+  }
+  cv::Mat1b onRim(out.size(), uchar(0));
+  cv::parallel_for_(cv::Range(box.y, box.y + box.height), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y) {
+      const int* tid = seen.triangle.ptr<int>(y);
+      const float* z = seen.depth.ptr<float>(y);
+      uchar* flag = onRim.ptr<uchar>(y);
+      for (int x = box.x; x < box.x + box.width; ++x) {
+        // Against the four neighbours: covered on one side only, or a step in depth (a fold in front of the organ).
+        const int t = tid[x];
+        auto differs = [&](int yy, int xx) {
+          const int u = seen.triangle(yy, xx);
+          return (u < 0) != (t < 0) || (t >= 0 && u >= 0 && std::abs(seen.depth(yy, xx) - z[x]) > 0.003f);
+        };
+        flag[x] = (x > 0 && differs(y, x - 1)) || (x + 1 < out.cols && differs(y, x + 1)) || (y > 0 && differs(y - 1, x)) ||
+                  (y + 1 < out.rows && differs(y + 1, x));
+      }
+    }
+  });
+  std::vector<cv::Point> rim;
+  cv::findNonZero(onRim, rim);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(rim.size())), [&](const cv::Range& range) {
+    for (int i = range.start; i < range.end; ++i) {
+      const cv::Point q = rim[static_cast<std::size_t>(i)];
+      std::array<int, 9> candidates;
+      int count = 0;
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int yy = q.y + dy, xx = q.x + dx;
+          if (yy < 0 || xx < 0 || yy >= out.rows || xx >= out.cols) continue;
+          const int u = seen.triangle(yy, xx);
+          if (u >= 0 && std::find(candidates.begin(), candidates.begin() + count, u) == candidates.begin() + count) candidates[static_cast<std::size_t>(count++)] = u;
+        }
+      const cv::Vec3f back(d.background(q.y, q.x)[0], d.background(q.y, q.x)[1], d.background(q.y, q.x)[2]);
+      cv::Vec3f sum(0, 0, 0);
+      for (int sy = 0; sy < scale; ++sy)
+        for (int sx = 0; sx < scale; ++sx) {
+          const double px = q.x + (sx + 0.5) / scale - 0.5, py = q.y + (sy + 0.5) / scale - 0.5;
+          int best = -1;
+          double bestZ = 0;
+          for (int k = 0; k < count; ++k) {
+            const int* tri = d.triangles.data() + 3 * candidates[static_cast<std::size_t>(k)];
+            const Eigen::Vector2d &a = uv[tri[0]], &b = uv[tri[1]], &c = uv[tri[2]];
+            const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+            if (std::abs(area) < 1e-12) continue;
+            const double w0 = ((b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px)) / area;
+            const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) / area;
+            const double w2 = 1 - w0 - w1;
+            if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+            const double z = 1.0 / (w0 / X[tri[0]].z() + w1 / X[tri[1]].z() + w2 / X[tri[2]].z());
+            if (best < 0 || z < bestZ) best = candidates[static_cast<std::size_t>(k)], bestZ = z;
+          }
+          cv::Vec3f c;
+          sum += best >= 0 && d.shadeAt(X, N, P, best, px, py, c) ? c : back;
+        }
+      out(q) = put(sum / static_cast<float>(scale * scale));
+    }
+  });
+  return out;
+}
+
+}  // namespace rehearse::imaging
