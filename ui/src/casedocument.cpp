@@ -51,6 +51,7 @@ CaseDocument::Parts difference(const app::Case* a, const app::Case& b) {
   if (a->attachments != b.attachments) p |= CaseDocument::AttachmentsPart;
   if (!(a->material == b.material)) p |= CaseDocument::MaterialPart;
   if (a->landmarks != b.landmarks) p |= CaseDocument::LandmarksPart;
+  if (a->appearance != b.appearance) p |= CaseDocument::AppearancePart;
   return p;
 }
 

@@ -1,5 +1,6 @@
 #include "rehearse/ui/casefile.hpp"
 
+#include <rehearse/app/appearancestep.hpp>
 #include <rehearse/app/materials.hpp>
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/simcore/meshio.hpp>
@@ -202,6 +203,7 @@ void saveCaseFile(const app::Case& c, const QString& path) {
       for (const auto& x : c.fit->nodes) pts.push_back({x.x(), x.y(), x.z()});
       part("elastic_fit", "json", bytes(json{{"positions", pts}, {"status", c.fit->status}}.dump()));
     }
+    if (c.appearance) part("appearance", "json", bytes(app::appearanceEstimateToJson(*c.appearance)));
     if (c.groundTruth) {
       const app::GroundTruth& t = *c.groundTruth;
       json tree = json::array();
@@ -263,7 +265,7 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
       {"camera", QStringLiteral("Camera")},            {"attachments", QStringLiteral("Attachments")},
       {"pose", QStringLiteral("Pose")},                {"contour", QStringLiteral("Contour")},
       {"elastic_fit", QStringLiteral("Elastic fit")}, {"ground_truth", QStringLiteral("Ground truth")},
-      {"landmarks", QStringLiteral("Landmark pairs")}};
+      {"landmarks", QStringLiteral("Landmark pairs")}, {"appearance", QStringLiteral("Appearance")}};
   auto read = [&](const char* part) -> QByteArray {
     QSqlQuery p(db);
     p.prepare(checksums ? QStringLiteral("SELECT data, sha256 FROM parts WHERE name = ?") : QStringLiteral("SELECT data FROM parts WHERE name = ?"));
@@ -418,6 +420,13 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
       c.fit = fit;
     } catch (const std::exception& e) {
       note(QStringLiteral("Elastic fit not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (QByteArray a = read("appearance"); !a.isEmpty()) {
+    try {
+      c.appearance = app::appearanceEstimateFromJson(a.toStdString());
+    } catch (const std::exception& e) {
+      note(QStringLiteral("Appearance not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
   if (QByteArray g = read("ground_truth"); !g.isEmpty()) {

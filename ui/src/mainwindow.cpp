@@ -67,9 +67,13 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   setObjectName(QStringLiteral("MainWindow"));
   doc_ = new CaseDocument(this);
   jobs_ = new JobRunner(this);
-  view_ = new FrameView(this);
+  composition_ = new Composition(this);
+  centre_ = new QStackedWidget(this);
+  centre_->setObjectName(QStringLiteral("centre"));
+  view_ = new FrameView(centre_);
   view_->setObjectName(QStringLiteral("frameView"));
-  setCentralWidget(view_);
+  centre_->addWidget(view_);
+  setCentralWidget(centre_);
   buildStatusBar();
   buildDocks();
   wb_.doc = doc_;
@@ -175,6 +179,11 @@ void MainWindow::buildDocks() {
   }
   addDockWidget(Qt::RightDockWidgetArea, organDock);
   splitDockWidget(infoDock, organDock, Qt::Vertical);
+  // The organ alone, large, in the centre (ViewMode::ThreeD): the same kind of view as the dock's.
+  if (openGL) centreOrgan_ = new OrganGLView(centre_);
+  else centreOrgan_ = new OrganView(centre_);
+  centreOrgan_->setObjectName(QStringLiteral("centreOrganView"));
+  centre_->addWidget(centreOrgan_);
   simulationDock_ = new QDockWidget(tr("Simulation"), this);
   simulationDock_->setObjectName(QStringLiteral("simulationDock"));
   simulation_ = new SimulationPanel(simulationDock_);
@@ -184,6 +193,19 @@ void MainWindow::buildDocks() {
   tabifyDockWidget(organDock, simulationDock_);
   organDock->raise();
   connect(simulation_, &SimulationPanel::statusChanged, status_.simulation, &QLabel::setText);
+  // The composited view follows the simulation: each snapshot shown is composed (on a worker, newest first).
+  connect(simulation_, &SimulationPanel::frameShown, this, [this] {
+    const auto f = simulation_->lastFrame();
+    if (showingComposited() && f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) composition_->request(f->positions);
+  });
+  connect(composition_, &Composition::composed, this, [this] {
+    if (showingComposited()) showFrameLayer();
+  });
+  connect(composition_, &Composition::readyChanged, this, [this](bool ready) {
+    // The composited view is the case's view from the moment it can be made.
+    if (ready) setViewMode(ViewMode::Composited);
+    else showFrameLayer();
+  });
   connect(simulation_, &SimulationPanel::materialEdited, this, [this](const app::MaterialSettings& m) {
     doc_->edit(tr("Edit material"), [m](app::Case& k) { k.material = m; });
   });
@@ -222,10 +244,13 @@ void MainWindow::buildStatusBar() {
   status_.simulation = new QLabel(this);
   status_.simulation->setObjectName(QStringLiteral("statusSimulation"));
   status_.distance = new QLabel(this);
+  status_.viewMode = new QLabel(this);
+  status_.viewMode->setObjectName(QStringLiteral("statusViewMode"));
   statusBar()->addWidget(status_.caseText, 1);
   statusBar()->addWidget(log);
   statusBar()->addPermanentWidget(status_.simulation);
   statusBar()->addPermanentWidget(status_.distance);
+  statusBar()->addPermanentWidget(status_.viewMode);
   statusBar()->addPermanentWidget(status_.cursor);
   statusBar()->addPermanentWidget(status_.stage);
   statusBar()->addPermanentWidget(status_.progress);
@@ -263,7 +288,8 @@ void MainWindow::buildWorkflowPanel() {
   pages_.contour = new ContourPage(wb_);
   pages_.rigid = new RigidPage(wb_);
   pages_.fit = new FitPage(wb_);
-  pages_.all = {pages_.mesh, pages_.frame, pages_.contour, pages_.rigid, pages_.fit};
+  pages_.appearance = new AppearancePage(wb_, composition_);
+  pages_.all = {pages_.mesh, pages_.frame, pages_.contour, pages_.rigid, pages_.fit, pages_.appearance};
   for (StepPage* p : pages_.all) stepStack_->addWidget(p);
   connect(pages_.mesh, &MeshPage::meshImported, this, &MainWindow::meshImported);
   connect(pages_.mesh, &MeshPage::shownLabelsChanged, this, &MainWindow::refreshOverlay);
@@ -290,7 +316,7 @@ void MainWindow::setStep(Step s) {
   if (s == Step::Contour && (t == Tool::Navigate || t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Freehand);
   else if (s == Step::Rigid && t != Tool::Landmarks) view_->setTool(Tool::Align);
   else if (s == Step::Mesh || s == Step::Frame) view_->setTool(Tool::Navigate);
-  else if (s == Step::Elastic && (t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Navigate);  // no gizmo over the fit
+  else if ((s == Step::Elastic || s == Step::Appearance) && (t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Navigate);  // no gizmo over the fit
   updateWorkflow();
 }
 
@@ -318,7 +344,9 @@ void MainWindow::onCaseChanged(CaseDocument::Parts parts) {
   if (organView_) organView_->setCase(data);
   if (organGLView_) organGLView_->setCase(data);
   simulation_->setCase(data);
-  if (parts & CaseDocument::FramePart) view_->setFrame(doc_->frameImage());
+  if (auto* o = qobject_cast<OrganGLView*>(centreOrgan_)) o->setCase(data);
+  else if (auto* o2 = qobject_cast<OrganView*>(centreOrgan_)) o2->setCase(data);
+  composition_->setCase(data);
   if (data)
     for (StepPage* p : pages_.all) p->refresh(*data);
   refreshOverlay();
@@ -326,11 +354,47 @@ void MainWindow::onCaseChanged(CaseDocument::Parts parts) {
   updateWorkflow();
 }
 
+void MainWindow::showFrameLayer() {
+  const bool composited = showingComposited() && !composition_->lastComposed().isNull();
+  view_->setFrame(composited ? composition_->lastComposed() : doc_->frameImage());
+  if (composited) {
+    view_->setOverlay(QImage(), {});
+    view_->setInnerOverlay(QImage());
+  } else {
+    view_->setOverlay(picture_.organ, picture_.silhouette);
+    view_->setInnerOverlay(picture_.inner);
+  }
+  status_.viewMode->setText(viewModeText());
+}
+
+QString MainWindow::viewModeText() const {
+  switch (viewMode_) {
+    case ViewMode::Composited:
+      return composition_->ready() ? tr("Composited") : tr("Overlay (not composited: %1)").arg(composition_->whyNot());
+    case ViewMode::Overlay: return tr("Overlay");
+    case ViewMode::ThreeD: return tr("3D");
+  }
+  return {};
+}
+
+void MainWindow::setViewMode(ViewMode mode) {
+  viewMode_ = mode;
+  centre_->setCurrentIndex(mode == ViewMode::ThreeD ? 1 : 0);
+  const auto i = static_cast<std::size_t>(mode);
+  if (i < viewModeActions_.size() && !viewModeActions_[i]->isChecked()) viewModeActions_[i]->setChecked(true);
+  if (mode == ViewMode::Composited && composition_->ready()) {
+    // Follow the simulation from where it is now.
+    const auto f = simulation_->lastFrame();
+    composition_->request(f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ ? f->positions : std::vector<Eigen::Vector3d>{});
+  }
+  showFrameLayer();
+  if (mode == ViewMode::Composited && !composition_->ready()) say(tr("The composited view needs the appearance: %1.").arg(composition_->whyNot()));
+}
+
 void MainWindow::refreshOverlay() {
   const auto& c = doc_->data();
   picture_ = c ? overlay_->render(*c, pages_.mesh->shownInnerLabels()) : OverlayPicture{};
-  view_->setOverlay(picture_.organ, picture_.silhouette);
-  view_->setInnerOverlay(picture_.inner);
+  showFrameLayer();
   if (picture_.meanDistance >= 0) {
     const QString text = tr("Contour to silhouette: mean %1 px, RMS %2 px, max %3 px")
                              .arg(picture_.meanDistance, 0, 'f', 1)
@@ -490,8 +554,9 @@ void MainWindow::buildMenus() {
   QAction* about = help->addAction(tr("&About Rehearse"), this, [this] {
     QMessageBox::about(this, tr("About Rehearse"),
                        tr("<b>Rehearse %1</b><p>Intra-operative surgical gesture rehearsal. This version registers the "
-                          "pre-operative organ onto an endoscope frame (steps 1-5) and simulates it there. Appearance "
-                          "estimation, grasping, pulling and cutting, and the replay of rehearsals come in later versions.</p>")
+                          "pre-operative organ onto an endoscope frame (steps 1-5), estimates its appearance and the light from the frame "
+                          "(step 6) and simulates it there, composited into the frame. Grasping, pulling and cutting, and the replay of "
+                          "rehearsals come in later versions.</p>")
                            .arg(QStringLiteral(REHEARSE_VERSION)));
   });
   about->setShortcut(QKeySequence::HelpContents);
@@ -540,12 +605,32 @@ void MainWindow::buildViewMenu() {
     view_->setLegendVisible(on);
     QSettings().setValue(QStringLiteral("legend"), on);
   });
+  // Composited / overlay / 3D (F2, F3, F4).
+  viewMenu->addSeparator();
+  auto* modes = new QActionGroup(this);
+  const std::tuple<QString, ViewMode, Qt::Key, QString> modeNames[] = {
+      {tr("&Composited View"), ViewMode::Composited, Qt::Key_F2, tr("The organ re-shaded into the frame, as estimated in step 6")},
+      {tr("O&verlay View"), ViewMode::Overlay, Qt::Key_F3, tr("The organ drawn over the frame")},
+      {tr("&3D View"), ViewMode::ThreeD, Qt::Key_F4, tr("The organ alone, in 3D")}};
+  for (const auto& [name, mode, key, tip] : modeNames) {
+    QAction* a = viewMenu->addAction(name);
+    a->setCheckable(true);
+    a->setShortcut(QKeySequence(key));
+    a->setToolTip(tip);
+    a->setObjectName(QStringLiteral("viewMode%1").arg(static_cast<int>(mode)));
+    modes->addAction(a);
+    viewModeActions_.push_back(a);
+    connect(a, &QAction::triggered, this, [this, mode = mode] { setViewMode(mode); });
+  }
+  viewModeActions_[static_cast<std::size_t>(viewMode_)]->setChecked(true);
   viewMenu->addSeparator();
   viewMenu->addAction(tr("&Navigate (pan and zoom)"), this, [this] { view_->setTool(Tool::Navigate); })->setShortcut(QKeySequence(Qt::Key_N));
   if (auto* bar = findChild<QToolBar*>(QStringLiteral("mainToolbar"))) {
     bar->addSeparator();
     bar->addAction(overlay);
     bar->addAction(fit);
+    bar->addSeparator();
+    for (QAction* a : viewModeActions_) bar->addAction(a);
   }
 }
 

@@ -1,5 +1,6 @@
 #include "rehearse/app/appearancestep.hpp"
 
+#include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <chrono>
@@ -29,6 +30,101 @@ imaging::SurfaceGeometry restGeometry(const AppearanceInput& in) {
 }
 
 }  // namespace
+
+AppearanceInput appearanceInputFromCase(const Case& c) {
+  AppearanceInput in;
+  in.camera = c.camera;
+  in.pose = c.pose;
+  const auto& nodes = c.shapeNodes();
+  in.vertices.reserve(3 * nodes.size());
+  for (const auto& x : nodes) in.vertices.insert(in.vertices.end(), {x.x(), x.y(), x.z()});
+  in.triangles = c.organ->surface;
+  in.frame = c.frame;
+  return in;
+}
+
+std::shared_ptr<const AppearanceEstimate> estimateFromRun(const AppearanceOutput& out, const Case& c, imaging::InpaintMethod inpaint) {
+  auto e = std::make_shared<AppearanceEstimate>();
+  e->theta = out.fit.theta;
+  e->highlightFound = out.fit.highlightFound;
+  e->textureOnly = out.fit.textureOnly;
+  e->ksMeasured = out.fit.ksMeasured;
+  e->explained = out.fit.explained;
+  e->status = out.fit.status;
+  e->inpaint = imaging::inpaintMethodName(inpaint);
+  e->stages = out.fit.stages;
+  e->restPsnr = out.restPsnr;
+  e->totalMs = out.totalMs;
+  e->pose = c.pose;
+  e->shapeDigest = c.shapeDigest();
+  e->frameWidth = c.frame.cols;
+  e->frameHeight = c.frame.rows;
+  e->frameDigest = c.frameDigest();
+  return e;
+}
+
+namespace {
+using json = nlohmann::json;
+json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+Eigen::Vector3d vec3(const json& j) {
+  const Eigen::Vector3d v(j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>());
+  if (!v.allFinite()) throw std::runtime_error("a vector holds a number that is not finite");
+  return v;
+}
+}  // namespace
+
+std::string appearanceEstimateToJson(const AppearanceEstimate& e) {
+  json stages = json::array();
+  for (const auto& s : e.stages) stages.push_back({{"name", s.name}, {"rms_levels", s.rms}, {"ms", s.ms}, {"pixels", s.pixels}});
+  json r = json::array();
+  for (int i = 0; i < 3; ++i) r.push_back(json::array({e.pose.R(i, 0), e.pose.R(i, 1), e.pose.R(i, 2)}));
+  return json{{"light_position", vec(e.theta.lightPosition)},
+              {"kd", vec(e.theta.kd)},
+              {"ks", vec(e.theta.ks)},
+              {"roughness", e.theta.roughness},
+              {"highlight_found", e.highlightFound},
+              {"texture_only", e.textureOnly},
+              {"ks_measured", {e.ksMeasured[0], e.ksMeasured[1], e.ksMeasured[2]}},
+              {"explained", e.explained},
+              {"status", e.status},
+              {"inpaint", e.inpaint},
+              {"stages", stages},
+              {"rest_psnr_db", e.restPsnr},
+              {"total_ms", e.totalMs},
+              {"fitted_on", {{"pose", {{"R", r}, {"t", vec(e.pose.t)}}}, {"shape_digest", e.shapeDigest}, {"frame_size", {e.frameWidth, e.frameHeight}},
+                             {"frame_digest", e.frameDigest}}}}
+      .dump();
+}
+
+std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::string& text) {
+  const json j = json::parse(text);
+  auto e = std::make_shared<AppearanceEstimate>();
+  e->theta.lightPosition = vec3(j.at("light_position"));
+  e->theta.kd = vec3(j.at("kd"));
+  e->theta.ks = vec3(j.at("ks"));
+  e->theta.roughness = j.at("roughness").get<double>();
+  if (!std::isfinite(e->theta.roughness) || e->theta.roughness < 0) throw std::runtime_error("the roughness is not a non-negative number");
+  e->highlightFound = j.value("highlight_found", false);
+  e->textureOnly = j.value("texture_only", false);
+  const auto& m = j.at("ks_measured");
+  for (std::size_t i = 0; i < 3; ++i) e->ksMeasured[i] = m.at(i).get<bool>();
+  e->explained = j.value("explained", 0.0);
+  e->status = j.value("status", std::string());
+  e->inpaint = j.value("inpaint", std::string("ns"));
+  for (const auto& s : j.value("stages", json::array()))
+    e->stages.push_back({s.at("name").get<std::string>(), s.at("rms_levels").get<double>(), s.at("ms").get<double>(), s.at("pixels").get<std::size_t>()});
+  e->restPsnr = j.value("rest_psnr_db", 0.0);
+  e->totalMs = j.value("total_ms", 0.0);
+  const auto& on = j.at("fitted_on");
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) e->pose.R(i, k) = on.at("pose").at("R").at(i).at(k).get<double>();
+  e->pose.t = vec3(on.at("pose").at("t"));
+  e->shapeDigest = on.at("shape_digest").get<double>();
+  e->frameWidth = on.at("frame_size").at(0).get<int>();
+  e->frameHeight = on.at("frame_size").at(1).get<int>();
+  e->frameDigest = on.at("frame_digest").get<double>();
+  return e;
+}
 
 AppearanceOutput runAppearance(const AppearanceInput& in) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -68,13 +164,31 @@ cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance
   return imaging::compose(c, supersampling);
 }
 
-cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices) {
+AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appearance& theta) {
   const imaging::SurfaceGeometry g = restGeometry(in);
   const cv::Mat1b usable = imaging::usablePixels(in.frame, g.mask());
-  cv::Mat3b background;
-  cv::Mat3f albedo;
-  restLayers(in, g, theta, imaging::separateSpecular(in.frame, usable).diffuse, usable, background, albedo);
-  return composeAppearance(in, theta, background, albedo, false, deformedVertices);
+  AppearanceLayers layers;
+  layers.diffuse = imaging::separateSpecular(in.frame, usable).diffuse;
+  restLayers(in, g, theta, layers.diffuse, usable, layers.background, layers.albedo);
+  return layers;
+}
+
+std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly) {
+  imaging::CompositionInput c;
+  c.camera = in.camera;
+  c.pose = in.pose;
+  c.rest = c.deformed = in.surface();
+  c.frame = in.frame;
+  c.background = layers.background;
+  c.albedo = layers.albedo;
+  c.theta = theta;
+  c.textureOnly = textureOnly;
+  return std::make_unique<imaging::Compositor>(c);
+}
+
+cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices) {
+  const AppearanceLayers layers = appearanceLayers(in, theta);
+  return composeAppearance(in, theta, layers.background, layers.albedo, false, deformedVertices);
 }
 
 }  // namespace rehearse::app

@@ -31,6 +31,34 @@ std::shared_ptr<const Organ> Organ::fromVolume(simcore::Mesh volume, std::string
 
 const std::vector<Eigen::Vector3d>& Case::shapeNodes() const { return hasFit() ? fit->nodes : organ->volume.points; }
 
+double Case::shapeDigest() const {
+  // Weighted by position in the list, so that swapped or moved nodes change it (a checksum, not a hash:
+  // enough to see that the shape is another one).
+  double sum = 0;
+  const auto& nodes = shapeNodes();
+  for (std::size_t i = 0; i < nodes.size(); ++i) sum += (1.0 + 1e-3 * static_cast<double>(i % 997)) * (nodes[i].x() + 2 * nodes[i].y() + 3 * nodes[i].z());
+  return sum + static_cast<double>(nodes.size());
+}
+
+double Case::frameDigest() const {
+  if (frame.empty()) return 0;
+  const cv::Scalar s = cv::sum(frame);
+  // Sums of every channel and of a strided subsample by position: a changed frame of the same size changes them.
+  double w = 0;
+  for (int y = 0; y < frame.rows; y += 7)
+    for (int x = (y / 7) % 5; x < frame.cols; x += 5) w += (1.0 + (x + 3 * y) % 13) * frame(y, x)[1];
+  return s[0] + 3 * s[1] + 7 * s[2] + w;
+}
+
+bool Case::appearanceCurrent() const {
+  if (!appearance || !hasPose || frame.empty()) return false;
+  const auto& a = *appearance;
+  const bool samePose = (a.pose.R - pose.R).norm() < 1e-9 && (a.pose.t - pose.t).norm() < 1e-9;
+  const double shape = shapeDigest(), image = frameDigest();
+  return samePose && std::abs(a.shapeDigest - shape) <= 1e-9 * std::max(1.0, std::abs(shape)) && a.frameWidth == frame.cols && a.frameHeight == frame.rows &&
+         std::abs(a.frameDigest - image) <= 1e-9 * std::max(1.0, std::abs(image));
+}
+
 SurfaceView Case::surfaceView() const {
   SurfaceView v = organ->volume.surfaceView();
   if (hasFit()) v.vertices = fit->nodes.front().data();
@@ -107,6 +135,7 @@ std::size_t Case::sharedBytes() const {
                       v.triangles.size() * (sizeof(std::array<int, 3>) + sizeof(int)) +
                       (organ->surface.size() + organ->innerSurface.size()) * sizeof(std::array<int, 3>) + organ->innerSurfaceLabels.size() * sizeof(int);
   if (fit) bytes += fit->nodes.size() * sizeof(Eigen::Vector3d);
+  if (appearance) bytes += sizeof(AppearanceEstimate) + appearance->status.size();
   bytes += frame.total() * frame.elemSize() + rawFrame.total() * rawFrame.elemSize();
   return bytes;
 }

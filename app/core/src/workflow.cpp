@@ -9,6 +9,7 @@ bool stepDone(const Case& c, Step s) {
     case Step::Contour: return imaging::contourProblem(c.contour).empty();
     case Step::Rigid: return c.hasPose && c.poseAligned;
     case Step::Elastic: return c.hasFit();
+    case Step::Appearance: return c.appearanceCurrent();
     default: return false;
   }
 }
@@ -22,6 +23,8 @@ int nextStep(const Case& c) {
 std::string missingFor(const Case& c, Step s) {
   if (index(s) > index(Step::Mesh) && !stepDone(c, Step::Mesh)) return "an organ mesh (step 1)";
   if (index(s) > index(Step::Frame) && !stepDone(c, Step::Frame)) return "a frame with its camera (step 2)";
+  // The appearance needs the organ placed over the frame, not the contour it was fitted to.
+  if (s == Step::Appearance) return c.hasPose ? std::string() : "the organ placed over the frame (step 4)";
   if (index(s) > index(Step::Contour) && !stepDone(c, Step::Contour)) return "a contour (step 3): " + imaging::contourProblem(c.contour);
   if (index(s) > index(Step::Rigid) && !c.hasPose) return "a rigid alignment (step 4)";
   return {};

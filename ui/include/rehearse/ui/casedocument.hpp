@@ -38,7 +38,8 @@ class CaseDocument : public QObject {
     AttachmentsPart = 64,
     MaterialPart = 128,
     LandmarksPart = 256,
-    AllParts = 511
+    AppearancePart = 512,
+    AllParts = 1023
   };
   Q_DECLARE_FLAGS(Parts, Part)
 

@@ -75,6 +75,8 @@ class FrameView : public QWidget {
   explicit FrameView(QWidget* parent = nullptr);
   ~FrameView() override;
   void setFrame(const QImage& frame);
+  /// The picture under the overlay as shown now (the frame, or the composited frame).
+  const QImage& shownFrame() const { return frame_; }
   void setOverlay(const QImage& organ, const QList<QPolygonF>& silhouette);
   void setInnerOverlay(const QImage& inner) { inner_ = inner; update(); }
   void setCase(std::shared_ptr<const app::Case> c);

@@ -5,8 +5,10 @@
 // Simulation panel are docks. The case lives in the CaseDocument (undo, open/save/autosave); every view
 // and page redraws from its changed() signal. Long work goes through the JobRunner (progress, Esc cancels).
 #include "rehearse/ui/casedocument.hpp"
+#include "rehearse/ui/composition.hpp"
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/organoverlay.hpp"
+#include "rehearse/ui/pages/appearancepage.hpp"
 #include "rehearse/ui/pages/contourpage.hpp"
 #include "rehearse/ui/pages/fitpage.hpp"
 #include "rehearse/ui/pages/framepage.hpp"
@@ -39,6 +41,10 @@ class SimulationPanel;
 
 using Step = app::Step;
 
+/// What the centre of the window shows: the frame with the organ composited into it (step 6 on), the
+/// frame with the organ drawn over it, or the organ alone in 3D.
+enum class ViewMode { Composited = 0, Overlay, ThreeD };
+
 class MainWindow : public QMainWindow {
   Q_OBJECT
  public:
@@ -68,6 +74,16 @@ class MainWindow : public QMainWindow {
   ContourPage* contourPage() const { return pages_.contour; }
   RigidPage* rigidPage() const { return pages_.rigid; }
   FitPage* fitPage() const { return pages_.fit; }
+  AppearancePage* appearancePage() const { return pages_.appearance; }
+  /// The composited view's engine (layers of the appearance estimate, compositor).
+  Composition* composition() const { return composition_; }
+  /// Composited, overlay or 3D; a composited view asked for without a current appearance estimate shows
+  /// the overlay and says why (viewModeText).
+  void setViewMode(ViewMode mode);
+  ViewMode viewMode() const { return viewMode_; }
+  /// True while the frame view shows the composited picture (the mode is Composited and it can be made).
+  bool showingComposited() const { return viewMode_ == ViewMode::Composited && composition_->ready(); }
+  QString viewModeText() const;
   CaseDocument* document() const { return doc_; }
   /// The case as it is now (never null once a case has loaded).
   const std::shared_ptr<const app::Case>& caseData() const { return doc_->data(); }
@@ -128,6 +144,8 @@ class MainWindow : public QMainWindow {
   void onCaseChanged(CaseDocument::Parts parts);
   void showCaseInfo();
   void refreshOverlay();
+  /// The frame view's picture for the view mode: the composited frame, or the frame under the overlay.
+  void showFrameLayer();
   void updateWorkflow();
   void setBusy(bool busy, const QString& message = {});
   void showProgress(double fraction, const QString& stage);
@@ -140,6 +158,7 @@ class MainWindow : public QMainWindow {
     ContourPage* contour = nullptr;
     RigidPage* rigid = nullptr;
     FitPage* fit = nullptr;
+    AppearancePage* appearance = nullptr;
     std::vector<StepPage*> all;  ///< in app::kSteps order (steps without a page yet are greyed)
   };
   /// The status bar's parts: the case's last sentence, the simulation, the distance, the cursor, progress.
@@ -147,6 +166,7 @@ class MainWindow : public QMainWindow {
     QLabel* caseText = nullptr;
     QLabel* simulation = nullptr;
     QLabel* distance = nullptr;
+    QLabel* viewMode = nullptr;         ///< composited / overlay / 3D, and why not composited
     QLabel* cursor = nullptr;
     QProgressBar* progress = nullptr;   ///< a fraction, or busy (no fraction) while a stage of unknown length runs
     QLabel* stage = nullptr;            ///< the running stage in words and the time since the job began
@@ -161,6 +181,11 @@ class MainWindow : public QMainWindow {
   FrameView* view_ = nullptr;
   std::unique_ptr<OrganOverlay> overlay_;
   OverlayPicture picture_;
+  Composition* composition_ = nullptr;
+  ViewMode viewMode_ = ViewMode::Overlay;
+  QStackedWidget* centre_ = nullptr;  ///< the frame view, or the 3D organ (ViewMode::ThreeD)
+  QWidget* centreOrgan_ = nullptr;
+  std::vector<QAction*> viewModeActions_;
   OrganView* organView_ = nullptr;
   OrganGLView* organGLView_ = nullptr;
   SimulationPanel* simulation_ = nullptr;

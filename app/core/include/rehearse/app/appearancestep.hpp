@@ -2,9 +2,12 @@
 // Step 6, the one appearance pipeline the GUI and the command line share: the registered organ's geometry
 // through the camera, Theta fitted to the frame (imaging/appearance_fit.hpp), the background behind the
 // organ inpainted, the albedo at rest; and composition of a deformed organ from them.
+#include "rehearse/app/case.hpp"
+
 #include <rehearse/imaging/appearance_fit.hpp>
 
 #include <functional>
+#include <memory>
 #include <vector>
 
 namespace rehearse::app {
@@ -27,6 +30,28 @@ struct AppearanceOutput {
   double inpaintMs = 0, totalMs = 0;
   double restPsnr = 0;   ///< the organ composed at rest against the frame, inside its mask (dB)
 };
+
+/// The case's registered organ (its fitted shape once there is one, at its pose), camera and frame.
+AppearanceInput appearanceInputFromCase(const Case& c);
+
+/// What the case keeps of a run (Theta, what it could tell, its report) and what it was fitted on.
+std::shared_ptr<const AppearanceEstimate> estimateFromRun(const AppearanceOutput& out, const Case& c, imaging::InpaintMethod inpaint);
+
+/// The estimate as JSON (Theta in DESIGN.md's THETA.json fields, the report, what it was fitted on), and
+/// back; the reader throws std::exception naming what is wrong.
+std::string appearanceEstimateToJson(const AppearanceEstimate& e);
+std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::string& text);
+
+/// What composition takes from the frame at rest, for a Theta: the specular-free image I_D, the background
+/// behind the organ I_B, and the albedo ratios. Throws imaging::InputError as runAppearance does.
+struct AppearanceLayers {
+  cv::Mat3b diffuse, background;
+  cv::Mat3f albedo;
+};
+AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appearance& theta);
+
+/// The compositor of `in`'s organ at rest (imaging::Compositor) with those layers.
+std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly);
 
 /// Throws imaging::InputError with one sentence for unusable input (organ behind the camera or off the
 /// frame, a frame of another size, nothing usable to fit).

@@ -12,10 +12,12 @@
 //   app/elasticfit.hpp        step 5, the one elastic-fit pipeline (GUI and `rehearse register`)
 //   app/casefolder.hpp        a case as a folder of ordinary files; the case file (SQLite) is ui/casefile
 //   app/materials.hpp         the case's material -> simcore materials by label (fit and simulation)
-// Appearance (step 6) adds a shared `appearance` part here; rehearsal recordings (step 7, replay) add a
-// list of recorded sessions; each is a shared_ptr<const ...> part like `fit`.
+//   app/appearancestep.hpp    step 6, the one appearance pipeline (GUI and `rehearse appearance`)
+// Rehearsal recordings (step 7, replay) add a list of recorded sessions, a shared_ptr<const ...> part like
+// `fit` and `appearance`.
 // No Qt here (tests/check_layering.cmake).
 #include <rehearse/imaging/appearance.hpp>
+#include <rehearse/imaging/appearance_fit.hpp>
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/fem.hpp>
@@ -24,6 +26,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -71,6 +74,26 @@ struct ElasticFit {
   std::string status;
 };
 
+/// Step 6's result: Theta fitted to the frame through the registered organ, what the frame did and did not
+/// determine, and what it was fitted on. A later change of the pose, the shape or the frame makes it stale
+/// (Case::appearanceCurrent): it is kept, but not used to compose, until estimated again.
+struct AppearanceEstimate {
+  imaging::Appearance theta;
+  bool highlightFound = false;
+  bool textureOnly = false;                    ///< the model explained too little: the frame's texture is shown, not re-shaded
+  std::array<bool, 3> ksMeasured{true, true, true};
+  double explained = 0;                        ///< share of the organ's shading the diffuse model explains
+  std::string status;                          ///< one sentence
+  std::string inpaint = "ns";                  ///< how I_B was filled (imaging::parseInpaintMethod)
+  std::vector<imaging::AppearanceStage> stages;
+  double restPsnr = 0;                         ///< dB, the organ composed at rest against the frame inside its mask
+  double totalMs = 0;
+  Pose pose;                                   ///< what it was fitted on: the pose ...
+  double shapeDigest = 0;                      ///< ... the shape (Case::shapeDigest) ...
+  int frameWidth = 0, frameHeight = 0;         ///< ... and the frame's size
+  double frameDigest = 0;                      ///< ... and content (Case::frameDigest)
+};
+
 /// The case's material, set in the Simulation panel and used by both the elastic fit and the simulation.
 struct MaterialSettings {
   simcore::MaterialModel model = simcore::MaterialModel::Corotational;
@@ -108,11 +131,17 @@ struct Case {
   std::vector<LandmarkPair> landmarks;  ///< step 4's pairs (model points on the rest shape)
   std::shared_ptr<const ElasticFit> fit;           ///< null until step 5 ran
   std::shared_ptr<const GroundTruth> groundTruth;  ///< null unless the case came with one
+  std::shared_ptr<const AppearanceEstimate> appearance;  ///< null until step 6 ran
 
   /// The organ's node positions as the user sees them (model frame): the fitted ones after step 5,
   /// the rest shape before. Sized like organ->volume.points.
   const std::vector<Eigen::Vector3d>& shapeNodes() const;
   bool hasFit() const { return fit && fit->nodes.size() == organ->volume.points.size(); }
+  /// A number that changes when the shape (shapeNodes) changes, and one for the frame's pixels.
+  double shapeDigest() const;
+  double frameDigest() const;
+  /// True when step 6's estimate was made on this pose, shape and frame (composition may use it).
+  bool appearanceCurrent() const;
   /// The organ's outer surface as drawn (the fitted shape once there is one).
   SurfaceView surfaceView() const;
   /// Same vertices, inner-structure triangles (the faces with one of `labels`); `storage` keeps them alive.

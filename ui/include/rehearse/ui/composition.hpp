@@ -1,0 +1,70 @@
+#pragma once
+// The composited view's engine (step 6 on): the case's organ re-shaded with its estimated appearance over
+// the frame's inpainted background, as the frame view shows it from then on. It keeps the layers the
+// estimate needs (I_D, I_B, the albedo; made by the appearance step, or remade on a worker when a case
+// is opened) and an imaging::Compositor, and composes a deformed shape (a simulation snapshot) on a
+// worker, the newest request winning, so the GUI never waits for it. No case state lives here.
+#include <rehearse/app/appearancestep.hpp>
+
+#include <QFutureWatcher>
+#include <QImage>
+#include <QObject>
+
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <vector>
+
+namespace rehearse::ui {
+
+class Composition : public QObject {
+  Q_OBJECT
+ public:
+  explicit Composition(QObject* parent = nullptr);
+  ~Composition() override;
+
+  /// Follows the case: with a current estimate whose layers are not here, remakes them on a worker (then
+  /// readyChanged(true)); without one, drops them (readyChanged(false)).
+  void setCase(std::shared_ptr<const app::Case> c);
+  /// The layers the appearance step has just made for `estimate`: used, instead of remade, when the case
+  /// holding that estimate arrives through setCase.
+  void offer(std::shared_ptr<const app::AppearanceEstimate> estimate, app::AppearanceLayers layers);
+  bool ready() const { return compositor_ != nullptr; }
+  /// Composes the organ with its volume nodes at `cameraPositions` (camera frame, metres, volume node order;
+  /// empty: the case's shape at rest) on a worker; emits composed(J). A request made while one runs
+  /// replaces any waiting one.
+  void request(std::vector<Eigen::Vector3d> cameraPositions = {});
+  /// The same on this thread (tests, screenshots); a null image when not ready.
+  QImage composeNow(const std::vector<Eigen::Vector3d>& cameraPositions = {}) const;
+  QImage diffuseImage() const { return diffuse_; }
+  QImage backgroundImage() const { return background_; }
+  QImage lastComposed() const { return last_; }
+  /// Why there is no composited view (empty when ready): a sentence for the status bar.
+  QString whyNot() const { return whyNot_; }
+  /// Waits for the worker (tests).
+  void waitForIdle();
+
+ signals:
+  void readyChanged(bool ready);
+  void composed(const QImage& j);
+
+ private:
+  struct Prepared;
+  void install(const std::shared_ptr<const app::Case>& c, const app::AppearanceLayers& layers, std::unique_ptr<imaging::Compositor> compositor);
+  void startNext();
+  std::vector<double> modelVertices(const std::vector<Eigen::Vector3d>& cameraPositions) const;
+
+  std::shared_ptr<const app::AppearanceEstimate> estimate_;  ///< the estimate the layers belong to
+  std::shared_ptr<const app::Case> case_;
+  std::shared_ptr<const imaging::Compositor> compositor_;
+  QImage diffuse_, background_, last_;
+  QString whyNot_;
+  QFutureWatcher<std::shared_ptr<Prepared>> prepareWatcher_;
+  std::shared_ptr<const app::AppearanceEstimate> preparing_;
+  QFutureWatcher<QImage> composeWatcher_;
+  std::optional<std::vector<Eigen::Vector3d>> waiting_;
+  std::shared_ptr<const app::AppearanceEstimate> offered_;
+  app::AppearanceLayers offeredLayers_;
+};
+
+}  // namespace rehearse::ui

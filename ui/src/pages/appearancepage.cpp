@@ -1,0 +1,217 @@
+#include "rehearse/ui/pages/appearancepage.hpp"
+
+#include "rehearse/ui/composition.hpp"
+
+#include <rehearse/app/appearancestep.hpp>
+
+#include <QAction>
+#include <QComboBox>
+#include <QGridLayout>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QLabel>
+#include <QPushButton>
+#include <QTableWidget>
+#include <QVBoxLayout>
+
+namespace rehearse::ui {
+
+AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget* parent)
+    : StepPage(wb, app::Step::Appearance, parent), composition_(composition) {
+  auto* layout = new QVBoxLayout(this);
+  auto* intro = new QLabel(tr("Estimate the light and the organ's reflectance from the frame through the registered organ; the frame "
+                              "view then shows the organ re-shaded into the frame (F2 composited, F3 overlay, F4 3D)."),
+                           this);
+  intro->setWordWrap(true);
+  layout->addWidget(intro);
+  auto* fillRow = new QHBoxLayout;
+  auto* fillLabel = new QLabel(tr("&Background fill:"), this);
+  inpaint_ = new QComboBox(this);
+  inpaint_->setObjectName(QStringLiteral("appearanceInpaint"));
+  inpaint_->setToolTip(tr("How the frame behind the organ is filled, shown where the organ moves away. Navier-Stokes is the "
+                          "best trade-off measured on a real frame (BENCHMARKS.md)."));
+  inpaint_->addItem(tr("Navier-Stokes (default)"), QStringLiteral("ns"));
+  inpaint_->addItem(tr("Telea"), QStringLiteral("telea"));
+  inpaint_->addItem(tr("Frequency-selective (slow)"), QStringLiteral("fsr"));
+  inpaint_->addItem(tr("Shift-map (slowest)"), QStringLiteral("shiftmap"));
+  fillLabel->setBuddy(inpaint_);
+  fillRow->addWidget(fillLabel);
+  fillRow->addWidget(inpaint_, 1);
+  layout->addLayout(fillRow);
+  auto* row = new QHBoxLayout;
+  auto* run = new QPushButton(tr("Estimate Appearance (F10)"), this);
+  run->setObjectName(QStringLiteral("appearanceRun"));
+  connect(run, &QPushButton::clicked, this, &AppearancePage::estimate);
+  auto* clear = new QPushButton(tr("Clear"), this);
+  clear->setObjectName(QStringLiteral("appearanceClear"));
+  clear->setToolTip(tr("Forget the estimate (Ctrl+Z brings it back)"));
+  connect(clear, &QPushButton::clicked, this, [this] {
+    if (data() && data()->appearance) wb_.doc->edit(tr("Clear appearance"), [](app::Case& k) { k.appearance.reset(); });
+  });
+  row->addWidget(run);
+  row->addWidget(clear);
+  layout->addLayout(row);
+  // F10 from anywhere: to this step, and estimate.
+  auto* key = new QAction(this);
+  key->setShortcut(QKeySequence(Qt::Key_F10));
+  connect(key, &QAction::triggered, this, &AppearancePage::estimate);
+  wb_.window->addAction(key);
+  status_ = new QLabel(this);
+  status_->setObjectName(QStringLiteral("appearanceStatus"));
+  status_->setWordWrap(true);
+  status_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  layout->addWidget(status_);
+  // The fitted parameters, as DejaVu's Table 1: the light's position and per-channel reflectances.
+  table_ = new QTableWidget(4, 3, this);
+  table_->setObjectName(QStringLiteral("appearanceTable"));
+  table_->setHorizontalHeaderLabels({tr("x / R"), tr("y / G"), tr("z / B")});
+  table_->setVerticalHeaderLabels({tr("Light (mm)"), tr("k_d"), tr("k_s"), tr("\u03c3 (rad)")});
+  table_->setWordWrap(false);
+  table_->setToolTip(tr("Theta as DejaVu's Table 1: the light's position in the camera frame, the diffuse and specular reflectance per "
+                        "colour channel and the roughness. * marks a channel the frame does not measure (clipped over its highlight)."));
+  table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
+  table_->horizontalHeader()->setSectionResizeMode(QHeaderView::Stretch);
+  table_->setVerticalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  table_->verticalHeader()->setSectionResizeMode(QHeaderView::Fixed);
+  table_->verticalHeader()->setDefaultSectionSize(24);
+  table_->setFixedHeight(table_->horizontalHeader()->sizeHint().height() + 4 * 24 + 4);
+  layout->addWidget(table_);
+  report_ = new QLabel(this);
+  report_->setObjectName(QStringLiteral("appearanceReport"));
+  report_->setWordWrap(true);
+  report_->setTextInteractionFlags(Qt::TextSelectableByMouse);
+  layout->addWidget(report_);
+  // The two layers the composition is made of.
+  auto* layers = new QGridLayout;
+  diffuse_ = new QLabel(this);
+  diffuse_->setObjectName(QStringLiteral("appearanceDiffuse"));
+  background_ = new QLabel(this);
+  background_->setObjectName(QStringLiteral("appearanceBackground"));
+  for (QLabel* l : {diffuse_, background_}) {
+    l->setMinimumSize(140, 79);
+    l->setMaximumHeight(90);
+    l->setAlignment(Qt::AlignCenter);
+    l->setFrameShape(QFrame::StyledPanel);
+  }
+  diffuse_->setToolTip(tr("The frame without its specular highlights (I_D): what the diffuse part is fitted to"));
+  background_->setToolTip(tr("The frame with the organ filled in (I_B): what shows where the organ moves away"));
+  layers->addWidget(new QLabel(tr("Diffuse image I_D"), this), 0, 0);
+  layers->addWidget(new QLabel(tr("Background I_B"), this), 0, 1);
+  layers->addWidget(diffuse_, 1, 0);
+  layers->addWidget(background_, 1, 1);
+  layout->addLayout(layers);
+  layout->addStretch(1);
+  connect(composition_, &Composition::readyChanged, this, &AppearancePage::showLayers);
+}
+
+void AppearancePage::showLayers() {
+  auto thumb = [](const QImage& img, QLabel* l) {
+    if (img.isNull()) {
+      l->setPixmap({});
+      l->setText(tr("(none)"));
+    } else {
+      l->setPixmap(QPixmap::fromImage(img.scaled(l->width() - 4, l->height() - 4, Qt::KeepAspectRatio, Qt::SmoothTransformation)));
+    }
+  };
+  thumb(composition_->diffuseImage(), diffuse_);
+  thumb(composition_->backgroundImage(), background_);
+}
+
+void AppearancePage::refresh(const app::Case& c) {
+  const auto& a = c.appearance;
+  for (int r = 0; r < 4; ++r)
+    for (int k = 0; k < 3; ++k) {
+      QString text;
+      if (a) {
+        const auto& t = a->theta;
+        if (r == 0) text = QString::number(1e3 * t.lightPosition[k], 'f', 1);
+        else if (r == 1) text = QString::number(t.kd[k], 'g', 4);
+        else if (r == 2) text = a->highlightFound ? QString::number(t.ks[k], 'g', 4) + (a->ksMeasured[static_cast<std::size_t>(k)] ? QString() : QStringLiteral(" *"))
+                                                  : tr("not determined");
+        else if (k == 0) text = a->highlightFound ? QString::number(t.roughness, 'f', 3) : tr("not determined");
+      }
+      auto* item = table_->item(r, k);
+      if (!item) table_->setItem(r, k, item = new QTableWidgetItem);
+      item->setText(text);
+    }
+  if (!a) {
+    report_->clear();
+    if (!wb_.jobs->isRunning())
+      status_->setText(app::missingFor(c, app::Step::Appearance).empty()
+                           ? tr("No appearance yet: F10 estimates it from the frame and the organ as registered.")
+                           : tr("The appearance needs %1.").arg(QString::fromStdString(app::missingFor(c, app::Step::Appearance))));
+    status_->setStyleSheet(QString());
+    return;
+  }
+  QStringList lines;
+  for (const auto& s : a->stages)
+    lines << tr("%1: %2 levels, %3 ms").arg(QString::fromStdString(s.name)).arg(s.rms, 0, 'f', 2).arg(s.ms, 0, 'f', 0);
+  lines << tr("Explains %1 % of the shading; at rest %2 dB inside the organ; %3 s in all.")
+               .arg(100 * a->explained, 0, 'f', 0)
+               .arg(a->restPsnr, 0, 'f', 1)
+               .arg(a->totalMs / 1000, 0, 'f', 2);
+  report_->setText(lines.join(QLatin1Char('\n')));
+  if (!wb_.jobs->isRunning()) {
+    QString text = QString::fromStdString(a->status);
+    if (!text.isEmpty()) text[0] = text[0].toUpper();
+    if (!c.appearanceCurrent())
+      text = tr("STALE: estimated at another pose, shape or frame; the composited view is off until it is estimated again (F10). %1").arg(text);
+    status_->setText(text);
+    const bool warn = a->textureOnly || !a->highlightFound || !c.appearanceCurrent();
+    status_->setStyleSheet(warn ? QStringLiteral("color: %1; font-weight: bold;").arg(palette::warning().name()) : QString());
+  }
+}
+
+void AppearancePage::estimate() {
+  if (!wb_.doc->hasCase()) return;
+  wb_.goToStep(app::Step::Appearance);
+  const auto c = data();
+  if (const std::string missing = app::missingFor(*c, app::Step::Appearance); !missing.empty()) {
+    status_->setText(tr("The appearance needs %1.").arg(QString::fromStdString(missing)));
+    return;
+  }
+  app::AppearanceInput input = app::appearanceInputFromCase(*c);
+  const imaging::InpaintMethod method = imaging::parseInpaintMethod(inpaint_->currentData().toString().toStdString());
+  input.inpaint = method;
+  status_->setText(tr("Estimating... (Esc cancels)"));
+  status_->setStyleSheet(QString());
+  wb_.jobs->run(tr("Estimating the appearance..."), [this, c, input, method](const std::atomic<bool>& cancel, const auto& progress) mutable -> std::function<void()> {
+    input.progress = [&cancel, &progress](double share, const std::string& what) {
+      progress(share, QString::fromStdString(what));
+      return !cancel.load();
+    };
+    try {
+      const app::AppearanceOutput out = app::runAppearance(input);
+      auto estimate = app::estimateFromRun(out, *c, method);
+      app::AppearanceLayers layers{out.fit.separation.diffuse, out.background, out.albedo};
+      return [this, c, estimate, layers] {
+        if (data()->pose.t != c->pose.t || data()->pose.R != c->pose.R || data()->shapeDigest() != c->shapeDigest()) {
+          status_->setText(tr("The organ moved while its appearance was estimated; estimate it again (F10)."));
+          emit estimated(false, status_->text());
+          return;
+        }
+        composition_->offer(estimate, layers);
+        wb_.doc->edit(tr("Estimate appearance"), [&](app::Case& k) { k.appearance = estimate; });
+        const QString said = QString::fromStdString(estimate->status);
+        wb_.status(tr("Appearance: %1 (%2 s)").arg(said).arg(estimate->totalMs / 1000, 0, 'f', 1));
+        emit estimated(true, said);
+      };
+    } catch (const imaging::AppearanceCancelled&) {
+      return [this] {
+        status_->setText(tr("Cancelled; the case is unchanged."));
+        wb_.status(status_->text());
+        emit estimated(false, status_->text());
+      };
+    } catch (const std::exception& e) {
+      const QString message = QString::fromUtf8(e.what());
+      return [this, message] {
+        status_->setText(tr("The appearance could not be estimated: %1").arg(message));
+        status_->setStyleSheet(QStringLiteral("color: %1; font-weight: bold;").arg(palette::warning().name()));
+        wb_.status(status_->text());
+        emit estimated(false, status_->text());
+      };
+    }
+  });
+}
+
+}  // namespace rehearse::ui
