@@ -1,6 +1,9 @@
 #include "rehearse/ui/composition.hpp"
 
 #include "rehearse/ui/casedocument.hpp"
+#include "rehearse/ui/glcompositor.hpp"
+
+#include <QTimer>
 
 #include <QtConcurrent/QtConcurrent>
 
@@ -43,8 +46,16 @@ Composition::~Composition() {
   composeWatcher_.waitForFinished();
 }
 
+void Composition::useOpenGL(bool on) {
+  gl_.reset();
+  glPrepared_ = false;
+  if (!on) return;
+  gl_ = std::make_unique<GLCompositor>();
+  if (!gl_->valid()) gl_.reset();
+}
+
 void Composition::waitForIdle() {
-  while (prepareWatcher_.isRunning() || composeWatcher_.isRunning() || waiting_) {
+  while (prepareWatcher_.isRunning() || composeWatcher_.isRunning() || waiting_ || glPending_) {
     prepareWatcher_.waitForFinished();
     composeWatcher_.waitForFinished();
     QCoreApplication::processEvents();  // the finish handlers run here (and may start the waiting request)
@@ -56,6 +67,7 @@ void Composition::setCase(std::shared_ptr<const app::Case> c) {
   const bool wasReady = ready();
   auto drop = [&](const QString& why) {
     compositor_.reset();
+    glPrepared_ = false;
     estimate_.reset();
     diffuse_ = background_ = last_ = QImage();
     waiting_.reset();
@@ -105,6 +117,20 @@ void Composition::offer(std::shared_ptr<const app::AppearanceEstimate> estimate,
 void Composition::install(const std::shared_ptr<const app::Case>& c, const app::AppearanceLayers& layers, std::unique_ptr<imaging::Compositor> compositor) {
   estimate_ = c->appearance;
   compositor_ = std::move(compositor);
+  glPrepared_ = false;
+  if (gl_) {
+    const app::AppearanceInput in = app::appearanceInputFromCase(*c);
+    imaging::CompositionInput ci;
+    ci.camera = in.camera;
+    ci.pose = in.pose;
+    ci.rest = ci.deformed = in.surface();
+    ci.frame = in.frame;
+    ci.background = layers.background;
+    ci.albedo = layers.albedo;
+    ci.theta = c->appearance->theta;
+    ci.textureOnly = c->appearance->textureOnly;
+    glPrepared_ = gl_->prepare(ci);  // false: the CPU compositor draws instead
+  }
   diffuse_ = frameToQImage(layers.diffuse);
   background_ = frameToQImage(layers.background);
   whyNot_.clear();
@@ -127,6 +153,10 @@ std::vector<double> Composition::modelVertices(const std::vector<Eigen::Vector3d
 
 QImage Composition::composeNow(const std::vector<Eigen::Vector3d>& cameraPositions) const {
   if (!compositor_) return {};
+  if (usesOpenGL()) {
+    QImage j;
+    if (gl_->compose(modelVertices(cameraPositions), j, 4)) return j;
+  }
   try {
     return frameToQImage(compositor_->compose(modelVertices(cameraPositions), 2));
   } catch (const std::exception&) {
@@ -137,6 +167,24 @@ QImage Composition::composeNow(const std::vector<Eigen::Vector3d>& cameraPositio
 void Composition::request(std::vector<Eigen::Vector3d> cameraPositions) {
   if (!ready()) return;
   waiting_ = std::move(cameraPositions);
+  if (usesOpenGL()) {
+    // On this thread (the context's), once the events queued now are handled: the newest request wins.
+    if (!glPending_) {
+      glPending_ = true;
+      QTimer::singleShot(0, this, [this] {
+        glPending_ = false;
+        if (!waiting_ || !compositor_) return;
+        const std::vector<Eigen::Vector3d> positions = std::move(*waiting_);
+        waiting_.reset();
+        const QImage j = composeNow(positions);
+        if (!j.isNull()) {
+          last_ = j;
+          emit composed(last_);
+        }
+      });
+    }
+    return;
+  }
   if (!composeWatcher_.isRunning()) startNext();
 }
 

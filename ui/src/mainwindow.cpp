@@ -168,6 +168,7 @@ void MainWindow::buildDocks() {
   organDock->setObjectName(QStringLiteral("organDock"));
   const bool openGL = !softwareRenderingFlag() && OrganGLView::openGLAvailable();
   overlay_ = std::make_unique<OrganOverlay>(openGL);
+  composition_->useOpenGL(overlay_->usesOpenGL());  // the composited view as the overlay: OpenGL where it works
   if (openGL) {
     organGLView_ = new OrganGLView(organDock);
     organGLView_->setObjectName(QStringLiteral("organView"));

@@ -17,6 +17,8 @@
 
 namespace rehearse::ui {
 
+class GLCompositor;
+
 class Composition : public QObject {
   Q_OBJECT
  public:
@@ -30,6 +32,11 @@ class Composition : public QObject {
   /// holding that estimate arrives through setCase.
   void offer(std::shared_ptr<const app::AppearanceEstimate> estimate, app::AppearanceLayers layers);
   bool ready() const { return compositor_ != nullptr; }
+  /// Composes with OpenGL (GLCompositor, on this thread) when a context can be made; else, or when off,
+  /// with the CPU compositor on a worker. Call once, before the first case.
+  void useOpenGL(bool on);
+  /// True when the composited view is drawn by OpenGL now.
+  bool usesOpenGL() const { return gl_ != nullptr && glPrepared_; }
   /// Composes the organ with its volume nodes at `cameraPositions` (camera frame, metres, volume node order;
   /// empty: the case's shape at rest) on a worker; emits composed(J). A request made while one runs
   /// replaces any waiting one.
@@ -63,6 +70,9 @@ class Composition : public QObject {
   std::shared_ptr<const app::AppearanceEstimate> preparing_;
   QFutureWatcher<QImage> composeWatcher_;
   std::optional<std::vector<Eigen::Vector3d>> waiting_;
+  std::unique_ptr<GLCompositor> gl_;
+  bool glPrepared_ = false;
+  bool glPending_ = false;  ///< a GL composition is queued on this thread's event loop
   std::shared_ptr<const app::AppearanceEstimate> offered_;
   app::AppearanceLayers offeredLayers_;
 };
