@@ -46,12 +46,12 @@ Composition::~Composition() {
   composeWatcher_.waitForFinished();
 }
 
-void Composition::useOpenGL(bool on) {
+void Composition::useOpenGL(bool on, bool evenInSoftware) {
   gl_.reset();
   glPrepared_ = false;
   if (!on) return;
   gl_ = std::make_unique<GLCompositor>();
-  if (!gl_->valid()) gl_.reset();
+  if (!gl_->valid() || (gl_->softwareRenderer() && !evenInSoftware)) gl_.reset();
 }
 
 void Composition::waitForIdle() {

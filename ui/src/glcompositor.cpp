@@ -106,7 +106,7 @@ struct GLCompositor::Impl {
   std::unique_ptr<QOpenGLFramebufferObject> fbo;
   int fboSamples = -1;
   GLuint background = 0, albedo = 0, frame = 0, restDepth = 0;
-  bool ok = false, prepared = false;
+  bool ok = false, prepared = false, software = false;
   imaging::Camera camera;
   Pose pose;
   std::vector<int> triangles;
@@ -184,6 +184,9 @@ GLCompositor::GLCompositor() : d_(std::make_unique<Impl>()) {
   d_->surface.setFormat(got);
   d_->surface.create();
   if (!d_->context.makeCurrent(&d_->surface)) return;
+  const QString renderer = QString::fromLatin1(reinterpret_cast<const char*>(d_->context.functions()->glGetString(GL_RENDERER)));
+  d_->software = renderer.contains(QLatin1String("llvmpipe"), Qt::CaseInsensitive) || renderer.contains(QLatin1String("softpipe"), Qt::CaseInsensitive) ||
+                 renderer.contains(QLatin1String("swrast"), Qt::CaseInsensitive);
   d_->ok = d_->quad.addShaderFromSourceCode(QOpenGLShader::Vertex, kQuadVertex) && d_->quad.addShaderFromSourceCode(QOpenGLShader::Fragment, kQuadFragment) &&
            d_->quad.link() && d_->organ.addShaderFromSourceCode(QOpenGLShader::Vertex, kOrganVertex) &&
            d_->organ.addShaderFromSourceCode(QOpenGLShader::Fragment, kOrganFragment) && d_->organ.link();
@@ -203,6 +206,8 @@ GLCompositor::~GLCompositor() {
 }
 
 bool GLCompositor::valid() const { return d_->ok; }
+
+bool GLCompositor::softwareRenderer() const { return d_->software; }
 
 bool GLCompositor::prepare(const imaging::CompositionInput& in) {
   Impl& d = *d_;

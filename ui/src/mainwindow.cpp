@@ -371,7 +371,8 @@ void MainWindow::showFrameLayer() {
 QString MainWindow::viewModeText() const {
   switch (viewMode_) {
     case ViewMode::Composited:
-      return composition_->ready() ? tr("Composited") : tr("Overlay (not composited: %1)").arg(composition_->whyNot());
+      return composition_->ready() ? (composition_->usesOpenGL() ? tr("Composited (OpenGL)") : tr("Composited"))
+                                   : tr("Overlay (not composited: %1)").arg(composition_->whyNot());
     case ViewMode::Overlay: return tr("Overlay");
     case ViewMode::ThreeD: return tr("3D");
   }

@@ -32,9 +32,10 @@ class Composition : public QObject {
   /// holding that estimate arrives through setCase.
   void offer(std::shared_ptr<const app::AppearanceEstimate> estimate, app::AppearanceLayers layers);
   bool ready() const { return compositor_ != nullptr; }
-  /// Composes with OpenGL (GLCompositor, on this thread) when a context can be made; else, or when off,
-  /// with the CPU compositor on a worker. Call once, before the first case.
-  void useOpenGL(bool on);
+  /// Composes with OpenGL (GLCompositor, on this thread) when a hardware context can be made (or any
+  /// context, with `evenInSoftware`: under llvmpipe the CPU compositor on a worker is faster and keeps the
+  /// GUI thread free, bench_gl_compose); else with the CPU compositor on a worker. Call before the first case.
+  void useOpenGL(bool on, bool evenInSoftware = false);
   /// True when the composited view is drawn by OpenGL now.
   bool usesOpenGL() const { return gl_ != nullptr && glPrepared_; }
   /// Composes the organ with its volume nodes at `cameraPositions` (camera frame, metres, volume node order;

@@ -22,6 +22,9 @@ class GLCompositor {
   GLCompositor& operator=(const GLCompositor&) = delete;
   /// False when no OpenGL 3.3 context could be made (then every call fails).
   bool valid() const;
+  /// True when the context is a software rasteriser (Mesa's llvmpipe, softpipe, swrast): there the shaded
+  /// fragments cost CPU time on the calling thread, and the CPU compositor on a worker is the better path.
+  bool softwareRenderer() const;
   /// Uploads the organ at rest and its layers (everything in `rest` but `deformed`). False when OpenGL failed.
   bool prepare(const imaging::CompositionInput& rest);
   /// J (Format_RGB888, the camera's size) for the organ moved to `deformedVertices` (model frame, 3n,
