@@ -362,19 +362,43 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
         const int v = std::min({c[0], c[1], c[2]});
         if (v > bestValue[l]) bestValue[l] = v, bestAt[l] = {x, y};
       }
-    Eigen::Matrix3d A = 1e-3 * Eigen::Matrix3d::Identity();  // a weak pull towards the camera keeps one ray's problem well posed
-    Eigen::Vector3d b = Eigen::Vector3d::Zero();
+    // Each highlight's mirrored view ray (a speck of a pixel or two is noise or a rim glint: left out). The
+    // scope carries its light beside the lens, so each ray says "the light is about where I pass the
+    // camera": the point of each ray nearest the camera, averaged weighted by the highlight's size, after
+    // dropping the points far from their median (a highlight seen through a wrong normal). Nearly parallel
+    // rays (one smooth highlight) determine no crossing point, but this one.
+    struct Guess {
+      Eigen::Vector3d x;
+      double w;
+    };
+    std::vector<Guess> guesses;
+    std::vector<int> size(static_cast<std::size_t>(n), 0);
+    for (int y = 0; y < labels.rows; ++y)
+      for (int x = 0; x < labels.cols; ++x) ++size[static_cast<std::size_t>(std::max(0, labels(y, x)))];
     for (int l = 1; l < n; ++l) {
-      if (bestValue[l] < 0) continue;
+      if (bestValue[l] < 0 || size[static_cast<std::size_t>(l)] < 5) continue;
       const cv::Vec3f pf = g.position(bestAt[l]), nf = g.normal(bestAt[l]);
       const Eigen::Vector3d p(pf[0], pf[1], pf[2]), nn(nf[0], nf[1], nf[2]);
       const Eigen::Vector3d v = (-p).normalized();
       const Eigen::Vector3d r = (2 * nn.dot(v) * nn - v).normalized();
-      const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - r * r.transpose();
-      A += across;
-      b += across * p;
+      const double along = std::max(0.0, -p.dot(r));  // the ray p + s r, s >= 0, nearest the origin
+      guesses.push_back({p + along * r, static_cast<double>(size[static_cast<std::size_t>(l)])});
     }
-    light = A.ldlt().solve(b);
+    if (!guesses.empty()) {
+      std::vector<double> xs[3];
+      for (const auto& q : guesses)
+        for (int k = 0; k < 3; ++k) xs[k].push_back(q.x[k]);
+      Eigen::Vector3d mid;
+      for (int k = 0; k < 3; ++k) mid[k] = median(xs[k]);
+      std::vector<double> d;
+      for (const auto& q : guesses) d.push_back((q.x - mid).norm());
+      const double limit = std::max(3 * median(d), 0.005);
+      Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+      double w = 0;
+      for (std::size_t i = 0; i < guesses.size(); ++i)
+        if (d[i] <= limit) sum += guesses[i].w * guesses[i].x, w += guesses[i].w;
+      light = w > 0 ? Eigen::Vector3d(sum / w) : mid;
+    }
     if (!light.allFinite()) light = Eigen::Vector3d(0, 0, 0.1);
   }
   res.stages.push_back({"light from highlights", 0, ms(t0, tick()), 0});  // its residual: at the start of the next stage
@@ -393,7 +417,25 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
   double sigma = 0.1;
   res.stages.front().rms = rmsLevels(diffuseSamples, light, sigma, false);  // what the start light leaves on I_D
   res.stages.front().pixels = diffuseSamples.size();
-  bool settled = refine(diffuseSamples, light, sigma, false);
+  // The highlights' light, and the scope's usual places for it (at the lens; 100 mm in front of it): each
+  // refined, the one that explains I_D best kept (a wrong highlight, or a model that is not the frame's
+  // mesh, can put the first start in another valley).
+  bool settled = false;
+  {
+    std::vector<Eigen::Vector3d> starts{light};
+    for (const Eigen::Vector3d& other : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 0.1)})
+      if ((other - light).norm() > 0.02) starts.push_back(other);
+    double best = std::numeric_limits<double>::infinity();
+    Eigen::Vector3d bestLight = light;
+    for (const auto& start : starts) {
+      Eigen::Vector3d l = start;
+      double sg = sigma;
+      const bool ok = refine(diffuseSamples, l, sg, false);
+      const double cost = rmsLevels(diffuseSamples, l, sg, false);
+      if (cost < best) best = cost, bestLight = l, settled = ok;
+    }
+    light = bestLight;
+  }
   diffuseSamples = trimmed(diffuseSamples, light, sigma, false);
   settled = refine(diffuseSamples, light, sigma, false) && settled;
   {

@@ -93,6 +93,24 @@ class TestAppearance : public QObject {
     checkTheta(r);
   }
 
+  // A frame the registered mesh did not make: the phantom meshed about four times finer (its own surface
+  // and renderer), with the scope's vignette, noise and JPEG, fitted through the coarse mesh placed where the
+  // fine one is (the same shape in the same model frame, discretised differently).
+  void thetaRecoveredFromAFinerMeshsFrame() {
+    phantom::PhantomOptions o;
+    o.targetTets = 16000;
+    const phantom::Phantom fine = phantom::makePhantom(o);
+    QVERIFY(fine.volume.tets.size() > 3 * c_.volume.tets.size());
+    cv::Mat3b frame = fine.frame.clone();
+    if (!std::getenv("T_NOVIG")) imaging::applyScopeVignette(frame);
+    if (!std::getenv("T_NONOISE")) frame = withNoiseAndJpeg(frame, 2.0, 85);
+    if (std::getenv("T_DUMP")) cv::imwrite("/tmp/fineframe.png", frame);
+    const auto g = imaging::surfaceGeometry(c_.camera, fine.truePose, c_.surfaceView());
+    const auto r = imaging::fitAppearance(frame, g);
+    qInfo("frame from %zu surface triangles, fitted through %zu: %s", fine.surface.size(), c_.surface.size(), r.status.c_str());
+    checkTheta(r);
+  }
+
   // A dimmer organ whose red does not clip around the highlight: every channel's ks is measured. The frame
   // is rendered at another supersampling (3x, not the phantom's 2x) over another background.
   void thetaRecoveredWhenNothingClips() {
