@@ -46,17 +46,38 @@ int main(int argc, char** argv) {
   const double distance = (t.lightPosition - c.truePose.apply(phantom::centreOfGravity(c.volume))).norm();
   const auto g = imaging::surfaceGeometry(c.camera, c.truePose, c.surfaceView());
   std::ofstream csv(out + "/appearance.csv");
-  csv << "samples,fit_ms_median,light_error_pct_of_distance,kd_error_pct_max,ks_error_pct_max_measured,roughness_error_pct\n";
+  csv << "setting,samples,scale,fit_ms_median,light_error_pct_of_distance,kd_error_pct_max,ks_error_pct_max_measured,roughness_error_pct,model_psnr_db\n";
   std::printf("phantom at %dx%d, %zu tets; light %.0f mm from the organ\n", c.camera.width, c.camera.height, c.volume.tets.size(), 1e3 * distance);
-  std::printf("%8s %9s %10s %8s %8s %10s\n", "samples", "fit ms", "light %", "kd %", "ks %", "sigma %");
-  for (std::size_t samples : {2500, 5000, 10000, 20000, 40000, 80000}) {
+  std::printf("%-22s %9s %9s %8s %8s %9s %11s\n", "setting", "fit ms", "light %", "kd %", "ks %", "sigma %", "model dB");
+  // What Theta alone reproduces (albedo 1, no texture): the model rendered with it against the frame inside
+  // the organ, at full resolution. The rest-pose composition would hide Theta's errors in the albedo.
+  cv::Mat1b inner;
+  cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+  struct Point {
+    std::string setting;
+    double ms, error, db;
+    bool resolution;
+  };
+  std::vector<Point> points;
+  auto sweep = [&](const std::string& setting, std::size_t samples, double scale) {
+    imaging::Camera cam = c.camera;  // the frame and camera scaled (pixel centres kept)
+    cv::Mat3b img = frame;
+    if (scale != 1.0) {
+      cam.K(0, 0) *= scale, cam.K(0, 1) *= scale, cam.K(1, 1) *= scale;
+      cam.K(0, 2) = scale * (cam.K(0, 2) + 0.5) - 0.5;
+      cam.K(1, 2) = scale * (cam.K(1, 2) + 0.5) - 0.5;
+      cam.width = static_cast<int>(std::lround(cam.width * scale));
+      cam.height = static_cast<int>(std::lround(cam.height * scale));
+      cv::resize(frame, img, cv::Size(cam.width, cam.height), 0, 0, cv::INTER_AREA);
+    }
     std::vector<double> ms;
     imaging::AppearanceFitResult r;
     for (int k = 0; k < repeat; ++k) {
       imaging::AppearanceFitOptions o;
       o.maxSamples = samples;
       const auto t0 = std::chrono::steady_clock::now();
-      r = imaging::fitAppearance(frame, g, o);
+      const auto geo = scale == 1.0 ? g : imaging::surfaceGeometry(cam, c.truePose, c.surfaceView());
+      r = imaging::fitAppearance(img, geo, o);
       ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     }
     std::sort(ms.begin(), ms.end());
@@ -67,8 +88,45 @@ int main(int argc, char** argv) {
     }
     const double light = 100 * (r.theta.lightPosition - t.lightPosition).norm() / distance;
     const double sigma = 100 * std::abs(r.theta.roughness - t.roughness) / t.roughness;
-    std::printf("%8zu %9.0f %10.3f %8.2f %8.2f %10.2f\n", samples, ms[ms.size() / 2], light, kd, ks, sigma);
-    csv << samples << "," << ms[ms.size() / 2] << "," << light << "," << kd << "," << ks << "," << sigma << "\n";
+    const double db = imaging::psnr(frame, imaging::renderShaded(c.camera, c.truePose, c.surfaceView(), r.theta, frame, 1), inner);
+    std::printf("%-22s %9.0f %9.3f %8.2f %8.2f %9.2f %11.1f\n", setting.c_str(), ms[ms.size() / 2], light, kd, ks, sigma, db);
+    csv << setting << "," << samples << "," << scale << "," << ms[ms.size() / 2] << "," << light << "," << kd << "," << ks << "," << sigma << "," << db << "\n";
+    points.push_back({setting, ms[ms.size() / 2], std::max({light, kd, ks, sigma}), db, scale != 1.0});
+  };
+  for (std::size_t samples : {2500, 5000, 10000, 20000, 40000, 80000}) sweep(std::to_string(samples) + " px/stage", samples, 1.0);
+  for (double scale : {0.5, 0.25, 0.125}) sweep("1/" + std::to_string(static_cast<int>(std::lround(1 / scale))) + " resolution", 10000, scale);
+  // The plot: worst parameter error (%) and the model's PSNR against the fit's time, one point per setting.
+  {
+    const int W = 900, H = 440, left = 70, right = 40, top = 40, bottom = 70;
+    cv::Mat3b plot(H, W, cv::Vec3b(255, 255, 255));
+    double tMax = 0, eMax = 0;
+    for (const auto& q : points) tMax = std::max(tMax, q.ms), eMax = std::max(eMax, q.error);
+    tMax *= 1.1;
+    eMax = std::max(1.0, std::ceil(eMax * 1.2));
+    const int pw = (W - left - right) / 2 - 30;
+    for (int panel = 0; panel < 2; ++panel) {
+      const int x0 = left + panel * (pw + 60), x1 = x0 + pw, y0 = top, y1 = H - bottom;
+      const double lo = panel == 0 ? 0 : 30, hi = panel == 0 ? eMax : 60;
+      cv::rectangle(plot, {x0, y0}, {x1, y1}, cv::Scalar(0, 0, 0));
+      cv::putText(plot, panel == 0 ? "worst parameter error (%)" : "model PSNR inside the organ (dB)", {x0, y0 - 12}, cv::FONT_HERSHEY_SIMPLEX, 0.5,
+                  cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+      cv::putText(plot, "fit time (ms)", {x0 + pw / 2 - 50, H - 15}, cv::FONT_HERSHEY_SIMPLEX, 0.5, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+      for (int i = 0; i <= 4; ++i) {
+        const int yy = y1 - (y1 - y0) * i / 4, xx = x0 + (x1 - x0) * i / 4;
+        cv::putText(plot, cv::format("%.3g", lo + (hi - lo) * i / 4), {x0 - 45, yy + 4}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+        cv::putText(plot, cv::format("%.0f", tMax * i / 4), {xx - 12, y1 + 18}, cv::FONT_HERSHEY_SIMPLEX, 0.4, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+      }
+      for (const auto& q : points) {
+        const double v = panel == 0 ? q.error : q.db;
+        const cv::Point at(x0 + static_cast<int>((x1 - x0) * q.ms / tMax), y1 - static_cast<int>((y1 - y0) * std::clamp((v - lo) / (hi - lo), 0.0, 1.0)));
+        const cv::Scalar colour = q.resolution ? cv::Scalar(40, 40, 220) : cv::Scalar(200, 90, 20);
+        cv::circle(plot, at, 4, colour, cv::FILLED, cv::LINE_AA);
+        if (panel == 0) cv::putText(plot, q.setting, at + cv::Point(6, -4), cv::FONT_HERSHEY_SIMPLEX, 0.33, colour, 1, cv::LINE_AA);
+      }
+    }
+    cv::putText(plot, "blue: pixels per stage at 1920x1080; red: 10,000 px at a lower resolution", {left, H - 35 + 30}, cv::FONT_HERSHEY_SIMPLEX, 0.4,
+                cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+    cv::imwrite(out + "/appearance-error-vs-time.png", plot);
   }
   // The whole step as the GUI and `rehearse appearance` run it.
   app::AppearanceInput in;

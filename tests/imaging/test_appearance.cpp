@@ -4,6 +4,7 @@
 // cannot, reproduce the frame at rest, and carry the frame's texture with the tissue when it deforms.
 #include "test_support.hpp"
 
+#include "calculix.hpp"
 #include "phantom/phantom.hpp"
 
 #include <rehearse/imaging/appearance_fit.hpp>
@@ -217,7 +218,9 @@ class TestAppearance : public QObject {
 
   // The texture follows the tissue: dots painted on the organ in the frame land, after the organ moves,
   // where the moved surface points under them project (within 1 px); the shading follows the new normals.
-  void textureFollowsTheTissue() {
+  // Dots painted on the organ in the frame, the organ's nodes moved to `movedNodes` (model frame): returns
+  // the worst distance (px) from a dot in the composition to where its tissue went, and how far the dots moved.
+  void checkTextureFollows(const std::vector<Eigen::Vector3d>& movedNodes, const char* what, double minMovePx) {
     const auto g = imaging::surfaceGeometry(c_.camera, c_.truePose, c_.surfaceView());
     const auto r = imaging::fitAppearance(c_.frame, g);
     cv::Mat3b frame = c_.frame.clone();
@@ -238,13 +241,9 @@ class TestAppearance : public QObject {
         dotWeights.push_back(g.barycentric(y, x));
       }
     QVERIFY(dots.size() >= 12);
-    // A known deformation: the organ's nodes bent sideways, more the further along its x they lie.
     std::vector<double> moved(c_.volume.points.size() * 3);
-    auto bend = [](const Eigen::Vector3d& p) { return Eigen::Vector3d(p.x(), p.y() + 0.15 * p.x() * p.x() / 0.05, p.z() + 0.002); };
-    for (std::size_t i = 0; i < c_.volume.points.size(); ++i) {
-      const Eigen::Vector3d q = bend(c_.volume.points[i]);
-      for (int k = 0; k < 3; ++k) moved[3 * i + k] = q[k];
-    }
+    for (std::size_t i = 0; i < c_.volume.points.size(); ++i)
+      for (int k = 0; k < 3; ++k) moved[3 * i + k] = movedNodes[i][k];
     const SurfaceView rest = c_.surfaceView();
     SurfaceView deformed = rest;
     deformed.vertices = moved.data();
@@ -270,14 +269,17 @@ class TestAppearance : public QObject {
       in.albedo.convertTo(a8, CV_8UC3, 100);
       cv::imwrite("/tmp/albedo.png", a8);
     }
-    double worst = 0;
+    double worst = 0, moveMax = 0;
     int found = 0;
     for (std::size_t i = 0; i < dots.size(); ++i) {
       // Where the surface point under the dot went: the mesh deforms piecewise linearly, so the point keeps
       // its barycentric coordinates in its moved triangle.
       const int* tri = c_.surface[static_cast<std::size_t>(dotTriangle[i])].data();
       Eigen::Vector3d movedPoint = Eigen::Vector3d::Zero();
-      for (int k = 0; k < 3; ++k) movedPoint += dotWeights[i][k] * bend(c_.volume.points[tri[k]]);
+      Eigen::Vector3d restPoint = Eigen::Vector3d::Zero();
+      for (int k = 0; k < 3; ++k) movedPoint += dotWeights[i][k] * movedNodes[static_cast<std::size_t>(tri[k])];
+      for (int k = 0; k < 3; ++k) restPoint += dotWeights[i][k] * c_.volume.points[static_cast<std::size_t>(tri[k])];
+      moveMax = std::max(moveMax, (c_.camera.project(c_.truePose.apply(movedPoint)) - c_.camera.project(c_.truePose.apply(restPoint))).norm());
       const Eigen::Vector3d q = c_.truePose.apply(movedPoint);
       const Eigen::Vector2d expect(c_.camera.K(0, 0) * q.x() / q.z() + c_.camera.K(0, 2), c_.camera.K(1, 1) * q.y() / q.z() + c_.camera.K(1, 2));
       const int cx = static_cast<int>(std::lround(expect.x())), cy = static_cast<int>(std::lround(expect.y()));
@@ -300,9 +302,35 @@ class TestAppearance : public QObject {
       if (err > 1.0) qInfo("  dot at (%d, %d): expected (%.1f, %.1f), found (%.1f, %.1f)", dots[i].x, dots[i].y, expect.x(), expect.y(), sx / sw, sy / sw);
       ++found;
     }
-    qInfo("texture: %d of %zu dots found after the bend, worst %.2f px from where their tissue went", found, dots.size(), worst);
+    qInfo("texture: %d of %zu dots found after %s (dots moved up to %.1f px), worst %.2f px from where their tissue went", found, dots.size(), what, moveMax,
+          worst);
     QVERIFY(found >= static_cast<int>(dots.size()) * 3 / 4);
+    QVERIFY(moveMax >= minMovePx);  // the deformation moved the texture visibly
     QVERIFY(worst <= 1.0);
+  }
+
+  // A known analytic deformation: the organ's nodes bent sideways, more the further along its x they lie.
+  void textureFollowsTheTissue() {
+    std::vector<Eigen::Vector3d> bent;
+    for (const auto& p : c_.volume.points) bent.emplace_back(p.x(), p.y() + 0.15 * p.x() * p.x() / 0.05, p.z() + 0.002);
+    checkTextureFollows(bent, "the bend", 5.0);
+  }
+
+  // An independent deformation: CalculiX (ccx) sags the phantom under gravity from its ligament nodes
+  // (soft tissue, 3 kPa, nu 0.45, large deformation).
+  void textureFollowsACalculixSag() {
+    const Eigen::Vector3d gravity = c_.truePose.R.transpose() * Eigen::Vector3d(0, 9.81, 0);  // down in the image
+    const Eigen::VectorXd u = runCalculixStatic(c_.volume, {}, CcxMaterial{3000, 0.45, 1000, false}, gravity, true, c_.attachments, "appearance-sag");
+    QVERIFY2(u.size() == static_cast<Eigen::Index>(3 * c_.volume.points.size()), "CalculiX (ccx) did not run; scripts/install-deps.sh installs calculix-ccx");
+    std::vector<Eigen::Vector3d> sagged;
+    double most = 0;
+    for (std::size_t i = 0; i < c_.volume.points.size(); ++i) {
+      const Eigen::Vector3d d = u.segment<3>(static_cast<Eigen::Index>(3 * i));
+      sagged.push_back(c_.volume.points[i] + d);
+      most = std::max(most, d.norm());
+    }
+    qInfo("CalculiX sag: nodes moved up to %.1f mm", 1e3 * most);
+    checkTextureFollows(sagged, "the CalculiX sag", 3.0);
   }
 
   // A mesh whose triangles are wound the other way (normals pointing in): the same Theta, since the normal
