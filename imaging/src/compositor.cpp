@@ -81,7 +81,7 @@ struct Compositor::Impl {
                cv::Vec3f& bgr) const {
     const int* tri = triangles.data() + 3 * t;
     const Plane& q = P[static_cast<std::size_t>(t)];
-    const Eigen::Vector3d d = Kinv * Eigen::Vector3d(px, py, 1);
+    const Eigen::Vector3d d(Kinv(0, 0) * px + Kinv(0, 1) * py + Kinv(0, 2), Kinv(1, 1) * py + Kinv(1, 2), 1.0);  // K is upper triangular
     const double denom = q.n.dot(d);
     if (std::abs(denom) < 1e-300) return false;
     const Eigen::Vector3d p = d * (q.offset / denom);
@@ -94,7 +94,7 @@ struct Compositor::Impl {
     if (r.z() > 0) {
       qx = camera.K(0, 0) * r.x() / r.z() + camera.K(0, 1) * r.y() / r.z() + camera.K(0, 2);
       qy = camera.K(1, 1) * r.y() / r.z() + camera.K(1, 2);
-      const int ix = static_cast<int>(std::lround(qx)), iy = static_cast<int>(std::lround(qy));
+      const int ix = static_cast<int>(std::floor(qx + 0.5)), iy = static_cast<int>(std::floor(qy + 0.5));
       if (ix >= 0 && iy >= 0 && ix < camera.width && iy < camera.height) {
         const int shownTriangle = restSeen.triangle(iy, ix);
         if (shownTriangle >= 0) {
@@ -112,9 +112,11 @@ struct Compositor::Impl {
     }
     // The albedo where the tissue was not seen at rest (its back, the inside of a cut): ratio 1, the fitted kd.
     const cv::Vec3f albedoHere = seen ? bilinear(albedo, qx, qy) : cv::Vec3f(1, 1, 1);
-    Eigen::Vector3d normal = (wa * N[tri[0]] + wb * N[tri[1]] + wc * N[tri[2]]).normalized();
-    if (normal.dot(-p) < 0) normal = -normal;  // an open surface seen from inside
-    if (!normal.allFinite()) return false;
+    Eigen::Vector3d normal = wa * N[tri[0]] + wb * N[tri[1]] + wc * N[tri[2]];
+    const double length = normal.norm();
+    if (!(length > 0) || !std::isfinite(length)) return false;
+    normal /= length;
+    if (normal.dot(p) > 0) normal = -normal;  // an open surface seen from inside
     // Theta's model (appearance.hpp): kd cos(theta_i) / r^2 + ks exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r)).
     const Eigen::Vector3d toLight = theta.lightPosition - p;
     const double r2 = std::max(toLight.squaredNorm(), 1e-12);

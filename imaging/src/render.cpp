@@ -91,6 +91,7 @@ Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen
     // The barycentric weights are linear along a row: each row's span is solved for (widened by a pixel),
     // and only it is walked, with the weights computed and tested per pixel as before.
     const double g0 = (b.y() - c.y()) * inv, g1 = (c.y() - a.y()) * inv, g2 = -g0 - g1;
+    const double iz0 = 1.0 / z0, iz1 = 1.0 / z1, iz2 = 1.0 / z2;
     for (int y = y0; y <= y1; ++y) {
       int* tid = r.triangle.ptr<int>(y);
       float* dep = r.depth.ptr<float>(y);
@@ -113,7 +114,7 @@ Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen
         const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) * inv;
         const double w2 = 1.0 - w0 - w1;
         if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-        const double z = 1.0 / (w0 / z0 + w1 / z1 + w2 / z2);
+        const double z = 1.0 / (w0 * iz0 + w1 * iz1 + w2 * iz2);
         if (z < dep[x]) {
           dep[x] = static_cast<float>(z);
           tid[x] = static_cast<int>(t);

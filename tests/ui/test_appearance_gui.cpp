@@ -100,6 +100,7 @@ class TestAppearanceGui : public QObject {
     const auto& c = *w_->caseData();
     QVERIFY(c.appearance && c.appearanceCurrent());
     QVERIFY(w_->stepDone(ui::Step::Appearance));
+    QVERIFY(w_->infoText().contains("Appearance (estimated)"));
     // The table against the phantom's Theta (issue 14's bounds: light within 5 % of its distance, kd and ks
     // within 5 %, sigma within 10 %), read from the widget as the user reads it.
     auto* table = w_->findChild<QTableWidget*>("appearanceTable");
@@ -206,6 +207,7 @@ class TestAppearanceGui : public QObject {
     QVERIFY2(w_->viewModeText().contains("another pose"), qPrintable(w_->viewModeText()));
     QVERIFY(w_->findChild<QLabel*>("appearanceStatus")->text().startsWith("STALE"));
     QVERIFY(!w_->stepDone(ui::Step::Appearance));
+    QVERIFY(w_->infoText().contains("STALE"));
     w_->undoStack()->undo();
     QVERIFY(w_->caseData()->appearanceCurrent());
     QVERIFY(waitFor([&] { return w_->showingComposited(); }, 30000));

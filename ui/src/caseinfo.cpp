@@ -31,6 +31,14 @@ QString caseInfoText(const app::Case& c, const QStringList& notes, const QString
            .arg(cam.distortion[0]).arg(cam.distortion[1]).arg(cam.distortion[2]).arg(cam.distortion[3]).arg(cam.distortion[4]);
   if (c.hasPose) t += tr("Pose (model to camera, %1)\n%2\n").arg(c.poseAligned ? tr("aligned") : tr("automatic placement"), poseText(c.pose));
   if (c.hasFit()) t += tr("Elastic fit: %1\n\n").arg(QString::fromStdString(c.fit->status));
+  if (c.appearance) {
+    const auto& a = c.appearance->theta;
+    t += tr("Appearance (estimated%1)\nlight: %2, %3, %4 mm\nkd: %5 %6 %7\nks: %8 %9 %10\nroughness: %11 rad\n%12\n\n")
+             .arg(c.appearanceCurrent() ? QString() : tr(", STALE: the organ or the frame changed since"))
+             .arg(a.lightPosition.x() * 1e3, 0, 'f', 1).arg(a.lightPosition.y() * 1e3, 0, 'f', 1).arg(a.lightPosition.z() * 1e3, 0, 'f', 1)
+             .arg(a.kd.x()).arg(a.kd.y()).arg(a.kd.z()).arg(a.ks.x()).arg(a.ks.y()).arg(a.ks.z()).arg(a.roughness)
+             .arg(QString::fromStdString(c.appearance->status));
+  }
   if (c.groundTruth) {
     t += tr("Ground-truth pose\n%1").arg(poseText(c.groundTruth->pose));
     const auto& a = c.groundTruth->appearance;
