@@ -5,6 +5,8 @@
 #include "rehearse/app/casefolder.hpp"
 #include "rehearse/app/elasticfit.hpp"
 #include "rehearse/app/appearancestep.hpp"
+#include "rehearse/app/gesture.hpp"
+#include "rehearse/app/materials.hpp"
 
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
@@ -617,6 +619,81 @@ int cmdCompose(const std::vector<std::string>& args) {
   return 0;
 }
 
+// rehearse gesture: a scripted rehearsal without a window (issue 15), through the simulation session.
+int cmdGesture(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2,
+                        {"case", "scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes", "gravity",
+                         "script", "out", "report", "method"},
+                        {});
+  if (!o.count("script")) throw UsageError("gesture needs --script G.json (README, File formats)");
+  if (!o.count("out")) throw UsageError("gesture needs --out OUT.vtu|.vtk|.msh");
+  const std::string ext = std::filesystem::path(o["out"]).extension().string();
+  if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+  std::ifstream in(o["script"]);
+  if (!in) throw UsageError("cannot read the gesture script " + o["script"]);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  GestureScript script;
+  try {
+    script = parseGestureScript(ss.str());
+  } catch (const std::runtime_error& e) {
+    throw UsageError(std::string(o["script"]) + ": " + e.what());
+  }
+  simcore::BodySetup setup;
+  simcore::Mesh mesh;
+  if (o.count("case")) {
+    for (const char* k : {"scene", "preset", "mesh", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes"})
+      if (o.count(k)) throw UsageError(std::string("--case takes the case's organ, attachments and material; --") + k + " cannot be combined with it");
+    const Case c = loadCaseDirectory(o["case"]);
+    if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
+    mesh = c.organ->volume;
+    setup.fixedNodes = c.attachments;
+    const LabelMaterials lm = labelMaterials(c.material);
+    setup.material = lm.fallback;
+    setup.byLabel = lm.byLabel;
+    if (o.count("gravity")) setup.settings.gravity = parseVector(o["gravity"], "--gravity");
+  } else {
+    simcore::Scene p = modelFromOptions(o, "gesture");
+    if (!p.embedded.empty())
+      throw UsageError("the scene embeds surfaces (" + p.embedded.front().name + "), which the gesture session does not carry yet; remove them or use simulate");
+    mesh = p.mesh;
+    setup.fixedNodes = p.fixedNodes;
+    setup.material = p.defaultMaterial;
+    setup.byLabel = p.materials;
+    setup.settings = p.settings;
+  }
+  if (o.count("method")) setup.settings.method = simcore::newtonMethodFromString(o["method"]);
+  mesh.convertToMetres();
+  setup.mesh = mesh;
+  const GestureResult r = runGesture(setup, script);
+  simcore::Mesh out = mesh;
+  out.triangles.clear();
+  out.triangleLabels.clear();
+  for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = r.final.x.segment<3>(static_cast<Eigen::Index>(3 * i));
+  simcore::saveMesh(out, o["out"]);
+  double peak = 0, wall = 0;
+  std::size_t grasped = 0;
+  for (const auto& s : r.steps) {
+    peak = std::max(peak, s.toolForce.norm());
+    wall += s.wallMs;
+    grasped = std::max(grasped, s.grasped);
+  }
+  if (o.count("report")) {
+    nlohmann::json rows = nlohmann::json::array();
+    for (const auto& s : r.steps)
+      rows.push_back({{"step", s.step}, {"time_s", s.time}, {"wall_ms", s.wallMs}, {"mass_kg", s.massKg}, {"elements", s.elements}, {"nodes", s.nodes},
+                      {"grasped_nodes", s.grasped}, {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
+                      {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}}, {"events", s.events}, {"message", s.message}, {"ok", s.report.ok},
+                      {"status", s.report.status}, {"residual", s.report.residual}});
+    writeReport(o["report"], {{"steps", rows}, {"slips", r.slips}, {"failed_steps", r.failed}, {"peak_tool_force_n", peak},
+                              {"contact", "not modelled yet: the tool holds what it grasps, it does not push tissue"}});
+  }
+  std::printf("gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu failed steps; written %s\n", r.steps.size(),
+              wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.failed, o["out"].c_str());
+  if (r.failed) std::fprintf(stderr, "rehearse: %zu steps failed\n", r.failed);
+  return r.failed ? 3 : 0;
+}
+
 std::string usage() {
   return "Rehearse " REHEARSE_VERSION
          " - intra-operative surgical gesture rehearsal\n\n"
@@ -658,6 +735,11 @@ std::string usage() {
          "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta THETA.json\n"
          "                [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint telea|ns|shiftmap|fsr]\n"
          "                                   the organ (deformed: its nodes in the input order) re-shaded in the frame\n"
+         "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of simulate]\n"
+         "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method exact|lagged-pcg|chord|linearised]\n"
+         "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through the\n"
+         "                                   simulation session without a window; the report has a row per step (wall time,\n"
+         "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL)\n"
          "Mesh formats: .msh (Gmsh 1, 2.2, 4.1), .vtk (legacy), .vtu, .mesh (Medit), .obj .stl .ply .off .gltf .glb.\n"
@@ -688,6 +770,7 @@ int runCli(const std::vector<std::string>& args, bool& handled) {
     if (cmd == "register") return cmdRegister(args);
     if (cmd == "appearance") return cmdAppearance(args);
     if (cmd == "compose") return cmdCompose(args);
+    if (cmd == "gesture") return cmdGesture(args);
     throw UsageError("unknown command '" + cmd + "'; see 'rehearse --help'");
   } catch (const UsageError& e) {
     std::fprintf(stderr, "rehearse: %s\n", e.what());

@@ -25,11 +25,13 @@ struct CcxMaterial {
 
 /// Nodal displacements (3n, metres) of the static equilibrium under gravity `g` (m/s^2, a vector), the
 /// `fixed` nodes (0-based) held; elements with a label in `byLabel` take that material, the others
-/// `fallback`; `forces` (N, by 0-based node) are applied as point loads. Empty when ccx failed (its
-/// output's end is logged).
+/// `fallback`; `forces` (N, by 0-based node) are applied as point loads; `prescribed` nodes are moved by
+/// the given displacements (m), and `reaction`, when given, receives the sum of the support forces (N) on
+/// them. Empty when ccx failed (its output's end is logged).
 inline Eigen::VectorXd runCalculixStatic(const rehearse::simcore::Mesh& mesh, const std::map<int, CcxMaterial>& byLabel, const CcxMaterial& fallback,
                                          const Eigen::Vector3d& g, bool nlgeom, const std::vector<int>& fixed, const std::string& name,
-                                         const std::map<int, Eigen::Vector3d>& forces = {}) {
+                                         const std::map<int, Eigen::Vector3d>& forces = {}, const std::map<int, Eigen::Vector3d>& prescribed = {},
+                                         Eigen::Vector3d* reaction = nullptr) {
   const std::string dir = tempPath("ccx-" + name);
   std::filesystem::create_directories(dir);
   std::string inp = "*NODE\n";
@@ -56,6 +58,10 @@ inline Eigen::VectorXd runCalculixStatic(const rehearse::simcore::Mesh& mesh, co
   inp += "*NSET, NSET=NALL, GENERATE\n1, " + std::to_string(mesh.points.size()) + ", 1\n*NSET, NSET=FIX\n";
   for (int i : fixed) inp += std::to_string(i + 1) + "\n";
   inp += "*BOUNDARY\nFIX, 1, 3\n";
+  if (!prescribed.empty()) {
+    inp += "*NSET, NSET=PRESC\n";
+    for (const auto& [node, d] : prescribed) inp += std::to_string(node + 1) + "\n";
+  }
   for (const auto& [label, elements] : groups) {
     const CcxMaterial& m = label < 0 ? fallback : byLabel.at(label);
     const std::string set = "E" + std::to_string(label + 1);
@@ -69,9 +75,18 @@ inline Eigen::VectorXd runCalculixStatic(const rehearse::simcore::Mesh& mesh, co
     inp += std::string(buf) + "*SOLID SECTION, ELSET=" + set + ", MATERIAL=M" + set + "\n";
   }
   inp += nlgeom ? "*STEP, NLGEOM, INC=200\n*STATIC\n0.05, 1.0, 1e-6, 0.1\n" : "*STEP\n*STATIC\n";
-  inp += "*DLOAD\n";
+  if (!prescribed.empty()) {
+    inp += "*BOUNDARY\n";
+    for (const auto& [node, d] : prescribed)
+      for (int k = 0; k < 3; ++k) {
+        std::snprintf(buf, sizeof buf, "%d, %d, %d, %.13g\n", node + 1, k + 1, k + 1, d[k]);
+        inp += buf;
+      }
+  }
   const double gn = g.norm();
+  if (gn > 0) inp += "*DLOAD\n";
   for (const auto& [label, elements] : groups) {
+    if (!(gn > 0)) break;
     std::snprintf(buf, sizeof buf, "E%d, GRAV, %.17g, %.17g, %.17g, %.17g\n", label + 1, gn, g.x() / gn, g.y() / gn, g.z() / gn);
     inp += buf;
   }
@@ -84,7 +99,9 @@ inline Eigen::VectorXd runCalculixStatic(const rehearse::simcore::Mesh& mesh, co
           inp += buf;
         }
   }
-  inp += "*NODE PRINT, NSET=NALL\nU\n*END STEP\n";
+  inp += "*NODE PRINT, NSET=NALL\nU\n";
+  if (!prescribed.empty()) inp += "*NODE PRINT, NSET=PRESC\nRF\n";
+  inp += "*END STEP\n";
   writeFile(dir + "/job.inp", inp);
   QProcess p;
   p.setWorkingDirectory(QString::fromStdString(dir));
@@ -119,6 +136,34 @@ inline Eigen::VectorXd runCalculixStatic(const rehearse::simcore::Mesh& mesh, co
     } else if (read > 0) {
       inBlock = false;
     }
+  }
+  if (reaction) {
+    // The last reaction-force block (set PRESC), summed.
+    std::istringstream rin(readFile(dir + "/job.dat"));
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), block = Eigen::Vector3d::Zero();
+    bool inForces = false;
+    int rows = 0;
+    while (std::getline(rin, line)) {
+      if (line.find("forces (fx,fy,fz)") != std::string::npos) {
+        inForces = true;
+        rows = 0;
+        block.setZero();
+        continue;
+      }
+      if (!inForces) continue;
+      std::istringstream l(line);
+      long id;
+      double x, y, z;
+      if (l >> id >> x >> y >> z) {
+        block += Eigen::Vector3d(x, y, z);
+        ++rows;
+      } else if (rows > 0) {
+        inForces = false;
+        sum = block;
+      }
+    }
+    if (inForces && rows > 0) sum = block;
+    *reaction = sum;
   }
   return u;
 }

@@ -5,7 +5,11 @@ namespace {
 
 class FemBody final : public DeformableBody {
  public:
-  explicit FemBody(const BodySetup& s) : model_(build(s)), integrator_(model_, s.fixedNodes, s.settings) {}
+  explicit FemBody(const BodySetup& s) : model_(build(s)), integrator_(model_, s.fixedNodes, s.settings), settings_(s.settings) {
+    fixed_.assign(model_.nodeCount(), 0);
+    for (int i : s.fixedNodes)
+      if (i >= 0 && static_cast<std::size_t>(i) < fixed_.size()) fixed_[static_cast<std::size_t>(i)] = 1;
+  }
   std::size_t nodeCount() const override { return model_.nodeCount(); }
   SimulationState initialState() const override { return integrator_.initialState(); }
   StepReport step(SimulationState& state) override { return integrator_.step(state); }
@@ -14,6 +18,25 @@ class FemBody final : public DeformableBody {
   const std::vector<Eigen::Vector3d>& restPositions() const override { return model_.rest; }
   void stress(const SimulationState& state, std::vector<double>& out) const override { vonMisesStress(model_, state.x, out); }
   const std::vector<std::array<int, 4>>& tetrahedra() const override { return model_.tets; }
+  double mass() const override { return model_.lumpedMass.sum(); }
+  const std::vector<char>& fixedMask() const override { return fixed_; }
+  Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& v0, double h) const override {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    if (nodes.empty() || !(h > 0)) return sum;
+    Eigen::VectorXd f;
+    TangentState tangent;
+    prepareTangentState(model_, state.x, tangent, &f);
+    Eigen::VectorXd Kv;
+    applyStiffness(model_, tangent, state.v, Kv);
+    for (int i : nodes) {
+      const auto k = static_cast<Eigen::Index>(3 * i);
+      const double m = model_.lumpedMass[i];
+      const Eigen::Vector3d v = state.v.segment<3>(k);
+      sum += m * (v - v0.segment<3>(k)) / h + settings_.rayleighMass * m * v + settings_.rayleighStiffness * Kv.segment<3>(k) - f.segment<3>(k) -
+             m * settings_.gravity;
+    }
+    return sum;
+  }
 
  private:
   static FemModel build(const BodySetup& s) {
@@ -29,6 +52,8 @@ class FemBody final : public DeformableBody {
   }
   FemModel model_;
   Integrator integrator_;
+  SimulationSettings settings_;
+  std::vector<char> fixed_;
 };
 
 }  // namespace

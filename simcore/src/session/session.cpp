@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
+#include <cstdio>
 
 namespace rehearse::simcore {
 
@@ -90,16 +92,18 @@ void Session::rebuildBody() {
 
 void Session::updateToolConstraints() {
   std::vector<ScalarConstraint> c;
-  if (tool_.jawClosed && tool_.heldNode >= 0) {
-    // The held node follows the tip: three bilateral constraints along the body frame's axes.
-    for (int axis = 0; axis < 3; ++axis) {
-      ScalarConstraint s;
-      s.nodes = {tool_.heldNode, -1, -1, -1};
-      s.weights = {1, 0, 0, 0};
-      s.direction = Eigen::Vector3d::Unit(axis);
-      s.value = tool_.tip[axis];
-      c.push_back(s);
-    }
+  if (tool_.jawClosed) {
+    // Each held node keeps its place relative to the tip: three bilateral constraints along the body
+    // frame's axes per node.
+    for (std::size_t k = 0; k < tool_.held.size(); ++k)
+      for (int axis = 0; axis < 3; ++axis) {
+        ScalarConstraint s;
+        s.nodes = {tool_.held[k], -1, -1, -1};
+        s.weights = {1, 0, 0, 0};
+        s.direction = Eigen::Vector3d::Unit(axis);
+        s.value = (tool_.tip + tool_.heldOffset[k])[axis];
+        c.push_back(s);
+      }
   }
   body_->setToolConstraints(std::move(c));
 }
@@ -112,17 +116,32 @@ void Session::apply(const InputEvent& e, std::string& message) {
     case InputKind::Jaw:
       tool_.jawClosed = e.on;
       tool_.heldNode = -1;
+      tool_.held.clear();
+      tool_.heldOffset.clear();
+      tool_.force.setZero();
       if (e.on) {
-        // Grasp the node nearest to the tip, when one is within reach.
-        double best = kGraspRadius * kGraspRadius;
+        // Grasp every free node within the grasp radius of the tip (the bite), the nearest first.
+        const double r2 = setup_.tools.graspRadius * setup_.tools.graspRadius;
+        const auto& fixed = body_->fixedMask();
+        std::vector<std::pair<double, int>> near;
         for (std::size_t i = 0; i < body_->nodeCount(); ++i) {
           const double d = (state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool_.tip).squaredNorm();
-          if (d <= best) {
-            best = d;
-            tool_.heldNode = static_cast<int>(i);
-          }
+          if (d <= r2 && !fixed[i]) near.emplace_back(d, static_cast<int>(i));
         }
-        if (tool_.heldNode < 0) message = "The jaws closed on nothing: no tissue within 6 mm of the tip.";
+        std::sort(near.begin(), near.end());
+        for (const auto& [d, i] : near) {
+          tool_.held.push_back(i);
+          tool_.heldOffset.push_back(state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool_.tip);
+        }
+        if (!near.empty()) {
+          tool_.heldNode = near.front().second;
+          events_.push_back("grasp");
+        } else {
+          message = "The jaws closed on nothing: no tissue within " + std::to_string(static_cast<int>(std::lround(1e3 * setup_.tools.graspRadius))) +
+                    " mm of the tip.";
+        }
+      } else {
+        events_.push_back("release");
       }
       break;
     case InputKind::Cut:
@@ -191,13 +210,32 @@ StepReport Session::advance() {
     apply(e, message);
     recorded_.push_back(e);
   }
+  const Eigen::VectorXd v0 = tool_.held.empty() ? Eigen::VectorXd() : state_.v;
   const StepReport rep = body_->step(state_);
   ++steps_;
-  publish(rep, message);
+  if (!tool_.held.empty() && rep.ok) {
+    tool_.force = body_->appliedForce(tool_.held, state_, v0, rep.timeStepUsed);
+    // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing).
+    if (tool_.force.norm() > setup_.tools.maxGraspForce) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, "The tissue slipped out of the grasper at %.1f N (the scene's maximum grasp force is %.1f N).", tool_.force.norm(),
+                    setup_.tools.maxGraspForce);
+      message = buf;
+      tool_.held.clear();
+      tool_.heldOffset.clear();
+      tool_.heldNode = -1;
+      events_.push_back("slip");
+      updateToolConstraints();
+    }
+  } else if (tool_.held.empty()) {
+    tool_.force.setZero();
+  }
+  publish(rep, message, std::move(events_));
+  events_.clear();
   return rep;
 }
 
-void Session::publish(const StepReport& rep, const std::string& message) {
+void Session::publish(const StepReport& rep, const std::string& message, std::vector<std::string> events) {
   auto s = std::make_shared<Snapshot>();
   const std::size_t n = body_->nodeCount();
   s->positions.resize(n);
@@ -209,6 +247,9 @@ void Session::publish(const StepReport& rep, const std::string& message) {
   s->tool = tool_;
   s->material = setup_.material;
   s->message = message;
+  s->events = std::move(events);
+  s->mass = body_->mass();
+  s->elements = body_->tetrahedra().size();
   if (publishStress_) body_->stress(state_, s->stress);
   std::function<void()> callback;
   {

@@ -13,6 +13,13 @@
 
 namespace rehearse::simcore {
 
+/// The instruments' settings of a scene (SI units).
+struct ToolSettings {
+  double graspRadius = 0.006;   ///< m: closing the jaws holds the nodes within this distance of the tip
+  double maxGraspForce = 15.0;  ///< N: above this pull the tissue slips out of the jaws (an event)
+  bool operator==(const ToolSettings&) const = default;
+};
+
 /// What a FEM body is built from (all of it is recorded with a session, so a replay rebuilds the same body).
 struct BodySetup {
   Mesh mesh;                               ///< tets (metres); its points are replaced by `rest` when given
@@ -21,6 +28,7 @@ struct BodySetup {
   MaterialParams material;                 ///< parenchyma and unlisted labels
   std::map<int, MaterialParams> byLabel;   ///< e.g. the vessels' label
   SimulationSettings settings;             ///< time step, method, gravity (m/s^2, in the body's frame), ...
+  ToolSettings tools;
 };
 
 class DeformableBody {
@@ -39,6 +47,16 @@ class DeformableBody {
   /// Per-element von Mises stress at a state (Pa), for colouring.
   virtual void stress(const SimulationState& state, std::vector<double>& out) const = 0;
   virtual const std::vector<std::array<int, 4>>& tetrahedra() const = 0;
+  /// Total mass (kg).
+  virtual double mass() const = 0;
+  /// The force (N) that something other than the body's material, gravity, inertia and damping applies to
+  /// `nodes` at `state`, which a step of length `h` reached from velocities `previousVelocity`: the backward
+  /// Euler balance M (v - v0) / h + alpha M v + beta K(x) v - f(x) - M g summed over them. For nodes a tool
+  /// holds it is the tool's force on the tissue.
+  virtual Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& previousVelocity,
+                                       double h) const = 0;
+  /// The nodes fixed by the setup (ligament attachments), 1 for fixed.
+  virtual const std::vector<char>& fixedMask() const = 0;
 };
 
 /// The co-rotational / hyperelastic tetrahedral FEM with implicit Euler (FemModel + Integrator).

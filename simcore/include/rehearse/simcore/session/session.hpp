@@ -49,8 +49,11 @@ struct InputEvent {
 struct ToolState {
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();
   bool jawClosed = false;
-  int heldNode = -1;  ///< the node the jaws hold (-1: none)
+  int heldNode = -1;                       ///< the held node nearest the tip when the jaws closed (-1: none)
+  std::vector<int> held;                   ///< every node the jaws hold (within the grasp radius when they closed)
+  std::vector<Eigen::Vector3d> heldOffset; ///< each held node's place relative to the tip (m), kept while held
   bool cutting = false;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step
 };
 
 /// Published after every step (and after reset): read by the views on any thread.
@@ -64,6 +67,9 @@ struct Snapshot {
   MaterialParams material;                 ///< in use (shows when a live edit took effect)
   std::string message;                     ///< a sentence about the last applied input, when it needs one
   std::vector<double> stress;              ///< per element von Mises stress (Pa), only while setPublishStress(true)
+  std::vector<std::string> events;         ///< what happened at this step ("grasp", "release", "slip")
+  double mass = 0;                         ///< kg, the body's total
+  std::size_t elements = 0;
 };
 
 /// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
@@ -110,14 +116,12 @@ class Session {
   /// The complete state (a copy, under the lock).
   SimulationState state() const;
   const BodySetup& setup() const { return setup_; }
-  /// Radius (m) within which closing the jaws grasps the nearest node.
-  static constexpr double kGraspRadius = 0.006;
 
  private:
   void apply(const InputEvent& e, std::string& message);
   void rebuildBody();
   void updateToolConstraints();
-  void publish(const StepReport& rep, const std::string& message);
+  void publish(const StepReport& rep, const std::string& message, std::vector<std::string> events = {});
   void run();
 
   BodySetup setup_;
@@ -126,6 +130,7 @@ class Session {
   ToolState tool_;
   long steps_ = 0;
   std::vector<InputEvent> recorded_;
+  std::vector<std::string> events_;  ///< what the events applied at this boundary did, for the next snapshot
   std::chrono::steady_clock::time_point started_;
 
   mutable std::mutex stepMutex_;     // body, state, tools, recording

@@ -1,0 +1,60 @@
+#pragma once
+// A scripted rehearsal (step 7 without a window): a JSON list of timed instrument events run through the
+// simulation session (simcore::Session, the code the GUI drives), step by step, with what each step did.
+// The script (README "File formats"):
+//   {"format": "rehearse-gesture", "duration": 2.0, "dt": 0.01,
+//    "tools": {"grasp_radius_mm": 6, "max_grasp_force_n": 15},
+//    "events": [{"t": 0.0, "tool": "grasper", "tip_near": [x, y, z]},   // the tip onto the organ's node nearest this point
+//               {"t": 0.1, "jaws": "close"},
+//               {"t": 0.2, "move": [0, 0, -0.02], "over": 1.0},       // the tip moved by this, evenly over this time
+//               {"t": 1.5, "jaws": "open"}]}
+// Positions in metres in the body's frame; "tip": [x, y, z] places the tip directly. Cutting instruments
+// are refused until cutting exists (a script that asks for a cut would otherwise be run without it).
+#include <rehearse/simcore/session/session.hpp>
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rehearse::app {
+
+struct GestureEvent {
+  double t = 0;                            ///< s
+  std::optional<Eigen::Vector3d> tip;      ///< m, body frame
+  std::optional<Eigen::Vector3d> tipNear;  ///< m: the tip goes to the node nearest this point at that time
+  std::optional<Eigen::Vector3d> move;     ///< m, relative
+  double over = 0;                         ///< s, for move (0: at once)
+  std::optional<bool> jawsClosed;
+};
+
+struct GestureScript {
+  double duration = 1;  ///< s
+  double dt = 0;        ///< s (0: the scene's)
+  std::optional<double> graspRadius, maxGraspForce;  ///< m, N
+  std::vector<GestureEvent> events;  ///< in time order
+};
+
+/// Parses a script; throws std::runtime_error with one sentence naming what is wrong or not supported.
+GestureScript parseGestureScript(const std::string& json);
+
+struct GestureStep {
+  long step = 0;
+  double time = 0, wallMs = 0, massKg = 0;
+  std::size_t elements = 0, nodes = 0, grasped = 0;
+  Eigen::Vector3d toolForce = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();
+  std::vector<std::string> events;
+  simcore::StepReport report;
+  std::string message;
+};
+
+struct GestureResult {
+  std::vector<GestureStep> steps;
+  simcore::SimulationState final;
+  std::size_t slips = 0, failed = 0;
+};
+
+/// Runs the script on a session built from `setup` (its tools and time step set from the script).
+GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script);
+
+}  // namespace rehearse::app

@@ -1,0 +1,168 @@
+#include "rehearse/app/gesture.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <stdexcept>
+
+namespace rehearse::app {
+namespace {
+using json = nlohmann::json;
+
+Eigen::Vector3d vec3(const json& j, const std::string& what) {
+  if (!j.is_array() || j.size() != 3) throw std::runtime_error("the gesture script's \"" + what + "\" must be [x, y, z] in metres");
+  Eigen::Vector3d v;
+  for (int k = 0; k < 3; ++k) {
+    if (!j[static_cast<std::size_t>(k)].is_number()) throw std::runtime_error("the gesture script's \"" + what + "\" holds something that is not a number");
+    v[k] = j[static_cast<std::size_t>(k)].get<double>();
+  }
+  if (!v.allFinite()) throw std::runtime_error("the gesture script's \"" + what + "\" is not finite");
+  return v;
+}
+
+double number(const json& j, const char* key, double fallback, double lo, double hi) {
+  if (!j.contains(key)) return fallback;
+  if (!j[key].is_number()) throw std::runtime_error(std::string("the gesture script's \"") + key + "\" must be a number");
+  const double v = j[key].get<double>();
+  if (!std::isfinite(v) || v < lo || v > hi)
+    throw std::runtime_error(std::string("the gesture script's \"") + key + "\" must lie in [" + std::to_string(lo) + ", " + std::to_string(hi) + "]");
+  return v;
+}
+
+simcore::InputEvent toolAt(const Eigen::Vector3d& p) {
+  simcore::InputEvent e;
+  e.kind = simcore::InputKind::ToolPose;
+  e.position = p;
+  return e;
+}
+
+}  // namespace
+
+GestureScript parseGestureScript(const std::string& text) {
+  json j;
+  try {
+    j = json::parse(text);
+  } catch (const std::exception&) {
+    throw std::runtime_error("the gesture script is not valid JSON");
+  }
+  if (!j.is_object() || j.value("format", "") != "rehearse-gesture")
+    throw std::runtime_error("the gesture script must be an object with \"format\": \"rehearse-gesture\" (README, File formats)");
+  GestureScript s;
+  s.duration = number(j, "duration", 1.0, 1e-6, 3600);
+  s.dt = number(j, "dt", 0.0, 0.0, 1.0);
+  if (j.contains("tools")) {
+    const auto& t = j["tools"];
+    if (t.contains("grasp_radius_mm")) s.graspRadius = 1e-3 * number(t, "grasp_radius_mm", 6, 0.1, 100);
+    if (t.contains("max_grasp_force_n")) s.maxGraspForce = number(t, "max_grasp_force_n", 15, 0.0, 1e6);
+  }
+  if (!j.contains("events") || !j["events"].is_array()) throw std::runtime_error("the gesture script has no \"events\" list");
+  double last = 0;
+  for (const auto& e : j["events"]) {
+    GestureEvent g;
+    g.t = number(e, "t", 0, 0, 3600);
+    if (g.t < last) throw std::runtime_error("the gesture script's events must be in time order (t = " + std::to_string(g.t) + " after " + std::to_string(last) + ")");
+    last = g.t;
+    if (e.contains("tool")) {
+      const std::string tool = e["tool"].is_string() ? e["tool"].get<std::string>() : std::string();
+      if (tool == "scissors" || tool == "hook")
+        throw std::runtime_error("the gesture script asks for the " + tool + ", but cutting is not available yet; only the grasper can be scripted");
+      if (tool != "grasper") throw std::runtime_error("the gesture script names an unknown tool '" + tool + "'; the grasper is the one available");
+    }
+    if (e.contains("cut")) throw std::runtime_error("the gesture script asks for a cut, but cutting is not available yet; the script was not run");
+    if (e.contains("tip")) g.tip = vec3(e["tip"], "tip");
+    if (e.contains("tip_near")) g.tipNear = vec3(e["tip_near"], "tip_near");
+    if (e.contains("move")) g.move = vec3(e["move"], "move");
+    g.over = number(e, "over", 0, 0, 3600);
+    if (e.contains("jaws")) {
+      const std::string w = e["jaws"].is_string() ? e["jaws"].get<std::string>() : std::string();
+      if (w != "close" && w != "open") throw std::runtime_error("the gesture script's \"jaws\" must be \"close\" or \"open\"");
+      g.jawsClosed = w == "close";
+    }
+    if (!g.tip && !g.tipNear && !g.move && !g.jawsClosed && !e.contains("tool"))
+      throw std::runtime_error("a gesture script event at t = " + std::to_string(g.t) + " does nothing (no tip, tip_near, move or jaws)");
+    s.events.push_back(g);
+  }
+  return s;
+}
+
+GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) {
+  if (script.dt > 0) setup.settings.timeStep = script.dt;
+  if (script.graspRadius) setup.tools.graspRadius = *script.graspRadius;
+  if (script.maxGraspForce) setup.tools.maxGraspForce = *script.maxGraspForce;
+  const double h = setup.settings.timeStep;
+  const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
+  simcore::Session session(setup);
+  GestureResult out;
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();
+  // A move in progress: from `from` by `by` between steps [k0, k1].
+  struct Move {
+    Eigen::Vector3d from, by;
+    long k0 = 0, k1 = 0;
+  };
+  std::vector<Move> moves;
+  std::size_t next = 0;
+  for (long k = 0; k < steps; ++k) {
+    const double t = k * h;
+    while (next < script.events.size() && script.events[next].t <= t + 1e-9) {
+      const GestureEvent& e = script.events[next++];
+      if (e.tipNear) {
+        const auto snap = session.snapshot();
+        double best = 1e300;
+        for (const auto& p : snap->positions)
+          if ((p - *e.tipNear).squaredNorm() < best) best = (p - *e.tipNear).squaredNorm(), tip = p;
+        session.post(toolAt(tip));
+      }
+      if (e.tip) {
+        tip = *e.tip;
+        session.post(toolAt(tip));
+      }
+      if (e.move) {
+        const long span = std::max(0L, static_cast<long>(std::lround(e.over / h)));
+        if (span == 0) {
+          tip += *e.move;
+          session.post(toolAt(tip));
+        } else {
+          moves.push_back({tip, *e.move, k, k + span});
+        }
+      }
+      if (e.jawsClosed) {
+        simcore::InputEvent j;
+        j.kind = simcore::InputKind::Jaw;
+        j.on = *e.jawsClosed;
+        session.post(j);
+      }
+    }
+    for (auto it = moves.begin(); it != moves.end();) {
+      const double s = std::min(1.0, static_cast<double>(k - it->k0 + 1) / static_cast<double>(it->k1 - it->k0));
+      tip = it->from + s * it->by;
+      session.post(toolAt(tip));
+      it = s >= 1.0 ? moves.erase(it) : it + 1;
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const simcore::StepReport rep = session.advance();
+    const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    const auto snap = session.snapshot();
+    GestureStep row;
+    row.step = snap->step;
+    row.time = snap->time;
+    row.wallMs = ms;
+    row.massKg = snap->mass;
+    row.elements = snap->elements;
+    row.nodes = snap->positions.size();
+    row.grasped = snap->tool.held.size();
+    row.toolForce = snap->tool.force;
+    row.tip = snap->tool.tip;
+    row.events = snap->events;
+    row.report = rep;
+    row.message = snap->message;
+    out.slips += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "slip"));
+    out.failed += !rep.ok;
+    out.steps.push_back(std::move(row));
+  }
+  out.final = session.state();
+  return out;
+}
+
+}  // namespace rehearse::app
