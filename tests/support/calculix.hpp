@@ -114,56 +114,34 @@ inline Eigen::VectorXd runCalculixStatic(const rehearse::simcore::Mesh& mesh, co
     qWarning("ccx failed: %s", out.right(1500).constData());
     return {};
   }
-  // The last displacement block of job.dat.
-  std::istringstream in(readFile(dir + "/job.dat"));
-  std::string line;
-  Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh.points.size()));
-  bool inBlock = false;
-  int read = 0;
-  while (std::getline(in, line)) {
-    if (line.find("displacements (vx,vy,vz)") != std::string::npos) {
-      inBlock = true;
-      read = 0;
-      continue;
-    }
-    if (!inBlock) continue;
-    std::istringstream l(line);
-    long id;
-    double x, y, z;
-    if (l >> id >> x >> y >> z) {
-      u.segment<3>(3 * (id - 1)) = Eigen::Vector3d(x, y, z);
-      ++read;
-    } else if (read > 0) {
-      inBlock = false;
-    }
-  }
-  if (reaction) {
-    // The last reaction-force block (set PRESC), summed.
-    std::istringstream rin(readFile(dir + "/job.dat"));
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero(), block = Eigen::Vector3d::Zero();
-    bool inForces = false;
-    int rows = 0;
-    while (std::getline(rin, line)) {
-      if (line.find("forces (fx,fy,fz)") != std::string::npos) {
-        inForces = true;
-        rows = 0;
-        block.setZero();
+  // The rows (node id, three values) of the last block of job.dat whose header holds `header`.
+  const std::string dat = readFile(dir + "/job.dat");
+  auto lastBlock = [&dat](const char* header) {
+    std::istringstream in(dat);
+    std::string line;
+    std::map<long, Eigen::Vector3d> rows, block;
+    bool inBlock = false;
+    while (std::getline(in, line)) {
+      if (line.find(header) != std::string::npos) {
+        inBlock = true;
+        block.clear();
         continue;
       }
-      if (!inForces) continue;
+      if (!inBlock) continue;
       std::istringstream l(line);
       long id;
       double x, y, z;
-      if (l >> id >> x >> y >> z) {
-        block += Eigen::Vector3d(x, y, z);
-        ++rows;
-      } else if (rows > 0) {
-        inForces = false;
-        sum = block;
-      }
+      if (l >> id >> x >> y >> z) block[id] = Eigen::Vector3d(x, y, z);
+      else if (!block.empty()) inBlock = false, rows = block;
     }
-    if (inForces && rows > 0) sum = block;
-    *reaction = sum;
+    if (inBlock && !block.empty()) rows = block;
+    return rows;
+  };
+  Eigen::VectorXd u = Eigen::VectorXd::Zero(3 * static_cast<Eigen::Index>(mesh.points.size()));
+  for (const auto& [id, d] : lastBlock("displacements (vx,vy,vz)")) u.segment<3>(3 * (id - 1)) = d;
+  if (reaction) {  // the support forces on the prescribed nodes, summed
+    reaction->setZero();
+    for (const auto& [id, f] : lastBlock("forces (fx,fy,fz)")) *reaction += f;
   }
   return u;
 }
