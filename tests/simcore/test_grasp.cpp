@@ -75,6 +75,12 @@ class TestGrasp : public QObject {
     const Eigen::Vector3d ours = snap->tool.force;
     const double vmax = session.state().v.cwiseAbs().maxCoeff();
     QVERIFY2(vmax < 1e-9, qPrintable(QString::number(vmax)));  // settled: the force is the static one
+    // The session reports the constraint solver's multipliers; the body's force balance at the held nodes
+    // (an independent route through the elastic forces) says the same.
+    const auto body = simcore::makeFemBody(s);
+    const Eigen::Vector3d balance = body->appliedForce(held, session.state(), session.state().v, s.settings.timeStep);
+    qInfo("multipliers (%.6f, %.6f, %.6f) N, force balance (%.6f, %.6f, %.6f) N", ours.x(), ours.y(), ours.z(), balance.x(), balance.y(), balance.z());
+    QVERIFY((ours - balance).norm() < 1e-3 * ours.norm());
     std::map<int, Eigen::Vector3d> imposed;
     double follow = 0;
     for (int i : held) {

@@ -28,6 +28,7 @@ FrameView::FrameView(QWidget* parent) : QWidget(parent) {
   tools_[Tool::Landmarks] = tools::makeLandmarkTool(*this);
   tools_[Tool::OrganCurve] = tools::makeOrganCurveTool(*this);
   tools_[Tool::Attachments] = tools::makeAttachmentTool(*this);
+  tools_[Tool::Grasp] = tools::makeGraspTool(*this);
 }
 
 FrameView::~FrameView() = default;

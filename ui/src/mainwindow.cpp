@@ -101,6 +101,9 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       k.poseAligned = true;
     }, merge);
   });
+  connect(view_, &FrameView::instrumentInput, this, [this](const simcore::InputEvent& e) {
+    if (!simulation_->post(e)) say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
+  });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
     doc_->edit(text, [&](app::Case& k) { k.attachments = nodes; });
@@ -197,6 +200,24 @@ void MainWindow::buildDocks() {
   // The composited view follows the simulation: each snapshot shown is composed (on a worker, newest first).
   connect(simulation_, &SimulationPanel::frameShown, this, [this] {
     const auto f = simulation_->lastFrame();
+    if (pages_.rehearse) pages_.rehearse->showFrame(f);
+    if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
+      view_->setLiveShape(f->positions);
+      // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation (at most
+      // 30 times a second: a drawing costs a few milliseconds of this thread).
+      if (step_ == Step::Rehearse && !showingComposited() && (!liveOverlayClock_.isValid() || liveOverlayClock_.elapsed() >= 33)) {
+        liveOverlayClock_.start();
+        const auto& c = *doc_->data();
+        auto live = std::make_shared<app::Case>(c);
+        auto fit = std::make_shared<app::ElasticFit>();
+        fit->nodes.reserve(f->positions.size());
+        for (const auto& x : f->positions) fit->nodes.push_back(c.pose.R.transpose() * (x - c.pose.t));
+        fit->status = "simulated";
+        live->fit = fit;
+        picture_ = overlay_->render(*live, pages_.mesh->shownInnerLabels());
+        showFrameLayer();
+      }
+    }
     if (showingComposited() && f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) composition_->request(f->positions);
   });
   connect(composition_, &Composition::composed, this, [this] {
@@ -290,7 +311,8 @@ void MainWindow::buildWorkflowPanel() {
   pages_.rigid = new RigidPage(wb_);
   pages_.fit = new FitPage(wb_);
   pages_.appearance = new AppearancePage(wb_, composition_);
-  pages_.all = {pages_.mesh, pages_.frame, pages_.contour, pages_.rigid, pages_.fit, pages_.appearance};
+  pages_.rehearse = new RehearsePage(wb_);
+  pages_.all = {pages_.mesh, pages_.frame, pages_.contour, pages_.rigid, pages_.fit, pages_.appearance, pages_.rehearse};
   for (StepPage* p : pages_.all) stepStack_->addWidget(p);
   connect(pages_.mesh, &MeshPage::meshImported, this, &MainWindow::meshImported);
   connect(pages_.mesh, &MeshPage::shownLabelsChanged, this, &MainWindow::refreshOverlay);
@@ -318,6 +340,13 @@ void MainWindow::setStep(Step s) {
   else if (s == Step::Rigid && t != Tool::Landmarks) view_->setTool(Tool::Align);
   else if (s == Step::Mesh || s == Step::Frame) view_->setTool(Tool::Navigate);
   else if ((s == Step::Elastic || s == Step::Appearance) && (t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Navigate);  // no gizmo over the fit
+  else if (s == Step::Rehearse) {
+    view_->setTool(Tool::Grasp);
+    // The organ is rehearsed on live: it settles on its ligaments before the first grasp.
+    if (doc_->hasCase() && doc_->data()->hasPose && !simulation_->isPlaying()) simulation_->play();
+  }
+  if (s != Step::Rehearse && view_->tool() == Tool::Grasp) view_->setTool(Tool::Navigate);
+  if (s != Step::Rehearse && doc_->hasCase()) refreshOverlay();  // the case's organ again, not the simulation's
   updateWorkflow();
 }
 
@@ -557,8 +586,8 @@ void MainWindow::buildMenus() {
     QMessageBox::about(this, tr("About Rehearse"),
                        tr("<b>Rehearse %1</b><p>Intra-operative surgical gesture rehearsal. This version registers the "
                           "pre-operative organ onto an endoscope frame (steps 1-5), estimates its appearance and the light from the frame "
-                          "(step 6) and simulates it there, composited into the frame. Grasping, pulling and cutting, and the replay of "
-                          "rehearsals come in later versions.</p>")
+                          "(step 6) and simulates it there, composited into the frame, where the grasper pulls it (step 7). Cutting, "
+                          "contact, and the replay of rehearsals come in later versions.</p>")
                            .arg(QStringLiteral(REHEARSE_VERSION)));
   });
   about->setShortcut(QKeySequence::HelpContents);

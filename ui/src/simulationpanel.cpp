@@ -103,6 +103,8 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   f->youngInUse = snap.material.young;
   f->thread = QThread::currentThreadId();
   f->organ = ctx.organ;
+  f->tool = snap.tool;
+  f->events = snap.events;
   f->message = QString::fromStdString(snap.message);
   return f;
 }
@@ -509,6 +511,13 @@ void SimulationPanel::postRunParameters() {
     g.vector = s.gravity;
     session_->post(g);
   }
+}
+
+bool SimulationPanel::post(simcore::InputEvent e) {
+  if (!session_) return false;
+  session_->post(std::move(e));
+  if (!playing_) play();
+  return true;
 }
 
 void SimulationPanel::play() {

@@ -19,6 +19,16 @@ class FemBody final : public DeformableBody {
   void stress(const SimulationState& state, std::vector<double>& out) const override { vonMisesStress(model_, state.x, out); }
   const std::vector<std::array<int, 4>>& tetrahedra() const override { return model_.tets; }
   double mass() const override { return model_.lumpedMass.sum(); }
+  Eigen::Vector3d toolForce() const override {
+    // The tool constraints come after the attachments' (Lagrange mode) in the multipliers.
+    const auto& c = integrator_.constraints();
+    const Eigen::VectorXd& lambda = integrator_.multipliers();
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    if (lambda.size() < static_cast<Eigen::Index>(c.size())) return sum;
+    const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
+    for (std::size_t k = 0; k < c.size(); ++k) sum += lambda[first + static_cast<Eigen::Index>(k)] * c[k].weights[0] * c[k].direction;
+    return sum;
+  }
   const std::vector<char>& fixedMask() const override { return fixed_; }
   Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& v0, double h) const override {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();

@@ -210,11 +210,10 @@ StepReport Session::advance() {
     apply(e, message);
     recorded_.push_back(e);
   }
-  const Eigen::VectorXd v0 = tool_.held.empty() ? Eigen::VectorXd() : state_.v;
   const StepReport rep = body_->step(state_);
   ++steps_;
   if (!tool_.held.empty() && rep.ok) {
-    tool_.force = body_->appliedForce(tool_.held, state_, v0, rep.timeStepUsed);
+    tool_.force = body_->toolForce();
     // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing).
     if (tool_.force.norm() > setup_.tools.maxGraspForce) {
       char buf[200];

@@ -15,6 +15,7 @@ std::unique_ptr<FrameTool> makeGizmoTool(FrameView& view);                 ///< 
 std::unique_ptr<FrameTool> makeLandmarkTool(FrameView& view);
 std::unique_ptr<FrameTool> makeOrganCurveTool(FrameView& view);
 std::unique_ptr<FrameTool> makeAttachmentTool(FrameView& view);
+std::unique_ptr<FrameTool> makeGraspTool(FrameView& view);
 
 /// Widget position of a gizmo handle at the view's case pose; a null point when the organ is behind the camera.
 QPointF gizmoHandlePosition(const FrameView& view, GizmoHandle h);

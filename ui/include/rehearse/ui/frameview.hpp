@@ -12,6 +12,8 @@
 
 #include <QColor>
 #include <QImage>
+
+#include <rehearse/simcore/session/session.hpp>
 #include <QWidget>
 
 #include <map>
@@ -24,7 +26,7 @@ namespace rehearse::ui {
 /// ligament (surface nodes joined by shortest paths along the surface), for the elastic fit.
 /// Attachments: a click on the organ drawn over the frame holds the surface nodes around it (ligament
 /// attachments for the simulation and the fit); a click on held ones releases them.
-enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks, OrganCurve, Attachments };
+enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks, OrganCurve, Attachments, Grasp };
 
 /// Gizmo handles of the Align tool: translations along and rotations about the camera axes through
 /// the organ's centre of gravity.
@@ -81,6 +83,10 @@ class FrameView : public QWidget {
   void setInnerOverlay(const QImage& inner) { inner_ = inner; update(); }
   void setCase(std::shared_ptr<const app::Case> c);
   const std::shared_ptr<const app::Case>& caseData() const { return case_; }
+  /// The organ as the simulation has it now (camera frame, volume node order; empty: the case's shape): what
+  /// the instruments act on.
+  void setLiveShape(std::vector<Eigen::Vector3d> cameraPositions) { live_ = std::move(cameraPositions); }
+  const std::vector<Eigen::Vector3d>& liveShape() const { return live_; }
   void setOverlayVisible(bool visible);
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
@@ -140,6 +146,8 @@ class FrameView : public QWidget {
   void toolMessage(const QString& text);
   /// Attachments tool: the organ's new attachment nodes (sorted volume node indices) after a click.
   void attachmentsEdited(const std::vector<int>& nodes, const QString& text);
+  /// Rehearsal instruments: an input for the simulation session (tip pose in the camera frame, jaws).
+  void instrumentInput(const rehearse::simcore::InputEvent& e);
 
  protected:
   void paintEvent(QPaintEvent*) override;
@@ -159,6 +167,7 @@ class FrameView : public QWidget {
   void paintLegend(QPainter& painter);
 
   std::shared_ptr<const app::Case> case_;
+  std::vector<Eigen::Vector3d> live_;
   QImage frame_, overlay_, inner_;
   QList<QPolygonF> silhouette_;
   bool overlayVisible_ = true;

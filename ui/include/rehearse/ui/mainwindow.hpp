@@ -13,6 +13,7 @@
 #include "rehearse/ui/pages/fitpage.hpp"
 #include "rehearse/ui/pages/framepage.hpp"
 #include "rehearse/ui/pages/meshpage.hpp"
+#include "rehearse/ui/pages/rehearsepage.hpp"
 #include "rehearse/ui/pages/rigidpage.hpp"
 
 #include <rehearse/app/workflow.hpp>
@@ -75,6 +76,7 @@ class MainWindow : public QMainWindow {
   RigidPage* rigidPage() const { return pages_.rigid; }
   FitPage* fitPage() const { return pages_.fit; }
   AppearancePage* appearancePage() const { return pages_.appearance; }
+  RehearsePage* rehearsePage() const { return pages_.rehearse; }
   /// The composited view's engine (layers of the appearance estimate, compositor).
   Composition* composition() const { return composition_; }
   /// Composited, overlay or 3D; a composited view asked for without a current appearance estimate shows
@@ -159,6 +161,7 @@ class MainWindow : public QMainWindow {
     RigidPage* rigid = nullptr;
     FitPage* fit = nullptr;
     AppearancePage* appearance = nullptr;
+    RehearsePage* rehearse = nullptr;
     std::vector<StepPage*> all;  ///< in app::kSteps order (steps without a page yet are greyed)
   };
   /// The status bar's parts: the case's last sentence, the simulation, the distance, the cursor, progress.
@@ -186,6 +189,7 @@ class MainWindow : public QMainWindow {
   QStackedWidget* centre_ = nullptr;  ///< the frame view, or the 3D organ (ViewMode::ThreeD)
   QWidget* centreOrgan_ = nullptr;
   std::vector<QAction*> viewModeActions_;
+  QElapsedTimer liveOverlayClock_;  ///< paces the overlay that follows the simulation in step 7
   OrganView* organView_ = nullptr;
   OrganGLView* organGLView_ = nullptr;
   SimulationPanel* simulation_ = nullptr;

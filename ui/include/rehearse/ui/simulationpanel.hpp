@@ -52,6 +52,8 @@ struct SimulationFrame {
   Qt::HANDLE thread = nullptr;             ///< the thread that computed it (never the GUI thread)
   std::shared_ptr<const app::Case> organ;
   QString message;                         ///< the session's sentence about the last applied input, if any
+  simcore::ToolState tool;                 ///< the instrument after the step (tip, held nodes, force on the tissue)
+  std::vector<std::string> events;         ///< grasp, release, slip at this step
 };
 
 /// Draws a SimulationFrame: the organ's surface with the frame's positions, per-vertex colours and a
@@ -91,6 +93,9 @@ class SimulationPanel : public QWidget {
   void togglePlay();
   void stepOnce();
   void reset();
+  /// An instrument input (tip pose, jaws) for the session's next step, in the camera frame; plays the
+  /// simulation when it is paused (a grasp acts on a live organ). False when no session runs.
+  bool post(simcore::InputEvent e);
   /// The case's material from a DejaVu preset (eye, kidney, liver or uterus) on its organ: emits materialEdited.
   void applyPreset(const QString& name);
   bool isPlaying() const { return playing_; }

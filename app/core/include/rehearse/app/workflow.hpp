@@ -23,7 +23,7 @@ inline constexpr std::array<StepInfo, 7> kSteps = {{{Step::Mesh, "Organ mesh", t
                                                     {Step::Rigid, "Rigid alignment", true},
                                                     {Step::Elastic, "Elastic fit", true},
                                                     {Step::Appearance, "Appearance", true},
-                                                    {Step::Rehearse, "Rehearse", false}}};
+                                                    {Step::Rehearse, "Rehearse", true}}};
 inline constexpr int kStepCount = static_cast<int>(kSteps.size());
 inline constexpr int index(Step s) { return static_cast<int>(s); }
 

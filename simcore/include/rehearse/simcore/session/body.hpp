@@ -55,6 +55,9 @@ class DeformableBody {
   /// holds it is the tool's force on the tissue.
   virtual Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& previousVelocity,
                                        double h) const = 0;
+  /// The force (N) the tool constraints applied to the body in the last step: the constraint solver's
+  /// multipliers along their directions (what the step used, whatever its Newton method).
+  virtual Eigen::Vector3d toolForce() const = 0;
   /// The nodes fixed by the setup (ligament attachments), 1 for fixed.
   virtual const std::vector<char>& fixedMask() const = 0;
 };

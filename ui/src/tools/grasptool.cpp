@@ -1,0 +1,106 @@
+// The grasper (step 7): press on the organ drawn over the frame to close the jaws there, drag to pull (the
+// tip stays at the depth it bit at, under the cursor), release to open them. Every input goes to the
+// simulation session as a timestamped event (camera frame), so it is recorded with the run.
+#include "tools.hpp"
+
+#include <rehearse/imaging/render.hpp>
+
+#include <QMouseEvent>
+#include <QPainter>
+
+namespace rehearse::ui::tools {
+namespace {
+
+class GraspTool final : public FrameTool {
+ public:
+  using FrameTool::FrameTool;
+
+  bool press(QMouseEvent* e, const QPointF&, const Eigen::Vector2d& f) override {
+    if (e->button() != Qt::LeftButton) return false;
+    const auto& c = view_.caseData();
+    if (!c || !c->hasPose) {
+      emit view_.toolMessage(QObject::tr("The grasper works on the organ placed over the frame: place it first (step 4)."));
+      return true;
+    }
+    // Pressed on the organ as the simulation has it now (the case's shape before it runs); the jaws bite at
+    // the surface node nearest the pressed point (a coarse mesh's triangle can be wider than the grasp
+    // radius: the point itself might hold nothing).
+    const auto& live = view_.liveShape();
+    std::vector<double> vertices;
+    SurfaceView sv = c->surfaceView();
+    Pose pose = c->pose;
+    if (live.size() == sv.vertexCount) {
+      vertices.reserve(3 * live.size());
+      for (const auto& x : live) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
+      sv.vertices = vertices.data();
+      pose = Pose{};
+    }
+    const auto hit = imaging::pickSurface(c->camera, pose, sv, f);
+    if (!hit) {
+      emit view_.toolMessage(QObject::tr("Press on the organ to grasp it."));
+      return true;
+    }
+    const Eigen::Vector3d tip = pose.apply(hit->nearestVertex >= 0 ? sv.vertex(static_cast<std::size_t>(hit->nearestVertex)) : hit->model);
+    depth_ = tip.z();
+    offset_.setZero();
+    offset_ = tip - tipAt(f);  // the bite's node need not be under the cursor: the drag moves it by the cursor's motion
+    holding_ = true;
+    send(simcore::InputKind::ToolPose, tip, false);
+    send(simcore::InputKind::Jaw, tip, true);
+    last_ = f;
+    emit view_.toolMessage(QObject::tr("Grasped: drag to pull, release to let go."));
+    return true;
+  }
+  void move(const QPointF&, const Eigen::Vector2d& f) override {
+    if (!holding_) return;
+    last_ = f;
+    send(simcore::InputKind::ToolPose, tipAt(f), false);
+  }
+  void release(QMouseEvent*) override {
+    if (!holding_) return;
+    holding_ = false;
+    send(simcore::InputKind::Jaw, tipAt(last_), false);
+    emit view_.toolMessage(QObject::tr("Released."));
+  }
+  bool abandon() override {
+    if (!holding_) return false;
+    release(nullptr);
+    return true;
+  }
+  void paint(QPainter& painter) override {
+    if (!holding_) return;
+    painter.setPen(QPen(QColor(240, 240, 250), 2));
+    painter.setBrush(Qt::NoBrush);
+    const QPointF at = view_.toWidget(QPointF(last_.x(), last_.y()));
+    painter.drawEllipse(at, 7, 7);
+    painter.drawLine(at + QPointF(-11, 0), at + QPointF(-4, 0));
+    painter.drawLine(at + QPointF(4, 0), at + QPointF(11, 0));
+  }
+  Qt::CursorShape cursor() const override { return holding_ ? Qt::ClosedHandCursor : Qt::OpenHandCursor; }
+
+ private:
+  // The tip for frame pixel `f`: the point under it at the depth the jaws bit at (camera frame, m), plus the
+  // bite's offset from the pressed point.
+  Eigen::Vector3d tipAt(const Eigen::Vector2d& f) const {
+    const auto& c = view_.caseData();
+    const Eigen::Vector3d ray = c->camera.K.inverse() * Eigen::Vector3d(f.x(), f.y(), 1.0);
+    return ray * (depth_ / ray.z()) + offset_;
+  }
+  void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) {
+    simcore::InputEvent e;
+    e.kind = kind;
+    e.position = tip;
+    e.on = on;
+    emit view_.instrumentInput(e);
+  }
+  bool holding_ = false;
+  double depth_ = 0;
+  Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();
+  Eigen::Vector2d last_ = Eigen::Vector2d::Zero();
+};
+
+}  // namespace
+
+std::unique_ptr<FrameTool> makeGraspTool(FrameView& view) { return std::make_unique<GraspTool>(view); }
+
+}  // namespace rehearse::ui::tools
