@@ -84,7 +84,10 @@ class TestRehearseGui : public QObject {
                                    QString(" steps %1 jaw %2").arg(panel->lastFrame()->steps).arg(panel->lastFrame()->tool.jawClosed)));
     for (int i = 1; i <= 12; ++i) {
       QTest::mouseMove(view, (a + (b - a) * (i / 12.0)).toPoint());
-      QTest::qWait(80);
+      // The organ follows each move for a few steps before the next (a hand moves over many steps; a slow
+      // machine must not turn the drag into jumps).
+      const long now = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 5; }));
     }
     // The tip reached the cursor's last place; after the organ followed for a while, compare.
     const long at = panel->lastFrame()->steps;
