@@ -120,16 +120,7 @@ void Composition::install(const std::shared_ptr<const app::Case>& c, const app::
   glPrepared_ = false;
   if (gl_) {
     const app::AppearanceInput in = app::appearanceInputFromCase(*c);
-    imaging::CompositionInput ci;
-    ci.camera = in.camera;
-    ci.pose = in.pose;
-    ci.rest = ci.deformed = in.surface();
-    ci.frame = in.frame;
-    ci.background = layers.background;
-    ci.albedo = layers.albedo;
-    ci.theta = c->appearance->theta;
-    ci.textureOnly = c->appearance->textureOnly;
-    glPrepared_ = gl_->prepare(ci);  // false: the CPU compositor draws instead
+    glPrepared_ = gl_->prepare(app::compositionInput(in, layers, c->appearance->theta, c->appearance->textureOnly));  // false: the CPU compositor draws instead
   }
   diffuse_ = frameToQImage(layers.diffuse);
   background_ = frameToQImage(layers.background);

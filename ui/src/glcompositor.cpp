@@ -1,5 +1,7 @@
 #include "rehearse/ui/glcompositor.hpp"
 
+#include "glcommon.hpp"
+
 #include <rehearse/imaging/render.hpp>
 
 #include <QGuiApplication>
@@ -172,18 +174,7 @@ struct GLCompositor::Impl {
 };
 
 GLCompositor::GLCompositor() : d_(std::make_unique<Impl>()) {
-  const QString platform = QGuiApplication::platformName();
-  if (platform == QLatin1String("offscreen") || platform == QLatin1String("minimal")) return;
-  QSurfaceFormat f;
-  f.setVersion(3, 3);
-  f.setProfile(QSurfaceFormat::CoreProfile);
-  d_->context.setFormat(f);
-  if (!d_->context.create()) return;
-  const auto got = d_->context.format();
-  if (got.majorVersion() < 3 || (got.majorVersion() == 3 && got.minorVersion() < 3)) return;
-  d_->surface.setFormat(got);
-  d_->surface.create();
-  if (!d_->context.makeCurrent(&d_->surface)) return;
+  if (!makeOffscreenContext(d_->context, d_->surface)) return;
   const QString renderer = QString::fromLatin1(reinterpret_cast<const char*>(d_->context.functions()->glGetString(GL_RENDERER)));
   d_->software = renderer.contains(QLatin1String("llvmpipe"), Qt::CaseInsensitive) || renderer.contains(QLatin1String("softpipe"), Qt::CaseInsensitive) ||
                  renderer.contains(QLatin1String("swrast"), Qt::CaseInsensitive);
@@ -294,12 +285,7 @@ bool GLCompositor::compose(const std::vector<double>& deformedVertices, QImage& 
     gl->glDepthFunc(GL_LESS);
     const imaging::Camera& c = d.camera;
     const double W = c.width, H = c.height, fx = c.K(0, 0), sk = c.K(0, 1), fy = c.K(1, 1);
-    const double nearZ = std::max(1e-3, 0.5 * std::max(zMin, 1e-3)), farZ = 2.0 * zMax + 1e-3;
-    // OpenCV pinhole (pixel centres at integers, y down) to clip space, as GLOverlay.
-    const QMatrix4x4 projection(float(2 * fx / W), float(2 * sk / W), float(2 * (c.cx() + 0.5) / W - 1), 0,  //
-                                0, float(-2 * fy / H), float(1 - 2 * (c.cy() + 0.5) / H), 0,                  //
-                                0, 0, float((farZ + nearZ) / (farZ - nearZ)), float(-2 * farZ * nearZ / (farZ - nearZ)),  //
-                                0, 0, 1, 0);
+    const QMatrix4x4 projection = pinholeProjection(c, zMin, zMax);
     std::vector<unsigned> indices(d.triangles.begin(), d.triangles.end());
     QOpenGLVertexArrayObject vao;
     vao.create();

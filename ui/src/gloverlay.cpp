@@ -1,5 +1,7 @@
 #include "rehearse/ui/gloverlay.hpp"
 
+#include "glcommon.hpp"
+
 #include <QGuiApplication>
 #include <QMatrix4x4>
 #include <QOffscreenSurface>
@@ -48,18 +50,7 @@ struct GLOverlay::Impl {
 };
 
 GLOverlay::GLOverlay() : d_(std::make_unique<Impl>()) {
-  const QString platform = QGuiApplication::platformName();
-  if (platform == QLatin1String("offscreen") || platform == QLatin1String("minimal")) return;
-  QSurfaceFormat f;
-  f.setVersion(3, 3);
-  f.setProfile(QSurfaceFormat::CoreProfile);
-  d_->context.setFormat(f);
-  if (!d_->context.create()) return;
-  const auto got = d_->context.format();
-  if (got.majorVersion() < 3 || (got.majorVersion() == 3 && got.minorVersion() < 3)) return;
-  d_->surface.setFormat(got);
-  d_->surface.create();
-  if (!d_->context.makeCurrent(&d_->surface)) return;
+  if (!makeOffscreenContext(d_->context, d_->surface)) return;
   d_->ok = d_->program.addShaderFromSourceCode(QOpenGLShader::Vertex, kVertex) &&
            d_->program.addShaderFromSourceCode(QOpenGLShader::Fragment, kFragment) && d_->program.link();
   d_->context.doneCurrent();
@@ -122,13 +113,7 @@ bool GLOverlay::render(const imaging::Camera& camera, const Pose& pose, const Su
   gl->glDepthFunc(GL_LESS);
   gl->glDisable(GL_CULL_FACE);
   gl->glDisable(GL_BLEND);
-  // OpenCV pinhole (pixel centres at integers, y down) to clip space: pixel u's centre is window u + 0.5.
-  const double W = camera.width, H = camera.height, fx = camera.K(0, 0), sk = camera.K(0, 1), fy = camera.K(1, 1);
-  const double nearZ = std::max(1e-3, 0.5 * std::max(zMin, 1e-3)), farZ = 2.0 * zMax + 1e-3;
-  const QMatrix4x4 projection(float(2 * fx / W), float(2 * sk / W), float(2 * (camera.cx() + 0.5) / W - 1), 0,  //
-                              0, float(-2 * fy / H), float(1 - 2 * (camera.cy() + 0.5) / H), 0,                  //
-                              0, 0, float((farZ + nearZ) / (farZ - nearZ)), float(-2 * farZ * nearZ / (farZ - nearZ)),  //
-                              0, 0, 1, 0);
+  const QMatrix4x4 projection = pinholeProjection(camera, zMin, zMax);
   QOpenGLVertexArrayObject vao;
   vao.create();
   vao.bind();

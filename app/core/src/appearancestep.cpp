@@ -150,17 +150,8 @@ cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance
   if (!deformedVertices.empty() && deformedVertices.size() != in.vertices.size())
     throw imaging::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) + " nodes, the registered one " +
                               std::to_string(in.vertices.size() / 3) + "; they must be the same mesh in the same order.");
-  imaging::CompositionInput c;
-  c.camera = in.camera;
-  c.pose = in.pose;
-  c.rest = in.surface();
-  c.deformed = c.rest;
+  imaging::CompositionInput c = compositionInput(in, AppearanceLayers{{}, background, albedo}, theta, textureOnly);
   if (!deformedVertices.empty()) c.deformed.vertices = deformedVertices.data();
-  c.frame = in.frame;
-  c.background = background;
-  c.albedo = albedo;
-  c.theta = theta;
-  c.textureOnly = textureOnly;
   return imaging::compose(c, supersampling);
 }
 
@@ -173,7 +164,7 @@ AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appe
   return layers;
 }
 
-std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly) {
+imaging::CompositionInput compositionInput(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly) {
   imaging::CompositionInput c;
   c.camera = in.camera;
   c.pose = in.pose;
@@ -183,7 +174,11 @@ std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, c
   c.albedo = layers.albedo;
   c.theta = theta;
   c.textureOnly = textureOnly;
-  return std::make_unique<imaging::Compositor>(c);
+  return c;
+}
+
+std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly) {
+  return std::make_unique<imaging::Compositor>(compositionInput(in, layers, theta, textureOnly));
 }
 
 cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices) {

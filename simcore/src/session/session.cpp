@@ -10,7 +10,9 @@ namespace rehearse::simcore {
 Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chrono::steady_clock::now()) {
   body_ = makeFemBody(setup_);
   state_ = body_->initialState();
-  publish({true}, {});
+  StepReport rest;
+  rest.ok = true;
+  publish(rest, {});
   thread_ = std::thread([this] { run(); });
 }
 
@@ -115,7 +117,6 @@ void Session::apply(const InputEvent& e, std::string& message) {
       break;
     case InputKind::Jaw:
       tool_.jawClosed = e.on;
-      tool_.heldNode = -1;
       tool_.held.clear();
       tool_.heldOffset.clear();
       tool_.force.setZero();
@@ -134,7 +135,6 @@ void Session::apply(const InputEvent& e, std::string& message) {
           tool_.heldOffset.push_back(state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool_.tip);
         }
         if (!near.empty()) {
-          tool_.heldNode = near.front().second;
           events_.push_back("grasp");
         } else {
           message = "The jaws closed on nothing: no tissue within " + std::to_string(static_cast<int>(std::lround(1e3 * setup_.tools.graspRadius))) +
@@ -222,7 +222,6 @@ StepReport Session::advance() {
       message = buf;
       tool_.held.clear();
       tool_.heldOffset.clear();
-      tool_.heldNode = -1;
       events_.push_back("slip");
       updateToolConstraints();
     }

@@ -50,6 +50,10 @@ struct AppearanceLayers {
 };
 AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appearance& theta);
 
+/// What composition takes for `in`'s organ at rest with those layers (its surface views point into `in`,
+/// which must outlive it).
+imaging::CompositionInput compositionInput(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly);
+
 /// The compositor of `in`'s organ at rest (imaging::Compositor) with those layers.
 std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly);
 

@@ -49,8 +49,7 @@ struct InputEvent {
 struct ToolState {
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();
   bool jawClosed = false;
-  int heldNode = -1;                       ///< the held node nearest the tip when the jaws closed (-1: none)
-  std::vector<int> held;                   ///< every node the jaws hold (within the grasp radius when they closed)
+  std::vector<int> held;                   ///< the nodes the jaws hold (within the grasp radius when they closed), nearest first
   std::vector<Eigen::Vector3d> heldOffset; ///< each held node's place relative to the tip (m), kept while held
   bool cutting = false;
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step
