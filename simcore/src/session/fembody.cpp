@@ -5,7 +5,9 @@ namespace {
 
 class FemBody final : public DeformableBody {
  public:
-  explicit FemBody(const BodySetup& s) : model_(build(s)), integrator_(model_, s.fixedNodes, s.settings), settings_(s.settings) {
+  explicit FemBody(const BodySetup& s)
+      : model_(build(s)), integrator_(model_, s.fixedNodes, s.settings), settings_(s.settings), topology_(s.topology), labels_(s.mesh.tetLabels) {
+    labels_.resize(model_.tets.size(), 0);
     fixed_.assign(model_.nodeCount(), 0);
     for (int i : s.fixedNodes)
       if (i >= 0 && static_cast<std::size_t>(i) < fixed_.size()) fixed_[static_cast<std::size_t>(i)] = 1;
@@ -14,7 +16,7 @@ class FemBody final : public DeformableBody {
   SimulationState initialState() const override { return integrator_.initialState(); }
   StepReport step(SimulationState& state) override { return integrator_.step(state); }
   void setToolConstraints(std::vector<ScalarConstraint> c) override { integrator_.setConstraints(std::move(c)); }
-  int topologyVersion() const override { return 0; }
+  int topologyVersion() const override { return topology_; }
   const std::vector<Eigen::Vector3d>& restPositions() const override { return model_.rest; }
   void stress(const SimulationState& state, std::vector<double>& out) const override { vonMisesStress(model_, state.x, out); }
   const std::vector<std::array<int, 4>>& tetrahedra() const override { return model_.tets; }
@@ -30,6 +32,7 @@ class FemBody final : public DeformableBody {
     return sum;
   }
   const std::vector<char>& fixedMask() const override { return fixed_; }
+  const std::vector<int>& labels() const override { return labels_; }
   Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& v0, double h) const override {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     if (nodes.empty() || !(h > 0)) return sum;
@@ -63,6 +66,8 @@ class FemBody final : public DeformableBody {
   FemModel model_;
   Integrator integrator_;
   SimulationSettings settings_;
+  int topology_ = 0;
+  std::vector<int> labels_;
   std::vector<char> fixed_;
 };
 

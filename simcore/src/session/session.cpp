@@ -7,8 +7,32 @@
 
 namespace rehearse::simcore {
 
+namespace {
+// The default trocar: above the organ towards the camera, twice its radius from its centre.
+Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest) {
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : rest) c += p;
+  c /= static_cast<double>(std::max<std::size_t>(1, rest.size()));
+  double r = 0;
+  for (const auto& p : rest) r = std::max(r, (p - c).norm());
+  return c + 2 * r * Eigen::Vector3d(0, -1, -2).normalized();
+}
+}  // namespace
+
 Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chrono::steady_clock::now()) {
   body_ = makeFemBody(setup_);
+  if (!setup_.tools.trocar) setup_.tools.trocar = defaultTrocar(body_->restPositions());
+  {
+    // The cut's quality floor: the stated one, or half the uncut mesh's worst element when that is poorer.
+    const auto& rest = body_->restPositions();
+    double worst = 1;
+    for (const auto& t : body_->tetrahedra())
+      worst = std::min(worst, tetShapeQuality(rest[static_cast<std::size_t>(t[0])], rest[static_cast<std::size_t>(t[1])], rest[static_cast<std::size_t>(t[2])],
+                                              rest[static_cast<std::size_t>(t[3])]));
+    setup_.tools.cut.minQuality = std::min(setup_.tools.cut.minQuality, 0.5 * worst);
+  }
+  tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  uncut_ = setup_;
   state_ = body_->initialState();
   StepReport rest;
   rest.ok = true;
@@ -113,6 +137,10 @@ void Session::updateToolConstraints() {
 void Session::apply(const InputEvent& e, std::string& message) {
   switch (e.kind) {
     case InputKind::ToolPose:
+      if (tool_.cutting && e.position.allFinite()) {
+        cut(tool_.cutFrom, e.position, message);
+        tool_.cutFrom = e.position;
+      }
       tool_.tip = e.position;
       break;
     case InputKind::Jaw:
@@ -146,7 +174,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
       break;
     case InputKind::Cut:
       tool_.cutting = e.on;
-      if (e.on) message = "Cutting is not available yet: the cut was recorded but the tissue is not separated.";
+      tool_.cutFrom = tool_.tip;
       break;
     case InputKind::Parameter: {
       BodySetup before = setup_;
@@ -187,6 +215,64 @@ void Session::apply(const InputEvent& e, std::string& message) {
       break;
   }
   if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw) updateToolConstraints();  // rebuildBody did it for the others
+}
+
+void Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message) {
+  // The blade: from the tip back along the shaft towards the trocar; its sweep between the two poses is
+  // planar (both shafts pass through the trocar).
+  const Eigen::Vector3d trocar = *setup_.tools.trocar;
+  auto bladeEnd = [&](const Eigen::Vector3d& tip) {
+    const Eigen::Vector3d d = trocar - tip;
+    const double L = std::min(setup_.tools.bladeLength, 0.999 * d.norm());
+    return d.norm() > 0 ? Eigen::Vector3d(tip + L * d.normalized()) : tip;
+  };
+  BladeSweep sweep{from, bladeEnd(from), to, bladeEnd(to)};
+  std::vector<Eigen::Vector3d> rest = body_->restPositions();
+  const std::size_t n = rest.size();
+  std::vector<Eigen::Vector3d> current(n);
+  for (std::size_t i = 0; i < n; ++i) current[i] = state_.x.segment<3>(3 * static_cast<Eigen::Index>(i));
+  std::vector<std::array<int, 4>> tets = body_->tetrahedra();
+  std::vector<int> labels = body_->labels();
+  const CutResult r = cutTetrahedra(rest, current, tets, labels, sweep, setup_.tools.cut);
+  if (!r.changed) {
+    if (r.status.rfind("The cut was refused", 0) == 0) message = r.status;
+    return;
+  }
+  const BodySetup before = setup_;
+  const SimulationState stateBefore = state_;
+  setup_.mesh.points = rest;
+  setup_.mesh.unitToMetre = 1.0;
+  setup_.mesh.triangles.clear();
+  setup_.mesh.triangleLabels.clear();
+  setup_.mesh.tets = std::move(tets);
+  setup_.mesh.tetLabels = std::move(labels);
+  setup_.rest.clear();
+  const auto& fixed = body_->fixedMask();
+  for (std::size_t k = 0; k < r.duplicateOf.size(); ++k)
+    if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])]) setup_.fixedNodes.push_back(static_cast<int>(n + k));
+  ++setup_.topology;
+  extendByCut(state_.x, r.newNodes);
+  extendByCut(state_.v, r.newNodes);
+  state_.lagged = {};
+  state_.forcesValid = false;
+  state_.forces.resize(0);
+  try {
+    rebuildBody();
+  } catch (const std::exception& ex) {
+    setup_ = before;
+    state_ = stateBefore;
+    rebuildBody();
+    message = std::string("The cut was refused: ") + ex.what();
+    return;
+  }
+  tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  events_.push_back("cut");
+  for (int label : r.cutLabels)
+    if (setup_.byLabel.count(label)) {
+      events_.push_back("vessel cut");
+      message = "A vessel (label " + std::to_string(label) + ") was cut.";
+      break;
+    }
 }
 
 StepReport Session::advance() {
@@ -248,6 +334,8 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->events = std::move(events);
   s->mass = body_->mass();
   s->elements = body_->tetrahedra().size();
+  s->tets = tets_;
+  s->trocar = *setup_.tools.trocar;
   if (publishStress_) body_->stress(state_, s->stress);
   std::function<void()> callback;
   {
@@ -272,6 +360,7 @@ void Session::restore(const Checkpoint& c) {
   std::lock_guard<std::mutex> lock(stepMutex_);
   setup_ = c.setup;
   body_ = makeFemBody(setup_);
+  tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
   state_ = c.state;
   tool_ = c.tool;
   steps_ = c.step;
@@ -315,6 +404,15 @@ void Session::run() {
     }
     if (doReset) {
       std::lock_guard<std::mutex> stepLock(stepMutex_);
+      if (setup_.topology != uncut_.topology) {
+        // Back to the organ before any cut (parameter edits stay).
+        setup_.mesh = uncut_.mesh;
+        setup_.rest = uncut_.rest;
+        setup_.fixedNodes = uncut_.fixedNodes;
+        setup_.topology = uncut_.topology;
+        body_ = makeFemBody(setup_);
+        tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+      }
       state_ = body_->initialState();
       steps_ = 0;
       tool_ = {};

@@ -4,10 +4,12 @@
 // linear elasticity, the parameterized mesh with free-form deformation) and a cut (a body whose topology
 // changed, topologyVersion() + 1, state carried across by transferState) implement it later.
 // Units: SI. Positions are in the frame the body was built in (the session builds it in the camera frame).
+#include <rehearse/simcore/cut.hpp>
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/integrator.hpp>
 
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,7 +19,16 @@ namespace rehearse::simcore {
 struct ToolSettings {
   double graspRadius = 0.006;   ///< m: closing the jaws holds the nodes within this distance of the tip
   double maxGraspForce = 15.0;  ///< N: above this pull the tissue slips out of the jaws (an event)
-  bool operator==(const ToolSettings&) const = default;
+  /// Where the instruments' shafts enter (m, body frame); unset: above the organ towards the camera
+  /// (the session sets it from the rest shape: twice the organ's radius from its centre along (0, -1, -2)).
+  std::optional<Eigen::Vector3d> trocar;
+  double bladeLength = 0.03;    ///< m: the cutting instrument's blade, from the tip back along the shaft
+  CutSettings cut;              ///< snapping and the quality the re-meshing keeps
+  bool operator==(const ToolSettings& o) const {
+    return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && trocar.has_value() == o.trocar.has_value() &&
+           (!trocar || *trocar == *o.trocar) && bladeLength == o.bladeLength && cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
+           cut.minVolumeFraction == o.cut.minVolumeFraction;
+  }
 };
 
 /// What a FEM body is built from (all of it is recorded with a session, so a replay rebuilds the same body).
@@ -29,6 +40,7 @@ struct BodySetup {
   std::map<int, MaterialParams> byLabel;   ///< e.g. the vessels' label
   SimulationSettings settings;             ///< time step, method, gravity (m/s^2, in the body's frame), ...
   ToolSettings tools;
+  int topology = 0;                        ///< bumped by every cut (the mesh above is then the cut one, in metres)
 };
 
 class DeformableBody {
@@ -60,6 +72,8 @@ class DeformableBody {
   virtual Eigen::Vector3d toolForce() const = 0;
   /// The nodes fixed by the setup (ligament attachments), 1 for fixed.
   virtual const std::vector<char>& fixedMask() const = 0;
+  /// Per element label (the mesh's), e.g. the vessels'.
+  virtual const std::vector<int>& labels() const = 0;
 };
 
 /// The co-rotational / hyperelastic tetrahedral FEM with implicit Euler (FemModel + Integrator).

@@ -52,6 +52,7 @@ struct ToolState {
   std::vector<int> held;                   ///< the nodes the jaws hold (within the grasp radius when they closed), nearest first
   std::vector<Eigen::Vector3d> heldOffset; ///< each held node's place relative to the tip (m), kept while held
   bool cutting = false;
+  Eigen::Vector3d cutFrom = Eigen::Vector3d::Zero();  ///< the tip where the blade's last sweep ended (while cutting)
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step
 };
 
@@ -66,9 +67,12 @@ struct Snapshot {
   MaterialParams material;                 ///< in use (shows when a live edit took effect)
   std::string message;                     ///< a sentence about the last applied input, when it needs one
   std::vector<double> stress;              ///< per element von Mises stress (Pa), only while setPublishStress(true)
-  std::vector<std::string> events;         ///< what happened at this step ("grasp", "release", "slip")
+  std::vector<std::string> events;         ///< what happened at this step ("grasp", "release", "slip", "cut", "vessel cut")
   double mass = 0;                         ///< kg, the body's total
   std::size_t elements = 0;
+  /// The elements (node indices) at this step: shared between snapshots until a cut changes them.
+  std::shared_ptr<const std::vector<std::array<int, 4>>> tets;
+  Eigen::Vector3d trocar = Eigen::Vector3d::Zero();  ///< where the shafts enter (m, body frame)
 };
 
 /// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
@@ -120,11 +124,14 @@ class Session {
   void apply(const InputEvent& e, std::string& message);
   void rebuildBody();
   void updateToolConstraints();
+  void cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message);
   void publish(const StepReport& rep, const std::string& message, std::vector<std::string> events = {});
   void run();
 
   BodySetup setup_;
+  BodySetup uncut_;  ///< the setup the session started from (reset goes back to its mesh)
   std::unique_ptr<DeformableBody> body_;
+  std::shared_ptr<const std::vector<std::array<int, 4>>> tets_;
   SimulationState state_;
   ToolState tool_;
   long steps_ = 0;
