@@ -666,10 +666,7 @@ int cmdGesture(const std::vector<std::string>& args) {
   mesh.convertToMetres();
   setup.mesh = mesh;
   const GestureResult r = runGesture(setup, script);
-  simcore::Mesh out = mesh;
-  out.triangles.clear();
-  out.triangleLabels.clear();
-  for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = r.final.x.segment<3>(static_cast<Eigen::Index>(3 * i));
+  const simcore::Mesh& out = r.finalMesh;
   simcore::saveMesh(out, o["out"]);
   double peak = 0, wall = 0;
   std::size_t grasped = 0;
@@ -685,11 +682,14 @@ int cmdGesture(const std::vector<std::string>& args) {
                       {"grasped_nodes", s.grasped}, {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
                       {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}}, {"events", s.events}, {"message", s.message}, {"ok", s.report.ok},
                       {"status", s.report.status}, {"residual", s.report.residual}});
-    writeReport(o["report"], {{"steps", rows}, {"slips", r.slips}, {"failed_steps", r.failed}, {"peak_tool_force_n", peak},
+    writeReport(o["report"], {{"steps", rows}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", r.vesselCuts}, {"failed_steps", r.failed},
+                              {"peak_tool_force_n", peak}, {"elements", out.tets.size()}, {"nodes", out.points.size()},
                               {"contact", "not modelled yet: the tool holds what it grasps, it does not push tissue"}});
   }
-  std::printf("gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu failed steps; written %s\n", r.steps.size(),
-              wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.failed, o["out"].c_str());
+  std::printf("gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut updates (%zu through a vessel), %zu failed "
+              "steps; %zu elements, %zu nodes written to %s\n",
+              r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, r.vesselCuts, r.failed, out.tets.size(), out.points.size(),
+              o["out"].c_str());
   if (r.failed) std::fprintf(stderr, "rehearse: %zu steps failed\n", r.failed);
   return r.failed ? 3 : 0;
 }

@@ -81,7 +81,9 @@ void extendByCut(Eigen::VectorXd& v, const std::vector<CutNode>& newNodes) {
 }
 
 CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::vector<std::array<int, 4>>& tets, std::vector<int>& labels,
-                        const BladeSweep& blade, const CutSettings& s) {
+                        const BladeSweep& blade, const CutSettings& s, CutProgress* progress) {
+  std::vector<std::array<int, 3>>* pending = progress ? &progress->pendingFaces : nullptr;
+  std::vector<int>* cutNodes = progress ? &progress->nodes : nullptr;
   CutResult r;
   const int n0 = static_cast<int>(rest.size());
   if (current.size() != rest.size() || labels.size() != tets.size()) {
@@ -109,6 +111,25 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
       neg += side < 0;
     }
     return pos == 0 || neg == 0;
+  };
+  // Inside any sweep of this continuous cut (each projected along its own plane's normal).
+  auto insideSwept = [&](const V3& p) {
+    if (insideQuad(p)) return true;
+    if (!progress) return false;
+    for (const BladeSweep& b : progress->sweeps) {
+      const std::array<V3, 4> q{b.a0, b.b0, b.b1, b.a1};
+      V3 nb = (b.b1 - b.a0).cross(b.a1 - b.b0);
+      if (!(nb.norm() > 0)) continue;
+      nb.normalize();
+      int pos = 0, neg = 0;
+      for (int i = 0; i < 4; ++i) {
+        const double side = nb.dot((q[static_cast<std::size_t>((i + 1) % 4)] - q[static_cast<std::size_t>(i)]).cross(p - q[static_cast<std::size_t>(i)]));
+        pos += side > 0;
+        neg += side < 0;
+      }
+      if (pos == 0 || neg == 0) return true;
+    }
+    return false;
   };
   const std::size_t nt = tets.size();
   std::vector<double> dist(current.size());
@@ -150,12 +171,20 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
     restVol[t] = vr;
     for (int k = 0; k < 4; ++k) relevant[static_cast<std::size_t>(tetNode(t, k))] = 1;
   }
-  if (std::find(candidate.begin(), candidate.end(), 1) == candidate.end()) {
+  // With nothing crossed, faces of earlier updates may still open (below); the status says so otherwise.
+  const bool crossedAny = std::find(candidate.begin(), candidate.end(), 1) != candidate.end();
+  for (std::size_t t = 0; t < nt && cutNodes && !cutNodes->empty(); ++t)
+    if (candidate[t])
+      for (int k = 0; k < 4; ++k) relevant[static_cast<std::size_t>(tetNode(t, k))] = 1;
+  if (!crossedAny && (!pending || pending->empty())) {
     r.status = r.skippedInverted ? "The blade crossed only inverted elements; nothing was cut." : "The blade crossed no tissue.";
     return r;
   }
-  // Snapping: a crossing near a node passes through the node.
+  // Snapping: a crossing near a node passes through the node. Nodes already on this continuous cut stay on it.
   std::vector<char> zero(current.size(), 0);
+  if (cutNodes)
+    for (int i : *cutNodes)
+      if (i >= 0 && i < n0) zero[static_cast<std::size_t>(i)] = 1;
   for (std::size_t t = 0; t < nt; ++t) {
     if (!candidate[t]) continue;
     for (int a = 0; a < 4; ++a) {
@@ -172,12 +201,51 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
     }
   }
 
+  // The cut's front: an edge crossed inside the quad that an element outside the quad also holds would put a
+  // node on that element's edge (refining it, and its pieces would lie behind the next update's strip).
+  // Instead the crossing snaps to the edge's nearer node, so the front runs along element faces and a
+  // continuous cut resumes there.
+  {
+    std::unordered_map<std::uint64_t, std::array<int, 2>> edgeUse;  // (elements, candidates) holding the edge
+    for (std::size_t t = 0; t < nt; ++t) {
+      bool near = false;
+      for (int k = 0; k < 4 && !near; ++k) near = relevant[static_cast<std::size_t>(tetNode(t, k))];
+      if (!near) continue;
+      for (int a = 0; a < 4; ++a)
+        for (int b = a + 1; b < 4; ++b) {
+          const int i = tetNode(t, a), j = tetNode(t, b);
+          if (!relevant[static_cast<std::size_t>(i)] || !relevant[static_cast<std::size_t>(j)]) continue;
+          auto& u = edgeUse[edgeKey(i, j)];
+          ++u[0];
+          u[1] += candidate[t];
+        }
+    }
+    for (bool changed = true; changed;) {
+      changed = false;
+      for (std::size_t t = 0; t < nt; ++t) {
+        if (!candidate[t]) continue;
+        for (int a = 0; a < 4; ++a)
+          for (int b = a + 1; b < 4; ++b) {
+            const int i = tetNode(t, a), j = tetNode(t, b);
+            const std::size_t ui = static_cast<std::size_t>(i), uj = static_cast<std::size_t>(j);
+            if (zero[ui] || zero[uj] || !((dist[ui] < 0 && dist[uj] > 0) || (dist[ui] > 0 && dist[uj] < 0))) continue;
+            const auto& u = edgeUse.at(edgeKey(i, j));
+            if (u[1] == u[0]) continue;
+            zero[std::abs(dist[ui]) <= std::abs(dist[uj]) ? ui : uj] = 1;
+            changed = true;
+          }
+      }
+    }
+  }
+
   std::vector<CutNode> newNodes;
   std::vector<V3> newRest, newCurrent;
   std::vector<Piece> pieces;
   std::vector<char> replaced(nt, 0);
-  std::vector<int> sideOf(nt, 0);  // for unreplaced elements lying on the plane with one face (+1 / -1)
   std::unordered_map<std::uint64_t, int> edgePoint;
+  std::unordered_set<FaceKey, FaceHash> pendingIn, pendingNew;
+  if (pending)
+    for (const auto& f : *pending) pendingIn.insert(faceKey(f[0], f[1], f[2]));
   for (int iteration = 0;; ++iteration) {
     auto sigma = [&](int i) { return zero[static_cast<std::size_t>(i)] ? 0 : (dist[static_cast<std::size_t>(i)] > 0 ? 1 : -1); };
     newNodes.clear();
@@ -185,8 +253,8 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
     newCurrent.clear();
     pieces.clear();
     edgePoint.clear();
+    pendingNew.clear();
     std::fill(replaced.begin(), replaced.end(), 0);
-    std::fill(sideOf.begin(), sideOf.end(), 0);
     // Split elements: candidates with nodes on both sides. Each sign-changing edge gets one point.
     std::vector<char> split(nt, 0);
     for (std::size_t t = 0; t < nt; ++t) {
@@ -231,6 +299,13 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
       return w;
     };
     // Cones the polygons from a new node at the mean of `verts` (within element t).
+    auto before = [&](int x, int y) {
+      const V3 &px = restOf(x), &py = restOf(y);
+      if (px.x() != py.x()) return px.x() < py.x();
+      if (px.y() != py.y()) return px.y() < py.y();
+      if (px.z() != py.z()) return px.z() < py.z();
+      return x < y;
+    };
     auto cone = [&](std::size_t t, const std::vector<std::vector<int>>& polys, const std::vector<int>& verts, int side) {
       std::array<double, 4> w{0, 0, 0, 0};
       for (int v : verts) {
@@ -250,13 +325,6 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
       newRest.push_back(pr);
       newCurrent.push_back(pc);
       std::vector<std::array<int, 3>> tris;
-      auto before = [&](int x, int y) {
-        const V3 &px = restOf(x), &py = restOf(y);
-        if (px.x() != py.x()) return px.x() < py.x();
-        if (px.y() != py.y()) return px.y() < py.y();
-        if (px.z() != py.z()) return px.z() < py.z();
-        return x < y;
-      };
       for (const auto& p : polys) triangulate(p, tris, before);
       for (const auto& tri : tris) {
         Piece piece{{tri[0], tri[1], tri[2], centre}, static_cast<int>(t), side};
@@ -304,21 +372,19 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
       if (!touched)
         for (int a = 0; a < 4 && !touched; ++a)
           for (int b = a + 1; b < 4 && !touched; ++b) touched = pointOn(tetNode(t, a), tetNode(t, b)) >= 0;
-      if (!touched) {
-        // On the plane with a whole face (three snapped nodes) inside the quad: it separates along that face.
-        int zeros = 0, sd = 0;
-        V3 c = V3::Zero();
-        for (int k = 0; k < 4; ++k) {
-          const int i = tetNode(t, k);
-          if (sigma(i) == 0) ++zeros, c += current[static_cast<std::size_t>(i)];
-          else sd = sigma(i);
-        }
-        if (zeros == 3 && sd != 0 && insideQuad(c / 3.0)) sideOf[t] = sd;
-        continue;
-      }
+      if (!touched) continue;
       replaced[t] = 1;
       std::vector<std::pair<std::vector<int>, int>> parts;
-      for (const auto& f : kFaces) faceParts(tetNode(t, f[0]), tetNode(t, f[1]), tetNode(t, f[2]), parts);
+      for (const auto& f : kFaces) {
+        const std::size_t first = parts.size();
+        faceParts(tetNode(t, f[0]), tetNode(t, f[1]), tetNode(t, f[2]), parts);
+        // A face on an earlier cut that has not opened yet stays on it in its pieces.
+        if (pendingIn.count(faceKey(tetNode(t, f[0]), tetNode(t, f[1]), tetNode(t, f[2])))) {
+          std::vector<std::array<int, 3>> tris;
+          for (std::size_t k = first; k < parts.size(); ++k) triangulate(parts[k].first, tris, before);
+          for (const auto& tri : tris) pendingNew.insert(faceKey(tri[0], tri[1], tri[2]));
+        }
+      }
       if (!split[t]) {
         std::vector<std::vector<int>> polys;
         for (auto& [poly, sd] : parts) polys.push_back(poly);
@@ -415,8 +481,24 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
   }
 
   // Assemble: replaced elements give their first piece their index, the rest are appended.
-  std::vector<int> side(nt, 0);
-  for (std::size_t t = 0; t < nt; ++t) side[t] = sideOf[t];
+  // Each element's side of the cut: a piece its own; an element left whole the side of its nodes off the cut
+  // (0 when it straddles the plane outside the quad, or lies flat on the cut: decided below).
+  std::vector<int> side(nt, 0), parentOf(nt, -1);
+  std::vector<char> flat(nt, 0);
+  for (std::size_t t = 0; t < nt; ++t) {
+    if (replaced[t]) continue;
+    int sd = 0;
+    bool mixed = false;
+    for (int k = 0; k < 4; ++k) {
+      const std::size_t i = static_cast<std::size_t>(tetNode(t, k));
+      if (zero[i]) continue;
+      const int sg = dist[i] > 0 ? 1 : -1;
+      mixed = mixed || (sd != 0 && sg != sd);
+      sd = sg;
+    }
+    side[t] = mixed ? 0 : sd;
+    flat[t] = !mixed && sd == 0;
+  }
   {
     std::vector<char> first(nt, 1);
     for (const Piece& p : pieces) {
@@ -424,11 +506,14 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
       if (first[t]) {
         tets[t] = p.n;
         side[t] = p.side;
+        parentOf[t] = p.parent;
         first[t] = 0;
       } else {
         tets.push_back(p.n);
         labels.push_back(labels[t]);
         side.push_back(p.side);
+        parentOf.push_back(p.parent);
+        flat.push_back(0);
       }
     }
   }
@@ -441,9 +526,14 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
   // elements still connected through faces that were not separated.
   std::unordered_map<FaceKey, std::array<int, 2>, FaceHash> faces;
   std::vector<char> onCut(rest.size(), 0);
-  for (std::size_t t = 0; t < tets.size(); ++t)
-    if (side[t] != 0)
-      for (int k = 0; k < 4; ++k) onCut[static_cast<std::size_t>(tets[t][static_cast<std::size_t>(k)])] = 1;
+  for (std::size_t i = 0; i < zero.size(); ++i) onCut[i] = zero[i];
+  for (std::size_t i = zero.size(); i < rest.size(); ++i) onCut[i] = 1;
+  // Faces of earlier cuts that have not opened yet (still shared): they separate too once the cut around
+  // them is complete.
+  for (const FaceKey& k : pendingIn)
+    for (int v : k.n) onCut[static_cast<std::size_t>(v)] = 1;
+  for (const FaceKey& k : pendingNew)
+    for (int v : k.n) onCut[static_cast<std::size_t>(v)] = 1;
   std::vector<std::vector<int>> incident(rest.size());
   for (std::size_t t = 0; t < tets.size(); ++t) {
     const auto& e = tets[t];
@@ -458,17 +548,44 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
       if (!inserted) it->second[1] = static_cast<int>(t);
     }
   }
+  // Elements flat on the cut (all four nodes on it) join the side most of their neighbours are on, else the
+  // side their centre is on (a lone flat element must not become a piece of its own).
+  for (int pass = 0; pass < 2; ++pass)
+    for (std::size_t t = 0; t < tets.size(); ++t) {
+      if (!flat[t]) continue;
+      int vote = 0;
+      const auto& e = tets[t];
+      for (const auto& f : kFaces) {
+        const auto it = faces.find(faceKey(e[static_cast<std::size_t>(f[0])], e[static_cast<std::size_t>(f[1])], e[static_cast<std::size_t>(f[2])]));
+        if (it == faces.end() || it->second[1] < 0) continue;
+        vote += side[static_cast<std::size_t>(it->second[0] == static_cast<int>(t) ? it->second[1] : it->second[0])];
+      }
+      if (vote != 0) side[t] = vote > 0 ? 1 : -1;
+      else if (pass == 1) {
+        V3 c = V3::Zero();
+        for (int k : e) c += 0.25 * current[static_cast<std::size_t>(k)];
+        side[t] = normal.dot(c - origin) >= 0 ? 1 : -1;
+      }
+    }
   std::unordered_set<FaceKey, FaceHash> cutFaces;
   std::vector<int> cutLabels;
   for (const auto& [key, pair] : faces) {
     if (pair[1] < 0) continue;
     const int s0 = side[static_cast<std::size_t>(pair[0])], s1 = side[static_cast<std::size_t>(pair[1])];
-    if (s0 * s1 < 0) {
+    if (s0 * s1 >= 0) continue;
+    // Within one split element always; elsewhere where the blade passed (not beyond the cut's front).
+    const bool sameParent = parentOf[static_cast<std::size_t>(pair[0])] >= 0 && parentOf[static_cast<std::size_t>(pair[0])] == parentOf[static_cast<std::size_t>(pair[1])];
+    if (sameParent || insideSwept((current[static_cast<std::size_t>(key.n[0])] + current[static_cast<std::size_t>(key.n[1])] + current[static_cast<std::size_t>(key.n[2])]) / 3.0)) {
       cutFaces.insert(key);
       cutLabels.push_back(labels[static_cast<std::size_t>(pair[0])]);
       cutLabels.push_back(labels[static_cast<std::size_t>(pair[1])]);
     }
   }
+  for (const auto* set : {&pendingIn, &pendingNew})
+    for (const FaceKey& k : *set) {
+      const auto it = faces.find(k);
+      if (it != faces.end() && it->second[1] >= 0) cutFaces.insert(k);
+    }
   r.separatedFaces = cutFaces.size();
   std::vector<char> onSeparated(rest.size(), 0);
   for (const auto& k : cutFaces)
@@ -544,18 +661,57 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
     rest.push_back(pr);
     current.push_back(pc);
   }
+  std::unordered_map<std::uint64_t, int> renamed;  // (element, old node) -> new node
+  for (const auto& rep : replacements) renamed[(static_cast<std::uint64_t>(rep.tet) << 32) | static_cast<std::uint32_t>(rep.from)] = rep.to;
+  if (pending) {
+    // What stays pending: cut faces whose two elements still share all three nodes (at the cut's front),
+    // and earlier pending faces away from this cut.
+    pending->clear();
+    auto name = [&](int t, int v) {
+      const auto it = renamed.find((static_cast<std::uint64_t>(t) << 32) | static_cast<std::uint32_t>(v));
+      return it == renamed.end() ? v : it->second;
+    };
+    for (const FaceKey& k : cutFaces) {
+      const auto& pair = faces.at(k);
+      const FaceKey a = faceKey(name(pair[0], k.n[0]), name(pair[0], k.n[1]), name(pair[0], k.n[2]));
+      const FaceKey b = faceKey(name(pair[1], k.n[0]), name(pair[1], k.n[1]), name(pair[1], k.n[2]));
+      if (a == b) pending->push_back(a.n);
+    }
+    for (const FaceKey& k : pendingIn)
+      if (!faces.count(k)) pending->push_back(k.n);
+    std::sort(pending->begin(), pending->end());
+  }
   for (const auto& rep : replacements)
     for (auto& n : tets[static_cast<std::size_t>(rep.tet)])
       if (n == rep.from) n = rep.to;
+  if (cutNodes) {
+    // On the cut now: what was, the snapped nodes, the new edge points, and every copy of them.
+    std::vector<char> on(rest.size(), 0);
+    for (int i : *cutNodes)
+      if (i >= 0 && static_cast<std::size_t>(i) < on.size()) on[static_cast<std::size_t>(i)] = 1;
+    for (std::size_t i = 0; i < zero.size(); ++i) on[i] = on[i] || zero[i];
+    for (std::size_t k = 0; k < r.newNodes.size(); ++k) {
+      const bool edgePointCopy = k >= newNodes.size() && r.duplicateOf[k] < 0 && r.newNodes[k].from[1] >= 0 && r.newNodes[k].from[2] < 0;
+      const bool edgePoint = k < newNodes.size() && newNodes[k].from[2] < 0;
+      const bool copyOfOn = k >= newNodes.size() && r.duplicateOf[k] >= 0 && on[static_cast<std::size_t>(r.duplicateOf[k])];
+      if (edgePoint || edgePointCopy || copyOfOn) on[static_cast<std::size_t>(n0) + k] = 1;
+    }
+    cutNodes->clear();
+    for (std::size_t i = 0; i < on.size(); ++i)
+      if (on[i]) cutNodes->push_back(static_cast<int>(i));
+  }
   std::sort(cutLabels.begin(), cutLabels.end());
   cutLabels.erase(std::unique(cutLabels.begin(), cutLabels.end()), cutLabels.end());
   r.cutLabels = cutLabels;
   r.changed = !pieces.empty() || r.duplicatedNodes > 0;
+  if (progress && r.changed) progress->sweeps.push_back(blade);
   char buf[240];
   std::snprintf(buf, sizeof buf, "Cut: %zu element(s) split and %zu refined, %zu face(s) separated, %zu node(s) duplicated.", r.splitElements, r.refinedElements,
                 r.separatedFaces, r.duplicatedNodes);
   r.status = buf;
-  if (!r.changed) r.status = "The blade passed between the elements' nodes without crossing any element; nothing was cut.";
+  if (!r.changed)
+    r.status = !crossedAny ? (r.skippedInverted ? "The blade crossed only inverted elements; nothing was cut." : "The blade crossed no tissue.")
+                           : "The blade passed between the elements' nodes without crossing any element; nothing was cut.";
   return r;
 }
 

@@ -6,6 +6,7 @@
 #include <QJsonDocument>
 #include <QJsonObject>
 #include <QProcess>
+#include <rehearse/simcore/meshio.hpp>
 
 #include <sstream>
 
@@ -57,7 +58,7 @@ class TestCli : public QObject {
   // its truth) against appearance.json, the truth it was rendered with; the report's stages; compose of a
   // simulated sag; bad input in one line.
   // A scripted rehearsal without a window: the shipped grasp-pull on the liver preset; the report's rows
-  // carry the keys the issue names; the written volume is the organ's; a cut is refused in one sentence.
+  // carry the keys the issue names; the written volume is the organ's; the shipped cut grows the written mesh; a cut asked of the grasper is refused in one sentence.
   void gestureScript() {
     const QString dir = QString::fromStdString(tempPath("cli-gesture"));
     QDir().mkpath(dir);
@@ -85,14 +86,30 @@ class TestCli : public QObject {
     QVERIFY(grasped > 0 && graspEvent && releaseEvent);
     QVERIFY(report["peak_tool_force_n"].toDouble() > 0.01);
     QVERIFY(QFile(dir + "/out.vtu").size() > 10000);
-    QFile cut(dir + "/cut.json");
-    QVERIFY(cut.open(QIODevice::WriteOnly));
-    cut.write(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "scissors", "cut": true}]})");
-    cut.close();
-    r = run({"gesture", "--preset", "liver", "--script", dir + "/cut.json", "--out", dir + "/cut.vtu"});
+    // The shipped cut: the written volume has the cut's elements and nodes, the report counts its updates.
+    const QString cutScript = QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json";
+    r = run({"gesture", "--preset", "liver", "--script", cutScript, "--method", "linearised", "--out", dir + "/cut.vtu", "--report", dir + "/cut.json"});
+    QVERIFY2(r.code == 0, qPrintable(r.err + r.out));
+    QFile cf(dir + "/cut.json");
+    QVERIFY(cf.open(QIODevice::ReadOnly));
+    const QJsonObject cutReport = QJsonDocument::fromJson(cf.readAll()).object();
+    QVERIFY(cutReport["cuts"].toInt() > 0);
+    const QJsonArray cutSteps = cutReport["steps"].toArray();
+    const int elements = cutSteps.last().toObject()["elements"].toInt(), nodes = cutSteps.last().toObject()["nodes"].toInt();
+    QVERIFY(elements > 3760 && nodes > 783);
+    QCOMPARE(cutReport["elements"].toInt(), elements);
+    const rehearse::simcore::Mesh written = rehearse::simcore::loadMesh((dir + "/cut.vtu").toStdString());
+    QCOMPARE(static_cast<int>(written.tets.size()), elements);
+    QCOMPARE(static_cast<int>(written.points.size()), nodes);
+    // A cut asked of the grasper is refused in one sentence and writes nothing.
+    QFile bad(dir + "/bad.json");
+    QVERIFY(bad.open(QIODevice::WriteOnly));
+    bad.write(R"({"format": "rehearse-gesture", "events": [{"t": 0, "cut": "on"}]})");
+    bad.close();
+    r = run({"gesture", "--preset", "liver", "--script", dir + "/bad.json", "--out", dir + "/bad.vtu"});
     QCOMPARE(r.code, 2);
-    QVERIFY2(r.err.contains("cutting is not available yet"), qPrintable(r.err));
-    QVERIFY(!QFile::exists(dir + "/cut.vtu"));
+    QVERIFY2(r.err.contains("cuts with the grasper"), qPrintable(r.err));
+    QVERIFY(!QFile::exists(dir + "/bad.vtu"));
   }
 
   void appearanceAndCompose() {

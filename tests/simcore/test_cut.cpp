@@ -7,11 +7,16 @@
 #include "box_mesh.hpp"
 #include "phantom/presets.hpp"
 
+#include <rehearse/app/gesture.hpp>
 #include <rehearse/simcore/cut.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <QtTest>
 
+#include <fstream>
+#include <sstream>
+
+#include <deque>
 #include <map>
 #include <numeric>
 #include <random>
@@ -173,6 +178,35 @@ class TestCut : public QObject {
     QVERIFY2(std::abs(boundary - expected) < 1e-12, qPrintable(QString("boundary %1 m^2, expected %2").arg(boundary).arg(expected)));
   }
 
+  // A continuous cut across the liver preset's left lobe in strips of 0.9, 3, 10 and 90 mm (a static
+  // organ): every way of sweeping the same plane cuts the lobe off (two pieces), nothing left pending.
+  void continuousCutInStrips() {
+    simcore::BodySetup s = liverSetup();
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    simcore::Session session(s);
+    for (int k = 0; k < 50; ++k) session.advance();
+    for (double step : {0.0009, 0.003, 0.01, 0.09}) {
+      std::vector<Eigen::Vector3d> current = session.snapshot()->positions, rest = session.setup().mesh.points;
+      auto tets = session.setup().mesh.tets;
+      auto labels = session.setup().mesh.tetLabels;
+      const Eigen::Vector3d tr(-0.06, -0.2, 0.0);
+      auto end = [&](const Eigen::Vector3d& t) { return Eigen::Vector3d(t + 0.09 * (tr - t).normalized()); };
+      simcore::CutProgress progress;
+      double from = -0.04;
+      int updates = 0;
+      for (double z = -0.04 + step; z < 0.05 + 1e-9; z += step) {
+        const Eigen::Vector3d ta(-0.06, 0.05, from), tb(-0.06, 0.05, z);
+        const auto r = simcore::cutTetrahedra(rest, current, tets, labels, {ta, end(ta), tb, end(tb)}, {}, &progress);
+        if (r.changed) from = z, ++updates;
+      }
+      int groups = 0;
+      components(rest.size(), tets, &groups);
+      qInfo("liver strips %.1f mm: %d updates, %zu elements, %zu pending, groups %d", 1e3 * step, updates, tets.size(), progress.pendingFaces.size(), groups);
+      QCOMPARE(groups, 2);
+      const Validity v = validity(rest, tets);
+      QCOMPARE(v.inverted, std::size_t(0));
+    }
+  }
   // The same block held at x = 0 and cut at x = 13.7 mm through the session: the free half falls exactly
   // as backward Euler makes a free body fall, the held half stays; uncut, the block hangs on.
   void halvesFallApart() {
@@ -306,6 +340,137 @@ class TestCut : public QObject {
     QVERIFY(v.minQuality >= std::min(simcore::CutSettings{}.minQuality, 0.5 * minQualityOf(s.mesh)));
     qInfo("worst element %.3f (uncut %.3f; the floor %.3f)", v.minQuality, minQualityOf(s.mesh), session.setup().tools.cut.minQuality);
     for (const auto& p : after->positions) QVERIFY(p.allFinite());
+  }
+
+  // The shipped cut-across script on the liver preset: the hook cuts the left lobe off (two pieces), through
+  // a vessel (an event), mass kept, no inverted element, the quality floor kept, every step finite.
+  void cutAcrossScript() {
+    std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    const app::GestureScript script = app::parseGestureScript(ss.str());
+    simcore::BodySetup s = liverSetup();
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    const app::GestureResult r = app::runGesture(s, script);
+    QCOMPARE(r.failed, std::size_t(0));
+    QVERIFY(r.cuts > 0);
+    QVERIFY(r.vesselCuts > 0);
+    const double mass0 = r.steps.front().massKg;
+    for (const auto& row : r.steps) QVERIFY(std::abs(row.massKg - mass0) < 1e-9 * mass0);
+    QVERIFY(r.final.x.allFinite());
+    int groups = 0;
+    const auto group = components(r.finalMesh.points.size(), r.finalMesh.tets, &groups);
+    std::map<int, double> pieceVolume;
+    for (std::size_t t = 0; t < r.finalMesh.tets.size(); ++t) pieceVolume[group[t]] += volume(r.finalMesh.points, r.finalMesh.tets[t]);
+    qInfo("cut-across: %zu cut updates (%zu through a vessel), %zu -> %zu elements, %d pieces", r.cuts, r.vesselCuts, r.steps.front().elements,
+          r.finalMesh.tets.size(), groups);
+    for (const auto& [g, v] : pieceVolume) qInfo("  piece %d: %.1f cm^3 (deformed)", g, 1e6 * v);
+    QCOMPARE(groups, 2);
+    const Validity v = validity(r.finalMesh.points, r.finalMesh.tets);
+    QCOMPARE(v.inverted, std::size_t(0));
+  }
+
+  // 200 random cuts on the liver preset through the session, a step after each: never a NaN, a status each
+  // step, mass to 1e-9, no inverted element and the quality floor kept in the rest shape.
+  void randomCuts() {
+    simcore::BodySetup s = liverSetup();
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    simcore::Session session(s);
+    Eigen::AlignedBox3d box;
+    for (const auto& p : session.snapshot()->positions) box.extend(p);
+    const double mass0 = session.snapshot()->mass;
+    std::mt19937 rng(15);
+    std::uniform_real_distribution<double> u(0, 1);
+    auto inside = [&] {
+      return Eigen::Vector3d(box.min().x() + u(rng) * box.sizes().x(), box.min().y() + u(rng) * box.sizes().y(), box.min().z() + u(rng) * box.sizes().z());
+    };
+    std::size_t cuts = 0, refused = 0, failed = 0;
+    for (int k = 0; k < 200; ++k) {
+      const Eigen::Vector3d a = inside();
+      const Eigen::Vector3d b = a + 0.03 * Eigen::Vector3d(u(rng) - 0.5, u(rng) - 0.5, u(rng) - 0.5).normalized();
+      session.post(toolAt(a));
+      session.post(cutting(true));
+      session.post(toolAt(b));
+      session.post(cutting(false));
+      const simcore::StepReport rep = session.advance();
+      const auto snap = session.snapshot();
+      QVERIFY(!rep.status.empty());
+      failed += !rep.ok;
+      cuts += static_cast<std::size_t>(std::count(snap->events.begin(), snap->events.end(), "cut"));
+      refused += snap->message.rfind("The cut was refused", 0) == 0;
+      for (const auto& p : snap->positions) QVERIFY(p.allFinite());
+      QVERIFY(std::abs(snap->mass - mass0) < 1e-9 * mass0);
+    }
+    const auto& mesh = session.setup().mesh;
+    const Validity v = validity(mesh.points, mesh.tets);
+    qInfo("200 random cuts: %zu cut, %zu refused, %zu failed steps; %zu elements, %zu nodes, worst quality %.3f (floor %.3f)", cuts, refused, failed,
+          mesh.tets.size(), mesh.points.size(), v.minQuality, session.setup().tools.cut.minQuality);
+    QVERIFY(cuts > 50);
+    QCOMPARE(v.inverted, std::size_t(0));
+    QVERIFY(v.minQuality >= session.setup().tools.cut.minQuality);
+  }
+
+  // A cut through the ligaments' attachment nodes: their copies stay attached (they do not move).
+  void cutThroughAttachment() {
+    simcore::BodySetup s = liverSetup();
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    simcore::Session session(s);
+    const auto rest = session.snapshot()->positions;
+    const Eigen::Vector3d anchor = rest[static_cast<std::size_t>(s.fixedNodes.front())];
+    // The blade's sweep passes through the attachment node: the tip 10 mm beyond it (seen from the trocar),
+    // moving 40 mm across.
+    const Eigen::Vector3d trocar = *session.setup().tools.trocar;
+    const Eigen::Vector3d along = (anchor - trocar).normalized(), across = along.cross(Eigen::Vector3d::UnitX()).normalized();
+    session.post(toolAt(anchor + 0.01 * along - 0.02 * across));
+    session.post(cutting(true));
+    session.post(toolAt(anchor + 0.01 * along + 0.02 * across));
+    session.post(cutting(false));
+    for (int k = 0; k < 30; ++k) QVERIFY(session.advance().ok);
+    const auto snap = session.snapshot();
+    const auto& fixed = session.setup().fixedNodes;
+    QVERIFY(fixed.size() > s.fixedNodes.size());  // copies of cut attachment nodes are attachments too
+    double moved = 0;
+    for (int i : fixed) moved = std::max(moved, (snap->positions[static_cast<std::size_t>(i)] - session.setup().mesh.points[static_cast<std::size_t>(i)]).norm());
+    qInfo("attachments %zu -> %zu after the cut, the furthest moved %.2e m", s.fixedNodes.size(), fixed.size(), moved);
+    QVERIFY(moved < 1e-12);
+  }
+
+  // Cutting while grasping, and a grasp pulled ten times the organ's size: finite, a status every step.
+  void cutWhileGraspingAndOverPull() {
+    simcore::BodySetup s = liverSetup();
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    s.tools.maxGraspForce = 1e9;  // no slip: the tissue must take the pull
+    simcore::Session session(s);
+    for (int k = 0; k < 10; ++k) session.advance();
+    Eigen::Vector3d tip = session.snapshot()->positions.front();
+    for (const auto& p : session.snapshot()->positions)
+      if (p.z() < tip.z()) tip = p;
+    session.post(toolAt(tip));
+    session.post(jaws(true));
+    session.advance();
+    QVERIFY(!session.snapshot()->tool.held.empty());
+    session.post(cutting(true));
+    for (int k = 1; k <= 10; ++k) {
+      session.post(toolAt(tip + Eigen::Vector3d(0.003 * k, 0, 0.002 * k)));
+      QVERIFY(!session.advance().status.empty());
+    }
+    session.post(cutting(false));
+    const std::size_t held = session.snapshot()->tool.held.size();
+    QVERIFY(held > 0);
+    Eigen::AlignedBox3d box;
+    for (const auto& p : session.snapshot()->positions) box.extend(p);
+    const double size = box.sizes().maxCoeff();
+    const Eigen::Vector3d start = session.snapshot()->tool.tip;
+    std::size_t ok = 0, notOk = 0;
+    for (int k = 1; k <= 50; ++k) {
+      session.post(toolAt(start + Eigen::Vector3d(0, 0, -10 * size * k / 50.0)));
+      const simcore::StepReport rep = session.advance();
+      QVERIFY(!rep.status.empty());
+      (rep.ok ? ok : notOk)++;
+      for (const auto& p : session.snapshot()->positions) QVERIFY(p.allFinite());
+    }
+    qInfo("pulled %.0f mm (10x the organ's %.0f mm): %zu steps ok, %zu refused with a status (%s)", 1e4 * size, 1e3 * size, ok, notOk,
+          session.snapshot()->report.status.c_str());
   }
 };
 

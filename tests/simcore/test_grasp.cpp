@@ -188,8 +188,10 @@ class TestGrasp : public QObject {
       }
       return false;
     };
-    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "cut": true}]})", "cutting is not available yet"));
-    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "scissors"}]})", "cutting is not available yet"));
+    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "cut": "on"}]})", "cuts with the grasper"));
+    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "scissors", "cut": true}]})", "must be \"on\" or \"off\""));
+    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "hook"}, {"t": 1, "jaws": "close"}]})", "while holding the hook"));
+    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "laser"}]})", "unknown tool"));
     QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 1, "jaws": "close"}, {"t": 0.5, "jaws": "open"}]})", "time order"));
     QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tip": [0, "a", 0]}]})", "not a number"));
     QVERIFY(refused(R"({"events": []})", "rehearse-gesture"));

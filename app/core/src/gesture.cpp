@@ -31,9 +31,10 @@ double number(const json& j, const char* key, double fallback, double lo, double
   return v;
 }
 
-simcore::InputEvent toolAt(const Eigen::Vector3d& p) {
+simcore::InputEvent toolAt(const Eigen::Vector3d& p, int tool = 0) {
   simcore::InputEvent e;
   e.kind = simcore::InputKind::ToolPose;
+  e.tool = tool;
   e.position = p;
   return e;
 }
@@ -56,9 +57,12 @@ GestureScript parseGestureScript(const std::string& text) {
     const auto& t = j["tools"];
     if (t.contains("grasp_radius_mm")) s.graspRadius = 1e-3 * number(t, "grasp_radius_mm", 6, 0.1, 100);
     if (t.contains("max_grasp_force_n")) s.maxGraspForce = number(t, "max_grasp_force_n", 15, 0.0, 1e6);
+    if (t.contains("blade_length_mm")) s.bladeLength = 1e-3 * number(t, "blade_length_mm", 30, 1, 300);
+    if (t.contains("trocar")) s.trocar = vec3(t["trocar"], "trocar");
   }
   if (!j.contains("events") || !j["events"].is_array()) throw std::runtime_error("the gesture script has no \"events\" list");
   double last = 0;
+  std::string current = "grasper";
   for (const auto& e : j["events"]) {
     GestureEvent g;
     g.t = number(e, "t", 0, 0, 3600);
@@ -66,11 +70,19 @@ GestureScript parseGestureScript(const std::string& text) {
     last = g.t;
     if (e.contains("tool")) {
       const std::string tool = e["tool"].is_string() ? e["tool"].get<std::string>() : std::string();
-      if (tool == "scissors" || tool == "hook")
-        throw std::runtime_error("the gesture script asks for the " + tool + ", but cutting is not available yet; only the grasper can be scripted");
-      if (tool != "grasper") throw std::runtime_error("the gesture script names an unknown tool '" + tool + "'; the grasper is the one available");
+      if (tool != "grasper" && tool != "scissors" && tool != "hook")
+        throw std::runtime_error("the gesture script names an unknown tool '" + tool + "'; use grasper, scissors or hook");
+      g.tool = tool;
+      current = tool;
     }
-    if (e.contains("cut")) throw std::runtime_error("the gesture script asks for a cut, but cutting is not available yet; the script was not run");
+    if (e.contains("cut")) {
+      const std::string w = e["cut"].is_string() ? e["cut"].get<std::string>() : std::string();
+      if (w != "on" && w != "off") throw std::runtime_error("the gesture script's \"cut\" must be \"on\" or \"off\"");
+      if (current == "grasper") throw std::runtime_error("the gesture script cuts with the grasper at t = " + std::to_string(g.t) + "; choose \"tool\": \"scissors\" or \"hook\" first");
+      g.cut = w == "on";
+    }
+    if (e.contains("jaws") && current != "grasper")
+      throw std::runtime_error("the gesture script closes jaws at t = " + std::to_string(g.t) + " while holding the " + current + "; choose \"tool\": \"grasper\" first");
     if (e.contains("tip")) g.tip = vec3(e["tip"], "tip");
     if (e.contains("tip_near")) g.tipNear = vec3(e["tip_near"], "tip_near");
     if (e.contains("move")) g.move = vec3(e["move"], "move");
@@ -80,8 +92,8 @@ GestureScript parseGestureScript(const std::string& text) {
       if (w != "close" && w != "open") throw std::runtime_error("the gesture script's \"jaws\" must be \"close\" or \"open\"");
       g.jawsClosed = w == "close";
     }
-    if (!g.tip && !g.tipNear && !g.move && !g.jawsClosed && !e.contains("tool"))
-      throw std::runtime_error("a gesture script event at t = " + std::to_string(g.t) + " does nothing (no tip, tip_near, move or jaws)");
+    if (!g.tip && !g.tipNear && !g.move && !g.jawsClosed && !g.cut && !e.contains("tool"))
+      throw std::runtime_error("a gesture script event at t = " + std::to_string(g.t) + " does nothing (no tip, tip_near, move, jaws or cut)");
     s.events.push_back(g);
   }
   return s;
@@ -91,6 +103,8 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
   if (script.dt > 0) setup.settings.timeStep = script.dt;
   if (script.graspRadius) setup.tools.graspRadius = *script.graspRadius;
   if (script.maxGraspForce) setup.tools.maxGraspForce = *script.maxGraspForce;
+  if (script.bladeLength) setup.tools.bladeLength = *script.bladeLength;
+  if (script.trocar) setup.tools.trocar = *script.trocar;
   const double h = setup.settings.timeStep;
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
   simcore::Session session(setup);
@@ -103,26 +117,28 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
   };
   std::vector<Move> moves;
   std::size_t next = 0;
+  int tool = 0;  // 0 grasper, 1 scissors, 2 hook
   for (long k = 0; k < steps; ++k) {
     const double t = k * h;
     while (next < script.events.size() && script.events[next].t <= t + 1e-9) {
       const GestureEvent& e = script.events[next++];
+      if (e.tool) tool = *e.tool == "grasper" ? 0 : (*e.tool == "scissors" ? 1 : 2);
       if (e.tipNear) {
         const auto snap = session.snapshot();
         double best = 1e300;
         for (const auto& p : snap->positions)
           if ((p - *e.tipNear).squaredNorm() < best) best = (p - *e.tipNear).squaredNorm(), tip = p;
-        session.post(toolAt(tip));
+        session.post(toolAt(tip, tool));
       }
       if (e.tip) {
         tip = *e.tip;
-        session.post(toolAt(tip));
+        session.post(toolAt(tip, tool));
       }
       if (e.move) {
         const long span = std::max(0L, static_cast<long>(std::lround(e.over / h)));
         if (span == 0) {
           tip += *e.move;
-          session.post(toolAt(tip));
+          session.post(toolAt(tip, tool));
         } else {
           moves.push_back({tip, *e.move, k, k + span});
         }
@@ -133,11 +149,18 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
         j.on = *e.jawsClosed;
         session.post(j);
       }
+      if (e.cut) {
+        simcore::InputEvent c;
+        c.kind = simcore::InputKind::Cut;
+        c.tool = tool;
+        c.on = *e.cut;
+        session.post(c);
+      }
     }
     for (auto it = moves.begin(); it != moves.end();) {
       const double s = std::min(1.0, static_cast<double>(k - it->k0 + 1) / static_cast<double>(it->k1 - it->k0));
       tip = it->from + s * it->by;
-      session.post(toolAt(tip));
+      session.post(toolAt(tip, tool));
       it = s >= 1.0 ? moves.erase(it) : it + 1;
     }
     const auto t0 = std::chrono::steady_clock::now();
@@ -158,10 +181,17 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
     row.report = rep;
     row.message = snap->message;
     out.slips += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "slip"));
+    out.cuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "cut"));
+    out.vesselCuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "vessel cut"));
     out.failed += !rep.ok;
     out.steps.push_back(std::move(row));
   }
   out.final = session.state();
+  // The volume as it ends: the (possibly cut) mesh at the final positions.
+  out.finalMesh = session.setup().mesh;
+  out.finalMesh.triangles.clear();
+  out.finalMesh.triangleLabels.clear();
+  for (std::size_t i = 0; i < out.finalMesh.points.size(); ++i) out.finalMesh.points[i] = out.final.x.segment<3>(static_cast<Eigen::Index>(3 * i));
   return out;
 }
 

@@ -33,6 +33,15 @@ Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chro
   }
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
   uncut_ = setup_;
+  {
+    const auto& rest = body_->restPositions();
+    double sum = 0;
+    std::size_t count = 0;
+    for (const auto& t : body_->tetrahedra())
+      for (int a = 0; a < 4; ++a)
+        for (int b = a + 1; b < 4; ++b) sum += (rest[static_cast<std::size_t>(t[static_cast<std::size_t>(a)])] - rest[static_cast<std::size_t>(t[static_cast<std::size_t>(b)])]).norm(), ++count;
+    meanEdge_ = count ? sum / static_cast<double>(count) : 0;
+  }
   state_ = body_->initialState();
   StepReport rest;
   rest.ok = true;
@@ -137,10 +146,12 @@ void Session::updateToolConstraints() {
 void Session::apply(const InputEvent& e, std::string& message) {
   switch (e.kind) {
     case InputKind::ToolPose:
-      if (tool_.cutting && e.position.allFinite()) {
-        cut(tool_.cutFrom, e.position, message);
+      // The blade's sweep since the cut last changed the tissue: a sweep too thin to cross whole elements
+      // grows until it does.
+      // Applied once the blade has moved half an element's edge, so that it splits elements rather than only
+      // snapping to their nodes.
+      if (tool_.cutting && e.position.allFinite() && (e.position - tool_.cutFrom).norm() >= 0.5 * meanEdge_ && cut(tool_.cutFrom, e.position, message))
         tool_.cutFrom = e.position;
-      }
       tool_.tip = e.position;
       break;
     case InputKind::Jaw:
@@ -173,8 +184,11 @@ void Session::apply(const InputEvent& e, std::string& message) {
       }
       break;
     case InputKind::Cut:
+      if (!e.on && tool_.cutting && (tool_.tip - tool_.cutFrom).norm() > 0) cut(tool_.cutFrom, tool_.tip, message);  // the rest of the sweep
       tool_.cutting = e.on;
       tool_.cutFrom = tool_.tip;
+      // A new cut starts from nothing; what did not open of the last one stays closed.
+      setup_.cut.clear();
       break;
     case InputKind::Parameter: {
       BodySetup before = setup_;
@@ -217,7 +231,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
   if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw) updateToolConstraints();  // rebuildBody did it for the others
 }
 
-void Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message) {
+bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message) {
   // The blade: from the tip back along the shaft towards the trocar; its sweep between the two poses is
   // planar (both shafts pass through the trocar).
   const Eigen::Vector3d trocar = *setup_.tools.trocar;
@@ -233,10 +247,11 @@ void Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   for (std::size_t i = 0; i < n; ++i) current[i] = state_.x.segment<3>(3 * static_cast<Eigen::Index>(i));
   std::vector<std::array<int, 4>> tets = body_->tetrahedra();
   std::vector<int> labels = body_->labels();
-  const CutResult r = cutTetrahedra(rest, current, tets, labels, sweep, setup_.tools.cut);
+  CutProgress progress = setup_.cut;
+  const CutResult r = cutTetrahedra(rest, current, tets, labels, sweep, setup_.tools.cut, &progress);
   if (!r.changed) {
     if (r.status.rfind("The cut was refused", 0) == 0) message = r.status;
-    return;
+    return false;
   }
   const BodySetup before = setup_;
   const SimulationState stateBefore = state_;
@@ -247,6 +262,7 @@ void Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   setup_.mesh.tets = std::move(tets);
   setup_.mesh.tetLabels = std::move(labels);
   setup_.rest.clear();
+  setup_.cut = std::move(progress);
   const auto& fixed = body_->fixedMask();
   for (std::size_t k = 0; k < r.duplicateOf.size(); ++k)
     if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])]) setup_.fixedNodes.push_back(static_cast<int>(n + k));
@@ -263,7 +279,7 @@ void Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     state_ = stateBefore;
     rebuildBody();
     message = std::string("The cut was refused: ") + ex.what();
-    return;
+    return false;
   }
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
   events_.push_back("cut");
@@ -273,6 +289,7 @@ void Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
       message = "A vessel (label " + std::to_string(label) + ") was cut.";
       break;
     }
+  return true;
 }
 
 StepReport Session::advance() {
@@ -410,6 +427,7 @@ void Session::run() {
         setup_.rest = uncut_.rest;
         setup_.fixedNodes = uncut_.fixedNodes;
         setup_.topology = uncut_.topology;
+        setup_.cut = uncut_.cut;
         body_ = makeFemBody(setup_);
         tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
       }

@@ -40,6 +40,14 @@ struct BladeSweep {
   Eigen::Vector3d a0 = Eigen::Vector3d::Zero(), b0 = Eigen::Vector3d::Zero(), a1 = Eigen::Vector3d::Zero(), b1 = Eigen::Vector3d::Zero();
 };
 
+/// A continuous cut between updates (see cutTetrahedra).
+struct CutProgress {
+  std::vector<std::array<int, 3>> pendingFaces;
+  std::vector<int> nodes;
+  std::vector<BladeSweep> sweeps;
+  void clear() { *this = {}; }
+};
+
 /// A node the cut added: a weighted sum of nodes that existed before it (weights sum to 1; unused: -1).
 struct CutNode {
   std::array<int, 4> from{-1, -1, -1, -1};
@@ -66,8 +74,11 @@ double tetShapeQuality(const Eigen::Vector3d& a, const Eigen::Vector3d& b, const
 
 /// Cuts the mesh in place: `rest` and `current` (per node, m) grow by the new nodes, `tets` and `labels`
 /// are re-meshed (replaced elements keep their index for their first piece; the others are appended).
+/// `progress` (in/out, may be null): a continuous cut's state between updates: the faces on it that have not
+/// opened yet (at its front), the nodes on it (they stay on it, whatever the snapping did), and the sweeps so
+/// far (a face between the two sides opens when it lies in any of them, not only in the latest strip).
 CutResult cutTetrahedra(std::vector<Eigen::Vector3d>& rest, std::vector<Eigen::Vector3d>& current, std::vector<std::array<int, 4>>& tets,
-                        std::vector<int>& labels, const BladeSweep& blade, const CutSettings& settings = {});
+                        std::vector<int>& labels, const BladeSweep& blade, const CutSettings& settings = {}, CutProgress* progress = nullptr);
 
 /// A 3n node-major vector (positions, velocities) extended by the cut's new nodes.
 void extendByCut(Eigen::VectorXd& v, const std::vector<CutNode>& newNodes);

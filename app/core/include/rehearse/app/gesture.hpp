@@ -7,9 +7,11 @@
 //    "events": [{"t": 0.0, "tool": "grasper", "tip_near": [x, y, z]},   // the tip onto the organ's node nearest this point
 //               {"t": 0.1, "jaws": "close"},
 //               {"t": 0.2, "move": [0, 0, -0.02], "over": 1.0},       // the tip moved by this, evenly over this time
-//               {"t": 1.5, "jaws": "open"}]}
-// Positions in metres in the body's frame; "tip": [x, y, z] places the tip directly. Cutting instruments
-// are refused until cutting exists (a script that asks for a cut would otherwise be run without it).
+//               {"t": 1.5, "jaws": "open"},
+//               {"t": 1.6, "tool": "scissors", "tip": [x, y, z]},       // scissors or hook: a blade instead of jaws
+//               {"t": 1.7, "cut": "on"}, {"t": 1.7, "move": [0.05, 0, 0], "over": 0.5}, {"t": 2.3, "cut": "off"}]}
+// Positions in metres in the body's frame; "tip": [x, y, z] places the tip directly. "tools" may also set
+// "blade_length_mm" and "trocar": [x, y, z] (where the shafts enter; the blade lies on the shaft).
 #include <rehearse/simcore/session/session.hpp>
 
 #include <optional>
@@ -25,12 +27,15 @@ struct GestureEvent {
   std::optional<Eigen::Vector3d> move;     ///< m, relative
   double over = 0;                         ///< s, for move (0: at once)
   std::optional<bool> jawsClosed;
+  std::optional<bool> cut;            ///< blade on / off (scissors or hook)
+  std::optional<std::string> tool;    ///< "grasper", "scissors", "hook"
 };
 
 struct GestureScript {
   double duration = 1;  ///< s
   double dt = 0;        ///< s (0: the scene's)
-  std::optional<double> graspRadius, maxGraspForce;  ///< m, N
+  std::optional<double> graspRadius, maxGraspForce, bladeLength;  ///< m, N, m
+  std::optional<Eigen::Vector3d> trocar;                          ///< m, body frame
   std::vector<GestureEvent> events;  ///< in time order
 };
 
@@ -51,7 +56,8 @@ struct GestureStep {
 struct GestureResult {
   std::vector<GestureStep> steps;
   simcore::SimulationState final;
-  std::size_t slips = 0, failed = 0;
+  std::size_t slips = 0, failed = 0, cuts = 0, vesselCuts = 0;
+  simcore::Mesh finalMesh;  ///< the volume at the end: nodes and elements after any cut, at the final positions
 };
 
 /// Runs the script on a session built from `setup` (its tools and time step set from the script).

@@ -41,6 +41,7 @@ struct BodySetup {
   SimulationSettings settings;             ///< time step, method, gravity (m/s^2, in the body's frame), ...
   ToolSettings tools;
   int topology = 0;                        ///< bumped by every cut (the mesh above is then the cut one, in metres)
+  CutProgress cut;                         ///< the blade's cut while it is on (cutTetrahedra's `progress`)
 };
 
 class DeformableBody {

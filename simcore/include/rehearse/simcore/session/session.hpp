@@ -124,12 +124,13 @@ class Session {
   void apply(const InputEvent& e, std::string& message);
   void rebuildBody();
   void updateToolConstraints();
-  void cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message);
+  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message);  ///< true when the tissue changed
   void publish(const StepReport& rep, const std::string& message, std::vector<std::string> events = {});
   void run();
 
   BodySetup setup_;
   BodySetup uncut_;  ///< the setup the session started from (reset goes back to its mesh)
+  double meanEdge_ = 0;  ///< m, of the uncut mesh: the blade's sweep is applied in steps of half of it
   std::unique_ptr<DeformableBody> body_;
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets_;
   SimulationState state_;
