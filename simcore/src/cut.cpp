@@ -171,6 +171,55 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
     restVol[t] = vr;
     for (int k = 0; k < 4; ++k) relevant[static_cast<std::size_t>(tetNode(t, k))] = 1;
   }
+  // Elements holding a crossed edge of a candidate whose crossing lies in the region this continuous cut has
+  // swept so far are cut too (else they would stop the cut where an earlier strip ended).
+  if (progress && !progress->sweeps.empty()) {
+    std::unordered_map<std::uint64_t, char> crossed;
+    auto crossedEdges = [&](std::size_t t) {
+      for (int a = 0; a < 4; ++a)
+        for (int b = a + 1; b < 4; ++b) {
+          const int i = tetNode(t, a), j = tetNode(t, b);
+          const double di = dist[static_cast<std::size_t>(i)], dj = dist[static_cast<std::size_t>(j)];
+          if ((di < 0 && dj > 0) || (di > 0 && dj < 0)) crossed[edgeKey(i, j)] = 1;
+        }
+    };
+    for (std::size_t t = 0; t < nt; ++t)
+      if (candidate[t]) crossedEdges(t);
+    for (bool grew = true; grew;) {
+      grew = false;
+      for (std::size_t t = 0; t < nt; ++t) {
+        if (candidate[t]) continue;
+        bool holds = false;
+        for (int a = 0; a < 4 && !holds; ++a)
+          for (int b = a + 1; b < 4 && !holds; ++b) holds = crossed.count(edgeKey(tetNode(t, a), tetNode(t, b))) > 0;
+        if (!holds) continue;
+        V3 c = V3::Zero();
+        int count = 0;
+        for (int a = 0; a < 4; ++a)
+          for (int b = a + 1; b < 4; ++b) {
+            const int i = tetNode(t, a), j = tetNode(t, b);
+            const double di = dist[static_cast<std::size_t>(i)], dj = dist[static_cast<std::size_t>(j)];
+            if ((di < 0 && dj > 0) || (di > 0 && dj < 0)) {
+              const double u = di / (di - dj);
+              c += (1 - u) * current[static_cast<std::size_t>(i)] + u * current[static_cast<std::size_t>(j)];
+              ++count;
+            }
+          }
+        if (count == 0 || !insideSwept(c / count)) continue;
+        const auto& e = tets[t];
+        const double vr = signedVolume(rest[static_cast<std::size_t>(e[0])], rest[static_cast<std::size_t>(e[1])], rest[static_cast<std::size_t>(e[2])],
+                                       rest[static_cast<std::size_t>(e[3])]);
+        const double vc = signedVolume(current[static_cast<std::size_t>(e[0])], current[static_cast<std::size_t>(e[1])],
+                                       current[static_cast<std::size_t>(e[2])], current[static_cast<std::size_t>(e[3])]);
+        if (!(vr > 0) || !(vc > 0)) continue;
+        candidate[t] = 1;
+        restVol[t] = vr;
+        for (int k = 0; k < 4; ++k) relevant[static_cast<std::size_t>(tetNode(t, k))] = 1;
+        crossedEdges(t);
+        grew = true;
+      }
+    }
+  }
   // With nothing crossed, faces of earlier updates may still open (below); the status says so otherwise.
   const bool crossedAny = std::find(candidate.begin(), candidate.end(), 1) != candidate.end();
   for (std::size_t t = 0; t < nt && cutNodes && !cutNodes->empty(); ++t)
@@ -220,7 +269,7 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
           u[1] += candidate[t];
         }
     }
-    for (bool changed = true; changed;) {
+    for (bool changed = s.snapFront; changed;) {
       changed = false;
       for (std::size_t t = 0; t < nt; ++t) {
         if (!candidate[t]) continue;

@@ -11,6 +11,8 @@
 
 #include <QLabel>
 
+#include <rehearse/simcore/cut.hpp>
+
 #include <optional>
 #include <QSignalSpy>
 #include <QStandardPaths>
@@ -72,12 +74,13 @@ class TestRehearseGui : public QObject {
     double peak = 0;
     std::optional<Eigen::Vector3d> tipAtGrasp;
     QString slipMessage;
-    connect(panel, &ui::SimulationPanel::frameShown, this, [&] {
+    const auto watching = connect(panel, &ui::SimulationPanel::frameShown, this, [&] {
       const auto fr = panel->lastFrame();
       peak = std::max(peak, fr->tool.force.norm());
       if (!fr->tool.held.empty() && !tipAtGrasp) tipAtGrasp = fr->tool.tip;
       if (!fr->message.isEmpty()) slipMessage = fr->message;
     });
+    const std::vector<Eigen::Vector3d> settled = panel->lastFrame()->positions;
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     const bool grasped = waitFor([&] { return panel->lastFrame() && !panel->lastFrame()->tool.held.empty(); }, 20000);
     QVERIFY2(grasped, qPrintable(w_->messageLog().join(" | ") + " // " + w_->statusText() + " // " + QString::fromStdString(panel->lastFrame()->report.status) +
@@ -121,6 +124,95 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }));
     QVERIFY(waitFor([&] { return w_->findChild<QLabel*>("rehearseStatus")->text().startsWith("Released"); }, 10000));
     QCOMPARE(panel->lastFrame()->tool.force.norm(), 0.0);
+    // Let go, the bitten tissue relaxes towards where it had settled.
+    const long released = panel->lastFrame()->steps;
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps > released + 100; }));
+    double before = 0, after = 0;
+    for (int i : f->tool.held) {
+      before = std::max(before, (f->positions[static_cast<std::size_t>(i)] - settled[static_cast<std::size_t>(i)]).norm());
+      after = std::max(after, (panel->lastFrame()->positions[static_cast<std::size_t>(i)] - settled[static_cast<std::size_t>(i)]).norm());
+    }
+    disconnect(watching);  // it holds this slot's locals
+    qInfo("released: the bitten nodes %.1f mm from where they had settled while pulled, %.1f mm after 100 steps", 1e3 * before, 1e3 * after);
+    QVERIFY(after < 0.3 * before);
+    panel->pause();
+  }
+
+  // B picks the scissors; a press on the organ and a drag across its left part, down past its lower edge,
+  // cut it: more elements and nodes, the same mass (1e-9), no inverted element, none below the quality the
+  // cut keeps, the cut tissue drawn in the overlay.
+  void cutAcross() {
+    QCOMPARE(w_->step(), ui::Step::Rehearse);
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(w_->frameView()->tool(), ui::Tool::Scissors);
+    auto* panel = w_->simulationPanel();
+    panel->play();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    const auto start = panel->lastFrame();
+    // The organ's vertical extent in the frame at a column a quarter of its width left of its centre.
+    double x0 = 1e9, x1 = -1e9;
+    std::vector<Eigen::Vector2d> px;
+    for (const auto& p : start->positions) {
+      px.push_back(c.camera.project(p));
+      x0 = std::min(x0, px.back().x()), x1 = std::max(x1, px.back().x());
+    }
+    const double column = x0 + 0.25 * (x1 - x0);
+    double y0 = 1e9, y1 = -1e9;
+    for (const auto& p : px)
+      if (std::abs(p.x() - column) < 6) y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
+    const QPointF a = view->toWidget(QPointF(column, y0 + 0.15 * (y1 - y0)));
+    const QPointF b = view->toWidget(QPointF(column, y1 + 0.1 * (y1 - y0)));
+    const std::size_t elements0 = start->elements, nodes0 = start->positions.size();
+    const double mass0 = start->mass;
+    QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    for (int i = 1; i <= 20; ++i) {
+      QTest::mouseMove(view, (a + (b - a) * (i / 20.0)).toPoint());
+      const long now = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.cutting; }));
+    const long at = panel->lastFrame()->steps;
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 30; }));
+    const auto f = panel->lastFrame();
+    QVERIFY(f->surface != nullptr);
+    qInfo("cut: %zu -> %zu elements, %zu -> %zu nodes, mass %.12f -> %.12f kg, %zu cut-tissue triangles", elements0, f->elements, nodes0, f->positions.size(),
+          mass0, f->mass, f->surface->cutCount);
+    QVERIFY(f->elements > elements0);
+    QVERIFY(f->positions.size() > nodes0);
+    QVERIFY(std::abs(f->mass - mass0) < 1e-9 * mass0);
+    QVERIFY(f->surface->cutCount > 0);
+    // Every element positive and above the quality floor in the rest shape; the floor: the stated 0.03, or
+    // half the uncut organ's worst element.
+    double uncutWorst = 1;
+    const auto& organ = c.organ->volume;
+    for (const auto& t : organ.tets)
+      uncutWorst = std::min(uncutWorst, simcore::tetShapeQuality(organ.points[t[0]] * organ.unitToMetre, organ.points[t[1]] * organ.unitToMetre,
+                                                                 organ.points[t[2]] * organ.unitToMetre, organ.points[t[3]] * organ.unitToMetre));
+    const auto& rest = f->surface->rest;
+    std::size_t inverted = 0;
+    double worst = 1;
+    for (const auto& t : *f->tets) {
+      const double v = (rest[t[1]] - rest[t[0]]).dot((rest[t[2]] - rest[t[0]]).cross(rest[t[3]] - rest[t[0]]));
+      inverted += !(v > 0);
+      worst = std::min(worst, simcore::tetShapeQuality(rest[t[0]], rest[t[1]], rest[t[2]], rest[t[3]]));
+    }
+    qInfo("worst element quality %.3f (uncut %.3f), %zu inverted", worst, uncutWorst, inverted);
+    QCOMPARE(inverted, std::size_t(0));
+    QVERIFY(worst >= std::min(simcore::CutSettings{}.minQuality, 0.5 * uncutWorst) - 1e-12);
+    // The overlay draws the cut tissue (dark red) where the camera sees it.
+    const QImage overlay = w_->organOverlay();
+    int red = 0;
+    for (int y = 0; y < overlay.height(); ++y)
+      for (int x = 0; x < overlay.width(); ++x) {
+        const QColor p = overlay.pixelColor(x, y);
+        red += p.alpha() > 0 && p.red() > 2 * p.green() + 10 && p.red() > 2 * p.blue();
+      }
+    qInfo("%d overlay pixels of cut tissue", red);
+    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-cut.png");
+    QVERIFY(red > 0);
     panel->pause();
   }
 

@@ -29,6 +29,7 @@ FrameView::FrameView(QWidget* parent) : QWidget(parent) {
   tools_[Tool::OrganCurve] = tools::makeOrganCurveTool(*this);
   tools_[Tool::Attachments] = tools::makeAttachmentTool(*this);
   tools_[Tool::Grasp] = tools::makeGraspTool(*this);
+  tools_[Tool::Scissors] = tools::makeScissorsTool(*this);
 }
 
 FrameView::~FrameView() = default;
@@ -329,6 +330,11 @@ void FrameView::paintOrganMarks(QPainter& painter, const imaging::Contour& conto
 
 void FrameView::wheelEvent(QWheelEvent* e) {
   if (frame_.isNull()) return;
+  if (current() && current()->wheel(e)) {
+    e->accept();
+    update();
+    return;
+  }
   const QPointF anchor = e->position();
   const QPointF before = toFrame(anchor);
   zoom_ = std::clamp(zoom_ * std::pow(1.0015, e->angleDelta().y()), 0.25, 32.0);

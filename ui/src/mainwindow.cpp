@@ -203,9 +203,21 @@ void MainWindow::buildDocks() {
     if (pages_.rehearse) pages_.rehearse->showFrame(f);
     if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
       view_->setLiveShape(f->positions);
+      view_->setLiveSurface(f->surface);
+      if (f->surface && showingComposited()) {
+        // The composited view textures the organ's own surface; cut tissue it does not draw yet: the overlay
+        // shows the cut instead of a picture that hides it.
+        setViewMode(ViewMode::Overlay);
+        statusBar()->showMessage(tr("The organ is cut: the composited view cannot show cut tissue yet, so the overlay is shown."), 8000);
+      }
+      if (f->surface && step_ == Step::Rehearse && !showingComposited() && (!liveOverlayClock_.isValid() || liveOverlayClock_.elapsed() >= 33)) {
+        liveOverlayClock_.start();
+        picture_ = overlay_->renderLive(*doc_->data(), f->positions, *f->surface);
+        showFrameLayer();
+      }
       // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation (at most
       // 30 times a second: a drawing costs a few milliseconds of this thread).
-      if (step_ == Step::Rehearse && !showingComposited() && (!liveOverlayClock_.isValid() || liveOverlayClock_.elapsed() >= 33)) {
+      if (!f->surface && step_ == Step::Rehearse && !showingComposited() && (!liveOverlayClock_.isValid() || liveOverlayClock_.elapsed() >= 33)) {
         liveOverlayClock_.start();
         const auto& c = *doc_->data();
         auto live = std::make_shared<app::Case>(c);
@@ -218,7 +230,7 @@ void MainWindow::buildDocks() {
         showFrameLayer();
       }
     }
-    if (showingComposited() && f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) composition_->request(f->positions);
+    if (showingComposited() && f && !f->surface && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) composition_->request(f->positions);
   });
   connect(composition_, &Composition::composed, this, [this] {
     if (showingComposited()) showFrameLayer();
@@ -341,11 +353,11 @@ void MainWindow::setStep(Step s) {
   else if (s == Step::Mesh || s == Step::Frame) view_->setTool(Tool::Navigate);
   else if ((s == Step::Elastic || s == Step::Appearance) && (t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Navigate);  // no gizmo over the fit
   else if (s == Step::Rehearse) {
-    view_->setTool(Tool::Grasp);
+    if (t != Tool::Scissors) view_->setTool(Tool::Grasp);
     // The organ is rehearsed on live: it settles on its ligaments before the first grasp.
     if (doc_->hasCase() && doc_->data()->hasPose && !simulation_->isPlaying()) simulation_->play();
   }
-  if (s != Step::Rehearse && view_->tool() == Tool::Grasp) view_->setTool(Tool::Navigate);
+  if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors)) view_->setTool(Tool::Navigate);
   if (s != Step::Rehearse && doc_->hasCase()) refreshOverlay();  // the case's organ again, not the simulation's
   updateWorkflow();
 }

@@ -89,4 +89,59 @@ OverlayPicture OrganOverlay::render(const app::Case& c, const std::vector<int>& 
   return out;
 }
 
+OverlayPicture OrganOverlay::renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface) {
+  OverlayPicture out;
+  if (cameraPositions.empty() || surface.triangles.empty() || !c.camera.problem().empty()) return out;
+  const double s = std::min(1.0, 1600.0 / c.camera.width);
+  imaging::Camera cam = c.camera;
+  if (s < 1.0) {
+    cam.width = static_cast<int>(std::lround(c.camera.width * s));
+    cam.height = static_cast<int>(std::lround(c.camera.height * s));
+    cam.K.row(0) *= s;
+    cam.K.row(1) *= s;
+    cam.K(0, 2) = s * (c.camera.cx() + 0.5) - 0.5;
+    cam.K(1, 2) = s * (c.camera.cy() + 0.5) - 0.5;
+  }
+  std::vector<double> vertices;
+  vertices.reserve(3 * cameraPositions.size());
+  for (const auto& x : cameraPositions) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
+  SurfaceView sv;
+  sv.vertices = vertices.data();
+  sv.vertexCount = cameraPositions.size();
+  sv.triangles = surface.triangles.front().data();
+  sv.triangleCount = surface.triangles.size();
+  try {
+    const QColor fill = palette::organFill();
+    cv::Mat4b shaded = imaging::renderOverlay(cam, Pose{}, sv, cv::Vec3b(fill.blue(), fill.green(), fill.red()));
+    if (surface.cutCount > 0) {
+      const imaging::Rasterization r = imaging::rasterize(cam, Pose{}, sv);
+      for (int y = 0; y < shaded.rows; ++y)
+        for (int x = 0; x < shaded.cols; ++x) {
+          const int t = r.triangle(y, x);
+          if (t < 0 || !surface.cut[static_cast<std::size_t>(t)]) continue;
+          cv::Vec4b& p = shaded(y, x);
+          const double shade = (p[0] + p[1] + p[2]) / (3.0 * std::max(1, (fill.red() + fill.green() + fill.blue()) / 3));
+          p = cv::Vec4b(cv::saturate_cast<uchar>(40 * shade), cv::saturate_cast<uchar>(30 * shade), cv::saturate_cast<uchar>(160 * shade), p[3]);
+        }
+    }
+    cv::Mat rgba;
+    cv::cvtColor(shaded, rgba, cv::COLOR_BGRA2RGBA);
+    out.organ = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
+  } catch (const std::exception&) {
+    return out;  // behind the camera or a bad camera: nothing to draw
+  }
+  const cv::Mat overlay(out.organ.height(), out.organ.width(), CV_8UC4, const_cast<uchar*>(out.organ.constBits()),
+                        static_cast<std::size_t>(out.organ.bytesPerLine()));
+  cv::Mat1b mask;
+  cv::extractChannel(overlay, mask, 3);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  for (const auto& ct : contours) {
+    QPolygonF poly;
+    for (const auto& p : ct) poly << QPointF((p.x + 0.5) / s, (p.y + 0.5) / s);
+    out.silhouette << poly;
+  }
+  return out;
+}
+
 }  // namespace rehearse::ui

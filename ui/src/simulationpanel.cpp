@@ -105,6 +105,10 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   f->organ = ctx.organ;
   f->tool = snap.tool;
   f->events = snap.events;
+  f->surface = snap.surface;
+  f->elements = snap.elements;
+  f->mass = snap.mass;
+  f->tets = snap.tets;
   f->message = QString::fromStdString(snap.message);
   return f;
 }
@@ -241,10 +245,12 @@ void SimulationView::paintEvent(QPaintEvent*) {
     double depth;
     std::size_t index;
   };
+  // After a cut the simulation's own boundary (cut tissue marked), else the organ's surface.
+  const auto& triangles = frame_->surface ? frame_->surface->triangles : organ.surface;
   std::vector<Tri> order;
-  order.reserve(organ.surface.size());
-  for (std::size_t k = 0; k < organ.surface.size(); ++k) {
-    const auto& tri = organ.surface[k];
+  order.reserve(triangles.size());
+  for (std::size_t k = 0; k < triangles.size(); ++k) {
+    const auto& tri = triangles[k];
     const double z = cam[tri[0]].z() + cam[tri[1]].z() + cam[tri[2]].z();
     if (cam[tri[0]].z() > 1e-6 && cam[tri[1]].z() > 1e-6 && cam[tri[2]].z() > 1e-6) order.push_back({z, k});
   }
@@ -252,12 +258,12 @@ void SimulationView::paintEvent(QPaintEvent*) {
   const double vmax = std::max(frame_->valueScale, 1e-9);
   painter.setRenderHint(QPainter::Antialiasing, false);
   for (const Tri& o : order) {
-    const auto& tri = organ.surface[o.index];
+    const auto& tri = triangles[o.index];
     const Eigen::Vector3d n = (cam[tri[1]] - cam[tri[0]]).cross(cam[tri[2]] - cam[tri[0]]).normalized();
     const Eigen::Vector3d c = (cam[tri[0]] + cam[tri[1]] + cam[tri[2]]) / 3;
     const double shade = 0.35 + 0.65 * std::abs(n.dot(c.normalized()));
     const double v = (frame_->value[tri[0]] + frame_->value[tri[1]] + frame_->value[tri[2]]) / 3;
-    QColor col = colourMap(v / vmax);
+    QColor col = frame_->surface && frame_->surface->cut[o.index] ? QColor(150, 30, 40) : colourMap(v / vmax);
     col = QColor::fromRgbF(col.redF() * shade, col.greenF() * shade, col.blueF() * shade);
     const QPointF pts[3] = {project(cam[tri[0]]), project(cam[tri[1]]), project(cam[tri[2]])};
     painter.setPen(QPen(col, 0.8));

@@ -4,6 +4,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <map>
 
 namespace rehearse::simcore {
 
@@ -148,9 +149,9 @@ void Session::apply(const InputEvent& e, std::string& message) {
     case InputKind::ToolPose:
       // The blade's sweep since the cut last changed the tissue: a sweep too thin to cross whole elements
       // grows until it does.
-      // Applied once the blade has moved half an element's edge, so that it splits elements rather than only
+      // Applied once the blade has moved an element's edge, so that it splits elements rather than only
       // snapping to their nodes.
-      if (tool_.cutting && e.position.allFinite() && (e.position - tool_.cutFrom).norm() >= 0.5 * meanEdge_ && cut(tool_.cutFrom, e.position, message))
+      if (tool_.cutting && e.position.allFinite() && (e.position - tool_.cutFrom).norm() >= 2 * meanEdge_ && cut(tool_.cutFrom, e.position, message))
         tool_.cutFrom = e.position;
       tool_.tip = e.position;
       break;
@@ -282,6 +283,7 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     return false;
   }
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  updateCutSurface();
   events_.push_back("cut");
   for (int label : r.cutLabels)
     if (setup_.byLabel.count(label)) {
@@ -290,6 +292,55 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
       break;
     }
   return true;
+}
+
+void Session::updateCutSurface() {
+  // The boundary of the cut mesh; a triangle is the organ's own surface when its rest centre lies on a
+  // triangle of the uncut boundary (a uniform grid over those), cut tissue otherwise.
+  Mesh uncut = uncut_.mesh;
+  uncut.convertToMetres();
+  if (!uncut_.rest.empty()) uncut.points = uncut_.rest;
+  const auto outer = boundaryTriangles(uncut, false);
+  auto out = std::make_shared<CutSurface>();
+  out->triangles = boundaryTriangles(setup_.mesh, false);
+  const double cell = std::max(meanEdge_, 1e-6);
+  auto keyOf = [&](const Eigen::Vector3d& p) {
+    return std::array<long, 3>{static_cast<long>(std::floor(p.x() / cell)), static_cast<long>(std::floor(p.y() / cell)), static_cast<long>(std::floor(p.z() / cell))};
+  };
+  std::map<std::array<long, 3>, std::vector<int>> grid;
+  for (std::size_t k = 0; k < outer.size(); ++k) {
+    Eigen::AlignedBox3d box;
+    for (int v : outer[k]) box.extend(uncut.points[static_cast<std::size_t>(v)]);
+    const auto lo = keyOf(box.min()), hi = keyOf(box.max());
+    for (long x = lo[0]; x <= hi[0]; ++x)
+      for (long y = lo[1]; y <= hi[1]; ++y)
+        for (long z = lo[2]; z <= hi[2]; ++z) grid[{x, y, z}].push_back(static_cast<int>(k));
+  }
+  const auto& rest = setup_.mesh.points;
+  out->cut.assign(out->triangles.size(), 1);
+  for (std::size_t k = 0; k < out->triangles.size(); ++k) {
+    const auto& t = out->triangles[k];
+    const Eigen::Vector3d c = (rest[static_cast<std::size_t>(t[0])] + rest[static_cast<std::size_t>(t[1])] + rest[static_cast<std::size_t>(t[2])]) / 3.0;
+    const auto it = grid.find(keyOf(c));
+    if (it == grid.end()) continue;
+    for (int o : it->second) {
+      const Eigen::Vector3d& a = uncut.points[static_cast<std::size_t>(outer[static_cast<std::size_t>(o)][0])];
+      const Eigen::Vector3d& b = uncut.points[static_cast<std::size_t>(outer[static_cast<std::size_t>(o)][1])];
+      const Eigen::Vector3d& d = uncut.points[static_cast<std::size_t>(outer[static_cast<std::size_t>(o)][2])];
+      const Eigen::Vector3d n = (b - a).cross(d - a);
+      const double area2 = n.norm();
+      if (!(area2 > 0) || std::abs(n.dot(c - a)) > 1e-9 * area2 * cell) continue;
+      // Inside the triangle (barycentric signs).
+      const double w0 = n.dot((b - a).cross(c - a)), w1 = n.dot((d - b).cross(c - b)), w2 = n.dot((a - d).cross(c - d));
+      if (w0 >= -1e-12 * area2 * area2 && w1 >= -1e-12 * area2 * area2 && w2 >= -1e-12 * area2 * area2) {
+        out->cut[k] = 0;
+        break;
+      }
+    }
+  }
+  out->cutCount = static_cast<std::size_t>(std::count(out->cut.begin(), out->cut.end(), 1));
+  out->rest = rest;
+  surface_ = std::move(out);
 }
 
 StepReport Session::advance() {
@@ -352,6 +403,7 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->mass = body_->mass();
   s->elements = body_->tetrahedra().size();
   s->tets = tets_;
+  s->surface = setup_.topology > 0 ? surface_ : nullptr;
   s->trocar = *setup_.tools.trocar;
   if (publishStress_) body_->stress(state_, s->stress);
   std::function<void()> callback;
@@ -378,6 +430,8 @@ void Session::restore(const Checkpoint& c) {
   setup_ = c.setup;
   body_ = makeFemBody(setup_);
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  surface_.reset();
+  if (setup_.topology > 0) updateCutSurface();
   state_ = c.state;
   tool_ = c.tool;
   steps_ = c.step;
@@ -430,6 +484,7 @@ void Session::run() {
         setup_.cut = uncut_.cut;
         body_ = makeFemBody(setup_);
         tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+        surface_.reset();
       }
       state_ = body_->initialState();
       steps_ = 0;

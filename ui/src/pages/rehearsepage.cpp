@@ -13,15 +13,20 @@ namespace rehearse::ui {
 RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Rehearse, parent) {
   auto* layout = new QVBoxLayout(this);
   auto* intro = new QLabel(tr("Rehearse the gesture on the registered organ: with the grasper, press on the organ to close the jaws "
-                              "there, drag to pull it, release to let go. The simulation runs while you pull (Simulation panel: "
-                              "material, ligaments); the view shows it composited into the frame once the appearance is estimated "
-                              "(step 6). Cutting comes in a later version."),
+                              "there, drag to pull it, release to let go; with the scissors, press on the organ and drag across it "
+                              "to cut, release to stop. The wheel moves the instrument's tip along the view ray while you hold it. "
+                              "The simulation runs while you work (Simulation panel: material, ligaments); the view shows it "
+                              "composited into the frame once the appearance is estimated (step 6), and as the overlay once the "
+                              "organ is cut (cut tissue in dark red)."),
                            this);
   intro->setWordWrap(true);
   layout->addWidget(intro);
   auto* grasper = toolButton(this, tr("Grasper (R)"), tr("Press on the organ to grasp it, drag to pull, release to let go"), Tool::Grasp, Qt::Key_R);
   grasper->setObjectName(QStringLiteral("grasperTool"));
   layout->addWidget(grasper);
+  auto* scissors = toolButton(this, tr("Scissors (B)"), tr("Press on the organ and drag across it to cut, release to stop"), Tool::Scissors, Qt::Key_B);
+  scissors->setObjectName(QStringLiteral("scissorsTool"));
+  layout->addWidget(scissors);
   status_ = new QLabel(this);
   status_->setObjectName(QStringLiteral("rehearseStatus"));
   status_->setWordWrap(true);
@@ -38,20 +43,31 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
 void RehearsePage::refresh(const app::Case& c) {
   if (!c.hasPose) status_->setText(tr("Place the organ over the frame first (step 4)."));
   else if (status_->text().isEmpty() || status_->text().startsWith(tr("Place the organ")))
-    status_->setText(tr("Pick the grasper (R) and press on the organ."));
+    status_->setText(tr("Pick the grasper (R) or the scissors (B) and press on the organ."));
 }
 
 void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!f) return;
   slips_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "slip"));
+  cuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "cut"));
+  vesselCuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "vessel cut"));
   const auto& t = f->tool;
-  if (!t.held.empty())
+  if (t.cutting)
+    status_->setText(tr("Cutting: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
+  else if (!t.held.empty())
     status_->setText(tr("Holding %n node(s) of tissue.", nullptr, static_cast<int>(t.held.size())));
   else if (t.jawClosed)
     status_->setText(f->message.isEmpty() ? tr("The jaws are closed on nothing.") : f->message);
   else if (std::find(f->events.begin(), f->events.end(), "release") != f->events.end())
     status_->setText(tr("Released: the tissue relaxes."));
-  force_->setText(tr("Tool force %1 N%2").arg(t.force.norm(), 0, 'f', 2).arg(slips_ ? tr("   (slips: %1)").arg(slips_) : QString()));
+  else if (cuts_ > 0 && status_->text().startsWith(tr("Cutting")))
+    status_->setText(tr("Cut: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
+  QString extra;
+  if (slips_) extra += tr("   slips: %1").arg(slips_);
+  if (cuts_) extra += tr("   cuts: %1").arg(cuts_);
+  if (vesselCuts_) extra += tr("   vessels cut: %1").arg(vesselCuts_);
+  force_->setText(tr("Tool force %1 N%2").arg(t.force.norm(), 0, 'f', 2).arg(extra));
+  if (!f->message.isEmpty() && f->message.contains(tr("vessel"))) status_->setText(f->message);
 }
 
 }  // namespace rehearse::ui

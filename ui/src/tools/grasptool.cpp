@@ -7,6 +7,9 @@
 
 #include <QMouseEvent>
 #include <QPainter>
+#include <QWheelEvent>
+
+#include <algorithm>
 
 namespace rehearse::ui::tools {
 namespace {
@@ -25,22 +28,12 @@ class GraspTool final : public FrameTool {
     // Pressed on the organ as the simulation has it now (the case's shape before it runs); the jaws bite at
     // the surface node nearest the pressed point (a coarse mesh's triangle can be wider than the grasp
     // radius: the point itself might hold nothing).
-    const auto& live = view_.liveShape();
-    std::vector<double> vertices;
-    SurfaceView sv = c->surfaceView();
-    Pose pose = c->pose;
-    if (live.size() == sv.vertexCount) {
-      vertices.reserve(3 * live.size());
-      for (const auto& x : live) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
-      sv.vertices = vertices.data();
-      pose = Pose{};
-    }
-    const auto hit = imaging::pickSurface(c->camera, pose, sv, f);
+    const auto hit = pickLiveSurface(view_, f);
     if (!hit) {
       emit view_.toolMessage(QObject::tr("Press on the organ to grasp it."));
       return true;
     }
-    const Eigen::Vector3d tip = pose.apply(hit->nearestVertex >= 0 ? sv.vertex(static_cast<std::size_t>(hit->nearestVertex)) : hit->model);
+    const Eigen::Vector3d tip = *hit;
     depth_ = tip.z();
     offset_.setZero();
     offset_ = tip - tipAt(f);  // the bite's node need not be under the cursor: the drag moves it by the cursor's motion
@@ -67,6 +60,13 @@ class GraspTool final : public FrameTool {
     release(nullptr);
     return true;
   }
+  // The wheel while holding: the jaws towards (up) or away from the camera, 2 mm a notch.
+  bool wheel(QWheelEvent* e) override {
+    if (!holding_) return false;
+    depth_ = std::max(1e-3, depth_ - 0.002 * e->angleDelta().y() / 120.0);
+    send(simcore::InputKind::ToolPose, tipAt(last_), false);
+    return true;
+  }
   void paint(QPainter& painter) override {
     if (!holding_) return;
     painter.setPen(QPen(QColor(240, 240, 250), 2));
@@ -81,11 +81,7 @@ class GraspTool final : public FrameTool {
  private:
   // The tip for frame pixel `f`: the point under it at the depth the jaws bit at (camera frame, m), plus the
   // bite's offset from the pressed point.
-  Eigen::Vector3d tipAt(const Eigen::Vector2d& f) const {
-    const auto& c = view_.caseData();
-    const Eigen::Vector3d ray = c->camera.K.inverse() * Eigen::Vector3d(f.x(), f.y(), 1.0);
-    return ray * (depth_ / ray.z()) + offset_;
-  }
+  Eigen::Vector3d tipAt(const Eigen::Vector2d& f) const { return pointAtDepth(view_, f, depth_) + offset_; }
   void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) {
     simcore::InputEvent e;
     e.kind = kind;
@@ -102,5 +98,38 @@ class GraspTool final : public FrameTool {
 }  // namespace
 
 std::unique_ptr<FrameTool> makeGraspTool(FrameView& view) { return std::make_unique<GraspTool>(view); }
+
+std::optional<Eigen::Vector3d> pickLiveSurface(const FrameView& view, const Eigen::Vector2d& f) {
+  const auto& c = view.caseData();
+  if (!c || !c->hasPose) return std::nullopt;
+  const auto& live = view.liveShape();
+  std::vector<double> vertices;
+  SurfaceView sv = c->surfaceView();
+  Pose pose = c->pose;
+  const auto& cut = view.liveSurface();
+  if (cut && !live.empty()) {
+    sv.triangles = cut->triangles.empty() ? nullptr : cut->triangles.front().data();
+    sv.triangleCount = cut->triangles.size();
+    sv.vertexCount = live.size();
+  }
+  if (live.size() == sv.vertexCount) {
+    vertices.reserve(3 * live.size());
+    for (const auto& x : live) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
+    sv.vertices = vertices.data();
+    pose = Pose{};
+  }
+  try {
+    const auto hit = imaging::pickSurface(c->camera, pose, sv, f);
+    if (!hit) return std::nullopt;
+    return pose.apply(hit->nearestVertex >= 0 ? sv.vertex(static_cast<std::size_t>(hit->nearestVertex)) : hit->model);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+Eigen::Vector3d pointAtDepth(const FrameView& view, const Eigen::Vector2d& f, double depth) {
+  const Eigen::Vector3d ray = view.caseData()->camera.K.inverse() * Eigen::Vector3d(f.x(), f.y(), 1.0);
+  return ray * (depth / ray.z());
+}
 
 }  // namespace rehearse::ui::tools

@@ -5,6 +5,7 @@
 #include <QColor>
 
 #include <memory>
+#include <optional>
 
 namespace rehearse::ui::tools {
 
@@ -16,6 +17,13 @@ std::unique_ptr<FrameTool> makeLandmarkTool(FrameView& view);
 std::unique_ptr<FrameTool> makeOrganCurveTool(FrameView& view);
 std::unique_ptr<FrameTool> makeAttachmentTool(FrameView& view);
 std::unique_ptr<FrameTool> makeGraspTool(FrameView& view);
+std::unique_ptr<FrameTool> makeScissorsTool(FrameView& view);
+
+/// The instruments' pick: the organ's surface point under frame pixel `f` as the simulation has it now (its
+/// cut boundary after a cut), snapped to the nearest surface node; camera frame (m). Nothing off the organ.
+std::optional<Eigen::Vector3d> pickLiveSurface(const FrameView& view, const Eigen::Vector2d& f);
+/// The point under frame pixel `f` at camera depth `depth` (m).
+Eigen::Vector3d pointAtDepth(const FrameView& view, const Eigen::Vector2d& f, double depth);
 
 /// Widget position of a gizmo handle at the view's case pose; a null point when the organ is behind the camera.
 QPointF gizmoHandlePosition(const FrameView& view, GizmoHandle h);

@@ -32,6 +32,9 @@ struct CutSettings {
   /// mesh's worst element when that is poorer (such an element could not be cut otherwise).
   double minQuality = 0.03;
   double minVolumeFraction = 1e-3; ///< nor below this fraction of its parent's volume
+  /// The cut's front: false refines the elements beyond it that share a crossed edge (the next update
+  /// splits them); true snaps those crossings to the nearer node instead (fewer elements, a jagged front).
+  bool snapFront = true;
 };
 
 /// The planar quad swept by the blade between two poses, in the current configuration (m): the blade's

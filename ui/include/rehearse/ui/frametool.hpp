@@ -11,6 +11,7 @@
 
 class QKeyEvent;
 class QMouseEvent;
+class QWheelEvent;
 class QPainter;
 class QPointF;
 
@@ -33,6 +34,8 @@ class FrameTool {
   virtual bool doubleClick() { return false; }
   /// True when the tool used the key.
   virtual bool key(QKeyEvent* /*e*/) { return false; }
+  /// True when the tool used the wheel (the instruments: the tip along the view ray); else the view zooms.
+  virtual bool wheel(QWheelEvent* /*e*/) { return false; }
   /// Ends the work in progress (a click-by-click segment, an organ curve): Enter, another tool, a new case.
   virtual void finish() {}
   /// Drops the work in progress without committing it (Esc); true when there was some.

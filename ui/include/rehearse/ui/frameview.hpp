@@ -26,7 +26,7 @@ namespace rehearse::ui {
 /// ligament (surface nodes joined by shortest paths along the surface), for the elastic fit.
 /// Attachments: a click on the organ drawn over the frame holds the surface nodes around it (ligament
 /// attachments for the simulation and the fit); a click on held ones releases them.
-enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks, OrganCurve, Attachments, Grasp };
+enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks, OrganCurve, Attachments, Grasp, Scissors };
 
 /// Gizmo handles of the Align tool: translations along and rotations about the camera axes through
 /// the organ's centre of gravity.
@@ -87,6 +87,9 @@ class FrameView : public QWidget {
   /// the instruments act on.
   void setLiveShape(std::vector<Eigen::Vector3d> cameraPositions) { live_ = std::move(cameraPositions); }
   const std::vector<Eigen::Vector3d>& liveShape() const { return live_; }
+  /// After a cut: the live shape's boundary (its triangles index liveShape()); null before any cut.
+  void setLiveSurface(std::shared_ptr<const simcore::CutSurface> s) { liveSurface_ = std::move(s); }
+  const std::shared_ptr<const simcore::CutSurface>& liveSurface() const { return liveSurface_; }
   void setOverlayVisible(bool visible);
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
@@ -168,6 +171,7 @@ class FrameView : public QWidget {
 
   std::shared_ptr<const app::Case> case_;
   std::vector<Eigen::Vector3d> live_;
+  std::shared_ptr<const simcore::CutSurface> liveSurface_;
   QImage frame_, overlay_, inner_;
   QList<QPolygonF> silhouette_;
   bool overlayVisible_ = true;

@@ -4,6 +4,7 @@
 // CPU rasteriser otherwise; its outline; the inner structures the user ticked, each label in its own
 // colour; and the contour-to-silhouette distance the elastic fit measures.
 #include <rehearse/app/case.hpp>
+#include <rehearse/simcore/session/session.hpp>
 
 #include <QImage>
 #include <QList>
@@ -32,6 +33,10 @@ class OrganOverlay {
   bool usesOpenGL() const { return gl_ != nullptr; }
   /// Empty picture when the case has no organ, no pose or an unusable camera.
   OverlayPicture render(const app::Case& c, const std::vector<int>& innerLabels);
+  /// The simulated organ after a cut: its boundary at `cameraPositions` (camera frame, m), cut tissue in
+  /// dark red where it is seen (by the CPU rasteriser: one pass for the shading, one for which triangle each
+  /// pixel sees).
+  OverlayPicture renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface);
 
  private:
   QImage organImage(const imaging::Camera& camera, const Pose& pose, const SurfaceView& surface, const QColor& colour);

@@ -53,7 +53,11 @@ struct SimulationFrame {
   std::shared_ptr<const app::Case> organ;
   QString message;                         ///< the session's sentence about the last applied input, if any
   simcore::ToolState tool;                 ///< the instrument after the step (tip, held nodes, force on the tissue)
-  std::vector<std::string> events;         ///< grasp, release, slip at this step
+  std::vector<std::string> events;         ///< grasp, release, slip, cut, vessel cut at this step
+  std::shared_ptr<const simcore::CutSurface> surface;  ///< after a cut: the boundary to draw (cut tissue marked)
+  std::size_t elements = 0;
+  double mass = 0;                                                  ///< kg
+  std::shared_ptr<const std::vector<std::array<int, 4>>> tets;      ///< the elements at this step
 };
 
 /// Draws a SimulationFrame: the organ's surface with the frame's positions, per-vertex colours and a

@@ -56,6 +56,15 @@ struct ToolState {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step
 };
 
+/// The organ's boundary after a cut: triangles (node indices, outward) and which of them are cut tissue
+/// (not on the uncut organ's surface).
+struct CutSurface {
+  std::vector<std::array<int, 3>> triangles;
+  std::vector<char> cut;
+  std::size_t cutCount = 0;
+  std::vector<Eigen::Vector3d> rest;  ///< the cut mesh's rest positions (m, body frame)
+};
+
 /// Published after every step (and after reset): read by the views on any thread.
 struct Snapshot {
   long step = 0;
@@ -73,6 +82,8 @@ struct Snapshot {
   /// The elements (node indices) at this step: shared between snapshots until a cut changes them.
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();  ///< where the shafts enter (m, body frame)
+  /// After a cut (topologyVersion > 0): the boundary to draw, cut tissue marked; null before any cut.
+  std::shared_ptr<const CutSurface> surface;
 };
 
 /// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
@@ -130,9 +141,11 @@ class Session {
 
   BodySetup setup_;
   BodySetup uncut_;  ///< the setup the session started from (reset goes back to its mesh)
-  double meanEdge_ = 0;  ///< m, of the uncut mesh: the blade's sweep is applied in steps of half of it
+  double meanEdge_ = 0;  ///< m, of the uncut mesh: the blade's sweep is applied in steps of it
   std::unique_ptr<DeformableBody> body_;
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets_;
+  std::shared_ptr<const CutSurface> surface_;  ///< after a cut
+  void updateCutSurface();
   SimulationState state_;
   ToolState tool_;
   long steps_ = 0;

@@ -23,7 +23,7 @@ class RehearsePage : public StepPage {
  private:
   QLabel* status_ = nullptr;
   QLabel* force_ = nullptr;
-  int slips_ = 0;
+  int slips_ = 0, cuts_ = 0, vesselCuts_ = 0;
 };
 
 }  // namespace rehearse::ui
