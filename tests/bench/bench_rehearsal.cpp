@@ -1,0 +1,181 @@
+// Benchmarks of rehearsal (issue 15; not a test): on the built-in liver preset (3,760 tets) and SOFA's
+// liver (../shared/data/sofa/liver.msh, a real organ's shape), through the simulation session:
+//  - a grasp pulled 2 cm over one second: the wall time of every step while pulling (median, 99th
+//    percentile) for each Newton method, and the tip force and the bitten node's place at the end against
+//    the exact method's (error against run time);
+//  - a cut across the organ in sweeps: the re-meshing alone (cutTetrahedra) and the whole step that applies
+//    it (body rebuild, first factorisation), median and 99th percentile.
+// Writes rehearsal-pull.csv and rehearsal-cut.csv into the directory given (default ".").
+//   bench_rehearsal [OUT_DIR] [--quick]
+#include "phantom/presets.hpp"
+
+#include <rehearse/simcore/cut.hpp>
+#include <rehearse/simcore/session/session.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+using namespace rehearse;
+using namespace rehearse::simcore;
+
+namespace {
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  const double at = q * static_cast<double>(v.size() - 1);
+  const std::size_t lo = static_cast<std::size_t>(at);
+  const std::size_t hi = std::min(lo + 1, v.size() - 1);
+  return v[lo] + (at - static_cast<double>(lo)) * (v[hi] - v[lo]);
+}
+
+BodySetup setupFor(const std::string& preset, const std::string& shared) {
+  const Scene p = phantom::makePreset(preset, shared);
+  BodySetup s;
+  s.mesh = p.mesh;
+  s.mesh.convertToMetres();
+  s.fixedNodes = p.fixedNodes;
+  s.material = p.defaultMaterial;
+  s.byLabel = p.materials;
+  s.settings = p.settings;
+  s.settings.timeStep = 0.01;
+  s.tools.maxGraspForce = 1e6;
+  return s;
+}
+
+InputEvent event(InputKind kind, const Eigen::Vector3d& p = Eigen::Vector3d::Zero(), bool on = false) {
+  InputEvent e;
+  e.kind = kind;
+  e.position = p;
+  e.on = on;
+  return e;
+}
+
+struct PullResult {
+  std::vector<double> ms;
+  Eigen::Vector3d force = Eigen::Vector3d::Zero(), bitten = Eigen::Vector3d::Zero();
+  int failed = 0;
+};
+
+// Settle, bite the node nearest the organ's front (smallest z), pull 2 cm towards -z over 100 steps.
+PullResult pull(BodySetup s, NewtonMethod method, int settle) {
+  s.settings.method = method;
+  Session session(s);
+  for (int k = 0; k < settle; ++k) session.advance();
+  const auto snap = session.snapshot();
+  Eigen::Vector3d tip = snap->positions.front();
+  for (const auto& p : snap->positions)
+    if (p.z() < tip.z()) tip = p;
+  session.post(event(InputKind::ToolPose, tip));
+  session.post(event(InputKind::Jaw, tip, true));
+  session.advance();
+  PullResult r;
+  const int bitten = session.snapshot()->tool.held.empty() ? -1 : session.snapshot()->tool.held.front();
+  for (int k = 1; k <= 100; ++k) {
+    session.post(event(InputKind::ToolPose, tip + Eigen::Vector3d(0, 0, -0.02 * k / 100.0)));
+    const auto t0 = std::chrono::steady_clock::now();
+    const StepReport rep = session.advance();
+    r.ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    r.failed += !rep.ok;
+  }
+  r.force = session.snapshot()->tool.force;
+  if (bitten >= 0) r.bitten = session.snapshot()->positions[static_cast<std::size_t>(bitten)];
+  return r;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out = ".";
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--quick")) quick = true;
+    else out = argv[i];
+  }
+  std::filesystem::create_directories(out);
+  const std::string shared = std::string(REHEARSE_SHARED_DATA);
+  std::vector<std::string> organs = {"liver"};
+  if (std::filesystem::exists(shared + "/sofa/liver.msh")) organs.push_back("sofa-liver");
+  else std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
+
+  std::ofstream pullCsv(out + "/rehearsal-pull.csv");
+  pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,failed,force_error_rel,bitten_error_mm\n";
+  std::printf("Grasp pulled 2 cm over 100 steps of 10 ms (wall time per step while pulling)\n");
+  std::printf("%-11s %6s %-11s %9s %9s %9s %6s %12s %12s\n", "organ", "tets", "method", "median ms", "p99 ms", "max ms", "failed", "force err", "bitten err");
+  for (const auto& organ : organs) {
+    const BodySetup s = setupFor(organ, shared);
+    const PullResult exact = pull(s, NewtonMethod::Exact, quick ? 20 : 50);
+    for (NewtonMethod m : {NewtonMethod::Exact, NewtonMethod::LaggedPcg, NewtonMethod::Chord, NewtonMethod::Linearised}) {
+      const PullResult r = m == NewtonMethod::Exact ? exact : pull(s, m, quick ? 20 : 50);
+      const double fe = exact.force.norm() > 0 ? (r.force - exact.force).norm() / exact.force.norm() : 0;
+      const double de = 1e3 * (r.bitten - exact.bitten).norm();
+      std::printf("%-11s %6zu %-11s %9.2f %9.2f %9.2f %6d %11.2f%% %9.3f mm\n", organ.c_str(), s.mesh.tets.size(), toString(m).c_str(), percentile(r.ms, 0.5),
+                  percentile(r.ms, 0.99), percentile(r.ms, 1.0), r.failed, 100 * fe, de);
+      pullCsv << organ << ',' << s.mesh.tets.size() << ',' << toString(m) << ',' << percentile(r.ms, 0.5) << ',' << percentile(r.ms, 0.99) << ','
+              << percentile(r.ms, 1.0) << ',' << r.failed << ',' << fe << ',' << de << '\n';
+    }
+  }
+
+  std::ofstream cutCsv(out + "/rehearsal-cut.csv");
+  cutCsv << "organ,method,updates,remesh_median_ms,remesh_p99_ms,step_with_cut_median_ms,step_with_cut_p99_ms,elements_before,elements_after\n";
+  std::printf("\nA cut across the organ (plane a quarter of its width from its left end, 12 sweeps of the blade)\n");
+  std::printf("%-11s %-11s %7s %15s %13s %17s %15s %16s\n", "organ", "method", "updates", "remesh med ms", "remesh p99", "step+cut med ms", "step+cut p99",
+              "elements");
+  for (const auto& organ : organs) {
+    for (NewtonMethod m : {NewtonMethod::Exact, NewtonMethod::Linearised}) {
+      BodySetup s = setupFor(organ, shared);
+      s.settings.method = m;
+      Eigen::AlignedBox3d box;
+      for (const auto& p : s.mesh.points) box.extend(p);
+      const Eigen::Vector3d size = box.sizes();
+      const double x = box.min().x() + 0.25 * size.x();
+      // The trocar above the cut's plane; the blade (1.5x the organ's height) sweeps from front to back.
+      s.tools.trocar = Eigen::Vector3d(x, box.min().y() - 2 * size.y(), box.center().z());
+      s.tools.bladeLength = 1.5 * size.y() + 0.02;
+      Session session(s);
+      for (int k = 0; k < (quick ? 10 : 30); ++k) session.advance();
+      const std::size_t before = session.snapshot()->elements;
+      std::vector<double> remesh, step;
+      const Eigen::Vector3d from(x, box.max().y() + 0.01, box.min().z() - 0.01);
+      session.post(event(InputKind::ToolPose, from));
+      session.post(event(InputKind::Cut, from, true));
+      const int sweeps = 12;
+      for (int k = 1; k <= sweeps; ++k) {
+        const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * k / sweeps);
+        // The re-meshing alone, on a copy of the session's mesh at its current shape.
+        {
+          const auto snap = session.snapshot();
+          std::vector<Eigen::Vector3d> rest = session.setup().mesh.points, current = snap->positions;
+          auto tets = session.setup().mesh.tets;
+          auto labels = session.setup().mesh.tetLabels;
+          const Eigen::Vector3d prev = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * (k - 1) / sweeps);
+          auto end = [&](const Eigen::Vector3d& t) { return Eigen::Vector3d(t + s.tools.bladeLength * (*s.tools.trocar - t).normalized()); };
+          CutProgress progress = session.setup().cut;
+          const auto t0 = std::chrono::steady_clock::now();
+          const CutResult r = cutTetrahedra(rest, current, tets, labels, {prev, end(prev), to, end(to)}, s.tools.cut, &progress);
+          if (r.changed) remesh.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        }
+        session.post(event(InputKind::ToolPose, to));
+        const auto t0 = std::chrono::steady_clock::now();
+        session.advance();
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+        const auto& ev = session.snapshot()->events;
+        if (std::find(ev.begin(), ev.end(), "cut") != ev.end()) step.push_back(ms);
+      }
+      session.post(event(InputKind::Cut, from, false));
+      session.advance();
+      const std::size_t after = session.snapshot()->elements;
+      std::printf("%-11s %-11s %7zu %15.2f %13.2f %17.2f %15.2f %7zu -> %zu\n", organ.c_str(), toString(m).c_str(), step.size(), percentile(remesh, 0.5),
+                  percentile(remesh, 0.99), percentile(step, 0.5), percentile(step, 0.99), before, after);
+      cutCsv << organ << ',' << toString(m) << ',' << step.size() << ',' << percentile(remesh, 0.5) << ',' << percentile(remesh, 0.99) << ','
+             << percentile(step, 0.5) << ',' << percentile(step, 0.99) << ',' << before << ',' << after << '\n';
+    }
+  }
+  return 0;
+}
