@@ -679,12 +679,12 @@ int cmdGesture(const std::vector<std::string>& args) {
     nlohmann::json rows = nlohmann::json::array();
     for (const auto& s : r.steps)
       rows.push_back({{"step", s.step}, {"time_s", s.time}, {"wall_ms", s.wallMs}, {"mass_kg", s.massKg}, {"elements", s.elements}, {"nodes", s.nodes},
-                      {"grasped_nodes", s.grasped}, {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
+                      {"grasped_nodes", s.grasped}, {"contacts", s.contacts}, {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
                       {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}}, {"events", s.events}, {"message", s.message}, {"ok", s.report.ok},
                       {"status", s.report.status}, {"residual", s.report.residual}});
     writeReport(o["report"], {{"steps", rows}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", r.vesselCuts}, {"failed_steps", r.failed},
                               {"peak_tool_force_n", peak}, {"elements", out.tets.size()}, {"nodes", out.points.size()},
-                              {"contact", "not modelled yet: the tool holds what it grasps, it does not push tissue"}});
+                              {"contact_queries", r.contactQueries}});
   }
   std::printf("gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut updates (%zu through a vessel), %zu failed "
               "steps; %zu elements, %zu nodes written to %s\n",

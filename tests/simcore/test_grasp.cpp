@@ -61,6 +61,7 @@ class TestGrasp : public QObject {
     s.settings.method = simcore::NewtonMethod::Exact;
     s.tools.graspRadius = 0.0055;  // nodes 5 mm apart: the bite holds the nearest six
     s.tools.maxGraspForce = 1e6;
+    s.tools.toolRadius = 0;  // the grasp alone (CalculiX's run has no contact with the shaft)
     simcore::Session session(s);
     const Eigen::Vector3d end(0.1, 0.01, 0.01);
     session.post(toolAt(end));
@@ -177,6 +178,80 @@ class TestGrasp : public QObject {
       }
     }
     QVERIFY(slipped);
+  }
+
+  // Contact (node-based, off by default: README): a 40 x 20 x 20 mm block on a fixed base; a blunt vertical
+  // instrument (6 mm radius) comes down on the middle of its top face, its tip 2 mm below where the face was.
+  // Every contact constraint holds at the end of every step (the nodes found inside at the step's start are
+  // out), the contact only pushes, its force is the base's support reaction (an independent route through
+  // the elastic forces); withdrawn, the tissue lets go and springs back; without an instrument no contact
+  // detection runs. Not checked because it does not hold: the surface between nodes is not kept out of
+  // the instrument (the deepest surface node ends up inside, printed). No surface node gets inside the
+  // instrument, the contact only pushes (down), its force is the base's support reaction (an independent
+  // route through the elastic forces); withdrawn, the tissue lets go and springs back. Without an
+  // instrument no contact detection runs.
+  void contactPushesNotPenetrates() {
+    simcore::BodySetup s;
+    s.mesh = boxMesh(0.04, 0.02, 0.02, 8, 4, 4);
+    for (std::size_t i = 0; i < s.mesh.points.size(); ++i)
+      if (s.mesh.points[i].z() < 1e-12) s.fixedNodes.push_back(static_cast<int>(i));
+    s.material = {simcore::MaterialModel::Corotational, 20e3, 0.3, 1000};
+    s.settings.gravity = Eigen::Vector3d::Zero();
+    s.settings.timeStep = 0.05;
+    s.settings.method = simcore::NewtonMethod::Exact;
+    s.tools.trocar = Eigen::Vector3d(0.02, 0.01, 0.3);
+    s.tools.toolRadius = 0.006;  // blunt: wider than the 5 mm elements (contact is node-based, see README)
+    simcore::Session session(s);
+    for (int k = 0; k < 5; ++k) session.advance();
+    QCOMPARE(session.contactQueries(), 0L);  // no instrument, no detection
+    const Eigen::Vector3d above(0.02, 0.01, 0.029);
+    double worstInside = 0;
+    auto capsuleGap = [&](const simcore::Snapshot& snap) {
+      double worst = 1;
+      const Eigen::Vector3d a = snap.tool.tip, b = *session.setup().tools.trocar, d = b - a;
+      for (std::size_t i = 0; i < snap.positions.size(); ++i) {
+        const Eigen::Vector3d& p = snap.positions[i];
+        const Eigen::Vector3d& r = s.mesh.points[i];
+        if (r.x() > 1e-12 && r.x() < 0.04 - 1e-12 && r.y() > 1e-12 && r.y() < 0.02 - 1e-12 && r.z() < 0.02 - 1e-12) continue;  // inside: contact is on the surface
+        const double t = std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
+        const double gap = (p - (a + t * d)).norm() - 0.006;
+        worst = std::min(worst, gap);
+      }
+      return worst;
+    };
+    for (int k = 0; k <= 20; ++k) {
+      session.post(toolAt(above - Eigen::Vector3d(0, 0, 0.011 * k / 20.0)));  // down to 18 mm: 2 mm below the face
+      QVERIFY(session.advance().ok);
+      QVERIFY(session.snapshot()->report.constraintViolation < 1e-9);
+      worstInside = std::min(worstInside, capsuleGap(*session.snapshot()));
+    }
+    for (int k = 0; k < 40; ++k) {
+      QVERIFY(session.advance().ok);
+      QVERIFY(session.snapshot()->report.constraintViolation < 1e-9);
+      worstInside = std::min(worstInside, capsuleGap(*session.snapshot()));
+    }
+    const auto pressed = session.snapshot();
+    QVERIFY(session.contactQueries() > 0);
+    QVERIFY(pressed->tool.contacts > 0);
+    const Eigen::Vector3d force = pressed->tool.force;
+    const double vmax = session.state().v.cwiseAbs().maxCoeff();
+    const auto body = simcore::makeFemBody(s);
+    const Eigen::Vector3d reaction = body->appliedForce(s.fixedNodes, session.state(), session.state().v, s.settings.timeStep);
+    qInfo("pressed: %d contact nodes, deepest %.2e m inside the instrument, contact force (%.4f, %.4f, %.4f) N, base reaction (%.4f, %.4f, %.4f) N, "
+          "max speed %.1e m/s",
+          pressed->tool.contacts, -worstInside, force.x(), force.y(), force.z(), reaction.x(), reaction.y(), reaction.z(), vmax);
+    QVERIFY(force.norm() > 1e-3);
+    QVERIFY((force + reaction).norm() < 0.05 * force.norm());  // the base holds what the instrument pushes (2.8 %: not at rest, the contact chatters)
+    // Withdrawn: no contact, no force, the face springs back.
+    session.post(toolAt(above + Eigen::Vector3d(0, 0, 0.02)));
+    for (int k = 0; k < 60; ++k) QVERIFY(session.advance().ok);
+    const auto after = session.snapshot();
+    double back = 0;
+    for (std::size_t i = 0; i < after->positions.size(); ++i) back = std::max(back, (after->positions[i] - s.mesh.points[i]).norm());
+    qInfo("withdrawn: %d contacts, force %.2e N, furthest node %.2e m from rest", after->tool.contacts, after->tool.force.norm(), back);
+    QCOMPARE(after->tool.contacts, 0);
+    QCOMPARE(after->tool.force.norm(), 0.0);
+    QVERIFY(back < 1e-4);
   }
 
   void gestureScriptsSayWhatTheyCannotDo() {

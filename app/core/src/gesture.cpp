@@ -175,6 +175,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
     row.elements = snap->elements;
     row.nodes = snap->positions.size();
     row.grasped = snap->tool.held.size();
+    row.contacts = static_cast<std::size_t>(snap->tool.contacts);
     row.toolForce = snap->tool.force;
     row.tip = snap->tool.tip;
     row.events = snap->events;
@@ -187,6 +188,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
     out.steps.push_back(std::move(row));
   }
   out.final = session.state();
+  out.contactQueries = session.contactQueries();
   // The volume as it ends: the (possibly cut) mesh at the final positions.
   out.finalMesh = session.setup().mesh;
   out.finalMesh.triangles.clear();

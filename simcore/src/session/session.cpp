@@ -8,6 +8,81 @@
 
 namespace rehearse::simcore {
 
+// A bounding-volume hierarchy over points (the surface nodes), built once per topology and refitted to the
+// deformed positions before each query: the tool's capsule finds the nodes it holds inside.
+class PointBvh {
+ public:
+  void build(const std::vector<int>& ids, const Eigen::VectorXd& x) {
+    ids_ = ids;
+    nodes_.clear();
+    if (!ids_.empty()) split(0, static_cast<int>(ids_.size()), x);
+  }
+  void refit(const Eigen::VectorXd& x) {
+    for (auto it = nodes_.rbegin(); it != nodes_.rend(); ++it) {
+      it->box.setEmpty();
+      if (it->left < 0) {
+        for (int k = it->begin; k < it->end; ++k) it->box.extend(Eigen::Vector3d(x.segment<3>(3 * static_cast<Eigen::Index>(ids_[static_cast<std::size_t>(k)]))));
+      } else {
+        it->box.extend(nodes_[static_cast<std::size_t>(it->left)].box);
+        it->box.extend(nodes_[static_cast<std::size_t>(it->right)].box);
+      }
+    }
+  }
+  /// Ids of the points within `r` of segment a-b.
+  void query(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r, const Eigen::VectorXd& x, std::vector<int>& out) const {
+    if (nodes_.empty()) return;
+    Eigen::AlignedBox3d seg(a.cwiseMin(b), a.cwiseMax(b));
+    seg.min().array() -= r;
+    seg.max().array() += r;
+    std::vector<int> stack{0};
+    while (!stack.empty()) {
+      const Node& n = nodes_[static_cast<std::size_t>(stack.back())];
+      stack.pop_back();
+      if (!n.box.intersects(seg)) continue;
+      if (n.left >= 0) {
+        stack.push_back(n.left);
+        stack.push_back(n.right);
+        continue;
+      }
+      for (int k = n.begin; k < n.end; ++k) {
+        const int id = ids_[static_cast<std::size_t>(k)];
+        const Eigen::Vector3d p = x.segment<3>(3 * static_cast<Eigen::Index>(id));
+        const Eigen::Vector3d d = b - a;
+        const double t = d.squaredNorm() > 0 ? std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+        if ((p - (a + t * d)).squaredNorm() < r * r) out.push_back(id);
+      }
+    }
+  }
+
+ private:
+  struct Node {
+    Eigen::AlignedBox3d box;
+    int begin = 0, end = 0, left = -1, right = -1;
+  };
+  int split(int begin, int end, const Eigen::VectorXd& x) {
+    const int index = static_cast<int>(nodes_.size());
+    nodes_.push_back({});
+    Eigen::AlignedBox3d box;
+    for (int k = begin; k < end; ++k) box.extend(Eigen::Vector3d(x.segment<3>(3 * static_cast<Eigen::Index>(ids_[static_cast<std::size_t>(k)]))));
+    nodes_[static_cast<std::size_t>(index)].box = box;
+    nodes_[static_cast<std::size_t>(index)].begin = begin;
+    nodes_[static_cast<std::size_t>(index)].end = end;
+    if (end - begin <= 8) return index;
+    int axis = 0;
+    box.sizes().maxCoeff(&axis);
+    const int mid = (begin + end) / 2;
+    std::nth_element(ids_.begin() + begin, ids_.begin() + mid, ids_.begin() + end,
+                     [&](int p, int q) { return x[3 * static_cast<Eigen::Index>(p) + axis] < x[3 * static_cast<Eigen::Index>(q) + axis]; });
+    const int l = split(begin, mid, x);
+    const int r = split(mid, end, x);
+    nodes_[static_cast<std::size_t>(index)].left = l;
+    nodes_[static_cast<std::size_t>(index)].right = r;
+    return index;
+  }
+  std::vector<int> ids_;
+  std::vector<Node> nodes_;
+};
+
 namespace {
 // The default trocar: above the organ towards the camera, twice its radius from its centre.
 Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest) {
@@ -44,6 +119,7 @@ Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chro
     meanEdge_ = count ? sum / static_cast<double>(count) : 0;
   }
   state_ = body_->initialState();
+  updateSurfaceNodes();
   StepReport rest;
   rest.ok = true;
   publish(rest, {});
@@ -141,7 +217,53 @@ void Session::updateToolConstraints() {
         c.push_back(s);
       }
   }
+  // Contact: surface nodes inside the instrument's capsule (tip to trocar) are pushed out to its surface by
+  // unilateral constraints along the direction from its axis (not while the blade cuts, not the held nodes,
+  // not the attachments). Detected only once an instrument is in the scene.
+  tool_.contacts = 0;
+  if (tool_.present && !tool_.cutting && setup_.tools.toolRadius > 0 && !surfaceNodes_.empty() && setup_.tools.trocar) {
+    ++contactQueries_;
+    const PointBvh& bvh = *bvh_;
+    bvh_->refit(state_.x);
+    std::vector<int> inside;
+    const Eigen::Vector3d a = tool_.tip, b = *setup_.tools.trocar;
+    const double r = setup_.tools.toolRadius;
+    bvh.query(a, b, r, state_.x, inside);
+    std::sort(inside.begin(), inside.end());
+    const auto& fixed = body_->fixedMask();
+    for (int i : inside) {
+      if (fixed[static_cast<std::size_t>(i)] || std::find(tool_.held.begin(), tool_.held.end(), i) != tool_.held.end()) continue;
+      const Eigen::Vector3d p = state_.x.segment<3>(3 * static_cast<Eigen::Index>(i));
+      const Eigen::Vector3d d = b - a;
+      const double t = d.squaredNorm() > 0 ? std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+      const Eigen::Vector3d axis = a + t * d;
+      const Eigen::Vector3d n = p - axis;
+      if (n.norm() < 1e-9) continue;  // on the axis: no direction to push it
+      ScalarConstraint s;
+      s.nodes = {i, -1, -1, -1};
+      s.weights = {1, 0, 0, 0};
+      s.direction = n.normalized();
+      s.value = s.direction.dot(axis) + r;
+      s.unilateral = true;
+      c.push_back(s);
+      ++tool_.contacts;
+    }
+  }
   body_->setToolConstraints(std::move(c));
+}
+
+void Session::updateSurfaceNodes() {
+  std::vector<char> on(body_->nodeCount(), 0);
+  Mesh m;
+  m.points = body_->restPositions();
+  m.tets = body_->tetrahedra();
+  for (const auto& t : boundaryTriangles(m, false))
+    for (int v : t) on[static_cast<std::size_t>(v)] = 1;
+  surfaceNodes_.clear();
+  for (std::size_t i = 0; i < on.size(); ++i)
+    if (on[i]) surfaceNodes_.push_back(static_cast<int>(i));
+  bvh_ = std::make_shared<PointBvh>();
+  bvh_->build(surfaceNodes_, state_.x);
 }
 
 void Session::apply(const InputEvent& e, std::string& message) {
@@ -154,6 +276,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
       if (tool_.cutting && e.position.allFinite() && (e.position - tool_.cutFrom).norm() >= 2 * meanEdge_ && cut(tool_.cutFrom, e.position, message))
         tool_.cutFrom = e.position;
       tool_.tip = e.position;
+      tool_.present = true;
       break;
     case InputKind::Jaw:
       tool_.jawClosed = e.on;
@@ -283,6 +406,7 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     return false;
   }
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  updateSurfaceNodes();
   updateCutSurface();
   events_.push_back("cut");
   for (int label : r.cutLabels)
@@ -364,12 +488,13 @@ StepReport Session::advance() {
     apply(e, message);
     recorded_.push_back(e);
   }
+  if (tool_.present) updateToolConstraints();  // contacts move with the tissue: detected at every step
   const StepReport rep = body_->step(state_);
   ++steps_;
-  if (!tool_.held.empty() && rep.ok) {
+  if ((!tool_.held.empty() || tool_.contacts > 0) && rep.ok) {
     tool_.force = body_->toolForce();
     // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing).
-    if (tool_.force.norm() > setup_.tools.maxGraspForce) {
+    if (!tool_.held.empty() && tool_.force.norm() > setup_.tools.maxGraspForce) {
       char buf[200];
       std::snprintf(buf, sizeof buf, "The tissue slipped out of the grasper at %.1f N (the scene's maximum grasp force is %.1f N).", tool_.force.norm(),
                     setup_.tools.maxGraspForce);
@@ -379,7 +504,7 @@ StepReport Session::advance() {
       events_.push_back("slip");
       updateToolConstraints();
     }
-  } else if (tool_.held.empty()) {
+  } else if (tool_.held.empty() && tool_.contacts == 0) {
     tool_.force.setZero();
   }
   publish(rep, message, std::move(events_));
@@ -433,6 +558,7 @@ void Session::restore(const Checkpoint& c) {
   surface_.reset();
   if (setup_.topology > 0) updateCutSurface();
   state_ = c.state;
+  updateSurfaceNodes();
   tool_ = c.tool;
   steps_ = c.step;
   updateToolConstraints();
@@ -487,6 +613,7 @@ void Session::run() {
         surface_.reset();
       }
       state_ = body_->initialState();
+      updateSurfaceNodes();
       steps_ = 0;
       tool_ = {};
       updateToolConstraints();

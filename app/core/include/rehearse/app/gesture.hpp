@@ -45,7 +45,7 @@ GestureScript parseGestureScript(const std::string& json);
 struct GestureStep {
   long step = 0;
   double time = 0, wallMs = 0, massKg = 0;
-  std::size_t elements = 0, nodes = 0, grasped = 0;
+  std::size_t elements = 0, nodes = 0, grasped = 0, contacts = 0;
   Eigen::Vector3d toolForce = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();
   std::vector<std::string> events;
@@ -57,6 +57,7 @@ struct GestureResult {
   std::vector<GestureStep> steps;
   simcore::SimulationState final;
   std::size_t slips = 0, failed = 0, cuts = 0, vesselCuts = 0;
+  long contactQueries = 0;  ///< 0 when the script moves no instrument
   simcore::Mesh finalMesh;  ///< the volume at the end: nodes and elements after any cut, at the final positions
 };
 

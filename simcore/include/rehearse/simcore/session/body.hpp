@@ -23,10 +23,15 @@ struct ToolSettings {
   /// (the session sets it from the rest shape: twice the organ's radius from its centre along (0, -1, -2)).
   std::optional<Eigen::Vector3d> trocar;
   double bladeLength = 0.03;    ///< m: the cutting instrument's blade, from the tip back along the shaft
+  /// m: the instrument's radius for contact (its shaft, from the tip to the trocar, is a capsule of this
+  /// radius); surface nodes inside at a step's start are pushed out by unilateral constraints. Node-based:
+  /// the surface between nodes is not kept out (a thin instrument passes between them), so it is off (0)
+  /// unless a scene asks for it.
+  double toolRadius = 0;
   CutSettings cut;              ///< snapping and the quality the re-meshing keeps
   bool operator==(const ToolSettings& o) const {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && trocar.has_value() == o.trocar.has_value() &&
-           (!trocar || *trocar == *o.trocar) && bladeLength == o.bladeLength && cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
+           (!trocar || *trocar == *o.trocar) && bladeLength == o.bladeLength && toolRadius == o.toolRadius && cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
            cut.minVolumeFraction == o.cut.minVolumeFraction;
   }
 };

@@ -21,6 +21,8 @@
 
 namespace rehearse::simcore {
 
+class PointBvh;
+
 enum class InputKind {
   ToolPose,   ///< the tool tip moved to `position` (m, body frame)
   Jaw,        ///< the jaws closed (`on`) or opened
@@ -53,7 +55,9 @@ struct ToolState {
   std::vector<Eigen::Vector3d> heldOffset; ///< each held node's place relative to the tip (m), kept while held
   bool cutting = false;
   Eigen::Vector3d cutFrom = Eigen::Vector3d::Zero();  ///< the tip where the blade's last sweep ended (while cutting)
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step (grasp and contact)
+  bool present = false;                    ///< an instrument is in the scene (a pose was given): contact is detected
+  int contacts = 0;                        ///< surface nodes the instrument pushes at the last step
 };
 
 /// The organ's boundary after a cut: triangles (node indices, outward) and which of them are cut tissue
@@ -130,6 +134,8 @@ class Session {
   /// The complete state (a copy, under the lock).
   SimulationState state() const;
   const BodySetup& setup() const { return setup_; }
+  /// Contact detections run so far (0 in a scene without instruments: none is built or run).
+  long contactQueries() const { return contactQueries_; }
 
  private:
   void apply(const InputEvent& e, std::string& message);
@@ -146,6 +152,10 @@ class Session {
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets_;
   std::shared_ptr<const CutSurface> surface_;  ///< after a cut
   void updateCutSurface();
+  void updateSurfaceNodes();
+  std::vector<int> surfaceNodes_;  ///< nodes on the boundary (contact candidates), per topology
+  std::shared_ptr<PointBvh> bvh_;  ///< over surfaceNodes_, refitted before each contact query
+  long contactQueries_ = 0;
   SimulationState state_;
   ToolState tool_;
   long steps_ = 0;
