@@ -488,7 +488,7 @@ StepReport Session::advance() {
     apply(e, message);
     recorded_.push_back(e);
   }
-  if (tool_.present) updateToolConstraints();  // contacts move with the tissue: detected at every step
+  if (tool_.present && setup_.tools.toolRadius > 0) updateToolConstraints();  // contacts move with the tissue: detected at every step
   const StepReport rep = body_->step(state_);
   ++steps_;
   if ((!tool_.held.empty() || tool_.contacts > 0) && rep.ok) {
