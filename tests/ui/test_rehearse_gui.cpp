@@ -1,7 +1,8 @@
 // Step 7 through the real main window (offscreen, software rendering) with QTest mouse and key events:
 // Alt+7 picks the grasper; a press on the organ closes the jaws there, a drag pulls it (the simulation
 // plays), and the bitten tissue follows the tip within 1 mm while the ligament nodes stay; the release
-// opens the jaws and the tissue is let go. With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot.
+// opens the jaws and the tissue relaxes. Space closes and opens the jaws at the cursor. B picks the
+// scissors: a drag across the organ cuts it (counts grow, mass kept, no inverted or poor element). With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot.
 #include "test_support.hpp"
 
 #include "rehearse/ui/frameview.hpp"
@@ -135,6 +136,26 @@ class TestRehearseGui : public QObject {
     disconnect(watching);  // it holds this slot's locals
     qInfo("released: the bitten nodes %.1f mm from where they had settled while pulled, %.1f mm after 100 steps", 1e3 * before, 1e3 * after);
     QVERIFY(after < 0.3 * before);
+    panel->pause();
+  }
+
+  // Space closes the jaws where the cursor is (the grasper, R) and opens them again.
+  void jawsByKey() {
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(w_->frameView()->tool(), ui::Tool::Grasp);
+    auto* panel = w_->simulationPanel();
+    panel->play();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    const QPoint at = view->toWidget(QPointF(centre.x(), centre.y())).toPoint();
+    QTest::mouseMove(view, at);
+    QTest::keyClick(view, Qt::Key_Space);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    const std::size_t held = panel->lastFrame()->tool.held.size();
+    QTest::keyClick(view, Qt::Key_Space);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }, 20000));
+    qInfo("Space: the jaws held %zu node(s), Space again let go", held);
     panel->pause();
   }
 

@@ -5,6 +5,7 @@
 
 #include <rehearse/imaging/render.hpp>
 
+#include <QKeyEvent>
 #include <QMouseEvent>
 #include <QPainter>
 #include <QWheelEvent>
@@ -20,31 +21,18 @@ class GraspTool final : public FrameTool {
 
   bool press(QMouseEvent* e, const QPointF&, const Eigen::Vector2d& f) override {
     if (e->button() != Qt::LeftButton) return false;
-    const auto& c = view_.caseData();
-    if (!c || !c->hasPose) {
-      emit view_.toolMessage(QObject::tr("The grasper works on the organ placed over the frame: place it first (step 4)."));
-      return true;
-    }
-    // Pressed on the organ as the simulation has it now (the case's shape before it runs); the jaws bite at
-    // the surface node nearest the pressed point (a coarse mesh's triangle can be wider than the grasp
-    // radius: the point itself might hold nothing).
-    const auto hit = pickLiveSurface(view_, f);
-    if (!hit) {
-      emit view_.toolMessage(QObject::tr("Press on the organ to grasp it."));
-      return true;
-    }
-    const Eigen::Vector3d tip = *hit;
-    depth_ = tip.z();
-    offset_.setZero();
-    offset_ = tip - tipAt(f);  // the bite's node need not be under the cursor: the drag moves it by the cursor's motion
-    holding_ = true;
-    send(simcore::InputKind::ToolPose, tip, false);
-    send(simcore::InputKind::Jaw, tip, true);
-    last_ = f;
-    emit view_.toolMessage(QObject::tr("Grasped: drag to pull, release to let go."));
+    bite(f);
+    return true;
+  }
+  // Space closes the jaws at the cursor (and opens them again): the keyboard's way to grasp.
+  bool key(QKeyEvent* e) override {
+    if (e->key() != Qt::Key_Space) return false;
+    if (holding_) release(nullptr);
+    else bite(hover_);
     return true;
   }
   void move(const QPointF&, const Eigen::Vector2d& f) override {
+    hover_ = f;
     if (!holding_) return;
     last_ = f;
     send(simcore::InputKind::ToolPose, tipAt(f), false);
@@ -79,6 +67,31 @@ class GraspTool final : public FrameTool {
   Qt::CursorShape cursor() const override { return holding_ ? Qt::ClosedHandCursor : Qt::OpenHandCursor; }
 
  private:
+  void bite(const Eigen::Vector2d& f) {
+    const auto& c = view_.caseData();
+    if (!c || !c->hasPose) {
+      emit view_.toolMessage(QObject::tr("The grasper works on the organ placed over the frame: place it first (step 4)."));
+      return;
+    }
+    // Pressed on the organ as the simulation has it now (the case's shape before it runs); the jaws bite at
+    // the surface node nearest the pressed point (a coarse mesh's triangle can be wider than the grasp
+    // radius: the point itself might hold nothing).
+    const auto hit = pickLiveSurface(view_, f);
+    if (!hit) {
+      emit view_.toolMessage(QObject::tr("Press on the organ to grasp it."));
+      return;
+    }
+    const Eigen::Vector3d tip = *hit;
+    depth_ = tip.z();
+    offset_.setZero();
+    offset_ = tip - tipAt(f);  // the bite's node need not be under the cursor: the drag moves it by the cursor's motion
+    holding_ = true;
+    send(simcore::InputKind::ToolPose, tip, false);
+    send(simcore::InputKind::Jaw, tip, true);
+    last_ = f;
+    emit view_.toolMessage(QObject::tr("Grasped: drag to pull, release to let go."));
+    return;
+  }
   // The tip for frame pixel `f`: the point under it at the depth the jaws bit at (camera frame, m), plus the
   // bite's offset from the pressed point.
   Eigen::Vector3d tipAt(const Eigen::Vector2d& f) const { return pointAtDepth(view_, f, depth_) + offset_; }
@@ -93,6 +106,7 @@ class GraspTool final : public FrameTool {
   double depth_ = 0;
   Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();
   Eigen::Vector2d last_ = Eigen::Vector2d::Zero();
+  Eigen::Vector2d hover_ = Eigen::Vector2d::Zero();  ///< the cursor's last frame pixel (for Space)
 };
 
 }  // namespace
