@@ -137,12 +137,9 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
   auto tetNode = [&](std::size_t t, int k) { return tets[t][static_cast<std::size_t>(k)]; };
 
   // Crossed elements whose crossing lies inside the swept quad (raw signs, before snapping).
-  std::vector<char> candidate(nt, 0), relevant(current.size(), 0);
-  std::vector<double> restVol(nt, 0.0);
-  for (std::size_t t = 0; t < nt; ++t) {
-    double lo = 1e300, hi = -1e300;
-    for (int k = 0; k < 4; ++k) lo = std::min(lo, dist[static_cast<std::size_t>(tetNode(t, k))]), hi = std::max(hi, dist[static_cast<std::size_t>(tetNode(t, k))]);
-    if (!(lo <= 0 && hi >= 0)) continue;
+  // Where the plane crosses element t (the mean of its edges' crossings and its nodes on the plane, raw
+  // signs); false when it does not.
+  auto crossingCentre = [&](std::size_t t, V3& centre) {
     V3 c = V3::Zero();
     int count = 0;
     for (int a = 0; a < 4; ++a)
@@ -157,13 +154,29 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
       }
     for (int k = 0; k < 4; ++k)
       if (dist[static_cast<std::size_t>(tetNode(t, k))] == 0) c += current[static_cast<std::size_t>(tetNode(t, k))], ++count;
-    if (count == 0 || !insideQuad(c / count)) continue;
+    if (count == 0) return false;
+    centre = c / count;
+    return true;
+  };
+  // Element t's rest volume when it is positive at rest and now (an inverted element is not cut), else 0.
+  auto cuttableVolume = [&](std::size_t t) {
     const auto& e = tets[t];
     const double vr = signedVolume(rest[static_cast<std::size_t>(e[0])], rest[static_cast<std::size_t>(e[1])], rest[static_cast<std::size_t>(e[2])],
                                    rest[static_cast<std::size_t>(e[3])]);
     const double vc = signedVolume(current[static_cast<std::size_t>(e[0])], current[static_cast<std::size_t>(e[1])], current[static_cast<std::size_t>(e[2])],
                                    current[static_cast<std::size_t>(e[3])]);
-    if (!(vr > 0) || !(vc > 0)) {
+    return vr > 0 && vc > 0 ? vr : 0.0;
+  };
+  std::vector<char> candidate(nt, 0), relevant(current.size(), 0);
+  std::vector<double> restVol(nt, 0.0);
+  for (std::size_t t = 0; t < nt; ++t) {
+    double lo = 1e300, hi = -1e300;
+    for (int k = 0; k < 4; ++k) lo = std::min(lo, dist[static_cast<std::size_t>(tetNode(t, k))]), hi = std::max(hi, dist[static_cast<std::size_t>(tetNode(t, k))]);
+    if (!(lo <= 0 && hi >= 0)) continue;
+    V3 c;
+    if (!crossingCentre(t, c) || !insideQuad(c)) continue;
+    const double vr = cuttableVolume(t);
+    if (!(vr > 0)) {
       ++r.skippedInverted;
       continue;
     }
@@ -193,25 +206,10 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
         for (int a = 0; a < 4 && !holds; ++a)
           for (int b = a + 1; b < 4 && !holds; ++b) holds = crossed.count(edgeKey(tetNode(t, a), tetNode(t, b))) > 0;
         if (!holds) continue;
-        V3 c = V3::Zero();
-        int count = 0;
-        for (int a = 0; a < 4; ++a)
-          for (int b = a + 1; b < 4; ++b) {
-            const int i = tetNode(t, a), j = tetNode(t, b);
-            const double di = dist[static_cast<std::size_t>(i)], dj = dist[static_cast<std::size_t>(j)];
-            if ((di < 0 && dj > 0) || (di > 0 && dj < 0)) {
-              const double u = di / (di - dj);
-              c += (1 - u) * current[static_cast<std::size_t>(i)] + u * current[static_cast<std::size_t>(j)];
-              ++count;
-            }
-          }
-        if (count == 0 || !insideSwept(c / count)) continue;
-        const auto& e = tets[t];
-        const double vr = signedVolume(rest[static_cast<std::size_t>(e[0])], rest[static_cast<std::size_t>(e[1])], rest[static_cast<std::size_t>(e[2])],
-                                       rest[static_cast<std::size_t>(e[3])]);
-        const double vc = signedVolume(current[static_cast<std::size_t>(e[0])], current[static_cast<std::size_t>(e[1])],
-                                       current[static_cast<std::size_t>(e[2])], current[static_cast<std::size_t>(e[3])]);
-        if (!(vr > 0) || !(vc > 0)) continue;
+        V3 c;
+        if (!crossingCentre(t, c) || !insideSwept(c)) continue;
+        const double vr = cuttableVolume(t);
+        if (!(vr > 0)) continue;
         candidate[t] = 1;
         restVol[t] = vr;
         for (int k = 0; k < 4; ++k) relevant[static_cast<std::size_t>(tetNode(t, k))] = 1;

@@ -8,6 +8,7 @@
 // Writes rehearsal-pull.csv and rehearsal-cut.csv into the directory given (default ".").
 //   bench_rehearsal [OUT_DIR] [--quick]
 #include "phantom/presets.hpp"
+#include "session_inputs.hpp"
 
 #include <rehearse/simcore/cut.hpp>
 #include <rehearse/simcore/session/session.hpp>
@@ -36,14 +37,7 @@ double percentile(std::vector<double> v, double q) {
 }
 
 BodySetup setupFor(const std::string& preset, const std::string& shared) {
-  const Scene p = phantom::makePreset(preset, shared);
-  BodySetup s;
-  s.mesh = p.mesh;
-  s.mesh.convertToMetres();
-  s.fixedNodes = p.fixedNodes;
-  s.material = p.defaultMaterial;
-  s.byLabel = p.materials;
-  s.settings = p.settings;
+  BodySetup s = testing::presetBody(preset, shared);
   s.settings.timeStep = 0.01;
   s.tools.maxGraspForce = 1e6;
   return s;

@@ -6,6 +6,7 @@
 // a vessel.
 #include "box_mesh.hpp"
 #include "phantom/presets.hpp"
+#include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
 #include <rehearse/simcore/cut.hpp>
@@ -27,25 +28,9 @@ using simcore::InputEvent;
 using simcore::InputKind;
 
 namespace {
-InputEvent toolAt(const Eigen::Vector3d& p) {
-  InputEvent e;
-  e.kind = InputKind::ToolPose;
-  e.position = p;
-  return e;
-}
-InputEvent cutting(bool on) {
-  InputEvent e;
-  e.kind = InputKind::Cut;
-  e.tool = 1;
-  e.on = on;
-  return e;
-}
-InputEvent jaws(bool closed) {
-  InputEvent e;
-  e.kind = InputKind::Jaw;
-  e.on = closed;
-  return e;
-}
+using testing::cutting;
+using testing::jaws;
+using testing::toolAt;
 
 double volume(const std::vector<Eigen::Vector3d>& p, const std::array<int, 4>& t) {
   return (p[static_cast<std::size_t>(t[1])] - p[static_cast<std::size_t>(t[0])])
@@ -117,17 +102,7 @@ Validity validity(const std::vector<Eigen::Vector3d>& p, const std::vector<std::
 
 double minQualityOf(const simcore::Mesh& m) { return validity(m.points, m.tets).minQuality; }
 
-simcore::BodySetup liverSetup() {
-  const simcore::Scene p = phantom::makePreset("liver");
-  simcore::BodySetup s;
-  s.mesh = p.mesh;
-  s.mesh.convertToMetres();
-  s.fixedNodes = p.fixedNodes;
-  s.material = p.defaultMaterial;
-  s.byLabel = p.materials;
-  s.settings = p.settings;
-  return s;
-}
+simcore::BodySetup liverSetup() { return testing::presetBody("liver"); }
 
 // A blade sweep covering the plane x = x0 over the block's section (y, z in [0, 0.02]).
 simcore::BladeSweep planeX(double x0, double y0 = -0.01, double y1 = 0.03) {

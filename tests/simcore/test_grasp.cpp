@@ -6,6 +6,7 @@
 #include "box_mesh.hpp"
 #include "calculix.hpp"
 #include "phantom/presets.hpp"
+#include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
 #include <rehearse/simcore/session/session.hpp>
@@ -18,27 +19,10 @@ using simcore::InputEvent;
 using simcore::InputKind;
 
 namespace {
-InputEvent toolAt(const Eigen::Vector3d& p) {
-  InputEvent e;
-  e.kind = InputKind::ToolPose;
-  e.position = p;
-  return e;
-}
-InputEvent jaws(bool closed) {
-  InputEvent e;
-  e.kind = InputKind::Jaw;
-  e.on = closed;
-  return e;
-}
+using testing::jaws;
+using testing::toolAt;
 simcore::BodySetup liverSetup() {
-  const simcore::Scene p = phantom::makePreset("liver");
-  simcore::BodySetup s;
-  s.mesh = p.mesh;
-  s.mesh.convertToMetres();
-  s.fixedNodes = p.fixedNodes;
-  s.material = p.defaultMaterial;
-  s.byLabel = p.materials;
-  s.settings = p.settings;
+  simcore::BodySetup s = testing::presetBody("liver");
   s.settings.method = simcore::NewtonMethod::Exact;
   return s;
 }

@@ -20,6 +20,40 @@ OrganOverlay::OrganOverlay(bool openGL) {
 
 OrganOverlay::~OrganOverlay() = default;
 
+namespace {
+// Large frames (4k) get the overlay at a reduced resolution (`scale`), drawn scaled: the GUI thread stays
+// responsive.
+imaging::Camera overlayCamera(const imaging::Camera& camera, double& scale) {
+  scale = std::min(1.0, 1600.0 / camera.width);
+  imaging::Camera cam = camera;
+  if (scale < 1.0) {
+    cam.width = static_cast<int>(std::lround(camera.width * scale));
+    cam.height = static_cast<int>(std::lround(camera.height * scale));
+    cam.K.row(0) *= scale;
+    cam.K.row(1) *= scale;
+    cam.K(0, 2) = scale * (camera.cx() + 0.5) - 0.5;
+    cam.K(1, 2) = scale * (camera.cy() + 0.5) - 0.5;
+  }
+  return cam;
+}
+
+// The outline of an overlay's covered pixels, in frame pixels.
+QList<QPolygonF> silhouetteOf(const QImage& organ, double scale) {
+  QList<QPolygonF> out;
+  const cv::Mat overlay(organ.height(), organ.width(), CV_8UC4, const_cast<uchar*>(organ.constBits()), static_cast<std::size_t>(organ.bytesPerLine()));
+  cv::Mat1b mask;
+  cv::extractChannel(overlay, mask, 3);
+  std::vector<std::vector<cv::Point>> contours;
+  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  for (const auto& ct : contours) {
+    QPolygonF poly;
+    for (const auto& p : ct) poly << QPointF((p.x + 0.5) / scale, (p.y + 0.5) / scale);
+    out << poly;
+  }
+  return out;
+}
+}  // namespace
+
 QImage OrganOverlay::organImage(const imaging::Camera& camera, const Pose& pose, const SurfaceView& surface, const QColor& colour) {
   QImage image;
   if (gl_ && gl_->render(camera, pose, surface, colour, image)) return image;
@@ -32,29 +66,10 @@ QImage OrganOverlay::organImage(const imaging::Camera& camera, const Pose& pose,
 OverlayPicture OrganOverlay::render(const app::Case& c, const std::vector<int>& innerLabels) {
   OverlayPicture out;
   if (c.organ->surface.empty() || !c.hasPose || !c.camera.problem().empty()) return out;
-  // Large frames (4k) get the overlay at a reduced resolution, drawn scaled: the GUI thread stays responsive.
-  const double s = std::min(1.0, 1600.0 / c.camera.width);
-  imaging::Camera cam = c.camera;
-  if (s < 1.0) {
-    cam.width = static_cast<int>(std::lround(c.camera.width * s));
-    cam.height = static_cast<int>(std::lround(c.camera.height * s));
-    cam.K.row(0) *= s;
-    cam.K.row(1) *= s;
-    cam.K(0, 2) = s * (c.camera.cx() + 0.5) - 0.5;
-    cam.K(1, 2) = s * (c.camera.cy() + 0.5) - 0.5;
-  }
+  double s = 1;
+  const imaging::Camera cam = overlayCamera(c.camera, s);
   out.organ = organImage(cam, c.pose, c.surfaceView(), palette::organFill());
-  const cv::Mat overlay(out.organ.height(), out.organ.width(), CV_8UC4, const_cast<uchar*>(out.organ.constBits()),
-                        static_cast<std::size_t>(out.organ.bytesPerLine()));
-  cv::Mat1b mask;
-  cv::extractChannel(overlay, mask, 3);
-  std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-  for (const auto& ct : contours) {
-    QPolygonF poly;
-    for (const auto& p : ct) poly << QPointF((p.x + 0.5) / s, (p.y + 0.5) / s);
-    out.silhouette << poly;
-  }
+  out.silhouette = silhouetteOf(out.organ, s);
   // Inner structures the user ticked, on the organ's current shape (fitted or rest), each label in its own
   // colour (one render per label, composed in label order).
   for (int label : innerLabels) {
@@ -92,16 +107,8 @@ OverlayPicture OrganOverlay::render(const app::Case& c, const std::vector<int>& 
 OverlayPicture OrganOverlay::renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface) {
   OverlayPicture out;
   if (cameraPositions.empty() || surface.triangles.empty() || !c.camera.problem().empty()) return out;
-  const double s = std::min(1.0, 1600.0 / c.camera.width);
-  imaging::Camera cam = c.camera;
-  if (s < 1.0) {
-    cam.width = static_cast<int>(std::lround(c.camera.width * s));
-    cam.height = static_cast<int>(std::lround(c.camera.height * s));
-    cam.K.row(0) *= s;
-    cam.K.row(1) *= s;
-    cam.K(0, 2) = s * (c.camera.cx() + 0.5) - 0.5;
-    cam.K(1, 2) = s * (c.camera.cy() + 0.5) - 0.5;
-  }
+  double s = 1;
+  const imaging::Camera cam = overlayCamera(c.camera, s);
   std::vector<double> vertices;
   vertices.reserve(3 * cameraPositions.size());
   for (const auto& x : cameraPositions) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
@@ -130,17 +137,7 @@ OverlayPicture OrganOverlay::renderLive(const app::Case& c, const std::vector<Ei
   } catch (const std::exception&) {
     return out;  // behind the camera or a bad camera: nothing to draw
   }
-  const cv::Mat overlay(out.organ.height(), out.organ.width(), CV_8UC4, const_cast<uchar*>(out.organ.constBits()),
-                        static_cast<std::size_t>(out.organ.bytesPerLine()));
-  cv::Mat1b mask;
-  cv::extractChannel(overlay, mask, 3);
-  std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(mask, contours, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-  for (const auto& ct : contours) {
-    QPolygonF poly;
-    for (const auto& p : ct) poly << QPointF((p.x + 0.5) / s, (p.y + 0.5) / s);
-    out.silhouette << poly;
-  }
+  out.silhouette = silhouetteOf(out.organ, s);
   return out;
 }
 

@@ -95,13 +95,7 @@ class GraspTool final : public FrameTool {
   // The tip for frame pixel `f`: the point under it at the depth the jaws bit at (camera frame, m), plus the
   // bite's offset from the pressed point.
   Eigen::Vector3d tipAt(const Eigen::Vector2d& f) const { return pointAtDepth(view_, f, depth_) + offset_; }
-  void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) {
-    simcore::InputEvent e;
-    e.kind = kind;
-    e.position = tip;
-    e.on = on;
-    emit view_.instrumentInput(e);
-  }
+  void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) { postInstrument(view_, kind, tip, on, 0); }
   bool holding_ = false;
   double depth_ = 0;
   Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();
@@ -139,6 +133,15 @@ std::optional<Eigen::Vector3d> pickLiveSurface(const FrameView& view, const Eige
   } catch (const std::exception&) {
     return std::nullopt;
   }
+}
+
+void postInstrument(FrameView& view, simcore::InputKind kind, const Eigen::Vector3d& tip, bool on, int tool) {
+  simcore::InputEvent e;
+  e.kind = kind;
+  e.tool = tool;
+  e.position = tip;
+  e.on = on;
+  emit view.instrumentInput(e);
 }
 
 Eigen::Vector3d pointAtDepth(const FrameView& view, const Eigen::Vector2d& f, double depth) {

@@ -72,14 +72,7 @@ class ScissorsTool final : public FrameTool {
 
  private:
   static constexpr double kBladeDepth = 0.02;  ///< m behind the pressed surface point (the blade is 30 mm)
-  void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) {
-    simcore::InputEvent e;
-    e.kind = kind;
-    e.tool = 1;
-    e.position = tip;
-    e.on = on;
-    emit view_.instrumentInput(e);
-  }
+  void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) { postInstrument(view_, kind, tip, on, 1); }
   bool cutting_ = false;
   double depth_ = 0;
   std::vector<Eigen::Vector2d> path_;
