@@ -623,7 +623,7 @@ int cmdCompose(const std::vector<std::string>& args) {
 int cmdGesture(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
                         {"case", "scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes", "gravity",
-                         "script", "out", "report", "method"},
+                         "script", "out", "report", "method", "refresh"},
                         {});
   if (!o.count("script")) throw UsageError("gesture needs --script G.json (README, File formats)");
   if (!o.count("out")) throw UsageError("gesture needs --out OUT.vtu|.vtk|.msh");
@@ -663,6 +663,12 @@ int cmdGesture(const std::vector<std::string>& args) {
     setup.settings = p.settings;
   }
   if (o.count("method")) setup.settings.method = simcore::newtonMethodFromString(o["method"]);
+  if (o.count("refresh")) {
+    if (o["refresh"] == "async") setup.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;
+    else if (o["refresh"] != "sync") throw UsageError("--refresh takes sync or async, not '" + o["refresh"] + "'");
+    if (setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous && setup.settings.method == simcore::NewtonMethod::Exact)
+      throw UsageError("--refresh async rebuilds the lagged factorisation of the chord, lagged-pcg and linearised methods; the exact method has none (choose --method)");
+  }
   mesh.convertToMetres();
   setup.mesh = mesh;
   const GestureResult r = runGesture(setup, script);
@@ -681,7 +687,8 @@ int cmdGesture(const std::vector<std::string>& args) {
       rows.push_back({{"step", s.step}, {"time_s", s.time}, {"wall_ms", s.wallMs}, {"mass_kg", s.massKg}, {"elements", s.elements}, {"nodes", s.nodes},
                       {"grasped_nodes", s.grasped}, {"contacts", s.contacts}, {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
                       {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}}, {"events", s.events}, {"message", s.message}, {"ok", s.report.ok},
-                      {"status", s.report.status}, {"residual", s.report.residual}});
+                      {"status", s.report.status}, {"residual", s.report.residual}, {"factorisations", s.report.factorisations},
+                      {"factor_requested", s.report.factorRequested}, {"factor_swapped", s.report.factorSwapped}});
     writeReport(o["report"], {{"steps", rows}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", r.vesselCuts}, {"failed_steps", r.failed},
                               {"peak_tool_force_n", peak}, {"elements", out.tets.size()}, {"nodes", out.points.size()},
                               {"contact_queries", r.contactQueries}});
@@ -737,6 +744,8 @@ std::string usage() {
          "                                   the organ (deformed: its nodes in the input order) re-shaded in the frame\n"
          "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of simulate]\n"
          "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method exact|lagged-pcg|chord|linearised]\n"
+         "                [--refresh sync|async]  async: a drifted lagged factorisation is rebuilt on a second thread and\n"
+         "                                   swapped in when ready (the steps never wait for it)\n"
          "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through the\n"
          "                                   simulation session without a window; the report has a row per step (wall time,\n"
          "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"

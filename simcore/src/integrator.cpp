@@ -5,6 +5,7 @@
 #include <Eigen/IterativeLinearSolvers>
 
 #include <chrono>
+#include <future>
 #include <cstdio>
 #include <cmath>
 
@@ -30,7 +31,7 @@ std::string toString(NewtonMethod m) {
 
 // Everything a step needs, sized once: a step that converges does not allocate.
 struct Integrator::Work {
-  CholmodSolver chol;
+  std::unique_ptr<CholmodSolver> chol = std::make_unique<CholmodSolver>();
   TangentState tangent0;           // the tangent at the step start: Rayleigh damping beta K(x0) v, matrix-free
   Eigen::SparseMatrix<double> Kd;  // K(x0) (exact method) or the lagged stiffness (lagged methods)
   Eigen::SparseMatrix<double> K;   // tangent stiffness at the current iterate
@@ -44,6 +45,21 @@ struct Integrator::Work {
   Eigen::VectorXd laggedAt;       // positions it was built at (with laggedStep: its identity)
   bool invalidated = false;       // invalidateFactorisation() was called: rebuild at the next step
   bool refresh = true;            // rebuild the lagged factor at the next opportunity
+  bool drift = false;             // the lagged factor drifted (its residual grew): rebuild it where settings.factorRefresh says
+  // The requested factor (asynchronous and deferred refresh): built into its own solver and matrices, then
+  // swapped with chol, Kd and J (the solvers keep their analyses: the pattern is the same).
+  struct Request {
+    std::unique_ptr<CholmodSolver> chol = std::make_unique<CholmodSolver>();
+    Eigen::SparseMatrix<double> Kd, J;
+    Eigen::VectorXd at;
+    double step = -1;
+    int attempts = 0;
+    bool pending = false;  // requested and not swapped in yet
+    bool built = false;    // the build finished (ok tells how)
+    bool ok = false;
+    bool discard = false;  // the factor was rebuilt at once since (a new time step, parameters, state): drop this one
+    std::future<bool> job; // asynchronous: the build under way on the second thread
+  } request;
   int staticFactor = -1;          // chol.factorisations() just after a static tangent was factorised
   Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
   bool forcesValid = false;
@@ -119,10 +135,12 @@ Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, Simul
   w.cons.setConstraints(attachmentConstraints_, fixed_);
 }
 
-Integrator::~Integrator() = default;
+Integrator::~Integrator() {
+  if (w_ && w_->request.job.valid()) w_->request.job.wait();  // it reads the model
+}
 
-int Integrator::symbolicAnalyses() const { return w_->chol.analyses(); }
-int Integrator::numericFactorisations() const { return w_->chol.factorisations(); }
+int Integrator::symbolicAnalyses() const { return w_->chol->analyses() + w_->request.chol->analyses(); }
+int Integrator::numericFactorisations() const { return w_->chol->factorisations() + w_->request.chol->factorisations(); }
 const Eigen::VectorXd& Integrator::multipliers() const { return w_->lambdaOut; }
 
 std::size_t Integrator::memoryBytes() const {
@@ -135,7 +153,7 @@ std::size_t Integrator::memoryBytes() const {
     bytes += static_cast<std::size_t>(m->nonZeros()) * (sizeof(double) + sizeof(int)) + static_cast<std::size_t>(m->outerSize() + 1) * sizeof(int);
   bytes += w.tangent0.F.size() * (sizeof(Eigen::Matrix3d) + sizeof(TangentCache));
   bytes += w.cons.memoryBytes();
-  bytes += w.chol.factorEntries() * (sizeof(double) + sizeof(int));
+  bytes += (w.chol->factorEntries() + w.request.chol->factorEntries()) * (sizeof(double) + sizeof(int));
   return bytes;
 }
 
@@ -175,14 +193,14 @@ void Integrator::projectMatrix(Eigen::SparseMatrix<double>& A) const {
 bool Integrator::solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd& y) {
   w_->cons.invalidate();
   w_->refresh = true;
-  w_->chol.setSimplicial(settings_.simplicialFactor);
-  return solveOnce(settings_.solver, A, b, y, w_->chol, settings_.cgMaxIterations, settings_.cgTolerance);
+  w_->chol->setSimplicial(settings_.simplicialFactor);
+  return solveOnce(settings_.solver, A, b, y, *w_->chol, settings_.cgMaxIterations, settings_.cgTolerance);
 }
 
 bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep, const std::function<bool()>& accept) {
   w_->cons.invalidate();
-  w_->chol.setSimplicial(settings_.simplicialFactor);
-  return simcore::factoriseShifted(w_->chol, A, model_.diagonalSlot, rep.factorisations, [&] {
+  w_->chol->setSimplicial(settings_.simplicialFactor);
+  return simcore::factoriseShifted(*w_->chol, A, model_.diagonalSlot, rep.factorisations, [&] {
     w_->cons.invalidate();  // each attempt is a new factor
     return !accept || accept();
   });
@@ -194,11 +212,11 @@ bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepRepo
 bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx,
                                   StepReport& rep, bool freeGiven, const Eigen::VectorXd* carried) {
   Work& w = *w_;
-  if (!freeGiven && !w.chol.solve(rhs, dx)) return false;
+  if (!freeGiven && !w.chol->solve(rhs, dx)) return false;
   project(dx);
   w.cons.gaussSeidelIterations = settings_.gaussSeidelIterations;
   w.cons.gaussSeidelTolerance = settings_.gaussSeidelTolerance;
-  return w.cons.solve(w.chol, x, s, dx, rep.innerIterations, carried);
+  return w.cons.solve(*w.chol, x, s, dx, rep.innerIterations, carried);
 }
 
 double Integrator::totalEnergy(const SimulationState& s) const {
@@ -206,30 +224,102 @@ double Integrator::totalEnergy(const SimulationState& s) const {
 }
 
 // One implicit Euler step of h from (x, v); on success x, v hold the new state.
-void Integrator::newtonMatrix(const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h) const {
-  const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
+void Integrator::newtonMatrix(const Eigen::SparseMatrix<double>& Kd, const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J,
+                              double h, double alpha, double beta) const {
   double* out = J.valuePtr();
-  const double* kd = w_->Kd.valuePtr();
+  const double* kd = Kd.valuePtr();
   const double* k = K.valuePtr();
   for (Eigen::Index i = 0; i < J.nonZeros(); ++i) out[i] = h * beta * kd[i] + h * h * k[i];
   for (Eigen::Index i = 0; i < J.rows(); ++i) out[model_.diagonalSlot[i]] += (1 + h * alpha) * mass3_[i];
   projectMatrix(J);
 }
 
+void Integrator::newtonMatrix(const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h) const {
+  newtonMatrix(w_->Kd, K, J, h, settings_.rayleighMass, settings_.rayleighStiffness);
+}
+
+// Reads only the model, the fixed nodes and the masses (all const after construction), so the asynchronous
+// refresh runs it on another thread with its own matrices and solver.
+bool Integrator::buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& Kd, Eigen::SparseMatrix<double>& J, const Eigen::VectorXd& at,
+                             double h, double alpha, double beta, bool simplicial, int& attempts) const {
+  assembleStiffness(model_, at, Kd);
+  newtonMatrix(Kd, Kd, J, h, alpha, beta);
+  ++attempts;
+  chol.setSimplicial(simplicial);
+  if (chol.factorise(J)) return true;
+  // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
+  assembleStiffness(model_, at, Kd, true);
+  newtonMatrix(Kd, Kd, J, h, alpha, beta);
+  return simcore::factoriseShifted(chol, J, model_.diagonalSlot, attempts);
+}
+
+void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& rep) {
+  Work::Request& q = w_->request;
+  if (q.pending) return;  // one at a time: the steps keep the old factor until it is in
+  if (q.Kd.size() == 0) q.Kd = q.J = model_.pattern;
+  q.at = at;
+  q.step = h;
+  q.attempts = 0;
+  q.pending = true;
+  q.built = q.ok = false;
+  q.discard = false;
+  rep.factorRequested = true;
+  if (settings_.factorRefresh == FactorRefresh::Asynchronous) {
+    const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
+    const bool simplicial = settings_.simplicialFactor;
+    q.job = std::async(std::launch::async, [this, &q, alpha, beta, simplicial] {
+      return buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, alpha, beta, simplicial, q.attempts);
+    });
+  }
+}
+
+// Swaps the requested factor in when it is built (asynchronous: the job finished; deferred: installed).
+bool Integrator::swapInRequested(StepReport& rep) {
+  Work& w = *w_;
+  Work::Request& q = w.request;
+  if (!q.pending) return false;
+  if (q.job.valid()) {
+    if (q.job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
+    q.ok = q.job.get();
+    q.built = true;
+  }
+  if (!q.built) return false;
+  q.pending = false;
+  rep.factorisations += q.attempts;
+  // A factor for another time step, or one that failed, is dropped (the next drift asks again).
+  if (!q.ok || q.discard || q.step != w.laggedStep || q.at.size() != w.x0.size()) return false;
+  std::swap(w.chol, q.chol);
+  std::swap(w.Kd, q.Kd);
+  std::swap(w.J, q.J);
+  std::swap(w.laggedAt, q.at);
+  w.cons.invalidate();
+  rep.factorSwapped = true;
+  return true;
+}
+
+bool Integrator::installRequestedFactor() {
+  Work::Request& q = w_->request;
+  if (!q.pending) return false;
+  if (q.job.valid()) {
+    q.ok = q.job.get();
+  } else if (!q.built) {
+    q.ok = buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, settings_.rayleighMass, settings_.rayleighStiffness, settings_.simplicialFactor, q.attempts);
+  }
+  q.built = true;  // swapped in at the next step's start
+  return q.ok;
+}
+
+bool Integrator::factorPending() const { return w_->request.pending; }
+
 bool Integrator::refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep) {
   Work& w = *w_;
-  assembleStiffness(model_, at, w.Kd);
-  newtonMatrix(w.Kd, w.J, h);
   w.laggedStep = h;
   w.laggedAt = at;  // the factor's identity, part of the complete state (SimulationState::lagged)
   w.refresh = false;
-  ++rep.factorisations;
+  w.drift = false;
+  w.request.discard = true;  // a factor requested before this one is older
   w.cons.invalidate();
-  if (factoriseWith(w.chol, settings_, w.J)) return true;
-  // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
-  assembleStiffness(model_, at, w.Kd, true);
-  newtonMatrix(w.Kd, w.J, h);
-  return factoriseShifted(w.J, rep);
+  return buildLagged(*w.chol, w.Kd, w.J, at, h, settings_.rayleighMass, settings_.rayleighStiffness, settings_.simplicialFactor, rep.factorisations);
 }
 
 // The complete state in, before a step: the lagged factor it names is the one this step uses (rebuilt
@@ -253,19 +343,23 @@ bool Integrator::adopt(const SimulationState& state, StepReport& rep) {
     w.refresh = true;  // a state without a lagged factor (fresh, or from an exact step): build one at its start
     return true;
   }
-  const bool same = w.chol.valid() && w.laggedStep == state.lagged.step && w.laggedAt.size() == state.lagged.at.size() &&
+  const bool same = w.chol->valid() && w.laggedStep == state.lagged.step && w.laggedAt.size() == state.lagged.at.size() &&
                     w.laggedAt == state.lagged.at && !w.refresh;  // refresh: the factor holds another matrix or is stale
   if (!same && !refresh) {
     if (!refreshLaggedAt(state.lagged.at, state.lagged.step, rep)) return false;
   }
   w.refresh = refresh;
+  w.drift = state.lagged.drift;
   return true;
 }
 
 void Integrator::record(SimulationState& state) const {
   const Work& w = *w_;
-  state.lagged.refresh = w.refresh;
-  state.lagged.valid = w.laggedStep > 0 && !w.refresh;
+  // Synchronous refresh: a drifted factor is rebuilt at the next step's start, like a stale one.
+  const bool sync = settings_.factorRefresh == FactorRefresh::Synchronous;
+  state.lagged.refresh = w.refresh || (sync && w.drift);
+  state.lagged.drift = !sync && w.drift;
+  state.lagged.valid = w.laggedStep > 0 && !state.lagged.refresh;
   if (state.lagged.valid) {
     state.lagged.at = w.laggedAt;  // same size from the second step on: no allocation
     state.lagged.step = w.laggedStep;
@@ -291,11 +385,16 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
   auto buildNewtonMatrix = [&](const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J) { newtonMatrix(K, J, h); };
   auto refreshLagged = [&](const Eigen::VectorXd& at) { return refreshLaggedAt(at, h, rep); };
   if (lagged) {
-    if (w.refresh || w.laggedStep != h || !w.chol.valid())
+    const bool stale = w.refresh || w.laggedStep != h || !w.chol->valid();
+    if (stale || (w.drift && settings_.factorRefresh == FactorRefresh::Synchronous)) {
       if (!refreshLagged(w.x0)) {
         rep.status = "failed: the linear system could not be solved";
         return false;
       }
+    } else if (w.drift && !w.request.pending) {
+      requestFactor(w.x0, h, rep);  // asynchronous or deferred: this step goes on with the old factor
+      w.drift = false;
+    }
   } else {
     assembleStiffness(model_, w.x0, w.Kd);
   }
@@ -326,7 +425,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     project(w.rn);
     rep.residual = w.rn.norm() / scale;
     ++rep.newtonIterations;
-    if (!(rep.residual <= settings_.refreshResidual)) w.refresh = true;
+    if (!(rep.residual <= settings_.refreshResidual)) w.drift = true;
     w.v += w.dv;
     if (!std::isfinite(rep.residual) || !w.v.allFinite()) {
       rep.status = "failed: the state became NaN or infinite";
@@ -403,7 +502,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       if (settings_.solver == LinearSolverKind::Cholmod) {
         ++rep.factorisations;
         w.cons.invalidate();
-        bool factorised = factoriseWith(w.chol, settings_, w.J) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
+        bool factorised = factoriseWith(*w.chol, settings_, w.J) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
         if (factorised) {
           solved = true;
         } else {
@@ -449,7 +548,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
         w.lambdaCarried = w.cons.multipliers();
       }
       const double bnorm = w.pr.norm();
-      solved = w.chol.solve(w.pr, w.pz);
+      solved = w.chol->solve(w.pr, w.pz);
       w.pp = w.pz;
       double rz = w.pr.dot(w.pz);
       int k = 0;
@@ -458,13 +557,13 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
         const double a = rz / w.pp.dot(w.pq);
         w.dv += a * w.pp;
         w.pr -= a * w.pq;
-        solved = w.chol.solve(w.pr, w.pz);
+        solved = w.chol->solve(w.pr, w.pz);
         const double rzn = w.pr.dot(w.pz);
         w.pp = w.pz + (rzn / rz) * w.pp;
         rz = rzn;
       }
       rep.innerIterations += k;
-      if (k > 20) w.refresh = true;  // the lagged factor has drifted: rebuild it at the next step
+      if (k > 20) w.drift = true;  // the lagged factor has drifted: rebuild it at the next step
       project(w.dv);
       // The constraint correction (of the multipliers' change) uses the lagged factor.
       if (solved && hasConstraints) solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep, true, carry ? &w.lambdaCarried : nullptr);
@@ -512,13 +611,17 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     // A lagged factor that no longer contracts the residual well is rebuilt here, at the current iterate.
     if (lagged && settings_.method == NewtonMethod::Chord && rn > 0.5 * previous && rn > settings_.tolerance * scale) {
       w.xt = w.x0 + h * w.v;
-      if (!refreshLagged(w.xt)) break;
+      if (settings_.factorRefresh != FactorRefresh::Synchronous && w.chol->valid()) {
+        requestFactor(w.xt, h, rep);  // built on the second thread; this step iterates on with the old factor
+      } else if (!refreshLagged(w.xt)) {
+        break;
+      }
     }
   }
   if (!ok && std::isfinite(rn) && rn <= settings_.tolerance * scale) ok = true;
   if (settings_.method == NewtonMethod::Linearised && lagged && std::isfinite(rn)) {
     ok = true;  // one solve by design; the residual is reported, and a large one refreshes the factor
-    if (rn > settings_.refreshResidual * scale) w.refresh = true;
+    if (rn > settings_.refreshResidual * scale) w.drift = true;
   }
   rep.residual = rn / scale;
   if (!std::isfinite(rn) || !w.v.allFinite()) {
@@ -560,6 +663,10 @@ StepReport Integrator::step(SimulationState& state) {
     record(state);
     return rep;
   }
+  // A factor built on the second thread is swapped in at the first step start after it is ready (never
+  // within a step: a replay installs it at the same step boundary, FactorRefresh::Deferred).
+  StepReport swap;
+  if (settings_.factorRefresh != FactorRefresh::Synchronous) swapInRequested(swap);
   double h = settings_.timeStep;
   int retries = 0;
   for (;; ++retries) {
@@ -579,6 +686,8 @@ StepReport Integrator::step(SimulationState& state) {
     }
     rep.newtonIterations = sub.newtonIterations;
     rep.factorisations = sub.factorisations;
+    rep.factorRequested = sub.factorRequested;
+    rep.factorSwapped = swap.factorSwapped;
     rep.innerIterations = sub.innerIterations;
     rep.residual = sub.residual;
     rep.timeStepUsed = h;
@@ -678,8 +787,8 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     bool solved = false;
     // Chord: the factor of an earlier static tangent (of this solve or the last one) while the residual
     // still at least halves per iteration; a fresh tangent otherwise, or when the lagged step is unusable.
-    const bool chord = settings_.staticChord && settings_.solver == LinearSolverKind::Cholmod && w.chol.valid() &&
-                       w.staticFactor == w.chol.factorisations() && rep.residual < 0.5 * residualBefore;
+    const bool chord = settings_.staticChord && settings_.solver == LinearSolverKind::Cholmod && w.chol->valid() &&
+                       w.staticFactor == w.chol->factorisations() && rep.residual < 0.5 * residualBefore;
     residualBefore = rep.residual;
     if (chord) {
       const Eigen::VectorXd lambdaStart = w.cons.multipliers();
@@ -692,7 +801,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
       w.cons.invalidate();
       // Each attempt starts from the same multipliers (a failed one can leave them absurd).
       const Eigen::VectorXd lambdaStart = w.cons.multipliers();
-      solved = factoriseWith(w.chol, settings_, w.K) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
+      solved = factoriseWith(*w.chol, settings_, w.K) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
       if (!solved) {
         // Indefinite, or nearly singular (a step the organ cannot make): projected Newton, then diagonal
         // shifts (Levenberg-Marquardt) growing until the step is usable.
@@ -702,7 +811,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
           return solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
         });
       }
-      if (solved) w.staticFactor = w.chol.factorisations();
+      if (solved) w.staticFactor = w.chol->factorisations();
     } else if (!solved) {
       solved = solveLinear(w.K, r, dx);
       if (!solved) {

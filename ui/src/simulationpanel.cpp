@@ -56,6 +56,7 @@ simcore::BodySetup bodySetup(const SimulationSetup& s) {
   b.byLabel = m.byLabel;
   b.settings.timeStep = s.timeStep;
   b.settings.method = s.method;
+  b.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)
   b.settings.gravity = s.gravity;
   return b;
 }

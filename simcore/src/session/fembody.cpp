@@ -15,6 +15,7 @@ class FemBody final : public DeformableBody {
   std::size_t nodeCount() const override { return model_.nodeCount(); }
   SimulationState initialState() const override { return integrator_.initialState(); }
   StepReport step(SimulationState& state) override { return integrator_.step(state); }
+  bool installRequestedFactor() override { return integrator_.installRequestedFactor(); }
   void setToolConstraints(std::vector<ScalarConstraint> c) override { integrator_.setConstraints(std::move(c)); }
   int topologyVersion() const override { return topology_; }
   const std::vector<Eigen::Vector3d>& restPositions() const override { return model_.rest; }

@@ -351,6 +351,9 @@ void Session::apply(const InputEvent& e, std::string& message) {
       setup_.settings.gravity = e.vector;
       rebuildBody();
       break;
+    case InputKind::Factor:
+      body_->installRequestedFactor();  // only replays post these (the recording of an asynchronous refresh)
+      break;
   }
   if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw) updateToolConstraints();  // rebuildBody did it for the others
 }
@@ -490,6 +493,14 @@ StepReport Session::advance() {
   }
   if (tool_.present && setup_.tools.toolRadius > 0) updateToolConstraints();  // contacts move with the tissue: detected at every step
   const StepReport rep = body_->step(state_);
+  if (rep.factorSwapped) {
+    // The asynchronous refresh swapped a factor in at this boundary: recorded, so a replay installs it here.
+    InputEvent f;
+    f.kind = InputKind::Factor;
+    f.step = steps_;
+    f.wallTime = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+    recorded_.push_back(f);
+  }
   ++steps_;
   if ((!tool_.held.empty() || tool_.contacts > 0) && rep.ok) {
     tool_.force = body_->toolForce();
@@ -648,7 +659,9 @@ void Session::run() {
 
 void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
             const std::function<void(long, const SimulationState&)>& each) {
-  Session s(setup);
+  BodySetup deferred = setup;
+  if (deferred.settings.factorRefresh == FactorRefresh::Asynchronous) deferred.settings.factorRefresh = FactorRefresh::Deferred;
+  Session s(deferred);
   for (const auto& e : events) s.post(e);
   for (long k = 0; k < steps; ++k) {
     s.advance();

@@ -42,6 +42,16 @@ std::string toString(NewtonMethod m);
 
 enum class AttachmentMode { Projection, Lagrange };
 
+/// When a lagged factorisation that has drifted (its residual grew) is rebuilt. A factor that no longer
+/// belongs to the system (a new time step, a parameter edit, a restored state) is always rebuilt at once.
+enum class FactorRefresh {
+  Synchronous,   ///< at the next step's start, on the stepping thread (that step waits for it)
+  Asynchronous,  ///< on a second thread from the step's start positions; the steps go on with the old factor and
+                 ///< the new one is swapped in at the first step start after it is ready (Courtecuisse et al. 2014)
+  Deferred,      ///< requested like Asynchronous but built only when installRequestedFactor() is called (replay of an
+                 ///< asynchronous run: the recording says at which step each factor was swapped in)
+};
+
 struct SimulationSettings {
   double timeStep = 0.01;                              ///< s
   Eigen::Vector3d gravity = Eigen::Vector3d(0, -9.81, 0);  ///< m/s^2
@@ -63,6 +73,7 @@ struct SimulationSettings {
   double gaussSeidelTolerance = 1e-10;                 ///< relative change of the multipliers
   bool reportEnergy = true;                            ///< compute StepReport::energy (one more pass over the elements)
   double refreshResidual = 1e-2;                       ///< linearised: re-factorise after a step whose relative residual exceeds this
+  FactorRefresh factorRefresh = FactorRefresh::Synchronous;  ///< lagged methods: where a drifted factor is rebuilt
 };
 
 /// The complete state of a simulated body: everything that decides the next step's result, so that a
@@ -78,6 +89,7 @@ struct SimulationState {
     Eigen::VectorXd at;  ///< 3n positions the lagged factor was built at
     double step = -1;    ///< s, the time step it was built for
     bool refresh = true; ///< rebuild it at the next step's start
+    bool drift = false;  ///< asynchronous/deferred refresh: it drifted, a new one is requested at the next step's start
   } lagged;
   Eigen::VectorXd forces;  ///< elastic forces at x from the last step (3n, projected), when forcesValid
   bool forcesValid = false;
@@ -94,6 +106,8 @@ struct StepReport {
   int factorisations = 0;   ///< numeric factorisations during the step
   int innerIterations = 0;  ///< CG iterations (lagged-pcg) or Gauss-Seidel sweeps (constraints)
   double constraintViolation = 0;  ///< max |H x - value| after the step (m)
+  bool factorRequested = false;    ///< asynchronous/deferred: a new lagged factor was requested at this step's start positions
+  bool factorSwapped = false;      ///< asynchronous: the factor requested earlier was swapped in at this step's start
   std::string status;       ///< "converged", "not converged (...)", "failed: ...", one sentence
 };
 
@@ -132,6 +146,11 @@ class Integrator {
   const std::vector<ScalarConstraint>& constraints() const { return constraints_; }
   /// Forces the lagged factorisation to be rebuilt at the next step (after a parameter change).
   void invalidateFactorisation();
+  /// Deferred refresh: builds the factor requested at an earlier step (from that step's start positions); the
+  /// next step swaps it in. False when none is pending (or it failed). Asynchronous: waits for the one under way.
+  bool installRequestedFactor();
+  /// A requested factor is pending (being built, or waiting for installRequestedFactor).
+  bool factorPending() const;
   /// Lagrange multipliers of the last solve (N), one per constraint (attachments first in Lagrange mode).
   const Eigen::VectorXd& multipliers() const;
 
@@ -140,7 +159,14 @@ class Integrator {
   bool tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepReport& rep);
   bool adopt(const SimulationState& state, StepReport& rep);
   void record(SimulationState& state) const;
+  void newtonMatrix(const Eigen::SparseMatrix<double>& Kd, const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h,
+                    double alpha, double beta) const;
   void newtonMatrix(const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h) const;
+  /// The lagged factor at `at` for step `h` into `chol` (assembling into Kd and J); attempts counted.
+  bool buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& Kd, Eigen::SparseMatrix<double>& J, const Eigen::VectorXd& at, double h,
+                   double alpha, double beta, bool simplicial, int& attempts) const;
+  void requestFactor(const Eigen::VectorXd& at, double h, StepReport& rep);
+  bool swapInRequested(StepReport& rep);
   bool refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep);
   double totalEnergy(const SimulationState& s) const;
   void project(Eigen::VectorXd& r) const;

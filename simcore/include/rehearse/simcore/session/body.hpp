@@ -57,6 +57,9 @@ class DeformableBody {
   virtual SimulationState initialState() const = 0;
   /// One time step of the complete state (rolled back with a status when it fails).
   virtual StepReport step(SimulationState& state) = 0;
+  /// Deferred factor refresh (a replay of an asynchronous run): builds the factor requested earlier and uses
+  /// it from the next step; false when none was requested (Integrator::installRequestedFactor).
+  virtual bool installRequestedFactor() { return false; }
   /// Tool constraints (grasp holds, contacts) for the next steps; replaces the previous ones.
   virtual void setToolConstraints(std::vector<ScalarConstraint> constraints) = 0;
   /// Bumped by every topology change (a cut); views rebuild what they derived from the topology.

@@ -31,6 +31,8 @@ enum class InputKind {
               ///< MaterialModel / NewtonMethod index); with `label` > 0, "young" and "poisson" of that label's
               ///< material (e.g. the vessels'; "young" 0 removes it: the label then uses the parenchyma's)
   Gravity,    ///< gravity set to `vector` (m/s^2, body frame)
+  Factor,     ///< recorded, not posted by a user: the lagged factor requested earlier (asynchronous refresh) was swapped
+              ///< in at this step boundary; a replay (FactorRefresh::Deferred) installs it at the same boundary
 };
 
 struct InputEvent {
@@ -181,6 +183,7 @@ class Session {
 /// Runs a body from rest through `steps` steps with a recorded list of events (each applied at its
 /// `step`); calls `each` after every step with the complete state. Deterministic: the same inputs give
 /// bit-identical states.
+/// A replay runs an asynchronous refresh as a deferred one (the recording's Factor events install the factors).
 void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
             const std::function<void(long step, const SimulationState&)>& each);
 
