@@ -419,13 +419,59 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     }
     // How well the lagged matrix stood for J(x0) = (1 + h a) M + (h^2 + h b) K(x0): the residual of the
     // linearised equations with the exact matrix, relative to the scale; a large one refreshes the factor.
-    applyStiffness(model_, w.tangent0, w.dv, w.pk);
-    w.rn = (1 + h * alpha) * mass3_.cwiseProduct(w.dv) + (h * h + h * beta) * w.pk + w.r;
-    if (hasConstraints) w.rn.noalias() -= w.cons.transposedH() * w.cons.multipliers();
-    project(w.rn);
-    rep.residual = w.rn.norm() / scale;
+    auto applyJ0 = [&](const Eigen::VectorXd& in, Eigen::VectorXd& out) {
+      applyStiffness(model_, w.tangent0, in, w.pk);
+      out = (1 + h * alpha) * mass3_.cwiseProduct(in) + (h * h + h * beta) * w.pk;
+      project(out);
+    };
+    auto linearisedResidual = [&] {
+      applyJ0(w.dv, w.rn);
+      w.rn += w.r;
+      if (hasConstraints) w.rn.noalias() -= w.cons.transposedH() * w.cons.multipliers();
+      project(w.rn);
+      return w.rn.norm() / scale;
+    };
+    rep.residual = linearisedResidual();
     ++rep.newtonIterations;
     if (!(rep.residual <= settings_.refreshResidual)) w.drift = true;
+    // A factor known to have drifted (its replacement is being built on the second thread) preconditions
+    // conjugate gradients on the exact linearised matrix instead of standing for it (the asynchronous
+    // preconditioner of Courtecuisse et al. 2014): used alone, a stale factor lets the step diverge. Each pass
+    // solves J d = -rn by PCG, then corrects the multipliers' change with the lagged factor (carried, as the
+    // lagged-pcg method does), until the linearised residual is under refreshResidual (or 4 passes).
+    if (settings_.factorRefresh != FactorRefresh::Synchronous && w.request.pending) {
+      for (int pass = 0; pass < 4 && std::isfinite(rep.residual) && rep.residual > settings_.refreshResidual; ++pass) {
+        w.pr = -w.rn;
+        const double bnorm = w.pr.norm();
+        Eigen::VectorXd& d = w.vn;  // the correction (free part, then constrained)
+        d.setZero();
+        if (!w.chol->solve(w.pr, w.pz)) break;
+        project(w.pz);
+        w.pp = w.pz;
+        double rz = w.pr.dot(w.pz);
+        int k = 0;
+        for (; k < settings_.cgMaxIterations && w.pr.norm() > 1e-3 * settings_.refreshResidual * bnorm; ++k) {
+          applyJ0(w.pp, w.pq);
+          const double a = rz / w.pp.dot(w.pq);
+          d += a * w.pp;
+          w.pr -= a * w.pq;
+          if (!w.chol->solve(w.pr, w.pz)) break;
+          project(w.pz);
+          const double rzn = w.pr.dot(w.pz);
+          w.pp = w.pz + (rzn / rz) * w.pp;
+          rz = rzn;
+        }
+        rep.innerIterations += k;
+        if (hasConstraints) {
+          // The constraints at the corrected velocities, the multipliers so far carried (their forces are in rn).
+          w.lambdaCarried = w.cons.multipliers();
+          w.xt = w.x0 + h * (w.v + w.dv);
+          if (!solveConstrained(w.tmp, w.xt, h, d, rep, true, &w.lambdaCarried)) break;
+        }
+        w.dv += d;
+        rep.residual = linearisedResidual();
+      }
+    }
     w.v += w.dv;
     if (!std::isfinite(rep.residual) || !w.v.allFinite()) {
       rep.status = "failed: the state became NaN or infinite";

@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 using namespace rehearse;
@@ -54,12 +55,27 @@ InputEvent event(InputKind kind, const Eigen::Vector3d& p = Eigen::Vector3d::Zer
 struct PullResult {
   std::vector<double> ms;
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), bitten = Eigen::Vector3d::Zero();
-  int failed = 0;
+  int failed = 0, swaps = 0, contacts = 0;
 };
 
-// Settle, bite the node nearest the organ's front (smallest z), pull 2 cm towards -z over 100 steps.
-PullResult pull(BodySetup s, NewtonMethod method, int settle) {
-  s.settings.method = method;
+struct Variant {
+  NewtonMethod method;
+  FactorRefresh refresh = FactorRefresh::Synchronous;
+  double toolRadius = 0;  // m: contact with the instrument's shaft
+  std::string name() const {
+    return toString(method) + (refresh == FactorRefresh::Asynchronous ? "+async" : "") + (toolRadius > 0 ? "+contact" : "");
+  }
+};
+
+constexpr int kPullSteps = 200;
+
+// Settle, bite the node nearest the organ's front (smallest z), pull 2 cm towards -z over 200 steps of
+// 10 ms, paced to real time as the session's thread plays (a step starts every 10 ms, or at once when the
+// last one overran): the asynchronous refresh has the time the surgeon gives it, no more.
+PullResult pull(BodySetup s, const Variant& v, int settle) {
+  s.settings.method = v.method;
+  s.settings.factorRefresh = v.refresh;
+  s.tools.toolRadius = v.toolRadius;
   Session session(s);
   for (int k = 0; k < settle; ++k) session.advance();
   const auto snap = session.snapshot();
@@ -71,12 +87,18 @@ PullResult pull(BodySetup s, NewtonMethod method, int settle) {
   session.advance();
   PullResult r;
   const int bitten = session.snapshot()->tool.held.empty() ? -1 : session.snapshot()->tool.held.front();
-  for (int k = 1; k <= 100; ++k) {
-    session.post(event(InputKind::ToolPose, tip + Eigen::Vector3d(0, 0, -0.02 * k / 100.0)));
+  auto due = std::chrono::steady_clock::now();
+  for (int k = 1; k <= kPullSteps; ++k) {
+    std::this_thread::sleep_until(due);
+    session.post(event(InputKind::ToolPose, tip + Eigen::Vector3d(0, 0, -0.02 * k / kPullSteps)));
     const auto t0 = std::chrono::steady_clock::now();
     const StepReport rep = session.advance();
-    r.ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    const auto t1 = std::chrono::steady_clock::now();
+    r.ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     r.failed += !rep.ok;
+    r.swaps += rep.factorSwapped;
+    r.contacts = std::max(r.contacts, session.snapshot()->tool.contacts);
+    due = std::max(due + std::chrono::milliseconds(10), t1);
   }
   r.force = session.snapshot()->tool.force;
   if (bitten >= 0) r.bitten = session.snapshot()->positions[static_cast<std::size_t>(bitten)];
@@ -99,20 +121,28 @@ int main(int argc, char** argv) {
   else std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
 
   std::ofstream pullCsv(out + "/rehearsal-pull.csv");
-  pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,failed,force_error_rel,bitten_error_mm\n";
-  std::printf("Grasp pulled 2 cm over 100 steps of 10 ms (wall time per step while pulling)\n");
-  std::printf("%-11s %6s %-11s %9s %9s %9s %6s %12s %12s\n", "organ", "tets", "method", "median ms", "p99 ms", "max ms", "failed", "force err", "bitten err");
+  pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,failed,swaps,contacts,force_error_rel,bitten_error_mm\n";
+  std::printf("Grasp pulled 2 cm over %d steps of 10 ms, paced to real time (wall time per step while pulling)\n", kPullSteps);
+  std::printf("%-11s %6s %-26s %9s %9s %9s %6s %5s %8s %12s %12s\n", "organ", "tets", "method", "median ms", "p99 ms", "max ms", "failed", "swaps", "contacts",
+              "force err", "bitten err");
+  const std::vector<Variant> variants = {{NewtonMethod::Exact},
+                                         {NewtonMethod::LaggedPcg},
+                                         {NewtonMethod::Chord},
+                                         {NewtonMethod::Linearised},
+                                         {NewtonMethod::Chord, FactorRefresh::Asynchronous},
+                                         {NewtonMethod::Linearised, FactorRefresh::Asynchronous},
+                                         {NewtonMethod::Linearised, FactorRefresh::Asynchronous, 0.004}};
   for (const auto& organ : organs) {
     const BodySetup s = setupFor(organ, shared);
-    const PullResult exact = pull(s, NewtonMethod::Exact, quick ? 20 : 50);
-    for (NewtonMethod m : {NewtonMethod::Exact, NewtonMethod::LaggedPcg, NewtonMethod::Chord, NewtonMethod::Linearised}) {
-      const PullResult r = m == NewtonMethod::Exact ? exact : pull(s, m, quick ? 20 : 50);
+    const PullResult exact = pull(s, variants.front(), quick ? 20 : 50);
+    for (const Variant& v : variants) {
+      const PullResult r = &v == &variants.front() ? exact : pull(s, v, quick ? 20 : 50);
       const double fe = exact.force.norm() > 0 ? (r.force - exact.force).norm() / exact.force.norm() : 0;
       const double de = 1e3 * (r.bitten - exact.bitten).norm();
-      std::printf("%-11s %6zu %-11s %9.2f %9.2f %9.2f %6d %11.2f%% %9.3f mm\n", organ.c_str(), s.mesh.tets.size(), toString(m).c_str(), percentile(r.ms, 0.5),
-                  percentile(r.ms, 0.99), percentile(r.ms, 1.0), r.failed, 100 * fe, de);
-      pullCsv << organ << ',' << s.mesh.tets.size() << ',' << toString(m) << ',' << percentile(r.ms, 0.5) << ',' << percentile(r.ms, 0.99) << ','
-              << percentile(r.ms, 1.0) << ',' << r.failed << ',' << fe << ',' << de << '\n';
+      std::printf("%-11s %6zu %-26s %9.2f %9.2f %9.2f %6d %5d %8d %11.2f%% %9.3f mm\n", organ.c_str(), s.mesh.tets.size(), v.name().c_str(),
+                  percentile(r.ms, 0.5), percentile(r.ms, 0.99), percentile(r.ms, 1.0), r.failed, r.swaps, r.contacts, 100 * fe, de);
+      pullCsv << organ << ',' << s.mesh.tets.size() << ',' << v.name() << ',' << percentile(r.ms, 0.5) << ',' << percentile(r.ms, 0.99) << ','
+              << percentile(r.ms, 1.0) << ',' << r.failed << ',' << r.swaps << ',' << r.contacts << ',' << fe << ',' << de << '\n';
     }
   }
 
