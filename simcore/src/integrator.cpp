@@ -142,6 +142,7 @@ Integrator::~Integrator() {
 int Integrator::symbolicAnalyses() const { return w_->chol->analyses() + w_->request.chol->analyses(); }
 int Integrator::numericFactorisations() const { return w_->chol->factorisations() + w_->request.chol->factorisations(); }
 const Eigen::VectorXd& Integrator::multipliers() const { return w_->lambdaOut; }
+const Eigen::MatrixXd& Integrator::constraintCompliance() const { return w_->cons.schur(); }
 
 std::size_t Integrator::memoryBytes() const {
   const Work& w = *w_;

@@ -32,6 +32,30 @@ class FemBody final : public DeformableBody {
     for (std::size_t k = 0; k < c.size(); ++k) sum += lambda[first + static_cast<Eigen::Index>(k)] * c[k].weights[0] * c[k].direction;
     return sum;
   }
+  Eigen::Matrix3d toolStiffness() const override {
+    const auto& c = integrator_.constraints();
+    const Eigen::VectorXd& lambda = integrator_.multipliers();
+    const Eigen::MatrixXd& W = integrator_.constraintCompliance();
+    const double h = settings_.timeStep;
+    if (c.empty() || lambda.size() < static_cast<Eigen::Index>(c.size()) || W.rows() != lambda.size() || !(h > 0)) return Eigen::Matrix3d::Zero();
+    const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
+    std::vector<Eigen::Index> active;
+    for (std::size_t k = 0; k < c.size(); ++k)
+      if (!c[k].unilateral || lambda[first + static_cast<Eigen::Index>(k)] > 0) active.push_back(first + static_cast<Eigen::Index>(k));
+    if (active.empty()) return Eigen::Matrix3d::Zero();
+    const auto m = static_cast<Eigen::Index>(active.size());
+    Eigen::MatrixXd Wa(m, m), G(m, 3);
+    for (Eigen::Index i = 0; i < m; ++i) {
+      for (Eigen::Index j = 0; j < m; ++j) Wa(i, j) = W(active[i], active[j]);
+      const auto& ci = c[static_cast<std::size_t>(active[i] - first)];
+      G.row(i) = ci.weights[0] * ci.direction.transpose();
+    }
+    // Redundant holds make W_a singular: the pivoted LDL^T's solve leaves their share at zero.
+    const Eigen::MatrixXd X = Wa.ldlt().solve(G);
+    if (!X.allFinite()) return Eigen::Matrix3d::Zero();
+    const Eigen::Matrix3d K = (G.transpose() * X) / (h * h);
+    return 0.5 * (K + K.transpose());
+  }
   const std::vector<char>& fixedMask() const override { return fixed_; }
   const std::vector<int>& labels() const override { return labels_; }
   Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& v0, double h) const override {

@@ -504,6 +504,7 @@ StepReport Session::advance() {
   ++steps_;
   if ((!tool_.held.empty() || tool_.contacts > 0) && rep.ok) {
     tool_.force = body_->toolForce();
+    tool_.stiffness = body_->toolStiffness();
     // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing).
     if (!tool_.held.empty() && tool_.force.norm() > setup_.tools.maxGraspForce) {
       char buf[200];
@@ -512,11 +513,13 @@ StepReport Session::advance() {
       message = buf;
       tool_.held.clear();
       tool_.heldOffset.clear();
+      tool_.stiffness.setZero();  // nothing held: the force does not follow the tool any more
       events_.push_back("slip");
       updateToolConstraints();
     }
   } else if (tool_.held.empty() && tool_.contacts == 0) {
     tool_.force.setZero();
+    tool_.stiffness.setZero();
   }
   publish(rep, message, std::move(events_));
   events_.clear();

@@ -48,6 +48,8 @@ class ConstraintSolver {
   /// The multipliers (total, N·s/m... in the units of rhs) of the last solve; the next solve starts from
   /// them (warm start). Reset them with multipliers().setZero(size()).
   Eigen::VectorXd& multipliers() { return lambda_; }
+  /// W = H A^-1 H^T of the last solve (m x m; the constraints' compliance through the factor), empty before it.
+  const Eigen::MatrixXd& schur() const { return W_; }
   /// H^T (3n x m, dense) as of the last solve (empty before it).
   const Eigen::MatrixXd& transposedH() const { return Ht_; }
   /// Largest |H x - value| (bilateral) or max(0, value - H x) (unilateral), m.

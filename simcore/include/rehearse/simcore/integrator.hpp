@@ -151,6 +151,10 @@ class Integrator {
   bool installRequestedFactor();
   /// A requested factor is pending (being built, or waiting for installRequestedFactor).
   bool factorPending() const;
+  /// The constraints' compliance W = H A^-1 H^T of the last solve (attachments first in Lagrange mode, then the
+  /// constraints), with A the step's matrix (kg): a change de of the constraint values (m) changes the multipliers
+  /// by W^-1 de / h (N s). Empty before the first constrained solve.
+  const Eigen::MatrixXd& constraintCompliance() const;
   /// Lagrange multipliers of the last solve (N), one per constraint (attachments first in Lagrange mode).
   const Eigen::VectorXd& multipliers() const;
 

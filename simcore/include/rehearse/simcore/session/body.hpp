@@ -79,6 +79,11 @@ class DeformableBody {
   /// The force (N) the tool constraints applied to the body in the last step: the constraint solver's
   /// multipliers along their directions (what the step used, whatever its Newton method).
   virtual Eigen::Vector3d toolForce() const = 0;
+  /// The tool's local stiffness (N/m): how the tool force (toolForce) changes per metre the tool moves over
+  /// the next step, G^T W_a^-1 G / h^2 from the last solve's compliance W restricted to the tool constraints
+  /// that act (bilateral holds, pushing contacts), G their directions (each moves with the tool). Zero
+  /// without acting tool constraints. What a haptic loop extrapolates the force with between steps.
+  virtual Eigen::Matrix3d toolStiffness() const { return Eigen::Matrix3d::Zero(); }
   /// The nodes fixed by the setup (ligament attachments), 1 for fixed.
   virtual const std::vector<char>& fixedMask() const = 0;
   /// Per element label (the mesh's), e.g. the vessels'.

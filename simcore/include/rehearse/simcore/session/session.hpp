@@ -58,6 +58,7 @@ struct ToolState {
   bool cutting = false;
   Eigen::Vector3d cutFrom = Eigen::Vector3d::Zero();  ///< the tip where the blade's last sweep ended (while cutting)
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step (grasp and contact)
+  Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();  ///< N/m, d(force)/d(tip) over the next step (DeformableBody::toolStiffness)
   bool present = false;                    ///< an instrument is in the scene (a pose was given): contact is detected
   int contacts = 0;                        ///< surface nodes the instrument pushes at the last step
 };
