@@ -1,7 +1,7 @@
 // Step 7 through the real main window (offscreen, software rendering) with QTest mouse and key events:
 // Alt+7 picks the grasper; a press on the organ closes the jaws there, a drag pulls it (the simulation
 // plays), and the bitten tissue follows the tip within 1 mm while the ligament nodes stay; the release
-// opens the jaws and the tissue relaxes. Space closes and opens the jaws at the cursor. B picks the
+// opens the jaws and the tissue relaxes; the 1 kHz tool-force loop and the page's chart of it follow. Space closes and opens the jaws at the cursor. B picks the
 // scissors: a drag across the organ cuts it (counts grow, mass kept, no inverted or poor element). With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot.
 #include "test_support.hpp"
 
@@ -11,8 +11,11 @@
 #include "rehearse/ui/simulationpanel.hpp"
 
 #include <QLabel>
+#include <QtCharts/QChartView>
+#include <QtCharts/QLineSeries>
 
 #include <rehearse/simcore/cut.hpp>
+#include <rehearse/simcore/session/forceloop.hpp>
 
 #include <optional>
 #include <QSignalSpy>
@@ -120,6 +123,23 @@ class TestRehearseGui : public QObject {
     QVERIFY(f->tool.force.norm() > 0.01);
     QVERIFY(!(w_->organOverlay() == restOverlay));  // the organ over the frame follows the simulation in this step
     QVERIFY(w_->findChild<QLabel*>("rehearseForce")->text().startsWith("Tool force"));
+    // The 1 kHz tool-force loop (its own thread) and the page's chart of it.
+    const simcore::ForceLoop* loop = panel->forceLoop();
+    QVERIFY(loop && loop->running());
+    const auto recent = loop->samples(0.05);
+    QVERIFY(!recent.empty());
+    const double loopForce = recent.back().force.norm();
+    qInfo("force loop: %.0f Hz, period median %.3f ms, p99 %.3f ms; its force %.3f N, the last step's %.3f N", loop->timing().rateHz,
+          loop->timing().medianPeriodMs, loop->timing().p99PeriodMs, loopForce, f->tool.force.norm());
+    QVERIFY(std::abs(loopForce - f->tool.force.norm()) < 0.05 * f->tool.force.norm() + 1e-3);  // the tip is still: the step's force
+    QVERIFY(f->tool.stiffness.norm() > 0);
+    auto* chartView = w_->findChild<QChartView*>("toolForceChart");
+    QVERIFY(chartView && chartView->isVisible());
+    QVERIFY(waitFor([&] { return qobject_cast<QLineSeries*>(chartView->chart()->series().first())->count() > 100; }));
+    double chartPeak = 0;
+    for (const QPointF& p : qobject_cast<QLineSeries*>(chartView->chart()->series().first())->points()) chartPeak = std::max(chartPeak, p.y());
+    QVERIFY(chartPeak > 0.01);
+    QVERIFY(w_->findChild<QLabel*>("forceLoopRate")->text().contains("Hz"));
     if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-grasp.png");
     QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }));

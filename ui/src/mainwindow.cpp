@@ -324,6 +324,7 @@ void MainWindow::buildWorkflowPanel() {
   pages_.fit = new FitPage(wb_);
   pages_.appearance = new AppearancePage(wb_, composition_);
   pages_.rehearse = new RehearsePage(wb_);
+  pages_.rehearse->setForceLoop([this] { return simulation_ ? simulation_->forceLoop() : nullptr; });
   pages_.all = {pages_.mesh, pages_.frame, pages_.contour, pages_.rigid, pages_.fit, pages_.appearance, pages_.rehearse};
   for (StepPage* p : pages_.all) stepStack_->addWidget(p);
   connect(pages_.mesh, &MeshPage::meshImported, this, &MainWindow::meshImported);

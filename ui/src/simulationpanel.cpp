@@ -117,6 +117,7 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
 void SimulationPanel::startSession(const SimulationSetup& s) {
   // Building the body (model, first factorisation) takes a while on a large organ: on a worker; the old
   // session keeps its thread until the new one is ready. Commands given meanwhile apply to the new one.
+  forceLoop_.reset();  // it reads the session's snapshots
   session_.reset();
   const long generation = ++generation_;
   if (!s.organ || s.organ->organ->empty()) {
@@ -136,6 +137,9 @@ void SimulationPanel::startSession(const SimulationSetup& s) {
       return;
     }
     session_ = std::move(result->first);
+    forceLoop_ = std::make_unique<simcore::ForceLoop>(
+        [s = session_.get(), maxForce = session_->setup().tools.maxGraspForce] { return simcore::toolForceModel(*s->snapshot(), maxForce); }, &device_);
+    forceLoop_->start();
     session_->setPublishedCallback([this, s = session_.get(), ctx]() {
       // On the session's thread: the frame is made here, the GUI thread only draws it.
       auto frame = makeFrame(*ctx, *s->snapshot(), colouring_.load());
@@ -408,6 +412,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
 
 SimulationPanel::~SimulationPanel() {
   ++generation_;
+  forceLoop_.reset();
   session_.reset();  // joins the session's thread before the panel goes
 }
 
@@ -522,6 +527,7 @@ void SimulationPanel::postRunParameters() {
 
 bool SimulationPanel::post(simcore::InputEvent e) {
   if (!session_) return false;
+  if (e.kind == simcore::InputKind::ToolPose) device_.setPosition(e.position);
   session_->post(std::move(e));
   if (!playing_) play();
   return true;

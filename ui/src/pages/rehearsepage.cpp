@@ -2,11 +2,19 @@
 
 #include "rehearse/ui/simulationpanel.hpp"
 
+#include <rehearse/simcore/session/forceloop.hpp>
+
 #include <QLabel>
 #include <QPushButton>
+#include <QTimer>
 #include <QVBoxLayout>
+#include <QtCharts/QChart>
+#include <QtCharts/QChartView>
+#include <QtCharts/QLineSeries>
+#include <QtCharts/QValueAxis>
 
 #include <algorithm>
+#include <cmath>
 
 namespace rehearse::ui {
 
@@ -37,7 +45,70 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   big.setPointSizeF(big.pointSizeF() * 1.4);
   force_->setFont(big);
   layout->addWidget(force_);
-  layout->addStretch(1);
+  // The tool force as the 1 kHz loop computes it (the force on the tissue; a haptic device renders its opposite).
+  series_ = new QLineSeries;
+  auto* chart = new QChart;
+  chart->addSeries(series_);
+  chart->legend()->hide();
+  chart->setTitle(tr("Tool force (N), last 5 s"));
+  chart->setTheme(QChart::ChartThemeDark);
+  axisX_ = new QValueAxis;
+  axisX_->setTitleText(tr("s"));
+  axisX_->setRange(-5, 0);
+  axisY_ = new QValueAxis;
+  axisY_->setTitleText(tr("N"));
+  axisY_->setRange(0, 1);
+  chart->addAxis(axisX_, Qt::AlignBottom);
+  chart->addAxis(axisY_, Qt::AlignLeft);
+  series_->attachAxis(axisX_);
+  series_->attachAxis(axisY_);
+  auto* chartView = new QChartView(chart, this);
+  chartView->setObjectName(QStringLiteral("toolForceChart"));
+  chartView->setRenderHint(QPainter::Antialiasing);
+  chartView->setMinimumHeight(200);
+  layout->addWidget(chartView, 1);
+  loopRate_ = new QLabel(this);
+  loopRate_->setObjectName(QStringLiteral("forceLoopRate"));
+  layout->addWidget(loopRate_);
+  chartTimer_ = new QTimer(this);
+  chartTimer_->setInterval(33);
+  connect(chartTimer_, &QTimer::timeout, this, &RehearsePage::updateChart);
+}
+
+void RehearsePage::showEvent(QShowEvent* e) {
+  StepPage::showEvent(e);
+  chartTimer_->start();
+}
+
+void RehearsePage::hideEvent(QHideEvent* e) {
+  StepPage::hideEvent(e);
+  chartTimer_->stop();
+}
+
+void RehearsePage::updateChart() {
+  const simcore::ForceLoop* loop = loop_ ? loop_() : nullptr;
+  if (!loop) {
+    series_->clear();
+    loopRate_->setText(tr("Tool-force loop: no simulation running."));
+    return;
+  }
+  const auto samples = loop->samples(5.0);
+  QList<QPointF> points;
+  double top = 1.0;
+  if (!samples.empty()) {
+    const double now = samples.back().time;
+    const std::size_t stride = std::max<std::size_t>(1, samples.size() / 600);  // a point per ~8 ms on the chart
+    points.reserve(static_cast<int>(samples.size() / stride + 1));
+    for (std::size_t i = 0; i < samples.size(); i += stride) {
+      const double f = samples[i].force.norm();
+      top = std::max(top, f);
+      points.append(QPointF(samples[i].time - now, f));
+    }
+  }
+  series_->replace(points);
+  axisY_->setRange(0, std::ceil(top * 1.1));
+  const auto t = loop->timing();
+  loopRate_->setText(tr("Tool-force loop: %1 Hz, period %2 ms (99th percentile %3 ms)").arg(t.rateHz, 0, 'f', 0).arg(t.medianPeriodMs, 0, 'f', 2).arg(t.p99PeriodMs, 0, 'f', 2));
 }
 
 void RehearsePage::refresh(const app::Case& c) {

@@ -7,6 +7,7 @@
 #include <rehearse/app/case.hpp>
 #include "rehearse/ui/organview.hpp"
 
+#include <rehearse/simcore/session/forceloop.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <QElapsedTimer>
@@ -104,6 +105,9 @@ class SimulationPanel : public QWidget {
   void applyPreset(const QString& name);
   bool isPlaying() const { return playing_; }
   std::shared_ptr<const SimulationFrame> lastFrame() const { return last_; }
+  /// The tool-force loop of the current session (1 kHz on its own thread; the instrument's tip drives its
+  /// virtual device), null while no session runs. A haptic device driver would take the VirtualDevice's place.
+  const simcore::ForceLoop* forceLoop() const { return forceLoop_.get(); }
   SimulationSetup setup() const;
   QString statusText() const;
 
@@ -128,6 +132,8 @@ class SimulationPanel : public QWidget {
   app::MaterialSettings fieldsMaterial() const;
 
   std::shared_ptr<simcore::Session> session_;
+  simcore::VirtualDevice device_;                  ///< the mouse-driven instrument's tip, for the force loop
+  std::unique_ptr<simcore::ForceLoop> forceLoop_;  ///< declared after session_: stopped before it goes
   long generation_ = 0;          ///< bumped per session: frames of an older one are dropped
   std::atomic<int> colouring_{0};
   bool pendingPlay_ = false;     ///< Play pressed while the session was being built ...

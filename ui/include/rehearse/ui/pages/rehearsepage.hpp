@@ -4,9 +4,17 @@
 // jaws hold, the force on the tissue, slips), in the composited view of step 6 or the overlay.
 #include "rehearse/ui/pages/steppage.hpp"
 
+#include <functional>
 #include <memory>
 
 class QLabel;
+class QLineSeries;
+class QValueAxis;
+class QTimer;
+
+namespace rehearse::simcore {
+class ForceLoop;
+}
 
 namespace rehearse::ui {
 
@@ -19,8 +27,23 @@ class RehearsePage : public StepPage {
   void refresh(const app::Case& c) override;
   /// A simulation snapshot was shown: the instrument's state in words.
   void showFrame(const std::shared_ptr<const SimulationFrame>& f);
+  /// Where the tool-force loop is (the simulation panel's; null while no session runs): the page's chart
+  /// shows the last 5 s of its 1 kHz force, and its rate and jitter.
+  void setForceLoop(std::function<const simcore::ForceLoop*()> loop) { loop_ = std::move(loop); }
+  /// Redraws the chart from the loop now (the page's timer does it 30 times a second while it is shown).
+  void updateChart();
+
+ protected:
+  void showEvent(QShowEvent* e) override;
+  void hideEvent(QHideEvent* e) override;
 
  private:
+  std::function<const simcore::ForceLoop*()> loop_;
+  QLineSeries* series_ = nullptr;
+  QValueAxis* axisX_ = nullptr;
+  QValueAxis* axisY_ = nullptr;
+  QLabel* loopRate_ = nullptr;
+  QTimer* chartTimer_ = nullptr;
   QLabel* status_ = nullptr;
   QLabel* force_ = nullptr;
   int slips_ = 0, cuts_ = 0, vesselCuts_ = 0;
