@@ -11,6 +11,7 @@
 #include "session_inputs.hpp"
 
 #include <rehearse/simcore/cut.hpp>
+#include <rehearse/simcore/session/forceloop.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <algorithm>
@@ -56,6 +57,7 @@ struct PullResult {
   std::vector<double> ms;
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), bitten = Eigen::Vector3d::Zero();
   int failed = 0, swaps = 0, contacts = 0;
+  ForceLoop::Timing loop;  // the 1 kHz tool-force loop's, run beside the pull on its own thread
 };
 
 struct Variant {
@@ -87,9 +89,14 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
   session.advance();
   PullResult r;
   const int bitten = session.snapshot()->tool.held.empty() ? -1 : session.snapshot()->tool.held.front();
+  VirtualDevice device;
+  device.setPosition(tip);
+  ForceLoop loop([&session, max = s.tools.maxGraspForce] { return toolForceModel(*session.snapshot(), max); }, &device);
+  loop.start();
   auto due = std::chrono::steady_clock::now();
   for (int k = 1; k <= kPullSteps; ++k) {
     std::this_thread::sleep_until(due);
+    device.setPosition(tip + Eigen::Vector3d(0, 0, -0.02 * k / kPullSteps));
     session.post(event(InputKind::ToolPose, tip + Eigen::Vector3d(0, 0, -0.02 * k / kPullSteps)));
     const auto t0 = std::chrono::steady_clock::now();
     const StepReport rep = session.advance();
@@ -100,6 +107,8 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
     r.contacts = std::max(r.contacts, session.snapshot()->tool.contacts);
     due = std::max(due + std::chrono::milliseconds(10), t1);
   }
+  loop.stop();
+  r.loop = loop.timing();
   r.force = session.snapshot()->tool.force;
   if (bitten >= 0) r.bitten = session.snapshot()->positions[static_cast<std::size_t>(bitten)];
   return r;
@@ -121,10 +130,10 @@ int main(int argc, char** argv) {
   else std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
 
   std::ofstream pullCsv(out + "/rehearsal-pull.csv");
-  pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,failed,swaps,contacts,force_error_rel,bitten_error_mm\n";
+  pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,failed,swaps,contacts,force_error_rel,bitten_error_mm,loop_hz,loop_period_median_ms,loop_period_p99_ms,loop_period_max_ms,loop_jitter_p99_ms\n";
   std::printf("Grasp pulled 2 cm over %d steps of 10 ms, paced to real time (wall time per step while pulling)\n", kPullSteps);
-  std::printf("%-11s %6s %-26s %9s %9s %9s %6s %5s %8s %12s %12s\n", "organ", "tets", "method", "median ms", "p99 ms", "max ms", "failed", "swaps", "contacts",
-              "force err", "bitten err");
+  std::printf("%-11s %6s %-26s %9s %9s %9s %6s %5s %8s %12s %12s %8s %9s\n", "organ", "tets", "method", "median ms", "p99 ms", "max ms", "failed", "swaps",
+              "contacts", "force err", "bitten err", "loop Hz", "jitter ms");
   const std::vector<Variant> variants = {{NewtonMethod::Exact},
                                          {NewtonMethod::LaggedPcg},
                                          {NewtonMethod::Chord},
@@ -139,10 +148,11 @@ int main(int argc, char** argv) {
       const PullResult r = &v == &variants.front() ? exact : pull(s, v, quick ? 20 : 50);
       const double fe = exact.force.norm() > 0 ? (r.force - exact.force).norm() / exact.force.norm() : 0;
       const double de = 1e3 * (r.bitten - exact.bitten).norm();
-      std::printf("%-11s %6zu %-26s %9.2f %9.2f %9.2f %6d %5d %8d %11.2f%% %9.3f mm\n", organ.c_str(), s.mesh.tets.size(), v.name().c_str(),
-                  percentile(r.ms, 0.5), percentile(r.ms, 0.99), percentile(r.ms, 1.0), r.failed, r.swaps, r.contacts, 100 * fe, de);
+      std::printf("%-11s %6zu %-26s %9.2f %9.2f %9.2f %6d %5d %8d %11.2f%% %9.3f mm %8.0f %9.3f\n", organ.c_str(), s.mesh.tets.size(), v.name().c_str(),
+                  percentile(r.ms, 0.5), percentile(r.ms, 0.99), percentile(r.ms, 1.0), r.failed, r.swaps, r.contacts, 100 * fe, de, r.loop.rateHz, r.loop.jitterMs);
       pullCsv << organ << ',' << s.mesh.tets.size() << ',' << v.name() << ',' << percentile(r.ms, 0.5) << ',' << percentile(r.ms, 0.99) << ','
-              << percentile(r.ms, 1.0) << ',' << r.failed << ',' << r.swaps << ',' << r.contacts << ',' << fe << ',' << de << '\n';
+              << percentile(r.ms, 1.0) << ',' << r.failed << ',' << r.swaps << ',' << r.contacts << ',' << fe << ',' << de << ',' << r.loop.rateHz << ','
+              << r.loop.medianPeriodMs << ',' << r.loop.p99PeriodMs << ',' << r.loop.maxPeriodMs << ',' << r.loop.jitterMs << '\n';
     }
   }
 

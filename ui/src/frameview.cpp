@@ -159,6 +159,7 @@ std::optional<OrganHit> FrameView::organAt(const Eigen::Vector2d& fp) const {
 // ------------------------------------------------------------------------------------------ painting
 
 void FrameView::paintEvent(QPaintEvent*) {
+  ++paints_;
   QPainter painter(this);
   painter.fillRect(rect(), QColor(18, 18, 20));
   if (frame_.isNull()) {
@@ -171,8 +172,20 @@ void FrameView::paintEvent(QPaintEvent*) {
   }
   painter.setRenderHint(QPainter::SmoothPixmapTransform, zoom_ < 2.0);
   painter.setRenderHint(QPainter::Antialiasing);
-  painter.setTransform(frameToWidget());
-  painter.drawImage(QPointF(0, 0), frame_);
+  const QTransform toWidget = frameToWidget();
+  // The frame scaled to the view, kept while neither changes: while rehearsing only the organ over it
+  // changes, and a smooth scale of the whole frame was half of each repaint (bench_rehearsal_view).
+  const bool smooth = zoom_ < 2.0;
+  if (scaledFrame_.key != frame_.cacheKey() || scaledFrame_.transform != toWidget || scaledFrame_.smooth != smooth) {
+    const QRectF target = toWidget.mapRect(QRectF(QPointF(0, 0), QSizeF(frame_.size())));
+    scaledFrame_.image = frame_.scaled(target.size().toSize(), Qt::IgnoreAspectRatio, smooth ? Qt::SmoothTransformation : Qt::FastTransformation);
+    scaledFrame_.at = target.topLeft();
+    scaledFrame_.key = frame_.cacheKey();
+    scaledFrame_.transform = toWidget;
+    scaledFrame_.smooth = smooth;
+  }
+  painter.drawImage(scaledFrame_.at, scaledFrame_.image);
+  painter.setTransform(toWidget);
   if (overlayVisible_) paintOverlay(painter);
   // Contour: segments coloured by type.
   const auto contour = currentContour();

@@ -79,6 +79,8 @@ class FrameView : public QWidget {
   void setFrame(const QImage& frame);
   /// The picture under the overlay as shown now (the frame, or the composited frame).
   const QImage& shownFrame() const { return frame_; }
+  /// Paints so far (the live overlay waits for its last drawing to be painted before drawing the next).
+  quint64 paints() const { return paints_; }
   void setOverlay(const QImage& organ, const QList<QPolygonF>& silhouette);
   void setInnerOverlay(const QImage& inner) { inner_ = inner; update(); }
   void setCase(std::shared_ptr<const app::Case> c);
@@ -173,6 +175,14 @@ class FrameView : public QWidget {
   std::vector<Eigen::Vector3d> live_;
   std::shared_ptr<const simcore::CutSurface> liveSurface_;
   QImage frame_, overlay_, inner_;
+  quint64 paints_ = 0;
+  struct {
+    QImage image;  ///< frame_ at the view's scale
+    QPointF at;
+    qint64 key = 0;
+    QTransform transform;
+    bool smooth = false;
+  } scaledFrame_;
   QList<QPolygonF> silhouette_;
   bool overlayVisible_ = true;
   bool legendVisible_ = true;

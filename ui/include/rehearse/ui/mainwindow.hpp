@@ -190,6 +190,8 @@ class MainWindow : public QMainWindow {
   QWidget* centreOrgan_ = nullptr;
   std::vector<QAction*> viewModeActions_;
   QElapsedTimer liveOverlayClock_;  ///< paces the overlay that follows the simulation in step 7
+  quint64 liveOverlayPaints_ = 0;   ///< the frame view's paints when the last live overlay was drawn
+  bool liveOverlayDue() const;
   OrganView* organView_ = nullptr;
   OrganGLView* organGLView_ = nullptr;
   SimulationPanel* simulation_ = nullptr;
