@@ -28,6 +28,8 @@
 #include <QStackedWidget>
 #include <QStatusBar>
 #include <QTimer>
+#include <QFutureWatcher>
+#include <QtConcurrent/QtConcurrentRun>
 #include <QToolBar>
 #include <QToolButton>
 #include <QUndoStack>
@@ -200,6 +202,9 @@ void MainWindow::buildDocks() {
   tabifyDockWidget(organDock, simulationDock_);
   organDock->raise();
   connect(simulation_, &SimulationPanel::statusChanged, status_.simulation, &QLabel::setText);
+  liveDrawingTimer_.setSingleShot(true);
+  liveDrawingTimer_.setInterval(static_cast<int>(kLiveOverlayMs));
+  connect(&liveDrawingTimer_, &QTimer::timeout, this, &MainWindow::drawLiveIfDue);
   // The composited view follows the simulation: each snapshot shown is composed (on a worker, newest first).
   connect(simulation_, &SimulationPanel::frameShown, this, [this] {
     const auto f = simulation_->lastFrame();
@@ -213,26 +218,26 @@ void MainWindow::buildDocks() {
         setViewMode(ViewMode::Overlay);
         statusBar()->showMessage(tr("The organ is cut: the composited view cannot show cut tissue yet, so the overlay is shown."), 8000);
       }
-      if (f->surface && step_ == Step::Rehearse && !showingComposited() && liveOverlayDue()) {
-        liveOverlayClock_.start();
-        liveOverlayPaints_ = view_->paints();
-        picture_ = overlay_->renderLive(*doc_->data(), f->positions, *f->surface);
-        showFrameLayer();
-      }
-      // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation (at most
-      // 60 times a second, and only once the last drawing was painted: a drawing costs milliseconds of this thread).
-      if (!f->surface && step_ == Step::Rehearse && !showingComposited() && liveOverlayDue()) {
-        liveOverlayClock_.start();
-        const auto& c = *doc_->data();
-        auto live = std::make_shared<app::Case>(c);
-        auto fit = std::make_shared<app::ElasticFit>();
-        fit->nodes.reserve(f->positions.size());
-        for (const auto& x : f->positions) fit->nodes.push_back(c.pose.R.transpose() * (x - c.pose.t));
-        fit->status = "simulated";
-        live->fit = fit;
-        liveOverlayPaints_ = view_->paints();
-        picture_ = overlay_->render(*live, pages_.mesh->shownInnerLabels());
-        showFrameLayer();
+      // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation: drawn on a
+      // worker (newest first), at most 60 times a second and only once the last drawing was painted.
+      if (step_ == Step::Rehearse && !showingComposited()) {
+        LiveDrawing job;
+        job.c = doc_->data();
+        job.surface = f->surface;
+        job.inner = pages_.mesh->shownInnerLabels();
+        if (f->surface) {
+          job.positions = f->positions;
+        } else {
+          auto live = std::make_shared<app::Case>(*job.c);
+          auto fit = std::make_shared<app::ElasticFit>();
+          fit->nodes.reserve(f->positions.size());
+          for (const auto& x : f->positions) fit->nodes.push_back(job.c->pose.R.transpose() * (x - job.c->pose.t));
+          fit->status = "simulated";
+          live->fit = fit;
+          job.c = std::move(live);
+        }
+        liveDrawingPending_ = std::move(job);
+        drawLiveIfDue();
       }
     }
     if (showingComposited() && f && !f->surface && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) composition_->request(f->positions);
@@ -400,6 +405,32 @@ void MainWindow::onCaseChanged(CaseDocument::Parts parts) {
   refreshOverlay();
   showCaseInfo();
   updateWorkflow();
+}
+
+void MainWindow::drawLiveIfDue() {
+  if (!liveDrawingPending_ || liveDrawingBusy_) return;
+  if (!liveOverlayDue()) {
+    if (!liveDrawingTimer_.isActive()) liveDrawingTimer_.start();  // the last frame is drawn even when the simulation stops
+    return;
+  }
+  LiveDrawing job = std::move(*liveDrawingPending_);
+  liveDrawingPending_.reset();
+  liveDrawingBusy_ = true;
+  liveOverlayClock_.start();
+  liveOverlayPaints_ = view_->paints();
+  auto* watcher = new QFutureWatcher<OverlayPicture>(this);
+  connect(watcher, &QFutureWatcher<OverlayPicture>::finished, this, [this, watcher, organ = job.c->organ] {
+    watcher->deleteLater();
+    liveDrawingBusy_ = false;
+    if (step_ == Step::Rehearse && !showingComposited() && doc_->data() && doc_->data()->organ == organ) {
+      picture_ = watcher->result();
+      showFrameLayer();
+    }
+    drawLiveIfDue();
+  });
+  watcher->setFuture(QtConcurrent::run([overlay = liveOverlay_, job = std::move(job)] {
+    return job.surface ? overlay->renderLive(*job.c, job.positions, *job.surface) : overlay->render(*job.c, job.inner);
+  }));
 }
 
 bool MainWindow::liveOverlayDue() const {

@@ -90,9 +90,10 @@ void ForceLoop::run() {
     }
     first = false;
     last = now;
-    // Absolute deadlines (no drift); a late tick is not made up for with a burst.
+    // Absolute deadlines: the rate is the nominal one on average (a tick a little late is followed by a
+    // shorter wait); after a stall of more than 10 periods the schedule restarts instead of bursting.
     next += period;
-    if (next < now) next = now;
+    if (next + 10 * period < now) next = now;
     std::this_thread::sleep_until(next);
   }
 }

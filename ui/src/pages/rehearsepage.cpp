@@ -64,14 +64,13 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   series_->attachAxis(axisY_);
   auto* chartView = new QChartView(chart, this);
   chartView->setObjectName(QStringLiteral("toolForceChart"));
-  chartView->setRenderHint(QPainter::Antialiasing);
-  chartView->setMinimumHeight(200);
+  chartView->setMinimumHeight(200);  // no antialiasing: the chart redraws 15 times a second beside the organ
   layout->addWidget(chartView, 1);
   loopRate_ = new QLabel(this);
   loopRate_->setObjectName(QStringLiteral("forceLoopRate"));
   layout->addWidget(loopRate_);
   chartTimer_ = new QTimer(this);
-  chartTimer_->setInterval(33);
+  chartTimer_->setInterval(66);  // 15 Hz: the GUI thread's time goes to the organ's view first
   connect(chartTimer_, &QTimer::timeout, this, &RehearsePage::updateChart);
 }
 
@@ -97,7 +96,7 @@ void RehearsePage::updateChart() {
   double top = 1.0;
   if (!samples.empty()) {
     const double now = samples.back().time;
-    const std::size_t stride = std::max<std::size_t>(1, samples.size() / 600);  // a point per ~8 ms on the chart
+    const std::size_t stride = std::max<std::size_t>(1, samples.size() / 250);  // a point per 20 ms on the chart
     points.reserve(static_cast<int>(samples.size() / stride + 1));
     for (std::size_t i = 0; i < samples.size(); i += stride) {
       const double f = samples[i].force.norm();

@@ -20,8 +20,10 @@
 
 #include <QElapsedTimer>
 #include <QMainWindow>
+#include <QTimer>
 
 #include <memory>
+#include <optional>
 
 class QAction;
 class QDockWidget;
@@ -192,6 +194,18 @@ class MainWindow : public QMainWindow {
   QElapsedTimer liveOverlayClock_;  ///< paces the overlay that follows the simulation in step 7
   quint64 liveOverlayPaints_ = 0;   ///< the frame view's paints when the last live overlay was drawn
   bool liveOverlayDue() const;
+  /// The simulated organ over the frame in step 7, drawn on a worker by its own CPU overlay (newest first).
+  struct LiveDrawing {
+    std::shared_ptr<const app::Case> c;
+    std::vector<Eigen::Vector3d> positions;               ///< after a cut: the boundary's nodes (camera frame)
+    std::shared_ptr<const simcore::CutSurface> surface;  ///< after a cut
+    std::vector<int> inner;
+  };
+  void drawLiveIfDue();
+  std::shared_ptr<OrganOverlay> liveOverlay_ = std::make_shared<OrganOverlay>(false);
+  std::optional<LiveDrawing> liveDrawingPending_;
+  bool liveDrawingBusy_ = false;
+  QTimer liveDrawingTimer_;
   OrganView* organView_ = nullptr;
   OrganGLView* organGLView_ = nullptr;
   SimulationPanel* simulation_ = nullptr;

@@ -30,7 +30,7 @@ class RehearsePage : public StepPage {
   /// Where the tool-force loop is (the simulation panel's; null while no session runs): the page's chart
   /// shows the last 5 s of its 1 kHz force, and its rate and jitter.
   void setForceLoop(std::function<const simcore::ForceLoop*()> loop) { loop_ = std::move(loop); }
-  /// Redraws the chart from the loop now (the page's timer does it 30 times a second while it is shown).
+  /// Redraws the chart from the loop now (the page's timer does it 15 times a second while it is shown).
   void updateChart();
 
  protected:
