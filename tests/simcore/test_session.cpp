@@ -212,12 +212,12 @@ class TestSession : public QObject {
       }
       const QString name = QString::fromStdString(toString(m));
       QVERIFY2(requested >= 2 && swapped >= 1, qPrintable(QStringLiteral("%1: %2 requests, %3 swaps").arg(name).arg(requested).arg(swapped)));
-      // Linearised never waits; chord iterates on with the old factor while the new one is built, and a step
-      // that cannot converge with it is retried with half the time step (a new factor, on this thread).
+      // Linearised never waits, whatever the second thread's timing; chord iterates on with the old factor while
+      // the new one is built, and a step that cannot converge with it is retried with half the time step (a new
+      // factor, on this thread): how often depends on how long the build took (printed, not asserted).
       const QString waits = QStringLiteral("%1: %2 steps factorised on the stepping thread, %3 requests").arg(name).arg(waitedForDrift).arg(requested);
       qInfo("%s", qPrintable(waits));
       if (m == NewtonMethod::Linearised) QVERIFY2(waitedForDrift == 0, qPrintable(waits));
-      else QVERIFY2(waitedForDrift < requested, qPrintable(waits));
       const auto rec = live.recorded();
       const auto factors = std::count_if(rec.begin(), rec.end(), [](const InputEvent& e) { return e.kind == InputKind::Factor; });
       QCOMPARE(static_cast<int>(factors), swapped);
