@@ -263,17 +263,22 @@ class TestGrasp : public QObject {
     QVERIFY(slipped);
   }
 
-  // Contact (node-based, off by default: README): a 40 x 20 x 20 mm block on a fixed base; a blunt vertical
-  // instrument (6 mm radius) comes down on the middle of its top face, its tip 2 mm below where the face was.
-  // Every contact constraint holds at the end of every step (the nodes found inside at the step's start are
-  // out), the contact only pushes, its force is the base's support reaction (an independent route through
-  // the elastic forces); withdrawn, the tissue lets go and springs back; without an instrument no contact
-  // detection runs. Not checked because it does not hold: the surface between nodes is not kept out of
-  // the instrument (the deepest surface node ends up inside, printed). No surface node gets inside the
-  // instrument, the contact only pushes (down), its force is the base's support reaction (an independent
-  // route through the elastic forces); withdrawn, the tissue lets go and springs back. Without an
-  // instrument no contact detection runs.
+  // Contact (triangle-based, off by default: README): a 40 x 20 x 20 mm block (5 mm elements) on a fixed base;
+  // a vertical instrument of 6 mm radius (wider than an element) and one of 1 mm (thinner: it meets the face
+  // between nodes) comes down on the middle of its top face, its tip 2 mm below where the face was. Every
+  // contact constraint holds at the end of every step to 1 micrometre (projected Gauss-Seidel on the nearly
+  // parallel constraints of neighbouring triangles: 0.1 micrometre seen with the thin instrument); the surface, sampled between the nodes on a
+  // 24 x 24 grid per triangle, stays out of the instrument within 0.1 mm (the constraints are linearised at
+  // the step's start); the contact only pushes and its force is the base's support reaction (an independent
+  // route through the elastic forces); withdrawn, the tissue lets go and springs back; without an instrument
+  // no contact detection runs.
+  void contactPushesNotPenetrates_data() {
+    QTest::addColumn<double>("radius");
+    QTest::newRow("6 mm") << 0.006;
+    QTest::newRow("1 mm") << 0.001;
+  }
   void contactPushesNotPenetrates() {
+    QFETCH(double, radius);
     simcore::BodySetup s;
     s.mesh = boxMesh(0.04, 0.02, 0.02, 8, 4, 4);
     for (std::size_t i = 0; i < s.mesh.points.size(); ++i)
@@ -283,34 +288,37 @@ class TestGrasp : public QObject {
     s.settings.timeStep = 0.05;
     s.settings.method = simcore::NewtonMethod::Exact;
     s.tools.trocar = Eigen::Vector3d(0.02, 0.01, 0.3);
-    s.tools.toolRadius = 0.006;  // blunt: wider than the 5 mm elements (contact is node-based, see README)
+    s.tools.toolRadius = radius;
     simcore::Session session(s);
     for (int k = 0; k < 5; ++k) session.advance();
     QCOMPARE(session.contactQueries(), 0L);  // no instrument, no detection
     const Eigen::Vector3d above(0.02, 0.01, 0.029);
     double worstInside = 0;
+    // The surface's gap to the instrument: every boundary triangle sampled on a 24 x 24 barycentric grid
+    // (between the nodes too), its points' distance to the shaft's axis less the radius.
+    const auto boundary = simcore::boundaryTriangles(s.mesh, false);
     auto capsuleGap = [&](const simcore::Snapshot& snap) {
       double worst = 1;
       const Eigen::Vector3d a = snap.tool.tip, b = *session.setup().tools.trocar, d = b - a;
-      for (std::size_t i = 0; i < snap.positions.size(); ++i) {
-        const Eigen::Vector3d& p = snap.positions[i];
-        const Eigen::Vector3d& r = s.mesh.points[i];
-        if (r.x() > 1e-12 && r.x() < 0.04 - 1e-12 && r.y() > 1e-12 && r.y() < 0.02 - 1e-12 && r.z() < 0.02 - 1e-12) continue;  // inside: contact is on the surface
-        const double t = std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
-        const double gap = (p - (a + t * d)).norm() - 0.006;
-        worst = std::min(worst, gap);
-      }
+      for (const auto& tri : boundary)
+        for (int i = 0; i <= 24; ++i)
+          for (int j = 0; i + j <= 24; ++j) {
+            const Eigen::Vector3d p = ((24 - i - j) * snap.positions[static_cast<std::size_t>(tri[0])] + i * snap.positions[static_cast<std::size_t>(tri[1])] +
+                                       j * snap.positions[static_cast<std::size_t>(tri[2])]) / 24.0;
+            const double t = std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
+            worst = std::min(worst, (p - (a + t * d)).norm() - radius);
+          }
       return worst;
     };
     for (int k = 0; k <= 20; ++k) {
       session.post(toolAt(above - Eigen::Vector3d(0, 0, 0.011 * k / 20.0)));  // down to 18 mm: 2 mm below the face
       QVERIFY(session.advance().ok);
-      QVERIFY(session.snapshot()->report.constraintViolation < 1e-9);
+      QVERIFY2(session.snapshot()->report.constraintViolation < 1e-6, qPrintable(QString::number(session.snapshot()->report.constraintViolation)));
       worstInside = std::min(worstInside, capsuleGap(*session.snapshot()));
     }
     for (int k = 0; k < 40; ++k) {
       QVERIFY(session.advance().ok);
-      QVERIFY(session.snapshot()->report.constraintViolation < 1e-9);
+      QVERIFY(session.snapshot()->report.constraintViolation < 1e-6);
       worstInside = std::min(worstInside, capsuleGap(*session.snapshot()));
     }
     const auto pressed = session.snapshot();
@@ -320,11 +328,12 @@ class TestGrasp : public QObject {
     const double vmax = session.state().v.cwiseAbs().maxCoeff();
     const auto body = simcore::makeFemBody(s);
     const Eigen::Vector3d reaction = body->appliedForce(s.fixedNodes, session.state(), session.state().v, s.settings.timeStep);
-    qInfo("pressed: %d contact nodes, deepest %.2e m inside the instrument, contact force (%.4f, %.4f, %.4f) N, base reaction (%.4f, %.4f, %.4f) N, "
+    qInfo("pressed: %d contact triangles, the surface at most %.2e m inside the instrument, contact force (%.4f, %.4f, %.4f) N, base reaction (%.4f, %.4f, %.4f) N, "
           "max speed %.1e m/s",
           pressed->tool.contacts, -worstInside, force.x(), force.y(), force.z(), reaction.x(), reaction.y(), reaction.z(), vmax);
     QVERIFY(force.norm() > 1e-3);
-    QVERIFY((force + reaction).norm() < 0.05 * force.norm());  // the base holds what the instrument pushes (2.8 %: not at rest, the contact chatters)
+    QVERIFY(-worstInside < 1e-4);
+    QVERIFY((force + reaction).norm() < 0.05 * force.norm());  // the base holds what the instrument pushes
     // Withdrawn: no contact, no force, the face springs back.
     session.post(toolAt(above + Eigen::Vector3d(0, 0, 0.02)));
     for (int k = 0; k < 60; ++k) QVERIFY(session.advance().ok);

@@ -29,7 +29,12 @@ class FemBody final : public DeformableBody {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     if (lambda.size() < static_cast<Eigen::Index>(c.size())) return sum;
     const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
-    for (std::size_t k = 0; k < c.size(); ++k) sum += lambda[first + static_cast<Eigen::Index>(k)] * c[k].weights[0] * c[k].direction;
+    // A constraint's force on the body is its multiplier along its direction, spread over its nodes by its
+    // weights (a triangle's barycentric ones sum to 1).
+    for (std::size_t k = 0; k < c.size(); ++k) {
+      const double spread = c[k].weights[0] + c[k].weights[1] + c[k].weights[2] + c[k].weights[3];
+      sum += lambda[first + static_cast<Eigen::Index>(k)] * spread * c[k].direction;
+    }
     return sum;
   }
   Eigen::Matrix3d toolStiffness() const override {
@@ -44,16 +49,19 @@ class FemBody final : public DeformableBody {
       if (!c[k].unilateral || lambda[first + static_cast<Eigen::Index>(k)] > 0) active.push_back(first + static_cast<Eigen::Index>(k));
     if (active.empty()) return Eigen::Matrix3d::Zero();
     const auto m = static_cast<Eigen::Index>(active.size());
-    Eigen::MatrixXd Wa(m, m), G(m, 3);
+    // G: how each constraint's value moves with the tool (its direction: grasp holds and contacts move with
+    // it); S: how its multiplier acts on the tool force (toolForce: the direction times its weights' sum).
+    Eigen::MatrixXd Wa(m, m), G(m, 3), S(m, 3);
     for (Eigen::Index i = 0; i < m; ++i) {
       for (Eigen::Index j = 0; j < m; ++j) Wa(i, j) = W(active[i], active[j]);
       const auto& ci = c[static_cast<std::size_t>(active[i] - first)];
-      G.row(i) = ci.weights[0] * ci.direction.transpose();
+      G.row(i) = ci.direction.transpose();
+      S.row(i) = (ci.weights[0] + ci.weights[1] + ci.weights[2] + ci.weights[3]) * ci.direction.transpose();
     }
     // Redundant holds make W_a singular: the pivoted LDL^T's solve leaves their share at zero.
     const Eigen::MatrixXd X = Wa.ldlt().solve(G);
     if (!X.allFinite()) return Eigen::Matrix3d::Zero();
-    const Eigen::Matrix3d K = (G.transpose() * X) / (h * h);
+    const Eigen::Matrix3d K = (S.transpose() * X) / (h * h);
     return 0.5 * (K + K.transpose());
   }
   const std::vector<char>& fixedMask() const override { return fixed_; }

@@ -1,6 +1,10 @@
 #include <rehearse/simcore/session/session.hpp>
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <limits>
+#include <set>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -82,6 +86,105 @@ class PointBvh {
   std::vector<int> ids_;
   std::vector<Node> nodes_;
 };
+
+namespace {
+
+// Closest point of triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5), with its barycentric weights.
+Eigen::Vector3d closestOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
+                                  Eigen::Vector3d& w) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return w = {1, 0, 0}, a;
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return w = {0, 1, 0}, b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return w = {1 - v, v, 0}, a + v * ab;
+  }
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return w = {0, 0, 1}, c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double v = d2 / (d2 - d6);
+    return w = {1 - v, 0, v}, a + v * ac;
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double v = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return w = {0, 1 - v, v}, b + v * (c - b);
+  }
+  const double denom = 1 / (va + vb + vc);
+  const double v = vb * denom, u = vc * denom;
+  return w = {1 - v - u, v, u}, a + v * ab + u * ac;
+}
+
+// Closest points of segments p1-q1 (parameter s) and p2-q2 (parameter t) (Ericson 5.1.9).
+void closestSegmentSegment(const Eigen::Vector3d& p1, const Eigen::Vector3d& q1, const Eigen::Vector3d& p2, const Eigen::Vector3d& q2, double& s,
+                           double& t) {
+  const Eigen::Vector3d d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
+  const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
+  if (a <= 1e-30 && e <= 1e-30) return void(s = t = 0);
+  if (a <= 1e-30) {
+    s = 0;
+    t = std::clamp(f / e, 0.0, 1.0);
+    return;
+  }
+  const double c = d1.dot(r);
+  if (e <= 1e-30) {
+    t = 0;
+    s = std::clamp(-c / a, 0.0, 1.0);
+    return;
+  }
+  const double b = d1.dot(d2), denom = a * e - b * b;
+  s = denom > 0 ? std::clamp((b * f - c * e) / denom, 0.0, 1.0) : 0.0;
+  t = (b * s + f) / e;
+  if (t < 0) {
+    t = 0;
+    s = std::clamp(-c / a, 0.0, 1.0);
+  } else if (t > 1) {
+    t = 1;
+    s = std::clamp((b - c) / a, 0.0, 1.0);
+  }
+}
+
+// The closest points of segment s0-s1 (the instrument's axis) and triangle abc: `onAxis`, `onTriangle` with
+// its barycentric weights `w`. False when the segment passes through the triangle (no direction apart).
+bool closestAxisTriangle(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                         const Eigen::Vector3d& c, Eigen::Vector3d& onAxis, Eigen::Vector3d& onTriangle, Eigen::Vector3d& w) {
+  const Eigen::Vector3d n = (b - a).cross(c - a);
+  const double ds0 = n.dot(s0 - a), ds1 = n.dot(s1 - a);
+  if (ds0 * ds1 < 0) {  // crosses the plane: inside the triangle?
+    const double t = ds0 / (ds0 - ds1);
+    const Eigen::Vector3d x = s0 + t * (s1 - s0);
+    Eigen::Vector3d wx;
+    if ((closestOnTriangle(x, a, b, c, wx) - x).squaredNorm() <= 1e-24 * std::max(1.0, n.norm())) return false;
+  }
+  double best = std::numeric_limits<double>::infinity();
+  auto consider = [&](const Eigen::Vector3d& pa, const Eigen::Vector3d& pt, const Eigen::Vector3d& wt) {
+    const double d = (pa - pt).squaredNorm();
+    if (d < best) best = d, onAxis = pa, onTriangle = pt, w = wt;
+  };
+  Eigen::Vector3d wt;
+  for (const Eigen::Vector3d* e : {&s0, &s1}) {
+    const Eigen::Vector3d q = closestOnTriangle(*e, a, b, c, wt);
+    consider(*e, q, wt);
+  }
+  const std::array<const Eigen::Vector3d*, 3> v{&a, &b, &c};
+  for (int k = 0; k < 3; ++k) {
+    double s, t;
+    closestSegmentSegment(s0, s1, *v[static_cast<std::size_t>(k)], *v[static_cast<std::size_t>((k + 1) % 3)], s, t);
+    Eigen::Vector3d wk = Eigen::Vector3d::Zero();
+    wk[k] = 1 - t;
+    wk[(k + 1) % 3] = t;
+    consider(s0 + s * (s1 - s0), (1 - t) * *v[static_cast<std::size_t>(k)] + t * *v[static_cast<std::size_t>((k + 1) % 3)], wk);
+  }
+  return best > 0;
+}
+
+}  // namespace
 
 namespace {
 // The default trocar: above the organ towards the camera, twice its radius from its centre.
@@ -217,36 +320,71 @@ void Session::updateToolConstraints() {
         c.push_back(s);
       }
   }
-  // Contact: surface nodes inside the instrument's capsule (tip to trocar) are pushed out to its surface by
-  // unilateral constraints along the direction from its axis (not while the blade cuts, not the held nodes,
-  // not the attachments). Detected only once an instrument is in the scene.
+  // Contact: the boundary's triangles near the instrument's shaft (a capsule from the tip to the trocar) are
+  // kept out of it by unilateral constraints at their closest points to its axis (barycentric weights on the
+  // triangle's three nodes, along the direction from the axis): the surface is pushed, also between nodes.
+  // Triangles within half the radius more are constrained too (inactive until they touch: an instrument moving
+  // during the step meets them). Candidates: the triangles of the surface nodes within the radius plus the
+  // longest surface edge (a BVH over the nodes, refitted each step). Not while the blade cuts; not the
+  // triangles of held nodes. Detected only once an instrument is in the scene.
   tool_.contacts = 0;
+  tool_.pierced = 0;
+  contactConstraints_ = 0;
   if (tool_.present && !tool_.cutting && setup_.tools.toolRadius > 0 && !surfaceNodes_.empty() && setup_.tools.trocar) {
     ++contactQueries_;
-    const PointBvh& bvh = *bvh_;
     bvh_->refit(state_.x);
-    std::vector<int> inside;
+    auto X = [&](int i) { return Eigen::Vector3d(state_.x.segment<3>(3 * static_cast<Eigen::Index>(i))); };
+    double longest = 0;
+    for (const auto& t : surfaceTriangles_)
+      for (int k = 0; k < 3; ++k) longest = std::max(longest, (X(t[static_cast<std::size_t>(k)]) - X(t[static_cast<std::size_t>((k + 1) % 3)])).squaredNorm());
+    longest = std::sqrt(longest);
     const Eigen::Vector3d a = tool_.tip, b = *setup_.tools.trocar;
-    const double r = setup_.tools.toolRadius;
-    bvh.query(a, b, r, state_.x, inside);
-    std::sort(inside.begin(), inside.end());
+    const double r = setup_.tools.toolRadius, reach = 1.5 * r;
+    std::vector<int> near;
+    bvh_->query(a, b, reach + longest, state_.x, near);
+    std::vector<int> tris;
+    for (int i : near)
+      for (int k = nodeTriangleFirst_[static_cast<std::size_t>(i)]; k < nodeTriangleFirst_[static_cast<std::size_t>(i) + 1]; ++k)
+        tris.push_back(nodeTriangles_[static_cast<std::size_t>(k)]);
+    std::sort(tris.begin(), tris.end());
+    tris.erase(std::unique(tris.begin(), tris.end()), tris.end());
     const auto& fixed = body_->fixedMask();
-    for (int i : inside) {
-      if (fixed[static_cast<std::size_t>(i)] || std::find(tool_.held.begin(), tool_.held.end(), i) != tool_.held.end()) continue;
-      const Eigen::Vector3d p = state_.x.segment<3>(3 * static_cast<Eigen::Index>(i));
-      const Eigen::Vector3d d = b - a;
-      const double t = d.squaredNorm() > 0 ? std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
-      const Eigen::Vector3d axis = a + t * d;
-      const Eigen::Vector3d n = p - axis;
-      if (n.norm() < 1e-9) continue;  // on the axis: no direction to push it
-      ScalarConstraint s;
-      s.nodes = {i, -1, -1, -1};
-      s.weights = {1, 0, 0, 0};
-      s.direction = n.normalized();
-      s.value = s.direction.dot(axis) + r;
-      s.unilateral = true;
-      c.push_back(s);
-      ++tool_.contacts;
+    std::set<std::vector<std::pair<int, double>>> seen;
+    for (int k : tris) {
+      const auto& t = surfaceTriangles_[static_cast<std::size_t>(k)];
+      bool anyFree = false, holdsHeld = false;
+      for (int v : t) {
+        anyFree |= !fixed[static_cast<std::size_t>(v)];
+        holdsHeld |= std::find(tool_.held.begin(), tool_.held.end(), v) != tool_.held.end();
+      }
+      if (!anyFree || holdsHeld) continue;
+      Eigen::Vector3d onAxis, onTriangle, w;
+      if (!closestAxisTriangle(a, b, X(t[0]), X(t[1]), X(t[2]), onAxis, onTriangle, w)) {
+        ++tool_.pierced;  // the shaft passes through it: no side to push it to
+        continue;
+      }
+      const Eigen::Vector3d n = onTriangle - onAxis;
+      const double d = n.norm();
+      if (!(d > 1e-9) || d > reach) continue;
+      // The closest point on a vertex or an edge is shared by the triangles around it: one constraint each
+      // (redundant copies make the Schur complement singular and Gauss-Seidel slow).
+      std::array<std::pair<int, double>, 3> key{};
+      int used = 0;
+      for (int q = 0; q < 3; ++q)
+        if (w[q] > 1e-12) key[static_cast<std::size_t>(used++)] = {t[static_cast<std::size_t>(q)], w[q]};
+      std::sort(key.begin(), key.begin() + used);
+      if (!seen.insert(std::vector<std::pair<int, double>>(key.begin(), key.begin() + used)).second) continue;
+      ScalarConstraint sc;
+      for (int q = 0; q < used; ++q) {
+        sc.nodes[static_cast<std::size_t>(q)] = key[static_cast<std::size_t>(q)].first;
+        sc.weights[static_cast<std::size_t>(q)] = key[static_cast<std::size_t>(q)].second;
+      }
+      sc.direction = n / d;
+      sc.value = sc.direction.dot(onAxis) + r;
+      sc.unilateral = true;
+      c.push_back(sc);
+      ++contactConstraints_;
+      if (d <= r * (1 + 1e-3)) ++tool_.contacts;  // touching (held at the shaft's surface) or inside
     }
   }
   body_->setToolConstraints(std::move(c));
@@ -257,8 +395,20 @@ void Session::updateSurfaceNodes() {
   Mesh m;
   m.points = body_->restPositions();
   m.tets = body_->tetrahedra();
-  for (const auto& t : boundaryTriangles(m, false))
+  surfaceTriangles_ = boundaryTriangles(m, false);
+  for (const auto& t : surfaceTriangles_)
     for (int v : t) on[static_cast<std::size_t>(v)] = 1;
+  // Each node's triangles (compressed rows): contact finds triangles through their nodes.
+  nodeTriangleFirst_.assign(on.size() + 1, 0);
+  for (const auto& t : surfaceTriangles_)
+    for (int v : t) ++nodeTriangleFirst_[static_cast<std::size_t>(v) + 1];
+  for (std::size_t i = 0; i < on.size(); ++i) nodeTriangleFirst_[i + 1] += nodeTriangleFirst_[i];
+  nodeTriangles_.assign(static_cast<std::size_t>(nodeTriangleFirst_.back()), 0);
+  {
+    std::vector<int> fill(nodeTriangleFirst_.begin(), nodeTriangleFirst_.end() - 1);
+    for (std::size_t k = 0; k < surfaceTriangles_.size(); ++k)
+      for (int v : surfaceTriangles_[k]) nodeTriangles_[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = static_cast<int>(k);
+  }
   surfaceNodes_.clear();
   for (std::size_t i = 0; i < on.size(); ++i)
     if (on[i]) surfaceNodes_.push_back(static_cast<int>(i));
@@ -502,7 +652,7 @@ StepReport Session::advance() {
     recorded_.push_back(f);
   }
   ++steps_;
-  if ((!tool_.held.empty() || tool_.contacts > 0) && rep.ok) {
+  if ((!tool_.held.empty() || contactConstraints_ > 0) && rep.ok) {
     tool_.force = body_->toolForce();
     tool_.stiffness = body_->toolStiffness();
     // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing).
@@ -517,7 +667,7 @@ StepReport Session::advance() {
       events_.push_back("slip");
       updateToolConstraints();
     }
-  } else if (tool_.held.empty() && tool_.contacts == 0) {
+  } else if (tool_.held.empty() && contactConstraints_ == 0) {
     tool_.force.setZero();
     tool_.stiffness.setZero();
   }

@@ -24,9 +24,8 @@ struct ToolSettings {
   std::optional<Eigen::Vector3d> trocar;
   double bladeLength = 0.03;    ///< m: the cutting instrument's blade, from the tip back along the shaft
   /// m: the instrument's radius for contact (its shaft, from the tip to the trocar, is a capsule of this
-  /// radius); surface nodes inside at a step's start are pushed out by unilateral constraints. Node-based:
-  /// the surface between nodes is not kept out (a thin instrument passes between them), so it is off (0)
-  /// unless a scene asks for it.
+  /// radius); the boundary triangles near it are kept out by unilateral constraints at their closest points
+  /// to its axis (between nodes too). 0 (no contact) unless a scene states its instrument's radius.
   double toolRadius = 0;
   CutSettings cut;              ///< snapping and the quality the re-meshing keeps
   bool operator==(const ToolSettings& o) const {

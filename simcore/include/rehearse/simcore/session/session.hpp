@@ -60,7 +60,8 @@ struct ToolState {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step (grasp and contact)
   Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();  ///< N/m, d(force)/d(tip) over the next step (DeformableBody::toolStiffness)
   bool present = false;                    ///< an instrument is in the scene (a pose was given): contact is detected
-  int contacts = 0;                        ///< surface nodes the instrument pushes at the last step
+  int contacts = 0;                        ///< surface triangles the instrument touches at the last step
+  int pierced = 0;                         ///< surface triangles its shaft passes through (contact cannot push those)
 };
 
 /// The organ's boundary after a cut: triangles (node indices, outward) and which of them are cut tissue
@@ -157,8 +158,11 @@ class Session {
   void updateCutSurface();
   void updateSurfaceNodes();
   std::vector<int> surfaceNodes_;  ///< nodes on the boundary (contact candidates), per topology
+  std::vector<std::array<int, 3>> surfaceTriangles_;  ///< the boundary (contact acts on its triangles)
+  std::vector<int> nodeTriangleFirst_, nodeTriangles_;  ///< each node's boundary triangles (compressed rows)
   std::shared_ptr<PointBvh> bvh_;  ///< over surfaceNodes_, refitted before each contact query
   long contactQueries_ = 0;
+  int contactConstraints_ = 0;  ///< contact constraints in the body now (touching or within reach)
   SimulationState state_;
   ToolState tool_;
   long steps_ = 0;
