@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cmath>
 
+#include <pthread.h>
+#include <sched.h>
+
 namespace rehearse::simcore {
 
 ToolForceModel toolForceModel(const Snapshot& s, double maxGraspForce) {
@@ -70,6 +73,11 @@ Eigen::Vector3d ForceLoop::tick() {
 }
 
 void ForceLoop::run() {
+  // Haptic loops run at a real-time priority where the system grants one (a 1 ms sleep per period leaves the
+  // other threads their time); where it does not, at the normal one, and timing() says which.
+  sched_param param{};
+  param.sched_priority = std::max(1, sched_get_priority_min(SCHED_FIFO));
+  realtime_ = pthread_setschedparam(pthread_self(), SCHED_FIFO, &param) == 0;
   using clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(1.0 / rate_));
   const auto begin = clock::now();
@@ -116,6 +124,7 @@ ForceLoop::Timing ForceLoop::timing() const {
     p.assign(periods_.begin(), periods_.end());
     t.ticks = ticks_;
     t.rateHz = runSeconds_ > 0 ? static_cast<double>(runTicks_) / runSeconds_ : 0;
+    t.realtime = realtime_;
   }
   if (p.empty()) return t;
   auto at = [](std::vector<double> v, double q) {

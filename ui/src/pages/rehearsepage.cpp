@@ -107,7 +107,11 @@ void RehearsePage::updateChart() {
   series_->replace(points);
   axisY_->setRange(0, std::ceil(top * 1.1));
   const auto t = loop->timing();
-  loopRate_->setText(tr("Tool-force loop: %1 Hz, period %2 ms (99th percentile %3 ms)").arg(t.rateHz, 0, 'f', 0).arg(t.medianPeriodMs, 0, 'f', 2).arg(t.p99PeriodMs, 0, 'f', 2));
+  loopRate_->setText(tr("Tool-force loop: %1 Hz, period %2 ms (99th percentile %3 ms)%4")
+                         .arg(t.rateHz, 0, 'f', 0)
+                         .arg(t.medianPeriodMs, 0, 'f', 2)
+                         .arg(t.p99PeriodMs, 0, 'f', 2)
+                         .arg(t.realtime ? tr(", real-time priority") : QString()));
 }
 
 void RehearsePage::refresh(const app::Case& c) {

@@ -86,6 +86,7 @@ class ForceLoop {
     double rateHz = 0;        ///< ticks per second of running time
     double medianPeriodMs = 0, p99PeriodMs = 0, maxPeriodMs = 0;
     double jitterMs = 0;      ///< p99 of |period - nominal|
+    bool realtime = false;    ///< the thread got a real-time (SCHED_FIFO) priority
   };
   /// Over the last 10,000 periods of the thread.
   Timing timing() const;
@@ -98,6 +99,7 @@ class ForceLoop {
   double rate_;
   std::chrono::steady_clock::time_point started_;
   std::atomic<bool> quit_{false};
+  std::atomic<bool> realtime_{false};
   std::thread thread_;
   mutable std::mutex m_;  // samples and periods
   std::deque<ForceSample> samples_;
