@@ -312,6 +312,12 @@ bool Integrator::installRequestedFactor() {
 
 bool Integrator::factorPending() const { return w_->request.pending; }
 
+bool Integrator::prepareLagged(const Eigen::VectorXd& at) {
+  if (settings_.method == NewtonMethod::Exact || settings_.solver != LinearSolverKind::Cholmod || at.size() != rest_.size()) return false;
+  StepReport rep;
+  return refreshLaggedAt(at, settings_.timeStep, rep);
+}
+
 bool Integrator::refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep) {
   Work& w = *w_;
   w.laggedStep = h;

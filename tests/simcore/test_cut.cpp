@@ -4,6 +4,7 @@
 // for the liver preset: mass conserved to 1e-9, no inverted element, the stated quality kept, through
 // repeated, crossing, continuous and random cuts, a cut through an attachment, while grasping, and through
 // a vessel.
+#include <QThread>
 #include "box_mesh.hpp"
 #include "phantom/presets.hpp"
 #include "session_inputs.hpp"
@@ -315,6 +316,66 @@ class TestCut : public QObject {
     QVERIFY(v.minQuality >= std::min(simcore::CutSettings{}.minQuality, 0.5 * minQualityOf(s.mesh)));
     qInfo("worst element %.3f (uncut %.3f; the floor %.3f)", v.minQuality, minQualityOf(s.mesh), session.setup().tools.cut.minQuality);
     for (const auto& p : after->positions) QVERIFY(p.allFinite());
+  }
+
+  // With the asynchronous refresh (the GUI's) a cut's new body and its first factorisation are built on
+  // another thread while the old body steps on; the new one replaces it at the first step boundary after it is
+  // ready, the state carried from where the tissue is by then. No step factorises on the stepping thread (the
+  // first aside), the cut happens (counts grow, mass kept, no inverted element) and the recording (with the
+  // boundaries where the cuts were applied) replays bit for bit; without those boundaries it does not.
+  void asynchronousCutNeverWaits() {
+    simcore::BodySetup s = liverSetup();
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    s.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;
+    simcore::Session session(s);
+    for (int k = 0; k < 20; ++k) session.advance();
+    const auto before = session.snapshot();
+    Eigen::AlignedBox3d box;
+    for (const auto& p : before->positions) box.extend(p);
+    const Eigen::Vector3d c = box.center(), size = box.sizes();
+    session.post(toolAt(c + Eigen::Vector3d(-0.6 * size.x(), 0.1 * size.y(), 0.3 * size.z())));
+    session.post(cutting(true));
+    int waited = 0, cutsSeen = 0;
+    long steps = 20;
+    for (int k = 1; k <= 10; ++k) {
+      session.post(toolAt(c + Eigen::Vector3d(-0.6 * size.x() + 0.06 * k * size.x(), 0.1 * size.y(), 0.3 * size.z())));
+      const simcore::StepReport rep = session.advance();
+      ++steps;
+      QVERIFY(rep.ok);
+      waited += rep.factorisations > 0;
+      cutsSeen += static_cast<int>(std::count(session.snapshot()->events.begin(), session.snapshot()->events.end(), "cut"));
+      QThread::msleep(10);  // a hand's pace: the bodies are built meanwhile
+    }
+    session.post(cutting(false));  // withdrawn while a cut is being built: the rest of the sweep follows it, no wait
+    for (int k = 0; k < 20; ++k) {
+      const simcore::StepReport rep = session.advance();
+      ++steps;
+      QVERIFY(rep.ok);
+      waited += rep.factorisations > 0;
+      cutsSeen += static_cast<int>(std::count(session.snapshot()->events.begin(), session.snapshot()->events.end(), "cut"));
+      QThread::msleep(10);
+    }
+    const auto after = session.snapshot();
+    const auto rec = session.recorded();
+    const auto applied = std::count_if(rec.begin(), rec.end(), [](const simcore::InputEvent& e) { return e.kind == simcore::InputKind::CutApplied; });
+    qInfo("asynchronous cut: %zu -> %zu elements, %d cut events (%ld applied when their body was ready), %d steps factorised on the stepping thread",
+          before->elements, after->elements, cutsSeen, static_cast<long>(applied), waited);
+    QVERIFY(after->elements > before->elements);
+    QVERIFY(cutsSeen >= 1);
+    QCOMPARE(waited, 0);
+    QVERIFY(std::abs(after->mass - before->mass) < 1e-9 * before->mass);
+    QCOMPARE(validity(session.setup().mesh.points, session.setup().mesh.tets).inverted, std::size_t(0));
+    const simcore::SimulationState live = session.state();
+    simcore::SimulationState replayed;
+    simcore::replay(s, rec, steps, [&](long, const simcore::SimulationState& st) { replayed = st; });
+    QVERIFY(replayed.x.size() == live.x.size() && replayed.x == live.x && replayed.v == live.v);
+    if (applied > 0) {
+      std::vector<simcore::InputEvent> stripped;
+      for (const auto& e : rec)
+        if (e.kind != simcore::InputKind::CutApplied) stripped.push_back(e);
+      simcore::replay(s, stripped, steps, [&](long, const simcore::SimulationState& st) { replayed = st; });
+      QVERIFY(!(replayed.x.size() == live.x.size() && replayed.x == live.x));
+    }
   }
 
   // The shipped cut-across script on the liver preset: the hook cuts the left lobe off (two pieces), through

@@ -16,6 +16,7 @@ class FemBody final : public DeformableBody {
   SimulationState initialState() const override { return integrator_.initialState(); }
   StepReport step(SimulationState& state) override { return integrator_.step(state); }
   bool installRequestedFactor() override { return integrator_.installRequestedFactor(); }
+  bool prepareFactor(const Eigen::VectorXd& x) override { return integrator_.prepareLagged(x); }
   void setToolConstraints(std::vector<ScalarConstraint> c) override { integrator_.setConstraints(std::move(c)); }
   int topologyVersion() const override { return topology_; }
   const std::vector<Eigen::Vector3d>& restPositions() const override { return model_.rest; }

@@ -186,6 +186,9 @@ bool closestAxisTriangle(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, c
 
 }  // namespace
 
+ContactSurface contactSurface(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 4>>& tets);
+std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, const Mesh& cutMesh, double meanEdge);
+
 namespace {
 // The default trocar: above the organ towards the camera, twice its radius from its centre.
 Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest) {
@@ -330,12 +333,12 @@ void Session::updateToolConstraints() {
   tool_.contacts = 0;
   tool_.pierced = 0;
   contactConstraints_ = 0;
-  if (tool_.present && !tool_.cutting && setup_.tools.toolRadius > 0 && !surfaceNodes_.empty() && setup_.tools.trocar) {
+  if (tool_.present && !tool_.cutting && setup_.tools.toolRadius > 0 && !contact_.nodes.empty() && setup_.tools.trocar) {
     ++contactQueries_;
     bvh_->refit(state_.x);
     auto X = [&](int i) { return Eigen::Vector3d(state_.x.segment<3>(3 * static_cast<Eigen::Index>(i))); };
     double longest = 0;
-    for (const auto& t : surfaceTriangles_)
+    for (const auto& t : contact_.triangles)
       for (int k = 0; k < 3; ++k) longest = std::max(longest, (X(t[static_cast<std::size_t>(k)]) - X(t[static_cast<std::size_t>((k + 1) % 3)])).squaredNorm());
     longest = std::sqrt(longest);
     const Eigen::Vector3d a = tool_.tip, b = *setup_.tools.trocar;
@@ -344,14 +347,14 @@ void Session::updateToolConstraints() {
     bvh_->query(a, b, reach + longest, state_.x, near);
     std::vector<int> tris;
     for (int i : near)
-      for (int k = nodeTriangleFirst_[static_cast<std::size_t>(i)]; k < nodeTriangleFirst_[static_cast<std::size_t>(i) + 1]; ++k)
-        tris.push_back(nodeTriangles_[static_cast<std::size_t>(k)]);
+      for (int k = contact_.first[static_cast<std::size_t>(i)]; k < contact_.first[static_cast<std::size_t>(i) + 1]; ++k)
+        tris.push_back(contact_.ofNode[static_cast<std::size_t>(k)]);
     std::sort(tris.begin(), tris.end());
     tris.erase(std::unique(tris.begin(), tris.end()), tris.end());
     const auto& fixed = body_->fixedMask();
     std::set<std::vector<std::pair<int, double>>> seen;
     for (int k : tris) {
-      const auto& t = surfaceTriangles_[static_cast<std::size_t>(k)];
+      const auto& t = contact_.triangles[static_cast<std::size_t>(k)];
       bool anyFree = false, holdsHeld = false;
       for (int v : t) {
         anyFree |= !fixed[static_cast<std::size_t>(v)];
@@ -390,33 +393,40 @@ void Session::updateToolConstraints() {
   body_->setToolConstraints(std::move(c));
 }
 
-void Session::updateSurfaceNodes() {
-  std::vector<char> on(body_->nodeCount(), 0);
+ContactSurface contactSurface(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 4>>& tets) {
+  ContactSurface c;
+  std::vector<char> on(rest.size(), 0);
   Mesh m;
-  m.points = body_->restPositions();
-  m.tets = body_->tetrahedra();
-  surfaceTriangles_ = boundaryTriangles(m, false);
-  for (const auto& t : surfaceTriangles_)
+  m.points = rest;
+  m.tets = tets;
+  c.triangles = boundaryTriangles(m, false);
+  for (const auto& t : c.triangles)
     for (int v : t) on[static_cast<std::size_t>(v)] = 1;
   // Each node's triangles (compressed rows): contact finds triangles through their nodes.
-  nodeTriangleFirst_.assign(on.size() + 1, 0);
-  for (const auto& t : surfaceTriangles_)
-    for (int v : t) ++nodeTriangleFirst_[static_cast<std::size_t>(v) + 1];
-  for (std::size_t i = 0; i < on.size(); ++i) nodeTriangleFirst_[i + 1] += nodeTriangleFirst_[i];
-  nodeTriangles_.assign(static_cast<std::size_t>(nodeTriangleFirst_.back()), 0);
-  {
-    std::vector<int> fill(nodeTriangleFirst_.begin(), nodeTriangleFirst_.end() - 1);
-    for (std::size_t k = 0; k < surfaceTriangles_.size(); ++k)
-      for (int v : surfaceTriangles_[k]) nodeTriangles_[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = static_cast<int>(k);
-  }
-  surfaceNodes_.clear();
+  c.first.assign(on.size() + 1, 0);
+  for (const auto& t : c.triangles)
+    for (int v : t) ++c.first[static_cast<std::size_t>(v) + 1];
+  for (std::size_t i = 0; i < on.size(); ++i) c.first[i + 1] += c.first[i];
+  c.ofNode.assign(static_cast<std::size_t>(c.first.back()), 0);
+  std::vector<int> fill(c.first.begin(), c.first.end() - 1);
+  for (std::size_t k = 0; k < c.triangles.size(); ++k)
+    for (int v : c.triangles[k]) c.ofNode[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = static_cast<int>(k);
   for (std::size_t i = 0; i < on.size(); ++i)
-    if (on[i]) surfaceNodes_.push_back(static_cast<int>(i));
+    if (on[i]) c.nodes.push_back(static_cast<int>(i));
+  return c;
+}
+
+void Session::updateSurfaceNodes() { useContactSurface(contactSurface(body_->restPositions(), body_->tetrahedra())); }
+
+void Session::useContactSurface(ContactSurface c) {
+  contact_ = std::move(c);
   bvh_ = std::make_shared<PointBvh>();
-  bvh_->build(surfaceNodes_, state_.x);
+  bvh_->build(contact_.nodes, state_.x);
 }
 
 void Session::apply(const InputEvent& e, std::string& message) {
+  // A cut being built elsewhere is applied before anything that rebuilds the body or cuts again.
+  if ((e.kind == InputKind::Cut && e.on) || e.kind == InputKind::Parameter || e.kind == InputKind::Gravity) finishPendingCut(true, message);
   switch (e.kind) {
     case InputKind::ToolPose:
       // The blade's sweep since the cut last changed the tissue: a sweep too thin to cross whole elements
@@ -458,11 +468,20 @@ void Session::apply(const InputEvent& e, std::string& message) {
       }
       break;
     case InputKind::Cut:
+      if (!e.on && pendingCut_) {
+        // Withdrawn while the last cut's body is being built: the rest of the sweep is cut once it is in (no wait).
+        if (tool_.cutting && (tool_.tip - tool_.cutFrom).norm() > 0) restOfSweep_ = std::make_pair(tool_.cutFrom, tool_.tip);
+        else pendingCut_->clearProgress = true;
+        tool_.cutting = false;
+        tool_.cutFrom = tool_.tip;
+        break;
+      }
       if (!e.on && tool_.cutting && (tool_.tip - tool_.cutFrom).norm() > 0) cut(tool_.cutFrom, tool_.tip, message);  // the rest of the sweep
       tool_.cutting = e.on;
       tool_.cutFrom = tool_.tip;
       // A new cut starts from nothing; what did not open of the last one stays closed.
-      setup_.cut.clear();
+      if (pendingCut_) pendingCut_->clearProgress = true;
+      else setup_.cut.clear();
       break;
     case InputKind::Parameter: {
       BodySetup before = setup_;
@@ -504,11 +523,16 @@ void Session::apply(const InputEvent& e, std::string& message) {
     case InputKind::Factor:
       body_->installRequestedFactor();  // only replays post these (the recording of an asynchronous refresh)
       break;
+    case InputKind::CutApplied:
+      finishPendingCut(true, message);  // only replays post these: the live run applied its cut here
+      break;
   }
   if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw) updateToolConstraints();  // rebuildBody did it for the others
 }
 
 bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message) {
+  // One cut at a time: while the last one's body is being built the sweep grows (the blade's start stays).
+  if (pendingCut_) return false;
   // The blade: from the tip back along the shaft towards the trocar; its sweep between the two poses is
   // planar (both shafts pass through the trocar).
   const Eigen::Vector3d trocar = *setup_.tools.trocar;
@@ -530,20 +554,41 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     if (r.status.rfind("The cut was refused", 0) == 0) message = r.status;
     return false;
   }
-  const BodySetup before = setup_;
-  const SimulationState stateBefore = state_;
-  setup_.mesh.points = rest;
-  setup_.mesh.unitToMetre = 1.0;
-  setup_.mesh.triangles.clear();
-  setup_.mesh.triangleLabels.clear();
-  setup_.mesh.tets = std::move(tets);
-  setup_.mesh.tetLabels = std::move(labels);
-  setup_.rest.clear();
-  setup_.cut = std::move(progress);
+  BodySetup next = setup_;
+  next.mesh.points = rest;
+  next.mesh.unitToMetre = 1.0;
+  next.mesh.triangles.clear();
+  next.mesh.triangleLabels.clear();
+  next.mesh.tets = std::move(tets);
+  next.mesh.tetLabels = std::move(labels);
+  next.rest.clear();
+  next.cut = std::move(progress);
   const auto& fixed = body_->fixedMask();
   for (std::size_t k = 0; k < r.duplicateOf.size(); ++k)
-    if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])]) setup_.fixedNodes.push_back(static_cast<int>(n + k));
-  ++setup_.topology;
+    if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])]) next.fixedNodes.push_back(static_cast<int>(n + k));
+  ++next.topology;
+  if (setup_.settings.factorRefresh != FactorRefresh::Synchronous) {
+    // The new body and its first factorisation on another thread; the old body steps on meanwhile.
+    PendingCut p;
+    p.factorAt = state_.x;
+    extendByCut(p.factorAt, r.newNodes);
+    p.setup = next;
+    p.newNodes = r.newNodes;
+    p.cutLabels = r.cutLabels;
+    p.built = std::async(std::launch::async, [setup = std::move(next), at = p.factorAt, uncut = uncut_, edge = meanEdge_]() {
+      Built b;
+      b.body = makeFemBody(setup);
+      b.body->prepareFactor(at);
+      b.surface = makeCutSurface(uncut, setup.mesh, edge);
+      b.contact = contactSurface(b.body->restPositions(), b.body->tetrahedra());
+      return b;
+    });
+    pendingCut_ = std::move(p);
+    return true;
+  }
+  const BodySetup before = setup_;
+  const SimulationState stateBefore = state_;
+  setup_ = std::move(next);
   extendByCut(state_.x, r.newNodes);
   extendByCut(state_.v, r.newNodes);
   state_.lagged = {};
@@ -558,29 +603,91 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     message = std::string("The cut was refused: ") + ex.what();
     return false;
   }
+  cutApplied(r.cutLabels, message);
+  return true;
+}
+
+void Session::cutApplied(const std::vector<int>& cutLabels, std::string& message) {
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
   updateSurfaceNodes();
   updateCutSurface();
   events_.push_back("cut");
-  for (int label : r.cutLabels)
+  for (int label : cutLabels)
     if (setup_.byLabel.count(label)) {
       events_.push_back("vessel cut");
       message = "A vessel (label " + std::to_string(label) + ") was cut.";
       break;
     }
+}
+
+bool Session::finishPendingCut(bool wait, std::string& message) {
+  if (!pendingCut_) return false;
+  if (!wait && pendingCut_->built.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
+  PendingCut p = std::move(*pendingCut_);
+  pendingCut_.reset();
+  Built built;
+  try {
+    built = p.built.get();
+  } catch (const std::exception& ex) {
+    message = std::string("The cut was refused: ") + ex.what();
+    restOfSweep_.reset();
+    return false;
+  }
+  // The state carried across from where the tissue is now (the old body went on stepping meanwhile).
+  setup_ = std::move(p.setup);
+  if (p.clearProgress) setup_.cut.clear();
+  extendByCut(state_.x, p.newNodes);
+  extendByCut(state_.v, p.newNodes);
+  state_.lagged = {};
+  if (setup_.settings.method != NewtonMethod::Exact && setup_.settings.solver == LinearSolverKind::Cholmod) {
+    state_.lagged.valid = true;  // the factor the worker built
+    state_.lagged.refresh = false;
+    state_.lagged.at = std::move(p.factorAt);
+    state_.lagged.step = setup_.settings.timeStep;
+  }
+  state_.forcesValid = false;
+  state_.forces.resize(0);
+  retire(std::move(body_));
+  body_ = std::move(built.body);
+  tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  useContactSurface(std::move(built.contact));
+  surface_ = std::move(built.surface);
+  updateToolConstraints();
+  events_.push_back("cut");
+  for (int label : p.cutLabels)
+    if (setup_.byLabel.count(label)) {
+      events_.push_back("vessel cut");
+      message = "A vessel (label " + std::to_string(label) + ") was cut.";
+      break;
+    }
+  // The rest of a sweep the blade finished while this cut was being built.
+  if (restOfSweep_) {
+    const auto [from, to] = *restOfSweep_;
+    restOfSweep_.reset();
+    if (cut(from, to, message) && pendingCut_) pendingCut_->clearProgress = true;
+    else setup_.cut.clear();
+  }
   return true;
 }
 
-void Session::updateCutSurface() {
+void Session::retire(std::unique_ptr<DeformableBody> body) {
+  for (auto it = retired_.begin(); it != retired_.end();)
+    it = it->wait_for(std::chrono::seconds(0)) == std::future_status::ready ? retired_.erase(it) : it + 1;
+  if (!body) return;
+  std::shared_ptr<DeformableBody> old(std::move(body));
+  retired_.push_back(std::async(std::launch::async, [old]() mutable { old.reset(); }));
+}
+
+std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, const Mesh& cutMesh, double meanEdge) {
   // The boundary of the cut mesh; a triangle is the organ's own surface when its rest centre lies on a
   // triangle of the uncut boundary (a uniform grid over those), cut tissue otherwise.
-  Mesh uncut = uncut_.mesh;
+  Mesh uncut = uncutSetup.mesh;
   uncut.convertToMetres();
-  if (!uncut_.rest.empty()) uncut.points = uncut_.rest;
+  if (!uncutSetup.rest.empty()) uncut.points = uncutSetup.rest;
   const auto outer = boundaryTriangles(uncut, false);
   auto out = std::make_shared<CutSurface>();
-  out->triangles = boundaryTriangles(setup_.mesh, false);
-  const double cell = std::max(meanEdge_, 1e-6);
+  out->triangles = boundaryTriangles(cutMesh, false);
+  const double cell = std::max(meanEdge, 1e-6);
   auto keyOf = [&](const Eigen::Vector3d& p) {
     return std::array<long, 3>{static_cast<long>(std::floor(p.x() / cell)), static_cast<long>(std::floor(p.y() / cell)), static_cast<long>(std::floor(p.z() / cell))};
   };
@@ -593,7 +700,7 @@ void Session::updateCutSurface() {
       for (long y = lo[1]; y <= hi[1]; ++y)
         for (long z = lo[2]; z <= hi[2]; ++z) grid[{x, y, z}].push_back(static_cast<int>(k));
   }
-  const auto& rest = setup_.mesh.points;
+  const auto& rest = cutMesh.points;
   out->cut.assign(out->triangles.size(), 1);
   for (std::size_t k = 0; k < out->triangles.size(); ++k) {
     const auto& t = out->triangles[k];
@@ -617,8 +724,10 @@ void Session::updateCutSurface() {
   }
   out->cutCount = static_cast<std::size_t>(std::count(out->cut.begin(), out->cut.end(), 1));
   out->rest = rest;
-  surface_ = std::move(out);
+  return out;
 }
+
+void Session::updateCutSurface() { surface_ = makeCutSurface(uncut_, setup_.mesh, meanEdge_); }
 
 StepReport Session::advance() {
   std::lock_guard<std::mutex> stepLock(stepMutex_);
@@ -636,6 +745,15 @@ StepReport Session::advance() {
     }
   }
   std::string message;
+  // A cut whose body was built on another thread replaces the body as soon as it is ready (recorded, so that
+  // a replay applies it at the same boundary; the replay itself waits for the recording's word).
+  if (setup_.settings.factorRefresh == FactorRefresh::Asynchronous && pendingCut_ && finishPendingCut(false, message)) {
+    InputEvent c;
+    c.kind = InputKind::CutApplied;
+    c.step = steps_;
+    c.wallTime = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+    recorded_.push_back(c);
+  }
   for (auto& e : due) {
     e.step = steps_;
     apply(e, message);
@@ -716,6 +834,11 @@ Checkpoint Session::checkpoint() const {
 
 void Session::restore(const Checkpoint& c) {
   std::lock_guard<std::mutex> lock(stepMutex_);
+  if (pendingCut_) {
+    pendingCut_->built.wait();  // a cut of the state left behind
+    pendingCut_.reset();
+  }
+  restOfSweep_.reset();
   setup_ = c.setup;
   body_ = makeFemBody(setup_);
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
@@ -765,6 +888,11 @@ void Session::run() {
     }
     if (doReset) {
       std::lock_guard<std::mutex> stepLock(stepMutex_);
+      if (pendingCut_) {
+        pendingCut_->built.wait();
+        pendingCut_.reset();
+      }
+      restOfSweep_.reset();
       if (setup_.topology != uncut_.topology) {
         // Back to the organ before any cut (parameter edits stay).
         setup_.mesh = uncut_.mesh;

@@ -59,6 +59,9 @@ class DeformableBody {
   /// Deferred factor refresh (a replay of an asynchronous run): builds the factor requested earlier and uses
   /// it from the next step; false when none was requested (Integrator::installRequestedFactor).
   virtual bool installRequestedFactor() { return false; }
+  /// Builds the lagged factor at positions `x` now (Integrator::prepareLagged); true when the body keeps one,
+  /// which a state naming (x, the time step) then uses without refactorising.
+  virtual bool prepareFactor(const Eigen::VectorXd& /*x*/) { return false; }
   /// Tool constraints (grasp holds, contacts) for the next steps; replaces the previous ones.
   virtual void setToolConstraints(std::vector<ScalarConstraint> constraints) = 0;
   /// Bumped by every topology change (a cut); views rebuild what they derived from the topology.

@@ -16,12 +16,21 @@
 #include <deque>
 #include <functional>
 #include <memory>
+#include <future>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 namespace rehearse::simcore {
 
 class PointBvh;
+
+/// The boundary contact acts on (the session's, per topology): its triangles, its nodes, each node's triangles.
+struct ContactSurface {
+  std::vector<std::array<int, 3>> triangles;
+  std::vector<int> nodes;
+  std::vector<int> first, ofNode;  ///< node i's triangles: ofNode[first[i] .. first[i + 1])
+};
 
 enum class InputKind {
   ToolPose,   ///< the tool tip moved to `position` (m, body frame)
@@ -33,6 +42,8 @@ enum class InputKind {
   Gravity,    ///< gravity set to `vector` (m/s^2, body frame)
   Factor,     ///< recorded, not posted by a user: the lagged factor requested earlier (asynchronous refresh) was swapped
               ///< in at this step boundary; a replay (FactorRefresh::Deferred) installs it at the same boundary
+  CutApplied, ///< recorded, not posted by a user: a cut computed earlier, whose new body was built on another thread
+              ///< (asynchronous refresh), replaced the body at this step boundary; a replay applies it here
 };
 
 struct InputEvent {
@@ -145,7 +156,33 @@ class Session {
   void apply(const InputEvent& e, std::string& message);
   void rebuildBody();
   void updateToolConstraints();
-  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message);  ///< true when the tissue changed
+  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message);  ///< true when the tissue changed (or will)
+  /// With the asynchronous refresh a cut's new body (model, first factorisation) is built on another thread
+  /// while the old body goes on stepping; it replaces the body at the first step boundary after it is ready,
+  /// the state then carried across from where the tissue is by then (the cut's interpolation of new nodes).
+  struct Built {
+    std::unique_ptr<DeformableBody> body;
+    std::shared_ptr<const CutSurface> surface;
+    ContactSurface contact;
+  };
+  struct PendingCut {
+    std::future<Built> built;
+    BodySetup setup;
+    std::vector<CutNode> newNodes;
+    std::vector<int> cutLabels;
+    Eigen::VectorXd factorAt;  ///< the positions its factor was built at (the state's lagged identity after)
+    bool clearProgress = false;  ///< the blade was withdrawn meanwhile: the cut's progress ends with it
+  };
+  /// The rest of a sweep asked for while a cut was being built (the blade withdrawn meanwhile): cut when it is in.
+  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> restOfSweep_;
+  /// Old bodies being destroyed on another thread (an asynchronous refresh under way ends first).
+  std::vector<std::future<void>> retired_;
+  void retire(std::unique_ptr<DeformableBody> body);
+  std::optional<PendingCut> pendingCut_;
+  /// Applies the pending cut when its body is ready (or, with `wait`, after waiting); true when applied.
+  bool finishPendingCut(bool wait, std::string& message);
+  /// What every applied cut does after the body changed: topology, surfaces, contact, events.
+  void cutApplied(const std::vector<int>& cutLabels, std::string& message);
   void publish(const StepReport& rep, const std::string& message, std::vector<std::string> events = {});
   void run();
 
@@ -157,9 +194,8 @@ class Session {
   std::shared_ptr<const CutSurface> surface_;  ///< after a cut
   void updateCutSurface();
   void updateSurfaceNodes();
-  std::vector<int> surfaceNodes_;  ///< nodes on the boundary (contact candidates), per topology
-  std::vector<std::array<int, 3>> surfaceTriangles_;  ///< the boundary (contact acts on its triangles)
-  std::vector<int> nodeTriangleFirst_, nodeTriangles_;  ///< each node's boundary triangles (compressed rows)
+  ContactSurface contact_;         ///< the boundary contact acts on, per topology
+  void useContactSurface(ContactSurface c);
   std::shared_ptr<PointBvh> bvh_;  ///< over surfaceNodes_, refitted before each contact query
   long contactQueries_ = 0;
   int contactConstraints_ = 0;  ///< contact constraints in the body now (touching or within reach)
