@@ -750,7 +750,8 @@ std::string usage() {
          "                                   simulation session without a window; the report has a row per step (wall time,\n"
          "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"
          "  rehearse --help | --version\n\n"
-         "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL)\n"
+         "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL), --opengl (OpenGL even\n"
+         "  through a software rasteriser such as llvmpipe, which is otherwise not used)\n"
          "Mesh formats: .msh (Gmsh 1, 2.2, 4.1), .vtk (legacy), .vtu, .mesh (Medit), .obj .stl .ply .off .gltf .glb.\n"
          "Lengths are metres unless --unit says otherwise.\n";
 }

@@ -13,4 +13,5 @@ build/tests/bench_appearance build/bench
 xvfb-run -a -s "-screen 0 1600x1000x24" build/tests/bench_gl_compose build/bench
 build/tests/bench_rehearsal build/bench
 xvfb-run -a -s "-screen 0 2560x1440x24" build/tests/bench_rehearsal_view build/bench --software
+xvfb-run -a -s "-screen 0 2560x1440x24" build/tests/bench_rehearsal_view build/bench --opengl
 xvfb-run -a -s "-screen 0 2560x1440x24" build/tests/bench_rehearsal_view build/bench

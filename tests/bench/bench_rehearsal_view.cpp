@@ -4,8 +4,9 @@
 // frame view's repaints per second, how many of them showed a new drawing of the simulated organ over the
 // frame, the time each paint takes, and the simulation steps done meanwhile. The window is 2560x1400, so the frame view shows
 // the frame at least at its own size. Needs an X server (xvfb-run); --software draws the overlay without
-// OpenGL (QPainter), as the tests do; otherwise through Mesa's llvmpipe.
-//   xvfb-run -a -s "-screen 0 2560x1440x24" bench_rehearsal_view [OUT_DIR] [--software]
+// OpenGL (QPainter), as the tests do; --opengl through OpenGL (here Mesa's llvmpipe); without either the
+// window chooses as `rehearse` does by default (MainWindow::Renderer::Automatic).
+//   xvfb-run -a -s "-screen 0 2560x1440x24" bench_rehearsal_view [OUT_DIR] [--software | --opengl]
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
@@ -83,18 +84,22 @@ struct Phase {
 
 int main(int argc, char** argv) {
   std::string out = ".";
-  bool software = false;
+  ui::MainWindow::Renderer choice = ui::MainWindow::Renderer::Automatic;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--software")) software = true;
+    if (!std::strcmp(argv[i], "--software")) choice = ui::MainWindow::Renderer::Software;
+    else if (!std::strcmp(argv[i], "--opengl")) choice = ui::MainWindow::Renderer::OpenGL;
     else out = argv[i];
   }
   QApplication app(argc, argv);
   QCoreApplication::setOrganizationName("RehearseViewBench");
   ui::applyDarkTheme(app);
-  ui::MainWindow::setSoftwareRendering(software);
+  ui::MainWindow::setRenderer(choice);
   ui::MainWindow w;
   w.resize(2560, 1400);
   w.show();
+  const bool software = !w.overlayUsesOpenGL();
+  const std::string mode = std::string(choice == ui::MainWindow::Renderer::Automatic ? "automatic-" : "") + (software ? "qpainter" : "opengl");
+  std::printf("%s\n", qPrintable(w.rendererText()));
   if (!QTest::qWaitForWindowExposed(&w)) {
     std::fprintf(stderr, "bench_rehearsal_view: no window (run under xvfb-run)\n");
     return 1;
@@ -118,7 +123,7 @@ int main(int argc, char** argv) {
   panel->play();
   waitFor([&] { return panel->lastFrame() && panel->lastFrame()->steps > 100; });
   const auto& c = *w.caseData();
-  std::printf("frame %dx%d shown in a %dx%d view (%s)\n", c.frame.cols, c.frame.rows, view->width(), view->height(), software ? "QPainter" : "OpenGL");
+  std::printf("frame %dx%d shown in a %dx%d view (%s)\n", c.frame.cols, c.frame.rows, view->width(), view->height(), mode.c_str());
   PaintMeter meter(w);
   view->installEventFilter(&meter);
 
@@ -165,13 +170,13 @@ int main(int argc, char** argv) {
   std::printf("cut: %zu elements now\n", panel->lastFrame()->elements);
 
   std::filesystem::create_directories(out);
-  const std::string file = out + "/rehearsal-view" + (software ? "-software" : "-opengl") + ".csv";
+  const std::string file = out + "/rehearsal-view-" + mode + ".csv";
   std::ofstream csv(file);
   csv << "renderer,phase,seconds,view_fps,organ_fps,paint_median_ms,paint_p99_ms,sim_steps_per_s,frame_w,frame_h,view_w,view_h\n";
   std::printf("%-9s %8s %9s %10s %14s %12s %12s\n", "phase", "seconds", "view fps", "organ fps", "paint med ms", "paint p99", "steps/s");
   for (const Phase& p : {pull, cut}) {
     std::printf("%-9s %8.2f %9.1f %10.1f %14.2f %12.2f %12.1f\n", p.name, p.seconds, p.fps, p.organFps, p.paintMedianMs, p.paintP99Ms, p.stepsPerSecond);
-    csv << (software ? "qpainter" : "opengl") << ',' << p.name << ',' << p.seconds << ',' << p.fps << ',' << p.organFps << ',' << p.paintMedianMs << ',' << p.paintP99Ms << ','
+    csv << mode << ',' << p.name << ',' << p.seconds << ',' << p.fps << ',' << p.organFps << ',' << p.paintMedianMs << ',' << p.paintP99Ms << ','
         << p.stepsPerSecond << ',' << c.frame.cols << ',' << c.frame.rows << ',' << view->width() << ',' << view->height() << '\n';
   }
   std::printf("wrote %s\n", file.c_str());

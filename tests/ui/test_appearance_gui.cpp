@@ -70,7 +70,7 @@ class TestAppearanceGui : public QObject {
     QCoreApplication::setOrganizationName("RehearseAppearanceTest");
     QStandardPaths::setTestModeEnabled(true);
     ui::applyDarkTheme(*qApp);
-    MainWindow::setSoftwareRendering(true);
+    MainWindow::setRenderer(MainWindow::Renderer::Software);
     w_ = std::make_unique<MainWindow>();
     w_->resize(1600, 900);
     w_->show();

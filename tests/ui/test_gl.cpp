@@ -38,6 +38,26 @@ class TestGl : public QObject {
   void initTestCase() {
     QStandardPaths::setTestModeEnabled(true);
     if (QGuiApplication::platformName() != QLatin1String("xcb")) QSKIP("needs an X server with OpenGL (run under xvfb-run)");
+    // These tests check the OpenGL views, even through llvmpipe (which the Automatic choice would not use).
+    ui::MainWindow::setRenderer(ui::MainWindow::Renderer::OpenGL);
+  }
+
+  // The default choice: OpenGL on a hardware renderer, the CPU views on a software rasteriser (llvmpipe here),
+  // and the Messages panel says which and why.
+  void automaticRendererAvoidsSoftwareOpenGL() {
+    const QString renderer = ui::OrganGLView::openGLRenderer();
+    QVERIFY2(!renderer.isEmpty(), "no OpenGL 3.3 context under Xvfb");
+    ui::MainWindow::setRenderer(ui::MainWindow::Renderer::Automatic);
+    ui::MainWindow w;
+    ui::MainWindow::setRenderer(ui::MainWindow::Renderer::OpenGL);
+    const bool software = ui::OrganGLView::isSoftwareRenderer(renderer);
+    qInfo("GL_RENDERER %s: %s", qPrintable(renderer), qPrintable(w.rendererText()));
+    QCOMPARE(w.organViewUsesOpenGL(), !software);
+    QCOMPARE(w.overlayUsesOpenGL(), !software);
+    QVERIFY(w.rendererText().contains(renderer));
+    QVERIFY(w.messageLog().join(QLatin1Char('\n')).contains(w.rendererText()));
+    QVERIFY(ui::OrganGLView::isSoftwareRenderer(QStringLiteral("llvmpipe (LLVM 15.0.6, 256 bits)")));
+    QVERIFY(!ui::OrganGLView::isSoftwareRenderer(QStringLiteral("NVIDIA GeForce RTX 3060/PCIe/SSE2")));
   }
 
   void openGLOrganView() {
@@ -127,9 +147,9 @@ class TestGl : public QObject {
   // same cameras.
   void fittedOrganShownEverywhere() {
     for (const bool software : {false, true}) {
-      ui::MainWindow::setSoftwareRendering(software);
+      ui::MainWindow::setRenderer(software ? ui::MainWindow::Renderer::Software : ui::MainWindow::Renderer::OpenGL);
       ui::MainWindow w;
-      ui::MainWindow::setSoftwareRendering(false);
+      ui::MainWindow::setRenderer(ui::MainWindow::Renderer::OpenGL);
       w.resize(1400, 900);
       w.show();
       QVERIFY(QTest::qWaitForWindowExposed(&w));
@@ -324,12 +344,12 @@ class TestGl : public QObject {
   }
 
   void softwareFallback() {
-    ui::MainWindow::setSoftwareRendering(true);
+    ui::MainWindow::setRenderer(ui::MainWindow::Renderer::Software);
     ui::MainWindow w;
     QVERIFY(!w.organViewUsesOpenGL());
     QVERIFY(!w.overlayUsesOpenGL());
     QVERIFY(qobject_cast<ui::OrganView*>(w.organWidget()));
-    ui::MainWindow::setSoftwareRendering(false);
+    ui::MainWindow::setRenderer(ui::MainWindow::Renderer::OpenGL);
   }
 };
 

@@ -43,7 +43,7 @@ class TestRehearseGui : public QObject {
     QCoreApplication::setOrganizationName("RehearseRehearseTest");
     QStandardPaths::setTestModeEnabled(true);
     ui::applyDarkTheme(*qApp);
-    MainWindow::setSoftwareRendering(true);
+    MainWindow::setRenderer(MainWindow::Renderer::Software);
     w_ = std::make_unique<MainWindow>();
     w_->resize(1600, 900);
     w_->show();

@@ -60,7 +60,7 @@ class TestSimulationGui : public QObject {
     QCoreApplication::setOrganizationName("RehearseSimulationTest");
     QStandardPaths::setTestModeEnabled(true);
     ui::applyDarkTheme(*qApp);
-    MainWindow::setSoftwareRendering(true);
+    MainWindow::setRenderer(MainWindow::Renderer::Software);
     w_ = std::make_unique<MainWindow>();
     w_->resize(1600, 900);
     w_->show();

@@ -1,6 +1,7 @@
 #include "rehearse/ui/glcompositor.hpp"
 
 #include "glcommon.hpp"
+#include "rehearse/ui/organglview.hpp"
 
 #include <rehearse/imaging/render.hpp>
 
@@ -176,8 +177,7 @@ struct GLCompositor::Impl {
 GLCompositor::GLCompositor() : d_(std::make_unique<Impl>()) {
   if (!makeOffscreenContext(d_->context, d_->surface)) return;
   const QString renderer = QString::fromLatin1(reinterpret_cast<const char*>(d_->context.functions()->glGetString(GL_RENDERER)));
-  d_->software = renderer.contains(QLatin1String("llvmpipe"), Qt::CaseInsensitive) || renderer.contains(QLatin1String("softpipe"), Qt::CaseInsensitive) ||
-                 renderer.contains(QLatin1String("swrast"), Qt::CaseInsensitive);
+  d_->software = OrganGLView::isSoftwareRenderer(renderer);
   d_->ok = d_->quad.addShaderFromSourceCode(QOpenGLShader::Vertex, kQuadVertex) && d_->quad.addShaderFromSourceCode(QOpenGLShader::Fragment, kQuadFragment) &&
            d_->quad.link() && d_->organ.addShaderFromSourceCode(QOpenGLShader::Vertex, kOrganVertex) &&
            d_->organ.addShaderFromSourceCode(QOpenGLShader::Fragment, kOrganFragment) && d_->organ.link();

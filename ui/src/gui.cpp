@@ -58,10 +58,14 @@ int runGui(int argc, char** argv) {
   QCommandLineParser parser;
   parser.addPositionalArgument(QStringLiteral("open"), QStringLiteral("open CASE"));
   QCommandLineOption screenshot(QStringLiteral("screenshot"), QStringLiteral("Save the window to PNG and quit."), QStringLiteral("png"));
-  QCommandLineOption software(QStringLiteral("software"), QStringLiteral("Do not use OpenGL."));
+  QCommandLineOption software(QStringLiteral("software"), QStringLiteral("Draw the views on the CPU, without OpenGL."));
+  QCommandLineOption opengl(QStringLiteral("opengl"),
+                            QStringLiteral("Draw the views with OpenGL even through a software rasteriser (by default a software "
+                                           "OpenGL such as Mesa's llvmpipe is not used: the CPU views are faster there)."));
   QCommandLineOption noRecover(QStringLiteral("no-recover"), QStringLiteral("Do not offer to recover an autosaved case."));
   parser.addOption(screenshot);
   parser.addOption(software);
+  parser.addOption(opengl);
   parser.addOption(noRecover);
   if (!parser.parse(app.arguments())) {
     std::fprintf(stderr, "rehearse: %s; see 'rehearse --help'\n", qPrintable(parser.errorText()));
@@ -76,7 +80,13 @@ int runGui(int argc, char** argv) {
     }
     caseDir = pos[1];
   }
-  MainWindow::setSoftwareRendering(parser.isSet(software));
+  if (parser.isSet(software) && parser.isSet(opengl)) {
+    std::fprintf(stderr, "rehearse: --software and --opengl contradict each other; give one\n");
+    return 2;
+  }
+  MainWindow::setRenderer(parser.isSet(software) ? MainWindow::Renderer::Software
+                          : parser.isSet(opengl) ? MainWindow::Renderer::OpenGL
+                                                 : MainWindow::Renderer::Automatic);
   MainWindow window;
   const QString shot = parser.value(screenshot);
   int exitCode = 0;

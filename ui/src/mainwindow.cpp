@@ -41,9 +41,9 @@ namespace rehearse::ui {
 constexpr qint64 kLiveOverlayMs = 16;
 namespace {
 
-bool& softwareRenderingFlag() {
-  static bool flag = false;
-  return flag;
+MainWindow::Renderer& rendererChoice() {
+  static MainWindow::Renderer choice = MainWindow::Renderer::Automatic;
+  return choice;
 }
 
 // A status-bar label that never widens the bar: it shows as much of its sentence as fits, ending in an
@@ -139,7 +139,9 @@ MainWindow::~MainWindow() {
   jobs_->waitForFinished();
 }
 
-void MainWindow::setSoftwareRendering(bool on) { softwareRenderingFlag() = on; }
+void MainWindow::setRenderer(Renderer r) { rendererChoice() = r; }
+
+MainWindow::Renderer MainWindow::renderer() { return rendererChoice(); }
 
 QWidget* MainWindow::organWidget() const {
   if (organGLView_) return organGLView_;
@@ -174,7 +176,21 @@ void MainWindow::buildDocks() {
   infoDock->raise();
   auto* organDock = new QDockWidget(tr("Organ 3D"), this);
   organDock->setObjectName(QStringLiteral("organDock"));
-  const bool openGL = !softwareRenderingFlag() && OrganGLView::openGLAvailable();
+  const QString glRenderer = rendererChoice() == Renderer::Software ? QString() : OrganGLView::openGLRenderer();
+  bool openGL = !glRenderer.isEmpty();
+  if (rendererChoice() == Renderer::Software) {
+    rendererText_ = tr("Views drawn on the CPU (--software).");
+  } else if (!openGL) {
+    rendererText_ = tr("No OpenGL 3.3 here: the views are drawn on the CPU.");
+  } else if (rendererChoice() == Renderer::Automatic && OrganGLView::isSoftwareRenderer(glRenderer)) {
+    openGL = false;
+    rendererText_ = tr("OpenGL here is a software rasteriser (%1): the views are drawn on the CPU, which is faster on it "
+                       "('rehearse --opengl' uses OpenGL anyway).")
+                        .arg(glRenderer);
+  } else {
+    rendererText_ = tr("Views drawn with OpenGL (%1).").arg(glRenderer);
+  }
+  messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + rendererText_);
   overlay_ = std::make_unique<OrganOverlay>(openGL);
   composition_->useOpenGL(overlay_->usesOpenGL());  // the composited view as the overlay: OpenGL where it works
   if (openGL) {

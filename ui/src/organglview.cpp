@@ -49,22 +49,34 @@ OrganGLView::~OrganGLView() {
   doneCurrent();
 }
 
-bool OrganGLView::openGLAvailable() {
+bool OrganGLView::openGLAvailable() { return !openGLRenderer().isEmpty(); }
+
+bool OrganGLView::isSoftwareRenderer(const QString& renderer) {
+  return renderer.contains(QLatin1String("llvmpipe"), Qt::CaseInsensitive) || renderer.contains(QLatin1String("softpipe"), Qt::CaseInsensitive) ||
+         renderer.contains(QLatin1String("swrast"), Qt::CaseInsensitive);
+}
+
+QString OrganGLView::openGLRenderer() {
   if (QGuiApplication::platformName() == QLatin1String("offscreen") || QGuiApplication::platformName() == QLatin1String("minimal"))
-    return false;
+    return {};
   QOpenGLContext ctx;
   QSurfaceFormat f;
   f.setVersion(3, 3);
   f.setProfile(QSurfaceFormat::CoreProfile);
   ctx.setFormat(f);
-  if (!ctx.create()) return false;
+  if (!ctx.create()) return {};
   QOffscreenSurface surface;
   surface.setFormat(ctx.format());
   surface.create();
-  if (!ctx.makeCurrent(&surface)) return false;
+  if (!ctx.makeCurrent(&surface)) return {};
   const bool ok = ctx.format().majorVersion() > 3 || (ctx.format().majorVersion() == 3 && ctx.format().minorVersion() >= 3);
+  QString renderer;
+  if (ok) {
+    const auto* name = reinterpret_cast<const char*>(ctx.functions()->glGetString(GL_RENDERER));
+    renderer = name && *name ? QString::fromLatin1(name) : QStringLiteral("unknown renderer");
+  }
   ctx.doneCurrent();
-  return ok;
+  return renderer;
 }
 
 void OrganGLView::setCase(std::shared_ptr<const app::Case> c) {

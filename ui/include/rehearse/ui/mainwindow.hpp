@@ -102,14 +102,22 @@ class MainWindow : public QMainWindow {
   /// Contour to silhouette distance at the current pose (px); negative when it cannot be computed.
   double contourDistance() const { return picture_.meanDistance; }
   FrameView* frameView() const { return view_; }
-  /// The 3D organ view: OpenGL when a context can be made (and --software was not given), else software.
+  /// The 3D organ view: OpenGL or software, as renderer() chose.
   QWidget* organWidget() const;
   SimulationPanel* simulationPanel() const { return simulation_; }
   bool organViewUsesOpenGL() const { return organGLView_ != nullptr; }
   /// True when the frame view's organ overlay is drawn with OpenGL (off screen), false for the CPU rasteriser.
   bool overlayUsesOpenGL() const { return overlay_->usesOpenGL(); }
-  /// Forces the software renderers (set before creating a window; `rehearse --software`).
-  static void setSoftwareRendering(bool on);
+  /// Which renderers the views use (set before creating a window). Automatic: OpenGL where the machine has
+  /// a hardware OpenGL 3.3, the CPU renderers where it has none or only a software rasteriser (Mesa's
+  /// llvmpipe: there Qt composes the whole window through OpenGL at every repaint, and the views fall
+  /// to 9-19 fps while the CPU views keep 31-39 fps; BENCHMARKS.md). Software: `rehearse --software`.
+  /// OpenGL: `rehearse --opengl`, even through a software rasteriser.
+  enum class Renderer { Automatic, Software, OpenGL };
+  static void setRenderer(Renderer r);
+  static Renderer renderer();
+  /// The sentence saying which renderer the views use and why (also in the Messages panel).
+  QString rendererText() const { return rendererText_; }
   QString infoText() const;
   /// The last sentence shown in the status bar, whole (the bar may show it shortened; its tooltip and the
   /// Messages panel hold all of it).
@@ -207,6 +215,7 @@ class MainWindow : public QMainWindow {
   bool liveDrawingBusy_ = false;
   QTimer liveDrawingTimer_;
   OrganView* organView_ = nullptr;
+  QString rendererText_;
   OrganGLView* organGLView_ = nullptr;
   SimulationPanel* simulation_ = nullptr;
   QDockWidget* simulationDock_ = nullptr;

@@ -22,8 +22,12 @@ class OrganGLView : public QOpenGLWidget, protected QOpenGLFunctions {
   /// True once initializeGL ran with a working context and shaders.
   bool glReady() const { return ready_; }
   QString glVersion() const { return version_; }
-  /// True when this machine can make an OpenGL context (false on Qt's offscreen platform).
+  /// True when this machine can make an OpenGL 3.3 context (false on Qt's offscreen platform).
   static bool openGLAvailable();
+  /// The OpenGL 3.3 context's GL_RENDERER string, empty when there is none.
+  static QString openGLRenderer();
+  /// True when `renderer` names a software rasteriser (Mesa's llvmpipe, softpipe, swrast).
+  static bool isSoftwareRenderer(const QString& renderer);
 
  protected:
   void initializeGL() override;
