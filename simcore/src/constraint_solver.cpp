@@ -2,6 +2,7 @@
 
 #include <rehearse/simcore/mesh.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -81,9 +82,17 @@ bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, do
   // close attachments on a body with nothing else holding it) can stall it: bilateral constraints then
   // take a dense LDL^T of W (m x m, small), unilateral ones keep the best Gauss-Seidel iterate.
   int sweep = 0;
-  bool converged = false, unilateral = false;
+  bool converged = false, unilateral = false, triedActiveSet = false;
+  activeSetIterations_ = 0;
   for (const auto& c : constraints_) unilateral |= c.unilateral;
   for (; sweep < gaussSeidelIterations; ++sweep) {
+    if (unilateral && !triedActiveSet && sweep == activeSetAfterSweeps) {
+      triedActiveSet = true;
+      if (activeSet()) {
+        converged = true;
+        break;
+      }
+    }
     double change = 0, size = 0;
     for (Eigen::Index i = 0; i < m; ++i) {
       const double d = W_(i, i);
@@ -122,6 +131,63 @@ bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, do
   dx.noalias() += A_ * lambda_;
   if (carry) dx.noalias() -= A_ * *carried;
   return dx.allFinite();
+}
+
+// The linear complementarity problem W lambda - e = w, lambda_u >= 0, w_u >= 0, lambda_u w_u = 0 (w = 0 for
+// bilateral rows) by an active set: the active rows (bilateral, and unilateral ones pushing) solved exactly
+// with a dense LDL^T of their block; unilateral rows whose multiplier came out negative leave the set, then
+// rows that the solution violates join it. Starts from Gauss-Seidel's iterate (its positive multipliers), so a
+// few iterations suffice. True with lambda_ set when no row changed; false (lambda_ untouched) otherwise.
+bool ConstraintSolver::activeSet() {
+  const Eigen::Index m = size();
+  active_.assign(static_cast<std::size_t>(m), 0);
+  for (Eigen::Index i = 0; i < m; ++i)
+    active_[static_cast<std::size_t>(i)] = !constraints_[static_cast<std::size_t>(i)].unilateral || lambda_[i] > 0;
+  const double scale = std::max(e_.cwiseAbs().maxCoeff(), 1e-300);
+  const double tolerance = 1e-10 * scale;
+  if (candidate_.size() != m) candidate_.resize(m);
+  for (int it = 0; it < 4 + static_cast<int>(m); ++it) {
+    ++activeSetIterations_;
+    activeIndex_.clear();
+    for (Eigen::Index i = 0; i < m; ++i)
+      if (active_[static_cast<std::size_t>(i)] && W_(i, i) > 0) activeIndex_.push_back(i);
+    const auto k = static_cast<Eigen::Index>(activeIndex_.size());
+    candidate_.setZero();
+    if (k > 0) {
+      Wa_.resize(k, k);
+      ea_.resize(k);
+      for (Eigen::Index a = 0; a < k; ++a) {
+        ea_[a] = e_[activeIndex_[static_cast<std::size_t>(a)]];
+        for (Eigen::Index b = 0; b < k; ++b) Wa_(a, b) = W_(activeIndex_[static_cast<std::size_t>(a)], activeIndex_[static_cast<std::size_t>(b)]);
+      }
+      WaFactor_.compute(Wa_);
+      la_ = WaFactor_.solve(ea_);
+      if (!la_.allFinite()) return false;
+      for (Eigen::Index a = 0; a < k; ++a) candidate_[activeIndex_[static_cast<std::size_t>(a)]] = la_[a];
+    }
+    bool changed = false;
+    for (Eigen::Index a = 0; a < k; ++a) {  // pulling contacts leave first
+      const Eigen::Index i = activeIndex_[static_cast<std::size_t>(a)];
+      if (constraints_[static_cast<std::size_t>(i)].unilateral && candidate_[i] < 0) {
+        active_[static_cast<std::size_t>(i)] = 0;
+        changed = true;
+      }
+    }
+    if (!changed) {
+      for (Eigen::Index i = 0; i < m; ++i) {
+        if (active_[static_cast<std::size_t>(i)] || !(W_(i, i) > 0)) continue;
+        if (e_[i] - W_.row(i).dot(candidate_) > tolerance) {  // a contact the solution pushes into: it joins
+          active_[static_cast<std::size_t>(i)] = 1;
+          changed = true;
+        }
+      }
+    }
+    if (!changed) {
+      lambda_ = candidate_;
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace rehearse::simcore
