@@ -129,23 +129,48 @@ Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen
 
 namespace {
 
-// Camera-frame point and smooth normal seen at pixel (x, y) of a rasterization.
-bool surfacePoint(const Eigen::Matrix3d& Kinv, const Posed& P, const SurfaceView& s, int tid, int x, int y,
-                  Eigen::Vector3d& point, Eigen::Vector3d& normal) {
+// Per triangle, the inverse of [a b c] (its camera-frame vertices as columns): the ray t d through a pixel
+// meets the triangle's plane where M d / sum(M d) are the point's barycentric coordinates and
+// t = 1 / sum(M d) (perspective-correct, no per-pixel cross product). Singular (ok = 0) when the plane
+// passes through the camera's centre: the triangle is seen edge-on.
+struct TriangleRays {
+  std::vector<Eigen::Matrix3d> inverse;
+  std::vector<char> ok;
+};
+
+TriangleRays triangleRays(const Posed& P, const SurfaceView& s) {
+  TriangleRays r;
+  r.inverse.resize(s.triangleCount);
+  r.ok.assign(s.triangleCount, 0);
+  for (std::size_t t = 0; t < s.triangleCount; ++t) {
+    const int* tri = s.triangles + 3 * t;
+    Eigen::Matrix3d V;
+    V << P.x[static_cast<std::size_t>(tri[0])], P.x[static_cast<std::size_t>(tri[1])], P.x[static_cast<std::size_t>(tri[2])];
+    const double det = V.determinant();
+    const double size = V.col(0).norm() * V.col(1).norm() * V.col(2).norm();
+    if (!(std::abs(det) > 1e-12 * size)) continue;
+    r.inverse[t] = V.inverse();
+    r.ok[t] = 1;
+  }
+  return r;
+}
+
+// Camera-frame point, smooth normal and barycentric coordinates seen along the ray d (z = 1) through a pixel
+// of a rasterization that found triangle tid there.
+inline __attribute__((always_inline)) bool surfacePoint(const TriangleRays& R, const Posed& P, const SurfaceView& s, int tid, const Eigen::Vector3d& d, Eigen::Vector3d& point,
+                  Eigen::Vector3d& normal, Eigen::Vector3d* barycentric = nullptr) {
+  const auto t = static_cast<std::size_t>(tid);
+  if (!R.ok[t]) return false;
+  Eigen::Vector3d w = R.inverse[t] * d;
+  const double sum = w.sum();
+  if (!(std::abs(sum) > 1e-300)) return false;
+  w /= sum;
+  point = d / sum;
   const int* tri = s.triangles + 3 * tid;
-  const Eigen::Vector3d &a = P.x[tri[0]], &b = P.x[tri[1]], &c = P.x[tri[2]];
-  const Eigen::Vector3d d = Kinv * Eigen::Vector3d(x, y, 1);
-  const Eigen::Vector3d n = (b - a).cross(c - a);
-  const double denom = n.dot(d);
-  if (std::abs(denom) < 1e-300) return false;
-  point = d * (n.dot(a) / denom);
-  // Barycentric coordinates of the point in the 3D triangle.
-  const double nn = n.squaredNorm();
-  const double wa = (c - b).cross(point - b).dot(n) / nn;
-  const double wb = (a - c).cross(point - c).dot(n) / nn;
-  const double wc = 1 - wa - wb;
-  normal = (wa * P.normal[tri[0]] + wb * P.normal[tri[1]] + wc * P.normal[tri[2]]).normalized();
+  normal = (w[0] * P.normal[static_cast<std::size_t>(tri[0])] + w[1] * P.normal[static_cast<std::size_t>(tri[1])] +
+            w[2] * P.normal[static_cast<std::size_t>(tri[2])]).normalized();
   if (normal.dot(-point) < 0) normal = -normal;  // an open surface seen from inside
+  if (barycentric) *barycentric = w;
   return normal.allFinite();
 }
 
@@ -206,6 +231,7 @@ SurfaceGeometry surfaceGeometry(const Camera& camera, const Pose& pose, const Su
   if (!inFront) throw InputError("The organ lies behind the camera; check the pose (z must be positive in the camera frame).");
   Rasterization r = rasterizeCameraFrame(camera, P.x, surface, scale, 1e-3);
   const Eigen::Matrix3d Kinv = scaledK(camera, scale).inverse();
+  const TriangleRays rays = triangleRays(P, surface);
   SurfaceGeometry g;
   g.triangle = r.triangle;
   g.position = cv::Mat3f(r.triangle.size(), cv::Vec3f(0, 0, 0));
@@ -216,16 +242,12 @@ SurfaceGeometry surfaceGeometry(const Camera& camera, const Pose& pose, const Su
       for (int x = 0; x < g.triangle.cols; ++x) {
         const int t = g.triangle(y, x);
         if (t < 0) continue;
-        Eigen::Vector3d p, n;
-        if (!surfacePoint(Kinv, P, surface, t, x, y, p, n)) {
+        Eigen::Vector3d p, n, w;
+        if (!surfacePoint(rays, P, surface, t, Kinv * Eigen::Vector3d(x, y, 1), p, n, &w)) {
           g.triangle(y, x) = -1;
           continue;
         }
-        const int* tri = surface.triangles + 3 * t;
-        const Eigen::Vector3d &a = P.x[tri[0]], &b = P.x[tri[1]], &c = P.x[tri[2]];
-        const Eigen::Vector3d fn = (b - a).cross(c - a);
-        const double nn = fn.squaredNorm();
-        const double wa = (c - b).cross(p - b).dot(fn) / nn, wb = (a - c).cross(p - c).dot(fn) / nn;
+        const double wa = w[0], wb = w[1];
         g.position(y, x) = cv::Vec3f(static_cast<float>(p.x()), static_cast<float>(p.y()), static_cast<float>(p.z()));
         g.normal(y, x) = cv::Vec3f(static_cast<float>(n.x()), static_cast<float>(n.y()), static_cast<float>(n.z()));
         g.barycentric(y, x) = cv::Vec3f(static_cast<float>(wa), static_cast<float>(wb), static_cast<float>(1 - wa - wb));
@@ -250,6 +272,7 @@ cv::Mat3b renderShaded(const Camera& camera, const Pose& pose, const SurfaceView
   const Posed P = pose3(pose, surface, true);
   const Rasterization r = rasterizeCameraFrame(camera, P.x, surface, scale, 1e-3);
   const Eigen::Matrix3d Kinv = scaledK(camera, scale).inverse();
+  const TriangleRays rays = triangleRays(P, surface);
   cv::Mat3b bg;
   if (background.empty()) bg = cv::Mat3b(camera.height, camera.width, cv::Vec3b(0, 0, 0));
   else bg = background;
@@ -262,7 +285,7 @@ cv::Mat3b renderShaded(const Camera& camera, const Pose& pose, const SurfaceView
       for (int x = 0; x < full.cols; ++x) {
         if (tid[x] < 0) continue;
         Eigen::Vector3d p, n;
-        if (!surfacePoint(Kinv, P, surface, tid[x], x, y, p, n)) continue;
+        if (!surfacePoint(rays, P, surface, tid[x], Kinv * Eigen::Vector3d(x, y, 1), p, n)) continue;
         const Eigen::Vector3d rgb = appearance.shade(p, n);
         out[x] = cv::Vec3b(cv::saturate_cast<uchar>(rgb.z() * 255.0), cv::saturate_cast<uchar>(rgb.y() * 255.0),
                            cv::saturate_cast<uchar>(rgb.x() * 255.0));
@@ -280,6 +303,7 @@ cv::Mat4b renderOverlay(const Camera& camera, const Pose& pose, const SurfaceVie
   const Posed P = pose3(pose, surface, true);
   const Rasterization r = rasterizeCameraFrame(camera, P.x, surface, 1, 1e-3);
   const Eigen::Matrix3d Kinv = camera.K.inverse();
+  const TriangleRays rays = triangleRays(P, surface);
   cv::Mat4b out(camera.height, camera.width, cv::Vec4b(0, 0, 0, 0));
   cv::parallel_for_(cv::Range(0, out.rows), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y)
@@ -287,7 +311,7 @@ cv::Mat4b renderOverlay(const Camera& camera, const Pose& pose, const SurfaceVie
         int t = r.triangle(y, x);
         if (t < 0) continue;
         Eigen::Vector3d p, n;
-        if (!surfacePoint(Kinv, P, surface, t, x, y, p, n)) continue;
+        if (!surfacePoint(rays, P, surface, t, Kinv * Eigen::Vector3d(x, y, 1), p, n)) continue;
         const double shade = 0.25 + 0.75 * std::max(0.0, n.dot(-p.normalized()));
         out(y, x) = cv::Vec4b(cv::saturate_cast<uchar>(colour[0] * shade), cv::saturate_cast<uchar>(colour[1] * shade),
                               cv::saturate_cast<uchar>(colour[2] * shade), 255);

@@ -114,7 +114,7 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
   const int bitten = session.snapshot()->tool.held.empty() ? -1 : session.snapshot()->tool.held.front();
   VirtualDevice device;
   device.setPosition(tip);
-  ForceLoop loop([&session, max = s.tools.maxGraspForce] { return toolForceModel(*session.snapshot(), max); }, &device);
+  ForceLoop loop([&session] { return session.toolForce(); }, &device);
   loop.start();
   auto due = std::chrono::steady_clock::now();
   for (int k = 1; k <= kPullSteps; ++k) {

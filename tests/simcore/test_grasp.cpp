@@ -194,6 +194,11 @@ class TestGrasp : public QObject {
       session.post(toolAt(p));
       session.advance();
       const auto now = session.snapshot();
+      // The loop's lock-free source carries exactly the snapshot's model.
+      const simcore::ToolForceModel lockFree = session.toolForce(), fromSnapshot = simcore::toolForceModel(*now, s.tools.maxGraspForce);
+      QCOMPARE(lockFree.step, fromSnapshot.step);
+      QVERIFY(lockFree.tip == fromSnapshot.tip && lockFree.force == fromSnapshot.force && lockFree.stiffness == fromSnapshot.stiffness);
+      QCOMPARE(lockFree.maxForce, fromSnapshot.maxForce);
       extrapolated = std::max(extrapolated, (simcore::extrapolateForce(model, p) - now->tool.force).norm());
       held = std::max(held, (previous->tool.force - now->tool.force).norm());
       previous = now;
@@ -232,6 +237,37 @@ class TestGrasp : public QObject {
     QVERIFY(t.ticks >= 50 && t.medianPeriodMs > 0 && t.rateHz > 0);
     QVERIFY(loop.samples(10).size() >= 50);
     qInfo("force loop here: %.0f Hz, period median %.3f ms, p99 %.3f ms (measured in bench_rehearsal, not asserted)", t.rateHz, t.medianPeriodMs, t.p99PeriodMs);
+  }
+
+  // The lock-free cell the loop reads: a writer storing (i, i, ..., i) as fast as it can, a reader never
+  // sees a mixture of two stores (a torn read would give unequal entries).
+  void lockFreeCellNeverTears() {
+    simcore::SeqCell<17> cell;
+    std::atomic<bool> done{false};
+    std::thread writer([&] {
+      std::array<double, 17> v{};
+      for (int i = 1; i <= 2000000; ++i) {
+        v.fill(static_cast<double>(i));
+        cell.store(v);
+      }
+      done = true;
+    });
+    long reads = 0, torn = 0;
+    double last = 0;
+    bool monotone = true;
+    while (!done) {
+      const auto v = cell.load();
+      ++reads;
+      for (double x : v) torn += x != v[0];
+      monotone &= v[0] >= last;
+      last = v[0];
+    }
+    writer.join();
+    qInfo("%ld reads during 2,000,000 stores: %ld torn entries", reads, torn);
+    QVERIFY(reads > 0);
+    QCOMPARE(torn, 0L);
+    QVERIFY(monotone);
+    QCOMPARE(cell.load()[16], 2000000.0);
   }
 
   // Pulled harder than the scene's maximum grasp force: the tissue slips out, said, and nothing is held.

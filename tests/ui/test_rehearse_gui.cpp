@@ -76,11 +76,13 @@ class TestRehearseGui : public QObject {
     const QPointF a = view->toWidget(QPointF(centre.x(), centre.y()));
     const QPointF b = a + QPointF(0, -45);  // about 2 cm at the organ (checked below)
     double peak = 0;
+    int contacts = 0;
     std::optional<Eigen::Vector3d> tipAtGrasp;
     QString slipMessage;
     const auto watching = connect(panel, &ui::SimulationPanel::frameShown, this, [&] {
       const auto fr = panel->lastFrame();
       peak = std::max(peak, fr->tool.force.norm());
+      contacts = std::max(contacts, fr->tool.contacts);
       if (!fr->tool.held.empty() && !tipAtGrasp) tipAtGrasp = fr->tool.tip;
       if (!fr->message.isEmpty()) slipMessage = fr->message;
     });
@@ -121,6 +123,10 @@ class TestRehearseGui : public QObject {
     QVERIFY((tipMoved - Eigen::Vector2d(cursorMoved.x(), cursorMoved.y())).norm() < 1.0);
     QVERIFY(fixedMoved < 1e-9);
     QVERIFY(f->tool.force.norm() > 0.01);
+    // The GUI's instruments are 5 mm shafts in contact with the tissue (detected at every step).
+    QCOMPARE(panel->session()->setup().tools.toolRadius, 0.0025);
+    qInfo("contact: %ld detections, up to %d triangles touching the shaft", panel->session()->contactQueries(), contacts);
+    QVERIFY(panel->session()->contactQueries() > 0);
     QVERIFY(!(w_->organOverlay() == restOverlay));  // the organ over the frame follows the simulation in this step
     QVERIFY(w_->findChild<QLabel*>("rehearseForce")->text().startsWith("Tool force"));
     // The 1 kHz tool-force loop (its own thread) and the page's chart of it.

@@ -241,17 +241,7 @@ void MainWindow::buildDocks() {
         job.c = doc_->data();
         job.surface = f->surface;
         job.inner = pages_.mesh->shownInnerLabels();
-        if (f->surface) {
-          job.positions = f->positions;
-        } else {
-          auto live = std::make_shared<app::Case>(*job.c);
-          auto fit = std::make_shared<app::ElasticFit>();
-          fit->nodes.reserve(f->positions.size());
-          for (const auto& x : f->positions) fit->nodes.push_back(job.c->pose.R.transpose() * (x - job.c->pose.t));
-          fit->status = "simulated";
-          live->fit = fit;
-          job.c = std::move(live);
-        }
+        job.positions = f->positions;  // the case with these nodes is made on the worker (not at 100 Hz here)
         liveDrawingPending_ = std::move(job);
         drawLiveIfDue();
       }
@@ -445,7 +435,15 @@ void MainWindow::drawLiveIfDue() {
     drawLiveIfDue();
   });
   watcher->setFuture(QtConcurrent::run([overlay = liveOverlay_, job = std::move(job)] {
-    return job.surface ? overlay->renderLive(*job.c, job.positions, *job.surface) : overlay->render(*job.c, job.inner);
+    if (job.surface) return overlay->renderLive(*job.c, job.positions, *job.surface);
+    // Uncut: the case with the simulated nodes as its shape (as an elastic fit's), drawn as the case is.
+    app::Case live(*job.c);
+    auto fit = std::make_shared<app::ElasticFit>();
+    fit->nodes.reserve(job.positions.size());
+    for (const auto& x : job.positions) fit->nodes.push_back(job.c->pose.R.transpose() * (x - job.c->pose.t));
+    fit->status = "simulated";
+    live.fit = fit;
+    return overlay->render(live, job.inner);
   }));
 }
 

@@ -58,6 +58,7 @@ simcore::BodySetup bodySetup(const SimulationSetup& s) {
   b.settings.method = s.method;
   b.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)
   b.settings.gravity = s.gravity;
+  b.tools.toolRadius = s.toolRadius;
   return b;
 }
 
@@ -138,7 +139,7 @@ void SimulationPanel::startSession(const SimulationSetup& s) {
     }
     session_ = std::move(result->first);
     forceLoop_ = std::make_unique<simcore::ForceLoop>(
-        [s = session_.get(), maxForce = session_->setup().tools.maxGraspForce] { return simcore::toolForceModel(*s->snapshot(), maxForce); }, &device_);
+        [s = session_.get()] { return s->toolForce(); }, &device_);
     forceLoop_->start();
     session_->setPublishedCallback([this, s = session_.get(), ctx]() {
       // On the session's thread: the frame is made here, the GUI thread only draws it.

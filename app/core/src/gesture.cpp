@@ -59,6 +59,7 @@ GestureScript parseGestureScript(const std::string& text) {
     if (t.contains("max_grasp_force_n")) s.maxGraspForce = number(t, "max_grasp_force_n", 15, 0.0, 1e6);
     if (t.contains("blade_length_mm")) s.bladeLength = 1e-3 * number(t, "blade_length_mm", 30, 1, 300);
     if (t.contains("trocar")) s.trocar = vec3(t["trocar"], "trocar");
+    if (t.contains("tool_radius_mm")) s.toolRadius = 1e-3 * number(t, "tool_radius_mm", 0, 0, 50);
   }
   if (!j.contains("events") || !j["events"].is_array()) throw std::runtime_error("the gesture script has no \"events\" list");
   double last = 0;
@@ -105,6 +106,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
   if (script.maxGraspForce) setup.tools.maxGraspForce = *script.maxGraspForce;
   if (script.bladeLength) setup.tools.bladeLength = *script.bladeLength;
   if (script.trocar) setup.tools.trocar = *script.trocar;
+  if (script.toolRadius) setup.tools.toolRadius = *script.toolRadius;
   const double h = setup.settings.timeStep;
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
   simcore::Session session(setup);

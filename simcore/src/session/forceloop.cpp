@@ -25,26 +25,22 @@ Eigen::Vector3d extrapolateForce(const ToolForceModel& m, const Eigen::Vector3d&
   return f;
 }
 
-void VirtualDevice::setPosition(const Eigen::Vector3d& p) {
-  std::lock_guard<std::mutex> lock(m_);
-  position_ = p;
-  positioned_ = true;
-}
+void VirtualDevice::setPosition(const Eigen::Vector3d& p) { position_.store({p.x(), p.y(), p.z()}); }
 Eigen::Vector3d VirtualDevice::position() {
-  std::lock_guard<std::mutex> lock(m_);
-  return position_;
+  const auto v = position_.load();
+  return {v[0], v[1], v[2]};
 }
-void VirtualDevice::render(const Eigen::Vector3d& force) {
-  std::lock_guard<std::mutex> lock(m_);
-  rendered_ = force;
-}
+void VirtualDevice::render(const Eigen::Vector3d& force) { rendered_.store({force.x(), force.y(), force.z()}); }
 Eigen::Vector3d VirtualDevice::rendered() const {
-  std::lock_guard<std::mutex> lock(m_);
-  return rendered_;
+  const auto v = rendered_.load();
+  return {v[0], v[1], v[2]};
 }
 
 ForceLoop::ForceLoop(std::function<ToolForceModel()> source, HapticDevice* device, double rateHz)
-    : source_(std::move(source)), device_(device), rate_(rateHz > 0 ? rateHz : 1000), started_(std::chrono::steady_clock::now()) {}
+    : source_(std::move(source)), device_(device), rate_(rateHz > 0 ? rateHz : 1000), started_(std::chrono::steady_clock::now()) {
+  samples_.data.resize(static_cast<std::size_t>(std::ceil(10.0 * rate_)) + 1);
+  periods_.data.resize(10000);
+}
 
 ForceLoop::~ForceLoop() { stop(); }
 
@@ -65,10 +61,7 @@ Eigen::Vector3d ForceLoop::tick() {
   if (model.step >= 0) f = device_ ? extrapolateForce(model, device_->position()) : model.force;
   if (device_) device_->render(-f);
   const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-  std::lock_guard<std::mutex> lock(m_);
-  samples_.push_back({t, f});
-  while (!samples_.empty() && samples_.front().time < t - 10.0) samples_.pop_front();
-  ++ticks_;
+  record({t, f}, -1, false);
   return f;
 }
 
@@ -87,15 +80,7 @@ void ForceLoop::run() {
   while (!quit_) {
     tick();
     const auto now = clock::now();
-    {
-      std::lock_guard<std::mutex> lock(m_);
-      if (!first) {
-        periods_.push_back(std::chrono::duration<double, std::milli>(now - last).count());
-        if (periods_.size() > 10000) periods_.pop_front();
-      }
-      runSeconds_ = std::chrono::duration<double>(now - begin).count();
-      ++runTicks_;
-    }
+    record({}, first ? -1 : std::chrono::duration<double, std::milli>(now - last).count(), true, std::chrono::duration<double>(now - begin).count());
     first = false;
     last = now;
     // Absolute deadlines: the rate is the nominal one on average (a tick a little late is followed by a
@@ -106,13 +91,35 @@ void ForceLoop::run() {
   }
 }
 
+// The loop never waits for the lock that the GUI's readers take (a preempted reader holding it would stall
+// a real-time thread): what it cannot store now waits in a small buffer of its own until the next tick.
+void ForceLoop::record(const ForceSample& sample, double periodMs, bool runTick, double runSeconds) {
+  Pending& p = pending_;
+  if (!runTick) {
+    if (p.samples < p.sample.size()) p.sample[p.samples++] = sample;
+    ++p.ticks;
+  } else {
+    if (periodMs >= 0 && p.periods < p.period.size()) p.period[p.periods++] = periodMs;
+    ++p.runTicks;
+    p.runSeconds = runSeconds;
+  }
+  std::unique_lock<std::mutex> lock(m_, std::try_to_lock);
+  if (!lock.owns_lock()) return;
+  for (std::size_t k = 0; k < p.samples; ++k) samples_.push(p.sample[k]);
+  for (std::size_t k = 0; k < p.periods; ++k) periods_.push(p.period[k]);
+  ticks_ += p.ticks;
+  runTicks_ += p.runTicks;
+  if (p.runSeconds > 0) runSeconds_ = p.runSeconds;
+  p = Pending{};
+}
+
 std::vector<ForceSample> ForceLoop::samples(double seconds) const {
   std::lock_guard<std::mutex> lock(m_);
   std::vector<ForceSample> out;
-  if (samples_.empty()) return out;
-  const double from = samples_.back().time - seconds;
-  for (const auto& s : samples_)
-    if (s.time >= from) out.push_back(s);
+  if (samples_.count == 0) return out;
+  const double newest = samples_.at(samples_.count - 1).time, from = newest - std::min(seconds, 10.0);
+  for (std::size_t i = 0; i < samples_.count; ++i)
+    if (samples_.at(i).time >= from) out.push_back(samples_.at(i));
   return out;
 }
 
@@ -121,9 +128,10 @@ ForceLoop::Timing ForceLoop::timing() const {
   Timing t;
   {
     std::lock_guard<std::mutex> lock(m_);
-    p.assign(periods_.begin(), periods_.end());
+    p.resize(periods_.count);
+    for (std::size_t i = 0; i < periods_.count; ++i) p[i] = periods_.at(i);
     t.ticks = ticks_;
-    t.rateHz = runSeconds_ > 0 ? static_cast<double>(runTicks_) / runSeconds_ : 0;
+    t.rateHz = runSeconds_ > 0 && runTicks_ > 1 ? static_cast<double>(runTicks_ - 1) / runSeconds_ : 0;  // periods per second
     t.realtime = realtime_;
   }
   if (p.empty()) return t;

@@ -279,6 +279,17 @@ void Session::reset() {
   wake_.notify_all();
 }
 
+ToolForceModel Session::toolForce() const {
+  const std::array<double, 17> v = toolForce_.load();
+  ToolForceModel m;
+  m.step = static_cast<long>(v[0]);
+  m.tip = Eigen::Vector3d(v[1], v[2], v[3]);
+  m.force = Eigen::Vector3d(v[4], v[5], v[6]);
+  for (int k = 0; k < 9; ++k) m.stiffness.data()[k] = v[static_cast<std::size_t>(7 + k)];
+  m.maxForce = v[16];
+  return m;
+}
+
 std::shared_ptr<const Snapshot> Session::snapshot() const {
   std::lock_guard<std::mutex> lock(mailboxMutex_);
   return snapshot_;
@@ -361,7 +372,7 @@ void Session::updateToolConstraints() {
         holdsHeld |= std::find(tool_.held.begin(), tool_.held.end(), v) != tool_.held.end();
       }
       if (!anyFree || holdsHeld) continue;
-      Eigen::Vector3d onAxis, onTriangle, w;
+      Eigen::Vector3d onAxis = Eigen::Vector3d::Zero(), onTriangle = Eigen::Vector3d::Zero(), w = Eigen::Vector3d::Zero();
       if (!closestAxisTriangle(a, b, X(t[0]), X(t[1]), X(t[2]), onAxis, onTriangle, w)) {
         ++tool_.pierced;  // the shaft passes through it: no side to push it to
         continue;
@@ -813,6 +824,17 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->surface = setup_.topology > 0 ? surface_ : nullptr;
   s->trocar = *setup_.tools.trocar;
   if (publishStress_) body_->stress(state_, s->stress);
+  {
+    std::array<double, 17> v{};
+    v[0] = static_cast<double>(steps_);
+    for (int k = 0; k < 3; ++k) {
+      v[static_cast<std::size_t>(1 + k)] = tool_.tip[k];
+      v[static_cast<std::size_t>(4 + k)] = tool_.force[k];
+    }
+    for (int k = 0; k < 9; ++k) v[static_cast<std::size_t>(7 + k)] = tool_.stiffness.data()[k];
+    v[16] = tool_.held.empty() ? 0 : setup_.tools.maxGraspForce;
+    toolForce_.store(v);
+  }
   std::function<void()> callback;
   {
     std::lock_guard<std::mutex> lock(mailboxMutex_);

@@ -205,7 +205,7 @@ class MainWindow : public QMainWindow {
   /// The simulated organ over the frame in step 7, drawn on a worker by its own CPU overlay (newest first).
   struct LiveDrawing {
     std::shared_ptr<const app::Case> c;
-    std::vector<Eigen::Vector3d> positions;               ///< after a cut: the boundary's nodes (camera frame)
+    std::vector<Eigen::Vector3d> positions;               ///< the simulated nodes (camera frame)
     std::shared_ptr<const simcore::CutSurface> surface;  ///< after a cut
     std::vector<int> inner;
   };

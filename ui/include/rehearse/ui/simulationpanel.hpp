@@ -37,6 +37,9 @@ struct SimulationSetup {
   simcore::NewtonMethod method = simcore::NewtonMethod::Linearised;
   double vesselPoisson = 0.45;
   Eigen::Vector3d gravity = Eigen::Vector3d(0, 9.81, 0);  ///< m/s^2 in the camera frame (default: down in the image)
+  /// m: the instruments' shaft radius for contact (a 5 mm laparoscopic instrument): the tissue is pushed, not
+  /// penetrated; 0 turns contact off.
+  double toolRadius = 0.0025;
 };
 
 /// Published after each step: positions and the coloured quantity per node.
@@ -108,6 +111,8 @@ class SimulationPanel : public QWidget {
   /// The tool-force loop of the current session (1 kHz on its own thread; the instrument's tip drives its
   /// virtual device), null while no session runs. A haptic device driver would take the VirtualDevice's place.
   const simcore::ForceLoop* forceLoop() const { return forceLoop_.get(); }
+  /// The current session (read-only: its setup and counters), null while none runs.
+  const simcore::Session* session() const { return session_.get(); }
   SimulationSetup setup() const;
   QString statusText() const;
 

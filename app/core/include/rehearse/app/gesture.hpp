@@ -36,6 +36,7 @@ struct GestureScript {
   double dt = 0;        ///< s (0: the scene's)
   std::optional<double> graspRadius, maxGraspForce, bladeLength;  ///< m, N, m
   std::optional<Eigen::Vector3d> trocar;                          ///< m, body frame
+  std::optional<double> toolRadius;                               ///< m, the shaft's radius for contact (0: none)
   std::vector<GestureEvent> events;  ///< in time order
 };
 

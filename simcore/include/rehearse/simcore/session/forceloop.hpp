@@ -12,9 +12,9 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <atomic>
 #include <chrono>
-#include <deque>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -23,14 +23,6 @@
 
 namespace rehearse::simcore {
 
-/// What the loop extrapolates from: one physics step's tool force and stiffness at the tip it had.
-struct ToolForceModel {
-  long step = -1;                                        ///< the physics step it came from (-1: none yet)
-  Eigen::Vector3d tip = Eigen::Vector3d::Zero();         ///< m, where the tool was at that step
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< N, the tool's force on the tissue there
-  Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();   ///< N/m, d force / d tip
-  double maxForce = 0;                                   ///< N, the cap (0: none)
-};
 /// From a session's snapshot (its tool and the scene's maximum grasp force).
 ToolForceModel toolForceModel(const Snapshot& s, double maxGraspForce);
 
@@ -55,9 +47,7 @@ class VirtualDevice final : public HapticDevice {
   Eigen::Vector3d rendered() const;
 
  private:
-  mutable std::mutex m_;
-  Eigen::Vector3d position_ = Eigen::Vector3d::Zero(), rendered_ = Eigen::Vector3d::Zero();
-  bool positioned_ = false;
+  SeqCell<3> position_, rendered_;  // lock-free: the loop never waits on the GUI
 };
 
 struct ForceSample {
@@ -94,6 +84,15 @@ class ForceLoop {
 
  private:
   void run();
+  void record(const ForceSample& sample, double periodMs, bool runTick, double runSeconds = 0);
+  struct Pending {  // the loop thread's own, while the readers hold m_
+    std::array<ForceSample, 256> sample{};
+    std::array<double, 256> period{};
+    std::size_t samples = 0, periods = 0;
+    long ticks = 0, runTicks = 0;
+    double runSeconds = 0;
+  };
+  Pending pending_;
   std::function<ToolForceModel()> source_;
   HapticDevice* device_;
   double rate_;
@@ -101,9 +100,23 @@ class ForceLoop {
   std::atomic<bool> quit_{false};
   std::atomic<bool> realtime_{false};
   std::thread thread_;
-  mutable std::mutex m_;  // samples and periods
-  std::deque<ForceSample> samples_;
-  std::deque<double> periods_;  // ms
+  mutable std::mutex m_;  // samples and periods (the loop only try-locks it)
+  // Rings allocated once (the loop thread never allocates: malloc can wait on locks of other threads).
+  template <typename T>
+  struct Ring {
+    std::vector<T> data;
+    std::size_t head = 0, count = 0;  // the oldest at head
+    void push(const T& v) {
+      if (count < data.size()) data[(head + count++) % data.size()] = v;
+      else if (!data.empty()) {
+        data[head] = v;
+        head = (head + 1) % data.size();
+      }
+    }
+    const T& at(std::size_t i) const { return data[(head + i) % data.size()]; }
+  };
+  Ring<ForceSample> samples_;  // the last 10 s
+  Ring<double> periods_;       // ms, the last 10,000
   long ticks_ = 0, runTicks_ = 0;
   double runSeconds_ = 0;
 };

@@ -10,6 +10,7 @@
 // steps + the event list, issue 16). The GUI's Simulation panel and the rehearse step drive a Session;
 // tests drive it without its thread through advance().
 #include <rehearse/simcore/session/body.hpp>
+#include <rehearse/simcore/session/seqcell.hpp>
 
 #include <atomic>
 #include <condition_variable>
@@ -114,6 +115,15 @@ struct Checkpoint {
   ToolState tool;
 };
 
+/// What the loop extrapolates from: one physics step's tool force and stiffness at the tip it had.
+struct ToolForceModel {
+  long step = -1;                                        ///< the physics step it came from (-1: none yet)
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();         ///< m, where the tool was at that step
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< N, the tool's force on the tissue there
+  Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();   ///< N/m, d force / d tip
+  double maxForce = 0;                                   ///< N, the cap (0: none)
+};
+
 class Session {
  public:
   /// Builds the body (throws MeshError with one sentence for an unusable setup).
@@ -132,6 +142,9 @@ class Session {
   bool playing() const { return playing_; }
   /// Any thread: the last published snapshot (never null).
   std::shared_ptr<const Snapshot> snapshot() const;
+  /// Any thread, without a lock (the tool-force loop's source): the last published step's tool force and
+  /// stiffness at its tip, capped at the scene's maximum grasp force while the jaws hold.
+  ToolForceModel toolForce() const;
   /// Called on the session's thread after each publish (the GUI queues a repaint from it). Set before play.
   void setPublishedCallback(std::function<void()> f);
   /// Any thread: whether snapshots carry the elements' von Mises stress (costs one pass over the elements).
@@ -208,6 +221,7 @@ class Session {
 
   mutable std::mutex stepMutex_;     // body, state, tools, recording
   mutable std::mutex mailboxMutex_;  // mailbox, snapshot, control flags
+  SeqCell<17> toolForce_;            // written at each publish, read by the force loop without a lock
   std::deque<InputEvent> mailbox_;
   std::shared_ptr<const Snapshot> snapshot_;
   std::function<void()> published_;
