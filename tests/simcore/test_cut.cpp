@@ -446,6 +446,55 @@ class TestCut : public QObject {
     QVERIFY(v.minQuality >= session.setup().tools.cut.minQuality);
   }
 
+  // Only what a scene needs: without a shaft radius no contact hierarchy is built and no detection runs
+  // (grasping still works); with one, one hierarchy; nothing for cutting until a blade cuts, then one
+  // re-meshing and one cut surface per cut applied.
+  void onlyWhatASceneNeedsIsBuilt() {
+    for (const double radius : {0.0, 0.0025}) {
+      simcore::BodySetup s = liverSetup();
+      s.settings.method = simcore::NewtonMethod::Linearised;
+      s.tools.toolRadius = radius;
+      simcore::Session session(s);
+      const auto rest = session.snapshot()->positions;
+      Eigen::Vector3d front = rest.front();
+      for (const auto& p : rest)
+        if (p.z() < front.z()) front = p;
+      session.post(toolAt(front));
+      simcore::InputEvent jaw;
+      jaw.kind = simcore::InputKind::Jaw;
+      jaw.position = front;
+      jaw.on = true;
+      session.post(jaw);
+      for (int k = 0; k < 10; ++k) {
+        session.post(toolAt(front - Eigen::Vector3d(0, 0, 0.001 * k)));
+        QVERIFY(session.advance().ok);
+      }
+      QVERIFY(!session.snapshot()->tool.held.empty());
+      auto c = session.constructions();
+      qInfo("radius %.1f mm, grasp and pull: %ld contact hierarchies, %ld detections, %ld re-meshings, %ld cut surfaces", 1e3 * radius,
+            c.contactHierarchies, session.contactQueries(), c.cutMeshes, c.cutSurfaces);
+      QCOMPARE(c.contactHierarchies, radius > 0 ? 1L : 0L);
+      QCOMPARE(session.contactQueries() > 0, radius > 0);
+      QCOMPARE(c.cutMeshes, 0L);
+      QCOMPARE(c.cutSurfaces, 0L);
+      jaw.on = false;
+      session.post(jaw);
+      // A cut across the front: now the cutting structures exist.
+      const Eigen::Vector3d trocar = *session.setup().tools.trocar;
+      const Eigen::Vector3d along = (front - trocar).normalized(), across = along.cross(Eigen::Vector3d::UnitX()).normalized();
+      session.post(toolAt(front + 0.01 * along - 0.02 * across));
+      session.post(cutting(true));
+      session.post(toolAt(front + 0.01 * along + 0.02 * across));
+      session.post(cutting(false));
+      for (int k = 0; k < 10; ++k) QVERIFY(session.advance().ok);
+      c = session.constructions();
+      qInfo("after a cut: %ld re-meshings, %ld cut surfaces, %ld contact hierarchies", c.cutMeshes, c.cutSurfaces, c.contactHierarchies);
+      QVERIFY(c.cutMeshes >= 1);
+      QCOMPARE(c.cutSurfaces, c.cutMeshes);
+      QCOMPARE(c.contactHierarchies, radius > 0 ? 1 + c.cutMeshes : 0L);  // rebuilt for each new topology
+    }
+  }
+
   // A cut through the ligaments' attachment nodes: their copies stay attached (they do not move).
   void cutThroughAttachment() {
     simcore::BodySetup s = liverSetup();

@@ -344,7 +344,7 @@ void Session::updateToolConstraints() {
   tool_.contacts = 0;
   tool_.pierced = 0;
   contactConstraints_ = 0;
-  if (tool_.present && !tool_.cutting && setup_.tools.toolRadius > 0 && !contact_.nodes.empty() && setup_.tools.trocar) {
+  if (tool_.present && !tool_.cutting && setup_.tools.toolRadius > 0 && bvh_ && !contact_.nodes.empty() && setup_.tools.trocar) {
     ++contactQueries_;
     bvh_->refit(state_.x);
     auto X = [&](int i) { return Eigen::Vector3d(state_.x.segment<3>(3 * static_cast<Eigen::Index>(i))); };
@@ -431,8 +431,13 @@ void Session::updateSurfaceNodes() { useContactSurface(contactSurface(body_->res
 
 void Session::useContactSurface(ContactSurface c) {
   contact_ = std::move(c);
-  bvh_ = std::make_shared<PointBvh>();
-  bvh_->build(contact_.nodes, state_.x);
+  // The contact's bounding-volume hierarchy only where instruments have a shaft to touch with.
+  bvh_.reset();
+  if (setup_.tools.toolRadius > 0) {
+    bvh_ = std::make_shared<PointBvh>();
+    bvh_->build(contact_.nodes, state_.x);
+    ++constructions_.contactHierarchies;
+  }
 }
 
 void Session::apply(const InputEvent& e, std::string& message) {
@@ -565,6 +570,7 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     if (r.status.rfind("The cut was refused", 0) == 0) message = r.status;
     return false;
   }
+  ++constructions_.cutMeshes;
   BodySetup next = setup_;
   next.mesh.points = rest;
   next.mesh.unitToMetre = 1.0;
@@ -663,6 +669,7 @@ bool Session::finishPendingCut(bool wait, std::string& message) {
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
   useContactSurface(std::move(built.contact));
   surface_ = std::move(built.surface);
+  ++constructions_.cutSurfaces;
   updateToolConstraints();
   events_.push_back("cut");
   for (int label : p.cutLabels)
@@ -738,7 +745,10 @@ std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, co
   return out;
 }
 
-void Session::updateCutSurface() { surface_ = makeCutSurface(uncut_, setup_.mesh, meanEdge_); }
+void Session::updateCutSurface() {
+  surface_ = makeCutSurface(uncut_, setup_.mesh, meanEdge_);
+  ++constructions_.cutSurfaces;
+}
 
 StepReport Session::advance() {
   std::lock_guard<std::mutex> stepLock(stepMutex_);

@@ -164,6 +164,15 @@ class Session {
   const BodySetup& setup() const { return setup_; }
   /// Contact detections run so far (0 in a scene without instruments: none is built or run).
   long contactQueries() const { return contactQueries_; }
+  /// What the session built for its instruments (a scene builds only what it uses): the contact's
+  /// bounding-volume hierarchies (only with a shaft radius), the cuts' re-meshings and cut surfaces (only
+  /// once a blade cuts). Read on the session's thread or while it is paused.
+  struct Constructions {
+    long contactHierarchies = 0;
+    long cutMeshes = 0;
+    long cutSurfaces = 0;
+  };
+  Constructions constructions() const { return constructions_; }
 
  private:
   void apply(const InputEvent& e, std::string& message);
@@ -211,6 +220,7 @@ class Session {
   void useContactSurface(ContactSurface c);
   std::shared_ptr<PointBvh> bvh_;  ///< over surfaceNodes_, refitted before each contact query
   long contactQueries_ = 0;
+  Constructions constructions_;
   int contactConstraints_ = 0;  ///< contact constraints in the body now (touching or within reach)
   SimulationState state_;
   ToolState tool_;
