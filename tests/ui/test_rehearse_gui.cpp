@@ -18,6 +18,7 @@
 #include <rehearse/simcore/session/forceloop.hpp>
 
 #include <optional>
+#include <QScopeGuard>
 #include <QSignalSpy>
 #include <QStandardPaths>
 
@@ -86,6 +87,8 @@ class TestRehearseGui : public QObject {
       if (!fr->tool.held.empty() && !tipAtGrasp) tipAtGrasp = fr->tool.tip;
       if (!fr->message.isEmpty()) slipMessage = fr->message;
     });
+    // A failed check returns early: the connection (it holds this slot's locals) goes with the scope.
+    const auto unwatch = qScopeGuard([&] { disconnect(watching); });
     const std::vector<Eigen::Vector3d> settled = panel->lastFrame()->positions;
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     const bool grasped = waitFor([&] { return panel->lastFrame() && !panel->lastFrame()->tool.held.empty(); }, 20000);
@@ -150,7 +153,12 @@ class TestRehearseGui : public QObject {
     QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }));
     QVERIFY(waitFor([&] { return w_->findChild<QLabel*>("rehearseStatus")->text().startsWith("Released"); }, 10000));
-    QCOMPARE(panel->lastFrame()->tool.force.norm(), 0.0);
+    {  // nothing held: the tool's force is the shaft's contact only (the released tissue may spring onto it)
+      const auto r = panel->lastFrame();
+      qInfo("released: tool force %.3f N with %d triangles touching the shaft", r->tool.force.norm(), r->tool.contacts);
+      QVERIFY(r->tool.held.empty());
+      QVERIFY(r->tool.force.norm() == 0.0 || r->tool.contacts > 0);
+    }
     // Let go, the bitten tissue relaxes towards where it had settled.
     const long released = panel->lastFrame()->steps;
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > released + 100; }));
@@ -159,7 +167,6 @@ class TestRehearseGui : public QObject {
       before = std::max(before, (f->positions[static_cast<std::size_t>(i)] - settled[static_cast<std::size_t>(i)]).norm());
       after = std::max(after, (panel->lastFrame()->positions[static_cast<std::size_t>(i)] - settled[static_cast<std::size_t>(i)]).norm());
     }
-    disconnect(watching);  // it holds this slot's locals
     qInfo("released: the bitten nodes %.1f mm from where they had settled while pulled, %.1f mm after 100 steps", 1e3 * before, 1e3 * after);
     QVERIFY(after < 0.3 * before);
     panel->pause();

@@ -1,4 +1,5 @@
 #include "rehearse/ui/simulationpanel.hpp"
+#include "rehearse/ui/throttle.hpp"
 
 #include <rehearse/app/materials.hpp>
 
@@ -388,6 +389,11 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   buttons->addWidget(resetButton_);
   layout->addLayout(buttons);
   status_ = new QLabel(this);
+  statusThrottle_ = std::make_unique<Throttle>(this, [this] {
+    const QString text = statusText();
+    status_->setText(text);
+    emit statusChanged(text);
+  });
   status_->setObjectName(QStringLiteral("simStatus"));
   status_->setWordWrap(true);
   layout->addWidget(status_);
@@ -585,9 +591,7 @@ void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
     rate_.clock.restart();
     rate_.frames = 0;
   }
-  const QString text = statusText();
-  status_->setText(text);
-  emit statusChanged(text);
+  statusThrottle_->request();  // the status line at most 15 times a second, the newest always shown
   emit frameShown(f->steps);
 }
 

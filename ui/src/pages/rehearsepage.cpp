@@ -1,6 +1,7 @@
 #include "rehearse/ui/pages/rehearsepage.hpp"
 
 #include "rehearse/ui/simulationpanel.hpp"
+#include "rehearse/ui/throttle.hpp"
 
 #include <rehearse/simcore/session/forceloop.hpp>
 
@@ -40,6 +41,11 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   status_->setWordWrap(true);
   layout->addWidget(status_);
   force_ = new QLabel(this);
+  labelThrottle_ = std::make_unique<Throttle>(this, [this] {
+    if (pendingStatus_) status_->setText(*pendingStatus_);
+    pendingStatus_.reset();
+    force_->setText(forceText_);
+  });
   force_->setObjectName(QStringLiteral("rehearseForce"));
   QFont big = force_->font();
   big.setPointSizeF(big.pointSizeF() * 1.4);
@@ -120,28 +126,32 @@ void RehearsePage::refresh(const app::Case& c) {
     status_->setText(tr("Pick the grasper (R) or the scissors (B) and press on the organ."));
 }
 
+RehearsePage::~RehearsePage() = default;
+
 void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!f) return;
   slips_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "slip"));
   cuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "cut"));
   vesselCuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "vessel cut"));
+  auto status = [this](const QString& text) { pendingStatus_ = text; };
   const auto& t = f->tool;
   if (t.cutting)
-    status_->setText(tr("Cutting: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
+    status(tr("Cutting: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
   else if (!t.held.empty())
-    status_->setText(tr("Holding %n node(s) of tissue.", nullptr, static_cast<int>(t.held.size())));
+    status(tr("Holding %n node(s) of tissue.", nullptr, static_cast<int>(t.held.size())));
   else if (t.jawClosed)
-    status_->setText(f->message.isEmpty() ? tr("The jaws are closed on nothing.") : f->message);
+    status(f->message.isEmpty() ? tr("The jaws are closed on nothing.") : f->message);
   else if (std::find(f->events.begin(), f->events.end(), "release") != f->events.end())
-    status_->setText(tr("Released: the tissue relaxes."));
-  else if (cuts_ > 0 && status_->text().startsWith(tr("Cutting")))
-    status_->setText(tr("Cut: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
+    status(tr("Released: the tissue relaxes."));
+  else if (cuts_ > 0 && pendingStatus_.value_or(status_->text()).startsWith(tr("Cutting")))
+    status(tr("Cut: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
   QString extra;
   if (slips_) extra += tr("   slips: %1").arg(slips_);
   if (cuts_) extra += tr("   cuts: %1").arg(cuts_);
   if (vesselCuts_) extra += tr("   vessels cut: %1").arg(vesselCuts_);
-  force_->setText(tr("Tool force %1 N%2").arg(t.force.norm(), 0, 'f', 2).arg(extra));
-  if (!f->message.isEmpty() && f->message.contains(tr("vessel"))) status_->setText(f->message);
+  forceText_ = tr("Tool force %1 N%2").arg(t.force.norm(), 0, 'f', 2).arg(extra);
+  if (!f->message.isEmpty() && f->message.contains(tr("vessel"))) status(f->message);
+  labelThrottle_->request();  // the labels at most 15 times a second, the newest always shown
 }
 
 }  // namespace rehearse::ui

@@ -23,6 +23,10 @@ class QLabel;
 class QPushButton;
 
 namespace rehearse::ui {
+class Throttle;
+}
+
+namespace rehearse::ui {
 
 /// What the simulation runs: the case's organ as the frame shows it (its fitted shape once there is one,
 /// posed in the camera frame, metres), its attachments, the case's material and the run's parameters.
@@ -162,6 +166,7 @@ class SimulationPanel : public QWidget {
   QPushButton* stepButton_ = nullptr;
   QPushButton* resetButton_ = nullptr;
   QLabel* status_ = nullptr;
+  std::unique_ptr<Throttle> statusThrottle_;
   std::shared_ptr<const app::Case> organ_;
   std::shared_ptr<const SimulationFrame> last_;
   bool playing_ = false;

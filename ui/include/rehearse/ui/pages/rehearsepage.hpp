@@ -6,6 +6,7 @@
 
 #include <functional>
 #include <memory>
+#include <optional>
 
 class QLabel;
 class QLineSeries;
@@ -17,6 +18,10 @@ class ForceLoop;
 }
 
 namespace rehearse::ui {
+class Throttle;
+}
+
+namespace rehearse::ui {
 
 struct SimulationFrame;
 
@@ -24,6 +29,7 @@ class RehearsePage : public StepPage {
   Q_OBJECT
  public:
   explicit RehearsePage(Workbench& wb, QWidget* parent = nullptr);
+  ~RehearsePage() override;
   void refresh(const app::Case& c) override;
   /// A simulation snapshot was shown: the instrument's state in words.
   void showFrame(const std::shared_ptr<const SimulationFrame>& f);
@@ -46,6 +52,9 @@ class RehearsePage : public StepPage {
   QTimer* chartTimer_ = nullptr;
   QLabel* status_ = nullptr;
   QLabel* force_ = nullptr;
+  std::optional<QString> pendingStatus_;  // set per frame, shown through labelThrottle_
+  QString forceText_;
+  std::unique_ptr<Throttle> labelThrottle_;
   int slips_ = 0, cuts_ = 0, vesselCuts_ = 0;
 };
 
