@@ -6,6 +6,7 @@
 #include "rehearse/app/elasticfit.hpp"
 #include "rehearse/app/appearancestep.hpp"
 #include "rehearse/app/gesture.hpp"
+#include "rehearse/app/recording.hpp"
 #include "rehearse/app/materials.hpp"
 
 #include <rehearse/imaging/camera.hpp>
@@ -29,6 +30,7 @@
 #include <iostream>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <sstream>
 
 #include <unistd.h>
@@ -623,8 +625,9 @@ int cmdCompose(const std::vector<std::string>& args) {
 int cmdGesture(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
                         {"case", "scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes", "gravity",
-                         "script", "out", "report", "method", "refresh"},
+                         "script", "out", "report", "method", "refresh", "record", "trainee", "notes"},
                         {});
+  if ((o.count("trainee") || o.count("notes")) && !o.count("record")) throw UsageError("--trainee and --notes go with --record CASE");
   if (!o.count("script")) throw UsageError("gesture needs --script G.json (README, File formats)");
   if (!o.count("out")) throw UsageError("gesture needs --out OUT.vtu|.vtk|.msh");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
@@ -671,7 +674,30 @@ int cmdGesture(const std::vector<std::string>& args) {
   }
   mesh.convertToMetres();
   setup.mesh = mesh;
-  const GestureResult r = runGesture(setup, script);
+  // --record: the session (setup, events, a state checksum every 10 steps) written into CASE as it runs.
+  std::unique_ptr<Recorder> recorder;
+  GestureHooks hooks;
+  if (o.count("record")) {
+    SessionMeta meta;
+    meta.trainee = o.count("trainee") ? o["trainee"] : "";
+    meta.notes = o.count("notes") ? o["notes"] : "";
+    meta.caseName = o.count("case") ? o["case"] : o.count("preset") ? "preset " + o["preset"] : o.count("scene") ? o["scene"] : o.count("mesh") ? o["mesh"] : "";
+    meta.sceneVersion = o["script"];
+    meta.appVersion = REHEARSE_VERSION;
+    hooks.start = [&recorder, meta, path = o["record"]](const simcore::BodySetup& s) {
+      try {
+        recorder = std::make_unique<Recorder>(path, meta, s);
+      } catch (const std::runtime_error& e) {
+        throw UsageError(e.what());
+      }
+    };
+    hooks.step = [&](const simcore::Session& session, long step) { recorder->afterStep(step, session.recorded(), session.state()); };
+  }
+  const GestureResult r = runGesture(setup, script, hooks);
+  if (recorder) {
+    recorder->finish(static_cast<long>(r.steps.size()));
+    std::printf("recorded: session %lld in %s (%zu steps)\n", static_cast<long long>(recorder->id()), o["record"].c_str(), r.steps.size());
+  }
   const simcore::Mesh& out = r.finalMesh;
   simcore::saveMesh(out, o["out"]);
   double peak = 0, wall = 0;
@@ -699,6 +725,48 @@ int cmdGesture(const std::vector<std::string>& args) {
               o["out"].c_str());
   if (r.failed) std::fprintf(stderr, "rehearse: %zu steps failed\n", r.failed);
   return r.failed ? 3 : 0;
+}
+
+// rehearse replay CASE: the recorded sessions of a case file (issue 16); --verify re-simulates one and compares
+// every recorded state checksum (exit 4 on a mismatch).
+int cmdReplay(const std::vector<std::string>& args) {
+  if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("replay needs the case file: rehearse replay CASE [--session ID] [--verify]");
+  const std::string file = args[2];
+  auto o = parseOptions(args, 3, {"session", "metrics"}, {"verify", "list"});
+  if (!std::filesystem::exists(file)) throw UsageError(file + " does not exist");
+  if (!o.count("session")) {
+    const auto sessions = listRecordings(file);
+    if (sessions.empty()) std::printf("%s holds no recorded session\n", file.c_str());
+    for (const auto& s : sessions)
+      std::printf("session %lld  %s  trainee '%s'  case '%s'  %ld steps%s\n", static_cast<long long>(s.id), s.startedUtc.c_str(), s.meta.trainee.c_str(),
+                  s.meta.caseName.c_str(), s.steps, s.complete ? "" : "  (cut short)");
+    if (o.count("verify")) throw UsageError("--verify needs --session ID (the list above)");
+    return 0;
+  }
+  std::int64_t id = 0;
+  try {
+    std::size_t used = 0;
+    id = std::stoll(o["session"], &used);
+    if (used != o["session"].size()) throw std::invalid_argument("trailing");
+  } catch (const std::exception&) {
+    throw UsageError("--session takes a session number, not '" + o["session"] + "'");
+  }
+  const Recording rec = loadRecording(file, id);
+  std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(), rec.checksums.size(), rec.summary.steps,
+              rec.summary.complete ? "" : " (cut short: what was recorded is replayed)");
+  if (!o.count("verify")) return 0;
+  const VerifyResult v = verifyRecording(rec);
+  if (v.mismatches) {
+    std::fprintf(stderr, "rehearse: session %lld does not replay: %ld of %ld checksums differ, the first after step %ld\n", static_cast<long long>(id), v.mismatches,
+                 v.checked, v.firstMismatch);
+    return 4;
+  }
+  if (v.checked == 0) {
+    std::fprintf(stderr, "rehearse: session %lld has no checksum to verify against\n", static_cast<long long>(id));
+    return 4;
+  }
+  std::printf("verified: %ld steps replayed, all %ld checksums match\n", v.steps, v.checked);
+  return 0;
 }
 
 std::string usage() {
@@ -749,6 +817,11 @@ std::string usage() {
          "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through the\n"
          "                                   simulation session without a window; the report has a row per step (wall time,\n"
          "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"
+         "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum every\n"
+         "                                   10 steps) written into CASE (a .rehearse file) as it runs\n"
+         "  rehearse replay CASE [--session ID [--verify]]\n"
+         "                                   the sessions recorded in CASE; --verify re-simulates one and compares every\n"
+         "                                   recorded checksum (exit 4 when one differs)\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL), --opengl (OpenGL even\n"
          "  through a software rasteriser such as llvmpipe, which is otherwise not used)\n"
@@ -781,6 +854,7 @@ int runCli(const std::vector<std::string>& args, bool& handled) {
     if (cmd == "appearance") return cmdAppearance(args);
     if (cmd == "compose") return cmdCompose(args);
     if (cmd == "gesture") return cmdGesture(args);
+    if (cmd == "replay") return cmdReplay(args);
     throw UsageError("unknown command '" + cmd + "'; see 'rehearse --help'");
   } catch (const UsageError& e) {
     std::fprintf(stderr, "rehearse: %s\n", e.what());

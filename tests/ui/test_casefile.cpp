@@ -1,5 +1,6 @@
 // Case files (SQLite through Qt SQL): every field survives save and reopen; killing the program
 // during a save never corrupts the last saved case; damaged files and parts give clear messages.
+#include <rehearse/app/recording.hpp>
 #include "test_support.hpp"
 
 #include "phantom/phantom.hpp"
@@ -158,6 +159,38 @@ class TestCaseFile : public QObject {
     // Saving again over it replaces it whole and leaves no temporary file behind.
     ui::saveCaseFile(back, path);
     QCOMPARE(QDir(QFileInfo(path).absolutePath()).entryList({"phantom.rehearse.saving-*"}).size(), 0);
+  }
+
+  // A rehearsal recorded into the case file survives the case being saved again (the save writes a new file
+  // and renames it over the old one): listed, and its recorded states still replay bit for bit.
+  void recordedRehearsalsSurviveSaving() {
+    const QString path = QString::fromStdString(tempPath("recorded.rehearse"));
+    ui::saveCaseFile(phantomCase(), path);
+    simcore::BodySetup s;  // one tetrahedron hanging from three fixed nodes
+    s.mesh.points = {{0, 0, 0}, {0.01, 0, 0}, {0, 0.01, 0}, {0, 0, 0.01}};
+    s.mesh.tets = {{0, 1, 2, 3}};
+    s.mesh.tetLabels = {1};
+    s.fixedNodes = {0, 1, 2};
+    s.settings.method = simcore::NewtonMethod::Exact;
+    std::int64_t id = 0;
+    {
+      app::Recorder rec(QFile::encodeName(path).toStdString(), {"trainee", "phantom", "v1", "test", ""}, s, 5);
+      simcore::Session session(s);
+      for (long k = 1; k <= 20; ++k) {
+        session.advance();
+        rec.afterStep(k, session.recorded(), session.state());
+      }
+      rec.finish(20);
+      id = rec.id();
+    }
+    ui::saveCaseFile(ui::loadCaseFile(path), path);
+    const auto sessions = app::listRecordings(QFile::encodeName(path).toStdString());
+    QCOMPARE(sessions.size(), std::size_t(1));
+    QCOMPARE(sessions.front().meta.trainee, std::string("trainee"));
+    const auto v = app::verifyRecording(app::loadRecording(QFile::encodeName(path).toStdString(), id));
+    QCOMPARE(v.checked, 4L);
+    QCOMPARE(v.mismatches, 0L);
+    compareCases(phantomCase(), ui::loadCaseFile(path));
   }
 
   // A child process saves in a loop and is killed with SIGKILL at random moments; each time the file

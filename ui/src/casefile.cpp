@@ -1,5 +1,7 @@
 #include "rehearse/ui/casefile.hpp"
 
+#include <rehearse/app/recording.hpp>
+
 #include <rehearse/app/appearancestep.hpp>
 #include <rehearse/app/materials.hpp>
 #include <rehearse/imaging/camera.hpp>
@@ -216,6 +218,15 @@ void saveCaseFile(const app::Case& c, const QString& path) {
       part("ground_truth", "json", bytes(gt.dump()));
     }
     if (!db.commit()) fail(QStringLiteral("Cannot write %1: %2.").arg(path, sqlProblem(db.lastError())));
+  }
+  // Rehearsals recorded into the case (issue 16) are carried into the new file.
+  if (QFileInfo::exists(path) && isCaseFile(path)) {
+    try {
+      app::copyRecordings(QFile::encodeName(path).toStdString(), QFile::encodeName(tmp).toStdString());
+    } catch (const std::runtime_error& e) {
+      QFile::remove(tmp);
+      fail(QStringLiteral("Cannot save %1: %2. The previous file is unchanged.").arg(path, QString::fromStdString(e.what())));
+    }
   }
   fsyncFile(tmp);
   if (::rename(QFile::encodeName(tmp).constData(), QFile::encodeName(path).constData()) != 0) {

@@ -100,7 +100,7 @@ GestureScript parseGestureScript(const std::string& text) {
   return s;
 }
 
-GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) {
+GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, const GestureHooks& hooks) {
   if (script.dt > 0) setup.settings.timeStep = script.dt;
   if (script.graspRadius) setup.tools.graspRadius = *script.graspRadius;
   if (script.maxGraspForce) setup.tools.maxGraspForce = *script.maxGraspForce;
@@ -109,6 +109,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
   if (script.toolRadius) setup.tools.toolRadius = *script.toolRadius;
   const double h = setup.settings.timeStep;
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
+  if (hooks.start) hooks.start(setup);
   simcore::Session session(setup);
   GestureResult out;
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();
@@ -188,6 +189,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script) 
     out.vesselCuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "vessel cut"));
     out.failed += !rep.ok;
     out.steps.push_back(std::move(row));
+    if (hooks.step) hooks.step(session, snap->step);
   }
   out.final = session.state();
   out.contactQueries = session.contactQueries();

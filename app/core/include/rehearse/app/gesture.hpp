@@ -14,6 +14,7 @@
 // "blade_length_mm" and "trocar": [x, y, z] (where the shafts enter; the blade lies on the shaft).
 #include <rehearse/simcore/session/session.hpp>
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -62,7 +63,13 @@ struct GestureResult {
   simcore::Mesh finalMesh;  ///< the volume at the end: nodes and elements after any cut, at the final positions
 };
 
+/// Called as the script runs (e.g. to record it): `start` with the setup the session is built from (the
+/// script's tools and time step applied), `step` after each step with the session.
+struct GestureHooks {
+  std::function<void(const simcore::BodySetup&)> start;
+  std::function<void(const simcore::Session&, long step)> step;
+};
 /// Runs the script on a session built from `setup` (its tools and time step set from the script).
-GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script);
+GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, const GestureHooks& hooks = {});
 
 }  // namespace rehearse::app

@@ -1,0 +1,147 @@
+// Recorded rehearsals (issue 16), run as a user would: `rehearse gesture --record CASE` writes the session
+// into a SQLite file as it runs; `rehearse replay CASE --session ID --verify` re-simulates it and compares
+// every recorded state checksum; a tampered checksum is caught; a recording killed with SIGKILL at random
+// moments leaves a file that opens whole and whose recorded part replays and verifies.
+#include <rehearse/app/recording.hpp>
+
+#include <QDir>
+#include <QElapsedTimer>
+#include <QProcess>
+#include <QTemporaryDir>
+#include <QtTest>
+
+#include <sqlite3.h>
+
+#include <random>
+
+using namespace rehearse;
+
+namespace {
+struct Run {
+  int code;
+  QString out, err;
+};
+Run run(const QStringList& args, int timeoutMs = 300000) {
+  QProcess p;
+  p.start(QStringLiteral(REHEARSE_BINARY), args);
+  p.waitForFinished(timeoutMs);
+  return {p.exitStatus() == QProcess::NormalExit ? p.exitCode() : -1, QString::fromUtf8(p.readAllStandardOutput()),
+          QString::fromUtf8(p.readAllStandardError())};
+}
+QString script(const char* name) { return QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/" + name; }
+QStringList gestureArgs(const QString& dir, const char* scriptName, const QString& file) {
+  return {"gesture", "--preset", "liver", "--script", script(scriptName), "--method", "linearised", "--refresh", "async", "--out", dir + "/out.vtu",
+          "--record", file, "--trainee", "A. Trainee"};
+}
+}  // namespace
+
+class TestRecording : public QObject {
+  Q_OBJECT
+ private slots:
+  void initTestCase() { QStandardPaths::setTestModeEnabled(true); }
+
+  // Two sessions into one file (grasp-pull, then cut-across, both with the asynchronous refresh the GUI
+  // uses: the factor swaps and cuts applied by the second thread are recorded events); both verify.
+  void recordAndVerify() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    const Run a = run(gestureArgs(dir.path(), "grasp-pull.json", file));
+    QVERIFY2(a.code == 0, qPrintable(a.err));
+    QVERIFY2(a.out.contains("recorded: session 1"), qPrintable(a.out));
+    const Run b = run(gestureArgs(dir.path(), "cut-across.json", file));
+    QVERIFY2(b.code == 0, qPrintable(b.err));
+    QVERIFY2(b.out.contains("recorded: session 2"), qPrintable(b.out));
+    const Run list = run({"replay", file});
+    QCOMPARE(list.code, 0);
+    QVERIFY2(list.out.contains("session 1") && list.out.contains("session 2") && list.out.contains("A. Trainee"), qPrintable(list.out));
+    QVERIFY(!list.out.contains("cut short"));
+    for (const char* id : {"1", "2"}) {
+      const auto rec = app::loadRecording(file.toStdString(), std::stoll(id));
+      long factors = 0, cuts = 0;
+      for (const auto& e : rec.events) {
+        factors += e.kind == simcore::InputKind::Factor;
+        cuts += e.kind == simcore::InputKind::CutApplied;
+      }
+      const Run v = run({"replay", file, "--session", id, "--verify"});
+      qInfo("session %s: %zu events (%ld factor swaps, %ld cuts applied), %zu checksums over %ld steps: %s", id, rec.events.size(), factors, cuts,
+            rec.checksums.size(), rec.summary.steps, qPrintable(v.out.trimmed().split('\n').last()));
+      QVERIFY2(v.code == 0, qPrintable(v.err));
+      QCOMPARE(static_cast<long>(rec.checksums.size()), rec.summary.steps / 10);  // one every 10 steps
+      QVERIFY(v.out.contains(QString("all %1 checksums match").arg(rec.checksums.size())));
+      QVERIFY(rec.summary.complete);
+      QCOMPARE(QString::fromStdString(rec.summary.meta.trainee), QStringLiteral("A. Trainee"));
+    }
+  }
+
+  // A checksum changed in the file: --verify says where and exits 4; a missing session is one line, exit 1.
+  void tamperedChecksumIsCaught() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QCOMPARE(run(gestureArgs(dir.path(), "grasp-pull.json", file)).code, 0);
+    sqlite3* db = nullptr;
+    QCOMPARE(sqlite3_open(file.toUtf8().constData(), &db), SQLITE_OK);
+    QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checksums SET checksum = '12345' WHERE step = 200", nullptr, nullptr, nullptr), SQLITE_OK);
+    QCOMPARE(sqlite3_changes(db), 1);
+    sqlite3_close(db);
+    const Run v = run({"replay", file, "--session", "1", "--verify"});
+    QCOMPARE(v.code, 4);
+    QCOMPARE(v.err.trimmed().count('\n'), 0);
+    QVERIFY2(v.err.contains("1 of 35 checksums differ, the first after step 200"), qPrintable(v.err));
+    const Run missing = run({"replay", file, "--session", "7", "--verify"});
+    QCOMPARE(missing.code, 1);
+    QVERIFY2(missing.err.contains("no recorded session 7"), qPrintable(missing.err));
+    const Run notSqlite = run({"replay", QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json", "--session", "1"});
+    QCOMPARE(notSqlite.code, 1);
+    QCOMPARE(notSqlite.err.trimmed().count('\n'), 0);
+  }
+
+  // SIGKILL at random moments of a recording: the file opens whole every time, the session is listed (cut
+  // short), and what it holds replays and verifies.
+  void killedRecordingsOpenAndVerify() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    // How long a whole recording takes here: the kills fall anywhere in it (from the start of the process).
+    QElapsedTimer whole;
+    whole.start();
+    QCOMPARE(run(gestureArgs(dir.path(), "grasp-pull.json", file)).code, 0);
+    const int fullMs = static_cast<int>(whole.elapsed());
+    std::mt19937 rng(20261125);
+    std::uniform_int_distribution<int> when(fullMs / 10, fullMs - 50);
+    int verifiedSessions = 0, killedBeforeARow = 0;
+    long verifiedChecksums = 0;
+    std::size_t listed = app::listRecordings(file.toStdString()).size();
+    for (int k = 0; k < 20; ++k) {
+      QProcess p;
+      p.start(QStringLiteral(REHEARSE_BINARY), gestureArgs(dir.path(), "grasp-pull.json", file));
+      QVERIFY(p.waitForStarted());
+      const int ms = when(rng);
+      p.waitForFinished(ms);
+      if (p.state() != QProcess::NotRunning) p.kill();  // SIGKILL
+      p.waitForFinished();
+      const auto sessions = app::listRecordings(file.toStdString());  // opens whole
+      QVERIFY(sessions.size() >= listed);
+      if (sessions.size() == listed) {  // killed before the session began (the body was being built)
+        ++killedBeforeARow;
+        continue;
+      }
+      listed = sessions.size();
+      const auto& last = sessions.back();
+      const auto rec = app::loadRecording(file.toStdString(), last.id);
+      const auto v = app::verifyRecording(rec);
+      QCOMPARE(v.mismatches, 0L);
+      verifiedChecksums += v.checked;
+      ++verifiedSessions;
+    }
+    const auto sessions = app::listRecordings(file.toStdString());
+    int cutShort = 0;
+    for (const auto& s : sessions) cutShort += !s.complete;
+    qInfo("a whole recording %d ms; 20 killed at random moments: %d before their session began, %zu sessions in the file (%d cut short), %d verified "
+          "(%ld checksums), none differs",
+          fullMs, killedBeforeARow, sessions.size(), cutShort, verifiedSessions, verifiedChecksums);
+    QVERIFY(cutShort > 0);
+    QVERIFY(verifiedChecksums > 0);
+  }
+};
+
+QTEST_MAIN(TestRecording)
+#include "test_recording.moc"
