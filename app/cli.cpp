@@ -732,7 +732,7 @@ int cmdGesture(const std::vector<std::string>& args) {
 int cmdReplay(const std::vector<std::string>& args) {
   if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("replay needs the case file: rehearse replay CASE [--session ID] [--verify]");
   const std::string file = args[2];
-  auto o = parseOptions(args, 3, {"session", "metrics"}, {"verify", "list"});
+  auto o = parseOptions(args, 3, {"session", "metrics", "force-threshold"}, {"verify", "list"});
   if (!std::filesystem::exists(file)) throw UsageError(file + " does not exist");
   if (!o.count("session")) {
     const auto sessions = listRecordings(file);
@@ -754,8 +754,21 @@ int cmdReplay(const std::vector<std::string>& args) {
   const Recording rec = loadRecording(file, id);
   std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(), rec.checksums.size(), rec.summary.steps,
               rec.summary.complete ? "" : " (cut short: what was recorded is replayed)");
+  if (!o.count("verify") && !o.count("metrics")) return 0;
+  const double threshold = o.count("force-threshold") ? parseNumber(o["force-threshold"], "--force-threshold") : 10.0;
+  if (!(threshold >= 0)) throw UsageError("--force-threshold must be a force in N, 0 or more");
+  const ReplayResult replayed = replayRecording(rec, threshold);
+  if (o.count("metrics")) {
+    const SessionMetrics& m = replayed.metrics;
+    writeReport(o["metrics"], {{"session", id}, {"trainee", rec.summary.meta.trainee}, {"started_utc", rec.summary.startedUtc},
+                               {"duration_s", m.durationS}, {"path_length_m", m.pathLengthM}, {"economy_of_motion", m.economy},
+                               {"grasps", m.grasps}, {"slips", m.slips}, {"cut_updates", m.cuts}, {"vessel_cuts", m.vesselCuts},
+                               {"max_force_n", m.maxForceN}, {"mean_force_n", m.meanForceN}, {"force_threshold_n", m.forceThresholdN},
+                               {"time_over_threshold_s", m.timeOverThresholdS}});
+    std::printf("metrics written to %s\n", o["metrics"].c_str());
+  }
   if (!o.count("verify")) return 0;
-  const VerifyResult v = verifyRecording(rec);
+  const VerifyResult& v = replayed.verify;
   if (v.mismatches) {
     std::fprintf(stderr, "rehearse: session %lld does not replay: %ld of %ld checksums differ, the first after step %ld\n", static_cast<long long>(id), v.mismatches,
                  v.checked, v.firstMismatch);
@@ -819,9 +832,11 @@ std::string usage() {
          "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"
          "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum every\n"
          "                                   10 steps) written into CASE (a .rehearse file) as it runs\n"
-         "  rehearse replay CASE [--session ID [--verify]]\n"
+         "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json [--force-threshold N]]]\n"
          "                                   the sessions recorded in CASE; --verify re-simulates one and compares every\n"
-         "                                   recorded checksum (exit 4 when one differs)\n"
+         "                                   recorded checksum (exit 4 when one differs); --metrics writes the session's\n"
+         "                                   duration, path length, economy of motion, grasps, slips, cuts, forces and the\n"
+         "                                   time over the force threshold (10 N by default)\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL), --opengl (OpenGL even\n"
          "  through a software rasteriser such as llvmpipe, which is otherwise not used)\n"

@@ -5,6 +5,10 @@
 #include <rehearse/app/recording.hpp>
 
 #include <QDir>
+#include <QFile>
+#include <QJsonArray>
+#include <QJsonDocument>
+#include <QJsonObject>
 #include <QElapsedTimer>
 #include <QProcess>
 #include <QTemporaryDir>
@@ -71,6 +75,54 @@ class TestRecording : public QObject {
       QVERIFY(rec.summary.complete);
       QCOMPARE(QString::fromStdString(rec.summary.meta.trainee), QStringLiteral("A. Trainee"));
     }
+  }
+
+  // Metrics of a scripted session against values computed by hand from the script (the grasper bites once
+  // and is moved by (4.16, 7.32, -18.14) mm in a straight line; 350 steps of 10 ms) and from the live run's own
+  // per-step report (forces: the same steps, replayed bit for bit, computed by other code).
+  void metricsMatchTheScriptAndTheLiveRun() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QStringList args = gestureArgs(dir.path(), "grasp-pull.json", file);
+    args << "--report" << dir.path() + "/live.json";
+    QCOMPARE(run(args).code, 0);
+    const Run m = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/metrics.json", "--force-threshold", "2"});
+    QVERIFY2(m.code == 0, qPrintable(m.err));
+    QFile mf(dir.path() + "/metrics.json"), lf(dir.path() + "/live.json");
+    QVERIFY(mf.open(QIODevice::ReadOnly) && lf.open(QIODevice::ReadOnly));
+    const QJsonObject metrics = QJsonDocument::fromJson(mf.readAll()).object();
+    const QJsonArray rows = QJsonDocument::fromJson(lf.readAll()).object().value("steps").toArray();
+    QCOMPARE(rows.size(), 350);
+    double maxF = 0, sumF = 0, over = 0;
+    int withForce = 0;
+    for (const auto& row : rows) {
+      const QJsonArray f = row.toObject().value("tool_force_n").toArray();
+      const double n = std::sqrt(f[0].toDouble() * f[0].toDouble() + f[1].toDouble() * f[1].toDouble() + f[2].toDouble() * f[2].toDouble());
+      maxF = std::max(maxF, n);
+      if (n > 0) {
+        sumF += n;
+        ++withForce;
+      }
+      if (n > 2.0) over += 0.01;
+    }
+    // The move is spread evenly over its 100 steps, the first of them the step the tip appears at (already
+    // 1/100 along): from where it appears the tip travels 99/100 of the move.
+    const double path = 0.99 * std::sqrt(0.00416 * 0.00416 + 0.00732 * 0.00732 + 0.01814 * 0.01814);
+    qInfo("metrics: duration %.3f s, path %.6f m (script %.6f), economy %.9f, grasps %d, slips %d, max force %.4f N (live %.4f), mean %.4f N (live %.4f), "
+          "over 2 N %.2f s (live %.2f)",
+          metrics["duration_s"].toDouble(), metrics["path_length_m"].toDouble(), path, metrics["economy_of_motion"].toDouble(), metrics["grasps"].toInt(),
+          metrics["slips"].toInt(), metrics["max_force_n"].toDouble(), maxF, metrics["mean_force_n"].toDouble(), sumF / withForce,
+          metrics["time_over_threshold_s"].toDouble(), over);
+    QVERIFY(std::abs(metrics["duration_s"].toDouble() - 3.5) < 1e-12);
+    QVERIFY(std::abs(metrics["path_length_m"].toDouble() - path) < 1e-9);
+    QVERIFY(std::abs(metrics["economy_of_motion"].toDouble() - 1.0) < 1e-9);
+    QCOMPARE(metrics["grasps"].toInt(), 1);
+    QCOMPARE(metrics["slips"].toInt(), 0);
+    QCOMPARE(metrics["cut_updates"].toInt(), 0);
+    QVERIFY(maxF > 2.0 && over > 0);  // the threshold is crossed: the time over it is a real figure
+    QVERIFY(std::abs(metrics["max_force_n"].toDouble() - maxF) <= 1e-9 * maxF);
+    QVERIFY(std::abs(metrics["mean_force_n"].toDouble() - sumF / withForce) <= 1e-9 * maxF);
+    QVERIFY(std::abs(metrics["time_over_threshold_s"].toDouble() - over) < 1e-9);
   }
 
   // A checksum changed in the file: --verify says where and exits 4; a missing session is one line, exit 1.

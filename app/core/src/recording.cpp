@@ -434,20 +434,60 @@ int copyRecordings(const std::string& from, const std::string& to) {
   return sessions;
 }
 
-VerifyResult verifyRecording(const Recording& r) {
-  VerifyResult v;
-  const long steps = r.checksums.empty() ? r.summary.steps : r.checksums.rbegin()->first;
-  simcore::replay(r.setup, r.events, steps, [&](long step, const simcore::SimulationState& s) {
+VerifyResult verifyRecording(const Recording& r) { return replayRecording(r).verify; }
+
+ReplayResult replayRecording(const Recording& r, double forceThresholdN) {
+  ReplayResult out;
+  VerifyResult& v = out.verify;
+  SessionMetrics& m = out.metrics;
+  m.forceThresholdN = forceThresholdN;
+  // simcore::replay's loop, reading each step's snapshot too (the tool and the events).
+  simcore::BodySetup setup = r.setup;
+  if (setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous) setup.settings.factorRefresh = simcore::FactorRefresh::Deferred;
+  simcore::Session session(setup);
+  for (const auto& e : r.events) session.post(e);
+  const long steps = r.summary.complete || r.checksums.empty() ? r.summary.steps : r.checksums.rbegin()->first;
+  const double h = setup.settings.timeStep;
+  bool seen = false;
+  Eigen::Vector3d first = Eigen::Vector3d::Zero(), last = Eigen::Vector3d::Zero();
+  double forceSum = 0;
+  long forceSteps = 0;
+  for (long step = 1; step <= steps; ++step) {
+    session.advance();
     ++v.steps;
-    const auto it = r.checksums.find(step);
-    if (it == r.checksums.end()) return;
-    ++v.checked;
-    if (stateChecksum(s) != it->second) {
-      ++v.mismatches;
-      if (v.firstMismatch < 0) v.firstMismatch = step;
+    if (const auto it = r.checksums.find(step); it != r.checksums.end()) {
+      ++v.checked;
+      if (stateChecksum(session.state()) != it->second) {
+        ++v.mismatches;
+        if (v.firstMismatch < 0) v.firstMismatch = step;
+      }
     }
-  });
-  return v;
+    const auto snap = session.snapshot();
+    const auto& tool = snap->tool;
+    if (tool.present) {
+      if (!seen) first = last = tool.tip;
+      m.pathLengthM += (tool.tip - last).norm();
+      last = tool.tip;
+      seen = true;
+    }
+    const double f = tool.force.norm();
+    m.maxForceN = std::max(m.maxForceN, f);
+    if (f > 0) {
+      forceSum += f;
+      ++forceSteps;
+    }
+    if (f > forceThresholdN) m.timeOverThresholdS += h;
+    for (const auto& e : snap->events) {
+      m.grasps += e == "grasp";
+      m.slips += e == "slip";
+      m.cuts += e == "cut";
+      m.vesselCuts += e == "vessel cut";
+    }
+  }
+  m.durationS = static_cast<double>(steps) * h;
+  m.meanForceN = forceSteps ? forceSum / static_cast<double>(forceSteps) : 0;
+  m.economy = m.pathLengthM > 0 ? (last - first).norm() / m.pathLengthM : 0;
+  return out;
 }
 
 }  // namespace rehearse::app

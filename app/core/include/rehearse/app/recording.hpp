@@ -106,4 +106,22 @@ struct VerifyResult {
 /// checksum. Bit-identical on the same build.
 VerifyResult verifyRecording(const Recording& r);
 
+/// What a trainer reads about a session (computed from its replay, so a recording is all it needs).
+struct SessionMetrics {
+  double durationS = 0;          ///< simulated time
+  double pathLengthM = 0;        ///< the instrument tip's path while an instrument is in the scene
+  double economy = 0;            ///< straight distance from the tip's first to its last place / path length (1: straight; 0: no path)
+  int grasps = 0, slips = 0, cuts = 0, vesselCuts = 0;  ///< events ("cut": cut updates applied)
+  double maxForceN = 0;          ///< the tool's force on the tissue, largest
+  double meanForceN = 0;         ///< mean over the steps with a force
+  double forceThresholdN = 0;
+  double timeOverThresholdS = 0; ///< simulated time with the force above the threshold
+};
+struct ReplayResult {
+  VerifyResult verify;
+  SessionMetrics metrics;
+};
+/// One replay: the checksums compared and the metrics computed (force threshold in N).
+ReplayResult replayRecording(const Recording& r, double forceThresholdN = 10);
+
 }  // namespace rehearse::app
