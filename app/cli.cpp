@@ -732,8 +732,41 @@ int cmdGesture(const std::vector<std::string>& args) {
 int cmdReplay(const std::vector<std::string>& args) {
   if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("replay needs the case file: rehearse replay CASE [--session ID] [--verify]");
   const std::string file = args[2];
-  auto o = parseOptions(args, 3, {"session", "metrics", "force-threshold"}, {"verify", "list"});
+  auto o = parseOptions(args, 3, {"session", "metrics", "metrics-csv", "force-threshold"}, {"verify", "list"});
   if (!std::filesystem::exists(file)) throw UsageError(file + " does not exist");
+  const double threshold = o.count("force-threshold") ? parseNumber(o["force-threshold"], "--force-threshold") : 10.0;
+  if (!(threshold >= 0)) throw UsageError("--force-threshold must be a force in N, 0 or more");
+  if (o.count("metrics-csv")) {
+    // Every session's metrics, one row each (a trainer's spreadsheet across attempts); each replay verified.
+    if (o.count("session") || o.count("metrics") || o.count("verify"))
+      throw UsageError("--metrics-csv covers every session; --session, --metrics and --verify are for one");
+    std::ostringstream csv;
+    csv.precision(17);
+    csv << "session,trainee,started_utc,complete,steps,duration_s,path_length_m,economy_of_motion,grasps,slips,cut_updates,vessel_cuts,max_force_n,"
+           "mean_force_n,force_threshold_n,time_over_threshold_s,checksums,checksums_differing\n";
+    auto quoted = [](const std::string& s) {
+      std::string q = "\"";
+      for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+      return q + "\"";
+    };
+    long differing = 0;
+    const auto sessions = listRecordings(file);
+    for (const auto& s : sessions) {
+      const ReplayResult r = replayRecording(loadRecording(file, s.id), threshold);
+      const SessionMetrics& m = r.metrics;
+      differing += r.verify.mismatches;
+      csv << s.id << ',' << quoted(s.meta.trainee) << ',' << s.startedUtc << ',' << (s.complete ? 1 : 0) << ',' << r.verify.steps << ',' << m.durationS << ','
+          << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ',' << m.slips << ',' << m.cuts << ',' << m.vesselCuts << ',' << m.maxForceN << ','
+          << m.meanForceN << ',' << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << r.verify.checked << ',' << r.verify.mismatches << '\n';
+    }
+    imaging::writeFileAtomically(o["metrics-csv"], csv.str());
+    std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());
+    if (differing) {
+      std::fprintf(stderr, "rehearse: %ld checksums differ on replay (column checksums_differing)\n", differing);
+      return 4;
+    }
+    return 0;
+  }
   if (!o.count("session")) {
     const auto sessions = listRecordings(file);
     if (sessions.empty()) std::printf("%s holds no recorded session\n", file.c_str());
@@ -755,8 +788,6 @@ int cmdReplay(const std::vector<std::string>& args) {
   std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(), rec.checksums.size(), rec.summary.steps,
               rec.summary.complete ? "" : " (cut short: what was recorded is replayed)");
   if (!o.count("verify") && !o.count("metrics")) return 0;
-  const double threshold = o.count("force-threshold") ? parseNumber(o["force-threshold"], "--force-threshold") : 10.0;
-  if (!(threshold >= 0)) throw UsageError("--force-threshold must be a force in N, 0 or more");
   const ReplayResult replayed = replayRecording(rec, threshold);
   if (o.count("metrics")) {
     const SessionMetrics& m = replayed.metrics;
@@ -832,11 +863,12 @@ std::string usage() {
          "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"
          "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum every\n"
          "                                   10 steps) written into CASE (a .rehearse file) as it runs\n"
-         "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json [--force-threshold N]]]\n"
+         "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json] | --metrics-csv OUT.csv] [--force-threshold N]\n"
          "                                   the sessions recorded in CASE; --verify re-simulates one and compares every\n"
          "                                   recorded checksum (exit 4 when one differs); --metrics writes the session's\n"
          "                                   duration, path length, economy of motion, grasps, slips, cuts, forces and the\n"
-         "                                   time over the force threshold (10 N by default)\n"
+         "                                   time over the force threshold (10 N by default); --metrics-csv: every session's\n"
+         "                                   metrics, one row each (exit 4 when a replay differs)\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL), --opengl (OpenGL even\n"
          "  through a software rasteriser such as llvmpipe, which is otherwise not used)\n"

@@ -1,4 +1,5 @@
 // The command line, run as a user would: exit codes, one-line errors, files written.
+#include "cli_run.hpp"
 #include "test_support.hpp"
 
 #include <QJsonArray>
@@ -11,18 +12,8 @@
 #include <sstream>
 
 namespace {
-struct Run {
-  int code;
-  QString out, err;
-};
-Run run(const QStringList& args, int timeoutMs = 300000, const QProcessEnvironment* env = nullptr) {
-  QProcess p;
-  if (env) p.setProcessEnvironment(*env);
-  p.start(QStringLiteral(REHEARSE_BINARY), args);
-  p.waitForFinished(timeoutMs);
-  return {p.exitStatus() == QProcess::NormalExit ? p.exitCode() : -1, QString::fromUtf8(p.readAllStandardOutput()),
-          QString::fromUtf8(p.readAllStandardError())};
-}
+using testing::Run;
+using testing::run;
 void expectOneLineError(const Run& r, int code, const char* fragment) {
   QVERIFY2(r.code == code, qPrintable(QString("exit %1, stderr: %2").arg(r.code).arg(r.err)));
   QCOMPARE(r.err.trimmed().count('\n'), 0);

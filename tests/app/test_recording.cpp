@@ -2,6 +2,8 @@
 // into a SQLite file as it runs; `rehearse replay CASE --session ID --verify` re-simulates it and compares
 // every recorded state checksum; a tampered checksum is caught; a recording killed with SIGKILL at random
 // moments leaves a file that opens whole and whose recorded part replays and verifies.
+#include "cli_run.hpp"
+
 #include <rehearse/app/recording.hpp>
 
 #include <QDir>
@@ -21,17 +23,8 @@
 using namespace rehearse;
 
 namespace {
-struct Run {
-  int code;
-  QString out, err;
-};
-Run run(const QStringList& args, int timeoutMs = 300000) {
-  QProcess p;
-  p.start(QStringLiteral(REHEARSE_BINARY), args);
-  p.waitForFinished(timeoutMs);
-  return {p.exitStatus() == QProcess::NormalExit ? p.exitCode() : -1, QString::fromUtf8(p.readAllStandardOutput()),
-          QString::fromUtf8(p.readAllStandardError())};
-}
+using testing::Run;
+using testing::run;
 QString script(const char* name) { return QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/" + name; }
 QStringList gestureArgs(const QString& dir, const char* scriptName, const QString& file) {
   return {"gesture", "--preset", "liver", "--script", script(scriptName), "--method", "linearised", "--refresh", "async", "--out", dir + "/out.vtu",
@@ -123,6 +116,27 @@ class TestRecording : public QObject {
     QVERIFY(std::abs(metrics["max_force_n"].toDouble() - maxF) <= 1e-9 * maxF);
     QVERIFY(std::abs(metrics["mean_force_n"].toDouble() - sumF / withForce) <= 1e-9 * maxF);
     QVERIFY(std::abs(metrics["time_over_threshold_s"].toDouble() - over) < 1e-9);
+    // Across sessions: a second attempt (cut-across), then one CSV row per session, the first row the same
+    // figures as the JSON above.
+    QCOMPARE(run(gestureArgs(dir.path(), "cut-across.json", file)).code, 0);
+    const Run c = run({"replay", file, "--metrics-csv", dir.path() + "/cohort.csv", "--force-threshold", "2"});
+    QVERIFY2(c.code == 0, qPrintable(c.err));
+    QFile cf(dir.path() + "/cohort.csv");
+    QVERIFY(cf.open(QIODevice::ReadOnly));
+    const QStringList lines = QString::fromUtf8(cf.readAll()).trimmed().split('\n');
+    QCOMPARE(lines.size(), 3);
+    const QStringList head = lines[0].split(','), first = lines[1].split(','), second = lines[2].split(',');
+    auto col = [&](const QStringList& row, const char* name) { return row[head.indexOf(QLatin1String(name))]; };
+    QCOMPARE(col(first, "session"), QStringLiteral("1"));
+    QCOMPARE(col(first, "trainee"), QStringLiteral("\"A. Trainee\""));
+    QCOMPARE(col(first, "path_length_m").toDouble(), metrics["path_length_m"].toDouble());
+    QCOMPARE(col(first, "max_force_n").toDouble(), metrics["max_force_n"].toDouble());
+    QCOMPARE(col(first, "time_over_threshold_s").toDouble(), metrics["time_over_threshold_s"].toDouble());
+    QCOMPARE(col(first, "checksums").toInt(), 35);
+    QCOMPARE(col(first, "checksums_differing").toInt(), 0);
+    QVERIFY(col(second, "cut_updates").toInt() >= 1);
+    QCOMPARE(col(second, "checksums").toInt(), 25);
+    QCOMPARE(col(second, "checksums_differing").toInt(), 0);
   }
 
   // A checksum changed in the file: --verify says where and exits 4; a missing session is one line, exit 1.
