@@ -105,6 +105,19 @@ double minQualityOf(const simcore::Mesh& m) { return validity(m.points, m.tets).
 
 simcore::BodySetup liverSetup() { return testing::presetBody("liver"); }
 
+// A cut across the settled organ's front, left to right: the blade's tip at sweep pose k (0: the start,
+// 10: the end), from the box of the positions it settled to.
+struct FrontSweep {
+  Eigen::Vector3d c, size;
+  explicit FrontSweep(const std::vector<Eigen::Vector3d>& positions) {
+    Eigen::AlignedBox3d box;
+    for (const auto& p : positions) box.extend(p);
+    c = box.center();
+    size = box.sizes();
+  }
+  Eigen::Vector3d at(int k) const { return c + Eigen::Vector3d(-0.6 * size.x() + 0.06 * k * size.x(), 0.1 * size.y(), 0.3 * size.z()); }
+};
+
 // A blade sweep covering the plane x = x0 over the block's section (y, z in [0, 0.02]).
 simcore::BladeSweep planeX(double x0, double y0 = -0.01, double y1 = 0.03) {
   return {{x0, y0, -0.01}, {x0, y0, 0.03}, {x0, y1, -0.01}, {x0, y1, 0.03}};
@@ -294,13 +307,11 @@ class TestCut : public QObject {
     simcore::Session session(s);
     for (int k = 0; k < 20; ++k) session.advance();
     const auto before = session.snapshot();
-    Eigen::AlignedBox3d box;
-    for (const auto& p : before->positions) box.extend(p);
-    const Eigen::Vector3d c = box.center(), size = box.sizes();
-    session.post(toolAt(c + Eigen::Vector3d(-0.6 * size.x(), 0.1 * size.y(), 0.3 * size.z())));
+    const FrontSweep sweep(before->positions);
+    session.post(toolAt(sweep.at(0)));
     session.post(cutting(true));
     for (int k = 1; k <= 10; ++k) {
-      session.post(toolAt(c + Eigen::Vector3d(-0.6 * size.x() + 0.06 * k * size.x(), 0.1 * size.y(), 0.3 * size.z())));
+      session.post(toolAt(sweep.at(k)));
       QVERIFY(session.advance().ok);
     }
     session.post(cutting(false));
@@ -330,15 +341,13 @@ class TestCut : public QObject {
     simcore::Session session(s);
     for (int k = 0; k < 20; ++k) session.advance();
     const auto before = session.snapshot();
-    Eigen::AlignedBox3d box;
-    for (const auto& p : before->positions) box.extend(p);
-    const Eigen::Vector3d c = box.center(), size = box.sizes();
-    session.post(toolAt(c + Eigen::Vector3d(-0.6 * size.x(), 0.1 * size.y(), 0.3 * size.z())));
+    const FrontSweep sweep(before->positions);
+    session.post(toolAt(sweep.at(0)));
     session.post(cutting(true));
     int waited = 0, cutsSeen = 0;
     long steps = 20;
     for (int k = 1; k <= 10; ++k) {
-      session.post(toolAt(c + Eigen::Vector3d(-0.6 * size.x() + 0.06 * k * size.x(), 0.1 * size.y(), 0.3 * size.z())));
+      session.post(toolAt(sweep.at(k)));
       const simcore::StepReport rep = session.advance();
       ++steps;
       QVERIFY(rep.ok);

@@ -239,6 +239,14 @@ simcore::InputEvent decodeEvent(const std::string& text) {
   }
 }
 
+struct Recorder::Statements {
+  Statement event, checksum, steps;
+  explicit Statements(sqlite3* db)
+      : event(db, "INSERT INTO rehearsal_events(session, seq, step, event) VALUES(?, ?, ?, ?)"),
+        checksum(db, "INSERT OR REPLACE INTO rehearsal_checksums(session, step, checksum) VALUES(?, ?, ?)"),
+        steps(db, "UPDATE rehearsal_sessions SET steps = ? WHERE id = ?") {}
+};
+
 Recorder::Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery)
     : every_(std::max(1, checksumEvery)), lastCommit_(std::chrono::steady_clock::now()) {
   const std::string setupText = encodeSetup(setup);
@@ -262,7 +270,9 @@ Recorder::Recorder(const std::string& path, const SessionMeta& meta, const simco
     if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("cannot record into ") + path + ": " + sqlite3_errmsg(db_));
     id_ = sqlite3_last_insert_rowid(db_);
     commitIfDue(true);  // the session is listed from the start
+    statements_ = std::make_unique<Statements>(db_);
   } catch (...) {
+    statements_.reset();
     sqlite3_close(db_);
     throw;
   }
@@ -275,6 +285,7 @@ Recorder::~Recorder() {
   } catch (...) {
   }
   sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr);
+  statements_.reset();  // finalised before the connection closes
   sqlite3_close(db_);
 }
 
@@ -297,7 +308,7 @@ void Recorder::commitIfDue(bool force) {
 
 void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state) {
   if (recorded.size() > written_) {
-    Statement q(db_, "INSERT INTO rehearsal_events(session, seq, step, event) VALUES(?, ?, ?, ?)");
+    Statement& q = statements_->event;
     for (; written_ < recorded.size(); ++written_) {
       sqlite3_reset(q.s);
       sqlite3_bind_int64(q.s, 1, id_);
@@ -308,17 +319,19 @@ void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& reco
     }
   }
   if (step % every_ == 0) {
-    Statement q(db_, "INSERT OR REPLACE INTO rehearsal_checksums(session, step, checksum) VALUES(?, ?, ?)");
+    Statement& q = statements_->checksum;
+    sqlite3_reset(q.s);
     sqlite3_bind_int64(q.s, 1, id_);
     sqlite3_bind_int64(q.s, 2, step);
     q.text(3, std::to_string(stateChecksum(state)));
     if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db_));
   }
   {
-    Statement q(db_, "UPDATE rehearsal_sessions SET steps = ? WHERE id = ?");
+    Statement& q = statements_->steps;
+    sqlite3_reset(q.s);
     sqlite3_bind_int64(q.s, 1, step);
     sqlite3_bind_int64(q.s, 2, id_);
-    sqlite3_step(q.s);
+    if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a step: ") + sqlite3_errmsg(db_));
   }
   commitIfDue(false);
 }
@@ -441,19 +454,13 @@ ReplayResult replayRecording(const Recording& r, double forceThresholdN) {
   VerifyResult& v = out.verify;
   SessionMetrics& m = out.metrics;
   m.forceThresholdN = forceThresholdN;
-  // simcore::replay's loop, reading each step's snapshot too (the tool and the events).
-  simcore::BodySetup setup = r.setup;
-  if (setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous) setup.settings.factorRefresh = simcore::FactorRefresh::Deferred;
-  simcore::Session session(setup);
-  for (const auto& e : r.events) session.post(e);
   const long steps = r.summary.complete || r.checksums.empty() ? r.summary.steps : r.checksums.rbegin()->first;
-  const double h = setup.settings.timeStep;
+  double time = 0;  // simulated (the time step may be edited during the session: each step's own length counts)
   bool seen = false;
   Eigen::Vector3d first = Eigen::Vector3d::Zero(), last = Eigen::Vector3d::Zero();
   double forceSum = 0;
   long forceSteps = 0;
-  for (long step = 1; step <= steps; ++step) {
-    session.advance();
+  simcore::replaySession(r.setup, r.events, steps, [&](long step, const simcore::Session& session) {
     ++v.steps;
     if (const auto it = r.checksums.find(step); it != r.checksums.end()) {
       ++v.checked;
@@ -476,15 +483,16 @@ ReplayResult replayRecording(const Recording& r, double forceThresholdN) {
       forceSum += f;
       ++forceSteps;
     }
-    if (f > forceThresholdN) m.timeOverThresholdS += h;
+    if (f > forceThresholdN) m.timeOverThresholdS += snap->time - time;
+    time = snap->time;
     for (const auto& e : snap->events) {
       m.grasps += e == "grasp";
       m.slips += e == "slip";
       m.cuts += e == "cut";
       m.vesselCuts += e == "vessel cut";
     }
-  }
-  m.durationS = static_cast<double>(steps) * h;
+  });
+  m.durationS = time;
   m.meanForceN = forceSteps ? forceSum / static_cast<double>(forceSteps) : 0;
   m.economy = m.pathLengthM > 0 ? (last - first).norm() / m.pathLengthM : 0;
   return out;

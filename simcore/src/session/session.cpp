@@ -970,16 +970,23 @@ void Session::run() {
   }
 }
 
-void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
-            const std::function<void(long, const SimulationState&)>& each) {
+void replaySession(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
+                   const std::function<void(long, const Session&)>& each) {
   BodySetup deferred = setup;
   if (deferred.settings.factorRefresh == FactorRefresh::Asynchronous) deferred.settings.factorRefresh = FactorRefresh::Deferred;
   Session s(deferred);
   for (const auto& e : events) s.post(e);
   for (long k = 0; k < steps; ++k) {
     s.advance();
-    if (each) each(k + 1, s.state());
+    if (each) each(k + 1, s);
   }
+}
+
+void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
+            const std::function<void(long, const SimulationState&)>& each) {
+  replaySession(setup, events, steps, [&each](long step, const Session& s) {
+    if (each) each(step, s.state());
+  });
 }
 
 }  // namespace rehearse::simcore

@@ -63,6 +63,8 @@ class Recorder {
   void exec(const char* sql);
   void commitIfDue(bool force);
   sqlite3* db_ = nullptr;
+  struct Statements;
+  std::unique_ptr<Statements> statements_;  // prepared once, used at every step
   std::int64_t id_ = 0;
   int every_;
   std::size_t written_ = 0;

@@ -251,5 +251,8 @@ class Session {
 /// A replay runs an asynchronous refresh as a deferred one (the recording's Factor events install the factors).
 void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
             const std::function<void(long step, const SimulationState&)>& each);
+/// The same, `each` given the replaying session (its snapshot: the tool, the events of the step).
+void replaySession(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
+                   const std::function<void(long step, const Session&)>& each);
 
 }  // namespace rehearse::simcore
