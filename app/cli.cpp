@@ -7,6 +7,7 @@
 #include "rehearse/app/appearancestep.hpp"
 #include "rehearse/app/gesture.hpp"
 #include "rehearse/app/recording.hpp"
+#include "rehearse/app/review.hpp"
 #include "rehearse/app/materials.hpp"
 
 #include <rehearse/imaging/camera.hpp>
@@ -25,6 +26,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -691,7 +693,7 @@ int cmdGesture(const std::vector<std::string>& args) {
         throw UsageError(e.what());
       }
     };
-    hooks.step = [&](const simcore::Session& session, long step) { recorder->afterStep(step, session.recorded(), session.state()); };
+    hooks.step = [&recorder](const simcore::StepRecord& r) { recorder->afterStep(r); };
   }
   const GestureResult r = runGesture(setup, script, hooks);
   if (recorder) {
@@ -727,15 +729,67 @@ int cmdGesture(const std::vector<std::string>& args) {
   return r.failed ? 3 : 0;
 }
 
+// rehearse publish CASE... [--service NAME]: the complete sessions of case files into the training database.
+int cmdPublish(const std::vector<std::string>& args) {
+  std::vector<std::string> files;
+  std::size_t i = 2;
+  for (; i < args.size() && args[i].rfind("--", 0) != 0; ++i) files.push_back(args[i]);
+  if (files.empty()) throw UsageError("publish needs case files: rehearse publish CASE... [--service NAME]");
+  auto o = parseOptions(args, i, {"service"}, {});
+  for (const auto& f : files)
+    if (!std::filesystem::exists(f)) throw UsageError(f + " does not exist");
+  if (!trainingStore().publish)
+    throw UsageError("publishing goes through Qt SQL's PostgreSQL driver, which this build has not (configured with REHEARSE_BUILD_GUI=OFF)");
+  for (const auto& line : trainingStore().publish(files, o.count("service") ? o["service"] : std::string())) std::printf("%s\n", line.c_str());
+  return 0;
+}
+
 // rehearse replay CASE: the recorded sessions of a case file (issue 16); --verify re-simulates one and compares
 // every recorded state checksum (exit 4 on a mismatch).
 int cmdReplay(const std::vector<std::string>& args) {
-  if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("replay needs the case file: rehearse replay CASE [--session ID] [--verify]");
+  if (args.size() < 3 || args[2].rfind("--", 0) == 0)
+    throw UsageError("replay needs the case file (or postgresql:[SERVICE]): rehearse replay CASE [--session ID] [--verify]");
   const std::string file = args[2];
-  auto o = parseOptions(args, 3, {"session", "metrics", "metrics-csv", "force-threshold"}, {"verify", "list"});
-  if (!std::filesystem::exists(file)) throw UsageError(file + " does not exist");
+  auto o = parseOptions(args, 3, {"session", "metrics", "metrics-csv", "force-threshold", "thresholds", "planned-cut", "video", "report", "from", "to", "fps", "size"},
+                        {"verify", "list"});
+  // postgresql:[SERVICE]: the training centre's database (libpq service name, or the environment when empty).
+  const bool fromDb = file.rfind("postgresql:", 0) == 0;
+  const std::string service = fromDb ? file.substr(11) : std::string();
+  if (fromDb && !trainingStore().load)
+    throw UsageError("the training database is read through Qt SQL's PostgreSQL driver, which this build has not (configured with REHEARSE_BUILD_GUI=OFF)");
+  if (!fromDb && !std::filesystem::exists(file)) throw UsageError(file + " does not exist");
+  auto listSessions = [&] { return fromDb ? trainingStore().list(service) : listRecordings(file); };
+  auto loadSession = [&](std::int64_t sid) { return fromDb ? trainingStore().load(service, sid) : loadRecording(file, sid); };
   const double threshold = o.count("force-threshold") ? parseNumber(o["force-threshold"], "--force-threshold") : 10.0;
   if (!(threshold >= 0)) throw UsageError("--force-threshold must be a force in N, 0 or more");
+  ReplayOptions ro;
+  ro.forceThresholdN = threshold;
+  if (o.count("planned-cut")) {
+    const std::string& p = o["planned-cut"];
+    const auto colon = p.find(':');
+    if (colon == std::string::npos) throw UsageError("--planned-cut takes two points X,Y,Z:X,Y,Z (m, the recording's frame)");
+    ro.plannedCut = std::make_pair(parseVector(p.substr(0, colon), "--planned-cut"), parseVector(p.substr(colon + 1), "--planned-cut"));
+  }
+  std::vector<Threshold> thresholds;
+  if (o.count("thresholds")) {
+    std::ifstream in(o["thresholds"]);
+    if (!in) throw UsageError("cannot read the thresholds " + o["thresholds"]);
+    std::stringstream text;
+    text << in.rdbuf();
+    try {
+      thresholds = parseThresholds(text.str());
+    } catch (const std::runtime_error& e) {
+      throw UsageError(o["thresholds"] + ": " + e.what());
+    }
+  }
+  const bool oneSession = o.count("video") || o.count("report") || o.count("from") || o.count("to") || o.count("fps") || o.count("size");
+  if (oneSession && !o.count("session")) throw UsageError("--video, --report, --from, --to, --fps and --size are for one session: give --session ID");
+  if ((o.count("from") || o.count("to") || o.count("fps") || o.count("size")) && !o.count("video"))
+    throw UsageError("--from, --to, --fps and --size set the video: give --video OUT.mp4");
+  if (o.count("video") && std::filesystem::path(o["video"]).extension() != ".mp4") throw UsageError("--video must end in .mp4");
+  if (o.count("report") && std::filesystem::path(o["report"]).extension() != ".pdf") throw UsageError("--report must end in .pdf");
+  if (o.count("report") && !reportWriter())
+    throw UsageError("--report needs the PDF writer of the GUI build (this build was configured with REHEARSE_BUILD_GUI=OFF)");
   if (o.count("metrics-csv")) {
     // Every session's metrics, one row each (a trainer's spreadsheet across attempts); each replay verified.
     if (o.count("session") || o.count("metrics") || o.count("verify"))
@@ -743,21 +797,26 @@ int cmdReplay(const std::vector<std::string>& args) {
     std::ostringstream csv;
     csv.precision(17);
     csv << "session,trainee,started_utc,complete,steps,duration_s,path_length_m,economy_of_motion,grasps,slips,cut_updates,vessel_cuts,max_force_n,"
-           "mean_force_n,force_threshold_n,time_over_threshold_s,checksums,checksums_differing\n";
+           "mean_force_n,force_threshold_n,time_over_threshold_s,max_strain,cut_length_m,cut_deviation_mean_m,cut_deviation_max_m,tumour_breaches,"
+           "attachments_torn,checksums,checksums_differing\n";
+    ro.strain = true;
+    auto opt = [](const auto& v) { return v ? std::to_string(*v) : std::string(); };  // empty: not determined
     auto quoted = [](const std::string& s) {
       std::string q = "\"";
       for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
       return q + "\"";
     };
     long differing = 0;
-    const auto sessions = listRecordings(file);
+    const auto sessions = listSessions();
     for (const auto& s : sessions) {
-      const ReplayResult r = replayRecording(loadRecording(file, s.id), threshold);
+      const ReplayResult r = replayRecording(loadSession(s.id), ro);
       const SessionMetrics& m = r.metrics;
       differing += r.verify.mismatches;
       csv << s.id << ',' << quoted(s.meta.trainee) << ',' << s.startedUtc << ',' << (s.complete ? 1 : 0) << ',' << r.verify.steps << ',' << m.durationS << ','
           << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ',' << m.slips << ',' << m.cuts << ',' << m.vesselCuts << ',' << m.maxForceN << ','
-          << m.meanForceN << ',' << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << r.verify.checked << ',' << r.verify.mismatches << '\n';
+          << m.meanForceN << ',' << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << opt(m.maxStrain) << ',' << m.cutLengthM << ','
+          << opt(m.cutDeviationMeanM) << ',' << opt(m.cutDeviationMaxM) << ',' << opt(m.tumourBreaches) << ',' << opt(m.attachmentsTorn) << ','
+          << r.verify.checked << ',' << r.verify.mismatches << '\n';
     }
     imaging::writeFileAtomically(o["metrics-csv"], csv.str());
     std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());
@@ -768,7 +827,7 @@ int cmdReplay(const std::vector<std::string>& args) {
     return 0;
   }
   if (!o.count("session")) {
-    const auto sessions = listRecordings(file);
+    const auto sessions = listSessions();
     if (sessions.empty()) std::printf("%s holds no recorded session\n", file.c_str());
     for (const auto& s : sessions)
       std::printf("session %lld  %s  trainee '%s'  case '%s'  %ld steps%s\n", static_cast<long long>(s.id), s.startedUtc.c_str(), s.meta.trainee.c_str(),
@@ -784,19 +843,66 @@ int cmdReplay(const std::vector<std::string>& args) {
   } catch (const std::exception&) {
     throw UsageError("--session takes a session number, not '" + o["session"] + "'");
   }
-  const Recording rec = loadRecording(file, id);
+  const Recording rec = loadSession(id);
   std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(), rec.checksums.size(), rec.summary.steps,
               rec.summary.complete ? "" : " (cut short: what was recorded is replayed)");
-  if (!o.count("verify") && !o.count("metrics")) return 0;
-  const ReplayResult replayed = replayRecording(rec, threshold);
+  if (!o.count("verify") && !o.count("metrics") && !o.count("video") && !o.count("report")) return 0;
+  ro.strain = o.count("metrics") || o.count("report") || !thresholds.empty();
+  ro.timeline = o.count("video") || o.count("report");
+  const ReplayResult replayed = replayRecording(rec, ro);
+  const auto verdicts = judge(replayed.metrics, thresholds);
   if (o.count("metrics")) {
-    const SessionMetrics& m = replayed.metrics;
-    writeReport(o["metrics"], {{"session", id}, {"trainee", rec.summary.meta.trainee}, {"started_utc", rec.summary.startedUtc},
-                               {"duration_s", m.durationS}, {"path_length_m", m.pathLengthM}, {"economy_of_motion", m.economy},
-                               {"grasps", m.grasps}, {"slips", m.slips}, {"cut_updates", m.cuts}, {"vessel_cuts", m.vesselCuts},
-                               {"max_force_n", m.maxForceN}, {"mean_force_n", m.meanForceN}, {"force_threshold_n", m.forceThresholdN},
-                               {"time_over_threshold_s", m.timeOverThresholdS}});
+    nlohmann::json j = {{"session", id}, {"trainee", rec.summary.meta.trainee}, {"started_utc", rec.summary.startedUtc},
+                        {"force_threshold_n", replayed.metrics.forceThresholdN}};
+    for (const auto& v : metricValues(replayed.metrics)) {
+      j[v.name] = !v.value ? nlohmann::json(nullptr) : v.count ? nlohmann::json(std::lround(*v.value)) : nlohmann::json(*v.value);
+      if (!v.value) j[v.name + "_why"] = v.why;
+    }
+    nlohmann::json js = nlohmann::json::array();
+    for (const auto& v : verdicts) {
+      nlohmann::json row = {{"metric", v.metric.name}, {"result", resultWord(v.result)}};
+      row["value"] = v.metric.value ? nlohmann::json(*v.metric.value) : nlohmann::json(nullptr);
+      if (v.threshold.min) row["min"] = *v.threshold.min;
+      if (v.threshold.max) row["max"] = *v.threshold.max;
+      js.push_back(row);
+    }
+    j["verdicts"] = js;
+    writeReport(o["metrics"], j);
     std::printf("metrics written to %s\n", o["metrics"].c_str());
+  }
+  for (const auto& v : verdicts)
+    std::printf("%s: %s (%s)\n", v.metric.name.c_str(), resultWord(v.result), v.metric.value ? std::to_string(*v.metric.value).c_str() : v.metric.why.c_str());
+  if (o.count("video") || o.count("report")) {
+    int width = 640, height = 480;
+    if (o.count("size")) {
+      char x = 0;
+      std::istringstream in(o["size"]);
+      if (!(in >> width >> x >> height) || x != 'x' || !in.eof()) throw UsageError("--size takes WIDTHxHEIGHT in pixels, e.g. 1280x720");
+    }
+    Replayer replayer(rec);
+    ReviewRenderer renderer(rec.setup, width, height);
+    if (o.count("video")) {
+      const double fps = o.count("fps") ? parseNumber(o["fps"], "--fps") : 25.0;
+      auto stepAt = [&](const std::string& key, long fallback) {
+        if (!o.count(key)) return fallback;
+        const double t = parseNumber(o[key], key == "from" ? "--from" : "--to");
+        if (!(t >= 0)) throw UsageError("--" + key + " must be a time in seconds, 0 or more");
+        long step = 0;
+        for (const auto& s : replayed.timeline)
+          if (s.time <= t + 1e-9) step = s.step;
+        return step;
+      };
+      const long from = stepAt("from", 0), to = stepAt("to", replayer.steps());
+      if (from >= to) throw UsageError("--from must come before --to within the session (" + std::to_string(replayed.metrics.durationS) + " s)");
+      const int frames = writeReviewVideo(replayer, renderer, replayed.timeline, from, to, fps, o["video"]);
+      std::printf("video: %d frames of %dx%d at %g fps (steps %ld to %ld) written to %s\n", frames, renderer.camera().width, renderer.camera().height, fps, from, to,
+                  o["video"].c_str());
+    }
+    if (o.count("report")) {
+      const ReviewReport report = makeReviewReport(rec, replayed, thresholds, replayer, renderer);
+      reportWriter()(report, o["report"]);
+      std::printf("report written to %s\n", o["report"].c_str());
+    }
   }
   if (!o.count("verify")) return 0;
   const VerifyResult& v = replayed.verify;
@@ -863,12 +969,24 @@ std::string usage() {
          "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"
          "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum every\n"
          "                                   10 steps) written into CASE (a .rehearse file) as it runs\n"
-         "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json] | --metrics-csv OUT.csv] [--force-threshold N]\n"
+         "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json] [--video OUT.mp4] [--report OUT.pdf]\n"
+         "                [--from S] [--to S] [--fps N] [--size WxH] | --metrics-csv OUT.csv] [--force-threshold N]\n"
+         "                [--thresholds T.json] [--planned-cut X,Y,Z:X,Y,Z]\n"
          "                                   the sessions recorded in CASE; --verify re-simulates one and compares every\n"
          "                                   recorded checksum (exit 4 when one differs); --metrics writes the session's\n"
-         "                                   duration, path length, economy of motion, grasps, slips, cuts, forces and the\n"
-         "                                   time over the force threshold (10 N by default); --metrics-csv: every session's\n"
-         "                                   metrics, one row each (exit 4 when a replay differs)\n"
+         "                                   duration, path length, economy of motion, grasps, slips, cuts, forces, the\n"
+         "                                   time over the force threshold (10 N by default), the largest tissue strain, the\n"
+         "                                   cut's length and deviation from a planned line (m), structures damaged, and a\n"
+         "                                   pass/fail per metric of T.json ({\"max_force_n\": {\"max\": 15}}); --video: the\n"
+         "                                   span [--from, --to] s as MP4 (25 fps of simulated time, 640x480 unless given);\n"
+         "                                   --report: a PDF with the metrics, their plots and key frames; --metrics-csv:\n"
+         "                                   every session's metrics, one row each (exit 4 when a replay differs); CASE\n"
+         "                                   postgresql:[SERVICE] reads the training database instead (below)\n"
+         "  rehearse publish CASE... [--service NAME]\n"
+         "                                   publish the complete sessions of case files into the training database\n"
+         "                                   (PostgreSQL; the connection from the libpq service NAME or the environment:\n"
+         "                                   PGHOST, PGPORT, PGDATABASE, PGUSER, PGPASSFILE, PGSSLMODE); idempotent: a\n"
+         "                                   session already there is not written again; each is replayed and verified first\n"
          "  rehearse --help | --version\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL), --opengl (OpenGL even\n"
          "  through a software rasteriser such as llvmpipe, which is otherwise not used)\n"
@@ -902,6 +1020,7 @@ int runCli(const std::vector<std::string>& args, bool& handled) {
     if (cmd == "compose") return cmdCompose(args);
     if (cmd == "gesture") return cmdGesture(args);
     if (cmd == "replay") return cmdReplay(args);
+    if (cmd == "publish") return cmdPublish(args);
     throw UsageError("unknown command '" + cmd + "'; see 'rehearse --help'");
   } catch (const UsageError& e) {
     std::fprintf(stderr, "rehearse: %s\n", e.what());

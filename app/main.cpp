@@ -7,11 +7,17 @@
 
 #ifdef REHEARSE_WITH_GUI
 #include "rehearse/ui/gui.hpp"
+#include "rehearse/ui/cohortwindow.hpp"
+#include "rehearse/ui/reviewreport.hpp"
 #endif
 
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv, argv + argc);
   bool handled = false;
+#ifdef REHEARSE_WITH_GUI
+  rehearse::app::setReportWriter(rehearse::ui::writeReviewPdf);  // replay --report writes through Qt's QPdfWriter
+  rehearse::ui::registerTrainingStore();                         // publish, replay postgresql: through Qt SQL's PostgreSQL driver
+#endif
   int code = rehearse::app::runCli(args, handled);
   if (handled) return code;
 #ifdef REHEARSE_WITH_GUI

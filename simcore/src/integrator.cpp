@@ -265,7 +265,9 @@ void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& 
   q.built = q.ok = false;
   q.discard = false;
   rep.factorRequested = true;
-  if (settings_.factorRefresh == FactorRefresh::Asynchronous) {
+  // Built on the second thread in both modes (the build depends only on its inputs); a deferred one is swapped
+  // in only once installed (installRequestedFactor waits for it), where the recording says.
+  {
     const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
     const bool simplicial = settings_.simplicialFactor;
     q.job = std::async(std::launch::async, [this, &q, alpha, beta, simplicial] {
@@ -279,7 +281,7 @@ bool Integrator::swapInRequested(StepReport& rep) {
   Work& w = *w_;
   Work::Request& q = w.request;
   if (!q.pending) return false;
-  if (q.job.valid()) {
+  if (settings_.factorRefresh != FactorRefresh::Deferred && q.job.valid()) {
     if (q.job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
     q.ok = q.job.get();
     q.built = true;
@@ -353,11 +355,22 @@ bool Integrator::adopt(const SimulationState& state, StepReport& rep) {
   const bool same = w.chol->valid() && w.laggedStep == state.lagged.step && w.laggedAt.size() == state.lagged.at.size() &&
                     w.laggedAt == state.lagged.at && !w.refresh;  // refresh: the factor holds another matrix or is stale
   if (!same && !refresh) {
+    // The factor the state names, built again: a request the state names too is newer and stays.
+    const bool discard = w.request.discard;
     if (!refreshLaggedAt(state.lagged.at, state.lagged.step, rep)) return false;
+    w.request.discard = discard;
   }
   w.refresh = refresh;
   w.drift = state.lagged.drift;
   return true;
+}
+
+void Integrator::requestAgain(const SimulationState& state) {
+  if (!state.lagged.requested || w_->request.pending || settings_.factorRefresh == FactorRefresh::Synchronous ||
+      state.lagged.requestedAt.size() != state.x.size())
+    return;
+  StepReport rep;
+  requestFactor(state.lagged.requestedAt, state.lagged.requestedStep, rep);
 }
 
 void Integrator::record(SimulationState& state) const {
@@ -373,6 +386,11 @@ void Integrator::record(SimulationState& state) const {
   }
   state.forcesValid = w.forcesValid && w.forcesAt.size() == state.x.size() && w.forcesAt == state.x;
   if (state.forcesValid) state.forces = w.forces;
+  state.lagged.requested = w.request.pending && !w.request.discard;
+  if (state.lagged.requested) {
+    state.lagged.requestedAt = w.request.at;  // same size from the second request on: no allocation
+    state.lagged.requestedStep = w.request.step;
+  }
 }
 
 bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepReport& rep) {

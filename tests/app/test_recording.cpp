@@ -139,6 +139,51 @@ class TestRecording : public QObject {
     QCOMPARE(col(second, "checksums_differing").toInt(), 0);
   }
 
+  // Seeking: a session with a grasp, a pull and a cut (asynchronous refresh: factors requested and a cut body
+  // built on the second thread while it steps on) is recorded with checkpoints; ten seeks to random steps, in
+  // random order (backwards too), each land on the state of a straight replay, bit for bit (checksums of every
+  // step of the straight run, computed here).
+  void seekingLandsOnTheStraightRun() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    const Run a = run(gestureArgs(dir.path(), "grasp-pull-cut.json", file));
+    QVERIFY2(a.code == 0, qPrintable(a.err));
+    const auto rec = app::loadRecording(file.toStdString(), 1);
+    QVERIFY2(rec.checkpointSteps.size() >= 18, "a checkpoint every 20 steps of 360 and after each cut");
+    // Some checkpoints hold a cut being built or a factor requested: what makes them complete is exercised.
+    int withPendingCut = 0, withRequest = 0;
+    for (long s : rec.checkpointSteps) {
+      const simcore::Checkpoint c = app::loadCheckpoint(file.toStdString(), 1, s);
+      QCOMPARE(c.step, s);
+      withPendingCut += c.pendingCut.has_value();
+      withRequest += c.state.lagged.requested;
+    }
+    std::vector<std::uint64_t> straight{0};
+    simcore::replay(rec.setup, rec.events, rec.summary.steps, [&](long, const simcore::SimulationState& s) { straight.push_back(app::stateChecksum(s)); });
+    QCOMPARE(static_cast<long>(straight.size()), rec.summary.steps + 1);
+    for (const auto& [step, sum] : rec.checksums) QCOMPARE(straight[static_cast<std::size_t>(step)], sum);  // the straight run is the recorded one
+    app::Replayer replayer(rec);
+    std::mt19937 rng(16);
+    std::uniform_int_distribution<long> at(1, rec.summary.steps);
+    int fromCheckpoints = 0;
+    QString times;
+    for (int k = 0; k < 10; ++k) {
+      const long target = at(rng);
+      QElapsedTimer t;
+      t.start();
+      replayer.seek(target);
+      times += QString(" %1@%2").arg(t.elapsed()).arg(target);
+      QCOMPARE(replayer.step(), target);
+      fromCheckpoints += replayer.lastSeekFrom() > 0;
+      QVERIFY2(app::stateChecksum(replayer.state()) == straight[static_cast<std::size_t>(target)],
+               qPrintable(QString("seeking to step %1 (from %2) differs from the straight run").arg(target).arg(replayer.lastSeekFrom())));
+    }
+    qInfo("%zu checkpoints (%d with a cut being built, %d with a factor requested); 10 seeks, %d from a checkpoint, ms@step:%s", rec.checkpointSteps.size(),
+          withPendingCut, withRequest, fromCheckpoints, qPrintable(times));
+    QVERIFY(fromCheckpoints >= 5);
+    QVERIFY(withPendingCut > 0 && withRequest > 0);
+  }
+
   // A checksum changed in the file: --verify says where and exits 4; a missing session is one line, exit 1.
   void tamperedChecksumIsCaught() {
     QTemporaryDir dir;

@@ -174,12 +174,11 @@ class TestCaseFile : public QObject {
     s.settings.method = simcore::NewtonMethod::Exact;
     std::int64_t id = 0;
     {
-      app::Recorder rec(QFile::encodeName(path).toStdString(), {"trainee", "phantom", "v1", "test", ""}, s, 5);
+      app::Recorder rec(QFile::encodeName(path).toStdString(), {"trainee", "phantom", "v1", "test", ""}, s, 5, 8);
       simcore::Session session(s);
-      for (long k = 1; k <= 20; ++k) {
-        session.advance();
-        rec.afterStep(k, session.recorded(), session.state());
-      }
+      session.setStepHook([&rec](const simcore::StepRecord& r) { rec.afterStep(r); });
+      for (long k = 1; k <= 20; ++k) session.advance();
+      QCOMPARE(rec.checkpoints(), 2L);  // after steps 8 and 16
       rec.finish(20);
       id = rec.id();
     }
@@ -190,6 +189,14 @@ class TestCaseFile : public QObject {
     const auto v = app::verifyRecording(app::loadRecording(QFile::encodeName(path).toStdString(), id));
     QCOMPARE(v.checked, 4L);
     QCOMPARE(v.mismatches, 0L);
+    // Its checkpoints came along: seeking to step 19 starts from the one after step 16 and lands on the
+    // recorded state (the checksum recorded after step 15 and 20 bracket it: compare at 20).
+    const auto rec = app::loadRecording(QFile::encodeName(path).toStdString(), id);
+    QCOMPARE(rec.checkpointSteps, (std::vector<long>{8, 16}));
+    app::Replayer replayer(rec);
+    replayer.seek(20);
+    QCOMPARE(replayer.lastSeekFrom(), 16L);
+    QCOMPARE(app::stateChecksum(replayer.state()), rec.checksums.at(20));
     compareCases(phantomCase(), ui::loadCaseFile(path));
   }
 

@@ -20,6 +20,10 @@
 #include <QListWidget>
 #include <QMenuBar>
 #include <QMessageBox>
+#include "rehearse/ui/cohortwindow.hpp"
+#include "rehearse/ui/reviewwindow.hpp"
+#include <QInputDialog>
+#include <QLineEdit>
 #include <QMimeData>
 #include <QPlainTextEdit>
 #include <QPainter>
@@ -121,6 +125,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(jobs_, &JobRunner::progress, this, &MainWindow::showProgress);
   connect(doc_, &CaseDocument::saved, this, [this](bool ok, const QString& message) {
     if (ok) setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(doc_->path()).fileName()));
+    if (ok) simulation_->caseFileReplaced(doc_->path());  // a recording goes on into the file as saved
     say(message);
     emit caseSaved(ok, ok ? QString() : message);
   });
@@ -750,6 +755,115 @@ void MainWindow::buildSimulationMenu() {
     simulation_->stepOnce();
   })->setShortcut(QKeySequence(Qt::Key_F6));
   simMenu->addAction(tr("&Reset"), this, [this] { simulation_->reset(); })->setShortcut(QKeySequence(Qt::SHIFT | Qt::Key_F5));
+  simMenu->addSeparator();
+  simMenu->addAction(tr("Start / Stop &Recording"), this, [this] {
+    if (recording()) stopRecording();
+    else if (const QString err = startRecording({}); !err.isEmpty()) say(err);
+  })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_R));
+  simMenu->addAction(tr("Re&view Recorded Rehearsals..."), this, [this] { openReview(); })->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_R));
+  // The training centre's database: the connection from a libpq service name (or the environment); never stored
+  // in the case file (the service name is a setting of this machine).
+  auto askService = [this](bool& ok) {
+    QSettings settings;
+    const QString service = QInputDialog::getText(this, tr("Training database"),
+                                                   tr("libpq service name (pg_service.conf; empty: PGHOST, PGDATABASE, ... from the environment):"),
+                                                   QLineEdit::Normal, settings.value(QStringLiteral("training/service")).toString(), &ok);
+    if (ok) settings.setValue(QStringLiteral("training/service"), service);
+    return service;
+  };
+  simMenu->addAction(tr("&Publish Recorded Sessions..."), this, [this, askService] {
+    const QString path = doc_->path();
+    if (path.isEmpty() || !QFileInfo::exists(path)) return say(tr("Save the case and record a rehearsal first: sessions are published from the case file."));
+    bool ok = false;
+    const QString service = askService(ok);
+    if (!ok) return;
+    say(tr("Publishing the sessions of %1 (each is replayed and verified first)...").arg(QFileInfo(path).fileName()));
+    auto* watcher = new QFutureWatcher<QString>(this);
+    connect(watcher, &QFutureWatcher<QString>::finished, this, [this, watcher] {
+      say(watcher->result());
+      watcher->deleteLater();
+    });
+    watcher->setFuture(QtConcurrent::run([path, service] {
+      try {
+        TrainingDatabase db(service);  // its own connection, on this thread
+        const auto r = db.publish(path);
+        QString text = tr("Published %1 sessions (%2 already there, %3 not published).").arg(r.published).arg(r.already).arg(r.skipped);
+        if (!r.notes.isEmpty()) text += " " + r.notes.join(" ");
+        return text;
+      } catch (const std::exception& e) {
+        return tr("Publishing failed: %1").arg(QString::fromStdString(e.what()));
+      }
+    }));
+  });
+  simMenu->addAction(tr("Training &Cohort..."), this, [this, askService] {
+    bool ok = false;
+    const QString service = askService(ok);
+    if (!ok) return;
+    try {
+      auto* w = new CohortWindow(std::make_shared<TrainingDatabase>(service), this);
+      w->setAttribute(Qt::WA_DeleteOnClose);
+      w->setWindowFlag(Qt::Window);
+      w->show();
+    } catch (const std::exception& e) {
+      say(tr("The training database cannot be opened: %1").arg(QString::fromStdString(e.what())));
+    }
+  });
+  connect(simulation_, &SimulationPanel::recordingStopped, this, [this](const QString& why) {
+    say(why);
+    if (pages_.rehearse) pages_.rehearse->showRecording(false, why);
+  });
+  pages_.rehearse->setRecordHandlers({[this](const QString& trainee) { return startRecording(trainee); }, [this] { stopRecording(); },
+                                      [this] { openReview(); }});
+}
+
+bool MainWindow::recording() const { return simulation_->recording(); }
+
+QString MainWindow::startRecording(const QString& trainee) {
+  const QString path = doc_->path();
+  if (path.isEmpty() || !path.endsWith(QStringLiteral(".rehearse"), Qt::CaseInsensitive))
+    return tr("Save the case as a case file first (File > Save As, .rehearse): the rehearsal is recorded into it.");
+  if (!doc_->hasCase() || !doc_->data()->hasPose) return tr("Register the organ first (steps 4 and 5): the rehearsal runs on the registered organ.");
+  app::SessionMeta meta;
+  meta.trainee = trainee.toStdString();
+  meta.caseName = QFileInfo(path).fileName().toStdString();
+  meta.sceneVersion = ("saved " + QFileInfo(path).lastModified().toUTC().toString(Qt::ISODate)).toStdString();
+  meta.appVersion = REHEARSE_VERSION;
+  const QString err = simulation_->startRecording(path, meta);
+  if (!err.isEmpty()) return err;
+  const QString text = tr("Recording%1 into %2 (the simulation started again from rest).")
+                           .arg(trainee.isEmpty() ? QString() : tr(" %1").arg(trainee))
+                           .arg(QFileInfo(path).fileName());
+  pages_.rehearse->showRecording(true, text);
+  say(text);
+  return {};
+}
+
+void MainWindow::stopRecording() {
+  if (!recording()) return;
+  const qint64 id = simulation_->recordingId();
+  simulation_->stopRecording();
+  const QString text = tr("Recorded session %1 in %2; review it with Ctrl+Shift+R.").arg(id).arg(QFileInfo(doc_->path()).fileName());
+  pages_.rehearse->showRecording(false, text);
+  say(text);
+}
+
+ReviewWindow* MainWindow::openReview() {
+  const QString path = doc_->path();
+  if (path.isEmpty() || !QFileInfo::exists(path)) {
+    say(tr("The case has no file yet: save it, record a rehearsal (step 7), then review it."));
+    return nullptr;
+  }
+  std::optional<imaging::Camera> camera;
+  cv::Mat3b frame;
+  if (doc_->hasCase() && !doc_->data()->frame.empty() && doc_->data()->camera.problem().empty()) {
+    camera = doc_->data()->camera;
+    frame = doc_->data()->frame;
+  }
+  auto* w = new ReviewWindow(path, camera, frame, this);
+  w->setAttribute(Qt::WA_DeleteOnClose);
+  w->setWindowFlag(Qt::Window);
+  w->show();
+  return w;
 }
 
 // ------------------------------------------------------------------------------------------ messages

@@ -116,13 +116,20 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   return f;
 }
 
-void SimulationPanel::startSession(const SimulationSetup& s) {
+void SimulationPanel::startSession(const SimulationSetup& s, std::optional<RecordRequest> record) {
   // Building the body (model, first factorisation) takes a while on a large organ: on a worker; the old
   // session keeps its thread until the new one is ready. Commands given meanwhile apply to the new one.
   forceLoop_.reset();  // it reads the session's snapshots
   session_.reset();
+  if (recorder_) {  // a new session is a new recording (or none)
+    recorder_->finish(recorder_->lastStep());
+    recorder_.reset();
+  }
   const long generation = ++generation_;
+  recordPending_ = record.has_value();
+  cancelRecord_ = false;
   if (!s.organ || s.organ->organ->empty()) {
+    recordPending_ = false;
     onFailed(tr("No organ volume to simulate; load or tetrahedralise a mesh first."));
     return;
   }
@@ -130,15 +137,35 @@ void SimulationPanel::startSession(const SimulationSetup& s) {
   pendingSteps_ = 0;
   auto* watcher = new QFutureWatcher<void>(this);
   auto result = std::make_shared<std::pair<std::shared_ptr<simcore::Session>, QString>>();
+  auto recorder = std::make_shared<std::shared_ptr<app::Recorder>>();
   auto ctx = std::make_shared<FrameContext>();
-  connect(watcher, &QFutureWatcher<void>::finished, this, [this, watcher, result, ctx, generation] {
+  connect(watcher, &QFutureWatcher<void>::finished, this, [this, watcher, result, ctx, generation, recorder] {
     watcher->deleteLater();
     if (generation != generation_) return;  // a newer organ arrived meanwhile
+    const bool cancelled = cancelRecord_;
+    recordPending_ = cancelRecord_ = false;
     if (!result->first) {
       onFailed(result->second);
+      if (*recorder) emit recordingStopped(tr("The recording did not start: %1").arg(result->second));
       return;
     }
     session_ = std::move(result->first);
+    if (*recorder && cancelled) {
+      (*recorder)->finish(0);
+    } else if (*recorder) {
+      recorder_ = *recorder;
+      recorderFailed_->store(false);
+      // On the session's thread after every step; a write the file refuses stops the recording, not the simulation.
+      session_->setStepHook([rec = recorder_, failed = recorderFailed_, why = recorderError_](const simcore::StepRecord& r) {
+        if (failed->load()) return;
+        try {
+          rec->afterStep(r);
+        } catch (const std::exception& e) {
+          *why = e.what();
+          failed->store(true);
+        }
+      });
+    }
     forceLoop_ = std::make_unique<simcore::ForceLoop>(
         [s = session_.get()] { return s->toolForce(); }, &device_);
     forceLoop_->start();
@@ -157,9 +184,10 @@ void SimulationPanel::startSession(const SimulationSetup& s) {
     if (pendingPlay_) session_->play();
     pendingPlay_ = false;
   });
-  watcher->setFuture(QtConcurrent::run([s, result, ctx, generation] {
+  watcher->setFuture(QtConcurrent::run([s, result, ctx, generation, record, recorder] {
     try {
       simcore::BodySetup b = bodySetup(s);
+      if (record) *recorder = std::make_shared<app::Recorder>(record->file, record->meta, b);
       ctx->organ = s.organ;
       ctx->rest = b.rest;
       ctx->tets = b.mesh.tets;
@@ -421,6 +449,51 @@ SimulationPanel::~SimulationPanel() {
   ++generation_;
   forceLoop_.reset();
   session_.reset();  // joins the session's thread before the panel goes
+  if (recorder_) {
+    try {
+      recorder_->finish(recorder_->lastStep());
+    } catch (...) {
+    }
+  }
+}
+
+QString SimulationPanel::startRecording(const QString& file, const app::SessionMeta& meta) {
+  if (file.isEmpty()) return tr("Save the case to a file first (File > Save): the rehearsal is recorded into it.");
+  if (!organ_ || organ_->organ->empty()) return tr("No organ volume to rehearse on; load or tetrahedralise a mesh first.");
+  // The recorder opens the file on the worker; a file it cannot write is said at once instead.
+  try {
+    (void)app::listRecordings(file.toStdString());
+  } catch (const std::exception& e) {
+    return QString::fromStdString(e.what());
+  }
+  const bool wasPlaying = playing_;
+  startSession(setup(), RecordRequest{file.toStdString(), meta});
+  if (wasPlaying) play();
+  return {};
+}
+
+void SimulationPanel::stopRecording() {
+  if (recordPending_) cancelRecord_ = true;
+  if (!recorder_) return;
+  if (session_) session_->setStepHook({});  // waits for the step in progress
+  try {
+    recorder_->finish(recorder_->lastStep());
+  } catch (const std::exception& e) {
+    *recorderError_ = e.what();
+  }
+  recorder_.reset();
+}
+
+qint64 SimulationPanel::recordingId() const { return recorder_ ? recorder_->id() : 0; }
+
+void SimulationPanel::caseFileReplaced(const QString& file) {
+  if (!recorder_) return;
+  try {
+    recorder_->reopen(file.toStdString());
+  } catch (const std::exception& e) {
+    *recorderError_ = e.what();
+    recorderFailed_->store(true);
+  }
 }
 
 SimulationSetup SimulationPanel::setup() const {
@@ -581,6 +654,11 @@ void SimulationPanel::reset() {
 void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
   last_ = f;
   view_->setFrame(f);
+  if (recorder_ && recorderFailed_->load()) {
+    const QString why = QString::fromStdString(*recorderError_);
+    stopRecording();
+    emit recordingStopped(tr("The recording stopped (what was recorded is kept): %1").arg(why));
+  }
   if (!f->report.ok && f->steps > 0) {
     playing_ = false;  // the worker stopped on a failed step
     updateButtons();

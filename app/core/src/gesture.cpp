@@ -111,6 +111,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
   if (hooks.start) hooks.start(setup);
   simcore::Session session(setup);
+  if (hooks.step) session.setStepHook(hooks.step);
   GestureResult out;
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();
   // A move in progress: from `from` by `by` between steps [k0, k1].
@@ -189,7 +190,6 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
     out.vesselCuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "vessel cut"));
     out.failed += !rep.ok;
     out.steps.push_back(std::move(row));
-    if (hooks.step) hooks.step(session, snap->step);
   }
   out.final = session.state();
   out.contactQueries = session.contactQueries();

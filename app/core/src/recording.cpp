@@ -1,8 +1,12 @@
 #include "rehearse/app/recording.hpp"
 
+#include "rehearse/app/review.hpp"
+
 #include <nlohmann/json.hpp>
 #include <sqlite3.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cstring>
 #include <ctime>
 #include <stdexcept>
@@ -120,7 +124,60 @@ constexpr const char* kSchema =
     "complete INTEGER DEFAULT 0);"
     "CREATE TABLE IF NOT EXISTS rehearsal_events(session INTEGER NOT NULL, seq INTEGER NOT NULL, step INTEGER NOT NULL, event TEXT NOT NULL, "
     "PRIMARY KEY(session, seq));"
-    "CREATE TABLE IF NOT EXISTS rehearsal_checksums(session INTEGER NOT NULL, step INTEGER NOT NULL, checksum TEXT NOT NULL, PRIMARY KEY(session, step));";
+    "CREATE TABLE IF NOT EXISTS rehearsal_checksums(session INTEGER NOT NULL, step INTEGER NOT NULL, checksum TEXT NOT NULL, PRIMARY KEY(session, step));"
+    "CREATE TABLE IF NOT EXISTS rehearsal_setups(session INTEGER NOT NULL, hash TEXT NOT NULL, setup TEXT NOT NULL, PRIMARY KEY(session, hash));"
+    "CREATE TABLE IF NOT EXISTS rehearsal_checkpoints(session INTEGER NOT NULL, step INTEGER NOT NULL, setup_hash TEXT NOT NULL, state BLOB NOT NULL, "
+    "PRIMARY KEY(session, step));";
+
+// Bytes of a checkpoint's state: plain values in this machine's order (a recording replays on the build
+// that made it), each array preceded by its length; reading checks every length against what is left.
+struct Bytes {
+  std::string b;
+  template <class T>
+  void pod(const T& v) {
+    b.append(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  void vec(const Eigen::VectorXd& v) {
+    pod(static_cast<std::int64_t>(v.size()));
+    b.append(reinterpret_cast<const char*>(v.data()), sizeof(double) * static_cast<std::size_t>(v.size()));
+  }
+  void v3(const Eigen::Vector3d& v) { b.append(reinterpret_cast<const char*>(v.data()), 3 * sizeof(double)); }
+};
+struct Reader {
+  const char* p;
+  const char* end;
+  void need(std::size_t n) const {
+    if (static_cast<std::size_t>(end - p) < n) throw std::runtime_error("a recorded checkpoint is cut short");
+  }
+  template <class T>
+  T pod() {
+    need(sizeof(T));
+    T v;
+    std::memcpy(&v, p, sizeof v);
+    p += sizeof v;
+    return v;
+  }
+  std::size_t count(std::size_t each) {
+    const auto n = pod<std::int64_t>();
+    if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / each) throw std::runtime_error("a recorded checkpoint has a bad length");
+    return static_cast<std::size_t>(n);
+  }
+  Eigen::VectorXd vec() {
+    const std::size_t n = count(sizeof(double));
+    Eigen::VectorXd v(static_cast<Eigen::Index>(n));
+    std::memcpy(v.data(), p, n * sizeof(double));
+    p += n * sizeof(double);
+    return v;
+  }
+  Eigen::Vector3d v3() {
+    need(3 * sizeof(double));
+    Eigen::Vector3d v;
+    std::memcpy(v.data(), p, 3 * sizeof(double));
+    p += 3 * sizeof(double);
+    return v;
+  }
+};
+constexpr std::uint32_t kCheckpointMagic = 0x314B4352;  // "RCK1"
 
 sqlite3* openStore(const std::string& path, bool create) {
   sqlite3* db = nullptr;
@@ -147,6 +204,186 @@ std::uint64_t stateChecksum(const simcore::SimulationState& s) {
   h = fnv(h, s.x.data(), sizeof(double) * static_cast<std::size_t>(s.x.size()));
   h = fnv(h, s.v.data(), sizeof(double) * static_cast<std::size_t>(s.v.size()));
   return fnv(h, &s.time, sizeof s.time);
+}
+
+// Fields a checkpoint carries: a new one must be written too.
+static_assert(sizeof(simcore::SimulationState::Lagged) == 64, "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::ToolState) == 224, "ToolState changed: record the new field in encodeCheckpointState");
+
+namespace {
+void writeProgress(Bytes& o, const simcore::CutProgress& p) {
+  o.pod(static_cast<std::int64_t>(p.pendingFaces.size()));
+  for (const auto& f : p.pendingFaces)
+    for (int n : f) o.pod(static_cast<std::int32_t>(n));
+  o.pod(static_cast<std::int64_t>(p.nodes.size()));
+  for (int n : p.nodes) o.pod(static_cast<std::int32_t>(n));
+  o.pod(static_cast<std::int64_t>(p.sweeps.size()));
+  for (const auto& w : p.sweeps)
+    for (const auto* v : {&w.a0, &w.b0, &w.a1, &w.b1}) o.v3(*v);
+}
+simcore::CutProgress readProgress(Reader& r) {
+  simcore::CutProgress p;
+  p.pendingFaces.resize(r.count(3 * sizeof(std::int32_t)));
+  for (auto& f : p.pendingFaces)
+    for (int& n : f) n = r.pod<std::int32_t>();
+  p.nodes.resize(r.count(sizeof(std::int32_t)));
+  for (int& n : p.nodes) n = r.pod<std::int32_t>();
+  p.sweeps.resize(r.count(12 * sizeof(double)));
+  for (auto& w : p.sweeps)
+    for (auto* v : {&w.a0, &w.b0, &w.a1, &w.b1}) *v = r.v3();
+  return p;
+}
+}  // namespace
+
+simcore::BodySetup sharedSetup(const simcore::BodySetup& s) {
+  simcore::BodySetup o = s;
+  o.cut.clear();
+  return o;
+}
+
+std::string encodeCheckpointState(const simcore::Checkpoint& c) {
+  Bytes o;
+  o.pod(kCheckpointMagic);
+  o.pod(static_cast<std::int64_t>(c.step));
+  o.pod(setupHash(sharedSetup(c.setup)));
+  writeProgress(o, c.setup.cut);
+  const auto& s = c.state;
+  o.vec(s.x);
+  o.vec(s.v);
+  o.pod(s.time);
+  o.pod(static_cast<std::uint8_t>(s.lagged.valid));
+  o.vec(s.lagged.at);
+  o.pod(s.lagged.step);
+  o.pod(static_cast<std::uint8_t>(s.lagged.refresh));
+  o.pod(static_cast<std::uint8_t>(s.lagged.drift));
+  o.pod(static_cast<std::uint8_t>(s.lagged.requested));
+  o.vec(s.lagged.requestedAt);
+  o.pod(s.lagged.requestedStep);
+  o.vec(s.forces);
+  o.pod(static_cast<std::uint8_t>(s.forcesValid));
+  const auto& t = c.tool;
+  o.v3(t.tip);
+  o.pod(static_cast<std::uint8_t>(t.jawClosed));
+  o.pod(static_cast<std::int64_t>(t.held.size()));
+  for (int n : t.held) o.pod(static_cast<std::int32_t>(n));
+  o.pod(static_cast<std::int64_t>(t.heldOffset.size()));
+  for (const auto& v : t.heldOffset) o.v3(v);
+  o.pod(static_cast<std::uint8_t>(t.cutting));
+  o.v3(t.cutFrom);
+  o.v3(t.force);
+  o.b.append(reinterpret_cast<const char*>(t.stiffness.data()), 9 * sizeof(double));
+  o.pod(static_cast<std::uint8_t>(t.present));
+  o.pod(static_cast<std::int32_t>(t.contacts));
+  o.pod(static_cast<std::int32_t>(t.pierced));
+  o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
+  if (c.restOfSweep) {
+    o.v3(c.restOfSweep->first);
+    o.v3(c.restOfSweep->second);
+  }
+  o.pod(static_cast<std::uint8_t>(c.pendingCut.has_value()));
+  if (const auto& p = c.pendingCut) {
+    o.pod(setupHash(sharedSetup(p->setup)));
+    writeProgress(o, p->setup.cut);
+    o.pod(static_cast<std::int64_t>(p->newNodes.size()));
+    for (const auto& n : p->newNodes) {
+      for (int f : n.from) o.pod(static_cast<std::int32_t>(f));
+      for (double w : n.weight) o.pod(w);
+    }
+    o.pod(static_cast<std::int64_t>(p->cutLabels.size()));
+    for (int l : p->cutLabels) o.pod(static_cast<std::int32_t>(l));
+    o.vec(p->factorAt);
+    o.pod(static_cast<std::uint8_t>(p->clearProgress));
+  }
+  return o.b;
+}
+
+simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t)>& setupOf) {
+  simcore::Checkpoint c;
+  Reader r{bytes.data(), bytes.data() + bytes.size()};
+  if (r.pod<std::uint32_t>() != kCheckpointMagic) throw std::runtime_error("a recorded checkpoint is not in a known format");
+  c.step = static_cast<long>(r.pod<std::int64_t>());
+  c.setup = setupOf(r.pod<std::uint64_t>());
+  c.setup.cut = readProgress(r);
+  auto& s = c.state;
+  s.x = r.vec();
+  s.v = r.vec();
+  s.time = r.pod<double>();
+  s.lagged.valid = r.pod<std::uint8_t>() != 0;
+  s.lagged.at = r.vec();
+  s.lagged.step = r.pod<double>();
+  s.lagged.refresh = r.pod<std::uint8_t>() != 0;
+  s.lagged.drift = r.pod<std::uint8_t>() != 0;
+  s.lagged.requested = r.pod<std::uint8_t>() != 0;
+  s.lagged.requestedAt = r.vec();
+  s.lagged.requestedStep = r.pod<double>();
+  s.forces = r.vec();
+  s.forcesValid = r.pod<std::uint8_t>() != 0;
+  auto& t = c.tool;
+  t.tip = r.v3();
+  t.jawClosed = r.pod<std::uint8_t>() != 0;
+  t.held.resize(r.count(sizeof(std::int32_t)));
+  for (auto& n : t.held) n = r.pod<std::int32_t>();
+  t.heldOffset.resize(r.count(3 * sizeof(double)));
+  for (auto& v : t.heldOffset) v = r.v3();
+  t.cutting = r.pod<std::uint8_t>() != 0;
+  t.cutFrom = r.v3();
+  t.force = r.v3();
+  r.need(9 * sizeof(double));
+  std::memcpy(t.stiffness.data(), r.p, 9 * sizeof(double));
+  r.p += 9 * sizeof(double);
+  t.present = r.pod<std::uint8_t>() != 0;
+  t.contacts = r.pod<std::int32_t>();
+  t.pierced = r.pod<std::int32_t>();
+  if (r.pod<std::uint8_t>()) {
+    const Eigen::Vector3d from = r.v3();
+    c.restOfSweep = std::make_pair(from, r.v3());
+  }
+  if (r.pod<std::uint8_t>()) {
+    simcore::PendingCutInput p;
+    p.setup = setupOf(r.pod<std::uint64_t>());
+    p.setup.cut = readProgress(r);
+    p.newNodes.resize(r.count(4 * sizeof(std::int32_t) + 4 * sizeof(double)));
+    for (auto& n : p.newNodes) {
+      for (int& f : n.from) f = r.pod<std::int32_t>();
+      for (double& w : n.weight) w = r.pod<double>();
+    }
+    p.cutLabels.resize(r.count(sizeof(std::int32_t)));
+    for (int& l : p.cutLabels) l = r.pod<std::int32_t>();
+    p.factorAt = r.vec();
+    p.clearProgress = r.pod<std::uint8_t>() != 0;
+    c.pendingCut = std::move(p);
+  }
+  if (r.p != r.end) throw std::runtime_error("a recorded checkpoint has trailing bytes");
+  if (s.v.size() != s.x.size() || (s.forcesValid && s.forces.size() != s.x.size()) || (s.lagged.valid && s.lagged.at.size() != s.x.size()))
+    throw std::runtime_error("a recorded checkpoint's vectors disagree in size");
+  return c;
+}
+
+std::uint64_t setupHash(const simcore::BodySetup& s) {
+  std::uint64_t h = 14695981039346656037ULL;
+  auto arr = [&h](const auto& v) {
+    const std::size_t n = v.size();
+    h = fnv(h, &n, sizeof n);
+    if (n) h = fnv(h, v.data(), n * sizeof(v[0]));
+  };
+  arr(s.mesh.points);
+  arr(s.mesh.tets);
+  arr(s.mesh.tetLabels);
+  arr(s.mesh.triangles);
+  arr(s.mesh.triangleLabels);
+  arr(s.rest);
+  arr(s.fixedNodes);
+  // The small rest through its text (materials, settings, tools, topology).
+  simcore::BodySetup light;
+  light.material = s.material;
+  light.byLabel = s.byLabel;
+  light.settings = s.settings;
+  light.tools = s.tools;
+  light.topology = s.topology;
+  light.mesh.unitToMetre = s.mesh.unitToMetre;
+  light.mesh.labelNames = s.mesh.labelNames;
+  const std::string text = encodeSetup(light);
+  return fnv(h, text.data(), text.size());
 }
 
 std::string encodeSetup(const simcore::BodySetup& s) {
@@ -240,15 +477,18 @@ simcore::InputEvent decodeEvent(const std::string& text) {
 }
 
 struct Recorder::Statements {
-  Statement event, checksum, steps;
+  Statement event, checksum, steps, setup, checkpoint;
   explicit Statements(sqlite3* db)
       : event(db, "INSERT INTO rehearsal_events(session, seq, step, event) VALUES(?, ?, ?, ?)"),
         checksum(db, "INSERT OR REPLACE INTO rehearsal_checksums(session, step, checksum) VALUES(?, ?, ?)"),
-        steps(db, "UPDATE rehearsal_sessions SET steps = ? WHERE id = ?") {}
+        steps(db, "UPDATE rehearsal_sessions SET steps = ? WHERE id = ?"),
+        setup(db, "INSERT OR IGNORE INTO rehearsal_setups(session, hash, setup) VALUES(?, ?, ?)"),
+        checkpoint(db, "INSERT OR REPLACE INTO rehearsal_checkpoints(session, step, setup_hash, state) VALUES(?, ?, ?, ?)") {}
 };
 
-Recorder::Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery)
-    : every_(std::max(1, checksumEvery)), lastCommit_(std::chrono::steady_clock::now()) {
+Recorder::Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery, int checkpointEvery)
+    : every_(std::max(1, checksumEvery)), checkpointEvery_(std::max(1, checkpointEvery)), lastCommit_(std::chrono::steady_clock::now()) {
+  path_ = path;
   const std::string setupText = encodeSetup(setup);
   db_ = openStore(path, true);
   try {
@@ -306,7 +546,58 @@ void Recorder::commitIfDue(bool force) {
   lastCommit_ = now;
 }
 
+std::string Recorder::path() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return path_;
+}
+
+void Recorder::reopen(const std::string& path) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  // The old file was replaced: what it still holds uncommitted goes with it.
+  sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr);
+  statements_.reset();
+  sqlite3_close(db_);
+  db_ = openStore(path, true);
+  path_ = path;
+  exec("PRAGMA journal_mode=WAL");
+  exec("PRAGMA synchronous=NORMAL");
+  exec(kSchema);
+  {
+    Statement q(db_, "SELECT COUNT(*) FROM rehearsal_events WHERE session = ?");
+    sqlite3_bind_int64(q.s, 1, id_);
+    long copied = sqlite3_step(q.s) == SQLITE_ROW ? static_cast<long>(sqlite3_column_int64(q.s, 0)) : 0;
+    Statement s(db_, "SELECT 1 FROM rehearsal_sessions WHERE id = ?");
+    sqlite3_bind_int64(s.s, 1, id_);
+    if (sqlite3_step(s.s) != SQLITE_ROW) throw std::runtime_error("the saved case " + path + " lost the recorded session " + std::to_string(id_));
+    written_ = std::min(written_, static_cast<std::size_t>(copied));  // events are written in order: the copy holds a prefix
+  }
+  statements_ = std::make_unique<Statements>(db_);
+  exec("BEGIN");
+  for (const auto& [step, sum] : checksumsWritten_) {
+    Statement& q = statements_->checksum;
+    sqlite3_reset(q.s);
+    sqlite3_bind_int64(q.s, 1, id_);
+    sqlite3_bind_int64(q.s, 2, step);
+    q.text(3, std::to_string(sum));
+    if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db_));
+  }
+  setupsWritten_.clear();  // a checkpoint after this one writes its setup again when the copy missed it (INSERT OR IGNORE)
+  if (finished_) {
+    Statement q(db_, "UPDATE rehearsal_sessions SET steps = ?, complete = 1 WHERE id = ?");
+    sqlite3_bind_int64(q.s, 1, lastStep_);
+    sqlite3_bind_int64(q.s, 2, id_);
+    sqlite3_step(q.s);
+  }
+  commitIfDue(true);
+}
+
 void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  afterStepLocked(step, recorded, state);
+}
+
+void Recorder::afterStepLocked(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state) {
+  lastStep_ = step;
   if (recorded.size() > written_) {
     Statement& q = statements_->event;
     for (; written_ < recorded.size(); ++written_) {
@@ -319,12 +610,14 @@ void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& reco
     }
   }
   if (step % every_ == 0) {
+    const std::uint64_t sum = stateChecksum(state);
     Statement& q = statements_->checksum;
     sqlite3_reset(q.s);
     sqlite3_bind_int64(q.s, 1, id_);
     sqlite3_bind_int64(q.s, 2, step);
-    q.text(3, std::to_string(stateChecksum(state)));
+    q.text(3, std::to_string(sum));
     if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db_));
+    checksumsWritten_.emplace_back(step, sum);
   }
   {
     Statement& q = statements_->steps;
@@ -336,7 +629,47 @@ void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& reco
   commitIfDue(false);
 }
 
+void Recorder::afterStep(const simcore::StepRecord& r) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  afterStepLocked(r.step, *r.recorded, *r.state);
+  // Every `checkpointEvery` steps, and just after the body changed (a cut applied: seeking past it then starts
+  // after it instead of building the cut body again).
+  bool changed = false;
+  for (const auto& e : r.snapshot->events) changed |= e == "cut";
+  if (r.step - lastCheckpoint_ >= checkpointEvery_ || changed) {
+    const simcore::Checkpoint c = r.checkpoint();
+    auto store = [this](const simcore::BodySetup& s) {
+      const simcore::BodySetup shared = sharedSetup(s);
+      const std::uint64_t h = setupHash(shared);
+      if (std::find(setupsWritten_.begin(), setupsWritten_.end(), h) != setupsWritten_.end()) return h;
+      Statement& q = statements_->setup;
+      sqlite3_reset(q.s);
+      sqlite3_bind_int64(q.s, 1, id_);
+      q.text(2, std::to_string(h));
+      q.text(3, encodeSetup(shared));
+      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a setup: ") + sqlite3_errmsg(db_));
+      setupsWritten_.push_back(h);
+      return h;
+    };
+    const std::uint64_t h = store(c.setup);
+    if (c.pendingCut) store(c.pendingCut->setup);
+    const std::string bytes = encodeCheckpointState(c);
+    Statement& q = statements_->checkpoint;
+    sqlite3_reset(q.s);
+    sqlite3_bind_int64(q.s, 1, id_);
+    sqlite3_bind_int64(q.s, 2, r.step);
+    q.text(3, std::to_string(h));
+    sqlite3_bind_blob(q.s, 4, bytes.data(), static_cast<int>(bytes.size()), SQLITE_TRANSIENT);
+    if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checkpoint: ") + sqlite3_errmsg(db_));
+    lastCheckpoint_ = r.step;
+    ++checkpoints_;
+  }
+}
+
 void Recorder::finish(long steps) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  finished_ = true;
+  lastStep_ = steps;
   Statement q(db_, "UPDATE rehearsal_sessions SET steps = ?, complete = 1 WHERE id = ?");
   sqlite3_bind_int64(q.s, 1, steps);
   sqlite3_bind_int64(q.s, 2, id_);
@@ -398,6 +731,11 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
       sqlite3_bind_int64(q.s, 1, id);
       while (sqlite3_step(q.s) == SQLITE_ROW) r.checksums[static_cast<long>(sqlite3_column_int64(q.s, 0))] = std::stoull(q.column(1));
     }
+    if (hasTable(db, "rehearsal_checkpoints")) {
+      Statement q(db, "SELECT step FROM rehearsal_checkpoints WHERE session = ? ORDER BY step");
+      sqlite3_bind_int64(q.s, 1, id);
+      while (sqlite3_step(q.s) == SQLITE_ROW) r.checkpointSteps.push_back(static_cast<long>(sqlite3_column_int64(q.s, 0)));
+    }
   } catch (...) {
     sqlite3_close(db);
     throw;
@@ -405,8 +743,139 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
   sqlite3_close(db);
   // A session cut short: its last checksum bounds what can be verified.
   if (!r.checksums.empty()) r.summary.steps = std::max(r.summary.steps, r.checksums.rbegin()->first);
+  r.path = path;
   return r;
 }
+
+RecordingRows loadRecordingRows(const std::string& path, std::int64_t id) {
+  RecordingRows rows;
+  sqlite3* db = openStore(path, false);
+  try {
+    {
+      Statement q(db, "SELECT setup FROM rehearsal_sessions WHERE id = ?");
+      sqlite3_bind_int64(q.s, 1, id);
+      if (sqlite3_step(q.s) != SQLITE_ROW) throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
+      rows.setup = q.column(0);
+    }
+    {
+      Statement q(db, "SELECT seq, step, event FROM rehearsal_events WHERE session = ? ORDER BY seq");
+      sqlite3_bind_int64(q.s, 1, id);
+      while (sqlite3_step(q.s) == SQLITE_ROW)
+        rows.events.emplace_back(static_cast<long>(sqlite3_column_int64(q.s, 0)), static_cast<long>(sqlite3_column_int64(q.s, 1)), q.column(2));
+    }
+    {
+      Statement q(db, "SELECT step, checksum FROM rehearsal_checksums WHERE session = ? ORDER BY step");
+      sqlite3_bind_int64(q.s, 1, id);
+      while (sqlite3_step(q.s) == SQLITE_ROW) rows.checksums.emplace_back(static_cast<long>(sqlite3_column_int64(q.s, 0)), q.column(1));
+    }
+    if (hasTable(db, "rehearsal_setups")) {
+      Statement q(db, "SELECT hash, setup FROM rehearsal_setups WHERE session = ?");
+      sqlite3_bind_int64(q.s, 1, id);
+      while (sqlite3_step(q.s) == SQLITE_ROW) rows.setups.emplace_back(q.column(0), q.column(1));
+    }
+    if (hasTable(db, "rehearsal_checkpoints")) {
+      Statement q(db, "SELECT step, setup_hash, state FROM rehearsal_checkpoints WHERE session = ? ORDER BY step");
+      sqlite3_bind_int64(q.s, 1, id);
+      while (sqlite3_step(q.s) == SQLITE_ROW) {
+        RecordingRows::CheckpointRow c;
+        c.step = static_cast<long>(sqlite3_column_int64(q.s, 0));
+        c.setupHash = q.column(1);
+        const auto* blob = static_cast<const char*>(sqlite3_column_blob(q.s, 2));
+        c.state.assign(blob ? blob : "", static_cast<std::size_t>(sqlite3_column_bytes(q.s, 2)));
+        rows.checkpoints.push_back(std::move(c));
+      }
+    }
+  } catch (...) {
+    sqlite3_close(db);
+    throw;
+  }
+  sqlite3_close(db);
+  return rows;
+}
+
+simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, long step) {
+  sqlite3* db = openStore(path, false);
+  simcore::Checkpoint c;
+  try {
+    std::string bytes;
+    {
+      Statement q(db, "SELECT state FROM rehearsal_checkpoints WHERE session = ? AND step = ?");
+      sqlite3_bind_int64(q.s, 1, id);
+      sqlite3_bind_int64(q.s, 2, step);
+      if (sqlite3_step(q.s) != SQLITE_ROW)
+        throw std::runtime_error(path + " has no checkpoint at step " + std::to_string(step) + " of session " + std::to_string(id));
+      const auto* blob = static_cast<const char*>(sqlite3_column_blob(q.s, 0));
+      bytes.assign(blob ? blob : "", static_cast<std::size_t>(sqlite3_column_bytes(q.s, 0)));
+    }
+    c = decodeCheckpointState(bytes, [&](std::uint64_t hash) {
+      Statement q(db, "SELECT setup FROM rehearsal_setups WHERE session = ? AND hash = ?");
+      sqlite3_bind_int64(q.s, 1, id);
+      q.text(2, std::to_string(hash));
+      if (sqlite3_step(q.s) != SQLITE_ROW)
+        throw std::runtime_error(path + ": the checkpoint at step " + std::to_string(step) + " names a setup that is missing");
+      return decodeSetup(q.column(0));
+    });
+  } catch (...) {
+    sqlite3_close(db);
+    throw;
+  }
+  sqlite3_close(db);
+  if (c.step != step) throw std::runtime_error(path + ": the checkpoint at step " + std::to_string(step) + " holds another step");
+  return c;
+}
+
+Replayer::Replayer(Recording r) : rec_(std::move(r)) {
+  steps_ = rec_.summary.complete || rec_.checksums.empty() ? rec_.summary.steps : rec_.checksums.rbegin()->first;
+  startAt(nullptr);
+  start_ = session_->checkpoint();
+}
+
+Replayer::~Replayer() = default;
+
+long Replayer::step() const { return session_->snapshot()->step; }
+
+void Replayer::startAt(const simcore::Checkpoint* c) {
+  if (!c) {
+    session_ = std::make_unique<simcore::Session>(simcore::replaySetup(rec_.setup));
+  } else {
+    simcore::Checkpoint d = *c;
+    d.setup = simcore::replaySetup(std::move(d.setup));
+    if (d.pendingCut) d.pendingCut->setup = simcore::replaySetup(std::move(d.pendingCut->setup));
+    session_->discardPending();
+    session_->restore(d);
+  }
+  const long from = c ? c->step : 0;
+  for (const auto& e : rec_.events)
+    if (e.step >= from) session_->post(e);
+}
+
+void Replayer::seek(long target) {
+  target = std::clamp(target, 0L, steps_);
+  const long now = step();
+  long best = 0;  // the nearest checkpoint at or before the target (0: the start)
+  for (long s : rec_.checkpointSteps)
+    if (s <= target && s > best) best = s;
+  if (now <= target && now >= best) {
+    lastSeekFrom_ = -1;  // onwards from here
+  } else if (best > 0) {
+    auto it = cache_.find(best);
+    if (it == cache_.end())
+      it = cache_.emplace(best, rec_.checkpointSource ? rec_.checkpointSource(best) : loadCheckpoint(rec_.path, rec_.summary.id, best)).first;
+    startAt(&it->second);
+    lastSeekFrom_ = best;
+  } else {
+    startAt(&start_);
+    lastSeekFrom_ = 0;
+  }
+  while (step() < target) session_->advance();
+}
+
+void Replayer::advance() {
+  if (step() < steps_) session_->advance();
+}
+
+std::shared_ptr<const simcore::Snapshot> Replayer::snapshot() const { return session_->snapshot(); }
+simcore::SimulationState Replayer::state() const { return session_->state(); }
 
 int copyRecordings(const std::string& from, const std::string& to) {
   int sessions = 0;
@@ -441,6 +910,15 @@ int copyRecordings(const std::string& from, const std::string& to) {
   run("INSERT INTO rehearsal_sessions SELECT * FROM prev.rehearsal_sessions");
   run("INSERT INTO rehearsal_events SELECT * FROM prev.rehearsal_events");
   run("INSERT INTO rehearsal_checksums SELECT * FROM prev.rehearsal_checksums");
+  {
+    sqlite3* src = openStore(from, false);
+    const bool has = hasTable(src, "rehearsal_checkpoints") && hasTable(src, "rehearsal_setups");
+    sqlite3_close(src);
+    if (has) {
+      run("INSERT INTO rehearsal_setups SELECT * FROM prev.rehearsal_setups");
+      run("INSERT INTO rehearsal_checkpoints SELECT * FROM prev.rehearsal_checkpoints");
+    }
+  }
   run("COMMIT");
   run("DETACH DATABASE prev");
   sqlite3_close(db);
@@ -450,10 +928,43 @@ int copyRecordings(const std::string& from, const std::string& to) {
 VerifyResult verifyRecording(const Recording& r) { return replayRecording(r).verify; }
 
 ReplayResult replayRecording(const Recording& r, double forceThresholdN) {
+  ReplayOptions o;
+  o.forceThresholdN = forceThresholdN;
+  return replayRecording(r, o);
+}
+
+namespace {
+double distanceToSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d d = b - a;
+  const double len2 = d.squaredNorm();
+  const double s = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  return (p - (a + s * d)).norm();
+}
+}  // namespace
+
+ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
+  const double forceThresholdN = options.forceThresholdN;
   ReplayResult out;
   VerifyResult& v = out.verify;
   SessionMetrics& m = out.metrics;
   m.forceThresholdN = forceThresholdN;
+  // What this session cannot say, in words.
+  int tumourLabel = 0;
+  for (const auto& [label, name] : r.setup.mesh.labelNames) {
+    std::string lower = name;
+    for (auto& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (lower.find("tumour") != std::string::npos || lower.find("tumor") != std::string::npos) tumourLabel = label;
+  }
+  if (tumourLabel) m.tumourBreaches = 0;
+  else m.tumourWhy = "the case marks no tumour (no element label named tumour)";
+  m.attachmentsWhy = "the model's attachments cannot tear (they are fixed nodes)";
+  if (!options.plannedCut) m.cutDeviationWhy = "the case has no planned cut line";
+  double deviationSum = 0;
+  long cuttingSteps = 0;
+  std::vector<Eigen::Vector3d> rest = r.setup.rest.empty() ? r.setup.mesh.points : r.setup.rest;
+  bool wasCutting = false;
+  double previousForce = 0;
+  Eigen::Vector3d lastCut = Eigen::Vector3d::Zero();
   const long steps = r.summary.complete || r.checksums.empty() ? r.summary.steps : r.checksums.rbegin()->first;
   double time = 0;  // simulated (the time step may be edited during the session: each step's own length counts)
   bool seen = false;
@@ -483,15 +994,54 @@ ReplayResult replayRecording(const Recording& r, double forceThresholdN) {
       forceSum += f;
       ++forceSteps;
     }
-    if (f > forceThresholdN) m.timeOverThresholdS += snap->time - time;
+    const bool over = f > forceThresholdN;
+    if (over) m.timeOverThresholdS += snap->time - time;
+    const bool overBefore = previousForce > forceThresholdN;
+    previousForce = f;
     time = snap->time;
     for (const auto& e : snap->events) {
       m.grasps += e == "grasp";
       m.slips += e == "slip";
       m.cuts += e == "cut";
       m.vesselCuts += e == "vessel cut";
+      if (tumourLabel && e == "cut through label " + std::to_string(tumourLabel)) ++*m.tumourBreaches;
+    }
+    if (tool.present && tool.cutting) {
+      if (wasCutting) m.cutLengthM += (tool.tip - lastCut).norm();
+      lastCut = tool.tip;
+      if (options.plannedCut) {
+        const double d = distanceToSegment(tool.tip, options.plannedCut->first, options.plannedCut->second);
+        deviationSum += d;
+        ++cuttingSteps;
+        m.cutDeviationMaxM = std::max(m.cutDeviationMaxM.value_or(0.0), d);
+      }
+    }
+    wasCutting = tool.present && tool.cutting;
+    double strain = 0;
+    if (options.strain) {
+      const auto& restNow = snap->surface ? snap->surface->rest : rest;
+      strain = snap->tets ? maxGreenStrain(restNow, snap->positions, *snap->tets) : 0;
+      m.maxStrain = std::max(m.maxStrain.value_or(0.0), strain);
+    }
+    if (options.timeline) {
+      TimelineSample t;
+      t.step = step;
+      t.time = snap->time;
+      t.toolPresent = tool.present;
+      t.tip = tool.tip;
+      t.force = f;
+      t.strain = strain;
+      t.holding = !tool.held.empty();
+      t.cutting = tool.cutting;
+      t.events = snap->events;
+      if (over && !overBefore) t.events.push_back("force over threshold");
+      out.timeline.push_back(std::move(t));
     }
   });
+  if (options.plannedCut) {
+    if (cuttingSteps) m.cutDeviationMeanM = deviationSum / static_cast<double>(cuttingSteps);
+    else m.cutDeviationWhy = "the blade never cut";
+  }
   m.durationS = time;
   m.meanForceN = forceSteps ? forceSum / static_cast<double>(forceSteps) : 0;
   m.economy = m.pathLengthM > 0 ? (last - first).norm() / m.pathLengthM : 0;

@@ -16,6 +16,8 @@ class FemBody final : public DeformableBody {
   SimulationState initialState() const override { return integrator_.initialState(); }
   StepReport step(SimulationState& state) override { return integrator_.step(state); }
   bool installRequestedFactor() override { return integrator_.installRequestedFactor(); }
+  bool factorPending() const override { return integrator_.factorPending(); }
+  void requestAgain(const SimulationState& state) override { integrator_.requestAgain(state); }
   bool prepareFactor(const Eigen::VectorXd& x) override { return integrator_.prepareLagged(x); }
   void setToolConstraints(std::vector<ScalarConstraint> c) override { integrator_.setConstraints(std::move(c)); }
   int topologyVersion() const override { return topology_; }

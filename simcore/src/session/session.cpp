@@ -589,17 +589,10 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     PendingCut p;
     p.factorAt = state_.x;
     extendByCut(p.factorAt, r.newNodes);
-    p.setup = next;
+    p.setup = std::move(next);
     p.newNodes = r.newNodes;
     p.cutLabels = r.cutLabels;
-    p.built = std::async(std::launch::async, [setup = std::move(next), at = p.factorAt, uncut = uncut_, edge = meanEdge_]() {
-      Built b;
-      b.body = makeFemBody(setup);
-      b.body->prepareFactor(at);
-      b.surface = makeCutSurface(uncut, setup.mesh, edge);
-      b.contact = contactSurface(b.body->restPositions(), b.body->tetrahedra());
-      return b;
-    });
+    launchCutBuild(p);
     pendingCut_ = std::move(p);
     return true;
   }
@@ -624,11 +617,23 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   return true;
 }
 
+void Session::launchCutBuild(PendingCut& p) const {
+  p.built = std::async(std::launch::async, [setup = p.setup, at = p.factorAt, uncut = uncut_, edge = meanEdge_]() {
+    Built b;
+    b.body = makeFemBody(setup);
+    b.body->prepareFactor(at);
+    b.surface = makeCutSurface(uncut, setup.mesh, edge);
+    b.contact = contactSurface(b.body->restPositions(), b.body->tetrahedra());
+    return b;
+  });
+}
+
 void Session::cutApplied(const std::vector<int>& cutLabels, std::string& message) {
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
   updateSurfaceNodes();
   updateCutSurface();
   events_.push_back("cut");
+  for (int label : cutLabels) events_.push_back("cut through label " + std::to_string(label));
   for (int label : cutLabels)
     if (setup_.byLabel.count(label)) {
       events_.push_back("vessel cut");
@@ -672,6 +677,7 @@ bool Session::finishPendingCut(bool wait, std::string& message) {
   ++constructions_.cutSurfaces;
   updateToolConstraints();
   events_.push_back("cut");
+  for (int label : p.cutLabels) events_.push_back("cut through label " + std::to_string(label));
   for (int label : p.cutLabels)
     if (setup_.byLabel.count(label)) {
       events_.push_back("vessel cut");
@@ -812,7 +818,35 @@ StepReport Session::advance() {
   }
   publish(rep, message, std::move(events_));
   events_.clear();
+  if (stepHook_) {
+    StepRecord r;
+    r.step = steps_;
+    r.recorded = &recorded_;
+    r.state = &state_;
+    const auto snap = snapshot();
+    r.snapshot = snap.get();
+    r.session = this;
+    stepHook_(r);
+  }
   return rep;
+}
+
+Checkpoint Session::checkpointLocked() const {
+  Checkpoint c{steps_, setup_, state_, tool_, std::nullopt, restOfSweep_};
+  if (pendingCut_) c.pendingCut = static_cast<const PendingCutInput&>(*pendingCut_);
+  return c;
+}
+
+Checkpoint StepRecord::checkpoint() const { return session->checkpointLocked(); }
+
+void Session::setStepHook(std::function<void(const StepRecord&)> f) {
+  std::lock_guard<std::mutex> lock(stepMutex_);
+  stepHook_ = std::move(f);
+}
+
+void Session::discardPending() {
+  std::lock_guard<std::mutex> lock(mailboxMutex_);
+  mailbox_.clear();
 }
 
 void Session::publish(const StepReport& rep, const std::string& message, std::vector<std::string> events) {
@@ -861,25 +895,34 @@ std::vector<InputEvent> Session::recorded() const {
 
 Checkpoint Session::checkpoint() const {
   std::lock_guard<std::mutex> lock(stepMutex_);
-  return {steps_, setup_, state_, tool_};
+  return checkpointLocked();
 }
 
 void Session::restore(const Checkpoint& c) {
   std::lock_guard<std::mutex> lock(stepMutex_);
-  if (pendingCut_) {
-    pendingCut_->built.wait();  // a cut of the state left behind
+  if (pendingCut_) {  // a cut of the state left behind: not waited for (it finishes on its own thread)
+    for (auto it = abandonedCuts_.begin(); it != abandonedCuts_.end();)
+      it = it->wait_for(std::chrono::seconds(0)) == std::future_status::ready ? abandonedCuts_.erase(it) : it + 1;
+    abandonedCuts_.push_back(std::move(pendingCut_->built));
     pendingCut_.reset();
   }
-  restOfSweep_.reset();
+  restOfSweep_ = c.restOfSweep;
   setup_ = c.setup;
   body_ = makeFemBody(setup_);
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
   surface_.reset();
   if (setup_.topology > 0) updateCutSurface();
   state_ = c.state;
+  body_->requestAgain(state_);
   updateSurfaceNodes();
   tool_ = c.tool;
   steps_ = c.step;
+  if (c.pendingCut) {  // the cut under way is built again from the same inputs (the same body)
+    PendingCut p;
+    static_cast<PendingCutInput&>(p) = *c.pendingCut;
+    launchCutBuild(p);
+    pendingCut_ = std::move(p);
+  }
   updateToolConstraints();
   StepReport rest;
   rest.ok = true;
@@ -970,11 +1013,14 @@ void Session::run() {
   }
 }
 
+BodySetup replaySetup(BodySetup setup) {
+  if (setup.settings.factorRefresh == FactorRefresh::Asynchronous) setup.settings.factorRefresh = FactorRefresh::Deferred;
+  return setup;
+}
+
 void replaySession(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
                    const std::function<void(long, const Session&)>& each) {
-  BodySetup deferred = setup;
-  if (deferred.settings.factorRefresh == FactorRefresh::Asynchronous) deferred.settings.factorRefresh = FactorRefresh::Deferred;
-  Session s(deferred);
+  Session s(replaySetup(setup));
   for (const auto& e : events) s.post(e);
   for (long k = 0; k < steps; ++k) {
     s.advance();

@@ -5,7 +5,9 @@
 
 #include <rehearse/simcore/session/forceloop.hpp>
 
+#include <QHBoxLayout>
 #include <QLabel>
+#include <QLineEdit>
 #include <QPushButton>
 #include <QTimer>
 #include <QVBoxLayout>
@@ -36,6 +38,38 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   auto* scissors = toolButton(this, tr("Scissors (B)"), tr("Press on the organ and drag across it to cut, release to stop"), Tool::Scissors, Qt::Key_B);
   scissors->setObjectName(QStringLiteral("scissorsTool"));
   layout->addWidget(scissors);
+  // Recording for the trainer: into the case file, as the rehearsal runs (from rest: the simulation restarts).
+  auto* recordRow = new QHBoxLayout;
+  trainee_ = new QLineEdit(this);
+  trainee_->setObjectName(QStringLiteral("traineeName"));
+  trainee_->setPlaceholderText(tr("trainee (name or id)"));
+  trainee_->setToolTip(tr("Who rehearses: recorded with the session"));
+  recordButton_ = new QPushButton(tr("Record"), this);
+  recordButton_->setObjectName(QStringLiteral("recordButton"));
+  recordButton_->setCheckable(true);
+  recordButton_->setToolTip(tr("Record the rehearsal into the case file (Ctrl+R): the simulation starts again from rest; press again to stop"));
+  auto* review = new QPushButton(tr("Review..."), this);
+  review->setObjectName(QStringLiteral("reviewButton"));
+  review->setToolTip(tr("Replay and review the sessions recorded in this case (Ctrl+Shift+R)"));
+  recordRow->addWidget(trainee_, 1);
+  recordRow->addWidget(recordButton_);
+  recordRow->addWidget(review);
+  layout->addLayout(recordRow);
+  recordState_ = new QLabel(this);
+  recordState_->setObjectName(QStringLiteral("recordState"));
+  recordState_->setWordWrap(true);
+  layout->addWidget(recordState_);
+  connect(recordButton_, &QPushButton::clicked, this, [this](bool on) {
+    if (on) {
+      const QString err = record_.start ? record_.start(trainee_->text().trimmed()) : tr("Recording is not available here.");
+      if (!err.isEmpty()) showRecording(false, err);
+    } else if (record_.stop) {
+      record_.stop();
+    }
+  });
+  connect(review, &QPushButton::clicked, this, [this] {
+    if (record_.review) record_.review();
+  });
   status_ = new QLabel(this);
   status_->setObjectName(QStringLiteral("rehearseStatus"));
   status_->setWordWrap(true);
@@ -152,6 +186,14 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   forceText_ = tr("Tool force %1 N%2").arg(t.force.norm(), 0, 'f', 2).arg(extra);
   if (!f->message.isEmpty() && f->message.contains(tr("vessel"))) status(f->message);
   labelThrottle_->request();  // the labels at most 15 times a second, the newest always shown
+}
+
+void RehearsePage::showRecording(bool on, const QString& text) {
+  recordButton_->setChecked(on);
+  recordButton_->setText(on ? tr("Stop recording") : tr("Record"));
+  trainee_->setEnabled(!on);
+  recordState_->setText(text);
+  recordState_->setStyleSheet(on ? QStringLiteral("color: #e04040; font-weight: bold") : QString());
 }
 
 }  // namespace rehearse::ui

@@ -48,8 +48,8 @@ enum class FactorRefresh {
   Synchronous,   ///< at the next step's start, on the stepping thread (that step waits for it)
   Asynchronous,  ///< on a second thread from the step's start positions; the steps go on with the old factor and
                  ///< the new one is swapped in at the first step start after it is ready (Courtecuisse et al. 2014)
-  Deferred,      ///< requested like Asynchronous but built only when installRequestedFactor() is called (replay of an
-                 ///< asynchronous run: the recording says at which step each factor was swapped in)
+  Deferred,      ///< requested and built like Asynchronous but swapped in only after installRequestedFactor() (which waits
+                 ///< for the build): the replay of an asynchronous run, the recording saying at which step each factor came in
 };
 
 struct SimulationSettings {
@@ -90,6 +90,11 @@ struct SimulationState {
     double step = -1;    ///< s, the time step it was built for
     bool refresh = true; ///< rebuild it at the next step's start
     bool drift = false;  ///< asynchronous/deferred refresh: it drifted, a new one is requested at the next step's start
+    /// Asynchronous/deferred refresh: a factor was requested at `requestedAt` for `requestedStep` and is not swapped
+    /// in yet (an integrator adopting this state without that request makes it again: a checkpoint is complete).
+    bool requested = false;
+    Eigen::VectorXd requestedAt;
+    double requestedStep = -1;
   } lagged;
   Eigen::VectorXd forces;  ///< elastic forces at x from the last step (3n, projected), when forcesValid
   bool forcesValid = false;
@@ -151,6 +156,9 @@ class Integrator {
   bool installRequestedFactor();
   /// A requested factor is pending (being built, or waiting for installRequestedFactor).
   bool factorPending() const;
+  /// A state restored from a checkpoint names a factor requested and not swapped in yet: request it again now
+  /// (before the events of the next boundary: a replay's Factor event there installs it). Nothing otherwise.
+  void requestAgain(const SimulationState& state);
   /// Builds the lagged factor at positions `at` for the configured time step now (a body built on another
   /// thread arrives with it, so no step waits for it). False for the exact method (nothing to keep) or when
   /// it could not be factorised. A state naming it (SimulationState::lagged: at, step) then uses it.

@@ -57,6 +57,14 @@ class MainWindow : public QMainWindow {
   /// Loads a case file (.rehearse), a case folder, or the built-in phantom when `path` is empty, on a
   /// worker thread. The current case stays until the new one has loaded.
   void openCase(const QString& path);
+  /// Records the rehearsal (step 7) into the current case file from rest, the trainee named; one sentence on
+  /// error (the case not saved to a file yet, a file that cannot be written), empty when recording.
+  QString startRecording(const QString& trainee);
+  void stopRecording();
+  bool recording() const;
+  /// Opens the review window on the current case file's recorded sessions (null, with a message, when the
+  /// case has no file yet).
+  class ReviewWindow* openReview();
   /// Saves the current case to `path` on a worker thread (atomic write); emits caseSaved.
   void saveCaseAs(const QString& path);
   QString currentPath() const { return doc_->path(); }

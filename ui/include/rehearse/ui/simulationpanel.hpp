@@ -5,6 +5,7 @@
 // boundary, recorded with the run); a 3D view of the deformed mesh coloured by displacement or von Mises
 // stress. No simulation state lives here: the panel only draws the session's published snapshots.
 #include <rehearse/app/case.hpp>
+#include <rehearse/app/recording.hpp>
 #include "rehearse/ui/organview.hpp"
 
 #include <rehearse/simcore/session/forceloop.hpp>
@@ -15,6 +16,7 @@
 
 #include <atomic>
 #include <memory>
+#include <optional>
 #include <vector>
 
 class QComboBox;
@@ -119,17 +121,33 @@ class SimulationPanel : public QWidget {
   const simcore::Session* session() const { return session_.get(); }
   SimulationSetup setup() const;
   QString statusText() const;
+  /// Starts the simulation again from rest, recording the session into the case file `file` (SQLite, as it
+  /// runs: app::Recorder) with `meta`. One sentence on error (nothing started then), empty on success.
+  QString startRecording(const QString& file, const app::SessionMeta& meta);
+  /// Ends the recording (the session is marked complete); the simulation goes on unrecorded.
+  void stopRecording();
+  bool recording() const { return recorder_ != nullptr || recordPending_; }
+  qint64 recordingId() const;
+  /// The case file was saved anew (replaced): the recording goes on into the new file.
+  void caseFileReplaced(const QString& file);
 
  signals:
   void statusChanged(const QString& text);
   /// The user edited the material (fields or preset): the window makes it an undoable edit of the case.
   void materialEdited(const rehearse::app::MaterialSettings& material);
   void frameShown(long steps);
+  /// The recording could not go on (one sentence); the simulation goes on.
+  void recordingStopped(const QString& why);
 
  private:
   struct FrameContext;
   static std::shared_ptr<const SimulationFrame> makeFrame(const FrameContext& ctx, const simcore::Snapshot& snap, int colouring);
-  void startSession(const SimulationSetup& s);
+  /// With `record`: the new session is recorded (the recorder made on the worker from the session's setup).
+  struct RecordRequest {
+    std::string file;
+    app::SessionMeta meta;
+  };
+  void startSession(const SimulationSetup& s, std::optional<RecordRequest> record = std::nullopt);
   void postMaterial(const app::MaterialSettings& before, const app::MaterialSettings& m);
   void onFrame(std::shared_ptr<const SimulationFrame> f);
   void onFailed(const QString& message);
@@ -141,6 +159,11 @@ class SimulationPanel : public QWidget {
   app::MaterialSettings fieldsMaterial() const;
 
   std::shared_ptr<simcore::Session> session_;
+  std::shared_ptr<app::Recorder> recorder_;   ///< while recording: written from the session's thread (step hook)
+  bool recordPending_ = false;                ///< the recorded session is being built
+  bool cancelRecord_ = false;                 ///< ... and the recording was stopped meanwhile
+  std::shared_ptr<std::atomic<bool>> recorderFailed_ = std::make_shared<std::atomic<bool>>(false);
+  std::shared_ptr<std::string> recorderError_ = std::make_shared<std::string>();
   simcore::VirtualDevice device_;                  ///< the mouse-driven instrument's tip, for the force loop
   std::unique_ptr<simcore::ForceLoop> forceLoop_;  ///< declared after session_: stopped before it goes
   long generation_ = 0;          ///< bumped per session: frames of an older one are dropped

@@ -64,10 +64,11 @@ struct GestureResult {
 };
 
 /// Called as the script runs (e.g. to record it): `start` with the setup the session is built from (the
-/// script's tools and time step applied), `step` after each step with the session.
+/// script's tools and time step applied), `step` after each step (the session's step hook: on the stepping
+/// thread, under its lock).
 struct GestureHooks {
   std::function<void(const simcore::BodySetup&)> start;
-  std::function<void(const simcore::Session&, long step)> step;
+  std::function<void(const simcore::StepRecord&)> step;
 };
 /// Runs the script on a session built from `setup` (its tools and time step set from the script).
 GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, const GestureHooks& hooks = {});

@@ -11,13 +11,22 @@
 //                      time_step, checksum_every, steps, complete)
 //   rehearsal_events(session, seq, step, event)        -- event: JSON, doubles to the last bit
 //   rehearsal_checksums(session, step, checksum)       -- after step `step`, FNV-1a 64 of (x, v, time)
+//   rehearsal_checkpoints(session, step, setup_hash, state) -- the complete state after `step` (binary: positions,
+//                      velocities, the lagged factor's identity and a factor requested, the tools, a cut under way),
+//                      every `checkpointEvery` steps and after each cut applied: seeking starts from the nearest
+//   rehearsal_setups(session, hash, setup)             -- each body setup a checkpoint names, once (edits and cuts
+//                      change it)
 #include <rehearse/simcore/session/session.hpp>
 
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
+#include <tuple>
 #include <vector>
 
 struct sqlite3;
@@ -43,12 +52,12 @@ struct SessionMeta {
   std::string notes;
 };
 
-/// Writes one session as it runs. Not thread-safe: call from the stepping thread (or after each step).
+/// Writes one session as it runs (from the stepping thread); reopen() from another thread is safe.
 class Recorder {
  public:
   /// Opens (creates) `path`, its tables, and the session's row. Throws std::runtime_error with one
   /// sentence (a file that is not SQLite, a read-only file).
-  Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery = 10);
+  Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery = 10, int checkpointEvery = 20);
   ~Recorder();  ///< commits what is pending (a finish() not called leaves the session incomplete)
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
@@ -56,17 +65,40 @@ class Recorder {
   /// After step `step` (1-based, as Session::advance counts): the events recorded so far (the session's
   /// whole record; the recorder keeps the ones it has not written) and the state's checksum every N steps.
   void afterStep(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state);
+  /// The same from the session's step hook (Session::setStepHook), with a complete-state checkpoint every
+  /// `checkpointEvery` steps and just after a cut was applied.
+  void afterStep(const simcore::StepRecord& r);
+  long checkpoints() const { return checkpoints_; }
   /// Marks the session complete with its step count and commits.
   void finish(long steps);
+  /// The file was replaced by a new one holding a copy of the recordings (a case saved anew, written beside
+  /// and renamed over it): writes go on into `path`, and what the copy missed (written after it, uncommitted
+  /// then) is written again: every event and checksum; checkpoints of that moment may be missing.
+  void reopen(const std::string& path);
+  std::string path() const;
+  long lastStep() const {
+    std::lock_guard<std::mutex> lock(mutex_);
+    return lastStep_;
+  }
 
  private:
   void exec(const char* sql);
   void commitIfDue(bool force);
+  void afterStepLocked(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state);
+  mutable std::mutex mutex_;
+  std::string path_;
+  std::vector<std::pair<long, std::uint64_t>> checksumsWritten_;  // all of them (8 bytes per N steps): rewritten after a reopen
+  long lastStep_ = 0;
+  bool finished_ = false;
   sqlite3* db_ = nullptr;
   struct Statements;
   std::unique_ptr<Statements> statements_;  // prepared once, used at every step
   std::int64_t id_ = 0;
   int every_;
+  int checkpointEvery_;
+  long lastCheckpoint_ = 0;
+  long checkpoints_ = 0;
+  std::vector<std::uint64_t> setupsWritten_;
   std::size_t written_ = 0;
   std::chrono::steady_clock::time_point lastCommit_;
 };
@@ -85,13 +117,75 @@ struct Recording {
   int checksumEvery = 0;
   std::vector<simcore::InputEvent> events;
   std::map<long, std::uint64_t> checksums;  ///< after step -> checksum
+  std::vector<long> checkpointSteps;        ///< the steps with a complete-state checkpoint (loadCheckpoint)
+  std::string path;                         ///< the file it was loaded from
+  /// Where its checkpoints come from when not from `path` (a session read from the training database).
+  std::function<simcore::Checkpoint(long step)> checkpointSource;
 };
+
+/// A session's rows as stored (to publish them elsewhere without decoding them).
+struct RecordingRows {
+  std::string setup;                                            ///< JSON
+  std::vector<std::tuple<long, long, std::string>> events;      ///< seq, step, JSON
+  std::vector<std::pair<long, std::string>> checksums;          ///< step, decimal
+  std::vector<std::pair<std::string, std::string>> setups;      ///< hash (decimal), JSON
+  struct CheckpointRow {
+    long step = 0;
+    std::string setupHash;
+    std::string state;
+  };
+  std::vector<CheckpointRow> checkpoints;
+};
+/// Throws std::runtime_error with one sentence.
+RecordingRows loadRecordingRows(const std::string& path, std::int64_t id);
 
 /// The sessions recorded in `path` (none when it has no recording tables). Throws std::runtime_error with
 /// one sentence when the file cannot be read as SQLite.
 std::vector<RecordingSummary> listRecordings(const std::string& path);
 /// One session; throws std::runtime_error with one sentence when it is absent or unreadable.
 Recording loadRecording(const std::string& path, std::int64_t id);
+
+/// A complete-state checkpoint of a session (after `step`). Throws std::runtime_error with one sentence.
+simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, long step);
+/// A checkpoint as bytes and back (the state's doubles to the last bit; its setups by their hashes, stored
+/// apart without their cut progress, which the bytes carry); decoding checks every length.
+std::string encodeCheckpointState(const simcore::Checkpoint& c);
+simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t hash)>& setupOf);
+/// A setup as a checkpoint stores it: without its cut progress.
+simcore::BodySetup sharedSetup(const simcore::BodySetup& s);
+/// A hash of a body setup (its mesh, attachments, materials, settings and tools): equal setups, equal hashes.
+std::uint64_t setupHash(const simcore::BodySetup& s);
+
+/// A recording replayed with seeking: any step is reached from the nearest checkpoint at or before it
+/// (or from the step it is at, when that is nearer), replaying the recorded events from there. The states
+/// are those of a straight replay, bit for bit (the checkpoints are complete).
+class Replayer {
+ public:
+  explicit Replayer(Recording r);
+  ~Replayer();
+  Replayer(const Replayer&) = delete;
+  Replayer& operator=(const Replayer&) = delete;
+  const Recording& recording() const { return rec_; }
+  long steps() const { return steps_; }  ///< the last step that can be reached
+  long step() const;                     ///< where it is
+  /// Moves to after step `step` (0: at rest), clamped to [0, steps()].
+  void seek(long step);
+  /// One step forward (nothing at the end).
+  void advance();
+  std::shared_ptr<const simcore::Snapshot> snapshot() const;
+  simcore::SimulationState state() const;
+  /// How the last seek got there: from a checkpoint (its step), from the start (0) or onwards (-1).
+  long lastSeekFrom() const { return lastSeekFrom_; }
+
+ private:
+  void startAt(const simcore::Checkpoint* c);
+  Recording rec_;
+  long steps_ = 0;
+  long lastSeekFrom_ = -1;
+  std::unique_ptr<simcore::Session> session_;
+  std::map<long, simcore::Checkpoint> cache_;  // checkpoints read so far
+  simcore::Checkpoint start_;                  // at rest (restoring it is cheaper than building the session)
+};
 
 /// Copies every recorded session from the SQLite file `from` into `to` (the tables created when absent):
 /// a case saved anew (written beside the old file, then renamed over it) keeps its recordings. Nothing to do
@@ -118,12 +212,43 @@ struct SessionMetrics {
   double meanForceN = 0;         ///< mean over the steps with a force
   double forceThresholdN = 0;
   double timeOverThresholdS = 0; ///< simulated time with the force above the threshold
+  std::optional<double> maxStrain;  ///< largest principal Green strain of any element at any step (ReplayOptions::strain)
+  double cutLengthM = 0;         ///< the blade tip's path while cutting
+  /// The blade tip's distance from the planned cut line while cutting (mean over the cutting steps, largest);
+  /// nullopt without a planned line (cutDeviationWhy says so) or without cutting.
+  std::optional<double> cutDeviationMeanM, cutDeviationMaxM;
+  std::string cutDeviationWhy;
+  std::optional<int> tumourBreaches;  ///< cuts through an element labelled "tumour"; nullopt when the case marks none
+  std::string tumourWhy;
+  std::optional<int> attachmentsTorn;  ///< nullopt: the model's attachments cannot tear (attachmentsWhy)
+  std::string attachmentsWhy;
+};
+/// One step of a replay, for the review's timeline and plots.
+struct TimelineSample {
+  long step = 0;
+  double time = 0;                 ///< s, simulated
+  bool toolPresent = false;
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();  ///< m, body frame
+  double force = 0;                ///< N
+  double strain = 0;               ///< largest principal Green strain (0 unless computed)
+  bool holding = false, cutting = false;
+  std::vector<std::string> events; ///< "grasp", "release", "slip", "cut", "vessel cut", "cut through label N", "force over threshold"
 };
 struct ReplayResult {
   VerifyResult verify;
   SessionMetrics metrics;
+  std::vector<TimelineSample> timeline;  ///< with ReplayOptions::timeline; steps 1..n
 };
-/// One replay: the checksums compared and the metrics computed (force threshold in N).
+struct ReplayOptions {
+  double forceThresholdN = 10;
+  /// A planned cut line (two points, m, body frame): the cut's deviation from it is measured.
+  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> plannedCut;
+  bool strain = false;    ///< compute the tissue's largest strain at every step (one pass over the elements)
+  bool timeline = false;  ///< keep the per-step samples
+};
+/// One replay: the checksums compared and the metrics computed.
+ReplayResult replayRecording(const Recording& r, const ReplayOptions& options);
+/// The same with only a force threshold (N).
 ReplayResult replayRecording(const Recording& r, double forceThresholdN = 10);
 
 }  // namespace rehearse::app

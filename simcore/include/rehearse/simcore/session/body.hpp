@@ -59,6 +59,10 @@ class DeformableBody {
   /// Deferred factor refresh (a replay of an asynchronous run): builds the factor requested earlier and uses
   /// it from the next step; false when none was requested (Integrator::installRequestedFactor).
   virtual bool installRequestedFactor() { return false; }
+  /// A lagged factor was requested and is not swapped in yet (Integrator::factorPending).
+  virtual bool factorPending() const { return false; }
+  /// A restored state's requested factor is requested again (Integrator::requestAgain).
+  virtual void requestAgain(const SimulationState& /*state*/) {}
   /// Builds the lagged factor at positions `x` now (Integrator::prepareLagged); true when the body keeps one,
   /// which a state naming (x, the time step) then uses without refactorising.
   virtual bool prepareFactor(const Eigen::VectorXd& /*x*/) { return false; }

@@ -96,7 +96,7 @@ struct Snapshot {
   MaterialParams material;                 ///< in use (shows when a live edit took effect)
   std::string message;                     ///< a sentence about the last applied input, when it needs one
   std::vector<double> stress;              ///< per element von Mises stress (Pa), only while setPublishStress(true)
-  std::vector<std::string> events;         ///< what happened at this step ("grasp", "release", "slip", "cut", "vessel cut")
+  std::vector<std::string> events;         ///< what happened at this step ("grasp", "release", "slip", "cut", "vessel cut", "cut through label N" per label cut)
   double mass = 0;                         ///< kg, the body's total
   std::size_t elements = 0;
   /// The elements (node indices) at this step: shared between snapshots until a cut changes them.
@@ -106,13 +106,36 @@ struct Snapshot {
   std::shared_ptr<const CutSurface> surface;
 };
 
+/// A cut computed and not applied yet (asynchronous refresh: its body is being built on another thread): what
+/// the build starts from, so that a session restored from a checkpoint builds the same body again.
+struct PendingCutInput {
+  BodySetup setup;                 ///< the cut body's setup (cut mesh, topology + 1, the cut's progress)
+  std::vector<CutNode> newNodes;   ///< how the state extends onto the new nodes
+  std::vector<int> cutLabels;      ///< element labels the cut went through
+  Eigen::VectorXd factorAt;        ///< the positions its first factor is built at
+  bool clearProgress = false;      ///< the blade was withdrawn meanwhile
+};
+
 /// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
-/// far), the complete state and the tools.
+/// far), the complete state, the tools, and a cut under way (being built, and the rest of the sweep).
 struct Checkpoint {
   long step = 0;
   BodySetup setup;
   SimulationState state;
   ToolState tool;
+  std::optional<PendingCutInput> pendingCut;
+  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> restOfSweep;
+};
+
+/// What a recorder reads after every step (on the stepping thread, under the session's lock: read it there,
+/// do not call back into the session).
+struct StepRecord {
+  long step = 0;                                 ///< steps done (1 after the first)
+  const std::vector<InputEvent>* recorded = nullptr;  ///< every event applied so far, with its step
+  const SimulationState* state = nullptr;        ///< the complete state after the step
+  const Snapshot* snapshot = nullptr;            ///< what was just published
+  const class Session* session = nullptr;
+  Checkpoint checkpoint() const;                 ///< the complete state here
 };
 
 /// What the loop extrapolates from: one physics step's tool force and stiffness at the tip it had.
@@ -150,6 +173,11 @@ class Session {
   /// Any thread: whether snapshots carry the elements' von Mises stress (costs one pass over the elements).
   /// The next snapshot is published at once with it.
   void setPublishStress(bool on);
+  /// Called on the stepping thread after every step, under the session's lock (a recorder writes from it).
+  /// Set before play, or while paused.
+  void setStepHook(std::function<void(const StepRecord&)> f);
+  /// Drops the inputs posted and not applied yet (a replay seeking elsewhere posts its own).
+  void discardPending();
 
   /// The deterministic core: applies the events due at this boundary, then one step, then publishes.
   /// The thread calls it; tests call it directly (never both at once: it locks).
@@ -187,26 +215,27 @@ class Session {
     std::shared_ptr<const CutSurface> surface;
     ContactSurface contact;
   };
-  struct PendingCut {
+  struct PendingCut : PendingCutInput {
     std::future<Built> built;
-    BodySetup setup;
-    std::vector<CutNode> newNodes;
-    std::vector<int> cutLabels;
-    Eigen::VectorXd factorAt;  ///< the positions its factor was built at (the state's lagged identity after)
-    bool clearProgress = false;  ///< the blade was withdrawn meanwhile: the cut's progress ends with it
   };
+  /// Starts building the cut body on another thread.
+  void launchCutBuild(PendingCut& p) const;
   /// The rest of a sweep asked for while a cut was being built (the blade withdrawn meanwhile): cut when it is in.
   std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> restOfSweep_;
   /// Old bodies being destroyed on another thread (an asynchronous refresh under way ends first).
   std::vector<std::future<void>> retired_;
   void retire(std::unique_ptr<DeformableBody> body);
   std::optional<PendingCut> pendingCut_;
+  std::vector<std::future<Built>> abandonedCuts_;  ///< builds of cuts a restore left behind (waited for at the end)
   /// Applies the pending cut when its body is ready (or, with `wait`, after waiting); true when applied.
   bool finishPendingCut(bool wait, std::string& message);
   /// What every applied cut does after the body changed: topology, surfaces, contact, events.
   void cutApplied(const std::vector<int>& cutLabels, std::string& message);
   void publish(const StepReport& rep, const std::string& message, std::vector<std::string> events = {});
   void run();
+  friend struct StepRecord;
+  Checkpoint checkpointLocked() const;
+  std::function<void(const StepRecord&)> stepHook_;
 
   BodySetup setup_;
   BodySetup uncut_;  ///< the setup the session started from (reset goes back to its mesh)
@@ -251,6 +280,9 @@ class Session {
 /// A replay runs an asynchronous refresh as a deferred one (the recording's Factor events install the factors).
 void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
             const std::function<void(long step, const SimulationState&)>& each);
+/// The setup a replay builds its session from: an asynchronous refresh becomes a deferred one (the
+/// recording's Factor events install the factors where the live run swapped them in).
+BodySetup replaySetup(BodySetup setup);
 /// The same, `each` given the replaying session (its snapshot: the tool, the events of the step).
 void replaySession(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
                    const std::function<void(long step, const Session&)>& each);

@@ -17,6 +17,9 @@ namespace rehearse::simcore {
 class ForceLoop;
 }
 
+class QLineEdit;
+class QPushButton;
+
 namespace rehearse::ui {
 class Throttle;
 }
@@ -38,6 +41,15 @@ class RehearsePage : public StepPage {
   void setForceLoop(std::function<const simcore::ForceLoop*()> loop) { loop_ = std::move(loop); }
   /// Redraws the chart from the loop now (the page's timer does it 15 times a second while it is shown).
   void updateChart();
+  /// What the Record button and the Review button do (the main window's): start returns one sentence on error.
+  struct RecordHandlers {
+    std::function<QString(const QString& trainee)> start;
+    std::function<void()> stop;
+    std::function<void()> review;
+  };
+  void setRecordHandlers(RecordHandlers h) { record_ = std::move(h); }
+  /// Shows whether a session is being recorded (and which), or why it stopped.
+  void showRecording(bool on, const QString& text);
 
  protected:
   void showEvent(QShowEvent* e) override;
@@ -56,6 +68,10 @@ class RehearsePage : public StepPage {
   QString forceText_;
   std::unique_ptr<Throttle> labelThrottle_;
   int slips_ = 0, cuts_ = 0, vesselCuts_ = 0;
+  RecordHandlers record_;
+  QPushButton* recordButton_ = nullptr;
+  QLineEdit* trainee_ = nullptr;
+  QLabel* recordState_ = nullptr;
 };
 
 }  // namespace rehearse::ui

@@ -1,0 +1,120 @@
+#pragma once
+// Reviewing a recorded rehearsal (issue 16), without Qt: what a replay gives per step (the timeline: time,
+// the instrument's tip and force, the tissue's largest strain, the events), the session's metrics by name
+// with the trainer's thresholds and a pass/fail per metric, and the frames the review window, the video
+// and the report draw (the organ through the case's camera over its frame, or through a virtual camera).
+#include <rehearse/app/recording.hpp>
+#include <rehearse/imaging/camera.hpp>
+
+#include <opencv2/core.hpp>
+
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rehearse::app {
+
+/// Greatest principal Green-Lagrange strain magnitude over the elements: max |eigenvalue| of
+/// E = (F^T F - I) / 2, F the deformation gradient of each element from `rest` to `current` (m).
+double maxGreenStrain(const std::vector<Eigen::Vector3d>& rest, const std::vector<Eigen::Vector3d>& current,
+                      const std::vector<std::array<int, 4>>& tets);
+
+/// A value per named metric (the names of `rehearse replay --metrics`); nullopt where the session does not
+/// determine it, with the reason in `why`.
+struct MetricValue {
+  std::string name;
+  std::optional<double> value;
+  std::string unit;
+  std::string why;  ///< when there is no value: one sentence
+  bool count = false;  ///< a whole number (grasps, slips, ...)
+};
+std::vector<MetricValue> metricValues(const SessionMetrics& m);
+
+/// A trainer's limit on a metric: the session passes it when min <= value <= max.
+struct Threshold {
+  std::string metric;
+  std::optional<double> min, max;
+};
+/// Thresholds from JSON {"max_force_n": {"max": 15}, "economy_of_motion": {"min": 0.8}, ...}. Throws
+/// std::runtime_error with one sentence (an unknown metric, a limit that is not a number, min > max).
+std::vector<Threshold> parseThresholds(const std::string& json);
+struct Verdict {
+  MetricValue metric;
+  Threshold threshold;
+  enum class Result { Pass, Fail, NotDetermined } result = Result::NotDetermined;
+};
+std::vector<Verdict> judge(const SessionMetrics& m, const std::vector<Threshold>& thresholds);
+const char* resultWord(Verdict::Result r);  ///< "pass", "fail", "not determined"
+
+/// Draws replayed states: the organ's surface (cut tissue darker) shaded by a headlight over the case's frame
+/// (the body is then in that camera's frame) or over a plain background through a virtual camera that looks
+/// along +z at the organ; the instrument's shaft from the trocar to the tip, the tip (green open, yellow
+/// holding, red cutting), the tip's path so far, and a caption.
+class ReviewRenderer {
+ public:
+  /// `camera` and `frame`: the case's (frame: 8-bit BGR of the camera's size); without them a virtual camera
+  /// of `width` x `height` framing the setup's rest shape.
+  ReviewRenderer(const simcore::BodySetup& setup, int width, int height, const std::optional<imaging::Camera>& camera = std::nullopt,
+                 const cv::Mat3b& frame = {});
+  /// The image of a snapshot; `path`: the tip's places so far (body frame), `caption` at the top left.
+  cv::Mat3b render(const simcore::Snapshot& s, const std::vector<Eigen::Vector3d>& path, const std::string& caption) const;
+  const imaging::Camera& camera() const { return camera_; }
+  /// Turns the virtual camera about the organ's centre (the review's 3D view; a case camera is not turned).
+  void orbit(double yawRadians, double pitchRadians);
+  bool virtualCamera() const { return virtual_; }
+
+ private:
+  imaging::Camera camera_;
+  Pose pose_;  // body frame -> camera
+  Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();
+  double distance_ = 0;
+  double yaw_ = 0, pitch_ = 0;
+  bool virtual_ = true;
+  cv::Mat3b background_;
+  std::vector<std::array<int, 3>> uncutTriangles_;
+  void place();
+};
+
+/// The timeline's per-step samples (ReplayResult::timeline) up to `step`: the tip's path (while present).
+std::vector<Eigen::Vector3d> tipPath(const std::vector<TimelineSample>& timeline, long step);
+/// A caption for a step: time, force, events.
+std::string captionAt(const std::vector<TimelineSample>& timeline, long step, const std::string& who);
+
+/// Writes the span [fromStep, toStep] of a recording as an MP4 video (OpenCV VideoWriter, MPEG-4 part 2) at
+/// `fps` frames per second of simulated time: frame k shows the first step at or after fromStep's time + k / fps.
+/// Returns the frames written. `progress(done, total)` returns false to cancel (then throws Cancelled-like
+/// std::runtime_error "cancelled"). Throws std::runtime_error with one sentence (no MP4 writer, a bad span).
+int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const std::vector<TimelineSample>& timeline, long fromStep, long toStep,
+                     double fps, const std::string& path, const std::function<bool(int, int)>& progress = {});
+
+/// What a session's report holds; the GUI library writes it as PDF (ui::writeReviewPdf, Qt's QPdfWriter).
+struct ReviewReport {
+  std::string title;
+  std::vector<std::pair<std::string, std::string>> facts;  ///< who, when, case, versions, notes, the replay's check
+  std::vector<MetricValue> metrics;
+  std::vector<Verdict> verdicts;                           ///< one per threshold set
+  std::vector<TimelineSample> timeline;
+  double forceThresholdN = 0;
+  std::vector<std::pair<std::string, cv::Mat3b>> keyFrames;  ///< caption, image (first grasp, largest force, first cut, the end)
+};
+/// Gathers a report: `result` from replayRecording with the timeline; key frames drawn by `renderer` from `replayer`.
+ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds, Replayer& replayer,
+                              const ReviewRenderer& renderer);
+/// The PDF writer the GUI library registers (the command line has no Qt of its own); empty in a build without it.
+using ReportWriter = std::function<void(const ReviewReport&, const std::string& path)>;
+void setReportWriter(ReportWriter writer);
+const ReportWriter& reportWriter();
+
+/// The training database as the command line reaches it (the GUI build registers Qt SQL's PostgreSQL; a build
+/// without Qt has none). `service`: a libpq service name, empty for the environment.
+struct TrainingStore {
+  /// Publishes the complete sessions of the case files; returns a line per file; throws std::runtime_error.
+  std::function<std::vector<std::string>(const std::vector<std::string>& caseFiles, const std::string& service)> publish;
+  std::function<std::vector<RecordingSummary>(const std::string& service)> list;
+  std::function<Recording(const std::string& service, std::int64_t id)> load;
+};
+void setTrainingStore(TrainingStore store);
+const TrainingStore& trainingStore();
+
+}  // namespace rehearse::app

@@ -1,0 +1,271 @@
+// Recording and reviewing rehearsals through the real main window (offscreen, software rendering), driven
+// by QTest mouse and key events (issue 16):
+//  - step 7: the trainee's name typed, Record clicked, a grasp, a pull and a cut with the mouse, the case
+//    saved (Ctrl+S) in the middle of the recording, Record clicked again; `rehearse replay --verify` then
+//    re-simulates the session headless and every checksum matches; ten seeks to random steps land on the
+//    straight replay's states bit for bit (their times printed; the benchmark is bench_replay);
+//  - the review window from step 7's Review button: the keyboard (End, Home, Right, Space) moves and plays
+//    it; a second attempt side by side follows the same time; thresholds give verdicts; the span's video has
+//    the expected frame count and size and the report its three pages. With REHEARSE_SCREENSHOT_DIR set it
+//    saves review.png.
+#include "test_support.hpp"
+
+#include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/gui.hpp"
+#include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/reviewwindow.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
+
+#include <rehearse/app/recording.hpp>
+
+#include <QLineEdit>
+#include <QProcess>
+#include <QPushButton>
+#include <QSignalSpy>
+#include <QStandardPaths>
+#include <QTemporaryDir>
+
+#include <opencv2/videoio.hpp>
+
+#include <random>
+
+using namespace rehearse;
+using ui::MainWindow;
+
+class TestReviewGui : public QObject {
+  Q_OBJECT
+  std::unique_ptr<MainWindow> w_;
+  QTemporaryDir dir_;
+  QString file_;
+  qint64 first_ = 0, second_ = 0;
+
+  bool waitFor(const std::function<bool()>& done, int ms = 60000) {
+    QElapsedTimer t;
+    t.start();
+    while (t.elapsed() < ms) {
+      if (done()) return true;
+      QTest::qWait(10);
+    }
+    return done();
+  }
+  long steps() { return w_->simulationPanel()->lastFrame()->steps; }
+  bool waitSteps(long n) {
+    const long at = steps();
+    return waitFor([&] { return steps() >= at + n; });
+  }
+  template <class T>
+  T* child(const char* name) {
+    return w_->findChild<T*>(QString::fromLatin1(name));
+  }
+
+ private slots:
+  void initTestCase() {
+    QCoreApplication::setOrganizationName("RehearseReviewTest");
+    QStandardPaths::setTestModeEnabled(true);
+    ui::applyDarkTheme(*qApp);
+    MainWindow::setRenderer(MainWindow::Renderer::Software);
+    w_ = std::make_unique<MainWindow>();
+    w_->resize(1600, 900);
+    w_->show();
+    QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
+    w_->openCase({});
+    QVERIFY(loaded.wait(60000));
+    const Pose truth = w_->caseData()->groundTruth->pose;
+    w_->editCase("Register (test)", [&truth](app::Case& c) {
+      c.pose = truth;
+      c.hasPose = c.poseAligned = true;
+    });
+    QVERIFY(waitFor([&] { return w_->simulationPanel()->lastFrame() != nullptr; }));
+    file_ = dir_.path() + "/phantom.rehearse";
+    QSignalSpy saved(w_.get(), &MainWindow::caseSaved);
+    w_->saveCaseAs(file_);
+    QVERIFY(saved.wait(60000));
+    QVERIFY(saved.front().at(0).toBool());
+  }
+
+  // Record from step 7 with the mouse: a grasp, a pull, a release, a save in the middle, a cut; verify headless; seek.
+  void recordFromTheWindowAndVerify() {
+    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
+    QCOMPARE(w_->step(), ui::Step::Rehearse);
+    auto* panel = w_->simulationPanel();
+    auto* name = child<QLineEdit>("traineeName");
+    auto* record = child<QPushButton>("recordButton");
+    QVERIFY(name && record);
+    QTest::keyClicks(name, "Trainee One");
+    QTest::mouseClick(record, Qt::LeftButton);
+    QVERIFY2(w_->recording(), qPrintable(w_->messageLog().join(" | ")));
+    // The session starts again from rest: wait for the new one, then let the organ settle.
+    QVERIFY(waitFor([&] { return panel->recordingId() > 0 && panel->session()->snapshot()->step > 60 && steps() > 60; }));
+    first_ = panel->recordingId();
+    QVERIFY(panel->isPlaying());
+    const auto& c = *w_->caseData();
+    auto* view = w_->frameView();
+    QTest::keyClick(w_.get(), Qt::Key_R);  // the grasper
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    const QPointF a = view->toWidget(QPointF(centre.x(), centre.y()));
+    const QPointF b = a + QPointF(0, -35);
+    QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    for (int i = 1; i <= 8; ++i) {
+      QTest::mouseMove(view, (a + (b - a) * (i / 8.0)).toPoint());
+      QVERIFY(waitSteps(4));
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
+    QVERIFY(waitSteps(20));
+    // Saved while recording (the file is written anew and renamed over): the recording goes on into it.
+    QSignalSpy saved(w_.get(), &MainWindow::caseSaved);
+    QTest::keyClick(w_.get(), Qt::Key_S, Qt::ControlModifier);
+    QVERIFY(saved.wait(60000));
+    QVERIFY(saved.front().at(0).toBool());
+    // The scissors across the left part of the organ.
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    const auto start = panel->lastFrame();
+    double x0 = 1e9, x1 = -1e9;
+    std::vector<Eigen::Vector2d> px;
+    for (const auto& p : start->positions) {
+      px.push_back(c.camera.project(p));
+      x0 = std::min(x0, px.back().x()), x1 = std::max(x1, px.back().x());
+    }
+    const double column = x0 + 0.25 * (x1 - x0);
+    double y0 = 1e9, y1 = -1e9;
+    for (const auto& p : px)
+      if (std::abs(p.x() - column) < 6) y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
+    const QPointF ca = view->toWidget(QPointF(column, y0 + 0.15 * (y1 - y0))), cb = view->toWidget(QPointF(column, y1 + 0.1 * (y1 - y0)));
+    QTest::mousePress(view, Qt::LeftButton, {}, ca.toPoint());
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    for (int i = 1; i <= 16; ++i) {
+      QTest::mouseMove(view, (ca + (cb - ca) * (i / 16.0)).toPoint());
+      QVERIFY(waitSteps(3));
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, cb.toPoint());
+    QVERIFY(waitFor([&] { return panel->lastFrame()->surface != nullptr; }));
+    QVERIFY(waitSteps(30));
+    QTest::mouseClick(record, Qt::LeftButton);  // stop
+    QVERIFY(!w_->recording());
+    // Headless, as a trainer's machine would: every checksum matches.
+    QProcess p;
+    p.start(QStringLiteral(REHEARSE_BINARY), {"replay", file_, "--session", QString::number(first_), "--verify"});
+    QVERIFY(p.waitForFinished(600000));
+    const QString out = QString::fromUtf8(p.readAllStandardOutput()), err = QString::fromUtf8(p.readAllStandardError());
+    QVERIFY2(p.exitCode() == 0, qPrintable(out + err));
+    QVERIFY2(out.contains("all ") && out.contains("checksums match"), qPrintable(out));
+    qInfo("%s", qPrintable(out.trimmed().replace('\n', " / ")));
+    const app::Recording rec = app::loadRecording(file_.toStdString(), first_);
+    QCOMPARE(QString::fromStdString(rec.summary.meta.trainee), QStringLiteral("Trainee One"));
+    QVERIFY(rec.summary.complete);
+    long grasps = 0, cuts = 0;
+    for (const auto& e : rec.events) {
+      grasps += e.kind == simcore::InputKind::Jaw && e.on;
+      cuts += e.kind == simcore::InputKind::Cut && e.on;
+    }
+    QVERIFY(grasps >= 1 && cuts >= 1);
+    // Seeks to ten random steps against the straight replay.
+    std::vector<std::uint64_t> straight{0};
+    simcore::replay(rec.setup, rec.events, rec.summary.steps, [&](long, const simcore::SimulationState& s) { straight.push_back(app::stateChecksum(s)); });
+    app::Replayer replayer(rec);
+    std::mt19937 rng(25);
+    std::uniform_int_distribution<long> at(1, rec.summary.steps);
+    QString times;
+    for (int k = 0; k < 10; ++k) {
+      const long target = at(rng);
+      QElapsedTimer t;
+      t.start();
+      replayer.seek(target);
+      times += QString(" %1@%2").arg(t.elapsed()).arg(target);
+      QVERIFY2(app::stateChecksum(replayer.state()) == straight[static_cast<std::size_t>(target)], qPrintable(QString("seek to step %1").arg(target)));
+    }
+    qInfo("session %lld: %ld steps, %zu events (%ld grasps, %ld cuts), %zu checkpoints; 10 seeks equal to the straight replay, ms@step:%s",
+          static_cast<long long>(first_), rec.summary.steps, rec.events.size(), grasps, cuts, rec.checkpointSteps.size(), qPrintable(times));
+  }
+
+  // The review window from step 7's button; keyboard; a second attempt in sync; thresholds; exports.
+  void reviewWindow() {
+    QVERIFY(first_ > 0);
+    // A second, short attempt: a grasp only.
+    auto* panel = w_->simulationPanel();
+    auto* record = child<QPushButton>("recordButton");
+    QTest::mouseClick(record, Qt::LeftButton);
+    QVERIFY(waitFor([&] { return panel->recordingId() > first_ && panel->session()->snapshot()->step > 80; }));
+    second_ = panel->recordingId();
+    QTest::mouseClick(record, Qt::LeftButton);
+    QVERIFY(!w_->recording());
+
+    QTest::mouseClick(child<QPushButton>("reviewButton"), Qt::LeftButton);
+    ui::ReviewWindow* review = nullptr;
+    for (QWidget* t : QApplication::topLevelWidgets())
+      if (auto* r = qobject_cast<ui::ReviewWindow*>(t)) review = r;
+    QVERIFY(review);
+    QVERIFY(QTest::qWaitForWindowExposed(review));
+    QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
+    QCOMPARE(review->attemptsShown(), 1);
+    review->openSession(0, first_);
+    QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
+    const app::Recording rec = app::loadRecording(file_.toStdString(), first_);
+    review->activateWindow();
+    QTest::keyClick(review, Qt::Key_End);
+    QCOMPARE(review->stepShown(0), rec.summary.steps);
+    QTest::keyClick(review, Qt::Key_Home);
+    QCOMPARE(review->stepShown(0), 0L);
+    for (int k = 0; k < 3; ++k) QTest::keyClick(review, Qt::Key_Right);
+    QCOMPARE(review->stepShown(0), 3L);
+    QTest::keyClick(review, Qt::Key_Right, Qt::ShiftModifier);
+    QCOMPARE(review->stepShown(0), 13L);
+    QTest::keyClick(review, Qt::Key_Space);
+    QVERIFY(review->playing());
+    const double t0 = review->time();
+    QVERIFY(waitFor([&] { return review->time() > t0 + 0.2; }, 20000));
+    QTest::keyClick(review, Qt::Key_Space);
+    QVERIFY(!review->playing());
+    // Side by side, in sync: the same time on both.
+    review->openSession(1, second_);
+    QVERIFY(waitFor([&] { return review->ready(1); }, 120000));
+    QCOMPARE(review->attemptsShown(), 2);
+    review->seekTime(0.5);
+    QCOMPARE(review->stepShown(0), 50L);  // 10 ms steps
+    QCOMPARE(review->stepShown(1), 50L);
+    // Metrics with verdicts: the grasp counted; a force limit the first attempt exceeds fails, one it keeps passes.
+    const app::SessionMetrics m = review->metrics(0);
+    QVERIFY(m.grasps >= 1 && m.cuts >= 1 && m.maxForceN > 0 && m.maxStrain.value_or(0) > 0);
+    QVERIFY(review->setThresholds("{\"max_force_n\": {\"max\": " + QString::number(0.5 * m.maxForceN) + "}, \"grasps\": {\"min\": 1}}").isEmpty());
+    const auto v = review->verdicts(0);
+    QCOMPARE(v.size(), std::size_t(2));
+    for (const auto& x : v)
+      QCOMPARE(x.result, x.metric.name == "max_force_n" ? app::Verdict::Result::Fail : app::Verdict::Result::Pass);
+    QVERIFY(!review->setThresholds("{\"no_such_metric\": {\"max\": 1}}").isEmpty());
+    QVERIFY(!review->viewImage(0).isNull() && !review->viewImage(1).isNull());
+    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) {
+      review->seekTime(0.8 * review->duration(0));
+      QTest::qWait(50);
+      review->grab().save(QString::fromLocal8Bit(dir) + "/review.png");
+    }
+    // Exports: a video of the span 0.5 - 1.5 s (25 frames a second: 26 frames) and the report.
+    const QString video = dir_.path() + "/span.mp4", pdf = dir_.path() + "/report.pdf";
+    QVERIFY2(review->exportVideo(video, 0.5, 1.5).isEmpty(), "video");
+    cv::VideoCapture cap(video.toStdString());
+    QVERIFY(cap.isOpened());
+    int frames = 0;
+    cv::Mat frame;
+    while (cap.read(frame)) ++frames;
+    QCOMPARE(frames, 26);
+    const imaging::Camera& cam = w_->caseData()->camera;
+    QCOMPARE(frame.cols == 0 ? static_cast<int>(cap.get(cv::CAP_PROP_FRAME_WIDTH)) : frame.cols, cam.width);
+    QCOMPARE(static_cast<int>(cap.get(cv::CAP_PROP_FRAME_HEIGHT)), cam.height);
+    QVERIFY2(review->exportReport(pdf).isEmpty(), "report");
+    QProcess info;
+    info.start("pdfinfo", {pdf});
+    QVERIFY2(info.waitForFinished(60000) && info.exitCode() == 0, "pdfinfo (poppler-utils, installed by scripts/install-deps.sh) must read the report");
+    QVERIFY(QString::fromUtf8(info.readAllStandardOutput()).contains(QRegularExpression("Pages:\\s+3")));
+    review->close();
+  }
+
+  void cleanupTestCase() {
+    w_->close();
+    w_.reset();
+  }
+};
+
+QTEST_MAIN(TestReviewGui)
+#include "test_review_gui.moc"

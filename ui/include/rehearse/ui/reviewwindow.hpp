@@ -1,0 +1,95 @@
+#pragma once
+// The trainer's review window (issue 16): the sessions recorded in a case file, one attempt or two side by
+// side in sync; each with its view (the organ over the case's frame, or a 3D view turned with the mouse),
+// the instrument's path, a timeline of its force with the events marked (grasp, slip, cut, vessel cut, force
+// over the threshold) that seeks on click and drag, and its metrics with the trainer's thresholds. Play,
+// pause, speed, step, and export of a video span and a PDF report. Keyboard: Space play/pause, Left/Right
+// one step (Shift: ten), Home/End, V frame/3D view, Ctrl+E video, Ctrl+P report.
+#include <rehearse/app/review.hpp>
+
+#include <QMainWindow>
+
+#include <array>
+#include <functional>
+#include <memory>
+#include <optional>
+
+class QComboBox;
+class QLabel;
+class QTimer;
+class QSplitter;
+class QDoubleSpinBox;
+
+namespace rehearse::ui {
+
+class ReviewAttempt;
+
+class ReviewWindow : public QMainWindow {
+  Q_OBJECT
+ public:
+  /// `file`: a case file with recorded sessions; `camera` and `frame`: the case's (the organ is drawn over the
+  /// frame, in that camera's frame: the GUI's sessions are), else a virtual camera.
+  explicit ReviewWindow(const QString& file, std::optional<imaging::Camera> camera = std::nullopt, cv::Mat3b frame = {}, QWidget* parent = nullptr);
+  /// The same over any store of sessions (the training database): `list` and `load` called on the GUI thread.
+  ReviewWindow(std::function<std::vector<app::RecordingSummary>()> list, std::function<app::Recording(qint64)> load, const QString& title,
+               std::optional<imaging::Camera> camera = std::nullopt, cv::Mat3b frame = {}, QWidget* parent = nullptr);
+  ~ReviewWindow() override;
+
+  /// Shows session `id` as attempt 0 (the first) or 1 (compared side by side; id <= 0 removes it). Replays it
+  /// once for its timeline and metrics (on a worker thread; `ready` tells when).
+  void openSession(int attempt, qint64 id);
+  bool ready(int attempt) const;
+  int attemptsShown() const;
+  /// The common time (s) both attempts show, each clamped to its own duration.
+  double time() const { return time_; }
+  void seekTime(double seconds);
+  void stepBy(int steps);  ///< on the first attempt's steps
+  void setPlaying(bool on);
+  bool playing() const { return playing_; }
+  void setSpeed(double factor);
+  long stepShown(int attempt) const;
+  double duration(int attempt) const;
+  app::SessionMetrics metrics(int attempt) const;
+  std::vector<app::Verdict> verdicts(int attempt) const;
+  /// Thresholds for the metrics' pass/fail (JSON as `rehearse replay --thresholds` takes); one sentence on error.
+  QString setThresholds(const QString& json);
+  bool threeD() const { return threeD_; }
+  void setThreeD(bool on);
+  /// Writes attempt 0's span [from, to] s as MP4 / its report as PDF; one sentence on error, empty on success.
+  QString exportVideo(const QString& path, double from, double to);
+  QString exportReport(const QString& path);
+  QString statusText() const;
+  QImage viewImage(int attempt) const;
+
+ signals:
+  void attemptReady(int attempt);
+
+ protected:
+  void keyPressEvent(QKeyEvent* e) override;
+
+ private:
+  void tick();
+  void refresh();
+  void fillSessionLists();
+  void build(const QString& title);
+  std::function<std::vector<app::RecordingSummary>()> list_;
+  std::function<app::Recording(qint64)> load_;
+  std::optional<imaging::Camera> camera_;
+  cv::Mat3b frame_;
+  std::vector<app::RecordingSummary> sessions_;
+  std::array<std::unique_ptr<ReviewAttempt>, 2> attempts_;
+  std::vector<app::Threshold> thresholds_;
+  QSplitter* split_ = nullptr;
+  QComboBox* first_ = nullptr;
+  QComboBox* second_ = nullptr;
+  QComboBox* speed_ = nullptr;
+  QLabel* status_ = nullptr;
+  QTimer* timer_ = nullptr;
+  double time_ = 0;
+  double speedFactor_ = 1;
+  bool playing_ = false;
+  bool threeD_ = false;
+  qint64 lastTick_ = 0;
+};
+
+}  // namespace rehearse::ui

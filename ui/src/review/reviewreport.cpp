@@ -1,0 +1,212 @@
+// The review's PDF report (issue 16): Qt's QPdfWriter on A4 — the session's facts, its metrics with the
+// trainer's thresholds and verdicts, the force and strain over time with the events marked, and key frames.
+#include "rehearse/ui/reviewreport.hpp"
+
+#include <QCoreApplication>
+#include <QGuiApplication>
+#include <QImage>
+#include <QPageSize>
+#include <QPainter>
+#include <QPainterPath>
+#include <QPdfWriter>
+#include <QSaveFile>
+#include <QBuffer>
+#include <QDir>
+
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+
+namespace rehearse::ui {
+namespace {
+
+QImage toQImage(const cv::Mat3b& m) {
+  return QImage(m.data, m.cols, m.rows, static_cast<qsizetype>(m.step), QImage::Format_BGR888).copy();
+}
+
+QString number(double v) {
+  if (v == 0) return "0";
+  const double a = std::abs(v);
+  if (a >= 1e4 || a < 1e-3) return QString::number(v, 'g', 4);
+  return QString::number(v, 'f', a >= 100 ? 1 : a >= 1 ? 3 : 4);
+}
+
+// A plot of one series over time, the events marked as ticks along the top.
+void plot(QPainter& p, const QRectF& box, const QString& title, const QString& unit, const std::vector<app::TimelineSample>& tl,
+          double (*value)(const app::TimelineSample&), double threshold) {
+  p.save();
+  QFont f = p.font();
+  p.drawText(QRectF(box.left(), box.top(), box.width(), 40), Qt::AlignLeft | Qt::AlignVCenter, title);
+  const QRectF area(box.left() + 150, box.top() + 50, box.width() - 200, box.height() - 100);
+  p.setPen(QPen(Qt::black, 2));
+  p.drawRect(area);
+  if (tl.empty()) {
+    p.drawText(area, Qt::AlignCenter, "no samples");
+    p.restore();
+    return;
+  }
+  const double t0 = tl.front().time, t1 = std::max(tl.back().time, t0 + 1e-9);
+  double vmax = threshold > 0 ? threshold : 0;
+  for (const auto& s : tl) vmax = std::max(vmax, value(s));
+  if (vmax <= 0) vmax = 1;
+  vmax *= 1.1;
+  auto X = [&](double t) { return area.left() + (t - t0) / (t1 - t0) * area.width(); };
+  auto Y = [&](double v) { return area.bottom() - v / vmax * area.height(); };
+  // Axes' labels.
+  p.setPen(Qt::black);
+  p.drawText(QRectF(box.left(), area.top() - 20, 140, 40), Qt::AlignRight | Qt::AlignVCenter, number(vmax) + " " + unit);
+  p.drawText(QRectF(box.left(), area.bottom() - 20, 140, 40), Qt::AlignRight | Qt::AlignVCenter, "0");
+  p.drawText(QRectF(area.left() - 80, area.bottom() + 5, 160, 40), Qt::AlignCenter, number(t0) + " s");
+  p.drawText(QRectF(area.right() - 80, area.bottom() + 5, 160, 40), Qt::AlignCenter, number(t1) + " s");
+  if (threshold > 0) {
+    p.setPen(QPen(QColor(200, 60, 60), 2, Qt::DashLine));
+    p.drawLine(QPointF(area.left(), Y(threshold)), QPointF(area.right(), Y(threshold)));
+  }
+  for (const auto& s : tl) {
+    for (const auto& e : s.events) {
+      QColor c = e == "grasp" ? QColor(40, 160, 40) : e == "slip" ? QColor(230, 140, 0) : e == "vessel cut" ? QColor(200, 0, 0)
+                 : e == "cut" ? QColor(120, 0, 160) : e == "force over threshold" ? QColor(200, 60, 60) : QColor();
+      if (!c.isValid()) continue;
+      p.setPen(QPen(c, 3));
+      p.drawLine(QPointF(X(s.time), area.top()), QPointF(X(s.time), area.top() + 25));
+    }
+  }
+  QPainterPath path;
+  path.moveTo(X(tl.front().time), Y(value(tl.front())));
+  for (const auto& s : tl) path.lineTo(X(s.time), Y(value(s)));
+  p.setPen(QPen(QColor(30, 80, 200), 3));
+  p.drawPath(path);
+  p.restore();
+}
+
+}  // namespace
+
+void ensureGuiApplication() {
+  if (QCoreApplication::instance()) return;
+  // The command line's report: a GUI application of its own, offscreen when there is no display.
+  if (qEnvironmentVariableIsEmpty("DISPLAY") && qEnvironmentVariableIsEmpty("WAYLAND_DISPLAY") && qEnvironmentVariableIsEmpty("QT_QPA_PLATFORM"))
+    qputenv("QT_QPA_PLATFORM", "offscreen");
+  // A private runtime folder where the session gives none (what Qt would pick itself, without its warning on stderr).
+  if (qEnvironmentVariableIsEmpty("XDG_RUNTIME_DIR")) {
+    const QByteArray dir = QDir::tempPath().toLocal8Bit() + "/runtime-" + QByteArray::number(static_cast<qulonglong>(getuid()));
+    if (::mkdir(dir.constData(), 0700) == 0 || errno == EEXIST) qputenv("XDG_RUNTIME_DIR", dir);
+  }
+  static int argc = 1;
+  static char name[] = "rehearse";
+  static char* argv[] = {name, nullptr};
+  static std::unique_ptr<QGuiApplication> app = std::make_unique<QGuiApplication>(argc, argv);
+}
+
+void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
+  ensureGuiApplication();
+  QByteArray bytes;
+  {
+    QBuffer buffer(&bytes);
+    buffer.open(QIODevice::WriteOnly);
+    QPdfWriter pdf(&buffer);
+    pdf.setPageSize(QPageSize(QPageSize::A4));
+    pdf.setResolution(150);
+    pdf.setTitle(QString::fromStdString(r.title));
+    pdf.setCreator("Rehearse");
+    QPainter p;
+    if (!p.begin(&pdf)) throw std::runtime_error("the PDF report could not be started");
+    const double W = pdf.width(), H = pdf.height();
+    QFont body("DejaVu Sans");
+    body.setPixelSize(22);
+    QFont heading = body;
+    heading.setPixelSize(34);
+    heading.setBold(true);
+    // Page 1: the session and its metrics.
+    p.setFont(heading);
+    double y = 0;
+    p.drawText(QRectF(0, y, W, 60), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(r.title));
+    y += 80;
+    p.setFont(body);
+    for (const auto& [k, v] : r.facts) {
+      if (v.empty()) continue;
+      p.drawText(QRectF(0, y, 300, 32), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(k));
+      p.drawText(QRectF(300, y, W - 300, 32), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(v));
+      y += 34;
+    }
+    y += 30;
+    p.setFont(heading);
+    p.drawText(QRectF(0, y, W, 50), Qt::AlignLeft | Qt::AlignVCenter, "Metrics");
+    y += 60;
+    p.setFont(body);
+    const double c1 = 0, c2 = W * 0.36, c3 = W * 0.60, c4 = W * 0.82;
+    QFont bold = body;
+    bold.setBold(true);
+    p.setFont(bold);
+    p.drawText(QRectF(c1, y, c2, 32), Qt::AlignLeft | Qt::AlignVCenter, "metric");
+    p.drawText(QRectF(c2, y, c3 - c2, 32), Qt::AlignLeft | Qt::AlignVCenter, "value");
+    p.drawText(QRectF(c3, y, c4 - c3, 32), Qt::AlignLeft | Qt::AlignVCenter, "threshold");
+    p.drawText(QRectF(c4, y, W - c4, 32), Qt::AlignLeft | Qt::AlignVCenter, "verdict");
+    y += 36;
+    p.setFont(body);
+    for (const auto& m : r.metrics) {
+      const auto v = std::find_if(r.verdicts.begin(), r.verdicts.end(), [&](const app::Verdict& x) { return x.metric.name == m.name; });
+      p.drawText(QRectF(c1, y, c2, 30), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(m.name));
+      QString value = m.value ? number(*m.value) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit)) : "not determined";
+      p.drawText(QRectF(c2, y, c3 - c2, 30), Qt::AlignLeft | Qt::AlignVCenter, value);
+      if (v != r.verdicts.end()) {
+        QString limit;
+        if (v->threshold.min) limit += ">= " + number(*v->threshold.min) + " ";
+        if (v->threshold.max) limit += "<= " + number(*v->threshold.max);
+        p.drawText(QRectF(c3, y, c4 - c3, 30), Qt::AlignLeft | Qt::AlignVCenter, limit);
+        p.save();
+        p.setPen(v->result == app::Verdict::Result::Pass ? QColor(20, 130, 20) : v->result == app::Verdict::Result::Fail ? QColor(190, 0, 0) : QColor(90, 90, 90));
+        p.setFont(bold);
+        p.drawText(QRectF(c4, y, W - c4, 30), Qt::AlignLeft | Qt::AlignVCenter, app::resultWord(v->result));
+        p.restore();
+      }
+      y += 32;
+      if (!m.value && !m.why.empty()) {
+        p.save();
+        QFont small = body;
+        small.setPixelSize(18);
+        small.setItalic(true);
+        p.setFont(small);
+        p.setPen(QColor(90, 90, 90));
+        p.drawText(QRectF(c2, y - 4, W - c2, 26), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(m.why));
+        p.restore();
+        y += 26;
+      }
+    }
+    // Page 2: plots over time.
+    pdf.newPage();
+    p.setFont(heading);
+    p.drawText(QRectF(0, 0, W, 60), Qt::AlignLeft | Qt::AlignVCenter, "Over time");
+    p.setFont(body);
+    plot(p, QRectF(0, 80, W, H * 0.4), "Tool force on the tissue (dashed: the threshold; ticks: grasp green, slip orange, cut purple, vessel cut red)", "N",
+         r.timeline, [](const app::TimelineSample& s) { return s.force; }, r.forceThresholdN);
+    plot(p, QRectF(0, 100 + H * 0.45, W, H * 0.4), "Largest tissue strain (principal Green strain)", "", r.timeline,
+         [](const app::TimelineSample& s) { return s.strain; }, 0);
+    // Page 3: key frames, two by two.
+    if (!r.keyFrames.empty()) {
+      pdf.newPage();
+      p.setFont(heading);
+      p.drawText(QRectF(0, 0, W, 60), Qt::AlignLeft | Qt::AlignVCenter, "Key frames");
+      p.setFont(body);
+      const double cellW = W / 2 - 20, cellH = (H - 100) / 2 - 20;
+      for (std::size_t k = 0; k < r.keyFrames.size() && k < 4; ++k) {
+        const QImage img = toQImage(r.keyFrames[k].second);
+        const double x = (k % 2) * (W / 2), yy = 80 + (k / 2) * (cellH + 40);
+        QSizeF s = img.size().scaled(QSizeF(cellW, cellH - 40).toSize(), Qt::KeepAspectRatio);
+        p.drawImage(QRectF(x, yy + 40, s.width(), s.height()), img);
+        p.drawText(QRectF(x, yy, cellW, 36), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(r.keyFrames[k].first));
+      }
+    }
+    p.end();
+  }
+  QSaveFile out(QString::fromStdString(path));
+  if (!out.open(QIODevice::WriteOnly) || out.write(bytes) != bytes.size() || !out.commit())
+    throw std::runtime_error("cannot write the report " + path + ": " + out.errorString().toStdString());
+}
+
+}  // namespace rehearse::ui

@@ -1,0 +1,527 @@
+#include "rehearse/ui/reviewwindow.hpp"
+
+#include "rehearse/ui/reviewreport.hpp"
+
+#include <QApplication>
+#include <QComboBox>
+#include <QDateTime>
+#include <QFileDialog>
+#include <QFutureWatcher>
+#include <QHBoxLayout>
+#include <QHeaderView>
+#include <QKeyEvent>
+#include <QLabel>
+#include <QMenuBar>
+#include <QMessageBox>
+#include <QMouseEvent>
+#include <QPainter>
+#include <QPainterPath>
+#include <QPushButton>
+#include <QSplitter>
+#include <QStatusBar>
+#include <QTableWidget>
+#include <QTimer>
+#include <QToolBar>
+#include <QVBoxLayout>
+#include <QtConcurrent/QtConcurrentRun>
+
+#include <algorithm>
+#include <cmath>
+
+namespace rehearse::ui {
+
+namespace {
+
+QImage toQImage(const cv::Mat3b& m) { return QImage(m.data, m.cols, m.rows, static_cast<qsizetype>(m.step), QImage::Format_BGR888).copy(); }
+
+// The attempt's force over time, the events as ticks, the threshold dashed and the playhead; a click or a
+// drag seeks (through `seek`, the window's common time).
+class TimelineWidget : public QWidget {
+ public:
+  std::function<void(double)> seek;
+  const std::vector<app::TimelineSample>* timeline = nullptr;
+  double threshold = 0, now = 0;
+  TimelineWidget() {
+    setMinimumHeight(110);
+    setCursor(Qt::PointingHandCursor);
+    setToolTip(tr("Tool force over time; ticks: grasp (green), slip (orange), cut (purple), vessel cut (red), force over the threshold (dashed "
+                  "line, red tick). Click or drag to seek."));
+  }
+  double timeAt(double x) const {
+    if (!timeline || timeline->empty()) return 0;
+    const double t1 = timeline->back().time;
+    return std::clamp((x - 8) / std::max(1.0, width() - 16.0), 0.0, 1.0) * t1;
+  }
+  double xAt(double t) const {
+    const double t1 = timeline && !timeline->empty() ? std::max(1e-9, timeline->back().time) : 1;
+    return 8 + t / t1 * (width() - 16.0);
+  }
+
+ protected:
+  void paintEvent(QPaintEvent*) override {
+    QPainter p(this);
+    p.fillRect(rect(), QColor(30, 32, 36));
+    if (!timeline || timeline->empty()) {
+      p.setPen(Qt::lightGray);
+      p.drawText(rect(), Qt::AlignCenter, tr("replaying for the timeline..."));
+      return;
+    }
+    double fmax = std::max(threshold, 1e-6);
+    for (const auto& s : *timeline) fmax = std::max(fmax, s.force);
+    fmax *= 1.1;
+    const double top = 22, bottom = height() - 6;
+    auto Y = [&](double f) { return bottom - f / fmax * (bottom - top); };
+    if (threshold > 0) {
+      p.setPen(QPen(QColor(220, 80, 80), 1, Qt::DashLine));
+      p.drawLine(QPointF(8, Y(threshold)), QPointF(width() - 8, Y(threshold)));
+    }
+    QPainterPath path;
+    path.moveTo(xAt(timeline->front().time), Y(timeline->front().force));
+    for (const auto& s : *timeline) path.lineTo(xAt(s.time), Y(s.force));
+    p.setPen(QPen(QColor(90, 160, 255), 1.5));
+    p.drawPath(path);
+    for (const auto& s : *timeline)
+      for (const auto& e : s.events) {
+        const QColor c = e == "grasp" ? QColor(60, 200, 60) : e == "slip" ? QColor(240, 150, 0) : e == "vessel cut" ? QColor(230, 30, 30)
+                         : e == "cut" ? QColor(170, 60, 220) : e == "force over threshold" ? QColor(255, 90, 90) : QColor();
+        if (!c.isValid()) continue;
+        p.setPen(QPen(c, 3));
+        p.drawLine(QPointF(xAt(s.time), 2), QPointF(xAt(s.time), 16));
+      }
+    p.setPen(QPen(Qt::white, 2));
+    p.drawLine(QPointF(xAt(now), 0), QPointF(xAt(now), height()));
+    p.setPen(Qt::lightGray);
+    p.drawText(QRectF(width() - 160, 2, 150, 18), Qt::AlignRight, QStringLiteral("%1 N max").arg(fmax / 1.1, 0, 'f', 1));
+  }
+  void mousePressEvent(QMouseEvent* e) override {
+    if (seek) seek(timeAt(e->position().x()));
+  }
+  void mouseMoveEvent(QMouseEvent* e) override {
+    if ((e->buttons() & Qt::LeftButton) && seek) seek(timeAt(e->position().x()));
+  }
+};
+
+// The view: the rendered image, scaled to fit; a drag turns the 3D view.
+class ViewLabel : public QLabel {
+ public:
+  std::function<void(double, double)> turn;
+  ViewLabel() {
+    setMinimumSize(320, 240);
+    setAlignment(Qt::AlignCenter);
+    setStyleSheet("background: #202226");
+  }
+
+ protected:
+  void mousePressEvent(QMouseEvent* e) override { last_ = e->position(); }
+  void mouseMoveEvent(QMouseEvent* e) override {
+    if (!(e->buttons() & Qt::LeftButton) || !turn) return;
+    const QPointF d = e->position() - last_;
+    last_ = e->position();
+    turn(d.x() * 0.01, -d.y() * 0.01);
+  }
+
+ private:
+  QPointF last_;
+};
+
+}  // namespace
+
+class ReviewAttempt {
+ public:
+  QWidget* widget = nullptr;
+  QLabel* title = nullptr;
+  ViewLabel* view = nullptr;
+  TimelineWidget* timelineView = nullptr;
+  QTableWidget* table = nullptr;
+  app::Recording recording;
+  app::ReplayResult result;
+  std::unique_ptr<app::Replayer> replayer;
+  std::unique_ptr<app::ReviewRenderer> frameRenderer, orbitRenderer;
+  bool ready = false;
+  QString error;
+  QFutureWatcher<app::ReplayResult>* watcher = nullptr;
+
+  long stepAt(double t) const {
+    long step = 0;
+    for (const auto& s : result.timeline) {
+      if (s.time > t + 1e-9) break;
+      step = s.step;
+    }
+    return step;
+  }
+  double duration() const { return result.timeline.empty() ? 0 : result.timeline.back().time; }
+};
+
+ReviewWindow::ReviewWindow(const QString& file, std::optional<imaging::Camera> camera, cv::Mat3b frame, QWidget* parent)
+    : ReviewWindow([f = file.toStdString()] { return app::listRecordings(f); }, [f = file.toStdString()](qint64 id) { return app::loadRecording(f, id); }, file,
+                   std::move(camera), std::move(frame), parent) {}
+
+ReviewWindow::ReviewWindow(std::function<std::vector<app::RecordingSummary>()> list, std::function<app::Recording(qint64)> load, const QString& title,
+                           std::optional<imaging::Camera> camera, cv::Mat3b frame, QWidget* parent)
+    : QMainWindow(parent), list_(std::move(list)), load_(std::move(load)), camera_(std::move(camera)), frame_(std::move(frame)) {
+  build(title);
+}
+
+void ReviewWindow::build(const QString& title) {
+  setWindowTitle(tr("Review - %1").arg(title));
+  resize(1500, 900);
+  auto* bar = addToolBar(tr("Review"));
+  bar->setObjectName("reviewToolbar");
+  bar->addWidget(new QLabel(tr(" Session ")));
+  first_ = new QComboBox;
+  first_->setObjectName("firstSession");
+  bar->addWidget(first_);
+  bar->addWidget(new QLabel(tr("  compare with ")));
+  second_ = new QComboBox;
+  second_->setObjectName("secondSession");
+  bar->addWidget(second_);
+  bar->addSeparator();
+  QAction* play = bar->addAction(tr("Play/Pause"), this, [this] { setPlaying(!playing_); });
+  play->setToolTip(tr("Play or pause (Space)"));
+  bar->addAction(tr("<"), this, [this] { stepBy(-1); })->setToolTip(tr("One step back (Left; Shift: ten)"));
+  bar->addAction(tr(">"), this, [this] { stepBy(1); })->setToolTip(tr("One step on (Right; Shift: ten)"));
+  bar->addWidget(new QLabel(tr("  speed ")));
+  speed_ = new QComboBox;
+  speed_->setObjectName("speed");
+  for (double s : {0.25, 0.5, 1.0, 2.0, 4.0}) speed_->addItem(QStringLiteral("%1x").arg(s), s);
+  speed_->setCurrentIndex(2);
+  connect(speed_, &QComboBox::currentIndexChanged, this, [this](int) { setSpeed(speed_->currentData().toDouble()); });
+  bar->addWidget(speed_);
+  bar->addSeparator();
+  QAction* view3d = bar->addAction(tr("3D / Frame view"), this, [this] { setThreeD(!threeD_); });
+  view3d->setToolTip(tr("Switch between the organ over the case's frame and a 3D view turned by dragging (V)"));
+  QMenu* fileMenu = menuBar()->addMenu(tr("&Review"));
+  fileMenu->addAction(tr("Export &Video..."), this, [this] {
+    const QString path = QFileDialog::getSaveFileName(this, tr("Export video"), {}, tr("MP4 video (*.mp4)"));
+    if (path.isEmpty()) return;
+    const QString err = exportVideo(path, 0, duration(0));
+    if (!err.isEmpty()) QMessageBox::warning(this, tr("Export video"), err);
+  })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_E));
+  fileMenu->addAction(tr("Export &Report (PDF)..."), this, [this] {
+    const QString path = QFileDialog::getSaveFileName(this, tr("Export report"), {}, tr("PDF (*.pdf)"));
+    if (path.isEmpty()) return;
+    const QString err = exportReport(path);
+    if (!err.isEmpty()) QMessageBox::warning(this, tr("Export report"), err);
+  })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_P));
+  fileMenu->addAction(tr("&Close"), this, &QWidget::close)->setShortcut(QKeySequence::Close);
+  split_ = new QSplitter(Qt::Horizontal);
+  setCentralWidget(split_);
+  status_ = new QLabel;
+  statusBar()->addWidget(status_, 1);
+  timer_ = new QTimer(this);
+  timer_->setInterval(33);
+  connect(timer_, &QTimer::timeout, this, &ReviewWindow::tick);
+  fillSessionLists();
+  connect(first_, &QComboBox::activated, this, [this](int) { openSession(0, first_->currentData().toLongLong()); });
+  connect(second_, &QComboBox::activated, this, [this](int) { openSession(1, second_->currentData().toLongLong()); });
+  if (!sessions_.empty()) openSession(0, sessions_.back().id);
+  else status_->setText(tr("%1 holds no recorded session: record one in step 7 (Rehearse) first.").arg(title));
+}
+
+ReviewWindow::~ReviewWindow() {
+  for (auto& a : attempts_)
+    if (a && a->watcher) {
+      a->watcher->disconnect(this);
+      a->watcher->waitForFinished();
+    }
+}
+
+void ReviewWindow::fillSessionLists() {
+  try {
+    sessions_ = list_();
+  } catch (const std::exception& e) {
+    status_->setText(QString::fromStdString(e.what()));
+  }
+  first_->clear();
+  second_->clear();
+  second_->addItem(tr("(none)"), qint64(0));
+  for (const auto& s : sessions_) {
+    const QString label = QStringLiteral("%1  %2  %3%4")
+                              .arg(s.id)
+                              .arg(QString::fromStdString(s.meta.trainee.empty() ? std::string("(no name)") : s.meta.trainee))
+                              .arg(QString::fromStdString(s.startedUtc))
+                              .arg(s.complete ? QString() : tr("  (cut short)"));
+    first_->addItem(label, qint64(s.id));
+    second_->addItem(label, qint64(s.id));
+  }
+}
+
+void ReviewWindow::openSession(int attempt, qint64 id) {
+  if (attempt < 0 || attempt > 1) return;
+  if (auto& old = attempts_[static_cast<std::size_t>(attempt)]) {
+    if (old->watcher) {
+      old->watcher->disconnect(this);  // its finished signal must not reach the attempt deleted here
+      old->watcher->waitForFinished();
+      old->watcher->deleteLater();
+    }
+    delete old->widget;
+    old.reset();
+  }
+  if (attempt == 1 && id <= 0) {
+    refresh();
+    return;
+  }
+  auto a = std::make_unique<ReviewAttempt>();
+  try {
+    a->recording = load_(id);
+  } catch (const std::exception& e) {
+    status_->setText(QString::fromStdString(e.what()));
+    return;
+  }
+  a->widget = new QWidget;
+  auto* v = new QVBoxLayout(a->widget);
+  a->title = new QLabel;
+  a->view = new ViewLabel;
+  a->timelineView = new TimelineWidget;
+  a->table = new QTableWidget(0, 3);
+  a->table->setHorizontalHeaderLabels({tr("metric"), tr("value"), tr("verdict")});
+  a->table->horizontalHeader()->setStretchLastSection(true);
+  a->table->verticalHeader()->hide();
+  a->table->setEditTriggers(QAbstractItemView::NoEditTriggers);
+  a->table->setMaximumHeight(260);
+  v->addWidget(a->title);
+  v->addWidget(a->view, 1);
+  v->addWidget(a->timelineView);
+  v->addWidget(a->table);
+  a->timelineView->seek = [this](double t) { seekTime(t); };
+  a->view->turn = [this, attempt](double yaw, double pitch) {
+    auto& at = attempts_[static_cast<std::size_t>(attempt)];
+    if (!at || !at->orbitRenderer || !threeD_) return;
+    at->orbitRenderer->orbit(yaw, pitch);
+    refresh();
+  };
+  const auto& s = a->recording.summary;
+  a->title->setText(tr("<b>Session %1</b> - %2 - %3").arg(s.id).arg(QString::fromStdString(s.meta.trainee)).arg(QString::fromStdString(s.startedUtc)));
+  split_->insertWidget(attempt, a->widget);
+  // The replay for the timeline and the metrics, off the GUI thread.
+  a->watcher = new QFutureWatcher<app::ReplayResult>(this);
+  ReviewAttempt* raw = a.get();
+  connect(a->watcher, &QFutureWatcher<app::ReplayResult>::finished, this, [this, raw, attempt] {
+    try {
+      raw->result = raw->watcher->result();
+      raw->replayer = std::make_unique<app::Replayer>(raw->recording);
+      raw->orbitRenderer = std::make_unique<app::ReviewRenderer>(raw->recording.setup, 800, 600);
+      if (camera_) raw->frameRenderer = std::make_unique<app::ReviewRenderer>(raw->recording.setup, 0, 0, camera_, frame_);
+      raw->timelineView->timeline = &raw->result.timeline;
+      raw->timelineView->threshold = raw->result.metrics.forceThresholdN;
+      raw->ready = true;
+    } catch (const std::exception& e) {
+      raw->error = QString::fromStdString(e.what());
+    }
+    refresh();
+    emit attemptReady(attempt);
+  });
+  app::ReplayOptions options;
+  options.strain = true;
+  options.timeline = true;
+  const app::Recording rec = a->recording;
+  a->watcher->setFuture(QtConcurrent::run([rec, options] { return app::replayRecording(rec, options); }));
+  attempts_[static_cast<std::size_t>(attempt)] = std::move(a);
+  status_->setText(tr("Replaying session %1 for its timeline and metrics...").arg(id));
+  if (attempt == 0) first_->setCurrentIndex(first_->findData(id));
+  else second_->setCurrentIndex(second_->findData(id));
+}
+
+bool ReviewWindow::ready(int attempt) const {
+  const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
+  return a && a->ready;
+}
+
+int ReviewWindow::attemptsShown() const { return (attempts_[0] ? 1 : 0) + (attempts_[1] ? 1 : 0); }
+
+double ReviewWindow::duration(int attempt) const {
+  const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
+  return a ? a->duration() : 0;
+}
+
+long ReviewWindow::stepShown(int attempt) const {
+  const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
+  return a && a->replayer ? a->replayer->step() : -1;
+}
+
+app::SessionMetrics ReviewWindow::metrics(int attempt) const {
+  const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
+  return a ? a->result.metrics : app::SessionMetrics{};
+}
+
+std::vector<app::Verdict> ReviewWindow::verdicts(int attempt) const { return app::judge(metrics(attempt), thresholds_); }
+
+QString ReviewWindow::setThresholds(const QString& json) {
+  try {
+    thresholds_ = app::parseThresholds(json.toStdString());
+  } catch (const std::exception& e) {
+    return QString::fromStdString(e.what());
+  }
+  refresh();
+  return {};
+}
+
+void ReviewWindow::seekTime(double seconds) {
+  double longest = 0;
+  for (const auto& a : attempts_)
+    if (a) longest = std::max(longest, a->duration());
+  time_ = std::clamp(seconds, 0.0, longest);
+  refresh();
+}
+
+void ReviewWindow::stepBy(int steps) {
+  const auto& a = attempts_[0];
+  if (!a || !a->ready || a->result.timeline.empty()) return;
+  const long target = std::clamp(a->stepAt(time_) + steps, 0L, a->replayer->steps());
+  double t = 0;
+  for (const auto& s : a->result.timeline)
+    if (s.step == target) t = s.time;
+  setPlaying(false);
+  seekTime(t);
+}
+
+void ReviewWindow::setPlaying(bool on) {
+  playing_ = on && ready(0);
+  if (playing_) {
+    if (time_ >= duration(0) - 1e-9) time_ = 0;  // from the start again
+    lastTick_ = 0;
+    timer_->start();
+  } else {
+    timer_->stop();
+  }
+  refresh();
+}
+
+void ReviewWindow::setSpeed(double factor) {
+  speedFactor_ = std::clamp(factor, 0.05, 16.0);
+  const int i = speed_->findData(speedFactor_);
+  if (i >= 0 && i != speed_->currentIndex()) speed_->setCurrentIndex(i);
+}
+
+void ReviewWindow::setThreeD(bool on) {
+  threeD_ = on;
+  refresh();
+}
+
+void ReviewWindow::tick() {
+  const qint64 now = QDateTime::currentMSecsSinceEpoch();
+  const double dt = lastTick_ ? (now - lastTick_) / 1000.0 : 0.0;
+  lastTick_ = now;
+  double longest = 0;
+  for (const auto& a : attempts_)
+    if (a) longest = std::max(longest, a->duration());
+  time_ = std::min(longest, time_ + dt * speedFactor_);
+  if (time_ >= longest) playing_ = false, timer_->stop();
+  refresh();
+}
+
+void ReviewWindow::refresh() {
+  QStringList state;
+  for (std::size_t k = 0; k < attempts_.size(); ++k) {
+    auto& a = attempts_[k];
+    if (!a) continue;
+    if (!a->error.isEmpty()) {
+      a->view->setText(a->error);
+      continue;
+    }
+    if (!a->ready) continue;
+    const long step = a->stepAt(time_);
+    a->replayer->seek(step);
+    const auto snap = a->replayer->snapshot();
+    const app::ReviewRenderer& r = threeD_ || !a->frameRenderer ? *a->orbitRenderer : *a->frameRenderer;
+    const std::string who = "session " + std::to_string(a->recording.summary.id);
+    const QImage img = toQImage(r.render(*snap, app::tipPath(a->result.timeline, step), app::captionAt(a->result.timeline, step, who)));
+    a->view->setPixmap(QPixmap::fromImage(img.scaled(a->view->size(), Qt::KeepAspectRatio, Qt::SmoothTransformation)));
+    a->view->setProperty("image", img);
+    a->timelineView->now = time_;
+    a->timelineView->update();
+    // Metrics with the verdicts.
+    const auto values = app::metricValues(a->result.metrics);
+    const auto verdicts = app::judge(a->result.metrics, thresholds_);
+    a->table->setRowCount(static_cast<int>(values.size()));
+    for (int i = 0; i < static_cast<int>(values.size()); ++i) {
+      const auto& m = values[static_cast<std::size_t>(i)];
+      a->table->setItem(i, 0, new QTableWidgetItem(QString::fromStdString(m.name)));
+      auto* value = new QTableWidgetItem(m.value ? QString::number(*m.value, 'g', 5) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
+                                                 : tr("not determined"));
+      if (!m.value) value->setToolTip(QString::fromStdString(m.why));
+      a->table->setItem(i, 1, value);
+      QString verdict;
+      for (const auto& v : verdicts)
+        if (v.metric.name == m.name) verdict = app::resultWord(v.result);
+      auto* item = new QTableWidgetItem(verdict);
+      if (verdict == "fail") item->setForeground(QColor(220, 40, 40));
+      if (verdict == "pass") item->setForeground(QColor(30, 150, 30));
+      a->table->setItem(i, 2, item);
+    }
+    state << tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(step).arg(a->replayer->steps());
+  }
+  const QString mode = threeD_ || !camera_ ? tr("3D view (drag to turn)") : tr("over the case's frame");
+  status_->setText(tr("%1  t = %2 s  %3  %4x  %5").arg(playing_ ? tr("playing") : tr("paused")).arg(time_, 0, 'f', 2).arg(state.join("; ")).arg(speedFactor_).arg(mode));
+}
+
+QString ReviewWindow::statusText() const { return status_->text(); }
+
+QImage ReviewWindow::viewImage(int attempt) const {
+  const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
+  return a ? a->view->property("image").value<QImage>() : QImage();
+}
+
+QString ReviewWindow::exportVideo(const QString& path, double from, double to) {
+  auto& a = attempts_[0];
+  if (!a || !a->ready) return tr("The session is still being replayed; export when its timeline shows.");
+  QApplication::setOverrideCursor(Qt::WaitCursor);
+  QString err;
+  try {
+    app::Replayer replayer(a->recording);
+    const app::ReviewRenderer& r = threeD_ || !a->frameRenderer ? *a->orbitRenderer : *a->frameRenderer;
+    const int frames = app::writeReviewVideo(replayer, r, a->result.timeline, a->stepAt(from), std::max(a->stepAt(to), a->stepAt(from) + 1), 25, path.toStdString());
+    status_->setText(tr("Video of %1 frames written to %2").arg(frames).arg(path));
+  } catch (const std::exception& e) {
+    err = QString::fromStdString(e.what());
+  }
+  QApplication::restoreOverrideCursor();
+  return err;
+}
+
+QString ReviewWindow::exportReport(const QString& path) {
+  auto& a = attempts_[0];
+  if (!a || !a->ready) return tr("The session is still being replayed; export when its timeline shows.");
+  QApplication::setOverrideCursor(Qt::WaitCursor);
+  QString err;
+  try {
+    app::Replayer replayer(a->recording);
+    const app::ReviewRenderer& r = threeD_ || !a->frameRenderer ? *a->orbitRenderer : *a->frameRenderer;
+    writeReviewPdf(app::makeReviewReport(a->recording, a->result, thresholds_, replayer, r), path.toStdString());
+    status_->setText(tr("Report written to %1").arg(path));
+  } catch (const std::exception& e) {
+    err = QString::fromStdString(e.what());
+  }
+  QApplication::restoreOverrideCursor();
+  return err;
+}
+
+void ReviewWindow::keyPressEvent(QKeyEvent* e) {
+  const int n = e->modifiers() & Qt::ShiftModifier ? 10 : 1;
+  switch (e->key()) {
+    case Qt::Key_Space:
+      setPlaying(!playing_);
+      return;
+    case Qt::Key_Left:
+      stepBy(-n);
+      return;
+    case Qt::Key_Right:
+      stepBy(n);
+      return;
+    case Qt::Key_Home:
+      setPlaying(false);
+      seekTime(0);
+      return;
+    case Qt::Key_End:
+      setPlaying(false);
+      seekTime(duration(0));
+      return;
+    case Qt::Key_V:
+      setThreeD(!threeD_);
+      return;
+    default:
+      QMainWindow::keyPressEvent(e);
+  }
+}
+
+}  // namespace rehearse::ui
