@@ -16,6 +16,12 @@
 #include <QTemporaryDir>
 #include <QtTest>
 
+#include <rehearse/app/review.hpp>
+
+#include <QJsonArray>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
 #include <sqlite3.h>
 
 #include <random>
@@ -182,6 +188,103 @@ class TestRecording : public QObject {
           withPendingCut, withRequest, fromCheckpoints, qPrintable(times));
     QVERIFY(fromCheckpoints >= 5);
     QVERIFY(withPendingCut > 0 && withRequest > 0);
+  }
+
+  // The largest principal Green strain against closed forms: a uniform stretch s gives (s^2 - 1) / 2, a
+  // rotation adds nothing, a simple shear g gives (g^2 + g sqrt(g^2 + 4)) / 4.
+  void strainMatchesClosedForms() {
+    const std::vector<Eigen::Vector3d> rest = {{0, 0, 0}, {0.01, 0, 0}, {0, 0.01, 0}, {0, 0, 0.01}};
+    const std::vector<std::array<int, 4>> tets = {{0, 1, 2, 3}};
+    auto deformed = [&](const Eigen::Matrix3d& F) {
+      std::vector<Eigen::Vector3d> x;
+      for (const auto& p : rest) x.push_back(F * p + Eigen::Vector3d(0.3, -0.1, 0.2));
+      return x;
+    };
+    QVERIFY(std::abs(app::maxGreenStrain(rest, deformed(1.1 * Eigen::Matrix3d::Identity()), tets) - 0.105) < 1e-12);
+    const Eigen::Matrix3d R = Eigen::AngleAxisd(1.2, Eigen::Vector3d(1, 2, 3).normalized()).toRotationMatrix();
+    QVERIFY(std::abs(app::maxGreenStrain(rest, deformed(R * 1.1), tets) - 0.105) < 1e-12);
+    QVERIFY(app::maxGreenStrain(rest, deformed(R), tets) < 1e-12);
+    const double g = 0.3;
+    Eigen::Matrix3d shear = Eigen::Matrix3d::Identity();
+    shear(0, 1) = g;
+    QVERIFY(std::abs(app::maxGreenStrain(rest, deformed(shear), tets) - (g * g + g * std::sqrt(g * g + 4)) / 4) < 1e-12);
+  }
+
+  // The review's exports and the metrics of a session with a grasp, a pull and a cut, against values worked
+  // out from the script: the hook is drawn 90 mm along +z in 100 steps while it cuts (the runner's first
+  // cutting pose is already 1/100 along), so the blade tip's cut path is 99 x 0.9 mm; a planned line 5 mm to
+  // its side is 5 mm from every cutting pose. The video of the whole 3.6 s at 25 fps has 91 frames of 640x480
+  // (read back through OpenCV's decoder); the PDF report has three pages, each rendered by pdftoppm.
+  void exportsAndMetricsFromTheScript() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QStringList args = gestureArgs(dir.path(), "grasp-pull-cut.json", file);
+    args << "--report" << dir.path() + "/live.json";
+    const Run a = run(args);
+    QVERIFY2(a.code == 0, qPrintable(a.err));
+    QFile th(dir.path() + "/t.json");
+    QVERIFY(th.open(QIODevice::WriteOnly));
+    th.write(R"({"max_force_n": {"max": 1000}, "vessel_cuts": {"max": 0}, "tumour_breaches": {"max": 0}})");
+    th.close();
+    const Run r = run({"replay", file, "--session", "1", "--verify", "--metrics", dir.path() + "/m.json", "--thresholds", dir.path() + "/t.json",
+                       "--planned-cut", "-0.055,0.05,-0.04:-0.055,0.05,0.05", "--video", dir.path() + "/v.mp4", "--report", dir.path() + "/r.pdf"});
+    QVERIFY2(r.code == 0, qPrintable(r.out + r.err));
+    QVERIFY2(r.out.contains("video: 91 frames of 640x480"), qPrintable(r.out));
+    QFile mf(dir.path() + "/m.json");
+    QVERIFY(mf.open(QIODevice::ReadOnly));
+    const QJsonObject m = QJsonDocument::fromJson(mf.readAll()).object();
+    qInfo("cut length %.9f m, deviation mean %.9f max %.9f m, strain %.4f, max force %.3f N", m["cut_length_m"].toDouble(), m["cut_deviation_mean_m"].toDouble(),
+          m["cut_deviation_max_m"].toDouble(), m["max_strain"].toDouble(), m["max_force_n"].toDouble());
+    QVERIFY(std::abs(m["cut_length_m"].toDouble() - 99 * 0.0009) < 1e-9);
+    QVERIFY(std::abs(m["cut_deviation_mean_m"].toDouble() - 0.005) < 1e-9);
+    QVERIFY(std::abs(m["cut_deviation_max_m"].toDouble() - 0.005) < 1e-9);
+    QVERIFY(m["max_strain"].toDouble() > 0);
+    QVERIFY(m["tumour_breaches"].isNull() && m["tumour_breaches_why"].toString().contains("no tumour"));
+    QVERIFY(m["attachments_torn"].isNull());
+    QCOMPARE(m["vessel_cuts"].toInt(), 1);
+    // The largest force: the live run's own per-step report.
+    QFile lf(dir.path() + "/live.json");
+    QVERIFY(lf.open(QIODevice::ReadOnly));
+    QVERIFY(std::abs(QJsonDocument::fromJson(lf.readAll()).object()["peak_tool_force_n"].toDouble() - m["max_force_n"].toDouble()) < 1e-9);
+    // Verdicts: under 1000 N passes, the vessel cut fails, the tumour is not determined.
+    QMap<QString, QString> verdict;
+    for (const auto& v : m["verdicts"].toArray()) verdict[v.toObject()["metric"].toString()] = v.toObject()["result"].toString();
+    QCOMPARE(verdict["max_force_n"], QStringLiteral("pass"));
+    QCOMPARE(verdict["vessel_cuts"], QStringLiteral("fail"));
+    QCOMPARE(verdict["tumour_breaches"], QStringLiteral("not determined"));
+    // The video, read back.
+    cv::VideoCapture cap((dir.path() + "/v.mp4").toStdString());
+    QVERIFY(cap.isOpened());
+    int frames = 0;
+    cv::Mat f, first;
+    while (cap.read(f)) {
+      if (frames++ == 0) first = f.clone();
+      QCOMPARE(f.cols, 640);
+      QCOMPARE(f.rows, 480);
+    }
+    QCOMPARE(frames, 91);
+    cv::Scalar mean, sd;
+    cv::meanStdDev(first, mean, sd);
+    QVERIFY(sd[2] > 10);  // the organ over the background, not a blank frame
+    // The report: three pages, rendered.
+    QProcess pdf;
+    pdf.start("pdftoppm", {"-r", "30", "-png", dir.path() + "/r.pdf", dir.path() + "/page"});
+    QVERIFY2(pdf.waitForStarted(), "pdftoppm (poppler-utils) is installed by scripts/install-deps.sh");
+    QVERIFY(pdf.waitForFinished(60000) && pdf.exitCode() == 0);
+    for (int k = 1; k <= 3; ++k) {
+      const cv::Mat page = cv::imread((dir.path() + QString("/page-%1.png").arg(k)).toStdString(), cv::IMREAD_GRAYSCALE);
+      QVERIFY2(!page.empty(), qPrintable(QString("page %1").arg(k)));
+      const int dark = cv::countNonZero(page < 128);
+      QVERIFY2(dark > 200, qPrintable(QString("page %1 is blank").arg(k)));
+    }
+    QVERIFY(!QFile::exists(dir.path() + "/page-4.png"));
+    // Bad requests say so in one line.
+    const Run bad = run({"replay", file, "--session", "1", "--video", dir.path() + "/v.avi"});
+    QCOMPARE(bad.code, 2);
+    QCOMPARE(bad.err.trimmed().count('\n'), 0);
+    const Run badThresholds = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/m2.json", "--thresholds", script("grasp-pull.json")});
+    QCOMPARE(badThresholds.code, 2);
+    QVERIFY2(badThresholds.err.contains("unknown metric"), qPrintable(badThresholds.err));
   }
 
   // A checksum changed in the file: --verify says where and exits 4; a missing session is one line, exit 1.
