@@ -771,6 +771,16 @@ int cmdReplay(const std::vector<std::string>& args) {
     ro.plannedCut = std::make_pair(parseVector(p.substr(0, colon), "--planned-cut"), parseVector(p.substr(colon + 1), "--planned-cut"));
   }
   std::vector<Threshold> thresholds;
+  if (!o.count("thresholds") && !fromDb) {  // the trainer's thresholds kept in the case file
+    const std::string kept = loadCaseThresholds(file);
+    if (!kept.empty()) {
+      try {
+        thresholds = parseThresholds(kept);
+      } catch (const std::runtime_error& e) {
+        throw UsageError(file + ": its kept thresholds: " + e.what());
+      }
+    }
+  }
   if (o.count("thresholds")) {
     std::ifstream in(o["thresholds"]);
     if (!in) throw UsageError("cannot read the thresholds " + o["thresholds"]);

@@ -235,6 +235,14 @@ class TestReviewGui : public QObject {
     for (const auto& x : v)
       QCOMPARE(x.result, x.metric.name == "max_force_n" ? app::Verdict::Result::Fail : app::Verdict::Result::Pass);
     QVERIFY(!review->setThresholds("{\"no_such_metric\": {\"max\": 1}}").isEmpty());
+    // The thresholds are the case's: kept in its file, the command line judges by them too.
+    const QString kept = QString::fromStdString(app::loadCaseThresholds(file_.toStdString()));
+    QVERIFY2(kept.contains("max_force_n"), qPrintable(kept));
+    QProcess judged;
+    judged.start(QStringLiteral(REHEARSE_BINARY), {"replay", file_, "--session", QString::number(first_), "--metrics", dir_.path() + "/m.json"});
+    QVERIFY(judged.waitForFinished(600000));
+    const QString verdicts = QString::fromUtf8(judged.readAllStandardOutput());
+    QVERIFY2(verdicts.contains("max_force_n: fail") && verdicts.contains("grasps: pass"), qPrintable(verdicts));
     QVERIFY(!review->viewImage(0).isNull() && !review->viewImage(1).isNull());
     if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) {
       review->seekTime(0.8 * review->duration(0));

@@ -877,6 +877,32 @@ void Replayer::advance() {
 std::shared_ptr<const simcore::Snapshot> Replayer::snapshot() const { return session_->snapshot(); }
 simcore::SimulationState Replayer::state() const { return session_->state(); }
 
+std::string loadCaseThresholds(const std::string& path) {
+  sqlite3* db = openStore(path, false);
+  std::string out;
+  if (hasTable(db, "rehearsal_thresholds")) {
+    Statement q(db, "SELECT json FROM rehearsal_thresholds WHERE id = 1");
+    if (sqlite3_step(q.s) == SQLITE_ROW) out = q.column(0);
+  }
+  sqlite3_close(db);
+  return out;
+}
+
+void saveCaseThresholds(const std::string& path, const std::string& json) {
+  sqlite3* db = openStore(path, true);
+  char* err = nullptr;
+  int rc = sqlite3_exec(db, "CREATE TABLE IF NOT EXISTS rehearsal_thresholds(id INTEGER PRIMARY KEY CHECK(id = 1), json TEXT NOT NULL)", nullptr, nullptr, &err);
+  if (rc == SQLITE_OK) {
+    Statement q(db, "INSERT OR REPLACE INTO rehearsal_thresholds(id, json) VALUES(1, ?)");
+    q.text(1, json);
+    rc = sqlite3_step(q.s) == SQLITE_DONE ? SQLITE_OK : SQLITE_ERROR;
+  }
+  const std::string why = err ? err : sqlite3_errmsg(db);
+  sqlite3_free(err);
+  sqlite3_close(db);
+  if (rc != SQLITE_OK) throw std::runtime_error("the thresholds could not be kept in " + path + ": " + why);
+}
+
 int copyRecordings(const std::string& from, const std::string& to) {
   int sessions = 0;
   {
@@ -913,10 +939,15 @@ int copyRecordings(const std::string& from, const std::string& to) {
   {
     sqlite3* src = openStore(from, false);
     const bool has = hasTable(src, "rehearsal_checkpoints") && hasTable(src, "rehearsal_setups");
+    const bool thresholds = hasTable(src, "rehearsal_thresholds");
     sqlite3_close(src);
     if (has) {
       run("INSERT INTO rehearsal_setups SELECT * FROM prev.rehearsal_setups");
       run("INSERT INTO rehearsal_checkpoints SELECT * FROM prev.rehearsal_checkpoints");
+    }
+    if (thresholds) {
+      run("CREATE TABLE IF NOT EXISTS rehearsal_thresholds(id INTEGER PRIMARY KEY CHECK(id = 1), json TEXT NOT NULL)");
+      run("INSERT OR REPLACE INTO rehearsal_thresholds SELECT * FROM prev.rehearsal_thresholds");
     }
   }
   run("COMMIT");

@@ -9,6 +9,7 @@
 #include <QFutureWatcher>
 #include <QHBoxLayout>
 #include <QHeaderView>
+#include <QInputDialog>
 #include <QKeyEvent>
 #include <QLabel>
 #include <QMenuBar>
@@ -154,7 +155,19 @@ class ReviewAttempt {
 
 ReviewWindow::ReviewWindow(const QString& file, std::optional<imaging::Camera> camera, cv::Mat3b frame, QWidget* parent)
     : ReviewWindow([f = file.toStdString()] { return app::listRecordings(f); }, [f = file.toStdString()](qint64 id) { return app::loadRecording(f, id); }, file,
-                   std::move(camera), std::move(frame), parent) {}
+                   std::move(camera), std::move(frame), parent) {
+  file_ = file;
+  try {
+    const std::string kept = app::loadCaseThresholds(file.toStdString());
+    if (!kept.empty()) {
+      thresholds_ = app::parseThresholds(kept);
+      thresholdsText_ = QString::fromStdString(kept);
+      refresh();
+    }
+  } catch (const std::exception& e) {
+    status_->setText(tr("The case's thresholds cannot be read: %1").arg(QString::fromStdString(e.what())));
+  }
+}
 
 ReviewWindow::ReviewWindow(std::function<std::vector<app::RecordingSummary>()> list, std::function<app::Recording(qint64)> load, const QString& title,
                            std::optional<imaging::Camera> camera, cv::Mat3b frame, QWidget* parent)
@@ -203,6 +216,15 @@ void ReviewWindow::build(const QString& title) {
     const QString err = exportReport(path);
     if (!err.isEmpty()) QMessageBox::warning(this, tr("Export report"), err);
   })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_P));
+  fileMenu->addAction(tr("&Thresholds..."), this, [this] {
+    bool ok = false;
+    const QString text = QInputDialog::getMultiLineText(this, tr("Thresholds"),
+                                                        tr("A limit per metric, as JSON, e.g. {\"max_force_n\": {\"max\": 15}, \"economy_of_motion\": {\"min\": 0.8}}:"),
+                                                        thresholdsText_.isEmpty() ? QStringLiteral("{}") : thresholdsText_, &ok);
+    if (!ok) return;
+    const QString err = setThresholds(text);
+    if (!err.isEmpty()) QMessageBox::warning(this, tr("Thresholds"), err);
+  })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_T));
   fileMenu->addAction(tr("&Close"), this, &QWidget::close)->setShortcut(QKeySequence::Close);
   split_ = new QSplitter(Qt::Horizontal);
   setCentralWidget(split_);
@@ -349,6 +371,8 @@ std::vector<app::Verdict> ReviewWindow::verdicts(int attempt) const { return app
 QString ReviewWindow::setThresholds(const QString& json) {
   try {
     thresholds_ = app::parseThresholds(json.toStdString());
+    thresholdsText_ = json;
+    if (!file_.isEmpty()) app::saveCaseThresholds(file_.toStdString(), json.toStdString());
   } catch (const std::exception& e) {
     return QString::fromStdString(e.what());
   }

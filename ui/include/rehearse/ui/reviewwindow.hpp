@@ -52,7 +52,9 @@ class ReviewWindow : public QMainWindow {
   app::SessionMetrics metrics(int attempt) const;
   std::vector<app::Verdict> verdicts(int attempt) const;
   /// Thresholds for the metrics' pass/fail (JSON as `rehearse replay --thresholds` takes); one sentence on error.
+  /// From a case file they are kept in it (the case's thresholds, which `rehearse replay` uses too).
   QString setThresholds(const QString& json);
+  QString thresholdsText() const { return thresholdsText_; }
   bool threeD() const { return threeD_; }
   void setThreeD(bool on);
   /// Writes attempt 0's span [from, to] s as MP4 / its report as PDF; one sentence on error, empty on success.
@@ -79,6 +81,8 @@ class ReviewWindow : public QMainWindow {
   std::vector<app::RecordingSummary> sessions_;
   std::array<std::unique_ptr<ReviewAttempt>, 2> attempts_;
   std::vector<app::Threshold> thresholds_;
+  QString thresholdsText_;
+  QString file_;  // the case file the sessions come from (empty: another store)
   QSplitter* split_ = nullptr;
   QComboBox* first_ = nullptr;
   QComboBox* second_ = nullptr;

@@ -187,6 +187,11 @@ class Replayer {
   simcore::Checkpoint start_;                  // at rest (restoring it is cheaper than building the session)
 };
 
+/// The trainer's thresholds for this case's sessions (the JSON `parseThresholds` reads), kept in the case file
+/// (table rehearsal_thresholds); empty when none was set. Throws std::runtime_error with one sentence.
+std::string loadCaseThresholds(const std::string& path);
+void saveCaseThresholds(const std::string& path, const std::string& json);
+
 /// Copies every recorded session from the SQLite file `from` into `to` (the tables created when absent):
 /// a case saved anew (written beside the old file, then renamed over it) keeps its recordings. Nothing to do
 /// when `from` has none. Returns the sessions copied; throws std::runtime_error with one sentence.
