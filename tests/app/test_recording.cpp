@@ -287,6 +287,56 @@ class TestRecording : public QObject {
     QVERIFY2(badThresholds.err.contains("unknown metric"), qPrintable(badThresholds.err));
   }
 
+  // Damaged checkpoints (a corrupt or truncated case file): every truncation and 3,000 random byte changes of
+  // a real checkpoint either decode or are refused with std::runtime_error (never a crash, never vectors of
+  // disagreeing sizes); a replayer seeking onto a damaged one says so in one sentence.
+  void damagedCheckpointsAreRefused() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QCOMPARE(run(gestureArgs(dir.path(), "grasp-pull-cut.json", file)).code, 0);
+    const auto rows = app::loadRecordingRows(file.toStdString(), 1);
+    QVERIFY(rows.checkpoints.size() > 5);
+    const std::string good = rows.checkpoints[rows.checkpoints.size() / 2].state;
+    const simcore::BodySetup setup = app::loadRecording(file.toStdString(), 1).setup;
+    auto setupOf = [&](std::uint64_t) { return setup; };
+    int refused = 0, decoded = 0;
+    auto attempt = [&](const std::string& bytes) {
+      try {
+        const simcore::Checkpoint c = app::decodeCheckpointState(bytes, setupOf);
+        QCOMPARE(c.state.v.size(), c.state.x.size());
+        ++decoded;
+      } catch (const std::runtime_error&) {
+        ++refused;
+      }
+    };
+    for (std::size_t n = 0; n < good.size(); n += 1 + good.size() / 1500) attempt(good.substr(0, n));
+    std::mt19937 rng(3);
+    for (int k = 0; k < 3000; ++k) {
+      std::string bad = good;
+      const int changes = 1 + static_cast<int>(rng() % 4);
+      for (int j = 0; j < changes; ++j) {
+        // Mostly in the first 200 bytes (magic, step, lengths) where a change matters most.
+        const std::size_t at = (rng() % 4 ? rng() % std::min<std::size_t>(200, bad.size()) : rng() % bad.size());
+        bad[at] = static_cast<char>(rng());
+      }
+      attempt(bad);
+    }
+    qInfo("damaged checkpoints: %d refused, %d decoded (changes in doubles decode)", refused, decoded);
+    QVERIFY(refused > 1000);
+    // A replayer meeting one: one sentence.
+    sqlite3* db = nullptr;
+    QCOMPARE(sqlite3_open(file.toUtf8().constData(), &db), SQLITE_OK);
+    QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checkpoints SET state = x'00112233'", nullptr, nullptr, nullptr), SQLITE_OK);
+    sqlite3_close(db);
+    app::Replayer replayer(app::loadRecording(file.toStdString(), 1));
+    try {
+      replayer.seek(300);
+      QFAIL("a damaged checkpoint was used");
+    } catch (const std::runtime_error& e) {
+      QVERIFY2(QString(e.what()).count('\n') == 0 && QString(e.what()).contains("checkpoint"), e.what());
+    }
+  }
+
   // A checksum changed in the file: --verify says where and exits 4; a missing session is one line, exit 1.
   void tamperedChecksumIsCaught() {
     QTemporaryDir dir;

@@ -354,8 +354,17 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
     c.pendingCut = std::move(p);
   }
   if (r.p != r.end) throw std::runtime_error("a recorded checkpoint has trailing bytes");
-  if (s.v.size() != s.x.size() || (s.forcesValid && s.forces.size() != s.x.size()) || (s.lagged.valid && s.lagged.at.size() != s.x.size()))
+  if (s.v.size() != s.x.size() || (s.forcesValid && s.forces.size() != s.x.size()) || (s.lagged.valid && s.lagged.at.size() != s.x.size()) ||
+      (s.lagged.requested && s.lagged.requestedAt.size() != s.x.size()))
     throw std::runtime_error("a recorded checkpoint's vectors disagree in size");
+  // Node indices within the body (a damaged file must not reach the simulation as indices out of range).
+  const std::size_t n = c.setup.rest.empty() ? c.setup.mesh.points.size() : c.setup.rest.size();
+  if (static_cast<std::size_t>(s.x.size()) != 3 * n) throw std::runtime_error("a recorded checkpoint does not fit its body's nodes");
+  auto inRange = [n](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
+  bool ok = t.heldOffset.size() == t.held.size() && std::all_of(t.held.begin(), t.held.end(), inRange) &&
+            std::all_of(c.setup.cut.nodes.begin(), c.setup.cut.nodes.end(), inRange);
+  for (const auto& f : c.setup.cut.pendingFaces) ok = ok && std::all_of(f.begin(), f.end(), inRange);
+  if (!ok || !s.x.allFinite() || !s.v.allFinite()) throw std::runtime_error("a recorded checkpoint names nodes its body has not, or holds no number");
   return c;
 }
 

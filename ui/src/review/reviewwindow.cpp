@@ -445,7 +445,13 @@ void ReviewWindow::refresh() {
     }
     if (!a->ready) continue;
     const long step = a->stepAt(time_);
-    a->replayer->seek(step);
+    try {
+      a->replayer->seek(step);
+    } catch (const std::exception& e) {  // a damaged checkpoint: said, and the attempt shows no more
+      a->error = tr("Session %1 cannot be shown at step %2: %3").arg(a->recording.summary.id).arg(step).arg(QString::fromStdString(e.what()));
+      a->view->setText(a->error);
+      continue;
+    }
     const auto snap = a->replayer->snapshot();
     const app::ReviewRenderer& r = threeD_ || !a->frameRenderer ? *a->orbitRenderer : *a->frameRenderer;
     const std::string who = "session " + std::to_string(a->recording.summary.id);
