@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <set>
 #include <cstring>
 #include <ctime>
 #include <stdexcept>
@@ -1011,6 +1012,17 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
   Eigen::Vector3d first = Eigen::Vector3d::Zero(), last = Eigen::Vector3d::Zero();
   double forceSum = 0;
   long forceSteps = 0;
+  // An instrument swapped for another (grasper -> hook): the tip's jump between them is not a path travelled.
+  std::set<long> swapped;  // steps whose snapshot shows the new instrument's first pose
+  double straight = 0;     // the straight distances of the instruments swapped out
+  {
+    int lastTool = -1;
+    for (const auto& e : r.events)
+      if (e.kind == simcore::InputKind::ToolPose) {
+        if (lastTool >= 0 && e.tool != lastTool) swapped.insert(e.step + 1);
+        lastTool = e.tool;
+      }
+  }
   simcore::replaySession(r.setup, r.events, steps, [&](long step, const simcore::Session& session) {
     ++v.steps;
     if (const auto it = r.checksums.find(step); it != r.checksums.end()) {
@@ -1024,6 +1036,10 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
     const auto& tool = snap->tool;
     if (tool.present) {
       if (!seen) first = last = tool.tip;
+      if (swapped.count(step)) {  // economy per instrument: its own straight distance
+        straight += (last - first).norm();
+        first = last = tool.tip;
+      }
       m.pathLengthM += (tool.tip - last).norm();
       last = tool.tip;
       seen = true;
@@ -1084,7 +1100,7 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
   }
   m.durationS = time;
   m.meanForceN = forceSteps ? forceSum / static_cast<double>(forceSteps) : 0;
-  m.economy = m.pathLengthM > 0 ? (last - first).norm() / m.pathLengthM : 0;
+  m.economy = m.pathLengthM > 0 ? (straight + (last - first).norm()) / m.pathLengthM : 0;
   return out;
 }
 

@@ -210,8 +210,8 @@ VerifyResult verifyRecording(const Recording& r);
 /// What a trainer reads about a session (computed from its replay, so a recording is all it needs).
 struct SessionMetrics {
   double durationS = 0;          ///< simulated time
-  double pathLengthM = 0;        ///< the instrument tip's path while an instrument is in the scene
-  double economy = 0;            ///< straight distance from the tip's first to its last place / path length (1: straight; 0: no path)
+  double pathLengthM = 0;        ///< the instrument tip's path while an instrument is in the scene (not the jump when one is swapped for another)
+  double economy = 0;            ///< straight distance from the tip's first to its last place (per instrument, summed) / path length (1: straight; 0: no path)
   int grasps = 0, slips = 0, cuts = 0, vesselCuts = 0;  ///< events ("cut": cut updates applied)
   double maxForceN = 0;          ///< the tool's force on the tissue, largest
   double meanForceN = 0;         ///< mean over the steps with a force
