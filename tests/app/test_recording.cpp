@@ -4,6 +4,7 @@
 // moments leaves a file that opens whole and whose recorded part replays and verifies.
 #include "box_mesh.hpp"
 #include "cli_run.hpp"
+#include "replay_checks.hpp"
 #include "session_inputs.hpp"
 
 #include <rehearse/app/recording.hpp>
@@ -172,8 +173,7 @@ class TestRecording : public QObject {
       withPendingCut += c.pendingCut.has_value();
       withRequest += c.state.lagged.requested;
     }
-    std::vector<std::uint64_t> straight{0};
-    simcore::replay(rec.setup, rec.events, rec.summary.steps, [&](long, const simcore::SimulationState& s) { straight.push_back(app::stateChecksum(s)); });
+    const std::vector<std::uint64_t> straight = rehearse::testing::straightChecksums(rec);
     QCOMPARE(static_cast<long>(straight.size()), rec.summary.steps + 1);
     for (const auto& [step, sum] : rec.checksums) QCOMPARE(straight[static_cast<std::size_t>(step)], sum);  // the straight run is the recorded one
     app::Replayer replayer(rec);
@@ -246,7 +246,7 @@ class TestRecording : public QObject {
           cp.state.lagged.requested ? "requested" : "not requested");
     // Through the bytes the recorder writes (setups by hash, without the cut's progress).
     std::map<std::uint64_t, simcore::BodySetup> setups;
-    for (const auto* x : {&cp.setup, &cp.pendingCut->setup}) setups[app::setupHash(app::sharedSetup(*x))] = app::sharedSetup(*x);
+    for (const auto* x : {&cp.setup, &cp.pendingCut->setup}) setups[app::setupHash(*x)] = app::sharedSetup(*x);
     const simcore::Checkpoint back = app::decodeCheckpointState(app::encodeCheckpointState(cp), [&](std::uint64_t h) { return setups.at(h); });
     QVERIFY(back.pendingCut.has_value());
     simcore::Session resumed(s);

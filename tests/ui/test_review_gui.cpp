@@ -8,6 +8,7 @@
 //    it; a second attempt side by side follows the same time; thresholds give verdicts; the span's video has
 //    the expected frame count and size and the report its three pages. With REHEARSE_SCREENSHOT_DIR set it
 //    saves review.png.
+#include "replay_checks.hpp"
 #include "test_support.hpp"
 
 #include "rehearse/ui/frameview.hpp"
@@ -163,8 +164,7 @@ class TestReviewGui : public QObject {
     }
     QVERIFY(grasps >= 1 && cuts >= 1);
     // Seeks to ten random steps against the straight replay.
-    std::vector<std::uint64_t> straight{0};
-    simcore::replay(rec.setup, rec.events, rec.summary.steps, [&](long, const simcore::SimulationState& s) { straight.push_back(app::stateChecksum(s)); });
+    const std::vector<std::uint64_t> straight = rehearse::testing::straightChecksums(rec);
     app::Replayer replayer(rec);
     std::mt19937 rng(25);
     std::uniform_int_distribution<long> at(1, rec.summary.steps);
@@ -204,7 +204,10 @@ class TestReviewGui : public QObject {
     review->openSession(0, first_);
     QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
     const app::Recording rec = app::loadRecording(file_.toStdString(), first_);
+    // The keys go to the active window (under X the main window stays active until the review's activation is
+    // through, and its Home shortcut would take the key).
     review->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(review));
     QTest::keyClick(review, Qt::Key_End);
     QCOMPARE(review->stepShown(0), rec.summary.steps);
     QTest::keyClick(review, Qt::Key_Home);

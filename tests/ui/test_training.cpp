@@ -8,6 +8,7 @@
 //    seeks to its straight replay's states; its path length equals the scripted pull (to 1e-9 m);
 //  - the cohort view lists the 5 trainees and plots each one's 10 attempts (the scripted distances).
 // The connection goes through a libpq service file (PGSERVICEFILE), as a centre would configure it.
+#include "replay_checks.hpp"
 #include "test_support.hpp"
 
 #include "box_mesh.hpp"
@@ -259,8 +260,7 @@ class TestTraining : public QObject {
     QVERIFY2(matched, qPrintable(QString("path %1 m is none of the scripted pulls").arg(path, 0, 'g', 12)));
     // Seeking through the database's checkpoints lands on the straight replay.
     const app::Recording r = db.load(s.id);
-    std::vector<std::uint64_t> straight{0};
-    simcore::replay(r.setup, r.events, r.summary.steps, [&](long, const simcore::SimulationState& st) { straight.push_back(app::stateChecksum(st)); });
+    const std::vector<std::uint64_t> straight = rehearse::testing::straightChecksums(r);
     app::Replayer replayer(r);
     for (long target : {150L, 45L, 199L, 3L, 120L}) {
       replayer.seek(target);

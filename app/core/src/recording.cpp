@@ -242,11 +242,13 @@ simcore::BodySetup sharedSetup(const simcore::BodySetup& s) {
   return o;
 }
 
-std::string encodeCheckpointState(const simcore::Checkpoint& c) {
+namespace {
+// The checkpoint's bytes with its setups' hashes (the recorder has them already).
+std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHashValue, std::uint64_t pendingSetupHash) {
   Bytes o;
   o.pod(kCheckpointMagic);
   o.pod(static_cast<std::int64_t>(c.step));
-  o.pod(setupHash(sharedSetup(c.setup)));
+  o.pod(setupHashValue);
   writeProgress(o, c.setup.cut);
   const auto& s = c.state;
   o.vec(s.x);
@@ -283,7 +285,7 @@ std::string encodeCheckpointState(const simcore::Checkpoint& c) {
   }
   o.pod(static_cast<std::uint8_t>(c.pendingCut.has_value()));
   if (const auto& p = c.pendingCut) {
-    o.pod(setupHash(sharedSetup(p->setup)));
+    o.pod(pendingSetupHash);
     writeProgress(o, p->setup.cut);
     o.pod(static_cast<std::int64_t>(p->newNodes.size()));
     for (const auto& n : p->newNodes) {
@@ -296,6 +298,11 @@ std::string encodeCheckpointState(const simcore::Checkpoint& c) {
     o.pod(static_cast<std::uint8_t>(p->clearProgress));
   }
   return o.b;
+}
+}  // namespace
+
+std::string encodeCheckpointState(const simcore::Checkpoint& c) {
+  return encodeCheckpoint(c, setupHash(c.setup), c.pendingCut ? setupHash(c.pendingCut->setup) : 0);
 }
 
 simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t)>& setupOf) {
@@ -649,21 +656,20 @@ void Recorder::afterStep(const simcore::StepRecord& r) {
   if (r.step - lastCheckpoint_ >= checkpointEvery_ || changed) {
     const simcore::Checkpoint c = r.checkpoint();
     auto store = [this](const simcore::BodySetup& s) {
-      const simcore::BodySetup shared = sharedSetup(s);
-      const std::uint64_t h = setupHash(shared);
+      const std::uint64_t h = setupHash(s);  // the mesh is copied and encoded only for a setup not written yet
       if (std::find(setupsWritten_.begin(), setupsWritten_.end(), h) != setupsWritten_.end()) return h;
       Statement& q = statements_->setup;
       sqlite3_reset(q.s);
       sqlite3_bind_int64(q.s, 1, id_);
       q.text(2, std::to_string(h));
-      q.text(3, encodeSetup(shared));
+      q.text(3, encodeSetup(sharedSetup(s)));
       if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a setup: ") + sqlite3_errmsg(db_));
       setupsWritten_.push_back(h);
       return h;
     };
     const std::uint64_t h = store(c.setup);
-    if (c.pendingCut) store(c.pendingCut->setup);
-    const std::string bytes = encodeCheckpointState(c);
+    const std::uint64_t pending = c.pendingCut ? store(c.pendingCut->setup) : 0;
+    const std::string bytes = encodeCheckpoint(c, h, pending);
     Statement& q = statements_->checkpoint;
     sqlite3_reset(q.s);
     sqlite3_bind_int64(q.s, 1, id_);
@@ -1089,6 +1095,7 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       t.strain = strain;
       t.holding = !tool.held.empty();
       t.cutting = tool.cutting;
+      t.newInstrument = swapped.count(step) > 0;
       t.events = snap->events;
       if (over && !overBefore) t.events.push_back("force over threshold");
       out.timeline.push_back(std::move(t));

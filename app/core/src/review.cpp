@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <stdexcept>
 
@@ -235,10 +236,25 @@ cv::Mat3b ReviewRenderer::render(const simcore::Snapshot& s, const std::vector<E
   return out;
 }
 
+const TimelineSample* sampleAt(const std::vector<TimelineSample>& timeline, long step) {
+  if (step >= 1 && static_cast<std::size_t>(step) <= timeline.size() && timeline[static_cast<std::size_t>(step - 1)].step == step)
+    return &timeline[static_cast<std::size_t>(step - 1)];
+  for (const auto& s : timeline)  // a timeline not starting at step 1
+    if (s.step == step) return &s;
+  return nullptr;
+}
+
+long stepAtTime(const std::vector<TimelineSample>& timeline, double seconds) {
+  const auto it = std::upper_bound(timeline.begin(), timeline.end(), seconds + 1e-9, [](double t, const TimelineSample& s) { return t < s.time; });
+  return it == timeline.begin() ? 0 : std::prev(it)->step;
+}
+
 std::vector<Eigen::Vector3d> tipPath(const std::vector<TimelineSample>& timeline, long step) {
   std::vector<Eigen::Vector3d> out;
   for (const auto& s : timeline) {
     if (s.step > step) break;
+    // A break (not finite) where one instrument was swapped for another: the drawing does not join them.
+    if (s.newInstrument && !out.empty()) out.push_back(Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
     if (s.toolPresent) out.push_back(s.tip);
   }
   return out;
@@ -246,9 +262,7 @@ std::vector<Eigen::Vector3d> tipPath(const std::vector<TimelineSample>& timeline
 
 std::string captionAt(const std::vector<TimelineSample>& timeline, long step, const std::string& who) {
   char buf[256];
-  const TimelineSample* s = nullptr;
-  for (const auto& t : timeline)
-    if (t.step == step) s = &t;
+  const TimelineSample* s = sampleAt(timeline, step);
   if (!s) {
     std::snprintf(buf, sizeof buf, "%s  step %ld", who.c_str(), step);
     return buf;
@@ -267,9 +281,8 @@ int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const s
   if (fromStep < 0 || toStep > replayer.steps() || fromStep >= toStep)
     throw std::runtime_error("the video's span must lie within steps 0 to " + std::to_string(replayer.steps()) + ", its start before its end");
   auto timeOf = [&](long step) {
-    for (const auto& s : timeline)
-      if (s.step == step) return s.time;
-    return step * replayer.recording().setup.settings.timeStep;
+    const TimelineSample* s = sampleAt(timeline, step);
+    return s ? s->time : step * replayer.recording().setup.settings.timeStep;
   };
   const double t0 = timeOf(fromStep), t1 = timeOf(toStep);
   const int frames = static_cast<int>(std::floor((t1 - t0) * fps + 1e-9)) + 1;

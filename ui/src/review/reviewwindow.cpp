@@ -142,14 +142,9 @@ class ReviewAttempt {
   QString error;
   QFutureWatcher<app::ReplayResult>* watcher = nullptr;
 
-  long stepAt(double t) const {
-    long step = 0;
-    for (const auto& s : result.timeline) {
-      if (s.time > t + 1e-9) break;
-      step = s.step;
-    }
-    return step;
-  }
+  long stepAt(double t) const { return app::stepAtTime(result.timeline, t); }
+  /// The view's renderer: the case's frame, or the 3D view (always without a case camera).
+  const app::ReviewRenderer& renderer(bool threeD) const { return threeD || !frameRenderer ? *orbitRenderer : *frameRenderer; }
   double duration() const { return result.timeline.empty() ? 0 : result.timeline.back().time; }
 };
 
@@ -159,10 +154,9 @@ ReviewWindow::ReviewWindow(const QString& file, std::optional<imaging::Camera> c
   file_ = file;
   try {
     const std::string kept = app::loadCaseThresholds(file.toStdString());
-    if (!kept.empty()) {
+    if (!kept.empty()) {  // before any replay is ready: its table is filled with them
       thresholds_ = app::parseThresholds(kept);
       thresholdsText_ = QString::fromStdString(kept);
-      refresh();
     }
   } catch (const std::exception& e) {
     status_->setText(tr("The case's thresholds cannot be read: %1").arg(QString::fromStdString(e.what())));
@@ -327,6 +321,7 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
       raw->timelineView->timeline = &raw->result.timeline;
       raw->timelineView->threshold = raw->result.metrics.forceThresholdN;
       raw->ready = true;
+      fillMetrics(*raw);
     } catch (const std::exception& e) {
       raw->error = QString::fromStdString(e.what());
     }
@@ -376,7 +371,8 @@ QString ReviewWindow::setThresholds(const QString& json) {
   } catch (const std::exception& e) {
     return QString::fromStdString(e.what());
   }
-  refresh();
+  for (auto& a : attempts_)
+    if (a && a->ready) fillMetrics(*a);
   return {};
 }
 
@@ -392,9 +388,8 @@ void ReviewWindow::stepBy(int steps) {
   const auto& a = attempts_[0];
   if (!a || !a->ready || a->result.timeline.empty()) return;
   const long target = std::clamp(a->stepAt(time_) + steps, 0L, a->replayer->steps());
-  double t = 0;
-  for (const auto& s : a->result.timeline)
-    if (s.step == target) t = s.time;
+  const app::TimelineSample* s = app::sampleAt(a->result.timeline, target);
+  const double t = s ? s->time : 0.0;
   setPlaying(false);
   seekTime(t);
 }
@@ -453,36 +448,39 @@ void ReviewWindow::refresh() {
       continue;
     }
     const auto snap = a->replayer->snapshot();
-    const app::ReviewRenderer& r = threeD_ || !a->frameRenderer ? *a->orbitRenderer : *a->frameRenderer;
+    const app::ReviewRenderer& r = a->renderer(threeD_);
     const std::string who = "session " + std::to_string(a->recording.summary.id);
     const QImage img = toQImage(r.render(*snap, app::tipPath(a->result.timeline, step), app::captionAt(a->result.timeline, step, who)));
     a->view->setPixmap(QPixmap::fromImage(img.scaled(a->view->size(), Qt::KeepAspectRatio, Qt::SmoothTransformation)));
     a->view->setProperty("image", img);
     a->timelineView->now = time_;
     a->timelineView->update();
-    // Metrics with the verdicts.
-    const auto values = app::metricValues(a->result.metrics);
-    const auto verdicts = app::judge(a->result.metrics, thresholds_);
-    a->table->setRowCount(static_cast<int>(values.size()));
-    for (int i = 0; i < static_cast<int>(values.size()); ++i) {
-      const auto& m = values[static_cast<std::size_t>(i)];
-      a->table->setItem(i, 0, new QTableWidgetItem(QString::fromStdString(m.name)));
-      auto* value = new QTableWidgetItem(m.value ? QString::number(*m.value, 'g', 5) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
-                                                 : tr("not determined"));
-      if (!m.value) value->setToolTip(QString::fromStdString(m.why));
-      a->table->setItem(i, 1, value);
-      QString verdict;
-      for (const auto& v : verdicts)
-        if (v.metric.name == m.name) verdict = app::resultWord(v.result);
-      auto* item = new QTableWidgetItem(verdict);
-      if (verdict == "fail") item->setForeground(QColor(220, 40, 40));
-      if (verdict == "pass") item->setForeground(QColor(30, 150, 30));
-      a->table->setItem(i, 2, item);
-    }
     state << tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(step).arg(a->replayer->steps());
   }
   const QString mode = threeD_ || !camera_ ? tr("3D view (drag to turn)") : tr("over the case's frame");
   status_->setText(tr("%1  t = %2 s  %3  %4x  %5").arg(playing_ ? tr("playing") : tr("paused")).arg(time_, 0, 'f', 2).arg(state.join("; ")).arg(speedFactor_).arg(mode));
+}
+
+void ReviewWindow::fillMetrics(ReviewAttempt& a) {
+  // Once per replay and per change of the thresholds (not per frame).
+  const auto values = app::metricValues(a.result.metrics);
+  const auto verdicts = app::judge(a.result.metrics, thresholds_);
+  a.table->setRowCount(static_cast<int>(values.size()));
+  for (int i = 0; i < static_cast<int>(values.size()); ++i) {
+    const auto& m = values[static_cast<std::size_t>(i)];
+    a.table->setItem(i, 0, new QTableWidgetItem(QString::fromStdString(m.name)));
+    auto* value = new QTableWidgetItem(m.value ? QString::number(*m.value, 'g', 5) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
+                                               : tr("not determined"));
+    if (!m.value) value->setToolTip(QString::fromStdString(m.why));
+    a.table->setItem(i, 1, value);
+    QString verdict;
+    for (const auto& v : verdicts)
+      if (v.metric.name == m.name) verdict = app::resultWord(v.result);
+    auto* item = new QTableWidgetItem(verdict);
+    if (verdict == "fail") item->setForeground(QColor(220, 40, 40));
+    if (verdict == "pass") item->setForeground(QColor(30, 150, 30));
+    a.table->setItem(i, 2, item);
+  }
 }
 
 QString ReviewWindow::statusText() const { return status_->text(); }
@@ -492,16 +490,14 @@ QImage ReviewWindow::viewImage(int attempt) const {
   return a ? a->view->property("image").value<QImage>() : QImage();
 }
 
-QString ReviewWindow::exportVideo(const QString& path, double from, double to) {
+QString ReviewWindow::exportFirst(const std::function<QString(ReviewAttempt&, app::Replayer&, const app::ReviewRenderer&)>& write) {
   auto& a = attempts_[0];
   if (!a || !a->ready) return tr("The session is still being replayed; export when its timeline shows.");
   QApplication::setOverrideCursor(Qt::WaitCursor);
   QString err;
   try {
-    app::Replayer replayer(a->recording);
-    const app::ReviewRenderer& r = threeD_ || !a->frameRenderer ? *a->orbitRenderer : *a->frameRenderer;
-    const int frames = app::writeReviewVideo(replayer, r, a->result.timeline, a->stepAt(from), std::max(a->stepAt(to), a->stepAt(from) + 1), 25, path.toStdString());
-    status_->setText(tr("Video of %1 frames written to %2").arg(frames).arg(path));
+    app::Replayer replayer(a->recording);  // its own: the view's stays where it is
+    status_->setText(write(*a, replayer, a->renderer(threeD_)));
   } catch (const std::exception& e) {
     err = QString::fromStdString(e.what());
   }
@@ -509,21 +505,33 @@ QString ReviewWindow::exportVideo(const QString& path, double from, double to) {
   return err;
 }
 
+QString ReviewWindow::exportVideo(const QString& path, double from, double to) {
+  return exportFirst([&](ReviewAttempt& a, app::Replayer& replayer, const app::ReviewRenderer& r) {
+    const long first = a.stepAt(from);
+    const int frames = app::writeReviewVideo(replayer, r, a.result.timeline, first, std::max(a.stepAt(to), first + 1), 25, path.toStdString());
+    return tr("Video of %1 frames written to %2").arg(frames).arg(path);
+  });
+}
+
 QString ReviewWindow::exportReport(const QString& path) {
-  auto& a = attempts_[0];
-  if (!a || !a->ready) return tr("The session is still being replayed; export when its timeline shows.");
-  QApplication::setOverrideCursor(Qt::WaitCursor);
-  QString err;
-  try {
-    app::Replayer replayer(a->recording);
-    const app::ReviewRenderer& r = threeD_ || !a->frameRenderer ? *a->orbitRenderer : *a->frameRenderer;
-    writeReviewPdf(app::makeReviewReport(a->recording, a->result, thresholds_, replayer, r), path.toStdString());
-    status_->setText(tr("Report written to %1").arg(path));
-  } catch (const std::exception& e) {
-    err = QString::fromStdString(e.what());
+  return exportFirst([&](ReviewAttempt& a, app::Replayer& replayer, const app::ReviewRenderer& r) {
+    writeReviewPdf(app::makeReviewReport(a.recording, a.result, thresholds_, replayer, r), path.toStdString());
+    return tr("Report written to %1").arg(path);
+  });
+}
+
+bool ReviewWindow::event(QEvent* e) {
+  // The review's own keys are not shortcuts of the main window it belongs to (Home there fits the frame).
+  if (e->type() == QEvent::ShortcutOverride) {
+    const auto* k = static_cast<QKeyEvent*>(e);
+    const bool plain = !(k->modifiers() & ~(Qt::ShiftModifier | Qt::KeypadModifier));
+    if (plain && (k->key() == Qt::Key_Space || k->key() == Qt::Key_Left || k->key() == Qt::Key_Right || k->key() == Qt::Key_Home ||
+                  k->key() == Qt::Key_End || k->key() == Qt::Key_V)) {
+      e->accept();
+      return true;
+    }
   }
-  QApplication::restoreOverrideCursor();
-  return err;
+  return QMainWindow::event(e);
 }
 
 void ReviewWindow::keyPressEvent(QKeyEvent* e) {

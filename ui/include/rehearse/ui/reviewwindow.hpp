@@ -68,11 +68,16 @@ class ReviewWindow : public QMainWindow {
 
  protected:
   void keyPressEvent(QKeyEvent* e) override;
+  bool event(QEvent* e) override;
 
  private:
   void tick();
   void refresh();
   void fillSessionLists();
+  void fillMetrics(ReviewAttempt& a);
+  /// Runs an export of the first attempt (a replayer of its own, the view's renderer), with the wait cursor;
+  /// `write` returns the status sentence. One sentence on error, empty on success.
+  QString exportFirst(const std::function<QString(ReviewAttempt&, app::Replayer&, const app::ReviewRenderer&)>& write);
   void build(const QString& title);
   std::function<std::vector<app::RecordingSummary>()> list_;
   std::function<app::Recording(qint64)> load_;

@@ -153,7 +153,8 @@ std::string encodeCheckpointState(const simcore::Checkpoint& c);
 simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t hash)>& setupOf);
 /// A setup as a checkpoint stores it: without its cut progress.
 simcore::BodySetup sharedSetup(const simcore::BodySetup& s);
-/// A hash of a body setup (its mesh, attachments, materials, settings and tools): equal setups, equal hashes.
+/// A hash of a body setup (its mesh, attachments, materials, settings and tools; not the cut in progress, which
+/// a checkpoint carries itself): equal setups, equal hashes. Hashes in place (no copy of the mesh).
 std::uint64_t setupHash(const simcore::BodySetup& s);
 
 /// A recording replayed with seeking: any step is reached from the nearest checkpoint at or before it
@@ -237,6 +238,7 @@ struct TimelineSample {
   double force = 0;                ///< N
   double strain = 0;               ///< largest principal Green strain (0 unless computed)
   bool holding = false, cutting = false;
+  bool newInstrument = false;      ///< another instrument than at the last step (its tip did not travel from there)
   std::vector<std::string> events; ///< "grasp", "release", "slip", "cut", "vessel cut", "cut through label N", "force over threshold"
 };
 struct ReplayResult {

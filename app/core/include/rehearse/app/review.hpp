@@ -76,7 +76,12 @@ class ReviewRenderer {
   void place();
 };
 
-/// The timeline's per-step samples (ReplayResult::timeline) up to `step`: the tip's path (while present).
+/// The sample of a step (the timeline holds steps 1..n in order: found by its index); null when absent.
+const TimelineSample* sampleAt(const std::vector<TimelineSample>& timeline, long step);
+/// The last step whose time is at or before `seconds` (0 before the first), by bisection.
+long stepAtTime(const std::vector<TimelineSample>& timeline, double seconds);
+/// The timeline's per-step samples (ReplayResult::timeline) up to `step`: the tip's path (while present), a
+/// non-finite point between two instruments' paths.
 std::vector<Eigen::Vector3d> tipPath(const std::vector<TimelineSample>& timeline, long step);
 /// A caption for a step: time, force, events.
 std::string captionAt(const std::vector<TimelineSample>& timeline, long step, const std::string& who);
