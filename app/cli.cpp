@@ -25,6 +25,7 @@
 #include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -271,11 +272,63 @@ simcore::Scene modelFromOptions(std::map<std::string, std::string>& o, const cha
   return p;
 }
 
+constexpr simcore::StepStatus kStatuses[] = {simcore::StepStatus::Converged, simcore::StepStatus::Inexact, simcore::StepStatus::Inverted,
+                                             simcore::StepStatus::Failed, simcore::StepStatus::Refused};
+
+// {"converged": n, "inexact": n, ...}: the reports' "statuses".
+nlohmann::json statusCounts(const std::vector<const simcore::StepReport*>& reports) {
+  nlohmann::json counts = nlohmann::json::object();
+  for (auto s : kStatuses) {
+    std::size_t k = 0;
+    for (const auto* r : reports) k += r->outcome == s;
+    counts[toString(s)] = k;
+  }
+  return counts;
+}
+
+// The steps' outcomes counted, on stdout always ("statuses: ..."), on stderr when one did not converge, and the exit
+// code: 0 when every step converged, 3 when a step failed (rolled back) or was refused, 5 when every step advanced but
+// some ended inexact or with inverted elements.
+int statusSummary(const std::vector<const simcore::StepReport*>& reports) {
+  std::array<std::size_t, 5> n{};
+  std::size_t mostInverted = 0;
+  double largestResidual = 0, smallestJ = 1;
+  for (const auto* r : reports) {
+    ++n[static_cast<std::size_t>(r->outcome)];
+    mostInverted = std::max(mostInverted, static_cast<std::size_t>(r->invertedElements));
+    if (std::isfinite(r->residual)) largestResidual = std::max(largestResidual, r->residual);
+    smallestJ = std::min(smallestJ, r->minVolumeRatio);
+  }
+  using S = simcore::StepStatus;
+  std::string line = "statuses: ";
+  for (S s : kStatuses)
+    if (n[static_cast<std::size_t>(s)] || s == S::Converged)
+      line += (line.size() > 10 ? ", " : "") + std::to_string(n[static_cast<std::size_t>(s)]) + " " + toString(s);
+  char figures[160];
+  std::snprintf(figures, sizeof figures, "; largest relative residual %.3g, at most %zu inverted elements, smallest volume ratio %.3g", largestResidual,
+                mostInverted, smallestJ);
+  line += figures;
+  std::printf("%s\n", line.c_str());
+  const std::size_t failed = n[static_cast<std::size_t>(S::Failed)] + n[static_cast<std::size_t>(S::Refused)];
+  const std::size_t loose = n[static_cast<std::size_t>(S::Inexact)] + n[static_cast<std::size_t>(S::Inverted)];
+  if (failed || loose) {
+    const simcore::StepReport* first = nullptr;
+    for (const auto* r : reports)
+      if (r->outcome != S::Converged) {
+        first = r;
+        break;
+      }
+    std::fprintf(stderr, "rehearse: %zu of %zu steps did not converge (%s); the first: %s\n", failed + loose, reports.size(), line.c_str() + 10,
+                 simcore::statusSentence(*first).c_str());
+  }
+  return failed ? 3 : loose ? 5 : 0;
+}
+
 int cmdSimulate(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2,
                         {"scene", "preset", "mesh", "unit", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes", "gravity",
                          "steps", "dt", "out", "report", "solver", "method", "attachments", "factor"},
-                        {"static", "list-components"});
+                        {"static", "list-components", "strict"});
   if (o.count("list-components")) {
     std::printf("%s", simcore::describeSceneComponents().c_str());
     return 0;
@@ -285,6 +338,7 @@ int cmdSimulate(const std::vector<std::string>& args) {
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
   simcore::Scene p = modelFromOptions(o, "simulate");
   if (o.count("dt")) p.settings.timeStep = parseNumber(o["dt"], "--dt");
+  if (o.count("strict")) p.settings.strict = true;
   // Names parsed by simcore's one set of parsers (as scenes are); their sentences become usage errors
   // (the Newton method's stays a model error, exit 1, as before).
   if (o.count("method")) p.settings.method = simcore::newtonMethodFromString(o["method"]);
@@ -329,9 +383,12 @@ int cmdSimulate(const std::vector<std::string>& args) {
       const auto& r = reports[i];
       steps.push_back({{"step", i}, {"wall_ms", r.wallMs}, {"newton_iterations", r.newtonIterations}, {"residual", r.residual},
                        {"energy", r.energy}, {"time_step", r.timeStepUsed}, {"retries", r.retries}, {"factorisations", r.factorisations},
-                       {"ok", r.ok}, {"status", r.status}});
+                       {"ok", r.ok}, {"outcome", toString(r.outcome)}, {"status", simcore::statusSentence(r)}, {"inverted_elements", r.invertedElements},
+                       {"min_volume_ratio", r.minVolumeRatio}, {"inversion_limited", r.inversionLimited}});
     }
-    writeReport(o["report"], {{"steps", steps}});
+    std::vector<const simcore::StepReport*> all;
+    for (const auto& r : reports) all.push_back(&r);
+    writeReport(o["report"], {{"steps", steps}, {"statuses", statusCounts(all)}});
   }
   std::size_t failed = 0;
   double wall = 0;
@@ -343,8 +400,9 @@ int cmdSimulate(const std::vector<std::string>& args) {
               o.count("static") ? "static" : "dynamic", model.nodeCount(), model.tets.size(), reports.size(),
               o.count("static") ? "solve" : "steps", failed, wall / reports.size(), o.count("static") ? "solve" : "step",
               o["out"].c_str());
-  if (failed) std::fprintf(stderr, "rehearse: %zu steps failed; the last status: %s\n", failed, reports.back().status.c_str());
-  return failed ? 3 : 0;
+  std::vector<const simcore::StepReport*> all;
+  for (const auto& r : reports) all.push_back(&r);
+  return statusSummary(all);
 }
 
 
@@ -715,9 +773,12 @@ int cmdGesture(const std::vector<std::string>& args) {
       rows.push_back({{"step", s.step}, {"time_s", s.time}, {"wall_ms", s.wallMs}, {"mass_kg", s.massKg}, {"elements", s.elements}, {"nodes", s.nodes},
                       {"grasped_nodes", s.grasped}, {"contacts", s.contacts}, {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
                       {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}}, {"events", s.events}, {"message", s.message}, {"ok", s.report.ok},
-                      {"status", s.report.status}, {"residual", s.report.residual}, {"factorisations", s.report.factorisations},
+                      {"outcome", toString(s.report.outcome)}, {"status", simcore::statusSentence(s.report)}, {"residual", s.report.residual},
+                      {"inverted_elements", s.report.invertedElements}, {"min_volume_ratio", s.report.minVolumeRatio}, {"factorisations", s.report.factorisations},
                       {"factor_requested", s.report.factorRequested}, {"factor_swapped", s.report.factorSwapped}});
-    writeReport(o["report"], {{"steps", rows}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", r.vesselCuts}, {"failed_steps", r.failed},
+    std::vector<const simcore::StepReport*> all;
+    for (const auto& s : r.steps) all.push_back(&s.report);
+    writeReport(o["report"], {{"steps", rows}, {"statuses", statusCounts(all)}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", r.vesselCuts}, {"failed_steps", r.failed},
                               {"peak_tool_force_n", peak}, {"elements", out.tets.size()}, {"nodes", out.points.size()},
                               {"contact_queries", r.contactQueries}});
   }
@@ -725,8 +786,11 @@ int cmdGesture(const std::vector<std::string>& args) {
               "steps; %zu elements, %zu nodes written to %s\n",
               r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, r.vesselCuts, r.failed, out.tets.size(), out.points.size(),
               o["out"].c_str());
-  if (r.failed) std::fprintf(stderr, "rehearse: %zu steps failed\n", r.failed);
-  return r.failed ? 3 : 0;
+  std::vector<const simcore::StepReport*> all;
+  for (const auto& s : r.steps) all.push_back(&s.report);
+  const int code = statusSummary(all);
+  // A cut refused or another input the session turned down is not a step's failure: r.failed counts steps not taken.
+  return r.failed ? 3 : code;
 }
 
 // rehearse publish CASE... [--service NAME]: the complete sessions of case files into the training database.

@@ -8,6 +8,7 @@
 #include <future>
 #include <cstdio>
 #include <cmath>
+#include <limits>
 
 
 namespace rehearse::simcore {
@@ -18,6 +19,16 @@ NewtonMethod newtonMethodFromString(const std::string& name) {
   if (name == "chord") return NewtonMethod::Chord;
   if (name == "linearised") return NewtonMethod::Linearised;
   throw MeshError("Unknown Newton method '" + name + "' (use exact, lagged-pcg, chord or linearised).");
+}
+
+std::string toString(StepStatus s) {
+  switch (s) {
+    case StepStatus::Converged: return "converged";
+    case StepStatus::Inexact: return "inexact";
+    case StepStatus::Inverted: return "inverted";
+    case StepStatus::Refused: return "refused";
+    default: return "failed";
+  }
 }
 
 std::string toString(NewtonMethod m) {
@@ -63,6 +74,13 @@ struct Integrator::Work {
   int staticFactor = -1;          // chol.factorisations() just after a static tangent was factorised
   Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
   bool forcesValid = false;
+  // Linearised method: the tangent and forces at the end of the last step (its nonlinear residual needs the
+  // forces there; the next step starts from the same pass when it starts at the same positions).
+  TangentState tangentEnd;
+  Eigen::VectorXd tangentEndAt, forcesEnd;
+  bool tangentEndValid = false;
+  Eigen::VectorXd bestX, bestV;  // the attempt with the smallest residual (a step that does not converge)
+  std::vector<int> limiting;      // elements a move would have taken below their floor (guardMove)
 };
 
 namespace {
@@ -393,7 +411,7 @@ void Integrator::record(SimulationState& state) const {
   }
 }
 
-bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepReport& rep) {
+Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepReport& rep) {
   Work& w = *w_;
   const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
   const bool lagged = settings_.method != NewtonMethod::Exact && settings_.solver == LinearSolverKind::Cholmod;
@@ -414,7 +432,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     if (stale || (w.drift && settings_.factorRefresh == FactorRefresh::Synchronous)) {
       if (!refreshLagged(w.x0)) {
         rep.status = "failed: the linear system could not be solved";
-        return false;
+        return Try::Failed;
       }
     } else if (w.drift && !w.request.pending) {
       requestFactor(w.x0, h, rep);  // asynchronous or deferred: this step goes on with the old factor
@@ -427,8 +445,14 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     // Linearised implicit Euler (Baraff and Witkin; SOFA's EulerImplicit with one solve): the forces
     // linearised at x0, f(x0 + h v) ~ f(x0) - h K(x0) v, one solve with the lagged factorisation:
     //   J dv = -r0,  r0 = h a M v0 - h (f(x0) + g) + (h^2 + h b) K(x0) v0.
-    // One pass over the elements gives f(x0) and K(x0) (matrix-free); no other pass.
-    prepareTangentState(model_, w.x0, w.tangent0, &w.f);
+    // One pass over the elements gives f(x0) and K(x0) (matrix-free); the last step's end made it when it ended here.
+    if (w.tangentEndValid && w.tangentEndAt.size() == w.x0.size() && w.tangentEndAt == w.x0) {
+      std::swap(w.tangent0, w.tangentEnd);
+      std::swap(w.f, w.forcesEnd);
+    } else {
+      prepareTangentState(model_, w.x0, w.tangent0, &w.f);
+    }
+    w.tangentEndValid = false;
     project(w.f);
     const double scale = std::max({w.Mv0.norm(), h * gravityForce_.norm(), h * w.f.norm(), h * 1e-2 * model_.lumpedMass.sum()});
     applyStiffness(model_, w.tangent0, w.v, w.tmp);
@@ -440,7 +464,7 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     if (!solveConstrained(w.tmp, w.xt, h, w.dv, rep) || !w.dv.allFinite()) {
       rep.status = "failed: the linear system could not be solved";
       w.refresh = true;
-      return false;
+      return Try::Failed;
     }
     // How well the lagged matrix stood for J(x0) = (1 + h a) M + (h^2 + h b) K(x0): the residual of the
     // linearised equations with the exact matrix, relative to the scale; a large one refreshes the factor.
@@ -501,14 +525,37 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     if (!std::isfinite(rep.residual) || !w.v.allFinite()) {
       rep.status = "failed: the state became NaN or infinite";
       w.refresh = true;
-      return false;
+      return Try::Failed;
     }
+    // Elements of the laws not defined inverted keep their floor: the nodes of those that would not are stopped.
+    if (guardMove(w.x0, w.v, h)) rep.inversionLimited = true;
     v = w.v;
     x = w.x0 + h * w.v;
     w.forcesValid = false;
     if (hasConstraints) w.lambdaOut = w.cons.multipliers() / h;
-    return true;
+    // The residual of the nonlinear equations at the step's end (the Newton methods' residual), net of the
+    // constraint forces: one pass over the elements at x, which the next step starting here reuses.
+    prepareTangentState(model_, x, w.tangentEnd, &w.forcesEnd);
+    w.tangentEndAt = x;
+    w.tangentEndValid = true;
+    if (beta == 0) w.tmp.setZero();
+    else applyStiffness(model_, w.tangent0, w.v, w.tmp);
+    w.rn = (1 + h * alpha) * mass3_.cwiseProduct(w.v) - w.Mv0 - h * (w.forcesEnd + gravityForce_) + (h * beta) * w.tmp;
+    if (hasConstraints && w.cons.multipliers().size() == w.cons.transposedH().cols() && w.cons.transposedH().rows() == w.rn.size())
+      w.rn.noalias() -= w.cons.transposedH() * w.cons.multipliers();
+    project(w.rn);
+    rep.residual = w.rn.norm() / scale;
+    if (!std::isfinite(rep.residual)) {
+      rep.status = "failed: the state became NaN or infinite";
+      w.refresh = true;
+      w.tangentEndValid = false;
+      return Try::Failed;
+    }
+    return rep.residual <= settings_.linearisedTolerance ? Try::Converged : Try::Inexact;
   }
+  // The first iterate (the last step's velocity) is shortened when it would invert guarded elements, as every
+  // Newton move below is: the iterates never invert an element that was not inverted at the step's start.
+  if (guardMove(w.x0, w.v, h)) rep.inversionLimited = true;
   // Rayleigh damping with the stiffness at the start of the step (every method: the same residual);
   // the lagged methods have no K(x0) matrix and take the product matrix-free.
   if (beta != 0 && lagged) prepareTangentState(model_, w.x0, w.tangent0);
@@ -645,6 +692,8 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       rep.status = "failed: the linear system could not be solved";
       break;
     }
+    w.xt = w.x0 + h * w.v;
+    if (guardMove(w.xt, w.dv, h)) rep.inversionLimited = true;
     double t = 1.0;
     w.vn = w.v + w.dv;
     residual(w.vn, w.rn);
@@ -690,16 +739,13 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
     }
   }
   if (!ok && std::isfinite(rn) && rn <= settings_.tolerance * scale) ok = true;
-  if (settings_.method == NewtonMethod::Linearised && lagged && std::isfinite(rn)) {
-    ok = true;  // one solve by design; the residual is reported, and a large one refreshes the factor
-    if (rn > settings_.refreshResidual * scale) w.drift = true;
-  }
   rep.residual = rn / scale;
-  if (!std::isfinite(rn) || !w.v.allFinite()) {
+  const bool finite = std::isfinite(rn) && w.v.allFinite();
+  if (!finite) {
     ok = false;
     rep.status = "failed: the state became NaN or infinite";
   }
-  if (ok) {
+  if (ok || finite) {
     v = w.v;
     x = w.x0 + h * w.v;
     // The last residual evaluated the forces at x: the next step's scale reuses them.
@@ -709,13 +755,90 @@ bool Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepR
       w.forces = w.f;
       project(w.forces);
     }
-  } else {
+  }
+  if (!ok) {
     w.refresh = true;
     if (rep.status.empty())
       rep.status = "not converged in " + std::to_string(maxIterations) + " Newton iterations";
   }
   if (hasConstraints) w.lambdaOut = w.cons.multipliers() / h;  // momentum per step -> force (N)
-  return ok;
+  return ok ? Try::Converged : finite ? Try::Inexact : Try::Failed;
+}
+
+namespace {
+std::string figure(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", v);
+  return text;
+}
+}  // namespace
+
+bool Integrator::guardMove(const Eigen::VectorXd& x, Eigen::VectorXd& vel, double h) {
+  if (!settings_.inversionGuard) return false;
+  Work& w = *w_;
+  // The floor of each guarded element: 10 % of its volume at the step's start, at least 1 % of its rest volume.
+  const InversionFloor floor{&w.x0, 0.1, 0.01};
+  bool changed = false;
+  for (int round = 0; round < 4; ++round) {
+    w.tmp = h * vel;
+    const double s = inversionFreeStep(model_, x, w.tmp, floor, &w.limiting);
+    if (s >= 1) return changed;
+    changed = true;
+    if (round == 3) {  // the stopped nodes keep involving new elements: the whole move is shortened instead
+      vel *= s;
+      return true;
+    }
+    // The nodes of the elements that would go below their floor stop; the rest of the organ moves on.
+    for (int e : w.limiting)
+      for (int n : model_.tets[e]) vel.segment<3>(3 * n).setZero();
+  }
+  return changed;
+}
+
+void Integrator::describe(const SimulationState& state, bool advanced, bool withinTolerance, double tolerance, StepReport& rep) const {
+  const VolumeRatios ratios = volumeRatios(model_, state.x);
+  rep.invertedElements = ratios.inverted;
+  rep.minVolumeRatio = ratios.smallest;
+  rep.smallestElement = ratios.smallestElement;
+  rep.tolerance = tolerance;
+  if (!advanced) {
+    rep.outcome = StepStatus::Failed;
+    return;
+  }
+  // Only the word here (short strings allocate nothing): statusSentence() makes the sentence from the figures.
+  if (ratios.inverted > 0) {
+    rep.outcome = StepStatus::Inverted;
+    rep.status = "inverted";
+    for (const auto m : model_.model) {
+      rep.collapsingLaw |= m == MaterialModel::StVK;
+      rep.invertibleLaw |= m == MaterialModel::NeoHookean;
+    }
+  } else if (!withinTolerance) {
+    rep.outcome = StepStatus::Inexact;
+    rep.status = "inexact";
+  } else {
+    rep.outcome = StepStatus::Converged;
+    rep.status = "converged";
+  }
+}
+
+std::string statusSentence(const StepReport& r) {
+  if (r.status != toString(r.outcome)) return r.status;  // a sentence of its own already
+  if (r.outcome == StepStatus::Converged) return r.status;
+  const std::string residual = "relative residual " + figure(r.residual) + " above the tolerance " + figure(r.tolerance);
+  const std::string shortened = r.inversionLimited ? "; moves were shortened to keep elements from inverting" : "";
+  const std::string kept = r.keptBestOf > 0 ? " (no attempt converged; kept the best of " + std::to_string(r.keptBestOf) + ", time step " +
+                                                  figure(r.timeStepUsed) + " s)"
+                                            : "";
+  if (r.outcome == StepStatus::Inexact) return "inexact: " + residual + shortened + kept;
+  if (r.outcome == StepStatus::Inverted)
+    return "inverted: " + std::to_string(r.invertedElements) + (r.invertedElements == 1 ? " element" : " elements") + " inside out (smallest volume ratio " +
+           figure(r.minVolumeRatio) + ", element " + std::to_string(r.smallestElement) + ")" +
+           (r.residual > r.tolerance ? "; " + residual : std::string()) + shortened + kept +
+           (r.collapsingLaw ? "; the StVK law collapses under strong compression (its energy vanishes for a flat element): use corotational or neohookean"
+            : r.invertibleLaw ? "; the stable Neo-Hookean law is defined there and pushes them back"
+                              : "");
+  return r.status;
 }
 
 StepReport Integrator::step(SimulationState& state) {
@@ -727,6 +850,7 @@ StepReport Integrator::step(SimulationState& state) {
   // Settings edited after construction are checked again: refused, never silently changed.
   if (const std::string problem = settingsProblem(settings_, !constraints_.empty()); !problem.empty()) {
     rep.status = "refused: " + problem;
+    rep.outcome = StepStatus::Refused;
     return rep;
   }
   if (!adopt(state, rep)) {
@@ -739,43 +863,86 @@ StepReport Integrator::step(SimulationState& state) {
   StepReport swap;
   if (settings_.factorRefresh != FactorRefresh::Synchronous) swapInRequested(swap);
   double h = settings_.timeStep;
+  const bool linearised = settings_.method == NewtonMethod::Linearised && settings_.solver == LinearSolverKind::Cholmod;
+  const double tolerance = linearised ? settings_.linearisedTolerance : settings_.tolerance;
+  // The attempt with the smallest residual (its largest sub-step residual) among those that covered the step.
+  double bestResidual = std::numeric_limits<double>::infinity();
+  double bestH = h;
+  StepReport best;
   int retries = 0;
   for (;; ++retries) {
-    // Sub-steps of h until the full time step is covered.
+    // Sub-steps of h until the full time step is covered; a sub-step that does not converge goes on from its
+    // best iterate (unless strict), so the attempt can be kept when no smaller step converges either.
     w.stepX = w.savedX;
     w.stepV = w.savedV;
-    double done = 0;
-    bool ok = true;
+    double done = 0, worst = 0;
+    Try outcome = Try::Converged;
     StepReport sub;
     while (done < settings_.timeStep * (1 - 1e-9)) {
       const double hh = std::min(h, settings_.timeStep - done);
-      if (!tryStep(w.stepX, w.stepV, hh, sub)) {
-        ok = false;
+      const Try t = tryStep(w.stepX, w.stepV, hh, sub);
+      if (t == Try::Failed || (t == Try::Inexact && settings_.strict && !linearised)) {
+        outcome = Try::Failed;
         break;
       }
+      if (t == Try::Inexact) outcome = Try::Inexact;
+      worst = std::max(worst, sub.residual);
       done += hh;
     }
+    sub.residual = outcome == Try::Failed ? sub.residual : worst;
     rep.newtonIterations = sub.newtonIterations;
     rep.factorisations = sub.factorisations;
     rep.factorRequested = sub.factorRequested;
     rep.factorSwapped = swap.factorSwapped;
     rep.innerIterations = sub.innerIterations;
+    rep.inversionLimited = sub.inversionLimited;
     rep.residual = sub.residual;
     rep.timeStepUsed = h;
-    if (ok) {
+    // The linearised method does one solve by design: its step is what it is (a retry would not be that method).
+    if (outcome == Try::Converged || (outcome == Try::Inexact && linearised)) {
       state.x = w.stepX;
       state.v = w.stepV;
       state.time += settings_.timeStep;
       rep.ok = true;
-      if (retries) rep.status = "converged with time step " + std::to_string(h) + " s after " + std::to_string(retries) + " retries";
-      else rep.status = "converged";
+      describe(state, true, outcome == Try::Converged, tolerance, rep);
+      if (retries && rep.outcome == StepStatus::Converged)
+        rep.status = "converged with time step " + std::to_string(h) + " s after " + std::to_string(retries) + " retries";
       break;
     }
-    if (retries >= settings_.maxRetries) {
-      state.x = w.savedX;  // rolled back
-      state.v = w.savedV;
-      rep.ok = false;
-      rep.status = sub.status + "; the step was rolled back";
+    // A halved step that does not at least halve the residual will not converge by halving more: the best so far is kept.
+    const bool hopeless = outcome == Try::Inexact && !settings_.strict && std::isfinite(bestResidual) && worst > 0.5 * bestResidual;
+    if (outcome == Try::Inexact && worst < bestResidual) {
+      bestResidual = worst;
+      bestH = h;
+      w.bestX = w.stepX;
+      w.bestV = w.stepV;
+      best = rep;
+    }
+    if (retries >= settings_.maxRetries || hopeless) {
+      if (std::isfinite(bestResidual)) {
+        // No attempt converged: the one with the smallest residual is kept (the simulation goes on; the status
+        // says how far from the equations it is).
+        const int tried = retries + 1;
+        rep = best;
+        state.x = w.bestX;
+        state.v = w.bestV;
+        state.time += settings_.timeStep;
+        rep.ok = true;
+        rep.timeStepUsed = bestH;
+        w.refresh = true;
+        w.forcesValid = false;
+        rep.keptBestOf = tried;
+        describe(state, true, false, tolerance, rep);
+      } else {
+        state.x = w.savedX;  // rolled back
+        state.v = w.savedV;
+        rep.ok = false;
+        const std::string why = sub.status.empty() ? "not converged" : sub.status;
+        describe(state, false, false, tolerance, rep);
+        rep.status = "failed: " + (why.rfind("failed: ", 0) == 0 ? why.substr(8) : why) +
+                     (settings_.strict && std::isfinite(sub.residual) ? " (relative residual " + std::to_string(sub.residual) + ", strict settings)" : "") +
+                     "; the step was rolled back";
+      }
       break;
     }
     h *= 0.5;
@@ -794,6 +961,7 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   StepReport rep;
   if (const std::string problem = settingsProblem(settings_, !constraints_.empty()); !problem.empty()) {
     rep.status = "refused: " + problem;
+    rep.outcome = StepStatus::Refused;
     return rep;
   }
   Eigen::VectorXd fext = gravityForce_;
@@ -923,12 +1091,18 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   if (rep.ok && x.allFinite()) {
     state.x = x;
     state.v.setZero();
-    rep.status = roundOff    ? "converged to round-off (relative residual " + std::to_string(rep.residual) + ")"
-                 : smallStep ? "converged (the last Newton move was below " + micrometres(settings_.staticStepTolerance) + ")"
-                             : "converged";
+    // Round-off: the residual stalled within 100x of the tolerance (the state is kept; the word says it is not under it).
+    describe(state, true, !roundOff, settings_.tolerance, rep);
+    if (rep.outcome == StepStatus::Converged)
+      rep.status = smallStep ? "converged (the last Newton move was below " + micrometres(settings_.staticStepTolerance) + ")" : "converged";
+    else if (rep.outcome == StepStatus::Inexact)
+      rep.status = "inexact: stalled at round-off, relative residual " + figure(rep.residual) + " within 100x the tolerance " + figure(settings_.tolerance);
+    else if (rep.outcome == StepStatus::Inverted)
+      rep.status = statusSentence(rep);
   } else {
     rep.ok = false;
-    if (rep.status.empty()) rep.status = "not converged (relative residual " + std::to_string(rep.residual) + "); the state was rolled back";
+    describe(state, false, false, settings_.tolerance, rep);
+    if (rep.status.empty()) rep.status = "failed: not converged (relative residual " + std::to_string(rep.residual) + "); the state was rolled back";
   }
   if (hasConstraints) w.lambdaOut = w.cons.multipliers();
   w.refresh = true;  // the factor now holds the static tangent

@@ -53,7 +53,10 @@ const std::vector<ComponentDecl>& sceneComponents() {
        {{"dt", "number", "0.01", "s", "time step"},
         {"steps", "integer", "100", "", "number of steps"},
         {"newton_iterations", "integer", "10", "", "Newton iterations per step at most"},
-        {"tolerance", "number", "1e-6", "", "relative residual"}}},
+        {"tolerance", "number", "1e-6", "", "relative residual"},
+        {"strict", "boolean", "false", "", "a step that does not converge after the retries is rolled back (failed) instead of kept as the best attempt (inexact)"},
+        {"inversion_guard", "boolean", "true", "",
+         "linear, corotational and neohookean-split elements are kept from inverting (the nodes of an element that would go below 1 % of its volume stop)"}}},
       {"static", "Static equilibrium instead of time stepping (registration).",
        {{"newton_iterations", "integer", "30", "", "Newton iterations at most"}, {"tolerance", "number", "1e-6", "", "relative residual"}}},
       {"embedded", "An inner structure given as a surface (vessels, tumour), embedded by barycentric mapping; its wall stiffness acts on the organ.",
@@ -66,7 +69,8 @@ const std::vector<ComponentDecl>& sceneComponents() {
       {"solver", "Linear solver and how Newton reuses its factorisation.",
        {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
         {"method", "string", "\"exact\"", "", "exact, lagged-pcg, chord or linearised (the last three reuse a cholmod factorisation)"},
-        {"factor", "string", "\"supernodal\"", "", "cholmod factor: supernodal (fastest) or simplicial (re-factorising allocates nothing; about 1.8x slower)"}}},
+        {"factor", "string", "\"supernodal\"", "", "cholmod factor: supernodal (fastest) or simplicial (re-factorising allocates nothing; about 1.8x slower)"},
+        {"linearised_tolerance", "number", "0.01", "", "the linearised method's tolerance on the relative residual of the nonlinear equations (steps above it are inexact)"}}},
   };
   return decls;
 }
@@ -175,6 +179,8 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.steps = value(c, *decl, "steps").get<long>();
         s.settings.maxNewtonIterations = value(c, *decl, "newton_iterations").get<int>();
         s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
+        s.settings.strict = value(c, *decl, "strict").get<bool>();
+        s.settings.inversionGuard = value(c, *decl, "inversion_guard").get<bool>();
         if (!(s.settings.timeStep > 0) || s.steps < 1) fail("implicit_euler needs dt > 0 and steps >= 1.");
       } else if (type == "static") {
         s.staticSolve = true;
@@ -184,6 +190,8 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.settings.solver = named([&] { return linearSolverFromString(value(c, *decl, "kind").get<std::string>()); });
         s.settings.method = named([&] { return newtonMethodFromString(value(c, *decl, "method").get<std::string>()); });
         s.settings.simplicialFactor = named([&] { return simplicialFactorFromString(value(c, *decl, "factor").get<std::string>()); });
+        s.settings.linearisedTolerance = value(c, *decl, "linearised_tolerance").get<double>();
+        if (!(s.settings.linearisedTolerance > 0)) fail("the solver's linearised_tolerance must be positive.");
       }
     } catch (const json::exception&) {
       fail("a parameter of component '" + type + "' has the wrong kind of value; see 'rehearse simulate --list-components'.");

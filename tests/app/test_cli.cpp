@@ -55,7 +55,8 @@ class TestCli : public QObject {
     QDir().mkpath(dir);
     const QString script = QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json";
     auto r = run({"gesture", "--preset", "liver", "--script", script, "--method", "linearised", "--out", dir + "/out.vtu", "--report", dir + "/report.json"});
-    QVERIFY2(r.code == 0, qPrintable(r.err + r.out));
+    // Every step taken; the linearised method's one solve leaves some above its tolerance as the liver settles (exit 5).
+    QVERIFY2(::testing::tookEveryStep(r), qPrintable(r.err + r.out));
     QFile f(dir + "/report.json");
     QVERIFY(f.open(QIODevice::ReadOnly));
     const QJsonObject report = QJsonDocument::fromJson(f.readAll()).object();
@@ -80,7 +81,7 @@ class TestCli : public QObject {
     // The shipped cut: the written volume has the cut's elements and nodes, the report counts its updates.
     const QString cutScript = QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json";
     r = run({"gesture", "--preset", "liver", "--script", cutScript, "--method", "linearised", "--out", dir + "/cut.vtu", "--report", dir + "/cut.json"});
-    QVERIFY2(r.code == 0, qPrintable(r.err + r.out));
+    QVERIFY2(::testing::tookEveryStep(r), qPrintable(r.err + r.out));
     QFile cf(dir + "/cut.json");
     QVERIFY(cf.open(QIODevice::ReadOnly));
     const QJsonObject cutReport = QJsonDocument::fromJson(cf.readAll()).object();
@@ -181,7 +182,7 @@ class TestCli : public QObject {
     // The Newton variant and Lagrange attachments from the command line.
     auto lin = run({"simulate", "--preset", "liver", "--steps", "3", "--method", "linearised", "--attachments", "lagrange", "--out", out,
                     "--report", report});
-    QVERIFY2(lin.code == 0, qPrintable(lin.err));
+    QVERIFY2(::testing::tookEveryStep(lin), qPrintable(lin.out + lin.err));
     const QJsonArray linSteps = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(report.toStdString()))).object()["steps"].toArray();
     QCOMPARE(linSteps.size(), 3);
     QCOMPARE(linSteps[0].toObject()["factorisations"].toInt(), 1);  // the first step builds the factor ...

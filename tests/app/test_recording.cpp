@@ -52,10 +52,10 @@ class TestRecording : public QObject {
     QTemporaryDir dir;
     const QString file = dir.path() + "/case.rehearse";
     const Run a = run(gestureArgs(dir.path(), "grasp-pull.json", file));
-    QVERIFY2(a.code == 0, qPrintable(a.err));
+    QVERIFY2(::testing::tookEveryStep(a), qPrintable(a.out + a.err));
     QVERIFY2(a.out.contains("recorded: session 1"), qPrintable(a.out));
     const Run b = run(gestureArgs(dir.path(), "cut-across.json", file));
-    QVERIFY2(b.code == 0, qPrintable(b.err));
+    QVERIFY2(::testing::tookEveryStep(b), qPrintable(b.out + b.err));
     QVERIFY2(b.out.contains("recorded: session 2"), qPrintable(b.out));
     const Run list = run({"replay", file});
     QCOMPARE(list.code, 0);
@@ -87,7 +87,7 @@ class TestRecording : public QObject {
     const QString file = dir.path() + "/case.rehearse";
     QStringList args = gestureArgs(dir.path(), "grasp-pull.json", file);
     args << "--report" << dir.path() + "/live.json";
-    QCOMPARE(run(args).code, 0);
+    QVERIFY(::testing::tookEveryStep(run(args)));
     const Run m = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/metrics.json", "--force-threshold", "2"});
     QVERIFY2(m.code == 0, qPrintable(m.err));
     QFile mf(dir.path() + "/metrics.json"), lf(dir.path() + "/live.json");
@@ -129,7 +129,7 @@ class TestRecording : public QObject {
     // figures as the JSON above.
     QStringList cutArgs = gestureArgs(dir.path(), "cut-across.json", file);
     cutArgs << "--report" << dir.path() + "/live-cut.json";
-    QCOMPARE(run(cutArgs).code, 0);
+    QVERIFY(::testing::tookEveryStep(run(cutArgs)));
     const Run c = run({"replay", file, "--metrics-csv", dir.path() + "/cohort.csv", "--force-threshold", "2"});
     QVERIFY2(c.code == 0, qPrintable(c.err));
     QFile cf(dir.path() + "/cohort.csv");
@@ -162,7 +162,7 @@ class TestRecording : public QObject {
     QTemporaryDir dir;
     const QString file = dir.path() + "/case.rehearse";
     const Run a = run(gestureArgs(dir.path(), "grasp-pull-cut.json", file));
-    QVERIFY2(a.code == 0, qPrintable(a.err));
+    QVERIFY2(::testing::tookEveryStep(a), qPrintable(a.out + a.err));
     const auto rec = app::loadRecording(file.toStdString(), 1);
     QVERIFY2(rec.checkpointSteps.size() >= 18, "a checkpoint every 20 steps of 360 and after each cut");
     // Some checkpoints hold a cut being built or a factor requested: what makes them complete is exercised.
@@ -308,7 +308,7 @@ class TestRecording : public QObject {
     QStringList args = gestureArgs(dir.path(), "grasp-pull-cut.json", file);
     args << "--report" << dir.path() + "/live.json";
     const Run a = run(args);
-    QVERIFY2(a.code == 0, qPrintable(a.err));
+    QVERIFY2(::testing::tookEveryStep(a), qPrintable(a.out + a.err));
     QFile th(dir.path() + "/t.json");
     QVERIFY(th.open(QIODevice::WriteOnly));
     th.write(R"({"max_force_n": {"max": 1000}, "vessel_cuts": {"max": 0}, "tumour_breaches": {"max": 0}})");
@@ -386,7 +386,7 @@ class TestRecording : public QObject {
   void damagedCheckpointsAreRefused() {
     QTemporaryDir dir;
     const QString file = dir.path() + "/case.rehearse";
-    QCOMPARE(run(gestureArgs(dir.path(), "grasp-pull-cut.json", file)).code, 0);
+    QVERIFY(::testing::tookEveryStep(run(gestureArgs(dir.path(), "grasp-pull-cut.json", file))));
     const auto rows = app::loadRecordingRows(file.toStdString(), 1);
     QVERIFY(rows.checkpoints.size() > 5);
     const std::string good = rows.checkpoints[rows.checkpoints.size() / 2].state;
@@ -434,7 +434,7 @@ class TestRecording : public QObject {
   void tamperedChecksumIsCaught() {
     QTemporaryDir dir;
     const QString file = dir.path() + "/case.rehearse";
-    QCOMPARE(run(gestureArgs(dir.path(), "grasp-pull.json", file)).code, 0);
+    QVERIFY(::testing::tookEveryStep(run(gestureArgs(dir.path(), "grasp-pull.json", file))));
     sqlite3* db = nullptr;
     QCOMPARE(sqlite3_open(file.toUtf8().constData(), &db), SQLITE_OK);
     QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checksums SET checksum = '12345' WHERE step = 200", nullptr, nullptr, nullptr), SQLITE_OK);
@@ -460,7 +460,7 @@ class TestRecording : public QObject {
     // How long a whole recording takes here: the kills fall anywhere in it (from the start of the process).
     QElapsedTimer whole;
     whole.start();
-    QCOMPARE(run(gestureArgs(dir.path(), "grasp-pull.json", file)).code, 0);
+    QVERIFY(::testing::tookEveryStep(run(gestureArgs(dir.path(), "grasp-pull.json", file))));
     const int fullMs = static_cast<int>(whole.elapsed());
     std::mt19937 rng(20261125);
     std::uniform_int_distribution<int> when(fullMs / 10, fullMs - 50);

@@ -263,6 +263,80 @@ class TestFem : public QObject {
     const auto m = FemModel::build(ok, {}, {MaterialModel::Linear, 1e3, 0.3, 1000});
     QVERIFY(std::abs(m.lumpedMass.sum() - 1000.0 / 6.0) < 1e-12);
   }
+
+  // The inversion guard: along x + s dx up to the returned s, every guarded element keeps det F >= eta det F(x)
+  // (checked by sampling det along the path, 65 points per element), the bound is tight (some element sits at
+  // eta det F(x) when s < 1), unguarded laws never limit, and volumeRatios counts the elements a hand-made
+  // reflection turned inside out.
+  void inversionGuard() {
+    auto c = rehearse::phantom::makePhantom();
+    std::mt19937 rng(17);
+    std::normal_distribution<double> n(0, 1);
+    const double eta = 0.1;
+    int limited = 0;
+    for (auto model : {MaterialModel::Corotational, MaterialModel::Linear, MaterialModel::NeoHookeanSplit}) {
+      const FemModel m = FemModel::build(c.volume, {}, {model, 3e3, 0.45, 1000});
+      for (int trial = 0; trial < 6; ++trial) {
+        const Eigen::VectorXd x = m.restVector();
+        Eigen::VectorXd dx(x.size());
+        const double size = 0.002 * (1 << trial);  // 2 mm to 64 mm random node moves
+        for (Eigen::Index i = 0; i < dx.size(); ++i) dx[i] = size * n(rng);
+        const double s = inversionFreeStep(m, x, dx, {nullptr, eta, 0.0});
+        QVERIFY(s >= 0 && s <= 1);
+        double tightest = 1e300;
+        for (std::size_t e = 0; e < m.tets.size(); ++e) {
+          auto det = [&](double t) {
+            Eigen::Matrix3d Ds;
+            for (int k = 0; k < 3; ++k)
+              Ds.col(k) = (x + t * dx).segment<3>(3 * m.tets[e][k + 1]) - (x + t * dx).segment<3>(3 * m.tets[e][0]);
+            return Ds.determinant();
+          };
+          const double d0 = det(0);
+          for (int k = 0; k <= 64; ++k) QVERIFY2(det(s * k / 64.0) >= eta * d0 * (1 - 1e-9), qPrintable(QString("element %1 at s %2").arg(e).arg(s * k / 64.0)));
+          tightest = std::min(tightest, det(s) / d0);
+        }
+        if (s < 1) {
+          ++limited;
+          QVERIFY2(std::abs(tightest - eta) < 1e-6, qPrintable(QString::number(tightest)));
+        } else {
+          QVERIFY(tightest >= eta);
+        }
+      }
+      // StVK is not guarded: nothing limits its moves.
+      const FemModel st = FemModel::build(c.volume, {}, {MaterialModel::StVK, 3e3, 0.45, 1000});
+      Eigen::VectorXd big(st.restVector().size());
+      for (Eigen::Index i = 0; i < big.size(); ++i) big[i] = 0.05 * n(rng);
+      QCOMPARE(inversionFreeStep(st, st.restVector(), big, {nullptr, eta, 0.0}), 1.0);
+    }
+    QVERIFY(limited >= 6);  // the larger moves were limited
+    // Five elements reflected through one of their nodes: five inverted (by construction), none at rest.
+    const FemModel m = FemModel::build(c.volume, {}, {MaterialModel::Corotational, 3e3, 0.45, 1000});
+    Eigen::VectorXd x = m.restVector();
+    QCOMPARE(volumeRatios(m, x).inverted, 0);
+    QVERIFY(std::abs(volumeRatios(m, x).smallest - 1) < 1e-12);
+    std::vector<int> chosen;
+    for (std::size_t e = 0; e < m.tets.size() && chosen.size() < 5; e += 97) {
+      bool shares = false;  // elements sharing no node, so each reflection inverts exactly its own element and maybe neighbours
+      for (int o : chosen)
+        for (int a : m.tets[e])
+          for (int b : m.tets[o]) shares |= a == b;
+      if (!shares) chosen.push_back(static_cast<int>(e));
+    }
+    // Reflect each chosen element's fourth node through the plane of the other three: its J becomes exactly -1.
+    for (int e : chosen) {
+      const auto& t = m.tets[e];
+      const Eigen::Vector3d a = x.segment<3>(3 * t[0]), b = x.segment<3>(3 * t[1]), cc = x.segment<3>(3 * t[2]);
+      const Eigen::Vector3d nrm = (b - a).cross(cc - a).normalized();
+      Eigen::Vector3d p = x.segment<3>(3 * t[3]);
+      p -= 2 * nrm.dot(p - a) * nrm;
+      x.segment<3>(3 * t[3]) = p;
+    }
+    std::vector<int> inverted;
+    const auto r = volumeRatios(m, x, &inverted);
+    for (int e : chosen) QVERIFY(std::find(inverted.begin(), inverted.end(), e) != inverted.end());
+    QCOMPARE(r.inverted, static_cast<int>(inverted.size()));
+    QVERIFY(std::abs(r.smallest + 1) < 1e-9 || r.smallest < -1);
+  }
 };
 
 QTEST_GUILESS_MAIN(TestFem)

@@ -20,4 +20,15 @@ inline Run run(const QStringList& args, int timeoutMs = 300000, const QProcessEn
           QString::fromUtf8(p.readAllStandardError())};
 }
 
+/// A `simulate` or `gesture` run that took every step: no step failed, and the exit code is the one its printed
+/// "statuses:" line calls for (0 when every step converged, 5 when some ended inexact or with inverted elements).
+inline bool tookEveryStep(const Run& r) {
+  const int i = r.out.indexOf(QLatin1String("statuses: "));
+  if (i < 0) return false;
+  const QString line = r.out.mid(i, r.out.indexOf('\n', i) - i);
+  const bool loose = line.contains(QLatin1String(" inexact")) || line.contains(QLatin1String(" inverted"));
+  const bool failed = line.contains(QLatin1String(" failed")) || line.contains(QLatin1String(" refused"));
+  return !failed && r.code == (loose ? 5 : 0);
+}
+
 }  // namespace testing

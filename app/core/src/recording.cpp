@@ -66,7 +66,10 @@ json settings(const simcore::SimulationSettings& s) {
           {"gaussSeidelTolerance", s.gaussSeidelTolerance},
           {"reportEnergy", s.reportEnergy},
           {"refreshResidual", s.refreshResidual},
-          {"factorRefresh", static_cast<int>(s.factorRefresh)}};
+          {"factorRefresh", static_cast<int>(s.factorRefresh)},
+          {"linearisedTolerance", s.linearisedTolerance},
+          {"strict", s.strict},
+          {"inversionGuard", s.inversionGuard}};
 }
 simcore::SimulationSettings settings(const json& j) {
   simcore::SimulationSettings s;
@@ -91,6 +94,10 @@ simcore::SimulationSettings settings(const json& j) {
   s.reportEnergy = j.at("reportEnergy");
   s.refreshResidual = j.at("refreshResidual");
   s.factorRefresh = static_cast<simcore::FactorRefresh>(j.at("factorRefresh").get<int>());
+  // Sessions recorded before these existed ran without the inversion guard and the strict/inexact choice (they were strict).
+  s.linearisedTolerance = j.value("linearisedTolerance", s.linearisedTolerance);
+  s.strict = j.value("strict", true);
+  s.inversionGuard = j.value("inversionGuard", false);
   return s;
 }
 

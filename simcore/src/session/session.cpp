@@ -228,6 +228,7 @@ Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chro
   updateSurfaceNodes();
   StepReport rest;
   rest.ok = true;
+  rest.outcome = StepStatus::Converged;  // no step taken: nothing left unsolved
   publish(rest, {});
   thread_ = std::thread([this] { run(); });
 }
@@ -926,6 +927,7 @@ void Session::restore(const Checkpoint& c) {
   updateToolConstraints();
   StepReport rest;
   rest.ok = true;
+  rest.outcome = StepStatus::Converged;  // no step taken: nothing left unsolved
   publish(rest, {});
 }
 
@@ -986,6 +988,7 @@ void Session::run() {
       updateToolConstraints();
       StepReport rest;
       rest.ok = true;
+      rest.outcome = StepStatus::Converged;  // no step taken: nothing left unsolved
       publish(rest, {});
       wasPlaying = false;
       continue;

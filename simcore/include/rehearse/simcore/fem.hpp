@@ -114,4 +114,31 @@ void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<dou
 /// Newton: a positive semi-definite K for indefinite states such as inverted or strongly compressed elements).
 void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K, bool projectDefinite = false);
 
+/// Volume ratios J = det F (deformed over rest signed volume) at positions x: how many elements are inverted
+/// (J <= 0), the smallest J and its element. With `inverted`, the inverted elements' indices (ascending).
+struct VolumeRatios {
+  int inverted = 0;
+  double smallest = 1;
+  int smallestElement = -1;
+};
+VolumeRatios volumeRatios(const FemModel& m, const Eigen::VectorXd& x, std::vector<int>* inverted = nullptr);
+/// The laws that are not defined for inverted elements, whose steps are kept from inverting them (linear,
+/// corotational, neohookean-split). StVK and the stable Neo-Hookean are not guarded: StVK collapses under strong
+/// compression (its energy vanishes for a flat element and rises again inverted) and the stable Neo-Hookean is
+/// defined inverted (it pushes the element back); their inverted elements are reported.
+bool guardsInversion(MaterialModel m);
+/// The volume a guarded element keeps: J >= max(eta J(reference), smallest), reference being the step's start (x
+/// itself when null); an element already below that keeps eta of its J at x.
+struct InversionFloor {
+  const Eigen::VectorXd* reference = nullptr;
+  double eta = 0.1;
+  double smallest = 0.01;
+};
+/// Largest s in [0, 1] such that along x + s' dx, s' in [0, s], every guarded element that is not inverted (at x
+/// and at the reference) keeps J = det F above its floor: the roots of each element's cubic det F(s'), found
+/// exactly (monotone pieces, bisection). Exactly 1 when nothing limits the move. With `limiting`, every element whose
+/// own limit is below 1.
+double inversionFreeStep(const FemModel& m, const Eigen::VectorXd& x, const Eigen::VectorXd& dx, const InversionFloor& floor = {},
+                         std::vector<int>* limiting = nullptr);
+
 }  // namespace rehearse::simcore
