@@ -201,7 +201,37 @@ void FrameView::paintEvent(QPaintEvent*) {
   painter.resetTransform();
   paintOrganMarks(painter, contour);
   if (FrameTool* t = current()) t->paint(painter);
+  paintWarning(painter);
   paintLegend(painter);
+}
+
+void FrameView::setWarning(std::vector<Eigen::Vector3d> cameraPoints, const QString& text) {
+  if (text.isEmpty() && warningText_.isEmpty()) return;
+  warningAt_ = std::move(cameraPoints);
+  warningText_ = text;
+  update();
+}
+
+void FrameView::paintWarning(QPainter& painter) {
+  if (warningText_.isEmpty()) return;
+  const QColor magenta(235, 40, 235);
+  if (case_) {
+    painter.setPen(QPen(magenta, 2));
+    painter.setBrush(Qt::NoBrush);
+    for (const auto& p : warningAt_) {
+      if (p.z() <= 0) continue;
+      const auto uv = case_->camera.project(p);
+      painter.drawEllipse(toWidget(QPointF(uv.x(), uv.y())), 5, 5);
+    }
+  }
+  const QFontMetrics fm(font());
+  const QRect text = fm.boundingRect(QRect(0, 0, std::max(200, width() - 40), 200), Qt::TextWordWrap, warningText_);
+  const QRect box(QPoint((width() - text.width()) / 2 - 8, 8), text.size() + QSize(16, 10));
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(QColor(40, 0, 40, 200));
+  painter.drawRoundedRect(box, 4, 4);
+  painter.setPen(QColor(255, 170, 255));
+  painter.drawText(box.adjusted(8, 5, -8, -5), Qt::TextWordWrap, warningText_);
 }
 
 bool FrameView::toolsBusy() const {

@@ -231,6 +231,7 @@ void MainWindow::buildDocks() {
     const auto f = simulation_->lastFrame();
     if (pages_.rehearse) pages_.rehearse->showFrame(f);
     if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
+      view_->setWarning(f->invertedAt, warningText(*f));
       view_->setLiveShape(f->positions);
       view_->setLiveSurface(f->surface);
       if (f->surface && showingComposited()) {
@@ -250,6 +251,8 @@ void MainWindow::buildDocks() {
         liveDrawingPending_ = std::move(job);
         drawLiveIfDue();
       }
+    } else {
+      view_->setWarning({}, {});  // another organ's frame (or none): its warning is not this organ's
     }
     if (showingComposited() && f && !f->surface && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) composition_->request(f->positions);
   });

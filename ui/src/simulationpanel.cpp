@@ -113,6 +113,22 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   f->mass = snap.mass;
   f->tets = snap.tets;
   f->message = QString::fromStdString(snap.message);
+  // Which elements are inside out (the report counts them): J = det(edges now) / det(edges at rest) <= 0.
+  if (snap.report.invertedElements > 0) {
+    const auto& tets = snap.tets ? *snap.tets : ctx.tets;
+    const auto& rest = snap.surface ? snap.surface->rest : ctx.rest;
+    f->invertedNode.assign(n, 0);
+    for (std::size_t e = 0; e < tets.size(); ++e) {
+      const auto& t = tets[e];
+      if (std::any_of(t.begin(), t.end(), [&](int v) { return v < 0 || static_cast<std::size_t>(v) >= n || static_cast<std::size_t>(v) >= rest.size(); }))
+        continue;
+      auto volume = [&](const std::vector<Eigen::Vector3d>& p) { return (p[t[1]] - p[t[0]]).dot((p[t[2]] - p[t[0]]).cross(p[t[3]] - p[t[0]])); };
+      if (volume(snap.positions) * volume(rest) > 0) continue;
+      f->inverted.push_back(static_cast<int>(e));
+      f->invertedAt.push_back(0.25 * (snap.positions[t[0]] + snap.positions[t[1]] + snap.positions[t[2]] + snap.positions[t[3]]));
+      for (int v : t) f->invertedNode[v] = 1;
+    }
+  }
   return f;
 }
 
@@ -298,7 +314,8 @@ void SimulationView::paintEvent(QPaintEvent*) {
     const Eigen::Vector3d c = (cam[tri[0]] + cam[tri[1]] + cam[tri[2]]) / 3;
     const double shade = 0.35 + 0.65 * std::abs(n.dot(c.normalized()));
     const double v = (frame_->value[tri[0]] + frame_->value[tri[1]] + frame_->value[tri[2]]) / 3;
-    QColor col = frame_->surface && frame_->surface->cut[o.index] ? QColor(150, 30, 40) : colourMap(v / vmax);
+    const bool inverted = !frame_->invertedNode.empty() && (frame_->invertedNode[tri[0]] || frame_->invertedNode[tri[1]] || frame_->invertedNode[tri[2]]);
+    QColor col = inverted ? QColor(235, 40, 235) : frame_->surface && frame_->surface->cut[o.index] ? QColor(150, 30, 40) : colourMap(v / vmax);
     col = QColor::fromRgbF(col.redF() * shade, col.greenF() * shade, col.blueF() * shade);
     const QPointF pts[3] = {project(cam[tri[0]]), project(cam[tri[1]]), project(cam[tri[2]])};
     painter.setPen(QPen(col, 0.8));
@@ -323,6 +340,22 @@ void SimulationView::paintEvent(QPaintEvent*) {
   painter.drawText(QRect(width() - 80, bar.bottom() + 6, 78, 20), Qt::AlignCenter, unit);
   painter.drawText(rect().adjusted(6, 4, -80, -4), Qt::AlignLeft | Qt::AlignTop,
                    tr("t = %1 s, %2 steps").arg(frame_->time, 0, 'f', 2).arg(frame_->steps));
+  if (const QString w = warningText(*frame_); !w.isEmpty()) {
+    painter.setPen(QColor(255, 120, 255));
+    painter.drawText(rect().adjusted(6, 24, -80, -4), Qt::AlignLeft | Qt::AlignTop | Qt::TextWordWrap, w);
+  }
+}
+
+QString warningText(const SimulationFrame& f) {
+  const auto& r = f.report;
+  if (r.outcome == simcore::StepStatus::Inverted)
+    return (r.invertedElements == 1 ? QObject::tr("Warning: 1 element inside out (magenta; volume ratio %1): the shape there is not tissue.")
+                                    : QObject::tr("Warning: %1 elements inside out (magenta; smallest volume ratio %2): the shape there is not tissue.")
+                                          .arg(r.invertedElements))
+        .arg(r.minVolumeRatio, 0, 'g', 3);
+  if (r.outcome == simcore::StepStatus::Inexact && r.inversionLimited)
+    return QObject::tr("Warning: the step was held back to keep elements from turning inside out (relative residual %1).").arg(r.residual, 0, 'g', 3);
+  return {};
 }
 
 void SimulationView::mousePressEvent(QMouseEvent* e) { turntable_.press(e->position()); }
@@ -696,7 +729,7 @@ QString SimulationPanel::statusText() const {
       .arg(r.wallMs, 0, 'f', 1)
       .arg(rate)
       .arg(r.newtonIterations)
-      .arg(QString::fromStdString(r.status));
+      .arg(QString::fromStdString(simcore::statusSentence(r)));
 }
 
 void SimulationPanel::updateButtons() {

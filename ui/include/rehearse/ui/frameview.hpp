@@ -89,6 +89,10 @@ class FrameView : public QWidget {
   /// the instruments act on.
   void setLiveShape(std::vector<Eigen::Vector3d> cameraPositions) { live_ = std::move(cameraPositions); }
   const std::vector<Eigen::Vector3d>& liveShape() const { return live_; }
+  /// The simulation's warning over the frame: a sentence at the top and magenta rings at `cameraPoints` (camera
+  /// frame, m: the elements it is about). Empty text clears it.
+  void setWarning(std::vector<Eigen::Vector3d> cameraPoints, const QString& text);
+  const QString& warning() const { return warningText_; }
   /// After a cut: the live shape's boundary (its triangles index liveShape()); null before any cut.
   void setLiveSurface(std::shared_ptr<const simcore::CutSurface> s) { liveSurface_ = std::move(s); }
   const std::shared_ptr<const simcore::CutSurface>& liveSurface() const { return liveSurface_; }
@@ -173,6 +177,9 @@ class FrameView : public QWidget {
 
   std::shared_ptr<const app::Case> case_;
   std::vector<Eigen::Vector3d> live_;
+  std::vector<Eigen::Vector3d> warningAt_;
+  QString warningText_;
+  void paintWarning(QPainter& painter);
   std::shared_ptr<const simcore::CutSurface> liveSurface_;
   QImage frame_, overlay_, inner_;
   quint64 paints_ = 0;

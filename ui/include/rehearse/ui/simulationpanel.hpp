@@ -68,7 +68,16 @@ struct SimulationFrame {
   std::size_t elements = 0;
   double mass = 0;                                                  ///< kg
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;      ///< the elements at this step
+  /// Elements inside out after this step (when the report counts any): their indices, their nodes (per node, 1 when
+  /// one of its elements is) and their centroids (camera frame, m), for the warning drawn on the organ.
+  std::vector<int> inverted;
+  std::vector<char> invertedNode;
+  std::vector<Eigen::Vector3d> invertedAt;
 };
+
+/// The warning a frame's step calls for, in one sentence (empty when none): elements inside out, or a step held back
+/// to keep them from inverting. Shown on the organ in the simulation view and over the frame in step 7.
+QString warningText(const SimulationFrame& f);
 
 /// Draws a SimulationFrame: the organ's surface with the frame's positions, per-vertex colours and a
 /// colour bar; turntable controls as in the organ view.
