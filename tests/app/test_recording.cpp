@@ -279,6 +279,36 @@ class TestRecording : public QObject {
 
   // The largest principal Green strain against closed forms: a uniform stretch s gives (s^2 - 1) / 2, a
   // rotation adds nothing, a simple shear g gives (g^2 + g sqrt(g^2 + 4)) / 4.
+  // Issue 17's settings are recorded: strict, the inversion guard and the linearised tolerance go through a
+  // setup's JSON unchanged; a setup recorded before they existed (its JSON without them) decodes as that version
+  // ran — strict (a step that did not converge was rolled back) and unguarded — so its replay takes the same steps.
+  void stabilitySettingsAreRecorded() {
+    simcore::BodySetup s;
+    s.mesh = boxMesh(0.02, 0.01, 0.01, 2, 1, 1);
+    s.settings.strict = false;
+    s.settings.inversionGuard = true;
+    s.settings.linearisedTolerance = 0.05;
+    const simcore::BodySetup back = app::decodeSetup(app::encodeSetup(s));
+    QCOMPARE(back.settings.strict, false);
+    QCOMPARE(back.settings.inversionGuard, true);
+    QCOMPARE(back.settings.linearisedTolerance, 0.05);
+    s.settings.strict = true;
+    s.settings.inversionGuard = false;
+    QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.strict, true);
+    QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.inversionGuard, false);
+    QJsonObject j = QJsonDocument::fromJson(QByteArray::fromStdString(app::encodeSetup(s))).object();
+    QJsonObject settings = j["settings"].toObject();
+    for (const char* key : {"strict", "inversionGuard", "linearisedTolerance"}) {
+      QVERIFY2(settings.contains(key), key);
+      settings.remove(key);
+    }
+    j["settings"] = settings;
+    const simcore::BodySetup old = app::decodeSetup(QJsonDocument(j).toJson(QJsonDocument::Compact).toStdString());
+    QCOMPARE(old.settings.strict, true);
+    QCOMPARE(old.settings.inversionGuard, false);
+    QCOMPARE(old.settings.linearisedTolerance, simcore::SimulationSettings{}.linearisedTolerance);
+  }
+
   void strainMatchesClosedForms() {
     const std::vector<Eigen::Vector3d> rest = {{0, 0, 0}, {0.01, 0, 0}, {0, 0.01, 0}, {0, 0, 0.01}};
     const std::vector<std::array<int, 4>> tets = {{0, 1, 2, 3}};
