@@ -11,6 +11,7 @@
 // Writes stability.csv into the directory given (default ".").
 //   bench_stability [OUT_DIR] [--quick]
 #include "phantom/presets.hpp"
+#include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
 #include <rehearse/app/materials.hpp>
@@ -57,6 +58,13 @@ std::vector<int> topNodes(const Mesh& m, double share) {
   return order;
 }
 
+void print(const Row& r) {
+  std::printf("%-12s %-13s %-10s %-14s %5zu tets: %2d conv %2d inexact %2d inverted %2d failed; max inverted %4d, min J %9.3g, residual median %8.2g max %8.2g; %8.2f ms/step\n",
+              r.organ.c_str(), r.law.c_str(), r.method.c_str(), r.settings.c_str(), r.elements, r.counts[0], r.counts[1], r.counts[2], r.counts[3],
+              r.maxInverted, r.minJ, r.medianResidual, r.maxResidual, r.msPerStep);
+  std::fflush(stdout);
+}
+
 // One case run `repeats` times: the statuses of the last run (they are the same every run: the steps are
 // deterministic), the median over runs of each run's median step time.
 Row run(const std::string& organ, const FemModel& model, const std::vector<int>& fixed, SimulationSettings s, int steps, int repeats,
@@ -92,10 +100,7 @@ Row run(const std::string& organ, const FemModel& model, const std::vector<int>&
     row.medianResidual = median(residuals);
   }
   row.msPerStep = median(runMs);
-  std::printf("%-12s %-13s %-10s %-14s %5zu tets: %2d conv %2d inexact %2d inverted %2d failed; max inverted %4d, min J %9.3g, residual median %8.2g max %8.2g; %8.2f ms/step\n",
-              organ.c_str(), law.c_str(), row.method.c_str(), settingsName.c_str(), row.elements, row.counts[0], row.counts[1], row.counts[2],
-              row.counts[3], row.maxInverted, row.minJ, row.medianResidual, row.maxResidual, row.msPerStep);
-  std::fflush(stdout);
+  print(row);
   return row;
 }
 
@@ -174,18 +179,11 @@ int main(int argc, char** argv) {
     std::stringstream ss;
     ss << in.rdbuf();
     const app::GestureScript script = app::parseGestureScript(ss.str());
-    Scene p = phantom::makePreset("liver", shared);
-    BodySetup setup;
-    setup.mesh = p.mesh;
-    setup.mesh.convertToMetres();
-    setup.fixedNodes = p.fixedNodes;
-    setup.material = p.defaultMaterial;
-    setup.byLabel = p.materials;
-    setup.settings = p.settings;
+    BodySetup setup = testing::presetBody("liver", shared);
     setup.settings.method = NewtonMethod::Linearised;
     Row row;
     row.organ = "liver-preset";
-    row.law = toString(p.defaultMaterial.model);
+    row.law = toString(setup.material.model);
     row.method = "linearised";
     row.settings = "grasp-pull";
     row.elements = 3760;
@@ -208,9 +206,7 @@ int main(int argc, char** argv) {
     }
     row.medianResidual = median(residuals);
     row.msPerStep = median(runMs);
-    std::printf("%-12s %-13s %-10s %-14s %5zu tets: %2d conv %2d inexact %2d inverted %2d failed; max inverted %4d, min J %9.3g, residual median %8.2g max %8.2g; %8.2f ms/step\n",
-                row.organ.c_str(), row.law.c_str(), row.method.c_str(), row.settings.c_str(), row.elements, row.counts[0], row.counts[1], row.counts[2],
-                row.counts[3], row.maxInverted, row.minJ, row.medianResidual, row.maxResidual, row.msPerStep);
+    print(row);
     rows.push_back(row);
   }
   std::ofstream csv(out + "/stability.csv");
