@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets of the hand-written parsers with clang (ASan + UBSan) and runs each for
+# Builds the libFuzzer targets of the hand-written parsers and the recording's decoders with clang (ASan + UBSan) and runs each for
 # the given number of seconds (default 30), starting from the seed files in tests/fuzz/seeds.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -7,7 +7,7 @@ SECONDS_EACH="${1:-30}"
 if [ ! -f build-fuzz/CMakeCache.txt ]; then cmake --preset fuzz >/dev/null; fi
 cmake --build build-fuzz -j"$(nproc)"
 status=0
-for target in gmsh vtk vtu medit; do
+for target in gmsh vtk vtu medit recording; do
   corpus="build-fuzz/corpus-$target"
   artifacts="build-fuzz/findings-$target/"
   mkdir -p "$corpus" "$artifacts"

@@ -27,6 +27,9 @@
 #include <opencv2/videoio.hpp>
 #include <sqlite3.h>
 
+#include <nlohmann/json.hpp>
+
+#include <functional>
 #include <random>
 
 using namespace rehearse;
@@ -419,17 +422,50 @@ class TestRecording : public QObject {
     QVERIFY(::testing::tookEveryStep(run(gestureArgs(dir.path(), "grasp-pull-cut.json", file))));
     const auto rows = app::loadRecordingRows(file.toStdString(), 1);
     QVERIFY(rows.checkpoints.size() > 5);
-    const std::string good = rows.checkpoints[rows.checkpoints.size() / 2].state;
-    const simcore::BodySetup setup = app::loadRecording(file.toStdString(), 1).setup;
-    auto setupOf = [&](std::uint64_t) { return setup; };
-    int refused = 0, decoded = 0;
+    const auto& row = rows.checkpoints[rows.checkpoints.size() / 2];
+    const std::string good = row.state;
+    // The setups the checkpoints name, as the file stores them (a checkpoint after a cut names the cut body's).
+    std::map<std::uint64_t, simcore::BodySetup> setups;
+    for (const auto& [hash, text] : rows.setups) setups[std::stoull(hash)] = app::decodeSetup(text);
+    auto setupOf = [&](std::uint64_t h) {
+      const auto it = setups.find(h);
+      if (it == setups.end()) throw std::runtime_error("names a setup that is missing");
+      return it->second;
+    };
+    const app::Recording rec = app::loadRecording(file.toStdString(), 1);
+    const simcore::Checkpoint original = app::decodeCheckpointState(good, setupOf);
+    QCOMPARE(original.step, row.step);
+    // What a decoded checkpoint must do: restore into a session and take steps, each advanced (with numbers) or
+    // reported failed and rolled back — never a crash or a NaN state.
+    simcore::Session session(simcore::replaySetup(rec.setup));
+    auto restoreAndStep = [&](const simcore::Checkpoint& c) {
+      simcore::Checkpoint d = c;
+      d.setup = simcore::replaySetup(std::move(d.setup));
+      if (d.pendingCut) d.pendingCut->setup = simcore::replaySetup(std::move(d.pendingCut->setup));
+      session.discardPending();
+      session.restore(d);
+      for (int k = 0; k < 3; ++k) {
+        session.advance();
+        if (!session.state().x.allFinite() || !session.state().v.allFinite()) return false;  // a failed step rolls back: numbers still
+      }
+      return true;
+    };
+    // Undamaged, it restores and steps.
+    QVERIFY(restoreAndStep(original));
+    int refused = 0, decoded = 0, stepped = 0;
     auto attempt = [&](const std::string& bytes) {
+      simcore::Checkpoint c;
       try {
-        const simcore::Checkpoint c = app::decodeCheckpointState(bytes, setupOf);
+        c = app::decodeCheckpointState(bytes, setupOf);
         QCOMPARE(c.state.v.size(), c.state.x.size());
         ++decoded;
       } catch (const std::runtime_error&) {
         ++refused;
+        return;
+      }
+      if (decoded % 10 == 1) {  // one in ten decoded variants restored and stepped
+        if (!restoreAndStep(c)) QFAIL("a decoded checkpoint stepped to NaN");
+        ++stepped;
       }
     };
     for (std::size_t n = 0; n < good.size(); n += 1 + good.size() / 1500) attempt(good.substr(0, n));
@@ -444,7 +480,9 @@ class TestRecording : public QObject {
       }
       attempt(bad);
     }
-    qInfo("damaged checkpoints: %d refused, %d decoded (changes in doubles decode)", refused, decoded);
+    QVERIFY2(decoded > 100, "random changes in the doubles decode (the test must reach the restore)");
+    QVERIFY(stepped > 10);
+    qInfo("damaged checkpoints: %d refused, %d decoded (changes in doubles), %d of these restored and stepped 3 steps", refused, decoded, stepped);
     QVERIFY(refused > 1000);
     // A replayer meeting one: one sentence.
     sqlite3* db = nullptr;
@@ -457,6 +495,235 @@ class TestRecording : public QObject {
       QFAIL("a damaged checkpoint was used");
     } catch (const std::runtime_error& e) {
       QVERIFY2(QString(e.what()).count('\n') == 0 && QString(e.what()).contains("checkpoint"), e.what());
+    }
+  }
+
+
+  // Hostile recordings (issue 32): a setup or an event changed in the file — an index out of range or negative,
+  // a float where an index goes, an unknown law, method or event kind, a number that is not one, events out of
+  // order, a damaged checksum — is refused by `rehearse replay --verify` with one sentence and exit 1, never a
+  // signal (an out-of-range tet index made it die with SIGSEGV before).
+  void hostileRecordingsAreRefused() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QVERIFY(::testing::tookEveryStep(run(gestureArgs(dir.path(), "grasp-pull.json", file))));
+    const auto rec = app::loadRecording(file.toStdString(), 1);
+    const int nodes = static_cast<int>(rec.setup.mesh.points.size());
+    QVERIFY(nodes > 100 && !rec.events.empty());
+    using J = nlohmann::json;
+    struct Change {
+      const char* what;
+      std::function<void(J&)> setup;                 // on the session's setup JSON
+      std::function<void(std::vector<J>&)> events;   // on its events
+      const char* sql = nullptr;
+    };
+    const std::vector<Change> changes = {
+        {"a tet index past the last node", [&](J& j) { j["mesh"]["tets"][5][2] = nodes + 7; }, nullptr},
+        {"a negative tet index", [&](J& j) { j["mesh"]["tets"][0][0] = -3; }, nullptr},
+        {"a float as a tet index", [&](J& j) { j["mesh"]["tets"][1][1] = 2.5; }, nullptr},
+        {"a huge tet index", [&](J& j) { j["mesh"]["tets"][1][1] = 1e300; }, nullptr},
+        {"a triangle index out of range", [&](J& j) { j["mesh"]["triangles"].push_back({0, 1, nodes}); }, nullptr},
+        {"an attachment out of range", [&](J& j) { j["fixedNodes"].push_back(1 << 30); }, nullptr},
+        {"fewer element labels than elements", [&](J& j) { j["mesh"]["tetLabels"].erase(0); }, nullptr},
+        {"an unknown material law", [&](J& j) { j["material"]["model"] = 9; }, nullptr},
+        {"no density (NaN is written as null)", [&](J& j) { j["material"]["density"] = nullptr; }, nullptr},
+        {"a negative Young's modulus", [&](J& j) { j["material"]["young"] = -5.0; }, nullptr},
+        {"a Poisson ratio of 0.5", [&](J& j) { j["material"]["poisson"] = 0.5; }, nullptr},
+        {"an unknown method", [&](J& j) { j["settings"]["method"] = 7; }, nullptr},
+        {"an unknown solver", [&](J& j) { j["settings"]["solver"] = -1; }, nullptr},
+        {"a zero time step", [&](J& j) { j["settings"]["timeStep"] = 0.0; }, nullptr},
+        {"a rest position list of another length", [&](J& j) {
+           j["rest"] = j["mesh"]["points"];
+           j["rest"].erase(0);
+         }, nullptr},
+        {"an unknown event kind", nullptr, [](std::vector<J>& e) { e[0]["kind"] = 42; }},
+        {"an event position that is no number", nullptr, [](std::vector<J>& e) { e[0]["position"][1] = nullptr; }},
+        {"an unknown material law as a parameter event", nullptr,
+         [](std::vector<J>& e) { e[0] = J{{"kind", 3}, {"wallTime", 0.0}, {"step", e[0]["step"]}, {"tool", 0}, {"label", 0}, {"position", {0, 0, 0}},
+                                          {"vector", {0, 0, 0}}, {"on", false}, {"name", "model"}, {"value", 99.0}}; }},
+        {"an unknown parameter event", nullptr, [](std::vector<J>& e) { e[0]["kind"] = 3, e[0]["name"] = "viscosity"; }},
+        {"events out of order", nullptr, [](std::vector<J>& e) { e.back()["step"] = 0; }},
+        {"a damaged checksum", nullptr, nullptr, "UPDATE rehearsal_checksums SET checksum = 'x12' WHERE step = 100"},
+    };
+    int refused = 0;
+    for (const auto& c : changes) {
+      const QString copy = dir.path() + "/hostile.rehearse";
+      QFile::remove(copy);
+      QVERIFY(QFile::copy(file, copy));
+      sqlite3* db = nullptr;
+      QCOMPARE(sqlite3_open(copy.toUtf8().constData(), &db), SQLITE_OK);
+      if (c.setup) {
+        J j = J::parse(app::loadRecordingRows(copy.toStdString(), 1).setup);
+        c.setup(j);
+        sqlite3_stmt* q = nullptr;
+        sqlite3_prepare_v2(db, "UPDATE rehearsal_sessions SET setup = ? WHERE id = 1", -1, &q, nullptr);
+        const std::string text = j.dump();
+        sqlite3_bind_text(q, 1, text.c_str(), -1, SQLITE_TRANSIENT);
+        QCOMPARE(sqlite3_step(q), SQLITE_DONE);
+        sqlite3_finalize(q);
+      }
+      if (c.events) {
+        const auto rows = app::loadRecordingRows(copy.toStdString(), 1);
+        std::vector<J> events;
+        for (const auto& [seq, step, text] : rows.events) events.push_back(J::parse(text));
+        c.events(events);
+        for (std::size_t k = 0; k < events.size(); ++k) {
+          sqlite3_stmt* q = nullptr;
+          sqlite3_prepare_v2(db, "UPDATE rehearsal_events SET event = ?, step = ? WHERE session = 1 AND seq = ?", -1, &q, nullptr);
+          const std::string text = events[k].dump();
+          sqlite3_bind_text(q, 1, text.c_str(), -1, SQLITE_TRANSIENT);
+          sqlite3_bind_int64(q, 2, events[k]["step"].is_number_integer() ? events[k]["step"].get<long long>() : -1);
+          sqlite3_bind_int64(q, 3, static_cast<sqlite3_int64>(k));
+          QCOMPARE(sqlite3_step(q), SQLITE_DONE);
+          sqlite3_finalize(q);
+        }
+      }
+      if (c.sql) QCOMPARE(sqlite3_exec(db, c.sql, nullptr, nullptr, nullptr), SQLITE_OK);
+      sqlite3_close(db);
+      const Run v = run({"replay", copy, "--session", "1", "--verify"});
+      QVERIFY2(v.code != -1, qPrintable(QString("%1: the replay crashed").arg(c.what)));
+      QVERIFY2(v.code == 1, qPrintable(QString("%1: exit %2, %3 %4").arg(c.what).arg(v.code).arg(v.out.right(300), v.err)));
+      QVERIFY2(v.err.trimmed().count('\n') == 0 && !v.err.trimmed().isEmpty(), qPrintable(QString("%1: %2").arg(c.what, v.err)));
+      qInfo("%s: %s", c.what, qPrintable(v.err.trimmed()));
+      ++refused;
+    }
+    QCOMPARE(refused, static_cast<int>(changes.size()));
+    // The original still verifies (the changes above were each made on a copy).
+    QCOMPARE(run({"replay", file, "--session", "1", "--verify"}).code, 0);
+  }
+
+  // A reset while recording (issue 32): the step count starts again. The recorder ends the session there instead of
+  // writing the new run's checksums over the old ones (which made the session fail to verify); what it recorded
+  // before the reset is intact and verifies.
+  void resetEndsTheRecordedSession() {
+    QTemporaryDir dir;
+    const std::string file = (dir.path() + "/case.rehearse").toStdString();
+    simcore::BodySetup s;
+    s.mesh = boxMesh(0.04, 0.01, 0.01, 6, 2, 2);
+    s.fixedNodes = nodesAtX(s.mesh, 0.0);
+    s.material.young = 5e3;
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    auto recorder = std::make_shared<app::Recorder>(file, app::SessionMeta{"R. Eset"}, s, 5, 10);
+    std::string stopped;
+    {
+      simcore::Session session(s);
+      session.setStepHook([&](const simcore::StepRecord& r) {
+        if (!stopped.empty()) return;
+        try {
+          recorder->afterStep(r);
+        } catch (const std::exception& e) {
+          stopped = e.what();
+        }
+      });
+      session.post(rehearse::testing::toolAt({0.04, 0.005, 0.005}));
+      for (int k = 0; k < 40; ++k) session.advance();
+      session.reset();  // what Shift+F5 did while recording (applied by the session's thread)
+      for (int k = 0; k < 500 && session.snapshot()->step != 0; ++k) QTest::qWait(10);
+      QCOMPARE(session.snapshot()->step, 0L);
+      session.post(rehearse::testing::toolAt({0.03, 0.0, 0.02}));
+      for (int k = 0; k < 25; ++k) session.advance();
+      session.setStepHook({});
+    }
+    QVERIFY2(!stopped.empty(), "the recorder took the steps of the run after the reset");
+    QVERIFY2(QString::fromStdString(stopped).contains("started again"), stopped.c_str());
+    QCOMPARE(recorder->lastStep(), 40L);
+    recorder->finish(recorder->lastStep());
+    recorder.reset();
+    const auto rec = app::loadRecording(file, 1);
+    QCOMPARE(rec.summary.steps, 40L);
+    QCOMPARE(static_cast<long>(rec.checksums.size()), 8L);
+    const auto v = app::verifyRecording(rec);
+    QCOMPARE(v.checked, 8L);
+    QCOMPARE(v.mismatches, 0L);
+    qInfo("reset at step 40: '%s'; the session keeps 40 steps and verifies (%ld checksums)", stopped.c_str(), v.checked);
+  }
+
+  // Sessions have an identity across files (issue 32): a recorder whose file is replaced by a copy goes on in its
+  // own session (found by uuid, whatever its row number there); a file whose session 1 is someone else's gets ours
+  // as a new session, never appended to theirs; steps taken while the recorder was suspended (the save) reach the
+  // new file; a failed reopen leaves nothing half-open and refuses further steps with a sentence.
+  void sessionsKeepTheirIdentityAcrossFiles() {
+    QTemporaryDir dir;
+    const std::string a = (dir.path() + "/a.rehearse").toStdString(), other = (dir.path() + "/other.rehearse").toStdString();
+    simcore::BodySetup s;
+    s.mesh = boxMesh(0.04, 0.01, 0.01, 6, 2, 2);
+    s.fixedNodes = nodesAtX(s.mesh, 0.0);
+    s.material.young = 5e3;
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    auto record = [&](const std::string& file, const char* who, int steps, double y, const std::function<void(int, app::Recorder&)>& during = {}) {
+      auto r = std::make_unique<app::Recorder>(file, app::SessionMeta{who}, s, 5, 10);
+      simcore::Session session(s);
+      session.setStepHook([&](const simcore::StepRecord& rec) { r->afterStep(rec); });
+      session.post(rehearse::testing::toolAt({0.04, y, 0.005}));
+      for (int k = 0; k < steps; ++k) {
+        session.advance();
+        if (during) during(k + 1, *r);
+      }
+      session.setStepHook({});
+      r->finish(r->lastStep());
+      return r;
+    };
+    record(other, "Someone Else", 30, 0.0);  // other.rehearse: session 1, someone else's
+    const std::string firstUuid = record(a, "Trainee A", 20, 0.004)->uuid();
+    // A second session in a.rehearse (row 2): at step 15 the recorder lets go of the file (a save begins), a copy is
+    // made (saved.rehearse) and at step 25 it goes on there; at step 40 it is moved into other.rehearse, where row 2
+    // does not exist and row 1 is someone else's.
+    std::string secondUuid;
+    const std::string saved = (dir.path() + "/saved.rehearse").toStdString();
+    record(a, "Trainee A", 60, 0.008, [&](int step, app::Recorder& r) {
+      secondUuid = r.uuid();
+      if (step == 15) r.suspend();
+      if (step == 25) {  // steps 16-25 were kept in memory; the copy holds steps up to 15
+        QCOMPARE(app::copyRecordings(a, saved), 2);
+        r.reopen(saved);
+      }
+      if (step == 40) r.reopen(other);  // not suspended: the file simply changed
+    });
+    QVERIFY(secondUuid != firstUuid && secondUuid.size() == 32);
+    // saved.rehearse: both sessions with their identities; ours up to the move at step 40, checkpoints included.
+    const auto inSaved = app::listRecordings(saved);
+    QCOMPARE(inSaved.size(), std::size_t(2));
+    QCOMPARE(inSaved[0].uuid, firstUuid);
+    QCOMPARE(inSaved[1].uuid, secondUuid);
+    for (const auto& x : inSaved) {
+      const auto v = app::verifyRecording(app::loadRecording(saved, x.id));
+      QVERIFY(v.checked > 0);
+      QCOMPARE(v.mismatches, 0L);
+    }
+    const app::Recording ours = app::loadRecording(saved, 2);
+    QCOMPARE(ours.summary.steps, 40L);
+    QVERIFY2(std::count(ours.checkpointSteps.begin(), ours.checkpointSteps.end(), 20L) == 1, "the checkpoint taken while suspended reached the saved file");
+    QCOMPARE(app::listRecordings(a).back().steps, 15L);  // the file it left: up to the save
+    // other.rehearse: someone else's session 1 untouched, ours a new row with its uuid, complete, verifying.
+    const auto inOther = app::listRecordings(other);
+    QCOMPARE(inOther.size(), std::size_t(2));
+    QCOMPARE(QString::fromStdString(inOther[0].meta.trainee), QStringLiteral("Someone Else"));
+    QCOMPARE(inOther[0].steps, 30L);
+    QCOMPARE(inOther[1].uuid, secondUuid);
+    QVERIFY(inOther[1].complete);
+    QCOMPARE(inOther[1].steps, 60L);
+    for (const auto& x : inOther) {
+      const auto rec = app::loadRecording(other, x.id);
+      const auto v = app::verifyRecording(rec);
+      QCOMPARE(v.checked, x.steps / 5);
+      QCOMPARE(v.mismatches, 0L);
+    }
+    // A reopen that cannot open the file: one sentence, closed, and further steps are refused with it.
+    auto third = std::make_unique<app::Recorder>(a, app::SessionMeta{"T"}, s, 5, 10);
+    third->suspend();
+    try {
+      third->reopen((dir.path() + "/no/such/folder/x.rehearse").toStdString());
+      QFAIL("a reopen into a folder that does not exist succeeded");
+    } catch (const std::runtime_error& e) {
+      QVERIFY2(QString(e.what()).contains("cannot go on"), e.what());
+    }
+    simcore::Session session(s);
+    session.advance();
+    try {
+      third->afterStep(1, {}, session.state());
+      QFAIL("a broken recorder took a step");
+    } catch (const std::runtime_error& e) {
+      QVERIFY2(QString(e.what()).contains("cannot go on"), e.what());
     }
   }
 

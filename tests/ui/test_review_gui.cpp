@@ -28,7 +28,9 @@
 
 #include <opencv2/videoio.hpp>
 
+#include <QLabel>
 #include <random>
+#include <set>
 
 using namespace rehearse;
 using ui::MainWindow;
@@ -145,7 +147,7 @@ class TestReviewGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->surface != nullptr; }));
     QVERIFY(waitSteps(30));
     QTest::mouseClick(record, Qt::LeftButton);  // stop
-    QVERIFY(!w_->recording());
+    QVERIFY2(!w_->recording(), qPrintable(w_->messageLog().join(" | ")));
     // Headless, as a trainer's machine would: every checksum matches.
     QProcess p;
     p.start(QStringLiteral(REHEARSE_BINARY), {"replay", file_, "--session", QString::number(first_), "--verify"});
@@ -270,6 +272,73 @@ class TestReviewGui : public QObject {
     QVERIFY2(info.waitForFinished(60000) && info.exitCode() == 0, "pdfinfo (poppler-utils, installed by scripts/install-deps.sh) must read the report");
     QVERIFY(QString::fromUtf8(info.readAllStandardOutput()).contains(QRegularExpression("Pages:\\s+3")));
     review->close();
+  }
+
+  // Issue 32, as a trainee and a trainer would: the name typed and Ctrl+R records under it; Reset (Shift+F5) while
+  // recording ends that session and records the run from rest as a new one (the step count never goes back inside a
+  // session); Save As while recording carries every session into the new file and the recording goes on there;
+  // step 7's counters start from nothing in a new session; every session verifies, in both files.
+  void resetAndSaveAsWhileRecording() {
+    QVERIFY(second_ > 0);
+    w_->activateWindow();  // back from the review window
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    auto* panel = w_->simulationPanel();
+    auto* name = child<QLineEdit>("traineeName");
+    name->clear();
+    QTest::keyClicks(name, "Trainee Two");
+    QTest::keyClick(name, Qt::Key_R, Qt::ControlModifier);  // the keyboard focus is in the name field, as after typing it
+    QVERIFY2(w_->recording(), qPrintable(w_->messageLog().join(" | ")));
+    QVERIFY(waitFor([&] { return panel->recordingId() > second_ && panel->session()->snapshot()->step > 40 && steps() > 40; }));
+    const qint64 beforeReset = panel->recordingId();
+    // The first session cut the organ; this one has not: no cut carried over.
+    const QString counters = child<QLabel>("rehearseForce")->text();
+    QVERIFY2(!counters.contains("cuts:"), qPrintable(counters));
+    QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);  // Reset
+    QVERIFY(waitFor([&] { return panel->recordingId() > beforeReset; }));
+    QVERIFY(w_->recording());
+    QVERIFY2(child<QLabel>("recordState")->text().contains(QString("session %1 ended").arg(beforeReset)), qPrintable(child<QLabel>("recordState")->text()));
+    QTest::keyClick(w_.get(), Qt::Key_F5);  // Play (a reset pauses)
+    QVERIFY(waitFor([&] { return panel->session()->snapshot()->step > 30; }));
+    const qint64 afterReset = panel->recordingId();
+    // Save As while recording: the new file holds every session, and the recording goes on into it.
+    const QString other = dir_.path() + "/saved-as.rehearse";
+    QSignalSpy saved(w_.get(), &MainWindow::caseSaved);
+    w_->saveCaseAs(other);
+    QVERIFY(saved.wait(60000));
+    QVERIFY2(saved.front().at(0).toBool(), qPrintable(saved.front().at(1).toString()));
+    QCOMPARE(w_->caseData() != nullptr, true);
+    QVERIFY(waitSteps(40));
+    QVERIFY2(w_->recording(), qPrintable(w_->messageLog().join(" | ")));
+    const long lastLive = panel->session()->snapshot()->step;
+    QTest::keyClick(w_.get(), Qt::Key_R, Qt::ControlModifier);  // stop
+    QVERIFY(!w_->recording());
+    const auto inOld = app::listRecordings(file_.toStdString());
+    const auto inNew = app::listRecordings(other.toStdString());
+    QCOMPARE(inNew.size(), inOld.size());
+    QVERIFY(inNew.size() >= 4);
+    std::set<std::string> uuids;
+    for (std::size_t k = 0; k < inNew.size(); ++k) {
+      QCOMPARE(inNew[k].uuid, inOld[k].uuid);
+      QVERIFY(inNew[k].uuid.size() == 32);
+      uuids.insert(inNew[k].uuid);
+    }
+    QCOMPARE(uuids.size(), inNew.size());
+    const auto& recorded = inNew.back();
+    QCOMPARE(recorded.id, afterReset);
+    QVERIFY(recorded.complete);
+    QVERIFY2(recorded.steps >= lastLive, qPrintable(QString("%1 steps recorded, %2 run").arg(recorded.steps).arg(lastLive)));
+    QCOMPARE(QString::fromStdString(recorded.meta.trainee), QStringLiteral("Trainee Two"));
+    QCOMPARE(QString::fromStdString(inNew[inNew.size() - 2].meta.trainee), QStringLiteral("Trainee Two"));
+    QVERIFY(inNew[inNew.size() - 2].complete);
+    QString lines;
+    for (const QString& file : {file_, other})
+      for (const auto& s : app::listRecordings(file.toStdString())) {
+        const auto v = app::verifyRecording(app::loadRecording(file.toStdString(), s.id));
+        lines += QString(" %1#%2: %3 steps, %4/%5 checksums match;").arg(QFileInfo(file).fileName()).arg(s.id).arg(v.steps).arg(v.checked - v.mismatches).arg(v.checked);
+        QVERIFY2(v.checked > 0 && v.mismatches == 0, qPrintable(lines));
+      }
+    qInfo("reset ended session %lld, recorded on as %lld; saved as %s mid-recording:%s", static_cast<long long>(beforeReset),
+          static_cast<long long>(afterReset), qPrintable(QFileInfo(other).fileName()), qPrintable(lines));
   }
 
   void cleanupTestCase() {

@@ -144,9 +144,11 @@ void CaseDocument::saveAs(const QString& path) {
   }
   savingPath_ = path;
   auto data = case_;
-  saveWatcher_.setFuture(QtConcurrent::run([data, path]() -> QString {
+  // The recordings come from the file the case lives in now (a Save As carries them to the new one).
+  const QString from = path_.isEmpty() ? QString() : path_;
+  saveWatcher_.setFuture(QtConcurrent::run([data, path, from]() -> QString {
     try {
-      saveCaseFile(*data, path);
+      saveCaseFile(*data, path, from);
       return {};
     } catch (const std::exception& e) {
       return QString::fromUtf8(e.what());

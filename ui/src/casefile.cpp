@@ -118,7 +118,7 @@ bool isCaseFile(const QString& path) {
   return f.read(16) == QByteArray("SQLite format 3\0", 16);
 }
 
-void saveCaseFile(const app::Case& c, const QString& path) {
+void saveCaseFile(const app::Case& c, const QString& path, const QString& recordingsFrom) {
   const QString tmp = path + QStringLiteral(".saving-") + QString::number(QCoreApplication::applicationPid());
   QFile::remove(tmp);
   {
@@ -220,9 +220,9 @@ void saveCaseFile(const app::Case& c, const QString& path) {
     if (!db.commit()) fail(QStringLiteral("Cannot write %1: %2.").arg(path, sqlProblem(db.lastError())));
   }
   // Rehearsals recorded into the case (issue 16) are carried into the new file.
-  if (QFileInfo::exists(path) && isCaseFile(path)) {
+  if (!recordingsFrom.isEmpty() && isCaseFile(recordingsFrom)) {
     try {
-      app::copyRecordings(QFile::encodeName(path).toStdString(), QFile::encodeName(tmp).toStdString());
+      app::copyRecordings(QFile::encodeName(recordingsFrom).toStdString(), QFile::encodeName(tmp).toStdString());
     } catch (const std::runtime_error& e) {
       QFile::remove(tmp);
       fail(QStringLiteral("Cannot save %1: %2. The previous file is unchanged.").arg(path, QString::fromStdString(e.what())));

@@ -125,7 +125,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(jobs_, &JobRunner::progress, this, &MainWindow::showProgress);
   connect(doc_, &CaseDocument::saved, this, [this](bool ok, const QString& message) {
     if (ok) setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(doc_->path()).fileName()));
-    if (ok) simulation_->caseFileReplaced(doc_->path());  // a recording goes on into the file as saved
+    // A recording goes on into the file as saved (or, when the save failed, into the file it was in).
+    if (!doc_->isSaving()) simulation_->caseFileReplaced(doc_->path());
     say(message);
     emit caseSaved(ok, ok ? QString() : message);
   });
@@ -531,7 +532,13 @@ void MainWindow::rebuildRecentMenu() {
 }
 
 void MainWindow::saveCaseAs(const QString& path) {
-  if (doc_->hasCase() && !doc_->isSaving()) say(tr("Saving %1...").arg(path));
+  const bool starts = doc_->hasCase() && !doc_->isSaving();
+  if (starts) {
+    say(tr("Saving %1...").arg(path));
+    // The recorder lets go of the file (committed, WAL emptied) while it is copied and replaced; steps meanwhile
+    // are kept and written into the saved file.
+    simulation_->suspendRecording();
+  }
   doc_->saveAs(path);
 }
 
@@ -761,7 +768,7 @@ void MainWindow::buildSimulationMenu() {
   simMenu->addSeparator();
   simMenu->addAction(tr("Start / Stop &Recording"), this, [this] {
     if (recording()) stopRecording();
-    else if (const QString err = startRecording({}); !err.isEmpty()) say(err);
+    else if (const QString err = startRecording(pages_.rehearse ? pages_.rehearse->trainee() : QString()); !err.isEmpty()) say(err);
   })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_R));
   simMenu->addAction(tr("Re&view Recorded Rehearsals..."), this, [this] { openReview(); })->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_R));
   // The training centre's database: the connection from a libpq service name (or the environment); never stored
@@ -810,6 +817,10 @@ void MainWindow::buildSimulationMenu() {
     } catch (const std::exception& e) {
       say(tr("The training database cannot be opened: %1").arg(QString::fromStdString(e.what())));
     }
+  });
+  connect(simulation_, &SimulationPanel::recordingRestarted, this, [this](const QString& text) {
+    say(text);
+    if (pages_.rehearse) pages_.rehearse->showRecording(true, text);
   });
   connect(simulation_, &SimulationPanel::recordingStopped, this, [this](const QString& why) {
     say(why);

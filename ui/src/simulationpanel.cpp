@@ -138,9 +138,14 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   forceLoop_.reset();  // it reads the session's snapshots
   session_.reset();
   if (recorder_) {  // a new session is a new recording (or none)
-    recorder_->finish(recorder_->lastStep());
+    try {
+      recorder_->finish(recorder_->lastStep());
+    } catch (const std::exception& e) {
+      emit recordingStopped(tr("The recorded session could not be marked complete: %1").arg(QString::fromStdString(e.what())));
+    }
     recorder_.reset();
   }
+  if (!record) recordRequest_.reset();  // a new organ (or none) ends the recording
   const long generation = ++generation_;
   recordPending_ = record.has_value();
   cancelRecord_ = false;
@@ -500,12 +505,14 @@ QString SimulationPanel::startRecording(const QString& file, const app::SessionM
     return QString::fromStdString(e.what());
   }
   const bool wasPlaying = playing_;
-  startSession(setup(), RecordRequest{file.toStdString(), meta});
+  recordRequest_ = RecordRequest{file.toStdString(), meta};
+  startSession(setup(), recordRequest_);
   if (wasPlaying) play();
   return {};
 }
 
 void SimulationPanel::stopRecording() {
+  recordRequest_.reset();
   if (recordPending_) cancelRecord_ = true;
   if (!recorder_) return;
   if (session_) session_->setStepHook({});  // waits for the step in progress
@@ -519,7 +526,12 @@ void SimulationPanel::stopRecording() {
 
 qint64 SimulationPanel::recordingId() const { return recorder_ ? recorder_->id() : 0; }
 
+void SimulationPanel::suspendRecording() {
+  if (recorder_) recorder_->suspend();
+}
+
 void SimulationPanel::caseFileReplaced(const QString& file) {
+  if (recordRequest_) recordRequest_->file = file.toStdString();  // a reset goes on recording into the file as saved
   if (!recorder_) return;
   try {
     recorder_->reopen(file.toStdString());
@@ -680,7 +692,18 @@ void SimulationPanel::reset() {
   pendingPlay_ = false;
   pendingSteps_ = 0;
   error_.clear();
-  if (session_) session_->reset();
+  if (recordRequest_ && (recorder_ || recordPending_)) {
+    // A recorded session's steps only go forwards: the run from rest is another session (the one recorded so far
+    // ends complete where it was; both replay and verify).
+    const qint64 ended = recordingId();
+    const long at = recorder_ ? recorder_->lastStep() : 0;
+    if (recordPending_) cancelRecord_ = true;
+    startSession(setup(), recordRequest_);
+    emit recordingRestarted(ended > 0 ? tr("Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.").arg(ended).arg(at)
+                                      : tr("Reset: the run from rest is recorded as a new session."));
+  } else if (session_) {
+    session_->reset();
+  }
   updateButtons();
 }
 

@@ -8,98 +8,20 @@
 #include <algorithm>
 #include <cctype>
 #include <set>
+#include <cerrno>
+#include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <ctime>
+#include <random>
 #include <stdexcept>
+
+#include "recording_codec.hpp"
 
 namespace rehearse::app {
 namespace {
 
 using nlohmann::json;
-
-// A field added to these structs must be recorded too: these sizes stop the build until encodeSetup knows it.
-static_assert(sizeof(simcore::MaterialParams) == 32, "MaterialParams changed: record the new field in encodeSetup/decodeSetup");
-static_assert(sizeof(simcore::CutSettings) == 32, "CutSettings changed: record the new field in encodeSetup/decodeSetup");
-
-std::uint64_t fnv(std::uint64_t h, const void* data, std::size_t n) {
-  const auto* p = static_cast<const unsigned char*>(data);
-  for (std::size_t i = 0; i < n; ++i) {
-    h ^= p[i];
-    h *= 1099511628211ULL;
-  }
-  return h;
-}
-
-json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
-Eigen::Vector3d vec(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
-
-json material(const simcore::MaterialParams& m) {
-  return {{"model", static_cast<int>(m.model)}, {"young", m.young}, {"poisson", m.poisson}, {"density", m.density}};
-}
-simcore::MaterialParams material(const json& j) {
-  simcore::MaterialParams m;
-  m.model = static_cast<simcore::MaterialModel>(j.at("model").get<int>());
-  m.young = j.at("young");
-  m.poisson = j.at("poisson");
-  m.density = j.at("density");
-  return m;
-}
-
-json settings(const simcore::SimulationSettings& s) {
-  return {{"timeStep", s.timeStep},
-          {"gravity", vec(s.gravity)},
-          {"rayleighMass", s.rayleighMass},
-          {"rayleighStiffness", s.rayleighStiffness},
-          {"maxNewtonIterations", s.maxNewtonIterations},
-          {"tolerance", s.tolerance},
-          {"staticStepTolerance", s.staticStepTolerance},
-          {"staticChord", s.staticChord},
-          {"lineSearch", s.lineSearch},
-          {"solver", static_cast<int>(s.solver)},
-          {"simplicialFactor", s.simplicialFactor},
-          {"cgMaxIterations", s.cgMaxIterations},
-          {"cgTolerance", s.cgTolerance},
-          {"maxRetries", s.maxRetries},
-          {"method", static_cast<int>(s.method)},
-          {"attachments", static_cast<int>(s.attachments)},
-          {"gaussSeidelIterations", s.gaussSeidelIterations},
-          {"gaussSeidelTolerance", s.gaussSeidelTolerance},
-          {"reportEnergy", s.reportEnergy},
-          {"refreshResidual", s.refreshResidual},
-          {"factorRefresh", static_cast<int>(s.factorRefresh)},
-          {"linearisedTolerance", s.linearisedTolerance},
-          {"strict", s.strict},
-          {"inversionGuard", s.inversionGuard}};
-}
-simcore::SimulationSettings settings(const json& j) {
-  simcore::SimulationSettings s;
-  s.timeStep = j.at("timeStep");
-  s.gravity = vec(j.at("gravity"));
-  s.rayleighMass = j.at("rayleighMass");
-  s.rayleighStiffness = j.at("rayleighStiffness");
-  s.maxNewtonIterations = j.at("maxNewtonIterations");
-  s.tolerance = j.at("tolerance");
-  s.staticStepTolerance = j.at("staticStepTolerance");
-  s.staticChord = j.at("staticChord");
-  s.lineSearch = j.at("lineSearch");
-  s.solver = static_cast<simcore::LinearSolverKind>(j.at("solver").get<int>());
-  s.simplicialFactor = j.at("simplicialFactor");
-  s.cgMaxIterations = j.at("cgMaxIterations");
-  s.cgTolerance = j.at("cgTolerance");
-  s.maxRetries = j.at("maxRetries");
-  s.method = static_cast<simcore::NewtonMethod>(j.at("method").get<int>());
-  s.attachments = static_cast<simcore::AttachmentMode>(j.at("attachments").get<int>());
-  s.gaussSeidelIterations = j.at("gaussSeidelIterations");
-  s.gaussSeidelTolerance = j.at("gaussSeidelTolerance");
-  s.reportEnergy = j.at("reportEnergy");
-  s.refreshResidual = j.at("refreshResidual");
-  s.factorRefresh = static_cast<simcore::FactorRefresh>(j.at("factorRefresh").get<int>());
-  // Sessions recorded before these existed ran without the inversion guard and the strict/inexact choice (they were strict).
-  s.linearisedTolerance = j.value("linearisedTolerance", s.linearisedTolerance);
-  s.strict = j.value("strict", true);
-  s.inversionGuard = j.value("inversionGuard", false);
-  return s;
-}
 
 std::string utcNow() {
   const std::time_t t = std::time(nullptr);
@@ -109,6 +31,7 @@ std::string utcNow() {
   std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", &tm);
   return buf;
 }
+
 
 // One prepared statement, finalised on every path.
 struct Statement {
@@ -137,55 +60,6 @@ constexpr const char* kSchema =
     "CREATE TABLE IF NOT EXISTS rehearsal_checkpoints(session INTEGER NOT NULL, step INTEGER NOT NULL, setup_hash TEXT NOT NULL, state BLOB NOT NULL, "
     "PRIMARY KEY(session, step));";
 
-// Bytes of a checkpoint's state: plain values in this machine's order (a recording replays on the build
-// that made it), each array preceded by its length; reading checks every length against what is left.
-struct Bytes {
-  std::string b;
-  template <class T>
-  void pod(const T& v) {
-    b.append(reinterpret_cast<const char*>(&v), sizeof v);
-  }
-  void vec(const Eigen::VectorXd& v) {
-    pod(static_cast<std::int64_t>(v.size()));
-    b.append(reinterpret_cast<const char*>(v.data()), sizeof(double) * static_cast<std::size_t>(v.size()));
-  }
-  void v3(const Eigen::Vector3d& v) { b.append(reinterpret_cast<const char*>(v.data()), 3 * sizeof(double)); }
-};
-struct Reader {
-  const char* p;
-  const char* end;
-  void need(std::size_t n) const {
-    if (static_cast<std::size_t>(end - p) < n) throw std::runtime_error("a recorded checkpoint is cut short");
-  }
-  template <class T>
-  T pod() {
-    need(sizeof(T));
-    T v;
-    std::memcpy(&v, p, sizeof v);
-    p += sizeof v;
-    return v;
-  }
-  std::size_t count(std::size_t each) {
-    const auto n = pod<std::int64_t>();
-    if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / each) throw std::runtime_error("a recorded checkpoint has a bad length");
-    return static_cast<std::size_t>(n);
-  }
-  Eigen::VectorXd vec() {
-    const std::size_t n = count(sizeof(double));
-    Eigen::VectorXd v(static_cast<Eigen::Index>(n));
-    std::memcpy(v.data(), p, n * sizeof(double));
-    p += n * sizeof(double);
-    return v;
-  }
-  Eigen::Vector3d v3() {
-    need(3 * sizeof(double));
-    Eigen::Vector3d v;
-    std::memcpy(v.data(), p, 3 * sizeof(double));
-    p += 3 * sizeof(double);
-    return v;
-  }
-};
-constexpr std::uint32_t kCheckpointMagic = 0x314B4352;  // "RCK1"
 
 sqlite3* openStore(const std::string& path, bool create) {
   sqlite3* db = nullptr;
@@ -207,339 +81,101 @@ bool hasTable(sqlite3* db, const char* name) {
 
 }  // namespace
 
-std::uint64_t stateChecksum(const simcore::SimulationState& s) {
-  std::uint64_t h = 14695981039346656037ULL;
-  h = fnv(h, s.x.data(), sizeof(double) * static_cast<std::size_t>(s.x.size()));
-  h = fnv(h, s.v.data(), sizeof(double) * static_cast<std::size_t>(s.v.size()));
-  return fnv(h, &s.time, sizeof s.time);
-}
-
-// Fields a checkpoint carries: a new one must be written too.
-static_assert(sizeof(simcore::SimulationState::Lagged) == 64, "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
-static_assert(sizeof(simcore::ToolState) == 224, "ToolState changed: record the new field in encodeCheckpointState");
-
-namespace {
-void writeProgress(Bytes& o, const simcore::CutProgress& p) {
-  o.pod(static_cast<std::int64_t>(p.pendingFaces.size()));
-  for (const auto& f : p.pendingFaces)
-    for (int n : f) o.pod(static_cast<std::int32_t>(n));
-  o.pod(static_cast<std::int64_t>(p.nodes.size()));
-  for (int n : p.nodes) o.pod(static_cast<std::int32_t>(n));
-  o.pod(static_cast<std::int64_t>(p.sweeps.size()));
-  for (const auto& w : p.sweeps)
-    for (const auto* v : {&w.a0, &w.b0, &w.a1, &w.b1}) o.v3(*v);
-}
-simcore::CutProgress readProgress(Reader& r) {
-  simcore::CutProgress p;
-  p.pendingFaces.resize(r.count(3 * sizeof(std::int32_t)));
-  for (auto& f : p.pendingFaces)
-    for (int& n : f) n = r.pod<std::int32_t>();
-  p.nodes.resize(r.count(sizeof(std::int32_t)));
-  for (int& n : p.nodes) n = r.pod<std::int32_t>();
-  p.sweeps.resize(r.count(12 * sizeof(double)));
-  for (auto& w : p.sweeps)
-    for (auto* v : {&w.a0, &w.b0, &w.a1, &w.b1}) *v = r.v3();
-  return p;
-}
-}  // namespace
-
-simcore::BodySetup sharedSetup(const simcore::BodySetup& s) {
-  simcore::BodySetup o = s;
-  o.cut.clear();
-  return o;
-}
-
-namespace {
-// The checkpoint's bytes with its setups' hashes (the recorder has them already).
-std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHashValue, std::uint64_t pendingSetupHash) {
-  Bytes o;
-  o.pod(kCheckpointMagic);
-  o.pod(static_cast<std::int64_t>(c.step));
-  o.pod(setupHashValue);
-  writeProgress(o, c.setup.cut);
-  const auto& s = c.state;
-  o.vec(s.x);
-  o.vec(s.v);
-  o.pod(s.time);
-  o.pod(static_cast<std::uint8_t>(s.lagged.valid));
-  o.vec(s.lagged.at);
-  o.pod(s.lagged.step);
-  o.pod(static_cast<std::uint8_t>(s.lagged.refresh));
-  o.pod(static_cast<std::uint8_t>(s.lagged.drift));
-  o.pod(static_cast<std::uint8_t>(s.lagged.requested));
-  o.vec(s.lagged.requestedAt);
-  o.pod(s.lagged.requestedStep);
-  o.vec(s.forces);
-  o.pod(static_cast<std::uint8_t>(s.forcesValid));
-  const auto& t = c.tool;
-  o.v3(t.tip);
-  o.pod(static_cast<std::uint8_t>(t.jawClosed));
-  o.pod(static_cast<std::int64_t>(t.held.size()));
-  for (int n : t.held) o.pod(static_cast<std::int32_t>(n));
-  o.pod(static_cast<std::int64_t>(t.heldOffset.size()));
-  for (const auto& v : t.heldOffset) o.v3(v);
-  o.pod(static_cast<std::uint8_t>(t.cutting));
-  o.v3(t.cutFrom);
-  o.v3(t.force);
-  o.b.append(reinterpret_cast<const char*>(t.stiffness.data()), 9 * sizeof(double));
-  o.pod(static_cast<std::uint8_t>(t.present));
-  o.pod(static_cast<std::int32_t>(t.contacts));
-  o.pod(static_cast<std::int32_t>(t.pierced));
-  o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
-  if (c.restOfSweep) {
-    o.v3(c.restOfSweep->first);
-    o.v3(c.restOfSweep->second);
-  }
-  o.pod(static_cast<std::uint8_t>(c.pendingCut.has_value()));
-  if (const auto& p = c.pendingCut) {
-    o.pod(pendingSetupHash);
-    writeProgress(o, p->setup.cut);
-    o.pod(static_cast<std::int64_t>(p->newNodes.size()));
-    for (const auto& n : p->newNodes) {
-      for (int f : n.from) o.pod(static_cast<std::int32_t>(f));
-      for (double w : n.weight) o.pod(w);
-    }
-    o.pod(static_cast<std::int64_t>(p->cutLabels.size()));
-    for (int l : p->cutLabels) o.pod(static_cast<std::int32_t>(l));
-    o.vec(p->factorAt);
-    o.pod(static_cast<std::uint8_t>(p->clearProgress));
-  }
-  return o.b;
-}
-}  // namespace
-
-std::string encodeCheckpointState(const simcore::Checkpoint& c) {
-  return encodeCheckpoint(c, setupHash(c.setup), c.pendingCut ? setupHash(c.pendingCut->setup) : 0);
-}
-
-simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t)>& setupOf) {
-  simcore::Checkpoint c;
-  Reader r{bytes.data(), bytes.data() + bytes.size()};
-  if (r.pod<std::uint32_t>() != kCheckpointMagic) throw std::runtime_error("a recorded checkpoint is not in a known format");
-  c.step = static_cast<long>(r.pod<std::int64_t>());
-  c.setup = setupOf(r.pod<std::uint64_t>());
-  c.setup.cut = readProgress(r);
-  auto& s = c.state;
-  s.x = r.vec();
-  s.v = r.vec();
-  s.time = r.pod<double>();
-  s.lagged.valid = r.pod<std::uint8_t>() != 0;
-  s.lagged.at = r.vec();
-  s.lagged.step = r.pod<double>();
-  s.lagged.refresh = r.pod<std::uint8_t>() != 0;
-  s.lagged.drift = r.pod<std::uint8_t>() != 0;
-  s.lagged.requested = r.pod<std::uint8_t>() != 0;
-  s.lagged.requestedAt = r.vec();
-  s.lagged.requestedStep = r.pod<double>();
-  s.forces = r.vec();
-  s.forcesValid = r.pod<std::uint8_t>() != 0;
-  auto& t = c.tool;
-  t.tip = r.v3();
-  t.jawClosed = r.pod<std::uint8_t>() != 0;
-  t.held.resize(r.count(sizeof(std::int32_t)));
-  for (auto& n : t.held) n = r.pod<std::int32_t>();
-  t.heldOffset.resize(r.count(3 * sizeof(double)));
-  for (auto& v : t.heldOffset) v = r.v3();
-  t.cutting = r.pod<std::uint8_t>() != 0;
-  t.cutFrom = r.v3();
-  t.force = r.v3();
-  r.need(9 * sizeof(double));
-  std::memcpy(t.stiffness.data(), r.p, 9 * sizeof(double));
-  r.p += 9 * sizeof(double);
-  t.present = r.pod<std::uint8_t>() != 0;
-  t.contacts = r.pod<std::int32_t>();
-  t.pierced = r.pod<std::int32_t>();
-  if (r.pod<std::uint8_t>()) {
-    const Eigen::Vector3d from = r.v3();
-    c.restOfSweep = std::make_pair(from, r.v3());
-  }
-  if (r.pod<std::uint8_t>()) {
-    simcore::PendingCutInput p;
-    p.setup = setupOf(r.pod<std::uint64_t>());
-    p.setup.cut = readProgress(r);
-    p.newNodes.resize(r.count(4 * sizeof(std::int32_t) + 4 * sizeof(double)));
-    for (auto& n : p.newNodes) {
-      for (int& f : n.from) f = r.pod<std::int32_t>();
-      for (double& w : n.weight) w = r.pod<double>();
-    }
-    p.cutLabels.resize(r.count(sizeof(std::int32_t)));
-    for (int& l : p.cutLabels) l = r.pod<std::int32_t>();
-    p.factorAt = r.vec();
-    p.clearProgress = r.pod<std::uint8_t>() != 0;
-    c.pendingCut = std::move(p);
-  }
-  if (r.p != r.end) throw std::runtime_error("a recorded checkpoint has trailing bytes");
-  if (s.v.size() != s.x.size() || (s.forcesValid && s.forces.size() != s.x.size()) || (s.lagged.valid && s.lagged.at.size() != s.x.size()) ||
-      (s.lagged.requested && s.lagged.requestedAt.size() != s.x.size()))
-    throw std::runtime_error("a recorded checkpoint's vectors disagree in size");
-  // Node indices within the body (a damaged file must not reach the simulation as indices out of range).
-  const std::size_t n = c.setup.rest.empty() ? c.setup.mesh.points.size() : c.setup.rest.size();
-  if (static_cast<std::size_t>(s.x.size()) != 3 * n) throw std::runtime_error("a recorded checkpoint does not fit its body's nodes");
-  auto inRange = [n](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
-  bool ok = t.heldOffset.size() == t.held.size() && std::all_of(t.held.begin(), t.held.end(), inRange) &&
-            std::all_of(c.setup.cut.nodes.begin(), c.setup.cut.nodes.end(), inRange);
-  for (const auto& f : c.setup.cut.pendingFaces) ok = ok && std::all_of(f.begin(), f.end(), inRange);
-  if (!ok || !s.x.allFinite() || !s.v.allFinite()) throw std::runtime_error("a recorded checkpoint names nodes its body has not, or holds no number");
-  return c;
-}
-
-std::uint64_t setupHash(const simcore::BodySetup& s) {
-  std::uint64_t h = 14695981039346656037ULL;
-  auto arr = [&h](const auto& v) {
-    const std::size_t n = v.size();
-    h = fnv(h, &n, sizeof n);
-    if (n) h = fnv(h, v.data(), n * sizeof(v[0]));
-  };
-  arr(s.mesh.points);
-  arr(s.mesh.tets);
-  arr(s.mesh.tetLabels);
-  arr(s.mesh.triangles);
-  arr(s.mesh.triangleLabels);
-  arr(s.rest);
-  arr(s.fixedNodes);
-  // The small rest through its text (materials, settings, tools, topology).
-  simcore::BodySetup light;
-  light.material = s.material;
-  light.byLabel = s.byLabel;
-  light.settings = s.settings;
-  light.tools = s.tools;
-  light.topology = s.topology;
-  light.mesh.unitToMetre = s.mesh.unitToMetre;
-  light.mesh.labelNames = s.mesh.labelNames;
-  const std::string text = encodeSetup(light);
-  return fnv(h, text.data(), text.size());
-}
-
-std::string encodeSetup(const simcore::BodySetup& s) {
-  if (!s.cut.sweeps.empty() || !s.cut.nodes.empty() || !s.cut.pendingFaces.empty())
-    throw std::runtime_error("a recording starts from a body without a cut in progress");
-  json j;
-  json pts = json::array(), tets = json::array(), tris = json::array(), names = json::array();
-  for (const auto& p : s.mesh.points) pts.push_back(vec(p));
-  for (const auto& t : s.mesh.tets) tets.push_back(t);
-  for (const auto& t : s.mesh.triangles) tris.push_back(t);
-  for (const auto& [label, name] : s.mesh.labelNames) names.push_back({label, name});
-  j["mesh"] = {{"points", pts}, {"tets", tets}, {"tetLabels", s.mesh.tetLabels}, {"triangles", tris}, {"triangleLabels", s.mesh.triangleLabels},
-               {"labelNames", names}, {"unitToMetre", s.mesh.unitToMetre}};
-  json rest = json::array();
-  for (const auto& p : s.rest) rest.push_back(vec(p));
-  j["rest"] = rest;
-  j["fixedNodes"] = s.fixedNodes;
-  j["material"] = material(s.material);
-  json byLabel = json::array();
-  for (const auto& [label, m] : s.byLabel) byLabel.push_back({{"label", label}, {"material", material(m)}});
-  j["byLabel"] = byLabel;
-  j["settings"] = settings(s.settings);
-  const auto& t = s.tools;
-  j["tools"] = {{"graspRadius", t.graspRadius}, {"maxGraspForce", t.maxGraspForce}, {"bladeLength", t.bladeLength}, {"toolRadius", t.toolRadius},
-                {"cut", {{"snap", t.cut.snap}, {"minQuality", t.cut.minQuality}, {"minVolumeFraction", t.cut.minVolumeFraction}, {"snapFront", t.cut.snapFront}}}};
-  if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
-  j["topology"] = s.topology;
-  j["format"] = "rehearse-setup-1";
-  return j.dump();
-}
-
-simcore::BodySetup decodeSetup(const std::string& text) {
-  try {
-    const json j = json::parse(text);
-    if (j.value("format", "") != "rehearse-setup-1") throw std::runtime_error("unknown format");
-    simcore::BodySetup s;
-    const auto& m = j.at("mesh");
-    for (const auto& p : m.at("points")) s.mesh.points.push_back(vec(p));
-    for (const auto& t : m.at("tets")) s.mesh.tets.push_back(t.get<std::array<int, 4>>());
-    s.mesh.tetLabels = m.at("tetLabels").get<std::vector<int>>();
-    for (const auto& t : m.at("triangles")) s.mesh.triangles.push_back(t.get<std::array<int, 3>>());
-    s.mesh.triangleLabels = m.at("triangleLabels").get<std::vector<int>>();
-    for (const auto& n : m.at("labelNames")) s.mesh.labelNames.emplace_back(n.at(0).get<int>(), n.at(1).get<std::string>());
-    s.mesh.unitToMetre = m.at("unitToMetre");
-    for (const auto& p : j.at("rest")) s.rest.push_back(vec(p));
-    s.fixedNodes = j.at("fixedNodes").get<std::vector<int>>();
-    s.material = material(j.at("material"));
-    for (const auto& b : j.at("byLabel")) s.byLabel[b.at("label").get<int>()] = material(b.at("material"));
-    s.settings = settings(j.at("settings"));
-    const auto& t = j.at("tools");
-    s.tools.graspRadius = t.at("graspRadius");
-    s.tools.maxGraspForce = t.at("maxGraspForce");
-    s.tools.bladeLength = t.at("bladeLength");
-    s.tools.toolRadius = t.at("toolRadius");
-    s.tools.cut.snap = t.at("cut").at("snap");
-    s.tools.cut.minQuality = t.at("cut").at("minQuality");
-    s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");
-    s.tools.cut.snapFront = t.at("cut").at("snapFront");
-    if (t.contains("trocar")) s.tools.trocar = vec(t.at("trocar"));
-    s.topology = j.at("topology");
-    return s;
-  } catch (const std::exception& e) {
-    throw std::runtime_error(std::string("the recorded setup cannot be read (") + e.what() + ")");
-  }
-}
-
-std::string encodeEvent(const simcore::InputEvent& e) {
-  return json{{"kind", static_cast<int>(e.kind)}, {"wallTime", e.wallTime}, {"step", e.step}, {"tool", e.tool}, {"label", e.label},
-              {"position", vec(e.position)}, {"vector", vec(e.vector)}, {"on", e.on}, {"name", e.name}, {"value", e.value}}
-      .dump();
-}
-
-simcore::InputEvent decodeEvent(const std::string& text) {
-  try {
-    const json j = json::parse(text);
-    simcore::InputEvent e;
-    e.kind = static_cast<simcore::InputKind>(j.at("kind").get<int>());
-    e.wallTime = j.at("wallTime");
-    e.step = j.at("step");
-    e.tool = j.at("tool");
-    e.label = j.at("label");
-    e.position = vec(j.at("position"));
-    e.vector = vec(j.at("vector"));
-    e.on = j.at("on");
-    e.name = j.at("name");
-    e.value = j.at("value");
-    return e;
-  } catch (const std::exception& e) {
-    throw std::runtime_error(std::string("a recorded event cannot be read (") + e.what() + ")");
-  }
-}
-
 struct Recorder::Statements {
-  Statement event, checksum, steps, setup, checkpoint;
+  Statement event, checksum, checksumAgain, steps, setup, checkpoint;
   explicit Statements(sqlite3* db)
       : event(db, "INSERT INTO rehearsal_events(session, seq, step, event) VALUES(?, ?, ?, ?)"),
-        checksum(db, "INSERT OR REPLACE INTO rehearsal_checksums(session, step, checksum) VALUES(?, ?, ?)"),
+        // A step recorded twice is refused, never overwritten: a restarted step count (a reset) cannot replace the record.
+        checksum(db, "INSERT INTO rehearsal_checksums(session, step, checksum) VALUES(?, ?, ?)"),
+        checksumAgain(db, "INSERT OR IGNORE INTO rehearsal_checksums(session, step, checksum) VALUES(?, ?, ?)"),
         steps(db, "UPDATE rehearsal_sessions SET steps = ? WHERE id = ?"),
         setup(db, "INSERT OR IGNORE INTO rehearsal_setups(session, hash, setup) VALUES(?, ?, ?)"),
         checkpoint(db, "INSERT OR REPLACE INTO rehearsal_checkpoints(session, step, setup_hash, state) VALUES(?, ?, ?, ?)") {}
 };
 
+namespace {
+bool hasColumn(sqlite3* db, const char* table, const char* column) {
+  Statement q(db, (std::string("PRAGMA table_info(") + table + ")").c_str());
+  while (sqlite3_step(q.s) == SQLITE_ROW)
+    if (q.column(1) == column) return true;
+  return false;
+}
+// The schema, and the uuid column added to a file recorded before it existed (its sessions get one).
+void ensureSchema(sqlite3* db) {
+  char* err = nullptr;
+  auto run = [&](const char* sql) {
+    if (sqlite3_exec(db, sql, nullptr, nullptr, &err) != SQLITE_OK) {
+      const std::string why = err ? err : "unknown error";
+      sqlite3_free(err);
+      throw std::runtime_error("the recording store refused a write: " + why);
+    }
+  };
+  run(kSchema);
+  if (!hasColumn(db, "rehearsal_sessions", "uuid")) run("ALTER TABLE rehearsal_sessions ADD COLUMN uuid TEXT");
+  run("UPDATE rehearsal_sessions SET uuid = lower(hex(randomblob(16))) WHERE uuid IS NULL OR uuid = ''");
+  run("CREATE UNIQUE INDEX IF NOT EXISTS rehearsal_sessions_uuid ON rehearsal_sessions(uuid)");
+}
+}  // namespace
+
 Recorder::Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery, int checkpointEvery)
     : every_(std::max(1, checksumEvery)), checkpointEvery_(std::max(1, checkpointEvery)), lastCommit_(std::chrono::steady_clock::now()) {
   path_ = path;
-  const std::string setupText = encodeSetup(setup);
+  uuid_ = newSessionUuid();
+  meta_ = meta;
+  startedUtc_ = utcNow();
+  setupText_ = encodeSetup(setup);
+  timeStep_ = setup.settings.timeStep;
+  open(path);
+}
+
+void Recorder::open(const std::string& path) {
   db_ = openStore(path, true);
   try {
     exec("PRAGMA journal_mode=WAL");
     exec("PRAGMA synchronous=NORMAL");
-    exec(kSchema);
+    ensureSchema(db_);
     exec("BEGIN");
-    Statement q(db_, "INSERT INTO rehearsal_sessions(trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, checksum_every) "
-                     "VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?)");
-    q.text(1, meta.trainee);
-    q.text(2, utcNow());
-    q.text(3, meta.caseName);
-    q.text(4, meta.sceneVersion);
-    q.text(5, meta.appVersion);
-    q.text(6, meta.notes);
-    q.text(7, setupText);
-    sqlite3_bind_double(q.s, 8, setup.settings.timeStep);
-    sqlite3_bind_int(q.s, 9, every_);
-    if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("cannot record into ") + path + ": " + sqlite3_errmsg(db_));
-    id_ = sqlite3_last_insert_rowid(db_);
+    id_ = 0;
+    {
+      Statement q(db_, "SELECT id FROM rehearsal_sessions WHERE uuid = ?");
+      q.text(1, uuid_);
+      if (sqlite3_step(q.s) == SQLITE_ROW) id_ = sqlite3_column_int64(q.s, 0);
+    }
+    if (id_ == 0) {  // a new session, or a file that lost it: its row (what it held is written again)
+      Statement q(db_, "INSERT INTO rehearsal_sessions(trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, checksum_every, uuid) "
+                       "VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+      q.text(1, meta_.trainee);
+      q.text(2, startedUtc_);
+      q.text(3, meta_.caseName);
+      q.text(4, meta_.sceneVersion);
+      q.text(5, meta_.appVersion);
+      q.text(6, meta_.notes);
+      q.text(7, setupText_);
+      sqlite3_bind_double(q.s, 8, timeStep_);
+      sqlite3_bind_int(q.s, 9, every_);
+      q.text(10, uuid_);
+      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("cannot record into ") + path + ": " + sqlite3_errmsg(db_));
+      id_ = sqlite3_last_insert_rowid(db_);
+      written_ = 0;
+    } else {
+      Statement q(db_, "SELECT COUNT(*) FROM rehearsal_events WHERE session = ?");
+      sqlite3_bind_int64(q.s, 1, id_);
+      const long copied = sqlite3_step(q.s) == SQLITE_ROW ? static_cast<long>(sqlite3_column_int64(q.s, 0)) : 0;
+      written_ = std::min(written_, static_cast<std::size_t>(copied));  // events are written in order: the copy holds a prefix
+    }
     commitIfDue(true);  // the session is listed from the start
     statements_ = std::make_unique<Statements>(db_);
+    path_ = path;
   } catch (...) {
-    statements_.reset();
-    sqlite3_close(db_);
+    closeStore();
     throw;
   }
+}
+
+void Recorder::closeStore() {
+  statements_.reset();  // finalised before the connection closes
+  if (db_) sqlite3_close(db_);
+  db_ = nullptr;
 }
 
 Recorder::~Recorder() {
@@ -549,8 +185,7 @@ Recorder::~Recorder() {
   } catch (...) {
   }
   sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr);
-  statements_.reset();  // finalised before the connection closes
-  sqlite3_close(db_);
+  closeStore();
 }
 
 void Recorder::exec(const char* sql) {
@@ -575,44 +210,78 @@ std::string Recorder::path() const {
   return path_;
 }
 
-void Recorder::reopen(const std::string& path) {
+bool Recorder::suspended() const {
   std::lock_guard<std::mutex> lock(mutex_);
-  // The old file was replaced: what it still holds uncommitted goes with it.
+  return suspended_;
+}
+
+void Recorder::suspend() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (suspended_ || !db_) return;
   sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr);
   statements_.reset();
-  sqlite3_close(db_);
-  db_ = openStore(path, true);
-  path_ = path;
-  exec("PRAGMA journal_mode=WAL");
-  exec("PRAGMA synchronous=NORMAL");
-  exec(kSchema);
-  {
-    Statement q(db_, "SELECT COUNT(*) FROM rehearsal_events WHERE session = ?");
-    sqlite3_bind_int64(q.s, 1, id_);
-    long copied = sqlite3_step(q.s) == SQLITE_ROW ? static_cast<long>(sqlite3_column_int64(q.s, 0)) : 0;
-    Statement s(db_, "SELECT 1 FROM rehearsal_sessions WHERE id = ?");
-    sqlite3_bind_int64(s.s, 1, id_);
-    if (sqlite3_step(s.s) != SQLITE_ROW) throw std::runtime_error("the saved case " + path + " lost the recorded session " + std::to_string(id_));
-    written_ = std::min(written_, static_cast<std::size_t>(copied));  // events are written in order: the copy holds a prefix
+  // Everything into the file itself, and the WAL emptied, before another connection copies or replaces it.
+  sqlite3_wal_checkpoint_v2(db_, nullptr, SQLITE_CHECKPOINT_TRUNCATE, nullptr, nullptr);
+  closeStore();
+  suspended_ = true;
+}
+
+void Recorder::reopen(const std::string& path) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (db_) {  // not suspended: the old file was replaced under it; what it held uncommitted goes with it
+    sqlite3_exec(db_, "COMMIT", nullptr, nullptr, nullptr);
+    closeStore();
   }
-  statements_ = std::make_unique<Statements>(db_);
-  exec("BEGIN");
-  for (const auto& [step, sum] : checksumsWritten_) {
-    Statement& q = statements_->checksum;
-    sqlite3_reset(q.s);
-    sqlite3_bind_int64(q.s, 1, id_);
-    sqlite3_bind_int64(q.s, 2, step);
-    q.text(3, std::to_string(sum));
-    if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db_));
+  suspended_ = false;
+  try {
+    open(path);  // leaves a transaction open
+    for (const auto& [step, sum] : checksumsWritten_) {
+      Statement& q = statements_->checksumAgain;
+      sqlite3_reset(q.s);
+      sqlite3_bind_int64(q.s, 1, id_);
+      sqlite3_bind_int64(q.s, 2, step);
+      q.text(3, std::to_string(sum));
+      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db_));
+    }
+    setupsWritten_.clear();  // a checkpoint after this one writes its setup again when the copy missed it (INSERT OR IGNORE)
+    for (const auto& [hash, text] : keptSetups_) writeSetup(hash, text);
+    for (const auto& k : keptCheckpoints_) writeCheckpoint(k.step, k.hash, k.bytes);
+    keptSetups_.clear();
+    keptCheckpoints_.clear();
+    {
+      Statement q(db_, "UPDATE rehearsal_sessions SET steps = ?, complete = ? WHERE id = ?");
+      sqlite3_bind_int64(q.s, 1, lastStep_);
+      sqlite3_bind_int(q.s, 2, finished_ ? 1 : 0);
+      sqlite3_bind_int64(q.s, 3, id_);
+      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a step: ") + sqlite3_errmsg(db_));
+    }
+    commitIfDue(true);
+    broken_.clear();
+  } catch (const std::exception& e) {
+    closeStore();
+    broken_ = "the recording cannot go on in " + path + ": " + e.what();
+    throw std::runtime_error(broken_);
   }
-  setupsWritten_.clear();  // a checkpoint after this one writes its setup again when the copy missed it (INSERT OR IGNORE)
-  if (finished_) {
-    Statement q(db_, "UPDATE rehearsal_sessions SET steps = ?, complete = 1 WHERE id = ?");
-    sqlite3_bind_int64(q.s, 1, lastStep_);
-    sqlite3_bind_int64(q.s, 2, id_);
-    sqlite3_step(q.s);
-  }
-  commitIfDue(true);
+}
+
+void Recorder::writeSetup(std::uint64_t hash, const std::string& text) {
+  Statement& q = statements_->setup;
+  sqlite3_reset(q.s);
+  sqlite3_bind_int64(q.s, 1, id_);
+  q.text(2, std::to_string(hash));
+  q.text(3, text);
+  if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a setup: ") + sqlite3_errmsg(db_));
+  setupsWritten_.push_back(hash);
+}
+
+void Recorder::writeCheckpoint(long step, std::uint64_t hash, const std::string& bytes) {
+  Statement& q = statements_->checkpoint;
+  sqlite3_reset(q.s);
+  sqlite3_bind_int64(q.s, 1, id_);
+  sqlite3_bind_int64(q.s, 2, step);
+  q.text(3, std::to_string(hash));
+  sqlite3_bind_blob(q.s, 4, bytes.data(), static_cast<int>(bytes.size()), SQLITE_TRANSIENT);
+  if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checkpoint: ") + sqlite3_errmsg(db_));
 }
 
 void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state) {
@@ -621,7 +290,17 @@ void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& reco
 }
 
 void Recorder::afterStepLocked(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state) {
+  if (!broken_.empty()) throw std::runtime_error(broken_);
+  if (finished_) throw std::runtime_error("the recorded session has ended; a new recording starts a new session");
+  // The step count of a session only grows: one that starts again (a reset) is another run, never appended to this one.
+  if (step <= lastStep_)
+    throw std::runtime_error("the simulation started again (step " + std::to_string(step) + " after step " + std::to_string(lastStep_) +
+                             "): the recorded session ends here; record again to record the new run");
   lastStep_ = step;
+  const bool checksumDue = step % every_ == 0;
+  const std::uint64_t sum = checksumDue ? stateChecksum(state) : 0;
+  if (checksumDue) checksumsWritten_.emplace_back(step, sum);
+  if (suspended_) return;  // kept: the events are in the session's record, the checksums above, written at reopen()
   if (recorded.size() > written_) {
     Statement& q = statements_->event;
     for (; written_ < recorded.size(); ++written_) {
@@ -633,15 +312,13 @@ void Recorder::afterStepLocked(long step, const std::vector<simcore::InputEvent>
       if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused an event: ") + sqlite3_errmsg(db_));
     }
   }
-  if (step % every_ == 0) {
-    const std::uint64_t sum = stateChecksum(state);
+  if (checksumDue) {
     Statement& q = statements_->checksum;
     sqlite3_reset(q.s);
     sqlite3_bind_int64(q.s, 1, id_);
     sqlite3_bind_int64(q.s, 2, step);
     q.text(3, std::to_string(sum));
     if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db_));
-    checksumsWritten_.emplace_back(step, sum);
   }
   {
     Statement& q = statements_->steps;
@@ -665,25 +342,20 @@ void Recorder::afterStep(const simcore::StepRecord& r) {
     auto store = [this](const simcore::BodySetup& s) {
       const std::uint64_t h = setupHash(s);  // the mesh is copied and encoded only for a setup not written yet
       if (std::find(setupsWritten_.begin(), setupsWritten_.end(), h) != setupsWritten_.end()) return h;
-      Statement& q = statements_->setup;
-      sqlite3_reset(q.s);
-      sqlite3_bind_int64(q.s, 1, id_);
-      q.text(2, std::to_string(h));
-      q.text(3, encodeSetup(sharedSetup(s)));
-      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a setup: ") + sqlite3_errmsg(db_));
-      setupsWritten_.push_back(h);
+      std::string text = encodeSetup(sharedSetup(s));
+      if (suspended_) {
+        keptSetups_.emplace_back(h, std::move(text));
+        setupsWritten_.push_back(h);
+      } else {
+        writeSetup(h, text);
+      }
       return h;
     };
     const std::uint64_t h = store(c.setup);
     const std::uint64_t pending = c.pendingCut ? store(c.pendingCut->setup) : 0;
-    const std::string bytes = encodeCheckpoint(c, h, pending);
-    Statement& q = statements_->checkpoint;
-    sqlite3_reset(q.s);
-    sqlite3_bind_int64(q.s, 1, id_);
-    sqlite3_bind_int64(q.s, 2, r.step);
-    q.text(3, std::to_string(h));
-    sqlite3_bind_blob(q.s, 4, bytes.data(), static_cast<int>(bytes.size()), SQLITE_TRANSIENT);
-    if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checkpoint: ") + sqlite3_errmsg(db_));
+    std::string bytes = detail::encodeCheckpoint(c, h, pending);
+    if (suspended_) keptCheckpoints_.push_back({r.step, h, std::move(bytes)});
+    else writeCheckpoint(r.step, h, bytes);
     lastCheckpoint_ = r.step;
     ++checkpoints_;
   }
@@ -691,10 +363,12 @@ void Recorder::afterStep(const simcore::StepRecord& r) {
 
 void Recorder::finish(long steps) {
   std::lock_guard<std::mutex> lock(mutex_);
+  if (finished_) return;
   finished_ = true;
-  lastStep_ = steps;
+  lastStep_ = std::max(lastStep_, steps);
+  if (!db_) return;  // suspended: reopen() marks it complete; broken: nothing more can be written
   Statement q(db_, "UPDATE rehearsal_sessions SET steps = ?, complete = 1 WHERE id = ?");
-  sqlite3_bind_int64(q.s, 1, steps);
+  sqlite3_bind_int64(q.s, 1, lastStep_);
   sqlite3_bind_int64(q.s, 2, id_);
   if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused the session's end: ") + sqlite3_errmsg(db_));
   commitIfDue(true);
@@ -705,7 +379,9 @@ std::vector<RecordingSummary> listRecordings(const std::string& path) {
   std::vector<RecordingSummary> out;
   try {
     if (hasTable(db, "rehearsal_sessions")) {
-      Statement q(db, "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, complete FROM rehearsal_sessions ORDER BY id");
+      const bool uuid = hasColumn(db, "rehearsal_sessions", "uuid");
+      Statement q(db, uuid ? "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, complete, uuid FROM rehearsal_sessions ORDER BY id"
+                           : "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, complete FROM rehearsal_sessions ORDER BY id");
       int rc;
       while ((rc = sqlite3_step(q.s)) == SQLITE_ROW) {
         RecordingSummary r;
@@ -714,6 +390,8 @@ std::vector<RecordingSummary> listRecordings(const std::string& path) {
         r.startedUtc = q.column(2);
         r.steps = static_cast<long>(sqlite3_column_int64(q.s, 7));
         r.complete = sqlite3_column_int(q.s, 8) != 0;
+        if (uuid) r.uuid = q.column(9);
+        if (r.steps < 0) throw std::runtime_error("session " + std::to_string(r.id) + " in " + path + " has a negative step count");
         out.push_back(std::move(r));
       }
       if (rc != SQLITE_DONE) throw std::runtime_error(std::string("the recordings in ") + path + " cannot be read: " + sqlite3_errmsg(db));
@@ -743,16 +421,32 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
       if (sqlite3_step(q.s) != SQLITE_ROW) throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
       r.setup = decodeSetup(q.column(0));
       r.checksumEvery = sqlite3_column_int(q.s, 1);
+      if (r.checksumEvery < 1) throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has no checksum interval");
     }
     {
-      Statement q(db, "SELECT event FROM rehearsal_events WHERE session = ? ORDER BY seq");
+      Statement q(db, "SELECT event, step FROM rehearsal_events WHERE session = ? ORDER BY seq");
       sqlite3_bind_int64(q.s, 1, id);
-      while (sqlite3_step(q.s) == SQLITE_ROW) r.events.push_back(decodeEvent(q.column(0)));
+      while (sqlite3_step(q.s) == SQLITE_ROW) {
+        r.events.push_back(decodeEvent(q.column(0)));
+        // The events apply at step boundaries in order: a step going back or beyond the session cannot be replayed.
+        const long step = r.events.back().step;
+        if (step != sqlite3_column_int64(q.s, 1) || (r.events.size() > 1 && step < r.events[r.events.size() - 2].step))
+          throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has its events out of order (damaged)");
+      }
     }
     {
       Statement q(db, "SELECT step, checksum FROM rehearsal_checksums WHERE session = ? ORDER BY step");
       sqlite3_bind_int64(q.s, 1, id);
-      while (sqlite3_step(q.s) == SQLITE_ROW) r.checksums[static_cast<long>(sqlite3_column_int64(q.s, 0))] = std::stoull(q.column(1));
+      while (sqlite3_step(q.s) == SQLITE_ROW) {
+        const std::string text = q.column(1);
+        char* end = nullptr;
+        errno = 0;
+        const unsigned long long sum = std::strtoull(text.c_str(), &end, 10);
+        const long step = static_cast<long>(sqlite3_column_int64(q.s, 0));
+        if (text.empty() || errno != 0 || *end != '\0' || step < 1)
+          throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has a damaged checksum (step " + std::to_string(step) + ")");
+        r.checksums[step] = sum;
+      }
     }
     if (hasTable(db, "rehearsal_checkpoints")) {
       Statement q(db, "SELECT step FROM rehearsal_checkpoints WHERE session = ? ORDER BY step");
@@ -953,10 +647,26 @@ int copyRecordings(const std::string& from, const std::string& to) {
     quoted += ch;
     if (ch == '\'') quoted += '\'';
   }
-  run(kSchema);
+  try {
+    ensureSchema(db);
+  } catch (const std::exception& e) {
+    sqlite3_close(db);
+    throw std::runtime_error(std::string("the recorded sessions could not be carried into the saved case: ") + e.what());
+  }
+  bool prevUuid = false;
+  {
+    sqlite3* src = openStore(from, false);
+    prevUuid = hasColumn(src, "rehearsal_sessions", "uuid");
+    sqlite3_close(src);
+  }
   run("ATTACH DATABASE '" + quoted + "' AS prev");
   run("BEGIN");
-  run("INSERT INTO rehearsal_sessions SELECT * FROM prev.rehearsal_sessions");
+  // Every session with its identity (one recorded before identities existed gets one here).
+  run(std::string("INSERT INTO rehearsal_sessions(id, trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, "
+                  "checksum_every, steps, complete, uuid) SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, "
+                  "checksum_every, steps, complete, ") +
+      (prevUuid ? "CASE WHEN uuid IS NULL OR uuid = '' THEN lower(hex(randomblob(16))) ELSE uuid END" : "lower(hex(randomblob(16)))") +
+      " FROM prev.rehearsal_sessions");
   run("INSERT INTO rehearsal_events SELECT * FROM prev.rehearsal_events");
   run("INSERT INTO rehearsal_checksums SELECT * FROM prev.rehearsal_checksums");
   {

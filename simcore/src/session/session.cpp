@@ -515,7 +515,12 @@ void Session::apply(const InputEvent& e, std::string& message) {
       else if (e.name == "density") setup_.material.density = e.value;
       else if (e.name == "dt") setup_.settings.timeStep = e.value;
       else if (e.name == "method") setup_.settings.method = static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 3));
-      else if (e.name == "model") setup_.material.model = static_cast<MaterialModel>(static_cast<int>(e.value));
+      else if (e.name == "model" && e.value >= 0 && e.value <= static_cast<int>(MaterialModel::NeoHookeanSplit))
+        setup_.material.model = static_cast<MaterialModel>(static_cast<int>(e.value));
+      else if (e.name == "model") {
+        message = "Unknown material law " + std::to_string(e.value) + "; it was not applied.";
+        break;
+      }
       else {
         message = "Unknown parameter '" + e.name + "'; it was not applied.";
         break;

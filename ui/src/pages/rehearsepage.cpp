@@ -164,6 +164,9 @@ RehearsePage::~RehearsePage() = default;
 
 void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!f) return;
+  // A new session (a new organ, case, reset or recording) starts its counts from nothing.
+  if (f->steps < lastSteps_ || f->steps == 0) slips_ = cuts_ = vesselCuts_ = 0;
+  lastSteps_ = f->steps;
   slips_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "slip"));
   cuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "cut"));
   vesselCuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "vessel cut"));
@@ -187,6 +190,8 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!f->message.isEmpty() && f->message.contains(tr("vessel"))) status(f->message);
   labelThrottle_->request();  // the labels at most 15 times a second, the newest always shown
 }
+
+QString RehearsePage::trainee() const { return trainee_->text().trimmed(); }
 
 void RehearsePage::showRecording(bool on, const QString& text) {
   recordButton_->setChecked(on);

@@ -22,9 +22,11 @@ namespace rehearse::ui {
 inline constexpr int kCaseSchemaVersion = 2;
 inline constexpr const char* kCaseSuffix = "rehearse";
 
-/// Writes `c` to `path` atomically. Throws std::runtime_error with one sentence; the file at `path`
-/// is then unchanged.
-void saveCaseFile(const app::Case& c, const QString& path);
+/// Writes `c` to `path` atomically. The rehearsals recorded in `recordingsFrom` (the case file the case was
+/// opened from or last saved to; empty: none) are carried into it, every session with its identity: a Save As
+/// carries them to the new file, a save over the same file keeps them. Throws std::runtime_error with one
+/// sentence; the file at `path` is then unchanged.
+void saveCaseFile(const app::Case& c, const QString& path, const QString& recordingsFrom = {});
 
 /// Reads a case file. Parts that cannot be read are described in `notes` and left empty. Throws
 /// std::runtime_error with one sentence when the file is not a readable case at all.

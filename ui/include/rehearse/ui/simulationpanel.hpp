@@ -137,7 +137,10 @@ class SimulationPanel : public QWidget {
   void stopRecording();
   bool recording() const { return recorder_ != nullptr || recordPending_; }
   qint64 recordingId() const;
-  /// The case file was saved anew (replaced): the recording goes on into the new file.
+  /// Before the case file is saved (copied and replaced): the recorder commits, empties its WAL and closes the
+  /// file; the steps meanwhile are kept in memory until caseFileReplaced().
+  void suspendRecording();
+  /// The case file was saved anew (replaced), or the save ended: the recording goes on into `file`.
   void caseFileReplaced(const QString& file);
 
  signals:
@@ -147,6 +150,8 @@ class SimulationPanel : public QWidget {
   void frameShown(long steps);
   /// The recording could not go on (one sentence); the simulation goes on.
   void recordingStopped(const QString& why);
+  /// Reset while recording: the recorded session ended and the run from rest is recorded as a new session.
+  void recordingRestarted(const QString& text);
 
  private:
   struct FrameContext;
@@ -169,6 +174,7 @@ class SimulationPanel : public QWidget {
 
   std::shared_ptr<simcore::Session> session_;
   std::shared_ptr<app::Recorder> recorder_;   ///< while recording: written from the session's thread (step hook)
+  std::optional<RecordRequest> recordRequest_;  ///< what is being recorded (a reset starts a new session with it)
   bool recordPending_ = false;                ///< the recorded session is being built
   bool cancelRecord_ = false;                 ///< ... and the recording was stopped meanwhile
   std::shared_ptr<std::atomic<bool>> recorderFailed_ = std::make_shared<std::atomic<bool>>(false);

@@ -8,7 +8,9 @@
 //
 // Tables (created when absent; a case file's own tables are untouched):
 //   rehearsal_sessions(id, trainee, started_utc, case_name, scene_version, app_version, notes, setup,
-//                      time_step, checksum_every, steps, complete)
+//                      time_step, checksum_every, steps, complete, uuid)
+//                      -- id: this file's row number (restarts at 1 in every file); uuid: the session's identity
+//                      across files (a copy keeps it; a file recorded before it existed gets one when copied)
 //   rehearsal_events(session, seq, step, event)        -- event: JSON, doubles to the last bit
 //   rehearsal_checksums(session, step, checksum)       -- after step `step`, FNV-1a 64 of (x, v, time)
 //   rehearsal_checkpoints(session, step, setup_hash, state) -- the complete state after `step` (binary: positions,
@@ -43,6 +45,14 @@ std::string encodeSetup(const simcore::BodySetup& s);
 simcore::BodySetup decodeSetup(const std::string& json);
 std::string encodeEvent(const simcore::InputEvent& e);
 simcore::InputEvent decodeEvent(const std::string& json);
+/// What makes a decoded setup unusable (node indices out of range, sizes that disagree, an unknown enum, a
+/// number that is not finite or outside its range), in one sentence; empty when it can be simulated. A
+/// recording, a checkpoint or a database row is untrusted input: every decoder runs it.
+std::string setupProblem(const simcore::BodySetup& s);
+/// The same for a recorded event (an unknown kind or parameter, a value outside its range, no number).
+std::string eventProblem(const simcore::InputEvent& e);
+/// A new random identity for a recorded session (32 hex digits).
+std::string newSessionUuid();
 
 struct SessionMeta {
   std::string trainee;       ///< name or id
@@ -71,11 +81,20 @@ class Recorder {
   long checkpoints() const { return checkpoints_; }
   /// Marks the session complete with its step count and commits.
   void finish(long steps);
-  /// The file was replaced by a new one holding a copy of the recordings (a case saved anew, written beside
-  /// and renamed over it): writes go on into `path`, and what the copy missed (written after it, uncommitted
-  /// then) is written again: every event and checksum; checkpoints of that moment may be missing.
+  /// Before the file is copied and replaced (a case saved anew, written beside and renamed over it): commits,
+  /// checkpoints the WAL into the file and closes it, so that the copy holds everything written so far and no
+  /// connection pairs the new file with the old WAL. Steps meanwhile are kept in memory (events, checksums,
+  /// checkpoints) until reopen().
+  void suspend();
+  bool suspended() const;
+  /// The file was replaced by a new one holding a copy of the recordings: writes go on into `path`, into the
+  /// session with this recorder's uuid (its row number there may differ), and what the copy missed is written
+  /// (what was kept while suspended; every event and checksum when the copy has not got the session at all).
+  /// Throws std::runtime_error with one sentence; the recorder is then closed (nothing half-open) and refuses
+  /// further steps with that sentence.
   void reopen(const std::string& path);
   std::string path() const;
+  std::string uuid() const { return uuid_; }
   long lastStep() const {
     std::lock_guard<std::mutex> lock(mutex_);
     return lastStep_;
@@ -84,12 +103,30 @@ class Recorder {
  private:
   void exec(const char* sql);
   void commitIfDue(bool force);
+  void open(const std::string& path);
+  void closeStore();
+  void writeCheckpoint(long step, std::uint64_t hash, const std::string& bytes);
+  void writeSetup(std::uint64_t hash, const std::string& text);
   void afterStepLocked(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state);
   mutable std::mutex mutex_;
   std::string path_;
   std::vector<std::pair<long, std::uint64_t>> checksumsWritten_;  // all of them (8 bytes per N steps): rewritten after a reopen
   long lastStep_ = 0;
   bool finished_ = false;
+  std::string uuid_;
+  SessionMeta meta_;
+  std::string startedUtc_;
+  std::string setupText_;          // the session's row again when a copy lost it
+  double timeStep_ = 0;
+  bool suspended_ = false;
+  std::string broken_;             // why the recorder cannot write any more (a reopen that failed)
+  struct Kept {                    // checkpoints (and their new setups) taken while suspended
+    long step;
+    std::uint64_t hash;
+    std::string bytes;
+  };
+  std::vector<Kept> keptCheckpoints_;
+  std::vector<std::pair<std::uint64_t, std::string>> keptSetups_;
   sqlite3* db_ = nullptr;
   struct Statements;
   std::unique_ptr<Statements> statements_;  // prepared once, used at every step
@@ -105,6 +142,7 @@ class Recorder {
 
 struct RecordingSummary {
   std::int64_t id = 0;
+  std::string uuid;  ///< the session's identity across files (empty in a file recorded before it existed)
   SessionMeta meta;
   std::string startedUtc;
   long steps = 0;  ///< the last step recorded

@@ -50,6 +50,8 @@ class RehearsePage : public StepPage {
   void setRecordHandlers(RecordHandlers h) { record_ = std::move(h); }
   /// Shows whether a session is being recorded (and which), or why it stopped.
   void showRecording(bool on, const QString& text);
+  /// The trainee's name as typed (recorded with the session, whichever way the recording is started).
+  QString trainee() const;
 
  protected:
   void showEvent(QShowEvent* e) override;
@@ -68,6 +70,7 @@ class RehearsePage : public StepPage {
   QString forceText_;
   std::unique_ptr<Throttle> labelThrottle_;
   int slips_ = 0, cuts_ = 0, vesselCuts_ = 0;
+  long lastSteps_ = 0;  ///< the last frame's step: a smaller one is a new session
   RecordHandlers record_;
   QPushButton* recordButton_ = nullptr;
   QLineEdit* trainee_ = nullptr;

@@ -1,0 +1,588 @@
+// The codecs of recorded rehearsals (setups and events as JSON, checkpoints as bytes) and their validation: no
+// SQLite and no simulation here, so that the fuzzers (tests/fuzz) build them alone.
+#include "recording_codec.hpp"
+
+#include "rehearse/app/recording.hpp"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cerrno>
+#include <climits>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <random>
+#include <stdexcept>
+
+namespace rehearse::app {
+namespace {
+
+using nlohmann::json;
+
+// A field added to these structs must be recorded too: these sizes stop the build until encodeSetup knows it.
+static_assert(sizeof(simcore::MaterialParams) == 32, "MaterialParams changed: record the new field in encodeSetup/decodeSetup");
+static_assert(sizeof(simcore::CutSettings) == 32, "CutSettings changed: record the new field in encodeSetup/decodeSetup");
+
+std::uint64_t fnv(std::uint64_t h, const void* data, std::size_t n) {
+  const auto* p = static_cast<const unsigned char*>(data);
+  for (std::size_t i = 0; i < n; ++i) {
+    h ^= p[i];
+    h *= 1099511628211ULL;
+  }
+  return h;
+}
+
+json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+Eigen::Vector3d vec(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
+// Integers from untrusted JSON: a float or a number out of range is refused (a cast of either is undefined).
+long long asInteger(const json& j, long long lo, long long hi) {
+  if (!j.is_number_integer()) throw std::runtime_error("a whole number was expected");
+  if (j.is_number_unsigned() ? j.get<unsigned long long>() > static_cast<unsigned long long>(hi) : (j.get<long long>() < lo || j.get<long long>() > hi))
+    throw std::runtime_error("a whole number is out of range");
+  return j.get<long long>();
+}
+int asInt(const json& j) { return static_cast<int>(asInteger(j, INT32_MIN, INT32_MAX)); }
+std::vector<int> asInts(const json& j) {
+  std::vector<int> out;
+  out.reserve(j.size());
+  for (const auto& v : j) out.push_back(asInt(v));
+  return out;
+}
+template <std::size_t N>
+std::array<int, N> asIntArray(const json& j) {
+  if (!j.is_array() || j.size() != N) throw std::runtime_error("an index tuple has the wrong length");
+  std::array<int, N> a;
+  for (std::size_t i = 0; i < N; ++i) a[i] = asInt(j[i]);
+  return a;
+}
+
+json material(const simcore::MaterialParams& m) {
+  return {{"model", static_cast<int>(m.model)}, {"young", m.young}, {"poisson", m.poisson}, {"density", m.density}};
+}
+simcore::MaterialParams material(const json& j) {
+  simcore::MaterialParams m;
+  m.model = static_cast<simcore::MaterialModel>(asInt(j.at("model")));
+  m.young = j.at("young");
+  m.poisson = j.at("poisson");
+  m.density = j.at("density");
+  return m;
+}
+
+json settings(const simcore::SimulationSettings& s) {
+  return {{"timeStep", s.timeStep},
+          {"gravity", vec(s.gravity)},
+          {"rayleighMass", s.rayleighMass},
+          {"rayleighStiffness", s.rayleighStiffness},
+          {"maxNewtonIterations", s.maxNewtonIterations},
+          {"tolerance", s.tolerance},
+          {"staticStepTolerance", s.staticStepTolerance},
+          {"staticChord", s.staticChord},
+          {"lineSearch", s.lineSearch},
+          {"solver", static_cast<int>(s.solver)},
+          {"simplicialFactor", s.simplicialFactor},
+          {"cgMaxIterations", s.cgMaxIterations},
+          {"cgTolerance", s.cgTolerance},
+          {"maxRetries", s.maxRetries},
+          {"method", static_cast<int>(s.method)},
+          {"attachments", static_cast<int>(s.attachments)},
+          {"gaussSeidelIterations", s.gaussSeidelIterations},
+          {"gaussSeidelTolerance", s.gaussSeidelTolerance},
+          {"reportEnergy", s.reportEnergy},
+          {"refreshResidual", s.refreshResidual},
+          {"factorRefresh", static_cast<int>(s.factorRefresh)},
+          {"linearisedTolerance", s.linearisedTolerance},
+          {"strict", s.strict},
+          {"inversionGuard", s.inversionGuard}};
+}
+simcore::SimulationSettings settings(const json& j) {
+  simcore::SimulationSettings s;
+  s.timeStep = j.at("timeStep");
+  s.gravity = vec(j.at("gravity"));
+  s.rayleighMass = j.at("rayleighMass");
+  s.rayleighStiffness = j.at("rayleighStiffness");
+  s.maxNewtonIterations = asInt(j.at("maxNewtonIterations"));
+  s.tolerance = j.at("tolerance");
+  s.staticStepTolerance = j.at("staticStepTolerance");
+  s.staticChord = j.at("staticChord");
+  s.lineSearch = j.at("lineSearch");
+  s.solver = static_cast<simcore::LinearSolverKind>(asInt(j.at("solver")));
+  s.simplicialFactor = j.at("simplicialFactor");
+  s.cgMaxIterations = asInt(j.at("cgMaxIterations"));
+  s.cgTolerance = j.at("cgTolerance");
+  s.maxRetries = asInt(j.at("maxRetries"));
+  s.method = static_cast<simcore::NewtonMethod>(asInt(j.at("method")));
+  s.attachments = static_cast<simcore::AttachmentMode>(asInt(j.at("attachments")));
+  s.gaussSeidelIterations = asInt(j.at("gaussSeidelIterations"));
+  s.gaussSeidelTolerance = j.at("gaussSeidelTolerance");
+  s.reportEnergy = j.at("reportEnergy");
+  s.refreshResidual = j.at("refreshResidual");
+  s.factorRefresh = static_cast<simcore::FactorRefresh>(asInt(j.at("factorRefresh")));
+  // Sessions recorded before these existed ran without the inversion guard and the strict/inexact choice (they were strict).
+  s.linearisedTolerance = j.value("linearisedTolerance", s.linearisedTolerance);
+  s.strict = j.value("strict", true);
+  s.inversionGuard = j.value("inversionGuard", false);
+  return s;
+}
+
+// Bytes of a checkpoint's state: plain values in this machine's order (a recording replays on the build
+// that made it), each array preceded by its length; reading checks every length against what is left.
+struct Bytes {
+  std::string b;
+  template <class T>
+  void pod(const T& v) {
+    b.append(reinterpret_cast<const char*>(&v), sizeof v);
+  }
+  void vec(const Eigen::VectorXd& v) {
+    pod(static_cast<std::int64_t>(v.size()));
+    b.append(reinterpret_cast<const char*>(v.data()), sizeof(double) * static_cast<std::size_t>(v.size()));
+  }
+  void v3(const Eigen::Vector3d& v) { b.append(reinterpret_cast<const char*>(v.data()), 3 * sizeof(double)); }
+};
+struct Reader {
+  const char* p;
+  const char* end;
+  void need(std::size_t n) const {
+    if (static_cast<std::size_t>(end - p) < n) throw std::runtime_error("a recorded checkpoint is cut short");
+  }
+  template <class T>
+  T pod() {
+    need(sizeof(T));
+    T v;
+    std::memcpy(&v, p, sizeof v);
+    p += sizeof v;
+    return v;
+  }
+  std::size_t count(std::size_t each) {
+    const auto n = pod<std::int64_t>();
+    if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / each) throw std::runtime_error("a recorded checkpoint has a bad length");
+    return static_cast<std::size_t>(n);
+  }
+  Eigen::VectorXd vec() {
+    const std::size_t n = count(sizeof(double));
+    Eigen::VectorXd v(static_cast<Eigen::Index>(n));
+    std::memcpy(v.data(), p, n * sizeof(double));
+    p += n * sizeof(double);
+    return v;
+  }
+  Eigen::Vector3d v3() {
+    need(3 * sizeof(double));
+    Eigen::Vector3d v;
+    std::memcpy(v.data(), p, 3 * sizeof(double));
+    p += 3 * sizeof(double);
+    return v;
+  }
+};
+constexpr std::uint32_t kCheckpointMagic = 0x314B4352;  // "RCK1"
+
+}  // namespace
+
+std::uint64_t stateChecksum(const simcore::SimulationState& s) {
+  std::uint64_t h = 14695981039346656037ULL;
+  h = fnv(h, s.x.data(), sizeof(double) * static_cast<std::size_t>(s.x.size()));
+  h = fnv(h, s.v.data(), sizeof(double) * static_cast<std::size_t>(s.v.size()));
+  return fnv(h, &s.time, sizeof s.time);
+}
+
+// Fields a checkpoint carries: a new one must be written too.
+static_assert(sizeof(simcore::SimulationState::Lagged) == 64, "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::ToolState) == 224, "ToolState changed: record the new field in encodeCheckpointState");
+
+namespace {
+void writeProgress(Bytes& o, const simcore::CutProgress& p) {
+  o.pod(static_cast<std::int64_t>(p.pendingFaces.size()));
+  for (const auto& f : p.pendingFaces)
+    for (int n : f) o.pod(static_cast<std::int32_t>(n));
+  o.pod(static_cast<std::int64_t>(p.nodes.size()));
+  for (int n : p.nodes) o.pod(static_cast<std::int32_t>(n));
+  o.pod(static_cast<std::int64_t>(p.sweeps.size()));
+  for (const auto& w : p.sweeps)
+    for (const auto* v : {&w.a0, &w.b0, &w.a1, &w.b1}) o.v3(*v);
+}
+simcore::CutProgress readProgress(Reader& r) {
+  simcore::CutProgress p;
+  p.pendingFaces.resize(r.count(3 * sizeof(std::int32_t)));
+  for (auto& f : p.pendingFaces)
+    for (int& n : f) n = r.pod<std::int32_t>();
+  p.nodes.resize(r.count(sizeof(std::int32_t)));
+  for (int& n : p.nodes) n = r.pod<std::int32_t>();
+  p.sweeps.resize(r.count(12 * sizeof(double)));
+  for (auto& w : p.sweeps)
+    for (auto* v : {&w.a0, &w.b0, &w.a1, &w.b1}) *v = r.v3();
+  return p;
+}
+}  // namespace
+
+simcore::BodySetup sharedSetup(const simcore::BodySetup& s) {
+  simcore::BodySetup o = s;
+  o.cut.clear();
+  return o;
+}
+
+namespace detail {
+// The checkpoint's bytes with its setups' hashes (the recorder has them already).
+std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHashValue, std::uint64_t pendingSetupHash) {
+  Bytes o;
+  o.pod(kCheckpointMagic);
+  o.pod(static_cast<std::int64_t>(c.step));
+  o.pod(setupHashValue);
+  writeProgress(o, c.setup.cut);
+  const auto& s = c.state;
+  o.vec(s.x);
+  o.vec(s.v);
+  o.pod(s.time);
+  o.pod(static_cast<std::uint8_t>(s.lagged.valid));
+  o.vec(s.lagged.at);
+  o.pod(s.lagged.step);
+  o.pod(static_cast<std::uint8_t>(s.lagged.refresh));
+  o.pod(static_cast<std::uint8_t>(s.lagged.drift));
+  o.pod(static_cast<std::uint8_t>(s.lagged.requested));
+  o.vec(s.lagged.requestedAt);
+  o.pod(s.lagged.requestedStep);
+  o.vec(s.forces);
+  o.pod(static_cast<std::uint8_t>(s.forcesValid));
+  const auto& t = c.tool;
+  o.v3(t.tip);
+  o.pod(static_cast<std::uint8_t>(t.jawClosed));
+  o.pod(static_cast<std::int64_t>(t.held.size()));
+  for (int n : t.held) o.pod(static_cast<std::int32_t>(n));
+  o.pod(static_cast<std::int64_t>(t.heldOffset.size()));
+  for (const auto& v : t.heldOffset) o.v3(v);
+  o.pod(static_cast<std::uint8_t>(t.cutting));
+  o.v3(t.cutFrom);
+  o.v3(t.force);
+  o.b.append(reinterpret_cast<const char*>(t.stiffness.data()), 9 * sizeof(double));
+  o.pod(static_cast<std::uint8_t>(t.present));
+  o.pod(static_cast<std::int32_t>(t.contacts));
+  o.pod(static_cast<std::int32_t>(t.pierced));
+  o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
+  if (c.restOfSweep) {
+    o.v3(c.restOfSweep->first);
+    o.v3(c.restOfSweep->second);
+  }
+  o.pod(static_cast<std::uint8_t>(c.pendingCut.has_value()));
+  if (const auto& p = c.pendingCut) {
+    o.pod(pendingSetupHash);
+    writeProgress(o, p->setup.cut);
+    o.pod(static_cast<std::int64_t>(p->newNodes.size()));
+    for (const auto& n : p->newNodes) {
+      for (int f : n.from) o.pod(static_cast<std::int32_t>(f));
+      for (double w : n.weight) o.pod(w);
+    }
+    o.pod(static_cast<std::int64_t>(p->cutLabels.size()));
+    for (int l : p->cutLabels) o.pod(static_cast<std::int32_t>(l));
+    o.vec(p->factorAt);
+    o.pod(static_cast<std::uint8_t>(p->clearProgress));
+  }
+  return o.b;
+}
+}  // namespace detail
+
+std::string encodeCheckpointState(const simcore::Checkpoint& c) {
+  return detail::encodeCheckpoint(c, setupHash(c.setup), c.pendingCut ? setupHash(c.pendingCut->setup) : 0);
+}
+
+simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t)>& setupOf) {
+  simcore::Checkpoint c;
+  Reader r{bytes.data(), bytes.data() + bytes.size()};
+  if (r.pod<std::uint32_t>() != kCheckpointMagic) throw std::runtime_error("a recorded checkpoint is not in a known format");
+  c.step = static_cast<long>(r.pod<std::int64_t>());
+  c.setup = setupOf(r.pod<std::uint64_t>());
+  c.setup.cut = readProgress(r);
+  auto& s = c.state;
+  s.x = r.vec();
+  s.v = r.vec();
+  s.time = r.pod<double>();
+  s.lagged.valid = r.pod<std::uint8_t>() != 0;
+  s.lagged.at = r.vec();
+  s.lagged.step = r.pod<double>();
+  s.lagged.refresh = r.pod<std::uint8_t>() != 0;
+  s.lagged.drift = r.pod<std::uint8_t>() != 0;
+  s.lagged.requested = r.pod<std::uint8_t>() != 0;
+  s.lagged.requestedAt = r.vec();
+  s.lagged.requestedStep = r.pod<double>();
+  s.forces = r.vec();
+  s.forcesValid = r.pod<std::uint8_t>() != 0;
+  auto& t = c.tool;
+  t.tip = r.v3();
+  t.jawClosed = r.pod<std::uint8_t>() != 0;
+  t.held.resize(r.count(sizeof(std::int32_t)));
+  for (auto& n : t.held) n = r.pod<std::int32_t>();
+  t.heldOffset.resize(r.count(3 * sizeof(double)));
+  for (auto& v : t.heldOffset) v = r.v3();
+  t.cutting = r.pod<std::uint8_t>() != 0;
+  t.cutFrom = r.v3();
+  t.force = r.v3();
+  r.need(9 * sizeof(double));
+  std::memcpy(t.stiffness.data(), r.p, 9 * sizeof(double));
+  r.p += 9 * sizeof(double);
+  t.present = r.pod<std::uint8_t>() != 0;
+  t.contacts = r.pod<std::int32_t>();
+  t.pierced = r.pod<std::int32_t>();
+  if (r.pod<std::uint8_t>()) {
+    const Eigen::Vector3d from = r.v3();
+    c.restOfSweep = std::make_pair(from, r.v3());
+  }
+  if (r.pod<std::uint8_t>()) {
+    simcore::PendingCutInput p;
+    p.setup = setupOf(r.pod<std::uint64_t>());
+    p.setup.cut = readProgress(r);
+    p.newNodes.resize(r.count(4 * sizeof(std::int32_t) + 4 * sizeof(double)));
+    for (auto& n : p.newNodes) {
+      for (int& f : n.from) f = r.pod<std::int32_t>();
+      for (double& w : n.weight) w = r.pod<double>();
+    }
+    p.cutLabels.resize(r.count(sizeof(std::int32_t)));
+    for (int& l : p.cutLabels) l = r.pod<std::int32_t>();
+    p.factorAt = r.vec();
+    p.clearProgress = r.pod<std::uint8_t>() != 0;
+    c.pendingCut = std::move(p);
+  }
+  if (r.p != r.end) throw std::runtime_error("a recorded checkpoint has trailing bytes");
+  if (s.v.size() != s.x.size() || (s.forcesValid && s.forces.size() != s.x.size()) || (s.lagged.valid && s.lagged.at.size() != s.x.size()) ||
+      (s.lagged.requested && s.lagged.requestedAt.size() != s.x.size()))
+    throw std::runtime_error("a recorded checkpoint's vectors disagree in size");
+  // Node indices within the body (a damaged file must not reach the simulation as indices out of range).
+  const std::size_t n = c.setup.rest.empty() ? c.setup.mesh.points.size() : c.setup.rest.size();
+  if (static_cast<std::size_t>(s.x.size()) != 3 * n) throw std::runtime_error("a recorded checkpoint does not fit its body's nodes");
+  auto inRange = [n](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
+  bool ok = t.heldOffset.size() == t.held.size() && std::all_of(t.held.begin(), t.held.end(), inRange) &&
+            std::all_of(c.setup.cut.nodes.begin(), c.setup.cut.nodes.end(), inRange);
+  for (const auto& f : c.setup.cut.pendingFaces) ok = ok && std::all_of(f.begin(), f.end(), inRange);
+  auto sweepsFinite = [](const simcore::CutProgress& p) {
+    return std::all_of(p.sweeps.begin(), p.sweeps.end(), [](const auto& w) { return w.a0.allFinite() && w.b0.allFinite() && w.a1.allFinite() && w.b1.allFinite(); });
+  };
+  ok = ok && sweepsFinite(c.setup.cut) && (!c.pendingCut || sweepsFinite(c.pendingCut->setup.cut));
+  if (!ok || !s.x.allFinite() || !s.v.allFinite()) throw std::runtime_error("a recorded checkpoint names nodes its body has not, or holds no number");
+  if (!t.tip.allFinite() || !t.cutFrom.allFinite() || !t.force.allFinite() || !t.stiffness.allFinite() || !std::isfinite(s.time) || t.contacts < 0 ||
+      t.pierced < 0 || (c.restOfSweep && (!c.restOfSweep->first.allFinite() || !c.restOfSweep->second.allFinite())))
+    throw std::runtime_error("a recorded checkpoint's instrument holds no number");
+  if (const auto& p = c.pendingCut) {
+    // The cut body's new nodes are made from the body's present nodes; the cut body has both.
+    const std::size_t m = p->setup.rest.empty() ? p->setup.mesh.points.size() : p->setup.rest.size();
+    bool fits = m == n + p->newNodes.size() && (p->factorAt.size() == 0 || static_cast<std::size_t>(p->factorAt.size()) == 3 * m) && p->factorAt.allFinite();
+    for (const auto& k : p->newNodes)
+      for (std::size_t j = 0; j < 4; ++j) fits = fits && (k.from[j] == -1 || inRange(k.from[j])) && std::isfinite(k.weight[j]);
+    auto inCut = [m](int i) { return i >= 0 && static_cast<std::size_t>(i) < m; };
+    fits = fits && std::all_of(p->setup.cut.nodes.begin(), p->setup.cut.nodes.end(), inCut);
+    for (const auto& f : p->setup.cut.pendingFaces) fits = fits && std::all_of(f.begin(), f.end(), inCut);
+    if (!fits) throw std::runtime_error("a recorded checkpoint's cut under way does not fit its body");
+  }
+  return c;
+}
+
+std::uint64_t setupHash(const simcore::BodySetup& s) {
+  std::uint64_t h = 14695981039346656037ULL;
+  auto arr = [&h](const auto& v) {
+    const std::size_t n = v.size();
+    h = fnv(h, &n, sizeof n);
+    if (n) h = fnv(h, v.data(), n * sizeof(v[0]));
+  };
+  arr(s.mesh.points);
+  arr(s.mesh.tets);
+  arr(s.mesh.tetLabels);
+  arr(s.mesh.triangles);
+  arr(s.mesh.triangleLabels);
+  arr(s.rest);
+  arr(s.fixedNodes);
+  // The small rest through its text (materials, settings, tools, topology).
+  simcore::BodySetup light;
+  light.material = s.material;
+  light.byLabel = s.byLabel;
+  light.settings = s.settings;
+  light.tools = s.tools;
+  light.topology = s.topology;
+  light.mesh.unitToMetre = s.mesh.unitToMetre;
+  light.mesh.labelNames = s.mesh.labelNames;
+  const std::string text = encodeSetup(light);
+  return fnv(h, text.data(), text.size());
+}
+
+std::string encodeSetup(const simcore::BodySetup& s) {
+  if (!s.cut.sweeps.empty() || !s.cut.nodes.empty() || !s.cut.pendingFaces.empty())
+    throw std::runtime_error("a recording starts from a body without a cut in progress");
+  json j;
+  json pts = json::array(), tets = json::array(), tris = json::array(), names = json::array();
+  for (const auto& p : s.mesh.points) pts.push_back(vec(p));
+  for (const auto& t : s.mesh.tets) tets.push_back(t);
+  for (const auto& t : s.mesh.triangles) tris.push_back(t);
+  for (const auto& [label, name] : s.mesh.labelNames) names.push_back({label, name});
+  j["mesh"] = {{"points", pts}, {"tets", tets}, {"tetLabels", s.mesh.tetLabels}, {"triangles", tris}, {"triangleLabels", s.mesh.triangleLabels},
+               {"labelNames", names}, {"unitToMetre", s.mesh.unitToMetre}};
+  json rest = json::array();
+  for (const auto& p : s.rest) rest.push_back(vec(p));
+  j["rest"] = rest;
+  j["fixedNodes"] = s.fixedNodes;
+  j["material"] = material(s.material);
+  json byLabel = json::array();
+  for (const auto& [label, m] : s.byLabel) byLabel.push_back({{"label", label}, {"material", material(m)}});
+  j["byLabel"] = byLabel;
+  j["settings"] = settings(s.settings);
+  const auto& t = s.tools;
+  j["tools"] = {{"graspRadius", t.graspRadius}, {"maxGraspForce", t.maxGraspForce}, {"bladeLength", t.bladeLength}, {"toolRadius", t.toolRadius},
+                {"cut", {{"snap", t.cut.snap}, {"minQuality", t.cut.minQuality}, {"minVolumeFraction", t.cut.minVolumeFraction}, {"snapFront", t.cut.snapFront}}}};
+  if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
+  j["topology"] = s.topology;
+  j["format"] = "rehearse-setup-1";
+  return j.dump();
+}
+
+simcore::BodySetup decodeSetup(const std::string& text) {
+  try {
+    const json j = json::parse(text);
+    if (j.value("format", "") != "rehearse-setup-1") throw std::runtime_error("unknown format");
+    simcore::BodySetup s;
+    const auto& m = j.at("mesh");
+    for (const auto& p : m.at("points")) s.mesh.points.push_back(vec(p));
+    for (const auto& t : m.at("tets")) s.mesh.tets.push_back(asIntArray<4>(t));
+    s.mesh.tetLabels = asInts(m.at("tetLabels"));
+    for (const auto& t : m.at("triangles")) s.mesh.triangles.push_back(asIntArray<3>(t));
+    s.mesh.triangleLabels = asInts(m.at("triangleLabels"));
+    for (const auto& n : m.at("labelNames")) s.mesh.labelNames.emplace_back(asInt(n.at(0)), n.at(1).get<std::string>());
+    s.mesh.unitToMetre = m.at("unitToMetre");
+    for (const auto& p : j.at("rest")) s.rest.push_back(vec(p));
+    s.fixedNodes = asInts(j.at("fixedNodes"));
+    s.material = material(j.at("material"));
+    for (const auto& b : j.at("byLabel")) s.byLabel[asInt(b.at("label"))] = material(b.at("material"));
+    s.settings = settings(j.at("settings"));
+    const auto& t = j.at("tools");
+    s.tools.graspRadius = t.at("graspRadius");
+    s.tools.maxGraspForce = t.at("maxGraspForce");
+    s.tools.bladeLength = t.at("bladeLength");
+    s.tools.toolRadius = t.at("toolRadius");
+    s.tools.cut.snap = t.at("cut").at("snap");
+    s.tools.cut.minQuality = t.at("cut").at("minQuality");
+    s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");
+    s.tools.cut.snapFront = t.at("cut").at("snapFront");
+    if (t.contains("trocar")) s.tools.trocar = vec(t.at("trocar"));
+    s.topology = asInt(j.at("topology"));
+    if (const std::string why = setupProblem(s); !why.empty()) throw std::runtime_error(why);
+    return s;
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("the recorded setup cannot be read (") + e.what() + ")");
+  }
+}
+
+std::string encodeEvent(const simcore::InputEvent& e) {
+  return json{{"kind", static_cast<int>(e.kind)}, {"wallTime", e.wallTime}, {"step", e.step}, {"tool", e.tool}, {"label", e.label},
+              {"position", vec(e.position)}, {"vector", vec(e.vector)}, {"on", e.on}, {"name", e.name}, {"value", e.value}}
+      .dump();
+}
+
+simcore::InputEvent decodeEvent(const std::string& text) {
+  try {
+    const json j = json::parse(text);
+    simcore::InputEvent e;
+    e.kind = static_cast<simcore::InputKind>(asInt(j.at("kind")));
+    e.wallTime = j.at("wallTime");
+    e.step = static_cast<long>(asInteger(j.at("step"), -1, 1LL << 40));
+    e.tool = asInt(j.at("tool"));
+    e.label = asInt(j.at("label"));
+    e.position = vec(j.at("position"));
+    e.vector = vec(j.at("vector"));
+    e.on = j.at("on");
+    e.name = j.at("name");
+    e.value = j.at("value");
+    if (const std::string why = eventProblem(e); !why.empty()) throw std::runtime_error(why);
+    return e;
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("a recorded event cannot be read (") + e.what() + ")");
+  }
+}
+
+namespace {
+bool finite(double v) { return std::isfinite(v); }
+bool finite(const Eigen::Vector3d& v) { return v.allFinite(); }
+std::string materialProblem(const simcore::MaterialParams& m, const std::string& whose) {
+  const int model = static_cast<int>(m.model);
+  if (model < 0 || model > static_cast<int>(simcore::MaterialModel::NeoHookeanSplit)) return whose + " has an unknown material law (" + std::to_string(model) + ")";
+  if (!finite(m.young) || m.young <= 0) return whose + "'s Young's modulus is not a positive number";
+  if (!finite(m.poisson) || m.poisson <= -1 || m.poisson >= 0.5) return whose + "'s Poisson ratio is outside (-1, 0.5)";
+  if (!finite(m.density) || m.density <= 0) return whose + "'s density is not a positive number";
+  return {};
+}
+template <class Enum>
+bool inEnum(Enum e, Enum last) {
+  const int v = static_cast<int>(e);
+  return v >= 0 && v <= static_cast<int>(last);
+}
+}  // namespace
+
+std::string setupProblem(const simcore::BodySetup& s) {
+  const auto& m = s.mesh;
+  const std::size_t n = m.points.size();
+  if (n == 0 || m.tets.empty()) return "the body has no nodes or no elements";
+  if (!s.rest.empty() && s.rest.size() != n) return "the body's rest positions (" + std::to_string(s.rest.size()) + ") do not match its nodes (" + std::to_string(n) + ")";
+  if (!std::all_of(m.points.begin(), m.points.end(), [](const Eigen::Vector3d& p) { return finite(p); }) ||
+      !std::all_of(s.rest.begin(), s.rest.end(), [](const Eigen::Vector3d& p) { return finite(p); }))
+    return "a node's position is not a number";
+  auto inRange = [n](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
+  for (std::size_t e = 0; e < m.tets.size(); ++e)
+    if (!std::all_of(m.tets[e].begin(), m.tets[e].end(), inRange)) return "element " + std::to_string(e) + " names a node the body has not";
+  for (std::size_t e = 0; e < m.triangles.size(); ++e)
+    if (!std::all_of(m.triangles[e].begin(), m.triangles[e].end(), inRange)) return "surface triangle " + std::to_string(e) + " names a node the body has not";
+  if (!m.tetLabels.empty() && m.tetLabels.size() != m.tets.size()) return "the element labels do not match the elements";
+  if (!m.triangleLabels.empty() && m.triangleLabels.size() != m.triangles.size()) return "the triangle labels do not match the triangles";
+  if (!std::all_of(s.fixedNodes.begin(), s.fixedNodes.end(), inRange)) return "an attachment names a node the body has not";
+  if (!finite(m.unitToMetre) || m.unitToMetre <= 0) return "the mesh's unit is not a positive number";
+  if (auto p = materialProblem(s.material, "the organ"); !p.empty()) return p;
+  for (const auto& [label, mat] : s.byLabel)
+    if (auto p = materialProblem(mat, "label " + std::to_string(label)); !p.empty()) return p;
+  const auto& t = s.settings;
+  if (!finite(t.timeStep) || t.timeStep <= 0 || t.timeStep > 10) return "the time step is not between 0 and 10 s";
+  if (!finite(t.gravity) || !finite(t.rayleighMass) || !finite(t.rayleighStiffness) || t.rayleighMass < 0 || t.rayleighStiffness < 0)
+    return "gravity or damping is not a number (or negative damping)";
+  if (t.maxNewtonIterations < 1 || t.maxNewtonIterations > 10000 || t.cgMaxIterations < 0 || t.cgMaxIterations > 1000000 || t.maxRetries < 0 ||
+      t.maxRetries > 60 || t.gaussSeidelIterations < 0 || t.gaussSeidelIterations > 1000000)
+    return "an iteration count of the solver is out of range";
+  if (!finite(t.tolerance) || t.tolerance <= 0 || !finite(t.cgTolerance) || t.cgTolerance < 0 || !finite(t.staticStepTolerance) ||
+      !finite(t.gaussSeidelTolerance) || !finite(t.refreshResidual) || !finite(t.linearisedTolerance) || t.linearisedTolerance <= 0)
+    return "a tolerance of the solver is not a positive number";
+  if (!inEnum(t.solver, simcore::LinearSolverKind::Dense) || !inEnum(t.method, simcore::NewtonMethod::Linearised) ||
+      !inEnum(t.attachments, simcore::AttachmentMode::Lagrange) || !inEnum(t.factorRefresh, simcore::FactorRefresh::Deferred))
+    return "the solver, method, attachment or refresh setting is not one this version knows";
+  const auto& tool = s.tools;
+  for (double v : {tool.graspRadius, tool.maxGraspForce, tool.bladeLength, tool.toolRadius, tool.cut.snap, tool.cut.minQuality, tool.cut.minVolumeFraction})
+    if (!finite(v) || v < 0) return "an instrument setting is not a non-negative number";
+  if (tool.trocar && !finite(*tool.trocar)) return "the trocar is not a point";
+  if (s.topology < 0) return "the topology version is negative";
+  return {};
+}
+
+std::string eventProblem(const simcore::InputEvent& e) {
+  if (!inEnum(e.kind, simcore::InputKind::CutApplied)) return "an event of an unknown kind (" + std::to_string(static_cast<int>(e.kind)) + ")";
+  if (!finite(e.wallTime) || !finite(e.position) || !finite(e.vector) || !finite(e.value)) return "an event holds no number";
+  if (e.step < 0) return "an event has no step";
+  if (e.tool < 0 || e.tool > 1000) return "an event names an unknown instrument";
+  if (e.kind == simcore::InputKind::Parameter) {
+    const std::string& k = e.name;
+    const double v = e.value;
+    if (k == "young") {
+      if (!(v > 0 || (e.label > 0 && v == 0))) return "a recorded Young's modulus is not positive";
+    } else if (k == "poisson") {
+      if (!(v > -1 && v < 0.5)) return "a recorded Poisson ratio is outside (-1, 0.5)";
+    } else if (k == "density") {
+      if (!(v > 0)) return "a recorded density is not positive";
+    } else if (k == "dt") {
+      if (!(v > 0 && v <= 10)) return "a recorded time step is not between 0 and 10 s";
+    } else if (k == "method") {
+      if (!(v >= 0 && v <= static_cast<int>(simcore::NewtonMethod::Linearised) && v == std::floor(v))) return "a recorded method is not one this version knows";
+    } else if (k == "model") {
+      if (!(v >= 0 && v <= static_cast<int>(simcore::MaterialModel::NeoHookeanSplit) && v == std::floor(v))) return "a recorded material law is not one this version knows";
+    } else {
+      return "a recorded parameter '" + k + "' is not one this version knows";
+    }
+    if (e.label < 0) return "a recorded parameter names a negative label";
+  }
+  return {};
+}
+
+std::string newSessionUuid() {
+  std::random_device rd;
+  char buf[33];
+  for (int i = 0; i < 4; ++i) std::snprintf(buf + 8 * i, 9, "%08x", static_cast<unsigned>(rd()));
+  return std::string(buf, 32);
+}
+
+
+}  // namespace rehearse::app
