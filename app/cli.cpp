@@ -927,7 +927,11 @@ int cmdReplay(const std::vector<std::string>& args) {
   const auto verdicts = judge(replayed.metrics, thresholds);
   if (o.count("metrics")) {
     nlohmann::json j = {{"session", id}, {"trainee", rec.summary.meta.trainee}, {"started_utc", rec.summary.startedUtc},
-                        {"force_threshold_n", replayed.metrics.forceThresholdN}};
+                        {"force_threshold_n", replayed.metrics.forceThresholdN},
+                        {"replay_verified", replayVerified(replayed.verify)},
+                        {"replay_check", replayCheckSentence(replayed.verify)},
+                        {"checksums", replayed.verify.checked},
+                        {"checksums_differing", replayed.verify.mismatches}};
     for (const auto& v : metricValues(replayed.metrics)) {
       j[v.name] = !v.value ? nlohmann::json(nullptr) : v.count ? nlohmann::json(std::lround(*v.value)) : nlohmann::json(*v.value);
       if (!v.value) j[v.name + "_why"] = v.why;
@@ -944,6 +948,7 @@ int cmdReplay(const std::vector<std::string>& args) {
     writeReport(o["metrics"], j);
     std::printf("metrics written to %s\n", o["metrics"].c_str());
   }
+  if (!o.count("verify") && !replayVerified(replayed.verify)) std::printf("replay check: %s\n", replayCheckSentence(replayed.verify).c_str());
   for (const auto& v : verdicts)
     std::printf("%s: %s (%s)\n", v.metric.name.c_str(), resultWord(v.result), v.metric.value ? std::to_string(*v.metric.value).c_str() : v.metric.why.c_str());
   if (o.count("video") || o.count("report")) {

@@ -27,8 +27,11 @@
 #include <QTemporaryDir>
 
 #include <opencv2/videoio.hpp>
+#include <sqlite3.h>
 
+#include <QComboBox>
 #include <QLabel>
+#include <QTableWidget>
 #include <random>
 #include <set>
 
@@ -339,6 +342,73 @@ class TestReviewGui : public QObject {
       }
     qInfo("reset ended session %lld, recorded on as %lld; saved as %s mid-recording:%s", static_cast<long long>(beforeReset),
           static_cast<long long>(afterReset), qPrintable(QFileInfo(other).fileName()), qPrintable(lines));
+  }
+
+  // Issue 32, the trainer's side: a session whose replay does not reproduce its recording says so in the review window
+  // (title and the metrics' first row); the review's keys work while its session list has the keyboard focus; a session
+  // recorded while the window is open is listed at once.
+  void reviewSaysWhatDoesNotVerify() {
+    const QString path = w_->caseFilePath();
+    const auto before = app::listRecordings(path.toStdString());
+    QVERIFY(before.size() >= 2);
+    {  // a changed checksum in session 1 (the file could come from another machine)
+      sqlite3* db = nullptr;
+      QCOMPARE(sqlite3_open(path.toUtf8().constData(), &db), SQLITE_OK);
+      QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checksums SET checksum = '12345' WHERE session = 1 AND step = 100", nullptr, nullptr, nullptr), SQLITE_OK);
+      QCOMPARE(sqlite3_changes(db), 1);
+      sqlite3_close(db);
+    }
+    QTest::mouseClick(child<QPushButton>("reviewButton"), Qt::LeftButton);
+    ui::ReviewWindow* review = nullptr;
+    for (QWidget* t : QApplication::topLevelWidgets())
+      if (auto* r = qobject_cast<ui::ReviewWindow*>(t); r && r->isVisible()) review = r;
+    QVERIFY(review);
+    QVERIFY(QTest::qWaitForWindowExposed(review));
+    review->openSession(0, 1);
+    QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
+    auto shows = [&](const QString& text) {
+      for (auto* l : review->findChildren<QLabel*>())
+        if (l->isVisible() && l->text().contains(text)) return true;
+      return false;
+    };
+    QVERIFY2(shows("DOES NOT VERIFY: 1 of"), "the review window's title says the session does not verify");
+    auto* table = review->findChildren<QTableWidget*>().value(0);
+    QVERIFY(table);
+    QCOMPARE(table->item(0, 0)->text(), QStringLiteral("replay check"));
+    QCOMPARE(table->item(0, 2)->text(), QStringLiteral("DOES NOT VERIFY"));
+    review->openSession(0, 2);  // an untouched one
+    QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
+    QVERIFY2(shows("verified: all"), "an untouched session says it verified");
+    QCOMPARE(table = review->findChildren<QTableWidget*>().value(0), table);
+    // The keys with the session list focused (as after choosing a session in it).
+    review->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(review));
+    auto* list = review->findChild<QComboBox*>("firstSession");
+    list->setFocus();
+    QVERIFY(list->hasFocus());
+    QTest::keyClick(list, Qt::Key_End);
+    QCOMPARE(review->stepShown(0), app::loadRecording(path.toStdString(), 2).summary.steps);
+    QTest::keyClick(list, Qt::Key_Home);
+    QCOMPARE(review->stepShown(0), 0L);
+    QTest::keyClick(list, Qt::Key_Space);
+    QVERIFY(review->playing());
+    QTest::keyClick(list, Qt::Key_Space);
+    QVERIFY(!review->playing());
+    QCOMPARE(list->currentData().toLongLong(), 2LL);  // the list itself did not move
+    // A session recorded while the window is open appears in its list.
+    const int listed = list->count();
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    auto* panel = w_->simulationPanel();
+    QTest::mouseClick(child<QPushButton>("recordButton"), Qt::LeftButton);
+    QVERIFY(waitFor([&] { return panel->recordingId() > before.back().id && panel->session()->snapshot()->step > 20; }));
+    QTest::mouseClick(child<QPushButton>("recordButton"), Qt::LeftButton);
+    QVERIFY(!w_->recording());
+    QCOMPARE(list->count(), listed + 1);
+    QCOMPARE(list->currentData().toLongLong(), 2LL);
+    qInfo("review: session 1 with one changed checksum shown as not verifying; End/Home/Space with the session list focused; "
+          "a session recorded meanwhile listed (%d -> %d)", listed, list->count());
+    review->close();
   }
 
   void cleanupTestCase() {

@@ -832,6 +832,8 @@ void MainWindow::buildSimulationMenu() {
 
 bool MainWindow::recording() const { return simulation_->recording(); }
 
+QString MainWindow::caseFilePath() const { return doc_->path(); }
+
 QString MainWindow::startRecording(const QString& trainee) {
   const QString path = doc_->path();
   if (path.isEmpty() || !path.endsWith(QStringLiteral(".rehearse"), Qt::CaseInsensitive))
@@ -859,6 +861,7 @@ void MainWindow::stopRecording() {
   const QString text = tr("Recorded session %1 in %2; review it with Ctrl+Shift+R.").arg(id).arg(QFileInfo(doc_->path()).fileName());
   pages_.rehearse->showRecording(false, text);
   say(text);
+  for (auto* review : findChildren<ReviewWindow*>()) review->refreshSessions();  // open review windows list it at once
 }
 
 ReviewWindow* MainWindow::openReview() {

@@ -304,6 +304,16 @@ int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const s
   return frames;
 }
 
+bool replayVerified(const VerifyResult& v) { return v.checked > 0 && v.mismatches == 0; }
+
+std::string replayCheckSentence(const VerifyResult& v) {
+  if (v.checked == 0) return "not verified: the session holds no checksum to compare its replay with";
+  if (v.mismatches)
+    return "DOES NOT VERIFY: " + std::to_string(v.mismatches) + " of " + std::to_string(v.checked) + " checksums differ, the first after step " +
+           std::to_string(v.firstMismatch) + " - what is shown is not the run that was recorded (another build or kind of machine, or a damaged file)";
+  return "verified: all " + std::to_string(v.checked) + " checksums match (bit-exact replay holds for the same build on the same kind of machine)";
+}
+
 ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds, Replayer& replayer,
                               const ReviewRenderer& renderer) {
   ReviewReport out;
@@ -317,10 +327,7 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
                {"Notes", s.meta.notes},
                {"Steps", std::to_string(result.verify.steps) + (s.complete ? "" : " (the session was cut short)")}};
   const auto& v = result.verify;
-  out.facts.push_back({"Replay check", v.checked == 0 ? std::string("no checksum recorded: not verified")
-                                       : v.mismatches ? std::to_string(v.mismatches) + " of " + std::to_string(v.checked) +
-                                                            " checksums differ (first after step " + std::to_string(v.firstMismatch) + ")"
-                                                      : "all " + std::to_string(v.checked) + " checksums match"});
+  out.facts.push_back({"Replay check", replayCheckSentence(v)});
   out.metrics = metricValues(result.metrics);
   out.verdicts = judge(result.metrics, thresholds);
   out.timeline = result.timeline;

@@ -2,6 +2,7 @@
 
 #include "rehearse/ui/reviewreport.hpp"
 
+#include <QAction>
 #include <QApplication>
 #include <QComboBox>
 #include <QDateTime>
@@ -17,9 +18,12 @@
 #include <QMouseEvent>
 #include <QPainter>
 #include <QPainterPath>
+#include <QProgressDialog>
 #include <QPushButton>
+#include <QSignalBlocker>
 #include <QSplitter>
 #include <QStatusBar>
+#include <QSysInfo>
 #include <QTableWidget>
 #include <QTimer>
 #include <QToolBar>
@@ -227,6 +231,30 @@ void ReviewWindow::build(const QString& title) {
   timer_ = new QTimer(this);
   timer_->setInterval(33);
   connect(timer_, &QTimer::timeout, this, &ReviewWindow::tick);
+  // The review's keys are actions of this window: they work whichever of its widgets has the keyboard focus (a session
+  // list that took the focus swallowed Space, Home and End), and they are not the main window's (Home there fits the frame).
+  auto key = [this](QKeySequence sequence, std::function<void()> f) {
+    auto* a = new QAction(this);
+    a->setShortcut(sequence);
+    a->setShortcutContext(Qt::WindowShortcut);
+    connect(a, &QAction::triggered, this, std::move(f));
+    addAction(a);
+  };
+  key(Qt::Key_Space, [this] { setPlaying(!playing_); });
+  key(Qt::Key_Left, [this] { stepBy(-1); });
+  key(Qt::Key_Right, [this] { stepBy(1); });
+  key(QKeySequence(Qt::SHIFT | Qt::Key_Left), [this] { stepBy(-10); });
+  key(QKeySequence(Qt::SHIFT | Qt::Key_Right), [this] { stepBy(10); });
+  key(Qt::Key_Home, [this] {
+    setPlaying(false);
+    seekTime(0);
+  });
+  key(Qt::Key_End, [this] {
+    setPlaying(false);
+    seekTime(duration(0));
+  });
+  key(Qt::Key_V, [this] { setThreeD(!threeD_); });
+  for (QComboBox* c : {first_, second_, speed_}) c->setFocusPolicy(Qt::ClickFocus);
   fillSessionLists();
   connect(first_, &QComboBox::activated, this, [this](int) { openSession(0, first_->currentData().toLongLong()); });
   connect(second_, &QComboBox::activated, this, [this](int) { openSession(1, second_->currentData().toLongLong()); });
@@ -242,12 +270,23 @@ ReviewWindow::~ReviewWindow() {
     }
 }
 
+void ReviewWindow::refreshSessions() {
+  const qint64 a = first_->currentData().toLongLong(), b = second_->currentData().toLongLong();
+  const std::size_t before = sessions_.size();
+  fillSessionLists();
+  // The lists keep what they showed.
+  if (const int i = first_->findData(a); i >= 0) first_->setCurrentIndex(i);
+  if (const int i = second_->findData(b); i >= 0) second_->setCurrentIndex(i);
+  if (sessions_.size() > before && status_->text().contains(tr("holds no recorded session"))) openSession(0, sessions_.back().id);
+}
+
 void ReviewWindow::fillSessionLists() {
   try {
     sessions_ = list_();
   } catch (const std::exception& e) {
     status_->setText(QString::fromStdString(e.what()));
   }
+  const QSignalBlocker b1(first_), b2(second_);
   first_->clear();
   second_->clear();
   second_->addItem(tr("(none)"), qint64(0));
@@ -294,7 +333,10 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
   a->table->horizontalHeader()->setStretchLastSection(true);
   a->table->verticalHeader()->hide();
   a->table->setEditTriggers(QAbstractItemView::NoEditTriggers);
-  a->table->setMaximumHeight(260);
+  a->table->horizontalHeader()->setSectionResizeMode(0, QHeaderView::ResizeToContents);
+  a->table->horizontalHeader()->setSectionResizeMode(1, QHeaderView::ResizeToContents);
+  a->table->setMinimumHeight(200);
+  a->table->setMaximumHeight(420);
   v->addWidget(a->title);
   v->addWidget(a->view, 1);
   v->addWidget(a->timelineView);
@@ -321,6 +363,18 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
       raw->timelineView->timeline = &raw->result.timeline;
       raw->timelineView->threshold = raw->result.metrics.forceThresholdN;
       raw->ready = true;
+      // Whether this replay is the run that was recorded, in the attempt's title (red when it is not).
+      const auto& s = raw->recording.summary;
+      const bool verified = app::replayVerified(raw->result.verify);
+      raw->title->setText(tr("<b>Session %1</b> - %2 - %3<br><span style=\"color:%4\">%5</span>")
+                              .arg(s.id)
+                              .arg(QString::fromStdString(s.meta.trainee).toHtmlEscaped())
+                              .arg(QString::fromStdString(s.startedUtc))
+                              .arg(verified ? QStringLiteral("#60c060") : QStringLiteral("#ff5050"))
+                              .arg((QString::fromStdString(app::replayCheckSentence(raw->result.verify)) +
+                                    tr(" - replayed here, on %1").arg(QSysInfo::machineHostName()))
+                                       .toHtmlEscaped()));
+      raw->title->setWordWrap(true);
       fillMetrics(*raw);
     } catch (const std::exception& e) {
       raw->error = QString::fromStdString(e.what());
@@ -465,21 +519,35 @@ void ReviewWindow::fillMetrics(ReviewAttempt& a) {
   // Once per replay and per change of the thresholds (not per frame).
   const auto values = app::metricValues(a.result.metrics);
   const auto verdicts = app::judge(a.result.metrics, thresholds_);
-  a.table->setRowCount(static_cast<int>(values.size()));
+  a.table->setRowCount(static_cast<int>(values.size()) + 1);
+  // The first row: whether the metrics below are the recorded run's at all.
+  {
+    const bool verified = app::replayVerified(a.result.verify);
+    const auto& v = a.result.verify;
+    a.table->setItem(0, 0, new QTableWidgetItem(tr("replay check")));
+    auto* value = new QTableWidgetItem(verified ? tr("%1 of %1 checksums match").arg(v.checked)
+                                                : v.checked ? tr("%1 of %2 checksums differ").arg(v.mismatches).arg(v.checked) : tr("no checksum"));
+    value->setToolTip(QString::fromStdString(app::replayCheckSentence(v)));
+    a.table->setItem(0, 1, value);
+    auto* word = new QTableWidgetItem(verified ? tr("verified") : v.checked ? tr("DOES NOT VERIFY") : tr("not verified"));
+    word->setForeground(verified ? QColor(30, 150, 30) : QColor(220, 40, 40));
+    a.table->setItem(0, 2, word);
+  }
   for (int i = 0; i < static_cast<int>(values.size()); ++i) {
     const auto& m = values[static_cast<std::size_t>(i)];
-    a.table->setItem(i, 0, new QTableWidgetItem(QString::fromStdString(m.name)));
+    const int row = i + 1;
+    a.table->setItem(row, 0, new QTableWidgetItem(QString::fromStdString(m.name)));
     auto* value = new QTableWidgetItem(m.value ? QString::number(*m.value, 'g', 5) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
                                                : tr("not determined"));
     if (!m.value) value->setToolTip(QString::fromStdString(m.why));
-    a.table->setItem(i, 1, value);
+    a.table->setItem(row, 1, value);
     QString verdict;
     for (const auto& v : verdicts)
       if (v.metric.name == m.name) verdict = app::resultWord(v.result);
     auto* item = new QTableWidgetItem(verdict);
     if (verdict == "fail") item->setForeground(QColor(220, 40, 40));
     if (verdict == "pass") item->setForeground(QColor(30, 150, 30));
-    a.table->setItem(i, 2, item);
+    a.table->setItem(row, 2, item);
   }
 }
 
@@ -500,6 +568,7 @@ QString ReviewWindow::exportFirst(const std::function<QString(ReviewAttempt&, ap
     status_->setText(write(*a, replayer, a->renderer(threeD_)));
   } catch (const std::exception& e) {
     err = QString::fromStdString(e.what());
+    if (err == QLatin1String("cancelled")) err = tr("The export was cancelled; the partial file was left as it is.");
   }
   QApplication::restoreOverrideCursor();
   return err;
@@ -508,7 +577,18 @@ QString ReviewWindow::exportFirst(const std::function<QString(ReviewAttempt&, ap
 QString ReviewWindow::exportVideo(const QString& path, double from, double to) {
   return exportFirst([&](ReviewAttempt& a, app::Replayer& replayer, const app::ReviewRenderer& r) {
     const long first = a.stepAt(from);
-    const int frames = app::writeReviewVideo(replayer, r, a.result.timeline, first, std::max(a.stepAt(to), first + 1), 25, path.toStdString());
+    // Progress and cancel (a long session takes seconds); the dialog is modal to this window only.
+    QProgressDialog progress(tr("Writing the video..."), tr("Cancel"), 0, 100, this);
+    progress.setWindowModality(Qt::WindowModal);
+    progress.setMinimumDuration(300);
+    const int frames = app::writeReviewVideo(replayer, r, a.result.timeline, first, std::max(a.stepAt(to), first + 1), 25, path.toStdString(),
+                                             [&progress](int done, int total) {
+                                               progress.setMaximum(total);
+                                               progress.setValue(done);
+                                               progress.setLabelText(tr("Writing the video: frame %1 of %2").arg(done).arg(total));
+                                               QCoreApplication::processEvents(QEventLoop::ExcludeUserInputEvents);
+                                               return !progress.wasCanceled();
+                                             });
     return tr("Video of %1 frames written to %2").arg(frames).arg(path);
   });
 }
@@ -521,45 +601,11 @@ QString ReviewWindow::exportReport(const QString& path) {
 }
 
 bool ReviewWindow::event(QEvent* e) {
-  // The review's own keys are not shortcuts of the main window it belongs to (Home there fits the frame).
-  if (e->type() == QEvent::ShortcutOverride) {
-    const auto* k = static_cast<QKeyEvent*>(e);
-    const bool plain = !(k->modifiers() & ~(Qt::ShiftModifier | Qt::KeypadModifier));
-    if (plain && (k->key() == Qt::Key_Space || k->key() == Qt::Key_Left || k->key() == Qt::Key_Right || k->key() == Qt::Key_Home ||
-                  k->key() == Qt::Key_End || k->key() == Qt::Key_V)) {
-      e->accept();
-      return true;
-    }
-  }
+  // Sessions recorded while the window was open are listed when it is activated again.
+  if (e->type() == QEvent::WindowActivate) refreshSessions();
   return QMainWindow::event(e);
 }
 
-void ReviewWindow::keyPressEvent(QKeyEvent* e) {
-  const int n = e->modifiers() & Qt::ShiftModifier ? 10 : 1;
-  switch (e->key()) {
-    case Qt::Key_Space:
-      setPlaying(!playing_);
-      return;
-    case Qt::Key_Left:
-      stepBy(-n);
-      return;
-    case Qt::Key_Right:
-      stepBy(n);
-      return;
-    case Qt::Key_Home:
-      setPlaying(false);
-      seekTime(0);
-      return;
-    case Qt::Key_End:
-      setPlaying(false);
-      seekTime(duration(0));
-      return;
-    case Qt::Key_V:
-      setThreeD(!threeD_);
-      return;
-    default:
-      QMainWindow::keyPressEvent(e);
-  }
-}
+void ReviewWindow::keyPressEvent(QKeyEvent* e) { QMainWindow::keyPressEvent(e); }  // the review's keys are actions (build)
 
 }  // namespace rehearse::ui

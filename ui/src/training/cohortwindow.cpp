@@ -105,6 +105,7 @@ void CohortWindow::fill() {
                              "time_over_threshold_s", "max_strain"};
   QStringList headers = {tr("session"), tr("trainee"), tr("started (UTC)"), tr("case")};
   headers += shown;
+  headers += tr("replay verified");
   table_->clear();
   table_->setColumnCount(headers.size());
   table_->setHorizontalHeaderLabels(headers);
@@ -125,6 +126,10 @@ void CohortWindow::fill() {
       const auto v = metricOf(s, shown[k]);
       table_->setItem(row, 4 + k, new QTableWidgetItem(v ? QString::number(*v, 'g', 4) : tr("n/d")));
     }
+    // Where its replay was verified (a session opened here is replayed and verified again, and the review says so).
+    auto* verified = new QTableWidgetItem(s.verifiedOn.isEmpty() ? tr("at publishing (machine not kept)") : s.verifiedOn);
+    verified->setToolTip(tr("Bit-exact replay holds for the same build on the same kind of machine; opening the session replays and verifies it here."));
+    table_->setItem(row, 4 + static_cast<int>(shown.size()), verified);
   }
   table_->resizeColumnsToContents();
   // The chosen metric over each trainee's attempts.

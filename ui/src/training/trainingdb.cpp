@@ -8,6 +8,7 @@
 #include <QSqlDatabase>
 #include <QSqlError>
 #include <QSqlQuery>
+#include <QSysInfo>
 #include <QVariant>
 
 #include <atomic>
@@ -29,7 +30,16 @@ constexpr const char* kSchema[] = {
     "setup TEXT NOT NULL, PRIMARY KEY(uid, hash))",
     "CREATE TABLE IF NOT EXISTS rehearse_checkpoints(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE CASCADE, step BIGINT NOT NULL, "
     "setup_hash TEXT NOT NULL, state BYTEA NOT NULL, PRIMARY KEY(uid, step))",
+    // Where its replay was verified before it was published (bit-exact replay holds for the same build on the same
+    // kind of machine): a receiving machine verifies again when it opens the session and says where it did.
+    "ALTER TABLE rehearse_sessions ADD COLUMN IF NOT EXISTS verified_on TEXT",
 };
+
+// This machine and build, as a verification names them.
+QString thisMachine() {
+  return QStringLiteral("%1 (%2, %3, Rehearse %4)")
+      .arg(QSysInfo::machineHostName(), QSysInfo::currentCpuArchitecture(), QSysInfo::prettyProductName(), QStringLiteral(REHEARSE_VERSION));
+}
 
 std::runtime_error dbError(const std::string& what, const QSqlError& e) {
   QString text = e.text().simplified();
@@ -154,12 +164,13 @@ TrainingDatabase::PublishReport TrainingDatabase::publish(const QString& caseFil
       }
       QSqlQuery q(db);
       q.prepare(QStringLiteral("INSERT INTO rehearse_sessions(uid, trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, "
-                               "checksum_every, steps, complete, metrics) VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)"));
+                               "checksum_every, steps, complete, metrics, verified_on) VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)"));
       for (const QVariant& v : {QVariant(uid), QVariant(QString::fromStdString(s.meta.trainee)), QVariant(QString::fromStdString(s.startedUtc)),
                                 QVariant(QString::fromStdString(s.meta.caseName)), QVariant(QString::fromStdString(s.meta.sceneVersion)),
                                 QVariant(QString::fromStdString(s.meta.appVersion)), QVariant(QString::fromStdString(s.meta.notes)),
                                 QVariant(QString::fromStdString(rows.setup)), QVariant(rec.setup.settings.timeStep), QVariant(rec.checksumEvery),
-                                QVariant(static_cast<qlonglong>(s.steps)), QVariant(true), QVariant(QString::fromStdString(metrics.dump()))})
+                                QVariant(static_cast<qlonglong>(s.steps)), QVariant(true), QVariant(QString::fromStdString(metrics.dump())),
+                                QVariant(QStringLiteral("all %1 checksums match on %2").arg(replayed.verify.checked).arg(thisMachine()))})
         q.addBindValue(v);
       run(q, "the training database refused a session");
       QSqlQuery e(db);
@@ -209,7 +220,7 @@ TrainingDatabase::PublishReport TrainingDatabase::publish(const QString& caseFil
 std::vector<PublishedSession> TrainingDatabase::sessions() {
   QSqlQuery q(d_->db());
   q.prepare(QStringLiteral("SELECT id, uid, trainee, started_utc, case_name, scene_version, app_version, notes, steps, complete, "
-                           "to_char(published_utc AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS\"Z\"'), metrics FROM rehearse_sessions ORDER BY started_utc, id"));
+                           "to_char(published_utc AT TIME ZONE 'UTC', 'YYYY-MM-DD\"T\"HH24:MI:SS\"Z\"'), metrics, verified_on FROM rehearse_sessions ORDER BY started_utc, id"));
   run(q, "the training database cannot be read");
   std::vector<PublishedSession> out;
   while (q.next()) {
@@ -223,6 +234,7 @@ std::vector<PublishedSession> TrainingDatabase::sessions() {
     p.summary.steps = static_cast<long>(q.value(8).toLongLong());
     p.summary.complete = q.value(9).toBool();
     p.publishedUtc = q.value(10).toString();
+    p.verifiedOn = q.value(12).toString();
     try {
       const auto j = nlohmann::json::parse(q.value(11).toString().toStdString());
       for (const auto& m : app::metricValues(app::SessionMetrics{})) {

@@ -99,6 +99,8 @@ class MainWindow : public QMainWindow {
   CaseDocument* document() const { return doc_; }
   /// The case as it is now (never null once a case has loaded).
   const std::shared_ptr<const app::Case>& caseData() const { return doc_->data(); }
+  /// The case file the case lives in (opened from or last saved to); empty when it has none yet.
+  QString caseFilePath() const;
   QUndoStack* undoStack() { return doc_->undoStack(); }
   /// Applies an edit to a copy of the case as one undoable command (same non-negative mergeId: one step).
   void editCase(const QString& text, const std::function<void(app::Case&)>& edit, int mergeId = -1) { doc_->edit(text, edit, mergeId); }

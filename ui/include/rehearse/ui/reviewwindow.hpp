@@ -59,6 +59,8 @@ class ReviewWindow : public QMainWindow {
   void setThreeD(bool on);
   /// Writes attempt 0's span [from, to] s as MP4 / its report as PDF; one sentence on error, empty on success.
   QString exportVideo(const QString& path, double from, double to);
+  /// Lists the sessions again (ones recorded meanwhile appear), keeping what is shown; also done on activation.
+  void refreshSessions();
   QString exportReport(const QString& path);
   QString statusText() const;
   QImage viewImage(int attempt) const;

@@ -30,6 +30,7 @@ struct PublishedSession {
   QString uid;
   app::RecordingSummary summary;
   QString publishedUtc;
+  QString verifiedOn;  ///< where its replay was verified before publishing ("all 35 checksums match on HOST (...)"); empty: published before this was kept
   std::vector<app::MetricValue> metrics;  ///< as computed at publishing (force threshold 10 N)
 };
 
