@@ -1,6 +1,6 @@
 #pragma once
 // Simulation presets: the four cases of DejaVu (eye, kidney, liver, uterus; materials from its table,
-// geometry of the built-in phantom or of any loaded organ, density from the case's mass), hung by the
+// geometry of the built-in phantom or of any loaded organ, density of the tissue (mass from the organ's volume)), hung by the
 // organ's attachment nodes, and SOFA's liver.scn on ../shared/data/sofa/liver.msh.
 #include "phantom/phantom.hpp"
 

@@ -182,9 +182,10 @@ class TestCaseFile : public QObject {
       rec.finish(20);
       id = rec.id();
     }
-    ui::saveCaseFile(ui::loadCaseFile(path), path);
+    ui::saveCaseFile(ui::loadCaseFile(path), path, path);  // saved over itself: the recordings come from the file it lives in
     const auto sessions = app::listRecordings(QFile::encodeName(path).toStdString());
     QCOMPARE(sessions.size(), std::size_t(1));
+    QCOMPARE(sessions.front().uuid.size(), std::size_t(32));
     QCOMPARE(sessions.front().meta.trainee, std::string("trainee"));
     const auto v = app::verifyRecording(app::loadRecording(QFile::encodeName(path).toStdString(), id));
     QCOMPARE(v.checked, 4L);
@@ -198,6 +199,16 @@ class TestCaseFile : public QObject {
     QCOMPARE(replayer.lastSeekFrom(), 16L);
     QCOMPARE(app::stateChecksum(replayer.state()), rec.checksums.at(20));
     compareCases(phantomCase(), ui::loadCaseFile(path));
+    // Save As to another file carries them (with their identity); a file saved over with no source holds none of
+    // the target's old sessions (the target is replaced, not merged).
+    const QString other = QString::fromStdString(tempPath("recorded-as.rehearse"));
+    ui::saveCaseFile(ui::loadCaseFile(path), other, path);
+    const auto carried = app::listRecordings(QFile::encodeName(other).toStdString());
+    QCOMPARE(carried.size(), std::size_t(1));
+    QCOMPARE(carried.front().uuid, sessions.front().uuid);
+    QCOMPARE(app::verifyRecording(app::loadRecording(QFile::encodeName(other).toStdString(), carried.front().id)).mismatches, 0L);
+    ui::saveCaseFile(phantomCase(), other);
+    QVERIFY(app::listRecordings(QFile::encodeName(other).toStdString()).empty());
   }
 
   // A child process saves in a loop and is killed with SIGKILL at random moments; each time the file

@@ -237,7 +237,22 @@ class TestWorkflow : public QObject {
     w_->framePage()->showVideoFrame(17);
     QVERIFY(shown.wait(30000) || w_->framePage()->shownVideoFrame() == 17);
     while (w_->framePage()->shownVideoFrame() != 17) QVERIFY(shown.wait(30000));
+    // An outline sketched on the still frame (step 3 done) ...
+    w_->editCase("Sketch (test)", [](app::Case& k) {
+      imaging::ContourSegment seg;
+      seg.points = {{100, 100}, {200, 120}, {300, 160}};
+      k.contour.segments = {seg};
+    });
+    QVERIFY(w_->stepDone(ui::Step::Contour));
     w_->framePage()->useShownFrame();
+    // ... does not belong to another frame (issue 32: it stayed, and step 3 stayed done): it goes, said in a sentence.
+    QVERIFY(w_->caseData()->contour.segments.empty());
+    QVERIFY(!w_->stepDone(ui::Step::Contour));
+    QVERIFY2(w_->messageLog().join(" ").contains("contour sketched on the previous frame was removed"), qPrintable(w_->messageLog().join(" | ")));
+    w_->undoStack()->undo();  // one undo brings the frame and its outline back together
+    QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(1));
+    QCOMPARE(cv::norm(w_->caseData()->frame, img, cv::NORM_INF), 0.0);
+    w_->undoStack()->redo();
     const cv::Vec3b px = w_->caseData()->frame(360, 640);
     QVERIFY2(std::abs(int(px[0]) - 8 * 17) <= 6, qPrintable(QString::number(px[0])));
     // Stepping with the keyboard: '.' shows the next frame.
@@ -246,7 +261,8 @@ class TestWorkflow : public QObject {
     while (w_->framePage()->shownVideoFrame() != 18) QVERIFY(shown.wait(30000));
     shot(*w_, "step2-frame");
     // Back to the phantom's frame for the next steps.
-    for (int i = 0; i < 2; ++i) w_->undoStack()->undo();
+    for (int i = 0; i < 3; ++i) w_->undoStack()->undo();
+    QVERIFY(w_->caseData()->contour.segments.empty());
     QCOMPARE(w_->caseData()->frame.cols, 1280);
     QVERIFY((w_->caseData()->groundTruth != nullptr));
     QCOMPARE(cv::norm(w_->caseData()->frame, img, cv::NORM_INF) > 0, true);

@@ -55,8 +55,8 @@ MainWindow::Renderer& rendererChoice() {
 class SentenceLabel : public QLabel {
  public:
   using QLabel::QLabel;
-  QSize minimumSizeHint() const override { return {60, QLabel::minimumSizeHint().height()}; }
-  QSize sizeHint() const override { return {200, QLabel::sizeHint().height()}; }
+  QSize minimumSizeHint() const override { return {200, QLabel::minimumSizeHint().height()}; }
+  QSize sizeHint() const override { return {std::min(520, fontMetrics().horizontalAdvance(text()) + 8), QLabel::sizeHint().height()}; }
 
  protected:
   void paintEvent(QPaintEvent*) override {
@@ -223,7 +223,10 @@ void MainWindow::buildDocks() {
   addDockWidget(Qt::RightDockWidgetArea, simulationDock_);
   tabifyDockWidget(organDock, simulationDock_);
   organDock->raise();
-  connect(simulation_, &SimulationPanel::statusChanged, status_.simulation, &QLabel::setText);
+  connect(simulation_, &SimulationPanel::statusChanged, this, [this](const QString& text) {
+    status_.simulation->setText(text);
+    status_.simulation->setToolTip(text);  // the whole sentence (the bar shows what fits)
+  });
   liveDrawingTimer_.setSingleShot(true);
   liveDrawingTimer_.setInterval(static_cast<int>(kLiveOverlayMs));
   connect(&liveDrawingTimer_, &QTimer::timeout, this, &MainWindow::drawLiveIfDue);
@@ -231,6 +234,11 @@ void MainWindow::buildDocks() {
   connect(simulation_, &SimulationPanel::frameShown, this, [this] {
     const auto f = simulation_->lastFrame();
     if (pages_.rehearse) pages_.rehearse->showFrame(f);
+    // What happened in the rehearsal (a slip, a vessel cut, a refused edit) is kept in the Messages panel, once each.
+    if (f && !f->message.isEmpty() && f->message != lastSimulationMessage_) {
+      messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));
+    }
+    if (f) lastSimulationMessage_ = f->message;
     if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
       view_->setWarning(f->invertedAt, warningText(*f));
       view_->setLiveShape(f->positions);
@@ -300,8 +308,10 @@ void MainWindow::buildStatusBar() {
     messagesDock_->raise();
   });
   status_.cursor = new QLabel(this);
-  status_.simulation = new QLabel(this);
+  // The simulation's line is bounded (elided, whole in its tooltip) so that the case's sentence keeps its room.
+  status_.simulation = new SentenceLabel(this);
   status_.simulation->setObjectName(QStringLiteral("statusSimulation"));
+  status_.simulation->setMaximumWidth(520);
   status_.distance = new QLabel(this);
   status_.viewMode = new QLabel(this);
   status_.viewMode->setObjectName(QStringLiteral("statusViewMode"));

@@ -416,7 +416,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   form_.poisson = field("simPoisson", tr("Poisson's ratio"), 0, 0.499, 3, QString(), "material", "poisson");
   form_.poisson->setSingleStep(0.01);
   form_.density = field("simDensity", tr("Density"), 1, 20000, 0, tr(" kg/m³"), "material", "density");
-  form_.density->setToolTip(form_.density->toolTip() + tr("\nThe DejaVu presets set it so that the organ weighs the paper's mass."));
+  form_.density->setToolTip(form_.density->toolTip() + tr("\nThe presets set the tissue's density (liver 1,079 kg/m³); the organ's mass follows its volume."));
   form_.mass = new QLabel(this);
   form_.mass->setObjectName(QStringLiteral("simMass"));
   form->addRow(tr("Organ mass"), form_.mass);

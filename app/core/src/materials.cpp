@@ -25,7 +25,6 @@ MaterialSettings materialFromScene(const simcore::Scene& s) {
 }
 
 MaterialSettings presetMaterial(const std::string& name, const Organ& organ) {
-  // The preset needs the volume only for the organ's mass: pass it without copying the mesh twice.
   return materialFromScene(phantom::makePreset(name, organ.volume, {}));
 }
 

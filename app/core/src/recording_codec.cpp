@@ -161,7 +161,7 @@ struct Reader {
   Eigen::VectorXd vec() {
     const std::size_t n = count(sizeof(double));
     Eigen::VectorXd v(static_cast<Eigen::Index>(n));
-    std::memcpy(v.data(), p, n * sizeof(double));
+    if (n) std::memcpy(v.data(), p, n * sizeof(double));  // an empty vector has no storage (memcpy of null is undefined)
     p += n * sizeof(double);
     return v;
   }

@@ -252,7 +252,11 @@ void FramePage::useShownFrame() {
   cv::Mat3b frame = shownFrame_.clone();
   const int shown = shownVideoFrame_;
   const bool fromVideo = video_ != nullptr && videoFrames_ > 0;
+  // The outline was sketched on the frame it replaces: it does not belong to this one (another moment, maybe another
+  // size). It goes with the old frame, in the same undo step, so that step 3 is to be done again.
+  const bool hadContour = !data()->contour.segments.empty();
   wb_.doc->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame](app::Case& k) {
+    k.contour.segments.clear();
     if (k.camera.width != frame.cols || k.camera.height != frame.rows) {
       // A frame of another size keeps no stale calibration: the stated default, editable in the panel.
       k.camera = imaging::Camera::defaultFor(frame.cols, frame.rows);
@@ -262,7 +266,9 @@ void FramePage::useShownFrame() {
     k.contour.width = frame.cols;
     k.contour.height = frame.rows;
   });
-  wb_.status(fromVideo ? tr("Using frame %1 of the video.").arg(shown) : tr("Frame opened."));
+  QString text = fromVideo ? tr("Using frame %1 of the video.").arg(shown) : tr("Frame opened.");
+  if (hadContour) text += tr(" The contour sketched on the previous frame was removed: sketch it on this one (step 3), or Undo to go back to both.");
+  wb_.status(text);
 }
 
 void FramePage::loadCalibration(const QString& path) {

@@ -231,6 +231,7 @@ class MainWindow : public QMainWindow {
   QDockWidget* simulationDock_ = nullptr;
   QPlainTextEdit* info_ = nullptr;
   QPlainTextEdit* messages_ = nullptr;
+  QString lastSimulationMessage_;  ///< the simulation's last sentence logged (each is logged once)
   QDockWidget* messagesDock_ = nullptr;
   StatusParts status_;
   QListWidget* workflow_ = nullptr;

@@ -19,12 +19,12 @@ LabelMaterials labelMaterials(const MaterialSettings& m);
 /// The case's material from a scene's (what `rehearse register --scene/--preset` and the panel's presets give).
 MaterialSettings materialFromScene(const simcore::Scene& s);
 
-/// A DejaVu preset's material on this organ (density from the paper's mass and the organ's volume).
+/// A DejaVu preset's material on this organ (the tissue's density: the mass follows the organ's volume).
 /// Throws simcore::MeshError for an unknown name or an organ without volume.
 MaterialSettings presetMaterial(const std::string& name, const Organ& organ);
 
 /// The material a new organ gets: the DejaVu liver's moduli (vessels 0.62 MPa) with the co-rotational
-/// law, as the elastic fit's benchmarks measured it; density from the paper's 1.2 kg. Edited in the
+/// law, as the elastic fit's benchmarks measured it; the liver tissue's density (1,079 kg/m^3). Edited in the
 /// Simulation panel. An organ without volume gets MaterialSettings's defaults.
 MaterialSettings defaultMaterial(const Organ& organ);
 
