@@ -220,14 +220,22 @@ class TestGrasp : public QObject {
     simcore::VirtualDevice device;
     simcore::ForceLoop loop([&] { return m; }, &device);
     device.setPosition(m.tip + Eigen::Vector3d(0.001, -0.002, 0.004));
-    const Eigen::Vector3d expected = m.force + m.stiffness * Eigen::Vector3d(0.001, -0.002, 0.004);  // (1.28, 1.63, -0.61) N, under the cap
+    const Eigen::Vector3d expected(1.28, 1.63, -0.61);  // N, f0 + K dp worked by hand: (1 + 0.3 - 0.02, 2 + 0.01 - 0.4 + 0.02, -1 - 0.01 + 0.4)
     QVERIFY(expected.norm() < m.maxForce);
     QVERIFY((loop.tick() - expected).norm() < 1e-12);
     QVERIFY((device.rendered() + expected).norm() < 1e-12);
     device.setPosition(m.tip + Eigen::Vector3d(0.02, 0, 0));  // 1 + 6 N along x: capped at 4 N
     const Eigen::Vector3d capped = loop.tick();
     QVERIFY(std::abs(capped.norm() - 4.0) < 1e-12);
-    QVERIFY(capped.normalized().dot((m.force + m.stiffness * Eigen::Vector3d(0.02, 0, 0)).normalized()) > 1 - 1e-12);
+    QVERIFY(capped.normalized().dot(Eigen::Vector3d(7, 2.2, -1).normalized()) > 1 - 1e-12);  // (1 + 6, 2 + 0.2, -1) by hand
+    // Contact (no cap) and a device far from the step's tip (the instrument jumped; on the patient liver, whose CT
+    // coordinates are 0.3 m from the origin, the chart read 18 kN): the model is used no further than its reach.
+    m.maxForce = 0;
+    m.reach = 0.003;
+    device.setPosition(m.tip + Eigen::Vector3d(0.3, 0, 0));
+    QVERIFY((loop.tick() - Eigen::Vector3d(1.9, 2.03, -1.0)).norm() < 1e-12);  // f0 + K (3 mm, 0, 0), not f0 + K (300 mm, 0, 0) = (91, 5, -1)
+    m.reach = 0;
+    QVERIFY((loop.tick() - Eigen::Vector3d(91, 5, -1)).norm() < 1e-9);  // unbounded, as it was
     loop.start();
     QVERIFY(loop.running());
     while (loop.timing().ticks < 50) std::this_thread::sleep_for(std::chrono::milliseconds(5));
@@ -268,6 +276,44 @@ class TestGrasp : public QObject {
     QCOMPARE(torn, 0L);
     QVERIFY(monotone);
     QCOMPARE(cell.load()[16], 2000000.0);
+  }
+
+  // Issue 32: surface that is inside the shaft when it becomes free to touch it — here the blade switched off halfway
+  // through the lobe (cut-across stopped at 0.9 s), which also applies the last cut — was pushed to the shaft's radius
+  // in one step: a one-step spike (7.5 N against a steady 3 N on the liver preset). It is now eased out at the scene's
+  // depenetration speed (20 mm/s): no step after the blade stops exceeds the force the tissue then rests on the shaft
+  // with by 40 % (it swings on it), and that resting force (the physics) is the same either way within 5 %.
+  void contactFreedInsideTheShaftIsEased() {
+    std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    auto run = [&](double speedMmS) {
+      app::GestureScript script = app::parseGestureScript(ss.str());
+      script.toolRadius = 0.0025;
+      script.depenetrationSpeed = 1e-3 * speedMmS;
+      script.duration = 1.5;
+      for (auto& e : script.events)
+        if (e.cut && !*e.cut) e.t = 0.9;  // the blade off with the shaft inside the lobe
+      simcore::BodySetup s = testing::presetBody("liver");
+      s.settings.method = simcore::NewtonMethod::Linearised;
+      return app::runGesture(s, script);
+    };
+    const app::GestureResult atOnce = run(0), eased = run(20);
+    const std::size_t off = 90;  // the step that applies the blade's switch-off (t = 0.9 s)
+    auto force = [](const app::GestureResult& r, std::size_t k) { return r.steps[k].toolForce.norm(); };
+    double peakAtOnce = 0, peakEased = 0;
+    for (std::size_t k = off; k < off + 10; ++k) {
+      peakAtOnce = std::max(peakAtOnce, force(atOnce, k));
+      peakEased = std::max(peakEased, force(eased, k));
+    }
+    const double restingAtOnce = force(atOnce, off + 20), restingEased = force(eased, off + 20);
+    qInfo("blade off inside the lobe: at once, the first 10 steps peak at %.2f N (resting %.2f N 20 steps later); eased at 20 mm/s, %.2f N "
+          "(resting %.2f N)", peakAtOnce, restingAtOnce, peakEased, restingEased);
+    QVERIFY(restingAtOnce > 0.5 && restingEased > 0.5);  // the shaft is inside the organ: it holds part of it
+    QVERIFY2(peakAtOnce > 1.8 * restingAtOnce, "the spike this test is about is no longer there to remove");
+    QVERIFY(peakEased < 1.4 * restingEased);
+    QVERIFY(std::abs(restingEased - restingAtOnce) < 0.05 * restingAtOnce);
+    QCOMPARE(atOnce.failed + eased.failed, std::size_t(0));
   }
 
   // Pulled harder than the scene's maximum grasp force: the tissue slips out, said, and nothing is held.

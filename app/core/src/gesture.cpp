@@ -60,6 +60,7 @@ GestureScript parseGestureScript(const std::string& text) {
     if (t.contains("blade_length_mm")) s.bladeLength = 1e-3 * number(t, "blade_length_mm", 30, 1, 300);
     if (t.contains("trocar")) s.trocar = vec3(t["trocar"], "trocar");
     if (t.contains("tool_radius_mm")) s.toolRadius = 1e-3 * number(t, "tool_radius_mm", 0, 0, 50);
+    if (t.contains("depenetration_speed_mm_s")) s.depenetrationSpeed = 1e-3 * number(t, "depenetration_speed_mm_s", 50, 0, 1e5);
   }
   if (!j.contains("events") || !j["events"].is_array()) throw std::runtime_error("the gesture script has no \"events\" list");
   double last = 0;
@@ -107,6 +108,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   if (script.bladeLength) setup.tools.bladeLength = *script.bladeLength;
   if (script.trocar) setup.tools.trocar = *script.trocar;
   if (script.toolRadius) setup.tools.toolRadius = *script.toolRadius;
+  if (script.depenetrationSpeed) setup.tools.depenetrationSpeed = *script.depenetrationSpeed;
   const double h = setup.settings.timeStep;
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
   if (hooks.start) hooks.start(setup);

@@ -173,7 +173,8 @@ struct Reader {
     return v;
   }
 };
-constexpr std::uint32_t kCheckpointMagic = 0x314B4352;  // "RCK1"
+constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the contact's easing was kept
+constexpr std::uint32_t kCheckpointMagic = 0x324B4352;    // "RCK2": + ToolState::easing
 
 }  // namespace
 
@@ -186,7 +187,7 @@ std::uint64_t stateChecksum(const simcore::SimulationState& s) {
 
 // Fields a checkpoint carries: a new one must be written too.
 static_assert(sizeof(simcore::SimulationState::Lagged) == 64, "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
-static_assert(sizeof(simcore::ToolState) == 224, "ToolState changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::ToolState) == 248, "ToolState changed: record the new field in encodeCheckpointState");
 
 namespace {
 void writeProgress(Bytes& o, const simcore::CutProgress& p) {
@@ -255,6 +256,11 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
   o.pod(static_cast<std::uint8_t>(t.present));
   o.pod(static_cast<std::int32_t>(t.contacts));
   o.pod(static_cast<std::int32_t>(t.pierced));
+  o.pod(static_cast<std::int64_t>(t.easing.size()));
+  for (const auto& [tri, keep] : t.easing) {
+    o.pod(static_cast<std::int32_t>(tri));
+    o.pod(keep);
+  }
   o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
   if (c.restOfSweep) {
     o.v3(c.restOfSweep->first);
@@ -285,7 +291,8 @@ std::string encodeCheckpointState(const simcore::Checkpoint& c) {
 simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t)>& setupOf) {
   simcore::Checkpoint c;
   Reader r{bytes.data(), bytes.data() + bytes.size()};
-  if (r.pod<std::uint32_t>() != kCheckpointMagic) throw std::runtime_error("a recorded checkpoint is not in a known format");
+  const std::uint32_t magic = r.pod<std::uint32_t>();
+  if (magic != kCheckpointMagic && magic != kCheckpointMagicV1) throw std::runtime_error("a recorded checkpoint is not in a known format");
   c.step = static_cast<long>(r.pod<std::int64_t>());
   c.setup = setupOf(r.pod<std::uint64_t>());
   c.setup.cut = readProgress(r);
@@ -319,6 +326,17 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
   t.present = r.pod<std::uint8_t>() != 0;
   t.contacts = r.pod<std::int32_t>();
   t.pierced = r.pod<std::int32_t>();
+  if (magic == kCheckpointMagic) {
+    t.easing.resize(r.count(sizeof(std::int32_t) + sizeof(double)));
+    for (auto& [tri, keep] : t.easing) {
+      tri = r.pod<std::int32_t>();
+      keep = r.pod<double>();
+    }
+    // Sorted, distinct surface triangles, each held at a distance (m) that is a number.
+    for (std::size_t k = 0; k < t.easing.size(); ++k)
+      if (t.easing[k].first < 0 || !std::isfinite(t.easing[k].second) || (k > 0 && t.easing[k].first <= t.easing[k - 1].first))
+        throw std::runtime_error("a recorded checkpoint's contact is damaged");
+  }
   if (r.pod<std::uint8_t>()) {
     const Eigen::Vector3d from = r.v3();
     c.restOfSweep = std::make_pair(from, r.v3());
@@ -420,6 +438,7 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   j["settings"] = settings(s.settings);
   const auto& t = s.tools;
   j["tools"] = {{"graspRadius", t.graspRadius}, {"maxGraspForce", t.maxGraspForce}, {"bladeLength", t.bladeLength}, {"toolRadius", t.toolRadius},
+                {"depenetrationSpeed", t.depenetrationSpeed},
                 {"cut", {{"snap", t.cut.snap}, {"minQuality", t.cut.minQuality}, {"minVolumeFraction", t.cut.minVolumeFraction}, {"snapFront", t.cut.snapFront}}}};
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
   j["topology"] = s.topology;
@@ -450,6 +469,7 @@ simcore::BodySetup decodeSetup(const std::string& text) {
     s.tools.maxGraspForce = t.at("maxGraspForce");
     s.tools.bladeLength = t.at("bladeLength");
     s.tools.toolRadius = t.at("toolRadius");
+    s.tools.depenetrationSpeed = t.value("depenetrationSpeed", 0.0);  // recorded before it existed: contact pushed out at once
     s.tools.cut.snap = t.at("cut").at("snap");
     s.tools.cut.minQuality = t.at("cut").at("minQuality");
     s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");
@@ -542,7 +562,8 @@ std::string setupProblem(const simcore::BodySetup& s) {
       !inEnum(t.attachments, simcore::AttachmentMode::Lagrange) || !inEnum(t.factorRefresh, simcore::FactorRefresh::Deferred))
     return "the solver, method, attachment or refresh setting is not one this version knows";
   const auto& tool = s.tools;
-  for (double v : {tool.graspRadius, tool.maxGraspForce, tool.bladeLength, tool.toolRadius, tool.cut.snap, tool.cut.minQuality, tool.cut.minVolumeFraction})
+  for (double v : {tool.graspRadius, tool.maxGraspForce, tool.bladeLength, tool.toolRadius, tool.depenetrationSpeed, tool.cut.snap, tool.cut.minQuality,
+                   tool.cut.minVolumeFraction})
     if (!finite(v) || v < 0) return "an instrument setting is not a non-negative number";
   if (tool.trocar && !finite(*tool.trocar)) return "the trocar is not a point";
   if (s.topology < 0) return "the topology version is negative";

@@ -8,18 +8,23 @@
 
 namespace rehearse::simcore {
 
-ToolForceModel toolForceModel(const Snapshot& s, double maxGraspForce) {
+ToolForceModel toolForceModel(const Snapshot& s, double maxGraspForce, double reach) {
   ToolForceModel m;
   m.step = s.step;
   m.tip = s.tool.tip;
   m.force = s.tool.force;
   m.stiffness = s.tool.stiffness;
   m.maxForce = s.tool.held.empty() ? 0 : maxGraspForce;  // the jaws' hold caps the pull; contact has no cap
+  m.reach = reach;
   return m;
 }
 
+double toolReach(const ToolSettings& t) { return t.toolRadius > 0 ? t.toolRadius : t.graspRadius; }
+
 Eigen::Vector3d extrapolateForce(const ToolForceModel& m, const Eigen::Vector3d& position) {
-  Eigen::Vector3d f = m.force + m.stiffness * (position - m.tip);
+  Eigen::Vector3d d = position - m.tip;
+  if (m.reach > 0 && d.norm() > m.reach) d *= m.reach / d.norm();  // the linear model holds near the step's tip only
+  Eigen::Vector3d f = m.force + m.stiffness * d;
   if (!f.allFinite()) return m.force.allFinite() ? m.force : Eigen::Vector3d::Zero();
   if (m.maxForce > 0 && f.norm() > m.maxForce) f *= m.maxForce / f.norm();
   return f;

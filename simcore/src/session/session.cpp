@@ -1,4 +1,5 @@
 #include <rehearse/simcore/session/session.hpp>
+#include <rehearse/simcore/session/forceloop.hpp>
 
 #include <algorithm>
 #include <array>
@@ -281,13 +282,14 @@ void Session::reset() {
 }
 
 ToolForceModel Session::toolForce() const {
-  const std::array<double, 17> v = toolForce_.load();
+  const std::array<double, 18> v = toolForce_.load();
   ToolForceModel m;
   m.step = static_cast<long>(v[0]);
   m.tip = Eigen::Vector3d(v[1], v[2], v[3]);
   m.force = Eigen::Vector3d(v[4], v[5], v[6]);
   for (int k = 0; k < 9; ++k) m.stiffness.data()[k] = v[static_cast<std::size_t>(7 + k)];
   m.maxForce = v[16];
+  m.reach = v[17];
   return m;
 }
 
@@ -395,13 +397,26 @@ void Session::updateToolConstraints() {
         sc.weights[static_cast<std::size_t>(q)] = key[static_cast<std::size_t>(q)].second;
       }
       sc.direction = n / d;
-      sc.value = sc.direction.dot(onAxis) + r;
+      // Surface inside the shaft when it became free to touch it is held where it is and eased out (easing), not
+      // pushed to the radius in one step.
+      double keep = r;
+      if (setup_.tools.depenetrationSpeed > 0) {
+        auto it = std::lower_bound(tool_.easing.begin(), tool_.easing.end(), std::make_pair(k, -1.0));
+        if (it != tool_.easing.end() && it->first == k) {
+          keep = std::min(r, it->second);
+        } else if (seedEasing_ && d < r) {
+          tool_.easing.insert(it, {k, d});
+          keep = d;
+        }
+      }
+      sc.value = sc.direction.dot(onAxis) + keep;
       sc.unilateral = true;
       c.push_back(sc);
       ++contactConstraints_;
       if (d <= r * (1 + 1e-3)) ++tool_.contacts;  // touching (held at the shaft's surface) or inside
     }
   }
+  seedEasing_ = false;
   body_->setToolConstraints(std::move(c));
 }
 
@@ -453,6 +468,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
       if (tool_.cutting && e.position.allFinite() && (e.position - tool_.cutFrom).norm() >= 2 * meanEdge_ && cut(tool_.cutFrom, e.position, message))
         tool_.cutFrom = e.position;
       tool_.tip = e.position;
+      if (!tool_.present) seedEasing_ = true;
       tool_.present = true;
       break;
     case InputKind::Jaw:
@@ -482,6 +498,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
         }
       } else {
         events_.push_back("release");
+        seedEasing_ = true;  // the tissue the jaws held may be inside the shaft
       }
       break;
     case InputKind::Cut:
@@ -494,6 +511,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
         break;
       }
       if (!e.on && tool_.cutting && (tool_.tip - tool_.cutFrom).norm() > 0) cut(tool_.cutFrom, tool_.tip, message);  // the rest of the sweep
+      if (tool_.cutting != e.on) seedEasing_ = true;  // contact resumes (or stops) with the blade
       tool_.cutting = e.on;
       tool_.cutFrom = tool_.tip;
       // A new cut starts from nothing; what did not open of the last one stays closed.
@@ -636,6 +654,9 @@ void Session::launchCutBuild(PendingCut& p) const {
 
 void Session::cutApplied(const std::vector<int>& cutLabels, std::string& message) {
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  // New surface triangles (numbered anew): what is inside the shaft then is eased out.
+  tool_.easing.clear();
+  seedEasing_ = true;
   updateSurfaceNodes();
   updateCutSurface();
   events_.push_back("cut");
@@ -803,6 +824,12 @@ StepReport Session::advance() {
     recorded_.push_back(f);
   }
   ++steps_;
+  if (!tool_.easing.empty()) {
+    // Eased contact moves out at the scene's speed, and is plain contact once at the shaft's radius.
+    const double by = setup_.tools.depenetrationSpeed * setup_.settings.timeStep, r = setup_.tools.toolRadius;
+    for (auto& [tri, keep] : tool_.easing) keep += by;
+    std::erase_if(tool_.easing, [r](const std::pair<int, double>& e) { return e.second >= r; });
+  }
   if ((!tool_.held.empty() || contactConstraints_ > 0) && rep.ok) {
     tool_.force = body_->toolForce();
     tool_.stiffness = body_->toolStiffness();
@@ -875,7 +902,7 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->trocar = *setup_.tools.trocar;
   if (publishStress_) body_->stress(state_, s->stress);
   {
-    std::array<double, 17> v{};
+    std::array<double, 18> v{};
     v[0] = static_cast<double>(steps_);
     for (int k = 0; k < 3; ++k) {
       v[static_cast<std::size_t>(1 + k)] = tool_.tip[k];
@@ -883,6 +910,7 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
     }
     for (int k = 0; k < 9; ++k) v[static_cast<std::size_t>(7 + k)] = tool_.stiffness.data()[k];
     v[16] = tool_.held.empty() ? 0 : setup_.tools.maxGraspForce;
+    v[17] = toolReach(setup_.tools);
     toolForce_.store(v);
   }
   std::function<void()> callback;

@@ -38,6 +38,7 @@ struct GestureScript {
   std::optional<double> graspRadius, maxGraspForce, bladeLength;  ///< m, N, m
   std::optional<Eigen::Vector3d> trocar;                          ///< m, body frame
   std::optional<double> toolRadius;                               ///< m, the shaft's radius for contact (0: none)
+  std::optional<double> depenetrationSpeed;                       ///< m/s (ToolSettings::depenetrationSpeed; 0: at once)
   std::vector<GestureEvent> events;  ///< in time order
 };
 

@@ -27,10 +27,16 @@ struct ToolSettings {
   /// radius); the boundary triangles near it are kept out by unilateral constraints at their closest points
   /// to its axis (between nodes too). 0 (no contact) unless a scene states its instrument's radius.
   double toolRadius = 0;
+  /// m/s: surface that is already inside the shaft when it becomes free to touch it (the jaws open on it, the blade
+  /// stops cutting, a cut changes the surface, the instrument appears) is pushed out at most this fast, instead of all
+  /// at once in one step (an impulse of m d / h^2: the 5.7 N spike after a steady release). Contact the instrument
+  /// makes by moving is pushed as before. 0: at once (the sessions recorded before it existed).
+  double depenetrationSpeed = 0.02;
   CutSettings cut;              ///< snapping and the quality the re-meshing keeps
   bool operator==(const ToolSettings& o) const {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && trocar.has_value() == o.trocar.has_value() &&
-           (!trocar || *trocar == *o.trocar) && bladeLength == o.bladeLength && toolRadius == o.toolRadius && cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
+           (!trocar || *trocar == *o.trocar) && bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
+           cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
            cut.minVolumeFraction == o.cut.minVolumeFraction;
   }
 };

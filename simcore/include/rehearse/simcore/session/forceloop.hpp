@@ -23,10 +23,13 @@
 
 namespace rehearse::simcore {
 
-/// From a session's snapshot (its tool and the scene's maximum grasp force).
-ToolForceModel toolForceModel(const Snapshot& s, double maxGraspForce);
+/// From a session's snapshot (its tool, the scene's maximum grasp force and the model's reach, m: toolReach).
+ToolForceModel toolForceModel(const Snapshot& s, double maxGraspForce, double reach = 0);
+/// How far from the step's tip its force model is trusted (m): the shaft's radius, or the grasp radius without a shaft.
+double toolReach(const ToolSettings& t);
 
-/// f0 + K (p - p0), its length capped at maxForce (when > 0). N, the tool's force on the tissue.
+/// f0 + K (p - p0), p - p0 no longer than the model's reach (when > 0), the force's length capped at maxForce (when
+/// > 0). N, the tool's force on the tissue.
 Eigen::Vector3d extrapolateForce(const ToolForceModel& m, const Eigen::Vector3d& position);
 
 class HapticDevice {

@@ -74,6 +74,10 @@ struct ToolState {
   bool present = false;                    ///< an instrument is in the scene (a pose was given): contact is detected
   int contacts = 0;                        ///< surface triangles the instrument touches at the last step
   int pierced = 0;                         ///< surface triangles its shaft passes through (contact cannot push those)
+  /// Contact being eased: (surface triangle, the distance from the shaft's axis it is held at now, m), for triangles
+  /// that were inside the shaft when they became free to touch it; the distance grows to the radius at
+  /// ToolSettings::depenetrationSpeed. Sorted by triangle.
+  std::vector<std::pair<int, double>> easing;
 };
 
 /// The organ's boundary after a cut: triangles (node indices, outward) and which of them are cut tissue
@@ -145,6 +149,10 @@ struct ToolForceModel {
   Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< N, the tool's force on the tissue there
   Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();   ///< N/m, d force / d tip
   double maxForce = 0;                                   ///< N, the cap (0: none)
+  /// m: how far from `tip` the linear model is trusted (the shaft's radius, or the grasp radius): beyond it the contact
+  /// set is another one, so the extrapolation goes no further (a device far from the last step's tip, after a jump of
+  /// the instrument, read 18 kN on the patient liver). 0: unbounded.
+  double reach = 0;
 };
 
 class Session {
@@ -251,6 +259,9 @@ class Session {
   long contactQueries_ = 0;
   Constructions constructions_;
   int contactConstraints_ = 0;  ///< contact constraints in the body now (touching or within reach)
+  /// Surface became free to touch the shaft at this boundary (release, blade off, cut applied, instrument appeared):
+  /// what is inside it then is eased out (ToolState::easing). Set and consumed within one advance().
+  bool seedEasing_ = false;
   SimulationState state_;
   ToolState tool_;
   long steps_ = 0;
@@ -260,7 +271,7 @@ class Session {
 
   mutable std::mutex stepMutex_;     // body, state, tools, recording
   mutable std::mutex mailboxMutex_;  // mailbox, snapshot, control flags
-  SeqCell<17> toolForce_;            // written at each publish, read by the force loop without a lock
+  SeqCell<18> toolForce_;            // written at each publish, read by the force loop without a lock
   std::deque<InputEvent> mailbox_;
   std::shared_ptr<const Snapshot> snapshot_;
   std::function<void()> published_;
