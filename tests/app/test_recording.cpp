@@ -206,77 +206,82 @@ class TestRecording : public QObject {
   // replay runs: both stay pending until the recorded CutApplied and Factor events) goes through its bytes and
   // a new session continues from it exactly as the uninterrupted one, step for step.
   void checkpointWithACutUnderWayIsComplete() {
-    simcore::BodySetup s;
-    s.mesh = boxMesh(0.04, 0.01, 0.01, 8, 2, 2);
-    s.fixedNodes = nodesAtX(s.mesh, 0.0);
-    s.material.young = 2e4;
-    s.settings.method = simcore::NewtonMethod::Linearised;
-    s.settings.factorRefresh = simcore::FactorRefresh::Deferred;
-    s.tools.bladeLength = 0.03;
-    s.tools.trocar = Eigen::Vector3d(0.025, 0.005, -0.2);
-    std::vector<simcore::InputEvent> events;
-    auto add = [&](simcore::InputEvent e, long step) {
-      e.step = step;
-      e.tool = 1;
-      events.push_back(e);
-    };
-    // The blade stands through the block at x = 25 mm and is drawn across it in y.
-    add(rehearse::testing::toolAt({0.025, -0.004, 0.012}), 5);
-    add(rehearse::testing::cutting(true), 5);
-    for (int k = 1; k <= 10; ++k) add(rehearse::testing::toolAt({0.025, -0.004 + 0.0018 * k, 0.012}), 5 + k);
-    add(rehearse::testing::cutting(false), 16);
-    simcore::InputEvent applied;
-    applied.kind = simcore::InputKind::CutApplied;
-    add(applied, 30);
-    simcore::InputEvent factor;
-    factor.kind = simcore::InputKind::Factor;
-    add(factor, 26);  // before the cut comes in (which brings its own factor)
-    constexpr long kAt = 22, kEnd = 45;
-    std::vector<std::uint64_t> straight;
-    simcore::Checkpoint cp;
-    {
-      simcore::Session session(s);
-      for (const auto& e : events) session.post(e);
-      for (long k = 1; k <= kEnd; ++k) {
-        session.advance();
-        straight.push_back(app::stateChecksum(session.state()));
-        if (k == kAt) cp = session.checkpoint();
+    // Both ways a cut comes in: at the boundary the recording names (-1: sessions recorded before the latency), and
+    // a fixed number of steps after its sweep (20 here, so that the checkpoint falls while it is being built).
+    for (int latency : {-1, 20}) {
+      simcore::BodySetup s;
+      s.mesh = boxMesh(0.04, 0.01, 0.01, 8, 2, 2);
+      s.fixedNodes = nodesAtX(s.mesh, 0.0);
+      s.material.young = 2e4;
+      s.settings.method = simcore::NewtonMethod::Linearised;
+      s.settings.factorRefresh = simcore::FactorRefresh::Deferred;
+      s.tools.bladeLength = 0.03;
+      s.tools.trocar = Eigen::Vector3d(0.025, 0.005, -0.2);
+      s.tools.cutLatencySteps = latency;
+      std::vector<simcore::InputEvent> events;
+      auto add = [&](simcore::InputEvent e, long step) {
+        e.step = step;
+        e.tool = 1;
+        events.push_back(e);
+      };
+      // The blade stands through the block at x = 25 mm and is drawn across it in y.
+      add(rehearse::testing::toolAt({0.025, -0.004, 0.012}), 5);
+      add(rehearse::testing::cutting(true), 5);
+      for (int k = 1; k <= 10; ++k) add(rehearse::testing::toolAt({0.025, -0.004 + 0.0018 * k, 0.012}), 5 + k);
+      add(rehearse::testing::cutting(false), 16);
+      simcore::InputEvent applied;
+      applied.kind = simcore::InputKind::CutApplied;
+      add(applied, 30);
+      simcore::InputEvent factor;
+      factor.kind = simcore::InputKind::Factor;
+      add(factor, 26);  // before the cut comes in (which brings its own factor)
+      constexpr long kAt = 22, kEnd = 45;
+      std::vector<std::uint64_t> straight;
+      simcore::Checkpoint cp;
+      {
+        simcore::Session session(s);
+        for (const auto& e : events) session.post(e);
+        for (long k = 1; k <= kEnd; ++k) {
+          session.advance();
+          straight.push_back(app::stateChecksum(session.state()));
+          if (k == kAt) cp = session.checkpoint();
+        }
+        QVERIFY2(session.snapshot()->topologyVersion > 0, "the blade cut the block");
       }
-      QVERIFY2(session.snapshot()->topologyVersion > 0, "the blade cut the block");
-    }
-    QVERIFY2(cp.pendingCut.has_value(), "the checkpoint falls while the cut's body is being built");
-    qInfo("checkpoint at step %ld: a cut under way (%zu new nodes), a factor %s", cp.step, cp.pendingCut->newNodes.size(),
-          cp.state.lagged.requested ? "requested" : "not requested");
-    // Through the bytes the recorder writes (setups by hash, without the cut's progress).
-    std::map<std::uint64_t, simcore::BodySetup> setups;
-    for (const auto* x : {&cp.setup, &cp.pendingCut->setup}) setups[app::setupHash(*x)] = app::sharedSetup(*x);
-    const simcore::Checkpoint back = app::decodeCheckpointState(app::encodeCheckpointState(cp), [&](std::uint64_t h) { return setups.at(h); });
-    QVERIFY(back.pendingCut.has_value());
-    simcore::Session resumed(s);
-    resumed.restore(back);
-    for (const auto& e : events)
-      if (e.step >= kAt) resumed.post(e);
-    for (long k = kAt + 1; k <= kEnd; ++k) {
-      resumed.advance();
-      QVERIFY2(app::stateChecksum(resumed.state()) == straight[static_cast<std::size_t>(k - 1)],
-               qPrintable(QString("step %1 after the checkpoint of step %2 differs").arg(k).arg(kAt)));
-    }
-    // Without the cut under way and the requested factor the continuation differs (so the comparison above
-    // would see a checkpoint that lacks them).
-    for (int strip = 0; strip < 2; ++strip) {
-      simcore::Checkpoint partial = back;
-      if (strip == 0) partial.pendingCut.reset();
-      else partial.state.lagged.requested = false;
-      simcore::Session other(s);
-      other.restore(partial);
+      QVERIFY2(cp.pendingCut.has_value(), "the checkpoint falls while the cut's body is being built");
+      qInfo("cut latency %d: checkpoint at step %ld, a cut under way (%zu new nodes, applied at %ld), a factor %s", latency, cp.step, cp.pendingCut->newNodes.size(), cp.pendingCut->applyAt,
+            cp.state.lagged.requested ? "requested" : "not requested");
+      // Through the bytes the recorder writes (setups by hash, without the cut's progress).
+      std::map<std::uint64_t, simcore::BodySetup> setups;
+      for (const auto* x : {&cp.setup, &cp.pendingCut->setup}) setups[app::setupHash(*x)] = app::sharedSetup(*x);
+      const simcore::Checkpoint back = app::decodeCheckpointState(app::encodeCheckpointState(cp), [&](std::uint64_t h) { return setups.at(h); });
+      QVERIFY(back.pendingCut.has_value());
+      simcore::Session resumed(s);
+      resumed.restore(back);
       for (const auto& e : events)
-        if (e.step >= kAt) other.post(e);
-      bool differs = false;
+        if (e.step >= kAt) resumed.post(e);
       for (long k = kAt + 1; k <= kEnd; ++k) {
-        other.advance();
-        differs |= app::stateChecksum(other.state()) != straight[static_cast<std::size_t>(k - 1)];
+        resumed.advance();
+        QVERIFY2(app::stateChecksum(resumed.state()) == straight[static_cast<std::size_t>(k - 1)],
+                 qPrintable(QString("step %1 after the checkpoint of step %2 differs").arg(k).arg(kAt)));
       }
-      QVERIFY2(differs, strip == 0 ? "a checkpoint without its cut under way continued the same" : "a checkpoint without its requested factor continued the same");
+      // Without the cut under way and the requested factor the continuation differs (so the comparison above
+      // would see a checkpoint that lacks them).
+      for (int strip = 0; strip < 2; ++strip) {
+        simcore::Checkpoint partial = back;
+        if (strip == 0) partial.pendingCut.reset();
+        else partial.state.lagged.requested = false;
+        simcore::Session other(s);
+        other.restore(partial);
+        for (const auto& e : events)
+          if (e.step >= kAt) other.post(e);
+        bool differs = false;
+        for (long k = kAt + 1; k <= kEnd; ++k) {
+          other.advance();
+          differs |= app::stateChecksum(other.state()) != straight[static_cast<std::size_t>(k - 1)];
+        }
+        QVERIFY2(differs, strip == 0 ? "a checkpoint without its cut under way continued the same" : "a checkpoint without its requested factor continued the same");
+      }
     }
   }
 

@@ -61,6 +61,7 @@ GestureScript parseGestureScript(const std::string& text) {
     if (t.contains("trocar")) s.trocar = vec3(t["trocar"], "trocar");
     if (t.contains("tool_radius_mm")) s.toolRadius = 1e-3 * number(t, "tool_radius_mm", 0, 0, 50);
     if (t.contains("depenetration_speed_mm_s")) s.depenetrationSpeed = 1e-3 * number(t, "depenetration_speed_mm_s", 50, 0, 1e5);
+    if (t.contains("cut_latency_steps")) s.cutLatencySteps = static_cast<int>(number(t, "cut_latency_steps", 5, -1, 1000));
   }
   if (!j.contains("events") || !j["events"].is_array()) throw std::runtime_error("the gesture script has no \"events\" list");
   double last = 0;
@@ -109,6 +110,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   if (script.trocar) setup.tools.trocar = *script.trocar;
   if (script.toolRadius) setup.tools.toolRadius = *script.toolRadius;
   if (script.depenetrationSpeed) setup.tools.depenetrationSpeed = *script.depenetrationSpeed;
+  if (script.cutLatencySteps) setup.tools.cutLatencySteps = *script.cutLatencySteps;
   const double h = setup.settings.timeStep;
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
   if (hooks.start) hooks.start(setup);
@@ -192,6 +194,17 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
     out.vesselCuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "vessel cut"));
     out.failed += !rep.ok;
     out.steps.push_back(std::move(row));
+  }
+  // A cut whose body was still being built when the script ended is applied: the run's mesh has every cut the blade made
+  // (its events are the last row's).
+  if (session.applyPendingCut() && !out.steps.empty()) {
+    const auto snap = session.snapshot();
+    auto& last = out.steps.back();
+    for (const auto& e : snap->events) last.events.push_back(e);
+    out.cuts += static_cast<std::size_t>(std::count(snap->events.begin(), snap->events.end(), "cut"));
+    out.vesselCuts += static_cast<std::size_t>(std::count(snap->events.begin(), snap->events.end(), "vessel cut"));
+    last.elements = snap->elements;
+    last.nodes = snap->positions.size();
   }
   out.final = session.state();
   out.contactQueries = session.contactQueries();

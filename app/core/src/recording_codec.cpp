@@ -174,7 +174,7 @@ struct Reader {
   }
 };
 constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the contact's easing was kept
-constexpr std::uint32_t kCheckpointMagic = 0x324B4352;    // "RCK2": + ToolState::easing
+constexpr std::uint32_t kCheckpointMagic = 0x324B4352;    // "RCK2": + ToolState::easing and vesselsCut, PendingCutInput::applyAt
 
 }  // namespace
 
@@ -187,7 +187,7 @@ std::uint64_t stateChecksum(const simcore::SimulationState& s) {
 
 // Fields a checkpoint carries: a new one must be written too.
 static_assert(sizeof(simcore::SimulationState::Lagged) == 64, "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
-static_assert(sizeof(simcore::ToolState) == 248, "ToolState changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::ToolState) == 272, "ToolState changed: record the new field in encodeCheckpointState");
 
 namespace {
 void writeProgress(Bytes& o, const simcore::CutProgress& p) {
@@ -261,6 +261,8 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
     o.pod(static_cast<std::int32_t>(tri));
     o.pod(keep);
   }
+  o.pod(static_cast<std::int64_t>(t.vesselsCut.size()));
+  for (int l : t.vesselsCut) o.pod(static_cast<std::int32_t>(l));
   o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
   if (c.restOfSweep) {
     o.v3(c.restOfSweep->first);
@@ -279,6 +281,7 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
     for (int l : p->cutLabels) o.pod(static_cast<std::int32_t>(l));
     o.vec(p->factorAt);
     o.pod(static_cast<std::uint8_t>(p->clearProgress));
+    o.pod(static_cast<std::int64_t>(p->applyAt));
   }
   return o.b;
 }
@@ -336,6 +339,8 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
     for (std::size_t k = 0; k < t.easing.size(); ++k)
       if (t.easing[k].first < 0 || !std::isfinite(t.easing[k].second) || (k > 0 && t.easing[k].first <= t.easing[k - 1].first))
         throw std::runtime_error("a recorded checkpoint's contact is damaged");
+    t.vesselsCut.resize(r.count(sizeof(std::int32_t)));
+    for (int& l : t.vesselsCut) l = r.pod<std::int32_t>();
   }
   if (r.pod<std::uint8_t>()) {
     const Eigen::Vector3d from = r.v3();
@@ -354,6 +359,10 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
     for (int& l : p.cutLabels) l = r.pod<std::int32_t>();
     p.factorAt = r.vec();
     p.clearProgress = r.pod<std::uint8_t>() != 0;
+    if (magic == kCheckpointMagic) {
+      p.applyAt = static_cast<long>(r.pod<std::int64_t>());
+      if (p.applyAt < -1) throw std::runtime_error("a recorded checkpoint's cut under way is damaged");
+    }
     c.pendingCut = std::move(p);
   }
   if (r.p != r.end) throw std::runtime_error("a recorded checkpoint has trailing bytes");
@@ -438,7 +447,7 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   j["settings"] = settings(s.settings);
   const auto& t = s.tools;
   j["tools"] = {{"graspRadius", t.graspRadius}, {"maxGraspForce", t.maxGraspForce}, {"bladeLength", t.bladeLength}, {"toolRadius", t.toolRadius},
-                {"depenetrationSpeed", t.depenetrationSpeed},
+                {"depenetrationSpeed", t.depenetrationSpeed}, {"cutLatencySteps", t.cutLatencySteps},
                 {"cut", {{"snap", t.cut.snap}, {"minQuality", t.cut.minQuality}, {"minVolumeFraction", t.cut.minVolumeFraction}, {"snapFront", t.cut.snapFront}}}};
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
   j["topology"] = s.topology;
@@ -470,6 +479,7 @@ simcore::BodySetup decodeSetup(const std::string& text) {
     s.tools.bladeLength = t.at("bladeLength");
     s.tools.toolRadius = t.at("toolRadius");
     s.tools.depenetrationSpeed = t.value("depenetrationSpeed", 0.0);  // recorded before it existed: contact pushed out at once
+    s.tools.cutLatencySteps = t.contains("cutLatencySteps") ? asInt(t.at("cutLatencySteps")) : -1;  // ... and cuts applied as they were
     s.tools.cut.snap = t.at("cut").at("snap");
     s.tools.cut.minQuality = t.at("cut").at("minQuality");
     s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");
@@ -566,6 +576,7 @@ std::string setupProblem(const simcore::BodySetup& s) {
                    tool.cut.minVolumeFraction})
     if (!finite(v) || v < 0) return "an instrument setting is not a non-negative number";
   if (tool.trocar && !finite(*tool.trocar)) return "the trocar is not a point";
+  if (tool.cutLatencySteps < -1 || tool.cutLatencySteps > 1000) return "the cut's latency is not between -1 and 1000 steps";
   if (s.topology < 0) return "the topology version is negative";
   return {};
 }

@@ -512,6 +512,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
       }
       if (!e.on && tool_.cutting && (tool_.tip - tool_.cutFrom).norm() > 0) cut(tool_.cutFrom, tool_.tip, message);  // the rest of the sweep
       if (tool_.cutting != e.on) seedEasing_ = true;  // contact resumes (or stops) with the blade
+      if (e.on && !tool_.cutting) tool_.vesselsCut.clear();  // a new stroke
       tool_.cutting = e.on;
       tool_.cutFrom = tool_.tip;
       // A new cut starts from nothing; what did not open of the last one stays closed.
@@ -564,7 +565,9 @@ void Session::apply(const InputEvent& e, std::string& message) {
       body_->installRequestedFactor();  // only replays post these (the recording of an asynchronous refresh)
       break;
     case InputKind::CutApplied:
-      finishPendingCut(true, message);  // only replays post these: the live run applied its cut here
+      // Only replays post these: the live run applied its cut here. A cut with a latency is applied at its own step
+      // (advance), the same in the replay; the event then names that one, already applied, not the next one.
+      if (pendingCut_ && pendingCut_->applyAt < 0) finishPendingCut(true, message);
       break;
   }
   if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw) updateToolConstraints();  // rebuildBody did it for the others
@@ -608,9 +611,12 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   for (std::size_t k = 0; k < r.duplicateOf.size(); ++k)
     if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])]) next.fixedNodes.push_back(static_cast<int>(n + k));
   ++next.topology;
-  if (setup_.settings.factorRefresh != FactorRefresh::Synchronous) {
-    // The new body and its first factorisation on another thread; the old body steps on meanwhile.
+  const int latency = setup_.tools.cutLatencySteps;
+  if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) {
+    // The new body and its first factorisation on another thread; the old body steps on meanwhile, until the
+    // boundary `latency` steps on (the same in every run) or, without a latency, until it is ready.
     PendingCut p;
+    p.applyAt = latency >= 0 ? steps_ + latency : -1;
     p.factorAt = state_.x;
     extendByCut(p.factorAt, r.newNodes);
     p.setup = std::move(next);
@@ -659,13 +665,18 @@ void Session::cutApplied(const std::vector<int>& cutLabels, std::string& message
   seedEasing_ = true;
   updateSurfaceNodes();
   updateCutSurface();
+  cutEvents(cutLabels, message);
+}
+
+void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message) {
   events_.push_back("cut");
   for (int label : cutLabels) events_.push_back("cut through label " + std::to_string(label));
+  // A vessel (a label with its own material) cut by this stroke is one event, however many updates the cut takes.
   for (int label : cutLabels)
-    if (setup_.byLabel.count(label)) {
+    if (setup_.byLabel.count(label) && std::find(tool_.vesselsCut.begin(), tool_.vesselsCut.end(), label) == tool_.vesselsCut.end()) {
+      tool_.vesselsCut.push_back(label);
       events_.push_back("vessel cut");
       message = "A vessel (label " + std::to_string(label) + ") was cut.";
-      break;
     }
 }
 
@@ -702,15 +713,11 @@ bool Session::finishPendingCut(bool wait, std::string& message) {
   useContactSurface(std::move(built.contact));
   surface_ = std::move(built.surface);
   ++constructions_.cutSurfaces;
+  // New surface triangles (numbered anew): what is inside the shaft then is eased out.
+  tool_.easing.clear();
+  seedEasing_ = true;
   updateToolConstraints();
-  events_.push_back("cut");
-  for (int label : p.cutLabels) events_.push_back("cut through label " + std::to_string(label));
-  for (int label : p.cutLabels)
-    if (setup_.byLabel.count(label)) {
-      events_.push_back("vessel cut");
-      message = "A vessel (label " + std::to_string(label) + ") was cut.";
-      break;
-    }
+  cutEvents(p.cutLabels, message);
   // The rest of a sweep the blade finished while this cut was being built.
   if (restOfSweep_) {
     const auto [from, to] = *restOfSweep_;
@@ -801,7 +808,9 @@ StepReport Session::advance() {
   std::string message;
   // A cut whose body was built on another thread replaces the body as soon as it is ready (recorded, so that
   // a replay applies it at the same boundary; the replay itself waits for the recording's word).
-  if (setup_.settings.factorRefresh == FactorRefresh::Asynchronous && pendingCut_ && finishPendingCut(false, message)) {
+  const bool cutDue = pendingCut_ && (pendingCut_->applyAt >= 0 ? steps_ >= pendingCut_->applyAt
+                                                                 : setup_.settings.factorRefresh == FactorRefresh::Asynchronous);
+  if (cutDue && finishPendingCut(pendingCut_->applyAt >= 0, message)) {
     InputEvent c;
     c.kind = InputKind::CutApplied;
     c.step = steps_;
@@ -875,6 +884,23 @@ Checkpoint StepRecord::checkpoint() const { return session->checkpointLocked(); 
 void Session::setStepHook(std::function<void(const StepRecord&)> f) {
   std::lock_guard<std::mutex> lock(stepMutex_);
   stepHook_ = std::move(f);
+}
+
+bool Session::applyPendingCut() {
+  std::lock_guard<std::mutex> stepLock(stepMutex_);
+  if (!pendingCut_) return false;
+  std::string message;
+  const bool applied = finishPendingCut(true, message);
+  if (applied) {
+    InputEvent c;  // recorded, as any cut applied
+    c.kind = InputKind::CutApplied;
+    c.step = steps_;
+    c.wallTime = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+    recorded_.push_back(c);
+    publish(snapshot()->report, message, std::move(events_));
+    events_.clear();
+  }
+  return applied;
 }
 
 void Session::discardPending() {

@@ -32,10 +32,16 @@ struct ToolSettings {
   /// at once in one step (an impulse of m d / h^2: the 5.7 N spike after a steady release). Contact the instrument
   /// makes by moving is pushed as before. 0: at once (the sessions recorded before it existed).
   double depenetrationSpeed = 0.02;
+  /// Steps between a cut's sweep and the step boundary its new body replaces the old one at, whatever the factor
+  /// refresh: the new body is built on another thread meanwhile (the stepping thread waits at that boundary if it is
+  /// not ready). So a cut is applied at the same step in every run, synchronous or asynchronous, and a run ends with
+  /// the same mesh each time. -1: a synchronous run cuts at once and an asynchronous one when the build is ready
+  /// (the sessions recorded before this existed; their replays follow the recorded CutApplied events).
+  int cutLatencySteps = 5;
   CutSettings cut;              ///< snapping and the quality the re-meshing keeps
   bool operator==(const ToolSettings& o) const {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && trocar.has_value() == o.trocar.has_value() &&
-           (!trocar || *trocar == *o.trocar) && bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
+           (!trocar || *trocar == *o.trocar) && bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed && cutLatencySteps == o.cutLatencySteps &&
            cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
            cut.minVolumeFraction == o.cut.minVolumeFraction;
   }

@@ -78,6 +78,8 @@ struct ToolState {
   /// that were inside the shaft when they became free to touch it; the distance grows to the radius at
   /// ToolSettings::depenetrationSpeed. Sorted by triangle.
   std::vector<std::pair<int, double>> easing;
+  /// The vessel labels this blade stroke has cut (a stroke's cut updates through one vessel are one "vessel cut").
+  std::vector<int> vesselsCut;
 };
 
 /// The organ's boundary after a cut: triangles (node indices, outward) and which of them are cut tissue
@@ -118,6 +120,7 @@ struct PendingCutInput {
   std::vector<int> cutLabels;      ///< element labels the cut went through
   Eigen::VectorXd factorAt;        ///< the positions its first factor is built at
   bool clearProgress = false;      ///< the blade was withdrawn meanwhile
+  long applyAt = -1;               ///< the step boundary it replaces the body at (ToolSettings::cutLatencySteps); -1: when ready
 };
 
 /// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
@@ -186,6 +189,9 @@ class Session {
   void setStepHook(std::function<void(const StepRecord&)> f);
   /// Drops the inputs posted and not applied yet (a replay seeking elsewhere posts its own).
   void discardPending();
+  /// A headless run's end: the cut under way (its body being built) is applied now, waiting for it, so that the run's
+  /// last mesh has every cut the blade made. True when one was applied.
+  bool applyPendingCut();
 
   /// The deterministic core: applies the events due at this boundary, then one step, then publishes.
   /// The thread calls it; tests call it directly (never both at once: it locks).
@@ -239,6 +245,8 @@ class Session {
   bool finishPendingCut(bool wait, std::string& message);
   /// What every applied cut does after the body changed: topology, surfaces, contact, events.
   void cutApplied(const std::vector<int>& cutLabels, std::string& message);
+  /// The events of a cut applied (either way): "cut", "cut through label N", and "vessel cut" once per vessel and stroke.
+  void cutEvents(const std::vector<int>& cutLabels, std::string& message);
   void publish(const StepReport& rep, const std::string& message, std::vector<std::string> events = {});
   void run();
   friend struct StepRecord;
