@@ -949,8 +949,11 @@ int cmdReplay(const std::vector<std::string>& args) {
     std::printf("metrics written to %s\n", o["metrics"].c_str());
   }
   if (!o.count("verify") && !replayVerified(replayed.verify)) std::printf("replay check: %s\n", replayCheckSentence(replayed.verify).c_str());
-  for (const auto& v : verdicts)
-    std::printf("%s: %s (%s)\n", v.metric.name.c_str(), resultWord(v.result), v.metric.value ? std::to_string(*v.metric.value).c_str() : v.metric.why.c_str());
+  for (const auto& v : verdicts) {
+    const auto& m = v.metric;  // counts as whole numbers ("grasps: pass (1)")
+    const std::string value = !m.value ? m.why : m.count ? std::to_string(std::llround(*m.value)) : std::to_string(*m.value);
+    std::printf("%s: %s (%s)\n", m.name.c_str(), resultWord(v.result), value.c_str());
+  }
   if (o.count("video") || o.count("report")) {
     int width = 640, height = 480;
     if (o.count("size")) {

@@ -274,6 +274,13 @@ class TestReviewGui : public QObject {
     info.start("pdfinfo", {pdf});
     QVERIFY2(info.waitForFinished(60000) && info.exitCode() == 0, "pdfinfo (poppler-utils, installed by scripts/install-deps.sh) must read the report");
     QVERIFY(QString::fromUtf8(info.readAllStandardOutput()).contains(QRegularExpression("Pages:\\s+3")));
+    // Its text (poppler's pdftotext): counts as whole numbers ("grasps 1", not "1.000"), the legend naming every tick colour.
+    QProcess text;
+    text.start("pdftotext", {"-layout", pdf, "-"});
+    QVERIFY(text.waitForFinished(60000) && text.exitCode() == 0);
+    const QString words = QString::fromUtf8(text.readAllStandardOutput());
+    QVERIFY2(words.contains(QRegularExpression("grasps\\s+\\d+\\s")) && !words.contains(QRegularExpression("grasps\\s+\\d+\\.\\d")), qPrintable(words.left(2000)));
+    QVERIFY2(words.contains("force over the threshold grey") && words.contains("release teal"), qPrintable(words.left(3000)));
     review->close();
   }
 

@@ -280,6 +280,8 @@ void FrameView::paintLegend(QPainter& painter) {
   if (box.isEmpty()) return;
   painter.resetTransform();
   painter.setOpacity(1.0);
+  // The box was measured with the widget's font: draw with it (a tool's larger font left on the painter cut entries off).
+  painter.setFont(font());
   painter.setRenderHint(QPainter::Antialiasing, false);
   painter.setPen(Qt::NoPen);
   painter.setBrush(QColor(0, 0, 0, 170));

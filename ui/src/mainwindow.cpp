@@ -473,7 +473,8 @@ bool MainWindow::liveOverlayDue() const {
 }
 
 void MainWindow::showFrameLayer() {
-  const bool composited = showingComposited() && !composition_->lastComposed().isNull();
+  // Hiding the organ (O) in the composited view shows the frame as captured: the organ is drawn into that picture.
+  const bool composited = showingComposited() && !composition_->lastComposed().isNull() && view_->overlayVisible();
   view_->setFrame(composited ? composition_->lastComposed() : doc_->frameImage());
   if (composited) {
     view_->setOverlay(QImage(), {});
@@ -695,6 +696,7 @@ void MainWindow::buildViewMenu() {
   overlay->setChecked(true);
   overlay->setShortcut(QKeySequence(Qt::Key_O));
   connect(overlay, &QAction::toggled, view_, &FrameView::setOverlayVisible);
+  connect(overlay, &QAction::toggled, this, [this] { showFrameLayer(); });  // the composited organ is part of the picture
   QAction* fit = viewMenu->addAction(tr("&Fit Frame"), view_, &FrameView::fitToWindow);
   fit->setShortcut(QKeySequence(Qt::Key_Home));
   viewMenu->addAction(tr("More Opaque Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() + 0.1); })

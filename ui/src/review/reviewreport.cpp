@@ -30,6 +30,18 @@ QImage toQImage(const cv::Mat3b& m) {
   return QImage(m.data, m.cols, m.rows, static_cast<qsizetype>(m.step), QImage::Format_BGR888).copy();
 }
 
+// The events' tick colours, the ones the plot's legend names.
+QColor eventColour(const std::string& e) {
+  if (e == "grasp") return QColor(40, 160, 40);               // green
+  if (e == "release") return QColor(40, 160, 160);            // teal
+  if (e == "slip") return QColor(230, 140, 0);                // orange
+  if (e == "cut") return QColor(120, 0, 160);                 // purple
+  if (e == "vessel cut") return QColor(200, 0, 0);            // red
+  if (e == "force over threshold") return QColor(90, 90, 90); // grey
+  return {};
+}
+const char* kEventLegend = "ticks: grasp green, release teal, slip orange, cut purple, vessel cut red (longer), force over the threshold grey";
+
 QString number(double v) {
   if (v == 0) return "0";
   const double a = std::abs(v);
@@ -41,9 +53,11 @@ QString number(double v) {
 void plot(QPainter& p, const QRectF& box, const QString& title, const QString& unit, const std::vector<app::TimelineSample>& tl,
           double (*value)(const app::TimelineSample&), double threshold) {
   p.save();
-  QFont f = p.font();
-  p.drawText(QRectF(box.left(), box.top(), box.width(), 40), Qt::AlignLeft | Qt::AlignVCenter, title);
-  const QRectF area(box.left() + 150, box.top() + 50, box.width() - 200, box.height() - 100);
+  // The title wraps (its legend is long): the plot starts below however many lines it takes.
+  const QRectF titleBox = p.boundingRect(QRectF(box.left(), box.top(), box.width(), 400), Qt::AlignLeft | Qt::TextWordWrap, title);
+  p.drawText(QRectF(box.left(), box.top(), box.width(), titleBox.height()), Qt::AlignLeft | Qt::TextWordWrap, title);
+  const double top = titleBox.height() + 10;
+  const QRectF area(box.left() + 150, box.top() + top, box.width() - 200, box.height() - top - 50);
   p.setPen(QPen(Qt::black, 2));
   p.drawRect(area);
   if (tl.empty()) {
@@ -70,11 +84,11 @@ void plot(QPainter& p, const QRectF& box, const QString& title, const QString& u
   }
   for (const auto& s : tl) {
     for (const auto& e : s.events) {
-      QColor c = e == "grasp" ? QColor(40, 160, 40) : e == "slip" ? QColor(230, 140, 0) : e == "vessel cut" ? QColor(200, 0, 0)
-                 : e == "cut" ? QColor(120, 0, 160) : e == "force over threshold" ? QColor(200, 60, 60) : QColor();
+      // The colours the legend names (eventColour); a vessel cut's tick is longer, drawn over its cut's.
+      const QColor c = eventColour(e);
       if (!c.isValid()) continue;
       p.setPen(QPen(c, 3));
-      p.drawLine(QPointF(X(s.time), area.top()), QPointF(X(s.time), area.top() + 25));
+      p.drawLine(QPointF(X(s.time), area.top()), QPointF(X(s.time), area.top() + (e == "vessel cut" ? 45 : 25)));
     }
   }
   QPainterPath path;
@@ -152,7 +166,9 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     for (const auto& m : r.metrics) {
       const auto v = std::find_if(r.verdicts.begin(), r.verdicts.end(), [&](const app::Verdict& x) { return x.metric.name == m.name; });
       p.drawText(QRectF(c1, y, c2, 30), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(m.name));
-      QString value = m.value ? number(*m.value) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit)) : "not determined";
+      // Counts (grasps, slips, cuts) are whole numbers: "1", not "1.000".
+      QString value = m.value ? (m.count ? QString::number(std::llround(*m.value)) : number(*m.value)) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
+                              : "not determined";
       p.drawText(QRectF(c2, y, c3 - c2, 30), Qt::AlignLeft | Qt::AlignVCenter, value);
       if (v != r.verdicts.end()) {
         QString limit;
@@ -183,7 +199,7 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     p.setFont(heading);
     p.drawText(QRectF(0, 0, W, 60), Qt::AlignLeft | Qt::AlignVCenter, "Over time");
     p.setFont(body);
-    plot(p, QRectF(0, 80, W, H * 0.4), "Tool force on the tissue (dashed: the threshold; ticks: grasp green, slip orange, cut purple, vessel cut red)", "N",
+    plot(p, QRectF(0, 80, W, H * 0.4), QStringLiteral("Tool force on the tissue (dashed: the threshold; %1)").arg(QLatin1String(kEventLegend)), "N",
          r.timeline, [](const app::TimelineSample& s) { return s.force; }, r.forceThresholdN);
     plot(p, QRectF(0, 100 + H * 0.45, W, H * 0.4), "Largest tissue strain (principal Green strain)", "", r.timeline,
          [](const app::TimelineSample& s) { return s.strain; }, 0);
