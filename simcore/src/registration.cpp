@@ -1073,15 +1073,18 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
                     100 * sagProbe.share, sagProbe.apartMm);
     } else if (res.alternatives.size() == 1) {
       const auto& alt = res.alternatives.front();
-      std::snprintf(text, sizeof text, "ambiguous: another pose %.0f mm away fits the contour nearly as well as the rigid fit (%.2f px against %.2f px)",
-                    alt.apartMm, alt.score, probedScore);
+      // "Nearly as well" only when it does fit worse: one that fits slightly better (below the margin the fit adopts
+      // another pose by) is said so, never presented as the lesser.
+      std::snprintf(text, sizeof text, "ambiguous: another pose %.0f mm away fits the contour %s the rigid fit (%.2f px against %.2f px)",
+                    alt.apartMm, alt.score < probedScore ? "slightly better than" : "nearly as well as", alt.score, probedScore);
     } else {
       const auto& alt = res.alternatives.front();
       double nearest = alt.apartMm;
       for (const auto& a : res.alternatives) nearest = std::min(nearest, a.apartMm);
       std::snprintf(text, sizeof text,
-                    "ambiguous: %zu other poses, %.0f mm or more away, fit the contour nearly as well as the rigid fit (the best %.2f px against %.2f px)",
-                    res.alternatives.size(), nearest, alt.score, probedScore);
+                    "ambiguous: %zu other poses, %.0f mm or more away, fit the contour %s the rigid fit (the best %.2f px against %.2f px)",
+                    res.alternatives.size(), nearest, alt.score < probedScore ? "as well as or slightly better than" : "nearly as well as", alt.score,
+                    probedScore);
     }
     std::string decide;
     const auto& sil = silhouette(res.x, res.pose);
