@@ -149,7 +149,10 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
     }
     recorder_.reset();
   }
-  if (!record) recordRequest_.reset();  // a new organ (or none) ends the recording
+  if (!record && recordRequest_) {  // a new organ (or none) ends the recording: said, never silently
+    recordRequest_.reset();
+    emit recordingStopped(tr("The recording ended: the organ, its shape, pose or attachments changed (what was recorded is kept, complete)."));
+  }
   const long generation = ++generation_;
   recordPending_ = record.has_value();
   cancelRecord_ = false;

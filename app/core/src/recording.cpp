@@ -73,6 +73,15 @@ sqlite3* openStore(const std::string& path, bool create) {
   return db;
 }
 
+// A session's checksum after `step` through `q` (INSERT, or INSERT OR IGNORE when written again).
+void writeChecksum(sqlite3* db, Statement& q, std::int64_t session, long step, std::uint64_t sum) {
+  sqlite3_reset(q.s);
+  sqlite3_bind_int64(q.s, 1, session);
+  sqlite3_bind_int64(q.s, 2, step);
+  q.text(3, std::to_string(sum));
+  if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db));
+}
+
 bool hasTable(sqlite3* db, const char* name) {
   Statement q(db, "SELECT 1 FROM sqlite_master WHERE type = 'table' AND name = ?");
   q.text(1, name);
@@ -235,14 +244,7 @@ void Recorder::reopen(const std::string& path) {
   suspended_ = false;
   try {
     open(path);  // leaves a transaction open
-    for (const auto& [step, sum] : checksumsWritten_) {
-      Statement& q = statements_->checksumAgain;
-      sqlite3_reset(q.s);
-      sqlite3_bind_int64(q.s, 1, id_);
-      sqlite3_bind_int64(q.s, 2, step);
-      q.text(3, std::to_string(sum));
-      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db_));
-    }
+    for (const auto& [step, sum] : checksumsWritten_) writeChecksum(db_, statements_->checksumAgain, id_, step, sum);
     setupsWritten_.clear();  // a checkpoint after this one writes its setup again when the copy missed it (INSERT OR IGNORE)
     for (const auto& [hash, text] : keptSetups_) writeSetup(hash, text);
     for (const auto& k : keptCheckpoints_) writeCheckpoint(k.step, k.hash, k.bytes);
@@ -312,14 +314,7 @@ void Recorder::afterStepLocked(long step, const std::vector<simcore::InputEvent>
       if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused an event: ") + sqlite3_errmsg(db_));
     }
   }
-  if (checksumDue) {
-    Statement& q = statements_->checksum;
-    sqlite3_reset(q.s);
-    sqlite3_bind_int64(q.s, 1, id_);
-    sqlite3_bind_int64(q.s, 2, step);
-    q.text(3, std::to_string(sum));
-    if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db_));
-  }
+  if (checksumDue) writeChecksum(db_, statements_->checksum, id_, step, sum);
   {
     Statement& q = statements_->steps;
     sqlite3_reset(q.s);

@@ -447,6 +447,7 @@ void Session::updateSurfaceNodes() { useContactSurface(contactSurface(body_->res
 
 void Session::useContactSurface(ContactSurface c) {
   contact_ = std::move(c);
+  tool_.easing.clear();  // it names triangles of the surface this one replaces
   // The contact's bounding-volume hierarchy only where instruments have a shaft to touch with.
   bvh_.reset();
   if (setup_.tools.toolRadius > 0) {
@@ -660,15 +661,13 @@ void Session::launchCutBuild(PendingCut& p) const {
 
 void Session::cutApplied(const std::vector<int>& cutLabels, std::string& message) {
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
-  // New surface triangles (numbered anew): what is inside the shaft then is eased out.
-  tool_.easing.clear();
-  seedEasing_ = true;
   updateSurfaceNodes();
   updateCutSurface();
   cutEvents(cutLabels, message);
 }
 
 void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message) {
+  seedEasing_ = true;  // the surface is new: what lies inside the shaft now is eased out at the next constraints
   events_.push_back("cut");
   for (int label : cutLabels) events_.push_back("cut through label " + std::to_string(label));
   // A vessel (a label with its own material) cut by this stroke is one event, however many updates the cut takes.
@@ -713,11 +712,8 @@ bool Session::finishPendingCut(bool wait, std::string& message) {
   useContactSurface(std::move(built.contact));
   surface_ = std::move(built.surface);
   ++constructions_.cutSurfaces;
-  // New surface triangles (numbered anew): what is inside the shaft then is eased out.
-  tool_.easing.clear();
-  seedEasing_ = true;
-  updateToolConstraints();
   cutEvents(p.cutLabels, message);
+  updateToolConstraints();
   // The rest of a sweep the blade finished while this cut was being built.
   if (restOfSweep_) {
     const auto [from, to] = *restOfSweep_;

@@ -584,9 +584,10 @@ QString ReviewWindow::exportVideo(const QString& path, double from, double to) {
     const int frames = app::writeReviewVideo(replayer, r, a.result.timeline, first, std::max(a.stepAt(to), first + 1), 25, path.toStdString(),
                                              [&progress](int done, int total) {
                                                progress.setMaximum(total);
-                                               progress.setValue(done);
                                                progress.setLabelText(tr("Writing the video: frame %1 of %2").arg(done).arg(total));
-                                               QCoreApplication::processEvents(QEventLoop::ExcludeUserInputEvents);
+                                               progress.setValue(done);
+                                               // A modal dialog's setValue processes events itself, its Cancel button's clicks
+                                               // included (excluding user input, as before, made Cancel unreachable).
                                                return !progress.wasCanceled();
                                              });
     return tr("Video of %1 frames written to %2").arg(frames).arg(path);

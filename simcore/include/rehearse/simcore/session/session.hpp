@@ -245,7 +245,8 @@ class Session {
   bool finishPendingCut(bool wait, std::string& message);
   /// What every applied cut does after the body changed: topology, surfaces, contact, events.
   void cutApplied(const std::vector<int>& cutLabels, std::string& message);
-  /// The events of a cut applied (either way): "cut", "cut through label N", and "vessel cut" once per vessel and stroke.
+  /// A cut applied (either way): its events ("cut", "cut through label N", "vessel cut" once per vessel and stroke), and
+  /// the new surface's triangles inside the shaft eased out from the next constraints on.
   void cutEvents(const std::vector<int>& cutLabels, std::string& message);
   void publish(const StepReport& rep, const std::string& message, std::vector<std::string> events = {});
   void run();
