@@ -948,7 +948,8 @@ int cmdReplay(const std::vector<std::string>& args) {
     writeReport(o["metrics"], j);
     std::printf("metrics written to %s\n", o["metrics"].c_str());
   }
-  if (!o.count("verify") && !replayVerified(replayed.verify)) std::printf("replay check: %s\n", replayCheckSentence(replayed.verify).c_str());
+  if (!o.count("verify") && replayed.verify.mismatches == 0 && !replayVerified(replayed.verify))
+    std::printf("replay check: %s\n", replayCheckSentence(replayed.verify).c_str());
   for (const auto& v : verdicts) {
     const auto& m = v.metric;  // counts as whole numbers ("grasps: pass (1)")
     const std::string value = !m.value ? m.why : m.count ? std::to_string(std::llround(*m.value)) : std::to_string(*m.value);
@@ -986,7 +987,15 @@ int cmdReplay(const std::vector<std::string>& args) {
       std::printf("report written to %s\n", o["report"].c_str());
     }
   }
-  if (!o.count("verify")) return 0;
+  if (!o.count("verify")) {
+    // Metrics, a video or a report of a replay that is not the recorded run are written (they say so) but not taken
+    // as the trainee's: exit 4, as --verify and --metrics-csv do.
+    if (replayed.verify.mismatches) {
+      std::fprintf(stderr, "rehearse: session %lld %s\n", static_cast<long long>(id), replayCheckSentence(replayed.verify).c_str());
+      return 4;
+    }
+    return 0;
+  }
   const VerifyResult& v = replayed.verify;
   if (v.mismatches) {
     std::fprintf(stderr, "rehearse: session %lld does not replay: %ld of %ld checksums differ, the first after step %ld\n", static_cast<long long>(id), v.mismatches,

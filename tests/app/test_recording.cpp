@@ -746,6 +746,16 @@ class TestRecording : public QObject {
     QCOMPARE(v.code, 4);
     QCOMPARE(v.err.trimmed().count('\n'), 0);
     QVERIFY2(v.err.contains("1 of 35 checksums differ, the first after step 200"), qPrintable(v.err));
+    // Its metrics are written, saying so, and the command exits 4 as --verify does (not 0, as if they were the trainee's).
+    const Run m = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/m.json"});
+    QCOMPARE(m.code, 4);
+    QCOMPARE(m.err.trimmed().count('\n'), 0);
+    QVERIFY2(m.err.contains("DOES NOT VERIFY: 1 of 35"), qPrintable(m.err));
+    QFile mj(dir.path() + "/m.json");
+    QVERIFY(mj.open(QIODevice::ReadOnly));
+    const QJsonObject metrics = QJsonDocument::fromJson(mj.readAll()).object();
+    QCOMPARE(metrics["replay_verified"].toBool(true), false);
+    QCOMPARE(metrics["checksums_differing"].toInt(), 1);
     const Run missing = run({"replay", file, "--session", "7", "--verify"});
     QCOMPARE(missing.code, 1);
     QVERIFY2(missing.err.contains("no recorded session 7"), qPrintable(missing.err));
