@@ -15,6 +15,7 @@
 #include <QtCharts/QLineSeries>
 
 #include <rehearse/simcore/cut.hpp>
+#include <rehearse/simcore/session/body.hpp>
 #include <rehearse/simcore/session/forceloop.hpp>
 
 #include <optional>
@@ -149,6 +150,28 @@ class TestRehearseGui : public QObject {
     for (const QPointF& p : qobject_cast<QLineSeries*>(chartView->chart()->series().first())->points()) chartPeak = std::max(chartPeak, p.y());
     QVERIFY(chartPeak > 0.01);
     QVERIFY(w_->findChild<QLabel*>("forceLoopRate")->text().contains("Hz"));
+    {  // Issue 32: the force the page shows is the step's constraint multipliers, and their jaws' share is the force
+       // balance at the held nodes (an independent route through the elastic forces of the state).
+      panel->pause();
+      QTest::qWait(300);
+      const auto* session = panel->session();
+      const long pausedAt = session->snapshot()->step;
+      QTest::qWait(200);
+      QCOMPARE(session->snapshot()->step, pausedAt);  // the stepping thread is idle
+      const auto snap = session->snapshot();
+      const QString shown = QStringLiteral("Tool force %1 N").arg(snap->tool.force.norm(), 0, 'f', 2);
+      auto* label = w_->findChild<QLabel*>("rehearseForce");
+      QVERIFY2(waitFor([&] { return label->text().startsWith(shown); }, 5000), qPrintable(label->text() + " / " + shown));
+      const simcore::SimulationState state = session->state();
+      const auto body = simcore::makeFemBody(session->setup());
+      const Eigen::Vector3d balance = body->appliedForce(snap->tool.held, state, state.v, session->setup().settings.timeStep);
+      qInfo("shown '%s'; multipliers %.4f N (jaws %.4f N), force balance at the held nodes %.4f N, step's relative residual %.1e", qPrintable(label->text()),
+            snap->tool.force.norm(), snap->tool.graspForce.norm(), balance.norm(), snap->report.residual);
+      QVERIFY(snap->tool.graspForce.norm() > 0.01);
+      QVERIFY((balance - snap->tool.graspForce).norm() < 0.05 * snap->tool.graspForce.norm());
+      QCOMPARE(label->text().contains("jaws"), (snap->tool.force - snap->tool.graspForce).norm() >= 0.005);
+      panel->play();
+    }
     if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-grasp.png");
     QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }));

@@ -174,7 +174,8 @@ struct Reader {
   }
 };
 constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the contact's easing was kept
-constexpr std::uint32_t kCheckpointMagic = 0x324B4352;    // "RCK2": + ToolState::easing and vesselsCut, PendingCutInput::applyAt
+constexpr std::uint32_t kCheckpointMagicV2 = 0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut, PendingCutInput::applyAt
+constexpr std::uint32_t kCheckpointMagic = 0x334B4352;    // "RCK3": + ToolState::graspForce and released
 
 }  // namespace
 
@@ -187,7 +188,7 @@ std::uint64_t stateChecksum(const simcore::SimulationState& s) {
 
 // Fields a checkpoint carries: a new one must be written too.
 static_assert(sizeof(simcore::SimulationState::Lagged) == 64, "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
-static_assert(sizeof(simcore::ToolState) == 272, "ToolState changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::ToolState) == 320, "ToolState changed: record the new field in encodeCheckpointState");
 
 namespace {
 void writeProgress(Bytes& o, const simcore::CutProgress& p) {
@@ -252,6 +253,7 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
   o.pod(static_cast<std::uint8_t>(t.cutting));
   o.v3(t.cutFrom);
   o.v3(t.force);
+  o.v3(t.graspForce);
   o.b.append(reinterpret_cast<const char*>(t.stiffness.data()), 9 * sizeof(double));
   o.pod(static_cast<std::uint8_t>(t.present));
   o.pod(static_cast<std::int32_t>(t.contacts));
@@ -263,6 +265,8 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
   }
   o.pod(static_cast<std::int64_t>(t.vesselsCut.size()));
   for (int l : t.vesselsCut) o.pod(static_cast<std::int32_t>(l));
+  o.pod(static_cast<std::int64_t>(t.released.size()));
+  for (int n : t.released) o.pod(static_cast<std::int32_t>(n));
   o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
   if (c.restOfSweep) {
     o.v3(c.restOfSweep->first);
@@ -295,7 +299,7 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
   simcore::Checkpoint c;
   Reader r{bytes.data(), bytes.data() + bytes.size()};
   const std::uint32_t magic = r.pod<std::uint32_t>();
-  if (magic != kCheckpointMagic && magic != kCheckpointMagicV1) throw std::runtime_error("a recorded checkpoint is not in a known format");
+  if (magic != kCheckpointMagic && magic != kCheckpointMagicV2 && magic != kCheckpointMagicV1) throw std::runtime_error("a recorded checkpoint is not in a known format");
   c.step = static_cast<long>(r.pod<std::int64_t>());
   c.setup = setupOf(r.pod<std::uint64_t>());
   c.setup.cut = readProgress(r);
@@ -323,13 +327,15 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
   t.cutting = r.pod<std::uint8_t>() != 0;
   t.cutFrom = r.v3();
   t.force = r.v3();
+  // Before RCK3 the jaws' share was not kept apart: all of it (the next step computes both again).
+  t.graspForce = magic == kCheckpointMagic ? r.v3() : (t.held.empty() ? Eigen::Vector3d::Zero() : t.force);
   r.need(9 * sizeof(double));
   std::memcpy(t.stiffness.data(), r.p, 9 * sizeof(double));
   r.p += 9 * sizeof(double);
   t.present = r.pod<std::uint8_t>() != 0;
   t.contacts = r.pod<std::int32_t>();
   t.pierced = r.pod<std::int32_t>();
-  if (magic == kCheckpointMagic) {
+  if (magic != kCheckpointMagicV1) {
     t.easing.resize(r.count(sizeof(std::int32_t) + sizeof(double)));
     for (auto& [tri, keep] : t.easing) {
       tri = r.pod<std::int32_t>();
@@ -341,6 +347,10 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
         throw std::runtime_error("a recorded checkpoint's contact is damaged");
     t.vesselsCut.resize(r.count(sizeof(std::int32_t)));
     for (int& l : t.vesselsCut) l = r.pod<std::int32_t>();
+  }
+  if (magic == kCheckpointMagic) {
+    t.released.resize(r.count(sizeof(std::int32_t)));
+    for (int& n : t.released) n = r.pod<std::int32_t>();
   }
   if (r.pod<std::uint8_t>()) {
     const Eigen::Vector3d from = r.v3();
@@ -359,7 +369,7 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
     for (int& l : p.cutLabels) l = r.pod<std::int32_t>();
     p.factorAt = r.vec();
     p.clearProgress = r.pod<std::uint8_t>() != 0;
-    if (magic == kCheckpointMagic) {
+    if (magic != kCheckpointMagicV1) {
       p.applyAt = static_cast<long>(r.pod<std::int64_t>());
       if (p.applyAt < -1) throw std::runtime_error("a recorded checkpoint's cut under way is damaged");
     }
@@ -374,6 +384,7 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
   if (static_cast<std::size_t>(s.x.size()) != 3 * n) throw std::runtime_error("a recorded checkpoint does not fit its body's nodes");
   auto inRange = [n](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
   bool ok = t.heldOffset.size() == t.held.size() && std::all_of(t.held.begin(), t.held.end(), inRange) &&
+            std::all_of(t.released.begin(), t.released.end(), inRange) && std::is_sorted(t.released.begin(), t.released.end()) &&
             std::all_of(c.setup.cut.nodes.begin(), c.setup.cut.nodes.end(), inRange);
   for (const auto& f : c.setup.cut.pendingFaces) ok = ok && std::all_of(f.begin(), f.end(), inRange);
   auto sweepsFinite = [](const simcore::CutProgress& p) {
@@ -381,7 +392,7 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
   };
   ok = ok && sweepsFinite(c.setup.cut) && (!c.pendingCut || sweepsFinite(c.pendingCut->setup.cut));
   if (!ok || !s.x.allFinite() || !s.v.allFinite()) throw std::runtime_error("a recorded checkpoint names nodes its body has not, or holds no number");
-  if (!t.tip.allFinite() || !t.cutFrom.allFinite() || !t.force.allFinite() || !t.stiffness.allFinite() || !std::isfinite(s.time) || t.contacts < 0 ||
+  if (!t.tip.allFinite() || !t.cutFrom.allFinite() || !t.force.allFinite() || !t.graspForce.allFinite() || !t.stiffness.allFinite() || !std::isfinite(s.time) || t.contacts < 0 ||
       t.pierced < 0 || (c.restOfSweep && (!c.restOfSweep->first.allFinite() || !c.restOfSweep->second.allFinite())))
     throw std::runtime_error("a recorded checkpoint's instrument holds no number");
   if (const auto& p = c.pendingCut) {

@@ -25,7 +25,7 @@ class FemBody final : public DeformableBody {
   void stress(const SimulationState& state, std::vector<double>& out) const override { vonMisesStress(model_, state.x, out); }
   const std::vector<std::array<int, 4>>& tetrahedra() const override { return model_.tets; }
   double mass() const override { return model_.lumpedMass.sum(); }
-  Eigen::Vector3d toolForce() const override {
+  Eigen::Vector3d toolForce(bool holdsOnly) const override {
     // The tool constraints come after the attachments' (Lagrange mode) in the multipliers.
     const auto& c = integrator_.constraints();
     const Eigen::VectorXd& lambda = integrator_.multipliers();
@@ -35,6 +35,7 @@ class FemBody final : public DeformableBody {
     // A constraint's force on the body is its multiplier along its direction, spread over its nodes by its
     // weights (a triangle's barycentric ones sum to 1).
     for (std::size_t k = 0; k < c.size(); ++k) {
+      if (holdsOnly && c[k].unilateral) continue;
       const double spread = c[k].weights[0] + c[k].weights[1] + c[k].weights[2] + c[k].weights[3];
       sum += lambda[first + static_cast<Eigen::Index>(k)] * spread * c[k].direction;
     }

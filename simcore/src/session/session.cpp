@@ -357,6 +357,12 @@ void Session::updateToolConstraints() {
     longest = std::sqrt(longest);
     const Eigen::Vector3d a = tool_.tip, b = *setup_.tools.trocar;
     const double r = setup_.tools.toolRadius, reach = 1.5 * r;
+    // Let-go tissue out of the shaft is ordinary tissue again.
+    std::erase_if(tool_.released, [&](int i) {
+      const Eigen::Vector3d ab = b - a;
+      const double u = ab.squaredNorm() > 0 ? std::clamp((X(i) - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0) : 0.0;
+      return (X(i) - (a + u * ab)).norm() >= r;
+    });
     std::vector<int> near;
     bvh_->query(a, b, reach + longest, state_.x, near);
     std::vector<int> tris;
@@ -372,7 +378,8 @@ void Session::updateToolConstraints() {
       bool anyFree = false, holdsHeld = false;
       for (int v : t) {
         anyFree |= !fixed[static_cast<std::size_t>(v)];
-        holdsHeld |= std::find(tool_.held.begin(), tool_.held.end(), v) != tool_.held.end();
+        holdsHeld |= std::find(tool_.held.begin(), tool_.held.end(), v) != tool_.held.end() ||
+                     std::binary_search(tool_.released.begin(), tool_.released.end(), v);
       }
       if (!anyFree || holdsHeld) continue;
       Eigen::Vector3d onAxis = Eigen::Vector3d::Zero(), onTriangle = Eigen::Vector3d::Zero(), w = Eigen::Vector3d::Zero();
@@ -380,9 +387,17 @@ void Session::updateToolConstraints() {
         ++tool_.pierced;  // the shaft passes through it: no side to push it to
         continue;
       }
-      const Eigen::Vector3d n = onTriangle - onAxis;
-      const double d = n.norm();
-      if (!(d > 1e-9) || d > reach) continue;
+      Eigen::Vector3d n = onTriangle - onAxis;
+      double d = n.norm();
+      if (d > reach) continue;
+      if (!(d > 1e-3 * r)) {
+        // On the axis (tissue the jaws just let go of sits at the tip): the direction from the axis is noise, so
+        // the surface is pushed along its own inward normal, from where it is (eased out like tissue inside).
+        n = -(X(t[1]) - X(t[0])).cross(X(t[2]) - X(t[0]));
+        if (!(n.norm() > 0)) continue;  // a collapsed triangle: no side to push it to
+        n *= 1e-3 * r / n.norm();
+        d = 1e-3 * r;
+      }
       // The closest point on a vertex or an edge is shared by the triangles around it: one constraint each
       // (redundant copies make the Schur complement singular and Gauss-Seidel slow).
       std::array<std::pair<int, double>, 3> key{};
@@ -468,15 +483,22 @@ void Session::apply(const InputEvent& e, std::string& message) {
       // snapping to their nodes.
       if (tool_.cutting && e.position.allFinite() && (e.position - tool_.cutFrom).norm() >= 2 * meanEdge_ && cut(tool_.cutFrom, e.position, message))
         tool_.cutFrom = e.position;
+      if (!tool_.released.empty() && e.position != tool_.tip) {
+        tool_.released.clear();  // the instrument moves on: what it let go of is touched like any tissue (eased out)
+        seedEasing_ = true;
+      }
       tool_.tip = e.position;
       if (!tool_.present) seedEasing_ = true;
       tool_.present = true;
       break;
     case InputKind::Jaw:
       tool_.jawClosed = e.on;
+      tool_.released = tool_.held;
+      std::sort(tool_.released.begin(), tool_.released.end());
       tool_.held.clear();
       tool_.heldOffset.clear();
       tool_.force.setZero();
+      tool_.graspForce.setZero();
       if (e.on) {
         // Grasp every free node within the grasp radius of the tip (the bite), the nearest first.
         const double r2 = setup_.tools.graspRadius * setup_.tools.graspRadius;
@@ -837,21 +859,27 @@ StepReport Session::advance() {
   }
   if ((!tool_.held.empty() || contactConstraints_ > 0) && rep.ok) {
     tool_.force = body_->toolForce();
+    tool_.graspForce = tool_.held.empty() ? Eigen::Vector3d::Zero() : body_->toolForce(true);
     tool_.stiffness = body_->toolStiffness();
-    // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing).
-    if (!tool_.held.empty() && tool_.force.norm() > setup_.tools.maxGraspForce) {
+    // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing). The
+    // jaws' own share decides: the shaft pressing on the tissue does not open them.
+    if (!tool_.held.empty() && tool_.graspForce.norm() > setup_.tools.maxGraspForce) {
       char buf[200];
-      std::snprintf(buf, sizeof buf, "The tissue slipped out of the grasper at %.1f N (the scene's maximum grasp force is %.1f N).", tool_.force.norm(),
+      std::snprintf(buf, sizeof buf, "The tissue slipped out of the grasper at %.1f N (the scene's maximum grasp force is %.1f N).", tool_.graspForce.norm(),
                     setup_.tools.maxGraspForce);
       message = buf;
+      tool_.released = tool_.held;  // the tissue leaves the jaws
+      std::sort(tool_.released.begin(), tool_.released.end());
       tool_.held.clear();
       tool_.heldOffset.clear();
       tool_.stiffness.setZero();  // nothing held: the force does not follow the tool any more
+      tool_.graspForce.setZero();
       events_.push_back("slip");
       updateToolConstraints();
     }
   } else if (tool_.held.empty() && contactConstraints_ == 0) {
     tool_.force.setZero();
+    tool_.graspForce.setZero();
     tool_.stiffness.setZero();
   }
   publish(rep, message, std::move(events_));

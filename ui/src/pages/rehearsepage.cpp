@@ -186,7 +186,11 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (slips_) extra += tr("   slips: %1").arg(slips_);
   if (cuts_) extra += tr("   cuts: %1").arg(cuts_);
   if (vesselCuts_) extra += tr("   vessels cut: %1").arg(vesselCuts_);
-  forceText_ = tr("Tool force %1 N%2").arg(t.force.norm(), 0, 'f', 2).arg(extra);
+  // While the jaws hold and the shaft touches, the two shares (the jaws' decides a slip).
+  QString shares;
+  if (!t.held.empty() && (t.force - t.graspForce).norm() >= 0.005)
+    shares = tr(" (jaws %1 N, shaft %2 N)").arg(t.graspForce.norm(), 0, 'f', 2).arg((t.force - t.graspForce).norm(), 0, 'f', 2);
+  forceText_ = tr("Tool force %1 N%2%3").arg(t.force.norm(), 0, 'f', 2).arg(shares, extra);
   if (!f->message.isEmpty() && f->message.contains(tr("vessel"))) status(f->message);
   labelThrottle_->request();  // the labels at most 15 times a second, the newest always shown
 }

@@ -97,8 +97,9 @@ class DeformableBody {
   virtual Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& previousVelocity,
                                        double h) const = 0;
   /// The force (N) the tool constraints applied to the body in the last step: the constraint solver's
-  /// multipliers along their directions (what the step used, whatever its Newton method).
-  virtual Eigen::Vector3d toolForce() const = 0;
+  /// multipliers along their directions (what the step used, whatever its Newton method). `holdsOnly`: the
+  /// bilateral constraints' share alone (the jaws' hold, without the shaft's contact).
+  virtual Eigen::Vector3d toolForce(bool holdsOnly = false) const = 0;
   /// The tool's local stiffness (N/m): how the tool force (toolForce) changes per metre the tool moves over
   /// the next step, G^T W_a^-1 G / h^2 from the last solve's compliance W restricted to the tool constraints
   /// that act (bilateral holds, pushing contacts), G their directions (each moves with the tool). Zero

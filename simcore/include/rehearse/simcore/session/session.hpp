@@ -70,6 +70,9 @@ struct ToolState {
   bool cutting = false;
   Eigen::Vector3d cutFrom = Eigen::Vector3d::Zero();  ///< the tip where the blade's last sweep ended (while cutting)
   Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step (grasp and contact)
+  /// N, the jaws' share of `force` (the held nodes' constraints; the rest is the shaft's contact): what the grasp
+  /// holds, and what decides a slip.
+  Eigen::Vector3d graspForce = Eigen::Vector3d::Zero();
   Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();  ///< N/m, d(force)/d(tip) over the next step (DeformableBody::toolStiffness)
   bool present = false;                    ///< an instrument is in the scene (a pose was given): contact is detected
   int contacts = 0;                        ///< surface triangles the instrument touches at the last step
@@ -80,6 +83,9 @@ struct ToolState {
   std::vector<std::pair<int, double>> easing;
   /// The vessel labels this blade stroke has cut (a stroke's cut updates through one vessel are one "vessel cut").
   std::vector<int> vesselsCut;
+  /// Nodes the jaws let go of (a release or a slip), sorted: free of the shaft's contact while they are inside its
+  /// radius and the instrument stays where it let go (the tissue leaves the open jaws); eased out otherwise.
+  std::vector<int> released;
 };
 
 /// The organ's boundary after a cut: triangles (node indices, outward) and which of them are cut tissue
