@@ -438,6 +438,38 @@ class TestCut : public QObject {
     QCOMPARE(v.inverted, std::size_t(0));
   }
 
+  // Issue 32: "Cut" was said over tissue that still joined. A stroke now ends with a sentence saying whether the organ
+  // came apart (pieces counted here independently: elements sharing a node) or that the cut did not go through.
+  void strokeSaysWhetherTheOrganCameApart() {
+    std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    auto run = [&](double offAt) {
+      app::GestureScript script = app::parseGestureScript(ss.str());
+      for (auto& e : script.events)
+        if (e.cut && !*e.cut) e.t = offAt;
+      simcore::BodySetup s = liverSetup();
+      s.settings.method = simcore::NewtonMethod::Linearised;
+      const app::GestureResult r = app::runGesture(s, script);
+      std::string said;
+      for (const auto& row : r.steps)
+        if (row.message.find("cut") != std::string::npos && row.message.find("vessel") == std::string::npos) said = row.message;
+      int groups = 0;
+      components(r.finalMesh.points.size(), r.finalMesh.tets, &groups);
+      qInfo("blade off at %.1f s: %d piece(s), %zu elements, %zu nodes; said: %s", offAt, groups,
+            r.finalMesh.tets.size(), r.finalMesh.points.size(), said.c_str());
+      return std::make_tuple(QString::fromStdString(said), groups, r.finalMesh.points.size(), r.steps.front().nodes);
+    };
+    const auto [through, throughPieces, throughNodes, nodes0] = run(1.5);
+    QCOMPARE(throughPieces, 2);
+    QVERIFY(through.startsWith("The cut is done:"));
+    QVERIFY(through.contains("the organ came apart (2 pieces, 1 before)"));
+    const auto [partway, partwayPieces, partwayNodes, nodes1] = run(0.9);
+    QCOMPARE(partwayPieces, 1);
+    QVERIFY(partwayNodes > nodes1);  // it cut (faces opened: nodes duplicated), part of the way
+    QVERIFY(partway.contains("still in one piece (the cut did not go through)"));
+  }
+
   // Issue 32: the shipped cut scripts give the same mesh with the synchronous and the asynchronous refresh (a cut's
   // body replaces the old one a fixed number of steps after its sweep, built on another thread meanwhile), and the
   // asynchronous one the same mesh at every run (it ended with 3,774 elements in one run of four and 3,870 in the

@@ -18,7 +18,9 @@
 #include <rehearse/simcore/session/body.hpp>
 #include <rehearse/simcore/session/forceloop.hpp>
 
+#include <numeric>
 #include <optional>
+#include <set>
 #include <QScopeGuard>
 #include <QSignalSpy>
 #include <QStandardPaths>
@@ -261,6 +263,21 @@ class TestRehearseGui : public QObject {
     QVERIFY(f->positions.size() > nodes0);
     QVERIFY(std::abs(f->mass - mass0) < 1e-9 * mass0);
     QVERIFY(f->surface->cutCount > 0);
+    {  // Issue 32: the status says whether the organ came apart (never "Cut" over tissue that still joins); pieces
+       // counted here (elements sharing a node are one piece).
+      auto* status = w_->findChild<QLabel*>("rehearseStatus");
+      QVERIFY2(waitFor([&] { return status->text().contains("The cut is done"); }, 10000), qPrintable(status->text()));
+      std::vector<int> parent(f->positions.size());
+      std::iota(parent.begin(), parent.end(), 0);
+      std::function<int(int)> root = [&](int i) { return parent[i] == i ? i : parent[i] = root(parent[i]); };
+      for (const auto& t : *f->tets)
+        for (int k = 1; k < 4; ++k) parent[root(t[k])] = root(t[0]);
+      std::set<int> pieces;
+      for (const auto& t : *f->tets) pieces.insert(root(t[0]));
+      qInfo("status: '%s'; %zu piece(s) counted", qPrintable(status->text()), pieces.size());
+      QCOMPARE(status->text().contains("the organ came apart"), pieces.size() > 1);
+      QCOMPARE(status->text().contains("still in one piece"), pieces.size() == 1);
+    }
     // Every element positive and above the quality floor in the rest shape; the floor: the stated 0.03, or
     // half the uncut organ's worst element.
     double uncutWorst = 1;

@@ -2,6 +2,7 @@
 #include <rehearse/simcore/session/forceloop.hpp>
 
 #include <algorithm>
+#include <numeric>
 #include <array>
 #include <cmath>
 #include <limits>
@@ -535,7 +536,12 @@ void Session::apply(const InputEvent& e, std::string& message) {
       }
       if (!e.on && tool_.cutting && (tool_.tip - tool_.cutFrom).norm() > 0) cut(tool_.cutFrom, tool_.tip, message);  // the rest of the sweep
       if (tool_.cutting != e.on) seedEasing_ = true;  // contact resumes (or stops) with the blade
-      if (e.on && !tool_.cutting) tool_.vesselsCut.clear();  // a new stroke
+      if (e.on && !tool_.cutting) {  // a new stroke
+        tool_.vesselsCut.clear();
+        stroke_ = {};
+        stroke_.open = true;
+        stroke_.piecesBefore = connectedPieces(body_->tetrahedra(), body_->nodeCount());
+      }
       tool_.cutting = e.on;
       tool_.cutFrom = tool_.tip;
       // A new cut starts from nothing; what did not open of the last one stays closed.
@@ -617,9 +623,14 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   CutProgress progress = setup_.cut;
   const CutResult r = cutTetrahedra(rest, current, tets, labels, sweep, setup_.tools.cut, &progress);
   if (!r.changed) {
-    if (r.status.rfind("The cut was refused", 0) == 0) message = r.status;
+    if (r.status.rfind("The cut was refused", 0) == 0) message = stroke_.lastRefusal = r.status;
     return false;
   }
+  ++stroke_.updates;
+  stroke_.split += r.splitElements;
+  stroke_.separatedFaces += r.separatedFaces;
+  stroke_.skippedInverted += r.skippedInverted;
+  stroke_.lastRefusal.clear();
   ++constructions_.cutMeshes;
   BodySetup next = setup_;
   next.mesh.points = rest;
@@ -746,6 +757,44 @@ bool Session::finishPendingCut(bool wait, std::string& message) {
   return true;
 }
 
+std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes) {
+  std::vector<int> parent(nodes);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+    return i;
+  };
+  for (const auto& t : tets)
+    for (int k = 1; k < 4; ++k) parent[static_cast<std::size_t>(find(t[static_cast<std::size_t>(k)]))] = find(t[0]);
+  std::vector<char> root(nodes, 0);
+  std::size_t pieces = 0;
+  for (const auto& t : tets)
+    if (const int r = find(t[0]); !root[static_cast<std::size_t>(r)]) root[static_cast<std::size_t>(r)] = 1, ++pieces;
+  return pieces;
+}
+
+void Session::finishStroke(std::string& message) {
+  const Stroke s = stroke_;
+  stroke_ = {};
+  if (s.updates == 0 && s.lastRefusal.empty()) return;  // the blade crossed nothing: nothing to say
+  const std::size_t pieces = connectedPieces(body_->tetrahedra(), body_->nodeCount());
+  std::string m;
+  if (s.updates == 0) {
+    m = "Nothing was cut: " + s.lastRefusal;
+  } else {
+    m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) + " element(s) split in " +
+        std::to_string(s.updates) + " update(s); ";
+    m += pieces > s.piecesBefore ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) + " before)."
+                                 : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
+                                       " (the cut did not go through).";
+    if (s.skippedInverted > 0)
+      m += " " + std::to_string(s.skippedInverted) + " crossed element(s) were inverted and not cut: tissue still joins there.";
+    if (!s.lastRefusal.empty()) m += " The stroke's last sweep was not cut: " + s.lastRefusal;
+  }
+  if (!message.empty()) message += " ";
+  message += m;
+}
+
 void Session::retire(std::unique_ptr<DeformableBody> body) {
   for (auto it = retired_.begin(); it != retired_.end();)
     it = it->wait_for(std::chrono::seconds(0)) == std::future_status::ready ? retired_.erase(it) : it + 1;
@@ -840,6 +889,7 @@ StepReport Session::advance() {
     apply(e, message);
     recorded_.push_back(e);
   }
+  if (stroke_.open && !tool_.cutting && !pendingCut_ && !restOfSweep_) finishStroke(message);
   if (tool_.present && setup_.tools.toolRadius > 0) updateToolConstraints();  // contacts move with the tissue: detected at every step
   const StepReport rep = body_->step(state_);
   if (rep.factorSwapped) {
@@ -991,6 +1041,7 @@ void Session::restore(const Checkpoint& c) {
     pendingCut_.reset();
   }
   restOfSweep_ = c.restOfSweep;
+  stroke_ = {};
   setup_ = c.setup;
   body_ = makeFemBody(setup_);
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
@@ -1053,6 +1104,7 @@ void Session::run() {
         pendingCut_.reset();
       }
       restOfSweep_.reset();
+      stroke_ = {};
       if (setup_.topology != uncut_.topology) {
         // Back to the organ before any cut (parameter edits stay).
         setup_.mesh = uncut_.mesh;

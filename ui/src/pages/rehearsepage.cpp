@@ -191,7 +191,11 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!t.held.empty() && (t.force - t.graspForce).norm() >= 0.005)
     shares = tr(" (jaws %1 N, shaft %2 N)").arg(t.graspForce.norm(), 0, 'f', 2).arg((t.force - t.graspForce).norm(), 0, 'f', 2);
   forceText_ = tr("Tool force %1 N%2%3").arg(t.force.norm(), 0, 'f', 2).arg(shares, extra);
-  if (!f->message.isEmpty() && f->message.contains(tr("vessel"))) status(f->message);
+  // A vessel cut, a refused cut and the end of a stroke (whether the organ came apart, what still joins) are said
+  // in the session's words: the status never says "Cut" over tissue that still joins.
+  if (!f->message.isEmpty() && (f->message.contains(QLatin1String("vessel")) || f->message.contains(QLatin1String("The cut")) ||
+                                f->message.startsWith(QLatin1String("Nothing was cut"))))
+    status(f->message);
   labelThrottle_->request();  // the labels at most 15 times a second, the newest always shown
 }
 

@@ -246,6 +246,18 @@ class Session {
   std::vector<std::future<void>> retired_;
   void retire(std::unique_ptr<DeformableBody> body);
   std::optional<PendingCut> pendingCut_;
+  /// What one blade stroke (cut on to cut off, and the cuts still coming in after it) did, said when it is all in:
+  /// whether the organ came apart, and what the stroke left uncut (inverted elements it crossed, a last sweep
+  /// refused), so that "Cut" is never said over tissue that still joins. Not part of a checkpoint (it only words
+  /// the message).
+  struct Stroke {
+    bool open = false;
+    std::size_t updates = 0, split = 0, separatedFaces = 0, skippedInverted = 0, piecesBefore = 1;
+    std::string lastRefusal;  ///< why the stroke's last attempt was refused (empty when its last sweep was cut)
+  };
+  Stroke stroke_;
+  /// The stroke's sentence once nothing of it is under way any more.
+  void finishStroke(std::string& message);
   std::vector<std::future<Built>> abandonedCuts_;  ///< builds of cuts a restore left behind (waited for at the end)
   /// Applies the pending cut when its body is ready (or, with `wait`, after waiting); true when applied.
   bool finishPendingCut(bool wait, std::string& message);
@@ -309,6 +321,8 @@ void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long 
 /// The setup a replay builds its session from: an asynchronous refresh becomes a deferred one (the
 /// recording's Factor events install the factors where the live run swapped them in).
 BodySetup replaySetup(BodySetup setup);
+/// How many pieces the elements make (elements sharing a node are one piece): whether a cut went through.
+std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes);
 /// The same, `each` given the replaying session (its snapshot: the tool, the events of the step).
 void replaySession(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
                    const std::function<void(long step, const Session&)>& each);
