@@ -778,13 +778,14 @@ int cmdGesture(const std::vector<std::string>& args) {
                       {"factor_requested", s.report.factorRequested}, {"factor_swapped", s.report.factorSwapped}});
     std::vector<const simcore::StepReport*> all;
     for (const auto& s : r.steps) all.push_back(&s.report);
-    writeReport(o["report"], {{"steps", rows}, {"statuses", statusCounts(all)}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", r.vesselCuts}, {"failed_steps", r.failed},
+    writeReport(o["report"], {{"steps", rows}, {"statuses", statusCounts(all)}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", setup.mesh.namesAVessel() ? nlohmann::json(r.vesselCuts) : nlohmann::json(nullptr)}, {"failed_steps", r.failed},
                               {"peak_tool_force_n", peak}, {"elements", out.tets.size()}, {"nodes", out.points.size()},
                               {"contact_queries", r.contactQueries}});
   }
-  std::printf("gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut updates (%zu through a vessel), %zu failed "
+  const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.vesselCuts) + " vessel cut(s)" : "vessels unknown (the mesh names none)";
+  std::printf("gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut updates, %s, %zu failed "
               "steps; %zu elements, %zu nodes written to %s\n",
-              r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, r.vesselCuts, r.failed, out.tets.size(), out.points.size(),
+              r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, vessels.c_str(), r.failed, out.tets.size(), out.points.size(),
               o["out"].c_str());
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);
@@ -887,7 +888,7 @@ int cmdReplay(const std::vector<std::string>& args) {
       const SessionMetrics& m = r.metrics;
       differing += r.verify.mismatches;
       csv << s.id << ',' << quoted(s.meta.trainee) << ',' << s.startedUtc << ',' << (s.complete ? 1 : 0) << ',' << r.verify.steps << ',' << m.durationS << ','
-          << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ',' << m.slips << ',' << m.cuts << ',' << m.vesselCuts << ',' << m.maxForceN << ','
+          << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ',' << m.slips << ',' << m.cuts << ',' << opt(m.vesselCuts) << ',' << m.maxForceN << ','
           << m.meanForceN << ',' << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << opt(m.maxStrain) << ',' << m.cutLengthM << ','
           << opt(m.cutDeviationMeanM) << ',' << opt(m.cutDeviationMaxM) << ',' << opt(m.tumourBreaches) << ',' << opt(m.attachmentsTorn) << ','
           << r.verify.checked << ',' << r.verify.mismatches << '\n';

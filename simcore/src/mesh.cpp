@@ -2,6 +2,7 @@
 #include <rehearse/simcore/meshio.hpp>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <tuple>
 
@@ -11,6 +12,27 @@ std::string Mesh::labelName(int label) const {
   for (const auto& [l, n] : labelNames)
     if (l == label) return n;
   return {};
+}
+
+bool Mesh::labelIsVessel(int label) const {
+  std::string n = labelName(label);
+  for (auto& c : n) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  // Whole words for the abbreviations (no "ivc" inside another word); stems for the rest.
+  auto word = [&n](const std::string& w) {
+    for (std::size_t at = n.find(w); at != std::string::npos; at = n.find(w, at + 1)) {
+      const bool before = at == 0 || !std::isalnum(static_cast<unsigned char>(n[at - 1]));
+      const bool after = at + w.size() == n.size() || !std::isalnum(static_cast<unsigned char>(n[at + w.size()]));
+      if (before && after) return true;
+    }
+    return false;
+  };
+  for (const char* stem : {"vessel", "vein", "venous", "arter", "aorta", "cava", "vascul", "portal"})
+    if (n.find(stem) != std::string::npos) return true;
+  return word("ivc") || word("pv") || word("hv") || word("ha");
+}
+
+bool Mesh::namesAVessel() const {
+  return std::any_of(labelNames.begin(), labelNames.end(), [this](const auto& l) { return labelIsVessel(l.first); });
 }
 
 void Mesh::setLabelName(int label, const std::string& name) {

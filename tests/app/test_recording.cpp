@@ -377,6 +377,16 @@ class TestRecording : public QObject {
     const QJsonObject live = QJsonDocument::fromJson(lf.readAll()).object();
     QVERIFY(std::abs(live["peak_tool_force_n"].toDouble() - m["max_force_n"].toDouble()) < 1e-9);
     QCOMPARE(m["vessel_cuts"].toInt(), live["vessel_cuts"].toInt());
+    QVERIFY(!m["vessel_cuts"].isNull() && m["vessel_cuts"].toInt() >= 1);  // the phantom names label 2 "vessels"; the hook goes through them
+    {  // Issue 32: a mesh that names no vessel cannot say whether one was cut: no number, a sentence.
+      app::Recording unnamed = app::loadRecording(file.toStdString(), 1);
+      unnamed.setup.mesh.labelNames.clear();
+      app::ReplayOptions o;
+      const app::ReplayResult rr = app::replayRecording(unnamed, o);
+      QVERIFY(!rr.metrics.vesselCuts.has_value());
+      QVERIFY(QString::fromStdString(rr.metrics.vesselWhy).contains("names no vessel"));
+      QVERIFY(rr.metrics.cuts > 0);
+    }
     // Verdicts: under 1000 N passes, a vessel cut fails, the tumour is not determined.
     QMap<QString, QString> verdict;
     for (const auto& v : m["verdicts"].toArray()) verdict[v.toObject()["metric"].toString()] = v.toObject()["result"].toString();

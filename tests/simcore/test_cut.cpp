@@ -255,6 +255,58 @@ class TestCut : public QObject {
     }
   }
 
+  // Issue 32: a vessel was "label 2 with its own material", so a stiff tumour counted as a vessel and a vessel without a
+  // material of its own did not. A vessel is now a label the mesh names as one. The block's middle layer of cubes (x in
+  // [10, 15] mm) is label 2; the blade cuts through it at x = 13.7 mm: named "tumour" with its own material, the cut goes
+  // through label 2 and no vessel is cut; named "portal vein" without one, one vessel is cut, said with its name.
+  void aVesselIsALabelNamedAsOne() {
+    for (const char* name : {"tumour", "portal vein"}) {
+      simcore::BodySetup s;
+      s.mesh = boxMesh(0.04, 0.02, 0.02, 8, 4, 4);
+      for (std::size_t t = 0; t < s.mesh.tets.size(); ++t) {
+        double x = 0;
+        for (int k : s.mesh.tets[t]) x += s.mesh.points[static_cast<std::size_t>(k)].x() / 4;
+        if (x > 0.010 && x < 0.015) s.mesh.tetLabels[t] = 2;
+      }
+      s.mesh.setLabelName(1, "parenchyma");
+      s.mesh.setLabelName(2, name);
+      const bool vessel = std::string(name) == "portal vein";
+      if (!vessel) s.byLabel[2] = {simcore::MaterialModel::Corotational, 500e3, 0.45, 1000};
+      s.fixedNodes = nodesAtX(s.mesh, 0.0);
+      s.material = {simcore::MaterialModel::Corotational, 50e3, 0.3, 1000};
+      s.settings.method = simcore::NewtonMethod::Exact;
+      s.tools.trocar = Eigen::Vector3d(0.0137, 0.01, 0.1);
+      s.tools.bladeLength = 0.05;
+      s.tools.cutLatencySteps = -1;
+      simcore::Session session(s);
+      session.post(toolAt({0.0137, -0.01, -0.01}));
+      session.post(cutting(true));
+      session.post(toolAt({0.0137, 0.03, -0.01}));
+      session.post(cutting(false));
+      QVERIFY(session.advance().ok);
+      const auto snap = session.snapshot();
+      const auto& ev = snap->events;
+      qInfo("label 2 named '%s': events %s; said: %s", name, QStringList([&] {
+              QStringList l;
+              for (const auto& e : ev) l << QString::fromStdString(e);
+              return l;
+            }()).join(", ").toUtf8().constData(), snap->message.c_str());
+      QVERIFY(std::count(ev.begin(), ev.end(), "cut through label 2") == 1);
+      QCOMPARE(std::count(ev.begin(), ev.end(), "vessel cut"), vessel ? 1L : 0L);
+      if (vessel) QVERIFY(QString::fromStdString(snap->message).contains("A vessel (portal vein, label 2) was cut."));
+    }
+    simcore::Mesh named;
+    for (const char* v : {"vessels", "Portal Vein", "hepatic artery", "IVC", "inferior vena cava", "HV"}) {
+      named.setLabelName(3, v);
+      QVERIFY2(named.labelIsVessel(3), v);
+    }
+    for (const char* v : {"tumour", "parenchyma", "inner part 2", "capsule", "ligament", "hilum", ""}) {
+      named.setLabelName(3, v);
+      QVERIFY2(!named.labelIsVessel(3), v);
+    }
+    QVERIFY(!simcore::Mesh{}.labelIsVessel(2));  // unnamed: not a vessel
+  }
+
   // Crossing cuts (x and y planes), then a partial continuous cut in small sweeps: the mesh stays
   // conforming (every boundary face lies on the box or on a cut plane), nothing inverts, the volume stays.
   void crossingAndContinuousCuts() {

@@ -714,6 +714,8 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
     for (auto& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     if (lower.find("tumour") != std::string::npos || lower.find("tumor") != std::string::npos) tumourLabel = label;
   }
+  if (r.setup.mesh.namesAVessel()) m.vesselCuts = 0;
+  else m.vesselWhy = "the case names no vessel (no element label named vessel, vein or artery)";
   if (tumourLabel) m.tumourBreaches = 0;
   else m.tumourWhy = "the case marks no tumour (no element label named tumour)";
   m.attachmentsWhy = "the model's attachments cannot tear (they are fixed nodes)";
@@ -777,7 +779,7 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       m.grasps += e == "grasp";
       m.slips += e == "slip";
       m.cuts += e == "cut";
-      m.vesselCuts += e == "vessel cut";
+      if (m.vesselCuts && e == "vessel cut") ++*m.vesselCuts;
       if (tumourLabel && e == "cut through label " + std::to_string(tumourLabel)) ++*m.tumourBreaches;
     }
     if (tool.present && tool.cutting) {

@@ -45,7 +45,7 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"grasps", m.grasps, "", ""},
       {"slips", m.slips, "", ""},
       {"cut_updates", m.cuts, "", ""},
-      {"vessel_cuts", m.vesselCuts, "", ""},
+      {"vessel_cuts", m.vesselCuts, "", m.vesselCuts ? "" : m.vesselWhy},
       {"max_force_n", m.maxForceN, "N", ""},
       {"mean_force_n", m.meanForceN, "N", ""},
       {"time_over_threshold_s", m.timeOverThresholdS, "s", ""},

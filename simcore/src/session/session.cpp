@@ -703,12 +703,13 @@ void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message)
   seedEasing_ = true;  // the surface is new: what lies inside the shaft now is eased out at the next constraints
   events_.push_back("cut");
   for (int label : cutLabels) events_.push_back("cut through label " + std::to_string(label));
-  // A vessel (a label with its own material) cut by this stroke is one event, however many updates the cut takes.
+  // A vessel (a label the organ's mesh names as one, Mesh::labelIsVessel) cut by this stroke is one event, however many
+  // updates the cut takes.
   for (int label : cutLabels)
-    if (setup_.byLabel.count(label) && std::find(tool_.vesselsCut.begin(), tool_.vesselsCut.end(), label) == tool_.vesselsCut.end()) {
+    if (setup_.mesh.labelIsVessel(label) && std::find(tool_.vesselsCut.begin(), tool_.vesselsCut.end(), label) == tool_.vesselsCut.end()) {
       tool_.vesselsCut.push_back(label);
       events_.push_back("vessel cut");
-      message = "A vessel (label " + std::to_string(label) + ") was cut.";
+      message = "A vessel (" + setup_.mesh.labelName(label) + ", label " + std::to_string(label) + ") was cut.";
     }
 }
 

@@ -30,6 +30,11 @@ struct Mesh {
   bool empty() const { return points.empty(); }
   std::string labelName(int label) const;
   void setLabelName(int label, const std::string& name);
+  /// Whether the label's name says it is a blood vessel ("vessels", "portal vein", "hepatic artery", "IVC"...): how a
+  /// cut through a vessel is told from a cut through any other inner structure. Unnamed labels are not vessels.
+  bool labelIsVessel(int label) const;
+  /// Whether any label is named as a vessel (else a session cannot say whether a vessel was cut).
+  bool namesAVessel() const;
   SurfaceView surfaceView() const;  // triangles only; valid while the mesh is unchanged
   Eigen::AlignedBox3d bounds() const;
   /// Scale coordinates to metres and set unitToMetre = 1.

@@ -251,7 +251,11 @@ struct SessionMetrics {
   double durationS = 0;          ///< simulated time
   double pathLengthM = 0;        ///< the instrument tip's path while an instrument is in the scene (not the jump when one is swapped for another)
   double economy = 0;            ///< straight distance from the tip's first to its last place (per instrument, summed) / path length (1: straight; 0: no path)
-  int grasps = 0, slips = 0, cuts = 0, vesselCuts = 0;  ///< events ("cut": cut updates applied)
+  int grasps = 0, slips = 0, cuts = 0;  ///< events ("cut": cut updates applied)
+  /// Vessels cut (once per vessel and stroke): labels the organ's mesh names as vessels (Mesh::labelIsVessel);
+  /// nullopt when it names none (vesselWhy says so): a cut through an unnamed inner structure is not counted as one.
+  std::optional<int> vesselCuts;
+  std::string vesselWhy;
   double maxForceN = 0;          ///< the tool's force on the tissue, largest
   double meanForceN = 0;         ///< mean over the steps with a force
   double forceThresholdN = 0;
