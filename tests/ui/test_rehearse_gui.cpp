@@ -93,6 +93,7 @@ class TestRehearseGui : public QObject {
     // A failed check returns early: the connection (it holds this slot's locals) goes with the scope.
     const auto unwatch = qScopeGuard([&] { disconnect(watching); });
     const std::vector<Eigen::Vector3d> settled = panel->lastFrame()->positions;
+    const QSize viewSize = view->size();  // the page's labels must not resize the frame under the hand (a long force line did)
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     const bool grasped = waitFor([&] { return panel->lastFrame() && !panel->lastFrame()->tool.held.empty(); }, 20000);
     QVERIFY2(grasped, qPrintable(w_->messageLog().join(" | ") + " // " + w_->statusText() + " // " + QString::fromStdString(panel->lastFrame()->report.status) +
@@ -108,6 +109,7 @@ class TestRehearseGui : public QObject {
     const long at = panel->lastFrame()->steps;
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 40; }));
     const auto f = panel->lastFrame();
+    QCOMPARE(view->size(), viewSize);
     QVERIFY2(!f->tool.held.empty(), qPrintable(QString("peak %1 N; %2").arg(peak).arg(slipMessage)));
     double worst = 0;
     for (std::size_t k = 0; k < f->tool.held.size(); ++k)

@@ -81,6 +81,7 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
     force_->setText(forceText_);
   });
   force_->setObjectName(QStringLiteral("rehearseForce"));
+  force_->setWordWrap(true);  // a long line (shares, counts, a step not converged) wraps; it never widens the panel and shrinks the frame
   QFont big = force_->font();
   big.setPointSizeF(big.pointSizeF() * 1.4);
   force_->setFont(big);
@@ -190,6 +191,10 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   QString shares;
   if (!t.held.empty() && (t.force - t.graspForce).norm() >= 0.005)
     shares = tr(" (jaws %1 N, shaft %2 N)").arg(t.graspForce.norm(), 0, 'f', 2).arg((t.force - t.graspForce).norm(), 0, 'f', 2);
+  // A force from a step that did not converge is not the tissue's equilibrium force: said next to the number
+  // (issue 32: 18 kN, then 135 N, were shown from steps with a relative residual near 1).
+  if (t.force.norm() > 0 && f->report.outcome != simcore::StepStatus::Converged)
+    shares += tr(" — step not converged (relative residual %1): not the equilibrium force").arg(f->report.residual, 0, 'g', 2);
   forceText_ = tr("Tool force %1 N%2%3").arg(t.force.norm(), 0, 'f', 2).arg(shares, extra);
   // A vessel cut, a refused cut and the end of a stroke (whether the organ came apart, what still joins) are said
   // in the session's words: the status never says "Cut" over tissue that still joins.
