@@ -32,6 +32,33 @@ class TestCli : public QObject {
     QCOMPARE(v.code, 0);
     QVERIFY(v.out.startsWith("rehearse 0."));
   }
+  // Issue 33: every sub-command prints its usage and its options (declared once: the parser accepts exactly those);
+  // an option another command takes is refused, pointing at the command's own help.
+  void helpPerCommand() {
+    const QMap<QString, QStringList> expect = {{"phantom", {"--out DIR", "--tets N", "--seed S"}},
+                                               {"mesh", {"--in SURFACE", "--target-tets N", "--ascii ", "--allow-self-intersections"}},
+                                               {"info", {"--unit U"}},
+                                               {"simulate", {"--preset NAME", "--steps N", "--static", "--strict", "--list-components"}},
+                                               {"register", {"--contour C.json", "--no-rigid-prepass", "--gravity-camera X,Y,Z", "--young PA"}},
+                                               {"appearance", {"--image FRAME", "--inpaint I", "--diffuse ID.png"}},
+                                               {"compose", {"--theta THETA.json", "--deformed D.vtu"}},
+                                               {"gesture", {"--script G.json", "--refresh R", "--record CASE", "--vessel-young PA"}},
+                                               {"replay", {"--session ID", "--verify", "--planned-cut A:B", "--metrics-csv OUT.csv"}},
+                                               {"publish", {"--service NAME"}}};
+    for (auto it = expect.begin(); it != expect.end(); ++it) {
+      const auto h = run({it.key(), "--help"});
+      QCOMPARE(h.code, 0);
+      QVERIFY2(h.out.startsWith("Usage:\n  rehearse " + it.key()), qPrintable(h.out));
+      for (const QString& o : it.value()) QVERIFY2(h.out.contains("  " + o), qPrintable(it.key() + ": " + o));
+      QVERIFY(h.out.contains("--help"));
+    }
+    const auto wrong = run({"phantom", "--out", "/tmp/x", "--script", "g.json"});
+    QCOMPARE(wrong.code, 2);
+    QVERIFY2(wrong.err.contains("unknown option --script; see 'rehearse phantom --help'"), qPrintable(wrong.err));
+    const auto missing = run({"gesture", "--script"});
+    QCOMPARE(missing.code, 2);
+    QVERIFY2(missing.err.contains("option --script needs a value (G.json)"), qPrintable(missing.err));
+  }
   void phantomWritesACase() {
     const QString dir = QString::fromStdString(tempPath("cli-phantom"));
     auto r = run({"phantom", "--out", dir});

@@ -1,0 +1,210 @@
+// rehearse appearance | compose: the light and reflectance estimated from the frame (step 6), the organ re-shaded in it.
+#include "support.hpp"
+
+#include "phantom/phantom.hpp"
+#include "phantom/presets.hpp"
+#include "rehearse/app/casefolder.hpp"
+#include "rehearse/app/elasticfit.hpp"
+#include "rehearse/app/appearancestep.hpp"
+#include "rehearse/app/gesture.hpp"
+#include "rehearse/app/recording.hpp"
+#include "rehearse/app/review.hpp"
+#include "rehearse/app/materials.hpp"
+
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
+#include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/registration.hpp>
+#include <rehearse/simcore/scene.hpp>
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/quality.hpp>
+#include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include <unistd.h>
+
+namespace rehearse::app::cli {
+
+// Step 6's inputs: a case folder, or the organ, camera, pose and frame as files (each file overrides the
+// case's part).
+AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const char* command) {
+  AppearanceInput in;
+  bool haveSurface = false, havePose = false;
+  if (o.count("case")) {
+    if (!std::filesystem::is_directory(o["case"]))
+      throw UsageError(std::string(command) + " --case takes a case folder (as 'rehearse phantom --out DIR' writes); open a .rehearse file in the GUI");
+    const Case c = loadCaseDirectory(o["case"]);
+    in.camera = c.camera;
+    in.frame = c.frame;
+    if (c.hasPose) in.pose = c.pose, havePose = true;
+    const SurfaceView v = c.surfaceView();
+    in.vertices.assign(v.vertices, v.vertices + 3 * v.vertexCount);
+    in.triangles.resize(v.triangleCount);
+    for (std::size_t t = 0; t < v.triangleCount; ++t) in.triangles[t] = {v.triangles[3 * t], v.triangles[3 * t + 1], v.triangles[3 * t + 2]};
+    haveSurface = true;
+  }
+  if (o.count("mesh")) {
+    simcore::LoadOptions lo;
+    if (o.count("unit")) lo.unit = o["unit"];
+    simcore::Mesh m = simcore::loadMesh(o["mesh"], lo);
+    m.convertToMetres();
+    in.triangles = m.isVolume() ? simcore::boundaryTriangles(m, false) : m.triangles;
+    in.vertices.clear();
+    for (const auto& p : m.points) in.vertices.insert(in.vertices.end(), {p.x(), p.y(), p.z()});
+    haveSurface = true;
+  }
+  if (o.count("image")) {
+    in.frame = cv::imread(o["image"], cv::IMREAD_COLOR);
+    if (in.frame.empty()) throw simcore::MeshError("The image " + o["image"] + " cannot be read; give a PNG or JPEG frame.");
+  }
+  if (o.count("camera")) in.camera = imaging::loadCamera(o["camera"], in.frame.cols, in.frame.rows);
+  if (o.count("pose")) in.pose = imaging::loadPose(o["pose"]), havePose = true;
+  if (!haveSurface) throw UsageError(std::string(command) + " needs --case or --mesh");
+  if (in.frame.empty()) throw UsageError(std::string(command) + " needs --image (or a --case with a frame)");
+  if (in.camera.width == 0) throw UsageError(std::string(command) + " needs --camera (or a --case with one)");
+  if (!havePose) throw UsageError(std::string(command) + " needs --pose (the case has no alignment yet)");
+  if (const std::string problem = in.camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
+  // A frame from a camera with lens distortion is undistorted first (every step works on the undistorted frame).
+  if (o.count("image") && std::any_of(in.camera.distortion.begin(), in.camera.distortion.end(), [](double d) { return d != 0; })) {
+    cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F), out;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) K.at<double>(r, c) = in.camera.K(r, c);
+    for (int k = 0; k < 5; ++k) D.at<double>(0, k) = in.camera.distortion[static_cast<std::size_t>(k)];
+    cv::undistort(in.frame, out, K, D, K);
+    in.frame = out;
+  }
+  if (o.count("inpaint")) in.inpaint = imaging::parseInpaintMethod(o["inpaint"]);
+  return in;
+}
+
+int cmdAppearance(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2, appearanceCommand());
+  if (!o.count("out")) throw UsageError("appearance needs --out THETA.json");
+  const AppearanceInput in = appearanceInput(o, "appearance");
+  const AppearanceOutput r = runAppearance(in);
+  imaging::saveAppearance(r.fit.theta, o["out"]);
+  if (o.count("background")) imaging::writeFileAtomically(o["background"], [&] {
+      std::vector<uchar> buf;
+      cv::imencode(".png", r.background, buf);
+      return std::string(buf.begin(), buf.end());
+    }());
+  if (o.count("diffuse")) {
+    std::vector<uchar> buf;
+    cv::imencode(".png", r.fit.separation.diffuse, buf);
+    imaging::writeFileAtomically(o["diffuse"], std::string(buf.begin(), buf.end()));
+  }
+  if (o.count("report")) {
+    nlohmann::json stages = nlohmann::json::array();
+    for (const auto& st : r.fit.stages) stages.push_back({{"stage", st.name}, {"rms_levels", st.rms}, {"ms", st.ms}, {"pixels", st.pixels}});
+    stages.push_back({{"stage", std::string("background (") + imaging::inpaintMethodName(in.inpaint) + ")"}, {"ms", r.inpaintMs}});
+    writeReport(o["report"], {{"status", r.fit.status},
+                              {"highlight_found", r.fit.highlightFound},
+                              {"texture_only", r.fit.textureOnly},
+                              {"explained", r.fit.explained},
+                              {"ks_measured", {r.fit.ksMeasured[0], r.fit.ksMeasured[1], r.fit.ksMeasured[2]}},
+                              {"highlight_pixels", r.fit.separation.count},
+                              {"rest_psnr_db", r.restPsnr},
+                              {"total_ms", r.totalMs},
+                              {"stages", stages}});
+  }
+  std::printf("%s\nlight (%.1f, %.1f, %.1f) mm, kd (%.4f, %.4f, %.4f), ks (%.4f, %.4f, %.4f), roughness %.3f; composed at rest: %.1f dB inside the organ; %.0f ms\n",
+              r.fit.status.c_str(), 1e3 * r.fit.theta.lightPosition.x(), 1e3 * r.fit.theta.lightPosition.y(), 1e3 * r.fit.theta.lightPosition.z(),
+              r.fit.theta.kd.x(), r.fit.theta.kd.y(), r.fit.theta.kd.z(), r.fit.theta.ks.x(), r.fit.theta.ks.y(), r.fit.theta.ks.z(), r.fit.theta.roughness,
+              r.restPsnr, r.totalMs);
+  // A fit too poor to re-shade is still written (texture mapping uses it), but says so with its own exit code.
+  return r.fit.textureOnly ? 4 : 0;
+}
+
+int cmdCompose(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2, composeCommand());
+  for (const char* need : {"theta", "out"})
+    if (!o.count(need)) throw UsageError(std::string("compose needs --") + need);
+  const std::string ext = std::filesystem::path(o["out"]).extension().string();
+  if (ext != ".png" && ext != ".jpg" && ext != ".jpeg") throw UsageError("--out must end in .png or .jpg");
+  const AppearanceInput in = appearanceInput(o, "compose");
+  const imaging::Appearance theta = imaging::loadAppearance(o["theta"]);
+  std::vector<double> deformed;
+  if (o.count("deformed")) {
+    simcore::LoadOptions lo;
+    if (o.count("unit")) lo.unit = o["unit"];
+    simcore::Mesh d = simcore::loadMesh(o["deformed"], lo);
+    d.convertToMetres();
+    for (const auto& p : d.points) deformed.insert(deformed.end(), {p.x(), p.y(), p.z()});
+  }
+  const cv::Mat3b j = composeWithTheta(in, theta, deformed);
+  std::vector<uchar> buf;
+  cv::imencode(ext, j, buf);
+  imaging::writeFileAtomically(o["out"], std::string(buf.begin(), buf.end()));
+  std::printf("written: %s\n", o["out"].c_str());
+  return 0;
+}
+
+const Command& appearanceCommand() {
+  static const Command command = [] {
+    Command c;
+    c.name = "appearance";
+    c.usage =
+      "  rehearse appearance --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out THETA.json\n"
+      "                [--report R.json] [--inpaint telea|ns|shiftmap|fsr] [--background IB.png] [--diffuse ID.png]\n"
+      "                                   estimate the light and the organ's reflectance from the frame (step 6);\n"
+      "                                   exit 4 when the model explains too little (texture mapping only)\n";
+    c.options = {
+      {"case", "DIR", "a case folder (its organ, camera, pose and frame; the files below override them)"},
+      {"mesh", "M", "the organ"},
+      {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
+      {"camera", "CAM", "the camera"},
+      {"pose", "P.json", "the organ's pose (model to camera)"},
+      {"image", "FRAME", "the endoscope frame"},
+      {"out", "THETA.json", "the estimated light and reflectance"},
+      {"report", "R.json", "what the frame did and did not determine"},
+      {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"},
+      {"background", "IB.png", "write the frame without the organ"},
+      {"diffuse", "ID.png", "write the organ's diffuse albedo"}};
+    c.run = cmdAppearance;
+    return c;
+  }();
+  return command;
+}
+
+const Command& composeCommand() {
+  static const Command command = [] {
+    Command c;
+    c.name = "compose";
+    c.usage =
+      "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta THETA.json\n"
+      "                [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint telea|ns|shiftmap|fsr]\n"
+      "                                   the organ (deformed: its nodes in the input order) re-shaded in the frame\n";
+    c.options = {
+      {"case", "DIR", "a case folder (the files below override its parts)"},
+      {"mesh", "M", "the organ"},
+      {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
+      {"camera", "CAM", "the camera"},
+      {"pose", "P.json", "the organ's pose"},
+      {"image", "FRAME", "the endoscope frame"},
+      {"theta", "THETA.json", "the appearance (rehearse appearance --out)"},
+      {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
+      {"out", "J.png", "the composited image"},
+      {"inpaint", "I", "telea, ns, shiftmap or fsr"}};
+    c.run = cmdCompose;
+    return c;
+  }();
+  return command;
+}
+
+}  // namespace rehearse::app::cli

@@ -1,0 +1,168 @@
+// rehearse phantom | mesh | info: the built-in case as files, a surface tetrahedralised, a mesh described.
+#include "support.hpp"
+
+#include "phantom/phantom.hpp"
+#include "phantom/presets.hpp"
+#include "rehearse/app/casefolder.hpp"
+#include "rehearse/app/elasticfit.hpp"
+#include "rehearse/app/appearancestep.hpp"
+#include "rehearse/app/gesture.hpp"
+#include "rehearse/app/recording.hpp"
+#include "rehearse/app/review.hpp"
+#include "rehearse/app/materials.hpp"
+
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
+#include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/registration.hpp>
+#include <rehearse/simcore/scene.hpp>
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/quality.hpp>
+#include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include <unistd.h>
+
+namespace rehearse::app::cli {
+
+int cmdPhantom(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2, phantomCommand());
+  if (!o.count("out")) throw UsageError("phantom needs --out DIR");
+  phantom::PhantomOptions po;
+  if (o.count("tets")) po.targetTets = parseCount(o["tets"], "--tets", 100, 2'000'000);
+  if (o.count("seed")) po.seed = static_cast<unsigned>(parseCount(o["seed"], "--seed", 0, 1'000'000));
+  auto t0 = std::chrono::steady_clock::now();
+  const auto c = phantom::makePhantom(po);
+  writeCaseDirectory(caseFromPhantom(c), o["out"]);
+  double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::printf("phantom written to %s: %zu nodes, %zu tets, %zu surface triangles, %zu attachment nodes, frame %dx%d (%.2f s)\n",
+              o["out"].c_str(), c.volume.points.size(), c.volume.tets.size(), c.surface.size(), c.attachments.size(),
+              c.frame.cols, c.frame.rows, s);
+  return 0;
+}
+
+int cmdMesh(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2, meshCommand());
+  if (!o.count("in") || !o.count("out")) throw UsageError("mesh needs --in SURFACE and --out VOLUME.msh|.vtk|.vtu");
+  const std::string ext = std::filesystem::path(o["out"]).extension().string();
+  if (ext != ".msh" && ext != ".vtk" && ext != ".vtu" && ext != ".mesh")
+    throw UsageError("--out must end in .msh, .vtk, .vtu or .mesh");
+  simcore::LoadOptions lo;
+  if (o.count("unit")) lo.unit = o["unit"];
+  std::vector<std::string> notes;
+  auto input = simcore::loadMesh(o["in"], lo, &notes);
+  simcore::Mesh volume;
+  auto t0 = std::chrono::steady_clock::now();
+  if (input.isVolume()) {
+    volume = std::move(input);
+    volume.triangles.clear();
+    volume.triangleLabels.clear();
+    notes.push_back("The input is already a volume mesh; it was converted, not re-meshed.");
+  } else {
+    simcore::TetrahedraliseOptions to;
+    if (o.count("target-tets")) to.targetTets = parseCount(o["target-tets"], "--target-tets", 10, 5'000'000);
+    if (o.count("size")) to.cellSize = parseNumber(o["size"], "--size") * 1e-3;
+    to.allowSelfIntersections = o.count("allow-self-intersections") > 0;
+    if (isatty(fileno(stderr)))
+      to.progress = [](double f, const std::string& stage) {
+        if (f < 0) std::fprintf(stderr, "\r     %-64s", stage.c_str());  // a stage of unknown length: its counts
+        else std::fprintf(stderr, "\r%3.0f%% %-64s", 100 * f, stage.c_str());
+      };
+    volume = simcore::tetrahedraliseSurface(input, to, &notes);
+  }
+  double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  if (isatty(fileno(stderr))) std::fprintf(stderr, "\r%50s\r", "");
+  simcore::saveMesh(volume, o["out"], o.count("ascii") > 0);
+  for (const auto& n : notes) std::fprintf(stderr, "note: %s\n", n.c_str());
+  std::printf("%s", simcore::formatQuality(simcore::computeQuality(volume)).c_str());
+  std::printf("meshing time: %.3f s\nwritten: %s\n", s, o["out"].c_str());
+  return 0;
+}
+
+int cmdInfo(const std::vector<std::string>& args) {
+  if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("info needs a FILE");
+  auto o = parseOptions(args, 3, infoCommand());
+  simcore::LoadOptions lo;
+  if (o.count("unit")) lo.unit = o["unit"];
+  std::vector<std::string> notes;
+  auto m = simcore::loadMesh(args[2], lo, &notes);
+  auto q = simcore::computeQuality(m);
+  if (!m.isVolume()) q.selfIntersections = simcore::countSelfIntersections(m);
+  std::printf("file: %s\nkind: %s\nunit: %s (coordinates shown in mm)\n", args[2].c_str(),
+              m.isVolume() ? "volume" : "surface", lo.unit.c_str());
+  std::printf("%s", simcore::formatQuality(q).c_str());
+  for (const auto& n : notes) std::printf("repaired on load: %s\n", n.c_str());
+  return 0;
+}
+
+const Command& phantomCommand() {
+  static const Command command = [] {
+    Command c;
+    c.name = "phantom";
+    c.usage =
+      "  rehearse phantom --out DIR [--tets N] [--seed S]\n"
+      "                                   write the built-in phantom case as ordinary files\n";
+    c.options = {
+      {"out", "DIR", "the folder to write the case into (created)"},
+      {"tets", "N", "about this many tetrahedra (default 3,800)"},
+      {"seed", "S", "the random seed of the frame's texture"}};
+    c.run = cmdPhantom;
+    return c;
+  }();
+  return command;
+}
+
+const Command& meshCommand() {
+  static const Command command = [] {
+    Command c;
+    c.name = "mesh";
+    c.usage =
+      "  rehearse mesh --in SURFACE --out VOLUME.msh|.vtk|.vtu [--target-tets N] [--size MM]\n"
+      "                [--unit m|dm|cm|mm] [--ascii] [--allow-self-intersections]\n"
+      "                                   tetrahedralise a closed surface (inner closed parts become labels)\n";
+    c.options = {
+      {"in", "SURFACE", "the closed surface (any mesh format below)"},
+      {"out", "VOLUME", ".msh, .vtk or .vtu"},
+      {"target-tets", "N", "about this many tetrahedra"},
+      {"size", "MM", "the largest element size instead"},
+      {"unit", "U", "m, dm, cm or mm: the surface's length unit"},
+      {"ascii", "", "write text instead of binary"},
+      {"allow-self-intersections", "", "mesh a surface that intersects itself (it is refused otherwise)"}};
+    c.run = cmdMesh;
+    return c;
+  }();
+  return command;
+}
+
+const Command& infoCommand() {
+  static const Command command = [] {
+    Command c;
+    c.name = "info";
+    c.usage =
+      "  rehearse info FILE [--unit m|dm|cm|mm]\n"
+      "                                   node, element and label counts, bounds and quality\n";
+    c.options = {
+      {"unit", "U", "m, dm, cm or mm: the file's length unit"}};
+    c.run = cmdInfo;
+    return c;
+  }();
+  return command;
+}
+
+}  // namespace rehearse::app::cli

@@ -1,0 +1,184 @@
+// rehearse gesture: a scripted rehearsal without a window (issue 15), through the simulation session.
+#include "support.hpp"
+
+#include "phantom/phantom.hpp"
+#include "phantom/presets.hpp"
+#include "rehearse/app/casefolder.hpp"
+#include "rehearse/app/elasticfit.hpp"
+#include "rehearse/app/appearancestep.hpp"
+#include "rehearse/app/gesture.hpp"
+#include "rehearse/app/recording.hpp"
+#include "rehearse/app/review.hpp"
+#include "rehearse/app/materials.hpp"
+
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
+#include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/registration.hpp>
+#include <rehearse/simcore/scene.hpp>
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/quality.hpp>
+#include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include <unistd.h>
+
+namespace rehearse::app::cli {
+
+int cmdGesture(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2, gestureCommand());
+  if ((o.count("trainee") || o.count("notes")) && !o.count("record")) throw UsageError("--trainee and --notes go with --record CASE");
+  if (!o.count("script")) throw UsageError("gesture needs --script G.json (README, File formats)");
+  if (!o.count("out")) throw UsageError("gesture needs --out OUT.vtu|.vtk|.msh");
+  const std::string ext = std::filesystem::path(o["out"]).extension().string();
+  if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+  std::ifstream in(o["script"]);
+  if (!in) throw UsageError("cannot read the gesture script " + o["script"]);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  GestureScript script;
+  try {
+    script = parseGestureScript(ss.str());
+  } catch (const std::runtime_error& e) {
+    throw UsageError(std::string(o["script"]) + ": " + e.what());
+  }
+  simcore::BodySetup setup;
+  simcore::Mesh mesh;
+  if (o.count("case")) {
+    for (const char* k : {"scene", "preset", "mesh", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes"})
+      if (o.count(k)) throw UsageError(std::string("--case takes the case's organ, attachments and material; --") + k + " cannot be combined with it");
+    const Case c = loadCaseDirectory(o["case"]);
+    if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
+    mesh = c.organ->volume;
+    setup.fixedNodes = c.attachments;
+    const LabelMaterials lm = labelMaterials(c.material);
+    setup.material = lm.fallback;
+    setup.byLabel = lm.byLabel;
+    if (o.count("gravity")) setup.settings.gravity = parseVector(o["gravity"], "--gravity");
+  } else {
+    simcore::Scene p = modelFromOptions(o, "gesture");
+    if (!p.embedded.empty())
+      throw UsageError("the scene embeds surfaces (" + p.embedded.front().name + "), which the gesture session does not carry yet; remove them or use simulate");
+    mesh = p.mesh;
+    setup.fixedNodes = p.fixedNodes;
+    setup.material = p.defaultMaterial;
+    setup.byLabel = p.materials;
+    setup.settings = p.settings;
+  }
+  if (o.count("method")) setup.settings.method = simcore::newtonMethodFromString(o["method"]);
+  if (o.count("refresh")) {
+    if (o["refresh"] == "async") setup.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;
+    else if (o["refresh"] != "sync") throw UsageError("--refresh takes sync or async, not '" + o["refresh"] + "'");
+    if (setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous && setup.settings.method == simcore::NewtonMethod::Exact)
+      throw UsageError("--refresh async rebuilds the lagged factorisation of the chord, lagged-pcg and linearised methods; the exact method has none (choose --method)");
+  }
+  mesh.convertToMetres();
+  setup.mesh = mesh;
+  // --record: the session (setup, events, a state checksum every 10 steps) written into CASE as it runs.
+  std::unique_ptr<Recorder> recorder;
+  GestureHooks hooks;
+  if (o.count("record")) {
+    SessionMeta meta;
+    meta.trainee = o.count("trainee") ? o["trainee"] : "";
+    meta.notes = o.count("notes") ? o["notes"] : "";
+    meta.caseName = o.count("case") ? o["case"] : o.count("preset") ? "preset " + o["preset"] : o.count("scene") ? o["scene"] : o.count("mesh") ? o["mesh"] : "";
+    meta.sceneVersion = o["script"];
+    meta.appVersion = REHEARSE_VERSION;
+    hooks.start = [&recorder, meta, path = o["record"]](const simcore::BodySetup& s) {
+      try {
+        recorder = std::make_unique<Recorder>(path, meta, s);
+      } catch (const std::runtime_error& e) {
+        throw UsageError(e.what());
+      }
+    };
+    hooks.step = [&recorder](const simcore::StepRecord& r) { recorder->afterStep(r); };
+  }
+  const GestureResult r = runGesture(setup, script, hooks);
+  if (recorder) {
+    recorder->finish(static_cast<long>(r.steps.size()));
+    std::printf("recorded: session %lld in %s (%zu steps)\n", static_cast<long long>(recorder->id()), o["record"].c_str(), r.steps.size());
+  }
+  const simcore::Mesh& out = r.finalMesh;
+  simcore::saveMesh(out, o["out"]);
+  double peak = 0, wall = 0;
+  std::size_t grasped = 0;
+  for (const auto& s : r.steps) {
+    peak = std::max(peak, s.toolForce.norm());
+    wall += s.wallMs;
+    grasped = std::max(grasped, s.grasped);
+  }
+  if (o.count("report")) {
+    nlohmann::json rows = nlohmann::json::array();
+    for (const auto& s : r.steps)
+      rows.push_back({{"step", s.step}, {"time_s", s.time}, {"wall_ms", s.wallMs}, {"mass_kg", s.massKg}, {"elements", s.elements}, {"nodes", s.nodes},
+                      {"grasped_nodes", s.grasped}, {"contacts", s.contacts}, {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
+                      {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}}, {"events", s.events}, {"message", s.message}, {"ok", s.report.ok},
+                      {"outcome", toString(s.report.outcome)}, {"status", simcore::statusSentence(s.report)}, {"residual", s.report.residual},
+                      {"inverted_elements", s.report.invertedElements}, {"min_volume_ratio", s.report.minVolumeRatio}, {"factorisations", s.report.factorisations},
+                      {"factor_requested", s.report.factorRequested}, {"factor_swapped", s.report.factorSwapped}});
+    std::vector<const simcore::StepReport*> all;
+    for (const auto& s : r.steps) all.push_back(&s.report);
+    writeReport(o["report"], {{"steps", rows}, {"statuses", statusCounts(all)}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", setup.mesh.namesAVessel() ? nlohmann::json(r.vesselCuts) : nlohmann::json(nullptr)}, {"failed_steps", r.failed},
+                              {"peak_tool_force_n", peak}, {"elements", out.tets.size()}, {"nodes", out.points.size()},
+                              {"contact_queries", r.contactQueries}});
+  }
+  const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.vesselCuts) + " vessel cut(s)" : "vessels unknown (the mesh names none)";
+  std::printf("gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut updates, %s, %zu failed "
+              "steps; %zu elements, %zu nodes written to %s\n",
+              r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, vessels.c_str(), r.failed, out.tets.size(), out.points.size(),
+              o["out"].c_str());
+  std::vector<const simcore::StepReport*> all;
+  for (const auto& s : r.steps) all.push_back(&s.report);
+  const int code = statusSummary(all);
+  // A cut refused or another input the session turned down is not a step's failure: r.failed counts steps not taken.
+  return r.failed ? 3 : code;
+}
+
+const Command& gestureCommand() {
+  static const Command command = [] {
+    Command c;
+    c.name = "gesture";
+    c.usage =
+      "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of simulate]\n"
+      "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method exact|lagged-pcg|chord|linearised]\n"
+      "                [--refresh sync|async]  async: a drifted lagged factorisation is rebuilt on a second thread and\n"
+      "                                   swapped in when ready (the steps never wait for it)\n"
+      "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through the\n"
+      "                                   simulation session without a window; the report has a row per step (wall time,\n"
+      "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"
+      "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum every\n"
+      "                                   10 steps) written into CASE (a .rehearse file) as it runs\n";
+    c.options = {
+      {"case", "DIR", "a case folder's organ, attachments and material"},
+      {"script", "G.json", "the timed instrument events (README, File formats)"},
+      {"out", "OUT", "the volume at the end: .vtu, .vtk or .msh"},
+      {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
+      {"method", "M", "exact, lagged-pcg, chord or linearised"},
+      {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
+      {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
+      {"trainee", "NAME", "the trainee the recording names (with --record)"},
+      {"notes", "TEXT", "notes kept with the recording (with --record)"}};
+    c.options.insert(c.options.begin() + 1, modelOptions().begin(), modelOptions().end());
+    c.run = cmdGesture;
+    return c;
+  }();
+  return command;
+}
+
+}  // namespace rehearse::app::cli

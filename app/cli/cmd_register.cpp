@@ -1,0 +1,239 @@
+// rehearse register: the organ fitted onto a sketched silhouette (issue 5).
+#include "support.hpp"
+
+#include "phantom/phantom.hpp"
+#include "phantom/presets.hpp"
+#include "rehearse/app/casefolder.hpp"
+#include "rehearse/app/elasticfit.hpp"
+#include "rehearse/app/appearancestep.hpp"
+#include "rehearse/app/gesture.hpp"
+#include "rehearse/app/recording.hpp"
+#include "rehearse/app/review.hpp"
+#include "rehearse/app/materials.hpp"
+
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
+#include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/registration.hpp>
+#include <rehearse/simcore/scene.hpp>
+#include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/quality.hpp>
+#include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <opencv2/calib3d.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <iostream>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <sstream>
+
+#include <unistd.h>
+
+namespace rehearse::app::cli {
+
+int cmdRegister(const std::vector<std::string>& args) {
+  auto o = parseOptions(args, 2, registerCommand());
+  for (const char* need : {"camera", "contour", "pose", "out"})
+    if (!o.count(need)) throw UsageError(std::string("register needs --") + need);
+  if (o.count("rigid-prepass") && o.count("no-rigid-prepass")) throw UsageError("--rigid-prepass and --no-rigid-prepass contradict each other");
+  const std::string ext = std::filesystem::path(o["out"]).extension().string();
+  if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+  const bool gravityGiven = o.count("gravity") > 0;
+  simcore::Mesh surfaceIn;
+  simcore::Scene p = modelFromOptions(o, "register", &surfaceIn);
+  // A registration has no gravity unless the scene or --gravity asks for it (the pre-operative shape is
+  // the organ as it lies).
+  if (!gravityGiven && !o.count("scene")) p.settings.gravity.setZero();
+  p.mesh.convertToMetres();
+  imaging::Contour contour = imaging::loadContour(o["contour"]);
+  int width = contour.width, height = contour.height;
+  if (o.count("image-size")) {
+    char x = 0;
+    std::istringstream in(o["image-size"]);
+    if (!(in >> width >> x >> height) || x != 'x' || width <= 0 || height <= 0) throw UsageError("--image-size must look like 1280x720");
+  }
+  const imaging::Camera camera = imaging::loadCamera(o["camera"], width, height);
+  if (const std::string problem = camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
+  if (contour.width == 0) contour.width = camera.width;
+  if (contour.height == 0) contour.height = camera.height;
+  if (o.count("distorted-contour")) contour = imaging::undistortContour(contour, camera);
+  if (const std::string problem = imaging::contourProblem(contour); !problem.empty()) throw simcore::MeshError(problem);
+  const Pose start = imaging::loadPose(o["pose"]);
+  // When the organ came as a surface, curve vertices index that surface: they go to the nearest surface
+  // node of the volume made from it.
+  std::vector<int> boundaryNodes;
+  if (!surfaceIn.points.empty()) {
+    for (const auto& t : simcore::boundaryTriangles(p.mesh, false)) boundaryNodes.insert(boundaryNodes.end(), t.begin(), t.end());
+    std::sort(boundaryNodes.begin(), boundaryNodes.end());
+    boundaryNodes.erase(std::unique(boundaryNodes.begin(), boundaryNodes.end()), boundaryNodes.end());
+  }
+  for (auto& seg : contour.segments) {
+    if (seg.isSilhouette() || boundaryNodes.empty()) continue;
+    for (int& v : seg.modelVertices) {
+      if (v < 0 || static_cast<std::size_t>(v) >= surfaceIn.points.size())
+        throw simcore::MeshError("The " + seg.type + " curve refers to vertex " + std::to_string(v) + ", which the surface does not have.");
+      int best = boundaryNodes.front();
+      for (int n : boundaryNodes)
+        if ((p.mesh.points[n] - surfaceIn.points[v]).squaredNorm() < (p.mesh.points[best] - surfaceIn.points[v]).squaredNorm()) best = n;
+      v = best;
+    }
+    seg.modelVertices.erase(std::unique(seg.modelVertices.begin(), seg.modelVertices.end()), seg.modelVertices.end());
+  }
+  simcore::Mesh truth;
+  if (o.count("ground-truth")) {
+    simcore::LoadOptions lo;
+    if (o.count("unit")) lo.unit = o["unit"];
+    truth = simcore::loadMesh(o["ground-truth"], lo);
+    truth.convertToMetres();
+    if (truth.points.size() != p.mesh.points.size())
+      throw simcore::MeshError("The ground truth has " + std::to_string(truth.points.size()) + " nodes, the organ " +
+                               std::to_string(p.mesh.points.size()) + "; they must be the same mesh in the same order.");
+  }
+  // The one fit pipeline the GUI uses too (app/elasticfit.hpp).
+  FitInput in;
+  in.organ = Organ::fromVolume(std::move(p.mesh));  // moved: the output below copies it from the organ
+  in.attachments = p.fixedNodes;
+  in.materials = {p.defaultMaterial, p.materials};
+  in.embedded = p.embedded;
+  in.settings = p.settings;
+  in.contour = contour;
+  in.camera = camera.pinhole();
+  in.start = start;
+  // The rigid stage runs first unless asked not to (as in the GUI): the elastic stage alone cannot recover
+  // a pose that is centimetres off (BENCHMARKS.md).
+  in.rigidPrepass = o.count("no-rigid-prepass") == 0;
+  in.elastic = o.count("rigid-only") == 0;
+  if (o.count("iterations")) in.maxIterations = static_cast<int>(parseCount(o["iterations"], "--iterations", 1, 1000));
+  if (o.count("gravity-camera")) {
+    if (gravityGiven) throw UsageError("--gravity (model frame) and --gravity-camera (camera frame) say the same thing twice; give one");
+    in.gravityCamera = parseVector(o["gravity-camera"], "--gravity-camera");
+    if (!(in.gravityCamera.norm() > 0)) throw UsageError("--gravity-camera must not be zero (leave it out when down is not known)");
+  }
+  struct Row {
+    simcore::RegistrationIteration it;
+    double errMean = -1, errMax = -1;
+  };
+  std::vector<Row> rows;
+  const FitProgress record = [&](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
+    Row r{it};
+    if (!truth.points.empty()) {
+      double sum = 0, worst = 0;
+      for (std::size_t i = 0; i < truth.points.size(); ++i) {
+        const double e = (pose.apply(x.segment<3>(3 * i)) - truth.points[i]).norm();
+        sum += e;
+        worst = std::max(worst, e);
+      }
+      r.errMean = 1e3 * sum / truth.points.size();
+      r.errMax = 1e3 * worst;
+    }
+    rows.push_back(r);
+    return true;
+  };
+  const simcore::RegistrationResult res = runElasticFit(in, record);
+  // Registered nodes in the camera frame, input order.
+  simcore::Mesh out = in.organ->volume;
+  out.triangles.clear();
+  out.triangleLabels.clear();
+  for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = res.pose.apply(res.x.segment<3>(3 * i));
+  if (res.ok) {
+    simcore::saveMesh(out, o["out"]);
+    if (o.count("pose-out")) imaging::savePose(res.pose, o["pose-out"]);
+  }
+  if (o.count("report")) {
+    nlohmann::json iterations = nlohmann::json::array();
+    for (const auto& r : rows) {
+      nlohmann::json row = {{"iteration", r.it.iteration}, {"stage", r.it.stage}, {"wall_ms", r.it.wallMs}, {"mean_px", r.it.residual.mean},
+                            {"rms_px", r.it.residual.rms}, {"hausdorff_px", r.it.residual.hausdorff}, {"bound", r.it.bound}};
+      if (r.it.curves.points) {
+        row["curve_mean_px"] = r.it.curves.mean;
+        row["curve_hausdorff_px"] = r.it.curves.hausdorff;
+      }
+      if (r.errMean >= 0) {
+        row["error_mean_mm"] = r.errMean;
+        row["error_max_mm"] = r.errMax;
+      }
+      iterations.push_back(std::move(row));
+    }
+    nlohmann::json alternatives = nlohmann::json::array();
+    for (const auto& a : res.alternatives)
+      alternatives.push_back({{"pose", nlohmann::json::parse(imaging::poseToJson(a.pose))}, {"mean_px", a.score}, {"apart_mm", a.apartMm}});
+    writeReport(o["report"], {{"ok", res.ok},
+                              {"converged", res.converged},
+                              {"determined", res.ok && !res.ambiguous},
+                              {"ambiguous", res.ambiguous},
+                              {"alternatives", alternatives},
+                              {"sag_determined", res.sagDetermined},
+                              {"sag_share", res.sagShare},
+                              {"sag_apart_mm", res.sagApartMm},
+                              {"deeper_minima_taken", res.adopted},
+                              {"load_model_m_s2", {res.load.x(), res.load.y(), res.load.z()}},
+                              {"load_camera_m_s2", {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
+                              {"status", res.status},
+                              {"iterations", iterations}});
+  }
+  const auto& last = rows.back().it;
+  std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(), rows.size(), last.wallMs,
+              last.score(), rows.front().it.score(),
+              rows.back().errMean >= 0 ? (", 3D error " + std::to_string(rows.back().errMean) + " mm").c_str() : "");
+  if (!res.ok) {
+    std::fprintf(stderr, "rehearse: %s\n", res.status.c_str());
+    return 3;
+  }
+  if (res.ambiguous) {
+    // The best fit is written, but the contour does not determine it: not a success.
+    std::fprintf(stderr, "rehearse: %s\n", res.status.c_str());
+    return 4;
+  }
+  return 0;
+}
+
+const Command& registerCommand() {
+  static const Command command = [] {
+    Command c;
+    c.name = "register";
+    c.usage =
+      "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"
+      "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
+      "                [--ground-truth GT.vtu|.vtk] [--no-rigid-prepass] [--rigid-only] [--iterations N]\n"
+      "                [--image-size WxH] [--distorted-contour] [--gravity-camera X,Y,Z] [material flags of simulate]\n"
+      "                                   fit the organ onto a sketched silhouette (nodes written in the camera frame);\n"
+      "                                   the organ's sag under a steady load is estimated with its pose (held organs;\n"
+      "                                   --gravity-camera: which way is down in the camera frame, m/s^2, when known);\n"
+      "                                   ridges and ligaments with their curve on the organ (P2ILF modelPoints, our\n"
+      "                                   model_vertices: node indices, or surface vertices when --mesh is a surface)\n"
+      "                                   are held onto their image curves too. Exit 0: a determined fit;\n"
+      "                                   4: ambiguous (the best fit is written; the report names the other\n"
+      "                                   poses that fit the contour nearly as well); 3: failed\n";
+    c.options = {
+      {"camera", "CAM", "the camera (OpenCV YAML or JSON intrinsics)"},
+      {"contour", "C.json", "the sketched silhouette (and curves) in pixels"},
+      {"pose", "P0.json", "the starting pose (model to camera)"},
+      {"out", "OUT", "the registered volume, nodes in the camera frame: .vtu or .vtk"},
+      {"pose-out", "P.json", "the fitted pose"},
+      {"report", "R.json", "residuals, status, alternatives"},
+      {"ground-truth", "GT", "a volume in the camera frame to measure the fit against"},
+      {"iterations", "N", "the elastic fit's iterations"},
+      {"image-size", "WxH", "the frame's size when the camera file has none"},
+      {"gravity-camera", "X,Y,Z", "which way is down in the camera frame, m/s^2, when known"},
+      {"rigid-prepass", "", "run the rigid stage first (the default)"},
+      {"no-rigid-prepass", "", "start the elastic fit from the given pose"},
+      {"rigid-only", "", "stop after the rigid stage"},
+      {"distorted-contour", "", "the contour was drawn on the distorted frame"}};
+    c.options.insert(c.options.begin(), modelOptions().begin(), modelOptions().end());
+    c.run = cmdRegister;
+    return c;
+  }();
+  return command;
+}
+
+}  // namespace rehearse::app::cli
