@@ -1,0 +1,154 @@
+// A recorded session's metrics: one replay that compares its checksums and measures the session (motion, events,
+// forces, strain, the cut against a planned line, structures damaged). The one table the command line, the review
+// window and the PDF read is review.cpp's metricValues.
+#include "rehearse/app/recording.hpp"
+
+#include "rehearse/app/review.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <set>
+
+namespace rehearse::app {
+
+ReplayResult replayRecording(const Recording& r, double forceThresholdN) {
+  ReplayOptions o;
+  o.forceThresholdN = forceThresholdN;
+  return replayRecording(r, o);
+}
+
+namespace {
+double distanceToSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+  const Eigen::Vector3d d = b - a;
+  const double len2 = d.squaredNorm();
+  const double s = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
+  return (p - (a + s * d)).norm();
+}
+}  // namespace
+
+ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
+  const double forceThresholdN = options.forceThresholdN;
+  ReplayResult out;
+  VerifyResult& v = out.verify;
+  SessionMetrics& m = out.metrics;
+  m.forceThresholdN = forceThresholdN;
+  // What this session cannot say, in words.
+  int tumourLabel = 0;
+  for (const auto& [label, name] : r.setup.mesh.labelNames) {
+    std::string lower = name;
+    for (auto& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    if (lower.find("tumour") != std::string::npos || lower.find("tumor") != std::string::npos) tumourLabel = label;
+  }
+  if (r.setup.mesh.namesAVessel()) m.vesselCuts = 0;
+  else m.vesselWhy = "the case names no vessel (no element label named vessel, vein or artery)";
+  if (tumourLabel) m.tumourBreaches = 0;
+  else m.tumourWhy = "the case marks no tumour (no element label named tumour)";
+  m.attachmentsWhy = "the model's attachments cannot tear (they are fixed nodes)";
+  if (!options.plannedCut) m.cutDeviationWhy = "the case has no planned cut line";
+  double deviationSum = 0;
+  long cuttingSteps = 0;
+  std::vector<Eigen::Vector3d> rest = r.setup.rest.empty() ? r.setup.mesh.points : r.setup.rest;
+  bool wasCutting = false;
+  double previousForce = 0;
+  Eigen::Vector3d lastCut = Eigen::Vector3d::Zero();
+  const long steps = r.summary.complete || r.checksums.empty() ? r.summary.steps : r.checksums.rbegin()->first;
+  double time = 0;  // simulated (the time step may be edited during the session: each step's own length counts)
+  bool seen = false;
+  Eigen::Vector3d first = Eigen::Vector3d::Zero(), last = Eigen::Vector3d::Zero();
+  double forceSum = 0;
+  long forceSteps = 0;
+  // An instrument swapped for another (grasper -> hook): the tip's jump between them is not a path travelled.
+  std::set<long> swapped;  // steps whose snapshot shows the new instrument's first pose
+  double straight = 0;     // the straight distances of the instruments swapped out
+  {
+    int lastTool = -1;
+    for (const auto& e : r.events)
+      if (e.kind == simcore::InputKind::ToolPose) {
+        if (lastTool >= 0 && e.tool != lastTool) swapped.insert(e.step + 1);
+        lastTool = e.tool;
+      }
+  }
+  simcore::replaySession(r.setup, r.events, steps, [&](long step, const simcore::Session& session) {
+    ++v.steps;
+    if (const auto it = r.checksums.find(step); it != r.checksums.end()) {
+      ++v.checked;
+      if (stateChecksum(session.state()) != it->second) {
+        ++v.mismatches;
+        if (v.firstMismatch < 0) v.firstMismatch = step;
+      }
+    }
+    const auto snap = session.snapshot();
+    const auto& tool = snap->tool;
+    if (tool.present) {
+      if (!seen) first = last = tool.tip;
+      if (swapped.count(step)) {  // economy per instrument: its own straight distance
+        straight += (last - first).norm();
+        first = last = tool.tip;
+      }
+      m.pathLengthM += (tool.tip - last).norm();
+      last = tool.tip;
+      seen = true;
+    }
+    const double f = tool.force.norm();
+    m.maxForceN = std::max(m.maxForceN, f);
+    if (f > 0) {
+      forceSum += f;
+      ++forceSteps;
+    }
+    const bool over = f > forceThresholdN;
+    if (over) m.timeOverThresholdS += snap->time - time;
+    const bool overBefore = previousForce > forceThresholdN;
+    previousForce = f;
+    time = snap->time;
+    for (const auto& e : snap->events) {
+      m.grasps += e == "grasp";
+      m.slips += e == "slip";
+      m.cuts += e == "cut";
+      if (m.vesselCuts && e == "vessel cut") ++*m.vesselCuts;
+      if (tumourLabel && e == "cut through label " + std::to_string(tumourLabel)) ++*m.tumourBreaches;
+    }
+    if (tool.present && tool.cutting) {
+      if (wasCutting) m.cutLengthM += (tool.tip - lastCut).norm();
+      lastCut = tool.tip;
+      if (options.plannedCut) {
+        const double d = distanceToSegment(tool.tip, options.plannedCut->first, options.plannedCut->second);
+        deviationSum += d;
+        ++cuttingSteps;
+        m.cutDeviationMaxM = std::max(m.cutDeviationMaxM.value_or(0.0), d);
+      }
+    }
+    wasCutting = tool.present && tool.cutting;
+    double strain = 0;
+    if (options.strain) {
+      const auto& restNow = snap->surface ? snap->surface->rest : rest;
+      strain = snap->tets ? maxGreenStrain(restNow, snap->positions, *snap->tets) : 0;
+      m.maxStrain = std::max(m.maxStrain.value_or(0.0), strain);
+    }
+    if (options.timeline) {
+      TimelineSample t;
+      t.step = step;
+      t.time = snap->time;
+      t.toolPresent = tool.present;
+      t.tip = tool.tip;
+      t.force = f;
+      t.strain = strain;
+      t.holding = !tool.held.empty();
+      t.cutting = tool.cutting;
+      t.newInstrument = swapped.count(step) > 0;
+      t.events = snap->events;
+      if (over && !overBefore) t.events.push_back("force over threshold");
+      out.timeline.push_back(std::move(t));
+    }
+  });
+  if (options.plannedCut) {
+    if (cuttingSteps) m.cutDeviationMeanM = deviationSum / static_cast<double>(cuttingSteps);
+    else m.cutDeviationWhy = "the blade never cut";
+  }
+  m.durationS = time;
+  m.meanForceN = forceSteps ? forceSum / static_cast<double>(forceSteps) : 0;
+  m.economy = m.pathLengthM > 0 ? (straight + (last - first).norm()) / m.pathLengthM : 0;
+  return out;
+}
+
+}  // namespace rehearse::app
