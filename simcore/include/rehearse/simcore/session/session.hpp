@@ -10,6 +10,7 @@
 // steps + the event list, issue 16). The GUI's Simulation panel and the rehearse step drive a Session;
 // tests drive it without its thread through advance().
 #include <rehearse/simcore/session/body.hpp>
+#include <rehearse/simcore/session/contact.hpp>
 #include <rehearse/simcore/session/seqcell.hpp>
 
 #include <atomic>
@@ -23,15 +24,6 @@
 #include <thread>
 
 namespace rehearse::simcore {
-
-class PointBvh;
-
-/// The boundary contact acts on (the session's, per topology): its triangles, its nodes, each node's triangles.
-struct ContactSurface {
-  std::vector<std::array<int, 3>> triangles;
-  std::vector<int> nodes;
-  std::vector<int> first, ofNode;  ///< node i's triangles: ofNode[first[i] .. first[i + 1])
-};
 
 enum class InputKind {
   ToolPose,   ///< the tool tip moved to `position` (m, body frame)
@@ -321,6 +313,8 @@ void replay(const BodySetup& setup, const std::vector<InputEvent>& events, long 
 /// The setup a replay builds its session from: an asynchronous refresh becomes a deferred one (the
 /// recording's Factor events install the factors where the live run swapped them in).
 BodySetup replaySetup(BodySetup setup);
+/// The cut mesh's boundary, each triangle marked as the organ's own surface or cut tissue (against the uncut setup's).
+std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, const Mesh& cutMesh, double meanEdge);
 /// How many pieces the elements make (elements sharing a node are one piece): whether a cut went through.
 std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes);
 /// The same, `each` given the replaying session (its snapshot: the tool, the events of the step).
