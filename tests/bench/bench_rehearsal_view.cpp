@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   w.activateWindow();
-  QTest::qWaitForWindowActive(&w);
+  if (!QTest::qWaitForWindowActive(&w)) std::fprintf(stderr, "bench_rehearsal_view: the window did not become active (measured anyway)\n");
   QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
   w.openCase({});
   if (!loaded.wait(120000)) {

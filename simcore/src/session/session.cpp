@@ -150,19 +150,7 @@ void Session::rebuildBody() {
 
 void Session::updateToolConstraints() {
   std::vector<ScalarConstraint> c;
-  if (tool_.jawClosed) {
-    // Each held node keeps its place relative to the tip: three bilateral constraints along the body
-    // frame's axes per node.
-    for (std::size_t k = 0; k < tool_.held.size(); ++k)
-      for (int axis = 0; axis < 3; ++axis) {
-        ScalarConstraint s;
-        s.nodes = {tool_.held[k], -1, -1, -1};
-        s.weights = {1, 0, 0, 0};
-        s.direction = Eigen::Vector3d::Unit(axis);
-        s.value = (tool_.tip + tool_.heldOffset[k])[axis];
-        c.push_back(s);
-      }
-  }
+  for (const auto& i : instruments_) i->holds(tool_, c);  // what the instruments hold the tissue with
   // Contact: the boundary's triangles near the instrument's shaft (a capsule from the tip to the trocar) are
   // kept out of it by unilateral constraints at their closest points to its axis (barycentric weights on the
   // triangle's three nodes, along the direction from the axis): the surface is pushed, also between nodes.
@@ -173,7 +161,8 @@ void Session::updateToolConstraints() {
   tool_.contacts = 0;
   tool_.pierced = 0;
   contactConstraints_ = 0;
-  if (tool_.present && !tool_.cutting && setup_.tools.toolRadius > 0 && bvh_ && !contact_.nodes.empty() && setup_.tools.trocar) {
+  const bool touches = std::all_of(instruments_.begin(), instruments_.end(), [this](const auto& i) { return i->touches(tool_); });
+  if (tool_.present && touches && setup_.tools.toolRadius > 0 && bvh_ && !contact_.nodes.empty() && setup_.tools.trocar) {
     ++contactQueries_;
     const ShaftContactStats found =
         shaftContact(contact_, *bvh_, state_.x, body_->fixedMask(), tool_.tip, *setup_.tools.trocar, setup_.tools.toolRadius,
@@ -202,79 +191,19 @@ void Session::useContactSurface(ContactSurface c) {
 }
 
 void Session::apply(const InputEvent& e, std::string& message) {
-  // A cut being built elsewhere is applied before anything that rebuilds the body or cuts again.
-  if ((e.kind == InputKind::Cut && e.on) || e.kind == InputKind::Parameter || e.kind == InputKind::Gravity) finishPendingCut(true, message);
+  // A cut being built elsewhere is applied before anything that rebuilds the body (the blade's own next cut: Scissors).
+  if (e.kind == InputKind::Parameter || e.kind == InputKind::Gravity) finishPendingCut(true, message);
   switch (e.kind) {
     case InputKind::ToolPose:
-      // The blade's sweep since the cut last changed the tissue: a sweep too thin to cross whole elements
-      // grows until it does.
-      // Applied once the blade has moved an element's edge, so that it splits elements rather than only
-      // snapping to their nodes.
-      if (tool_.cutting && e.position.allFinite() && (e.position - tool_.cutFrom).norm() >= 2 * meanEdge_ && cut(tool_.cutFrom, e.position, message))
-        tool_.cutFrom = e.position;
-      if (!tool_.released.empty() && e.position != tool_.tip) {
-        tool_.released.clear();  // the instrument moves on: what it let go of is touched like any tissue (eased out)
-        seedEasing_ = true;
-      }
+      for (auto& i : instruments_) i->moved(e.position, tool_, *this, message);
       tool_.tip = e.position;
       if (!tool_.present) seedEasing_ = true;
       tool_.present = true;
       break;
     case InputKind::Jaw:
-      tool_.jawClosed = e.on;
-      tool_.released = tool_.held;
-      std::sort(tool_.released.begin(), tool_.released.end());
-      tool_.held.clear();
-      tool_.heldOffset.clear();
-      tool_.force.setZero();
-      tool_.graspForce.setZero();
-      if (e.on) {
-        // Grasp every free node within the grasp radius of the tip (the bite), the nearest first.
-        const double r2 = setup_.tools.graspRadius * setup_.tools.graspRadius;
-        const auto& fixed = body_->fixedMask();
-        std::vector<std::pair<double, int>> near;
-        for (std::size_t i = 0; i < body_->nodeCount(); ++i) {
-          const double d = (state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool_.tip).squaredNorm();
-          if (d <= r2 && !fixed[i]) near.emplace_back(d, static_cast<int>(i));
-        }
-        std::sort(near.begin(), near.end());
-        for (const auto& [d, i] : near) {
-          tool_.held.push_back(i);
-          tool_.heldOffset.push_back(state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool_.tip);
-        }
-        if (!near.empty()) {
-          events_.push_back("grasp");
-        } else {
-          message = "The jaws closed on nothing: no tissue within " + std::to_string(static_cast<int>(std::lround(1e3 * setup_.tools.graspRadius))) +
-                    " mm of the tip.";
-        }
-      } else {
-        events_.push_back("release");
-        seedEasing_ = true;  // the tissue the jaws held may be inside the shaft
-      }
-      break;
     case InputKind::Cut:
-      if (!e.on && pendingCut_) {
-        // Withdrawn while the last cut's body is being built: the rest of the sweep is cut once it is in (no wait).
-        if (tool_.cutting && (tool_.tip - tool_.cutFrom).norm() > 0) restOfSweep_ = std::make_pair(tool_.cutFrom, tool_.tip);
-        else pendingCut_->clearProgress = true;
-        tool_.cutting = false;
-        tool_.cutFrom = tool_.tip;
-        break;
-      }
-      if (!e.on && tool_.cutting && (tool_.tip - tool_.cutFrom).norm() > 0) cut(tool_.cutFrom, tool_.tip, message);  // the rest of the sweep
-      if (tool_.cutting != e.on) seedEasing_ = true;  // contact resumes (or stops) with the blade
-      if (e.on && !tool_.cutting) {  // a new stroke
-        tool_.vesselsCut.clear();
-        stroke_ = {};
-        stroke_.open = true;
-        stroke_.piecesBefore = connectedPieces(body_->tetrahedra(), body_->nodeCount());
-      }
-      tool_.cutting = e.on;
-      tool_.cutFrom = tool_.tip;
-      // A new cut starts from nothing; what did not open of the last one stays closed.
-      if (pendingCut_) pendingCut_->clearProgress = true;
-      else setup_.cut.clear();
+      for (auto& i : instruments_)
+        if (i->handles(e.kind)) i->act(e, tool_, *this, message);
       break;
     case InputKind::Parameter: {
       BodySetup before = setup_;
@@ -401,22 +330,9 @@ StepReport Session::advance() {
     tool_.force = body_->toolForce();
     tool_.graspForce = tool_.held.empty() ? Eigen::Vector3d::Zero() : body_->toolForce(true);
     tool_.stiffness = body_->toolStiffness();
-    // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing). The
-    // jaws' own share decides: the shaft pressing on the tissue does not open them.
-    if (!tool_.held.empty() && tool_.graspForce.norm() > setup_.tools.maxGraspForce) {
-      char buf[200];
-      std::snprintf(buf, sizeof buf, "The tissue slipped out of the grasper at %.1f N (the scene's maximum grasp force is %.1f N).", tool_.graspForce.norm(),
-                    setup_.tools.maxGraspForce);
-      message = buf;
-      tool_.released = tool_.held;  // the tissue leaves the jaws
-      std::sort(tool_.released.begin(), tool_.released.end());
-      tool_.held.clear();
-      tool_.heldOffset.clear();
-      tool_.stiffness.setZero();  // nothing held: the force does not follow the tool any more
-      tool_.graspForce.setZero();
-      events_.push_back("slip");
-      updateToolConstraints();
-    }
+    bool changed = false;  // a slip lets go of what the jaws held: their rows are made again
+    for (auto& i : instruments_) changed = i->stepped(tool_, *this, message) || changed;
+    if (changed) updateToolConstraints();
   } else if (tool_.held.empty() && contactConstraints_ == 0) {
     tool_.force.setZero();
     tool_.graspForce.setZero();

@@ -282,4 +282,15 @@ void Session::discardPending() {
   mailbox_.clear();
 }
 
+void Session::forgetCutProgress() {
+  if (pendingCut_) pendingCut_->clearProgress = true;
+  else setup_.cut.clear();
+}
+
+void Session::beginStroke() {
+  stroke_ = {};
+  stroke_.open = true;
+  stroke_.piecesBefore = connectedPieces(body_->tetrahedra(), body_->nodeCount());
+}
+
 }  // namespace rehearse::simcore

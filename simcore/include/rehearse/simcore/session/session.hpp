@@ -11,6 +11,7 @@
 // tests drive it without its thread through advance().
 #include <rehearse/simcore/session/body.hpp>
 #include <rehearse/simcore/session/contact.hpp>
+#include <rehearse/simcore/session/instrument.hpp>
 #include <rehearse/simcore/session/seqcell.hpp>
 
 #include <atomic>
@@ -156,7 +157,8 @@ struct ToolForceModel {
   double reach = 0;
 };
 
-class Session {
+/// It runs the instruments (instrument.hpp) as their host: what they may ask of the body at a step boundary.
+class Session : private InstrumentHost {
  public:
   /// Builds the body (throws MeshError with one sentence for an unusable setup).
   explicit Session(BodySetup setup);
@@ -218,7 +220,20 @@ class Session {
   void apply(const InputEvent& e, std::string& message);
   void rebuildBody();
   void updateToolConstraints();
-  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message);  ///< true when the tissue changed (or will)
+  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message) override;  ///< true when the tissue changed (or will)
+  // InstrumentHost: what an instrument may ask of the session.
+  const Eigen::VectorXd& positions() const override { return state_.x; }
+  const std::vector<char>& fixedMask() const override { return body_->fixedMask(); }
+  const ToolSettings& tools() const override { return setup_.tools; }
+  double meanEdge() const override { return meanEdge_; }
+  void emitEvent(const std::string& event) override { events_.push_back(event); }
+  void seedContactEasing() override { seedEasing_ = true; }
+  void finishTopologyChange(std::string& message) override { finishPendingCut(true, message); }
+  bool topologyChangeUnderWay() const override { return pendingCut_.has_value(); }
+  void cutWhenIn(const Eigen::Vector3d& from, const Eigen::Vector3d& to) override { restOfSweep_ = std::make_pair(from, to); }
+  void forgetCutProgress() override;
+  void beginStroke() override;
+  std::vector<std::unique_ptr<Instrument>> instruments_ = makeInstruments();
   /// With the asynchronous refresh a cut's new body (model, first factorisation) is built on another thread
   /// while the old body goes on stepping; it replaces the body at the first step boundary after it is ready,
   /// the state then carried across from where the tissue is by then (the cut's interpolation of new nodes).
