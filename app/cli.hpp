@@ -1,5 +1,7 @@
 #pragma once
 // Headless command line (no Qt): rehearse phantom | mesh | info | --help | --version.
+#include "rehearse/app/review.hpp"
+
 #include <string>
 #include <vector>
 
@@ -7,7 +9,8 @@ namespace rehearse::app {
 
 /// Runs a command-line sub-command. Sets `handled` false when the arguments are for the GUI
 /// (no arguments, `open CASE`, or GUI options), in which case nothing was done.
-int runCli(const std::vector<std::string>& args, bool& handled);
+/// `services`: the PDF writer and the training database where the build has them (the GUI library's).
+int runCli(const std::vector<std::string>& args, bool& handled, const CliServices& services = {});
 
 std::string usage();
 

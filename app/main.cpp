@@ -14,11 +14,12 @@
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv, argv + argc);
   bool handled = false;
+  rehearse::app::CliServices services;  // what the command line reaches through Qt: none without the GUI library
 #ifdef REHEARSE_WITH_GUI
-  rehearse::app::setReportWriter(rehearse::ui::writeReviewPdf);  // replay --report writes through Qt's QPdfWriter
-  rehearse::ui::registerTrainingStore();                         // publish, replay postgresql: through Qt SQL's PostgreSQL driver
+  services.writeReport = rehearse::ui::writeReviewPdf;   // replay --report writes through Qt's QPdfWriter
+  services.training = rehearse::ui::makeTrainingStore();  // publish, replay postgresql: through Qt SQL's PostgreSQL driver
 #endif
-  int code = rehearse::app::runCli(args, handled);
+  int code = rehearse::app::runCli(args, handled, services);
   if (handled) return code;
 #ifdef REHEARSE_WITH_GUI
   return rehearse::ui::runGui(argc, argv);

@@ -47,7 +47,7 @@ std::string usage() {
          "Lengths are metres unless --unit says otherwise.\n";
 }
 
-int runCli(const std::vector<std::string>& args, bool& handled) {
+int runCli(const std::vector<std::string>& args, bool& handled, const CliServices& services) {
   handled = true;
   if (args.size() < 2 || args[1] == "open" || (args[1].rfind("--", 0) == 0 && args[1] != "--help" && args[1] != "--version" &&
                                                args[1] != "-h")) {
@@ -71,7 +71,7 @@ int runCli(const std::vector<std::string>& args, bool& handled) {
         std::printf("%s", cli::commandHelp(*c).c_str());
         return 0;
       }
-      return c->run(args);
+      return c->run(args, services);
     }
     throw cli::UsageError("unknown command '" + cmd + "'; see 'rehearse --help'");
   } catch (const cli::UsageError& e) {

@@ -176,7 +176,7 @@ const Command& appearanceCommand() {
       {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"},
       {"background", "IB.png", "write the frame without the organ"},
       {"diffuse", "ID.png", "write the organ's diffuse albedo"}};
-    c.run = cmdAppearance;
+    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdAppearance(args); };
     return c;
   }();
   return command;
@@ -201,7 +201,7 @@ const Command& composeCommand() {
       {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
       {"out", "J.png", "the composited image"},
       {"inpaint", "I", "telea, ns, shiftmap or fsr"}};
-    c.run = cmdCompose;
+    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdCompose(args); };
     return c;
   }();
   return command;

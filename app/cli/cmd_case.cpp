@@ -122,7 +122,7 @@ const Command& phantomCommand() {
       {"out", "DIR", "the folder to write the case into (created)"},
       {"tets", "N", "about this many tetrahedra (default 3,800)"},
       {"seed", "S", "the random seed of the frame's texture"}};
-    c.run = cmdPhantom;
+    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdPhantom(args); };
     return c;
   }();
   return command;
@@ -144,7 +144,7 @@ const Command& meshCommand() {
       {"unit", "U", "m, dm, cm or mm: the surface's length unit"},
       {"ascii", "", "write text instead of binary"},
       {"allow-self-intersections", "", "mesh a surface that intersects itself (it is refused otherwise)"}};
-    c.run = cmdMesh;
+    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdMesh(args); };
     return c;
   }();
   return command;
@@ -159,7 +159,7 @@ const Command& infoCommand() {
       "                                   node, element and label counts, bounds and quality\n";
     c.options = {
       {"unit", "U", "m, dm, cm or mm: the file's length unit"}};
-    c.run = cmdInfo;
+    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdInfo(args); };
     return c;
   }();
   return command;

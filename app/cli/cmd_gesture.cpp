@@ -175,7 +175,7 @@ const Command& gestureCommand() {
       {"trainee", "NAME", "the trainee the recording names (with --record)"},
       {"notes", "TEXT", "notes kept with the recording (with --record)"}};
     c.options.insert(c.options.begin() + 1, modelOptions().begin(), modelOptions().end());
-    c.run = cmdGesture;
+    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdGesture(args); };
     return c;
   }();
   return command;

@@ -230,7 +230,7 @@ const Command& registerCommand() {
       {"rigid-only", "", "stop after the rigid stage"},
       {"distorted-contour", "", "the contour was drawn on the distorted frame"}};
     c.options.insert(c.options.begin(), modelOptions().begin(), modelOptions().end());
-    c.run = cmdRegister;
+    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdRegister(args); };
     return c;
   }();
   return command;

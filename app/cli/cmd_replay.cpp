@@ -42,7 +42,7 @@
 
 namespace rehearse::app::cli {
 
-int cmdReplay(const std::vector<std::string>& args) {
+int cmdReplay(const std::vector<std::string>& args, const CliServices& services) {
   if (args.size() < 3 || args[2].rfind("--", 0) == 0)
     throw UsageError("replay needs the case file (or postgresql:[SERVICE]): rehearse replay CASE [--session ID] [--verify]");
   const std::string file = args[2];
@@ -50,11 +50,11 @@ int cmdReplay(const std::vector<std::string>& args) {
   // postgresql:[SERVICE]: the training centre's database (libpq service name, or the environment when empty).
   const bool fromDb = file.rfind("postgresql:", 0) == 0;
   const std::string service = fromDb ? file.substr(11) : std::string();
-  if (fromDb && !trainingStore().load)
+  if (fromDb && !services.training.load)
     throw UsageError("the training database is read through Qt SQL's PostgreSQL driver, which this build has not (configured with REHEARSE_BUILD_GUI=OFF)");
   if (!fromDb && !std::filesystem::exists(file)) throw UsageError(file + " does not exist");
-  auto listSessions = [&] { return fromDb ? trainingStore().list(service) : listRecordings(file); };
-  auto loadSession = [&](std::int64_t sid) { return fromDb ? trainingStore().load(service, sid) : loadRecording(file, sid); };
+  auto listSessions = [&] { return fromDb ? services.training.list(service) : listRecordings(file); };
+  auto loadSession = [&](std::int64_t sid) { return fromDb ? services.training.load(service, sid) : loadRecording(file, sid); };
   const double threshold = o.count("force-threshold") ? parseNumber(o["force-threshold"], "--force-threshold") : 10.0;
   if (!(threshold >= 0)) throw UsageError("--force-threshold must be a force in N, 0 or more");
   ReplayOptions ro;
@@ -93,7 +93,7 @@ int cmdReplay(const std::vector<std::string>& args) {
     throw UsageError("--from, --to, --fps and --size set the video: give --video OUT.mp4");
   if (o.count("video") && std::filesystem::path(o["video"]).extension() != ".mp4") throw UsageError("--video must end in .mp4");
   if (o.count("report") && std::filesystem::path(o["report"]).extension() != ".pdf") throw UsageError("--report must end in .pdf");
-  if (o.count("report") && !reportWriter())
+  if (o.count("report") && !services.writeReport)
     throw UsageError("--report needs the PDF writer of the GUI build (this build was configured with REHEARSE_BUILD_GUI=OFF)");
   if (o.count("metrics-csv")) {
     // Every session's metrics, one row each (a trainer's spreadsheet across attempts); each replay verified.
@@ -214,7 +214,7 @@ int cmdReplay(const std::vector<std::string>& args) {
     }
     if (o.count("report")) {
       const ReviewReport report = makeReviewReport(rec, replayed, thresholds, replayer, renderer);
-      reportWriter()(report, o["report"]);
+      services.writeReport(report, o["report"]);
       std::printf("report written to %s\n", o["report"].c_str());
     }
   }
@@ -241,7 +241,7 @@ int cmdReplay(const std::vector<std::string>& args) {
   return 0;
 }
 
-int cmdPublish(const std::vector<std::string>& args) {
+int cmdPublish(const std::vector<std::string>& args, const CliServices& services) {
   std::vector<std::string> files;
   std::size_t i = 2;
   for (; i < args.size() && args[i].rfind("--", 0) != 0; ++i) files.push_back(args[i]);
@@ -249,9 +249,9 @@ int cmdPublish(const std::vector<std::string>& args) {
   auto o = parseOptions(args, i, publishCommand());
   for (const auto& f : files)
     if (!std::filesystem::exists(f)) throw UsageError(f + " does not exist");
-  if (!trainingStore().publish)
+  if (!services.training.publish)
     throw UsageError("publishing goes through Qt SQL's PostgreSQL driver, which this build has not (configured with REHEARSE_BUILD_GUI=OFF)");
-  for (const auto& line : trainingStore().publish(files, o.count("service") ? o["service"] : std::string())) std::printf("%s\n", line.c_str());
+  for (const auto& line : services.training.publish(files, o.count("service") ? o["service"] : std::string())) std::printf("%s\n", line.c_str());
   return 0;
 }
 

@@ -146,7 +146,7 @@ const Command& simulateCommand() {
       {"strict", "", "a step that does not converge fails (rolled back) instead of being kept inexact"},
       {"list-components", "", "print the scene components and their parameters, then stop"}};
     c.options.insert(c.options.begin(), modelOptions().begin(), modelOptions().end());
-    c.run = cmdSimulate;
+    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdSimulate(args); };
     return c;
   }();
   return command;

@@ -3,6 +3,8 @@
 // sub-command's declaration (its usage block, its options with a line of help each: the parser accepts exactly
 // those and `rehearse NAME --help` prints them), the option parser, number and list parsers, the organ model from
 // its options, reports and the summary of the steps' outcomes.
+#include "rehearse/app/review.hpp"
+
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/mesh.hpp>
 #include <rehearse/simcore/scene.hpp>
@@ -12,6 +14,7 @@
 #include <Eigen/Core>
 
 #include <cstddef>
+#include <functional>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -36,7 +39,8 @@ struct Command {
   std::string name;
   std::string usage;  ///< the lines `rehearse --help` shows for it (each "  ...\n")
   std::vector<OptionSpec> options;
-  int (*run)(const std::vector<std::string>& args) = nullptr;
+  /// Runs it; `services`: what the GUI library provides (the PDF writer, the training database), empty without Qt.
+  std::function<int(const std::vector<std::string>& args, const CliServices& services)> run;
 };
 
 /// The options every command that builds an organ model takes (--scene, --preset, --mesh, the material...).

@@ -360,21 +360,5 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
   return out;
 }
 
-namespace {
-ReportWriter& writerSlot() {
-  static ReportWriter w;
-  return w;
-}
-}  // namespace
-void setReportWriter(ReportWriter writer) { writerSlot() = std::move(writer); }
-namespace {
-TrainingStore& storeSlot() {
-  static TrainingStore s;
-  return s;
-}
-}  // namespace
-void setTrainingStore(TrainingStore store) { storeSlot() = std::move(store); }
-const TrainingStore& trainingStore() { return storeSlot(); }
-const ReportWriter& reportWriter() { return writerSlot(); }
 
 }  // namespace rehearse::app

@@ -1,6 +1,7 @@
 // The review's PDF report (issue 16): Qt's QPdfWriter on A4 — the session's facts, its metrics with the
 // trainer's thresholds and verdicts, the force and strain over time with the events marked, and key frames.
 #include "rehearse/ui/reviewreport.hpp"
+#include "rehearse/ui/qtapplication.hpp"
 
 #include <QCoreApplication>
 #include <QGuiApplication>
@@ -100,22 +101,6 @@ void plot(QPainter& p, const QRectF& box, const QString& title, const QString& u
 }
 
 }  // namespace
-
-void ensureGuiApplication() {
-  if (QCoreApplication::instance()) return;
-  // The command line's report: a GUI application of its own, offscreen when there is no display.
-  if (qEnvironmentVariableIsEmpty("DISPLAY") && qEnvironmentVariableIsEmpty("WAYLAND_DISPLAY") && qEnvironmentVariableIsEmpty("QT_QPA_PLATFORM"))
-    qputenv("QT_QPA_PLATFORM", "offscreen");
-  // A private runtime folder where the session gives none (what Qt would pick itself, without its warning on stderr).
-  if (qEnvironmentVariableIsEmpty("XDG_RUNTIME_DIR")) {
-    const QByteArray dir = QDir::tempPath().toLocal8Bit() + "/runtime-" + QByteArray::number(static_cast<qulonglong>(getuid()));
-    if (::mkdir(dir.constData(), 0700) == 0 || errno == EEXIST) qputenv("XDG_RUNTIME_DIR", dir);
-  }
-  static int argc = 1;
-  static char name[] = "rehearse";
-  static char* argv[] = {name, nullptr};
-  static std::unique_ptr<QGuiApplication> app = std::make_unique<QGuiApplication>(argc, argv);
-}
 
 void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
   ensureGuiApplication();

@@ -1,6 +1,6 @@
 #include "rehearse/ui/cohortwindow.hpp"
 
-#include "rehearse/ui/reviewreport.hpp"
+#include "rehearse/ui/qtapplication.hpp"
 #include "rehearse/ui/reviewwindow.hpp"
 
 #include <QComboBox>
@@ -204,7 +204,7 @@ ReviewWindow* CohortWindow::openSession(qint64 id) {
   return w;
 }
 
-void registerTrainingStore() {
+app::TrainingStore makeTrainingStore() {
   app::TrainingStore s;
   s.publish = [](const std::vector<std::string>& files, const std::string& service) {
     ensureGuiApplication();
@@ -230,7 +230,7 @@ void registerTrainingStore() {
     TrainingDatabase db(QString::fromStdString(service));
     return db.load(id);  // its checkpoints keep the connection open
   };
-  app::setTrainingStore(s);
+  return s;
 }
 
 }  // namespace rehearse::ui

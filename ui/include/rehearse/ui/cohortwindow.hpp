@@ -47,6 +47,6 @@ class CohortWindow : public QMainWindow {
 };
 
 /// Registers the training database for the command line (`rehearse publish`, `rehearse replay postgresql:`).
-void registerTrainingStore();
+app::TrainingStore makeTrainingStore();
 
 }  // namespace rehearse::ui

@@ -9,7 +9,5 @@ namespace rehearse::ui {
 /// Writes the report (through a save file: never half-written). Throws std::runtime_error with one sentence.
 /// Starts an offscreen QGuiApplication when the process has none (the command line's `replay --report`).
 void writeReviewPdf(const app::ReviewReport& report, const std::string& path);
-/// A QGuiApplication for headless use when the process has no Qt application yet.
-void ensureGuiApplication();
 
 }  // namespace rehearse::ui

@@ -114,12 +114,10 @@ struct ReviewReport {
 /// Gathers a report: `result` from replayRecording with the timeline; key frames drawn by `renderer` from `replayer`.
 ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds, Replayer& replayer,
                               const ReviewRenderer& renderer);
-/// The PDF writer the GUI library registers (the command line has no Qt of its own); empty in a build without it.
+/// The PDF writer the GUI library provides (app core has no Qt of its own); empty in a build without it.
 using ReportWriter = std::function<void(const ReviewReport&, const std::string& path)>;
-void setReportWriter(ReportWriter writer);
-const ReportWriter& reportWriter();
 
-/// The training database as the command line reaches it (the GUI build registers Qt SQL's PostgreSQL; a build
+/// The training database as the command line reaches it (the GUI build provides Qt SQL's PostgreSQL; a build
 /// without Qt has none). `service`: a libpq service name, empty for the environment.
 struct TrainingStore {
   /// Publishes the complete sessions of the case files; returns a line per file; throws std::runtime_error.
@@ -127,7 +125,12 @@ struct TrainingStore {
   std::function<std::vector<RecordingSummary>(const std::string& service)> list;
   std::function<Recording(const std::string& service, std::int64_t id)> load;
 };
-void setTrainingStore(TrainingStore store);
-const TrainingStore& trainingStore();
+
+/// What the command line reaches through the GUI library, passed in by main() (no globals: app core stays below Qt).
+/// Empty in a build without Qt: a command that needs one says so in one sentence.
+struct CliServices {
+  ReportWriter writeReport;  ///< rehearse replay --report (Qt's QPdfWriter)
+  TrainingStore training;    ///< rehearse publish, rehearse replay postgresql: (Qt SQL's PostgreSQL driver)
+};
 
 }  // namespace rehearse::app
