@@ -209,21 +209,8 @@ class MainWindow : public QMainWindow {
   QStackedWidget* centre_ = nullptr;  ///< the frame view, or the 3D organ (ViewMode::ThreeD)
   QWidget* centreOrgan_ = nullptr;
   std::vector<QAction*> viewModeActions_;
-  QElapsedTimer liveOverlayClock_;  ///< paces the overlay that follows the simulation in step 7
-  quint64 liveOverlayPaints_ = 0;   ///< the frame view's paints when the last live overlay was drawn
-  bool liveOverlayDue() const;
-  /// The simulated organ over the frame in step 7, drawn on a worker by its own CPU overlay (newest first).
-  struct LiveDrawing {
-    std::shared_ptr<const app::Case> c;
-    std::vector<Eigen::Vector3d> positions;               ///< the simulated nodes (camera frame)
-    std::shared_ptr<const simcore::CutSurface> surface;  ///< after a cut
-    std::vector<int> inner;
-  };
-  void drawLiveIfDue();
-  std::shared_ptr<OrganOverlay> liveOverlay_ = std::make_shared<OrganOverlay>(false);
-  std::optional<LiveDrawing> liveDrawingPending_;
-  bool liveDrawingBusy_ = false;
-  QTimer liveDrawingTimer_;
+  class LiveOverlay* liveOverlay_ = nullptr;  ///< the simulated organ over the frame in step 7 (liveoverlay.hpp)
+  class RecordingController* recorder_ = nullptr;  ///< recording step 7 into the case file, and its review
   OrganView* organView_ = nullptr;
   QString rendererText_;
   OrganGLView* organGLView_ = nullptr;

@@ -1,0 +1,290 @@
+// The main window's docks, status bar and workflow panel (built once, by the constructor).
+#include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/liveoverlay.hpp"
+#include "rehearse/ui/recordingcontroller.hpp"
+
+#include "rehearse/ui/caseinfo.hpp"
+#include "rehearse/ui/casefile.hpp"
+#include "rehearse/ui/organglview.hpp"
+#include "rehearse/ui/organview.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
+
+#include <QAction>
+#include <QActionGroup>
+#include <QCoreApplication>
+#include <QCloseEvent>
+#include <QDockWidget>
+#include <QDragEnterEvent>
+#include <QDateTime>
+#include <QDropEvent>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QLabel>
+#include <QListWidget>
+#include <QMenuBar>
+#include <QMessageBox>
+#include "rehearse/ui/cohortwindow.hpp"
+#include "rehearse/ui/reviewwindow.hpp"
+#include <QInputDialog>
+#include <QLineEdit>
+#include <QMimeData>
+#include <QPlainTextEdit>
+#include <QPainter>
+#include <QProgressBar>
+#include <QSettings>
+#include <QStackedWidget>
+#include <QStatusBar>
+#include <QTimer>
+#include <QFutureWatcher>
+#include <QtConcurrent/QtConcurrentRun>
+#include <QToolBar>
+#include <QToolButton>
+#include <QUndoStack>
+#include <QVBoxLayout>
+
+#include "mainwindow_parts.hpp"
+
+namespace rehearse::ui {
+
+namespace {
+// A status-bar label that never widens the bar: it shows as much of its sentence as fits, ending in an
+// ellipsis, and the whole sentence in its tooltip (and in the Messages panel).
+class SentenceLabel : public QLabel {
+ public:
+  using QLabel::QLabel;
+  QSize minimumSizeHint() const override { return {200, QLabel::minimumSizeHint().height()}; }
+  QSize sizeHint() const override { return {std::min(520, fontMetrics().horizontalAdvance(text()) + 8), QLabel::sizeHint().height()}; }
+
+ protected:
+  void paintEvent(QPaintEvent*) override {
+    QPainter p(this);
+    const QRect r = contentsRect();
+    p.setPen(palette().color(QPalette::WindowText));
+    p.drawText(r, Qt::AlignLeft | Qt::AlignVCenter, fontMetrics().elidedText(text(), Qt::ElideRight, r.width()));
+  }
+};
+}  // namespace
+
+// ---------------------------------------------------------------------------------------------- docks
+
+void MainWindow::buildDocks() {
+  auto* infoDock = new QDockWidget(tr("Case"), this);
+  infoDock->setObjectName(QStringLiteral("caseDock"));
+  info_ = new QPlainTextEdit(infoDock);
+  info_->setObjectName(QStringLiteral("caseInfo"));
+  info_->setReadOnly(true);
+  info_->setMinimumWidth(280);
+  info_->setLineWrapMode(QPlainTextEdit::WidgetWidth);  // problem lines wrap instead of running off the side
+  info_->setWordWrapMode(QTextOption::WrapAtWordBoundaryOrAnywhere);
+  QFont mono(QStringLiteral("DejaVu Sans Mono"));
+  mono.setStyleHint(QFont::Monospace);
+  info_->setFont(mono);
+  infoDock->setWidget(info_);
+  addDockWidget(Qt::RightDockWidgetArea, infoDock);
+  messagesDock_ = new QDockWidget(tr("Messages"), this);
+  messagesDock_->setObjectName(QStringLiteral("messagesDock"));
+  messages_ = new QPlainTextEdit(messagesDock_);
+  messages_->setObjectName(QStringLiteral("messageLog"));
+  messages_->setReadOnly(true);
+  messages_->setMaximumBlockCount(5000);
+  messagesDock_->setWidget(messages_);
+  addDockWidget(Qt::RightDockWidgetArea, messagesDock_);
+  tabifyDockWidget(infoDock, messagesDock_);
+  infoDock->raise();
+  auto* organDock = new QDockWidget(tr("Organ 3D"), this);
+  organDock->setObjectName(QStringLiteral("organDock"));
+  const QString glRenderer = renderer() == Renderer::Software ? QString() : OrganGLView::openGLRenderer();
+  bool openGL = !glRenderer.isEmpty();
+  if (renderer() == Renderer::Software) {
+    rendererText_ = tr("Views drawn on the CPU (--software).");
+  } else if (!openGL) {
+    rendererText_ = tr("No OpenGL 3.3 here: the views are drawn on the CPU.");
+  } else if (renderer() == Renderer::Automatic && OrganGLView::isSoftwareRenderer(glRenderer)) {
+    openGL = false;
+    rendererText_ = tr("OpenGL here is a software rasteriser (%1): the views are drawn on the CPU, which is faster on it "
+                       "('rehearse --opengl' uses OpenGL anyway).")
+                        .arg(glRenderer);
+  } else {
+    rendererText_ = tr("Views drawn with OpenGL (%1).").arg(glRenderer);
+  }
+  messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + rendererText_);
+  overlay_ = std::make_unique<OrganOverlay>(openGL);
+  composition_->useOpenGL(overlay_->usesOpenGL());  // the composited view as the overlay: OpenGL where it works
+  if (openGL) {
+    organGLView_ = new OrganGLView(organDock);
+    organGLView_->setObjectName(QStringLiteral("organView"));
+    organDock->setWidget(organGLView_);
+  } else {
+    organView_ = new OrganView(organDock);
+    organView_->setObjectName(QStringLiteral("organView"));
+    organDock->setWidget(organView_);
+  }
+  addDockWidget(Qt::RightDockWidgetArea, organDock);
+  splitDockWidget(infoDock, organDock, Qt::Vertical);
+  // The organ alone, large, in the centre (ViewMode::ThreeD): the same kind of view as the dock's.
+  if (openGL) centreOrgan_ = new OrganGLView(centre_);
+  else centreOrgan_ = new OrganView(centre_);
+  centreOrgan_->setObjectName(QStringLiteral("centreOrganView"));
+  centre_->addWidget(centreOrgan_);
+  simulationDock_ = new QDockWidget(tr("Simulation"), this);
+  simulationDock_->setObjectName(QStringLiteral("simulationDock"));
+  simulation_ = new SimulationPanel(simulationDock_);
+  simulation_->setObjectName(QStringLiteral("simulationPanel"));
+  simulationDock_->setWidget(simulation_);
+  addDockWidget(Qt::RightDockWidgetArea, simulationDock_);
+  tabifyDockWidget(organDock, simulationDock_);
+  organDock->raise();
+  connect(simulation_, &SimulationPanel::statusChanged, this, [this](const QString& text) {
+    status_.simulation->setText(text);
+    status_.simulation->setToolTip(text);  // the whole sentence (the bar shows what fits)
+  });
+  liveOverlay_ = new LiveOverlay(view_, this);
+  connect(liveOverlay_, &LiveOverlay::drawn, this, [this](const OverlayPicture& picture, const std::shared_ptr<const app::Organ>& organ) {
+    if (step_ == Step::Rehearse && !showingComposited() && doc_->data() && doc_->data()->organ == organ) {
+      picture_ = picture;
+      showFrameLayer();
+    }
+  });
+  // The composited view follows the simulation: each snapshot shown is composed (on a worker, newest first).
+  connect(simulation_, &SimulationPanel::frameShown, this, [this] {
+    const auto f = simulation_->lastFrame();
+    if (pages_.rehearse) pages_.rehearse->showFrame(f);
+    // What happened in the rehearsal (a slip, a vessel cut, a refused edit) is kept in the Messages panel, once each.
+    if (f && !f->message.isEmpty() && f->message != lastSimulationMessage_) {
+      messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));
+    }
+    if (f) lastSimulationMessage_ = f->message;
+    if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
+      view_->setWarning(f->invertedAt, warningText(*f));
+      view_->setLiveShape(f->positions);
+      view_->setLiveSurface(f->surface);
+      if (f->surface && showingComposited()) {
+        // The composited view textures the organ's own surface; cut tissue it does not draw yet: the overlay
+        // shows the cut instead of a picture that hides it.
+        setViewMode(ViewMode::Overlay);
+        statusBar()->showMessage(tr("The organ is cut: the composited view cannot show cut tissue yet, so the overlay is shown."), 8000);
+      }
+      // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation: drawn on a
+      // worker (newest first), at most 60 times a second and only once the last drawing was painted.
+      if (step_ == Step::Rehearse && !showingComposited()) {
+        LiveOverlay::Job job;
+        job.c = doc_->data();
+        job.surface = f->surface;
+        job.inner = pages_.mesh->shownInnerLabels();
+        job.positions = f->positions;  // the case with these nodes is made on the worker (not at 100 Hz here)
+        liveOverlay_->request(std::move(job));
+      }
+    } else {
+      view_->setWarning({}, {});  // another organ's frame (or none): its warning is not this organ's
+    }
+    if (showingComposited() && f && !f->surface && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) composition_->request(f->positions);
+  });
+  connect(composition_, &Composition::composed, this, [this] {
+    if (showingComposited()) showFrameLayer();
+  });
+  connect(composition_, &Composition::readyChanged, this, [this](bool ready) {
+    // The composited view is the case's view from the moment it can be made.
+    if (ready) setViewMode(ViewMode::Composited);
+    else showFrameLayer();
+  });
+  connect(simulation_, &SimulationPanel::materialEdited, this, [this](const app::MaterialSettings& m) {
+    doc_->edit(tr("Edit material"), [m](app::Case& k) { k.material = m; });
+  });
+}
+
+void MainWindow::buildStatusBar() {
+  status_.progress = new QProgressBar(this);
+  status_.progress->setRange(0, 100);
+  status_.progress->setMaximumWidth(260);
+  status_.progress->setVisible(false);
+  status_.progress->setTextVisible(true);
+  status_.progress->setFormat(QStringLiteral("%p%"));
+  status_.stage = new QLabel(this);
+  status_.stage->setObjectName(QStringLiteral("progressStage"));
+  status_.stage->setVisible(false);
+  status_.tick = new QTimer(this);
+  status_.tick->setInterval(1000);
+  connect(status_.tick, &QTimer::timeout, this, [this] { showProgress(status_.progress->maximum() == 0 ? -1 : status_.progress->value() / 100.0, {}); });
+  status_.cancel = new QToolButton(this);
+  status_.cancel->setText(tr("Cancel"));
+  status_.cancel->setToolTip(tr("Cancel the running job (Esc)"));
+  status_.cancel->setVisible(false);
+  connect(status_.cancel, &QToolButton::clicked, this, &MainWindow::cancelLoading);
+  status_.caseText = new SentenceLabel(this);
+  status_.caseText->setObjectName(QStringLiteral("caseStatus"));
+  auto* log = new QToolButton(this);
+  log->setObjectName(QStringLiteral("showMessages"));
+  log->setText(tr("Messages"));
+  log->setToolTip(tr("Every message of this session, whole (Ctrl+L)"));
+  log->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_L));
+  connect(log, &QToolButton::clicked, this, [this] {
+    messagesDock_->show();
+    messagesDock_->raise();
+  });
+  status_.cursor = new QLabel(this);
+  // The simulation's line is bounded (elided, whole in its tooltip) so that the case's sentence keeps its room.
+  status_.simulation = new SentenceLabel(this);
+  status_.simulation->setObjectName(QStringLiteral("statusSimulation"));
+  status_.simulation->setMaximumWidth(520);
+  status_.distance = new QLabel(this);
+  status_.viewMode = new QLabel(this);
+  status_.viewMode->setObjectName(QStringLiteral("statusViewMode"));
+  statusBar()->addWidget(status_.caseText, 1);
+  statusBar()->addWidget(log);
+  statusBar()->addPermanentWidget(status_.simulation);
+  statusBar()->addPermanentWidget(status_.distance);
+  statusBar()->addPermanentWidget(status_.viewMode);
+  statusBar()->addPermanentWidget(status_.cursor);
+  statusBar()->addPermanentWidget(status_.stage);
+  statusBar()->addPermanentWidget(status_.progress);
+  statusBar()->addPermanentWidget(status_.cancel);
+}
+
+void MainWindow::buildWorkflowPanel() {
+  auto* dock = new QDockWidget(tr("Workflow"), this);
+  dock->setObjectName(QStringLiteral("workflowDock"));
+  auto* host = new QWidget(dock);
+  auto* layout = new QVBoxLayout(host);
+  workflow_ = new QListWidget(host);
+  workflow_->setObjectName(QStringLiteral("workflowList"));
+  QFont big = workflow_->font();
+  big.setPointSizeF(big.pointSizeF() * 1.15);
+  workflow_->setFont(big);
+  for (int i = 0; i < app::kStepCount; ++i) {
+    auto* item = new QListWidgetItem(stepName(i), workflow_);
+    item->setSizeHint(QSize(0, 34));
+    item->setToolTip(tr("Alt+%1").arg(i + 1));
+    if (!app::kSteps[static_cast<std::size_t>(i)].available) {
+      item->setFlags(item->flags() & ~Qt::ItemIsEnabled);
+      item->setToolTip(tr("Comes in a later version"));
+    }
+  }
+  workflow_->setFixedHeight(app::kStepCount * 34 + 8);
+  workflow_->setVerticalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  connect(workflow_, &QListWidget::currentRowChanged, this, [this](int row) {
+    if (row >= 0 && row < app::kStepCount && app::kSteps[static_cast<std::size_t>(row)].available) setStep(static_cast<Step>(row));
+  });
+  layout->addWidget(workflow_);
+  stepStack_ = new QStackedWidget(host);
+  pages_.mesh = new MeshPage(wb_);
+  pages_.frame = new FramePage(wb_);
+  pages_.contour = new ContourPage(wb_);
+  pages_.rigid = new RigidPage(wb_);
+  pages_.fit = new FitPage(wb_);
+  pages_.appearance = new AppearancePage(wb_, composition_);
+  pages_.rehearse = new RehearsePage(wb_);
+  pages_.rehearse->setForceLoop([this] { return simulation_ ? simulation_->forceLoop() : nullptr; });
+  pages_.all = {pages_.mesh, pages_.frame, pages_.contour, pages_.rigid, pages_.fit, pages_.appearance, pages_.rehearse};
+  for (StepPage* p : pages_.all) stepStack_->addWidget(p);
+  connect(pages_.mesh, &MeshPage::meshImported, this, &MainWindow::meshImported);
+  connect(pages_.mesh, &MeshPage::shownLabelsChanged, this, &MainWindow::refreshOverlay);
+  connect(pages_.mesh, &MeshPage::importNotesChanged, this, &MainWindow::showCaseInfo);
+  connect(pages_.frame, &FramePage::frameSourceOpened, this, &MainWindow::frameSourceOpened);
+  connect(pages_.frame, &FramePage::videoFrameShown, this, &MainWindow::videoFrameShown);
+  layout->addWidget(stepStack_, 1);
+  dock->setWidget(host);
+  dock->setMinimumWidth(330);
+  addDockWidget(Qt::LeftDockWidgetArea, dock);
+}
+
+}  // namespace rehearse::ui

@@ -1,0 +1,295 @@
+// The main window's menus and toolbar: File, Edit, Step, View, Simulate, Help (built once, by the constructor).
+#include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/liveoverlay.hpp"
+#include "rehearse/ui/recordingcontroller.hpp"
+
+#include "rehearse/ui/caseinfo.hpp"
+#include "rehearse/ui/casefile.hpp"
+#include "rehearse/ui/organglview.hpp"
+#include "rehearse/ui/organview.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
+
+#include <QAction>
+#include <QActionGroup>
+#include <QCoreApplication>
+#include <QCloseEvent>
+#include <QDockWidget>
+#include <QDragEnterEvent>
+#include <QDateTime>
+#include <QDropEvent>
+#include <QFileDialog>
+#include <QFileInfo>
+#include <QLabel>
+#include <QListWidget>
+#include <QMenuBar>
+#include <QMessageBox>
+#include "rehearse/ui/cohortwindow.hpp"
+#include "rehearse/ui/reviewwindow.hpp"
+#include <QInputDialog>
+#include <QLineEdit>
+#include <QMimeData>
+#include <QPlainTextEdit>
+#include <QPainter>
+#include <QProgressBar>
+#include <QSettings>
+#include <QStackedWidget>
+#include <QStatusBar>
+#include <QTimer>
+#include <QFutureWatcher>
+#include <QtConcurrent/QtConcurrentRun>
+#include <QToolBar>
+#include <QToolButton>
+#include <QUndoStack>
+#include <QVBoxLayout>
+
+#include "mainwindow_parts.hpp"
+
+namespace rehearse::ui {
+
+// -------------------------------------------------------------------------------------------- menus
+
+void MainWindow::buildMenus() {
+  QMenu* file = menuBar()->addMenu(tr("&File"));
+  QAction* openFile = file->addAction(tr("&Open Case..."), this, &MainWindow::openFileDialog);
+  openFile->setShortcut(QKeySequence::Open);
+  QAction* open = file->addAction(tr("Open Case &Folder..."), this, [this] {
+    QSettings s;
+    const QString dir = QFileDialog::getExistingDirectory(this, tr("Open Case Folder"), s.value(QStringLiteral("lastDir")).toString());
+    if (dir.isEmpty()) return;
+    s.setValue(QStringLiteral("lastDir"), dir);
+    openCase(dir);
+  });
+  open->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_O));
+  recentMenu_ = file->addMenu(tr("Open &Recent"));
+  rebuildRecentMenu();
+  file->addAction(tr("Open &Built-in Phantom"), this, [this] { openCase({}); })->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
+  file->addSeparator();
+  QAction* importAction = file->addAction(tr("&Import Mesh..."), pages_.mesh, &MeshPage::importMeshDialog);
+  importAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_I));
+  QAction* frameAction = file->addAction(tr("Open &Frame or Video..."), pages_.frame, &FramePage::openFrameDialog);
+  frameAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_F));
+  file->addSeparator();
+  QAction* saveAction = file->addAction(tr("&Save"), this, &MainWindow::save);
+  saveAction->setShortcut(QKeySequence::Save);
+  file->addAction(tr("Save &As..."), this, &MainWindow::saveAs)->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S));
+  recoverAction_ = file->addAction(tr("Recover &Autosaved Case"), this, [this] { openCase(autosavePath()); });
+  recoverAction_->setEnabled(hasRecoverableAutosave());
+  file->addSeparator();
+  file->addAction(tr("&Quit"), this, &QWidget::close)->setShortcut(QKeySequence::Quit);
+
+  QMenu* edit = menuBar()->addMenu(tr("&Edit"));
+  QAction* undo = doc_->undoStack()->createUndoAction(this, tr("&Undo"));
+  undo->setShortcut(QKeySequence::Undo);
+  QAction* redo = doc_->undoStack()->createRedoAction(this, tr("&Redo"));
+  redo->setShortcut(QKeySequence::Redo);
+  edit->addAction(undo);
+  edit->addAction(redo);
+  // Undo and redo say what they did, so that no older sentence ("Imported ...") stays in the status bar.
+  connect(undo, &QAction::triggered, this, [this] {
+    const QUndoStack* stack = doc_->undoStack();
+    say(tr("Undone: %1").arg(stack->text(stack->index())));
+  });
+  connect(redo, &QAction::triggered, this, [this] {
+    const QUndoStack* stack = doc_->undoStack();
+    if (stack->index() > 0) say(tr("Redone: %1").arg(stack->text(stack->index() - 1)));
+  });
+
+  QMenu* stepMenu = menuBar()->addMenu(tr("&Step"));
+  for (int i = 0; i < app::kStepCount; ++i) {
+    if (!app::kSteps[static_cast<std::size_t>(i)].available) continue;
+    QAction* a = stepMenu->addAction(stepName(i), this, [this, i] { setStep(static_cast<Step>(i)); });
+    a->setShortcut(QKeySequence(Qt::ALT | static_cast<Qt::Key>(Qt::Key_1 + i)));
+  }
+  QToolBar* tools = addToolBar(tr("Main"));
+  tools->setObjectName(QStringLiteral("mainToolbar"));
+  tools->setIconSize(QSize(28, 28));
+  for (QAction* a : {openFile, saveAction, importAction, frameAction}) tools->addAction(a);
+  tools->addSeparator();
+  tools->addAction(undo);
+  tools->addAction(redo);
+  buildViewMenu();
+  buildSimulationMenu();
+
+  QAction* cancel = new QAction(tr("Cancel"), this);
+  cancel->setShortcut(QKeySequence(Qt::Key_Escape));
+  connect(cancel, &QAction::triggered, this, &MainWindow::cancelLoading);
+  addAction(cancel);
+
+  QMenu* help = menuBar()->addMenu(tr("&Help"));
+  QAction* about = help->addAction(tr("&About Rehearse"), this, [this] {
+    QMessageBox::about(this, tr("About Rehearse"),
+                       tr("<b>Rehearse %1</b><p>Intra-operative surgical gesture rehearsal. This version registers the "
+                          "pre-operative organ onto an endoscope frame (steps 1-5), estimates its appearance and the light from the frame "
+                          "(step 6) and simulates it there, composited into the frame, where the grasper pulls it (step 7). Cutting, "
+                          "contact, and the replay of rehearsals come in later versions.</p>")
+                           .arg(QStringLiteral(REHEARSE_VERSION)));
+  });
+  about->setShortcut(QKeySequence::HelpContents);
+
+}
+
+void MainWindow::buildViewMenu() {
+  QMenu* viewMenu = menuBar()->addMenu(tr("&View"));
+  QAction* overlay = viewMenu->addAction(tr("Show &Organ"));
+  overlay->setCheckable(true);
+  overlay->setChecked(true);
+  overlay->setShortcut(QKeySequence(Qt::Key_O));
+  connect(overlay, &QAction::toggled, view_, &FrameView::setOverlayVisible);
+  connect(overlay, &QAction::toggled, this, [this] { showFrameLayer(); });  // the composited organ is part of the picture
+  QAction* fit = viewMenu->addAction(tr("&Fit Frame"), view_, &FrameView::fitToWindow);
+  fit->setShortcut(QKeySequence(Qt::Key_Home));
+  viewMenu->addAction(tr("More Opaque Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() + 0.1); })
+      ->setShortcut(QKeySequence(Qt::Key_BracketRight));
+  viewMenu->addAction(tr("More Transparent Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() - 0.1); })
+      ->setShortcut(QKeySequence(Qt::Key_BracketLeft));
+  // Shaded, wireframe or outline only; V cycles, the choice is kept between runs.
+  viewMenu->addSeparator();
+  auto* styles = new QActionGroup(this);
+  const std::pair<QString, OverlayStyle> styleNames[] = {{tr("Organ &Shaded"), OverlayStyle::Shaded},
+                                                         {tr("Organ &Wireframe"), OverlayStyle::Wireframe},
+                                                         {tr("Organ Silhouette &Only"), OverlayStyle::Silhouette}};
+  const int savedStyle = std::clamp(QSettings().value(QStringLiteral("overlayStyle"), 0).toInt(), 0, 2);
+  for (const auto& [name, style] : styleNames) {
+    QAction* a = viewMenu->addAction(name);
+    a->setCheckable(true);
+    a->setChecked(static_cast<int>(style) == savedStyle);
+    styles->addAction(a);
+    connect(a, &QAction::triggered, this, [this, style = style] {
+      view_->setOverlayStyle(style);
+      QSettings().setValue(QStringLiteral("overlayStyle"), static_cast<int>(style));
+    });
+  }
+  view_->setOverlayStyle(static_cast<OverlayStyle>(savedStyle));
+  viewMenu->addAction(tr("Next Organ Style"), this, [this, styles] {
+    styles->actions().at((static_cast<int>(view_->overlayStyle()) + 1) % 3)->trigger();
+  })->setShortcut(QKeySequence(Qt::Key_V));
+  QAction* legend = viewMenu->addAction(tr("&Legend"));
+  legend->setCheckable(true);
+  legend->setChecked(QSettings().value(QStringLiteral("legend"), true).toBool());
+  view_->setLegendVisible(legend->isChecked());
+  connect(legend, &QAction::toggled, this, [this](bool on) {
+    view_->setLegendVisible(on);
+    QSettings().setValue(QStringLiteral("legend"), on);
+  });
+  // Composited / overlay / 3D (F2, F3, F4).
+  viewMenu->addSeparator();
+  auto* modes = new QActionGroup(this);
+  const std::tuple<QString, ViewMode, Qt::Key, QString> modeNames[] = {
+      {tr("&Composited View"), ViewMode::Composited, Qt::Key_F2, tr("The organ re-shaded into the frame, as estimated in step 6")},
+      {tr("O&verlay View"), ViewMode::Overlay, Qt::Key_F3, tr("The organ drawn over the frame")},
+      {tr("&3D View"), ViewMode::ThreeD, Qt::Key_F4, tr("The organ alone, in 3D")}};
+  for (const auto& [name, mode, key, tip] : modeNames) {
+    QAction* a = viewMenu->addAction(name);
+    a->setCheckable(true);
+    a->setShortcut(QKeySequence(key));
+    a->setToolTip(tip);
+    a->setObjectName(QStringLiteral("viewMode%1").arg(static_cast<int>(mode)));
+    modes->addAction(a);
+    viewModeActions_.push_back(a);
+    connect(a, &QAction::triggered, this, [this, mode = mode] { setViewMode(mode); });
+  }
+  viewModeActions_[static_cast<std::size_t>(viewMode_)]->setChecked(true);
+  viewMenu->addSeparator();
+  viewMenu->addAction(tr("&Navigate (pan and zoom)"), this, [this] { view_->setTool(Tool::Navigate); })->setShortcut(QKeySequence(Qt::Key_N));
+  if (auto* bar = findChild<QToolBar*>(QStringLiteral("mainToolbar"))) {
+    bar->addSeparator();
+    bar->addAction(overlay);
+    bar->addAction(fit);
+    bar->addSeparator();
+    for (QAction* a : viewModeActions_) bar->addAction(a);
+  }
+}
+
+void MainWindow::buildSimulationMenu() {
+  QMenu* simMenu = menuBar()->addMenu(tr("Si&mulate"));
+  auto show = [this] {
+    simulationDock_->show();
+    simulationDock_->raise();
+  };
+  simMenu->addAction(tr("Show &Simulation"), this, show)->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_M));
+  simMenu->addAction(tr("&Play / Pause"), this, [this, show] {
+    show();
+    simulation_->togglePlay();
+  })->setShortcut(QKeySequence(Qt::Key_F5));
+  simMenu->addAction(tr("Single S&tep"), this, [this, show] {
+    show();
+    simulation_->stepOnce();
+  })->setShortcut(QKeySequence(Qt::Key_F6));
+  simMenu->addAction(tr("&Reset"), this, [this] { simulation_->reset(); })->setShortcut(QKeySequence(Qt::SHIFT | Qt::Key_F5));
+  simMenu->addSeparator();
+  simMenu->addAction(tr("Start / Stop &Recording"), this, [this] {
+    if (recording()) stopRecording();
+    else if (const QString err = startRecording(pages_.rehearse ? pages_.rehearse->trainee() : QString()); !err.isEmpty()) say(err);
+  })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_R));
+  simMenu->addAction(tr("Re&view Recorded Rehearsals..."), this, [this] { openReview(); })->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_R));
+  // The training centre's database: the connection from a libpq service name (or the environment); never stored
+  // in the case file (the service name is a setting of this machine).
+  auto askService = [this](bool& ok) {
+    QSettings settings;
+    const QString service = QInputDialog::getText(this, tr("Training database"),
+                                                   tr("libpq service name (pg_service.conf; empty: PGHOST, PGDATABASE, ... from the environment):"),
+                                                   QLineEdit::Normal, settings.value(QStringLiteral("training/service")).toString(), &ok);
+    if (ok) settings.setValue(QStringLiteral("training/service"), service);
+    return service;
+  };
+  simMenu->addAction(tr("&Publish Recorded Sessions..."), this, [this, askService] {
+    const QString path = doc_->path();
+    if (path.isEmpty() || !QFileInfo::exists(path)) return say(tr("Save the case and record a rehearsal first: sessions are published from the case file."));
+    bool ok = false;
+    const QString service = askService(ok);
+    if (!ok) return;
+    say(tr("Publishing the sessions of %1 (each is replayed and verified first)...").arg(QFileInfo(path).fileName()));
+    auto* watcher = new QFutureWatcher<QString>(this);
+    connect(watcher, &QFutureWatcher<QString>::finished, this, [this, watcher] {
+      say(watcher->result());
+      watcher->deleteLater();
+    });
+    watcher->setFuture(QtConcurrent::run([path, service] {
+      try {
+        TrainingDatabase db(service);  // its own connection, on this thread
+        const auto r = db.publish(path);
+        QString text = tr("Published %1 sessions (%2 already there, %3 not published).").arg(r.published).arg(r.already).arg(r.skipped);
+        if (!r.notes.isEmpty()) text += " " + r.notes.join(" ");
+        return text;
+      } catch (const std::exception& e) {
+        return tr("Publishing failed: %1").arg(QString::fromStdString(e.what()));
+      }
+    }));
+  });
+  simMenu->addAction(tr("Training &Cohort..."), this, [this, askService] {
+    bool ok = false;
+    const QString service = askService(ok);
+    if (!ok) return;
+    try {
+      auto* w = new CohortWindow(std::make_shared<TrainingDatabase>(service), this);
+      w->setAttribute(Qt::WA_DeleteOnClose);
+      w->setWindowFlag(Qt::Window);
+      w->show();
+    } catch (const std::exception& e) {
+      say(tr("The training database cannot be opened: %1").arg(QString::fromStdString(e.what())));
+    }
+  });
+  connect(simulation_, &SimulationPanel::recordingRestarted, this, [this](const QString& text) {
+    say(text);
+    if (pages_.rehearse) pages_.rehearse->showRecording(true, text);
+  });
+  connect(simulation_, &SimulationPanel::recordingStopped, this, [this](const QString& why) {
+    say(why);
+    if (pages_.rehearse) pages_.rehearse->showRecording(false, why);
+  });
+  recorder_ = new RecordingController(doc_, simulation_, pages_.rehearse, this, [this](const QString& text) { say(text); });
+  pages_.rehearse->setRecordHandlers({[this](const QString& trainee) { return startRecording(trainee); }, [this] { stopRecording(); },
+                                      [this] { openReview(); }});
+}
+
+bool MainWindow::recording() const { return recorder_->recording(); }
+
+QString MainWindow::caseFilePath() const { return doc_->path(); }
+
+QString MainWindow::startRecording(const QString& trainee) { return recorder_->start(trainee); }
+
+void MainWindow::stopRecording() { recorder_->stop(); }
+
+ReviewWindow* MainWindow::openReview() { return recorder_->openReview(); }
+
+}  // namespace rehearse::ui
