@@ -1,5 +1,6 @@
 #include <rehearse/simcore/integrator.hpp>
 
+#include "integrator_work.hpp"
 
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
@@ -12,6 +13,8 @@
 
 
 namespace rehearse::simcore {
+
+using namespace detail;
 
 NewtonMethod newtonMethodFromString(const std::string& name) {
   if (name == "exact") return NewtonMethod::Exact;
@@ -39,65 +42,6 @@ std::string toString(NewtonMethod m) {
     default: return "linearised";
   }
 }
-
-// Everything a step needs, sized once: a step that converges does not allocate.
-struct Integrator::Work {
-  std::unique_ptr<CholmodSolver> chol = std::make_unique<CholmodSolver>();
-  TangentState tangent0;           // the tangent at the step start: Rayleigh damping beta K(x0) v, matrix-free
-  Eigen::SparseMatrix<double> Kd;  // K(x0) (exact method) or the lagged stiffness (lagged methods)
-  Eigen::SparseMatrix<double> K;   // tangent stiffness at the current iterate
-  Eigen::SparseMatrix<double> J;   // the factorised Newton matrix (exact, or lagged)
-  Eigen::VectorXd x0, v0, Mv0, v, vn, xt, r, rn, dv, f, tmp, savedX, savedV, stepX, stepV;
-  Eigen::VectorXd pr, pz, pp, pq, pk;  // PCG
-  ConstraintSolver cons;           // attachments (Lagrange mode) then the extra constraints
-  Eigen::VectorXd lambdaOut;       // multipliers of the last solve, as forces (N)
-  Eigen::VectorXd lambdaCarried;  // lagged-pcg: the multipliers whose forces the free solve already holds
-  double laggedStep = -1;         // h the lagged factor was built for (-1: none)
-  Eigen::VectorXd laggedAt;       // positions it was built at (with laggedStep: its identity)
-  bool invalidated = false;       // invalidateFactorisation() was called: rebuild at the next step
-  bool refresh = true;            // rebuild the lagged factor at the next opportunity
-  bool drift = false;             // the lagged factor drifted (its residual grew): rebuild it where settings.factorRefresh says
-  // The requested factor (asynchronous and deferred refresh): built into its own solver and matrices, then
-  // swapped with chol, Kd and J (the solvers keep their analyses: the pattern is the same).
-  struct Request {
-    std::unique_ptr<CholmodSolver> chol = std::make_unique<CholmodSolver>();
-    Eigen::SparseMatrix<double> Kd, J;
-    Eigen::VectorXd at;
-    double step = -1;
-    int attempts = 0;
-    bool pending = false;  // requested and not swapped in yet
-    bool built = false;    // the build finished (ok tells how)
-    bool ok = false;
-    bool discard = false;  // the factor was rebuilt at once since (a new time step, parameters, state): drop this one
-    std::future<bool> job; // asynchronous: the build under way on the second thread
-  } request;
-  int staticFactor = -1;          // chol.factorisations() just after a static tangent was factorised
-  Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
-  bool forcesValid = false;
-  // Linearised method: the tangent and forces at the end of the last step (its nonlinear residual needs the
-  // forces there; the next step starts from the same pass when it starts at the same positions).
-  TangentState tangentEnd;
-  Eigen::VectorXd tangentEndAt, forcesEnd;
-  bool tangentEndValid = false;
-  Eigen::VectorXd bestX, bestV;  // the attempt with the smallest residual (a step that does not converge)
-  std::vector<int> limiting;      // elements a move would have taken below their floor (guardMove)
-};
-
-namespace {
-
-// Every numeric factorisation goes through here, so the factor kind follows the settings as they are now.
-bool factoriseWith(CholmodSolver& chol, const SimulationSettings& settings, const Eigen::SparseMatrix<double>& M) {
-  chol.setSimplicial(settings.simplicialFactor);
-  return chol.factorise(M);
-}
-// "10 micrometres", for statuses.
-std::string micrometres(double metres) {
-  char text[48];
-  std::snprintf(text, sizeof text, "%g micrometres", 1e6 * metres);
-  return text;
-}
-
-}  // namespace
 
 std::string settingsProblem(const SimulationSettings& s, bool constrained) {
   if (s.solver == LinearSolverKind::Cholmod) return {};
@@ -255,160 +199,6 @@ void Integrator::newtonMatrix(const Eigen::SparseMatrix<double>& Kd, const Eigen
 
 void Integrator::newtonMatrix(const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h) const {
   newtonMatrix(w_->Kd, K, J, h, settings_.rayleighMass, settings_.rayleighStiffness);
-}
-
-// Reads only the model, the fixed nodes and the masses (all const after construction), so the asynchronous
-// refresh runs it on another thread with its own matrices and solver.
-bool Integrator::buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& Kd, Eigen::SparseMatrix<double>& J, const Eigen::VectorXd& at,
-                             double h, double alpha, double beta, bool simplicial, int& attempts) const {
-  assembleStiffness(model_, at, Kd);
-  newtonMatrix(Kd, Kd, J, h, alpha, beta);
-  ++attempts;
-  chol.setSimplicial(simplicial);
-  if (chol.factorise(J)) return true;
-  // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
-  assembleStiffness(model_, at, Kd, true);
-  newtonMatrix(Kd, Kd, J, h, alpha, beta);
-  return simcore::factoriseShifted(chol, J, model_.diagonalSlot, attempts);
-}
-
-void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& rep) {
-  Work::Request& q = w_->request;
-  if (q.pending) return;  // one at a time: the steps keep the old factor until it is in
-  if (q.Kd.size() == 0) q.Kd = q.J = model_.pattern;
-  q.at = at;
-  q.step = h;
-  q.attempts = 0;
-  q.pending = true;
-  q.built = q.ok = false;
-  q.discard = false;
-  rep.factorRequested = true;
-  // Built on the second thread in both modes (the build depends only on its inputs); a deferred one is swapped
-  // in only once installed (installRequestedFactor waits for it), where the recording says.
-  {
-    const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
-    const bool simplicial = settings_.simplicialFactor;
-    q.job = std::async(std::launch::async, [this, &q, alpha, beta, simplicial] {
-      return buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, alpha, beta, simplicial, q.attempts);
-    });
-  }
-}
-
-// Swaps the requested factor in when it is built (asynchronous: the job finished; deferred: installed).
-bool Integrator::swapInRequested(StepReport& rep) {
-  Work& w = *w_;
-  Work::Request& q = w.request;
-  if (!q.pending) return false;
-  if (settings_.factorRefresh != FactorRefresh::Deferred && q.job.valid()) {
-    if (q.job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
-    q.ok = q.job.get();
-    q.built = true;
-  }
-  if (!q.built) return false;
-  q.pending = false;
-  rep.factorisations += q.attempts;
-  // A factor for another time step, or one that failed, is dropped (the next drift asks again).
-  if (!q.ok || q.discard || q.step != w.laggedStep || q.at.size() != w.x0.size()) return false;
-  std::swap(w.chol, q.chol);
-  std::swap(w.Kd, q.Kd);
-  std::swap(w.J, q.J);
-  std::swap(w.laggedAt, q.at);
-  w.cons.invalidate();
-  rep.factorSwapped = true;
-  return true;
-}
-
-bool Integrator::installRequestedFactor() {
-  Work::Request& q = w_->request;
-  if (!q.pending) return false;
-  if (q.job.valid()) {
-    q.ok = q.job.get();
-  } else if (!q.built) {
-    q.ok = buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, settings_.rayleighMass, settings_.rayleighStiffness, settings_.simplicialFactor, q.attempts);
-  }
-  q.built = true;  // swapped in at the next step's start
-  return q.ok;
-}
-
-bool Integrator::factorPending() const { return w_->request.pending; }
-
-bool Integrator::prepareLagged(const Eigen::VectorXd& at) {
-  if (settings_.method == NewtonMethod::Exact || settings_.solver != LinearSolverKind::Cholmod || at.size() != rest_.size()) return false;
-  StepReport rep;
-  return refreshLaggedAt(at, settings_.timeStep, rep);
-}
-
-bool Integrator::refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep) {
-  Work& w = *w_;
-  w.laggedStep = h;
-  w.laggedAt = at;  // the factor's identity, part of the complete state (SimulationState::lagged)
-  w.refresh = false;
-  w.drift = false;
-  w.request.discard = true;  // a factor requested before this one is older
-  w.cons.invalidate();
-  return buildLagged(*w.chol, w.Kd, w.J, at, h, settings_.rayleighMass, settings_.rayleighStiffness, settings_.simplicialFactor, rep.factorisations);
-}
-
-// The complete state in, before a step: the lagged factor it names is the one this step uses (rebuilt
-// when the integrator holds another one, e.g. after restoring a checkpoint or in a second integrator),
-// and the forces it carries at x are the ones the residual scale uses.
-bool Integrator::adopt(const SimulationState& state, StepReport& rep) {
-  Work& w = *w_;
-  w.forcesValid = state.forcesValid && state.forces.size() == state.x.size() && state.x.size() > 0;
-  if (w.forcesValid) {
-    w.forcesAt = state.x;
-    w.forces = state.forces;
-  }
-  const bool refresh = state.lagged.refresh || w.invalidated;
-  w.invalidated = false;
-  const bool lagged = settings_.method != NewtonMethod::Exact && settings_.solver == LinearSolverKind::Cholmod;
-  if (!lagged) {
-    w.refresh = true;
-    return true;
-  }
-  if (!state.lagged.valid || state.lagged.at.size() != state.x.size() || state.lagged.step <= 0) {
-    w.refresh = true;  // a state without a lagged factor (fresh, or from an exact step): build one at its start
-    return true;
-  }
-  const bool same = w.chol->valid() && w.laggedStep == state.lagged.step && w.laggedAt.size() == state.lagged.at.size() &&
-                    w.laggedAt == state.lagged.at && !w.refresh;  // refresh: the factor holds another matrix or is stale
-  if (!same && !refresh) {
-    // The factor the state names, built again: a request the state names too is newer and stays.
-    const bool discard = w.request.discard;
-    if (!refreshLaggedAt(state.lagged.at, state.lagged.step, rep)) return false;
-    w.request.discard = discard;
-  }
-  w.refresh = refresh;
-  w.drift = state.lagged.drift;
-  return true;
-}
-
-void Integrator::requestAgain(const SimulationState& state) {
-  if (!state.lagged.requested || w_->request.pending || settings_.factorRefresh == FactorRefresh::Synchronous ||
-      state.lagged.requestedAt.size() != state.x.size())
-    return;
-  StepReport rep;
-  requestFactor(state.lagged.requestedAt, state.lagged.requestedStep, rep);
-}
-
-void Integrator::record(SimulationState& state) const {
-  const Work& w = *w_;
-  // Synchronous refresh: a drifted factor is rebuilt at the next step's start, like a stale one.
-  const bool sync = settings_.factorRefresh == FactorRefresh::Synchronous;
-  state.lagged.refresh = w.refresh || (sync && w.drift);
-  state.lagged.drift = !sync && w.drift;
-  state.lagged.valid = w.laggedStep > 0 && !state.lagged.refresh;
-  if (state.lagged.valid) {
-    state.lagged.at = w.laggedAt;  // same size from the second step on: no allocation
-    state.lagged.step = w.laggedStep;
-  }
-  state.forcesValid = w.forcesValid && w.forcesAt.size() == state.x.size() && w.forcesAt == state.x;
-  if (state.forcesValid) state.forces = w.forces;
-  state.lagged.requested = w.request.pending && !w.request.discard;
-  if (state.lagged.requested) {
-    state.lagged.requestedAt = w.request.at;  // same size from the second request on: no allocation
-    state.lagged.requestedStep = w.request.step;
-  }
 }
 
 Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, double h, StepReport& rep) {
@@ -765,13 +555,6 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   return ok ? Try::Converged : finite ? Try::Inexact : Try::Failed;
 }
 
-namespace {
-std::string figure(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.3g", v);
-  return text;
-}
-}  // namespace
 
 bool Integrator::guardMove(const Eigen::VectorXd& x, Eigen::VectorXd& vel, double h) {
   if (!settings_.inversionGuard) return false;
@@ -950,163 +733,6 @@ StepReport Integrator::step(SimulationState& state) {
   rep.retries = retries;
   record(state);
   if (settings_.reportEnergy) rep.energy = totalEnergy(state);
-  rep.constraintViolation = w_->cons.violation(state.x);
-  rep.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-  return rep;
-}
-
-StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd& extra) {
-  const auto t0 = std::chrono::steady_clock::now();
-  Work& w = *w_;
-  StepReport rep;
-  if (const std::string problem = settingsProblem(settings_, !constraints_.empty()); !problem.empty()) {
-    rep.status = "refused: " + problem;
-    rep.outcome = StepStatus::Refused;
-    return rep;
-  }
-  Eigen::VectorXd fext = gravityForce_;
-  if (extra.size() == fext.size()) fext += extra;
-  const bool hasConstraints = !attachmentConstraints_.empty() || !constraints_.empty();
-  auto potential = [&](const Eigen::VectorXd& x) { return elasticEnergy(model_, x) - fext.dot(x - rest_); };
-  const double scale = std::max(fext.norm(), 1e-2 * model_.lumpedMass.sum());
-  Eigen::VectorXd x = state.x, r, dx;
-  if (hasConstraints) w.cons.multipliers().setZero(w.cons.size());
-  // A body held only by constraints has a singular stiffness: the Newton matrix gets M / (1 s)^2, which
-  // only slows the softest modes (the residual below is the true one, so the equilibrium is unchanged).
-  // (Not needed when nodes are fixed by projection: they hold the body, and the regularisation would make
-  // Newton converge only linearly in the softest modes.)
-  const bool heldByProjection = std::find(fixed_.begin(), fixed_.end(), 1) != fixed_.end();
-  const double regularisation = hasConstraints && !heldByProjection ? 1.0 : 0.0;
-  const int maxIterations = std::max(settings_.maxNewtonIterations, 30) + (hasConstraints ? 30 : 0);
-  double previousResidual = 1e300;
-  int stalled = 0;
-  double residualBefore = 1e300;  // the previous iteration's (chord)
-  bool roundOff = false, smallStep = false;
-  // A Newton step larger than ten times the organ is a near-singular solve, not a move: refused, and the
-  // projected tangent (then growing diagonal shifts) tried instead. Steps beyond a quarter of the organ are
-  // shortened to that (a trust region; the next iterations continue).
-  const double organSize = organSize_;
-  auto usableStep = [&](Eigen::VectorXd& d) {
-    const double largest = d.size() ? d.cwiseAbs().maxCoeff() : 0.0;
-    if (!std::isfinite(largest) || largest > 10 * organSize) return false;
-    if (largest > 0.25 * organSize) d *= 0.25 * organSize / largest;
-    return true;
-  };
-  for (int it = 0; it < maxIterations; ++it) {
-    elasticForces(model_, x, r);
-    r += fext;  // out-of-balance force
-    project(r);
-    if (hasConstraints && it > 0) r.noalias() += w.cons.transposedH() * w.cons.multipliers();
-    rep.residual = r.norm() / scale;
-    if (!std::isfinite(rep.residual)) break;
-    const double violation = hasConstraints ? w_->cons.violation(x) : 0.0;
-    if (rep.residual <= settings_.tolerance && (!hasConstraints || (it > 0 && violation <= 1e-9))) {
-      rep.ok = true;
-      break;
-    }
-    // Round-off floor: an ill-conditioned system (slender elements, stiff materials under small loads)
-    // cannot reduce the residual below ~eps * cond; three iterations without progress within 100x of the
-    // tolerance are accepted, and the status says so.
-    stalled = rep.residual > 0.9 * previousResidual ? stalled + 1 : 0;
-    previousResidual = std::min(previousResidual, rep.residual);
-    if (stalled >= 3 && rep.residual <= 100 * settings_.tolerance && (!hasConstraints || violation <= 1e-9)) {
-      rep.ok = true;
-      roundOff = true;
-      break;
-    }
-    auto buildTangent = [&](bool projected) {
-      assembleStiffness(model_, x, w.K, projected);
-      if (regularisation > 0)
-        for (Eigen::Index i = 0; i < w.K.rows(); ++i) w.K.valuePtr()[model_.diagonalSlot[i]] += regularisation * mass3_[i];
-      projectMatrix(w.K);
-    };
-    // Solve for the total multipliers (none yet in the first iteration, when Ht may still have the size of
-    // the previous solve's constraints).
-    if (hasConstraints && it > 0) r.noalias() -= w.cons.transposedH() * w.cons.multipliers();
-    bool solved = false;
-    // Chord: the factor of an earlier static tangent (of this solve or the last one) while the residual
-    // still at least halves per iteration; a fresh tangent otherwise, or when the lagged step is unusable.
-    const bool chord = settings_.staticChord && settings_.solver == LinearSolverKind::Cholmod && w.chol->valid() &&
-                       w.staticFactor == w.chol->factorisations() && rep.residual < 0.5 * residualBefore;
-    residualBefore = rep.residual;
-    if (chord) {
-      const Eigen::VectorXd lambdaStart = w.cons.multipliers();
-      solved = solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
-      if (!solved) w.cons.multipliers() = lambdaStart;
-    }
-    if (!solved) buildTangent(false);
-    if (!solved && settings_.solver == LinearSolverKind::Cholmod) {
-      ++rep.factorisations;
-      w.cons.invalidate();
-      // Each attempt starts from the same multipliers (a failed one can leave them absurd).
-      const Eigen::VectorXd lambdaStart = w.cons.multipliers();
-      solved = factoriseWith(*w.chol, settings_, w.K) && solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
-      if (!solved) {
-        // Indefinite, or nearly singular (a step the organ cannot make): projected Newton, then diagonal
-        // shifts (Levenberg-Marquardt) growing until the step is usable.
-        buildTangent(true);
-        solved = factoriseShifted(w.K, rep, [&] {
-          w.cons.multipliers() = lambdaStart;
-          return solveConstrained(r, x, 1.0, dx, rep) && usableStep(dx);
-        });
-      }
-      if (solved) w.staticFactor = w.chol->factorisations();
-    } else if (!solved) {
-      solved = solveLinear(w.K, r, dx);
-      if (!solved) {
-        Eigen::SparseMatrix<double> Ks = w.K;
-        for (double shift = 1e-6 * Ks.diagonal().cwiseAbs().maxCoeff(); !solved && shift < 1e12; shift *= 10) {
-          for (Eigen::Index i = 0; i < Ks.rows(); ++i) Ks.valuePtr()[model_.diagonalSlot[i]] = w.K.valuePtr()[model_.diagonalSlot[i]] + shift;
-          solved = solveLinear(Ks, r, dx);
-        }
-      }
-      project(dx);
-    }
-    if (!solved) {
-      rep.status = hasConstraints ? "failed: the stiffness matrix or the constraint system could not be solved"
-                                  : "failed: the stiffness matrix could not be factorised";
-      break;
-    }
-    double t = 1.0;
-    Eigen::VectorXd xn = x + dx;
-    // Armijo on the potential; with constraints the constraint forces do work too, so the merit is the
-    // residual norm instead.
-    if (settings_.lineSearch && !hasConstraints) {
-      const double e0 = potential(x);
-      while ((!std::isfinite(potential(xn)) || potential(xn) > e0 + 1e-4 * t * (-r.dot(dx))) && t > 1e-4) {
-        t *= 0.5;
-        xn = x + t * dx;
-      }
-    }
-    x = xn;
-    ++rep.newtonIterations;
-    // Moves below the caller's resolution: converged for its purpose (a registration needs micrometres,
-    // not the force balance to round-off, and projected Newton converges only linearly).
-    if (settings_.staticStepTolerance > 0 && t * dx.cwiseAbs().maxCoeff() < settings_.staticStepTolerance && w_->cons.violation(x) <= 1e-9) {
-      rep.ok = true;
-      smallStep = true;
-      break;
-    }
-  }
-  if (rep.ok && x.allFinite()) {
-    state.x = x;
-    state.v.setZero();
-    // Round-off: the residual stalled within 100x of the tolerance (the state is kept; the word says it is not under it).
-    describe(state, true, !roundOff, settings_.tolerance, rep);
-    if (rep.outcome == StepStatus::Converged)
-      rep.status = smallStep ? "converged (the last Newton move was below " + micrometres(settings_.staticStepTolerance) + ")" : "converged";
-    else if (rep.outcome == StepStatus::Inexact)
-      rep.status = "inexact: stalled at round-off, relative residual " + figure(rep.residual) + " within 100x the tolerance " + figure(settings_.tolerance);
-    else if (rep.outcome == StepStatus::Inverted)
-      rep.status = statusSentence(rep);
-  } else {
-    rep.ok = false;
-    describe(state, false, false, settings_.tolerance, rep);
-    if (rep.status.empty()) rep.status = "failed: not converged (relative residual " + std::to_string(rep.residual) + "); the state was rolled back";
-  }
-  if (hasConstraints) w.lambdaOut = w.cons.multipliers();
-  w.refresh = true;  // the factor now holds the static tangent
-  rep.energy = totalEnergy(state);
   rep.constraintViolation = w_->cons.violation(state.x);
   rep.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   return rep;

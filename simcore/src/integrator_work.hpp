@@ -1,0 +1,78 @@
+#pragma once
+// The integrator's workspace and small helpers, shared by its translation units (integrator.cpp: the step;
+// integrator_factor.cpp: the lagged factorisation, refreshed at once or on the second thread; integrator_static.cpp:
+// the static solve). Internal to simcore.
+#include <rehearse/simcore/integrator.hpp>
+
+#include <Eigen/Sparse>
+
+#include <future>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace rehearse::simcore {
+
+// Everything a step needs, sized once: a step that converges does not allocate.
+struct Integrator::Work {
+  std::unique_ptr<CholmodSolver> chol = std::make_unique<CholmodSolver>();
+  TangentState tangent0;           // the tangent at the step start: Rayleigh damping beta K(x0) v, matrix-free
+  Eigen::SparseMatrix<double> Kd;  // K(x0) (exact method) or the lagged stiffness (lagged methods)
+  Eigen::SparseMatrix<double> K;   // tangent stiffness at the current iterate
+  Eigen::SparseMatrix<double> J;   // the factorised Newton matrix (exact, or lagged)
+  Eigen::VectorXd x0, v0, Mv0, v, vn, xt, r, rn, dv, f, tmp, savedX, savedV, stepX, stepV;
+  Eigen::VectorXd pr, pz, pp, pq, pk;  // PCG
+  ConstraintSolver cons;           // attachments (Lagrange mode) then the extra constraints
+  Eigen::VectorXd lambdaOut;       // multipliers of the last solve, as forces (N)
+  Eigen::VectorXd lambdaCarried;  // lagged-pcg: the multipliers whose forces the free solve already holds
+  double laggedStep = -1;         // h the lagged factor was built for (-1: none)
+  Eigen::VectorXd laggedAt;       // positions it was built at (with laggedStep: its identity)
+  bool invalidated = false;       // invalidateFactorisation() was called: rebuild at the next step
+  bool refresh = true;            // rebuild the lagged factor at the next opportunity
+  bool drift = false;             // the lagged factor drifted (its residual grew): rebuild it where settings.factorRefresh says
+  // The requested factor (asynchronous and deferred refresh): built into its own solver and matrices, then
+  // swapped with chol, Kd and J (the solvers keep their analyses: the pattern is the same).
+  struct Request {
+    std::unique_ptr<CholmodSolver> chol = std::make_unique<CholmodSolver>();
+    Eigen::SparseMatrix<double> Kd, J;
+    Eigen::VectorXd at;
+    double step = -1;
+    int attempts = 0;
+    bool pending = false;  // requested and not swapped in yet
+    bool built = false;    // the build finished (ok tells how)
+    bool ok = false;
+    bool discard = false;  // the factor was rebuilt at once since (a new time step, parameters, state): drop this one
+    std::future<bool> job; // asynchronous: the build under way on the second thread
+  } request;
+  int staticFactor = -1;          // chol.factorisations() just after a static tangent was factorised
+  Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
+  bool forcesValid = false;
+  // Linearised method: the tangent and forces at the end of the last step (its nonlinear residual needs the
+  // forces there; the next step starts from the same pass when it starts at the same positions).
+  TangentState tangentEnd;
+  Eigen::VectorXd tangentEndAt, forcesEnd;
+  bool tangentEndValid = false;
+  Eigen::VectorXd bestX, bestV;  // the attempt with the smallest residual (a step that does not converge)
+  std::vector<int> limiting;      // elements a move would have taken below their floor (guardMove)
+};
+
+namespace detail {
+// Every numeric factorisation goes through here, so the factor kind follows the settings as they are now.
+inline bool factoriseWith(CholmodSolver& chol, const SimulationSettings& settings, const Eigen::SparseMatrix<double>& M) {
+  chol.setSimplicial(settings.simplicialFactor);
+  return chol.factorise(M);
+}
+// "10 micrometres", for statuses.
+inline std::string micrometres(double metres) {
+  char text[48];
+  std::snprintf(text, sizeof text, "%g micrometres", 1e6 * metres);
+  return text;
+}
+inline std::string figure(double v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g", v);
+  return text;
+}
+}  // namespace detail
+
+}  // namespace rehearse::simcore

@@ -1,0 +1,70 @@
+#pragma once
+// What the registration's translation units share (registration.cpp: the fit; registration_silhouette.cpp: the
+// silhouette, its distances and the contour's residuals; registration_pose.cpp: the pose and sag refinement). Internal
+// to simcore.
+#include <rehearse/simcore/registration.hpp>
+
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace rehearse::simcore::detail {
+
+void checkCamera(const Pinhole& c);
+// "0.57 px", for statuses.
+std::string pixels(double px);
+// Closest point of segment [a, b] to p: returns the parameter in [0, 1].
+double closestParameter(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& p);
+// Distance from p to the nearest silhouette edge (px).
+double distanceToSilhouette(const std::vector<SilhouetteEdge>& silhouette, const Eigen::Vector2d& p);
+
+// Mean, RMS and largest of a run of distances.
+struct ResidualSum {
+  Residual2D r;
+  double sum = 0, sum2 = 0;
+  void add(double d) {
+    sum += d;
+    sum2 += d * d;
+    r.hausdorff = std::max(r.hausdorff, d);
+    ++r.points;
+  }
+  Residual2D result() const {
+    Residual2D out = r;
+    if (out.points) {
+      out.mean = sum / out.points;
+      out.rms = std::sqrt(sum2 / out.points);
+    }
+    return out;
+  }
+};
+
+// The nearest point of a polyline to p, and whether it is one of the polyline's ends.
+struct Foot {
+  Eigen::Vector2d point = Eigen::Vector2d::Zero(), normal = Eigen::Vector2d::Zero();
+  double distance = std::numeric_limits<double>::infinity();
+  bool atEnd = false;
+};
+Foot nearestOnPolyline(const std::vector<Eigen::Vector2d>& line, const Eigen::Vector2d& p);
+
+struct Binding {
+  int a, b;
+  double t;                 // along the edge
+  Eigen::Vector2d contour;  // the contour point
+  double distance;          // px
+  Eigen::Vector2d normal = Eigen::Vector2d::Zero();  // unit normal of the contour there (for sliding)
+  Eigen::Vector3d bulge = Eigen::Vector3d::Zero();   // the edge's bulge (SilhouetteEdge::bulge)
+};
+Eigen::Vector3d point(const Eigen::VectorXd& x, const Binding& b);
+
+/// The pose (and, when U has columns, the sag with it) refined onto the bindings (registration_pose.cpp): the bound
+/// point is base + U a; Levenberg-Marquardt with a prior (a - a0)' P (a - a0) on the load.
+void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings, const Pinhole& cam,
+                      bool pointToLine, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0, const Eigen::Matrix3d& prior);
+// The pose alone, the shape x as it is.
+Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam, bool pointToLine);
+
+}  // namespace rehearse::simcore::detail
