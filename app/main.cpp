@@ -16,15 +16,18 @@ int main(int argc, char** argv) {
   bool handled = false;
   rehearse::app::CliServices services;  // what the command line reaches through Qt: none without the GUI library
 #ifdef REHEARSE_WITH_GUI
-  services.writeReport = rehearse::ui::writeReviewPdf;   // replay --report writes through Qt's QPdfWriter
-  services.training = rehearse::ui::makeTrainingStore();  // publish, replay postgresql: through Qt SQL's PostgreSQL driver
+  services.writeReport = rehearse::ui::writeReviewPdf;  // replay --report writes through Qt's QPdfWriter
+  services.training =
+      rehearse::ui::makeTrainingStore();  // publish, replay postgresql: through Qt SQL's PostgreSQL driver
 #endif
   int code = rehearse::app::runCli(args, handled, services);
   if (handled) return code;
 #ifdef REHEARSE_WITH_GUI
   return rehearse::ui::runGui(argc, argv);
 #else
-  std::fprintf(stderr, "rehearse: error: this build has no GUI (configured with REHEARSE_BUILD_GUI=OFF); use a sub-command, see --help\n");
+  std::fprintf(stderr,
+               "rehearse: error: this build has no GUI (configured with REHEARSE_BUILD_GUI=OFF); use a sub-command, "
+               "see --help\n");
   return 2;
 #endif
 }

@@ -26,18 +26,19 @@ namespace rehearse::app {
 
 namespace cli {
 const std::vector<const Command*>& commands() {
-  static const std::vector<const Command*> all = {&phantomCommand(),    &meshCommand(),    &infoCommand(),    &simulateCommand(), &registerCommand(),
-                                                  &appearanceCommand(), &composeCommand(), &gestureCommand(), &replayCommand(),   &publishCommand()};
+  static const std::vector<const Command*> all = {
+      &phantomCommand(),    &meshCommand(),    &infoCommand(),    &simulateCommand(), &registerCommand(),
+      &appearanceCommand(), &composeCommand(), &gestureCommand(), &replayCommand(),   &publishCommand()};
   return all;
 }
 }  // namespace cli
 
 std::string usage() {
   std::string out = "Rehearse " REHEARSE_VERSION
-         " - intra-operative surgical gesture rehearsal\n\n"
-         "Usage:\n"
-         "  rehearse                         start the GUI on the built-in phantom case\n"
-         "  rehearse open CASE               start the GUI on a case folder\n";
+                    " - intra-operative surgical gesture rehearsal\n\n"
+                    "Usage:\n"
+                    "  rehearse                         start the GUI on the built-in phantom case\n"
+                    "  rehearse open CASE               start the GUI on a case folder\n";
   for (const cli::Command* c : cli::commands()) out += c->usage;
   return out +
          "  rehearse --help | --version\n\n"
@@ -49,8 +50,8 @@ std::string usage() {
 
 int runCli(const std::vector<std::string>& args, bool& handled, const CliServices& services) {
   handled = true;
-  if (args.size() < 2 || args[1] == "open" || (args[1].rfind("--", 0) == 0 && args[1] != "--help" && args[1] != "--version" &&
-                                               args[1] != "-h")) {
+  if (args.size() < 2 || args[1] == "open" ||
+      (args[1].rfind("--", 0) == 0 && args[1] != "--help" && args[1] != "--version" && args[1] != "-h")) {
     handled = false;
     return 0;
   }
@@ -67,7 +68,8 @@ int runCli(const std::vector<std::string>& args, bool& handled, const CliService
     for (const cli::Command* c : cli::commands()) {
       if (c->name != cmd) continue;
       // `rehearse NAME --help`: its usage and its declared options.
-      if (std::find(args.begin() + 2, args.end(), "--help") != args.end() || std::find(args.begin() + 2, args.end(), "-h") != args.end()) {
+      if (std::find(args.begin() + 2, args.end(), "--help") != args.end() ||
+          std::find(args.begin() + 2, args.end(), "-h") != args.end()) {
         std::printf("%s", cli::commandHelp(*c).c_str());
         return 0;
       }
@@ -88,10 +90,13 @@ int runCli(const std::vector<std::string>& args, bool& handled, const CliService
     return 1;
   } catch (const std::filesystem::filesystem_error& e) {
     // In our words, not the library's ("filesystem error: status: ... [path]").
-    std::fprintf(stderr, "rehearse: error: cannot access %s: %s\n", e.path1().string().c_str(), e.code().message().c_str());
+    std::fprintf(stderr, "rehearse: error: cannot access %s: %s\n", e.path1().string().c_str(),
+                 e.code().message().c_str());
     return 1;
   } catch (const nlohmann::json::exception& e) {
-    std::fprintf(stderr, "rehearse: error: a JSON input is not in the expected form (%s); see \"File formats\" in the README\n", e.what());
+    std::fprintf(stderr,
+                 "rehearse: error: a JSON input is not in the expected form (%s); see \"File formats\" in the README\n",
+                 e.what());
     return 1;
   } catch (const std::exception& e) {
     std::string msg = e.what();

@@ -1,4 +1,5 @@
-// rehearse appearance | compose: the light and reflectance estimated from the frame (step 6), the organ re-shaded in it.
+// rehearse appearance | compose: the light and reflectance estimated from the frame (step 6), the organ re-shaded in
+// it.
 #include "support.hpp"
 
 #include "phantom/phantom.hpp"
@@ -48,7 +49,9 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
   bool haveSurface = false, havePose = false;
   if (o.count("case")) {
     if (!std::filesystem::is_directory(o["case"]))
-      throw UsageError(std::string(command) + " --case takes a case folder (as 'rehearse phantom --out DIR' writes); open a .rehearse file in the GUI");
+      throw UsageError(
+          std::string(command) +
+          " --case takes a case folder (as 'rehearse phantom --out DIR' writes); open a .rehearse file in the GUI");
     const Case c = loadCaseDirectory(o["case"]);
     in.camera = c.camera;
     in.frame = c.frame;
@@ -56,7 +59,8 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
     const SurfaceView v = c.surfaceView();
     in.vertices.assign(v.vertices, v.vertices + 3 * v.vertexCount);
     in.triangles.resize(v.triangleCount);
-    for (std::size_t t = 0; t < v.triangleCount; ++t) in.triangles[t] = {v.triangles[3 * t], v.triangles[3 * t + 1], v.triangles[3 * t + 2]};
+    for (std::size_t t = 0; t < v.triangleCount; ++t)
+      in.triangles[t] = {v.triangles[3 * t], v.triangles[3 * t + 1], v.triangles[3 * t + 2]};
     haveSurface = true;
   }
   if (o.count("mesh")) {
@@ -71,7 +75,8 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
   }
   if (o.count("image")) {
     in.frame = cv::imread(o["image"], cv::IMREAD_COLOR);
-    if (in.frame.empty()) throw simcore::MeshError("The image " + o["image"] + " cannot be read; give a PNG or JPEG frame.");
+    if (in.frame.empty())
+      throw simcore::MeshError("The image " + o["image"] + " cannot be read; give a PNG or JPEG frame.");
   }
   if (o.count("camera")) in.camera = imaging::loadCamera(o["camera"], in.frame.cols, in.frame.rows);
   if (o.count("pose")) in.pose = imaging::loadPose(o["pose"]), havePose = true;
@@ -81,7 +86,8 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
   if (!havePose) throw UsageError(std::string(command) + " needs --pose (the case has no alignment yet)");
   if (const std::string problem = in.camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
   // A frame from a camera with lens distortion is undistorted first (every step works on the undistorted frame).
-  if (o.count("image") && std::any_of(in.camera.distortion.begin(), in.camera.distortion.end(), [](double d) { return d != 0; })) {
+  if (o.count("image") &&
+      std::any_of(in.camera.distortion.begin(), in.camera.distortion.end(), [](double d) { return d != 0; })) {
     cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F), out;
     for (int r = 0; r < 3; ++r)
       for (int c = 0; c < 3; ++c) K.at<double>(r, c) = in.camera.K(r, c);
@@ -99,7 +105,8 @@ int cmdAppearance(const std::vector<std::string>& args) {
   const AppearanceInput in = appearanceInput(o, "appearance");
   const AppearanceOutput r = runAppearance(in);
   imaging::saveAppearance(r.fit.theta, o["out"]);
-  if (o.count("background")) imaging::writeFileAtomically(o["background"], [&] {
+  if (o.count("background"))
+    imaging::writeFileAtomically(o["background"], [&] {
       std::vector<uchar> buf;
       cv::imencode(".png", r.background, buf);
       return std::string(buf.begin(), buf.end());
@@ -111,8 +118,10 @@ int cmdAppearance(const std::vector<std::string>& args) {
   }
   if (o.count("report")) {
     nlohmann::json stages = nlohmann::json::array();
-    for (const auto& st : r.fit.stages) stages.push_back({{"stage", st.name}, {"rms_levels", st.rms}, {"ms", st.ms}, {"pixels", st.pixels}});
-    stages.push_back({{"stage", std::string("background (") + imaging::inpaintMethodName(in.inpaint) + ")"}, {"ms", r.inpaintMs}});
+    for (const auto& st : r.fit.stages)
+      stages.push_back({{"stage", st.name}, {"rms_levels", st.rms}, {"ms", st.ms}, {"pixels", st.pixels}});
+    stages.push_back(
+        {{"stage", std::string("background (") + imaging::inpaintMethodName(in.inpaint) + ")"}, {"ms", r.inpaintMs}});
     writeReport(o["report"], {{"status", r.fit.status},
                               {"highlight_found", r.fit.highlightFound},
                               {"texture_only", r.fit.textureOnly},
@@ -123,10 +132,12 @@ int cmdAppearance(const std::vector<std::string>& args) {
                               {"total_ms", r.totalMs},
                               {"stages", stages}});
   }
-  std::printf("%s\nlight (%.1f, %.1f, %.1f) mm, kd (%.4f, %.4f, %.4f), ks (%.4f, %.4f, %.4f), roughness %.3f; composed at rest: %.1f dB inside the organ; %.0f ms\n",
-              r.fit.status.c_str(), 1e3 * r.fit.theta.lightPosition.x(), 1e3 * r.fit.theta.lightPosition.y(), 1e3 * r.fit.theta.lightPosition.z(),
-              r.fit.theta.kd.x(), r.fit.theta.kd.y(), r.fit.theta.kd.z(), r.fit.theta.ks.x(), r.fit.theta.ks.y(), r.fit.theta.ks.z(), r.fit.theta.roughness,
-              r.restPsnr, r.totalMs);
+  std::printf(
+      "%s\nlight (%.1f, %.1f, %.1f) mm, kd (%.4f, %.4f, %.4f), ks (%.4f, %.4f, %.4f), roughness %.3f; composed at "
+      "rest: %.1f dB inside the organ; %.0f ms\n",
+      r.fit.status.c_str(), 1e3 * r.fit.theta.lightPosition.x(), 1e3 * r.fit.theta.lightPosition.y(),
+      1e3 * r.fit.theta.lightPosition.z(), r.fit.theta.kd.x(), r.fit.theta.kd.y(), r.fit.theta.kd.z(),
+      r.fit.theta.ks.x(), r.fit.theta.ks.y(), r.fit.theta.ks.z(), r.fit.theta.roughness, r.restPsnr, r.totalMs);
   // A fit too poor to re-shade is still written (texture mapping uses it), but says so with its own exit code.
   return r.fit.textureOnly ? 4 : 0;
 }
@@ -160,22 +171,22 @@ const Command& appearanceCommand() {
     Command c;
     c.name = "appearance";
     c.usage =
-      "  rehearse appearance --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out THETA.json\n"
-      "                [--report R.json] [--inpaint telea|ns|shiftmap|fsr] [--background IB.png] [--diffuse ID.png]\n"
-      "                                   estimate the light and the organ's reflectance from the frame (step 6);\n"
-      "                                   exit 4 when the model explains too little (texture mapping only)\n";
-    c.options = {
-      {"case", "DIR", "a case folder (its organ, camera, pose and frame; the files below override them)"},
-      {"mesh", "M", "the organ"},
-      {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
-      {"camera", "CAM", "the camera"},
-      {"pose", "P.json", "the organ's pose (model to camera)"},
-      {"image", "FRAME", "the endoscope frame"},
-      {"out", "THETA.json", "the estimated light and reflectance"},
-      {"report", "R.json", "what the frame did and did not determine"},
-      {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"},
-      {"background", "IB.png", "write the frame without the organ"},
-      {"diffuse", "ID.png", "write the organ's diffuse albedo"}};
+        "  rehearse appearance --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out "
+        "THETA.json\n"
+        "                [--report R.json] [--inpaint telea|ns|shiftmap|fsr] [--background IB.png] [--diffuse ID.png]\n"
+        "                                   estimate the light and the organ's reflectance from the frame (step 6);\n"
+        "                                   exit 4 when the model explains too little (texture mapping only)\n";
+    c.options = {{"case", "DIR", "a case folder (its organ, camera, pose and frame; the files below override them)"},
+                 {"mesh", "M", "the organ"},
+                 {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
+                 {"camera", "CAM", "the camera"},
+                 {"pose", "P.json", "the organ's pose (model to camera)"},
+                 {"image", "FRAME", "the endoscope frame"},
+                 {"out", "THETA.json", "the estimated light and reflectance"},
+                 {"report", "R.json", "what the frame did and did not determine"},
+                 {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"},
+                 {"background", "IB.png", "write the frame without the organ"},
+                 {"diffuse", "ID.png", "write the organ's diffuse albedo"}};
     c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdAppearance(args); };
     return c;
   }();
@@ -187,20 +198,21 @@ const Command& composeCommand() {
     Command c;
     c.name = "compose";
     c.usage =
-      "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta THETA.json\n"
-      "                [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint telea|ns|shiftmap|fsr]\n"
-      "                                   the organ (deformed: its nodes in the input order) re-shaded in the frame\n";
-    c.options = {
-      {"case", "DIR", "a case folder (the files below override its parts)"},
-      {"mesh", "M", "the organ"},
-      {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
-      {"camera", "CAM", "the camera"},
-      {"pose", "P.json", "the organ's pose"},
-      {"image", "FRAME", "the endoscope frame"},
-      {"theta", "THETA.json", "the appearance (rehearse appearance --out)"},
-      {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
-      {"out", "J.png", "the composited image"},
-      {"inpaint", "I", "telea, ns, shiftmap or fsr"}};
+        "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta "
+        "THETA.json\n"
+        "                [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint telea|ns|shiftmap|fsr]\n"
+        "                                   the organ (deformed: its nodes in the input order) re-shaded in the "
+        "frame\n";
+    c.options = {{"case", "DIR", "a case folder (the files below override its parts)"},
+                 {"mesh", "M", "the organ"},
+                 {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
+                 {"camera", "CAM", "the camera"},
+                 {"pose", "P.json", "the organ's pose"},
+                 {"image", "FRAME", "the endoscope frame"},
+                 {"theta", "THETA.json", "the appearance (rehearse appearance --out)"},
+                 {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
+                 {"out", "J.png", "the composited image"},
+                 {"inpaint", "I", "telea, ns, shiftmap or fsr"}};
     c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdCompose(args); };
     return c;
   }();

@@ -51,9 +51,10 @@ int cmdPhantom(const std::vector<std::string>& args) {
   const auto c = phantom::makePhantom(po);
   writeCaseDirectory(caseFromPhantom(c), o["out"]);
   double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  std::printf("phantom written to %s: %zu nodes, %zu tets, %zu surface triangles, %zu attachment nodes, frame %dx%d (%.2f s)\n",
-              o["out"].c_str(), c.volume.points.size(), c.volume.tets.size(), c.surface.size(), c.attachments.size(),
-              c.frame.cols, c.frame.rows, s);
+  std::printf(
+      "phantom written to %s: %zu nodes, %zu tets, %zu surface triangles, %zu attachment nodes, frame %dx%d (%.2f s)\n",
+      o["out"].c_str(), c.volume.points.size(), c.volume.tets.size(), c.surface.size(), c.attachments.size(),
+      c.frame.cols, c.frame.rows, s);
   return 0;
 }
 
@@ -81,8 +82,10 @@ int cmdMesh(const std::vector<std::string>& args) {
     to.allowSelfIntersections = o.count("allow-self-intersections") > 0;
     if (isatty(fileno(stderr)))
       to.progress = [](double f, const std::string& stage) {
-        if (f < 0) std::fprintf(stderr, "\r     %-64s", stage.c_str());  // a stage of unknown length: its counts
-        else std::fprintf(stderr, "\r%3.0f%% %-64s", 100 * f, stage.c_str());
+        if (f < 0)
+          std::fprintf(stderr, "\r     %-64s", stage.c_str());  // a stage of unknown length: its counts
+        else
+          std::fprintf(stderr, "\r%3.0f%% %-64s", 100 * f, stage.c_str());
       };
     volume = simcore::tetrahedraliseSurface(input, to, &notes);
   }
@@ -116,12 +119,11 @@ const Command& phantomCommand() {
     Command c;
     c.name = "phantom";
     c.usage =
-      "  rehearse phantom --out DIR [--tets N] [--seed S]\n"
-      "                                   write the built-in phantom case as ordinary files\n";
-    c.options = {
-      {"out", "DIR", "the folder to write the case into (created)"},
-      {"tets", "N", "about this many tetrahedra (default 3,800)"},
-      {"seed", "S", "the random seed of the frame's texture"}};
+        "  rehearse phantom --out DIR [--tets N] [--seed S]\n"
+        "                                   write the built-in phantom case as ordinary files\n";
+    c.options = {{"out", "DIR", "the folder to write the case into (created)"},
+                 {"tets", "N", "about this many tetrahedra (default 3,800)"},
+                 {"seed", "S", "the random seed of the frame's texture"}};
     c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdPhantom(args); };
     return c;
   }();
@@ -133,17 +135,16 @@ const Command& meshCommand() {
     Command c;
     c.name = "mesh";
     c.usage =
-      "  rehearse mesh --in SURFACE --out VOLUME.msh|.vtk|.vtu [--target-tets N] [--size MM]\n"
-      "                [--unit m|dm|cm|mm] [--ascii] [--allow-self-intersections]\n"
-      "                                   tetrahedralise a closed surface (inner closed parts become labels)\n";
-    c.options = {
-      {"in", "SURFACE", "the closed surface (any mesh format below)"},
-      {"out", "VOLUME", ".msh, .vtk or .vtu"},
-      {"target-tets", "N", "about this many tetrahedra"},
-      {"size", "MM", "the largest element size instead"},
-      {"unit", "U", "m, dm, cm or mm: the surface's length unit"},
-      {"ascii", "", "write text instead of binary"},
-      {"allow-self-intersections", "", "mesh a surface that intersects itself (it is refused otherwise)"}};
+        "  rehearse mesh --in SURFACE --out VOLUME.msh|.vtk|.vtu [--target-tets N] [--size MM]\n"
+        "                [--unit m|dm|cm|mm] [--ascii] [--allow-self-intersections]\n"
+        "                                   tetrahedralise a closed surface (inner closed parts become labels)\n";
+    c.options = {{"in", "SURFACE", "the closed surface (any mesh format below)"},
+                 {"out", "VOLUME", ".msh, .vtk or .vtu"},
+                 {"target-tets", "N", "about this many tetrahedra"},
+                 {"size", "MM", "the largest element size instead"},
+                 {"unit", "U", "m, dm, cm or mm: the surface's length unit"},
+                 {"ascii", "", "write text instead of binary"},
+                 {"allow-self-intersections", "", "mesh a surface that intersects itself (it is refused otherwise)"}};
     c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdMesh(args); };
     return c;
   }();
@@ -155,10 +156,9 @@ const Command& infoCommand() {
     Command c;
     c.name = "info";
     c.usage =
-      "  rehearse info FILE [--unit m|dm|cm|mm]\n"
-      "                                   node, element and label counts, bounds and quality\n";
-    c.options = {
-      {"unit", "U", "m, dm, cm or mm: the file's length unit"}};
+        "  rehearse info FILE [--unit m|dm|cm|mm]\n"
+        "                                   node, element and label counts, bounds and quality\n";
+    c.options = {{"unit", "U", "m, dm, cm or mm: the file's length unit"}};
     c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdInfo(args); };
     return c;
   }();

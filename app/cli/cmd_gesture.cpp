@@ -43,7 +43,8 @@ namespace rehearse::app::cli {
 
 int cmdGesture(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, gestureCommand());
-  if ((o.count("trainee") || o.count("notes")) && !o.count("record")) throw UsageError("--trainee and --notes go with --record CASE");
+  if ((o.count("trainee") || o.count("notes")) && !o.count("record"))
+    throw UsageError("--trainee and --notes go with --record CASE");
   if (!o.count("script")) throw UsageError("gesture needs --script G.json (README, File formats)");
   if (!o.count("out")) throw UsageError("gesture needs --out OUT.vtu|.vtk|.msh");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
@@ -61,8 +62,11 @@ int cmdGesture(const std::vector<std::string>& args) {
   simcore::BodySetup setup;
   simcore::Mesh mesh;
   if (o.count("case")) {
-    for (const char* k : {"scene", "preset", "mesh", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes"})
-      if (o.count(k)) throw UsageError(std::string("--case takes the case's organ, attachments and material; --") + k + " cannot be combined with it");
+    for (const char* k :
+         {"scene", "preset", "mesh", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes"})
+      if (o.count(k))
+        throw UsageError(std::string("--case takes the case's organ, attachments and material; --") + k +
+                         " cannot be combined with it");
     const Case c = loadCaseDirectory(o["case"]);
     if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
     mesh = c.organ->volume;
@@ -74,7 +78,8 @@ int cmdGesture(const std::vector<std::string>& args) {
   } else {
     simcore::Scene p = modelFromOptions(o, "gesture");
     if (!p.embedded.empty())
-      throw UsageError("the scene embeds surfaces (" + p.embedded.front().name + "), which the gesture session does not carry yet; remove them or use simulate");
+      throw UsageError("the scene embeds surfaces (" + p.embedded.front().name +
+                       "), which the gesture session does not carry yet; remove them or use simulate");
     mesh = p.mesh;
     setup.fixedNodes = p.fixedNodes;
     setup.material = p.defaultMaterial;
@@ -83,10 +88,15 @@ int cmdGesture(const std::vector<std::string>& args) {
   }
   if (o.count("method")) setup.settings.method = simcore::newtonMethodFromString(o["method"]);
   if (o.count("refresh")) {
-    if (o["refresh"] == "async") setup.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;
-    else if (o["refresh"] != "sync") throw UsageError("--refresh takes sync or async, not '" + o["refresh"] + "'");
-    if (setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous && setup.settings.method == simcore::NewtonMethod::Exact)
-      throw UsageError("--refresh async rebuilds the lagged factorisation of the chord, lagged-pcg and linearised methods; the exact method has none (choose --method)");
+    if (o["refresh"] == "async")
+      setup.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;
+    else if (o["refresh"] != "sync")
+      throw UsageError("--refresh takes sync or async, not '" + o["refresh"] + "'");
+    if (setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous &&
+        setup.settings.method == simcore::NewtonMethod::Exact)
+      throw UsageError(
+          "--refresh async rebuilds the lagged factorisation of the chord, lagged-pcg and linearised methods; the "
+          "exact method has none (choose --method)");
   }
   mesh.convertToMetres();
   setup.mesh = mesh;
@@ -97,7 +107,11 @@ int cmdGesture(const std::vector<std::string>& args) {
     SessionMeta meta;
     meta.trainee = o.count("trainee") ? o["trainee"] : "";
     meta.notes = o.count("notes") ? o["notes"] : "";
-    meta.caseName = o.count("case") ? o["case"] : o.count("preset") ? "preset " + o["preset"] : o.count("scene") ? o["scene"] : o.count("mesh") ? o["mesh"] : "";
+    meta.caseName = o.count("case")     ? o["case"]
+                    : o.count("preset") ? "preset " + o["preset"]
+                    : o.count("scene")  ? o["scene"]
+                    : o.count("mesh")   ? o["mesh"]
+                                        : "";
     meta.sceneVersion = o["script"];
     meta.appVersion = REHEARSE_VERSION;
     hooks.start = [&recorder, meta, path = o["record"]](const simcore::BodySetup& s) {
@@ -112,7 +126,8 @@ int cmdGesture(const std::vector<std::string>& args) {
   const GestureResult r = runGesture(setup, script, hooks);
   if (recorder) {
     recorder->finish(static_cast<long>(r.steps.size()));
-    std::printf("recorded: session %lld in %s (%zu steps)\n", static_cast<long long>(recorder->id()), o["record"].c_str(), r.steps.size());
+    std::printf("recorded: session %lld in %s (%zu steps)\n", static_cast<long long>(recorder->id()),
+                o["record"].c_str(), r.steps.size());
   }
   const simcore::Mesh& out = r.finalMesh;
   simcore::saveMesh(out, o["out"]);
@@ -126,23 +141,49 @@ int cmdGesture(const std::vector<std::string>& args) {
   if (o.count("report")) {
     nlohmann::json rows = nlohmann::json::array();
     for (const auto& s : r.steps)
-      rows.push_back({{"step", s.step}, {"time_s", s.time}, {"wall_ms", s.wallMs}, {"mass_kg", s.massKg}, {"elements", s.elements}, {"nodes", s.nodes},
-                      {"grasped_nodes", s.grasped}, {"contacts", s.contacts}, {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
-                      {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}}, {"events", s.events}, {"message", s.message}, {"ok", s.report.ok},
-                      {"outcome", toString(s.report.outcome)}, {"status", simcore::statusSentence(s.report)}, {"residual", s.report.residual},
-                      {"inverted_elements", s.report.invertedElements}, {"min_volume_ratio", s.report.minVolumeRatio}, {"factorisations", s.report.factorisations},
-                      {"factor_requested", s.report.factorRequested}, {"factor_swapped", s.report.factorSwapped}});
+      rows.push_back({{"step", s.step},
+                      {"time_s", s.time},
+                      {"wall_ms", s.wallMs},
+                      {"mass_kg", s.massKg},
+                      {"elements", s.elements},
+                      {"nodes", s.nodes},
+                      {"grasped_nodes", s.grasped},
+                      {"contacts", s.contacts},
+                      {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
+                      {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}},
+                      {"events", s.events},
+                      {"message", s.message},
+                      {"ok", s.report.ok},
+                      {"outcome", toString(s.report.outcome)},
+                      {"status", simcore::statusSentence(s.report)},
+                      {"residual", s.report.residual},
+                      {"inverted_elements", s.report.invertedElements},
+                      {"min_volume_ratio", s.report.minVolumeRatio},
+                      {"factorisations", s.report.factorisations},
+                      {"factor_requested", s.report.factorRequested},
+                      {"factor_swapped", s.report.factorSwapped}});
     std::vector<const simcore::StepReport*> all;
     for (const auto& s : r.steps) all.push_back(&s.report);
-    writeReport(o["report"], {{"steps", rows}, {"statuses", statusCounts(all)}, {"slips", r.slips}, {"cuts", r.cuts}, {"vessel_cuts", setup.mesh.namesAVessel() ? nlohmann::json(r.vesselCuts) : nlohmann::json(nullptr)}, {"failed_steps", r.failed},
-                              {"peak_tool_force_n", peak}, {"elements", out.tets.size()}, {"nodes", out.points.size()},
-                              {"contact_queries", r.contactQueries}});
+    writeReport(o["report"],
+                {{"steps", rows},
+                 {"statuses", statusCounts(all)},
+                 {"slips", r.slips},
+                 {"cuts", r.cuts},
+                 {"vessel_cuts", setup.mesh.namesAVessel() ? nlohmann::json(r.vesselCuts) : nlohmann::json(nullptr)},
+                 {"failed_steps", r.failed},
+                 {"peak_tool_force_n", peak},
+                 {"elements", out.tets.size()},
+                 {"nodes", out.points.size()},
+                 {"contact_queries", r.contactQueries}});
   }
-  const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.vesselCuts) + " vessel cut(s)" : "vessels unknown (the mesh names none)";
-  std::printf("gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut updates, %s, %zu failed "
-              "steps; %zu elements, %zu nodes written to %s\n",
-              r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, vessels.c_str(), r.failed, out.tets.size(), out.points.size(),
-              o["out"].c_str());
+  const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.vesselCuts) + " vessel cut(s)"
+                                                        : "vessels unknown (the mesh names none)";
+  std::printf(
+      "gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut updates, "
+      "%s, %zu failed "
+      "steps; %zu elements, %zu nodes written to %s\n",
+      r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, vessels.c_str(),
+      r.failed, out.tets.size(), out.points.size(), o["out"].c_str());
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);
   const int code = statusSummary(all);
@@ -155,25 +196,31 @@ const Command& gestureCommand() {
     Command c;
     c.name = "gesture";
     c.usage =
-      "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of simulate]\n"
-      "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method exact|lagged-pcg|chord|linearised]\n"
-      "                [--refresh sync|async]  async: a drifted lagged factorisation is rebuilt on a second thread and\n"
-      "                                   swapped in when ready (the steps never wait for it)\n"
-      "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through the\n"
-      "                                   simulation session without a window; the report has a row per step (wall time,\n"
-      "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a step failed\n"
-      "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum every\n"
-      "                                   10 steps) written into CASE (a .rehearse file) as it runs\n";
-    c.options = {
-      {"case", "DIR", "a case folder's organ, attachments and material"},
-      {"script", "G.json", "the timed instrument events (README, File formats)"},
-      {"out", "OUT", "the volume at the end: .vtu, .vtk or .msh"},
-      {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
-      {"method", "M", "exact, lagged-pcg, chord or linearised"},
-      {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
-      {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
-      {"trainee", "NAME", "the trainee the recording names (with --record)"},
-      {"notes", "TEXT", "notes kept with the recording (with --record)"}};
+        "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of "
+        "simulate]\n"
+        "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method "
+        "exact|lagged-pcg|chord|linearised]\n"
+        "                [--refresh sync|async]  async: a drifted lagged factorisation is rebuilt on a second thread "
+        "and\n"
+        "                                   swapped in when ready (the steps never wait for it)\n"
+        "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through "
+        "the\n"
+        "                                   simulation session without a window; the report has a row per step (wall "
+        "time,\n"
+        "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a "
+        "step failed\n"
+        "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum "
+        "every\n"
+        "                                   10 steps) written into CASE (a .rehearse file) as it runs\n";
+    c.options = {{"case", "DIR", "a case folder's organ, attachments and material"},
+                 {"script", "G.json", "the timed instrument events (README, File formats)"},
+                 {"out", "OUT", "the volume at the end: .vtu, .vtk or .msh"},
+                 {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
+                 {"method", "M", "exact, lagged-pcg, chord or linearised"},
+                 {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
+                 {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
+                 {"trainee", "NAME", "the trainee the recording names (with --record)"},
+                 {"notes", "TEXT", "notes kept with the recording (with --record)"}};
     c.options.insert(c.options.begin() + 1, modelOptions().begin(), modelOptions().end());
     c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdGesture(args); };
     return c;

@@ -45,7 +45,8 @@ int cmdRegister(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, registerCommand());
   for (const char* need : {"camera", "contour", "pose", "out"})
     if (!o.count(need)) throw UsageError(std::string("register needs --") + need);
-  if (o.count("rigid-prepass") && o.count("no-rigid-prepass")) throw UsageError("--rigid-prepass and --no-rigid-prepass contradict each other");
+  if (o.count("rigid-prepass") && o.count("no-rigid-prepass"))
+    throw UsageError("--rigid-prepass and --no-rigid-prepass contradict each other");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
   const bool gravityGiven = o.count("gravity") > 0;
@@ -60,7 +61,8 @@ int cmdRegister(const std::vector<std::string>& args) {
   if (o.count("image-size")) {
     char x = 0;
     std::istringstream in(o["image-size"]);
-    if (!(in >> width >> x >> height) || x != 'x' || width <= 0 || height <= 0) throw UsageError("--image-size must look like 1280x720");
+    if (!(in >> width >> x >> height) || x != 'x' || width <= 0 || height <= 0)
+      throw UsageError("--image-size must look like 1280x720");
   }
   const imaging::Camera camera = imaging::loadCamera(o["camera"], width, height);
   if (const std::string problem = camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
@@ -73,7 +75,8 @@ int cmdRegister(const std::vector<std::string>& args) {
   // node of the volume made from it.
   std::vector<int> boundaryNodes;
   if (!surfaceIn.points.empty()) {
-    for (const auto& t : simcore::boundaryTriangles(p.mesh, false)) boundaryNodes.insert(boundaryNodes.end(), t.begin(), t.end());
+    for (const auto& t : simcore::boundaryTriangles(p.mesh, false))
+      boundaryNodes.insert(boundaryNodes.end(), t.begin(), t.end());
     std::sort(boundaryNodes.begin(), boundaryNodes.end());
     boundaryNodes.erase(std::unique(boundaryNodes.begin(), boundaryNodes.end()), boundaryNodes.end());
   }
@@ -81,10 +84,13 @@ int cmdRegister(const std::vector<std::string>& args) {
     if (seg.isSilhouette() || boundaryNodes.empty()) continue;
     for (int& v : seg.modelVertices) {
       if (v < 0 || static_cast<std::size_t>(v) >= surfaceIn.points.size())
-        throw simcore::MeshError("The " + seg.type + " curve refers to vertex " + std::to_string(v) + ", which the surface does not have.");
+        throw simcore::MeshError("The " + seg.type + " curve refers to vertex " + std::to_string(v) +
+                                 ", which the surface does not have.");
       int best = boundaryNodes.front();
       for (int n : boundaryNodes)
-        if ((p.mesh.points[n] - surfaceIn.points[v]).squaredNorm() < (p.mesh.points[best] - surfaceIn.points[v]).squaredNorm()) best = n;
+        if ((p.mesh.points[n] - surfaceIn.points[v]).squaredNorm() <
+            (p.mesh.points[best] - surfaceIn.points[v]).squaredNorm())
+          best = n;
       v = best;
     }
     seg.modelVertices.erase(std::unique(seg.modelVertices.begin(), seg.modelVertices.end()), seg.modelVertices.end());
@@ -97,7 +103,8 @@ int cmdRegister(const std::vector<std::string>& args) {
     truth.convertToMetres();
     if (truth.points.size() != p.mesh.points.size())
       throw simcore::MeshError("The ground truth has " + std::to_string(truth.points.size()) + " nodes, the organ " +
-                               std::to_string(p.mesh.points.size()) + "; they must be the same mesh in the same order.");
+                               std::to_string(p.mesh.points.size()) +
+                               "; they must be the same mesh in the same order.");
   }
   // The one fit pipeline the GUI uses too (app/elasticfit.hpp).
   FitInput in;
@@ -115,9 +122,12 @@ int cmdRegister(const std::vector<std::string>& args) {
   in.elastic = o.count("rigid-only") == 0;
   if (o.count("iterations")) in.maxIterations = static_cast<int>(parseCount(o["iterations"], "--iterations", 1, 1000));
   if (o.count("gravity-camera")) {
-    if (gravityGiven) throw UsageError("--gravity (model frame) and --gravity-camera (camera frame) say the same thing twice; give one");
+    if (gravityGiven)
+      throw UsageError(
+          "--gravity (model frame) and --gravity-camera (camera frame) say the same thing twice; give one");
     in.gravityCamera = parseVector(o["gravity-camera"], "--gravity-camera");
-    if (!(in.gravityCamera.norm() > 0)) throw UsageError("--gravity-camera must not be zero (leave it out when down is not known)");
+    if (!(in.gravityCamera.norm() > 0))
+      throw UsageError("--gravity-camera must not be zero (leave it out when down is not known)");
   }
   struct Row {
     simcore::RegistrationIteration it;
@@ -152,8 +162,10 @@ int cmdRegister(const std::vector<std::string>& args) {
   if (o.count("report")) {
     nlohmann::json iterations = nlohmann::json::array();
     for (const auto& r : rows) {
-      nlohmann::json row = {{"iteration", r.it.iteration}, {"stage", r.it.stage}, {"wall_ms", r.it.wallMs}, {"mean_px", r.it.residual.mean},
-                            {"rms_px", r.it.residual.rms}, {"hausdorff_px", r.it.residual.hausdorff}, {"bound", r.it.bound}};
+      nlohmann::json row = {{"iteration", r.it.iteration}, {"stage", r.it.stage},
+                            {"wall_ms", r.it.wallMs},      {"mean_px", r.it.residual.mean},
+                            {"rms_px", r.it.residual.rms}, {"hausdorff_px", r.it.residual.hausdorff},
+                            {"bound", r.it.bound}};
       if (r.it.curves.points) {
         row["curve_mean_px"] = r.it.curves.mean;
         row["curve_hausdorff_px"] = r.it.curves.hausdorff;
@@ -166,7 +178,9 @@ int cmdRegister(const std::vector<std::string>& args) {
     }
     nlohmann::json alternatives = nlohmann::json::array();
     for (const auto& a : res.alternatives)
-      alternatives.push_back({{"pose", nlohmann::json::parse(imaging::poseToJson(a.pose))}, {"mean_px", a.score}, {"apart_mm", a.apartMm}});
+      alternatives.push_back({{"pose", nlohmann::json::parse(imaging::poseToJson(a.pose))},
+                              {"mean_px", a.score},
+                              {"apart_mm", a.apartMm}});
     writeReport(o["report"], {{"ok", res.ok},
                               {"converged", res.converged},
                               {"determined", res.ok && !res.ambiguous},
@@ -177,13 +191,14 @@ int cmdRegister(const std::vector<std::string>& args) {
                               {"sag_apart_mm", res.sagApartMm},
                               {"deeper_minima_taken", res.adopted},
                               {"load_model_m_s2", {res.load.x(), res.load.y(), res.load.z()}},
-                              {"load_camera_m_s2", {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
+                              {"load_camera_m_s2",
+                               {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
                               {"status", res.status},
                               {"iterations", iterations}});
   }
   const auto& last = rows.back().it;
-  std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(), rows.size(), last.wallMs,
-              last.score(), rows.front().it.score(),
+  std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(),
+              rows.size(), last.wallMs, last.score(), rows.front().it.score(),
               rows.back().errMean >= 0 ? (", 3D error " + std::to_string(rows.back().errMean) + " mm").c_str() : "");
   if (!res.ok) {
     std::fprintf(stderr, "rehearse: %s\n", res.status.c_str());
@@ -202,33 +217,38 @@ const Command& registerCommand() {
     Command c;
     c.name = "register";
     c.usage =
-      "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"
-      "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
-      "                [--ground-truth GT.vtu|.vtk] [--no-rigid-prepass] [--rigid-only] [--iterations N]\n"
-      "                [--image-size WxH] [--distorted-contour] [--gravity-camera X,Y,Z] [material flags of simulate]\n"
-      "                                   fit the organ onto a sketched silhouette (nodes written in the camera frame);\n"
-      "                                   the organ's sag under a steady load is estimated with its pose (held organs;\n"
-      "                                   --gravity-camera: which way is down in the camera frame, m/s^2, when known);\n"
-      "                                   ridges and ligaments with their curve on the organ (P2ILF modelPoints, our\n"
-      "                                   model_vertices: node indices, or surface vertices when --mesh is a surface)\n"
-      "                                   are held onto their image curves too. Exit 0: a determined fit;\n"
-      "                                   4: ambiguous (the best fit is written; the report names the other\n"
-      "                                   poses that fit the contour nearly as well); 3: failed\n";
-    c.options = {
-      {"camera", "CAM", "the camera (OpenCV YAML or JSON intrinsics)"},
-      {"contour", "C.json", "the sketched silhouette (and curves) in pixels"},
-      {"pose", "P0.json", "the starting pose (model to camera)"},
-      {"out", "OUT", "the registered volume, nodes in the camera frame: .vtu or .vtk"},
-      {"pose-out", "P.json", "the fitted pose"},
-      {"report", "R.json", "residuals, status, alternatives"},
-      {"ground-truth", "GT", "a volume in the camera frame to measure the fit against"},
-      {"iterations", "N", "the elastic fit's iterations"},
-      {"image-size", "WxH", "the frame's size when the camera file has none"},
-      {"gravity-camera", "X,Y,Z", "which way is down in the camera frame, m/s^2, when known"},
-      {"rigid-prepass", "", "run the rigid stage first (the default)"},
-      {"no-rigid-prepass", "", "start the elastic fit from the given pose"},
-      {"rigid-only", "", "stop after the rigid stage"},
-      {"distorted-contour", "", "the contour was drawn on the distorted frame"}};
+        "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"
+        "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
+        "                [--ground-truth GT.vtu|.vtk] [--no-rigid-prepass] [--rigid-only] [--iterations N]\n"
+        "                [--image-size WxH] [--distorted-contour] [--gravity-camera X,Y,Z] [material flags of "
+        "simulate]\n"
+        "                                   fit the organ onto a sketched silhouette (nodes written in the camera "
+        "frame);\n"
+        "                                   the organ's sag under a steady load is estimated with its pose (held "
+        "organs;\n"
+        "                                   --gravity-camera: which way is down in the camera frame, m/s^2, when "
+        "known);\n"
+        "                                   ridges and ligaments with their curve on the organ (P2ILF modelPoints, "
+        "our\n"
+        "                                   model_vertices: node indices, or surface vertices when --mesh is a "
+        "surface)\n"
+        "                                   are held onto their image curves too. Exit 0: a determined fit;\n"
+        "                                   4: ambiguous (the best fit is written; the report names the other\n"
+        "                                   poses that fit the contour nearly as well); 3: failed\n";
+    c.options = {{"camera", "CAM", "the camera (OpenCV YAML or JSON intrinsics)"},
+                 {"contour", "C.json", "the sketched silhouette (and curves) in pixels"},
+                 {"pose", "P0.json", "the starting pose (model to camera)"},
+                 {"out", "OUT", "the registered volume, nodes in the camera frame: .vtu or .vtk"},
+                 {"pose-out", "P.json", "the fitted pose"},
+                 {"report", "R.json", "residuals, status, alternatives"},
+                 {"ground-truth", "GT", "a volume in the camera frame to measure the fit against"},
+                 {"iterations", "N", "the elastic fit's iterations"},
+                 {"image-size", "WxH", "the frame's size when the camera file has none"},
+                 {"gravity-camera", "X,Y,Z", "which way is down in the camera frame, m/s^2, when known"},
+                 {"rigid-prepass", "", "run the rigid stage first (the default)"},
+                 {"no-rigid-prepass", "", "start the elastic fit from the given pose"},
+                 {"rigid-only", "", "stop after the rigid stage"},
+                 {"distorted-contour", "", "the contour was drawn on the distorted frame"}};
     c.options.insert(c.options.begin(), modelOptions().begin(), modelOptions().end());
     c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdRegister(args); };
     return c;

@@ -44,17 +44,22 @@ namespace rehearse::app::cli {
 
 int cmdReplay(const std::vector<std::string>& args, const CliServices& services) {
   if (args.size() < 3 || args[2].rfind("--", 0) == 0)
-    throw UsageError("replay needs the case file (or postgresql:[SERVICE]): rehearse replay CASE [--session ID] [--verify]");
+    throw UsageError(
+        "replay needs the case file (or postgresql:[SERVICE]): rehearse replay CASE [--session ID] [--verify]");
   const std::string file = args[2];
   auto o = parseOptions(args, 3, replayCommand());
   // postgresql:[SERVICE]: the training centre's database (libpq service name, or the environment when empty).
   const bool fromDb = file.rfind("postgresql:", 0) == 0;
   const std::string service = fromDb ? file.substr(11) : std::string();
   if (fromDb && !services.training.load)
-    throw UsageError("the training database is read through Qt SQL's PostgreSQL driver, which this build has not (configured with REHEARSE_BUILD_GUI=OFF)");
+    throw UsageError(
+        "the training database is read through Qt SQL's PostgreSQL driver, which this build has not (configured with "
+        "REHEARSE_BUILD_GUI=OFF)");
   if (!fromDb && !std::filesystem::exists(file)) throw UsageError(file + " does not exist");
   auto listSessions = [&] { return fromDb ? services.training.list(service) : listRecordings(file); };
-  auto loadSession = [&](std::int64_t sid) { return fromDb ? services.training.load(service, sid) : loadRecording(file, sid); };
+  auto loadSession = [&](std::int64_t sid) {
+    return fromDb ? services.training.load(service, sid) : loadRecording(file, sid);
+  };
   const double threshold = o.count("force-threshold") ? parseNumber(o["force-threshold"], "--force-threshold") : 10.0;
   if (!(threshold >= 0)) throw UsageError("--force-threshold must be a force in N, 0 or more");
   ReplayOptions ro;
@@ -62,8 +67,10 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
   if (o.count("planned-cut")) {
     const std::string& p = o["planned-cut"];
     const auto colon = p.find(':');
-    if (colon == std::string::npos) throw UsageError("--planned-cut takes two points X,Y,Z:X,Y,Z (m, the recording's frame)");
-    ro.plannedCut = std::make_pair(parseVector(p.substr(0, colon), "--planned-cut"), parseVector(p.substr(colon + 1), "--planned-cut"));
+    if (colon == std::string::npos)
+      throw UsageError("--planned-cut takes two points X,Y,Z:X,Y,Z (m, the recording's frame)");
+    ro.plannedCut = std::make_pair(parseVector(p.substr(0, colon), "--planned-cut"),
+                                   parseVector(p.substr(colon + 1), "--planned-cut"));
   }
   std::vector<Threshold> thresholds;
   if (!o.count("thresholds") && !fromDb) {  // the trainer's thresholds kept in the case file
@@ -87,22 +94,29 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
       throw UsageError(o["thresholds"] + ": " + e.what());
     }
   }
-  const bool oneSession = o.count("video") || o.count("report") || o.count("from") || o.count("to") || o.count("fps") || o.count("size");
-  if (oneSession && !o.count("session")) throw UsageError("--video, --report, --from, --to, --fps and --size are for one session: give --session ID");
+  const bool oneSession =
+      o.count("video") || o.count("report") || o.count("from") || o.count("to") || o.count("fps") || o.count("size");
+  if (oneSession && !o.count("session"))
+    throw UsageError("--video, --report, --from, --to, --fps and --size are for one session: give --session ID");
   if ((o.count("from") || o.count("to") || o.count("fps") || o.count("size")) && !o.count("video"))
     throw UsageError("--from, --to, --fps and --size set the video: give --video OUT.mp4");
-  if (o.count("video") && std::filesystem::path(o["video"]).extension() != ".mp4") throw UsageError("--video must end in .mp4");
-  if (o.count("report") && std::filesystem::path(o["report"]).extension() != ".pdf") throw UsageError("--report must end in .pdf");
+  if (o.count("video") && std::filesystem::path(o["video"]).extension() != ".mp4")
+    throw UsageError("--video must end in .mp4");
+  if (o.count("report") && std::filesystem::path(o["report"]).extension() != ".pdf")
+    throw UsageError("--report must end in .pdf");
   if (o.count("report") && !services.writeReport)
-    throw UsageError("--report needs the PDF writer of the GUI build (this build was configured with REHEARSE_BUILD_GUI=OFF)");
+    throw UsageError(
+        "--report needs the PDF writer of the GUI build (this build was configured with REHEARSE_BUILD_GUI=OFF)");
   if (o.count("metrics-csv")) {
     // Every session's metrics, one row each (a trainer's spreadsheet across attempts); each replay verified.
     if (o.count("session") || o.count("metrics") || o.count("verify"))
       throw UsageError("--metrics-csv covers every session; --session, --metrics and --verify are for one");
     std::ostringstream csv;
     csv.precision(17);
-    csv << "session,trainee,started_utc,complete,steps,duration_s,path_length_m,economy_of_motion,grasps,slips,cut_updates,vessel_cuts,max_force_n,"
-           "mean_force_n,force_threshold_n,time_over_threshold_s,max_strain,cut_length_m,cut_deviation_mean_m,cut_deviation_max_m,tumour_breaches,"
+    csv << "session,trainee,started_utc,complete,steps,duration_s,path_length_m,economy_of_motion,grasps,slips,cut_"
+           "updates,vessel_cuts,max_force_n,"
+           "mean_force_n,force_threshold_n,time_over_threshold_s,max_strain,cut_length_m,cut_deviation_mean_m,cut_"
+           "deviation_max_m,tumour_breaches,"
            "attachments_torn,checksums,checksums_differing\n";
     ro.strain = true;
     auto opt = [](const auto& v) { return v ? std::to_string(*v) : std::string(); };  // empty: not determined
@@ -117,11 +131,12 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
       const ReplayResult r = replayRecording(loadSession(s.id), ro);
       const SessionMetrics& m = r.metrics;
       differing += r.verify.mismatches;
-      csv << s.id << ',' << quoted(s.meta.trainee) << ',' << s.startedUtc << ',' << (s.complete ? 1 : 0) << ',' << r.verify.steps << ',' << m.durationS << ','
-          << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ',' << m.slips << ',' << m.cuts << ',' << opt(m.vesselCuts) << ',' << m.maxForceN << ','
-          << m.meanForceN << ',' << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << opt(m.maxStrain) << ',' << m.cutLengthM << ','
-          << opt(m.cutDeviationMeanM) << ',' << opt(m.cutDeviationMaxM) << ',' << opt(m.tumourBreaches) << ',' << opt(m.attachmentsTorn) << ','
-          << r.verify.checked << ',' << r.verify.mismatches << '\n';
+      csv << s.id << ',' << quoted(s.meta.trainee) << ',' << s.startedUtc << ',' << (s.complete ? 1 : 0) << ','
+          << r.verify.steps << ',' << m.durationS << ',' << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ','
+          << m.slips << ',' << m.cuts << ',' << opt(m.vesselCuts) << ',' << m.maxForceN << ',' << m.meanForceN << ','
+          << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << opt(m.maxStrain) << ',' << m.cutLengthM << ','
+          << opt(m.cutDeviationMeanM) << ',' << opt(m.cutDeviationMaxM) << ',' << opt(m.tumourBreaches) << ','
+          << opt(m.attachmentsTorn) << ',' << r.verify.checked << ',' << r.verify.mismatches << '\n';
     }
     imaging::writeFileAtomically(o["metrics-csv"], csv.str());
     std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());
@@ -135,8 +150,9 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
     const auto sessions = listSessions();
     if (sessions.empty()) std::printf("%s holds no recorded session\n", file.c_str());
     for (const auto& s : sessions)
-      std::printf("session %lld  %s  trainee '%s'  case '%s'  %ld steps%s\n", static_cast<long long>(s.id), s.startedUtc.c_str(), s.meta.trainee.c_str(),
-                  s.meta.caseName.c_str(), s.steps, s.complete ? "" : "  (cut short)");
+      std::printf("session %lld  %s  trainee '%s'  case '%s'  %ld steps%s\n", static_cast<long long>(s.id),
+                  s.startedUtc.c_str(), s.meta.trainee.c_str(), s.meta.caseName.c_str(), s.steps,
+                  s.complete ? "" : "  (cut short)");
     if (o.count("verify")) throw UsageError("--verify needs --session ID (the list above)");
     return 0;
   }
@@ -149,7 +165,8 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
     throw UsageError("--session takes a session number, not '" + o["session"] + "'");
   }
   const Recording rec = loadSession(id);
-  std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(), rec.checksums.size(), rec.summary.steps,
+  std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(),
+              rec.checksums.size(), rec.summary.steps,
               rec.summary.complete ? "" : " (cut short: what was recorded is replayed)");
   if (!o.count("verify") && !o.count("metrics") && !o.count("video") && !o.count("report")) return 0;
   ro.strain = o.count("metrics") || o.count("report") || !thresholds.empty();
@@ -157,14 +174,18 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
   const ReplayResult replayed = replayRecording(rec, ro);
   const auto verdicts = judge(replayed.metrics, thresholds);
   if (o.count("metrics")) {
-    nlohmann::json j = {{"session", id}, {"trainee", rec.summary.meta.trainee}, {"started_utc", rec.summary.startedUtc},
+    nlohmann::json j = {{"session", id},
+                        {"trainee", rec.summary.meta.trainee},
+                        {"started_utc", rec.summary.startedUtc},
                         {"force_threshold_n", replayed.metrics.forceThresholdN},
                         {"replay_verified", replayVerified(replayed.verify)},
                         {"replay_check", replayCheckSentence(replayed.verify)},
                         {"checksums", replayed.verify.checked},
                         {"checksums_differing", replayed.verify.mismatches}};
     for (const auto& v : metricValues(replayed.metrics)) {
-      j[v.name] = !v.value ? nlohmann::json(nullptr) : v.count ? nlohmann::json(std::lround(*v.value)) : nlohmann::json(*v.value);
+      j[v.name] = !v.value  ? nlohmann::json(nullptr)
+                  : v.count ? nlohmann::json(std::lround(*v.value))
+                            : nlohmann::json(*v.value);
       if (!v.value) j[v.name + "_why"] = v.why;
     }
     nlohmann::json js = nlohmann::json::array();
@@ -183,7 +204,9 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
     std::printf("replay check: %s\n", replayCheckSentence(replayed.verify).c_str());
   for (const auto& v : verdicts) {
     const auto& m = v.metric;  // counts as whole numbers ("grasps: pass (1)")
-    const std::string value = !m.value ? m.why : m.count ? std::to_string(std::llround(*m.value)) : std::to_string(*m.value);
+    const std::string value = !m.value  ? m.why
+                              : m.count ? std::to_string(std::llround(*m.value))
+                                        : std::to_string(*m.value);
     std::printf("%s: %s (%s)\n", m.name.c_str(), resultWord(v.result), value.c_str());
   }
   if (o.count("video") || o.count("report")) {
@@ -191,7 +214,8 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
     if (o.count("size")) {
       char x = 0;
       std::istringstream in(o["size"]);
-      if (!(in >> width >> x >> height) || x != 'x' || !in.eof()) throw UsageError("--size takes WIDTHxHEIGHT in pixels, e.g. 1280x720");
+      if (!(in >> width >> x >> height) || x != 'x' || !in.eof())
+        throw UsageError("--size takes WIDTHxHEIGHT in pixels, e.g. 1280x720");
     }
     Replayer replayer(rec);
     ReviewRenderer renderer(rec.setup, width, height);
@@ -207,10 +231,12 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
         return step;
       };
       const long from = stepAt("from", 0), to = stepAt("to", replayer.steps());
-      if (from >= to) throw UsageError("--from must come before --to within the session (" + std::to_string(replayed.metrics.durationS) + " s)");
+      if (from >= to)
+        throw UsageError("--from must come before --to within the session (" +
+                         std::to_string(replayed.metrics.durationS) + " s)");
       const int frames = writeReviewVideo(replayer, renderer, replayed.timeline, from, to, fps, o["video"]);
-      std::printf("video: %d frames of %dx%d at %g fps (steps %ld to %ld) written to %s\n", frames, renderer.camera().width, renderer.camera().height, fps, from, to,
-                  o["video"].c_str());
+      std::printf("video: %d frames of %dx%d at %g fps (steps %ld to %ld) written to %s\n", frames,
+                  renderer.camera().width, renderer.camera().height, fps, from, to, o["video"].c_str());
     }
     if (o.count("report")) {
       const ReviewReport report = makeReviewReport(rec, replayed, thresholds, replayer, renderer);
@@ -222,15 +248,17 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
     // Metrics, a video or a report of a replay that is not the recorded run are written (they say so) but not taken
     // as the trainee's: exit 4, as --verify and --metrics-csv do.
     if (replayed.verify.mismatches) {
-      std::fprintf(stderr, "rehearse: session %lld %s\n", static_cast<long long>(id), replayCheckSentence(replayed.verify).c_str());
+      std::fprintf(stderr, "rehearse: session %lld %s\n", static_cast<long long>(id),
+                   replayCheckSentence(replayed.verify).c_str());
       return 4;
     }
     return 0;
   }
   const VerifyResult& v = replayed.verify;
   if (v.mismatches) {
-    std::fprintf(stderr, "rehearse: session %lld does not replay: %ld of %ld checksums differ, the first after step %ld\n", static_cast<long long>(id), v.mismatches,
-                 v.checked, v.firstMismatch);
+    std::fprintf(stderr,
+                 "rehearse: session %lld does not replay: %ld of %ld checksums differ, the first after step %ld\n",
+                 static_cast<long long>(id), v.mismatches, v.checked, v.firstMismatch);
     return 4;
   }
   if (v.checked == 0) {
@@ -250,8 +278,11 @@ int cmdPublish(const std::vector<std::string>& args, const CliServices& services
   for (const auto& f : files)
     if (!std::filesystem::exists(f)) throw UsageError(f + " does not exist");
   if (!services.training.publish)
-    throw UsageError("publishing goes through Qt SQL's PostgreSQL driver, which this build has not (configured with REHEARSE_BUILD_GUI=OFF)");
-  for (const auto& line : services.training.publish(files, o.count("service") ? o["service"] : std::string())) std::printf("%s\n", line.c_str());
+    throw UsageError(
+        "publishing goes through Qt SQL's PostgreSQL driver, which this build has not (configured with "
+        "REHEARSE_BUILD_GUI=OFF)");
+  for (const auto& line : services.training.publish(files, o.count("service") ? o["service"] : std::string()))
+    std::printf("%s\n", line.c_str());
   return 0;
 }
 
@@ -260,34 +291,42 @@ const Command& replayCommand() {
     Command c;
     c.name = "replay";
     c.usage =
-      "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json] [--video OUT.mp4] [--report OUT.pdf]\n"
-      "                [--from S] [--to S] [--fps N] [--size WxH] | --metrics-csv OUT.csv] [--force-threshold N]\n"
-      "                [--thresholds T.json] [--planned-cut X,Y,Z:X,Y,Z]\n"
-      "                                   the sessions recorded in CASE; --verify re-simulates one and compares every\n"
-      "                                   recorded checksum (exit 4 when one differs); --metrics writes the session's\n"
-      "                                   duration, path length, economy of motion, grasps, slips, cuts, forces, the\n"
-      "                                   time over the force threshold (10 N by default), the largest tissue strain, the\n"
-      "                                   cut's length and deviation from a planned line (m), structures damaged, and a\n"
-      "                                   pass/fail per metric of T.json ({\"max_force_n\": {\"max\": 15}}); --video: the\n"
-      "                                   span [--from, --to] s as MP4 (25 fps of simulated time, 640x480 unless given);\n"
-      "                                   --report: a PDF with the metrics, their plots and key frames; --metrics-csv:\n"
-      "                                   every session's metrics, one row each (exit 4 when a replay differs); CASE\n"
-      "                                   postgresql:[SERVICE] reads the training database instead (below)\n";
-    c.options = {
-      {"session", "ID", "the session to replay (the list without it)"},
-      {"list", "", "list the sessions (the default without --session)"},
-      {"verify", "", "re-simulate and compare every recorded checksum (exit 4 when one differs)"},
-      {"metrics", "OUT.json", "the session's metrics and verdicts"},
-      {"metrics-csv", "OUT.csv", "every session's metrics, one row each"},
-      {"force-threshold", "N", "the force (N) the time over is measured against (default 10)"},
-      {"thresholds", "T.json", "a pass/fail limit per metric"},
-      {"planned-cut", "A:B", "the planned cut line, X,Y,Z:X,Y,Z in metres"},
-      {"video", "OUT.mp4", "the span [--from, --to] as a video"},
-      {"report", "OUT.pdf", "metrics, plots and key frames"},
-      {"from", "S", "the video's first second"},
-      {"to", "S", "the video's last second"},
-      {"fps", "N", "the video's frames per second of simulated time (default 25)"},
-      {"size", "WxH", "the video's size (default 640x480)"}};
+        "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json] [--video OUT.mp4] [--report OUT.pdf]\n"
+        "                [--from S] [--to S] [--fps N] [--size WxH] | --metrics-csv OUT.csv] [--force-threshold N]\n"
+        "                [--thresholds T.json] [--planned-cut X,Y,Z:X,Y,Z]\n"
+        "                                   the sessions recorded in CASE; --verify re-simulates one and compares "
+        "every\n"
+        "                                   recorded checksum (exit 4 when one differs); --metrics writes the "
+        "session's\n"
+        "                                   duration, path length, economy of motion, grasps, slips, cuts, forces, "
+        "the\n"
+        "                                   time over the force threshold (10 N by default), the largest tissue "
+        "strain, the\n"
+        "                                   cut's length and deviation from a planned line (m), structures damaged, "
+        "and a\n"
+        "                                   pass/fail per metric of T.json ({\"max_force_n\": {\"max\": 15}}); "
+        "--video: the\n"
+        "                                   span [--from, --to] s as MP4 (25 fps of simulated time, 640x480 unless "
+        "given);\n"
+        "                                   --report: a PDF with the metrics, their plots and key frames; "
+        "--metrics-csv:\n"
+        "                                   every session's metrics, one row each (exit 4 when a replay differs); "
+        "CASE\n"
+        "                                   postgresql:[SERVICE] reads the training database instead (below)\n";
+    c.options = {{"session", "ID", "the session to replay (the list without it)"},
+                 {"list", "", "list the sessions (the default without --session)"},
+                 {"verify", "", "re-simulate and compare every recorded checksum (exit 4 when one differs)"},
+                 {"metrics", "OUT.json", "the session's metrics and verdicts"},
+                 {"metrics-csv", "OUT.csv", "every session's metrics, one row each"},
+                 {"force-threshold", "N", "the force (N) the time over is measured against (default 10)"},
+                 {"thresholds", "T.json", "a pass/fail limit per metric"},
+                 {"planned-cut", "A:B", "the planned cut line, X,Y,Z:X,Y,Z in metres"},
+                 {"video", "OUT.mp4", "the span [--from, --to] as a video"},
+                 {"report", "OUT.pdf", "metrics, plots and key frames"},
+                 {"from", "S", "the video's first second"},
+                 {"to", "S", "the video's last second"},
+                 {"fps", "N", "the video's frames per second of simulated time (default 25)"},
+                 {"size", "WxH", "the video's size (default 640x480)"}};
     c.run = cmdReplay;
     return c;
   }();
@@ -299,13 +338,14 @@ const Command& publishCommand() {
     Command c;
     c.name = "publish";
     c.usage =
-      "  rehearse publish CASE... [--service NAME]\n"
-      "                                   publish the complete sessions of case files into the training database\n"
-      "                                   (PostgreSQL; the connection from the libpq service NAME or the environment:\n"
-      "                                   PGHOST, PGPORT, PGDATABASE, PGUSER, PGPASSFILE, PGSSLMODE); idempotent: a\n"
-      "                                   session already there is not written again; each is replayed and verified first\n";
-    c.options = {
-      {"service", "NAME", "the libpq service of the training database (else the PG* environment)"}};
+        "  rehearse publish CASE... [--service NAME]\n"
+        "                                   publish the complete sessions of case files into the training database\n"
+        "                                   (PostgreSQL; the connection from the libpq service NAME or the "
+        "environment:\n"
+        "                                   PGHOST, PGPORT, PGDATABASE, PGUSER, PGPASSFILE, PGSSLMODE); idempotent: a\n"
+        "                                   session already there is not written again; each is replayed and verified "
+        "first\n";
+    c.options = {{"service", "NAME", "the libpq service of the training database (else the PG* environment)"}};
     c.run = cmdPublish;
     return c;
   }();

@@ -67,7 +67,9 @@ int cmdSimulate(const std::vector<std::string>& args) {
   if (p.staticSolve) o["static"] = "";
   const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial, p.embedded);
   for (const auto& e : model.embeddings)
-    if (e.outside) std::fprintf(stderr, "rehearse: note: %zu vertices of the embedded surface '%s' lie outside the organ\n", e.outside, e.name.c_str());
+    if (e.outside)
+      std::fprintf(stderr, "rehearse: note: %zu vertices of the embedded surface '%s' lie outside the organ\n",
+                   e.outside, e.name.c_str());
   simcore::Integrator integrator(model, p.fixedNodes, p.settings);
   auto state = integrator.initialState();
   std::vector<simcore::StepReport> reports;
@@ -95,10 +97,20 @@ int cmdSimulate(const std::vector<std::string>& args) {
     nlohmann::json steps = nlohmann::json::array();
     for (std::size_t i = 0; i < reports.size(); ++i) {
       const auto& r = reports[i];
-      steps.push_back({{"step", i}, {"wall_ms", r.wallMs}, {"newton_iterations", r.newtonIterations}, {"residual", r.residual},
-                       {"energy", r.energy}, {"time_step", r.timeStepUsed}, {"retries", r.retries}, {"factorisations", r.factorisations},
-                       {"ok", r.ok}, {"outcome", toString(r.outcome)}, {"status", simcore::statusSentence(r)}, {"inverted_elements", r.invertedElements},
-                       {"min_volume_ratio", r.minVolumeRatio}, {"inversion_limited", r.inversionLimited}});
+      steps.push_back({{"step", i},
+                       {"wall_ms", r.wallMs},
+                       {"newton_iterations", r.newtonIterations},
+                       {"residual", r.residual},
+                       {"energy", r.energy},
+                       {"time_step", r.timeStepUsed},
+                       {"retries", r.retries},
+                       {"factorisations", r.factorisations},
+                       {"ok", r.ok},
+                       {"outcome", toString(r.outcome)},
+                       {"status", simcore::statusSentence(r)},
+                       {"inverted_elements", r.invertedElements},
+                       {"min_volume_ratio", r.minVolumeRatio},
+                       {"inversion_limited", r.inversionLimited}});
     }
     std::vector<const simcore::StepReport*> all;
     for (const auto& r : reports) all.push_back(&r);
@@ -112,8 +124,8 @@ int cmdSimulate(const std::vector<std::string>& args) {
   }
   std::printf("%s: %zu nodes, %zu tets, %zu %s, %zu failed, mean %.2f ms per %s, written %s\n",
               o.count("static") ? "static" : "dynamic", model.nodeCount(), model.tets.size(), reports.size(),
-              o.count("static") ? "solve" : "steps", failed, wall / reports.size(), o.count("static") ? "solve" : "step",
-              o["out"].c_str());
+              o.count("static") ? "solve" : "steps", failed, wall / reports.size(),
+              o.count("static") ? "solve" : "step", o["out"].c_str());
   std::vector<const simcore::StepReport*> all;
   for (const auto& r : reports) all.push_back(&r);
   return statusSummary(all);
@@ -124,27 +136,27 @@ const Command& simulateCommand() {
     Command c;
     c.name = "simulate";
     c.usage =
-      "  rehearse simulate --scene S.json | --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
-      "                [--material linear|corotational|stvk|neohookean|neohookean-split] [--young PA] [--poisson NU]\n"
-      "                [--density KG_M3] [--vessel-young PA]\n"
-      "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
-      "                [--solver cholmod|cg|dense] [--method exact|lagged-pcg|chord|linearised]\n"
-      "                [--factor supernodal|simplicial] [--attachments projection|lagrange]\n"
-      "                --out OUT.vtu|.vtk [--report R.json]\n"
-      "  rehearse simulate --list-components   the scene components and their parameters\n"
-      "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n";
-    c.options = {
-      {"steps", "N", "implicit Euler steps (default 100)"},
-      {"dt", "H", "the time step, s"},
-      {"static", "", "solve the static equilibrium instead of stepping"},
-      {"out", "OUT", "the deformed volume: .vtu, .vtk or .msh"},
-      {"report", "R.json", "per-step outcomes, residuals and timings"},
-      {"solver", "S", "cholmod, cg or dense"},
-      {"method", "M", "exact, lagged-pcg, chord or linearised"},
-      {"factor", "F", "supernodal or simplicial (CHOLMOD)"},
-      {"attachments", "A", "projection or lagrange"},
-      {"strict", "", "a step that does not converge fails (rolled back) instead of being kept inexact"},
-      {"list-components", "", "print the scene components and their parameters, then stop"}};
+        "  rehearse simulate --scene S.json | --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
+        "                [--material linear|corotational|stvk|neohookean|neohookean-split] [--young PA] [--poisson "
+        "NU]\n"
+        "                [--density KG_M3] [--vessel-young PA]\n"
+        "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
+        "                [--solver cholmod|cg|dense] [--method exact|lagged-pcg|chord|linearised]\n"
+        "                [--factor supernodal|simplicial] [--attachments projection|lagrange]\n"
+        "                --out OUT.vtu|.vtk [--report R.json]\n"
+        "  rehearse simulate --list-components   the scene components and their parameters\n"
+        "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n";
+    c.options = {{"steps", "N", "implicit Euler steps (default 100)"},
+                 {"dt", "H", "the time step, s"},
+                 {"static", "", "solve the static equilibrium instead of stepping"},
+                 {"out", "OUT", "the deformed volume: .vtu, .vtk or .msh"},
+                 {"report", "R.json", "per-step outcomes, residuals and timings"},
+                 {"solver", "S", "cholmod, cg or dense"},
+                 {"method", "M", "exact, lagged-pcg, chord or linearised"},
+                 {"factor", "F", "supernodal or simplicial (CHOLMOD)"},
+                 {"attachments", "A", "projection or lagrange"},
+                 {"strict", "", "a step that does not converge fails (rolled back) instead of being kept inexact"},
+                 {"list-components", "", "print the scene components and their parameters, then stop"}};
     c.options.insert(c.options.begin(), modelOptions().begin(), modelOptions().end());
     c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdSimulate(args); };
     return c;

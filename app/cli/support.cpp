@@ -22,8 +22,9 @@
 namespace rehearse::app::cli {
 
 // A JSON report, written atomically (a reader never sees half of it).
-void writeReport(const std::string& path, const nlohmann::json& report) { imaging::writeFileAtomically(path, report.dump(2) + "\n"); }
-
+void writeReport(const std::string& path, const nlohmann::json& report) {
+  imaging::writeFileAtomically(path, report.dump(2) + "\n");
+}
 
 Options parseOptions(const std::vector<std::string>& args, std::size_t from, const Command& command) {
   auto spec = [&command](const std::string& key) -> const OptionSpec* {
@@ -34,7 +35,8 @@ Options parseOptions(const std::vector<std::string>& args, std::size_t from, con
   Options out;
   for (std::size_t i = from; i < args.size(); ++i) {
     const std::string& a = args[i];
-    if (a.rfind("--", 0) != 0) throw UsageError("unexpected argument '" + a + "'; see 'rehearse " + command.name + " --help'");
+    if (a.rfind("--", 0) != 0)
+      throw UsageError("unexpected argument '" + a + "'; see 'rehearse " + command.name + " --help'");
     std::string key = a.substr(2), value;
     const auto eq = key.find('=');
     if (eq != std::string::npos) {
@@ -90,7 +92,8 @@ long parseCount(const std::string& s, const char* what, long lo, long hi) {
     if (used != s.size() || v < lo || v > hi) throw std::out_of_range("");
     return v;
   } catch (const std::exception&) {
-    throw UsageError(std::string(what) + " must be a whole number from " + std::to_string(lo) + " to " + std::to_string(hi));
+    throw UsageError(std::string(what) + " must be a whole number from " + std::to_string(lo) + " to " +
+                     std::to_string(hi));
   }
 }
 
@@ -209,8 +212,9 @@ simcore::Scene modelFromOptions(Options& o, const char* command, simcore::Mesh* 
   return p;
 }
 
-constexpr simcore::StepStatus kStatuses[] = {simcore::StepStatus::Converged, simcore::StepStatus::Inexact, simcore::StepStatus::Inverted,
-                                             simcore::StepStatus::Failed, simcore::StepStatus::Refused};
+constexpr simcore::StepStatus kStatuses[] = {simcore::StepStatus::Converged, simcore::StepStatus::Inexact,
+                                             simcore::StepStatus::Inverted, simcore::StepStatus::Failed,
+                                             simcore::StepStatus::Refused};
 
 // {"converged": n, "inexact": n, ...}: the reports' "statuses".
 nlohmann::json statusCounts(const std::vector<const simcore::StepReport*>& reports) {
@@ -242,8 +246,9 @@ int statusSummary(const std::vector<const simcore::StepReport*>& reports) {
     if (n[static_cast<std::size_t>(s)] || s == S::Converged)
       line += (line.size() > 10 ? ", " : "") + std::to_string(n[static_cast<std::size_t>(s)]) + " " + toString(s);
   char figures[160];
-  std::snprintf(figures, sizeof figures, "; largest relative residual %.3g, at most %zu inverted elements, smallest volume ratio %.3g", largestResidual,
-                mostInverted, smallestJ);
+  std::snprintf(figures, sizeof figures,
+                "; largest relative residual %.3g, at most %zu inverted elements, smallest volume ratio %.3g",
+                largestResidual, mostInverted, smallestJ);
   line += figures;
   std::printf("%s\n", line.c_str());
   const std::size_t failed = n[static_cast<std::size_t>(S::Failed)] + n[static_cast<std::size_t>(S::Refused)];
@@ -255,8 +260,8 @@ int statusSummary(const std::vector<const simcore::StepReport*>& reports) {
         first = r;
         break;
       }
-    std::fprintf(stderr, "rehearse: %zu of %zu steps did not converge (%s); the first: %s\n", failed + loose, reports.size(), line.c_str() + 10,
-                 simcore::statusSentence(*first).c_str());
+    std::fprintf(stderr, "rehearse: %zu of %zu steps did not converge (%s); the first: %s\n", failed + loose,
+                 reports.size(), line.c_str() + 10, simcore::statusSentence(*first).c_str());
   }
   return failed ? 3 : loose ? 5 : 0;
 }

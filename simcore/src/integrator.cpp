@@ -11,7 +11,6 @@
 #include <cmath>
 #include <limits>
 
-
 namespace rehearse::simcore {
 
 using namespace detail;
@@ -26,20 +25,29 @@ NewtonMethod newtonMethodFromString(const std::string& name) {
 
 std::string toString(StepStatus s) {
   switch (s) {
-    case StepStatus::Converged: return "converged";
-    case StepStatus::Inexact: return "inexact";
-    case StepStatus::Inverted: return "inverted";
-    case StepStatus::Refused: return "refused";
-    default: return "failed";
+    case StepStatus::Converged:
+      return "converged";
+    case StepStatus::Inexact:
+      return "inexact";
+    case StepStatus::Inverted:
+      return "inverted";
+    case StepStatus::Refused:
+      return "refused";
+    default:
+      return "failed";
   }
 }
 
 std::string toString(NewtonMethod m) {
   switch (m) {
-    case NewtonMethod::Exact: return "exact";
-    case NewtonMethod::LaggedPcg: return "lagged-pcg";
-    case NewtonMethod::Chord: return "chord";
-    default: return "linearised";
+    case NewtonMethod::Exact:
+      return "exact";
+    case NewtonMethod::LaggedPcg:
+      return "lagged-pcg";
+    case NewtonMethod::Chord:
+      return "chord";
+    default:
+      return "linearised";
   }
 }
 
@@ -47,7 +55,9 @@ std::string settingsProblem(const SimulationSettings& s, bool constrained) {
   if (s.solver == LinearSolverKind::Cholmod) return {};
   const char* name = s.solver == LinearSolverKind::ConjugateGradient ? "cg" : "dense";
   if (s.attachments == AttachmentMode::Lagrange || constrained)
-    return std::string("Constraints (Lagrange attachments, tool or fit constraints) are solved on CHOLMOD's factorisation, not with the ") +
+    return std::string(
+               "Constraints (Lagrange attachments, tool or fit constraints) are solved on CHOLMOD's factorisation, not "
+               "with the ") +
            name + " solver; use the cholmod solver, or projected attachments without constraints.";
   if (s.method != NewtonMethod::Exact)
     return std::string("The ") + toString(s.method) + " method reuses CHOLMOD's factorisation; with the " + name +
@@ -60,8 +70,8 @@ Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, Simul
   if (const std::string problem = settingsProblem(settings, false); !problem.empty()) throw MeshError(problem);
   for (int n : fixedNodes) {
     if (n < 0 || n >= static_cast<int>(model.nodeCount()))
-      throw MeshError("Fixed node " + std::to_string(n) + " does not exist (the mesh has " + std::to_string(model.nodeCount()) +
-                      " nodes, numbered from 0).");
+      throw MeshError("Fixed node " + std::to_string(n) + " does not exist (the mesh has " +
+                      std::to_string(model.nodeCount()) + " nodes, numbered from 0).");
     if (settings.attachments == AttachmentMode::Projection) {
       fixed_[n] = 1;
     } else {
@@ -90,8 +100,8 @@ Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, Simul
     organSize_ = box.isEmpty() ? 1.0 : std::max(box.diagonal().norm(), 1e-6);
   }
   Work& w = *w_;
-  for (Eigen::VectorXd* vec : {&w.x0, &w.v0, &w.Mv0, &w.v, &w.vn, &w.xt, &w.r, &w.rn, &w.dv, &w.f, &w.tmp, &w.savedX, &w.savedV,
-                               &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk})
+  for (Eigen::VectorXd* vec : {&w.x0,  &w.v0,     &w.Mv0,    &w.v,     &w.vn,    &w.xt, &w.r,  &w.rn, &w.dv, &w.f,
+                               &w.tmp, &w.savedX, &w.savedV, &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk})
     vec->setZero(3 * n);
   w.Kd = w.K = w.J = model.pattern;
   w.cons.setConstraints(attachmentConstraints_, fixed_);
@@ -101,19 +111,29 @@ Integrator::~Integrator() {
   if (w_ && w_->request.job.valid()) w_->request.job.wait();  // it reads the model
 }
 
-int Integrator::symbolicAnalyses() const { return w_->chol->analyses() + w_->request.chol->analyses(); }
-int Integrator::numericFactorisations() const { return w_->chol->factorisations() + w_->request.chol->factorisations(); }
-const Eigen::VectorXd& Integrator::multipliers() const { return w_->lambdaOut; }
-const Eigen::MatrixXd& Integrator::constraintCompliance() const { return w_->cons.schur(); }
+int Integrator::symbolicAnalyses() const {
+  return w_->chol->analyses() + w_->request.chol->analyses();
+}
+int Integrator::numericFactorisations() const {
+  return w_->chol->factorisations() + w_->request.chol->factorisations();
+}
+const Eigen::VectorXd& Integrator::multipliers() const {
+  return w_->lambdaOut;
+}
+const Eigen::MatrixXd& Integrator::constraintCompliance() const {
+  return w_->cons.schur();
+}
 
 std::size_t Integrator::memoryBytes() const {
   const Work& w = *w_;
   std::size_t bytes = 0;
-  for (const Eigen::VectorXd* v : {&w.x0, &w.v0, &w.Mv0, &w.v, &w.vn, &w.xt, &w.r, &w.rn, &w.dv, &w.f, &w.tmp, &w.savedX, &w.savedV,
-                                   &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk, &w.forcesAt, &w.forces})
+  for (const Eigen::VectorXd* v :
+       {&w.x0,     &w.v0,     &w.Mv0,   &w.v,     &w.vn, &w.xt, &w.r,  &w.rn, &w.dv, &w.f,        &w.tmp,
+        &w.savedX, &w.savedV, &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk, &w.forcesAt, &w.forces})
     bytes += sizeof(double) * static_cast<std::size_t>(v->size());
   for (const Eigen::SparseMatrix<double>* m : {&w.Kd, &w.K, &w.J})
-    bytes += static_cast<std::size_t>(m->nonZeros()) * (sizeof(double) + sizeof(int)) + static_cast<std::size_t>(m->outerSize() + 1) * sizeof(int);
+    bytes += static_cast<std::size_t>(m->nonZeros()) * (sizeof(double) + sizeof(int)) +
+             static_cast<std::size_t>(m->outerSize() + 1) * sizeof(int);
   bytes += w.tangent0.F.size() * (sizeof(Eigen::Matrix3d) + sizeof(TangentCache));
   bytes += w.cons.memoryBytes();
   bytes += (w.chol->factorEntries() + w.request.chol->factorEntries()) * (sizeof(double) + sizeof(int));
@@ -121,7 +141,8 @@ std::size_t Integrator::memoryBytes() const {
 }
 
 void Integrator::setConstraints(std::vector<ScalarConstraint> constraints) {
-  if (const std::string problem = settingsProblem(settings_, !constraints.empty()); !problem.empty()) throw MeshError(problem);
+  if (const std::string problem = settingsProblem(settings_, !constraints.empty()); !problem.empty())
+    throw MeshError(problem);
   std::vector<ScalarConstraint> all = attachmentConstraints_;
   all.insert(all.end(), constraints.begin(), constraints.end());
   w_->cons.setConstraints(std::move(all), fixed_);  // validates them (one sentence for a bad one)
@@ -160,7 +181,8 @@ bool Integrator::solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::
   return solveOnce(settings_.solver, A, b, y, *w_->chol, settings_.cgMaxIterations, settings_.cgTolerance);
 }
 
-bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep, const std::function<bool()>& accept) {
+bool Integrator::factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep,
+                                  const std::function<bool()>& accept) {
   w_->cons.invalidate();
   w_->chol->setSimplicial(settings_.simplicialFactor);
   return simcore::factoriseShifted(*w_->chol, A, model_.diagonalSlot, rep.factorisations, [&] {
@@ -183,12 +205,13 @@ bool Integrator::solveConstrained(const Eigen::VectorXd& rhs, const Eigen::Vecto
 }
 
 double Integrator::totalEnergy(const SimulationState& s) const {
-  return 0.5 * s.v.dot(mass3_.cwiseProduct(s.v)) + elasticEnergy(model_, s.x) - (gravityForce_.dot(s.x) - gravityWorkAtRest_);
+  return 0.5 * s.v.dot(mass3_.cwiseProduct(s.v)) + elasticEnergy(model_, s.x) -
+         (gravityForce_.dot(s.x) - gravityWorkAtRest_);
 }
 
 // One implicit Euler step of h from (x, v); on success x, v hold the new state.
-void Integrator::newtonMatrix(const Eigen::SparseMatrix<double>& Kd, const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J,
-                              double h, double alpha, double beta) const {
+void Integrator::newtonMatrix(const Eigen::SparseMatrix<double>& Kd, const Eigen::SparseMatrix<double>& K,
+                              Eigen::SparseMatrix<double>& J, double h, double alpha, double beta) const {
   double* out = J.valuePtr();
   const double* kd = Kd.valuePtr();
   const double* k = K.valuePtr();
@@ -215,7 +238,9 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   // The Newton matrix (1 + h alpha) M + h beta Kd + h^2 K into J: exact with Kd = K(x0); the lagged
   // methods use one lagged K for both (leaving K(x0) out of the damping Jacobian costs the exact method
   // many iterations: measured 6-9 instead of 2 per step on the liver preset).
-  auto buildNewtonMatrix = [&](const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J) { newtonMatrix(K, J, h); };
+  auto buildNewtonMatrix = [&](const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J) {
+    newtonMatrix(K, J, h);
+  };
   auto refreshLagged = [&](const Eigen::VectorXd& at) { return refreshLaggedAt(at, h, rep); };
   if (lagged) {
     const bool stale = w.refresh || w.laggedStep != h || !w.chol->valid();
@@ -244,7 +269,8 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
     }
     w.tangentEndValid = false;
     project(w.f);
-    const double scale = std::max({w.Mv0.norm(), h * gravityForce_.norm(), h * w.f.norm(), h * 1e-2 * model_.lumpedMass.sum()});
+    const double scale =
+        std::max({w.Mv0.norm(), h * gravityForce_.norm(), h * w.f.norm(), h * 1e-2 * model_.lumpedMass.sum()});
     applyStiffness(model_, w.tangent0, w.v, w.tmp);
     w.r = (h * alpha) * mass3_.cwiseProduct(w.v) - h * (w.f + gravityForce_) + (h * h + h * beta) * w.tmp;
     project(w.r);
@@ -328,10 +354,13 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
     prepareTangentState(model_, x, w.tangentEnd, &w.forcesEnd);
     w.tangentEndAt = x;
     w.tangentEndValid = true;
-    if (beta == 0) w.tmp.setZero();
-    else applyStiffness(model_, w.tangent0, w.v, w.tmp);
+    if (beta == 0)
+      w.tmp.setZero();
+    else
+      applyStiffness(model_, w.tangent0, w.v, w.tmp);
     w.rn = (1 + h * alpha) * mass3_.cwiseProduct(w.v) - w.Mv0 - h * (w.forcesEnd + gravityForce_) + (h * beta) * w.tmp;
-    if (hasConstraints && w.cons.multipliers().size() == w.cons.transposedH().cols() && w.cons.transposedH().rows() == w.rn.size())
+    if (hasConstraints && w.cons.multipliers().size() == w.cons.transposedH().cols() &&
+        w.cons.transposedH().rows() == w.rn.size())
       w.rn.noalias() -= w.cons.transposedH() * w.cons.multipliers();
     project(w.rn);
     rep.residual = w.rn.norm() / scale;
@@ -353,9 +382,12 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   auto residual = [&](const Eigen::VectorXd& vel, Eigen::VectorXd& out) {
     w.xt = w.x0 + h * vel;
     elasticForces(model_, w.xt, w.f);
-    if (beta == 0) w.tmp.setZero();
-    else if (lagged) applyStiffness(model_, w.tangent0, vel, w.tmp);
-    else w.tmp.noalias() = w.Kd * vel;
+    if (beta == 0)
+      w.tmp.setZero();
+    else if (lagged)
+      applyStiffness(model_, w.tangent0, vel, w.tmp);
+    else
+      w.tmp.noalias() = w.Kd * vel;
     out = (1 + h * alpha) * mass3_.cwiseProduct(vel) - w.Mv0 - h * (w.f + gravityForce_) + (h * beta) * w.tmp;
     project(out);
   };
@@ -363,15 +395,20 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   //   Phi(v) = (1 + h a)/2 v.Mv - v.M v0 + E(x0 + h v) - h g.v + h b/2 v.K(x0) v.
   auto potential = [&](const Eigen::VectorXd& vel) {
     w.xt = w.x0 + h * vel;
-    if (beta == 0) w.pk.setZero();
-    else if (lagged) applyStiffness(model_, w.tangent0, vel, w.pk);
-    else w.pk.noalias() = w.Kd * vel;
+    if (beta == 0)
+      w.pk.setZero();
+    else if (lagged)
+      applyStiffness(model_, w.tangent0, vel, w.pk);
+    else
+      w.pk.noalias() = w.Kd * vel;
     return 0.5 * (1 + h * alpha) * vel.dot(mass3_.cwiseProduct(vel)) - vel.dot(w.Mv0) + elasticEnergy(model_, w.xt) -
            h * gravityForce_.dot(vel) + 0.5 * h * beta * vel.dot(w.pk);
   };
   // Norm of the residual net of the constraint forces (the total multipliers of the last solve).
   auto netNorm = [&](const Eigen::VectorXd& res) {
-    if (!hasConstraints || w.cons.multipliers().size() != w.cons.transposedH().cols() || w.cons.transposedH().rows() != res.size()) return res.norm();
+    if (!hasConstraints || w.cons.multipliers().size() != w.cons.transposedH().cols() ||
+        w.cons.transposedH().rows() != res.size())
+      return res.norm();
     w.pq = res;
     w.pq.noalias() -= w.cons.transposedH() * w.cons.multipliers();
     return w.pq.norm();
@@ -384,13 +421,14 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
     elasticForces(model_, w.x0, w.f);
     project(w.f);
   }
-  const double scale = std::max({w.Mv0.norm(), h * gravityForce_.norm(), h * w.f.norm(), h * 1e-2 * model_.lumpedMass.sum()});
+  const double scale =
+      std::max({w.Mv0.norm(), h * gravityForce_.norm(), h * w.f.norm(), h * 1e-2 * model_.lumpedMass.sum()});
   if (hasConstraints) w.cons.multipliers().setZero(w.cons.size());
   residual(w.v, w.r);
   double rn = w.r.norm();
   const int maxIterations = settings_.method == NewtonMethod::Linearised && lagged ? 1
-                            : lagged                                           ? std::max(settings_.maxNewtonIterations, 30)
-                                                                               : settings_.maxNewtonIterations;
+                            : lagged ? std::max(settings_.maxNewtonIterations, 30)
+                                     : settings_.maxNewtonIterations;
   bool ok = false;
   bool dampingProjected = false;
   for (int it = 0; it < maxIterations; ++it) {
@@ -450,7 +488,8 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
       // The constraint forces of the last iteration's multipliers go into the CG right-hand side (the exact
       // tangent answers them); the lagged factor then corrects only their change, which vanishes as Newton
       // converges. (With the lagged factor for the whole force, the step never satisfied the exact equations.)
-      const bool carry = hasConstraints && w.cons.multipliers().size() == w.cons.transposedH().cols() && w.cons.transposedH().rows() == w.pr.size();
+      const bool carry = hasConstraints && w.cons.multipliers().size() == w.cons.transposedH().cols() &&
+                         w.cons.transposedH().rows() == w.pr.size();
       if (carry) {
         w.pr.noalias() += w.cons.transposedH() * w.cons.multipliers();
         w.lambdaCarried = w.cons.multipliers();
@@ -474,7 +513,8 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
       if (k > 20) w.drift = true;  // the lagged factor has drifted: rebuild it at the next step
       project(w.dv);
       // The constraint correction (of the multipliers' change) uses the lagged factor.
-      if (solved && hasConstraints) solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep, true, carry ? &w.lambdaCarried : nullptr);
+      if (solved && hasConstraints)
+        solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep, true, carry ? &w.lambdaCarried : nullptr);
     } else {
       solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep);
     }
@@ -548,13 +588,11 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   }
   if (!ok) {
     w.refresh = true;
-    if (rep.status.empty())
-      rep.status = "not converged in " + std::to_string(maxIterations) + " Newton iterations";
+    if (rep.status.empty()) rep.status = "not converged in " + std::to_string(maxIterations) + " Newton iterations";
   }
   if (hasConstraints) w.lambdaOut = w.cons.multipliers() / h;  // momentum per step -> force (N)
   return ok ? Try::Converged : finite ? Try::Inexact : Try::Failed;
 }
-
 
 bool Integrator::guardMove(const Eigen::VectorXd& x, Eigen::VectorXd& vel, double h) {
   if (!settings_.inversionGuard) return false;
@@ -578,7 +616,8 @@ bool Integrator::guardMove(const Eigen::VectorXd& x, Eigen::VectorXd& vel, doubl
   return changed;
 }
 
-void Integrator::describe(const SimulationState& state, bool advanced, bool withinTolerance, double tolerance, StepReport& rep) const {
+void Integrator::describe(const SimulationState& state, bool advanced, bool withinTolerance, double tolerance,
+                          StepReport& rep) const {
   const VolumeRatios ratios = volumeRatios(model_, state.x);
   rep.invertedElements = ratios.inverted;
   rep.minVolumeRatio = ratios.smallest;
@@ -608,17 +647,21 @@ void Integrator::describe(const SimulationState& state, bool advanced, bool with
 std::string statusSentence(const StepReport& r) {
   if (r.status != toString(r.outcome)) return r.status;  // a sentence of its own already
   if (r.outcome == StepStatus::Converged) return r.status;
-  const std::string residual = "relative residual " + figure(r.residual) + " above the tolerance " + figure(r.tolerance);
+  const std::string residual =
+      "relative residual " + figure(r.residual) + " above the tolerance " + figure(r.tolerance);
   const std::string shortened = r.inversionLimited ? "; moves were shortened to keep elements from inverting" : "";
-  const std::string kept = r.keptBestOf > 0 ? " (no attempt converged; kept the best of " + std::to_string(r.keptBestOf) + ", time step " +
-                                                  figure(r.timeStepUsed) + " s)"
-                                            : "";
+  const std::string kept = r.keptBestOf > 0
+                               ? " (no attempt converged; kept the best of " + std::to_string(r.keptBestOf) +
+                                     ", time step " + figure(r.timeStepUsed) + " s)"
+                               : "";
   if (r.outcome == StepStatus::Inexact) return "inexact: " + residual + shortened + kept;
   if (r.outcome == StepStatus::Inverted)
-    return "inverted: " + std::to_string(r.invertedElements) + (r.invertedElements == 1 ? " element" : " elements") + " inside out (smallest volume ratio " +
-           figure(r.minVolumeRatio) + ", element " + std::to_string(r.smallestElement) + ")" +
-           (r.residual > r.tolerance ? "; " + residual : std::string()) + shortened + kept +
-           (r.collapsingLaw ? "; the StVK law collapses under strong compression (its energy vanishes for a flat element): use corotational or neohookean"
+    return "inverted: " + std::to_string(r.invertedElements) + (r.invertedElements == 1 ? " element" : " elements") +
+           " inside out (smallest volume ratio " + figure(r.minVolumeRatio) + ", element " +
+           std::to_string(r.smallestElement) + ")" + (r.residual > r.tolerance ? "; " + residual : std::string()) +
+           shortened + kept +
+           (r.collapsingLaw   ? "; the StVK law collapses under strong compression (its energy vanishes for a flat "
+                                "element): use corotational or neohookean"
             : r.invertibleLaw ? "; the stable Neo-Hookean law is defined there and pushes them back"
                               : "");
   return r.status;
@@ -689,11 +732,14 @@ StepReport Integrator::step(SimulationState& state) {
       rep.ok = true;
       describe(state, true, outcome == Try::Converged, tolerance, rep);
       if (retries && rep.outcome == StepStatus::Converged)
-        rep.status = "converged with time step " + std::to_string(h) + " s after " + std::to_string(retries) + " retries";
+        rep.status =
+            "converged with time step " + std::to_string(h) + " s after " + std::to_string(retries) + " retries";
       break;
     }
-    // A halved step that does not at least halve the residual will not converge by halving more: the best so far is kept.
-    const bool hopeless = outcome == Try::Inexact && !settings_.strict && std::isfinite(bestResidual) && worst > 0.5 * bestResidual;
+    // A halved step that does not at least halve the residual will not converge by halving more: the best so far is
+    // kept.
+    const bool hopeless =
+        outcome == Try::Inexact && !settings_.strict && std::isfinite(bestResidual) && worst > 0.5 * bestResidual;
     if (outcome == Try::Inexact && worst < bestResidual) {
       bestResidual = worst;
       bestH = h;
@@ -723,7 +769,9 @@ StepReport Integrator::step(SimulationState& state) {
         const std::string why = sub.status.empty() ? "not converged" : sub.status;
         describe(state, false, false, tolerance, rep);
         rep.status = "failed: " + (why.rfind("failed: ", 0) == 0 ? why.substr(8) : why) +
-                     (settings_.strict && std::isfinite(sub.residual) ? " (relative residual " + std::to_string(sub.residual) + ", strict settings)" : "") +
+                     (settings_.strict && std::isfinite(sub.residual)
+                          ? " (relative residual " + std::to_string(sub.residual) + ", strict settings)"
+                          : "") +
                      "; the step was rolled back";
       }
       break;

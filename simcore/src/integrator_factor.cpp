@@ -18,8 +18,9 @@ using namespace detail;
 
 // Reads only the model, the fixed nodes and the masses (all const after construction), so the asynchronous
 // refresh runs it on another thread with its own matrices and solver.
-bool Integrator::buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& Kd, Eigen::SparseMatrix<double>& J, const Eigen::VectorXd& at,
-                             double h, double alpha, double beta, bool simplicial, int& attempts) const {
+bool Integrator::buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& Kd, Eigen::SparseMatrix<double>& J,
+                             const Eigen::VectorXd& at, double h, double alpha, double beta, bool simplicial,
+                             int& attempts) const {
   assembleStiffness(model_, at, Kd);
   newtonMatrix(Kd, Kd, J, h, alpha, beta);
   ++attempts;
@@ -83,16 +84,21 @@ bool Integrator::installRequestedFactor() {
   if (q.job.valid()) {
     q.ok = q.job.get();
   } else if (!q.built) {
-    q.ok = buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, settings_.rayleighMass, settings_.rayleighStiffness, settings_.simplicialFactor, q.attempts);
+    q.ok = buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, settings_.rayleighMass, settings_.rayleighStiffness,
+                       settings_.simplicialFactor, q.attempts);
   }
   q.built = true;  // swapped in at the next step's start
   return q.ok;
 }
 
-bool Integrator::factorPending() const { return w_->request.pending; }
+bool Integrator::factorPending() const {
+  return w_->request.pending;
+}
 
 bool Integrator::prepareLagged(const Eigen::VectorXd& at) {
-  if (settings_.method == NewtonMethod::Exact || settings_.solver != LinearSolverKind::Cholmod || at.size() != rest_.size()) return false;
+  if (settings_.method == NewtonMethod::Exact || settings_.solver != LinearSolverKind::Cholmod ||
+      at.size() != rest_.size())
+    return false;
   StepReport rep;
   return refreshLaggedAt(at, settings_.timeStep, rep);
 }
@@ -105,7 +111,8 @@ bool Integrator::refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport
   w.drift = false;
   w.request.discard = true;  // a factor requested before this one is older
   w.cons.invalidate();
-  return buildLagged(*w.chol, w.Kd, w.J, at, h, settings_.rayleighMass, settings_.rayleighStiffness, settings_.simplicialFactor, rep.factorisations);
+  return buildLagged(*w.chol, w.Kd, w.J, at, h, settings_.rayleighMass, settings_.rayleighStiffness,
+                     settings_.simplicialFactor, rep.factorisations);
 }
 
 // The complete state in, before a step: the lagged factor it names is the one this step uses (rebuilt
@@ -129,8 +136,9 @@ bool Integrator::adopt(const SimulationState& state, StepReport& rep) {
     w.refresh = true;  // a state without a lagged factor (fresh, or from an exact step): build one at its start
     return true;
   }
-  const bool same = w.chol->valid() && w.laggedStep == state.lagged.step && w.laggedAt.size() == state.lagged.at.size() &&
-                    w.laggedAt == state.lagged.at && !w.refresh;  // refresh: the factor holds another matrix or is stale
+  const bool same = w.chol->valid() && w.laggedStep == state.lagged.step &&
+                    w.laggedAt.size() == state.lagged.at.size() && w.laggedAt == state.lagged.at &&
+                    !w.refresh;  // refresh: the factor holds another matrix or is stale
   if (!same && !refresh) {
     // The factor the state names, built again: a request the state names too is newer and stays.
     const bool discard = w.request.discard;

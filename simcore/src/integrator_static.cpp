@@ -77,7 +77,8 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     auto buildTangent = [&](bool projected) {
       assembleStiffness(model_, x, w.K, projected);
       if (regularisation > 0)
-        for (Eigen::Index i = 0; i < w.K.rows(); ++i) w.K.valuePtr()[model_.diagonalSlot[i]] += regularisation * mass3_[i];
+        for (Eigen::Index i = 0; i < w.K.rows(); ++i)
+          w.K.valuePtr()[model_.diagonalSlot[i]] += regularisation * mass3_[i];
       projectMatrix(w.K);
     };
     // Solve for the total multipliers (none yet in the first iteration, when Ht may still have the size of
@@ -116,7 +117,8 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
       if (!solved) {
         Eigen::SparseMatrix<double> Ks = w.K;
         for (double shift = 1e-6 * Ks.diagonal().cwiseAbs().maxCoeff(); !solved && shift < 1e12; shift *= 10) {
-          for (Eigen::Index i = 0; i < Ks.rows(); ++i) Ks.valuePtr()[model_.diagonalSlot[i]] = w.K.valuePtr()[model_.diagonalSlot[i]] + shift;
+          for (Eigen::Index i = 0; i < Ks.rows(); ++i)
+            Ks.valuePtr()[model_.diagonalSlot[i]] = w.K.valuePtr()[model_.diagonalSlot[i]] + shift;
           solved = solveLinear(Ks, r, dx);
         }
       }
@@ -142,7 +144,8 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
     ++rep.newtonIterations;
     // Moves below the caller's resolution: converged for its purpose (a registration needs micrometres,
     // not the force balance to round-off, and projected Newton converges only linearly).
-    if (settings_.staticStepTolerance > 0 && t * dx.cwiseAbs().maxCoeff() < settings_.staticStepTolerance && w_->cons.violation(x) <= 1e-9) {
+    if (settings_.staticStepTolerance > 0 && t * dx.cwiseAbs().maxCoeff() < settings_.staticStepTolerance &&
+        w_->cons.violation(x) <= 1e-9) {
       rep.ok = true;
       smallStep = true;
       break;
@@ -151,18 +154,24 @@ StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd
   if (rep.ok && x.allFinite()) {
     state.x = x;
     state.v.setZero();
-    // Round-off: the residual stalled within 100x of the tolerance (the state is kept; the word says it is not under it).
+    // Round-off: the residual stalled within 100x of the tolerance (the state is kept; the word says it is not under
+    // it).
     describe(state, true, !roundOff, settings_.tolerance, rep);
     if (rep.outcome == StepStatus::Converged)
-      rep.status = smallStep ? "converged (the last Newton move was below " + micrometres(settings_.staticStepTolerance) + ")" : "converged";
+      rep.status = smallStep
+                       ? "converged (the last Newton move was below " + micrometres(settings_.staticStepTolerance) + ")"
+                       : "converged";
     else if (rep.outcome == StepStatus::Inexact)
-      rep.status = "inexact: stalled at round-off, relative residual " + figure(rep.residual) + " within 100x the tolerance " + figure(settings_.tolerance);
+      rep.status = "inexact: stalled at round-off, relative residual " + figure(rep.residual) +
+                   " within 100x the tolerance " + figure(settings_.tolerance);
     else if (rep.outcome == StepStatus::Inverted)
       rep.status = statusSentence(rep);
   } else {
     rep.ok = false;
     describe(state, false, false, settings_.tolerance, rep);
-    if (rep.status.empty()) rep.status = "failed: not converged (relative residual " + std::to_string(rep.residual) + "); the state was rolled back";
+    if (rep.status.empty())
+      rep.status =
+          "failed: not converged (relative residual " + std::to_string(rep.residual) + "); the state was rolled back";
   }
   if (hasConstraints) w.lambdaOut = w.cons.multipliers();
   w.refresh = true;  // the factor now holds the static tangent

@@ -22,14 +22,14 @@ struct Integrator::Work {
   Eigen::SparseMatrix<double> J;   // the factorised Newton matrix (exact, or lagged)
   Eigen::VectorXd x0, v0, Mv0, v, vn, xt, r, rn, dv, f, tmp, savedX, savedV, stepX, stepV;
   Eigen::VectorXd pr, pz, pp, pq, pk;  // PCG
-  ConstraintSolver cons;           // attachments (Lagrange mode) then the extra constraints
-  Eigen::VectorXd lambdaOut;       // multipliers of the last solve, as forces (N)
-  Eigen::VectorXd lambdaCarried;  // lagged-pcg: the multipliers whose forces the free solve already holds
-  double laggedStep = -1;         // h the lagged factor was built for (-1: none)
-  Eigen::VectorXd laggedAt;       // positions it was built at (with laggedStep: its identity)
-  bool invalidated = false;       // invalidateFactorisation() was called: rebuild at the next step
-  bool refresh = true;            // rebuild the lagged factor at the next opportunity
-  bool drift = false;             // the lagged factor drifted (its residual grew): rebuild it where settings.factorRefresh says
+  ConstraintSolver cons;               // attachments (Lagrange mode) then the extra constraints
+  Eigen::VectorXd lambdaOut;           // multipliers of the last solve, as forces (N)
+  Eigen::VectorXd lambdaCarried;       // lagged-pcg: the multipliers whose forces the free solve already holds
+  double laggedStep = -1;              // h the lagged factor was built for (-1: none)
+  Eigen::VectorXd laggedAt;            // positions it was built at (with laggedStep: its identity)
+  bool invalidated = false;            // invalidateFactorisation() was called: rebuild at the next step
+  bool refresh = true;                 // rebuild the lagged factor at the next opportunity
+  bool drift = false;  // the lagged factor drifted (its residual grew): rebuild it where settings.factorRefresh says
   // The requested factor (asynchronous and deferred refresh): built into its own solver and matrices, then
   // swapped with chol, Kd and J (the solvers keep their analyses: the pattern is the same).
   struct Request {
@@ -41,10 +41,10 @@ struct Integrator::Work {
     bool pending = false;  // requested and not swapped in yet
     bool built = false;    // the build finished (ok tells how)
     bool ok = false;
-    bool discard = false;  // the factor was rebuilt at once since (a new time step, parameters, state): drop this one
-    std::future<bool> job; // asynchronous: the build under way on the second thread
+    bool discard = false;   // the factor was rebuilt at once since (a new time step, parameters, state): drop this one
+    std::future<bool> job;  // asynchronous: the build under way on the second thread
   } request;
-  int staticFactor = -1;          // chol.factorisations() just after a static tangent was factorised
+  int staticFactor = -1;             // chol.factorisations() just after a static tangent was factorised
   Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
   bool forcesValid = false;
   // Linearised method: the tangent and forces at the end of the last step (its nonlinear residual needs the
@@ -53,12 +53,13 @@ struct Integrator::Work {
   Eigen::VectorXd tangentEndAt, forcesEnd;
   bool tangentEndValid = false;
   Eigen::VectorXd bestX, bestV;  // the attempt with the smallest residual (a step that does not converge)
-  std::vector<int> limiting;      // elements a move would have taken below their floor (guardMove)
+  std::vector<int> limiting;     // elements a move would have taken below their floor (guardMove)
 };
 
 namespace detail {
 // Every numeric factorisation goes through here, so the factor kind follows the settings as they are now.
-inline bool factoriseWith(CholmodSolver& chol, const SimulationSettings& settings, const Eigen::SparseMatrix<double>& M) {
+inline bool factoriseWith(CholmodSolver& chol, const SimulationSettings& settings,
+                          const Eigen::SparseMatrix<double>& M) {
   chol.setSimplicial(settings.simplicialFactor);
   return chol.factorise(M);
 }

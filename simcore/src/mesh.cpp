@@ -87,8 +87,7 @@ std::vector<int> Mesh::compact() {
   return oldIndex;
 }
 
-std::vector<std::array<int, 3>> boundaryTriangles(const Mesh& m, bool includeInterfaces,
-                                                  std::vector<int>* labels) {
+std::vector<std::array<int, 3>> boundaryTriangles(const Mesh& m, bool includeInterfaces, std::vector<int>* labels) {
   // Outward faces of a positively oriented tet (a,b,c,d).
   static constexpr int kFace[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
   struct Entry {
@@ -104,9 +103,8 @@ std::vector<std::array<int, 3>> boundaryTriangles(const Mesh& m, bool includeInt
       std::sort(k.begin(), k.end());
       entries.push_back({k, static_cast<int>(t), f});
     }
-  std::sort(entries.begin(), entries.end(), [](const Entry& a, const Entry& b) {
-    return std::tie(a.key, a.tet) < std::tie(b.key, b.tet);
-  });
+  std::sort(entries.begin(), entries.end(),
+            [](const Entry& a, const Entry& b) { return std::tie(a.key, a.tet) < std::tie(b.key, b.tet); });
   std::vector<std::array<int, 3>> out;
   if (labels) labels->clear();
   auto label = [&](int t) { return m.tetLabels.empty() ? 0 : m.tetLabels[t]; };
@@ -137,8 +135,7 @@ double metresPerUnit(const std::string& unit) {
 }
 
 void validateMesh(const Mesh& m, const std::string& what) {
-  if (m.points.empty())
-    throw MeshError(what + " holds no points; choose a file that contains a mesh.");
+  if (m.points.empty()) throw MeshError(what + " holds no points; choose a file that contains a mesh.");
   if (m.triangles.empty() && m.tets.empty())
     throw MeshError(what + " holds no triangles or tetrahedra; choose a surface or volume mesh.");
   if (m.points.size() > kMaxMeshItems || m.triangles.size() > kMaxMeshItems || m.tets.size() > kMaxMeshItems)
@@ -146,13 +143,13 @@ void validateMesh(const Mesh& m, const std::string& what) {
                     " points or elements); decimate it first.");
   for (std::size_t i = 0; i < m.points.size(); ++i)
     if (!m.points[i].allFinite())
-      throw MeshError(what + " has a non-finite coordinate (NaN or infinity) at point " +
-                      std::to_string(i) + "; fix or re-export the mesh.");
+      throw MeshError(what + " has a non-finite coordinate (NaN or infinity) at point " + std::to_string(i) +
+                      "; fix or re-export the mesh.");
   const int n = static_cast<int>(m.points.size());
   auto checkIndex = [&](int v, const char* kind, std::size_t e) {
     if (v < 0 || v >= n)
-      throw MeshError(what + " has " + kind + " " + std::to_string(e) + " referring to point " +
-                      std::to_string(v) + ", which does not exist; the file is inconsistent.");
+      throw MeshError(what + " has " + kind + " " + std::to_string(e) + " referring to point " + std::to_string(v) +
+                      ", which does not exist; the file is inconsistent.");
   };
   for (std::size_t e = 0; e < m.triangles.size(); ++e)
     for (int v : m.triangles[e]) checkIndex(v, "triangle", e);

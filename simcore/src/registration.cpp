@@ -57,12 +57,14 @@ void dropOutliers(std::vector<Binding>& bindings, double factor, double floorPx)
   for (const auto& b : bindings) d.push_back(b.distance);
   std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
   const double limit = std::max(factor * d[d.size() / 2], floorPx);
-  bindings.erase(std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return b.distance > limit; }), bindings.end());
+  bindings.erase(std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return b.distance > limit; }),
+                 bindings.end());
 }
 
 // For the rigid pass: every contour point to the nearest compatible point of the silhouette edges (the
 // pose has six unknowns, so many correspondences anywhere on the edges are best), outliers dropped.
-std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std::vector<SilhouetteEdge>& sil, const RegistrationOptions& o) {
+std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std::vector<SilhouetteEdge>& sil,
+                                  const RegistrationOptions& o) {
   std::vector<Binding> out;
   for (const auto& s : samples) {
     double best = std::numeric_limits<double>::infinity();
@@ -89,8 +91,8 @@ std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std:
 // beyond its ends), and far outliers are dropped. Binding at nodes keeps the constraints consistent: one
 // pair of constraints across the ray per node.
 std::vector<Binding> bindContour(const std::vector<Sample>& samples, const std::vector<std::size_t>& segmentStarts,
-                                 const std::vector<SilhouetteEdge>& sil, const std::vector<char>& fixed, const RegistrationOptions& o,
-                                 double floorPx) {
+                                 const std::vector<SilhouetteEdge>& sil, const std::vector<char>& fixed,
+                                 const RegistrationOptions& o, double floorPx) {
   std::map<int, std::pair<Eigen::Vector2d, Eigen::Vector2d>> vertices;  // node -> pixel, summed normal
   for (const auto& e : sil)
     for (int k = 0; k < 2; ++k) {
@@ -106,7 +108,8 @@ std::vector<Binding> bindContour(const std::vector<Sample>& samples, const std::
     Eigen::Vector2d foot = Eigen::Vector2d::Zero(), footNormal = Eigen::Vector2d::Zero();
     bool atEnd = false;
     for (std::size_t sgi = 0; sgi < segmentStarts.size(); ++sgi) {
-      const std::size_t begin = segmentStarts[sgi], end = sgi + 1 < segmentStarts.size() ? segmentStarts[sgi + 1] : samples.size();
+      const std::size_t begin = segmentStarts[sgi],
+                        end = sgi + 1 < segmentStarts.size() ? segmentStarts[sgi + 1] : samples.size();
       for (std::size_t i = begin; i + 1 < end; ++i) {
         const Sample &p = samples[i], &q = samples[i + 1];
         const Eigen::Vector2d tangent = q.pixel - p.pixel;
@@ -132,8 +135,8 @@ std::vector<Binding> bindContour(const std::vector<Sample>& samples, const std::
 
 // Every node of the anatomical curves to the nearest point of its image curve (one binding per node; nodes
 // whose nearest point is an open end, further than 2 px, are left free; fixed nodes too when given).
-std::vector<Binding> bindCurves(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose, const Pinhole& cam,
-                                const std::vector<char>* fixed) {
+std::vector<Binding> bindCurves(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose,
+                                const Pinhole& cam, const std::vector<char>* fixed) {
   std::vector<Binding> out;
   std::vector<char> seen(static_cast<std::size_t>(x.size() / 3), 0);
   for (const auto& c : curves)
@@ -143,7 +146,8 @@ std::vector<Binding> bindCurves(const std::vector<AnatomicalCurve>& curves, cons
       const Eigen::Vector3d q = pose.apply(x.segment<3>(3 * node));
       if (!(q.z() > 1e-6)) continue;
       const Foot f = nearestOnPolyline(c.image, cam.project(q));
-      if (std::isfinite(f.distance) && !(f.atEnd && f.distance > 2.0)) out.push_back({node, node, 0, f.point, f.distance, f.normal});
+      if (std::isfinite(f.distance) && !(f.atEnd && f.distance > 2.0))
+        out.push_back({node, node, 0, f.point, f.distance, f.normal});
     }
   return out;
 }
@@ -151,10 +155,11 @@ std::vector<Binding> bindCurves(const std::vector<AnatomicalCurve>& curves, cons
 // The bound point on the ray through its contour point: two constraints across the ray (model frame). When
 // sliding, one: the point on the plane through the camera centre and the contour's tangent line there, so
 // it is held across the contour and free along it.
-void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, bool sliding, std::vector<ScalarConstraint>& out) {
+void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, bool sliding,
+                    std::vector<ScalarConstraint>& out) {
   if (sliding && b.normal.squaredNorm() > 0) {
     const Eigen::Vector3d line(b.normal.x(), b.normal.y(), -b.normal.dot(b.contour));  // the tangent line in the image
-    const Eigen::Vector3d plane = cam.K.transpose() * line;                              // camera frame, through the centre
+    const Eigen::Vector3d plane = cam.K.transpose() * line;  // camera frame, through the centre
     ScalarConstraint c;
     c.nodes = {b.a, b.b, -1, -1};
     c.weights = {1 - b.t, b.t, 0, 0};
@@ -180,12 +185,14 @@ void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, bool
 
 }  // namespace
 
-RegistrationResult registerToContour(const FemModel& model, const std::vector<int>& fixedNodes, SimulationSettings settings,
-                                     const std::vector<std::array<int, 3>>& surface,
-                                     const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& start, const Pinhole& camera,
-                                     const RegistrationOptions& o) {
+RegistrationResult registerToContour(const FemModel& model, const std::vector<int>& fixedNodes,
+                                     SimulationSettings settings, const std::vector<std::array<int, 3>>& surface,
+                                     const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& start,
+                                     const Pinhole& camera, const RegistrationOptions& o) {
   const auto t0 = std::chrono::steady_clock::now();
-  auto elapsed = [&] { return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count(); };
+  auto elapsed = [&] {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  };
   checkCamera(camera);
   std::size_t points = 0;
   // Points further than this from the image are not a sketch of it (and resampling them would take forever).
@@ -195,27 +202,34 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     points += seg.size();
     for (const auto& p : seg) {
       if (!p.allFinite()) throw MeshError("The contour has a point that is not a number.");
-      if (farAway(p)) throw MeshError("The contour has points far outside the image; check that it belongs to this frame.");
+      if (farAway(p))
+        throw MeshError("The contour has points far outside the image; check that it belongs to this frame.");
     }
   }
   // Anatomical curves: checked, and their image curves resampled like the contour.
   std::vector<AnatomicalCurve> curves = o.curves;
   for (auto& c : curves) {
     if (c.nodes.size() < 2 || c.image.size() < 2)
-      throw MeshError("An anatomical curve (" + c.type + ") needs at least two nodes on the organ and two points in the image.");
+      throw MeshError("An anatomical curve (" + c.type +
+                      ") needs at least two nodes on the organ and two points in the image.");
     for (int node : c.nodes)
       if (node < 0 || static_cast<std::size_t>(node) >= model.nodeCount())
-        throw MeshError("An anatomical curve (" + c.type + ") refers to node " + std::to_string(node) + ", which the organ does not have.");
+        throw MeshError("An anatomical curve (" + c.type + ") refers to node " + std::to_string(node) +
+                        ", which the organ does not have.");
     for (const auto& p : c.image) {
-      if (!p.allFinite()) throw MeshError("An anatomical curve (" + c.type + ") has an image point that is not a number.");
-      if (farAway(p)) throw MeshError("An anatomical curve (" + c.type + ") has points far outside the image; check that it belongs to this frame.");
+      if (!p.allFinite())
+        throw MeshError("An anatomical curve (" + c.type + ") has an image point that is not a number.");
+      if (farAway(p))
+        throw MeshError("An anatomical curve (" + c.type +
+                        ") has points far outside the image; check that it belongs to this frame.");
     }
     std::vector<Eigen::Vector2d> resampled;
     for (const auto& sample : contourSamples({c.image}, o.spacing)) resampled.push_back(sample.pixel);
     c.image = resampled;
   }
   if (points == 0 && curves.empty()) throw MeshError("The contour is empty; sketch the organ's outline first.");
-  if (points == 1 && curves.empty()) throw MeshError("The contour has a single point; sketch at least a short stretch of the outline.");
+  if (points == 1 && curves.empty())
+    throw MeshError("The contour has a single point; sketch at least a short stretch of the outline.");
   if (surface.empty()) throw MeshError("The organ has no surface triangles.");
 
   std::vector<char> fixed(model.nodeCount(), 0);
@@ -267,7 +281,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     return ri;
   };
   // The mean distance over the silhouette contour and the curves, for a shape and a pose.
-  auto score = [&](const Eigen::VectorXd& x, const Pose& pose) { return measure(silhouette(x, pose), x, pose).score(); };
+  auto score = [&](const Eigen::VectorXd& x, const Pose& pose) {
+    return measure(silhouette(x, pose), x, pose).score();
+  };
   // Correspondences for the pose (the shape is res.x): the contour onto the silhouette's edges, the curves'
   // nodes onto their image curves.
   auto rigidBindings = [&](const std::vector<SilhouetteEdge>& sil, const Eigen::VectorXd& x, const Pose& pose) {
@@ -318,7 +334,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     const Eigen::Matrix3d along = d * d.transpose();
     return w * (along + o.downAcross * o.downAcross * (Eigen::Matrix3d::Identity() - along));
   };
-  auto shapeOf = [&](const Eigen::Vector3d& a) -> Eigen::VectorXd { return U.size() ? Eigen::VectorXd(rest + U * a) : Eigen::VectorXd(rest); };
+  auto shapeOf = [&](const Eigen::Vector3d& a) -> Eigen::VectorXd {
+    return U.size() ? Eigen::VectorXd(rest + U * a) : Eigen::VectorXd(rest);
+  };
   res.x = shapeOf(load);
   // One ICP iteration's update of the pose (and of the load, with the sag) on its bindings.
   auto refine = [&](const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose& pose, Eigen::Vector3d& a) {
@@ -366,7 +384,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   // The best of short ICP runs from several poses (in parallel; the first of equal ends wins).
   auto bestOf = [&](const std::vector<Pose>& starts, const Eigen::Vector3d& a, int iterations) {
     std::vector<IcpEnd> ends(starts.size());
-    tbb::parallel_for(std::size_t(0), starts.size(), [&](std::size_t i) { ends[i] = shortIcp(starts[i], a, iterations); });
+    tbb::parallel_for(std::size_t(0), starts.size(),
+                      [&](std::size_t i) { ends[i] = shortIcp(starts[i], a, iterations); });
     std::size_t best = 0;
     for (std::size_t i = 1; i < ends.size(); ++i)
       if (ends[i].score < ends[best].score) best = i;
@@ -381,7 +400,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         Pose moved = pose;
         moved.t += sgn * distance * Eigen::Vector3d::Unit(axis);
         out.push_back(moved);
-        out.push_back(pose.turnedAbout(Eigen::AngleAxisd(sgn * degrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(), pose.apply(centre)));
+        out.push_back(pose.turnedAbout(
+            Eigen::AngleAxisd(sgn * degrees * M_PI / 180, Eigen::Vector3d::Unit(axis)).toRotationMatrix(),
+            pose.apply(centre)));
       }
     return out;
   };
@@ -501,9 +522,11 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       for (const auto& a : res.alternatives) known |= 1e3 * apart(a.pose, pose) <= o.ambiguityMm;
       if (!known) res.alternatives.push_back({pose, sc, mm});
     }
-    std::sort(res.alternatives.begin(), res.alternatives.end(), [](const auto& a, const auto& b) { return a.score < b.score; });
+    std::sort(res.alternatives.begin(), res.alternatives.end(),
+              [](const auto& a, const auto& b) { return a.score < b.score; });
     if (res.alternatives.size() > 3) res.alternatives.resize(3);
-    const auto deeper = std::min_element(ends.begin(), ends.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
+    const auto deeper =
+        std::min_element(ends.begin(), ends.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
     if (round >= o.adoptRounds || deeper == ends.end() || !(deeper->second < resultScore * (1 - o.adoptShare))) break;
     res.pose = deeper->first;
     ++res.adopted;
@@ -524,11 +547,13 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       const Eigen::VectorXd x = shapeOf(a);
       const auto bindings = rigidBindings(visibleSilhouette(surface, x, p, camera), x, p);
       if (bindings.size() < fewest) break;
-      refinePoseAndSag(rest, U, bindings, camera, o.sliding, p, a, givenLoad, priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
+      refinePoseAndSag(rest, U, bindings, camera, o.sliding, p, a, givenLoad,
+                       priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
     }
     const Eigen::VectorXd x = shapeOf(a);
     double sum = 0;
-    for (std::size_t i = 0; i < model.nodeCount(); ++i) sum += (p.apply(x.segment<3>(3 * i)) - res.pose.apply(res.x.segment<3>(3 * i))).norm();
+    for (std::size_t i = 0; i < model.nodeCount(); ++i)
+      sum += (p.apply(x.segment<3>(3 * i)) - res.pose.apply(res.x.segment<3>(3 * i))).norm();
     sagProbe.apartMm = 1e3 * sum / static_cast<double>(model.nodeCount());
     const double found = (load - givenLoad).norm(), alone = (a - givenLoad).norm();
     sagProbe.share = alone > 0 ? found / alone : 1.0;
@@ -537,7 +562,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     res.sagShare = sagProbe.share;
     res.sagApartMm = sagProbe.apartMm;
   }
-  if (!U.size() && downKnown) load = res.pose.R.transpose() * o.gravityCamera;  // the told gravity, in the frame of the pose found
+  if (!U.size() && downKnown)
+    load = res.pose.R.transpose() * o.gravityCamera;  // the told gravity, in the frame of the pose found
   settings.gravity = load;
   res.load = load;
   const Pose rigidPose = res.pose;
@@ -551,8 +577,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   if (o.elastic && o.rigidPrepass && rigidMean > 0.02 * diag) {
     // No pose near the start brings the organ's outline near the contour: deforming it there would only
     // stretch it onto another shape.
-    res.status = "failed: after the rigid fit the contour is still " + std::to_string(static_cast<int>(rigidMean)) +
-                 " px from the organ's silhouette on average; it may belong to another organ or the start pose is too far";
+    res.status =
+        "failed: after the rigid fit the contour is still " + std::to_string(static_cast<int>(rigidMean)) +
+        " px from the organ's silhouette on average; it may belong to another organ or the start pose is too far";
     return res;
   }
   if (!o.elastic) {
@@ -583,23 +610,29 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // not drawn (or on an occluding fold inside it), and binding it would drag it across the organ. Such a
     // vertex is free (costs nothing); it is bound again once the deformation brings it near the contour.
     // (Without the rigid stage the start may be off by more: no cap then.)
-    const double cap = o.rigidPrepass ? std::clamp(4 * rigidMean, 8.0, 0.02 * diag) : std::numeric_limits<double>::infinity();
+    const double cap =
+        o.rigidPrepass ? std::clamp(4 * rigidMean, 8.0, 0.02 * diag) : std::numeric_limits<double>::infinity();
     Eigen::VectorXd bestX = res.x;
     std::string failure;
     for (int k = 0; k < o.maxIterations; ++k) {
       auto bindings = bindContour(samples, segmentStarts, silhouette(state.x, res.pose), fixed, o, outlierFloor);
-      bindings.erase(std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return b.distance > cap; }), bindings.end());
+      bindings.erase(
+          std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return b.distance > cap; }),
+          bindings.end());
       if (!curves.empty()) {
         // A node on a curve follows its curve (one binding, hence one set of ray constraints, per node).
         auto curveBindings = bindCurves(curves, state.x, res.pose, camera, &fixed);
         dropOutliers(curveBindings, o.outlierFactor, outlierFloor);
         std::vector<char> onCurve(model.nodeCount(), 0);
         for (const auto& b : curveBindings) onCurve[b.a] = 1;
-        bindings.erase(std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return onCurve[b.a] != 0; }), bindings.end());
+        bindings.erase(
+            std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return onCurve[b.a] != 0; }),
+            bindings.end());
         bindings.insert(bindings.end(), curveBindings.begin(), curveBindings.end());
       }
       if (bindings.size() < 3) {
-        failure = "no part of the contour could be bound to the organ's silhouette (" + std::to_string(bindings.size()) +
+        failure = "no part of the contour could be bound to the organ's silhouette (" +
+                  std::to_string(bindings.size()) +
                   " points); the contour may belong to another organ or lie outside the organ's view";
         break;
       }
@@ -621,7 +654,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         bestX = res.x;
       }
       if (res.cancelled) break;
-      if ((std::abs(previous.residual.mean - ri.residual.mean) < o.tolerance && std::abs(previous.curves.mean - ri.curves.mean) < o.tolerance) ||
+      if ((std::abs(previous.residual.mean - ri.residual.mean) < o.tolerance &&
+           std::abs(previous.curves.mean - ri.curves.mean) < o.tolerance) ||
           stalled >= 3) {
         res.converged = true;
         break;
@@ -642,8 +676,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       res.status = "failed: " + failure;
     } else {
       res.ok = true;
-      res.status = (res.converged ? "converged" : failure.empty() ? "not converged in " + std::to_string(o.maxIterations) + " iterations"
-                                                                 : "stopped: " + failure) +
+      res.status = (res.converged     ? "converged"
+                    : failure.empty() ? "not converged in " + std::to_string(o.maxIterations) + " iterations"
+                                      : "stopped: " + failure) +
                    ": mean distance " + pixels(bestMean) + " (start " + pixels(first.score()) + ")";
     }
   }
@@ -651,8 +686,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   const double finalMean = score(res.x, res.pose);
   if (res.ok && finalMean > 0.02 * diag) {
     res.ok = false;
-    res.status = "failed: the contour stays " + std::to_string(static_cast<int>(finalMean)) +
-                 " px from the organ's silhouette on average; it may belong to another organ or the start pose is too far";
+    res.status =
+        "failed: the contour stays " + std::to_string(static_cast<int>(finalMean)) +
+        " px from the organ's silhouette on average; it may belong to another organ or the start pose is too far";
   }
   // Nor did one that leaves most of the contour off the silhouette (the outline of another organ, reached
   // only in part by stretching this one).
@@ -665,8 +701,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     const double share = static_cast<double>(near) / static_cast<double>(points);
     if (share < 0.5) {
       res.ok = false;
-      res.status = "failed: after the fit only " + std::to_string(static_cast<int>(100 * share)) + " % of the contour lies within " +
-                   std::to_string(static_cast<int>(nearPx)) + " px of the organ's silhouette; it may belong to another organ or the start pose is too far";
+      res.status = "failed: after the fit only " + std::to_string(static_cast<int>(100 * share)) +
+                   " % of the contour lies within " + std::to_string(static_cast<int>(nearPx)) +
+                   " px of the organ's silhouette; it may belong to another organ or the start pose is too far";
     }
   }
   if (res.ok && (!res.alternatives.empty() || sagProbe.undetermined)) {
@@ -676,22 +713,27 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     char text[240];
     if (res.alternatives.empty()) {
       std::snprintf(text, sizeof text,
-                    "ambiguous: the contour does not show how far the organ sags (the sag found is %.0f %% of what the contour alone asks for, "
+                    "ambiguous: the contour does not show how far the organ sags (the sag found is %.0f %% of what the "
+                    "contour alone asks for, "
                     "and the two put the organ %.1f mm apart)",
                     100 * sagProbe.share, sagProbe.apartMm);
     } else if (res.alternatives.size() == 1) {
       const auto& alt = res.alternatives.front();
       // "Nearly as well" only when it does fit worse: one that fits slightly better (below the margin the fit adopts
       // another pose by) is said so, never presented as the lesser.
-      std::snprintf(text, sizeof text, "ambiguous: another pose %.0f mm away fits the contour %s the rigid fit (%.2f px against %.2f px)",
-                    alt.apartMm, alt.score < probedScore ? "slightly better than" : "nearly as well as", alt.score, probedScore);
+      std::snprintf(text, sizeof text,
+                    "ambiguous: another pose %.0f mm away fits the contour %s the rigid fit (%.2f px against %.2f px)",
+                    alt.apartMm, alt.score < probedScore ? "slightly better than" : "nearly as well as", alt.score,
+                    probedScore);
     } else {
       const auto& alt = res.alternatives.front();
       double nearest = alt.apartMm;
       for (const auto& a : res.alternatives) nearest = std::min(nearest, a.apartMm);
       std::snprintf(text, sizeof text,
-                    "ambiguous: %zu other poses, %.0f mm or more away, fit the contour %s the rigid fit (the best %.2f px against %.2f px)",
-                    res.alternatives.size(), nearest, alt.score < probedScore ? "as well as or slightly better than" : "nearly as well as", alt.score,
+                    "ambiguous: %zu other poses, %.0f mm or more away, fit the contour %s the rigid fit (the best %.2f "
+                    "px against %.2f px)",
+                    res.alternatives.size(), nearest,
+                    alt.score < probedScore ? "as well as or slightly better than" : "nearly as well as", alt.score,
                     probedScore);
     }
     std::string decide;
@@ -718,7 +760,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       if (where.back() == ' ') where.pop_back();
       if (where == "upper") where = "top";
       if (where == "lower") where = "bottom";
-      decide = "; the contour along the organ's " + where + " side (" + std::to_string(static_cast<int>(100 * openLength / allLength)) +
+      decide = "; the contour along the organ's " + where + " side (" +
+               std::to_string(static_cast<int>(100 * openLength / allLength)) +
                " % of its outline is not drawn), or a ridge or ligament curve, would decide it";
     } else {
       decide = "; a ridge or ligament curve drawn on the organ (step 3) would decide it";

@@ -52,9 +52,9 @@ Foot nearestOnPolyline(const std::vector<Eigen::Vector2d>& line, const Eigen::Ve
 
 struct Binding {
   int a, b;
-  double t;                 // along the edge
-  Eigen::Vector2d contour;  // the contour point
-  double distance;          // px
+  double t;                                          // along the edge
+  Eigen::Vector2d contour;                           // the contour point
+  double distance;                                   // px
   Eigen::Vector2d normal = Eigen::Vector2d::Zero();  // unit normal of the contour there (for sliding)
   Eigen::Vector3d bulge = Eigen::Vector3d::Zero();   // the edge's bulge (SilhouetteEdge::bulge)
 };
@@ -62,9 +62,11 @@ Eigen::Vector3d point(const Eigen::VectorXd& x, const Binding& b);
 
 /// The pose (and, when U has columns, the sag with it) refined onto the bindings (registration_pose.cpp): the bound
 /// point is base + U a; Levenberg-Marquardt with a prior (a - a0)' P (a - a0) on the load.
-void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings, const Pinhole& cam,
-                      bool pointToLine, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0, const Eigen::Matrix3d& prior);
+void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings,
+                      const Pinhole& cam, bool pointToLine, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0,
+                      const Eigen::Matrix3d& prior);
 // The pose alone, the shape x as it is.
-Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam, bool pointToLine);
+Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam,
+                bool pointToLine);
 
 }  // namespace rehearse::simcore::detail

@@ -54,7 +54,8 @@ struct PoseSagProblem {
     return c;
   }
   // Gauss-Newton's normal equations in (rotation increment, translation, load), camera frame increments.
-  void normalEquations(const Pose& pose, const Eigen::Vector3d& load, Eigen::MatrixXd& JtJ, Eigen::VectorXd& Jtr) const {
+  void normalEquations(const Pose& pose, const Eigen::Vector3d& load, Eigen::MatrixXd& JtJ,
+                       Eigen::VectorXd& Jtr) const {
     const Eigen::Index n = size();
     JtJ = Eigen::MatrixXd::Zero(n, n);
     Jtr = Eigen::VectorXd::Zero(n);
@@ -83,9 +84,12 @@ struct PoseSagProblem {
 };
 
 // Levenberg-Marquardt on the problem, with a prior (a - a0)' P (a - a0) on the load (P per (m/s^2)^2).
-void refinePoseAndSag(const PoseSagProblem& pr, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0, const Eigen::Matrix3d& prior) {
+void refinePoseAndSag(const PoseSagProblem& pr, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0,
+                      const Eigen::Matrix3d& prior) {
   const bool sag = pr.U.cols() > 0;
-  auto cost = [&](const Pose& p, const Eigen::Vector3d& load) { return pr.cost(p, load) + (sag ? (load - a0).dot(prior * (load - a0)) : 0.0); };
+  auto cost = [&](const Pose& p, const Eigen::Vector3d& load) {
+    return pr.cost(p, load) + (sag ? (load - a0).dot(prior * (load - a0)) : 0.0);
+  };
   double lambda = 1e-3;
   double current = cost(pose, a);
   Eigen::MatrixXd JtJ;
@@ -103,7 +107,8 @@ void refinePoseAndSag(const PoseSagProblem& pr, Pose& pose, Eigen::Vector3d& a, 
       const Eigen::VectorXd delta = -A.ldlt().solve(Jtr);
       if (!delta.allFinite()) break;
       const Eigen::Vector3d w = delta.head<3>();
-      const Eigen::Matrix3d dR = w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() : Eigen::Matrix3d::Identity();
+      const Eigen::Matrix3d dR =
+          w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() : Eigen::Matrix3d::Identity();
       Pose trial;
       trial.R = dR * pose.R;
       trial.t = dR * pose.t + delta.segment<3>(3);
@@ -125,13 +130,15 @@ void refinePoseAndSag(const PoseSagProblem& pr, Pose& pose, Eigen::Vector3d& a, 
 
 }  // namespace
 
-void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings, const Pinhole& cam,
-                      bool pointToLine, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0, const Eigen::Matrix3d& prior) {
+void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings,
+                      const Pinhole& cam, bool pointToLine, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0,
+                      const Eigen::Matrix3d& prior) {
   refinePoseAndSag(PoseSagProblem{base, U, bindings, cam, pointToLine}, pose, a, a0, prior);
 }
 
 // The pose alone, the shape x as it is.
-Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam, bool pointToLine) {
+Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam,
+                bool pointToLine) {
   static const Eigen::MatrixXd none;
   Eigen::Vector3d a = Eigen::Vector3d::Zero();
   refinePoseAndSag(PoseSagProblem{x, none, bindings, cam, pointToLine}, pose, a, a, Eigen::Matrix3d::Zero());

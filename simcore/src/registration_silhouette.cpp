@@ -17,8 +17,10 @@ namespace rehearse::simcore {
 namespace detail {
 
 void checkCamera(const Pinhole& c) {
-  if (!(c.K(0, 0) > 0) || !(c.K(1, 1) > 0) || c.width <= 0 || c.height <= 0 || !c.K.allFinite() || std::abs(c.K(2, 2) - 1) > 1e-9)
-    throw MeshError("The camera is unusable (its focal lengths and image size must be positive); load a calibration first.");
+  if (!(c.K(0, 0) > 0) || !(c.K(1, 1) > 0) || c.width <= 0 || c.height <= 0 || !c.K.allFinite() ||
+      std::abs(c.K(2, 2) - 1) > 1e-9)
+    throw MeshError(
+        "The camera is unusable (its focal lengths and image size must be positive); load a calibration first.");
 }
 
 // "0.57 px", for statuses.
@@ -54,7 +56,8 @@ Foot nearestOnPolyline(const std::vector<Eigen::Vector2d>& line, const Eigen::Ve
     const double t = closestParameter(line[i], line[i + 1], p);
     const Eigen::Vector2d q = line[i] + t * tangent;
     const double d = (q - p).norm();
-    const Eigen::Vector2d n = tangent.norm() > 0 ? Eigen::Vector2d(-tangent.y(), tangent.x()).normalized() : Eigen::Vector2d::Zero();
+    const Eigen::Vector2d n =
+        tangent.norm() > 0 ? Eigen::Vector2d(-tangent.y(), tangent.x()).normalized() : Eigen::Vector2d::Zero();
     if (d < f.distance) f = {q, n, d, (i == 0 && t == 0.0) || (i + 2 == line.size() && t == 1.0)};
   }
   return f;
@@ -75,8 +78,8 @@ double SilhouetteEdge::nearest(const Eigen::Vector2d& p, double* distance) const
   return d0 <= d1 ? 0.5 * s0 : 0.5 + 0.5 * s1;
 }
 
-std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 3>>& triangles, const Eigen::VectorXd& x, const Pose& pose,
-                                              const Pinhole& camera) {
+std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 3>>& triangles,
+                                              const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera) {
   checkCamera(camera);
   const std::size_t n = static_cast<std::size_t>(x.size() / 3);
   std::vector<Eigen::Vector3d> pc(n);
@@ -84,14 +87,16 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
   std::vector<char> used(n, 0);
   for (const auto& t : triangles)
     for (int v : t) {
-      if (v < 0 || static_cast<std::size_t>(v) >= n) throw MeshError("A surface triangle refers to a node that does not exist.");
+      if (v < 0 || static_cast<std::size_t>(v) >= n)
+        throw MeshError("A surface triangle refers to a node that does not exist.");
       used[v] = 1;
     }
   for (std::size_t i = 0; i < n; ++i) {
     pc[i] = pose.apply(x.segment<3>(3 * i));
     if (!used[i]) continue;
     if (!(pc[i].z() > 1e-6) || !pc[i].allFinite())
-      throw MeshError("The organ is behind the camera (or crosses its image plane); place it in front of the camera first.");
+      throw MeshError(
+          "The organ is behind the camera (or crosses its image plane); place it in front of the camera first.");
     pix[i] = camera.project(pc[i]);
   }
   // Vertex normals (area-weighted, model frame) for the edges' bulge.
@@ -112,7 +117,8 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
   // Depth buffer at up to 800 pixels across (it only decides which vertices are hidden; the silhouette's
   // edges are the exact projected mesh edges): the nearest depth per pixel.
   const double scale = std::min(1.0, 800.0 / std::max(camera.width, camera.height));
-  const int W = std::max(1, static_cast<int>(camera.width * scale)), H = std::max(1, static_cast<int>(camera.height * scale));
+  const int W = std::max(1, static_cast<int>(camera.width * scale)),
+            H = std::max(1, static_cast<int>(camera.height * scale));
   std::vector<float> depth(static_cast<std::size_t>(W) * H, std::numeric_limits<float>::infinity());
   for (std::size_t f = 0; f < triangles.size(); ++f) {
     if (!front[f]) continue;
@@ -141,7 +147,8 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
   std::vector<char> visible(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (!used[i]) continue;
-    const int px = static_cast<int>(std::floor(pix[i].x() * scale)), py = static_cast<int>(std::floor(pix[i].y() * scale));
+    const int px = static_cast<int>(std::floor(pix[i].x() * scale)),
+              py = static_cast<int>(std::floor(pix[i].y() * scale));
     const double eps = 2e-3 * pc[i].z() + 1e-4;
     bool vis = px < 0 || py < 0 || px >= W || py >= H;  // outside the image: not occluded by anything drawn
     for (int dy = -1; dy <= 1 && !vis; ++dy)
@@ -195,7 +202,9 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
     const Eigen::Vector3d A = x.segment<3>(3 * e.a), B = x.segment<3>(3 * e.b);
     e.bulge = -((B - A).dot(normals[e.a]) * normals[e.a] + (A - B).dot(normals[e.b]) * normals[e.b]) / 8;
     const double cap = 0.25 * (B - A).norm();
-    if (!(e.bulge.norm() <= cap)) e.bulge = e.bulge.allFinite() && e.bulge.norm() > 0 ? Eigen::Vector3d(e.bulge.normalized() * cap) : Eigen::Vector3d::Zero();
+    if (!(e.bulge.norm() <= cap))
+      e.bulge = e.bulge.allFinite() && e.bulge.norm() > 0 ? Eigen::Vector3d(e.bulge.normalized() * cap)
+                                                          : Eigen::Vector3d::Zero();
     const Eigen::Vector3d mid = pose.apply(0.5 * (A + B) + e.bulge);
     e.pm = mid.z() > 1e-6 ? camera.project(mid) : Eigen::Vector2d(0.5 * (e.pa + e.pb));
     out.push_back(e);
@@ -203,14 +212,16 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
   return out;
 }
 
-Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& contour, const std::vector<SilhouetteEdge>& silhouette) {
+Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& contour,
+                           const std::vector<SilhouetteEdge>& silhouette) {
   ResidualSum sum;
   for (const auto& seg : contour)
     for (const auto& p : seg) sum.add(distanceToSilhouette(silhouette, p));
   return sum.result();
 }
 
-std::vector<int> surfacePath(const std::vector<std::array<int, 3>>& triangles, const std::vector<Eigen::Vector3d>& points, int from, int to) {
+std::vector<int> surfacePath(const std::vector<std::array<int, 3>>& triangles,
+                             const std::vector<Eigen::Vector3d>& points, int from, int to) {
   const int n = static_cast<int>(points.size());
   if (from < 0 || to < 0 || from >= n || to >= n) return {};
   if (from == to) return {from};
@@ -249,14 +260,17 @@ std::vector<int> surfacePath(const std::vector<std::array<int, 3>>& triangles, c
   return path;
 }
 
-Residual2D curveResidual(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera) {
+Residual2D curveResidual(const std::vector<AnatomicalCurve>& curves, const Eigen::VectorXd& x, const Pose& pose,
+                         const Pinhole& camera) {
   ResidualSum sum;
   std::vector<Eigen::Vector2d> projected;
   for (const auto& c : curves) {
     projected.clear();
     for (int node : c.nodes) {
       const Eigen::Vector3d q = pose.apply(x.segment<3>(3 * node));
-      if (!(q.z() > 1e-6)) throw MeshError("A node of an anatomical curve is behind the camera; place the organ in front of the camera first.");
+      if (!(q.z() > 1e-6))
+        throw MeshError(
+            "A node of an anatomical curve is behind the camera; place the organ in front of the camera first.");
       projected.push_back(camera.project(q));
     }
     if (projected.empty()) continue;

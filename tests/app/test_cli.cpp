@@ -27,7 +27,8 @@ class TestCli : public QObject {
   void helpAndVersion() {
     auto h = run({"--help"});
     QCOMPARE(h.code, 0);
-    for (const char* s : {"phantom --out", "mesh --in", "info FILE", "open CASE"}) QVERIFY(h.out.contains(QLatin1String(s)));
+    for (const char* s : {"phantom --out", "mesh --in", "info FILE", "open CASE"})
+      QVERIFY(h.out.contains(QLatin1String(s)));
     auto v = run({"--version"});
     QCOMPARE(v.code, 0);
     QVERIFY(v.out.startsWith("rehearse 0."));
@@ -35,16 +36,17 @@ class TestCli : public QObject {
   // Issue 33: every sub-command prints its usage and its options (declared once: the parser accepts exactly those);
   // an option another command takes is refused, pointing at the command's own help.
   void helpPerCommand() {
-    const QMap<QString, QStringList> expect = {{"phantom", {"--out DIR", "--tets N", "--seed S"}},
-                                               {"mesh", {"--in SURFACE", "--target-tets N", "--ascii ", "--allow-self-intersections"}},
-                                               {"info", {"--unit U"}},
-                                               {"simulate", {"--preset NAME", "--steps N", "--static", "--strict", "--list-components"}},
-                                               {"register", {"--contour C.json", "--no-rigid-prepass", "--gravity-camera X,Y,Z", "--young PA"}},
-                                               {"appearance", {"--image FRAME", "--inpaint I", "--diffuse ID.png"}},
-                                               {"compose", {"--theta THETA.json", "--deformed D.vtu"}},
-                                               {"gesture", {"--script G.json", "--refresh R", "--record CASE", "--vessel-young PA"}},
-                                               {"replay", {"--session ID", "--verify", "--planned-cut A:B", "--metrics-csv OUT.csv"}},
-                                               {"publish", {"--service NAME"}}};
+    const QMap<QString, QStringList> expect = {
+        {"phantom", {"--out DIR", "--tets N", "--seed S"}},
+        {"mesh", {"--in SURFACE", "--target-tets N", "--ascii ", "--allow-self-intersections"}},
+        {"info", {"--unit U"}},
+        {"simulate", {"--preset NAME", "--steps N", "--static", "--strict", "--list-components"}},
+        {"register", {"--contour C.json", "--no-rigid-prepass", "--gravity-camera X,Y,Z", "--young PA"}},
+        {"appearance", {"--image FRAME", "--inpaint I", "--diffuse ID.png"}},
+        {"compose", {"--theta THETA.json", "--deformed D.vtu"}},
+        {"gesture", {"--script G.json", "--refresh R", "--record CASE", "--vessel-young PA"}},
+        {"replay", {"--session ID", "--verify", "--planned-cut A:B", "--metrics-csv OUT.csv"}},
+        {"publish", {"--service NAME"}}};
     for (auto it = expect.begin(); it != expect.end(); ++it) {
       const auto h = run({it.key(), "--help"});
       QCOMPARE(h.code, 0);
@@ -63,8 +65,8 @@ class TestCli : public QObject {
     const QString dir = QString::fromStdString(tempPath("cli-phantom"));
     auto r = run({"phantom", "--out", dir});
     QVERIFY2(r.code == 0, qPrintable(r.err));
-    for (const char* f : {"case.json", "organ.vtu", "organ.msh", "organ_surface.obj", "vessels_surface.obj", "camera.yaml",
-                          "frame.png", "pose.json", "appearance.json", "attachments.json"})
+    for (const char* f : {"case.json", "organ.vtu", "organ.msh", "organ_surface.obj", "vessels_surface.obj",
+                          "camera.yaml", "frame.png", "pose.json", "appearance.json", "attachments.json"})
       QVERIFY2(QFile::exists(dir + "/" + f), f);
     auto info = run({"info", dir + "/organ.msh"});
     QCOMPARE(info.code, 0);
@@ -76,13 +78,16 @@ class TestCli : public QObject {
   // its truth) against appearance.json, the truth it was rendered with; the report's stages; compose of a
   // simulated sag; bad input in one line.
   // A scripted rehearsal without a window: the shipped grasp-pull on the liver preset; the report's rows
-  // carry the keys the issue names; the written volume is the organ's; the shipped cut grows the written mesh; a cut asked of the grasper is refused in one sentence.
+  // carry the keys the issue names; the written volume is the organ's; the shipped cut grows the written mesh; a cut
+  // asked of the grasper is refused in one sentence.
   void gestureScript() {
     const QString dir = QString::fromStdString(tempPath("cli-gesture"));
     QDir().mkpath(dir);
     const QString script = QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json";
-    auto r = run({"gesture", "--preset", "liver", "--script", script, "--method", "linearised", "--out", dir + "/out.vtu", "--report", dir + "/report.json"});
-    // Every step taken; the linearised method's one solve leaves some above its tolerance as the liver settles (exit 5).
+    auto r = run({"gesture", "--preset", "liver", "--script", script, "--method", "linearised", "--out",
+                  dir + "/out.vtu", "--report", dir + "/report.json"});
+    // Every step taken; the linearised method's one solve leaves some above its tolerance as the liver settles (exit
+    // 5).
     QVERIFY2(::testing::tookEveryStep(r), qPrintable(r.err + r.out));
     QFile f(dir + "/report.json");
     QVERIFY(f.open(QIODevice::ReadOnly));
@@ -93,7 +98,8 @@ class TestCli : public QObject {
     bool graspEvent = false, releaseEvent = false;
     for (const auto& v : steps) {
       const QJsonObject row = v.toObject();
-      for (const char* key : {"wall_ms", "mass_kg", "elements", "nodes", "tool_force_n", "events"}) QVERIFY2(row.contains(key), key);
+      for (const char* key : {"wall_ms", "mass_kg", "elements", "nodes", "tool_force_n", "events"})
+        QVERIFY2(row.contains(key), key);
       QCOMPARE(row["tool_force_n"].toArray().size(), 3);
       QCOMPARE(row["elements"].toInt(), 3760);
       grasped = std::max(grasped, row["grasped_nodes"].toInt());
@@ -107,14 +113,16 @@ class TestCli : public QObject {
     QVERIFY(QFile(dir + "/out.vtu").size() > 10000);
     // The shipped cut: the written volume has the cut's elements and nodes, the report counts its updates.
     const QString cutScript = QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json";
-    r = run({"gesture", "--preset", "liver", "--script", cutScript, "--method", "linearised", "--out", dir + "/cut.vtu", "--report", dir + "/cut.json"});
+    r = run({"gesture", "--preset", "liver", "--script", cutScript, "--method", "linearised", "--out", dir + "/cut.vtu",
+             "--report", dir + "/cut.json"});
     QVERIFY2(::testing::tookEveryStep(r), qPrintable(r.err + r.out));
     QFile cf(dir + "/cut.json");
     QVERIFY(cf.open(QIODevice::ReadOnly));
     const QJsonObject cutReport = QJsonDocument::fromJson(cf.readAll()).object();
     QVERIFY(cutReport["cuts"].toInt() > 0);
     const QJsonArray cutSteps = cutReport["steps"].toArray();
-    const int elements = cutSteps.last().toObject()["elements"].toInt(), nodes = cutSteps.last().toObject()["nodes"].toInt();
+    const int elements = cutSteps.last().toObject()["elements"].toInt(),
+              nodes = cutSteps.last().toObject()["nodes"].toInt();
     QVERIFY(elements > 3760 && nodes > 783);
     QCOMPARE(cutReport["elements"].toInt(), elements);
     const rehearse::simcore::Mesh written = rehearse::simcore::loadMesh((dir + "/cut.vtu").toStdString());
@@ -134,8 +142,9 @@ class TestCli : public QObject {
   void appearanceAndCompose() {
     const QString dir = QString::fromStdString(tempPath("cli-appearance"));
     QCOMPARE(run({"phantom", "--out", dir}).code, 0);
-    auto r = run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image",
-                  dir + "/frame.png", "--out", dir + "/theta.json", "--report", dir + "/report.json", "--inpaint", "ns"});
+    auto r = run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                  dir + "/pose.json", "--image", dir + "/frame.png", "--out", dir + "/theta.json", "--report",
+                  dir + "/report.json", "--inpaint", "ns"});
     QVERIFY2(r.code == 0, qPrintable(r.err + r.out));
     auto readJson = [](const QString& path) {
       QFile f(path);
@@ -146,20 +155,28 @@ class TestCli : public QObject {
     const QJsonObject report = readJson(dir + "/report.json");
     for (int k = 0; k < 3; ++k) {
       const double kd = fitted["kd"].toArray()[k].toDouble(), kdTrue = truth["kd"].toArray()[k].toDouble();
-      QVERIFY2(std::abs(kd - kdTrue) < 0.05 * kdTrue, qPrintable(QString("kd %1: %2 against %3").arg(k).arg(kd).arg(kdTrue)));
-      QVERIFY(std::abs(fitted["light_position"].toArray()[k].toDouble() - truth["light_position"].toArray()[k].toDouble()) < 0.005);
+      QVERIFY2(std::abs(kd - kdTrue) < 0.05 * kdTrue,
+               qPrintable(QString("kd %1: %2 against %3").arg(k).arg(kd).arg(kdTrue)));
+      QVERIFY(std::abs(fitted["light_position"].toArray()[k].toDouble() -
+                       truth["light_position"].toArray()[k].toDouble()) < 0.005);
     }
-    QVERIFY(std::abs(fitted["roughness"].toDouble() - truth["roughness"].toDouble()) < 0.1 * truth["roughness"].toDouble());
+    QVERIFY(std::abs(fitted["roughness"].toDouble() - truth["roughness"].toDouble()) <
+            0.1 * truth["roughness"].toDouble());
     QCOMPARE(report["stages"].toArray().size(), 4);
     QVERIFY(report["rest_psnr_db"].toDouble() >= 30);
-    QVERIFY(report["status"].toString().contains("red channel is clipped"));  // the phantom's red clips at its highlight: said
+    QVERIFY(report["status"].toString().contains(
+        "red channel is clipped"));  // the phantom's red clips at its highlight: said
     // Compose a sag simulated on the same mesh (the liver preset is the built-in phantom hung by its
     // ligaments; nodes in the input order).
     QCOMPARE(run({"simulate", "--preset", "liver", "--steps", "10", "--out", dir + "/sag.vtu"}).code, 0);
     // The case folder's own attachments.json is read by --fixed-nodes too (it was refused before).
-    QCOMPARE(run({"simulate", "--mesh", dir + "/organ.vtu", "--fixed-nodes", dir + "/attachments.json", "--steps", "2", "--out", dir + "/held.vtu"}).code, 0);
-    r = run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image", dir + "/frame.png",
-             "--theta", dir + "/theta.json", "--deformed", dir + "/sag.vtu", "--out", dir + "/j.png"});
+    QCOMPARE(run({"simulate", "--mesh", dir + "/organ.vtu", "--fixed-nodes", dir + "/attachments.json", "--steps", "2",
+                  "--out", dir + "/held.vtu"})
+                 .code,
+             0);
+    r = run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json",
+             "--image", dir + "/frame.png", "--theta", dir + "/theta.json", "--deformed", dir + "/sag.vtu", "--out",
+             dir + "/j.png"});
     QVERIFY2(r.code == 0, qPrintable(r.err));
     QVERIFY(QFile(dir + "/j.png").size() > 10000);
     // Bad input: the organ behind the camera, a deformed mesh of another organ, an unknown inpainting method.
@@ -167,21 +184,23 @@ class TestCli : public QObject {
     behind.open(QIODevice::WriteOnly);
     behind.write(R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, -0.5]})");
     behind.close();
-    expectOneLineError(run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/behind.json", "--image",
-                            dir + "/frame.png", "--out", dir + "/x.json"}),
+    expectOneLineError(run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/behind.json", "--image", dir + "/frame.png", "--out", dir + "/x.json"}),
                        1, "behind the camera");
     QVERIFY(!QFile::exists(dir + "/x.json"));
-    expectOneLineError(run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image",
-                            dir + "/frame.png", "--theta", dir + "/theta.json", "--deformed", dir + "/organ_surface.obj", "--out", dir + "/k.png"}),
+    expectOneLineError(run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/pose.json", "--image", dir + "/frame.png", "--theta", dir + "/theta.json",
+                            "--deformed", dir + "/organ_surface.obj", "--out", dir + "/k.png"}),
                        1, "same mesh in the same order");
-    expectOneLineError(run({"appearance", "--case", dir, "--pose", dir + "/pose.json", "--out", dir + "/y.json", "--inpaint", "magic"}), 1,
-                       "choose telea, ns, shiftmap or fsr");
+    expectOneLineError(run({"appearance", "--case", dir, "--pose", dir + "/pose.json", "--out", dir + "/y.json",
+                            "--inpaint", "magic"}),
+                       1, "choose telea, ns, shiftmap or fsr");
   }
   void meshAndInfo() {
     REQUIRE_SHARED("scikit-surgery/liver_downsample.stl");
     const QString out = QString::fromStdString(tempPath("liver.vtu"));
-    auto r = run({"mesh", "--in", QString::fromStdString(sharedData("scikit-surgery/liver_downsample.stl")), "--out", out,
-                  "--target-tets", "3000", "--unit", "mm"});
+    auto r = run({"mesh", "--in", QString::fromStdString(sharedData("scikit-surgery/liver_downsample.stl")), "--out",
+                  out, "--target-tets", "3000", "--unit", "mm"});
     QVERIFY2(r.code == 0, qPrintable(r.err));
     QVERIFY(r.out.contains("tetrahedra:"));
     auto info = run({"info", out});
@@ -195,7 +214,8 @@ class TestCli : public QObject {
     QVERIFY(s.out.contains("self-intersecting triangle pairs: 0"));
   }
   void simulate() {
-    const QString out = QString::fromStdString(tempPath("sim.vtu")), report = QString::fromStdString(tempPath("sim.json"));
+    const QString out = QString::fromStdString(tempPath("sim.vtu")),
+                  report = QString::fromStdString(tempPath("sim.json"));
     auto r = run({"simulate", "--preset", "liver", "--steps", "3", "--out", out, "--report", report});
     QVERIFY2(r.code == 0, qPrintable(r.err));
     const QJsonDocument doc = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(report.toStdString())));
@@ -207,17 +227,21 @@ class TestCli : public QObject {
       QVERIFY(s.toObject()["wall_ms"].toDouble() > 0);
     }
     // The Newton variant and Lagrange attachments from the command line.
-    auto lin = run({"simulate", "--preset", "liver", "--steps", "3", "--method", "linearised", "--attachments", "lagrange", "--out", out,
-                    "--report", report});
+    auto lin = run({"simulate", "--preset", "liver", "--steps", "3", "--method", "linearised", "--attachments",
+                    "lagrange", "--out", out, "--report", report});
     QVERIFY2(::testing::tookEveryStep(lin), qPrintable(lin.out + lin.err));
-    const QJsonArray linSteps = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(report.toStdString()))).object()["steps"].toArray();
+    const QJsonArray linSteps =
+        QJsonDocument::fromJson(QByteArray::fromStdString(readFile(report.toStdString()))).object()["steps"].toArray();
     QCOMPARE(linSteps.size(), 3);
-    QCOMPARE(linSteps[0].toObject()["factorisations"].toInt(), 1);  // the first step builds the factor ...
+    QCOMPARE(linSteps[0].toObject()["factorisations"].toInt(), 1);     // the first step builds the factor ...
     QCOMPARE(linSteps[2].toObject()["newton_iterations"].toInt(), 1);  // ... and each step is one solve
     // The allocation-free simplicial factor gives the same motion as the supernodal one.
-    const QString outSimplicial = QString::fromStdString(tempPath("sim-simplicial.msh")), outSupernodal = QString::fromStdString(tempPath("sim-supernodal.msh"));
-    for (const auto& [factor, file] : {std::pair{QStringLiteral("simplicial"), outSimplicial}, std::pair{QStringLiteral("supernodal"), outSupernodal}}) {
-      auto f = run({"simulate", "--preset", "liver", "--steps", "3", "--method", "exact", "--factor", factor, "--out", file});
+    const QString outSimplicial = QString::fromStdString(tempPath("sim-simplicial.msh")),
+                  outSupernodal = QString::fromStdString(tempPath("sim-supernodal.msh"));
+    for (const auto& [factor, file] : {std::pair{QStringLiteral("simplicial"), outSimplicial},
+                                       std::pair{QStringLiteral("supernodal"), outSupernodal}}) {
+      auto f = run(
+          {"simulate", "--preset", "liver", "--steps", "3", "--method", "exact", "--factor", factor, "--out", file});
       QVERIFY2(f.code == 0, qPrintable(f.err));
     }
     {
@@ -241,10 +265,14 @@ class TestCli : public QObject {
       qInfo("simplicial vs supernodal factor after 3 exact steps: largest coordinate difference %.2e m", worst);
       QVERIFY2(worst < 1e-9, qPrintable(QString::number(worst)));
     }
-    expectOneLineError(run({"simulate", "--preset", "liver", "--factor", "dense", "--out", out}), 2, "supernodal or simplicial");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--factor", "dense", "--out", out}), 2,
+                       "supernodal or simplicial");
     // A solver that cannot honour the attachments or the method is refused, not run another way.
-    expectOneLineError(run({"simulate", "--preset", "liver", "--solver", "cg", "--attachments", "lagrange", "--out", out}), 1, "CHOLMOD");
-    expectOneLineError(run({"simulate", "--preset", "liver", "--solver", "dense", "--method", "chord", "--out", out}), 1, "exact method");
+    expectOneLineError(
+        run({"simulate", "--preset", "liver", "--solver", "cg", "--attachments", "lagrange", "--out", out}), 1,
+        "CHOLMOD");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--solver", "dense", "--method", "chord", "--out", out}),
+                       1, "exact method");
     // A long list of fixed nodes is a list (not a file name too long), and a token that is not an index is refused.
     {
       QString many;
@@ -253,19 +281,41 @@ class TestCli : public QObject {
       QVERIFY2(ok.code == 0, qPrintable(ok.err));
       const std::string bad = tempPath("bad-nodes.txt");
       writeFile(bad, "3 x 5\n");
-      expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", QString::fromStdString(bad), "--out", out}), 2, "not a node index");
-      expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "nodes-nowhere.txt", "--out", out}), 2, "is neither");
+      expectOneLineError(
+          run({"simulate", "--preset", "liver", "--fixed-nodes", QString::fromStdString(bad), "--out", out}), 2,
+          "not a node index");
+      expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "nodes-nowhere.txt", "--out", out}), 2,
+                         "is neither");
     }
     expectOneLineError(run({"simulate", "--preset", "liver", "--method", "magic", "--out", out}), 1, "Newton method");
-    expectOneLineError(run({"simulate", "--preset", "liver", "--attachments", "glue", "--out", out}), 2, "projection or lagrange");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--attachments", "glue", "--out", out}), 2,
+                       "projection or lagrange");
     auto info = run({"info", out});
     QVERIFY(info.out.contains("tetrahedra: "));
     // One-off run on a mesh file with material flags; the output keeps the input node order.
     if (QFile::exists(QString::fromStdString(sharedData("sofa/liver.msh")))) {
       const QString o2 = QString::fromStdString(tempPath("sofa.vtk"));
-      auto s = run({"simulate", "--mesh", QString::fromStdString(sharedData("sofa/liver.msh")), "--material", "corotational", "--young",
-                    "3000", "--poisson", "0.3", "--density", "1", "--fixed-nodes", "3 39 64", "--gravity", "0,-9.81,0", "--dt", "0.02",
-                    "--steps", "5", "--out", o2});
+      auto s = run({"simulate",
+                    "--mesh",
+                    QString::fromStdString(sharedData("sofa/liver.msh")),
+                    "--material",
+                    "corotational",
+                    "--young",
+                    "3000",
+                    "--poisson",
+                    "0.3",
+                    "--density",
+                    "1",
+                    "--fixed-nodes",
+                    "3 39 64",
+                    "--gravity",
+                    "0,-9.81,0",
+                    "--dt",
+                    "0.02",
+                    "--steps",
+                    "5",
+                    "--out",
+                    o2});
       QVERIFY2(s.code == 0, qPrintable(s.err));
       QVERIFY(run({"info", o2}).out.contains("points: 181"));
     }
@@ -274,16 +324,18 @@ class TestCli : public QObject {
     QVERIFY(run({"phantom", "--out", dir}).code == 0);
     const std::string scene = tempPath("embed-case/scene.json");
     // The case's own ligament nodes, from its attachments file (not a list copied from an earlier run).
-    const QJsonArray held = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(tempPath("embed-case/attachments.json"))))
-                                .object()
-                                .value("nodes")
-                                .toArray();
+    const QJsonArray held =
+        QJsonDocument::fromJson(QByteArray::fromStdString(readFile(tempPath("embed-case/attachments.json"))))
+            .object()
+            .value("nodes")
+            .toArray();
     QVERIFY(held.size() >= 8);
     QString nodes;
     for (const auto& n : held) nodes += (nodes.isEmpty() ? "" : ", ") + QString::number(n.toInt());
     writeFile(scene, R"({"components": [{"type": "mesh", "file": "organ.vtu"},
       {"type": "material", "model": "linear", "young": 27000, "poisson": 0.4, "density": 1000},
-      {"type": "attachments", "nodes": [)" + nodes.toStdString() + R"(]},
+      {"type": "attachments", "nodes": [)" +
+                         nodes.toStdString() + R"(]},
       {"type": "gravity", "vector": [0, 9.81, 0]}, {"type": "static"},
       {"type": "embedded", "file": "vessels_surface.obj", "young": 620e3, "thickness": 0.001, "name": "vessels"}]})");
     const QString o3 = QString::fromStdString(tempPath("embed-case/out.vtu"));
@@ -292,10 +344,12 @@ class TestCli : public QObject {
     const QString mapped = QString::fromStdString(tempPath("embed-case/out.vessels.vtk"));
     QVERIFY(QFile::exists(mapped));
     QVERIFY(run({"info", mapped}).out.contains("triangles: "));
-    expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "999999", "--out", out}), 1, "does not exist");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "999999", "--out", out}), 1,
+                       "does not exist");
     expectOneLineError(run({"simulate", "--preset", "spleen", "--out", out}), 2, "preset 'spleen'");
     expectOneLineError(run({"simulate", "--preset", "liver", "--gravity", "down", "--out", out}), 2, "three numbers");
-    expectOneLineError(run({"simulate", "--preset", "liver", "--material", "rubber", "--out", out}), 1, "Unknown material");
+    expectOneLineError(run({"simulate", "--preset", "liver", "--material", "rubber", "--out", out}), 1,
+                       "Unknown material");
   }
 
   void errorsAreOneLine() {
@@ -314,8 +368,9 @@ class TestCli : public QObject {
     expectOneLineError(run({"info", QString::fromStdString(garbage)}), 1, "cannot be read");
     const std::string open = tempPath("open.obj");
     writeFile(open, "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n");
-    expectOneLineError(run({"mesh", "--in", QString::fromStdString(open), "--out", QString::fromStdString(tempPath("o.msh"))}), 1,
-                       "no closed part");
+    expectOneLineError(
+        run({"mesh", "--in", QString::fromStdString(open), "--out", QString::fromStdString(tempPath("o.msh"))}), 1,
+        "no closed part");
     expectOneLineError(run({"info", QString::fromStdString(open), "--unit", "parsec"}), 1, "Unknown length unit");
   }
 };

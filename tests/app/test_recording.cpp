@@ -37,10 +37,13 @@ using namespace rehearse;
 namespace {
 using ::testing::Run;
 using ::testing::run;
-QString script(const char* name) { return QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/" + name; }
+QString script(const char* name) {
+  return QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/" + name;
+}
 QStringList gestureArgs(const QString& dir, const char* scriptName, const QString& file) {
-  return {"gesture", "--preset", "liver", "--script", script(scriptName), "--method", "linearised", "--refresh", "async", "--out", dir + "/out.vtu",
-          "--record", file, "--trainee", "A. Trainee"};
+  return {"gesture",        "--preset",   "liver",     "--script",  script(scriptName),
+          "--method",       "linearised", "--refresh", "async",     "--out",
+          dir + "/out.vtu", "--record",   file,        "--trainee", "A. Trainee"};
 }
 }  // namespace
 
@@ -55,7 +58,9 @@ class TestRecording : public QObject {
   void recordingFromBeforeTheMoveVerifies() {
     QTemporaryDir dir;
     const QString file = dir.path() + "/before.rehearse";
-    QVERIFY(QFile::copy(QStringLiteral(REHEARSE_SOURCE_DIR) + "/tests/resources/recordings/grasp-pull-cut-before-house-move.rehearse", file));
+    QVERIFY(QFile::copy(
+        QStringLiteral(REHEARSE_SOURCE_DIR) + "/tests/resources/recordings/grasp-pull-cut-before-house-move.rehearse",
+        file));
     const Run r = run({"replay", file, "--session", "1", "--verify", "--metrics", dir.path() + "/m.json"});
     QVERIFY2(r.code == 0, qPrintable(r.out + r.err));
     QVERIFY2(r.out.contains("verified: 360 steps replayed, all 36 checksums match"), qPrintable(r.out));
@@ -80,7 +85,8 @@ class TestRecording : public QObject {
     QVERIFY2(b.out.contains("recorded: session 2"), qPrintable(b.out));
     const Run list = run({"replay", file});
     QCOMPARE(list.code, 0);
-    QVERIFY2(list.out.contains("session 1") && list.out.contains("session 2") && list.out.contains("A. Trainee"), qPrintable(list.out));
+    QVERIFY2(list.out.contains("session 1") && list.out.contains("session 2") && list.out.contains("A. Trainee"),
+             qPrintable(list.out));
     QVERIFY(!list.out.contains("cut short"));
     for (const char* id : {"1", "2"}) {
       const auto rec = app::loadRecording(file.toStdString(), std::stoll(id));
@@ -90,8 +96,9 @@ class TestRecording : public QObject {
         cuts += e.kind == simcore::InputKind::CutApplied;
       }
       const Run v = run({"replay", file, "--session", id, "--verify"});
-      qInfo("session %s: %zu events (%ld factor swaps, %ld cuts applied), %zu checksums over %ld steps: %s", id, rec.events.size(), factors, cuts,
-            rec.checksums.size(), rec.summary.steps, qPrintable(v.out.trimmed().split('\n').last()));
+      qInfo("session %s: %zu events (%ld factor swaps, %ld cuts applied), %zu checksums over %ld steps: %s", id,
+            rec.events.size(), factors, cuts, rec.checksums.size(), rec.summary.steps,
+            qPrintable(v.out.trimmed().split('\n').last()));
       QVERIFY2(v.code == 0, qPrintable(v.err));
       QCOMPARE(static_cast<long>(rec.checksums.size()), rec.summary.steps / 10);  // one every 10 steps
       QVERIFY(v.out.contains(QString("all %1 checksums match").arg(rec.checksums.size())));
@@ -109,7 +116,8 @@ class TestRecording : public QObject {
     QStringList args = gestureArgs(dir.path(), "grasp-pull.json", file);
     args << "--report" << dir.path() + "/live.json";
     QVERIFY(::testing::tookEveryStep(run(args)));
-    const Run m = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/metrics.json", "--force-threshold", "2"});
+    const Run m =
+        run({"replay", file, "--session", "1", "--metrics", dir.path() + "/metrics.json", "--force-threshold", "2"});
     QVERIFY2(m.code == 0, qPrintable(m.err));
     QFile mf(dir.path() + "/metrics.json"), lf(dir.path() + "/live.json");
     QVERIFY(mf.open(QIODevice::ReadOnly) && lf.open(QIODevice::ReadOnly));
@@ -120,7 +128,8 @@ class TestRecording : public QObject {
     int withForce = 0;
     for (const auto& row : rows) {
       const QJsonArray f = row.toObject().value("tool_force_n").toArray();
-      const double n = std::sqrt(f[0].toDouble() * f[0].toDouble() + f[1].toDouble() * f[1].toDouble() + f[2].toDouble() * f[2].toDouble());
+      const double n = std::sqrt(f[0].toDouble() * f[0].toDouble() + f[1].toDouble() * f[1].toDouble() +
+                                 f[2].toDouble() * f[2].toDouble());
       maxF = std::max(maxF, n);
       if (n > 0) {
         sumF += n;
@@ -131,11 +140,14 @@ class TestRecording : public QObject {
     // The move is spread evenly over its 100 steps, the first of them the step the tip appears at (already
     // 1/100 along): from where it appears the tip travels 99/100 of the move.
     const double path = 0.99 * std::sqrt(0.00416 * 0.00416 + 0.00732 * 0.00732 + 0.01814 * 0.01814);
-    qInfo("metrics: duration %.3f s, path %.6f m (script %.6f), economy %.9f, grasps %d, slips %d, max force %.4f N (live %.4f), mean %.4f N (live %.4f), "
-          "over 2 N %.2f s (live %.2f)",
-          metrics["duration_s"].toDouble(), metrics["path_length_m"].toDouble(), path, metrics["economy_of_motion"].toDouble(), metrics["grasps"].toInt(),
-          metrics["slips"].toInt(), metrics["max_force_n"].toDouble(), maxF, metrics["mean_force_n"].toDouble(), sumF / withForce,
-          metrics["time_over_threshold_s"].toDouble(), over);
+    qInfo(
+        "metrics: duration %.3f s, path %.6f m (script %.6f), economy %.9f, grasps %d, slips %d, max force %.4f N "
+        "(live %.4f), mean %.4f N (live %.4f), "
+        "over 2 N %.2f s (live %.2f)",
+        metrics["duration_s"].toDouble(), metrics["path_length_m"].toDouble(), path,
+        metrics["economy_of_motion"].toDouble(), metrics["grasps"].toInt(), metrics["slips"].toInt(),
+        metrics["max_force_n"].toDouble(), maxF, metrics["mean_force_n"].toDouble(), sumF / withForce,
+        metrics["time_over_threshold_s"].toDouble(), over);
     QVERIFY(std::abs(metrics["duration_s"].toDouble() - 3.5) < 1e-12);
     QVERIFY(std::abs(metrics["path_length_m"].toDouble() - path) < 1e-9);
     QVERIFY(std::abs(metrics["economy_of_motion"].toDouble() - 1.0) < 1e-9);
@@ -196,7 +208,8 @@ class TestRecording : public QObject {
     }
     const std::vector<std::uint64_t> straight = rehearse::testing::straightChecksums(rec);
     QCOMPARE(static_cast<long>(straight.size()), rec.summary.steps + 1);
-    for (const auto& [step, sum] : rec.checksums) QCOMPARE(straight[static_cast<std::size_t>(step)], sum);  // the straight run is the recorded one
+    for (const auto& [step, sum] : rec.checksums)
+      QCOMPARE(straight[static_cast<std::size_t>(step)], sum);  // the straight run is the recorded one
     app::Replayer replayer(rec);
     std::mt19937 rng(16);
     std::uniform_int_distribution<long> at(1, rec.summary.steps);
@@ -211,10 +224,14 @@ class TestRecording : public QObject {
       QCOMPARE(replayer.step(), target);
       fromCheckpoints += replayer.lastSeekFrom() > 0;
       QVERIFY2(app::stateChecksum(replayer.state()) == straight[static_cast<std::size_t>(target)],
-               qPrintable(QString("seeking to step %1 (from %2) differs from the straight run").arg(target).arg(replayer.lastSeekFrom())));
+               qPrintable(QString("seeking to step %1 (from %2) differs from the straight run")
+                              .arg(target)
+                              .arg(replayer.lastSeekFrom())));
     }
-    qInfo("%zu checkpoints (%d with a cut being built, %d with a factor requested); 10 seeks, %d from a checkpoint, ms@step:%s", rec.checkpointSteps.size(),
-          withPendingCut, withRequest, fromCheckpoints, qPrintable(times));
+    qInfo(
+        "%zu checkpoints (%d with a cut being built, %d with a factor requested); 10 seeks, %d from a checkpoint, "
+        "ms@step:%s",
+        rec.checkpointSteps.size(), withPendingCut, withRequest, fromCheckpoints, qPrintable(times));
     QVERIFY(fromCheckpoints >= 5);
     // Whether a checkpoint falls while a cut is built or a factor is requested depends on the live run's timing;
     // checkpointWithACutUnderWayIsComplete below makes both happen deterministically.
@@ -267,12 +284,14 @@ class TestRecording : public QObject {
         QVERIFY2(session.snapshot()->topologyVersion > 0, "the blade cut the block");
       }
       QVERIFY2(cp.pendingCut.has_value(), "the checkpoint falls while the cut's body is being built");
-      qInfo("cut latency %d: checkpoint at step %ld, a cut under way (%zu new nodes, applied at %ld), a factor %s", latency, cp.step, cp.pendingCut->newNodes.size(), cp.pendingCut->applyAt,
+      qInfo("cut latency %d: checkpoint at step %ld, a cut under way (%zu new nodes, applied at %ld), a factor %s",
+            latency, cp.step, cp.pendingCut->newNodes.size(), cp.pendingCut->applyAt,
             cp.state.lagged.requested ? "requested" : "not requested");
       // Through the bytes the recorder writes (setups by hash, without the cut's progress).
       std::map<std::uint64_t, simcore::BodySetup> setups;
       for (const auto* x : {&cp.setup, &cp.pendingCut->setup}) setups[app::setupHash(*x)] = app::sharedSetup(*x);
-      const simcore::Checkpoint back = app::decodeCheckpointState(app::encodeCheckpointState(cp), [&](std::uint64_t h) { return setups.at(h); });
+      const simcore::Checkpoint back =
+          app::decodeCheckpointState(app::encodeCheckpointState(cp), [&](std::uint64_t h) { return setups.at(h); });
       QVERIFY(back.pendingCut.has_value());
       simcore::Session resumed(s);
       resumed.restore(back);
@@ -287,8 +306,10 @@ class TestRecording : public QObject {
       // would see a checkpoint that lacks them).
       for (int strip = 0; strip < 2; ++strip) {
         simcore::Checkpoint partial = back;
-        if (strip == 0) partial.pendingCut.reset();
-        else partial.state.lagged.requested = false;
+        if (strip == 0)
+          partial.pendingCut.reset();
+        else
+          partial.state.lagged.requested = false;
         simcore::Session other(s);
         other.restore(partial);
         for (const auto& e : events)
@@ -298,7 +319,8 @@ class TestRecording : public QObject {
           other.advance();
           differs |= app::stateChecksum(other.state()) != straight[static_cast<std::size_t>(k - 1)];
         }
-        QVERIFY2(differs, strip == 0 ? "a checkpoint without its cut under way continued the same" : "a checkpoint without its requested factor continued the same");
+        QVERIFY2(differs, strip == 0 ? "a checkpoint without its cut under way continued the same"
+                                     : "a checkpoint without its requested factor continued the same");
       }
     }
   }
@@ -350,7 +372,8 @@ class TestRecording : public QObject {
     const double g = 0.3;
     Eigen::Matrix3d shear = Eigen::Matrix3d::Identity();
     shear(0, 1) = g;
-    QVERIFY(std::abs(app::maxGreenStrain(rest, deformed(shear), tets) - (g * g + g * std::sqrt(g * g + 4)) / 4) < 1e-12);
+    QVERIFY(std::abs(app::maxGreenStrain(rest, deformed(shear), tets) - (g * g + g * std::sqrt(g * g + 4)) / 4) <
+            1e-12);
   }
 
   // The review's exports and the metrics of a session with a grasp, a pull and a cut, against values worked
@@ -369,15 +392,17 @@ class TestRecording : public QObject {
     QVERIFY(th.open(QIODevice::WriteOnly));
     th.write(R"({"max_force_n": {"max": 1000}, "vessel_cuts": {"max": 0}, "tumour_breaches": {"max": 0}})");
     th.close();
-    const Run r = run({"replay", file, "--session", "1", "--verify", "--metrics", dir.path() + "/m.json", "--thresholds", dir.path() + "/t.json",
-                       "--planned-cut", "-0.055,0.05,-0.04:-0.055,0.05,0.05", "--video", dir.path() + "/v.mp4", "--report", dir.path() + "/r.pdf"});
+    const Run r = run({"replay", file, "--session", "1", "--verify", "--metrics", dir.path() + "/m.json",
+                       "--thresholds", dir.path() + "/t.json", "--planned-cut", "-0.055,0.05,-0.04:-0.055,0.05,0.05",
+                       "--video", dir.path() + "/v.mp4", "--report", dir.path() + "/r.pdf"});
     QVERIFY2(r.code == 0, qPrintable(r.out + r.err));
     QVERIFY2(r.out.contains("video: 91 frames of 640x480"), qPrintable(r.out));
     QFile mf(dir.path() + "/m.json");
     QVERIFY(mf.open(QIODevice::ReadOnly));
     const QJsonObject m = QJsonDocument::fromJson(mf.readAll()).object();
-    qInfo("cut length %.9f m, deviation mean %.9f max %.9f m, strain %.4f, max force %.3f N", m["cut_length_m"].toDouble(), m["cut_deviation_mean_m"].toDouble(),
-          m["cut_deviation_max_m"].toDouble(), m["max_strain"].toDouble(), m["max_force_n"].toDouble());
+    qInfo("cut length %.9f m, deviation mean %.9f max %.9f m, strain %.4f, max force %.3f N",
+          m["cut_length_m"].toDouble(), m["cut_deviation_mean_m"].toDouble(), m["cut_deviation_max_m"].toDouble(),
+          m["max_strain"].toDouble(), m["max_force_n"].toDouble());
     QVERIFY(std::abs(m["cut_length_m"].toDouble() - 99 * 0.0009) < 1e-9);
     // The path: the grasper's 15 mm pull over 60 steps (its first pose 1/60 along) and the hook's 90 mm (1/100
     // along), not the jump from one instrument to the other; both straight.
@@ -395,7 +420,8 @@ class TestRecording : public QObject {
     const QJsonObject live = QJsonDocument::fromJson(lf.readAll()).object();
     QVERIFY(std::abs(live["peak_tool_force_n"].toDouble() - m["max_force_n"].toDouble()) < 1e-9);
     QCOMPARE(m["vessel_cuts"].toInt(), live["vessel_cuts"].toInt());
-    QVERIFY(!m["vessel_cuts"].isNull() && m["vessel_cuts"].toInt() >= 1);  // the phantom names label 2 "vessels"; the hook goes through them
+    QVERIFY(!m["vessel_cuts"].isNull() &&
+            m["vessel_cuts"].toInt() >= 1);  // the phantom names label 2 "vessels"; the hook goes through them
     {  // Issue 32: a mesh that names no vessel cannot say whether one was cut: no number, a sentence.
       app::Recording unnamed = app::loadRecording(file.toStdString(), 1);
       unnamed.setup.mesh.labelNames.clear();
@@ -407,7 +433,8 @@ class TestRecording : public QObject {
     }
     // Verdicts: under 1000 N passes, a vessel cut fails, the tumour is not determined.
     QMap<QString, QString> verdict;
-    for (const auto& v : m["verdicts"].toArray()) verdict[v.toObject()["metric"].toString()] = v.toObject()["result"].toString();
+    for (const auto& v : m["verdicts"].toArray())
+      verdict[v.toObject()["metric"].toString()] = v.toObject()["result"].toString();
     QCOMPARE(verdict["max_force_n"], QStringLiteral("pass"));
     QCOMPARE(verdict["vessel_cuts"], live["vessel_cuts"].toInt() > 0 ? QStringLiteral("fail") : QStringLiteral("pass"));
     QCOMPARE(verdict["tumour_breaches"], QStringLiteral("not determined"));
@@ -431,7 +458,8 @@ class TestRecording : public QObject {
     QVERIFY2(pdf.waitForStarted(), "pdftoppm (poppler-utils) is installed by scripts/install-deps.sh");
     QVERIFY(pdf.waitForFinished(60000) && pdf.exitCode() == 0);
     for (int k = 1; k <= 3; ++k) {
-      const cv::Mat page = cv::imread((dir.path() + QString("/page-%1.png").arg(k)).toStdString(), cv::IMREAD_GRAYSCALE);
+      const cv::Mat page =
+          cv::imread((dir.path() + QString("/page-%1.png").arg(k)).toStdString(), cv::IMREAD_GRAYSCALE);
       QVERIFY2(!page.empty(), qPrintable(QString("page %1").arg(k)));
       const int dark = cv::countNonZero(page < 128);
       QVERIFY2(dark > 200, qPrintable(QString("page %1 is blank").arg(k)));
@@ -441,7 +469,8 @@ class TestRecording : public QObject {
     const Run bad = run({"replay", file, "--session", "1", "--video", dir.path() + "/v.avi"});
     QCOMPARE(bad.code, 2);
     QCOMPARE(bad.err.trimmed().count('\n'), 0);
-    const Run badThresholds = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/m2.json", "--thresholds", script("grasp-pull.json")});
+    const Run badThresholds = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/m2.json",
+                                   "--thresholds", script("grasp-pull.json")});
     QCOMPARE(badThresholds.code, 2);
     QVERIFY2(badThresholds.err.contains("unknown metric"), qPrintable(badThresholds.err));
   }
@@ -479,7 +508,8 @@ class TestRecording : public QObject {
       session.restore(d);
       for (int k = 0; k < 3; ++k) {
         session.advance();
-        if (!session.state().x.allFinite() || !session.state().v.allFinite()) return false;  // a failed step rolls back: numbers still
+        if (!session.state().x.allFinite() || !session.state().v.allFinite())
+          return false;  // a failed step rolls back: numbers still
       }
       return true;
     };
@@ -515,12 +545,14 @@ class TestRecording : public QObject {
     }
     QVERIFY2(decoded > 100, "random changes in the doubles decode (the test must reach the restore)");
     QVERIFY(stepped > 10);
-    qInfo("damaged checkpoints: %d refused, %d decoded (changes in doubles), %d of these restored and stepped 3 steps", refused, decoded, stepped);
+    qInfo("damaged checkpoints: %d refused, %d decoded (changes in doubles), %d of these restored and stepped 3 steps",
+          refused, decoded, stepped);
     QVERIFY(refused > 1000);
     // A replayer meeting one: one sentence.
     sqlite3* db = nullptr;
     QCOMPARE(sqlite3_open(file.toUtf8().constData(), &db), SQLITE_OK);
-    QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checkpoints SET state = x'00112233'", nullptr, nullptr, nullptr), SQLITE_OK);
+    QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checkpoints SET state = x'00112233'", nullptr, nullptr, nullptr),
+             SQLITE_OK);
     sqlite3_close(db);
     app::Replayer replayer(app::loadRecording(file.toStdString(), 1));
     try {
@@ -530,7 +562,6 @@ class TestRecording : public QObject {
       QVERIFY2(QString(e.what()).count('\n') == 0 && QString(e.what()).contains("checkpoint"), e.what());
     }
   }
-
 
   // Hostile recordings (issue 32): a setup or an event changed in the file — an index out of range or negative,
   // a float where an index goes, an unknown law, method or event kind, a number that is not one, events out of
@@ -546,8 +577,8 @@ class TestRecording : public QObject {
     using J = nlohmann::json;
     struct Change {
       const char* what;
-      std::function<void(J&)> setup;                 // on the session's setup JSON
-      std::function<void(std::vector<J>&)> events;   // on its events
+      std::function<void(J&)> setup;                // on the session's setup JSON
+      std::function<void(std::vector<J>&)> events;  // on its events
       const char* sql = nullptr;
     };
     const std::vector<Change> changes = {
@@ -555,7 +586,11 @@ class TestRecording : public QObject {
         {"a negative tet index", [&](J& j) { j["mesh"]["tets"][0][0] = -3; }, nullptr},
         {"a float as a tet index", [&](J& j) { j["mesh"]["tets"][1][1] = 2.5; }, nullptr},
         {"a huge tet index", [&](J& j) { j["mesh"]["tets"][1][1] = 1e300; }, nullptr},
-        {"a triangle index out of range", [&](J& j) { j["mesh"]["triangles"].push_back({0, 1, nodes}); }, nullptr},
+        {"a triangle index out of range",
+         [&](J& j) {
+           j["mesh"]["triangles"].push_back({0, 1, nodes});
+         },
+         nullptr},
         {"an attachment out of range", [&](J& j) { j["fixedNodes"].push_back(1 << 30); }, nullptr},
         {"fewer element labels than elements", [&](J& j) { j["mesh"]["tetLabels"].erase(0); }, nullptr},
         {"an unknown material law", [&](J& j) { j["material"]["model"] = 9; }, nullptr},
@@ -565,16 +600,22 @@ class TestRecording : public QObject {
         {"an unknown method", [&](J& j) { j["settings"]["method"] = 7; }, nullptr},
         {"an unknown solver", [&](J& j) { j["settings"]["solver"] = -1; }, nullptr},
         {"a zero time step", [&](J& j) { j["settings"]["timeStep"] = 0.0; }, nullptr},
-        {"a rest position list of another length", [&](J& j) {
+        {"a rest position list of another length",
+         [&](J& j) {
            j["rest"] = j["mesh"]["points"];
            j["rest"].erase(0);
-         }, nullptr},
+         },
+         nullptr},
         {"an unknown event kind", nullptr, [](std::vector<J>& e) { e[0]["kind"] = 42; }},
         {"an event position that is no number", nullptr, [](std::vector<J>& e) { e[0]["position"][1] = nullptr; }},
         {"an unknown material law as a parameter event", nullptr,
-         [](std::vector<J>& e) { e[0] = J{{"kind", 3}, {"wallTime", 0.0}, {"step", e[0]["step"]}, {"tool", 0}, {"label", 0}, {"position", {0, 0, 0}},
-                                          {"vector", {0, 0, 0}}, {"on", false}, {"name", "model"}, {"value", 99.0}}; }},
-        {"an unknown parameter event", nullptr, [](std::vector<J>& e) { e[0]["kind"] = 3, e[0]["name"] = "viscosity"; }},
+         [](std::vector<J>& e) {
+           e[0] = J{{"kind", 3},       {"wallTime", 0.0},       {"step", e[0]["step"]}, {"tool", 0},
+                    {"label", 0},      {"position", {0, 0, 0}}, {"vector", {0, 0, 0}},  {"on", false},
+                    {"name", "model"}, {"value", 99.0}};
+         }},
+        {"an unknown parameter event", nullptr,
+         [](std::vector<J>& e) { e[0]["kind"] = 3, e[0]["name"] = "viscosity"; }},
         {"events out of order", nullptr, [](std::vector<J>& e) { e.back()["step"] = 0; }},
         {"a damaged checksum", nullptr, nullptr, "UPDATE rehearsal_checksums SET checksum = 'x12' WHERE step = 100"},
     };
@@ -602,7 +643,8 @@ class TestRecording : public QObject {
         c.events(events);
         for (std::size_t k = 0; k < events.size(); ++k) {
           sqlite3_stmt* q = nullptr;
-          sqlite3_prepare_v2(db, "UPDATE rehearsal_events SET event = ?, step = ? WHERE session = 1 AND seq = ?", -1, &q, nullptr);
+          sqlite3_prepare_v2(db, "UPDATE rehearsal_events SET event = ?, step = ? WHERE session = 1 AND seq = ?", -1,
+                             &q, nullptr);
           const std::string text = events[k].dump();
           sqlite3_bind_text(q, 1, text.c_str(), -1, SQLITE_TRANSIENT);
           sqlite3_bind_int64(q, 2, events[k]["step"].is_number_integer() ? events[k]["step"].get<long long>() : -1);
@@ -615,8 +657,10 @@ class TestRecording : public QObject {
       sqlite3_close(db);
       const Run v = run({"replay", copy, "--session", "1", "--verify"});
       QVERIFY2(v.code != -1, qPrintable(QString("%1: the replay crashed").arg(c.what)));
-      QVERIFY2(v.code == 1, qPrintable(QString("%1: exit %2, %3 %4").arg(c.what).arg(v.code).arg(v.out.right(300), v.err)));
-      QVERIFY2(v.err.trimmed().count('\n') == 0 && !v.err.trimmed().isEmpty(), qPrintable(QString("%1: %2").arg(c.what, v.err)));
+      QVERIFY2(v.code == 1,
+               qPrintable(QString("%1: exit %2, %3 %4").arg(c.what).arg(v.code).arg(v.out.right(300), v.err)));
+      QVERIFY2(v.err.trimmed().count('\n') == 0 && !v.err.trimmed().isEmpty(),
+               qPrintable(QString("%1: %2").arg(c.what, v.err)));
       qInfo("%s: %s", c.what, qPrintable(v.err.trimmed()));
       ++refused;
     }
@@ -668,7 +712,8 @@ class TestRecording : public QObject {
     const auto v = app::verifyRecording(rec);
     QCOMPARE(v.checked, 8L);
     QCOMPARE(v.mismatches, 0L);
-    qInfo("reset at step 40: '%s'; the session keeps 40 steps and verifies (%ld checksums)", stopped.c_str(), v.checked);
+    qInfo("reset at step 40: '%s'; the session keeps 40 steps and verifies (%ld checksums)", stopped.c_str(),
+          v.checked);
   }
 
   // Sessions have an identity across files (issue 32): a recorder whose file is replaced by a copy goes on in its
@@ -677,13 +722,15 @@ class TestRecording : public QObject {
   // new file; a failed reopen leaves nothing half-open and refuses further steps with a sentence.
   void sessionsKeepTheirIdentityAcrossFiles() {
     QTemporaryDir dir;
-    const std::string a = (dir.path() + "/a.rehearse").toStdString(), other = (dir.path() + "/other.rehearse").toStdString();
+    const std::string a = (dir.path() + "/a.rehearse").toStdString(),
+                      other = (dir.path() + "/other.rehearse").toStdString();
     simcore::BodySetup s;
     s.mesh = boxMesh(0.04, 0.01, 0.01, 6, 2, 2);
     s.fixedNodes = nodesAtX(s.mesh, 0.0);
     s.material.young = 5e3;
     s.settings.method = simcore::NewtonMethod::Linearised;
-    auto record = [&](const std::string& file, const char* who, int steps, double y, const std::function<void(int, app::Recorder&)>& during = {}) {
+    auto record = [&](const std::string& file, const char* who, int steps, double y,
+                      const std::function<void(int, app::Recorder&)>& during = {}) {
       auto r = std::make_unique<app::Recorder>(file, app::SessionMeta{who, {}, {}, {}, {}}, s, 5, 10);
       simcore::Session session(s);
       session.setStepHook([&](const simcore::StepRecord& rec) { r->afterStep(rec); });
@@ -725,7 +772,8 @@ class TestRecording : public QObject {
     }
     const app::Recording ours = app::loadRecording(saved, 2);
     QCOMPARE(ours.summary.steps, 40L);
-    QVERIFY2(std::count(ours.checkpointSteps.begin(), ours.checkpointSteps.end(), 20L) == 1, "the checkpoint taken while suspended reached the saved file");
+    QVERIFY2(std::count(ours.checkpointSteps.begin(), ours.checkpointSteps.end(), 20L) == 1,
+             "the checkpoint taken while suspended reached the saved file");
     QCOMPARE(app::listRecordings(a).back().steps, 15L);  // the file it left: up to the save
     // other.rehearse: someone else's session 1 untouched, ours a new row with its uuid, complete, verifying.
     const auto inOther = app::listRecordings(other);
@@ -767,14 +815,17 @@ class TestRecording : public QObject {
     QVERIFY(::testing::tookEveryStep(run(gestureArgs(dir.path(), "grasp-pull.json", file))));
     sqlite3* db = nullptr;
     QCOMPARE(sqlite3_open(file.toUtf8().constData(), &db), SQLITE_OK);
-    QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checksums SET checksum = '12345' WHERE step = 200", nullptr, nullptr, nullptr), SQLITE_OK);
+    QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checksums SET checksum = '12345' WHERE step = 200", nullptr, nullptr,
+                          nullptr),
+             SQLITE_OK);
     QCOMPARE(sqlite3_changes(db), 1);
     sqlite3_close(db);
     const Run v = run({"replay", file, "--session", "1", "--verify"});
     QCOMPARE(v.code, 4);
     QCOMPARE(v.err.trimmed().count('\n'), 0);
     QVERIFY2(v.err.contains("1 of 35 checksums differ, the first after step 200"), qPrintable(v.err));
-    // Its metrics are written, saying so, and the command exits 4 as --verify does (not 0, as if they were the trainee's).
+    // Its metrics are written, saying so, and the command exits 4 as --verify does (not 0, as if they were the
+    // trainee's).
     const Run m = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/m.json"});
     QCOMPARE(m.code, 4);
     QCOMPARE(m.err.trimmed().count('\n'), 0);
@@ -787,7 +838,8 @@ class TestRecording : public QObject {
     const Run missing = run({"replay", file, "--session", "7", "--verify"});
     QCOMPARE(missing.code, 1);
     QVERIFY2(missing.err.contains("no recorded session 7"), qPrintable(missing.err));
-    const Run notSqlite = run({"replay", QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json", "--session", "1"});
+    const Run notSqlite =
+        run({"replay", QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json", "--session", "1"});
     QCOMPARE(notSqlite.code, 1);
     QCOMPARE(notSqlite.err.trimmed().count('\n'), 0);
   }
@@ -832,9 +884,11 @@ class TestRecording : public QObject {
     const auto sessions = app::listRecordings(file.toStdString());
     int cutShort = 0;
     for (const auto& s : sessions) cutShort += !s.complete;
-    qInfo("a whole recording %d ms; 20 killed at random moments: %d before their session began, %zu sessions in the file (%d cut short), %d verified "
-          "(%ld checksums), none differs",
-          fullMs, killedBeforeARow, sessions.size(), cutShort, verifiedSessions, verifiedChecksums);
+    qInfo(
+        "a whole recording %d ms; 20 killed at random moments: %d before their session began, %zu sessions in the file "
+        "(%d cut short), %d verified "
+        "(%ld checksums), none differs",
+        fullMs, killedBeforeARow, sessions.size(), cutShort, verifiedSessions, verifiedChecksums);
     QVERIFY(cutShort > 0);
     QVERIFY(verifiedChecksums > 0);
   }

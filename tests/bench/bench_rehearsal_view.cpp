@@ -2,10 +2,10 @@
 // case (a 1280x720 frame), step 7, driven with mouse events as a hand would (a move every 16 ms): while
 // pulling with the grasper for 4 s, then while cutting across the organ with the scissors for 4 s, the
 // frame view's repaints per second, how many of them showed a new drawing of the simulated organ over the
-// frame, the time each paint takes, and the simulation steps done meanwhile. The window is 2560x1400, so the frame view shows
-// the frame at least at its own size. Needs an X server (xvfb-run); --software draws the overlay without
-// OpenGL (QPainter), as the tests do; --opengl through OpenGL (here Mesa's llvmpipe); without either the
-// window chooses as `rehearse` does by default (MainWindow::Renderer::Automatic).
+// frame, the time each paint takes, and the simulation steps done meanwhile. The window is 2560x1400, so the frame view
+// shows the frame at least at its own size. Needs an X server (xvfb-run); --software draws the overlay without OpenGL
+// (QPainter), as the tests do; --opengl through OpenGL (here Mesa's llvmpipe); without either the window chooses as
+// `rehearse` does by default (MainWindow::Renderer::Automatic).
 //   xvfb-run -a -s "-screen 0 2560x1440x24" bench_rehearsal_view [OUT_DIR] [--software | --opengl]
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/gui.hpp"
@@ -86,9 +86,12 @@ int main(int argc, char** argv) {
   std::string out = ".";
   ui::MainWindow::Renderer choice = ui::MainWindow::Renderer::Automatic;
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--software")) choice = ui::MainWindow::Renderer::Software;
-    else if (!std::strcmp(argv[i], "--opengl")) choice = ui::MainWindow::Renderer::OpenGL;
-    else out = argv[i];
+    if (!std::strcmp(argv[i], "--software"))
+      choice = ui::MainWindow::Renderer::Software;
+    else if (!std::strcmp(argv[i], "--opengl"))
+      choice = ui::MainWindow::Renderer::OpenGL;
+    else
+      out = argv[i];
   }
   QApplication app(argc, argv);
   QCoreApplication::setOrganizationName("RehearseViewBench");
@@ -98,14 +101,16 @@ int main(int argc, char** argv) {
   w.resize(2560, 1400);
   w.show();
   const bool software = !w.overlayUsesOpenGL();
-  const std::string mode = std::string(choice == ui::MainWindow::Renderer::Automatic ? "automatic-" : "") + (software ? "qpainter" : "opengl");
+  const std::string mode = std::string(choice == ui::MainWindow::Renderer::Automatic ? "automatic-" : "") +
+                           (software ? "qpainter" : "opengl");
   std::printf("%s\n", qPrintable(w.rendererText()));
   if (!QTest::qWaitForWindowExposed(&w)) {
     std::fprintf(stderr, "bench_rehearsal_view: no window (run under xvfb-run)\n");
     return 1;
   }
   w.activateWindow();
-  if (!QTest::qWaitForWindowActive(&w)) std::fprintf(stderr, "bench_rehearsal_view: the window did not become active (measured anyway)\n");
+  if (!QTest::qWaitForWindowActive(&w))
+    std::fprintf(stderr, "bench_rehearsal_view: the window did not become active (measured anyway)\n");
   QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
   w.openCase({});
   if (!loaded.wait(120000)) {
@@ -123,7 +128,8 @@ int main(int argc, char** argv) {
   panel->play();
   waitFor([&] { return panel->lastFrame() && panel->lastFrame()->steps > 100; });
   const auto& c = *w.caseData();
-  std::printf("frame %dx%d shown in a %dx%d view (%s)\n", c.frame.cols, c.frame.rows, view->width(), view->height(), mode.c_str());
+  std::printf("frame %dx%d shown in a %dx%d view (%s)\n", c.frame.cols, c.frame.rows, view->width(), view->height(),
+              mode.c_str());
   PaintMeter meter(w);
   view->installEventFilter(&meter);
 
@@ -157,7 +163,8 @@ int main(int argc, char** argv) {
   const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
   const QPointF mid = view->toWidget(QPointF(centre.x(), centre.y()));
   // Pull: up 2 cm (about 45 px here) and back, twice.
-  const Phase pull = measure("pulling", [&](double s) { return mid + QPointF(0, -45 * std::abs(std::sin(2 * M_PI * s))); }, Qt::Key_R);
+  const Phase pull = measure(
+      "pulling", [&](double s) { return mid + QPointF(0, -45 * std::abs(std::sin(2 * M_PI * s))); }, Qt::Key_R);
   // Cut: across the organ's left part, from above its middle down past its lower edge.
   double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
   for (const auto& p : panel->lastFrame()->positions) {
@@ -166,18 +173,23 @@ int main(int argc, char** argv) {
   }
   const QPointF a = view->toWidget(QPointF(x0 + 0.25 * (x1 - x0), y0 + 0.3 * (y1 - y0)));
   const QPointF b = view->toWidget(QPointF(x0 + 0.25 * (x1 - x0), y1 + 0.1 * (y1 - y0)));
-  const Phase cut = measure("cutting", [&](double s) { return a + (b - a) * s; }, Qt::Key_B);
+  const Phase cut = measure(
+      "cutting", [&](double s) { return a + (b - a) * s; }, Qt::Key_B);
   std::printf("cut: %zu elements now\n", panel->lastFrame()->elements);
 
   std::filesystem::create_directories(out);
   const std::string file = out + "/rehearsal-view-" + mode + ".csv";
   std::ofstream csv(file);
-  csv << "renderer,phase,seconds,view_fps,organ_fps,paint_median_ms,paint_p99_ms,sim_steps_per_s,frame_w,frame_h,view_w,view_h\n";
-  std::printf("%-9s %8s %9s %10s %14s %12s %12s\n", "phase", "seconds", "view fps", "organ fps", "paint med ms", "paint p99", "steps/s");
+  csv << "renderer,phase,seconds,view_fps,organ_fps,paint_median_ms,paint_p99_ms,sim_steps_per_s,frame_w,frame_h,view_"
+         "w,view_h\n";
+  std::printf("%-9s %8s %9s %10s %14s %12s %12s\n", "phase", "seconds", "view fps", "organ fps", "paint med ms",
+              "paint p99", "steps/s");
   for (const Phase& p : {pull, cut}) {
-    std::printf("%-9s %8.2f %9.1f %10.1f %14.2f %12.2f %12.1f\n", p.name, p.seconds, p.fps, p.organFps, p.paintMedianMs, p.paintP99Ms, p.stepsPerSecond);
-    csv << mode << ',' << p.name << ',' << p.seconds << ',' << p.fps << ',' << p.organFps << ',' << p.paintMedianMs << ',' << p.paintP99Ms << ','
-        << p.stepsPerSecond << ',' << c.frame.cols << ',' << c.frame.rows << ',' << view->width() << ',' << view->height() << '\n';
+    std::printf("%-9s %8.2f %9.1f %10.1f %14.2f %12.2f %12.1f\n", p.name, p.seconds, p.fps, p.organFps, p.paintMedianMs,
+                p.paintP99Ms, p.stepsPerSecond);
+    csv << mode << ',' << p.name << ',' << p.seconds << ',' << p.fps << ',' << p.organFps << ',' << p.paintMedianMs
+        << ',' << p.paintP99Ms << ',' << p.stepsPerSecond << ',' << c.frame.cols << ',' << c.frame.rows << ','
+        << view->width() << ',' << view->height() << '\n';
   }
   std::printf("wrote %s\n", file.c_str());
   return 0;

@@ -63,8 +63,8 @@ class TestContact : public QObject {
     std::uniform_real_distribution<double> u(-1, 1);
     int pierced = 0;
     for (int k = 0; k < 300; ++k) {
-      const Eigen::Vector3d s0(u(rng), u(rng), u(rng)), s1(u(rng), u(rng), u(rng)), a(u(rng), u(rng), u(rng)), b(u(rng), u(rng), u(rng)),
-          c(u(rng), u(rng), u(rng));
+      const Eigen::Vector3d s0(u(rng), u(rng), u(rng)), s1(u(rng), u(rng), u(rng)), a(u(rng), u(rng), u(rng)),
+          b(u(rng), u(rng), u(rng)), c(u(rng), u(rng), u(rng));
       Eigen::Vector3d onAxis, onTriangle, w;
       if (!closestAxisTriangle(s0, s1, a, b, c, onAxis, onTriangle, w)) {
         ++pierced;
@@ -75,7 +75,8 @@ class TestContact : public QObject {
       for (int i = 0; i <= 400; ++i) {
         const Eigen::Vector3d p = s0 + (i / 400.0) * (s1 - s0);
         for (int j = 0; j <= 60; ++j)
-          for (int l = 0; j + l <= 60; ++l) best = std::min(best, (p - (a + (j / 60.0) * (b - a) + (l / 60.0) * (c - a))).norm());
+          for (int l = 0; j + l <= 60; ++l)
+            best = std::min(best, (p - (a + (j / 60.0) * (b - a) + (l / 60.0) * (c - a))).norm());
       }
       const double d = (onAxis - onTriangle).norm();
       QVERIFY2(d <= best + 1e-12, qPrintable(QString("%1 > sampled %2").arg(d).arg(best)));
@@ -84,7 +85,8 @@ class TestContact : public QObject {
       QVERIFY(std::abs(w.sum() - 1) < 1e-12 && w.minCoeff() >= -1e-12);
       QVERIFY(segmentDistance(onAxis, s0, s1) < 1e-12);
     }
-    qInfo("300 segment-triangle pairs: %d pierced, the rest within the sampling's resolution and never further", pierced);
+    qInfo("300 segment-triangle pairs: %d pierced, the rest within the sampling's resolution and never further",
+          pierced);
     QVERIFY(pierced > 0 && pierced < 150);
   }
 
@@ -111,7 +113,8 @@ class TestContact : public QObject {
     std::set<std::vector<std::pair<int, double>>> keys;
     for (const auto& t : surface.triangles) {
       Eigen::Vector3d onAxis, onTriangle, w;
-      if (!closestAxisTriangle(tip, trocar, m.points[t[0]], m.points[t[1]], m.points[t[2]], onAxis, onTriangle, w)) continue;
+      if (!closestAxisTriangle(tip, trocar, m.points[t[0]], m.points[t[1]], m.points[t[2]], onAxis, onTriangle, w))
+        continue;
       const double d = (onTriangle - onAxis).norm();
       if (d > 1.5 * r) continue;
       std::vector<std::pair<int, double>> key;
@@ -120,7 +123,8 @@ class TestContact : public QObject {
       std::sort(key.begin(), key.end());
       keys.insert(key);
     }
-    qInfo("%d rows (%d touching, %d pierced); brute force: %zu distinct closest points within reach", s.rows, s.contacts, s.pierced, keys.size());
+    qInfo("%d rows (%d touching, %d pierced); brute force: %zu distinct closest points within reach", s.rows,
+          s.contacts, s.pierced, keys.size());
     QCOMPARE(static_cast<std::size_t>(s.rows), keys.size());
     QCOMPARE(rows.size(), keys.size());
     QVERIFY(s.contacts > 0);
@@ -130,7 +134,8 @@ class TestContact : public QObject {
       for (int q = 0; q < 4; ++q)
         if (c.nodes[q] >= 0) p += c.weights[q] * m.points[static_cast<std::size_t>(c.nodes[q])];
       // The direction points from the axis to the point (away from the shaft), the value is the radius out.
-      const Eigen::Vector3d axisPoint = tip + std::clamp((p - tip).dot(trocar - tip) / (trocar - tip).squaredNorm(), 0.0, 1.0) * (trocar - tip);
+      const Eigen::Vector3d axisPoint =
+          tip + std::clamp((p - tip).dot(trocar - tip) / (trocar - tip).squaredNorm(), 0.0, 1.0) * (trocar - tip);
       QVERIFY(c.direction.dot(p - axisPoint) >= -1e-12);
       QVERIFY(std::abs(c.value - (c.direction.dot(p) + (r - c.direction.dot(p - axisPoint)))) < 1e-9);
     }
@@ -145,7 +150,8 @@ class TestContact : public QObject {
           if (c.nodes[q] >= 0)
             for (int k = surface.first[nearest]; k < surface.first[nearest + 1]; ++k) {
               const auto& t = surface.triangles[surface.ofNode[k]];
-              if (std::find(t.begin(), t.end(), c.nodes[q]) != t.end() && std::count(t.begin(), t.end(), nearest)) return true;
+              if (std::find(t.begin(), t.end(), c.nodes[q]) != t.end() && std::count(t.begin(), t.end(), nearest))
+                return true;
             }
       return false;
     };

@@ -35,7 +35,8 @@ using testing::toolAt;
 
 double volume(const std::vector<Eigen::Vector3d>& p, const std::array<int, 4>& t) {
   return (p[static_cast<std::size_t>(t[1])] - p[static_cast<std::size_t>(t[0])])
-             .dot((p[static_cast<std::size_t>(t[2])] - p[static_cast<std::size_t>(t[0])]).cross(p[static_cast<std::size_t>(t[3])] - p[static_cast<std::size_t>(t[0])])) /
+             .dot((p[static_cast<std::size_t>(t[2])] - p[static_cast<std::size_t>(t[0])])
+                      .cross(p[static_cast<std::size_t>(t[3])] - p[static_cast<std::size_t>(t[0])])) /
          6.0;
 }
 
@@ -44,7 +45,8 @@ std::vector<int> components(std::size_t nodes, const std::vector<std::array<int,
   std::vector<int> parent(nodes);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](int x) {
-    while (parent[static_cast<std::size_t>(x)] != x) x = parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
+    while (parent[static_cast<std::size_t>(x)] != x)
+      x = parent[static_cast<std::size_t>(x)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(x)])];
     return x;
   };
   for (const auto& t : tets)
@@ -62,7 +64,8 @@ std::vector<std::array<int, 3>> boundaryFaces(const std::vector<std::array<int, 
   static const int f[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
   for (const auto& t : tets)
     for (const auto& q : f) {
-      std::array<int, 3> o{t[static_cast<std::size_t>(q[0])], t[static_cast<std::size_t>(q[1])], t[static_cast<std::size_t>(q[2])]};
+      std::array<int, 3> o{t[static_cast<std::size_t>(q[0])], t[static_cast<std::size_t>(q[1])],
+                           t[static_cast<std::size_t>(q[2])]};
       std::array<int, 3> k = o;
       std::sort(k.begin(), k.end());
       auto& e = faces[k];
@@ -81,7 +84,9 @@ std::vector<std::array<int, 3>> boundaryFaces(const std::vector<std::array<int, 
 double area(const std::vector<Eigen::Vector3d>& p, const std::vector<std::array<int, 3>>& tris) {
   double a = 0;
   for (const auto& t : tris)
-    a += 0.5 * (p[static_cast<std::size_t>(t[1])] - p[static_cast<std::size_t>(t[0])]).cross(p[static_cast<std::size_t>(t[2])] - p[static_cast<std::size_t>(t[0])]).norm();
+    a += 0.5 * (p[static_cast<std::size_t>(t[1])] - p[static_cast<std::size_t>(t[0])])
+                   .cross(p[static_cast<std::size_t>(t[2])] - p[static_cast<std::size_t>(t[0])])
+                   .norm();
   return a;
 }
 
@@ -95,15 +100,20 @@ Validity validity(const std::vector<Eigen::Vector3d>& p, const std::vector<std::
     const double vol = volume(p, t);
     v.inverted += !(vol > 0);
     v.totalVolume += vol;
-    v.minQuality = std::min(v.minQuality, simcore::tetShapeQuality(p[static_cast<std::size_t>(t[0])], p[static_cast<std::size_t>(t[1])],
-                                                                    p[static_cast<std::size_t>(t[2])], p[static_cast<std::size_t>(t[3])]));
+    v.minQuality = std::min(
+        v.minQuality, simcore::tetShapeQuality(p[static_cast<std::size_t>(t[0])], p[static_cast<std::size_t>(t[1])],
+                                               p[static_cast<std::size_t>(t[2])], p[static_cast<std::size_t>(t[3])]));
   }
   return v;
 }
 
-double minQualityOf(const simcore::Mesh& m) { return validity(m.points, m.tets).minQuality; }
+double minQualityOf(const simcore::Mesh& m) {
+  return validity(m.points, m.tets).minQuality;
+}
 
-simcore::BodySetup liverSetup() { return testing::presetBody("liver"); }
+simcore::BodySetup liverSetup() {
+  return testing::presetBody("liver");
+}
 
 // A cut across the settled organ's front, left to right: the blade's tip at sweep pose k (0: the start,
 // 10: the end), from the box of the positions it settled to.
@@ -115,7 +125,9 @@ struct FrontSweep {
     c = box.center();
     size = box.sizes();
   }
-  Eigen::Vector3d at(int k) const { return c + Eigen::Vector3d(-0.6 * size.x() + 0.06 * k * size.x(), 0.1 * size.y(), 0.3 * size.z()); }
+  Eigen::Vector3d at(int k) const {
+    return c + Eigen::Vector3d(-0.6 * size.x() + 0.06 * k * size.x(), 0.1 * size.y(), 0.3 * size.z());
+  }
 };
 
 // A blade sweep covering the plane x = x0 over the block's section (y, z in [0, 0.02]).
@@ -137,8 +149,8 @@ class TestCut : public QObject {
     const std::size_t nodes0 = rest.size(), tets0 = m.tets.size();
     const double volume0 = validity(rest, m.tets).totalVolume;
     const simcore::CutResult r = simcore::cutTetrahedra(rest, current, m.tets, m.tetLabels, planeX(x0));
-    qInfo("%s nodes %zu -> %zu, elements %zu -> %zu, min quality %.3f, min volume fraction %.3f", r.status.c_str(), nodes0, rest.size(), tets0,
-          m.tets.size(), r.minQuality, r.minVolumeFraction);
+    qInfo("%s nodes %zu -> %zu, elements %zu -> %zu, min quality %.3f, min volume fraction %.3f", r.status.c_str(),
+          nodes0, rest.size(), tets0, m.tets.size(), r.minQuality, r.minVolumeFraction);
     QVERIFY(r.changed);
     QCOMPARE(r.splitElements, std::size_t(4 * 4 * 6));  // every element of the crossed layer of cubes
     QVERIFY(m.tets.size() > tets0 && rest.size() > nodes0);
@@ -150,7 +162,8 @@ class TestCut : public QObject {
     const auto group = components(rest.size(), m.tets, &groups);
     QCOMPARE(groups, 2);
     double left = 0, right = 0;
-    for (std::size_t t = 0; t < m.tets.size(); ++t) (group[t] == group[0] ? left : right) += volume(rest, m.tets[t]);  // element 0 is at x = 0
+    for (std::size_t t = 0; t < m.tets.size(); ++t)
+      (group[t] == group[0] ? left : right) += volume(rest, m.tets[t]);  // element 0 is at x = 0
     // Each group lies on one side of the plane entirely.
     for (std::size_t t = 0; t < m.tets.size(); ++t)
       for (int k : m.tets[t]) {
@@ -164,7 +177,8 @@ class TestCut : public QObject {
     const double boundary = area(rest, boundaryFaces(m.tets, &overused));
     const double expected = 2 * (0.04 * 0.02 + 0.04 * 0.02 + 0.02 * 0.02) + 2 * 0.02 * 0.02;
     QCOMPARE(overused, 0);
-    QVERIFY2(std::abs(boundary - expected) < 1e-12, qPrintable(QString("boundary %1 m^2, expected %2").arg(boundary).arg(expected)));
+    QVERIFY2(std::abs(boundary - expected) < 1e-12,
+             qPrintable(QString("boundary %1 m^2, expected %2").arg(boundary).arg(expected)));
   }
 
   // A continuous cut across the liver preset's left lobe in strips of 0.9, 3, 10 and 90 mm (a static
@@ -190,7 +204,8 @@ class TestCut : public QObject {
       }
       int groups = 0;
       components(rest.size(), tets, &groups);
-      qInfo("liver strips %.1f mm: %d updates, %zu elements, %zu pending, groups %d", 1e3 * step, updates, tets.size(), progress.pendingFaces.size(), groups);
+      qInfo("liver strips %.1f mm: %d updates, %zu elements, %zu pending, groups %d", 1e3 * step, updates, tets.size(),
+            progress.pendingFaces.size(), groups);
       QCOMPARE(groups, 2);
       const Validity v = validity(rest, tets);
       QCOMPARE(v.inverted, std::size_t(0));
@@ -211,7 +226,8 @@ class TestCut : public QObject {
       s.settings.method = simcore::NewtonMethod::Exact;
       s.tools.trocar = Eigen::Vector3d(0.0137, 0.01, 0.1);
       s.tools.bladeLength = 0.05;
-      s.tools.cutLatencySteps = -1;  // the cut at this very boundary (a synchronous run without latency): the fall is timed from it
+      s.tools.cutLatencySteps =
+          -1;  // the cut at this very boundary (a synchronous run without latency): the fall is timed from it
       simcore::Session session(s);
       const double mass0 = session.snapshot()->mass;
       if (cut) {
@@ -248,17 +264,19 @@ class TestCut : public QObject {
         }
       }
       mean /= count;
-      qInfo("%s: the far end fell %.4f mm in %d steps (free fall %.4f mm, worst node %.2e mm from it)", cut ? "cut" : "uncut", 1e3 * mean, steps, 1e3 * fall,
-            1e3 * worst);
-      if (cut) QVERIFY(worst < 1e-6 * fall);
-      else QVERIFY(mean < 0.2 * fall);
+      qInfo("%s: the far end fell %.4f mm in %d steps (free fall %.4f mm, worst node %.2e mm from it)",
+            cut ? "cut" : "uncut", 1e3 * mean, steps, 1e3 * fall, 1e3 * worst);
+      if (cut)
+        QVERIFY(worst < 1e-6 * fall);
+      else
+        QVERIFY(mean < 0.2 * fall);
     }
   }
 
-  // Issue 32: a vessel was "label 2 with its own material", so a stiff tumour counted as a vessel and a vessel without a
-  // material of its own did not. A vessel is now a label the mesh names as one. The block's middle layer of cubes (x in
-  // [10, 15] mm) is label 2; the blade cuts through it at x = 13.7 mm: named "tumour" with its own material, the cut goes
-  // through label 2 and no vessel is cut; named "portal vein" without one, one vessel is cut, said with its name.
+  // Issue 32: a vessel was "label 2 with its own material", so a stiff tumour counted as a vessel and a vessel without
+  // a material of its own did not. A vessel is now a label the mesh names as one. The block's middle layer of cubes (x
+  // in [10, 15] mm) is label 2; the blade cuts through it at x = 13.7 mm: named "tumour" with its own material, the cut
+  // goes through label 2 and no vessel is cut; named "portal vein" without one, one vessel is cut, said with its name.
   void aVesselIsALabelNamedAsOne() {
     for (const char* name : {"tumour", "portal vein"}) {
       simcore::BodySetup s;
@@ -286,11 +304,16 @@ class TestCut : public QObject {
       QVERIFY(session.advance().ok);
       const auto snap = session.snapshot();
       const auto& ev = snap->events;
-      qInfo("label 2 named '%s': events %s; said: %s", name, QStringList([&] {
+      qInfo("label 2 named '%s': events %s; said: %s", name,
+            QStringList([&] {
               QStringList l;
               for (const auto& e : ev) l << QString::fromStdString(e);
               return l;
-            }()).join(", ").toUtf8().constData(), snap->message.c_str());
+            }())
+                .join(", ")
+                .toUtf8()
+                .constData(),
+            snap->message.c_str());
       QVERIFY(std::count(ev.begin(), ev.end(), "cut through label 2") == 1);
       QCOMPARE(std::count(ev.begin(), ev.end(), "vessel cut"), vessel ? 1L : 0L);
       if (vessel) QVERIFY(QString::fromStdString(snap->message).contains("A vessel (portal vein, label 2) was cut."));
@@ -314,16 +337,19 @@ class TestCut : public QObject {
     std::vector<Eigen::Vector3d> rest = m.points, current = m.points;
     const double volume0 = validity(rest, m.tets).totalVolume;
     QVERIFY(simcore::cutTetrahedra(rest, current, m.tets, m.tetLabels, planeX(0.0213)).changed);
-    const simcore::BladeSweep alongX{{-0.01, 0.0093, -0.01}, {-0.01, 0.0093, 0.03}, {0.05, 0.0093, -0.01}, {0.05, 0.0093, 0.03}};
+    const simcore::BladeSweep alongX{
+        {-0.01, 0.0093, -0.01}, {-0.01, 0.0093, 0.03}, {0.05, 0.0093, -0.01}, {0.05, 0.0093, 0.03}};
     const simcore::CutResult r2 = simcore::cutTetrahedra(rest, current, m.tets, m.tetLabels, alongX);
     QVERIFY2(r2.changed, r2.status.c_str());
     // A cut at z = 7.7 mm advancing in 2.5 mm sweeps from x = -5 mm to x = 27 mm (it stops inside).
     for (double x = -0.005; x < 0.027; x += 0.0025) {
-      const simcore::BladeSweep piece{{x, -0.01, 0.0077}, {x, 0.03, 0.0077}, {x + 0.0025, -0.01, 0.0077}, {x + 0.0025, 0.03, 0.0077}};
+      const simcore::BladeSweep piece{
+          {x, -0.01, 0.0077}, {x, 0.03, 0.0077}, {x + 0.0025, -0.01, 0.0077}, {x + 0.0025, 0.03, 0.0077}};
       simcore::cutTetrahedra(rest, current, m.tets, m.tetLabels, piece);
     }
     const Validity v = validity(rest, m.tets);
-    qInfo("after crossing and continuous cuts: %zu nodes, %zu elements, min quality %.3f", rest.size(), m.tets.size(), v.minQuality);
+    qInfo("after crossing and continuous cuts: %zu nodes, %zu elements, min quality %.3f", rest.size(), m.tets.size(),
+          v.minQuality);
     QVERIFY(v.minQuality >= simcore::CutSettings{}.minQuality);
     QCOMPARE(v.inverted, std::size_t(0));
     QVERIFY(std::abs(v.totalVolume - volume0) < 1e-12 * volume0);
@@ -340,12 +366,15 @@ class TestCut : public QObject {
       }
     std::size_t open = 0;
     for (const auto& [e, n] : edgeUse) open += n % 2 != 0;
-    qInfo("%zu boundary faces, %zu boundary edges, %zu used an odd number of times", boundary.size(), edgeUse.size(), open);
+    qInfo("%zu boundary faces, %zu boundary edges, %zu used an odd number of times", boundary.size(), edgeUse.size(),
+          open);
     QCOMPARE(open, std::size_t(0));
     // The boundary encloses the volume (divergence theorem), which a gap or an overlap would break.
     double enclosed = 0;
     for (const auto& f : boundary)
-      enclosed += rest[static_cast<std::size_t>(f[0])].dot(rest[static_cast<std::size_t>(f[1])].cross(rest[static_cast<std::size_t>(f[2])])) / 6.0;
+      enclosed += rest[static_cast<std::size_t>(f[0])].dot(
+                      rest[static_cast<std::size_t>(f[1])].cross(rest[static_cast<std::size_t>(f[2])])) /
+                  6.0;
     QVERIFY2(std::abs(enclosed - volume0) < 1e-12 * volume0, qPrintable(QString::number(enclosed / volume0 - 1)));
     int groups = 0;
     components(rest.size(), m.tets, &groups);
@@ -370,15 +399,16 @@ class TestCut : public QObject {
     session.post(cutting(false));
     for (int k = 0; k < 10; ++k) QVERIFY(session.advance().ok);
     const auto after = session.snapshot();
-    qInfo("liver: %zu -> %zu elements, %zu -> %zu nodes, mass %.12f -> %.12f kg", before->elements, after->elements, before->positions.size(),
-          after->positions.size(), before->mass, after->mass);
+    qInfo("liver: %zu -> %zu elements, %zu -> %zu nodes, mass %.12f -> %.12f kg", before->elements, after->elements,
+          before->positions.size(), after->positions.size(), before->mass, after->mass);
     QVERIFY(after->elements > before->elements);
     QVERIFY(after->positions.size() > before->positions.size());
     QVERIFY(std::abs(after->mass - before->mass) < 1e-9 * before->mass);
     const Validity v = validity(session.setup().mesh.points, session.setup().mesh.tets);
     QCOMPARE(v.inverted, std::size_t(0));
     QVERIFY(v.minQuality >= std::min(simcore::CutSettings{}.minQuality, 0.5 * minQualityOf(s.mesh)));
-    qInfo("worst element %.3f (uncut %.3f; the floor %.3f)", v.minQuality, minQualityOf(s.mesh), session.setup().tools.cut.minQuality);
+    qInfo("worst element %.3f (uncut %.3f; the floor %.3f)", v.minQuality, minQualityOf(s.mesh),
+          session.setup().tools.cut.minQuality);
     for (const auto& p : after->positions) QVERIFY(p.allFinite());
   }
 
@@ -405,7 +435,8 @@ class TestCut : public QObject {
       ++steps;
       QVERIFY(rep.ok);
       waited += rep.factorisations > 0;
-      cutsSeen += static_cast<int>(std::count(session.snapshot()->events.begin(), session.snapshot()->events.end(), "cut"));
+      cutsSeen +=
+          static_cast<int>(std::count(session.snapshot()->events.begin(), session.snapshot()->events.end(), "cut"));
       QThread::msleep(10);  // a hand's pace: the bodies are built meanwhile
     }
     session.post(cutting(false));  // withdrawn while a cut is being built: the rest of the sweep follows it, no wait
@@ -414,14 +445,18 @@ class TestCut : public QObject {
       ++steps;
       QVERIFY(rep.ok);
       waited += rep.factorisations > 0;
-      cutsSeen += static_cast<int>(std::count(session.snapshot()->events.begin(), session.snapshot()->events.end(), "cut"));
+      cutsSeen +=
+          static_cast<int>(std::count(session.snapshot()->events.begin(), session.snapshot()->events.end(), "cut"));
       QThread::msleep(10);
     }
     const auto after = session.snapshot();
     const auto rec = session.recorded();
-    const auto applied = std::count_if(rec.begin(), rec.end(), [](const simcore::InputEvent& e) { return e.kind == simcore::InputKind::CutApplied; });
-    qInfo("asynchronous cut: %zu -> %zu elements, %d cut events (%ld applied when their body was ready), %d steps factorised on the stepping thread",
-          before->elements, after->elements, cutsSeen, static_cast<long>(applied), waited);
+    const auto applied = std::count_if(
+        rec.begin(), rec.end(), [](const simcore::InputEvent& e) { return e.kind == simcore::InputKind::CutApplied; });
+    qInfo(
+        "asynchronous cut: %zu -> %zu elements, %d cut events (%ld applied when their body was ready), %d steps "
+        "factorised on the stepping thread",
+        before->elements, after->elements, cutsSeen, static_cast<long>(applied), waited);
     QVERIFY(after->elements > before->elements);
     QVERIFY(cutsSeen >= 1);
     QCOMPARE(waited, 0);
@@ -440,7 +475,8 @@ class TestCut : public QObject {
       if (e.kind != simcore::InputKind::CutApplied) stripped.push_back(e);
     simcore::replay(s, stripped, steps, [&](long, const simcore::SimulationState& st) { replayed = st; });
     QVERIFY(replayed.x.size() == live.x.size() && replayed.x == live.x && replayed.v == live.v);
-    // Without the latency (as recorded before it existed) the boundaries are the build's timing: the recording needs them.
+    // Without the latency (as recorded before it existed) the boundaries are the build's timing: the recording needs
+    // them.
     s.tools.cutLatencySteps = -1;
     simcore::Session legacy(s);
     for (int k = 0; k < 20; ++k) legacy.advance();
@@ -481,9 +517,10 @@ class TestCut : public QObject {
     int groups = 0;
     const auto group = components(r.finalMesh.points.size(), r.finalMesh.tets, &groups);
     std::map<int, double> pieceVolume;
-    for (std::size_t t = 0; t < r.finalMesh.tets.size(); ++t) pieceVolume[group[t]] += volume(r.finalMesh.points, r.finalMesh.tets[t]);
-    qInfo("cut-across: %zu cut updates (%zu through a vessel), %zu -> %zu elements, %d pieces", r.cuts, r.vesselCuts, r.steps.front().elements,
-          r.finalMesh.tets.size(), groups);
+    for (std::size_t t = 0; t < r.finalMesh.tets.size(); ++t)
+      pieceVolume[group[t]] += volume(r.finalMesh.points, r.finalMesh.tets[t]);
+    qInfo("cut-across: %zu cut updates (%zu through a vessel), %zu -> %zu elements, %d pieces", r.cuts, r.vesselCuts,
+          r.steps.front().elements, r.finalMesh.tets.size(), groups);
     for (const auto& [g, v] : pieceVolume) qInfo("  piece %d: %.1f cm^3 (deformed)", g, 1e6 * v);
     QCOMPARE(groups, 2);
     const Validity v = validity(r.finalMesh.points, r.finalMesh.tets);
@@ -505,7 +542,8 @@ class TestCut : public QObject {
       const app::GestureResult r = app::runGesture(s, script);
       std::string said;
       for (const auto& row : r.steps)
-        if (row.message.find("cut") != std::string::npos && row.message.find("vessel") == std::string::npos) said = row.message;
+        if (row.message.find("cut") != std::string::npos && row.message.find("vessel") == std::string::npos)
+          said = row.message;
       int groups = 0;
       components(r.finalMesh.points.size(), r.finalMesh.tets, &groups);
       qInfo("blade off at %.1f s: %d piece(s), %zu elements, %zu nodes; said: %s", offAt, groups,
@@ -546,14 +584,19 @@ class TestCut : public QObject {
       for (const auto& a : async) {
         QCOMPARE(a.finalMesh.tets.size(), sync.finalMesh.tets.size());
         QCOMPARE(a.finalMesh.points.size(), sync.finalMesh.points.size());
-        QVERIFY2(a.finalMesh.tets == sync.finalMesh.tets, "the asynchronous run's elements differ from the synchronous run's");
+        QVERIFY2(a.finalMesh.tets == sync.finalMesh.tets,
+                 "the asynchronous run's elements differ from the synchronous run's");
         QCOMPARE(a.cuts, sync.cuts);
         QCOMPARE(a.vesselCuts, sync.vesselCuts);
-        for (std::size_t i = 0; i < a.finalMesh.points.size(); ++i) worst = std::max(worst, (a.finalMesh.points[i] - sync.finalMesh.points[i]).norm());
-        for (std::size_t k = 0; k < a.steps.size(); ++k) QCOMPARE(a.steps[k].elements, sync.steps[k].elements);  // each cut at the same step
+        for (std::size_t i = 0; i < a.finalMesh.points.size(); ++i)
+          worst = std::max(worst, (a.finalMesh.points[i] - sync.finalMesh.points[i]).norm());
+        for (std::size_t k = 0; k < a.steps.size(); ++k)
+          QCOMPARE(a.steps[k].elements, sync.steps[k].elements);  // each cut at the same step
       }
-      qInfo("%s: %zu elements, %zu nodes, %zu cut updates (%zu through a vessel), sync and 3 async runs alike; final positions within %.3g mm",
-            name, sync.finalMesh.tets.size(), sync.finalMesh.points.size(), sync.cuts, sync.vesselCuts, 1e3 * worst);
+      qInfo(
+          "%s: %zu elements, %zu nodes, %zu cut updates (%zu through a vessel), sync and 3 async runs alike; final "
+          "positions within %.3g mm",
+          name, sync.finalMesh.tets.size(), sync.finalMesh.points.size(), sync.cuts, sync.vesselCuts, 1e3 * worst);
       // Positions: the asynchronous factor swaps' timing is the one difference left (the linearised steps' inexactness,
       // relative residual up to 1e-2; 0.92 mm measured after the lobe swung free): far below an element (18 mm).
       QVERIFY(worst < 5e-3);
@@ -572,7 +615,8 @@ class TestCut : public QObject {
     std::mt19937 rng(15);
     std::uniform_real_distribution<double> u(0, 1);
     auto inside = [&] {
-      return Eigen::Vector3d(box.min().x() + u(rng) * box.sizes().x(), box.min().y() + u(rng) * box.sizes().y(), box.min().z() + u(rng) * box.sizes().z());
+      return Eigen::Vector3d(box.min().x() + u(rng) * box.sizes().x(), box.min().y() + u(rng) * box.sizes().y(),
+                             box.min().z() + u(rng) * box.sizes().z());
     };
     std::size_t cuts = 0, refused = 0, failed = 0;
     for (int k = 0; k < 200; ++k) {
@@ -593,8 +637,11 @@ class TestCut : public QObject {
     }
     const auto& mesh = session.setup().mesh;
     const Validity v = validity(mesh.points, mesh.tets);
-    qInfo("200 random cuts: %zu cut, %zu refused, %zu failed steps; %zu elements, %zu nodes, worst quality %.3f (floor %.3f)", cuts, refused, failed,
-          mesh.tets.size(), mesh.points.size(), v.minQuality, session.setup().tools.cut.minQuality);
+    qInfo(
+        "200 random cuts: %zu cut, %zu refused, %zu failed steps; %zu elements, %zu nodes, worst quality %.3f (floor "
+        "%.3f)",
+        cuts, refused, failed, mesh.tets.size(), mesh.points.size(), v.minQuality,
+        session.setup().tools.cut.minQuality);
     QVERIFY(cuts > 50);
     QCOMPARE(v.inverted, std::size_t(0));
     QVERIFY(v.minQuality >= session.setup().tools.cut.minQuality);
@@ -625,8 +672,9 @@ class TestCut : public QObject {
       }
       QVERIFY(!session.snapshot()->tool.held.empty());
       auto c = session.constructions();
-      qInfo("radius %.1f mm, grasp and pull: %ld contact hierarchies, %ld detections, %ld re-meshings, %ld cut surfaces", 1e3 * radius,
-            c.contactHierarchies, session.contactQueries(), c.cutMeshes, c.cutSurfaces);
+      qInfo(
+          "radius %.1f mm, grasp and pull: %ld contact hierarchies, %ld detections, %ld re-meshings, %ld cut surfaces",
+          1e3 * radius, c.contactHierarchies, session.contactQueries(), c.cutMeshes, c.cutSurfaces);
       QCOMPARE(c.contactHierarchies, radius > 0 ? 1L : 0L);
       QCOMPARE(session.contactQueries() > 0, radius > 0);
       QCOMPARE(c.cutMeshes, 0L);
@@ -635,14 +683,16 @@ class TestCut : public QObject {
       session.post(jaw);
       // A cut across the front: now the cutting structures exist.
       const Eigen::Vector3d trocar = *session.setup().tools.trocar;
-      const Eigen::Vector3d along = (front - trocar).normalized(), across = along.cross(Eigen::Vector3d::UnitX()).normalized();
+      const Eigen::Vector3d along = (front - trocar).normalized(),
+                            across = along.cross(Eigen::Vector3d::UnitX()).normalized();
       session.post(toolAt(front + 0.01 * along - 0.02 * across));
       session.post(cutting(true));
       session.post(toolAt(front + 0.01 * along + 0.02 * across));
       session.post(cutting(false));
       for (int k = 0; k < 10; ++k) QVERIFY(session.advance().ok);
       c = session.constructions();
-      qInfo("after a cut: %ld re-meshings, %ld cut surfaces, %ld contact hierarchies", c.cutMeshes, c.cutSurfaces, c.contactHierarchies);
+      qInfo("after a cut: %ld re-meshings, %ld cut surfaces, %ld contact hierarchies", c.cutMeshes, c.cutSurfaces,
+            c.contactHierarchies);
       QVERIFY(c.cutMeshes >= 1);
       QCOMPARE(c.cutSurfaces, c.cutMeshes);
       QCOMPARE(c.contactHierarchies, radius > 0 ? 1 + c.cutMeshes : 0L);  // rebuilt for each new topology
@@ -659,7 +709,8 @@ class TestCut : public QObject {
     // The blade's sweep passes through the attachment node: the tip 10 mm beyond it (seen from the trocar),
     // moving 40 mm across.
     const Eigen::Vector3d trocar = *session.setup().tools.trocar;
-    const Eigen::Vector3d along = (anchor - trocar).normalized(), across = along.cross(Eigen::Vector3d::UnitX()).normalized();
+    const Eigen::Vector3d along = (anchor - trocar).normalized(),
+                          across = along.cross(Eigen::Vector3d::UnitX()).normalized();
     session.post(toolAt(anchor + 0.01 * along - 0.02 * across));
     session.post(cutting(true));
     session.post(toolAt(anchor + 0.01 * along + 0.02 * across));
@@ -669,7 +720,10 @@ class TestCut : public QObject {
     const auto& fixed = session.setup().fixedNodes;
     QVERIFY(fixed.size() > s.fixedNodes.size());  // copies of cut attachment nodes are attachments too
     double moved = 0;
-    for (int i : fixed) moved = std::max(moved, (snap->positions[static_cast<std::size_t>(i)] - session.setup().mesh.points[static_cast<std::size_t>(i)]).norm());
+    for (int i : fixed)
+      moved = std::max(moved, (snap->positions[static_cast<std::size_t>(i)] -
+                               session.setup().mesh.points[static_cast<std::size_t>(i)])
+                                  .norm());
     qInfo("attachments %zu -> %zu after the cut, the furthest moved %.2e m", s.fixedNodes.size(), fixed.size(), moved);
     QVERIFY(moved < 1e-12);
   }
@@ -710,15 +764,16 @@ class TestCut : public QObject {
       for (const auto& p : session.snapshot()->positions) QVERIFY(p.allFinite());
       // A step that did not advance says so and leaves the state as it was (rolled back), never half-done.
       if (!rep.ok) {
-        QVERIFY2(rep.outcome == simcore::StepStatus::Failed || rep.outcome == simcore::StepStatus::Refused, rep.status.c_str());
+        QVERIFY2(rep.outcome == simcore::StepStatus::Failed || rep.outcome == simcore::StepStatus::Refused,
+                 rep.status.c_str());
         const simcore::SimulationState after = session.state();
         QVERIFY(after.x.size() == before.x.size() && after.x == before.x && after.v == before.v);
       }
     }
     QCOMPARE(ok + notOk, std::size_t(50));
     QVERIFY2(ok >= 10, "the first pulls (up to twice the organ's size) are taken");
-    qInfo("pulled %.0f mm (10x the organ's %.0f mm): %zu steps ok, %zu refused with a status (%s)", 1e4 * size, 1e3 * size, ok, notOk,
-          session.snapshot()->report.status.c_str());
+    qInfo("pulled %.0f mm (10x the organ's %.0f mm): %zu steps ok, %zu refused with a status (%s)", 1e4 * size,
+          1e3 * size, ok, notOk, session.snapshot()->report.status.c_str());
   }
 };
 

@@ -56,7 +56,8 @@ class TestGrasp : public QObject {
     session.post(jaws(true));
     session.advance();
     const auto held = session.snapshot()->tool.held;
-    QCOMPARE(held.size(), std::size_t(6));  // the end face's middle node, its four neighbours on the face and the one behind it
+    QCOMPARE(held.size(),
+             std::size_t(6));  // the end face's middle node, its four neighbours on the face and the one behind it
     const Eigen::Vector3d pull(0, 0, 0.002);
     session.post(toolAt(end + pull));
     for (int k = 0; k < 60; ++k) QVERIFY(session.advance().ok);
@@ -68,7 +69,8 @@ class TestGrasp : public QObject {
     // (an independent route through the elastic forces) says the same.
     const auto body = simcore::makeFemBody(s);
     const Eigen::Vector3d balance = body->appliedForce(held, session.state(), session.state().v, s.settings.timeStep);
-    qInfo("multipliers (%.6f, %.6f, %.6f) N, force balance (%.6f, %.6f, %.6f) N", ours.x(), ours.y(), ours.z(), balance.x(), balance.y(), balance.z());
+    qInfo("multipliers (%.6f, %.6f, %.6f) N, force balance (%.6f, %.6f, %.6f) N", ours.x(), ours.y(), ours.z(),
+          balance.x(), balance.y(), balance.z());
     QVERIFY((ours - balance).norm() < 1e-3 * ours.norm());
     std::map<int, Eigen::Vector3d> imposed;
     double follow = 0;
@@ -78,12 +80,13 @@ class TestGrasp : public QObject {
     }
     QVERIFY2(follow < 1e-6, qPrintable(QString::number(follow)));  // the bite moved with the tip
     Eigen::Vector3d reaction;
-    const Eigen::VectorXd u = runCalculixStatic(s.mesh, {}, CcxMaterial{10e3, 0.3, 1000, false}, Eigen::Vector3d::Zero(), true, s.fixedNodes,
-                                                "grasp-pull", {}, imposed, &reaction);
+    const Eigen::VectorXd u =
+        runCalculixStatic(s.mesh, {}, CcxMaterial{10e3, 0.3, 1000, false}, Eigen::Vector3d::Zero(), true, s.fixedNodes,
+                          "grasp-pull", {}, imposed, &reaction);
     QVERIFY2(u.size() > 0, "CalculiX (ccx) did not run; scripts/install-deps.sh installs calculix-ccx");
     const double error = (ours - reaction).norm() / reaction.norm();
-    qInfo("tool force (%.5f, %.5f, %.5f) N, CalculiX's reaction (%.5f, %.5f, %.5f) N: %.2f %% apart", ours.x(), ours.y(), ours.z(), reaction.x(),
-          reaction.y(), reaction.z(), 100 * error);
+    qInfo("tool force (%.5f, %.5f, %.5f) N, CalculiX's reaction (%.5f, %.5f, %.5f) N: %.2f %% apart", ours.x(),
+          ours.y(), ours.z(), reaction.x(), reaction.y(), reaction.z(), 100 * error);
     QVERIFY(reaction.norm() > 1e-4);
     QVERIFY(error < 0.05);
   }
@@ -116,16 +119,16 @@ class TestGrasp : public QObject {
       for (int k = 0; k < 40; ++k) session.advance();
       const auto snap = session.snapshot();
       const double vmax = session.state().v.cwiseAbs().maxCoeff();
-      qInfo("%d elements across: %zu tets, %zu node(s) held, tool force %.4f mN (settled to %.1e m/s)", n, s.mesh.tets.size(), held,
-            1e3 * snap->tool.force.norm(), vmax);
+      qInfo("%d elements across: %zu tets, %zu node(s) held, tool force %.4f mN (settled to %.1e m/s)", n,
+            s.mesh.tets.size(), held, 1e3 * snap->tool.force.norm(), vmax);
       return std::make_pair(snap->tool.force.norm(), vmax);
     };
     const auto [f1, v1] = force(2);
     const auto [f2, v2] = force(4);
     const auto [f3, v3] = force(8);
     const double I = a * a * a * a / 12, free = 3 * E * I * pull / (L * L * L), guided = 4 * free;
-    qInfo("changes with refinement: %.1f %% then %.1f %%; beam: free end %.4f mN, guided end %.4f mN", 100 * std::abs(f2 - f1) / f2,
-          100 * std::abs(f3 - f2) / f3, 1e3 * free, 1e3 * guided);
+    qInfo("changes with refinement: %.1f %% then %.1f %%; beam: free end %.4f mN, guided end %.4f mN",
+          100 * std::abs(f2 - f1) / f2, 100 * std::abs(f3 - f2) / f3, 1e3 * free, 1e3 * guided);
     QVERIFY(std::max({v1, v2, v3}) < 1e-8);  // settled: static forces
     QVERIFY(std::abs(f3 - f2) < std::abs(f2 - f1));
     QVERIFY(std::abs(f3 - f2) < 0.15 * f3);
@@ -134,8 +137,9 @@ class TestGrasp : public QObject {
 
   // Issue 32: a steady grasp released without moving (grasp-pull.json with the GUI's 2.5 mm shaft). The bitten node
   // sits at the tip, on the shaft's axis, where the direction out of the shaft is noise: it was skipped at the release
-  // and pushed out to the radius at the next step (one step of 5.74 N after a steady 17.3 N). Now it is pushed along the
-  // surface's own inward normal, eased from where it is: the recoiling tissue leaves the instrument without a spike.
+  // and pushed out to the radius at the next step (one step of 5.74 N after a steady 17.3 N). Now it is pushed along
+  // the surface's own inward normal, eased from where it is: the recoiling tissue leaves the instrument without a
+  // spike.
   void releaseWithoutASpike() {
     std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json");
     std::stringstream ss;
@@ -149,11 +153,13 @@ class TestGrasp : public QObject {
     QCOMPARE(r.failed, std::size_t(0));
     std::size_t release = 0;
     for (std::size_t k = 0; k < r.steps.size() && !release; ++k)
-      if (std::find(r.steps[k].events.begin(), r.steps[k].events.end(), "release") != r.steps[k].events.end()) release = k;
+      if (std::find(r.steps[k].events.begin(), r.steps[k].events.end(), "release") != r.steps[k].events.end())
+        release = k;
     QVERIFY(release > 10);
     const double held = r.steps[release - 1].toolForce.norm();
     double after = 0;
-    for (std::size_t k = release; k < std::min(r.steps.size(), release + 20); ++k) after = std::max(after, r.steps[k].toolForce.norm());
+    for (std::size_t k = release; k < std::min(r.steps.size(), release + 20); ++k)
+      after = std::max(after, r.steps[k].toolForce.norm());
     qInfo("held %.2f N steadily; the 20 steps after the release peak at %.3f N", held, after);
     QVERIFY(held > 1);
     QVERIFY(after < 0.05 * held);
@@ -188,9 +194,14 @@ class TestGrasp : public QObject {
       const auto i = static_cast<std::size_t>(pulled->tool.held[k]);
       worst = std::max(worst, (pulled->positions[i] - (pulled->tool.tip + pulled->tool.heldOffset[k])).norm());
     }
-    for (int i : s.fixedNodes) fixedMoved = std::max(fixedMoved, (pulled->positions[static_cast<std::size_t>(i)] - s.mesh.points[static_cast<std::size_t>(i)]).norm());
-    qInfo("pulled 2 cm: %zu nodes held, worst %.4f mm from their place on the tool, tool force %.2f N, ligament nodes moved %.2e m", pulled->tool.held.size(),
-          1e3 * worst, pulled->tool.force.norm(), fixedMoved);
+    for (int i : s.fixedNodes)
+      fixedMoved = std::max(
+          fixedMoved,
+          (pulled->positions[static_cast<std::size_t>(i)] - s.mesh.points[static_cast<std::size_t>(i)]).norm());
+    qInfo(
+        "pulled 2 cm: %zu nodes held, worst %.4f mm from their place on the tool, tool force %.2f N, ligament nodes "
+        "moved %.2e m",
+        pulled->tool.held.size(), 1e3 * worst, pulled->tool.force.norm(), fixedMoved);
     QVERIFY(worst < 1e-3);
     QVERIFY(fixedMoved < 1e-12);
     QVERIFY(pulled->tool.force.norm() > 0.01);
@@ -198,12 +209,15 @@ class TestGrasp : public QObject {
     const Eigen::Vector3d heldAt = pulled->positions[static_cast<std::size_t>(pulled->tool.held.front())];
     session.post(jaws(false));
     session.advance();
-    QVERIFY(std::find(session.snapshot()->events.begin(), session.snapshot()->events.end(), "release") != session.snapshot()->events.end());
+    QVERIFY(std::find(session.snapshot()->events.begin(), session.snapshot()->events.end(), "release") !=
+            session.snapshot()->events.end());
     for (int k = 0; k < 150; ++k) session.advance();
     const auto relaxed = session.snapshot();
     const auto node = static_cast<std::size_t>(pulled->tool.held.front());
-    const double before = (heldAt - settled->positions[node]).norm(), after = (relaxed->positions[node] - settled->positions[node]).norm();
-    qInfo("released: the bitten node %.1f mm from where it settled when let go, %.1f mm 1.5 s later", 1e3 * before, 1e3 * after);
+    const double before = (heldAt - settled->positions[node]).norm(),
+                 after = (relaxed->positions[node] - settled->positions[node]).norm();
+    qInfo("released: the bitten node %.1f mm from where it settled when let go, %.1f mm 1.5 s later", 1e3 * before,
+          1e3 * after);
     QVERIFY(after < 0.5 * before);
     QCOMPARE(relaxed->mass, mass);
     QVERIFY(relaxed->tool.held.empty());
@@ -246,14 +260,20 @@ class TestGrasp : public QObject {
     const Eigen::Matrix3d K = base->tool.stiffness;
     Eigen::Matrix3d fd;
     const double d = 1e-4;
-    for (int a = 0; a < 3; ++a) fd.col(a) = (stepTo(at + d * Eigen::Vector3d::Unit(a))->tool.force - base->tool.force) / d;
+    for (int a = 0; a < 3; ++a)
+      fd.col(a) = (stepTo(at + d * Eigen::Vector3d::Unit(a))->tool.force - base->tool.force) / d;
     const double rel = (fd - K).norm() / K.norm();
-    qInfo("tool stiffness: |K| %.1f N/m, eigenvalues of its symmetric part %.1f %.1f %.1f N/m; finite differences differ by %.2e relative", K.norm(),
-          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(K).eigenvalues()[0], Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(K).eigenvalues()[1],
-          Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(K).eigenvalues()[2], rel);
+    qInfo(
+        "tool stiffness: |K| %.1f N/m, eigenvalues of its symmetric part %.1f %.1f %.1f N/m; finite differences differ "
+        "by %.2e relative",
+        K.norm(), Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(K).eigenvalues()[0],
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(K).eigenvalues()[1],
+        Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(K).eigenvalues()[2], rel);
     QVERIFY(K.norm() > 1.0);
-    QVERIFY2(rel < 1e-4, qPrintable(QStringLiteral("finite differences %1 relative from the published stiffness").arg(rel)));
-    QVERIFY(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(K).eigenvalues().minCoeff() > 0);  // pulling further always pulls harder
+    QVERIFY2(rel < 1e-4,
+             qPrintable(QStringLiteral("finite differences %1 relative from the published stiffness").arg(rel)));
+    QVERIFY(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(K).eigenvalues().minCoeff() >
+            0);  // pulling further always pulls harder
 
     // Extrapolation between steps: the model of step k evaluated where the tool is at step k + 1.
     session.restore(cp);
@@ -266,16 +286,21 @@ class TestGrasp : public QObject {
       session.advance();
       const auto now = session.snapshot();
       // The loop's lock-free source carries exactly the snapshot's model.
-      const simcore::ToolForceModel lockFree = session.toolForce(), fromSnapshot = simcore::toolForceModel(*now, s.tools.maxGraspForce);
+      const simcore::ToolForceModel lockFree = session.toolForce(),
+                                    fromSnapshot = simcore::toolForceModel(*now, s.tools.maxGraspForce);
       QCOMPARE(lockFree.step, fromSnapshot.step);
-      QVERIFY(lockFree.tip == fromSnapshot.tip && lockFree.force == fromSnapshot.force && lockFree.stiffness == fromSnapshot.stiffness);
+      QVERIFY(lockFree.tip == fromSnapshot.tip && lockFree.force == fromSnapshot.force &&
+              lockFree.stiffness == fromSnapshot.stiffness);
       QCOMPARE(lockFree.maxForce, fromSnapshot.maxForce);
       extrapolated = std::max(extrapolated, (simcore::extrapolateForce(model, p) - now->tool.force).norm());
       held = std::max(held, (previous->tool.force - now->tool.force).norm());
       previous = now;
     }
-    qInfo("next step's force while pulling 0.2 mm per step: extrapolated from the last step's model within %.4f N, the last force held within %.4f N "
-          "(worst of 29 steps)", extrapolated, held);
+    qInfo(
+        "next step's force while pulling 0.2 mm per step: extrapolated from the last step's model within %.4f N, the "
+        "last force held within %.4f N "
+        "(worst of 29 steps)",
+        extrapolated, held);
     QVERIFY(std::isfinite(extrapolated) && held > 0);
   }
 
@@ -291,20 +316,23 @@ class TestGrasp : public QObject {
     simcore::VirtualDevice device;
     simcore::ForceLoop loop([&] { return m; }, &device);
     device.setPosition(m.tip + Eigen::Vector3d(0.001, -0.002, 0.004));
-    const Eigen::Vector3d expected(1.28, 1.63, -0.61);  // N, f0 + K dp worked by hand: (1 + 0.3 - 0.02, 2 + 0.01 - 0.4 + 0.02, -1 - 0.01 + 0.4)
+    const Eigen::Vector3d expected(
+        1.28, 1.63, -0.61);  // N, f0 + K dp worked by hand: (1 + 0.3 - 0.02, 2 + 0.01 - 0.4 + 0.02, -1 - 0.01 + 0.4)
     QVERIFY(expected.norm() < m.maxForce);
     QVERIFY((loop.tick() - expected).norm() < 1e-12);
     QVERIFY((device.rendered() + expected).norm() < 1e-12);
     device.setPosition(m.tip + Eigen::Vector3d(0.02, 0, 0));  // 1 + 6 N along x: capped at 4 N
     const Eigen::Vector3d capped = loop.tick();
     QVERIFY(std::abs(capped.norm() - 4.0) < 1e-12);
-    QVERIFY(capped.normalized().dot(Eigen::Vector3d(7, 2.2, -1).normalized()) > 1 - 1e-12);  // (1 + 6, 2 + 0.2, -1) by hand
+    QVERIFY(capped.normalized().dot(Eigen::Vector3d(7, 2.2, -1).normalized()) >
+            1 - 1e-12);  // (1 + 6, 2 + 0.2, -1) by hand
     // Contact (no cap) and a device far from the step's tip (the instrument jumped; on the patient liver, whose CT
     // coordinates are 0.3 m from the origin, the chart read 18 kN): the model is used no further than its reach.
     m.maxForce = 0;
     m.reach = 0.003;
     device.setPosition(m.tip + Eigen::Vector3d(0.3, 0, 0));
-    QVERIFY((loop.tick() - Eigen::Vector3d(1.9, 2.03, -1.0)).norm() < 1e-12);  // f0 + K (3 mm, 0, 0), not f0 + K (300 mm, 0, 0) = (91, 5, -1)
+    QVERIFY((loop.tick() - Eigen::Vector3d(1.9, 2.03, -1.0)).norm() <
+            1e-12);  // f0 + K (3 mm, 0, 0), not f0 + K (300 mm, 0, 0) = (91, 5, -1)
     m.reach = 0;
     QVERIFY((loop.tick() - Eigen::Vector3d(91, 5, -1)).norm() < 1e-9);  // unbounded, as it was
     loop.start();
@@ -315,7 +343,8 @@ class TestGrasp : public QObject {
     const auto t = loop.timing();
     QVERIFY(t.ticks >= 50 && t.medianPeriodMs > 0 && t.rateHz > 0);
     QVERIFY(loop.samples(10).size() >= 50);
-    qInfo("force loop here: %.0f Hz, period median %.3f ms, p99 %.3f ms (measured in bench_rehearsal, not asserted)", t.rateHz, t.medianPeriodMs, t.p99PeriodMs);
+    qInfo("force loop here: %.0f Hz, period median %.3f ms, p99 %.3f ms (measured in bench_rehearsal, not asserted)",
+          t.rateHz, t.medianPeriodMs, t.p99PeriodMs);
   }
 
   // The lock-free cell the loop reads: a writer storing (i, i, ..., i) as fast as it can, a reader never
@@ -350,10 +379,10 @@ class TestGrasp : public QObject {
   }
 
   // Issue 32: surface that is inside the shaft when it becomes free to touch it — here the blade switched off halfway
-  // through the lobe (cut-across stopped at 0.9 s), which also applies the last cut at once — was pushed to the shaft's radius
-  // in one step: a one-step spike (7.5 N against a steady 3 N on the liver preset). It is now eased out at the scene's
-  // depenetration speed (20 mm/s): no step after the blade stops exceeds the force the tissue then rests on the shaft
-  // with by 40 % (it swings on it), and that resting force (the physics) is the same either way within 5 %.
+  // through the lobe (cut-across stopped at 0.9 s), which also applies the last cut at once — was pushed to the shaft's
+  // radius in one step: a one-step spike (7.5 N against a steady 3 N on the liver preset). It is now eased out at the
+  // scene's depenetration speed (20 mm/s): no step after the blade stops exceeds the force the tissue then rests on the
+  // shaft with by 40 % (it swings on it), and that resting force (the physics) is the same either way within 5 %.
   void contactFreedInsideTheShaftIsEased() {
     std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json");
     std::stringstream ss;
@@ -379,8 +408,11 @@ class TestGrasp : public QObject {
       peakEased = std::max(peakEased, force(eased, k));
     }
     const double restingAtOnce = force(atOnce, off + 20), restingEased = force(eased, off + 20);
-    qInfo("blade off inside the lobe: at once, the first 10 steps peak at %.2f N (resting %.2f N 20 steps later); eased at 20 mm/s, %.2f N "
-          "(resting %.2f N)", peakAtOnce, restingAtOnce, peakEased, restingEased);
+    qInfo(
+        "blade off inside the lobe: at once, the first 10 steps peak at %.2f N (resting %.2f N 20 steps later); eased "
+        "at 20 mm/s, %.2f N "
+        "(resting %.2f N)",
+        peakAtOnce, restingAtOnce, peakEased, restingEased);
     QVERIFY(restingAtOnce > 0.5 && restingEased > 0.5);  // the shaft is inside the organ: it holds part of it
     QVERIFY2(peakAtOnce > 1.8 * restingAtOnce, "the spike this test is about is no longer there to remove");
     QVERIFY(peakEased < 1.4 * restingEased);
@@ -421,11 +453,11 @@ class TestGrasp : public QObject {
   // a vertical instrument of 6 mm radius (wider than an element) and one of 1 mm (thinner: it meets the face
   // between nodes) comes down on the middle of its top face, its tip 2 mm below where the face was. Every
   // contact constraint holds at the end of every step to 1 micrometre (projected Gauss-Seidel on the nearly
-  // parallel constraints of neighbouring triangles: 0.1 micrometre seen with the thin instrument); the surface, sampled between the nodes on a
-  // 24 x 24 grid per triangle, stays out of the instrument within 0.1 mm (the constraints are linearised at
-  // the step's start); the contact only pushes and its force is the base's support reaction (an independent
-  // route through the elastic forces); withdrawn, the tissue lets go and springs back; without an instrument
-  // no contact detection runs.
+  // parallel constraints of neighbouring triangles: 0.1 micrometre seen with the thin instrument); the surface, sampled
+  // between the nodes on a 24 x 24 grid per triangle, stays out of the instrument within 0.1 mm (the constraints are
+  // linearised at the step's start); the contact only pushes and its force is the base's support reaction (an
+  // independent route through the elastic forces); withdrawn, the tissue lets go and springs back; without an
+  // instrument no contact detection runs.
   void contactPushesNotPenetrates_data() {
     QTest::addColumn<double>("radius");
     QTest::newRow("6 mm") << 0.006;
@@ -457,8 +489,10 @@ class TestGrasp : public QObject {
       for (const auto& tri : boundary)
         for (int i = 0; i <= 24; ++i)
           for (int j = 0; i + j <= 24; ++j) {
-            const Eigen::Vector3d p = ((24 - i - j) * snap.positions[static_cast<std::size_t>(tri[0])] + i * snap.positions[static_cast<std::size_t>(tri[1])] +
-                                       j * snap.positions[static_cast<std::size_t>(tri[2])]) / 24.0;
+            const Eigen::Vector3d p = ((24 - i - j) * snap.positions[static_cast<std::size_t>(tri[0])] +
+                                       i * snap.positions[static_cast<std::size_t>(tri[1])] +
+                                       j * snap.positions[static_cast<std::size_t>(tri[2])]) /
+                                      24.0;
             const double t = std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0);
             worst = std::min(worst, (p - (a + t * d)).norm() - radius);
           }
@@ -467,7 +501,8 @@ class TestGrasp : public QObject {
     for (int k = 0; k <= 20; ++k) {
       session.post(toolAt(above - Eigen::Vector3d(0, 0, 0.011 * k / 20.0)));  // down to 18 mm: 2 mm below the face
       QVERIFY(session.advance().ok);
-      QVERIFY2(session.snapshot()->report.constraintViolation < 1e-6, qPrintable(QString::number(session.snapshot()->report.constraintViolation)));
+      QVERIFY2(session.snapshot()->report.constraintViolation < 1e-6,
+               qPrintable(QString::number(session.snapshot()->report.constraintViolation)));
       worstInside = std::min(worstInside, capsuleGap(*session.snapshot()));
     }
     for (int k = 0; k < 40; ++k) {
@@ -481,10 +516,14 @@ class TestGrasp : public QObject {
     const Eigen::Vector3d force = pressed->tool.force;
     const double vmax = session.state().v.cwiseAbs().maxCoeff();
     const auto body = simcore::makeFemBody(s);
-    const Eigen::Vector3d reaction = body->appliedForce(s.fixedNodes, session.state(), session.state().v, s.settings.timeStep);
-    qInfo("pressed: %d contact triangles, the surface at most %.2e m inside the instrument, contact force (%.4f, %.4f, %.4f) N, base reaction (%.4f, %.4f, %.4f) N, "
-          "max speed %.1e m/s",
-          pressed->tool.contacts, -worstInside, force.x(), force.y(), force.z(), reaction.x(), reaction.y(), reaction.z(), vmax);
+    const Eigen::Vector3d reaction =
+        body->appliedForce(s.fixedNodes, session.state(), session.state().v, s.settings.timeStep);
+    qInfo(
+        "pressed: %d contact triangles, the surface at most %.2e m inside the instrument, contact force (%.4f, %.4f, "
+        "%.4f) N, base reaction (%.4f, %.4f, %.4f) N, "
+        "max speed %.1e m/s",
+        pressed->tool.contacts, -worstInside, force.x(), force.y(), force.z(), reaction.x(), reaction.y(), reaction.z(),
+        vmax);
     QVERIFY(force.norm() > 1e-3);
     QVERIFY(-worstInside < 1e-4);
     QVERIFY((force + reaction).norm() < 0.05 * force.norm());  // the base holds what the instrument pushes
@@ -493,8 +532,10 @@ class TestGrasp : public QObject {
     for (int k = 0; k < 60; ++k) QVERIFY(session.advance().ok);
     const auto after = session.snapshot();
     double back = 0;
-    for (std::size_t i = 0; i < after->positions.size(); ++i) back = std::max(back, (after->positions[i] - s.mesh.points[i]).norm());
-    qInfo("withdrawn: %d contacts, force %.2e N, furthest node %.2e m from rest", after->tool.contacts, after->tool.force.norm(), back);
+    for (std::size_t i = 0; i < after->positions.size(); ++i)
+      back = std::max(back, (after->positions[i] - s.mesh.points[i]).norm());
+    qInfo("withdrawn: %d contacts, force %.2e N, furthest node %.2e m from rest", after->tool.contacts,
+          after->tool.force.norm(), back);
     QCOMPARE(after->tool.contacts, 0);
     QCOMPARE(after->tool.force.norm(), 0.0);
     QVERIFY(back < 1e-4);
@@ -510,10 +551,15 @@ class TestGrasp : public QObject {
       return false;
     };
     QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "cut": "on"}]})", "cuts with the grasper"));
-    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "scissors", "cut": true}]})", "must be \"on\" or \"off\""));
-    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "hook"}, {"t": 1, "jaws": "close"}]})", "while holding the hook"));
+    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "scissors", "cut": true}]})",
+                    "must be \"on\" or \"off\""));
+    QVERIFY(
+        refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "hook"}, {"t": 1, "jaws": "close"}]})",
+                "while holding the hook"));
     QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tool": "laser"}]})", "unknown tool"));
-    QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 1, "jaws": "close"}, {"t": 0.5, "jaws": "open"}]})", "time order"));
+    QVERIFY(
+        refused(R"({"format": "rehearse-gesture", "events": [{"t": 1, "jaws": "close"}, {"t": 0.5, "jaws": "open"}]})",
+                "time order"));
     QVERIFY(refused(R"({"format": "rehearse-gesture", "events": [{"t": 0, "tip": [0, "a", 0]}]})", "not a number"));
     QVERIFY(refused(R"({"events": []})", "rehearse-gesture"));
     QVERIFY(refused("{", "not valid JSON"));
@@ -527,7 +573,8 @@ class TestGrasp : public QObject {
     const app::GestureResult r = app::runGesture(s, script);
     std::size_t most = 0;
     for (const auto& row : r.steps) most = std::max(most, row.grasped);
-    qInfo("grasp-pull.json on the liver preset: %zu steps, up to %zu nodes grasped, %zu slips, %zu failed", r.steps.size(), most, r.slips, r.failed);
+    qInfo("grasp-pull.json on the liver preset: %zu steps, up to %zu nodes grasped, %zu slips, %zu failed",
+          r.steps.size(), most, r.slips, r.failed);
     QCOMPARE(r.steps.size(), std::size_t(350));
     QVERIFY(most > 0);
     QCOMPARE(r.failed, std::size_t(0));

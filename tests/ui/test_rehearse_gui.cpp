@@ -1,8 +1,9 @@
 // Step 7 through the real main window (offscreen, software rendering) with QTest mouse and key events:
 // Alt+7 picks the grasper; a press on the organ closes the jaws there, a drag pulls it (the simulation
 // plays), and the bitten tissue follows the tip within 1 mm while the ligament nodes stay; the release
-// opens the jaws and the tissue relaxes; the 1 kHz tool-force loop and the page's chart of it follow. Space closes and opens the jaws at the cursor. B picks the
-// scissors: a drag across the organ cuts it (counts grow, mass kept, no inverted or poor element). With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot.
+// opens the jaws and the tissue relaxes; the 1 kHz tool-force loop and the page's chart of it follow. Space closes and
+// opens the jaws at the cursor. B picks the scissors: a drag across the organ cuts it (counts grow, mass kept, no
+// inverted or poor element). With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot.
 #include "test_support.hpp"
 
 #include "rehearse/ui/frameview.hpp"
@@ -93,11 +94,15 @@ class TestRehearseGui : public QObject {
     // A failed check returns early: the connection (it holds this slot's locals) goes with the scope.
     const auto unwatch = qScopeGuard([&] { disconnect(watching); });
     const std::vector<Eigen::Vector3d> settled = panel->lastFrame()->positions;
-    const QSize viewSize = view->size();  // the page's labels must not resize the frame under the hand (a long force line did)
+    const QSize viewSize =
+        view->size();  // the page's labels must not resize the frame under the hand (a long force line did)
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     const bool grasped = waitFor([&] { return panel->lastFrame() && !panel->lastFrame()->tool.held.empty(); }, 20000);
-    QVERIFY2(grasped, qPrintable(w_->messageLog().join(" | ") + " // " + w_->statusText() + " // " + QString::fromStdString(panel->lastFrame()->report.status) +
-                                   QString(" steps %1 jaw %2").arg(panel->lastFrame()->steps).arg(panel->lastFrame()->tool.jawClosed)));
+    QVERIFY2(
+        grasped,
+        qPrintable(w_->messageLog().join(" | ") + " // " + w_->statusText() + " // " +
+                   QString::fromStdString(panel->lastFrame()->report.status) +
+                   QString(" steps %1 jaw %2").arg(panel->lastFrame()->steps).arg(panel->lastFrame()->tool.jawClosed)));
     for (int i = 1; i <= 12; ++i) {
       QTest::mouseMove(view, (a + (b - a) * (i / 12.0)).toPoint());
       // The organ follows each move for a few steps before the next (a hand moves over many steps; a slow
@@ -113,17 +118,24 @@ class TestRehearseGui : public QObject {
     QVERIFY2(!f->tool.held.empty(), qPrintable(QString("peak %1 N; %2").arg(peak).arg(slipMessage)));
     double worst = 0;
     for (std::size_t k = 0; k < f->tool.held.size(); ++k)
-      worst = std::max(worst, (f->positions[static_cast<std::size_t>(f->tool.held[k])] - (f->tool.tip + f->tool.heldOffset[k])).norm());
+      worst = std::max(
+          worst,
+          (f->positions[static_cast<std::size_t>(f->tool.held[k])] - (f->tool.tip + f->tool.heldOffset[k])).norm());
     double fixedMoved = 0;
     for (int i : c.attachments)
-      fixedMoved = std::max(fixedMoved, (f->positions[static_cast<std::size_t>(i)] - c.pose.apply(c.shapeNodes()[static_cast<std::size_t>(i)])).norm());
+      fixedMoved = std::max(fixedMoved, (f->positions[static_cast<std::size_t>(i)] -
+                                         c.pose.apply(c.shapeNodes()[static_cast<std::size_t>(i)]))
+                                            .norm());
     // The tip moved with the cursor (the bite's node need not be under it: the nearest surface node is).
     QVERIFY(tipAtGrasp.has_value());
     const Eigen::Vector2d tipMoved = c.camera.project(f->tool.tip) - c.camera.project(*tipAtGrasp);
     const QPointF cursorMoved = view->toFrame(b) - view->toFrame(a);
-    qInfo("pulled: %zu nodes held, worst %.4f mm from their place on the tool; the tip moved (%.1f, %.1f) px, the cursor (%.1f, %.1f) px; tool force %.2f N "
-          "(peak %.2f N); ligament nodes moved %.1e m",
-          f->tool.held.size(), 1e3 * worst, tipMoved.x(), tipMoved.y(), cursorMoved.x(), cursorMoved.y(), f->tool.force.norm(), peak, fixedMoved);
+    qInfo(
+        "pulled: %zu nodes held, worst %.4f mm from their place on the tool; the tip moved (%.1f, %.1f) px, the cursor "
+        "(%.1f, %.1f) px; tool force %.2f N "
+        "(peak %.2f N); ligament nodes moved %.1e m",
+        f->tool.held.size(), 1e3 * worst, tipMoved.x(), tipMoved.y(), cursorMoved.x(), cursorMoved.y(),
+        f->tool.force.norm(), peak, fixedMoved);
     const double pulledMm = 1e3 * (f->tool.tip - *tipAtGrasp).norm();
     qInfo("the tip moved %.1f mm", pulledMm);
     QVERIFY(pulledMm > 15 && pulledMm < 30);
@@ -133,7 +145,8 @@ class TestRehearseGui : public QObject {
     QVERIFY(f->tool.force.norm() > 0.01);
     // The GUI's instruments are 5 mm shafts in contact with the tissue (detected at every step).
     QCOMPARE(panel->session()->setup().tools.toolRadius, 0.0025);
-    qInfo("contact: %ld detections, up to %d triangles touching the shaft", panel->session()->contactQueries(), contacts);
+    qInfo("contact: %ld detections, up to %d triangles touching the shaft", panel->session()->contactQueries(),
+          contacts);
     QVERIFY(panel->session()->contactQueries() > 0);
     QVERIFY(!(w_->organOverlay() == restOverlay));  // the organ over the frame follows the simulation in this step
     QVERIFY(w_->findChild<QLabel*>("rehearseForce")->text().startsWith("Tool force"));
@@ -143,15 +156,18 @@ class TestRehearseGui : public QObject {
     const auto recent = loop->samples(0.05);
     QVERIFY(!recent.empty());
     const double loopForce = recent.back().force.norm();
-    qInfo("force loop: %.0f Hz, period median %.3f ms, p99 %.3f ms; its force %.3f N, the last step's %.3f N", loop->timing().rateHz,
-          loop->timing().medianPeriodMs, loop->timing().p99PeriodMs, loopForce, f->tool.force.norm());
-    QVERIFY(std::abs(loopForce - f->tool.force.norm()) < 0.05 * f->tool.force.norm() + 1e-3);  // the tip is still: the step's force
+    qInfo("force loop: %.0f Hz, period median %.3f ms, p99 %.3f ms; its force %.3f N, the last step's %.3f N",
+          loop->timing().rateHz, loop->timing().medianPeriodMs, loop->timing().p99PeriodMs, loopForce,
+          f->tool.force.norm());
+    QVERIFY(std::abs(loopForce - f->tool.force.norm()) <
+            0.05 * f->tool.force.norm() + 1e-3);  // the tip is still: the step's force
     QVERIFY(f->tool.stiffness.norm() > 0);
     auto* chartView = w_->findChild<QChartView*>("toolForceChart");
     QVERIFY(chartView && chartView->isVisible());
     QVERIFY(waitFor([&] { return qobject_cast<QLineSeries*>(chartView->chart()->series().first())->count() > 100; }));
     double chartPeak = 0;
-    for (const QPointF& p : qobject_cast<QLineSeries*>(chartView->chart()->series().first())->points()) chartPeak = std::max(chartPeak, p.y());
+    for (const QPointF& p : qobject_cast<QLineSeries*>(chartView->chart()->series().first())->points())
+      chartPeak = std::max(chartPeak, p.y());
     QVERIFY(chartPeak > 0.01);
     QVERIFY(w_->findChild<QLabel*>("forceLoopRate")->text().contains("Hz"));
     {  // Issue 32: the force the page shows is the step's constraint multipliers, and their jaws' share is the force
@@ -165,18 +181,24 @@ class TestRehearseGui : public QObject {
       const auto snap = session->snapshot();
       const QString shown = QStringLiteral("Tool force %1 N").arg(snap->tool.force.norm(), 0, 'f', 2);
       auto* label = w_->findChild<QLabel*>("rehearseForce");
-      QVERIFY2(waitFor([&] { return label->text().startsWith(shown); }, 5000), qPrintable(label->text() + " / " + shown));
+      QVERIFY2(waitFor([&] { return label->text().startsWith(shown); }, 5000),
+               qPrintable(label->text() + " / " + shown));
       const simcore::SimulationState state = session->state();
       const auto body = simcore::makeFemBody(session->setup());
-      const Eigen::Vector3d balance = body->appliedForce(snap->tool.held, state, state.v, session->setup().settings.timeStep);
-      qInfo("shown '%s'; multipliers %.4f N (jaws %.4f N), force balance at the held nodes %.4f N, step's relative residual %.1e", qPrintable(label->text()),
-            snap->tool.force.norm(), snap->tool.graspForce.norm(), balance.norm(), snap->report.residual);
+      const Eigen::Vector3d balance =
+          body->appliedForce(snap->tool.held, state, state.v, session->setup().settings.timeStep);
+      qInfo(
+          "shown '%s'; multipliers %.4f N (jaws %.4f N), force balance at the held nodes %.4f N, step's relative "
+          "residual %.1e",
+          qPrintable(label->text()), snap->tool.force.norm(), snap->tool.graspForce.norm(), balance.norm(),
+          snap->report.residual);
       QVERIFY(snap->tool.graspForce.norm() > 0.01);
       QVERIFY((balance - snap->tool.graspForce).norm() < 0.05 * snap->tool.graspForce.norm());
       QCOMPARE(label->text().contains("jaws"), (snap->tool.force - snap->tool.graspForce).norm() >= 0.005);
       panel->play();
     }
-    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-grasp.png");
+    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
+      w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-grasp.png");
     QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }));
     QVERIFY(waitFor([&] { return w_->findChild<QLabel*>("rehearseStatus")->text().startsWith("Released"); }, 10000));
@@ -191,10 +213,14 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > released + 100; }));
     double before = 0, after = 0;
     for (int i : f->tool.held) {
-      before = std::max(before, (f->positions[static_cast<std::size_t>(i)] - settled[static_cast<std::size_t>(i)]).norm());
-      after = std::max(after, (panel->lastFrame()->positions[static_cast<std::size_t>(i)] - settled[static_cast<std::size_t>(i)]).norm());
+      before =
+          std::max(before, (f->positions[static_cast<std::size_t>(i)] - settled[static_cast<std::size_t>(i)]).norm());
+      after = std::max(
+          after,
+          (panel->lastFrame()->positions[static_cast<std::size_t>(i)] - settled[static_cast<std::size_t>(i)]).norm());
     }
-    qInfo("released: the bitten nodes %.1f mm from where they had settled while pulled, %.1f mm after 100 steps", 1e3 * before, 1e3 * after);
+    qInfo("released: the bitten nodes %.1f mm from where they had settled while pulled, %.1f mm after 100 steps",
+          1e3 * before, 1e3 * after);
     QVERIFY(after < 0.3 * before);
     panel->pause();
   }
@@ -214,7 +240,8 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
     const std::size_t held = panel->lastFrame()->tool.held.size();
     QTest::keyClick(view, Qt::Key_Space);
-    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }, 20000));
+    QVERIFY(
+        waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }, 20000));
     qInfo("Space: the jaws held %zu node(s), Space again let go", held);
     panel->pause();
   }
@@ -259,8 +286,8 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 30; }));
     const auto f = panel->lastFrame();
     QVERIFY(f->surface != nullptr);
-    qInfo("cut: %zu -> %zu elements, %zu -> %zu nodes, mass %.12f -> %.12f kg, %zu cut-tissue triangles", elements0, f->elements, nodes0, f->positions.size(),
-          mass0, f->mass, f->surface->cutCount);
+    qInfo("cut: %zu -> %zu elements, %zu -> %zu nodes, mass %.12f -> %.12f kg, %zu cut-tissue triangles", elements0,
+          f->elements, nodes0, f->positions.size(), mass0, f->mass, f->surface->cutCount);
     QVERIFY(f->elements > elements0);
     QVERIFY(f->positions.size() > nodes0);
     QVERIFY(std::abs(f->mass - mass0) < 1e-9 * mass0);
@@ -285,8 +312,10 @@ class TestRehearseGui : public QObject {
     double uncutWorst = 1;
     const auto& organ = c.organ->volume;
     for (const auto& t : organ.tets)
-      uncutWorst = std::min(uncutWorst, simcore::tetShapeQuality(organ.points[t[0]] * organ.unitToMetre, organ.points[t[1]] * organ.unitToMetre,
-                                                                 organ.points[t[2]] * organ.unitToMetre, organ.points[t[3]] * organ.unitToMetre));
+      uncutWorst = std::min(
+          uncutWorst,
+          simcore::tetShapeQuality(organ.points[t[0]] * organ.unitToMetre, organ.points[t[1]] * organ.unitToMetre,
+                                   organ.points[t[2]] * organ.unitToMetre, organ.points[t[3]] * organ.unitToMetre));
     const auto& rest = f->surface->rest;
     std::size_t inverted = 0;
     double worst = 1;
@@ -307,7 +336,8 @@ class TestRehearseGui : public QObject {
         red += p.alpha() > 0 && p.red() > 2 * p.green() + 10 && p.red() > 2 * p.blue();
       }
     qInfo("%d overlay pixels of cut tissue", red);
-    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-cut.png");
+    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
+      w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-cut.png");
     QVERIFY(red > 0);
     panel->pause();
   }

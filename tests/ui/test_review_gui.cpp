@@ -104,7 +104,8 @@ class TestReviewGui : public QObject {
     QTest::mouseClick(record, Qt::LeftButton);
     QVERIFY2(w_->recording(), qPrintable(w_->messageLog().join(" | ")));
     // The session starts again from rest: wait for the new one, then let the organ settle.
-    QVERIFY(waitFor([&] { return panel->recordingId() > 0 && panel->session()->snapshot()->step > 60 && steps() > 60; }));
+    QVERIFY(
+        waitFor([&] { return panel->recordingId() > 0 && panel->session()->snapshot()->step > 60 && steps() > 60; }));
     first_ = panel->recordingId();
     QVERIFY(panel->isPlaying());
     const auto& c = *w_->caseData();
@@ -139,7 +140,8 @@ class TestReviewGui : public QObject {
     double y0 = 1e9, y1 = -1e9;
     for (const auto& p : px)
       if (std::abs(p.x() - column) < 6) y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
-    const QPointF ca = view->toWidget(QPointF(column, y0 + 0.15 * (y1 - y0))), cb = view->toWidget(QPointF(column, y1 + 0.1 * (y1 - y0)));
+    const QPointF ca = view->toWidget(QPointF(column, y0 + 0.15 * (y1 - y0))),
+                  cb = view->toWidget(QPointF(column, y1 + 0.1 * (y1 - y0)));
     QTest::mousePress(view, Qt::LeftButton, {}, ca.toPoint());
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
     for (int i = 1; i <= 16; ++i) {
@@ -180,10 +182,14 @@ class TestReviewGui : public QObject {
       t.start();
       replayer.seek(target);
       times += QString(" %1@%2").arg(t.elapsed()).arg(target);
-      QVERIFY2(app::stateChecksum(replayer.state()) == straight[static_cast<std::size_t>(target)], qPrintable(QString("seek to step %1").arg(target)));
+      QVERIFY2(app::stateChecksum(replayer.state()) == straight[static_cast<std::size_t>(target)],
+               qPrintable(QString("seek to step %1").arg(target)));
     }
-    qInfo("session %lld: %ld steps, %zu events (%ld grasps, %ld cuts), %zu checkpoints; 10 seeks equal to the straight replay, ms@step:%s",
-          static_cast<long long>(first_), rec.summary.steps, rec.events.size(), grasps, cuts, rec.checkpointSteps.size(), qPrintable(times));
+    qInfo(
+        "session %lld: %ld steps, %zu events (%ld grasps, %ld cuts), %zu checkpoints; 10 seeks equal to the straight "
+        "replay, ms@step:%s",
+        static_cast<long long>(first_), rec.summary.steps, rec.events.size(), grasps, cuts, rec.checkpointSteps.size(),
+        qPrintable(times));
   }
 
   // The review window from step 7's button; keyboard; a second attempt in sync; thresholds; exports.
@@ -237,7 +243,10 @@ class TestReviewGui : public QObject {
     // Metrics with verdicts: the grasp counted; a force limit the first attempt exceeds fails, one it keeps passes.
     const app::SessionMetrics m = review->metrics(0);
     QVERIFY(m.grasps >= 1 && m.cuts >= 1 && m.maxForceN > 0 && m.maxStrain.value_or(0) > 0);
-    QVERIFY(review->setThresholds("{\"max_force_n\": {\"max\": " + QString::number(0.5 * m.maxForceN) + "}, \"grasps\": {\"min\": 1}}").isEmpty());
+    QVERIFY(review
+                ->setThresholds("{\"max_force_n\": {\"max\": " + QString::number(0.5 * m.maxForceN) +
+                                "}, \"grasps\": {\"min\": 1}}")
+                .isEmpty());
     const auto v = review->verdicts(0);
     QCOMPARE(v.size(), std::size_t(2));
     for (const auto& x : v)
@@ -247,7 +256,8 @@ class TestReviewGui : public QObject {
     const QString kept = QString::fromStdString(app::loadCaseThresholds(file_.toStdString()));
     QVERIFY2(kept.contains("max_force_n"), qPrintable(kept));
     QProcess judged;
-    judged.start(QStringLiteral(REHEARSE_BINARY), {"replay", file_, "--session", QString::number(first_), "--metrics", dir_.path() + "/m.json"});
+    judged.start(QStringLiteral(REHEARSE_BINARY),
+                 {"replay", file_, "--session", QString::number(first_), "--metrics", dir_.path() + "/m.json"});
     QVERIFY(judged.waitForFinished(600000));
     const QString verdicts = QString::fromUtf8(judged.readAllStandardOutput());
     QVERIFY2(verdicts.contains("max_force_n: fail") && verdicts.contains("grasps: pass"), qPrintable(verdicts));
@@ -272,15 +282,20 @@ class TestReviewGui : public QObject {
     QVERIFY2(review->exportReport(pdf).isEmpty(), "report");
     QProcess info;
     info.start("pdfinfo", {pdf});
-    QVERIFY2(info.waitForFinished(60000) && info.exitCode() == 0, "pdfinfo (poppler-utils, installed by scripts/install-deps.sh) must read the report");
+    QVERIFY2(info.waitForFinished(60000) && info.exitCode() == 0,
+             "pdfinfo (poppler-utils, installed by scripts/install-deps.sh) must read the report");
     QVERIFY(QString::fromUtf8(info.readAllStandardOutput()).contains(QRegularExpression("Pages:\\s+3")));
-    // Its text (poppler's pdftotext): counts as whole numbers ("grasps 1", not "1.000"), the legend naming every tick colour.
+    // Its text (poppler's pdftotext): counts as whole numbers ("grasps 1", not "1.000"), the legend naming every tick
+    // colour.
     QProcess text;
     text.start("pdftotext", {"-layout", pdf, "-"});
     QVERIFY(text.waitForFinished(60000) && text.exitCode() == 0);
     const QString words = QString::fromUtf8(text.readAllStandardOutput());
-    QVERIFY2(words.contains(QRegularExpression("grasps\\s+\\d+\\s")) && !words.contains(QRegularExpression("grasps\\s+\\d+\\.\\d")), qPrintable(words.left(2000)));
-    QVERIFY2(words.contains("force over the threshold grey") && words.contains("release teal"), qPrintable(words.left(3000)));
+    QVERIFY2(words.contains(QRegularExpression("grasps\\s+\\d+\\s")) &&
+                 !words.contains(QRegularExpression("grasps\\s+\\d+\\.\\d")),
+             qPrintable(words.left(2000)));
+    QVERIFY2(words.contains("force over the threshold grey") && words.contains("release teal"),
+             qPrintable(words.left(3000)));
     review->close();
   }
 
@@ -296,9 +311,11 @@ class TestReviewGui : public QObject {
     auto* name = child<QLineEdit>("traineeName");
     name->clear();
     QTest::keyClicks(name, "Trainee Two");
-    QTest::keyClick(name, Qt::Key_R, Qt::ControlModifier);  // the keyboard focus is in the name field, as after typing it
+    QTest::keyClick(name, Qt::Key_R,
+                    Qt::ControlModifier);  // the keyboard focus is in the name field, as after typing it
     QVERIFY2(w_->recording(), qPrintable(w_->messageLog().join(" | ")));
-    QVERIFY(waitFor([&] { return panel->recordingId() > second_ && panel->session()->snapshot()->step > 40 && steps() > 40; }));
+    QVERIFY(waitFor(
+        [&] { return panel->recordingId() > second_ && panel->session()->snapshot()->step > 40 && steps() > 40; }));
     const qint64 beforeReset = panel->recordingId();
     // The first session cut the organ; this one has not: no cut carried over.
     const QString counters = child<QLabel>("rehearseForce")->text();
@@ -306,7 +323,8 @@ class TestReviewGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);  // Reset
     QVERIFY(waitFor([&] { return panel->recordingId() > beforeReset; }));
     QVERIFY(w_->recording());
-    QVERIFY2(child<QLabel>("recordState")->text().contains(QString("session %1 ended").arg(beforeReset)), qPrintable(child<QLabel>("recordState")->text()));
+    QVERIFY2(child<QLabel>("recordState")->text().contains(QString("session %1 ended").arg(beforeReset)),
+             qPrintable(child<QLabel>("recordState")->text()));
     QTest::keyClick(w_.get(), Qt::Key_F5);  // Play (a reset pauses)
     QVERIFY(waitFor([&] { return panel->session()->snapshot()->step > 30; }));
     const qint64 afterReset = panel->recordingId();
@@ -336,7 +354,8 @@ class TestReviewGui : public QObject {
     const auto& recorded = inNew.back();
     QCOMPARE(recorded.id, afterReset);
     QVERIFY(recorded.complete);
-    QVERIFY2(recorded.steps >= lastLive, qPrintable(QString("%1 steps recorded, %2 run").arg(recorded.steps).arg(lastLive)));
+    QVERIFY2(recorded.steps >= lastLive,
+             qPrintable(QString("%1 steps recorded, %2 run").arg(recorded.steps).arg(lastLive)));
     QCOMPARE(QString::fromStdString(recorded.meta.trainee), QStringLiteral("Trainee Two"));
     QCOMPARE(QString::fromStdString(inNew[inNew.size() - 2].meta.trainee), QStringLiteral("Trainee Two"));
     QVERIFY(inNew[inNew.size() - 2].complete);
@@ -344,11 +363,17 @@ class TestReviewGui : public QObject {
     for (const QString& file : {file_, other})
       for (const auto& s : app::listRecordings(file.toStdString())) {
         const auto v = app::verifyRecording(app::loadRecording(file.toStdString(), s.id));
-        lines += QString(" %1#%2: %3 steps, %4/%5 checksums match;").arg(QFileInfo(file).fileName()).arg(s.id).arg(v.steps).arg(v.checked - v.mismatches).arg(v.checked);
+        lines += QString(" %1#%2: %3 steps, %4/%5 checksums match;")
+                     .arg(QFileInfo(file).fileName())
+                     .arg(s.id)
+                     .arg(v.steps)
+                     .arg(v.checked - v.mismatches)
+                     .arg(v.checked);
         QVERIFY2(v.checked > 0 && v.mismatches == 0, qPrintable(lines));
       }
-    qInfo("reset ended session %lld, recorded on as %lld; saved as %s mid-recording:%s", static_cast<long long>(beforeReset),
-          static_cast<long long>(afterReset), qPrintable(QFileInfo(other).fileName()), qPrintable(lines));
+    qInfo("reset ended session %lld, recorded on as %lld; saved as %s mid-recording:%s",
+          static_cast<long long>(beforeReset), static_cast<long long>(afterReset),
+          qPrintable(QFileInfo(other).fileName()), qPrintable(lines));
   }
 
   // Issue 32, the trainer's side: a session whose replay does not reproduce its recording says so in the review window
@@ -361,7 +386,9 @@ class TestReviewGui : public QObject {
     {  // a changed checksum in session 1 (the file could come from another machine)
       sqlite3* db = nullptr;
       QCOMPARE(sqlite3_open(path.toUtf8().constData(), &db), SQLITE_OK);
-      QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checksums SET checksum = '12345' WHERE session = 1 AND step = 100", nullptr, nullptr, nullptr), SQLITE_OK);
+      QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checksums SET checksum = '12345' WHERE session = 1 AND step = 100",
+                            nullptr, nullptr, nullptr),
+               SQLITE_OK);
       QCOMPARE(sqlite3_changes(db), 1);
       sqlite3_close(db);
     }
@@ -409,13 +436,17 @@ class TestReviewGui : public QObject {
     QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     auto* panel = w_->simulationPanel();
     QTest::mouseClick(child<QPushButton>("recordButton"), Qt::LeftButton);
-    QVERIFY(waitFor([&] { return panel->recordingId() > before.back().id && panel->session()->snapshot()->step > 20; }));
+    QVERIFY(
+        waitFor([&] { return panel->recordingId() > before.back().id && panel->session()->snapshot()->step > 20; }));
     QTest::mouseClick(child<QPushButton>("recordButton"), Qt::LeftButton);
     QVERIFY(!w_->recording());
     QCOMPARE(list->count(), listed + 1);
     QCOMPARE(list->currentData().toLongLong(), 2LL);
-    qInfo("review: session 1 with one changed checksum shown as not verifying; End/Home/Space with the session list focused; "
-          "a session recorded meanwhile listed (%d -> %d)", listed, list->count());
+    qInfo(
+        "review: session 1 with one changed checksum shown as not verifying; End/Home/Space with the session list "
+        "focused; "
+        "a session recorded meanwhile listed (%d -> %d)",
+        listed, list->count());
     review->close();
   }
 

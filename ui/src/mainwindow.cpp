@@ -51,11 +51,12 @@ MainWindow::Renderer& rendererChoice() {
   return choice;
 }
 
-
-
 }  // namespace
 
-QString stepName(int i) { return QStringLiteral("%1  %2").arg(i + 1).arg(QCoreApplication::translate("Step", app::kSteps[static_cast<std::size_t>(i)].title)); }
+QString stepName(int i) {
+  return QStringLiteral("%1  %2").arg(i + 1).arg(
+      QCoreApplication::translate("Step", app::kSteps[static_cast<std::size_t>(i)].title));
+}
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   setWindowTitle(tr("Rehearse"));
@@ -87,17 +88,22 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     status_.cursor->setText(tr("u %1  v %2 px").arg(p.x(), 0, 'f', 1).arg(p.y(), 0, 'f', 1));
   });
   connect(view_, &FrameView::contourEdited, this, [this](const imaging::Contour& c, const QString& text, int merge) {
-    doc_->edit(text, [&c](app::Case& k) { k.contour = c; }, merge);
+    doc_->edit(
+        text, [&c](app::Case& k) { k.contour = c; }, merge);
   });
   connect(view_, &FrameView::poseEdited, this, [this](const Pose& p, const QString& text, int merge) {
-    doc_->edit(text, [&p](app::Case& k) {
-      k.pose = p;
-      k.hasPose = true;
-      k.poseAligned = true;
-    }, merge);
+    doc_->edit(
+        text,
+        [&p](app::Case& k) {
+          k.pose = p;
+          k.hasPose = true;
+          k.poseAligned = true;
+        },
+        merge);
   });
   connect(view_, &FrameView::instrumentInput, this, [this](const simcore::InputEvent& e) {
-    if (!simulation_->post(e)) say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
+    if (!simulation_->post(e))
+      say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
   });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
@@ -131,9 +137,13 @@ MainWindow::~MainWindow() {
   jobs_->waitForFinished();
 }
 
-void MainWindow::setRenderer(Renderer r) { rendererChoice() = r; }
+void MainWindow::setRenderer(Renderer r) {
+  rendererChoice() = r;
+}
 
-MainWindow::Renderer MainWindow::renderer() { return rendererChoice(); }
+MainWindow::Renderer MainWindow::renderer() {
+  return rendererChoice();
+}
 
 QWidget* MainWindow::organWidget() const {
   if (organGLView_) return organGLView_;
@@ -151,21 +161,28 @@ void MainWindow::setStep(Step s) {
   if (workflow_->currentRow() != row) workflow_->setCurrentRow(row);
   // Each step's default tool (a tool of another step does not stay active on this one).
   const Tool t = view_->tool();
-  if (s == Step::Contour && (t == Tool::Navigate || t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Freehand);
-  else if (s == Step::Rigid && t != Tool::Landmarks) view_->setTool(Tool::Align);
-  else if (s == Step::Mesh || s == Step::Frame) view_->setTool(Tool::Navigate);
-  else if ((s == Step::Elastic || s == Step::Appearance) && (t == Tool::Align || t == Tool::Landmarks)) view_->setTool(Tool::Navigate);  // no gizmo over the fit
+  if (s == Step::Contour && (t == Tool::Navigate || t == Tool::Align || t == Tool::Landmarks))
+    view_->setTool(Tool::Freehand);
+  else if (s == Step::Rigid && t != Tool::Landmarks)
+    view_->setTool(Tool::Align);
+  else if (s == Step::Mesh || s == Step::Frame)
+    view_->setTool(Tool::Navigate);
+  else if ((s == Step::Elastic || s == Step::Appearance) && (t == Tool::Align || t == Tool::Landmarks))
+    view_->setTool(Tool::Navigate);  // no gizmo over the fit
   else if (s == Step::Rehearse) {
     if (t != Tool::Scissors) view_->setTool(Tool::Grasp);
     // The organ is rehearsed on live: it settles on its ligaments before the first grasp.
     if (doc_->hasCase() && doc_->data()->hasPose && !simulation_->isPlaying()) simulation_->play();
   }
-  if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors)) view_->setTool(Tool::Navigate);
+  if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors))
+    view_->setTool(Tool::Navigate);
   if (s != Step::Rehearse && doc_->hasCase()) refreshOverlay();  // the case's organ again, not the simulation's
   updateWorkflow();
 }
 
-bool MainWindow::stepDone(Step s) const { return doc_->hasCase() && app::stepDone(*doc_->data(), s); }
+bool MainWindow::stepDone(Step s) const {
+  return doc_->hasCase() && app::stepDone(*doc_->data(), s);
+}
 
 void MainWindow::updateWorkflow() {
   if (!workflow_ || !doc_->hasCase()) return;
@@ -177,8 +194,10 @@ void MainWindow::updateWorkflow() {
     QFont f = item->font();
     f.setBold(i == next);
     item->setFont(f);
-    if (info.available && stepDone(info.step)) text += QStringLiteral("   \u2713");
-    else if (i == next) text += tr("   (next)");
+    if (info.available && stepDone(info.step))
+      text += QStringLiteral("   \u2713");
+    else if (i == next)
+      text += tr("   (next)");
     item->setText(text);
   }
 }
@@ -189,8 +208,10 @@ void MainWindow::onCaseChanged(CaseDocument::Parts parts) {
   if (organView_) organView_->setCase(data);
   if (organGLView_) organGLView_->setCase(data);
   simulation_->setCase(data);
-  if (auto* o = qobject_cast<OrganGLView*>(centreOrgan_)) o->setCase(data);
-  else if (auto* o2 = qobject_cast<OrganView*>(centreOrgan_)) o2->setCase(data);
+  if (auto* o = qobject_cast<OrganGLView*>(centreOrgan_))
+    o->setCase(data);
+  else if (auto* o2 = qobject_cast<OrganView*>(centreOrgan_))
+    o2->setCase(data);
   composition_->setCase(data);
   if (data)
     for (StepPage* p : pages_.all) p->refresh(*data);
@@ -218,8 +239,10 @@ QString MainWindow::viewModeText() const {
     case ViewMode::Composited:
       return composition_->ready() ? (composition_->usesOpenGL() ? tr("Composited (OpenGL)") : tr("Composited"))
                                    : tr("Overlay (not composited: %1)").arg(composition_->whyNot());
-    case ViewMode::Overlay: return tr("Overlay");
-    case ViewMode::ThreeD: return tr("3D");
+    case ViewMode::Overlay:
+      return tr("Overlay");
+    case ViewMode::ThreeD:
+      return tr("3D");
   }
   return {};
 }
@@ -232,10 +255,13 @@ void MainWindow::setViewMode(ViewMode mode) {
   if (mode == ViewMode::Composited && composition_->ready()) {
     // Follow the simulation from where it is now.
     const auto f = simulation_->lastFrame();
-    composition_->request(f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ ? f->positions : std::vector<Eigen::Vector3d>{});
+    composition_->request(f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ
+                              ? f->positions
+                              : std::vector<Eigen::Vector3d>{});
   }
   showFrameLayer();
-  if (mode == ViewMode::Composited && !composition_->ready()) say(tr("The composited view needs the appearance: %1.").arg(composition_->whyNot()));
+  if (mode == ViewMode::Composited && !composition_->ready())
+    say(tr("The composited view needs the appearance: %1.").arg(composition_->whyNot()));
 }
 
 void MainWindow::refreshOverlay() {
@@ -281,13 +307,16 @@ void MainWindow::saveCaseAs(const QString& path) {
 }
 
 void MainWindow::save() {
-  if (doc_->path().isEmpty() || !isCaseFile(doc_->path())) saveAs();
-  else saveCaseAs(doc_->path());
+  if (doc_->path().isEmpty() || !isCaseFile(doc_->path()))
+    saveAs();
+  else
+    saveCaseAs(doc_->path());
 }
 
 void MainWindow::saveAs() {
   QSettings s;
-  QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), s.value(QStringLiteral("lastDir")).toString(), tr("Rehearse cases (*.rehearse)"));
+  QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), s.value(QStringLiteral("lastDir")).toString(),
+                                              tr("Rehearse cases (*.rehearse)"));
   if (path.isEmpty()) return;
   if (!path.endsWith(QStringLiteral(".rehearse"))) path += QStringLiteral(".rehearse");
   s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
@@ -296,8 +325,9 @@ void MainWindow::saveAs() {
 
 void MainWindow::openFileDialog() {
   QSettings s;
-  const QString path = QFileDialog::getOpenFileName(this, tr("Open Case"), s.value(QStringLiteral("lastDir")).toString(),
-                                                    tr("Rehearse cases (*.rehearse);;All files (*)"));
+  const QString path =
+      QFileDialog::getOpenFileName(this, tr("Open Case"), s.value(QStringLiteral("lastDir")).toString(),
+                                   tr("Rehearse cases (*.rehearse);;All files (*)"));
   if (path.isEmpty()) return;
   s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
   openCase(path);
@@ -326,12 +356,18 @@ void MainWindow::dropEvent(QDropEvent* e) {
   const QString path = urls.first().toLocalFile();
   const QString ext = QFileInfo(path).suffix().toLower();
   // The dropped file's kind decides the step it belongs to.
-  if (QFileInfo(path).isDir() || ext == QLatin1String("rehearse")) openCase(path);
-  else if (QStringList{"msh", "vtk", "vtu", "mesh", "obj", "stl", "ply", "off", "gltf", "glb"}.contains(ext)) pages_.mesh->importMesh(path);
-  else if (QStringList{"png", "jpg", "jpeg", "bmp", "tif", "tiff", "mp4", "avi", "mkv", "mov"}.contains(ext)) pages_.frame->openFrameSource(path);
-  else if (ext == QLatin1String("json")) pages_.contour->importContour(path);
-  else if (QStringList{"yaml", "yml", "xml"}.contains(ext)) pages_.frame->loadCalibration(path);
-  else say(tr("%1: unknown file type.").arg(QFileInfo(path).fileName()));
+  if (QFileInfo(path).isDir() || ext == QLatin1String("rehearse"))
+    openCase(path);
+  else if (QStringList{"msh", "vtk", "vtu", "mesh", "obj", "stl", "ply", "off", "gltf", "glb"}.contains(ext))
+    pages_.mesh->importMesh(path);
+  else if (QStringList{"png", "jpg", "jpeg", "bmp", "tif", "tiff", "mp4", "avi", "mkv", "mov"}.contains(ext))
+    pages_.frame->openFrameSource(path);
+  else if (ext == QLatin1String("json"))
+    pages_.contour->importContour(path);
+  else if (QStringList{"yaml", "yml", "xml"}.contains(ext))
+    pages_.frame->loadCalibration(path);
+  else
+    say(tr("%1: unknown file type.").arg(QFileInfo(path).fileName()));
 }
 
 // ------------------------------------------------------------------------------------------ messages
@@ -339,12 +375,17 @@ void MainWindow::dropEvent(QDropEvent* e) {
 void MainWindow::say(const QString& text) {
   status_.caseText->setText(text);
   status_.caseText->setToolTip(text);
-  if (!text.isEmpty()) messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + text);
+  if (!text.isEmpty())
+    messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + text);
 }
 
-QString MainWindow::statusText() const { return status_.caseText->text(); }
+QString MainWindow::statusText() const {
+  return status_.caseText->text();
+}
 
-QStringList MainWindow::messageLog() const { return messages_->toPlainText().split(QLatin1Char('\n'), Qt::SkipEmptyParts); }
+QStringList MainWindow::messageLog() const {
+  return messages_->toPlainText().split(QLatin1Char('\n'), Qt::SkipEmptyParts);
+}
 
 // ------------------------------------------------------------------------------------------ loading
 
@@ -374,7 +415,8 @@ void MainWindow::showProgress(double fraction, const QString& stage) {
   }
   if (!stage.isEmpty()) status_.stageText = stage;
   const qint64 seconds = status_.clock.isValid() ? status_.clock.elapsed() / 1000 : 0;
-  status_.stage->setText(status_.stageText.isEmpty() ? tr("%1 s").arg(seconds) : tr("%1 · %2 s").arg(status_.stageText).arg(seconds));
+  status_.stage->setText(status_.stageText.isEmpty() ? tr("%1 s").arg(seconds)
+                                                     : tr("%1 · %2 s").arg(status_.stageText).arg(seconds));
 }
 
 void MainWindow::openCase(const QString& path) {
@@ -397,20 +439,24 @@ void MainWindow::onLoadFinished(bool ok, const QString& error) {
   for (StepPage* p : pages_.all) p->caseLoaded();
   showCaseInfo();
   view_->fitToWindow();
-  const QString name = doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
+  const QString name =
+      doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
   setWindowTitle(tr("%1 - Rehearse").arg(name));
   say(tr("%1 loaded in %2 s").arg(name).arg(doc_->loadSeconds(), 0, 'f', 2) +
-                            (doc_->notes().isEmpty() ? QString() : tr(" (%1 problems, see the Case panel)").arg(doc_->notes().size())));
+      (doc_->notes().isEmpty() ? QString() : tr(" (%1 problems, see the Case panel)").arg(doc_->notes().size())));
   // Go to the first step that is not done yet.
   const int next = app::nextStep(*doc_->data());
   if (next < app::index(Step::Elastic)) setStep(static_cast<Step>(next));
   emit caseLoaded(true);
 }
 
-QString MainWindow::infoText() const { return info_->toPlainText(); }
+QString MainWindow::infoText() const {
+  return info_->toPlainText();
+}
 
 void MainWindow::showCaseInfo() {
-  if (doc_->data()) info_->setPlainText(caseInfoText(*doc_->data(), doc_->notes() + pages_.mesh->importNotes(), doc_->qualityText()));
+  if (doc_->data())
+    info_->setPlainText(caseInfoText(*doc_->data(), doc_->notes() + pages_.mesh->importNotes(), doc_->qualityText()));
 }
 
 void MainWindow::closeEvent(QCloseEvent* e) {

@@ -53,7 +53,9 @@ class SentenceLabel : public QLabel {
  public:
   using QLabel::QLabel;
   QSize minimumSizeHint() const override { return {200, QLabel::minimumSizeHint().height()}; }
-  QSize sizeHint() const override { return {std::min(520, fontMetrics().horizontalAdvance(text()) + 8), QLabel::sizeHint().height()}; }
+  QSize sizeHint() const override {
+    return {std::min(520, fontMetrics().horizontalAdvance(text()) + 8), QLabel::sizeHint().height()};
+  }
 
  protected:
   void paintEvent(QPaintEvent*) override {
@@ -101,9 +103,10 @@ void MainWindow::buildDocks() {
     rendererText_ = tr("No OpenGL 3.3 here: the views are drawn on the CPU.");
   } else if (renderer() == Renderer::Automatic && OrganGLView::isSoftwareRenderer(glRenderer)) {
     openGL = false;
-    rendererText_ = tr("OpenGL here is a software rasteriser (%1): the views are drawn on the CPU, which is faster on it "
-                       "('rehearse --opengl' uses OpenGL anyway).")
-                        .arg(glRenderer);
+    rendererText_ =
+        tr("OpenGL here is a software rasteriser (%1): the views are drawn on the CPU, which is faster on it "
+           "('rehearse --opengl' uses OpenGL anyway).")
+            .arg(glRenderer);
   } else {
     rendererText_ = tr("Views drawn with OpenGL (%1).").arg(glRenderer);
   }
@@ -122,8 +125,10 @@ void MainWindow::buildDocks() {
   addDockWidget(Qt::RightDockWidgetArea, organDock);
   splitDockWidget(infoDock, organDock, Qt::Vertical);
   // The organ alone, large, in the centre (ViewMode::ThreeD): the same kind of view as the dock's.
-  if (openGL) centreOrgan_ = new OrganGLView(centre_);
-  else centreOrgan_ = new OrganView(centre_);
+  if (openGL)
+    centreOrgan_ = new OrganGLView(centre_);
+  else
+    centreOrgan_ = new OrganView(centre_);
   centreOrgan_->setObjectName(QStringLiteral("centreOrganView"));
   centre_->addWidget(centreOrgan_);
   simulationDock_ = new QDockWidget(tr("Simulation"), this);
@@ -139,19 +144,21 @@ void MainWindow::buildDocks() {
     status_.simulation->setToolTip(text);  // the whole sentence (the bar shows what fits)
   });
   liveOverlay_ = new LiveOverlay(view_, this);
-  connect(liveOverlay_, &LiveOverlay::drawn, this, [this](const OverlayPicture& picture, const std::shared_ptr<const app::Organ>& organ) {
-    if (step_ == Step::Rehearse && !showingComposited() && doc_->data() && doc_->data()->organ == organ) {
-      picture_ = picture;
-      showFrameLayer();
-    }
-  });
+  connect(liveOverlay_, &LiveOverlay::drawn, this,
+          [this](const OverlayPicture& picture, const std::shared_ptr<const app::Organ>& organ) {
+            if (step_ == Step::Rehearse && !showingComposited() && doc_->data() && doc_->data()->organ == organ) {
+              picture_ = picture;
+              showFrameLayer();
+            }
+          });
   // The composited view follows the simulation: each snapshot shown is composed (on a worker, newest first).
   connect(simulation_, &SimulationPanel::frameShown, this, [this] {
     const auto f = simulation_->lastFrame();
     if (pages_.rehearse) pages_.rehearse->showFrame(f);
     // What happened in the rehearsal (a slip, a vessel cut, a refused edit) is kept in the Messages panel, once each.
     if (f && !f->message.isEmpty() && f->message != lastSimulationMessage_) {
-      messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));
+      messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) +
+                                 tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));
     }
     if (f) lastSimulationMessage_ = f->message;
     if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
@@ -162,7 +169,8 @@ void MainWindow::buildDocks() {
         // The composited view textures the organ's own surface; cut tissue it does not draw yet: the overlay
         // shows the cut instead of a picture that hides it.
         setViewMode(ViewMode::Overlay);
-        statusBar()->showMessage(tr("The organ is cut: the composited view cannot show cut tissue yet, so the overlay is shown."), 8000);
+        statusBar()->showMessage(
+            tr("The organ is cut: the composited view cannot show cut tissue yet, so the overlay is shown."), 8000);
       }
       // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation: drawn on a
       // worker (newest first), at most 60 times a second and only once the last drawing was painted.
@@ -177,15 +185,18 @@ void MainWindow::buildDocks() {
     } else {
       view_->setWarning({}, {});  // another organ's frame (or none): its warning is not this organ's
     }
-    if (showingComposited() && f && !f->surface && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) composition_->request(f->positions);
+    if (showingComposited() && f && !f->surface && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ)
+      composition_->request(f->positions);
   });
   connect(composition_, &Composition::composed, this, [this] {
     if (showingComposited()) showFrameLayer();
   });
   connect(composition_, &Composition::readyChanged, this, [this](bool ready) {
     // The composited view is the case's view from the moment it can be made.
-    if (ready) setViewMode(ViewMode::Composited);
-    else showFrameLayer();
+    if (ready)
+      setViewMode(ViewMode::Composited);
+    else
+      showFrameLayer();
   });
   connect(simulation_, &SimulationPanel::materialEdited, this, [this](const app::MaterialSettings& m) {
     doc_->edit(tr("Edit material"), [m](app::Case& k) { k.material = m; });
@@ -204,7 +215,8 @@ void MainWindow::buildStatusBar() {
   status_.stage->setVisible(false);
   status_.tick = new QTimer(this);
   status_.tick->setInterval(1000);
-  connect(status_.tick, &QTimer::timeout, this, [this] { showProgress(status_.progress->maximum() == 0 ? -1 : status_.progress->value() / 100.0, {}); });
+  connect(status_.tick, &QTimer::timeout, this,
+          [this] { showProgress(status_.progress->maximum() == 0 ? -1 : status_.progress->value() / 100.0, {}); });
   status_.cancel = new QToolButton(this);
   status_.cancel->setText(tr("Cancel"));
   status_.cancel->setToolTip(tr("Cancel the running job (Esc)"));
@@ -262,7 +274,8 @@ void MainWindow::buildWorkflowPanel() {
   workflow_->setFixedHeight(app::kStepCount * 34 + 8);
   workflow_->setVerticalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
   connect(workflow_, &QListWidget::currentRowChanged, this, [this](int row) {
-    if (row >= 0 && row < app::kStepCount && app::kSteps[static_cast<std::size_t>(row)].available) setStep(static_cast<Step>(row));
+    if (row >= 0 && row < app::kStepCount && app::kSteps[static_cast<std::size_t>(row)].available)
+      setStep(static_cast<Step>(row));
   });
   layout->addWidget(workflow_);
   stepStack_ = new QStackedWidget(host);
@@ -274,7 +287,8 @@ void MainWindow::buildWorkflowPanel() {
   pages_.appearance = new AppearancePage(wb_, composition_);
   pages_.rehearse = new RehearsePage(wb_);
   pages_.rehearse->setForceLoop([this] { return simulation_ ? simulation_->forceLoop() : nullptr; });
-  pages_.all = {pages_.mesh, pages_.frame, pages_.contour, pages_.rigid, pages_.fit, pages_.appearance, pages_.rehearse};
+  pages_.all = {pages_.mesh, pages_.frame,      pages_.contour, pages_.rigid,
+                pages_.fit,  pages_.appearance, pages_.rehearse};
   for (StepPage* p : pages_.all) stepStack_->addWidget(p);
   connect(pages_.mesh, &MeshPage::meshImported, this, &MainWindow::meshImported);
   connect(pages_.mesh, &MeshPage::shownLabelsChanged, this, &MainWindow::refreshOverlay);

@@ -54,7 +54,8 @@ void MainWindow::buildMenus() {
   openFile->setShortcut(QKeySequence::Open);
   QAction* open = file->addAction(tr("Open Case &Folder..."), this, [this] {
     QSettings s;
-    const QString dir = QFileDialog::getExistingDirectory(this, tr("Open Case Folder"), s.value(QStringLiteral("lastDir")).toString());
+    const QString dir =
+        QFileDialog::getExistingDirectory(this, tr("Open Case Folder"), s.value(QStringLiteral("lastDir")).toString());
     if (dir.isEmpty()) return;
     s.setValue(QStringLiteral("lastDir"), dir);
     openCase(dir);
@@ -62,7 +63,8 @@ void MainWindow::buildMenus() {
   open->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_O));
   recentMenu_ = file->addMenu(tr("Open &Recent"));
   rebuildRecentMenu();
-  file->addAction(tr("Open &Built-in Phantom"), this, [this] { openCase({}); })->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
+  file->addAction(tr("Open &Built-in Phantom"), this, [this] { openCase({}); })
+      ->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
   file->addSeparator();
   QAction* importAction = file->addAction(tr("&Import Mesh..."), pages_.mesh, &MeshPage::importMeshDialog);
   importAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_I));
@@ -71,7 +73,8 @@ void MainWindow::buildMenus() {
   file->addSeparator();
   QAction* saveAction = file->addAction(tr("&Save"), this, &MainWindow::save);
   saveAction->setShortcut(QKeySequence::Save);
-  file->addAction(tr("Save &As..."), this, &MainWindow::saveAs)->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S));
+  file->addAction(tr("Save &As..."), this, &MainWindow::saveAs)
+      ->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S));
   recoverAction_ = file->addAction(tr("Recover &Autosaved Case"), this, [this] { openCase(autosavePath()); });
   recoverAction_->setEnabled(hasRecoverableAutosave());
   file->addSeparator();
@@ -117,15 +120,16 @@ void MainWindow::buildMenus() {
 
   QMenu* help = menuBar()->addMenu(tr("&Help"));
   QAction* about = help->addAction(tr("&About Rehearse"), this, [this] {
-    QMessageBox::about(this, tr("About Rehearse"),
-                       tr("<b>Rehearse %1</b><p>Intra-operative surgical gesture rehearsal. This version registers the "
-                          "pre-operative organ onto an endoscope frame (steps 1-5), estimates its appearance and the light from the frame "
-                          "(step 6) and simulates it there, composited into the frame, where the grasper pulls it (step 7). Cutting, "
-                          "contact, and the replay of rehearsals come in later versions.</p>")
-                           .arg(QStringLiteral(REHEARSE_VERSION)));
+    QMessageBox::about(
+        this, tr("About Rehearse"),
+        tr("<b>Rehearse %1</b><p>Intra-operative surgical gesture rehearsal. This version registers the "
+           "pre-operative organ onto an endoscope frame (steps 1-5), estimates its appearance and the light from the "
+           "frame "
+           "(step 6) and simulates it there, composited into the frame, where the grasper pulls it (step 7). Cutting, "
+           "contact, and the replay of rehearsals come in later versions.</p>")
+            .arg(QStringLiteral(REHEARSE_VERSION)));
   });
   about->setShortcut(QKeySequence::HelpContents);
-
 }
 
 void MainWindow::buildViewMenu() {
@@ -135,12 +139,16 @@ void MainWindow::buildViewMenu() {
   overlay->setChecked(true);
   overlay->setShortcut(QKeySequence(Qt::Key_O));
   connect(overlay, &QAction::toggled, view_, &FrameView::setOverlayVisible);
-  connect(overlay, &QAction::toggled, this, [this] { showFrameLayer(); });  // the composited organ is part of the picture
+  connect(overlay, &QAction::toggled, this,
+          [this] { showFrameLayer(); });  // the composited organ is part of the picture
   QAction* fit = viewMenu->addAction(tr("&Fit Frame"), view_, &FrameView::fitToWindow);
   fit->setShortcut(QKeySequence(Qt::Key_Home));
-  viewMenu->addAction(tr("More Opaque Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() + 0.1); })
+  viewMenu
+      ->addAction(tr("More Opaque Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() + 0.1); })
       ->setShortcut(QKeySequence(Qt::Key_BracketRight));
-  viewMenu->addAction(tr("More Transparent Organ"), this, [this] { view_->setOverlayOpacity(view_->overlayOpacity() - 0.1); })
+  viewMenu
+      ->addAction(tr("More Transparent Organ"), this,
+                  [this] { view_->setOverlayOpacity(view_->overlayOpacity() - 0.1); })
       ->setShortcut(QKeySequence(Qt::Key_BracketLeft));
   // Shaded, wireframe or outline only; V cycles, the choice is kept between runs.
   viewMenu->addSeparator();
@@ -160,9 +168,11 @@ void MainWindow::buildViewMenu() {
     });
   }
   view_->setOverlayStyle(static_cast<OverlayStyle>(savedStyle));
-  viewMenu->addAction(tr("Next Organ Style"), this, [this, styles] {
-    styles->actions().at((static_cast<int>(view_->overlayStyle()) + 1) % 3)->trigger();
-  })->setShortcut(QKeySequence(Qt::Key_V));
+  viewMenu
+      ->addAction(
+          tr("Next Organ Style"), this,
+          [this, styles] { styles->actions().at((static_cast<int>(view_->overlayStyle()) + 1) % 3)->trigger(); })
+      ->setShortcut(QKeySequence(Qt::Key_V));
   QAction* legend = viewMenu->addAction(tr("&Legend"));
   legend->setCheckable(true);
   legend->setChecked(QSettings().value(QStringLiteral("legend"), true).toBool());
@@ -175,7 +185,8 @@ void MainWindow::buildViewMenu() {
   viewMenu->addSeparator();
   auto* modes = new QActionGroup(this);
   const std::tuple<QString, ViewMode, Qt::Key, QString> modeNames[] = {
-      {tr("&Composited View"), ViewMode::Composited, Qt::Key_F2, tr("The organ re-shaded into the frame, as estimated in step 6")},
+      {tr("&Composited View"), ViewMode::Composited, Qt::Key_F2,
+       tr("The organ re-shaded into the frame, as estimated in step 6")},
       {tr("O&verlay View"), ViewMode::Overlay, Qt::Key_F3, tr("The organ drawn over the frame")},
       {tr("&3D View"), ViewMode::ThreeD, Qt::Key_F4, tr("The organ alone, in 3D")}};
   for (const auto& [name, mode, key, tip] : modeNames) {
@@ -190,7 +201,8 @@ void MainWindow::buildViewMenu() {
   }
   viewModeActions_[static_cast<std::size_t>(viewMode_)]->setChecked(true);
   viewMenu->addSeparator();
-  viewMenu->addAction(tr("&Navigate (pan and zoom)"), this, [this] { view_->setTool(Tool::Navigate); })->setShortcut(QKeySequence(Qt::Key_N));
+  viewMenu->addAction(tr("&Navigate (pan and zoom)"), this, [this] { view_->setTool(Tool::Navigate); })
+      ->setShortcut(QKeySequence(Qt::Key_N));
   if (auto* bar = findChild<QToolBar*>(QStringLiteral("mainToolbar"))) {
     bar->addSeparator();
     bar->addAction(overlay);
@@ -207,34 +219,51 @@ void MainWindow::buildSimulationMenu() {
     simulationDock_->raise();
   };
   simMenu->addAction(tr("Show &Simulation"), this, show)->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_M));
-  simMenu->addAction(tr("&Play / Pause"), this, [this, show] {
-    show();
-    simulation_->togglePlay();
-  })->setShortcut(QKeySequence(Qt::Key_F5));
-  simMenu->addAction(tr("Single S&tep"), this, [this, show] {
-    show();
-    simulation_->stepOnce();
-  })->setShortcut(QKeySequence(Qt::Key_F6));
-  simMenu->addAction(tr("&Reset"), this, [this] { simulation_->reset(); })->setShortcut(QKeySequence(Qt::SHIFT | Qt::Key_F5));
+  simMenu
+      ->addAction(tr("&Play / Pause"), this,
+                  [this, show] {
+                    show();
+                    simulation_->togglePlay();
+                  })
+      ->setShortcut(QKeySequence(Qt::Key_F5));
+  simMenu
+      ->addAction(tr("Single S&tep"), this,
+                  [this, show] {
+                    show();
+                    simulation_->stepOnce();
+                  })
+      ->setShortcut(QKeySequence(Qt::Key_F6));
+  simMenu->addAction(tr("&Reset"), this, [this] { simulation_->reset(); })
+      ->setShortcut(QKeySequence(Qt::SHIFT | Qt::Key_F5));
   simMenu->addSeparator();
-  simMenu->addAction(tr("Start / Stop &Recording"), this, [this] {
-    if (recording()) stopRecording();
-    else if (const QString err = startRecording(pages_.rehearse ? pages_.rehearse->trainee() : QString()); !err.isEmpty()) say(err);
-  })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_R));
-  simMenu->addAction(tr("Re&view Recorded Rehearsals..."), this, [this] { openReview(); })->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_R));
+  simMenu
+      ->addAction(
+          tr("Start / Stop &Recording"), this,
+          [this] {
+            if (recording())
+              stopRecording();
+            else if (const QString err = startRecording(pages_.rehearse ? pages_.rehearse->trainee() : QString());
+                     !err.isEmpty())
+              say(err);
+          })
+      ->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_R));
+  simMenu->addAction(tr("Re&view Recorded Rehearsals..."), this, [this] { openReview(); })
+      ->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_R));
   // The training centre's database: the connection from a libpq service name (or the environment); never stored
   // in the case file (the service name is a setting of this machine).
   auto askService = [this](bool& ok) {
     QSettings settings;
-    const QString service = QInputDialog::getText(this, tr("Training database"),
-                                                   tr("libpq service name (pg_service.conf; empty: PGHOST, PGDATABASE, ... from the environment):"),
-                                                   QLineEdit::Normal, settings.value(QStringLiteral("training/service")).toString(), &ok);
+    const QString service = QInputDialog::getText(
+        this, tr("Training database"),
+        tr("libpq service name (pg_service.conf; empty: PGHOST, PGDATABASE, ... from the environment):"),
+        QLineEdit::Normal, settings.value(QStringLiteral("training/service")).toString(), &ok);
     if (ok) settings.setValue(QStringLiteral("training/service"), service);
     return service;
   };
   simMenu->addAction(tr("&Publish Recorded Sessions..."), this, [this, askService] {
     const QString path = doc_->path();
-    if (path.isEmpty() || !QFileInfo::exists(path)) return say(tr("Save the case and record a rehearsal first: sessions are published from the case file."));
+    if (path.isEmpty() || !QFileInfo::exists(path))
+      return say(tr("Save the case and record a rehearsal first: sessions are published from the case file."));
     bool ok = false;
     const QString service = askService(ok);
     if (!ok) return;
@@ -248,7 +277,10 @@ void MainWindow::buildSimulationMenu() {
       try {
         TrainingDatabase db(service);  // its own connection, on this thread
         const auto r = db.publish(path);
-        QString text = tr("Published %1 sessions (%2 already there, %3 not published).").arg(r.published).arg(r.already).arg(r.skipped);
+        QString text = tr("Published %1 sessions (%2 already there, %3 not published).")
+                           .arg(r.published)
+                           .arg(r.already)
+                           .arg(r.skipped);
         if (!r.notes.isEmpty()) text += " " + r.notes.join(" ");
         return text;
       } catch (const std::exception& e) {
@@ -277,19 +309,30 @@ void MainWindow::buildSimulationMenu() {
     say(why);
     if (pages_.rehearse) pages_.rehearse->showRecording(false, why);
   });
-  recorder_ = new RecordingController(doc_, simulation_, pages_.rehearse, this, [this](const QString& text) { say(text); });
-  pages_.rehearse->setRecordHandlers({[this](const QString& trainee) { return startRecording(trainee); }, [this] { stopRecording(); },
-                                      [this] { openReview(); }});
+  recorder_ =
+      new RecordingController(doc_, simulation_, pages_.rehearse, this, [this](const QString& text) { say(text); });
+  pages_.rehearse->setRecordHandlers({[this](const QString& trainee) { return startRecording(trainee); },
+                                      [this] { stopRecording(); }, [this] { openReview(); }});
 }
 
-bool MainWindow::recording() const { return recorder_->recording(); }
+bool MainWindow::recording() const {
+  return recorder_->recording();
+}
 
-QString MainWindow::caseFilePath() const { return doc_->path(); }
+QString MainWindow::caseFilePath() const {
+  return doc_->path();
+}
 
-QString MainWindow::startRecording(const QString& trainee) { return recorder_->start(trainee); }
+QString MainWindow::startRecording(const QString& trainee) {
+  return recorder_->start(trainee);
+}
 
-void MainWindow::stopRecording() { recorder_->stop(); }
+void MainWindow::stopRecording() {
+  recorder_->stop();
+}
 
-ReviewWindow* MainWindow::openReview() { return recorder_->openReview(); }
+ReviewWindow* MainWindow::openReview() {
+  return recorder_->openReview();
+}
 
 }  // namespace rehearse::ui

@@ -15,11 +15,13 @@ namespace rehearse::ui {
 void ensureGuiApplication() {
   if (QCoreApplication::instance()) return;
   // The command line's report: a GUI application of its own, offscreen when there is no display.
-  if (qEnvironmentVariableIsEmpty("DISPLAY") && qEnvironmentVariableIsEmpty("WAYLAND_DISPLAY") && qEnvironmentVariableIsEmpty("QT_QPA_PLATFORM"))
+  if (qEnvironmentVariableIsEmpty("DISPLAY") && qEnvironmentVariableIsEmpty("WAYLAND_DISPLAY") &&
+      qEnvironmentVariableIsEmpty("QT_QPA_PLATFORM"))
     qputenv("QT_QPA_PLATFORM", "offscreen");
   // A private runtime folder where the session gives none (what Qt would pick itself, without its warning on stderr).
   if (qEnvironmentVariableIsEmpty("XDG_RUNTIME_DIR")) {
-    const QByteArray dir = QDir::tempPath().toLocal8Bit() + "/runtime-" + QByteArray::number(static_cast<qulonglong>(getuid()));
+    const QByteArray dir =
+        QDir::tempPath().toLocal8Bit() + "/runtime-" + QByteArray::number(static_cast<qulonglong>(getuid()));
     if (::mkdir(dir.constData(), 0700) == 0 || errno == EEXIST) qputenv("XDG_RUNTIME_DIR", dir);
   }
   static int argc = 1;

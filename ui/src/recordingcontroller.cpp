@@ -18,17 +18,20 @@
 
 namespace rehearse::ui {
 
-RecordingController::RecordingController(CaseDocument* doc, SimulationPanel* simulation, RehearsePage* page, QWidget* window,
-                                         std::function<void(const QString&)> say)
+RecordingController::RecordingController(CaseDocument* doc, SimulationPanel* simulation, RehearsePage* page,
+                                         QWidget* window, std::function<void(const QString&)> say)
     : QObject(window), doc_(doc), simulation_(simulation), page_(page), window_(window), say_(std::move(say)) {}
 
-bool RecordingController::recording() const { return simulation_->recording(); }
+bool RecordingController::recording() const {
+  return simulation_->recording();
+}
 
 QString RecordingController::start(const QString& trainee) {
   const QString path = doc_->path();
   if (path.isEmpty() || !path.endsWith(QStringLiteral(".rehearse"), Qt::CaseInsensitive))
     return tr("Save the case as a case file first (File > Save As, .rehearse): the rehearsal is recorded into it.");
-  if (!doc_->hasCase() || !doc_->data()->hasPose) return tr("Register the organ first (steps 4 and 5): the rehearsal runs on the registered organ.");
+  if (!doc_->hasCase() || !doc_->data()->hasPose)
+    return tr("Register the organ first (steps 4 and 5): the rehearsal runs on the registered organ.");
   app::SessionMeta meta;
   meta.trainee = trainee.toStdString();
   meta.caseName = QFileInfo(path).fileName().toStdString();
@@ -48,10 +51,12 @@ void RecordingController::stop() {
   if (!recording()) return;
   const qint64 id = simulation_->recordingId();
   simulation_->stopRecording();
-  const QString text = tr("Recorded session %1 in %2; review it with Ctrl+Shift+R.").arg(id).arg(QFileInfo(doc_->path()).fileName());
+  const QString text =
+      tr("Recorded session %1 in %2; review it with Ctrl+Shift+R.").arg(id).arg(QFileInfo(doc_->path()).fileName());
   page_->showRecording(false, text);
   say_(text);
-  for (auto* review : window_->findChildren<ReviewWindow*>()) review->refreshSessions();  // open review windows list it at once
+  for (auto* review : window_->findChildren<ReviewWindow*>())
+    review->refreshSessions();  // open review windows list it at once
 }
 
 ReviewWindow* RecordingController::openReview() {

@@ -24,16 +24,21 @@ struct Recorder::Statements {
   Statement event, checksum, checksumAgain, steps, setup, checkpoint;
   explicit Statements(sqlite3* db)
       : event(db, "INSERT INTO rehearsal_events(session, seq, step, event) VALUES(?, ?, ?, ?)"),
-        // A step recorded twice is refused, never overwritten: a restarted step count (a reset) cannot replace the record.
+        // A step recorded twice is refused, never overwritten: a restarted step count (a reset) cannot replace the
+        // record.
         checksum(db, "INSERT INTO rehearsal_checksums(session, step, checksum) VALUES(?, ?, ?)"),
         checksumAgain(db, "INSERT OR IGNORE INTO rehearsal_checksums(session, step, checksum) VALUES(?, ?, ?)"),
         steps(db, "UPDATE rehearsal_sessions SET steps = ? WHERE id = ?"),
         setup(db, "INSERT OR IGNORE INTO rehearsal_setups(session, hash, setup) VALUES(?, ?, ?)"),
-        checkpoint(db, "INSERT OR REPLACE INTO rehearsal_checkpoints(session, step, setup_hash, state) VALUES(?, ?, ?, ?)") {}
+        checkpoint(
+            db, "INSERT OR REPLACE INTO rehearsal_checkpoints(session, step, setup_hash, state) VALUES(?, ?, ?, ?)") {}
 };
 
-Recorder::Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery, int checkpointEvery)
-    : every_(std::max(1, checksumEvery)), checkpointEvery_(std::max(1, checkpointEvery)), lastCommit_(std::chrono::steady_clock::now()) {
+Recorder::Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery,
+                   int checkpointEvery)
+    : every_(std::max(1, checksumEvery)),
+      checkpointEvery_(std::max(1, checkpointEvery)),
+      lastCommit_(std::chrono::steady_clock::now()) {
   path_ = path;
   uuid_ = newSessionUuid();
   meta_ = meta;
@@ -57,8 +62,10 @@ void Recorder::open(const std::string& path) {
       if (sqlite3_step(q.s) == SQLITE_ROW) id_ = sqlite3_column_int64(q.s, 0);
     }
     if (id_ == 0) {  // a new session, or a file that lost it: its row (what it held is written again)
-      Statement q(db_, "INSERT INTO rehearsal_sessions(trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, checksum_every, uuid) "
-                       "VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+      Statement q(db_,
+                  "INSERT INTO rehearsal_sessions(trainee, started_utc, case_name, scene_version, app_version, notes, "
+                  "setup, time_step, checksum_every, uuid) "
+                  "VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
       q.text(1, meta_.trainee);
       q.text(2, startedUtc_);
       q.text(3, meta_.caseName);
@@ -69,14 +76,16 @@ void Recorder::open(const std::string& path) {
       sqlite3_bind_double(q.s, 8, timeStep_);
       sqlite3_bind_int(q.s, 9, every_);
       q.text(10, uuid_);
-      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("cannot record into ") + path + ": " + sqlite3_errmsg(db_));
+      if (sqlite3_step(q.s) != SQLITE_DONE)
+        throw std::runtime_error(std::string("cannot record into ") + path + ": " + sqlite3_errmsg(db_));
       id_ = sqlite3_last_insert_rowid(db_);
       written_ = 0;
     } else {
       Statement q(db_, "SELECT COUNT(*) FROM rehearsal_events WHERE session = ?");
       sqlite3_bind_int64(q.s, 1, id_);
       const long copied = sqlite3_step(q.s) == SQLITE_ROW ? static_cast<long>(sqlite3_column_int64(q.s, 0)) : 0;
-      written_ = std::min(written_, static_cast<std::size_t>(copied));  // events are written in order: the copy holds a prefix
+      written_ =
+          std::min(written_, static_cast<std::size_t>(copied));  // events are written in order: the copy holds a prefix
     }
     commitIfDue(true);  // the session is listed from the start
     statements_ = std::make_unique<Statements>(db_);
@@ -151,7 +160,8 @@ void Recorder::reopen(const std::string& path) {
   try {
     open(path);  // leaves a transaction open
     for (const auto& [step, sum] : checksumsWritten_) writeChecksum(db_, statements_->checksumAgain, id_, step, sum);
-    setupsWritten_.clear();  // a checkpoint after this one writes its setup again when the copy missed it (INSERT OR IGNORE)
+    setupsWritten_
+        .clear();  // a checkpoint after this one writes its setup again when the copy missed it (INSERT OR IGNORE)
     for (const auto& [hash, text] : keptSetups_) writeSetup(hash, text);
     for (const auto& k : keptCheckpoints_) writeCheckpoint(k.step, k.hash, k.bytes);
     keptSetups_.clear();
@@ -161,7 +171,8 @@ void Recorder::reopen(const std::string& path) {
       sqlite3_bind_int64(q.s, 1, lastStep_);
       sqlite3_bind_int(q.s, 2, finished_ ? 1 : 0);
       sqlite3_bind_int64(q.s, 3, id_);
-      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a step: ") + sqlite3_errmsg(db_));
+      if (sqlite3_step(q.s) != SQLITE_DONE)
+        throw std::runtime_error(std::string("the recording store refused a step: ") + sqlite3_errmsg(db_));
     }
     commitIfDue(true);
     broken_.clear();
@@ -178,7 +189,8 @@ void Recorder::writeSetup(std::uint64_t hash, const std::string& text) {
   sqlite3_bind_int64(q.s, 1, id_);
   q.text(2, std::to_string(hash));
   q.text(3, text);
-  if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a setup: ") + sqlite3_errmsg(db_));
+  if (sqlite3_step(q.s) != SQLITE_DONE)
+    throw std::runtime_error(std::string("the recording store refused a setup: ") + sqlite3_errmsg(db_));
   setupsWritten_.push_back(hash);
 }
 
@@ -189,20 +201,24 @@ void Recorder::writeCheckpoint(long step, std::uint64_t hash, const std::string&
   sqlite3_bind_int64(q.s, 2, step);
   q.text(3, std::to_string(hash));
   sqlite3_bind_blob(q.s, 4, bytes.data(), static_cast<int>(bytes.size()), SQLITE_TRANSIENT);
-  if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checkpoint: ") + sqlite3_errmsg(db_));
+  if (sqlite3_step(q.s) != SQLITE_DONE)
+    throw std::runtime_error(std::string("the recording store refused a checkpoint: ") + sqlite3_errmsg(db_));
 }
 
-void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state) {
+void Recorder::afterStep(long step, const std::vector<simcore::InputEvent>& recorded,
+                         const simcore::SimulationState& state) {
   std::lock_guard<std::mutex> lock(mutex_);
   afterStepLocked(step, recorded, state);
 }
 
-void Recorder::afterStepLocked(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state) {
+void Recorder::afterStepLocked(long step, const std::vector<simcore::InputEvent>& recorded,
+                               const simcore::SimulationState& state) {
   if (!broken_.empty()) throw std::runtime_error(broken_);
   if (finished_) throw std::runtime_error("the recorded session has ended; a new recording starts a new session");
   // The step count of a session only grows: one that starts again (a reset) is another run, never appended to this one.
   if (step <= lastStep_)
-    throw std::runtime_error("the simulation started again (step " + std::to_string(step) + " after step " + std::to_string(lastStep_) +
+    throw std::runtime_error("the simulation started again (step " + std::to_string(step) + " after step " +
+                             std::to_string(lastStep_) +
                              "): the recorded session ends here; record again to record the new run");
   lastStep_ = step;
   const bool checksumDue = step % every_ == 0;
@@ -217,7 +233,8 @@ void Recorder::afterStepLocked(long step, const std::vector<simcore::InputEvent>
       sqlite3_bind_int64(q.s, 2, static_cast<sqlite3_int64>(written_));
       sqlite3_bind_int64(q.s, 3, recorded[written_].step);
       q.text(4, encodeEvent(recorded[written_]));
-      if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused an event: ") + sqlite3_errmsg(db_));
+      if (sqlite3_step(q.s) != SQLITE_DONE)
+        throw std::runtime_error(std::string("the recording store refused an event: ") + sqlite3_errmsg(db_));
     }
   }
   if (checksumDue) writeChecksum(db_, statements_->checksum, id_, step, sum);
@@ -226,7 +243,8 @@ void Recorder::afterStepLocked(long step, const std::vector<simcore::InputEvent>
     sqlite3_reset(q.s);
     sqlite3_bind_int64(q.s, 1, step);
     sqlite3_bind_int64(q.s, 2, id_);
-    if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a step: ") + sqlite3_errmsg(db_));
+    if (sqlite3_step(q.s) != SQLITE_DONE)
+      throw std::runtime_error(std::string("the recording store refused a step: ") + sqlite3_errmsg(db_));
   }
   commitIfDue(false);
 }
@@ -255,8 +273,10 @@ void Recorder::afterStep(const simcore::StepRecord& r) {
     const std::uint64_t h = store(c.setup);
     const std::uint64_t pending = c.pendingCut ? store(c.pendingCut->setup) : 0;
     std::string bytes = detail::encodeCheckpoint(c, h, pending);
-    if (suspended_) keptCheckpoints_.push_back({r.step, h, std::move(bytes)});
-    else writeCheckpoint(r.step, h, bytes);
+    if (suspended_)
+      keptCheckpoints_.push_back({r.step, h, std::move(bytes)});
+    else
+      writeCheckpoint(r.step, h, bytes);
     lastCheckpoint_ = r.step;
     ++checkpoints_;
   }
@@ -271,7 +291,8 @@ void Recorder::finish(long steps) {
   Statement q(db_, "UPDATE rehearsal_sessions SET steps = ?, complete = 1 WHERE id = ?");
   sqlite3_bind_int64(q.s, 1, lastStep_);
   sqlite3_bind_int64(q.s, 2, id_);
-  if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused the session's end: ") + sqlite3_errmsg(db_));
+  if (sqlite3_step(q.s) != SQLITE_DONE)
+    throw std::runtime_error(std::string("the recording store refused the session's end: ") + sqlite3_errmsg(db_));
   commitIfDue(true);
 }
 

@@ -21,8 +21,10 @@ namespace {
 using nlohmann::json;
 
 // A field added to these structs must be recorded too: these sizes stop the build until encodeSetup knows it.
-static_assert(sizeof(simcore::MaterialParams) == 32, "MaterialParams changed: record the new field in encodeSetup/decodeSetup");
-static_assert(sizeof(simcore::CutSettings) == 32, "CutSettings changed: record the new field in encodeSetup/decodeSetup");
+static_assert(sizeof(simcore::MaterialParams) == 32,
+              "MaterialParams changed: record the new field in encodeSetup/decodeSetup");
+static_assert(sizeof(simcore::CutSettings) == 32,
+              "CutSettings changed: record the new field in encodeSetup/decodeSetup");
 
 std::uint64_t fnv(std::uint64_t h, const void* data, std::size_t n) {
   const auto* p = static_cast<const unsigned char*>(data);
@@ -33,16 +35,23 @@ std::uint64_t fnv(std::uint64_t h, const void* data, std::size_t n) {
   return h;
 }
 
-json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
-Eigen::Vector3d vec(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
+json vec(const Eigen::Vector3d& v) {
+  return json::array({v.x(), v.y(), v.z()});
+}
+Eigen::Vector3d vec(const json& j) {
+  return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()};
+}
 // Integers from untrusted JSON: a float or a number out of range is refused (a cast of either is undefined).
 long long asInteger(const json& j, long long lo, long long hi) {
   if (!j.is_number_integer()) throw std::runtime_error("a whole number was expected");
-  if (j.is_number_unsigned() ? j.get<unsigned long long>() > static_cast<unsigned long long>(hi) : (j.get<long long>() < lo || j.get<long long>() > hi))
+  if (j.is_number_unsigned() ? j.get<unsigned long long>() > static_cast<unsigned long long>(hi)
+                             : (j.get<long long>() < lo || j.get<long long>() > hi))
     throw std::runtime_error("a whole number is out of range");
   return j.get<long long>();
 }
-int asInt(const json& j) { return static_cast<int>(asInteger(j, INT32_MIN, INT32_MAX)); }
+int asInt(const json& j) {
+  return static_cast<int>(asInteger(j, INT32_MIN, INT32_MAX));
+}
 std::vector<int> asInts(const json& j) {
   std::vector<int> out;
   out.reserve(j.size());
@@ -118,7 +127,8 @@ simcore::SimulationSettings settings(const json& j) {
   s.reportEnergy = j.at("reportEnergy");
   s.refreshResidual = j.at("refreshResidual");
   s.factorRefresh = static_cast<simcore::FactorRefresh>(asInt(j.at("factorRefresh")));
-  // Sessions recorded before these existed ran without the inversion guard and the strict/inexact choice (they were strict).
+  // Sessions recorded before these existed ran without the inversion guard and the strict/inexact choice (they were
+  // strict).
   s.linearisedTolerance = j.value("linearisedTolerance", s.linearisedTolerance);
   s.strict = j.value("strict", true);
   s.inversionGuard = j.value("inversionGuard", false);
@@ -155,13 +165,15 @@ struct Reader {
   }
   std::size_t count(std::size_t each) {
     const auto n = pod<std::int64_t>();
-    if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / each) throw std::runtime_error("a recorded checkpoint has a bad length");
+    if (n < 0 || static_cast<std::size_t>(n) > static_cast<std::size_t>(end - p) / each)
+      throw std::runtime_error("a recorded checkpoint has a bad length");
     return static_cast<std::size_t>(n);
   }
   Eigen::VectorXd vec() {
     const std::size_t n = count(sizeof(double));
     Eigen::VectorXd v(static_cast<Eigen::Index>(n));
-    if (n) std::memcpy(v.data(), p, n * sizeof(double));  // an empty vector has no storage (memcpy of null is undefined)
+    if (n)
+      std::memcpy(v.data(), p, n * sizeof(double));  // an empty vector has no storage (memcpy of null is undefined)
     p += n * sizeof(double);
     return v;
   }
@@ -174,8 +186,9 @@ struct Reader {
   }
 };
 constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the contact's easing was kept
-constexpr std::uint32_t kCheckpointMagicV2 = 0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut, PendingCutInput::applyAt
-constexpr std::uint32_t kCheckpointMagic = 0x334B4352;    // "RCK3": + ToolState::graspForce and released
+constexpr std::uint32_t kCheckpointMagicV2 =
+    0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut, PendingCutInput::applyAt
+constexpr std::uint32_t kCheckpointMagic = 0x334B4352;  // "RCK3": + ToolState::graspForce and released
 
 }  // namespace
 
@@ -187,7 +200,8 @@ std::uint64_t stateChecksum(const simcore::SimulationState& s) {
 }
 
 // Fields a checkpoint carries: a new one must be written too.
-static_assert(sizeof(simcore::SimulationState::Lagged) == 64, "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::SimulationState::Lagged) == 64,
+              "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
 static_assert(sizeof(simcore::ToolState) == 320, "ToolState changed: record the new field in encodeCheckpointState");
 
 namespace {
@@ -223,7 +237,8 @@ simcore::BodySetup sharedSetup(const simcore::BodySetup& s) {
 
 namespace detail {
 // The checkpoint's bytes with its setups' hashes (the recorder has them already).
-std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHashValue, std::uint64_t pendingSetupHash) {
+std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHashValue,
+                             std::uint64_t pendingSetupHash) {
   Bytes o;
   o.pod(kCheckpointMagic);
   o.pod(static_cast<std::int64_t>(c.step));
@@ -295,11 +310,13 @@ std::string encodeCheckpointState(const simcore::Checkpoint& c) {
   return detail::encodeCheckpoint(c, setupHash(c.setup), c.pendingCut ? setupHash(c.pendingCut->setup) : 0);
 }
 
-simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t)>& setupOf) {
+simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
+                                          const std::function<simcore::BodySetup(std::uint64_t)>& setupOf) {
   simcore::Checkpoint c;
   Reader r{bytes.data(), bytes.data() + bytes.size()};
   const std::uint32_t magic = r.pod<std::uint32_t>();
-  if (magic != kCheckpointMagic && magic != kCheckpointMagicV2 && magic != kCheckpointMagicV1) throw std::runtime_error("a recorded checkpoint is not in a known format");
+  if (magic != kCheckpointMagic && magic != kCheckpointMagicV2 && magic != kCheckpointMagicV1)
+    throw std::runtime_error("a recorded checkpoint is not in a known format");
   c.step = static_cast<long>(r.pod<std::int64_t>());
   c.setup = setupOf(r.pod<std::uint64_t>());
   c.setup.cut = readProgress(r);
@@ -343,7 +360,8 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
     }
     // Sorted, distinct surface triangles, each held at a distance (m) that is a number.
     for (std::size_t k = 0; k < t.easing.size(); ++k)
-      if (t.easing[k].first < 0 || !std::isfinite(t.easing[k].second) || (k > 0 && t.easing[k].first <= t.easing[k - 1].first))
+      if (t.easing[k].first < 0 || !std::isfinite(t.easing[k].second) ||
+          (k > 0 && t.easing[k].first <= t.easing[k - 1].first))
         throw std::runtime_error("a recorded checkpoint's contact is damaged");
     t.vesselsCut.resize(r.count(sizeof(std::int32_t)));
     for (int& l : t.vesselsCut) l = r.pod<std::int32_t>();
@@ -376,31 +394,41 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::f
     c.pendingCut = std::move(p);
   }
   if (r.p != r.end) throw std::runtime_error("a recorded checkpoint has trailing bytes");
-  if (s.v.size() != s.x.size() || (s.forcesValid && s.forces.size() != s.x.size()) || (s.lagged.valid && s.lagged.at.size() != s.x.size()) ||
+  if (s.v.size() != s.x.size() || (s.forcesValid && s.forces.size() != s.x.size()) ||
+      (s.lagged.valid && s.lagged.at.size() != s.x.size()) ||
       (s.lagged.requested && s.lagged.requestedAt.size() != s.x.size()))
     throw std::runtime_error("a recorded checkpoint's vectors disagree in size");
   // Node indices within the body (a damaged file must not reach the simulation as indices out of range).
   const std::size_t n = c.setup.rest.empty() ? c.setup.mesh.points.size() : c.setup.rest.size();
-  if (static_cast<std::size_t>(s.x.size()) != 3 * n) throw std::runtime_error("a recorded checkpoint does not fit its body's nodes");
+  if (static_cast<std::size_t>(s.x.size()) != 3 * n)
+    throw std::runtime_error("a recorded checkpoint does not fit its body's nodes");
   auto inRange = [n](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
   bool ok = t.heldOffset.size() == t.held.size() && std::all_of(t.held.begin(), t.held.end(), inRange) &&
-            std::all_of(t.released.begin(), t.released.end(), inRange) && std::is_sorted(t.released.begin(), t.released.end()) &&
+            std::all_of(t.released.begin(), t.released.end(), inRange) &&
+            std::is_sorted(t.released.begin(), t.released.end()) &&
             std::all_of(c.setup.cut.nodes.begin(), c.setup.cut.nodes.end(), inRange);
   for (const auto& f : c.setup.cut.pendingFaces) ok = ok && std::all_of(f.begin(), f.end(), inRange);
   auto sweepsFinite = [](const simcore::CutProgress& p) {
-    return std::all_of(p.sweeps.begin(), p.sweeps.end(), [](const auto& w) { return w.a0.allFinite() && w.b0.allFinite() && w.a1.allFinite() && w.b1.allFinite(); });
+    return std::all_of(p.sweeps.begin(), p.sweeps.end(), [](const auto& w) {
+      return w.a0.allFinite() && w.b0.allFinite() && w.a1.allFinite() && w.b1.allFinite();
+    });
   };
   ok = ok && sweepsFinite(c.setup.cut) && (!c.pendingCut || sweepsFinite(c.pendingCut->setup.cut));
-  if (!ok || !s.x.allFinite() || !s.v.allFinite()) throw std::runtime_error("a recorded checkpoint names nodes its body has not, or holds no number");
-  if (!t.tip.allFinite() || !t.cutFrom.allFinite() || !t.force.allFinite() || !t.graspForce.allFinite() || !t.stiffness.allFinite() || !std::isfinite(s.time) || t.contacts < 0 ||
-      t.pierced < 0 || (c.restOfSweep && (!c.restOfSweep->first.allFinite() || !c.restOfSweep->second.allFinite())))
+  if (!ok || !s.x.allFinite() || !s.v.allFinite())
+    throw std::runtime_error("a recorded checkpoint names nodes its body has not, or holds no number");
+  if (!t.tip.allFinite() || !t.cutFrom.allFinite() || !t.force.allFinite() || !t.graspForce.allFinite() ||
+      !t.stiffness.allFinite() || !std::isfinite(s.time) || t.contacts < 0 || t.pierced < 0 ||
+      (c.restOfSweep && (!c.restOfSweep->first.allFinite() || !c.restOfSweep->second.allFinite())))
     throw std::runtime_error("a recorded checkpoint's instrument holds no number");
   if (const auto& p = c.pendingCut) {
     // The cut body's new nodes are made from the body's present nodes; the cut body has both.
     const std::size_t m = p->setup.rest.empty() ? p->setup.mesh.points.size() : p->setup.rest.size();
-    bool fits = m == n + p->newNodes.size() && (p->factorAt.size() == 0 || static_cast<std::size_t>(p->factorAt.size()) == 3 * m) && p->factorAt.allFinite();
+    bool fits = m == n + p->newNodes.size() &&
+                (p->factorAt.size() == 0 || static_cast<std::size_t>(p->factorAt.size()) == 3 * m) &&
+                p->factorAt.allFinite();
     for (const auto& k : p->newNodes)
-      for (std::size_t j = 0; j < 4; ++j) fits = fits && (k.from[j] == -1 || inRange(k.from[j])) && std::isfinite(k.weight[j]);
+      for (std::size_t j = 0; j < 4; ++j)
+        fits = fits && (k.from[j] == -1 || inRange(k.from[j])) && std::isfinite(k.weight[j]);
     auto inCut = [m](int i) { return i >= 0 && static_cast<std::size_t>(i) < m; };
     fits = fits && std::all_of(p->setup.cut.nodes.begin(), p->setup.cut.nodes.end(), inCut);
     for (const auto& f : p->setup.cut.pendingFaces) fits = fits && std::all_of(f.begin(), f.end(), inCut);
@@ -445,8 +473,13 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   for (const auto& t : s.mesh.tets) tets.push_back(t);
   for (const auto& t : s.mesh.triangles) tris.push_back(t);
   for (const auto& [label, name] : s.mesh.labelNames) names.push_back({label, name});
-  j["mesh"] = {{"points", pts}, {"tets", tets}, {"tetLabels", s.mesh.tetLabels}, {"triangles", tris}, {"triangleLabels", s.mesh.triangleLabels},
-               {"labelNames", names}, {"unitToMetre", s.mesh.unitToMetre}};
+  j["mesh"] = {{"points", pts},
+               {"tets", tets},
+               {"tetLabels", s.mesh.tetLabels},
+               {"triangles", tris},
+               {"triangleLabels", s.mesh.triangleLabels},
+               {"labelNames", names},
+               {"unitToMetre", s.mesh.unitToMetre}};
   json rest = json::array();
   for (const auto& p : s.rest) rest.push_back(vec(p));
   j["rest"] = rest;
@@ -457,9 +490,17 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   j["byLabel"] = byLabel;
   j["settings"] = settings(s.settings);
   const auto& t = s.tools;
-  j["tools"] = {{"graspRadius", t.graspRadius}, {"maxGraspForce", t.maxGraspForce}, {"bladeLength", t.bladeLength}, {"toolRadius", t.toolRadius},
-                {"depenetrationSpeed", t.depenetrationSpeed}, {"cutLatencySteps", t.cutLatencySteps},
-                {"cut", {{"snap", t.cut.snap}, {"minQuality", t.cut.minQuality}, {"minVolumeFraction", t.cut.minVolumeFraction}, {"snapFront", t.cut.snapFront}}}};
+  j["tools"] = {{"graspRadius", t.graspRadius},
+                {"maxGraspForce", t.maxGraspForce},
+                {"bladeLength", t.bladeLength},
+                {"toolRadius", t.toolRadius},
+                {"depenetrationSpeed", t.depenetrationSpeed},
+                {"cutLatencySteps", t.cutLatencySteps},
+                {"cut",
+                 {{"snap", t.cut.snap},
+                  {"minQuality", t.cut.minQuality},
+                  {"minVolumeFraction", t.cut.minVolumeFraction},
+                  {"snapFront", t.cut.snapFront}}}};
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
   j["topology"] = s.topology;
   j["format"] = "rehearse-setup-1";
@@ -489,8 +530,10 @@ simcore::BodySetup decodeSetup(const std::string& text) {
     s.tools.maxGraspForce = t.at("maxGraspForce");
     s.tools.bladeLength = t.at("bladeLength");
     s.tools.toolRadius = t.at("toolRadius");
-    s.tools.depenetrationSpeed = t.value("depenetrationSpeed", 0.0);  // recorded before it existed: contact pushed out at once
-    s.tools.cutLatencySteps = t.contains("cutLatencySteps") ? asInt(t.at("cutLatencySteps")) : -1;  // ... and cuts applied as they were
+    s.tools.depenetrationSpeed =
+        t.value("depenetrationSpeed", 0.0);  // recorded before it existed: contact pushed out at once
+    s.tools.cutLatencySteps =
+        t.contains("cutLatencySteps") ? asInt(t.at("cutLatencySteps")) : -1;  // ... and cuts applied as they were
     s.tools.cut.snap = t.at("cut").at("snap");
     s.tools.cut.minQuality = t.at("cut").at("minQuality");
     s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");
@@ -505,8 +548,16 @@ simcore::BodySetup decodeSetup(const std::string& text) {
 }
 
 std::string encodeEvent(const simcore::InputEvent& e) {
-  return json{{"kind", static_cast<int>(e.kind)}, {"wallTime", e.wallTime}, {"step", e.step}, {"tool", e.tool}, {"label", e.label},
-              {"position", vec(e.position)}, {"vector", vec(e.vector)}, {"on", e.on}, {"name", e.name}, {"value", e.value}}
+  return json{{"kind", static_cast<int>(e.kind)},
+              {"wallTime", e.wallTime},
+              {"step", e.step},
+              {"tool", e.tool},
+              {"label", e.label},
+              {"position", vec(e.position)},
+              {"vector", vec(e.vector)},
+              {"on", e.on},
+              {"name", e.name},
+              {"value", e.value}}
       .dump();
 }
 
@@ -532,11 +583,16 @@ simcore::InputEvent decodeEvent(const std::string& text) {
 }
 
 namespace {
-bool finite(double v) { return std::isfinite(v); }
-bool finite(const Eigen::Vector3d& v) { return v.allFinite(); }
+bool finite(double v) {
+  return std::isfinite(v);
+}
+bool finite(const Eigen::Vector3d& v) {
+  return v.allFinite();
+}
 std::string materialProblem(const simcore::MaterialParams& m, const std::string& whose) {
   const int model = static_cast<int>(m.model);
-  if (model < 0 || model > static_cast<int>(simcore::MaterialModel::NeoHookeanSplit)) return whose + " has an unknown material law (" + std::to_string(model) + ")";
+  if (model < 0 || model > static_cast<int>(simcore::MaterialModel::NeoHookeanSplit))
+    return whose + " has an unknown material law (" + std::to_string(model) + ")";
   if (!finite(m.young) || m.young <= 0) return whose + "'s Young's modulus is not a positive number";
   if (!finite(m.poisson) || m.poisson <= -1 || m.poisson >= 0.5) return whose + "'s Poisson ratio is outside (-1, 0.5)";
   if (!finite(m.density) || m.density <= 0) return whose + "'s density is not a positive number";
@@ -553,48 +609,62 @@ std::string setupProblem(const simcore::BodySetup& s) {
   const auto& m = s.mesh;
   const std::size_t n = m.points.size();
   if (n == 0 || m.tets.empty()) return "the body has no nodes or no elements";
-  if (!s.rest.empty() && s.rest.size() != n) return "the body's rest positions (" + std::to_string(s.rest.size()) + ") do not match its nodes (" + std::to_string(n) + ")";
+  if (!s.rest.empty() && s.rest.size() != n)
+    return "the body's rest positions (" + std::to_string(s.rest.size()) + ") do not match its nodes (" +
+           std::to_string(n) + ")";
   if (!std::all_of(m.points.begin(), m.points.end(), [](const Eigen::Vector3d& p) { return finite(p); }) ||
       !std::all_of(s.rest.begin(), s.rest.end(), [](const Eigen::Vector3d& p) { return finite(p); }))
     return "a node's position is not a number";
   auto inRange = [n](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
   for (std::size_t e = 0; e < m.tets.size(); ++e)
-    if (!std::all_of(m.tets[e].begin(), m.tets[e].end(), inRange)) return "element " + std::to_string(e) + " names a node the body has not";
+    if (!std::all_of(m.tets[e].begin(), m.tets[e].end(), inRange))
+      return "element " + std::to_string(e) + " names a node the body has not";
   for (std::size_t e = 0; e < m.triangles.size(); ++e)
-    if (!std::all_of(m.triangles[e].begin(), m.triangles[e].end(), inRange)) return "surface triangle " + std::to_string(e) + " names a node the body has not";
-  if (!m.tetLabels.empty() && m.tetLabels.size() != m.tets.size()) return "the element labels do not match the elements";
-  if (!m.triangleLabels.empty() && m.triangleLabels.size() != m.triangles.size()) return "the triangle labels do not match the triangles";
-  if (!std::all_of(s.fixedNodes.begin(), s.fixedNodes.end(), inRange)) return "an attachment names a node the body has not";
+    if (!std::all_of(m.triangles[e].begin(), m.triangles[e].end(), inRange))
+      return "surface triangle " + std::to_string(e) + " names a node the body has not";
+  if (!m.tetLabels.empty() && m.tetLabels.size() != m.tets.size())
+    return "the element labels do not match the elements";
+  if (!m.triangleLabels.empty() && m.triangleLabels.size() != m.triangles.size())
+    return "the triangle labels do not match the triangles";
+  if (!std::all_of(s.fixedNodes.begin(), s.fixedNodes.end(), inRange))
+    return "an attachment names a node the body has not";
   if (!finite(m.unitToMetre) || m.unitToMetre <= 0) return "the mesh's unit is not a positive number";
   if (auto p = materialProblem(s.material, "the organ"); !p.empty()) return p;
   for (const auto& [label, mat] : s.byLabel)
     if (auto p = materialProblem(mat, "label " + std::to_string(label)); !p.empty()) return p;
   const auto& t = s.settings;
   if (!finite(t.timeStep) || t.timeStep <= 0 || t.timeStep > 10) return "the time step is not between 0 and 10 s";
-  if (!finite(t.gravity) || !finite(t.rayleighMass) || !finite(t.rayleighStiffness) || t.rayleighMass < 0 || t.rayleighStiffness < 0)
+  if (!finite(t.gravity) || !finite(t.rayleighMass) || !finite(t.rayleighStiffness) || t.rayleighMass < 0 ||
+      t.rayleighStiffness < 0)
     return "gravity or damping is not a number (or negative damping)";
-  if (t.maxNewtonIterations < 1 || t.maxNewtonIterations > 10000 || t.cgMaxIterations < 0 || t.cgMaxIterations > 1000000 || t.maxRetries < 0 ||
-      t.maxRetries > 60 || t.gaussSeidelIterations < 0 || t.gaussSeidelIterations > 1000000)
+  if (t.maxNewtonIterations < 1 || t.maxNewtonIterations > 10000 || t.cgMaxIterations < 0 ||
+      t.cgMaxIterations > 1000000 || t.maxRetries < 0 || t.maxRetries > 60 || t.gaussSeidelIterations < 0 ||
+      t.gaussSeidelIterations > 1000000)
     return "an iteration count of the solver is out of range";
-  if (!finite(t.tolerance) || t.tolerance <= 0 || !finite(t.cgTolerance) || t.cgTolerance < 0 || !finite(t.staticStepTolerance) ||
-      !finite(t.gaussSeidelTolerance) || !finite(t.refreshResidual) || !finite(t.linearisedTolerance) || t.linearisedTolerance <= 0)
+  if (!finite(t.tolerance) || t.tolerance <= 0 || !finite(t.cgTolerance) || t.cgTolerance < 0 ||
+      !finite(t.staticStepTolerance) || !finite(t.gaussSeidelTolerance) || !finite(t.refreshResidual) ||
+      !finite(t.linearisedTolerance) || t.linearisedTolerance <= 0)
     return "a tolerance of the solver is not a positive number";
   if (!inEnum(t.solver, simcore::LinearSolverKind::Dense) || !inEnum(t.method, simcore::NewtonMethod::Linearised) ||
-      !inEnum(t.attachments, simcore::AttachmentMode::Lagrange) || !inEnum(t.factorRefresh, simcore::FactorRefresh::Deferred))
+      !inEnum(t.attachments, simcore::AttachmentMode::Lagrange) ||
+      !inEnum(t.factorRefresh, simcore::FactorRefresh::Deferred))
     return "the solver, method, attachment or refresh setting is not one this version knows";
   const auto& tool = s.tools;
-  for (double v : {tool.graspRadius, tool.maxGraspForce, tool.bladeLength, tool.toolRadius, tool.depenetrationSpeed, tool.cut.snap, tool.cut.minQuality,
-                   tool.cut.minVolumeFraction})
+  for (double v : {tool.graspRadius, tool.maxGraspForce, tool.bladeLength, tool.toolRadius, tool.depenetrationSpeed,
+                   tool.cut.snap, tool.cut.minQuality, tool.cut.minVolumeFraction})
     if (!finite(v) || v < 0) return "an instrument setting is not a non-negative number";
   if (tool.trocar && !finite(*tool.trocar)) return "the trocar is not a point";
-  if (tool.cutLatencySteps < -1 || tool.cutLatencySteps > 1000) return "the cut's latency is not between -1 and 1000 steps";
+  if (tool.cutLatencySteps < -1 || tool.cutLatencySteps > 1000)
+    return "the cut's latency is not between -1 and 1000 steps";
   if (s.topology < 0) return "the topology version is negative";
   return {};
 }
 
 std::string eventProblem(const simcore::InputEvent& e) {
-  if (!inEnum(e.kind, simcore::InputKind::CutApplied)) return "an event of an unknown kind (" + std::to_string(static_cast<int>(e.kind)) + ")";
-  if (!finite(e.wallTime) || !finite(e.position) || !finite(e.vector) || !finite(e.value)) return "an event holds no number";
+  if (!inEnum(e.kind, simcore::InputKind::CutApplied))
+    return "an event of an unknown kind (" + std::to_string(static_cast<int>(e.kind)) + ")";
+  if (!finite(e.wallTime) || !finite(e.position) || !finite(e.vector) || !finite(e.value))
+    return "an event holds no number";
   if (e.step < 0) return "an event has no step";
   if (e.tool < 0 || e.tool > 1000) return "an event names an unknown instrument";
   if (e.kind == simcore::InputKind::Parameter) {
@@ -609,9 +679,11 @@ std::string eventProblem(const simcore::InputEvent& e) {
     } else if (k == "dt") {
       if (!(v > 0 && v <= 10)) return "a recorded time step is not between 0 and 10 s";
     } else if (k == "method") {
-      if (!(v >= 0 && v <= static_cast<int>(simcore::NewtonMethod::Linearised) && v == std::floor(v))) return "a recorded method is not one this version knows";
+      if (!(v >= 0 && v <= static_cast<int>(simcore::NewtonMethod::Linearised) && v == std::floor(v)))
+        return "a recorded method is not one this version knows";
     } else if (k == "model") {
-      if (!(v >= 0 && v <= static_cast<int>(simcore::MaterialModel::NeoHookeanSplit) && v == std::floor(v))) return "a recorded material law is not one this version knows";
+      if (!(v >= 0 && v <= static_cast<int>(simcore::MaterialModel::NeoHookeanSplit) && v == std::floor(v)))
+        return "a recorded material law is not one this version knows";
     } else {
       return "a recorded parameter '" + k + "' is not one this version knows";
     }
@@ -626,6 +698,5 @@ std::string newSessionUuid() {
   for (int i = 0; i < 4; ++i) std::snprintf(buf + 8 * i, 9, "%08x", static_cast<unsigned>(rd()));
   return std::string(buf, 32);
 }
-
 
 }  // namespace rehearse::app

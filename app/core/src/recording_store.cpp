@@ -27,18 +27,22 @@ std::string utcNow() {
   return buf;
 }
 
-
 constexpr const char* kSchema =
-    "CREATE TABLE IF NOT EXISTS rehearsal_sessions(id INTEGER PRIMARY KEY AUTOINCREMENT, trainee TEXT, started_utc TEXT, case_name TEXT, "
-    "scene_version TEXT, app_version TEXT, notes TEXT, setup TEXT NOT NULL, time_step REAL, checksum_every INTEGER, steps INTEGER DEFAULT 0, "
+    "CREATE TABLE IF NOT EXISTS rehearsal_sessions(id INTEGER PRIMARY KEY AUTOINCREMENT, trainee TEXT, started_utc "
+    "TEXT, case_name TEXT, "
+    "scene_version TEXT, app_version TEXT, notes TEXT, setup TEXT NOT NULL, time_step REAL, checksum_every INTEGER, "
+    "steps INTEGER DEFAULT 0, "
     "complete INTEGER DEFAULT 0);"
-    "CREATE TABLE IF NOT EXISTS rehearsal_events(session INTEGER NOT NULL, seq INTEGER NOT NULL, step INTEGER NOT NULL, event TEXT NOT NULL, "
+    "CREATE TABLE IF NOT EXISTS rehearsal_events(session INTEGER NOT NULL, seq INTEGER NOT NULL, step INTEGER NOT "
+    "NULL, event TEXT NOT NULL, "
     "PRIMARY KEY(session, seq));"
-    "CREATE TABLE IF NOT EXISTS rehearsal_checksums(session INTEGER NOT NULL, step INTEGER NOT NULL, checksum TEXT NOT NULL, PRIMARY KEY(session, step));"
-    "CREATE TABLE IF NOT EXISTS rehearsal_setups(session INTEGER NOT NULL, hash TEXT NOT NULL, setup TEXT NOT NULL, PRIMARY KEY(session, hash));"
-    "CREATE TABLE IF NOT EXISTS rehearsal_checkpoints(session INTEGER NOT NULL, step INTEGER NOT NULL, setup_hash TEXT NOT NULL, state BLOB NOT NULL, "
+    "CREATE TABLE IF NOT EXISTS rehearsal_checksums(session INTEGER NOT NULL, step INTEGER NOT NULL, checksum TEXT NOT "
+    "NULL, PRIMARY KEY(session, step));"
+    "CREATE TABLE IF NOT EXISTS rehearsal_setups(session INTEGER NOT NULL, hash TEXT NOT NULL, setup TEXT NOT NULL, "
+    "PRIMARY KEY(session, hash));"
+    "CREATE TABLE IF NOT EXISTS rehearsal_checkpoints(session INTEGER NOT NULL, step INTEGER NOT NULL, setup_hash TEXT "
+    "NOT NULL, state BLOB NOT NULL, "
     "PRIMARY KEY(session, step));";
-
 
 sqlite3* openStore(const std::string& path, bool create) {
   sqlite3* db = nullptr;
@@ -58,7 +62,8 @@ void writeChecksum(sqlite3* db, Statement& q, std::int64_t session, long step, s
   sqlite3_bind_int64(q.s, 1, session);
   sqlite3_bind_int64(q.s, 2, step);
   q.text(3, std::to_string(sum));
-  if (sqlite3_step(q.s) != SQLITE_DONE) throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db));
+  if (sqlite3_step(q.s) != SQLITE_DONE)
+    throw std::runtime_error(std::string("the recording store refused a checksum: ") + sqlite3_errmsg(db));
 }
 
 bool hasTable(sqlite3* db, const char* name) {
@@ -102,8 +107,10 @@ std::vector<RecordingSummary> listRecordings(const std::string& path) {
   try {
     if (hasTable(db, "rehearsal_sessions")) {
       const bool uuid = hasColumn(db, "rehearsal_sessions", "uuid");
-      Statement q(db, uuid ? "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, complete, uuid FROM rehearsal_sessions ORDER BY id"
-                           : "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, complete FROM rehearsal_sessions ORDER BY id");
+      Statement q(db, uuid ? "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, "
+                             "complete, uuid FROM rehearsal_sessions ORDER BY id"
+                           : "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, "
+                             "complete FROM rehearsal_sessions ORDER BY id");
       int rc;
       while ((rc = sqlite3_step(q.s)) == SQLITE_ROW) {
         RecordingSummary r;
@@ -113,10 +120,12 @@ std::vector<RecordingSummary> listRecordings(const std::string& path) {
         r.steps = static_cast<long>(sqlite3_column_int64(q.s, 7));
         r.complete = sqlite3_column_int(q.s, 8) != 0;
         if (uuid) r.uuid = q.column(9);
-        if (r.steps < 0) throw std::runtime_error("session " + std::to_string(r.id) + " in " + path + " has a negative step count");
+        if (r.steps < 0)
+          throw std::runtime_error("session " + std::to_string(r.id) + " in " + path + " has a negative step count");
         out.push_back(std::move(r));
       }
-      if (rc != SQLITE_DONE) throw std::runtime_error(std::string("the recordings in ") + path + " cannot be read: " + sqlite3_errmsg(db));
+      if (rc != SQLITE_DONE)
+        throw std::runtime_error(std::string("the recordings in ") + path + " cannot be read: " + sqlite3_errmsg(db));
     }
   } catch (...) {
     sqlite3_close(db);
@@ -140,10 +149,12 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
     {
       Statement q(db, "SELECT setup, checksum_every FROM rehearsal_sessions WHERE id = ?");
       sqlite3_bind_int64(q.s, 1, id);
-      if (sqlite3_step(q.s) != SQLITE_ROW) throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
+      if (sqlite3_step(q.s) != SQLITE_ROW)
+        throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
       r.setup = decodeSetup(q.column(0));
       r.checksumEvery = sqlite3_column_int(q.s, 1);
-      if (r.checksumEvery < 1) throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has no checksum interval");
+      if (r.checksumEvery < 1)
+        throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has no checksum interval");
     }
     {
       Statement q(db, "SELECT event, step FROM rehearsal_events WHERE session = ? ORDER BY seq");
@@ -153,7 +164,8 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
         // The events apply at step boundaries in order: a step going back or beyond the session cannot be replayed.
         const long step = r.events.back().step;
         if (step != sqlite3_column_int64(q.s, 1) || (r.events.size() > 1 && step < r.events[r.events.size() - 2].step))
-          throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has its events out of order (damaged)");
+          throw std::runtime_error("session " + std::to_string(id) + " in " + path +
+                                   " has its events out of order (damaged)");
       }
     }
     {
@@ -166,14 +178,16 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
         const unsigned long long sum = std::strtoull(text.c_str(), &end, 10);
         const long step = static_cast<long>(sqlite3_column_int64(q.s, 0));
         if (text.empty() || errno != 0 || *end != '\0' || step < 1)
-          throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has a damaged checksum (step " + std::to_string(step) + ")");
+          throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has a damaged checksum (step " +
+                                   std::to_string(step) + ")");
         r.checksums[step] = sum;
       }
     }
     if (hasTable(db, "rehearsal_checkpoints")) {
       Statement q(db, "SELECT step FROM rehearsal_checkpoints WHERE session = ? ORDER BY step");
       sqlite3_bind_int64(q.s, 1, id);
-      while (sqlite3_step(q.s) == SQLITE_ROW) r.checkpointSteps.push_back(static_cast<long>(sqlite3_column_int64(q.s, 0)));
+      while (sqlite3_step(q.s) == SQLITE_ROW)
+        r.checkpointSteps.push_back(static_cast<long>(sqlite3_column_int64(q.s, 0)));
     }
   } catch (...) {
     sqlite3_close(db);
@@ -193,19 +207,22 @@ RecordingRows loadRecordingRows(const std::string& path, std::int64_t id) {
     {
       Statement q(db, "SELECT setup FROM rehearsal_sessions WHERE id = ?");
       sqlite3_bind_int64(q.s, 1, id);
-      if (sqlite3_step(q.s) != SQLITE_ROW) throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
+      if (sqlite3_step(q.s) != SQLITE_ROW)
+        throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
       rows.setup = q.column(0);
     }
     {
       Statement q(db, "SELECT seq, step, event FROM rehearsal_events WHERE session = ? ORDER BY seq");
       sqlite3_bind_int64(q.s, 1, id);
       while (sqlite3_step(q.s) == SQLITE_ROW)
-        rows.events.emplace_back(static_cast<long>(sqlite3_column_int64(q.s, 0)), static_cast<long>(sqlite3_column_int64(q.s, 1)), q.column(2));
+        rows.events.emplace_back(static_cast<long>(sqlite3_column_int64(q.s, 0)),
+                                 static_cast<long>(sqlite3_column_int64(q.s, 1)), q.column(2));
     }
     {
       Statement q(db, "SELECT step, checksum FROM rehearsal_checksums WHERE session = ? ORDER BY step");
       sqlite3_bind_int64(q.s, 1, id);
-      while (sqlite3_step(q.s) == SQLITE_ROW) rows.checksums.emplace_back(static_cast<long>(sqlite3_column_int64(q.s, 0)), q.column(1));
+      while (sqlite3_step(q.s) == SQLITE_ROW)
+        rows.checksums.emplace_back(static_cast<long>(sqlite3_column_int64(q.s, 0)), q.column(1));
     }
     if (hasTable(db, "rehearsal_setups")) {
       Statement q(db, "SELECT hash, setup FROM rehearsal_setups WHERE session = ?");
@@ -242,7 +259,8 @@ simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, lon
       sqlite3_bind_int64(q.s, 1, id);
       sqlite3_bind_int64(q.s, 2, step);
       if (sqlite3_step(q.s) != SQLITE_ROW)
-        throw std::runtime_error(path + " has no checkpoint at step " + std::to_string(step) + " of session " + std::to_string(id));
+        throw std::runtime_error(path + " has no checkpoint at step " + std::to_string(step) + " of session " +
+                                 std::to_string(id));
       const auto* blob = static_cast<const char*>(sqlite3_column_blob(q.s, 0));
       bytes.assign(blob ? blob : "", static_cast<std::size_t>(sqlite3_column_bytes(q.s, 0)));
     }
@@ -251,7 +269,8 @@ simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, lon
       sqlite3_bind_int64(q.s, 1, id);
       q.text(2, std::to_string(hash));
       if (sqlite3_step(q.s) != SQLITE_ROW)
-        throw std::runtime_error(path + ": the checkpoint at step " + std::to_string(step) + " names a setup that is missing");
+        throw std::runtime_error(path + ": the checkpoint at step " + std::to_string(step) +
+                                 " names a setup that is missing");
       return decodeSetup(q.column(0));
     });
   } catch (...) {
@@ -259,7 +278,8 @@ simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, lon
     throw;
   }
   sqlite3_close(db);
-  if (c.step != step) throw std::runtime_error(path + ": the checkpoint at step " + std::to_string(step) + " holds another step");
+  if (c.step != step)
+    throw std::runtime_error(path + ": the checkpoint at step " + std::to_string(step) + " holds another step");
   return c;
 }
 
@@ -277,7 +297,9 @@ std::string loadCaseThresholds(const std::string& path) {
 void saveCaseThresholds(const std::string& path, const std::string& json) {
   sqlite3* db = openStore(path, true);
   char* err = nullptr;
-  int rc = sqlite3_exec(db, "CREATE TABLE IF NOT EXISTS rehearsal_thresholds(id INTEGER PRIMARY KEY CHECK(id = 1), json TEXT NOT NULL)", nullptr, nullptr, &err);
+  int rc = sqlite3_exec(
+      db, "CREATE TABLE IF NOT EXISTS rehearsal_thresholds(id INTEGER PRIMARY KEY CHECK(id = 1), json TEXT NOT NULL)",
+      nullptr, nullptr, &err);
   if (rc == SQLITE_OK) {
     Statement q(db, "INSERT OR REPLACE INTO rehearsal_thresholds(id, json) VALUES(1, ?)");
     q.text(1, json);
@@ -320,7 +342,8 @@ int copyRecordings(const std::string& from, const std::string& to) {
     ensureSchema(db);
   } catch (const std::exception& e) {
     sqlite3_close(db);
-    throw std::runtime_error(std::string("the recorded sessions could not be carried into the saved case: ") + e.what());
+    throw std::runtime_error(std::string("the recorded sessions could not be carried into the saved case: ") +
+                             e.what());
   }
   bool prevUuid = false;
   {
@@ -331,10 +354,13 @@ int copyRecordings(const std::string& from, const std::string& to) {
   run("ATTACH DATABASE '" + quoted + "' AS prev");
   run("BEGIN");
   // Every session with its identity (one recorded before identities existed gets one here).
-  run(std::string("INSERT INTO rehearsal_sessions(id, trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, "
-                  "checksum_every, steps, complete, uuid) SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, "
+  run(std::string("INSERT INTO rehearsal_sessions(id, trainee, started_utc, case_name, scene_version, app_version, "
+                  "notes, setup, time_step, "
+                  "checksum_every, steps, complete, uuid) SELECT id, trainee, started_utc, case_name, scene_version, "
+                  "app_version, notes, setup, time_step, "
                   "checksum_every, steps, complete, ") +
-      (prevUuid ? "CASE WHEN uuid IS NULL OR uuid = '' THEN lower(hex(randomblob(16))) ELSE uuid END" : "lower(hex(randomblob(16)))") +
+      (prevUuid ? "CASE WHEN uuid IS NULL OR uuid = '' THEN lower(hex(randomblob(16))) ELSE uuid END"
+                : "lower(hex(randomblob(16)))") +
       " FROM prev.rehearsal_sessions");
   run("INSERT INTO rehearsal_events SELECT * FROM prev.rehearsal_events");
   run("INSERT INTO rehearsal_checksums SELECT * FROM prev.rehearsal_checksums");
@@ -358,6 +384,8 @@ int copyRecordings(const std::string& from, const std::string& to) {
   return sessions;
 }
 
-VerifyResult verifyRecording(const Recording& r) { return replayRecording(r).verify; }
+VerifyResult verifyRecording(const Recording& r) {
+  return replayRecording(r).verify;
+}
 
 }  // namespace rehearse::app

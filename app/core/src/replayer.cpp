@@ -14,7 +14,9 @@ Replayer::Replayer(Recording r) : rec_(std::move(r)) {
 
 Replayer::~Replayer() = default;
 
-long Replayer::step() const { return session_->snapshot()->step; }
+long Replayer::step() const {
+  return session_->snapshot()->step;
+}
 
 void Replayer::startAt(const simcore::Checkpoint* c) {
   if (!c) {
@@ -42,7 +44,10 @@ void Replayer::seek(long target) {
   } else if (best > 0) {
     auto it = cache_.find(best);
     if (it == cache_.end())
-      it = cache_.emplace(best, rec_.checkpointSource ? rec_.checkpointSource(best) : loadCheckpoint(rec_.path, rec_.summary.id, best)).first;
+      it = cache_
+               .emplace(best, rec_.checkpointSource ? rec_.checkpointSource(best)
+                                                    : loadCheckpoint(rec_.path, rec_.summary.id, best))
+               .first;
     startAt(&it->second);
     lastSeekFrom_ = best;
   } else {
@@ -56,7 +61,11 @@ void Replayer::advance() {
   if (step() < steps_) session_->advance();
 }
 
-std::shared_ptr<const simcore::Snapshot> Replayer::snapshot() const { return session_->snapshot(); }
-simcore::SimulationState Replayer::state() const { return session_->state(); }
+std::shared_ptr<const simcore::Snapshot> Replayer::snapshot() const {
+  return session_->snapshot();
+}
+simcore::SimulationState Replayer::state() const {
+  return session_->state();
+}
 
 }  // namespace rehearse::app

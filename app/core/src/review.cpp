@@ -17,10 +17,13 @@
 
 namespace rehearse::app {
 
-double maxGreenStrain(const std::vector<Eigen::Vector3d>& rest, const std::vector<Eigen::Vector3d>& current, const std::vector<std::array<int, 4>>& tets) {
+double maxGreenStrain(const std::vector<Eigen::Vector3d>& rest, const std::vector<Eigen::Vector3d>& current,
+                      const std::vector<std::array<int, 4>>& tets) {
   double worst = 0;
   for (const auto& t : tets) {
-    if (t[0] < 0 || static_cast<std::size_t>(std::max({t[0], t[1], t[2], t[3]})) >= std::min(rest.size(), current.size())) continue;
+    if (t[0] < 0 ||
+        static_cast<std::size_t>(std::max({t[0], t[1], t[2], t[3]})) >= std::min(rest.size(), current.size()))
+      continue;
     Eigen::Matrix3d Dm, Ds;
     for (int k = 0; k < 3; ++k) {
       Dm.col(k) = rest[static_cast<std::size_t>(t[k + 1])] - rest[static_cast<std::size_t>(t[0])];
@@ -57,8 +60,8 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"attachments_torn", m.attachmentsTorn, "", m.attachmentsTorn ? "" : m.attachmentsWhy},
   };
   for (auto& x : v)
-    x.count = x.name == "grasps" || x.name == "slips" || x.name == "cut_updates" || x.name == "vessel_cuts" || x.name == "tumour_breaches" ||
-              x.name == "attachments_torn";
+    x.count = x.name == "grasps" || x.name == "slips" || x.name == "cut_updates" || x.name == "vessel_cuts" ||
+              x.name == "tumour_breaches" || x.name == "attachments_torn";
   return v;
 }
 
@@ -75,11 +78,13 @@ std::vector<Threshold> parseThresholds(const std::string& text) {
   for (const auto& [name, limit] : j.items()) {
     if (std::none_of(names.begin(), names.end(), [&](const MetricValue& v) { return v.name == name; }))
       throw std::runtime_error("the thresholds name an unknown metric '" + name + "'");
-    if (!limit.is_object()) throw std::runtime_error("the threshold of " + name + " must be {\"min\": x} and/or {\"max\": y}");
+    if (!limit.is_object())
+      throw std::runtime_error("the threshold of " + name + " must be {\"min\": x} and/or {\"max\": y}");
     Threshold t;
     t.metric = name;
     for (const auto& [key, value] : limit.items()) {
-      if (key != "min" && key != "max") throw std::runtime_error("the threshold of " + name + " has '" + key + "'; only min and max are known");
+      if (key != "min" && key != "max")
+        throw std::runtime_error("the threshold of " + name + " has '" + key + "'; only min and max are known");
       if (!value.is_number()) throw std::runtime_error("the threshold " + key + " of " + name + " is not a number");
       (key == "min" ? t.min : t.max) = value.get<double>();
     }
@@ -94,10 +99,13 @@ std::vector<Verdict> judge(const SessionMetrics& m, const std::vector<Threshold>
   const auto values = metricValues(m);
   std::vector<Verdict> out;
   for (const auto& t : thresholds) {
-    const auto it = std::find_if(values.begin(), values.end(), [&](const MetricValue& v) { return v.name == t.metric; });
+    const auto it =
+        std::find_if(values.begin(), values.end(), [&](const MetricValue& v) { return v.name == t.metric; });
     if (it == values.end()) continue;
     Verdict v{*it, t, Verdict::Result::NotDetermined};
-    if (it->value) v.result = (!t.min || *it->value >= *t.min) && (!t.max || *it->value <= *t.max) ? Verdict::Result::Pass : Verdict::Result::Fail;
+    if (it->value)
+      v.result = (!t.min || *it->value >= *t.min) && (!t.max || *it->value <= *t.max) ? Verdict::Result::Pass
+                                                                                      : Verdict::Result::Fail;
     out.push_back(v);
   }
   return out;
@@ -114,7 +122,8 @@ const char* resultWord(Verdict::Result r) {
   }
 }
 
-ReviewRenderer::ReviewRenderer(const simcore::BodySetup& setup, int width, int height, const std::optional<imaging::Camera>& camera, const cv::Mat3b& frame) {
+ReviewRenderer::ReviewRenderer(const simcore::BodySetup& setup, int width, int height,
+                               const std::optional<imaging::Camera>& camera, const cv::Mat3b& frame) {
   simcore::Mesh m = setup.mesh;
   if (!setup.rest.empty()) m.points = setup.rest;
   uncutTriangles_ = simcore::boundaryTriangles(m, false);
@@ -126,20 +135,24 @@ ReviewRenderer::ReviewRenderer(const simcore::BodySetup& setup, int width, int h
   centre_ = m.points.empty() ? Eigen::Vector3d::Zero() : Eigen::Vector3d(0.5 * (lo + hi));
   const double radius = m.points.empty() ? 0.1 : std::max(1e-3, 0.5 * (hi - lo).norm());
   if (camera) {
-    if (!camera->problem().empty()) throw std::runtime_error("the case's camera cannot be used for review: " + camera->problem());
+    if (!camera->problem().empty())
+      throw std::runtime_error("the case's camera cannot be used for review: " + camera->problem());
     camera_ = *camera;
     virtual_ = false;
     if (!frame.empty() && (frame.cols != camera->width || frame.rows != camera->height))
       throw std::runtime_error("the case's frame is not of its camera's size");
     background_ = frame.empty() ? cv::Mat3b(camera->height, camera->width, cv::Vec3b(40, 36, 34)) : frame.clone();
   } else {
-    if (width < 16 || height < 16 || width > 8192 || height > 8192) throw std::runtime_error("a review image must be 16 to 8192 pixels on a side");
+    if (width < 16 || height < 16 || width > 8192 || height > 8192)
+      throw std::runtime_error("a review image must be 16 to 8192 pixels on a side");
     camera_ = imaging::Camera::defaultFor(width, height);
     // Far enough for the whole organ to fit the narrower field of view, with a margin.
     const double halfFov = std::atan(0.5 * std::min(width, height) / camera_.fx());
     distance_ = 1.25 * radius / std::sin(halfFov);
     background_.create(height, width);
-    for (int y = 0; y < height; ++y) background_.row(y).setTo(cv::Vec3b(static_cast<uchar>(52 - 20 * y / height), static_cast<uchar>(46 - 16 * y / height), 40));
+    for (int y = 0; y < height; ++y)
+      background_.row(y).setTo(
+          cv::Vec3b(static_cast<uchar>(52 - 20 * y / height), static_cast<uchar>(46 - 16 * y / height), 40));
   }
   place();
 }
@@ -157,12 +170,15 @@ void ReviewRenderer::place() {
     return;
   }
   // Camera looking along +z (y down) turned by yaw about y and pitch about x, at distance_ from the centre.
-  const Eigen::Matrix3d turn = (Eigen::AngleAxisd(pitch_, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(yaw_, Eigen::Vector3d::UnitY())).toRotationMatrix();
+  const Eigen::Matrix3d turn =
+      (Eigen::AngleAxisd(pitch_, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(yaw_, Eigen::Vector3d::UnitY()))
+          .toRotationMatrix();
   pose_.R = turn;
   pose_.t = Eigen::Vector3d(0, 0, distance_) - turn * centre_;
 }
 
-cv::Mat3b ReviewRenderer::render(const simcore::Snapshot& s, const std::vector<Eigen::Vector3d>& path, const std::string& caption) const {
+cv::Mat3b ReviewRenderer::render(const simcore::Snapshot& s, const std::vector<Eigen::Vector3d>& path,
+                                 const std::string& caption) const {
   cv::Mat3b out = background_.clone();
   const auto& tris = s.surface ? s.surface->triangles : uncutTriangles_;
   std::vector<Eigen::Vector3d> cam(s.positions.size());
@@ -186,13 +202,16 @@ cv::Mat3b ReviewRenderer::render(const simcore::Snapshot& s, const std::vector<E
       std::vector<cv::Vec3b> colour(tris.size());
       for (std::size_t k = 0; k < tris.size(); ++k) {
         const auto& t = tris[k];
-        const Eigen::Vector3d a = cam[static_cast<std::size_t>(t[0])], b = cam[static_cast<std::size_t>(t[1])], c = cam[static_cast<std::size_t>(t[2])];
+        const Eigen::Vector3d a = cam[static_cast<std::size_t>(t[0])], b = cam[static_cast<std::size_t>(t[1])],
+                              c = cam[static_cast<std::size_t>(t[2])];
         Eigen::Vector3d n = (b - a).cross(c - a);
         const Eigen::Vector3d centre = (a + b + c) / 3;
-        const double shade = n.norm() > 0 && centre.norm() > 0 ? 0.3 + 0.7 * std::abs(n.normalized().dot(centre.normalized())) : 0.3;
+        const double shade =
+            n.norm() > 0 && centre.norm() > 0 ? 0.3 + 0.7 * std::abs(n.normalized().dot(centre.normalized())) : 0.3;
         const bool cutFace = s.surface && k < s.surface->cut.size() && s.surface->cut[k];
         const cv::Vec3d base = cutFace ? cv::Vec3d(60, 50, 150) : cv::Vec3d(120, 135, 215);
-        colour[k] = cv::Vec3b(cv::saturate_cast<uchar>(base[0] * shade), cv::saturate_cast<uchar>(base[1] * shade), cv::saturate_cast<uchar>(base[2] * shade));
+        colour[k] = cv::Vec3b(cv::saturate_cast<uchar>(base[0] * shade), cv::saturate_cast<uchar>(base[1] * shade),
+                              cv::saturate_cast<uchar>(base[2] * shade));
       }
       const double alpha = virtual_ ? 1.0 : 0.8;  // over the case's frame: the frame shows through a little
       for (int y = 0; y < out.rows; ++y)
@@ -222,7 +241,9 @@ cv::Mat3b ReviewRenderer::render(const simcore::Snapshot& s, const std::vector<E
     cv::Point tip, trocar;
     if (pixel(s.tool.tip, tip)) {
       if (pixel(s.trocar, trocar)) cv::line(out, trocar, tip, cv::Scalar(200, 200, 200), 3 * thick, cv::LINE_AA);
-      const cv::Scalar c = s.tool.cutting ? cv::Scalar(40, 40, 230) : !s.tool.held.empty() ? cv::Scalar(40, 220, 240) : cv::Scalar(60, 200, 60);
+      const cv::Scalar c = s.tool.cutting         ? cv::Scalar(40, 40, 230)
+                           : !s.tool.held.empty() ? cv::Scalar(40, 220, 240)
+                                                  : cv::Scalar(60, 200, 60);
       cv::circle(out, tip, 5 * thick, c, cv::FILLED, cv::LINE_AA);
     }
   }
@@ -230,14 +251,17 @@ cv::Mat3b ReviewRenderer::render(const simcore::Snapshot& s, const std::vector<E
     const double scale = std::max(0.4, out.cols / 1400.0);
     int base = 0;
     const cv::Size size = cv::getTextSize(caption, cv::FONT_HERSHEY_SIMPLEX, scale, 1, &base);
-    cv::rectangle(out, cv::Rect(0, 0, std::min(out.cols, size.width + 12), size.height + base + 10), cv::Scalar(0, 0, 0), cv::FILLED);
-    cv::putText(out, caption, cv::Point(6, size.height + 5), cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(255, 255, 255), 1, cv::LINE_AA);
+    cv::rectangle(out, cv::Rect(0, 0, std::min(out.cols, size.width + 12), size.height + base + 10),
+                  cv::Scalar(0, 0, 0), cv::FILLED);
+    cv::putText(out, caption, cv::Point(6, size.height + 5), cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(255, 255, 255),
+                1, cv::LINE_AA);
   }
   return out;
 }
 
 const TimelineSample* sampleAt(const std::vector<TimelineSample>& timeline, long step) {
-  if (step >= 1 && static_cast<std::size_t>(step) <= timeline.size() && timeline[static_cast<std::size_t>(step - 1)].step == step)
+  if (step >= 1 && static_cast<std::size_t>(step) <= timeline.size() &&
+      timeline[static_cast<std::size_t>(step - 1)].step == step)
     return &timeline[static_cast<std::size_t>(step - 1)];
   for (const auto& s : timeline)  // a timeline not starting at step 1
     if (s.step == step) return &s;
@@ -245,7 +269,8 @@ const TimelineSample* sampleAt(const std::vector<TimelineSample>& timeline, long
 }
 
 long stepAtTime(const std::vector<TimelineSample>& timeline, double seconds) {
-  const auto it = std::upper_bound(timeline.begin(), timeline.end(), seconds + 1e-9, [](double t, const TimelineSample& s) { return t < s.time; });
+  const auto it = std::upper_bound(timeline.begin(), timeline.end(), seconds + 1e-9,
+                                   [](double t, const TimelineSample& s) { return t < s.time; });
   return it == timeline.begin() ? 0 : std::prev(it)->step;
 }
 
@@ -254,7 +279,8 @@ std::vector<Eigen::Vector3d> tipPath(const std::vector<TimelineSample>& timeline
   for (const auto& s : timeline) {
     if (s.step > step) break;
     // A break (not finite) where one instrument was swapped for another: the drawing does not join them.
-    if (s.newInstrument && !out.empty()) out.push_back(Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
+    if (s.newInstrument && !out.empty())
+      out.push_back(Eigen::Vector3d::Constant(std::numeric_limits<double>::quiet_NaN()));
     if (s.toolPresent) out.push_back(s.tip);
   }
   return out;
@@ -271,15 +297,19 @@ std::string captionAt(const std::vector<TimelineSample>& timeline, long step, co
   for (const auto& e : s->events)
     if (e.rfind("cut through", 0) != 0) events += (events.empty() ? "  [" : ", ") + e;
   if (!events.empty()) events += "]";
-  std::snprintf(buf, sizeof buf, "%s  t = %.2f s  force %.1f N  strain %.3f%s", who.c_str(), s->time, s->force, s->strain, events.c_str());
+  std::snprintf(buf, sizeof buf, "%s  t = %.2f s  force %.1f N  strain %.3f%s", who.c_str(), s->time, s->force,
+                s->strain, events.c_str());
   return buf;
 }
 
-int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const std::vector<TimelineSample>& timeline, long fromStep, long toStep,
-                     double fps, const std::string& path, const std::function<bool(int, int)>& progress) {
-  if (!(fps > 0 && fps <= 240)) throw std::runtime_error("the video's frame rate must be between 0 and 240 frames per second");
+int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const std::vector<TimelineSample>& timeline,
+                     long fromStep, long toStep, double fps, const std::string& path,
+                     const std::function<bool(int, int)>& progress) {
+  if (!(fps > 0 && fps <= 240))
+    throw std::runtime_error("the video's frame rate must be between 0 and 240 frames per second");
   if (fromStep < 0 || toStep > replayer.steps() || fromStep >= toStep)
-    throw std::runtime_error("the video's span must lie within steps 0 to " + std::to_string(replayer.steps()) + ", its start before its end");
+    throw std::runtime_error("the video's span must lie within steps 0 to " + std::to_string(replayer.steps()) +
+                             ", its start before its end");
   auto timeOf = [&](long step) {
     const TimelineSample* s = sampleAt(timeline, step);
     return s ? s->time : step * replayer.recording().setup.settings.timeStep;
@@ -288,7 +318,9 @@ int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const s
   const int frames = static_cast<int>(std::floor((t1 - t0) * fps + 1e-9)) + 1;
   const cv::Size size(renderer.camera().width, renderer.camera().height);
   cv::VideoWriter writer(path, cv::VideoWriter::fourcc('m', 'p', '4', 'v'), fps, size, true);
-  if (!writer.isOpened()) throw std::runtime_error("cannot write the MP4 video " + path + " (this OpenCV has no MPEG-4 writer, or the folder is not writable)");
+  if (!writer.isOpened())
+    throw std::runtime_error("cannot write the MP4 video " + path +
+                             " (this OpenCV has no MPEG-4 writer, or the folder is not writable)");
   replayer.seek(fromStep);
   for (int k = 0; k < frames; ++k) {
     const double t = t0 + k / fps;
@@ -304,21 +336,26 @@ int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const s
   return frames;
 }
 
-bool replayVerified(const VerifyResult& v) { return v.checked > 0 && v.mismatches == 0; }
+bool replayVerified(const VerifyResult& v) {
+  return v.checked > 0 && v.mismatches == 0;
+}
 
 std::string replayCheckSentence(const VerifyResult& v) {
   if (v.checked == 0) return "not verified: the session holds no checksum to compare its replay with";
   if (v.mismatches)
-    return "DOES NOT VERIFY: " + std::to_string(v.mismatches) + " of " + std::to_string(v.checked) + " checksums differ, the first after step " +
-           std::to_string(v.firstMismatch) + " - what is shown is not the run that was recorded (another build or kind of machine, or a damaged file)";
-  return "verified: all " + std::to_string(v.checked) + " checksums match (bit-exact replay holds for the same build on the same kind of machine)";
+    return "DOES NOT VERIFY: " + std::to_string(v.mismatches) + " of " + std::to_string(v.checked) +
+           " checksums differ, the first after step " + std::to_string(v.firstMismatch) +
+           " - what is shown is not the run that was recorded (another build or kind of machine, or a damaged file)";
+  return "verified: all " + std::to_string(v.checked) +
+         " checksums match (bit-exact replay holds for the same build on the same kind of machine)";
 }
 
-ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds, Replayer& replayer,
-                              const ReviewRenderer& renderer) {
+ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds,
+                              Replayer& replayer, const ReviewRenderer& renderer) {
   ReviewReport out;
   const auto& s = r.summary;
-  out.title = "Rehearsal review: session " + std::to_string(s.id) + (s.meta.trainee.empty() ? "" : ", " + s.meta.trainee);
+  out.title =
+      "Rehearsal review: session " + std::to_string(s.id) + (s.meta.trainee.empty() ? "" : ", " + s.meta.trainee);
   out.facts = {{"Trainee", s.meta.trainee.empty() ? "(not given)" : s.meta.trainee},
                {"Started (UTC)", s.startedUtc},
                {"Case", s.meta.caseName},
@@ -342,9 +379,11 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
       maxForceStep = t.step;
     }
     for (const auto& e : t.events) {
-      if (e == "grasp" && std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First grasp", 0) == 0; }))
+      if (e == "grasp" &&
+          std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First grasp", 0) == 0; }))
         keys.push_back({"First grasp", t.step});
-      if (e == "cut" && std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First cut", 0) == 0; }))
+      if (e == "cut" &&
+          std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First cut", 0) == 0; }))
         keys.push_back({"First cut", t.step});
     }
   }
@@ -355,10 +394,10 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
     replayer.seek(step);
     char caption[128];
     std::snprintf(caption, sizeof caption, "%s (step %ld)", what.c_str(), step);
-    out.keyFrames.push_back({caption, renderer.render(*replayer.snapshot(), tipPath(result.timeline, step), captionAt(result.timeline, step, ""))});
+    out.keyFrames.push_back({caption, renderer.render(*replayer.snapshot(), tipPath(result.timeline, step),
+                                                      captionAt(result.timeline, step, ""))});
   }
   return out;
 }
-
 
 }  // namespace rehearse::app

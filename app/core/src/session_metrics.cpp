@@ -40,10 +40,14 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
     for (auto& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
     if (lower.find("tumour") != std::string::npos || lower.find("tumor") != std::string::npos) tumourLabel = label;
   }
-  if (r.setup.mesh.namesAVessel()) m.vesselCuts = 0;
-  else m.vesselWhy = "the case names no vessel (no element label named vessel, vein or artery)";
-  if (tumourLabel) m.tumourBreaches = 0;
-  else m.tumourWhy = "the case marks no tumour (no element label named tumour)";
+  if (r.setup.mesh.namesAVessel())
+    m.vesselCuts = 0;
+  else
+    m.vesselWhy = "the case names no vessel (no element label named vessel, vein or artery)";
+  if (tumourLabel)
+    m.tumourBreaches = 0;
+  else
+    m.tumourWhy = "the case marks no tumour (no element label named tumour)";
   m.attachmentsWhy = "the model's attachments cannot tear (they are fixed nodes)";
   if (!options.plannedCut) m.cutDeviationWhy = "the case has no planned cut line";
   double deviationSum = 0;
@@ -142,8 +146,10 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
     }
   });
   if (options.plannedCut) {
-    if (cuttingSteps) m.cutDeviationMeanM = deviationSum / static_cast<double>(cuttingSteps);
-    else m.cutDeviationWhy = "the blade never cut";
+    if (cuttingSteps)
+      m.cutDeviationMeanM = deviationSum / static_cast<double>(cuttingSteps);
+    else
+      m.cutDeviationWhy = "the blade never cut";
   }
   m.durationS = time;
   m.meanForceN = forceSteps ? forceSum / static_cast<double>(forceSteps) : 0;

@@ -9,8 +9,8 @@
 namespace rehearse::simcore {
 
 // Closest point of triangle abc to p (Ericson, Real-Time Collision Detection 5.1.5), with its barycentric weights.
-Eigen::Vector3d closestOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                                  Eigen::Vector3d& w) {
+Eigen::Vector3d closestOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                  const Eigen::Vector3d& c, Eigen::Vector3d& w) {
   const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
   const double d1 = ab.dot(ap), d2 = ac.dot(ap);
   if (d1 <= 0 && d2 <= 0) return w = {1, 0, 0}, a;
@@ -42,8 +42,8 @@ Eigen::Vector3d closestOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3
 
 namespace {
 // Closest points of segments p1-q1 (parameter s) and p2-q2 (parameter t) (Ericson 5.1.9).
-void closestSegmentSegment(const Eigen::Vector3d& p1, const Eigen::Vector3d& q1, const Eigen::Vector3d& p2, const Eigen::Vector3d& q2, double& s,
-                           double& t) {
+void closestSegmentSegment(const Eigen::Vector3d& p1, const Eigen::Vector3d& q1, const Eigen::Vector3d& p2,
+                           const Eigen::Vector3d& q2, double& s, double& t) {
   const Eigen::Vector3d d1 = q1 - p1, d2 = q2 - p2, r = p1 - p2;
   const double a = d1.squaredNorm(), e = d2.squaredNorm(), f = d2.dot(r);
   if (a <= 1e-30 && e <= 1e-30) return void(s = t = 0);
@@ -73,8 +73,9 @@ void closestSegmentSegment(const Eigen::Vector3d& p1, const Eigen::Vector3d& q1,
 
 // The closest points of segment s0-s1 (the instrument's axis) and triangle abc: `onAxis`, `onTriangle` with
 // its barycentric weights `w`. False when the segment passes through the triangle (no direction apart).
-bool closestAxisTriangle(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                         const Eigen::Vector3d& c, Eigen::Vector3d& onAxis, Eigen::Vector3d& onTriangle, Eigen::Vector3d& w) {
+bool closestAxisTriangle(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Eigen::Vector3d& a,
+                         const Eigen::Vector3d& b, const Eigen::Vector3d& c, Eigen::Vector3d& onAxis,
+                         Eigen::Vector3d& onTriangle, Eigen::Vector3d& w) {
   const Eigen::Vector3d n = (b - a).cross(c - a);
   const double ds0 = n.dot(s0 - a), ds1 = n.dot(s1 - a);
   if (ds0 * ds1 < 0) {  // crosses the plane: inside the triangle?
@@ -100,7 +101,8 @@ bool closestAxisTriangle(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, c
     Eigen::Vector3d wk = Eigen::Vector3d::Zero();
     wk[k] = 1 - t;
     wk[(k + 1) % 3] = t;
-    consider(s0 + s * (s1 - s0), (1 - t) * *v[static_cast<std::size_t>(k)] + t * *v[static_cast<std::size_t>((k + 1) % 3)], wk);
+    consider(s0 + s * (s1 - s0),
+             (1 - t) * *v[static_cast<std::size_t>(k)] + t * *v[static_cast<std::size_t>((k + 1) % 3)], wk);
   }
   return best > 0;
 }
@@ -122,22 +124,27 @@ ContactSurface contactSurface(const std::vector<Eigen::Vector3d>& rest, const st
   c.ofNode.assign(static_cast<std::size_t>(c.first.back()), 0);
   std::vector<int> fill(c.first.begin(), c.first.end() - 1);
   for (std::size_t k = 0; k < c.triangles.size(); ++k)
-    for (int v : c.triangles[k]) c.ofNode[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = static_cast<int>(k);
+    for (int v : c.triangles[k])
+      c.ofNode[static_cast<std::size_t>(fill[static_cast<std::size_t>(v)]++)] = static_cast<int>(k);
   for (std::size_t i = 0; i < on.size(); ++i)
     if (on[i]) c.nodes.push_back(static_cast<int>(i));
   return c;
 }
 
-ShaftContactStats shaftContact(const ContactSurface& surface, PointBvh& bvh, const Eigen::VectorXd& x, const std::vector<char>& fixed,
-                               const Eigen::Vector3d& tip, const Eigen::Vector3d& trocar, double radius, double depenetrationSpeed,
-                               const std::vector<int>& held, std::vector<int>& released, std::vector<std::pair<int, double>>& easing, bool seed,
+ShaftContactStats shaftContact(const ContactSurface& surface, PointBvh& bvh, const Eigen::VectorXd& x,
+                               const std::vector<char>& fixed, const Eigen::Vector3d& tip,
+                               const Eigen::Vector3d& trocar, double radius, double depenetrationSpeed,
+                               const std::vector<int>& held, std::vector<int>& released,
+                               std::vector<std::pair<int, double>>& easing, bool seed,
                                std::vector<ScalarConstraint>& rows) {
   ShaftContactStats stats;
   bvh.refit(x);
   auto X = [&](int i) { return Eigen::Vector3d(x.segment<3>(3 * static_cast<Eigen::Index>(i))); };
   double longest = 0;
   for (const auto& t : surface.triangles)
-    for (int k = 0; k < 3; ++k) longest = std::max(longest, (X(t[static_cast<std::size_t>(k)]) - X(t[static_cast<std::size_t>((k + 1) % 3)])).squaredNorm());
+    for (int k = 0; k < 3; ++k)
+      longest = std::max(
+          longest, (X(t[static_cast<std::size_t>(k)]) - X(t[static_cast<std::size_t>((k + 1) % 3)])).squaredNorm());
   longest = std::sqrt(longest);
   const Eigen::Vector3d a = tip, b = trocar;
   const double r = radius, reach = 1.5 * r;

@@ -6,7 +6,11 @@ namespace {
 class FemBody final : public DeformableBody {
  public:
   explicit FemBody(const BodySetup& s)
-      : model_(build(s)), integrator_(model_, s.fixedNodes, s.settings), settings_(s.settings), topology_(s.topology), labels_(s.mesh.tetLabels) {
+      : model_(build(s)),
+        integrator_(model_, s.fixedNodes, s.settings),
+        settings_(s.settings),
+        topology_(s.topology),
+        labels_(s.mesh.tetLabels) {
     labels_.resize(model_.tets.size(), 0);
     fixed_.assign(model_.nodeCount(), 0);
     for (int i : s.fixedNodes)
@@ -22,7 +26,9 @@ class FemBody final : public DeformableBody {
   void setToolConstraints(std::vector<ScalarConstraint> c) override { integrator_.setConstraints(std::move(c)); }
   int topologyVersion() const override { return topology_; }
   const std::vector<Eigen::Vector3d>& restPositions() const override { return model_.rest; }
-  void stress(const SimulationState& state, std::vector<double>& out) const override { vonMisesStress(model_, state.x, out); }
+  void stress(const SimulationState& state, std::vector<double>& out) const override {
+    vonMisesStress(model_, state.x, out);
+  }
   const std::vector<std::array<int, 4>>& tetrahedra() const override { return model_.tets; }
   double mass() const override { return model_.lumpedMass.sum(); }
   Eigen::Vector3d toolForce(bool holdsOnly) const override {
@@ -46,11 +52,13 @@ class FemBody final : public DeformableBody {
     const Eigen::VectorXd& lambda = integrator_.multipliers();
     const Eigen::MatrixXd& W = integrator_.constraintCompliance();
     const double h = settings_.timeStep;
-    if (c.empty() || lambda.size() < static_cast<Eigen::Index>(c.size()) || W.rows() != lambda.size() || !(h > 0)) return Eigen::Matrix3d::Zero();
+    if (c.empty() || lambda.size() < static_cast<Eigen::Index>(c.size()) || W.rows() != lambda.size() || !(h > 0))
+      return Eigen::Matrix3d::Zero();
     const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
     std::vector<Eigen::Index> active;
     for (std::size_t k = 0; k < c.size(); ++k)
-      if (!c[k].unilateral || lambda[first + static_cast<Eigen::Index>(k)] > 0) active.push_back(first + static_cast<Eigen::Index>(k));
+      if (!c[k].unilateral || lambda[first + static_cast<Eigen::Index>(k)] > 0)
+        active.push_back(first + static_cast<Eigen::Index>(k));
     if (active.empty()) return Eigen::Matrix3d::Zero();
     const auto m = static_cast<Eigen::Index>(active.size());
     // G: how each constraint's value moves with the tool (its direction: grasp holds and contacts move with
@@ -70,7 +78,8 @@ class FemBody final : public DeformableBody {
   }
   const std::vector<char>& fixedMask() const override { return fixed_; }
   const std::vector<int>& labels() const override { return labels_; }
-  Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& v0, double h) const override {
+  Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& v0,
+                               double h) const override {
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     if (nodes.empty() || !(h > 0)) return sum;
     Eigen::VectorXd f;
@@ -82,8 +91,8 @@ class FemBody final : public DeformableBody {
       const auto k = static_cast<Eigen::Index>(3 * i);
       const double m = model_.lumpedMass[i];
       const Eigen::Vector3d v = state.v.segment<3>(k);
-      sum += m * (v - v0.segment<3>(k)) / h + settings_.rayleighMass * m * v + settings_.rayleighStiffness * Kv.segment<3>(k) - f.segment<3>(k) -
-             m * settings_.gravity;
+      sum += m * (v - v0.segment<3>(k)) / h + settings_.rayleighMass * m * v +
+             settings_.rayleighStiffness * Kv.segment<3>(k) - f.segment<3>(k) - m * settings_.gravity;
     }
     return sum;
   }
@@ -110,6 +119,8 @@ class FemBody final : public DeformableBody {
 
 }  // namespace
 
-std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup) { return std::make_unique<FemBody>(setup); }
+std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup) {
+  return std::make_unique<FemBody>(setup);
+}
 
 }  // namespace rehearse::simcore

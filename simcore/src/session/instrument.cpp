@@ -43,8 +43,11 @@ class Grasper final : public Instrument {
       tool.held.push_back(i);
       tool.heldOffset.push_back(x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool.tip);
     }
-    if (!near.empty()) host.emitEvent("grasp");
-    else message = "The jaws closed on nothing: no tissue within " + std::to_string(static_cast<int>(std::lround(1e3 * radius))) + " mm of the tip.";
+    if (!near.empty())
+      host.emitEvent("grasp");
+    else
+      message = "The jaws closed on nothing: no tissue within " +
+                std::to_string(static_cast<int>(std::lround(1e3 * radius))) + " mm of the tip.";
   }
   void moved(const Eigen::Vector3d& to, ToolState& tool, InstrumentHost& host, std::string&) override {
     if (!tool.released.empty() && to != tool.tip) {
@@ -72,8 +75,9 @@ class Grasper final : public Instrument {
     const double max = host.tools().maxGraspForce;
     if (tool.held.empty() || !(tool.graspForce.norm() > max)) return false;
     char buf[200];
-    std::snprintf(buf, sizeof buf, "The tissue slipped out of the grasper at %.1f N (the scene's maximum grasp force is %.1f N).", tool.graspForce.norm(),
-                  max);
+    std::snprintf(buf, sizeof buf,
+                  "The tissue slipped out of the grasper at %.1f N (the scene's maximum grasp force is %.1f N).",
+                  tool.graspForce.norm(), max);
     message = buf;
     tool.released = tool.held;  // the tissue leaves the jaws
     std::sort(tool.released.begin(), tool.released.end());
@@ -88,7 +92,8 @@ class Grasper final : public Instrument {
 
 // The scissors or the hook: while the blade is on, the tip's sweep (the blade lies on the shaft, from the tip towards
 // the trocar) cuts the tissue once the tip has moved two element edges (so that it splits elements rather than only
-// snapping to their nodes); switched off, the rest of the sweep is cut. Its shaft does not push the tissue while it cuts.
+// snapping to their nodes); switched off, the rest of the sweep is cut. Its shaft does not push the tissue while it
+// cuts.
 class Scissors final : public Instrument {
  public:
   const char* name() const override { return "scissors"; }
@@ -97,15 +102,18 @@ class Scissors final : public Instrument {
     if (e.on) host.finishTopologyChange(message);  // a cut being built is applied before the next one starts
     if (!e.on && host.topologyChangeUnderWay()) {
       // Withdrawn while the last cut's body is being built: the rest of the sweep is cut once it is in (no wait).
-      if (tool.cutting && (tool.tip - tool.cutFrom).norm() > 0) host.cutWhenIn(tool.cutFrom, tool.tip);
-      else host.forgetCutProgress();
+      if (tool.cutting && (tool.tip - tool.cutFrom).norm() > 0)
+        host.cutWhenIn(tool.cutFrom, tool.tip);
+      else
+        host.forgetCutProgress();
       tool.cutting = false;
       tool.cutFrom = tool.tip;
       return;
     }
-    if (!e.on && tool.cutting && (tool.tip - tool.cutFrom).norm() > 0) host.cut(tool.cutFrom, tool.tip, message);  // the rest of the sweep
+    if (!e.on && tool.cutting && (tool.tip - tool.cutFrom).norm() > 0)
+      host.cut(tool.cutFrom, tool.tip, message);         // the rest of the sweep
     if (tool.cutting != e.on) host.seedContactEasing();  // contact resumes (or stops) with the blade
-    if (e.on && !tool.cutting) {  // a new stroke
+    if (e.on && !tool.cutting) {                         // a new stroke
       tool.vesselsCut.clear();
       host.beginStroke();
     }
@@ -114,8 +122,11 @@ class Scissors final : public Instrument {
     host.forgetCutProgress();  // a new cut starts from nothing; what did not open of the last one stays closed
   }
   void moved(const Eigen::Vector3d& to, ToolState& tool, InstrumentHost& host, std::string& message) override {
-    // The blade's sweep since the cut last changed the tissue: a sweep too thin to cross whole elements grows until it does.
-    if (tool.cutting && to.allFinite() && (to - tool.cutFrom).norm() >= 2 * host.meanEdge() && host.cut(tool.cutFrom, to, message)) tool.cutFrom = to;
+    // The blade's sweep since the cut last changed the tissue: a sweep too thin to cross whole elements grows until it
+    // does.
+    if (tool.cutting && to.allFinite() && (to - tool.cutFrom).norm() >= 2 * host.meanEdge() &&
+        host.cut(tool.cutFrom, to, message))
+      tool.cutFrom = to;
   }
   void holds(const ToolState&, std::vector<ScalarConstraint>&) const override {}
   bool touches(const ToolState& tool) const override { return !tool.cutting; }

@@ -14,8 +14,6 @@
 
 namespace rehearse::simcore {
 
-
-
 namespace {
 // The default trocar: above the organ towards the camera, twice its radius from its centre.
 Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest) {
@@ -36,8 +34,9 @@ Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chro
     const auto& rest = body_->restPositions();
     double worst = 1;
     for (const auto& t : body_->tetrahedra())
-      worst = std::min(worst, tetShapeQuality(rest[static_cast<std::size_t>(t[0])], rest[static_cast<std::size_t>(t[1])], rest[static_cast<std::size_t>(t[2])],
-                                              rest[static_cast<std::size_t>(t[3])]));
+      worst =
+          std::min(worst, tetShapeQuality(rest[static_cast<std::size_t>(t[0])], rest[static_cast<std::size_t>(t[1])],
+                                          rest[static_cast<std::size_t>(t[2])], rest[static_cast<std::size_t>(t[3])]));
     setup_.tools.cut.minQuality = std::min(setup_.tools.cut.minQuality, 0.5 * worst);
   }
   tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
@@ -48,7 +47,11 @@ Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chro
     std::size_t count = 0;
     for (const auto& t : body_->tetrahedra())
       for (int a = 0; a < 4; ++a)
-        for (int b = a + 1; b < 4; ++b) sum += (rest[static_cast<std::size_t>(t[static_cast<std::size_t>(a)])] - rest[static_cast<std::size_t>(t[static_cast<std::size_t>(b)])]).norm(), ++count;
+        for (int b = a + 1; b < 4; ++b)
+          sum += (rest[static_cast<std::size_t>(t[static_cast<std::size_t>(a)])] -
+                  rest[static_cast<std::size_t>(t[static_cast<std::size_t>(b)])])
+                     .norm(),
+              ++count;
     meanEdge_ = count ? sum / static_cast<double>(count) : 0;
   }
   state_ = body_->initialState();
@@ -161,12 +164,14 @@ void Session::updateToolConstraints() {
   tool_.contacts = 0;
   tool_.pierced = 0;
   contactConstraints_ = 0;
-  const bool touches = std::all_of(instruments_.begin(), instruments_.end(), [this](const auto& i) { return i->touches(tool_); });
-  if (tool_.present && touches && setup_.tools.toolRadius > 0 && bvh_ && !contact_.nodes.empty() && setup_.tools.trocar) {
+  const bool touches =
+      std::all_of(instruments_.begin(), instruments_.end(), [this](const auto& i) { return i->touches(tool_); });
+  if (tool_.present && touches && setup_.tools.toolRadius > 0 && bvh_ && !contact_.nodes.empty() &&
+      setup_.tools.trocar) {
     ++contactQueries_;
-    const ShaftContactStats found =
-        shaftContact(contact_, *bvh_, state_.x, body_->fixedMask(), tool_.tip, *setup_.tools.trocar, setup_.tools.toolRadius,
-                     setup_.tools.depenetrationSpeed, tool_.held, tool_.released, tool_.easing, seedEasing_, c);
+    const ShaftContactStats found = shaftContact(
+        contact_, *bvh_, state_.x, body_->fixedMask(), tool_.tip, *setup_.tools.trocar, setup_.tools.toolRadius,
+        setup_.tools.depenetrationSpeed, tool_.held, tool_.released, tool_.easing, seedEasing_, c);
     contactConstraints_ = found.rows;
     tool_.contacts = found.contacts;
     tool_.pierced = found.pierced;
@@ -175,8 +180,9 @@ void Session::updateToolConstraints() {
   body_->setToolConstraints(std::move(c));
 }
 
-
-void Session::updateSurfaceNodes() { useContactSurface(contactSurface(body_->restPositions(), body_->tetrahedra())); }
+void Session::updateSurfaceNodes() {
+  useContactSurface(contactSurface(body_->restPositions(), body_->tetrahedra()));
+}
 
 void Session::useContactSurface(ContactSurface c) {
   contact_ = std::move(c);
@@ -215,18 +221,22 @@ void Session::apply(const InputEvent& e, std::string& message) {
           auto it = setup_.byLabel.try_emplace(e.label, setup_.material).first;
           (e.name == "young" ? it->second.young : it->second.poisson) = e.value;
         }
-      } else if (e.name == "young") setup_.material.young = e.value;
-      else if (e.name == "poisson") setup_.material.poisson = e.value;
-      else if (e.name == "density") setup_.material.density = e.value;
-      else if (e.name == "dt") setup_.settings.timeStep = e.value;
-      else if (e.name == "method") setup_.settings.method = static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 3));
+      } else if (e.name == "young")
+        setup_.material.young = e.value;
+      else if (e.name == "poisson")
+        setup_.material.poisson = e.value;
+      else if (e.name == "density")
+        setup_.material.density = e.value;
+      else if (e.name == "dt")
+        setup_.settings.timeStep = e.value;
+      else if (e.name == "method")
+        setup_.settings.method = static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 3));
       else if (e.name == "model" && e.value >= 0 && e.value <= static_cast<int>(MaterialModel::NeoHookeanSplit))
         setup_.material.model = static_cast<MaterialModel>(static_cast<int>(e.value));
       else if (e.name == "model") {
         message = "Unknown material law " + std::to_string(e.value) + "; it was not applied.";
         break;
-      }
-      else {
+      } else {
         message = "Unknown parameter '" + e.name + "'; it was not applied.";
         break;
       }
@@ -256,15 +266,9 @@ void Session::apply(const InputEvent& e, std::string& message) {
       if (pendingCut_ && pendingCut_->applyAt < 0) finishPendingCut(true, message);
       break;
   }
-  if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw) updateToolConstraints();  // rebuildBody did it for the others
+  if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw)
+    updateToolConstraints();  // rebuildBody did it for the others
 }
-
-
-
-
-
-
-
 
 void Session::retire(std::unique_ptr<DeformableBody> body) {
   for (auto it = retired_.begin(); it != retired_.end();)
@@ -273,8 +277,6 @@ void Session::retire(std::unique_ptr<DeformableBody> body) {
   std::shared_ptr<DeformableBody> old(std::move(body));
   retired_.push_back(std::async(std::launch::async, [old]() mutable { old.reset(); }));
 }
-
-
 
 StepReport Session::advance() {
   std::lock_guard<std::mutex> stepLock(stepMutex_);
@@ -294,8 +296,9 @@ StepReport Session::advance() {
   std::string message;
   // A cut whose body was built on another thread replaces the body as soon as it is ready (recorded, so that
   // a replay applies it at the same boundary; the replay itself waits for the recording's word).
-  const bool cutDue = pendingCut_ && (pendingCut_->applyAt >= 0 ? steps_ >= pendingCut_->applyAt
-                                                                 : setup_.settings.factorRefresh == FactorRefresh::Asynchronous);
+  const bool cutDue =
+      pendingCut_ && (pendingCut_->applyAt >= 0 ? steps_ >= pendingCut_->applyAt
+                                                : setup_.settings.factorRefresh == FactorRefresh::Asynchronous);
   if (cutDue && finishPendingCut(pendingCut_->applyAt >= 0, message)) {
     InputEvent c;
     c.kind = InputKind::CutApplied;
@@ -309,7 +312,8 @@ StepReport Session::advance() {
     recorded_.push_back(e);
   }
   if (stroke_.open && !tool_.cutting && !pendingCut_ && !restOfSweep_) finishStroke(message);
-  if (tool_.present && setup_.tools.toolRadius > 0) updateToolConstraints();  // contacts move with the tissue: detected at every step
+  if (tool_.present && setup_.tools.toolRadius > 0)
+    updateToolConstraints();  // contacts move with the tissue: detected at every step
   const StepReport rep = body_->step(state_);
   if (rep.factorSwapped) {
     // The asynchronous refresh swapped a factor in at this boundary: recorded, so a replay installs it here.
@@ -359,14 +363,14 @@ Checkpoint Session::checkpointLocked() const {
   return c;
 }
 
-Checkpoint StepRecord::checkpoint() const { return session->checkpointLocked(); }
+Checkpoint StepRecord::checkpoint() const {
+  return session->checkpointLocked();
+}
 
 void Session::setStepHook(std::function<void(const StepRecord&)> f) {
   std::lock_guard<std::mutex> lock(stepMutex_);
   stepHook_ = std::move(f);
 }
-
-
 
 void Session::publish(const StepReport& rep, const std::string& message, std::vector<std::string> events) {
   auto s = std::make_shared<Snapshot>();
@@ -528,17 +532,20 @@ void Session::run() {
     }
     if (play) {
       // Real time: wait while the simulation is ahead of the wall clock (woken early by pause or quit).
-      const double ahead = (state().time - simAtStart) - std::chrono::duration<double>(clock::now() - playStart).count();
+      const double ahead =
+          (state().time - simAtStart) - std::chrono::duration<double>(clock::now() - playStart).count();
       if (ahead > 0) {
         std::unique_lock<std::mutex> lock(mailboxMutex_);
-        wake_.wait_for(lock, std::chrono::duration<double>(std::min(ahead, 1.0)), [this] { return quit_ || !playing_ || pendingReset_; });
+        wake_.wait_for(lock, std::chrono::duration<double>(std::min(ahead, 1.0)),
+                       [this] { return quit_ || !playing_ || pendingReset_; });
       }
     }
   }
 }
 
 BodySetup replaySetup(BodySetup setup) {
-  if (setup.settings.factorRefresh == FactorRefresh::Asynchronous) setup.settings.factorRefresh = FactorRefresh::Deferred;
+  if (setup.settings.factorRefresh == FactorRefresh::Asynchronous)
+    setup.settings.factorRefresh = FactorRefresh::Deferred;
   return setup;
 }
 

@@ -53,7 +53,8 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   next.cut = std::move(progress);
   const auto& fixed = body_->fixedMask();
   for (std::size_t k = 0; k < r.duplicateOf.size(); ++k)
-    if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])]) next.fixedNodes.push_back(static_cast<int>(n + k));
+    if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])])
+      next.fixedNodes.push_back(static_cast<int>(n + k));
   ++next.topology;
   const int latency = setup_.tools.cutLatencySteps;
   if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) {
@@ -116,7 +117,8 @@ void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message)
   // A vessel (a label the organ's mesh names as one, Mesh::labelIsVessel) cut by this stroke is one event, however many
   // updates the cut takes.
   for (int label : cutLabels)
-    if (setup_.mesh.labelIsVessel(label) && std::find(tool_.vesselsCut.begin(), tool_.vesselsCut.end(), label) == tool_.vesselsCut.end()) {
+    if (setup_.mesh.labelIsVessel(label) &&
+        std::find(tool_.vesselsCut.begin(), tool_.vesselsCut.end(), label) == tool_.vesselsCut.end()) {
       tool_.vesselsCut.push_back(label);
       events_.push_back("vessel cut");
       message = "A vessel (" + setup_.mesh.labelName(label) + ", label " + std::to_string(label) + ") was cut.";
@@ -162,8 +164,10 @@ bool Session::finishPendingCut(bool wait, std::string& message) {
   if (restOfSweep_) {
     const auto [from, to] = *restOfSweep_;
     restOfSweep_.reset();
-    if (cut(from, to, message) && pendingCut_) pendingCut_->clearProgress = true;
-    else setup_.cut.clear();
+    if (cut(from, to, message) && pendingCut_)
+      pendingCut_->clearProgress = true;
+    else
+      setup_.cut.clear();
   }
   return true;
 }
@@ -172,7 +176,8 @@ std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::si
   std::vector<int> parent(nodes);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](int i) {
-    while (parent[static_cast<std::size_t>(i)] != i) i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+    while (parent[static_cast<std::size_t>(i)] != i)
+      i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
     return i;
   };
   for (const auto& t : tets)
@@ -193,13 +198,16 @@ void Session::finishStroke(std::string& message) {
   if (s.updates == 0) {
     m = "Nothing was cut: " + s.lastRefusal;
   } else {
-    m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) + " element(s) split in " +
-        std::to_string(s.updates) + " update(s); ";
-    m += pieces > s.piecesBefore ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) + " before)."
-                                 : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
-                                       " (the cut did not go through).";
+    m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) +
+        " element(s) split in " + std::to_string(s.updates) + " update(s); ";
+    m += pieces > s.piecesBefore
+             ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
+                   " before)."
+             : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
+                   " (the cut did not go through).";
     if (s.skippedInverted > 0)
-      m += " " + std::to_string(s.skippedInverted) + " crossed element(s) were inverted and not cut: tissue still joins there.";
+      m += " " + std::to_string(s.skippedInverted) +
+           " crossed element(s) were inverted and not cut: tissue still joins there.";
     if (!s.lastRefusal.empty()) m += " The stroke's last sweep was not cut: " + s.lastRefusal;
   }
   if (!message.empty()) message += " ";
@@ -217,7 +225,8 @@ std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, co
   out->triangles = boundaryTriangles(cutMesh, false);
   const double cell = std::max(meanEdge, 1e-6);
   auto keyOf = [&](const Eigen::Vector3d& p) {
-    return std::array<long, 3>{static_cast<long>(std::floor(p.x() / cell)), static_cast<long>(std::floor(p.y() / cell)), static_cast<long>(std::floor(p.z() / cell))};
+    return std::array<long, 3>{static_cast<long>(std::floor(p.x() / cell)), static_cast<long>(std::floor(p.y() / cell)),
+                               static_cast<long>(std::floor(p.z() / cell))};
   };
   std::map<std::array<long, 3>, std::vector<int>> grid;
   for (std::size_t k = 0; k < outer.size(); ++k) {
@@ -232,7 +241,9 @@ std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, co
   out->cut.assign(out->triangles.size(), 1);
   for (std::size_t k = 0; k < out->triangles.size(); ++k) {
     const auto& t = out->triangles[k];
-    const Eigen::Vector3d c = (rest[static_cast<std::size_t>(t[0])] + rest[static_cast<std::size_t>(t[1])] + rest[static_cast<std::size_t>(t[2])]) / 3.0;
+    const Eigen::Vector3d c = (rest[static_cast<std::size_t>(t[0])] + rest[static_cast<std::size_t>(t[1])] +
+                               rest[static_cast<std::size_t>(t[2])]) /
+                              3.0;
     const auto it = grid.find(keyOf(c));
     if (it == grid.end()) continue;
     for (int o : it->second) {
@@ -283,8 +294,10 @@ void Session::discardPending() {
 }
 
 void Session::forgetCutProgress() {
-  if (pendingCut_) pendingCut_->clearProgress = true;
-  else setup_.cut.clear();
+  if (pendingCut_)
+    pendingCut_->clearProgress = true;
+  else
+    setup_.cut.clear();
 }
 
 void Session::beginStroke() {

@@ -23,19 +23,24 @@ namespace rehearse::ui {
 
 RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Rehearse, parent) {
   auto* layout = new QVBoxLayout(this);
-  auto* intro = new QLabel(tr("Rehearse the gesture on the registered organ: with the grasper, press on the organ to close the jaws "
-                              "there, drag to pull it, release to let go; with the scissors, press on the organ and drag across it "
-                              "to cut, release to stop. The wheel moves the instrument's tip along the view ray while you hold it. "
-                              "The simulation runs while you work (Simulation panel: material, ligaments); the view shows it "
-                              "composited into the frame once the appearance is estimated (step 6), and as the overlay once the "
-                              "organ is cut (cut tissue in dark red)."),
-                           this);
+  auto* intro = new QLabel(
+      tr("Rehearse the gesture on the registered organ: with the grasper, press on the organ to close the jaws "
+         "there, drag to pull it, release to let go; with the scissors, press on the organ and drag across it "
+         "to cut, release to stop. The wheel moves the instrument's tip along the view ray while you hold it. "
+         "The simulation runs while you work (Simulation panel: material, ligaments); the view shows it "
+         "composited into the frame once the appearance is estimated (step 6), and as the overlay once the "
+         "organ is cut (cut tissue in dark red)."),
+      this);
   intro->setWordWrap(true);
   layout->addWidget(intro);
-  auto* grasper = toolButton(this, tr("Grasper (R)"), tr("Press on the organ to grasp it, drag to pull, release to let go"), Tool::Grasp, Qt::Key_R);
+  auto* grasper =
+      toolButton(this, tr("Grasper (R)"), tr("Press on the organ to grasp it, drag to pull, release to let go"),
+                 Tool::Grasp, Qt::Key_R);
   grasper->setObjectName(QStringLiteral("grasperTool"));
   layout->addWidget(grasper);
-  auto* scissors = toolButton(this, tr("Scissors (B)"), tr("Press on the organ and drag across it to cut, release to stop"), Tool::Scissors, Qt::Key_B);
+  auto* scissors =
+      toolButton(this, tr("Scissors (B)"), tr("Press on the organ and drag across it to cut, release to stop"),
+                 Tool::Scissors, Qt::Key_B);
   scissors->setObjectName(QStringLiteral("scissorsTool"));
   layout->addWidget(scissors);
   // Recording for the trainer: into the case file, as the rehearsal runs (from rest: the simulation restarts).
@@ -47,7 +52,8 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   recordButton_ = new QPushButton(tr("Record"), this);
   recordButton_->setObjectName(QStringLiteral("recordButton"));
   recordButton_->setCheckable(true);
-  recordButton_->setToolTip(tr("Record the rehearsal into the case file (Ctrl+R): the simulation starts again from rest; press again to stop"));
+  recordButton_->setToolTip(tr(
+      "Record the rehearsal into the case file (Ctrl+R): the simulation starts again from rest; press again to stop"));
   auto* review = new QPushButton(tr("Review..."), this);
   review->setObjectName(QStringLiteral("reviewButton"));
   review->setToolTip(tr("Replay and review the sessions recorded in this case (Ctrl+Shift+R)"));
@@ -61,7 +67,8 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   layout->addWidget(recordState_);
   connect(recordButton_, &QPushButton::clicked, this, [this](bool on) {
     if (on) {
-      const QString err = record_.start ? record_.start(trainee_->text().trimmed()) : tr("Recording is not available here.");
+      const QString err =
+          record_.start ? record_.start(trainee_->text().trimmed()) : tr("Recording is not available here.");
       if (!err.isEmpty()) showRecording(false, err);
     } else if (record_.stop) {
       record_.stop();
@@ -81,7 +88,8 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
     force_->setText(forceText_);
   });
   force_->setObjectName(QStringLiteral("rehearseForce"));
-  force_->setWordWrap(true);  // a long line (shares, counts, a step not converged) wraps; it never widens the panel and shrinks the frame
+  force_->setWordWrap(true);  // a long line (shares, counts, a step not converged) wraps; it never widens the panel and
+                              // shrinks the frame
   QFont big = force_->font();
   big.setPointSizeF(big.pointSizeF() * 1.4);
   force_->setFont(big);
@@ -156,7 +164,8 @@ void RehearsePage::updateChart() {
 }
 
 void RehearsePage::refresh(const app::Case& c) {
-  if (!c.hasPose) status_->setText(tr("Place the organ over the frame first (step 4)."));
+  if (!c.hasPose)
+    status_->setText(tr("Place the organ over the frame first (step 4)."));
   else if (status_->text().isEmpty() || status_->text().startsWith(tr("Place the organ")))
     status_->setText(tr("Pick the grasper (R) or the scissors (B) and press on the organ."));
 }
@@ -190,21 +199,27 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   // While the jaws hold and the shaft touches, the two shares (the jaws' decides a slip).
   QString shares;
   if (!t.held.empty() && (t.force - t.graspForce).norm() >= 0.005)
-    shares = tr(" (jaws %1 N, shaft %2 N)").arg(t.graspForce.norm(), 0, 'f', 2).arg((t.force - t.graspForce).norm(), 0, 'f', 2);
+    shares = tr(" (jaws %1 N, shaft %2 N)")
+                 .arg(t.graspForce.norm(), 0, 'f', 2)
+                 .arg((t.force - t.graspForce).norm(), 0, 'f', 2);
   // A force from a step that did not converge is not the tissue's equilibrium force: said next to the number
   // (issue 32: 18 kN, then 135 N, were shown from steps with a relative residual near 1).
   if (t.force.norm() > 0 && f->report.outcome != simcore::StepStatus::Converged)
-    shares += tr(" — step not converged (relative residual %1): not the equilibrium force").arg(f->report.residual, 0, 'g', 2);
+    shares += tr(" — step not converged (relative residual %1): not the equilibrium force")
+                  .arg(f->report.residual, 0, 'g', 2);
   forceText_ = tr("Tool force %1 N%2%3").arg(t.force.norm(), 0, 'f', 2).arg(shares, extra);
   // A vessel cut, a refused cut and the end of a stroke (whether the organ came apart, what still joins) are said
   // in the session's words: the status never says "Cut" over tissue that still joins.
-  if (!f->message.isEmpty() && (f->message.contains(QLatin1String("vessel")) || f->message.contains(QLatin1String("The cut")) ||
-                                f->message.startsWith(QLatin1String("Nothing was cut"))))
+  if (!f->message.isEmpty() &&
+      (f->message.contains(QLatin1String("vessel")) || f->message.contains(QLatin1String("The cut")) ||
+       f->message.startsWith(QLatin1String("Nothing was cut"))))
     status(f->message);
   labelThrottle_->request();  // the labels at most 15 times a second, the newest always shown
 }
 
-QString RehearsePage::trainee() const { return trainee_->text().trimmed(); }
+QString RehearsePage::trainee() const {
+  return trainee_->text().trimmed();
+}
 
 void RehearsePage::showRecording(bool on, const QString& text) {
   recordButton_->setChecked(on);

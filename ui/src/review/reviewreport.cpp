@@ -33,15 +33,16 @@ QImage toQImage(const cv::Mat3b& m) {
 
 // The events' tick colours, the ones the plot's legend names.
 QColor eventColour(const std::string& e) {
-  if (e == "grasp") return QColor(40, 160, 40);               // green
-  if (e == "release") return QColor(40, 160, 160);            // teal
-  if (e == "slip") return QColor(230, 140, 0);                // orange
-  if (e == "cut") return QColor(120, 0, 160);                 // purple
-  if (e == "vessel cut") return QColor(200, 0, 0);            // red
-  if (e == "force over threshold") return QColor(90, 90, 90); // grey
+  if (e == "grasp") return QColor(40, 160, 40);                // green
+  if (e == "release") return QColor(40, 160, 160);             // teal
+  if (e == "slip") return QColor(230, 140, 0);                 // orange
+  if (e == "cut") return QColor(120, 0, 160);                  // purple
+  if (e == "vessel cut") return QColor(200, 0, 0);             // red
+  if (e == "force over threshold") return QColor(90, 90, 90);  // grey
   return {};
 }
-const char* kEventLegend = "ticks: grasp green, release teal, slip orange, cut purple, vessel cut red (longer), force over the threshold grey";
+const char* kEventLegend =
+    "ticks: grasp green, release teal, slip orange, cut purple, vessel cut red (longer), force over the threshold grey";
 
 QString number(double v) {
   if (v == 0) return "0";
@@ -51,11 +52,12 @@ QString number(double v) {
 }
 
 // A plot of one series over time, the events marked as ticks along the top.
-void plot(QPainter& p, const QRectF& box, const QString& title, const QString& unit, const std::vector<app::TimelineSample>& tl,
-          double (*value)(const app::TimelineSample&), double threshold) {
+void plot(QPainter& p, const QRectF& box, const QString& title, const QString& unit,
+          const std::vector<app::TimelineSample>& tl, double (*value)(const app::TimelineSample&), double threshold) {
   p.save();
   // The title wraps (its legend is long): the plot starts below however many lines it takes.
-  const QRectF titleBox = p.boundingRect(QRectF(box.left(), box.top(), box.width(), 400), Qt::AlignLeft | Qt::TextWordWrap, title);
+  const QRectF titleBox =
+      p.boundingRect(QRectF(box.left(), box.top(), box.width(), 400), Qt::AlignLeft | Qt::TextWordWrap, title);
   p.drawText(QRectF(box.left(), box.top(), box.width(), titleBox.height()), Qt::AlignLeft | Qt::TextWordWrap, title);
   const double top = titleBox.height() + 10;
   const QRectF area(box.left() + 150, box.top() + top, box.width() - 200, box.height() - top - 50);
@@ -75,7 +77,8 @@ void plot(QPainter& p, const QRectF& box, const QString& title, const QString& u
   auto Y = [&](double v) { return area.bottom() - v / vmax * area.height(); };
   // Axes' labels.
   p.setPen(Qt::black);
-  p.drawText(QRectF(box.left(), area.top() - 20, 140, 40), Qt::AlignRight | Qt::AlignVCenter, number(vmax) + " " + unit);
+  p.drawText(QRectF(box.left(), area.top() - 20, 140, 40), Qt::AlignRight | Qt::AlignVCenter,
+             number(vmax) + " " + unit);
   p.drawText(QRectF(box.left(), area.bottom() - 20, 140, 40), Qt::AlignRight | Qt::AlignVCenter, "0");
   p.drawText(QRectF(area.left() - 80, area.bottom() + 5, 160, 40), Qt::AlignCenter, number(t0) + " s");
   p.drawText(QRectF(area.right() - 80, area.bottom() + 5, 160, 40), Qt::AlignCenter, number(t1) + " s");
@@ -149,10 +152,12 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     y += 36;
     p.setFont(body);
     for (const auto& m : r.metrics) {
-      const auto v = std::find_if(r.verdicts.begin(), r.verdicts.end(), [&](const app::Verdict& x) { return x.metric.name == m.name; });
+      const auto v = std::find_if(r.verdicts.begin(), r.verdicts.end(),
+                                  [&](const app::Verdict& x) { return x.metric.name == m.name; });
       p.drawText(QRectF(c1, y, c2, 30), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(m.name));
       // Counts (grasps, slips, cuts) are whole numbers: "1", not "1.000".
-      QString value = m.value ? (m.count ? QString::number(std::llround(*m.value)) : number(*m.value)) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
+      QString value = m.value ? (m.count ? QString::number(std::llround(*m.value)) : number(*m.value)) +
+                                    (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
                               : "not determined";
       p.drawText(QRectF(c2, y, c3 - c2, 30), Qt::AlignLeft | Qt::AlignVCenter, value);
       if (v != r.verdicts.end()) {
@@ -161,7 +166,9 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
         if (v->threshold.max) limit += "<= " + number(*v->threshold.max);
         p.drawText(QRectF(c3, y, c4 - c3, 30), Qt::AlignLeft | Qt::AlignVCenter, limit);
         p.save();
-        p.setPen(v->result == app::Verdict::Result::Pass ? QColor(20, 130, 20) : v->result == app::Verdict::Result::Fail ? QColor(190, 0, 0) : QColor(90, 90, 90));
+        p.setPen(v->result == app::Verdict::Result::Pass   ? QColor(20, 130, 20)
+                 : v->result == app::Verdict::Result::Fail ? QColor(190, 0, 0)
+                                                           : QColor(90, 90, 90));
         p.setFont(bold);
         p.drawText(QRectF(c4, y, W - c4, 30), Qt::AlignLeft | Qt::AlignVCenter, app::resultWord(v->result));
         p.restore();
@@ -184,10 +191,13 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     p.setFont(heading);
     p.drawText(QRectF(0, 0, W, 60), Qt::AlignLeft | Qt::AlignVCenter, "Over time");
     p.setFont(body);
-    plot(p, QRectF(0, 80, W, H * 0.4), QStringLiteral("Tool force on the tissue (dashed: the threshold; %1)").arg(QLatin1String(kEventLegend)), "N",
-         r.timeline, [](const app::TimelineSample& s) { return s.force; }, r.forceThresholdN);
-    plot(p, QRectF(0, 100 + H * 0.45, W, H * 0.4), "Largest tissue strain (principal Green strain)", "", r.timeline,
-         [](const app::TimelineSample& s) { return s.strain; }, 0);
+    plot(
+        p, QRectF(0, 80, W, H * 0.4),
+        QStringLiteral("Tool force on the tissue (dashed: the threshold; %1)").arg(QLatin1String(kEventLegend)), "N",
+        r.timeline, [](const app::TimelineSample& s) { return s.force; }, r.forceThresholdN);
+    plot(
+        p, QRectF(0, 100 + H * 0.45, W, H * 0.4), "Largest tissue strain (principal Green strain)", "", r.timeline,
+        [](const app::TimelineSample& s) { return s.strain; }, 0);
     // Page 3: key frames, two by two.
     if (!r.keyFrames.empty()) {
       pdf.newPage();
@@ -200,7 +210,8 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
         const double x = (k % 2) * (W / 2), yy = 80 + (k / 2) * (cellH + 40);
         QSizeF s = img.size().scaled(QSizeF(cellW, cellH - 40).toSize(), Qt::KeepAspectRatio);
         p.drawImage(QRectF(x, yy + 40, s.width(), s.height()), img);
-        p.drawText(QRectF(x, yy, cellW, 36), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(r.keyFrames[k].first));
+        p.drawText(QRectF(x, yy, cellW, 36), Qt::AlignLeft | Qt::AlignVCenter,
+                   QString::fromStdString(r.keyFrames[k].first));
       }
     }
     p.end();

@@ -35,7 +35,8 @@ std::optional<double> metricOf(const PublishedSession& s, const QString& name) {
 }
 }  // namespace
 
-CohortWindow::CohortWindow(std::shared_ptr<TrainingDatabase> db, QWidget* parent) : QMainWindow(parent), db_(std::move(db)) {
+CohortWindow::CohortWindow(std::shared_ptr<TrainingDatabase> db, QWidget* parent)
+    : QMainWindow(parent), db_(std::move(db)) {
   setWindowTitle(tr("Training cohort - Rehearse"));
   resize(1400, 850);
   auto* bar = addToolBar(tr("Cohort"));
@@ -61,7 +62,8 @@ CohortWindow::CohortWindow(std::shared_ptr<TrainingDatabase> db, QWidget* parent
   table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
   table_->setSelectionBehavior(QAbstractItemView::SelectRows);
   table_->verticalHeader()->hide();
-  connect(table_, &QTableWidget::cellDoubleClicked, this, [this](int row, int) { openSession(table_->item(row, 0)->data(Qt::UserRole).toLongLong()); });
+  connect(table_, &QTableWidget::cellDoubleClicked, this,
+          [this](int row, int) { openSession(table_->item(row, 0)->data(Qt::UserRole).toLongLong()); });
   chart_ = new QChartView;
   chart_->setObjectName("cohortChart");
   chart_->setMinimumHeight(300);
@@ -101,8 +103,9 @@ void CohortWindow::reload() {
 }
 
 void CohortWindow::fill() {
-  const QStringList shown = {"duration_s", "path_length_m", "economy_of_motion", "grasps", "slips", "cut_updates", "vessel_cuts", "max_force_n",
-                             "time_over_threshold_s", "max_strain"};
+  const QStringList shown = {
+      "duration_s",  "path_length_m", "economy_of_motion",     "grasps",    "slips", "cut_updates",
+      "vessel_cuts", "max_force_n",   "time_over_threshold_s", "max_strain"};
   QStringList headers = {tr("session"), tr("trainee"), tr("started (UTC)"), tr("case")};
   headers += shown;
   headers += tr("replay verified");
@@ -127,8 +130,11 @@ void CohortWindow::fill() {
       table_->setItem(row, 4 + k, new QTableWidgetItem(v ? QString::number(*v, 'g', 4) : tr("n/d")));
     }
     // Where its replay was verified (a session opened here is replayed and verified again, and the review says so).
-    auto* verified = new QTableWidgetItem(s.verifiedOn.isEmpty() ? tr("at publishing (machine not kept)") : s.verifiedOn);
-    verified->setToolTip(tr("Bit-exact replay holds for the same build on the same kind of machine; opening the session replays and verifies it here."));
+    auto* verified =
+        new QTableWidgetItem(s.verifiedOn.isEmpty() ? tr("at publishing (machine not kept)") : s.verifiedOn);
+    verified->setToolTip(
+        tr("Bit-exact replay holds for the same build on the same kind of machine; opening the session replays and "
+           "verifies it here."));
     table_->setItem(row, 4 + static_cast<int>(shown.size()), verified);
   }
   table_->resizeColumnsToContents();
@@ -164,7 +170,9 @@ void CohortWindow::fill() {
   QChart* old = chart_->chart();
   chart_->setChart(chart);
   delete old;
-  status_->setText(tr("%1 sessions of %2 trainees in the training database").arg(sessions_.size()).arg(std::max(0, trainees_->count() - 1)));
+  status_->setText(tr("%1 sessions of %2 trainees in the training database")
+                       .arg(sessions_.size())
+                       .arg(std::max(0, trainees_->count() - 1)));
 }
 
 std::vector<std::pair<QString, std::vector<double>>> CohortWindow::curves() const {
@@ -183,20 +191,26 @@ QStringList CohortWindow::trainees() const {
   return out;
 }
 
-int CohortWindow::sessionRows() const { return table_->rowCount(); }
+int CohortWindow::sessionRows() const {
+  return table_->rowCount();
+}
 
-void CohortWindow::setMetric(const QString& name) { metric_->setCurrentText(name); }
+void CohortWindow::setMetric(const QString& name) {
+  metric_->setCurrentText(name);
+}
 
 void CohortWindow::selectTrainee(const QString& name) {
   for (int k = 0; k < trainees_->count(); ++k)
-    if ((k == 0 && name.isEmpty()) || (k > 0 && trainees_->item(k)->data(Qt::UserRole).toString() == name)) trainees_->setCurrentRow(k);
+    if ((k == 0 && name.isEmpty()) || (k > 0 && trainees_->item(k)->data(Qt::UserRole).toString() == name))
+      trainees_->setCurrentRow(k);
 }
 
 ReviewWindow* CohortWindow::openSession(qint64 id) {
   auto db = db_;
   std::vector<app::RecordingSummary> list;
   for (const auto& s : sessions_) list.push_back(s.summary);
-  auto* w = new ReviewWindow([list] { return list; }, [db](qint64 sid) { return db->load(sid); }, tr("training database"), std::nullopt, {}, this);
+  auto* w = new ReviewWindow([list] { return list; }, [db](qint64 sid) { return db->load(sid); },
+                             tr("training database"), std::nullopt, {}, this);
   w->setAttribute(Qt::WA_DeleteOnClose);
   w->setWindowFlag(Qt::Window);
   w->openSession(0, id);
@@ -212,8 +226,8 @@ app::TrainingStore makeTrainingStore() {
     std::vector<std::string> lines;
     for (const auto& f : files) {
       const auto r = db.publish(QString::fromStdString(f));
-      lines.push_back(f + ": " + std::to_string(r.published) + " published, " + std::to_string(r.already) + " already there, " + std::to_string(r.skipped) +
-                      " not published");
+      lines.push_back(f + ": " + std::to_string(r.published) + " published, " + std::to_string(r.already) +
+                      " already there, " + std::to_string(r.skipped) + " not published");
       for (const auto& n : r.notes) lines.push_back("  " + n.toStdString());
     }
     return lines;

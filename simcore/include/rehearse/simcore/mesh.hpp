@@ -18,13 +18,13 @@ struct MeshError : std::runtime_error {
 /// triangles from its file. Labels: per element integer (part index for surfaces from multi-part
 /// files, physical/region tag for volumes); `labelNames` maps a label to a name when one is known.
 struct Mesh {
-  std::vector<Eigen::Vector3d> points;            // file order, in `unit` until scaled
-  std::vector<std::array<int, 3>> triangles;      // 0-based point indices
-  std::vector<int> triangleLabels;                // same size as triangles
-  std::vector<std::array<int, 4>> tets;           // 0-based point indices, positive orientation
-  std::vector<int> tetLabels;                     // same size as tets
+  std::vector<Eigen::Vector3d> points;        // file order, in `unit` until scaled
+  std::vector<std::array<int, 3>> triangles;  // 0-based point indices
+  std::vector<int> triangleLabels;            // same size as triangles
+  std::vector<std::array<int, 4>> tets;       // 0-based point indices, positive orientation
+  std::vector<int> tetLabels;                 // same size as tets
   std::vector<std::pair<int, std::string>> labelNames;
-  double unitToMetre = 1.0;                       // coordinates * unitToMetre = metres
+  double unitToMetre = 1.0;  // coordinates * unitToMetre = metres
 
   bool isVolume() const { return !tets.empty(); }
   bool empty() const { return points.empty(); }

@@ -103,7 +103,9 @@ class MainWindow : public QMainWindow {
   QString caseFilePath() const;
   QUndoStack* undoStack() { return doc_->undoStack(); }
   /// Applies an edit to a copy of the case as one undoable command (same non-negative mergeId: one step).
-  void editCase(const QString& text, const std::function<void(app::Case&)>& edit, int mergeId = -1) { doc_->edit(text, edit, mergeId); }
+  void editCase(const QString& text, const std::function<void(app::Case&)>& edit, int mergeId = -1) {
+    doc_->edit(text, edit, mergeId);
+  }
   /// The organ over the frame as last drawn, and its outline (frame pixels).
   const QImage& organOverlay() const { return picture_.organ; }
   const QList<QPolygonF>& silhouette() const { return picture_.silhouette; }
@@ -189,13 +191,13 @@ class MainWindow : public QMainWindow {
     QLabel* caseText = nullptr;
     QLabel* simulation = nullptr;
     QLabel* distance = nullptr;
-    QLabel* viewMode = nullptr;         ///< composited / overlay / 3D, and why not composited
+    QLabel* viewMode = nullptr;  ///< composited / overlay / 3D, and why not composited
     QLabel* cursor = nullptr;
-    QProgressBar* progress = nullptr;   ///< a fraction, or busy (no fraction) while a stage of unknown length runs
-    QLabel* stage = nullptr;            ///< the running stage in words and the time since the job began
+    QProgressBar* progress = nullptr;  ///< a fraction, or busy (no fraction) while a stage of unknown length runs
+    QLabel* stage = nullptr;           ///< the running stage in words and the time since the job began
     QString stageText;
     QElapsedTimer clock;
-    QTimer* tick = nullptr;             ///< refreshes the elapsed time once a second while busy
+    QTimer* tick = nullptr;  ///< refreshes the elapsed time once a second while busy
     QToolButton* cancel = nullptr;
   };
 
@@ -209,7 +211,7 @@ class MainWindow : public QMainWindow {
   QStackedWidget* centre_ = nullptr;  ///< the frame view, or the 3D organ (ViewMode::ThreeD)
   QWidget* centreOrgan_ = nullptr;
   std::vector<QAction*> viewModeActions_;
-  class LiveOverlay* liveOverlay_ = nullptr;  ///< the simulated organ over the frame in step 7 (liveoverlay.hpp)
+  class LiveOverlay* liveOverlay_ = nullptr;       ///< the simulated organ over the frame in step 7 (liveoverlay.hpp)
   class RecordingController* recorder_ = nullptr;  ///< recording step 7 into the case file, and its review
   OrganView* organView_ = nullptr;
   QString rendererText_;

@@ -17,7 +17,8 @@ class RecordingController : public QObject {
   Q_OBJECT
  public:
   /// `say`: a sentence for the status bar and the Messages panel; `window`: the review windows' parent.
-  RecordingController(CaseDocument* doc, SimulationPanel* simulation, RehearsePage* page, QWidget* window, std::function<void(const QString&)> say);
+  RecordingController(CaseDocument* doc, SimulationPanel* simulation, RehearsePage* page, QWidget* window,
+                      std::function<void(const QString&)> say);
   /// Starts recording; an empty string when it started, else why not (one sentence).
   QString start(const QString& trainee);
   void stop();

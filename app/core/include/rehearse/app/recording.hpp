@@ -67,7 +67,8 @@ class Recorder {
  public:
   /// Opens (creates) `path`, its tables, and the session's row. Throws std::runtime_error with one
   /// sentence (a file that is not SQLite, a read-only file).
-  Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery = 10, int checkpointEvery = 20);
+  Recorder(const std::string& path, const SessionMeta& meta, const simcore::BodySetup& setup, int checksumEvery = 10,
+           int checkpointEvery = 20);
   ~Recorder();  ///< commits what is pending (a finish() not called leaves the session incomplete)
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
@@ -107,20 +108,22 @@ class Recorder {
   void closeStore();
   void writeCheckpoint(long step, std::uint64_t hash, const std::string& bytes);
   void writeSetup(std::uint64_t hash, const std::string& text);
-  void afterStepLocked(long step, const std::vector<simcore::InputEvent>& recorded, const simcore::SimulationState& state);
+  void afterStepLocked(long step, const std::vector<simcore::InputEvent>& recorded,
+                       const simcore::SimulationState& state);
   mutable std::mutex mutex_;
   std::string path_;
-  std::vector<std::pair<long, std::uint64_t>> checksumsWritten_;  // all of them (8 bytes per N steps): rewritten after a reopen
+  std::vector<std::pair<long, std::uint64_t>>
+      checksumsWritten_;  // all of them (8 bytes per N steps): rewritten after a reopen
   long lastStep_ = 0;
   bool finished_ = false;
   std::string uuid_;
   SessionMeta meta_;
   std::string startedUtc_;
-  std::string setupText_;          // the session's row again when a copy lost it
+  std::string setupText_;  // the session's row again when a copy lost it
   double timeStep_ = 0;
   bool suspended_ = false;
-  std::string broken_;             // why the recorder cannot write any more (a reopen that failed)
-  struct Kept {                    // checkpoints (and their new setups) taken while suspended
+  std::string broken_;  // why the recorder cannot write any more (a reopen that failed)
+  struct Kept {         // checkpoints (and their new setups) taken while suspended
     long step;
     std::uint64_t hash;
     std::string bytes;
@@ -163,10 +166,10 @@ struct Recording {
 
 /// A session's rows as stored (to publish them elsewhere without decoding them).
 struct RecordingRows {
-  std::string setup;                                            ///< JSON
-  std::vector<std::tuple<long, long, std::string>> events;      ///< seq, step, JSON
-  std::vector<std::pair<long, std::string>> checksums;          ///< step, decimal
-  std::vector<std::pair<std::string, std::string>> setups;      ///< hash (decimal), JSON
+  std::string setup;                                        ///< JSON
+  std::vector<std::tuple<long, long, std::string>> events;  ///< seq, step, JSON
+  std::vector<std::pair<long, std::string>> checksums;      ///< step, decimal
+  std::vector<std::pair<std::string, std::string>> setups;  ///< hash (decimal), JSON
   struct CheckpointRow {
     long step = 0;
     std::string setupHash;
@@ -188,7 +191,8 @@ simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, lon
 /// A checkpoint as bytes and back (the state's doubles to the last bit; its setups by their hashes, stored
 /// apart without their cut progress, which the bytes carry); decoding checks every length.
 std::string encodeCheckpointState(const simcore::Checkpoint& c);
-simcore::Checkpoint decodeCheckpointState(const std::string& bytes, const std::function<simcore::BodySetup(std::uint64_t hash)>& setupOf);
+simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
+                                          const std::function<simcore::BodySetup(std::uint64_t hash)>& setupOf);
 /// A setup as a checkpoint stores it: without its cut progress.
 simcore::BodySetup sharedSetup(const simcore::BodySetup& s);
 /// A hash of a body setup (its mesh, attachments, materials, settings and tools; not the cut in progress, which
@@ -237,8 +241,8 @@ void saveCaseThresholds(const std::string& path, const std::string& json);
 int copyRecordings(const std::string& from, const std::string& to);
 
 struct VerifyResult {
-  long steps = 0;       ///< replayed
-  long checked = 0;     ///< checksums compared
+  long steps = 0;    ///< replayed
+  long checked = 0;  ///< checksums compared
   long mismatches = 0;
   long firstMismatch = -1;  ///< step, -1 when none
 };
@@ -248,20 +252,23 @@ VerifyResult verifyRecording(const Recording& r);
 
 /// What a trainer reads about a session (computed from its replay, so a recording is all it needs).
 struct SessionMetrics {
-  double durationS = 0;          ///< simulated time
-  double pathLengthM = 0;        ///< the instrument tip's path while an instrument is in the scene (not the jump when one is swapped for another)
-  double economy = 0;            ///< straight distance from the tip's first to its last place (per instrument, summed) / path length (1: straight; 0: no path)
+  double durationS = 0;    ///< simulated time
+  double pathLengthM = 0;  ///< the instrument tip's path while an instrument is in the scene (not the jump when one is
+                           ///< swapped for another)
+  double economy = 0;      ///< straight distance from the tip's first to its last place (per instrument, summed) / path
+                           ///< length (1: straight; 0: no path)
   int grasps = 0, slips = 0, cuts = 0;  ///< events ("cut": cut updates applied)
   /// Vessels cut (once per vessel and stroke): labels the organ's mesh names as vessels (Mesh::labelIsVessel);
   /// nullopt when it names none (vesselWhy says so): a cut through an unnamed inner structure is not counted as one.
   std::optional<int> vesselCuts;
   std::string vesselWhy;
-  double maxForceN = 0;          ///< the tool's force on the tissue, largest
-  double meanForceN = 0;         ///< mean over the steps with a force
+  double maxForceN = 0;   ///< the tool's force on the tissue, largest
+  double meanForceN = 0;  ///< mean over the steps with a force
   double forceThresholdN = 0;
-  double timeOverThresholdS = 0; ///< simulated time with the force above the threshold
-  std::optional<double> maxStrain;  ///< largest principal Green strain of any element at any step (ReplayOptions::strain)
-  double cutLengthM = 0;         ///< the blade tip's path while cutting
+  double timeOverThresholdS = 0;  ///< simulated time with the force above the threshold
+  std::optional<double>
+      maxStrain;          ///< largest principal Green strain of any element at any step (ReplayOptions::strain)
+  double cutLengthM = 0;  ///< the blade tip's path while cutting
   /// The blade tip's distance from the planned cut line while cutting (mean over the cutting steps, largest);
   /// nullopt without a planned line (cutDeviationWhy says so) or without cutting.
   std::optional<double> cutDeviationMeanM, cutDeviationMaxM;
@@ -274,14 +281,15 @@ struct SessionMetrics {
 /// One step of a replay, for the review's timeline and plots.
 struct TimelineSample {
   long step = 0;
-  double time = 0;                 ///< s, simulated
+  double time = 0;  ///< s, simulated
   bool toolPresent = false;
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();  ///< m, body frame
-  double force = 0;                ///< N
-  double strain = 0;               ///< largest principal Green strain (0 unless computed)
+  double force = 0;                               ///< N
+  double strain = 0;                              ///< largest principal Green strain (0 unless computed)
   bool holding = false, cutting = false;
-  bool newInstrument = false;      ///< another instrument than at the last step (its tip did not travel from there)
-  std::vector<std::string> events; ///< "grasp", "release", "slip", "cut", "vessel cut", "cut through label N", "force over threshold"
+  bool newInstrument = false;  ///< another instrument than at the last step (its tip did not travel from there)
+  std::vector<std::string>
+      events;  ///< "grasp", "release", "slip", "cut", "vessel cut", "cut through label N", "force over threshold"
 };
 struct ReplayResult {
   VerifyResult verify;

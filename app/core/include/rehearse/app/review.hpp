@@ -26,7 +26,7 @@ struct MetricValue {
   std::string name;
   std::optional<double> value;
   std::string unit;
-  std::string why;  ///< when there is no value: one sentence
+  std::string why;     ///< when there is no value: one sentence
   bool count = false;  ///< a whole number (grasps, slips, ...)
 };
 std::vector<MetricValue> metricValues(const SessionMetrics& m);
@@ -63,10 +63,11 @@ class ReviewRenderer {
  public:
   /// `camera` and `frame`: the case's (frame: 8-bit BGR of the camera's size); without them a virtual camera
   /// of `width` x `height` framing the setup's rest shape.
-  ReviewRenderer(const simcore::BodySetup& setup, int width, int height, const std::optional<imaging::Camera>& camera = std::nullopt,
-                 const cv::Mat3b& frame = {});
+  ReviewRenderer(const simcore::BodySetup& setup, int width, int height,
+                 const std::optional<imaging::Camera>& camera = std::nullopt, const cv::Mat3b& frame = {});
   /// The image of a snapshot; `path`: the tip's places so far (body frame), `caption` at the top left.
-  cv::Mat3b render(const simcore::Snapshot& s, const std::vector<Eigen::Vector3d>& path, const std::string& caption) const;
+  cv::Mat3b render(const simcore::Snapshot& s, const std::vector<Eigen::Vector3d>& path,
+                   const std::string& caption) const;
   const imaging::Camera& camera() const { return camera_; }
   /// Turns the virtual camera about the organ's centre (the review's 3D view; a case camera is not turned).
   void orbit(double yawRadians, double pitchRadians);
@@ -98,22 +99,24 @@ std::string captionAt(const std::vector<TimelineSample>& timeline, long step, co
 /// `fps` frames per second of simulated time: frame k shows the first step at or after fromStep's time + k / fps.
 /// Returns the frames written. `progress(done, total)` returns false to cancel (then throws Cancelled-like
 /// std::runtime_error "cancelled"). Throws std::runtime_error with one sentence (no MP4 writer, a bad span).
-int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const std::vector<TimelineSample>& timeline, long fromStep, long toStep,
-                     double fps, const std::string& path, const std::function<bool(int, int)>& progress = {});
+int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const std::vector<TimelineSample>& timeline,
+                     long fromStep, long toStep, double fps, const std::string& path,
+                     const std::function<bool(int, int)>& progress = {});
 
 /// What a session's report holds; the GUI library writes it as PDF (ui::writeReviewPdf, Qt's QPdfWriter).
 struct ReviewReport {
   std::string title;
   std::vector<std::pair<std::string, std::string>> facts;  ///< who, when, case, versions, notes, the replay's check
   std::vector<MetricValue> metrics;
-  std::vector<Verdict> verdicts;                           ///< one per threshold set
+  std::vector<Verdict> verdicts;  ///< one per threshold set
   std::vector<TimelineSample> timeline;
   double forceThresholdN = 0;
-  std::vector<std::pair<std::string, cv::Mat3b>> keyFrames;  ///< caption, image (first grasp, largest force, first cut, the end)
+  std::vector<std::pair<std::string, cv::Mat3b>>
+      keyFrames;  ///< caption, image (first grasp, largest force, first cut, the end)
 };
 /// Gathers a report: `result` from replayRecording with the timeline; key frames drawn by `renderer` from `replayer`.
-ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds, Replayer& replayer,
-                              const ReviewRenderer& renderer);
+ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds,
+                              Replayer& replayer, const ReviewRenderer& renderer);
 /// The PDF writer the GUI library provides (app core has no Qt of its own); empty in a build without it.
 using ReportWriter = std::function<void(const ReviewReport&, const std::string& path)>;
 
@@ -121,7 +124,8 @@ using ReportWriter = std::function<void(const ReviewReport&, const std::string& 
 /// without Qt has none). `service`: a libpq service name, empty for the environment.
 struct TrainingStore {
   /// Publishes the complete sessions of the case files; returns a line per file; throws std::runtime_error.
-  std::function<std::vector<std::string>(const std::vector<std::string>& caseFiles, const std::string& service)> publish;
+  std::function<std::vector<std::string>(const std::vector<std::string>& caseFiles, const std::string& service)>
+      publish;
   std::function<std::vector<RecordingSummary>(const std::string& service)> list;
   std::function<Recording(const std::string& service, std::int64_t id)> load;
 };

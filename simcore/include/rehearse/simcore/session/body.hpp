@@ -22,7 +22,7 @@ struct ToolSettings {
   /// Where the instruments' shafts enter (m, body frame); unset: above the organ towards the camera
   /// (the session sets it from the rest shape: twice the organ's radius from its centre along (0, -1, -2)).
   std::optional<Eigen::Vector3d> trocar;
-  double bladeLength = 0.03;    ///< m: the cutting instrument's blade, from the tip back along the shaft
+  double bladeLength = 0.03;  ///< m: the cutting instrument's blade, from the tip back along the shaft
   /// m: the instrument's radius for contact (its shaft, from the tip to the trocar, is a capsule of this
   /// radius); the boundary triangles near it are kept out by unilateral constraints at their closest points
   /// to its axis (between nodes too). 0 (no contact) unless a scene states its instrument's radius.
@@ -40,26 +40,28 @@ struct ToolSettings {
   /// their replays follow the recorded CutApplied events). Measured on the liver preset, headless (steps of about
   /// 2 ms): a cut's step waits about 50 ms with 5, none with -1.
   int cutLatencySteps = 5;
-  CutSettings cut;              ///< snapping and the quality the re-meshing keeps
+  CutSettings cut;  ///< snapping and the quality the re-meshing keeps
   bool operator==(const ToolSettings& o) const {
-    return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && trocar.has_value() == o.trocar.has_value() &&
-           (!trocar || *trocar == *o.trocar) && bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed && cutLatencySteps == o.cutLatencySteps &&
-           cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
+    return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce &&
+           trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
+           bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
+           cutLatencySteps == o.cutLatencySteps && cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
            cut.minVolumeFraction == o.cut.minVolumeFraction;
   }
 };
 
 /// What a FEM body is built from (all of it is recorded with a session, so a replay rebuilds the same body).
 struct BodySetup {
-  Mesh mesh;                               ///< tets (metres); its points are replaced by `rest` when given
-  std::vector<Eigen::Vector3d> rest;       ///< rest positions (m), e.g. the fitted organ in the camera frame; empty: mesh.points
-  std::vector<int> fixedNodes;             ///< ligament attachments
-  MaterialParams material;                 ///< parenchyma and unlisted labels
-  std::map<int, MaterialParams> byLabel;   ///< e.g. the vessels' label
-  SimulationSettings settings;             ///< time step, method, gravity (m/s^2, in the body's frame), ...
+  Mesh mesh;  ///< tets (metres); its points are replaced by `rest` when given
+  std::vector<Eigen::Vector3d>
+      rest;                     ///< rest positions (m), e.g. the fitted organ in the camera frame; empty: mesh.points
+  std::vector<int> fixedNodes;  ///< ligament attachments
+  MaterialParams material;      ///< parenchyma and unlisted labels
+  std::map<int, MaterialParams> byLabel;  ///< e.g. the vessels' label
+  SimulationSettings settings;            ///< time step, method, gravity (m/s^2, in the body's frame), ...
   ToolSettings tools;
-  int topology = 0;                        ///< bumped by every cut (the mesh above is then the cut one, in metres)
-  CutProgress cut;                         ///< the blade's cut while it is on (cutTetrahedra's `progress`)
+  int topology = 0;  ///< bumped by every cut (the mesh above is then the cut one, in metres)
+  CutProgress cut;   ///< the blade's cut while it is on (cutTetrahedra's `progress`)
 };
 
 class DeformableBody {
@@ -94,8 +96,8 @@ class DeformableBody {
   /// `nodes` at `state`, which a step of length `h` reached from velocities `previousVelocity`: the backward
   /// Euler balance M (v - v0) / h + alpha M v + beta K(x) v - f(x) - M g summed over them. For nodes a tool
   /// holds it is the tool's force on the tissue.
-  virtual Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state, const Eigen::VectorXd& previousVelocity,
-                                       double h) const = 0;
+  virtual Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState& state,
+                                       const Eigen::VectorXd& previousVelocity, double h) const = 0;
   /// The force (N) the tool constraints applied to the body in the last step: the constraint solver's
   /// multipliers along their directions (what the step used, whatever its Newton method). `holdsOnly`: the
   /// bilateral constraints' share alone (the jaws' hold, without the shaft's contact).

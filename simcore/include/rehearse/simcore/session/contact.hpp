@@ -37,7 +37,9 @@ class PointBvh {
     for (auto it = nodes_.rbegin(); it != nodes_.rend(); ++it) {
       it->box.setEmpty();
       if (it->left < 0) {
-        for (int k = it->begin; k < it->end; ++k) it->box.extend(Eigen::Vector3d(x.segment<3>(3 * static_cast<Eigen::Index>(ids_[static_cast<std::size_t>(k)]))));
+        for (int k = it->begin; k < it->end; ++k)
+          it->box.extend(
+              Eigen::Vector3d(x.segment<3>(3 * static_cast<Eigen::Index>(ids_[static_cast<std::size_t>(k)]))));
       } else {
         it->box.extend(nodes_[static_cast<std::size_t>(it->left)].box);
         it->box.extend(nodes_[static_cast<std::size_t>(it->right)].box);
@@ -45,7 +47,8 @@ class PointBvh {
     }
   }
   /// Ids of the points within `r` of segment a-b.
-  void query(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r, const Eigen::VectorXd& x, std::vector<int>& out) const {
+  void query(const Eigen::Vector3d& a, const Eigen::Vector3d& b, double r, const Eigen::VectorXd& x,
+             std::vector<int>& out) const {
     if (nodes_.empty()) return;
     Eigen::AlignedBox3d seg(a.cwiseMin(b), a.cwiseMax(b));
     seg.min().array() -= r;
@@ -79,7 +82,8 @@ class PointBvh {
     const int index = static_cast<int>(nodes_.size());
     nodes_.push_back({});
     Eigen::AlignedBox3d box;
-    for (int k = begin; k < end; ++k) box.extend(Eigen::Vector3d(x.segment<3>(3 * static_cast<Eigen::Index>(ids_[static_cast<std::size_t>(k)]))));
+    for (int k = begin; k < end; ++k)
+      box.extend(Eigen::Vector3d(x.segment<3>(3 * static_cast<Eigen::Index>(ids_[static_cast<std::size_t>(k)]))));
     nodes_[static_cast<std::size_t>(index)].box = box;
     nodes_[static_cast<std::size_t>(index)].begin = begin;
     nodes_[static_cast<std::size_t>(index)].end = end;
@@ -87,8 +91,9 @@ class PointBvh {
     int axis = 0;
     box.sizes().maxCoeff(&axis);
     const int mid = (begin + end) / 2;
-    std::nth_element(ids_.begin() + begin, ids_.begin() + mid, ids_.begin() + end,
-                     [&](int p, int q) { return x[3 * static_cast<Eigen::Index>(p) + axis] < x[3 * static_cast<Eigen::Index>(q) + axis]; });
+    std::nth_element(ids_.begin() + begin, ids_.begin() + mid, ids_.begin() + end, [&](int p, int q) {
+      return x[3 * static_cast<Eigen::Index>(p) + axis] < x[3 * static_cast<Eigen::Index>(q) + axis];
+    });
     const int l = split(begin, mid, x);
     const int r = split(mid, end, x);
     nodes_[static_cast<std::size_t>(index)].left = l;
@@ -100,12 +105,13 @@ class PointBvh {
 };
 
 /// Closest point of triangle abc to p, with its barycentric weights `w`.
-Eigen::Vector3d closestOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b, const Eigen::Vector3d& c,
-                                  Eigen::Vector3d& w);
+Eigen::Vector3d closestOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                                  const Eigen::Vector3d& c, Eigen::Vector3d& w);
 /// The closest points of segment s0-s1 (the instrument's axis) and triangle abc: `onAxis`, `onTriangle` with
 /// its barycentric weights `w`. False when the segment passes through the triangle (no direction apart).
-bool closestAxisTriangle(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                         const Eigen::Vector3d& c, Eigen::Vector3d& onAxis, Eigen::Vector3d& onTriangle, Eigen::Vector3d& w);
+bool closestAxisTriangle(const Eigen::Vector3d& s0, const Eigen::Vector3d& s1, const Eigen::Vector3d& a,
+                         const Eigen::Vector3d& b, const Eigen::Vector3d& c, Eigen::Vector3d& onAxis,
+                         Eigen::Vector3d& onTriangle, Eigen::Vector3d& w);
 
 /// What one contact detection found.
 struct ShaftContactStats {
@@ -120,9 +126,11 @@ struct ShaftContactStats {
 /// nodes that are out of the shaft. With `depenetrationSpeed` > 0, triangles found inside the shaft when `seed` is
 /// true are held where they are (`easing`, sorted by triangle) instead of pushed to the radius at once. `fixed`: the
 /// attachments (a triangle of fixed nodes only cannot move). `bvh` is refitted to `x` first.
-ShaftContactStats shaftContact(const ContactSurface& surface, PointBvh& bvh, const Eigen::VectorXd& x, const std::vector<char>& fixed,
-                               const Eigen::Vector3d& tip, const Eigen::Vector3d& trocar, double radius, double depenetrationSpeed,
-                               const std::vector<int>& held, std::vector<int>& released, std::vector<std::pair<int, double>>& easing, bool seed,
+ShaftContactStats shaftContact(const ContactSurface& surface, PointBvh& bvh, const Eigen::VectorXd& x,
+                               const std::vector<char>& fixed, const Eigen::Vector3d& tip,
+                               const Eigen::Vector3d& trocar, double radius, double depenetrationSpeed,
+                               const std::vector<int>& held, std::vector<int>& released,
+                               std::vector<std::pair<int, double>>& easing, bool seed,
                                std::vector<ScalarConstraint>& rows);
 
 }  // namespace rehearse::simcore

@@ -1,6 +1,6 @@
 #pragma once
-// Instruments (simcore, no Qt): what an instrument holds, what it asks of the body at a step boundary, and the events it
-// emits, behind one small interface the session runs without knowing their kinds. The grasper (jaws: a bite holds
+// Instruments (simcore, no Qt): what an instrument holds, what it asks of the body at a step boundary, and the events
+// it emits, behind one small interface the session runs without knowing their kinds. The grasper (jaws: a bite holds
 // nodes, the hold's rows, a slip above the scene's maximum force) and the scissors/hook (a blade: its sweep cuts the
 // tissue through the session's topology change) live in instrument.cpp; a clip applier or a cautery hook is another
 // Instrument there, listed in makeInstruments().
@@ -29,7 +29,7 @@ class InstrumentHost {
   virtual const Eigen::VectorXd& positions() const = 0;  ///< the nodes now (m), 3 per node
   virtual const std::vector<char>& fixedMask() const = 0;
   virtual const ToolSettings& tools() const = 0;
-  virtual double meanEdge() const = 0;  ///< of the uncut mesh (m)
+  virtual double meanEdge() const = 0;                   ///< of the uncut mesh (m)
   virtual void emitEvent(const std::string& event) = 0;  ///< (not "emit": a Qt macro wherever Qt is included)
   /// Tissue that was inside the shaft when it became free to touch it is eased out from the next contact detection.
   virtual void seedContactEasing() = 0;

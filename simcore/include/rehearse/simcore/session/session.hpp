@@ -34,10 +34,10 @@ enum class InputKind {
               ///< MaterialModel / NewtonMethod index); with `label` > 0, "young" and "poisson" of that label's
               ///< material (e.g. the vessels'; "young" 0 removes it: the label then uses the parenchyma's)
   Gravity,    ///< gravity set to `vector` (m/s^2, body frame)
-  Factor,     ///< recorded, not posted by a user: the lagged factor requested earlier (asynchronous refresh) was swapped
-              ///< in at this step boundary; a replay (FactorRefresh::Deferred) installs it at the same boundary
-  CutApplied, ///< recorded, not posted by a user: a cut computed earlier, whose new body was built on another thread
-              ///< (asynchronous refresh), replaced the body at this step boundary; a replay applies it here
+  Factor,  ///< recorded, not posted by a user: the lagged factor requested earlier (asynchronous refresh) was swapped
+           ///< in at this step boundary; a replay (FactorRefresh::Deferred) installs it at the same boundary
+  CutApplied,  ///< recorded, not posted by a user: a cut computed earlier, whose new body was built on another thread
+               ///< (asynchronous refresh), replaced the body at this step boundary; a replay applies it here
 };
 
 struct InputEvent {
@@ -45,7 +45,7 @@ struct InputEvent {
   double wallTime = 0;  ///< s since the session started, when posted (for review; replay goes by `step`)
   long step = -1;       ///< the step boundary it applies at: set by the session when applied; a replay posts it
   int tool = 0;
-  int label = 0;        ///< Parameter: 0 the parenchyma (and unlisted labels), else an element label
+  int label = 0;  ///< Parameter: 0 the parenchyma (and unlisted labels), else an element label
   Eigen::Vector3d position = Eigen::Vector3d::Zero();
   Eigen::Vector3d vector = Eigen::Vector3d::Zero();
   bool on = false;
@@ -58,18 +58,20 @@ struct InputEvent {
 struct ToolState {
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();
   bool jawClosed = false;
-  std::vector<int> held;                   ///< the nodes the jaws hold (within the grasp radius when they closed), nearest first
-  std::vector<Eigen::Vector3d> heldOffset; ///< each held node's place relative to the tip (m), kept while held
+  std::vector<int> held;  ///< the nodes the jaws hold (within the grasp radius when they closed), nearest first
+  std::vector<Eigen::Vector3d> heldOffset;  ///< each held node's place relative to the tip (m), kept while held
   bool cutting = false;
   Eigen::Vector3d cutFrom = Eigen::Vector3d::Zero();  ///< the tip where the blade's last sweep ended (while cutting)
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step (grasp and contact)
+  Eigen::Vector3d force =
+      Eigen::Vector3d::Zero();  ///< N, the tool's force on the tissue after the last step (grasp and contact)
   /// N, the jaws' share of `force` (the held nodes' constraints; the rest is the shaft's contact): what the grasp
   /// holds, and what decides a slip.
   Eigen::Vector3d graspForce = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();  ///< N/m, d(force)/d(tip) over the next step (DeformableBody::toolStiffness)
-  bool present = false;                    ///< an instrument is in the scene (a pose was given): contact is detected
-  int contacts = 0;                        ///< surface triangles the instrument touches at the last step
-  int pierced = 0;                         ///< surface triangles its shaft passes through (contact cannot push those)
+  Eigen::Matrix3d stiffness =
+      Eigen::Matrix3d::Zero();  ///< N/m, d(force)/d(tip) over the next step (DeformableBody::toolStiffness)
+  bool present = false;         ///< an instrument is in the scene (a pose was given): contact is detected
+  int contacts = 0;             ///< surface triangles the instrument touches at the last step
+  int pierced = 0;              ///< surface triangles its shaft passes through (contact cannot push those)
   /// Contact being eased: (surface triangle, the distance from the shaft's axis it is held at now, m), for triangles
   /// that were inside the shaft when they became free to touch it; the distance grows to the radius at
   /// ToolSettings::depenetrationSpeed. Sorted by triangle.
@@ -98,11 +100,12 @@ struct Snapshot {
   StepReport report;                       ///< of the last step (ok at rest)
   int topologyVersion = 0;
   ToolState tool;
-  MaterialParams material;                 ///< in use (shows when a live edit took effect)
-  std::string message;                     ///< a sentence about the last applied input, when it needs one
-  std::vector<double> stress;              ///< per element von Mises stress (Pa), only while setPublishStress(true)
-  std::vector<std::string> events;         ///< what happened at this step ("grasp", "release", "slip", "cut", "vessel cut", "cut through label N" per label cut)
-  double mass = 0;                         ///< kg, the body's total
+  MaterialParams material;          ///< in use (shows when a live edit took effect)
+  std::string message;              ///< a sentence about the last applied input, when it needs one
+  std::vector<double> stress;       ///< per element von Mises stress (Pa), only while setPublishStress(true)
+  std::vector<std::string> events;  ///< what happened at this step ("grasp", "release", "slip", "cut", "vessel cut",
+                                    ///< "cut through label N" per label cut)
+  double mass = 0;                  ///< kg, the body's total
   std::size_t elements = 0;
   /// The elements (node indices) at this step: shared between snapshots until a cut changes them.
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;
@@ -114,12 +117,12 @@ struct Snapshot {
 /// A cut computed and not applied yet (asynchronous refresh: its body is being built on another thread): what
 /// the build starts from, so that a session restored from a checkpoint builds the same body again.
 struct PendingCutInput {
-  BodySetup setup;                 ///< the cut body's setup (cut mesh, topology + 1, the cut's progress)
-  std::vector<CutNode> newNodes;   ///< how the state extends onto the new nodes
-  std::vector<int> cutLabels;      ///< element labels the cut went through
-  Eigen::VectorXd factorAt;        ///< the positions its first factor is built at
-  bool clearProgress = false;      ///< the blade was withdrawn meanwhile
-  long applyAt = -1;               ///< the step boundary it replaces the body at (ToolSettings::cutLatencySteps); -1: when ready
+  BodySetup setup;                ///< the cut body's setup (cut mesh, topology + 1, the cut's progress)
+  std::vector<CutNode> newNodes;  ///< how the state extends onto the new nodes
+  std::vector<int> cutLabels;     ///< element labels the cut went through
+  Eigen::VectorXd factorAt;       ///< the positions its first factor is built at
+  bool clearProgress = false;     ///< the blade was withdrawn meanwhile
+  long applyAt = -1;  ///< the step boundary it replaces the body at (ToolSettings::cutLatencySteps); -1: when ready
 };
 
 /// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
@@ -136,21 +139,21 @@ struct Checkpoint {
 /// What a recorder reads after every step (on the stepping thread, under the session's lock: read it there,
 /// do not call back into the session).
 struct StepRecord {
-  long step = 0;                                 ///< steps done (1 after the first)
+  long step = 0;                                      ///< steps done (1 after the first)
   const std::vector<InputEvent>* recorded = nullptr;  ///< every event applied so far, with its step
-  const SimulationState* state = nullptr;        ///< the complete state after the step
-  const Snapshot* snapshot = nullptr;            ///< what was just published
+  const SimulationState* state = nullptr;             ///< the complete state after the step
+  const Snapshot* snapshot = nullptr;                 ///< what was just published
   const class Session* session = nullptr;
-  Checkpoint checkpoint() const;                 ///< the complete state here
+  Checkpoint checkpoint() const;  ///< the complete state here
 };
 
 /// What the loop extrapolates from: one physics step's tool force and stiffness at the tip it had.
 struct ToolForceModel {
-  long step = -1;                                        ///< the physics step it came from (-1: none yet)
-  Eigen::Vector3d tip = Eigen::Vector3d::Zero();         ///< m, where the tool was at that step
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();       ///< N, the tool's force on the tissue there
-  Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();   ///< N/m, d force / d tip
-  double maxForce = 0;                                   ///< N, the cap (0: none)
+  long step = -1;                                       ///< the physics step it came from (-1: none yet)
+  Eigen::Vector3d tip = Eigen::Vector3d::Zero();        ///< m, where the tool was at that step
+  Eigen::Vector3d force = Eigen::Vector3d::Zero();      ///< N, the tool's force on the tissue there
+  Eigen::Matrix3d stiffness = Eigen::Matrix3d::Zero();  ///< N/m, d force / d tip
+  double maxForce = 0;                                  ///< N, the cap (0: none)
   /// m: how far from `tip` the linear model is trusted (the shaft's radius, or the grasp radius): beyond it the contact
   /// set is another one, so the extrapolation goes no further (a device far from the last step's tip, after a jump of
   /// the instrument, read 18 kN on the patient liver). 0: unbounded.
@@ -220,7 +223,8 @@ class Session : private InstrumentHost {
   void apply(const InputEvent& e, std::string& message);
   void rebuildBody();
   void updateToolConstraints();
-  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message) override;  ///< true when the tissue changed (or will)
+  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+           std::string& message) override;  ///< true when the tissue changed (or will)
   // InstrumentHost: what an instrument may ask of the session.
   const Eigen::VectorXd& positions() const override { return state_.x; }
   const std::vector<char>& fixedMask() const override { return body_->fixedMask(); }
@@ -230,7 +234,9 @@ class Session : private InstrumentHost {
   void seedContactEasing() override { seedEasing_ = true; }
   void finishTopologyChange(std::string& message) override { finishPendingCut(true, message); }
   bool topologyChangeUnderWay() const override { return pendingCut_.has_value(); }
-  void cutWhenIn(const Eigen::Vector3d& from, const Eigen::Vector3d& to) override { restOfSweep_ = std::make_pair(from, to); }
+  void cutWhenIn(const Eigen::Vector3d& from, const Eigen::Vector3d& to) override {
+    restOfSweep_ = std::make_pair(from, to);
+  }
   void forgetCutProgress() override;
   void beginStroke() override;
   std::vector<std::unique_ptr<Instrument>> instruments_ = makeInstruments();
@@ -270,8 +276,8 @@ class Session : private InstrumentHost {
   bool finishPendingCut(bool wait, std::string& message);
   /// What every applied cut does after the body changed: topology, surfaces, contact, events.
   void cutApplied(const std::vector<int>& cutLabels, std::string& message);
-  /// A cut applied (either way): its events ("cut", "cut through label N", "vessel cut" once per vessel and stroke), and
-  /// the new surface's triangles inside the shaft eased out from the next constraints on.
+  /// A cut applied (either way): its events ("cut", "cut through label N", "vessel cut" once per vessel and stroke),
+  /// and the new surface's triangles inside the shaft eased out from the next constraints on.
   void cutEvents(const std::vector<int>& cutLabels, std::string& message);
   void publish(const StepReport& rep, const std::string& message, std::vector<std::string> events = {});
   void run();
@@ -280,14 +286,14 @@ class Session : private InstrumentHost {
   std::function<void(const StepRecord&)> stepHook_;
 
   BodySetup setup_;
-  BodySetup uncut_;  ///< the setup the session started from (reset goes back to its mesh)
+  BodySetup uncut_;      ///< the setup the session started from (reset goes back to its mesh)
   double meanEdge_ = 0;  ///< m, of the uncut mesh: the blade's sweep is applied in steps of it
   std::unique_ptr<DeformableBody> body_;
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets_;
   std::shared_ptr<const CutSurface> surface_;  ///< after a cut
   void updateCutSurface();
   void updateSurfaceNodes();
-  ContactSurface contact_;         ///< the boundary contact acts on, per topology
+  ContactSurface contact_;  ///< the boundary contact acts on, per topology
   void useContactSurface(ContactSurface c);
   std::shared_ptr<PointBvh> bvh_;  ///< over surfaceNodes_, refitted before each contact query
   long contactQueries_ = 0;
