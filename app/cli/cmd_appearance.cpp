@@ -166,56 +166,49 @@ int cmdCompose(const std::vector<std::string>& args) {
   return 0;
 }
 
+namespace {
+// The organ, camera, pose and frame both commands take (appearanceInput), and how the organ is removed from the frame.
+const std::vector<OptionSpec>& frameInputOptions() {
+  static const std::vector<OptionSpec> options = {
+      {"case", "DIR", "a case folder (its organ, camera, pose and frame; the files below override them)"},
+      {"mesh", "M", "the organ"},
+      {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
+      {"camera", "CAM", "the camera"},
+      {"pose", "P.json", "the organ's pose (model to camera)"},
+      {"image", "FRAME", "the endoscope frame"},
+      {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"}};
+  return options;
+}
+}  // namespace
+
 const Command& appearanceCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "appearance";
-    c.usage =
-        "  rehearse appearance --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out "
-        "THETA.json\n"
-        "                [--report R.json] [--inpaint telea|ns|shiftmap|fsr] [--background IB.png] [--diffuse ID.png]\n"
-        "                                   estimate the light and the organ's reflectance from the frame (step 6);\n"
-        "                                   exit 4 when the model explains too little (texture mapping only)\n";
-    c.options = {{"case", "DIR", "a case folder (its organ, camera, pose and frame; the files below override them)"},
-                 {"mesh", "M", "the organ"},
-                 {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
-                 {"camera", "CAM", "the camera"},
-                 {"pose", "P.json", "the organ's pose (model to camera)"},
-                 {"image", "FRAME", "the endoscope frame"},
-                 {"out", "THETA.json", "the estimated light and reflectance"},
-                 {"report", "R.json", "what the frame did and did not determine"},
-                 {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"},
-                 {"background", "IB.png", "write the frame without the organ"},
-                 {"diffuse", "ID.png", "write the organ's diffuse albedo"}};
-    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdAppearance(args); };
-    return c;
-  }();
+  static const Command command{
+      "appearance",
+      "  rehearse appearance --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out "
+      "THETA.json\n"
+      "                [--report R.json] [--inpaint telea|ns|shiftmap|fsr] [--background IB.png] [--diffuse ID.png]\n"
+      "                                   estimate the light and the organ's reflectance from the frame (step 6);\n"
+      "                                   exit 4 when the model explains too little (texture mapping only)\n",
+      joined(frameInputOptions(), {{"out", "THETA.json", "the estimated light and reflectance"},
+                                   {"report", "R.json", "what the frame did and did not determine"},
+                                   {"background", "IB.png", "write the frame without the organ"},
+                                   {"diffuse", "ID.png", "write the organ's diffuse albedo"}}),
+      withoutServices(cmdAppearance)};
   return command;
 }
 
 const Command& composeCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "compose";
-    c.usage =
-        "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta "
-        "THETA.json\n"
-        "                [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint telea|ns|shiftmap|fsr]\n"
-        "                                   the organ (deformed: its nodes in the input order) re-shaded in the "
-        "frame\n";
-    c.options = {{"case", "DIR", "a case folder (the files below override its parts)"},
-                 {"mesh", "M", "the organ"},
-                 {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
-                 {"camera", "CAM", "the camera"},
-                 {"pose", "P.json", "the organ's pose"},
-                 {"image", "FRAME", "the endoscope frame"},
-                 {"theta", "THETA.json", "the appearance (rehearse appearance --out)"},
-                 {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
-                 {"out", "J.png", "the composited image"},
-                 {"inpaint", "I", "telea, ns, shiftmap or fsr"}};
-    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdCompose(args); };
-    return c;
-  }();
+  static const Command command{
+      "compose",
+      "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta "
+      "THETA.json\n"
+      "                [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint telea|ns|shiftmap|fsr]\n"
+      "                                   the organ (deformed: its nodes in the input order) re-shaded in the "
+      "frame\n",
+      joined(frameInputOptions(), {{"theta", "THETA.json", "the appearance (rehearse appearance --out)"},
+                                   {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
+                                   {"out", "J.png", "the composited image"}}),
+      withoutServices(cmdCompose)};
   return command;
 }
 

@@ -115,53 +115,40 @@ int cmdInfo(const std::vector<std::string>& args) {
 }
 
 const Command& phantomCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "phantom";
-    c.usage =
-        "  rehearse phantom --out DIR [--tets N] [--seed S]\n"
-        "                                   write the built-in phantom case as ordinary files\n";
-    c.options = {{"out", "DIR", "the folder to write the case into (created)"},
-                 {"tets", "N", "about this many tetrahedra (default 3,800)"},
-                 {"seed", "S", "the random seed of the frame's texture"}};
-    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdPhantom(args); };
-    return c;
-  }();
+  static const Command command{"phantom",
+                               "  rehearse phantom --out DIR [--tets N] [--seed S]\n"
+                               "                                   write the built-in phantom case as ordinary files\n",
+                               {{"out", "DIR", "the folder to write the case into (created)"},
+                                {"tets", "N", "about this many tetrahedra (default 3,800)"},
+                                {"seed", "S", "the random seed of the frame's texture"}},
+                               withoutServices(cmdPhantom)};
   return command;
 }
 
 const Command& meshCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "mesh";
-    c.usage =
-        "  rehearse mesh --in SURFACE --out VOLUME.msh|.vtk|.vtu [--target-tets N] [--size MM]\n"
-        "                [--unit m|dm|cm|mm] [--ascii] [--allow-self-intersections]\n"
-        "                                   tetrahedralise a closed surface (inner closed parts become labels)\n";
-    c.options = {{"in", "SURFACE", "the closed surface (any mesh format below)"},
-                 {"out", "VOLUME", ".msh, .vtk or .vtu"},
-                 {"target-tets", "N", "about this many tetrahedra"},
-                 {"size", "MM", "the largest element size instead"},
-                 {"unit", "U", "m, dm, cm or mm: the surface's length unit"},
-                 {"ascii", "", "write text instead of binary"},
-                 {"allow-self-intersections", "", "mesh a surface that intersects itself (it is refused otherwise)"}};
-    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdMesh(args); };
-    return c;
-  }();
+  static const Command command{
+      "mesh",
+      "  rehearse mesh --in SURFACE --out VOLUME.msh|.vtk|.vtu [--target-tets N] [--size MM]\n"
+      "                [--unit m|dm|cm|mm] [--ascii] [--allow-self-intersections]\n"
+      "                                   tetrahedralise a closed surface (inner closed parts become labels)\n",
+      {{"in", "SURFACE", "the closed surface (any mesh format below)"},
+       {"out", "VOLUME", ".msh, .vtk or .vtu"},
+       {"target-tets", "N", "about this many tetrahedra"},
+       {"size", "MM", "the largest element size instead"},
+       {"unit", "U", "m, dm, cm or mm: the surface's length unit"},
+       {"ascii", "", "write text instead of binary"},
+       {"allow-self-intersections", "", "mesh a surface that intersects itself (it is refused otherwise)"}},
+      withoutServices(cmdMesh)};
   return command;
 }
 
 const Command& infoCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "info";
-    c.usage =
-        "  rehearse info FILE [--unit m|dm|cm|mm]\n"
-        "                                   node, element and label counts, bounds and quality\n";
-    c.options = {{"unit", "U", "m, dm, cm or mm: the file's length unit"}};
-    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdInfo(args); };
-    return c;
-  }();
+  static const Command command{
+      "info",
+      "  rehearse info FILE [--unit m|dm|cm|mm]\n"
+      "                                   node, element and label counts, bounds and quality\n",
+      {{"unit", "U", "m, dm, cm or mm: the file's length unit"}},
+      withoutServices(cmdInfo)};
   return command;
 }
 

@@ -192,39 +192,34 @@ int cmdGesture(const std::vector<std::string>& args) {
 }
 
 const Command& gestureCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "gesture";
-    c.usage =
-        "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of "
-        "simulate]\n"
-        "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method "
-        "exact|lagged-pcg|chord|linearised]\n"
-        "                [--refresh sync|async]  async: a drifted lagged factorisation is rebuilt on a second thread "
-        "and\n"
-        "                                   swapped in when ready (the steps never wait for it)\n"
-        "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through "
-        "the\n"
-        "                                   simulation session without a window; the report has a row per step (wall "
-        "time,\n"
-        "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a "
-        "step failed\n"
-        "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum "
-        "every\n"
-        "                                   10 steps) written into CASE (a .rehearse file) as it runs\n";
-    c.options = {{"case", "DIR", "a case folder's organ, attachments and material"},
-                 {"script", "G.json", "the timed instrument events (README, File formats)"},
-                 {"out", "OUT", "the volume at the end: .vtu, .vtk or .msh"},
-                 {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
-                 {"method", "M", "exact, lagged-pcg, chord or linearised"},
-                 {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
-                 {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
-                 {"trainee", "NAME", "the trainee the recording names (with --record)"},
-                 {"notes", "TEXT", "notes kept with the recording (with --record)"}};
-    c.options.insert(c.options.begin() + 1, modelOptions().begin(), modelOptions().end());
-    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdGesture(args); };
-    return c;
-  }();
+  static const Command command{
+      "gesture",
+      "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of "
+      "simulate]\n"
+      "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method "
+      "exact|lagged-pcg|chord|linearised]\n"
+      "                [--refresh sync|async]  async: a drifted lagged factorisation is rebuilt on a second thread "
+      "and\n"
+      "                                   swapped in when ready (the steps never wait for it)\n"
+      "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through "
+      "the\n"
+      "                                   simulation session without a window; the report has a row per step (wall "
+      "time,\n"
+      "                                   mass, elements, nodes, grasped nodes, tool force, events); exit 3 when a "
+      "step failed\n"
+      "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum "
+      "every\n"
+      "                                   10 steps) written into CASE (a .rehearse file) as it runs\n",
+      joined(joined({{"case", "DIR", "a case folder's organ, attachments and material"}}, modelOptions()),
+             {{"script", "G.json", "the timed instrument events (README, File formats)"},
+              {"out", "OUT", "the volume at the end: .vtu, .vtk or .msh"},
+              {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
+              {"method", "M", "exact, lagged-pcg, chord or linearised"},
+              {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
+              {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
+              {"trainee", "NAME", "the trainee the recording names (with --record)"},
+              {"notes", "TEXT", "notes kept with the recording (with --record)"}}),
+      withoutServices(cmdGesture)};
   return command;
 }
 

@@ -213,46 +213,41 @@ int cmdRegister(const std::vector<std::string>& args) {
 }
 
 const Command& registerCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "register";
-    c.usage =
-        "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"
-        "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
-        "                [--ground-truth GT.vtu|.vtk] [--no-rigid-prepass] [--rigid-only] [--iterations N]\n"
-        "                [--image-size WxH] [--distorted-contour] [--gravity-camera X,Y,Z] [material flags of "
-        "simulate]\n"
-        "                                   fit the organ onto a sketched silhouette (nodes written in the camera "
-        "frame);\n"
-        "                                   the organ's sag under a steady load is estimated with its pose (held "
-        "organs;\n"
-        "                                   --gravity-camera: which way is down in the camera frame, m/s^2, when "
-        "known);\n"
-        "                                   ridges and ligaments with their curve on the organ (P2ILF modelPoints, "
-        "our\n"
-        "                                   model_vertices: node indices, or surface vertices when --mesh is a "
-        "surface)\n"
-        "                                   are held onto their image curves too. Exit 0: a determined fit;\n"
-        "                                   4: ambiguous (the best fit is written; the report names the other\n"
-        "                                   poses that fit the contour nearly as well); 3: failed\n";
-    c.options = {{"camera", "CAM", "the camera (OpenCV YAML or JSON intrinsics)"},
-                 {"contour", "C.json", "the sketched silhouette (and curves) in pixels"},
-                 {"pose", "P0.json", "the starting pose (model to camera)"},
-                 {"out", "OUT", "the registered volume, nodes in the camera frame: .vtu or .vtk"},
-                 {"pose-out", "P.json", "the fitted pose"},
-                 {"report", "R.json", "residuals, status, alternatives"},
-                 {"ground-truth", "GT", "a volume in the camera frame to measure the fit against"},
-                 {"iterations", "N", "the elastic fit's iterations"},
-                 {"image-size", "WxH", "the frame's size when the camera file has none"},
-                 {"gravity-camera", "X,Y,Z", "which way is down in the camera frame, m/s^2, when known"},
-                 {"rigid-prepass", "", "run the rigid stage first (the default)"},
-                 {"no-rigid-prepass", "", "start the elastic fit from the given pose"},
-                 {"rigid-only", "", "stop after the rigid stage"},
-                 {"distorted-contour", "", "the contour was drawn on the distorted frame"}};
-    c.options.insert(c.options.begin(), modelOptions().begin(), modelOptions().end());
-    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdRegister(args); };
-    return c;
-  }();
+  static const Command command{
+      "register",
+      "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"
+      "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
+      "                [--ground-truth GT.vtu|.vtk] [--no-rigid-prepass] [--rigid-only] [--iterations N]\n"
+      "                [--image-size WxH] [--distorted-contour] [--gravity-camera X,Y,Z] [material flags of "
+      "simulate]\n"
+      "                                   fit the organ onto a sketched silhouette (nodes written in the camera "
+      "frame);\n"
+      "                                   the organ's sag under a steady load is estimated with its pose (held "
+      "organs;\n"
+      "                                   --gravity-camera: which way is down in the camera frame, m/s^2, when "
+      "known);\n"
+      "                                   ridges and ligaments with their curve on the organ (P2ILF modelPoints, "
+      "our\n"
+      "                                   model_vertices: node indices, or surface vertices when --mesh is a "
+      "surface)\n"
+      "                                   are held onto their image curves too. Exit 0: a determined fit;\n"
+      "                                   4: ambiguous (the best fit is written; the report names the other\n"
+      "                                   poses that fit the contour nearly as well); 3: failed\n",
+      joined(modelOptions(), {{"camera", "CAM", "the camera (OpenCV YAML or JSON intrinsics)"},
+                              {"contour", "C.json", "the sketched silhouette (and curves) in pixels"},
+                              {"pose", "P0.json", "the starting pose (model to camera)"},
+                              {"out", "OUT", "the registered volume, nodes in the camera frame: .vtu or .vtk"},
+                              {"pose-out", "P.json", "the fitted pose"},
+                              {"report", "R.json", "residuals, status, alternatives"},
+                              {"ground-truth", "GT", "a volume in the camera frame to measure the fit against"},
+                              {"iterations", "N", "the elastic fit's iterations"},
+                              {"image-size", "WxH", "the frame's size when the camera file has none"},
+                              {"gravity-camera", "X,Y,Z", "which way is down in the camera frame, m/s^2, when known"},
+                              {"rigid-prepass", "", "run the rigid stage first (the default)"},
+                              {"no-rigid-prepass", "", "start the elastic fit from the given pose"},
+                              {"rigid-only", "", "stop after the rigid stage"},
+                              {"distorted-contour", "", "the contour was drawn on the distorted frame"}}),
+      withoutServices(cmdRegister)};
   return command;
 }
 

@@ -287,68 +287,60 @@ int cmdPublish(const std::vector<std::string>& args, const CliServices& services
 }
 
 const Command& replayCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "replay";
-    c.usage =
-        "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json] [--video OUT.mp4] [--report OUT.pdf]\n"
-        "                [--from S] [--to S] [--fps N] [--size WxH] | --metrics-csv OUT.csv] [--force-threshold N]\n"
-        "                [--thresholds T.json] [--planned-cut X,Y,Z:X,Y,Z]\n"
-        "                                   the sessions recorded in CASE; --verify re-simulates one and compares "
-        "every\n"
-        "                                   recorded checksum (exit 4 when one differs); --metrics writes the "
-        "session's\n"
-        "                                   duration, path length, economy of motion, grasps, slips, cuts, forces, "
-        "the\n"
-        "                                   time over the force threshold (10 N by default), the largest tissue "
-        "strain, the\n"
-        "                                   cut's length and deviation from a planned line (m), structures damaged, "
-        "and a\n"
-        "                                   pass/fail per metric of T.json ({\"max_force_n\": {\"max\": 15}}); "
-        "--video: the\n"
-        "                                   span [--from, --to] s as MP4 (25 fps of simulated time, 640x480 unless "
-        "given);\n"
-        "                                   --report: a PDF with the metrics, their plots and key frames; "
-        "--metrics-csv:\n"
-        "                                   every session's metrics, one row each (exit 4 when a replay differs); "
-        "CASE\n"
-        "                                   postgresql:[SERVICE] reads the training database instead (below)\n";
-    c.options = {{"session", "ID", "the session to replay (the list without it)"},
-                 {"list", "", "list the sessions (the default without --session)"},
-                 {"verify", "", "re-simulate and compare every recorded checksum (exit 4 when one differs)"},
-                 {"metrics", "OUT.json", "the session's metrics and verdicts"},
-                 {"metrics-csv", "OUT.csv", "every session's metrics, one row each"},
-                 {"force-threshold", "N", "the force (N) the time over is measured against (default 10)"},
-                 {"thresholds", "T.json", "a pass/fail limit per metric"},
-                 {"planned-cut", "A:B", "the planned cut line, X,Y,Z:X,Y,Z in metres"},
-                 {"video", "OUT.mp4", "the span [--from, --to] as a video"},
-                 {"report", "OUT.pdf", "metrics, plots and key frames"},
-                 {"from", "S", "the video's first second"},
-                 {"to", "S", "the video's last second"},
-                 {"fps", "N", "the video's frames per second of simulated time (default 25)"},
-                 {"size", "WxH", "the video's size (default 640x480)"}};
-    c.run = cmdReplay;
-    return c;
-  }();
+  static const Command command{
+      "replay",
+      "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json] [--video OUT.mp4] [--report OUT.pdf]\n"
+      "                [--from S] [--to S] [--fps N] [--size WxH] | --metrics-csv OUT.csv] [--force-threshold N]\n"
+      "                [--thresholds T.json] [--planned-cut X,Y,Z:X,Y,Z]\n"
+      "                                   the sessions recorded in CASE; --verify re-simulates one and compares "
+      "every\n"
+      "                                   recorded checksum (exit 4 when one differs); --metrics writes the "
+      "session's\n"
+      "                                   duration, path length, economy of motion, grasps, slips, cuts, forces, "
+      "the\n"
+      "                                   time over the force threshold (10 N by default), the largest tissue "
+      "strain, the\n"
+      "                                   cut's length and deviation from a planned line (m), structures damaged, "
+      "and a\n"
+      "                                   pass/fail per metric of T.json ({\"max_force_n\": {\"max\": 15}}); "
+      "--video: the\n"
+      "                                   span [--from, --to] s as MP4 (25 fps of simulated time, 640x480 unless "
+      "given);\n"
+      "                                   --report: a PDF with the metrics, their plots and key frames; "
+      "--metrics-csv:\n"
+      "                                   every session's metrics, one row each (exit 4 when a replay differs); "
+      "CASE\n"
+      "                                   postgresql:[SERVICE] reads the training database instead (below)\n",
+      {{"session", "ID", "the session to replay (the list without it)"},
+       {"list", "", "list the sessions (the default without --session)"},
+       {"verify", "", "re-simulate and compare every recorded checksum (exit 4 when one differs)"},
+       {"metrics", "OUT.json", "the session's metrics and verdicts"},
+       {"metrics-csv", "OUT.csv", "every session's metrics, one row each"},
+       {"force-threshold", "N", "the force (N) the time over is measured against (default 10)"},
+       {"thresholds", "T.json", "a pass/fail limit per metric"},
+       {"planned-cut", "A:B", "the planned cut line, X,Y,Z:X,Y,Z in metres"},
+       {"video", "OUT.mp4", "the span [--from, --to] as a video"},
+       {"report", "OUT.pdf", "metrics, plots and key frames"},
+       {"from", "S", "the video's first second"},
+       {"to", "S", "the video's last second"},
+       {"fps", "N", "the video's frames per second of simulated time (default 25)"},
+       {"size", "WxH", "the video's size (default 640x480)"}},
+      cmdReplay};
   return command;
 }
 
 const Command& publishCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "publish";
-    c.usage =
-        "  rehearse publish CASE... [--service NAME]\n"
-        "                                   publish the complete sessions of case files into the training database\n"
-        "                                   (PostgreSQL; the connection from the libpq service NAME or the "
-        "environment:\n"
-        "                                   PGHOST, PGPORT, PGDATABASE, PGUSER, PGPASSFILE, PGSSLMODE); idempotent: a\n"
-        "                                   session already there is not written again; each is replayed and verified "
-        "first\n";
-    c.options = {{"service", "NAME", "the libpq service of the training database (else the PG* environment)"}};
-    c.run = cmdPublish;
-    return c;
-  }();
+  static const Command command{
+      "publish",
+      "  rehearse publish CASE... [--service NAME]\n"
+      "                                   publish the complete sessions of case files into the training database\n"
+      "                                   (PostgreSQL; the connection from the libpq service NAME or the "
+      "environment:\n"
+      "                                   PGHOST, PGPORT, PGDATABASE, PGUSER, PGPASSFILE, PGSSLMODE); idempotent: a\n"
+      "                                   session already there is not written again; each is replayed and verified "
+      "first\n",
+      {{"service", "NAME", "the libpq service of the training database (else the PG* environment)"}},
+      cmdPublish};
   return command;
 }
 

@@ -132,35 +132,31 @@ int cmdSimulate(const std::vector<std::string>& args) {
 }
 
 const Command& simulateCommand() {
-  static const Command command = [] {
-    Command c;
-    c.name = "simulate";
-    c.usage =
-        "  rehearse simulate --scene S.json | --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
-        "                [--material linear|corotational|stvk|neohookean|neohookean-split] [--young PA] [--poisson "
-        "NU]\n"
-        "                [--density KG_M3] [--vessel-young PA]\n"
-        "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
-        "                [--solver cholmod|cg|dense] [--method exact|lagged-pcg|chord|linearised]\n"
-        "                [--factor supernodal|simplicial] [--attachments projection|lagrange]\n"
-        "                --out OUT.vtu|.vtk [--report R.json]\n"
-        "  rehearse simulate --list-components   the scene components and their parameters\n"
-        "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n";
-    c.options = {{"steps", "N", "implicit Euler steps (default 100)"},
-                 {"dt", "H", "the time step, s"},
-                 {"static", "", "solve the static equilibrium instead of stepping"},
-                 {"out", "OUT", "the deformed volume: .vtu, .vtk or .msh"},
-                 {"report", "R.json", "per-step outcomes, residuals and timings"},
-                 {"solver", "S", "cholmod, cg or dense"},
-                 {"method", "M", "exact, lagged-pcg, chord or linearised"},
-                 {"factor", "F", "supernodal or simplicial (CHOLMOD)"},
-                 {"attachments", "A", "projection or lagrange"},
-                 {"strict", "", "a step that does not converge fails (rolled back) instead of being kept inexact"},
-                 {"list-components", "", "print the scene components and their parameters, then stop"}};
-    c.options.insert(c.options.begin(), modelOptions().begin(), modelOptions().end());
-    c.run = [](const std::vector<std::string>& args, const CliServices&) { return cmdSimulate(args); };
-    return c;
-  }();
+  static const Command command{
+      "simulate",
+      "  rehearse simulate --scene S.json | --preset eye|kidney|liver|uterus|sofa-liver | --mesh FILE [--unit u]\n"
+      "                [--material linear|corotational|stvk|neohookean|neohookean-split] [--young PA] [--poisson "
+      "NU]\n"
+      "                [--density KG_M3] [--vessel-young PA]\n"
+      "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
+      "                [--solver cholmod|cg|dense] [--method exact|lagged-pcg|chord|linearised]\n"
+      "                [--factor supernodal|simplicial] [--attachments projection|lagrange]\n"
+      "                --out OUT.vtu|.vtk [--report R.json]\n"
+      "  rehearse simulate --list-components   the scene components and their parameters\n"
+      "                                   FEM simulation (implicit Euler or static); nodes keep the input order\n",
+      joined(modelOptions(),
+             {{"steps", "N", "implicit Euler steps (default 100)"},
+              {"dt", "H", "the time step, s"},
+              {"static", "", "solve the static equilibrium instead of stepping"},
+              {"out", "OUT", "the deformed volume: .vtu, .vtk or .msh"},
+              {"report", "R.json", "per-step outcomes, residuals and timings"},
+              {"solver", "S", "cholmod, cg or dense"},
+              {"method", "M", "exact, lagged-pcg, chord or linearised"},
+              {"factor", "F", "supernodal or simplicial (CHOLMOD)"},
+              {"attachments", "A", "projection or lagrange"},
+              {"strict", "", "a step that does not converge fails (rolled back) instead of being kept inexact"},
+              {"list-components", "", "print the scene components and their parameters, then stop"}}),
+      withoutServices(cmdSimulate)};
   return command;
 }
 

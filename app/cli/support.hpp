@@ -34,14 +34,21 @@ struct OptionSpec {
   std::string help;   ///< one line
 };
 
+/// How a sub-command runs; `services`: what the GUI library provides (the PDF writer, the training database).
+using CommandRun = std::function<int(const std::vector<std::string>& args, const CliServices& services)>;
+
 /// A sub-command: its block of `rehearse --help` (synopsis and description), its options and what runs it.
 struct Command {
   std::string name;
   std::string usage;  ///< the lines `rehearse --help` shows for it (each "  ...\n")
   std::vector<OptionSpec> options;
-  /// Runs it; `services`: what the GUI library provides (the PDF writer, the training database), empty without Qt.
-  std::function<int(const std::vector<std::string>& args, const CliServices& services)> run;
+  CommandRun run;  ///< empty services without Qt
 };
+
+/// A sub-command that needs none of the services.
+CommandRun withoutServices(int (*run)(const std::vector<std::string>& args));
+/// Option lists one after the other (shared groups and a command's own).
+std::vector<OptionSpec> joined(std::vector<OptionSpec> first, const std::vector<OptionSpec>& then);
 
 /// The options every command that builds an organ model takes (--scene, --preset, --mesh, the material...).
 const std::vector<OptionSpec>& modelOptions();
