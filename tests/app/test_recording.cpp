@@ -203,7 +203,7 @@ class TestRecording : public QObject {
     for (long s : rec.checkpointSteps) {
       const simcore::Checkpoint c = app::loadCheckpoint(file.toStdString(), 1, s);
       QCOMPARE(c.step, s);
-      withPendingCut += c.pendingCut.has_value();
+      withPendingCut += c.pendingChange.has_value();
       withRequest += c.state.lagged.requested;
     }
     const std::vector<std::uint64_t> straight = rehearse::testing::straightChecksums(rec);
@@ -283,16 +283,16 @@ class TestRecording : public QObject {
         }
         QVERIFY2(session.snapshot()->topologyVersion > 0, "the blade cut the block");
       }
-      QVERIFY2(cp.pendingCut.has_value(), "the checkpoint falls while the cut's body is being built");
+      QVERIFY2(cp.pendingChange.has_value(), "the checkpoint falls while the cut's body is being built");
       qInfo("cut latency %d: checkpoint at step %ld, a cut under way (%zu new nodes, applied at %ld), a factor %s",
-            latency, cp.step, cp.pendingCut->newNodes.size(), cp.pendingCut->applyAt,
+            latency, cp.step, cp.pendingChange->newNodes.size(), cp.pendingChange->applyAt,
             cp.state.lagged.requested ? "requested" : "not requested");
       // Through the bytes the recorder writes (setups by hash, without the cut's progress).
       std::map<std::uint64_t, simcore::BodySetup> setups;
-      for (const auto* x : {&cp.setup, &cp.pendingCut->setup}) setups[app::setupHash(*x)] = app::sharedSetup(*x);
+      for (const auto* x : {&cp.setup, &cp.pendingChange->setup}) setups[app::setupHash(*x)] = app::sharedSetup(*x);
       const simcore::Checkpoint back =
           app::decodeCheckpointState(app::encodeCheckpointState(cp), [&](std::uint64_t h) { return setups.at(h); });
-      QVERIFY(back.pendingCut.has_value());
+      QVERIFY(back.pendingChange.has_value());
       simcore::Session resumed(s);
       resumed.restore(back);
       for (const auto& e : events)
@@ -307,7 +307,7 @@ class TestRecording : public QObject {
       for (int strip = 0; strip < 2; ++strip) {
         simcore::Checkpoint partial = back;
         if (strip == 0)
-          partial.pendingCut.reset();
+          partial.pendingChange.reset();
         else
           partial.state.lagged.requested = false;
         simcore::Session other(s);
@@ -503,7 +503,7 @@ class TestRecording : public QObject {
     auto restoreAndStep = [&](const simcore::Checkpoint& c) {
       simcore::Checkpoint d = c;
       d.setup = simcore::replaySetup(std::move(d.setup));
-      if (d.pendingCut) d.pendingCut->setup = simcore::replaySetup(std::move(d.pendingCut->setup));
+      if (d.pendingChange) d.pendingChange->setup = simcore::replaySetup(std::move(d.pendingChange->setup));
       session.discardPending();
       session.restore(d);
       for (int k = 0; k < 3; ++k) {

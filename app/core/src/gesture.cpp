@@ -197,7 +197,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   }
   // A cut whose body was still being built when the script ended is applied: the run's mesh has every cut the blade made
   // (its events are the last row's).
-  if (session.applyPendingCut() && !out.steps.empty()) {
+  if (session.applyPendingChange() && !out.steps.empty()) {
     const auto snap = session.snapshot();
     auto& last = out.steps.back();
     for (const auto& e : snap->events) last.events.push_back(e);

@@ -271,7 +271,7 @@ void Recorder::afterStep(const simcore::StepRecord& r) {
       return h;
     };
     const std::uint64_t h = store(c.setup);
-    const std::uint64_t pending = c.pendingCut ? store(c.pendingCut->setup) : 0;
+    const std::uint64_t pending = c.pendingChange ? store(c.pendingChange->setup) : 0;
     std::string bytes = detail::encodeCheckpoint(c, h, pending);
     if (suspended_)
       keptCheckpoints_.push_back({r.step, h, std::move(bytes)});

@@ -187,7 +187,7 @@ struct Reader {
 };
 constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the contact's easing was kept
 constexpr std::uint32_t kCheckpointMagicV2 =
-    0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut, PendingCutInput::applyAt
+    0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut, TopologyChange::applyAt
 constexpr std::uint32_t kCheckpointMagic = 0x334B4352;  // "RCK3": + ToolState::graspForce and released
 
 }  // namespace
@@ -287,8 +287,8 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
     o.v3(c.restOfSweep->first);
     o.v3(c.restOfSweep->second);
   }
-  o.pod(static_cast<std::uint8_t>(c.pendingCut.has_value()));
-  if (const auto& p = c.pendingCut) {
+  o.pod(static_cast<std::uint8_t>(c.pendingChange.has_value()));
+  if (const auto& p = c.pendingChange) {
     o.pod(pendingSetupHash);
     writeProgress(o, p->setup.cut);
     o.pod(static_cast<std::int64_t>(p->newNodes.size()));
@@ -296,8 +296,8 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
       for (int f : n.from) o.pod(static_cast<std::int32_t>(f));
       for (double w : n.weight) o.pod(w);
     }
-    o.pod(static_cast<std::int64_t>(p->cutLabels.size()));
-    for (int l : p->cutLabels) o.pod(static_cast<std::int32_t>(l));
+    o.pod(static_cast<std::int64_t>(p->labels.size()));
+    for (int l : p->labels) o.pod(static_cast<std::int32_t>(l));
     o.vec(p->factorAt);
     o.pod(static_cast<std::uint8_t>(p->clearProgress));
     o.pod(static_cast<std::int64_t>(p->applyAt));
@@ -307,7 +307,7 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
 }  // namespace detail
 
 std::string encodeCheckpointState(const simcore::Checkpoint& c) {
-  return detail::encodeCheckpoint(c, setupHash(c.setup), c.pendingCut ? setupHash(c.pendingCut->setup) : 0);
+  return detail::encodeCheckpoint(c, setupHash(c.setup), c.pendingChange ? setupHash(c.pendingChange->setup) : 0);
 }
 
 simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
@@ -375,7 +375,7 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
     c.restOfSweep = std::make_pair(from, r.v3());
   }
   if (r.pod<std::uint8_t>()) {
-    simcore::PendingCutInput p;
+    simcore::TopologyChange p;
     p.setup = setupOf(r.pod<std::uint64_t>());
     p.setup.cut = readProgress(r);
     p.newNodes.resize(r.count(4 * sizeof(std::int32_t) + 4 * sizeof(double)));
@@ -383,15 +383,15 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
       for (int& f : n.from) f = r.pod<std::int32_t>();
       for (double& w : n.weight) w = r.pod<double>();
     }
-    p.cutLabels.resize(r.count(sizeof(std::int32_t)));
-    for (int& l : p.cutLabels) l = r.pod<std::int32_t>();
+    p.labels.resize(r.count(sizeof(std::int32_t)));
+    for (int& l : p.labels) l = r.pod<std::int32_t>();
     p.factorAt = r.vec();
     p.clearProgress = r.pod<std::uint8_t>() != 0;
     if (magic != kCheckpointMagicV1) {
       p.applyAt = static_cast<long>(r.pod<std::int64_t>());
       if (p.applyAt < -1) throw std::runtime_error("a recorded checkpoint's cut under way is damaged");
     }
-    c.pendingCut = std::move(p);
+    c.pendingChange = std::move(p);
   }
   if (r.p != r.end) throw std::runtime_error("a recorded checkpoint has trailing bytes");
   if (s.v.size() != s.x.size() || (s.forcesValid && s.forces.size() != s.x.size()) ||
@@ -413,14 +413,14 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
       return w.a0.allFinite() && w.b0.allFinite() && w.a1.allFinite() && w.b1.allFinite();
     });
   };
-  ok = ok && sweepsFinite(c.setup.cut) && (!c.pendingCut || sweepsFinite(c.pendingCut->setup.cut));
+  ok = ok && sweepsFinite(c.setup.cut) && (!c.pendingChange || sweepsFinite(c.pendingChange->setup.cut));
   if (!ok || !s.x.allFinite() || !s.v.allFinite())
     throw std::runtime_error("a recorded checkpoint names nodes its body has not, or holds no number");
   if (!t.tip.allFinite() || !t.cutFrom.allFinite() || !t.force.allFinite() || !t.graspForce.allFinite() ||
       !t.stiffness.allFinite() || !std::isfinite(s.time) || t.contacts < 0 || t.pierced < 0 ||
       (c.restOfSweep && (!c.restOfSweep->first.allFinite() || !c.restOfSweep->second.allFinite())))
     throw std::runtime_error("a recorded checkpoint's instrument holds no number");
-  if (const auto& p = c.pendingCut) {
+  if (const auto& p = c.pendingChange) {
     // The cut body's new nodes are made from the body's present nodes; the cut body has both.
     const std::size_t m = p->setup.rest.empty() ? p->setup.mesh.points.size() : p->setup.rest.size();
     bool fits = m == n + p->newNodes.size() &&

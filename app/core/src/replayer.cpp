@@ -24,7 +24,7 @@ void Replayer::startAt(const simcore::Checkpoint* c) {
   } else {
     simcore::Checkpoint d = *c;
     d.setup = simcore::replaySetup(std::move(d.setup));
-    if (d.pendingCut) d.pendingCut->setup = simcore::replaySetup(std::move(d.pendingCut->setup));
+    if (d.pendingChange) d.pendingChange->setup = simcore::replaySetup(std::move(d.pendingChange->setup));
     session_->discardPending();
     session_->restore(d);
   }

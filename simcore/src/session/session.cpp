@@ -180,9 +180,7 @@ void Session::updateToolConstraints() {
   body_->setToolConstraints(std::move(c));
 }
 
-void Session::updateSurfaceNodes() {
-  useContactSurface(contactSurface(body_->restPositions(), body_->tetrahedra()));
-}
+void Session::updateSurfaceNodes() { useContactSurface(contactSurface(body_->restPositions(), body_->tetrahedra())); }
 
 void Session::useContactSurface(ContactSurface c) {
   contact_ = std::move(c);
@@ -198,7 +196,7 @@ void Session::useContactSurface(ContactSurface c) {
 
 void Session::apply(const InputEvent& e, std::string& message) {
   // A cut being built elsewhere is applied before anything that rebuilds the body (the blade's own next cut: Scissors).
-  if (e.kind == InputKind::Parameter || e.kind == InputKind::Gravity) finishPendingCut(true, message);
+  if (e.kind == InputKind::Parameter || e.kind == InputKind::Gravity) finishPendingChange(true, message);
   switch (e.kind) {
     case InputKind::ToolPose:
       for (auto& i : instruments_) i->moved(e.position, tool_, *this, message);
@@ -263,19 +261,11 @@ void Session::apply(const InputEvent& e, std::string& message) {
     case InputKind::CutApplied:
       // Only replays post these: the live run applied its cut here. A cut with a latency is applied at its own step
       // (advance), the same in the replay; the event then names that one, already applied, not the next one.
-      if (pendingCut_ && pendingCut_->applyAt < 0) finishPendingCut(true, message);
+      if (pending_ && pending_->applyAt < 0) finishPendingChange(true, message);
       break;
   }
   if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw)
     updateToolConstraints();  // rebuildBody did it for the others
-}
-
-void Session::retire(std::unique_ptr<DeformableBody> body) {
-  for (auto it = retired_.begin(); it != retired_.end();)
-    it = it->wait_for(std::chrono::seconds(0)) == std::future_status::ready ? retired_.erase(it) : it + 1;
-  if (!body) return;
-  std::shared_ptr<DeformableBody> old(std::move(body));
-  retired_.push_back(std::async(std::launch::async, [old]() mutable { old.reset(); }));
 }
 
 StepReport Session::advance() {
@@ -297,9 +287,9 @@ StepReport Session::advance() {
   // A cut whose body was built on another thread replaces the body as soon as it is ready (recorded, so that
   // a replay applies it at the same boundary; the replay itself waits for the recording's word).
   const bool cutDue =
-      pendingCut_ && (pendingCut_->applyAt >= 0 ? steps_ >= pendingCut_->applyAt
-                                                : setup_.settings.factorRefresh == FactorRefresh::Asynchronous);
-  if (cutDue && finishPendingCut(pendingCut_->applyAt >= 0, message)) {
+      pending_ && (pending_->applyAt >= 0 ? steps_ >= pending_->applyAt
+                                          : setup_.settings.factorRefresh == FactorRefresh::Asynchronous);
+  if (cutDue && finishPendingChange(pending_->applyAt >= 0, message)) {
     InputEvent c;
     c.kind = InputKind::CutApplied;
     c.step = steps_;
@@ -311,7 +301,7 @@ StepReport Session::advance() {
     apply(e, message);
     recorded_.push_back(e);
   }
-  if (stroke_.open && !tool_.cutting && !pendingCut_ && !restOfSweep_) finishStroke(message);
+  if (stroke_.open && !tool_.cutting && !pending_ && !restOfSweep_) finishStroke(message);
   if (tool_.present && setup_.tools.toolRadius > 0)
     updateToolConstraints();  // contacts move with the tissue: detected at every step
   const StepReport rep = body_->step(state_);
@@ -359,13 +349,11 @@ StepReport Session::advance() {
 
 Checkpoint Session::checkpointLocked() const {
   Checkpoint c{steps_, setup_, state_, tool_, std::nullopt, restOfSweep_};
-  if (pendingCut_) c.pendingCut = static_cast<const PendingCutInput&>(*pendingCut_);
+  if (pending_) c.pendingChange = static_cast<const TopologyChange&>(*pending_);
   return c;
 }
 
-Checkpoint StepRecord::checkpoint() const {
-  return session->checkpointLocked();
-}
+Checkpoint StepRecord::checkpoint() const { return session->checkpointLocked(); }
 
 void Session::setStepHook(std::function<void(const StepRecord&)> f) {
   std::lock_guard<std::mutex> lock(stepMutex_);
@@ -424,12 +412,7 @@ Checkpoint Session::checkpoint() const {
 
 void Session::restore(const Checkpoint& c) {
   std::lock_guard<std::mutex> lock(stepMutex_);
-  if (pendingCut_) {  // a cut of the state left behind: not waited for (it finishes on its own thread)
-    for (auto it = abandonedCuts_.begin(); it != abandonedCuts_.end();)
-      it = it->wait_for(std::chrono::seconds(0)) == std::future_status::ready ? abandonedCuts_.erase(it) : it + 1;
-    abandonedCuts_.push_back(std::move(pendingCut_->built));
-    pendingCut_.reset();
-  }
+  dropPendingChange(false);  // a change of the state left behind finishes on its own thread
   restOfSweep_ = c.restOfSweep;
   stroke_ = {};
   setup_ = c.setup;
@@ -442,11 +425,11 @@ void Session::restore(const Checkpoint& c) {
   updateSurfaceNodes();
   tool_ = c.tool;
   steps_ = c.step;
-  if (c.pendingCut) {  // the cut under way is built again from the same inputs (the same body)
-    PendingCut p;
-    static_cast<PendingCutInput&>(p) = *c.pendingCut;
-    launchCutBuild(p);
-    pendingCut_ = std::move(p);
+  if (c.pendingChange) {  // the change under way is built again from the same inputs (the same body)
+    PendingChange p;
+    static_cast<TopologyChange&>(p) = *c.pendingChange;
+    launchBuild(p);
+    pending_ = std::move(p);
   }
   updateToolConstraints();
   StepReport rest;
@@ -489,10 +472,7 @@ void Session::run() {
     }
     if (doReset) {
       std::lock_guard<std::mutex> stepLock(stepMutex_);
-      if (pendingCut_) {
-        pendingCut_->built.wait();
-        pendingCut_.reset();
-      }
+      dropPendingChange(true);
       restOfSweep_.reset();
       stroke_ = {};
       if (setup_.topology != uncut_.topology) {

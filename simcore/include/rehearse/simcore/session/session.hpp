@@ -114,14 +114,16 @@ struct Snapshot {
   std::shared_ptr<const CutSurface> surface;
 };
 
-/// A cut computed and not applied yet (asynchronous refresh: its body is being built on another thread): what
-/// the build starts from, so that a session restored from a checkpoint builds the same body again.
-struct PendingCutInput {
-  BodySetup setup;                ///< the cut body's setup (cut mesh, topology + 1, the cut's progress)
-  std::vector<CutNode> newNodes;  ///< how the state extends onto the new nodes
-  std::vector<int> cutLabels;     ///< element labels the cut went through
-  Eigen::VectorXd factorAt;       ///< the positions its first factor is built at
-  bool clearProgress = false;     ///< the blade was withdrawn meanwhile
+/// A topology change (a cut today; tearing and burning next) as its module computed it: the new body's setup and
+/// how the state extends onto the new nodes. The session builds the new body (at once, or on the second thread while
+/// the old one steps on) and swaps it in at a step boundary, carrying the state across (topology.cpp). A checkpoint
+/// keeps a change still under way, so that a session restored from it builds the same body again.
+struct TopologyChange {
+  BodySetup setup;                ///< the new body's setup (new mesh, topology + 1, the change's progress)
+  std::vector<CutNode> newNodes;  ///< how the state extends onto the new nodes (each interpolated from old ones)
+  std::vector<int> labels;        ///< element labels the change went through (a cut: its events, the vessels it cut)
+  Eigen::VectorXd factorAt;       ///< the positions the new body's first factor is built at (asynchronous build)
+  bool clearProgress = false;     ///< the instrument was withdrawn meanwhile: the new body starts without progress
   long applyAt = -1;  ///< the step boundary it replaces the body at (ToolSettings::cutLatencySteps); -1: when ready
 };
 
@@ -132,7 +134,7 @@ struct Checkpoint {
   BodySetup setup;
   SimulationState state;
   ToolState tool;
-  std::optional<PendingCutInput> pendingCut;
+  std::optional<TopologyChange> pendingChange;
   std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> restOfSweep;
 };
 
@@ -194,7 +196,7 @@ class Session : private InstrumentHost {
   void discardPending();
   /// A headless run's end: the cut under way (its body being built) is applied now, waiting for it, so that the run's
   /// last mesh has every cut the blade made. True when one was applied.
-  bool applyPendingCut();
+  bool applyPendingChange();
 
   /// The deterministic core: applies the events due at this boundary, then one step, then publishes.
   /// The thread calls it; tests call it directly (never both at once: it locks).
@@ -223,8 +225,6 @@ class Session : private InstrumentHost {
   void apply(const InputEvent& e, std::string& message);
   void rebuildBody();
   void updateToolConstraints();
-  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
-           std::string& message) override;  ///< true when the tissue changed (or will)
   // InstrumentHost: what an instrument may ask of the session.
   const Eigen::VectorXd& positions() const override { return state_.x; }
   const std::vector<char>& fixedMask() const override { return body_->fixedMask(); }
@@ -232,33 +232,51 @@ class Session : private InstrumentHost {
   double meanEdge() const override { return meanEdge_; }
   void emitEvent(const std::string& event) override { events_.push_back(event); }
   void seedContactEasing() override { seedEasing_ = true; }
-  void finishTopologyChange(std::string& message) override { finishPendingCut(true, message); }
-  bool topologyChangeUnderWay() const override { return pendingCut_.has_value(); }
+  void finishTopologyChange(std::string& message) override { finishPendingChange(true, message); }
+  bool topologyChangeUnderWay() const override { return pending_.has_value(); }
+  bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+           std::string& message) override;  ///< true when the tissue changed (or will)
   void cutWhenIn(const Eigen::Vector3d& from, const Eigen::Vector3d& to) override {
     restOfSweep_ = std::make_pair(from, to);
   }
   void forgetCutProgress() override;
   void beginStroke() override;
   std::vector<std::unique_ptr<Instrument>> instruments_ = makeInstruments();
-  /// With the asynchronous refresh a cut's new body (model, first factorisation) is built on another thread
-  /// while the old body goes on stepping; it replaces the body at the first step boundary after it is ready,
-  /// the state then carried across from where the tissue is by then (the cut's interpolation of new nodes).
+
+  // Topology changes (topology.cpp), one mechanism whatever computed the new mesh (cutting.cpp: the blade's sweep):
+  // a request, the new body built at once or on another thread while the old body goes on stepping, and a swap at a
+  // step boundary (the first after it is ready, or the change's own applyAt), the state carried across from where
+  // the tissue is by then (the change's interpolation of new nodes).
   struct Built {
     std::unique_ptr<DeformableBody> body;
     std::shared_ptr<const CutSurface> surface;
     ContactSurface contact;
   };
-  struct PendingCut : PendingCutInput {
+  struct PendingChange : TopologyChange {
     std::future<Built> built;
   };
-  /// Starts building the cut body on another thread.
-  void launchCutBuild(PendingCut& p) const;
-  /// The rest of a sweep asked for while a cut was being built (the blade withdrawn meanwhile): cut when it is in.
-  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> restOfSweep_;
+  /// Applies `change` now (synchronous refresh without a latency), or starts building its body on another thread.
+  /// False, with `message`, when the new body could not be built (the old one stays).
+  bool changeTopology(TopologyChange change, std::string& message);
+  /// Starts building the change's body on another thread.
+  void launchBuild(PendingChange& p) const;
+  /// Swaps the pending change's body in when it is ready (or, with `wait`, after waiting); true when swapped.
+  bool finishPendingChange(bool wait, std::string& message);
+  /// Drops the change under way (reset waits for its build, a restore leaves it to finish on its own thread).
+  void dropPendingChange(bool wait);
+  /// What every applied change does after the body changed: elements, surfaces, contact, then its events.
+  void topologyChanged(const std::vector<int>& labels, std::string& message);
+  std::optional<PendingChange> pending_;
+  std::vector<std::future<Built>> abandoned_;  ///< builds a restore left behind (waited for at the end)
   /// Old bodies being destroyed on another thread (an asynchronous refresh under way ends first).
   std::vector<std::future<void>> retired_;
   void retire(std::unique_ptr<DeformableBody> body);
-  std::optional<PendingCut> pendingCut_;
+
+  // The cut (cutting.cpp): what the blade's sweep asks of the cut module, and what a cut says.
+  /// The rest of a sweep asked for while a cut was being built (the blade withdrawn meanwhile): cut when it is in.
+  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> restOfSweep_;
+  /// After a swap: the rest of the sweep the blade finished while the change was being built.
+  void continueSweep(std::string& message);
   /// What one blade stroke (cut on to cut off, and the cuts still coming in after it) did, said when it is all in:
   /// whether the organ came apart, and what the stroke left uncut (inverted elements it crossed, a last sweep
   /// refused), so that "Cut" is never said over tissue that still joins. Not part of a checkpoint (it only words
@@ -271,11 +289,6 @@ class Session : private InstrumentHost {
   Stroke stroke_;
   /// The stroke's sentence once nothing of it is under way any more.
   void finishStroke(std::string& message);
-  std::vector<std::future<Built>> abandonedCuts_;  ///< builds of cuts a restore left behind (waited for at the end)
-  /// Applies the pending cut when its body is ready (or, with `wait`, after waiting); true when applied.
-  bool finishPendingCut(bool wait, std::string& message);
-  /// What every applied cut does after the body changed: topology, surfaces, contact, events.
-  void cutApplied(const std::vector<int>& cutLabels, std::string& message);
   /// A cut applied (either way): its events ("cut", "cut through label N", "vessel cut" once per vessel and stroke),
   /// and the new surface's triangles inside the shaft eased out from the next constraints on.
   void cutEvents(const std::vector<int>& cutLabels, std::string& message);

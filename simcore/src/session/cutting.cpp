@@ -1,0 +1,152 @@
+// The cut: what the blade's sweep asks of the cut module (cut.hpp computes the new mesh; the session's topology
+// mechanism, topology.cpp, builds and swaps the body), and what a cut says: its events, the vessels it cut, and the
+// stroke's sentence once all of it is in (whether the organ came apart).
+#include <rehearse/simcore/session/session.hpp>
+
+#include <algorithm>
+#include <numeric>
+
+namespace rehearse::simcore {
+
+bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message) {
+  // One change at a time: while the last one's body is being built the sweep grows (the blade's start stays).
+  if (pending_) return false;
+  // The blade: from the tip back along the shaft towards the trocar; its sweep between the two poses is
+  // planar (both shafts pass through the trocar).
+  const Eigen::Vector3d trocar = *setup_.tools.trocar;
+  auto bladeEnd = [&](const Eigen::Vector3d& tip) {
+    const Eigen::Vector3d d = trocar - tip;
+    const double L = std::min(setup_.tools.bladeLength, 0.999 * d.norm());
+    return d.norm() > 0 ? Eigen::Vector3d(tip + L * d.normalized()) : tip;
+  };
+  BladeSweep sweep{from, bladeEnd(from), to, bladeEnd(to)};
+  std::vector<Eigen::Vector3d> rest = body_->restPositions();
+  const std::size_t n = rest.size();
+  std::vector<Eigen::Vector3d> current(n);
+  for (std::size_t i = 0; i < n; ++i) current[i] = state_.x.segment<3>(3 * static_cast<Eigen::Index>(i));
+  std::vector<std::array<int, 4>> tets = body_->tetrahedra();
+  std::vector<int> labels = body_->labels();
+  CutProgress progress = setup_.cut;
+  const CutResult r = cutTetrahedra(rest, current, tets, labels, sweep, setup_.tools.cut, &progress);
+  if (!r.changed) {
+    if (r.status.rfind("The cut was refused", 0) == 0) message = stroke_.lastRefusal = r.status;
+    return false;
+  }
+  ++stroke_.updates;
+  stroke_.split += r.splitElements;
+  stroke_.separatedFaces += r.separatedFaces;
+  stroke_.skippedInverted += r.skippedInverted;
+  stroke_.lastRefusal.clear();
+  ++constructions_.cutMeshes;
+  // The request: the cut mesh as the next body's setup, the cut's new nodes held where their originals were.
+  TopologyChange change;
+  change.setup = setup_;
+  BodySetup& next = change.setup;
+  next.mesh.points = rest;
+  next.mesh.unitToMetre = 1.0;
+  next.mesh.triangles.clear();
+  next.mesh.triangleLabels.clear();
+  next.mesh.tets = std::move(tets);
+  next.mesh.tetLabels = std::move(labels);
+  next.rest.clear();
+  next.cut = std::move(progress);
+  const auto& fixed = body_->fixedMask();
+  for (std::size_t k = 0; k < r.duplicateOf.size(); ++k)
+    if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])])
+      next.fixedNodes.push_back(static_cast<int>(n + k));
+  ++next.topology;
+  change.newNodes = r.newNodes;
+  change.labels = r.cutLabels;
+  const int latency = setup_.tools.cutLatencySteps;
+  change.applyAt = latency >= 0 ? steps_ + latency : -1;
+  if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) {
+    change.factorAt = state_.x;
+    extendByCut(change.factorAt, r.newNodes);
+  }
+  if (changeTopology(std::move(change), message)) return true;
+  message = "The cut was refused: " + message;
+  return false;
+}
+
+void Session::continueSweep(std::string& message) {
+  // The rest of a sweep the blade finished while the last cut was being built.
+  if (!restOfSweep_) return;
+  const auto [from, to] = *restOfSweep_;
+  restOfSweep_.reset();
+  if (cut(from, to, message) && pending_)
+    pending_->clearProgress = true;
+  else
+    setup_.cut.clear();
+}
+
+void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message) {
+  seedEasing_ = true;  // the surface is new: what lies inside the shaft now is eased out at the next constraints
+  events_.push_back("cut");
+  for (int label : cutLabels) events_.push_back("cut through label " + std::to_string(label));
+  // A vessel (a label the organ's mesh names as one, Mesh::labelIsVessel) cut by this stroke is one event, however many
+  // updates the cut takes.
+  for (int label : cutLabels)
+    if (setup_.mesh.labelIsVessel(label) &&
+        std::find(tool_.vesselsCut.begin(), tool_.vesselsCut.end(), label) == tool_.vesselsCut.end()) {
+      tool_.vesselsCut.push_back(label);
+      events_.push_back("vessel cut");
+      message = "A vessel (" + setup_.mesh.labelName(label) + ", label " + std::to_string(label) + ") was cut.";
+    }
+}
+
+std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes) {
+  std::vector<int> parent(nodes);
+  std::iota(parent.begin(), parent.end(), 0);
+  auto find = [&](int i) {
+    while (parent[static_cast<std::size_t>(i)] != i)
+      i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+    return i;
+  };
+  for (const auto& t : tets)
+    for (int k = 1; k < 4; ++k) parent[static_cast<std::size_t>(find(t[static_cast<std::size_t>(k)]))] = find(t[0]);
+  std::vector<char> root(nodes, 0);
+  std::size_t pieces = 0;
+  for (const auto& t : tets)
+    if (const int r = find(t[0]); !root[static_cast<std::size_t>(r)]) root[static_cast<std::size_t>(r)] = 1, ++pieces;
+  return pieces;
+}
+
+void Session::finishStroke(std::string& message) {
+  const Stroke s = stroke_;
+  stroke_ = {};
+  if (s.updates == 0 && s.lastRefusal.empty()) return;  // the blade crossed nothing: nothing to say
+  const std::size_t pieces = connectedPieces(body_->tetrahedra(), body_->nodeCount());
+  std::string m;
+  if (s.updates == 0) {
+    m = "Nothing was cut: " + s.lastRefusal;
+  } else {
+    m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) +
+        " element(s) split in " + std::to_string(s.updates) + " update(s); ";
+    m += pieces > s.piecesBefore
+             ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
+                   " before)."
+             : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
+                   " (the cut did not go through).";
+    if (s.skippedInverted > 0)
+      m += " " + std::to_string(s.skippedInverted) +
+           " crossed element(s) were inverted and not cut: tissue still joins there.";
+    if (!s.lastRefusal.empty()) m += " The stroke's last sweep was not cut: " + s.lastRefusal;
+  }
+  if (!message.empty()) message += " ";
+  message += m;
+}
+
+void Session::forgetCutProgress() {
+  if (pending_)
+    pending_->clearProgress = true;
+  else
+    setup_.cut.clear();
+}
+
+void Session::beginStroke() {
+  stroke_ = {};
+  stroke_.open = true;
+  stroke_.piecesBefore = connectedPieces(body_->tetrahedra(), body_->nodeCount());
+}
+
+}  // namespace rehearse::simcore
