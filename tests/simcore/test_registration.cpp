@@ -6,6 +6,7 @@
 #include "icosphere.hpp"
 #include "calculix.hpp"
 #include "realorgan.hpp"
+#include "registration_cases.hpp"
 #include <rehearse/app/elasticfit.hpp>
 
 #include "phantom/phantom.hpp"
@@ -30,79 +31,8 @@
 
 #include <QStandardPaths>
 
-
 using namespace rehearse;
 using namespace rehearse::simcore;
-
-namespace {
-// The organ's outline in the frame: the outer border of its rendered mask (pixel centres).
-std::vector<std::vector<Eigen::Vector2d>> outline(const phantom::Phantom& c, const Pose& pose, const SurfaceView& surface) {
-  return imaging::maskOutlines(imaging::renderMask(c.camera, pose, surface));
-}
-
-// The organ deformed by 3 g sideways in the image (a load the registration does not know), static.
-struct Deformed {
-  Eigen::VectorXd x;           // nodes, model frame
-  std::vector<double> vertices;  // the same, for a SurfaceView
-  std::vector<std::vector<Eigen::Vector2d>> contour;  // its outline at the true pose
-};
-Deformed deformSideways(const phantom::Phantom& c, const FemModel& m) {
-  SimulationSettings load;
-  load.gravity = c.truePose.R.transpose() * Eigen::Vector3d(9.81 * 3, 0, 0);
-  Integrator in(m, c.attachments, load);
-  auto truth = in.initialState();
-  if (!in.solveStatic(truth).ok) return {};
-  Deformed d{truth.x, std::vector<double>(truth.x.data(), truth.x.data() + truth.x.size()), {}};
-  SurfaceView deformed = c.surfaceView();
-  deformed.vertices = d.vertices.data();
-  d.contour = outline(c, c.truePose, deformed);
-  return d;
-}
-
-FemModel organModel(const phantom::Phantom& c) {
-  return FemModel::build(c.volume, {{2, {MaterialModel::Corotational, 620e3, 0.45, 1000}}}, {MaterialModel::Corotational, 27e3, 0.4, 1000});
-}
-
-// A ridge-like curve down the organ's visible side, across the sideways sag of deformSideways (a curve
-// along the sag would only slide along itself): in 25 px rows across its middle columns at the true pose,
-// the surface node nearest the camera; the image curve is where those nodes project in `truth`.
-AnatomicalCurve frontRidge(const phantom::Phantom& c, const FemModel& m, const Eigen::VectorXd& truth) {
-  const Pinhole cam = c.camera.pinhole();
-  std::vector<char> onSurface(m.nodeCount(), 0);
-  for (const auto& t : c.surface)
-    for (int v : t) onSurface[v] = 1;
-  double columnSum = 0;
-  int count = 0;
-  for (std::size_t i = 0; i < m.nodeCount(); ++i)
-    if (onSurface[i]) {
-      columnSum += cam.project(c.truePose.apply(m.rest[i])).x();
-      ++count;
-    }
-  const double column = columnSum / count;
-  std::map<int, std::pair<double, int>> rows;  // row -> (depth, node)
-  for (std::size_t i = 0; i < m.nodeCount(); ++i) {
-    if (!onSurface[i]) continue;
-    const Eigen::Vector3d q = c.truePose.apply(m.rest[i]);
-    const Eigen::Vector2d uv = cam.project(q);
-    if (std::abs(uv.x() - column) > 30) continue;
-    auto [it, added] = rows.try_emplace(static_cast<int>(uv.y() / 25), q.z(), static_cast<int>(i));
-    if (!added && q.z() < it->second.first) it->second = {q.z(), static_cast<int>(i)};
-  }
-  AnatomicalCurve ridge;
-  for (const auto& [row, dn] : rows) {
-    ridge.nodes.push_back(dn.second);
-    ridge.image.push_back(cam.project(c.truePose.apply(truth.segment<3>(3 * dn.second))));
-  }
-  return ridge;
-}
-
-Pose offset(const Pose& p, const Eigen::Vector3d& move, const Eigen::Vector3d& axis, double degrees, const Eigen::Vector3d& centre) {
-  // Rotation about the camera axis `axis` through the organ's centre (camera frame), then a translation.
-  Pose q = p.turnedAbout(Eigen::AngleAxisd(degrees * M_PI / 180, axis.normalized()).toRotationMatrix(), p.apply(centre));
-  q.t += move;
-  return q;
-}
-}  // namespace
 
 class TestRegistration : public QObject {
   Q_OBJECT
@@ -166,8 +96,9 @@ class TestRegistration : public QObject {
     L->truth = testing::broadsideView(fine, L->cam);
     const double heldDepth = testing::farthestShareDepth(fine, L->truth, 0.12);
     L->gCamera = 9.81 * Eigen::Vector3d(0.2, 1.0, 0.3).normalized();
-    const Eigen::VectorXd u = runCalculixStatic(fine, {}, {15e3, 0.45, 1060, true}, L->truth.R.transpose() * L->gCamera, true,
-                                                testing::surfaceNodesBeyond(fine, L->truth, heldDepth), "bodyparts3d-sag");
+    const Eigen::VectorXd u =
+        runCalculixStatic(fine, {}, {15e3, 0.45, 1060, true}, L->truth.R.transpose() * L->gCamera, true,
+                          testing::surfaceNodesBeyond(fine, L->truth, heldDepth), "bodyparts3d-sag");
     if (u.size() == 0) {
       why = QStringLiteral("ccx failed");
       return nullptr;
@@ -180,7 +111,8 @@ class TestRegistration : public QObject {
     const auto tris = boundaryTriangles(fine, false);
     std::vector<double> verts;
     for (const auto& p : deformed) verts.insert(verts.end(), {p.x(), p.y(), p.z()});
-    const auto outlines = imaging::maskOutlines(imaging::renderMask(L->cam, L->truth, {verts.data(), deformed.size(), tris.front().data(), tris.size()}));
+    const auto outlines = imaging::maskOutlines(
+        imaging::renderMask(L->cam, L->truth, {verts.data(), deformed.size(), tris.front().data(), tris.size()}));
     if (outlines.empty()) {
       why = QStringLiteral("the sagged liver has no outline in the view");
       return nullptr;
@@ -223,7 +155,8 @@ class TestRegistration : public QObject {
     const auto contour = outline(c_, c_.truePose, c_.surfaceView());
     QVERIFY(!contour.empty());
     const Residual2D r = contourResidual(contour, chords);
-    qInfo("%zu silhouette edges; rendered outline to the chords: mean %.2f px, RMS %.2f px, max %.2f px", sil.size(), r.mean, r.rms, r.hausdorff);
+    qInfo("%zu silhouette edges; rendered outline to the chords: mean %.2f px, RMS %.2f px, max %.2f px", sil.size(),
+          r.mean, r.rms, r.hausdorff);
     QVERIFY(r.mean < 0.5);
     QVERIFY(r.hausdorff < 3.0);
     phantom::PhantomOptions fineOptions;
@@ -233,8 +166,12 @@ class TestRegistration : public QObject {
     const Residual2D toChords = contourResidual(fineOutline, chords), toCurved = contourResidual(fineOutline, sil);
     double bulge = 0;
     for (const auto& e : sil) bulge += (e.pm - 0.5 * (e.pa + e.pb)).norm() / sil.size();
-    qInfo("outline of the %zu-tet mesh to the %zu-tet mesh's chords: mean %.2f px, RMS %.2f px; to its bent edges: mean %.2f px, RMS %.2f px "
-          "(mean bulge %.2f px)", fine.volume.tets.size(), c_.volume.tets.size(), toChords.mean, toChords.rms, toCurved.mean, toCurved.rms, bulge);
+    qInfo(
+        "outline of the %zu-tet mesh to the %zu-tet mesh's chords: mean %.2f px, RMS %.2f px; to its bent edges: mean "
+        "%.2f px, RMS %.2f px "
+        "(mean bulge %.2f px)",
+        fine.volume.tets.size(), c_.volume.tets.size(), toChords.mean, toChords.rms, toCurved.mean, toCurved.rms,
+        bulge);
     QVERIFY(bulge > 0.2);
     QVERIFY(toCurved.mean < 0.8 * toChords.mean);
   }
@@ -261,8 +198,10 @@ class TestRegistration : public QObject {
       chord += std::abs((0.5 * (e.pa + e.pb) - centre).norm() - rho) / sil.size();
       bent += std::abs((e.pm - centre).norm() - rho) / sil.size();
     }
-    qInfo("%zu silhouette edges of a %zu-triangle icosphere; circle of %.1f px: the chords' middles %.2f px from it, the bent edges' %.2f px",
-          sil.size(), sphere.triangles.size(), rho, chord, bent);
+    qInfo(
+        "%zu silhouette edges of a %zu-triangle icosphere; circle of %.1f px: the chords' middles %.2f px from it, the "
+        "bent edges' %.2f px",
+        sil.size(), sphere.triangles.size(), rho, chord, bent);
     QVERIFY(chord > 1.0);
     QVERIFY(bent < 0.25 * chord);
   }
@@ -275,7 +214,8 @@ class TestRegistration : public QObject {
     const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, c_.camera.pinhole());
     QVERIFY2(res.ok, res.status.c_str());
     const double moved = (res.x - m.restVector()).cwiseAbs().maxCoeff();
-    qInfo("%s; largest node correction %.3f mm in %zu iterations", res.status.c_str(), 1e3 * moved, res.iterations.size());
+    qInfo("%s; largest node correction %.3f mm in %zu iterations", res.status.c_str(), 1e3 * moved,
+          res.iterations.size());
     QVERIFY(moved < 1e-3);  // under a millimetre: the outline is pixel-quantised
     QVERIFY(res.iterations.back().residual.mean < 1.0);
   }
@@ -283,7 +223,8 @@ class TestRegistration : public QObject {
   void rigidOffsetIsRecovered() {
     const FemModel m = organModel(c_);
     const auto contour = outline(c_, c_.truePose, c_.surfaceView());
-    const Pose start = offset(c_.truePose, Eigen::Vector3d(0.006, -0.004, 0.0), Eigen::Vector3d::UnitZ(), 4.0, c_.centreOfGravity());
+    const Pose start =
+        offset(c_.truePose, Eigen::Vector3d(0.006, -0.004, 0.0), Eigen::Vector3d::UnitZ(), 4.0, c_.centreOfGravity());
     RegistrationOptions o;
     o.elastic = false;
     o.rigidIterations = 30;
@@ -309,7 +250,8 @@ class TestRegistration : public QObject {
     const auto contour = outline(c_, c_.truePose, c_.surfaceView());
     // 3 cm right, 2 cm deeper and turned 40 degrees about the camera's x axis: one ICP iteration leaves the
     // organ about 2.5 mm off (about 2 px); the whole rigid stage reaches 0.7 mm from it.
-    const Pose start = offset(c_.truePose, Eigen::Vector3d(0.03, 0.0, 0.02), Eigen::Vector3d::UnitX(), 40.0, c_.centreOfGravity());
+    const Pose start =
+        offset(c_.truePose, Eigen::Vector3d(0.03, 0.0, 0.02), Eigen::Vector3d::UnitX(), 40.0, c_.centreOfGravity());
     RegistrationOptions o;
     o.elastic = false;
     o.rigidIterations = 1;
@@ -318,7 +260,8 @@ class TestRegistration : public QObject {
     s.gravity.setZero();
     RegistrationOptions without = o;
     without.adoptRounds = 0;
-    const auto stopped = registerToContour(m, c_.attachments, s, c_.surface, contour, start, c_.camera.pinhole(), without);
+    const auto stopped =
+        registerToContour(m, c_.attachments, s, c_.surface, contour, start, c_.camera.pinhole(), without);
     const auto adopted = registerToContour(m, c_.attachments, s, c_.surface, contour, start, c_.camera.pinhole(), o);
     QVERIFY2(stopped.ok && adopted.ok, (stopped.status + " / " + adopted.status).c_str());
     auto poseError = [&](const Pose& p) {
@@ -327,8 +270,8 @@ class TestRegistration : public QObject {
       return 1e3 * sum / static_cast<double>(c_.volume.points.size());
     };
     const double before = stopped.iterations.back().score(), after = adopted.iterations.back().score();
-    qInfo("stopped early: %.2f px, organ %.2f mm from the truth; with adoption (%d): %.2f px, %.2f mm", before, poseError(stopped.pose), adopted.adopted,
-          after, poseError(adopted.pose));
+    qInfo("stopped early: %.2f px, organ %.2f mm from the truth; with adoption (%d): %.2f px, %.2f mm", before,
+          poseError(stopped.pose), adopted.adopted, after, poseError(adopted.pose));
     QCOMPARE(stopped.adopted, 0);
     QVERIFY(adopted.adopted >= 1);
     QVERIFY(after < 0.85 * before);
@@ -336,23 +279,25 @@ class TestRegistration : public QObject {
     QVERIFY(poseError(adopted.pose) < 2.0);
   }
 
-  // The elastic deformation recovered, against ground truth that is not our model: the phantom meshed again 2.5x finer, sagged 3 g sideways in the
-  // image on its ligaments by CalculiX (Neo-Hookean, vessels 23x stiffer), its outline rendered at the true
-  // pose as the contour. The fit (our co-rotational model on the coarse mesh, from the rest shape) must
-  // bring the organ's visible surface within a stated distance of the truth, interpolated at our nodes.
+  // The elastic deformation recovered, against ground truth that is not our model: the phantom meshed again 2.5x finer,
+  // sagged 3 g sideways in the image on its ligaments by CalculiX (Neo-Hookean, vessels 23x stiffer), its outline
+  // rendered at the true pose as the contour. The fit (our co-rotational model on the coarse mesh, from the rest shape)
+  // must bring the organ's visible surface within a stated distance of the truth, interpolated at our nodes.
   void calculixSagIsRecovered() {
-    if (QStandardPaths::findExecutable("ccx").isEmpty()) QFAIL("CalculiX (ccx) is not installed; scripts/install-deps.sh installs calculix-ccx");
+    if (QStandardPaths::findExecutable("ccx").isEmpty())
+      QFAIL("CalculiX (ccx) is not installed; scripts/install-deps.sh installs calculix-ccx");
     phantom::PhantomOptions po;
     po.targetTets = 10000;
     const phantom::Phantom fine = phantom::makePhantom(po);
     QVERIFY(fine.volume.tets.size() > 2 * c_.volume.tets.size());
     const Eigen::Vector3d g = c_.truePose.R.transpose() * Eigen::Vector3d(3 * 9.81, 0, 0);
-    const Eigen::VectorXd u = runCalculixStatic(fine.volume, {{phantom::kVesselLabel, {620e3, 0.45, 1000, true}}}, {27e3, 0.4, 1000, true}, g,
-                                                true, fine.attachments, "phantom-sag");
+    const Eigen::VectorXd u = runCalculixStatic(fine.volume, {{phantom::kVesselLabel, {620e3, 0.45, 1000, true}}},
+                                                {27e3, 0.4, 1000, true}, g, true, fine.attachments, "phantom-sag");
     QVERIFY2(u.size() > 0, "ccx failed");
     std::vector<double> deformed(3 * fine.volume.points.size());
     for (std::size_t i = 0; i < fine.volume.points.size(); ++i)
-      for (int k = 0; k < 3; ++k) deformed[3 * i + k] = fine.volume.points[i][k] + u[3 * static_cast<Eigen::Index>(i) + k];
+      for (int k = 0; k < 3; ++k)
+        deformed[3 * i + k] = fine.volume.points[i][k] + u[3 * static_cast<Eigen::Index>(i) + k];
     SurfaceView fineDeformed = fine.surfaceView();
     fineDeformed.vertices = deformed.data();
     const auto contour = outline(fine, fine.truePose, fineDeformed);
@@ -382,7 +327,8 @@ class TestRegistration : public QObject {
         bestInside = inside;
         best.setZero();
         for (int k = 0; k < 4; ++k) best += std::clamp(w[k], 0.0, 1.0) * u.segment<3>(3 * t[k]);
-        best /= std::clamp(w[0], 0.0, 1.0) + std::clamp(w[1], 0.0, 1.0) + std::clamp(w[2], 0.0, 1.0) + std::clamp(w[3], 0.0, 1.0);
+        best /= std::clamp(w[0], 0.0, 1.0) + std::clamp(w[1], 0.0, 1.0) + std::clamp(w[2], 0.0, 1.0) +
+                std::clamp(w[3], 0.0, 1.0);
       }
       truth[v] = p + best;
     }
@@ -399,7 +345,8 @@ class TestRegistration : public QObject {
     QVERIFY(visible.size() > 100);
     // The error in the camera frame: across the view (what a silhouette shows) and along it (depth).
     // In the camera frame: the fit may have moved the pose too (its rigid pre-pass).
-    auto meanError = [&](const Eigen::VectorXd& x, const std::vector<int>& which, int part = 0, const Pose* pose = nullptr) {
+    auto meanError = [&](const Eigen::VectorXd& x, const std::vector<int>& which, int part = 0,
+                         const Pose* pose = nullptr) {
       const Pose& at = pose ? *pose : c_.truePose;
       double e = 0;
       for (int v : which) {
@@ -417,12 +364,16 @@ class TestRegistration : public QObject {
     const Eigen::VectorXd rest = m.restVector();
     const double visibleBefore = meanError(rest, visible), visibleAfter = meanError(res.x, visible, 0, &res.pose);
     const double allBefore = meanError(rest, nodes), allAfter = meanError(res.x, nodes, 0, &res.pose);
-    qInfo("CalculiX sag (%zu fine tets, largest %.1f mm) fitted on %zu tets: %s; visible surface %.2f -> %.2f mm, whole surface %.2f -> %.2f mm; "
-          "2D %.2f -> %.2f px",
-          fine.volume.tets.size(), 1e3 * sag, c_.volume.tets.size(), res.status.c_str(), 1e3 * visibleBefore, 1e3 * visibleAfter,
-          1e3 * allBefore, 1e3 * allAfter, res.iterations.front().residual.mean, res.iterations.back().residual.mean);
-    qInfo("  visible surface across the view %.2f -> %.2f mm, in depth %.2f -> %.2f mm", 1e3 * meanError(rest, visible, 1),
-          1e3 * meanError(res.x, visible, 1, &res.pose), 1e3 * meanError(rest, visible, 2), 1e3 * meanError(res.x, visible, 2, &res.pose));
+    qInfo(
+        "CalculiX sag (%zu fine tets, largest %.1f mm) fitted on %zu tets: %s; visible surface %.2f -> %.2f mm, whole "
+        "surface %.2f -> %.2f mm; "
+        "2D %.2f -> %.2f px",
+        fine.volume.tets.size(), 1e3 * sag, c_.volume.tets.size(), res.status.c_str(), 1e3 * visibleBefore,
+        1e3 * visibleAfter, 1e3 * allBefore, 1e3 * allAfter, res.iterations.front().residual.mean,
+        res.iterations.back().residual.mean);
+    qInfo("  visible surface across the view %.2f -> %.2f mm, in depth %.2f -> %.2f mm",
+          1e3 * meanError(rest, visible, 1), 1e3 * meanError(res.x, visible, 1, &res.pose),
+          1e3 * meanError(rest, visible, 2), 1e3 * meanError(res.x, visible, 2, &res.pose));
     qInfo("  pose moved by %.2f mm", 1e3 * (res.pose.t - c_.truePose.t).norm());
     QVERIFY(sag > 0.008);  // a real sag to recover
     // Measured 12.5 -> 6.6 mm (visible), 9.7 -> 5.2 mm (whole surface), 18.6 -> 0.8 px: a silhouette pins
@@ -431,7 +382,6 @@ class TestRegistration : public QObject {
     QVERIFY(visibleAfter < 0.6 * visibleBefore);
     QVERIFY(allAfter < 0.7 * allBefore);
     QVERIFY(res.iterations.back().residual.mean < 1.5);
-
   }
 
   // The sag estimated with the pose (issue 13), on a real organ against CalculiX: the BodyParts3D liver
@@ -460,10 +410,14 @@ class TestRegistration : public QObject {
     RegistrationResult undeformed;
     undeformed.x = L->model.restVector();
     undeformed.pose = L->truth;
-    qInfo("BodyParts3D liver (%zu tets for CalculiX, %zu for the fit), sagged %.1f mm: undeformed at the true pose %.2f mm; fit with the sag %.2f mm "
-          "(%s; load %.2f %.2f %.2f m/s^2 in the camera frame, %.0f degrees from CalculiX's), with the pose alone %.2f mm",
-          L->fineTets, organ->volume.tets.size(), 1e3 * L->sag, 1e3 * L->error(undeformed), 1e3 * L->error(withSag), withSag.status.c_str(), load.x(),
-          load.y(), load.z(), std::acos(std::clamp(cosine, -1.0, 1.0)) * 180 / M_PI, 1e3 * L->error(poseOnly));
+    qInfo(
+        "BodyParts3D liver (%zu tets for CalculiX, %zu for the fit), sagged %.1f mm: undeformed at the true pose %.2f "
+        "mm; fit with the sag %.2f mm "
+        "(%s; load %.2f %.2f %.2f m/s^2 in the camera frame, %.0f degrees from CalculiX's), with the pose alone %.2f "
+        "mm",
+        L->fineTets, organ->volume.tets.size(), 1e3 * L->sag, 1e3 * L->error(undeformed), 1e3 * L->error(withSag),
+        withSag.status.c_str(), load.x(), load.y(), load.z(), std::acos(std::clamp(cosine, -1.0, 1.0)) * 180 / M_PI,
+        1e3 * L->error(poseOnly));
     QVERIFY(L->sag > 0.015);
     QCOMPARE(poseOnly.load.norm(), 0.0);  // not estimated: the given gravity (none)
     QVERIFY(cosine > 0.8);
@@ -477,8 +431,9 @@ class TestRegistration : public QObject {
     o.gravityCamera = L->gCamera;
     const auto toldDown = L->fit(L->outline, o);
     const Eigen::Vector3d toldLoad = toldDown.pose.R * toldDown.load;
-    qInfo("  told which way is down: with the sag %.2f mm (load %.2f %.2f %.2f m/s^2, %.0f degrees from CalculiX's)", 1e3 * L->error(toldDown),
-          toldLoad.x(), toldLoad.y(), toldLoad.z(), std::acos(std::clamp(toldLoad.normalized().dot(L->gCamera.normalized()), -1.0, 1.0)) * 180 / M_PI);
+    qInfo("  told which way is down: with the sag %.2f mm (load %.2f %.2f %.2f m/s^2, %.0f degrees from CalculiX's)",
+          1e3 * L->error(toldDown), toldLoad.x(), toldLoad.y(), toldLoad.z(),
+          std::acos(std::clamp(toldLoad.normalized().dot(L->gCamera.normalized()), -1.0, 1.0)) * 180 / M_PI);
     QVERIFY2(toldDown.ok && !toldDown.ambiguous && toldDown.sagDetermined, toldDown.status.c_str());
     // (Its size is not used: centring the sag on 1 g gave 2.48 mm here but put the kidney of
     // bench_registration_real, whose fit model sags ten times more per unit load than CalculiX's, 36 mm off.)
@@ -498,11 +453,17 @@ class TestRegistration : public QObject {
       MaterialParams parenchyma, vessels;
     };
     const Case cases[] = {
-        {"nu 0.499", {MaterialModel::Corotational, 27e3, 0.499, 1000}, {MaterialModel::Corotational, 620e3, 0.499, 1000}},
-        {"10 MPa / 10 GPa vessels", {MaterialModel::Corotational, 10e6, 0.45, 1000}, {MaterialModel::Corotational, 10e9, 0.45, 1000}},
+        {"nu 0.499",
+         {MaterialModel::Corotational, 27e3, 0.499, 1000},
+         {MaterialModel::Corotational, 620e3, 0.499, 1000}},
+        {"10 MPa / 10 GPa vessels",
+         {MaterialModel::Corotational, 10e6, 0.45, 1000},
+         {MaterialModel::Corotational, 10e9, 0.45, 1000}},
         {"100 Pa", {MaterialModel::Corotational, 100, 0.4, 1000}, {MaterialModel::Corotational, 1e5, 0.45, 1000}},
         {"stvk", {MaterialModel::StVK, 27e3, 0.4, 1000}, {MaterialModel::StVK, 620e3, 0.45, 1000}},
-        {"neohookean nu 0.49", {MaterialModel::NeoHookean, 27e3, 0.49, 1000}, {MaterialModel::NeoHookean, 620e3, 0.49, 1000}},
+        {"neohookean nu 0.49",
+         {MaterialModel::NeoHookean, 27e3, 0.49, 1000},
+         {MaterialModel::NeoHookean, 620e3, 0.49, 1000}},
     };
     SimulationSettings s;
     s.gravity.setZero();
@@ -510,16 +471,20 @@ class TestRegistration : public QObject {
       const FemModel m = FemModel::build(c_.volume, {{2, k.vessels}}, k.parenchyma);
       Pose start = c_.truePose;
       start.t.x() += 0.004;
-      const auto res = registerToContour(m, c_.attachments, s, c_.surface, truth.contour, start, c_.camera.pinhole(), {});
+      const auto res =
+          registerToContour(m, c_.attachments, s, c_.surface, truth.contour, start, c_.camera.pinhole(), {});
       QVERIFY2(res.x.allFinite(), k.name);
       QVERIFY2(res.pose.t.allFinite() && res.pose.R.allFinite(), k.name);
       QVERIFY2(!res.status.empty(), k.name);
       QVERIFY(!res.iterations.empty());
       const double first = res.iterations.front().residual.mean, last = res.iterations.back().residual.mean;
-      qInfo("%-24s %s: %.2f px -> %.2f px, %zu iterations, %.0f ms", k.name, res.status.c_str(), first, last, res.iterations.size(),
-            res.iterations.back().wallMs);
-      if (res.ok) QVERIFY2(last <= first, k.name);
-      else QVERIFY2(res.status.find("worse") != std::string::npos || res.status.find("not") != std::string::npos, res.status.c_str());
+      qInfo("%-24s %s: %.2f px -> %.2f px, %zu iterations, %.0f ms", k.name, res.status.c_str(), first, last,
+            res.iterations.size(), res.iterations.back().wallMs);
+      if (res.ok)
+        QVERIFY2(last <= first, k.name);
+      else
+        QVERIFY2(res.status.find("worse") != std::string::npos || res.status.find("not") != std::string::npos,
+                 res.status.c_str());
     }
   }
 
@@ -545,17 +510,21 @@ class TestRegistration : public QObject {
     RegistrationOptions o;
     o.curves = {ridge};
     o.onIteration = [](const RegistrationIteration& it, const Eigen::VectorXd&, const Pose&) {
-      qInfo("  iteration %d: %.2f px, curve %.2f px, %zu bound, %.0f ms", it.iteration, it.residual.mean, it.curves.mean, it.bound, it.wallMs);
+      qInfo("  iteration %d: %.2f px, curve %.2f px, %zu bound, %.0f ms", it.iteration, it.residual.mean,
+            it.curves.mean, it.bound, it.wallMs);
       return true;
     };
     const auto withCurve = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, cam, o);
     QVERIFY2(plain.ok && withCurve.ok, withCurve.status.c_str());
     const auto& first = withCurve.iterations.front();
     const auto& last = withCurve.iterations.back();
-    qInfo("ridge of %zu nodes: curve distance %.2f px -> %.2f px; node error %.2f mm (undeformed), %.2f mm (silhouette only), %.2f mm "
-          "(silhouette and ridge); %s; %.0f ms (silhouette only %.0f ms)", ridge.nodes.size(), first.curves.mean, last.curves.mean,
-          1e3 * meanError(m.restVector()), 1e3 * meanError(plain.x), 1e3 * meanError(withCurve.x), withCurve.status.c_str(), last.wallMs,
-          plain.iterations.back().wallMs);
+    qInfo(
+        "ridge of %zu nodes: curve distance %.2f px -> %.2f px; node error %.2f mm (undeformed), %.2f mm (silhouette "
+        "only), %.2f mm "
+        "(silhouette and ridge); %s; %.0f ms (silhouette only %.0f ms)",
+        ridge.nodes.size(), first.curves.mean, last.curves.mean, 1e3 * meanError(m.restVector()),
+        1e3 * meanError(plain.x), 1e3 * meanError(withCurve.x), withCurve.status.c_str(), last.wallMs,
+        plain.iterations.back().wallMs);
     QVERIFY(first.curves.points > 0);
     QVERIFY(last.curves.mean < 0.5 * first.curves.mean);
     QVERIFY(meanError(withCurve.x) < 0.9 * meanError(plain.x));
@@ -585,16 +554,18 @@ class TestRegistration : public QObject {
     SimulationSettings s;
     s.gravity.setZero();
     {
-      const auto res = registerToContour(organModel(c_), c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()), c_.truePose,
-                                         c_.camera.pinhole(), o);
+      const auto res =
+          registerToContour(organModel(c_), c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()),
+                            c_.truePose, c_.camera.pinhole(), o);
       qInfo("phantom: %s", res.status.c_str());
       QVERIFY2(res.ok && !res.ambiguous && res.alternatives.empty(), res.status.c_str());
     }
     const Eigen::Vector3d radii(0.05, 0.05, 0.025);
     TetrahedraliseOptions to;
     to.targetTets = 3000;
-    Mesh volume = tetrahedraliseImplicit([radii](const Eigen::Vector3d& p) { return p.cwiseQuotient(radii).norm() < 1 ? 1 : 0; },
-                                         Eigen::AlignedBox3d(-radii * 1.1, radii * 1.1), to, 4.0 / 3 * M_PI * radii.prod());
+    Mesh volume =
+        tetrahedraliseImplicit([radii](const Eigen::Vector3d& p) { return p.cwiseQuotient(radii).norm() < 1 ? 1 : 0; },
+                               Eigen::AlignedBox3d(-radii * 1.1, radii * 1.1), to, 4.0 / 3 * M_PI * radii.prod());
     const FemModel m = FemModel::build(volume, {}, {MaterialModel::Corotational, 27e3, 0.4, 1000});
     const auto surface = boundaryTriangles(volume, false);
     std::vector<double> vertices;
@@ -608,15 +579,16 @@ class TestRegistration : public QObject {
     qInfo("spheroid: %s", res.status.c_str());
     QVERIFY2(res.ok && res.ambiguous, res.status.c_str());
     QVERIFY(res.status.rfind("ambiguous: ", 0) == 0);
-    QVERIFY(res.status.find("ridge or ligament curve") != std::string::npos);  // the outline is whole: only a curve can tell
+    QVERIFY(res.status.find("ridge or ligament curve") !=
+            std::string::npos);  // the outline is whole: only a curve can tell
     QVERIFY(!res.alternatives.empty());
     bool turnAboutView = false;
     for (const auto& a : res.alternatives) {
       const Eigen::AngleAxisd turn(a.pose.R * res.pose.R.transpose());
       const double aboutView = turn.angle() * std::abs(turn.axis().z()) * 180 / M_PI;
       const double across = turn.angle() * turn.axis().head<2>().norm() * 180 / M_PI;
-      qInfo("alternative: %.1f degrees about the view, %.1f across, moved %.1f mm; %.1f mm apart, %.2f px", aboutView, across,
-            1e3 * (a.pose.t - res.pose.t).norm(), a.apartMm, a.score);
+      qInfo("alternative: %.1f degrees about the view, %.1f across, moved %.1f mm; %.1f mm apart, %.2f px", aboutView,
+            across, 1e3 * (a.pose.t - res.pose.t).norm(), a.apartMm, a.score);
       QVERIFY(a.apartMm > 5);
       turnAboutView |= aboutView > 10 && across < 6 && (a.pose.t - res.pose.t).norm() < 0.002;
     }
@@ -633,16 +605,19 @@ class TestRegistration : public QObject {
     imaging::saveContour(file, dir + "/contour.json");
     imaging::savePose(truth, dir + "/pose.json");
     QProcess p;
-    p.start(QStringLiteral(REHEARSE_BINARY),
-            {"register", "--mesh", QString::fromStdString(dir + "/spheroid.vtu"), "--camera", QString::fromStdString(dir + "/camera.json"), "--contour",
-             QString::fromStdString(dir + "/contour.json"), "--pose", QString::fromStdString(dir + "/pose.json"), "--rigid-only", "--out",
-             QString::fromStdString(dir + "/registered.vtu"), "--report", QString::fromStdString(dir + "/report.json")});
+    p.start(
+        QStringLiteral(REHEARSE_BINARY),
+        {"register", "--mesh", QString::fromStdString(dir + "/spheroid.vtu"), "--camera",
+         QString::fromStdString(dir + "/camera.json"), "--contour", QString::fromStdString(dir + "/contour.json"),
+         "--pose", QString::fromStdString(dir + "/pose.json"), "--rigid-only", "--out",
+         QString::fromStdString(dir + "/registered.vtu"), "--report", QString::fromStdString(dir + "/report.json")});
     QVERIFY(p.waitForFinished(300000));
     const QString err = QString::fromUtf8(p.readAllStandardError());
     QCOMPARE(p.exitCode(), 4);
     QVERIFY2(err.startsWith("rehearse: ambiguous: "), qPrintable(err));
     QVERIFY(std::filesystem::exists(dir + "/registered.vtu"));
-    const QJsonObject report = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/report.json"))).object();
+    const QJsonObject report =
+        QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/report.json"))).object();
     QVERIFY(report["ok"].toBool() && report["ambiguous"].toBool() && !report["determined"].toBool());
     const QJsonArray alternatives = report["alternatives"].toArray();
     QVERIFY(!alternatives.isEmpty());
@@ -651,231 +626,6 @@ class TestRegistration : public QObject {
       QCOMPARE(a.toObject()["pose"].toObject()["t"].toArray().size(), 3);
       QCOMPARE(a.toObject()["pose"].toObject()["R"].toArray().size(), 3);
     }
-  }
-
-  void contourOfAnotherOrganFails() {
-    REQUIRE_SHARED("bodyparts3d/FMA7205_Left_Kidney.obj");
-    Mesh kidney = loadMesh(sharedData("bodyparts3d/FMA7205_Left_Kidney.obj"));
-    kidney.convertToMetres();
-    const Eigen::Vector3d centre = kidney.bounds().center();
-    std::vector<double> vertices;
-    std::vector<int> triangles;
-    // The kidney at the liver's depth, in the liver's place, seen from the side that shows its bean shape.
-    const Eigen::Matrix3d turn = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
-    const Eigen::Vector3d liverCentre = c_.truePose.apply(c_.centreOfGravity());
-    for (const auto& p : kidney.points) {
-      const Eigen::Vector3d q = turn * (p - centre) + liverCentre;
-      vertices.insert(vertices.end(), {q.x(), q.y(), q.z()});
-    }
-    for (const auto& t : kidney.triangles) triangles.insert(triangles.end(), t.begin(), t.end());
-    SurfaceView view{vertices.data(), kidney.points.size(), triangles.data(), kidney.triangles.size()};
-    const auto contour = imaging::maskOutlines(imaging::renderMask(c_.camera, Pose{}, view));
-    QVERIFY(!contour.empty());
-    const FemModel m = organModel(c_);
-    SimulationSettings s;
-    s.gravity.setZero();
-    RegistrationOptions o;
-    o.rigidPrepass = true;
-    const auto res = registerToContour(m, c_.attachments, s, c_.surface, contour, c_.truePose, c_.camera.pinhole(), o);
-    double moved = 0;
-    for (std::size_t i = 0; i < m.nodeCount(); ++i) moved = std::max(moved, (res.x.segment<3>(3 * i) - m.rest[i]).norm());
-    double rigidPx = -1;
-    for (const auto& it : res.iterations)
-      if (it.stage == "rigid") rigidPx = it.score();
-    qInfo("kidney outline (%zu points) against the liver: %s; largest node move %.1f mm; after the rigid stage %.1f px", contour.front().size(),
-          res.status.c_str(), 1e3 * moved, rigidPx);
-    QVERIFY(!res.ok);
-    QVERIFY(res.status.rfind("failed", 0) == 0);
-    QVERIFY(res.status.find('\n') == std::string::npos);
-  }
-
-  void unusableInputGivesClearErrors() {
-    const FemModel m = organModel(c_);
-    SimulationSettings s;
-    s.gravity.setZero();
-    const Pinhole cam = c_.camera.pinhole();
-    auto expectThrow = [&](const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& pose, const char* fragment) {
-      try {
-        registerToContour(m, c_.attachments, s, c_.surface, contour, pose, cam);
-        QFAIL("no error");
-      } catch (const MeshError& e) {
-        QVERIFY2(std::string(e.what()).find(fragment) != std::string::npos, e.what());
-        QVERIFY(std::string(e.what()).find('\n') == std::string::npos);
-      }
-    };
-    expectThrow({}, c_.truePose, "empty");
-    expectThrow({{Eigen::Vector2d(10, 10)}}, c_.truePose, "single point");
-    Pose behind = c_.truePose;
-    behind.t.z() = -behind.t.z();
-    expectThrow(outline(c_, c_.truePose, c_.surfaceView()), behind, "behind the camera");
-    // A contour far outside the image binds to nothing useful: a failure status, not a result.
-    std::vector<Eigen::Vector2d> far;
-    for (int i = 0; i < 50; ++i) far.emplace_back(5000 + 10 * i, -3000 + 5 * i);
-    const auto res = registerToContour(m, c_.attachments, s, c_.surface, {far}, c_.truePose, cam);
-    qInfo("far contour: %s", res.status.c_str());
-    QVERIFY(!res.ok);
-    QVERIFY(res.status.rfind("failed", 0) == 0);
-    // Absurd coordinates: refused at once (resampling them would not end).
-    expectThrow({{Eigen::Vector2d(1e12, 1e12), Eigen::Vector2d(2e12, -1e12)}}, c_.truePose, "far outside the image");
-    // Anatomical curves: a NaN image point and a curve made only of ligament-held nodes.
-    RegistrationOptions o;
-    o.curves = {{{c_.attachments[0], c_.attachments[1]}, {Eigen::Vector2d(100, 100), Eigen::Vector2d(std::nan(""), 3)}, "ridge"}};
-    try {
-      registerToContour(m, c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()), c_.truePose, cam, o);
-      QFAIL("a NaN curve point was accepted");
-    } catch (const MeshError& e) {
-      QVERIFY2(std::string(e.what()).find("not a number") != std::string::npos, e.what());
-    }
-    o.curves = {{{c_.attachments[0], c_.attachments[1], c_.attachments[2]}, {Eigen::Vector2d(600, 300), Eigen::Vector2d(700, 320)}, "ligament"}};
-    const auto held = registerToContour(m, c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()), c_.truePose, cam, o);
-    qInfo("a curve on held nodes only: %s", held.status.c_str());
-    QVERIFY(held.x.allFinite());
-  }
-
-  // rehearse register on the phantom's own files: a contour of the organ deformed by a load the fit does
-  // not know, the true pose as the start, a ground truth in the camera frame; the report's 3D error falls.
-  void commandLine() {
-    const std::string dir = tempPath("register-case");
-    app::writeCaseDirectory(app::caseFromPhantom(c_), dir);
-    const FemModel m = organModel(c_);
-    const Deformed truth = deformSideways(c_, m);
-    QVERIFY(truth.x.size() > 0);
-    imaging::Contour contour;
-    contour.width = c_.camera.width;
-    contour.height = c_.camera.height;
-    for (const auto& seg : truth.contour) contour.segments.push_back({seg, true, "silhouette", {}});
-    imaging::saveContour(contour, dir + "/contour.json");
-    Mesh gt = c_.volume;
-    gt.convertToMetres();
-    for (std::size_t i = 0; i < gt.points.size(); ++i) gt.points[i] = c_.truePose.apply(truth.x.segment<3>(3 * i));
-    saveMesh(gt, dir + "/truth.vtu");
-    QString nodes;
-    for (int a : c_.attachments) nodes += QString::number(a) + " ";
-    const QString d = QString::fromStdString(dir);
-    auto run = [](const QStringList& args) {
-      QProcess p;
-      p.start(QStringLiteral(REHEARSE_BINARY), args);
-      p.waitForFinished(300000);
-      return std::make_tuple(p.exitCode(), QString::fromUtf8(p.readAllStandardOutput()), QString::fromUtf8(p.readAllStandardError()));
-    };
-    const QStringList common = {"register", "--mesh", d + "/organ.vtu", "--material", "corotational", "--young", "27000", "--poisson", "0.4",
-                                "--fixed-nodes", nodes, "--camera", d + "/camera.yaml", "--pose", d + "/pose.json"};
-    auto [code, out, err] = run(common + QStringList{"--contour", d + "/contour.json", "--out", d + "/registered.vtu", "--pose-out",
-                                                     d + "/pose-out.json", "--report", d + "/report.json", "--ground-truth", d + "/truth.vtu"});
-    QVERIFY2(code == 0, qPrintable(err));
-    qInfo("%s", qPrintable(out.trimmed()));
-    const QJsonObject report = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/report.json"))).object();
-    QVERIFY(report["determined"].toBool() && !report["ambiguous"].toBool() && report["alternatives"].toArray().isEmpty());
-    const QJsonArray its = report["iterations"].toArray();
-    for (const auto& it : its) qInfo("  report: %s, %.3f px, %.3f mm, %.0f ms", qPrintable(it.toObject()["stage"].toString()), it.toObject()["mean_px"].toDouble(), it.toObject()["error_mean_mm"].toDouble(), it.toObject()["wall_ms"].toDouble());
-    QVERIFY(its.size() >= 2);
-    const double e0 = its.first().toObject()["error_mean_mm"].toDouble(), e1 = its.last().toObject()["error_mean_mm"].toDouble();
-    QVERIFY(e0 > 0 && e1 < e0);
-    QVERIFY(its.last().toObject()["mean_px"].toDouble() < its.first().toObject()["mean_px"].toDouble());
-    QVERIFY(its.last().toObject()["wall_ms"].toDouble() > 0);
-    const Mesh registered = loadMesh(dir + "/registered.vtu");
-    QCOMPARE(registered.points.size(), c_.volume.points.size());
-    // With a ridge drawn on the frame and its nodes on the organ (P2ILF's form), the report measures the
-    // curve too and the 3D error falls further.
-    {
-      const AnatomicalCurve ridge = frontRidge(c_, m, truth.x);
-      QJsonArray xs, ys, vs;
-      for (const auto& p : ridge.image) {
-        xs.append(p.x());
-        ys.append(p.y());
-      }
-      for (int v : ridge.nodes) vs.append(QString::number(v));  // P2ILF writes numbers as strings
-      QJsonArray contours;
-      for (const auto& seg : contour.segments) {
-        QJsonArray sx, sy;
-        for (const auto& p : seg.points) {
-          sx.append(p.x());
-          sy.append(p.y());
-        }
-        contours.append(QJsonObject{{"contourType", "Silhouette"}, {"imagePoints", QJsonObject{{"x", sx}, {"y", sy}}}});
-      }
-      contours.append(QJsonObject{{"contourType", "Ridge"}, {"imagePoints", QJsonObject{{"x", xs}, {"y", ys}}}, {"modelPoints", QJsonObject{{"vertices", vs}}}});
-      writeFile(dir + "/p2ilf.json", QJsonDocument(QJsonObject{{"numOfContours", contours.size()}, {"contour", contours}}).toJson().toStdString());
-      auto [cr, outr, errr] = run(common + QStringList{"--contour", d + "/p2ilf.json", "--out", d + "/ridge.vtu", "--report", d + "/ridge.json",
-                                                       "--ground-truth", d + "/truth.vtu"});
-      QVERIFY2(cr == 0, qPrintable(errr));
-      qInfo("with the ridge: %s", qPrintable(outr.trimmed()));
-      const QJsonArray rits = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/ridge.json"))).object()["iterations"].toArray();
-      QVERIFY(rits.last().toObject().contains("curve_mean_px"));
-      QVERIFY(rits.last().toObject()["curve_mean_px"].toDouble() < rits.first().toObject()["curve_mean_px"].toDouble());
-      QVERIFY(rits.last().toObject()["error_mean_mm"].toDouble() < e1);
-      // The organ given as a surface (tetrahedralised by the command): the curve's vertices index that
-      // surface and are mapped onto the new volume's surface nodes.
-      const Mesh obj = loadMesh(dir + "/organ_surface.obj");
-      QJsonArray objVertices;
-      for (int v : ridge.nodes) {
-        std::size_t best = 0;
-        for (std::size_t i = 1; i < obj.points.size(); ++i)
-          if ((obj.points[i] - m.rest[v]).squaredNorm() < (obj.points[best] - m.rest[v]).squaredNorm()) best = i;
-        objVertices.append(static_cast<int>(best));
-      }
-      QJsonObject ridgeEntry = contours.last().toObject();
-      ridgeEntry["modelPoints"] = QJsonObject{{"vertices", objVertices}};
-      contours[contours.size() - 1] = ridgeEntry;
-      writeFile(dir + "/p2ilf-surface.json", QJsonDocument(QJsonObject{{"numOfContours", contours.size()}, {"contour", contours}}).toJson().toStdString());
-      QStringList surfaceArgs = common;
-      surfaceArgs[surfaceArgs.indexOf("--mesh") + 1] = d + "/organ_surface.obj";
-      surfaceArgs.removeAt(surfaceArgs.indexOf("--fixed-nodes") + 1);  // node numbers of the other mesh
-      surfaceArgs.removeAt(surfaceArgs.indexOf("--fixed-nodes"));
-      auto [cs, outs, errs] = run(surfaceArgs + QStringList{"--contour", d + "/p2ilf-surface.json", "--out", d + "/surface-fit.vtu", "--report",
-                                                            d + "/surface.json", "--iterations", "4"});
-      QVERIFY2(cs == 0, qPrintable(errs));
-      qInfo("surface mesh with the ridge: %s", qPrintable(outs.trimmed()));
-      const QJsonArray sits = QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/surface.json"))).object()["iterations"].toArray();
-      QVERIFY(sits.last().toObject()["curve_mean_px"].toDouble() < sits.first().toObject()["curve_mean_px"].toDouble());
-      // A vertex the surface does not have: one line, no output.
-      objVertices.append(999999);
-      ridgeEntry["modelPoints"] = QJsonObject{{"vertices", objVertices}};
-      contours[contours.size() - 1] = ridgeEntry;
-      writeFile(dir + "/p2ilf-bad.json", QJsonDocument(QJsonObject{{"numOfContours", contours.size()}, {"contour", contours}}).toJson().toStdString());
-      auto [cb, outb, errb] = run(surfaceArgs + QStringList{"--contour", d + "/p2ilf-bad.json", "--out", d + "/bad.vtu"});
-      QVERIFY2(cb != 0 && errb.trimmed().count('\n') == 0 && errb.contains("999999"), qPrintable(errb));
-      QVERIFY(!QFile::exists(d + "/bad.vtu"));
-    }
-    // Unusable input: one line on stderr, a non-zero exit, nothing written.
-    writeFile(dir + "/empty.json", R"({"width": 1280, "height": 720, "segments": []})");
-    auto [c2, o2, e2] = run(common + QStringList{"--contour", d + "/empty.json", "--out", d + "/x.vtu"});
-    QVERIFY2(c2 != 0 && e2.trimmed().count('\n') == 0 && e2.contains("empty"), qPrintable(e2));
-    QVERIFY(!QFile::exists(d + "/x.vtu"));
-    // A self-intersecting contour (a figure of eight) and a pose behind the camera.
-    imaging::Contour eight;
-    eight.width = 1280;
-    eight.height = 720;
-    imaging::ContourSegment loop;
-    for (int i = 0; i < 66; ++i) {  // past a full turn: the lobes meet at the centre
-      const double t = 2 * M_PI * (i + 0.25) / 60;
-      loop.points.emplace_back(640 + 200 * std::sin(t), 360 + 100 * std::sin(2 * t));
-    }
-    eight.segments.push_back(loop);
-    imaging::saveContour(eight, dir + "/eight.json");
-    auto [c3, o3, e3] = run(common + QStringList{"--contour", d + "/eight.json", "--out", d + "/x.vtu"});
-    QVERIFY2(c3 != 0 && e3.trimmed().count('\n') == 0 && e3.contains("crosses itself"), qPrintable(e3));
-    Pose behind = c_.truePose;
-    behind.t.z() = -behind.t.z();
-    imaging::savePose(behind, dir + "/behind.json");
-    QStringList args = common;
-    args[args.indexOf("--pose") + 1] = d + "/behind.json";
-    auto [c4, o4, e4] = run(args + QStringList{"--contour", d + "/contour.json", "--out", d + "/x.vtu"});
-    QVERIFY2(c4 != 0 && e4.trimmed().count('\n') == 0 && e4.contains("behind the camera"), qPrintable(e4));
-    QVERIFY(!QFile::exists(d + "/x.vtu"));
-  }
-
-  void cancelStopsEarly() {
-    const FemModel m = organModel(c_);
-    SimulationSettings s;
-    s.gravity.setZero();
-    RegistrationOptions o;
-    int calls = 0;
-    o.onIteration = [&](const RegistrationIteration&, const Eigen::VectorXd&, const Pose&) { return ++calls < 2; };
-    const Pose start = offset(c_.truePose, Eigen::Vector3d(0.004, 0, 0), Eigen::Vector3d::UnitZ(), 0, c_.centreOfGravity());
-    const auto res = registerToContour(m, c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()), start, c_.camera.pinhole(), o);
-    QVERIFY(res.cancelled);
-    QCOMPARE(calls, 2);
   }
 };
 

@@ -3,6 +3,7 @@
 // each gizmo handle and check the pose change, undo and redo, PnP from landmark pairs, save and reopen.
 // With REHEARSE_SCREENSHOT_DIR set, it also saves a screenshot of each step there (for the README).
 #include "test_support.hpp"
+#include "window_support.hpp"
 
 #include "phantom/phantom.hpp"
 #include "rehearse/ui/casefile.hpp"
@@ -42,22 +43,6 @@ using namespace rehearse;
 using ui::GizmoHandle;
 using ui::MainWindow;
 
-namespace {
-void shot(QWidget& w, const char* name) {
-  const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
-  if (dir.isEmpty()) return;
-  QTest::qWait(50);
-  w.grab().save(QString::fromLocal8Bit(dir) + "/" + name + ".png");
-}
-
-// Drags with the left button from a to b in steps (as a hand would).
-void drag(QWidget* target, QPointF a, QPointF b, int steps = 8, Qt::KeyboardModifiers mods = {}) {
-  QTest::mousePress(target, Qt::LeftButton, mods, a.toPoint());
-  for (int i = 1; i <= steps; ++i) QTest::mouseMove(target, (a + (b - a) * (double(i) / steps)).toPoint());
-  QTest::mouseRelease(target, Qt::LeftButton, mods, b.toPoint());
-}
-}  // namespace
-
 class TestWorkflow : public QObject {
   Q_OBJECT
   std::unique_ptr<MainWindow> w_;
@@ -65,17 +50,7 @@ class TestWorkflow : public QObject {
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseWorkflowTest");
-    QStandardPaths::setTestModeEnabled(true);
-    ui::applyDarkTheme(*qApp);  // as the application runs (and as the README screenshots show it)
-    w_ = std::make_unique<MainWindow>();
-    w_->resize(1600, 900);
-    w_->show();
-    QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
-    w_->activateWindow();  // keyboard shortcuts need the active window (under a real X server too)
-    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
-    QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
-    w_->openCase({});
-    QVERIFY(loaded.wait(60000));
+    QVERIFY(openPhantomCase(w_));
   }
 
   // Step 1: a surface is tetrahedralised on a worker thread with the size control; quality shown.
@@ -109,8 +84,8 @@ class TestWorkflow : public QObject {
     ticker.stop();
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
     const auto& c = *w_->caseData();
-    qInfo("imported liver_downsample.stl: %zu tets in %lld ms; longest GUI-thread stall %lld ms", c.organ->volume.tets.size(),
-          clock.elapsed(), worst);
+    qInfo("imported liver_downsample.stl: %zu tets in %lld ms; longest GUI-thread stall %lld ms",
+          c.organ->volume.tets.size(), clock.elapsed(), worst);
     QVERIFY(c.organ->volume.tets.size() > 2400 && c.organ->volume.tets.size() < 3600);
     QVERIFY(w_->infoText().contains("tetrahedra:"));
     QVERIFY(w_->stepDone(ui::Step::Mesh));
@@ -141,7 +116,10 @@ class TestWorkflow : public QObject {
       QVERIFY(attached.size() >= 2);
       const SurfaceView sv = w_->caseData()->surfaceView();
       double spread = 0;
-      for (int a : attached) spread = std::max(spread, (sv.vertex(static_cast<std::size_t>(a)) - sv.vertex(static_cast<std::size_t>(attached.front()))).norm());
+      for (int a : attached)
+        spread = std::max(
+            spread,
+            (sv.vertex(static_cast<std::size_t>(a)) - sv.vertex(static_cast<std::size_t>(attached.front()))).norm());
       qInfo("attachments: %zu nodes from one click, spread %.1f mm", attached.size(), spread * 1e3);
       QVERIFY(spread <= 2 * view->attachmentRadius() + 1e-9);
       QVERIFY(w_->findChild<QLabel*>("attachmentsLabel")->text().contains(QString::number(attached.size())));
@@ -248,7 +226,8 @@ class TestWorkflow : public QObject {
     // ... does not belong to another frame (issue 32: it stayed, and step 3 stayed done): it goes, said in a sentence.
     QVERIFY(w_->caseData()->contour.segments.empty());
     QVERIFY(!w_->stepDone(ui::Step::Contour));
-    QVERIFY2(w_->messageLog().join(" ").contains("contour sketched on the previous frame was removed"), qPrintable(w_->messageLog().join(" | ")));
+    QVERIFY2(w_->messageLog().join(" ").contains("contour sketched on the previous frame was removed"),
+             qPrintable(w_->messageLog().join(" | ")));
     w_->undoStack()->undo();  // one undo brings the frame and its outline back together
     QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(1));
     QCOMPARE(cv::norm(w_->caseData()->frame, img, cv::NORM_INF), 0.0);
@@ -278,7 +257,8 @@ class TestWorkflow : public QObject {
     const int before = w_->undoStack()->index();
     // Trace the upper part of the true silhouette: points on an arc in frame pixels.
     std::vector<QPointF> pts;
-    for (int i = 0; i <= 20; ++i) pts.push_back(view->toWidget(QPointF(330 + 30.0 * i, 260 - 80 * std::sin(std::numbers::pi * i / 20))));
+    for (int i = 0; i <= 20; ++i)
+      pts.push_back(view->toWidget(QPointF(330 + 30.0 * i, 260 - 80 * std::sin(std::numbers::pi * i / 20))));
     QTest::mousePress(view, Qt::LeftButton, {}, pts.front().toPoint());
     for (const auto& p : pts) QTest::mouseMove(view, p.toPoint());
     QTest::mouseRelease(view, Qt::LeftButton, {}, pts.back().toPoint());
@@ -290,7 +270,8 @@ class TestWorkflow : public QObject {
     QVERIFY((first - Eigen::Vector2d(330, 260)).norm() < 2.5);
     // Click-by-click second segment, finished with Enter.
     QTest::keyClick(w_.get(), Qt::Key_C);
-    for (QPointF f : {QPointF(400, 520), QPointF(500, 560), QPointF(600, 570)}) QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(f).toPoint());
+    for (QPointF f : {QPointF(400, 520), QPointF(500, 560), QPointF(600, 570)})
+      QTest::mouseClick(view, Qt::LeftButton, {}, view->toWidget(f).toPoint());
     QTest::keyClick(view, Qt::Key_Return);
     QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(2));
     QCOMPARE(w_->caseData()->contour.segments[1].points.size(), std::size_t(3));
@@ -299,7 +280,8 @@ class TestWorkflow : public QObject {
     const int beforeDrag = w_->undoStack()->index();
     drag(view, view->toWidget(QPointF(500, 560)), view->toWidget(QPointF(530, 540)));
     const auto& moved = w_->caseData()->contour.segments[1].points[1];
-    QVERIFY2((moved - Eigen::Vector2d(530, 540)).norm() < 2.5, qPrintable(QString("%1 %2").arg(moved.x()).arg(moved.y())));
+    QVERIFY2((moved - Eigen::Vector2d(530, 540)).norm() < 2.5,
+             qPrintable(QString("%1 %2").arg(moved.x()).arg(moved.y())));
     QCOMPARE(w_->undoStack()->index(), beforeDrag + 1);
     w_->undoStack()->undo();
     QVERIFY((w_->caseData()->contour.segments[1].points[1] - Eigen::Vector2d(500, 560)).norm() < 2.5);
@@ -311,8 +293,8 @@ class TestWorkflow : public QObject {
     QTest::mouseClick(view, Qt::LeftButton, Qt::ControlModifier, view->toWidget(QPointF(465, 530)).toPoint());
     QCOMPARE(w_->caseData()->contour.segments[1].points.size(), std::size_t(3));
     // Zoom while drawing keeps the tool.
-    QWheelEvent wheel(view->rect().center(), view->mapToGlobal(QPointF(view->rect().center())), QPoint(), QPoint(0, 120), Qt::NoButton,
-                      Qt::NoModifier, Qt::NoScrollPhase, false);
+    QWheelEvent wheel(view->rect().center(), view->mapToGlobal(QPointF(view->rect().center())), QPoint(),
+                      QPoint(0, 120), Qt::NoButton, Qt::NoModifier, Qt::NoScrollPhase, false);
     QApplication::sendEvent(view, &wheel);
     QCOMPARE(view->tool(), ui::Tool::EditPoints);
     view->fitToWindow();
@@ -348,7 +330,10 @@ class TestWorkflow : public QObject {
         const QRgb* pa = reinterpret_cast<const QRgb*>(a.constScanLine(y));
         const QRgb* pb = reinterpret_cast<const QRgb*>(b.constScanLine(y));
         for (int x = 0; x < a.width(); ++x)
-          if (std::abs(qRed(pa[x]) - qRed(pb[x])) + std::abs(qGreen(pa[x]) - qGreen(pb[x])) + std::abs(qBlue(pa[x]) - qBlue(pb[x])) > 24) ++n;
+          if (std::abs(qRed(pa[x]) - qRed(pb[x])) + std::abs(qGreen(pa[x]) - qGreen(pb[x])) +
+                  std::abs(qBlue(pa[x]) - qBlue(pb[x])) >
+              24)
+            ++n;
       }
       return n;
     };
@@ -393,19 +378,32 @@ class TestWorkflow : public QObject {
       Eigen::Vector3d expectT = p0.t;
       Eigen::Matrix3d Q = Eigen::Matrix3d::Identity();
       switch (h) {
-        case GizmoHandle::TranslateX: expectT.x() += du * g0.z() / cam.fx(); break;
-        case GizmoHandle::TranslateY: expectT.y() += dv * g0.z() / cam.fy(); break;
-        case GizmoHandle::TranslateZ: expectT.z() -= dv * g0.z() / cam.fy(); break;
-        case GizmoHandle::RotateX: Q = Eigen::AngleAxisd(dv * 0.005, Eigen::Vector3d::UnitX()).toRotationMatrix(); break;
-        case GizmoHandle::RotateY: Q = Eigen::AngleAxisd(du * 0.005, Eigen::Vector3d::UnitY()).toRotationMatrix(); break;
+        case GizmoHandle::TranslateX:
+          expectT.x() += du * g0.z() / cam.fx();
+          break;
+        case GizmoHandle::TranslateY:
+          expectT.y() += dv * g0.z() / cam.fy();
+          break;
+        case GizmoHandle::TranslateZ:
+          expectT.z() -= dv * g0.z() / cam.fy();
+          break;
+        case GizmoHandle::RotateX:
+          Q = Eigen::AngleAxisd(dv * 0.005, Eigen::Vector3d::UnitX()).toRotationMatrix();
+          break;
+        case GizmoHandle::RotateY:
+          Q = Eigen::AngleAxisd(du * 0.005, Eigen::Vector3d::UnitY()).toRotationMatrix();
+          break;
         case GizmoHandle::RotateZ: {
           const auto c = cam.project(g0);
           const double a0 = std::atan2(fa.y() - c.y(), fa.x() - c.x()), a1 = std::atan2(fb.y() - c.y(), fb.x() - c.x());
-          Q = Eigen::AngleAxisd(std::remainder(a1 - a0, 2 * std::numbers::pi), Eigen::Vector3d::UnitZ()).toRotationMatrix();
-          QVERIFY(std::abs(std::abs(std::remainder(a1 - a0, 2 * std::numbers::pi)) - 30 * std::numbers::pi / 180) < 0.02);
+          Q = Eigen::AngleAxisd(std::remainder(a1 - a0, 2 * std::numbers::pi), Eigen::Vector3d::UnitZ())
+                  .toRotationMatrix();
+          QVERIFY(std::abs(std::abs(std::remainder(a1 - a0, 2 * std::numbers::pi)) - 30 * std::numbers::pi / 180) <
+                  0.02);
           break;
         }
-        default: break;
+        default:
+          break;
       }
       if (h == GizmoHandle::RotateX || h == GizmoHandle::RotateY || h == GizmoHandle::RotateZ) {
         QVERIFY((p1.R - Q * p0.R).norm() < 1e-9);
@@ -480,7 +478,8 @@ class TestWorkflow : public QObject {
         QTest::keyClicks(fields[k], QString::number(fields[k]->value() + 5.0, 'f', 2));
         QTest::keyClick(fields[k], Qt::Key_Return);
       }
-      QVERIFY2((w_->caseData()->pose.t - before->pose.t - Eigen::Vector3d(0.005, 0.005, 0.005)).norm() < 2e-5,  // fields show 0.01 mm
+      QVERIFY2((w_->caseData()->pose.t - before->pose.t - Eigen::Vector3d(0.005, 0.005, 0.005)).norm() <
+                   2e-5,  // fields show 0.01 mm
                qPrintable(QString::number(1e3 * (w_->caseData()->pose.t - before->pose.t).x())));
       QCOMPARE(w_->undoStack()->index(), index + 1);
       QVERIFY(w_->undoStack()->count() <= count + 1);
@@ -551,7 +550,8 @@ class TestWorkflow : public QObject {
     w_->rigidPage()->solvePnP();
     const auto& p = w_->caseData()->pose;
     qInfo("PnP from %d pairs: reprojection RMS %.3f px; rotation error %.3f deg, translation error %.2f mm", pairs,
-          w_->rigidPage()->lastPnPReprojectionError(), Eigen::AngleAxisd(p.R * c->groundTruth->pose.R.transpose()).angle() * 180 / std::numbers::pi,
+          w_->rigidPage()->lastPnPReprojectionError(),
+          Eigen::AngleAxisd(p.R * c->groundTruth->pose.R.transpose()).angle() * 180 / std::numbers::pi,
           (p.t - c->groundTruth->pose.t).norm() * 1e3);
     QVERIFY(w_->rigidPage()->lastPnPReprojectionError() >= 0 && w_->rigidPage()->lastPnPReprojectionError() < 1.0);
     QVERIFY(Eigen::AngleAxisd(p.R * c->groundTruth->pose.R.transpose()).angle() < 2 * std::numbers::pi / 180);
@@ -578,323 +578,13 @@ class TestWorkflow : public QObject {
     QCOMPARE(b->landmarks.size(), std::size_t(4));
     QVERIFY(b->landmarks == a->landmarks);
     QCOMPARE(b->contour.segments.size(), a->contour.segments.size());
-    for (std::size_t s = 0; s < a->contour.segments.size(); ++s) QVERIFY(b->contour.segments[s].points == a->contour.segments[s].points);
+    for (std::size_t s = 0; s < a->contour.segments.size(); ++s)
+      QVERIFY(b->contour.segments[s].points == a->contour.segments[s].points);
     QVERIFY(b->camera.K == a->camera.K);
     QCOMPARE(cv::norm(b->frame, a->frame, cv::NORM_INF), 0.0);
     QVERIFY(b->organ->volume.tets == a->organ->volume.tets);
-    for (int s = 0; s < 4; ++s) QCOMPARE(other.stepDone(static_cast<ui::Step>(s)), w_->stepDone(static_cast<ui::Step>(s)));
-  }
-
-  // A surface of more than 100k triangles is tetrahedralised and a 4k video decoded while the GUI thread keeps
-  // serving events: a 5 ms timer must keep firing, and the longest gap between its ticks is reported.
-  void longJobsStayOffTheGuiThread() {
-    struct Monitor {
-      QElapsedTimer clock;
-      QTimer ticker;
-      qint64 last = 0, worst = 0;
-      int ticks = 0;
-      Monitor() {
-        clock.start();
-        QObject::connect(&ticker, &QTimer::timeout, [this] {
-          worst = std::max(worst, clock.elapsed() - last);
-          last = clock.elapsed();
-          ++ticks;
-        });
-        ticker.start(5);
-      }
-    };
-    // Outer sphere (81920 triangles) with an inner sphere (20480): 102400 triangles.
-    std::string obj;
-    int base = 0;
-    auto sphere = [&](double r, int levels) {
-      std::vector<Eigen::Vector3d> v = {{1, 0, 0}, {-1, 0, 0}, {0, 1, 0}, {0, -1, 0}, {0, 0, 1}, {0, 0, -1}};
-      std::vector<std::array<int, 3>> f = {{0, 2, 4}, {2, 1, 4}, {1, 3, 4}, {3, 0, 4}, {2, 0, 5}, {1, 2, 5}, {3, 1, 5}, {0, 3, 5}};
-      for (int l = 0; l < levels; ++l) {
-        std::map<std::pair<int, int>, int> mid;
-        auto m = [&](int a, int b) {
-          auto k = std::minmax(a, b);
-          if (auto it = mid.find(k); it != mid.end()) return it->second;
-          v.push_back((v[a] + v[b]).normalized());
-          return mid[k] = int(v.size()) - 1;
-        };
-        std::vector<std::array<int, 3>> g;
-        for (auto [a, b, c] : f) {
-          int ab = m(a, b), bc = m(b, c), ca = m(c, a);
-          g.insert(g.end(), {{a, ab, ca}, {b, bc, ab}, {c, ca, bc}, {ab, bc, ca}});
-        }
-        f = g;
-      }
-      obj += "o sphere" + std::to_string(base) + "\n";
-      for (auto& p : v) obj += "v " + std::to_string(r * p.x()) + " " + std::to_string(r * p.y()) + " " + std::to_string(r * p.z()) + "\n";
-      for (auto [a, b, c] : f) obj += "f " + std::to_string(base + a + 1) + " " + std::to_string(base + b + 1) + " " + std::to_string(base + c + 1) + "\n";
-      base += int(v.size());
-      return f.size();
-    };
-    const std::size_t triangles = sphere(60, 7) + sphere(20, 6);
-    QCOMPARE(triangles, std::size_t(8 * 16384 + 8 * 4096));
-    const std::string path = tempPath("big.obj");
-    writeFile(path, obj);
-    w_->meshPage()->setTargetTets(20000);
-    w_->meshPage()->setMeshUnit("mm");
-    {
-      Monitor mon;
-      // What the status bar shows while meshing, sampled as a user would glance at it: the stage in words
-      // with its counts and the elapsed time, the bar busy (no fraction) while the length is unknown.
-      auto* stage = w_->findChild<QLabel*>("progressStage");
-      auto* bar = w_->findChild<QProgressBar*>();
-      QVERIFY(stage && bar);
-      QStringList seen;
-      bool busyBar = false;
-      QTimer glance;
-      QObject::connect(&glance, &QTimer::timeout, [&] {
-        if (stage->isVisible() && (seen.isEmpty() || seen.last() != stage->text())) seen << stage->text();
-        busyBar |= bar->isVisible() && bar->maximum() == 0;
-      });
-      glance.start(20);
-      QSignalSpy imported(w_.get(), &MainWindow::meshImported);
-      w_->meshPage()->importMesh(QString::fromStdString(path));
-      QVERIFY(imported.wait(300000));
-      glance.stop();
-      QVERIFY(busyBar);
-      int queryTexts = 0, exudation = 0, elapsed = 0;
-      for (const auto& t : seen) {
-        queryTexts += t.contains(QRegularExpression("refining the mesh \\(pass [1-3]\\): [0-9.]+ [kM] inside/outside queries"));
-        exudation += t.contains(QRegularExpression("removing slivers \\(exudation\\) from [0-9]+ tetrahedra"));
-        elapsed += t.contains(QRegularExpression("· [1-9][0-9]* s$"));
-      }
-      qInfo("meshing as the status bar showed it: %lld texts, %d query counts, %d exudation, %d with seconds > 0 (last: %s)",
-            static_cast<long long>(seen.size()), queryTexts, exudation, elapsed, qPrintable(seen.isEmpty() ? QString() : seen.last()));
-      QVERIFY2(queryTexts >= 3 && exudation >= 1 && elapsed >= 1, qPrintable(seen.join(" | ")));
-      QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
-      const qint64 total = mon.clock.elapsed();
-      qInfo("BENCH gui_stall,tetrahedralise %zu triangles to %zu tets,%lld ms,longest stall %lld ms,%d ticks", triangles,
-            w_->caseData()->organ->volume.tets.size(), total, mon.worst, mon.ticks);
-      QVERIFY(mon.ticks > 20);
-      QVERIFY(mon.worst < total / 2);
-      QCOMPARE(w_->meshPage()->labelsShown(), 2);
-    }
-    // That organ came from a file in mm: a 4x4 pose matrix (no unit of its own) is read in mm too.
-    {
-      QCOMPARE(w_->caseData()->organ->sourceUnitToMetre, 0.001);
-      const std::string matrix = tempPath("pose-mm.txt");
-      writeFile(matrix, "1 0 0 12\n0 1 0 -7\n0 0 1 350\n0 0 0 1\n");
-      w_->rigidPage()->loadPose(QString::fromStdString(matrix));
-      QVERIFY2((w_->caseData()->pose.t - Eigen::Vector3d(0.012, -0.007, 0.35)).norm() < 1e-12, qPrintable(w_->statusText()));
-      w_->undoStack()->undo();
-    }
-    // A 4k (3840x2160) MJPEG video, frames of different colours.
-    const std::string avi = tempPath("uhd.avi");
-    {
-      cv::VideoWriter writer(avi, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 25, cv::Size(3840, 2160));
-      QVERIFY(writer.isOpened());
-      for (int i = 0; i < 24; ++i) {
-        cv::Mat3b f(2160, 3840, cv::Vec3b(uchar(10 * i), 90, 40));
-        cv::circle(f, {1920, 1080}, 600, cv::Scalar(40, 80, 200), cv::FILLED);
-        writer.write(f);
-      }
-    }
-    {
-      Monitor mon;
-      QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
-      QSignalSpy shown(w_.get(), &MainWindow::videoFrameShown);
-      w_->framePage()->openFrameSource(QString::fromStdString(avi));
-      QVERIFY(opened.wait(120000));
-      QVERIFY(opened.first().at(0).toBool());
-      w_->framePage()->showVideoFrame(20);
-      while (w_->framePage()->shownVideoFrame() != 20) QVERIFY(shown.wait(120000));
-      const qint64 total = mon.clock.elapsed();
-      qInfo("BENCH gui_stall,open a 4k video and decode frame 20,%lld ms,longest stall %lld ms,%d ticks", total, mon.worst, mon.ticks);
-      QVERIFY(mon.ticks > 5);
-      QElapsedTimer use;
-      use.start();
-      w_->framePage()->useShownFrame();
-      qInfo("BENCH gui_stall,take the 4k frame (undistort + organ overlay on the GUI thread),%lld ms,-,-", use.elapsed());
-      QCOMPARE(w_->caseData()->frame.cols, 3840);
-      QCOMPARE(w_->caseData()->camera.width, 3840);
-    }
-    // Snapping a stroke to the 4k frame's edges (intelligent scissors) runs on a worker: the release returns
-    // at once, the segment arrives later as one undo step, on the disc's edge the video drew (radius 600 px).
-    {
-      auto* view = w_->frameView();
-      w_->setStep(ui::Step::Contour);
-      auto* snap = w_->contourPage()->findChild<QCheckBox*>();
-      QVERIFY(snap);
-      snap->setChecked(true);
-      view->setTool(ui::Tool::Freehand);
-      const std::size_t before = w_->caseData()->contour.segments.size();
-      const int undoBefore = w_->undoStack()->index();
-      auto at = [&](double deg, double r) {
-        const double a = deg * std::numbers::pi / 180;
-        return view->toWidget(QPointF(1920 + r * std::cos(a), 1080 + r * std::sin(a))).toPoint();
-      };
-      Monitor mon;
-      QTest::mousePress(view, Qt::LeftButton, {}, at(200, 610));
-      for (int d = 200; d <= 300; d += 4) QTest::mouseMove(view, at(d, d % 8 ? 610 : 591));  // a hand 10 px either side of the edge
-      QTest::mouseRelease(view, Qt::LeftButton, {}, at(300, 591));
-      const qint64 released = mon.clock.elapsed();
-      QVERIFY(view->toolsBusy());
-      QCOMPARE(w_->caseData()->contour.segments.size(), before);
-      QTRY_VERIFY_WITH_TIMEOUT(!view->toolsBusy(), 120000);
-      const qint64 total = mon.clock.elapsed();
-      qInfo("BENCH gui_stall,snap a stroke to the 4k frame's edges,%lld ms,longest stall %lld ms,%d ticks (release returned after %lld ms)",
-            total, mon.worst, mon.ticks, released);
-      QCOMPARE(w_->caseData()->contour.segments.size(), before + 1);
-      QCOMPARE(w_->undoStack()->index(), undoBefore + 1);
-      const auto& seg = w_->caseData()->contour.segments.back();
-      QVERIFY(seg.points.size() > 20);
-      double worst = 0;
-      for (const auto& p : seg.points) worst = std::max(worst, std::abs((p - Eigen::Vector2d(1920, 1080)).norm() - 600));
-      QVERIFY2(worst < 4, qPrintable(QStringLiteral("snapped points up to %1 px off the disc's edge").arg(worst)));
-      snap->setChecked(false);
-      w_->undoStack()->undo();
-    }
-    for (int i = 0; i < 2; ++i) w_->undoStack()->undo();
-  }
-
-  // Missing live camera, calibration files, P2ILF contours through the window; erase with the mouse.
-  void framesCalibrationAndContourFiles() {
-    w_->activateWindow();  // another window was open in an earlier test; shortcuts need the active window
-    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
-    QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
-    w_->framePage()->openCameraDevice(7);  // opened on a worker: the GUI thread never waits for a device
-    QTRY_COMPARE_WITH_TIMEOUT(opened.count(), 1, 20000);
-    QCOMPARE(opened.first().at(0).toBool(), false);
-    QVERIFY(opened.first().at(1).toString().contains("cannot be opened"));
-    // A calibration with distortion: the frame is undistorted with it, consistently with K.
-    const auto before = w_->caseData();
-    imaging::Camera cam = before->camera;
-    cam.distortion = {-0.2, 0.05, 0, 0, 0};
-    const std::string yaml = tempPath("cal.yaml");
-    imaging::saveCamera(cam, yaml);
-    w_->framePage()->loadCalibration(QString::fromStdString(yaml));
-    const auto after = w_->caseData();
-    QCOMPARE(after->camera.distortion[0], -0.2);
-    QVERIFY(cv::norm(after->frame, before->frame, cv::NORM_L1) > 0);  // resampled
-    QCOMPARE(cv::norm(after->rawFrame, before->frame, cv::NORM_INF), 0.0);  // the captured frame is kept
-    w_->undoStack()->undo();
-    QCOMPARE(w_->caseData()->camera.distortion[0], 0.0);
-    // A 3x3 text matrix takes the frame's size.
-    const std::string txt = tempPath("K.txt");
-    writeFile(txt, "1000 0 640\n0 1000 360\n0 0 1\n");
-    w_->framePage()->loadCalibration(QString::fromStdString(txt));
-    QCOMPARE(w_->caseData()->camera.fx(), 1000.0);
-    w_->undoStack()->undo();
-    // P2ILF contour import, then erase part of it with a mouse stroke.
-    const std::string p2 = tempPath("p2ilf-contour.json");
-    writeFile(p2, R"({"numOfContours":1,"contour":[{"contourType":"Silhouette","imagePoints":{"x":[300,350,400,450,500,550,600],"y":[300,300,300,300,300,300,300]}}]})");
-    w_->contourPage()->importContour(QString::fromStdString(p2));
-    QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(1));
-    QCOMPARE(w_->caseData()->contour.segments[0].points.size(), std::size_t(7));
-    auto* view = w_->frameView();
-    view->setFocus();  // single-letter tool keys go to text fields when one has the focus
-    QTest::keyClick(view, Qt::Key_X);
-    QCOMPARE(view->tool(), ui::Tool::Erase);
-    drag(view, view->toWidget(QPointF(450, 260)), view->toWidget(QPointF(450, 340)));
-    const auto& c = w_->caseData()->contour;
-    QCOMPARE(c.segments.size(), std::size_t(2));  // split where the point was erased
-    QCOMPARE(c.segments[0].points.size() + c.segments[1].points.size(), std::size_t(6));
-    const std::string out = tempPath("exported.json");
-    w_->contourPage()->exportContour(QString::fromStdString(out));
-    QCOMPARE(imaging::loadContour(out).segments.size(), std::size_t(2));
-  }
-
-  // P2ILF's contours are drawn on the raw (distorted) image. Reference by geometry, not by our code: points
-  // in front of the camera projected by OpenCV with the distortion (raw pixels, what the file holds) and
-  // without it (where they are in the undistorted frame every step uses).
-  void p2ilfContourOnTheRawFrame() {
-    const int index = w_->undoStack()->index();
-    imaging::Camera cam = w_->caseData()->camera;
-    cam.distortion = {-0.25, 0.08, 0.001, -0.0005, 0};
-    const std::string yaml = tempPath("cal-distorted.yaml");
-    imaging::saveCamera(cam, yaml);
-    w_->framePage()->loadCalibration(QString::fromStdString(yaml));
-    QCOMPARE(w_->caseData()->camera.distortion[0], -0.25);
-    cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
-    for (int r = 0; r < 3; ++r)
-      for (int k = 0; k < 3; ++k) K.at<double>(r, k) = cam.K(r, k);
-    for (int k = 0; k < 5; ++k) D.at<double>(0, k) = cam.distortion[k];
-    std::vector<cv::Point3d> pts;  // a ring reaching out towards the image corners, where distortion is large
-    for (int i = 0; i < 24; ++i) {
-      const double a = 2 * std::numbers::pi * i / 24;
-      pts.emplace_back(0.045 * std::cos(a), 0.028 * std::sin(a), 0.12);
-    }
-    std::vector<cv::Point2d> raw, ideal;
-    cv::projectPoints(pts, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K, D, raw);
-    cv::projectPoints(pts, cv::Vec3d(0, 0, 0), cv::Vec3d(0, 0, 0), K, cv::noArray(), ideal);
-    double shift = 0;
-    for (std::size_t i = 0; i < raw.size(); ++i) shift = std::max(shift, cv::norm(raw[i] - ideal[i]));
-    QVERIFY2(shift > 10, qPrintable(QString::number(shift)));  // the test can tell raw from undistorted
-    std::string xs, ys;
-    for (const auto& p : raw) {
-      xs += (xs.empty() ? "" : ",") + std::to_string(p.x);
-      ys += (ys.empty() ? "" : ",") + std::to_string(p.y);
-    }
-    const std::string file = tempPath("p2ilf-raw.json");
-    writeFile(file, R"({"numOfContours":1,"contour":[{"contourType":"Ridge","imagePoints":{"x":[)" + xs + R"(],"y":[)" + ys + "]}}]}");
-    w_->contourPage()->importContour(QString::fromStdString(file));
-    const auto& seg = w_->caseData()->contour.segments.at(0);
-    QCOMPARE(seg.type, std::string("ridge"));
-    QCOMPARE(seg.points.size(), ideal.size());
-    double worst = 0;
-    for (std::size_t i = 0; i < ideal.size(); ++i) worst = std::max(worst, (seg.points[i] - Eigen::Vector2d(ideal[i].x, ideal[i].y)).norm());
-    QVERIFY2(worst < 0.01, qPrintable(QStringLiteral("undistorted import off by %1 px").arg(worst)));
-    QVERIFY(w_->statusText().contains("undistorted with the case's camera"));
-    // Export in P2ILF's layout puts the points back on the raw image; ours keeps the undistorted ones.
-    const std::string out = tempPath("p2ilf-out.json");
-    w_->contourPage()->exportContour(QString::fromStdString(out), imaging::ContourFormat::P2ILF);
-    const auto written = nlohmann::json::parse(readFile(out));
-    QCOMPARE(written.at("numOfContours").get<int>(), 1);
-    QCOMPARE(written.at("contour").at(0).at("contourType").get<std::string>(), std::string("Ridge"));
-    const auto& wx = written.at("contour").at(0).at("imagePoints").at("x");
-    const auto& wy = written.at("contour").at(0).at("imagePoints").at("y");
-    QCOMPARE(wx.size(), raw.size());
-    worst = 0;
-    for (std::size_t i = 0; i < raw.size(); ++i) worst = std::max(worst, std::hypot(wx[i].get<double>() - raw[i].x, wy[i].get<double>() - raw[i].y));
-    QVERIFY2(worst < 0.01, qPrintable(QStringLiteral("P2ILF export off the raw points by %1 px").arg(worst)));
-    const std::string ours = tempPath("ours-out.json");
-    w_->contourPage()->exportContour(QString::fromStdString(ours));
-    QCOMPARE(imaging::loadContour(ours).segments.at(0).points, seg.points);
-    // The user can say where a file's points are: ours, declared as on the raw frame, is undistorted too;
-    // the P2ILF file declared as on the undistorted frame is taken as it is.
-    w_->contourPage()->setImportedPointsOn(ui::ContourPage::PointsOn::UndistortedFrame);
-    w_->contourPage()->importContour(QString::fromStdString(file));
-    QCOMPARE(w_->caseData()->contour.segments.at(0).points.at(3), Eigen::Vector2d(std::stod(std::to_string(raw[3].x)), std::stod(std::to_string(raw[3].y))));
-    w_->contourPage()->setImportedPointsOn(ui::ContourPage::PointsOn::FileConvention);
-    while (w_->undoStack()->index() > index) w_->undoStack()->undo();
-    QCOMPARE(w_->caseData()->camera.distortion[0], 0.0);
-  }
-
-  // A real case: the in-vivo laparoscopic frame (1920x1080) with its intrinsics, and a patient's liver
-  // surface (VTK polydata, mm) tetrahedralised on a worker: the organ is drawn over the real frame.
-  void realFrameAndPatientLiver() {
-    REQUIRE_SHARED("scikit-surgery/laparoscopy-liver-frame.jpg");
-    REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
-    const int index = w_->undoStack()->index();
-    QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
-    w_->framePage()->openFrameSource(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")));
-    QVERIFY(opened.count() == 1 || opened.wait(60000));
-    QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
-    QCOMPARE(w_->caseData()->frame.cols, 1920);
-    QCOMPARE(w_->caseData()->frame.rows, 1080);
-    w_->framePage()->loadCalibration(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));
-    QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);
-    QCOMPARE(w_->caseData()->camera.cy(), 617.1093984);
-    w_->meshPage()->setMeshUnit("mm");
-    w_->meshPage()->setTargetTets(3000);
-    QSignalSpy imported(w_.get(), &MainWindow::meshImported);
-    w_->meshPage()->importMesh(QString::fromStdString(sharedData("scikit-surgery/patient-liver/liver.vtk")));
-    QVERIFY(imported.wait(180000));
-    QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
-    const auto& c = *w_->caseData();
-    qInfo("patient liver: %zu tets, %zu surface triangles over the real frame; organ outline %lld polygon(s)", c.organ->volume.tets.size(),
-          c.organ->surface.size(), static_cast<long long>(w_->silhouette().size()));
-    QVERIFY(c.organ->volume.tets.size() > 2000);
-    QVERIFY(!w_->organOverlay().isNull());
-    QVERIFY(!w_->silhouette().isEmpty());  // placed in front of the camera, in view
-    QVERIFY(w_->stepDone(ui::Step::Mesh) && w_->stepDone(ui::Step::Frame));
-    // No screenshot for the README: the frame is another project's file, not to be copied into this one.
-    while (w_->undoStack()->index() > index) w_->undoStack()->undo();
-    QVERIFY((w_->caseData()->groundTruth != nullptr));
+    for (int s = 0; s < 4; ++s)
+      QCOMPARE(other.stepDone(static_cast<ui::Step>(s)), w_->stepDone(static_cast<ui::Step>(s)));
   }
 
   void cleanupTestCase() {

@@ -1,0 +1,45 @@
+#pragma once
+// The GUI suites' shared hand: the real main window opened on the built-in phantom case as the application shows it
+// (dark theme, 1600x900, active for keyboard shortcuts), a screenshot for the README, a drag as a hand makes it.
+#include "rehearse/ui/gui.hpp"
+#include "rehearse/ui/mainwindow.hpp"
+
+#include <QSignalSpy>
+#include <QStandardPaths>
+#include <QtTest>
+
+#include <memory>
+
+namespace {
+// Opens the main window on the phantom case; false (with a QWARN) when it did not come up.
+[[nodiscard]] inline bool openPhantomCase(std::unique_ptr<rehearse::ui::MainWindow>& w) {
+  using rehearse::ui::MainWindow;
+  QStandardPaths::setTestModeEnabled(true);
+  rehearse::ui::applyDarkTheme(*qApp);  // as the application runs (and as the README screenshots show it)
+  w = std::make_unique<MainWindow>();
+  w->resize(1600, 900);
+  w->show();
+  if (!QTest::qWaitForWindowExposed(w.get())) return false;
+  w->activateWindow();  // keyboard shortcuts need the active window (under a real X server too)
+  if (!QTest::qWaitForWindowActive(w.get())) return false;
+  QSignalSpy loaded(w.get(), &MainWindow::caseLoaded);
+  w->openCase({});
+  return loaded.wait(60000);
+}
+}  // namespace
+
+namespace {
+inline void shot(QWidget& w, const char* name) {
+  const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
+  if (dir.isEmpty()) return;
+  QTest::qWait(50);
+  w.grab().save(QString::fromLocal8Bit(dir) + "/" + name + ".png");
+}
+
+// Drags with the left button from a to b in steps (as a hand would).
+inline void drag(QWidget* target, QPointF a, QPointF b, int steps = 8, Qt::KeyboardModifiers mods = {}) {
+  QTest::mousePress(target, Qt::LeftButton, mods, a.toPoint());
+  for (int i = 1; i <= steps; ++i) QTest::mouseMove(target, (a + (b - a) * (double(i) / steps)).toPoint());
+  QTest::mouseRelease(target, Qt::LeftButton, mods, b.toPoint());
+}
+}  // namespace
