@@ -2,6 +2,7 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/liveoverlay.hpp"
 #include "rehearse/ui/recordingcontroller.hpp"
+#include "rehearse/ui/trainingcontroller.hpp"
 
 #include "rehearse/ui/caseinfo.hpp"
 #include "rehearse/ui/casefile.hpp"
@@ -23,10 +24,7 @@
 #include <QListWidget>
 #include <QMenuBar>
 #include <QMessageBox>
-#include "rehearse/ui/cohortwindow.hpp"
 #include "rehearse/ui/reviewwindow.hpp"
-#include <QInputDialog>
-#include <QLineEdit>
 #include <QMimeData>
 #include <QPlainTextEdit>
 #include <QPainter>
@@ -35,8 +33,6 @@
 #include <QStackedWidget>
 #include <QStatusBar>
 #include <QTimer>
-#include <QFutureWatcher>
-#include <QtConcurrent/QtConcurrentRun>
 #include <QToolBar>
 #include <QToolButton>
 #include <QUndoStack>
@@ -236,103 +232,20 @@ void MainWindow::buildSimulationMenu() {
   simMenu->addAction(tr("&Reset"), this, [this] { simulation_->reset(); })
       ->setShortcut(QKeySequence(Qt::SHIFT | Qt::Key_F5));
   simMenu->addSeparator();
-  simMenu
-      ->addAction(
-          tr("Start / Stop &Recording"), this,
-          [this] {
-            if (recording())
-              stopRecording();
-            else if (const QString err = startRecording(pages_.rehearse ? pages_.rehearse->trainee() : QString());
-                     !err.isEmpty())
-              say(err);
-          })
-      ->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_R));
-  simMenu->addAction(tr("Re&view Recorded Rehearsals..."), this, [this] { openReview(); })
-      ->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_R));
-  // The training centre's database: the connection from a libpq service name (or the environment); never stored
-  // in the case file (the service name is a setting of this machine).
-  auto askService = [this](bool& ok) {
-    QSettings settings;
-    const QString service = QInputDialog::getText(
-        this, tr("Training database"),
-        tr("libpq service name (pg_service.conf; empty: PGHOST, PGDATABASE, ... from the environment):"),
-        QLineEdit::Normal, settings.value(QStringLiteral("training/service")).toString(), &ok);
-    if (ok) settings.setValue(QStringLiteral("training/service"), service);
-    return service;
-  };
-  simMenu->addAction(tr("&Publish Recorded Sessions..."), this, [this, askService] {
-    const QString path = doc_->path();
-    if (path.isEmpty() || !QFileInfo::exists(path))
-      return say(tr("Save the case and record a rehearsal first: sessions are published from the case file."));
-    bool ok = false;
-    const QString service = askService(ok);
-    if (!ok) return;
-    say(tr("Publishing the sessions of %1 (each is replayed and verified first)...").arg(QFileInfo(path).fileName()));
-    auto* watcher = new QFutureWatcher<QString>(this);
-    connect(watcher, &QFutureWatcher<QString>::finished, this, [this, watcher] {
-      say(watcher->result());
-      watcher->deleteLater();
-    });
-    watcher->setFuture(QtConcurrent::run([path, service] {
-      try {
-        TrainingDatabase db(service);  // its own connection, on this thread
-        const auto r = db.publish(path);
-        QString text = tr("Published %1 sessions (%2 already there, %3 not published).")
-                           .arg(r.published)
-                           .arg(r.already)
-                           .arg(r.skipped);
-        if (!r.notes.isEmpty()) text += " " + r.notes.join(" ");
-        return text;
-      } catch (const std::exception& e) {
-        return tr("Publishing failed: %1").arg(QString::fromStdString(e.what()));
-      }
-    }));
-  });
-  simMenu->addAction(tr("Training &Cohort..."), this, [this, askService] {
-    bool ok = false;
-    const QString service = askService(ok);
-    if (!ok) return;
-    try {
-      auto* w = new CohortWindow(std::make_shared<TrainingDatabase>(service), this);
-      w->setAttribute(Qt::WA_DeleteOnClose);
-      w->setWindowFlag(Qt::Window);
-      w->show();
-    } catch (const std::exception& e) {
-      say(tr("The training database cannot be opened: %1").arg(QString::fromStdString(e.what())));
-    }
-  });
-  connect(simulation_, &SimulationPanel::recordingRestarted, this, [this](const QString& text) {
-    say(text);
-    if (pages_.rehearse) pages_.rehearse->showRecording(true, text);
-  });
-  connect(simulation_, &SimulationPanel::recordingStopped, this, [this](const QString& why) {
-    say(why);
-    if (pages_.rehearse) pages_.rehearse->showRecording(false, why);
-  });
   recorder_ =
       new RecordingController(doc_, simulation_, pages_.rehearse, this, [this](const QString& text) { say(text); });
-  pages_.rehearse->setRecordHandlers({[this](const QString& trainee) { return startRecording(trainee); },
-                                      [this] { stopRecording(); }, [this] { openReview(); }});
+  recorder_->addActions(simMenu);
+  (new TrainingController(doc_, this, [this](const QString& text) { say(text); }))->addActions(simMenu);
 }
 
-bool MainWindow::recording() const {
-  return recorder_->recording();
-}
+bool MainWindow::recording() const { return recorder_->recording(); }
 
-QString MainWindow::caseFilePath() const {
-  return doc_->path();
-}
+QString MainWindow::caseFilePath() const { return doc_->path(); }
 
-QString MainWindow::startRecording(const QString& trainee) {
-  return recorder_->start(trainee);
-}
+QString MainWindow::startRecording(const QString& trainee) { return recorder_->start(trainee); }
 
-void MainWindow::stopRecording() {
-  recorder_->stop();
-}
+void MainWindow::stopRecording() { recorder_->stop(); }
 
-ReviewWindow* MainWindow::openReview() {
-  return recorder_->openReview();
-}
+ReviewWindow* MainWindow::openReview() { return recorder_->openReview(); }
 
 }  // namespace rehearse::ui

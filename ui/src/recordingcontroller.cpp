@@ -8,6 +8,7 @@
 #include <rehearse/app/recording.hpp>
 
 #include <QDateTime>
+#include <QMenu>
 #include <QFileInfo>
 
 #include <optional>
@@ -20,11 +21,34 @@ namespace rehearse::ui {
 
 RecordingController::RecordingController(CaseDocument* doc, SimulationPanel* simulation, RehearsePage* page,
                                          QWidget* window, std::function<void(const QString&)> say)
-    : QObject(window), doc_(doc), simulation_(simulation), page_(page), window_(window), say_(std::move(say)) {}
-
-bool RecordingController::recording() const {
-  return simulation_->recording();
+    : QObject(window), doc_(doc), simulation_(simulation), page_(page), window_(window), say_(std::move(say)) {
+  connect(simulation_, &SimulationPanel::recordingRestarted, this, [this](const QString& text) {
+    say_(text);
+    if (page_) page_->showRecording(true, text);
+  });
+  connect(simulation_, &SimulationPanel::recordingStopped, this, [this](const QString& why) {
+    say_(why);
+    if (page_) page_->showRecording(false, why);
+  });
+  if (page_)
+    page_->setRecordHandlers(
+        {[this](const QString& trainee) { return start(trainee); }, [this] { stop(); }, [this] { openReview(); }});
 }
+
+void RecordingController::addActions(QMenu* menu) {
+  menu->addAction(tr("Start / Stop &Recording"), this,
+                  [this] {
+                    if (recording())
+                      stop();
+                    else if (const QString err = start(page_ ? page_->trainee() : QString()); !err.isEmpty())
+                      say_(err);
+                  })
+      ->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_R));
+  menu->addAction(tr("Re&view Recorded Rehearsals..."), this, [this] { openReview(); })
+      ->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_R));
+}
+
+bool RecordingController::recording() const { return simulation_->recording(); }
 
 QString RecordingController::start(const QString& trainee) {
   const QString path = doc_->path();

@@ -6,6 +6,8 @@
 
 #include <functional>
 
+class QMenu;
+
 namespace rehearse::ui {
 
 class CaseDocument;
@@ -16,9 +18,12 @@ class ReviewWindow;
 class RecordingController : public QObject {
   Q_OBJECT
  public:
-  /// `say`: a sentence for the status bar and the Messages panel; `window`: the review windows' parent.
+  /// `say`: a sentence for the status bar and the Messages panel; `window`: the review windows' parent. The page's
+  /// Record, Stop and Review buttons and the panel's restarts and stops of a recording are wired here.
   RecordingController(CaseDocument* doc, SimulationPanel* simulation, RehearsePage* page, QWidget* window,
                       std::function<void(const QString&)> say);
+  /// Adds "Start / Stop Recording" (Ctrl+R) and "Review Recorded Rehearsals..." (Ctrl+Shift+R) to `menu`.
+  void addActions(QMenu* menu);
   /// Starts recording; an empty string when it started, else why not (one sentence).
   QString start(const QString& trainee);
   void stop();
