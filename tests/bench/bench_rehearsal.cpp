@@ -6,7 +6,8 @@
 //  - a cut across the organ in sweeps: the re-meshing alone (cutTetrahedra) and the whole step that applies
 //    it (body rebuild, first factorisation), median and 99th percentile.
 // Writes rehearsal-pull.csv and rehearsal-cut.csv into the directory given (default ".").
-//   bench_rehearsal [OUT_DIR] [--quick]
+//   bench_rehearsal [OUT_DIR] [--quick] [--cut-repeats N] [--only VARIANT]   (N runs of the cut scenario, their steps
+//   pooled; only one pull variant on the built-in liver, no cut)
 #include "phantom/presets.hpp"
 #include "session_inputs.hpp"
 
@@ -17,6 +18,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -143,16 +145,21 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
 int main(int argc, char** argv) {
   std::string out = ".";
   bool quick = false;
+  std::string only;  // one pull variant by name (e.g. "linearised"), on the built-in liver only, and no cut: A/B runs
+  int cutRepeats = 1;  // the cut scenario run this many times, its steps pooled (a comparison of builds wants more
+                       // than the 3 updates of one run: each waits for a body built on the other core)
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--quick")) quick = true;
+    else if (!std::strcmp(argv[i], "--cut-repeats") && i + 1 < argc) cutRepeats = std::max(1, std::atoi(argv[++i]));
+    else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
     else out = argv[i];
   }
   std::filesystem::create_directories(out);
 
   const std::string shared = std::string(REHEARSE_SHARED_DATA);
   std::vector<std::string> organs = {"liver"};
-  if (std::filesystem::exists(shared + "/sofa/liver.msh")) organs.push_back("sofa-liver");
-  else std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
+  if (only.empty() && std::filesystem::exists(shared + "/sofa/liver.msh")) organs.push_back("sofa-liver");
+  else if (only.empty()) std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
 
   std::ofstream pullCsv(out + "/rehearsal-pull.csv");
   pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,place_max_ms,failed,swaps,contacts,touching_steps,force_error_rel,bitten_error_mm,loop_hz,loop_period_median_ms,loop_period_p99_ms,loop_period_max_ms,loop_jitter_p99_ms,loop_realtime\n";
@@ -171,6 +178,7 @@ int main(int argc, char** argv) {
     const BodySetup s = setupFor(organ, shared);
     const PullResult exact = pull(s, variants.front(), quick ? 20 : 50);
     for (const Variant& v : variants) {
+      if (!only.empty() && v.name() != only) continue;
       const PullResult r = &v == &variants.front() ? exact : pull(s, v, quick ? 20 : 50);
       const double fe = exact.force.norm() > 0 ? (r.force - exact.force).norm() / exact.force.norm() : 0;
       const double de = 1e3 * (r.bitten - exact.bitten).norm();
@@ -182,6 +190,7 @@ int main(int argc, char** argv) {
     }
   }
 
+  if (!only.empty()) return 0;
   std::ofstream cutCsv(out + "/rehearsal-cut.csv");
   std::printf("\nA cut across the organ (plane a quarter of its width from its left end, the blade in 12 poses, 3 steps of 10 ms each, paced)\n");
   std::printf("%-11s %-18s %7s %15s %13s %17s %15s %14s %16s\n", "organ", "method", "updates", "remesh med ms", "remesh p99", "step+cut med ms",
@@ -199,50 +208,53 @@ int main(int argc, char** argv) {
       // The trocar above the cut's plane; the blade (1.5x the organ's height) sweeps from front to back.
       s.tools.trocar = Eigen::Vector3d(x, box.min().y() - 2 * size.y(), box.center().z());
       s.tools.bladeLength = 1.5 * size.y() + 0.02;
-      Session session(s);
-      for (int k = 0; k < (quick ? 10 : 30); ++k) session.advance();
-      const std::size_t before = session.snapshot()->elements;
       std::vector<double> remesh, step, all;
-      const Eigen::Vector3d from(x, box.max().y() + 0.01, box.min().z() - 0.01);
-      session.post(event(InputKind::ToolPose, from));
-      session.post(event(InputKind::Cut, from, true));
-      const int sweeps = 12;
-      auto due = std::chrono::steady_clock::now();
-      auto timedStep = [&] {
-        std::this_thread::sleep_until(due);
-        const auto t0 = std::chrono::steady_clock::now();
-        session.advance();
-        const auto t1 = std::chrono::steady_clock::now();
-        due = std::max(due + std::chrono::milliseconds(10), t1);
-        const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-        all.push_back(ms);
-        const auto& ev = session.snapshot()->events;
-        if (std::find(ev.begin(), ev.end(), "cut") != ev.end()) step.push_back(ms);
-      };
-      for (int k = 1; k <= sweeps; ++k) {
-        const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * k / sweeps);
-        // The re-meshing alone, on a copy of the session's mesh at its current shape.
-        {
-          const auto snap = session.snapshot();
-          std::vector<Eigen::Vector3d> rest = session.setup().mesh.points, current = snap->positions;
-          auto tets = session.setup().mesh.tets;
-          auto labels = session.setup().mesh.tetLabels;
-          const Eigen::Vector3d prev = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * (k - 1) / sweeps);
-          auto end = [&](const Eigen::Vector3d& t) { return Eigen::Vector3d(t + s.tools.bladeLength * (*s.tools.trocar - t).normalized()); };
-          CutProgress progress = session.setup().cut;
-          if (current.size() == rest.size()) {
-            const auto t0 = std::chrono::steady_clock::now();
-            const CutResult r = cutTetrahedra(rest, current, tets, labels, {prev, end(prev), to, end(to)}, s.tools.cut, &progress);
-            if (r.changed) remesh.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      std::size_t before = 0, after = 0;
+      for (int repeat = 0; repeat < cutRepeats; ++repeat) {
+        Session session(s);
+        for (int k = 0; k < (quick ? 10 : 30); ++k) session.advance();
+        before = session.snapshot()->elements;
+        const Eigen::Vector3d from(x, box.max().y() + 0.01, box.min().z() - 0.01);
+        session.post(event(InputKind::ToolPose, from));
+        session.post(event(InputKind::Cut, from, true));
+        const int sweeps = 12;
+        auto due = std::chrono::steady_clock::now();
+        auto timedStep = [&] {
+          std::this_thread::sleep_until(due);
+          const auto t0 = std::chrono::steady_clock::now();
+          session.advance();
+          const auto t1 = std::chrono::steady_clock::now();
+          due = std::max(due + std::chrono::milliseconds(10), t1);
+          const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+          all.push_back(ms);
+          const auto& ev = session.snapshot()->events;
+          if (std::find(ev.begin(), ev.end(), "cut") != ev.end()) step.push_back(ms);
+        };
+        for (int k = 1; k <= sweeps; ++k) {
+          const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * k / sweeps);
+          // The re-meshing alone, on a copy of the session's mesh at its current shape.
+          {
+            const auto snap = session.snapshot();
+            std::vector<Eigen::Vector3d> rest = session.setup().mesh.points, current = snap->positions;
+            auto tets = session.setup().mesh.tets;
+            auto labels = session.setup().mesh.tetLabels;
+            const Eigen::Vector3d prev = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * (k - 1) / sweeps);
+            auto end = [&](const Eigen::Vector3d& t) { return Eigen::Vector3d(t + s.tools.bladeLength * (*s.tools.trocar - t).normalized()); };
+            CutProgress progress = session.setup().cut;
+            if (current.size() == rest.size()) {
+              const auto t0 = std::chrono::steady_clock::now();
+              const CutResult r = cutTetrahedra(rest, current, tets, labels, {prev, end(prev), to, end(to)}, s.tools.cut, &progress);
+              if (r.changed) remesh.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+            }
           }
+          session.post(event(InputKind::ToolPose, to));
+          for (int j = 0; j < 3; ++j) timedStep();
         }
-        session.post(event(InputKind::ToolPose, to));
-        for (int j = 0; j < 3; ++j) timedStep();
+        session.post(event(InputKind::Cut, from, false));  // withdrawn: a cut still being built is applied here
+        timedStep();
+        for (int j = 0; j < 5; ++j) timedStep();
+        after = session.snapshot()->elements;
       }
-      session.post(event(InputKind::Cut, from, false));  // withdrawn: a cut still being built is applied here
-      timedStep();
-      for (int j = 0; j < 5; ++j) timedStep();
-      const std::size_t after = session.snapshot()->elements;
       const double slowest = all.empty() ? 0 : *std::max_element(all.begin(), all.end());
       std::printf("%-11s %-18s %7zu %15.2f %13.2f %17.2f %15.2f %14.2f %7zu -> %zu\n", organ.c_str(), v.name().c_str(), step.size(), percentile(remesh, 0.5),
                   percentile(remesh, 0.99), percentile(step, 0.5), percentile(step, 0.99), slowest, before, after);
