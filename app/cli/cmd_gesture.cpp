@@ -14,6 +14,7 @@
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/inverse_rest.hpp>
 #include <rehearse/simcore/registration.hpp>
 #include <rehearse/simcore/scene.hpp>
 #include <rehearse/simcore/meshio.hpp>
@@ -100,6 +101,23 @@ int cmdGesture(const std::vector<std::string>& args) {
   }
   mesh.convertToMetres();
   setup.mesh = mesh;
+  // --start equilibrium: the mesh as given is where the organ hangs (as registered): its rest shape solved first.
+  std::string startWord = "rest";
+  if (o.count("start") && o["start"] != "rest") {
+    if (o["start"] != "equilibrium") throw UsageError("--start takes rest or equilibrium, not '" + o["start"] + "'");
+    simcore::InverseRestOptions io;
+    io.progress = [](int k, double error) {
+      std::fprintf(stderr, "start: static solve %d, %.3g mm from the shape\n", k, 1e3 * error);
+      return true;
+    };
+    const simcore::InverseRestResult start = simcore::startInEquilibrium(setup, mesh.points, io);
+    std::printf("start: %s\n", start.status.c_str());
+    if (!start.converged()) {
+      std::fprintf(stderr, "The organ cannot start in equilibrium on this shape: %s\n", start.status.c_str());
+      return 4;
+    }
+    startWord = "equilibrium";
+  }
   // --record: the session (setup, events, a state checksum every 10 steps) written into CASE as it runs.
   std::unique_ptr<Recorder> recorder;
   GestureHooks hooks;
@@ -166,6 +184,7 @@ int cmdGesture(const std::vector<std::string>& args) {
     for (const auto& s : r.steps) all.push_back(&s.report);
     writeReport(o["report"],
                 {{"steps", rows},
+                 {"start", startWord},
                  {"statuses", statusCounts(all)},
                  {"slips", r.slips},
                  {"cuts", r.cuts},
@@ -198,7 +217,8 @@ const Command& gestureCommand() {
       "simulate]\n"
       "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method "
       "exact|lagged-pcg|chord|linearised]\n"
-      "                [--refresh sync|async]  async: a drifted lagged factorisation is rebuilt on a second thread "
+      "                [--start rest|equilibrium] [--refresh sync|async]  async: a drifted lagged factorisation is "
+      "rebuilt on a second thread "
       "and\n"
       "                                   swapped in when ready (the steps never wait for it)\n"
       "                                   a scripted rehearsal (timed grasper events: tip, move, jaws) run through "
@@ -216,6 +236,9 @@ const Command& gestureCommand() {
               {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
               {"method", "M", "exact, lagged-pcg, chord or linearised"},
               {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
+              {"start", "S",
+               "rest (the mesh is the rest shape; default) or equilibrium (the mesh is where the organ hangs under "
+               "gravity on its attachments, as registered: its rest shape is solved first; exit 4 when none is found)"},
               {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
               {"trainee", "NAME", "the trainee the recording names (with --record)"},
               {"notes", "TEXT", "notes kept with the recording (with --record)"}}),

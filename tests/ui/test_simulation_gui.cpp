@@ -105,7 +105,7 @@ class TestSimulationGui : public QObject {
     QCOMPARE(f->steps, 1L);
     QVERIFY(std::abs(f->time - 0.01) < 1e-12);  // one 10 ms step
     QVERIFY(f->report.ok);
-    QVERIFY(f->thread != QThread::currentThreadId());  // stepped on the simulation thread
+    QVERIFY(f->thread != QThread::currentThreadId());        // stepped on the simulation thread
     QVERIFY(f->valueMax > 0 && std::isfinite(f->valueMax));  // the organ moved under gravity (mm)
     // The attachments did not move.
     for (int a : f->organ->attachments) QVERIFY(f->value[a] < 1e-9);
@@ -153,7 +153,8 @@ class TestSimulationGui : public QObject {
           ++organ;
           onBorder += x < 3 || x >= W - 3 || y >= H - 3 || y < top + 3;
         }
-      qInfo("simulation view %dx%d: %d organ pixels, %d on the drawing area's border", size.width(), size.height(), organ, onBorder);
+      qInfo("simulation view %dx%d: %d organ pixels, %d on the drawing area's border", size.width(), size.height(),
+            organ, onBorder);
       QVERIFY(organ > 0.05 * W * (H - top));  // not a dot
       QCOMPARE(onBorder, 0);
     }
@@ -192,7 +193,10 @@ class TestSimulationGui : public QObject {
     }
   }
 
+  // Reset goes back to where the rehearsal started: t = 0, every node where it was (displacement 0; since issue 34 the
+  // organ starts where the frame shows it, in equilibrium on a solved rest shape, so its stress there is not zero).
   void resetReturnsToRest() {
+    panel_->findChild<QComboBox*>("simColouring")->setCurrentIndex(0);  // displacement from the start
     auto* reset = panel_->findChild<QPushButton*>("simReset");
     QTest::mouseClick(reset, Qt::LeftButton);
     QElapsedTimer t;
@@ -220,12 +224,14 @@ class TestSimulationGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_F5);
     QElapsedTimer t;
     t.start();
-    while (panel_->lastFrame()->report.outcome != simcore::StepStatus::Inverted && t.elapsed() < 60000) QTest::qWait(20);
+    while (panel_->lastFrame()->report.outcome != simcore::StepStatus::Inverted && t.elapsed() < 60000)
+      QTest::qWait(20);
     QTest::keyClick(w_.get(), Qt::Key_F5);
     QTest::qWait(300);
     const auto f = panel_->lastFrame();
-    qInfo("after %lld ms: step %ld, E in use %g Pa, largest displacement %.1f mm, law %s: %s", static_cast<long long>(t.elapsed()), f->steps, f->youngInUse, f->valueMax,
-          qPrintable(model->currentText()), simcore::statusSentence(f->report).c_str());
+    qInfo("after %lld ms: step %ld, E in use %g Pa, largest displacement %.1f mm, law %s: %s",
+          static_cast<long long>(t.elapsed()), f->steps, f->youngInUse, f->valueMax, qPrintable(model->currentText()),
+          simcore::statusSentence(f->report).c_str());
     QCOMPARE(toString(f->report.outcome), std::string("inverted"));
     QVERIFY(f->report.invertedElements > 0);
     QCOMPARE(static_cast<int>(f->inverted.size()), f->report.invertedElements);
@@ -241,7 +247,8 @@ class TestSimulationGui : public QObject {
         const QColor c(img.pixel(x, y));
         magenta += c.red() > 90 && c.blue() > 90 && c.green() < 0.4 * std::min(c.red(), c.blue());
       }
-    qInfo("StVK at 100 Pa: %s; %d magenta pixels in the simulation view", simcore::statusSentence(f->report).c_str(), magenta);
+    qInfo("StVK at 100 Pa: %s; %d magenta pixels in the simulation view", simcore::statusSentence(f->report).c_str(),
+          magenta);
     QVERIFY(magenta > 20);
     const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
     if (!dir.isEmpty()) w_->grab().save(QString::fromLocal8Bit(dir) + "/inverted-warning.png");
@@ -260,7 +267,8 @@ class TestSimulationGui : public QObject {
     const auto& c = *w_->caseData();
     // The assistant's contour: the outline at the true pose of the organ sagging 2 g sideways (a
     // deformation the fit must find); the rigid alignment: the true pose moved 3 mm sideways.
-    const simcore::FemModel model = simcore::FemModel::build(c.organ->volume, {}, {simcore::MaterialModel::Corotational, 27e3, 0.4, 1000});
+    const simcore::FemModel model =
+        simcore::FemModel::build(c.organ->volume, {}, {simcore::MaterialModel::Corotational, 27e3, 0.4, 1000});
     simcore::SimulationSettings load;
     load.gravity = c.groundTruth->pose.R.transpose() * Eigen::Vector3d(2 * 9.81, 0, 0);
     simcore::Integrator sag(model, c.attachments, load);
@@ -295,7 +303,8 @@ class TestSimulationGui : public QObject {
     auto* series = qobject_cast<QLineSeries*>(chart->chart()->series().front());
     QVERIFY(series->count() >= 2);
     const double first = series->at(0).y(), last = series->at(series->count() - 1).y();
-    qInfo("fit: %s; chart %d points, %.2f px -> %.2f px", qPrintable(w_->findChild<QLabel*>("fitStatus")->text()), series->count(), first, last);
+    qInfo("fit: %s; chart %d points, %.2f px -> %.2f px", qPrintable(w_->findChild<QLabel*>("fitStatus")->text()),
+          series->count(), first, last);
     QVERIFY(last < first);
     QVERIFY(w_->stepDone(ui::Step::Elastic));
     const std::vector<Eigen::Vector3d> fitted = w_->caseData()->fit->nodes;
@@ -349,10 +358,12 @@ class TestSimulationGui : public QObject {
     });
     const auto& c0 = *w_->caseData();
     const Eigen::Vector2d centre = c0.camera.project(c0.groundTruth->pose.apply(c0.organ->centreOfGravity));
-    const std::vector<Eigen::Vector2d> along = {centre + Eigen::Vector2d(-160, 0), centre, centre + Eigen::Vector2d(160, 0)};
+    const std::vector<Eigen::Vector2d> along = {centre + Eigen::Vector2d(-160, 0), centre,
+                                                centre + Eigen::Vector2d(160, 0)};
     auto* view = w_->frameView();
     auto click = [&](const Eigen::Vector2d& framePixel) {
-      QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, view->toWidget(QPointF(framePixel.x(), framePixel.y())).toPoint());
+      QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier,
+                        view->toWidget(QPointF(framePixel.x(), framePixel.y())).toPoint());
     };
     view->setFocus();
     QTest::keyClick(w_.get(), Qt::Key_3, Qt::AltModifier);
@@ -379,16 +390,19 @@ class TestSimulationGui : public QObject {
     QTest::keyClick(view, Qt::Key_Return);
     const auto& c = *w_->caseData();
     const auto& nodes = c.contour.segments.back().modelVertices;
-    qInfo("organ curve: %zu nodes from 3 clicks; %s", nodes.size(), qPrintable(w_->findChild<QLabel*>("fitCurves")->text()));
+    qInfo("organ curve: %zu nodes from 3 clicks; %s", nodes.size(),
+          qPrintable(w_->findChild<QLabel*>("fitCurves")->text()));
     QVERIFY(nodes.size() >= 5);
     // A chain along the surface: consecutive nodes share a surface edge; its ends project near the clicks.
     std::set<std::pair<int, int>> edges;
     for (const auto& t : c.organ->surface)
       for (int k = 0; k < 3; ++k) edges.insert({std::min(t[k], t[(k + 1) % 3]), std::max(t[k], t[(k + 1) % 3])});
-    for (std::size_t i = 1; i < nodes.size(); ++i) QVERIFY(edges.count({std::min(nodes[i - 1], nodes[i]), std::max(nodes[i - 1], nodes[i])}));
+    for (std::size_t i = 1; i < nodes.size(); ++i)
+      QVERIFY(edges.count({std::min(nodes[i - 1], nodes[i]), std::max(nodes[i - 1], nodes[i])}));
     const Eigen::Vector2d end = c.camera.project(c.pose.apply(c.organ->volume.points[nodes.back()]));
     // (the node nearest to the click on the triangle under it: within one surface edge, about 40 px here)
-    QVERIFY2((end - along.back()).norm() < 45, qPrintable(QString("last node projects %1 px from the last click").arg((end - along.back()).norm())));
+    QVERIFY2((end - along.back()).norm() < 45,
+             qPrintable(QString("last node projects %1 px from the last click").arg((end - along.back()).norm())));
     QVERIFY(w_->findChild<QLabel*>("fitCurves")->text().contains("1 with their curve"));
     // The picks are one undo step.
     QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
@@ -409,7 +423,6 @@ class TestSimulationGui : public QObject {
       w_->grab().save(QString::fromLocal8Bit(dir) + "/step5-ridge.png");
     }
   }
-
 
   // The material set in the Simulation panel is the one the GUI's fit uses, and the GUI's fit and
   // `rehearse register` (the same inputs written to files) give the same registered nodes.
@@ -452,7 +465,8 @@ class TestSimulationGui : public QObject {
     w_->editCase("test: no fit", [](app::Case& k) { k.fit.reset(); });
     c = w_->caseData();
     QTest::keyClick(w_.get(), Qt::Key_F9);
-    QTRY_VERIFY2_WITH_TIMEOUT(w_->caseData()->hasFit(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()), 120000);
+    QTRY_VERIFY2_WITH_TIMEOUT(w_->caseData()->hasFit(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()),
+                              120000);
     const auto fitted = w_->caseData();
     // The same inputs as files, through the command line.
     const std::string dir = tempPath("gui-vs-cli");
@@ -465,11 +479,31 @@ class TestSimulationGui : public QObject {
     for (int a : c->attachments) nodes += QString::number(a) + " ";
     const QString d = QString::fromStdString(dir);
     QProcess p;
-    p.start(QStringLiteral(REHEARSE_BINARY),
-            {"register", "--mesh", d + "/organ.vtu", "--material", "stvk", "--young", QString::number(c->material.young, 'g', 17), "--poisson",
-             QString::number(c->material.poisson, 'g', 17), "--density", QString::number(c->material.density, 'g', 17), "--vessel-young",
-             QString::number(c->material.vesselYoung, 'g', 17), "--fixed-nodes", nodes.trimmed(), "--camera", d + "/camera.yaml", "--pose",
-             d + "/pose.json", "--contour", d + "/contour.json", "--out", d + "/registered.vtu", "--gravity-camera", "0,9.81,0"});
+    p.start(QStringLiteral(REHEARSE_BINARY), {"register",
+                                              "--mesh",
+                                              d + "/organ.vtu",
+                                              "--material",
+                                              "stvk",
+                                              "--young",
+                                              QString::number(c->material.young, 'g', 17),
+                                              "--poisson",
+                                              QString::number(c->material.poisson, 'g', 17),
+                                              "--density",
+                                              QString::number(c->material.density, 'g', 17),
+                                              "--vessel-young",
+                                              QString::number(c->material.vesselYoung, 'g', 17),
+                                              "--fixed-nodes",
+                                              nodes.trimmed(),
+                                              "--camera",
+                                              d + "/camera.yaml",
+                                              "--pose",
+                                              d + "/pose.json",
+                                              "--contour",
+                                              d + "/contour.json",
+                                              "--out",
+                                              d + "/registered.vtu",
+                                              "--gravity-camera",
+                                              "0,9.81,0"});
     QVERIFY(p.waitForFinished(300000));
     QVERIFY2(p.exitCode() == 0, qPrintable(QString::fromUtf8(p.readAllStandardError())));
     const simcore::Mesh registered = simcore::loadMesh(dir + "/registered.vtu");
@@ -477,8 +511,10 @@ class TestSimulationGui : public QObject {
     double worst = 0;
     for (std::size_t i = 0; i < registered.points.size(); ++i)
       worst = std::max(worst, (registered.points[i] - fitted->pose.apply(fitted->fit->nodes[i])).norm());
-    qInfo("GUI fit (StVK, 54 kPa, down towards the image bottom) against rehearse register on the same inputs: largest node difference %.2e m; %s", worst,
-          fitted->fit->status.c_str());
+    qInfo(
+        "GUI fit (StVK, 54 kPa, down towards the image bottom) against rehearse register on the same inputs: largest "
+        "node difference %.2e m; %s",
+        worst, fitted->fit->status.c_str());
     QVERIFY2(worst < 1e-9, qPrintable(QString::number(worst)));
   }
 
@@ -490,8 +526,8 @@ class TestSimulationGui : public QObject {
     simcore::TetrahedraliseOptions to;
     to.targetTets = 3000;
     simcore::Mesh volume = simcore::tetrahedraliseImplicit(
-        [radii](const Eigen::Vector3d& p) { return p.cwiseQuotient(radii).norm() < 1 ? 1 : 0; }, Eigen::AlignedBox3d(-radii * 1.1, radii * 1.1), to,
-        4.0 / 3 * M_PI * radii.prod());
+        [radii](const Eigen::Vector3d& p) { return p.cwiseQuotient(radii).norm() < 1 ? 1 : 0; },
+        Eigen::AlignedBox3d(-radii * 1.1, radii * 1.1), to, 4.0 / 3 * M_PI * radii.prod());
     auto organ = app::Organ::fromVolume(std::move(volume), "spheroid");
     Pose pose;
     pose.t = Eigen::Vector3d(0, 0, 0.35);

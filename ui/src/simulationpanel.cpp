@@ -4,6 +4,7 @@
 #include <rehearse/app/materials.hpp>
 
 #include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/inverse_rest.hpp>
 #include <rehearse/simcore/scene.hpp>
 
 #include <QComboBox>
@@ -14,6 +15,7 @@
 #include <QLinearGradient>
 #include <QMouseEvent>
 #include <QPainter>
+#include <QPointer>
 #include <QPushButton>
 #include <QFutureWatcher>
 #include <QThread>
@@ -36,8 +38,8 @@ struct SimulationPanel::FrameContext {
   std::shared_ptr<const app::Case> organ;
   std::vector<Eigen::Vector3d> rest;  ///< camera frame (m)
   std::vector<std::array<int, 4>> tets;
-  std::vector<int> incidence;         ///< elements per node (stress averaged onto nodes)
-  long generation = 0;                ///< frames of an older session are dropped
+  std::vector<int> incidence;  ///< elements per node (stress averaged onto nodes)
+  long generation = 0;         ///< frames of an older session are dropped
 };
 
 namespace {
@@ -52,12 +54,14 @@ simcore::BodySetup bodySetup(const SimulationSetup& s) {
   b.rest.resize(shape.size());
   for (std::size_t i = 0; i < shape.size(); ++i) b.rest[i] = s.organ->pose.apply(shape[i]);
   b.fixedNodes = s.organ->attachments;
-  const app::LabelMaterials m = app::labelMaterials(app::MaterialSettings{s.model, s.young, s.poisson, s.density, s.vesselYoung, s.vesselPoisson});
+  const app::LabelMaterials m = app::labelMaterials(
+      app::MaterialSettings{s.model, s.young, s.poisson, s.density, s.vesselYoung, s.vesselPoisson});
   b.material = m.fallback;
   b.byLabel = m.byLabel;
   b.settings.timeStep = s.timeStep;
   b.settings.method = s.method;
-  b.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)
+  b.settings.factorRefresh =
+      simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)
   b.settings.gravity = s.gravity;
   b.tools.toolRadius = s.toolRadius;
   // ... nor for a cut: its body comes in as soon as it is built (the step it came in at is recorded, so the replay
@@ -84,13 +88,15 @@ bool sameBody(const app::Case* a, const app::Case* b) {
 
 }  // namespace
 
-std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameContext& ctx, const simcore::Snapshot& snap, int colouring) {
+std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameContext& ctx,
+                                                                  const simcore::Snapshot& snap, int colouring) {
   auto f = std::make_shared<SimulationFrame>();
   const std::size_t n = snap.positions.size();
   f->positions = snap.positions;
   f->value.assign(n, 0.0);
   if (colouring == 0 || snap.stress.size() != ctx.tets.size()) {
-    for (std::size_t i = 0; i < n && i < ctx.rest.size(); ++i) f->value[i] = 1e3 * (f->positions[i] - ctx.rest[i]).norm();
+    for (std::size_t i = 0; i < n && i < ctx.rest.size(); ++i)
+      f->value[i] = 1e3 * (f->positions[i] - ctx.rest[i]).norm();
     colouring = 0;
   } else {
     for (std::size_t e = 0; e < ctx.tets.size(); ++e)
@@ -124,12 +130,17 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
     f->invertedNode.assign(n, 0);
     for (std::size_t e = 0; e < tets.size(); ++e) {
       const auto& t = tets[e];
-      if (std::any_of(t.begin(), t.end(), [&](int v) { return v < 0 || static_cast<std::size_t>(v) >= n || static_cast<std::size_t>(v) >= rest.size(); }))
+      if (std::any_of(t.begin(), t.end(), [&](int v) {
+            return v < 0 || static_cast<std::size_t>(v) >= n || static_cast<std::size_t>(v) >= rest.size();
+          }))
         continue;
-      auto volume = [&](const std::vector<Eigen::Vector3d>& p) { return (p[t[1]] - p[t[0]]).dot((p[t[2]] - p[t[0]]).cross(p[t[3]] - p[t[0]])); };
+      auto volume = [&](const std::vector<Eigen::Vector3d>& p) {
+        return (p[t[1]] - p[t[0]]).dot((p[t[2]] - p[t[0]]).cross(p[t[3]] - p[t[0]]));
+      };
       if (volume(snap.positions) * volume(rest) > 0) continue;
       f->inverted.push_back(static_cast<int>(e));
-      f->invertedAt.push_back(0.25 * (snap.positions[t[0]] + snap.positions[t[1]] + snap.positions[t[2]] + snap.positions[t[3]]));
+      f->invertedAt.push_back(
+          0.25 * (snap.positions[t[0]] + snap.positions[t[1]] + snap.positions[t[2]] + snap.positions[t[3]]));
       for (int v : t) f->invertedNode[v] = 1;
     }
   }
@@ -145,15 +156,21 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
     try {
       recorder_->finish(recorder_->lastStep());
     } catch (const std::exception& e) {
-      emit recordingStopped(tr("The recorded session could not be marked complete: %1").arg(QString::fromStdString(e.what())));
+      emit recordingStopped(
+          tr("The recorded session could not be marked complete: %1").arg(QString::fromStdString(e.what())));
     }
     recorder_.reset();
   }
   if (!record && recordRequest_) {  // a new organ (or none) ends the recording: said, never silently
     recordRequest_.reset();
-    emit recordingStopped(tr("The recording ended: the organ, its shape, pose or attachments changed (what was recorded is kept, complete)."));
+    emit recordingStopped(
+        tr("The recording ended: the organ, its shape, pose or attachments changed (what was recorded is kept, "
+           "complete)."));
   }
   const long generation = ++generation_;
+  buildCancelled_->store(true);  // the session being built (its rest-shape solve) is not wanted any more
+  buildCancelled_ = std::make_shared<std::atomic<bool>>(false);
+  startWord_.clear();
   recordPending_ = record.has_value();
   cancelRecord_ = false;
   if (!s.organ || s.organ->organ->empty()) {
@@ -167,9 +184,11 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   auto result = std::make_shared<std::pair<std::shared_ptr<simcore::Session>, QString>>();
   auto recorder = std::make_shared<std::shared_ptr<app::Recorder>>();
   auto ctx = std::make_shared<FrameContext>();
-  connect(watcher, &QFutureWatcher<void>::finished, this, [this, watcher, result, ctx, generation, recorder] {
+  auto started = std::make_shared<QString>();
+  connect(watcher, &QFutureWatcher<void>::finished, this, [this, watcher, result, ctx, generation, recorder, started] {
     watcher->deleteLater();
     if (generation != generation_) return;  // a newer organ arrived meanwhile
+    startWord_ = *started;
     const bool cancelled = cancelRecord_;
     recordPending_ = cancelRecord_ = false;
     if (!result->first) {
@@ -184,25 +203,28 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
       recorder_ = *recorder;
       recorderFailed_->store(false);
       // On the session's thread after every step; a write the file refuses stops the recording, not the simulation.
-      session_->setStepHook([rec = recorder_, failed = recorderFailed_, why = recorderError_](const simcore::StepRecord& r) {
-        if (failed->load()) return;
-        try {
-          rec->afterStep(r);
-        } catch (const std::exception& e) {
-          *why = e.what();
-          failed->store(true);
-        }
-      });
+      session_->setStepHook(
+          [rec = recorder_, failed = recorderFailed_, why = recorderError_](const simcore::StepRecord& r) {
+            if (failed->load()) return;
+            try {
+              rec->afterStep(r);
+            } catch (const std::exception& e) {
+              *why = e.what();
+              failed->store(true);
+            }
+          });
     }
-    forceLoop_ = std::make_unique<simcore::ForceLoop>(
-        [s = session_.get()] { return s->toolForce(); }, &device_);
+    forceLoop_ = std::make_unique<simcore::ForceLoop>([s = session_.get()] { return s->toolForce(); }, &device_);
     forceLoop_->start();
     session_->setPublishedCallback([this, s = session_.get(), ctx]() {
       // On the session's thread: the frame is made here, the GUI thread only draws it.
       auto frame = makeFrame(*ctx, *s->snapshot(), colouring_.load());
-      QMetaObject::invokeMethod(this, [this, frame, generation = ctx->generation] {
-        if (generation == generation_) onFrame(frame);
-      }, Qt::QueuedConnection);
+      QMetaObject::invokeMethod(
+          this,
+          [this, frame, generation = ctx->generation] {
+            if (generation == generation_) onFrame(frame);
+          },
+          Qt::QueuedConnection);
     });
     session_->setPublishStress(colouring_ == 1);  // publishes the state at rest with this panel's colouring
     // What was asked while the body was being built: edits first (they apply at the first step), then the run.
@@ -212,14 +234,44 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
     if (pendingPlay_) session_->play();
     pendingPlay_ = false;
   });
-  watcher->setFuture(QtConcurrent::run([s, result, ctx, generation, record, recorder] {
+  QPointer<SimulationPanel> self(this);
+  watcher->setFuture(QtConcurrent::run([s, result, ctx, generation, record, recorder, started, self,
+                                        cancelled = buildCancelled_] {
     try {
       simcore::BodySetup b = bodySetup(s);
+      if (s.startInEquilibrium && b.settings.gravity.norm() > 0 && !b.fixedNodes.empty()) {
+        // The organ as the frame shows it is the equilibrium: the rest shape that sags into it, solved first (a few
+        // static solves; said on the status line as they go, stopped when a newer session is asked for).
+        simcore::InverseRestOptions o;
+        o.progress = [self, cancelled, generation](int k, double error) {
+          const QString text =
+              tr("Solving the rest shape that sags into the registered one: static solve %1, %2 mm from it...")
+                  .arg(k)
+                  .arg(1e3 * error, 0, 'g', 3);
+          QMetaObject::invokeMethod(
+              self,
+              [self, text, generation] {
+                if (self && self->generation_ == generation) self->status_->setText(text);
+              },
+              Qt::QueuedConnection);
+          return !cancelled->load();
+        };
+        const std::vector<Eigen::Vector3d> shape = b.rest;
+        const simcore::InverseRestResult r = simcore::startInEquilibrium(b, shape, o);
+        if (r.outcome == simcore::InverseRestResult::Outcome::Cancelled) return;
+        *started = r.converged() ? tr("The organ starts where the frame shows it, in equilibrium under gravity on its "
+                                      "attachments: %1")
+                                       .arg(QString::fromStdString(r.status))
+                                 : tr("The organ starts at rest on the registered shape and will sag from it: %1")
+                                       .arg(QString::fromStdString(r.status));
+      } else if (b.settings.gravity.norm() > 0 && !b.fixedNodes.empty()) {
+        *started = tr("The organ starts at rest on the registered shape and will sag from it under gravity.");
+      }
       if (record) *recorder = std::make_shared<app::Recorder>(record->file, record->meta, b);
       ctx->organ = s.organ;
-      ctx->rest = b.rest;
+      ctx->rest = b.start.empty() ? b.rest : b.start;  // displacements from where the rehearsal starts
       ctx->tets = b.mesh.tets;
-      ctx->incidence.assign(b.rest.size(), 0);
+      ctx->incidence.assign(ctx->rest.size(), 0);
       for (const auto& t : ctx->tets)
         for (int v : t) ++ctx->incidence[static_cast<std::size_t>(v)];
       ctx->generation = generation;
@@ -242,7 +294,8 @@ QString declared(const char* component, const char* parameter) {
         if (p.name == parameter)
           return QStringLiteral("%1 (scene: %2.%3%4, default %5)")
               .arg(QString::fromStdString(p.help), QString::fromLatin1(component), QString::fromLatin1(parameter),
-                   p.unit.empty() ? QString() : QStringLiteral(", ") + QString::fromStdString(p.unit), QString::fromStdString(p.defaultValue));
+                   p.unit.empty() ? QString() : QStringLiteral(", ") + QString::fromStdString(p.unit),
+                   QString::fromStdString(p.defaultValue));
   return {};
 }
 
@@ -255,7 +308,8 @@ QColor colourMap(double t) {
   t = std::clamp(t, 0.0, 1.0) * 4;
   const int i = std::min(3, static_cast<int>(t));
   const double u = t - i;
-  return QColor::fromRgbF(((1 - u) * stops[i][0] + u * stops[i + 1][0]) / 255, ((1 - u) * stops[i][1] + u * stops[i + 1][1]) / 255,
+  return QColor::fromRgbF(((1 - u) * stops[i][0] + u * stops[i + 1][0]) / 255,
+                          ((1 - u) * stops[i][1] + u * stops[i + 1][1]) / 255,
                           ((1 - u) * stops[i][2] + u * stops[i + 1][2]) / 255);
 }
 }  // namespace
@@ -283,16 +337,17 @@ void SimulationView::paintEvent(QPaintEvent*) {
   painter.fillRect(rect(), QColor(24, 25, 28));
   if (!frame_ || !frame_->organ || frame_->positions.empty()) {
     painter.setPen(QColor(150, 150, 150));
-    painter.drawText(rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap, tr("No simulation yet: choose a preset and press Step or Play"));
+    painter.drawText(rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap,
+                     tr("No simulation yet: choose a preset and press Step or Play"));
     return;
   }
   const app::Case& organCase = *frame_->organ;
   const auto& organ = *organCase.organ;
   const Eigen::Vector3d& cog = centre_;
   const double size = size_;
-  const Eigen::Matrix3d R =
-      (Eigen::AngleAxisd(turntable_.pitch, Eigen::Vector3d::UnitX()) * Eigen::AngleAxisd(turntable_.yaw, Eigen::Vector3d::UnitY()))
-          .toRotationMatrix();
+  const Eigen::Matrix3d R = (Eigen::AngleAxisd(turntable_.pitch, Eigen::Vector3d::UnitX()) *
+                             Eigen::AngleAxisd(turntable_.yaw, Eigen::Vector3d::UnitY()))
+                                .toRotationMatrix();
   // Framed like the 3D organ view (turntableView): the bounding sphere's outline spans 80 % of the smaller
   // side of the drawing area (left of the colour bar) whichever way the organ turns; the sphere is taken
   // from the first frame, and the organ sags within it.
@@ -326,8 +381,12 @@ void SimulationView::paintEvent(QPaintEvent*) {
     const Eigen::Vector3d c = (cam[tri[0]] + cam[tri[1]] + cam[tri[2]]) / 3;
     const double shade = 0.35 + 0.65 * std::abs(n.dot(c.normalized()));
     const double v = (frame_->value[tri[0]] + frame_->value[tri[1]] + frame_->value[tri[2]]) / 3;
-    const bool inverted = !frame_->invertedNode.empty() && (frame_->invertedNode[tri[0]] || frame_->invertedNode[tri[1]] || frame_->invertedNode[tri[2]]);
-    QColor col = inverted ? QColor(235, 40, 235) : frame_->surface && frame_->surface->cut[o.index] ? QColor(150, 30, 40) : colourMap(v / vmax);
+    const bool inverted =
+        !frame_->invertedNode.empty() &&
+        (frame_->invertedNode[tri[0]] || frame_->invertedNode[tri[1]] || frame_->invertedNode[tri[2]]);
+    QColor col = inverted                                           ? QColor(235, 40, 235)
+                 : frame_->surface && frame_->surface->cut[o.index] ? QColor(150, 30, 40)
+                                                                    : colourMap(v / vmax);
     col = QColor::fromRgbF(col.redF() * shade, col.greenF() * shade, col.blueF() * shade);
     const QPointF pts[3] = {project(cam[tri[0]]), project(cam[tri[1]]), project(cam[tri[2]])};
     painter.setPen(QPen(col, 0.8));
@@ -338,7 +397,8 @@ void SimulationView::paintEvent(QPaintEvent*) {
   painter.setPen(Qt::NoPen);
   painter.setBrush(QColor(255, 150, 40));
   for (int a : organCase.attachments)
-    if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0) painter.drawEllipse(project(cam[a]), 2.5, 2.5);
+    if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0)
+      painter.drawEllipse(project(cam[a]), 2.5, 2.5);
   // Colour bar with its unit.
   const QRect bar(width() - 62, 30, 14, height() - 70);
   QLinearGradient g(bar.bottomLeft(), bar.topLeft());
@@ -361,12 +421,17 @@ void SimulationView::paintEvent(QPaintEvent*) {
 QString warningText(const SimulationFrame& f) {
   const auto& r = f.report;
   if (r.outcome == simcore::StepStatus::Inverted)
-    return (r.invertedElements == 1 ? QObject::tr("Warning: 1 element inside out (magenta; volume ratio %1): the shape there is not tissue.")
-                                    : QObject::tr("Warning: %1 elements inside out (magenta; smallest volume ratio %2): the shape there is not tissue.")
-                                          .arg(r.invertedElements))
+    return (r.invertedElements == 1
+                ? QObject::tr(
+                      "Warning: 1 element inside out (magenta; volume ratio %1): the shape there is not tissue.")
+                : QObject::tr("Warning: %1 elements inside out (magenta; smallest volume ratio %2): the shape there is "
+                              "not tissue.")
+                      .arg(r.invertedElements))
         .arg(r.minVolumeRatio, 0, 'g', 3);
   if (r.outcome == simcore::StepStatus::Inexact && r.inversionLimited)
-    return QObject::tr("Warning: the step was held back to keep elements from turning inside out (relative residual %1).").arg(r.residual, 0, 'g', 3);
+    return QObject::tr(
+               "Warning: the step was held back to keep elements from turning inside out (relative residual %1).")
+        .arg(r.residual, 0, 'g', 3);
   return {};
 }
 
@@ -423,7 +488,9 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   form_.poisson = field("simPoisson", tr("Poisson's ratio"), 0, 0.499, 3, QString(), "material", "poisson");
   form_.poisson->setSingleStep(0.01);
   form_.density = field("simDensity", tr("Density"), 1, 20000, 0, tr(" kg/m³"), "material", "density");
-  form_.density->setToolTip(form_.density->toolTip() + tr("\nThe presets set the tissue's density (liver 1,079 kg/m³); the organ's mass follows its volume."));
+  form_.density->setToolTip(
+      form_.density->toolTip() +
+      tr("\nThe presets set the tissue's density (liver 1,079 kg/m³); the organ's mass follows its volume."));
   form_.mass = new QLabel(this);
   form_.mass->setObjectName(QStringLiteral("simMass"));
   form->addRow(tr("Organ mass"), form_.mass);
@@ -438,7 +505,8 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   form_.gravity = new QComboBox(this);
   form_.gravity->setObjectName(QStringLiteral("simGravity"));
   form_.gravity->addItems({tr("down in the image"), tr("into the scene"), tr("off")});
-  form_.gravity->setToolTip(tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it"));
+  form_.gravity->setToolTip(
+      tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it"));
   form->addRow(tr("Gravity"), form_.gravity);
   connect(form_.gravity, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
   form_.colouring = new QComboBox(this);
@@ -492,6 +560,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
 
 SimulationPanel::~SimulationPanel() {
   ++generation_;
+  buildCancelled_->store(true);
   forceLoop_.reset();
   session_.reset();  // joins the session's thread before the panel goes
   if (recorder_) {
@@ -504,7 +573,8 @@ SimulationPanel::~SimulationPanel() {
 
 QString SimulationPanel::startRecording(const QString& file, const app::SessionMeta& meta) {
   if (file.isEmpty()) return tr("Save the case to a file first (File > Save): the rehearsal is recorded into it.");
-  if (!organ_ || organ_->organ->empty()) return tr("No organ volume to rehearse on; load or tetrahedralise a mesh first.");
+  if (!organ_ || organ_->organ->empty())
+    return tr("No organ volume to rehearse on; load or tetrahedralise a mesh first.");
   // The recorder opens the file on the worker; a file it cannot write is said at once instead.
   try {
     (void)app::listRecordings(file.toStdString());
@@ -582,7 +652,8 @@ app::MaterialSettings SimulationPanel::fieldsMaterial() const {
   // A field the user did not touch keeps the case's exact value (a field shows it rounded to its decimals).
   auto take = [](const QDoubleSpinBox* field, double caseValue, double scale) {
     const double shown = caseValue / scale;
-    return std::abs(field->value() - shown) > 0.5 * std::pow(10.0, -field->decimals()) ? scale * field->value() : caseValue;
+    return std::abs(field->value() - shown) > 0.5 * std::pow(10.0, -field->decimals()) ? scale * field->value()
+                                                                                       : caseValue;
   };
   m.model = static_cast<simcore::MaterialModel>(form_.model->currentIndex());
   m.young = take(form_.young, m.young, 1e3);
@@ -630,9 +701,12 @@ void SimulationPanel::applyPreset(const QString& name) {
 }
 
 void SimulationPanel::updateMass() {
-  const double volume = organ_ && !organ_->organ->empty() ? organ_->organ->quality.volume : 0.0;  // m^3, as the case panel shows it
-  form_.mass->setText(volume > 0 ? tr("%1 g (%2 cm³ x density)").arg(volume * form_.density->value() * 1e3, 0, 'f', 0).arg(volume * 1e6, 0, 'f', 1)
-                            : tr("no volume mesh"));
+  const double volume =
+      organ_ && !organ_->organ->empty() ? organ_->organ->quality.volume : 0.0;  // m^3, as the case panel shows it
+  form_.mass->setText(volume > 0 ? tr("%1 g (%2 cm³ x density)")
+                                       .arg(volume * form_.density->value() * 1e3, 0, 'f', 0)
+                                       .arg(volume * 1e6, 0, 'f', 1)
+                                 : tr("no volume mesh"));
 }
 
 void SimulationPanel::materialFieldsEdited() {
@@ -671,8 +745,10 @@ void SimulationPanel::play() {
   error_.clear();
   rate_.clock.start();
   rate_.frames = 0;
-  if (session_) session_->play();
-  else pendingPlay_ = true;
+  if (session_)
+    session_->play();
+  else
+    pendingPlay_ = true;
   updateButtons();
 }
 
@@ -689,8 +765,10 @@ void SimulationPanel::stepOnce() {
   if (!organ_) return;
   playing_ = false;
   error_.clear();
-  if (session_) session_->stepOnce();
-  else ++pendingSteps_;  // the body is still being built: the step runs when it is ready
+  if (session_)
+    session_->stepOnce();
+  else
+    ++pendingSteps_;  // the body is still being built: the step runs when it is ready
   updateButtons();
 }
 
@@ -706,8 +784,11 @@ void SimulationPanel::reset() {
     const long at = recorder_ ? recorder_->lastStep() : 0;
     if (recordPending_) cancelRecord_ = true;
     startSession(setup(), recordRequest_);
-    emit recordingRestarted(ended > 0 ? tr("Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.").arg(ended).arg(at)
-                                      : tr("Reset: the run from rest is recorded as a new session."));
+    emit recordingRestarted(
+        ended > 0 ? tr("Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.")
+                        .arg(ended)
+                        .arg(at)
+                  : tr("Reset: the run from rest is recorded as a new session."));
   } else if (session_) {
     session_->reset();
   }
@@ -750,8 +831,10 @@ QString SimulationPanel::statusText() const {
   const auto& r = last_->report;
   const bool loose = organ_ && organ_->attachments.empty();  // an imported organ has no ligament nodes
   if (last_->steps == 0)
-    return loose ? tr("Simulation at rest (t = 0). This organ has no attachment nodes: it will fall freely under gravity.")
-                 : tr("Simulation at rest (t = 0)");
+    return loose ? tr("Simulation at rest (t = 0). This organ has no attachment nodes: it will fall freely under "
+                      "gravity.")
+           : startWord_.isEmpty() ? tr("Simulation at rest (t = 0)")
+                                  : tr("t = 0. %1").arg(startWord_);
   if (!last_->message.isEmpty()) return last_->message;
   const QString rate = playing_ ? tr(" · %1 fps").arg(rate_.fps, 0, 'f', 0) : QString();
   return tr("t = %1 s · step %2 ms%3 · %4 Newton · %5")
@@ -771,4 +854,3 @@ void SimulationPanel::updateButtons() {
 }
 
 }  // namespace rehearse::ui
-

@@ -35,12 +35,8 @@ std::uint64_t fnv(std::uint64_t h, const void* data, std::size_t n) {
   return h;
 }
 
-json vec(const Eigen::Vector3d& v) {
-  return json::array({v.x(), v.y(), v.z()});
-}
-Eigen::Vector3d vec(const json& j) {
-  return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()};
-}
+json vec(const Eigen::Vector3d& v) { return json::array({v.x(), v.y(), v.z()}); }
+Eigen::Vector3d vec(const json& j) { return {j.at(0).get<double>(), j.at(1).get<double>(), j.at(2).get<double>()}; }
 // Integers from untrusted JSON: a float or a number out of range is refused (a cast of either is undefined).
 long long asInteger(const json& j, long long lo, long long hi) {
   if (!j.is_number_integer()) throw std::runtime_error("a whole number was expected");
@@ -49,9 +45,7 @@ long long asInteger(const json& j, long long lo, long long hi) {
     throw std::runtime_error("a whole number is out of range");
   return j.get<long long>();
 }
-int asInt(const json& j) {
-  return static_cast<int>(asInteger(j, INT32_MIN, INT32_MAX));
-}
+int asInt(const json& j) { return static_cast<int>(asInteger(j, INT32_MIN, INT32_MAX)); }
 std::vector<int> asInts(const json& j) {
   std::vector<int> out;
   out.reserve(j.size());
@@ -450,6 +444,7 @@ std::uint64_t setupHash(const simcore::BodySetup& s) {
   arr(s.mesh.triangles);
   arr(s.mesh.triangleLabels);
   arr(s.rest);
+  if (!s.start.empty()) arr(s.start);  // (setups recorded before it existed keep their hash)
   arr(s.fixedNodes);
   // The small rest through its text (materials, settings, tools, topology).
   simcore::BodySetup light;
@@ -483,6 +478,11 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   json rest = json::array();
   for (const auto& p : s.rest) rest.push_back(vec(p));
   j["rest"] = rest;
+  if (!s.start.empty()) {
+    json start = json::array();
+    for (const auto& p : s.start) start.push_back(vec(p));
+    j["start"] = start;
+  }
   j["fixedNodes"] = s.fixedNodes;
   j["material"] = material(s.material);
   json byLabel = json::array();
@@ -521,6 +521,8 @@ simcore::BodySetup decodeSetup(const std::string& text) {
     for (const auto& n : m.at("labelNames")) s.mesh.labelNames.emplace_back(asInt(n.at(0)), n.at(1).get<std::string>());
     s.mesh.unitToMetre = m.at("unitToMetre");
     for (const auto& p : j.at("rest")) s.rest.push_back(vec(p));
+    if (j.contains("start"))
+      for (const auto& p : j.at("start")) s.start.push_back(vec(p));
     s.fixedNodes = asInts(j.at("fixedNodes"));
     s.material = material(j.at("material"));
     for (const auto& b : j.at("byLabel")) s.byLabel[asInt(b.at("label"))] = material(b.at("material"));
@@ -583,12 +585,8 @@ simcore::InputEvent decodeEvent(const std::string& text) {
 }
 
 namespace {
-bool finite(double v) {
-  return std::isfinite(v);
-}
-bool finite(const Eigen::Vector3d& v) {
-  return v.allFinite();
-}
+bool finite(double v) { return std::isfinite(v); }
+bool finite(const Eigen::Vector3d& v) { return v.allFinite(); }
 std::string materialProblem(const simcore::MaterialParams& m, const std::string& whose) {
   const int model = static_cast<int>(m.model);
   if (model < 0 || model > static_cast<int>(simcore::MaterialModel::NeoHookeanSplit))
@@ -612,8 +610,12 @@ std::string setupProblem(const simcore::BodySetup& s) {
   if (!s.rest.empty() && s.rest.size() != n)
     return "the body's rest positions (" + std::to_string(s.rest.size()) + ") do not match its nodes (" +
            std::to_string(n) + ")";
+  if (!s.start.empty() && s.start.size() != n)
+    return "the body's start positions (" + std::to_string(s.start.size()) + ") do not match its nodes (" +
+           std::to_string(n) + ")";
   if (!std::all_of(m.points.begin(), m.points.end(), [](const Eigen::Vector3d& p) { return finite(p); }) ||
-      !std::all_of(s.rest.begin(), s.rest.end(), [](const Eigen::Vector3d& p) { return finite(p); }))
+      !std::all_of(s.rest.begin(), s.rest.end(), [](const Eigen::Vector3d& p) { return finite(p); }) ||
+      !std::all_of(s.start.begin(), s.start.end(), [](const Eigen::Vector3d& p) { return finite(p); }))
     return "a node's position is not a number";
   auto inRange = [n](int i) { return i >= 0 && static_cast<std::size_t>(i) < n; };
   for (std::size_t e = 0; e < m.tets.size(); ++e)

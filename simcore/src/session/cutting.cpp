@@ -49,6 +49,7 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   next.mesh.tets = std::move(tets);
   next.mesh.tetLabels = std::move(labels);
   next.rest.clear();
+  next.start.clear();  // the state carries on
   next.cut = std::move(progress);
   const auto& fixed = body_->fixedMask();
   for (std::size_t k = 0; k < r.duplicateOf.size(); ++k)

@@ -10,14 +10,22 @@ class FemBody final : public DeformableBody {
         integrator_(model_, s.fixedNodes, s.settings),
         settings_(s.settings),
         topology_(s.topology),
-        labels_(s.mesh.tetLabels) {
+        labels_(s.mesh.tetLabels),
+        start_(s.start) {
+    if (!start_.empty() && start_.size() != model_.nodeCount())
+      throw MeshError("The body's start positions (" + std::to_string(start_.size()) + ") do not match its mesh (" +
+                      std::to_string(model_.nodeCount()) + " nodes).");
     labels_.resize(model_.tets.size(), 0);
     fixed_.assign(model_.nodeCount(), 0);
     for (int i : s.fixedNodes)
       if (i >= 0 && static_cast<std::size_t>(i) < fixed_.size()) fixed_[static_cast<std::size_t>(i)] = 1;
   }
   std::size_t nodeCount() const override { return model_.nodeCount(); }
-  SimulationState initialState() const override { return integrator_.initialState(); }
+  SimulationState initialState() const override {
+    SimulationState s = integrator_.initialState();
+    for (std::size_t i = 0; i < start_.size(); ++i) s.x.segment<3>(3 * static_cast<Eigen::Index>(i)) = start_[i];
+    return s;
+  }
   StepReport step(SimulationState& state) override { return integrator_.step(state); }
   bool installRequestedFactor() override { return integrator_.installRequestedFactor(); }
   bool factorPending() const override { return integrator_.factorPending(); }
@@ -115,12 +123,11 @@ class FemBody final : public DeformableBody {
   int topology_ = 0;
   std::vector<int> labels_;
   std::vector<char> fixed_;
+  std::vector<Eigen::Vector3d> start_;
 };
 
 }  // namespace
 
-std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup) {
-  return std::make_unique<FemBody>(setup);
-}
+std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup) { return std::make_unique<FemBody>(setup); }
 
 }  // namespace rehearse::simcore

@@ -479,6 +479,7 @@ void Session::run() {
         // Back to the organ before any cut (parameter edits stay).
         setup_.mesh = uncut_.mesh;
         setup_.rest = uncut_.rest;
+        setup_.start = uncut_.start;
         setup_.fixedNodes = uncut_.fixedNodes;
         setup_.topology = uncut_.topology;
         setup_.cut = uncut_.cut;

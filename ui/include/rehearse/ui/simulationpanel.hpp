@@ -35,7 +35,7 @@ namespace rehearse::ui {
 struct SimulationSetup {
   std::shared_ptr<const app::Case> organ;
   simcore::MaterialModel model = simcore::MaterialModel::Corotational;
-  double young = 27e3;     ///< Pa, parenchyma
+  double young = 27e3;  ///< Pa, parenchyma
   double poisson = 0.4;
   double density = 1000;   ///< kg/m^3
   double vesselYoung = 0;  ///< Pa, label 2 (0: as the parenchyma)
@@ -46,6 +46,10 @@ struct SimulationSetup {
   /// m: the instruments' shaft radius for contact (a 5 mm laparoscopic instrument): the tissue is pushed, not
   /// penetrated; 0 turns contact off.
   double toolRadius = 0.0025;
+  /// The organ starts where the frame shows it, in equilibrium under gravity on its attachments: the rest shape that
+  /// sags into the registered one is solved first (simcore/inverse_rest.hpp). Off: it starts at rest on that shape
+  /// (and sags away from it).
+  bool startInEquilibrium = true;
 };
 
 /// Published after each step: positions and the coloured quantity per node.
@@ -53,21 +57,21 @@ struct SimulationFrame {
   std::vector<Eigen::Vector3d> positions;  ///< per node, camera frame (m)
   std::vector<double> value;               ///< per node: displacement (mm) or von Mises (kPa)
   double valueMax = 0;
-  double valueScale = 0;                   ///< top of the colour bar: the 98th percentile (stress peaks at attachments)
-  int colouring = 0;                       ///< 0 displacement, 1 von Mises
+  double valueScale = 0;  ///< top of the colour bar: the 98th percentile (stress peaks at attachments)
+  int colouring = 0;      ///< 0 displacement, 1 von Mises
   simcore::StepReport report;
-  double time = 0;                         ///< simulated time (s)
+  double time = 0;  ///< simulated time (s)
   long steps = 0;
-  double youngInUse = 0;                   ///< Pa (shows when a live edit took effect)
-  Qt::HANDLE thread = nullptr;             ///< the thread that computed it (never the GUI thread)
+  double youngInUse = 0;        ///< Pa (shows when a live edit took effect)
+  Qt::HANDLE thread = nullptr;  ///< the thread that computed it (never the GUI thread)
   std::shared_ptr<const app::Case> organ;
-  QString message;                         ///< the session's sentence about the last applied input, if any
-  simcore::ToolState tool;                 ///< the instrument after the step (tip, held nodes, force on the tissue)
-  std::vector<std::string> events;         ///< grasp, release, slip, cut, vessel cut at this step
+  QString message;                  ///< the session's sentence about the last applied input, if any
+  simcore::ToolState tool;          ///< the instrument after the step (tip, held nodes, force on the tissue)
+  std::vector<std::string> events;  ///< grasp, release, slip, cut, vessel cut at this step
   std::shared_ptr<const simcore::CutSurface> surface;  ///< after a cut: the boundary to draw (cut tissue marked)
   std::size_t elements = 0;
-  double mass = 0;                                                  ///< kg
-  std::shared_ptr<const std::vector<std::array<int, 4>>> tets;      ///< the elements at this step
+  double mass = 0;                                              ///< kg
+  std::shared_ptr<const std::vector<std::array<int, 4>>> tets;  ///< the elements at this step
   /// Elements inside out after this step (when the report counts any): their indices, their nodes (per node, 1 when
   /// one of its elements is) and their centroids (camera frame, m), for the warning drawn on the organ.
   std::vector<int> inverted;
@@ -155,7 +159,8 @@ class SimulationPanel : public QWidget {
 
  private:
   struct FrameContext;
-  static std::shared_ptr<const SimulationFrame> makeFrame(const FrameContext& ctx, const simcore::Snapshot& snap, int colouring);
+  static std::shared_ptr<const SimulationFrame> makeFrame(const FrameContext& ctx, const simcore::Snapshot& snap,
+                                                          int colouring);
   /// With `record`: the new session is recorded (the recorder made on the worker from the session's setup).
   struct RecordRequest {
     std::string file;
@@ -173,18 +178,21 @@ class SimulationPanel : public QWidget {
   app::MaterialSettings fieldsMaterial() const;
 
   std::shared_ptr<simcore::Session> session_;
-  std::shared_ptr<app::Recorder> recorder_;   ///< while recording: written from the session's thread (step hook)
+  std::shared_ptr<app::Recorder> recorder_;     ///< while recording: written from the session's thread (step hook)
   std::optional<RecordRequest> recordRequest_;  ///< what is being recorded (a reset starts a new session with it)
-  bool recordPending_ = false;                ///< the recorded session is being built
-  bool cancelRecord_ = false;                 ///< ... and the recording was stopped meanwhile
+  bool recordPending_ = false;                  ///< the recorded session is being built
+  bool cancelRecord_ = false;                   ///< ... and the recording was stopped meanwhile
   std::shared_ptr<std::atomic<bool>> recorderFailed_ = std::make_shared<std::atomic<bool>>(false);
   std::shared_ptr<std::string> recorderError_ = std::make_shared<std::string>();
   simcore::VirtualDevice device_;                  ///< the mouse-driven instrument's tip, for the force loop
   std::unique_ptr<simcore::ForceLoop> forceLoop_;  ///< declared after session_: stopped before it goes
-  long generation_ = 0;          ///< bumped per session: frames of an older one are dropped
+  long generation_ = 0;                            ///< bumped per session: frames of an older one are dropped
+  /// Set when a newer session replaces the one being built (its rest-shape solve stops early).
+  std::shared_ptr<std::atomic<bool>> buildCancelled_ = std::make_shared<std::atomic<bool>>(false);
+  QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not
   std::atomic<int> colouring_{0};
-  bool pendingPlay_ = false;     ///< Play pressed while the session was being built ...
-  int pendingSteps_ = 0;         ///< ... and single steps
+  bool pendingPlay_ = false;         ///< Play pressed while the session was being built ...
+  int pendingSteps_ = 0;             ///< ... and single steps
   app::MaterialSettings builtWith_;  ///< the material the session's body was built with
   SimulationView* view_ = nullptr;
   /// The parameter form: material (the case's), run settings (the session's) and colouring.

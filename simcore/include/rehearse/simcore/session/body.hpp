@@ -54,9 +54,12 @@ struct ToolSettings {
 struct BodySetup {
   Mesh mesh;  ///< tets (metres); its points are replaced by `rest` when given
   std::vector<Eigen::Vector3d>
-      rest;                     ///< rest positions (m), e.g. the fitted organ in the camera frame; empty: mesh.points
-  std::vector<int> fixedNodes;  ///< ligament attachments
-  MaterialParams material;      ///< parenchyma and unlisted labels
+      rest;  ///< rest positions (m), e.g. the fitted organ in the camera frame; empty: mesh.points
+  /// The positions at t = 0 (m), when the body starts deformed: the registered shape in equilibrium on the rest shape
+  /// solved for it (inverse_rest.hpp). Empty: it starts at rest. Cleared by a topology change (the state carries on).
+  std::vector<Eigen::Vector3d> start;
+  std::vector<int> fixedNodes;            ///< ligament attachments
+  MaterialParams material;                ///< parenchyma and unlisted labels
   std::map<int, MaterialParams> byLabel;  ///< e.g. the vessels' label
   SimulationSettings settings;            ///< time step, method, gravity (m/s^2, in the body's frame), ...
   ToolSettings tools;

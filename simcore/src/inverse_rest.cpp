@@ -1,0 +1,166 @@
+// The rest shape that sags into a given shape (inverse elastostatics by fixed point; inverse_rest.hpp).
+#include <rehearse/simcore/inverse_rest.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+namespace rehearse::simcore {
+namespace {
+
+double largestDistance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  double e = 0;
+  for (Eigen::Index i = 0; i + 2 < a.size(); i += 3) e = std::max(e, (a.segment<3>(i) - b.segment<3>(i)).norm());
+  return e;
+}
+
+std::string mm(double metres) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g mm", 1e3 * metres);
+  return buf;
+}
+
+// The first element whose orientation differs between two placements of the nodes (-1: none).
+int flippedElement(const std::vector<std::array<int, 4>>& tets, const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  auto volume = [](const Eigen::VectorXd& x, const std::array<int, 4>& t) {
+    Eigen::Matrix3d D;
+    for (int k = 0; k < 3; ++k) D.col(k) = x.segment<3>(3 * t[k + 1]) - x.segment<3>(3 * t[0]);
+    return D.determinant();
+  };
+  for (std::size_t e = 0; e < tets.size(); ++e)
+    if (volume(a, tets[e]) * volume(b, tets[e]) <= 0) return static_cast<int>(e);
+  return -1;
+}
+
+}  // namespace
+
+InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen::Vector3d>& target,
+                                 const InverseRestOptions& options) {
+  InverseRestResult r;
+  const std::size_t n = setup.mesh.points.size();
+  if (target.size() != n) {
+    r.status = "The shape to start from has " + std::to_string(target.size()) + " nodes and the body " +
+               std::to_string(n) + ": no rest shape was solved.";
+    return r;
+  }
+  if (!std::all_of(target.begin(), target.end(), [](const Eigen::Vector3d& p) { return p.allFinite(); })) {
+    r.status = "The shape to start from has a position that is not a number: no rest shape was solved.";
+    return r;
+  }
+  Eigen::VectorXd goal(static_cast<Eigen::Index>(3 * n));
+  for (std::size_t i = 0; i < n; ++i) goal.segment<3>(static_cast<Eigen::Index>(3 * i)) = target[i];
+  const Eigen::Vector3d g = setup.settings.gravity;
+  if (g.norm() == 0) {
+    r.outcome = InverseRestResult::Outcome::Converged;
+    r.rest = r.equilibrium = target;
+    r.status = "Without gravity the shape is its own rest shape.";
+    return r;
+  }
+  if (setup.fixedNodes.empty()) {
+    r.status = "Nothing holds the organ (no attachments): under gravity it has no equilibrium to start from.";
+    return r;
+  }
+  // The static solves: exact Newton to a tight residual (the start must be an equilibrium of the rehearsal's own
+  // steps, whatever their method), on the setup's material, attachments and gravity.
+  SimulationSettings s = setup.settings;
+  s.method = NewtonMethod::Exact;
+  s.factorRefresh = FactorRefresh::Synchronous;
+  s.tolerance = std::min(s.tolerance, 1e-8);  // (1e-9 stalls on round-off for stiff neo-Hookean beams)
+  s.maxNewtonIterations = std::max(s.maxNewtonIterations, 50);
+  Mesh mesh = setup.mesh;
+  mesh.unitToMetre = 1.0;
+  Eigen::VectorXd X = goal, u = Eigen::VectorXd::Zero(goal.size()), bestX = goal, bestX_eq;
+  double best = std::numeric_limits<double>::infinity(), previous = best, relax = 1.0;
+  std::string stop;
+  for (int k = 1; k <= std::max(1, options.maxIterations); ++k) {
+    for (std::size_t i = 0; i < n; ++i) mesh.points[i] = X.segment<3>(static_cast<Eigen::Index>(3 * i));
+    SimulationState state;
+    try {
+      const FemModel model = FemModel::build(mesh, setup.byLabel, setup.material);
+      Integrator integrator(model, setup.fixedNodes, s);
+      state = integrator.initialState();
+      state.x = X + u;  // from the last solve's displacement: near its equilibrium
+      const StepReport rep = integrator.solveStatic(state);
+      if (!rep.ok || !state.x.allFinite()) {
+        stop = "the static solve from rest shape " + std::to_string(k) + " did not converge (" + rep.status + ")";
+        break;
+      }
+    } catch (const std::exception& e) {
+      stop = std::string("rest shape ") + std::to_string(k) + " cannot be simulated (" + e.what() + ")";
+      break;
+    }
+    r.iterations = k;
+    const double error = largestDistance(state.x, goal);
+    if (error < best) {
+      best = error;
+      bestX = X;
+      bestX_eq = state.x;
+    }
+    if (options.progress && !options.progress(k, error)) {
+      r.outcome = InverseRestResult::Outcome::Cancelled;
+      stop = "cancelled";
+      break;
+    }
+    if (error <= options.tolerance) break;
+    if (error > previous) {
+      // Overshoot (soft tissue, large sag): back to the best rest shape with a shorter correction.
+      relax *= 0.5;
+      if (relax < 1.0 / 16) {
+        stop = "the iteration stopped approaching the shape (error " + mm(error) + " after " + mm(best) + ")";
+        break;
+      }
+      X = bestX;
+      u = bestX_eq - bestX;
+      previous = best;
+      X -= relax * (bestX_eq - goal);
+    } else {
+      previous = error;
+      u = state.x - X;
+      X -= relax * (state.x - goal);
+    }
+    if (const int e = flippedElement(mesh.tets, X, goal); e >= 0) {
+      stop = "the rest shape would turn element " + std::to_string(e) + " inside out (the organ sags too far for it)";
+      break;
+    }
+  }
+  if (bestX_eq.size() == 0) {
+    r.outcome = r.outcome == InverseRestResult::Outcome::Cancelled ? r.outcome : InverseRestResult::Outcome::Refused;
+    r.status = "No rest shape was found: " + stop + ".";
+    return r;
+  }
+  r.rest.resize(n);
+  r.equilibrium.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    r.rest[i] = bestX.segment<3>(static_cast<Eigen::Index>(3 * i));
+    r.equilibrium[i] = bestX_eq.segment<3>(static_cast<Eigen::Index>(3 * i));
+  }
+  r.error = best;
+  r.sag = largestDistance(bestX, bestX_eq);
+  if (r.outcome == InverseRestResult::Outcome::Cancelled) {
+    r.status = "The rest shape's solve was cancelled.";
+  } else if (best <= options.tolerance) {
+    r.outcome = InverseRestResult::Outcome::Converged;
+    r.status = "Rest shape solved in " + std::to_string(r.iterations) +
+               " static solve(s): its equilibrium under gravity is the shape within " + mm(best) +
+               " (the organ sags up to " + mm(r.sag) + " from it).";
+  } else {
+    r.outcome = InverseRestResult::Outcome::NotConverged;
+    r.status = "The rest shape was not found to " + mm(options.tolerance) + ": " +
+               (stop.empty() ? "the iterations ran out" : stop) + "; the best one's equilibrium is " + mm(best) +
+               " from the shape.";
+  }
+  return r;
+}
+
+InverseRestResult startInEquilibrium(BodySetup& setup, const std::vector<Eigen::Vector3d>& target,
+                                     const InverseRestOptions& options) {
+  InverseRestResult r = solveRestShape(setup, target, options);
+  if (r.converged()) {
+    setup.rest = r.rest;
+    setup.start = target;  // exactly where the frame shows it; its equilibrium is within r.error
+  }
+  return r;
+}
+
+}  // namespace rehearse::simcore

@@ -1,0 +1,224 @@
+// The registered shape as the starting equilibrium (issue 34): the rest shape that sags into a given shape under
+// gravity on the attachments. References independent of the inverse solve: a rest shape we chose (its sag computed
+// forward, then recovered), CalculiX's equilibrium from the rest shape we found (it must land on the target), a
+// session that must stay put, and the shapes of real organs (BodyParts3D's liver in ../shared/data).
+#include "box_mesh.hpp"
+#include "calculix.hpp"
+#include "realorgan.hpp"
+#include "test_support.hpp"
+
+#include <rehearse/simcore/inverse_rest.hpp>
+#include <rehearse/simcore/session/session.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
+
+#include <QtTest>
+
+#include <limits>
+
+using namespace rehearse;
+using namespace rehearse::simcore;
+
+namespace {
+
+// A 100 x 20 x 20 mm cantilever held at x = 0 under gravity along -z (stiff enough to sag by millimetres: E = 500 kPa
+// sags about 7 mm at the tip by beam theory).
+BodySetup cantilever(MaterialModel law, double young, double poisson = 0.4) {
+  BodySetup s;
+  s.mesh = boxMesh(0.1, 0.02, 0.02, 10, 2, 2);
+  s.fixedNodes = nodesAtX(s.mesh, 0);
+  s.material = {law, young, poisson, 1000};
+  s.settings.gravity = Eigen::Vector3d(0, 0, -9.81);
+  return s;
+}
+
+// The static equilibrium from the setup's rest shape (mesh points, or `rest` when given).
+std::vector<Eigen::Vector3d> equilibriumOf(const BodySetup& s) {
+  Mesh mesh = s.mesh;
+  if (!s.rest.empty()) mesh.points = s.rest;
+  const FemModel model = FemModel::build(mesh, s.byLabel, s.material);
+  SimulationSettings settings = s.settings;
+  settings.tolerance = 1e-9;
+  Integrator in(model, s.fixedNodes, settings);
+  SimulationState st = in.initialState();
+  const StepReport rep = in.solveStatic(st);
+  if (!rep.ok) return {};
+  std::vector<Eigen::Vector3d> out(mesh.points.size());
+  for (std::size_t i = 0; i < out.size(); ++i) out[i] = st.x.segment<3>(static_cast<Eigen::Index>(3 * i));
+  return out;
+}
+
+double largest(const std::vector<Eigen::Vector3d>& a, const std::vector<Eigen::Vector3d>& b) {
+  double e = 0;
+  for (std::size_t i = 0; i < a.size(); ++i) e = std::max(e, (a[i] - b[i]).norm());
+  return e;
+}
+
+// The largest move of any node over `steps` steps of a session started from `s` (no instrument), and whether every
+// step converged.
+std::pair<double, bool> driftOver(const BodySetup& s, int steps) {
+  Session session(s);
+  const std::vector<Eigen::Vector3d> start = session.snapshot()->positions;
+  double drift = 0;
+  bool converged = true;
+  for (int k = 0; k < steps; ++k) {
+    const StepReport rep = session.advance();
+    converged = converged && rep.outcome == StepStatus::Converged;
+    drift = std::max(drift, largest(session.snapshot()->positions, start));
+  }
+  return {drift, converged};
+}
+
+}  // namespace
+
+class TestInverseRest : public QObject {
+  Q_OBJECT
+ private slots:
+  // A rest shape we chose sags (forward solve) into a target; the inverse solve given only the target finds our rest
+  // shape again, for a small-strain and a large-deflection law.
+  void recoversAChosenRestShape() {
+    for (const auto& [law, young] :
+         {std::pair{MaterialModel::Corotational, 500e3}, {MaterialModel::NeoHookean, 250e3}}) {
+      const BodySetup chosen = cantilever(law, young);
+      const auto target = equilibriumOf(chosen);
+      QVERIFY(!target.empty());
+      const double sag = largest(target, chosen.mesh.points);
+      const InverseRestResult r = solveRestShape(chosen, target);
+      qInfo(
+          "%s E = %.0f Pa: tip sag %.2f mm; %d static solves, equilibrium %.2e mm from the target, rest shape %.4f "
+          "mm from the chosen one; %s",
+          toString(law).c_str(), young, 1e3 * sag, r.iterations, 1e3 * r.error,
+          1e3 * largest(r.rest, chosen.mesh.points), r.status.c_str());
+      QVERIFY(sag > 2e-3);  // a real sag, not a rounding
+      QVERIFY2(r.converged(), r.status.c_str());
+      QVERIFY(r.error <= 1e-5);
+      QVERIFY(largest(r.rest, chosen.mesh.points) < 1e-3 * sag + 2e-5);
+      QVERIFY(std::abs(r.sag - sag) < 0.01 * sag);
+    }
+  }
+
+  // CalculiX (neo-Hookean, NLGEOM) from the rest shape we found, under the same gravity and attachments, lands on the
+  // target shape: the straight beam is what the frame shows, and the rest shape is bent upwards so that it sags into
+  // it.
+  void calculixSagsTheRestShapeIntoTheTarget() {
+    if (QStandardPaths::findExecutable("ccx").isEmpty())
+      QFAIL("CalculiX (ccx) is not installed; scripts/install-deps.sh installs calculix-ccx");
+    BodySetup s = cantilever(MaterialModel::NeoHookean, 250e3);
+    const std::vector<Eigen::Vector3d> target = s.mesh.points;  // straight: as registered
+    const InverseRestResult r = solveRestShape(s, target);
+    QVERIFY2(r.converged(), r.status.c_str());
+    Mesh rest = s.mesh;
+    rest.points = r.rest;
+    const Eigen::VectorXd u =
+        runCalculixStatic(rest, {}, {250e3, 0.4, 1000, true}, s.settings.gravity, true, s.fixedNodes, "inverse-rest");
+    QVERIFY2(u.size() == static_cast<Eigen::Index>(3 * target.size()), "ccx failed");
+    double error = 0, lift = 0;
+    for (std::size_t i = 0; i < target.size(); ++i) {
+      const Eigen::Vector3d ccx = r.rest[i] + u.segment<3>(static_cast<Eigen::Index>(3 * i));
+      error = std::max(error, (ccx - target[i]).norm());
+      lift = std::max(lift, r.rest[i].z() - target[i].z());
+    }
+    qInfo(
+        "rest shape lifted up to %.2f mm; CalculiX's equilibrium from it is %.3f mm from the straight beam (ours %.1e)",
+        1e3 * lift, 1e3 * error, 1e3 * r.error);
+    QVERIFY(lift > 2e-3);
+    QVERIFY(error < 0.03 * lift);
+  }
+
+  // The session started in equilibrium stays where it starts (the organ drawn where the frame shows it), with the
+  // GUI's method; the same organ started at rest on the target sags by millimetres.
+  void sessionStaysWhereItStarts() {
+    for (const NewtonMethod method : {NewtonMethod::Exact, NewtonMethod::Linearised}) {
+      BodySetup s = cantilever(MaterialModel::Corotational, 500e3);
+      s.settings.method = method;
+      s.settings.factorRefresh =
+          method == NewtonMethod::Exact ? FactorRefresh::Synchronous : FactorRefresh::Asynchronous;
+      const std::vector<Eigen::Vector3d> target = s.mesh.points;
+      const auto [sagging, _] = driftOver(s, 300);
+      const InverseRestResult r = startInEquilibrium(s, target);
+      QVERIFY2(r.converged(), r.status.c_str());
+      const auto [drift, converged] = driftOver(s, 300);
+      qInfo(
+          "%s: over 3 s the organ moves %.4f mm from where it starts (%.2f mm when it starts at rest on the "
+          "shape); every step converged: %s",
+          toString(method).c_str(), 1e3 * drift, 1e3 * sagging, converged ? "yes" : "no");
+      QVERIFY(sagging > 2e-3);
+      QVERIFY(drift < 2e-5);
+      QVERIFY(largest(s.start, target) <= 1e-5);
+    }
+  }
+
+  // A real organ's shape: BodyParts3D's liver (metres), co-rotational 27 kPa, 1079 kg/m^3, held by the 8 % of its
+  // surface nodes highest against gravity; as registered = its mesh.
+  void realLiverStartsInEquilibrium() {
+    REQUIRE_SHARED("bodyparts3d/FMA7197_Liver.obj");
+    const Mesh surface = testing::loadOrganSurface(sharedData("bodyparts3d/FMA7197_Liver.obj"));
+    TetrahedraliseOptions to;
+    to.allowSelfIntersections = true;
+    to.targetTets = 2500;
+    to.seed = 0;
+    BodySetup s;
+    s.mesh = tetrahedraliseSurface(surface, to);
+    s.material = {MaterialModel::Corotational, 27e3, 0.4, 1079};
+    s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);  // down in the image
+    std::vector<std::pair<double, int>> height;
+    for (int n : testing::surfaceNodes(s.mesh)) height.emplace_back(s.mesh.points[static_cast<std::size_t>(n)].y(), n);
+    std::sort(height.begin(), height.end());
+    for (std::size_t k = 0; k < std::max<std::size_t>(3, height.size() * 8 / 100); ++k)
+      s.fixedNodes.push_back(height[k].second);
+    const std::vector<Eigen::Vector3d> target = s.mesh.points;
+    const auto [sagging, _] = driftOver(s, 200);
+    const InverseRestResult r = startInEquilibrium(s, target);
+    qInfo("liver, %zu tets, %zu held: %s", s.mesh.tets.size(), s.fixedNodes.size(), r.status.c_str());
+    QVERIFY2(r.converged(), r.status.c_str());
+    const auto [drift, converged] = driftOver(s, 200);
+    qInfo(
+        "over 2 s: %.4f mm from where it starts (%.1f mm when started at rest on the shape); every step converged: "
+        "%s",
+        1e3 * drift, 1e3 * sagging, converged ? "yes" : "no");
+    QVERIFY(sagging > 5e-3);
+    QVERIFY(drift < 5e-5);
+    QVERIFY(converged);
+  }
+
+  // What cannot be solved is said, never a NaN: no attachments, a target of another size or not finite, no gravity
+  // (the target is its own rest shape), tissue so soft that no rest shape hangs into the target.
+  void unusableInputsAreSaid() {
+    BodySetup s = cantilever(MaterialModel::Corotational, 500e3);
+    const std::vector<Eigen::Vector3d> target = s.mesh.points;
+    BodySetup loose = s;
+    loose.fixedNodes.clear();
+    InverseRestResult r = solveRestShape(loose, target);
+    QCOMPARE(r.outcome, InverseRestResult::Outcome::Refused);
+    QVERIFY(r.status.find("Nothing holds") != std::string::npos);
+    r = solveRestShape(s, {target.begin(), target.end() - 1});
+    QCOMPARE(r.outcome, InverseRestResult::Outcome::Refused);
+    std::vector<Eigen::Vector3d> bad = target;
+    bad[7].x() = std::numeric_limits<double>::quiet_NaN();
+    QCOMPARE(solveRestShape(s, bad).outcome, InverseRestResult::Outcome::Refused);
+    BodySetup still = s;
+    still.settings.gravity.setZero();
+    r = solveRestShape(still, target);
+    QVERIFY(r.converged());
+    QCOMPARE(r.iterations, 0);
+    QCOMPARE(largest(r.rest, target), 0.0);
+    // 30 Pa: the beam would hang far below its own length; no rest shape holds it straight.
+    BodySetup soft = cantilever(MaterialModel::NeoHookean, 30);
+    r = solveRestShape(soft, target);
+    qInfo("30 Pa: %s", r.status.c_str());
+    QVERIFY(!r.converged());
+    QVERIFY(!r.status.empty());
+    for (const auto& p : r.rest) QVERIFY(p.allFinite());
+    BodySetup kept = soft;
+    QVERIFY(!startInEquilibrium(kept, target).converged());
+    QVERIFY(kept.rest.empty() && kept.start.empty());  // unchanged
+    // Cancel after the first solve.
+    InverseRestOptions o;
+    o.progress = [](int, double) { return false; };
+    r = solveRestShape(s, target, o);
+    QCOMPARE(r.outcome, InverseRestResult::Outcome::Cancelled);
+    QCOMPARE(r.iterations, 1);
+  }
+};
+
+QTEST_GUILESS_MAIN(TestInverseRest)
+#include "test_inverse_rest.moc"
