@@ -103,26 +103,32 @@ InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen
       break;
     }
     if (error <= options.tolerance) break;
+    // The correction starts from the best rest shape so far (after an overshoot: soft tissue, large sag, with a shorter
+    // step), and is shortened while it would turn an element inside out (a sliver of a fine mesh can).
+    Eigen::VectorXd base = X, correction = state.x - goal;
     if (error > previous) {
-      // Overshoot (soft tissue, large sag): back to the best rest shape with a shorter correction.
       relax *= 0.5;
-      if (relax < 1.0 / 16) {
-        stop = "the iteration stopped approaching the shape (error " + mm(error) + " after " + mm(best) + ")";
-        break;
-      }
-      X = bestX;
+      base = bestX;
+      correction = bestX_eq - goal;
       u = bestX_eq - bestX;
       previous = best;
-      X -= relax * (bestX_eq - goal);
     } else {
       previous = error;
       u = state.x - X;
-      X -= relax * (state.x - goal);
     }
-    if (const int e = flippedElement(mesh.tets, X, goal); e >= 0) {
-      stop = "the rest shape would turn element " + std::to_string(e) + " inside out (the organ sags too far for it)";
+    int flipped = -1;
+    for (; relax >= 1.0 / 16; relax *= 0.5) {
+      X = base - relax * correction;
+      if ((flipped = flippedElement(mesh.tets, X, goal)) < 0) break;
+    }
+    if (relax < 1.0 / 16) {
+      stop = flipped >= 0
+                 ? "the rest shape would turn element " + std::to_string(flipped) +
+                       " inside out (the organ sags too far for its mesh)"
+                 : "the iteration stopped approaching the shape (error " + mm(error) + " after " + mm(best) + ")";
       break;
     }
+    if (error <= previous) relax = std::min(1.0, 2 * relax);  // back to full corrections while they work
   }
   if (bestX_eq.size() == 0) {
     r.outcome = r.outcome == InverseRestResult::Outcome::Cancelled ? r.outcome : InverseRestResult::Outcome::Refused;
@@ -143,7 +149,7 @@ InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen
     r.outcome = InverseRestResult::Outcome::Converged;
     r.status = "Rest shape solved in " + std::to_string(r.iterations) +
                " static solve(s): its equilibrium under gravity is the shape within " + mm(best) +
-               " (the organ sags up to " + mm(r.sag) + " from it).";
+               "; the rest shape lies up to " + mm(r.sag) + " from it (the sag it takes under gravity).";
   } else {
     r.outcome = InverseRestResult::Outcome::NotConverged;
     r.status = "The rest shape was not found to " + mm(options.tolerance) + ": " +

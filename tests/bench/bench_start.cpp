@@ -1,0 +1,114 @@
+// Benchmark of the starting equilibrium (issue 34; not a test): the rest shape that sags into the registered organ
+// (simcore::solveRestShape) on real organ shapes from ../shared/data, meshed at the rehearsal's sizes (about 3.8k and
+// 17k tets), held by the 8 % of their surface nodes highest against gravity, gravity down the image (+y). For each:
+// the solve's wall time, static solves, the equilibrium's distance from the shape and the sag, then 200 steps of 10 ms
+// with the GUI's method (linearised, asynchronous refresh) from the start: the largest move of a node, and the steps
+// by outcome. Writes start.csv into the directory given (default ".").
+//   bench_start [OUT_DIR] [--quick]   (--quick: the 3.8k meshes only)
+#include "realorgan.hpp"
+
+#include <rehearse/simcore/inverse_rest.hpp>
+#include <rehearse/simcore/session/session.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+#include <vector>
+
+using namespace rehearse;
+using namespace rehearse::simcore;
+
+int main(int argc, char** argv) {
+  std::string out = ".";
+  bool quick = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--quick"))
+      quick = true;
+    else
+      out = argv[i];
+  }
+  std::filesystem::create_directories(out);
+  const std::string shared = REHEARSE_SHARED_DATA;
+  struct Organ {
+    std::string name, path;
+    MaterialParams material;
+  };
+  const std::vector<Organ> organs = {
+      {"patient liver",
+       shared + "/scikit-surgery/patient-liver/liver.vtk",
+       {MaterialModel::Corotational, 27e3, 0.4, 1079}},
+      {"BodyParts3D liver", shared + "/bodyparts3d/FMA7197_Liver.obj", {MaterialModel::Corotational, 27e3, 0.4, 1079}},
+      {"BodyParts3D kidney",
+       shared + "/bodyparts3d/FMA7205_Left_Kidney.obj",
+       {MaterialModel::Corotational, 250e3, 0.4, 1066}}};
+  std::ofstream csv(out + "/start.csv");
+  csv << "organ,tets,held,solve_s,static_solves,outcome,error_mm,sag_mm,drift_mm,steps,converged,inexact,failed,"
+         "step_median_ms\n";
+  std::printf("%-20s %6s %5s %8s %6s %-13s %9s %8s %9s %s\n", "organ", "tets", "held", "solve s", "solves", "outcome",
+              "error mm", "sag mm", "drift mm", "200 steps (converged/inexact/failed), median ms");
+  for (const Organ& o : organs) {
+    if (!std::filesystem::exists(o.path)) {
+      std::printf("%-20s absent: %s\n", o.name.c_str(), o.path.c_str());
+      continue;
+    }
+    const Mesh surface = testing::loadOrganSurface(o.path);
+    for (const std::size_t target : quick ? std::vector<std::size_t>{3800} : std::vector<std::size_t>{3800, 17000}) {
+      TetrahedraliseOptions to;
+      to.allowSelfIntersections = true;
+      to.targetTets = target;
+      to.seed = 0;
+      BodySetup s;
+      s.mesh = tetrahedraliseSurface(surface, to);
+      s.material = o.material;
+      s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);
+      s.settings.method = NewtonMethod::Linearised;
+      s.settings.factorRefresh = FactorRefresh::Asynchronous;
+      std::vector<std::pair<double, int>> height;
+      for (int n : testing::surfaceNodes(s.mesh))
+        height.emplace_back(s.mesh.points[static_cast<std::size_t>(n)].y(), n);
+      std::sort(height.begin(), height.end());
+      for (std::size_t k = 0; k < std::max<std::size_t>(3, height.size() * 8 / 100); ++k)
+        s.fixedNodes.push_back(height[k].second);
+      const std::vector<Eigen::Vector3d> shape = s.mesh.points;
+      const auto t0 = std::chrono::steady_clock::now();
+      const InverseRestResult r = startInEquilibrium(s, shape);
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      double drift = 0, median = 0;
+      std::map<StepStatus, int> outcomes;
+      if (r.converged()) {
+        Session session(s);
+        std::vector<double> ms;
+        for (int k = 0; k < 200; ++k) {
+          const auto a = std::chrono::steady_clock::now();
+          const StepReport rep = session.advance();
+          ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
+          ++outcomes[rep.outcome];
+          const auto& p = session.snapshot()->positions;
+          for (std::size_t i = 0; i < p.size(); ++i) drift = std::max(drift, (p[i] - shape[i]).norm());
+        }
+        std::nth_element(ms.begin(), ms.begin() + 100, ms.end());
+        median = ms[100];
+      }
+      const char* word = r.converged()                                      ? "converged"
+                         : r.outcome == InverseRestResult::Outcome::Refused ? "refused"
+                                                                            : "not converged";
+      std::printf("%-20s %6zu %5zu %8.2f %6d %-13s %9.4f %8.1f %9.4f %d/%d/%d, %.2f\n", o.name.c_str(),
+                  s.mesh.tets.size(), s.fixedNodes.size(), seconds, r.iterations, word, 1e3 * r.error, 1e3 * r.sag,
+                  1e3 * drift, outcomes[StepStatus::Converged], outcomes[StepStatus::Inexact],
+                  outcomes[StepStatus::Failed], median);
+      if (!r.converged()) std::printf("    %s\n", r.status.c_str());
+      csv << '"' << o.name << "\"," << s.mesh.tets.size() << ',' << s.fixedNodes.size() << ',' << seconds << ','
+          << r.iterations << ',' << word << ',' << 1e3 * r.error << ',' << 1e3 * r.sag << ',' << 1e3 * drift << ",200,"
+          << outcomes[StepStatus::Converged] << ',' << outcomes[StepStatus::Inexact] << ','
+          << outcomes[StepStatus::Failed] << ',' << median << '\n';
+      std::fflush(stdout);
+    }
+  }
+  return 0;
+}
