@@ -8,10 +8,15 @@
 // Writes rehearsal-pull.csv and rehearsal-cut.csv into the directory given (default ".").
 //   bench_rehearsal [OUT_DIR] [--quick] [--cut-repeats N] [--only VARIANT]   (N runs of the cut scenario, their steps
 //   pooled; only one pull variant on the built-in liver, no cut)
+//   bench_rehearsal [OUT_DIR] --real   (only the real organs: grasp-pull and contact-pull at the patient's size,
+//   started in equilibrium; also part of a full run, not of --quick)
 #include "phantom/presets.hpp"
+#include "realorgan.hpp"
 #include "session_inputs.hpp"
 
 #include <rehearse/simcore/cut.hpp>
+#include <rehearse/simcore/inverse_rest.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
 #include <rehearse/simcore/session/forceloop.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
@@ -57,10 +62,14 @@ InputEvent event(InputKind kind, const Eigen::Vector3d& p = Eigen::Vector3d::Zer
 
 struct PullResult {
   std::vector<double> ms;
-  double placeMaxMs = 0;  // shaft on the surface: the slowest of the steps pushing the tissue out of it, before the pull
+  double placeMaxMs =
+      0;  // shaft on the surface: the slowest of the steps pushing the tissue out of it, before the pull
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), bitten = Eigen::Vector3d::Zero();
   int failed = 0, swaps = 0, contacts = 0, touchingSteps = 0;
-  ForceLoop::Timing loop;  // the 1 kHz tool-force loop's, run beside the pull on its own thread
+  long newton = 0;                 // Newton iterations over the pull's steps
+  int converged = 0, inexact = 0;  // steps by outcome (the others failed, were refused or inverted)
+  double worstResidual = 0;        // the largest relative residual a pull step ended with
+  ForceLoop::Timing loop;          // the 1 kHz tool-force loop's, run beside the pull on its own thread
 };
 
 struct Variant {
@@ -71,8 +80,8 @@ struct Variant {
   // instead of coming from the default trocar: it presses on the tissue around the grasp while pulling.
   bool shaftOnSurface = false;
   std::string name() const {
-    return toString(method) + (refresh == FactorRefresh::Asynchronous ? "+async" : "") + (toolRadius > 0 ? "+contact" : "") +
-           (shaftOnSurface ? "+touching" : "");
+    return toString(method) + (refresh == FactorRefresh::Asynchronous ? "+async" : "") +
+           (toolRadius > 0 ? "+contact" : "") + (shaftOnSurface ? "+touching" : "");
   }
 };
 
@@ -111,7 +120,8 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
     for (int k = 0; k < 10; ++k) {
       const auto t0 = std::chrono::steady_clock::now();
       session.advance();
-      r.placeMaxMs = std::max(r.placeMaxMs, std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      r.placeMaxMs = std::max(r.placeMaxMs,
+                              std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
     }
   const int bitten = session.snapshot()->tool.held.empty() ? -1 : session.snapshot()->tool.held.front();
   VirtualDevice device;
@@ -128,6 +138,10 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
     const auto t1 = std::chrono::steady_clock::now();
     r.ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     r.failed += !rep.ok;
+    r.newton += rep.newtonIterations;
+    r.converged += rep.outcome == StepStatus::Converged;
+    r.inexact += rep.outcome == StepStatus::Inexact;
+    r.worstResidual = std::max(r.worstResidual, rep.residual);
     r.swaps += rep.factorSwapped;
     r.contacts = std::max(r.contacts, session.snapshot()->tool.contacts);
     r.touchingSteps += session.snapshot()->tool.contacts > 0;
@@ -140,32 +154,119 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
   return r;
 }
 
+void realOrgans(const std::string& out, const std::string& shared) {
+  // Issue 34: grasp-pull and contact-pull on real organs at the patient's size, started where the registered shape is
+  // (the rest shape that sags into it solved first): per step while pulling, the Newton iterations and the outcomes.
+  std::ofstream realCsv(out + "/rehearsal-real.csv");
+  realCsv << "organ,tets,method,median_ms,p99_ms,max_ms,newton_mean,converged,inexact,other,worst_residual,force_n,"
+             "force_error_rel,start_solves,start_s\n";
+  std::printf("\nGrasp-pull (and with a 4 mm shaft touching) on real organs started in equilibrium, 200 paced steps\n");
+  std::printf("%-20s %6s %-35s %9s %9s %9s %7s %14s %10s %9s %10s\n", "organ", "tets", "method", "median ms", "p99 ms",
+              "max ms", "Newton", "conv/inex/oth", "worst res", "force N", "force err");
+  struct Real {
+    std::string name, path;
+    std::size_t tets;
+  };
+  for (const Real& o :
+       {Real{"liver preset", "", 0}, Real{"patient liver", "/scikit-surgery/patient-liver/liver.vtk", 17000},
+        Real{"BodyParts3D liver", "/bodyparts3d/FMA7197_Liver.obj", 17000}}) {
+    BodySetup s;
+    if (o.path.empty()) {
+      s = setupFor("liver", shared);
+    } else {
+      if (!std::filesystem::exists(shared + o.path)) {
+        std::printf("%-20s absent: %s%s\n", o.name.c_str(), shared.c_str(), o.path.c_str());
+        continue;
+      }
+      TetrahedraliseOptions to;
+      to.allowSelfIntersections = true;
+      to.targetTets = o.tets;
+      s.mesh = tetrahedraliseSurface(testing::loadOrganSurface(shared + o.path), to);
+      s.material = {MaterialModel::Corotational, 27e3, 0.4, 1079};
+      s.settings.timeStep = 0.01;
+      s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);
+      s.tools.maxGraspForce = 1e6;
+      std::vector<std::pair<double, int>> height;
+      for (int n : testing::surfaceNodes(s.mesh))
+        height.emplace_back(s.mesh.points[static_cast<std::size_t>(n)].y(), n);
+      std::sort(height.begin(), height.end());
+      for (std::size_t k = 0; k < std::max<std::size_t>(3, height.size() * 8 / 100); ++k)
+        s.fixedNodes.push_back(height[k].second);
+    }
+    const auto t0 = std::chrono::steady_clock::now();
+    const InverseRestResult start = startInEquilibrium(s, s.mesh.points);
+    const double startSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (!start.converged()) {
+      std::printf("%-20s %6zu no starting equilibrium: %s\n", o.name.c_str(), s.mesh.tets.size(), start.status.c_str());
+      continue;
+    }
+    PullResult exact;
+    for (const Variant& v : {Variant{NewtonMethod::Exact}, Variant{NewtonMethod::Chord, FactorRefresh::Asynchronous},
+                             Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous},
+                             Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous, 0.004, true}}) {
+      const PullResult r = pull(s, v, 10);
+      if (v.method == NewtonMethod::Exact) exact = r;
+      const double fe = exact.force.norm() > 0 ? (r.force - exact.force).norm() / exact.force.norm() : 0;
+      const int n = static_cast<int>(r.ms.size());
+      std::printf("%-20s %6zu %-35s %9.2f %9.2f %9.2f %7.2f %4d/%4d/%4d %10.2e %9.3f %9.2f%%\n", o.name.c_str(),
+                  s.mesh.tets.size(), v.name().c_str(), percentile(r.ms, 0.5), percentile(r.ms, 0.99),
+                  percentile(r.ms, 1.0), static_cast<double>(r.newton) / std::max(1, n), r.converged, r.inexact,
+                  n - r.converged - r.inexact, r.worstResidual, r.force.norm(), 100 * fe);
+      std::fflush(stdout);
+      realCsv << '"' << o.name << "\"," << s.mesh.tets.size() << ',' << v.name() << ',' << percentile(r.ms, 0.5) << ','
+              << percentile(r.ms, 0.99) << ',' << percentile(r.ms, 1.0) << ','
+              << static_cast<double>(r.newton) / std::max(1, n) << ',' << r.converged << ',' << r.inexact << ','
+              << n - r.converged - r.inexact << ',' << r.worstResidual << ',' << r.force.norm() << ',' << fe << ','
+              << start.iterations << ',' << startSeconds << '\n';
+    }
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string out = ".";
   bool quick = false;
-  std::string only;  // one pull variant by name (e.g. "linearised"), on the built-in liver only, and no cut: A/B runs
+  std::string only;    // one pull variant by name (e.g. "linearised"), on the built-in liver only, and no cut: A/B runs
+  bool real = false;   // only the real organs' section
   int cutRepeats = 1;  // the cut scenario run this many times, its steps pooled (a comparison of builds wants more
                        // than the 3 updates of one run: each waits for a body built on the other core)
   for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--quick")) quick = true;
-    else if (!std::strcmp(argv[i], "--cut-repeats") && i + 1 < argc) cutRepeats = std::max(1, std::atoi(argv[++i]));
-    else if (!std::strcmp(argv[i], "--only") && i + 1 < argc) only = argv[++i];
-    else out = argv[i];
+    if (!std::strcmp(argv[i], "--quick"))
+      quick = true;
+    else if (!std::strcmp(argv[i], "--cut-repeats") && i + 1 < argc)
+      cutRepeats = std::max(1, std::atoi(argv[++i]));
+    else if (!std::strcmp(argv[i], "--only") && i + 1 < argc)
+      only = argv[++i];
+    else if (!std::strcmp(argv[i], "--real"))
+      real = true;
+    else
+      out = argv[i];
   }
   std::filesystem::create_directories(out);
 
   const std::string shared = std::string(REHEARSE_SHARED_DATA);
+  if (real) {
+    realOrgans(out, shared);
+    return 0;
+  }
   std::vector<std::string> organs = {"liver"};
-  if (only.empty() && std::filesystem::exists(shared + "/sofa/liver.msh")) organs.push_back("sofa-liver");
-  else if (only.empty()) std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
+  if (only.empty() && std::filesystem::exists(shared + "/sofa/liver.msh"))
+    organs.push_back("sofa-liver");
+  else if (only.empty())
+    std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
 
   std::ofstream pullCsv(out + "/rehearsal-pull.csv");
-  pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,place_max_ms,failed,swaps,contacts,touching_steps,force_error_rel,bitten_error_mm,loop_hz,loop_period_median_ms,loop_period_p99_ms,loop_period_max_ms,loop_jitter_p99_ms,loop_realtime\n";
-  std::printf("Grasp pulled 2 cm over %d steps of 10 ms, paced to real time (wall time per step while pulling); the force loop beside it\n", kPullSteps);
-  std::printf("%-11s %6s %-35s %9s %9s %9s %6s %5s %8s %8s %12s %12s %8s %9s\n", "organ", "tets", "method", "median ms", "p99 ms", "max ms", "failed", "swaps",
-              "contacts", "touching", "force err", "bitten err", "loop Hz", "jitter ms");
+  pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,place_max_ms,failed,swaps,contacts,touching_steps,force_error_"
+             "rel,bitten_error_mm,loop_hz,loop_period_median_ms,loop_period_p99_ms,loop_period_max_ms,loop_jitter_p99_"
+             "ms,loop_realtime\n";
+  std::printf(
+      "Grasp pulled 2 cm over %d steps of 10 ms, paced to real time (wall time per step while pulling); the force loop "
+      "beside it\n",
+      kPullSteps);
+  std::printf("%-11s %6s %-35s %9s %9s %9s %6s %5s %8s %8s %12s %12s %8s %9s\n", "organ", "tets", "method", "median ms",
+              "p99 ms", "max ms", "failed", "swaps", "contacts", "touching", "force err", "bitten err", "loop Hz",
+              "jitter ms");
   const std::vector<Variant> variants = {{NewtonMethod::Exact},
                                          {NewtonMethod::LaggedPcg},
                                          {NewtonMethod::Chord},
@@ -182,22 +283,30 @@ int main(int argc, char** argv) {
       const PullResult r = &v == &variants.front() ? exact : pull(s, v, quick ? 20 : 50);
       const double fe = exact.force.norm() > 0 ? (r.force - exact.force).norm() / exact.force.norm() : 0;
       const double de = 1e3 * (r.bitten - exact.bitten).norm();
-      std::printf("%-11s %6zu %-35s %9.2f %9.2f %9.2f %6d %5d %8d %8d %11.2f%% %9.3f mm %8.0f %9.3f\n", organ.c_str(), s.mesh.tets.size(), v.name().c_str(),
-                  percentile(r.ms, 0.5), percentile(r.ms, 0.99), percentile(r.ms, 1.0), r.failed, r.swaps, r.contacts, r.touchingSteps, 100 * fe, de, r.loop.rateHz, r.loop.jitterMs);
-      pullCsv << organ << ',' << s.mesh.tets.size() << ',' << v.name() << ',' << percentile(r.ms, 0.5) << ',' << percentile(r.ms, 0.99) << ','
-              << percentile(r.ms, 1.0) << ',' << r.placeMaxMs << ',' << r.failed << ',' << r.swaps << ',' << r.contacts << ',' << r.touchingSteps << ',' << fe << ',' << de << ',' << r.loop.rateHz << ','
-              << r.loop.medianPeriodMs << ',' << r.loop.p99PeriodMs << ',' << r.loop.maxPeriodMs << ',' << r.loop.jitterMs << ',' << r.loop.realtime << '\n';
+      std::printf("%-11s %6zu %-35s %9.2f %9.2f %9.2f %6d %5d %8d %8d %11.2f%% %9.3f mm %8.0f %9.3f\n", organ.c_str(),
+                  s.mesh.tets.size(), v.name().c_str(), percentile(r.ms, 0.5), percentile(r.ms, 0.99),
+                  percentile(r.ms, 1.0), r.failed, r.swaps, r.contacts, r.touchingSteps, 100 * fe, de, r.loop.rateHz,
+                  r.loop.jitterMs);
+      pullCsv << organ << ',' << s.mesh.tets.size() << ',' << v.name() << ',' << percentile(r.ms, 0.5) << ','
+              << percentile(r.ms, 0.99) << ',' << percentile(r.ms, 1.0) << ',' << r.placeMaxMs << ',' << r.failed << ','
+              << r.swaps << ',' << r.contacts << ',' << r.touchingSteps << ',' << fe << ',' << de << ','
+              << r.loop.rateHz << ',' << r.loop.medianPeriodMs << ',' << r.loop.p99PeriodMs << ',' << r.loop.maxPeriodMs
+              << ',' << r.loop.jitterMs << ',' << r.loop.realtime << '\n';
     }
   }
 
   if (!only.empty()) return 0;
   std::ofstream cutCsv(out + "/rehearsal-cut.csv");
-  std::printf("\nA cut across the organ (plane a quarter of its width from its left end, the blade in 12 poses, 3 steps of 10 ms each, paced)\n");
-  std::printf("%-11s %-18s %7s %15s %13s %17s %15s %14s %16s\n", "organ", "method", "updates", "remesh med ms", "remesh p99", "step+cut med ms",
-              "step+cut p99", "slowest step", "elements");
-  cutCsv << "organ,method,updates,remesh_median_ms,remesh_p99_ms,step_with_cut_median_ms,step_with_cut_p99_ms,slowest_step_ms,elements_before,elements_after\n";
+  std::printf(
+      "\nA cut across the organ (plane a quarter of its width from its left end, the blade in 12 poses, 3 steps of 10 "
+      "ms each, paced)\n");
+  std::printf("%-11s %-18s %7s %15s %13s %17s %15s %14s %16s\n", "organ", "method", "updates", "remesh med ms",
+              "remesh p99", "step+cut med ms", "step+cut p99", "slowest step", "elements");
+  cutCsv << "organ,method,updates,remesh_median_ms,remesh_p99_ms,step_with_cut_median_ms,step_with_cut_p99_ms,slowest_"
+            "step_ms,elements_before,elements_after\n";
   for (const auto& organ : organs) {
-    for (const Variant& v : {Variant{NewtonMethod::Exact}, Variant{NewtonMethod::Linearised}, Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous}}) {
+    for (const Variant& v : {Variant{NewtonMethod::Exact}, Variant{NewtonMethod::Linearised},
+                             Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous}}) {
       BodySetup s = setupFor(organ, shared);
       s.settings.method = v.method;
       s.settings.factorRefresh = v.refresh;
@@ -239,12 +348,17 @@ int main(int argc, char** argv) {
             auto tets = session.setup().mesh.tets;
             auto labels = session.setup().mesh.tetLabels;
             const Eigen::Vector3d prev = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * (k - 1) / sweeps);
-            auto end = [&](const Eigen::Vector3d& t) { return Eigen::Vector3d(t + s.tools.bladeLength * (*s.tools.trocar - t).normalized()); };
+            auto end = [&](const Eigen::Vector3d& t) {
+              return Eigen::Vector3d(t + s.tools.bladeLength * (*s.tools.trocar - t).normalized());
+            };
             CutProgress progress = session.setup().cut;
             if (current.size() == rest.size()) {
               const auto t0 = std::chrono::steady_clock::now();
-              const CutResult r = cutTetrahedra(rest, current, tets, labels, {prev, end(prev), to, end(to)}, s.tools.cut, &progress);
-              if (r.changed) remesh.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+              const CutResult r =
+                  cutTetrahedra(rest, current, tets, labels, {prev, end(prev), to, end(to)}, s.tools.cut, &progress);
+              if (r.changed)
+                remesh.push_back(
+                    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
             }
           }
           session.post(event(InputKind::ToolPose, to));
@@ -256,11 +370,16 @@ int main(int argc, char** argv) {
         after = session.snapshot()->elements;
       }
       const double slowest = all.empty() ? 0 : *std::max_element(all.begin(), all.end());
-      std::printf("%-11s %-18s %7zu %15.2f %13.2f %17.2f %15.2f %14.2f %7zu -> %zu\n", organ.c_str(), v.name().c_str(), step.size(), percentile(remesh, 0.5),
-                  percentile(remesh, 0.99), percentile(step, 0.5), percentile(step, 0.99), slowest, before, after);
-      cutCsv << organ << ',' << v.name() << ',' << step.size() << ',' << percentile(remesh, 0.5) << ',' << percentile(remesh, 0.99) << ','
-             << percentile(step, 0.5) << ',' << percentile(step, 0.99) << ',' << slowest << ',' << before << ',' << after << '\n';
+      std::printf("%-11s %-18s %7zu %15.2f %13.2f %17.2f %15.2f %14.2f %7zu -> %zu\n", organ.c_str(), v.name().c_str(),
+                  step.size(), percentile(remesh, 0.5), percentile(remesh, 0.99), percentile(step, 0.5),
+                  percentile(step, 0.99), slowest, before, after);
+      cutCsv << organ << ',' << v.name() << ',' << step.size() << ',' << percentile(remesh, 0.5) << ','
+             << percentile(remesh, 0.99) << ',' << percentile(step, 0.5) << ',' << percentile(step, 0.99) << ','
+             << slowest << ',' << before << ',' << after << '\n';
     }
   }
+  if (quick) return 0;
+
+  realOrgans(out, shared);
   return 0;
 }
