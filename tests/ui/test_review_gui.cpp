@@ -108,6 +108,10 @@ class TestReviewGui : public QObject {
         waitFor([&] { return panel->recordingId() > 0 && panel->session()->snapshot()->step > 60 && steps() > 60; }));
     first_ = panel->recordingId();
     QVERIFY(panel->isPlaying());
+    // The recorded session starts where the frame shows it, on the rest shape solved for the session before it (the
+    // same organ): not solved again.
+    qInfo("%s", qPrintable(panel->startSentence()));
+    QVERIFY(panel->startSentence().contains("solved for the last session"));
     const auto& c = *w_->caseData();
     auto* view = w_->frameView();
     QTest::keyClick(w_.get(), Qt::Key_R);  // the grasper

@@ -24,6 +24,7 @@
 #include <QWheelEvent>
 
 #include <algorithm>
+#include <mutex>
 #include <cmath>
 
 Q_DECLARE_METATYPE(std::shared_ptr<const rehearse::ui::SimulationFrame>)
@@ -34,6 +35,14 @@ namespace rehearse::ui {
 
 // What turns the session's snapshots into frames for this panel: fixed for one organ (one session), read
 // on the session's thread.
+// The last rest shape solved for a session's start (simcore/inverse_rest.hpp), by the hash of the setup it was solved
+// for: read and written on the workers that build sessions.
+struct SimulationPanel::StartCache {
+  std::mutex mutex;
+  std::uint64_t key = 0;
+  std::optional<simcore::InverseRestResult> result;
+};
+
 struct SimulationPanel::FrameContext {
   std::shared_ptr<const app::Case> organ;
   std::vector<Eigen::Vector3d> rest;  ///< camera frame (m)
@@ -236,7 +245,7 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   });
   QPointer<SimulationPanel> self(this);
   watcher->setFuture(QtConcurrent::run([s, result, ctx, generation, record, recorder, started, self,
-                                        cancelled = buildCancelled_] {
+                                        cancelled = buildCancelled_, cache = startCache_] {
     try {
       simcore::BodySetup b = bodySetup(s);
       if (s.startInEquilibrium && b.settings.gravity.norm() > 0 && !b.fixedNodes.empty()) {
@@ -257,11 +266,30 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
           return !cancelled->load();
         };
         const std::vector<Eigen::Vector3d> shape = b.rest;
-        const simcore::InverseRestResult r = simcore::startInEquilibrium(b, shape, o);
+        // The same organ, shape, attachments, material and settings as the last session (Record, a reset while
+        // recording): its rest shape again, not solved again (12 s on a 16k-tet liver).
+        const std::uint64_t key = app::setupHash(b);
+        simcore::InverseRestResult r;
+        bool reused = false;
+        {
+          std::lock_guard<std::mutex> lock(cache->mutex);
+          if (cache->key == key && cache->result) r = *cache->result, reused = true;
+        }
+        if (!reused) r = simcore::solveRestShape(b, shape, o);
         if (r.outcome == simcore::InverseRestResult::Outcome::Cancelled) return;
+        if (!reused) {
+          std::lock_guard<std::mutex> lock(cache->mutex);
+          cache->key = key;
+          cache->result = r;
+        }
+        if (r.converged()) {
+          b.rest = r.rest;
+          b.start = shape;  // exactly where the frame shows it; its equilibrium lies within r.error
+        }
         *started = r.converged() ? tr("The organ starts where the frame shows it, in equilibrium under gravity on its "
-                                      "attachments: %1")
+                                      "attachments: %1%2")
                                        .arg(QString::fromStdString(r.status))
+                                       .arg(reused ? tr(" (solved for the last session, the same organ)") : QString())
                                  : tr("The organ starts at rest on the registered shape and will sag from it: %1")
                                        .arg(QString::fromStdString(r.status));
       } else if (b.settings.gravity.norm() > 0 && !b.fixedNodes.empty()) {
@@ -452,7 +480,7 @@ void SimulationView::wheelEvent(QWheelEvent* e) {
 
 // ------------------------------------------------------------------------------------------- panel
 
-SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
+SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_(std::make_shared<StartCache>()) {
   qRegisterMetaType<std::shared_ptr<const SimulationFrame>>();
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(4, 4, 4, 4);

@@ -141,6 +141,9 @@ class SimulationPanel : public QWidget {
   void stopRecording();
   bool recording() const { return recorder_ != nullptr || recordPending_; }
   qint64 recordingId() const;
+  /// How the current session started: where the frame shows it, in equilibrium (and whether its rest shape was solved
+  /// for the last session already), or why the organ will sag; empty without gravity or attachments.
+  QString startSentence() const { return startWord_; }
   /// Before the case file is saved (copied and replaced): the recorder commits, empties its WAL and closes the
   /// file; the steps meanwhile are kept in memory until caseFileReplaced().
   void suspendRecording();
@@ -187,6 +190,8 @@ class SimulationPanel : public QWidget {
   simcore::VirtualDevice device_;                  ///< the mouse-driven instrument's tip, for the force loop
   std::unique_ptr<simcore::ForceLoop> forceLoop_;  ///< declared after session_: stopped before it goes
   long generation_ = 0;                            ///< bumped per session: frames of an older one are dropped
+  struct StartCache;
+  std::shared_ptr<StartCache> startCache_;  ///< the last starting rest shape solved (made in the constructor)
   /// Set when a newer session replaces the one being built (its rest-shape solve stops early).
   std::shared_ptr<std::atomic<bool>> buildCancelled_ = std::make_shared<std::atomic<bool>>(false);
   QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not
