@@ -7,6 +7,7 @@
 #include <rehearse/simcore/inverse_rest.hpp>
 #include <rehearse/simcore/scene.hpp>
 
+#include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QFormLayout>
@@ -18,6 +19,7 @@
 #include <QPointer>
 #include <QPushButton>
 #include <QFutureWatcher>
+#include <QSignalBlocker>
 #include <QThread>
 #include <QtConcurrent/QtConcurrent>
 #include <QVBoxLayout>
@@ -537,6 +539,29 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
       tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it"));
   form->addRow(tr("Gravity"), form_.gravity);
   connect(form_.gravity, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
+  form_.start = new QCheckBox(tr("Start where the frame shows it"), this);
+  form_.start->setObjectName(QStringLiteral("simStartInEquilibrium"));
+  form_.start->setChecked(true);
+  form_.start->setToolTip(
+      tr("The organ starts on the registered shape in equilibrium under gravity on its ligaments (its rest shape is "
+         "solved first) and stays there until an instrument acts. Off: the registered shape is its rest shape, and it "
+         "sags from there."));
+  form->addRow(QString(), form_.start);
+  connect(form_.start, &QCheckBox::toggled, this, [this](bool on) {
+    if (recordRequest_) {  // a recorded session's start is part of it: not changed under it
+      const QSignalBlocker block(form_.start);
+      form_.start->setChecked(!on);
+      const QString why = tr("Stop the recording first: how the organ starts is part of the recorded session.");
+      status_->setText(why);
+      emit statusChanged(why);
+      return;
+    }
+    if (!organ_) return;
+    playing_ = false;
+    pendingPlay_ = false;
+    startSession(setup());  // a new session from the new start
+    updateButtons();
+  });
   form_.colouring = new QComboBox(this);
   form_.colouring->setObjectName(QStringLiteral("simColouring"));
   form_.colouring->addItems({tr("displacement (mm)"), tr("von Mises stress (kPa)")});
@@ -662,6 +687,7 @@ SimulationSetup SimulationPanel::setup() const {
   s.method = static_cast<simcore::NewtonMethod>(form_.method->currentIndex());
   static const Eigen::Vector3d directions[] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
   s.gravity = 9.81 * directions[std::clamp(form_.gravity->currentIndex(), 0, 2)];
+  s.startInEquilibrium = form_.start->isChecked();
   return s;
 }
 

@@ -19,6 +19,7 @@
 #include <optional>
 #include <vector>
 
+class QCheckBox;
 class QComboBox;
 class QDoubleSpinBox;
 class QLabel;
@@ -207,6 +208,7 @@ class SimulationPanel : public QWidget {
     QComboBox* method = nullptr;
     QComboBox* colouring = nullptr;
     QComboBox* gravity = nullptr;
+    QCheckBox* start = nullptr;  ///< start where the frame shows it (SimulationSetup::startInEquilibrium)
     QDoubleSpinBox* young = nullptr;
     QDoubleSpinBox* poisson = nullptr;
     QDoubleSpinBox* density = nullptr;
