@@ -159,13 +159,17 @@ InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen
   return r;
 }
 
+bool useRestShape(BodySetup& setup, const std::vector<Eigen::Vector3d>& target, const InverseRestResult& r) {
+  if (!r.converged()) return false;
+  setup.rest = r.rest;
+  setup.start = target;  // exactly where the frame shows it; its equilibrium is within r.error
+  return true;
+}
+
 InverseRestResult startInEquilibrium(BodySetup& setup, const std::vector<Eigen::Vector3d>& target,
                                      const InverseRestOptions& options) {
   InverseRestResult r = solveRestShape(setup, target, options);
-  if (r.converged()) {
-    setup.rest = r.rest;
-    setup.start = target;  // exactly where the frame shows it; its equilibrium is within r.error
-  }
+  useRestShape(setup, target, r);
   return r;
 }
 

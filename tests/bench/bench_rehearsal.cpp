@@ -186,12 +186,7 @@ void realOrgans(const std::string& out, const std::string& shared) {
       s.settings.timeStep = 0.01;
       s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);
       s.tools.maxGraspForce = 1e6;
-      std::vector<std::pair<double, int>> height;
-      for (int n : testing::surfaceNodes(s.mesh))
-        height.emplace_back(s.mesh.points[static_cast<std::size_t>(n)].y(), n);
-      std::sort(height.begin(), height.end());
-      for (std::size_t k = 0; k < std::max<std::size_t>(3, height.size() * 8 / 100); ++k)
-        s.fixedNodes.push_back(height[k].second);
+      s.fixedNodes = testing::highestSurfaceNodes(s.mesh, 0.08);
     }
     const auto t0 = std::chrono::steady_clock::now();
     const InverseRestResult start = startInEquilibrium(s, s.mesh.points);

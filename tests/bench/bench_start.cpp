@@ -69,12 +69,7 @@ int main(int argc, char** argv) {
       s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);
       s.settings.method = NewtonMethod::Linearised;
       s.settings.factorRefresh = FactorRefresh::Asynchronous;
-      std::vector<std::pair<double, int>> height;
-      for (int n : testing::surfaceNodes(s.mesh))
-        height.emplace_back(s.mesh.points[static_cast<std::size_t>(n)].y(), n);
-      std::sort(height.begin(), height.end());
-      for (std::size_t k = 0; k < std::max<std::size_t>(3, height.size() * 8 / 100); ++k)
-        s.fixedNodes.push_back(height[k].second);
+      s.fixedNodes = testing::highestSurfaceNodes(s.mesh, 0.08);
       const std::vector<Eigen::Vector3d> shape = s.mesh.points;
       const auto t0 = std::chrono::steady_clock::now();
       const InverseRestResult r = startInEquilibrium(s, shape);

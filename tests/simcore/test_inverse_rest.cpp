@@ -160,11 +160,7 @@ class TestInverseRest : public QObject {
     s.mesh = tetrahedraliseSurface(surface, to);
     s.material = {MaterialModel::Corotational, 27e3, 0.4, 1079};
     s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);  // down in the image
-    std::vector<std::pair<double, int>> height;
-    for (int n : testing::surfaceNodes(s.mesh)) height.emplace_back(s.mesh.points[static_cast<std::size_t>(n)].y(), n);
-    std::sort(height.begin(), height.end());
-    for (std::size_t k = 0; k < std::max<std::size_t>(3, height.size() * 8 / 100); ++k)
-      s.fixedNodes.push_back(height[k].second);
+    s.fixedNodes = testing::highestSurfaceNodes(s.mesh, 0.08);
     const std::vector<Eigen::Vector3d> target = s.mesh.points;
     const auto [sagging, _] = driftOver(s, 200);
     const InverseRestResult r = startInEquilibrium(s, target);

@@ -85,6 +85,18 @@ inline std::vector<int> surfaceNodes(const simcore::Mesh& v) {
   return nodes;
 }
 
+/// The `share` of a volume mesh's surface nodes highest against gravity along +y (smallest y; at least 3): what holds a
+/// real organ in the benchmarks and tests that hang it with gravity down the image.
+inline std::vector<int> highestSurfaceNodes(const simcore::Mesh& v, double share) {
+  std::vector<std::pair<double, int>> height;
+  for (int n : surfaceNodes(v)) height.emplace_back(v.points[static_cast<std::size_t>(n)].y(), n);
+  std::sort(height.begin(), height.end());
+  std::vector<int> held;
+  const auto count = std::min(height.size(), std::max<std::size_t>(3, static_cast<std::size_t>(share * height.size())));
+  for (std::size_t k = 0; k < count; ++k) held.push_back(height[k].second);
+  return held;
+}
+
 /// The depth (m, camera frame at `pose`) beyond which lie the `share` of the surface nodes farthest from
 /// the camera.
 inline double farthestShareDepth(const simcore::Mesh& v, const Pose& pose, double share) {
@@ -105,8 +117,8 @@ inline std::vector<int> surfaceNodesBeyond(const simcore::Mesh& v, const Pose& p
 
 /// Up to `count` of the surface nodes the camera sees on the deformed mesh (`deformed`: positions per
 /// node), spread by farthest-point sampling over the rest positions.
-inline std::vector<int> visibleMarkers(const simcore::Mesh& rest, const std::vector<Eigen::Vector3d>& deformed, const Pose& pose,
-                                       const imaging::Camera& cam, std::size_t count) {
+inline std::vector<int> visibleMarkers(const simcore::Mesh& rest, const std::vector<Eigen::Vector3d>& deformed,
+                                       const Pose& pose, const imaging::Camera& cam, std::size_t count) {
   const auto tris = simcore::boundaryTriangles(rest, false);
   std::vector<double> verts;
   for (const auto& p : deformed) verts.insert(verts.end(), {p.x(), p.y(), p.z()});

@@ -284,10 +284,7 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
           cache->key = key;
           cache->result = r;
         }
-        if (r.converged()) {
-          b.rest = r.rest;
-          b.start = shape;  // exactly where the frame shows it; its equilibrium lies within r.error
-        }
+        simcore::useRestShape(b, shape, r);
         *started = r.converged() ? tr("The organ starts where the frame shows it, in equilibrium under gravity on its "
                                       "attachments: %1%2")
                                        .arg(QString::fromStdString(r.status))

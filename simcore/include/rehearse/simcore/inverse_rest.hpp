@@ -42,6 +42,10 @@ struct InverseRestResult {
 InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen::Vector3d>& target,
                                  const InverseRestOptions& options = {});
 
+/// `setup` made to start from `target` on a solved rest shape `r` (solveRestShape for this setup and target): rest
+/// `r.rest`, start `target`. Nothing changes unless `r` converged; true when it did.
+bool useRestShape(BodySetup& setup, const std::vector<Eigen::Vector3d>& target, const InverseRestResult& r);
+
 /// `setup` made to start from `target` in equilibrium: its rest shape solved (solveRestShape), `start` the target
 /// itself (its equilibrium lies within the result's error of it, so the organ moves at most that far without an
 /// instrument). Unchanged (with the result saying why) unless the solve converged.
