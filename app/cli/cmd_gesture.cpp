@@ -96,8 +96,8 @@ int cmdGesture(const std::vector<std::string>& args) {
     if (setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous &&
         setup.settings.method == simcore::NewtonMethod::Exact)
       throw UsageError(
-          "--refresh async rebuilds the lagged factorisation of the chord, lagged-pcg and linearised methods; the "
-          "exact method has none (choose --method)");
+          "--refresh async rebuilds the lagged factorisation of the chord, lagged-pcg, linearised and newton-krylov "
+          "methods; the exact method has none (choose --method)");
   }
   mesh.convertToMetres();
   setup.mesh = mesh;
@@ -184,6 +184,8 @@ int cmdGesture(const std::vector<std::string>& args) {
     for (const auto& s : r.steps) all.push_back(&s.report);
     writeReport(o["report"],
                 {{"steps", rows},
+                 {"method", simcore::toString(setup.settings.method)},
+                 {"refresh", setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous ? "async" : "sync"},
                  {"start", startWord},
                  {"statuses", statusCounts(all)},
                  {"slips", r.slips},
@@ -198,11 +200,10 @@ int cmdGesture(const std::vector<std::string>& args) {
   const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.vesselCuts) + " vessel cut(s)"
                                                         : "vessels unknown (the mesh names none)";
   std::printf(
-      "gesture: %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut updates, "
-      "%s, %zu failed "
-      "steps; %zu elements, %zu nodes written to %s\n",
-      r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, vessels.c_str(),
-      r.failed, out.tets.size(), out.points.size(), o["out"].c_str());
+      "gesture (%s): %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut "
+      "updates, %s, %zu failed steps; %zu elements, %zu nodes written to %s\n",
+      simcore::toString(setup.settings.method).c_str(), r.steps.size(), wall / static_cast<double>(r.steps.size()),
+      grasped, peak, r.slips, r.cuts, vessels.c_str(), r.failed, out.tets.size(), out.points.size(), o["out"].c_str());
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);
   const int code = statusSummary(all);
@@ -216,7 +217,7 @@ const Command& gestureCommand() {
       "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of "
       "simulate]\n"
       "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method "
-      "exact|lagged-pcg|chord|linearised]\n"
+      "chord|exact|lagged-pcg|linearised|newton-krylov]\n"
       "                [--start rest|equilibrium] [--refresh sync|async]  async: a drifted lagged factorisation is "
       "rebuilt on a second thread "
       "and\n"
@@ -234,7 +235,7 @@ const Command& gestureCommand() {
              {{"script", "G.json", "the timed instrument events (README, File formats)"},
               {"out", "OUT", "the volume at the end: .vtu, .vtk or .msh"},
               {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
-              {"method", "M", "exact, lagged-pcg, chord or linearised"},
+              {"method", "M", "chord (default: converged every step), exact, lagged-pcg, linearised or newton-krylov"},
               {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
               {"start", "S",
                "rest (the mesh is the rest shape; default) or equilibrium (the mesh is where the organ hangs under "

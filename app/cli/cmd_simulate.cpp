@@ -114,7 +114,9 @@ int cmdSimulate(const std::vector<std::string>& args) {
     }
     std::vector<const simcore::StepReport*> all;
     for (const auto& r : reports) all.push_back(&r);
-    writeReport(o["report"], {{"steps", steps}, {"statuses", statusCounts(all)}});
+    writeReport(o["report"], {{"steps", steps},
+                              {"method", o.count("static") ? "static" : simcore::toString(p.settings.method)},
+                              {"statuses", statusCounts(all)}});
   }
   std::size_t failed = 0;
   double wall = 0;
@@ -122,9 +124,10 @@ int cmdSimulate(const std::vector<std::string>& args) {
     failed += !r.ok;
     wall += r.wallMs;
   }
-  std::printf("%s: %zu nodes, %zu tets, %zu %s, %zu failed, mean %.2f ms per %s, written %s\n",
-              o.count("static") ? "static" : "dynamic", model.nodeCount(), model.tets.size(), reports.size(),
-              o.count("static") ? "solve" : "steps", failed, wall / reports.size(),
+  std::printf("%s (%s): %zu nodes, %zu tets, %zu %s, %zu failed, mean %.2f ms per %s, written %s\n",
+              o.count("static") ? "static" : "dynamic",
+              o.count("static") ? "Newton" : simcore::toString(p.settings.method).c_str(), model.nodeCount(),
+              model.tets.size(), reports.size(), o.count("static") ? "solve" : "steps", failed, wall / reports.size(),
               o.count("static") ? "solve" : "step", o["out"].c_str());
   std::vector<const simcore::StepReport*> all;
   for (const auto& r : reports) all.push_back(&r);
@@ -139,7 +142,7 @@ const Command& simulateCommand() {
       "NU]\n"
       "                [--density KG_M3] [--vessel-young PA]\n"
       "                [--fixed-nodes \"i j k\"|FILE] [--gravity X,Y,Z] [--steps N] [--dt H] [--static]\n"
-      "                [--solver cholmod|cg|dense] [--method exact|lagged-pcg|chord|linearised]\n"
+      "                [--solver cholmod|cg|dense] [--method chord|exact|lagged-pcg|linearised|newton-krylov]\n"
       "                [--factor supernodal|simplicial] [--attachments projection|lagrange]\n"
       "                --out OUT.vtu|.vtk [--report R.json]\n"
       "  rehearse simulate --list-components   the scene components and their parameters\n"
@@ -151,7 +154,7 @@ const Command& simulateCommand() {
               {"out", "OUT", "the deformed volume: .vtu, .vtk or .msh"},
               {"report", "R.json", "per-step outcomes, residuals and timings"},
               {"solver", "S", "cholmod, cg or dense"},
-              {"method", "M", "exact, lagged-pcg, chord or linearised"},
+              {"method", "M", "chord (default: converged every step), exact, lagged-pcg, linearised or newton-krylov"},
               {"factor", "F", "supernodal or simplicial (CHOLMOD)"},
               {"attachments", "A", "projection or lagrange"},
               {"strict", "", "a step that does not converge fails (rolled back) instead of being kept inexact"},

@@ -23,8 +23,8 @@ void validateConstraint(const ScalarConstraint& c, std::size_t nodes) {
   for (int k = 0; k < 4; ++k) {
     if (c.nodes[k] < 0) continue;
     if (c.nodes[k] >= static_cast<int>(nodes))
-      throw MeshError("A constraint refers to node " + std::to_string(c.nodes[k]) + ", which does not exist (the mesh has " +
-                      std::to_string(nodes) + " nodes).");
+      throw MeshError("A constraint refers to node " + std::to_string(c.nodes[k]) +
+                      ", which does not exist (the mesh has " + std::to_string(nodes) + " nodes).");
     any = true;
   }
   if (!any || !c.direction.allFinite() || c.direction.norm() == 0 || !std::isfinite(c.value))
@@ -47,8 +47,46 @@ double ConstraintSolver::violation(const Eigen::VectorXd& x) const {
   return worst;
 }
 
-bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx, int& sweeps,
-                             const Eigen::VectorXd* carried) {
+bool ConstraintSolver::fixActiveSet() {
+  const Eigen::Index m = size();
+  if (!schurValid_ || W_.rows() != m || lambda_.size() != m) return false;
+  fixedSet_.clear();
+  if (fixedSet_.capacity() < static_cast<std::size_t>(m)) fixedSet_.reserve(static_cast<std::size_t>(m));
+  for (Eigen::Index i = 0; i < m; ++i)
+    if (!constraints_[static_cast<std::size_t>(i)].unilateral || lambda_[i] > 0) fixedSet_.push_back(i);
+  const auto k = static_cast<Eigen::Index>(fixedSet_.size());
+  if (fixedW_.rows() != k) fixedW_.resize(k, k);
+  for (Eigen::Index i = 0; i < k; ++i)
+    for (Eigen::Index j = 0; j < k; ++j)
+      fixedW_(i, j) = W_(fixedSet_[static_cast<std::size_t>(i)], fixedSet_[static_cast<std::size_t>(j)]);
+  if (k > 0) fixedFactor_.compute(fixedW_);  // pivoted: redundant constraints leave zero pivots, their y zero
+  if (fixedT_.size() != k) fixedT_.resize(k);
+  if (fixedY_.size() != k) fixedY_.resize(k);
+  return true;
+}
+
+bool ConstraintSolver::projectedSolve(CholmodSolver& factor, const Eigen::VectorXd& r, Eigen::VectorXd& z,
+                                      Eigen::VectorXd& y) {
+  const Eigen::Index m = size();
+  if (y.size() != m) y.resize(m);
+  y.setZero();
+  if (!factor.solve(r, z)) return false;
+  const auto k = static_cast<Eigen::Index>(fixedSet_.size());
+  if (m == 0 || k == 0) return z.allFinite();
+  if (A_.rows() != r.size() || fixedT_.size() != k) return false;
+  for (Eigen::Index i = 0; i < k; ++i)
+    fixedT_[i] = A_.col(fixedSet_[static_cast<std::size_t>(i)]).dot(r);  // H_a A^-1 r
+  fixedY_ = fixedFactor_.solve(fixedT_);
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const Eigen::Index c = fixedSet_[static_cast<std::size_t>(i)];
+    y[c] = fixedY_[i];
+    z.noalias() -= fixedY_[i] * A_.col(c);
+  }
+  return z.allFinite() && y.allFinite();
+}
+
+bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx,
+                             int& sweeps, const Eigen::VectorXd* carried) {
   const Eigen::Index m = size();
   if (m == 0) return true;
   const Eigen::Index n3 = dx.size();
@@ -58,7 +96,8 @@ bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, do
     for (Eigen::Index i = 0; i < m; ++i) {
       const auto& c = constraints_[static_cast<std::size_t>(i)];
       for (int k = 0; k < 4; ++k)
-        if (c.nodes[k] >= 0 && !fixed_[static_cast<std::size_t>(c.nodes[k])]) Ht_.col(i).segment<3>(3 * c.nodes[k]) += c.weights[k] * c.direction;
+        if (c.nodes[k] >= 0 && !fixed_[static_cast<std::size_t>(c.nodes[k])])
+          Ht_.col(i).segment<3>(3 * c.nodes[k]) += c.weights[k] * c.direction;
     }
     if (!factor.solve(Ht_, A_)) return false;
     if (W_.rows() != m) W_.resize(m, m);
@@ -115,8 +154,9 @@ bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, do
   if (converged && !unilateral) {
     Wlambda_.noalias() = W_ * lambda_;  // sized once: no temporary
     Wlambda_ -= e_;
-    converged = Wlambda_.norm() <= 1e-12 * std::max(e_.norm(), 1e-300) *
-                                       std::max(1.0, W_.diagonal().maxCoeff() / std::max(W_.diagonal().minCoeff(), 1e-300));
+    converged =
+        Wlambda_.norm() <= 1e-12 * std::max(e_.norm(), 1e-300) *
+                               std::max(1.0, W_.diagonal().maxCoeff() / std::max(W_.diagonal().minCoeff(), 1e-300));
   }
   if (!converged && !unilateral) {
     // Rank-deficient W (redundant constraints) is fine here: the pivoted LDL^T leaves the multipliers of
@@ -158,7 +198,8 @@ bool ConstraintSolver::activeSet() {
       ea_.resize(k);
       for (Eigen::Index a = 0; a < k; ++a) {
         ea_[a] = e_[activeIndex_[static_cast<std::size_t>(a)]];
-        for (Eigen::Index b = 0; b < k; ++b) Wa_(a, b) = W_(activeIndex_[static_cast<std::size_t>(a)], activeIndex_[static_cast<std::size_t>(b)]);
+        for (Eigen::Index b = 0; b < k; ++b)
+          Wa_(a, b) = W_(activeIndex_[static_cast<std::size_t>(a)], activeIndex_[static_cast<std::size_t>(b)]);
       }
       WaFactor_.compute(Wa_);
       la_ = WaFactor_.solve(ea_);

@@ -355,6 +355,29 @@ void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::V
   }
 }
 
+void applyStiffnessPair(const FemModel& m, const TangentState& atA, double a, const TangentState& atB, double b,
+                        const Eigen::VectorXd& v, Eigen::VectorXd& out) {
+  if (out.size() != v.size()) out.resize(v.size());
+  out.setZero();
+  thread_local std::vector<double> buffer;
+  buffer.resize(m.tets.size() * 9);
+  double* const buf = buffer.data();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 128), [&](const tbb::blocked_range<std::size_t>& r) {
+    for (std::size_t e = r.begin(); e < r.end(); ++e) {
+      const Eigen::Matrix3d dF = deformationGradient(m, e, v);
+      const Eigen::Matrix3d dP = a * firstPiolaDifferential(m.model[e], m.lame[e], atA.F[e], atA.cache[e], dF) +
+                                 b * firstPiolaDifferential(m.model[e], m.lame[e], atB.F[e], atB.cache[e], dF);
+      Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) = m.restVolume[e] * dP * m.Bm[e].transpose();
+    }
+  });
+  scatterElementVectors(m, buf, out);
+  for (std::size_t i = 0; i < m.springs.size(); ++i) {
+    const auto& sp = m.springs[i];
+    const Eigen::Vector3d hd = (a * atA.springHessian[i] + b * atB.springHessian[i]) * springVector(sp, v);
+    for (int k = 0; k < 8; ++k) out.segment<3>(3 * sp.nodes[k]) += sp.weights[k] * hd;
+  }
+}
+
 void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<double>& out) {
   out.resize(m.tets.size());
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 256), [&](const tbb::blocked_range<std::size_t>& r) {

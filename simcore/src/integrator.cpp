@@ -15,12 +15,20 @@ namespace rehearse::simcore {
 
 using namespace detail;
 
+namespace {
+// Newton-Krylov: conjugate-gradient iterations per Newton iteration at most, and the count above which the lagged
+// factor is taken as drifted (a fresh factor needs 1-3 here: BENCHMARKS.md).
+constexpr int kKrylovBudget = 40;
+constexpr int kKrylovDrift = 2;
+}  // namespace
+
 NewtonMethod newtonMethodFromString(const std::string& name) {
   if (name == "exact") return NewtonMethod::Exact;
   if (name == "lagged-pcg") return NewtonMethod::LaggedPcg;
   if (name == "chord") return NewtonMethod::Chord;
   if (name == "linearised") return NewtonMethod::Linearised;
-  throw MeshError("Unknown Newton method '" + name + "' (use exact, lagged-pcg, chord or linearised).");
+  if (name == "newton-krylov") return NewtonMethod::NewtonKrylov;
+  throw MeshError("Unknown Newton method '" + name + "' (use exact, lagged-pcg, chord, linearised or newton-krylov).");
 }
 
 std::string toString(StepStatus s) {
@@ -46,6 +54,8 @@ std::string toString(NewtonMethod m) {
       return "lagged-pcg";
     case NewtonMethod::Chord:
       return "chord";
+    case NewtonMethod::NewtonKrylov:
+      return "newton-krylov";
     default:
       return "linearised";
   }
@@ -111,30 +121,26 @@ Integrator::~Integrator() {
   if (w_ && w_->request.job.valid()) w_->request.job.wait();  // it reads the model
 }
 
-int Integrator::symbolicAnalyses() const {
-  return w_->chol->analyses() + w_->request.chol->analyses();
-}
+int Integrator::symbolicAnalyses() const { return w_->chol->analyses() + w_->request.chol->analyses(); }
 int Integrator::numericFactorisations() const {
   return w_->chol->factorisations() + w_->request.chol->factorisations();
 }
-const Eigen::VectorXd& Integrator::multipliers() const {
-  return w_->lambdaOut;
-}
-const Eigen::MatrixXd& Integrator::constraintCompliance() const {
-  return w_->cons.schur();
-}
+const Eigen::VectorXd& Integrator::multipliers() const { return w_->lambdaOut; }
+const Eigen::MatrixXd& Integrator::constraintCompliance() const { return w_->cons.schur(); }
 
 std::size_t Integrator::memoryBytes() const {
   const Work& w = *w_;
   std::size_t bytes = 0;
   for (const Eigen::VectorXd* v :
-       {&w.x0,     &w.v0,     &w.Mv0,   &w.v,     &w.vn, &w.xt, &w.r,  &w.rn, &w.dv, &w.f,        &w.tmp,
-        &w.savedX, &w.savedV, &w.stepX, &w.stepV, &w.pr, &w.pz, &w.pp, &w.pq, &w.pk, &w.forcesAt, &w.forces})
+       {&w.x0, &w.v0,  &w.Mv0,    &w.v,      &w.vn,       &w.xt,     &w.r,           &w.rn,           &w.dv,
+        &w.f,  &w.tmp, &w.savedX, &w.savedV, &w.stepX,    &w.stepV,  &w.pr,          &w.pz,           &w.pp,
+        &w.pq, &w.pk,  &w.pn,     &w.py,     &w.forcesAt, &w.forces, &w.tangentItAt, &w.tangentEndAt, &w.forcesEnd})
     bytes += sizeof(double) * static_cast<std::size_t>(v->size());
   for (const Eigen::SparseMatrix<double>* m : {&w.Kd, &w.K, &w.J})
     bytes += static_cast<std::size_t>(m->nonZeros()) * (sizeof(double) + sizeof(int)) +
              static_cast<std::size_t>(m->outerSize() + 1) * sizeof(int);
-  bytes += w.tangent0.F.size() * (sizeof(Eigen::Matrix3d) + sizeof(TangentCache));
+  for (const TangentState* t : {&w.tangent0, &w.tangentIt, &w.tangentEnd})
+    bytes += t->F.size() * (sizeof(Eigen::Matrix3d) + sizeof(TangentCache));
   bytes += w.cons.memoryBytes();
   bytes += (w.chol->factorEntries() + w.request.chol->factorEntries()) * (sizeof(double) + sizeof(int));
   return bytes;
@@ -153,6 +159,8 @@ void Integrator::invalidateFactorisation() {
   w_->refresh = true;
   w_->invalidated = true;
   w_->cons.invalidate();
+  w_->tangentItValid = false;  // prepared with the parameters before the change
+  w_->tangentEndValid = false;
 }
 
 SimulationState Integrator::initialState() const {
@@ -375,13 +383,29 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   // The first iterate (the last step's velocity) is shortened when it would invert guarded elements, as every
   // Newton move below is: the iterates never invert an element that was not inverted at the step's start.
   if (guardMove(w.x0, w.v, h)) rep.inversionLimited = true;
+  // Newton-Krylov: the residual's pass over the elements also prepares the tangent at the iterate (matrix-free).
+  const bool krylov = lagged && settings_.method == NewtonMethod::NewtonKrylov;
+  const bool iterateTangent = krylov;
   // Rayleigh damping with the stiffness at the start of the step (every method: the same residual);
-  // the lagged methods have no K(x0) matrix and take the product matrix-free.
-  if (beta != 0 && lagged) prepareTangentState(model_, w.x0, w.tangent0);
+  // the lagged methods have no K(x0) matrix and take the product matrix-free. Newton-Krylov's last step ended here
+  // with the tangent prepared at its last iterate, which is this step's start: that pass is reused.
+  if (beta != 0 && lagged) {
+    if (iterateTangent && w.tangentItValid && w.tangentItAt.size() == w.x0.size() && w.tangentItAt == w.x0)
+      std::swap(w.tangent0, w.tangentIt);
+    else
+      prepareTangentState(model_, w.x0, w.tangent0);
+  }
+  w.tangentItValid = false;
   // Residual of the velocity update, momentum units: (1 + h a) M v - M v0 - h (f(x0 + h v) + g) + h b K(x0) v.
   auto residual = [&](const Eigen::VectorXd& vel, Eigen::VectorXd& out) {
     w.xt = w.x0 + h * vel;
-    elasticForces(model_, w.xt, w.f);
+    if (iterateTangent) {
+      prepareTangentState(model_, w.xt, w.tangentIt, &w.f);
+      w.tangentItAt = w.xt;
+      w.tangentItValid = true;
+    } else {
+      elasticForces(model_, w.xt, w.f);
+    }
     if (beta == 0)
       w.tmp.setZero();
     else if (lagged)
@@ -470,6 +494,65 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
         solved = solveLinear(w.J, w.tmp, w.dv);
         project(w.dv);
       }
+    } else if (krylov) {
+      // Inexact Newton on J d = -r + H^T mu, J = (1 + h alpha) M + h beta K(x0) + h^2 K(x) applied matrix-free (the
+      // tangent at x prepared with the residual): the lagged factor's constrained step first (feasible, and it
+      // settles the active set and the multipliers), then conjugate gradients on the exact J with the constraint
+      // preconditioner of that set (the lagged factor and its Schur complement: the iterates stay on the
+      // constraints, the multipliers follow the exact tangent, and Newton keeps its quadratic convergence where a
+      // lagged correction of the multipliers made it linear: 6-9 iterations per grasped step on the liver preset).
+      // The solve stops at a forcing term of 0.1 x the relative residual, at most 1e-4 (the first iteration of a step
+      // starts near 1, and a looser solve cost a third Newton iteration on the liver preset's grasp-pull), or at a
+      // tenth of the tolerance, within a budget; a factor that needs more than two iterations has drifted and is
+      // rebuilt (on the second thread when asynchronous).
+      auto applyJ = [&](const Eigen::VectorXd& in, Eigen::VectorXd& out) {
+        if (beta != 0) {
+          applyStiffnessPair(model_, w.tangentIt, h * h, w.tangent0, h * beta, in, out);
+        } else {
+          applyStiffness(model_, w.tangentIt, in, out);
+          out *= h * h;
+        }
+        out += (1 + h * alpha) * mass3_.cwiseProduct(in);
+        project(out);
+      };
+      solved = solveConstrained(w.tmp, w.xt, h, w.dv, rep);
+      const bool constrained = solved && hasConstraints && w.cons.fixActiveSet();
+      auto netOf = [&](const Eigen::VectorXd& res, const Eigen::VectorXd& y) {
+        if (!constrained) return res.norm();
+        w.pn = res;
+        w.pn.noalias() -= w.cons.transposedH() * y;
+        return w.pn.norm();
+      };
+      int k = 0;
+      if (solved) {
+        applyJ(w.dv, w.pq);
+        w.pr = w.tmp - w.pq;
+        if (constrained) w.pr.noalias() += w.cons.transposedH() * w.cons.multipliers();
+        project(w.pr);
+        const double target =
+            std::max(0.1 * settings_.tolerance * scale, std::min(1e-4, 0.1 * rn / scale) * std::max(rn, 1e-300));
+        solved = w.cons.projectedSolve(*w.chol, w.pr, w.pz, w.py);
+        double net = netOf(w.pr, w.py);
+        w.pp = w.pz;
+        double rz = w.pr.dot(w.pz);
+        for (; solved && k < kKrylovBudget && net > target && rz > 0; ++k) {
+          applyJ(w.pp, w.pq);
+          const double a = rz / w.pp.dot(w.pq);
+          w.dv += a * w.pp;
+          w.pr -= a * w.pq;
+          solved = w.cons.projectedSolve(*w.chol, w.pr, w.pz, w.py);
+          net = netOf(w.pr, w.py);
+          const double rzn = w.pr.dot(w.pz);
+          w.pp = w.pz + (rzn / rz) * w.pp;
+          rz = rzn;
+        }
+        // The set answers the last residual r = rhs + H^T mu - J d with the forces -H_a^T y: mu - y solves J d = rhs +
+        // H^T mu.
+        if (solved && constrained) w.cons.multipliers() -= w.py;
+      }
+      rep.innerIterations += k;
+      if (k > kKrylovDrift) w.drift = true;  // the lagged factor has drifted: a new one at the next step's start
+      project(w.dv);
     } else if (settings_.method == NewtonMethod::LaggedPcg) {
       // Exact tangent (1 + h alpha) M + h beta K(x0) + h^2 K(x), applied as products (K(x0) matrix-free,
       // K(x) assembled), CG preconditioned by the lagged factor.
@@ -558,8 +641,13 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
     ++rep.newtonIterations;
     std::swap(w.r, w.rn);
     rn = rnew;
-    // A lagged factor that no longer contracts the residual well is rebuilt here, at the current iterate.
-    if (lagged && settings_.method == NewtonMethod::Chord && rn > 0.5 * previous && rn > settings_.tolerance * scale) {
+    // A lagged factor that no longer contracts the residual well is rebuilt here, at the current iterate: at once
+    // when it halves the residual no more (the step waits for it), on the second thread already when it does not
+    // divide it by ten (the steps go on meanwhile; on the liver preset's paced grasp-pull 3.1 iterations per step
+    // instead of 5.0, and 2.7 instead of 4.7 on the patient liver at 16k tets: BENCHMARKS.md).
+    const double contraction = settings_.factorRefresh != FactorRefresh::Synchronous ? 0.1 : 0.5;
+    if (lagged && settings_.method == NewtonMethod::Chord && rn > contraction * previous &&
+        rn > settings_.tolerance * scale) {
       w.xt = w.x0 + h * w.v;
       if (settings_.factorRefresh != FactorRefresh::Synchronous && w.chol->valid()) {
         requestFactor(w.xt, h, rep);  // built on the second thread; this step iterates on with the old factor

@@ -21,14 +21,14 @@ struct Integrator::Work {
   Eigen::SparseMatrix<double> K;   // tangent stiffness at the current iterate
   Eigen::SparseMatrix<double> J;   // the factorised Newton matrix (exact, or lagged)
   Eigen::VectorXd x0, v0, Mv0, v, vn, xt, r, rn, dv, f, tmp, savedX, savedV, stepX, stepV;
-  Eigen::VectorXd pr, pz, pp, pq, pk;  // PCG
-  ConstraintSolver cons;               // attachments (Lagrange mode) then the extra constraints
-  Eigen::VectorXd lambdaOut;           // multipliers of the last solve, as forces (N)
-  Eigen::VectorXd lambdaCarried;       // lagged-pcg: the multipliers whose forces the free solve already holds
-  double laggedStep = -1;              // h the lagged factor was built for (-1: none)
-  Eigen::VectorXd laggedAt;            // positions it was built at (with laggedStep: its identity)
-  bool invalidated = false;            // invalidateFactorisation() was called: rebuild at the next step
-  bool refresh = true;                 // rebuild the lagged factor at the next opportunity
+  Eigen::VectorXd pr, pz, pp, pq, pk, pn, py;  // PCG (py: newton-krylov's multiplier correction)
+  ConstraintSolver cons;                       // attachments (Lagrange mode) then the extra constraints
+  Eigen::VectorXd lambdaOut;                   // multipliers of the last solve, as forces (N)
+  Eigen::VectorXd lambdaCarried;               // lagged-pcg: the multipliers whose forces the free solve already holds
+  double laggedStep = -1;                      // h the lagged factor was built for (-1: none)
+  Eigen::VectorXd laggedAt;                    // positions it was built at (with laggedStep: its identity)
+  bool invalidated = false;                    // invalidateFactorisation() was called: rebuild at the next step
+  bool refresh = true;                         // rebuild the lagged factor at the next opportunity
   bool drift = false;  // the lagged factor drifted (its residual grew): rebuild it where settings.factorRefresh says
   // The requested factor (asynchronous and deferred refresh): built into its own solver and matrices, then
   // swapped with chol, Kd and J (the solvers keep their analyses: the pattern is the same).
@@ -41,7 +41,6 @@ struct Integrator::Work {
     bool pending = false;  // requested and not swapped in yet
     bool built = false;    // the build finished (ok tells how)
     bool ok = false;
-    bool discard = false;   // the factor was rebuilt at once since (a new time step, parameters, state): drop this one
     std::future<bool> job;  // asynchronous: the build under way on the second thread
   } request;
   int staticFactor = -1;             // chol.factorisations() just after a static tangent was factorised
@@ -52,6 +51,11 @@ struct Integrator::Work {
   TangentState tangentEnd;
   Eigen::VectorXd tangentEndAt, forcesEnd;
   bool tangentEndValid = false;
+  // Newton-Krylov: the tangent prepared with the last residual (at tangentItAt: the current iterate, then the step's
+  // end, which the next step starting there reuses for its damping).
+  TangentState tangentIt;
+  Eigen::VectorXd tangentItAt;
+  bool tangentItValid = false;
   Eigen::VectorXd bestX, bestV;  // the attempt with the smallest residual (a step that does not converge)
   std::vector<int> limiting;     // elements a move would have taken below their floor (guardMove)
 };

@@ -21,8 +21,16 @@ void singleThreadedBlas() {
     // OpenBLAS is loaded as a dependency of the reference BLAS name; look it up by its own name too.
     for (const char* lib : {"libopenblas.so.0", "libopenblas.so"})
       if (!fn)
-        if (void* h = dlopen(lib, RTLD_NOLOAD | RTLD_LAZY)) fn = reinterpret_cast<Fn>(dlsym(h, "openblas_set_num_threads"));
+        if (void* h = dlopen(lib, RTLD_NOLOAD | RTLD_LAZY))
+          fn = reinterpret_cast<Fn>(dlsym(h, "openblas_set_num_threads"));
     if (fn) fn(1);
+    // CHOLMOD (SuiteSparse 5.12) opens OpenMP regions of CHOLMOD_OMP_NUM_THREADS = 4 threads in its factorisation
+    // and solves, whatever omp_set_num_threads says: on two cores beside the stepping thread, the element loops (TBB)
+    // and the factor built on the second thread, their wake-ups cost a quarter of the CPU time of a paced grasp-pull
+    // (perf, liver preset, chord+async). No active parallel level makes every such region one thread (libgomp, loaded
+    // as CHOLMOD's dependency; found by name so nothing links OpenMP).
+    using Levels = void (*)(int);
+    if (auto levels = reinterpret_cast<Levels>(dlsym(RTLD_DEFAULT, "omp_set_max_active_levels"))) levels(0);
     return true;
   }();
   (void)done;
@@ -30,8 +38,8 @@ void singleThreadedBlas() {
 
 }  // namespace
 
-bool factoriseShifted(CholmodSolver& solver, const Eigen::SparseMatrix<double>& A, const std::vector<int>& diagonalSlot, int& attempts,
-                      const std::function<bool()>& accept) {
+bool factoriseShifted(CholmodSolver& solver, const Eigen::SparseMatrix<double>& A, const std::vector<int>& diagonalSlot,
+                      int& attempts, const std::function<bool()>& accept) {
   auto attempt = [&](const Eigen::SparseMatrix<double>& M) {
     ++attempts;
     return solver.factorise(M) && (!accept || accept());
@@ -41,19 +49,22 @@ bool factoriseShifted(CholmodSolver& solver, const Eigen::SparseMatrix<double>& 
   Eigen::SparseMatrix<double> shifted = A;  // rare path: allocation is fine here
   for (double shift = base; shift < 1e12 * std::max(base, 1e-300); shift *= 10) {
     for (Eigen::Index i = 0; i < shifted.rows(); ++i)
-      shifted.valuePtr()[diagonalSlot[static_cast<std::size_t>(i)]] = A.valuePtr()[diagonalSlot[static_cast<std::size_t>(i)]] + shift;
+      shifted.valuePtr()[diagonalSlot[static_cast<std::size_t>(i)]] =
+          A.valuePtr()[diagonalSlot[static_cast<std::size_t>(i)]] + shift;
     if (attempt(shifted)) return true;
   }
   return false;
 }
 
-bool solveOnce(LinearSolverKind kind, const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd& y,
-               CholmodSolver& cholmod, int cgMaxIterations, double cgTolerance) {
+bool solveOnce(LinearSolverKind kind, const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b,
+               Eigen::VectorXd& y, CholmodSolver& cholmod, int cgMaxIterations, double cgTolerance) {
   switch (kind) {
     case LinearSolverKind::Cholmod:
       return cholmod.factorise(A) && cholmod.solve(b, y);
     case LinearSolverKind::ConjugateGradient: {
-      Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper, Eigen::IncompleteCholesky<double>> cg;
+      Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper,
+                               Eigen::IncompleteCholesky<double>>
+          cg;
       cg.setMaxIterations(cgMaxIterations);
       cg.setTolerance(cgTolerance);
       cg.compute(A);
@@ -93,7 +104,8 @@ struct CholmodSolver::Impl {
 
   // A symmetric matrix in compressed columns, seen by CHOLMOD without a copy; stype -1 reads the lower
   // triangle, +1 the upper one.
-  static cholmod_sparse symmetricView(Eigen::Index n, std::size_t nonZeros, const int* p, const int* i, const double* x, int stype) {
+  static cholmod_sparse symmetricView(Eigen::Index n, std::size_t nonZeros, const int* p, const int* i, const double* x,
+                                      int stype) {
     cholmod_sparse s{};
     s.nrow = s.ncol = static_cast<size_t>(n);
     s.nzmax = nonZeros;
@@ -109,7 +121,8 @@ struct CholmodSolver::Impl {
     return s;
   }
   static cholmod_sparse view(const Eigen::SparseMatrix<double>& A) {
-    return symmetricView(A.rows(), static_cast<std::size_t>(A.nonZeros()), A.outerIndexPtr(), A.innerIndexPtr(), A.valuePtr(), -1);
+    return symmetricView(A.rows(), static_cast<std::size_t>(A.nonZeros()), A.outerIndexPtr(), A.innerIndexPtr(),
+                         A.valuePtr(), -1);
   }
   static std::size_t hashPattern(const Eigen::SparseMatrix<double>& A) {
     std::size_t h = 1469598103934665603ull;
@@ -141,7 +154,8 @@ struct CholmodSolver::Impl {
         const int a = inverse[static_cast<std::size_t>(it.row())], b = inverse[static_cast<std::size_t>(j)];
         entries.push_back({std::max(a, b), std::min(a, b), source++});
       }
-    std::sort(entries.begin(), entries.end(), [](const Entry& l, const Entry& r) { return l.col != r.col ? l.col < r.col : l.row < r.row; });
+    std::sort(entries.begin(), entries.end(),
+              [](const Entry& l, const Entry& r) { return l.col != r.col ? l.col < r.col : l.row < r.row; });
     cp.assign(static_cast<std::size_t>(n) + 1, 0);
     ci.resize(entries.size());
     cx.assign(entries.size(), 0.0);
@@ -222,7 +236,8 @@ bool CholmodSolver::factorise(const Eigen::SparseMatrix<double>& A) {
   Impl& d = *d_;
   cholmod_sparse s = Impl::view(A);
   const std::size_t h = Impl::hashPattern(A);
-  if (!d.factor || d.rows != A.rows() || d.nonZeros != A.nonZeros() || d.patternHash != h || d.isSimplicial != d.wantSimplicial) {
+  if (!d.factor || d.rows != A.rows() || d.nonZeros != A.nonZeros() || d.patternHash != h ||
+      d.isSimplicial != d.wantSimplicial) {
     cholmod_free_factor(&d.factor, &d.common);
     d.rows = A.rows();
     d.factor = d.wantSimplicial ? d.analyseSimplicial(A, s) : cholmod_analyze(&s, &d.common);

@@ -68,7 +68,7 @@ const std::vector<ComponentDecl>& sceneComponents() {
        true},
       {"solver", "Linear solver and how Newton reuses its factorisation.",
        {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
-        {"method", "string", "\"exact\"", "", "exact, lagged-pcg, chord or linearised (the last three reuse a cholmod factorisation)"},
+        {"method", "string", "\"chord\"", "", "chord (the interactive default: converged every step), exact, lagged-pcg, linearised or newton-krylov (all but exact reuse a cholmod factorisation)"},
         {"factor", "string", "\"supernodal\"", "", "cholmod factor: supernodal (fastest) or simplicial (re-factorising allocates nothing; about 1.8x slower)"},
         {"linearised_tolerance", "number", "0.01", "", "the linearised method's tolerance on the relative residual of the nonlinear equations (steps above it are inexact)"}}},
   };

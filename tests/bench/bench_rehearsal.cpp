@@ -8,9 +8,10 @@
 // Writes rehearsal-pull.csv and rehearsal-cut.csv into the directory given (default ".").
 //   bench_rehearsal [OUT_DIR] [--quick] [--cut-repeats N] [--only VARIANT]   (N runs of the cut scenario, their steps
 //   pooled; only one pull variant on the built-in liver, no cut)
-//   bench_rehearsal [OUT_DIR] --real   (only the real organs: grasp-pull and contact-pull at the patient's size,
-//   started in equilibrium; also part of a full run, not of --quick)
+//   bench_rehearsal [OUT_DIR] --real [--organ NAME] [--only VARIANT]   (only the real organs: grasp-pull and
+//   contact-pull at the patient's size, started in equilibrium; also part of a full run, not of --quick)
 #include "phantom/presets.hpp"
+#include "plot.hpp"
 #include "realorgan.hpp"
 #include "session_inputs.hpp"
 
@@ -67,9 +68,12 @@ struct PullResult {
   Eigen::Vector3d force = Eigen::Vector3d::Zero(), bitten = Eigen::Vector3d::Zero();
   int failed = 0, swaps = 0, contacts = 0, touchingSteps = 0;
   long newton = 0;                 // Newton iterations over the pull's steps
+  long inner = 0;                  // CG iterations and Gauss-Seidel sweeps over the pull's steps
   int converged = 0, inexact = 0;  // steps by outcome (the others failed, were refused or inverted)
   double worstResidual = 0;        // the largest relative residual a pull step ended with
-  ForceLoop::Timing loop;          // the 1 kHz tool-force loop's, run beside the pull on its own thread
+  int withinMicro = 0;  // steps that ended at a relative residual <= 1e-6 (issue 34's bar, whatever the method)
+  std::vector<Eigen::Vector3d> end;  // every node's place after the pull
+  ForceLoop::Timing loop;            // the 1 kHz tool-force loop's, run beside the pull on its own thread
 };
 
 struct Variant {
@@ -79,9 +83,12 @@ struct Variant {
   // The shaft laid along the organ's surface (its trocar 15 cm from the tip, tangent to the surface there)
   // instead of coming from the default trocar: it presses on the tissue around the grasp while pulling.
   bool shaftOnSurface = false;
+  double tolerance = 1e-6;  // relative residual (not the linearised method's: its one solve is its step)
   std::string name() const {
+    char tol[32] = "";
+    if (tolerance != 1e-6) std::snprintf(tol, sizeof tol, "@%g", tolerance);
     return toString(method) + (refresh == FactorRefresh::Asynchronous ? "+async" : "") +
-           (toolRadius > 0 ? "+contact" : "") + (shaftOnSurface ? "+touching" : "");
+           (toolRadius > 0 ? "+contact" : "") + (shaftOnSurface ? "+touching" : "") + tol;
   }
 };
 
@@ -93,6 +100,7 @@ constexpr int kPullSteps = 200;
 PullResult pull(BodySetup s, const Variant& v, int settle) {
   s.settings.method = v.method;
   s.settings.factorRefresh = v.refresh;
+  s.settings.tolerance = v.tolerance;
   s.tools.toolRadius = v.toolRadius;
   auto settled = [&](Session& session) {
     for (int k = 0; k < settle; ++k) session.advance();
@@ -139,9 +147,11 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
     r.ms.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
     r.failed += !rep.ok;
     r.newton += rep.newtonIterations;
+    r.inner += rep.innerIterations;
     r.converged += rep.outcome == StepStatus::Converged;
     r.inexact += rep.outcome == StepStatus::Inexact;
     r.worstResidual = std::max(r.worstResidual, rep.residual);
+    r.withinMicro += rep.ok && rep.residual <= 1e-6 && rep.outcome != StepStatus::Inverted;
     r.swaps += rep.factorSwapped;
     r.contacts = std::max(r.contacts, session.snapshot()->tool.contacts);
     r.touchingSteps += session.snapshot()->tool.contacts > 0;
@@ -151,31 +161,40 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
   r.loop = loop.timing();
   r.force = session.snapshot()->tool.force;
   if (bitten >= 0) r.bitten = session.snapshot()->positions[static_cast<std::size_t>(bitten)];
+  r.end = session.snapshot()->positions;
   return r;
 }
 
-void realOrgans(const std::string& out, const std::string& shared) {
+void realOrgans(const std::string& out, const std::string& shared, const std::string& only, const std::string& organ) {
   // Issue 34: grasp-pull and contact-pull on real organs at the patient's size, started where the registered shape is
-  // (the rest shape that sags into it solved first): per step while pulling, the Newton iterations and the outcomes.
+  // (the rest shape that sags into it solved first): per step while pulling, the Newton iterations and the outcomes;
+  // every method at three tolerances, its tip force and every node's place after the pull against exact Newton's at
+  // 1e-9 (error against run time, rehearsal-error-time.png).
   std::ofstream realCsv(out + "/rehearsal-real.csv");
-  realCsv << "organ,tets,method,median_ms,p99_ms,max_ms,newton_mean,converged,inexact,other,worst_residual,force_n,"
-             "force_error_rel,start_solves,start_s\n";
-  std::printf("\nGrasp-pull (and with a 4 mm shaft touching) on real organs started in equilibrium, 200 paced steps\n");
-  std::printf("%-20s %6s %-35s %9s %9s %9s %7s %14s %10s %9s %10s\n", "organ", "tets", "method", "median ms", "p99 ms",
-              "max ms", "Newton", "conv/inex/oth", "worst res", "force N", "force err");
+  realCsv << "organ,tets,method,tolerance,median_ms,p99_ms,max_ms,newton_mean,inner_mean,converged,inexact,other,"
+             "within_1e-6,worst_residual,force_n,force_error_rel,place_error_mm,start_solves,start_s\n";
+  std::printf(
+      "\nGrasp-pull (and with a 4 mm shaft touching) on real organs started in equilibrium, %d paced steps; errors "
+      "against exact Newton at 1e-9\n",
+      kPullSteps);
+  std::printf("%-18s %6s %-38s %8s %8s %8s %6s %6s %14s %7s %9s %8s %9s %10s\n", "organ", "tets", "method", "median",
+              "p99", "max ms", "Newton", "inner", "conv/inex/oth", "<=1e-6", "worst res", "force N", "force err",
+              "place err");
   struct Real {
     std::string name, path;
     std::size_t tets;
   };
+  std::vector<PlotSeries> forcePlot, placePlot;
   for (const Real& o :
        {Real{"liver preset", "", 0}, Real{"patient liver", "/scikit-surgery/patient-liver/liver.vtk", 17000},
         Real{"BodyParts3D liver", "/bodyparts3d/FMA7197_Liver.obj", 17000}}) {
+    if (!organ.empty() && o.name.find(organ) == std::string::npos) continue;
     BodySetup s;
     if (o.path.empty()) {
       s = setupFor("liver", shared);
     } else {
       if (!std::filesystem::exists(shared + o.path)) {
-        std::printf("%-20s absent: %s%s\n", o.name.c_str(), shared.c_str(), o.path.c_str());
+        std::printf("%-18s absent: %s%s\n", o.name.c_str(), shared.c_str(), o.path.c_str());
         continue;
       }
       TetrahedraliseOptions to;
@@ -192,28 +211,64 @@ void realOrgans(const std::string& out, const std::string& shared) {
     const InverseRestResult start = startInEquilibrium(s, s.mesh.points);
     const double startSeconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     if (!start.converged()) {
-      std::printf("%-20s %6zu no starting equilibrium: %s\n", o.name.c_str(), s.mesh.tets.size(), start.status.c_str());
+      std::printf("%-18s %6zu no starting equilibrium: %s\n", o.name.c_str(), s.mesh.tets.size(), start.status.c_str());
       continue;
     }
-    PullResult exact;
-    for (const Variant& v : {Variant{NewtonMethod::Exact}, Variant{NewtonMethod::Chord, FactorRefresh::Asynchronous},
-                             Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous},
-                             Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous, 0.004, true}}) {
+    const auto async = FactorRefresh::Asynchronous;
+    std::vector<Variant> variants = {{NewtonMethod::Exact}};
+    for (double tol : {1e-4, 1e-6, 1e-8})
+      for (NewtonMethod m : {NewtonMethod::Chord, NewtonMethod::NewtonKrylov})
+        variants.push_back({m, async, 0, false, tol});
+    variants.push_back({NewtonMethod::Linearised, async});
+    for (NewtonMethod m : {NewtonMethod::Chord, NewtonMethod::NewtonKrylov, NewtonMethod::Linearised})
+      variants.push_back({m, async, 0.004, true});
+    // The reference: exact Newton at 1e-9, and the same pull with the shaft touching (contact changes the answer).
+    Variant reference{NewtonMethod::Exact};
+    reference.tolerance = 1e-9;
+    const PullResult ref = pull(s, reference, 10);
+    reference.toolRadius = 0.004;
+    reference.shaftOnSurface = true;
+    const PullResult refTouching = only.empty() ? pull(s, reference, 10) : ref;
+    for (const Variant& v : variants) {
+      if (!only.empty() && v.name() != only) continue;
       const PullResult r = pull(s, v, 10);
-      if (v.method == NewtonMethod::Exact) exact = r;
-      const double fe = exact.force.norm() > 0 ? (r.force - exact.force).norm() / exact.force.norm() : 0;
+      const PullResult& e = v.shaftOnSurface ? refTouching : ref;
+      const double fe = e.force.norm() > 0 ? (r.force - e.force).norm() / e.force.norm() : 0;
+      double pe = 0;
+      for (std::size_t i = 0; i < r.end.size() && i < e.end.size(); ++i)
+        pe = std::max(pe, (r.end[i] - e.end[i]).norm());
       const int n = static_cast<int>(r.ms.size());
-      std::printf("%-20s %6zu %-35s %9.2f %9.2f %9.2f %7.2f %4d/%4d/%4d %10.2e %9.3f %9.2f%%\n", o.name.c_str(),
-                  s.mesh.tets.size(), v.name().c_str(), percentile(r.ms, 0.5), percentile(r.ms, 0.99),
-                  percentile(r.ms, 1.0), static_cast<double>(r.newton) / std::max(1, n), r.converged, r.inexact,
-                  n - r.converged - r.inexact, r.worstResidual, r.force.norm(), 100 * fe);
+      std::printf("%-18s %6zu %-38s %8.2f %8.2f %8.2f %6.2f %6.2f %4d/%4d/%4d %7d %9.2e %8.3f %8.2e %8.2e mm\n",
+                  o.name.c_str(), s.mesh.tets.size(), v.name().c_str(), percentile(r.ms, 0.5), percentile(r.ms, 0.99),
+                  percentile(r.ms, 1.0), static_cast<double>(r.newton) / std::max(1, n),
+                  static_cast<double>(r.inner) / std::max(1, n), r.converged, r.inexact, n - r.converged - r.inexact,
+                  r.withinMicro, r.worstResidual, r.force.norm(), fe, 1e3 * pe);
       std::fflush(stdout);
-      realCsv << '"' << o.name << "\"," << s.mesh.tets.size() << ',' << v.name() << ',' << percentile(r.ms, 0.5) << ','
-              << percentile(r.ms, 0.99) << ',' << percentile(r.ms, 1.0) << ','
-              << static_cast<double>(r.newton) / std::max(1, n) << ',' << r.converged << ',' << r.inexact << ','
-              << n - r.converged - r.inexact << ',' << r.worstResidual << ',' << r.force.norm() << ',' << fe << ','
+      realCsv << '"' << o.name << "\"," << s.mesh.tets.size() << ',' << v.name() << ',' << v.tolerance << ','
+              << percentile(r.ms, 0.5) << ',' << percentile(r.ms, 0.99) << ',' << percentile(r.ms, 1.0) << ','
+              << static_cast<double>(r.newton) / std::max(1, n) << ',' << static_cast<double>(r.inner) / std::max(1, n)
+              << ',' << r.converged << ',' << r.inexact << ',' << n - r.converged - r.inexact << ',' << r.withinMicro
+              << ',' << r.worstResidual << ',' << r.force.norm() << ',' << fe << ',' << 1e3 * pe << ','
               << start.iterations << ',' << startSeconds << '\n';
+      if (v.shaftOnSurface) continue;
+      // One series per organ and method: its tolerances' points.
+      const std::string series = o.name + ", " + toString(v.method);
+      auto add = [&](std::vector<PlotSeries>& plot, double y) {
+        auto it = std::find_if(plot.begin(), plot.end(), [&](const PlotSeries& p) { return p.name == series; });
+        if (it == plot.end()) it = plot.insert(plot.end(), PlotSeries{series, {}, {}, true});
+        it->x.push_back(percentile(r.ms, 0.5));
+        it->y.push_back(std::max(y, 1e-12));  // exact to round-off shows at the floor
+      };
+      add(forcePlot, fe);
+      add(placePlot, 1e3 * pe);
     }
+  }
+  if (!forcePlot.empty()) {
+    writeLogLogPlot(out + "/rehearsal-error-time.png", "Grasp-pull on real organs: tip force error vs step time",
+                    "median step (ms)", "tip force error (relative to exact Newton at 1e-9)", forcePlot);
+    writeLogLogPlot(out + "/rehearsal-place-error-time.png",
+                    "Grasp-pull on real organs: largest node place error vs step time", "median step (ms)",
+                    "largest node place error (mm)", placePlot);
   }
 }
 
@@ -224,6 +279,7 @@ int main(int argc, char** argv) {
   bool quick = false;
   std::string only;    // one pull variant by name (e.g. "linearised"), on the built-in liver only, and no cut: A/B runs
   bool real = false;   // only the real organs' section
+  std::string organ;   // --real: only the organs whose name contains this (e.g. "patient"); with --only, one variant
   int cutRepeats = 1;  // the cut scenario run this many times, its steps pooled (a comparison of builds wants more
                        // than the 3 updates of one run: each waits for a body built on the other core)
   for (int i = 1; i < argc; ++i) {
@@ -235,6 +291,8 @@ int main(int argc, char** argv) {
       only = argv[++i];
     else if (!std::strcmp(argv[i], "--real"))
       real = true;
+    else if (!std::strcmp(argv[i], "--organ") && i + 1 < argc)
+      organ = argv[++i];
     else
       out = argv[i];
   }
@@ -242,7 +300,7 @@ int main(int argc, char** argv) {
 
   const std::string shared = std::string(REHEARSE_SHARED_DATA);
   if (real) {
-    realOrgans(out, shared);
+    realOrgans(out, shared, only, organ);
     return 0;
   }
   std::vector<std::string> organs = {"liver"};
@@ -269,7 +327,9 @@ int main(int argc, char** argv) {
                                          {NewtonMethod::Chord, FactorRefresh::Asynchronous},
                                          {NewtonMethod::Linearised, FactorRefresh::Asynchronous},
                                          {NewtonMethod::Linearised, FactorRefresh::Asynchronous, 0.004},
-                                         {NewtonMethod::Linearised, FactorRefresh::Asynchronous, 0.006, true}};
+                                         {NewtonMethod::Linearised, FactorRefresh::Asynchronous, 0.006, true},
+                                         {NewtonMethod::NewtonKrylov, FactorRefresh::Asynchronous},
+                                         {NewtonMethod::NewtonKrylov, FactorRefresh::Asynchronous, 0.006, true}};
   for (const auto& organ : organs) {
     const BodySetup s = setupFor(organ, shared);
     const PullResult exact = pull(s, variants.front(), quick ? 20 : 50);
@@ -375,6 +435,6 @@ int main(int argc, char** argv) {
   }
   if (quick) return 0;
 
-  realOrgans(out, shared);
+  realOrgans(out, shared, "", "");
   return 0;
 }

@@ -84,10 +84,12 @@ class TestAllocation : public QObject {
                                 {NewtonMethod::LaggedPcg, false},
                                 {NewtonMethod::Chord, false},
                                 {NewtonMethod::Linearised, false},
+                                {NewtonMethod::NewtonKrylov, false},
                                 {NewtonMethod::Exact, true},
                                 {NewtonMethod::Linearised, true},
                                 // Attachments by Lagrange multipliers: the Schur complement and its solves too.
                                 {NewtonMethod::LaggedPcg, false, AttachmentMode::Lagrange},
+                                {NewtonMethod::NewtonKrylov, false, AttachmentMode::Lagrange},
                                 {NewtonMethod::Exact, true, AttachmentMode::Lagrange}};
     for (const auto& [method, simplicial, attachments] : variants) {
       SimulationSettings s;
@@ -109,13 +111,16 @@ class TestAllocation : public QObject {
         if (rep.factorisations > 0) {
           refreshing += allocations;
           ++factorising;
-        }
-        else quiet = std::max(quiet, allocations.load());
+        } else
+          quiet = std::max(quiet, allocations.load());
       }
-      qInfo("%-11s %-10s %-10s heap allocations per step: %ld in total over 20 steps, at most %ld in one; %ld in steps that re-factorised, "
-            "at most %ld in one that did not (%ld of 20 steps re-factorised)",
-            toString(method).c_str(), simplicial ? "simplicial" : "supernodal",
-            attachments == AttachmentMode::Lagrange ? "lagrange" : "projection", total, worst, refreshing, quiet, factorising);
+      qInfo(
+          "%-11s %-10s %-10s heap allocations per step: %ld in total over 20 steps, at most %ld in one; %ld in steps "
+          "that re-factorised, "
+          "at most %ld in one that did not (%ld of 20 steps re-factorised)",
+          toString(method).c_str(), simplicial ? "simplicial" : "supernodal",
+          attachments == AttachmentMode::Lagrange ? "lagrange" : "projection", total, worst, refreshing, quiet,
+          factorising);
       // A step that reuses the factorisation allocates nothing. A supernodal numeric factorisation does,
       // inside CHOLMOD (its permuted transpose, and an OpenMP team per supernode from libgomp), reported
       // above; the simplicial factor of the matrix we permute ourselves allocates nothing at all.

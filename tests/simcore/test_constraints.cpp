@@ -51,7 +51,8 @@ class TestConstraints : public QObject {
     const Eigen::VectorXd ref = run(m, c.attachments, s, 40, &exactFactorisations);
     QVERIFY(ref.size() > 0);
     const double sag = (ref - m.restVector()).norm();
-    for (NewtonMethod method : {NewtonMethod::LaggedPcg, NewtonMethod::Chord, NewtonMethod::Linearised}) {
+    for (NewtonMethod method :
+         {NewtonMethod::LaggedPcg, NewtonMethod::Chord, NewtonMethod::Linearised, NewtonMethod::NewtonKrylov}) {
       SimulationSettings sm = s;
       sm.method = method;
       int factorisations = 0, failures = 0;
@@ -65,6 +66,7 @@ class TestConstraints : public QObject {
       QVERIFY2(err < (method == NewtonMethod::Linearised ? 2e-2 : 1e-6), qPrintable(QString::number(err)));
     }
     QVERIFY(newtonMethodFromString("chord") == NewtonMethod::Chord);
+    QVERIFY(newtonMethodFromString("newton-krylov") == NewtonMethod::NewtonKrylov);
     QVERIFY_THROWS_EXCEPTION(MeshError, newtonMethodFromString("magic"));
   }
 
@@ -107,7 +109,7 @@ class TestConstraints : public QObject {
       qInfo("%s, 10 implicit steps: relative difference %.2e", toString(model).c_str(), dd);
       QVERIFY(dd < 1e-5);
       // The methods that reuse a lagged factor hold the same attachments by Lagrange multipliers too.
-      for (NewtonMethod method : {NewtonMethod::LaggedPcg, NewtonMethod::Chord}) {
+      for (NewtonMethod method : {NewtonMethod::LaggedPcg, NewtonMethod::Chord, NewtonMethod::NewtonKrylov}) {
         d.method = method;
         int failures = -1;
         const Eigen::VectorXd xl = run(m, c.attachments, d, 10, nullptr, &failures);

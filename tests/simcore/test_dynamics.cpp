@@ -41,7 +41,8 @@ class TestDynamics : public QObject {
     QVERIFY(sag > 1e-4);
     int ran = 0, refused = 0;
     for (auto solver : {LinearSolverKind::Cholmod, LinearSolverKind::ConjugateGradient, LinearSolverKind::Dense})
-      for (auto method : {NewtonMethod::Exact, NewtonMethod::LaggedPcg, NewtonMethod::Chord, NewtonMethod::Linearised})
+      for (auto method : {NewtonMethod::Exact, NewtonMethod::LaggedPcg, NewtonMethod::Chord, NewtonMethod::Linearised,
+                          NewtonMethod::NewtonKrylov})
         for (auto mode : {AttachmentMode::Projection, AttachmentMode::Lagrange}) {
           SimulationSettings s = ref;
           s.solver = solver;
@@ -71,8 +72,8 @@ class TestDynamics : public QObject {
           QVERIFY2(err < tol, qPrintable(name + QString(": %1").arg(err)));
           ++ran;
         }
-    QCOMPARE(ran, 10);     // CHOLMOD: 4 methods x 2 modes; CG and dense: exact with projection
-    QCOMPARE(refused, 14);
+    QCOMPARE(ran, 12);     // CHOLMOD: 5 methods x 2 modes; CG and dense: exact with projection
+    QCOMPARE(refused, 18);
     // Settings changed after construction are refused at the step, the state untouched.
     Integrator in(m, fixed, ref);
     auto st = in.initialState();

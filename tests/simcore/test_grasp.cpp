@@ -541,6 +541,94 @@ class TestGrasp : public QObject {
     QVERIFY(back < 1e-4);
   }
 
+  // Issue 34: the Newton-Krylov method (exact tangent matrix-free, CG preconditioned by the lagged factor, constraint
+  // preconditioner for the contact and grasp rows) and chord solve the same equations as exact Newton: on each of the
+  // five laws a shaft presses a block's top face, the jaws close on it while it presses, then pull it up. Every step
+  // converges to 1e-8 with every method, and the states and the tool forces agree to what that tolerance allows.
+  void newtonKrylovMatchesExactNewton_data() {
+    QTest::addColumn<int>("law");
+    for (auto law : {simcore::MaterialModel::Linear, simcore::MaterialModel::Corotational, simcore::MaterialModel::StVK,
+                     simcore::MaterialModel::NeoHookean, simcore::MaterialModel::NeoHookeanSplit})
+      QTest::newRow(simcore::toString(law).c_str()) << static_cast<int>(law);
+  }
+  void newtonKrylovMatchesExactNewton() {
+    QFETCH(int, law);
+    struct Run {
+      std::vector<std::vector<Eigen::Vector3d>> positions;
+      std::vector<Eigen::Vector3d> forces;
+      int maxContacts = 0, heldSteps = 0, notConverged = 0;
+      long newton = 0;
+    };
+    auto run = [&](simcore::NewtonMethod method) {
+      simcore::BodySetup s;
+      s.mesh = boxMesh(0.04, 0.02, 0.02, 8, 4, 4);
+      for (std::size_t i = 0; i < s.mesh.points.size(); ++i)
+        if (s.mesh.points[i].z() < 1e-12) s.fixedNodes.push_back(static_cast<int>(i));
+      s.material = {static_cast<simcore::MaterialModel>(law), 20e3, 0.3, 1000};
+      s.settings.gravity = Eigen::Vector3d(0, 0, -9.81);
+      s.settings.timeStep = 0.02;
+      s.settings.tolerance = 1e-8;
+      s.settings.method = method;
+      s.settings.factorRefresh = simcore::FactorRefresh::Synchronous;
+      s.tools.trocar = Eigen::Vector3d(0.02, 0.01, 0.3);
+      s.tools.toolRadius = 0.002;
+      s.tools.graspRadius = 0.0055;
+      s.tools.maxGraspForce = 1e6;
+      simcore::Session session(s);
+      Run r;
+      auto step = [&] {
+        const simcore::StepReport rep = session.advance();
+        r.notConverged += rep.outcome != simcore::StepStatus::Converged;
+        r.newton += rep.newtonIterations;
+        r.positions.push_back(session.snapshot()->positions);
+        r.forces.push_back(session.snapshot()->tool.force);
+        r.maxContacts = std::max(r.maxContacts, session.snapshot()->tool.contacts);
+        r.heldSteps += !session.snapshot()->tool.held.empty();
+      };
+      const Eigen::Vector3d above(0.02, 0.01, 0.024);
+      for (int k = 0; k <= 10; ++k) {  // the shaft's tip down to 1 mm below the face: contact
+        session.post(toolAt(above - Eigen::Vector3d(0, 0, 0.005 * k / 10.0)));
+        step();
+      }
+      session.post(jaws(true));  // bites while it presses
+      for (int k = 0; k < 5; ++k) step();
+      for (int k = 1; k <= 15; ++k) {  // and pulls the face 4 mm up and 2 mm sideways
+        session.post(toolAt(above + Eigen::Vector3d(0.002 * k / 15.0, 0, -0.005 + 0.009 * k / 15.0)));
+        step();
+      }
+      return r;
+    };
+    const Run exact = run(simcore::NewtonMethod::Exact);
+    QCOMPARE(exact.notConverged, 0);
+    QVERIFY(exact.maxContacts > 0);
+    QVERIFY(exact.heldSteps >= 15);
+    // Newton-Krylov, and chord (the interactive default) which iterates with the lagged factor to the same tolerance.
+    for (const auto method : {simcore::NewtonMethod::NewtonKrylov, simcore::NewtonMethod::Chord}) {
+      const Run other = run(method);
+      QCOMPARE(other.notConverged, 0);
+      QVERIFY(other.maxContacts > 0);
+      QCOMPARE(other.heldSteps, exact.heldSteps);
+      double worstPlace = 0, largestMove = 0, worstForce = 0, largestForce = 0;
+      for (std::size_t k = 0; k < exact.positions.size(); ++k) {
+        for (std::size_t i = 0; i < exact.positions[k].size(); ++i) {
+          worstPlace = std::max(worstPlace, (other.positions[k][i] - exact.positions[k][i]).norm());
+          largestMove = std::max(largestMove, (exact.positions[k][i] - exact.positions.front()[i]).norm());
+        }
+        worstForce = std::max(worstForce, (other.forces[k] - exact.forces[k]).norm());
+        largestForce = std::max(largestForce, exact.forces[k].norm());
+      }
+      qInfo(
+          "%s: largest move %.2f mm, force up to %.3f N; %s vs exact: %.2e of the move, %.2e of the force; Newton "
+          "iterations %ld vs %ld",
+          simcore::toString(static_cast<simcore::MaterialModel>(law)).c_str(), 1e3 * largestMove, largestForce,
+          simcore::toString(method).c_str(), worstPlace / largestMove, worstForce / largestForce, other.newton,
+          exact.newton);
+      QVERIFY(largestMove > 1e-3 && largestForce > 1e-3);
+      QVERIFY2(worstPlace < 1e-5 * largestMove, qPrintable(QString::number(worstPlace / largestMove)));
+      QVERIFY2(worstForce < 1e-4 * largestForce, qPrintable(QString::number(worstForce / largestForce)));
+    }
+  }
+
   void gestureScriptsSayWhatTheyCannotDo() {
     auto refused = [](const std::string& text, const char* words) {
       try {

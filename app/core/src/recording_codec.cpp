@@ -647,7 +647,7 @@ std::string setupProblem(const simcore::BodySetup& s) {
       !finite(t.staticStepTolerance) || !finite(t.gaussSeidelTolerance) || !finite(t.refreshResidual) ||
       !finite(t.linearisedTolerance) || t.linearisedTolerance <= 0)
     return "a tolerance of the solver is not a positive number";
-  if (!inEnum(t.solver, simcore::LinearSolverKind::Dense) || !inEnum(t.method, simcore::NewtonMethod::Linearised) ||
+  if (!inEnum(t.solver, simcore::LinearSolverKind::Dense) || !inEnum(t.method, simcore::NewtonMethod::NewtonKrylov) ||
       !inEnum(t.attachments, simcore::AttachmentMode::Lagrange) ||
       !inEnum(t.factorRefresh, simcore::FactorRefresh::Deferred))
     return "the solver, method, attachment or refresh setting is not one this version knows";
@@ -681,7 +681,7 @@ std::string eventProblem(const simcore::InputEvent& e) {
     } else if (k == "dt") {
       if (!(v > 0 && v <= 10)) return "a recorded time step is not between 0 and 10 s";
     } else if (k == "method") {
-      if (!(v >= 0 && v <= static_cast<int>(simcore::NewtonMethod::Linearised) && v == std::floor(v)))
+      if (!(v >= 0 && v <= static_cast<int>(simcore::NewtonMethod::NewtonKrylov) && v == std::floor(v)))
         return "a recorded method is not one this version knows";
     } else if (k == "model") {
       if (!(v >= 0 && v <= static_cast<int>(simcore::MaterialModel::NeoHookeanSplit) && v == std::floor(v)))

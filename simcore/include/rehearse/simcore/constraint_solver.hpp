@@ -48,13 +48,22 @@ class ConstraintSolver {
   /// The multipliers (total, N·s/m... in the units of rhs) of the last solve; the next solve starts from
   /// them (warm start). Reset them with multipliers().setZero(size()).
   Eigen::VectorXd& multipliers() { return lambda_; }
+  /// After a solve: fixes its active set (the bilateral constraints and the unilateral ones that push, multiplier > 0)
+  /// and factorises that set's block of W, for projectedSolve. False when there is no W yet.
+  bool fixActiveSet();
+  /// The constraint preconditioner of the fixed active set a, with the same factor A as the last solve:
+  ///   z = A^-1 r - A^-1 H_a^T y,  y = W_aa^-1 H_a A^-1 r,
+  /// so that H_a z = 0 (z stays on the constraints) and r - H_a^T y is r net of the constraint forces: a residual
+  /// r = rhs + H^T mu - A d is answered by the multipliers mu - y.
+  /// y is over all constraints (zero off the set), in the units of r. Allocates nothing once sized.
+  bool projectedSolve(CholmodSolver& A, const Eigen::VectorXd& r, Eigen::VectorXd& z, Eigen::VectorXd& y);
   /// W = H A^-1 H^T of the last solve (m x m; the constraints' compliance through the factor), empty before it.
   const Eigen::MatrixXd& schur() const { return W_; }
   /// H^T (3n x m, dense) as of the last solve (empty before it).
   const Eigen::MatrixXd& transposedH() const { return Ht_; }
   /// Largest |H x - value| (bilateral) or max(0, value - H x) (unilateral), m.
   double violation(const Eigen::VectorXd& x) const;
-  int gaussSeidelIterations = 300;      ///< sweeps; then bilateral sets take a dense solve of W
+  int gaussSeidelIterations = 300;  ///< sweeps; then bilateral sets take a dense solve of W
   /// Sets with unilateral constraints (contact) that Gauss-Seidel has not settled in this many sweeps are
   /// solved by an active set on W (dense solves of the active constraints' block, small), which ends with
   /// the exact complementary solution in a few iterations where Gauss-Seidel took hundreds of sweeps; when
@@ -63,12 +72,14 @@ class ConstraintSolver {
   /// Active-set iterations of the last solve (0 when Gauss-Seidel settled it alone).
   int activeSetIterations() const { return activeSetIterations_; }
   double gaussSeidelTolerance = 1e-10;  ///< relative change of the multipliers
-  std::size_t memoryBytes() const { return sizeof(double) * static_cast<std::size_t>(Ht_.size() + A_.size() + W_.size()); }
+  std::size_t memoryBytes() const {
+    return sizeof(double) * static_cast<std::size_t>(Ht_.size() + A_.size() + W_.size());
+  }
 
  private:
   std::vector<ScalarConstraint> constraints_;
   std::vector<char> fixed_;
-  Eigen::MatrixXd Ht_, A_, W_;     // H^T, A^-1 H^T, W = H A^-1 H^T
+  Eigen::MatrixXd Ht_, A_, W_;  // H^T, A^-1 H^T, W = H A^-1 H^T
   Eigen::VectorXd e_, lambda_, Wlambda_;
   Eigen::LDLT<Eigen::MatrixXd> Wfactor_;  // W's dense factorisation, when Gauss-Seidel stalls on it
   bool WfactorValid_ = false;
@@ -79,8 +90,13 @@ class ConstraintSolver {
   Eigen::VectorXd ea_, la_, candidate_;
   Eigen::LDLT<Eigen::MatrixXd> WaFactor_;
   int activeSetIterations_ = 0;
+  // fixActiveSet / projectedSolve: the set's indices, its block of W factorised, H_a A^-1 r.
+  std::vector<Eigen::Index> fixedSet_;
+  Eigen::MatrixXd fixedW_;
+  Eigen::LDLT<Eigen::MatrixXd> fixedFactor_;
+  Eigen::VectorXd fixedT_, fixedY_;
   bool activeSet();
-  bool schurValid_ = false;        // A_ and W_ belong to the current factor and constraints
+  bool schurValid_ = false;  // A_ and W_ belong to the current factor and constraints
 };
 
 }  // namespace rehearse::simcore

@@ -106,6 +106,10 @@ struct TangentState {
 void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentState& state, Eigen::VectorXd* forces = nullptr);
 /// out = K(x) v for the configuration `state` was prepared at (out sized once, then reused).
 void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::VectorXd& v, Eigen::VectorXd& out);
+/// out = a K(xa) v + b K(xb) v for two configurations prepared over the same model (one pass over the elements: the
+/// Newton-Krylov tangent, h^2 K at the iterate plus the Rayleigh damping's h beta K at the step start).
+void applyStiffnessPair(const FemModel& m, const TangentState& atA, double a, const TangentState& atB, double b,
+                        const Eigen::VectorXd& v, Eigen::VectorXd& out);
 /// Von Mises equivalent of the Cauchy stress sigma = P F^T / J per element (Pa), for display. Inverted
 /// elements (J <= 0) report the first Piola-Kirchhoff stress's equivalent instead.
 void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<double>& out);

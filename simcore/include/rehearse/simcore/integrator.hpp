@@ -35,8 +35,20 @@ enum class NewtonMethod {
   LaggedPcg,   ///< exact tangent, solved by CG preconditioned with a lagged factorisation
   Chord,       ///< iterate with a lagged factorisation (refreshed when convergence slows) to the tolerance
   Linearised,  ///< one solve with the lagged factorisation per step, no convergence test (SOFA's default)
+  /// Inexact Newton to the tolerance: the exact tangent applied matrix-free (prepared in the same pass over the
+  /// elements as the residual), solved by conjugate gradients preconditioned with the lagged factorisation (refreshed
+  /// on the second thread when it needs more than a few iterations: Courtecuisse et al. 2014), each solve only as
+  /// accurate as the residual calls for (forcing term 0.1 x the relative residual) and within an iteration budget.
+  /// Constraints: the lagged factor's constrained step, then CG with the constraint preconditioner of its active set.
+  NewtonKrylov,
 };
-/// "exact", "lagged-pcg", "chord", "linearised"; throws MeshError naming the accepted values.
+/// The interactive default (issue 34): what the GUI's Simulation panel, `rehearse gesture` and `rehearse simulate` run
+/// (scenes and presets without a method), converged to the tolerance at every step. Chosen by measurement against
+/// linearised (one solve, not converged: up to 1e-2) and newton-krylov (two Newton iterations, but each CG iteration
+/// a solve and two tangent products): BENCHMARKS.md, "Rehearsal on real organs". SimulationSettings{} stays exact: the
+/// library's reference.
+constexpr NewtonMethod kInteractiveMethod = NewtonMethod::Chord;
+/// "exact", "lagged-pcg", "chord", "linearised", "newton-krylov"; throws MeshError naming the accepted values.
 NewtonMethod newtonMethodFromString(const std::string& name);
 std::string toString(NewtonMethod m);
 
@@ -48,35 +60,40 @@ enum class FactorRefresh {
   Synchronous,   ///< at the next step's start, on the stepping thread (that step waits for it)
   Asynchronous,  ///< on a second thread from the step's start positions; the steps go on with the old factor and
                  ///< the new one is swapped in at the first step start after it is ready (Courtecuisse et al. 2014)
-  Deferred,      ///< requested and built like Asynchronous but swapped in only after installRequestedFactor() (which waits
-                 ///< for the build): the replay of an asynchronous run, the recording saying at which step each factor came in
+  Deferred,  ///< requested and built like Asynchronous but swapped in only after installRequestedFactor() (which waits
+             ///< for the build): the replay of an asynchronous run, the recording saying at which step each factor came
+             ///< in
 };
 
 struct SimulationSettings {
-  double timeStep = 0.01;                              ///< s
+  double timeStep = 0.01;                                  ///< s
   Eigen::Vector3d gravity = Eigen::Vector3d(0, -9.81, 0);  ///< m/s^2
-  double rayleighMass = 0.1;                           ///< alpha (1/s)
-  double rayleighStiffness = 0.1;                      ///< beta (s)
+  double rayleighMass = 0.1;                               ///< alpha (1/s)
+  double rayleighStiffness = 0.1;                          ///< beta (s)
   int maxNewtonIterations = 10;
-  double tolerance = 1e-6;                             ///< relative residual
-  double staticStepTolerance = 0;                      ///< m: a static solve also stops when Newton's largest node move is below this (0: off)
-  bool staticChord = false;                            ///< static solves reuse an earlier static factorisation while the residual halves per iteration (CHOLMOD)
+  double tolerance = 1e-6;  ///< relative residual
+  double staticStepTolerance =
+      0;  ///< m: a static solve also stops when Newton's largest node move is below this (0: off)
+  bool staticChord =
+      false;  ///< static solves reuse an earlier static factorisation while the residual halves per iteration (CHOLMOD)
   bool lineSearch = true;
   LinearSolverKind solver = LinearSolverKind::Cholmod;
-  bool simplicialFactor = false;                       ///< CHOLMOD: simplicial LL' on a matrix permuted here (re-factorising allocates nothing; about 2x the supernodal cost)
+  bool simplicialFactor = false;  ///< CHOLMOD: simplicial LL' on a matrix permuted here (re-factorising allocates
+                                  ///< nothing; about 2x the supernodal cost)
   int cgMaxIterations = 500;
   double cgTolerance = 1e-10;
-  int maxRetries = 4;                                  ///< halvings of the time step after a failed step
+  int maxRetries = 4;  ///< halvings of the time step after a failed step
   NewtonMethod method = NewtonMethod::Exact;
   AttachmentMode attachments = AttachmentMode::Projection;
-  int gaussSeidelIterations = 300;                     ///< sweeps; then bilateral sets take a dense solve of W
-  double gaussSeidelTolerance = 1e-10;                 ///< relative change of the multipliers
-  bool reportEnergy = true;                            ///< compute StepReport::energy (one more pass over the elements)
-  double refreshResidual = 1e-2;                       ///< linearised: re-factorise after a step whose relative residual exceeds this
+  int gaussSeidelIterations = 300;      ///< sweeps; then bilateral sets take a dense solve of W
+  double gaussSeidelTolerance = 1e-10;  ///< relative change of the multipliers
+  bool reportEnergy = true;             ///< compute StepReport::energy (one more pass over the elements)
+  double refreshResidual = 1e-2;        ///< linearised: re-factorise after a step whose relative residual exceeds this
   FactorRefresh factorRefresh = FactorRefresh::Synchronous;  ///< lagged methods: where a drifted factor is rebuilt
   /// The linearised method's tolerance on the relative residual of the nonlinear equations after its one solve
   /// (it does no Newton test; a step above it is `inexact`). Its error is of second order in the velocity change:
-  /// measured 1e-6 to 2e-3 in the gesture scripts on the liver phantom, SOFA's liver, kidney and uterus (BENCHMARKS.md).
+  /// measured 1e-6 to 2e-3 in the gesture scripts on the liver phantom, SOFA's liver, kidney and uterus
+  /// (BENCHMARKS.md).
   double linearisedTolerance = 1e-2;
   /// Validation runs: a step that does not converge after the retries is rolled back (status `failed`) instead of
   /// kept as the attempt with the smallest residual (status `inexact`).
@@ -110,10 +127,10 @@ struct SimulationState {
   Eigen::VectorXd x, v;  ///< positions (m) and velocities (m/s), 3n, node-major
   double time = 0;       ///< s
   struct Lagged {
-    bool valid = false;  ///< a lagged factor is named (sized vectors are kept: recording allocates nothing)
-    Eigen::VectorXd at;  ///< 3n positions the lagged factor was built at
-    double step = -1;    ///< s, the time step it was built for
-    bool refresh = true; ///< rebuild it at the next step's start
+    bool valid = false;   ///< a lagged factor is named (sized vectors are kept: recording allocates nothing)
+    Eigen::VectorXd at;   ///< 3n positions the lagged factor was built at
+    double step = -1;     ///< s, the time step it was built for
+    bool refresh = true;  ///< rebuild it at the next step's start
     bool drift = false;  ///< asynchronous/deferred refresh: it drifted, a new one is requested at the next step's start
     /// Asynchronous/deferred refresh: a factor was requested at `requestedAt` for `requestedStep` and is not swapped
     /// in yet (an integrator adopting this state without that request makes it again: a checkpoint is complete).
@@ -128,25 +145,27 @@ struct SimulationState {
 struct StepReport {
   bool ok = false;
   int newtonIterations = 0;
-  double residual = 0;      ///< relative residual at the end
-  double energy = 0;        ///< kinetic + elastic - gravity work (J)
+  double residual = 0;  ///< relative residual at the end
+  double energy = 0;    ///< kinetic + elastic - gravity work (J)
   double wallMs = 0;
   double timeStepUsed = 0;  ///< s (smaller than asked after retries)
   int retries = 0;
-  int factorisations = 0;   ///< numeric factorisations during the step
-  int innerIterations = 0;  ///< CG iterations (lagged-pcg) or Gauss-Seidel sweeps (constraints)
+  int factorisations = 0;          ///< numeric factorisations during the step
+  int innerIterations = 0;         ///< CG iterations (lagged-pcg, newton-krylov) or Gauss-Seidel sweeps (constraints)
   double constraintViolation = 0;  ///< max |H x - value| after the step (m)
-  bool factorRequested = false;    ///< asynchronous/deferred: a new lagged factor was requested at this step's start positions
-  bool factorSwapped = false;      ///< asynchronous: the factor requested earlier was swapped in at this step's start
+  bool factorRequested =
+      false;  ///< asynchronous/deferred: a new lagged factor was requested at this step's start positions
+  bool factorSwapped = false;  ///< asynchronous: the factor requested earlier was swapped in at this step's start
   StepStatus outcome = StepStatus::Failed;
-  int invertedElements = 0;        ///< elements with J = det F <= 0 after the step
-  double minVolumeRatio = 1;       ///< the smallest J after the step
-  bool inversionLimited = false;   ///< a move was shortened to keep elements from inverting (SimulationSettings::inversionGuard)
-  double tolerance = 0;            ///< the relative residual the outcome was judged against
-  int smallestElement = -1;        ///< the element with the smallest J
-  int keptBestOf = 0;              ///< no attempt converged: the best of this many attempts was kept (inexact)
-  bool collapsingLaw = false;      ///< inverted elements of a law that collapses (StVK)
-  bool invertibleLaw = false;      ///< inverted elements of a law defined inverted (stable Neo-Hookean)
+  int invertedElements = 0;   ///< elements with J = det F <= 0 after the step
+  double minVolumeRatio = 1;  ///< the smallest J after the step
+  bool inversionLimited =
+      false;             ///< a move was shortened to keep elements from inverting (SimulationSettings::inversionGuard)
+  double tolerance = 0;  ///< the relative residual the outcome was judged against
+  int smallestElement = -1;    ///< the element with the smallest J
+  int keptBestOf = 0;          ///< no attempt converged: the best of this many attempts was kept (inexact)
+  bool collapsingLaw = false;  ///< inverted elements of a law that collapses (StVK)
+  bool invertibleLaw = false;  ///< inverted elements of a law defined inverted (stable Neo-Hookean)
   /// The outcome's word ("converged", "inexact", "inverted": a step writes only that, allocating nothing) or a
   /// sentence of its own (failed, refused, retried steps, static solves); statusSentence() says it all.
   std::string status;
@@ -217,23 +236,29 @@ class Integrator {
   /// whole move is shortened. True when vel changed (nothing happens without SimulationSettings::inversionGuard).
   bool guardMove(const Eigen::VectorXd& x, Eigen::VectorXd& vel, double h);
   /// The status word and sentence of a step whose state is `state` (counts its inverted elements).
-  void describe(const SimulationState& state, bool advanced, bool withinTolerance, double tolerance, StepReport& rep) const;
+  void describe(const SimulationState& state, bool advanced, bool withinTolerance, double tolerance,
+                StepReport& rep) const;
   bool adopt(const SimulationState& state, StepReport& rep);
   void record(SimulationState& state) const;
-  void newtonMatrix(const Eigen::SparseMatrix<double>& Kd, const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h,
-                    double alpha, double beta) const;
+  void newtonMatrix(const Eigen::SparseMatrix<double>& Kd, const Eigen::SparseMatrix<double>& K,
+                    Eigen::SparseMatrix<double>& J, double h, double alpha, double beta) const;
   void newtonMatrix(const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J, double h) const;
   /// The lagged factor at `at` for step `h` into `chol` (assembling into Kd and J); attempts counted.
-  bool buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& Kd, Eigen::SparseMatrix<double>& J, const Eigen::VectorXd& at, double h,
-                   double alpha, double beta, bool simplicial, int& attempts) const;
+  bool buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& Kd, Eigen::SparseMatrix<double>& J,
+                   const Eigen::VectorXd& at, double h, double alpha, double beta, bool simplicial,
+                   int& attempts) const;
   void requestFactor(const Eigen::VectorXd& at, double h, StepReport& rep);
   bool swapInRequested(StepReport& rep);
-  bool refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep);
+  /// Builds the lagged factor at `at` now. A factor requested before it is older: it is dropped at once (waiting for
+  /// its build to end), so that the next request is made at the same step live and in a replay, whatever the second
+  /// thread's timing — unless `keepRequest` (a restored state rebuilding its factor: the request it names is newer).
+  bool refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep, bool keepRequest = false);
   double totalEnergy(const SimulationState& s) const;
   void project(Eigen::VectorXd& r) const;
   void projectMatrix(Eigen::SparseMatrix<double>& A) const;
   /// factoriseShifted (linear_solver.hpp) with the settings' factor kind, counting into `rep`.
-  bool factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep, const std::function<bool()>& accept = nullptr);
+  bool factoriseShifted(const Eigen::SparseMatrix<double>& A, StepReport& rep,
+                        const std::function<bool()>& accept = nullptr);
   bool solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double positionScale, Eigen::VectorXd& dx,
                         StepReport& rep, bool freeGiven = false, const Eigen::VectorXd* carried = nullptr);
 

@@ -38,9 +38,9 @@ struct ComponentDecl {
 
 /// The names of solver settings, parsed in one place for scenes, the command line and the panels. Each
 /// throws MeshError naming the accepted values.
-LinearSolverKind linearSolverFromString(const std::string& name);       ///< "cholmod", "cg", "dense"
-bool simplicialFactorFromString(const std::string& name);               ///< "supernodal" (false), "simplicial" (true)
-AttachmentMode attachmentModeFromString(const std::string& name);       ///< "projection", "lagrange"
+LinearSolverKind linearSolverFromString(const std::string& name);  ///< "cholmod", "cg", "dense"
+bool simplicialFactorFromString(const std::string& name);          ///< "supernodal" (false), "simplicial" (true)
+AttachmentMode attachmentModeFromString(const std::string& name);  ///< "projection", "lagrange"
 
 /// Every component a scene may declare.
 const std::vector<ComponentDecl>& sceneComponents();
@@ -54,7 +54,11 @@ struct Scene {
   MaterialParams defaultMaterial;
   std::vector<int> fixedNodes;
   std::vector<EmbeddedSurface> embedded;  ///< inner structures given as surfaces
-  SimulationSettings settings;
+  SimulationSettings settings = [] {
+    SimulationSettings s;
+    s.method = kInteractiveMethod;  // a scene or preset without a method runs the interactive default
+    return s;
+  }();
   bool staticSolve = false;
   long steps = 100;
   std::vector<std::string> components;  ///< the components built, in declaration order
