@@ -80,8 +80,8 @@ struct Variant {
   NewtonMethod method;
   FactorRefresh refresh = FactorRefresh::Synchronous;
   double toolRadius = 0;  // m: contact with the instrument's shaft
-  // The shaft laid along the organ's surface (its trocar 15 cm from the tip, tangent to the surface there)
-  // instead of coming from the default trocar: it presses on the tissue around the grasp while pulling.
+  // The shaft laid along the organ's surface (its trocar 15 cm from the tip, through a point 2 mm under the surface
+  // 3 cm away) instead of coming from the default trocar: it presses on the tissue beside the grasp while pulling.
   bool shaftOnSurface = false;
   double tolerance = 1e-6;  // relative residual (not the linearised method's: its one solve is its step)
   std::string name() const {
@@ -113,10 +113,19 @@ PullResult pull(BodySetup s, const Variant& v, int settle) {
   if (v.shaftOnSurface) {  // the settled shape (deterministic) tells where the surface is at the grasp
     Session probe(s);
     const Eigen::Vector3d at = settled(probe);
+    const auto& placed = probe.snapshot()->positions;
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (const auto& p : probe.snapshot()->positions) centre += p;
-    centre /= static_cast<double>(probe.snapshot()->positions.size());
-    s.tools.trocar = at + 0.15 * (at - centre).cross(Eigen::Vector3d::UnitY()).normalized();
+    for (const auto& p : placed) centre += p;
+    centre /= static_cast<double>(placed.size());
+    // Along the surface: through the point 2 mm under the surface 3 cm from the bite (the node nearest there), so
+    // that the shaft presses on the tissue beside the grasp whatever the surface's curvature (a tangent line lay off
+    // the flatter real livers: it touched nothing there).
+    const Eigen::Vector3d outward = (at - centre).normalized();
+    const Eigen::Vector3d along = outward.cross(Eigen::Vector3d::UnitY()).normalized();
+    Eigen::Vector3d beside = placed.front();
+    for (const auto& p : placed)
+      if ((p - (at + 0.03 * along)).norm() < (beside - (at + 0.03 * along)).norm()) beside = p;
+    s.tools.trocar = at + 0.15 * (beside - 0.002 * outward - at).normalized();
   }
   Session session(s);
   const Eigen::Vector3d tip = settled(session);
@@ -243,6 +252,9 @@ void realOrgans(const std::string& out, const std::string& shared, const std::st
                   percentile(r.ms, 1.0), static_cast<double>(r.newton) / std::max(1, n),
                   static_cast<double>(r.inner) / std::max(1, n), r.converged, r.inexact, n - r.converged - r.inexact,
                   r.withinMicro, r.worstResidual, r.force.norm(), fe, 1e3 * pe);
+      if (v.shaftOnSurface)
+        std::printf("%-18s %6s   the shaft touched in %d of %d steps (up to %d triangles)\n", "", "", r.touchingSteps,
+                    n, r.contacts);
       std::fflush(stdout);
       realCsv << '"' << o.name << "\"," << s.mesh.tets.size() << ',' << v.name() << ',' << v.tolerance << ','
               << percentile(r.ms, 0.5) << ',' << percentile(r.ms, 0.99) << ',' << percentile(r.ms, 1.0) << ','
