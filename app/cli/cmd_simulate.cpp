@@ -60,6 +60,9 @@ int cmdSimulate(const std::vector<std::string>& args) {
     if (o.count("solver")) p.settings.solver = simcore::linearSolverFromString(o["solver"]);
     if (o.count("factor")) p.settings.simplicialFactor = simcore::simplicialFactorFromString(o["factor"]);
     if (o.count("attachments")) p.settings.attachments = simcore::attachmentModeFromString(o["attachments"]);
+    // --solver cg or dense without a method (here or in the scene): that solver's default, not a refusal.
+    if (o.count("solver") && !o.count("method") && !p.methodNamed)
+      p.settings.method = simcore::defaultMethodFor(p.settings.solver);
   } catch (const simcore::MeshError& e) {
     throw UsageError(e.what());
   }

@@ -334,7 +334,13 @@ void prepareTangentState(const FemModel& m, const Eigen::VectorXd& x, TangentSta
   for (std::size_t i = 0; i < m.springs.size(); ++i) state.springHessian[i] = springHessian(m.springs[i], springVector(m.springs[i], x));
 }
 
-void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::VectorXd& v, Eigen::VectorXd& out) {
+namespace {
+// out = K v from per-element first Piola differentials dP(e, dF) and per-spring Hessians (the one pass over the
+// elements that applyStiffness and applyStiffnessPair share: elements in parallel into a buffer, then a serial
+// scatter).
+template <class ElementDifferential, class SpringHessian>
+void applyTangent(const FemModel& m, const Eigen::VectorXd& v, Eigen::VectorXd& out, ElementDifferential dP,
+                  SpringHessian hessian) {
   if (out.size() != v.size()) out.resize(v.size());
   out.setZero();
   thread_local std::vector<double> buffer;
@@ -343,39 +349,36 @@ void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::V
   tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 128), [&](const tbb::blocked_range<std::size_t>& r) {
     for (std::size_t e = r.begin(); e < r.end(); ++e) {
       const Eigen::Matrix3d dF = deformationGradient(m, e, v);  // the gradient of the direction field
-      const Eigen::Matrix3d dP = firstPiolaDifferential(m.model[e], m.lame[e], state.F[e], state.cache[e], dF);
-      Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) = m.restVolume[e] * dP * m.Bm[e].transpose();  // d(dE/dx_{1..3})
+      Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) = m.restVolume[e] * dP(e, dF) * m.Bm[e].transpose();  // d(dE/dx_{1..3})
     }
   });
   scatterElementVectors(m, buf, out);
   for (std::size_t i = 0; i < m.springs.size(); ++i) {
     const auto& sp = m.springs[i];
-    const Eigen::Vector3d hd = state.springHessian[i] * springVector(sp, v);
+    const Eigen::Vector3d hd = hessian(i) * springVector(sp, v);
     for (int k = 0; k < 8; ++k) out.segment<3>(3 * sp.nodes[k]) += sp.weights[k] * hd;
   }
+}
+}  // namespace
+
+void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::VectorXd& v, Eigen::VectorXd& out) {
+  applyTangent(
+      m, v, out,
+      [&](std::size_t e, const Eigen::Matrix3d& dF) {
+        return firstPiolaDifferential(m.model[e], m.lame[e], state.F[e], state.cache[e], dF);
+      },
+      [&](std::size_t i) -> const Eigen::Matrix3d& { return state.springHessian[i]; });
 }
 
 void applyStiffnessPair(const FemModel& m, const TangentState& atA, double a, const TangentState& atB, double b,
                         const Eigen::VectorXd& v, Eigen::VectorXd& out) {
-  if (out.size() != v.size()) out.resize(v.size());
-  out.setZero();
-  thread_local std::vector<double> buffer;
-  buffer.resize(m.tets.size() * 9);
-  double* const buf = buffer.data();
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 128), [&](const tbb::blocked_range<std::size_t>& r) {
-    for (std::size_t e = r.begin(); e < r.end(); ++e) {
-      const Eigen::Matrix3d dF = deformationGradient(m, e, v);
-      const Eigen::Matrix3d dP = a * firstPiolaDifferential(m.model[e], m.lame[e], atA.F[e], atA.cache[e], dF) +
-                                 b * firstPiolaDifferential(m.model[e], m.lame[e], atB.F[e], atB.cache[e], dF);
-      Eigen::Map<Eigen::Matrix3d>(buf + 9 * e) = m.restVolume[e] * dP * m.Bm[e].transpose();
-    }
-  });
-  scatterElementVectors(m, buf, out);
-  for (std::size_t i = 0; i < m.springs.size(); ++i) {
-    const auto& sp = m.springs[i];
-    const Eigen::Vector3d hd = (a * atA.springHessian[i] + b * atB.springHessian[i]) * springVector(sp, v);
-    for (int k = 0; k < 8; ++k) out.segment<3>(3 * sp.nodes[k]) += sp.weights[k] * hd;
-  }
+  applyTangent(
+      m, v, out,
+      [&](std::size_t e, const Eigen::Matrix3d& dF) -> Eigen::Matrix3d {
+        return a * firstPiolaDifferential(m.model[e], m.lame[e], atA.F[e], atA.cache[e], dF) +
+               b * firstPiolaDifferential(m.model[e], m.lame[e], atB.F[e], atB.cache[e], dF);
+      },
+      [&](std::size_t i) -> Eigen::Matrix3d { return a * atA.springHessian[i] + b * atB.springHessian[i]; });
 }
 
 void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<double>& out) {

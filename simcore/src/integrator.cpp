@@ -17,7 +17,8 @@ using namespace detail;
 
 namespace {
 // Newton-Krylov: conjugate-gradient iterations per Newton iteration at most, and the count above which the lagged
-// factor is taken as drifted (a fresh factor needs 1-3 here: BENCHMARKS.md).
+// factor is taken as drifted (a recent factor needed 1-4 per Newton iteration in the grasp-pulls on the liver preset
+// and the patient liver).
 constexpr int kKrylovBudget = 40;
 constexpr int kKrylovDrift = 2;
 }  // namespace
@@ -385,12 +386,11 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   if (guardMove(w.x0, w.v, h)) rep.inversionLimited = true;
   // Newton-Krylov: the residual's pass over the elements also prepares the tangent at the iterate (matrix-free).
   const bool krylov = lagged && settings_.method == NewtonMethod::NewtonKrylov;
-  const bool iterateTangent = krylov;
   // Rayleigh damping with the stiffness at the start of the step (every method: the same residual);
   // the lagged methods have no K(x0) matrix and take the product matrix-free. Newton-Krylov's last step ended here
   // with the tangent prepared at its last iterate, which is this step's start: that pass is reused.
   if (beta != 0 && lagged) {
-    if (iterateTangent && w.tangentItValid && w.tangentItAt.size() == w.x0.size() && w.tangentItAt == w.x0)
+    if (krylov && w.tangentItValid && w.tangentItAt.size() == w.x0.size() && w.tangentItAt == w.x0)
       std::swap(w.tangent0, w.tangentIt);
     else
       prepareTangentState(model_, w.x0, w.tangent0);
@@ -399,7 +399,7 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   // Residual of the velocity update, momentum units: (1 + h a) M v - M v0 - h (f(x0 + h v) + g) + h b K(x0) v.
   auto residual = [&](const Eigen::VectorXd& vel, Eigen::VectorXd& out) {
     w.xt = w.x0 + h * vel;
-    if (iterateTangent) {
+    if (krylov) {
       prepareTangentState(model_, w.xt, w.tangentIt, &w.f);
       w.tangentItAt = w.xt;
       w.tangentItValid = true;

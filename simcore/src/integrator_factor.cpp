@@ -56,7 +56,7 @@ void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& 
       // The stepping thread comes first: this thread yields its core to it (nice 10: a tenth of its share when both
       // want the core; the steps are paced, so the build has the rest), and its element loop runs here alone instead
       // of taking the stepping thread's worker (an arena of one). Measured on the liver preset's paced grasp-pull:
-      // BENCHMARKS.md, "the factor beside the steps".
+      // BENCHMARKS.md, "Converged at every step", what each idea bought.
       setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
       tbb::task_arena alone(1);
       return alone.execute(

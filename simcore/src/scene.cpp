@@ -68,7 +68,7 @@ const std::vector<ComponentDecl>& sceneComponents() {
        true},
       {"solver", "Linear solver and how Newton reuses its factorisation.",
        {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
-        {"method", "string", "\"chord\"", "", "chord (the interactive default: converged every step), exact, lagged-pcg, linearised or newton-krylov (all but exact reuse a cholmod factorisation)"},
+        {"method", "string", "\"chord\"", "", "chord (the interactive default: converged every step; exact with the cg and dense solvers), exact, lagged-pcg, linearised or newton-krylov (all but exact reuse a cholmod factorisation)"},
         {"factor", "string", "\"supernodal\"", "", "cholmod factor: supernodal (fastest) or simplicial (re-factorising allocates nothing; about 1.8x slower)"},
         {"linearised_tolerance", "number", "0.01", "", "the linearised method's tolerance on the relative residual of the nonlinear equations (steps above it are inexact)"}}},
   };
@@ -188,7 +188,11 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
       } else if (type == "solver") {
         s.settings.solver = named([&] { return linearSolverFromString(value(c, *decl, "kind").get<std::string>()); });
-        s.settings.method = named([&] { return newtonMethodFromString(value(c, *decl, "method").get<std::string>()); });
+        s.methodNamed = c.contains("method");
+        s.settings.method =
+            s.methodNamed
+                ? named([&] { return newtonMethodFromString(value(c, *decl, "method").get<std::string>()); })
+                : defaultMethodFor(s.settings.solver);
         s.settings.simplicialFactor = named([&] { return simplicialFactorFromString(value(c, *decl, "factor").get<std::string>()); });
         s.settings.linearisedTolerance = value(c, *decl, "linearised_tolerance").get<double>();
         if (!(s.settings.linearisedTolerance > 0)) fail("the solver's linearised_tolerance must be positive.");

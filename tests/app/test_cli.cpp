@@ -313,6 +313,14 @@ class TestCli : public QObject {
         "CHOLMOD");
     expectOneLineError(run({"simulate", "--preset", "liver", "--solver", "dense", "--method", "chord", "--out", out}),
                        1, "exact method");
+    // Without --method, cg runs its own default (exact: the interactive chord needs CHOLMOD), and says which.
+    {
+      auto cg = run({"simulate", "--preset", "liver", "--solver", "cg", "--steps", "1", "--out", out});
+      QVERIFY2(cg.code == 0, qPrintable(cg.err));
+      QVERIFY2(cg.out.contains("dynamic (exact)"), qPrintable(cg.out));
+      auto chord = run({"simulate", "--preset", "liver", "--steps", "1", "--out", out});
+      QVERIFY2(chord.code == 0 && chord.out.contains("dynamic (chord)"), qPrintable(chord.out + chord.err));
+    }
     // A long list of fixed nodes is a list (not a file name too long), and a token that is not an index is refused.
     {
       QString many;

@@ -7,6 +7,8 @@
 // (QPainter), as the tests do; --opengl through OpenGL (here Mesa's llvmpipe); without either the window chooses as
 // `rehearse` does by default (MainWindow::Renderer::Automatic).
 //   xvfb-run -a -s "-screen 0 2560x1440x24" bench_rehearsal_view [OUT_DIR] [--software | --opengl]
+#include "window_support.hpp"
+
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
@@ -63,16 +65,6 @@ double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0;
   std::sort(v.begin(), v.end());
   return v[static_cast<std::size_t>(q * static_cast<double>(v.size() - 1) + 0.5)];
-}
-
-bool waitFor(const std::function<bool()>& done, int ms = 60000) {
-  QElapsedTimer t;
-  t.start();
-  while (t.elapsed() < ms) {
-    if (done()) return true;
-    QTest::qWait(10);
-  }
-  return done();
 }
 
 struct Phase {

@@ -4,10 +4,12 @@
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 
+#include <QElapsedTimer>
 #include <QSignalSpy>
 #include <QStandardPaths>
 #include <QtTest>
 
+#include <functional>
 #include <memory>
 
 namespace {
@@ -34,6 +36,17 @@ inline void shot(QWidget& w, const char* name) {
   if (dir.isEmpty()) return;
   QTest::qWait(50);
   w.grab().save(QString::fromLocal8Bit(dir) + "/" + name + ".png");
+}
+
+// Waits (serving events) until `done` holds, at most `ms`; its last answer.
+inline bool waitFor(const std::function<bool()>& done, int ms = 60000) {
+  QElapsedTimer t;
+  t.start();
+  while (t.elapsed() < ms) {
+    if (done()) return true;
+    QTest::qWait(10);
+  }
+  return done();
 }
 
 // Drags with the left button from a to b in steps (as a hand would).

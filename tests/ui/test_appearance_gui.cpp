@@ -8,6 +8,7 @@
 // saved in the case file and composited again after reopening.
 // With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot of the step there (for the README).
 #include "test_support.hpp"
+#include "window_support.hpp"
 
 #include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/composition.hpp"
@@ -50,15 +51,6 @@ class TestAppearanceGui : public QObject {
   std::unique_ptr<MainWindow> w_;
   ui::SimulationPanel* panel_ = nullptr;
 
-  bool waitFor(const std::function<bool()>& done, int ms = 60000) {
-    QElapsedTimer t;
-    t.start();
-    while (t.elapsed() < ms) {
-      if (done()) return true;
-      QTest::qWait(10);
-    }
-    return done();
-  }
   // F10 on the window, and the page's answer.
   QList<QVariant> estimateWithF10() {
     QSignalSpy done(w_->appearancePage(), &ui::AppearancePage::estimated);

@@ -35,16 +35,6 @@ class TestPatientRehearsal : public QObject {
   Q_OBJECT
   std::unique_ptr<MainWindow> w_;
 
-  bool waitFor(const std::function<bool()>& done, int ms = 60000) {
-    QElapsedTimer t;
-    t.start();
-    while (t.elapsed() < ms) {
-      if (done()) return true;
-      QTest::qWait(10);
-    }
-    return done();
-  }
-
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearsePatientRehearsalTest");

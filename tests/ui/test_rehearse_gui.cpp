@@ -5,6 +5,7 @@
 // opens the jaws at the cursor. B picks the scissors: a drag across the organ cuts it (counts grow, mass kept, no
 // inverted or poor element). With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot.
 #include "test_support.hpp"
+#include "window_support.hpp"
 
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/gui.hpp"
@@ -32,16 +33,6 @@ using ui::MainWindow;
 class TestRehearseGui : public QObject {
   Q_OBJECT
   std::unique_ptr<MainWindow> w_;
-
-  bool waitFor(const std::function<bool()>& done, int ms = 60000) {
-    QElapsedTimer t;
-    t.start();
-    while (t.elapsed() < ms) {
-      if (done()) return true;
-      QTest::qWait(10);
-    }
-    return done();
-  }
 
  private slots:
   void initTestCase() {

@@ -10,6 +10,7 @@
 //    saves review.png.
 #include "replay_checks.hpp"
 #include "test_support.hpp"
+#include "window_support.hpp"
 
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/gui.hpp"
@@ -45,15 +46,6 @@ class TestReviewGui : public QObject {
   QString file_;
   qint64 first_ = 0, second_ = 0;
 
-  bool waitFor(const std::function<bool()>& done, int ms = 60000) {
-    QElapsedTimer t;
-    t.start();
-    while (t.elapsed() < ms) {
-      if (done()) return true;
-      QTest::qWait(10);
-    }
-    return done();
-  }
   long steps() { return w_->simulationPanel()->lastFrame()->steps; }
   bool waitSteps(long n) {
     const long at = steps();

@@ -175,6 +175,12 @@ struct StepReport {
 /// attachments, tool and fit constraints: `constrained`) and the lagged Newton methods work on CHOLMOD's
 /// factorisation, so CG and the dense solver take only projected attachments with the exact method.
 std::string settingsProblem(const SimulationSettings& s, bool constrained);
+/// The default method for a linear solver: the interactive one (kInteractiveMethod) on CHOLMOD's factorisation; exact
+/// with the cg and dense solvers, which the lagged methods cannot use (a scene or `simulate --solver cg` that names no
+/// method runs, as before the default changed, instead of being refused for a method nobody asked for).
+inline NewtonMethod defaultMethodFor(LinearSolverKind solver) {
+  return solver == LinearSolverKind::Cholmod ? kInteractiveMethod : NewtonMethod::Exact;
+}
 
 class Integrator {
  public:

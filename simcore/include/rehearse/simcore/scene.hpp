@@ -59,6 +59,7 @@ struct Scene {
     s.method = kInteractiveMethod;  // a scene or preset without a method runs the interactive default
     return s;
   }();
+  bool methodNamed = false;  ///< its solver component named a method (else: defaultMethodFor its solver)
   bool staticSolve = false;
   long steps = 100;
   std::vector<std::string> components;  ///< the components built, in declaration order
