@@ -507,67 +507,85 @@ bool guardsInversion(MaterialModel m) {
   return m == MaterialModel::Linear || m == MaterialModel::Corotational || m == MaterialModel::NeoHookeanSplit;
 }
 
-double inversionFreeStep(const FemModel& m, const Eigen::VectorXd& x, const Eigen::VectorXd& dx, const InversionFloor& f,
-                         std::vector<int>* limiting) {
-  double limit = 1.0;
+namespace {
+// One element's limit along x + s dx on [0, 1] (1 when it does not limit the move): the first root of its cubic.
+double elementInversionLimit(const FemModel& m, std::size_t e, const Eigen::VectorXd& x, const Eigen::VectorXd& dx,
+                             const Eigen::VectorXd& reference, bool own, const InversionFloor& f) {
+  constexpr double L = 1.0;
+  if (!guardsInversion(m.model[e])) return L;
+  const Eigen::Matrix3d F = deformation(m, e, x);
+  const double J = F.determinant();
+  const double start = own ? J : deformation(m, e, reference).determinant();
+  if (!(J > 0) || !(start > 0)) return L;  // inverted already: its law pushes it back, nothing to keep
+  // Below the floor at the start already (a state given so, or a guarded move stopped there): it may not shrink.
+  const double floor = start > f.smallest ? std::max(f.eta * start, f.smallest) : (1 - 1e-9) * start;
+  const Eigen::Matrix3d G = deformation(m, e, dx);
+  // p(s) = det(F + s G) - floor = c0 + c1 s + c2 s^2 + c3 s^3 on [0, L]: its first root is this element's limit.
+  double c0 = J - floor;
+  const double c1 = cofactorDot(F, G), c2 = cofactorDot(G, F), c3 = G.determinant();
+  double elementLimit = L;
+  if (!(c0 > 0)) {
+    // At its floor (an earlier move stopped there): it may grow, not shrink.
+    if (c1 < 0 || (c1 == 0 && c2 < 0)) elementLimit = 0;
+    c0 = 0;
+  }
+  if (elementLimit > 0 && c0 - std::abs(c1) * L - std::abs(c2) * L * L - std::abs(c3) * L * L * L <= 0) {
+    auto p = [&](double s) { return c0 + s * (c1 + s * (c2 + s * c3)); };
+    // Monotone pieces between the roots of p'(s) = c1 + 2 c2 s + 3 c3 s^2; the first piece whose end is not positive
+    // holds the root.
+    double cuts[4] = {0, L, L, L};
+    int n = 1;
+    const double a = 3 * c3, b = 2 * c2, c = c1;
+    if (a != 0) {
+      const double disc = b * b - 4 * a * c;
+      if (disc >= 0) {
+        const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
+        double r1 = q != 0 ? q / a : 0, r2 = q != 0 ? c / q : 0;
+        if (r1 > r2) std::swap(r1, r2);
+        for (double r : {r1, r2})
+          if (r > 0 && r < L) cuts[n++] = r;
+      }
+    } else if (b != 0) {
+      const double r = -c / b;
+      if (r > 0 && r < L) cuts[n++] = r;
+    }
+    cuts[n++] = L;
+    for (int k = 1; k < n; ++k) {
+      double lo = cuts[k - 1], hi = cuts[k];
+      if (p(hi) > 0) continue;
+      for (int it = 0; it < 100 && hi - lo > 1e-14; ++it) {
+        const double mid = 0.5 * (lo + hi);
+        (p(mid) > 0 ? lo : hi) = mid;
+      }
+      elementLimit = lo;  // p(lo) > 0 (or lo = 0 at the floor): the element keeps its floor up to here
+      break;
+    }
+  }
+  return elementLimit;
+}
+}  // namespace
+
+double inversionFreeStep(const FemModel& m, const Eigen::VectorXd& x, const Eigen::VectorXd& dx,
+                         const InversionFloor& f, std::vector<int>* limiting) {
   if (limiting) limiting->clear();
   const Eigen::VectorXd& reference = f.reference && f.reference->size() == x.size() ? *f.reference : x;
   const bool own = &reference == &x;
-  for (std::size_t e = 0; e < m.tets.size(); ++e) {
-    if (!guardsInversion(m.model[e])) continue;
-    const Eigen::Matrix3d F = deformation(m, e, x);
-    const double J = F.determinant();
-    const double start = own ? J : deformation(m, e, reference).determinant();
-    if (!(J > 0) || !(start > 0)) continue;  // inverted already: its law pushes it back, nothing to keep
-    // Below the floor at the start already (a state given so, or a guarded move stopped there): it may not shrink.
-    const double floor = start > f.smallest ? std::max(f.eta * start, f.smallest) : (1 - 1e-9) * start;
-    const Eigen::Matrix3d G = deformation(m, e, dx);
-    // p(s) = det(F + s G) - floor = c0 + c1 s + c2 s^2 + c3 s^3 on [0, L]: its first root is this element's limit.
-    double c0 = J - floor;
-    const double c1 = cofactorDot(F, G), c2 = cofactorDot(G, F), c3 = G.determinant();
-    const double L = limiting ? 1.0 : limit;  // every element's own limit when they are listed
-    double elementLimit = L;
-    if (!(c0 > 0)) {
-      // At its floor (an earlier move stopped there): it may grow, not shrink.
-      if (c1 < 0 || (c1 == 0 && c2 < 0)) elementLimit = 0;
-      c0 = 0;
-    }
-    if (elementLimit > 0 && c0 - std::abs(c1) * L - std::abs(c2) * L * L - std::abs(c3) * L * L * L <= 0) {
-      auto p = [&](double s) { return c0 + s * (c1 + s * (c2 + s * c3)); };
-      // Monotone pieces between the roots of p'(s) = c1 + 2 c2 s + 3 c3 s^2; the first piece whose end is not positive holds the root.
-      double cuts[4] = {0, L, L, L};
-      int n = 1;
-      const double a = 3 * c3, b = 2 * c2, c = c1;
-      if (a != 0) {
-        const double disc = b * b - 4 * a * c;
-        if (disc >= 0) {
-          const double q = -0.5 * (b + std::copysign(std::sqrt(disc), b));
-          double r1 = q != 0 ? q / a : 0, r2 = q != 0 ? c / q : 0;
-          if (r1 > r2) std::swap(r1, r2);
-          for (double r : {r1, r2})
-            if (r > 0 && r < L) cuts[n++] = r;
-        }
-      } else if (b != 0) {
-        const double r = -c / b;
-        if (r > 0 && r < L) cuts[n++] = r;
-      }
-      cuts[n++] = L;
-      for (int k = 1; k < n; ++k) {
-        double lo = cuts[k - 1], hi = cuts[k];
-        if (p(hi) > 0) continue;
-        for (int it = 0; it < 100 && hi - lo > 1e-14; ++it) {
-          const double mid = 0.5 * (lo + hi);
-          (p(mid) > 0 ? lo : hi) = mid;
-        }
-        elementLimit = lo;  // p(lo) > 0 (or lo = 0 at the floor): the element keeps its floor up to here
-        break;
-      }
-    }
-    if (elementLimit < L) {
-      limit = std::min(limit, elementLimit);
+  // The elements in parallel into a buffer (each its own limit), then a serial pass in element order: the same
+  // answer and list every run. The calling thread's buffer is reused between calls (no allocation once sized).
+  thread_local std::vector<double> buffer;
+  buffer.resize(m.tets.size());
+  double* const limits = buffer.data();
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, m.tets.size(), 256),
+                    [&](const tbb::blocked_range<std::size_t>& r) {
+                      for (std::size_t e = r.begin(); e < r.end(); ++e)
+                        limits[e] = elementInversionLimit(m, e, x, dx, reference, own, f);
+                    });
+  double limit = 1.0;
+  for (std::size_t e = 0; e < m.tets.size(); ++e)
+    if (limits[e] < 1.0) {
+      limit = std::min(limit, limits[e]);
       if (limiting) limiting->push_back(static_cast<int>(e));
     }
-  }
   return limit;
 }
 

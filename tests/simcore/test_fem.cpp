@@ -86,6 +86,46 @@ class TestFem : public QObject {
     QVERIFY(firstPiola(MaterialModel::Linear, p, R).norm() > 1e5);
   }
 
+  // The polar decomposition F = R S (Higham's scaled Newton, then Newton-Schulz; issue 34) against the one from Eigen's
+  // SVD (R = U V^T, S = V Sigma V^T, det R = +1): strains from 1e-6 to 3x, any rotation, nearly flat and inverted
+  // elements (the SVD fallback), 2,000 draws each.
+  void polarDecompositionMatchesTheSvd() {
+    std::mt19937 rng(34);
+    std::uniform_real_distribution<double> u(-1, 1);
+    for (double strain : {1e-6, 1e-3, 0.05, 0.3, 1.0, 3.0})
+      for (int k = 0; k < 2000; ++k) {
+        const Eigen::Matrix3d Q =
+            Eigen::AngleAxisd(3.14159 * u(rng), Eigen::Vector3d(u(rng), u(rng), u(rng)).normalized())
+                .toRotationMatrix();
+        Eigen::Matrix3d D;
+        for (int i = 0; i < 9; ++i) D(i / 3, i % 3) = u(rng);
+        Eigen::Matrix3d F = Q * (Eigen::Matrix3d::Identity() + strain * D);
+        if (k % 50 == 0) F.col(2) = 0.4 * F.col(0) - 0.7 * F.col(1) + 1e-9 * F.col(2);  // nearly flat
+        if (k % 50 == 1) F.col(0) = -F.col(0);                                          // inverted
+        Eigen::JacobiSVD<Eigen::Matrix3d> svd(F, Eigen::ComputeFullU | Eigen::ComputeFullV);
+        Eigen::Matrix3d U = svd.matrixU(), V = svd.matrixV();
+        Eigen::Vector3d sigma = svd.singularValues();
+        if ((U * V.transpose()).determinant() < 0) {  // the reflection goes into the smallest singular value
+          U.col(2) *= -1;
+          sigma[2] *= -1;
+        }
+        const Eigen::Matrix3d Rref = U * V.transpose(), Sref = V * sigma.asDiagonal() * V.transpose();
+        Eigen::Matrix3d R, S;
+        polarDecomposition(F, R, S);
+        // Well separated singular values fix R to round-off; the nearly flat ones fix it only up to the conditioning.
+        const double gap = std::min(std::abs(sigma[0] + sigma[1]), std::abs(sigma[1] + sigma[2])) / sigma[0];
+        const double tol = 1e-13 / std::max(gap, 1e-9);
+        QVERIFY2((R - Rref).norm() < tol, qPrintable(QString("strain %1 draw %2: |R - R_svd| = %3 (tolerance %4)")
+                                                         .arg(strain)
+                                                         .arg(k)
+                                                         .arg((R - Rref).norm())
+                                                         .arg(tol)));
+        QVERIFY((R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-14);
+        QVERIFY(R.determinant() > 0);
+        QVERIFY((S - Sref).norm() < 1e-12 * std::max(1.0, F.norm()) / std::max(gap, 1e-3));
+      }
+  }
+
   // At small strain every model is linear elasticity with the same E and nu.
   void smallStrainAgreement() {
     std::mt19937 rng(9);

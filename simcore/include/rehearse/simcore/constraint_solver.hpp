@@ -32,7 +32,8 @@ void validateConstraint(const ScalarConstraint& c, std::size_t nodeCount);
 
 class ConstraintSolver {
  public:
-  /// The constraints (checked with validateConstraint) and the nodes fixed by projection (1: fixed).
+  /// The constraints (checked with validateConstraint) and the nodes fixed by projection (1: fixed). W (and A^-1 H^T)
+  /// are kept when only the values changed (the same rows: a grasp whose tip moves), the factor being the same.
   void setConstraints(std::vector<ScalarConstraint> constraints, const std::vector<char>& fixed);
   const std::vector<ScalarConstraint>& constraints() const { return constraints_; }
   Eigen::Index size() const { return static_cast<Eigen::Index>(constraints_.size()); }
@@ -97,6 +98,9 @@ class ConstraintSolver {
   Eigen::VectorXd fixedT_, fixedY_;
   bool activeSet();
   bool schurValid_ = false;  // A_ and W_ belong to the current factor and constraints
+  // The factor they were computed with, and its factorisation count then (a belt to invalidate()'s braces).
+  const CholmodSolver* schurFactor_ = nullptr;
+  int schurFactorisations_ = -1;
 };
 
 }  // namespace rehearse::simcore
