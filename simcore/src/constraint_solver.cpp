@@ -95,6 +95,54 @@ bool ConstraintSolver::projectedSolve(CholmodSolver& factor, const Eigen::Vector
   return z.allFinite() && y.allFinite();
 }
 
+bool NodeCompliance::prepare(CholmodSolver& factor, const std::vector<ScalarConstraint>& rows,
+                             const std::vector<char>& fixed) {
+  const std::size_t nodes = fixed.size();
+  const auto n3 = static_cast<Eigen::Index>(3 * nodes);
+  if (factor_ != &factor || factorisations_ != factor.factorisations() || slotOf_.size() != nodes ||
+      cols_.rows() != n3) {
+    slotOf_.assign(nodes, -1);
+    slotNodes_.clear();
+    factor_ = &factor;
+    factorisations_ = factor.factorisations();
+  }
+  auto wanted = [&](int node) {
+    return node >= 0 && static_cast<std::size_t>(node) < nodes && !fixed[static_cast<std::size_t>(node)];
+  };
+  const auto capacity = std::max<std::size_t>(16, (24u << 20) / (sizeof(double) * 9 * std::max<std::size_t>(nodes, 1)));
+  std::size_t missing = 0;  // an upper bound (a node in two rows counts twice)
+  for (const auto& c : rows)
+    for (int node : c.nodes) missing += wanted(node) && slotOf_[static_cast<std::size_t>(node)] < 0;
+  if (slotNodes_.size() + missing > capacity) {
+    for (int node : slotNodes_) slotOf_[static_cast<std::size_t>(node)] = -1;
+    slotNodes_.clear();
+  }
+  for (const auto& c : rows)
+    for (int node : c.nodes) {
+      if (!wanted(node) || slotOf_[static_cast<std::size_t>(node)] >= 0) continue;
+      const auto slot = static_cast<Eigen::Index>(slotNodes_.size());
+      if (cols_.rows() != n3 || cols_.cols() < 3 * (slot + 1)) {
+        // Grown by doubling (it allocates only then), up to the bound; rows on more nodes than the bound still get a
+        // block each (the bound only decides when to start again).
+        const Eigen::Index cols = std::max<Eigen::Index>(
+            3 * (slot + 1), std::min<Eigen::Index>(3 * static_cast<Eigen::Index>(capacity), 2 * cols_.cols()));
+        if (cols_.rows() != n3)
+          cols_.resize(n3, std::max<Eigen::Index>(cols, 24));
+        else
+          cols_.conservativeResize(Eigen::NoChange, cols);
+      }
+      if (unit_.rows() != n3 || unit_.cols() != 3) unit_.setZero(n3, 3);
+      for (int d = 0; d < 3; ++d) unit_(3 * node + d, d) = 1;
+      const bool ok = factor.solve(unit_, solved_);
+      for (int d = 0; d < 3; ++d) unit_(3 * node + d, d) = 0;
+      if (!ok || solved_.rows() != n3 || solved_.cols() != 3) return false;
+      cols_.middleCols<3>(3 * slot) = solved_;
+      slotOf_[static_cast<std::size_t>(node)] = static_cast<int>(slot);
+      slotNodes_.push_back(node);
+    }
+  return true;
+}
+
 bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx,
                              int& sweeps, const Eigen::VectorXd* carried) {
   const Eigen::Index m = size();
@@ -103,14 +151,24 @@ bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, do
   if (!schurValid_ || W_.rows() != m || Ht_.rows() != n3 || schurFactor_ != &factor ||
       schurFactorisations_ != factor.factorisations()) {
     if (Ht_.rows() != n3 || Ht_.cols() != m) Ht_.resize(n3, m);
+    if (A_.rows() != n3 || A_.cols() != m) A_.resize(n3, m);
     Ht_.setZero();
+    A_.setZero();
+    // A^-1 H^T by columns from the nodes' compliance blocks A^-1 [e_x e_y e_z] (each solved once per factor, alone:
+    // the same bits whenever it is solved): a contact row that slides over the same triangles, or a grasp row whose
+    // value changes, needs no new solve. A multi-column solve per step and contact set was most of a touching step's
+    // time (57 % of the samples on BodyParts3D's liver at 17k tets; issue 34).
+    if (!compliance_.prepare(factor, constraints_, fixed_)) return false;
     for (Eigen::Index i = 0; i < m; ++i) {
       const auto& c = constraints_[static_cast<std::size_t>(i)];
-      for (int k = 0; k < 4; ++k)
-        if (c.nodes[k] >= 0 && !fixed_[static_cast<std::size_t>(c.nodes[k])])
-          Ht_.col(i).segment<3>(3 * c.nodes[k]) += c.weights[k] * c.direction;
+      for (int k = 0; k < 4; ++k) {
+        const int node = c.nodes[k];
+        if (node < 0 || fixed_[static_cast<std::size_t>(node)]) continue;
+        Ht_.col(i).segment<3>(3 * node) += c.weights[k] * c.direction;
+        const Eigen::Vector3d wd = c.weights[k] * c.direction;
+        A_.col(i).noalias() += compliance_.block(node) * wd;
+      }
     }
-    if (!factor.solve(Ht_, A_)) return false;
     if (W_.rows() != m) W_.resize(m, m);
     for (Eigen::Index i = 0; i < m; ++i)
       for (Eigen::Index j = 0; j < m; ++j) W_(i, j) = applyRow(constraints_[static_cast<std::size_t>(i)], A_.col(j));

@@ -142,7 +142,7 @@ std::size_t Integrator::memoryBytes() const {
              static_cast<std::size_t>(m->outerSize() + 1) * sizeof(int);
   for (const TangentState* t : {&w.tangent0, &w.tangentIt, &w.tangentEnd})
     bytes += t->F.size() * (sizeof(Eigen::Matrix3d) + sizeof(TangentCache));
-  bytes += w.cons.memoryBytes();
+  bytes += w.cons.memoryBytes() + w.request.compliance.memoryBytes();
   bytes += (w.chol->factorEntries() + w.request.chol->factorEntries()) * (sizeof(double) + sizeof(int));
   return bytes;
 }

@@ -46,6 +46,7 @@ void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& 
   q.attempts = 0;
   q.pending = true;
   q.built = q.ok = false;
+  q.rows = w_->cons.constraints();
   rep.factorRequested = true;
   // Built on the second thread in both modes (the build depends only on its inputs); a deferred one is swapped
   // in only once installed (installRequestedFactor waits for it), where the recording says.
@@ -59,8 +60,10 @@ void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& 
       // BENCHMARKS.md, "Converged at every step", what each idea bought.
       setpriority(PRIO_PROCESS, static_cast<id_t>(syscall(SYS_gettid)), 10);
       tbb::task_arena alone(1);
-      return alone.execute(
-          [&] { return buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, alpha, beta, simplicial, q.attempts); });
+      return alone.execute([&] {
+        return buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, alpha, beta, simplicial, q.attempts) &&
+               q.compliance.prepare(*q.chol, q.rows, fixed_);
+      });
     });
   }
 }
@@ -84,6 +87,7 @@ bool Integrator::swapInRequested(StepReport& rep) {
   std::swap(w.Kd, q.Kd);
   std::swap(w.J, q.J);
   std::swap(w.laggedAt, q.at);
+  std::swap(w.cons.compliance(), q.compliance);  // the blocks solved with it (their factor: the same object)
   w.cons.invalidate();
   rep.factorSwapped = true;
   return true;
@@ -96,7 +100,8 @@ bool Integrator::installRequestedFactor() {
     q.ok = q.job.get();
   } else if (!q.built) {
     q.ok = buildLagged(*q.chol, q.Kd, q.J, q.at, q.step, settings_.rayleighMass, settings_.rayleighStiffness,
-                       settings_.simplicialFactor, q.attempts);
+                       settings_.simplicialFactor, q.attempts) &&
+           q.compliance.prepare(*q.chol, q.rows, fixed_);
   }
   q.built = true;  // swapped in at the next step's start
   return q.ok;

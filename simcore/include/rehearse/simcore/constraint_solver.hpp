@@ -30,6 +30,32 @@ struct ScalarConstraint {
 /// Throws MeshError with one sentence for a constraint on a missing node, or without node, direction or value.
 void validateConstraint(const ScalarConstraint& c, std::size_t nodeCount);
 
+/// The compliance blocks A^-1 [e_x e_y e_z] of mesh nodes for one factor A (3 columns per node). Each node's block is
+/// solved alone, so it has the same bits whenever and wherever it is solved (the stepping thread, the thread building
+/// a factor, a replay): which nodes are cached changes the time a step takes, never its result.
+class NodeCompliance {
+ public:
+  /// Blocks for every node of `rows` (not fixed) with `factor` as it is now; kept while the factor is the same object
+  /// at the same factorisation count. Bounded (24 MB, at least 16 nodes): full, it starts again from these rows' nodes.
+  /// False when a solve failed.
+  bool prepare(CholmodSolver& factor, const std::vector<ScalarConstraint>& rows, const std::vector<char>& fixed);
+  /// The 3n x 3 block of `node` (prepare() made it).
+  auto block(int node) const {
+    return cols_.middleCols<3>(3 * static_cast<Eigen::Index>(slotOf_[static_cast<std::size_t>(node)]));
+  }
+  std::size_t nodes() const { return slotNodes_.size(); }
+  std::size_t memoryBytes() const {
+    return sizeof(double) * static_cast<std::size_t>(cols_.size() + unit_.size() + solved_.size()) +
+           sizeof(int) * (slotOf_.size() + slotNodes_.size());
+  }
+
+ private:
+  Eigen::MatrixXd cols_, unit_, solved_;
+  std::vector<int> slotOf_, slotNodes_;  // node -> slot (-1: none), slot -> node
+  const CholmodSolver* factor_ = nullptr;
+  int factorisations_ = -1;
+};
+
 class ConstraintSolver {
  public:
   /// The constraints (checked with validateConstraint) and the nodes fixed by projection (1: fixed). W (and A^-1 H^T)
@@ -74,8 +100,10 @@ class ConstraintSolver {
   int activeSetIterations() const { return activeSetIterations_; }
   double gaussSeidelTolerance = 1e-10;  ///< relative change of the multipliers
   std::size_t memoryBytes() const {
-    return sizeof(double) * static_cast<std::size_t>(Ht_.size() + A_.size() + W_.size());
+    return sizeof(double) * static_cast<std::size_t>(Ht_.size() + A_.size() + W_.size()) + compliance_.memoryBytes();
   }
+  /// The nodes' compliance blocks W is made of (a factor built on another thread comes with its own: swapped in).
+  NodeCompliance& compliance() { return compliance_; }
 
  private:
   std::vector<ScalarConstraint> constraints_;
@@ -97,6 +125,7 @@ class ConstraintSolver {
   Eigen::LDLT<Eigen::MatrixXd> fixedFactor_;
   Eigen::VectorXd fixedT_, fixedY_;
   bool activeSet();
+  NodeCompliance compliance_;  // the blocks of the rows' nodes, for the factor of the last solve
   bool schurValid_ = false;  // A_ and W_ belong to the current factor and constraints
   // The factor they were computed with, and its factorisation count then (a belt to invalidate()'s braces).
   const CholmodSolver* schurFactor_ = nullptr;
