@@ -164,8 +164,8 @@ bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, do
       for (int k = 0; k < 4; ++k) {
         const int node = c.nodes[k];
         if (node < 0 || fixed_[static_cast<std::size_t>(node)]) continue;
-        Ht_.col(i).segment<3>(3 * node) += c.weights[k] * c.direction;
         const Eigen::Vector3d wd = c.weights[k] * c.direction;
+        Ht_.col(i).segment<3>(3 * node) += wd;
         A_.col(i).noalias() += compliance_.block(node) * wd;
       }
     }

@@ -131,6 +131,7 @@ class TestPatientRehearsal : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_F9);
     QVERIFY(waitFor([&] { return w_->caseData()->hasFit(); }, 300000));
     qInfo("fit: %s", qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
+    shot(*w_, "patient-fit");
     const auto kept = w_->caseData();  // the case from here on (edits replace it)
     const auto& c = *kept;
     double fitMoved = 0;  // how far the fit moved the nodes, in the camera's frame
@@ -235,6 +236,7 @@ class TestPatientRehearsal : public QObject {
         (panel->lastFrame()->positions[static_cast<std::size_t>(held)] - before[static_cast<std::size_t>(held)]).norm();
     // The force the page shows is the step's constraint multipliers; their jaws' share is the force balance at the
     // held nodes (the elastic forces of the state, another route).
+    shot(*w_, "patient-pulled");
     panel->pause();
     QTest::qWait(300);
     const auto* session = panel->session();

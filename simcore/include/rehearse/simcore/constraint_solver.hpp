@@ -43,7 +43,6 @@ class NodeCompliance {
   auto block(int node) const {
     return cols_.middleCols<3>(3 * static_cast<Eigen::Index>(slotOf_[static_cast<std::size_t>(node)]));
   }
-  std::size_t nodes() const { return slotNodes_.size(); }
   std::size_t memoryBytes() const {
     return sizeof(double) * static_cast<std::size_t>(cols_.size() + unit_.size() + solved_.size()) +
            sizeof(int) * (slotOf_.size() + slotNodes_.size());
