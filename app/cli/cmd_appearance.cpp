@@ -122,22 +122,37 @@ int cmdAppearance(const std::vector<std::string>& args) {
       stages.push_back({{"stage", st.name}, {"rms_levels", st.rms}, {"ms", st.ms}, {"pixels", st.pixels}});
     stages.push_back(
         {{"stage", std::string("background (") + imaging::inpaintMethodName(in.inpaint) + ")"}, {"ms", r.inpaintMs}});
-    writeReport(o["report"], {{"status", r.fit.status},
-                              {"highlight_found", r.fit.highlightFound},
-                              {"texture_only", r.fit.textureOnly},
-                              {"explained", r.fit.explained},
-                              {"ks_measured", {r.fit.ksMeasured[0], r.fit.ksMeasured[1], r.fit.ksMeasured[2]}},
-                              {"highlight_pixels", r.fit.separation.count},
-                              {"rest_psnr_db", r.restPsnr},
-                              {"total_ms", r.totalMs},
-                              {"stages", stages}});
+    writeReport(o["report"],
+                {{"status", r.fit.status},
+                 {"highlight_found", r.fit.highlightFound},
+                 {"texture_only", r.fit.textureOnly},
+                 {"explained", r.fit.explained},
+                 {"smooth_share", r.fit.smoothShare},
+                 {"checks",
+                  [&] {
+                    nlohmann::json c = nlohmann::json::array();
+                    for (const auto& k : r.fit.checks)
+                      c.push_back({{"without", k.part}, {"explained", k.explainedWithout}, {"holds", k.holds}});
+                    return c;
+                  }()},
+                 {"light_from_lens_mm", 1e3 * r.fit.theta.lightPosition.norm()},
+                 {"light_at_bound", r.fit.lightAtBound},
+                 {"highlights_disagree", r.fit.highlightsDisagree},
+                 {"foreign_pixels", r.fit.foreign.empty() ? 0 : cv::countNonZero(r.fit.foreign)},
+                 {"ks_measured", {r.fit.ksMeasured[0], r.fit.ksMeasured[1], r.fit.ksMeasured[2]}},
+                 {"highlight_pixels", r.fit.separation.count},
+                 {"rest_psnr_db", r.restPsnr},
+                 {"total_ms", r.totalMs},
+                 {"stages", stages}});
   }
   std::printf(
-      "%s\nlight (%.1f, %.1f, %.1f) mm, kd (%.4f, %.4f, %.4f), ks (%.4f, %.4f, %.4f), roughness %.3f; composed at "
-      "rest: %.1f dB inside the organ; %.0f ms\n",
+      "%s\nlight (%.1f, %.1f, %.1f) mm (%.1f mm from the lens), fall-off cos^%.2f, kd (%.4f, %.4f, %.4f), ks (%.4f, "
+      "%.4f, "
+      "%.4f), roughness %.3f; composed at rest: %.1f dB inside the organ; %.0f ms\n",
       r.fit.status.c_str(), 1e3 * r.fit.theta.lightPosition.x(), 1e3 * r.fit.theta.lightPosition.y(),
-      1e3 * r.fit.theta.lightPosition.z(), r.fit.theta.kd.x(), r.fit.theta.kd.y(), r.fit.theta.kd.z(),
-      r.fit.theta.ks.x(), r.fit.theta.ks.y(), r.fit.theta.ks.z(), r.fit.theta.roughness, r.restPsnr, r.totalMs);
+      1e3 * r.fit.theta.lightPosition.z(), 1e3 * r.fit.theta.lightPosition.norm(), r.fit.theta.falloff,
+      r.fit.theta.kd.x(), r.fit.theta.kd.y(), r.fit.theta.kd.z(), r.fit.theta.ks.x(), r.fit.theta.ks.y(),
+      r.fit.theta.ks.z(), r.fit.theta.roughness, r.restPsnr, r.totalMs);
   // A fit too poor to re-shade is still written (texture mapping uses it), but says so with its own exit code.
   return r.fit.textureOnly ? 4 : 0;
 }
@@ -158,7 +173,36 @@ int cmdCompose(const std::vector<std::string>& args) {
     d.convertToMetres();
     for (const auto& p : d.points) deformed.insert(deformed.end(), {p.x(), p.y(), p.z()});
   }
-  const cv::Mat3b j = composeWithTheta(in, theta, deformed);
+  if (!o.count("view-camera") && (o.count("view-pose") || o.count("view-image") || o.count("texture-only")))
+    throw UsageError("--view-pose, --view-image and --texture-only draw a novel view: they need --view-camera");
+  cv::Mat3b j;
+  if (o.count("view-camera")) {
+    // A novel view: the organ through another camera at another pose, lit by that scope (its undistorted view).
+    if (!o.count("view-pose")) throw UsageError("--view-camera needs --view-pose (the organ's pose in that camera)");
+    cv::Mat3b viewImage;
+    if (o.count("view-image")) {
+      viewImage = cv::imread(o["view-image"], cv::IMREAD_COLOR);
+      if (viewImage.empty())
+        throw simcore::MeshError("The image " + o["view-image"] + " cannot be read; give a PNG or JPEG frame.");
+    }
+    const imaging::Camera view = imaging::loadCamera(o["view-camera"], viewImage.cols, viewImage.rows);
+    if (const std::string problem = view.problem(); !problem.empty())
+      throw simcore::MeshError("The view's camera: " + problem);
+    if (!viewImage.empty() &&
+        std::any_of(view.distortion.begin(), view.distortion.end(), [](double d) { return d != 0; })) {
+      cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F), undistorted;
+      for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) K.at<double>(r, c) = view.K(r, c);
+      for (int k = 0; k < 5; ++k) D.at<double>(0, k) = view.distortion[static_cast<std::size_t>(k)];
+      cv::undistort(viewImage, undistorted, K, D, K);
+      viewImage = undistorted;
+    }
+    j = composeNovelViewWithTheta(in, theta, view, imaging::loadPose(o["view-pose"]), viewImage, deformed,
+                                  o.count("texture-only") > 0)
+            .image;
+  } else {
+    j = composeWithTheta(in, theta, deformed);
+  }
   std::vector<uchar> buf;
   cv::imencode(ext, j, buf);
   imaging::writeFileAtomically(o["out"], std::string(buf.begin(), buf.end()));
@@ -203,11 +247,18 @@ const Command& composeCommand() {
       "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta "
       "THETA.json\n"
       "                [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint telea|ns|shiftmap|fsr]\n"
+      "                [--view-camera CAM2 --view-pose P2.json [--view-image IMG2] [--texture-only]]\n"
       "                                   the organ (deformed: its nodes in the input order) re-shaded in the "
-      "frame\n",
-      joined(frameInputOptions(), {{"theta", "THETA.json", "the appearance (rehearse appearance --out)"},
-                                   {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
-                                   {"out", "J.png", "the composited image"}}),
+      "frame,\n"
+      "                                   or through another camera (a novel view, lit by that scope)\n",
+      joined(frameInputOptions(),
+             {{"theta", "THETA.json", "the appearance (rehearse appearance --out)"},
+              {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
+              {"view-camera", "CAM2", "draw a novel view through this camera (undistorted)"},
+              {"view-pose", "P2.json", "the organ's pose in the view's camera (model to camera)"},
+              {"view-image", "IMG2", "draw the novel view over this frame of the view's camera (else black)"},
+              {"texture-only", "", "paste the fitted frame's colours instead of re-shading (the comparison)"},
+              {"out", "J.png", "the composited image"}}),
       withoutServices(cmdCompose)};
   return command;
 }

@@ -9,18 +9,33 @@
 
 namespace rehearse::imaging {
 
-Eigen::Vector3d Appearance::shade(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {
+double Appearance::falloffAt(const Eigen::Vector3d& p) const {
+  if (falloff == 0) return 1.0;
+  const double norm = p.norm();
+  if (!(p.z() > 0) || !(norm > 0)) return 0.0;
+  return std::pow(p.z() / norm, falloff);
+}
+
+void Appearance::terms(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double& diffuse, double& specular) const {
+  diffuse = specular = 0;
   const Eigen::Vector3d toLight = lightPosition - p;
   const double r2 = std::max(toLight.squaredNorm(), 1e-12);
   const Eigen::Vector3d l = toLight / std::sqrt(r2);
   const Eigen::Vector3d v = (-p).normalized();
   const double cosI = n.dot(l);
-  if (cosI <= 0) return Eigen::Vector3d::Zero();
+  if (cosI <= 0) return;
   const double cosR = std::max(n.dot(v), 1e-3);
   const Eigen::Vector3d h = (l + v).normalized();
   const double alpha = std::acos(std::clamp(n.dot(h), -1.0, 1.0));
-  const double spec = std::exp(-alpha * alpha / (2 * roughness * roughness)) / (r2 * cosR);
-  return kd * (cosI / r2) + ks * spec;
+  const double f = falloffAt(p);
+  diffuse = f * cosI / r2;
+  specular = f * std::exp(-alpha * alpha / (2 * roughness * roughness)) / (r2 * cosR);
+}
+
+Eigen::Vector3d Appearance::shade(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {
+  double d, s;
+  terms(p, n, d, s);
+  return kd * d + ks * s;
 }
 
 Appearance loadAppearance(const std::string& path) {
@@ -38,8 +53,11 @@ Appearance loadAppearance(const std::string& path) {
       a.ks[k] = j.at("ks").at(k).get<double>();
     }
     a.roughness = j.at("roughness").get<double>();
+    a.falloff = j.value("falloff", 0.0);  // files from before the laparoscope's fall-off: an isotropic light
     if (!(a.roughness > 0) || !a.kd.allFinite() || !a.ks.allFinite() || !a.lightPosition.allFinite())
       throw InputError(name + ": roughness must be positive and every value finite.");
+    if (!(a.falloff >= 0 && a.falloff <= 200))
+      throw InputError(name + ": falloff (the n of cos^n off the scope's axis) must be between 0 and 200.");
     return a;
   } catch (const InputError&) {
     throw;
@@ -54,6 +72,7 @@ void saveAppearance(const Appearance& a, const std::string& path) {
   j["kd"] = {a.kd.x(), a.kd.y(), a.kd.z()};
   j["ks"] = {a.ks.x(), a.ks.y(), a.ks.z()};
   j["roughness"] = a.roughness;
+  j["falloff"] = a.falloff;
   writeFileAtomically(path, j.dump(2) + "\n");
 }
 

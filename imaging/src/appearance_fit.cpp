@@ -27,7 +27,29 @@ double median(std::vector<double> v) {
 struct Sample {
   Eigen::Vector3d p, n, rgb;
   Eigen::Vector3d weight = Eigen::Vector3d::Ones();  ///< 0 for a channel near clipping (>= 235: its true value is unknown, or averaged with clipped neighbours)
+  cv::Point pixel{0, 0};
 };
+
+// The nonlinear unknowns: the light's position (camera frame, metres) and the scope's fall-off n (cos^n off
+// its axis, appearance.hpp); the roughness travels beside them.
+struct Light {
+  Eigen::Vector3d position = Eigen::Vector3d::Zero();
+  double falloff = 0;
+};
+
+// The model's parts that the checks switch off one at a time, to say which of them the frame bears out.
+struct Parts {
+  bool cosine = true;         ///< cos(theta_i): the surface's orientation to the light
+  bool inverseSquare = true;  ///< 1 / r^2: the light's fall-off with distance
+  bool falloff = true;        ///< cos^n off the scope's axis
+};
+
+// A laparoscope carries its light at its tip, beside the lens: the search keeps the light within this radius
+// of the camera's centre (a bounded search; the fit says when the light ends on the bound).
+constexpr double kLightBound = 0.030;
+constexpr double kMaxFalloff = 60;
+// A specular lobe wider than this (radians) is no highlight but a second diffuse term: not searched.
+constexpr double kMaxRoughness = 0.6;
 
 std::vector<Sample> collect(const cv::Mat3b& image, const SurfaceGeometry& g, const cv::Mat1b& use, std::size_t maxSamples) {
   std::vector<cv::Point> where;
@@ -39,16 +61,17 @@ std::vector<Sample> collect(const cv::Mat3b& image, const SurfaceGeometry& g, co
     const cv::Point& q = where[i];
     const cv::Vec3f p = g.position(q), n = g.normal(q);
     const cv::Vec3b c = image(q);
-    out.push_back({Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d(c[2], c[1], c[0]) / 255.0,
-                   Eigen::Vector3d(c[2] < 235, c[1] < 235, c[0] < 235)});
+    out.push_back({Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]),
+                   Eigen::Vector3d(c[2], c[1], c[0]) / 255.0, Eigen::Vector3d(c[2] < 235, c[1] < 235, c[0] < 235), q});
   }
   return out;
 }
 
-// The model's two basis terms at a sample for a light and a roughness: diffuse cos(theta_i) / r^2 and
-// specular exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r)) (appearance.hpp), zero where the light is behind.
-void basis(const Sample& s, const Eigen::Vector3d& light, double sigma, double& diffuse, double& specular) {
-  const Eigen::Vector3d toLight = light - s.p;
+// The model's two basis terms at a sample for a light and a roughness: diffuse F cos(theta_i) / r^2 and
+// specular F exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r)) (appearance.hpp), zero where the light is behind.
+void basis(const Sample& s, const Light& light, double sigma, double& diffuse, double& specular,
+           const Parts& parts = {}) {
+  const Eigen::Vector3d toLight = light.position - s.p;
   const double r2 = std::max(toLight.squaredNorm(), 1e-12);
   const Eigen::Vector3d l = toLight / std::sqrt(r2);
   const double cosI = s.n.dot(l);
@@ -59,8 +82,11 @@ void basis(const Sample& s, const Eigen::Vector3d& light, double sigma, double& 
   const Eigen::Vector3d v = (-s.p).normalized();
   const double cosR = std::max(s.n.dot(v), 1e-3);
   const double alpha = std::acos(std::clamp(s.n.dot((l + v).normalized()), -1.0, 1.0));
-  diffuse = cosI / r2;
-  specular = sigma > 0 ? std::exp(-alpha * alpha / (2 * sigma * sigma)) / (r2 * cosR) : 0.0;
+  const double f = parts.falloff && light.falloff > 0 ? std::pow(std::max(-v.z(), 0.0), light.falloff)
+                                                      : 1.0;  // v points back to the lens
+  const double distance = parts.inverseSquare ? r2 : 0.0025;  // without it: as if every point were 50 mm away
+  diffuse = f * (parts.cosine ? cosI : 1.0) / distance;
+  specular = sigma > 0 ? f * std::exp(-alpha * alpha / (2 * sigma * sigma)) / (distance * cosR) : 0.0;
 }
 
 // Variable projection: for a light position and a roughness, kd (and ks when `specular`) per channel are
@@ -69,14 +95,15 @@ struct Projected {
   Eigen::Vector3d kd = Eigen::Vector3d::Zero(), ks = Eigen::Vector3d::Zero();
 };
 
-Projected solveLinear(const std::vector<Sample>& samples, const Eigen::Vector3d& light, double sigma, bool specular, Eigen::VectorXd* residual) {
+Projected solveLinear(const std::vector<Sample>& samples, const Light& light, double sigma, bool specular,
+                      Eigen::VectorXd* residual, const Parts& parts = {}) {
   std::array<Eigen::Matrix2d, 3> A;
   std::array<Eigen::Vector2d, 3> b;
   for (int c = 0; c < 3; ++c) A[c].setZero(), b[c].setZero();
   std::vector<std::pair<double, double>> terms(samples.size());
   for (std::size_t i = 0; i < samples.size(); ++i) {
     double d, s;
-    basis(samples[i], light, sigma, d, s);
+    basis(samples[i], light, sigma, d, s, parts);
     if (!specular) s = 0;
     terms[i] = {d, s};
     const Eigen::Vector2d phi(d, s);
@@ -108,8 +135,17 @@ Projected solveLinear(const std::vector<Sample>& samples, const Eigen::Vector3d&
   return out;
 }
 
-// Levenberg-Marquardt on the nonlinear unknowns: the light (decimetres, camera frame) and, when
-// `specular`, log(sigma).
+// The bounded search's coordinates: the light as u in R^3 with position = R u / sqrt(1 + |u|^2), inside the ball
+// of radius R = kLightBound at every u; the fall-off as w with n = min(w^2, kMaxFalloff).
+Eigen::Vector3d lightFromSearch(const Eigen::Vector3d& u) { return kLightBound * u / std::sqrt(1 + u.squaredNorm()); }
+Eigen::Vector3d searchFromLight(const Eigen::Vector3d& position) {
+  Eigen::Vector3d p = position;
+  if (p.norm() > 0.98 * kLightBound) p *= 0.98 * kLightBound / p.norm();
+  return p / std::sqrt(kLightBound * kLightBound - p.squaredNorm());
+}
+
+// Levenberg-Marquardt on the nonlinear unknowns: the light and the fall-off (in the search's coordinates) and,
+// when `specular`, log(sigma).
 struct VarProFunctor {
   using Scalar = double;
   enum { InputsAtCompileTime = Eigen::Dynamic, ValuesAtCompileTime = Eigen::Dynamic };
@@ -118,35 +154,42 @@ struct VarProFunctor {
   using JacobianType = Eigen::MatrixXd;
   const std::vector<Sample>* samples;
   bool specular;
-  int inputs() const { return specular ? 4 : 3; }
+  Parts parts;
+  int inputs() const { return specular ? 5 : 4; }
   int values() const { return 3 * static_cast<int>(samples->size()); }
+  static Light light(const Eigen::VectorXd& x) {
+    return {lightFromSearch(x.head<3>()), std::min(x[3] * x[3], kMaxFalloff)};
+  }
   int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& f) const {
-    const double sigma = specular ? std::exp(x[3]) : 0.0;
-    solveLinear(*samples, 0.1 * x.head<3>(), sigma, specular, &f);
+    const double sigma = specular ? std::exp(x[4]) : 0.0;
+    solveLinear(*samples, light(x), sigma, specular, &f, parts);
     return 0;
   }
 };
 
 // Returns false when it did not settle (the evaluation budget ran out or the values went non-finite).
-bool refine(const std::vector<Sample>& samples, Eigen::Vector3d& light, double& sigma, bool specular) {
-  VarProFunctor f{&samples, specular};
-  Eigen::VectorXd x(specular ? 4 : 3);
-  x.head<3>() = 10.0 * light;
-  if (specular) x[3] = std::log(sigma);
+bool refine(const std::vector<Sample>& samples, Light& light, double& sigma, bool specular, const Parts& parts = {}) {
+  VarProFunctor f{&samples, specular, parts};
+  Eigen::VectorXd x(specular ? 5 : 4);
+  x.head<3>() = searchFromLight(light.position);
+  x[3] = parts.falloff ? std::sqrt(std::max(light.falloff, 0.0)) : 0.0;
+  if (specular) x[4] = std::log(sigma);
   Eigen::NumericalDiff<VarProFunctor> nd(f, 1e-6);
   Eigen::LevenbergMarquardt<Eigen::NumericalDiff<VarProFunctor>> lm(nd);
   lm.parameters.maxfev = 400;
   lm.parameters.xtol = 1e-10;
   lm.parameters.ftol = 1e-12;
+  if (!parts.falloff) x[3] = 0;  // held at n = 0: its column is zero, which the solver treats as a fixed unknown
   const auto status = lm.minimize(x);
   if (!x.allFinite()) return false;
-  light = 0.1 * x.head<3>();
-  if (specular) sigma = std::clamp(std::exp(x[3]), 0.005, 1.5);
+  light = VarProFunctor::light(x);
+  if (!parts.falloff) light.falloff = 0;
+  if (specular) sigma = std::clamp(std::exp(x[4]), 0.005, kMaxRoughness);
   return status != Eigen::LevenbergMarquardtSpace::TooManyFunctionEvaluation && status != Eigen::LevenbergMarquardtSpace::ImproperInputParameters;
 }
 
 // Drops samples whose residual is far beyond the typical one (texture, vessels, a tool in the way).
-std::vector<Sample> trimmed(const std::vector<Sample>& samples, const Eigen::Vector3d& light, double sigma, bool specular) {
+std::vector<Sample> trimmed(const std::vector<Sample>& samples, const Light& light, double sigma, bool specular) {
   Eigen::VectorXd r;
   solveLinear(samples, light, sigma, specular, &r);
   std::vector<double> mag(samples.size());
@@ -161,10 +204,79 @@ std::vector<Sample> trimmed(const std::vector<Sample>& samples, const Eigen::Vec
   return out.size() >= 50 ? out : samples;
 }
 
-double rmsLevels(const std::vector<Sample>& samples, const Eigen::Vector3d& light, double sigma, bool specular) {
+double rmsLevels(const std::vector<Sample>& samples, const Light& light, double sigma, bool specular) {
   Eigen::VectorXd r;
   solveLinear(samples, light, sigma, specular, &r);
   return r.size() ? 255.0 * std::sqrt(r.squaredNorm() / static_cast<double>(r.size())) : 0.0;
+}
+
+// The share of the samples' variance (all channels, about their mean colour) that residual r leaves unexplained,
+// subtracted from 1. (r is weighted per channel as solveLinear weights it: a channel near clipping counts in neither
+// part.)
+double explainedShare(const std::vector<Sample>& samples, const Eigen::VectorXd& r) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero(), count = Eigen::Vector3d::Zero();
+  for (const auto& s : samples) mean += s.rgb.cwiseProduct(s.weight), count += s.weight;
+  mean = mean.cwiseQuotient(count.cwiseMax(1.0));
+  double total = 0;
+  for (const auto& s : samples) total += (s.rgb - mean).cwiseProduct(s.weight).squaredNorm();
+  return total > 0 ? 1 - r.squaredNorm() / total : 0.0;
+}
+
+// What any smooth shading could explain: the share of the samples' variance that a polynomial of degree 5 in
+// the pixel's position explains, per channel (21 terms; the organ's texture and noise are what it leaves).
+double smoothShareOf(const std::vector<Sample>& samples) {
+  if (samples.size() < 100) return 0;
+  int x0 = samples.front().pixel.x, x1 = x0, y0 = samples.front().pixel.y, y1 = y0;
+  for (const auto& s : samples)
+    x0 = std::min(x0, s.pixel.x), x1 = std::max(x1, s.pixel.x), y0 = std::min(y0, s.pixel.y),
+    y1 = std::max(y1, s.pixel.y);
+  const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), half = 0.5 * std::max({x1 - x0, y1 - y0, 1});
+  constexpr int degree = 5, terms = (degree + 1) * (degree + 2) / 2;
+  Eigen::MatrixXd A(static_cast<Eigen::Index>(samples.size()), terms);
+  Eigen::MatrixXd b(static_cast<Eigen::Index>(samples.size()), 3);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const double X = (samples[i].pixel.x - cx) / half, Y = (samples[i].pixel.y - cy) / half;
+    int k = 0;
+    for (int a = 0; a <= degree; ++a)
+      for (int c = 0; a + c <= degree; ++c) A(static_cast<Eigen::Index>(i), k++) = std::pow(X, a) * std::pow(Y, c);
+    b.row(static_cast<Eigen::Index>(i)) = samples[i].rgb.transpose();
+  }
+  const Eigen::MatrixXd fit = A * A.colPivHouseholderQr().solve(b);
+  Eigen::VectorXd r(3 * static_cast<Eigen::Index>(samples.size()));
+  for (std::size_t i = 0; i < samples.size(); ++i)
+    r.segment<3>(3 * static_cast<Eigen::Index>(i)) =
+        (b.row(static_cast<Eigen::Index>(i)) - fit.row(static_cast<Eigen::Index>(i))).transpose();
+  return std::clamp(explainedShare(samples, r), 0.0, 1.0);
+}
+
+// Pixels whose colour is not the organ's: fiducial beads, dye, a tool's tip, blood (their chromaticity stands
+// more than max(0.04, 6 MADs) from the organ's median in either of its two coordinates), with a 3 px margin.
+cv::Mat1b foreignColour(const cv::Mat3b& image, const cv::Mat1b& organ) {
+  cv::Mat1b out(image.size(), uchar(0));
+  std::vector<double> cb, cg;
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x)
+      if (organ(y, x)) {
+        const cv::Vec3b c = image(y, x);
+        const double sum = static_cast<double>(c[0]) + c[1] + c[2];
+        if (sum >= 30) cb.push_back(c[0] / sum), cg.push_back(c[1] / sum);
+      }
+  if (cb.size() < 100) return out;
+  const double mb = median(cb), mg = median(cg);
+  std::vector<double> db(cb.size()), dg(cg.size());
+  for (std::size_t i = 0; i < cb.size(); ++i) db[i] = std::abs(cb[i] - mb), dg[i] = std::abs(cg[i] - mg);
+  const double lb = std::max(0.04, 6 * 1.4826 * median(db)), lg = std::max(0.04, 6 * 1.4826 * median(dg));
+  for (int y = 0; y < image.rows; ++y)
+    for (int x = 0; x < image.cols; ++x)
+      if (organ(y, x)) {
+        const cv::Vec3b c = image(y, x);
+        const double sum = static_cast<double>(c[0]) + c[1] + c[2];
+        if (sum >= 30 && (std::abs(c[0] / sum - mb) > lb || std::abs(c[1] / sum - mg) > lg)) out(y, x) = 255;
+      }
+  cv::morphologyEx(out, out, cv::MORPH_OPEN,
+                   cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(3, 3)));  // a lone pixel is noise
+  cv::dilate(out, out, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7)));
+  return out;
 }
 
 }  // namespace
@@ -347,7 +459,7 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
   auto t0 = tick();
   report(0.0, "finding specular highlights");
   res.separation = separateSpecular(frame, res.usable);
-  Eigen::Vector3d light(0, 0, 0.1);
+  Eigen::Vector3d light(0, 0, 0);
   res.highlightFound = res.separation.count > 0;
   if (res.highlightFound) {
     cv::Mat1i labels;
@@ -399,14 +511,23 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
         if (d[i] <= limit) sum += guesses[i].w * guesses[i].x, w += guesses[i].w;
       light = w > 0 ? Eigen::Vector3d(sum / w) : mid;
     }
-    if (!light.allFinite()) light = Eigen::Vector3d(0, 0, 0.1);
+    if (!light.allFinite()) light = Eigen::Vector3d(0, 0, 0);
   }
+  // The scope's light is at its tip: the highlights' point is kept within the search's bound.
+  if (light.norm() > kLightBound) light *= kLightBound / light.norm();
   res.stages.push_back({"light from highlights", 0, ms(t0, tick()), 0});  // its residual: at the start of the next stage
 
-  // Stage 2: the light and kd on the specular-free image, away from the highlights.
+  // Stage 2: the light, the scope's fall-off and kd on the specular-free image, away from the highlights and
+  // from what is not the organ's colour (beads, dye, a tool).
   t0 = tick();
   report(0.3, "fitting the light and the diffuse reflectance");
-  cv::Mat1b away = res.usable.clone();
+  res.foreign = foreignColour(res.separation.diffuse, res.usable);
+  if (res.highlightFound) {  // a highlight is the light's colour, not a foreign object's: its own stage takes it
+    cv::Mat1b grown;
+    cv::dilate(res.separation.highlights, grown, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(9, 9)));
+    res.foreign.setTo(0, grown);
+  }
+  cv::Mat1b away = res.usable & ~res.foreign;
   if (res.highlightFound) {
     cv::Mat1b grown;
     cv::dilate(res.separation.highlights, grown, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(9, 9)));
@@ -415,62 +536,137 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
   std::vector<Sample> diffuseSamples = collect(res.separation.diffuse, g, away, o.maxSamples);
   if (diffuseSamples.size() < 50) throw InputError("Too few organ pixels away from the highlights to fit the diffuse reflectance.");
   double sigma = 0.1;
-  res.stages.front().rms = rmsLevels(diffuseSamples, light, sigma, false);  // what the start light leaves on I_D
+  Light lit{light, 0.0};
+  res.stages.front().rms = rmsLevels(diffuseSamples, lit, sigma, false);  // what the start light leaves on I_D
   res.stages.front().pixels = diffuseSamples.size();
-  // The highlights' light, and the scope's usual places for it (at the lens; 100 mm in front of it): each
-  // refined, the one that explains I_D best kept (a wrong highlight, or a model that is not the frame's
+  // The highlights' light, and the scope's usual place for it (at the lens), with and without a fall-off:
+  // each refined, the one that explains I_D best kept (a wrong highlight, or a model that is not the frame's
   // mesh, can put the first start in another valley).
   bool settled = false;
   {
-    std::vector<Eigen::Vector3d> starts{light};
-    for (const Eigen::Vector3d& other : {Eigen::Vector3d(0, 0, 0), Eigen::Vector3d(0, 0, 0.1)})
-      if ((other - light).norm() > 0.02) starts.push_back(other);
+    std::vector<Light> starts{lit, {Eigen::Vector3d::Zero(), 4.0}};
+    if (light.norm() > 0.005) starts.push_back({Eigen::Vector3d::Zero(), 0.0});
     double best = std::numeric_limits<double>::infinity();
-    Eigen::Vector3d bestLight = light;
     for (const auto& start : starts) {
-      Eigen::Vector3d l = start;
+      Light l = start;
       double sg = sigma;
       const bool ok = refine(diffuseSamples, l, sg, false);
       const double cost = rmsLevels(diffuseSamples, l, sg, false);
-      if (cost < best) best = cost, bestLight = l, settled = ok;
+      if (cost < best) best = cost, lit = l, settled = ok;
     }
-    light = bestLight;
   }
-  diffuseSamples = trimmed(diffuseSamples, light, sigma, false);
-  settled = refine(diffuseSamples, light, sigma, false) && settled;
+  const std::vector<Sample> allDiffuse = diffuseSamples;  // the shares are over all of them, outliers included
+  diffuseSamples = trimmed(diffuseSamples, lit, sigma, false);
+  settled = refine(diffuseSamples, lit, sigma, false) && settled;
+  // The share a light explains: kd projected on the trimmed samples, the residual over all of them.
+  auto shareOf = [&](const Light& l, const Parts& parts) {
+    const Projected p = solveLinear(diffuseSamples, l, sigma, false, nullptr, parts);
+    Eigen::VectorXd r(3 * static_cast<Eigen::Index>(allDiffuse.size()));
+    for (std::size_t i = 0; i < allDiffuse.size(); ++i) {
+      double d, sp;
+      basis(allDiffuse[i], l, sigma, d, sp, parts);
+      r.segment<3>(3 * static_cast<Eigen::Index>(i)) =
+          (allDiffuse[i].rgb - p.kd * d).cwiseProduct(allDiffuse[i].weight);
+    }
+    return explainedShare(allDiffuse, r);  // below 0 when the model does worse than the organ's mean colour
+  };
+  res.explained = std::clamp(shareOf(lit, {}), 0.0, 1.0);
+  // Which parts of the model the frame bears out: each switched off in turn and the rest refitted; a part
+  // whose removal costs less than one point of the share explained is not seen in this frame. Each reduced
+  // model's light also restarts the whole model (the cost has several valleys on real tissue).
   {
-    Eigen::VectorXd r;
-    solveLinear(diffuseSamples, light, sigma, false, &r);
-    Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-    for (const auto& s : diffuseSamples) mean += s.rgb;
-    mean /= static_cast<double>(diffuseSamples.size());
-    double total = 0;
-    for (const auto& s : diffuseSamples) total += (s.rgb - mean).squaredNorm();
-    res.explained = total > 0 ? std::clamp(1 - r.squaredNorm() / total, 0.0, 1.0) : 0;
+    const std::array<std::pair<const char*, Parts>, 3> without{
+        {{"the cosine of incidence", {false, true, true}},
+         {"the inverse square of the distance", {true, false, true}},
+         {"the fall-off off the scope's axis", {true, true, false}}}};
+    std::vector<Light> reducedLights;
+    for (const auto& [name, parts] : without) {
+      Light l = lit;
+      double sg = sigma;
+      refine(diffuseSamples, l, sg, false, parts);
+      res.checks.push_back({name, std::clamp(shareOf(l, parts), 0.0, 1.0), true});
+      reducedLights.push_back(l);
+    }
+    for (Light l : reducedLights) {
+      if (l.falloff == 0) l.falloff = std::max(lit.falloff, 1.0);
+      double sg = sigma;
+      const bool ok = refine(diffuseSamples, l, sg, false);
+      const double share = std::clamp(shareOf(l, {}), 0.0, 1.0);
+      if (share > res.explained + 1e-6) res.explained = share, lit = l, settled = ok;
+    }
+    for (auto& c : res.checks) c.holds = res.explained - c.explainedWithout >= 0.01;
   }
-  res.stages.push_back({"light and diffuse (I_D)", rmsLevels(diffuseSamples, light, sigma, false), ms(t0, tick()), diffuseSamples.size()});
+  res.stages.push_back(
+      {"light and diffuse (I_D)", rmsLevels(diffuseSamples, lit, sigma, false), ms(t0, tick()), diffuseSamples.size()});
 
   // Stage 3: ks and the roughness on the frame itself, the light and kd refined with them; the highlights
   // and their surroundings all count, the rest of the organ subsampled.
   t0 = tick();
   report(0.7, "fitting the specular reflectance and roughness");
   Projected lin;
+  const cv::Mat1b clean = res.usable & ~res.foreign;
   if (res.highlightFound) {
     cv::Mat1b near;
     cv::dilate(res.separation.highlights, near, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(61, 61)));
-    near &= res.usable;
+    near &= clean;
     std::vector<Sample> specSamples = collect(frame, g, near, o.maxSamples / 2);
-    const std::vector<Sample> rest = collect(frame, g, res.usable & ~near, o.maxSamples / 2);
+    const std::vector<Sample> rest = collect(frame, g, clean & ~near, o.maxSamples / 2);
     specSamples.insert(specSamples.end(), rest.begin(), rest.end());
-    // The roughness first on a log grid (the cost is not convex in it), then everything together.
+    // The roughness first on a log grid (the cost is not convex in it), then everything together: the
+    // highlights pin the light better than the diffuse shading does.
     double bestCost = std::numeric_limits<double>::infinity();
-    for (double s = 0.02; s <= 1.0; s *= 1.25) {
+    for (double sg = 0.02; sg <= kMaxRoughness; sg *= 1.25) {
       Eigen::VectorXd r;
-      solveLinear(specSamples, light, s, true, &r);
-      if (r.squaredNorm() < bestCost) bestCost = r.squaredNorm(), sigma = s;
+      solveLinear(specSamples, lit, sg, true, &r);
+      if (r.squaredNorm() < bestCost) bestCost = r.squaredNorm(), sigma = sg;
     }
-    settled = refine(specSamples, light, sigma, true) && settled;
-    lin = solveLinear(specSamples, light, sigma, true, nullptr);
+    // Kept only when it still explains the shading (the diffuse stage's share, within 2 points): on real tissue
+    // the glints of wet facets far finer than the mesh can pull the light where the shading says it is not.
+    {
+      auto diffuseShare = [&](const Light& l) { return shareOf(l, {}); };
+      const Light before = lit;
+      const double sigmaBefore = sigma, shareBefore = diffuseShare(before);
+      const bool ok = refine(specSamples, lit, sigma, true);
+      if (diffuseShare(lit) < shareBefore - 0.02) {
+        lit = before;
+        sigma = sigmaBefore;
+        res.highlightsDisagree = true;
+      } else {
+        settled = ok && settled;
+      }
+    }
+    lin = solveLinear(specSamples, lit, sigma, true, nullptr);
+    if (res.highlightsDisagree) {
+      // kd stays the shading's (the diffuse stage's); ks and the roughness are fitted on top of it.
+      const Eigen::Vector3d kd = solveLinear(diffuseSamples, lit, sigma, false, nullptr).kd;
+      auto ksFor = [&](double sg, double* cost) {
+        Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+        std::vector<std::pair<double, double>> terms(specSamples.size());
+        for (std::size_t i = 0; i < specSamples.size(); ++i) {
+          basis(specSamples[i], lit, sg, terms[i].first, terms[i].second);
+          const Eigen::Vector3d rest = specSamples[i].rgb - kd * terms[i].first;
+          num += terms[i].second * rest.cwiseProduct(specSamples[i].weight);
+          den += terms[i].second * terms[i].second * specSamples[i].weight;
+        }
+        const Eigen::Vector3d ks = num.cwiseQuotient(den.cwiseMax(1e-30)).cwiseMax(0.0);
+        if (cost) {
+          *cost = 0;
+          for (std::size_t i = 0; i < specSamples.size(); ++i)
+            *cost += (specSamples[i].rgb - kd * terms[i].first - ks * terms[i].second)
+                         .cwiseProduct(specSamples[i].weight)
+                         .squaredNorm();
+        }
+        return ks;
+      };
+      double best = std::numeric_limits<double>::infinity();
+      for (double sg = 0.02; sg <= kMaxRoughness; sg *= 1.25) {
+        double c;
+        ksFor(sg, &c);
+        if (c < best) best = c, sigma = sg;
+      }
+      lin.kd = kd;
+      lin.ks = ksFor(sigma, nullptr);
+    }
     // A channel clipped at the highlight (left out of the solve above) still says something: the model must
     // reach at least the clipped value there. Its ks is refitted with that as a one-sided (censored) term.
     for (int c = 0; c < 3; ++c) {
@@ -478,7 +674,7 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
       std::size_t clipped = 0;
       for (const auto& smp : specSamples) {
         double d, sp;
-        basis(smp, light, sigma, d, sp);
+        basis(smp, lit, sigma, d, sp);
         terms.push_back({d, sp, smp.rgb[c], smp.weight[c] == 0 ? 1.0 : 0.0});
         clipped += smp.weight[c] == 0 && sp > 0;
       }
@@ -508,12 +704,14 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
       }
       lin.ks[c] = 0.5 * (lo + hi);
     }
-    res.stages.push_back({"specular and roughness (I)", rmsLevels(specSamples, light, sigma, true), ms(t0, tick()), specSamples.size()});
+    res.stages.push_back(
+        {"specular and roughness (I)", rmsLevels(specSamples, lit, sigma, true), ms(t0, tick()), specSamples.size()});
   } else {
-    lin = solveLinear(diffuseSamples, light, sigma, false, nullptr);
+    lin = solveLinear(diffuseSamples, lit, sigma, false, nullptr);
     // No specular part to fit: the residual is the diffuse model's on the frame itself.
-    const std::vector<Sample> onFrame = collect(frame, g, res.usable, o.maxSamples);
-    res.stages.push_back({"specular and roughness (I)", rmsLevels(onFrame, light, sigma, false), ms(t0, tick()), onFrame.size()});
+    const std::vector<Sample> onFrame = collect(frame, g, clean, o.maxSamples);
+    res.stages.push_back(
+        {"specular and roughness (I)", rmsLevels(onFrame, lit, sigma, false), ms(t0, tick()), onFrame.size()});
   }
   // A channel clipped all over its highlight: its ks is not in the frame. A highlight has the light's
   // colour (the specular reflection of tissue does not tint it much), so it takes the measured channels'
@@ -531,17 +729,50 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
         unmeasured += std::string(unmeasured.empty() ? "" : " and ") + names[c];
       }
   }
-  res.theta.lightPosition = light;
+  res.theta.lightPosition = lit.position;
+  res.theta.falloff = lit.falloff;
   res.theta.kd = lin.kd;
   res.theta.ks = res.highlightFound ? lin.ks : Eigen::Vector3d::Zero();
   res.theta.roughness = sigma;
+  res.lightAtBound = lit.position.norm() > 0.97 * kLightBound;
+  // The share Theta as delivered explains of the organ's shading: its diffuse part (light, fall-off and kd after
+  // the specular stage) on the specular-free image's samples of the diffuse stage; and what any smooth function
+  // of the image position explains of the same samples.
+  {
+    Eigen::VectorXd r(3 * static_cast<Eigen::Index>(allDiffuse.size()));
+    for (std::size_t i = 0; i < allDiffuse.size(); ++i) {
+      double d, sp;
+      basis(allDiffuse[i], lit, sigma, d, sp);
+      r.segment<3>(3 * static_cast<Eigen::Index>(i)) =
+          (allDiffuse[i].rgb - res.theta.kd * d).cwiseProduct(allDiffuse[i].weight);
+    }
+    res.explained = std::clamp(explainedShare(allDiffuse, r), 0.0, 1.0);
+    res.smoothShare = smoothShareOf(allDiffuse);
+  }
   res.textureOnly = res.explained < o.poorShare;
-  char text[400];
-  std::snprintf(text, sizeof text, "%s; the diffuse model explains %.0f %% of the organ's shading%s",
-                res.highlightFound ? "fitted" : "no specular highlight found: the light started at (0, 0, 100 mm) and the specular part is not determined (ks = 0)",
-                100 * res.explained,
-                res.textureOnly ? ": too little, so the organ is shown with the frame's own texture, not re-shaded" : "");
+  char text[600];
+  std::snprintf(
+      text, sizeof text,
+      "%s; the diffuse model explains %.0f %% of the organ's shading (a smooth function of the image position: %.0f "
+      "%%)%s",
+      res.highlightFound ? "fitted"
+                         : "no specular highlight found: the light started at the lens and the specular part is not "
+                           "determined (ks = 0)",
+      100 * res.explained, 100 * res.smoothShare,
+      res.textureOnly ? ": too little, so the organ is shown with the frame's own texture, not re-shaded" : "");
   res.status = text;
+  std::string notSeen;
+  for (const auto& c : res.checks)
+    if (!c.holds) notSeen += std::string(notSeen.empty() ? "" : ", ") + c.part;
+  if (!notSeen.empty())
+    res.status += "; the frame does not bear out " + notSeen + " (without it the model explains as much)";
+  if (res.lightAtBound)
+    res.status += "; the light ends on the search's bound (" + std::to_string(static_cast<int>(kLightBound * 1e3)) +
+                  " mm from the lens): the frame does not place it";
+  if (res.highlightsDisagree)
+    res.status +=
+        "; the highlights would move the light where the shading says it is not (glints of facets finer than the "
+        "mesh): the shading's light is kept";
   if (!settled) res.status += "; the fit did not settle within its evaluation budget: the values are the last it reached";
   if (!unmeasured.empty())
     res.status += "; the " + unmeasured + " channel is clipped all over the highlight, so its specular reflectance is not measured: taken as the other channels' mean";
@@ -558,7 +789,7 @@ cv::Mat3f albedoRatio(const cv::Mat3b& diffuse, const SurfaceGeometry& rest, con
       const cv::Vec3f p = rest.position(y, x), n = rest.normal(y, x);
       Sample s{Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d::Zero()};
       double d, sp;
-      basis(s, theta.lightPosition, theta.roughness, d, sp);
+      basis(s, Light{theta.lightPosition, theta.falloff}, theta.roughness, d, sp);
       peak = std::max(peak, d);
     }
   for (int y = 0; y < diffuse.rows; ++y)
@@ -567,7 +798,7 @@ cv::Mat3f albedoRatio(const cv::Mat3b& diffuse, const SurfaceGeometry& rest, con
       const cv::Vec3f p = rest.position(y, x), n = rest.normal(y, x);
       Sample s{Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d::Zero()};
       double d, sp;
-      basis(s, theta.lightPosition, theta.roughness, d, sp);
+      basis(s, Light{theta.lightPosition, theta.falloff}, theta.roughness, d, sp);
       if (d < 0.05 * peak) continue;
       const cv::Vec3b c = diffuse(y, x);
       for (int k = 0; k < 3; ++k) {

@@ -117,7 +117,7 @@ struct Compositor::Impl {
     if (!(length > 0) || !std::isfinite(length)) return false;
     normal /= length;
     if (normal.dot(p) > 0) normal = -normal;  // an open surface seen from inside
-    // Theta's model (appearance.hpp): kd cos(theta_i) / r^2 + ks exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r)).
+    // Theta's model (appearance.hpp): F [kd cos(theta_i) / r^2 + ks exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r))].
     const Eigen::Vector3d toLight = theta.lightPosition - p;
     const double r2 = std::max(toLight.squaredNorm(), 1e-12);
     const Eigen::Vector3d l = toLight / std::sqrt(r2);
@@ -129,7 +129,10 @@ struct Compositor::Impl {
       diffuse = cosI / r2;
       specular = theta.roughness > 0 ? lobeAt(normal.dot((l + v).normalized())) / (r2 * cosR) : 0.0;
     }
-    for (int k = 0; k < 3; ++k) bgr[k] = static_cast<float>(255.0 * (albedoHere[k] * theta.kd[2 - k] * diffuse + theta.ks[2 - k] * specular));
+    const double falloff = theta.falloffAt(p);  // the scope's light cone and vignetting
+    for (int k = 0; k < 3; ++k)
+      bgr[k] = static_cast<float>(255.0 * falloff *
+                                  (albedoHere[k] * theta.kd[2 - k] * diffuse + theta.ks[2 - k] * specular));
     return true;
   }
 };

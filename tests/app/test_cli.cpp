@@ -7,7 +7,11 @@
 #include <QJsonDocument>
 #include <QJsonObject>
 #include <QProcess>
+#include <rehearse/imaging/appearance_fit.hpp>
 #include <rehearse/simcore/meshio.hpp>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <sstream>
 
@@ -219,6 +223,46 @@ class TestCli : public QObject {
              dir + "/j.png"});
     QVERIFY2(r.code == 0, qPrintable(r.err));
     QVERIFY(QFile(dir + "/j.png").size() > 10000);
+    // A novel view (issue 35) through the fitting camera at the fitting pose is the frame again inside the organ,
+    // re-shaded and texture-only; the novel-view options without a view camera are a usage error.
+    const cv::Mat3b frame = cv::imread((dir + "/frame.png").toStdString(), cv::IMREAD_COLOR);
+    for (const bool texture : {false, true}) {
+      QStringList args{"compose",
+                       "--mesh",
+                       dir + "/organ.vtu",
+                       "--camera",
+                       dir + "/camera.yaml",
+                       "--pose",
+                       dir + "/pose.json",
+                       "--image",
+                       dir + "/frame.png",
+                       "--theta",
+                       dir + "/theta.json",
+                       "--view-camera",
+                       dir + "/camera.yaml",
+                       "--view-pose",
+                       dir + "/pose.json",
+                       "--out",
+                       dir + "/novel.png"};
+      if (texture) args << "--texture-only";
+      r = run(args);
+      QVERIFY2(r.code == 0, qPrintable(r.err));
+      const cv::Mat3b view = cv::imread((dir + "/novel.png").toStdString(), cv::IMREAD_COLOR);
+      QCOMPARE(view.size(), frame.size());
+      cv::Mat1b organ;
+      cv::cvtColor(view, organ, cv::COLOR_BGR2GRAY);
+      organ = organ > 0;
+      cv::erode(organ, organ, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7)));
+      const double db = rehearse::imaging::psnr(frame, view, organ);
+      qInfo("novel view at the fitting pose (%s): %d px, %.1f dB", texture ? "texture-only" : "re-shaded",
+            cv::countNonZero(organ), db);
+      QVERIFY(cv::countNonZero(organ) > 50000);
+      QVERIFY(db >= 30);
+    }
+    expectOneLineError(run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/pose.json", "--image", dir + "/frame.png", "--theta", dir + "/theta.json",
+                            "--view-pose", dir + "/pose.json", "--out", dir + "/n.png"}),
+                       2, "need --view-camera");
     // Bad input: the organ behind the camera, a deformed mesh of another organ, an unknown inpainting method.
     QFile behind(dir + "/behind.json");
     behind.open(QIODevice::WriteOnly);

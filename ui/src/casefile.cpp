@@ -213,7 +213,12 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
         tree.push_back({{"a", vec(t.vesselAxes[i].first)}, {"b", vec(t.vesselAxes[i].second)}, {"radius", t.vesselRadii[i]}});
       const auto& a = t.appearance;
       json gt = {{"pose", poseJson(t.pose)},
-                 {"appearance", {{"light_position", vec(a.lightPosition)}, {"kd", vec(a.kd)}, {"ks", vec(a.ks)}, {"roughness", a.roughness}}},
+                 {"appearance",
+                  {{"light_position", vec(a.lightPosition)},
+                   {"kd", vec(a.kd)},
+                   {"ks", vec(a.ks)},
+                   {"roughness", a.roughness},
+                   {"falloff", a.falloff}}},
                  {"vessel_tree", tree}};
       part("ground_truth", "json", bytes(gt.dump()));
     }
@@ -450,6 +455,7 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
       t->appearance.kd = vec3(a.at("kd"));
       t->appearance.ks = vec3(a.at("ks"));
       t->appearance.roughness = a.at("roughness").get<double>();
+      t->appearance.falloff = a.value("falloff", 0.0);
       for (const auto& s : j.at("vessel_tree")) {
         t->vesselAxes.emplace_back(vec3(s.at("a")), vec3(s.at("b")));
         t->vesselRadii.push_back(s.at("radius").get<double>());

@@ -64,6 +64,7 @@ uniform vec3 light;
 uniform vec3 kd;
 uniform vec3 ks;
 uniform float sigma;
+uniform float falloff;       // n of cos^n off the scope's axis (appearance.hpp)
 uniform bool textureOnly;
 out vec4 colour;
 void main() {
@@ -97,7 +98,8 @@ void main() {
     diffuse = cosI / r2;
     specular = sigma > 0.0 ? exp(-alpha * alpha / (2.0 * sigma * sigma)) / (r2 * cosR) : 0.0;
   }
-  colour = vec4(clamp(a * kd * diffuse + ks * specular, 0.0, 1.0), 1.0);
+  float f = falloff > 0.0 ? pow(max(p.z, 0.0) / length(p), falloff) : 1.0;
+  colour = vec4(clamp(f * (a * kd * diffuse + ks * specular), 0.0, 1.0), 1.0);
 })";
 
 }  // namespace
@@ -319,6 +321,7 @@ bool GLCompositor::compose(const std::vector<double>& deformedVertices, QImage& 
     p.setUniformValue("kd", QVector3D(float(th.kd.x()), float(th.kd.y()), float(th.kd.z())));
     p.setUniformValue("ks", QVector3D(float(th.ks.x()), float(th.ks.y()), float(th.ks.z())));
     p.setUniformValue("sigma", float(th.roughness));
+    p.setUniformValue("falloff", float(th.falloff));
     p.setUniformValue("textureOnly", d.textureOnly);
     gl->glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(indices.size()), GL_UNSIGNED_INT, nullptr);
     p.release();

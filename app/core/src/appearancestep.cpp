@@ -82,6 +82,7 @@ std::string appearanceEstimateToJson(const AppearanceEstimate& e) {
               {"kd", vec(e.theta.kd)},
               {"ks", vec(e.theta.ks)},
               {"roughness", e.theta.roughness},
+              {"falloff", e.theta.falloff},
               {"highlight_found", e.highlightFound},
               {"texture_only", e.textureOnly},
               {"ks_measured", {e.ksMeasured[0], e.ksMeasured[1], e.ksMeasured[2]}},
@@ -91,8 +92,11 @@ std::string appearanceEstimateToJson(const AppearanceEstimate& e) {
               {"stages", stages},
               {"rest_psnr_db", e.restPsnr},
               {"total_ms", e.totalMs},
-              {"fitted_on", {{"pose", {{"R", r}, {"t", vec(e.pose.t)}}}, {"shape_digest", e.shapeDigest}, {"frame_size", {e.frameWidth, e.frameHeight}},
-                             {"frame_digest", e.frameDigest}}}}
+              {"fitted_on",
+               {{"pose", {{"R", r}, {"t", vec(e.pose.t)}}},
+                {"shape_digest", e.shapeDigest},
+                {"frame_size", {e.frameWidth, e.frameHeight}},
+                {"frame_digest", e.frameDigest}}}}
       .dump();
 }
 
@@ -104,6 +108,9 @@ std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::
   e->theta.ks = vec3(j.at("ks"));
   e->theta.roughness = j.at("roughness").get<double>();
   if (!std::isfinite(e->theta.roughness) || e->theta.roughness < 0) throw std::runtime_error("the roughness is not a non-negative number");
+  e->theta.falloff = j.value("falloff", 0.0);  // estimates from before the scope's fall-off: an isotropic light
+  if (!(e->theta.falloff >= 0 && e->theta.falloff <= 200))
+    throw std::runtime_error("the fall-off is not between 0 and 200");
   e->highlightFound = j.value("highlight_found", false);
   e->textureOnly = j.value("texture_only", false);
   const auto& m = j.at("ks_measured");
@@ -184,6 +191,19 @@ std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, c
 cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices) {
   const AppearanceLayers layers = appearanceLayers(in, theta);
   return composeAppearance(in, theta, layers.background, layers.albedo, false, deformedVertices);
+}
+
+imaging::NovelView composeNovelViewWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,
+                                             const imaging::Camera& viewCamera, const Pose& viewPose,
+                                             const cv::Mat3b& viewImage, const std::vector<double>& deformedVertices,
+                                             bool textureOnly) {
+  if (!deformedVertices.empty() && deformedVertices.size() != in.vertices.size())
+    throw imaging::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) +
+                              " nodes, the registered one " + std::to_string(in.vertices.size() / 3) +
+                              "; they must be the same mesh in the same order.");
+  const AppearanceLayers layers = appearanceLayers(in, theta);
+  return imaging::composeNovelView(compositionInput(in, layers, theta, textureOnly), viewCamera, viewPose, viewImage,
+                                   deformedVertices);
 }
 
 }  // namespace rehearse::app

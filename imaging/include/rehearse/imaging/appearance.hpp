@@ -1,6 +1,10 @@
 #pragma once
-// Simplified Torrance-Sparrow reflectance of DESIGN.md, per colour channel c (values in [0,1], no gamma):
-//   J_c = kd_c cos(theta_i) / r^2 + ks_c / (r^2 cos(theta_r)) * exp(-alpha^2 / (2 sigma^2))
+// Simplified Torrance-Sparrow reflectance of DESIGN.md, per colour channel c (values in [0,1], no gamma), lit by
+// a laparoscope's light:
+//   J_c = F(p) [kd_c cos(theta_i) / r^2 + ks_c / (r^2 cos(theta_r)) * exp(-alpha^2 / (2 sigma^2))]
+// with F = cos^n(psi), psi the angle between the scope's axis (camera z) and the ray to the point: the light
+// cone's fall-off and the lens vignetting together (both depend on that angle alone, so one frame cannot tell
+// them apart). n = 0 is an isotropic point light seen through an ideal lens.
 #include <rehearse/imaging/camera.hpp>
 
 namespace rehearse::imaging {
@@ -10,9 +14,15 @@ struct Appearance {
   Eigen::Vector3d kd = Eigen::Vector3d::Zero();             ///< diffuse, RGB (W m^2 units folded in)
   Eigen::Vector3d ks = Eigen::Vector3d::Zero();             ///< specular, RGB
   double roughness = 0.1;                                   ///< sigma, radians
+  double falloff = 0;                                       ///< n of F = cos^n(psi), >= 0
+
+  /// F at camera-frame point `p`: cos^n of its angle off the scope's axis (1 on the axis; 0 behind).
+  double falloffAt(const Eigen::Vector3d& p) const;
 
   /// Radiance (RGB) at camera-frame point `p` (m) with unit normal `n`, seen from the camera at the origin.
   Eigen::Vector3d shade(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const;
+  /// The model's two scalar terms there, fall-off included: shade = kd * diffuse + ks * specular.
+  void terms(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double& diffuse, double& specular) const;
 };
 
 Appearance loadAppearance(const std::string& path);  ///< JSON of DESIGN.md; throws InputError

@@ -65,9 +65,31 @@ struct AppearanceFitOptions {
 
 struct AppearanceFitResult {
   Appearance theta;
-  bool highlightFound = false;  ///< false: the light started at (0, 0, 100 mm) and the specular part is not determined (ks = 0)
+  bool highlightFound =
+      false;  ///< false: the light started at the lens and the specular part is not determined (ks = 0)
   bool textureOnly = false;     ///< the model explains too little of the frame: show the frame's texture, not re-shaded
-  double explained = 0;         ///< share of the organ's pixel variance (I_D) that the diffuse model explains
+  /// The share explained (README, "Appearance"): 1 - the squared residual of Theta's diffuse part (as
+  /// delivered) over the organ's squared deviation from its mean colour, all channels, on the specular-free
+  /// image's pixels the diffuse stage samples (usable, of the organ's colour, away from highlights; the outliers
+  /// its fit trims count here); a channel near clipping counts in neither part.
+  double explained = 0;
+  /// The same share for a polynomial of degree 5 in the pixel's position, fitted to the same pixels: a reference
+  /// for what smooth shading of any kind explains, the rest being texture, specks and noise (not a bound: the
+  /// polynomial misses rims and fissures that a shading model through the organ's normals follows).
+  double smoothShare = 0;
+  /// Each part of the model switched off in turn (the others refitted): the diffuse share without it, and
+  /// whether the frame bears it out (its removal costs at least one point of the diffuse stage's share).
+  struct Check {
+    std::string part;
+    double explainedWithout = 0;
+    bool holds = true;
+  };
+  std::vector<Check> checks;
+  bool highlightsDisagree =
+      false;  ///< the specular stage's light would explain the shading worse: the diffuse stage's kept
+  bool lightAtBound =
+      false;          ///< the light ended on the bounded search's edge (30 mm from the lens): not placed by the frame
+  cv::Mat1b foreign;  ///< organ pixels left out for not having the organ's colour (beads, dye, a tool)
   /// Per channel (RGB): false when the channel is clipped wherever its specular term matters, so its ks is
   /// not in the frame (it is then the measured channels' mean, and the status says so).
   std::array<bool, 3> ksMeasured{true, true, true};
@@ -131,6 +153,21 @@ class Compositor {
   struct Impl;
   std::unique_ptr<Impl> d_;
 };
+
+/// A novel view (issue 35): the organ of `fitted` (its rest surface, or moved to `deformedVertices`, the same
+/// vertex order, model frame, metres) seen through another camera at another pose (model -> that camera). The
+/// scope carries its light: Theta's light and fall-off are in the view camera's frame, so highlights move with
+/// the view. Re-shaded, the albedo is the one the fitted frame saw where each point was at rest (1 where that
+/// frame did not see it); texture-only, the fitted frame's own colours are pasted where it saw the point and
+/// nothing is drawn elsewhere (what texture mapping can show). Undistorted view, over `background` (the view's
+/// size) or black. Throws InputError for a bad camera, a background of another size, or an organ behind it.
+struct NovelView {
+  cv::Mat3b image;
+  cv::Mat1b covered;  ///< 255 where the organ is drawn
+  cv::Mat1b seen;     ///< 255 where the fitted frame saw that point of the organ
+};
+NovelView composeNovelView(const CompositionInput& fitted, const Camera& viewCamera, const Pose& viewPose,
+                           const cv::Mat3b& background = {}, const std::vector<double>& deformedVertices = {});
 
 /// Peak signal-to-noise ratio (dB) of b against a (8-bit, same size), over `mask` when given.
 double psnr(const cv::Mat3b& a, const cv::Mat3b& b, const cv::Mat1b& mask = {});

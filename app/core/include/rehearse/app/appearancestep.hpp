@@ -70,4 +70,13 @@ cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance
 /// to `deformedVertices` (empty: at rest). Throws imaging::InputError as runAppearance does.
 cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices = {});
 
+/// A novel view with a Theta given (issue 35, imaging::composeNovelView): the layers taken from the frame at
+/// rest, the organ (moved to `deformedVertices` when given) drawn through `viewCamera` at `viewPose` (model ->
+/// that camera) over `viewImage` (or black), re-shaded with the view's own scope light, or texture-only.
+imaging::NovelView composeNovelViewWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,
+                                             const imaging::Camera& viewCamera, const Pose& viewPose,
+                                             const cv::Mat3b& viewImage = {},
+                                             const std::vector<double>& deformedVertices = {},
+                                             bool textureOnly = false);
+
 }  // namespace rehearse::app

@@ -1,0 +1,100 @@
+// A novel view of the estimated organ (appearance_fit.hpp, composeNovelView): the organ through another camera,
+// re-shaded with Theta lit by that camera's scope, its albedo looked up where the fitted frame saw it at rest.
+#include <rehearse/imaging/appearance_fit.hpp>
+#include <rehearse/imaging/render.hpp>
+
+#include <opencv2/core/utility.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+namespace rehearse::imaging {
+namespace {
+
+template <typename T>
+cv::Vec3f bilinearAt(const cv::Mat_<cv::Vec<T, 3>>& img, double qx, double qy) {
+  const double x = std::clamp(qx, 0.0, img.cols - 1.0), y = std::clamp(qy, 0.0, img.rows - 1.0);
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
+  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
+  const auto &a = img(y0, x0), &b = img(y0, x1), &c = img(y1, x0), &d = img(y1, x1);
+  cv::Vec3f out;
+  for (int k = 0; k < 3; ++k)
+    out[k] = (1 - fy) * ((1 - fx) * static_cast<float>(a[k]) + fx * static_cast<float>(b[k])) +
+             fy * ((1 - fx) * static_cast<float>(c[k]) + fx * static_cast<float>(d[k]));
+  return out;
+}
+
+}  // namespace
+
+NovelView composeNovelView(const CompositionInput& in, const Camera& view, const Pose& viewPose,
+                           const cv::Mat3b& background, const std::vector<double>& deformedVertices) {
+  if (auto p = in.camera.problem(); !p.empty()) throw InputError(p);
+  if (auto p = view.problem(); !p.empty()) throw InputError("The view's camera: " + p);
+  const cv::Size size(view.width, view.height);
+  if (!background.empty() && background.size() != size)
+    throw InputError("The view's image is not the size of the view's camera.");
+  if (in.frame.size() != cv::Size(in.camera.width, in.camera.height))
+    throw InputError("The frame's size is not the camera's.");
+  if (!in.textureOnly && in.albedo.size() != in.frame.size())
+    throw InputError("The albedo's size is not the camera's.");
+  const SurfaceView& rest = in.rest;
+  SurfaceView shape = rest;
+  if (!deformedVertices.empty()) {
+    if (deformedVertices.size() != 3 * rest.vertexCount)
+      throw InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) +
+                       " nodes, the registered one " + std::to_string(rest.vertexCount) + ".");
+    shape.vertices = deformedVertices.data();
+  }
+  // What the fitted frame saw of the organ at rest (its depth), and the organ through the view.
+  const Rasterization fittedSeen = rasterize(in.camera, in.pose, rest, 1);
+  const SurfaceGeometry g = surfaceGeometry(view, viewPose, shape);  // throws for an organ behind the view
+  NovelView out;
+  out.image = background.empty() ? cv::Mat3b(size, cv::Vec3b(0, 0, 0)) : background.clone();
+  out.covered = cv::Mat1b(size, uchar(0));
+  out.seen = cv::Mat1b(size, uchar(0));
+  cv::parallel_for_(cv::Range(0, size.height), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 0; x < size.width; ++x) {
+        const int t = g.triangle(y, x);
+        if (t < 0) continue;
+        const cv::Vec3f w = g.barycentric(y, x);
+        const int* tri = rest.triangles + 3 * t;
+        const Eigen::Vector3d atRest = w[0] * rest.vertex(static_cast<std::size_t>(tri[0])) +
+                                       w[1] * rest.vertex(static_cast<std::size_t>(tri[1])) +
+                                       w[2] * rest.vertex(static_cast<std::size_t>(tri[2]));
+        // Where the fitted frame had that point, and whether it saw it (the nearest surface there, within 2 mm).
+        const Eigen::Vector3d c = in.pose.apply(atRest);
+        bool seen = false;
+        double qx = 0, qy = 0;
+        if (c.z() > 1e-3) {
+          const Eigen::Vector2d q = in.camera.project(c);
+          qx = q.x(), qy = q.y();
+          const int ix = static_cast<int>(std::lround(qx)), iy = static_cast<int>(std::lround(qy));
+          if (ix >= 0 && iy >= 0 && ix < in.camera.width && iy < in.camera.height && fittedSeen.triangle(iy, ix) >= 0)
+            seen = fittedSeen.depth(iy, ix) > c.z() - 0.002;
+        }
+        if (seen) out.seen(y, x) = 255;
+        if (in.textureOnly) {
+          if (!seen) continue;
+          const cv::Vec3f bgr = bilinearAt(in.frame, qx, qy);
+          out.image(y, x) = cv::Vec3b(cv::saturate_cast<uchar>(bgr[0]), cv::saturate_cast<uchar>(bgr[1]),
+                                      cv::saturate_cast<uchar>(bgr[2]));
+          out.covered(y, x) = 255;
+          continue;
+        }
+        const cv::Vec3f albedo = seen ? bilinearAt(in.albedo, qx, qy) : cv::Vec3f(1, 1, 1);
+        const cv::Vec3f pf = g.position(y, x), nf = g.normal(y, x);
+        double diffuse, specular;
+        in.theta.terms(Eigen::Vector3d(pf[0], pf[1], pf[2]), Eigen::Vector3d(nf[0], nf[1], nf[2]), diffuse, specular);
+        cv::Vec3b& o = out.image(y, x);
+        for (int k = 0; k < 3; ++k)
+          o[k] = cv::saturate_cast<uchar>(255.0 *
+                                          (albedo[k] * in.theta.kd[2 - k] * diffuse + in.theta.ks[2 - k] * specular));
+        out.covered(y, x) = 255;
+      }
+  });
+  return out;
+}
+
+}  // namespace rehearse::imaging
