@@ -2,7 +2,7 @@
 # Runs the benchmarks and writes their CSVs to build/bench/ (summarised by hand in BENCHMARKS.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/build.sh --target bench_foundation bench_dynamics bench_registration bench_registration_real bench_inpainting bench_appearance bench_gl_compose bench_rehearsal bench_rehearsal_view bench_replay bench_start
+scripts/build.sh --target bench_foundation bench_dynamics bench_registration bench_registration_real bench_inpainting bench_appearance bench_appearance_real bench_gl_compose bench_rehearsal bench_rehearsal_view bench_replay bench_start
 mkdir -p build/bench
 build/tests/bench_foundation build/bench/bench_foundation.csv
 build/tests/bench_dynamics build/bench
@@ -10,6 +10,7 @@ build/tests/bench_registration build/bench --repeat 3
 build/tests/bench_registration_real build/bench --fractions 1,0.7,0.5
 build/tests/bench_inpainting build/bench
 build/tests/bench_appearance build/bench
+build/tests/bench_appearance_real build/bench --repeat 3
 xvfb-run -a -s "-screen 0 1600x1000x24" build/tests/bench_gl_compose build/bench
 build/tests/bench_rehearsal build/bench
 build/tests/bench_start build/bench

@@ -575,10 +575,9 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
   // whose removal costs less than one point of the share explained is not seen in this frame. Each reduced
   // model's light also restarts the whole model (the cost has several valleys on real tissue).
   {
-    const std::array<std::pair<const char*, Parts>, 3> without{
-        {{"the cosine of incidence", {false, true, true}},
-         {"the inverse square of the distance", {true, false, true}},
-         {"the fall-off off the scope's axis", {true, true, false}}}};
+    const std::array<std::pair<const char*, Parts>, 3> without{{{"cosine of incidence", {false, true, true}},
+                                                                {"inverse square of distance", {true, false, true}},
+                                                                {"off-axis fall-off", {true, true, false}}}};
     std::vector<Light> reducedLights;
     for (const auto& [name, parts] : without) {
       Light l = lit;
@@ -765,7 +764,7 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
   for (const auto& c : res.checks)
     if (!c.holds) notSeen += std::string(notSeen.empty() ? "" : ", ") + c.part;
   if (!notSeen.empty())
-    res.status += "; the frame does not bear out " + notSeen + " (without it the model explains as much)";
+    res.status += "; the frame does not bear out the model's " + notSeen + " (without it the model explains as much)";
   if (res.lightAtBound)
     res.status += "; the light ends on the search's bound (" + std::to_string(static_cast<int>(kLightBound * 1e3)) +
                   " mm from the lens): the frame does not place it";

@@ -50,6 +50,9 @@ std::shared_ptr<const AppearanceEstimate> estimateFromRun(const AppearanceOutput
   e->textureOnly = out.fit.textureOnly;
   e->ksMeasured = out.fit.ksMeasured;
   e->explained = out.fit.explained;
+  e->smoothShare = out.fit.smoothShare;
+  e->lightAtBound = out.fit.lightAtBound;
+  e->checks = out.fit.checks;
   e->status = out.fit.status;
   e->inpaint = imaging::inpaintMethodName(inpaint);
   e->stages = out.fit.stages;
@@ -87,6 +90,15 @@ std::string appearanceEstimateToJson(const AppearanceEstimate& e) {
               {"texture_only", e.textureOnly},
               {"ks_measured", {e.ksMeasured[0], e.ksMeasured[1], e.ksMeasured[2]}},
               {"explained", e.explained},
+              {"smooth_share", e.smoothShare},
+              {"light_at_bound", e.lightAtBound},
+              {"checks",
+               [&] {
+                 json c = json::array();
+                 for (const auto& k : e.checks)
+                   c.push_back({{"without", k.part}, {"explained", k.explainedWithout}, {"holds", k.holds}});
+                 return c;
+               }()},
               {"status", e.status},
               {"inpaint", e.inpaint},
               {"stages", stages},
@@ -113,6 +125,12 @@ std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::
     throw std::runtime_error("the fall-off is not between 0 and 200");
   e->highlightFound = j.value("highlight_found", false);
   e->textureOnly = j.value("texture_only", false);
+  e->smoothShare = j.value("smooth_share", 0.0);
+  e->lightAtBound = j.value("light_at_bound", false);
+  if (j.contains("checks"))
+    for (const auto& k : j.at("checks"))
+      e->checks.push_back(
+          {k.at("without").get<std::string>(), k.at("explained").get<double>(), k.at("holds").get<bool>()});
   const auto& m = j.at("ks_measured");
   for (std::size_t i = 0; i < 3; ++i) e->ksMeasured[i] = m.at(i).get<bool>();
   e->explained = j.value("explained", 0.0);

@@ -65,10 +65,13 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   table_ = new QTableWidget(4, 3, this);
   table_->setObjectName(QStringLiteral("appearanceTable"));
   table_->setHorizontalHeaderLabels({tr("x / R"), tr("y / G"), tr("z / B")});
-  table_->setVerticalHeaderLabels({tr("Light (mm)"), tr("k_d"), tr("k_s"), tr("\u03c3 (rad)")});
+  table_->setVerticalHeaderLabels({tr("Light (mm)"), tr("k_d"), tr("k_s"), tr("\u03c3 / n")});
   table_->setWordWrap(false);
-  table_->setToolTip(tr("Theta as DejaVu's Table 1: the light's position in the camera frame, the diffuse and specular reflectance per "
-                        "colour channel and the roughness. * marks a channel the frame does not measure (clipped over its highlight)."));
+  table_->setToolTip(tr(
+      "Theta as DejaVu's Table 1: the light's position in the camera frame, the diffuse and specular reflectance per "
+      "colour channel, the roughness \u03c3 and the scope's fall-off n (cos^n off its axis: the light's cone and the "
+      "lens vignetting). "
+      "* marks a channel the frame does not measure (clipped over its highlight)."));
   table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
   table_->horizontalHeader()->setSectionResizeMode(QHeaderView::Stretch);
   table_->setVerticalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
@@ -128,7 +131,12 @@ void AppearancePage::refresh(const app::Case& c) {
         else if (r == 1) text = QString::number(t.kd[k], 'g', 4);
         else if (r == 2) text = a->highlightFound ? QString::number(t.ks[k], 'g', 4) + (a->ksMeasured[static_cast<std::size_t>(k)] ? QString() : QStringLiteral(" *"))
                                                   : tr("not determined");
-        else if (k == 0) text = a->highlightFound ? QString::number(t.roughness, 'f', 3) : tr("not determined");
+        else if (r == 3 && k == 0)
+          text = a->highlightFound ? QString::number(t.roughness, 'f', 3) : tr("not determined");
+        else if (r == 3 && k == 1)
+          text = tr("n %1").arg(t.falloff, 0, 'f', 2);
+        else if (r == 3 && k == 2)
+          text = tr("light %1 mm off lens").arg(1e3 * t.lightPosition.norm(), 0, 'f', 1);
       }
       auto* item = table_->item(r, k);
       if (!item) table_->setItem(r, k, item = new QTableWidgetItem);
@@ -146,10 +154,18 @@ void AppearancePage::refresh(const app::Case& c) {
   QStringList lines;
   for (const auto& s : a->stages)
     lines << tr("%1: %2 levels, %3 ms").arg(QString::fromStdString(s.name)).arg(s.rms, 0, 'f', 2).arg(s.ms, 0, 'f', 0);
-  lines << tr("Explains %1 % of the shading; at rest %2 dB inside the organ; %3 s in all.")
+  lines << tr("Explains %1 % of the shading (smooth: %2 %); at rest %3 dB in the organ; %4 s.")
                .arg(100 * a->explained, 0, 'f', 0)
+               .arg(100 * a->smoothShare, 0, 'f', 0)
                .arg(a->restPsnr, 0, 'f', 1)
                .arg(a->totalMs / 1000, 0, 'f', 2);
+  if (!a->checks.empty()) {
+    QStringList without;
+    for (const auto& k : a->checks)
+      without << tr("%1 %2 %").arg(QString::fromStdString(k.part)).arg(100 * k.explainedWithout, 0, 'f', 0) +
+                     (k.holds ? QString() : tr(" (not seen)"));
+    lines << tr("Left out: %1.").arg(without.join(QStringLiteral(", ")));
+  }
   report_->setText(lines.join(QLatin1Char('\n')));
   if (!wb_.jobs->isRunning()) {
     QString text = QString::fromStdString(a->status);
@@ -157,7 +173,7 @@ void AppearancePage::refresh(const app::Case& c) {
     if (!c.appearanceCurrent())
       text = tr("STALE: estimated at another pose, shape or frame; the composited view is off until it is estimated again (F10). %1").arg(text);
     status_->setText(text);
-    const bool warn = a->textureOnly || !a->highlightFound || !c.appearanceCurrent();
+    const bool warn = a->textureOnly || !a->highlightFound || a->lightAtBound || !c.appearanceCurrent();
     status_->setStyleSheet(warn ? QStringLiteral("color: %1; font-weight: bold;").arg(palette::warning().name()) : QString());
   }
 }
