@@ -276,6 +276,23 @@ class TestCli : public QObject {
                             dir + "/pose.json", "--image", dir + "/frame.png", "--theta", dir + "/theta.json",
                             "--deformed", dir + "/organ_surface.obj", "--out", dir + "/k.png"}),
                        1, "same mesh in the same order");
+    // Issue 35's bad input: a frame with no organ pixels (black), a wholly saturated organ (white), a mesh that
+    // misses the frame: one sentence each, no THETA written.
+    for (const auto& [value, name] : {std::pair{0, "black.png"}, std::pair{255, "white.png"}}) {
+      cv::imwrite((dir + "/" + name).toStdString(), cv::Mat3b(frame.size(), cv::Vec3b(value, value, value)));
+      expectOneLineError(run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                              dir + "/pose.json", "--image", dir + "/" + name, "--out", dir + "/z.json"}),
+                         1, "usable pixels");
+      QVERIFY(!QFile::exists(dir + "/z.json"));
+    }
+    QFile aside(dir + "/aside.json");
+    aside.open(QIODevice::WriteOnly);
+    aside.write(R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [5, 0, 0.2]})");
+    aside.close();
+    expectOneLineError(run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/aside.json", "--image", dir + "/frame.png", "--out", dir + "/z.json"}),
+                       1, "not in the frame");
+    QVERIFY(!QFile::exists(dir + "/z.json"));
     expectOneLineError(run({"appearance", "--case", dir, "--pose", dir + "/pose.json", "--out", dir + "/y.json",
                             "--inpaint", "magic"}),
                        1, "choose telea, ns, shiftmap or fsr");

@@ -277,7 +277,7 @@ class TestAppearance : public QObject {
     QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::composeNovelView(in, c_.camera, view2, cv::Mat3b(10, 10)));
   }
 
-  // Without a highlight the light starts at (0, 0, 100 mm), the specular part is not determined, and the
+  // Without a highlight the light starts at the lens, the specular part is not determined, and the
   // status says both.
   void noHighlightIsSaid() {
     imaging::Appearance matte = c_.trueAppearance;

@@ -127,6 +127,19 @@ class TestAppearanceGui : public QObject {
           qPrintable(w_->appearancePage()->findChild<QLabel*>("appearanceReport")->text()));
     QVERIFY(db >= 30.0);
     QVERIFY(!w_->composition()->diffuseImage().isNull() && !w_->composition()->backgroundImage().isNull());
+    // What the model leaves (x 3): on the phantom, rendered with the model, little but noise; the scope's
+    // fall-off and the light's distance from the lens, as the table shows them.
+    const QImage residual = w_->composition()->residualImage();
+    QVERIFY(!residual.isNull());
+    const cv::Mat3b left = toMat(residual);
+    const double leftMean = cv::mean(left, inner)[0] + cv::mean(left, inner)[1] + cv::mean(left, inner)[2];
+    qInfo("left unexplained (x 3): %.1f levels summed over the channels; %s, %s", leftMean,
+          qPrintable(table->item(3, 1)->text()), qPrintable(table->item(3, 2)->text()));
+    QVERIFY(leftMean < 30);
+    QVERIFY(table->item(3, 1)->text().startsWith("n "));
+    QVERIFY(std::abs(table->item(3, 1)->text().mid(2).toDouble() - c.appearance->theta.falloff) < 0.01);
+    QVERIFY(std::abs(table->item(3, 2)->text().split(' ')[1].toDouble() -
+                     1e3 * c.appearance->theta.lightPosition.norm()) < 0.1);
     if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) {
       QTest::qWait(50);
       w_->grab().save(QString::fromLocal8Bit(dir) + "/step6-appearance.png");

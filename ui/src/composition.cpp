@@ -69,7 +69,7 @@ void Composition::setCase(std::shared_ptr<const app::Case> c) {
     compositor_.reset();
     glPrepared_ = false;
     estimate_.reset();
-    diffuse_ = background_ = last_ = QImage();
+    diffuse_ = background_ = residual_ = last_ = QImage();
     waiting_.reset();
     whyNot_ = why;
     if (wasReady) emit readyChanged(false);
@@ -124,6 +124,7 @@ void Composition::install(const std::shared_ptr<const app::Case>& c, const app::
   }
   diffuse_ = frameToQImage(layers.diffuse);
   background_ = frameToQImage(layers.background);
+  residual_ = layers.residual.empty() ? QImage() : frameToQImage(layers.residual);
   whyNot_.clear();
   last_ = composeNow();
   emit readyChanged(true);

@@ -1,5 +1,7 @@
 #include "rehearse/app/appearancestep.hpp"
 
+#include <rehearse/imaging/render.hpp>
+
 #include <nlohmann/json.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -186,7 +188,20 @@ AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appe
   AppearanceLayers layers;
   layers.diffuse = imaging::separateSpecular(in.frame, usable).diffuse;
   restLayers(in, g, theta, layers.diffuse, usable, layers.background, layers.albedo);
+  layers.residual = appearanceResidual(in, theta);
   return layers;
+}
+
+cv::Mat3b appearanceResidual(const AppearanceInput& in, const imaging::Appearance& theta) {
+  // What the model leaves of the frame on the organ (step 6 shows it): texture, specks and where it does not hold.
+  const imaging::SurfaceGeometry g = restGeometry(in);
+  const cv::Mat3b model =
+      imaging::renderShaded(in.camera, in.pose, in.surface(), theta, cv::Mat3b(in.frame.size(), cv::Vec3b(0, 0, 0)), 1);
+  cv::Mat3b residual;
+  cv::absdiff(in.frame, model, residual);
+  residual.convertTo(residual, CV_8UC3, 3.0);
+  residual.setTo(cv::Scalar(0, 0, 0), ~g.mask());
+  return residual;
 }
 
 imaging::CompositionInput compositionInput(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly) {

@@ -90,8 +90,10 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   diffuse_->setObjectName(QStringLiteral("appearanceDiffuse"));
   background_ = new QLabel(this);
   background_->setObjectName(QStringLiteral("appearanceBackground"));
-  for (QLabel* l : {diffuse_, background_}) {
-    l->setMinimumSize(140, 79);
+  residual_ = new QLabel(this);
+  residual_->setObjectName(QStringLiteral("appearanceResidual"));
+  for (QLabel* l : {diffuse_, background_, residual_}) {
+    l->setMinimumSize(120, 68);
     l->setMaximumHeight(90);
     l->setAlignment(Qt::AlignCenter);
     l->setFrameShape(QFrame::StyledPanel);
@@ -100,8 +102,13 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   background_->setToolTip(tr("The frame with the organ filled in (I_B): what shows where the organ moves away"));
   layers->addWidget(new QLabel(tr("Diffuse image I_D"), this), 0, 0);
   layers->addWidget(new QLabel(tr("Background I_B"), this), 0, 1);
+  layers->addWidget(new QLabel(tr("Left unexplained"), this), 0, 2);
+  residual_->setToolTip(
+      tr("What Theta leaves of the frame on the organ, |frame - model| x 3: the organ's texture, specks, beads, and "
+         "wherever the model does not hold (bright where it explains least)"));
   layers->addWidget(diffuse_, 1, 0);
   layers->addWidget(background_, 1, 1);
+  layers->addWidget(residual_, 1, 2);
   layout->addLayout(layers);
   layout->addStretch(1);
   connect(composition_, &Composition::readyChanged, this, &AppearancePage::showLayers);
@@ -118,6 +125,7 @@ void AppearancePage::showLayers() {
   };
   thumb(composition_->diffuseImage(), diffuse_);
   thumb(composition_->backgroundImage(), background_);
+  thumb(composition_->residualImage(), residual_);
 }
 
 void AppearancePage::refresh(const app::Case& c) {
@@ -199,7 +207,8 @@ void AppearancePage::estimate() {
     try {
       const app::AppearanceOutput out = app::runAppearance(input);
       auto estimate = app::estimateFromRun(out, *c, method);
-      app::AppearanceLayers layers{out.fit.separation.diffuse, out.background, out.albedo};
+      app::AppearanceLayers layers{out.fit.separation.diffuse, out.background, out.albedo,
+                                   app::appearanceResidual(input, out.fit.theta)};
       return [this, c, estimate, layers] {
         if (data()->pose.t != c->pose.t || data()->pose.R != c->pose.R || data()->shapeDigest() != c->shapeDigest()) {
           status_->setText(tr("The organ moved while its appearance was estimated; estimate it again (F10)."));

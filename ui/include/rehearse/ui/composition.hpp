@@ -46,6 +46,7 @@ class Composition : public QObject {
   QImage composeNow(const std::vector<Eigen::Vector3d>& cameraPositions = {}) const;
   QImage diffuseImage() const { return diffuse_; }
   QImage backgroundImage() const { return background_; }
+  QImage residualImage() const { return residual_; }  ///< what Theta leaves of the frame on the organ (x 3)
   QImage lastComposed() const { return last_; }
   /// Why there is no composited view (empty when ready): a sentence for the status bar.
   QString whyNot() const { return whyNot_; }
@@ -65,7 +66,7 @@ class Composition : public QObject {
   std::shared_ptr<const app::AppearanceEstimate> estimate_;  ///< the estimate the layers belong to
   std::shared_ptr<const app::Case> case_;
   std::shared_ptr<const imaging::Compositor> compositor_;
-  QImage diffuse_, background_, last_;
+  QImage diffuse_, background_, residual_, last_;
   QString whyNot_;
   QFutureWatcher<std::shared_ptr<Prepared>> prepareWatcher_;
   std::shared_ptr<const app::AppearanceEstimate> preparing_;

@@ -47,8 +47,12 @@ std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::
 struct AppearanceLayers {
   cv::Mat3b diffuse, background;
   cv::Mat3f albedo;
+  cv::Mat3b residual;  ///< what Theta leaves: |frame - Theta's render (albedo 1)| x 3 on the organ, black elsewhere
 };
 AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appearance& theta);
+
+/// What Theta leaves of the frame on the organ: |frame - Theta rendered with albedo 1| x 3 there, black elsewhere.
+cv::Mat3b appearanceResidual(const AppearanceInput& in, const imaging::Appearance& theta);
 
 /// What composition takes for `in`'s organ at rest with those layers (its surface views point into `in`,
 /// which must outlive it).

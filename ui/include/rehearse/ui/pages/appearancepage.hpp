@@ -35,6 +35,7 @@ class AppearancePage : public StepPage {
   QLabel* report_ = nullptr;
   QLabel* diffuse_ = nullptr;
   QLabel* background_ = nullptr;
+  QLabel* residual_ = nullptr;
 };
 
 }  // namespace rehearse::ui
