@@ -12,6 +12,9 @@
 #include <rehearse/imaging/render.hpp>
 
 #include <opencv2/imgcodecs.hpp>
+
+#include <filesystem>
+#include <fstream>
 #include <opencv2/imgproc.hpp>
 
 using namespace rehearse;
@@ -275,6 +278,65 @@ class TestAppearance : public QObject {
     in.textureOnly = true;
     QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::composeNovelView(in, c_.camera, behind));
     QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::composeNovelView(in, c_.camera, view2, cv::Mat3b(10, 10)));
+  }
+
+  // A deformed organ in the novel view: moved by d in its own frame, it is drawn as the organ at rest seen from a
+  // pose moved by R d (the texture stays where the tissue was at rest, the light with the scope).
+  void novelViewOfAMovedOrgan() {
+    const auto g = imaging::surfaceGeometry(c_.camera, c_.truePose, c_.surfaceView());
+    const auto r = imaging::fitAppearance(c_.frame, g);
+    imaging::CompositionInput in;
+    in.camera = c_.camera;
+    in.pose = c_.truePose;
+    in.rest = in.deformed = c_.surfaceView();
+    in.frame = in.background = c_.frame;
+    in.albedo = imaging::albedoRatio(r.separation.diffuse, g, r.theta, r.usable);
+    in.theta = r.theta;
+    const Eigen::Vector3d centre = c_.truePose.apply(c_.centreOfGravity());
+    const Pose view = c_.truePose.turnedAbout(
+        Eigen::AngleAxisd(-10 * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix(), centre);
+    const Eigen::Vector3d d(0.004, -0.003, 0.002);
+    std::vector<double> moved(c_.surfaceView().vertices, c_.surfaceView().vertices + 3 * c_.surfaceView().vertexCount);
+    for (std::size_t i = 0; i < moved.size(); ++i) moved[i] += d[static_cast<Eigen::Index>(i % 3)];
+    Pose shifted = view;
+    shifted.t += view.R * d;
+    const auto a = imaging::composeNovelView(in, c_.camera, view, {}, moved),
+               b = imaging::composeNovelView(in, c_.camera, shifted);
+    const double db = imaging::psnr(a.image, b.image);
+    qInfo("moved organ against a moved view: %.1f dB over the whole view; %d and %d px drawn", db,
+          cv::countNonZero(a.covered), cv::countNonZero(b.covered));
+    QVERIFY(cv::countNonZero(a.covered) > 100000);
+    QVERIFY(db >= 45);
+    QVERIFY_THROWS_EXCEPTION(imaging::InputError,
+                             imaging::composeNovelView(in, c_.camera, view, {}, std::vector<double>(9, 0.0)));
+  }
+
+  // The appearance file carries the scope's fall-off; a file without it is an isotropic light (n = 0); an
+  // impossible n is refused in one sentence.
+  void appearanceFileCarriesTheFalloff() {
+    const std::string dir = tempPath("appearance-file");
+    std::filesystem::create_directories(dir);
+    imaging::Appearance a = c_.trueAppearance;
+    a.falloff = 6.5;
+    imaging::saveAppearance(a, dir + "/theta.json");
+    QCOMPARE(imaging::loadAppearance(dir + "/theta.json").falloff, 6.5);
+    auto write = [&](const std::string& name, const std::string& text) {
+      std::ofstream(dir + "/" + name) << text;
+      return dir + "/" + name;
+    };
+    QCOMPARE(imaging::loadAppearance(
+                 write("old.json",
+                       R"({"light_position": [0, 0, 0], "kd": [0.1, 0.1, 0.1], "ks": [0, 0, 0], "roughness": 0.1})"))
+                 .falloff,
+             0.0);
+    try {
+      imaging::loadAppearance(write(
+          "bad.json",
+          R"({"light_position": [0, 0, 0], "kd": [0.1, 0.1, 0.1], "ks": [0, 0, 0], "roughness": 0.1, "falloff": -2})"));
+      QFAIL("a negative fall-off was accepted");
+    } catch (const imaging::InputError& e) {
+      QVERIFY(std::string(e.what()).find("falloff") != std::string::npos);
+    }
   }
 
   // Without a highlight the light starts at the lens, the specular part is not determined, and the
