@@ -55,7 +55,8 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
     const Case c = loadCaseDirectory(o["case"]);
     in.camera = c.camera;
     in.frame = c.frame;
-    if (c.hasPose) in.pose = c.pose, havePose = true;
+    // A case folder stores no alignment: its pose is the automatic first guess, which no fit should take as the
+    // organ's pose in the frame (it put the phantom's light 69 mm off): --pose is required with --case.
     const SurfaceView v = c.surfaceView();
     in.vertices.assign(v.vertices, v.vertices + 3 * v.vertexCount);
     in.triangles.resize(v.triangleCount);
@@ -83,7 +84,9 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
   if (!haveSurface) throw UsageError(std::string(command) + " needs --case or --mesh");
   if (in.frame.empty()) throw UsageError(std::string(command) + " needs --image (or a --case with a frame)");
   if (in.camera.width == 0) throw UsageError(std::string(command) + " needs --camera (or a --case with one)");
-  if (!havePose) throw UsageError(std::string(command) + " needs --pose (the case has no alignment yet)");
+  if (!havePose)
+    throw UsageError(std::string(command) +
+                     " needs --pose (the organ's pose in the camera; a case folder stores no alignment)");
   if (const std::string problem = in.camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
   // A frame from a camera with lens distortion is undistorted first (every step works on the undistorted frame).
   if (o.count("image") &&
@@ -214,7 +217,8 @@ namespace {
 // The organ, camera, pose and frame both commands take (appearanceInput), and how the organ is removed from the frame.
 const std::vector<OptionSpec>& frameInputOptions() {
   static const std::vector<OptionSpec> options = {
-      {"case", "DIR", "a case folder (its organ, camera, pose and frame; the files below override them)"},
+      {"case", "DIR",
+       "a case folder (its organ, camera and frame; the files below override them; it stores no pose: give --pose)"},
       {"mesh", "M", "the organ"},
       {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
       {"camera", "CAM", "the camera"},

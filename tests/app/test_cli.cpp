@@ -293,6 +293,10 @@ class TestCli : public QObject {
                             dir + "/aside.json", "--image", dir + "/frame.png", "--out", dir + "/z.json"}),
                        1, "not in the frame");
     QVERIFY(!QFile::exists(dir + "/z.json"));
+    // A case folder stores no alignment: without --pose the fit would take the automatic first guess as the pose.
+    expectOneLineError(run({"appearance", "--case", dir, "--out", dir + "/y.json"}), 2,
+                       "a case folder stores no alignment");
+    QVERIFY(!QFile::exists(dir + "/y.json"));
     expectOneLineError(run({"appearance", "--case", dir, "--pose", dir + "/pose.json", "--out", dir + "/y.json",
                             "--inpaint", "magic"}),
                        1, "choose telea, ns, shiftmap or fsr");
