@@ -24,7 +24,6 @@
 
 #include <nlohmann/json.hpp>
 
-#include <opencv2/calib3d.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include <array>
@@ -89,15 +88,7 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
                      " needs --pose (the organ's pose in the camera; a case folder stores no alignment)");
   if (const std::string problem = in.camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
   // A frame from a camera with lens distortion is undistorted first (every step works on the undistorted frame).
-  if (o.count("image") &&
-      std::any_of(in.camera.distortion.begin(), in.camera.distortion.end(), [](double d) { return d != 0; })) {
-    cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F), out;
-    for (int r = 0; r < 3; ++r)
-      for (int c = 0; c < 3; ++c) K.at<double>(r, c) = in.camera.K(r, c);
-    for (int k = 0; k < 5; ++k) D.at<double>(0, k) = in.camera.distortion[static_cast<std::size_t>(k)];
-    cv::undistort(in.frame, out, K, D, K);
-    in.frame = out;
-  }
+  if (o.count("image")) in.frame = imaging::undistortImage(in.frame, in.camera);
   if (o.count("inpaint")) in.inpaint = imaging::parseInpaintMethod(o["inpaint"]);
   return in;
 }
@@ -191,15 +182,7 @@ int cmdCompose(const std::vector<std::string>& args) {
     const imaging::Camera view = imaging::loadCamera(o["view-camera"], viewImage.cols, viewImage.rows);
     if (const std::string problem = view.problem(); !problem.empty())
       throw simcore::MeshError("The view's camera: " + problem);
-    if (!viewImage.empty() &&
-        std::any_of(view.distortion.begin(), view.distortion.end(), [](double d) { return d != 0; })) {
-      cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F), undistorted;
-      for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c) K.at<double>(r, c) = view.K(r, c);
-      for (int k = 0; k < 5; ++k) D.at<double>(0, k) = view.distortion[static_cast<std::size_t>(k)];
-      cv::undistort(viewImage, undistorted, K, D, K);
-      viewImage = undistorted;
-    }
+    viewImage = imaging::undistortImage(viewImage, view);
     j = composeNovelViewWithTheta(in, theta, view, imaging::loadPose(o["view-pose"]), viewImage, deformed,
                                   o.count("texture-only") > 0)
             .image;

@@ -1,6 +1,7 @@
 #include <rehearse/imaging/camera.hpp>
 
 #include <nlohmann/json.hpp>
+#include <opencv2/calib3d.hpp>
 #include <opencv2/core.hpp>
 
 #include <cmath>
@@ -213,6 +214,17 @@ void writeFileAtomically(const std::string& path, const std::string& bytes) {
   std::error_code ec;
   fs::rename(tmp, path, ec);
   if (ec) throw InputError("Cannot replace " + path + " (" + ec.message() + ").");
+}
+
+cv::Mat3b undistortImage(const cv::Mat3b& image, const Camera& camera) {
+  if (image.empty() || !camera.distorted()) return image;
+  cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) K.at<double>(r, c) = camera.K(r, c);
+  for (int i = 0; i < 5; ++i) D.at<double>(0, i) = camera.distortion[static_cast<std::size_t>(i)];
+  cv::Mat3b out;
+  cv::undistort(image, out, K, D, K);
+  return out;
 }
 
 }  // namespace rehearse::imaging

@@ -3,29 +3,14 @@
 #include <rehearse/imaging/appearance_fit.hpp>
 #include <rehearse/imaging/render.hpp>
 
+#include "sampling.hpp"
+
 #include <opencv2/core/utility.hpp>
 
 #include <algorithm>
 #include <cmath>
 
 namespace rehearse::imaging {
-namespace {
-
-template <typename T>
-cv::Vec3f bilinearAt(const cv::Mat_<cv::Vec<T, 3>>& img, double qx, double qy) {
-  const double x = std::clamp(qx, 0.0, img.cols - 1.0), y = std::clamp(qy, 0.0, img.rows - 1.0);
-  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  const int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
-  const float fx = static_cast<float>(x - x0), fy = static_cast<float>(y - y0);
-  const auto &a = img(y0, x0), &b = img(y0, x1), &c = img(y1, x0), &d = img(y1, x1);
-  cv::Vec3f out;
-  for (int k = 0; k < 3; ++k)
-    out[k] = (1 - fy) * ((1 - fx) * static_cast<float>(a[k]) + fx * static_cast<float>(b[k])) +
-             fy * ((1 - fx) * static_cast<float>(c[k]) + fx * static_cast<float>(d[k]));
-  return out;
-}
-
-}  // namespace
 
 NovelView composeNovelView(const CompositionInput& in, const Camera& view, const Pose& viewPose,
                            const cv::Mat3b& background, const std::vector<double>& deformedVertices) {
@@ -77,13 +62,13 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
         if (seen) out.seen(y, x) = 255;
         if (in.textureOnly) {
           if (!seen) continue;
-          const cv::Vec3f bgr = bilinearAt(in.frame, qx, qy);
+          const cv::Vec3f bgr = bilinear(in.frame, qx, qy);
           out.image(y, x) = cv::Vec3b(cv::saturate_cast<uchar>(bgr[0]), cv::saturate_cast<uchar>(bgr[1]),
                                       cv::saturate_cast<uchar>(bgr[2]));
           out.covered(y, x) = 255;
           continue;
         }
-        const cv::Vec3f albedo = seen ? bilinearAt(in.albedo, qx, qy) : cv::Vec3f(1, 1, 1);
+        const cv::Vec3f albedo = seen ? bilinear(in.albedo, qx, qy) : cv::Vec3f(1, 1, 1);
         const cv::Vec3f pf = g.position(y, x), nf = g.normal(y, x);
         double diffuse, specular;
         in.theta.terms(Eigen::Vector3d(pf[0], pf[1], pf[2]), Eigen::Vector3d(nf[0], nf[1], nf[2]), diffuse, specular);

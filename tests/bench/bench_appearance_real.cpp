@@ -19,15 +19,6 @@
 
 using namespace rehearse;
 
-namespace {
-
-// PSNR (dB) of `prediction` against `frame` over `mask`.
-double psnrOver(const cv::Mat3b& frame, const cv::Mat3b& prediction, const cv::Mat1b& mask) {
-  return imaging::psnr(frame, prediction, mask);
-}
-
-}  // namespace
-
 int main(int argc, char** argv) {
   std::string out = ".";
   int repeat = 3;
@@ -91,7 +82,8 @@ int main(int argc, char** argv) {
   cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
   const cv::Mat3b reshaded = app::composeAppearance(in, f.theta, r.background, r.albedo, false, {}, 1);
   const cv::Mat3b texture = app::composeAppearance(in, f.theta, r.background, r.albedo, true, {}, 1);
-  const double dbReshaded = psnrOver(in.frame, reshaded, inner), dbTexture = psnrOver(in.frame, texture, inner);
+  const double dbReshaded = imaging::psnr(in.frame, reshaded, inner),
+               dbTexture = imaging::psnr(in.frame, texture, inner);
   std::printf("  composed at rest inside the organ: re-shaded %.1f dB, texture-only %.1f dB\n", dbReshaded, dbTexture);
   md << "\ncomposed at rest inside the organ: re-shaded " << dbReshaded << " dB, texture-only " << dbTexture << " dB\n";
 
@@ -124,7 +116,7 @@ int main(int argc, char** argv) {
       const cv::Mat3b flat(in.frame.size(),
                            cv::Vec3b(cv::saturate_cast<uchar>(meanA[0]), cv::saturate_cast<uchar>(meanA[1]),
                                      cv::saturate_cast<uchar>(meanA[2])));
-      const double dbModel = psnrOver(in.frame, model, b), dbFlat = psnrOver(in.frame, flat, b);
+      const double dbModel = imaging::psnr(in.frame, model, b), dbFlat = imaging::psnr(in.frame, flat, b);
       std::printf(
           "  %s, fitted on half %c: explains %.3f there; half %c predicted by Theta %.2f dB, by the mean colour %.2f "
           "dB (%+.2f dB)\n",

@@ -19,6 +19,18 @@ void restLayers(const AppearanceInput& in, const imaging::SurfaceGeometry& g, co
   albedo = imaging::albedoRatio(diffuse, g, theta, usable);
 }
 
+// What Theta leaves of the frame on the organ (step 6 shows it): |frame - Theta rendered with albedo 1| x 3 there,
+// black elsewhere; the organ's texture, specks, beads and wherever the model does not hold.
+cv::Mat3b residualOn(const AppearanceInput& in, const imaging::Appearance& theta, const imaging::SurfaceGeometry& g) {
+  const cv::Mat3b model =
+      imaging::renderShaded(in.camera, in.pose, in.surface(), theta, cv::Mat3b(in.frame.size(), cv::Vec3b(0, 0, 0)), 1);
+  cv::Mat3b residual;
+  cv::absdiff(in.frame, model, residual);
+  residual.convertTo(residual, CV_8UC3, 3.0);
+  residual.setTo(cv::Scalar(0, 0, 0), ~g.mask());
+  return residual;
+}
+
 // The organ's geometry at rest, refusing an organ the frame does not show.
 imaging::SurfaceGeometry restGeometry(const AppearanceInput& in) {
   if (in.frame.empty()) throw imaging::InputError("There is no frame to estimate the appearance from; grab a frame first (step 2).");
@@ -167,6 +179,7 @@ AppearanceOutput runAppearance(const AppearanceInput& in) {
   cv::Mat1b inner;
   cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
   out.restPsnr = imaging::psnr(in.frame, rest, inner);
+  out.residual = residualOn(in, out.fit.theta, g);
   out.totalMs = since(t0);
   if (in.progress) in.progress(1.0, "done");
   return out;
@@ -188,20 +201,8 @@ AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appe
   AppearanceLayers layers;
   layers.diffuse = imaging::separateSpecular(in.frame, usable).diffuse;
   restLayers(in, g, theta, layers.diffuse, usable, layers.background, layers.albedo);
-  layers.residual = appearanceResidual(in, theta);
+  layers.residual = residualOn(in, theta, g);
   return layers;
-}
-
-cv::Mat3b appearanceResidual(const AppearanceInput& in, const imaging::Appearance& theta) {
-  // What the model leaves of the frame on the organ (step 6 shows it): texture, specks and where it does not hold.
-  const imaging::SurfaceGeometry g = restGeometry(in);
-  const cv::Mat3b model =
-      imaging::renderShaded(in.camera, in.pose, in.surface(), theta, cv::Mat3b(in.frame.size(), cv::Vec3b(0, 0, 0)), 1);
-  cv::Mat3b residual;
-  cv::absdiff(in.frame, model, residual);
-  residual.convertTo(residual, CV_8UC3, 3.0);
-  residual.setTo(cv::Scalar(0, 0, 0), ~g.mask());
-  return residual;
 }
 
 imaging::CompositionInput compositionInput(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly) {

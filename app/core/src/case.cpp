@@ -3,8 +3,6 @@
 #include "phantom/phantom.hpp"
 #include "rehearse/app/materials.hpp"
 
-#include <opencv2/calib3d.hpp>
-
 #include <algorithm>
 
 namespace rehearse::app {
@@ -167,18 +165,7 @@ Case caseFromPhantom(const phantom::Phantom& p) {
 
 void undistortFrame(Case& k) {
   if (k.rawFrame.empty()) return;
-  const auto& d = k.camera.distortion;
-  if (d[0] == 0 && d[1] == 0 && d[2] == 0 && d[3] == 0 && d[4] == 0) {
-    k.frame = k.rawFrame;
-    return;
-  }
-  cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);
-  for (int r = 0; r < 3; ++r)
-    for (int c = 0; c < 3; ++c) K.at<double>(r, c) = k.camera.K(r, c);
-  for (int i = 0; i < 5; ++i) D.at<double>(0, i) = d[i];
-  cv::Mat3b und;
-  cv::undistort(k.rawFrame, und, K, D);
-  k.frame = und;
+  k.frame = imaging::undistortImage(k.rawFrame, k.camera);
 }
 
 }  // namespace rehearse::app

@@ -207,8 +207,7 @@ void AppearancePage::estimate() {
     try {
       const app::AppearanceOutput out = app::runAppearance(input);
       auto estimate = app::estimateFromRun(out, *c, method);
-      app::AppearanceLayers layers{out.fit.separation.diffuse, out.background, out.albedo,
-                                   app::appearanceResidual(input, out.fit.theta)};
+      app::AppearanceLayers layers{out.fit.separation.diffuse, out.background, out.albedo, out.residual};
       return [this, c, estimate, layers] {
         if (data()->pose.t != c->pose.t || data()->pose.R != c->pose.R || data()->shapeDigest() != c->shapeDigest()) {
           status_->setText(tr("The organ moved while its appearance was estimated; estimate it again (F10)."));

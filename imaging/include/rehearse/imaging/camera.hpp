@@ -3,6 +3,8 @@
 // and the camera / pose file formats of DESIGN.md.
 #include <rehearse/types.hpp>
 
+#include <opencv2/core.hpp>
+
 #include <array>
 #include <stdexcept>
 #include <string>
@@ -29,6 +31,11 @@ struct Camera {
   }
   /// Empty when usable; otherwise one sentence saying what is wrong.
   std::string problem() const;
+  bool distorted() const {
+    for (double d : distortion)
+      if (d != 0) return true;
+    return false;
+  }
   /// The ideal pinhole of the undistorted frame (what simcore's registration projects through).
   Pinhole pinhole() const {
     Pinhole p;
@@ -41,6 +48,10 @@ struct Camera {
   /// fx = fy = 0.8 * width (about a 64 degree horizontal field of view, typical of laparoscopes), no distortion.
   static Camera defaultFor(int width, int height);
 };
+
+/// `image` (this camera's) undistorted with the same K, so its pixels keep the pinhole model: what every step
+/// works on. Without distortion, the image itself.
+cv::Mat3b undistortImage(const cv::Mat3b& image, const Camera& camera);
 
 /// Reads a camera: OpenCV calibration YAML/XML (camera_matrix, distortion_coefficients, image_width,
 /// image_height), JSON ({"K": [[...]], "distortion": [...], "width": w, "height": h}, or the P2ILF

@@ -29,6 +29,7 @@ struct AppearanceOutput {
   cv::Mat3f albedo;      ///< albedo ratios at rest
   double inpaintMs = 0, totalMs = 0;
   double restPsnr = 0;   ///< the organ composed at rest against the frame, inside its mask (dB)
+  cv::Mat3b residual;    ///< what Theta leaves of the frame on the organ (AppearanceLayers::residual)
 };
 
 /// The case's registered organ (its fitted shape once there is one, at its pose), camera and frame.
@@ -50,9 +51,6 @@ struct AppearanceLayers {
   cv::Mat3b residual;  ///< what Theta leaves: |frame - Theta's render (albedo 1)| x 3 on the organ, black elsewhere
 };
 AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appearance& theta);
-
-/// What Theta leaves of the frame on the organ: |frame - Theta rendered with albedo 1| x 3 there, black elsewhere.
-cv::Mat3b appearanceResidual(const AppearanceInput& in, const imaging::Appearance& theta);
 
 /// What composition takes for `in`'s organ at rest with those layers (its surface views point into `in`,
 /// which must outlive it).
