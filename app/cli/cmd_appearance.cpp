@@ -43,9 +43,14 @@ namespace rehearse::app::cli {
 
 // Step 6's inputs: a case folder, or the organ, camera, pose and frame as files (each file overrides the
 // case's part).
-AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const char* command) {
+// `visual` receives the surface drawn when it is the organ's own (a case folder's, or --visual's), carried by
+// the volume's nodes.
+AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const char* command,
+                                std::shared_ptr<const VisualSurface>* visual = nullptr) {
   AppearanceInput in;
   bool haveSurface = false, havePose = false;
+  simcore::Mesh volume;  // the organ's volume, when it has one (--visual is carried by it)
+  std::shared_ptr<const VisualSurface> own;
   if (o.count("case")) {
     if (!std::filesystem::is_directory(o["case"]))
       throw UsageError(
@@ -61,6 +66,8 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
     in.triangles.resize(v.triangleCount);
     for (std::size_t t = 0; t < v.triangleCount; ++t)
       in.triangles[t] = {v.triangles[3 * t], v.triangles[3 * t + 1], v.triangles[3 * t + 2]};
+    volume = c.organ->volume;
+    own = c.organ->visual;
     haveSurface = true;
   }
   if (o.count("mesh")) {
@@ -71,8 +78,27 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
     in.triangles = m.isVolume() ? simcore::boundaryTriangles(m, false) : m.triangles;
     in.vertices.clear();
     for (const auto& p : m.points) in.vertices.insert(in.vertices.end(), {p.x(), p.y(), p.z()});
+    volume = m.isVolume() ? std::move(m) : simcore::Mesh{};
+    own.reset();
     haveSurface = true;
   }
+  if (o.count("visual")) {
+    if (volume.tets.empty())
+      throw UsageError(
+          std::string(command) +
+          " --visual needs the organ's volume (--mesh VOLUME or --case): its tetrahedra carry the surface");
+    simcore::LoadOptions lo;
+    if (o.count("unit")) lo.unit = o["unit"];
+    std::string why;
+    own = VisualSurface::make(volume, simcore::loadMesh(o["visual"], lo), &why);
+    if (!own) throw simcore::MeshError(why);
+  }
+  if (own) {  // the organ drawn through its own surface, at rest
+    in.vertices.clear();
+    for (const auto& p : own->points) in.vertices.insert(in.vertices.end(), {p.x(), p.y(), p.z()});
+    in.triangles = own->triangles;
+  }
+  if (visual) *visual = own;
   if (o.count("image")) {
     in.frame = cv::imread(o["image"], cv::IMREAD_COLOR);
     if (in.frame.empty())
@@ -157,7 +183,8 @@ int cmdCompose(const std::vector<std::string>& args) {
     if (!o.count(need)) throw UsageError(std::string("compose needs --") + need);
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".png" && ext != ".jpg" && ext != ".jpeg") throw UsageError("--out must end in .png or .jpg");
-  const AppearanceInput in = appearanceInput(o, "compose");
+  std::shared_ptr<const VisualSurface> visual;
+  const AppearanceInput in = appearanceInput(o, "compose", &visual);
   const imaging::Appearance theta = imaging::loadAppearance(o["theta"]);
   std::vector<double> deformed;
   if (o.count("deformed")) {
@@ -165,6 +192,12 @@ int cmdCompose(const std::vector<std::string>& args) {
     if (o.count("unit")) lo.unit = o["unit"];
     simcore::Mesh d = simcore::loadMesh(o["deformed"], lo);
     d.convertToMetres();
+    if (visual) {  // the volume's nodes moved: its own surface follows them
+      d.points = visual->map(d.points);
+      if (d.points.empty())
+        throw simcore::MeshError("The deformed organ (" + o["deformed"] +
+                                 ") has another node count than the organ's volume; it must be that mesh, moved.");
+    }
     for (const auto& p : d.points) deformed.insert(deformed.end(), {p.x(), p.y(), p.z()});
   }
   if (!o.count("view-camera") && (o.count("view-pose") || o.count("view-image") || o.count("texture-only")))
@@ -207,7 +240,9 @@ const std::vector<OptionSpec>& frameInputOptions() {
       {"camera", "CAM", "the camera"},
       {"pose", "P.json", "the organ's pose (model to camera)"},
       {"image", "FRAME", "the endoscope frame"},
-      {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"}};
+      {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"},
+      {"visual", "SURFACE",
+       "draw the organ through this surface (its own, finer), carried by the volume's tetrahedra"}};
   return options;
 }
 }  // namespace
@@ -217,7 +252,8 @@ const Command& appearanceCommand() {
       "appearance",
       "  rehearse appearance --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out "
       "THETA.json\n"
-      "                [--report R.json] [--inpaint telea|ns|shiftmap|fsr] [--background IB.png] [--diffuse ID.png]\n"
+      "                [--visual SURFACE] [--report R.json] [--inpaint telea|ns|shiftmap|fsr] [--background IB.png] "
+      "[--diffuse ID.png]\n"
       "                                   estimate the light and the organ's reflectance from the frame (step 6);\n"
       "                                   exit 4 when the model explains too little (texture mapping only)\n",
       joined(frameInputOptions(), {{"out", "THETA.json", "the estimated light and reflectance"},
@@ -233,7 +269,8 @@ const Command& composeCommand() {
       "compose",
       "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta "
       "THETA.json\n"
-      "                [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint telea|ns|shiftmap|fsr]\n"
+      "                [--visual SURFACE] [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint "
+      "telea|ns|shiftmap|fsr]\n"
       "                [--view-camera CAM2 --view-pose P2.json [--view-image IMG2] [--texture-only]]\n"
       "                                   the organ (deformed: its nodes in the input order) re-shaded in the "
       "frame,\n"

@@ -23,64 +23,6 @@ Eigen::Matrix3d deformationGradient(const FemModel& m, std::size_t e, const Eige
   return Ds * m.Bm[e];
 }
 
-// Barycentric coordinates of p in tet e (rest shape).
-Eigen::Vector4d barycentric(const FemModel& m, std::size_t e, const Eigen::Vector3d& p) {
-  const Eigen::Vector3d l = m.Bm[e] * (p - m.rest[m.tets[e][0]]);
-  return {1 - l.sum(), l[0], l[1], l[2]};
-}
-
-// Locates every point in the rest mesh (a uniform grid over the tetrahedra's boxes); points outside
-// every tetrahedron take the one whose barycentric coordinates are least negative nearby.
-SurfaceEmbedding locate(const FemModel& m, const std::vector<Eigen::Vector3d>& points) {
-  SurfaceEmbedding out;
-  Eigen::AlignedBox3d box;
-  for (const auto& p : m.rest) box.extend(p);
-  const double cell = std::cbrt(box.volume() / std::max<std::size_t>(1, m.tets.size())) * 2 + 1e-12;
-  const Eigen::Array3i dims = ((box.sizes() / cell).array().ceil().cast<int>() + 1).max(1).min(256);
-  auto cellOf = [&](const Eigen::Vector3d& p) {
-    Eigen::Array3i c = ((p - box.min()).array() / cell).floor().cast<int>();
-    return c.max(0).min(dims - 1).eval();
-  };
-  std::vector<std::vector<int>> grid(static_cast<std::size_t>(dims.prod()));
-  auto index = [&](const Eigen::Array3i& c) { return static_cast<std::size_t>((c[0] * dims[1] + c[1]) * dims[2] + c[2]); };
-  for (std::size_t e = 0; e < m.tets.size(); ++e) {
-    Eigen::AlignedBox3d b;
-    for (int v : m.tets[e]) b.extend(m.rest[v]);
-    const Eigen::Array3i lo = cellOf(b.min()), hi = cellOf(b.max());
-    for (int i = lo[0]; i <= hi[0]; ++i)
-      for (int j = lo[1]; j <= hi[1]; ++j)
-        for (int k = lo[2]; k <= hi[2]; ++k) grid[index({i, j, k})].push_back(static_cast<int>(e));
-  }
-  for (const auto& p : points) {
-    int best = -1;
-    double bestMin = -1e300;
-    Eigen::Vector4d bestW;
-    auto consider = [&](int e) {
-      const Eigen::Vector4d w = barycentric(m, static_cast<std::size_t>(e), p);
-      if (w.minCoeff() > bestMin) {
-        bestMin = w.minCoeff();
-        best = e;
-        bestW = w;
-      }
-    };
-    for (int e : grid[index(cellOf(p))]) consider(e);
-    if (bestMin < -1e-9) {
-      // Outside (or at a cell border): widen the search to the neighbouring cells, then everything.
-      const Eigen::Array3i c = cellOf(p);
-      for (int i = std::max(0, c[0] - 1); i <= std::min(dims[0] - 1, c[0] + 1); ++i)
-        for (int j = std::max(0, c[1] - 1); j <= std::min(dims[1] - 1, c[1] + 1); ++j)
-          for (int k = std::max(0, c[2] - 1); k <= std::min(dims[2] - 1, c[2] + 1); ++k)
-            for (int e : grid[index({i, j, k})]) consider(e);
-      if (best < 0)
-        for (std::size_t e = 0; e < m.tets.size(); ++e) consider(static_cast<int>(e));
-    }
-    if (bestMin < -1e-9) ++out.outside;
-    out.nodes.push_back(m.tets[best]);
-    out.weights.push_back(bestW);
-  }
-  return out;
-}
-
 // Hessian of the spring energy k/2 (|d| - L)^2 with respect to d.
 Eigen::Matrix3d springHessian(const EmbeddedSpring& s, const Eigen::Vector3d& d) {
   const double l = d.norm();
@@ -121,7 +63,9 @@ void addSpringForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorX
 
 }  // namespace
 
-SurfaceEmbedding embedPoints(const FemModel& m, const std::vector<Eigen::Vector3d>& points) { return locate(m, points); }
+SurfaceEmbedding embedPoints(const FemModel& m, const std::vector<Eigen::Vector3d>& points) {
+  return embedPoints(m.rest, m.tets, points);
+}
 
 std::vector<Eigen::Vector3d> mapEmbedded(const SurfaceEmbedding& e, const Eigen::VectorXd& x) {
   std::vector<Eigen::Vector3d> out(e.nodes.size());
@@ -178,7 +122,7 @@ FemModel FemModel::build(const Mesh& mesh, const std::map<int, MaterialParams>& 
       throw MeshError("The embedded surface '" + es.name + "' needs a positive Young's modulus and wall thickness.");
     std::vector<Eigen::Vector3d> pts;
     for (const auto& p : es.surface.points) pts.push_back(p * es.surface.unitToMetre);
-    SurfaceEmbedding emb = locate(m, pts);
+    SurfaceEmbedding emb = embedPoints(m.rest, m.tets, pts);
     emb.name = es.name;
     emb.triangles = es.surface.triangles;
     std::vector<std::pair<int, int>> edges;

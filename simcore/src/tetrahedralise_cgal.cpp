@@ -148,6 +148,17 @@ Mesh tetrahedraliseSurface(const Mesh& surface0, const TetrahedraliseOptions& o,
     notes->push_back("The organ surface intersects itself (" + std::to_string(check.selfIntersections) +
                      " triangle pairs); its inside was decided by ray parity, so check the result.");
   if (notes) notes->insert(notes->end(), check.notes.begin(), check.notes.end());
+  if (o.outerSurface) {
+    Mesh outer;
+    outer.points = closedParts.points;
+    for (std::size_t t = 0; t < closedParts.triangles.size(); ++t)
+      if (closedParts.triangleLabels[t] == check.outerPart) {
+        outer.triangles.push_back(closedParts.triangles[t]);
+        outer.triangleLabels.push_back(1);
+      }
+    outer.compact();
+    *o.outerSurface = std::move(outer);
+  }
   std::vector<int> partLabels = {check.outerPart};
   partLabels.insert(partLabels.end(), check.innerParts.begin(), check.innerParts.end());
   std::vector<std::unique_ptr<detail::SurfaceMesh3>> meshes;

@@ -163,6 +163,12 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
       json labels = json::array();
       for (const auto& [l, n] : volume.labelNames) labels.push_back({{"label", l}, {"name", n}});
       part("labels", "json", bytes(labels.dump()));
+      if (const auto& visual = c.organ->visual) {  // the organ's own surface (its embedding is remade on loading)
+        simcore::Mesh surface;
+        surface.points = visual->points;
+        surface.triangles = visual->triangles;
+        part("visual_surface", "vtu", bytes(simcore::writeVtu(surface, false)));
+      }
     }
     if (!c.frame.empty()) {
       std::vector<uchar> png;
@@ -275,13 +281,19 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
     if (notes) *notes << s;
   };
   // What each part is called in messages ("<what> not loaded: ...").
-  const std::map<std::string, QString> partName = {
-      {"volume", QStringLiteral("Organ mesh")},        {"labels", QStringLiteral("Organ labels")},
-      {"frame", QStringLiteral("Frame")},              {"raw_frame", QStringLiteral("Captured frame")},
-      {"camera", QStringLiteral("Camera")},            {"attachments", QStringLiteral("Attachments")},
-      {"pose", QStringLiteral("Pose")},                {"contour", QStringLiteral("Contour")},
-      {"elastic_fit", QStringLiteral("Elastic fit")}, {"ground_truth", QStringLiteral("Ground truth")},
-      {"landmarks", QStringLiteral("Landmark pairs")}, {"appearance", QStringLiteral("Appearance")}};
+  const std::map<std::string, QString> partName = {{"volume", QStringLiteral("Organ mesh")},
+                                                   {"labels", QStringLiteral("Organ labels")},
+                                                   {"frame", QStringLiteral("Frame")},
+                                                   {"raw_frame", QStringLiteral("Captured frame")},
+                                                   {"camera", QStringLiteral("Camera")},
+                                                   {"attachments", QStringLiteral("Attachments")},
+                                                   {"pose", QStringLiteral("Pose")},
+                                                   {"contour", QStringLiteral("Contour")},
+                                                   {"elastic_fit", QStringLiteral("Elastic fit")},
+                                                   {"ground_truth", QStringLiteral("Ground truth")},
+                                                   {"landmarks", QStringLiteral("Landmark pairs")},
+                                                   {"appearance", QStringLiteral("Appearance")},
+                                                   {"visual_surface", QStringLiteral("Organ surface")}};
   auto read = [&](const char* part) -> QByteArray {
     QSqlQuery p(db);
     p.prepare(checksums ? QStringLiteral("SELECT data, sha256 FROM parts WHERE name = ?") : QStringLiteral("SELECT data FROM parts WHERE name = ?"));
@@ -306,7 +318,22 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
       simcore::validateMesh(volume, "the organ mesh");
       if (QByteArray l = read("labels"); !l.isEmpty())
         for (const auto& e : json::parse(l.toStdString())) volume.setLabelName(e.at("label").get<int>(), e.at("name").get<std::string>());
-      c.organ = app::Organ::fromVolume(std::move(volume));
+      // The organ's own surface, drawn in the composited view: without it (older files, or damaged) the
+      // simulation mesh's boundary is drawn, and the note says so.
+      simcore::Mesh visual;
+      if (QByteArray vs = read("visual_surface"); !vs.isEmpty()) {
+        try {
+          visual = simcore::parseVtu(std::string_view(vs.constData(), static_cast<std::size_t>(vs.size())));
+          simcore::validateMesh(visual, "the organ's surface");
+        } catch (const std::exception& e) {
+          visual = {};
+          note(QStringLiteral("Organ surface not loaded: %1 The simulation mesh's boundary is drawn instead.")
+                   .arg(QString::fromUtf8(e.what())));
+        }
+      }
+      std::string why;
+      c.organ = app::Organ::fromVolume(std::move(volume), {}, 1.0, visual.triangles.empty() ? nullptr : &visual, &why);
+      if (!why.empty()) note(QStringLiteral("Organ surface not used: %1").arg(QString::fromStdString(why)));
     } catch (const std::exception& e) {
       c.organ = std::make_shared<app::Organ>();
       note(QStringLiteral("Organ mesh not loaded: %1").arg(QString::fromUtf8(e.what())));

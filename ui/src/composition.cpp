@@ -135,11 +135,16 @@ std::vector<double> Composition::modelVertices(const std::vector<Eigen::Vector3d
   std::vector<double> v;
   if (cameraPositions.empty() || !estimate_) return v;
   const Eigen::Matrix3d Rt = estimate_->pose.R.transpose();
-  v.reserve(3 * cameraPositions.size());
-  for (const auto& x : cameraPositions) {
-    const Eigen::Vector3d m = Rt * (x - estimate_->pose.t);
-    v.insert(v.end(), {m.x(), m.y(), m.z()});
+  std::vector<Eigen::Vector3d> model(cameraPositions.size());
+  for (std::size_t i = 0; i < model.size(); ++i) model[i] = Rt * (cameraPositions[i] - estimate_->pose.t);
+  // The organ's own surface, carried by the volume's nodes (the compositor was made with it); a volume of
+  // another node count (after a cut) gives an empty list, which the compositor refuses.
+  if (case_ && case_->organ->visual) {
+    model = case_->organ->visual->map(model);
+    if (model.empty()) v.push_back(0);  // not the compositor's mesh: refused below, nothing drawn
   }
+  v.reserve(3 * model.size());
+  for (const auto& m : model) v.insert(v.end(), {m.x(), m.y(), m.z()});
   return v;
 }
 

@@ -49,10 +49,13 @@ AppearanceInput appearanceInputFromCase(const Case& c) {
   AppearanceInput in;
   in.camera = c.camera;
   in.pose = c.pose;
-  const auto& nodes = c.shapeNodes();
-  in.vertices.reserve(3 * nodes.size());
-  for (const auto& x : nodes) in.vertices.insert(in.vertices.end(), {x.x(), x.y(), x.z()});
-  in.triangles = c.organ->surface;
+  // The organ's own surface when it has one (carried by the volume's nodes), else the volume's boundary.
+  const std::vector<Eigen::Vector3d> visual =
+      c.organ->visual ? c.organ->visual->map(c.shapeNodes()) : std::vector<Eigen::Vector3d>{};
+  const auto& points = visual.empty() ? c.shapeNodes() : visual;
+  in.vertices.reserve(3 * points.size());
+  for (const auto& x : points) in.vertices.insert(in.vertices.end(), {x.x(), x.y(), x.z()});
+  in.triangles = visual.empty() ? c.organ->surface : c.organ->visual->triangles;
   in.frame = c.frame;
   return in;
 }

@@ -4,10 +4,55 @@
 #include "rehearse/app/materials.hpp"
 
 #include <algorithm>
+#include <cstdio>
 
 namespace rehearse::app {
 
-std::shared_ptr<const Organ> Organ::fromVolume(simcore::Mesh volume, std::string source, double sourceUnitToMetre) {
+std::shared_ptr<const VisualSurface> VisualSurface::make(const simcore::Mesh& volume, const simcore::Mesh& surface,
+                                                         std::string* why) {
+  auto refuse = [&](const std::string& s) {
+    if (why) *why = s;
+    return std::shared_ptr<const VisualSurface>();
+  };
+  if (surface.triangles.empty() || surface.points.empty())
+    return refuse("The organ's surface has no triangles; the views draw the simulation mesh's boundary.");
+  if (volume.tets.empty()) return refuse("There is no volume mesh to carry the organ's surface.");
+  simcore::Mesh s = surface;
+  s.convertToMetres();
+  for (const auto& t : s.triangles)
+    for (int v : t)
+      if (v < 0 || v >= static_cast<int>(s.points.size()))
+        return refuse("The organ's surface has a triangle with a vertex it does not have.");
+  auto out = std::make_shared<VisualSurface>();
+  out->embedding = simcore::embedPoints(volume.points, volume.tets, s.points);
+  const double size = volume.bounds().sizes().maxCoeff();
+  if (out->embedding.farthestOutside > 0.05 * size) {
+    char text[256];
+    std::snprintf(text, sizeof text,
+                  "The organ's surface lies up to %.1f mm outside its volume mesh (%.0f mm across): it is not that "
+                  "mesh's surface, so "
+                  "the views draw the simulation mesh's boundary.",
+                  out->embedding.farthestOutside * 1e3, size * 1e3);
+    return refuse(text);
+  }
+  out->points = std::move(s.points);
+  out->triangles = std::move(s.triangles);
+  out->nodeCount = volume.points.size();
+  return out;
+}
+
+std::vector<Eigen::Vector3d> VisualSurface::map(const std::vector<Eigen::Vector3d>& nodes) const {
+  if (nodes.size() != nodeCount) return {};
+  return simcore::mapEmbedded(embedding, nodes);
+}
+
+std::size_t VisualSurface::bytes() const {
+  return points.size() * (sizeof(Eigen::Vector3d) + sizeof(std::array<int, 4>) + sizeof(Eigen::Vector4d)) +
+         triangles.size() * sizeof(std::array<int, 3>);
+}
+
+std::shared_ptr<const Organ> Organ::fromVolume(simcore::Mesh volume, std::string source, double sourceUnitToMetre,
+                                               const simcore::Mesh* visualSurface, std::string* why) {
   auto o = std::make_shared<Organ>();
   o->volume = std::move(volume);
   o->source = std::move(source);
@@ -15,6 +60,7 @@ std::shared_ptr<const Organ> Organ::fromVolume(simcore::Mesh volume, std::string
   o->quality = simcore::computeQuality(o->volume);
   o->centreOfGravity = phantom::centreOfGravity(o->volume);
   if (o->volume.tets.empty()) return o;
+  if (visualSurface) o->visual = VisualSurface::make(o->volume, *visualSurface, why);
   o->surface = simcore::boundaryTriangles(o->volume, false);
   // Faces of the other labels (interfaces carry the inner label): the structures drawn through the organ.
   std::vector<int> labels;
@@ -133,9 +179,11 @@ std::size_t Case::ownBytes() const {
 
 std::size_t Case::sharedBytes() const {
   const auto& v = organ->volume;
-  std::size_t bytes = v.points.size() * sizeof(Eigen::Vector3d) + v.tets.size() * (sizeof(std::array<int, 4>) + sizeof(int)) +
+  std::size_t bytes = v.points.size() * sizeof(Eigen::Vector3d) +
+                      v.tets.size() * (sizeof(std::array<int, 4>) + sizeof(int)) +
                       v.triangles.size() * (sizeof(std::array<int, 3>) + sizeof(int)) +
-                      (organ->surface.size() + organ->innerSurface.size()) * sizeof(std::array<int, 3>) + organ->innerSurfaceLabels.size() * sizeof(int);
+                      (organ->surface.size() + organ->innerSurface.size()) * sizeof(std::array<int, 3>) +
+                      organ->innerSurfaceLabels.size() * sizeof(int) + (organ->visual ? organ->visual->bytes() : 0);
   if (fit) bytes += fit->nodes.size() * sizeof(Eigen::Vector3d);
   if (appearance) bytes += sizeof(AppearanceEstimate) + appearance->status.size();
   bytes += frame.total() * frame.elemSize() + rawFrame.total() * rawFrame.elemSize();

@@ -65,6 +65,13 @@ void writeCaseDirectory(const Case& c, const std::string& dir) {
   for (std::size_t i = 0; i < all.size(); ++i)
     if (labels[i] == kVesselLabel) vessel.push_back(all[i]);
   imaging::writeFileAtomically(path("vessels_surface.obj"), objText(volume, vessel, "vessel tree surface"));
+  if (const auto& visual = c.organ->visual) {  // the organ's own surface, drawn in the composited view
+    simcore::Mesh surface;
+    surface.points = visual->points;
+    surface.triangles = visual->triangles;
+    imaging::writeFileAtomically(path("organ_visual.obj"),
+                                 objText(surface, surface.triangles, "organ's own surface, drawn over the volume"));
+  }
   imaging::saveCamera(c.camera, path("camera.yaml"));
   std::vector<uchar> png;
   if (!cv::imencode(".png", c.frame, png)) throw imaging::InputError("The frame could not be encoded as PNG.");
@@ -79,6 +86,7 @@ void writeCaseDirectory(const Case& c, const std::string& dir) {
   manifest["files"] = {{"volume", "organ.vtu"}, {"volume_msh", "organ.msh"}, {"surface", "organ_surface.obj"},
                        {"vessels", "vessels_surface.obj"}, {"camera", "camera.yaml"}, {"frame", "frame.png"},
                        {"attachments", "attachments.json"}};
+  if (c.organ->visual) manifest["files"]["visual"] = "organ_visual.obj";
   json labelsJson = json::array();
   for (const auto& [l, n] : volume.labelNames) labelsJson.push_back({{"label", l}, {"name", n}});
   manifest["labels"] = labelsJson;
@@ -119,7 +127,18 @@ Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) 
   try {
     simcore::Mesh volume = simcore::loadMesh(path(files.value("volume", "organ.vtu")));
     for (const auto& l : manifest.value("labels", json::array())) volume.setLabelName(l.at("label").get<int>(), l.at("name").get<std::string>());
-    c.organ = Organ::fromVolume(std::move(volume));
+    simcore::Mesh visual;  // the organ's own surface, when the folder has one
+    if (files.contains("visual")) {
+      try {
+        visual = simcore::loadMesh(path(files.value("visual", "organ_visual.obj")), {"m"});
+      } catch (const std::exception& e) {
+        note(std::string("Organ surface not loaded: ") + e.what() +
+             " The simulation mesh's boundary is drawn instead.");
+      }
+    }
+    std::string why;
+    c.organ = Organ::fromVolume(std::move(volume), {}, 1.0, visual.triangles.empty() ? nullptr : &visual, &why);
+    if (!why.empty()) note("Organ surface not used: " + why);
     c.material = defaultMaterial(*c.organ);
   } catch (const std::exception& e) {
     note(std::string("Organ mesh not loaded: ") + e.what());

@@ -185,8 +185,10 @@ void MeshPage::importMesh(const QString& path) {
                                        .toStdString());
         }
       }
+      simcore::Mesh ownSurface;  // the surface as imported: drawn in the composited view, carried by the tetrahedra
       if (!m.isVolume()) {
         simcore::TetrahedraliseOptions o;
+        o.outerSurface = &ownSurface;
         o.targetTets = static_cast<std::size_t>(target);
         o.cancel = &cancel;
         o.progress = [&progress](double f, const std::string& s) { progress(f < 0 ? f : 0.05 + 0.9 * f, QString::fromStdString(s)); };
@@ -195,14 +197,24 @@ void MeshPage::importMesh(const QString& path) {
       m.triangles.clear();
       m.triangleLabels.clear();
       // Surfaces and quality of the new mesh are derived here, off the GUI thread.
-      auto prepared = app::Organ::fromVolume(std::move(m), path.toStdString(), fileUnit);
+      std::string visualNote;
+      auto prepared = app::Organ::fromVolume(std::move(m), path.toStdString(), fileUnit,
+                                             ownSurface.triangles.empty() ? nullptr : &ownSurface, &visualNote);
+      if (!visualNote.empty()) notes.push_back(visualNote);
       QStringList qnotes;
       for (const auto& n : notes) qnotes << QString::fromStdString(n);
       return [this, prepared, path, qnotes] {
         importNotes_ = qnotes;
         wb_.doc->edit(tr("Import mesh"), [&](app::Case& k) { k.setOrgan(prepared); });
         emit importNotesChanged();
-        wb_.status(tr("Imported %1: %2 tetrahedra").arg(QFileInfo(path).fileName()).arg(data()->organ->volume.tets.size()));
+        const auto& organ = *data()->organ;
+        wb_.status(
+            organ.visual
+                ? tr("Imported %1: %2 tetrahedra, drawn through its own surface (%3 triangles)")
+                      .arg(QFileInfo(path).fileName())
+                      .arg(organ.volume.tets.size())
+                      .arg(organ.visual->triangles.size())
+                : tr("Imported %1: %2 tetrahedra").arg(QFileInfo(path).fileName()).arg(organ.volume.tets.size()));
         emit meshImported(true, {});
       };
     } catch (const simcore::Cancelled&) {

@@ -38,6 +38,7 @@ struct SurfaceEmbedding {
   std::vector<Eigen::Vector4d> weights;
   std::vector<std::array<int, 3>> triangles;
   std::size_t outside = 0;  ///< vertices outside every tetrahedron (mapped to the nearest one, extrapolated)
+  double farthestOutside = 0;  ///< m, the largest distance of such a vertex from its tetrahedron
 };
 
 /// A spring between two mapped points (p = sum w_i x_i over the first four nodes, q over the last four).
@@ -86,6 +87,14 @@ struct FemModel {
 std::vector<Eigen::Vector3d> mapEmbedded(const FemModel& m, std::size_t which, const Eigen::VectorXd& x);
 /// Barycentric embedding of points (metres, rest frame) in the model's tetrahedra (markers, probes).
 SurfaceEmbedding embedPoints(const FemModel& m, const std::vector<Eigen::Vector3d>& points);
+/// The same on a bare tetrahedral mesh (rest positions, elements): each point takes the tetrahedron that holds
+/// it, or, outside them all, the nearest one (by distance), its barycentric weights then extrapolating the
+/// element's affine map (so an affine motion of the nodes moves every point exactly). Degenerate (flat)
+/// tetrahedra hold nothing. Throws MeshError when there is no usable tetrahedron.
+SurfaceEmbedding embedPoints(const std::vector<Eigen::Vector3d>& rest, const std::vector<std::array<int, 4>>& tets,
+                             const std::vector<Eigen::Vector3d>& points);
+/// Positions of embedded points for nodal positions (one per node).
+std::vector<Eigen::Vector3d> mapEmbedded(const SurfaceEmbedding& e, const std::vector<Eigen::Vector3d>& nodes);
 std::vector<Eigen::Vector3d> mapEmbedded(const SurfaceEmbedding& e, const Eigen::VectorXd& x);
 
 double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x);

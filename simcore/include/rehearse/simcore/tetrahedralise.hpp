@@ -28,6 +28,10 @@ struct TetrahedraliseOptions {
   std::function<void(double, const std::string&)> progress;
   /// Set to true from any thread to cancel; the call then throws Cancelled.
   const std::atomic<bool>* cancel = nullptr;
+  /// When set, tetrahedraliseSurface puts here the outer part of the surface as it meshed it (checked, holes
+  /// closed, outward, metres, unused points dropped): the organ's own surface, finer than the elements' boundary,
+  /// which the views draw (app::VisualSurface).
+  Mesh* outerSurface = nullptr;
 };
 
 /// Region labels for implicit meshing: 0 outside, > 0 inside (the element label).

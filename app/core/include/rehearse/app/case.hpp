@@ -41,6 +41,27 @@ namespace rehearse::app {
 inline constexpr int kParenchymaLabel = 1;
 inline constexpr int kVesselLabel = 2;
 
+/// The organ's own surface as it was imported (tens of thousands of triangles, finer than the simulation
+/// mesh's boundary; Courtecuisse et al. 2014, SOFA's visual models): the composited view draws it instead of
+/// the elements' boundary, each vertex carried by the tetrahedron that holds it (barycentric weights at rest,
+/// simcore::embedPoints), its normals recomputed from the deformed surface, the frame's texture following it.
+struct VisualSurface {
+  std::vector<Eigen::Vector3d> points;  ///< at rest, model frame, metres
+  std::vector<std::array<int, 3>> triangles;
+  simcore::SurfaceEmbedding embedding;  ///< each point in the volume's rest mesh
+
+  /// Builds it for `volume` (metres), or returns null with a sentence in `why` when the surface is not that
+  /// volume's (a vertex farther outside it than 5 % of the organ's size: a coarse mesh's boundary cuts
+  /// corners by a few mm, 4.3 mm on the 220 mm patient liver at 3k tetrahedra) or has no triangles.
+  static std::shared_ptr<const VisualSurface> make(const simcore::Mesh& volume, const simcore::Mesh& surface,
+                                                   std::string* why = nullptr);
+  /// Its points for the volume's nodes at `nodes` (volume node order, any frame); empty when `nodes` is not
+  /// the volume it was made for (another node count, as after a cut).
+  std::vector<Eigen::Vector3d> map(const std::vector<Eigen::Vector3d>& nodes) const;
+  std::size_t nodeCount = 0;  ///< of the volume it was made for
+  std::size_t bytes() const;
+};
+
 /// The organ: its volume mesh and what is derived from it once, where it is made (on a worker thread).
 /// Immutable once built; shared between undo states.
 struct Organ {
@@ -54,10 +75,17 @@ struct Organ {
   /// Metres per length unit of that file (the volume itself is in metres): a 4x4 pose matrix, which has no
   /// unit of its own, is read in it, as `rehearse register --unit` does.
   double sourceUnitToMetre = 1.0;
+  /// The surface drawn in the composited view; null: the volume's boundary (`surface`) is drawn.
+  std::shared_ptr<const VisualSurface> visual;
 
   bool empty() const { return volume.tets.empty(); }
   /// Derives surfaces, quality and centre from `volume` (the expensive part of making an organ).
-  static std::shared_ptr<const Organ> fromVolume(simcore::Mesh volume, std::string source = {}, double sourceUnitToMetre = 1.0);
+  /// With `visualSurface` (metres), that surface is embedded as the visual one (VisualSurface::make); when it
+  /// cannot be, `why` says so and the boundary is drawn.
+  static std::shared_ptr<const Organ> fromVolume(simcore::Mesh volume, std::string source = {},
+                                                 double sourceUnitToMetre = 1.0,
+                                                 const simcore::Mesh* visualSurface = nullptr,
+                                                 std::string* why = nullptr);
 };
 
 /// What a case knows independently of the user (the phantom's, or a study's): kept apart from the user's work.
