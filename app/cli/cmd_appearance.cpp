@@ -89,6 +89,7 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
           " --visual needs the organ's volume (--mesh VOLUME or --case): its tetrahedra carry the surface");
     simcore::LoadOptions lo;
     if (o.count("unit")) lo.unit = o["unit"];
+    if (o.count("visual-unit")) lo.unit = o["visual-unit"];
     std::string why;
     own = VisualSurface::make(volume, simcore::loadMesh(o["visual"], lo), &why);
     if (!own) throw simcore::MeshError(why);
@@ -241,8 +242,8 @@ const std::vector<OptionSpec>& frameInputOptions() {
       {"pose", "P.json", "the organ's pose (model to camera)"},
       {"image", "FRAME", "the endoscope frame"},
       {"inpaint", "I", "telea, ns, shiftmap or fsr: how the organ is removed from the frame"},
-      {"visual", "SURFACE",
-       "draw the organ through this surface (its own, finer), carried by the volume's tetrahedra"}};
+      {"visual", "SURFACE", "draw the organ through this surface (its own, finer), carried by the volume's tetrahedra"},
+      {"visual-unit", "U", "the --visual surface's length unit (else --unit's)"}};
   return options;
 }
 }  // namespace
@@ -252,7 +253,8 @@ const Command& appearanceCommand() {
       "appearance",
       "  rehearse appearance --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out "
       "THETA.json\n"
-      "                [--visual SURFACE] [--report R.json] [--inpaint telea|ns|shiftmap|fsr] [--background IB.png] "
+      "                [--visual SURFACE [--visual-unit u]] [--report R.json] [--inpaint telea|ns|shiftmap|fsr] "
+      "[--background IB.png] "
       "[--diffuse ID.png]\n"
       "                                   estimate the light and the organ's reflectance from the frame (step 6);\n"
       "                                   exit 4 when the model explains too little (texture mapping only)\n",
@@ -269,7 +271,7 @@ const Command& composeCommand() {
       "compose",
       "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta "
       "THETA.json\n"
-      "                [--visual SURFACE] [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint "
+      "                [--visual SURFACE [--visual-unit u]] [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint "
       "telea|ns|shiftmap|fsr]\n"
       "                [--view-camera CAM2 --view-pose P2.json [--view-image IMG2] [--texture-only]]\n"
       "                                   the organ (deformed: its nodes in the input order) re-shaded in the "

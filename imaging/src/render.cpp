@@ -53,15 +53,35 @@ void checkCamera(const Camera& c) {
 
 }  // namespace
 
-Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen::Vector3d>& pts, const SurfaceView& s, int scale, double nearPlane) {
+bool closedAndOutward(const std::vector<Eigen::Vector3d>& points, const SurfaceView& s) {
+  if (s.triangleCount == 0 || points.size() != s.vertexCount) return false;
+  std::vector<std::pair<int, int>> edges;  // directed, as the triangles run them
+  edges.reserve(3 * s.triangleCount);
+  double volume = 0;
+  for (std::size_t t = 0; t < s.triangleCount; ++t) {
+    const int* tri = s.triangles + 3 * t;
+    for (int k = 0; k < 3; ++k) edges.emplace_back(tri[k], tri[(k + 1) % 3]);
+    volume += points[tri[0]].dot(points[tri[1]].cross(points[tri[2]]));
+  }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size(); ++i) {
+    if (i + 1 < edges.size() && edges[i + 1] == edges[i]) return false;  // an edge run twice the same way
+    if (!std::binary_search(edges.begin(), edges.end(), std::make_pair(edges[i].second, edges[i].first)))
+      return false;  // a border
+  }
+  return volume > 0;
+}
+
+Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen::Vector3d>& pts, const SurfaceView& s,
+                                   int scale, double nearPlane, bool cullBackFaces) {
   checkCamera(camera);
   scale = std::max(1, scale);
   if (pts.size() != s.vertexCount) throw InputError("The posed surface has " + std::to_string(pts.size()) + " points for " + std::to_string(s.vertexCount) + " vertices.");
   const int W = camera.width * scale, H = camera.height * scale;
   Rasterization r;
   r.scale = scale;
-  r.triangle = cv::Mat1i(H, W, -1);
-  r.depth = cv::Mat1f(H, W, std::numeric_limits<float>::infinity());
+  r.triangle = cv::Mat1i(H, W);
+  r.depth = cv::Mat1f(H, W);
   const Eigen::Matrix3d K = scaledK(camera, scale);
   std::vector<Eigen::Vector2d> uv(s.vertexCount);
   for (std::size_t i = 0; i < s.vertexCount; ++i) {
@@ -70,59 +90,93 @@ Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen
                                          K(1, 1) * xi.y() / xi.z() + K(1, 2))
                       : Eigen::Vector2d(0, 0);
   }
-  // Bands of rows in parallel, each drawing every triangle in its rows: each pixel is drawn by one thread in
-  // triangle order, so the result does not depend on the threads.
+  // Each triangle set up once (its rows and columns on the image, or none: behind the near plane, edge-on,
+  // facing away when culling, or off the image).
+  struct Setup {
+    int x0 = 0, x1 = -1, y0 = 0, y1 = -1;
+  };
+  std::vector<Setup> setup(s.triangleCount);
+  cv::parallel_for_(cv::Range(0, static_cast<int>(s.triangleCount)), [&](const cv::Range& range) {
+    for (int t = range.start; t < range.end; ++t) {
+      const int* tri = s.triangles + 3 * t;
+      if (pts[tri[0]].z() <= nearPlane || pts[tri[1]].z() <= nearPlane || pts[tri[2]].z() <= nearPlane) continue;
+      const Eigen::Vector2d a = uv[tri[0]], b = uv[tri[1]], c = uv[tri[2]];
+      const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+      if (std::abs(area) < 1e-12) continue;
+      // The image-plane area has the sign of a . ((b - a) x (c - a)) (the points in front of the camera):
+      // positive when the triangle's outward side faces away from it.
+      if (cullBackFaces && area > 0) continue;
+      Setup& q = setup[static_cast<std::size_t>(t)];
+      q.x0 = std::max(0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), c.x()}))));
+      q.x1 = std::min(W - 1, static_cast<int>(std::floor(std::max({a.x(), b.x(), c.x()}))));
+      q.y0 = std::max(0, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}))));
+      q.y1 = std::min(H - 1, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}))));
+      if (q.x0 > q.x1) q.y1 = q.y0 - 1;
+    }
+  });
+  // Bands of rows in parallel, each drawing the triangles that reach its rows, in triangle order: each pixel is
+  // drawn by one thread in triangle order, so the result does not depend on the threads.
   const int bands = std::max(1, std::min(H, 4 * cv::getNumThreads()));
+  auto bandOf = [&](int y) { return static_cast<int>(static_cast<long>(y) * bands / H); };
+  std::vector<std::vector<int>> inBand(static_cast<std::size_t>(bands));
+  for (std::size_t t = 0; t < s.triangleCount; ++t)
+    if (setup[t].y0 <= setup[t].y1)
+      for (int band = bandOf(setup[t].y0); band <= bandOf(setup[t].y1); ++band)
+        inBand[static_cast<std::size_t>(band)].push_back(static_cast<int>(t));
   cv::parallel_for_(cv::Range(0, bands), [&](const cv::Range& range) {
-   for (int band = range.start; band < range.end; ++band) {
-    const int bandTop = static_cast<int>(static_cast<long>(H) * band / bands), bandEnd = static_cast<int>(static_cast<long>(H) * (band + 1) / bands) - 1;
-  for (std::size_t t = 0; t < s.triangleCount; ++t) {
-    const int* tri = s.triangles + 3 * t;
-    const double z0 = pts[tri[0]].z(), z1 = pts[tri[1]].z(), z2 = pts[tri[2]].z();
-    if (z0 <= nearPlane || z1 <= nearPlane || z2 <= nearPlane) continue;
-    const Eigen::Vector2d a = uv[tri[0]], b = uv[tri[1]], c = uv[tri[2]];
-    const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
-    if (std::abs(area) < 1e-12) continue;
-    const int x0 = std::max(0, static_cast<int>(std::ceil(std::min({a.x(), b.x(), c.x()}))));
-    const int x1 = std::min(W - 1, static_cast<int>(std::floor(std::max({a.x(), b.x(), c.x()}))));
-    const int y0 = std::max(bandTop, static_cast<int>(std::ceil(std::min({a.y(), b.y(), c.y()}))));
-    const int y1 = std::min(bandEnd, static_cast<int>(std::floor(std::max({a.y(), b.y(), c.y()}))));
-    const double inv = 1.0 / area;
-    // The barycentric weights are linear along a row: each row's span is solved for (widened by a pixel),
-    // and only it is walked, with the weights computed and tested per pixel as before.
-    const double g0 = (b.y() - c.y()) * inv, g1 = (c.y() - a.y()) * inv, g2 = -g0 - g1;
-    const double iz0 = 1.0 / z0, iz1 = 1.0 / z1, iz2 = 1.0 / z2;
-    for (int y = y0; y <= y1; ++y) {
-      int* tid = r.triangle.ptr<int>(y);
-      float* dep = r.depth.ptr<float>(y);
-      const double py = y, px0 = x0;
-      const double w0s = ((b.x() - px0) * (c.y() - py) - (b.y() - py) * (c.x() - px0)) * inv;
-      const double w1s = ((c.x() - px0) * (a.y() - py) - (c.y() - py) * (a.x() - px0)) * inv;
-      const double w2s = 1.0 - w0s - w1s;
-      double lo = x0, hi = x1;
-      bool empty = false;
-      for (const auto& [w, g] : {std::pair{w0s, g0}, std::pair{w1s, g1}, std::pair{w2s, g2}}) {
-        if (g > 0) lo = std::max(lo, x0 - w / g);
-        else if (g < 0) hi = std::min(hi, x0 - w / g);
-        else empty |= w < 0;
-      }
-      if (empty) continue;
-      const int xs = std::max(x0, static_cast<int>(std::ceil(lo)) - 1), xe = std::min(x1, static_cast<int>(std::floor(hi)) + 1);
-      for (int x = xs; x <= xe; ++x) {
-        const double px = x;
-        const double w0 = ((b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px)) * inv;
-        const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) * inv;
-        const double w2 = 1.0 - w0 - w1;
-        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-        const double z = 1.0 / (w0 * iz0 + w1 * iz1 + w2 * iz2);
-        if (z < dep[x]) {
-          dep[x] = static_cast<float>(z);
-          tid[x] = static_cast<int>(t);
+    for (int band = range.start; band < range.end; ++band) {
+      // The rows y with bandOf(y) == band: y >= band H / bands, rounded up.
+      const int bandTop = static_cast<int>((static_cast<long>(band) * H + bands - 1) / bands);
+      const int bandEnd = static_cast<int>((static_cast<long>(band + 1) * H + bands - 1) / bands) - 1;
+      if (bandTop > bandEnd) continue;
+      r.triangle.rowRange(bandTop, bandEnd + 1).setTo(-1);
+      r.depth.rowRange(bandTop, bandEnd + 1).setTo(std::numeric_limits<float>::infinity());
+      for (int t : inBand[static_cast<std::size_t>(band)]) {
+        const Setup& q = setup[static_cast<std::size_t>(t)];
+        const int* tri = s.triangles + 3 * t;
+        const Eigen::Vector2d a = uv[tri[0]], b = uv[tri[1]], c = uv[tri[2]];
+        const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+        const int x0 = q.x0, x1 = q.x1, y0 = std::max(bandTop, q.y0), y1 = std::min(bandEnd, q.y1);
+        const double inv = 1.0 / area;
+        // The barycentric weights are linear along a row: each row's span is solved for (widened by a pixel),
+        // and only it is walked, with the weights computed and tested per pixel as before.
+        const double g0 = (b.y() - c.y()) * inv, g1 = (c.y() - a.y()) * inv, g2 = -g0 - g1;
+        const double iz0 = 1.0 / pts[tri[0]].z(), iz1 = 1.0 / pts[tri[1]].z(), iz2 = 1.0 / pts[tri[2]].z();
+        for (int y = y0; y <= y1; ++y) {
+          int* tid = r.triangle.ptr<int>(y);
+          float* dep = r.depth.ptr<float>(y);
+          const double py = y, px0 = x0;
+          const double w0s = ((b.x() - px0) * (c.y() - py) - (b.y() - py) * (c.x() - px0)) * inv;
+          const double w1s = ((c.x() - px0) * (a.y() - py) - (c.y() - py) * (a.x() - px0)) * inv;
+          const double w2s = 1.0 - w0s - w1s;
+          double lo = x0, hi = x1;
+          bool empty = false;
+          for (const auto& [w, g] : {std::pair{w0s, g0}, std::pair{w1s, g1}, std::pair{w2s, g2}}) {
+            if (g > 0)
+              lo = std::max(lo, x0 - w / g);
+            else if (g < 0)
+              hi = std::min(hi, x0 - w / g);
+            else
+              empty |= w < 0;
+          }
+          if (empty) continue;
+          const int xs = std::max(x0, static_cast<int>(std::ceil(lo)) - 1),
+                    xe = std::min(x1, static_cast<int>(std::floor(hi)) + 1);
+          for (int x = xs; x <= xe; ++x) {
+            const double px = x;
+            const double w0 = ((b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px)) * inv;
+            const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) * inv;
+            const double w2 = 1.0 - w0 - w1;
+            if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+            const double z = 1.0 / (w0 * iz0 + w1 * iz1 + w2 * iz2);
+            if (z < dep[x]) {
+              dep[x] = static_cast<float>(z);
+              tid[x] = t;
+            }
+          }
         }
       }
     }
-  }
-   }
   });
   return r;
 }

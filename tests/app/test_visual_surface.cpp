@@ -15,6 +15,7 @@
 
 #include <rehearse/app/case.hpp>
 #include <rehearse/imaging/appearance_fit.hpp>
+#include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/session/contact.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
@@ -100,7 +101,8 @@ Eigen::Vector3d fieldAt(const simcore::Mesh& v, const std::vector<std::array<int
 }
 
 // The compositor's organ mask for a surface (model frame, metres) at `pose`: Theta lit from the lens with a
-// huge k_d, so every pixel the organ covers by half or more is white, the rest black (its rim supersampled 4x).
+// k_d large enough to saturate wherever the light reaches (cos > 1e-4), so every pixel the organ covers by half
+// or more is white, the rest black (its rim supersampled 4x).
 cv::Mat1b drawnMask(const imaging::Camera& cam, const Pose& pose, const std::vector<Eigen::Vector3d>& rest,
                     const std::vector<std::array<int, 3>>& triangles, const std::vector<Eigen::Vector3d>& deformed) {
   std::vector<double> r, d;
@@ -114,7 +116,7 @@ cv::Mat1b drawnMask(const imaging::Camera& cam, const Pose& pose, const std::vec
   in.background = cv::Mat3b(cam.height, cam.width, cv::Vec3b(0, 0, 0));
   in.albedo = cv::Mat3f(cam.height, cam.width, cv::Vec3f(1, 1, 1));
   in.theta.lightPosition = Eigen::Vector3d::Zero();
-  in.theta.kd = Eigen::Vector3d(1e9, 1e9, 1e9);
+  in.theta.kd = Eigen::Vector3d(1e4, 1e4, 1e4);
   in.theta.ks = Eigen::Vector3d::Zero();
   in.theta.roughness = 0.1;
   const imaging::Compositor compositor(in);
@@ -225,7 +227,7 @@ class TestVisualSurface : public QObject {
     std::vector<Eigen::Vector3d> reference(vis.points.size()), translated(vis.points.size());
     double largest = 0;
     for (std::size_t i = 0; i < reference.size(); ++i) {
-      Eigen::Vector3d uq;
+      Eigen::Vector3d uq = Eigen::Vector3d::Zero();
       const Eigen::Vector3d u = fieldAt(h.volume, boundary, ccx, vis.points[i], &uq);
       reference[i] = vis.points[i] + u;
       translated[i] = vis.points[i] + uq;
@@ -249,6 +251,21 @@ class TestVisualSurface : public QObject {
     const cv::Mat1b boundaryMask = drawnMask(cam, pose, h.volume.points, h.organ->surface, nodes);
     const double ownOffset = meanOutlineOffset(ownMask, referenceMask),
                  boundaryOffset = meanOutlineOffset(boundaryMask, referenceMask);
+    // The compositor's silhouettes (its rim supersampled) against the plain rasteriser's, 4x4 everywhere.
+    auto rasterised = [&](const std::vector<Eigen::Vector3d>& points,
+                          const std::vector<std::array<int, 3>>& triangles) {
+      std::vector<double> v;
+      for (const auto& p : points) v.insert(v.end(), {p.x(), p.y(), p.z()});
+      return imaging::renderMask(cam, pose,
+                                 SurfaceView{v.data(), points.size(), triangles.front().data(), triangles.size()}, 4);
+    };
+    const double ownRim = meanOutlineOffset(ownMask, rasterised(drawn, vis.triangles));
+    const double boundaryRim = meanOutlineOffset(boundaryMask, rasterised(nodes, h.organ->surface));
+    qInfo(
+        "the compositor's silhouettes against a 4x4 rasterisation: %.3f px (own surface), %.3f px (elements' boundary)",
+        ownRim, boundaryRim);
+    QVERIFY(ownRim < 0.1);
+    QVERIFY(boundaryRim < 0.1);
     qInfo(
         "%s: %zu tetrahedra, surface of %zu triangles (elements' boundary %zu); sag up to %.1f mm; drawn vertices "
         "within %.3f px "

@@ -276,7 +276,7 @@ class TestGl : public QObject {
     in.triangles = c.surface;
     in.frame = c.frame;
     const app::AppearanceOutput o = app::runAppearance(in);
-    const app::AppearanceLayers layers{o.fit.separation.diffuse, o.background, o.albedo};
+    const app::AppearanceLayers layers{o.fit.separation.diffuse, o.background, o.albedo, {}};
     const auto cpu = app::makeCompositor(in, layers, o.fit.theta, false);
     imaging::CompositionInput ci;
     ci.camera = c.camera;

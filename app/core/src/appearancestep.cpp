@@ -193,7 +193,7 @@ cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance
   if (!deformedVertices.empty() && deformedVertices.size() != in.vertices.size())
     throw imaging::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) + " nodes, the registered one " +
                               std::to_string(in.vertices.size() / 3) + "; they must be the same mesh in the same order.");
-  imaging::CompositionInput c = compositionInput(in, AppearanceLayers{{}, background, albedo}, theta, textureOnly);
+  imaging::CompositionInput c = compositionInput(in, AppearanceLayers{{}, background, albedo, {}}, theta, textureOnly);
   if (!deformedVertices.empty()) c.deformed.vertices = deformedVertices.data();
   return imaging::compose(c, supersampling);
 }

@@ -24,9 +24,15 @@ Rasterization rasterize(const Camera& camera, const Pose& pose, const SurfaceVie
                         double nearPlane = 1e-3);
 
 /// The same for vertices already in the camera frame (one per surface vertex): for renderers that move the
-/// surface themselves (the compositor).
-Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen::Vector3d>& cameraPoints, const SurfaceView& surface,
-                                   int scale = 1, double nearPlane = 1e-3);
+/// surface themselves (the compositor). `cullBackFaces`: triangles facing away from the camera are not drawn
+/// (right for a closed surface whose triangles wind outward, where they are hidden anyway: half the work).
+Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen::Vector3d>& cameraPoints,
+                                   const SurfaceView& surface, int scale = 1, double nearPlane = 1e-3,
+                                   bool cullBackFaces = false);
+
+/// Whether a surface is closed and wound outward: every edge shared by exactly two triangles that run it in
+/// opposite directions, and a positive enclosed volume (what back-face culling needs).
+bool closedAndOutward(const std::vector<Eigen::Vector3d>& points, const SurfaceView& surface);
 
 /// Smooth unit vertex normals (area-weighted face normals; (0, 0, -1) for a vertex of no area).
 std::vector<Eigen::Vector3d> vertexNormals(const std::vector<Eigen::Vector3d>& points, const SurfaceView& surface);
