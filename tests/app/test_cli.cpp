@@ -223,6 +223,34 @@ class TestCli : public QObject {
              dir + "/j.png"});
     QVERIFY2(r.code == 0, qPrintable(r.err));
     QVERIFY(QFile(dir + "/j.png").size() > 10000);
+    // Drawn through a surface of its own (--visual, issue 35) carried by the volume's tetrahedra: here the volume's
+    // own boundary, whose vertices are nodes, so the carried sag is the sag itself and the image the same.
+    r = run({"compose", "--mesh", dir + "/organ.vtu", "--visual", dir + "/organ_surface.obj", "--camera",
+             dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image", dir + "/frame.png", "--theta",
+             dir + "/theta.json", "--deformed", dir + "/sag.vtu", "--out", dir + "/jv.png"});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    {
+      const cv::Mat3b direct = cv::imread((dir + "/j.png").toStdString()),
+                      carried = cv::imread((dir + "/jv.png").toStdString());
+      const double db = rehearse::imaging::psnr(direct, carried, cv::Mat1b(direct.size(), uchar(255)));
+      qInfo("the sag drawn through the boundary as a surface of its own: %.1f dB against the nodes drawn directly", db);
+      QVERIFY(db >= 50);
+    }
+    // --visual needs a volume to carry it, and a surface of that organ: one sentence each.
+    expectOneLineError(run({"compose", "--mesh", dir + "/organ_surface.obj", "--visual", dir + "/organ_surface.obj",
+                            "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image",
+                            dir + "/frame.png", "--theta", dir + "/theta.json", "--out", dir + "/v.png"}),
+                       2, "needs the organ's volume");
+    {
+      rehearse::simcore::Mesh shifted = rehearse::simcore::loadMesh((dir + "/organ_surface.obj").toStdString());
+      for (auto& p : shifted.points) p.x() += 0.05;
+      rehearse::simcore::saveMesh(shifted, (dir + "/shifted.vtu").toStdString());
+    }
+    expectOneLineError(run({"compose", "--mesh", dir + "/organ.vtu", "--visual", dir + "/shifted.vtu", "--camera",
+                            dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image", dir + "/frame.png",
+                            "--theta", dir + "/theta.json", "--out", dir + "/v.png"}),
+                       1, "outside its volume mesh");
+    QVERIFY(!QFile::exists(dir + "/v.png"));
     // A novel view (issue 35) through the fitting camera at the fitting pose is the frame again inside the organ,
     // re-shaded and texture-only; the novel-view options without a view camera are a usage error.
     const cv::Mat3b frame = cv::imread((dir + "/frame.png").toStdString(), cv::IMREAD_COLOR);

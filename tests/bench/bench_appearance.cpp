@@ -281,7 +281,13 @@ int main(int argc, char** argv) {
     to.targetTets = 3500;
     to.outerSurface = &own;
     std::string why;
-    const auto carried = app::Organ::fromVolume(simcore::tetrahedraliseSurface(organ, to), {}, 1.0, &own, &why);
+    std::shared_ptr<const app::Organ> carried;
+    try {
+      carried = app::Organ::fromVolume(simcore::tetrahedraliseSurface(organ, to), {}, 1.0, &own, &why);
+    } catch (const std::exception& e) {
+      std::printf("%s: not tetrahedralised (%s)\n", name.c_str(), e.what());
+      continue;
+    }
     if (!carried->visual) {
       std::printf("%s: its own surface could not be carried: %s\n", name.c_str(), why.c_str());
       continue;

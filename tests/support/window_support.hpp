@@ -4,6 +4,8 @@
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 
+#include <opencv2/imgproc.hpp>
+
 #include <QElapsedTimer>
 #include <QSignalSpy>
 #include <QStandardPaths>
@@ -13,6 +15,16 @@
 #include <memory>
 
 namespace {
+// A view's image as 8-bit BGR (what the imaging code compares).
+inline cv::Mat3b toMat(const QImage& image) {
+  const QImage rgb = image.convertToFormat(QImage::Format_RGB888);
+  cv::Mat3b bgr;
+  cv::cvtColor(cv::Mat(rgb.height(), rgb.width(), CV_8UC3, const_cast<uchar*>(rgb.constBits()),
+                       static_cast<std::size_t>(rgb.bytesPerLine())),
+               bgr, cv::COLOR_RGB2BGR);
+  return bgr;
+}
+
 // Opens the main window on the phantom case; false (with a QWARN) when it did not come up.
 [[nodiscard]] inline bool openPhantomCase(std::unique_ptr<rehearse::ui::MainWindow>& w) {
   using rehearse::ui::MainWindow;

@@ -35,14 +35,6 @@ using namespace rehearse;
 using ui::MainWindow;
 
 namespace {
-cv::Mat3b toMat(const QImage& image) {
-  const QImage rgb = image.convertToFormat(QImage::Format_RGB888);
-  cv::Mat3b bgr;
-  cv::cvtColor(cv::Mat(rgb.height(), rgb.width(), CV_8UC3, const_cast<uchar*>(rgb.constBits()),
-                       static_cast<std::size_t>(rgb.bytesPerLine())),
-               bgr, cv::COLOR_RGB2BGR);
-  return bgr;
-}
 double cell(QTableWidget* t, int r, int c) { return t->item(r, c)->text().section(QLatin1Char(' '), 0, 0).toDouble(); }
 }  // namespace
 

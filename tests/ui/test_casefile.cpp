@@ -147,6 +147,21 @@ class TestCaseFile : public QObject {
     {
       auto organ = std::make_shared<app::Organ>(*edited.organ);
       organ->sourceUnitToMetre = 0.001;  // imported from a file in mm
+      // Its own surface (issue 35): here its boundary, each triangle split in three at its centroid (points the
+      // volume's nodes do not have), carried by the tetrahedra.
+      simcore::Mesh own;
+      own.points = organ->volume.points;
+      for (const auto& t : organ->surface) {
+        const int c = static_cast<int>(own.points.size());
+        own.points.push_back((own.points[t[0]] + own.points[t[1]] + own.points[t[2]]) / 3);
+        own.triangles.push_back({t[0], t[1], c});
+        own.triangles.push_back({t[1], t[2], c});
+        own.triangles.push_back({t[2], t[0], c});
+      }
+      own.triangleLabels.assign(own.triangles.size(), 1);
+      std::string why;
+      organ->visual = app::VisualSurface::make(organ->volume, own, &why);
+      QVERIFY2(organ->visual, why.c_str());
       edited.organ = organ;
     }
     ui::saveCaseFile(edited, path);
@@ -156,6 +171,14 @@ class TestCaseFile : public QObject {
     QVERIFY2(notes.isEmpty(), qPrintable(notes.join('\n')));
     compareCases(edited, back);
     QCOMPARE(back.organ->sourceUnitToMetre, 0.001);
+    QVERIFY(back.organ->visual);
+    QCOMPARE(back.organ->visual->triangles, edited.organ->visual->triangles);
+    QCOMPARE(back.organ->visual->points.size(), edited.organ->visual->points.size());
+    double moved = 0;
+    for (std::size_t i = 0; i < back.organ->visual->points.size(); ++i)
+      moved = std::max(moved, (back.organ->visual->points[i] - edited.organ->visual->points[i]).norm());
+    QVERIFY(moved < 1e-12);
+    QCOMPARE(back.organ->visual->map(back.organ->volume.points).size(), back.organ->visual->points.size());
     // Saving again over it replaces it whole and leaves no temporary file behind.
     ui::saveCaseFile(back, path);
     QCOMPARE(QDir(QFileInfo(path).absolutePath()).entryList({"phantom.rehearse.saving-*"}).size(), 0);

@@ -9,11 +9,14 @@
 #include "test_support.hpp"
 #include "window_support.hpp"
 
+#include "rehearse/ui/composition.hpp"
 #include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/pages/appearancepage.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
+#include <rehearse/app/appearancestep.hpp>
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/imaging/render.hpp>
@@ -63,6 +66,15 @@ class TestPatientRehearsal : public QObject {
     w_->meshPage()->importMesh(QString::fromStdString(sharedData("scikit-surgery/patient-liver/liver.vtk")));
     QVERIFY(imported.wait(180000));
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+    // Drawn through its own surface (20,000 triangles), carried by the tetrahedra (issue 35).
+    {
+      const auto& organ = *w_->caseData()->organ;
+      QVERIFY2(organ.visual, "the liver's own surface was not kept");
+      QCOMPARE(organ.visual->triangles.size(), std::size_t(20000));
+      QVERIFY(organ.visual->triangles.size() > 5 * organ.surface.size());
+      QVERIFY2(w_->statusText().contains("drawn through its own surface (20000 triangles)"),
+               qPrintable(w_->statusText()));
+    }
     // Aligned where the import placed it (in view): the pose accepted as the rigid alignment.
     w_->editCase("Accept the import's placement (test)", [](app::Case& c) { c.hasPose = c.poseAligned = true; });
     auto* view = w_->frameView();
@@ -145,6 +157,19 @@ class TestPatientRehearsal : public QObject {
     QVERIFY(c.organ->volume.tets.size() > 2500);
     QVERIFY(c.attachments.size() >= 6);
     QVERIFY(fitMoved > 1e-3);  // the fit deformed the organ (the start below is that shape, not the imported one)
+
+    // Step 6 on the real frame (Alt+6, F10): the composited view is made with the liver's own surface.
+    QTest::keyClick(w_.get(), Qt::Key_6, Qt::AltModifier);
+    QCOMPARE(w_->step(), ui::Step::Appearance);
+    {
+      QSignalSpy estimated(w_->appearancePage(), &ui::AppearancePage::estimated);
+      QTest::keyClick(w_.get(), Qt::Key_F10);
+      QVERIFY(estimated.wait(120000));
+      QVERIFY2(estimated.first().at(0).toBool(), qPrintable(estimated.first().at(1).toString()));
+    }
+    QVERIFY(waitFor([&] { return w_->composition()->ready(); }, 60000));
+    QCOMPARE(app::appearanceInputFromCase(*w_->caseData()).triangles.size(), std::size_t(20000));
+    qInfo("step 6 on the real frame: %s", w_->caseData()->appearance->status.c_str());
 
     QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
     QCOMPARE(w_->step(), ui::Step::Rehearse);
@@ -256,6 +281,23 @@ class TestPatientRehearsal : public QObject {
     QVERIFY(session->setup().settings.method == simcore::kInteractiveMethod);
     QCOMPARE(notConverged, 0);
     QVERIFY(worstResidual <= 1e-6 * (1 + 1e-9));
+    // The composited view follows the pull through the liver's own surface: the view shows the composition of the
+    // last snapshot, and the organ's pixels changed around the bitten node.
+    QVERIFY(w_->showingComposited());
+    QTest::qWait(200);  // the last snapshot reaches the view
+    w_->composition()->waitForIdle();
+    const QImage pulledView = w_->composition()->composeNow(panel->lastFrame()->positions);
+    QVERIFY(!pulledView.isNull());
+    QCOMPARE(w_->frameView()->shownFrame(), pulledView);
+    {
+      const cv::Mat3b now = toMat(pulledView), atRest = toMat(w_->composition()->composeNow());
+      cv::Mat diff, changed;
+      cv::absdiff(now, atRest, diff);
+      cv::inRange(diff, cv::Scalar(10, 10, 10), cv::Scalar(255, 255, 255), changed);
+      qInfo("composited view after the pull: %d px changed by 10 levels or more", cv::countNonZero(changed));
+      QVERIFY(cv::countNonZero(changed) > 200);
+    }
+    shot(*w_, "patient-pulled-composited");
     panel->play();
     QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
   }
