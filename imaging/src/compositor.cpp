@@ -30,6 +30,8 @@ struct Compositor::Impl {
   cv::Mat3f albedo;
   Appearance theta;
   bool textureOnly = false;
+  std::vector<int> triangleMaterial;  ///< CompositionInput's (empty: all the organ's surface)
+  std::vector<cv::Vec3f> materials;
   /// exp(-alpha^2 / 2 sigma^2) against cos(alpha) in [0, 1] (the specular lobe), linearly interpolated.
   std::vector<float> lobe;
   /// The scope's fall-off cos^n(psi) against cos^2(psi) in [0, 1] (no power per pixel); empty for n = 0.
@@ -114,13 +116,17 @@ struct Compositor::Impl {
         }
       }
     }
-    if (textureOnly) {
+    const int material = triangleMaterial.empty() ? 0 : triangleMaterial[static_cast<std::size_t>(t)];
+    if (textureOnly && material == 0) {
       if (!seen) return false;
       bgr = bilinear(frame, qx, qy);
       return true;
     }
-    // The albedo where the tissue was not seen at rest (its back, the inside of a cut): ratio 1, the fitted kd.
-    const cv::Vec3f albedoHere = seen ? bilinear(albedo, qx, qy) : cv::Vec3f(1, 1, 1);
+    // The albedo: a material's (tissue the frame never showed: a cut's faces), the frame's where it saw the
+    // tissue, else ratio 1, the fitted kd (its back).
+    const cv::Vec3f albedoHere = material > 0 ? materials[static_cast<std::size_t>(material - 1)]
+                                 : seen       ? bilinear(albedo, qx, qy)
+                                              : cv::Vec3f(1, 1, 1);
     Eigen::Vector3f normal = wa * N[tri[0]] + wb * N[tri[1]] + wc * N[tri[2]];
     const float length = normal.norm();
     if (!(length > 0) || !std::isfinite(length)) return false;
@@ -178,6 +184,15 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   d.albedo = in.albedo.empty() ? cv::Mat3f(size, cv::Vec3f(1, 1, 1)) : in.albedo;
   d.theta = in.theta;
   d.textureOnly = in.textureOnly;
+  if (!in.triangleMaterial.empty()) {
+    if (in.triangleMaterial.size() != in.rest.triangleCount)
+      throw InputError("The surface's materials are not one per triangle.");
+    for (int m : in.triangleMaterial)
+      if (m < 0 || m > static_cast<int>(in.materials.size()))
+        throw InputError("A triangle names a material the surface does not have.");
+  }
+  d.triangleMaterial = in.triangleMaterial;
+  d.materials = in.materials;
   // The lobe as a function of cos(alpha): 4,097 entries keep it within 1e-4 of exp(-acos(c)^2 / 2 sigma^2)
   // for sigma >= 0.02 rad (test_appearance compares it with Appearance::shade).
   d.lobe.resize(4097);
@@ -200,6 +215,23 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
 Compositor::~Compositor() = default;
 
 const Camera& Compositor::camera() const { return d_->camera; }
+
+std::unique_ptr<Compositor> Compositor::reshaped(const SurfaceView& rest, std::vector<int> triangleMaterial,
+                                                 std::vector<cv::Vec3f> materials) const {
+  const Impl& d = *d_;
+  CompositionInput in;
+  in.camera = d.camera;
+  in.pose = d.pose;
+  in.rest = in.deformed = rest;
+  in.frame = d.frame;
+  in.background = d.background;
+  in.albedo = d.albedo;
+  in.theta = d.theta;
+  in.textureOnly = d.textureOnly;
+  in.triangleMaterial = std::move(triangleMaterial);
+  in.materials = std::move(materials);
+  return std::make_unique<Compositor>(in);
+}
 
 cv::Mat3b Compositor::compose(const std::vector<double>& deformedVertices, int scale) const {
   const Impl& d = *d_;

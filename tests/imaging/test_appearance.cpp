@@ -311,6 +311,53 @@ class TestAppearance : public QObject {
                              imaging::composeNovelView(in, c_.camera, view, {}, std::vector<double>(9, 0.0)));
   }
 
+  // Tissue the frame never showed (a cut's faces, issue 35) takes its material's albedo ratio, re-shaded by Theta,
+  // also when the organ's surface is only texture-mapped: with no specular term, its colour is the ratio times the
+  // colour of the same surface with albedo 1, channel by channel (to the 8-bit rounding). A material list that does
+  // not fit the triangles is refused.
+  void cutFacesTakeTheirMaterial() {
+    imaging::CompositionInput in;
+    in.camera = c_.camera;
+    in.pose = c_.truePose;
+    in.rest = in.deformed = c_.surfaceView();
+    in.frame = in.background = c_.frame;
+    in.albedo = cv::Mat3f(c_.frame.size(), cv::Vec3f(1, 1, 1));
+    in.theta = c_.trueAppearance;
+    in.theta.ks = Eigen::Vector3d::Zero();
+    const imaging::Compositor plain(in);
+    const cv::Mat3b reference = plain.compose(std::vector<double>{}, 1);
+    const cv::Vec3f ratio(0.5f, 0.25f, 0.8f);  // BGR
+    for (const bool texture : {false, true}) {
+      in.textureOnly = texture;
+      const imaging::Compositor textured(in);
+      const auto cut =
+          textured.reshaped(c_.surfaceView(), std::vector<int>(c_.surfaceView().triangleCount, 1), {ratio});
+      const cv::Mat3b j = cut->compose(std::vector<double>{}, 1);
+      const cv::Mat1b organ = imaging::renderMask(c_.camera, c_.truePose, c_.surfaceView());
+      int checked = 0;
+      double worst = 0;
+      for (int y = 0; y < j.rows; ++y)
+        for (int x = 0; x < j.cols; ++x) {
+          if (!organ(y, x)) continue;
+          for (int k = 0; k < 3; ++k) {
+            const double ref = reference(y, x)[k];
+            if (ref < 20 || ref > 250) continue;  // too dark to tell, or clipped
+            worst = std::max(worst, std::abs(j(y, x)[k] - ratio[k] * ref));
+            ++checked;
+          }
+        }
+      qInfo(
+          "%s: %d channel values of the organ, the material's colour within %.2f levels of its ratio times albedo 1's",
+          texture ? "texture-only" : "re-shaded", checked, worst);
+      QVERIFY(checked > 100000);
+      QVERIFY(worst <= 1.0);
+    }
+    QVERIFY_THROWS_EXCEPTION(imaging::InputError, plain.reshaped(c_.surfaceView(), {1, 1}, {ratio}));
+    QVERIFY_THROWS_EXCEPTION(
+        imaging::InputError,
+        plain.reshaped(c_.surfaceView(), std::vector<int>(c_.surfaceView().triangleCount, 2), {ratio}));
+  }
+
   // The appearance file carries the scope's fall-off; a file without it is an isotropic light (n = 0); an
   // impossible n is refused in one sentence.
   void appearanceFileCarriesTheFalloff() {

@@ -71,6 +71,7 @@ void Composition::setCase(std::shared_ptr<const app::Case> c) {
     estimate_.reset();
     diffuse_ = background_ = residual_ = last_ = QImage();
     waiting_.reset();
+    waitingCut_.reset();
     whyNot_ = why;
     if (wasReady) emit readyChanged(false);
   };
@@ -117,6 +118,7 @@ void Composition::offer(std::shared_ptr<const app::AppearanceEstimate> estimate,
 void Composition::install(const std::shared_ptr<const app::Case>& c, const app::AppearanceLayers& layers, std::unique_ptr<imaging::Compositor> compositor) {
   estimate_ = c->appearance;
   compositor_ = std::move(compositor);
+  cutCache_ = std::make_shared<CutCache>();  // a running job keeps its own
   glPrepared_ = false;
   if (gl_) {
     const app::AppearanceInput in = app::appearanceInputFromCase(*c);
@@ -131,16 +133,18 @@ void Composition::install(const std::shared_ptr<const app::Case>& c, const app::
   emit composed(last_);
 }
 
-std::vector<double> Composition::modelVertices(const std::vector<Eigen::Vector3d>& cameraPositions) const {
+std::vector<double> Composition::modelVertices(const app::Case* c, const Pose& pose,
+                                               const std::vector<Eigen::Vector3d>& cameraPositions, bool cut) {
   std::vector<double> v;
-  if (cameraPositions.empty() || !estimate_) return v;
-  const Eigen::Matrix3d Rt = estimate_->pose.R.transpose();
+  if (cameraPositions.empty()) return v;
+  const Eigen::Matrix3d Rt = pose.R.transpose();
   std::vector<Eigen::Vector3d> model(cameraPositions.size());
-  for (std::size_t i = 0; i < model.size(); ++i) model[i] = Rt * (cameraPositions[i] - estimate_->pose.t);
+  for (std::size_t i = 0; i < model.size(); ++i) model[i] = Rt * (cameraPositions[i] - pose.t);
   // The organ's own surface, carried by the volume's nodes (the compositor was made with it); a volume of
-  // another node count (after a cut) gives an empty list, which the compositor refuses.
-  if (case_ && case_->organ->visual) {
-    model = case_->organ->visual->map(model);
+  // another node count gives an empty list, which the compositor refuses. A cut organ is drawn through its
+  // cut mesh's boundary (the positions are that mesh's nodes).
+  if (!cut && c && c->organ->visual) {
+    model = c->organ->visual->map(model);
     if (model.empty()) v.push_back(0);  // not the compositor's mesh: refused below, nothing drawn
   }
   v.reserve(3 * model.size());
@@ -148,23 +152,51 @@ std::vector<double> Composition::modelVertices(const std::vector<Eigen::Vector3d
   return v;
 }
 
-QImage Composition::composeNow(const std::vector<Eigen::Vector3d>& cameraPositions) const {
-  if (!compositor_) return {};
-  if (usesOpenGL()) {
-    QImage j;
-    if (gl_->compose(modelVertices(cameraPositions), j, 4)) return j;
-  }
+QImage Composition::composeWith(const std::shared_ptr<const imaging::Compositor>& compositor,
+                                const std::shared_ptr<const app::Case>& c, const std::shared_ptr<CutCache>& cache,
+                                const Pose& pose, const std::vector<Eigen::Vector3d>& cameraPositions,
+                                const std::shared_ptr<const simcore::CutSurface>& cut) {
+  if (!compositor) return {};
   try {
-    return frameToQImage(compositor_->compose(modelVertices(cameraPositions), 2));
+    std::shared_ptr<const imaging::Compositor> use = compositor;
+    if (cut) {
+      if (!c) return {};
+      std::lock_guard<std::mutex> lock(cache->mutex);
+      if (cache->surface != cut) {
+        app::CutComposition made = app::makeCutCompositor(*compositor, *c, *cut);
+        cache->compositor = std::move(made.compositor);
+        cache->surface = cut;
+        cache->said = made.said;
+      }
+      use = cache->compositor;
+    }
+    return frameToQImage(use->compose(modelVertices(c.get(), pose, cameraPositions, cut != nullptr), 2));
   } catch (const std::exception&) {
     return {};  // a snapshot of another mesh (the organ was replaced meanwhile): nothing to show
   }
 }
 
-void Composition::request(std::vector<Eigen::Vector3d> cameraPositions) {
+QString Composition::cutSentence() const {
+  std::lock_guard<std::mutex> lock(cutCache_->mutex);
+  return QString::fromStdString(cutCache_->said);
+}
+
+QImage Composition::composeNow(const std::vector<Eigen::Vector3d>& cameraPositions,
+                               const std::shared_ptr<const simcore::CutSurface>& cut) const {
+  if (!compositor_ || !estimate_) return {};
+  if (usesOpenGL() && !cut) {
+    QImage j;
+    if (gl_->compose(modelVertices(case_.get(), estimate_->pose, cameraPositions, false), j, 4)) return j;
+  }
+  return composeWith(compositor_, case_, cutCache_, estimate_->pose, cameraPositions, cut);
+}
+
+void Composition::request(std::vector<Eigen::Vector3d> cameraPositions,
+                          std::shared_ptr<const simcore::CutSurface> cut) {
   if (!ready()) return;
   waiting_ = std::move(cameraPositions);
-  if (usesOpenGL()) {
+  waitingCut_ = std::move(cut);
+  if (usesOpenGL() && !waitingCut_) {
     // On this thread (the context's), once the events queued now are handled: the newest request wins.
     if (!glPending_) {
       glPending_ = true;
@@ -172,8 +204,10 @@ void Composition::request(std::vector<Eigen::Vector3d> cameraPositions) {
         glPending_ = false;
         if (!waiting_ || !compositor_) return;
         const std::vector<Eigen::Vector3d> positions = std::move(*waiting_);
+        const auto cut = std::move(waitingCut_);
         waiting_.reset();
-        const QImage j = composeNow(positions);
+        waitingCut_.reset();
+        const QImage j = composeNow(positions, cut);
         if (!j.isNull()) {
           last_ = j;
           emit composed(last_);
@@ -186,19 +220,18 @@ void Composition::request(std::vector<Eigen::Vector3d> cameraPositions) {
 }
 
 void Composition::startNext() {
-  if (!waiting_ || !compositor_) {
+  if (!waiting_ || !compositor_ || !estimate_) {
     waiting_.reset();
+    waitingCut_.reset();
     return;
   }
-  std::vector<double> vertices = modelVertices(*waiting_);
+  std::vector<Eigen::Vector3d> positions = std::move(*waiting_);
+  auto cut = std::move(waitingCut_);
   waiting_.reset();
-  composeWatcher_.setFuture(QtConcurrent::run([compositor = compositor_, vertices = std::move(vertices)]() -> QImage {
-    try {
-      return frameToQImage(compositor->compose(vertices, 2));
-    } catch (const std::exception&) {
-      return {};
-    }
-  }));
+  waitingCut_.reset();
+  composeWatcher_.setFuture(QtConcurrent::run(
+      [compositor = compositor_, c = case_, cache = cutCache_, pose = estimate_->pose, positions = std::move(positions),
+       cut = std::move(cut)]() -> QImage { return composeWith(compositor, c, cache, pose, positions, cut); }));
 }
 
 }  // namespace rehearse::ui

@@ -165,12 +165,13 @@ void MainWindow::buildDocks() {
       view_->setWarning(f->invertedAt, warningText(*f));
       view_->setLiveShape(f->positions);
       view_->setLiveSurface(f->surface);
-      if (f->surface && showingComposited()) {
-        // The composited view textures the organ's own surface; cut tissue it does not draw yet: the overlay
-        // shows the cut instead of a picture that hides it.
-        setViewMode(ViewMode::Overlay);
+      if (f->surface && showingComposited() && f->surface != lastCutComposited_) {
+        // The composited view draws the cut organ (its cut faces in preset interior colours): said once per cut.
+        lastCutComposited_ = f->surface;
         statusBar()->showMessage(
-            tr("The organ is cut: the composited view cannot show cut tissue yet, so the overlay is shown."), 8000);
+            tr("The organ is cut: the composited view draws its cut mesh's boundary; cut faces take preset interior "
+               "colours (parenchyma, a vessel's blood, other structures), not colours estimated from this frame."),
+            8000);
       }
       // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation: drawn on a
       // worker (newest first), at most 60 times a second and only once the last drawing was painted.
@@ -185,8 +186,8 @@ void MainWindow::buildDocks() {
     } else {
       view_->setWarning({}, {});  // another organ's frame (or none): its warning is not this organ's
     }
-    if (showingComposited() && f && !f->surface && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ)
-      composition_->request(f->positions);
+    if (showingComposited() && f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ)
+      composition_->request(f->positions, f->surface);
   });
   connect(composition_, &Composition::composed, this, [this] {
     if (showingComposited()) showFrameLayer();

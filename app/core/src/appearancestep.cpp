@@ -60,6 +60,42 @@ AppearanceInput appearanceInputFromCase(const Case& c) {
   return in;
 }
 
+CutComposition makeCutCompositor(const imaging::Compositor& base, const Case& c, const simcore::CutSurface& cut) {
+  const auto& volume = c.organ->volume;
+  const std::size_t n0 = volume.points.size(), n = cut.rest.size();
+  if (n < n0 || n0 == 0 || cut.triangles.empty() || cut.cut.size() != cut.triangles.size())
+    throw imaging::InputError("The cut organ is not this case's organ; it cannot be composited.");
+  const auto& shape = c.shapeNodes();
+  std::vector<Eigen::Vector3d> placed(shape.begin(), shape.end());
+  if (n > n0) {
+    // The cuts' new nodes: where they lie in the uncut organ at rest, carried to the shape the frame shows.
+    const std::vector<Eigen::Vector3d> restOld(cut.rest.begin(), cut.rest.begin() + static_cast<std::ptrdiff_t>(n0));
+    const std::vector<Eigen::Vector3d> restNew(cut.rest.begin() + static_cast<std::ptrdiff_t>(n0), cut.rest.end());
+    const auto moved = simcore::mapEmbedded(simcore::embedPoints(restOld, volume.tets, restNew), placed);
+    placed.insert(placed.end(), moved.begin(), moved.end());
+  }
+  CutComposition out;
+  out.restVertices.reserve(3 * n);
+  for (const auto& p : placed) out.restVertices.insert(out.restVertices.end(), {p.x(), p.y(), p.z()});
+  // Preset interior colours, as albedo ratios against the surface's k_d (BGR): a liver's cut parenchyma is darker
+  // and redder than its capsule, a cut vessel shows blood, a tumour is paler.
+  const std::vector<cv::Vec3f> materials = {{0.60f, 0.60f, 0.80f}, {0.20f, 0.20f, 0.55f}, {1.25f, 1.25f, 1.15f}};
+  std::vector<int> material(cut.triangles.size(), 0);
+  for (std::size_t k = 0; k < material.size(); ++k) {
+    if (!cut.cut[k]) continue;
+    const int label = k < cut.labels.size() ? cut.labels[k] : kParenchymaLabel;
+    material[k] = volume.labelIsVessel(label)                                      ? 2
+                  : (label == kParenchymaLabel || volume.labelName(label).empty()) ? 1
+                                                                                   : 3;
+  }
+  const SurfaceView rest{out.restVertices.data(), n, cut.triangles.front().data(), cut.triangles.size()};
+  out.compositor = base.reshaped(rest, std::move(material), materials);
+  out.said =
+      "Cut faces take preset interior colours, not ones estimated from this frame: the parenchyma 80/60/60 % of the "
+      "surface's red/green/blue, a vessel's blood 55/20/20 %, other inner structures paler.";
+  return out;
+}
+
 std::shared_ptr<const AppearanceEstimate> estimateFromRun(const AppearanceOutput& out, const Case& c, imaging::InpaintMethod inpaint) {
   auto e = std::make_shared<AppearanceEstimate>();
   e->theta = out.fit.theta;

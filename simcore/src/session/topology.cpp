@@ -144,7 +144,7 @@ std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, co
   if (!uncutSetup.rest.empty()) uncut.points = uncutSetup.rest;
   const auto outer = boundaryTriangles(uncut, false);
   auto out = std::make_shared<CutSurface>();
-  out->triangles = boundaryTriangles(cutMesh, false);
+  out->triangles = boundaryTriangles(cutMesh, false, &out->labels);
   const double cell = std::max(meanEdge, 1e-6);
   auto keyOf = [&](const Eigen::Vector3d& p) {
     return std::array<long, 3>{static_cast<long>(std::floor(p.x() / cell)), static_cast<long>(std::floor(p.y() / cell)),

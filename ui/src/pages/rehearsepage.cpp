@@ -28,8 +28,8 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
          "there, drag to pull it, release to let go; with the scissors, press on the organ and drag across it "
          "to cut, release to stop. The wheel moves the instrument's tip along the view ray while you hold it. "
          "The simulation runs while you work (Simulation panel: material, ligaments); the view shows it "
-         "composited into the frame once the appearance is estimated (step 6), and as the overlay once the "
-         "organ is cut (cut tissue in dark red)."),
+         "composited into the frame once the appearance is estimated (step 6), cut faces in preset interior "
+         "colours; the overlay (F3) shows cut tissue in dark red."),
       this);
   intro->setWordWrap(true);
   layout->addWidget(intro);

@@ -124,6 +124,11 @@ struct CompositionInput {
   cv::Mat3f albedo;      ///< albedoRatio at rest
   Appearance theta;
   bool textureOnly = false;  ///< no re-shading: the frame's own colours follow the tissue
+  /// Per rest triangle (empty: all 0): 0, the organ's surface (the frame's albedo where it saw it); k >= 1, tissue
+  /// the frame never showed (a cut's faces) drawn with `materials[k - 1]`, an albedo ratio (BGR, against k_d) that
+  /// Theta re-shades, even when the surface is only texture-mapped.
+  std::vector<int> triangleMaterial;
+  std::vector<cv::Vec3f> materials;
 };
 /// The composited image J (8-bit BGR): I_B, the deformed organ re-shaded (or texture-mapped) over it, its
 /// rim anti-aliased with `scale` x `scale` samples per rim pixel (1: none); what the deformation uncovers
@@ -148,6 +153,10 @@ class Compositor {
   /// The same with the deformed vertices given as 3n model-frame coordinates (empty: the rest shape).
   cv::Mat3b compose(const std::vector<double>& deformedVertices, int scale = 2) const;
   const Camera& camera() const;
+  /// The same frame, layers and Theta for another surface of the organ at rest (a cut organ's boundary: its
+  /// vertices where the frame showed them, model frame), with its triangles' materials (CompositionInput).
+  std::unique_ptr<Compositor> reshaped(const SurfaceView& rest, std::vector<int> triangleMaterial,
+                                       std::vector<cv::Vec3f> materials) const;
 
  private:
   struct Impl;

@@ -41,9 +41,15 @@ class Composition : public QObject {
   /// Composes the organ with its volume nodes at `cameraPositions` (camera frame, metres, volume node order;
   /// empty: the case's shape at rest) on a worker; emits composed(J). A request made while one runs
   /// replaces any waiting one.
-  void request(std::vector<Eigen::Vector3d> cameraPositions = {});
+  /// With `cut` (a snapshot's boundary after cuts), the positions are the cut mesh's nodes: the cut organ is
+  /// composited, its cut faces in preset interior colours (app::makeCutCompositor, made once per cut surface).
+  void request(std::vector<Eigen::Vector3d> cameraPositions = {},
+               std::shared_ptr<const simcore::CutSurface> cut = nullptr);
   /// The same on this thread (tests, screenshots); a null image when not ready.
-  QImage composeNow(const std::vector<Eigen::Vector3d>& cameraPositions = {}) const;
+  QImage composeNow(const std::vector<Eigen::Vector3d>& cameraPositions = {},
+                    const std::shared_ptr<const simcore::CutSurface>& cut = nullptr) const;
+  /// Once a cut organ was composited: which colours its cut faces take (empty before).
+  QString cutSentence() const;
   QImage diffuseImage() const { return diffuse_; }
   QImage backgroundImage() const { return background_; }
   QImage residualImage() const { return residual_; }  ///< what Theta leaves of the frame on the organ (x 3)
@@ -59,9 +65,22 @@ class Composition : public QObject {
 
  private:
   struct Prepared;
+  /// The compositor of the last cut surface composited (made on the worker, kept until the next cut or estimate).
+  struct CutCache {
+    mutable std::mutex mutex;
+    std::shared_ptr<const simcore::CutSurface> surface;
+    std::shared_ptr<const imaging::Compositor> compositor;
+    std::string said;
+  };
+  /// J for `cameraPositions` (empty: at rest), of the cut organ when `cut` is given; null when it cannot be made.
+  static QImage composeWith(const std::shared_ptr<const imaging::Compositor>& compositor,
+                            const std::shared_ptr<const app::Case>& c, const std::shared_ptr<CutCache>& cache,
+                            const Pose& pose, const std::vector<Eigen::Vector3d>& cameraPositions,
+                            const std::shared_ptr<const simcore::CutSurface>& cut);
   void install(const std::shared_ptr<const app::Case>& c, const app::AppearanceLayers& layers, std::unique_ptr<imaging::Compositor> compositor);
   void startNext();
-  std::vector<double> modelVertices(const std::vector<Eigen::Vector3d>& cameraPositions) const;
+  static std::vector<double> modelVertices(const app::Case* c, const Pose& pose,
+                                           const std::vector<Eigen::Vector3d>& cameraPositions, bool cut);
 
   std::shared_ptr<const app::AppearanceEstimate> estimate_;  ///< the estimate the layers belong to
   std::shared_ptr<const app::Case> case_;
@@ -72,6 +91,8 @@ class Composition : public QObject {
   std::shared_ptr<const app::AppearanceEstimate> preparing_;
   QFutureWatcher<QImage> composeWatcher_;
   std::optional<std::vector<Eigen::Vector3d>> waiting_;
+  std::shared_ptr<const simcore::CutSurface> waitingCut_;
+  std::shared_ptr<CutCache> cutCache_ = std::make_shared<CutCache>();
   std::unique_ptr<GLCompositor> gl_;
   bool glPrepared_ = false;
   bool glPending_ = false;  ///< a GL composition is queued on this thread's event loop

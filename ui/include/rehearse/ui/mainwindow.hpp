@@ -207,6 +207,7 @@ class MainWindow : public QMainWindow {
   std::unique_ptr<OrganOverlay> overlay_;
   OverlayPicture picture_;
   Composition* composition_ = nullptr;
+  std::shared_ptr<const simcore::CutSurface> lastCutComposited_;  ///< the cut surface the status bar spoke of last
   ViewMode viewMode_ = ViewMode::Overlay;
   QStackedWidget* centre_ = nullptr;  ///< the frame view, or the 3D organ (ViewMode::ThreeD)
   QWidget* centreOrgan_ = nullptr;

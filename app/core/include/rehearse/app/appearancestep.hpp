@@ -5,6 +5,7 @@
 #include "rehearse/app/case.hpp"
 
 #include <rehearse/imaging/appearance_fit.hpp>
+#include <rehearse/simcore/session/session.hpp>
 
 #include <functional>
 #include <memory>
@@ -58,6 +59,19 @@ imaging::CompositionInput compositionInput(const AppearanceInput& in, const Appe
 
 /// The compositor of `in`'s organ at rest (imaging::Compositor) with those layers.
 std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly);
+
+/// The composited view after cuts (issue 35): the cut organ's boundary (simcore::CutSurface, the cut mesh's
+/// nodes: the organ's volume nodes first, then the cuts' new ones), each node placed where the frame showed it
+/// (a new node by its barycentric weights in the uncut rest mesh, applied to the case's shape), drawn with `base`'s
+/// frame, layers and Theta. The organ's own faces keep the frame's albedo; its cut faces take a preset interior
+/// colour re-shaded by Theta: the parenchyma's, a vessel's blood, or another inner structure's (`said` names
+/// them). Throws imaging::InputError when `cut` is not of this case's organ.
+struct CutComposition {
+  std::unique_ptr<imaging::Compositor> compositor;
+  std::vector<double> restVertices;  ///< the cut mesh's nodes where the frame showed them (model frame, 3n)
+  std::string said;                  ///< one sentence: which colours the cut faces take
+};
+CutComposition makeCutCompositor(const imaging::Compositor& base, const Case& c, const simcore::CutSurface& cut);
 
 /// Throws imaging::InputError with one sentence for unusable input (organ behind the camera or off the
 /// frame, a frame of another size, nothing usable to fit).

@@ -88,6 +88,7 @@ struct ToolState {
 struct CutSurface {
   std::vector<std::array<int, 3>> triangles;
   std::vector<char> cut;
+  std::vector<int> labels;  ///< the element label of each triangle's tetrahedron (a cut vessel's faces carry its label)
   std::size_t cutCount = 0;
   std::vector<Eigen::Vector3d> rest;  ///< the cut mesh's rest positions (m, body frame)
 };
