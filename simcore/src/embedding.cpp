@@ -32,7 +32,11 @@ SurfaceEmbedding embedPoints(const std::vector<Eigen::Vector3d>& rest, const std
   }
   if (box.isEmpty()) throw MeshError("The mesh has no tetrahedron of any volume to embed points in.");
   const std::size_t usableCount = static_cast<std::size_t>(std::count(usable.begin(), usable.end(), 1));
-  const double cell = std::cbrt(box.volume() / static_cast<double>(usableCount)) * 2 + 1e-12;
+  for (const auto& p : points)
+    if (!p.allFinite()) throw MeshError("A point to embed has a coordinate that is not a number.");
+  // About two elements per cell; at most 2^21 cells (a flat box would otherwise ask for 256^3 of them).
+  double cell = std::cbrt(box.volume() / static_cast<double>(usableCount)) * 2 + 1e-12;
+  while (((box.sizes() / cell).array().ceil() + 1).prod() > double(1 << 21)) cell *= 1.25;
   const Eigen::Array3i dims = ((box.sizes() / cell).array().ceil().cast<int>() + 1).max(1).min(256);
   auto cellOf = [&](const Eigen::Vector3d& p) {
     Eigen::Array3i c = ((p - box.min()).array() / cell).floor().cast<int>();

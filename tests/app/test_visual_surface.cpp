@@ -188,6 +188,11 @@ class TestVisualSurface : public QObject {
     qInfo("%s", why.c_str());
     QVERIFY(why.find("outside its volume mesh") != std::string::npos);
     QVERIFY(!app::VisualSurface::make(h.volume, simcore::Mesh{}, &why));
+    simcore::Mesh broken = h.surface;  // a vertex that is not a number: refused, the organ itself unharmed
+    broken.points[7].x() = std::numeric_limits<double>::quiet_NaN();
+    QVERIFY(!app::VisualSurface::make(h.volume, broken, &why));
+    qInfo("%s", why.c_str());
+    QVERIFY(why.find("not a number") != std::string::npos);
   }
 
   void calculixSagIsDrawnWithinHalfAPixel_data() {

@@ -44,6 +44,16 @@ class TestAppearance : public QObject {
   Q_OBJECT
   phantom::Phantom c_;
 
+  // The phantom's organ rendered with `truth` over a tissue background (`seed`) at `supersampling`, the scope's
+  // border, noise and JPEG 90, and fitted.
+  imaging::AppearanceFitResult fitRendered(const imaging::Appearance& truth, unsigned seed, int supersampling) const {
+    const cv::Mat3b bg = imaging::makeTissueBackground(c_.camera.width, c_.camera.height, seed);
+    cv::Mat3b frame = imaging::renderShaded(c_.camera, c_.truePose, c_.surfaceView(), truth, bg, supersampling);
+    imaging::applyScopeVignette(frame);
+    frame = withNoiseAndJpeg(frame, 2.0, 90);
+    return imaging::fitAppearance(frame, imaging::surfaceGeometry(c_.camera, c_.truePose, c_.surfaceView()));
+  }
+
   // Checks a fit against the phantom's truth: the light within 5 % of its distance to the organ, kd and ks
   // within 5 % per channel, the roughness within 10 %.
   void checkTheta(const imaging::AppearanceFitResult& r, const imaging::Appearance* truth = nullptr) {
@@ -121,12 +131,7 @@ class TestAppearance : public QObject {
   void thetaRecoveredWhenNothingClips() {
     imaging::Appearance dim = c_.trueAppearance;
     dim.kd *= 0.6;
-    const cv::Mat3b bg = imaging::makeTissueBackground(c_.camera.width, c_.camera.height, 5);
-    cv::Mat3b frame = imaging::renderShaded(c_.camera, c_.truePose, c_.surfaceView(), dim, bg, 3);
-    imaging::applyScopeVignette(frame);
-    frame = withNoiseAndJpeg(frame, 2.0, 90);
-    const auto g = imaging::surfaceGeometry(c_.camera, c_.truePose, c_.surfaceView());
-    const auto r = imaging::fitAppearance(frame, g);
+    const auto r = fitRendered(dim, 5, 3);
     qInfo("%s", r.status.c_str());
     QVERIFY(r.ksMeasured[0] && r.ksMeasured[1] && r.ksMeasured[2]);
     checkTheta(r, &dim);
@@ -142,12 +147,7 @@ class TestAppearance : public QObject {
     scope.kd *=
         1.6;  // the cone darkens the organ's edges: brighter at the centre, as a real scope's gain would make it
     scope.ks *= 1.6;
-    const cv::Mat3b bg = imaging::makeTissueBackground(c_.camera.width, c_.camera.height, 9);
-    cv::Mat3b frame = imaging::renderShaded(c_.camera, c_.truePose, c_.surfaceView(), scope, bg, 2);
-    imaging::applyScopeVignette(frame);
-    frame = withNoiseAndJpeg(frame, 2.0, 90);
-    const auto g = imaging::surfaceGeometry(c_.camera, c_.truePose, c_.surfaceView());
-    const auto r = imaging::fitAppearance(frame, g);
+    const auto r = fitRendered(scope, 9, 2);
     qInfo("%s", r.status.c_str());
     qInfo("fall-off n %.3f (true %.1f)", r.theta.falloff, scope.falloff);
     for (const auto& c : r.checks) qInfo("  without %s: %.3f of %.3f", c.part.c_str(), c.explainedWithout, r.explained);

@@ -4,6 +4,8 @@
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 
+#include <rehearse/imaging/camera.hpp>
+
 #include <opencv2/imgproc.hpp>
 
 #include <QElapsedTimer>
@@ -23,6 +25,24 @@ inline cv::Mat3b toMat(const QImage& image) {
                        static_cast<std::size_t>(rgb.bytesPerLine())),
                bgr, cv::COLOR_RGB2BGR);
   return bgr;
+}
+
+// A scissors stroke down the organ (frame pixels): at `atWidth` of its width in the image, from a tenth of its height
+// below its top there to a tenth of its height past its bottom; `cameraPoints` are its nodes in the camera frame.
+inline std::pair<Eigen::Vector2d, Eigen::Vector2d> strokeDownTheOrgan(const rehearse::imaging::Camera& camera,
+                                                                      const std::vector<Eigen::Vector3d>& cameraPoints,
+                                                                      double atWidth) {
+  double x0 = 1e9, x1 = -1e9;
+  std::vector<Eigen::Vector2d> px;
+  for (const auto& p : cameraPoints) {
+    px.push_back(camera.project(p));
+    x0 = std::min(x0, px.back().x()), x1 = std::max(x1, px.back().x());
+  }
+  const double column = x0 + atWidth * (x1 - x0);
+  double y0 = 1e9, y1 = -1e9;
+  for (const auto& p : px)
+    if (std::abs(p.x() - column) < 6) y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
+  return {Eigen::Vector2d(column, y0 + 0.1 * (y1 - y0)), Eigen::Vector2d(column, y1 + 0.1 * (y1 - y0))};
 }
 
 // Opens the main window on the phantom case; false (with a QWARN) when it did not come up.

@@ -212,18 +212,10 @@ class TestAppearanceGui : public QObject {
         [&] { return panel_->lastFrame() && panel_->lastFrame()->positions.size() == c.organ->volume.points.size(); }));
     // A stroke down the organ at 35 % of its width, from above it to below it (as test_rehearse_gui's), where the
     // frame shows it (the simulation starts there).
-    double x0 = 1e9, x1 = -1e9;
-    std::vector<Eigen::Vector2d> px;
-    for (const auto& p : c.shapeNodes()) {
-      px.push_back(c.camera.project(c.pose.apply(p)));
-      x0 = std::min(x0, px.back().x()), x1 = std::max(x1, px.back().x());
-    }
-    const double column = x0 + 0.35 * (x1 - x0);
-    double y0 = 1e9, y1 = -1e9;
-    for (const auto& p : px)
-      if (std::abs(p.x() - column) < 6) y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
-    const QPointF a = view->toWidget(QPointF(column, y0 + 0.1 * (y1 - y0)));
-    const QPointF b = view->toWidget(QPointF(column, y1 + 0.1 * (y1 - y0)));
+    std::vector<Eigen::Vector3d> inFrame;
+    for (const auto& p : c.shapeNodes()) inFrame.push_back(c.pose.apply(p));
+    const auto [from, to] = strokeDownTheOrgan(c.camera, inFrame, 0.35);
+    const QPointF a = view->toWidget(QPointF(from.x(), from.y())), b = view->toWidget(QPointF(to.x(), to.y()));
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     QVERIFY(waitFor([&] { return panel_->lastFrame()->tool.cutting; }, 20000));
     QStringList said;  // what the session said during the stroke (each sentence once), for the log
@@ -234,10 +226,8 @@ class TestAppearanceGui : public QObject {
       if (const QString m = panel_->lastFrame()->message; !m.isEmpty() && !said.contains(m)) said << m;
     }
     QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
-    qInfo(
-        "stroke from (%.0f, %.0f) to (%.0f, %.0f) px; said: %s; playing %d, steps %ld, tip depth %.1f mm, topology %d",
-        column, y0 + 0.1 * (y1 - y0), column, y1 + 0.1 * (y1 - y0), qPrintable(said.join(" | ")), panel_->isPlaying(),
-        panel_->lastFrame()->steps, 1e3 * panel_->lastFrame()->tool.tip.z(), panel_->lastFrame()->surface ? 1 : 0);
+    qInfo("stroke from (%.0f, %.0f) to (%.0f, %.0f) px; said: %s", from.x(), from.y(), to.x(), to.y(),
+          qPrintable(said.join(" | ")));
     QVERIFY2(waitFor([&] { return panel_->lastFrame()->surface && panel_->lastFrame()->surface->cutCount > 0; }, 60000),
              qPrintable(said.join(" | ")));
     {

@@ -263,18 +263,8 @@ class TestRehearseGui : public QObject {
     // The organ's vertical extent in the frame at a column 15 % of its width left of its centre (the blade's tip stays
     // at the depth it bit at; since the organ starts where the frame shows it, unsagged (issue 34), a stroke further
     // left leaves the tissue after one update).
-    double x0 = 1e9, x1 = -1e9;
-    std::vector<Eigen::Vector2d> px;
-    for (const auto& p : start->positions) {
-      px.push_back(c.camera.project(p));
-      x0 = std::min(x0, px.back().x()), x1 = std::max(x1, px.back().x());
-    }
-    const double column = x0 + 0.35 * (x1 - x0);
-    double y0 = 1e9, y1 = -1e9;
-    for (const auto& p : px)
-      if (std::abs(p.x() - column) < 6) y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
-    const QPointF a = view->toWidget(QPointF(column, y0 + 0.1 * (y1 - y0)));
-    const QPointF b = view->toWidget(QPointF(column, y1 + 0.1 * (y1 - y0)));
+    const auto [from, to] = strokeDownTheOrgan(c.camera, start->positions, 0.35);
+    const QPointF a = view->toWidget(QPointF(from.x(), from.y())), b = view->toWidget(QPointF(to.x(), to.y()));
     const std::size_t elements0 = start->elements, nodes0 = start->positions.size();
     const double mass0 = start->mass;
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());

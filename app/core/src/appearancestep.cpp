@@ -93,6 +93,9 @@ CutComposition makeCutCompositor(const imaging::Compositor& base, const Case& c,
   out.said =
       "Cut faces take preset interior colours, not ones estimated from this frame: the parenchyma 80/60/60 % of the "
       "surface's red/green/blue, a vessel's blood 55/20/20 %, other inner structures paler.";
+  if (c.appearance && c.appearance->textureOnly)
+    out.said +=
+        " The estimate explains too little of the frame's shading, so the cut faces' shading is only approximate.";
   return out;
 }
 

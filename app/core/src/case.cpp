@@ -24,7 +24,11 @@ std::shared_ptr<const VisualSurface> VisualSurface::make(const simcore::Mesh& vo
       if (v < 0 || v >= static_cast<int>(s.points.size()))
         return refuse("The organ's surface has a triangle with a vertex it does not have.");
   auto out = std::make_shared<VisualSurface>();
-  out->embedding = simcore::embedPoints(volume.points, volume.tets, s.points);
+  try {
+    out->embedding = simcore::embedPoints(volume.points, volume.tets, s.points);
+  } catch (const std::exception& e) {  // the organ itself stays usable: drawn through its boundary
+    return refuse(std::string(e.what()) + " The views draw the simulation mesh's boundary.");
+  }
   const double size = volume.bounds().sizes().maxCoeff();
   if (out->embedding.farthestOutside > 0.05 * size) {
     char text[256];
