@@ -13,11 +13,95 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 
 using namespace rehearse;
+
+namespace {
+
+// What a point light of any kind can explain on this frame (the ceiling the acceptance's 70 % is measured
+// against): the organ's usable pixels (usablePixels) less the challenge's beads and anything bright (every
+// channel above 120, grown 4 px: highlights, sheen), one pixel in three. Per channel, the frame (or the frame
+// linearised with gamma 2.2) against k_d F cos(theta_i) / r^2 (+ an ambient term), k_d and the ambient solved in
+// closed form for each light; the light searched on a grid and refined by coordinate steps. The share is the
+// README's: 1 - squared residual over the squared deviation from the mean colour, all channels.
+struct Sample {
+  Eigen::Vector3d p, n;
+  cv::Vec3d linear, gamma;
+};
+
+double pointLightShare(const std::vector<Sample>& px, const Eigen::Vector3d& light, double falloff, bool ambient,
+                       bool gamma) {
+  std::vector<double> m(px.size());
+  for (std::size_t i = 0; i < px.size(); ++i) {
+    const Eigen::Vector3d d = light - px[i].p;
+    const double r = d.norm();
+    m[i] = std::pow(std::max(0.0, px[i].p.z() / px[i].p.norm()), falloff) * std::max(0.0, px[i].n.dot(d) / r) / (r * r);
+  }
+  const double count = static_cast<double>(px.size());
+  double residual = 0, variance = 0;
+  for (int c = 0; c < 3; ++c) {
+    double sm = 0, smm = 0, sy = 0, syy = 0, smy = 0;
+    for (std::size_t i = 0; i < px.size(); ++i) {
+      const double v = gamma ? px[i].gamma[c] : px[i].linear[c];
+      sm += m[i], smm += m[i] * m[i], sy += v, syy += v * v, smy += m[i] * v;
+    }
+    if (ambient) {
+      const double det = smm * count - sm * sm, kd = (smy * count - sm * sy) / det, a = (smm * sy - sm * smy) / det;
+      residual += syy + kd * kd * smm + a * a * count - 2 * kd * smy - 2 * a * sy + 2 * kd * a * sm;
+    } else {
+      const double kd = smm > 0 ? smy / smm : 0;
+      residual += syy - 2 * kd * smy + kd * kd * smm;
+    }
+    variance += syy - sy * sy / count;
+  }
+  return 1 - residual / variance;
+}
+
+struct BestLight {
+  double share = -1e9;
+  Eigen::Vector3d light = Eigen::Vector3d::Zero();
+  double falloff = 0;
+};
+
+// The best light on a grid (millimetres: x, y in [-reach, reach] every step, z in [zLow, zHigh]; only points within
+// `ball` of the lens when ball > 0), fall-off n in {0, 2, 4, 8}, then refined by halving coordinate steps.
+BestLight bestPointLight(const std::vector<Sample>& px, double reach, double step, double zLow, double zHigh,
+                         double ball, bool ambient, bool gamma) {
+  BestLight best;
+  const auto inside = [&](const Eigen::Vector3d& l) { return ball <= 0 || l.norm() <= ball * 1e-3 + 1e-12; };
+  for (double x = -reach; x <= reach; x += step)
+    for (double y = -reach; y <= reach; y += step)
+      for (double z = zLow; z <= zHigh; z += step)
+        for (const double n : {0.0, 2.0, 4.0, 8.0}) {
+          const Eigen::Vector3d l(x * 1e-3, y * 1e-3, z * 1e-3);
+          if (!inside(l)) continue;
+          const double s = pointLightShare(px, l, n, ambient, gamma);
+          if (s > best.share) best = {s, l, n};
+        }
+  for (double h = step / 2; h >= 0.5; h /= 2)
+    for (bool better = true; better;) {
+      better = false;
+      for (int axis = 0; axis < 4; ++axis)
+        for (const int sign : {-1, 1}) {
+          Eigen::Vector3d l = best.light;
+          double n = best.falloff;
+          if (axis < 3)
+            l[axis] += sign * h * 1e-3;
+          else
+            n = std::max(0.0, n + sign * h * 0.2);
+          if (!inside(l)) continue;
+          const double s = pointLightShare(px, l, n, ambient, gamma);
+          if (s > best.share + 1e-6) best = {s, l, n}, better = true;
+        }
+    }
+  return best;
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   std::string out = ".";
@@ -86,6 +170,75 @@ int main(int argc, char** argv) {
                dbTexture = imaging::psnr(in.frame, texture, inner);
   std::printf("  composed at rest inside the organ: re-shaded %.1f dB, texture-only %.1f dB\n", dbReshaded, dbTexture);
   md << "\ncomposed at rest inside the organ: re-shaded " << dbReshaded << " dB, texture-only " << dbTexture << " dB\n";
+
+  // What the frame allows: the ceiling of any one-albedo model, and the best point light of any kind.
+  {
+    const cv::Mat1b usableAll = imaging::usablePixels(in.frame, g.mask());
+    cv::Mat1b beads, bright(in.frame.size(), uchar(0));
+    cv::dilate(oc.beads, beads, cv::Mat(), cv::Point(-1, -1), 4);
+    for (int y = 0; y < bright.rows; ++y)
+      for (int x = 0; x < bright.cols; ++x) {
+        const cv::Vec3b v = in.frame(y, x);
+        if (std::min({v[0], v[1], v[2]}) > 120) bright(y, x) = 255;
+      }
+    cv::dilate(bright, bright, cv::Mat(), cv::Point(-1, -1), 4);
+    const cv::Mat1b use = usableAll & ~beads & ~bright;
+    std::vector<Sample> px;
+    cv::Vec3d mean(0, 0, 0);
+    int counter = 0, used = 0;
+    double nearest = 1e9, farthest = 0;
+    for (int y = 0; y < use.rows; ++y)
+      for (int x = 0; x < use.cols; ++x) {
+        if (!use(y, x)) continue;
+        const cv::Vec3b v = in.frame(y, x);
+        mean += cv::Vec3d(v[0], v[1], v[2]);
+        ++used;
+        if (counter++ % 3) continue;
+        const cv::Vec3f p = g.position(y, x), n = g.normal(y, x);
+        Sample s;
+        s.p = Eigen::Vector3d(p[0], p[1], p[2]);
+        s.n = Eigen::Vector3d(n[0], n[1], n[2]).normalized();
+        for (int c = 0; c < 3; ++c) s.linear[c] = v[c] / 255.0, s.gamma[c] = std::pow(v[c] / 255.0, 2.2);
+        nearest = std::min(nearest, s.p.norm()), farthest = std::max(farthest, s.p.norm());
+        px.push_back(s);
+      }
+    mean /= std::max(1, used);
+    // One albedo and a perfect shading per pixel (the frame's colour projected on the mean colour): what no
+    // shading of one albedo can exceed; the rest is the colour changing over the organ.
+    double residual = 0, variance = 0;
+    for (int y = 0; y < use.rows; ++y)
+      for (int x = 0; x < use.cols; ++x)
+        if (use(y, x)) {
+          const cv::Vec3d v(in.frame(y, x)[0], in.frame(y, x)[1], in.frame(y, x)[2]);
+          const cv::Vec3d r = v - (v.dot(mean) / mean.dot(mean)) * mean, d = v - mean;
+          residual += r.dot(r), variance += d.dot(d);
+        }
+    const double ceiling = 1 - residual / variance;
+    std::printf(
+        "  what the frame allows (%d px, organ %.1f..%.1f mm from the lens): one albedo with a perfect shading "
+        "per pixel explains %.3f\n",
+        used, 1e3 * nearest, 1e3 * farthest, ceiling);
+    md << "\nwhat the frame allows (" << used << " px, the organ " << 1e3 * nearest << " to " << 1e3 * farthest
+       << " mm from the lens): one albedo with a perfect shading per pixel explains " << ceiling
+       << "\n\n| point light | frame | ambient | explained | light (mm) | distance from the lens (mm) | n |\n"
+          "|---|---|---|---:|---|---:|---:|\n";
+    for (const bool tip : {true, false})
+      for (const bool gamma : {false, true})
+        for (const bool ambient : {false, true}) {
+          const BestLight b = tip ? bestPointLight(px, 30, 10, -30, 30, 30, ambient, gamma)
+                                  : bestPointLight(px, 200, 20, -100, 40, 0, ambient, gamma);
+          std::printf(
+              "  best point light %s, %s frame%s: explains %.3f at (%.0f, %.0f, %.0f) mm (%.0f mm from the "
+              "lens), n %.1f\n",
+              tip ? "within 30 mm of the lens" : "anywhere", gamma ? "linearised (gamma 2.2)" : "raw",
+              ambient ? ", with an ambient term" : "", b.share, 1e3 * b.light.x(), 1e3 * b.light.y(), 1e3 * b.light.z(),
+              1e3 * b.light.norm(), b.falloff);
+          md << "| " << (tip ? "within 30 mm of the lens" : "anywhere") << " | " << (gamma ? "gamma 2.2" : "raw")
+             << " | " << (ambient ? "yes" : "no") << " | " << b.share << " | (" << std::lround(1e3 * b.light.x())
+             << ", " << std::lround(1e3 * b.light.y()) << ", " << std::lround(1e3 * b.light.z()) << ") | "
+             << std::lround(1e3 * b.light.norm()) << " | " << b.falloff << " |\n";
+        }
+  }
 
   // The honest check: fitted on half A, half B predicted.
   std::ofstream csv(out + "/appearance_real.csv");
