@@ -48,6 +48,14 @@ class GraspTool final : public FrameTool {
     release(nullptr);
     return true;
   }
+  // Another tool taken while the jaws hold (Space keeps them closed without a button): the session has one
+  // instrument, whose tip the scissors would move, dragging the held tissue along with the blade (a 477 N
+  // spike and a slip on the liver preset). The jaws open first, and the surgeon is told.
+  void finish() override {
+    if (!holding_) return;
+    release(nullptr);
+    emit view_.toolMessage(QObject::tr("The jaws opened to change instruments: one instrument works at a time."));
+  }
   // The wheel while holding: the jaws towards (up) or away from the camera, 2 mm a notch.
   bool wheel(QWheelEvent* e) override {
     if (!holding_) return false;
