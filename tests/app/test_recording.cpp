@@ -233,6 +233,112 @@ class TestRecording : public QObject {
   // A checkpoint taken while a cut's body is being built and a factor is requested (the deferred refresh, as a
   // replay runs: both stay pending until the recorded CutApplied and Factor events) goes through its bytes and
   // a new session continues from it exactly as the uninterrupted one, step for step.
+  // Traction held while the blade cuts (ToolSettings::jawsKeepTheirHold): the jaws (instrument 0) close on the block's
+  // free end and pull it 5 mm along its length; the blade (instrument 1) then stands through the block at x = 25 mm
+  // and is drawn across it, severing it, while the jaws hold. What the jaws hold stays where they put it (the
+  // constraint's targets do not follow the blade's tip); with the setting off (sessions recorded before it existed),
+  // the held nodes follow the blade as they used to. A checkpoint taken while the blade is away from the jaws
+  // continues bit for bit through the codec's bytes, and reading it as an older checkpoint (the jaws wherever the tip
+  // is) continues differently: the jaws' place is part of the state. The setting is in the recorded setup; a setup
+  // recorded before it existed reads as off.
+  void jawsKeepTheirHoldWhileTheBladeCuts() {
+    const auto setupWith = [](bool keep) {
+      simcore::BodySetup s;
+      s.mesh = boxMesh(0.04, 0.01, 0.01, 8, 2, 2);
+      s.fixedNodes = nodesAtX(s.mesh, 0.0);
+      s.material.young = 2e4;
+      s.settings.method = simcore::NewtonMethod::Exact;
+      s.tools.bladeLength = 0.03;
+      s.tools.trocar = Eigen::Vector3d(0.025, 0.005, -0.2);
+      s.tools.cutLatencySteps = 0;
+      s.tools.maxGraspForce = 1e3;  // no slip: where the jaws' targets are is the question
+      s.tools.jawsKeepTheirHold = keep;
+      return s;
+    };
+    std::vector<simcore::InputEvent> events;
+    auto add = [&](simcore::InputEvent e, long step, int tool) {
+      e.step = step;
+      e.tool = tool;
+      events.push_back(e);
+    };
+    const Eigen::Vector3d end(0.04, 0.005, 0.005);  // the free end's centre: the jaws hold the nodes within 6 mm
+    add(rehearse::testing::toolAt(end), 2, 0);
+    add(rehearse::testing::jaws(true), 2, 0);
+    for (int k = 1; k <= 5; ++k) add(rehearse::testing::toolAt(end + Eigen::Vector3d(0.001 * k, 0, 0)), 2 + k, 0);
+    add(rehearse::testing::toolAt({0.025, -0.004, 0.012}), 10, 1);
+    add(rehearse::testing::cutting(true), 10, 1);
+    for (int k = 1; k <= 10; ++k) add(rehearse::testing::toolAt({0.025, -0.004 + 0.0018 * k, 0.012}), 10 + k, 1);
+    add(rehearse::testing::cutting(false), 21, 1);
+    constexpr long kAt = 16, kEnd = 40;
+    const Eigen::Vector3d jawsAt = end + Eigen::Vector3d(0.005, 0, 0);
+
+    std::map<bool, double> heldOff;  // the held nodes' largest distance from their place at the jaws, at the end
+    std::vector<std::uint64_t> straight;
+    simcore::Checkpoint cp;
+    std::vector<int> held;
+    std::vector<Eigen::Vector3d> heldAt;
+    for (const bool keep : {true, false}) {
+      simcore::Session session(setupWith(keep));
+      for (const auto& e : events) session.post(e);
+      for (long k = 1; k <= kEnd; ++k) {
+        session.advance();
+        if (keep) straight.push_back(app::stateChecksum(session.state()));
+        if (keep && k == kAt) cp = session.checkpoint();
+        if (k == 8) {  // pulled: where the held nodes are relative to the jaws
+          held = session.snapshot()->tool.held;
+          heldAt.clear();
+          for (int n : held) heldAt.push_back(session.state().x.segment<3>(3 * n) - jawsAt);
+        }
+      }
+      const auto snap = session.snapshot();
+      QVERIFY2(snap->topologyVersion > 0, "the blade cut the block");
+      QVERIFY(!held.empty() && snap->tool.jawClosed && snap->tool.held == held);
+      double off = 0;
+      for (std::size_t i = 0; i < held.size(); ++i)
+        off = std::max(off, (session.state().x.segment<3>(3 * held[i]) - (jawsAt + heldAt[i])).norm());
+      heldOff[keep] = off;
+      qInfo(
+          "jaws keep their hold %d: %zu nodes held, at most %.4f mm from where the jaws put them after the cut; tip "
+          "%.1f mm from the jaws",
+          int(keep), held.size(), 1e3 * off, 1e3 * (snap->tool.tip - jawsAt).norm());
+    }
+    QVERIFY(heldOff[true] < 1e-6);   // the constraint's targets stayed at the jaws
+    QVERIFY(heldOff[false] > 0.01);  // they followed the blade's tip, more than 10 mm away
+    QVERIFY((cp.tool.jawTip - jawsAt).norm() < 1e-12 && (cp.tool.tip - jawsAt).norm() > 0.01);
+    QCOMPARE(cp.tool.jawTool, 0);
+    QCOMPARE(cp.tool.tipTool, 1);
+
+    std::map<std::uint64_t, simcore::BodySetup> setups;
+    setups[app::setupHash(cp.setup)] = app::sharedSetup(cp.setup);
+    const simcore::Checkpoint back =
+        app::decodeCheckpointState(app::encodeCheckpointState(cp), [&](std::uint64_t h) { return setups.at(h); });
+    QCOMPARE(back.tool.jawTip, cp.tool.jawTip);
+    QCOMPARE(back.tool.jawTool, 0);
+    QCOMPARE(back.tool.tipTool, 1);
+    const auto continues = [&](const simcore::Checkpoint& c) {
+      simcore::Session resumed(setupWith(true));
+      resumed.restore(c);
+      for (const auto& e : events)
+        if (e.step >= kAt) resumed.post(e);
+      for (long k = kAt + 1; k <= kEnd; ++k) {
+        resumed.advance();
+        if (app::stateChecksum(resumed.state()) != straight[static_cast<std::size_t>(k - 1)]) return false;
+      }
+      return true;
+    };
+    QVERIFY(continues(back));
+    simcore::Checkpoint older = back;
+    older.tool.jawTip = older.tool.tip;
+    QVERIFY2(!continues(older),
+             "the jaws' place must matter to the continuation, or the comparison above sees nothing");
+
+    QVERIFY(app::decodeSetup(app::encodeSetup(setupWith(true))).tools.jawsKeepTheirHold);
+    QVERIFY(!app::decodeSetup(app::encodeSetup(setupWith(false))).tools.jawsKeepTheirHold);
+    auto recordedBefore = nlohmann::json::parse(app::encodeSetup(setupWith(true)));
+    recordedBefore["tools"].erase("jawsKeepTheirHold");
+    QVERIFY(!app::decodeSetup(recordedBefore.dump()).tools.jawsKeepTheirHold);
+  }
+
   void checkpointWithACutUnderWayIsComplete() {
     // Both ways a cut comes in: at the boundary the recording names (-1: sessions recorded before the latency), and
     // a fixed number of steps after its sweep (20 here, so that the checkpoint falls while it is being built).

@@ -99,7 +99,14 @@ void FrameView::setOverlayOpacity(double opacity) {
 }
 
 void FrameView::setTool(Tool t) {
-  if (t != tool_ && current()) current()->finish();
+  if (t != tool_) {
+    // The grasper keeps its hold while the scissors cut (an assistant's traction); any other tool lets go.
+    const bool instruments = t == Tool::Grasp || t == Tool::Scissors;
+    if (current() && !(tool_ == Tool::Grasp && t == Tool::Scissors)) current()->finish();
+    if (!instruments && tool_ == Tool::Scissors) tools_.at(Tool::Grasp)->finish();
+    if (current()) current()->setActive(false);
+    if (const auto it = tools_.find(t); it != tools_.end()) it->second->setActive(true);
+  }
   if (t == Tool::OrganCurve && tool_ != Tool::OrganCurve)
     emit toolMessage(tr("Click along the ridge or ligament on the organ drawn over the frame; the nearest sketched one gets the curve."));
   tool_ = t;
@@ -200,6 +207,8 @@ void FrameView::paintEvent(QPaintEvent*) {
   }
   painter.resetTransform();
   paintOrganMarks(painter, contour);
+  for (const auto& [kind, tool] : tools_)
+    if (kind != tool_) tool->paintIdle(painter);
   if (FrameTool* t = current()) t->paint(painter);
   paintWarning(painter);
   paintLegend(painter);

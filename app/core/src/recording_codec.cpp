@@ -182,7 +182,8 @@ struct Reader {
 constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the contact's easing was kept
 constexpr std::uint32_t kCheckpointMagicV2 =
     0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut, TopologyChange::applyAt
-constexpr std::uint32_t kCheckpointMagic = 0x334B4352;  // "RCK3": + ToolState::graspForce and released
+constexpr std::uint32_t kCheckpointMagicV3 = 0x334B4352;  // "RCK3": + ToolState::graspForce and released
+constexpr std::uint32_t kCheckpointMagic = 0x344B4352;    // "RCK4": + ToolState::jawTip, jawTool and tipTool
 
 }  // namespace
 
@@ -196,7 +197,7 @@ std::uint64_t stateChecksum(const simcore::SimulationState& s) {
 // Fields a checkpoint carries: a new one must be written too.
 static_assert(sizeof(simcore::SimulationState::Lagged) == 64,
               "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
-static_assert(sizeof(simcore::ToolState) == 320, "ToolState changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::ToolState) == 352, "ToolState changed: record the new field in encodeCheckpointState");
 
 namespace {
 void writeProgress(Bytes& o, const simcore::CutProgress& p) {
@@ -276,6 +277,9 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
   for (int l : t.vesselsCut) o.pod(static_cast<std::int32_t>(l));
   o.pod(static_cast<std::int64_t>(t.released.size()));
   for (int n : t.released) o.pod(static_cast<std::int32_t>(n));
+  o.v3(t.jawTip);
+  o.pod(static_cast<std::int32_t>(t.jawTool));
+  o.pod(static_cast<std::int32_t>(t.tipTool));
   o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
   if (c.restOfSweep) {
     o.v3(c.restOfSweep->first);
@@ -309,7 +313,8 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
   simcore::Checkpoint c;
   Reader r{bytes.data(), bytes.data() + bytes.size()};
   const std::uint32_t magic = r.pod<std::uint32_t>();
-  if (magic != kCheckpointMagic && magic != kCheckpointMagicV2 && magic != kCheckpointMagicV1)
+  if (magic != kCheckpointMagic && magic != kCheckpointMagicV3 && magic != kCheckpointMagicV2 &&
+      magic != kCheckpointMagicV1)
     throw std::runtime_error("a recorded checkpoint is not in a known format");
   c.step = static_cast<long>(r.pod<std::int64_t>());
   c.setup = setupOf(r.pod<std::uint64_t>());
@@ -339,7 +344,8 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
   t.cutFrom = r.v3();
   t.force = r.v3();
   // Before RCK3 the jaws' share was not kept apart: all of it (the next step computes both again).
-  t.graspForce = magic == kCheckpointMagic ? r.v3() : (t.held.empty() ? Eigen::Vector3d::Zero() : t.force);
+  const bool v3OrLater = magic == kCheckpointMagic || magic == kCheckpointMagicV3;
+  t.graspForce = v3OrLater ? r.v3() : (t.held.empty() ? Eigen::Vector3d::Zero() : t.force);
   r.need(9 * sizeof(double));
   std::memcpy(t.stiffness.data(), r.p, 9 * sizeof(double));
   r.p += 9 * sizeof(double);
@@ -360,9 +366,17 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
     t.vesselsCut.resize(r.count(sizeof(std::int32_t)));
     for (int& l : t.vesselsCut) l = r.pod<std::int32_t>();
   }
-  if (magic == kCheckpointMagic) {
+  if (v3OrLater) {
     t.released.resize(r.count(sizeof(std::int32_t)));
     for (int& n : t.released) n = r.pod<std::int32_t>();
+  }
+  if (magic == kCheckpointMagic) {
+    t.jawTip = r.v3();
+    t.jawTool = r.pod<std::int32_t>();
+    t.tipTool = r.pod<std::int32_t>();
+    if (!t.jawTip.allFinite()) throw std::runtime_error("a recorded checkpoint's jaws are not at a place");
+  } else {
+    t.jawTip = t.tip;  // before RCK4 the jaws were wherever the tip was
   }
   if (r.pod<std::uint8_t>()) {
     const Eigen::Vector3d from = r.v3();
@@ -496,6 +510,7 @@ std::string encodeSetup(const simcore::BodySetup& s) {
                 {"toolRadius", t.toolRadius},
                 {"depenetrationSpeed", t.depenetrationSpeed},
                 {"cutLatencySteps", t.cutLatencySteps},
+                {"jawsKeepTheirHold", t.jawsKeepTheirHold},
                 {"cut",
                  {{"snap", t.cut.snap},
                   {"minQuality", t.cut.minQuality},
@@ -536,6 +551,7 @@ simcore::BodySetup decodeSetup(const std::string& text) {
         t.value("depenetrationSpeed", 0.0);  // recorded before it existed: contact pushed out at once
     s.tools.cutLatencySteps =
         t.contains("cutLatencySteps") ? asInt(t.at("cutLatencySteps")) : -1;  // ... and cuts applied as they were
+    s.tools.jawsKeepTheirHold = t.value("jawsKeepTheirHold", false);          // ... and the jaws followed every tip
     s.tools.cut.snap = t.at("cut").at("snap");
     s.tools.cut.minQuality = t.at("cut").at("minQuality");
     s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");

@@ -19,6 +19,8 @@ class Grasper final : public Instrument {
   bool handles(InputKind kind) const override { return kind == InputKind::Jaw; }
   void act(const InputEvent& e, ToolState& tool, InstrumentHost& host, std::string& message) override {
     tool.jawClosed = e.on;
+    tool.jawTip = tool.tip;  // the jaws close (or open) where the instrument is
+    tool.jawTool = e.tool;
     tool.released = tool.held;
     std::sort(tool.released.begin(), tool.released.end());
     tool.held.clear();
@@ -41,7 +43,7 @@ class Grasper final : public Instrument {
     std::sort(near.begin(), near.end());
     for (const auto& [d, i] : near) {
       tool.held.push_back(i);
-      tool.heldOffset.push_back(x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool.tip);
+      tool.heldOffset.push_back(x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool.jawTip);
     }
     if (!near.empty())
       host.emitEvent("grasp");
@@ -57,14 +59,14 @@ class Grasper final : public Instrument {
   }
   void holds(const ToolState& tool, std::vector<ScalarConstraint>& rows) const override {
     if (!tool.jawClosed) return;
-    // Each held node keeps its place relative to the tip: three rows along the body frame's axes.
+    // Each held node keeps its place relative to the jaws: three rows along the body frame's axes.
     for (std::size_t k = 0; k < tool.held.size(); ++k)
       for (int axis = 0; axis < 3; ++axis) {
         ScalarConstraint s;
         s.nodes = {tool.held[k], -1, -1, -1};
         s.weights = {1, 0, 0, 0};
         s.direction = Eigen::Vector3d::Unit(axis);
-        s.value = (tool.tip + tool.heldOffset[k])[axis];
+        s.value = (tool.jawTip + tool.heldOffset[k])[axis];
         rows.push_back(s);
       }
   }

@@ -200,7 +200,10 @@ void Session::apply(const InputEvent& e, std::string& message) {
   switch (e.kind) {
     case InputKind::ToolPose:
       for (auto& i : instruments_) i->moved(e.position, tool_, *this, message);
+      // The jaws go with the tip, unless another instrument moved it and the scene keeps their hold.
+      if (!(tool_.jawClosed && setup_.tools.jawsKeepTheirHold && e.tool != tool_.jawTool)) tool_.jawTip = e.position;
       tool_.tip = e.position;
+      tool_.tipTool = e.tool;
       if (!tool_.present) seedEasing_ = true;
       tool_.present = true;
       break;
@@ -324,6 +327,9 @@ StepReport Session::advance() {
     tool_.force = body_->toolForce();
     tool_.graspForce = tool_.held.empty() ? Eigen::Vector3d::Zero() : body_->toolForce(true);
     tool_.stiffness = body_->toolStiffness();
+    // d(force)/d(tip) is the jaws' and the shaft's when the moving tip is theirs; when another instrument moves it (the
+    // jaws keep their hold) moving it changes neither to first order: the force loop holds the last force.
+    if (tool_.jawClosed && tool_.jawTip != tool_.tip) tool_.stiffness.setZero();
     bool changed = false;  // a slip lets go of what the jaws held: their rows are made again
     for (auto& i : instruments_) changed = i->stepped(tool_, *this, message) || changed;
     if (changed) updateToolConstraints();

@@ -25,8 +25,10 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   auto* layout = new QVBoxLayout(this);
   auto* intro = new QLabel(
       tr("Rehearse the gesture on the registered organ: with the grasper, press on the organ to close the jaws "
-         "there, drag to pull it, release to let go; with the scissors, press on the organ and drag across it "
-         "to cut, release to stop. The wheel moves the instrument's tip along the view ray while you hold it. "
+         "there, drag to pull it, release to let go (Space closes them at the cursor and keeps them closed); with "
+         "the scissors, press on the organ and drag across it to cut, release to stop. Take the scissors while the "
+         "jaws hold and they keep the traction while you cut, which opens the incision. The wheel moves the "
+         "instrument's tip along the view ray while you hold it. "
          "The simulation runs while you work (Simulation panel: material, ligaments); the view shows it "
          "composited into the frame once the appearance is estimated (step 6), cut faces in preset interior "
          "colours; the overlay (F3) shows cut tissue in dark red."),

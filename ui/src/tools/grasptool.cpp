@@ -34,6 +34,10 @@ class GraspTool final : public FrameTool {
   void move(const QPointF&, const Eigen::Vector2d& f) override {
     hover_ = f;
     if (!holding_) return;
+    if (resume_) {  // the jaws stay where they are: the cursor's motion from here moves them
+      offset_ = jaws_ - pointAtDepth(view_, f, depth_);
+      resume_ = false;
+    }
     last_ = f;
     send(simcore::InputKind::ToolPose, tipAt(f), false);
   }
@@ -48,14 +52,23 @@ class GraspTool final : public FrameTool {
     release(nullptr);
     return true;
   }
-  // Another tool taken while the jaws hold (Space keeps them closed without a button): the session has one
-  // instrument, whose tip the scissors would move, dragging the held tissue along with the blade (a 477 N
-  // spike and a slip on the liver preset). The jaws open first, and the surgeon is told.
+  // Enter, or a tool other than the scissors taken while the jaws hold: they let go.
   void finish() override {
-    if (!holding_) return;
-    release(nullptr);
-    emit view_.toolMessage(QObject::tr("The jaws opened to change instruments: one instrument works at a time."));
+    if (holding_) release(nullptr);
   }
+  // The scissors taken while the jaws hold (Space keeps them closed without a button): the jaws keep their hold where
+  // they are while the blade cuts (the session keeps them apart: ToolSettings::jawsKeepTheirHold). Back with the
+  // grasper, the drag goes on from where the jaws are, wherever the cursor is.
+  void setActive(bool active) override {
+    if (!holding_) return;
+    if (active) {
+      resume_ = true;
+      emit view_.toolMessage(QObject::tr("The jaws still hold: drag to pull on, Space or a click lets go."));
+    } else {
+      emit view_.toolMessage(QObject::tr("The grasper keeps its hold while you cut (R, then Space, lets go)."));
+    }
+  }
+  void paintIdle(QPainter& painter) override { paint(painter); }
   // The wheel while holding: the jaws towards (up) or away from the camera, 2 mm a notch.
   bool wheel(QWheelEvent* e) override {
     if (!holding_) return false;
@@ -94,6 +107,7 @@ class GraspTool final : public FrameTool {
     offset_.setZero();
     offset_ = tip - tipAt(f);  // the bite's node need not be under the cursor: the drag moves it by the cursor's motion
     holding_ = true;
+    resume_ = false;
     send(simcore::InputKind::ToolPose, tip, false);
     send(simcore::InputKind::Jaw, tip, true);
     last_ = f;
@@ -103,8 +117,13 @@ class GraspTool final : public FrameTool {
   // The tip for frame pixel `f`: the point under it at the depth the jaws bit at (camera frame, m), plus the
   // bite's offset from the pressed point.
   Eigen::Vector3d tipAt(const Eigen::Vector2d& f) const { return pointAtDepth(view_, f, depth_) + offset_; }
-  void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) { postInstrument(view_, kind, tip, on, 0); }
+  void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) {
+    jaws_ = tip;
+    postInstrument(view_, kind, tip, on, 0);
+  }
   bool holding_ = false;
+  bool resume_ = false;                             ///< taken again while holding: the next drag starts at `jaws_`
+  Eigen::Vector3d jaws_ = Eigen::Vector3d::Zero();  ///< where the grasper last put its tip (camera frame, m)
   double depth_ = 0;
   Eigen::Vector3d offset_ = Eigen::Vector3d::Zero();
   Eigen::Vector2d last_ = Eigen::Vector2d::Zero();

@@ -42,6 +42,10 @@ class FrameTool {
   virtual bool abandon() { return false; }
   /// Draws over the frame, in widget coordinates.
   virtual void paint(QPainter& /*p*/) {}
+  /// Draws what the tool leaves on the frame while another one is in use (the grasper's closed jaws).
+  virtual void paintIdle(QPainter& /*p*/) {}
+  /// The tool is taken (true) or another one is (false), after finish() when that was called.
+  virtual void setActive(bool /*active*/) {}
   virtual Qt::CursorShape cursor() const { return Qt::CrossCursor; }
   /// True while work the tool started runs on a worker (a stroke snapping to image edges).
   virtual bool busy() const { return false; }

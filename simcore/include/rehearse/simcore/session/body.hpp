@@ -41,12 +41,17 @@ struct ToolSettings {
   /// 2 ms): a cut's step waits about 50 ms with 5, none with -1.
   int cutLatencySteps = 5;
   CutSettings cut;  ///< snapping and the quality the re-meshing keeps
+  /// The jaws keep their hold where their own instrument left them while another instrument moves (InputEvent::tool:
+  /// the grasper's traction while the scissors cut, as an assistant holds it); false: they follow every move of the
+  /// tip, whichever instrument made it (the sessions recorded before this existed: their scissors dragged what the
+  /// jaws held).
+  bool jawsKeepTheirHold = true;
   bool operator==(const ToolSettings& o) const {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce &&
            trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
            bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
            cutLatencySteps == o.cutLatencySteps && cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
-           cut.minVolumeFraction == o.cut.minVolumeFraction;
+           cut.minVolumeFraction == o.cut.minVolumeFraction && jawsKeepTheirHold == o.jawsKeepTheirHold;
   }
 };
 

@@ -59,7 +59,13 @@ struct ToolState {
   Eigen::Vector3d tip = Eigen::Vector3d::Zero();
   bool jawClosed = false;
   std::vector<int> held;  ///< the nodes the jaws hold (within the grasp radius when they closed), nearest first
-  std::vector<Eigen::Vector3d> heldOffset;  ///< each held node's place relative to the tip (m), kept while held
+  std::vector<Eigen::Vector3d> heldOffset;  ///< each held node's place relative to `jawTip` (m), kept while held
+  /// Where the jaws are (m, body frame): the tip of the instrument that closed them (`jawTool`), which the held nodes'
+  /// places are relative to. With ToolSettings::jawsKeepTheirHold another instrument moving the tip leaves it where
+  /// it is (the grasper's traction held while the scissors cut); without, it follows every move of the tip.
+  Eigen::Vector3d jawTip = Eigen::Vector3d::Zero();
+  int jawTool = 0;  ///< the instrument (InputEvent::tool) that closed the jaws
+  int tipTool = 0;  ///< the instrument whose pose `tip` is (the last ToolPose's)
   bool cutting = false;
   Eigen::Vector3d cutFrom = Eigen::Vector3d::Zero();  ///< the tip where the blade's last sweep ended (while cutting)
   Eigen::Vector3d force =
