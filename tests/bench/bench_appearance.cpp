@@ -7,6 +7,7 @@
 #include "realorgan.hpp"
 
 #include <rehearse/app/appearancestep.hpp>
+#include <rehearse/simcore/session/session.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
 
 #include <opencv2/imgcodecs.hpp>
@@ -219,6 +220,110 @@ int main(int argc, char** argv) {
     p720.height = 720;
     const phantom::Phantom c720 = phantom::makePhantom(p720);
     viewport("phantom", c720.camera, c720.truePose, c720.surfaceView(), c720.frame, c720.trueAppearance);
+  }
+  // After a grasp-pull-cut (issue 35): the built-in case's organ simulated headless as step 7 drives it (the jaws close
+  // on a surface node of its lower part and pull it 15 % of its height down in the image; the scissors, the jaws
+  // holding, cut across the stretched tissue above them, the blade 20 mm behind the surface), then the cut organ's
+  // composition (app::makeCutCompositor: the cut mesh's boundary, its cut faces in the parenchyma's colour) timed per
+  // frame at 1280x720 with the GUI's 2x2 rim.
+  {
+    phantom::PhantomOptions p720;
+    p720.width = 1280;
+    p720.height = 720;
+    const phantom::Phantom ph = phantom::makePhantom(p720);
+    app::Case c = app::caseFromPhantom(ph);
+    c.pose = ph.truePose;
+    c.hasPose = true;
+    const app::AppearanceInput in = app::appearanceInputFromCase(c);
+    const auto base = app::makeCompositor(in, app::appearanceLayers(in, ph.trueAppearance), ph.trueAppearance, false);
+    simcore::BodySetup b;
+    b.mesh = c.organ->volume;
+    b.mesh.convertToMetres();
+    const auto& shape = c.shapeNodes();
+    for (const auto& x : shape) b.rest.push_back(c.pose.apply(x));  // the camera frame, as the GUI's session
+    b.fixedNodes = c.attachments;
+    b.material = {simcore::MaterialModel::Corotational, 27e3, 0.4, 1079};
+    b.settings.timeStep = 0.01;
+    b.settings.method = simcore::kInteractiveMethod;
+    b.tools.cutLatencySteps = 0;
+    double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+    for (const auto& p : b.rest) {
+      const Eigen::Vector2d q = c.camera.project(p);
+      x0 = std::min(x0, q.x()), x1 = std::max(x1, q.x()), y0 = std::min(y0, q.y()), y1 = std::max(y1, q.y());
+    }
+    std::vector<double> posed;
+    for (const auto& p : b.rest) posed.insert(posed.end(), {p.x(), p.y(), p.z()});
+    const SurfaceView postedView{posed.data(), b.rest.size(), c.organ->surface.front().data(), c.organ->surface.size()};
+    const auto geo = imaging::surfaceGeometry(c.camera, Pose{}, postedView);
+    const auto surfaceAt = [&](double fx, double fy) {  // the organ's surface under a point of its box in the image
+      const int u = static_cast<int>(std::lround(x0 + fx * (x1 - x0))),
+                v = static_cast<int>(std::lround(y0 + fy * (y1 - y0)));
+      const cv::Vec3f p = geo.position(v, u);
+      return Eigen::Vector3d(p[0], p[1], p[2]);
+    };
+    const auto ray = [&](double fx, double fy, double depth) {
+      const Eigen::Vector3d r = c.camera.K.inverse() * Eigen::Vector3d(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0), 1.0);
+      return Eigen::Vector3d(r * (depth / r.z()));
+    };
+    std::vector<simcore::InputEvent> events;
+    const auto add = [&](simcore::InputKind kind, const Eigen::Vector3d& at, bool on, int tool, long step) {
+      simcore::InputEvent e;
+      e.kind = kind;
+      e.position = at;
+      e.on = on;
+      e.tool = tool;
+      e.step = step;
+      events.push_back(e);
+    };
+    const Eigen::Vector3d bite = surfaceAt(0.5, 0.7);
+    add(simcore::InputKind::ToolPose, bite, false, 0, 2);
+    add(simcore::InputKind::Jaw, bite, true, 0, 2);
+    for (int i = 1; i <= 20; ++i)
+      add(simcore::InputKind::ToolPose, ray(0.5, 0.7 + 0.15 * i / 20, bite.z()), false, 0, 2 + 3 * i);
+    const double bladeDepth = surfaceAt(0.6, 0.62).z() + 0.02;
+    add(simcore::InputKind::ToolPose, ray(0.6, 0.62, bladeDepth), false, 1, 80);
+    add(simcore::InputKind::Cut, ray(0.6, 0.62, bladeDepth), true, 1, 80);
+    for (int i = 1; i <= 20; ++i)
+      add(simcore::InputKind::ToolPose, ray(0.6 - 0.4 * i / 20, 0.62, bladeDepth), false, 1, 80 + 2 * i);
+    add(simcore::InputKind::Cut, ray(0.2, 0.62, bladeDepth), false, 1, 121);
+    simcore::Session session(b);
+    for (const auto& e : events) session.post(e);
+    for (int k = 0; k < 180; ++k) session.advance();
+    const auto snap = session.snapshot();
+    if (!snap->surface || snap->surface->cutCount == 0) {
+      std::printf("grasp-pull-cut on the phantom: the blade cut nothing (%s)\n", snap->message.c_str());
+    } else {
+      const app::CutComposition cut = app::makeCutCompositor(*base, c, *snap->surface);
+      std::vector<double> model;  // the cut mesh's nodes in the model frame (the compositor's)
+      const Eigen::Matrix3d Rt = c.pose.R.transpose();
+      for (const auto& p : snap->positions) {
+        const Eigen::Vector3d m = Rt * (p - c.pose.t);
+        model.insert(model.end(), {m.x(), m.y(), m.z()});
+      }
+      std::vector<double> cms;
+      cv::Mat3b j;
+      for (int k = 0; k < std::max(repeat, 15); ++k) {
+        const auto t0 = std::chrono::steady_clock::now();
+        j = cut.compositor->compose(model, 2);
+        cms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+      }
+      std::sort(cms.begin(), cms.end());
+      const SurfaceView cutView{model.data(), snap->positions.size(), snap->surface->triangles.front().data(),
+                                snap->surface->triangles.size()};
+      const auto g = imaging::surfaceGeometry(c.camera, c.pose, cutView);
+      int seen = 0;
+      for (int y = 0; y < g.triangle.rows; ++y)
+        for (int x = 0; x < g.triangle.cols; ++x)
+          if (const int t = g.triangle(y, x); t >= 0 && snap->surface->cut[static_cast<std::size_t>(t)]) ++seen;
+      std::printf(
+          "viewport compose, phantom after a grasp-pull-cut, %zu triangles (%zu cut faces, seen on %d px), "
+          "1280x720, rim 2x2: %.1f ms median (step %.1f ms Newton %d, %s)\n",
+          snap->surface->triangles.size(), snap->surface->cutCount, seen, cms[cms.size() / 2], snap->report.wallMs,
+          snap->report.newtonIterations, snap->report.status.c_str());
+      ccsv << "phantom cut," << snap->surface->triangles.size() << "," << snap->elements << ",1280,720,4," << seen
+           << "," << cms[cms.size() / 2] << "\n";
+      cv::imwrite(out + "/compose_cut.png", j);
+    }
   }
   // Real organ shapes (not our smooth phantom): each surface seen broadside through the scikit-surgery
   // laparoscope (1920x1080), rendered with the phantom's light beside the lens and its reflectance (kd

@@ -31,6 +31,7 @@
 #include <QStatusBar>
 #include <QUndoStack>
 
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 using namespace rehearse;
@@ -375,6 +376,11 @@ class TestAppearanceGui : public QObject {
     if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) {
       QTest::qWait(50);
       w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-grasp-pull-cut.png");
+      // The composited view around the incision (the frame's pixels, 2x).
+      const cv::Rect box = (cv::boundingRect(cutSeen) + cv::Size(240, 160)) - cv::Point(120, 80);
+      cv::Mat3b detail;
+      cv::resize(shown(box & cv::Rect(0, 0, shown.cols, shown.rows)), detail, {}, 2, 2, cv::INTER_CUBIC);
+      cv::imwrite((dir + "/step7-grasp-pull-cut-detail.png").toStdString(), detail);
     }
     // Back with the grasper: the jaws still hold, and a drag moves them from where they are.
     QTest::keyClick(w_.get(), Qt::Key_R);

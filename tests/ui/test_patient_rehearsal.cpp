@@ -4,7 +4,8 @@
 // fit onto it, then step 7. Without an instrument the organ
 // stays where the frame shows it (to 1 px over 5 s), every step shown converged to the scene's tolerance (1e-6) with
 // the default method, and a grasp pulled with the mouse moves the tissue with a force in the newton range that matches
-// both the constraint multipliers and the force balance at the held nodes. Skipped (or failed, with
+// both the constraint multipliers and the force balance at the held nodes; the scissors taken while the jaws hold keep
+// the traction, and a cut across the stretched tissue shows its faces in the composited view. Skipped (or failed, with
 // REHEARSE_REQUIRE_SHARED=1) when the shared data is absent.
 #include "test_support.hpp"
 #include "window_support.hpp"
@@ -31,6 +32,8 @@
 #include <QtTest>
 
 #include <QElapsedTimer>
+
+#include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
 #include <functional>
@@ -299,7 +302,71 @@ class TestPatientRehearsal : public QObject {
     }
     shot(*w_, "patient-pulled-composited");
     panel->play();
+
+    // Grasp, pull, cut (issue 35): the scissors taken while the button still holds the jaws closed; the button comes up
+    // on the scissors, so the jaws keep the traction. A stroke across the stretched tissue below the jaws opens an
+    // incision whose cut faces the composited view shows (the cut mesh's boundary, faces in the parenchyma's colour).
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
     QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
+    QVERIFY(panel->lastFrame()->tool.jawClosed && !panel->lastFrame()->tool.held.empty());
+    // 16 px of the frame (4 mm) above the jaws, 90 px (25 mm) either side: the blade must cross two of this mesh's
+    // elements (about 1 cm) before it cuts. The jaws hold one node, so the traction opens the incision a little.
+    const QPointF strokeFrom = view->toWidget(QPointF(centre.x() + 90, centre.y() - 16)),
+                  strokeTo = view->toWidget(QPointF(centre.x() - 90, centre.y() - 16));
+    QTest::mousePress(view, Qt::LeftButton, {}, strokeFrom.toPoint());
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 30000));
+    QStringList said;  // what the session said during the stroke (each sentence once)
+    for (int i = 1; i <= 20; ++i) {
+      QTest::mouseMove(view, (strokeFrom + (strokeTo - strokeFrom) * (i / 20.0)).toPoint());
+      const long at = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= at + 3; }, 60000));
+      if (const QString m = panel->lastFrame()->message; !m.isEmpty() && !said.contains(m)) said << m;
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, strokeTo.toPoint());
+    QVERIFY2(waitFor([&] { return panel->lastFrame()->surface && panel->lastFrame()->surface->cutCount > 0; }, 120000),
+             qPrintable(said.join(" | ") + " | " + panel->lastFrame()->message));
+    {
+      const long at = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= at + 40; }, 60000));
+    }
+    QVERIFY(panel->lastFrame()->tool.jawClosed && !panel->lastFrame()->tool.held.empty());
+    panel->pause();
+    QTest::qWait(300);
+    w_->composition()->waitForIdle();
+    QVERIFY2(w_->showingComposited(), qPrintable(w_->viewModeText()));
+    {
+      const auto f = panel->lastFrame();
+      std::vector<double> xyz;
+      for (const auto& p : f->positions) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
+      const SurfaceView sv{xyz.data(), f->positions.size(), f->surface->triangles.front().data(),
+                           f->surface->triangles.size()};
+      const auto g = imaging::surfaceGeometry(c.camera, Pose{}, sv);  // the session works in the camera frame
+      cv::Mat1b cutSeen(g.triangle.size(), uchar(0));
+      for (int y = 0; y < g.triangle.rows; ++y)
+        for (int x = 0; x < g.triangle.cols; ++x)
+          if (const int t = g.triangle(y, x); t >= 0 && f->surface->cut[static_cast<std::size_t>(t)])
+            cutSeen(y, x) = 255;
+      const int seen = cv::countNonZero(cutSeen);
+      qInfo("grasp-pull-cut: %zu cut faces of %zu, seen on %d px of the frame; %s", f->surface->cutCount,
+            f->surface->triangles.size(), seen, qPrintable(w_->composition()->cutSentence()));
+      QVERIFY2(seen >= 100, qPrintable(QString::number(seen)));
+      const QImage composed = w_->composition()->composeNow(f->positions, f->surface);
+      QCOMPARE(w_->frameView()->shownFrame(), composed);
+      // The composited view around the incision (the frame's pixels, 3x), for the README.
+      if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) {
+        const cv::Rect box = (cv::boundingRect(cutSeen) + cv::Size(160, 100)) - cv::Point(80, 50);
+        cv::Mat3b detail;
+        cv::resize(toMat(composed)(box & cv::Rect(0, 0, cutSeen.cols, cutSeen.rows)), detail, {}, 3, 3,
+                   cv::INTER_CUBIC);
+        cv::imwrite((dir + "/patient-grasp-pull-cut-detail.png").toStdString(), detail);
+      }
+    }
+    shot(*w_, "patient-grasp-pull-cut");
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QTest::keyClick(view, Qt::Key_Space);  // the jaws let go
+    panel->play();
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.jawClosed; }));
   }
 
   void cleanupTestCase() {
