@@ -24,6 +24,7 @@
 
 #include <QJsonArray>
 #include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/videoio.hpp>
 #include <sqlite3.h>
@@ -292,6 +293,19 @@ class TestRecording : public QObject {
       }
       const auto snap = session.snapshot();
       QVERIFY2(snap->topologyVersion > 0, "the blade cut the block");
+      if (keep) {  // the review draws the jaws where they hold, apart from the blade's tip
+        const app::ReviewRenderer renderer(session.setup(), 640, 480);
+        const cv::Mat3b drawn = renderer.render(*snap, {}, "");
+        simcore::Snapshot open = *snap;
+        open.tool.jawClosed = false;
+        cv::Mat diff;
+        cv::absdiff(drawn, renderer.render(open, {}, ""), diff);
+        cv::Mat1b changed;
+        cv::inRange(diff, cv::Scalar(1, 1, 1), cv::Scalar(255, 255, 255), changed);
+        const cv::Rect ring = cv::boundingRect(changed);
+        qInfo("the jaws' ring in the review: %d px changed, %dx%d", cv::countNonZero(changed), ring.width, ring.height);
+        QVERIFY(cv::countNonZero(changed) > 10 && ring.width < 40 && ring.height < 40);
+      }
       QVERIFY(!held.empty() && snap->tool.jawClosed && snap->tool.held == held);
       double off = 0;
       for (std::size_t i = 0; i < held.size(); ++i)

@@ -393,6 +393,15 @@ class TestAppearanceGui : public QObject {
     QVERIFY((panel_->lastFrame()->tool.tip - jaws).norm() < 1e-9);
     QTest::keyClick(view, Qt::Key_Space);
     QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.jawClosed; }));
+    // Leaving the instruments lets go: the jaws closed again, the scissors taken, then step 3's tool.
+    QTest::mouseMove(view, widget(0.5, 0.7));
+    QTest::keyClick(view, Qt::Key_Space);
+    QVERIFY(waitFor([&] { return panel_->lastFrame()->tool.jawClosed && !panel_->lastFrame()->tool.held.empty(); }));
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QTest::keyClick(w_.get(), Qt::Key_3, Qt::AltModifier);
+    QVERIFY(view->tool() != ui::Tool::Grasp && view->tool() != ui::Tool::Scissors);
+    QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.jawClosed; }));
+    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
     panel_->reset();
     QTest::keyClick(w_.get(), Qt::Key_Escape);
   }

@@ -246,6 +246,11 @@ cv::Mat3b ReviewRenderer::render(const simcore::Snapshot& s, const std::vector<E
                                                   : cv::Scalar(60, 200, 60);
       cv::circle(out, tip, 5 * thick, c, cv::FILLED, cv::LINE_AA);
     }
+    // The jaws holding where another instrument left them (the grasper's traction while the scissors cut): a yellow
+    // ring there, the tissue they hold.
+    cv::Point jaws;
+    if (s.tool.jawClosed && !s.tool.held.empty() && s.tool.jawTip != s.tool.tip && pixel(s.tool.jawTip, jaws))
+      cv::circle(out, jaws, 5 * thick, cv::Scalar(40, 220, 240), 2 * thick, cv::LINE_AA);
   }
   if (!caption.empty()) {
     const double scale = std::max(0.4, out.cols / 1400.0);

@@ -58,7 +58,8 @@ const char* resultWord(Verdict::Result r);  ///< "pass", "fail", "not determined
 /// Draws replayed states: the organ's surface (cut tissue darker) shaded by a headlight over the case's frame
 /// (the body is then in that camera's frame) or over a plain background through a virtual camera that looks
 /// along +z at the organ; the instrument's shaft from the trocar to the tip, the tip (green open, yellow
-/// holding, red cutting), the tip's path so far, and a caption.
+/// holding, red cutting), the jaws as a yellow ring where they hold the tissue apart from the tip (the grasper's
+/// traction while the scissors cut), the tip's path so far, and a caption.
 class ReviewRenderer {
  public:
   /// `camera` and `frame`: the case's (frame: 8-bit BGR of the camera's size); without them a virtual camera
