@@ -14,8 +14,8 @@ std::string Mesh::labelName(int label) const {
   return {};
 }
 
-bool Mesh::labelIsVessel(int label) const {
-  std::string n = labelName(label);
+StructureKind structureKind(const std::string& name) {
+  std::string n = name;
   for (auto& c : n) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   // Whole words for the abbreviations (no "ivc" inside another word); stems for the rest.
   auto word = [&n](const std::string& w) {
@@ -26,10 +26,53 @@ bool Mesh::labelIsVessel(int label) const {
     }
     return false;
   };
-  for (const char* stem : {"vessel", "vein", "venous", "arter", "aorta", "cava", "vascul", "portal"})
-    if (n.find(stem) != std::string::npos) return true;
-  return word("ivc") || word("pv") || word("hv") || word("ha");
+  auto any = [&n](std::initializer_list<const char*> stems) {
+    return std::any_of(stems.begin(), stems.end(), [&n](const char* s) { return n.find(s) != std::string::npos; });
+  };
+  if (any({"ligament"})) return StructureKind::Ligament;
+  if (any({"margin"})) return StructureKind::TumourMargin;
+  if (any({"bile", "biliar", "cystic duct", "hepatic duct", "choledoch"}) || word("cbd"))
+    return StructureKind::BileDuct;
+  if (any({"portal"}) || word("pv")) return StructureKind::PortalVein;
+  if (any({"arter", "aorta"}) || word("ha")) return StructureKind::Artery;
+  if (any({"vein", "venous", "cava"}) || word("ivc") || word("hv")) return StructureKind::Vein;
+  if (any({"vessel", "vascul"})) return StructureKind::Vessel;
+  if (any({"tumour", "tumor", "lesion", "metasta", "carcinoma", "nodule"})) return StructureKind::Tumour;
+  return StructureKind::Tissue;
 }
+
+const char* structureKindName(StructureKind kind) {
+  switch (kind) {
+    case StructureKind::Tissue:
+      return "tissue";
+    case StructureKind::Ligament:
+      return "ligament";
+    case StructureKind::Vessel:
+      return "vessel";
+    case StructureKind::Artery:
+      return "artery";
+    case StructureKind::Vein:
+      return "vein";
+    case StructureKind::PortalVein:
+      return "portal vein";
+    case StructureKind::BileDuct:
+      return "bile duct";
+    case StructureKind::Tumour:
+      return "tumour";
+    case StructureKind::TumourMargin:
+      return "tumour margin";
+  }
+  return "tissue";
+}
+
+bool isVessel(StructureKind kind) {
+  return kind == StructureKind::Vessel || kind == StructureKind::Artery || kind == StructureKind::Vein ||
+         kind == StructureKind::PortalVein;
+}
+
+StructureKind Mesh::labelKind(int label) const { return structureKind(labelName(label)); }
+
+bool Mesh::labelIsVessel(int label) const { return isVessel(labelKind(label)); }
 
 bool Mesh::namesAVessel() const {
   return std::any_of(labelNames.begin(), labelNames.end(), [this](const auto& l) { return labelIsVessel(l.first); });

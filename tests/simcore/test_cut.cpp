@@ -278,7 +278,14 @@ class TestCut : public QObject {
   // in [10, 15] mm) is label 2; the blade cuts through it at x = 13.7 mm: named "tumour" with its own material, the cut
   // goes through label 2 and no vessel is cut; named "portal vein" without one, one vessel is cut, said with its name.
   void aVesselIsALabelNamedAsOne() {
-    for (const char* name : {"tumour", "portal vein"}) {
+    // Each named structure cut is one event of its kind, said in a sentence; a vessel's is also a "vessel cut".
+    const std::vector<std::array<const char*, 3>> structures = {
+        {"tumour", "tumour cut", "The tumour (tumour, label 2) was cut into."},
+        {"portal vein", "portal vein cut", "A portal vein (portal vein, label 2) was cut."},
+        {"hepatic artery", "artery cut", "An artery (hepatic artery, label 2) was cut."},
+        {"tumour margin", "tumour margin breached", "The tumour margin (tumour margin, label 2) was breached."},
+        {"common bile duct", "bile duct cut", "A bile duct (common bile duct, label 2) was cut."}};
+    for (const auto& [name, event, sentence] : structures) {
       simcore::BodySetup s;
       s.mesh = boxMesh(0.04, 0.02, 0.02, 8, 4, 4);
       for (std::size_t t = 0; t < s.mesh.tets.size(); ++t) {
@@ -288,7 +295,7 @@ class TestCut : public QObject {
       }
       s.mesh.setLabelName(1, "parenchyma");
       s.mesh.setLabelName(2, name);
-      const bool vessel = std::string(name) == "portal vein";
+      const bool vessel = std::string(name) == "portal vein" || std::string(name) == "hepatic artery";
       if (!vessel) s.byLabel[2] = {simcore::MaterialModel::Corotational, 500e3, 0.45, 1000};
       s.fixedNodes = nodesAtX(s.mesh, 0.0);
       s.material = {simcore::MaterialModel::Corotational, 50e3, 0.3, 1000};
@@ -316,7 +323,8 @@ class TestCut : public QObject {
             snap->message.c_str());
       QVERIFY(std::count(ev.begin(), ev.end(), "cut through label 2") == 1);
       QCOMPARE(std::count(ev.begin(), ev.end(), "vessel cut"), vessel ? 1L : 0L);
-      if (vessel) QVERIFY(QString::fromStdString(snap->message).contains("A vessel (portal vein, label 2) was cut."));
+      QCOMPARE(std::count(ev.begin(), ev.end(), std::string(event)), 1L);
+      QVERIFY2(QString::fromStdString(snap->message).contains(sentence), snap->message.c_str());
     }
     simcore::Mesh named;
     for (const char* v : {"vessels", "Portal Vein", "hepatic artery", "IVC", "inferior vena cava", "HV"}) {
@@ -328,6 +336,35 @@ class TestCut : public QObject {
       QVERIFY2(!named.labelIsVessel(3), v);
     }
     QVERIFY(!simcore::Mesh{}.labelIsVessel(2));  // unnamed: not a vessel
+    // Kinds by anatomy (issue 36): the abbreviations surgeons write, and the ligaments named after the vessels they
+    // were ("ligamentum venosum": the ductus venosus; the round ligament: the umbilical vein), which are not vessels.
+    using K = simcore::StructureKind;
+    const std::vector<std::pair<const char*, K>> kinds = {{"Portal Vein", K::PortalVein},
+                                                          {"PV", K::PortalVein},
+                                                          {"hepatic artery", K::Artery},
+                                                          {"abdominal aorta", K::Artery},
+                                                          {"tumour feeding artery", K::Artery},
+                                                          {"IVC", K::Vein},
+                                                          {"inferior vena cava", K::Vein},
+                                                          {"middle hepatic vein", K::Vein},
+                                                          {"vessels", K::Vessel},
+                                                          {"CBD", K::BileDuct},
+                                                          {"cystic duct", K::BileDuct},
+                                                          {"biliary tree", K::BileDuct},
+                                                          {"Tumor", K::Tumour},
+                                                          {"liver lesion", K::Tumour},
+                                                          {"colorectal metastasis", K::Tumour},
+                                                          {"tumour margin", K::TumourMargin},
+                                                          {"ligamentum venosum", K::Ligament},
+                                                          {"round ligament", K::Ligament},
+                                                          {"porta hepatis", K::Tissue},
+                                                          {"parenchyma", K::Tissue},
+                                                          {"", K::Tissue}};
+    for (const auto& [name, kind] : kinds)
+      QVERIFY2(simcore::structureKind(name) == kind,
+               qPrintable(QStringLiteral("%1: %2, not %3")
+                              .arg(name, simcore::structureKindName(simcore::structureKind(name)),
+                                   simcore::structureKindName(kind))));
   }
 
   // Crossing cuts (x and y planes), then a partial continuous cut in small sweeps: the mesh stays

@@ -181,7 +181,7 @@ struct Reader {
 };
 constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the contact's easing was kept
 constexpr std::uint32_t kCheckpointMagicV2 =
-    0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut, TopologyChange::applyAt
+    0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut (now structuresCut), TopologyChange::applyAt
 constexpr std::uint32_t kCheckpointMagicV3 = 0x334B4352;  // "RCK3": + ToolState::graspForce and released
 constexpr std::uint32_t kCheckpointMagic = 0x344B4352;    // "RCK4": + ToolState::jawTip, jawTool and tipTool
 
@@ -273,8 +273,8 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
     o.pod(static_cast<std::int32_t>(tri));
     o.pod(keep);
   }
-  o.pod(static_cast<std::int64_t>(t.vesselsCut.size()));
-  for (int l : t.vesselsCut) o.pod(static_cast<std::int32_t>(l));
+  o.pod(static_cast<std::int64_t>(t.structuresCut.size()));
+  for (int l : t.structuresCut) o.pod(static_cast<std::int32_t>(l));
   o.pod(static_cast<std::int64_t>(t.released.size()));
   for (int n : t.released) o.pod(static_cast<std::int32_t>(n));
   o.v3(t.jawTip);
@@ -363,8 +363,8 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
       if (t.easing[k].first < 0 || !std::isfinite(t.easing[k].second) ||
           (k > 0 && t.easing[k].first <= t.easing[k - 1].first))
         throw std::runtime_error("a recorded checkpoint's contact is damaged");
-    t.vesselsCut.resize(r.count(sizeof(std::int32_t)));
-    for (int& l : t.vesselsCut) l = r.pod<std::int32_t>();
+    t.structuresCut.resize(r.count(sizeof(std::int32_t)));
+    for (int& l : t.structuresCut) l = r.pod<std::int32_t>();
   }
   if (v3OrLater) {
     t.released.resize(r.count(sizeof(std::int32_t)));

@@ -35,11 +35,8 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
   m.forceThresholdN = forceThresholdN;
   // What this session cannot say, in words.
   int tumourLabel = 0;
-  for (const auto& [label, name] : r.setup.mesh.labelNames) {
-    std::string lower = name;
-    for (auto& ch : lower) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-    if (lower.find("tumour") != std::string::npos || lower.find("tumor") != std::string::npos) tumourLabel = label;
-  }
+  for (const auto& [label, name] : r.setup.mesh.labelNames)
+    if (simcore::structureKind(name) == simcore::StructureKind::Tumour) tumourLabel = label;
   if (r.setup.mesh.namesAVessel())
     m.vesselCuts = 0;
   else
@@ -47,7 +44,7 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
   if (tumourLabel)
     m.tumourBreaches = 0;
   else
-    m.tumourWhy = "the case marks no tumour (no element label named tumour)";
+    m.tumourWhy = "the case marks no tumour (no element label named as one: tumour, lesion, metastasis...)";
   m.attachmentsWhy = "the model's attachments cannot tear (they are fixed nodes)";
   if (!options.plannedCut) m.cutDeviationWhy = "the case has no planned cut line";
   double deviationSum = 0;

@@ -84,15 +84,32 @@ void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message)
   seedEasing_ = true;  // the surface is new: what lies inside the shaft now is eased out at the next constraints
   events_.push_back("cut");
   for (int label : cutLabels) events_.push_back("cut through label " + std::to_string(label));
-  // A vessel (a label the organ's mesh names as one, Mesh::labelIsVessel) cut by this stroke is one event, however many
-  // updates the cut takes.
-  for (int label : cutLabels)
-    if (setup_.mesh.labelIsVessel(label) &&
-        std::find(tool_.vesselsCut.begin(), tool_.vesselsCut.end(), label) == tool_.vesselsCut.end()) {
-      tool_.vesselsCut.push_back(label);
+  // A named structure (a label whose name gives it a kind, Mesh::labelKind) cut by this stroke is one event, however
+  // many updates the cut takes: "portal vein cut", "artery cut", "vein cut", "bile duct cut", "ligament cut", "tumour
+  // cut", "tumour margin breached"; a blood vessel of any kind is also a "vessel cut" (what the metrics count).
+  for (int label : cutLabels) {
+    const StructureKind kind = setup_.mesh.labelKind(label);
+    if (kind == StructureKind::Tissue ||
+        std::find(tool_.structuresCut.begin(), tool_.structuresCut.end(), label) != tool_.structuresCut.end())
+      continue;
+    tool_.structuresCut.push_back(label);
+    const std::string what = structureKindName(kind),
+                      which = " (" + setup_.mesh.labelName(label) + ", label " + std::to_string(label) + ")";
+    if (kind == StructureKind::TumourMargin)
+      events_.push_back("tumour margin breached");
+    else if (kind != StructureKind::Vessel)
+      events_.push_back(what + " cut");
+    if (isVessel(kind)) {
       events_.push_back("vessel cut");
-      message = "A vessel (" + setup_.mesh.labelName(label) + ", label " + std::to_string(label) + ") was cut.";
+      message = std::string(kind == StructureKind::Artery ? "An " : "A ") + what + which + " was cut.";
+    } else if (kind == StructureKind::Tumour) {
+      message = "The tumour" + which + " was cut into.";
+    } else if (kind == StructureKind::TumourMargin) {
+      message = "The tumour margin" + which + " was breached.";
+    } else {
+      message = (kind == StructureKind::BileDuct ? "A bile duct" : "A ligament") + which + " was cut.";
     }
+  }
 }
 
 std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes) {

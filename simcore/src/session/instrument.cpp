@@ -116,7 +116,7 @@ class Scissors final : public Instrument {
       host.cut(tool.cutFrom, tool.tip, message);         // the rest of the sweep
     if (tool.cutting != e.on) host.seedContactEasing();  // contact resumes (or stops) with the blade
     if (e.on && !tool.cutting) {                         // a new stroke
-      tool.vesselsCut.clear();
+      tool.structuresCut.clear();
       host.beginStroke();
     }
     tool.cutting = e.on;

@@ -48,11 +48,15 @@ MeshPage::MeshPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Mes
   l->addWidget(new QLabel(tr("Labels (tick to show inner structures)"), this));
   labels_ = new QTreeWidget(this);
   labels_->setObjectName(QStringLiteral("labelList"));
-  labels_->setHeaderLabels({tr("Label"), tr("Elements")});
+  labels_->setHeaderLabels({tr("Label"), tr("Kind"), tr("Elements")});
   labels_->setRootIsDecorated(false);
   labels_->header()->setStretchLastSection(false);
   labels_->header()->setSectionResizeMode(0, QHeaderView::Stretch);
   labels_->header()->setSectionResizeMode(1, QHeaderView::ResizeToContents);
+  labels_->header()->setSectionResizeMode(2, QHeaderView::ResizeToContents);
+  labels_->headerItem()->setToolTip(1,
+                                    tr("What the label's name says it is (a vessel's kind, a bile duct, a tumour, its "
+                                       "margin, a ligament): what a cut through it is called in the rehearsal"));
   connect(labels_, &QTreeWidget::itemChanged, this, [this](QTreeWidgetItem* item, int) {
     if (updating_) return;
     labelVisible_[item->data(0, Qt::UserRole).toInt()] = item->checkState(0) == Qt::Checked;
@@ -130,7 +134,8 @@ void MeshPage::refresh(const app::Case& c) {
     auto* item = new QTreeWidgetItem(labels_);
     const std::string name = c.organ->volume.labelName(label);
     item->setText(0, QStringLiteral("%1 %2").arg(label).arg(QString::fromStdString(name)));
-    item->setText(1, QString::number(n));
+    item->setText(1, QString::fromUtf8(simcore::structureKindName(c.organ->volume.labelKind(label))));
+    item->setText(2, QString::number(n));
     item->setData(0, Qt::UserRole, label);
     item->setFlags(item->flags() | Qt::ItemIsUserCheckable);
     if (!labelVisible_.count(label)) labelVisible_[label] = label == 1;

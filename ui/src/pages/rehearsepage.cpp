@@ -214,7 +214,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   // in the session's words: the status never says "Cut" over tissue that still joins.
   if (!f->message.isEmpty() &&
       (f->message.contains(QLatin1String("vessel")) || f->message.contains(QLatin1String("The cut")) ||
-       f->message.startsWith(QLatin1String("Nothing was cut"))))
+       f->message.contains(QLatin1String(" was cut")) || f->message.contains(QLatin1String("breached"))))
     status(f->message);
   labelThrottle_->request();  // the labels at most 15 times a second, the newest always shown
 }

@@ -10,6 +10,20 @@
 namespace rehearse::simcore {
 
 /// A user-facing mesh error: `what()` is one sentence that says what is wrong and what to do.
+/// What an element label is (issue 36), from its name: what a cut, a clip or energy on it is judged by. Parts and
+/// labels come named from the imported file (glTF nodes, Gmsh physical names, a case's label table).
+enum class StructureKind { Tissue, Ligament, Vessel, Artery, Vein, PortalVein, BileDuct, Tumour, TumourMargin };
+/// The kind a name says, case and separators ignored: a ligament first ("ligamentum venosum", "round ligament": not
+/// vessels, though named after the veins they were), then a tumour's margin, a bile duct ("CBD", "cystic duct",
+/// "biliary"), the portal vein ("portal", "PV"; not "porta hepatis"), an artery ("hepatic artery", "aorta", "HA"), a
+/// vein ("vein", "venous", "cava", "IVC", "HV"), a vessel of no stated kind ("vessels", "vascular"), a tumour
+/// ("tumour", "tumor", "lesion", "metastasis", "carcinoma", "nodule"); anything else (unnamed too) is tissue.
+StructureKind structureKind(const std::string& name);
+/// "tissue", "ligament", "vessel", "artery", "vein", "portal vein", "bile duct", "tumour", "tumour margin".
+const char* structureKindName(StructureKind kind);
+/// A blood vessel: vessel, artery, vein or portal vein.
+bool isVessel(StructureKind kind);
+
 struct MeshError : std::runtime_error {
   using std::runtime_error::runtime_error;
 };
@@ -30,6 +44,8 @@ struct Mesh {
   bool empty() const { return points.empty(); }
   std::string labelName(int label) const;
   void setLabelName(int label, const std::string& name);
+  /// The label's kind, from its name (structureKind).
+  StructureKind labelKind(int label) const;
   /// Whether the label's name says it is a blood vessel ("vessels", "portal vein", "hepatic artery", "IVC"...): how a
   /// cut through a vessel is told from a cut through any other inner structure. Unnamed labels are not vessels.
   bool labelIsVessel(int label) const;

@@ -82,8 +82,9 @@ struct ToolState {
   /// that were inside the shaft when they became free to touch it; the distance grows to the radius at
   /// ToolSettings::depenetrationSpeed. Sorted by triangle.
   std::vector<std::pair<int, double>> easing;
-  /// The vessel labels this blade stroke has cut (a stroke's cut updates through one vessel are one "vessel cut").
-  std::vector<int> vesselsCut;
+  /// The named structures' labels this blade stroke has cut (a stroke's cut updates through one structure are one
+  /// event: "vessel cut", "portal vein cut", "tumour margin breached"...; Mesh::labelKind).
+  std::vector<int> structuresCut;
   /// Nodes the jaws let go of (a release or a slip), sorted: free of the shaft's contact while they are inside its
   /// radius and the instrument stays where it let go (the tissue leaves the open jaws); eased out otherwise.
   std::vector<int> released;
