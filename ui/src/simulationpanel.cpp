@@ -75,6 +75,7 @@ simcore::BodySetup bodySetup(const SimulationSetup& s) {
       simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)
   b.settings.gravity = s.gravity;
   b.tools.toolRadius = s.toolRadius;
+  b.tools.graspRadius = s.graspRadius;
   // ... nor for a cut: its body comes in as soon as it is built (the step it came in at is recorded, so the replay
   // is exact). A fixed latency (the command line's, for runs that must end with the same mesh every time) made the
   // stepping thread wait for a late build: on the liver preset about 50 ms per cut when steps outrun real time.
@@ -523,6 +524,17 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form->addRow(tr("Organ mass"), form_.mass);
   form_.timeStep = field("simTimeStep", tr("Time step"), 0.1, 100, 1, tr(" ms"), "implicit_euler", "dt");
   form_.timeStep->setValue(10);
+  form_.jawBite = new QDoubleSpinBox(this);
+  form_.jawBite->setObjectName(QStringLiteral("simJawBite"));
+  form_.jawBite->setRange(1, 30);
+  form_.jawBite->setDecimals(1);
+  form_.jawBite->setSuffix(tr(" mm"));
+  form_.jawBite->setValue(6);
+  form_.jawBite->setKeyboardTracking(false);
+  form_.jawBite->setToolTip(
+      tr("The grasper's bite: closing the jaws holds the tissue's nodes within this distance of the tip. A coarse "
+         "mesh's nodes can be a centimetre apart, so a wider bite holds more of it (applies at the next grasp)"));
+  form->addRow(tr("Jaw bite"), form_.jawBite);
   form_.method = new QComboBox(this);
   form_.method->setObjectName(QStringLiteral("simMethod"));
   // In NewtonMethod's order; chord is the default (converged every step, issue 34); linearised is faster but its one
@@ -599,6 +611,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   connect(form_.model, &QComboBox::currentIndexChanged, this, &SimulationPanel::materialFieldsEdited);
   connect(form_.method, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
   connect(form_.timeStep, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
+  connect(form_.jawBite, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
   for (QDoubleSpinBox* s : {form_.young, form_.poisson, form_.density})
     connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::materialFieldsEdited);
   connect(form_.density, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::updateMass);
@@ -684,6 +697,7 @@ SimulationSetup SimulationPanel::setup() const {
     s.vesselPoisson = m.vesselPoisson;
   }
   s.timeStep = 1e-3 * form_.timeStep->value();
+  s.graspRadius = 1e-3 * form_.jawBite->value();
   s.method = static_cast<simcore::NewtonMethod>(form_.method->currentIndex());
   static const Eigen::Vector3d directions[] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
   s.gravity = 9.81 * directions[std::clamp(form_.gravity->currentIndex(), 0, 2)];
@@ -776,6 +790,7 @@ void SimulationPanel::postRunParameters() {
   const SimulationSetup s = setup();
   const auto& now = session_->setup().settings;
   if (s.timeStep != now.timeStep) session_->post(parameter("dt", s.timeStep));
+  if (s.graspRadius != session_->setup().tools.graspRadius) session_->post(parameter("grasp_radius", s.graspRadius));
   if (s.method != now.method) session_->post(parameter("method", static_cast<double>(s.method)));
   if (s.gravity != now.gravity) {
     simcore::InputEvent g;

@@ -696,6 +696,8 @@ std::string eventProblem(const simcore::InputEvent& e) {
       if (!(v > 0)) return "a recorded density is not positive";
     } else if (k == "dt") {
       if (!(v > 0 && v <= 10)) return "a recorded time step is not between 0 and 10 s";
+    } else if (k == "grasp_radius") {
+      if (!(v > 0 && v <= 0.1)) return "a recorded grasp radius is not between 0 and 0.1 m";
     } else if (k == "method") {
       if (!(v >= 0 && v <= static_cast<int>(simcore::NewtonMethod::NewtonKrylov) && v == std::floor(v)))
         return "a recorded method is not one this version knows";

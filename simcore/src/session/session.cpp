@@ -213,6 +213,13 @@ void Session::apply(const InputEvent& e, std::string& message) {
         if (i->handles(e.kind)) i->act(e, tool_, *this, message);
       break;
     case InputKind::Parameter: {
+      if (e.name == "grasp_radius") {  // the jaws' bite: what their next closing holds (the body stays as it is)
+        if (e.value > 0 && e.value <= 0.1)
+          setup_.tools.graspRadius = e.value;
+        else
+          message = "A grasp radius of " + std::to_string(e.value) + " m is outside (0, 0.1] m; it was not applied.";
+        break;
+      }
       BodySetup before = setup_;
       if (e.label > 0 && (e.name == "young" || e.name == "poisson")) {
         // One label's own material (e.g. the vessels'), starting from the parenchyma's when it had none.

@@ -47,6 +47,9 @@ struct SimulationSetup {
   /// m: the instruments' shaft radius for contact (a 5 mm laparoscopic instrument): the tissue is pushed, not
   /// penetrated; 0 turns contact off.
   double toolRadius = 0.0025;
+  /// m: the grasper's bite: closing the jaws holds the free nodes within this distance of the tip (a coarse mesh's
+  /// nodes can be a centimetre apart: 6 mm may hold one).
+  double graspRadius = 0.006;
   /// The organ starts where the frame shows it, in equilibrium under gravity on its attachments: the rest shape that
   /// sags into the registered one is solved first (simcore/inverse_rest.hpp). Off: it starts at rest on that shape
   /// (and sags away from it).
@@ -213,6 +216,7 @@ class SimulationPanel : public QWidget {
     QDoubleSpinBox* poisson = nullptr;
     QDoubleSpinBox* density = nullptr;
     QDoubleSpinBox* timeStep = nullptr;
+    QDoubleSpinBox* jawBite = nullptr;  ///< the grasper's reach: closing holds the nodes within it of the tip (mm)
     QLabel* mass = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
   } form_;
   QPushButton* playButton_ = nullptr;

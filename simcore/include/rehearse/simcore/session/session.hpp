@@ -30,7 +30,8 @@ enum class InputKind {
   ToolPose,   ///< the tool tip moved to `position` (m, body frame)
   Jaw,        ///< the jaws closed (`on`) or opened
   Cut,        ///< the cutting instrument on (`on`) or off
-  Parameter,  ///< `name` ("young", "poisson", "density", "model", "dt", "method") set to `value` (SI; model and method:
+  Parameter,  ///< `name` ("young", "poisson", "density", "model", "dt", "method", "grasp_radius": the jaws' bite, what
+              ///< their next closing holds) set to `value` (SI; model and method:
               ///< MaterialModel / NewtonMethod index); with `label` > 0, "young" and "poisson" of that label's
               ///< material (e.g. the vessels'; "young" 0 removes it: the label then uses the parenchyma's)
   Gravity,    ///< gravity set to `vector` (m/s^2, body frame)
