@@ -30,14 +30,16 @@ StructureKind structureKind(const std::string& name) {
     return std::any_of(stems.begin(), stems.end(), [&n](const char* s) { return n.find(s) != std::string::npos; });
   };
   if (any({"ligament"})) return StructureKind::Ligament;
-  if (any({"margin"})) return StructureKind::TumourMargin;
+  const bool tumour = any({"tumour", "tumor", "lesion", "metasta", "carcinoma", "nodule"});
+  // A tumour's (or a resection's) margin; "the inferior margin of the liver" is a border of the organ, not one.
+  if (any({"margin"}) && (tumour || any({"resection", "safety", "ablation"}))) return StructureKind::TumourMargin;
   if (any({"bile", "biliar", "cystic duct", "hepatic duct", "choledoch"}) || word("cbd"))
     return StructureKind::BileDuct;
   if (any({"portal"}) || word("pv")) return StructureKind::PortalVein;
   if (any({"arter", "aorta"}) || word("ha")) return StructureKind::Artery;
   if (any({"vein", "venous", "cava"}) || word("ivc") || word("hv")) return StructureKind::Vein;
   if (any({"vessel", "vascul"})) return StructureKind::Vessel;
-  if (any({"tumour", "tumor", "lesion", "metasta", "carcinoma", "nodule"})) return StructureKind::Tumour;
+  if (tumour) return StructureKind::Tumour;
   return StructureKind::Tissue;
 }
 

@@ -253,8 +253,8 @@ int main(int argc, char** argv) {
     }
     std::vector<double> posed;
     for (const auto& p : b.rest) posed.insert(posed.end(), {p.x(), p.y(), p.z()});
-    const SurfaceView postedView{posed.data(), b.rest.size(), c.organ->surface.front().data(), c.organ->surface.size()};
-    const auto geo = imaging::surfaceGeometry(c.camera, Pose{}, postedView);
+    const SurfaceView posedView{posed.data(), b.rest.size(), c.organ->surface.front().data(), c.organ->surface.size()};
+    const auto geo = imaging::surfaceGeometry(c.camera, Pose{}, posedView);
     const auto surfaceAt = [&](double fx, double fy) {  // the organ's surface under a point of its box in the image
       const int u = static_cast<int>(std::lround(x0 + fx * (x1 - x0))),
                 v = static_cast<int>(std::lround(y0 + fy * (y1 - y0)));

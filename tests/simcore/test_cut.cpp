@@ -355,6 +355,8 @@ class TestCut : public QObject {
                                                           {"liver lesion", K::Tumour},
                                                           {"colorectal metastasis", K::Tumour},
                                                           {"tumour margin", K::TumourMargin},
+                                                          {"resection margin", K::TumourMargin},
+                                                          {"inferior margin of liver", K::Tissue},
                                                           {"ligamentum venosum", K::Ligament},
                                                           {"round ligament", K::Ligament},
                                                           {"porta hepatis", K::Tissue},

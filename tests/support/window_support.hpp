@@ -5,6 +5,8 @@
 #include "rehearse/ui/mainwindow.hpp"
 
 #include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/session/session.hpp>
 
 #include <opencv2/imgproc.hpp>
 
@@ -25,6 +27,25 @@ inline cv::Mat3b toMat(const QImage& image) {
                        static_cast<std::size_t>(rgb.bytesPerLine())),
                bgr, cv::COLOR_RGB2BGR);
   return bgr;
+}
+
+// Where a cut organ is seen through the case's camera (`organ`, 255) and where its cut faces are (`cut`): the session's
+// positions are in the camera frame.
+struct CutFacesSeen {
+  cv::Mat1b organ, cut;
+};
+inline CutFacesSeen cutFacesSeen(const rehearse::imaging::Camera& camera, const std::vector<Eigen::Vector3d>& positions,
+                                 const rehearse::simcore::CutSurface& surface) {
+  std::vector<double> xyz;
+  for (const auto& p : positions) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
+  const rehearse::SurfaceView sv{xyz.data(), positions.size(), surface.triangles.front().data(),
+                                 surface.triangles.size()};
+  const auto g = rehearse::imaging::surfaceGeometry(camera, rehearse::Pose{}, sv);
+  CutFacesSeen out{g.mask(), cv::Mat1b(g.triangle.size(), uchar(0))};
+  for (int y = 0; y < g.triangle.rows; ++y)
+    for (int x = 0; x < g.triangle.cols; ++x)
+      if (const int t = g.triangle(y, x); t >= 0 && surface.cut[static_cast<std::size_t>(t)]) out.cut(y, x) = 255;
+  return out;
 }
 
 // A scissors stroke down the organ (frame pixels): at `atWidth` of its width in the image, from a tenth of its height

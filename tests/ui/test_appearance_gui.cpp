@@ -258,15 +258,7 @@ class TestAppearanceGui : public QObject {
     // logged: the organ hangs on its attachments under gravity, and the incision parts a little as the stress it
     // carried is released (graspPullCut checks what traction shows).
     {
-      std::vector<double> xyz;
-      for (const auto& p : f->positions) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
-      const SurfaceView sv{xyz.data(), f->positions.size(), f->surface->triangles.front().data(),
-                           f->surface->triangles.size()};
-      const auto g = imaging::surfaceGeometry(c.camera, Pose{}, sv);  // the session works in the camera frame
-      int seen = 0;
-      for (int y = 0; y < g.triangle.rows; ++y)
-        for (int x = 0; x < g.triangle.cols; ++x)
-          if (const int t = g.triangle(y, x); t >= 0 && f->surface->cut[static_cast<std::size_t>(t)]) ++seen;
+      const int seen = cv::countNonZero(cutFacesSeen(c.camera, f->positions, *f->surface).cut);
       qInfo("cut: %zu cut faces of %zu, seen on %d px of the frame (nothing holds the incision open); %s",
             f->surface->cutCount, f->surface->triangles.size(), seen, qPrintable(w_->composition()->cutSentence()));
     }
@@ -357,15 +349,8 @@ class TestAppearanceGui : public QObject {
     w_->composition()->waitForIdle();
     QVERIFY2(w_->showingComposited(), qPrintable(w_->viewModeText()));
     const auto f = panel_->lastFrame();
-    std::vector<double> xyz;
-    for (const auto& p : f->positions) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
-    const SurfaceView sv{xyz.data(), f->positions.size(), f->surface->triangles.front().data(),
-                         f->surface->triangles.size()};
-    const auto g = imaging::surfaceGeometry(c.camera, Pose{}, sv);  // the session works in the camera frame
-    cv::Mat1b cutSeen(g.triangle.size(), uchar(0));
-    for (int y = 0; y < g.triangle.rows; ++y)
-      for (int x = 0; x < g.triangle.cols; ++x)
-        if (const int t = g.triangle(y, x); t >= 0 && f->surface->cut[static_cast<std::size_t>(t)]) cutSeen(y, x) = 255;
+    const auto seenNow = cutFacesSeen(c.camera, f->positions, *f->surface);
+    const cv::Mat1b& cutSeen = seenNow.cut;
     const int seen = cv::countNonZero(cutSeen);
     // Where they are seen, the view shows the cut faces' colour: the parenchyma's preset ratio (0.80, 0.60, 0.60 of the
     // surface's red, green, blue) makes them redder than the organ's surface around them (green over red lower).
@@ -375,7 +360,7 @@ class TestAppearanceGui : public QObject {
     cv::Mat1b inner, ring;
     cv::erode(cutSeen, inner, cv::Mat(), cv::Point(-1, -1), 2);
     cv::dilate(cutSeen, ring, cv::Mat(), cv::Point(-1, -1), 6);
-    ring &= ~cutSeen & g.mask();
+    ring &= ~cutSeen & seenNow.organ;
     const auto greenOverRed = [&](const cv::Mat1b& m) {
       const cv::Scalar mean = cv::mean(frameSize, m);
       return mean[1] / std::max(1.0, mean[2]);

@@ -337,16 +337,7 @@ class TestPatientRehearsal : public QObject {
     QVERIFY2(w_->showingComposited(), qPrintable(w_->viewModeText()));
     {
       const auto f = panel->lastFrame();
-      std::vector<double> xyz;
-      for (const auto& p : f->positions) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
-      const SurfaceView sv{xyz.data(), f->positions.size(), f->surface->triangles.front().data(),
-                           f->surface->triangles.size()};
-      const auto g = imaging::surfaceGeometry(c.camera, Pose{}, sv);  // the session works in the camera frame
-      cv::Mat1b cutSeen(g.triangle.size(), uchar(0));
-      for (int y = 0; y < g.triangle.rows; ++y)
-        for (int x = 0; x < g.triangle.cols; ++x)
-          if (const int t = g.triangle(y, x); t >= 0 && f->surface->cut[static_cast<std::size_t>(t)])
-            cutSeen(y, x) = 255;
+      const cv::Mat1b cutSeen = cutFacesSeen(c.camera, f->positions, *f->surface).cut;
       const int seen = cv::countNonZero(cutSeen);
       qInfo("grasp-pull-cut: %zu cut faces of %zu, seen on %d px of the frame; %s", f->surface->cutCount,
             f->surface->triangles.size(), seen, qPrintable(w_->composition()->cutSentence()));

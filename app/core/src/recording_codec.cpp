@@ -183,7 +183,7 @@ constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the 
 constexpr std::uint32_t kCheckpointMagicV2 =
     0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut (now structuresCut), TopologyChange::applyAt
 constexpr std::uint32_t kCheckpointMagicV3 = 0x334B4352;  // "RCK3": + ToolState::graspForce and released
-constexpr std::uint32_t kCheckpointMagic = 0x344B4352;    // "RCK4": + ToolState::jawTip, jawTool and tipTool
+constexpr std::uint32_t kCheckpointMagic = 0x344B4352;    // "RCK4": + ToolState::jawTip and jawTool
 
 }  // namespace
 
@@ -197,7 +197,7 @@ std::uint64_t stateChecksum(const simcore::SimulationState& s) {
 // Fields a checkpoint carries: a new one must be written too.
 static_assert(sizeof(simcore::SimulationState::Lagged) == 64,
               "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
-static_assert(sizeof(simcore::ToolState) == 352, "ToolState changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::ToolState) == 344, "ToolState changed: record the new field in encodeCheckpointState");
 
 namespace {
 void writeProgress(Bytes& o, const simcore::CutProgress& p) {
@@ -279,7 +279,6 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
   for (int n : t.released) o.pod(static_cast<std::int32_t>(n));
   o.v3(t.jawTip);
   o.pod(static_cast<std::int32_t>(t.jawTool));
-  o.pod(static_cast<std::int32_t>(t.tipTool));
   o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
   if (c.restOfSweep) {
     o.v3(c.restOfSweep->first);
@@ -373,7 +372,6 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
   if (magic == kCheckpointMagic) {
     t.jawTip = r.v3();
     t.jawTool = r.pod<std::int32_t>();
-    t.tipTool = r.pod<std::int32_t>();
     if (!t.jawTip.allFinite()) throw std::runtime_error("a recorded checkpoint's jaws are not at a place");
   } else {
     t.jawTip = t.tip;  // before RCK4 the jaws were wherever the tip was

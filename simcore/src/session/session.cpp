@@ -203,7 +203,6 @@ void Session::apply(const InputEvent& e, std::string& message) {
       // The jaws go with the tip, unless another instrument moved it and the scene keeps their hold.
       if (!(tool_.jawClosed && setup_.tools.jawsKeepTheirHold && e.tool != tool_.jawTool)) tool_.jawTip = e.position;
       tool_.tip = e.position;
-      tool_.tipTool = e.tool;
       if (!tool_.present) seedEasing_ = true;
       tool_.present = true;
       break;

@@ -14,7 +14,8 @@ namespace rehearse::simcore {
 /// labels come named from the imported file (glTF nodes, Gmsh physical names, a case's label table).
 enum class StructureKind { Tissue, Ligament, Vessel, Artery, Vein, PortalVein, BileDuct, Tumour, TumourMargin };
 /// The kind a name says, case and separators ignored: a ligament first ("ligamentum venosum", "round ligament": not
-/// vessels, though named after the veins they were), then a tumour's margin, a bile duct ("CBD", "cystic duct",
+/// vessels, though named after the veins they were), then a tumour's or resection's margin (not an organ's border: "the
+/// inferior margin of the liver" is tissue), a bile duct ("CBD", "cystic duct",
 /// "biliary"), the portal vein ("portal", "PV"; not "porta hepatis"), an artery ("hepatic artery", "aorta", "HA"), a
 /// vein ("vein", "venous", "cava", "IVC", "HV"), a vessel of no stated kind ("vessels", "vascular"), a tumour
 /// ("tumour", "tumor", "lesion", "metastasis", "carcinoma", "nodule"); anything else (unnamed too) is tissue.

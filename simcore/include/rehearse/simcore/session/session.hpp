@@ -66,7 +66,6 @@ struct ToolState {
   /// it is (the grasper's traction held while the scissors cut); without, it follows every move of the tip.
   Eigen::Vector3d jawTip = Eigen::Vector3d::Zero();
   int jawTool = 0;  ///< the instrument (InputEvent::tool) that closed the jaws
-  int tipTool = 0;  ///< the instrument whose pose `tip` is (the last ToolPose's)
   bool cutting = false;
   Eigen::Vector3d cutFrom = Eigen::Vector3d::Zero();  ///< the tip where the blade's last sweep ended (while cutting)
   Eigen::Vector3d force =
