@@ -101,6 +101,66 @@ class TestRecording : public QObject {
     }
   }
 
+  // Issue 36: two clips across the left lobe's vessel branch and the hook's cut between them (clip-clip-cut.json, with
+  // the chord method: the linearised one is refused under clips, and refused with a sentence), then
+  // the same cut without clips (cut-across.json), recorded the GUI's way: both verify bit for bit; the first cuts the
+  // vessel and loses no blood (its thresholds pass), the second loses blood at the stumps' rate (its threshold fails).
+  void clipsStopTheBleedingInARecordedSession() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QStringList clipArgs = gestureArgs(dir.path(), "clip-clip-cut.json", file);
+    clipArgs[clipArgs.indexOf("linearised")] = "chord";  // the clip applier refuses the linearised method
+    const Run a = run(clipArgs);
+    QVERIFY2(::testing::tookEveryStep(a), qPrintable(a.out + a.err));
+    QVERIFY2(a.out.contains("2 clip(s) (0 misplaced), 0.00 mL of blood lost"), qPrintable(a.out));
+    const Run b = run(gestureArgs(dir.path(), "cut-across.json", file));
+    QVERIFY2(::testing::tookEveryStep(b), qPrintable(b.out + b.err));
+    {  // Under the linearised method the clips are refused, each with its sentence: no clip, the vessel cut, bleeding.
+      QTemporaryDir other;
+      QStringList args = gestureArgs(other.path(), "clip-clip-cut.json", other.path() + "/c.rehearse");
+      args << "--report" << other.path() + "/r.json";
+      const Run refused = run(args);
+      QVERIFY2(refused.out.contains("0 clip(s)"), qPrintable(refused.out));
+      QFile rf(other.path() + "/r.json");
+      QVERIFY(rf.open(QIODevice::ReadOnly));
+      QVERIFY(QString::fromUtf8(rf.readAll()).contains("The clip was refused: the linearised method"));
+    }
+    QFile th(dir.path() + "/t.json");
+    QVERIFY(th.open(QIODevice::WriteOnly));
+    th.write(R"({"blood_loss_ml": {"max": 0}, "misplaced_clips": {"max": 0}})");
+    th.close();
+    QMap<QString, QJsonObject> metrics;
+    for (const char* id : {"1", "2"}) {
+      const QString out = dir.path() + "/m" + id + ".json";
+      const Run r =
+          run({"replay", file, "--session", id, "--verify", "--metrics", out, "--thresholds", dir.path() + "/t.json"});
+      QVERIFY2(r.code == 0, qPrintable(r.out + r.err));
+      QFile mf(out);
+      QVERIFY(mf.open(QIODevice::ReadOnly));
+      metrics[id] = QJsonDocument::fromJson(mf.readAll()).object();
+    }
+    const QJsonObject clipped = metrics["1"], open = metrics["2"];
+    qInfo("clipped: %d clips, %d vessel cut(s), %.3f mL lost; unclipped: %d vessel cut(s), %.3f mL lost",
+          clipped["clips"].toInt(), clipped["vessel_cuts"].toInt(), clipped["blood_loss_ml"].toDouble(),
+          open["vessel_cuts"].toInt(), open["blood_loss_ml"].toDouble());
+    QCOMPARE(clipped["clips"].toInt(), 2);
+    QCOMPARE(clipped["misplaced_clips"].toInt(), 0);
+    QVERIFY(clipped["vessel_cuts"].toInt() >= 1);
+    QCOMPARE(clipped["blood_loss_ml"].toDouble(), 0.0);
+    QCOMPARE(open["clips"].toInt(), 0);
+    QVERIFY(open["vessel_cuts"].toInt() >= 1);
+    QVERIFY(open["blood_loss_ml"].toDouble() > 0);
+    auto verdicts = [](const QJsonObject& m) {
+      QMap<QString, QString> v;
+      for (const auto& x : m["verdicts"].toArray())
+        v[x.toObject()["metric"].toString()] = x.toObject()["result"].toString();
+      return v;
+    };
+    QCOMPARE(verdicts(clipped)["blood_loss_ml"], QStringLiteral("pass"));
+    QCOMPARE(verdicts(open)["blood_loss_ml"], QStringLiteral("fail"));
+    QCOMPARE(verdicts(clipped)["misplaced_clips"], QStringLiteral("pass"));
+  }
+
   // Metrics of a scripted session against values computed by hand from the script (the grasper bites once
   // and is moved by (4.16, 7.32, -18.14) mm in a straight line; 350 steps of 10 ms) and from the live run's own
   // per-step report (forces: the same steps, replayed bit for bit, computed by other code).

@@ -30,6 +30,8 @@ FrameView::FrameView(QWidget* parent) : QWidget(parent) {
   tools_[Tool::Attachments] = tools::makeAttachmentTool(*this);
   tools_[Tool::Grasp] = tools::makeGraspTool(*this);
   tools_[Tool::Scissors] = tools::makeScissorsTool(*this);
+  tools_[Tool::Clip] = tools::makeClipTool(*this);
+  tools_[Tool::Cautery] = tools::makeCauteryTool(*this);
 }
 
 FrameView::~FrameView() = default;
@@ -100,10 +102,13 @@ void FrameView::setOverlayOpacity(double opacity) {
 
 void FrameView::setTool(Tool t) {
   if (t != tool_) {
-    // The grasper keeps its hold while the scissors cut (an assistant's traction); any other tool lets go.
-    const bool instruments = t == Tool::Grasp || t == Tool::Scissors;
-    if (current() && !(tool_ == Tool::Grasp && t == Tool::Scissors)) current()->finish();
-    if (!instruments && tool_ == Tool::Scissors) tools_.at(Tool::Grasp)->finish();
+    // The grasper keeps its hold while the scissors cut or the clip applier clips (an assistant's traction); any
+    // other tool lets go.
+    const auto instrument = [](Tool k) {
+      return k == Tool::Grasp || k == Tool::Scissors || k == Tool::Clip || k == Tool::Cautery;
+    };
+    if (current() && !(tool_ == Tool::Grasp && instrument(t))) current()->finish();
+    if (!instrument(t) && instrument(tool_) && tool_ != Tool::Grasp) tools_.at(Tool::Grasp)->finish();
     if (current()) current()->setActive(false);
     if (const auto it = tools_.find(t); it != tools_.end()) it->second->setActive(true);
   }
@@ -206,6 +211,7 @@ void FrameView::paintEvent(QPaintEvent*) {
     else painter.drawPolyline(poly);
   }
   painter.resetTransform();
+  paintField(painter);
   paintOrganMarks(painter, contour);
   for (const auto& [kind, tool] : tools_)
     if (kind != tool_) tool->paintIdle(painter);

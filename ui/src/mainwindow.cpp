@@ -170,11 +170,12 @@ void MainWindow::setStep(Step s) {
   else if ((s == Step::Elastic || s == Step::Appearance) && (t == Tool::Align || t == Tool::Landmarks))
     view_->setTool(Tool::Navigate);  // no gizmo over the fit
   else if (s == Step::Rehearse) {
-    if (t != Tool::Scissors) view_->setTool(Tool::Grasp);
+    if (t != Tool::Scissors && t != Tool::Clip && t != Tool::Cautery) view_->setTool(Tool::Grasp);
     // The organ is rehearsed on live: it settles on its ligaments before the first grasp.
     if (doc_->hasCase() && doc_->data()->hasPose && !simulation_->isPlaying()) simulation_->play();
   }
-  if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors))
+  if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors ||
+                              view_->tool() == Tool::Clip || view_->tool() == Tool::Cautery))
     view_->setTool(Tool::Navigate);
   if (s != Step::Rehearse && doc_->hasCase()) refreshOverlay();  // the case's organ again, not the simulation's
   updateWorkflow();

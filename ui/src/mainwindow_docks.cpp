@@ -165,6 +165,7 @@ void MainWindow::buildDocks() {
       view_->setWarning(f->invertedAt, warningText(*f));
       view_->setLiveShape(f->positions);
       view_->setLiveSurface(f->surface);
+      view_->setLiveField(f->field, f->gravity, f->labels, f->tets);
       if (f->surface && showingComposited() && f->surface != lastCutComposited_) {
         // The composited view draws the cut organ (its cut faces in preset interior colours): said once per cut.
         lastCutComposited_ = f->surface;

@@ -76,6 +76,7 @@ simcore::BodySetup bodySetup(const SimulationSetup& s) {
   b.settings.gravity = s.gravity;
   b.tools.toolRadius = s.toolRadius;
   b.tools.graspRadius = s.graspRadius;
+  b.tools.clip.length = s.clipLength;
   // ... nor for a cut: its body comes in as soon as it is built (the step it came in at is recorded, so the replay
   // is exact). A fixed latency (the command line's, for runs that must end with the same mesh every time) made the
   // stepping thread wait for a late build: on the liver preset about 50 ms per cut when steps outrun real time.
@@ -131,6 +132,9 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   f->tool = snap.tool;
   f->events = snap.events;
   f->surface = snap.surface;
+  f->field = snap.field;
+  f->labels = snap.labels;
+  f->gravity = snap.gravity;
   f->elements = snap.elements;
   f->mass = snap.mass;
   f->tets = snap.tets;
@@ -535,6 +539,18 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
       tr("The grasper's bite: closing the jaws holds the tissue's nodes within this distance of the tip. A coarse "
          "mesh's nodes can be a centimetre apart, so a wider bite holds more of it (applies at the next grasp)"));
   form->addRow(tr("Jaw bite"), form_.jawBite);
+  form_.clipLength = new QDoubleSpinBox(this);
+  form_.clipLength->setObjectName(QStringLiteral("simClipLength"));
+  form_.clipLength->setRange(3, 20);
+  form_.clipLength->setDecimals(1);
+  form_.clipLength->setSuffix(tr(" mm"));
+  form_.clipLength->setValue(9);
+  form_.clipLength->setKeyboardTracking(false);
+  form_.clipLength->setToolTip(
+      tr("The clip applier's clips: their jaws' length across the vessel. A clip shorter than the vessel (as the mesh "
+         "has it: a coarse mesh makes it wider) does not close it and is counted as misplaced (applies at the next "
+         "clip)"));
+  form->addRow(tr("Clip length"), form_.clipLength);
   form_.method = new QComboBox(this);
   form_.method->setObjectName(QStringLiteral("simMethod"));
   // In NewtonMethod's order; chord is the default (converged every step, issue 34); linearised is faster but its one
@@ -612,6 +628,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   connect(form_.method, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
   connect(form_.timeStep, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
   connect(form_.jawBite, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
+  connect(form_.clipLength, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
   for (QDoubleSpinBox* s : {form_.young, form_.poisson, form_.density})
     connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::materialFieldsEdited);
   connect(form_.density, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::updateMass);
@@ -698,6 +715,7 @@ SimulationSetup SimulationPanel::setup() const {
   }
   s.timeStep = 1e-3 * form_.timeStep->value();
   s.graspRadius = 1e-3 * form_.jawBite->value();
+  s.clipLength = 1e-3 * form_.clipLength->value();
   s.method = static_cast<simcore::NewtonMethod>(form_.method->currentIndex());
   static const Eigen::Vector3d directions[] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
   s.gravity = 9.81 * directions[std::clamp(form_.gravity->currentIndex(), 0, 2)];
@@ -791,6 +809,7 @@ void SimulationPanel::postRunParameters() {
   const auto& now = session_->setup().settings;
   if (s.timeStep != now.timeStep) session_->post(parameter("dt", s.timeStep));
   if (s.graspRadius != session_->setup().tools.graspRadius) session_->post(parameter("grasp_radius", s.graspRadius));
+  if (s.clipLength != session_->setup().tools.clip.length) session_->post(parameter("clip_length", s.clipLength));
   if (s.method != now.method) session_->post(parameter("method", static_cast<double>(s.method)));
   if (s.gravity != now.gravity) {
     simcore::InputEvent g;

@@ -61,6 +61,9 @@ GestureScript parseGestureScript(const std::string& text) {
     if (t.contains("trocar")) s.trocar = vec3(t["trocar"], "trocar");
     if (t.contains("tool_radius_mm")) s.toolRadius = 1e-3 * number(t, "tool_radius_mm", 0, 0, 50);
     if (t.contains("depenetration_speed_mm_s")) s.depenetrationSpeed = 1e-3 * number(t, "depenetration_speed_mm_s", 50, 0, 1e5);
+    if (t.contains("clip_length_mm")) s.clipLength = 1e-3 * number(t, "clip_length_mm", 9, 1, 50);
+    if (t.contains("clip_gap_mm")) s.clipGap = 1e-3 * number(t, "clip_gap_mm", 0.5, 0, 10);
+    if (t.contains("clip_min_squeeze")) s.clipMinSqueeze = number(t, "clip_min_squeeze", 0.1, 0, 1);
     if (t.contains("cut_latency_steps")) s.cutLatencySteps = static_cast<int>(number(t, "cut_latency_steps", 5, -1, 1000));
   }
   if (!j.contains("events") || !j["events"].is_array()) throw std::runtime_error("the gesture script has no \"events\" list");
@@ -73,19 +76,40 @@ GestureScript parseGestureScript(const std::string& text) {
     last = g.t;
     if (e.contains("tool")) {
       const std::string tool = e["tool"].is_string() ? e["tool"].get<std::string>() : std::string();
-      if (tool != "grasper" && tool != "scissors" && tool != "hook")
-        throw std::runtime_error("the gesture script names an unknown tool '" + tool + "'; use grasper, scissors or hook");
+      if (tool != "grasper" && tool != "scissors" && tool != "hook" && tool != "clip applier" && tool != "cautery")
+        throw std::runtime_error("the gesture script names an unknown tool '" + tool +
+                                 "'; use grasper, scissors, hook, clip applier or cautery");
       g.tool = tool;
       current = tool;
     }
     if (e.contains("cut")) {
       const std::string w = e["cut"].is_string() ? e["cut"].get<std::string>() : std::string();
       if (w != "on" && w != "off") throw std::runtime_error("the gesture script's \"cut\" must be \"on\" or \"off\"");
-      if (current == "grasper") throw std::runtime_error("the gesture script cuts with the grasper at t = " + std::to_string(g.t) + "; choose \"tool\": \"scissors\" or \"hook\" first");
+      if (current != "scissors" && current != "hook")
+        throw std::runtime_error("the gesture script cuts with the " + current + " at t = " + std::to_string(g.t) +
+                                 "; choose \"tool\": \"scissors\" or \"hook\" first");
       g.cut = w == "on";
     }
     if (e.contains("jaws") && current != "grasper")
       throw std::runtime_error("the gesture script closes jaws at t = " + std::to_string(g.t) + " while holding the " + current + "; choose \"tool\": \"grasper\" first");
+    if (e.contains("clip")) {
+      if (!e["clip"].is_string() || e["clip"].get<std::string>() != "close")
+        throw std::runtime_error("the gesture script's \"clip\" must be \"close\"");
+      if (current != "clip applier")
+        throw std::runtime_error("the gesture script closes a clip at t = " + std::to_string(g.t) +
+                                 " while holding the " + current + "; choose \"tool\": \"clip applier\" first");
+      g.clip = true;
+      if (e.contains("across")) g.across = vec3(e["across"], "across");
+    }
+    if (e.contains("energy")) {
+      const std::string w = e["energy"].is_string() ? e["energy"].get<std::string>() : std::string();
+      if (w != "on" && w != "off")
+        throw std::runtime_error("the gesture script's \"energy\" must be \"on\" or \"off\"");
+      if (current != "cautery")
+        throw std::runtime_error("the gesture script applies energy at t = " + std::to_string(g.t) +
+                                 " while holding the " + current + "; choose \"tool\": \"cautery\" first");
+      g.energy = w == "on";
+    }
     if (e.contains("tip")) g.tip = vec3(e["tip"], "tip");
     if (e.contains("tip_near")) g.tipNear = vec3(e["tip_near"], "tip_near");
     if (e.contains("move")) g.move = vec3(e["move"], "move");
@@ -95,8 +119,9 @@ GestureScript parseGestureScript(const std::string& text) {
       if (w != "close" && w != "open") throw std::runtime_error("the gesture script's \"jaws\" must be \"close\" or \"open\"");
       g.jawsClosed = w == "close";
     }
-    if (!g.tip && !g.tipNear && !g.move && !g.jawsClosed && !g.cut && !e.contains("tool"))
-      throw std::runtime_error("a gesture script event at t = " + std::to_string(g.t) + " does nothing (no tip, tip_near, move, jaws or cut)");
+    if (!g.tip && !g.tipNear && !g.move && !g.jawsClosed && !g.cut && !g.clip && !g.energy && !e.contains("tool"))
+      throw std::runtime_error("a gesture script event at t = " + std::to_string(g.t) +
+                               " does nothing (no tip, tip_near, move, jaws, cut, clip or energy)");
     s.events.push_back(g);
   }
   return s;
@@ -111,6 +136,9 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   if (script.toolRadius) setup.tools.toolRadius = *script.toolRadius;
   if (script.depenetrationSpeed) setup.tools.depenetrationSpeed = *script.depenetrationSpeed;
   if (script.cutLatencySteps) setup.tools.cutLatencySteps = *script.cutLatencySteps;
+  if (script.clipLength) setup.tools.clip.length = *script.clipLength;
+  if (script.clipGap) setup.tools.clip.gap = *script.clipGap;
+  if (script.clipMinSqueeze) setup.tools.clip.minSqueeze = *script.clipMinSqueeze;
   const double h = setup.settings.timeStep;
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
   if (hooks.start) hooks.start(setup);
@@ -125,12 +153,17 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   };
   std::vector<Move> moves;
   std::size_t next = 0;
-  int tool = 0;  // 0 grasper, 1 scissors, 2 hook
+  int tool = 0;  // 0 grasper, 1 scissors, 2 hook, 3 clip applier, 4 cautery
   for (long k = 0; k < steps; ++k) {
     const double t = k * h;
     while (next < script.events.size() && script.events[next].t <= t + 1e-9) {
       const GestureEvent& e = script.events[next++];
-      if (e.tool) tool = *e.tool == "grasper" ? 0 : (*e.tool == "scissors" ? 1 : 2);
+      if (e.tool)
+        tool = *e.tool == "grasper"        ? 0
+               : *e.tool == "scissors"     ? 1
+               : *e.tool == "hook"         ? 2
+               : *e.tool == "clip applier" ? 3
+                                           : 4;
       if (e.tipNear) {
         const auto snap = session.snapshot();
         double best = 1e300;
@@ -156,6 +189,21 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
         j.kind = simcore::InputKind::Jaw;
         j.on = *e.jawsClosed;
         session.post(j);
+      }
+      if (e.energy) {
+        simcore::InputEvent c;
+        c.kind = simcore::InputKind::Energy;
+        c.tool = tool;
+        c.on = *e.energy;
+        session.post(c);
+      }
+      if (e.clip) {
+        simcore::InputEvent c;
+        c.kind = simcore::InputKind::Clip;
+        c.tool = tool;
+        c.on = true;
+        c.vector = e.across.value_or(Eigen::Vector3d::Zero());
+        session.post(c);
       }
       if (e.cut) {
         simcore::InputEvent c;
@@ -193,6 +241,13 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
     out.cuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "cut"));
     out.vesselCuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "vessel cut"));
     out.failed += !rep.ok;
+    out.clips += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "clip"));
+    out.misplacedClips += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "clip misplaced"));
+    out.bleedings += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "bleeding"));
+    out.bloodLoss = snap->field.bloodLoss;
+    out.burns += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "burn"));
+    out.energyOnStructures +=
+        static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "energy on structure"));
     out.steps.push_back(std::move(row));
   }
   // A cut whose body was still being built when the script ended is applied: the run's mesh has every cut the blade made

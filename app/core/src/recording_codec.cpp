@@ -183,7 +183,9 @@ constexpr std::uint32_t kCheckpointMagicV1 = 0x314B4352;  // "RCK1": before the 
 constexpr std::uint32_t kCheckpointMagicV2 =
     0x324B4352;  // "RCK2": + ToolState::easing and vesselsCut (now structuresCut), TopologyChange::applyAt
 constexpr std::uint32_t kCheckpointMagicV3 = 0x334B4352;  // "RCK3": + ToolState::graspForce and released
-constexpr std::uint32_t kCheckpointMagic = 0x344B4352;    // "RCK4": + ToolState::jawTip and jawTool
+constexpr std::uint32_t kCheckpointMagicV4 = 0x344B4352;  // "RCK4": + ToolState::jawTip and jawTool
+constexpr std::uint32_t kCheckpointMagic =
+    0x354B4352;  // "RCK5": + the operative field (clips, bleeding, blood lost, the cautery's heat), the change's kind
 
 }  // namespace
 
@@ -198,6 +200,8 @@ std::uint64_t stateChecksum(const simcore::SimulationState& s) {
 static_assert(sizeof(simcore::SimulationState::Lagged) == 64,
               "SimulationState::Lagged changed: record the new field in encodeCheckpointState");
 static_assert(sizeof(simcore::ToolState) == 344, "ToolState changed: record the new field in encodeCheckpointState");
+static_assert(sizeof(simcore::Clip) == 168 && sizeof(simcore::Bleed) == 96 && sizeof(simcore::OperativeField) == 120,
+              "the operative field changed: record the new field in encodeCheckpointState");
 
 namespace {
 void writeProgress(Bytes& o, const simcore::CutProgress& p) {
@@ -279,6 +283,41 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
   for (int n : t.released) o.pod(static_cast<std::int32_t>(n));
   o.v3(t.jawTip);
   o.pod(static_cast<std::int32_t>(t.jawTool));
+  const auto& f = c.field;
+  o.pod(static_cast<std::int64_t>(f.clips.size()));
+  for (const auto& k : f.clips) {
+    o.v3(k.across);
+    o.v3(k.axis);
+    o.pod(static_cast<std::int32_t>(k.label));
+    o.pod(static_cast<std::int32_t>(k.anchor));
+    o.pod(static_cast<std::int64_t>(k.nodes.size()));
+    for (std::size_t i = 0; i < k.nodes.size(); ++i) {
+      o.pod(static_cast<std::int32_t>(k.nodes[i]));
+      o.pod(k.from[i]);
+      o.pod(k.to[i]);
+    }
+    for (double v : {k.anchorFrom, k.anchorTo, k.placedAt, k.gap}) o.pod(v);
+    o.pod(static_cast<std::uint8_t>(k.spans));
+  }
+  o.pod(static_cast<std::int64_t>(f.bleeds.size()));
+  for (const auto& b : f.bleeds) {
+    o.pod(static_cast<std::int32_t>(b.label));
+    o.v3(b.at);
+    o.v3(b.normal);
+    o.pod(static_cast<std::int32_t>(b.node));
+    for (double v : {b.area, b.rate, b.lost}) o.pod(v);
+    o.pod(static_cast<std::int32_t>(b.stoppedBy));
+  }
+  o.pod(f.bloodLoss);
+  o.pod(static_cast<std::uint8_t>(f.energy));
+  o.pod(static_cast<std::int64_t>(f.heating.size()));
+  for (const auto& [e, heat] : f.heating) {
+    o.pod(static_cast<std::int32_t>(e));
+    o.pod(heat);
+  }
+  o.pod(static_cast<std::int64_t>(f.energyOn.size()));
+  for (int l : f.energyOn) o.pod(static_cast<std::int32_t>(l));
+  o.pod(f.energyTime);
   o.pod(static_cast<std::uint8_t>(c.restOfSweep.has_value()));
   if (c.restOfSweep) {
     o.v3(c.restOfSweep->first);
@@ -287,6 +326,7 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
   o.pod(static_cast<std::uint8_t>(c.pendingChange.has_value()));
   if (const auto& p = c.pendingChange) {
     o.pod(pendingSetupHash);
+    o.pod(static_cast<std::uint8_t>(p->kind));
     writeProgress(o, p->setup.cut);
     o.pod(static_cast<std::int64_t>(p->newNodes.size()));
     for (const auto& n : p->newNodes) {
@@ -312,8 +352,8 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
   simcore::Checkpoint c;
   Reader r{bytes.data(), bytes.data() + bytes.size()};
   const std::uint32_t magic = r.pod<std::uint32_t>();
-  if (magic != kCheckpointMagic && magic != kCheckpointMagicV3 && magic != kCheckpointMagicV2 &&
-      magic != kCheckpointMagicV1)
+  if (magic != kCheckpointMagic && magic != kCheckpointMagicV4 && magic != kCheckpointMagicV3 &&
+      magic != kCheckpointMagicV2 && magic != kCheckpointMagicV1)
     throw std::runtime_error("a recorded checkpoint is not in a known format");
   c.step = static_cast<long>(r.pod<std::int64_t>());
   c.setup = setupOf(r.pod<std::uint64_t>());
@@ -343,7 +383,8 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
   t.cutFrom = r.v3();
   t.force = r.v3();
   // Before RCK3 the jaws' share was not kept apart: all of it (the next step computes both again).
-  const bool v3OrLater = magic == kCheckpointMagic || magic == kCheckpointMagicV3;
+  const bool v4OrLater = magic == kCheckpointMagic || magic == kCheckpointMagicV4;
+  const bool v3OrLater = v4OrLater || magic == kCheckpointMagicV3;
   t.graspForce = v3OrLater ? r.v3() : (t.held.empty() ? Eigen::Vector3d::Zero() : t.force);
   r.need(9 * sizeof(double));
   std::memcpy(t.stiffness.data(), r.p, 9 * sizeof(double));
@@ -369,12 +410,52 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
     t.released.resize(r.count(sizeof(std::int32_t)));
     for (int& n : t.released) n = r.pod<std::int32_t>();
   }
-  if (magic == kCheckpointMagic) {
+  if (v4OrLater) {
     t.jawTip = r.v3();
     t.jawTool = r.pod<std::int32_t>();
     if (!t.jawTip.allFinite()) throw std::runtime_error("a recorded checkpoint's jaws are not at a place");
   } else {
     t.jawTip = t.tip;  // before RCK4 the jaws were wherever the tip was
+  }
+  auto& f = c.field;  // before RCK5: no clip, nothing bleeding
+  if (magic == kCheckpointMagic) {
+    f.clips.resize(r.count(6 * sizeof(double) + 2 * sizeof(std::int32_t) + sizeof(std::int64_t)));
+    for (auto& k : f.clips) {
+      k.across = r.v3();
+      k.axis = r.v3();
+      k.label = r.pod<std::int32_t>();
+      k.anchor = r.pod<std::int32_t>();
+      const std::size_t m = r.count(sizeof(std::int32_t) + 2 * sizeof(double));
+      k.nodes.resize(m);
+      k.from.resize(m);
+      k.to.resize(m);
+      for (std::size_t i = 0; i < m; ++i) {
+        k.nodes[i] = r.pod<std::int32_t>();
+        k.from[i] = r.pod<double>();
+        k.to[i] = r.pod<double>();
+      }
+      for (double* v : {&k.anchorFrom, &k.anchorTo, &k.placedAt, &k.gap}) *v = r.pod<double>();
+      k.spans = r.pod<std::uint8_t>() != 0;
+    }
+    f.bleeds.resize(r.count(2 * sizeof(std::int32_t) + 9 * sizeof(double)));
+    for (auto& b : f.bleeds) {
+      b.label = r.pod<std::int32_t>();
+      b.at = r.v3();
+      b.normal = r.v3();
+      b.node = r.pod<std::int32_t>();
+      for (double* v : {&b.area, &b.rate, &b.lost}) *v = r.pod<double>();
+      b.stoppedBy = r.pod<std::int32_t>();
+    }
+    f.bloodLoss = r.pod<double>();
+    f.energy = r.pod<std::uint8_t>() != 0;
+    f.heating.resize(r.count(sizeof(std::int32_t) + sizeof(double)));
+    for (auto& [e, heat] : f.heating) {
+      e = r.pod<std::int32_t>();
+      heat = r.pod<double>();
+    }
+    f.energyOn.resize(r.count(sizeof(std::int32_t)));
+    for (int& l : f.energyOn) l = r.pod<std::int32_t>();
+    f.energyTime = r.pod<double>();
   }
   if (r.pod<std::uint8_t>()) {
     const Eigen::Vector3d from = r.v3();
@@ -383,6 +464,12 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
   if (r.pod<std::uint8_t>()) {
     simcore::TopologyChange p;
     p.setup = setupOf(r.pod<std::uint64_t>());
+    if (magic == kCheckpointMagic) {  // before RCK5 every change was a cut
+      const auto kind = r.pod<std::uint8_t>();
+      if (kind > static_cast<std::uint8_t>(simcore::ChangeKind::Burn))
+        throw std::runtime_error("a recorded checkpoint's change under way is of an unknown kind");
+      p.kind = static_cast<simcore::ChangeKind>(kind);
+    }
     p.setup.cut = readProgress(r);
     p.newNodes.resize(r.count(4 * sizeof(std::int32_t) + 4 * sizeof(double)));
     for (auto& n : p.newNodes) {
@@ -414,6 +501,21 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
             std::is_sorted(t.released.begin(), t.released.end()) &&
             std::all_of(c.setup.cut.nodes.begin(), c.setup.cut.nodes.end(), inRange);
   for (const auto& f : c.setup.cut.pendingFaces) ok = ok && std::all_of(f.begin(), f.end(), inRange);
+  for (const auto& k : c.field.clips)
+    ok = ok && inRange(k.anchor) && std::all_of(k.nodes.begin(), k.nodes.end(), inRange) && k.across.allFinite() &&
+         k.axis.allFinite() && std::isfinite(k.anchorFrom) && std::isfinite(k.anchorTo) && std::isfinite(k.placedAt) &&
+         std::isfinite(k.gap) && std::all_of(k.from.begin(), k.from.end(), [](double v) { return std::isfinite(v); }) &&
+         std::all_of(k.to.begin(), k.to.end(), [](double v) { return std::isfinite(v); });
+  for (const auto& b : c.field.bleeds)
+    ok = ok && inRange(b.node) && b.at.allFinite() && b.normal.allFinite() && std::isfinite(b.area) &&
+         std::isfinite(b.rate) && std::isfinite(b.lost) && b.stoppedBy >= -1 &&
+         b.stoppedBy < static_cast<int>(c.field.clips.size());
+  ok = ok && std::isfinite(c.field.bloodLoss) && std::isfinite(c.field.energyTime);
+  const std::size_t elements = c.setup.mesh.tets.size();
+  for (std::size_t k = 0; k < c.field.heating.size(); ++k)
+    ok = ok && c.field.heating[k].first >= 0 && static_cast<std::size_t>(c.field.heating[k].first) < elements &&
+         std::isfinite(c.field.heating[k].second) &&
+         (k == 0 || c.field.heating[k].first > c.field.heating[k - 1].first);
   auto sweepsFinite = [](const simcore::CutProgress& p) {
     return std::all_of(p.sweeps.begin(), p.sweeps.end(), [](const auto& w) {
       return w.a0.allFinite() && w.b0.allFinite() && w.a1.allFinite() && w.b1.allFinite();
@@ -515,6 +617,12 @@ std::string encodeSetup(const simcore::BodySetup& s) {
                   {"minVolumeFraction", t.cut.minVolumeFraction},
                   {"snapFront", t.cut.snapFront}}}};
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
+  if (!(t.clip == simcore::ClipSettings{}))  // (setups recorded before the clip applier keep their text and hash)
+    j["tools"]["clip"] = {
+        {"length", t.clip.length}, {"width", t.clip.width}, {"gap", t.clip.gap}, {"closeTime", t.clip.closeTime}};
+  if (!(t.cautery == simcore::CauterySettings{}))
+    j["tools"]["cautery"] = {
+        {"radius", t.cautery.radius}, {"burnTime", t.cautery.burnTime}, {"stiffening", t.cautery.stiffening}};
   j["topology"] = s.topology;
   j["format"] = "rehearse-setup-1";
   return j.dump();
@@ -555,6 +663,19 @@ simcore::BodySetup decodeSetup(const std::string& text) {
     s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");
     s.tools.cut.snapFront = t.at("cut").at("snapFront");
     if (t.contains("trocar")) s.tools.trocar = vec(t.at("trocar"));
+    if (t.contains("clip")) {
+      const auto& c = t.at("clip");
+      s.tools.clip.length = c.at("length");
+      s.tools.clip.width = c.at("width");
+      s.tools.clip.gap = c.at("gap");
+      s.tools.clip.closeTime = c.at("closeTime");
+    }
+    if (t.contains("cautery")) {
+      const auto& c = t.at("cautery");
+      s.tools.cautery.radius = c.at("radius");
+      s.tools.cautery.burnTime = c.at("burnTime");
+      s.tools.cautery.stiffening = c.at("stiffening");
+    }
     s.topology = asInt(j.at("topology"));
     if (const std::string why = setupProblem(s); !why.empty()) throw std::runtime_error(why);
     return s;
@@ -667,7 +788,8 @@ std::string setupProblem(const simcore::BodySetup& s) {
     return "the solver, method, attachment or refresh setting is not one this version knows";
   const auto& tool = s.tools;
   for (double v : {tool.graspRadius, tool.maxGraspForce, tool.bladeLength, tool.toolRadius, tool.depenetrationSpeed,
-                   tool.cut.snap, tool.cut.minQuality, tool.cut.minVolumeFraction})
+                   tool.cut.snap, tool.cut.minQuality, tool.cut.minVolumeFraction, tool.clip.length, tool.clip.width,
+                   tool.clip.gap, tool.clip.closeTime})
     if (!finite(v) || v < 0) return "an instrument setting is not a non-negative number";
   if (tool.trocar && !finite(*tool.trocar)) return "the trocar is not a point";
   if (tool.cutLatencySteps < -1 || tool.cutLatencySteps > 1000)
@@ -677,7 +799,7 @@ std::string setupProblem(const simcore::BodySetup& s) {
 }
 
 std::string eventProblem(const simcore::InputEvent& e) {
-  if (!inEnum(e.kind, simcore::InputKind::CutApplied))
+  if (!inEnum(e.kind, simcore::InputKind::Energy))
     return "an event of an unknown kind (" + std::to_string(static_cast<int>(e.kind)) + ")";
   if (!finite(e.wallTime) || !finite(e.position) || !finite(e.vector) || !finite(e.value))
     return "an event holds no number";
@@ -694,6 +816,8 @@ std::string eventProblem(const simcore::InputEvent& e) {
       if (!(v > 0)) return "a recorded density is not positive";
     } else if (k == "dt") {
       if (!(v > 0 && v <= 10)) return "a recorded time step is not between 0 and 10 s";
+    } else if (k == "clip_length") {
+      if (!(v >= 0.001 && v <= 0.05)) return "a recorded clip length is not between 1 and 50 mm";
     } else if (k == "grasp_radius") {
       if (!(v > 0 && v <= 0.1)) return "a recorded grasp radius is not between 0 and 0.1 m";
     } else if (k == "method") {

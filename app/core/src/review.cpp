@@ -58,10 +58,16 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"cut_deviation_max_m", m.cutDeviationMaxM, "m", m.cutDeviationMaxM ? "" : m.cutDeviationWhy},
       {"tumour_breaches", m.tumourBreaches, "", m.tumourBreaches ? "" : m.tumourWhy},
       {"attachments_torn", m.attachmentsTorn, "", m.attachmentsTorn ? "" : m.attachmentsWhy},
+      {"clips", m.clips, "", ""},
+      {"misplaced_clips", m.misplacedClips, "", ""},
+      {"blood_loss_ml", m.bloodLossMl, "mL", m.bloodLossMl ? "" : m.vesselWhy},
+      {"energy_time_s", m.energyTimeS, "s", ""},
+      {"energy_on_structures", m.energyOnStructures, "", ""},
   };
   for (auto& x : v)
     x.count = x.name == "grasps" || x.name == "slips" || x.name == "cut_updates" || x.name == "vessel_cuts" ||
-              x.name == "tumour_breaches" || x.name == "attachments_torn";
+              x.name == "tumour_breaches" || x.name == "attachments_torn" || x.name == "clips" ||
+              x.name == "misplaced_clips" || x.name == "energy_on_structures";
   return v;
 }
 
@@ -374,7 +380,7 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
   out.verdicts = judge(result.metrics, thresholds);
   out.timeline = result.timeline;
   out.forceThresholdN = result.metrics.forceThresholdN;
-  // Key frames: the first grasp, the largest force, the first cut, the end.
+  // Key frames: the first grasp, the largest force, the first cut, the first clip, the first bleeding, the end.
   std::vector<std::pair<std::string, long>> keys;
   long maxForceStep = -1;
   double maxForce = 0;
@@ -390,6 +396,12 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
       if (e == "cut" &&
           std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First cut", 0) == 0; }))
         keys.push_back({"First cut", t.step});
+      if (e == "clip" &&
+          std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First clip", 0) == 0; }))
+        keys.push_back({"First clip", t.step});
+      if (e == "bleeding" &&
+          std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("Bleeding", 0) == 0; }))
+        keys.push_back({"Bleeding", t.step});
     }
   }
   if (maxForceStep > 0) keys.push_back({"Largest force", maxForceStep});

@@ -37,9 +37,10 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
   int tumourLabel = 0;
   for (const auto& [label, name] : r.setup.mesh.labelNames)
     if (simcore::structureKind(name) == simcore::StructureKind::Tumour) tumourLabel = label;
-  if (r.setup.mesh.namesAVessel())
+  if (r.setup.mesh.namesAVessel()) {
     m.vesselCuts = 0;
-  else
+    m.bloodLossMl = 0.0;
+  } else
     m.vesselWhy = "the case names no vessel (no element label named vessel, vein or artery)";
   if (tumourLabel)
     m.tumourBreaches = 0;
@@ -97,6 +98,8 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       forceSum += f;
       ++forceSteps;
     }
+    if (m.bloodLossMl) m.bloodLossMl = 1e6 * snap->field.bloodLoss;
+    m.energyTimeS = snap->field.energyTime;
     const bool over = f > forceThresholdN;
     if (over) m.timeOverThresholdS += snap->time - time;
     const bool overBefore = previousForce > forceThresholdN;
@@ -106,6 +109,9 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       m.grasps += e == "grasp";
       m.slips += e == "slip";
       m.cuts += e == "cut";
+      m.clips += e == "clip";
+      m.misplacedClips += e == "clip misplaced";
+      m.energyOnStructures += e == "energy on structure";
       if (m.vesselCuts && e == "vessel cut") ++*m.vesselCuts;
       if (tumourLabel && e == "cut through label " + std::to_string(tumourLabel)) ++*m.tumourBreaches;
     }

@@ -75,8 +75,11 @@ class FemBody final : public DeformableBody {
     for (Eigen::Index i = 0; i < m; ++i) {
       for (Eigen::Index j = 0; j < m; ++j) Wa(i, j) = W(active[i], active[j]);
       const auto& ci = c[static_cast<std::size_t>(active[i] - first)];
-      G.row(i) = ci.direction.transpose();
-      S.row(i) = (ci.weights[0] + ci.weights[1] + ci.weights[2] + ci.weights[3]) * ci.direction.transpose();
+      // A row whose weights sum to zero (a clip: one node against another) is the tissue's own, not the tool's: it
+      // neither moves with the tool nor acts on it.
+      const double spread = ci.weights[0] + ci.weights[1] + ci.weights[2] + ci.weights[3];
+      G.row(i) = spread != 0 ? Eigen::RowVector3d(ci.direction.transpose()) : Eigen::RowVector3d::Zero();
+      S.row(i) = spread * ci.direction.transpose();
     }
     // Redundant holds make W_a singular: the pivoted LDL^T's solve leaves their share at zero.
     const Eigen::MatrixXd X = Wa.ldlt().solve(G);

@@ -39,7 +39,7 @@ Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chro
                                           rest[static_cast<std::size_t>(t[2])], rest[static_cast<std::size_t>(t[3])]));
     setup_.tools.cut.minQuality = std::min(setup_.tools.cut.minQuality, 0.5 * worst);
   }
-  tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  elementsChanged();
   uncut_ = setup_;
   {
     const auto& rest = body_->restPositions();
@@ -177,6 +177,13 @@ void Session::updateToolConstraints() {
     tool_.pierced = found.pierced;
   }
   seedEasing_ = false;
+  if (!field_.clips.empty()) {
+    // The clips' rows (the tissue's own: node against node), not on nodes the jaws hold (three rows each already).
+    std::vector<ScalarConstraint> clips;
+    clipRows(field_, state_.time, setup_.tools.clip.closeTime, clips);
+    for (auto& r : clips)
+      if (std::find(tool_.held.begin(), tool_.held.end(), r.nodes[0]) == tool_.held.end()) c.push_back(r);
+  }
   body_->setToolConstraints(std::move(c));
 }
 
@@ -208,10 +215,20 @@ void Session::apply(const InputEvent& e, std::string& message) {
       break;
     case InputKind::Jaw:
     case InputKind::Cut:
+    case InputKind::Clip:
+    case InputKind::Energy:
       for (auto& i : instruments_)
         if (i->handles(e.kind)) i->act(e, tool_, *this, message);
       break;
     case InputKind::Parameter: {
+      if (e.name == "clip_length") {  // the clip applier's next clips (the body stays as it is)
+        if (e.value >= 0.001 && e.value <= 0.05)
+          setup_.tools.clip.length = e.value;
+        else
+          message =
+              "A clip length of " + std::to_string(e.value) + " m is outside [0.001, 0.05] m; it was not applied.";
+        break;
+      }
       if (e.name == "grasp_radius") {  // the jaws' bite: what their next closing holds (the body stays as it is)
         if (e.value > 0 && e.value <= 0.1)
           setup_.tools.graspRadius = e.value;
@@ -236,7 +253,11 @@ void Session::apply(const InputEvent& e, std::string& message) {
         setup_.material.density = e.value;
       else if (e.name == "dt")
         setup_.settings.timeStep = e.value;
-      else if (e.name == "method")
+      else if (e.name == "method" && !field_.clips.empty() &&
+               static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 4)) == NewtonMethod::Linearised) {
+        message = "The linearised method was refused: its one solve per step diverges under the clips on the tissue.";
+        break;
+      } else if (e.name == "method")
         setup_.settings.method = static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 3));
       else if (e.name == "model" && e.value >= 0 && e.value <= static_cast<int>(MaterialModel::NeoHookeanSplit))
         setup_.material.model = static_cast<MaterialModel>(static_cast<int>(e.value));
@@ -273,7 +294,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
       if (pending_ && pending_->applyAt < 0) finishPendingChange(true, message);
       break;
   }
-  if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw)
+  if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw || e.kind == InputKind::Clip)
     updateToolConstraints();  // rebuildBody did it for the others
 }
 
@@ -311,9 +332,18 @@ StepReport Session::advance() {
     recorded_.push_back(e);
   }
   if (stroke_.open && !tool_.cutting && !pending_ && !restOfSweep_) finishStroke(message);
-  if (tool_.present && setup_.tools.toolRadius > 0)
-    updateToolConstraints();  // contacts move with the tissue: detected at every step
+  for (auto& i : instruments_) i->stepping(setup_.settings.timeStep, tool_, *this, message);  // the cautery heats
+  // Contacts move with the tissue: detected at every step. The clips' rows are made at every step too (closing ones
+  // close further; made from the time alone, so a session restored at any step makes the same rows).
+  if ((tool_.present && setup_.tools.toolRadius > 0) || !field_.clips.empty()) updateToolConstraints();
+  const double timeBefore = state_.time;
   const StepReport rep = body_->step(state_);
+  if (rep.ok && state_.time > timeBefore)
+    for (auto& b : field_.bleeds)
+      if (b.stoppedBy < 0) {  // an open stump loses blood at its rate
+        b.lost += b.rate * (state_.time - timeBefore);
+        field_.bloodLoss += b.rate * (state_.time - timeBefore);
+      }
   if (rep.factorSwapped) {
     // The asynchronous refresh swapped a factor in at this boundary: recorded, so a replay installs it here.
     InputEvent f;
@@ -360,7 +390,7 @@ StepReport Session::advance() {
 }
 
 Checkpoint Session::checkpointLocked() const {
-  Checkpoint c{steps_, setup_, state_, tool_, std::nullopt, restOfSweep_};
+  Checkpoint c{steps_, setup_, state_, tool_, field_, std::nullopt, restOfSweep_};
   if (pending_) c.pendingChange = static_cast<const TopologyChange&>(*pending_);
   return c;
 }
@@ -382,14 +412,17 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->report = rep;
   s->topologyVersion = body_->topologyVersion();
   s->tool = tool_;
+  s->field = field_;
   s->material = setup_.material;
   s->message = message;
   s->events = std::move(events);
   s->mass = body_->mass();
   s->elements = body_->tetrahedra().size();
   s->tets = tets_;
+  s->labels = labels_;
   s->surface = setup_.topology > 0 ? surface_ : nullptr;
   s->trocar = *setup_.tools.trocar;
+  s->gravity = setup_.settings.gravity;
   if (publishStress_) body_->stress(state_, s->stress);
   {
     std::array<double, 18> v{};
@@ -429,13 +462,14 @@ void Session::restore(const Checkpoint& c) {
   stroke_ = {};
   setup_ = c.setup;
   body_ = makeFemBody(setup_);
-  tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  elementsChanged();
   surface_.reset();
   if (setup_.topology > 0) updateCutSurface();
   state_ = c.state;
   body_->requestAgain(state_);
   updateSurfaceNodes();
   tool_ = c.tool;
+  field_ = c.field;
   steps_ = c.step;
   if (c.pendingChange) {  // the change under way is built again from the same inputs (the same body)
     PendingChange p;
@@ -487,8 +521,9 @@ void Session::run() {
       dropPendingChange(true);
       restOfSweep_.reset();
       stroke_ = {};
-      if (setup_.topology != uncut_.topology) {
-        // Back to the organ before any cut (parameter edits stay).
+      if (setup_.topology != uncut_.topology || setup_.mesh.tetLabels != uncut_.mesh.tetLabels) {
+        // Back to the organ before any cut or burn (parameter edits stay).
+        std::erase_if(setup_.byLabel, [](const auto& m) { return isBurnt(m.first); });
         setup_.mesh = uncut_.mesh;
         setup_.rest = uncut_.rest;
         setup_.start = uncut_.start;
@@ -496,13 +531,14 @@ void Session::run() {
         setup_.topology = uncut_.topology;
         setup_.cut = uncut_.cut;
         body_ = makeFemBody(setup_);
-        tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+        elementsChanged();
         surface_.reset();
       }
       state_ = body_->initialState();
       updateSurfaceNodes();
       steps_ = 0;
       tool_ = {};
+      field_ = {};
       updateToolConstraints();
       StepReport rest;
       rest.ok = true;

@@ -38,10 +38,10 @@ bool Session::changeTopology(TopologyChange change, std::string& message) {
     message = ex.what();
     return false;
   }
-  tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  elementsChanged();
   updateSurfaceNodes();
   updateCutSurface();
-  topologyChanged(change.labels, message);
+  topologyChanged(change, message);
   return true;
 }
 
@@ -56,8 +56,117 @@ void Session::launchBuild(PendingChange& p) const {
   });
 }
 
-void Session::topologyChanged(const std::vector<int>& labels, std::string& message) {
-  cutEvents(labels, message);  // the only kind of change so far
+void Session::topologyChanged(const TopologyChange& change, std::string& message) {
+  if (change.kind == ChangeKind::Cut) {
+    cutEvents(change.labels, message);
+    field_.heating.clear();  // it named elements the cut renumbered
+  } else {
+    burnEvents(change, message);
+  }
+  updateBleeds(message);  // a cut vessel's stumps bleed unless clipped; a burnt one is sealed
+}
+
+bool Session::burn(const std::vector<int>& elements, std::string& message) {
+  if (pending_) return false;  // one change at a time: the heat is kept, they burn at a later step
+  TopologyChange change;
+  change.kind = ChangeKind::Burn;
+  change.setup = setup_;
+  BodySetup& next = change.setup;
+  next.mesh.tetLabels = body_->labels();
+  for (int e : elements) {
+    if (e < 0 || static_cast<std::size_t>(e) >= next.mesh.tetLabels.size()) continue;
+    int& label = next.mesh.tetLabels[static_cast<std::size_t>(e)];
+    if (isBurnt(label)) continue;
+    const int burnt = burntLabel(label);
+    if (!next.byLabel.count(burnt)) {  // the label's own material, stiffened
+      const auto own = next.byLabel.find(label);
+      MaterialParams m = own != next.byLabel.end() ? own->second : next.material;
+      m.young *= setup_.tools.cautery.stiffening;
+      next.byLabel[burnt] = m;
+    }
+    if (std::find(change.labels.begin(), change.labels.end(), label) == change.labels.end())
+      change.labels.push_back(label);
+    label = burnt;
+  }
+  if (change.labels.empty()) return true;
+  std::sort(change.labels.begin(), change.labels.end());
+  const int latency = setup_.tools.cutLatencySteps;
+  change.applyAt = latency >= 0 ? steps_ + latency : -1;
+  if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) change.factorAt = state_.x;
+  return changeTopology(std::move(change), message);
+}
+
+void Session::burnEvents(const TopologyChange& change, std::string& message) {
+  events_.push_back("burn");
+  char buf[200];
+  std::snprintf(
+      buf, sizeof buf,
+      "The tissue under the hook burns: it whitens and stiffens (Young's modulus x%.1f); a cut through it does "
+      "not bleed.",
+      setup_.tools.cautery.stiffening);
+  if (message.find(buf) == std::string::npos) message += (message.empty() ? "" : " ") + std::string(buf);
+  (void)change;
+}
+
+void Session::fieldChanged(std::string& message) {
+  updateBleeds(message);  // a clip may stop a stump
+  updateToolConstraints();
+}
+
+void Session::updateBleeds(std::string& message) {
+  if (!surface_ || setup_.topology == 0) return;  // nothing cut: nothing bleeds
+  const std::vector<Bleed> before = field_.bleeds;
+  field_.bleeds = findBleeds(
+      *surface_, body_->tetrahedra(), body_->labels(), field_.clips, before,
+      [this](int label) { return setup_.mesh.labelKind(label); }, meanEdge_);
+  // What changed: a stump that bleeds now and did not (a new one, or one whose clip is gone), one a clip stopped.
+  auto was = [&before, this](const Bleed& b) -> const Bleed* {
+    for (const Bleed& p : before)
+      if (p.label == b.label && (p.at - b.at).norm() <= meanEdge_ && p.normal.dot(b.normal) > 0) return &p;
+    return nullptr;
+  };
+  double starting = 0, stopped = 0;
+  std::vector<int> startingLabels;
+  for (const Bleed& b : field_.bleeds) {
+    const Bleed* p = was(b);
+    const bool open = b.stoppedBy < 0, openBefore = p && p->stoppedBy < 0;
+    if (open && !openBefore) {
+      starting += b.rate;
+      if (std::find(startingLabels.begin(), startingLabels.end(), b.label) == startingLabels.end())
+        startingLabels.push_back(b.label);
+    }
+    if (!open && openBefore) stopped += p->rate;
+  }
+  double sealed = 0;  // open stumps that are gone: burnt (their faces are burnt tissue now)
+  for (const Bleed& p : before) {
+    if (p.stoppedBy >= 0) continue;
+    const bool still = std::any_of(field_.bleeds.begin(), field_.bleeds.end(), [&](const Bleed& b) {
+      return b.label == p.label && (p.at - b.at).norm() <= meanEdge_ && p.normal.dot(b.normal) > 0;
+    });
+    if (!still) sealed += p.rate;
+  }
+  char buf[240];
+  if (starting > 0) {
+    events_.push_back("bleeding");
+    std::string names;
+    for (int l : startingLabels) {
+      const std::string n = setup_.mesh.labelName(l);
+      names += (names.empty() ? "" : ", ") + std::string(structureKindName(setup_.mesh.labelKind(l))) +
+               (n.empty() ? "" : " (" + n + ")");
+    }
+    std::snprintf(buf, sizeof buf, " The %s bleeds: %.2f mL/s from the cut.", names.c_str(), 1e6 * starting);
+    message += buf;
+  }
+  if (stopped > 0 || sealed > 0) events_.push_back("bleeding stopped");
+  if (stopped > 0) {
+    std::snprintf(buf, sizeof buf, " The clip stops %.2f mL/s of bleeding.", 1e6 * stopped);
+    message += buf;
+  }
+  if (sealed > 0) {
+    std::snprintf(buf, sizeof buf, " The cautery seals %.2f mL/s of bleeding.", 1e6 * sealed);
+    message += buf;
+  }
+  if (!message.empty() && message.front() == ' ') message.erase(0, 1);
 }
 
 bool Session::finishPendingChange(bool wait, std::string& message) {
@@ -89,11 +198,11 @@ bool Session::finishPendingChange(bool wait, std::string& message) {
   state_.forces.resize(0);
   retire(std::move(body_));
   body_ = std::move(built.body);
-  tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+  elementsChanged();
   useContactSurface(std::move(built.contact));
   surface_ = std::move(built.surface);
   ++constructions_.cutSurfaces;
-  topologyChanged(p.labels, message);
+  topologyChanged(p, message);
   updateToolConstraints();
   continueSweep(message);
   return true;

@@ -26,8 +26,12 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   auto* intro = new QLabel(
       tr("Rehearse the gesture on the registered organ: with the grasper, press on the organ to close the jaws "
          "there, drag to pull it, release to let go (Space closes them at the cursor and keeps them closed); with "
-         "the scissors, press on the organ and drag across it to cut, release to stop. Take the scissors while the "
-         "jaws hold and they keep the traction while you cut, which opens the incision. The wheel moves the "
+         "the scissors, press on the organ and drag across it to cut, release to stop; with the clip applier, click "
+         "over "
+         "a vessel to clip it (a cut vessel bleeds unless a clip lies behind the cut); with the cautery hook, press "
+         "and drag "
+         "to burn a line (burnt tissue stiffens, whitens and is cut without bleeding). Take the scissors or the clip "
+         "applier while the jaws hold and they keep the traction, which opens the incision. The wheel moves the "
          "instrument's tip along the view ray while you hold it. "
          "The simulation runs while you work (Simulation panel: material, ligaments); the view shows it "
          "composited into the frame once the appearance is estimated (step 6), cut faces in preset interior "
@@ -45,6 +49,18 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
                  Tool::Scissors, Qt::Key_B);
   scissors->setObjectName(QStringLiteral("scissorsTool"));
   layout->addWidget(scissors);
+  auto* clipper = toolButton(this, tr("Clip applier (U)"),
+                             tr("Click on the organ over a vessel to close a clip across it; cut between two clips "
+                                "and the vessel does not bleed"),
+                             Tool::Clip, Qt::Key_U);
+  clipper->setObjectName(QStringLiteral("clipTool"));
+  layout->addWidget(clipper);
+  auto* cautery = toolButton(this, tr("Cautery hook (J)"),
+                             tr("Press on the organ to apply energy, drag to burn a line (the tissue whitens and "
+                                "stiffens; a cut along it does not bleed), release to stop"),
+                             Tool::Cautery, Qt::Key_J);
+  cautery->setObjectName(QStringLiteral("cauteryTool"));
+  layout->addWidget(cautery);
   // Recording for the trainer: into the case file, as the rehearsal runs (from rest: the simulation restarts).
   auto* recordRow = new QHBoxLayout;
   trainee_ = new QLineEdit(this);
@@ -169,7 +185,9 @@ void RehearsePage::refresh(const app::Case& c) {
   if (!c.hasPose)
     status_->setText(tr("Place the organ over the frame first (step 4)."));
   else if (status_->text().isEmpty() || status_->text().startsWith(tr("Place the organ")))
-    status_->setText(tr("Pick the grasper (R) or the scissors (B) and press on the organ."));
+    status_->setText(
+        tr("Pick the grasper (R), the scissors (B), the clip applier (U) or the cautery hook (J) and press on the "
+           "organ."));
 }
 
 RehearsePage::~RehearsePage() = default;
@@ -198,6 +216,16 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (slips_) extra += tr("   slips: %1").arg(slips_);
   if (cuts_) extra += tr("   cuts: %1").arg(cuts_);
   if (vesselCuts_) extra += tr("   vessels cut: %1").arg(vesselCuts_);
+  if (!f->field.clips.empty()) extra += tr("   clips: %1").arg(f->field.clips.size());
+  if (f->field.energy) extra += tr("   ENERGY ON");
+  if (f->field.bloodLoss > 0) {
+    double rate = 0;
+    for (const auto& b : f->field.bleeds)
+      if (b.stoppedBy < 0) rate += b.rate;
+    extra += tr("   blood lost: %1 mL%2")
+                 .arg(1e6 * f->field.bloodLoss, 0, 'f', 1)
+                 .arg(rate > 0 ? tr(" (bleeding %1 mL/s)").arg(1e6 * rate, 0, 'f', 2) : QString());
+  }
   // While the jaws hold and the shaft touches, the two shares (the jaws' decides a slip).
   QString shares;
   if (!t.held.empty() && (t.force - t.graspForce).norm() >= 0.005)
@@ -214,7 +242,9 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   // in the session's words: the status never says "Cut" over tissue that still joins.
   if (!f->message.isEmpty() &&
       (f->message.contains(QLatin1String("vessel")) || f->message.contains(QLatin1String("The cut")) ||
-       f->message.contains(QLatin1String(" was cut")) || f->message.contains(QLatin1String("breached"))))
+       f->message.contains(QLatin1String(" was cut")) || f->message.contains(QLatin1String("breached")) ||
+       f->message.contains(QLatin1String("clip")) || f->message.contains(QLatin1String("bleed")) ||
+       f->message.contains(QLatin1String("Energy")) || f->message.contains(QLatin1String("burns"))))
     status(f->message);
   labelThrottle_->request();  // the labels at most 15 times a second, the newest always shown
 }

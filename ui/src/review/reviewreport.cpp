@@ -25,24 +25,37 @@
 #include <stdexcept>
 
 namespace rehearse::ui {
-namespace {
-
-QImage toQImage(const cv::Mat3b& m) {
-  return QImage(m.data, m.cols, m.rows, static_cast<qsizetype>(m.step), QImage::Format_BGR888).copy();
-}
 
 // The events' tick colours, the ones the plot's legend names.
-QColor eventColour(const std::string& e) {
+QColor reviewEventColour(const std::string& e) {
   if (e == "grasp") return QColor(40, 160, 40);                // green
   if (e == "release") return QColor(40, 160, 160);             // teal
   if (e == "slip") return QColor(230, 140, 0);                 // orange
   if (e == "cut") return QColor(120, 0, 160);                  // purple
   if (e == "vessel cut") return QColor(200, 0, 0);             // red
   if (e == "force over threshold") return QColor(90, 90, 90);  // grey
+  if (e == "clip") return QColor(120, 130, 150);               // steel
+  if (e == "clip misplaced") return QColor(220, 180, 0);       // amber
+  if (e == "bleeding") return QColor(110, 0, 20);              // dark red
+  if (e == "bleeding stopped") return QColor(230, 110, 150);   // pink
+  if (e == "burn") return QColor(200, 190, 150);               // ash
+  if (e == "energy on structure") return QColor(255, 60, 200);  // magenta
   return {};
 }
-const char* kEventLegend =
-    "ticks: grasp green, release teal, slip orange, cut purple, vessel cut red (longer), force over the threshold grey";
+const char* const kReviewEventLegend =
+    "ticks: grasp green, release teal, slip orange, cut purple, vessel cut red (longer), force over the threshold "
+    "grey, "
+    "clip steel, clip misplaced amber, bleeding dark red, bleeding stopped pink, burn ash, energy on a structure "
+    "magenta";
+
+namespace {
+
+QImage toQImage(const cv::Mat3b& m) {
+  return QImage(m.data, m.cols, m.rows, static_cast<qsizetype>(m.step), QImage::Format_BGR888).copy();
+}
+
+QColor eventColour(const std::string& e) { return reviewEventColour(e); }
+const char* kEventLegend = kReviewEventLegend;
 
 QString number(double v) {
   if (v == 0) return "0";

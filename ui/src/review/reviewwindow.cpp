@@ -87,8 +87,7 @@ class TimelineWidget : public QWidget {
     p.drawPath(path);
     for (const auto& s : *timeline)
       for (const auto& e : s.events) {
-        const QColor c = e == "grasp" ? QColor(60, 200, 60) : e == "slip" ? QColor(240, 150, 0) : e == "vessel cut" ? QColor(230, 30, 30)
-                         : e == "cut" ? QColor(170, 60, 220) : e == "force over threshold" ? QColor(190, 190, 190) : e == "release" ? QColor(60, 200, 200) : QColor();  // as the report names them
+        const QColor c = reviewEventColour(e);  // as the report names them
         if (!c.isValid()) continue;
         p.setPen(QPen(c, 3));
         p.drawLine(QPointF(xAt(s.time), 2), QPointF(xAt(s.time), 16));

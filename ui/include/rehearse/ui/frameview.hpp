@@ -26,7 +26,21 @@ namespace rehearse::ui {
 /// ligament (surface nodes joined by shortest paths along the surface), for the elastic fit.
 /// Attachments: a click on the organ drawn over the frame holds the surface nodes around it (ligament
 /// attachments for the simulation and the fit); a click on held ones releases them.
-enum class Tool { Navigate, Freehand, ClickPoints, EditPoints, Erase, Align, Landmarks, OrganCurve, Attachments, Grasp, Scissors };
+enum class Tool {
+  Navigate,
+  Freehand,
+  ClickPoints,
+  EditPoints,
+  Erase,
+  Align,
+  Landmarks,
+  OrganCurve,
+  Attachments,
+  Grasp,
+  Scissors,
+  Clip,
+  Cautery
+};
 
 /// Gizmo handles of the Align tool: translations along and rotations about the camera axes through
 /// the organ's centre of gravity.
@@ -96,6 +110,13 @@ class FrameView : public QWidget {
   /// After a cut: the live shape's boundary (its triangles index liveShape()); null before any cut.
   void setLiveSurface(std::shared_ptr<const simcore::CutSurface> s) { liveSurface_ = std::move(s); }
   const std::shared_ptr<const simcore::CutSurface>& liveSurface() const { return liveSurface_; }
+  /// While rehearsing: the clips on the tissue and the blood lost from open stumps (drawn over the frame: clips in
+  /// titanium grey, blood spreading over the surface from each stump, further down `gravity`, camera frame).
+  /// `labels`: the elements' labels (burnt ones drawn whitened where they reach the surface).
+  void setLiveField(simcore::OperativeField field, const Eigen::Vector3d& gravity,
+                    std::shared_ptr<const std::vector<int>> labels = nullptr,
+                    std::shared_ptr<const std::vector<std::array<int, 4>>> tets = nullptr);
+  const simcore::OperativeField& liveField() const { return field_; }
   void setOverlayVisible(bool visible);
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
@@ -181,6 +202,14 @@ class FrameView : public QWidget {
   QString warningText_;
   void paintWarning(QPainter& painter);
   std::shared_ptr<const simcore::CutSurface> liveSurface_;
+  simcore::OperativeField field_;
+  std::shared_ptr<const std::vector<int>> fieldLabels_;
+  std::shared_ptr<const std::vector<std::array<int, 4>>> fieldTets_;
+  Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
+  /// The surface's edges (fieldpaint.cpp), kept while the cut surface is the same.
+  struct FieldGraph;
+  std::shared_ptr<FieldGraph> fieldGraph_;
+  void paintField(QPainter& painter);
   QImage frame_, overlay_, inner_;
   quint64 paints_ = 0;
   struct {

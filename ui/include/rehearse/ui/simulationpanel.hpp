@@ -50,6 +50,7 @@ struct SimulationSetup {
   /// m: the grasper's bite: closing the jaws holds the free nodes within this distance of the tip (a coarse mesh's
   /// nodes can be a centimetre apart: 6 mm may hold one).
   double graspRadius = 0.006;
+  double clipLength = 0.009;  ///< m, the clip applier's jaws
   /// The organ starts where the frame shows it, in equilibrium under gravity on its attachments: the rest shape that
   /// sags into the registered one is solved first (simcore/inverse_rest.hpp). Off: it starts at rest on that shape
   /// (and sags away from it).
@@ -73,6 +74,9 @@ struct SimulationFrame {
   simcore::ToolState tool;          ///< the instrument after the step (tip, held nodes, force on the tissue)
   std::vector<std::string> events;  ///< grasp, release, slip, cut, vessel cut at this step
   std::shared_ptr<const simcore::CutSurface> surface;  ///< after a cut: the boundary to draw (cut tissue marked)
+  simcore::OperativeField field;                       ///< clips, bleeding stumps, blood lost, the cautery's heat
+  std::shared_ptr<const std::vector<int>> labels;      ///< the elements' labels (burnt ones: simcore::isBurnt)
+  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();   ///< m/s^2, camera frame
   std::size_t elements = 0;
   double mass = 0;                                              ///< kg
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;  ///< the elements at this step
@@ -217,6 +221,7 @@ class SimulationPanel : public QWidget {
     QDoubleSpinBox* density = nullptr;
     QDoubleSpinBox* timeStep = nullptr;
     QDoubleSpinBox* jawBite = nullptr;  ///< the grasper's reach: closing holds the nodes within it of the tip (mm)
+    QDoubleSpinBox* clipLength = nullptr;  ///< the clip applier's jaws' length (mm)
     QLabel* mass = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
   } form_;
   QPushButton* playButton_ = nullptr;

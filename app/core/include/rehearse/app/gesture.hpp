@@ -4,14 +4,19 @@
 // The script (README "File formats"):
 //   {"format": "rehearse-gesture", "duration": 2.0, "dt": 0.01,
 //    "tools": {"grasp_radius_mm": 6, "max_grasp_force_n": 15},
-//    "events": [{"t": 0.0, "tool": "grasper", "tip_near": [x, y, z]},   // the tip onto the organ's node nearest this point
+//    "events": [{"t": 0.0, "tool": "grasper", "tip_near": [x, y, z]},   // the tip onto the organ's node nearest this
+//    point
 //               {"t": 0.1, "jaws": "close"},
 //               {"t": 0.2, "move": [0, 0, -0.02], "over": 1.0},       // the tip moved by this, evenly over this time
 //               {"t": 1.5, "jaws": "open"},
 //               {"t": 1.6, "tool": "scissors", "tip": [x, y, z]},       // scissors or hook: a blade instead of jaws
-//               {"t": 1.7, "cut": "on"}, {"t": 1.7, "move": [0.05, 0, 0], "over": 0.5}, {"t": 2.3, "cut": "off"}]}
+//               {"t": 1.7, "cut": "on"}, {"t": 1.7, "move": [0.05, 0, 0], "over": 0.5}, {"t": 2.3, "cut": "off"},
+//               {"t": 2.4, "tool": "clip applier", "tip": [x, y, z]}, {"t": 2.5, "clip": "close"},
+//               {"t": 2.6, "tool": "cautery", "tip": [x, y, z]}, {"t": 2.6, "energy": "on"}, {"t": 3.0, "energy":
+//               "off"}]}
 // Positions in metres in the body's frame; "tip": [x, y, z] places the tip directly. "tools" may also set
-// "blade_length_mm" and "trocar": [x, y, z] (where the shafts enter; the blade lies on the shaft).
+// "blade_length_mm" and "trocar": [x, y, z] (where the shafts enter; the blade lies on the shaft). A clip may give
+// "across": [x, y, z], the direction its jaws close along (default: the shaft's, perpendicular to the structure).
 #include <rehearse/simcore/session/session.hpp>
 
 #include <functional>
@@ -29,7 +34,10 @@ struct GestureEvent {
   double over = 0;                         ///< s, for move (0: at once)
   std::optional<bool> jawsClosed;
   std::optional<bool> cut;            ///< blade on / off (scissors or hook)
-  std::optional<std::string> tool;    ///< "grasper", "scissors", "hook"
+  std::optional<std::string> tool;    ///< "grasper", "scissors", "hook", "clip applier", "cautery"
+  bool clip = false;                  ///< the clip applier's jaws close: a clip is left at the tip
+  std::optional<bool> energy;         ///< the cautery's power on / off
+  std::optional<Eigen::Vector3d> across;  ///< the clip's closing direction (default: the shaft's)
 };
 
 struct GestureScript {
@@ -40,6 +48,7 @@ struct GestureScript {
   std::optional<double> toolRadius;                               ///< m, the shaft's radius for contact (0: none)
   std::optional<double> depenetrationSpeed;                       ///< m/s (ToolSettings::depenetrationSpeed; 0: at once)
   std::optional<int> cutLatencySteps;                             ///< ToolSettings::cutLatencySteps (-1: as before it existed)
+  std::optional<double> clipLength, clipGap, clipMinSqueeze;      ///< m, m, - (ToolSettings::clip)
   std::vector<GestureEvent> events;  ///< in time order
 };
 
@@ -61,6 +70,9 @@ struct GestureResult {
   std::vector<GestureStep> steps;
   simcore::SimulationState final;
   std::size_t slips = 0, failed = 0, cuts = 0, vesselCuts = 0;
+  std::size_t clips = 0, misplacedClips = 0, bleedings = 0;  ///< clips left, of them misplaced; stumps that bled
+  double bloodLoss = 0;                                      ///< m^3 at the end
+  std::size_t burns = 0, energyOnStructures = 0;             ///< burn updates; named structures energy reached
   long contactQueries = 0;  ///< 0 when the script moves no instrument
   simcore::Mesh finalMesh;  ///< the volume at the end: nodes and elements after any cut, at the final positions
 };

@@ -275,6 +275,13 @@ struct SessionMetrics {
   std::string cutDeviationWhy;
   std::optional<int> tumourBreaches;  ///< cuts through an element labelled "tumour"; nullopt when the case marks none
   std::string tumourWhy;
+  int clips = 0;           ///< clips the clip applier left (events "clip")
+  int misplacedClips = 0;  ///< of them, on something not a vessel or a duct, or not across all of it ("clip misplaced")
+  /// mL of blood lost from cut vessels' open stumps by the session's end; nullopt when the case names no vessel
+  /// (vesselWhy says so: nothing can bleed).
+  std::optional<double> bloodLossMl;
+  int energyOnStructures = 0;          ///< named structures the cautery's energy reached ("energy on structure")
+  double energyTimeS = 0;              ///< s of energy applied to tissue
   std::optional<int> attachmentsTorn;  ///< nullopt: the model's attachments cannot tear (attachmentsWhy)
   std::string attachmentsWhy;
 };
@@ -288,8 +295,8 @@ struct TimelineSample {
   double strain = 0;                              ///< largest principal Green strain (0 unless computed)
   bool holding = false, cutting = false;
   bool newInstrument = false;  ///< another instrument than at the last step (its tip did not travel from there)
-  std::vector<std::string>
-      events;  ///< "grasp", "release", "slip", "cut", "vessel cut", "cut through label N", "force over threshold"
+  std::vector<std::string> events;  ///< "grasp", "release", "slip", "cut", "vessel cut", "cut through label N", "force
+                                    ///< over threshold", "clip", "clip misplaced", "bleeding", "bleeding stopped"
 };
 struct ReplayResult {
   VerifyResult verify;

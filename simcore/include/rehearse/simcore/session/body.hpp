@@ -7,6 +7,7 @@
 #include <rehearse/simcore/cut.hpp>
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/session/field.hpp>
 
 #include <memory>
 #include <optional>
@@ -46,12 +47,15 @@ struct ToolSettings {
   /// tip, whichever instrument made it (the sessions recorded before this existed: their scissors dragged what the
   /// jaws held).
   bool jawsKeepTheirHold = true;
+  ClipSettings clip;        ///< the clip applier's jaws and clips (field.hpp)
+  CauterySettings cautery;  ///< the cautery hook's reach, burn time and the stiffening of burnt tissue (field.hpp)
   bool operator==(const ToolSettings& o) const {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce &&
            trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
            bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
            cutLatencySteps == o.cutLatencySteps && cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
-           cut.minVolumeFraction == o.cut.minVolumeFraction && jawsKeepTheirHold == o.jawsKeepTheirHold;
+           cut.minVolumeFraction == o.cut.minVolumeFraction && jawsKeepTheirHold == o.jawsKeepTheirHold &&
+           clip == o.clip && cautery == o.cautery;
   }
 };
 

@@ -30,7 +30,8 @@ enum class InputKind {
   ToolPose,   ///< the tool tip moved to `position` (m, body frame)
   Jaw,        ///< the jaws closed (`on`) or opened
   Cut,        ///< the cutting instrument on (`on`) or off
-  Parameter,  ///< `name` ("young", "poisson", "density", "model", "dt", "method", "grasp_radius": the jaws' bite, what
+  Parameter,  ///< `name` ("young", "poisson", "density", "model", "dt", "method", "clip_length": the clip applier's
+              ///< next clips, "grasp_radius": the jaws' bite, what
               ///< their next closing holds) set to `value` (SI; model and method:
               ///< MaterialModel / NewtonMethod index); with `label` > 0, "young" and "poisson" of that label's
               ///< material (e.g. the vessels'; "young" 0 removes it: the label then uses the parenchyma's)
@@ -39,6 +40,9 @@ enum class InputKind {
            ///< in at this step boundary; a replay (FactorRefresh::Deferred) installs it at the same boundary
   CutApplied,  ///< recorded, not posted by a user: a cut computed earlier, whose new body was built on another thread
                ///< (asynchronous refresh), replaced the body at this step boundary; a replay applies it here
+  Clip,        ///< the clip applier's jaws closed at the tip: a clip is left there (`vector`: the jaws' closing
+               ///< direction; zero: the shaft's, made perpendicular to the clipped structure)
+  Energy,      ///< the cautery hook's power on (`on`) or off: tissue within its radius of the tip burns over time
 };
 
 struct InputEvent {
@@ -112,12 +116,16 @@ struct Snapshot {
   std::string message;              ///< a sentence about the last applied input, when it needs one
   std::vector<double> stress;       ///< per element von Mises stress (Pa), only while setPublishStress(true)
   std::vector<std::string> events;  ///< what happened at this step ("grasp", "release", "slip", "cut", "vessel cut",
-                                    ///< "cut through label N" per label cut)
+                                    ///< "cut through label N" per label cut, "clip", "clip misplaced", "bleeding",
+                                    ///< "bleeding stopped")
+  OperativeField field;             ///< the clips on the tissue, the stumps that bleed, the blood lost
   double mass = 0;                  ///< kg, the body's total
   std::size_t elements = 0;
   /// The elements (node indices) at this step: shared between snapshots until a cut changes them.
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;
+  std::shared_ptr<const std::vector<int>> labels;    ///< the elements' labels (burnt ones: isBurnt), shared likewise
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();  ///< where the shafts enter (m, body frame)
+  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  ///< m/s^2, body frame (the way blood runs)
   /// After a cut (topologyVersion > 0): the boundary to draw, cut tissue marked; null before any cut.
   std::shared_ptr<const CutSurface> surface;
 };
@@ -126,7 +134,9 @@ struct Snapshot {
 /// how the state extends onto the new nodes. The session builds the new body (at once, or on the second thread while
 /// the old one steps on) and swaps it in at a step boundary, carrying the state across (topology.cpp). A checkpoint
 /// keeps a change still under way, so that a session restored from it builds the same body again.
+enum class ChangeKind { Cut, Burn };
 struct TopologyChange {
+  ChangeKind kind = ChangeKind::Cut;  ///< what words its events (a burn relabels elements: no new node, no new face)
   BodySetup setup;                ///< the new body's setup (new mesh, topology + 1, the change's progress)
   std::vector<CutNode> newNodes;  ///< how the state extends onto the new nodes (each interpolated from old ones)
   std::vector<int> labels;        ///< element labels the change went through (a cut: its events, the vessels it cut)
@@ -142,6 +152,7 @@ struct Checkpoint {
   BodySetup setup;
   SimulationState state;
   ToolState tool;
+  OperativeField field;
   std::optional<TopologyChange> pendingChange;
   std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> restOfSweep;
 };
@@ -237,6 +248,7 @@ class Session : private InstrumentHost {
   const Eigen::VectorXd& positions() const override { return state_.x; }
   const std::vector<char>& fixedMask() const override { return body_->fixedMask(); }
   const ToolSettings& tools() const override { return setup_.tools; }
+  const SimulationSettings& settings() const override { return setup_.settings; }
   double meanEdge() const override { return meanEdge_; }
   void emitEvent(const std::string& event) override { events_.push_back(event); }
   void seedContactEasing() override { seedEasing_ = true; }
@@ -249,6 +261,16 @@ class Session : private InstrumentHost {
   }
   void forgetCutProgress() override;
   void beginStroke() override;
+  OperativeField& field() override { return field_; }
+  bool burn(const std::vector<int>& elements, std::string& message) override;
+  const std::vector<std::array<int, 4>>& elements() const override { return body_->tetrahedra(); }
+  const std::vector<int>& elementLabels() const override { return body_->labels(); }
+  double time() const override { return state_.time; }
+  const Mesh& mesh() const override { return setup_.mesh; }
+  void fieldChanged(std::string& message) override;
+  OperativeField field_;  ///< clips, bleeding stumps, blood lost (field.hpp; part of a checkpoint)
+  /// The stumps again (after a cut or a clip), with their events and sentence.
+  void updateBleeds(std::string& message);
   std::vector<std::unique_ptr<Instrument>> instruments_ = makeInstruments();
 
   // Topology changes (topology.cpp), one mechanism whatever computed the new mesh (cutting.cpp: the blade's sweep):
@@ -273,7 +295,9 @@ class Session : private InstrumentHost {
   /// Drops the change under way (reset waits for its build, a restore leaves it to finish on its own thread).
   void dropPendingChange(bool wait);
   /// What every applied change does after the body changed: elements, surfaces, contact, then its events.
-  void topologyChanged(const std::vector<int>& labels, std::string& message);
+  void topologyChanged(const TopologyChange& change, std::string& message);
+  /// What a burn applied says: the elements burnt, the stumps it stopped.
+  void burnEvents(const TopologyChange& change, std::string& message);
   std::optional<PendingChange> pending_;
   std::vector<std::future<Built>> abandoned_;  ///< builds a restore left behind (waited for at the end)
   /// Old bodies being destroyed on another thread (an asynchronous refresh under way ends first).
@@ -311,6 +335,12 @@ class Session : private InstrumentHost {
   double meanEdge_ = 0;  ///< m, of the uncut mesh: the blade's sweep is applied in steps of it
   std::unique_ptr<DeformableBody> body_;
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets_;
+  std::shared_ptr<const std::vector<int>> labels_;  ///< body_->labels(), shared with the snapshots until it changes
+  /// The body's elements or their labels changed: the shared copies the snapshots carry are made again.
+  void elementsChanged() {
+    tets_ = std::make_shared<const std::vector<std::array<int, 4>>>(body_->tetrahedra());
+    labels_ = std::make_shared<const std::vector<int>>(body_->labels());
+  }
   std::shared_ptr<const CutSurface> surface_;  ///< after a cut
   void updateCutSurface();
   void updateSurfaceNodes();

@@ -1,0 +1,334 @@
+// The operative field (field.hpp): where a clip closes and the rows that close it, and which stumps of cut vessels
+// bleed.
+#include <rehearse/simcore/constraint_solver.hpp>
+#include <rehearse/simcore/session/field.hpp>
+#include <rehearse/simcore/session/session.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <numeric>
+
+namespace rehearse::simcore {
+
+namespace {
+Eigen::Vector3d node(const Eigen::VectorXd& x, int i) { return x.segment<3>(3 * static_cast<Eigen::Index>(i)); }
+
+// A unit vector perpendicular to `a` (unit), from `hint` when it is not along `a`.
+Eigen::Vector3d perpendicular(const Eigen::Vector3d& a, const Eigen::Vector3d& hint) {
+  Eigen::Vector3d p = hint - hint.dot(a) * a;
+  if (p.norm() > 1e-6 * std::max(1.0, hint.norm())) return p.normalized();
+  p = a.unitOrthogonal();
+  return p;
+}
+
+struct UnionFind {
+  std::vector<int> parent;
+  explicit UnionFind(std::size_t n) : parent(n) { std::iota(parent.begin(), parent.end(), 0); }
+  int find(int i) {
+    while (parent[static_cast<std::size_t>(i)] != i)
+      i = parent[static_cast<std::size_t>(i)] = parent[static_cast<std::size_t>(parent[static_cast<std::size_t>(i)])];
+    return i;
+  }
+  void join(int a, int b) { parent[static_cast<std::size_t>(find(a))] = find(b); }
+};
+}  // namespace
+
+Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& tets, const std::vector<int>& labels,
+               const std::vector<char>& fixed, const Eigen::Vector3d& tip, const Eigen::Vector3d& trocar,
+               const Eigen::Vector3d& across, double reach, const ClipSettings& s, double time,
+               const std::function<StructureKind(int)>& kindOf, std::string& message) {
+  Clip clip;
+  clip.placedAt = time;
+  clip.gap = s.gap;
+  // The structure the jaws close on: the label of the element whose centre is nearest the tip, within reach, a
+  // vessel's or a duct's before any other.
+  double best = reach * reach, bestClosable = reach * reach;
+  int nearest = -1, nearestClosable = -1;
+  std::map<int, bool> closable;
+  for (std::size_t e = 0; e < tets.size(); ++e) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int v : tets[e]) c += node(x, v);
+    const double d = (0.25 * c - tip).squaredNorm();
+    if (d > best && d > bestClosable) continue;
+    if (d <= best) best = d, nearest = static_cast<int>(e);
+    const int label = e < labels.size() ? labels[e] : 0;
+    auto it = closable.find(label);
+    if (it == closable.end()) {
+      const StructureKind k = kindOf ? kindOf(label) : StructureKind::Tissue;
+      it = closable.emplace(label, isVessel(k) || k == StructureKind::BileDuct).first;
+    }
+    if (it->second && d <= bestClosable) bestClosable = d, nearestClosable = static_cast<int>(e);
+  }
+  if (nearestClosable >= 0) nearest = nearestClosable;
+  if (nearest < 0 || !tip.allFinite()) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "The clip closed on nothing: no tissue within %.0f mm of the tip.", 1e3 * reach);
+    message = buf;
+    return clip;
+  }
+  clip.label = static_cast<std::size_t>(nearest) < labels.size() ? labels[static_cast<std::size_t>(nearest)] : 0;
+  // The label's nodes near the tip, and its elements' mean edge there.
+  const double search = std::max(s.length, reach);
+  std::vector<char> inLabel(static_cast<std::size_t>(x.size() / 3), 0);
+  double edgeSum = 0;
+  int edges = 0;
+  for (std::size_t e = 0; e < tets.size(); ++e) {
+    if ((e < labels.size() ? labels[e] : 0) != clip.label) continue;
+    const auto& t = tets[e];
+    if ((node(x, t[0]) - tip).norm() > 2 * search) continue;
+    for (int v : t) inLabel[static_cast<std::size_t>(v)] = 1;
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b)
+        edgeSum += (node(x, t[static_cast<std::size_t>(a)]) - node(x, t[static_cast<std::size_t>(b)])).norm(), ++edges;
+  }
+  const double edge = edges ? edgeSum / edges : s.width;
+  // The structure near the tip: its nodes within reach that its elements join to the one nearest the tip (another
+  // branch beside it, joined only further away, is not part of what the jaws close on).
+  std::vector<char> within(inLabel.size(), 0);
+  for (std::size_t i = 0; i < inLabel.size(); ++i)
+    within[i] = inLabel[i] && (node(x, static_cast<int>(i)) - tip).norm() <= search;
+  std::map<int, std::vector<int>> adjacent;
+  for (std::size_t e = 0; e < tets.size(); ++e) {
+    if ((e < labels.size() ? labels[e] : 0) != clip.label) continue;
+    const auto& t = tets[e];
+    for (int a = 0; a < 4; ++a)
+      for (int b = 0; b < 4; ++b)
+        if (a != b && within[static_cast<std::size_t>(t[static_cast<std::size_t>(a)])] &&
+            within[static_cast<std::size_t>(t[static_cast<std::size_t>(b)])])
+          adjacent[t[static_cast<std::size_t>(a)]].push_back(t[static_cast<std::size_t>(b)]);
+  }
+  int seed = -1;
+  double seedDistance = std::numeric_limits<double>::infinity();
+  for (int v : tets[static_cast<std::size_t>(nearest)])
+    if (within[static_cast<std::size_t>(v)] && (node(x, v) - tip).norm() < seedDistance)
+      seedDistance = (node(x, v) - tip).norm(), seed = v;
+  std::vector<int> near;
+  if (seed >= 0) {
+    std::vector<char> seen(within.size(), 0);
+    std::vector<int> queue = {seed};
+    seen[static_cast<std::size_t>(seed)] = 1;
+    for (std::size_t q = 0; q < queue.size(); ++q)
+      for (int w : adjacent[queue[q]])
+        if (!seen[static_cast<std::size_t>(w)]) {
+          seen[static_cast<std::size_t>(w)] = 1;
+          queue.push_back(w);
+        }
+    near = std::move(queue);
+    std::sort(near.begin(), near.end());
+  }
+  // The structure's direction: the principal axis of its nodes near the tip.
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int i : near) mean += node(x, i);
+  mean /= std::max<double>(1, static_cast<double>(near.size()));
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (int i : near) cov += (node(x, i) - mean) * (node(x, i) - mean).transpose();
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(cov);
+  clip.axis = near.size() >= 2 && es.info() == Eigen::Success ? es.eigenvectors().col(2).normalized()
+                                                              : Eigen::Vector3d::UnitX();
+  const Eigen::Vector3d hint = across.norm() > 0 ? across : Eigen::Vector3d(tip - trocar);
+  clip.across = perpendicular(clip.axis, hint);
+  const Eigen::Vector3d jaw = clip.axis.cross(clip.across).normalized();
+  // The jaws: their length across the structure, their opening along the closing direction (either side of the
+  // centre: as wide as they are long, at least the reach they close within), the clip's width along the structure (at
+  // least half an element edge).
+  const double halfWidth = std::max(0.5 * s.width, 0.5 * edge), halfLength = 0.5 * s.length,
+               opening = std::max(s.length, reach);
+  // The nodes between the jaws; the clip's centre recentred on them across and along the jaws (a clip placed on the
+  // vessel's side closes on its middle).
+  Eigen::Vector3d centre = tip;
+  std::vector<int> between;
+  for (int pass = 0; pass < 2; ++pass) {
+    between.clear();
+    for (int i : near) {
+      const Eigen::Vector3d d = node(x, i) - centre;
+      if (!fixed[static_cast<std::size_t>(i)] && std::abs(d.dot(clip.axis)) <= halfWidth &&
+          std::abs(d.dot(jaw)) <= halfLength && std::abs(d.dot(clip.across)) <= opening)
+        between.push_back(i);
+    }
+    if (between.empty()) break;
+    Eigen::Vector3d m = Eigen::Vector3d::Zero();
+    for (int i : between) m += node(x, i);
+    m /= static_cast<double>(between.size());
+    centre += (m - centre).dot(clip.across) * clip.across + (m - centre).dot(jaw) * jaw;
+  }
+  if (between.size() < 2) {
+    message = "The clip closed on nothing: fewer than two free nodes of the tissue lie between its jaws.";
+    return clip;
+  }
+  // Does the structure go on beyond the jaws (the clip does not close all of it)? Its nodes are where the mesh puts
+  // them: within half an element edge past the jaws' ends it is taken as closed.
+  double reaches = 0;  // how far the structure reaches from the clip's centre along the jaws
+  for (int i : near) {
+    const Eigen::Vector3d d = node(x, i) - centre;
+    if (std::abs(d.dot(clip.axis)) <= halfWidth && std::abs(d.dot(clip.across)) <= opening)
+      reaches = std::max(reaches, std::abs(d.dot(jaw)));
+  }
+  clip.spans = reaches <= halfLength + 0.5 * edge;
+  double widest = 0;
+  std::vector<double> offset;
+  for (int i : between) {
+    offset.push_back((node(x, i) - centre).dot(clip.across));
+    widest = std::max(widest, std::abs(offset.back()));
+  }
+  const double scale = widest > 0.5 * s.gap ? std::max(0.5 * s.gap / widest, std::min(1.0, s.minSqueeze)) : 1.0;
+  std::size_t a = 0;
+  for (std::size_t k = 1; k < between.size(); ++k)
+    if (std::abs(offset[k]) < std::abs(offset[a])) a = k;
+  clip.anchor = between[a];
+  clip.anchorFrom = offset[a];
+  clip.anchorTo = offset[a] * scale;
+  for (std::size_t k = 0; k < between.size(); ++k) {
+    if (k == a) continue;
+    clip.nodes.push_back(between[k]);
+    clip.from.push_back(offset[k]);
+    clip.to.push_back(offset[k] * scale);
+  }
+  if (!clip.spans) {
+    char buf[240];
+    std::snprintf(buf, sizeof buf,
+                  "The clip does not span the structure: it reaches %.1f mm from the clip's centre, beyond the %.0f mm "
+                  "jaws (a longer clip: the Simulation panel's Clip length).",
+                  1e3 * reaches, 1e3 * s.length);
+    message = buf;
+  }
+  if (2 * widest * scale > s.gap * (1 + 1e-9)) {
+    char buf[260];
+    std::snprintf(buf, sizeof buf,
+                  " The clip squeezes %.1f mm of tissue to %.1f mm, not to its %.1f mm gap: the mesh's elements there "
+                  "(%.1f mm) are coarser than the structure, and closing them further would crush them.",
+                  2e3 * widest, 2e3 * widest * scale, 1e3 * s.gap, 1e3 * edge);
+    message += buf;
+  }
+  return clip;
+}
+
+void clipRows(const OperativeField& f, double time, double closeTime, std::vector<ScalarConstraint>& rows) {
+  for (const Clip& c : f.clips) {
+    if (c.anchor < 0) continue;
+    const double s = closeTime > 0 ? std::clamp((time - c.placedAt) / closeTime, 0.0, 1.0) : 1.0;
+    const double anchorAt = (1 - s) * c.anchorFrom + s * c.anchorTo;
+    for (std::size_t k = 0; k < c.nodes.size(); ++k) {
+      ScalarConstraint r;
+      r.nodes = {c.nodes[k], c.anchor, -1, -1};
+      r.weights = {1, -1, 0, 0};
+      r.direction = c.across;
+      r.value = (1 - s) * c.from[k] + s * c.to[k] - anchorAt;
+      rows.push_back(r);
+    }
+  }
+}
+
+double bleedSpeed(StructureKind kind) {
+  switch (kind) {
+    case StructureKind::Artery:
+      return 0.30;
+    case StructureKind::PortalVein:
+      return 0.15;
+    case StructureKind::Vein:
+    case StructureKind::Vessel:
+      return 0.10;
+    default:
+      return 0;
+  }
+}
+
+std::vector<Bleed> findBleeds(const CutSurface& surface, const std::vector<std::array<int, 4>>& tets,
+                              const std::vector<int>& labels, const std::vector<Clip>& clips,
+                              const std::vector<Bleed>& previous, const std::function<StructureKind(int)>& kindOf,
+                              double meanEdge) {
+  std::vector<Bleed> out;
+  const auto& rest = surface.rest;
+  const std::size_t n = rest.size();
+  // The cut faces of bleeding labels, by label.
+  std::map<int, std::vector<std::size_t>> faces;
+  std::map<int, double> speed;
+  for (std::size_t k = 0; k < surface.triangles.size(); ++k) {
+    if (!surface.cut[k] || k >= surface.labels.size()) continue;
+    const int label = surface.labels[k];
+    auto it = speed.find(label);
+    if (it == speed.end()) it = speed.emplace(label, bleedSpeed(kindOf(label))).first;
+    if (it->second > 0) faces[label].push_back(k);
+  }
+  for (const auto& [label, list] : faces) {
+    // The pieces of this vessel (its elements sharing nodes): a clip stops a stump of its own piece only.
+    UnionFind piece(n);
+    for (std::size_t e = 0; e < tets.size(); ++e)
+      if ((e < labels.size() ? labels[e] : 0) == label)
+        for (int v = 1; v < 4; ++v) piece.join(tets[e][static_cast<std::size_t>(v)], tets[e][0]);
+    // The stumps: the cut faces joined by their nodes, each side of the cut (by its normal) one stump.
+    UnionFind joined(n);
+    for (std::size_t k : list) {
+      const auto& t = surface.triangles[k];
+      joined.join(t[1], t[0]);
+      joined.join(t[2], t[0]);
+    }
+    std::map<int, std::vector<std::size_t>> groups;
+    for (std::size_t k : list) groups[joined.find(surface.triangles[k][0])].push_back(k);
+    for (const auto& [root, group] : groups) {
+      Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+      std::vector<Eigen::Vector3d> normal(group.size());
+      std::vector<double> area(group.size());
+      for (std::size_t g = 0; g < group.size(); ++g) {
+        const auto& t = surface.triangles[group[g]];
+        const Eigen::Vector3d w =
+            (rest[static_cast<std::size_t>(t[1])] - rest[static_cast<std::size_t>(t[0])])
+                .cross(rest[static_cast<std::size_t>(t[2])] - rest[static_cast<std::size_t>(t[0])]);
+        area[g] = 0.5 * w.norm();
+        normal[g] = area[g] > 0 ? Eigen::Vector3d(w.normalized()) : Eigen::Vector3d::Zero();
+        scatter += area[g] * normal[g] * normal[g].transpose();
+      }
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(scatter);
+      const Eigen::Vector3d d = es.eigenvectors().col(2);
+      for (int side : {1, -1}) {
+        Bleed b;
+        b.label = label;
+        Eigen::Vector3d sumN = Eigen::Vector3d::Zero(), sumC = Eigen::Vector3d::Zero();
+        std::vector<int> nodes;
+        for (std::size_t g = 0; g < group.size(); ++g) {
+          if ((normal[g].dot(d) >= 0 ? 1 : -1) != side || !(area[g] > 0)) continue;
+          const auto& t = surface.triangles[group[g]];
+          b.area += area[g];
+          sumN += area[g] * normal[g];
+          sumC += area[g] *
+                  (rest[static_cast<std::size_t>(t[0])] + rest[static_cast<std::size_t>(t[1])] +
+                   rest[static_cast<std::size_t>(t[2])]) /
+                  3.0;
+          nodes.insert(nodes.end(), t.begin(), t.end());
+        }
+        if (!(b.area > 0)) continue;
+        b.at = sumC / b.area;
+        b.normal = sumN.norm() > 0 ? Eigen::Vector3d(sumN.normalized()) : Eigen::Vector3d(side * d);
+        b.rate = b.area * speed[label];
+        double nearest = std::numeric_limits<double>::infinity();
+        for (int v : nodes)
+          if (const double dist = (rest[static_cast<std::size_t>(v)] - b.at).norm(); dist < nearest)
+            nearest = dist, b.node = v;
+        const int stumpPiece = piece.find(nodes.front());
+        for (std::size_t c = 0; c < clips.size(); ++c) {
+          const Clip& clip = clips[c];
+          if (clip.label != label || clip.anchor < 0 || static_cast<std::size_t>(clip.anchor) >= n || !clip.spans)
+            continue;
+          if (piece.find(clip.anchor) == stumpPiece &&
+              (rest[static_cast<std::size_t>(clip.anchor)] - b.at).dot(b.normal) < 0) {
+            b.stoppedBy = static_cast<int>(c);
+            break;
+          }
+        }
+        for (const Bleed& p : previous)
+          if (p.label == label && (p.at - b.at).norm() <= meanEdge && p.normal.dot(b.normal) > 0) {
+            b.lost = p.lost;
+            break;
+          }
+        out.push_back(b);
+      }
+    }
+  }
+  return out;
+}
+
+}  // namespace rehearse::simcore

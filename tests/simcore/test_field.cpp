@@ -1,0 +1,482 @@
+// The operative field (issue 36): the clip applier's clips and the bleeding of cut vessels, against independent
+// references: the clipped section's walls within the clip's gap (the nodes' extent across the jaws after the steps),
+// the blood lost against the vessel's cross-section sliced exactly at the cut plane times the flow speed of its kind
+// times the time it bled, zero with two clips, and a recording that replays bit for bit.
+#include "box_mesh.hpp"
+#include "session_inputs.hpp"
+
+#include <rehearse/app/recording.hpp>
+#include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/session/session.hpp>
+
+#include <QtTest>
+
+#include <algorithm>
+#include <cmath>
+
+using namespace rehearse;
+using rehearse::testing::cutting;
+using rehearse::testing::toolAt;
+
+namespace {
+
+constexpr double kAxisY = 0.006, kAxisZ = 0.006, kVesselRadius = 0.0025;
+
+// A 30 x 12 x 12 mm block of 2 mm cubes held at both ends, a vessel of 2.5 mm radius along x through its middle
+// (the elements whose centres lie within that radius: label 2, named `name`), no gravity.
+simcore::BodySetup vesselBlock(const char* name = "hepatic artery") {
+  simcore::BodySetup s;
+  s.mesh = boxMesh(0.03, 0.012, 0.012, 15, 6, 6);
+  for (std::size_t t = 0; t < s.mesh.tets.size(); ++t) {
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (int k : s.mesh.tets[t]) c += s.mesh.points[static_cast<std::size_t>(k)] / 4;
+    if (std::hypot(c.y() - kAxisY, c.z() - kAxisZ) < kVesselRadius) s.mesh.tetLabels[t] = 2;
+  }
+  s.mesh.setLabelName(1, "parenchyma");
+  s.mesh.setLabelName(2, name);
+  s.fixedNodes = nodesAtX(s.mesh, 0.0);
+  for (int n : nodesAtX(s.mesh, 0.03)) s.fixedNodes.push_back(n);
+  s.material = {simcore::MaterialModel::Corotational, 20e3, 0.45, 1000};
+  s.byLabel[2] = {simcore::MaterialModel::Corotational, 100e3, 0.45, 1000};
+  s.settings.method = simcore::NewtonMethod::Exact;
+  s.settings.gravity.setZero();
+  s.settings.timeStep = 0.01;
+  s.tools.trocar = Eigen::Vector3d(0.015, kAxisY, 0.1);  // above the block: shafts come down along -z
+  s.tools.bladeLength = 0.05;
+  s.tools.cutLatencySteps = -1;
+  return s;
+}
+
+simcore::InputEvent clipEvent(const Eigen::Vector3d& across = Eigen::Vector3d::Zero()) {
+  simcore::InputEvent e;
+  e.kind = simcore::InputKind::Clip;
+  e.tool = 3;
+  e.on = true;
+  e.vector = across;
+  return e;
+}
+
+// The clip applier to (x, on the vessel's axis) and closed there.
+void clipAt(simcore::Session& s, double x) {
+  auto pose = toolAt({x, kAxisY, kAxisZ});
+  pose.tool = 3;
+  s.post(pose);
+  s.post(clipEvent());
+}
+
+// The blade drawn across the whole block in the plane at x (from below it, the blade up the shaft through all of it).
+void cutAcross(simcore::Session& s, double x) {
+  s.post(toolAt({x, -0.004, -0.003}));
+  s.post(cutting(true));
+  s.post(toolAt({x, 0.016, -0.003}));
+  s.post(cutting(false));
+}
+
+// The area of the vessel's elements sliced by the plane at x (each tetrahedron's section polygon, exactly).
+double vesselSection(const simcore::Mesh& m, double x) {
+  double area = 0;
+  for (std::size_t t = 0; t < m.tets.size(); ++t) {
+    if (m.tetLabels[t] != 2) continue;
+    std::vector<Eigen::Vector3d> pts;
+    const auto& T = m.tets[t];
+    for (int a = 0; a < 4; ++a)
+      for (int b = a + 1; b < 4; ++b) {
+        const Eigen::Vector3d& p = m.points[static_cast<std::size_t>(T[static_cast<std::size_t>(a)])];
+        const Eigen::Vector3d& q = m.points[static_cast<std::size_t>(T[static_cast<std::size_t>(b)])];
+        if ((p.x() - x) * (q.x() - x) < 0) pts.push_back(p + (x - p.x()) / (q.x() - p.x()) * (q - p));
+      }
+    if (pts.size() < 3) continue;
+    Eigen::Vector3d c = Eigen::Vector3d::Zero();
+    for (const auto& p : pts) c += p / static_cast<double>(pts.size());
+    std::sort(pts.begin(), pts.end(), [&c](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+      return std::atan2(a.z() - c.z(), a.y() - c.y()) < std::atan2(b.z() - c.z(), b.y() - c.y());
+    });
+    for (std::size_t k = 0; k < pts.size(); ++k)
+      area += 0.5 * std::abs((pts[k] - c).cross(pts[(k + 1) % pts.size()] - c).x());
+  }
+  return area;
+}
+
+bool has(const std::vector<std::string>& events, const char* e) {
+  return std::find(events.begin(), events.end(), e) != events.end();
+}
+
+}  // namespace
+
+class TestField : public QObject {
+  Q_OBJECT
+ private slots:
+  // The clipped section is closed: the vessel's nodes in the clip's plane (x = 8 mm at rest), 5.0 mm apart across
+  // the jaws before, end within the clip's 0.5 mm gap, the vessel flattened (not collapsed) along the jaws.
+  void aClipClosesTheVesselWithinItsGap() {
+    simcore::BodySetup setup = vesselBlock();
+    setup.tools.clip.minSqueeze = 0;  // the jaws close fully (the block's corotational tissue takes it)
+    simcore::Session s(setup);
+    clipAt(s, 0.008);
+    QVERIFY(s.advance().ok);
+    const auto first = s.snapshot();
+    QVERIFY2(has(first->events, "clip"), first->message.c_str());
+    QVERIFY2(!has(first->events, "clip misplaced"), first->message.c_str());
+    QCOMPARE(first->field.clips.size(), std::size_t(1));
+    qInfo("%s", first->message.c_str());
+    for (int k = 0; k < 19; ++k) QVERIFY(s.advance().ok);
+    // The walls: the nodes of the vessel's elements in the plane x = 8 mm.
+    std::vector<char> vessel(setup.mesh.points.size(), 0);
+    for (std::size_t t = 0; t < setup.mesh.tets.size(); ++t)
+      if (setup.mesh.tetLabels[t] == 2)
+        for (int k : setup.mesh.tets[t]) vessel[static_cast<std::size_t>(k)] = 1;
+    const auto snap = s.snapshot();
+    double zMin0 = 1, zMax0 = -1, zMin = 1, zMax = -1, yMin = 1, yMax = -1;
+    int walls = 0;
+    for (std::size_t i = 0; i < vessel.size(); ++i) {
+      const Eigen::Vector3d& p = setup.mesh.points[i];
+      if (!vessel[i] || std::abs(p.x() - 0.008) > 1e-9) continue;
+      ++walls;
+      zMin0 = std::min(zMin0, p.z()), zMax0 = std::max(zMax0, p.z());
+      const Eigen::Vector3d& q = snap->positions[i];
+      QVERIFY(q.allFinite());
+      zMin = std::min(zMin, q.z()), zMax = std::max(zMax, q.z());
+      yMin = std::min(yMin, q.y()), yMax = std::max(yMax, q.y());
+    }
+    const double gap = setup.tools.clip.gap;
+    qInfo("clip: %d wall nodes, %.2f mm across the jaws before, %.4f mm after (gap %.2f mm); %.2f mm along the jaws",
+          walls, 1e3 * (zMax0 - zMin0), 1e3 * (zMax - zMin), 1e3 * gap, 1e3 * (yMax - yMin));
+    QVERIFY(walls >= 9);
+    QVERIFY(zMax0 - zMin0 > 4 * gap);
+    QVERIFY2(zMax - zMin <= gap + 1e-6, "the clipped walls are not within the clip's gap");
+    QVERIFY(yMax - yMin > 0.004);  // flattened, not collapsed to a point
+    // Only the clip holds it: the next steps keep it closed, no step failed.
+    QVERIFY(snap->report.outcome == simcore::StepStatus::Converged);
+  }
+
+  // A clip on plain tissue, a clip too short for the vessel, and one closed on nothing.
+  void aMisplacedClipIsSaid() {
+    {
+      simcore::BodySetup setup = vesselBlock();
+      setup.tools.graspRadius = 0.004;  // the jaws reach the parenchyma only
+      simcore::Session s(setup);
+      auto pose = toolAt({0.015, 0.0005, 0.0005});  // 7.8 mm from the vessel's axis
+      pose.tool = 3;
+      s.post(pose);
+      s.post(clipEvent());
+      QVERIFY(s.advance().ok);
+      const auto snap = s.snapshot();
+      QVERIFY(has(snap->events, "clip misplaced"));
+      QVERIFY2(QString::fromStdString(snap->message).contains("not on a vessel"), snap->message.c_str());
+    }
+    {
+      simcore::BodySetup setup = vesselBlock();
+      setup.tools.clip.length = 0.001;  // 1 mm jaws on a vessel whose nodes are 4 mm apart (elements of 2.6 mm)
+      simcore::Session s(setup);
+      clipAt(s, 0.008);
+      QVERIFY(s.advance().ok);
+      const auto snap = s.snapshot();
+      QVERIFY(has(snap->events, "clip misplaced"));
+      QVERIFY(!snap->field.clips.at(0).spans);
+      QVERIFY2(QString::fromStdString(snap->message).contains("does not span"), snap->message.c_str());
+    }
+    {
+      simcore::Session s(vesselBlock());
+      auto pose = toolAt({0.015, 0.006, 0.05});  // 38 mm above the block
+      pose.tool = 3;
+      s.post(pose);
+      s.post(clipEvent());
+      QVERIFY(s.advance().ok);
+      const auto snap = s.snapshot();
+      QVERIFY(snap->field.clips.empty());
+      QVERIFY(!has(snap->events, "clip"));
+      QVERIFY2(QString::fromStdString(snap->message).contains("closed on nothing"), snap->message.c_str());
+    }
+  }
+
+  // Cut across without clips: both stumps bleed at the vessel's section times the artery's 0.30 m/s, the loss grows
+  // at every step and equals that rate times the time since the cut. With two clips either side of the cut: nothing is
+  // lost. With one: half. A clip put on the bleeding side afterwards stops it.
+  void bloodLossFollowsTheClips() {
+    const simcore::BodySetup setup = vesselBlock();
+    const double cutX = 0.015;
+    const double section = vesselSection(setup.mesh, cutX);
+    const double speed = simcore::bleedSpeed(simcore::StructureKind::Artery);
+    QCOMPARE(speed, 0.30);
+    qInfo("the vessel's section at x = %.0f mm: %.3f mm^2 (a 2.5 mm radius circle: %.3f)", 1e3 * cutX, 1e6 * section,
+          1e6 * M_PI * kVesselRadius * kVesselRadius);
+    const int steps = 30;
+    auto run = [&](const std::vector<double>& clipsBefore, std::optional<double> clipAfter, std::vector<double>& loss,
+                   std::vector<std::string>& events, std::shared_ptr<const simcore::Snapshot>& last) {
+      simcore::Session s(setup);
+      for (double x : clipsBefore) clipAt(s, x);
+      for (int k = 0; k < 15; ++k) QVERIFY(s.advance().ok);  // the clips close (0.1 s)
+      cutAcross(s, cutX);
+      for (int k = 0; k < steps; ++k) {
+        if (clipAfter && k == steps / 2) clipAt(s, *clipAfter);
+        QVERIFY(s.advance().ok);
+        const auto snap = s.snapshot();
+        loss.push_back(snap->field.bloodLoss);
+        events.insert(events.end(), snap->events.begin(), snap->events.end());
+        QVERIFY(snap->report.ok);
+      }
+      last = s.snapshot();
+    };
+    const double dt = setup.settings.timeStep;
+    {
+      std::vector<double> loss;
+      std::vector<std::string> events;
+      std::shared_ptr<const simcore::Snapshot> last;
+      run({}, std::nullopt, loss, events, last);
+      QVERIFY(has(events, "vessel cut"));
+      QVERIFY(has(events, "bleeding"));
+      QCOMPARE(last->field.bleeds.size(), std::size_t(2));
+      double area = 0;
+      for (const auto& b : last->field.bleeds) {
+        QCOMPARE(b.stoppedBy, -1);
+        area += b.area;
+      }
+      // Each stump's cut faces are the vessel's section (the cut splits elements at the plane).
+      qInfo("no clip: stumps %.3f + %.3f mm^2 (section %.3f), lost %.4f mL over %d steps",
+            1e6 * last->field.bleeds[0].area, 1e6 * last->field.bleeds[1].area, 1e6 * section, 1e6 * loss.back(),
+            steps);
+      QVERIFY(std::abs(area - 2 * section) < 0.02 * 2 * section);
+      for (std::size_t k = 1; k < loss.size(); ++k) QVERIFY(loss[k] > loss[k - 1]);  // monotone
+      // The cut applies at the first of these steps, which bleeds too.
+      const double expected = 2 * section * speed * steps * dt;
+      QVERIFY2(std::abs(loss.back() - expected) < 0.02 * expected,
+               qPrintable(QString("lost %1 mL, expected %2 mL").arg(1e6 * loss.back()).arg(1e6 * expected)));
+    }
+    {
+      std::vector<double> loss;
+      std::vector<std::string> events;
+      std::shared_ptr<const simcore::Snapshot> last;
+      run({0.008, 0.022}, std::nullopt, loss, events, last);
+      QVERIFY(has(events, "vessel cut"));
+      QVERIFY(!has(events, "bleeding"));
+      QCOMPARE(last->field.bleeds.size(), std::size_t(2));
+      for (const auto& b : last->field.bleeds) QVERIFY(b.stoppedBy >= 0);
+      QCOMPARE(last->field.bloodLoss, 0.0);
+      qInfo("two clips: %zu stumps, both stopped; lost %.1f mL", last->field.bleeds.size(), 1e6 * loss.back());
+    }
+    {
+      std::vector<double> loss;
+      std::vector<std::string> events;
+      std::shared_ptr<const simcore::Snapshot> last;
+      run({0.008}, 0.022, loss, events, last);
+      QVERIFY(has(events, "bleeding"));
+      QVERIFY(has(events, "bleeding stopped"));
+      // Open for half the steps on one side only (the clip at 14 mm stops the stump of its own piece).
+      const double expected = section * speed * (steps / 2) * dt;
+      qInfo("one clip, then a second on the bleeding side: lost %.4f mL (expected %.4f), then %.4f at the end",
+            1e6 * loss[steps / 2 - 1], 1e6 * expected, 1e6 * loss.back());
+      QVERIFY(std::abs(loss[steps / 2 - 1] - expected) < 0.02 * expected);
+      QCOMPARE(loss.back(), loss[steps / 2]);  // stopped from the clip's step on
+      for (const auto& b : last->field.bleeds) QVERIFY(b.stoppedBy >= 0);
+    }
+  }
+
+  // Burnt tissue's stiffness against the declared factor (a patch test): a block burnt through by the cautery, under
+  // a uniform uniaxial strain of 1e-4, pushes back on its end face with (lambda + 2 mu) epsilon times the face's area
+  // times the declared stiffening (3), the unburnt block with (lambda + 2 mu) epsilon A.
+  void burntTissueStiffensByTheDeclaredFactor() {
+    simcore::BodySetup setup;
+    setup.mesh = boxMesh(0.02, 0.01, 0.01, 10, 5, 5);
+    setup.fixedNodes = nodesAtX(setup.mesh, 0.0);
+    setup.material = {simcore::MaterialModel::Corotational, 20e3, 0.3, 1000};
+    setup.settings.method = simcore::NewtonMethod::Exact;
+    setup.settings.gravity.setZero();
+    setup.settings.timeStep = 0.01;
+    setup.tools.cutLatencySteps = -1;
+    setup.tools.cautery.radius = 0.05;  // the whole block within the hook's reach
+    setup.tools.cautery.burnTime = 0.02;
+    simcore::Session s(setup);
+    auto pose = toolAt({0.01, 0.005, 0.005});
+    pose.tool = 4;
+    s.post(pose);
+    simcore::InputEvent on;
+    on.kind = simcore::InputKind::Energy;
+    on.tool = 4;
+    on.on = true;
+    s.post(on);
+    std::vector<std::string> events;
+    for (int k = 0; k < 3; ++k) {
+      QVERIFY(s.advance().ok);
+      const auto snap = s.snapshot();
+      events.insert(events.end(), snap->events.begin(), snap->events.end());
+    }
+    QVERIFY(has(events, "burn"));
+    QVERIFY(!has(events, "energy on structure"));  // plain tissue
+    const auto snap = s.snapshot();
+    QVERIFY(snap->labels && std::all_of(snap->labels->begin(), snap->labels->end(), simcore::isBurnt));
+    QVERIFY(std::abs(snap->field.energyTime - 0.03) < 1e-12);
+    const simcore::BodySetup burnt = s.setup();
+    auto endForce = [](const simcore::BodySetup& b) {
+      simcore::Mesh m = b.mesh;
+      const simcore::FemModel model = simcore::FemModel::build(m, b.byLabel, b.material);
+      Eigen::VectorXd x = model.restVector();
+      const double eps = 1e-4;
+      for (std::size_t i = 0; i < model.nodeCount(); ++i) x[static_cast<Eigen::Index>(3 * i)] *= 1 + eps;
+      const Eigen::VectorXd f = simcore::elasticForces(model, x);
+      double sum = 0;
+      for (int i : nodesAtX(m, 0.02)) sum += f[3 * i];
+      return -sum;  // the tissue pulls the stretched face back: the force it takes to hold it
+    };
+    const double plain = endForce(setup), stiff = endForce(burnt);
+    const simcore::Lame l = simcore::Lame::fromYoung(20e3, 0.3);
+    const double analytic = (l.lambda + 2 * l.mu) * 1e-4 * 0.01 * 0.01;
+    qInfo("patch test: end force %.6e N unburnt (analytic %.6e), %.6e N burnt: x%.6f (declared %.1f)", plain, analytic,
+          stiff, stiff / plain, setup.tools.cautery.stiffening);
+    QVERIFY(std::abs(plain - analytic) < 1e-3 * analytic);
+    QVERIFY(std::abs(stiff / plain - setup.tools.cautery.stiffening) < 1e-9);
+  }
+
+  // Energy that reaches a named structure is said (an incorrect action), energy on plain tissue is not; a line burnt
+  // across the vessel is cut without bleeding; an open stump the hook burns stops bleeding.
+  void cauteryBurnsSealsAndIsCounted() {
+    simcore::BodySetup setup = vesselBlock();
+    setup.tools.cautery.radius = 0.004;
+    simcore::InputEvent on;
+    on.kind = simcore::InputKind::Energy;
+    on.tool = 4;
+    on.on = true;
+    simcore::InputEvent off = on;
+    off.on = false;
+    auto hookAt = [](const Eigen::Vector3d& p) {
+      auto e = toolAt(p);
+      e.tool = 4;
+      return e;
+    };
+    {  // plain tissue at the block's edge, 6 mm from the vessel's surface: burnt, nothing said
+      simcore::Session s(setup);
+      s.post(hookAt({0.015, 0.0, 0.0}));
+      s.post(on);
+      std::vector<std::string> events;
+      for (int k = 0; k < 30; ++k) {
+        QVERIFY(s.advance().ok);
+        events.insert(events.end(), s.snapshot()->events.begin(), s.snapshot()->events.end());
+      }
+      QVERIFY(has(events, "burn"));
+      QVERIFY(!has(events, "energy on structure"));
+    }
+    {  // the vessel burnt across, then cut there: said once, and no bleeding
+      simcore::Session s(setup);
+      s.post(hookAt({0.015, kAxisY, kAxisZ}));
+      s.post(on);
+      std::vector<std::string> events;
+      for (int k = 0; k < 30; ++k) {
+        QVERIFY(s.advance().ok);
+        events.insert(events.end(), s.snapshot()->events.begin(), s.snapshot()->events.end());
+      }
+      s.post(off);
+      QCOMPARE(std::count(events.begin(), events.end(), "energy on structure"), 1L);
+      QVERIFY(has(events, "energy on artery"));
+      QVERIFY2(QString::fromStdString(s.snapshot()->message).contains("burns") ||
+                   std::count(events.begin(), events.end(), "burn") > 0,
+               s.snapshot()->message.c_str());
+      cutAcross(s, 0.015);
+      for (int k = 0; k < 20; ++k) {
+        QVERIFY(s.advance().ok);
+        events.insert(events.end(), s.snapshot()->events.begin(), s.snapshot()->events.end());
+      }
+      QVERIFY(has(events, "cut"));
+      QVERIFY(!has(events, "vessel cut"));
+      QVERIFY(!has(events, "bleeding"));
+      QCOMPARE(s.snapshot()->field.bloodLoss, 0.0);
+      qInfo("burnt across the vessel, then cut there: %.1f mL lost", 1e6 * s.snapshot()->field.bloodLoss);
+    }
+    {  // cut first (it bleeds), then the hook on the stumps: the bleeding stops
+      simcore::Session s(setup);
+      cutAcross(s, 0.015);
+      for (int k = 0; k < 10; ++k) QVERIFY(s.advance().ok);
+      const double before = s.snapshot()->field.bloodLoss;
+      QVERIFY(before > 0);
+      s.post(hookAt({0.015, kAxisY, kAxisZ}));
+      s.post(on);
+      std::vector<std::string> events;
+      std::vector<double> loss;
+      for (int k = 0; k < 40; ++k) {
+        QVERIFY(s.advance().ok);
+        events.insert(events.end(), s.snapshot()->events.begin(), s.snapshot()->events.end());
+        loss.push_back(s.snapshot()->field.bloodLoss);
+      }
+      QVERIFY(has(events, "bleeding stopped"));
+      QCOMPARE(loss.back(), loss[loss.size() - 10]);  // nothing lost over the last 10 steps
+      for (const auto& b : s.snapshot()->field.bleeds) QVERIFY(b.stoppedBy >= 0);
+      qInfo("cut, bled %.3f mL, sealed by the hook at %.3f mL", 1e6 * before, 1e6 * loss.back());
+    }
+  }
+
+  // A session with clips, bleeding and the cautery (clip, cut between, seal a stump, with the cut's and the burn's
+  // bodies built on another thread and swapped in 3 steps later) replays bit for bit from its recording, and
+  // continues bit for bit from checkpoints taken through the codec's bytes (heat under way, a burn being built).
+  void clipsBleedingAndBurnsReplayBitForBit() {
+    simcore::BodySetup setup = vesselBlock();
+    setup.tools.cutLatencySteps = 3;
+    simcore::Session live(setup);
+    std::vector<std::pair<long, std::string>> taken;  // (step, checkpoint bytes)
+    std::vector<std::string> events;
+    std::map<std::uint64_t, simcore::BodySetup> setups;
+    auto steps = [&](int n) {
+      for (int k = 0; k < n; ++k) {
+        QVERIFY(live.advance().ok);
+        const auto snap = live.snapshot();
+        events.insert(events.end(), snap->events.begin(), snap->events.end());
+        if (snap->step % 9 == 0) {  // the setups by hash, as the recorder keeps them
+          const simcore::Checkpoint c = live.checkpoint();
+          taken.emplace_back(snap->step, app::encodeCheckpointState(c));
+          setups[app::setupHash(c.setup)] = c.setup;
+          if (c.pendingChange) setups[app::setupHash(c.pendingChange->setup)] = c.pendingChange->setup;
+        }
+      }
+    };
+    clipAt(live, 0.008);
+    steps(12);
+    cutAcross(live, 0.015);
+    steps(10);
+    auto hook = toolAt({0.015, kAxisY, kAxisZ});
+    hook.tool = 4;
+    simcore::InputEvent on;
+    on.kind = simcore::InputKind::Energy;
+    on.tool = 4;
+    on.on = true;
+    live.post(hook);
+    live.post(on);
+    steps(30);
+    on.on = false;
+    live.post(on);
+    steps(8);
+    const auto liveEnd = live.snapshot();
+    QVERIFY(has(events, "clip") && has(events, "bleeding") && has(events, "burn") && has(events, "bleeding stopped"));
+    QVERIFY(liveEnd->field.bloodLoss > 0);
+    const auto recorded = live.recorded();
+    simcore::Session again(simcore::replaySetup(setup));
+    for (const auto& e : recorded) again.post(e);
+    while (again.snapshot()->step < liveEnd->step) again.advance();
+    QVERIFY(again.snapshot()->positions == liveEnd->positions);
+    QVERIFY(again.snapshot()->field == liveEnd->field);
+    QVERIFY(*again.snapshot()->labels == *liveEnd->labels);
+    // From each checkpoint's bytes (the setups by hash: the live run's, cut and burnt, as the recorder keeps them).
+    int withHeat = 0, withChange = 0;
+    for (const auto& [step, bytes] : taken) {
+      const simcore::Checkpoint c = app::decodeCheckpointState(bytes, [&](std::uint64_t h) { return setups.at(h); });
+      withHeat += !c.field.heating.empty();
+      withChange += c.pendingChange.has_value();
+      simcore::Session resumed(simcore::replaySetup(setup));
+      resumed.restore(c);
+      for (const auto& e : recorded)  // the inputs still to come, at their steps
+        if (e.step >= step) resumed.post(e);
+      while (resumed.snapshot()->step < liveEnd->step) resumed.advance();
+      QVERIFY2(resumed.snapshot()->positions == liveEnd->positions, qPrintable(QString("from step %1").arg(step)));
+      QVERIFY(resumed.snapshot()->field == liveEnd->field);
+    }
+    qInfo(
+        "replayed and resumed from %zu checkpoints (%d with heat under way, %d with a change being built): %.4f mL "
+        "lost, positions bit for bit",
+        taken.size(), withHeat, withChange, 1e6 * liveEnd->field.bloodLoss);
+    QVERIFY(withHeat > 0);
+    // A damaged checkpoint (a clip naming a node the body has not) is refused with a sentence.
+    simcore::Checkpoint bad = live.checkpoint();
+    bad.field.clips.at(0).anchor = 1 << 30;
+    QVERIFY_THROWS_EXCEPTION(std::runtime_error, app::decodeCheckpointState(app::encodeCheckpointState(bad),
+                                                                            [&](std::uint64_t) { return bad.setup; }));
+  }
+};
+
+QTEST_GUILESS_MAIN(TestField)
+#include "test_field.moc"

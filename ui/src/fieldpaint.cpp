@@ -1,0 +1,238 @@
+// The operative field over the frame while rehearsing (FrameView::paintField): each clip as a titanium bar across
+// the structure it closed, and the blood lost from each open stump as a film spreading over the organ's surface from
+// the stump (a surface fluid, no fluid solver: the film covers the surface within the radius its volume fills at
+// 0.5 mm thick, its distance measured along the surface's edges and shorter downhill, so the blood runs down and
+// pools below the cut). Front-facing triangles only, far to near.
+#include "rehearse/ui/frameview.hpp"
+
+#include <QPainter>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <queue>
+
+namespace rehearse::ui {
+
+struct FrameView::FieldGraph {
+  const simcore::CutSurface* surface = nullptr;
+  std::size_t nodes = 0;
+  std::vector<std::vector<int>> neighbours;
+  // The burnt elements' faces on the boundary (outward), for the labels and elements they were found on.
+  const std::vector<int>* labels = nullptr;
+  const std::vector<std::array<int, 4>>* tets = nullptr;
+  std::vector<std::array<int, 3>> burnt;
+};
+
+namespace {
+// The boundary faces of the burnt elements (a face no other element shares), outward.
+std::vector<std::array<int, 3>> burntBoundary(const std::vector<std::array<int, 4>>& tets,
+                                              const std::vector<int>& labels) {
+  std::map<std::array<int, 3>, int> count;
+  for (const auto& t : tets)
+    for (int k = 0; k < 4; ++k) {
+      std::array<int, 3> f = {t[static_cast<std::size_t>((k + 1) % 4)], t[static_cast<std::size_t>((k + 2) % 4)],
+                              t[static_cast<std::size_t>((k + 3) % 4)]};
+      std::sort(f.begin(), f.end());
+      ++count[f];
+    }
+  std::vector<std::array<int, 3>> out;
+  for (std::size_t e = 0; e < tets.size() && e < labels.size(); ++e) {
+    if (!simcore::isBurnt(labels[e])) continue;
+    const auto& t = tets[e];
+    // Faces opposite each vertex, ordered so their normal points away from it (positively oriented elements).
+    static const int faces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+    for (const auto& face : faces) {
+      std::array<int, 3> f = {t[static_cast<std::size_t>(face[0])], t[static_cast<std::size_t>(face[1])],
+                              t[static_cast<std::size_t>(face[2])]};
+      std::array<int, 3> key = f;
+      std::sort(key.begin(), key.end());
+      if (count[key] == 1) out.push_back(f);
+    }
+  }
+  return out;
+}
+}  // namespace
+
+void FrameView::setLiveField(simcore::OperativeField field, const Eigen::Vector3d& gravity,
+                             std::shared_ptr<const std::vector<int>> labels,
+                             std::shared_ptr<const std::vector<std::array<int, 4>>> tets) {
+  const bool shown = !field_.clips.empty() || !field_.bleeds.empty() || fieldLabels_ != labels;
+  field_ = std::move(field);
+  gravity_ = gravity;
+  fieldLabels_ = std::move(labels);
+  fieldTets_ = std::move(tets);
+  if (shown || !field_.clips.empty() || !field_.bleeds.empty()) update();
+}
+
+namespace {
+constexpr double kFilm = 0.0005;  ///< m: the blood film's thickness
+}  // namespace
+
+void FrameView::paintField(QPainter& painter) {
+  const bool anyBurnt = fieldLabels_ && std::any_of(fieldLabels_->begin(), fieldLabels_->end(), simcore::isBurnt);
+  if (!case_ || live_.empty() || (field_.clips.empty() && field_.bleeds.empty() && !anyBurnt)) return;
+  const imaging::Camera& cam = case_->camera;
+  auto toW = [&](const Eigen::Vector3d& p) -> std::optional<QPointF> {
+    if (!(p.z() > 1e-6)) return std::nullopt;
+    const auto uv = cam.project(p);
+    return toWidget(QPointF(uv.x(), uv.y()));
+  };
+  const std::size_t n = live_.size();
+  if (!fieldGraph_) fieldGraph_ = std::make_shared<FieldGraph>();
+  if (anyBurnt && fieldTets_ && fieldLabels_) {
+    // Burnt tissue whitens: its faces on the surface, front-facing, far to near, in a pale tan over the organ.
+    if (fieldGraph_->labels != fieldLabels_.get() || fieldGraph_->tets != fieldTets_.get()) {
+      fieldGraph_->labels = fieldLabels_.get();
+      fieldGraph_->tets = fieldTets_.get();
+      fieldGraph_->burnt = burntBoundary(*fieldTets_, *fieldLabels_);
+    }
+    std::vector<std::pair<double, QPolygonF>> faces;
+    for (const auto& t : fieldGraph_->burnt) {
+      if (std::any_of(t.begin(), t.end(), [n](int v) { return v < 0 || static_cast<std::size_t>(v) >= n; })) continue;
+      const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
+                            &c = live_[static_cast<std::size_t>(t[2])];
+      if ((b - a).cross(c - a).dot(a) >= 0) continue;  // facing away from the camera
+      QPolygonF poly;
+      for (const Eigen::Vector3d* p : {&a, &b, &c})
+        if (const auto w = toW(*p)) poly << *w;
+      if (poly.size() == 3) faces.emplace_back((a.z() + b.z() + c.z()) / 3, poly);
+    }
+    std::sort(faces.begin(), faces.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+    painter.save();
+    painter.setRenderHint(QPainter::Antialiasing, false);
+    const QColor ash(228, 214, 188, 215);
+    painter.setPen(QPen(ash, 0.8));
+    painter.setBrush(ash);
+    for (const auto& [depth, poly] : faces) painter.drawPolygon(poly);
+    painter.restore();
+  }
+  const bool bleeding = std::any_of(field_.bleeds.begin(), field_.bleeds.end(), [n](const simcore::Bleed& b) {
+    return b.lost > 0 && b.node >= 0 && static_cast<std::size_t>(b.node) < n;
+  });
+  if (bleeding && liveSurface_) {
+    const auto& surface = *liveSurface_;
+    if (fieldGraph_->surface != &surface || fieldGraph_->nodes != n) {
+      fieldGraph_->surface = &surface;
+      fieldGraph_->nodes = n;
+      fieldGraph_->neighbours.assign(n, {});
+      for (const auto& t : surface.triangles)
+        for (int k = 0; k < 3; ++k) {
+          const int a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)];
+          if (a < 0 || b < 0 || static_cast<std::size_t>(a) >= n || static_cast<std::size_t>(b) >= n) continue;
+          fieldGraph_->neighbours[static_cast<std::size_t>(a)].push_back(b);
+          fieldGraph_->neighbours[static_cast<std::size_t>(b)].push_back(a);
+        }
+    }
+    const auto& nb = fieldGraph_->neighbours;
+    const Eigen::Vector3d down = gravity_.norm() > 0 ? Eigen::Vector3d(gravity_.normalized()) : Eigen::Vector3d::Zero();
+    std::vector<double> film(n, 0.0);  // 0..1: how thick the blood is at each node (1 at the stump)
+    std::vector<double> dist(n);
+    for (const auto& b : field_.bleeds) {
+      if (!(b.lost > 0) || b.node < 0 || static_cast<std::size_t>(b.node) >= n) continue;
+      const double R = std::sqrt(b.lost / (M_PI * kFilm));
+      std::fill(dist.begin(), dist.end(), std::numeric_limits<double>::infinity());
+      using Item = std::pair<double, int>;
+      std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+      dist[static_cast<std::size_t>(b.node)] = 0;
+      queue.emplace(0.0, b.node);
+      while (!queue.empty()) {
+        const auto [d, v] = queue.top();
+        queue.pop();
+        if (d > dist[static_cast<std::size_t>(v)] || d > R) continue;
+        film[static_cast<std::size_t>(v)] = std::max(film[static_cast<std::size_t>(v)], 1 - d / R);
+        for (int w : nb[static_cast<std::size_t>(v)]) {
+          const Eigen::Vector3d e = live_[static_cast<std::size_t>(w)] - live_[static_cast<std::size_t>(v)];
+          const double len = e.norm();
+          if (!(len > 0)) continue;
+          const double cost = len * (1 - 0.6 * down.dot(e) / len);  // downhill is nearer
+          if (d + cost < dist[static_cast<std::size_t>(w)]) {
+            dist[static_cast<std::size_t>(w)] = d + cost;
+            queue.emplace(d + cost, w);
+          }
+        }
+      }
+    }
+    struct Tri {
+      double depth;
+      QPolygonF poly;
+      double film;
+      double light;  ///< how the film faces the scope (its light): 0..1
+    };
+    std::vector<Tri> tris;
+    for (const auto& t : surface.triangles) {
+      if (std::any_of(t.begin(), t.end(), [n](int v) { return v < 0 || static_cast<std::size_t>(v) >= n; })) continue;
+      const double f = (film[static_cast<std::size_t>(t[0])] + film[static_cast<std::size_t>(t[1])] +
+                        film[static_cast<std::size_t>(t[2])]) /
+                       3;
+      if (!(f > 0.02)) continue;
+      const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
+                            &c = live_[static_cast<std::size_t>(t[2])];
+      const Eigen::Vector3d normal = (b - a).cross(c - a);
+      if (normal.dot(a) >= 0) continue;  // facing away from the camera
+      QPolygonF poly;
+      for (const Eigen::Vector3d* p : {&a, &b, &c})
+        if (const auto w = toW(*p)) poly << *w;
+      const double facing = -normal.normalized().dot(((a + b + c) / 3).normalized());
+      if (poly.size() == 3) tris.push_back({(a.z() + b.z() + c.z()) / 3, poly, f, std::clamp(facing, 0.0, 1.0)});
+    }
+    std::sort(tris.begin(), tris.end(), [](const Tri& x, const Tri& y) { return x.depth > y.depth; });
+    // Drawn into a layer of its own, then softened (a film has no facets or hard edges), then over the view.
+    QRectF bounds;
+    for (const auto& t : tris) bounds |= t.poly.boundingRect();
+    const QRect area = bounds.toAlignedRect().adjusted(-6, -6, 6, 6) & rect();
+    if (!area.isEmpty()) {
+      QImage layer(area.size(), QImage::Format_ARGB32_Premultiplied);
+      layer.fill(Qt::transparent);
+      {
+        QPainter lp(&layer);
+        lp.translate(-area.topLeft());
+        lp.setRenderHint(QPainter::Antialiasing, false);  // no seams between the film's triangles
+        for (const auto& t : tris) {
+          // Blood: dark where it pools, brighter where thin; lit by the scope's light (facing it) with a gloss.
+          const double k = std::clamp(t.film, 0.0, 1.0), lit = 0.55 + 0.45 * t.light;
+          const double gloss = std::pow(t.light, 40.0);
+          const QColor c(std::clamp(static_cast<int>((150 - 70 * k) * lit + 200 * gloss), 0, 255),
+                         std::clamp(static_cast<int>((14 - 10 * k) * lit + 160 * gloss), 0, 255),
+                         std::clamp(static_cast<int>((12 - 8 * k) * lit + 150 * gloss), 0, 255),
+                         static_cast<int>(185 + 65 * k));
+          lp.setPen(QPen(c, 1.0));
+          lp.setBrush(c);
+          lp.drawPolygon(t.poly);
+        }
+      }
+      cv::Mat bgra(layer.height(), layer.width(), CV_8UC4, layer.bits(),
+                   static_cast<std::size_t>(layer.bytesPerLine()));
+      cv::GaussianBlur(bgra, bgra, cv::Size(5, 5), 1.2);
+      painter.drawImage(area.topLeft(), layer);
+    }
+  }
+  // The clips: a bar across the structure each closed, as long as the nodes between its jaws reach.
+  painter.save();
+  for (const auto& clip : field_.clips) {
+    if (clip.anchor < 0 || static_cast<std::size_t>(clip.anchor) >= n) continue;
+    const Eigen::Vector3d p = live_[static_cast<std::size_t>(clip.anchor)];
+    const Eigen::Vector3d jaw = clip.axis.cross(clip.across).normalized();
+    double reach = 0.001;
+    for (int v : clip.nodes)
+      if (v >= 0 && static_cast<std::size_t>(v) < n)
+        reach = std::max(reach, std::abs(jaw.dot(live_[static_cast<std::size_t>(v)] - p)));
+    reach += 0.001;
+    const auto a = toW(p - reach * jaw), b = toW(p + reach * jaw);
+    if (!a || !b) continue;
+    const auto side = toW(p + 0.0015 * clip.axis);  // the clip's 1.5 mm width on the screen
+    const double width = std::clamp(
+        side ? std::hypot(side->x() - a->x() / 2 - b->x() / 2, side->y() - a->y() / 2 - b->y() / 2) : 4.0, 4.0, 14.0);
+    painter.setPen(QPen(QColor(40, 40, 48), width + 3, Qt::SolidLine, Qt::RoundCap));
+    painter.drawLine(*a, *b);
+    painter.setPen(QPen(clip.spans ? QColor(210, 212, 222) : QColor(235, 190, 80), width, Qt::SolidLine, Qt::RoundCap));
+    painter.drawLine(*a, *b);
+    painter.setPen(QPen(QColor(250, 250, 255, 200), std::max(1.0, width / 4), Qt::SolidLine, Qt::RoundCap));
+    painter.drawLine(*a, *b);  // the titanium's highlight
+  }
+  painter.restore();
+}
+
+}  // namespace rehearse::ui

@@ -1,0 +1,81 @@
+// The clip applier (step 7): click on the organ drawn over the frame to close a clip across the vessel (or duct) under
+// the cursor (the shallowest within 25 mm below the surface; the tissue there when there is none); the clip stays on
+// the tissue (drawn in titanium grey) and is recorded like any input. Its jaws close along the shaft's direction, made
+// perpendicular to the clipped structure.
+#include "tools.hpp"
+
+#include <QMouseEvent>
+#include <QPainter>
+
+namespace rehearse::ui::tools {
+namespace {
+
+class ClipTool final : public FrameTool {
+ public:
+  using FrameTool::FrameTool;
+
+  bool press(QMouseEvent* e, const QPointF&, const Eigen::Vector2d& f) override {
+    if (e->button() != Qt::LeftButton) return false;
+    const auto& c = view_.caseData();
+    if (!c || !c->hasPose) {
+      emit view_.toolMessage(
+          QObject::tr("The clip applier works on the organ placed over the frame: place it first (step 4)."));
+      return true;
+    }
+    const auto hit = pickLiveSurface(view_, f);
+    if (!hit) {
+      emit view_.toolMessage(QObject::tr("Click on the organ, over the vessel to clip."));
+      return true;
+    }
+    // The jaws close on the vessel (or duct) under the cursor, the shallowest within 25 mm below the surface point
+    // clicked and 3 mm of the view ray; without one, a little below that point (the tissue there).
+    Eigen::Vector3d tip = pointAtDepth(view_, f, hit->z() + kDepth);
+    const Eigen::Vector3d ray = pointAtDepth(view_, f, 1.0);
+    const auto& live = view_.liveShape();
+    const simcore::Mesh& volume = c->organ->volume;
+    std::vector<char> closable(volume.points.size(), 0);
+    for (std::size_t t = 0; t < volume.tets.size() && t < volume.tetLabels.size(); ++t) {
+      const simcore::StructureKind k = volume.labelKind(volume.tetLabels[t]);
+      if (simcore::isVessel(k) || k == simcore::StructureKind::BileDuct)
+        for (int v : volume.tets[t]) closable[static_cast<std::size_t>(v)] = 1;
+    }
+    double shallowest = hit->z() + kSearchDepth;
+    bool found = false;
+    for (std::size_t i = 0; i < closable.size() && i < live.size(); ++i) {
+      if (!closable[i]) continue;
+      const Eigen::Vector3d& p = live[i];
+      if (p.z() < hit->z() - 0.001 || p.z() > shallowest || (p - p.z() * ray).norm() > kLateral) continue;
+      shallowest = p.z();
+      tip = p;
+      found = true;
+    }
+    postInstrument(view_, simcore::InputKind::ToolPose, tip, false, 3);
+    postInstrument(view_, simcore::InputKind::Clip, tip, true, 3);
+    last_ = f;
+    emit view_.toolMessage(
+        found ? QObject::tr(
+                    "Clip closed on the vessel %1 mm below the surface (U: clip applier; R: grasper, B: scissors).")
+                    .arg(1e3 * (tip.z() - hit->z()), 0, 'f', 0)
+              : QObject::tr("No vessel under the cursor within 25 mm: the clip closed on the tissue there."));
+    return true;
+  }
+  void paint(QPainter& painter) override {
+    if (!last_) return;
+    painter.setPen(QPen(QColor(200, 200, 215), 1.5, Qt::DotLine));
+    painter.setBrush(Qt::NoBrush);
+    painter.drawEllipse(view_.toWidget(QPointF(last_->x(), last_->y())), 9, 9);
+  }
+  Qt::CursorShape cursor() const override { return Qt::PointingHandCursor; }
+
+ private:
+  static constexpr double kDepth = 0.002;        ///< m below the clicked surface point (no vessel there)
+  static constexpr double kSearchDepth = 0.025;  ///< m: how deep below it a vessel is looked for
+  static constexpr double kLateral = 0.003;      ///< m from the view ray
+  std::optional<Eigen::Vector2d> last_;
+};
+
+}  // namespace
+
+std::unique_ptr<FrameTool> makeClipTool(FrameView& view) { return std::make_unique<ClipTool>(view); }
+
+}  // namespace rehearse::ui::tools
