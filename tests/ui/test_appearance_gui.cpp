@@ -506,8 +506,8 @@ class TestAppearanceGui : public QObject {
                           Qt::NoModifier, Qt::NoScrollPhase, false);
         QApplication::sendEvent(view, &wheel);
       }
-      for (int i = 1; i <= 16; ++i) {
-        QTest::mouseMove(view, a + (b - a) * (i / 16.0));
+      for (int i = 1; i <= 8; ++i) {
+        QTest::mouseMove(view, a + (b - a) * (i / 8.0));
         QVERIFY(stepsOn(3));
       }
       QTest::mouseRelease(view, Qt::LeftButton, {}, b);
@@ -540,8 +540,8 @@ class TestAppearanceGui : public QObject {
       const QPoint from = pixelOn(first, 0.68), to = across(first, 0.68, 30).second;  // from over the vessel sideways
       QTest::mousePress(view, Qt::LeftButton, {}, from);
       QVERIFY(waitFor([&] { return panel_->lastFrame()->field.energy; }));
-      for (int i = 1; i <= 20; ++i) {
-        QTest::mouseMove(view, from + (to - from) * (i / 20.0));
+      for (int i = 1; i <= 10; ++i) {
+        QTest::mouseMove(view, from + (to - from) * (i / 10.0));
         QVERIFY(stepsOn(4));
       }
       QTest::mouseRelease(view, Qt::LeftButton, {}, to);
@@ -569,7 +569,7 @@ class TestAppearanceGui : public QObject {
     for (const auto& b : cut2->field.bleeds)
       if (b.stoppedBy < 0) rate += b.rate;
     const double lost0 = cut2->field.bloodLoss;
-    QVERIFY(stepsOn(30));
+    QVERIFY(stepsOn(15));
     const auto bled = panel_->lastFrame();
     qInfo("cut beyond the clips: bleeding %.2f mL/s, %.3f mL lost, then %.3f mL", 1e6 * rate, 1e6 * lost0,
           1e6 * bled->field.bloodLoss);
