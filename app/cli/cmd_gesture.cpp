@@ -197,6 +197,8 @@ int cmdGesture(const std::vector<std::string>& args) {
                  {"blood_loss_ml", 1e6 * r.bloodLoss},
                  {"burns", r.burns},
                  {"energy_on_structures", r.energyOnStructures},
+                 {"tears", r.tears},
+                 {"attachments_torn", r.attachmentsTorn},
                  {"failed_steps", r.failed},
                  {"peak_tool_force_n", peak},
                  {"elements", out.tets.size()},
@@ -207,10 +209,12 @@ int cmdGesture(const std::vector<std::string>& args) {
                                                         : "vessels unknown (the mesh names none)";
   std::printf(
       "gesture (%s): %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut "
-      "updates, %s, %zu clip(s) (%zu misplaced), %.2f mL of blood lost, %zu failed steps; %zu elements, %zu nodes "
+      "updates, %s, %zu clip(s) (%zu misplaced), %.2f mL of blood lost, %zu tear(s), %zu failed steps; %zu elements, "
+      "%zu "
+      "nodes "
       "written to %s\n",
       simcore::toString(setup.settings.method).c_str(), r.steps.size(), wall / static_cast<double>(r.steps.size()),
-      grasped, peak, r.slips, r.cuts, vessels.c_str(), r.clips, r.misplacedClips, 1e6 * r.bloodLoss, r.failed,
+      grasped, peak, r.slips, r.cuts, vessels.c_str(), r.clips, r.misplacedClips, 1e6 * r.bloodLoss, r.tears, r.failed,
       out.tets.size(), out.points.size(), o["out"].c_str());
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);

@@ -117,7 +117,7 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
            "updates,vessel_cuts,max_force_n,"
            "mean_force_n,force_threshold_n,time_over_threshold_s,max_strain,cut_length_m,cut_deviation_mean_m,cut_"
            "deviation_max_m,tumour_breaches,"
-           "attachments_torn,clips,misplaced_clips,blood_loss_ml,energy_time_s,energy_on_structures,checksums,"
+           "tears,attachments_torn,clips,misplaced_clips,blood_loss_ml,energy_time_s,energy_on_structures,checksums,"
            "checksums_differing\n";
     ro.strain = true;
     auto opt = [](const auto& v) { return v ? std::to_string(*v) : std::string(); };  // empty: not determined
@@ -137,9 +137,9 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
           << m.slips << ',' << m.cuts << ',' << opt(m.vesselCuts) << ',' << m.maxForceN << ',' << m.meanForceN << ','
           << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << opt(m.maxStrain) << ',' << m.cutLengthM << ','
           << opt(m.cutDeviationMeanM) << ',' << opt(m.cutDeviationMaxM) << ',' << opt(m.tumourBreaches) << ','
-          << opt(m.attachmentsTorn) << ',' << m.clips << ',' << m.misplacedClips << ',' << opt(m.bloodLossMl) << ','
-          << m.energyTimeS << ',' << m.energyOnStructures << ',' << r.verify.checked << ',' << r.verify.mismatches
-          << '\n';
+          << opt(m.tears) << ',' << opt(m.attachmentsTorn) << ',' << m.clips << ',' << m.misplacedClips << ','
+          << opt(m.bloodLossMl) << ',' << m.energyTimeS << ',' << m.energyOnStructures << ',' << r.verify.checked << ','
+          << r.verify.mismatches << '\n';
     }
     imaging::writeFileAtomically(o["metrics-csv"], csv.str());
     std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());

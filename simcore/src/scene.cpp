@@ -33,44 +33,67 @@ AttachmentMode attachmentModeFromString(const std::string& name) {
 
 const std::vector<ComponentDecl>& sceneComponents() {
   static const std::vector<ComponentDecl> decls = {
-      {"mesh", "The organ's volume mesh (a surface is tetrahedralised).",
+      {"mesh",
+       "The organ's volume mesh (a surface is tetrahedralised).",
        {{"file", "string", "", "", "mesh file, relative to the scene"},
         {"unit", "string", "\"m\"", "", "length unit of the file: m, dm, cm or mm"}}},
-      {"material", "Material of the elements with one label (label -1: every label without its own material).",
+      {"material",
+       "Material of the elements with one label (label -1: every label without its own material).",
        {{"label", "integer", "-1", "", "element label"},
         {"model", "string", "\"corotational\"", "", "linear, corotational, stvk, neohookean or neohookean-split"},
         {"young", "number", "3000", "Pa", "Young's modulus"},
         {"poisson", "number", "0.3", "", "Poisson's ratio, in [0, 0.5)"},
-        {"density", "number", "1000", "kg/m^3", "mass density"}},
+        {"density", "number", "1000", "kg/m^3", "mass density"},
+        {"tear_strain", "number", "0", "",
+         "engineering strain at which it tears (largest principal stretch - 1); 0: it does not tear"}},
        true},
-      {"attachments", "Nodes held in place (the ligaments, q(j) = 1).",
+      {"attachments",
+       "Nodes held in place (the ligaments, q(j) = 1).",
        {{"nodes", "integers", "", "", "0-based node indices in file order"},
-        {"mode", "string", "\"projection\"", "", "projection (fixed dofs removed) or lagrange (multipliers, Gauss-Seidel)"}}},
-      {"gravity", "Gravity; without this component there is none.", {{"vector", "vector3", "[0, -9.81, 0]", "m/s^2", "acceleration"}}},
-      {"damping", "Rayleigh damping D = alpha M + beta K; without this component there is none.",
+        {"mode", "string", "\"projection\"", "",
+         "projection (fixed dofs removed) or lagrange (multipliers, Gauss-Seidel)"}}},
+      {"gravity",
+       "Gravity; without this component there is none.",
+       {{"vector", "vector3", "[0, -9.81, 0]", "m/s^2", "acceleration"}}},
+      {"damping",
+       "Rayleigh damping D = alpha M + beta K; without this component there is none.",
        {{"rayleigh_mass", "number", "0.1", "1/s", "alpha"}, {"rayleigh_stiffness", "number", "0.1", "s", "beta"}}},
-      {"implicit_euler", "Implicit (backward) Euler time stepping with Newton iterations.",
+      {"implicit_euler",
+       "Implicit (backward) Euler time stepping with Newton iterations.",
        {{"dt", "number", "0.01", "s", "time step"},
         {"steps", "integer", "100", "", "number of steps"},
         {"newton_iterations", "integer", "10", "", "Newton iterations per step at most"},
         {"tolerance", "number", "1e-6", "", "relative residual"},
-        {"strict", "boolean", "false", "", "a step that does not converge after the retries is rolled back (failed) instead of kept as the best attempt (inexact)"},
+        {"strict", "boolean", "false", "",
+         "a step that does not converge after the retries is rolled back (failed) instead of kept as the best attempt "
+         "(inexact)"},
         {"inversion_guard", "boolean", "true", "",
-         "linear, corotational and neohookean-split elements are kept from inverting (the nodes of an element that would go below 1 % of its volume stop)"}}},
-      {"static", "Static equilibrium instead of time stepping (registration).",
-       {{"newton_iterations", "integer", "30", "", "Newton iterations at most"}, {"tolerance", "number", "1e-6", "", "relative residual"}}},
-      {"embedded", "An inner structure given as a surface (vessels, tumour), embedded by barycentric mapping; its wall stiffness acts on the organ.",
+         "linear, corotational and neohookean-split elements are kept from inverting (the nodes of an element that "
+         "would go below 1 % of its volume stop)"}}},
+      {"static",
+       "Static equilibrium instead of time stepping (registration).",
+       {{"newton_iterations", "integer", "30", "", "Newton iterations at most"},
+        {"tolerance", "number", "1e-6", "", "relative residual"}}},
+      {"embedded",
+       "An inner structure given as a surface (vessels, tumour), embedded by barycentric mapping; its wall stiffness "
+       "acts on the organ.",
        {{"file", "string", "", "", "surface file, relative to the scene"},
         {"unit", "string", "\"m\"", "", "length unit of the file: m, dm, cm or mm"},
         {"young", "number", "620e3", "Pa", "Young's modulus of the wall"},
         {"thickness", "number", "0.001", "m", "wall thickness"},
         {"name", "string", "\"inner\"", "", "name used in the output files"}},
        true},
-      {"solver", "Linear solver and how Newton reuses its factorisation.",
+      {"solver",
+       "Linear solver and how Newton reuses its factorisation.",
        {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
-        {"method", "string", "\"chord\"", "", "chord (the interactive default: converged every step; exact with the cg and dense solvers), exact, lagged-pcg, linearised or newton-krylov (all but exact reuse a cholmod factorisation)"},
-        {"factor", "string", "\"supernodal\"", "", "cholmod factor: supernodal (fastest) or simplicial (re-factorising allocates nothing; about 1.8x slower)"},
-        {"linearised_tolerance", "number", "0.01", "", "the linearised method's tolerance on the relative residual of the nonlinear equations (steps above it are inexact)"}}},
+        {"method", "string", "\"chord\"", "",
+         "chord (the interactive default: converged every step; exact with the cg and dense solvers), exact, "
+         "lagged-pcg, linearised or newton-krylov (all but exact reuse a cholmod factorisation)"},
+        {"factor", "string", "\"supernodal\"", "",
+         "cholmod factor: supernodal (fastest) or simplicial (re-factorising allocates nothing; about 1.8x slower)"},
+        {"linearised_tolerance", "number", "0.01", "",
+         "the linearised method's tolerance on the relative residual of the nonlinear equations (steps above it are "
+         "inexact)"}}},
   };
   return decls;
 }
@@ -149,8 +172,10 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.mesh = loadMesh(file.string(), {value(c, *decl, "unit").get<std::string>()});
         haveMesh = true;
       } else if (type == "material") {
-        MaterialParams p{materialModelFromString(value(c, *decl, "model").get<std::string>()), value(c, *decl, "young").get<double>(),
-                         value(c, *decl, "poisson").get<double>(), value(c, *decl, "density").get<double>()};
+        MaterialParams p{materialModelFromString(value(c, *decl, "model").get<std::string>()),
+                         value(c, *decl, "young").get<double>(), value(c, *decl, "poisson").get<double>(),
+                         value(c, *decl, "density").get<double>(), value(c, *decl, "tear_strain").get<double>()};
+        if (!(p.tearStrain >= 0 && p.tearStrain <= 10)) fail("'tear_strain' must be in [0, 10] (0: it does not tear).");
         const int label = value(c, *decl, "label").get<int>();
         if (label < 0) s.defaultMaterial = p;
         else s.materials[label] = p;

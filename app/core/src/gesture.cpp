@@ -66,6 +66,22 @@ GestureScript parseGestureScript(const std::string& text) {
     if (t.contains("clip_min_squeeze")) s.clipMinSqueeze = number(t, "clip_min_squeeze", 0.1, 0, 1);
     if (t.contains("cut_latency_steps")) s.cutLatencySteps = static_cast<int>(number(t, "cut_latency_steps", 5, -1, 1000));
   }
+  if (j.contains("tear_strain")) s.tearStrain = number(j, "tear_strain", 0, 0, 10);
+  if (j.contains("tear_strain_by_label")) {
+    const auto& t = j["tear_strain_by_label"];
+    if (!t.is_object()) throw std::runtime_error("\"tear_strain_by_label\" must be an object of labels and strains");
+    for (const auto& [key, value] : t.items()) {
+      int label = 0;
+      try {
+        std::size_t used = 0;
+        label = std::stoi(key, &used);
+        if (used != key.size() || label <= 0) throw std::invalid_argument(key);
+      } catch (const std::exception&) {
+        throw std::runtime_error("\"tear_strain_by_label\" names '" + key + "', not a positive element label");
+      }
+      s.tearStrainByLabel[label] = number(t, key.c_str(), 0, 0, 10);
+    }
+  }
   if (!j.contains("events") || !j["events"].is_array()) throw std::runtime_error("the gesture script has no \"events\" list");
   double last = 0;
   std::string current = "grasper";
@@ -127,6 +143,24 @@ GestureScript parseGestureScript(const std::string& text) {
   return s;
 }
 
+namespace {
+// What a step's events add to the run's counts.
+void countEvents(const std::vector<std::string>& events, GestureResult& out) {
+  for (const auto& e : events) {
+    out.slips += e == "slip";
+    out.cuts += e == "cut";
+    out.vesselCuts += e == "vessel cut";
+    out.clips += e == "clip";
+    out.misplacedClips += e == "clip misplaced";
+    out.bleedings += e == "bleeding";
+    out.burns += e == "burn";
+    out.energyOnStructures += e == "energy on structure";
+    out.tears += e == "tear";
+    out.attachmentsTorn += e == "attachment torn";
+  }
+}
+}  // namespace
+
 GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, const GestureHooks& hooks) {
   if (script.dt > 0) setup.settings.timeStep = script.dt;
   if (script.graspRadius) setup.tools.graspRadius = *script.graspRadius;
@@ -139,6 +173,12 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   if (script.clipLength) setup.tools.clip.length = *script.clipLength;
   if (script.clipGap) setup.tools.clip.gap = *script.clipGap;
   if (script.clipMinSqueeze) setup.tools.clip.minSqueeze = *script.clipMinSqueeze;
+  if (script.tearStrain) {
+    setup.material.tearStrain = *script.tearStrain;
+    for (auto& [label, m] : setup.byLabel) m.tearStrain = *script.tearStrain;
+  }
+  for (const auto& [label, strain] : script.tearStrainByLabel)
+    setup.byLabel.try_emplace(label, setup.material).first->second.tearStrain = strain;
   const double h = setup.settings.timeStep;
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
   if (hooks.start) hooks.start(setup);
@@ -237,17 +277,9 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
     row.events = snap->events;
     row.report = rep;
     row.message = snap->message;
-    out.slips += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "slip"));
-    out.cuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "cut"));
-    out.vesselCuts += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "vessel cut"));
     out.failed += !rep.ok;
-    out.clips += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "clip"));
-    out.misplacedClips += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "clip misplaced"));
-    out.bleedings += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "bleeding"));
+    countEvents(row.events, out);
     out.bloodLoss = snap->field.bloodLoss;
-    out.burns += static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "burn"));
-    out.energyOnStructures +=
-        static_cast<std::size_t>(std::count(row.events.begin(), row.events.end(), "energy on structure"));
     out.steps.push_back(std::move(row));
   }
   // A cut whose body was still being built when the script ended is applied: the run's mesh has every cut the blade made
@@ -256,8 +288,8 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
     const auto snap = session.snapshot();
     auto& last = out.steps.back();
     for (const auto& e : snap->events) last.events.push_back(e);
-    out.cuts += static_cast<std::size_t>(std::count(snap->events.begin(), snap->events.end(), "cut"));
-    out.vesselCuts += static_cast<std::size_t>(std::count(snap->events.begin(), snap->events.end(), "vessel cut"));
+    countEvents(snap->events, out);
+    out.bloodLoss = snap->field.bloodLoss;
     last.elements = snap->elements;
     last.nodes = snap->positions.size();
   }

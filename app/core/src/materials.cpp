@@ -6,8 +6,8 @@ namespace rehearse::app {
 
 LabelMaterials labelMaterials(const MaterialSettings& m) {
   LabelMaterials out;
-  out.fallback = {m.model, m.young, m.poisson, m.density};
-  if (m.vesselYoung > 0) out.byLabel[kVesselLabel] = {m.model, m.vesselYoung, m.vesselPoisson, m.density};
+  out.fallback = {m.model, m.young, m.poisson, m.density, m.tearStrain};
+  if (m.vesselYoung > 0) out.byLabel[kVesselLabel] = {m.model, m.vesselYoung, m.vesselPoisson, m.density, m.tearStrain};
   return out;
 }
 
@@ -17,6 +17,7 @@ MaterialSettings materialFromScene(const simcore::Scene& s) {
   m.young = s.defaultMaterial.young;
   m.poisson = s.defaultMaterial.poisson;
   m.density = s.defaultMaterial.density;
+  m.tearStrain = s.defaultMaterial.tearStrain;
   if (const auto v = s.materials.find(kVesselLabel); v != s.materials.end()) {
     m.vesselYoung = v->second.young;
     m.vesselPoisson = v->second.poisson;

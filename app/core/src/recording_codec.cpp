@@ -21,10 +21,14 @@ namespace {
 using nlohmann::json;
 
 // A field added to these structs must be recorded too: these sizes stop the build until encodeSetup knows it.
-static_assert(sizeof(simcore::MaterialParams) == 32,
+static_assert(sizeof(simcore::MaterialParams) == 40,
               "MaterialParams changed: record the new field in encodeSetup/decodeSetup");
 static_assert(sizeof(simcore::CutSettings) == 32,
               "CutSettings changed: record the new field in encodeSetup/decodeSetup");
+static_assert(sizeof(simcore::ClipSettings) == 40,
+              "ClipSettings changed: record the new field in encodeSetup/decodeSetup");
+static_assert(sizeof(simcore::CauterySettings) == 24,
+              "CauterySettings changed: record the new field in encodeSetup/decodeSetup");
 
 std::uint64_t fnv(std::uint64_t h, const void* data, std::size_t n) {
   const auto* p = static_cast<const unsigned char*>(data);
@@ -61,7 +65,9 @@ std::array<int, N> asIntArray(const json& j) {
 }
 
 json material(const simcore::MaterialParams& m) {
-  return {{"model", static_cast<int>(m.model)}, {"young", m.young}, {"poisson", m.poisson}, {"density", m.density}};
+  json j = {{"model", static_cast<int>(m.model)}, {"young", m.young}, {"poisson", m.poisson}, {"density", m.density}};
+  if (m.tearStrain != 0) j["tearStrain"] = m.tearStrain;  // (setups recorded before it existed keep their hash)
+  return j;
 }
 simcore::MaterialParams material(const json& j) {
   simcore::MaterialParams m;
@@ -69,6 +75,7 @@ simcore::MaterialParams material(const json& j) {
   m.young = j.at("young");
   m.poisson = j.at("poisson");
   m.density = j.at("density");
+  m.tearStrain = j.value("tearStrain", 0.0);
   return m;
 }
 
@@ -466,7 +473,7 @@ simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
     p.setup = setupOf(r.pod<std::uint64_t>());
     if (magic == kCheckpointMagic) {  // before RCK5 every change was a cut
       const auto kind = r.pod<std::uint8_t>();
-      if (kind > static_cast<std::uint8_t>(simcore::ChangeKind::Burn))
+      if (kind > static_cast<std::uint8_t>(simcore::ChangeKind::Tear))
         throw std::runtime_error("a recorded checkpoint's change under way is of an unknown kind");
       p.kind = static_cast<simcore::ChangeKind>(kind);
     }
@@ -620,6 +627,9 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   if (!(t.clip == simcore::ClipSettings{}))  // (setups recorded before the clip applier keep their text and hash)
     j["tools"]["clip"] = {
         {"length", t.clip.length}, {"width", t.clip.width}, {"gap", t.clip.gap}, {"closeTime", t.clip.closeTime}};
+  // (written only when not the default, so that setups recorded before it was written keep their text and hash; a
+  // replay of those with another squeeze diverged: a script's clip_min_squeeze was not recorded)
+  if (t.clip.minSqueeze != simcore::ClipSettings{}.minSqueeze) j["tools"]["clip"]["minSqueeze"] = t.clip.minSqueeze;
   if (!(t.cautery == simcore::CauterySettings{}))
     j["tools"]["cautery"] = {
         {"radius", t.cautery.radius}, {"burnTime", t.cautery.burnTime}, {"stiffening", t.cautery.stiffening}};
@@ -669,6 +679,7 @@ simcore::BodySetup decodeSetup(const std::string& text) {
       s.tools.clip.width = c.at("width");
       s.tools.clip.gap = c.at("gap");
       s.tools.clip.closeTime = c.at("closeTime");
+      s.tools.clip.minSqueeze = c.value("minSqueeze", simcore::ClipSettings{}.minSqueeze);
     }
     if (t.contains("cautery")) {
       const auto& c = t.at("cautery");
@@ -729,6 +740,8 @@ std::string materialProblem(const simcore::MaterialParams& m, const std::string&
   if (!finite(m.young) || m.young <= 0) return whose + "'s Young's modulus is not a positive number";
   if (!finite(m.poisson) || m.poisson <= -1 || m.poisson >= 0.5) return whose + "'s Poisson ratio is outside (-1, 0.5)";
   if (!finite(m.density) || m.density <= 0) return whose + "'s density is not a positive number";
+  if (!finite(m.tearStrain) || m.tearStrain < 0 || m.tearStrain > 10)
+    return whose + "'s tear strain is outside [0, 10] (0: it does not tear)";
   return {};
 }
 template <class Enum>
@@ -792,6 +805,8 @@ std::string setupProblem(const simcore::BodySetup& s) {
                    tool.clip.gap, tool.clip.closeTime})
     if (!finite(v) || v < 0) return "an instrument setting is not a non-negative number";
   if (tool.trocar && !finite(*tool.trocar)) return "the trocar is not a point";
+  if (!(tool.clip.minSqueeze >= 0 && tool.clip.minSqueeze <= 1)) return "the clip's least squeeze is outside [0, 1]";
+  if (const std::string why = simcore::cauteryProblem(tool.cautery); !why.empty()) return why;
   if (tool.cutLatencySteps < -1 || tool.cutLatencySteps > 1000)
     return "the cut's latency is not between -1 and 1000 steps";
   if (s.topology < 0) return "the topology version is negative";
@@ -818,6 +833,8 @@ std::string eventProblem(const simcore::InputEvent& e) {
       if (!(v > 0 && v <= 10)) return "a recorded time step is not between 0 and 10 s";
     } else if (k == "clip_length") {
       if (!(v >= 0.001 && v <= 0.05)) return "a recorded clip length is not between 1 and 50 mm";
+    } else if (k == "tear_strain") {
+      if (!(v >= 0 && v <= 10)) return "a recorded tear strain is not between 0 and 10";
     } else if (k == "grasp_radius") {
       if (!(v > 0 && v <= 0.1)) return "a recorded grasp radius is not between 0 and 0.1 m";
     } else if (k == "method") {

@@ -57,6 +57,7 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"cut_deviation_mean_m", m.cutDeviationMeanM, "m", m.cutDeviationMeanM ? "" : m.cutDeviationWhy},
       {"cut_deviation_max_m", m.cutDeviationMaxM, "m", m.cutDeviationMaxM ? "" : m.cutDeviationWhy},
       {"tumour_breaches", m.tumourBreaches, "", m.tumourBreaches ? "" : m.tumourWhy},
+      {"tears", m.tears, "", m.tears ? "" : m.attachmentsWhy},
       {"attachments_torn", m.attachmentsTorn, "", m.attachmentsTorn ? "" : m.attachmentsWhy},
       {"clips", m.clips, "", ""},
       {"misplaced_clips", m.misplacedClips, "", ""},
@@ -66,7 +67,7 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
   };
   for (auto& x : v)
     x.count = x.name == "grasps" || x.name == "slips" || x.name == "cut_updates" || x.name == "vessel_cuts" ||
-              x.name == "tumour_breaches" || x.name == "attachments_torn" || x.name == "clips" ||
+              x.name == "tumour_breaches" || x.name == "tears" || x.name == "attachments_torn" || x.name == "clips" ||
               x.name == "misplaced_clips" || x.name == "energy_on_structures";
   return v;
 }
@@ -380,7 +381,8 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
   out.verdicts = judge(result.metrics, thresholds);
   out.timeline = result.timeline;
   out.forceThresholdN = result.metrics.forceThresholdN;
-  // Key frames: the first grasp, the largest force, the first cut, the first clip, the first bleeding, the end.
+  // Key frames: the first grasp, the largest force, the first cut, the first clip, the first bleeding, the first tear,
+  // the end.
   std::vector<std::pair<std::string, long>> keys;
   long maxForceStep = -1;
   double maxForce = 0;
@@ -389,20 +391,16 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
       maxForce = t.force;
       maxForceStep = t.step;
     }
-    for (const auto& e : t.events) {
-      if (e == "grasp" &&
-          std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First grasp", 0) == 0; }))
-        keys.push_back({"First grasp", t.step});
-      if (e == "cut" &&
-          std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First cut", 0) == 0; }))
-        keys.push_back({"First cut", t.step});
-      if (e == "clip" &&
-          std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("First clip", 0) == 0; }))
-        keys.push_back({"First clip", t.step});
-      if (e == "bleeding" &&
-          std::none_of(keys.begin(), keys.end(), [](const auto& k) { return k.first.rfind("Bleeding", 0) == 0; }))
-        keys.push_back({"Bleeding", t.step});
-    }
+    // (event, caption): each event's first step is a key frame
+    static const std::pair<const char*, const char*> firsts[] = {{"grasp", "First grasp"},
+                                                                 {"cut", "First cut"},
+                                                                 {"clip", "First clip"},
+                                                                 {"bleeding", "Bleeding"},
+                                                                 {"tear", "First tear"}};
+    for (const auto& e : t.events)
+      for (const auto& [event, caption] : firsts)
+        if (e == event && std::none_of(keys.begin(), keys.end(), [c = caption](const auto& k) { return k.first == c; }))
+          keys.push_back({caption, t.step});
   }
   if (maxForceStep > 0) keys.push_back({"Largest force", maxForceStep});
   if (!result.timeline.empty()) keys.push_back({"End", result.timeline.back().step});

@@ -46,7 +46,15 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
     m.tumourBreaches = 0;
   else
     m.tumourWhy = "the case marks no tumour (no element label named as one: tumour, lesion, metastasis...)";
-  m.attachmentsWhy = "the model's attachments cannot tear (they are fixed nodes)";
+  bool tears = r.setup.material.tearStrain > 0;
+  for (const auto& [label, mat] : r.setup.byLabel) tears = tears || mat.tearStrain > 0;
+  for (const auto& e : r.events) tears = tears || (e.kind == simcore::InputKind::Parameter && e.name == "tear_strain");
+  if (tears) {
+    m.tears = 0;
+    m.attachmentsTorn = 0;
+  } else {
+    m.attachmentsWhy = "no material of the case declares a tear strain: nothing can tear";
+  }
   if (!options.plannedCut) m.cutDeviationWhy = "the case has no planned cut line";
   double deviationSum = 0;
   long cuttingSteps = 0;
@@ -112,6 +120,8 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       m.clips += e == "clip";
       m.misplacedClips += e == "clip misplaced";
       m.energyOnStructures += e == "energy on structure";
+      if (m.tears && e == "tear") ++*m.tears;
+      if (m.attachmentsTorn && e == "attachment torn") ++*m.attachmentsTorn;
       if (m.vesselCuts && e == "vessel cut") ++*m.vesselCuts;
       if (tumourLabel && e == "cut through label " + std::to_string(tumourLabel)) ++*m.tumourBreaches;
     }

@@ -38,11 +38,22 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   stroke_.skippedInverted += r.skippedInverted;
   stroke_.lastRefusal.clear();
   ++constructions_.cutMeshes;
-  // The request: the cut mesh as the next body's setup, the cut's new nodes held where their originals were.
+  TopologyChange change =
+      changeFromCut(r, std::move(rest), std::move(tets), std::move(labels), std::move(progress), ChangeKind::Cut);
+  if (changeTopology(std::move(change), message)) return true;
+  message = "The cut was refused: " + message;
+  return false;
+}
+
+TopologyChange Session::changeFromCut(const CutResult& r, std::vector<Eigen::Vector3d> rest,
+                                      std::vector<std::array<int, 4>> tets, std::vector<int> labels,
+                                      CutProgress progress, ChangeKind kind) const {
+  const std::size_t n = body_->nodeCount();
   TopologyChange change;
+  change.kind = kind;
   change.setup = setup_;
   BodySetup& next = change.setup;
-  next.mesh.points = rest;
+  next.mesh.points = std::move(rest);
   next.mesh.unitToMetre = 1.0;
   next.mesh.triangles.clear();
   next.mesh.triangleLabels.clear();
@@ -64,9 +75,7 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     change.factorAt = state_.x;
     extendByCut(change.factorAt, r.newNodes);
   }
-  if (changeTopology(std::move(change), message)) return true;
-  message = "The cut was refused: " + message;
-  return false;
+  return change;
 }
 
 void Session::continueSweep(std::string& message) {

@@ -1,7 +1,10 @@
 // The instruments the session runs (instrument.hpp): the grasper, the scissors/hook, the clip applier and the cautery
 // hook.
+#include <rehearse/simcore/session/contact.hpp>
 #include <rehearse/simcore/session/instrument.hpp>
 #include <rehearse/simcore/session/session.hpp>
+
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
@@ -79,7 +82,7 @@ class Grasper final : public Instrument {
     if (tool.held.empty() || !(tool.graspForce.norm() > max)) return false;
     char buf[200];
     std::snprintf(buf, sizeof buf,
-                  "The tissue slipped out of the grasper at %.1f N (the scene's maximum grasp force is %.1f N).",
+                  "The tissue slipped out of the grasper at %.3g N (the scene's maximum grasp force is %.3g N).",
                   tool.graspForce.norm(), max);
     message = buf;
     tool.released = tool.held;  // the tissue leaves the jaws
@@ -219,12 +222,24 @@ class Cautery final : public Instrument {
     std::vector<int> reached;  // unburnt elements within the radius
     bool touching = false;     // any tissue, burnt or not
     for (std::size_t e = 0; e < tets.size(); ++e) {
-      // An element heats when a node of it lies within the radius (on a mesh coarser than the hook, the elements it
-      // touches: their centres can all be further away).
-      bool within = false;
-      for (int v : tets[e])
-        within = within || (x.segment<3>(3 * static_cast<Eigen::Index>(v)) - tool.tip).squaredNorm() <= r2;
-      if (!within) continue;
+      // An element heats when the hook is within the radius of it: inside it, or that near one of its faces (on a mesh
+      // coarser than the hook, the elements it touches; their nodes and centres can all be further away).
+      std::array<Eigen::Vector3d, 4> p;
+      Eigen::AlignedBox3d box;
+      for (std::size_t k = 0; k < 4; ++k) box.extend(p[k] = x.segment<3>(3 * static_cast<Eigen::Index>(tets[e][k])));
+      if (box.exteriorDistance(tool.tip) > c.radius) continue;
+      static constexpr int kFaces[4][3] = {{1, 2, 3}, {0, 3, 2}, {0, 1, 3}, {0, 2, 1}};
+      bool inside = true, near = false;
+      const double volume = (p[1] - p[0]).cross(p[2] - p[0]).dot(p[3] - p[0]);
+      for (const auto& f : kFaces) {
+        const Eigen::Vector3d &a = p[static_cast<std::size_t>(f[0])], &b = p[static_cast<std::size_t>(f[1])],
+                              &d = p[static_cast<std::size_t>(f[2])];
+        // The tip on the inner side of every face (the faces' orientation follows the element's).
+        inside = inside && (b - a).cross(d - a).dot(tool.tip - a) * volume <= 0;
+        Eigen::Vector3d w;
+        near = near || (closestOnTriangle(tool.tip, a, b, d, w) - tool.tip).squaredNorm() <= r2;
+      }
+      if (!inside && !near) continue;
       touching = true;
       if (!isBurnt(e < labels.size() ? labels[e] : 0)) reached.push_back(static_cast<int>(e));
     }

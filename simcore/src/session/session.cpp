@@ -27,6 +27,13 @@ Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest) {
 }  // namespace
 
 Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chrono::steady_clock::now()) {
+  if (const std::string why = cauteryProblem(setup_.tools.cautery); !why.empty())
+    throw MeshError("The scene cannot be simulated: " + why + ".");
+  if (!std::isfinite(setup_.material.tearStrain) || setup_.material.tearStrain < 0)
+    throw MeshError("The tissue's tear strain is negative.");
+  for (const auto& [label, m] : setup_.byLabel)
+    if (!std::isfinite(m.tearStrain) || m.tearStrain < 0)
+      throw MeshError("Label " + std::to_string(label) + "'s tear strain is negative.");
   body_ = makeFemBody(setup_);
   if (!setup_.tools.trocar) setup_.tools.trocar = defaultTrocar(body_->restPositions());
   {
@@ -236,6 +243,17 @@ void Session::apply(const InputEvent& e, std::string& message) {
           message = "A grasp radius of " + std::to_string(e.value) + " m is outside (0, 0.1] m; it was not applied.";
         break;
       }
+      if (e.name == "tear_strain") {  // where the tissue (label 0) or one label's material tears; the body stays
+        if (!(e.value >= 0 && e.value <= 10)) {
+          message = "A tear strain of " + std::to_string(e.value) + " is outside [0, 10]; it was not applied.";
+        } else if (e.label > 0) {
+          setup_.byLabel.try_emplace(e.label, setup_.material).first->second.tearStrain = e.value;
+        } else {
+          setup_.material.tearStrain = e.value;
+        }
+        tearRefused_ = false;
+        break;
+      }
       BodySetup before = setup_;
       if (e.label > 0 && (e.name == "young" || e.name == "poisson")) {
         // One label's own material (e.g. the vessels'), starting from the parenchyma's when it had none.
@@ -374,6 +392,7 @@ StepReport Session::advance() {
     tool_.graspForce.setZero();
     tool_.stiffness.setZero();
   }
+  if (rep.ok) tearOverStretched(message);  // tissue pulled past its material's tear strain tears (tearing.cpp)
   publish(rep, message, std::move(events_));
   events_.clear();
   if (stepHook_) {

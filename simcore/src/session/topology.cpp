@@ -60,8 +60,11 @@ void Session::topologyChanged(const TopologyChange& change, std::string& message
   if (change.kind == ChangeKind::Cut) {
     cutEvents(change.labels, message);
     field_.heating.clear();  // it named elements the cut renumbered
+  } else if (change.kind == ChangeKind::Tear) {
+    seedEasing_ = true;      // the torn surface is new (its events were said when the tear was asked for)
+    field_.heating.clear();  // it named elements the re-meshing renumbered
   } else {
-    burnEvents(change, message);
+    burnEvents(message);
   }
   updateBleeds(message);  // a cut vessel's stumps bleed unless clipped; a burnt one is sealed
 }
@@ -96,7 +99,7 @@ bool Session::burn(const std::vector<int>& elements, std::string& message) {
   return changeTopology(std::move(change), message);
 }
 
-void Session::burnEvents(const TopologyChange& change, std::string& message) {
+void Session::burnEvents(std::string& message) {
   events_.push_back("burn");
   char buf[200];
   std::snprintf(
@@ -105,7 +108,6 @@ void Session::burnEvents(const TopologyChange& change, std::string& message) {
       "not bleed.",
       setup_.tools.cautery.stiffening);
   if (message.find(buf) == std::string::npos) message += (message.empty() ? "" : " ") + std::string(buf);
-  (void)change;
 }
 
 void Session::fieldChanged(std::string& message) {
@@ -178,8 +180,12 @@ bool Session::finishPendingChange(bool wait, std::string& message) {
   try {
     built = p.built.get();
   } catch (const std::exception& ex) {
-    message = std::string("The cut was refused: ") + ex.what();
-    restOfSweep_.reset();
+    // Its new body could not be built: the old one stays (a burn's heat is kept, and it burns at a later step).
+    message = std::string(p.kind == ChangeKind::Cut    ? "The cut was refused: "
+                          : p.kind == ChangeKind::Tear ? "The tear could not be made: "
+                                                       : "The burn could not be made: ") +
+              ex.what();
+    if (p.kind == ChangeKind::Cut) restOfSweep_.reset();
     return false;
   }
   // The state carried across from where the tissue is now (the old body went on stepping meanwhile).

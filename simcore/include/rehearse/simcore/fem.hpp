@@ -18,6 +18,10 @@ struct MaterialParams {
   double young = 3000;    ///< Pa
   double poisson = 0.3;   ///< 0 <= nu < 0.5
   double density = 1000;  ///< kg/m^3
+  /// The engineering strain at which this material tears: its largest principal stretch minus 1 (a bar pulled to
+  /// 1 + tearStrain times its length). The session splits an element stretched past it across its stretch, through
+  /// the cut's re-meshing (Session: tearing). 0: it does not tear.
+  double tearStrain = 0;
 };
 
 /// An inner structure (vessels, a tumour) given as its own closed or open triangle surface, embedded in

@@ -133,6 +133,9 @@ struct MaterialSettings {
   double density = 1000;    ///< kg/m^3
   double vesselYoung = 0;   ///< Pa for kVesselLabel (0: as the parenchyma)
   double vesselPoisson = 0.45;
+  /// The engineering strain at which the tissue (and the vessels) tear in the rehearsal (MaterialParams::tearStrain);
+  /// 0: they do not tear.
+  double tearStrain = 0;
   bool operator==(const MaterialSettings&) const = default;
 };
 

@@ -17,9 +17,11 @@
 // Positions in metres in the body's frame; "tip": [x, y, z] places the tip directly. "tools" may also set
 // "blade_length_mm" and "trocar": [x, y, z] (where the shafts enter; the blade lies on the shaft). A clip may give
 // "across": [x, y, z], the direction its jaws close along (default: the shaft's, perpendicular to the structure).
+// "tear_strain": 0.3 makes every material tear at that strain; "tear_strain_by_label": {"2": 0.6} one label's.
 #include <rehearse/simcore/session/session.hpp>
 
 #include <functional>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -49,6 +51,10 @@ struct GestureScript {
   std::optional<double> depenetrationSpeed;                       ///< m/s (ToolSettings::depenetrationSpeed; 0: at once)
   std::optional<int> cutLatencySteps;                             ///< ToolSettings::cutLatencySteps (-1: as before it existed)
   std::optional<double> clipLength, clipGap, clipMinSqueeze;      ///< m, m, - (ToolSettings::clip)
+  /// "tear_strain": where every material tears (the tissue's and each label's own; MaterialParams::tearStrain);
+  /// "tear_strain_by_label": {"2": 0.6} one label's (given its own material, the tissue's, when it had none).
+  std::optional<double> tearStrain;
+  std::map<int, double> tearStrainByLabel;
   std::vector<GestureEvent> events;  ///< in time order
 };
 
@@ -73,6 +79,7 @@ struct GestureResult {
   std::size_t clips = 0, misplacedClips = 0, bleedings = 0;  ///< clips left, of them misplaced; stumps that bled
   double bloodLoss = 0;                                      ///< m^3 at the end
   std::size_t burns = 0, energyOnStructures = 0;             ///< burn updates; named structures energy reached
+  std::size_t tears = 0, attachmentsTorn = 0;                ///< tears; of them at an attachment
   long contactQueries = 0;  ///< 0 when the script moves no instrument
   simcore::Mesh finalMesh;  ///< the volume at the end: nodes and elements after any cut, at the final positions
 };

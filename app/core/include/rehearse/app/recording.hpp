@@ -282,7 +282,10 @@ struct SessionMetrics {
   std::optional<double> bloodLossMl;
   int energyOnStructures = 0;          ///< named structures the cautery's energy reached ("energy on structure")
   double energyTimeS = 0;              ///< s of energy applied to tissue
-  std::optional<int> attachmentsTorn;  ///< nullopt: the model's attachments cannot tear (attachmentsWhy)
+  /// Tears ("tear": tissue pulled past its material's tear strain), and of them those at an attachment (a ligament's
+  /// fixed node or a ligament label: "attachment torn"); nullopt when no material of the case declares a tear strain
+  /// (attachmentsWhy says so: nothing can tear).
+  std::optional<int> tears, attachmentsTorn;
   std::string attachmentsWhy;
 };
 /// One step of a replay, for the review's timeline and plots.
@@ -296,7 +299,8 @@ struct TimelineSample {
   bool holding = false, cutting = false;
   bool newInstrument = false;  ///< another instrument than at the last step (its tip did not travel from there)
   std::vector<std::string> events;  ///< "grasp", "release", "slip", "cut", "vessel cut", "cut through label N", "force
-                                    ///< over threshold", "clip", "clip misplaced", "bleeding", "bleeding stopped"
+                                    ///< over threshold", "clip", "clip misplaced", "bleeding", "bleeding stopped",
+                                    ///< "tear", "attachment torn"
 };
 struct ReplayResult {
   VerifyResult verify;

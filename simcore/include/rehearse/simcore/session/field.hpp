@@ -91,6 +91,9 @@ struct CauterySettings {
   double stiffening = 3.0;  ///< burnt tissue's Young's modulus over its own (coagulated tissue stiffens)
   bool operator==(const CauterySettings&) const = default;
 };
+/// Why these settings cannot burn (a radius below 0, a burn time or stiffening not above 0: burnt tissue would have
+/// no stiffness, and every burn would be refused), in words; empty when they can.
+std::string cauteryProblem(const CauterySettings& c);
 
 /// Where a clip closes when the jaws close at `tip` with the shaft coming from `trocar`: on the element label nearest
 /// the tip within `reach` (a vessel's or a duct's first, `kindOf`, as a surgeon closes the clip on the vessel beside

@@ -30,7 +30,8 @@ enum class InputKind {
   ToolPose,   ///< the tool tip moved to `position` (m, body frame)
   Jaw,        ///< the jaws closed (`on`) or opened
   Cut,        ///< the cutting instrument on (`on`) or off
-  Parameter,  ///< `name` ("young", "poisson", "density", "model", "dt", "method", "clip_length": the clip applier's
+  Parameter,  ///< `name` ("young", "poisson", "density", "model", "dt", "method", "tear_strain": where the material
+              ///< tears (MaterialParams::tearStrain; 0 never), "clip_length": the clip applier's
               ///< next clips, "grasp_radius": the jaws' bite, what
               ///< their next closing holds) set to `value` (SI; model and method:
               ///< MaterialModel / NewtonMethod index); with `label` > 0, "young" and "poisson" of that label's
@@ -117,7 +118,7 @@ struct Snapshot {
   std::vector<double> stress;       ///< per element von Mises stress (Pa), only while setPublishStress(true)
   std::vector<std::string> events;  ///< what happened at this step ("grasp", "release", "slip", "cut", "vessel cut",
                                     ///< "cut through label N" per label cut, "clip", "clip misplaced", "bleeding",
-                                    ///< "bleeding stopped")
+                                    ///< "bleeding stopped", "tear", "<structure> torn", "attachment torn")
   OperativeField field;             ///< the clips on the tissue, the stumps that bleed, the blood lost
   double mass = 0;                  ///< kg, the body's total
   std::size_t elements = 0;
@@ -130,11 +131,13 @@ struct Snapshot {
   std::shared_ptr<const CutSurface> surface;
 };
 
-/// A topology change (a cut today; tearing and burning next) as its module computed it: the new body's setup and
+/// A topology change (a cut, a tear, a burn) as its module computed it: the new body's setup and
 /// how the state extends onto the new nodes. The session builds the new body (at once, or on the second thread while
 /// the old one steps on) and swaps it in at a step boundary, carrying the state across (topology.cpp). A checkpoint
 /// keeps a change still under way, so that a session restored from it builds the same body again.
-enum class ChangeKind { Cut, Burn };
+/// Cut: the blade's sweep; Burn: the cautery relabels elements (no new node, no new face); Tear: an over-stretched
+/// element split across its stretch (tearing.cpp; its events are said when it is asked for).
+enum class ChangeKind { Cut, Burn, Tear };
 struct TopologyChange {
   ChangeKind kind = ChangeKind::Cut;  ///< what words its events (a burn relabels elements: no new node, no new face)
   BodySetup setup;                ///< the new body's setup (new mesh, topology + 1, the change's progress)
@@ -297,12 +300,25 @@ class Session : private InstrumentHost {
   /// What every applied change does after the body changed: elements, surfaces, contact, then its events.
   void topologyChanged(const TopologyChange& change, std::string& message);
   /// What a burn applied says: the elements burnt, the stumps it stopped.
-  void burnEvents(const TopologyChange& change, std::string& message);
+  void burnEvents(std::string& message);
   std::optional<PendingChange> pending_;
   std::vector<std::future<Built>> abandoned_;  ///< builds a restore left behind (waited for at the end)
   /// Old bodies being destroyed on another thread (an asynchronous refresh under way ends first).
   std::vector<std::future<void>> retired_;
   void retire(std::unique_ptr<DeformableBody> body);
+
+  /// The cut module's new mesh (copies of the body's, cut) as the next body's setup: new nodes held where their
+  /// originals were (duplicates of fixed nodes fixed), topology + 1, applied after the scene's latency.
+  TopologyChange changeFromCut(const CutResult& r, std::vector<Eigen::Vector3d> rest,
+                               std::vector<std::array<int, 4>> tets, std::vector<int> labels, CutProgress progress,
+                               ChangeKind kind) const;
+
+  // Tearing (tearing.cpp): after a step, the element stretched furthest past its material's tear strain
+  // (MaterialParams::tearStrain) is split across its largest stretch, through the cut's re-meshing, as a change of
+  // kind Tear; its events and sentence are said at once. One change at a time: while one is being built the next
+  // waits.
+  void tearOverStretched(std::string& message);
+  bool tearRefused_ = false;  ///< the last tear could not be made (said once until one is made)
 
   // The cut (cutting.cpp): what the blade's sweep asks of the cut module, and what a cut says.
   /// The rest of a sweep asked for while a cut was being built (the blade withdrawn meanwhile): cut when it is in.

@@ -1,0 +1,153 @@
+// Tearing: tissue (and what attaches it) pulled past the strain its material declares tears. After every step the
+// element stretched furthest past its material's tear strain (MaterialParams::tearStrain: largest principal stretch
+// minus 1) is split across that stretch: a square in the plane through its centre, normal to the stretched direction,
+// as large as the element, cut through the cut module's re-meshing (cut.hpp) and applied by the session's topology
+// mechanism (topology.cpp) like a blade's cut, with the scene's latency. A torn vessel bleeds like a cut one
+// (field.cpp: its torn faces are open stumps). Nothing is measured unless some material declares a tear strain.
+#include <rehearse/simcore/session/session.hpp>
+
+#include <Eigen/Dense>
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+
+namespace rehearse::simcore {
+
+void Session::tearOverStretched(std::string& message) {
+  if (pending_) return;  // one change at a time: an element still over-stretched tears once this one is in
+  auto limitOf = [this](int label) {
+    const auto it = setup_.byLabel.find(label);
+    return it != setup_.byLabel.end() ? it->second.tearStrain : setup_.material.tearStrain;
+  };
+  bool declared = setup_.material.tearStrain > 0;
+  for (const auto& [label, m] : setup_.byLabel) declared = declared || m.tearStrain > 0;
+  if (!declared) return;
+  const auto& rest = body_->restPositions();
+  const auto& tets = body_->tetrahedra();
+  const auto& labels = body_->labels();
+  auto at = [this](int i) -> Eigen::Vector3d { return state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)); };
+  // The elements past their limit, furthest first (by strain over limit), each with its stretched direction.
+  struct Over {
+    double ratio, strain, limit;
+    int element;
+    Eigen::Vector3d direction;
+  };
+  std::vector<Over> over;
+  for (std::size_t e = 0; e < tets.size(); ++e) {
+    const double limit = limitOf(e < labels.size() ? labels[e] : 0);
+    if (!(limit > 0)) continue;
+    const auto& t = tets[e];
+    Eigen::Matrix3d Dm, Ds;
+    for (int k = 0; k < 3; ++k) {
+      Dm.col(k) =
+          rest[static_cast<std::size_t>(t[static_cast<std::size_t>(k + 1)])] - rest[static_cast<std::size_t>(t[0])];
+      Ds.col(k) = at(t[static_cast<std::size_t>(k + 1)]) - at(t[0]);
+    }
+    if (!(std::abs(Dm.determinant()) > 0)) continue;
+    const Eigen::Matrix3d F = Ds * Dm.inverse();
+    if (!(F.determinant() > 0) || !F.allFinite()) continue;  // an inverted element is compressed, not torn
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    es.computeDirect(F.transpose() * F);
+    const double strain = std::sqrt(std::max(es.eigenvalues()(2), 0.0)) - 1;
+    if (!(strain > limit)) continue;
+    const Eigen::Vector3d stretched = F * es.eigenvectors().col(2);  // the stretched direction, where the tissue is
+    over.push_back({strain / limit, strain, limit, static_cast<int>(e),
+                    stretched.norm() > 0 ? Eigen::Vector3d(stretched.normalized()) : Eigen::Vector3d::UnitX()});
+  }
+  if (over.empty()) {
+    tearRefused_ = false;
+    return;
+  }
+  std::sort(over.begin(), over.end(), [](const Over& a, const Over& b) {
+    return a.ratio != b.ratio ? a.ratio > b.ratio : a.element < b.element;
+  });
+  // The tear: a square across the stretch, reaching the element's farthest node, through the middle of the widest gap
+  // between its nodes along the stretch (as far from them as it can be: a plane near a node snaps to it and may cross
+  // nothing). When the furthest element cannot be split (a sliver, a plane through its nodes), the next ones are
+  // tried: the tear goes on where the tissue is over-stretched.
+  constexpr std::size_t kTries = 8;
+  CutResult r;
+  std::vector<Eigen::Vector3d> restCopy, current;
+  std::vector<std::array<int, 4>> tetsCopy;
+  std::vector<int> labelsCopy;
+  const Over* torn = nullptr;
+  for (std::size_t i = 0; i < std::min(kTries, over.size()) && !torn; ++i) {
+    const Over& o = over[i];
+    const auto& t = tets[static_cast<std::size_t>(o.element)];
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (int v : t) centre += 0.25 * at(v);
+    std::array<double, 4> along{};
+    for (std::size_t k = 0; k < 4; ++k) along[k] = (at(t[k]) - centre).dot(o.direction);
+    std::sort(along.begin(), along.end());
+    double offset = 0, gap = -1;
+    for (std::size_t k = 0; k + 1 < 4; ++k)
+      if (along[k + 1] - along[k] > gap) gap = along[k + 1] - along[k], offset = 0.5 * (along[k] + along[k + 1]);
+    centre += offset * o.direction;
+    double reach = 0;
+    for (int v : t) reach = std::max(reach, (at(v) - centre).norm());
+    reach *= 1.05;
+    const Eigen::Vector3d u = o.direction.unitOrthogonal(), w = o.direction.cross(u);
+    const BladeSweep square{centre - reach * u - reach * w, centre - reach * u + reach * w,
+                            centre + reach * u - reach * w, centre + reach * u + reach * w};
+    restCopy = rest;
+    current.resize(restCopy.size());
+    for (std::size_t k = 0; k < current.size(); ++k) current[k] = at(static_cast<int>(k));
+    tetsCopy = tets;
+    labelsCopy = labels;
+    r = cutTetrahedra(restCopy, current, tetsCopy, labelsCopy, square, setup_.tools.cut, nullptr);
+    if (r.changed && r.separatedFaces > 0) torn = &o;
+  }
+  char buf[320];
+  if (!torn) {
+    // Said once until a tear is made (it is asked for again at every step while the tissue stays over-stretched).
+    if (!tearRefused_) {
+      std::snprintf(buf, sizeof buf,
+                    "The tissue is stretched %.0f %% where its material tears at %.0f %%, but the tear could not be "
+                    "made there: %s",
+                    100 * over.front().strain, 100 * over.front().limit, r.status.c_str());
+      message += (message.empty() ? "" : " ") + std::string(buf);
+    }
+    tearRefused_ = true;
+    return;
+  }
+  const double worstStrain = torn->strain, worstLimit = torn->limit;
+  const auto& t = tets[static_cast<std::size_t>(torn->element)];
+  tearRefused_ = false;
+  ++constructions_.cutMeshes;
+  bool attached = false;  // the torn element held by an attachment (a ligament's fixed node) or is a ligament
+  for (int v : t) attached = attached || body_->fixedMask()[static_cast<std::size_t>(v)];
+  TopologyChange change =
+      changeFromCut(r, std::move(restCopy), std::move(tetsCopy), std::move(labelsCopy), setup_.cut, ChangeKind::Tear);
+  const std::vector<int> tornLabels = change.labels;
+  std::string sentence;
+  if (!changeTopology(std::move(change), sentence)) {
+    message += (message.empty() ? "" : " ") + std::string("The tear could not be made: ") + sentence;
+    return;
+  }
+  // What tore: the tissue, each named structure the tear went through, an attachment.
+  events_.push_back("tear");
+  std::string structures;
+  for (int l : tornLabels) {
+    const StructureKind kind = setup_.mesh.labelKind(l);
+    if (kind == StructureKind::Tissue) continue;
+    attached = attached || kind == StructureKind::Ligament;
+    const std::string what = structureKindName(kind);
+    if (std::find(events_.begin(), events_.end(), what + " torn") == events_.end()) {
+      events_.push_back(what + " torn");
+      if (isVessel(kind) && kind != StructureKind::Vessel) events_.push_back("vessel torn");
+      const std::string name = setup_.mesh.labelName(l);
+      structures += (structures.empty() ? "" : ", ") + what + (name.empty() ? "" : " (" + name + ")");
+    }
+  }
+  if (attached) events_.push_back("attachment torn");
+  std::snprintf(buf, sizeof buf, "The %s tore: stretched %.0f %% where its material tears at %.0f %%%s.",
+                attached ? "tissue at its attachment" : "tissue", 100 * worstStrain, 100 * worstLimit,
+                structures.empty() ? "" : (", through the " + structures).c_str());
+  message += (message.empty() ? "" : " ") + std::string(buf);
+  if (!sentence.empty()) message += " " + sentence;
+}
+
+}  // namespace rehearse::simcore

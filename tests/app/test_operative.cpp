@@ -1,0 +1,79 @@
+// A cholecystectomy-like sequence on a real organ shape (issue 36, operative_case.hpp: the patient liver, a cystic
+// artery through it, every instrument in one script), through the command line as a user runs it: recorded, replayed
+// bit for bit, and its metrics: two clips, none misplaced, the artery cut and no blood lost, energy applied, tissue
+// torn.
+#include "cli_run.hpp"
+#include "operative_case.hpp"
+#include "test_support.hpp"
+
+#include <QJsonArray>
+#include <QJsonDocument>
+#include <QJsonObject>
+#include <QTemporaryDir>
+#include <QtTest>
+
+using namespace rehearse;
+using ::testing::run;
+using ::testing::Run;
+
+class TestOperative : public QObject {
+  Q_OBJECT
+ private slots:
+  void cholecystectomyOnARealLiver() {
+    REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
+    QTemporaryDir dir;
+    if (qEnvironmentVariableIsSet("REHEARSE_KEEP")) {  // to run the case by hand
+      dir.setAutoRemove(false);
+      qInfo("kept in %s", qPrintable(dir.path()));
+    }
+    const rehearse::testing::OperativeCase oc = rehearse::testing::writeOperativeCase(
+        sharedData("scikit-surgery/patient-liver/liver.vtk"), dir.path().toStdString());
+    qInfo(
+        "the patient liver: %zu elements, %zu nodes, %.0f x %.0f x %.0f mm; the cystic artery: %d elements, %.0f mm "
+        "deep",
+        oc.elements, oc.nodes, 1e3 * oc.size.x(), 1e3 * oc.size.y(), 1e3 * oc.size.z(), oc.artery, 1e3 * oc.depth);
+    QVERIFY(oc.artery > 20);
+    if (qEnvironmentVariableIsSet("REHEARSE_KEEP")) return;
+    const QString file = dir.path() + "/case.rehearse";
+    if (qEnvironmentVariableIsSet("REHEARSE_KEEP")) return;
+    const Run g = run({"gesture", "--scene", dir.path() + "/scene.json", "--script", dir.path() + "/chole.json",
+                       "--method", "chord", "--out", dir.path() + "/out.vtu", "--record", file, "--report",
+                       dir.path() + "/report.json", "--trainee", "A. Trainee"});
+    qInfo("%s", qPrintable(g.out.trimmed()));
+    QVERIFY2(::testing::tookEveryStep(g), qPrintable(QString::number(g.code) + ": " + g.out + g.err));
+    QFile rf(dir.path() + "/report.json");
+    QVERIFY(rf.open(QIODevice::ReadOnly));
+    const QJsonObject report = QJsonDocument::fromJson(rf.readAll()).object();
+    QStringList said;
+    for (const auto& row : report["steps"].toArray())
+      if (!row.toObject()["message"].toString().isEmpty()) said << row.toObject()["message"].toString();
+    qInfo("what the session said:\n  %s", qPrintable(said.join("\n  ")));
+    QCOMPARE(report["clips"].toInt(), 2);
+    QCOMPARE(report["misplaced_clips"].toInt(), 0);
+    QVERIFY(report["vessel_cuts"].toInt() >= 1);
+    QCOMPARE(report["blood_loss_ml"].toDouble(), 0.0);
+    QVERIFY(report["burns"].toInt() >= 1);
+    QVERIFY(report["tears"].toInt() >= 1);
+    // Replayed bit for bit, with the trainer's metrics.
+    const Run r = run({"replay", file, "--session", "1", "--verify", "--metrics", dir.path() + "/m.json"});
+    QVERIFY2(r.code == 0, qPrintable(r.out + r.err));
+    QFile mf(dir.path() + "/m.json");
+    QVERIFY(mf.open(QIODevice::ReadOnly));
+    const QJsonObject metrics = QJsonDocument::fromJson(mf.readAll()).object();
+    qInfo(
+        "metrics: clips %d (misplaced %d), vessel cuts %d, blood lost %.3f mL, energy %.2f s, tears %d, "
+        "attachments torn %d",
+        metrics["clips"].toInt(), metrics["misplaced_clips"].toInt(), metrics["vessel_cuts"].toInt(),
+        metrics["blood_loss_ml"].toDouble(), metrics["energy_time_s"].toDouble(), metrics["tears"].toInt(),
+        metrics["attachments_torn"].toInt());
+    QCOMPARE(metrics["clips"].toInt(), 2);
+    QCOMPARE(metrics["misplaced_clips"].toInt(), 0);
+    QCOMPARE(metrics["vessel_cuts"].toInt(), report["vessel_cuts"].toInt());
+    QCOMPARE(metrics["blood_loss_ml"].toDouble(), 0.0);
+    QVERIFY(metrics["energy_time_s"].toDouble() > 0.3);
+    QCOMPARE(metrics["tears"].toInt(), report["tears"].toInt());
+  }
+};
+
+QTEST_GUILESS_MAIN(TestOperative)
+#include "test_operative.moc"
