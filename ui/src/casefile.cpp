@@ -195,9 +195,15 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
     meta(QStringLiteral("mesh_source_unit_m"), QString::number(c.organ->sourceUnitToMetre, 'g', 17));
     {
       const auto& m = c.material;
-      part("material", "json", bytes(json{{"model", simcore::toString(m.model)}, {"young", m.young}, {"poisson", m.poisson},
-                                          {"density", m.density}, {"vessel_young", m.vesselYoung}, {"vessel_poisson", m.vesselPoisson}}
-                                         .dump()));
+      part("material", "json",
+           bytes(json{{"model", simcore::toString(m.model)},
+                      {"young", m.young},
+                      {"poisson", m.poisson},
+                      {"density", m.density},
+                      {"vessel_young", m.vesselYoung},
+                      {"vessel_poisson", m.vesselPoisson},
+                      {"tear_strain", m.tearStrain}}
+                     .dump()));
     }
     if (!c.contour.segments.empty()) part("contour", "json", bytes(imaging::contourToJson(c.contour)));
     if (!c.landmarks.empty()) {
@@ -422,6 +428,8 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
       s.density = j.at("density").get<double>();
       s.vesselYoung = j.value("vessel_young", 0.0);
       s.vesselPoisson = j.value("vessel_poisson", 0.45);
+      s.tearStrain = j.value("tear_strain", 0.0);
+      if (!(s.tearStrain >= 0 && s.tearStrain <= 10)) throw std::runtime_error("its tear strain is outside [0, 10]");
       c.material = s;
     } catch (const std::exception& e) {
       note(QStringLiteral("Material not loaded (the default is used): %1").arg(QString::fromUtf8(e.what())));

@@ -4,6 +4,7 @@
 
 #include <rehearse/imaging/render.hpp>
 
+#include <QFontMetricsF>
 #include <QKeyEvent>
 #include <QMouseEvent>
 #include <QPainter>
@@ -100,13 +101,48 @@ void FrameView::setOverlayOpacity(double opacity) {
   update();
 }
 
+namespace {
+bool isInstrument(Tool k) { return k == Tool::Grasp || k == Tool::Scissors || k == Tool::Clip || k == Tool::Cautery; }
+}  // namespace
+
+void FrameView::paintInstrument(QPainter& painter) {
+  if (!pointer_ || !isInstrument(tool_) || !case_ || frame_.isNull()) return;
+  const QString name = tool_ == Tool::Grasp      ? tr("Grasper")
+                       : tool_ == Tool::Scissors ? tr("Scissors")
+                       : tool_ == Tool::Clip     ? tr("Clip applier")
+                                                 : tr("Cautery hook");
+  const QColor colour = tool_ == Tool::Grasp      ? QColor(60, 170, 80)
+                        : tool_ == Tool::Scissors ? QColor(150, 60, 190)
+                        : tool_ == Tool::Clip     ? QColor(120, 130, 150)
+                                                  : QColor(230, 150, 30);
+  painter.save();
+  QFont font = painter.font();
+  font.setPointSizeF(std::max(7.0, 0.85 * font.pointSizeF()));
+  painter.setFont(font);
+  const QFontMetricsF fm(font);
+  const QRectF box(*pointer_ + QPointF(14, 12), QSizeF(fm.horizontalAdvance(name) + 10, fm.height() + 4));
+  painter.setRenderHint(QPainter::Antialiasing);
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(QColor(20, 20, 24, 190));
+  painter.drawRoundedRect(box, 4, 4);
+  painter.setBrush(colour);
+  painter.drawRect(QRectF(box.left(), box.top() + 3, 3, box.height() - 6));
+  painter.setPen(QColor(240, 240, 240));
+  painter.drawText(box.adjusted(6, 0, 0, 0), Qt::AlignVCenter | Qt::AlignLeft, name);
+  painter.restore();
+}
+
+void FrameView::leaveEvent(QEvent* e) {
+  if (pointer_) update(QRect(pointer_->toPoint() + QPoint(10, 8), QSize(180, 36)));
+  pointer_.reset();
+  QWidget::leaveEvent(e);
+}
+
 void FrameView::setTool(Tool t) {
   if (t != tool_) {
     // The grasper keeps its hold while the scissors cut or the clip applier clips (an assistant's traction); any
     // other tool lets go.
-    const auto instrument = [](Tool k) {
-      return k == Tool::Grasp || k == Tool::Scissors || k == Tool::Clip || k == Tool::Cautery;
-    };
+    const auto instrument = isInstrument;
     if (current() && !(tool_ == Tool::Grasp && instrument(t))) current()->finish();
     if (!instrument(t) && instrument(tool_) && tool_ != Tool::Grasp) tools_.at(Tool::Grasp)->finish();
     if (current()) current()->setActive(false);
@@ -216,6 +252,7 @@ void FrameView::paintEvent(QPaintEvent*) {
   for (const auto& [kind, tool] : tools_)
     if (kind != tool_) tool->paintIdle(painter);
   if (FrameTool* t = current()) t->paint(painter);
+  paintInstrument(painter);
   paintWarning(painter);
   paintLegend(painter);
 }
@@ -418,6 +455,13 @@ void FrameView::mousePressEvent(QMouseEvent* e) {
 void FrameView::mouseMoveEvent(QMouseEvent* e) {
   const QPointF w = e->position();
   const QPointF f = toFrame(w);
+  if (isInstrument(tool_)) {
+    // The instrument's name follows the tip: only where its label was and is repainted.
+    auto label = [](const QPointF& p) { return QRect(p.toPoint() + QPoint(10, 8), QSize(180, 36)); };
+    const QRect dirty = pointer_ ? label(*pointer_).united(label(w)) : label(w);
+    pointer_ = w;
+    update(dirty);
+  }
   if (panning_) {
     pan_ += w - lastMouse_;
     lastMouse_ = w;

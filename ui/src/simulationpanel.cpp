@@ -66,7 +66,7 @@ simcore::BodySetup bodySetup(const SimulationSetup& s) {
   for (std::size_t i = 0; i < shape.size(); ++i) b.rest[i] = s.organ->pose.apply(shape[i]);
   b.fixedNodes = s.organ->attachments;
   const app::LabelMaterials m = app::labelMaterials(
-      app::MaterialSettings{s.model, s.young, s.poisson, s.density, s.vesselYoung, s.vesselPoisson});
+      app::MaterialSettings{s.model, s.young, s.poisson, s.density, s.vesselYoung, s.vesselPoisson, s.tearStrain});
   b.material = m.fallback;
   b.byLabel = m.byLabel;
   b.settings.timeStep = s.timeStep;
@@ -526,6 +526,12 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form_.mass = new QLabel(this);
   form_.mass->setObjectName(QStringLiteral("simMass"));
   form->addRow(tr("Organ mass"), form_.mass);
+  form_.tearStrain = field("simTearStrain", tr("Tears at"), 0, 500, 0, tr(" % strain"), "material", "tear_strain");
+  form_.tearStrain->setSpecialValueText(tr("never"));
+  form_.tearStrain->setToolTip(
+      form_.tearStrain->toolTip() +
+      tr("\nPulled further than this, the tissue and its vessels tear (a torn vessel bleeds); the grasp slips or the "
+         "tissue tears, whichever comes first. Never: it does not tear."));
   form_.timeStep = field("simTimeStep", tr("Time step"), 0.1, 100, 1, tr(" ms"), "implicit_euler", "dt");
   form_.timeStep->setValue(10);
   form_.jawBite = new QDoubleSpinBox(this);
@@ -629,7 +635,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   connect(form_.timeStep, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
   connect(form_.jawBite, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
   connect(form_.clipLength, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
-  for (QDoubleSpinBox* s : {form_.young, form_.poisson, form_.density})
+  for (QDoubleSpinBox* s : {form_.young, form_.poisson, form_.density, form_.tearStrain})
     connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::materialFieldsEdited);
   connect(form_.density, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::updateMass);
   connect(form_.colouring, &QComboBox::currentIndexChanged, this, [this](int c) {
@@ -712,6 +718,7 @@ SimulationSetup SimulationPanel::setup() const {
     s.density = m.density;
     s.vesselYoung = m.vesselYoung;
     s.vesselPoisson = m.vesselPoisson;
+    s.tearStrain = m.tearStrain;
   }
   s.timeStep = 1e-3 * form_.timeStep->value();
   s.graspRadius = 1e-3 * form_.jawBite->value();
@@ -729,6 +736,7 @@ void SimulationPanel::fillMaterial(const app::MaterialSettings& m) {
   form_.young->setValue(m.young / 1e3);
   form_.poisson->setValue(m.poisson);
   form_.density->setValue(m.density);
+  form_.tearStrain->setValue(100 * m.tearStrain);
   filling_ = false;
   updateMass();
 }
@@ -745,6 +753,7 @@ app::MaterialSettings SimulationPanel::fieldsMaterial() const {
   m.young = take(form_.young, m.young, 1e3);
   m.poisson = take(form_.poisson, m.poisson, 1.0);
   m.density = take(form_.density, m.density, 1.0);
+  m.tearStrain = take(form_.tearStrain, m.tearStrain, 0.01);
   return m;
 }
 
@@ -771,6 +780,10 @@ void SimulationPanel::postMaterial(const app::MaterialSettings& before, const ap
   if (m.young != before.young) session_->post(parameter("young", m.young));
   if (m.poisson != before.poisson) session_->post(parameter("poisson", m.poisson));
   if (m.density != before.density) session_->post(parameter("density", m.density));
+  if (m.tearStrain != before.tearStrain) {
+    session_->post(parameter("tear_strain", m.tearStrain));
+    if (m.vesselYoung > 0) session_->post(parameter("tear_strain", m.tearStrain, app::kVesselLabel));
+  }
   if (m.vesselYoung != before.vesselYoung || m.vesselPoisson != before.vesselPoisson) {
     session_->post(parameter("young", m.vesselYoung, app::kVesselLabel));
     if (m.vesselYoung > 0) session_->post(parameter("poisson", m.vesselPoisson, app::kVesselLabel));

@@ -195,14 +195,18 @@ RehearsePage::~RehearsePage() = default;
 void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!f) return;
   // A new session (a new organ, case, reset or recording) starts its counts from nothing.
-  if (f->steps < lastSteps_ || f->steps == 0) slips_ = cuts_ = vesselCuts_ = 0;
+  if (f->steps < lastSteps_ || f->steps == 0) slips_ = cuts_ = vesselCuts_ = tears_ = 0;
   lastSteps_ = f->steps;
   slips_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "slip"));
   cuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "cut"));
   vesselCuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "vessel cut"));
+  const int tore = static_cast<int>(std::count(f->events.begin(), f->events.end(), "tear"));
+  tears_ += tore;
   auto status = [this](const QString& text) { pendingStatus_ = text; };
   const auto& t = f->tool;
-  if (t.cutting)
+  if (tore > 0 && !f->message.isEmpty())
+    status(f->message);  // what tore, and at what strain
+  else if (t.cutting)
     status(tr("Cutting: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
   else if (!t.held.empty())
     status(tr("Holding %n node(s) of tissue.", nullptr, static_cast<int>(t.held.size())));
@@ -216,6 +220,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (slips_) extra += tr("   slips: %1").arg(slips_);
   if (cuts_) extra += tr("   cuts: %1").arg(cuts_);
   if (vesselCuts_) extra += tr("   vessels cut: %1").arg(vesselCuts_);
+  if (tears_) extra += tr("   TORN: %1").arg(tears_);
   if (!f->field.clips.empty()) extra += tr("   clips: %1").arg(f->field.clips.size());
   if (f->field.energy) extra += tr("   ENERGY ON");
   if (f->field.bloodLoss > 0) {

@@ -40,13 +40,14 @@ QColor reviewEventColour(const std::string& e) {
   if (e == "bleeding stopped") return QColor(230, 110, 150);   // pink
   if (e == "burn") return QColor(200, 190, 150);               // ash
   if (e == "energy on structure") return QColor(255, 60, 200);  // magenta
+  if (e == "tear") return QColor(150, 90, 40);                  // brown
   return {};
 }
 const char* const kReviewEventLegend =
     "ticks: grasp green, release teal, slip orange, cut purple, vessel cut red (longer), force over the threshold "
     "grey, "
     "clip steel, clip misplaced amber, bleeding dark red, bleeding stopped pink, burn ash, energy on a structure "
-    "magenta";
+    "magenta, tear brown";
 
 namespace {
 

@@ -184,6 +184,7 @@ class FrameView : public QWidget {
   void wheelEvent(QWheelEvent*) override;
   void mousePressEvent(QMouseEvent*) override;
   void mouseMoveEvent(QMouseEvent*) override;
+  void leaveEvent(QEvent*) override;
   void mouseReleaseEvent(QMouseEvent*) override;
   void mouseDoubleClickEvent(QMouseEvent*) override;
   void keyPressEvent(QKeyEvent*) override;
@@ -195,6 +196,9 @@ class FrameView : public QWidget {
   void paintOverlay(QPainter& painter);
   void paintOrganMarks(QPainter& painter, const imaging::Contour& contour);
   void paintLegend(QPainter& painter);
+  /// The instrument in hand named at the pointer (its tip, where it acts on the tissue).
+  void paintInstrument(QPainter& painter);
+  std::optional<QPointF> pointer_;  ///< widget position of the mouse while it is over the view
 
   std::shared_ptr<const app::Case> case_;
   std::vector<Eigen::Vector3d> live_;

@@ -51,6 +51,7 @@ struct SimulationSetup {
   /// nodes can be a centimetre apart: 6 mm may hold one).
   double graspRadius = 0.006;
   double clipLength = 0.009;  ///< m, the clip applier's jaws
+  double tearStrain = 0;      ///< where the tissue tears (MaterialSettings::tearStrain; 0: never)
   /// The organ starts where the frame shows it, in equilibrium under gravity on its attachments: the rest shape that
   /// sags into the registered one is solved first (simcore/inverse_rest.hpp). Off: it starts at rest on that shape
   /// (and sags away from it).
@@ -219,6 +220,7 @@ class SimulationPanel : public QWidget {
     QDoubleSpinBox* young = nullptr;
     QDoubleSpinBox* poisson = nullptr;
     QDoubleSpinBox* density = nullptr;
+    QDoubleSpinBox* tearStrain = nullptr;  ///< % strain the tissue tears at (0: never)
     QDoubleSpinBox* timeStep = nullptr;
     QDoubleSpinBox* jawBite = nullptr;  ///< the grasper's reach: closing holds the nodes within it of the tip (mm)
     QDoubleSpinBox* clipLength = nullptr;  ///< the clip applier's jaws' length (mm)

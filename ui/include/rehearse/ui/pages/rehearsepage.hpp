@@ -69,7 +69,7 @@ class RehearsePage : public StepPage {
   std::optional<QString> pendingStatus_;  // set per frame, shown through labelThrottle_
   QString forceText_;
   std::unique_ptr<Throttle> labelThrottle_;
-  int slips_ = 0, cuts_ = 0, vesselCuts_ = 0;
+  int slips_ = 0, cuts_ = 0, vesselCuts_ = 0, tears_ = 0;
   long lastSteps_ = 0;  ///< the last frame's step: a smaller one is a new session
   RecordHandlers record_;
   QPushButton* recordButton_ = nullptr;
