@@ -29,9 +29,8 @@ inline simcore::InputEvent cutting(bool on) {
   return e;
 }
 
-/// A preset's body as the session takes it (metres, its attachments, materials and settings).
-inline simcore::BodySetup presetBody(const std::string& name, const std::string& sharedData = "../shared/data") {
-  const simcore::Scene p = phantom::makePreset(name, sharedData);
+/// A scene's body as the session takes it (metres, its attachments, materials and settings).
+inline simcore::BodySetup sceneBody(const simcore::Scene& p) {
   simcore::BodySetup s;
   s.mesh = p.mesh;
   s.mesh.convertToMetres();
@@ -40,6 +39,11 @@ inline simcore::BodySetup presetBody(const std::string& name, const std::string&
   s.byLabel = p.materials;
   s.settings = p.settings;
   return s;
+}
+
+/// A preset's body as the session takes it.
+inline simcore::BodySetup presetBody(const std::string& name, const std::string& sharedData = "../shared/data") {
+  return sceneBody(phantom::makePreset(name, sharedData));
 }
 
 }  // namespace rehearse::testing

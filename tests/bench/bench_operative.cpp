@@ -1,0 +1,135 @@
+// Benchmark of a step with every instrument in use (issue 36; not a test): the cholecystectomy-like case on the
+// patient liver (operative_case.hpp: two clips across a cystic artery, a cut between them, a burnt line, a pull until
+// the liver tears), run through the gesture session as the command line runs it. Wall time per step in each phase
+// (median, p99, worst over the phase's steps; each variant run `--repeat` times, the median of the runs' medians),
+// with the statuses of those steps. (The grasp's pull alone, without the cut that parted the liver before it, pulls
+// the whole organ from its attachments: steps of seconds, no baseline; measured once, not kept.) Variants: the script's
+// own (chord, synchronous refresh, topology changes 5 steps after they are asked for: the same mesh every run) and the
+// GUI's (chord with the asynchronous refresh, changes swapped in when built). Writes operative-steps.csv into the
+// directory given (default ".").
+//   bench_operative [OUT_DIR] [--repeat N]
+#include "operative_case.hpp"
+#include "session_inputs.hpp"
+
+#include <rehearse/app/gesture.hpp>
+#include <rehearse/simcore/scene.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+using namespace rehearse;
+
+namespace {
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+}
+
+// The phase a step belongs to, by its time (the script's events: clips 0.1-0.4 s, the cut 0.4-0.9 s, the cautery
+// 0.9-1.5 s, the pull and its tears from 1.5 s).
+const char* phaseOf(double t) {
+  if (t <= 0.1) return "settle";
+  if (t <= 0.4) return "clips";
+  if (t <= 0.9) return "cut";
+  if (t <= 1.5) return "cautery";
+  return "pull and tear";
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out = ".";
+  int repeat = 3;
+  for (int i = 1; i < argc; ++i) {
+    if (std::strcmp(argv[i], "--repeat") == 0 && i + 1 < argc)
+      repeat = std::max(1, std::atoi(argv[++i]));
+    else
+      out = argv[i];
+  }
+  std::filesystem::create_directories(out);
+  const std::string liver = std::string(REHEARSE_SHARED_DATA) + "/scikit-surgery/patient-liver/liver.vtk";
+  if (!std::filesystem::exists(liver)) {
+    std::printf("the patient liver is absent (%s): nothing to measure\n", liver.c_str());
+    return 0;
+  }
+  const std::string dir = out + "/operative-case";
+  std::filesystem::create_directories(dir);
+  const testing::OperativeCase oc = testing::writeOperativeCase(liver, dir);
+  std::printf("patient liver: %zu elements, %zu nodes; cystic artery %d elements\n", oc.elements, oc.nodes, oc.artery);
+  simcore::BodySetup base = testing::sceneBody(simcore::loadScene(dir + "/scene.json"));
+  base.settings.method = simcore::NewtonMethod::Chord;
+  std::ifstream in(dir + "/chole.json");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const app::GestureScript all = app::parseGestureScript(ss.str());
+  std::ofstream csv(out + "/operative-steps.csv");
+  csv << "variant,script,phase,steps,median_ms,p99_ms,max_ms,converged,inexact,other,events\n";
+  std::printf("%-22s %-14s %-14s %6s %9s %9s %9s %s\n", "variant", "script", "phase", "steps", "median ms", "p99",
+              "worst", "converged/inexact/other  events");
+  struct Variant {
+    const char* name;
+    simcore::FactorRefresh refresh;
+    int latency;
+  };
+  for (const Variant v : {Variant{"chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5},
+                          Variant{"chord, async (GUI)", simcore::FactorRefresh::Asynchronous, -1}}) {
+    {
+      simcore::BodySetup s = base;
+      s.settings.factorRefresh = v.refresh;
+      app::GestureScript script = all;
+      script.cutLatencySteps = v.latency;
+      // phase -> per run: the step times; and the last run's statuses and events
+      std::map<std::string, std::vector<double>> medians, p99s, worsts;
+      std::map<std::string, std::array<int, 3>> statuses;
+      std::map<std::string, std::map<std::string, int>> events;
+      for (int r = 0; r < repeat; ++r) {
+        const app::GestureResult g = app::runGesture(s, script);
+        std::map<std::string, std::vector<double>> ms;
+        statuses.clear();
+        events.clear();
+        for (const auto& step : g.steps) {
+          const std::string phase = phaseOf(step.time);
+          ms[phase].push_back(step.wallMs);
+          auto& st = statuses[phase];
+          ++st[step.report.outcome == simcore::StepStatus::Converged ? 0
+               : step.report.outcome == simcore::StepStatus::Inexact ? 1
+                                                                     : 2];
+          for (const auto& e : step.events)
+            if (e == "clip" || e == "cut" || e == "burn" || e == "tear" || e == "vessel cut") ++events[phase][e];
+        }
+        for (const auto& [phase, t] : ms) {
+          medians[phase].push_back(percentile(t, 0.5));
+          p99s[phase].push_back(percentile(t, 0.99));
+          worsts[phase].push_back(percentile(t, 1.0));
+        }
+      }
+      for (const char* phase : {"settle", "clips", "cut", "cautery", "pull and tear"}) {
+        if (!medians.count(phase)) continue;
+        std::string said;
+        for (const auto& [e, n] : events[phase]) said += (said.empty() ? "" : " ") + e + " x" + std::to_string(n);
+        const auto& st = statuses[phase];
+        const int n = st[0] + st[1] + st[2];
+        std::printf("%-22s %-14s %-14s %6d %9.2f %9.2f %9.2f %d/%d/%d  %s\n", v.name, "every instrument", phase, n,
+                    percentile(medians[phase], 0.5), percentile(p99s[phase], 0.5), percentile(worsts[phase], 0.5),
+                    st[0], st[1], st[2], said.c_str());
+        csv << '"' << v.name << "\"," << ("every instrument") << ',' << phase << ',' << n << ','
+            << percentile(medians[phase], 0.5) << ',' << percentile(p99s[phase], 0.5) << ','
+            << percentile(worsts[phase], 0.5) << ',' << st[0] << ',' << st[1] << ',' << st[2] << ",\"" << said
+            << "\"\n";
+      }
+      std::fflush(stdout);
+    }
+  }
+  std::printf("written %s/operative-steps.csv\n", out.c_str());
+  return 0;
+}
