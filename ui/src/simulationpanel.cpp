@@ -525,13 +525,21 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
       tr("\nThe presets set the tissue's density (liver 1,079 kg/m³); the organ's mass follows its volume."));
   form_.mass = new QLabel(this);
   form_.mass->setObjectName(QStringLiteral("simMass"));
-  form->addRow(tr("Organ mass"), form_.mass);
-  form_.tearStrain = field("simTearStrain", tr("Tears at"), 0, 500, 0, tr(" % strain"), "material", "tear_strain");
+  // Where the tissue tears: on the jaw bite's row (the grasp slips or the tissue tears, whichever comes first; a row
+  // more, or a wider one, would take room from the frame view).
+  form_.tearStrain = new QDoubleSpinBox(this);
+  form_.tearStrain->setObjectName(QStringLiteral("simTearStrain"));
+  form_.tearStrain->setRange(0, 500);
+  form_.tearStrain->setDecimals(0);
+  form_.tearStrain->setSuffix(tr(" %"));
+  form_.tearStrain->setKeyboardTracking(false);
   form_.tearStrain->setSpecialValueText(tr("never"));
+  form_.tearStrain->setAccessibleName(tr("Tears at strain"));
   form_.tearStrain->setToolTip(
-      form_.tearStrain->toolTip() +
+      declared("material", "tear_strain") +
       tr("\nPulled further than this, the tissue and its vessels tear (a torn vessel bleeds); the grasp slips or the "
          "tissue tears, whichever comes first. Never: it does not tear."));
+  form->addRow(tr("Organ mass"), form_.mass);
   form_.timeStep = field("simTimeStep", tr("Time step"), 0.1, 100, 1, tr(" ms"), "implicit_euler", "dt");
   form_.timeStep->setValue(10);
   form_.jawBite = new QDoubleSpinBox(this);
@@ -544,7 +552,17 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form_.jawBite->setToolTip(
       tr("The grasper's bite: closing the jaws holds the tissue's nodes within this distance of the tip. A coarse "
          "mesh's nodes can be a centimetre apart, so a wider bite holds more of it (applies at the next grasp)"));
-  form->addRow(tr("Jaw bite"), form_.jawBite);
+  {
+    auto* row = new QWidget(this);
+    auto* h = new QHBoxLayout(row);
+    h->setContentsMargins(0, 0, 0, 0);
+    h->addWidget(form_.jawBite, 1);
+    auto* label = new QLabel(tr("tears at"), row);
+    label->setBuddy(form_.tearStrain);
+    h->addWidget(label);
+    h->addWidget(form_.tearStrain, 1);
+    form->addRow(tr("Jaw bite"), row);
+  }
   form_.clipLength = new QDoubleSpinBox(this);
   form_.clipLength->setObjectName(QStringLiteral("simClipLength"));
   form_.clipLength->setRange(3, 20);
