@@ -15,14 +15,6 @@
 
 namespace rehearse::simcore {
 
-std::string cauteryProblem(const CauterySettings& c) {
-  if (!std::isfinite(c.radius) || c.radius < 0) return "the cautery hook's radius is not a non-negative number";
-  if (!std::isfinite(c.burnTime) || c.burnTime <= 0) return "the cautery hook's burn time is not a positive number";
-  if (!std::isfinite(c.stiffening) || c.stiffening <= 0)
-    return "the stiffening of burnt tissue is not a positive number (burnt tissue would have no stiffness)";
-  return {};
-}
-
 namespace {
 Eigen::Vector3d node(const Eigen::VectorXd& x, int i) { return x.segment<3>(3 * static_cast<Eigen::Index>(i)); }
 

@@ -11,6 +11,7 @@
 
 #include <array>
 #include <functional>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -92,8 +93,15 @@ struct CauterySettings {
   bool operator==(const CauterySettings&) const = default;
 };
 /// Why these settings cannot burn (a radius below 0, a burn time or stiffening not above 0: burnt tissue would have
-/// no stiffness, and every burn would be refused), in words; empty when they can.
-std::string cauteryProblem(const CauterySettings& c);
+/// no stiffness, and every burn would be refused), in words; empty when they can. (Inline: the recording codec's
+/// fuzzer links the codec without the session.)
+inline std::string cauteryProblem(const CauterySettings& c) {
+  if (!std::isfinite(c.radius) || c.radius < 0) return "the cautery hook's radius is not a non-negative number";
+  if (!std::isfinite(c.burnTime) || c.burnTime <= 0) return "the cautery hook's burn time is not a positive number";
+  if (!std::isfinite(c.stiffening) || c.stiffening <= 0)
+    return "the stiffening of burnt tissue is not a positive number (burnt tissue would have no stiffness)";
+  return {};
+}
 
 /// Where a clip closes when the jaws close at `tip` with the shaft coming from `trocar`: on the element label nearest
 /// the tip within `reach` (a vessel's or a duct's first, `kindOf`, as a surgeon closes the clip on the vessel beside
