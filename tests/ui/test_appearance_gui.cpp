@@ -410,82 +410,6 @@ class TestAppearanceGui : public QObject {
   // stumps are found and neither bleeds), the cautery hook (J) burns a line along the organ (its elements relabelled
   // burnt, drawn whitened), and the scissors cut another branch without clips: it bleeds, the loss grows, and the blood
   // is drawn over the composited view.
-  // Tearing with the mouse: the Simulation panel's "Tears at" set to 15 % strain, the grasper bites the organ and drags
-  // it far down the frame until the tissue tears (the mesh changes without a blade; the status says what tore and at
-  // what strain, the page counts it), then lets go. Screenshot docs/step7-tear.png.
-  void graspPullUntilItTears() {
-    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
-    QVERIFY(w_->showingComposited());
-    panel_->reset();
-    panel_->play();
-    auto* view = w_->frameView();
-    const auto& c = *w_->caseData();
-    QVERIFY(waitFor([&] {
-      return panel_->lastFrame() && panel_->lastFrame()->steps > 5 &&
-             panel_->lastFrame()->positions.size() == c.organ->volume.points.size();
-    }));
-    const auto stepsOn = [&](int n) {
-      const long now = panel_->lastFrame()->steps;
-      return waitFor([&] { return panel_->lastFrame()->steps >= now + n; });
-    };
-    auto* tears = panel_->findChild<QDoubleSpinBox*>("simTearStrain");
-    QVERIFY(tears);
-    QCOMPARE(tears->value(), 0.0);  // by default nothing tears ("never")
-    tears->setFocus();
-    tears->selectAll();
-    QTest::keyClicks(tears, "15");
-    QTest::keyClick(tears, Qt::Key_Return);
-    QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0.15; }));
-    QVERIFY(stepsOn(3));
-    double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
-    for (const auto& p : c.shapeNodes()) {
-      const Eigen::Vector2d q = c.camera.project(c.pose.apply(p));
-      x0 = std::min(x0, q.x()), x1 = std::max(x1, q.x()), y0 = std::min(y0, q.y()), y1 = std::max(y1, q.y());
-    }
-    const auto widget = [&](double fx, double fy) {
-      return view->toWidget(QPointF(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))).toPoint();
-    };
-    QTest::keyClick(w_.get(), Qt::Key_R);
-    QCOMPARE(view->tool(), ui::Tool::Grasp);
-    const std::size_t elements = panel_->lastFrame()->elements;
-    const QPoint from = widget(0.3, 0.6);
-    QTest::mousePress(view, Qt::LeftButton, {}, from);
-    QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.held.empty(); }));
-    auto* status = w_->rehearsePage()->findChild<QLabel*>("rehearseStatus");
-    QString tore;
-    QPoint last = from;
-    for (int i = 1; i <= 40 && tore.isEmpty(); ++i) {
-      last = widget(0.3 - 0.3 * i / 40.0, 0.6 + 0.6 * i / 40.0);
-      QTest::mouseMove(view, last);
-      QVERIFY(stepsOn(4));
-      if (status->text().contains("tore")) tore = status->text();
-      if (panel_->lastFrame()->tool.held.empty()) break;  // slipped first
-    }
-    QVERIFY(waitFor([&] { return panel_->lastFrame()->elements > elements; }, 30000));  // split: more elements
-    QVERIFY(waitFor([&] { return status->text().contains("tore") || !tore.isEmpty(); }, 10000));
-    if (tore.isEmpty()) tore = status->text();
-    qInfo("%s", qPrintable(tore));
-    QVERIFY(tore.contains("where its material tears at 15 %"));
-    QVERIFY(waitFor([&] { return w_->rehearsePage()->findChild<QLabel*>("rehearseForce")->text().contains("TORN"); },
-                    10000));
-    QVERIFY(stepsOn(10));
-    QTest::keyClick(w_.get(), Qt::Key_F5);
-    QVERIFY(waitFor([&] { return !panel_->isPlaying(); }, 10000));
-    QTest::qWait(300);
-    w_->composition()->waitForIdle();
-    QTest::qWait(100);
-    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
-      w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-tear.png");
-    QTest::mouseRelease(view, Qt::LeftButton, {}, last);
-    // Back to "never" for the suites after this one.
-    tears->setFocus();
-    tears->selectAll();
-    QTest::keyClicks(tears, "0");
-    QTest::keyClick(tears, Qt::Key_Return);
-    QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0; }));
-    QTest::keyClick(w_.get(), Qt::Key_Escape);
-  }
-
   void clipCutAndCauterize() {
     QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
     QVERIFY(w_->showingComposited());
@@ -675,6 +599,82 @@ class TestAppearanceGui : public QObject {
     }
     QTest::keyClick(w_.get(), Qt::Key_Escape);
     panel_->reset();
+  }
+
+  // Tearing with the mouse: the Simulation panel's "Tears at" set to 15 % strain, the grasper bites the organ and drags
+  // it far down the frame until the tissue tears (the mesh changes without a blade; the status says what tore and at
+  // what strain, the page counts it), then lets go. Screenshot docs/step7-tear.png.
+  void graspPullUntilItTears() {
+    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
+    QVERIFY(w_->showingComposited());
+    panel_->reset();
+    panel_->play();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    QVERIFY(waitFor([&] {
+      return panel_->lastFrame() && panel_->lastFrame()->steps > 5 &&
+             panel_->lastFrame()->positions.size() == c.organ->volume.points.size();
+    }));
+    const auto stepsOn = [&](int n) {
+      const long now = panel_->lastFrame()->steps;
+      return waitFor([&] { return panel_->lastFrame()->steps >= now + n; });
+    };
+    auto* tears = panel_->findChild<QDoubleSpinBox*>("simTearStrain");
+    QVERIFY(tears);
+    QCOMPARE(tears->value(), 0.0);  // by default nothing tears ("never")
+    tears->setFocus();
+    tears->selectAll();
+    QTest::keyClicks(tears, "15");
+    QTest::keyClick(tears, Qt::Key_Return);
+    QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0.15; }));
+    QVERIFY(stepsOn(3));
+    double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+    for (const auto& p : c.shapeNodes()) {
+      const Eigen::Vector2d q = c.camera.project(c.pose.apply(p));
+      x0 = std::min(x0, q.x()), x1 = std::max(x1, q.x()), y0 = std::min(y0, q.y()), y1 = std::max(y1, q.y());
+    }
+    const auto widget = [&](double fx, double fy) {
+      return view->toWidget(QPointF(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))).toPoint();
+    };
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    const std::size_t elements = panel_->lastFrame()->elements;
+    const QPoint from = widget(0.3, 0.6);
+    QTest::mousePress(view, Qt::LeftButton, {}, from);
+    QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.held.empty(); }));
+    auto* status = w_->rehearsePage()->findChild<QLabel*>("rehearseStatus");
+    QString tore;
+    QPoint last = from;
+    for (int i = 1; i <= 40 && tore.isEmpty(); ++i) {
+      last = widget(0.3 - 0.3 * i / 40.0, 0.6 + 0.6 * i / 40.0);
+      QTest::mouseMove(view, last);
+      QVERIFY(stepsOn(4));
+      if (status->text().contains("tore")) tore = status->text();
+      if (panel_->lastFrame()->tool.held.empty()) break;  // slipped first
+    }
+    QVERIFY(waitFor([&] { return panel_->lastFrame()->elements > elements; }, 30000));  // split: more elements
+    QVERIFY(waitFor([&] { return status->text().contains("tore") || !tore.isEmpty(); }, 10000));
+    if (tore.isEmpty()) tore = status->text();
+    qInfo("%s", qPrintable(tore));
+    QVERIFY(tore.contains("where its material tears at 15 %"));
+    QVERIFY(waitFor([&] { return w_->rehearsePage()->findChild<QLabel*>("rehearseForce")->text().contains("TORN"); },
+                    10000));
+    QVERIFY(stepsOn(10));
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    QVERIFY(waitFor([&] { return !panel_->isPlaying(); }, 10000));
+    QTest::qWait(300);
+    w_->composition()->waitForIdle();
+    QTest::qWait(100);
+    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
+      w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-tear.png");
+    QTest::mouseRelease(view, Qt::LeftButton, {}, last);
+    // Back to "never" for the suites after this one.
+    tears->setFocus();
+    tears->selectAll();
+    QTest::keyClicks(tears, "0");
+    QTest::keyClick(tears, Qt::Key_Return);
+    QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0; }));
+    QTest::keyClick(w_.get(), Qt::Key_Escape);
   }
 
   void viewModesWithTheKeyboard() {
