@@ -132,6 +132,7 @@ int cmdGesture(const std::vector<std::string>& args) {
                                         : "";
     meta.sceneVersion = o["script"];
     meta.appVersion = REHEARSE_VERSION;
+    meta.rules = script.incorrectActions;
     hooks.start = [&recorder, meta, path = o["record"]](const simcore::BodySetup& s) {
       try {
         recorder = std::make_unique<Recorder>(path, meta, s);

@@ -117,7 +117,8 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
            "updates,vessel_cuts,max_force_n,"
            "mean_force_n,force_threshold_n,time_over_threshold_s,max_strain,cut_length_m,cut_deviation_mean_m,cut_"
            "deviation_max_m,tumour_breaches,"
-           "tears,attachments_torn,clips,misplaced_clips,blood_loss_ml,energy_time_s,energy_on_structures,checksums,"
+           "tears,attachments_torn,clips,misplaced_clips,blood_loss_ml,energy_time_s,energy_on_structures,"
+           "incorrect_actions,vessel_cuts_without_clips,force_over_limit,instrument_outside_view,checksums,"
            "checksums_differing\n";
     ro.strain = true;
     auto opt = [](const auto& v) { return v ? std::to_string(*v) : std::string(); };  // empty: not determined
@@ -138,8 +139,10 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
           << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << opt(m.maxStrain) << ',' << m.cutLengthM << ','
           << opt(m.cutDeviationMeanM) << ',' << opt(m.cutDeviationMaxM) << ',' << opt(m.tumourBreaches) << ','
           << opt(m.tears) << ',' << opt(m.attachmentsTorn) << ',' << m.clips << ',' << m.misplacedClips << ','
-          << opt(m.bloodLossMl) << ',' << m.energyTimeS << ',' << m.energyOnStructures << ',' << r.verify.checked << ','
-          << r.verify.mismatches << '\n';
+          << opt(m.bloodLossMl) << ',' << m.energyTimeS << ',' << m.energyOnStructures << ','
+          << opt(m.incorrectCount("")) << ',' << opt(m.incorrectCount("vessel_cut_without_clips")) << ','
+          << opt(m.incorrectCount("force_over_limit")) << ',' << opt(m.incorrectCount("outside_view")) << ','
+          << r.verify.checked << ',' << r.verify.mismatches << '\n';
     }
     imaging::writeFileAtomically(o["metrics-csv"], csv.str());
     std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());
@@ -200,9 +203,17 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
       js.push_back(row);
     }
     j["verdicts"] = js;
+    // The incorrect actions, each with its time (the rules the session was recorded with).
+    nlohmann::json ia = nlohmann::json::array();
+    for (const auto& a : replayed.metrics.incorrectActions)
+      ia.push_back({{"rule", a.rule}, {"step", a.step}, {"time_s", a.time}, {"what", a.what}});
+    j["incorrect_action_list"] = ia;
+    if (!replayed.metrics.rulesError.empty()) j["incorrect_actions_why"] = replayed.metrics.rulesError;
     writeReport(o["metrics"], j);
     std::printf("metrics written to %s\n", o["metrics"].c_str());
   }
+  for (const auto& a : replayed.metrics.incorrectActions)
+    std::printf("incorrect action at %.2f s (step %ld): %s: %s\n", a.time, a.step, a.rule.c_str(), a.what.c_str());
   if (!o.count("verify") && replayed.verify.mismatches == 0 && !replayVerified(replayed.verify))
     std::printf("replay check: %s\n", replayCheckSentence(replayed.verify).c_str());
   for (const auto& v : verdicts) {

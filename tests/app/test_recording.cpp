@@ -551,7 +551,7 @@ class TestRecording : public QObject {
   // out from the script: the hook is drawn 90 mm along +z in 100 steps while it cuts (the runner's first
   // cutting pose is already 1/100 along), so the blade tip's cut path is 99 x 0.9 mm; a planned line 5 mm to
   // its side is 5 mm from every cutting pose. The video of the whole 3.6 s at 25 fps has 91 frames of 640x480
-  // (read back through OpenCV's decoder); the PDF report has three pages, each rendered by pdftoppm.
+  // (read back through OpenCV's decoder); the PDF report has four pages, each rendered by pdftoppm.
   void exportsAndMetricsFromTheScript() {
     QTemporaryDir dir;
     const QString file = dir.path() + "/case.rehearse";
@@ -623,19 +623,21 @@ class TestRecording : public QObject {
     cv::Scalar mean, sd;
     cv::meanStdDev(first, mean, sd);
     QVERIFY(sd[2] > 10);  // the organ over the background, not a blank frame
-    // The report: three pages, rendered.
+    // The report: four pages, rendered.
     QProcess pdf;
     pdf.start("pdftoppm", {"-r", "30", "-png", dir.path() + "/r.pdf", dir.path() + "/page"});
     QVERIFY2(pdf.waitForStarted(), "pdftoppm (poppler-utils) is installed by scripts/install-deps.sh");
     QVERIFY(pdf.waitForFinished(60000) && pdf.exitCode() == 0);
-    for (int k = 1; k <= 3; ++k) {
+    // Metrics, over time, incorrect actions (here: none, and the rules not determined: a page of short lines), key
+    // frames.
+    for (int k = 1; k <= 4; ++k) {
       const cv::Mat page =
           cv::imread((dir.path() + QString("/page-%1.png").arg(k)).toStdString(), cv::IMREAD_GRAYSCALE);
       QVERIFY2(!page.empty(), qPrintable(QString("page %1").arg(k)));
       const int dark = cv::countNonZero(page < 128);
-      QVERIFY2(dark > 200, qPrintable(QString("page %1 is blank").arg(k)));
+      QVERIFY2(dark > (k == 3 ? 60 : 200), qPrintable(QString("page %1 is blank (%2 dark pixels)").arg(k).arg(dark)));
     }
-    QVERIFY(!QFile::exists(dir.path() + "/page-4.png"));
+    QVERIFY(!QFile::exists(dir.path() + "/page-5.png"));
     // Bad requests say so in one line.
     const Run bad = run({"replay", file, "--session", "1", "--video", dir.path() + "/v.avi"});
     QCOMPARE(bad.code, 2);

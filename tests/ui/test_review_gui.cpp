@@ -6,7 +6,7 @@
 //    straight replay's states bit for bit (their times printed; the benchmark is bench_replay);
 //  - the review window from step 7's Review button: the keyboard (End, Home, Right, Space) moves and plays
 //    it; a second attempt side by side follows the same time; thresholds give verdicts; the span's video has
-//    the expected frame count and size and the report its three pages. With REHEARSE_SCREENSHOT_DIR set it
+//    the expected frame count and size and the report its four pages. With REHEARSE_SCREENSHOT_DIR set it
 //    saves review.png.
 #include "replay_checks.hpp"
 #include "test_support.hpp"
@@ -280,7 +280,7 @@ class TestReviewGui : public QObject {
     info.start("pdfinfo", {pdf});
     QVERIFY2(info.waitForFinished(60000) && info.exitCode() == 0,
              "pdfinfo (poppler-utils, installed by scripts/install-deps.sh) must read the report");
-    QVERIFY(QString::fromUtf8(info.readAllStandardOutput()).contains(QRegularExpression("Pages:\\s+3")));
+    QVERIFY(QString::fromUtf8(info.readAllStandardOutput()).contains(QRegularExpression("Pages:\\s+4")));
     // Its text (poppler's pdftotext): counts as whole numbers ("grasps 1", not "1.000"), the legend naming every tick
     // colour.
     QProcess text;
@@ -292,6 +292,11 @@ class TestReviewGui : public QObject {
              qPrintable(words.left(2000)));
     QVERIFY2(words.contains("force over the threshold grey") && words.contains("release teal"),
              qPrintable(words.left(3000)));
+    // The incorrect actions' page: the GUI recorded the session with the case's camera as its view, so whether the
+    // instrument acted outside it is determined (not listed among the rules not counted).
+    QVERIFY2(words.contains("Incorrect actions") && words.contains("incorrect action cyan"),
+             qPrintable(words.right(3000)));
+    QVERIFY2(!words.contains("outside_view: not counted"), qPrintable(words.right(3000)));
     review->close();
   }
 

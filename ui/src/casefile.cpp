@@ -18,6 +18,7 @@
 #include <QUuid>
 #include <QVariant>
 
+#include <rehearse/app/incorrect_actions.hpp>
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -205,6 +206,7 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
                       {"tear_strain", m.tearStrain}}
                      .dump()));
     }
+    if (!c.incorrectActions.empty()) part("incorrect_actions", "json", bytes(c.incorrectActions));
     if (!c.contour.segments.empty()) part("contour", "json", bytes(imaging::contourToJson(c.contour)));
     if (!c.landmarks.empty()) {
       json pairs = json::array();
@@ -436,6 +438,15 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
     }
   } else if (!c.organ->empty()) {
     c.material = app::defaultMaterial(*c.organ);  // cases saved before the material was part of them
+  }
+  if (QByteArray r = read("incorrect_actions"); !r.isEmpty()) {
+    try {
+      app::parseActionRules(r.toStdString());
+      c.incorrectActions = r.toStdString();
+    } catch (const std::exception& e) {
+      note(QStringLiteral("The trainer's incorrect-action rules were not loaded (the defaults are used): %1")
+               .arg(QString::fromUtf8(e.what())));
+    }
   }
   if (QByteArray k = read("contour"); !k.isEmpty()) {
     try {

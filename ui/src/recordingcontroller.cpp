@@ -61,6 +61,16 @@ QString RecordingController::start(const QString& trainee) {
   meta.caseName = QFileInfo(path).fileName().toStdString();
   meta.sceneVersion = ("saved " + QFileInfo(path).lastModified().toUTC().toString(Qt::ISODate)).toStdString();
   meta.appVersion = REHEARSE_VERSION;
+  // The case's incorrect-action rules, with its camera as the view (the rehearsal's organ is in the camera frame).
+  try {
+    app::ActionRules rules = app::parseActionRules(doc_->data()->incorrectActions);
+    const auto& camera = doc_->data()->camera;
+    if (camera.problem().empty())
+      rules.view = app::parseActionRules("{\"view\": " + app::cameraViewJson(camera) + "}").view;
+    meta.rules = app::actionRulesJson(rules);
+  } catch (const std::exception& e) {
+    return tr("The case's incorrect-action rules cannot be used: %1").arg(QString::fromUtf8(e.what()));
+  }
   const QString err = simulation_->startRecording(path, meta);
   if (!err.isEmpty()) return err;
   const QString text = tr("Recording%1 into %2 (the simulation started again from rest).")

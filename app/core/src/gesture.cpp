@@ -1,4 +1,5 @@
 #include "rehearse/app/gesture.hpp"
+#include "rehearse/app/incorrect_actions.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -81,6 +82,10 @@ GestureScript parseGestureScript(const std::string& text) {
       }
       s.tearStrainByLabel[label] = number(t, key.c_str(), 0, 0, 10);
     }
+  }
+  if (j.contains("incorrect_actions")) {
+    s.incorrectActions = j["incorrect_actions"].dump();
+    parseActionRules(s.incorrectActions);  // refused here, with its sentence, rather than when replayed
   }
   if (!j.contains("events") || !j["events"].is_array()) throw std::runtime_error("the gesture script has no \"events\" list");
   double last = 0;

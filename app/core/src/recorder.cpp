@@ -64,8 +64,8 @@ void Recorder::open(const std::string& path) {
     if (id_ == 0) {  // a new session, or a file that lost it: its row (what it held is written again)
       Statement q(db_,
                   "INSERT INTO rehearsal_sessions(trainee, started_utc, case_name, scene_version, app_version, notes, "
-                  "setup, time_step, checksum_every, uuid) "
-                  "VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
+                  "setup, time_step, checksum_every, uuid, rules) "
+                  "VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)");
       q.text(1, meta_.trainee);
       q.text(2, startedUtc_);
       q.text(3, meta_.caseName);
@@ -76,6 +76,7 @@ void Recorder::open(const std::string& path) {
       sqlite3_bind_double(q.s, 8, timeStep_);
       sqlite3_bind_int(q.s, 9, every_);
       q.text(10, uuid_);
+      q.text(11, meta_.rules);
       if (sqlite3_step(q.s) != SQLITE_DONE)
         throw std::runtime_error(std::string("cannot record into ") + path + ": " + sqlite3_errmsg(db_));
       id_ = sqlite3_last_insert_rowid(db_);

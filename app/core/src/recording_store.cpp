@@ -93,6 +93,7 @@ void ensureSchema(sqlite3* db) {
   run(kSchema);
   if (!hasColumn(db, "rehearsal_sessions", "uuid")) run("ALTER TABLE rehearsal_sessions ADD COLUMN uuid TEXT");
   run("UPDATE rehearsal_sessions SET uuid = lower(hex(randomblob(16))) WHERE uuid IS NULL OR uuid = ''");
+  if (!hasColumn(db, "rehearsal_sessions", "rules")) run("ALTER TABLE rehearsal_sessions ADD COLUMN rules TEXT");
   run("CREATE UNIQUE INDEX IF NOT EXISTS rehearsal_sessions_uuid ON rehearsal_sessions(uuid)");
 }
 
@@ -106,11 +107,14 @@ std::vector<RecordingSummary> listRecordings(const std::string& path) {
   std::vector<RecordingSummary> out;
   try {
     if (hasTable(db, "rehearsal_sessions")) {
-      const bool uuid = hasColumn(db, "rehearsal_sessions", "uuid");
-      Statement q(db, uuid ? "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, "
-                             "complete, uuid FROM rehearsal_sessions ORDER BY id"
-                           : "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, "
-                             "complete FROM rehearsal_sessions ORDER BY id");
+      const bool uuid = hasColumn(db, "rehearsal_sessions", "uuid"),
+                 rules = hasColumn(db, "rehearsal_sessions", "rules");
+      const std::string sql =
+          std::string(
+              "SELECT id, trainee, started_utc, case_name, scene_version, app_version, notes, steps, "
+              "complete, ") +
+          (uuid ? "uuid" : "''") + ", " + (rules ? "rules" : "''") + " FROM rehearsal_sessions ORDER BY id";
+      Statement q(db, sql.c_str());
       int rc;
       while ((rc = sqlite3_step(q.s)) == SQLITE_ROW) {
         RecordingSummary r;
@@ -119,7 +123,8 @@ std::vector<RecordingSummary> listRecordings(const std::string& path) {
         r.startedUtc = q.column(2);
         r.steps = static_cast<long>(sqlite3_column_int64(q.s, 7));
         r.complete = sqlite3_column_int(q.s, 8) != 0;
-        if (uuid) r.uuid = q.column(9);
+        r.uuid = q.column(9);
+        r.meta.rules = q.column(10);
         if (r.steps < 0)
           throw std::runtime_error("session " + std::to_string(r.id) + " in " + path + " has a negative step count");
         out.push_back(std::move(r));
@@ -345,10 +350,11 @@ int copyRecordings(const std::string& from, const std::string& to) {
     throw std::runtime_error(std::string("the recorded sessions could not be carried into the saved case: ") +
                              e.what());
   }
-  bool prevUuid = false;
+  bool prevUuid = false, prevRules = false;
   {
     sqlite3* src = openStore(from, false);
     prevUuid = hasColumn(src, "rehearsal_sessions", "uuid");
+    prevRules = hasColumn(src, "rehearsal_sessions", "rules");
     sqlite3_close(src);
   }
   run("ATTACH DATABASE '" + quoted + "' AS prev");
@@ -356,12 +362,12 @@ int copyRecordings(const std::string& from, const std::string& to) {
   // Every session with its identity (one recorded before identities existed gets one here).
   run(std::string("INSERT INTO rehearsal_sessions(id, trainee, started_utc, case_name, scene_version, app_version, "
                   "notes, setup, time_step, "
-                  "checksum_every, steps, complete, uuid) SELECT id, trainee, started_utc, case_name, scene_version, "
-                  "app_version, notes, setup, time_step, "
+                  "checksum_every, steps, complete, uuid, rules) SELECT id, trainee, started_utc, case_name, "
+                  "scene_version, app_version, notes, setup, time_step, "
                   "checksum_every, steps, complete, ") +
       (prevUuid ? "CASE WHEN uuid IS NULL OR uuid = '' THEN lower(hex(randomblob(16))) ELSE uuid END"
                 : "lower(hex(randomblob(16)))") +
-      " FROM prev.rehearsal_sessions");
+      (prevRules ? ", rules" : ", NULL") + " FROM prev.rehearsal_sessions");
   run("INSERT INTO rehearsal_events SELECT * FROM prev.rehearsal_events");
   run("INSERT INTO rehearsal_checksums SELECT * FROM prev.rehearsal_checksums");
   {

@@ -65,10 +65,22 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
       {"energy_time_s", m.energyTimeS, "s", ""},
       {"energy_on_structures", m.energyOnStructures, "", ""},
   };
+  // The trainer's incorrect actions under the session's rules: the total, and the rules no other metric counts.
+  for (const auto& [name, rule] :
+       std::vector<std::pair<std::string, std::string>>{{"incorrect_actions", ""},
+                                                        {"vessel_cuts_without_clips", "vessel_cut_without_clips"},
+                                                        {"force_over_limit", "force_over_limit"},
+                                                        {"instrument_outside_view", "outside_view"}}) {
+    std::string why;
+    const auto n = m.incorrectCount(rule, &why);
+    v.push_back({name, n ? std::optional<double>(*n) : std::nullopt, "", n ? "" : why});
+  }
   for (auto& x : v)
     x.count = x.name == "grasps" || x.name == "slips" || x.name == "cut_updates" || x.name == "vessel_cuts" ||
               x.name == "tumour_breaches" || x.name == "tears" || x.name == "attachments_torn" || x.name == "clips" ||
-              x.name == "misplaced_clips" || x.name == "energy_on_structures";
+              x.name == "misplaced_clips" || x.name == "energy_on_structures" || x.name == "incorrect_actions" ||
+              x.name == "vessel_cuts_without_clips" || x.name == "force_over_limit" ||
+              x.name == "instrument_outside_view";
   return v;
 }
 
@@ -381,6 +393,9 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
   out.verdicts = judge(result.metrics, thresholds);
   out.timeline = result.timeline;
   out.forceThresholdN = result.metrics.forceThresholdN;
+  out.incorrectActions = result.metrics.incorrectActions;
+  out.rulesError = result.metrics.rulesError;
+  for (const auto& [rule, why] : result.metrics.ruleNotCounted) out.rulesNotCounted.emplace_back(rule, why);
   // Key frames: the first grasp, the largest force, the first cut, the first clip, the first bleeding, the first tear,
   // the end.
   std::vector<std::pair<std::string, long>> keys;

@@ -56,6 +56,15 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
     m.attachmentsWhy = "no material of the case declares a tear strain: nothing can tear";
   }
   if (!options.plannedCut) m.cutDeviationWhy = "the case has no planned cut line";
+  // The incorrect actions under the rules the session was recorded with.
+  std::optional<IncorrectActionFinder> finder;
+  try {
+    finder.emplace(parseActionRules(r.summary.meta.rules));
+    for (const auto& [rule, words] : actionRuleNames())
+      if (const auto why = finder->notCounted(rule)) m.ruleNotCounted[rule] = *why;
+  } catch (const std::exception& e) {
+    m.rulesError = std::string("the session's incorrect-action rules cannot be read: ") + e.what();
+  }
   double deviationSum = 0;
   long cuttingSteps = 0;
   std::vector<Eigen::Vector3d> rest = r.setup.rest.empty() ? r.setup.mesh.points : r.setup.rest;
@@ -136,6 +145,20 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       }
     }
     wasCutting = tool.present && tool.cutting;
+    std::vector<IncorrectAction> incorrect;
+    if (finder) {
+      IncorrectActionFinder::StepFacts facts;
+      facts.step = step;
+      facts.time = snap->time;
+      facts.toolPresent = tool.present;
+      facts.tip = tool.tip;
+      facts.holding = !tool.held.empty();
+      facts.cutting = tool.cutting;
+      facts.energy = snap->field.energy;
+      facts.force = f;
+      facts.events = &snap->events;
+      incorrect = finder->step(facts);
+    }
     double strain = 0;
     if (options.strain) {
       const auto& restNow = snap->surface ? snap->surface->rest : rest;
@@ -155,6 +178,7 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       t.newInstrument = swapped.count(step) > 0;
       t.events = snap->events;
       if (over && !overBefore) t.events.push_back("force over threshold");
+      for (const auto& a : incorrect) t.events.push_back("incorrect action: " + a.rule);
       out.timeline.push_back(std::move(t));
     }
   });
@@ -164,10 +188,23 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
     else
       m.cutDeviationWhy = "the blade never cut";
   }
+  if (finder) m.incorrectActions = finder->found();
   m.durationS = time;
   m.meanForceN = forceSteps ? forceSum / static_cast<double>(forceSteps) : 0;
   m.economy = m.pathLengthM > 0 ? (straight + (last - first).norm()) / m.pathLengthM : 0;
   return out;
+}
+
+std::optional<int> SessionMetrics::incorrectCount(const std::string& rule, std::string* why) const {
+  auto say = [&](const std::string& w) {
+    if (why) *why = w;
+    return std::optional<int>();
+  };
+  if (!rulesError.empty()) return say(rulesError);
+  if (rule.empty()) return static_cast<int>(incorrectActions.size());  // all of them
+  if (const auto it = ruleNotCounted.find(rule); it != ruleNotCounted.end()) return say(it->second);
+  return static_cast<int>(std::count_if(incorrectActions.begin(), incorrectActions.end(),
+                                        [&](const IncorrectAction& a) { return a.rule == rule; }));
 }
 
 }  // namespace rehearse::app

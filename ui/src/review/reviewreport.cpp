@@ -41,13 +41,14 @@ QColor reviewEventColour(const std::string& e) {
   if (e == "burn") return QColor(200, 190, 150);               // ash
   if (e == "energy on structure") return QColor(255, 60, 200);  // magenta
   if (e == "tear") return QColor(150, 90, 40);                  // brown
+  if (e.rfind("incorrect action", 0) == 0) return QColor(0, 200, 230);  // cyan
   return {};
 }
 const char* const kReviewEventLegend =
     "ticks: grasp green, release teal, slip orange, cut purple, vessel cut red (longer), force over the threshold "
     "grey, "
     "clip steel, clip misplaced amber, bleeding dark red, bleeding stopped pink, burn ash, energy on a structure "
-    "magenta, tear brown";
+    "magenta, tear brown, incorrect action cyan (longer)";
 
 namespace {
 
@@ -106,7 +107,8 @@ void plot(QPainter& p, const QRectF& box, const QString& title, const QString& u
       const QColor c = eventColour(e);
       if (!c.isValid()) continue;
       p.setPen(QPen(c, 3));
-      p.drawLine(QPointF(X(s.time), area.top()), QPointF(X(s.time), area.top() + (e == "vessel cut" ? 45 : 25)));
+      p.drawLine(QPointF(X(s.time), area.top()),
+                 QPointF(X(s.time), area.top() + (e == "vessel cut" || e.rfind("incorrect action", 0) == 0 ? 45 : 25)));
     }
   }
   QPainterPath path;
@@ -166,6 +168,10 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     y += 36;
     p.setFont(body);
     for (const auto& m : r.metrics) {
+      if (y > H - 70) {  // a long list goes on over the page
+        pdf.newPage();
+        y = 0;
+      }
       const auto v = std::find_if(r.verdicts.begin(), r.verdicts.end(),
                                   [&](const app::Verdict& x) { return x.metric.name == m.name; });
       p.drawText(QRectF(c1, y, c2, 30), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(m.name));
@@ -212,6 +218,49 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     plot(
         p, QRectF(0, 100 + H * 0.45, W, H * 0.4), "Largest tissue strain (principal Green strain)", "", r.timeline,
         [](const app::TimelineSample& s) { return s.strain; }, 0);
+    // The incorrect actions under the session's rules, each with its time (one line each, over pages as needed).
+    pdf.newPage();
+    p.setFont(heading);
+    p.drawText(QRectF(0, 0, W, 60), Qt::AlignLeft | Qt::AlignVCenter, "Incorrect actions");
+    p.setFont(body);
+    y = 80;
+    if (!r.rulesError.empty()) {
+      p.drawText(QRectF(0, y, W, 60), Qt::AlignLeft | Qt::TextWordWrap, QString::fromStdString(r.rulesError));
+      y += 64;
+    } else if (r.incorrectActions.empty()) {
+      p.drawText(QRectF(0, y, W, 32), Qt::AlignLeft | Qt::AlignVCenter, "None under the session's rules.");
+      y += 36;
+    }
+    for (const auto& a : r.incorrectActions) {
+      if (y > H - 40) {
+        pdf.newPage();
+        y = 0;
+      }
+      std::string words = a.rule;
+      for (const auto& [name, w] : app::actionRuleNames())
+        if (name == a.rule) words = w;
+      p.save();
+      p.setPen(reviewEventColour("incorrect action: " + a.rule));
+      p.setFont(bold);
+      p.drawText(QRectF(0, y, W * 0.14, 30), Qt::AlignLeft | Qt::AlignVCenter, number(a.time) + " s");
+      p.drawText(QRectF(W * 0.14, y, W * 0.36, 30), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(words));
+      p.restore();
+      p.drawText(QRectF(W * 0.5, y, W * 0.5, 30), Qt::AlignLeft | Qt::AlignVCenter | Qt::TextSingleLine,
+                 p.fontMetrics().elidedText(QString::fromStdString(a.what), Qt::ElideRight, static_cast<int>(W * 0.5)));
+      y += 32;
+    }
+    for (const auto& [rule, why] : r.rulesNotCounted) {
+      if (y > H - 40) {
+        pdf.newPage();
+        y = 0;
+      }
+      p.save();
+      p.setPen(QColor(90, 90, 90));
+      p.drawText(QRectF(0, y, W, 30), Qt::AlignLeft | Qt::AlignVCenter,
+                 QString::fromStdString(rule + ": not counted, " + why));
+      p.restore();
+      y += 32;
+    }
     // Page 3: key frames, two by two.
     if (!r.keyFrames.empty()) {
       pdf.newPage();

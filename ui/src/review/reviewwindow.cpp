@@ -49,8 +49,10 @@ class TimelineWidget : public QWidget {
   TimelineWidget() {
     setMinimumHeight(110);
     setCursor(Qt::PointingHandCursor);
-    setToolTip(tr("Tool force over time; ticks: grasp (green), slip (orange), cut (purple), vessel cut (red), force over the threshold (dashed "
-                  "line, red tick). Click or drag to seek."));
+    setToolTip(
+        tr("Tool force over time; ticks: grasp (green), slip (orange), cut (purple), vessel cut (red), force over the "
+           "threshold (dashed "
+           "line, red tick), incorrect action (cyan, longer). Click or drag to seek."));
   }
   double timeAt(double x) const {
     if (!timeline || timeline->empty()) return 0;
@@ -90,7 +92,7 @@ class TimelineWidget : public QWidget {
         const QColor c = reviewEventColour(e);  // as the report names them
         if (!c.isValid()) continue;
         p.setPen(QPen(c, 3));
-        p.drawLine(QPointF(xAt(s.time), 2), QPointF(xAt(s.time), 16));
+        p.drawLine(QPointF(xAt(s.time), 2), QPointF(xAt(s.time), e.rfind("incorrect action", 0) == 0 ? 34 : 16));
       }
     p.setPen(QPen(Qt::white, 2));
     p.drawLine(QPointF(xAt(now), 0), QPointF(xAt(now), height()));
@@ -539,6 +541,14 @@ void ReviewWindow::fillMetrics(ReviewAttempt& a) {
     auto* value = new QTableWidgetItem(m.value ? QString::number(*m.value, 'g', 5) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
                                                : tr("not determined"));
     if (!m.value) value->setToolTip(QString::fromStdString(m.why));
+    if (m.name == "incorrect_actions" && m.value) {  // each one with its time (the timeline's cyan ticks)
+      QStringList lines;
+      for (const auto& x : a.result.metrics.incorrectActions)
+        lines << tr("%1 s: %2 (%3)")
+                     .arg(x.time, 0, 'f', 2)
+                     .arg(QString::fromStdString(x.rule), QString::fromStdString(x.what));
+      value->setToolTip(lines.isEmpty() ? tr("none under the session's rules") : lines.join("\n"));
+    }
     a.table->setItem(row, 1, value);
     QString verdict;
     for (const auto& v : verdicts)

@@ -19,20 +19,28 @@ namespace rehearse::ui {
 namespace {
 
 constexpr const char* kSchema[] = {
-    "CREATE TABLE IF NOT EXISTS rehearse_sessions(id BIGSERIAL UNIQUE, uid TEXT PRIMARY KEY, trainee TEXT, started_utc TEXT, case_name TEXT, "
-    "scene_version TEXT, app_version TEXT, notes TEXT, setup TEXT NOT NULL, time_step DOUBLE PRECISION, checksum_every INTEGER, steps BIGINT, "
+    "CREATE TABLE IF NOT EXISTS rehearse_sessions(id BIGSERIAL UNIQUE, uid TEXT PRIMARY KEY, trainee TEXT, started_utc "
+    "TEXT, case_name TEXT, "
+    "scene_version TEXT, app_version TEXT, notes TEXT, setup TEXT NOT NULL, time_step DOUBLE PRECISION, checksum_every "
+    "INTEGER, steps BIGINT, "
     "complete BOOLEAN, published_utc TIMESTAMPTZ DEFAULT now(), metrics TEXT)",
-    "CREATE TABLE IF NOT EXISTS rehearse_events(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE CASCADE, seq INTEGER NOT NULL, "
+    "CREATE TABLE IF NOT EXISTS rehearse_events(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE CASCADE, "
+    "seq INTEGER NOT NULL, "
     "step BIGINT NOT NULL, event TEXT NOT NULL, PRIMARY KEY(uid, seq))",
-    "CREATE TABLE IF NOT EXISTS rehearse_checksums(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE CASCADE, step BIGINT NOT NULL, "
+    "CREATE TABLE IF NOT EXISTS rehearse_checksums(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE "
+    "CASCADE, step BIGINT NOT NULL, "
     "checksum TEXT NOT NULL, PRIMARY KEY(uid, step))",
-    "CREATE TABLE IF NOT EXISTS rehearse_setups(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE CASCADE, hash TEXT NOT NULL, "
+    "CREATE TABLE IF NOT EXISTS rehearse_setups(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE CASCADE, "
+    "hash TEXT NOT NULL, "
     "setup TEXT NOT NULL, PRIMARY KEY(uid, hash))",
-    "CREATE TABLE IF NOT EXISTS rehearse_checkpoints(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE CASCADE, step BIGINT NOT NULL, "
+    "CREATE TABLE IF NOT EXISTS rehearse_checkpoints(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE "
+    "CASCADE, step BIGINT NOT NULL, "
     "setup_hash TEXT NOT NULL, state BYTEA NOT NULL, PRIMARY KEY(uid, step))",
     // Where its replay was verified before it was published (bit-exact replay holds for the same build on the same
     // kind of machine): a receiving machine verifies again when it opens the session and says where it did.
     "ALTER TABLE rehearse_sessions ADD COLUMN IF NOT EXISTS verified_on TEXT",
+    // The incorrect-action rules of the scene it was rehearsed in (SessionMeta::rules).
+    "ALTER TABLE rehearse_sessions ADD COLUMN IF NOT EXISTS rules TEXT",
 };
 
 // This machine and build, as a verification names them.
@@ -78,6 +86,7 @@ QString sessionUid(const app::RecordingRows& rows, const app::RecordingSummary& 
     h.addData(b);
   };
   for (const auto& t : {s.meta.trainee, s.meta.caseName, s.meta.sceneVersion, s.meta.appVersion, s.meta.notes, s.startedUtc, rows.setup}) add(t);
+  if (!s.meta.rules.empty()) add("rules:" + s.meta.rules);  // (a session without its own rules keeps its old uid)
   for (const auto& e : rows.events) add(std::to_string(std::get<0>(e)) + ":" + std::to_string(std::get<1>(e)) + ":" + std::get<2>(e));
   for (const auto& [step, sum] : rows.checksums) add(std::to_string(step) + ":" + sum);
   return QString::fromLatin1(h.result().toHex());
@@ -163,14 +172,20 @@ TrainingDatabase::PublishReport TrainingDatabase::publish(const QString& caseFil
         }
       }
       QSqlQuery q(db);
-      q.prepare(QStringLiteral("INSERT INTO rehearse_sessions(uid, trainee, started_utc, case_name, scene_version, app_version, notes, setup, time_step, "
-                               "checksum_every, steps, complete, metrics, verified_on) VALUES(?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)"));
-      for (const QVariant& v : {QVariant(uid), QVariant(QString::fromStdString(s.meta.trainee)), QVariant(QString::fromStdString(s.startedUtc)),
-                                QVariant(QString::fromStdString(s.meta.caseName)), QVariant(QString::fromStdString(s.meta.sceneVersion)),
-                                QVariant(QString::fromStdString(s.meta.appVersion)), QVariant(QString::fromStdString(s.meta.notes)),
-                                QVariant(QString::fromStdString(rows.setup)), QVariant(rec.setup.settings.timeStep), QVariant(rec.checksumEvery),
-                                QVariant(static_cast<qlonglong>(s.steps)), QVariant(true), QVariant(QString::fromStdString(metrics.dump())),
-                                QVariant(QStringLiteral("all %1 checksums match on %2").arg(replayed.verify.checked).arg(thisMachine()))})
+      q.prepare(
+          QStringLiteral("INSERT INTO rehearse_sessions(uid, trainee, started_utc, case_name, scene_version, "
+                         "app_version, notes, setup, time_step, "
+                         "checksum_every, steps, complete, metrics, verified_on, rules) VALUES(?, ?, ?, ?, ?, ?, ?, ?, "
+                         "?, ?, ?, ?, ?, ?, ?)"));
+      for (const QVariant& v :
+           {QVariant(uid), QVariant(QString::fromStdString(s.meta.trainee)),
+            QVariant(QString::fromStdString(s.startedUtc)), QVariant(QString::fromStdString(s.meta.caseName)),
+            QVariant(QString::fromStdString(s.meta.sceneVersion)), QVariant(QString::fromStdString(s.meta.appVersion)),
+            QVariant(QString::fromStdString(s.meta.notes)), QVariant(QString::fromStdString(rows.setup)),
+            QVariant(rec.setup.settings.timeStep), QVariant(rec.checksumEvery),
+            QVariant(static_cast<qlonglong>(s.steps)), QVariant(true), QVariant(QString::fromStdString(metrics.dump())),
+            QVariant(QStringLiteral("all %1 checksums match on %2").arg(replayed.verify.checked).arg(thisMachine())),
+            QVariant(QString::fromStdString(s.meta.rules))})
         q.addBindValue(v);
       run(q, "the training database refused a session");
       QSqlQuery e(db);
@@ -256,8 +271,10 @@ app::Recording TrainingDatabase::load(qint64 id) {
   QString uid;
   {
     QSqlQuery q(db);
-    q.prepare(QStringLiteral("SELECT uid, trainee, started_utc, case_name, scene_version, app_version, notes, setup, checksum_every, steps, complete "
-                             "FROM rehearse_sessions WHERE id = ?"));
+    q.prepare(
+        QStringLiteral("SELECT uid, trainee, started_utc, case_name, scene_version, app_version, notes, setup, "
+                       "checksum_every, steps, complete, "
+                       "rules FROM rehearse_sessions WHERE id = ?"));
     q.addBindValue(id);
     run(q, "the training database cannot be read");
     if (!q.next()) throw std::runtime_error("the training database has no session " + std::to_string(id));
@@ -270,6 +287,7 @@ app::Recording TrainingDatabase::load(qint64 id) {
     r.checksumEvery = q.value(8).toInt();
     r.summary.steps = static_cast<long>(q.value(9).toLongLong());
     r.summary.complete = q.value(10).toBool();
+    r.summary.meta.rules = q.value(11).toString().toStdString();
   }
   QSqlQuery e(db);
   e.prepare(QStringLiteral("SELECT event FROM rehearse_events WHERE uid = ? ORDER BY seq"));

@@ -166,6 +166,9 @@ struct Case {
   std::shared_ptr<const ElasticFit> fit;           ///< null until step 5 ran
   std::shared_ptr<const GroundTruth> groundTruth;  ///< null unless the case came with one
   std::shared_ptr<const AppearanceEstimate> appearance;  ///< null until step 6 ran
+  /// The trainer's incorrect-action rules for rehearsals of this case (incorrect_actions.hpp, JSON without a view:
+  /// the case's camera is the view); empty: the defaults.
+  std::string incorrectActions;
 
   /// The organ's node positions as the user sees them (model frame): the fitted ones after step 5,
   /// the rest shape before. Sized like organ->volume.points.

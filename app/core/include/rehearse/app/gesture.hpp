@@ -18,6 +18,7 @@
 // "blade_length_mm" and "trocar": [x, y, z] (where the shafts enter; the blade lies on the shaft). A clip may give
 // "across": [x, y, z], the direction its jaws close along (default: the shaft's, perpendicular to the structure).
 // "tear_strain": 0.3 makes every material tear at that strain; "tear_strain_by_label": {"2": 0.6} one label's.
+// "incorrect_actions": {...} the rules the trainer counts (incorrect_actions.hpp; default: all, without a view).
 #include <rehearse/simcore/session/session.hpp>
 
 #include <functional>
@@ -55,6 +56,9 @@ struct GestureScript {
   /// "tear_strain_by_label": {"2": 0.6} one label's (given its own material, the tissue's, when it had none).
   std::optional<double> tearStrain;
   std::map<int, double> tearStrainByLabel;
+  /// "incorrect_actions": the trainer's rules for this rehearsal (incorrect_actions.hpp), as JSON (checked when
+  /// parsed); empty: the defaults. Recorded with the session.
+  std::string incorrectActions;
   std::vector<GestureEvent> events;  ///< in time order
 };
 

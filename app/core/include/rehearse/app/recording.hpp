@@ -19,6 +19,7 @@
 //   rehearsal_setups(session, hash, setup)             -- each body setup a checkpoint names, once (edits and cuts
 //                      change it)
 #include <rehearse/simcore/session/session.hpp>
+#include <rehearse/app/incorrect_actions.hpp>
 
 #include <chrono>
 #include <cstdint>
@@ -60,6 +61,9 @@ struct SessionMeta {
   std::string sceneVersion;  ///< e.g. the case file's parts' hash, or the preset's name
   std::string appVersion;
   std::string notes;
+  /// The incorrect-action rules of the scene it was rehearsed in (incorrect_actions.hpp; JSON, empty: the defaults
+  /// without a view). Stored with the session: a replay judges it by them.
+  std::string rules;
 };
 
 /// Writes one session as it runs (from the stepping thread); reopen() from another thread is safe.
@@ -287,6 +291,13 @@ struct SessionMetrics {
   /// (attachmentsWhy says so: nothing can tear).
   std::optional<int> tears, attachmentsTorn;
   std::string attachmentsWhy;
+  /// The incorrect actions under the session's rules (SessionMeta::rules), in time order; rulesError says why there
+  /// are none to show when its rules cannot be read; ruleNotCounted: the rules off or not determined, with why.
+  std::vector<IncorrectAction> incorrectActions;
+  std::string rulesError;
+  std::map<std::string, std::string> ruleNotCounted;
+  /// How many of a rule's incorrect actions (nullopt, with why, when the rule is not counted or the rules unreadable).
+  std::optional<int> incorrectCount(const std::string& rule, std::string* why = nullptr) const;
 };
 /// One step of a replay, for the review's timeline and plots.
 struct TimelineSample {

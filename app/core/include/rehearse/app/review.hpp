@@ -114,6 +114,9 @@ struct ReviewReport {
   double forceThresholdN = 0;
   std::vector<std::pair<std::string, cv::Mat3b>>
       keyFrames;  ///< caption, image (first grasp, largest force, first cut, the end)
+  std::vector<IncorrectAction> incorrectActions;                     ///< under the session's rules, in time order
+  std::string rulesError;                                            ///< why there are none to show (rules unreadable)
+  std::vector<std::pair<std::string, std::string>> rulesNotCounted;  ///< rule, why (off, or not determined)
 };
 /// Gathers a report: `result` from replayRecording with the timeline; key frames drawn by `renderer` from `replayer`.
 ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds,
