@@ -289,6 +289,16 @@ class TestTraining : public QObject {
     }
     for (int k = 0; k < kFiles * kPerFile; ++k) scripted.insert(std::lround(pullOf(k).norm() * 1e7));
     QVERIFY(plotted == scripted);
+    // The incorrect actions are published with each session: the scripted pulls break none of the default rules.
+    w.setMetric("incorrect_actions");
+    int sessions = 0;
+    for (const auto& [name, values] : w.curves())
+      for (double v : values) {
+        QCOMPARE(v, 0.0);
+        ++sessions;
+      }
+    QCOMPARE(sessions, kFiles * kPerFile);
+    w.setMetric("path_length_m");
     w.selectTrainee("Cleo");
     QCOMPARE(w.sessionRows(), kPerFile);
     QCOMPARE(static_cast<int>(w.curves().size()), 1);

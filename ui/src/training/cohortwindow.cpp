@@ -103,9 +103,17 @@ void CohortWindow::reload() {
 }
 
 void CohortWindow::fill() {
-  const QStringList shown = {
-      "duration_s",  "path_length_m", "economy_of_motion",     "grasps",    "slips", "cut_updates",
-      "vessel_cuts", "max_force_n",   "time_over_threshold_s", "max_strain"};
+  const QStringList shown = {"duration_s",
+                             "path_length_m",
+                             "economy_of_motion",
+                             "grasps",
+                             "slips",
+                             "cut_updates",
+                             "vessel_cuts",
+                             "max_force_n",
+                             "time_over_threshold_s",
+                             "max_strain",
+                             "incorrect_actions"};
   QStringList headers = {tr("session"), tr("trainee"), tr("started (UTC)"), tr("case")};
   headers += shown;
   headers += tr("replay verified");
