@@ -659,7 +659,7 @@ class TestRecording : public QObject {
     s.fixedNodes = nodesAtX(s.mesh, 0.0);
     s.material.young = 5e3;
     s.settings.method = simcore::NewtonMethod::Linearised;
-    auto recorder = std::make_shared<app::Recorder>(file, app::SessionMeta{"R. Eset", {}, {}, {}, {}}, s, 5, 10);
+    auto recorder = std::make_shared<app::Recorder>(file, app::SessionMeta{"R. Eset", {}, {}, {}, {}, {}}, s, 5, 10);
     std::string stopped;
     {
       simcore::Session session(s);
@@ -710,7 +710,7 @@ class TestRecording : public QObject {
     s.settings.method = simcore::NewtonMethod::Linearised;
     auto record = [&](const std::string& file, const char* who, int steps, double y,
                       const std::function<void(int, app::Recorder&)>& during = {}) {
-      auto r = std::make_unique<app::Recorder>(file, app::SessionMeta{who, {}, {}, {}, {}}, s, 5, 10);
+      auto r = std::make_unique<app::Recorder>(file, app::SessionMeta{who, {}, {}, {}, {}, {}}, s, 5, 10);
       simcore::Session session(s);
       session.setStepHook([&](const simcore::StepRecord& rec) { r->afterStep(rec); });
       session.post(rehearse::testing::toolAt({0.04, y, 0.005}));
@@ -769,7 +769,7 @@ class TestRecording : public QObject {
       QCOMPARE(v.mismatches, 0L);
     }
     // A reopen that cannot open the file: one sentence, closed, and further steps are refused with it.
-    auto third = std::make_unique<app::Recorder>(a, app::SessionMeta{"T", {}, {}, {}, {}}, s, 5, 10);
+    auto third = std::make_unique<app::Recorder>(a, app::SessionMeta{"T", {}, {}, {}, {}, {}}, s, 5, 10);
     third->suspend();
     try {
       third->reopen((dir.path() + "/no/such/folder/x.rehearse").toStdString());

@@ -75,7 +75,9 @@ int main(int argc, char** argv) {
     std::filesystem::remove(file);
     std::unique_ptr<app::Recorder> recorder;
     app::GestureHooks hooks;
-    hooks.start = [&](const simcore::BodySetup& s) { recorder = std::make_unique<app::Recorder>(file, app::SessionMeta{"bench", organ, "", "", ""}, s); };
+    hooks.start = [&](const simcore::BodySetup& s) {
+      recorder = std::make_unique<app::Recorder>(file, app::SessionMeta{"bench", organ, "", "", "", ""}, s);
+    };
     hooks.step = [&](const simcore::StepRecord& r) { recorder->afterStep(r); };
     const app::GestureResult g = app::runGesture(setup, script, hooks);
     recorder->finish(static_cast<long>(g.steps.size()));

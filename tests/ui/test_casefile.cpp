@@ -197,7 +197,7 @@ class TestCaseFile : public QObject {
     s.settings.method = simcore::NewtonMethod::Exact;
     std::int64_t id = 0;
     {
-      app::Recorder rec(QFile::encodeName(path).toStdString(), {"trainee", "phantom", "v1", "test", ""}, s, 5, 8);
+      app::Recorder rec(QFile::encodeName(path).toStdString(), {"trainee", "phantom", "v1", "test", "", ""}, s, 5, 8);
       simcore::Session session(s);
       session.setStepHook([&rec](const simcore::StepRecord& r) { rec.afterStep(r); });
       for (long k = 1; k <= 20; ++k) session.advance();

@@ -20,6 +20,11 @@
 
 #include <rehearse/app/recording.hpp>
 
+#include <QAction>
+#include <QCheckBox>
+#include <QDialog>
+#include <QDialogButtonBox>
+#include <QDoubleSpinBox>
 #include <QLineEdit>
 #include <QProcess>
 #include <QPushButton>
@@ -92,6 +97,38 @@ class TestReviewGui : public QObject {
     auto* name = child<QLineEdit>("traineeName");
     auto* record = child<QPushButton>("recordButton");
     QVERIFY(name && record);
+    // The trainer's rules for this case first (Simulation > Incorrect-Action Rules...): tearing not counted, the
+    // force limit 5 N; the session recorded next carries them, with the case's camera as its view.
+    auto* rulesAction = w_->findChild<QAction*>("incorrectActionRulesAction");
+    QVERIFY(rulesAction);
+    rulesAction->trigger();
+    auto* rules = w_->findChild<QDialog*>("incorrectActionRulesDialog");
+    QVERIFY(rules && rules->isVisible());
+    auto* tear = rules->findChild<QCheckBox*>("ruleTear");
+    QVERIFY(tear && tear->isChecked());
+    QTest::mouseClick(tear, Qt::LeftButton, {}, QPoint(8, tear->height() / 2));
+    QVERIFY(!tear->isChecked());
+    auto* limit = rules->findChild<QDoubleSpinBox*>("ruleForceLimit");
+    limit->setFocus();
+    limit->selectAll();
+    QTest::keyClicks(limit, "5");
+    QTest::keyClick(limit, Qt::Key_Tab);
+    QCOMPARE(limit->value(), 5.0);
+    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
+      rules->grab().save(QString::fromLocal8Bit(dir) + "/incorrect-action-rules.png");
+    auto* ok = rules->findChild<QDialogButtonBox*>("ruleButtons")->button(QDialogButtonBox::Ok);
+    QTest::mouseClick(ok, Qt::LeftButton);
+    QVERIFY(waitFor([&] { return !w_->findChild<QDialog*>("incorrectActionRulesDialog"); }, 5000));
+    const app::ActionRules set = app::parseActionRules(w_->caseData()->incorrectActions);
+    QVERIFY(!set.tear && set.forceLimitN == 5.0 && set.vesselCutWithoutClips && !set.view);
+    w_->activateWindow();  // the dialog had it
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    w_->frameView()->setFocus();  // (not in a text field, which would take Ctrl+Z for its own text)
+    QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);  // one undoable edit
+    QCOMPARE(w_->caseData()->incorrectActions, std::string());
+    const QKeyCombination redo = QKeySequence::keyBindings(QKeySequence::Redo).front()[0];  // the platform's redo key
+    QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
+    QVERIFY(!app::parseActionRules(w_->caseData()->incorrectActions).tear);
     QTest::keyClicks(name, "Trainee One");
     QTest::mouseClick(record, Qt::LeftButton);
     QVERIFY2(w_->recording(), qPrintable(w_->messageLog().join(" | ")));
@@ -159,6 +196,12 @@ class TestReviewGui : public QObject {
     qInfo("%s", qPrintable(out.trimmed().replace('\n', " / ")));
     const app::Recording rec = app::loadRecording(file_.toStdString(), first_);
     QCOMPARE(QString::fromStdString(rec.summary.meta.trainee), QStringLiteral("Trainee One"));
+    {
+      const app::ActionRules r = app::parseActionRules(rec.summary.meta.rules);
+      QVERIFY2(!r.tear && r.forceLimitN == 5.0 && r.view, rec.summary.meta.rules.c_str());
+      QCOMPARE(r.view->camera.fx(), c.camera.fx());
+      QCOMPARE(r.view->camera.width, c.camera.width);
+    }
     QVERIFY(rec.summary.complete);
     long grasps = 0, cuts = 0;
     for (const auto& e : rec.events) {

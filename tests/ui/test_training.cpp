@@ -107,7 +107,7 @@ void recordSession(const std::string& file, int k, const std::string& trainee) {
   s.settings.gravity.setZero();
   s.tools.graspRadius = 0.003;
   s.tools.maxGraspForce = 1e6;
-  app::Recorder rec(file, {trainee, "block", "v1", "test", ""}, s, 10, 20);
+  app::Recorder rec(file, {trainee, "block", "v1", "test", "", ""}, s, 10, 20);
   simcore::Session session(s);
   session.setStepHook([&rec](const simcore::StepRecord& r) { rec.afterStep(r); });
   const Eigen::Vector3d tip(0.04, 0.005, 0.005);

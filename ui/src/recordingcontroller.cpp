@@ -7,9 +7,17 @@
 
 #include <rehearse/app/recording.hpp>
 
+#include <QCheckBox>
 #include <QDateTime>
-#include <QMenu>
+#include <QDialog>
+#include <QDialogButtonBox>
+#include <QDoubleSpinBox>
 #include <QFileInfo>
+#include <QFormLayout>
+#include <QLabel>
+#include <QMenu>
+#include <QPushButton>
+#include <QVBoxLayout>
 
 #include <optional>
 
@@ -46,6 +54,9 @@ void RecordingController::addActions(QMenu* menu) {
       ->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_R));
   menu->addAction(tr("Re&view Recorded Rehearsals..."), this, [this] { openReview(); })
       ->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_R));
+  auto* rules = menu->addAction(tr("&Incorrect-Action Rules..."), this, [this] { editRules(); });
+  rules->setObjectName("incorrectActionRulesAction");
+  rules->setStatusTip(tr("Which incorrect actions the trainer counts in this case's recorded rehearsals"));
 }
 
 bool RecordingController::recording() const { return simulation_->recording(); }
@@ -110,6 +121,110 @@ ReviewWindow* RecordingController::openReview() {
   w->setWindowFlag(Qt::Window);
   w->show();
   return w;
+}
+
+QDialog* RecordingController::editRules() {
+  if (!doc_->hasCase()) {
+    say_(tr("Open a case first: the incorrect-action rules are the case's."));
+    return nullptr;
+  }
+  if (auto* open = window_->findChild<QDialog*>("incorrectActionRulesDialog")) {  // one at a time
+    open->raise();
+    open->activateWindow();
+    return open;
+  }
+  app::ActionRules rules;
+  try {
+    rules = app::parseActionRules(doc_->data()->incorrectActions);
+  } catch (const std::exception&) {  // (checked when the case was read: the defaults otherwise)
+  }
+  auto* d = new QDialog(window_);
+  d->setObjectName("incorrectActionRulesDialog");
+  d->setWindowTitle(tr("Incorrect-Action Rules - Rehearse"));
+  d->setAttribute(Qt::WA_DeleteOnClose);
+  auto* layout = new QVBoxLayout(d);
+  auto* intro =
+      new QLabel(tr("What the trainer counts as an incorrect action in this case's rehearsals, each with "
+                    "its time on the review's timeline. Sessions keep the rules they were recorded with."));
+  intro->setWordWrap(true);
+  layout->addWidget(intro);
+  auto box = [&](const char* name, const QString& text, bool on) {
+    auto* b = new QCheckBox(text);
+    b->setObjectName(name);
+    b->setChecked(on);
+    layout->addWidget(b);
+    return b;
+  };
+  auto* vessel =
+      box("ruleVesselCut", tr("A vessel cut where no clip closes it (it bleeds)"), rules.vesselCutWithoutClips);
+  auto* energy =
+      box("ruleEnergy", tr("Energy on a named structure (vessel, duct, tumour, ligament)"), rules.energyOnStructure);
+  auto* force = box("ruleForce", tr("The tool's force over the limit for too long"), rules.forceOverLimit);
+  auto* form = new QFormLayout;
+  auto* limit = new QDoubleSpinBox;
+  limit->setObjectName("ruleForceLimit");
+  limit->setRange(0.1, 100);
+  limit->setDecimals(1);
+  limit->setSuffix(tr(" N"));
+  limit->setValue(rules.forceLimitN);
+  auto* longer = new QDoubleSpinBox;
+  longer->setObjectName("ruleForceTime");
+  longer->setRange(0, 60);
+  longer->setDecimals(2);
+  longer->setSuffix(tr(" s"));
+  longer->setValue(rules.forceLongerThanS);
+  form->addRow(tr("    limit"), limit);
+  form->addRow(tr("    for at least"), longer);
+  layout->addLayout(form);
+  connect(force, &QCheckBox::toggled, limit, &QWidget::setEnabled);
+  connect(force, &QCheckBox::toggled, longer, &QWidget::setEnabled);
+  limit->setEnabled(rules.forceOverLimit);
+  longer->setEnabled(rules.forceOverLimit);
+  auto* tear = box("ruleTear", tr("Tissue torn (pulled past its material's tear strain)"), rules.tear);
+  auto* clip = box("ruleClip", tr("A clip misplaced (on no vessel or duct, or not across it)"), rules.clipMisplaced);
+  const auto& camera = doc_->data()->camera;
+  auto* outside = box("ruleOutsideView",
+                      camera.problem().empty()
+                          ? tr("An instrument used outside the view (the case's camera, %1 x %2 px)")
+                                .arg(camera.width)
+                                .arg(camera.height)
+                          : tr("An instrument used outside the view (the case has no usable camera: not determined)"),
+                      rules.outsideView);
+  auto* buttons =
+      new QDialogButtonBox(QDialogButtonBox::Ok | QDialogButtonBox::Cancel | QDialogButtonBox::RestoreDefaults);
+  buttons->setObjectName("ruleButtons");
+  layout->addWidget(buttons);
+  connect(buttons, &QDialogButtonBox::rejected, d, &QDialog::reject);
+  connect(buttons->button(QDialogButtonBox::RestoreDefaults), &QPushButton::clicked, d, [=] {
+    const app::ActionRules defaults;
+    vessel->setChecked(defaults.vesselCutWithoutClips);
+    energy->setChecked(defaults.energyOnStructure);
+    force->setChecked(defaults.forceOverLimit);
+    limit->setValue(defaults.forceLimitN);
+    longer->setValue(defaults.forceLongerThanS);
+    tear->setChecked(defaults.tear);
+    clip->setChecked(defaults.clipMisplaced);
+    outside->setChecked(defaults.outsideView);
+  });
+  connect(buttons, &QDialogButtonBox::accepted, d, [=, this] {
+    app::ActionRules r;  // the view is not the case's to keep: the camera is added when a session is recorded
+    r.vesselCutWithoutClips = vessel->isChecked();
+    r.energyOnStructure = energy->isChecked();
+    r.forceOverLimit = force->isChecked();
+    r.forceLimitN = limit->value();
+    r.forceLongerThanS = longer->value();
+    r.tear = tear->isChecked();
+    r.clipMisplaced = clip->isChecked();
+    r.outsideView = outside->isChecked();
+    const std::string json = app::actionRulesJson(r);
+    if (doc_->hasCase() && json != doc_->data()->incorrectActions) {
+      doc_->edit(tr("Incorrect-action rules"), [json](app::Case& c) { c.incorrectActions = json; });
+      say_(tr("The incorrect-action rules are set for the sessions recorded from now on."));
+    }
+    d->accept();
+  });
+  d->open();
+  return d;
 }
 
 }  // namespace rehearse::ui

@@ -119,7 +119,7 @@ std::vector<RecordingSummary> listRecordings(const std::string& path) {
       while ((rc = sqlite3_step(q.s)) == SQLITE_ROW) {
         RecordingSummary r;
         r.id = sqlite3_column_int64(q.s, 0);
-        r.meta = {q.column(1), q.column(3), q.column(4), q.column(5), q.column(6)};
+        r.meta = {q.column(1), q.column(3), q.column(4), q.column(5), q.column(6), ""};
         r.startedUtc = q.column(2);
         r.steps = static_cast<long>(sqlite3_column_int64(q.s, 7));
         r.complete = sqlite3_column_int(q.s, 8) != 0;

@@ -243,8 +243,9 @@ std::vector<PublishedSession> TrainingDatabase::sessions() {
     p.id = q.value(0).toLongLong();
     p.uid = q.value(1).toString();
     p.summary.id = p.id;
-    p.summary.meta = {q.value(2).toString().toStdString(), q.value(4).toString().toStdString(), q.value(5).toString().toStdString(),
-                      q.value(6).toString().toStdString(), q.value(7).toString().toStdString()};
+    p.summary.meta = {q.value(2).toString().toStdString(), q.value(4).toString().toStdString(),
+                      q.value(5).toString().toStdString(), q.value(6).toString().toStdString(),
+                      q.value(7).toString().toStdString(), ""};
     p.summary.startedUtc = q.value(3).toString().toStdString();
     p.summary.steps = static_cast<long>(q.value(8).toLongLong());
     p.summary.complete = q.value(9).toBool();
@@ -280,8 +281,9 @@ app::Recording TrainingDatabase::load(qint64 id) {
     if (!q.next()) throw std::runtime_error("the training database has no session " + std::to_string(id));
     uid = q.value(0).toString();
     r.summary.id = id;
-    r.summary.meta = {q.value(1).toString().toStdString(), q.value(3).toString().toStdString(), q.value(4).toString().toStdString(),
-                      q.value(5).toString().toStdString(), q.value(6).toString().toStdString()};
+    r.summary.meta = {q.value(1).toString().toStdString(), q.value(3).toString().toStdString(),
+                      q.value(4).toString().toStdString(), q.value(5).toString().toStdString(),
+                      q.value(6).toString().toStdString(), ""};
     r.summary.startedUtc = q.value(2).toString().toStdString();
     r.setup = app::decodeSetup(q.value(7).toString().toStdString());
     r.checksumEvery = q.value(8).toInt();

@@ -6,6 +6,7 @@
 
 #include <functional>
 
+class QDialog;
 class QMenu;
 
 namespace rehearse::ui {
@@ -22,7 +23,8 @@ class RecordingController : public QObject {
   /// Record, Stop and Review buttons and the panel's restarts and stops of a recording are wired here.
   RecordingController(CaseDocument* doc, SimulationPanel* simulation, RehearsePage* page, QWidget* window,
                       std::function<void(const QString&)> say);
-  /// Adds "Start / Stop Recording" (Ctrl+R) and "Review Recorded Rehearsals..." (Ctrl+Shift+R) to `menu`.
+  /// Adds "Start / Stop Recording" (Ctrl+R), "Review Recorded Rehearsals..." (Ctrl+Shift+R) and "Incorrect-Action
+  /// Rules..." to `menu`.
   void addActions(QMenu* menu);
   /// Starts recording; an empty string when it started, else why not (one sentence).
   QString start(const QString& trainee);
@@ -30,6 +32,10 @@ class RecordingController : public QObject {
   bool recording() const;
   /// The review window of the case file's sessions (null, said, when the case has no file yet).
   ReviewWindow* openReview();
+  /// The trainer's incorrect-action rules of the case (incorrect_actions.hpp), in a dialog (object name
+  /// "incorrectActionRulesDialog"; shown, not modal): OK stores them in the case as one undoable edit; the sessions
+  /// recorded from then on carry them, with the case's camera as the view. Null (said) without a case.
+  QDialog* editRules();
 
  private:
   CaseDocument* doc_;
