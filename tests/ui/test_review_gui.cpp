@@ -18,6 +18,7 @@
 #include "rehearse/ui/reviewwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
+#include <rehearse/app/incorrect_actions.hpp>
 #include <rehearse/app/recording.hpp>
 
 #include <QAction>

@@ -5,6 +5,7 @@
 #include "rehearse/ui/reviewwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
+#include <rehearse/app/incorrect_actions.hpp>
 #include <rehearse/app/recording.hpp>
 
 #include <QCheckBox>

@@ -2,6 +2,7 @@
 // forces, strain, the cut against a planned line, structures damaged). The one table the command line, the review
 // window and the PDF read is review.cpp's metricValues.
 #include "rehearse/app/recording.hpp"
+#include "rehearse/app/incorrect_actions.hpp"
 
 #include "rehearse/app/review.hpp"
 

@@ -2,6 +2,7 @@
 // trainer's thresholds and verdicts, the force and strain over time with the events marked, and key frames.
 #include "rehearse/ui/reviewreport.hpp"
 #include "rehearse/ui/qtapplication.hpp"
+#include <rehearse/app/incorrect_actions.hpp>
 
 #include <QCoreApplication>
 #include <QGuiApplication>

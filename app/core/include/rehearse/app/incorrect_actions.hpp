@@ -14,6 +14,7 @@
 //    "view": {"fx": 800, "fy": 800, "cx": 320, "cy": 240, "width": 640, "height": 480,
 //             "from": [0, 0, 0], "to": [0, 0, 1]}}   // the camera, in the body's frame (default: it is the frame)
 // A rule set to false is not counted. "outside_view" needs a view: without one it is not determined (said so).
+#include <rehearse/app/recording.hpp>
 #include <rehearse/imaging/camera.hpp>
 
 #include <Eigen/Core>
@@ -53,14 +54,7 @@ std::string actionRulesJson(const ActionRules& r);
 /// The view JSON of a camera whose frame is the body's (the GUI's rehearsal: the organ is in the camera frame).
 std::string cameraViewJson(const imaging::Camera& camera);
 
-/// One incorrect action: which rule, when, and in words.
-struct IncorrectAction {
-  std::string rule;  ///< "vessel_cut_without_clips", "energy_on_structure", "force_over_limit", "tear",
-                     ///< "clip_misplaced", "outside_view"
-  long step = 0;
-  double time = 0;  ///< s, simulated
-  std::string what;
-};
+// IncorrectAction (one found: rule, step, time, words) is in recording.hpp, with the metrics that hold them.
 /// The rules in the order they are listed, with the words the review uses ("vessel cut without clips").
 const std::vector<std::pair<std::string, std::string>>& actionRuleNames();
 

@@ -19,7 +19,6 @@
 //   rehearsal_setups(session, hash, setup)             -- each body setup a checkpoint names, once (edits and cuts
 //                      change it)
 #include <rehearse/simcore/session/session.hpp>
-#include <rehearse/app/incorrect_actions.hpp>
 
 #include <chrono>
 #include <cstdint>
@@ -255,6 +254,15 @@ struct VerifyResult {
 VerifyResult verifyRecording(const Recording& r);
 
 /// What a trainer reads about a session (computed from its replay, so a recording is all it needs).
+/// One incorrect action a replay found under the session's rules (incorrect_actions.hpp): which rule, when, in words.
+struct IncorrectAction {
+  std::string rule;  ///< "vessel_cut_without_clips", "energy_on_structure", "force_over_limit", "tear",
+                     ///< "clip_misplaced", "outside_view"
+  long step = 0;
+  double time = 0;  ///< s, simulated
+  std::string what;
+};
+
 struct SessionMetrics {
   double durationS = 0;    ///< simulated time
   double pathLengthM = 0;  ///< the instrument tip's path while an instrument is in the scene (not the jump when one is
