@@ -4,7 +4,7 @@
 // test_field's: 30 x 12 x 12 mm held at both ends, a 2.5 mm artery along x through its middle, shafts from above.
 // The force rule is checked against the replay's own force samples (the longest spell above the limit, recounted
 // here), the view rule against a camera that sees the instrument and one that does not.
-#include "box_mesh.hpp"
+#include "vessel_block.hpp"
 
 #include <rehearse/app/gesture.hpp>
 #include <rehearse/app/incorrect_actions.hpp>
@@ -18,31 +18,10 @@
 #include <cmath>
 
 using namespace rehearse;
+using rehearse::testing::kAxisY;
+using rehearse::testing::kAxisZ;
 
 namespace {
-
-constexpr double kAxisY = 0.006, kAxisZ = 0.006, kVesselRadius = 0.0025;
-
-simcore::BodySetup vesselBlock(simcore::NewtonMethod method) {
-  simcore::BodySetup s;
-  s.mesh = boxMesh(0.03, 0.012, 0.012, 15, 6, 6);
-  for (std::size_t t = 0; t < s.mesh.tets.size(); ++t) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (int k : s.mesh.tets[t]) c += s.mesh.points[static_cast<std::size_t>(k)] / 4;
-    if (std::hypot(c.y() - kAxisY, c.z() - kAxisZ) < kVesselRadius) s.mesh.tetLabels[t] = 2;
-  }
-  s.mesh.setLabelName(1, "parenchyma");
-  s.mesh.setLabelName(2, "cystic artery");
-  s.fixedNodes = nodesAtX(s.mesh, 0.0);
-  for (int n : nodesAtX(s.mesh, 0.03)) s.fixedNodes.push_back(n);
-  s.material = {simcore::MaterialModel::Corotational, 20e3, 0.45, 1000};
-  s.byLabel[2] = {simcore::MaterialModel::Corotational, 100e3, 0.45, 1000};
-  s.settings.method = method;
-  s.settings.gravity.setZero();
-  s.settings.timeStep = 0.01;
-  s.tools.cutLatencySteps = -1;
-  return s;
-}
 
 // A script's common part: the shafts from above the block, a 50 mm blade, the rules, then the events.
 std::string script(double duration, const std::string& rules, const std::string& events,
@@ -86,7 +65,7 @@ Run runRecorded(const std::string& text, const QString& file,
     recorder = std::make_unique<app::Recorder>(file.toStdString(), meta, setup);
   };
   hooks.step = [&](const simcore::StepRecord& r) { recorder->afterStep(r); };
-  const app::GestureResult g = app::runGesture(vesselBlock(method), s, hooks);
+  const app::GestureResult g = app::runGesture(testing::vesselBlock("cystic artery", method), s, hooks);
   recorder->finish(static_cast<long>(g.steps.size()));
   recorder.reset();
   Run out;

@@ -4,6 +4,7 @@
 // times the time it bled, zero with two clips, and a recording that replays bit for bit.
 #include "box_mesh.hpp"
 #include "session_inputs.hpp"
+#include "vessel_block.hpp"
 
 #include <rehearse/app/recording.hpp>
 #include <rehearse/simcore/fem.hpp>
@@ -16,36 +17,13 @@
 
 using namespace rehearse;
 using rehearse::testing::cutting;
+using rehearse::testing::kAxisY;
+using rehearse::testing::kAxisZ;
+using rehearse::testing::kVesselRadius;
 using rehearse::testing::toolAt;
+using rehearse::testing::vesselBlock;
 
 namespace {
-
-constexpr double kAxisY = 0.006, kAxisZ = 0.006, kVesselRadius = 0.0025;
-
-// A 30 x 12 x 12 mm block of 2 mm cubes held at both ends, a vessel of 2.5 mm radius along x through its middle
-// (the elements whose centres lie within that radius: label 2, named `name`), no gravity.
-simcore::BodySetup vesselBlock(const char* name = "hepatic artery") {
-  simcore::BodySetup s;
-  s.mesh = boxMesh(0.03, 0.012, 0.012, 15, 6, 6);
-  for (std::size_t t = 0; t < s.mesh.tets.size(); ++t) {
-    Eigen::Vector3d c = Eigen::Vector3d::Zero();
-    for (int k : s.mesh.tets[t]) c += s.mesh.points[static_cast<std::size_t>(k)] / 4;
-    if (std::hypot(c.y() - kAxisY, c.z() - kAxisZ) < kVesselRadius) s.mesh.tetLabels[t] = 2;
-  }
-  s.mesh.setLabelName(1, "parenchyma");
-  s.mesh.setLabelName(2, name);
-  s.fixedNodes = nodesAtX(s.mesh, 0.0);
-  for (int n : nodesAtX(s.mesh, 0.03)) s.fixedNodes.push_back(n);
-  s.material = {simcore::MaterialModel::Corotational, 20e3, 0.45, 1000};
-  s.byLabel[2] = {simcore::MaterialModel::Corotational, 100e3, 0.45, 1000};
-  s.settings.method = simcore::NewtonMethod::Exact;
-  s.settings.gravity.setZero();
-  s.settings.timeStep = 0.01;
-  s.tools.trocar = Eigen::Vector3d(0.015, kAxisY, 0.1);  // above the block: shafts come down along -z
-  s.tools.bladeLength = 0.05;
-  s.tools.cutLatencySteps = -1;
-  return s;
-}
 
 simcore::InputEvent clipEvent(const Eigen::Vector3d& across = Eigen::Vector3d::Zero()) {
   simcore::InputEvent e;

@@ -48,6 +48,23 @@ class TestAppearanceGui : public QObject {
   std::unique_ptr<MainWindow> w_;
   ui::SimulationPanel* panel_ = nullptr;
 
+  // Step 7 over the frame, the simulation from rest and playing: true once its first steps on the organ are in.
+  bool rehearseFromRest() {
+    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
+    if (!w_->showingComposited()) return false;
+    panel_->reset();
+    panel_->play();
+    const std::size_t nodes = w_->caseData()->organ->volume.points.size();
+    return waitFor([&] {
+      return panel_->lastFrame() && panel_->lastFrame()->steps > 5 && panel_->lastFrame()->positions.size() == nodes;
+    });
+  }
+  // True once the simulation has taken `n` more steps.
+  bool stepsOn(int n) {
+    const long now = panel_->lastFrame()->steps;
+    return waitFor([&] { return panel_->lastFrame()->steps >= now + n; });
+  }
+
   // F10 on the window, and the page's answer.
   QList<QVariant> estimateWithF10() {
     QSignalSpy done(w_->appearancePage(), &ui::AppearancePage::estimated);
@@ -294,10 +311,6 @@ class TestAppearanceGui : public QObject {
     const auto widget = [&](double fx, double fy) {  // a point of the organ's box in the image
       return view->toWidget(QPointF(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))).toPoint();
     };
-    const auto stepsOn = [&](int n) {
-      const long now = panel_->lastFrame()->steps;
-      return waitFor([&] { return panel_->lastFrame()->steps >= now + n; });
-    };
     QTest::keyClick(w_.get(), Qt::Key_R);
     QCOMPARE(view->tool(), ui::Tool::Grasp);
     QTest::mouseMove(view, widget(0.5, 0.7));
@@ -411,21 +424,10 @@ class TestAppearanceGui : public QObject {
   // burnt, drawn whitened), and the scissors cut another branch without clips: it bleeds, the loss grows, and the blood
   // is drawn over the composited view.
   void clipCutAndCauterize() {
-    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
-    QVERIFY(w_->showingComposited());
-    panel_->reset();
-    panel_->play();
+    QVERIFY(rehearseFromRest());
     auto* view = w_->frameView();
     const auto& c = *w_->caseData();
     QVERIFY(c.groundTruth);
-    QVERIFY(waitFor([&] {
-      return panel_->lastFrame() && panel_->lastFrame()->steps > 5 &&
-             panel_->lastFrame()->positions.size() == c.organ->volume.points.size();
-    }));
-    const auto stepsOn = [&](int n) {
-      const long now = panel_->lastFrame()->steps;
-      return waitFor([&] { return panel_->lastFrame()->steps >= now + n; });
-    };
     // How deep each branch lies under the surface the camera sees (its centre line's front, at its middle).
     const auto f0 = panel_->lastFrame();
     std::vector<double> xyz;
@@ -620,20 +622,9 @@ class TestAppearanceGui : public QObject {
   // it far down the frame until the tissue tears (the mesh changes without a blade; the status says what tore and at
   // what strain, the page counts it), then lets go. Screenshot docs/step7-tear.png.
   void graspPullUntilItTears() {
-    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
-    QVERIFY(w_->showingComposited());
-    panel_->reset();
-    panel_->play();
+    QVERIFY(rehearseFromRest());
     auto* view = w_->frameView();
     const auto& c = *w_->caseData();
-    QVERIFY(waitFor([&] {
-      return panel_->lastFrame() && panel_->lastFrame()->steps > 5 &&
-             panel_->lastFrame()->positions.size() == c.organ->volume.points.size();
-    }));
-    const auto stepsOn = [&](int n) {
-      const long now = panel_->lastFrame()->steps;
-      return waitFor([&] { return panel_->lastFrame()->steps >= now + n; });
-    };
     auto* tears = panel_->findChild<QDoubleSpinBox*>("simTearStrain");
     QVERIFY(tears);
     QCOMPARE(tears->value(), 0.0);  // by default nothing tears ("never")
