@@ -72,6 +72,17 @@ class TestOperative : public QObject {
     QCOMPARE(metrics["blood_loss_ml"].toDouble(), 0.0);
     QVERIFY(metrics["energy_time_s"].toDouble() > 0.3);
     QCOMPARE(metrics["tears"].toInt(), report["tears"].toInt());
+    // The trainer's incorrect actions under the default rules: the artery was cut between its two clips (no vessel
+    // cut without clips) and the clips sat on it, but pulling until it tore is one (tears in one over-pull are one).
+    QStringList listed;
+    for (const auto& a : metrics["incorrect_action_list"].toArray())
+      listed << QString("%1 s %2").arg(a.toObject()["time_s"].toDouble()).arg(a.toObject()["rule"].toString());
+    qInfo("incorrect actions: %d (%s)", metrics["incorrect_actions"].toInt(), qPrintable(listed.join(", ")));
+    QCOMPARE(metrics["vessel_cuts_without_clips"].toInt(-1), 0);
+    QCOMPARE(metrics["incorrect_action_list"].toArray().size(), metrics["incorrect_actions"].toInt(-1));
+    QVERIFY(listed.filter(" tear").size() >= 1);
+    QVERIFY(listed.filter("clip_misplaced").isEmpty());
+    QVERIFY(metrics["instrument_outside_view"].isNull());  // the script declares no view: not determined
   }
 };
 
