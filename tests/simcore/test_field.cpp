@@ -167,9 +167,10 @@ class TestField : public QObject {
     }
   }
 
-  // On a mesh coarser than the clip's reach the jaws still close on the element they touch: a tip on a node (or inside
-  // an element) of a 30 mm tetrahedron, whose centre lies 18 mm from its nodes, past the 6 mm reach (issue 36's GUI
-  // test: on the patient liver at 5,000 elements a click on the artery "closed on nothing").
+  // On a mesh coarser than the clip's reach the jaws still find the element they touch: a tip on a node (or inside
+  // an element) of a 30 mm tetrahedron, whose centre lies 18 mm from its nodes, past the 6 mm reach; and a tip on the
+  // artery's node closes on the artery though a tissue element's centre is nearer (on the patient liver at 5,000
+  // elements a click on the artery "closed on nothing", or on the tissue beside it).
   void aClipOnACoarseElementCloses() {
     const double a = 0.03;
     const std::vector<Eigen::Vector3d> nodes = {{0, 0, 0}, {a, 0, 0}, {0, a, 0}, {0, 0, a}};
@@ -200,6 +201,24 @@ class TestField : public QObject {
       QCOMPARE(found, inside || nearest <= 0.006);
       if (clip.anchor >= 0) QCOMPARE(clip.label, 2);
     }
+    // A small tissue element beside that node, its centre within reach: the jaws on the artery's node still close on
+    // the artery (by centres alone the tissue's was nearest, and a click on the artery clipped tissue).
+    Eigen::VectorXd y(21);
+    y.head(12) = x;
+    const Eigen::Vector3d n1 = nodes[1];
+    const std::vector<Eigen::Vector3d> small = {n1 + Eigen::Vector3d(0.004, 0, 0),
+                                                n1 + Eigen::Vector3d(0.004, 0.004, 0),
+                                                n1 + Eigen::Vector3d(0.004, 0, 0.004)};
+    for (int i = 0; i < 3; ++i) y.segment<3>(12 + 3 * i) = small[static_cast<std::size_t>(i)];
+    const Eigen::Vector3d smallCentre = (n1 + small[0] + small[1] + small[2]) / 4;
+    QVERIFY((smallCentre - n1).norm() < 0.006 && (centre - n1).norm() > 0.006);
+    std::string message;
+    const simcore::Clip onNode = simcore::placeClip(y, {{0, 1, 2, 3}, {1, 4, 5, 6}}, {2, 1}, std::vector<char>(7, 0),
+                                                    n1, n1 - Eigen::Vector3d(0, 0, 0.1), Eigen::Vector3d::Zero(), 0.006,
+                                                    settings, 0.0, kind, message);
+    qInfo("tip on the artery's node beside a tissue element %.1f mm away: label %d; %s",
+          1e3 * (smallCentre - n1).norm(), onNode.label, message.c_str());
+    QCOMPARE(onNode.label, 2);
   }
 
   // Cut across without clips: both stumps bleed at the vessel's section times the artery's 0.30 m/s, the loss grows
