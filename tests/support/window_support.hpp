@@ -10,7 +10,9 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <QApplication>
 #include <QElapsedTimer>
+#include <QWheelEvent>
 #include <QSignalSpy>
 #include <QStandardPaths>
 #include <QtTest>
@@ -107,5 +109,25 @@ inline void drag(QWidget* target, QPointF a, QPointF b, int steps = 8, Qt::Keybo
   QTest::mousePress(target, Qt::LeftButton, mods, a.toPoint());
   for (int i = 1; i <= steps; ++i) QTest::mouseMove(target, (a + (b - a) * (double(i) / steps)).toPoint());
   QTest::mouseRelease(target, Qt::LeftButton, mods, b.toPoint());
+}
+
+// The wheel turned `notches` notches towards the user at `at` while the left button holds (the scissors' blade deeper).
+inline void wheelDeeper(QWidget* target, QPoint at, int notches) {
+  for (int notch = 0; notch < notches; ++notch) {
+    QWheelEvent wheel(QPointF(at), QPointF(target->mapToGlobal(at)), QPoint(), QPoint(0, -120), Qt::LeftButton,
+                      Qt::NoModifier, Qt::NoScrollPhase, false);
+    QApplication::sendEvent(target, &wheel);
+  }
+}
+
+// A frame and its intrinsics opened through step 2's page, as an assistant does; empty when both went in, else why not.
+[[nodiscard]] inline QString openFrameWithIntrinsics(rehearse::ui::MainWindow& w, const std::string& frame,
+                                                     const std::string& intrinsics) {
+  QSignalSpy opened(&w, &rehearse::ui::MainWindow::frameSourceOpened);
+  w.framePage()->openFrameSource(QString::fromStdString(frame));
+  if (opened.count() == 0 && !opened.wait(60000)) return QStringLiteral("the frame did not open within 60 s");
+  if (!opened.first().at(0).toBool()) return opened.first().at(1).toString();
+  w.framePage()->loadCalibration(QString::fromStdString(intrinsics));
+  return {};
 }
 }  // namespace

@@ -525,11 +525,7 @@ class TestAppearanceGui : public QObject {
       QVERIFY(waitFor([&] { return panel_->lastFrame()->tool.cutting; }, 20000));
       // The blade 14 mm deeper (it spans 4-34 mm under the pressed surface): the branch lies 18-25 mm deep, in elements
       // that reach 35 mm, and only the faces wholly inside the sweep open (with 3 notches the cut missed the vessel).
-      for (int notch = 0; notch < 7; ++notch) {
-        QWheelEvent wheel(QPointF(a), QPointF(view->mapToGlobal(a)), QPoint(), QPoint(0, -120), Qt::LeftButton,
-                          Qt::NoModifier, Qt::NoScrollPhase, false);
-        QApplication::sendEvent(view, &wheel);
-      }
+      wheelDeeper(view, a, 7);
       for (int i = 1; i <= 8; ++i) {
         QTest::mouseMove(view, a + (b - a) * (i / 8.0));
         QVERIFY(stepsOn(3));

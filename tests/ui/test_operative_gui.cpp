@@ -82,12 +82,11 @@ class TestOperativeGui : public QObject {
       qInfo("kept in %s", qPrintable(dir_.path()));
     }
     // The real frame and its laparoscope's intrinsics.
-    QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
-    w_->framePage()->openFrameSource(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")));
-    QVERIFY(opened.count() == 1 || opened.wait(60000));
-    QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
-    w_->framePage()->loadCalibration(
-        QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));
+    {
+      const QString why = openFrameWithIntrinsics(*w_, sharedData("scikit-surgery/laparoscopy-liver-frame.jpg"),
+                                                  sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt"));
+      QVERIFY2(why.isEmpty(), qPrintable(why));
+    }
 
     // The labelled model: the CT surface meshed, and where the import will place it (its automatic pose) a cystic
     // artery labelled along the organ's middle row in the image, its centre line 12 mm under the surface seen there.
@@ -375,11 +374,7 @@ class TestOperativeGui : public QObject {
       qInfo("scissors: pressed where the surface is %.0f mm deep, the artery's centre %.0f mm deep under a surface %.0f mm "
             "deep: %d notches deeper",
             pressedAt, arteryAt, hit(m), notches);
-      for (int notch = 0; notch < notches; ++notch) {
-        QWheelEvent wheel(QPointF(a), QPointF(view->mapToGlobal(a)), QPoint(), QPoint(0, -120), Qt::LeftButton,
-                          Qt::NoModifier, Qt::NoScrollPhase, false);
-        QApplication::sendEvent(view, &wheel);
-      }
+      wheelDeeper(view, a, notches);
       for (int i = 1; i <= 12; ++i) {
         QTest::mouseMove(view, a + (b - a) * (i / 12.0));
         QVERIFY(stepsOn(3));

@@ -57,12 +57,11 @@ class TestPatientRehearsal : public QObject {
     REQUIRE_SHARED("scikit-surgery/laparoscopy-liver-frame.jpg");
     REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
     // Import, frame and intrinsics through the pages, as an assistant does.
-    QSignalSpy opened(w_.get(), &MainWindow::frameSourceOpened);
-    w_->framePage()->openFrameSource(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")));
-    QVERIFY(opened.count() == 1 || opened.wait(60000));
-    QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
-    w_->framePage()->loadCalibration(
-        QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));
+    {
+      const QString why = openFrameWithIntrinsics(*w_, sharedData("scikit-surgery/laparoscopy-liver-frame.jpg"),
+                                                  sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt"));
+      QVERIFY2(why.isEmpty(), qPrintable(why));
+    }
     w_->meshPage()->setMeshUnit("mm");
     w_->meshPage()->setTargetTets(3600);
     QSignalSpy imported(w_.get(), &MainWindow::meshImported);
