@@ -185,6 +185,23 @@ class TestIncorrectActions : public QObject {
     const Run onVessel = runRecorded(script(0.3, "", clipAtPoint(kAxisY, kAxisZ)), next());
     QCOMPARE(onVessel.replayed.metrics.clips, 1);
     QCOMPARE(count(onVessel, "clip_misplaced"), 0);
+    // A clip aimed (as the GUI aims it at the vessel clicked) names a label; anything else is refused when read.
+    for (const char* bad : {R"("artery")", "0", "2.5"}) {
+      try {
+        app::parseGestureScript(
+            script(0.3, "",
+                   R"({"t": 0.0, "tool": "clip applier", "tip": [0.015, 0, 0]}, {"t": 0.02, "clip": )"
+                   R"("close", "aim": )" +
+                       std::string(bad) + "}"));
+        QFAIL(bad);
+      } catch (const std::runtime_error& e) {
+        QVERIFY2(std::string(e.what()).find("\"aim\"") != std::string::npos, e.what());
+      }
+    }
+    const app::GestureScript aimed = app::parseGestureScript(
+        script(0.3, "",
+               R"({"t": 0.0, "tool": "clip applier", "tip": [0.015, 0, 0]}, {"t": 0.02, "clip": "close", "aim": 2})"));
+    QVERIFY(std::any_of(aimed.events.begin(), aimed.events.end(), [](const auto& e) { return e.clip && e.aim == 2; }));
   }
 
   void tearPastTheDeclaredStrain() {

@@ -219,6 +219,30 @@ class TestField : public QObject {
     qInfo("tip on the artery's node beside a tissue element %.1f mm away: label %d; %s",
           1e3 * (smallCentre - n1).norm(), onNode.label, message.c_str());
     QCOMPARE(onNode.label, 2);
+
+    // The view lags the session: a click aimed at the artery's node reaches the session 3.3 mm from it, on the tissue
+    // element's centre. Without an aim the jaws close on the tissue there; aimed at the artery (label 2), within the
+    // 6 mm reach, they close on the artery; aimed at it 9.9 mm away, beyond the reach, on the tissue, and say so.
+    const std::vector<std::array<int, 4>> both = {{0, 1, 2, 3}, {1, 4, 5, 6}};
+    auto place = [&](const Eigen::Vector3d& tip, int aimed, std::string& said) {
+      return simcore::placeClip(y, both, {2, 1}, std::vector<char>(7, 0), tip, tip - Eigen::Vector3d(0, 0, 0.1),
+                                Eigen::Vector3d::Zero(), 0.006, settings, 0.0, kind, said, aimed);
+    };
+    const Eigen::Vector3d lagged = smallCentre;
+    QVERIFY((lagged - n1).norm() > 0.001 && (lagged - n1).norm() < 0.006);
+    std::string plain, aimedSaid, farSaid;
+    QCOMPARE(place(lagged, 0, plain).label, 1);
+    QCOMPARE(place(lagged, 2, aimedSaid).label, 2);
+    QVERIFY2(aimedSaid.find("aimed") == std::string::npos, aimedSaid.c_str());
+    const Eigen::Vector3d far = n1 + Eigen::Vector3d(0.007, 0.007, 0);
+    double toArtery = 1e9;
+    for (int i = 0; i < 4; ++i) toArtery = std::min(toArtery, (far - nodes[static_cast<std::size_t>(i)]).norm());
+    QVERIFY(toArtery > 0.006 && (far - small[1]).norm() < 0.006);
+    QCOMPARE(place(far, 2, farSaid).label, 1);
+    qInfo("aimed at the artery 9.9 mm away: %s", farSaid.c_str());
+    QVERIFY2(farSaid.find(QString::number(1e3 * toArtery, 'f', 1).toStdString() +
+                          " mm from the tip, beyond their reach") != std::string::npos,
+             farSaid.c_str());
   }
 
   // Cut across without clips: both stumps bleed at the vessel's section times the artery's 0.30 m/s, the loss grows

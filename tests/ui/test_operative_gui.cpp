@@ -325,7 +325,7 @@ class TestOperativeGui : public QObject {
         QVERIFY2(waitFor([&] { return panel_->lastFrame()->field.clips.size() == before + 1; }),
                  qPrintable(w_->statusBar()->currentMessage() + " | " + status->text()));
         ++placed;
-        QVERIFY2(w_->statusBar()->currentMessage().contains("on the vessel"),
+        QVERIFY2(w_->statusBar()->currentMessage().contains("aimed at the cystic artery"),
                  qPrintable(w_->statusBar()->currentMessage()));
         QVERIFY(waitFor([&] { return status->text() != was && status->text().contains("clip"); }, 10000));
         const auto& clip = panel_->lastFrame()->field.clips.back();

@@ -121,6 +121,11 @@ GestureScript parseGestureScript(const std::string& text) {
                                  " while holding the " + current + "; choose \"tool\": \"clip applier\" first");
       g.clip = true;
       if (e.contains("across")) g.across = vec3(e["across"], "across");
+      if (e.contains("aim")) {
+        if (!e["aim"].is_number_integer() || e["aim"].get<long long>() < 1 || e["aim"].get<long long>() > 1000000)
+          throw std::runtime_error("the gesture script's clip \"aim\" must be an element label (a positive integer)");
+        g.aim = static_cast<int>(e["aim"].get<long long>());
+      }
     }
     if (e.contains("energy")) {
       const std::string w = e["energy"].is_string() ? e["energy"].get<std::string>() : std::string();
@@ -248,6 +253,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
         c.tool = tool;
         c.on = true;
         c.vector = e.across.value_or(Eigen::Vector3d::Zero());
+        c.label = e.aim;
         session.post(c);
       }
       if (e.cut) {

@@ -41,7 +41,7 @@ struct UnionFind {
 Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& tets, const std::vector<int>& labels,
                const std::vector<char>& fixed, const Eigen::Vector3d& tip, const Eigen::Vector3d& trocar,
                const Eigen::Vector3d& across, double reach, const ClipSettings& s, double time,
-               const std::function<StructureKind(int)>& kindOf, std::string& message) {
+               const std::function<StructureKind(int)>& kindOf, std::string& message, int aimed) {
   Clip clip;
   clip.placedAt = time;
   clip.gap = s.gap;
@@ -93,10 +93,36 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
     }
   }
   if (nearestClosable >= 0) nearest = nearestClosable;
+  // The structure aimed at, when one of its elements is within reach (by a node, or holding the tip).
+  std::string aimedNote;
+  if (aimed > 0 && tip.allFinite()) {
+    double bestAimed = std::numeric_limits<double>::infinity();
+    int nearestAimed = -1;
+    for (std::size_t e = 0; e < tets.size() && e < labels.size(); ++e) {
+      if (labels[e] != aimed) continue;
+      double d = std::numeric_limits<double>::infinity();
+      for (int v : tets[e]) d = std::min(d, (node(x, v) - tip).squaredNorm());
+      if (d > reach * reach && holds(tets[e], 0)) d = 0;
+      if (d < bestAimed) bestAimed = d, nearestAimed = static_cast<int>(e);
+    }
+    if (nearestAimed >= 0 && bestAimed <= reach * reach) {
+      nearest = nearestAimed;
+    } else {
+      char buf[200];
+      if (nearestAimed >= 0)
+        std::snprintf(buf, sizeof buf,
+                      " The structure the jaws were aimed at lay %.1f mm from the tip, beyond their reach (%.0f mm).",
+                      1e3 * std::sqrt(bestAimed), 1e3 * reach);
+      else
+        std::snprintf(buf, sizeof buf, " The structure the jaws were aimed at (label %d) is not in the mesh.", aimed);
+      aimedNote = buf;
+    }
+  }
   if (nearest < 0 || !tip.allFinite()) {
     char buf[160];
     std::snprintf(buf, sizeof buf, "The clip closed on nothing: no tissue within %.0f mm of the tip.", 1e3 * reach);
     message = buf;
+    message += aimedNote;
     return clip;
   }
   clip.label = static_cast<std::size_t>(nearest) < labels.size() ? labels[static_cast<std::size_t>(nearest)] : 0;
@@ -186,6 +212,7 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
   }
   if (between.size() < 2) {
     message = "The clip closed on nothing: fewer than two free nodes of the tissue lie between its jaws.";
+    message += aimedNote;
     return clip;
   }
   // Does the structure go on beyond the jaws (the clip does not close all of it)? Its nodes are where the mesh puts
@@ -232,6 +259,7 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
                   2e3 * widest, 2e3 * widest * scale, 1e3 * s.gap, 1e3 * edge);
     message += buf;
   }
+  message += aimedNote;
   return clip;
 }
 

@@ -161,7 +161,7 @@ class ClipApplier final : public Instrument {
     Clip clip = placeClip(
         host.positions(), host.elements(), host.elementLabels(), host.fixedMask(), tool.tip,
         s.trocar.value_or(Eigen::Vector3d(tool.tip - Eigen::Vector3d::UnitZ())), e.vector, s.graspRadius, s.clip,
-        host.time(), [&host](int label) { return host.mesh().labelKind(label); }, notes);
+        host.time(), [&host](int label) { return host.mesh().labelKind(label); }, notes, e.label);
     if (clip.anchor < 0) {  // closed on nothing
       message = notes;
       return;

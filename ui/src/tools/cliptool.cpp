@@ -1,5 +1,6 @@
 // The clip applier (step 7): click on the organ drawn over the frame to close a clip across the vessel (or duct) under
-// the cursor (the shallowest within 25 mm below the surface; the tissue there when there is none); the clip stays on
+// the cursor (the shallowest within 25 mm below the surface; the tissue there when there is none; the clip names the
+// structure it was aimed at, and the session says where it closed); the clip stays on
 // the tissue (drawn in titanium grey) and is recorded like any input. Its jaws close along the shaft's direction, made
 // perpendicular to the clipped structure.
 #include "tools.hpp"
@@ -33,30 +34,39 @@ class ClipTool final : public FrameTool {
     const Eigen::Vector3d ray = pointAtDepth(view_, f, 1.0);
     const auto& live = view_.liveShape();
     const simcore::Mesh& volume = c->organ->volume;
-    std::vector<char> closable(volume.points.size(), 0);
+    std::vector<int> closable(volume.points.size(), 0);  // a vessel's or a duct's label at each node (0: none)
     for (std::size_t t = 0; t < volume.tets.size() && t < volume.tetLabels.size(); ++t) {
       const simcore::StructureKind k = volume.labelKind(volume.tetLabels[t]);
       if (simcore::isVessel(k) || k == simcore::StructureKind::BileDuct)
-        for (int v : volume.tets[t]) closable[static_cast<std::size_t>(v)] = 1;
+        for (int v : volume.tets[t]) closable[static_cast<std::size_t>(v)] = volume.tetLabels[t];
     }
     double shallowest = hit->z() + kSearchDepth;
-    bool found = false;
+    int aimed = 0;
     for (std::size_t i = 0; i < closable.size() && i < live.size(); ++i) {
       if (!closable[i]) continue;
       const Eigen::Vector3d& p = live[i];
       if (p.z() < hit->z() - 0.001 || p.z() > shallowest || (p - p.z() * ray).norm() > kLateral) continue;
       shallowest = p.z();
       tip = p;
-      found = true;
+      aimed = closable[i];
     }
     postInstrument(view_, simcore::InputKind::ToolPose, tip, false, 3);
-    postInstrument(view_, simcore::InputKind::Clip, tip, true, 3);
+    // The clip names the structure it was aimed at: the view shows the tissue a step or more behind the session, and
+    // the session closes the jaws on it when it is still within their reach (its sentence follows in step 7's line).
+    simcore::InputEvent clip;
+    clip.kind = simcore::InputKind::Clip;
+    clip.tool = 3;
+    clip.position = tip;
+    clip.on = true;
+    clip.label = aimed;
+    emit view_.instrumentInput(clip);
     last_ = f;
+    const std::string name = aimed ? volume.labelName(aimed) : std::string();
     emit view_.toolMessage(
-        found ? QObject::tr(
-                    "Clip closed on the vessel %1 mm below the surface (U: clip applier; R: grasper, B: scissors).")
+        aimed ? QObject::tr("Clip aimed at the %1 %2 mm below the surface (U: clip applier; R: grasper, B: scissors).")
+                    .arg(name.empty() ? QObject::tr("vessel") : QString::fromStdString(name))
                     .arg(1e3 * (tip.z() - hit->z()), 0, 'f', 0)
-              : QObject::tr("No vessel under the cursor within 25 mm: the clip closed on the tissue there."));
+              : QObject::tr("No vessel under the cursor within 25 mm: the clip was aimed at the tissue there."));
     return true;
   }
   void paint(QPainter& painter) override {

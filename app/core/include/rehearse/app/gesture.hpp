@@ -16,7 +16,9 @@
 //               "off"}]}
 // Positions in metres in the body's frame; "tip": [x, y, z] places the tip directly. "tools" may also set
 // "blade_length_mm" and "trocar": [x, y, z] (where the shafts enter; the blade lies on the shaft). A clip may give
-// "across": [x, y, z], the direction its jaws close along (default: the shaft's, perpendicular to the structure).
+// "across": [x, y, z], the direction its jaws close along (default: the shaft's, perpendicular to the structure), and
+// "aim": 2, the element label it is aimed at (as the GUI's clip applier names the vessel clicked: the jaws close on
+// it when it is within their reach, and say so when it is not).
 // "tear_strain": 0.3 makes every material tear at that strain; "tear_strain_by_label": {"2": 0.6} one label's.
 // "incorrect_actions": {...} the rules the trainer counts (incorrect_actions.hpp; default: all, without a view).
 #include <rehearse/simcore/session/session.hpp>
@@ -41,6 +43,7 @@ struct GestureEvent {
   bool clip = false;                  ///< the clip applier's jaws close: a clip is left at the tip
   std::optional<bool> energy;         ///< the cautery's power on / off
   std::optional<Eigen::Vector3d> across;  ///< the clip's closing direction (default: the shaft's)
+  int aim = 0;                            ///< the label the clip is aimed at (0: none)
 };
 
 struct GestureScript {

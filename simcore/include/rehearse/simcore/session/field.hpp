@@ -107,12 +107,16 @@ inline std::string cauteryProblem(const CauterySettings& c) {
 /// the tip within `reach` (a vessel's or a duct's first, `kindOf`, as a surgeon closes the clip on the vessel beside
 /// the tissue), the nodes of that label's elements within the jaws (the clip's length across the
 /// structure, its width along it, `across` either side), pulled together along `across` (given, or the shaft's
-/// direction made perpendicular to the structure). `message` says why no clip was placed (nothing within reach), or
-/// that the clip does not span the structure. Positions: the nodes now (3 per node).
+/// direction made perpendicular to the structure). `aimed` (a label, 0 for none) is the structure the user aimed the
+/// jaws at (the GUI's clip applier names the vessel under the cursor): when an element of it is within reach of the tip
+/// (a node within reach, or holding the tip), the clip closes on it, whatever else is nearer, since the view the user
+/// aimed in shows the tissue a few steps behind the session; when none is, the rules above, and `message` says the
+/// aimed structure was out of reach. `message` says why no clip was placed (nothing within reach), or that the clip
+/// does not span the structure. Positions: the nodes now (3 per node).
 Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& tets, const std::vector<int>& labels,
                const std::vector<char>& fixed, const Eigen::Vector3d& tip, const Eigen::Vector3d& trocar,
                const Eigen::Vector3d& across, double reach, const ClipSettings& s, double time,
-               const std::function<StructureKind(int)>& kindOf, std::string& message);
+               const std::function<StructureKind(int)>& kindOf, std::string& message, int aimed = 0);
 /// The rows that hold every clip's nodes at their offsets at `time` (closing linearly over `closeTime`), each
 /// relative to the clip's anchor (weights 1 and -1: the clip's force is internal, not the instrument's).
 void clipRows(const OperativeField& f, double time, double closeTime, std::vector<ScalarConstraint>& rows);
