@@ -179,6 +179,10 @@ int cmdGesture(const std::vector<std::string>& args) {
                       {"inverted_elements", s.report.invertedElements},
                       {"min_volume_ratio", s.report.minVolumeRatio},
                       {"factorisations", s.report.factorisations},
+                      {"newton_iterations", s.report.newtonIterations},
+                      {"retries", s.report.retries},
+                      {"inversion_limited", s.report.inversionLimited},
+                      {"constraint_violation_m", s.report.constraintViolation},
                       {"factor_requested", s.report.factorRequested},
                       {"factor_swapped", s.report.factorSwapped}});
     std::vector<const simcore::StepReport*> all;
