@@ -64,6 +64,19 @@ void Session::tearOverStretched(std::string& message) {
   std::sort(over.begin(), over.end(), [](const Over& a, const Over& b) {
     return a.ratio != b.ratio ? a.ratio > b.ratio : a.element < b.element;
   });
+  // Over-stretched at the first step, before any instrument touched it: the organ hangs stretched past its limit (a
+  // registered shape hung on a few attachments stretches beside them) and tears untouched. Said with what
+  // to change, before the tear's own sentence.
+  if (steps_ <= 1 && !tool_.present) {
+    char said[320];
+    std::snprintf(
+        said, sizeof said,
+        "The tissue is stretched %.0f %% at the start, before anything touched it, where its material tears "
+        "at %.0f %%: it tears without being touched. Raise the tear strain above that (the Simulation panel's "
+        "\"tears at\") or hold the organ by more attachments.",
+        100 * over.front().strain, 100 * over.front().limit);
+    message += (message.empty() ? "" : " ") + std::string(said);
+  }
   // The tear: a square across the stretch, reaching the element's farthest node, through the middle of the widest gap
   // between its nodes along the stretch (as far from them as it can be: a plane near a node snaps to it and may cross
   // nothing). When the furthest element cannot be split (a sliver, a plane through its nodes), the next ones are
