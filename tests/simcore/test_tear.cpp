@@ -40,6 +40,7 @@ simcore::BodySetup bar(double tearStrain = kTear) {
   s.tools.graspRadius = 0.008;  // the end face's nine nodes (7.1 mm from its centre), not the next layer (10 mm)
   s.tools.trocar = Eigen::Vector3d(0.2, 0.005, 0.005);
   s.tools.cutLatencySteps = -1;  // a tear applies at once (synchronous refresh)
+  s.tools.tearLatencySteps = -1;
   return s;
 }
 
@@ -216,6 +217,7 @@ class TestTear : public QObject {
   void tearsReplayBitForBit() {
     simcore::BodySetup setup = bar();
     setup.tools.cutLatencySteps = 3;
+    setup.tools.tearLatencySteps = 3;
     simcore::Session live(setup);
     std::vector<std::pair<long, std::string>> taken;
     std::map<std::uint64_t, simcore::BodySetup> setups;
@@ -270,8 +272,6 @@ class TestTear : public QObject {
     QVERIFY(app::setupProblem(s).find("squeeze") != std::string::npos);
   }
 
-  // What cannot tear is refused with a sentence: a negative tear strain in a setup, a tear strain out of range in a
-  // live edit (the material stays as it was).
   // A body that starts stretched past its limit (as a registered organ hung on few attachments does) is said to, at
   // its first step, with the strain it starts at (the bar stretched uniformly by 40 %, held at x = 0, free at the
   // other end: it relaxes in the step) and what to change; one that starts below its limit is not.
@@ -297,6 +297,45 @@ class TestTear : public QObject {
     }
   }
 
+  // A tear opens (the torn body replaces the old one) a fixed number of steps after the tissue passed its limit: the
+  // setting's 5 steps, or at once with -1, whatever the cut's latency; the same pull tears the same way each run. The
+  // setting is kept by a recording where it differs from the cut's, and a recording from before it existed tears at
+  // its cut's latency.
+  void aTearOpensAtItsLatency() {
+    for (const int latency : {5, -1}) {
+      simcore::BodySetup s = bar();
+      s.tools.tearLatencySteps = latency;
+      simcore::Session session(s);
+      const Eigen::Vector3d tip0(kL, 0.5 * kSide, 0.5 * kSide);
+      session.post(toolAt(tip0));
+      session.post(jaws(true));
+      session.advance();
+      long tornAt = -1, openedAt = -1;
+      const std::size_t elements = session.snapshot()->tets->size();
+      for (int k = 1; k <= 140 && openedAt < 0; ++k) {
+        session.post(toolAt(tip0 + Eigen::Vector3d(std::min(k, 120) * kStep, 0, 0)));
+        session.advance();
+        const auto snap = session.snapshot();
+        if (tornAt < 0 && has(snap->events, "tear")) tornAt = snap->step;
+        if (snap->tets->size() != elements) openedAt = snap->step;
+      }
+      qInfo("latency %d: the tear said at step %ld, the torn body in at step %ld", latency, tornAt, openedAt);
+      QVERIFY(tornAt > 0);
+      // The torn body replaces the old one at the boundary `latency` steps after the step that said the tear, so the
+      // first step made with it ends one later; with -1 (synchronous) the tear is made within the step that says it.
+      QCOMPARE(openedAt - tornAt, latency >= 0 ? static_cast<long>(latency) + 1 : 0L);
+    }
+    simcore::BodySetup s = bar();
+    s.tools.tearLatencySteps = 7;
+    QCOMPARE(app::decodeSetup(app::encodeSetup(s)).tools.tearLatencySteps, 7);
+    s.tools.tearLatencySteps = s.tools.cutLatencySteps;
+    QVERIFY(app::encodeSetup(s).find("tearLatencySteps") == std::string::npos);
+    s.tools.tearLatencySteps = 1001;
+    QVERIFY(app::setupProblem(s).find("tear's latency") != std::string::npos);
+  }
+
+  // What cannot tear is refused with a sentence: a negative tear strain in a setup, a tear strain out of range in a
+  // live edit (the material stays as it was).
   void badTearSettingsAreRefused() {
     simcore::BodySetup s = bar();
     s.material.tearStrain = -0.1;

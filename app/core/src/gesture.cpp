@@ -66,6 +66,8 @@ GestureScript parseGestureScript(const std::string& text) {
     if (t.contains("clip_gap_mm")) s.clipGap = 1e-3 * number(t, "clip_gap_mm", 0.5, 0, 10);
     if (t.contains("clip_min_squeeze")) s.clipMinSqueeze = number(t, "clip_min_squeeze", 0.1, 0, 1);
     if (t.contains("cut_latency_steps")) s.cutLatencySteps = static_cast<int>(number(t, "cut_latency_steps", 5, -1, 1000));
+    if (t.contains("tear_latency_steps"))
+      s.tearLatencySteps = static_cast<int>(number(t, "tear_latency_steps", 5, -1, 1000));
   }
   if (j.contains("tear_strain")) s.tearStrain = number(j, "tear_strain", 0, 0, 10);
   if (j.contains("tear_strain_by_label")) {
@@ -180,6 +182,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   if (script.toolRadius) setup.tools.toolRadius = *script.toolRadius;
   if (script.depenetrationSpeed) setup.tools.depenetrationSpeed = *script.depenetrationSpeed;
   if (script.cutLatencySteps) setup.tools.cutLatencySteps = *script.cutLatencySteps;
+  if (script.tearLatencySteps) setup.tools.tearLatencySteps = *script.tearLatencySteps;
   if (script.clipLength) setup.tools.clip.length = *script.clipLength;
   if (script.clipGap) setup.tools.clip.gap = *script.clipGap;
   if (script.clipMinSqueeze) setup.tools.clip.minSqueeze = *script.clipMinSqueeze;

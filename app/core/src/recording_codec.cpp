@@ -623,6 +623,8 @@ std::string encodeSetup(const simcore::BodySetup& s) {
                   {"minQuality", t.cut.minQuality},
                   {"minVolumeFraction", t.cut.minVolumeFraction},
                   {"snapFront", t.cut.snapFront}}}};
+  // Written only where it differs from the cut's (the text of every setup from before it existed stays as it was).
+  if (t.tearLatencySteps != t.cutLatencySteps) j["tools"]["tearLatencySteps"] = t.tearLatencySteps;
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
   if (!(t.clip == simcore::ClipSettings{}))  // (setups recorded before the clip applier keep their text and hash)
     j["tools"]["clip"] = {
@@ -667,6 +669,8 @@ simcore::BodySetup decodeSetup(const std::string& text) {
         t.value("depenetrationSpeed", 0.0);  // recorded before it existed: contact pushed out at once
     s.tools.cutLatencySteps =
         t.contains("cutLatencySteps") ? asInt(t.at("cutLatencySteps")) : -1;  // ... and cuts applied as they were
+    s.tools.tearLatencySteps =  // ... and tears at the cut's latency, as they were
+        t.contains("tearLatencySteps") ? asInt(t.at("tearLatencySteps")) : s.tools.cutLatencySteps;
     s.tools.jawsKeepTheirHold = t.value("jawsKeepTheirHold", false);          // ... and the jaws followed every tip
     s.tools.cut.snap = t.at("cut").at("snap");
     s.tools.cut.minQuality = t.at("cut").at("minQuality");
@@ -809,6 +813,8 @@ std::string setupProblem(const simcore::BodySetup& s) {
   if (const std::string why = simcore::cauteryProblem(tool.cautery); !why.empty()) return why;
   if (tool.cutLatencySteps < -1 || tool.cutLatencySteps > 1000)
     return "the cut's latency is not between -1 and 1000 steps";
+  if (tool.tearLatencySteps < -1 || tool.tearLatencySteps > 1000)
+    return "the tear's latency is not between -1 and 1000 steps";
   if (s.topology < 0) return "the topology version is negative";
   return {};
 }

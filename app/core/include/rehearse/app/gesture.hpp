@@ -53,6 +53,7 @@ struct GestureScript {
   std::optional<Eigen::Vector3d> trocar;                          ///< m, body frame
   std::optional<double> toolRadius;                               ///< m, the shaft's radius for contact (0: none)
   std::optional<double> depenetrationSpeed;                       ///< m/s (ToolSettings::depenetrationSpeed; 0: at once)
+  std::optional<int> tearLatencySteps;                            ///< ToolSettings::tearLatencySteps
   std::optional<int> cutLatencySteps;                             ///< ToolSettings::cutLatencySteps (-1: as before it existed)
   std::optional<double> clipLength, clipGap, clipMinSqueeze;      ///< m, m, - (ToolSettings::clip)
   /// "tear_strain": where every material tears (the tissue's and each label's own; MaterialParams::tearStrain);

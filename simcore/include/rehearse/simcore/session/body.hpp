@@ -41,6 +41,13 @@ struct ToolSettings {
   /// their replays follow the recorded CutApplied events). Measured on the liver preset, headless (steps of about
   /// 2 ms): a cut's step waits about 50 ms with 5, none with -1.
   int cutLatencySteps = 5;
+  /// Steps between the tissue passing its tear strain and the step boundary its torn body replaces the old one at,
+  /// whatever the refresh and the cut's latency (a tear opens in 50 ms): so the same pull tears the same way in every
+  /// run. Applied when built (-1), the GUI's tears depended on the second thread: the patient liver pulled fast tore 8
+  /// times in one run and 55 in another, each tear's pieces over-stretched in turn, the steps 1.9 s at the median (97
+  /// of 150 inexact); with 5, 7 tears in every run, 24-29 ms (BENCHMARKS.md). Sessions recorded before it existed:
+  /// their cut's latency, as their tears had.
+  int tearLatencySteps = 5;
   CutSettings cut;  ///< snapping and the quality the re-meshing keeps
   /// The jaws keep their hold where their own instrument left them while another instrument moves (InputEvent::tool:
   /// the grasper's traction while the scissors cut, as an assistant holds it); false: they follow every move of the
@@ -53,9 +60,9 @@ struct ToolSettings {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce &&
            trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
            bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
-           cutLatencySteps == o.cutLatencySteps && cut.snap == o.cut.snap && cut.minQuality == o.cut.minQuality &&
-           cut.minVolumeFraction == o.cut.minVolumeFraction && jawsKeepTheirHold == o.jawsKeepTheirHold &&
-           clip == o.clip && cautery == o.cautery;
+           cutLatencySteps == o.cutLatencySteps && tearLatencySteps == o.tearLatencySteps && cut.snap == o.cut.snap &&
+           cut.minQuality == o.cut.minQuality && cut.minVolumeFraction == o.cut.minVolumeFraction &&
+           jawsKeepTheirHold == o.jawsKeepTheirHold && clip == o.clip && cautery == o.cautery;
   }
 };
 
