@@ -513,13 +513,36 @@ class TestAppearanceGui : public QObject {
       QCOMPARE(view->tool(), ui::Tool::Scissors);
       const auto [a0, b0] = across(k, t, 18);  // across this branch only (another runs 8 mm beside it)
       const QPoint m = pixelOn(k, t);
-      // Near the organ's edge the press can fall beside the deformed organ ("Press on the organ to start the cut."):
-      // as a surgeon would, press again from the stroke's other end, then from halfway to the vessel on either side
-      // (the stroke still crosses it).
+      // Near the organ's edge the stroke's end can fall beside the organ as the simulation has deformed it ("Press on
+      // the organ to start the cut."): as a surgeon does, the press goes where the organ is, the first point from
+      // each end towards the vessel over the live shape the view draws (the stroke still crosses the vessel).
+      auto onOrgan = [&](const QPoint& w) {
+        const auto& live = view->liveShape();
+        const auto& cut = view->liveSurface();
+        const app::Case& kase = *w_->caseData();
+        SurfaceView sv = kase.surfaceView();
+        std::vector<double> vertices;
+        if (cut && !cut->triangles.empty() && !live.empty()) {
+          sv.triangles = cut->triangles.front().data();
+          sv.triangleCount = cut->triangles.size();
+          sv.vertexCount = live.size();
+        }
+        if (live.size() != sv.vertexCount) return false;
+        for (const auto& x : live) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
+        sv.vertices = vertices.data();
+        const QPointF f = view->toFrame(QPointF(w));
+        return imaging::pickSurface(kase.camera, Pose{}, sv, Eigen::Vector2d(f.x(), f.y())).has_value();
+      };
+      auto firstOnOrgan = [&](const QPoint& from) {
+        for (int i = 0; i <= 8; ++i) {
+          const QPoint q = from + (m - from) * (i / 10.0);
+          if (onOrgan(q)) return q;
+        }
+        return from;
+      };
       QPoint a, b;
       bool started = false;
-      for (const auto& [from, to] : {std::make_pair(a0, b0), std::make_pair(b0, a0), std::make_pair((a0 + m) / 2, b0),
-                                     std::make_pair((b0 + m) / 2, a0)}) {
+      for (const auto& [from, to] : {std::make_pair(firstOnOrgan(a0), b0), std::make_pair(firstOnOrgan(b0), a0)}) {
         a = from, b = to;
         QTest::mousePress(view, Qt::LeftButton, {}, a);
         if ((started = waitFor([&] { return panel_->lastFrame()->tool.cutting; }, 10000))) break;
