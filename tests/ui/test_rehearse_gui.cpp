@@ -300,7 +300,9 @@ class TestRehearseGui : public QObject {
   }
 
   // B picks the scissors; a press on the organ and a drag across its left part, down past its lower edge,
-  // cut it: more elements and nodes, the same mass (1e-9), no inverted element, none below the quality the
+  // cut it: more nodes (the cut's faces get their own copies; no fewer elements: where the crossings snap to nodes
+  // the cut runs along element faces and splits none, as CI once saw: 3760 -> 3760 elements, 783 -> 786 nodes),
+  // the same mass (1e-9), no inverted element, none below the quality the
   // cut keeps, the cut tissue drawn in the overlay.
   void cutAcross() {
     QCOMPARE(w_->step(), ui::Step::Rehearse);
@@ -337,7 +339,7 @@ class TestRehearseGui : public QObject {
     QVERIFY(f->surface != nullptr);
     qInfo("cut: %zu -> %zu elements, %zu -> %zu nodes, mass %.12f -> %.12f kg, %zu cut-tissue triangles", elements0,
           f->elements, nodes0, f->positions.size(), mass0, f->mass, f->surface->cutCount);
-    QVERIFY(f->elements > elements0);
+    QVERIFY(f->elements >= elements0);
     QVERIFY(f->positions.size() > nodes0);
     QVERIFY(std::abs(f->mass - mass0) < 1e-9 * mass0);
     QVERIFY(f->surface->cutCount > 0);
