@@ -599,6 +599,32 @@ class TestCut : public QObject {
     QVERIFY(partway.contains("still in one piece (the cut did not go through)"));
   }
 
+  // A stroke that cut nothing is said too (a blade swept beside the organ used to end in silence: the GUI's scissors
+  // stroke, 18 px either side of a vessel near the deformed organ's edge, opened nothing and nothing was said). The
+  // cut-across script's stroke moved 0.3 m to the side of the liver preset (its organ spans about 0.2 m): the mesh
+  // is unchanged and the stroke's sentence says that nothing was cut and why.
+  void aStrokeThatCutNothingSaysSo() {
+    std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    app::GestureScript script = app::parseGestureScript(ss.str());
+    for (auto& e : script.events)
+      if (e.tip) *e.tip += Eigen::Vector3d(0.3, 0, 0);
+    if (script.trocar) *script.trocar += Eigen::Vector3d(0.3, 0, 0);
+    simcore::BodySetup s = liverSetup();
+    s.settings.method = simcore::NewtonMethod::Linearised;
+    const app::GestureResult r = app::runGesture(s, script);
+    std::string said;
+    for (const auto& row : r.steps)
+      if (row.message.find("cut") != std::string::npos) said = row.message;
+    qInfo("said: %s", said.c_str());
+    QCOMPARE(r.cuts, std::size_t(0));
+    QCOMPARE(r.finalMesh.points.size(), r.steps.front().nodes);
+    QCOMPARE(r.finalMesh.tets.size(), r.steps.front().elements);
+    QVERIFY(QString::fromStdString(said).startsWith("Nothing was cut: the blade crossed no tissue."));
+    QVERIFY(QString::fromStdString(said).contains("take it deeper into the tissue"));
+  }
+
   // Issue 32: the shipped cut scripts give the same mesh with the synchronous and the asynchronous refresh (a cut's
   // body replaces the old one a fixed number of steps after its sweep, built on another thread meanwhile), and the
   // asynchronous one the same mesh at every run (it ended with 3,774 elements in one run of four and 3,870 in the

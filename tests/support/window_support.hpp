@@ -3,6 +3,7 @@
 // (dark theme, 1600x900, active for keyboard shortcuts), a screenshot for the README, a drag as a hand makes it.
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
 
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/render.hpp>
@@ -10,6 +11,7 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <QAbstractSpinBox>
 #include <QApplication>
 #include <QElapsedTimer>
 #include <QWheelEvent>
@@ -130,4 +132,28 @@ inline void wheelDeeper(QWidget* target, QPoint at, int notches) {
   w.framePage()->loadCalibration(QString::fromStdString(intrinsics));
   return {};
 }
+// Types `text` into a spin box as a user does (all selected, the digits, then `end`: Return, or Tab to leave it).
+inline void typeInto(QAbstractSpinBox* box, const QString& text, Qt::Key end = Qt::Key_Return) {
+  box->selectAll();
+  QTest::keyClicks(box, text);
+  QTest::keyClick(box, end);
+}
+
+// What the simulation panel's session said and which events it raised, a line per shown frame that had either
+// ("step N: events message"; at most `cap` lines), kept while this lives: for the failure messages of the GUI
+// suites and for what they wait on.
+class SessionHeard : public QObject {
+ public:
+  explicit SessionHeard(rehearse::ui::SimulationPanel* panel, int cap = 200) {
+    QObject::connect(panel, &rehearse::ui::SimulationPanel::frameShown, this, [this, panel, cap](long) {
+      const auto f = panel->lastFrame();
+      if (!f) return;
+      QString line;
+      for (const auto& e : f->events) line += QString::fromStdString(e) + " ";
+      if ((!f->message.isEmpty() || !line.isEmpty()) && lines.size() < cap)
+        lines << QString("step %1: %2%3").arg(f->steps).arg(line, f->message);
+    });
+  }
+  QStringList lines;
+};
 }  // namespace

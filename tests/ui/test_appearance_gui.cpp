@@ -466,9 +466,7 @@ class TestAppearanceGui : public QObject {
     auto* clipLength = panel_->findChild<QDoubleSpinBox*>("simClipLength");
     QVERIFY(clipLength);
     clipLength->setFocus();
-    clipLength->selectAll();
-    QTest::keyClicks(clipLength, "18");
-    QTest::keyClick(clipLength, Qt::Key_Return);
+    typeInto(clipLength, QStringLiteral("18"));
     QCOMPARE(clipLength->value(), 18.0);
     QVERIFY(stepsOn(2));
     QVERIFY(waitFor([&] { return true; }, 100));
@@ -497,17 +495,9 @@ class TestAppearanceGui : public QObject {
       const QPointF m = pixelOn(k, t);
       return std::make_pair((m - half * n).toPoint(), (m + half * n).toPoint());
     };
-    QStringList heard;  // what the session said and which events it raised during a stroke (shown on failure)
-    QObject listening;  // the connection ends with this slot, however it returns (the lambda holds its locals)
-    QObject::connect(panel_, &ui::SimulationPanel::frameShown, &listening, [&](long) {
-      const auto f = panel_->lastFrame();
-      if (!f) return;
-      QString line;
-      for (const auto& e : f->events) line += QString::fromStdString(e) + " ";
-      if (!f->message.isEmpty() || !line.isEmpty())
-        heard << QString("step %1: %2%3").arg(f->steps).arg(line, f->message);
-    });
-    auto cutAcross = [&](std::size_t k, double t) {
+    SessionHeard listening(panel_, 100000);  // what the session said and which events it raised during a stroke
+    QStringList& heard = listening.lines;
+    auto cutAcross = [&](std::size_t k, double t, int notches = 7) {
       heard.clear();
       QTest::keyClick(w_.get(), Qt::Key_B);
       QCOMPARE(view->tool(), ui::Tool::Scissors);
@@ -517,21 +507,8 @@ class TestAppearanceGui : public QObject {
       // the organ to start the cut."): as a surgeon does, the press goes where the organ is, the first point from
       // each end towards the vessel over the live shape the view draws (the stroke still crosses the vessel).
       auto onOrgan = [&](const QPoint& w) {
-        const auto& live = view->liveShape();
-        const auto& cut = view->liveSurface();
-        const app::Case& kase = *w_->caseData();
-        SurfaceView sv = kase.surfaceView();
-        std::vector<double> vertices;
-        if (cut && !cut->triangles.empty() && !live.empty()) {
-          sv.triangles = cut->triangles.front().data();
-          sv.triangleCount = cut->triangles.size();
-          sv.vertexCount = live.size();
-        }
-        if (live.size() != sv.vertexCount) return false;
-        for (const auto& x : live) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
-        sv.vertices = vertices.data();
         const QPointF f = view->toFrame(QPointF(w));
-        return imaging::pickSurface(kase.camera, Pose{}, sv, Eigen::Vector2d(f.x(), f.y())).has_value();
+        return view->liveSurfaceAt(Eigen::Vector2d(f.x(), f.y())).has_value();
       };
       auto firstOnOrgan = [&](const QPoint& from) {
         for (int i = 0; i <= 8; ++i) {
@@ -553,7 +530,7 @@ class TestAppearanceGui : public QObject {
       QVERIFY(started);
       // The blade 14 mm deeper (it spans 4-34 mm under the pressed surface): the branch lies 18-25 mm deep, in elements
       // that reach 35 mm, and only the faces wholly inside the sweep open (with 3 notches the cut missed the vessel).
-      wheelDeeper(view, a, 7);
+      wheelDeeper(view, a, notches);
       for (int i = 1; i <= 8; ++i) {
         QTest::mouseMove(view, a + (b - a) * (i / 8.0));
         QVERIFY(stepsOn(3));
@@ -605,7 +582,16 @@ class TestAppearanceGui : public QObject {
     // The branch cut beyond the second clip: new stumps; the piece without a clip bleeds, more and more.
     const std::size_t cutFacesBefore = panel_->lastFrame()->surface->cutCount;
     cutAcross(second, 0.92);
-    QVERIFY(waitFor([&] { return panel_->lastFrame()->surface->cutCount > cutFacesBefore; }, 60000));
+    // A stroke that opened nothing says so ("Nothing was cut: the blade crossed no tissue ... take it deeper"; CI,
+    // under load, once: the organ had deformed under the clips and the hook); as a surgeon does, the stroke again,
+    // deeper.
+    auto saidNothingCut = [&] { return waitFor([&] { return heard.join(" ").contains("Nothing was cut"); }, 5000); };
+    if (panel_->lastFrame()->surface->cutCount == cutFacesBefore && saidNothingCut()) {
+      qInfo("the second stroke cut nothing (said); again, 4 notches deeper");
+      cutAcross(second, 0.92, 11);
+    }
+    QVERIFY2(waitFor([&] { return panel_->lastFrame()->surface->cutCount > cutFacesBefore; }, 60000),
+             qPrintable(heard.join(" | ")));
     QVERIFY(stepsOn(5));
     const std::size_t stumpsBefore = 2;
     for (const auto& b : panel_->lastFrame()->field.bleeds)
@@ -662,9 +648,7 @@ class TestAppearanceGui : public QObject {
     QVERIFY(tears);
     QCOMPARE(tears->value(), 0.0);  // by default nothing tears ("never")
     tears->setFocus();
-    tears->selectAll();
-    QTest::keyClicks(tears, "15");
-    QTest::keyClick(tears, Qt::Key_Return);
+    typeInto(tears, QStringLiteral("15"));
     QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0.15; }));
     QVERIFY(stepsOn(3));
     double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
@@ -710,9 +694,7 @@ class TestAppearanceGui : public QObject {
     QTest::mouseRelease(view, Qt::LeftButton, {}, last);
     // Back to "never" for the suites after this one.
     tears->setFocus();
-    tears->selectAll();
-    QTest::keyClicks(tears, "0");
-    QTest::keyClick(tears, Qt::Key_Return);
+    typeInto(tears, QStringLiteral("0"));
     QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0; }));
     QTest::keyClick(w_.get(), Qt::Key_Escape);
   }

@@ -253,16 +253,12 @@ class TestOperativeGui : public QObject {
           100 * atRest, tearPercent);
     auto* tears = panel_->findChild<QDoubleSpinBox*>("simTearStrain");
     tears->setFocus();
-    tears->selectAll();
-    QTest::keyClicks(tears, QString::number(tearPercent));
-    QTest::keyClick(tears, Qt::Key_Return);
+    typeInto(tears, QString::number(tearPercent));
     QVERIFY(waitFor([&] { return std::abs(w_->caseData()->material.tearStrain - tearPercent / 100.0) < 1e-9; }));
     // The clip applier's jaws as long as the panel allows (20 mm): the artery is as thick as this mesh's elements.
     auto* clipLength = panel_->findChild<QDoubleSpinBox*>("simClipLength");
     clipLength->setFocus();
-    clipLength->selectAll();
-    QTest::keyClicks(clipLength, "20");
-    QTest::keyClick(clipLength, Qt::Key_Return);
+    typeInto(clipLength, QStringLiteral("20"));
     QCOMPARE(clipLength->value(), 20.0);
     QTest::keyClicks(w_->findChild<QLineEdit*>("traineeName"), "A. Surgeon");
     auto* record = w_->findChild<QPushButton*>("recordButton");
@@ -298,16 +294,8 @@ class TestOperativeGui : public QObject {
       return c.camera.project(f->positions[static_cast<std::size_t>(best < 0 ? 0 : best)]);
     };
 
-    QStringList heard;  // what the session said and which events it raised (shown on failure)
-    QObject listening;  // the connection ends with this slot, however it returns (the lambda holds its locals)
-    QObject::connect(panel_, &ui::SimulationPanel::frameShown, &listening, [&](long) {
-      const auto f = panel_->lastFrame();
-      if (!f) return;
-      QString line;
-      for (const auto& e : f->events) line += QString::fromStdString(e) + " ";
-      if ((!f->message.isEmpty() || !line.isEmpty()) && heard.size() < 200)
-        heard << QString("step %1: %2%3").arg(f->steps).arg(line, f->message);
-    });
+    SessionHeard listening(panel_);  // what the session said and which events it raised (shown on failure)
+    QStringList& heard = listening.lines;
     // Two clips across the artery (U, a click each), one near each end. On this coarse mesh the artery is as thick as
     // its elements, and a clip closed where they stick out past the jaws does not close it (said; a misplaced clip the
     // trainer counts): as a surgeon does, another is placed beside it until one closes the artery there.

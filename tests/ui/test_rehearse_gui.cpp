@@ -267,9 +267,7 @@ class TestRehearseGui : public QObject {
     const QPoint at = view->toWidget(QPointF(centre.x(), centre.y())).toPoint();
     std::map<double, std::size_t> held;
     for (const double mm : {6.0, 15.0}) {
-      bite->selectAll();
-      QTest::keyClicks(bite, QString::number(mm));
-      QTest::keyClick(bite, Qt::Key_Return);
+      typeInto(bite, QString::number(mm));
       QCOMPARE(bite->value(), mm);
       QVERIFY(waitFor([&] { return panel->session()->setup().tools.graspRadius == 1e-3 * mm; }, 20000));
       QTest::mouseMove(view, at);

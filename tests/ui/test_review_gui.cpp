@@ -111,9 +111,7 @@ class TestReviewGui : public QObject {
     QVERIFY(!tear->isChecked());
     auto* limit = rules->findChild<QDoubleSpinBox*>("ruleForceLimit");
     limit->setFocus();
-    limit->selectAll();
-    QTest::keyClicks(limit, "5");
-    QTest::keyClick(limit, Qt::Key_Tab);
+    typeInto(limit, QStringLiteral("5"), Qt::Key_Tab);
     QCOMPARE(limit->value(), 5.0);
     if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
       rules->grab().save(QString::fromLocal8Bit(dir) + "/incorrect-action-rules.png");

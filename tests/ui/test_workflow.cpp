@@ -474,9 +474,7 @@ class TestWorkflow : public QObject {
       const auto before = w_->caseData();
       for (int k = 0; k < 3; ++k) {
         fields[k]->setFocus();
-        fields[k]->selectAll();
-        QTest::keyClicks(fields[k], QString::number(fields[k]->value() + 5.0, 'f', 2));
-        QTest::keyClick(fields[k], Qt::Key_Return);
+        typeInto(fields[k], QString::number(fields[k]->value() + 5.0, 'f', 2));
       }
       QVERIFY2((w_->caseData()->pose.t - before->pose.t - Eigen::Vector3d(0.005, 0.005, 0.005)).norm() <
                    2e-5,  // fields show 0.01 mm

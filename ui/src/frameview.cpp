@@ -204,6 +204,34 @@ std::optional<OrganHit> FrameView::organAt(const Eigen::Vector2d& fp) const {
   return OrganHit{pick->model, pick->nearestVertex};
 }
 
+std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f) const {
+  const auto& c = case_;
+  if (!c || !c->hasPose) return std::nullopt;
+  const auto& live = live_;
+  std::vector<double> vertices;
+  SurfaceView sv = c->surfaceView();
+  Pose pose = c->pose;
+  const auto& cut = liveSurface_;
+  if (cut && !live.empty()) {
+    sv.triangles = cut->triangles.empty() ? nullptr : cut->triangles.front().data();
+    sv.triangleCount = cut->triangles.size();
+    sv.vertexCount = live.size();
+  }
+  if (live.size() == sv.vertexCount) {
+    vertices.reserve(3 * live.size());
+    for (const auto& x : live) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
+    sv.vertices = vertices.data();
+    pose = Pose{};
+  }
+  try {
+    const auto hit = imaging::pickSurface(c->camera, pose, sv, f);
+    if (!hit) return std::nullopt;
+    return pose.apply(hit->nearestVertex >= 0 ? sv.vertex(static_cast<std::size_t>(hit->nearestVertex)) : hit->model);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
 // ------------------------------------------------------------------------------------------ painting
 
 void FrameView::paintEvent(QPaintEvent*) {

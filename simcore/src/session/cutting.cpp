@@ -28,7 +28,9 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   std::vector<int> labels = body_->labels();
   CutProgress progress = setup_.cut;
   const CutResult r = cutTetrahedra(rest, current, tets, labels, sweep, setup_.tools.cut, &progress);
+  ++stroke_.sweeps;
   if (!r.changed) {
+    stroke_.lastStatus = r.status;
     if (r.status.rfind("The cut was refused", 0) == 0) message = stroke_.lastRefusal = r.status;
     return false;
   }
@@ -69,7 +71,8 @@ TopologyChange Session::changeFromCut(const CutResult& r, std::vector<Eigen::Vec
   ++next.topology;
   change.newNodes = r.newNodes;
   change.labels = r.cutLabels;
-  const int latency = setup_.tools.cutLatencySteps;
+  // A tear opens at its own latency (ToolSettings::tearLatencySteps), a blade's cut at the cut's.
+  const int latency = kind == ChangeKind::Tear ? setup_.tools.tearLatencySteps : setup_.tools.cutLatencySteps;
   change.applyAt = latency >= 0 ? steps_ + latency : -1;
   if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) {
     change.factorAt = state_.x;
@@ -138,14 +141,30 @@ std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::si
   return pieces;
 }
 
+namespace {
+// "The blade crossed no tissue." after a colon: "the blade crossed no tissue."
+std::string lowerFirst(std::string s) {
+  if (!s.empty() && s[0] >= 'A' && s[0] <= 'Z') s[0] = static_cast<char>(s[0] - 'A' + 'a');
+  return s;
+}
+}  // namespace
+
 void Session::finishStroke(std::string& message) {
   const Stroke s = stroke_;
   stroke_ = {};
-  if (s.updates == 0 && s.lastRefusal.empty()) return;  // the blade crossed nothing: nothing to say
+  if (!s.open) return;
   const std::size_t pieces = connectedPieces(body_->tetrahedra(), body_->nodeCount());
   std::string m;
-  if (s.updates == 0) {
+  if (s.updates == 0 && !s.lastRefusal.empty()) {
     m = "Nothing was cut: " + s.lastRefusal;
+  } else if (s.updates == 0) {
+    // A stroke that opened nothing is said too: the surgeon swept the blade and the tissue did not change.
+    m = s.sweeps == 0
+            ? "Nothing was cut: the blade did not move while it was on."
+            : "Nothing was cut: " +
+                  (s.lastStatus.empty() ? std::string("the blade opened no face.") : lowerFirst(s.lastStatus)) +
+                  " The blade reaches from its tip back along the shaft: take it deeper into the tissue (the "
+                  "wheel, in the view) or stroke further across it.";
   } else {
     m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) +
         " element(s) split in " + std::to_string(s.updates) + " update(s); ";

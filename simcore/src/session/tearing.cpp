@@ -132,15 +132,8 @@ void Session::tearOverStretched(std::string& message) {
   ++constructions_.cutMeshes;
   bool attached = false;  // the torn element held by an attachment (a ligament's fixed node) or is a ligament
   for (int v : t) attached = attached || body_->fixedMask()[static_cast<std::size_t>(v)];
-  TopologyChange change =
-      changeFromCut(r, std::move(restCopy), std::move(tetsCopy), std::move(labelsCopy), setup_.cut, ChangeKind::Tear);
-  // The torn body replaces this one at its own latency (ToolSettings::tearLatencySteps), built on the second thread.
-  const int latency = setup_.tools.tearLatencySteps;
-  change.applyAt = latency >= 0 ? steps_ + latency : -1;
-  if ((setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) && change.factorAt.size() == 0) {
-    change.factorAt = state_.x;
-    extendByCut(change.factorAt, r.newNodes);
-  }
+  TopologyChange change = changeFromCut(r, std::move(restCopy), std::move(tetsCopy), std::move(labelsCopy), setup_.cut,
+                                        ChangeKind::Tear);  // at the tear's latency
   const std::vector<int> tornLabels = change.labels;
   std::string sentence;
   if (!changeTopology(std::move(change), sentence)) {

@@ -23,7 +23,7 @@ class CauteryTool final : public FrameTool {
           QObject::tr("The cautery hook works on the organ placed over the frame: place it first (step 4)."));
       return true;
     }
-    const auto hit = pickLiveSurface(view_, f);
+    const auto hit = view_.liveSurfaceAt(f);
     if (!hit) {
       emit view_.toolMessage(QObject::tr("Press on the organ to apply energy there."));
       return true;
@@ -39,7 +39,7 @@ class CauteryTool final : public FrameTool {
   void move(const QPointF&, const Eigen::Vector2d& f) override {
     if (!on_) return;
     // The hook follows the surface under the cursor (it stays where it was off the organ).
-    if (const auto hit = pickLiveSurface(view_, f)) {
+    if (const auto hit = view_.liveSurfaceAt(f)) {
       tip_ = *hit;
       path_.push_back(f);
       postInstrument(view_, simcore::InputKind::ToolPose, tip_, false, kTool);

@@ -23,7 +23,7 @@ class ClipTool final : public FrameTool {
           QObject::tr("The clip applier works on the organ placed over the frame: place it first (step 4)."));
       return true;
     }
-    const auto hit = pickLiveSurface(view_, f);
+    const auto hit = view_.liveSurfaceAt(f);
     if (!hit) {
       emit view_.toolMessage(QObject::tr("Click on the organ, over the vessel to clip."));
       return true;
@@ -53,13 +53,7 @@ class ClipTool final : public FrameTool {
     postInstrument(view_, simcore::InputKind::ToolPose, tip, false, 3);
     // The clip names the structure it was aimed at: the view shows the tissue a step or more behind the session, and
     // the session closes the jaws on it when it is still within their reach (its sentence follows in step 7's line).
-    simcore::InputEvent clip;
-    clip.kind = simcore::InputKind::Clip;
-    clip.tool = 3;
-    clip.position = tip;
-    clip.on = true;
-    clip.label = aimed;
-    emit view_.instrumentInput(clip);
+    postInstrument(view_, simcore::InputKind::Clip, tip, true, 3, aimed);
     last_ = f;
     const std::string name = aimed ? volume.labelName(aimed) : std::string();
     emit view_.toolMessage(

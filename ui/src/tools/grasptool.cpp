@@ -97,7 +97,7 @@ class GraspTool final : public FrameTool {
     // Pressed on the organ as the simulation has it now (the case's shape before it runs); the jaws bite at
     // the surface node nearest the pressed point (a coarse mesh's triangle can be wider than the grasp
     // radius: the point itself might hold nothing).
-    const auto hit = pickLiveSurface(view_, f);
+    const auto hit = view_.liveSurfaceAt(f);
     if (!hit) {
       emit view_.toolMessage(QObject::tr("Press on the organ to grasp it."));
       return;
@@ -134,40 +134,14 @@ class GraspTool final : public FrameTool {
 
 std::unique_ptr<FrameTool> makeGraspTool(FrameView& view) { return std::make_unique<GraspTool>(view); }
 
-std::optional<Eigen::Vector3d> pickLiveSurface(const FrameView& view, const Eigen::Vector2d& f) {
-  const auto& c = view.caseData();
-  if (!c || !c->hasPose) return std::nullopt;
-  const auto& live = view.liveShape();
-  std::vector<double> vertices;
-  SurfaceView sv = c->surfaceView();
-  Pose pose = c->pose;
-  const auto& cut = view.liveSurface();
-  if (cut && !live.empty()) {
-    sv.triangles = cut->triangles.empty() ? nullptr : cut->triangles.front().data();
-    sv.triangleCount = cut->triangles.size();
-    sv.vertexCount = live.size();
-  }
-  if (live.size() == sv.vertexCount) {
-    vertices.reserve(3 * live.size());
-    for (const auto& x : live) vertices.insert(vertices.end(), {x.x(), x.y(), x.z()});
-    sv.vertices = vertices.data();
-    pose = Pose{};
-  }
-  try {
-    const auto hit = imaging::pickSurface(c->camera, pose, sv, f);
-    if (!hit) return std::nullopt;
-    return pose.apply(hit->nearestVertex >= 0 ? sv.vertex(static_cast<std::size_t>(hit->nearestVertex)) : hit->model);
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-}
-
-void postInstrument(FrameView& view, simcore::InputKind kind, const Eigen::Vector3d& tip, bool on, int tool) {
+void postInstrument(FrameView& view, simcore::InputKind kind, const Eigen::Vector3d& tip, bool on, int tool,
+                    int label) {
   simcore::InputEvent e;
   e.kind = kind;
   e.tool = tool;
   e.position = tip;
   e.on = on;
+  e.label = label;
   emit view.instrumentInput(e);
 }
 

@@ -25,7 +25,7 @@ class ScissorsTool final : public FrameTool {
       emit view_.toolMessage(QObject::tr("The scissors work on the organ placed over the frame: place it first (step 4)."));
       return true;
     }
-    const auto hit = pickLiveSurface(view_, f);
+    const auto hit = view_.liveSurfaceAt(f);
     if (!hit) {
       emit view_.toolMessage(QObject::tr("Press on the organ to start the cut."));
       return true;

@@ -21,13 +21,11 @@ std::unique_ptr<FrameTool> makeScissorsTool(FrameView& view);
 std::unique_ptr<FrameTool> makeClipTool(FrameView& view);
 std::unique_ptr<FrameTool> makeCauteryTool(FrameView& view);
 
-/// The instruments' pick: the organ's surface point under frame pixel `f` as the simulation has it now (its
-/// cut boundary after a cut), snapped to the nearest surface node; camera frame (m). Nothing off the organ.
-std::optional<Eigen::Vector3d> pickLiveSurface(const FrameView& view, const Eigen::Vector2d& f);
 /// Posts an instrument's input (`tool`: 0 grasper, 1 scissors, 3 clip applier, 4 cautery;
 /// scripts' 2 is the cutting hook) through the view
-/// to the simulation session.
-void postInstrument(FrameView& view, simcore::InputKind kind, const Eigen::Vector3d& tip, bool on, int tool);
+/// to the simulation session; `label`: the structure a clip was aimed at (0: none).
+void postInstrument(FrameView& view, simcore::InputKind kind, const Eigen::Vector3d& tip, bool on, int tool,
+                    int label = 0);
 /// The point under frame pixel `f` at camera depth `depth` (m).
 Eigen::Vector3d pointAtDepth(const FrameView& view, const Eigen::Vector2d& f, double depth);
 

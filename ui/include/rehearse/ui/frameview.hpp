@@ -163,6 +163,10 @@ class FrameView : public QWidget {
   /// A new id for the undo steps of one drag (they merge into one).
   int nextMergeId() { return ++mergeCounter_; }
   std::optional<OrganHit> organAt(const Eigen::Vector2d& framePixel) const;
+  /// The organ's surface point under a frame pixel as the simulation has it now (the live shape, its cut boundary
+  /// after a cut), snapped to the nearest surface node; camera frame (m). Nothing off the organ: what the
+  /// instruments press on (and what tests aim at).
+  std::optional<Eigen::Vector3d> liveSurfaceAt(const Eigen::Vector2d& framePixel) const;
 
  signals:
   void cursorMoved(QPointF framePixel);

@@ -308,7 +308,8 @@ class Session : private InstrumentHost {
   void retire(std::unique_ptr<DeformableBody> body);
 
   /// The cut module's new mesh (copies of the body's, cut) as the next body's setup: new nodes held where their
-  /// originals were (duplicates of fixed nodes fixed), topology + 1, applied after the scene's latency.
+  /// originals were (duplicates of fixed nodes fixed), topology + 1, applied after the scene's latency (a tear's
+  /// own, ToolSettings::tearLatencySteps, for kind Tear).
   TopologyChange changeFromCut(const CutResult& r, std::vector<Eigen::Vector3d> rest,
                                std::vector<std::array<int, 4>> tets, std::vector<int> labels, CutProgress progress,
                                ChangeKind kind) const;
@@ -333,6 +334,8 @@ class Session : private InstrumentHost {
     bool open = false;
     std::size_t updates = 0, split = 0, separatedFaces = 0, skippedInverted = 0, piecesBefore = 1;
     std::string lastRefusal;  ///< why the stroke's last attempt was refused (empty when its last sweep was cut)
+    std::size_t sweeps = 0;   ///< sweeps the stroke asked the cut module to cut (updates: those that cut)
+    std::string lastStatus;   ///< what the cut module said of the last sweep that cut nothing
   };
   Stroke stroke_;
   /// The stroke's sentence once nothing of it is under way any more.
