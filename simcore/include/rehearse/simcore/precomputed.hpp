@@ -1,0 +1,85 @@
+#pragma once
+// Precomputed linear elasticity (Cotin, Delingette and Ayache, IEEE TVCG 1999): the organ's static response to a
+// unit load at each node an instrument can touch, computed once from the linear FEM's factorised stiffness, then
+// every deformation and every tool force by superposition, fast enough for a haptic loop.
+//
+// With K the linear stiffness at rest (fixed nodes removed), the compliance column block C_:j = K^-1 e_j is the
+// displacement of every node under a unit force at driven node j (3 columns: x, y, z), and u_g = K^-1 M g the sag
+// under gravity. Displacements d imposed at driven nodes J (an instrument holding them):
+//   C_JJ lambda = d - u_g[J],   u = u_g + C_:J lambda,   lambda: the instrument's force on the tissue at J (N),
+// the exact linear static solution with every node of J held at once (the paper's correction for several
+// simultaneous constraints, solved here as the small dense system C_JJ rather than iterated). Cost online:
+// 3|J| x 3|J| once per change of J, then 3n x 3|J| per update; memory 9 x driven nodes x nodes numbers (stated by
+// memoryBytes(); single precision halves it at the cost of about 1e-7 relative).
+//
+// Linear elasticity: small strains, rotations not separated (a large rotation inflates the organ); the response is
+// exact for that model only. A cut changes K: the precomputed responses no longer hold (the hybrid model's region).
+#include <rehearse/simcore/fem.hpp>
+
+#include <Eigen/Core>
+
+#include <atomic>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace rehearse::simcore {
+
+struct PrecomputeSettings {
+  bool singlePrecision = false;  ///< store the responses as float (half the memory, ~1e-7 relative)
+  int batch = 96;                ///< right-hand sides solved together (columns)
+  /// Called after each batch with the share done (0..1); false cancels (build then returns nothing, said).
+  std::function<bool(double)> progress;
+};
+
+class PrecomputedElasticity {
+ public:
+  /// Builds the responses of `model`'s stiffness at rest (K = d^2E/dx^2 at the rest shape: the linear FEM's; the
+  /// co-rotational law's is the same there, test_precomputed) with `fixed` nodes held (1: fixed) to unit forces at
+  /// each of `driven` nodes (the surface nodes instruments touch, typically), and the sag under `gravity` (m/s^2) from
+  /// the lumped masses. Nothing, with a sentence in `why`, when the stiffness is singular (no fixed node: a free body
+  /// has no static response), a driven node is fixed or out of range, or the build was cancelled.
+  static std::optional<PrecomputedElasticity> build(const FemModel& model, const std::vector<char>& fixed,
+                                                    const std::vector<int>& driven, const Eigen::Vector3d& gravity,
+                                                    const PrecomputeSettings& settings, std::string& why);
+
+  std::size_t nodeCount() const { return nodes_; }
+  const std::vector<int>& driven() const { return driven_; }
+  /// The driven index of a node (-1 when it is not driven).
+  int drivenIndex(int node) const;
+  /// Bytes held by the responses (9 x driven x nodes numbers) and the sag.
+  std::size_t memoryBytes() const;
+  /// The sag under gravity alone (3n, m).
+  const Eigen::VectorXd& sag() const { return sag_; }
+  /// The 3x3 block of the compliance: the displacement of node i per unit force at driven index j (m/N).
+  Eigen::Matrix3d response(int node, int drivenIdx) const;
+
+  /// The static displacement u (3n, m, from rest) with node held[k] displaced by displacement[k] from rest (each a
+  /// driven node, no repeats) under gravity; `forces` (optional): the instrument's force on the tissue at each held
+  /// node (N). False, with `why`, when a node is not driven or repeated.
+  bool solve(const std::vector<int>& held, const std::vector<Eigen::Vector3d>& displacement, Eigen::VectorXd& u,
+             std::vector<Eigen::Vector3d>* forces, std::string& why) const;
+
+  /// The force (N) on the tissue at one held driven node displaced `d` from rest, alone (the haptic loop's update:
+  /// f = C_jj^-1 (d - u_g[j])), and the node's stiffness C_jj^-1 (N/m).
+  Eigen::Vector3d forceAt(int drivenIdx, const Eigen::Vector3d& d) const;
+  Eigen::Matrix3d stiffnessAt(int drivenIdx) const;
+
+ private:
+  std::size_t nodes_ = 0;
+  std::vector<int> driven_;
+  std::vector<int> drivenOf_;  ///< node -> driven index or -1
+  // Column-major 3n x 3|driven|: column 3j + a is the displacement under a unit force along axis a at driven j.
+  std::vector<double> c64_;
+  std::vector<float> c32_;
+  bool single_ = false;
+  Eigen::VectorXd sag_;
+  std::vector<Eigen::Matrix3d> selfStiffness_;  ///< C_jj^-1 per driven node
+  double entry(std::size_t row, std::size_t col) const {
+    const std::size_t i = col * 3 * nodes_ + row;
+    return single_ ? static_cast<double>(c32_[i]) : c64_[i];
+  }
+};
+
+}  // namespace rehearse::simcore
