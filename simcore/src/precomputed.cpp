@@ -103,6 +103,7 @@ std::optional<PrecomputedElasticity> PrecomputedElasticity::build(const FemModel
       return std::nullopt;
     }
   }
+  p.fixed_ = fixed;
   p.selfStiffness_.resize(driven.size());
   for (std::size_t j = 0; j < driven.size(); ++j)
     p.selfStiffness_[j] = p.response(driven[j], static_cast<int>(j)).inverse();
@@ -171,19 +172,134 @@ bool PrecomputedElasticity::solve(const std::vector<int>& held, const std::vecto
     return false;
   }
   // u += C_:J lambda, a column at a time (contiguous).
-  const Eigen::Index dofs = static_cast<Eigen::Index>(3 * nodes_);
   for (std::size_t k = 0; k < m; ++k)
-    for (int a = 0; a < 3; ++a) {
-      const double w = lambda(3 * static_cast<Eigen::Index>(k) + a);
-      const std::size_t col = 3 * static_cast<std::size_t>(idx[k]) + static_cast<std::size_t>(a);
-      if (single_)
-        u += w *
-             Eigen::Map<const Eigen::VectorXf>(c32_.data() + col * static_cast<std::size_t>(dofs), dofs).cast<double>();
-      else
-        u += w * Eigen::Map<const Eigen::VectorXd>(c64_.data() + col * static_cast<std::size_t>(dofs), dofs);
-    }
+    for (int a = 0; a < 3; ++a)
+      addColumn(3 * static_cast<std::size_t>(idx[k]) + static_cast<std::size_t>(a),
+                lambda(3 * static_cast<Eigen::Index>(k) + a), u);
   if (forces)
     for (std::size_t k = 0; k < m; ++k) (*forces)[k] = lambda.segment<3>(3 * static_cast<Eigen::Index>(k));
+  return true;
+}
+
+void PrecomputedElasticity::addColumn(std::size_t col, double w, Eigen::VectorXd& u) const {
+  if (w == 0) return;
+  const Eigen::Index dofs = static_cast<Eigen::Index>(3 * nodes_);
+  const std::size_t at = col * static_cast<std::size_t>(dofs);
+  if (single_)
+    u += w * Eigen::Map<const Eigen::VectorXf>(c32_.data() + at, dofs).cast<double>();
+  else
+    u += w * Eigen::Map<const Eigen::VectorXd>(c64_.data() + at, dofs);
+}
+
+bool PrecomputedElasticity::solveConstraints(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& base,
+                                             const Eigen::VectorXd& u0, Eigen::VectorXd& u, Eigen::VectorXd& lambda,
+                                             Eigen::MatrixXd* Wout, std::string& why) const {
+  const Eigen::Index m = static_cast<Eigen::Index>(rows.size());
+  u = u0;
+  lambda.setZero(m);
+  if (Wout) Wout->resize(m, m);
+  if (m == 0) return true;
+  auto node = [](const ScalarConstraint& r, int k) { return r.nodes[static_cast<std::size_t>(k)]; };
+  auto weight = [](const ScalarConstraint& r, int k) { return r.weights[static_cast<std::size_t>(k)]; };
+  // Each row's force acts on its driven nodes (a fixed node's share goes to the attachment); every node must be one.
+  for (const auto& r : rows)
+    for (int k = 0; k < 4; ++k) {
+      const int v = node(r, k);
+      if (v < 0 || weight(r, k) == 0) continue;
+      if (static_cast<std::size_t>(v) >= nodes_ || (drivenIndex(v) < 0 && !fixed_[static_cast<std::size_t>(v)])) {
+        why = "An instrument acts on node " + std::to_string(v) +
+              ", which has no precomputed response (inside the organ: the responses are the surface's).";
+        return false;
+      }
+    }
+  // W(r, c) = sum over r's free nodes i and c's driven nodes j of w_ri w_cj d_r^T C(i, j) d_c; e = value - G (base+u0).
+  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(m, m);
+  Eigen::VectorXd e(m);
+  const Eigen::VectorXd at = base + u0;
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const auto& cr = rows[static_cast<std::size_t>(r)];
+    double g = 0;
+    for (int k = 0; k < 4; ++k)
+      if (node(cr, k) >= 0) g += weight(cr, k) * cr.direction.dot(at.segment<3>(3 * node(cr, k)));
+    e(r) = cr.value - g;
+    for (Eigen::Index c = 0; c < m; ++c) {
+      const auto& cc = rows[static_cast<std::size_t>(c)];
+      double w = 0;
+      for (int k = 0; k < 4; ++k) {
+        const int i = node(cr, k);
+        if (i < 0 || fixed_[static_cast<std::size_t>(i)]) continue;
+        for (int l = 0; l < 4; ++l)
+          if (const int j = drivenIndex(node(cc, l)); j >= 0)
+            w += weight(cr, k) * weight(cc, l) * cr.direction.dot(response(i, j) * cc.direction);
+      }
+      W(r, c) = w;
+    }
+  }
+  W = (0.5 * (W + W.transpose())).eval();
+  if (Wout) *Wout = W;
+  // Active set: bilateral rows always; a unilateral row while it pushes (lambda > 0), added back when violated.
+  std::vector<char> active(static_cast<std::size_t>(m));
+  for (Eigen::Index r = 0; r < m; ++r)
+    active[static_cast<std::size_t>(r)] = !rows[static_cast<std::size_t>(r)].unilateral || e(r) > 0;
+  const double scale = std::max(1e-12, e.cwiseAbs().maxCoeff());
+  bool settled = false;
+  for (int it = 0; it < 4 * static_cast<int>(m) + 4 && !settled; ++it) {
+    std::vector<Eigen::Index> a;
+    for (Eigen::Index r = 0; r < m; ++r)
+      if (active[static_cast<std::size_t>(r)]) a.push_back(r);
+    lambda.setZero(m);
+    if (!a.empty()) {
+      const Eigen::Index k = static_cast<Eigen::Index>(a.size());
+      Eigen::MatrixXd Wa(k, k);
+      Eigen::VectorXd ea(k);
+      for (Eigen::Index i = 0; i < k; ++i) {
+        ea(i) = e(a[static_cast<std::size_t>(i)]);
+        for (Eigen::Index j = 0; j < k; ++j)
+          Wa(i, j) = W(a[static_cast<std::size_t>(i)], a[static_cast<std::size_t>(j)]);
+      }
+      // Redundant rows (two holds of one node along one direction) make W_a singular: the pivoted LDL^T leaves their
+      // share at zero.
+      const Eigen::VectorXd la = Wa.ldlt().solve(ea);
+      if (!la.allFinite()) {
+        why = "The instruments' constraints contradict one another.";
+        return false;
+      }
+      for (Eigen::Index i = 0; i < k; ++i) lambda(a[static_cast<std::size_t>(i)]) = la(i);
+    }
+    // The most negative unilateral multiplier leaves; else the most violated inactive unilateral row enters.
+    Eigen::Index worst = -1;
+    double worstValue = 0;
+    for (Eigen::Index r = 0; r < m; ++r)
+      if (rows[static_cast<std::size_t>(r)].unilateral && active[static_cast<std::size_t>(r)] && lambda(r) < worstValue)
+        worst = r, worstValue = lambda(r);
+    if (worst >= 0) {
+      active[static_cast<std::size_t>(worst)] = 0;
+      continue;
+    }
+    const Eigen::VectorXd gap = W * lambda - e;  // >= 0 where a unilateral row holds
+    for (Eigen::Index r = 0; r < m; ++r)
+      if (rows[static_cast<std::size_t>(r)].unilateral && !active[static_cast<std::size_t>(r)] &&
+          gap(r) < -1e-12 * scale && gap(r) < worstValue)
+        worst = r, worstValue = gap(r);
+    if (worst >= 0)
+      active[static_cast<std::size_t>(worst)] = 1;
+    else
+      settled = true;
+  }
+  if (!settled) {
+    why = "The instruments' contacts did not settle (their active set cycled).";
+    return false;
+  }
+  // u = u0 + C G^T lambda: each row's force spread on its driven nodes.
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const auto& cr = rows[static_cast<std::size_t>(r)];
+    if (lambda(r) == 0) continue;
+    for (int k = 0; k < 4; ++k)
+      if (const int j = drivenIndex(node(cr, k)); j >= 0) {
+        const Eigen::Vector3d f = lambda(r) * weight(cr, k) * cr.direction;
+        for (int a = 0; a < 3; ++a) addColumn(3 * static_cast<std::size_t>(j) + static_cast<std::size_t>(a), f(a), u);
+      }
+  }
   return true;
 }
 

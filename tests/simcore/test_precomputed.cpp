@@ -187,6 +187,88 @@ class TestPrecomputed : public QObject {
     }
   }
 
+  // The instruments' constraint rows (what the session gives a body): a grasp's patch held by bilateral rows along x,
+  // y, z equals the held-node solve; with a floor under the organ (unilateral rows, y <= the lowest rest y, gravity
+  // pushing the organ through it), the result is checked against the stiffness itself: K u - f_g = G^T lambda at
+  // every free node (1e-8 of the gravity load), lambda >= 0 and the gap >= 0 on the floor's rows, complementary.
+  void constraintRowsHoldAndPush() {
+    const FemModel model = FemModel::build(organ_.mesh, {}, material(MaterialModel::Linear, 0.45));
+    std::string why;
+    const auto p = PrecomputedElasticity::build(model, organ_.fixed, organ_.driven, kGravity, {}, why);
+    QVERIFY2(p, why.c_str());
+    const Eigen::VectorXd rest = model.restVector();
+    const std::vector<int> nodes = patch(6);
+    const std::vector<Eigen::Vector3d> d(nodes.size(), Eigen::Vector3d(0.008, -0.006, 0.003));
+    std::vector<ScalarConstraint> rows;
+    for (std::size_t k = 0; k < nodes.size(); ++k)
+      for (int a = 0; a < 3; ++a) {
+        ScalarConstraint c;
+        c.nodes[0] = nodes[k];
+        c.weights[0] = 1;
+        c.direction = Eigen::Vector3d::Unit(a);
+        c.value = rest(3 * nodes[k] + a) + d[k](a);
+        rows.push_back(c);
+      }
+    Eigen::VectorXd u, lambda, direct;
+    QVERIFY2(p->solveConstraints(rows, rest, p->sag(), u, lambda, nullptr, why), why.c_str());
+    QVERIFY2(p->solve(nodes, d, direct, nullptr, why), why.c_str());
+    const double held = relative(u, direct);
+    // The floor: every driven node within 15 mm of the lowest point (largest y) is kept at y <= that lowest rest y.
+    double lowest = -1e9;
+    for (int v : organ_.driven) lowest = std::max(lowest, rest(3 * v + 1));
+    std::vector<ScalarConstraint> floor;
+    for (int v : organ_.driven)
+      if (rest(3 * v + 1) > lowest - 0.015) {
+        ScalarConstraint c;
+        c.nodes[0] = v;
+        c.weights[0] = 1;
+        c.direction = -Eigen::Vector3d::UnitY();
+        c.value = -lowest;
+        c.unilateral = true;
+        floor.push_back(c);
+      }
+    QVERIFY2(p->solveConstraints(floor, rest, p->sag(), u, lambda, nullptr, why), why.c_str());
+    const Eigen::SparseMatrix<double> K = elasticStiffness(model, rest);
+    Eigen::VectorXd f = K * u;
+    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(model.nodeCount()); ++i)
+      f.segment<3>(3 * i) -= model.lumpedMass(i) * kGravity;
+    for (std::size_t r = 0; r < floor.size(); ++r)
+      f.segment<3>(3 * floor[r].nodes[0]) -= lambda(static_cast<Eigen::Index>(r)) * floor[r].direction;
+    double residual = 0, load = 0, worstGap = 0, worstLambda = 0, complementary = 0;
+    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(model.nodeCount()); ++i)
+      if (!organ_.fixed[static_cast<std::size_t>(i)]) {
+        residual = std::max(residual, f.segment<3>(3 * i).norm());
+        load = std::max(load, (model.lumpedMass(i) * kGravity).norm());
+      }
+    int pushing = 0;
+    for (std::size_t r = 0; r < floor.size(); ++r) {
+      const double gap = -(rest(3 * floor[r].nodes[0] + 1) + u(3 * floor[r].nodes[0] + 1)) - floor[r].value;
+      const double l = lambda(static_cast<Eigen::Index>(r));
+      worstGap = std::min(worstGap, gap);
+      worstLambda = std::min(worstLambda, l);
+      complementary = std::max(complementary, std::abs(l * gap));
+      pushing += l > 0;
+    }
+    qInfo(
+        "held patch: %.2e relative to the held-node solve; floor: %zu rows, %d pushing (%.3f N in all), equilibrium "
+        "residual %.2e N (load per node up to %.2e N), worst gap %.2e m, worst multiplier %.2e N, |lambda gap| %.2e",
+        held, floor.size(), pushing, lambda.sum(), residual, load, worstGap, worstLambda, complementary);
+    QVERIFY(held <= 1e-10);
+    QVERIFY(pushing > 0 && pushing < static_cast<int>(floor.size()));
+    QVERIFY(residual <= 1e-8 * std::max(load, lambda.cwiseAbs().maxCoeff()));
+    QVERIFY(worstGap >= -1e-10 && worstLambda >= 0);
+    QVERIFY(complementary <= 1e-12);
+    // A row on a node without a response is refused.
+    const std::set<int> surface(organ_.driven.begin(), organ_.driven.end());
+    int inner = 0;
+    while (surface.count(inner) || organ_.fixed[static_cast<std::size_t>(inner)]) ++inner;
+    ScalarConstraint bad;
+    bad.nodes[0] = inner;
+    bad.weights[0] = 1;
+    QVERIFY(!p->solveConstraints({bad}, rest, p->sag(), u, lambda, nullptr, why));
+    QVERIFY(why.find("no precomputed response") != std::string::npos);
+  }
+
   // The co-rotational law's stiffness at rest is the linear law's (so a scene of either law can use the responses).
   void corotationalStiffnessAtRestIsTheLinearOne() {
     const FemModel lin = FemModel::build(organ_.mesh, {}, material(MaterialModel::Linear, 0.45));

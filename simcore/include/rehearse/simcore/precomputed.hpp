@@ -14,6 +14,7 @@
 //
 // Linear elasticity: small strains, rotations not separated (a large rotation inflates the organ); the response is
 // exact for that model only. A cut changes K: the precomputed responses no longer hold (the hybrid model's region).
+#include <rehearse/simcore/constraint_solver.hpp>
 #include <rehearse/simcore/fem.hpp>
 
 #include <Eigen/Core>
@@ -61,6 +62,17 @@ class PrecomputedElasticity {
   bool solve(const std::vector<int>& held, const std::vector<Eigen::Vector3d>& displacement, Eigen::VectorXd& u,
              std::vector<Eigen::Vector3d>* forces, std::string& why) const;
 
+  /// The static displacement u (3n, from `base`: the rest shape with the sag, or the registered shape that is the
+  /// equilibrium) under the instruments' constraints (ScalarConstraint rows on absolute positions: bilateral holds
+  /// and unilateral contacts, each node of them driven or fixed), their multipliers `lambda` (N, along each row's
+  /// direction; >= 0 for the unilateral ones, complementary to their gap): W lambda = value - G (base + u0) with W =
+  /// G C G^T solved by an active set on the dense W (the small system of the rows), u = u0 + C G^T lambda; `u0` the
+  /// displacement of `base` itself (the sag, or zero). False, with `why`, when a row's node has no response or the
+  /// rows contradict one another.
+  bool solveConstraints(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& base,
+                        const Eigen::VectorXd& u0, Eigen::VectorXd& u, Eigen::VectorXd& lambda, Eigen::MatrixXd* W,
+                        std::string& why) const;
+
   /// The force (N) on the tissue at one held driven node displaced `d` from rest, alone (the haptic loop's update:
   /// f = C_jj^-1 (d - u_g[j])), and the node's stiffness C_jj^-1 (N/m).
   Eigen::Vector3d forceAt(int drivenIdx, const Eigen::Vector3d& d) const;
@@ -76,6 +88,9 @@ class PrecomputedElasticity {
   bool single_ = false;
   Eigen::VectorXd sag_;
   std::vector<Eigen::Matrix3d> selfStiffness_;  ///< C_jj^-1 per driven node
+  std::vector<char> fixed_;
+  /// u += w * (column 3j + a of C)
+  void addColumn(std::size_t col, double w, Eigen::VectorXd& u) const;
   double entry(std::size_t row, std::size_t col) const {
     const std::size_t i = col * 3 * nodes_ + row;
     return single_ ? static_cast<double>(c32_[i]) : c64_[i];
