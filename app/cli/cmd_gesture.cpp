@@ -86,7 +86,9 @@ int cmdGesture(const std::vector<std::string>& args) {
     setup.material = p.defaultMaterial;
     setup.byLabel = p.materials;
     setup.settings = p.settings;
+    setup.model = simcore::bodyModelFromString(p.bodyModel);
   }
+  if (o.count("model")) setup.model = simcore::bodyModelFromString(o["model"]);
   if (o.count("method")) setup.settings.method = simcore::newtonMethodFromString(o["method"]);
   if (o.count("refresh")) {
     if (o["refresh"] == "async")
@@ -189,6 +191,7 @@ int cmdGesture(const std::vector<std::string>& args) {
     for (const auto& s : r.steps) all.push_back(&s.report);
     writeReport(o["report"],
                 {{"steps", rows},
+                 {"model", simcore::bodyModelName(setup.model)},
                  {"method", simcore::toString(setup.settings.method)},
                  {"refresh", setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous ? "async" : "sync"},
                  {"start", startWord},
@@ -218,9 +221,12 @@ int cmdGesture(const std::vector<std::string>& args) {
       "%zu "
       "nodes "
       "written to %s\n",
-      simcore::toString(setup.settings.method).c_str(), r.steps.size(), wall / static_cast<double>(r.steps.size()),
-      grasped, peak, r.slips, r.cuts, vessels.c_str(), r.clips, r.misplacedClips, 1e6 * r.bloodLoss, r.tears, r.failed,
-      out.tets.size(), out.points.size(), o["out"].c_str());
+      (setup.model == simcore::BodyModel::Fem ? simcore::toString(setup.settings.method)
+                                              : simcore::bodyModelName(setup.model) + " model")
+          .c_str(),
+      r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, vessels.c_str(),
+      r.clips, r.misplacedClips, 1e6 * r.bloodLoss, r.tears, r.failed, out.tets.size(), out.points.size(),
+      o["out"].c_str());
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);
   const int code = statusSummary(all);
@@ -235,6 +241,7 @@ const Command& gestureCommand() {
       "simulate]\n"
       "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method "
       "chord|exact|lagged-pcg|linearised|newton-krylov]\n"
+      "                [--model fem|precomputed]\n"
       "                [--start rest|equilibrium] [--refresh sync|async]  async: a drifted lagged factorisation is "
       "rebuilt on a second thread "
       "and\n"
@@ -253,6 +260,9 @@ const Command& gestureCommand() {
               {"out", "OUT", "the volume at the end: .vtu, .vtk or .msh"},
               {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
               {"method", "M", "chord (default: converged every step), exact, lagged-pcg, linearised or newton-krylov"},
+              {"model", "M",
+               "fem (default) or precomputed: Cotin's precomputed linear elasticity (quasi-static, exact for the "
+               "linear law; it cannot cut, tear, clip or burn: said)"},
               {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
               {"start", "S",
                "rest (the mesh is the rest shape; default) or equilibrium (the mesh is where the organ hangs under "

@@ -83,6 +83,11 @@ const std::vector<ComponentDecl>& sceneComponents() {
         {"thickness", "number", "0.001", "m", "wall thickness"},
         {"name", "string", "\"inner\"", "", "name used in the output files"}},
        true},
+      {"model",
+       "The deformable model: the tetrahedral FEM (every law, cuts and tears) or Cotin's precomputed linear "
+       "elasticity (quasi-static, exact for the linear law, tool forces at haptic rate; it cannot cut, tear, clip or "
+       "burn).",
+       {{"kind", "string", "\"fem\"", "", "fem or precomputed"}}},
       {"solver",
        "Linear solver and how Newton reuses its factorisation.",
        {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
@@ -211,6 +216,10 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.staticSolve = true;
         s.settings.maxNewtonIterations = value(c, *decl, "newton_iterations").get<int>();
         s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
+      } else if (type == "model") {
+        s.bodyModel = value(c, *decl, "kind").get<std::string>();
+        if (s.bodyModel != "fem" && s.bodyModel != "precomputed")
+          fail("the model's kind is \"" + s.bodyModel + "\": fem or precomputed.");
       } else if (type == "solver") {
         s.settings.solver = named([&] { return linearSolverFromString(value(c, *decl, "kind").get<std::string>()); });
         s.methodNamed = c.contains("method");

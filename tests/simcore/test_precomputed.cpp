@@ -6,16 +6,24 @@
 // stiffness at rest against the linear law's; single precision's error and memory; refusals (nothing holds the organ,
 // a driven node that is fixed, a node without a response, a cancelled build); a near-incompressible material.
 #include "realorgan.hpp"
+#include "session_inputs.hpp"
 #include "test_support.hpp"
 
+#include <rehearse/app/gesture.hpp>
+#include <rehearse/app/recording.hpp>
 #include <rehearse/simcore/precomputed.hpp>
+#include <rehearse/simcore/session/body.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
 
 #include <Eigen/SparseCholesky>
 
+#include <nlohmann/json.hpp>
+
 #include <QtTest>
 
 #include <algorithm>
+#include <fstream>
+#include <sstream>
 #include <set>
 
 using namespace rehearse;
@@ -267,6 +275,85 @@ class TestPrecomputed : public QObject {
     bad.weights[0] = 1;
     QVERIFY(!p->solveConstraints({bad}, rest, p->sag(), u, lambda, nullptr, why));
     QVERIFY(why.find("no precomputed response") != std::string::npos);
+  }
+
+  // The model as a scene chooses it, through the session (`rehearse gesture --model precomputed`): the shipped
+  // grasp-pull on the liver preset, ended while the jaws hold. Every step converged; at the end the organ is in static
+  // equilibrium by the stiffness itself (K u - f_g vanishes at the free nodes the jaws do not hold, 1e-8 of the
+  // largest nodal load), and what remains at the held nodes sums to the tool force the session reports. A cut is
+  // refused with a sentence (the mesh unchanged); the model survives a recording's setup.
+  void aRehearsalOnThePrecomputedModel() {
+    std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    app::GestureScript script = app::parseGestureScript(ss.str());
+    script.duration = 2.2;  // the jaws still hold (they open at 2.3 s)
+    simcore::BodySetup s = testing::presetBody("liver");
+    s.model = BodyModel::Precomputed;
+    const app::GestureResult r = app::runGesture(s, script);
+    QCOMPARE(r.failed, std::size_t(0));
+    std::size_t converged = 0;
+    std::vector<double> ms;
+    for (const auto& row : r.steps) {
+      converged += row.report.outcome == StepStatus::Converged;
+      ms.push_back(row.wallMs);
+    }
+    QCOMPARE(converged, r.steps.size());
+    std::sort(ms.begin(), ms.end());
+    const auto& last = r.steps.back();
+    QVERIFY(last.grasped > 0);
+    // Equilibrium by the stiffness (the session's body frame: the setup's mesh, in metres, is the rest shape).
+    Mesh mesh = s.mesh;
+    mesh.convertToMetres();
+    if (!s.rest.empty()) mesh.points = s.rest;
+    MaterialParams fallback = s.material;
+    fallback.model = MaterialModel::Linear;
+    std::map<int, MaterialParams> byLabel = s.byLabel;
+    for (auto& [label, m] : byLabel) m.model = MaterialModel::Linear;
+    const FemModel model = FemModel::build(mesh, byLabel, fallback);
+    const Eigen::VectorXd u = r.final.x - model.restVector();
+    Eigen::VectorXd res = elasticStiffness(model, model.restVector()) * u;
+    std::vector<char> fixed(model.nodeCount(), 0);
+    for (int v : s.fixedNodes) fixed[static_cast<std::size_t>(v)] = 1;
+    double load = 0;
+    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(model.nodeCount()); ++i) {
+      res.segment<3>(3 * i) -= model.lumpedMass(i) * s.settings.gravity;
+      load = std::max(load, model.lumpedMass(i) * s.settings.gravity.norm());
+    }
+    Eigen::Vector3d held = Eigen::Vector3d::Zero();
+    std::size_t loaded = 0;
+    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(model.nodeCount()); ++i)
+      if (!fixed[static_cast<std::size_t>(i)] && res.segment<3>(3 * i).norm() > 1e-8 * load) {
+        ++loaded;
+        held += res.segment<3>(3 * i);
+      }
+    qInfo(
+        "precomputed grasp-pull (liver preset, %zu nodes): %zu steps all converged, median %.3f ms, worst %.3f ms; "
+        "%zu held; %zu free nodes off equilibrium (the held ones), their force (%.4f, %.4f, %.4f) N, the session's "
+        "tool force (%.4f, %.4f, %.4f) N",
+        model.nodeCount(), r.steps.size(), ms[ms.size() / 2], ms.back(), last.grasped, loaded, held.x(), held.y(),
+        held.z(), last.toolForce.x(), last.toolForce.y(), last.toolForce.z());
+    QVERIFY(loaded <= last.grasped);
+    QVERIFY(last.toolForce.norm() > 0.1);
+    QVERIFY((held - last.toolForce).norm() <= 1e-6 * last.toolForce.norm());
+    // A cut refused, said; the mesh as it was.
+    {
+      std::ifstream cin(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json");
+      std::stringstream cs;
+      cs << cin.rdbuf();
+      const app::GestureResult c = app::runGesture(s, app::parseGestureScript(cs.str()));
+      std::string said;
+      for (const auto& row : c.steps)
+        if (row.message.find("cannot cut") != std::string::npos) said = row.message;
+      qInfo("cut: %s", said.c_str());
+      QVERIFY(said.find("The precomputed model cannot cut") != std::string::npos);
+      QCOMPARE(c.cuts, std::size_t(0));
+      QCOMPARE(c.finalMesh.tets.size(), mesh.tets.size());
+    }
+    QVERIFY(app::decodeSetup(app::encodeSetup(s)).model == BodyModel::Precomputed);
+    simcore::BodySetup fem = s;
+    fem.model = BodyModel::Fem;
+    QVERIFY(!nlohmann::json::parse(app::encodeSetup(fem)).contains("model"));  // FEM setups keep their old bytes
   }
 
   // The co-rotational law's stiffness at rest is the linear law's (so a scene of either law can use the responses).

@@ -574,6 +574,7 @@ std::uint64_t setupHash(const simcore::BodySetup& s) {
   light.settings = s.settings;
   light.tools = s.tools;
   light.topology = s.topology;
+  light.model = s.model;
   light.mesh.unitToMetre = s.mesh.unitToMetre;
   light.mesh.labelNames = s.mesh.labelNames;
   const std::string text = encodeSetup(light);
@@ -636,6 +637,8 @@ std::string encodeSetup(const simcore::BodySetup& s) {
     j["tools"]["cautery"] = {
         {"radius", t.cautery.radius}, {"burnTime", t.cautery.burnTime}, {"stiffening", t.cautery.stiffening}};
   j["topology"] = s.topology;
+  // The deformable model, when not the FEM (setups recorded before it existed, all FEM, keep their bytes and hash).
+  if (s.model != simcore::BodyModel::Fem) j["model"] = simcore::bodyModelName(s.model);
   j["format"] = "rehearse-setup-1";
   return j.dump();
 }
@@ -692,6 +695,7 @@ simcore::BodySetup decodeSetup(const std::string& text) {
       s.tools.cautery.stiffening = c.at("stiffening");
     }
     s.topology = asInt(j.at("topology"));
+    if (j.contains("model")) s.model = simcore::bodyModelFromString(j.at("model").get<std::string>());
     if (const std::string why = setupProblem(s); !why.empty()) throw std::runtime_error(why);
     return s;
   } catch (const std::exception& e) {

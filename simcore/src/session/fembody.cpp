@@ -139,4 +139,16 @@ class FemBody final : public DeformableBody {
 
 std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup) { return std::make_unique<FemBody>(setup); }
 
+std::unique_ptr<DeformableBody> makeBody(const BodySetup& setup) {
+  return setup.model == BodyModel::Precomputed ? makePrecomputedBody(setup) : makeFemBody(setup);
+}
+
+std::string bodyModelName(BodyModel m) { return m == BodyModel::Precomputed ? "precomputed" : "fem"; }
+
+BodyModel bodyModelFromString(const std::string& name) {
+  if (name == "fem") return BodyModel::Fem;
+  if (name == "precomputed") return BodyModel::Precomputed;
+  throw MeshError("Unknown deformable model \"" + name + "\": fem or precomputed.");
+}
+
 }  // namespace rehearse::simcore

@@ -34,7 +34,7 @@ Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chro
   for (const auto& [label, m] : setup_.byLabel)
     if (!std::isfinite(m.tearStrain) || m.tearStrain < 0)
       throw MeshError("Label " + std::to_string(label) + "'s tear strain is negative.");
-  body_ = makeFemBody(setup_);
+  body_ = makeBody(setup_);
   if (!setup_.tools.trocar) setup_.tools.trocar = defaultTrocar(body_->restPositions());
   {
     // The cut's quality floor: the stated one, or half the uncut mesh's worst element when that is poorer.
@@ -151,7 +151,7 @@ void Session::setPublishStress(bool on) {
 void Session::rebuildBody() {
   // A parameter edit: a new body with the same nodes; the state (positions, velocities, time) carries over,
   // the lagged factor is rebuilt at the next step (the old one belongs to the old parameters).
-  auto body = makeFemBody(setup_);
+  auto body = makeBody(setup_);
   body_ = std::move(body);
   state_.lagged.valid = false;
   state_.forcesValid = false;
@@ -224,6 +224,15 @@ void Session::apply(const InputEvent& e, std::string& message) {
     case InputKind::Cut:
     case InputKind::Clip:
     case InputKind::Energy:
+      if (setup_.model == BodyModel::Precomputed && e.kind != InputKind::Jaw && e.on) {
+        // Its responses are the intact organ's, computed once: a change of the tissue would need them all again.
+        const char* what = e.kind == InputKind::Cut ? "cut" : e.kind == InputKind::Clip ? "clip" : "burn";
+        message = std::string("The precomputed model cannot ") + what +
+                  ": its responses are the intact organ's, computed once. Choose the FEM (the Simulation panel's "
+                  "model, or a scene's \"model\": \"fem\") to " +
+                  what + ".";
+        break;
+      }
       for (auto& i : instruments_)
         if (i->handles(e.kind)) i->act(e, tool_, *this, message);
       break;
@@ -480,7 +489,7 @@ void Session::restore(const Checkpoint& c) {
   restOfSweep_ = c.restOfSweep;
   stroke_ = {};
   setup_ = c.setup;
-  body_ = makeFemBody(setup_);
+  body_ = makeBody(setup_);
   elementsChanged();
   surface_.reset();
   if (setup_.topology > 0) updateCutSurface();
@@ -549,7 +558,7 @@ void Session::run() {
         setup_.fixedNodes = uncut_.fixedNodes;
         setup_.topology = uncut_.topology;
         setup_.cut = uncut_.cut;
-        body_ = makeFemBody(setup_);
+        body_ = makeBody(setup_);
         elementsChanged();
         surface_.reset();
       }

@@ -25,6 +25,14 @@ void Session::tearOverStretched(std::string& message) {
   bool declared = setup_.material.tearStrain > 0;
   for (const auto& [label, m] : setup_.byLabel) declared = declared || m.tearStrain > 0;
   if (!declared) return;
+  if (setup_.model == BodyModel::Precomputed) {
+    if (!saidNoTear_)
+      message += std::string(message.empty() ? "" : " ") +
+                 "The precomputed model does not tear (its responses are the intact organ's): the scene's tear strains "
+                 "are not applied; choose the FEM to tear.";
+    saidNoTear_ = true;
+    return;
+  }
   const auto& rest = body_->restPositions();
   const auto& tets = body_->tetrahedra();
   const auto& labels = body_->labels();

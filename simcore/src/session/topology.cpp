@@ -48,7 +48,7 @@ bool Session::changeTopology(TopologyChange change, std::string& message) {
 void Session::launchBuild(PendingChange& p) const {
   p.built = std::async(std::launch::async, [setup = p.setup, at = p.factorAt, uncut = uncut_, edge = meanEdge_]() {
     Built b;
-    b.body = makeFemBody(setup);
+    b.body = makeBody(setup);
     b.body->prepareFactor(at);
     b.surface = makeCutSurface(uncut, setup.mesh, edge);
     b.contact = contactSurface(b.body->restPositions(), b.body->tetrahedra());

@@ -61,6 +61,7 @@ struct Scene {
   }();
   bool methodNamed = false;  ///< its solver component named a method (else: defaultMethodFor its solver)
   bool staticSolve = false;
+  std::string bodyModel = "fem";  ///< the 'model' component's kind: fem or precomputed (body.hpp: BodyModel)
   long steps = 100;
   std::vector<std::string> components;  ///< the components built, in declaration order
 };

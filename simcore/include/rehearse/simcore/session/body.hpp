@@ -66,6 +66,17 @@ struct ToolSettings {
   }
 };
 
+/// The deformable model a scene chooses (issue 37). Fem: the tetrahedral FEM with implicit Euler (the default, every
+/// law, cuts and tears). Precomputed: Cotin, Delingette and Ayache's precomputed linear elasticity (precomputed.hpp):
+/// quasi-static, the exact linear static answer under the instruments by superposition of responses computed when the
+/// body is built, tool forces at haptic rate; it cannot cut, tear, clip or burn (its responses are the intact
+/// organ's: the session refuses those with a sentence).
+enum class BodyModel { Fem, Precomputed };
+/// "fem", "precomputed"
+std::string bodyModelName(BodyModel m);
+/// Parses bodyModelName's words; throws MeshError naming them otherwise.
+BodyModel bodyModelFromString(const std::string& name);
+
 /// What a FEM body is built from (all of it is recorded with a session, so a replay rebuilds the same body).
 struct BodySetup {
   Mesh mesh;  ///< tets (metres); its points are replaced by `rest` when given
@@ -80,6 +91,7 @@ struct BodySetup {
   SimulationSettings settings;            ///< time step, method, gravity (m/s^2, in the body's frame), ...
   ToolSettings tools;
   int topology = 0;  ///< bumped by every cut (the mesh above is then the cut one, in metres)
+  BodyModel model = BodyModel::Fem;  ///< the deformable model the body is
   CutProgress cut;   ///< the blade's cut while it is on (cutTetrahedra's `progress`)
 };
 
@@ -135,5 +147,10 @@ class DeformableBody {
 /// The co-rotational / hyperelastic tetrahedral FEM with implicit Euler (FemModel + Integrator).
 /// Throws MeshError for an unusable setup (no tets, invalid material).
 std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup);
+/// Cotin's precomputed linear elasticity (BodyModel::Precomputed; precomputedbody.cpp): its responses are computed here
+/// (about a second per thousand surface nodes). Throws MeshError when nothing holds the organ.
+std::unique_ptr<DeformableBody> makePrecomputedBody(const BodySetup& setup);
+/// The body the setup's model names.
+std::unique_ptr<DeformableBody> makeBody(const BodySetup& setup);
 
 }  // namespace rehearse::simcore

@@ -319,6 +319,7 @@ class Session : private InstrumentHost {
   // kind Tear; its events and sentence are said at once. One change at a time: while one is being built the next
   // waits.
   void tearOverStretched(std::string& message);
+  bool saidNoTear_ = false;   ///< the precomputed model's sentence that it does not tear, said once
   bool tearRefused_ = false;  ///< the last tear could not be made (said once until one is made)
 
   // The cut (cutting.cpp): what the blade's sweep asks of the cut module, and what a cut says.
