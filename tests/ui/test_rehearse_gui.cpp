@@ -12,6 +12,7 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 
+#include <QComboBox>
 #include <QLabel>
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
@@ -294,6 +295,67 @@ class TestRehearseGui : public QObject {
     }
     QVERIFY(held[15.0] > held[6.0]);
     bite->setValue(6);
+    panel->pause();
+  }
+
+  // Issue 37: the Solver list's last entry runs Cotin's precomputed linear elasticity instead of the FEM (chosen with
+  // the keyboard); the grasper pulls the organ with it (every step converged, the held node exactly on the jaws, a
+  // tool force), the scissors are refused with a sentence, and chord brings the FEM back.
+  void precomputedModel() {
+    QCOMPARE(w_->step(), ui::Step::Rehearse);
+    auto* panel = w_->simulationPanel();
+    panel->play();
+    auto* method = panel->findChild<QComboBox*>("simMethod");
+    QVERIFY(method);
+    method->setFocus();
+    QTest::keyClick(method, Qt::Key_End);
+    QVERIFY(method->currentText().startsWith("precomputed"));
+    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Precomputed; }, 30000));
+    QVERIFY(waitFor([&] { return panel->lastFrame()->report.status == "converged"; }, 30000));
+    SessionHeard heard(panel);
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    auto* view = w_->frameView();
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    const auto& c = *w_->caseData();
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    const QPointF a = view->toWidget(QPointF(centre.x(), centre.y())), b = a + QPointF(0, -30);
+    QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    for (int i = 1; i <= 6; ++i) {
+      QTest::mouseMove(view, (a + (b - a) * (i / 6.0)).toPoint());
+      const long now = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+    }
+    const long at = panel->lastFrame()->steps;
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 10; }));
+    const auto f = panel->lastFrame();
+    double worst = 0;
+    for (std::size_t k = 0; k < f->tool.held.size(); ++k)
+      worst = std::max(
+          worst,
+          (f->positions[static_cast<std::size_t>(f->tool.held[k])] - (f->tool.tip + f->tool.heldOffset[k])).norm());
+    qInfo("precomputed: %zu node(s) held, %.2e m from the jaws, tool force %.3f N; step: %s", f->tool.held.size(),
+          worst, f->tool.force.norm(), f->report.status.c_str());
+    QCOMPARE(QString::fromStdString(f->report.status), QString("converged"));
+    QVERIFY(worst < 1e-9);
+    QVERIFY(f->tool.force.norm() > 0.01);
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 20000));
+    // The scissors: refused, said.
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
+    QVERIFY2(waitFor([&] { return heard.lines.join(" ").contains("The precomputed model cannot cut"); }, 20000),
+             qPrintable(heard.lines.join(" | ")));
+    QTest::mouseRelease(view, Qt::LeftButton, {}, a.toPoint());
+    // Chord: the FEM again.
+    method->setFocus();
+    for (int k = 0; k < 3; ++k) QTest::keyClick(method, Qt::Key_Up);  // (Home is the window's Fit to window)
+    QCOMPARE(method->currentIndex(), static_cast<int>(simcore::NewtonMethod::Chord));
+    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Fem; }, 30000));
+    QVERIFY(panel->session()->setup().settings.method == simcore::NewtonMethod::Chord);
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    const long back = panel->lastFrame()->steps;
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps > back + 20; }));
     panel->pause();
   }
 

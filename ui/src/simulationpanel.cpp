@@ -71,6 +71,7 @@ simcore::BodySetup bodySetup(const SimulationSetup& s) {
   b.byLabel = m.byLabel;
   b.settings.timeStep = s.timeStep;
   b.settings.method = s.method;
+  b.model = s.bodyModel;
   b.settings.factorRefresh =
       simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)
   b.settings.gravity = s.gravity;
@@ -580,9 +581,12 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   // In NewtonMethod's order; chord is the default (converged every step, issue 34); linearised is faster but its one
   // solve per step is not converged (it says so: inexact above 1e-2).
   form_.method->addItems({tr("exact Newton"), tr("lagged-PCG"), tr("chord (converged)"), tr("linearised (one solve)"),
-                          tr("Newton–Krylov")});
+                          tr("Newton–Krylov"), tr("precomputed linear (no cuts)")});
   form_.method->setCurrentIndex(static_cast<int>(simcore::kInteractiveMethod));
-  form_.method->setToolTip(declared("solver", "method"));
+  form_.method->setToolTip(declared("solver", "method") + QStringLiteral("\n") +
+                           tr("precomputed linear: Cotin's precomputed linear elasticity instead of the FEM: the "
+                              "organ's static answer to the instruments by superposition of responses computed when "
+                              "it starts, forces at haptic rate; it cannot cut, tear, clip or burn (said when asked)"));
   form->addRow(tr("Solver"), form_.method);
   form_.gravity = new QComboBox(this);
   form_.gravity->setObjectName(QStringLiteral("simGravity"));
@@ -741,7 +745,12 @@ SimulationSetup SimulationPanel::setup() const {
   s.timeStep = 1e-3 * form_.timeStep->value();
   s.graspRadius = 1e-3 * form_.jawBite->value();
   s.clipLength = 1e-3 * form_.clipLength->value();
-  s.method = static_cast<simcore::NewtonMethod>(form_.method->currentIndex());
+  // The list's entries after the Newton methods are models: the precomputed one keeps the interactive method for
+  // when the FEM is chosen again.
+  const int chosen = form_.method->currentIndex();
+  const bool precomputed = chosen > static_cast<int>(simcore::NewtonMethod::NewtonKrylov);
+  s.method = precomputed ? simcore::kInteractiveMethod : static_cast<simcore::NewtonMethod>(chosen);
+  s.bodyModel = precomputed ? simcore::BodyModel::Precomputed : simcore::BodyModel::Fem;
   static const Eigen::Vector3d directions[] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
   s.gravity = 9.81 * directions[std::clamp(form_.gravity->currentIndex(), 0, 2)];
   s.startInEquilibrium = form_.start->isChecked();
@@ -841,7 +850,10 @@ void SimulationPanel::postRunParameters() {
   if (s.timeStep != now.timeStep) session_->post(parameter("dt", s.timeStep));
   if (s.graspRadius != session_->setup().tools.graspRadius) session_->post(parameter("grasp_radius", s.graspRadius));
   if (s.clipLength != session_->setup().tools.clip.length) session_->post(parameter("clip_length", s.clipLength));
-  if (s.method != now.method) session_->post(parameter("method", static_cast<double>(s.method)));
+  if (s.bodyModel != session_->setup().model)
+    session_->post(parameter("body_model", s.bodyModel == simcore::BodyModel::Precomputed ? 1.0 : 0.0));
+  if (s.bodyModel == simcore::BodyModel::Fem && s.method != now.method)
+    session_->post(parameter("method", static_cast<double>(s.method)));
   if (s.gravity != now.gravity) {
     simcore::InputEvent g;
     g.kind = simcore::InputKind::Gravity;

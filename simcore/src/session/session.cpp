@@ -284,9 +284,25 @@ void Session::apply(const InputEvent& e, std::string& message) {
                static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 4)) == NewtonMethod::Linearised) {
         message = "The linearised method was refused: its one solve per step diverges under the clips on the tissue.";
         break;
-      } else if (e.name == "method")
-        setup_.settings.method = static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 3));
-      else if (e.name == "model" && e.value >= 0 && e.value <= static_cast<int>(MaterialModel::NeoHookeanSplit))
+      } else if (e.name == "method" && e.value >= 0 && e.value <= static_cast<int>(NewtonMethod::NewtonKrylov))
+        // (Clamped to [0, 3] before 2026-11-27: Newton-Krylov, the panel's fifth, ran the linearised method.)
+        setup_.settings.method = static_cast<NewtonMethod>(static_cast<int>(e.value));
+      else if (e.name == "method") {
+        message = "Unknown method " + std::to_string(e.value) + "; it was not applied.";
+        break;
+      } else if (e.name == "body_model" && (e.value == 0 || e.value == 1)) {
+        const BodyModel m = e.value == 1 ? BodyModel::Precomputed : BodyModel::Fem;
+        if (m == BodyModel::Precomputed && !field_.clips.empty()) {
+          message =
+              "The precomputed model was refused: the clips on the tissue hold nodes inside the organ, which its "
+              "responses (the surface's) cannot move.";
+          break;
+        }
+        setup_.model = m;
+      } else if (e.name == "body_model") {
+        message = "Unknown deformable model " + std::to_string(e.value) + "; it was not applied.";
+        break;
+      } else if (e.name == "model" && e.value >= 0 && e.value <= static_cast<int>(MaterialModel::NeoHookeanSplit))
         setup_.material.model = static_cast<MaterialModel>(static_cast<int>(e.value));
       else if (e.name == "model") {
         message = "Unknown material law " + std::to_string(e.value) + "; it was not applied.";

@@ -42,6 +42,8 @@ struct SimulationSetup {
   double vesselYoung = 0;  ///< Pa, label 2 (0: as the parenchyma)
   double timeStep = 0.01;  ///< s
   simcore::NewtonMethod method = simcore::kInteractiveMethod;
+  /// The deformable model (the Solver list's last entry: Cotin's precomputed linear elasticity; it cannot cut).
+  simcore::BodyModel bodyModel = simcore::BodyModel::Fem;
   double vesselPoisson = 0.45;
   Eigen::Vector3d gravity = Eigen::Vector3d(0, 9.81, 0);  ///< m/s^2 in the camera frame (default: down in the image)
   /// m: the instruments' shaft radius for contact (a 5 mm laparoscopic instrument): the tissue is pushed, not
