@@ -356,6 +356,70 @@ class TestPrecomputed : public QObject {
     QVERIFY(!nlohmann::json::parse(app::encodeSetup(fem)).contains("model"));  // FEM setups keep their old bytes
   }
 
+  // Extreme cases through the body: a surface node pulled 0.3 m (past what a linear model means: elements turn inside
+  // out, counted here from the signed volumes and said by the step), near-incompressible tissue (nu 0.4999), and an
+  // organ held by nothing (refused in a sentence). No NaN anywhere.
+  void extremeCases() {
+    simcore::BodySetup s = testing::presetBody("liver");
+    s.model = BodyModel::Precomputed;
+    {
+      const auto body = makeBody(s);
+      SimulationState st = body->initialState();
+      int node = -1;
+      {
+        Mesh m = s.mesh;
+        for (const auto& t : boundaryTriangles(m, false))
+          for (int v : t)
+            if (node < 0 && !body->fixedMask()[static_cast<std::size_t>(v)]) node = v;
+      }
+      std::vector<ScalarConstraint> rows;
+      for (int a = 0; a < 3; ++a) {
+        ScalarConstraint c;
+        c.nodes[0] = node;
+        c.weights[0] = 1;
+        c.direction = Eigen::Vector3d::Unit(a);
+        c.value = st.x(3 * node + a) + (a == 2 ? -0.3 : 0.0);
+        rows.push_back(c);
+      }
+      body->setToolConstraints(rows);
+      const StepReport rep = body->step(st);
+      const auto& rest = body->restPositions();
+      int inverted = 0;
+      for (const auto& t : body->tetrahedra()) {
+        auto at = [&](int k) { return Eigen::Vector3d(st.x.segment<3>(3 * t[static_cast<std::size_t>(k)])); };
+        const double v = (at(1) - at(0)).cross(at(2) - at(0)).dot(at(3) - at(0));
+        const auto r = [&](int k) { return rest[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])]; };
+        const double v0 = (r(1) - r(0)).cross(r(2) - r(0)).dot(r(3) - r(0));
+        inverted += v * v0 <= 0;
+      }
+      qInfo("pulled 0.3 m: %s, %d inverted (counted here: %d), tool force %.1f N", rep.status.c_str(),
+            rep.invertedElements, inverted, body->toolForce().norm());
+      QVERIFY(st.x.allFinite() && st.v.allFinite());
+      QCOMPARE(rep.invertedElements, inverted);
+      QVERIFY(rep.outcome == (inverted > 0 ? StepStatus::Inverted : StepStatus::Converged));
+      QVERIFY(inverted > 0);
+    }
+    {
+      simcore::BodySetup stiff = s;
+      stiff.material.poisson = 0.4999;
+      for (auto& [label, m] : stiff.byLabel) m.poisson = 0.4999;
+      const auto body = makeBody(stiff);
+      SimulationState st = body->initialState();
+      const StepReport rep = body->step(st);
+      QVERIFY(st.x.allFinite());
+      QVERIFY(rep.outcome == StepStatus::Converged);
+    }
+    simcore::BodySetup loose = s;
+    loose.fixedNodes.clear();
+    try {
+      makeBody(loose);
+      QFAIL("a body held by nothing was built");
+    } catch (const MeshError& e) {
+      qInfo("%s", e.what());
+      QVERIFY(std::string(e.what()).find("Nothing holds the organ") != std::string::npos);
+    }
+  }
+
   // The co-rotational law's stiffness at rest is the linear law's (so a scene of either law can use the responses).
   void corotationalStiffnessAtRestIsTheLinearOne() {
     const FemModel lin = FemModel::build(organ_.mesh, {}, material(MaterialModel::Linear, 0.45));

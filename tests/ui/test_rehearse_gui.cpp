@@ -307,10 +307,14 @@ class TestRehearseGui : public QObject {
     panel->play();
     auto* method = panel->findChild<QComboBox*>("simMethod");
     QVERIFY(method);
+    SessionHeard built(panel);
     method->setFocus();
     QTest::keyClick(method, Qt::Key_End);
     QVERIFY(method->currentText().startsWith("precomputed"));
     QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Precomputed; }, 30000));
+    QVERIFY2(waitFor([&] { return built.lines.join(" ").contains("The precomputed model's responses"); }, 10000),
+             qPrintable(built.lines.join(" | ")));
+    qInfo("%s", qPrintable(built.lines.join(" | ")));
     QVERIFY(waitFor([&] { return panel->lastFrame()->report.status == "converged"; }, 30000));
     SessionHeard heard(panel);
     QTest::keyClick(w_.get(), Qt::Key_R);
@@ -336,6 +340,7 @@ class TestRehearseGui : public QObject {
           (f->positions[static_cast<std::size_t>(f->tool.held[k])] - (f->tool.tip + f->tool.heldOffset[k])).norm());
     qInfo("precomputed: %zu node(s) held, %.2e m from the jaws, tool force %.3f N; step: %s", f->tool.held.size(),
           worst, f->tool.force.norm(), f->report.status.c_str());
+    shot(*w_, "step7-precomputed");
     QCOMPARE(QString::fromStdString(f->report.status), QString("converged"));
     QVERIFY(worst < 1e-9);
     QVERIFY(f->tool.force.norm() > 0.01);

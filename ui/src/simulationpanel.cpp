@@ -214,6 +214,11 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
       return;
     }
     session_ = std::move(result->first);
+    {
+      const auto& b = session_->setup();
+      asked_ = {b.settings.timeStep, b.tools.graspRadius, b.tools.clip.length, b.settings.method, b.model,
+                b.settings.gravity};
+    }
     if (*recorder && cancelled) {
       (*recorder)->finish(0);
     } else if (*recorder) {
@@ -843,21 +848,26 @@ void SimulationPanel::materialFieldsEdited() {
 }
 
 void SimulationPanel::postRunParameters() {
-  // Run parameters (time step, solver, gravity): events applied at the next step boundary, keeping the state.
+  // Run parameters (time step, solver, gravity): events applied at the next step boundary, keeping the state; each
+  // compared with what was last asked (the session's own setup lags until that boundary).
   if (!session_) return;
   const SimulationSetup s = setup();
-  const auto& now = session_->setup().settings;
-  if (s.timeStep != now.timeStep) session_->post(parameter("dt", s.timeStep));
-  if (s.graspRadius != session_->setup().tools.graspRadius) session_->post(parameter("grasp_radius", s.graspRadius));
-  if (s.clipLength != session_->setup().tools.clip.length) session_->post(parameter("clip_length", s.clipLength));
-  if (s.bodyModel != session_->setup().model)
+  if (s.timeStep != asked_.timeStep) session_->post(parameter("dt", asked_.timeStep = s.timeStep));
+  if (s.graspRadius != asked_.graspRadius)
+    session_->post(parameter("grasp_radius", asked_.graspRadius = s.graspRadius));
+  if (s.clipLength != asked_.clipLength) session_->post(parameter("clip_length", asked_.clipLength = s.clipLength));
+  if (s.bodyModel != asked_.model) {
+    asked_.model = s.bodyModel;
     session_->post(parameter("body_model", s.bodyModel == simcore::BodyModel::Precomputed ? 1.0 : 0.0));
-  if (s.bodyModel == simcore::BodyModel::Fem && s.method != now.method)
+  }
+  if (s.bodyModel == simcore::BodyModel::Fem && s.method != asked_.method) {
+    asked_.method = s.method;
     session_->post(parameter("method", static_cast<double>(s.method)));
-  if (s.gravity != now.gravity) {
+  }
+  if (s.gravity != asked_.gravity) {
     simcore::InputEvent g;
     g.kind = simcore::InputKind::Gravity;
-    g.vector = s.gravity;
+    g.vector = asked_.gravity = s.gravity;
     session_->post(g);
   }
 }

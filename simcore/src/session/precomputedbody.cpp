@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstdio>
 
 namespace rehearse::simcore {
 namespace {
@@ -149,6 +150,14 @@ class PrecomputedBody final : public DeformableBody {
     if (!X.allFinite()) return Eigen::Matrix3d::Zero();
     const Eigen::Matrix3d K = S.transpose() * X;
     return 0.5 * (K + K.transpose());
+  }
+  std::string buildNote() const override {
+    char said[240];
+    std::snprintf(said, sizeof said,
+                  "The precomputed model's responses to each of %zu surface nodes at %zu nodes were computed in %.1f s "
+                  "(%.0f MB).",
+                  response_.driven().size(), response_.nodeCount(), buildSeconds_, response_.memoryBytes() / 1e6);
+    return said;
   }
   const std::vector<char>& fixedMask() const override { return fixed_; }
   const std::vector<int>& labels() const override { return labels_; }

@@ -317,6 +317,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
       }
       try {
         rebuildBody();
+        if (e.name == "body_model") message = body_->buildNote();
       } catch (const std::exception& ex) {
         setup_ = std::move(before);
         rebuildBody();

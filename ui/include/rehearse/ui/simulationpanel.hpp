@@ -192,6 +192,15 @@ class SimulationPanel : public QWidget {
   app::MaterialSettings fieldsMaterial() const;
 
   std::shared_ptr<simcore::Session> session_;
+  /// The run parameters as last asked of the session (built into it, then posted): the session applies them at its next
+  /// step boundary, so its own setup lags the list; compared with it, a quick scroll through the Solver list (exact,
+  /// lagged-PCG, chord) posted exact and lagged-PCG, then nothing for chord, and the session ran lagged-PCG.
+  struct Asked {
+    double timeStep = 0, graspRadius = 0, clipLength = 0;
+    simcore::NewtonMethod method = simcore::kInteractiveMethod;
+    simcore::BodyModel model = simcore::BodyModel::Fem;
+    Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
+  } asked_;
   std::shared_ptr<app::Recorder> recorder_;     ///< while recording: written from the session's thread (step hook)
   std::optional<RecordRequest> recordRequest_;  ///< what is being recorded (a reset starts a new session with it)
   bool recordPending_ = false;                  ///< the recorded session is being built

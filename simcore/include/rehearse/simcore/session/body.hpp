@@ -142,6 +142,9 @@ class DeformableBody {
   virtual const std::vector<char>& fixedMask() const = 0;
   /// Per element label (the mesh's), e.g. the vessels'.
   virtual const std::vector<int>& labels() const = 0;
+  /// What building the body took, in one sentence, when that is worth saying (the precomputed model's responses:
+  /// how many, how long, how much memory); empty otherwise.
+  virtual std::string buildNote() const { return {}; }
 };
 
 /// The co-rotational / hyperelastic tetrahedral FEM with implicit Euler (FemModel + Integrator).
