@@ -341,6 +341,9 @@ class TestRehearseGui : public QObject {
     qInfo("precomputed: %zu node(s) held, %.2e m from the jaws, tool force %.3f N; step: %s", f->tool.held.size(),
           worst, f->tool.force.norm(), f->report.status.c_str());
     shot(*w_, "step7-precomputed");
+    auto* status = panel->findChild<QLabel*>("simStatus");
+    QVERIFY2(waitFor([&] { return status->text().contains("precomputed linear · converged"); }, 10000),
+             qPrintable(status->text()));
     QCOMPARE(QString::fromStdString(f->report.status), QString("converged"));
     QVERIFY(worst < 1e-9);
     QVERIFY(f->tool.force.norm() > 0.01);

@@ -978,11 +978,15 @@ QString SimulationPanel::statusText() const {
                                   : tr("t = 0. %1").arg(startWord_);
   if (!last_->message.isEmpty()) return last_->message;
   const QString rate = playing_ ? tr(" · %1 fps").arg(rate_.fps, 0, 'f', 0) : QString();
-  return tr("t = %1 s · step %2 ms%3 · %4 Newton · %5")
+  // The precomputed model does no Newton iteration: its name instead (the model that ran the step).
+  const QString solver = session_ && session_->setup().model == simcore::BodyModel::Precomputed
+                             ? tr("precomputed linear")
+                             : tr("%1 Newton").arg(r.newtonIterations);
+  return tr("t = %1 s · step %2 ms%3 · %4 · %5")
       .arg(last_->time, 0, 'f', 2)
       .arg(r.wallMs, 0, 'f', 1)
       .arg(rate)
-      .arg(r.newtonIterations)
+      .arg(solver)
       .arg(QString::fromStdString(simcore::statusSentence(r)));
 }
 
