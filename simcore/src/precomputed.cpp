@@ -46,6 +46,17 @@ std::optional<PrecomputedElasticity> PrecomputedElasticity::build(const FemModel
     }
     p.drivenOf_[static_cast<std::size_t>(v)] = static_cast<int>(j);
   }
+  const double bytes = 9.0 * static_cast<double>(driven.size()) * static_cast<double>(n) *
+                       (settings.singlePrecision ? sizeof(float) : sizeof(double));
+  if (bytes > static_cast<double>(settings.maxBytes)) {
+    char said[240];
+    std::snprintf(said, sizeof said,
+                  "The responses would take %.1f GB (%zu surface nodes x %zu nodes x 9 numbers), over the %.1f GB "
+                  "allowed: use single precision or a coarser mesh.",
+                  bytes / (1u << 30), driven.size(), n, static_cast<double>(settings.maxBytes) / (1u << 30));
+    why = said;
+    return std::nullopt;
+  }
   // K at rest with the fixed nodes' rows and columns replaced by the identity (their displacement is then zero for
   // any load that is zero there), factorised once.
   Eigen::SparseMatrix<double> K = elasticStiffness(model, model.restVector());

@@ -1,5 +1,7 @@
 #include <rehearse/simcore/session/body.hpp>
 
+#include <Eigen/Dense>
+
 namespace rehearse::simcore {
 namespace {
 
@@ -41,51 +43,13 @@ class FemBody final : public DeformableBody {
   double mass() const override { return model_.lumpedMass.sum(); }
   Eigen::Vector3d toolForce(bool holdsOnly) const override {
     // The tool constraints come after the attachments' (Lagrange mode) in the multipliers.
-    const auto& c = integrator_.constraints();
-    const Eigen::VectorXd& lambda = integrator_.multipliers();
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    if (lambda.size() < static_cast<Eigen::Index>(c.size())) return sum;
-    const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
-    // A constraint's force on the body is its multiplier along its direction, spread over its nodes by its
-    // weights (a triangle's barycentric ones sum to 1).
-    for (std::size_t k = 0; k < c.size(); ++k) {
-      if (holdsOnly && c[k].unilateral) continue;
-      const double spread = c[k].weights[0] + c[k].weights[1] + c[k].weights[2] + c[k].weights[3];
-      sum += lambda[first + static_cast<Eigen::Index>(k)] * spread * c[k].direction;
-    }
-    return sum;
+    return toolForceOf(integrator_.constraints(), integrator_.multipliers(), holdsOnly);
   }
   Eigen::Matrix3d toolStiffness() const override {
-    const auto& c = integrator_.constraints();
-    const Eigen::VectorXd& lambda = integrator_.multipliers();
-    const Eigen::MatrixXd& W = integrator_.constraintCompliance();
     const double h = settings_.timeStep;
-    if (c.empty() || lambda.size() < static_cast<Eigen::Index>(c.size()) || W.rows() != lambda.size() || !(h > 0))
-      return Eigen::Matrix3d::Zero();
-    const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
-    std::vector<Eigen::Index> active;
-    for (std::size_t k = 0; k < c.size(); ++k)
-      if (!c[k].unilateral || lambda[first + static_cast<Eigen::Index>(k)] > 0)
-        active.push_back(first + static_cast<Eigen::Index>(k));
-    if (active.empty()) return Eigen::Matrix3d::Zero();
-    const auto m = static_cast<Eigen::Index>(active.size());
-    // G: how each constraint's value moves with the tool (its direction: grasp holds and contacts move with
-    // it); S: how its multiplier acts on the tool force (toolForce: the direction times its weights' sum).
-    Eigen::MatrixXd Wa(m, m), G(m, 3), S(m, 3);
-    for (Eigen::Index i = 0; i < m; ++i) {
-      for (Eigen::Index j = 0; j < m; ++j) Wa(i, j) = W(active[i], active[j]);
-      const auto& ci = c[static_cast<std::size_t>(active[i] - first)];
-      // A row whose weights sum to zero (a clip: one node against another) is the tissue's own, not the tool's: it
-      // neither moves with the tool nor acts on it.
-      const double spread = ci.weights[0] + ci.weights[1] + ci.weights[2] + ci.weights[3];
-      G.row(i) = spread != 0 ? Eigen::RowVector3d(ci.direction.transpose()) : Eigen::RowVector3d::Zero();
-      S.row(i) = spread * ci.direction.transpose();
-    }
-    // Redundant holds make W_a singular: the pivoted LDL^T's solve leaves their share at zero.
-    const Eigen::MatrixXd X = Wa.ldlt().solve(G);
-    if (!X.allFinite()) return Eigen::Matrix3d::Zero();
-    const Eigen::Matrix3d K = (S.transpose() * X) / (h * h);
-    return 0.5 * (K + K.transpose());
+    if (!(h > 0)) return Eigen::Matrix3d::Zero();
+    return toolStiffnessOf(integrator_.constraints(), integrator_.multipliers(), integrator_.constraintCompliance(),
+                           1 / (h * h));
   }
   const std::vector<char>& fixedMask() const override { return fixed_; }
   const std::vector<int>& labels() const override { return labels_; }
@@ -137,18 +101,55 @@ class FemBody final : public DeformableBody {
 
 }  // namespace
 
+Eigen::Vector3d toolForceOf(const std::vector<ScalarConstraint>& c, const Eigen::VectorXd& lambda, bool holdsOnly) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  if (lambda.size() < static_cast<Eigen::Index>(c.size())) return sum;
+  const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
+  // A constraint's force on the body is its multiplier along its direction, spread over its nodes by its weights (a
+  // triangle's barycentric ones sum to 1).
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    if (holdsOnly && c[k].unilateral) continue;
+    const double spread = c[k].weights[0] + c[k].weights[1] + c[k].weights[2] + c[k].weights[3];
+    sum += lambda[first + static_cast<Eigen::Index>(k)] * spread * c[k].direction;
+  }
+  return sum;
+}
+
+Eigen::Matrix3d toolStiffnessOf(const std::vector<ScalarConstraint>& c, const Eigen::VectorXd& lambda,
+                                const Eigen::MatrixXd& W, double scale) {
+  if (c.empty() || lambda.size() < static_cast<Eigen::Index>(c.size()) || W.rows() != lambda.size())
+    return Eigen::Matrix3d::Zero();
+  const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
+  std::vector<Eigen::Index> active;
+  for (std::size_t k = 0; k < c.size(); ++k)
+    if (!c[k].unilateral || lambda[first + static_cast<Eigen::Index>(k)] > 0)
+      active.push_back(first + static_cast<Eigen::Index>(k));
+  if (active.empty()) return Eigen::Matrix3d::Zero();
+  const auto m = static_cast<Eigen::Index>(active.size());
+  // G: how each constraint's value moves with the tool (its direction: grasp holds and contacts move with it); S: how
+  // its multiplier acts on the tool force (toolForceOf: the direction times its weights' sum).
+  Eigen::MatrixXd Wa(m, m), G(m, 3), S(m, 3);
+  for (Eigen::Index i = 0; i < m; ++i) {
+    for (Eigen::Index j = 0; j < m; ++j)
+      Wa(i, j) = W(active[static_cast<std::size_t>(i)], active[static_cast<std::size_t>(j)]);
+    const auto& ci = c[static_cast<std::size_t>(active[static_cast<std::size_t>(i)] - first)];
+    // A row whose weights sum to zero (a clip: one node against another) is the tissue's own, not the tool's: it
+    // neither moves with the tool nor acts on it.
+    const double spread = ci.weights[0] + ci.weights[1] + ci.weights[2] + ci.weights[3];
+    G.row(i) = spread != 0 ? Eigen::RowVector3d(ci.direction.transpose()) : Eigen::RowVector3d::Zero();
+    S.row(i) = spread * ci.direction.transpose();
+  }
+  // Redundant holds make W_a singular: the pivoted LDL^T's solve leaves their share at zero.
+  const Eigen::MatrixXd X = Wa.ldlt().solve(G);
+  if (!X.allFinite()) return Eigen::Matrix3d::Zero();
+  const Eigen::Matrix3d K = scale * (S.transpose() * X);
+  return 0.5 * (K + K.transpose());
+}
+
 std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup) { return std::make_unique<FemBody>(setup); }
 
 std::unique_ptr<DeformableBody> makeBody(const BodySetup& setup) {
   return setup.model == BodyModel::Precomputed ? makePrecomputedBody(setup) : makeFemBody(setup);
-}
-
-std::string bodyModelName(BodyModel m) { return m == BodyModel::Precomputed ? "precomputed" : "fem"; }
-
-BodyModel bodyModelFromString(const std::string& name) {
-  if (name == "fem") return BodyModel::Fem;
-  if (name == "precomputed") return BodyModel::Precomputed;
-  throw MeshError("Unknown deformable model \"" + name + "\": fem or precomputed.");
 }
 
 }  // namespace rehearse::simcore

@@ -117,40 +117,9 @@ class PrecomputedBody final : public DeformableBody {
   }
   const std::vector<std::array<int, 4>>& tetrahedra() const override { return model_.tets; }
   double mass() const override { return model_.lumpedMass.sum(); }
-  Eigen::Vector3d toolForce(bool holdsOnly) const override {
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    if (lambda_.size() != static_cast<Eigen::Index>(rows_.size())) return sum;
-    for (std::size_t k = 0; k < rows_.size(); ++k) {
-      if (holdsOnly && rows_[k].unilateral) continue;
-      const auto& w = rows_[k].weights;
-      sum += lambda_[static_cast<Eigen::Index>(k)] * (w[0] + w[1] + w[2] + w[3]) * rows_[k].direction;
-    }
-    return sum;
-  }
-  Eigen::Matrix3d toolStiffness() const override {
-    // Exact for this model while the same rows act: the force changes by S^T W_a^-1 G per metre the tool moves.
-    if (rows_.empty() || lambda_.size() != static_cast<Eigen::Index>(rows_.size()) || W_.rows() != lambda_.size())
-      return Eigen::Matrix3d::Zero();
-    std::vector<Eigen::Index> active;
-    for (std::size_t k = 0; k < rows_.size(); ++k)
-      if (!rows_[k].unilateral || lambda_[static_cast<Eigen::Index>(k)] > 0)
-        active.push_back(static_cast<Eigen::Index>(k));
-    if (active.empty()) return Eigen::Matrix3d::Zero();
-    const auto m = static_cast<Eigen::Index>(active.size());
-    Eigen::MatrixXd Wa(m, m), G(m, 3), S(m, 3);
-    for (Eigen::Index i = 0; i < m; ++i) {
-      for (Eigen::Index j = 0; j < m; ++j)
-        Wa(i, j) = W_(active[static_cast<std::size_t>(i)], active[static_cast<std::size_t>(j)]);
-      const auto& ci = rows_[static_cast<std::size_t>(active[static_cast<std::size_t>(i)])];
-      const double spread = ci.weights[0] + ci.weights[1] + ci.weights[2] + ci.weights[3];
-      G.row(i) = spread != 0 ? Eigen::RowVector3d(ci.direction.transpose()) : Eigen::RowVector3d::Zero();
-      S.row(i) = spread * ci.direction.transpose();
-    }
-    const Eigen::MatrixXd X = Wa.ldlt().solve(G);
-    if (!X.allFinite()) return Eigen::Matrix3d::Zero();
-    const Eigen::Matrix3d K = S.transpose() * X;
-    return 0.5 * (K + K.transpose());
-  }
+  Eigen::Vector3d toolForce(bool holdsOnly) const override { return toolForceOf(rows_, lambda_, holdsOnly); }
+  // Exact for this model while the same rows act (W is the rows' compliance in m/N).
+  Eigen::Matrix3d toolStiffness() const override { return toolStiffnessOf(rows_, lambda_, W_, 1.0); }
   std::string buildNote() const override {
     char said[240];
     std::snprintf(said, sizeof said,

@@ -30,6 +30,9 @@ namespace rehearse::simcore {
 struct PrecomputeSettings {
   bool singlePrecision = false;  ///< store the responses as float (half the memory, ~1e-7 relative)
   int batch = 96;                ///< right-hand sides solved together (columns)
+  /// The responses' memory allowed (bytes): a mesh whose 9 x driven x nodes numbers would take more is refused with a
+  /// sentence instead of exhausting the machine (4 GB: a 20k-element organ's responses in single precision).
+  std::size_t maxBytes = std::size_t(4) << 30;
   /// Called after each batch with the share done (0..1); false cancels (build then returns nothing, said).
   std::function<bool(double)> progress;
 };

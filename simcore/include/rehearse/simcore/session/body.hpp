@@ -72,10 +72,14 @@ struct ToolSettings {
 /// body is built, tool forces at haptic rate; it cannot cut, tear, clip or burn (its responses are the intact
 /// organ's: the session refuses those with a sentence).
 enum class BodyModel { Fem, Precomputed };
-/// "fem", "precomputed"
-std::string bodyModelName(BodyModel m);
+/// "fem", "precomputed" (inline: the recording codec, built alone for fuzzing, reads and writes it)
+inline std::string bodyModelName(BodyModel m) { return m == BodyModel::Precomputed ? "precomputed" : "fem"; }
 /// Parses bodyModelName's words; throws MeshError naming them otherwise.
-BodyModel bodyModelFromString(const std::string& name);
+inline BodyModel bodyModelFromString(const std::string& name) {
+  if (name == "fem") return BodyModel::Fem;
+  if (name == "precomputed") return BodyModel::Precomputed;
+  throw MeshError("Unknown deformable model \"" + name + "\": fem or precomputed.");
+}
 
 /// What a FEM body is built from (all of it is recorded with a session, so a replay rebuilds the same body).
 struct BodySetup {
@@ -146,6 +150,16 @@ class DeformableBody {
   /// how many, how long, how much memory); empty otherwise.
   virtual std::string buildNote() const { return {}; }
 };
+
+/// The tool's force on the tissue (N) from its constraint rows and their multipliers (row k's is lambda[first + k],
+/// first = lambda.size() - rows.size(): a body's own rows, e.g. Lagrange attachments, come first): each row's
+/// multiplier along its direction, spread by its weights' sum; `holdsOnly`: the bilateral rows alone.
+Eigen::Vector3d toolForceOf(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& lambda, bool holdsOnly);
+/// The tool's stiffness (N/m), scale * S^T W_a^-1 G over the rows that act (bilateral; unilateral ones that push), W
+/// the rows' compliance indexed like lambda: how the tool force changes per metre the tool moves (DeformableBody::
+/// toolStiffness). Zero when no row acts or W does not match.
+Eigen::Matrix3d toolStiffnessOf(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& lambda,
+                                const Eigen::MatrixXd& W, double scale);
 
 /// The co-rotational / hyperelastic tetrahedral FEM with implicit Euler (FemModel + Integrator).
 /// Throws MeshError for an unusable setup (no tets, invalid material).
