@@ -96,6 +96,28 @@ Eigen::VectorXd directSolve(const FemModel& model, const std::vector<char>& fixe
 
 double relative(const Eigen::VectorXd& a, const Eigen::VectorXd& b) { return (a - b).norm() / b.norm(); }
 
+// An instrument's hold of `node` at `at` (m): three bilateral rows along x, y, z, as the session's grasp makes them.
+std::vector<ScalarConstraint> holdAt(int node, const Eigen::Vector3d& at) {
+  std::vector<ScalarConstraint> rows;
+  for (int a = 0; a < 3; ++a) {
+    ScalarConstraint c;
+    c.nodes[0] = node;
+    c.weights[0] = 1;
+    c.direction = Eigen::Vector3d::Unit(a);
+    c.value = at(a);
+    rows.push_back(c);
+  }
+  return rows;
+}
+
+// The first surface node of the setup's mesh that the body does not hold fixed.
+int firstFreeSurfaceNode(const BodySetup& s, const DeformableBody& body) {
+  for (const auto& t : boundaryTriangles(s.mesh, false))
+    for (int v : t)
+      if (!body.fixedMask()[static_cast<std::size_t>(v)]) return v;
+  return -1;
+}
+
 }  // namespace
 
 class TestPrecomputed : public QObject {
@@ -208,15 +230,10 @@ class TestPrecomputed : public QObject {
     const std::vector<int> nodes = patch(6);
     const std::vector<Eigen::Vector3d> d(nodes.size(), Eigen::Vector3d(0.008, -0.006, 0.003));
     std::vector<ScalarConstraint> rows;
-    for (std::size_t k = 0; k < nodes.size(); ++k)
-      for (int a = 0; a < 3; ++a) {
-        ScalarConstraint c;
-        c.nodes[0] = nodes[k];
-        c.weights[0] = 1;
-        c.direction = Eigen::Vector3d::Unit(a);
-        c.value = rest(3 * nodes[k] + a) + d[k](a);
-        rows.push_back(c);
-      }
+    for (std::size_t k = 0; k < nodes.size(); ++k) {
+      const auto held = holdAt(nodes[k], rest.segment<3>(3 * nodes[k]) + d[k]);
+      rows.insert(rows.end(), held.begin(), held.end());
+    }
     Eigen::VectorXd u, lambda, direct;
     QVERIFY2(p->solveConstraints(rows, rest, p->sag(), u, lambda, nullptr, why), why.c_str());
     QVERIFY2(p->solve(nodes, d, direct, nullptr, why), why.c_str());
@@ -365,22 +382,8 @@ class TestPrecomputed : public QObject {
     {
       const auto body = makeBody(s);
       SimulationState st = body->initialState();
-      int node = -1;
-      {
-        Mesh m = s.mesh;
-        for (const auto& t : boundaryTriangles(m, false))
-          for (int v : t)
-            if (node < 0 && !body->fixedMask()[static_cast<std::size_t>(v)]) node = v;
-      }
-      std::vector<ScalarConstraint> rows;
-      for (int a = 0; a < 3; ++a) {
-        ScalarConstraint c;
-        c.nodes[0] = node;
-        c.weights[0] = 1;
-        c.direction = Eigen::Vector3d::Unit(a);
-        c.value = st.x(3 * node + a) + (a == 2 ? -0.3 : 0.0);
-        rows.push_back(c);
-      }
+      const int node = firstFreeSurfaceNode(s, *body);
+      const std::vector<ScalarConstraint> rows = holdAt(node, st.x.segment<3>(3 * node) + Eigen::Vector3d(0, 0, -0.3));
       body->setToolConstraints(rows);
       const StepReport rep = body->step(st);
       const auto& rest = body->restPositions();
@@ -421,27 +424,16 @@ class TestPrecomputed : public QObject {
   }
 
   // The tool's stiffness the force loop extrapolates with is exact for this model: the force after the jaws moved by
-  // delta (a second static solve) equals the first force plus K delta, K = toolStiffness() (1e-9), and for one held
-  // node it is that node's C_jj^-1.
+  // delta (a second static solve) equals the first force plus K delta, K = toolStiffness() (1e-9), and K is
+  // symmetric.
   void toolStiffnessIsExact() {
     simcore::BodySetup s = testing::presetBody("liver");
     s.model = BodyModel::Precomputed;
     const auto body = makeBody(s);
     SimulationState st = body->initialState();
-    int node = -1;
-    for (const auto& t : boundaryTriangles(s.mesh, false))
-      for (int v : t)
-        if (node < 0 && !body->fixedMask()[static_cast<std::size_t>(v)]) node = v;
+    const int node = firstFreeSurfaceNode(s, *body);
     auto hold = [&](const Eigen::Vector3d& at) {
-      std::vector<ScalarConstraint> rows;
-      for (int a = 0; a < 3; ++a) {
-        ScalarConstraint c;
-        c.nodes[0] = node;
-        c.weights[0] = 1;
-        c.direction = Eigen::Vector3d::Unit(a);
-        c.value = at(a);
-        rows.push_back(c);
-      }
+      const std::vector<ScalarConstraint> rows = holdAt(node, at);
       body->setToolConstraints(rows);
       body->step(st);
       return body->toolForce();

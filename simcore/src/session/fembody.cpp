@@ -1,5 +1,7 @@
 #include <rehearse/simcore/session/body.hpp>
 
+#include "bodymesh.hpp"
+
 #include <Eigen/Dense>
 
 namespace rehearse::simcore {
@@ -80,14 +82,7 @@ class FemBody final : public DeformableBody {
     return s;
   }
   static FemModel build(const BodySetup& s) {
-    Mesh mesh = s.mesh;
-    mesh.convertToMetres();
-    if (!s.rest.empty()) {
-      if (s.rest.size() != mesh.points.size())
-        throw MeshError("The body's rest positions (" + std::to_string(s.rest.size()) + ") do not match its mesh (" +
-                        std::to_string(mesh.points.size()) + " nodes).");
-      mesh.points = s.rest;
-    }
+    const Mesh mesh = restMesh(s);
     return FemModel::build(mesh, s.byLabel, s.material);
   }
   FemModel model_;

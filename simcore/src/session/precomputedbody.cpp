@@ -4,6 +4,8 @@
 #include <rehearse/simcore/precomputed.hpp>
 #include <rehearse/simcore/session/body.hpp>
 
+#include "bodymesh.hpp"
+
 #include <algorithm>
 #include <chrono>
 #include <cstdio>
@@ -15,14 +17,7 @@ class PrecomputedBody final : public DeformableBody {
  public:
   explicit PrecomputedBody(const BodySetup& s)
       : settings_(s.settings), topology_(s.topology), labels_(s.mesh.tetLabels) {
-    Mesh mesh = s.mesh;
-    mesh.convertToMetres();
-    if (!s.rest.empty()) {
-      if (s.rest.size() != mesh.points.size())
-        throw MeshError("The body's rest positions (" + std::to_string(s.rest.size()) + ") do not match its mesh (" +
-                        std::to_string(mesh.points.size()) + " nodes).");
-      mesh.points = s.rest;
-    }
+    const Mesh mesh = restMesh(s);
     // Linear elasticity of the declared moduli and densities, whatever law the scene names (the responses are the
     // stiffness at rest, the same for every law here; the stress drawn is the linear law's too).
     MaterialParams fallback = s.material;
