@@ -1,10 +1,11 @@
 // Benchmark of the precomputed linear elasticity (issue 37; not a test): on real organ shapes from ../shared/data
 // (the patient liver, BodyParts3D's liver and left kidney) meshed at two sizes, hung by their highest 8 % of surface
-// nodes under gravity: the precomputation's time and memory (double and single precision), and the online update's
-// time against the FEM's static solve of the same problem (CHOLMOD on the stiffness with the held nodes eliminated,
-// factorised once: what the exact linear answer costs without the responses): one held node (the haptic loop's force
-// alone, forceAt; the whole organ's displacement, solve) and a grasp's patch of 6; the answers' difference.
-// Medians of repeated runs. Writes precomputed.csv into the directory given (default ".").
+// nodes under gravity: the precomputation's time and memory (double and single precision; every node's rows or the
+// surface's only, the inner nodes then by a back-solve per update), and the online update's time against the FEM's
+// static solve of the same problem (CHOLMOD on the stiffness with the held nodes eliminated, factorised once: what the
+// exact linear answer costs without the responses): one held node (the haptic loop's force alone, forceAt; the whole
+// organ's displacement, solve) and a grasp's patch of 6; the answers' difference. Medians of repeated runs. Writes
+// precomputed.csv into the directory given (default ".").
 //   bench_precomputed [OUT_DIR]
 #include "realorgan.hpp"
 
@@ -46,10 +47,11 @@ int main(int argc, char** argv) {
   const std::string out = argc > 1 ? argv[1] : ".";
   std::filesystem::create_directories(out);
   std::ofstream csv(out + "/precomputed.csv");
-  csv << "organ,tets,nodes,driven,precision,build_s,memory_mb,force_one_node_us,update_one_node_ms,update_patch6_ms,"
+  csv << "organ,tets,nodes,driven,rows,precision,build_s,memory_mb,force_one_node_us,update_one_node_ms,update_patch6_"
+         "ms,"
          "fem_factor_one_node_ms,fem_solve_one_node_ms,fem_factor_patch6_ms,fem_solve_patch6_ms,difference_relative\n";
-  std::printf("%-20s %6s %6s %6s %6s %7s %9s %8s %9s %9s %9s %9s %9s\n", "organ", "tets", "nodes", "driven", "prec",
-              "build s", "memory MB", "force us", "update ms", "patch6 ms", "FEM fac", "FEM solve", "diff");
+  std::printf("%-20s %6s %6s %6s %7s %6s %7s %9s %8s %9s %9s %9s %9s %9s\n", "organ", "tets", "nodes", "driven", "rows",
+              "prec", "build s", "memory MB", "force us", "update ms", "patch6 ms", "FEM fac", "FEM solve", "diff");
   const Eigen::Vector3d g(0, 9.81, 0);
   struct Organ {
     const char* name;
@@ -130,9 +132,11 @@ int main(int argc, char** argv) {
       double f1 = 0, s1 = 0, f6 = 0, s6 = 0;
       const Eigen::VectorXd ref1 = femStatic({patch[0]}, {d6[0]}, f1, s1);
       const Eigen::VectorXd ref6 = femStatic(patch, d6, f6, s6);
-      for (const bool single : {false, true}) {
+      for (const int variant : {0, 1, 2, 3}) {
+        const bool single = variant % 2 == 1, surfaceRows = variant >= 2;
         PrecomputeSettings s;
         s.singlePrecision = single;
+        s.drivenRowsOnly = surfaceRows;  // the surface's rows, the inner nodes by a back-solve per update
         std::string why;
         const auto a = Clock::now();
         const auto p = PrecomputedElasticity::build(model, fixed, driven, g, s, why);
@@ -154,12 +158,14 @@ int main(int argc, char** argv) {
         const double update1 = medianMs(51, [&] { p->solve({patch[0]}, {d6[0]}, u1, nullptr, why); });
         const double update6 = medianMs(51, [&] { p->solve(patch, d6, u6, nullptr, why); });
         const double diff = std::max((u1 - ref1).norm() / ref1.norm(), (u6 - ref6).norm() / ref6.norm());
-        std::printf("%-20s %6zu %6zu %6zu %6s %7.2f %9.1f %8.3f %9.4f %9.4f %9.1f %9.2f %9.1e%s\n", organ.name,
-                    mesh.tets.size(), n, driven.size(), single ? "float" : "double", buildS, p->memoryBytes() / 1e6,
-                    forceUs, update1, update6, std::max(f1, f6), std::max(s1, s6), diff, f.allFinite() ? "" : " (NaN)");
+        std::printf("%-20s %6zu %6zu %6zu %7s %6s %7.2f %9.1f %8.3f %9.4f %9.4f %9.1f %9.2f %9.1e%s\n", organ.name,
+                    mesh.tets.size(), n, driven.size(), surfaceRows ? "surface" : "all", single ? "float" : "double",
+                    buildS, p->memoryBytes() / 1e6, forceUs, update1, update6, std::max(f1, f6), std::max(s1, s6), diff,
+                    f.allFinite() ? "" : " (NaN)");
         csv << '"' << organ.name << "\"," << mesh.tets.size() << ',' << n << ',' << driven.size() << ','
-            << (single ? "float" : "double") << ',' << buildS << ',' << p->memoryBytes() / 1e6 << ',' << forceUs << ','
-            << update1 << ',' << update6 << ',' << f1 << ',' << s1 << ',' << f6 << ',' << s6 << ',' << diff << '\n';
+            << (surfaceRows ? "surface" : "all") << ',' << (single ? "float" : "double") << ',' << buildS << ','
+            << p->memoryBytes() / 1e6 << ',' << forceUs << ',' << update1 << ',' << update6 << ',' << f1 << ',' << s1
+            << ',' << f6 << ',' << s6 << ',' << diff << '\n';
         std::fflush(stdout);
       }
     }

@@ -13,6 +13,7 @@
 #include <rehearse/app/recording.hpp>
 #include <rehearse/simcore/precomputed.hpp>
 #include <rehearse/simcore/session/body.hpp>
+#include <rehearse/simcore/session/session.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
 
 #include <Eigen/SparseCholesky>
@@ -165,18 +166,23 @@ class TestPrecomputed : public QObject {
   void superpositionEqualsTheStaticSolution_data() {
     QTest::addColumn<int>("held");
     QTest::addColumn<double>("poisson");
-    QTest::newRow("none (the sag)") << 0 << 0.45;
-    QTest::newRow("one node") << 1 << 0.45;
-    QTest::newRow("a patch of 6") << 6 << 0.45;
-    QTest::newRow("a patch of 6, nu 0.499") << 6 << 0.499;
+    QTest::addColumn<bool>("surfaceRows");
+    QTest::newRow("none (the sag)") << 0 << 0.45 << false;
+    QTest::newRow("one node") << 1 << 0.45 << false;
+    QTest::newRow("a patch of 6") << 6 << 0.45 << false;
+    QTest::newRow("a patch of 6, nu 0.499") << 6 << 0.499 << false;
+    QTest::newRow("one node, surface rows only") << 1 << 0.45 << true;
+    QTest::newRow("a patch of 6, surface rows only") << 6 << 0.45 << true;
   }
   void superpositionEqualsTheStaticSolution() {
     QFETCH(int, held);
     QFETCH(double, poisson);
+    QFETCH(bool, surfaceRows);
     const FemModel model = FemModel::build(organ_.mesh, {}, material(MaterialModel::Linear, poisson));
     std::string why;
     int calls = 0;
     PrecomputeSettings s;
+    s.drivenRowsOnly = surfaceRows;
     s.progress = [&](double done) {
       ++calls;
       return done >= 0 && done <= 1;
@@ -221,10 +227,18 @@ class TestPrecomputed : public QObject {
   // y, z equals the held-node solve; with a floor under the organ (unilateral rows, y <= the lowest rest y, gravity
   // pushing the organ through it), the result is checked against the stiffness itself: K u - f_g = G^T lambda at
   // every free node (1e-8 of the gravity load), lambda >= 0 and the gap >= 0 on the floor's rows, complementary.
+  void constraintRowsHoldAndPush_data() {
+    QTest::addColumn<bool>("surfaceRows");
+    QTest::newRow("every node's response") << false;
+    QTest::newRow("surface rows only") << true;
+  }
   void constraintRowsHoldAndPush() {
+    QFETCH(bool, surfaceRows);
     const FemModel model = FemModel::build(organ_.mesh, {}, material(MaterialModel::Linear, 0.45));
     std::string why;
-    const auto p = PrecomputedElasticity::build(model, organ_.fixed, organ_.driven, kGravity, {}, why);
+    PrecomputeSettings ps;
+    ps.drivenRowsOnly = surfaceRows;
+    const auto p = PrecomputedElasticity::build(model, organ_.fixed, organ_.driven, kGravity, ps, why);
     QVERIFY2(p, why.c_str());
     const Eigen::VectorXd rest = model.restVector();
     const std::vector<int> nodes = patch(6);
@@ -482,6 +496,140 @@ class TestPrecomputed : public QObject {
     qInfo("%zu x %zu responses: %.1f MB in double, %.1f MB in single precision (error %.1e relative)", m, n,
           p64->memoryBytes() / 1e6, p32->memoryBytes() / 1e6, err);
     QVERIFY(err > 1e-12 && err <= 1e-5);
+  }
+
+  // Bounded memory: the surface's rows only (9 x surface^2 numbers plus the kept factor) against every node's
+  // (9 x surface x nodes), measured; the same static solution either way (1e-12 relative, the floor's rows included).
+  // The responses' bytes (the case file's cache) read back to the same answers; damaged or another organ's bytes are
+  // refused with a sentence; the key changes with the material, the attachments and gravity; precomputedFor takes a
+  // build from the cache, then from stored bytes, and builds again when those are damaged.
+  void boundedMemoryAndTheCache() {
+    const FemModel model = FemModel::build(organ_.mesh, {}, material(MaterialModel::Linear, 0.45));
+    std::string why;
+    PrecomputeSettings all, surface;
+    surface.drivenRowsOnly = true;
+    const auto pa = PrecomputedElasticity::build(model, organ_.fixed, organ_.driven, kGravity, all, why);
+    const auto ps = PrecomputedElasticity::build(model, organ_.fixed, organ_.driven, kGravity, surface, why);
+    QVERIFY(pa && ps);
+    const std::size_t n = organ_.mesh.points.size(), m = organ_.driven.size();
+    qInfo("%zu surface nodes of %zu: every node's responses %.1f MB, the surface's only %.1f MB (with the factor)", m,
+          n, pa->memoryBytes() / 1e6, ps->memoryBytes() / 1e6);
+    QVERIFY(ps->memoryBytes() >= 9 * m * m * sizeof(double));
+    QVERIFY(static_cast<double>(ps->memoryBytes()) <
+            static_cast<double>(pa->memoryBytes()) * static_cast<double>(m) / static_cast<double>(n) * 1.25);
+    const std::vector<int> nodes = patch(6);
+    const std::vector<Eigen::Vector3d> d(nodes.size(), Eigen::Vector3d(0.006, 0.004, -0.005));
+    Eigen::VectorXd ua, us;
+    std::vector<Eigen::Vector3d> fa, fs;
+    QVERIFY(pa->solve(nodes, d, ua, &fa, why) && ps->solve(nodes, d, us, &fs, why));
+    QVERIFY2(relative(us, ua) <= 1e-12, qPrintable(QString::number(relative(us, ua))));
+    for (std::size_t k = 0; k < nodes.size(); ++k) QVERIFY((fs[k] - fa[k]).norm() <= 1e-10 * fa[k].norm());
+    // Bytes and back.
+    for (const auto* p : {&*pa, &*ps}) {
+      const std::string bytes = p->toBytes();
+      const auto back = PrecomputedElasticity::fromBytes(bytes, model, why);
+      QVERIFY2(back, why.c_str());
+      Eigen::VectorXd ub;
+      QVERIFY(back->solve(nodes, d, ub, nullptr, why));
+      QVERIFY(p == &*pa ? ub == ua : relative(ub, us) <= 1e-14);
+      QVERIFY(!PrecomputedElasticity::fromBytes(bytes.substr(0, bytes.size() - 5), model, why));
+      QVERIFY(why.find("damaged") != std::string::npos);
+      std::string flipped = bytes;
+      flipped[2] = 'X';
+      QVERIFY(!PrecomputedElasticity::fromBytes(flipped, model, why));
+    }
+    QVERIFY(!PrecomputedElasticity::fromBytes("", model, why));
+    {  // another organ's responses
+      Mesh other = testing::presetBody("liver").mesh;
+      other.convertToMetres();
+      const FemModel otherModel = FemModel::build(other, {}, material(MaterialModel::Linear, 0.45));
+      QVERIFY(otherModel.nodeCount() != model.nodeCount());
+      QVERIFY(!PrecomputedElasticity::fromBytes(pa->toBytes(), otherModel, why));
+      QVERIFY(why.find("not this organ's") != std::string::npos);
+    }
+    // The key follows what the responses depend on.
+    const std::uint64_t k0 = precomputeKey(model, organ_.fixed, organ_.driven, kGravity, all);
+    const FemModel softer = FemModel::build(organ_.mesh, {}, material(MaterialModel::Linear, 0.44));
+    std::vector<char> fewer = organ_.fixed;
+    fewer[static_cast<std::size_t>(std::find(fewer.begin(), fewer.end(), 1) - fewer.begin())] = 0;
+    QCOMPARE(precomputeKey(model, organ_.fixed, organ_.driven, kGravity, all), k0);
+    QVERIFY(precomputeKey(softer, organ_.fixed, organ_.driven, kGravity, all) != k0);
+    QVERIFY(precomputeKey(model, fewer, organ_.driven, kGravity, all) != k0);
+    QVERIFY(precomputeKey(model, organ_.fixed, organ_.driven, 2 * kGravity, all) != k0);
+    QVERIFY(precomputeKey(model, organ_.fixed, organ_.driven, kGravity, surface) != k0);
+    // From the cache, from stored bytes, built again when those are damaged.
+    ResponseCache& cache = ResponseCache::shared();
+    cache.clear();
+    std::uint64_t key = 0;
+    std::string from;
+    const auto first = precomputedFor(model, organ_.fixed, organ_.driven, kGravity, surface, key, from, why);
+    QVERIFY(first && from == "built" && key == precomputeKey(model, organ_.fixed, organ_.driven, kGravity, surface));
+    QVERIFY(precomputedFor(model, organ_.fixed, organ_.driven, kGravity, surface, key, from, why) == first);
+    QCOMPARE(from, std::string("cache"));
+    const auto bytes = std::make_shared<const std::string>(first->toBytes());
+    cache.clear();
+    cache.offerBytes(key, bytes);
+    const auto stored = precomputedFor(model, organ_.fixed, organ_.driven, kGravity, surface, key, from, why);
+    QVERIFY(stored && stored != first);
+    QCOMPARE(from, std::string("case file"));
+    cache.clear();
+    cache.offerBytes(key, std::make_shared<const std::string>(bytes->substr(0, 100)));
+    QVERIFY(precomputedFor(model, organ_.fixed, organ_.driven, kGravity, surface, key, from, why));
+    QCOMPARE(from, std::string("built"));
+    QVERIFY(!cache.storedBytes(key));  // the damaged bytes are dropped
+    // The cache keeps the most recent past its limit.
+    cache.limitBytes = 1;
+    precomputedFor(model, organ_.fixed, organ_.driven, kGravity, all, key, from, why);
+    QCOMPARE(cache.entries().size(), std::size_t(1));
+    cache.limitBytes = std::size_t(1) << 30;
+    cache.clear();
+  }
+
+  // Through the session, as the Simulation panel chooses the model: a build whose progress answers "cancel" leaves the
+  // FEM running with a sentence (the snapshot names no responses), progress is told from 0 to 1, and choosing the
+  // model again after the FEM takes the responses from the last build (said) instead of computing them again.
+  void theSessionsBuildTellsProgressAndCancels() {
+    ResponseCache::shared().clear();
+    simcore::BodySetup s = testing::presetBody("liver");
+    bool cancel = true;
+    std::vector<double> told;
+    s.buildProgress = [&](double done) {
+      told.push_back(done);
+      return !cancel;
+    };
+    Session session(s);
+    auto choose = [&](double model) {
+      InputEvent e;
+      e.kind = InputKind::Parameter;
+      e.name = "body_model";
+      e.value = model;
+      session.post(e);
+      session.advance();
+      return session.snapshot();
+    };
+    auto snap = choose(1);
+    qInfo("cancelled: %s", snap->message.c_str());
+    QCOMPARE(told.size(), std::size_t(1));
+    QVERIFY(snap->message.find("cancelled") != std::string::npos);
+    QCOMPARE(snap->responseKey, std::uint64_t(0));
+    QVERIFY(session.setup().model == BodyModel::Fem);
+    QVERIFY(snap->report.ok);
+    cancel = false;
+    told.clear();
+    snap = choose(1);
+    qInfo("built: %s (progress told %zu times)", snap->message.c_str(), told.size());
+    QVERIFY(snap->message.find("were computed in") != std::string::npos);
+    QVERIFY(snap->responseKey != 0);
+    QVERIFY(told.size() >= 2 && std::is_sorted(told.begin(), told.end()) && told.back() == 1.0);
+    const std::uint64_t key = snap->responseKey;
+    QVERIFY(choose(0)->responseKey == 0);
+    told.clear();
+    snap = choose(1);
+    qInfo("again: %s", snap->message.c_str());
+    QVERIFY(snap->message.find("taken from the last build") != std::string::npos);
+    QCOMPARE(snap->responseKey, key);
+    QVERIFY(told.empty());
+    ResponseCache::shared().clear();
   }
 
   // What cannot be precomputed or solved is refused with a sentence, never answered.

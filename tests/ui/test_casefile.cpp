@@ -8,6 +8,8 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "box_mesh.hpp"
 
+#include <rehearse/simcore/precomputed.hpp>
+
 #include <malloc.h>
 
 #include <QDir>
@@ -380,6 +382,74 @@ class TestCaseFile : public QObject {
     QVERIFY2(!notes[0].contains("checksum"), qPrintable(notes[0]));
     QCOMPARE(c.camera.K, phantomCase().camera.K);
     QVERIFY(c.groundTruth != nullptr);
+  }
+
+  // The precomputed model's responses (issue 37) are kept with the case: saved under their key, offered back to the
+  // response cache when the case opens (byte for byte), read by a body of the same organ to the same numbers; damaged
+  // on disk they are dropped with a note; a key the cache does not hold saves nothing.
+  void precomputedResponsesAreKept() {
+    const app::Case& c = phantomCase();
+    simcore::Mesh mesh = c.organ->volume;
+    mesh.convertToMetres();
+    simcore::MaterialParams m;
+    m.model = simcore::MaterialModel::Linear;
+    const simcore::FemModel model = simcore::FemModel::build(mesh, {}, m);
+    std::vector<char> fixed(model.nodeCount(), 0);
+    for (int v : c.attachments) fixed[static_cast<std::size_t>(v)] = 1;
+    std::vector<int> driven;
+    for (const auto& t : c.organ->surface)
+      for (int v : t)
+        if (!fixed[static_cast<std::size_t>(v)] && std::find(driven.begin(), driven.end(), v) == driven.end())
+          driven.push_back(v);
+    std::uint64_t key = 0;
+    std::string from, why;
+    auto& cache = simcore::ResponseCache::shared();
+    cache.clear();
+    const auto built = simcore::precomputedFor(model, fixed, driven, Eigen::Vector3d(0, 9.81, 0), {}, key, from, why);
+    QVERIFY2(built, why.c_str());
+    const QString path = QString::fromStdString(tempPath("responses.rehearse"));
+    ui::saveCaseFile(c, path, {}, key);
+    cache.clear();
+    QStringList notes;
+    ui::loadCaseFile(path, &notes);
+    QVERIFY2(notes.isEmpty(), qPrintable(notes.join(" | ")));
+    const auto stored = cache.storedBytes(key);
+    QVERIFY(stored);
+    QVERIFY(*stored == built->toBytes());
+    const auto again = simcore::precomputedFor(model, fixed, driven, Eigen::Vector3d(0, 9.81, 0), {}, key, from, why);
+    QCOMPARE(from, std::string("case file"));
+    Eigen::VectorXd u1, u2;
+    const std::vector<Eigen::Vector3d> d{Eigen::Vector3d(0.01, 0, 0)};
+    QVERIFY(built->solve({driven[0]}, d, u1, nullptr, why) && again->solve({driven[0]}, d, u2, nullptr, why));
+    QVERIFY(u1 == u2);
+    {
+      auto db = QSqlDatabase::addDatabase("QSQLITE", "responses");
+      db.setDatabaseName(path);
+      QVERIFY(db.open());
+      QSqlQuery q(db);
+      QVERIFY(q.exec("UPDATE parts SET data = substr(data, 1, 64) WHERE name = 'precomputed_responses'"));
+      db.close();
+    }
+    QSqlDatabase::removeDatabase("responses");
+    cache.clear();
+    notes.clear();
+    ui::loadCaseFile(path, &notes);
+    QCOMPARE(notes.size(), 1);
+    QVERIFY2(notes[0].startsWith("Precomputed responses not loaded") && notes[0].contains("checksum"),
+             qPrintable(notes[0]));
+    QVERIFY(!cache.storedBytes(key));
+    ui::saveCaseFile(c, path, {}, key + 1);  // not in the cache: nothing kept
+    {
+      auto db = QSqlDatabase::addDatabase("QSQLITE", "responses2");
+      db.setDatabaseName(path);
+      QVERIFY(db.open());
+      QSqlQuery q(db);
+      QVERIFY(q.exec("SELECT count(*) FROM parts WHERE name = 'precomputed_responses'") && q.next());
+      QCOMPARE(q.value(0).toInt(), 0);
+      db.close();
+    }
+    QSqlDatabase::removeDatabase("responses2");
+    cache.clear();
   }
 
   // A case saved with schema 1 (no checksum column, no elastic fit part) opens whole, and saving it again

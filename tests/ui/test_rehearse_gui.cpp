@@ -11,6 +11,11 @@
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
+#include "rehearse/ui/casefile.hpp"
+
+#include <rehearse/simcore/precomputed.hpp>
+
+#include <QTemporaryDir>
 
 #include <QComboBox>
 #include <QLabel>
@@ -364,6 +369,28 @@ class TestRehearseGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_R);
     const long back = panel->lastFrame()->steps;
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > back + 20; }));
+    // Chosen again: the responses of the last build, said; a save keeps them with the case (read back by the case
+    // file's reader into the response cache).
+    SessionHeard again(panel);
+    QTest::keyClick(method, Qt::Key_End);
+    QVERIFY2(waitFor([&] { return again.lines.join(" ").contains("taken from the last build"); }, 30000),
+             qPrintable(again.lines.join(" | ")));
+    QVERIFY(waitFor([&] { return panel->responseKey() != 0; }, 10000));
+    const std::uint64_t key = panel->responseKey();
+    QTemporaryDir dir;
+    const QString path = dir.filePath("precomputed.rehearse");
+    QSignalSpy saved(w_.get(), &ui::MainWindow::caseSaved);
+    w_->saveCaseAs(path);
+    QVERIFY(saved.wait(60000));
+    QVERIFY(saved.first().at(0).toBool());
+    simcore::ResponseCache::shared().clear();
+    QStringList notes;
+    ui::loadCaseFile(path, &notes);
+    QVERIFY(simcore::ResponseCache::shared().storedBytes(key));
+    qInfo("%s; saved with the case: %.1f MB", qPrintable(again.lines.join(" | ")),
+          simcore::ResponseCache::shared().storedBytes(key)->size() / 1e6);
+    for (int k = 0; k < 3; ++k) QTest::keyClick(method, Qt::Key_Up);
+    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Fem; }, 30000));
     panel->pause();
   }
 

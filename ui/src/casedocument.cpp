@@ -146,9 +146,10 @@ void CaseDocument::saveAs(const QString& path) {
   auto data = case_;
   // The recordings come from the file the case lives in now (a Save As carries them to the new one).
   const QString from = path_.isEmpty() ? QString() : path_;
-  saveWatcher_.setFuture(QtConcurrent::run([data, path, from]() -> QString {
+  const std::uint64_t responses = responseKey_ ? responseKey_() : 0;
+  saveWatcher_.setFuture(QtConcurrent::run([data, path, from, responses]() -> QString {
     try {
-      saveCaseFile(*data, path, from);
+      saveCaseFile(*data, path, from, responses);
       return {};
     } catch (const std::exception& e) {
       return QString::fromUtf8(e.what());

@@ -6,6 +6,7 @@
 #include <rehearse/app/materials.hpp>
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/precomputed.hpp>
 
 #include <QCoreApplication>
 #include <QCryptographicHash>
@@ -23,6 +24,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <cstdio>
+#include <cstring>
 #include <map>
 #include <stdexcept>
 
@@ -119,7 +121,7 @@ bool isCaseFile(const QString& path) {
   return f.read(16) == QByteArray("SQLite format 3\0", 16);
 }
 
-void saveCaseFile(const app::Case& c, const QString& path, const QString& recordingsFrom) {
+void saveCaseFile(const app::Case& c, const QString& path, const QString& recordingsFrom, std::uint64_t responseKey) {
   const QString tmp = path + QStringLiteral(".saving-") + QString::number(QCoreApplication::applicationPid());
   QFile::remove(tmp);
   {
@@ -236,6 +238,12 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
                  {"vessel_tree", tree}};
       part("ground_truth", "json", bytes(gt.dump()));
     }
+    if (responseKey != 0)
+      if (const auto r = simcore::ResponseCache::shared().find(responseKey)) {
+        QByteArray data(reinterpret_cast<const char*>(&responseKey), sizeof responseKey);
+        data += bytes(r->toBytes());
+        part("precomputed_responses", "bin", data);
+      }
     if (!db.commit()) fail(QStringLiteral("Cannot write %1: %2.").arg(path, sqlProblem(db.lastError())));
   }
   // Rehearsals recorded into the case (issue 16) are carried into the new file.
@@ -301,7 +309,8 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
                                                    {"ground_truth", QStringLiteral("Ground truth")},
                                                    {"landmarks", QStringLiteral("Landmark pairs")},
                                                    {"appearance", QStringLiteral("Appearance")},
-                                                   {"visual_surface", QStringLiteral("Organ surface")}};
+                                                   {"visual_surface", QStringLiteral("Organ surface")},
+                                                   {"precomputed_responses", QStringLiteral("Precomputed responses")}};
   auto read = [&](const char* part) -> QByteArray {
     QSqlQuery p(db);
     p.prepare(checksums ? QStringLiteral("SELECT data, sha256 FROM parts WHERE name = ?") : QStringLiteral("SELECT data FROM parts WHERE name = ?"));
@@ -320,6 +329,12 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
     }
     return data;
   };
+  if (QByteArray r = read("precomputed_responses"); r.size() > static_cast<qsizetype>(sizeof(std::uint64_t))) {
+    std::uint64_t key = 0;
+    std::memcpy(&key, r.constData(), sizeof key);
+    simcore::ResponseCache::shared().offerBytes(
+        key, std::make_shared<const std::string>(r.constData() + sizeof key, r.size() - sizeof key));
+  }
   if (QByteArray v = read("volume"); !v.isEmpty()) {
     try {
       simcore::Mesh volume = simcore::parseVtu(std::string_view(v.constData(), static_cast<std::size_t>(v.size())));

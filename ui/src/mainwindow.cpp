@@ -123,6 +123,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     emit caseSaved(ok, ok ? QString() : message);
   });
   connect(doc_, &CaseDocument::recentFilesChanged, this, &MainWindow::rebuildRecentMenu);
+  // A save keeps the precomputed model's responses with the case (built again only when what they depend on changed).
+  doc_->setResponseKeySource([this]() -> std::uint64_t { return simulation_ ? simulation_->responseKey() : 0; });
   setAcceptDrops(true);
 
   QSettings settings;

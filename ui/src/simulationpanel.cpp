@@ -137,6 +137,7 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   f->labels = snap.labels;
   f->gravity = snap.gravity;
   f->elements = snap.elements;
+  f->responseKey = snap.responseKey;
   f->mass = snap.mass;
   f->tets = snap.tets;
   f->message = QString::fromStdString(snap.message);
@@ -257,10 +258,23 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
     pendingPlay_ = false;
   });
   QPointer<SimulationPanel> self(this);
+  precomputeCancelled_->store(false);
   watcher->setFuture(QtConcurrent::run([s, result, ctx, generation, record, recorder, started, self,
-                                        cancelled = buildCancelled_, cache = startCache_] {
+                                        cancelled = buildCancelled_, cache = startCache_,
+                                        precompute = precomputeCancelled_] {
     try {
       simcore::BodySetup b = bodySetup(s);
+      // A long body build (the precomputed model's responses, now or when chosen later in the Solver list) shows its
+      // progress with a Cancel; it stops when a newer session is asked for too.
+      b.buildProgress = [self, generation, cancelled, precompute](double done) {
+        QMetaObject::invokeMethod(
+            self,
+            [self, done, generation] {
+              if (self && self->generation_ == generation) self->showBuildProgress(done);
+            },
+            Qt::QueuedConnection);
+        return !cancelled->load() && !precompute->load();
+      };
       if (s.startInEquilibrium && b.settings.gravity.norm() > 0 && !b.fixedNodes.empty()) {
         // The organ as the frame shows it is the equilibrium: the rest shape that sags into it, solved first (a few
         // static solves; said on the status line as they go, stopped when a newer session is asked for).
@@ -858,6 +872,7 @@ void SimulationPanel::postRunParameters() {
   if (s.clipLength != asked_.clipLength) session_->post(parameter("clip_length", asked_.clipLength = s.clipLength));
   if (s.bodyModel != asked_.model) {
     asked_.model = s.bodyModel;
+    precomputeCancelled_->store(false);
     session_->post(parameter("body_model", s.bodyModel == simcore::BodyModel::Precomputed ? 1.0 : 0.0));
   }
   if (s.bodyModel == simcore::BodyModel::Fem && s.method != asked_.method) {
@@ -938,6 +953,11 @@ void SimulationPanel::reset() {
 
 void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
   last_ = f;
+  if (asked_.model == simcore::BodyModel::Precomputed && f->responseKey == 0 && f->message.contains(u"refused")) {
+    // The precomputed model was refused or its build cancelled: the list shows what runs (the FEM's method).
+    asked_.model = simcore::BodyModel::Fem;
+    form_.method->setCurrentIndex(static_cast<int>(asked_.method));
+  }
   view_->setFrame(f);
   if (recorder_ && recorderFailed_->load()) {
     const QString why = QString::fromStdString(*recorderError_);
@@ -956,6 +976,30 @@ void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
   }
   statusThrottle_->request();  // the status line at most 15 times a second, the newest always shown
   emit frameShown(f->steps);
+}
+
+void SimulationPanel::showBuildProgress(double done) {
+  if (done >= 1) {
+    if (buildDialog_) buildDialog_->deleteLater();
+    buildDialog_.clear();
+    return;
+  }
+  if (!buildDialog_) {
+    buildDialog_ = new QProgressDialog(tr("Computing the precomputed model's responses to each surface node..."),
+                                       tr("Cancel"), 0, 1000, this);
+    buildDialog_->setObjectName(QStringLiteral("precomputeProgress"));
+    buildDialog_->setWindowTitle(tr("Precomputed model"));
+    buildDialog_->setWindowModality(Qt::WindowModal);
+    buildDialog_->setMinimumDuration(400);
+    buildDialog_->setAutoClose(false);
+    buildDialog_->setAutoReset(false);
+    connect(buildDialog_, &QProgressDialog::canceled, this, [this, flag = precomputeCancelled_] {
+      flag->store(true);  // the build stops after its current batch; the session says so and keeps the FEM
+      if (buildDialog_) buildDialog_->deleteLater();
+      buildDialog_.clear();
+    });
+  }
+  buildDialog_->setValue(static_cast<int>(1000 * std::clamp(done, 0.0, 1.0)));
 }
 
 void SimulationPanel::onFailed(const QString& message) {
@@ -979,9 +1023,7 @@ QString SimulationPanel::statusText() const {
   if (!last_->message.isEmpty()) return last_->message;
   const QString rate = playing_ ? tr(" · %1 fps").arg(rate_.fps, 0, 'f', 0) : QString();
   // The precomputed model does no Newton iteration: its name instead (the model that ran the step).
-  const QString solver = session_ && session_->setup().model == simcore::BodyModel::Precomputed
-                             ? tr("precomputed linear")
-                             : tr("%1 Newton").arg(r.newtonIterations);
+  const QString solver = last_->responseKey != 0 ? tr("precomputed linear") : tr("%1 Newton").arg(r.newtonIterations);
   return tr("t = %1 s · step %2 ms%3 · %4 · %5")
       .arg(last_->time, 0, 'f', 2)
       .arg(r.wallMs, 0, 'f', 1)

@@ -13,6 +13,8 @@
 namespace rehearse::simcore {
 namespace {
 
+constexpr double kAllRowsBytes = 256e6;
+
 class PrecomputedBody final : public DeformableBody {
  public:
   explicit PrecomputedBody(const BodySetup& s)
@@ -39,12 +41,18 @@ class PrecomputedBody final : public DeformableBody {
     }
     const auto began = std::chrono::steady_clock::now();
     std::string why;
-    auto p = PrecomputedElasticity::build(model_, fixed_, driven, s.settings.gravity, {}, why);
-    if (!p) throw MeshError("The precomputed model cannot be built: " + why);
-    response_ = std::move(*p);
+    PrecomputeSettings ps;
+    // Every node's response while that takes at most kAllRowsBytes; past it the surface's only, the inner nodes'
+    // displacement then by a back-solve per step (memory bounded by 9 x surface^2 numbers plus the factor).
+    ps.drivenRowsOnly =
+        9.0 * static_cast<double>(driven.size()) * static_cast<double>(model_.nodeCount()) * sizeof(double) >
+        kAllRowsBytes;
+    ps.progress = s.buildProgress;
+    response_ = precomputedFor(model_, fixed_, driven, s.settings.gravity, ps, key_, from_, why);
+    if (!response_) throw MeshError("The precomputed model cannot be built: " + why);
     buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
     base_ = model_.restVector();
-    u0_ = response_.sag();
+    u0_ = response_->sag();
     if (!s.start.empty()) {
       // Started from the registered shape, which is the equilibrium: the instruments' displacements add to it.
       if (s.start.size() != model_.nodeCount())
@@ -69,7 +77,7 @@ class PrecomputedBody final : public DeformableBody {
     rep.tolerance = settings_.tolerance;
     Eigen::VectorXd u;
     std::string why;
-    if (!response_.solveConstraints(rows_, base_, u0_, u, lambda_, &W_, why)) {
+    if (!response_->solveConstraints(rows_, base_, u0_, u, lambda_, &W_, why)) {
       rep.ok = false;
       rep.outcome = StepStatus::Failed;
       rep.status = "failed: " + why;
@@ -116,13 +124,23 @@ class PrecomputedBody final : public DeformableBody {
   // Exact for this model while the same rows act (W is the rows' compliance in m/N).
   Eigen::Matrix3d toolStiffness() const override { return toolStiffnessOf(rows_, lambda_, W_, 1.0); }
   std::string buildNote() const override {
-    char said[240];
-    std::snprintf(said, sizeof said,
-                  "The precomputed model's responses to each of %zu surface nodes at %zu nodes were computed in %.1f s "
-                  "(%.0f MB).",
-                  response_.driven().size(), response_.nodeCount(), buildSeconds_, response_.memoryBytes() / 1e6);
+    char said[320];
+    const std::size_t at = response_->drivenRowsOnly() ? response_->driven().size() : response_->nodeCount();
+    const char* where = response_->drivenRowsOnly() ? "surface nodes (the inner ones by a back-solve)" : "nodes";
+    if (from_ == "built")
+      std::snprintf(said, sizeof said,
+                    "The precomputed model's responses to each of %zu surface nodes at %zu %s were computed in %.1f s "
+                    "(%.0f MB).",
+                    response_->driven().size(), at, where, buildSeconds_, response_->memoryBytes() / 1e6);
+    else
+      std::snprintf(said, sizeof said,
+                    "The precomputed model's responses to each of %zu surface nodes at %zu %s were taken from the "
+                    "%s (%.0f MB, %.1f s).",
+                    response_->driven().size(), at, where, from_ == "cache" ? "last build" : from_.c_str(),
+                    response_->memoryBytes() / 1e6, buildSeconds_);
     return said;
   }
+  std::uint64_t responseKey() const override { return key_; }
   const std::vector<char>& fixedMask() const override { return fixed_; }
   const std::vector<int>& labels() const override { return labels_; }
   Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState&, const Eigen::VectorXd&,
@@ -144,7 +162,9 @@ class PrecomputedBody final : public DeformableBody {
   std::vector<int> labels_;
   FemModel model_;
   std::vector<char> fixed_;
-  PrecomputedElasticity response_;
+  std::shared_ptr<const PrecomputedElasticity> response_;
+  std::uint64_t key_ = 0;
+  std::string from_;  ///< "built", "cache" or "case file"
   double buildSeconds_ = 0;
   Eigen::VectorXd base_, u0_;  ///< u = u0 + C G^T lambda is the displacement from base
   std::vector<ScalarConstraint> rows_;

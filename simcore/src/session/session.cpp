@@ -463,6 +463,7 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->events = std::move(events);
   s->mass = body_->mass();
   s->elements = body_->tetrahedra().size();
+  s->responseKey = body_->responseKey();
   s->tets = tets_;
   s->labels = labels_;
   s->surface = setup_.topology > 0 ? surface_ : nullptr;

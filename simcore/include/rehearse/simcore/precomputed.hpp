@@ -10,7 +10,10 @@
 // the exact linear static solution with every node of J held at once (the paper's correction for several
 // simultaneous constraints, solved here as the small dense system C_JJ rather than iterated). Cost online:
 // 3|J| x 3|J| once per change of J, then 3n x 3|J| per update; memory 9 x driven nodes x nodes numbers (stated by
-// memoryBytes(); single precision halves it at the cost of about 1e-7 relative).
+// memoryBytes(); single precision halves it at the cost of about 1e-7 relative). Bounded further by keeping the
+// responses at the driven nodes only (9 x driven^2 numbers, PrecomputeSettings::drivenRowsOnly): the instruments'
+// forces and the surface's response come from them as before, the whole organ's displacement from the factorisation
+// kept beside them (one back-solve, u = u_g + K^-1 F, exact to round-off).
 //
 // Linear elasticity: small strains, rotations not separated (a large rotation inflates the organ); the response is
 // exact for that model only. A cut changes K: the precomputed responses no longer hold (the hybrid model's region).
@@ -20,7 +23,10 @@
 #include <Eigen/Core>
 
 #include <atomic>
+#include <cstdint>
 #include <functional>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
@@ -29,6 +35,9 @@ namespace rehearse::simcore {
 
 struct PrecomputeSettings {
   bool singlePrecision = false;  ///< store the responses as float (half the memory, ~1e-7 relative)
+  /// Store the responses at the driven nodes only (9 x driven^2 numbers instead of 9 x driven x nodes) and keep the
+  /// factorisation for the inner nodes' displacement (a back-solve per update).
+  bool drivenRowsOnly = false;
   int batch = 96;                ///< right-hand sides solved together (columns)
   /// The responses' memory allowed (bytes): a mesh whose 9 x driven x nodes numbers would take more is refused with a
   /// sentence instead of exhausting the machine (4 GB: a 20k-element organ's responses in single precision).
@@ -49,6 +58,8 @@ class PrecomputedElasticity {
                                                     const PrecomputeSettings& settings, std::string& why);
 
   std::size_t nodeCount() const { return nodes_; }
+  bool drivenRowsOnly() const { return drivenOnly_; }
+  bool singlePrecision() const { return single_; }
   const std::vector<int>& driven() const { return driven_; }
   /// The driven index of a node (-1 when it is not driven).
   int drivenIndex(int node) const;
@@ -56,8 +67,16 @@ class PrecomputedElasticity {
   std::size_t memoryBytes() const;
   /// The sag under gravity alone (3n, m).
   const Eigen::VectorXd& sag() const { return sag_; }
-  /// The 3x3 block of the compliance: the displacement of node i per unit force at driven index j (m/N).
+  /// The 3x3 block of the compliance: the displacement of node i per unit force at driven index j (m/N); with driven
+  /// rows only, node i must be driven too (zero otherwise).
   Eigen::Matrix3d response(int node, int drivenIdx) const;
+
+  /// The responses as bytes (for the case file's cache; the factorisation of driven-rows-only responses is not in
+  /// them), and back: nothing, with `why`, when the bytes are not such responses or not `model`'s (node count);
+  /// driven-rows-only responses factorise `model`'s stiffness again.
+  std::string toBytes() const;
+  static std::optional<PrecomputedElasticity> fromBytes(const std::string& bytes, const FemModel& model,
+                                                        std::string& why);
 
   /// The static displacement u (3n, m, from rest) with node held[k] displaced by displacement[k] from rest (each a
   /// driven node, no repeats) under gravity; `forces` (optional): the instrument's force on the tissue at each held
@@ -92,12 +111,56 @@ class PrecomputedElasticity {
   Eigen::VectorXd sag_;
   std::vector<Eigen::Matrix3d> selfStiffness_;  ///< C_jj^-1 per driven node
   std::vector<char> fixed_;
-  /// u += w * (column 3j + a of C)
+  bool drivenOnly_ = false;
+  /// The factorised stiffness (driven rows only: the inner nodes' displacement), shared by copies, one solve at a time.
+  struct Factor;
+  std::shared_ptr<Factor> factor_;
+  std::size_t rows() const { return drivenOnly_ ? 3 * driven_.size() : 3 * nodes_; }
+  /// u += C F for forces F (3n) at driven nodes: superposed column by column, or (driven rows only) one back-solve.
+  bool displace(const Eigen::VectorXd& F, Eigen::VectorXd& u, std::string& why) const;
+  /// u += w * (column 3j + a of C), all rows stored
   void addColumn(std::size_t col, double w, Eigen::VectorXd& u) const;
   double entry(std::size_t row, std::size_t col) const {
-    const std::size_t i = col * 3 * nodes_ + row;
+    const std::size_t i = col * rows() + row;
     return single_ ? static_cast<double>(c32_[i]) : c64_[i];
   }
+  static bool factorise(const FemModel& model, const std::vector<char>& fixed, Factor& f);
 };
+
+/// A key for a build's inputs (rest shape, elements, materials, masses, fixed and driven nodes, gravity, storage):
+/// equal keys build equal responses.
+std::uint64_t precomputeKey(const FemModel& model, const std::vector<char>& fixed, const std::vector<int>& driven,
+                            const Eigen::Vector3d& gravity, const PrecomputeSettings& settings);
+
+/// The responses built in this process, by key, so that a session reset, a replay's restore or the same organ opened
+/// again does not compute them again; the least recently used go past `limitBytes` (1 GB). Thread-safe. The case
+/// file saves the entries its organ uses and puts them back when it opens (ui/casefile).
+class ResponseCache {
+ public:
+  static ResponseCache& shared();
+  std::shared_ptr<const PrecomputedElasticity> find(std::uint64_t key);
+  void put(std::uint64_t key, std::shared_ptr<const PrecomputedElasticity> responses);
+  /// Every entry, most recently used first.
+  std::vector<std::pair<std::uint64_t, std::shared_ptr<const PrecomputedElasticity>>> entries() const;
+  /// Responses as a case file stored them (PrecomputedElasticity::toBytes), read back by the body that needs them
+  /// (it has the model fromBytes checks them against); `stored` says whether bytes are held for a key.
+  void offerBytes(std::uint64_t key, std::shared_ptr<const std::string> bytes);
+  std::shared_ptr<const std::string> storedBytes(std::uint64_t key) const;
+  void clear();
+  std::size_t limitBytes = std::size_t(1) << 30;
+
+ private:
+  mutable std::mutex mutex_;
+  std::vector<std::pair<std::uint64_t, std::shared_ptr<const PrecomputedElasticity>>> entries_;  ///< MRU first
+  std::vector<std::pair<std::uint64_t, std::shared_ptr<const std::string>>> bytes_;  ///< the case file's, a few
+};
+
+/// The responses for a build's inputs: from the cache, from bytes a case file stored (checked), or built (and put in
+/// the cache); `from` says which ("cache", "case file", "built"). Nothing, with `why`, as build().
+std::shared_ptr<const PrecomputedElasticity> precomputedFor(const FemModel& model, const std::vector<char>& fixed,
+                                                            const std::vector<int>& driven,
+                                                            const Eigen::Vector3d& gravity,
+                                                            const PrecomputeSettings& settings, std::uint64_t& key,
+                                                            std::string& from, std::string& why);
 
 }  // namespace rehearse::simcore

@@ -17,6 +17,7 @@
 #include <QUndoStack>
 
 #include <atomic>
+#include <cstdint>
 #include <functional>
 #include <memory>
 
@@ -63,6 +64,8 @@ class CaseDocument : public QObject {
   bool isLoading() const { return loadWatcher_.isRunning(); }
   /// Saves to `path` on a worker thread (atomic write). Emits saved().
   void saveAs(const QString& path);
+  /// What names the precomputed responses a save keeps with the case (the simulation's; autosaves leave them out).
+  void setResponseKeySource(std::function<std::uint64_t()> source) { responseKey_ = std::move(source); }
   bool isSaving() const { return saveWatcher_.isRunning(); }
   QString path() const { return path_; }
   QStringList notes() const { return notes_; }
@@ -90,6 +93,7 @@ class CaseDocument : public QObject {
   void recentFilesChanged();
 
  private:
+  std::function<std::uint64_t()> responseKey_;  ///< setResponseKeySource
   void addRecent(const QString& path);
   void onLoaded();
 

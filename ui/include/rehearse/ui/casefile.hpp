@@ -8,6 +8,9 @@
 // camera, pose, attachments, material, contour, elastic fit and ground truth as JSON) with the SHA-256 of its data. A
 // part that cannot be decoded, or whose data no longer matches its checksum, is reported on its own; the
 // other parts still open.
+// The precomputed model's responses (issue 37) are kept as the part precomputed_responses (8 bytes of their key,
+// simcore::precomputeKey, then PrecomputedElasticity::toBytes): a cache, used when the organ, its attachments, material
+// and gravity give the same key again, and rebuilt otherwise.
 // History: 1, the first (no checksums; no elastic_fit part, no model_vertices in the contour). Opening
 // an older case migrates it in memory (schema 1: parts read without a checksum); saving writes the current
 // schema. A newer schema than this build knows is refused with a sentence, so an older Rehearse never
@@ -15,6 +18,8 @@
 #include <rehearse/app/case.hpp>
 
 #include <QString>
+
+#include <cstdint>
 #include <QStringList>
 
 namespace rehearse::ui {
@@ -26,9 +31,12 @@ inline constexpr const char* kCaseSuffix = "rehearse";
 /// opened from or last saved to; empty: none) are carried into it, every session with its identity: a Save As
 /// carries them to the new file, a save over the same file keeps them. Throws std::runtime_error with one
 /// sentence; the file at `path` is then unchanged.
-void saveCaseFile(const app::Case& c, const QString& path, const QString& recordingsFrom = {});
+/// `responseKey`: the precomputed responses in simcore::ResponseCache to keep with the case (0: none).
+void saveCaseFile(const app::Case& c, const QString& path, const QString& recordingsFrom = {},
+                  std::uint64_t responseKey = 0);
 
-/// Reads a case file. Parts that cannot be read are described in `notes` and left empty. Throws
+/// Reads a case file. Parts that cannot be read are described in `notes` and left empty; stored precomputed responses
+/// are offered to simcore::ResponseCache (the body that needs them checks them). Throws
 /// std::runtime_error with one sentence when the file is not a readable case at all.
 app::Case loadCaseFile(const QString& path, QStringList* notes = nullptr);
 

@@ -12,9 +12,12 @@
 #include <rehearse/simcore/session/session.hpp>
 
 #include <QElapsedTimer>
+#include <QPointer>
+#include <QProgressDialog>
 #include <QWidget>
 
 #include <atomic>
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -81,6 +84,7 @@ struct SimulationFrame {
   std::shared_ptr<const std::vector<int>> labels;      ///< the elements' labels (burnt ones: simcore::isBurnt)
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();   ///< m/s^2, camera frame
   std::size_t elements = 0;
+  std::uint64_t responseKey = 0;  ///< the precomputed model's responses (simcore::ResponseCache), 0 for the FEM
   double mass = 0;                                              ///< kg
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;  ///< the elements at this step
   /// Elements inside out after this step (when the report counts any): their indices, their nodes (per node, 1 when
@@ -160,6 +164,8 @@ class SimulationPanel : public QWidget {
   void suspendRecording();
   /// The case file was saved anew (replaced), or the save ended: the recording goes on into `file`.
   void caseFileReplaced(const QString& file);
+  /// The key of the precomputed responses the session's body uses (the case file stores them), 0 for the FEM.
+  std::uint64_t responseKey() const { return last_ ? last_->responseKey : 0; }
 
  signals:
   void statusChanged(const QString& text);
@@ -186,6 +192,8 @@ class SimulationPanel : public QWidget {
   void onFailed(const QString& message);
   void materialFieldsEdited();
   void postRunParameters();
+  /// The body's build (the precomputed responses) is `done` (0..1) along: a progress dialog with Cancel past 0.4 s.
+  void showBuildProgress(double done);
   void updateMass();
   void updateButtons();
   void fillMaterial(const app::MaterialSettings& m);
@@ -214,6 +222,10 @@ class SimulationPanel : public QWidget {
   std::shared_ptr<StartCache> startCache_;  ///< the last starting rest shape solved (made in the constructor)
   /// Set when a newer session replaces the one being built (its rest-shape solve stops early).
   std::shared_ptr<std::atomic<bool>> buildCancelled_ = std::make_shared<std::atomic<bool>>(false);
+  /// Set by the build progress dialog's Cancel: the precomputed responses being built stop (the session keeps its
+  /// model).
+  std::shared_ptr<std::atomic<bool>> precomputeCancelled_ = std::make_shared<std::atomic<bool>>(false);
+  QPointer<QProgressDialog> buildDialog_;
   QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not
   std::atomic<int> colouring_{0};
   bool pendingPlay_ = false;         ///< Play pressed while the session was being built ...

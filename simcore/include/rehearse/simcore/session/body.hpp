@@ -9,6 +9,8 @@
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/session/field.hpp>
 
+#include <cstdint>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -97,6 +99,9 @@ struct BodySetup {
   int topology = 0;  ///< bumped by every cut (the mesh above is then the cut one, in metres)
   BodyModel model = BodyModel::Fem;  ///< the deformable model the body is
   CutProgress cut;   ///< the blade's cut while it is on (cutTetrahedra's `progress`)
+  /// Told the share done (0..1) while a body takes long to build (the precomputed model's responses); false cancels
+  /// the build (makeBody then throws with the sentence). Not part of what is recorded.
+  std::function<bool(double)> buildProgress;
 };
 
 class DeformableBody {
@@ -149,6 +154,8 @@ class DeformableBody {
   /// What building the body took, in one sentence, when that is worth saying (the precomputed model's responses:
   /// how many, how long, how much memory); empty otherwise.
   virtual std::string buildNote() const { return {}; }
+  /// The key of the precomputed responses the body uses (ResponseCache; the case file stores them), 0 without.
+  virtual std::uint64_t responseKey() const { return 0; }
 };
 
 /// The tool's force on the tissue (N) from its constraint rows and their multipliers (row k's is lambda[first + k],

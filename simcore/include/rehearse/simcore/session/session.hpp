@@ -122,6 +122,7 @@ struct Snapshot {
   OperativeField field;             ///< the clips on the tissue, the stumps that bleed, the blood lost
   double mass = 0;                  ///< kg, the body's total
   std::size_t elements = 0;
+  std::uint64_t responseKey = 0;  ///< the precomputed responses the body uses (ResponseCache), 0 without
   /// The elements (node indices) at this step: shared between snapshots until a cut changes them.
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;
   std::shared_ptr<const std::vector<int>> labels;    ///< the elements' labels (burnt ones: isBurnt), shared likewise
