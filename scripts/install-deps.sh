@@ -6,7 +6,7 @@ PACKAGES=(
   build-essential cmake ninja-build ccache pkg-config clang libclang-rt-14-dev
   qt6-base-dev qt6-base-dev-tools libqt6opengl6-dev qt6-charts-dev libqt6sql6-sqlite libgl-dev libegl-dev
   libeigen3-dev libopencv-dev libopencv-contrib-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
-  libassimp-dev libsuitesparse-dev libopenblas-dev libtbb-dev nlohmann-json3-dev libtinyxml2-dev zlib1g-dev libsqlite3-dev
+  libassimp-dev libsuitesparse-dev libopenblas-dev libtbb-dev nlohmann-json3-dev libtinyxml2-dev zlib1g-dev libsqlite3-dev libspnav-dev
   calculix-ccx xvfb xauth libgl1-mesa-dri fonts-dejavu-core poppler-utils
   postgresql libqt6sql6-psql
 )

@@ -1,6 +1,6 @@
 // The command line's dispatcher (no Qt): `rehearse NAME ...` runs the sub-command declared under that name (one file
-// per family in this folder: cmd_case, cmd_simulate, cmd_register, cmd_appearance, cmd_gesture, cmd_replay; what they
-// share in support.hpp); `rehearse --help` lists them all, `rehearse NAME --help` one with its options.
+// per family in this folder: cmd_case, cmd_simulate, cmd_register, cmd_appearance, cmd_gesture, cmd_replay, cmd_device;
+// what they share in support.hpp); `rehearse --help` lists them all, `rehearse NAME --help` one with its options.
 //
 // Adding a sub-command: write `int cmdName(const std::vector<std::string>& args)` and its `const Command&
 // nameCommand()` (usage block, options with a line of help each) in its family's file, declare the latter in
@@ -26,9 +26,10 @@ namespace rehearse::app {
 
 namespace cli {
 const std::vector<const Command*>& commands() {
-  static const std::vector<const Command*> all = {
-      &phantomCommand(),    &meshCommand(),    &infoCommand(),    &simulateCommand(), &registerCommand(),
-      &appearanceCommand(), &composeCommand(), &gestureCommand(), &replayCommand(),   &publishCommand()};
+  static const std::vector<const Command*> all = {&phantomCommand(),  &meshCommand(),     &infoCommand(),
+                                                  &simulateCommand(), &registerCommand(), &appearanceCommand(),
+                                                  &composeCommand(),  &gestureCommand(),  &replayCommand(),
+                                                  &publishCommand(),  &deviceCommand()};
   return all;
 }
 }  // namespace cli

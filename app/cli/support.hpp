@@ -89,5 +89,6 @@ const Command& composeCommand();
 const Command& gestureCommand();
 const Command& replayCommand();
 const Command& publishCommand();
+const Command& deviceCommand();
 
 }  // namespace rehearse::app::cli

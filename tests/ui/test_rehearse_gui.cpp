@@ -12,10 +12,14 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 #include "rehearse/ui/casefile.hpp"
+#include "rehearse/ui/devicesteering.hpp"
+#include "fake_spacenavd.hpp"
 
 #include <rehearse/simcore/precomputed.hpp>
 
 #include <QTemporaryDir>
+#include <QAction>
+#include <QStatusBar>
 
 #include <QComboBox>
 #include <QLabel>
@@ -485,6 +489,70 @@ class TestRehearseGui : public QObject {
     if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
       w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-cut.png");
     QVERIFY(red > 0);
+    panel->pause();
+  }
+
+  // Simulate > Connect 3D Mouse: with no spacenavd it says how to get one; against the stand-in daemon (its real
+  // protocol, read by libspnav) the cap's left button closes the grasper's jaws on the organ at the frame's centre,
+  // pulling the cap up lifts the held node (the tip's moves posted and recorded like the mouse's), releasing it lets
+  // go; the action shows the connection and disconnects.
+  void aThreeDMouseMovesTheGrasper() {
+    auto* panel = w_->simulationPanel();
+    auto* steering = w_->deviceSteering();
+    QVERIFY(steering);
+    auto* connect = w_->findChild<QAction*>("connect3DMouse");
+    QVERIFY(connect);
+    if (!QFile::exists("/var/run/spnav.sock")) {
+      qputenv("SPNAV_SOCKET", "/nonexistent/spnav.sock");
+      connect->trigger();
+      QVERIFY(!steering->connected());
+      QVERIFY(!connect->isChecked());
+      QVERIFY2(w_->statusText().contains("spacenavd daemon is not running"), qPrintable(w_->statusText()));
+    }
+    panel->reset();
+    QVERIFY(waitFor([&] { return panel->lastFrame() && !panel->lastFrame()->tool.present; }, 30000));
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(w_->frameView()->tool(), ui::Tool::Grasp);
+    testing::FakeSpacenavd daemon;
+    QVERIFY(daemon.listening());
+    connect->trigger();
+    QVERIFY(daemon.accept());
+    QVERIFY(steering->connected());
+    QVERIFY(connect->isChecked());
+    qInfo("%s", qPrintable(w_->statusText()));
+    panel->play();
+    const std::size_t before = panel->session()->recorded().size();
+    QVERIFY(daemon.button(0, true));
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 30000));
+    const int node = panel->lastFrame()->tool.held[0];
+    const double y0 = panel->lastFrame()->positions[static_cast<std::size_t>(node)].y();
+    QVERIFY(daemon.motion(0, 350, 0, 0, 0, 0));  // the cap pulled up, all the way
+    QVERIFY(
+        waitFor([&] { return panel->lastFrame()->positions[static_cast<std::size_t>(node)].y() < y0 - 0.005; }, 30000));
+    QVERIFY(daemon.motion(0, 0, 0, 0, 0, 0));
+    const auto pulled = panel->lastFrame();
+    qInfo("3D mouse: node %d lifted %.1f mm, tool force %.2f N", node,
+          1e3 * (y0 - pulled->positions[static_cast<std::size_t>(node)].y()), pulled->tool.force.norm());
+    shot(*w_, "step7-3d-mouse");
+    QVERIFY(daemon.button(0, false));
+    std::size_t poses = 0, jaws = 0;
+    auto count = [&] {
+      poses = jaws = 0;
+      const auto recorded = panel->session()->recorded();
+      for (std::size_t k = before; k < recorded.size(); ++k) {
+        poses += recorded[k].kind == simcore::InputKind::ToolPose && recorded[k].tool == 0;
+        jaws += recorded[k].kind == simcore::InputKind::Jaw;
+      }
+      return jaws >= 2;
+    };
+    QVERIFY(waitFor(count, 30000));  // the release applied at the next step boundary
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 30000));
+    qInfo("recorded from the device: %zu tip moves, %zu jaw events", poses, jaws);
+    QVERIFY(poses >= 10);
+    QCOMPARE(jaws, std::size_t(2));
+    connect->trigger();
+    QVERIFY(!steering->connected());
+    QVERIFY(!connect->isChecked());
     panel->pause();
   }
 

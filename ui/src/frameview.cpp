@@ -132,6 +132,45 @@ void FrameView::paintInstrument(QPainter& painter) {
   painter.restore();
 }
 
+void FrameView::setDeviceTip(std::optional<Eigen::Vector3d> tip, bool working) {
+  if (tip == deviceTip_ && working == deviceWorking_) return;
+  deviceTip_ = tip;
+  deviceWorking_ = working;
+  update();
+}
+
+void FrameView::paintDeviceTip(QPainter& painter) {
+  if (!deviceTip_ || !case_ || frame_.isNull() || !(deviceTip_->z() > 1e-4)) return;
+  const Eigen::Vector2d f = case_->camera.project(*deviceTip_);
+  if (!f.allFinite()) return;
+  const QPointF at = toWidget(QPointF(f.x(), f.y()));
+  // Its depth against the tissue along the view ray (the frame shows neither).
+  QString depth = tr("off the organ");
+  if (const auto s = liveSurfaceAt(f)) {
+    const double mm = 1e3 * (deviceTip_->z() - s->z());
+    depth = mm < 0 ? tr("%1 mm before the tissue").arg(-mm, 0, 'f', 0) : tr("%1 mm into the tissue").arg(mm, 0, 'f', 0);
+  }
+  painter.save();
+  painter.setRenderHint(QPainter::Antialiasing);
+  painter.setPen(QPen(QColor(250, 250, 255), 2));
+  painter.setBrush(deviceWorking_ ? QBrush(QColor(250, 250, 255, 120)) : Qt::NoBrush);
+  painter.drawEllipse(at, 9, 9);
+  painter.drawLine(at + QPointF(-15, 0), at + QPointF(-6, 0));
+  painter.drawLine(at + QPointF(6, 0), at + QPointF(15, 0));
+  painter.drawLine(at + QPointF(0, -15), at + QPointF(0, -6));
+  painter.drawLine(at + QPointF(0, 6), at + QPointF(0, 15));
+  const QString text = tr("3D mouse · %1").arg(depth);
+  const QFontMetricsF fm(painter.font());
+  QRectF box(at + QPointF(14, -30), QSizeF(fm.horizontalAdvance(text) + 10, fm.height() + 4));
+  if (box.right() > width() - 4) box.moveRight(at.x() - 14);  // near the right edge: on the ring's left
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(QColor(20, 20, 24, 190));
+  painter.drawRoundedRect(box, 4, 4);
+  painter.setPen(QColor(240, 240, 240));
+  painter.drawText(box.adjusted(5, 0, 0, 0), Qt::AlignVCenter | Qt::AlignLeft, text);
+  painter.restore();
+}
+
 void FrameView::leaveEvent(QEvent* e) {
   if (pointer_) update(QRect(pointer_->toPoint() + QPoint(10, 8), QSize(180, 36)));
   pointer_.reset();
@@ -281,6 +320,7 @@ void FrameView::paintEvent(QPaintEvent*) {
     if (kind != tool_) tool->paintIdle(painter);
   if (FrameTool* t = current()) t->paint(painter);
   paintInstrument(painter);
+  paintDeviceTip(painter);
   paintWarning(painter);
   paintLegend(painter);
 }

@@ -1,4 +1,5 @@
 // The main window's menus and toolbar: File, Edit, Step, View, Simulate, Help (built once, by the constructor).
+#include "rehearse/ui/devicesteering.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/liveoverlay.hpp"
 #include "rehearse/ui/recordingcontroller.hpp"
@@ -236,6 +237,10 @@ void MainWindow::buildSimulationMenu() {
       new RecordingController(doc_, simulation_, pages_.rehearse, this, [this](const QString& text) { say(text); });
   recorder_->addActions(simMenu);
   (new TrainingController(doc_, this, [this](const QString& text) { say(text); }))->addActions(simMenu);
+  simMenu->addSeparator();
+  steering_ = new DeviceSteering(
+      view_, simulation_, [this](const QString& text) { say(text); }, this);
+  steering_->addActions(simMenu);
 }
 
 bool MainWindow::recording() const { return recorder_->recording(); }

@@ -138,6 +138,7 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   f->gravity = snap.gravity;
   f->elements = snap.elements;
   f->responseKey = snap.responseKey;
+  f->trocar = snap.trocar;
   f->mass = snap.mass;
   f->tets = snap.tets;
   f->message = QString::fromStdString(snap.message);

@@ -167,6 +167,9 @@ class FrameView : public QWidget {
   /// after a cut), snapped to the nearest surface node; camera frame (m). Nothing off the organ: what the
   /// instruments press on (and what tests aim at).
   std::optional<Eigen::Vector3d> liveSurfaceAt(const Eigen::Vector2d& framePixel) const;
+  /// Where a 3D input device holds the active instrument's tip (camera frame, m): drawn as a ring (filled while the
+  /// instrument works) with its depth to the tissue under it, which the flat frame does not show; none: not drawn.
+  void setDeviceTip(std::optional<Eigen::Vector3d> tip, bool working);
 
  signals:
   void cursorMoved(QPointF framePixel);
@@ -202,6 +205,9 @@ class FrameView : public QWidget {
   void paintLegend(QPainter& painter);
   /// The instrument in hand named at the pointer (its tip, where it acts on the tissue).
   void paintInstrument(QPainter& painter);
+  void paintDeviceTip(QPainter& painter);
+  std::optional<Eigen::Vector3d> deviceTip_;
+  bool deviceWorking_ = false;
   std::optional<QPointF> pointer_;  ///< widget position of the mouse while it is over the view
 
   std::shared_ptr<const app::Case> case_;

@@ -117,6 +117,9 @@ class MainWindow : public QMainWindow {
   /// The 3D organ view: OpenGL or software, as renderer() chose.
   QWidget* organWidget() const;
   SimulationPanel* simulationPanel() const { return simulation_; }
+  class DeviceSteering* deviceSteering() const {
+    return steering_;
+  }
   bool organViewUsesOpenGL() const { return organGLView_ != nullptr; }
   /// True when the frame view's organ overlay is drawn with OpenGL (off screen), false for the CPU rasteriser.
   bool overlayUsesOpenGL() const { return overlay_->usesOpenGL(); }
@@ -213,6 +216,7 @@ class MainWindow : public QMainWindow {
   QWidget* centreOrgan_ = nullptr;
   std::vector<QAction*> viewModeActions_;
   class LiveOverlay* liveOverlay_ = nullptr;       ///< the simulated organ over the frame in step 7 (liveoverlay.hpp)
+  class DeviceSteering* steering_ = nullptr;       ///< a 3D mouse moving the instrument (Simulate > Connect 3D Mouse)
   class RecordingController* recorder_ = nullptr;  ///< recording step 7 into the case file, and its review
   OrganView* organView_ = nullptr;
   QString rendererText_;
