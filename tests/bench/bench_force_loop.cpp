@@ -1,0 +1,158 @@
+// Benchmark of the tool-force loop per deformable model (issue 37; not a test): the 1 kHz loop on its own thread while
+// the session steps beside it in real time (paced at 10 ms), a hand moving the virtual device smoothly (a thread at
+// 2 kHz) through a 1.5 cm pull of a grasped node over 2 s, on the liver preset (3,760 elements) and the patient liver's
+// CT shape at its size (../shared/data/scikit-surgery, meshed to about 9k elements). For each model (the FEM with the
+// interactive chord method and with the linearised one, the precomputed linear elasticity): the loop's achieved rate
+// and its period's median, 99th percentile and worst; the session's step time (median, p99) and its outcomes; and how
+// good the loop's force is between steps: at each step's new tip, the loop's extrapolation from the last step (f0 + K
+// dp, what the hand felt) against the force that step then solves there (its relative error, median and worst; the
+// precomputed model's K is exact, so only its cap and contact changes remain). Medians of the run. Writes
+// force-loop.csv into the directory given (default ".").
+#include "phantom/presets.hpp"
+#include "realorgan.hpp"
+#include "session_inputs.hpp"
+
+#include <rehearse/simcore/session/forceloop.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
+#include <rehearse/simcore/session/session.hpp>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+using namespace rehearse;
+using namespace rehearse::simcore;
+
+namespace {
+
+double percentile(std::vector<double> v, double q) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
+}
+
+struct Model {
+  const char* name;
+  BodyModel model;
+  NewtonMethod method;
+};
+
+constexpr int kSteps = 200;      // 2 s of pulling at 10 ms
+constexpr double kPull = 0.015;  // m, along -z (towards the camera; 2 cm slips the FEM's grasp at 15 N)
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string out = argc > 1 ? argv[1] : ".";
+  std::filesystem::create_directories(out);
+  std::ofstream csv(out + "/force-loop.csv");
+  csv << "organ,tets,model,loop_rate_hz,period_median_ms,period_p99_ms,period_max_ms,realtime,step_median_ms,"
+         "step_p99_ms,converged,other,force_error_median_rel,force_error_max_rel,force_end_n\n";
+  std::printf("%-14s %6s %-26s %8s %7s %7s %7s %8s %8s %9s %9s %9s %7s\n", "organ", "tets", "model", "loop Hz",
+              "med ms", "p99 ms", "max ms", "step med", "step p99", "conv/oth", "f err med", "f err max", "f N");
+  for (const char* organ : {"liver preset", "patient liver"}) {
+    BodySetup base;
+    if (std::string(organ) == "liver preset") {
+      base = testing::presetBody("liver", REHEARSE_SHARED_DATA);
+    } else {
+      // The patient's liver (its CT surface, scikit-surgery) at its own size, meshed to about 9k elements, hung by its
+      // highest 8 % of surface nodes, the liver preset's tissue.
+      const std::string path = std::string(REHEARSE_SHARED_DATA) + "/scikit-surgery/patient-liver/liver.vtk";
+      if (!std::filesystem::exists(path)) {
+        std::printf("%s is absent: skipped\n", path.c_str());
+        continue;
+      }
+      TetrahedraliseOptions to;
+      to.allowSelfIntersections = true;
+      to.targetTets = 9000;
+      base.mesh = tetrahedraliseSurface(testing::loadOrganSurface(path), to);
+      const BodySetup preset = testing::presetBody("liver", REHEARSE_SHARED_DATA);
+      base.material = preset.material;
+      base.settings = preset.settings;
+      base.tools = preset.tools;
+      base.tools.trocar.reset();
+      base.settings.gravity = Eigen::Vector3d(0, 9.81, 0);
+      base.fixedNodes = testing::highestSurfaceNodes(base.mesh, 0.08);
+    }
+    for (const Model& m : {Model{"FEM, chord (interactive)", BodyModel::Fem, NewtonMethod::Chord},
+                           Model{"FEM, linearised", BodyModel::Fem, NewtonMethod::Linearised},
+                           Model{"precomputed linear", BodyModel::Precomputed, NewtonMethod::Chord}}) {
+      BodySetup s = base;
+      s.model = m.model;
+      s.settings.method = m.method;
+      Session session(s);
+      for (int k = 0; k < 20; ++k) session.advance();  // settled under gravity
+      const auto snap = session.snapshot();
+      std::vector<char> fixed(snap->positions.size(), 0);
+      for (int v : s.fixedNodes) fixed[static_cast<std::size_t>(v)] = 1;
+      Eigen::Vector3d tip(0, 0, 1e9);
+      for (std::size_t i = 0; i < snap->positions.size(); ++i)
+        if (!fixed[i] && snap->positions[i].z() < tip.z())
+          tip = snap->positions[i];  // the free node nearest the camera
+      session.post(testing::toolAt(tip));
+      InputEvent jaw = testing::jaws(true);
+      jaw.position = tip;
+      session.post(jaw);
+      session.advance();
+      VirtualDevice device;
+      device.setPosition(tip);
+      ForceLoop loop([&session] { return session.toolForce(); }, &device);
+      loop.start();
+      // The hand: the device moves continuously (2 kHz), the session gets the pose at each step.
+      const auto began = std::chrono::steady_clock::now();
+      const double duration = kSteps * s.settings.timeStep;
+      auto handAt = [&](double t) {
+        return Eigen::Vector3d(tip + Eigen::Vector3d(0, 0, -kPull * std::min(1.0, t / duration)));
+      };
+      std::atomic<bool> done{false};
+      std::thread hand([&] {
+        while (!done) {
+          device.setPosition(handAt(std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count()));
+          std::this_thread::sleep_for(std::chrono::microseconds(500));
+        }
+      });
+      std::vector<double> stepMs, errors;
+      int converged = 0, other = 0;
+      auto due = began;
+      for (int k = 1; k <= kSteps; ++k) {
+        std::this_thread::sleep_until(due);
+        const Eigen::Vector3d p =
+            handAt(std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count());
+        const Eigen::Vector3d felt = extrapolateForce(session.toolForce(), p);  // what the loop renders at p now
+        session.post(testing::toolAt(p));
+        const auto t0 = std::chrono::steady_clock::now();
+        const StepReport rep = session.advance();
+        const auto t1 = std::chrono::steady_clock::now();
+        stepMs.push_back(std::chrono::duration<double, std::milli>(t1 - t0).count());
+        (rep.outcome == StepStatus::Converged ? converged : other)++;
+        const Eigen::Vector3d solved = extrapolateForce(session.toolForce(), p);  // the step's own force at p
+        if (solved.norm() > 1e-3) errors.push_back((felt - solved).norm() / solved.norm());
+        due = std::max(due + std::chrono::milliseconds(10), t1);
+      }
+      done = true;
+      hand.join();
+      loop.stop();
+      const ForceLoop::Timing t = loop.timing();
+      const double fEnd = session.snapshot()->tool.force.norm();
+      const double errMed = percentile(errors, 0.5), errMax = percentile(errors, 1.0);
+      std::printf("%-14s %6zu %-26s %8.0f %7.3f %7.3f %7.2f %8.3f %8.3f %5d/%-3d %9.2e %9.2e %7.2f%s\n", organ,
+                  s.mesh.tets.size(), m.name, t.rateHz, t.medianPeriodMs, t.p99PeriodMs, t.maxPeriodMs,
+                  percentile(stepMs, 0.5), percentile(stepMs, 0.99), converged, other, errMed, errMax, fEnd,
+                  t.realtime ? "" : " (no real-time priority)");
+      std::fflush(stdout);
+      csv << organ << ',' << s.mesh.tets.size() << ",\"" << m.name << "\"," << t.rateHz << ',' << t.medianPeriodMs
+          << ',' << t.p99PeriodMs << ',' << t.maxPeriodMs << ',' << t.realtime << ',' << percentile(stepMs, 0.5) << ','
+          << percentile(stepMs, 0.99) << ',' << converged << ',' << other << ',' << errMed << ',' << errMax << ','
+          << fEnd << '\n';
+    }
+  }
+  std::printf("written %s/force-loop.csv\n", out.c_str());
+  return 0;
+}
