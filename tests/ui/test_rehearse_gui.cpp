@@ -18,6 +18,7 @@
 #include <rehearse/simcore/precomputed.hpp>
 
 #include <QTemporaryDir>
+#include <QRegularExpression>
 #include <QAction>
 #include <QStatusBar>
 
@@ -354,6 +355,13 @@ class TestRehearseGui : public QObject {
     QVERIFY2(waitFor([&] { return status->text().contains("precomputed linear · converged"); }, 10000),
              qPrintable(status->text()));
     QCOMPARE(QString::fromStdString(f->report.status), QString("converged"));
+    // Step 7 gives the model's own rate beside the force loop's.
+    auto* rate = w_->findChild<QLabel*>("forceLoopRate");
+    QVERIFY(rate);
+    QVERIFY2(
+        waitFor([&] { return rate->text().contains(QRegularExpression("precomputed [0-9.]+ ms/step, exact")); }, 10000),
+        qPrintable(rate->text()));
+    qInfo("%s", qPrintable(rate->text()));
     QVERIFY(worst < 1e-9);
     QVERIFY(f->tool.force.norm() > 0.01);
     QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
@@ -373,6 +381,9 @@ class TestRehearseGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_R);
     const long back = panel->lastFrame()->steps;
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > back + 20; }));
+    QVERIFY2(
+        waitFor([&] { return rate->text().contains(QRegularExpression("FEM [0-9.]+ ms/step, extrapolated")); }, 10000),
+        qPrintable(rate->text()));
     // Chosen again: the responses of the last build, said; a save keeps them with the case (read back by the case
     // file's reader into the response cache).
     SessionHeard again(panel);

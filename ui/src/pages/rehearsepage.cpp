@@ -135,6 +135,9 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   layout->addWidget(chartView, 1);
   loopRate_ = new QLabel(this);
   loopRate_->setObjectName(QStringLiteral("forceLoopRate"));
+  // Its length changes with the numbers in it: it never widens the panel (which would shrink the frame under the hand);
+  // the tooltip has it all.
+  loopRate_->setSizePolicy(QSizePolicy::Ignored, QSizePolicy::Preferred);
   layout->addWidget(loopRate_);
   chartTimer_ = new QTimer(this);
   chartTimer_->setInterval(66);  // 15 Hz: the GUI thread's time goes to the organ's view first
@@ -174,11 +177,32 @@ void RehearsePage::updateChart() {
   series_->replace(points);
   axisY_->setRange(0, std::ceil(top * 1.1));
   const auto t = loop->timing();
-  loopRate_->setText(tr("Tool-force loop: %1 Hz, period %2 ms (99th percentile %3 ms)%4")
+  // The model's own rate beside the loop's (one line: the chart above keeps its height): how long the deformation's
+  // step takes, and whether the loop's force between steps is the model's (the precomputed model's stiffness is exact)
+  // or an extrapolation (the FEM's).
+  QString model;
+  if (!stepMs_.empty()) {
+    std::vector<double> ms = stepMs_;
+    std::nth_element(ms.begin(), ms.begin() + static_cast<std::ptrdiff_t>(ms.size() / 2), ms.end());
+    const double median = ms[ms.size() / 2];
+    model = precomputed_ ? tr(" · precomputed %1 ms/step, exact").arg(median, 0, 'f', 2)
+                         : tr(" · FEM %1 ms/step, extrapolated").arg(median, 0, 'f', 1);
+  }
+  loopRate_->setText(tr("Force loop %1 Hz (p99 %2 ms%3)%4")
                          .arg(t.rateHz, 0, 'f', 0)
-                         .arg(t.medianPeriodMs, 0, 'f', 2)
                          .arg(t.p99PeriodMs, 0, 'f', 2)
-                         .arg(t.realtime ? tr(", real-time priority") : QString()));
+                         .arg(t.realtime ? tr(", real-time") : QString())
+                         .arg(model));
+  loopRate_->setToolTip(
+      tr("%1\nThe tool force computed at %2 Hz on its own thread (period: median %3 ms, 99th percentile %4 ms). %5")
+          .arg(loopRate_->text())
+          .arg(t.rateHz, 0, 'f', 0)
+          .arg(t.medianPeriodMs, 0, 'f', 2)
+          .arg(t.p99PeriodMs, 0, 'f', 2)
+          .arg(precomputed_ ? tr("The precomputed model's stiffness at the instrument is exact: between its steps the "
+                                 "loop renders the model's own force.")
+                            : tr("Between the FEM's steps the loop extrapolates the last step's force with its "
+                                 "stiffness (a guess until the next step).")));
 }
 
 void RehearsePage::refresh(const app::Case& c) {
@@ -196,6 +220,12 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!f) return;
   // A new session (a new organ, case, reset or recording) starts its counts from nothing.
   if (f->steps < lastSteps_ || f->steps == 0) slips_ = cuts_ = vesselCuts_ = tears_ = 0;
+  if (f->steps < lastSteps_ || f->steps == 0 || (f->responseKey != 0) != precomputed_) stepMs_.clear();
+  precomputed_ = f->responseKey != 0;
+  if (f->steps > lastSteps_ && f->report.wallMs > 0) {
+    stepMs_.push_back(f->report.wallMs);
+    if (stepMs_.size() > 100) stepMs_.erase(stepMs_.begin());
+  }
   lastSteps_ = f->steps;
   slips_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "slip"));
   cuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "cut"));

@@ -7,6 +7,7 @@
 #include <functional>
 #include <memory>
 #include <optional>
+#include <vector>
 
 class QLabel;
 class QLineSeries;
@@ -71,6 +72,9 @@ class RehearsePage : public StepPage {
   std::unique_ptr<Throttle> labelThrottle_;
   int slips_ = 0, cuts_ = 0, vesselCuts_ = 0, tears_ = 0;
   long lastSteps_ = 0;  ///< the last frame's step: a smaller one is a new session
+  /// The model that steps (precomputed or FEM) and its last steps' wall times (ms), for the rate line.
+  bool precomputed_ = false;
+  std::vector<double> stepMs_;
   RecordHandlers record_;
   QPushButton* recordButton_ = nullptr;
   QLineEdit* trainee_ = nullptr;
