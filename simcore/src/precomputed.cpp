@@ -432,6 +432,11 @@ std::optional<PrecomputedElasticity> PrecomputedElasticity::fromBytes(const std:
       !take(bytes, at, p.sag_.data(), 3 * p.nodes_))
     return std::nullopt;
   const std::size_t values = 3 * p.driven_.size() * p.rows();
+  // The rest of the bytes must be exactly the responses (checked before anything that size is allocated: damaged
+  // counts must not ask for gigabytes).
+  if ((bytes.size() - at) / (p.single_ ? sizeof(float) : sizeof(double)) != values ||
+      (bytes.size() - at) % (p.single_ ? sizeof(float) : sizeof(double)) != 0)
+    return std::nullopt;
   if (p.single_) {
     p.c32_.resize(values);
     if (!take(bytes, at, p.c32_.data(), values)) return std::nullopt;

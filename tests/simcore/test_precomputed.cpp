@@ -23,6 +23,7 @@
 #include <QtTest>
 
 #include <algorithm>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <set>
@@ -539,6 +540,13 @@ class TestPrecomputed : public QObject {
       QVERIFY(!PrecomputedElasticity::fromBytes(flipped, model, why));
     }
     QVERIFY(!PrecomputedElasticity::fromBytes("", model, why));
+    {  // the surface rows' bytes claiming every node's rows: refused on the size, before allocating it
+      std::string claimed = ps->toBytes();
+      const std::uint64_t allRows = 0;
+      std::memcpy(claimed.data() + 8 + 3 * sizeof(std::uint64_t), &allRows, sizeof allRows);
+      QVERIFY(!PrecomputedElasticity::fromBytes(claimed, model, why));
+      QVERIFY(why.find("damaged") != std::string::npos);
+    }
     {  // another organ's responses
       Mesh other = testing::presetBody("liver").mesh;
       other.convertToMetres();

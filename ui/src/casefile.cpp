@@ -121,6 +121,9 @@ bool isCaseFile(const QString& path) {
   return f.read(16) == QByteArray("SQLite format 3\0", 16);
 }
 
+// SQLite's blobs stop at 1 GB: the precomputed responses are kept with the case up to half that.
+constexpr std::size_t kMaxStoredResponses = std::size_t(512) << 20;
+
 void saveCaseFile(const app::Case& c, const QString& path, const QString& recordingsFrom, std::uint64_t responseKey) {
   const QString tmp = path + QStringLiteral(".saving-") + QString::number(QCoreApplication::applicationPid());
   QFile::remove(tmp);
@@ -239,7 +242,8 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
       part("ground_truth", "json", bytes(gt.dump()));
     }
     if (responseKey != 0)
-      if (const auto r = simcore::ResponseCache::shared().find(responseKey)) {
+      if (const auto r = simcore::ResponseCache::shared().find(responseKey);
+          r && r->memoryBytes() <= kMaxStoredResponses) {  // (larger ones are built again when the case opens)
         QByteArray data(reinterpret_cast<const char*>(&responseKey), sizeof responseKey);
         data += bytes(r->toBytes());
         part("precomputed_responses", "bin", data);

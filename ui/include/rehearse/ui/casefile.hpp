@@ -10,7 +10,8 @@
 // other parts still open.
 // The precomputed model's responses (issue 37) are kept as the part precomputed_responses (8 bytes of their key,
 // simcore::precomputeKey, then PrecomputedElasticity::toBytes): a cache, used when the organ, its attachments, material
-// and gravity give the same key again, and rebuilt otherwise.
+// and gravity give the same key again, and rebuilt otherwise; responses over 512 MB are not kept (SQLite's blobs stop
+// at 1 GB), they are built again when the case opens.
 // History: 1, the first (no checksums; no elastic_fit part, no model_vertices in the contour). Opening
 // an older case migrates it in memory (schema 1: parts read without a checksum); saving writes the current
 // schema. A newer schema than this build knows is refused with a sentence, so an older Rehearse never
