@@ -12,12 +12,16 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 #include "rehearse/ui/casefile.hpp"
+#include "phantom/phantom.hpp"
+#include <rehearse/app/casefolder.hpp>
 #include "rehearse/ui/devicesteering.hpp"
 #include "fake_spacenavd.hpp"
 
 #include <rehearse/simcore/precomputed.hpp>
 
 #include <QTemporaryDir>
+#include <QProgressDialog>
+#include <QPushButton>
 #include <QRegularExpression>
 #include <QAction>
 #include <QStatusBar>
@@ -564,6 +568,47 @@ class TestRehearseGui : public QObject {
     connect->trigger();
     QVERIFY(!steering->connected());
     QVERIFY(!connect->isChecked());
+    panel->pause();
+  }
+
+  // The precomputed model's build on a finer organ (the phantom meshed to 15k elements: seconds of responses) shows its
+  // progress in a dialog; its Cancel stops the build, the session says so and keeps the FEM, and the Solver list shows
+  // the FEM's method again.
+  void precomputeProgressAndCancel() {
+    QTemporaryDir dir;
+    phantom::PhantomOptions o;
+    o.targetTets = 15000;
+    app::writeCaseDirectory(app::caseFromPhantom(phantom::makePhantom(o)), dir.path().toStdString());
+    QSignalSpy loaded(w_.get(), &ui::MainWindow::caseLoaded);
+    w_->openCase(dir.path());
+    QVERIFY(loaded.wait(120000));
+    w_->setStep(ui::Step::Rehearse);
+    auto* panel = w_->simulationPanel();
+    QVERIFY(waitFor([&] { return panel->session() && panel->lastFrame(); }, 120000));
+    auto* method = panel->findChild<QComboBox*>("simMethod");
+    const int before = method->currentIndex();
+    SessionHeard heard(panel);
+    method->setFocus();
+    QTest::keyClick(method, Qt::Key_End);
+    QVERIFY(method->currentText().startsWith("precomputed"));
+    QProgressDialog* dialog = nullptr;
+    QVERIFY2(waitFor(
+                 [&] {
+                   dialog = panel->findChild<QProgressDialog*>("precomputeProgress");
+                   return dialog && dialog->isVisible();
+                 },
+                 60000),
+             qPrintable(heard.lines.join(" | ")));
+    qInfo("the progress dialog: '%s' at %d / %d", qPrintable(dialog->labelText()), dialog->value(), dialog->maximum());
+    auto* cancel = dialog->findChild<QPushButton*>();
+    QVERIFY(cancel);
+    QTest::mouseClick(cancel, Qt::LeftButton);
+    QVERIFY2(waitFor([&] { return heard.lines.join(" ").contains("cancelled"); }, 60000),
+             qPrintable(heard.lines.join(" | ")));
+    qInfo("%s", qPrintable(heard.lines.join(" | ")));
+    QVERIFY(waitFor([&] { return method->currentIndex() == before; }, 10000));
+    QVERIFY(panel->session()->setup().model == simcore::BodyModel::Fem);
+    QVERIFY(waitFor([&] { return !panel->findChild<QProgressDialog*>("precomputeProgress"); }, 10000));
     panel->pause();
   }
 

@@ -260,6 +260,8 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   });
   QPointer<SimulationPanel> self(this);
   precomputeCancelled_->store(false);
+  if (buildDialog_) buildDialog_->deleteLater();  // an older session's build: its progress will not come
+  buildDialog_.clear();
   watcher->setFuture(QtConcurrent::run([s, result, ctx, generation, record, recorder, started, self,
                                         cancelled = buildCancelled_, cache = startCache_,
                                         precompute = precomputeCancelled_] {
@@ -980,7 +982,8 @@ void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
 }
 
 void SimulationPanel::showBuildProgress(double done) {
-  if (done >= 1) {
+  // Batches that ended after Cancel still report: the dialog does not come back for them.
+  if (done >= 1 || precomputeCancelled_->load()) {
     if (buildDialog_) buildDialog_->deleteLater();
     buildDialog_.clear();
     return;
