@@ -11,6 +11,8 @@
 #include <QMenu>
 #include <QTimer>
 
+#include <algorithm>
+
 namespace rehearse::ui {
 
 DeviceSteering::DeviceSteering(FrameView* view, SimulationPanel* panel, std::function<void(const QString&)> say,
@@ -19,7 +21,12 @@ DeviceSteering::DeviceSteering(FrameView* view, SimulationPanel* panel, std::fun
   timer_ = new QTimer(this);
   timer_->setInterval(10);
   timer_->setTimerType(Qt::PreciseTimer);
-  connect(timer_, &QTimer::timeout, this, [this] { tick(0.010); });
+  // The time since the last read moves the tip (a timer's period varies under load; a long stall counts 50 ms at most).
+  connect(timer_, &QTimer::timeout, this, [this] {
+    const double dt = clock_.isValid() ? std::min(0.05, clock_.nsecsElapsed() * 1e-9) : 0.010;
+    clock_.restart();
+    tick(dt);
+  });
 }
 
 DeviceSteering::~DeviceSteering() = default;
@@ -60,6 +67,7 @@ void DeviceSteering::connectDevice(std::unique_ptr<simcore::MotionDevice> device
   say_(tr("%1 connected: push the cap to move the instrument, turn it to pivot the shaft about the trocar, its left "
           "button works the instrument (step 7).")
            .arg(QString::fromStdString(device_->name())));
+  clock_.invalidate();
   timer_->start();
   emit connectedChanged(true);
 }
@@ -115,8 +123,8 @@ void DeviceSteering::tick(double dt) {
   if (tool < 0 || !c || !c->hasPose || !panel_->session()) {
     if ((moving || button) && !saidStep_) {
       say_(
-          tr("The 3D mouse moves the instruments of step 7: take one (R grasper, B scissors, U clip applier, H "
-             "cautery) on the placed organ."));
+          tr("The 3D mouse moves the instruments of step 7: take one (R grasper, B scissors, U clip applier, J "
+             "cautery hook) on the placed organ."));
       saidStep_ = true;
     }
     if (!button && held_) pressed(false);

@@ -8,6 +8,7 @@
 // to the status bar.
 #include <rehearse/simcore/session/device.hpp>
 
+#include <QElapsedTimer>
 #include <QObject>
 #include <QString>
 
@@ -57,6 +58,7 @@ class DeviceSteering : public QObject {
   std::function<void(const QString&)> say_;
   std::unique_ptr<simcore::MotionDevice> device_;
   QTimer* timer_ = nullptr;
+  QElapsedTimer clock_;  ///< since the last read
   QAction* action_ = nullptr;
   simcore::DeviceReading reading_;
   simcore::SteeringSettings settings_;
