@@ -162,7 +162,8 @@ void FrameView::paintDeviceTip(QPainter& painter) {
   const QString text = tr("3D mouse · %1").arg(depth);
   const QFontMetricsF fm(painter.font());
   QRectF box(at + QPointF(14, -30), QSizeF(fm.horizontalAdvance(text) + 10, fm.height() + 4));
-  if (box.right() > width() - 4) box.moveRight(at.x() - 14);  // near the right edge: on the ring's left
+  // Above the ring, inside the view (near an edge it slides along, never past it).
+  box.moveLeft(std::clamp(box.left(), 4.0, std::max(4.0, width() - 4.0 - box.width())));
   painter.setPen(Qt::NoPen);
   painter.setBrush(QColor(20, 20, 24, 190));
   painter.drawRoundedRect(box, 4, 4);
