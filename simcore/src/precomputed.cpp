@@ -6,6 +6,7 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 
@@ -444,7 +445,10 @@ std::optional<PrecomputedElasticity> PrecomputedElasticity::fromBytes(const std:
     p.c64_.resize(values);
     if (!take(bytes, at, p.c64_.data(), values)) return std::nullopt;
   }
-  if (at != bytes.size() || !p.sag_.allFinite()) return std::nullopt;
+  // Every number finite (a writer's fault under a matching checksum must not turn into NaN positions later).
+  const bool finite = p.single_ ? std::all_of(p.c32_.begin(), p.c32_.end(), [](float v) { return std::isfinite(v); })
+                                : std::all_of(p.c64_.begin(), p.c64_.end(), [](double v) { return std::isfinite(v); });
+  if (at != bytes.size() || !p.sag_.allFinite() || !finite) return std::nullopt;
   p.drivenOf_.assign(p.nodes_, -1);
   for (std::size_t j = 0; j < p.driven_.size(); ++j) {
     const int v = p.driven_[j];

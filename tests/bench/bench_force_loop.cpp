@@ -8,6 +8,7 @@
 // dp, what the hand felt) against the force that step then solves there (its relative error, median and worst; the
 // precomputed model's K is exact, so only its cap and contact changes remain). Medians of the run. Writes
 // force-loop.csv into the directory given (default ".").
+#include "percentile.hpp"
 #include "phantom/presets.hpp"
 #include "realorgan.hpp"
 #include "session_inputs.hpp"
@@ -32,11 +33,7 @@ using namespace rehearse::simcore;
 
 namespace {
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
-}
+using testing::percentile;
 
 struct Model {
   const char* name;

@@ -8,6 +8,7 @@
 // GUI's (chord with the asynchronous refresh, changes swapped in when built). Writes operative-steps.csv into the
 // directory given (default ".").
 //   bench_operative [OUT_DIR] [--repeat N]
+#include "percentile.hpp"
 #include "operative_case.hpp"
 #include "session_inputs.hpp"
 
@@ -29,11 +30,7 @@ using namespace rehearse;
 
 namespace {
 
-double percentile(std::vector<double> v, double q) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))];
-}
+using testing::percentile;
 
 // The phase a step belongs to, by its time (the script's events: clips 0.1-0.4 s, the cut 0.4-0.9 s, the cautery
 // 0.9-1.5 s, the pull and its tears from 1.5 s).

@@ -23,6 +23,7 @@
 #include <QtTest>
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <fstream>
 #include <sstream>
@@ -546,6 +547,12 @@ class TestPrecomputed : public QObject {
       std::memcpy(claimed.data() + 8 + 3 * sizeof(std::uint64_t), &allRows, sizeof allRows);
       QVERIFY(!PrecomputedElasticity::fromBytes(claimed, model, why));
       QVERIFY(why.find("damaged") != std::string::npos);
+    }
+    {  // a NaN among the responses (a faulty writer under a matching checksum): refused
+      std::string poisoned = pa->toBytes();
+      const double nan = std::nan("");
+      std::memcpy(poisoned.data() + poisoned.size() - sizeof nan, &nan, sizeof nan);
+      QVERIFY(!PrecomputedElasticity::fromBytes(poisoned, model, why));
     }
     {  // another organ's responses
       Mesh other = testing::presetBody("liver").mesh;

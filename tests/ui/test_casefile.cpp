@@ -22,6 +22,7 @@
 #include <QCryptographicHash>
 
 #include <cstdio>
+#include <optional>
 #include <random>
 
 using namespace rehearse;
@@ -67,6 +68,26 @@ void compareCases(const app::Case& a, const app::Case& b) {
     QCOMPARE(b.contour.segments[s].type, a.contour.segments[s].type);
     QVERIFY(b.contour.segments[s].modelVertices == a.contour.segments[s].modelVertices);
   }
+}
+
+// Runs SQL statements on a case file directly (as damage on disk or an older writer leaves it): the first value of the
+// last statement's first row (an invalid QVariant when it has none); nothing when the file or a statement fails.
+std::optional<QVariant> sqlOn(const QString& path, const QStringList& statements) {
+  std::optional<QVariant> out;
+  {
+    auto db = QSqlDatabase::addDatabase("QSQLITE", "direct");
+    db.setDatabaseName(path);
+    if (db.open()) {
+      QSqlQuery q(db);
+      bool ok = true;
+      for (const QString& sql : statements) ok = ok && q.exec(sql);
+      if (ok) out = q.next() ? q.value(0) : QVariant();
+      if (!ok) qWarning("%s", qPrintable(q.lastError().text()));
+    }
+    db.close();
+  }
+  QSqlDatabase::removeDatabase("direct");
+  return out;
 }
 }  // namespace
 
@@ -422,15 +443,7 @@ class TestCaseFile : public QObject {
     const std::vector<Eigen::Vector3d> d{Eigen::Vector3d(0.01, 0, 0)};
     QVERIFY(built->solve({driven[0]}, d, u1, nullptr, why) && again->solve({driven[0]}, d, u2, nullptr, why));
     QVERIFY(u1 == u2);
-    {
-      auto db = QSqlDatabase::addDatabase("QSQLITE", "responses");
-      db.setDatabaseName(path);
-      QVERIFY(db.open());
-      QSqlQuery q(db);
-      QVERIFY(q.exec("UPDATE parts SET data = substr(data, 1, 64) WHERE name = 'precomputed_responses'"));
-      db.close();
-    }
-    QSqlDatabase::removeDatabase("responses");
+    QVERIFY(sqlOn(path, {"UPDATE parts SET data = substr(data, 1, 64) WHERE name = 'precomputed_responses'"}));
     cache.clear();
     notes.clear();
     ui::loadCaseFile(path, &notes);
@@ -439,16 +452,9 @@ class TestCaseFile : public QObject {
              qPrintable(notes[0]));
     QVERIFY(!cache.storedBytes(key));
     ui::saveCaseFile(c, path, {}, key + 1);  // not in the cache: nothing kept
-    {
-      auto db = QSqlDatabase::addDatabase("QSQLITE", "responses2");
-      db.setDatabaseName(path);
-      QVERIFY(db.open());
-      QSqlQuery q(db);
-      QVERIFY(q.exec("SELECT count(*) FROM parts WHERE name = 'precomputed_responses'") && q.next());
-      QCOMPARE(q.value(0).toInt(), 0);
-      db.close();
-    }
-    QSqlDatabase::removeDatabase("responses2");
+    const auto kept = sqlOn(path, {"SELECT count(*) FROM parts WHERE name = 'precomputed_responses'"});
+    QVERIFY(kept && kept->isValid());
+    QCOMPARE(kept->toInt(), 0);
     cache.clear();
   }
 
@@ -459,17 +465,8 @@ class TestCaseFile : public QObject {
     app::Case edited = phantomCase();
     edited.contour.segments.push_back({{{100.25, 200.5}, {300, 400}, {512.125, 333}}, false, "silhouette", {}});
     ui::saveCaseFile(edited, path);
-    {
-      auto db = QSqlDatabase::addDatabase("QSQLITE", "old");
-      db.setDatabaseName(path);
-      QVERIFY(db.open());
-      QSqlQuery q(db);
-      QVERIFY(q.exec("UPDATE meta SET value = '1' WHERE key = 'schema_version'"));
-      QVERIFY2(q.exec("ALTER TABLE parts DROP COLUMN sha256"), qPrintable(q.lastError().text()));
-      QVERIFY(q.exec("DELETE FROM parts WHERE name = 'elastic_fit'"));
-      db.close();
-    }
-    QSqlDatabase::removeDatabase("old");
+    QVERIFY(sqlOn(path, {"UPDATE meta SET value = '1' WHERE key = 'schema_version'",
+                         "ALTER TABLE parts DROP COLUMN sha256", "DELETE FROM parts WHERE name = 'elastic_fit'"}));
     QStringList notes;
     const auto back = ui::loadCaseFile(path, &notes);
     QVERIFY2(notes.isEmpty(), qPrintable(notes.join('\n')));
@@ -493,15 +490,7 @@ class TestCaseFile : public QObject {
   void newerSchemaIsRefusedClearly() {
     const QString path = QString::fromStdString(tempPath("future.rehearse"));
     ui::saveCaseFile(phantomCase(), path);
-    {
-      auto db = QSqlDatabase::addDatabase("QSQLITE", "future");
-      db.setDatabaseName(path);
-      QVERIFY(db.open());
-      QSqlQuery q(db);
-      QVERIFY(q.exec("UPDATE meta SET value = '99' WHERE key = 'schema_version'"));
-      db.close();
-    }
-    QSqlDatabase::removeDatabase("future");
+    QVERIFY(sqlOn(path, {"UPDATE meta SET value = '99' WHERE key = 'schema_version'"}));
     try {
       ui::loadCaseFile(path);
       QFAIL("a newer schema was accepted");

@@ -77,7 +77,12 @@ class PrecomputedBody final : public DeformableBody {
     rep.tolerance = settings_.tolerance;
     Eigen::VectorXd u;
     std::string why;
-    if (!response_->solveConstraints(rows_, base_, u0_, u, lambda_, &W_, why)) {
+    bool solved = response_->solveConstraints(rows_, base_, u0_, u, lambda_, &W_, why);
+    if (solved && !u.allFinite()) {  // never "converged" on NaN positions
+      solved = false;
+      why = "the responses gave a displacement that is not finite";
+    }
+    if (!solved) {
       rep.ok = false;
       rep.outcome = StepStatus::Failed;
       rep.status = "failed: " + why;
