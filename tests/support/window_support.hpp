@@ -113,11 +113,12 @@ inline void drag(QWidget* target, QPointF a, QPointF b, int steps = 8, Qt::Keybo
   QTest::mouseRelease(target, Qt::LeftButton, mods, b.toPoint());
 }
 
-// The wheel turned `notches` notches towards the user at `at` while the left button holds (the scissors' blade deeper).
+// The wheel turned `notches` notches towards the user at `at` while the left button holds (the scissors' blade deeper);
+// a negative count turns it away (shallower).
 inline void wheelDeeper(QWidget* target, QPoint at, int notches) {
-  for (int notch = 0; notch < notches; ++notch) {
-    QWheelEvent wheel(QPointF(at), QPointF(target->mapToGlobal(at)), QPoint(), QPoint(0, -120), Qt::LeftButton,
-                      Qt::NoModifier, Qt::NoScrollPhase, false);
+  for (int notch = 0; notch < std::abs(notches); ++notch) {
+    QWheelEvent wheel(QPointF(at), QPointF(target->mapToGlobal(at)), QPoint(), QPoint(0, notches > 0 ? -120 : 120),
+                      Qt::LeftButton, Qt::NoModifier, Qt::NoScrollPhase, false);
     QApplication::sendEvent(target, &wheel);
   }
 }
