@@ -1,0 +1,403 @@
+// The geometry image of an organ's surface through CGAL's Surface_mesh_parameterization (a seam cut to a disk,
+// the square border by arc length, discrete authalic or conformal map), and CGAL's approximate Hausdorff distance.
+#include <rehearse/simcore/paramesh.hpp>
+
+#include <CGAL/Simple_cartesian.h>
+#include <CGAL/Surface_mesh.h>
+#include <CGAL/boost/graph/Seam_mesh.h>
+#include <CGAL/Polygon_mesh_processing/border.h>
+#include <CGAL/Polygon_mesh_processing/compute_normal.h>
+#include <CGAL/Polygon_mesh_processing/connected_components.h>
+#include <CGAL/Polygon_mesh_processing/distance.h>
+#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
+#include <CGAL/Polygon_mesh_processing/orient_polygon_soup.h>
+#include <CGAL/Polygon_mesh_processing/polygon_soup_to_polygon_mesh.h>
+#include <CGAL/Polygon_mesh_processing/repair_polygon_soup.h>
+#include <CGAL/Surface_mesh_parameterization/Discrete_authalic_parameterizer_3.h>
+#include <CGAL/Surface_mesh_parameterization/Discrete_conformal_map_parameterizer_3.h>
+#include <CGAL/Surface_mesh_parameterization/Error_code.h>
+#include <CGAL/Surface_mesh_parameterization/Mean_value_coordinates_parameterizer_3.h>
+#include <CGAL/Surface_mesh_parameterization/Square_border_parameterizer_3.h>
+#include <CGAL/Surface_mesh_parameterization/parameterize.h>
+
+#include <boost/graph/dijkstra_shortest_paths.hpp>
+#include <boost/property_map/property_map.hpp>
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <queue>
+
+namespace rehearse::simcore {
+namespace {
+
+using K = CGAL::Simple_cartesian<double>;
+using P2 = K::Point_2;
+using P3 = K::Point_3;
+using SM = CGAL::Surface_mesh<P3>;
+using SMV = SM::Vertex_index;
+using SME = SM::Edge_index;
+namespace PMP = CGAL::Polygon_mesh_processing;
+namespace SMP = CGAL::Surface_mesh_parameterization;
+
+// `repair`: points at the same place merged, the soup oriented (non-manifold points and edges split) as CGAL's
+// polygon-soup repair does; without it, the triangles as given (a geometry image's grid, whose border points coincide
+// in space without being shared).
+bool toSurfaceMesh(const std::vector<Eigen::Vector3d>& points, const std::vector<std::array<int, 3>>& triangles,
+                   SM& out, bool repair = true) {
+  std::vector<P3> p;
+  p.reserve(points.size());
+  for (const auto& q : points) p.emplace_back(q.x(), q.y(), q.z());
+  std::vector<std::vector<std::size_t>> polygons;
+  polygons.reserve(triangles.size());
+  for (const auto& t : triangles) {
+    for (int v : t)
+      if (v < 0 || static_cast<std::size_t>(v) >= points.size()) return false;
+    polygons.push_back(
+        {static_cast<std::size_t>(t[0]), static_cast<std::size_t>(t[1]), static_cast<std::size_t>(t[2])});
+  }
+  if (polygons.empty()) return false;
+  if (repair) {
+    PMP::repair_polygon_soup(p, polygons);
+    PMP::orient_polygon_soup(p, polygons);
+  }
+  if (!PMP::is_polygon_soup_a_polygon_mesh(polygons)) return false;
+  out.clear();
+  PMP::polygon_soup_to_polygon_mesh(p, polygons, out);
+  return !out.is_empty();
+}
+
+Eigen::Vector3d eig(const P3& p) { return {p.x(), p.y(), p.z()}; }
+
+}  // namespace
+
+std::vector<std::array<int, 3>> GeometryImage::triangles() const {
+  std::vector<std::array<int, 3>> t;
+  if (size < 2) return t;
+  t.reserve(static_cast<std::size_t>(2 * (size - 1) * (size - 1)));
+  for (int i = 0; i + 1 < size; ++i)
+    for (int j = 0; j + 1 < size; ++j) {
+      const int a = index(i, j), b = index(i, j + 1), c = index(i + 1, j + 1), d = index(i + 1, j);
+      t.push_back({a, b, c});
+      t.push_back({a, c, d});
+    }
+  // Outward as the original surface: the cells' normals against the sampled normals, by majority.
+  double agree = 0;
+  for (const auto& f : t) {
+    const Eigen::Vector3d n =
+        (points[static_cast<std::size_t>(f[1])] - points[static_cast<std::size_t>(f[0])])
+            .cross(points[static_cast<std::size_t>(f[2])] - points[static_cast<std::size_t>(f[0])]);
+    agree += n.dot(normals[static_cast<std::size_t>(f[0])] + normals[static_cast<std::size_t>(f[1])] +
+                   normals[static_cast<std::size_t>(f[2])]);
+  }
+  if (agree < 0)
+    for (auto& f : t) std::swap(f[1], f[2]);
+  return t;
+}
+
+namespace {
+
+// The geometry image of a closed genus-0 surface cut along the shortest path between its ends along principal axis
+// `axisIndex` (0: the shortest, 2: the longest), with a branch of the seam from each of `branches` to the seam by the
+// shortest path (Gu, Gortler and Hoppe's refinement: a cut through a protrusion the map squeezes lets it open up; the
+// seam stays a tree, so the cut surface stays a disk), mapped by `map`.
+std::optional<GeometryImage> imageAlong(SM sm, int axisIndex, SurfaceMap map, int N, const std::vector<SMV>& branches,
+                                        std::string& why) {
+  // The seam: the shortest path over the edges between the two ends of the surface along a principal axis.
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (auto v : sm.vertices()) c += eig(sm.point(v));
+  c /= static_cast<double>(sm.number_of_vertices());
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (auto v : sm.vertices()) cov += (eig(sm.point(v)) - c) * (eig(sm.point(v)) - c).transpose();
+  const Eigen::Vector3d axis = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(cov).eigenvectors().col(axisIndex);
+  SMV lo = *sm.vertices().begin(), hi = lo;
+  for (auto v : sm.vertices()) {
+    const double s = (eig(sm.point(v)) - c).dot(axis);
+    if (s < (eig(sm.point(lo)) - c).dot(axis)) lo = v;
+    if (s > (eig(sm.point(hi)) - c).dot(axis)) hi = v;
+  }
+  auto predecessor = sm.add_property_map<SMV, SMV>("v:pred").first;
+  auto distance = sm.add_property_map<SMV, double>("v:dist").first;
+  boost::dijkstra_shortest_paths(sm, lo, boost::predecessor_map(predecessor).distance_map(distance));
+  using SeamEdges = SM::Property_map<SME, bool>;
+  using SeamVertices = SM::Property_map<SMV, bool>;
+  using Seamed = CGAL::Seam_mesh<SM, SeamEdges, SeamVertices>;
+  SeamEdges seamEdges = sm.add_property_map<SME, bool>("e:on_seam", false).first;
+  SeamVertices seamVertices = sm.add_property_map<SMV, bool>("v:on_seam", false).first;
+  Seamed mesh(sm, seamEdges, seamVertices);
+  int seamCount = 0;
+  for (SMV v = hi; v != lo;) {
+    const SMV p = predecessor[v];
+    if (p == v) break;  // (connected: not reached)
+    if (!mesh.add_seam(p, v)) {
+      why = "The seam that cuts the surface to a disk could not be placed (CGAL's Seam_mesh refused an edge).";
+      return std::nullopt;
+    }
+    ++seamCount;
+    v = p;
+  }
+  if (seamCount == 0) {
+    why = "The surface has no two distinct ends to cut a seam between.";
+    return std::nullopt;
+  }
+  std::vector<char> onSeam(sm.number_of_vertices(), 0);
+  for (SMV v = hi;; v = predecessor[v]) {
+    onSeam[v.idx()] = 1;
+    if (v == lo || predecessor[v] == v) break;
+  }
+  for (SMV b : branches) {
+    if (onSeam[b.idx()]) continue;
+    // Dijkstra from every seam vertex at once; the path from b back to the seam touches it at its end only.
+    std::vector<double> dist(sm.number_of_vertices(), std::numeric_limits<double>::infinity());
+    std::vector<SMV> from(sm.number_of_vertices());
+    using Item = std::pair<double, std::uint32_t>;
+    std::priority_queue<Item, std::vector<Item>, std::greater<Item>> queue;
+    for (auto v : sm.vertices())
+      if (onSeam[v.idx()]) dist[v.idx()] = 0, from[v.idx()] = v, queue.push({0.0, v.idx()});
+    while (!queue.empty()) {
+      const auto [d, i] = queue.top();
+      queue.pop();
+      if (d > dist[i]) continue;
+      const SMV v(i);
+      if (v == b) break;
+      for (auto h : CGAL::halfedges_around_target(sm.halfedge(v), sm)) {
+        const SMV w = CGAL::source(h, sm);
+        const double nd = d + std::sqrt(CGAL::squared_distance(sm.point(v), sm.point(w)));
+        if (nd < dist[w.idx()]) dist[w.idx()] = nd, from[w.idx()] = v, queue.push({nd, w.idx()});
+      }
+    }
+    if (!std::isfinite(dist[b.idx()])) continue;
+    for (SMV v = b; !onSeam[v.idx()];) {
+      const SMV p = from[v.idx()];
+      if (!mesh.add_seam(p, v)) break;
+      onSeam[v.idx()] = 1;
+      ++seamCount;
+      v = p;
+    }
+  }
+  using SeamHalfedge = boost::graph_traits<Seamed>::halfedge_descriptor;
+  using SeamVertex = boost::graph_traits<Seamed>::vertex_descriptor;
+  const SeamHalfedge border = PMP::longest_border(mesh).first;
+  std::map<SeamVertex, P2> uvHash;
+  boost::associative_property_map<std::map<SeamVertex, P2>> uv(uvHash);
+  using Border = SMP::Square_border_arc_length_parameterizer_3<Seamed>;
+  SMP::Error_code err;
+  if (map == SurfaceMap::Authalic)
+    err = SMP::parameterize(mesh, SMP::Discrete_authalic_parameterizer_3<Seamed, Border>(), border, uv);
+  else if (map == SurfaceMap::MeanValue)
+    err = SMP::parameterize(mesh, SMP::Mean_value_coordinates_parameterizer_3<Seamed, Border>(), border, uv);
+  else
+    err = SMP::parameterize(mesh, SMP::Discrete_conformal_map_parameterizer_3<Seamed, Border>(), border, uv);
+  if (err != SMP::OK) {
+    why = std::string("CGAL's surface parameterization failed: ") + SMP::get_error_message(err) + ".";
+    return std::nullopt;
+  }
+
+  // The parameter triangles, with their corners' positions and normals, bucketed on a grid for the lookup.
+  auto vnormals = sm.add_property_map<SMV, K::Vector_3>("v:normal").first;
+  PMP::compute_vertex_normals(sm, vnormals);
+  struct Tri {
+    std::array<Eigen::Vector2d, 3> uv;
+    std::array<Eigen::Vector3d, 3> x, n;
+  };
+  std::vector<Tri> tris;
+  tris.reserve(sm.number_of_faces());
+  double umin = 1e300, umax = -1e300, vmin = 1e300, vmax = -1e300;
+  for (auto f : sm.faces()) {
+    Tri t;
+    int k = 0;
+    for (SeamHalfedge h : CGAL::halfedges_around_face(CGAL::halfedge(f, mesh), mesh)) {
+      if (k > 2) break;
+      const P2 q = uvHash[CGAL::target(h, mesh)];
+      const SMV v = CGAL::target(h.tmhd, sm);
+      t.uv[static_cast<std::size_t>(k)] = {q.x(), q.y()};
+      t.x[static_cast<std::size_t>(k)] = eig(sm.point(v));
+      t.n[static_cast<std::size_t>(k)] = {vnormals[v].x(), vnormals[v].y(), vnormals[v].z()};
+      umin = std::min(umin, q.x()), umax = std::max(umax, q.x()), vmin = std::min(vmin, q.y()),
+      vmax = std::max(vmax, q.y());
+      ++k;
+    }
+    tris.push_back(t);
+  }
+  if (!(umax > umin && vmax > vmin)) {
+    why = "The surface's parameterization is degenerate (all of it in one point or line).";
+    return std::nullopt;
+  }
+  const int B = std::max(8, N);
+  auto cellOf = [&](double u, double v) {
+    const int cu = std::clamp(static_cast<int>((u - umin) / (umax - umin) * B), 0, B - 1);
+    const int cv = std::clamp(static_cast<int>((v - vmin) / (vmax - vmin) * B), 0, B - 1);
+    return cv * B + cu;
+  };
+  std::vector<std::vector<int>> buckets(static_cast<std::size_t>(B * B));
+  for (std::size_t t = 0; t < tris.size(); ++t) {
+    double a0 = 1e300, a1 = -1e300, b0 = 1e300, b1 = -1e300;
+    for (const auto& q : tris[t].uv)
+      a0 = std::min(a0, q.x()), a1 = std::max(a1, q.x()), b0 = std::min(b0, q.y()), b1 = std::max(b1, q.y());
+    const int c0 = cellOf(a0, b0), c1 = cellOf(a1, b1);
+    for (int cv = c0 / B; cv <= c1 / B; ++cv)
+      for (int cu = c0 % B; cu <= c1 % B; ++cu)
+        buckets[static_cast<std::size_t>(cv * B + cu)].push_back(static_cast<int>(t));
+  }
+  auto barycentric = [](const Tri& t, const Eigen::Vector2d& p) {
+    const Eigen::Vector2d e0 = t.uv[1] - t.uv[0], e1 = t.uv[2] - t.uv[0], d = p - t.uv[0];
+    const double det = e0.x() * e1.y() - e0.y() * e1.x();
+    if (std::abs(det) < 1e-300) return Eigen::Vector3d(-1, -1, -1);
+    const double b1 = (d.x() * e1.y() - d.y() * e1.x()) / det, b2 = (e0.x() * d.y() - e0.y() * d.x()) / det;
+    return Eigen::Vector3d(1 - b1 - b2, b1, b2);
+  };
+  GeometryImage gi;
+  gi.size = N;
+  gi.seamEdges = seamCount;
+  gi.points.resize(static_cast<std::size_t>(N * N));
+  gi.normals.resize(gi.points.size());
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < N; ++j) {
+      const Eigen::Vector2d p(umin + (umax - umin) * j / (N - 1.0), vmin + (vmax - vmin) * i / (N - 1.0));
+      int best = -1;
+      double bestMin = -1e300;
+      Eigen::Vector3d bestW;
+      auto consider = [&](int t) {
+        const Eigen::Vector3d w = barycentric(tris[static_cast<std::size_t>(t)], p);
+        const double m = w.minCoeff();
+        if (m > bestMin) bestMin = m, best = t, bestW = w;
+      };
+      for (int t : buckets[static_cast<std::size_t>(cellOf(p.x(), p.y()))]) consider(t);
+      if (bestMin < -1e-6) {  // outside every triangle of its bucket: the nearest of all (clamped weights)
+        ++gi.unplaced;
+        for (std::size_t t = 0; t < tris.size(); ++t) consider(static_cast<int>(t));
+      }
+      Eigen::Vector3d w = bestW.cwiseMax(0.0);
+      w /= w.sum();
+      const Tri& t = tris[static_cast<std::size_t>(best)];
+      const std::size_t k = static_cast<std::size_t>(gi.index(i, j));
+      gi.points[k] = w[0] * t.x[0] + w[1] * t.x[1] + w[2] * t.x[2];
+      const Eigen::Vector3d n = w[0] * t.n[0] + w[1] * t.n[1] + w[2] * t.n[2];
+      gi.normals[k] = n.norm() > 0 ? Eigen::Vector3d(n.normalized()) : Eigen::Vector3d::UnitZ();
+    }
+  return gi;
+}
+
+}  // namespace
+
+std::optional<GeometryImage> makeGeometryImage(const std::vector<Eigen::Vector3d>& points,
+                                               const std::vector<std::array<int, 3>>& triangles,
+                                               const GeometryImageSettings& settings, std::string& why) {
+  if (settings.size < 3 || settings.size > 2049) {
+    why = "A geometry image needs between 3 and 2049 grid points a side (asked " + std::to_string(settings.size) + ").";
+    return std::nullopt;
+  }
+  SM sm;
+  if (!toSurfaceMesh(points, triangles, sm)) {
+    why =
+        "The surface is not a triangle mesh a parameterization can use (empty, an index out of range, or edges shared "
+        "by more than two triangles).";
+    return std::nullopt;
+  }
+  // The organ is the largest piece (a file's stray pieces, said); slits a non-manifold edge left when the soup was
+  // oriented (two lobes of a mesh touching along an edge) and small holes closed by CGAL's hole filling.
+  const std::size_t pieces = PMP::keep_largest_connected_components(sm, 1);
+  sm.collect_garbage();
+  int filled = 0;
+  {
+    std::vector<SM::Halfedge_index> borders;
+    PMP::extract_boundary_cycles(sm, std::back_inserter(borders));
+    const auto box = PMP::bbox(sm);
+    const double diagonal = std::hypot(box.xmax() - box.xmin(), box.ymax() - box.ymin(), box.zmax() - box.zmin());
+    for (auto h : borders) {
+      double perimeter = 0;
+      for (auto e : CGAL::halfedges_around_face(h, sm))
+        perimeter += std::sqrt(CGAL::squared_distance(sm.point(CGAL::source(e, sm)), sm.point(CGAL::target(e, sm))));
+      if (perimeter > 0.15 * diagonal) continue;
+      std::vector<SM::Face_index> added;
+      PMP::triangulate_hole(sm, h, std::back_inserter(added));
+      ++filled;
+    }
+  }
+  if (!CGAL::is_closed(sm)) {
+    why = "The surface has holes: the geometry image needs a closed organ surface.";
+    return std::nullopt;
+  }
+  const long euler = static_cast<long>(sm.number_of_vertices()) - static_cast<long>(sm.number_of_edges()) +
+                     static_cast<long>(sm.number_of_faces());
+  if (euler != 2) {
+    why = "The organ's surface has Euler characteristic " + std::to_string(euler) + " (" +
+          std::to_string((2 - euler) / 2) + " handle(s)): a geometry image needs a closed piece without handles (2).";
+    return std::nullopt;
+  }
+  if (PMP::volume(sm) < 0) PMP::reverse_face_orientations(sm);
+
+  // Candidates: the seam along each principal axis, each map asked for; the one whose grid lies nearest the surface
+  // (CGAL's Hausdorff distance, 20,000 samples) is kept: a seam through a region the map squeezes undersamples it.
+  std::optional<GeometryImage> best;
+  double bestDistance = std::numeric_limits<double>::infinity();
+  std::string lastWhy;
+  const std::vector<SurfaceMap> maps =
+      settings.map == SurfaceMap::Best
+          ? std::vector<SurfaceMap>{SurfaceMap::Authalic, SurfaceMap::Conformal, SurfaceMap::MeanValue}
+          : std::vector<SurfaceMap>{settings.map};
+  // (the source's own triangles are mapped: remeshing them evenly first was tried, 0.7 grid steps, and made the
+  // reconstruction 1-2x farther from the organ: the remeshed surface moved off the file's)
+  GeometryImage source;  // (its surface only)
+  {
+    std::map<SMV, int> at;
+    for (auto v : sm.vertices())
+      at[v] = static_cast<int>(source.sourcePoints.size()), source.sourcePoints.push_back(eig(sm.point(v)));
+    for (auto f : sm.faces()) {
+      std::array<int, 3> t{};
+      int k = 0;
+      for (auto v : CGAL::vertices_around_face(sm.halfedge(f), sm))
+        if (k < 3) t[static_cast<std::size_t>(k++)] = at[v];
+      source.sourceTriangles.push_back(t);
+    }
+  }
+  for (SurfaceMap map : maps) {
+    std::vector<SMV> branches;
+    for (int round = 0; round <= settings.seamBranches; ++round) {
+      auto gi = imageAlong(sm, 2, map, settings.size, branches, lastWhy);
+      if (!gi) break;
+      const double d =
+          surfaceHausdorff(source.sourcePoints, source.sourceTriangles, gi->points, gi->triangles(), 20000);
+      // The surface's vertex farthest from the grid's samples: the next branch of the seam goes there.
+      std::size_t worst = 0;
+      double worstDistance = -1;
+      for (std::size_t v = 0; v < source.sourcePoints.size(); ++v) {
+        double nearest = std::numeric_limits<double>::infinity();
+        for (const auto& q : gi->points) nearest = std::min(nearest, (q - source.sourcePoints[v]).squaredNorm());
+        if (nearest > worstDistance) worstDistance = nearest, worst = v;
+      }
+      if (d >= 0 && d < bestDistance) bestDistance = d, best = std::move(gi), best->map = map;
+      branches.push_back(SMV(static_cast<std::uint32_t>(worst)));
+    }
+  }
+  if (!best) {
+    why = lastWhy;
+    return std::nullopt;
+  }
+  best->droppedPieces = static_cast<int>(pieces);
+  best->sourcePoints = std::move(source.sourcePoints);
+  best->sourceTriangles = std::move(source.sourceTriangles);
+  best->filledHoles = filled;
+  return best;
+}
+
+double surfaceHausdorff(const std::vector<Eigen::Vector3d>& pointsA, const std::vector<std::array<int, 3>>& trianglesA,
+                        const std::vector<Eigen::Vector3d>& pointsB, const std::vector<std::array<int, 3>>& trianglesB,
+                        int samples) {
+  SM a, b;
+  if (!toSurfaceMesh(pointsA, trianglesA, a, false) || !toSurfaceMesh(pointsB, trianglesB, b, false)) return -1;
+  const double areaA = PMP::area(a), areaB = PMP::area(b);
+  if (!(areaA > 0) || !(areaB > 0)) return -1;
+  const double ab = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(
+      a, b, CGAL::parameters::number_of_points_per_area_unit(samples / areaA));
+  const double ba = PMP::approximate_Hausdorff_distance<CGAL::Sequential_tag>(
+      b, a, CGAL::parameters::number_of_points_per_area_unit(samples / areaB));
+  return std::max(ab, ba);
+}
+
+}  // namespace rehearse::simcore
