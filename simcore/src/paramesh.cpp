@@ -16,7 +16,13 @@ double hertzForce(double r, double effectiveModulus, double depth) {
 double rigidToolModulus(double youngModulus, double poisson) { return youngModulus / (1 - poisson * poisson); }
 
 ParameterizedMesh::ParameterizedMesh(GeometryImage image, const FfdSettings& settings)
-    : image_(std::move(image)), settings_(settings), x_(image_.points), step_(image_.points.size(), 0) {
+    : image_(std::move(image)),
+      settings_(settings),
+      x_(image_.points),
+      step_(image_.points.size(), 0),
+      seen_(image_.points.size(), 0) {
+  queue_.reserve(image_.points.size());
+  touched_.reserve(image_.points.size());
   const int n = image_.size;
   for (int i = 0; i < n; ++i)
     for (int j = 0; j < n; ++j) {
@@ -92,18 +98,32 @@ int ParameterizedMesh::nearestVertex(const Eigen::Vector3d& p) {
 void ParameterizedMesh::deform(int vertex, const Eigen::Vector3d& displacement) {
   for (int v : touched_) x_[static_cast<std::size_t>(v)] = image_.points[static_cast<std::size_t>(v)];
   touched_.clear();
-  const int n = image_.size, i0 = vertex / n, j0 = vertex % n;
-  const double h = std::max(step_[static_cast<std::size_t>(vertex)], 1e-9);  // m per grid step there
-  const int reach = std::min(n, static_cast<int>(std::ceil(settings_.radius / h)));
-  for (int i = std::max(0, i0 - reach); i <= std::min(n - 1, i0 + reach); ++i)
-    for (int j = std::max(0, j0 - reach); j <= std::min(n - 1, j0 + reach); ++j) {
-      const double s = h * std::hypot(i - i0, j - j0);  // the distance in parameter space, in metres at the tool
-      const double w = weight(s);
-      if (w <= 0) continue;
-      const int v = image_.index(i, j);
-      x_[static_cast<std::size_t>(v)] = image_.points[static_cast<std::size_t>(v)] + w * displacement;
-      touched_.push_back(v);
-    }
+  // The neighbourhood: the grid vertices joined to the tool's through grid neighbours (and across the seam) whose rest
+  // distance to it is within the radius; each moves by the Gaussian weight of that distance. (A weight on the grid's
+  // own distance would shrink the reach where the map squeezes the surface: there one grid step spans centimetres.)
+  const int n = image_.size;
+  const Eigen::Vector3d& centre = image_.points[static_cast<std::size_t>(vertex)];
+  ++stamp_;
+  queue_.clear();
+  queue_.push_back(vertex);
+  seen_[static_cast<std::size_t>(vertex)] = stamp_;
+  for (std::size_t head = 0; head < queue_.size(); ++head) {
+    const int v = queue_[head];
+    const double w = weight((image_.points[static_cast<std::size_t>(v)] - centre).norm());
+    x_[static_cast<std::size_t>(v)] = image_.points[static_cast<std::size_t>(v)] + w * displacement;
+    touched_.push_back(v);
+    auto visit = [&](int u) {
+      if (seen_[static_cast<std::size_t>(u)] == stamp_) return;
+      seen_[static_cast<std::size_t>(u)] = stamp_;
+      if ((image_.points[static_cast<std::size_t>(u)] - centre).norm() <= settings_.radius) queue_.push_back(u);
+    };
+    const int i = v / n, j = v % n;
+    if (i > 0) visit(v - n);
+    if (i + 1 < n) visit(v + n);
+    if (j > 0) visit(v - 1);
+    if (j + 1 < n) visit(v + 1);
+    for (int t : twins_[static_cast<std::size_t>(v)]) visit(t);
+  }
 }
 
 ParameterizedMesh::Contact ParameterizedMesh::poke(const Eigen::Vector3d& tip) {

@@ -47,6 +47,12 @@ ForceLoop::ForceLoop(std::function<ToolForceModel()> source, HapticDevice* devic
   periods_.data.resize(10000);
 }
 
+ForceLoop::ForceLoop(std::function<Eigen::Vector3d(const Eigen::Vector3d&)> forceAt, HapticDevice* device,
+                     double rateHz)
+    : ForceLoop(std::function<ToolForceModel()>(), device, rateHz) {
+  forceAt_ = std::move(forceAt);
+}
+
 ForceLoop::~ForceLoop() { stop(); }
 
 void ForceLoop::start() {
@@ -61,9 +67,13 @@ void ForceLoop::stop() {
 }
 
 Eigen::Vector3d ForceLoop::tick() {
-  const ToolForceModel model = source_ ? source_() : ToolForceModel{};
   Eigen::Vector3d f = Eigen::Vector3d::Zero();
-  if (model.step >= 0) f = device_ ? extrapolateForce(model, device_->position()) : model.force;
+  if (forceAt_) {
+    if (device_) f = forceAt_(device_->position());
+  } else {
+    const ToolForceModel model = source_ ? source_() : ToolForceModel{};
+    if (model.step >= 0) f = device_ ? extrapolateForce(model, device_->position()) : model.force;
+  }
   if (device_) device_->render(-f);
   const double t = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   record({t, f}, -1, false);

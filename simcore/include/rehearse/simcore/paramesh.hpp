@@ -107,8 +107,9 @@ class ParameterizedMesh {
     double normalForce = 0, tangentialForce = 0;      ///< N: magnitudes
   };
   /// A poke: the tool's tip at `tip`. Below the rest surface at the nearest vertex it deforms the surface (the nearest
-  /// vertex follows the tip, its parameter neighbourhood by the Gaussian weight, at most maxDisplacement) and returns
-  /// Hertz's force; above it the surface is at rest and nothing touches.
+  /// vertex follows the tip, at most maxDisplacement; its neighbourhood on the grid, the vertices joined to it within
+  /// the radius, across the seam too, by the Gaussian weight of their rest distance to it) and returns Hertz's force;
+  /// above it the surface is at rest and nothing touches.
   Contact poke(const Eigen::Vector3d& tip);
   /// A pull: `vertex` held and displaced by `displacement` from rest (a grasp), the neighbourhood by the Gaussian
   /// weight; the force is Hertz's law on the displacement's length, against it (the model's contact law used for
@@ -116,8 +117,8 @@ class ParameterizedMesh {
   Contact hold(int vertex, const Eigen::Vector3d& displacement);
   /// Back to rest; the next contact starts afresh (no tangential anchor).
   void release();
-  /// The Gaussian weight at a parameter-space distance `s` (m, along the surface): exp(-s^2 / (2 sigma^2)) with sigma =
-  /// radius / 3 (1.1 % at the radius), 0 past the radius.
+  /// The Gaussian weight at a distance `s` (m) from the tool's vertex: exp(-s^2 / (2 sigma^2)) with sigma = radius / 3
+  /// (1.1 % at the radius), 0 past the radius.
   double weight(double s) const;
 
  private:
@@ -127,6 +128,9 @@ class ParameterizedMesh {
   std::vector<Eigen::Vector3d> x_;
   std::vector<double> step_;
   std::vector<int> touched_;             ///< vertices the last deformation moved
+  std::vector<unsigned> seen_;  ///< per vertex: the deformation's stamp when reached (no allocation per update)
+  std::vector<int> queue_;
+  unsigned stamp_ = 0;
   std::vector<std::vector<int>> twins_;  ///< per border vertex: the border vertices at its place (across the seam)
   int last_ = -1;
   bool anchored_ = false;

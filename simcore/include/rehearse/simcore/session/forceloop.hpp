@@ -62,6 +62,9 @@ class ForceLoop {
  public:
   /// `source` gives the latest model (called every tick: keep it cheap and thread-safe); `device` is not owned.
   ForceLoop(std::function<ToolForceModel()> source, HapticDevice* device, double rateHz = 1000);
+  /// A model that computes the force itself at the device's position each tick (the parameterized mesh's FFD and Hertz
+  /// law, paramesh.hpp): `forceAt(p)` is the tool's force on the tissue at p (N), called on the loop's thread only.
+  ForceLoop(std::function<Eigen::Vector3d(const Eigen::Vector3d&)> forceAt, HapticDevice* device, double rateHz = 1000);
   ~ForceLoop();  ///< stops the thread
   ForceLoop(const ForceLoop&) = delete;
   ForceLoop& operator=(const ForceLoop&) = delete;
@@ -97,6 +100,7 @@ class ForceLoop {
   };
   Pending pending_;
   std::function<ToolForceModel()> source_;
+  std::function<Eigen::Vector3d(const Eigen::Vector3d&)> forceAt_;
   HapticDevice* device_;
   double rate_;
   std::chrono::steady_clock::time_point started_;
