@@ -73,8 +73,8 @@ int ParameterizedMesh::nearestVertex(const Eigen::Vector3d& p) {
   };
   if (last_ < 0) return last_ = full();
   int v = last_;
-  for (int guard = 0; guard < 4 * n;
-       ++guard) {  // the walk: to the nearest of the 24 grid neighbours while it is nearer
+  // The walk: to the nearest of the 24 grid neighbours (and their twins across the seam) while it is nearer.
+  for (int guard = 0; guard < 4 * n; ++guard) {
     int next = v;
     auto around = [&](int at) {
       const int i = at / n, j = at % n;
@@ -90,7 +90,8 @@ int ParameterizedMesh::nearestVertex(const Eigen::Vector3d& p) {
     if (next == v) break;
     v = next;
   }
-  // A walk can stop in a fold's local minimum or across the seam: checked against the step, else the full search.
+  // A walk can stop in a fold's local minimum: farther than two grid steps (a tool above the surface, or a stop), the
+  // full search (6,561 distances at 81 x 81: microseconds).
   if (std::sqrt(d2(v)) > 2 * std::max(step_[static_cast<std::size_t>(v)], 1e-9)) v = full();
   return last_ = v;
 }
@@ -103,7 +104,10 @@ void ParameterizedMesh::deform(int vertex, const Eigen::Vector3d& displacement) 
   // own distance would shrink the reach where the map squeezes the surface: there one grid step spans centimetres.)
   const int n = image_.size;
   const Eigen::Vector3d& centre = image_.points[static_cast<std::size_t>(vertex)];
-  ++stamp_;
+  if (++stamp_ == 0) {  // (wrapped after 4 billion updates: the marks start again)
+    std::fill(seen_.begin(), seen_.end(), 0u);
+    stamp_ = 1;
+  }
   queue_.clear();
   queue_.push_back(vertex);
   seen_[static_cast<std::size_t>(vertex)] = stamp_;

@@ -11,6 +11,7 @@
 
 #include <rehearse/app/gesture.hpp>
 #include <rehearse/app/recording.hpp>
+#include <rehearse/simcore/hybrid.hpp>
 #include <rehearse/simcore/precomputed.hpp>
 #include <rehearse/simcore/session/body.hpp>
 #include <rehearse/simcore/session/session.hpp>
@@ -229,6 +230,74 @@ class TestPrecomputed : public QObject {
   // y, z equals the held-node solve; with a floor under the organ (unilateral rows, y <= the lowest rest y, gravity
   // pushing the organ through it), the result is checked against the stiffness itself: K u - f_g = G^T lambda at
   // every free node (1e-8 of the gravity load), lambda >= 0 and the gap >= 0 on the floor's rows, complementary.
+  // The hybrid model's core: a FEM region around the held patch (the elements whose centre lies within `radius` of it),
+  // the rest condensed onto the interface through its precomputed responses: the whole organ's displacement and the
+  // force at the held nodes equal the direct linear static solution (1e-8 relative), for one node and a patch of 6,
+  // a small region and a large one; nothing is cut yet, so this is the 'equals the FEM where nothing is cut' half.
+  void hybridEqualsTheStaticSolution_data() {
+    QTest::addColumn<int>("held");
+    QTest::addColumn<double>("radius");
+    QTest::newRow("one node, 20 mm region") << 1 << 0.020;
+    QTest::newRow("a patch of 6, 20 mm region") << 6 << 0.020;
+    QTest::newRow("a patch of 6, 50 mm region") << 6 << 0.050;
+    QTest::newRow("a patch of 6, 90 mm region") << 6 << 0.090;
+  }
+  void hybridEqualsTheStaticSolution() {
+    QFETCH(int, held);
+    QFETCH(double, radius);
+    const FemModel model = FemModel::build(organ_.mesh, {}, material(MaterialModel::Linear, 0.45));
+    const std::vector<int> nodes = patch(static_cast<std::size_t>(held));
+    std::vector<char> region(model.tets.size(), 0);
+    const Eigen::Vector3d at = model.rest[static_cast<std::size_t>(nodes[0])];
+    for (std::size_t e = 0; e < model.tets.size(); ++e) {
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (int v : model.tets[e]) c += model.rest[static_cast<std::size_t>(v)] / 4;
+      region[e] = (c - at).norm() <= radius;
+    }
+    std::string why;
+    QElapsedTimer clock;
+    clock.start();
+    const auto h = HybridElasticity::build(model, organ_.fixed, region, kGravity, why);
+    QVERIFY2(h, why.c_str());
+    const double buildMs = static_cast<double>(clock.elapsed());
+    std::vector<Eigen::Vector3d> d;
+    for (std::size_t k = 0; k < nodes.size(); ++k)
+      d.push_back(Eigen::Vector3d(0.010, -0.004, 0.002) + 0.0005 * static_cast<double>(k) * Eigen::Vector3d::UnitZ());
+    Eigen::VectorXd u;
+    std::vector<Eigen::Vector3d> force, reaction;
+    QVERIFY2(h->solve(nodes, d, u, &force, why), why.c_str());
+    const Eigen::VectorXd ref = directSolve(model, organ_.fixed, nodes, d, &reaction);
+    const double err = relative(u, ref);
+    double forceErr = 0, forceNorm = 0;
+    for (std::size_t k = 0; k < nodes.size(); ++k) {
+      forceErr = std::max(forceErr, (force[k] - reaction[k]).norm());
+      forceNorm = std::max(forceNorm, reaction[k].norm());
+    }
+    qInfo(
+        "hybrid, %d held, region %.0f mm: %zu region nodes (%zu elements of the rest joined it: no attachment held "
+        "their piece), %zu on the interface, %zu in the rest (%.1f MB of responses, built in %.0f ms); relative error "
+        "%.2e, force up to %.3f N (error %.2e N)",
+        held, 1e3 * radius, h->regionNodes(), h->absorbedElements(), h->interfaceNodes(), h->restNodes(),
+        h->memoryBytes() / 1e6, buildMs, err, forceNorm, forceErr);
+    QVERIFY(h->interfaceNodes() > 0);
+    QVERIFY2(err <= 1e-8, qPrintable(QString::number(err)));
+    QVERIFY2(forceErr <= 1e-8 * forceNorm, qPrintable(QString::number(forceErr / forceNorm)));
+    for (std::size_t k = 0; k < nodes.size(); ++k) QVERIFY((u.segment<3>(3 * nodes[k]) - d[k]).norm() <= 1e-12);
+    // Refusals: a node outside the region; the region empty or everything; the rest without an attachment of its own.
+    int outside = -1;
+    for (int v : organ_.driven)
+      if (!h->inRegion(v)) outside = v;
+    QVERIFY(outside >= 0);
+    QVERIFY(!h->solve({outside}, {Eigen::Vector3d::Zero()}, u, nullptr, why));
+    QVERIFY2(QString::fromStdString(why).contains("outside the hybrid model's FEM region"), why.c_str());
+    QVERIFY(!HybridElasticity::build(model, organ_.fixed, std::vector<char>(model.tets.size(), 0), kGravity, why));
+    QVERIFY2(QString::fromStdString(why).contains("empty"), why.c_str());
+    QVERIFY(!HybridElasticity::build(model, organ_.fixed, std::vector<char>(model.tets.size(), 1), kGravity, why));
+    QVERIFY2(QString::fromStdString(why).contains("whole organ"), why.c_str());
+    QVERIFY(!HybridElasticity::build(model, std::vector<char>(model.nodeCount(), 0), region, kGravity, why));
+    QVERIFY2(QString::fromStdString(why).contains("not held by an attachment"), why.c_str());
+  }
+
   void constraintRowsHoldAndPush_data() {
     QTest::addColumn<bool>("surfaceRows");
     QTest::newRow("every node's response") << false;
