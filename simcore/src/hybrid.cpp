@@ -21,6 +21,10 @@ struct HybridElasticity::Parts {
   std::vector<int> restDofs;        ///< the rest's other free unknowns (I), in the rest's numbering
   std::vector<int> pNode;           ///< the rest's free node index -> node
   Eigen::MatrixXd condensed;        ///< S = K_GG + K_GI R_IG
+  Eigen::VectorXd restPull;         ///< K_GI u_I^0
+  std::vector<std::array<int, 4>> restTets;  ///< the rest's elements (whether a rebuild may keep its responses)
+  std::vector<double> restKey;               ///< their moduli, the rest's nodes' rest positions and masses
+  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
   Eigen::SparseMatrix<double> A;    ///< the region's K_R with S added on the interface (its free unknowns)
   Eigen::VectorXd b;                ///< f_R + S u_G^g
 };
@@ -33,6 +37,8 @@ HybridElasticity::~HybridElasticity() = default;
 std::size_t HybridElasticity::memoryBytes() const {
   return sizeof(double) * static_cast<std::size_t>(p_->responses.size() + p_->condensed.size() + p_->restSag.size());
 }
+
+const std::vector<char>& HybridElasticity::fixedNodes() const { return p_->fixed; }
 
 bool HybridElasticity::inRegion(int node) const {
   return node >= 0 && static_cast<std::size_t>(node) < p_->n && p_->rIndex[static_cast<std::size_t>(node)] >= 0;
@@ -66,13 +72,40 @@ Eigen::SparseMatrix<double> restrict(const Eigen::SparseMatrix<double>& K, const
 }
 }  // namespace
 
-std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, const std::vector<char>& fixed,
+std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, const std::vector<char>& fixedIn,
                                                         const std::vector<char>& region, const Eigen::Vector3d& gravity,
-                                                        std::string& why) {
+                                                        std::string& why, const HybridElasticity* previous) {
   const std::size_t n = model.nodeCount(), m = model.tets.size();
-  if (fixed.size() != n || region.size() != m) {
+  if (fixedIn.size() != n || region.size() != m) {
     why = "The hybrid model's fixed nodes or region do not match the mesh.";
     return std::nullopt;
+  }
+  // A piece of the organ no attachment holds (a cut took it off) has no static equilibrium: it would fall. A static
+  // model cannot let it, so it is held where it is (its nodes fixed at rest), counted and said (freePieces).
+  std::vector<char> fixed = fixedIn;
+  std::size_t freePieces = 0;
+  {
+    std::vector<int> root(n);
+    for (std::size_t v = 0; v < n; ++v) root[v] = static_cast<int>(v);
+    const std::function<int(int)> find = [&](int v) {
+      while (root[static_cast<std::size_t>(v)] != v)
+        v = root[static_cast<std::size_t>(v)] = root[static_cast<std::size_t>(root[static_cast<std::size_t>(v)])];
+      return v;
+    };
+    for (const auto& t : model.tets)
+      for (int k = 1; k < 4; ++k) root[static_cast<std::size_t>(find(t[static_cast<std::size_t>(k)]))] = find(t[0]);
+    std::vector<char> anchored(n, 0), used(n, 0);
+    for (const auto& t : model.tets)
+      for (int v : t) used[static_cast<std::size_t>(v)] = 1;
+    for (std::size_t v = 0; v < n; ++v)
+      if (fixed[v]) anchored[static_cast<std::size_t>(find(static_cast<int>(v)))] = 1;
+    std::vector<char> counted(n, 0);
+    for (std::size_t v = 0; v < n; ++v) {
+      const auto r = static_cast<std::size_t>(find(static_cast<int>(v)));
+      if (!used[v] || anchored[r]) continue;
+      fixed[v] = 1;
+      if (!counted[r]) counted[r] = 1, ++freePieces;
+    }
   }
   const auto inRegionCount = static_cast<std::size_t>(std::count(region.begin(), region.end(), 1));
   if (inRegionCount == 0 || inRegionCount == m) {
@@ -124,6 +157,7 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
     return std::nullopt;
   }
   HybridElasticity h;
+  h.freePieces_ = freePieces;
   Parts& p = *h.p_;
   p.n = n;
   p.fixed = fixed;
@@ -143,55 +177,79 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
   // displacement of each interface unknown, R_IG = -K_II^-1 K_IG (Cotin's tensors, to displacements); the rest's
   // stiffness condensed onto the interface, S = K_GG + K_GI R_IG. (Inverting the interface's compliance instead lost
   // five digits on a 50 mm region: the compliance of a soft body's interface is far worse conditioned.)
-  const Eigen::SparseMatrix<double> KP = restrict(partStiffness(model, restElements), p.pIndex, np);
-  std::vector<int> split(static_cast<std::size_t>(3 * np), -1);  // P unknown -> G index (>= 0) or -(I index) - 2
-  int ng = 0, ni = 0;
-  for (int v : h.interface_)
-    if (p.pIndex[static_cast<std::size_t>(v)] >= 0)
-      for (int a = 0; a < 3; ++a) {
-        const int dof = 3 * p.pIndex[static_cast<std::size_t>(v)] + a;
-        split[static_cast<std::size_t>(dof)] = ng++;
-        p.interfaceDofs.push_back(dof);
-      }
-  p.restDofs.clear();
-  for (int dof = 0; dof < 3 * np; ++dof)
-    if (split[static_cast<std::size_t>(dof)] < 0)
-      split[static_cast<std::size_t>(dof)] = -(ni++) - 2, p.restDofs.push_back(dof);
-  std::vector<Eigen::Triplet<double>> tII, tIG;
-  Eigen::MatrixXd KGG = Eigen::MatrixXd::Zero(ng, ng);
-  for (int c = 0; c < KP.outerSize(); ++c)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(KP, c); it; ++it) {
-      const int r = split[static_cast<std::size_t>(it.row())], k = split[static_cast<std::size_t>(c)];
-      if (r < -1 && k < -1)
-        tII.emplace_back(-r - 2, -k - 2, it.value());
-      else if (r < -1 && k >= 0)
-        tIG.emplace_back(-r - 2, k, it.value());
-      else if (r >= 0 && k >= 0)
-        KGG(r, k) += it.value();
+  std::vector<std::array<int, 4>> restTets;
+  std::vector<double> restKey;  // what else the rest's stiffness and load depend on: moduli, rest positions, masses
+  for (std::size_t e = 0; e < m; ++e)
+    if (restElements[e]) {
+      restTets.push_back(model.tets[e]);
+      restKey.push_back(model.lame[e].mu), restKey.push_back(model.lame[e].lambda);
     }
-  Eigen::SparseMatrix<double> KII(ni, ni), KIG(ni, ng);
-  KII.setFromTriplets(tII.begin(), tII.end());
-  KIG.setFromTriplets(tIG.begin(), tIG.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> restSolver(KII);
-  if (restSolver.info() != Eigen::Success) {
-    why = "The stiffness of the part outside the FEM region could not be factorised (a piece of it is free).";
-    return std::nullopt;
+  for (int v : p.pNode)
+    for (int a = 0; a < 3; ++a) restKey.push_back(model.rest[static_cast<std::size_t>(v)][a]);
+  for (int v : h.restNodes_) restKey.push_back(model.lumpedMass[v]);  // (the interface's weight is the region's)
+  int ng = 0;
+  if (previous && previous->p_->restTets == restTets && previous->interface_ == h.interface_ &&
+      previous->p_->pNode == p.pNode && previous->p_->gravity == gravity && previous->p_->restKey == restKey) {
+    // The rest is as it was (a cut stayed in the region, which may have grown without reaching it): its responses hold.
+    const Parts& q = *previous->p_;
+    p.restSag = q.restSag, p.responses = q.responses, p.condensed = q.condensed, p.restPull = q.restPull;
+    p.interfaceDofs = q.interfaceDofs, p.restDofs = q.restDofs;
+    ng = static_cast<int>(p.interfaceDofs.size());
+    h.reused_ = true;
+  } else {
+    const Eigen::SparseMatrix<double> KP = restrict(partStiffness(model, restElements), p.pIndex, np);
+    std::vector<int> split(static_cast<std::size_t>(3 * np), -1);  // P unknown -> G index (>= 0) or -(I index) - 2
+    int ni = 0;
+    for (int v : h.interface_)
+      if (p.pIndex[static_cast<std::size_t>(v)] >= 0)
+        for (int a = 0; a < 3; ++a) {
+          const int dof = 3 * p.pIndex[static_cast<std::size_t>(v)] + a;
+          split[static_cast<std::size_t>(dof)] = ng++;
+          p.interfaceDofs.push_back(dof);
+        }
+    p.restDofs.clear();
+    for (int dof = 0; dof < 3 * np; ++dof)
+      if (split[static_cast<std::size_t>(dof)] < 0)
+        split[static_cast<std::size_t>(dof)] = -(ni++) - 2, p.restDofs.push_back(dof);
+    std::vector<Eigen::Triplet<double>> tII, tIG;
+    Eigen::MatrixXd KGG = Eigen::MatrixXd::Zero(ng, ng);
+    for (int c = 0; c < KP.outerSize(); ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(KP, c); it; ++it) {
+        const int r = split[static_cast<std::size_t>(it.row())], k = split[static_cast<std::size_t>(c)];
+        if (r < -1 && k < -1)
+          tII.emplace_back(-r - 2, -k - 2, it.value());
+        else if (r < -1 && k >= 0)
+          tIG.emplace_back(-r - 2, k, it.value());
+        else if (r >= 0 && k >= 0)
+          KGG(r, k) += it.value();
+      }
+    Eigen::SparseMatrix<double> KII(ni, ni), KIG(ni, ng);
+    KII.setFromTriplets(tII.begin(), tII.end());
+    KIG.setFromTriplets(tIG.begin(), tIG.end());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> restSolver(KII);
+    if (restSolver.info() != Eigen::Success) {
+      why = "The stiffness of the part outside the FEM region could not be factorised (a piece of it is free).";
+      return std::nullopt;
+    }
+    Eigen::VectorXd fI = Eigen::VectorXd::Zero(ni);
+    for (int v : h.restNodes_)
+      if (p.pIndex[static_cast<std::size_t>(v)] >= 0)
+        for (int a = 0; a < 3; ++a)
+          fI[-split[static_cast<std::size_t>(3 * p.pIndex[static_cast<std::size_t>(v)] + a)] - 2] =
+              model.lumpedMass[v] * gravity[a];
+    p.restSag = restSolver.solve(fI);
+    p.responses = -restSolver.solve(Eigen::MatrixXd(KIG));
+    if (!p.responses.allFinite() || !p.restSag.allFinite()) {
+      why = "The responses of the part outside the FEM region are not finite (its stiffness is singular).";
+      return std::nullopt;
+    }
+    p.condensed = KGG + Eigen::MatrixXd(KIG.transpose()) * p.responses;
+    p.condensed = 0.5 * (p.condensed + p.condensed.transpose());
+    p.restPull = KIG.transpose() * p.restSag;  // K_GI u_I^0: the rest's weight felt at the interface
   }
-  Eigen::VectorXd fI = Eigen::VectorXd::Zero(ni);
-  for (int v : h.restNodes_)
-    if (p.pIndex[static_cast<std::size_t>(v)] >= 0)
-      for (int a = 0; a < 3; ++a)
-        fI[-split[static_cast<std::size_t>(3 * p.pIndex[static_cast<std::size_t>(v)] + a)] - 2] =
-            model.lumpedMass[v] * gravity[a];
-  p.restSag = restSolver.solve(fI);
-  p.responses = -restSolver.solve(Eigen::MatrixXd(KIG));
-  if (!p.responses.allFinite() || !p.restSag.allFinite()) {
-    why = "The responses of the part outside the FEM region are not finite (its stiffness is singular).";
-    return std::nullopt;
-  }
-  p.condensed = KGG + Eigen::MatrixXd(KIG.transpose()) * p.responses;
-  p.condensed = 0.5 * (p.condensed + p.condensed.transpose());
-  const Eigen::VectorXd restPull = KIG.transpose() * p.restSag;  // K_GI u_I^0: the rest's weight felt at the interface
+  p.restTets = std::move(restTets);
+  p.restKey = std::move(restKey);
+  p.gravity = gravity;
   // The region: its own stiffness over its free nodes plus S on the interface; its load: every node it touches, and
   // S u_G^g from the rest.
   h.absorbed_ = static_cast<std::size_t>(std::count(inRegion.begin(), inRegion.end(), 1)) - inRegionCount;
@@ -213,7 +271,7 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
   for (int v : h.regionNodes_)
     if (p.rIndex[static_cast<std::size_t>(v)] >= 0)
       p.b.segment<3>(3 * p.rIndex[static_cast<std::size_t>(v)]) = model.lumpedMass[v] * gravity;
-  for (int k = 0; k < ng; ++k) p.b[gInR[static_cast<std::size_t>(k)]] -= restPull[k];
+  for (int k = 0; k < ng; ++k) p.b[gInR[static_cast<std::size_t>(k)]] -= p.restPull[k];
   return h;
 }
 

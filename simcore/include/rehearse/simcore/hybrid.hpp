@@ -18,6 +18,7 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -29,12 +30,21 @@ class HybridElasticity {
  public:
   /// Splits `model` (its stiffness at rest: the linear law's) into the elements marked in `region` (1: the FEM part)
   /// and the rest, with `fixed` nodes (1) held, and precomputes the rest's responses at the interface and its sag under
-  /// `gravity`. A piece of the rest that no attachment holds joins the region (absorbedElements). Nothing, with a
-  /// sentence in `why`, when the region is empty or is every element, the rest is not held by a fixed node (a free part
-  /// has no static response), or a stiffness is singular.
+  /// `gravity`. A piece of the rest that no attachment holds joins the region (absorbedElements). With `previous` (the
+  /// same organ before its region changed: a cut), the rest's responses are kept when the rest is unchanged. Nothing,
+  /// with a sentence in `why`, when the region is empty or is every element, the rest is not held by a fixed node (a
+  /// free part has no static response), or a stiffness is singular.
   static std::optional<HybridElasticity> build(const FemModel& model, const std::vector<char>& fixed,
                                                const std::vector<char>& region, const Eigen::Vector3d& gravity,
-                                               std::string& why);
+                                               std::string& why, const HybridElasticity* previous = nullptr);
+  /// Whether build() kept `previous`'s responses of the rest (its elements, nodes and interface unchanged: a cut, and
+  /// the region's growth with it, stayed away from the rest); otherwise they were computed again.
+  bool reusedRest() const { return reused_; }
+  /// Pieces of the organ no attachment holds (cut off): a static model cannot let them fall, so they are held where
+  /// they are at rest (their nodes fixed: fixedNodes()). 0 normally.
+  std::size_t freePieces() const { return freePieces_; }
+  /// The nodes held: the attachments and the free pieces' nodes (1).
+  const std::vector<char>& fixedNodes() const;
   HybridElasticity(HybridElasticity&&) noexcept;
   HybridElasticity& operator=(HybridElasticity&&) noexcept;
   ~HybridElasticity();
@@ -61,6 +71,8 @@ class HybridElasticity {
   std::unique_ptr<Parts> p_;
   std::vector<int> regionNodes_, interface_, restNodes_;
   std::size_t absorbed_ = 0;
+  bool reused_ = false;
+  std::size_t freePieces_ = 0;
 };
 
 }  // namespace rehearse::simcore
