@@ -80,6 +80,10 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
     why = "The hybrid model's fixed nodes or region do not match the mesh.";
     return std::nullopt;
   }
+  if (std::find(fixedIn.begin(), fixedIn.end(), 1) == fixedIn.end()) {
+    why = "The organ is not held by an attachment: a free body has no static response (attach it first).";
+    return std::nullopt;
+  }
   // A piece of the organ no attachment holds (a cut took it off) has no static equilibrium: it would fall. A static
   // model cannot let it, so it is held where it is (its nodes fixed at rest), counted and said (freePieces).
   std::vector<char> fixed = fixedIn;
