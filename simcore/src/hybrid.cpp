@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <functional>
+#include <mutex>
 #include <set>
 
 namespace rehearse::simcore {
@@ -26,7 +27,14 @@ struct HybridElasticity::Parts {
   std::vector<double> restKey;               ///< their moduli, the rest's nodes' rest positions and masses
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
   Eigen::SparseMatrix<double> A;    ///< the region's K_R with S added on the interface (its free unknowns)
-  Eigen::VectorXd b;                ///< f_R + S u_G^g
+  Eigen::VectorXd b;                ///< f_R - K_GI u_I^0 on the interface
+  // The region's system with the last held nodes eliminated, factorised (solve() reuses it for the same held nodes).
+  std::mutex cacheMutex;
+  bool cacheValid = false;
+  std::vector<int> cachedHeld, freeIndex, heldDofs;
+  Eigen::SparseMatrix<double> Afh;
+  Eigen::VectorXd bf;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver;
 };
 
 HybridElasticity::HybridElasticity() : p_(std::make_unique<Parts>()) {}
@@ -281,7 +289,7 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
 
 bool HybridElasticity::solve(const std::vector<int>& held, const std::vector<Eigen::Vector3d>& displacement,
                              Eigen::VectorXd& u, std::vector<Eigen::Vector3d>* forces, std::string& why) const {
-  const Parts& p = *p_;
+  Parts& p = *p_;  // (its factorisation cache changes; the mutex keeps solves one at a time)
   if (held.size() != displacement.size()) {
     why = "Each held node needs its displacement.";
     return false;
@@ -300,39 +308,59 @@ bool HybridElasticity::solve(const std::vector<int>& held, const std::vector<Eig
     }
   }
   const int nr = static_cast<int>(p.b.size()) / 3;
-  // The region's unknowns: held ones known, the others solved (A_ff u_f = b_f - A_fh u_h).
-  std::vector<int> freeIndex(static_cast<std::size_t>(3 * nr), -1);
+  // The region's unknowns: held ones known, the others solved (A_ff u_f = b_f - A_fh u_h). A_ff's factorisation is
+  // kept for the same held nodes (an instrument holds the same ones from step to step: a solve is then two
+  // triangular solves).
   Eigen::VectorXd uR = Eigen::VectorXd::Zero(3 * nr);
-  std::vector<char> isHeld(static_cast<std::size_t>(3 * nr), 0);
-  for (std::size_t k = 0; k < held.size(); ++k) {
-    const int r = p.rIndex[static_cast<std::size_t>(held[k])];
-    uR.segment<3>(3 * r) = displacement[k];
-    for (int a = 0; a < 3; ++a) isHeld[static_cast<std::size_t>(3 * r + a)] = 1;
-  }
-  int nf = 0;
-  for (int i = 0; i < 3 * nr; ++i)
-    if (!isHeld[static_cast<std::size_t>(i)]) freeIndex[static_cast<std::size_t>(i)] = nf++;
-  std::vector<Eigen::Triplet<double>> t;
-  Eigen::VectorXd rhs(nf);
-  for (int i = 0; i < 3 * nr; ++i)
-    if (freeIndex[static_cast<std::size_t>(i)] >= 0) rhs[freeIndex[static_cast<std::size_t>(i)]] = p.b[i];
-  for (int c = 0; c < p.A.outerSize(); ++c)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(p.A, c); it; ++it) {
-      const int fr = freeIndex[static_cast<std::size_t>(it.row())], fc = freeIndex[static_cast<std::size_t>(c)];
-      if (fr < 0) continue;
-      if (fc >= 0)
-        t.emplace_back(fr, fc, it.value());
+  for (std::size_t k = 0; k < held.size(); ++k)
+    uR.segment<3>(3 * p.rIndex[static_cast<std::size_t>(held[k])]) = displacement[k];
+  std::lock_guard<std::mutex> lock(p.cacheMutex);
+  if (!p.cacheValid || p.cachedHeld != held) {
+    p.cacheValid = false;
+    std::vector<char> isHeld(static_cast<std::size_t>(3 * nr), 0);
+    for (int v : held)
+      for (int a = 0; a < 3; ++a) isHeld[static_cast<std::size_t>(3 * p.rIndex[static_cast<std::size_t>(v)] + a)] = 1;
+    p.freeIndex.assign(static_cast<std::size_t>(3 * nr), -1);
+    p.heldDofs.clear();
+    int nf = 0;
+    for (int i = 0; i < 3 * nr; ++i) {
+      if (!isHeld[static_cast<std::size_t>(i)])
+        p.freeIndex[static_cast<std::size_t>(i)] = nf++;
       else
-        rhs[fr] -= it.value() * uR[c];
+        p.heldDofs.push_back(i);
     }
-  Eigen::SparseMatrix<double> Aff(nf, nf);
-  Aff.setFromTriplets(t.begin(), t.end());
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(Aff);
-  if (solver.info() != Eigen::Success) {
-    why = "The FEM region's system could not be factorised.";
-    return false;
+    std::vector<Eigen::Triplet<double>> tf, th;
+    std::vector<int> heldColumn(static_cast<std::size_t>(3 * nr), -1);
+    for (std::size_t k = 0; k < p.heldDofs.size(); ++k)
+      heldColumn[static_cast<std::size_t>(p.heldDofs[k])] = static_cast<int>(k);
+    for (int c = 0; c < p.A.outerSize(); ++c)
+      for (Eigen::SparseMatrix<double>::InnerIterator it(p.A, c); it; ++it) {
+        const int fr = p.freeIndex[static_cast<std::size_t>(it.row())], fc = p.freeIndex[static_cast<std::size_t>(c)];
+        if (fr < 0) continue;
+        if (fc >= 0)
+          tf.emplace_back(fr, fc, it.value());
+        else
+          th.emplace_back(fr, heldColumn[static_cast<std::size_t>(c)], it.value());
+      }
+    Eigen::SparseMatrix<double> Aff(nf, nf);
+    Aff.setFromTriplets(tf.begin(), tf.end());
+    p.Afh.resize(nf, static_cast<Eigen::Index>(p.heldDofs.size()));
+    p.Afh.setFromTriplets(th.begin(), th.end());
+    p.bf.resize(nf);
+    for (int i = 0; i < 3 * nr; ++i)
+      if (p.freeIndex[static_cast<std::size_t>(i)] >= 0) p.bf[p.freeIndex[static_cast<std::size_t>(i)]] = p.b[i];
+    p.solver.compute(Aff);
+    if (p.solver.info() != Eigen::Success) {
+      why = "The FEM region's system could not be factorised.";
+      return false;
+    }
+    p.cachedHeld = held;
+    p.cacheValid = true;
   }
-  const Eigen::VectorXd uf = solver.solve(rhs);
+  Eigen::VectorXd uh(static_cast<Eigen::Index>(p.heldDofs.size()));
+  for (std::size_t k = 0; k < p.heldDofs.size(); ++k) uh[static_cast<Eigen::Index>(k)] = uR[p.heldDofs[k]];
+  const Eigen::VectorXd uf = p.solver.solve(p.bf - p.Afh * uh);
+  const std::vector<int>& freeIndex = p.freeIndex;
   for (int i = 0; i < 3 * nr; ++i)
     if (freeIndex[static_cast<std::size_t>(i)] >= 0) uR[i] = uf[freeIndex[static_cast<std::size_t>(i)]];
   if (!uR.allFinite()) {
