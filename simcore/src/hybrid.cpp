@@ -6,7 +6,6 @@
 #include <Eigen/SparseCholesky>
 
 #include <algorithm>
-#include <functional>
 #include <mutex>
 #include <set>
 
@@ -62,6 +61,22 @@ Eigen::SparseMatrix<double> partStiffness(const FemModel& model, const std::vect
   assembleStiffness(part, part.restVector(), K);
   return K;
 }
+// Nodes joined into pieces (union-find with path halving).
+struct Pieces {
+  std::vector<int> root;
+  explicit Pieces(std::size_t n) : root(n) {
+    for (std::size_t v = 0; v < n; ++v) root[v] = static_cast<int>(v);
+  }
+  int find(int v) {
+    while (root[static_cast<std::size_t>(v)] != v)
+      v = root[static_cast<std::size_t>(v)] = root[static_cast<std::size_t>(root[static_cast<std::size_t>(v)])];
+    return v;
+  }
+  void join(const std::array<int, 4>& t) {
+    for (int k = 1; k < 4; ++k) root[static_cast<std::size_t>(find(t[static_cast<std::size_t>(k)]))] = find(t[0]);
+  }
+};
+
 // Rows and columns of K for the nodes with index[node] >= 0 (3 each).
 Eigen::SparseMatrix<double> restrict(const Eigen::SparseMatrix<double>& K, const std::vector<int>& index, int size) {
   std::vector<Eigen::Triplet<double>> t;
@@ -97,15 +112,9 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
   std::vector<char> fixed = fixedIn;
   std::size_t freePieces = 0;
   {
-    std::vector<int> root(n);
-    for (std::size_t v = 0; v < n; ++v) root[v] = static_cast<int>(v);
-    const std::function<int(int)> find = [&](int v) {
-      while (root[static_cast<std::size_t>(v)] != v)
-        v = root[static_cast<std::size_t>(v)] = root[static_cast<std::size_t>(root[static_cast<std::size_t>(v)])];
-      return v;
-    };
-    for (const auto& t : model.tets)
-      for (int k = 1; k < 4; ++k) root[static_cast<std::size_t>(find(t[static_cast<std::size_t>(k)]))] = find(t[0]);
+    Pieces pieces(n);
+    const auto find = [&](int v) { return pieces.find(v); };
+    for (const auto& t : model.tets) pieces.join(t);
     std::vector<char> anchored(n, 0), used(n, 0);
     for (const auto& t : model.tets)
       for (int v : t) used[static_cast<std::size_t>(v)] = 1;
@@ -129,17 +138,10 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
   // static response of its own (its stiffness is singular), so it joins the FEM region.
   std::vector<char> inRegion(region.begin(), region.end());
   {
-    std::vector<int> root(n);
-    for (std::size_t v = 0; v < n; ++v) root[v] = static_cast<int>(v);
-    const std::function<int(int)> find = [&](int v) {
-      while (root[static_cast<std::size_t>(v)] != v)
-        v = root[static_cast<std::size_t>(v)] = root[static_cast<std::size_t>(root[static_cast<std::size_t>(v)])];
-      return v;
-    };
+    Pieces pieces(n);
+    const auto find = [&](int v) { return pieces.find(v); };
     for (std::size_t e = 0; e < m; ++e)
-      if (!inRegion[e])
-        for (int k = 1; k < 4; ++k)
-          root[static_cast<std::size_t>(find(model.tets[e][static_cast<std::size_t>(k)]))] = find(model.tets[e][0]);
+      if (!inRegion[e]) pieces.join(model.tets[e]);
     std::vector<char> anchored(n, 0);
     for (std::size_t e = 0; e < m; ++e)
       if (!inRegion[e])
