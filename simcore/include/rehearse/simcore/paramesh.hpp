@@ -1,8 +1,9 @@
 #pragma once
 // The parameterized mesh (issue 37; the older simulators' haptic-rate surface model): the organ's surface resampled on
 // an m x n grid (a geometry image, Gu, Gortler and Hoppe 2002) through CGAL's surface parameterization (the closed
-// surface cut to a disk along a seam between its two farthest ends, mapped onto the unit square, discrete authalic or
-// conformal), then deformed by a Gaussian free-form deformation in parameter space around the vertex nearest the tool,
+// surface cut to a disk along a seam tree from its two farthest ends, mapped onto the unit square: discrete authalic,
+// conformal or mean-value), then deformed by a Gaussian free-form deformation over the grid around the vertex nearest
+// the tool (its grid neighbourhood, across the seam too, weighted by the rest distance),
 // with the paper's two controls (the radius of influence and the largest displacement), and the tool's force from
 // Hertz's contact law, F_n = 4/3 sqrt(r) E* d^(3/2) along the surface normal (r the tool tip's radius, E* the
 // effective modulus, d the depth), and a linear tangential spring F_t = k d_t that slips past Coulomb's cone.
@@ -74,7 +75,7 @@ double hertzForce(double r, double effectiveModulus, double depth);
 double rigidToolModulus(double youngModulus, double poisson);
 
 struct FfdSettings {
-  double radius = 0.02;           ///< m: the deformation's reach on the surface (its weight 1 % there, nothing past it)
+  double radius = 0.02;           ///< m: the deformation's reach (its weight 1.1 % there, nothing past it)
   double maxDisplacement = 0.02;  ///< m: the largest displacement the deformation makes (the tool goes no further)
   double youngModulus = 4000;     ///< Pa (E* from it and nu for Hertz's law)
   double poisson = 0.45;
