@@ -30,6 +30,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <string>
 #include <vector>
@@ -141,34 +142,31 @@ std::vector<Answer> femAnswers(const Meshed& m, MaterialParams material, Materia
   return answers;
 }
 
-std::vector<Answer> precomputedAnswers(const Meshed& m, MaterialParams material,
-                                       const std::vector<Eigen::Vector3d>& samples) {
-  material.model = MaterialModel::Linear;
-  const FemModel model = FemModel::build(m.mesh, {}, material);
-  std::vector<int> driven;
-  for (int v : m.surface)
-    if (!m.fixed[static_cast<std::size_t>(v)]) driven.push_back(v);
-  std::string why;
-  PrecomputeSettings ps;
-  const auto pc = PrecomputedElasticity::build(model, m.fixed, driven, kGravity, ps, why);
+// A superposed model's answers (precomputed, hybrid): `solve(held, displacement, u, forces)` gives the static
+// displacement from rest (3n) with the held nodes displaced from rest and their forces; `held` are the nodes it holds
+// (the patch, or what of it the model can hold: `wholePatch` says whether that is all of it). The sag is its answer
+// with nothing held; each action moves the held nodes from their sagged places; the update is one solve (median of
+// `repeat`).
+using SuperposedSolve = std::function<bool(const std::vector<int>&, const std::vector<Eigen::Vector3d>&,
+                                           Eigen::VectorXd&, std::vector<Eigen::Vector3d>*)>;
+std::vector<Answer> superposedAnswers(const FemModel& model, const std::vector<int>& held, bool wholePatch,
+                                      const SuperposedSolve& solve, int repeat,
+                                      const std::vector<Eigen::Vector3d>& samples) {
   std::vector<Answer> answers;
-  if (!pc) {
-    std::printf("precomputed: %s\n", why.c_str());
-    return answers;
-  }
+  Eigen::VectorXd sag;
+  if (!solve({}, {}, sag, nullptr)) return answers;
   const SurfaceEmbedding at = embedPoints(model, samples);
-  Eigen::VectorXd x0 = model.restVector() + pc->sag();
-  const std::vector<Eigen::Vector3d> sagged = mapEmbedded(at, x0);
+  const std::vector<Eigen::Vector3d> sagged = mapEmbedded(at, Eigen::VectorXd(model.restVector() + sag));
   for (const Action& a : kActions) {
     std::vector<Eigen::Vector3d> disp;
-    for (int v : m.held) disp.push_back(pc->sag().segment<3>(3 * v) + a.d);
+    for (int v : held) disp.push_back(sag.segment<3>(3 * v) + a.d);
     Eigen::VectorXd u;
     std::vector<Eigen::Vector3d> forces;
     std::vector<double> times;
     Answer ans;
-    for (int k = 0; k < 21; ++k) {
+    for (int k = 0; k < repeat; ++k) {
       const auto t0 = Clock::now();
-      ans.converged = pc->solve(m.held, disp, u, &forces, why);
+      ans.converged = solve(held, disp, u, &forces) && wholePatch;
       times.push_back(msSince(t0));
     }
     std::sort(times.begin(), times.end());
@@ -179,6 +177,26 @@ std::vector<Answer> precomputedAnswers(const Meshed& m, MaterialParams material,
     answers.push_back(std::move(ans));
   }
   return answers;
+}
+
+std::vector<Answer> precomputedAnswers(const Meshed& m, MaterialParams material,
+                                       const std::vector<Eigen::Vector3d>& samples) {
+  material.model = MaterialModel::Linear;
+  const FemModel model = FemModel::build(m.mesh, {}, material);
+  std::vector<int> driven;
+  for (int v : m.surface)
+    if (!m.fixed[static_cast<std::size_t>(v)]) driven.push_back(v);
+  std::string why;
+  const auto pc = PrecomputedElasticity::build(model, m.fixed, driven, kGravity, {}, why);
+  if (!pc) {
+    std::printf("precomputed: %s\n", why.c_str());
+    return {};
+  }
+  return superposedAnswers(
+      model, m.held, true,
+      [&](const std::vector<int>& held, const std::vector<Eigen::Vector3d>& d, Eigen::VectorXd& u,
+          std::vector<Eigen::Vector3d>* forces) { return pc->solve(held, d, u, forces, why); },
+      21, samples);
 }
 
 // The hybrid model: a FEM region of the elements whose centre lies within 40 mm of the front, the rest condensed onto
@@ -195,38 +213,18 @@ std::vector<Answer> hybridAnswers(const Meshed& m, MaterialParams material, cons
   }
   std::string why;
   const auto h = HybridElasticity::build(model, m.fixed, region, kGravity, why);
-  std::vector<Answer> answers;
   if (!h) {
     std::printf("hybrid: %s\n", why.c_str());
-    return answers;
+    return {};
   }
   std::vector<int> held;
   for (int v : m.held)
     if (h->inRegion(v)) held.push_back(v);
-  Eigen::VectorXd sag;
-  if (!h->solve({}, {}, sag, nullptr, why)) return answers;
-  const SurfaceEmbedding at = embedPoints(model, samples);
-  const std::vector<Eigen::Vector3d> sagged = mapEmbedded(at, Eigen::VectorXd(model.restVector() + sag));
-  for (const Action& a : kActions) {
-    std::vector<Eigen::Vector3d> disp;
-    for (int v : held) disp.push_back(sag.segment<3>(3 * v) + a.d);
-    Eigen::VectorXd u;
-    std::vector<Eigen::Vector3d> forces;
-    std::vector<double> times;
-    Answer ans;
-    for (int k = 0; k < 11; ++k) {
-      const auto t0 = Clock::now();
-      ans.converged = h->solve(held, disp, u, &forces, why) && held.size() == m.held.size();
-      times.push_back(msSince(t0));
-    }
-    std::sort(times.begin(), times.end());
-    ans.ms = times[times.size() / 2];
-    const std::vector<Eigen::Vector3d> now = mapEmbedded(at, Eigen::VectorXd(model.restVector() + u));
-    for (std::size_t i = 0; i < samples.size(); ++i) ans.du.push_back(now[i] - sagged[i]);
-    for (const auto& f : forces) ans.force += f;
-    answers.push_back(std::move(ans));
-  }
-  return answers;
+  return superposedAnswers(
+      model, held, held.size() == m.held.size(),
+      [&](const std::vector<int>& nodes, const std::vector<Eigen::Vector3d>& d, Eigen::VectorXd& u,
+          std::vector<Eigen::Vector3d>* forces) { return h->solve(nodes, d, u, forces, why); },
+      11, samples);
 }
 
 std::vector<Answer> ffdAnswers(const Mesh& surface, int size, double radius, const MaterialParams& material,
@@ -380,41 +378,31 @@ int main(int argc, char** argv) {
     for (const std::size_t target :
          quick ? std::vector<std::size_t>{2000} : std::vector<std::size_t>{2000, 6000, 12000}) {
       const Meshed m = meshAt(organ.surface, target, front);
+      // The linear FEM once: reported, and what the precomputed and (uncut) hybrid models must equal to round-off on
+      // the same mesh (a self-check: a difference over 1e-6 fails the run).
+      const std::vector<Answer> linear = femAnswers(m, material, MaterialModel::Linear, samples);
+      report("FEM linear", m.mesh.tets.size(), linear);
       for (const auto& [law, name] :
-           std::vector<std::pair<MaterialModel, const char*>>{{MaterialModel::Linear, "FEM linear"},
-                                                              {MaterialModel::Corotational, "FEM co-rotational"},
+           std::vector<std::pair<MaterialModel, const char*>>{{MaterialModel::Corotational, "FEM co-rotational"},
                                                               {MaterialModel::StVK, "FEM StVK"},
                                                               {MaterialModel::NeoHookean, "FEM Neo-Hookean"}})
         report(name, m.mesh.tets.size(), femAnswers(m, material, law, samples));
-      const std::vector<Answer> linear = femAnswers(m, material, MaterialModel::Linear, samples),
-                                superposed = precomputedAnswers(m, material, samples);
-      report("precomputed linear", m.mesh.tets.size(), superposed);
-      const std::vector<Answer> hybrid = hybridAnswers(m, material, front, samples);
-      report("hybrid (40 mm FEM region)", m.mesh.tets.size(), hybrid);
-      // Superposition is the linear FEM's static answer: the same to round-off on the same mesh (a self-check).
-      for (std::size_t k = 0; k < superposed.size() && k < linear.size(); ++k) {
-        std::vector<Eigen::Vector3d> diff;
-        for (std::size_t i = 0; i < samples.size(); ++i) diff.push_back(superposed[k].du[i] - linear[k].du[i]);
-        const double d = rms(diff) / rms(linear[k].du);
-        if (!(d < 1e-6)) {
-          std::printf("precomputed and linear FEM differ by %.2e on %zu elements (%s)\n", d, m.mesh.tets.size(),
-                      kActions[k].name);
-          ++failures;
+      for (const auto& [name, answers] : std::vector<std::pair<std::string, std::vector<Answer>>>{
+               {"precomputed linear", precomputedAnswers(m, material, samples)},
+               {"hybrid (40 mm FEM region)", hybridAnswers(m, material, front, samples)}}) {
+        report(name, m.mesh.tets.size(), answers);
+        if (answers.size() != std::size(kActions)) ++failures;
+        for (std::size_t k = 0; k < answers.size() && k < linear.size(); ++k) {
+          std::vector<Eigen::Vector3d> diff;
+          for (std::size_t i = 0; i < samples.size(); ++i) diff.push_back(answers[k].du[i] - linear[k].du[i]);
+          const double d = rms(diff) / rms(linear[k].du);
+          if (!(d < 1e-6)) {
+            std::printf("%s and the linear FEM differ by %.2e on %zu elements (%s)\n", name.c_str(), d,
+                        m.mesh.tets.size(), kActions[k].name);
+            ++failures;
+          }
         }
       }
-      if (superposed.size() != std::size(kActions)) ++failures;
-      // Uncut, the hybrid model is the linear FEM's static answer too.
-      for (std::size_t k = 0; k < hybrid.size() && k < linear.size(); ++k) {
-        std::vector<Eigen::Vector3d> diff;
-        for (std::size_t i = 0; i < samples.size(); ++i) diff.push_back(hybrid[k].du[i] - linear[k].du[i]);
-        const double d = rms(diff) / rms(linear[k].du);
-        if (!(d < 1e-6)) {
-          std::printf("hybrid and linear FEM differ by %.2e on %zu elements (%s)\n", d, m.mesh.tets.size(),
-                      kActions[k].name);
-          ++failures;
-        }
-      }
-      if (hybrid.size() != std::size(kActions)) ++failures;
     }
     for (const int size : quick ? std::vector<int>{41} : std::vector<int>{41, 81, 161})
       report("FFD " + std::to_string(size) + " x " + std::to_string(size), 0,

@@ -48,11 +48,22 @@ Surface sphere(int subdivisions) {
 
 class TestParamesh : public QObject {
   Q_OBJECT
+  std::optional<GeometryImage> sphere_;  ///< the icosphere's image (r = 50 mm, 4 subdivisions), made by the first test
+  const GeometryImage* sphereImage() {
+    if (!sphere_) {
+      const Surface s = sphere(4);
+      std::string why;
+      sphere_ = makeGeometryImage(s.points, s.triangles, {}, why);
+    }
+    return sphere_ ? &*sphere_ : nullptr;
+  }
+
  private slots:
   void geometryImageOfASphere() {
     const Surface s = sphere(4);
     std::string why;
     const auto gi = makeGeometryImage(s.points, s.triangles, {}, why);
+    sphere_ = gi;
     QVERIFY2(gi, why.c_str());
     QCOMPARE(gi->size, 81);
     QCOMPARE(gi->points.size(), std::size_t(81 * 81));
@@ -153,10 +164,8 @@ class TestParamesh : public QObject {
     QVERIFY(std::abs(hertzForce(0.008, 5000, 0.003) / hertzForce(0.002, 5000, 0.003) - 2.0) < 1e-12);
 
     // On the model: the tip pressed 4 mm along the inward normal at a vertex of the sphere's image.
-    const Surface s = sphere(4);
-    std::string why;
-    auto gi = makeGeometryImage(s.points, s.triangles, {}, why);
-    QVERIFY2(gi, why.c_str());
+    const GeometryImage* gi = sphereImage();  // (made once: its own test checks it)
+    QVERIFY(gi);
     FfdSettings fs;
     fs.radius = 0.02;
     fs.maxDisplacement = 0.01;
@@ -202,10 +211,8 @@ class TestParamesh : public QObject {
 
   void theForceLoopRendersHertzsForce() {
     // The loop's own model: each tick the FFD at the device's position, the hand given the tissue's force on the tool.
-    const Surface s = sphere(4);
-    std::string why;
-    auto gi = makeGeometryImage(s.points, s.triangles, {}, why);
-    QVERIFY2(gi, why.c_str());
+    const GeometryImage* gi = sphereImage();  // (made once: its own test checks it)
+    QVERIFY(gi);
     ParameterizedMesh pm(*gi, {});
     const int v = gi->index(40, 40);
     const Eigen::Vector3d p = gi->points[static_cast<std::size_t>(v)], n = gi->normals[static_cast<std::size_t>(v)];
@@ -227,10 +234,8 @@ class TestParamesh : public QObject {
   }
 
   void tangentialSpringSlipsAtTheCone() {
-    const Surface s = sphere(4);
-    std::string why;
-    auto gi = makeGeometryImage(s.points, s.triangles, {}, why);
-    QVERIFY2(gi, why.c_str());
+    const GeometryImage* gi = sphereImage();  // (made once: its own test checks it)
+    QVERIFY(gi);
     FfdSettings fs;
     fs.tangentialStiffness = 100;
     fs.friction = 0.4;

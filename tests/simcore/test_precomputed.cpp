@@ -102,6 +102,25 @@ Eigen::VectorXd directSolve(const FemModel& model, const std::vector<char>& fixe
 
 double relative(const Eigen::VectorXd& a, const Eigen::VectorXd& b) { return (a - b).norm() / b.norm(); }
 
+// A grasp's pull of `count` held nodes: each displaced alike and a little apart (m).
+std::vector<Eigen::Vector3d> spreadPull(std::size_t count) {
+  std::vector<Eigen::Vector3d> d;
+  for (std::size_t k = 0; k < count; ++k)
+    d.push_back(Eigen::Vector3d(0.010, -0.004, 0.002) + 0.0005 * static_cast<double>(k) * Eigen::Vector3d::UnitZ());
+  return d;
+}
+
+// The largest difference between two lists of forces (N), and the largest of the reference's.
+std::pair<double, double> largestDifference(const std::vector<Eigen::Vector3d>& force,
+                                            const std::vector<Eigen::Vector3d>& reference) {
+  double difference = 0, largest = 0;
+  for (std::size_t k = 0; k < reference.size(); ++k) {
+    difference = std::max(difference, (force[k] - reference[k]).norm());
+    largest = std::max(largest, reference[k].norm());
+  }
+  return {difference, largest};
+}
+
 // An instrument's hold of `node` at `at` (m): three bilateral rows along x, y, z, as the session's grasp makes them.
 std::vector<ScalarConstraint> holdAt(int node, const Eigen::Vector3d& at) {
   std::vector<ScalarConstraint> rows;
@@ -199,19 +218,13 @@ class TestPrecomputed : public QObject {
     const double buildMs = static_cast<double>(clock.elapsed());
     QVERIFY(calls >= 1);
     const std::vector<int> nodes = patch(static_cast<std::size_t>(held));
-    std::vector<Eigen::Vector3d> d;
-    for (std::size_t k = 0; k < nodes.size(); ++k)
-      d.push_back(Eigen::Vector3d(0.010, -0.004, 0.002) + 0.0005 * static_cast<double>(k) * Eigen::Vector3d::UnitZ());
+    const std::vector<Eigen::Vector3d> d = spreadPull(nodes.size());
     Eigen::VectorXd u;
     std::vector<Eigen::Vector3d> force, reaction;
     QVERIFY2(p->solve(nodes, d, u, &force, why), why.c_str());
     const Eigen::VectorXd ref = directSolve(model, organ_.fixed, nodes, d, &reaction);
     const double err = relative(u, ref);
-    double forceErr = 0, forceNorm = 0;
-    for (std::size_t k = 0; k < nodes.size(); ++k) {
-      forceErr = std::max(forceErr, (force[k] - reaction[k]).norm());
-      forceNorm = std::max(forceNorm, reaction[k].norm());
-    }
+    const auto [forceErr, forceNorm] = largestDifference(force, reaction);
     qInfo(
         "%d held, nu %.3f: largest displacement %.1f mm, relative error %.2e; force at the held nodes up to %.3f N "
         "(error %.2e N); %zu responses (%.1f MB) built in %.0f ms",
@@ -262,19 +275,13 @@ class TestPrecomputed : public QObject {
     const auto h = HybridElasticity::build(model, organ_.fixed, region, kGravity, why);
     QVERIFY2(h, why.c_str());
     const double buildMs = static_cast<double>(clock.elapsed());
-    std::vector<Eigen::Vector3d> d;
-    for (std::size_t k = 0; k < nodes.size(); ++k)
-      d.push_back(Eigen::Vector3d(0.010, -0.004, 0.002) + 0.0005 * static_cast<double>(k) * Eigen::Vector3d::UnitZ());
+    const std::vector<Eigen::Vector3d> d = spreadPull(nodes.size());
     Eigen::VectorXd u;
     std::vector<Eigen::Vector3d> force, reaction;
     QVERIFY2(h->solve(nodes, d, u, &force, why), why.c_str());
     const Eigen::VectorXd ref = directSolve(model, organ_.fixed, nodes, d, &reaction);
     const double err = relative(u, ref);
-    double forceErr = 0, forceNorm = 0;
-    for (std::size_t k = 0; k < nodes.size(); ++k) {
-      forceErr = std::max(forceErr, (force[k] - reaction[k]).norm());
-      forceNorm = std::max(forceNorm, reaction[k].norm());
-    }
+    const auto [forceErr, forceNorm] = largestDifference(force, reaction);
     qInfo(
         "hybrid, %d held, region %.0f mm: %zu region nodes (%zu elements of the rest joined it: no attachment held "
         "their piece), %zu on the interface, %zu in the rest (%.1f MB of responses, built in %.0f ms); relative error "
