@@ -241,7 +241,7 @@ const Command& gestureCommand() {
       "simulate]\n"
       "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method "
       "chord|exact|lagged-pcg|linearised|newton-krylov]\n"
-      "                [--model fem|precomputed]\n"
+      "                [--model fem|precomputed|hybrid|ffd]\n"
       "                [--start rest|equilibrium] [--refresh sync|async]  async: a drifted lagged factorisation is "
       "rebuilt on a second thread "
       "and\n"
@@ -261,8 +261,10 @@ const Command& gestureCommand() {
               {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},
               {"method", "M", "chord (default: converged every step), exact, lagged-pcg, linearised or newton-krylov"},
               {"model", "M",
-               "fem (default) or precomputed: Cotin's precomputed linear elasticity (quasi-static, exact for the "
-               "linear law; it cannot cut, tear, clip or burn: said)"},
+               "fem (default); precomputed: Cotin's precomputed linear elasticity (quasi-static, exact for the "
+               "linear law; it cannot cut, tear, clip or burn: said); hybrid: a FEM region where the instruments work "
+               "and the rest's precomputed responses (quasi-static, linear; it cuts); ffd: the surface's geometry "
+               "image with free-form deformation and Hertz's force (geometric; it cannot cut: said)"},
               {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
               {"start", "S",
                "rest (the mesh is the rest shape; default) or equilibrium (the mesh is where the organ hangs under "

@@ -1,6 +1,7 @@
 // The hybrid model's core (hybrid.hpp): the rest's responses at the interface by Eigen's sparse LDLT, its stiffness
 // condensed onto the interface, the region's system solved with the held nodes eliminated.
 #include <rehearse/simcore/hybrid.hpp>
+#include <rehearse/simcore/precomputed.hpp>
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCholesky>
@@ -317,6 +318,29 @@ bool HybridElasticity::solve(const std::vector<int>& held, const std::vector<Eig
   for (std::size_t k = 0; k < held.size(); ++k)
     uR.segment<3>(3 * p.rIndex[static_cast<std::size_t>(held[k])]) = displacement[k];
   std::lock_guard<std::mutex> lock(p.cacheMutex);
+  if (!factorFor(held, why)) return false;
+  Eigen::VectorXd uh(static_cast<Eigen::Index>(p.heldDofs.size()));
+  for (std::size_t k = 0; k < p.heldDofs.size(); ++k) uh[static_cast<Eigen::Index>(k)] = uR[p.heldDofs[k]];
+  const Eigen::VectorXd uf = p.solver.solve(p.bf - p.Afh * uh);
+  const std::vector<int>& freeIndex = p.freeIndex;
+  for (int i = 0; i < 3 * nr; ++i)
+    if (freeIndex[static_cast<std::size_t>(i)] >= 0) uR[i] = uf[freeIndex[static_cast<std::size_t>(i)]];
+  if (!uR.allFinite()) {
+    why = "The hybrid model's displacement is not finite.";
+    return false;
+  }
+  if (forces) {  // the instrument's force on the tissue: A u - b at the held nodes
+    const Eigen::VectorXd residual = p.A * uR - p.b;
+    forces->clear();
+    for (int v : held) forces->push_back(residual.segment<3>(3 * p.rIndex[static_cast<std::size_t>(v)]));
+  }
+  expand(uR, u);
+  return true;
+}
+
+bool HybridElasticity::factorFor(const std::vector<int>& held, std::string& why) const {
+  Parts& p = *p_;  // (the caller holds cacheMutex)
+  const int nr = static_cast<int>(p.b.size()) / 3;
   if (!p.cacheValid || p.cachedHeld != held) {
     p.cacheValid = false;
     std::vector<char> isHeld(static_cast<std::size_t>(3 * nr), 0);
@@ -359,21 +383,11 @@ bool HybridElasticity::solve(const std::vector<int>& held, const std::vector<Eig
     p.cachedHeld = held;
     p.cacheValid = true;
   }
-  Eigen::VectorXd uh(static_cast<Eigen::Index>(p.heldDofs.size()));
-  for (std::size_t k = 0; k < p.heldDofs.size(); ++k) uh[static_cast<Eigen::Index>(k)] = uR[p.heldDofs[k]];
-  const Eigen::VectorXd uf = p.solver.solve(p.bf - p.Afh * uh);
-  const std::vector<int>& freeIndex = p.freeIndex;
-  for (int i = 0; i < 3 * nr; ++i)
-    if (freeIndex[static_cast<std::size_t>(i)] >= 0) uR[i] = uf[freeIndex[static_cast<std::size_t>(i)]];
-  if (!uR.allFinite()) {
-    why = "The hybrid model's displacement is not finite.";
-    return false;
-  }
-  if (forces) {  // the instrument's force on the tissue: A u - b at the held nodes
-    const Eigen::VectorXd residual = p.A * uR - p.b;
-    forces->clear();
-    for (int v : held) forces->push_back(residual.segment<3>(3 * p.rIndex[static_cast<std::size_t>(v)]));
-  }
+  return true;
+}
+
+void HybridElasticity::expand(const Eigen::VectorXd& uR, Eigen::VectorXd& u) const {
+  const Parts& p = *p_;
   // The whole organ: the region's nodes from its solve, the rest's by superposition of their responses to the
   // interface's displacement: u_I = u_I^0 + R_IG u_G.
   const int ng = static_cast<int>(p.interfaceDofs.size());
@@ -392,6 +406,87 @@ bool HybridElasticity::solve(const std::vector<int>& held, const std::vector<Eig
   for (std::size_t k = 0; k < p.restDofs.size(); ++k) {
     const int dof = p.restDofs[k], node = p.pNode[static_cast<std::size_t>(dof / 3)];
     u[3 * node + dof % 3] = uI[static_cast<Eigen::Index>(k)];
+  }
+}
+
+bool HybridElasticity::solveRows(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& base, bool withSag,
+                                 Eigen::VectorXd& u, Eigen::VectorXd& lambda, Eigen::MatrixXd* Wout,
+                                 std::string& why) const {
+  Parts& p = *p_;
+  const Eigen::Index m = static_cast<Eigen::Index>(rows.size());
+  lambda.setZero(m);
+  if (Wout) Wout->resize(m, m);
+  if (base.size() != static_cast<Eigen::Index>(3 * p.n)) {
+    why = "The hybrid model's base positions do not match its mesh.";
+    return false;
+  }
+  auto node = [](const ScalarConstraint& r, int k) { return r.nodes[static_cast<std::size_t>(k)]; };
+  auto weight = [](const ScalarConstraint& r, int k) { return r.weights[static_cast<std::size_t>(k)]; };
+  // A row's force acts on its free nodes (a fixed node's share goes to the attachment); each must be the region's.
+  for (const auto& r : rows)
+    for (int k = 0; k < 4; ++k) {
+      const int v = node(r, k);
+      if (v < 0 || weight(r, k) == 0) continue;
+      if (static_cast<std::size_t>(v) >= p.n) {
+        why = "An instrument acts on node " + std::to_string(v) + ", which the organ does not have.";
+        return false;
+      }
+      if (!p.fixed[static_cast<std::size_t>(v)] && !inRegion(v)) {
+        why = "An instrument acts on node " + std::to_string(v) + ", outside the hybrid model's FEM region.";
+        return false;
+      }
+    }
+  std::lock_guard<std::mutex> lock(p.cacheMutex);
+  if (!factorFor({}, why)) return false;  // no held nodes: the region's whole system (kept from step to step)
+  const int nr = static_cast<int>(p.b.size()) / 3;
+  // The sag (no instrument), then one solve per row: the region's response to the row's unit force.
+  const Eigen::VectorXd sagR = p.solver.solve(p.b);
+  Eigen::MatrixXd X = Eigen::MatrixXd::Zero(3 * nr, m);
+  for (Eigen::Index c = 0; c < m; ++c) {
+    const auto& cc = rows[static_cast<std::size_t>(c)];
+    Eigen::VectorXd f = Eigen::VectorXd::Zero(3 * nr);
+    for (int k = 0; k < 4; ++k) {
+      const int v = node(cc, k);
+      if (v >= 0 && p.rIndex[static_cast<std::size_t>(v)] >= 0)
+        f.segment<3>(3 * p.rIndex[static_cast<std::size_t>(v)]) += weight(cc, k) * cc.direction;
+    }
+    if (!f.isZero(0)) X.col(c) = p.solver.solve(f);
+  }
+  Eigen::VectorXd uR0 = withSag ? sagR : Eigen::VectorXd::Zero(3 * nr);
+  Eigen::MatrixXd W(m, m);
+  Eigen::VectorXd e(m);
+  auto rowOf = [&](const ScalarConstraint& r, const Eigen::VectorXd& xR) {  // G_r on region displacements
+    double g = 0;
+    for (int k = 0; k < 4; ++k) {
+      const int v = node(r, k);
+      if (v >= 0 && p.rIndex[static_cast<std::size_t>(v)] >= 0)
+        g += weight(r, k) * r.direction.dot(xR.segment<3>(3 * p.rIndex[static_cast<std::size_t>(v)]));
+    }
+    return g;
+  };
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const auto& cr = rows[static_cast<std::size_t>(r)];
+    double g = 0;
+    for (int k = 0; k < 4; ++k)
+      if (node(cr, k) >= 0) g += weight(cr, k) * cr.direction.dot(base.segment<3>(3 * node(cr, k)));
+    e(r) = cr.value - g - rowOf(cr, uR0);
+    for (Eigen::Index c = 0; c < m; ++c) W(r, c) = rowOf(cr, X.col(c));
+  }
+  W = (0.5 * (W + W.transpose())).eval();
+  if (Wout) *Wout = W;
+  if (!settleRows(rows, W, e, lambda, why)) return false;
+  const Eigen::VectorXd uR = uR0 + X * lambda;
+  if (!uR.allFinite()) {
+    why = "The hybrid model's displacement is not finite.";
+    return false;
+  }
+  if (withSag) {
+    expand(uR, u);
+  } else {  // from the base itself: the rest's sag is not added either
+    expand(uR + sagR, u);
+    Eigen::VectorXd sag;
+    expand(sagR, sag);
+    u -= sag;
   }
   return true;
 }

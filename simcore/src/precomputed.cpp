@@ -249,52 +249,11 @@ void PrecomputedElasticity::addColumn(std::size_t col, double w, Eigen::VectorXd
     u += w * Eigen::Map<const Eigen::VectorXd>(c64_.data() + at, dofs);
 }
 
-bool PrecomputedElasticity::solveConstraints(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& base,
-                                             const Eigen::VectorXd& u0, Eigen::VectorXd& u, Eigen::VectorXd& lambda,
-                                             Eigen::MatrixXd* Wout, std::string& why) const {
+bool settleRows(const std::vector<ScalarConstraint>& rows, const Eigen::MatrixXd& W, const Eigen::VectorXd& e,
+                Eigen::VectorXd& lambda, std::string& why) {
   const Eigen::Index m = static_cast<Eigen::Index>(rows.size());
-  u = u0;
   lambda.setZero(m);
-  if (Wout) Wout->resize(m, m);
   if (m == 0) return true;
-  auto node = [](const ScalarConstraint& r, int k) { return r.nodes[static_cast<std::size_t>(k)]; };
-  auto weight = [](const ScalarConstraint& r, int k) { return r.weights[static_cast<std::size_t>(k)]; };
-  // Each row's force acts on its driven nodes (a fixed node's share goes to the attachment); every node must be one.
-  for (const auto& r : rows)
-    for (int k = 0; k < 4; ++k) {
-      const int v = node(r, k);
-      if (v < 0 || weight(r, k) == 0) continue;
-      if (static_cast<std::size_t>(v) >= nodes_ || (drivenIndex(v) < 0 && !fixed_[static_cast<std::size_t>(v)])) {
-        why = "An instrument acts on node " + std::to_string(v) +
-              ", which has no precomputed response (inside the organ: the responses are the surface's).";
-        return false;
-      }
-    }
-  // W(r, c) = sum over r's free nodes i and c's driven nodes j of w_ri w_cj d_r^T C(i, j) d_c; e = value - G (base+u0).
-  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(m, m);
-  Eigen::VectorXd e(m);
-  const Eigen::VectorXd at = base + u0;
-  for (Eigen::Index r = 0; r < m; ++r) {
-    const auto& cr = rows[static_cast<std::size_t>(r)];
-    double g = 0;
-    for (int k = 0; k < 4; ++k)
-      if (node(cr, k) >= 0) g += weight(cr, k) * cr.direction.dot(at.segment<3>(3 * node(cr, k)));
-    e(r) = cr.value - g;
-    for (Eigen::Index c = 0; c < m; ++c) {
-      const auto& cc = rows[static_cast<std::size_t>(c)];
-      double w = 0;
-      for (int k = 0; k < 4; ++k) {
-        const int i = node(cr, k);
-        if (i < 0 || fixed_[static_cast<std::size_t>(i)]) continue;
-        for (int l = 0; l < 4; ++l)
-          if (const int j = drivenIndex(node(cc, l)); j >= 0)
-            w += weight(cr, k) * weight(cc, l) * cr.direction.dot(response(i, j) * cc.direction);
-      }
-      W(r, c) = w;
-    }
-  }
-  W = (0.5 * (W + W.transpose())).eval();
-  if (Wout) *Wout = W;
   // Active set: bilateral rows always; a unilateral row while it pushes (lambda > 0), added back when violated.
   std::vector<char> active(static_cast<std::size_t>(m));
   for (Eigen::Index r = 0; r < m; ++r)
@@ -348,6 +307,56 @@ bool PrecomputedElasticity::solveConstraints(const std::vector<ScalarConstraint>
     why = "The instruments' contacts did not settle (their active set cycled).";
     return false;
   }
+  return true;
+}
+
+bool PrecomputedElasticity::solveConstraints(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& base,
+                                             const Eigen::VectorXd& u0, Eigen::VectorXd& u, Eigen::VectorXd& lambda,
+                                             Eigen::MatrixXd* Wout, std::string& why) const {
+  const Eigen::Index m = static_cast<Eigen::Index>(rows.size());
+  u = u0;
+  lambda.setZero(m);
+  if (Wout) Wout->resize(m, m);
+  if (m == 0) return true;
+  auto node = [](const ScalarConstraint& r, int k) { return r.nodes[static_cast<std::size_t>(k)]; };
+  auto weight = [](const ScalarConstraint& r, int k) { return r.weights[static_cast<std::size_t>(k)]; };
+  // Each row's force acts on its driven nodes (a fixed node's share goes to the attachment); every node must be one.
+  for (const auto& r : rows)
+    for (int k = 0; k < 4; ++k) {
+      const int v = node(r, k);
+      if (v < 0 || weight(r, k) == 0) continue;
+      if (static_cast<std::size_t>(v) >= nodes_ || (drivenIndex(v) < 0 && !fixed_[static_cast<std::size_t>(v)])) {
+        why = "An instrument acts on node " + std::to_string(v) +
+              ", which has no precomputed response (inside the organ: the responses are the surface's).";
+        return false;
+      }
+    }
+  // W(r, c) = sum over r's free nodes i and c's driven nodes j of w_ri w_cj d_r^T C(i, j) d_c; e = value - G (base+u0).
+  Eigen::MatrixXd W = Eigen::MatrixXd::Zero(m, m);
+  Eigen::VectorXd e(m);
+  const Eigen::VectorXd at = base + u0;
+  for (Eigen::Index r = 0; r < m; ++r) {
+    const auto& cr = rows[static_cast<std::size_t>(r)];
+    double g = 0;
+    for (int k = 0; k < 4; ++k)
+      if (node(cr, k) >= 0) g += weight(cr, k) * cr.direction.dot(at.segment<3>(3 * node(cr, k)));
+    e(r) = cr.value - g;
+    for (Eigen::Index c = 0; c < m; ++c) {
+      const auto& cc = rows[static_cast<std::size_t>(c)];
+      double w = 0;
+      for (int k = 0; k < 4; ++k) {
+        const int i = node(cr, k);
+        if (i < 0 || fixed_[static_cast<std::size_t>(i)]) continue;
+        for (int l = 0; l < 4; ++l)
+          if (const int j = drivenIndex(node(cc, l)); j >= 0)
+            w += weight(cr, k) * weight(cc, l) * cr.direction.dot(response(i, j) * cc.direction);
+      }
+      W(r, c) = w;
+    }
+  }
+  W = (0.5 * (W + W.transpose())).eval();
+  if (Wout) *Wout = W;
+  if (!settleRows(rows, W, e, lambda, why)) return false;
   // u = u0 + C G^T lambda: each row's force spread on its driven nodes.
   Eigen::VectorXd F = Eigen::VectorXd::Zero(static_cast<Eigen::Index>(3 * nodes_));
   for (Eigen::Index r = 0; r < m; ++r) {

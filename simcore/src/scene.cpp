@@ -84,10 +84,12 @@ const std::vector<ComponentDecl>& sceneComponents() {
         {"name", "string", "\"inner\"", "", "name used in the output files"}},
        true},
       {"model",
-       "The deformable model: the tetrahedral FEM (every law, cuts and tears) or Cotin's precomputed linear "
+       "The deformable model: the tetrahedral FEM (every law, cuts and tears), Cotin's precomputed linear "
        "elasticity (quasi-static, exact for the linear law, tool forces at haptic rate; it cannot cut, tear, clip or "
-       "burn).",
-       {{"kind", "string", "\"fem\"", "", "fem or precomputed"}}},
+       "burn), their hybrid model (a FEM region where the instruments work, the rest's precomputed responses; "
+       "quasi-static and linear; it cuts) or the parameterized mesh with free-form deformation (geometric, Hertz's "
+       "force; it cannot cut, tear, clip or burn).",
+       {{"kind", "string", "\"fem\"", "", "fem, precomputed, hybrid or ffd"}}},
       {"solver",
        "Linear solver and how Newton reuses its factorisation.",
        {{"kind", "string", "\"cholmod\"", "", "cholmod, cg or dense"},
@@ -218,8 +220,8 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
       } else if (type == "model") {
         s.bodyModel = value(c, *decl, "kind").get<std::string>();
-        if (s.bodyModel != "fem" && s.bodyModel != "precomputed")
-          fail("the model's kind is \"" + s.bodyModel + "\": fem or precomputed.");
+        if (s.bodyModel != "fem" && s.bodyModel != "precomputed" && s.bodyModel != "hybrid" && s.bodyModel != "ffd")
+          fail("the model's kind is \"" + s.bodyModel + "\": fem, precomputed, hybrid or ffd.");
       } else if (type == "solver") {
         s.settings.solver = named([&] { return linearSolverFromString(value(c, *decl, "kind").get<std::string>()); });
         s.methodNamed = c.contains("method");

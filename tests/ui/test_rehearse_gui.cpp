@@ -323,7 +323,7 @@ class TestRehearseGui : public QObject {
     QVERIFY(method);
     SessionHeard built(panel);
     method->setFocus();
-    QTest::keyClick(method, Qt::Key_End);
+    QTest::keyClicks(method, "p");  // (the list's keyboard search: the entry starting with p)
     QVERIFY(method->currentText().startsWith("precomputed"));
     QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Precomputed; }, 30000));
     QVERIFY2(waitFor([&] { return built.lines.join(" ").contains("The precomputed model's responses"); }, 10000),
@@ -396,7 +396,7 @@ class TestRehearseGui : public QObject {
     // Chosen again: the responses of the last build, said; a save keeps them with the case (read back by the case
     // file's reader into the response cache).
     SessionHeard again(panel);
-    QTest::keyClick(method, Qt::Key_End);
+    QTest::keyClicks(method, "p");
     QVERIFY2(waitFor([&] { return again.lines.join(" ").contains("taken from the last build"); }, 30000),
              qPrintable(again.lines.join(" | ")));
     QVERIFY(waitFor([&] { return panel->responseKey() != 0; }, 10000));
@@ -415,6 +415,140 @@ class TestRehearseGui : public QObject {
           simcore::ResponseCache::shared().storedBytes(key)->size() / 1e6);
     for (int k = 0; k < 3; ++k) QTest::keyClick(method, Qt::Key_Up);
     QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Fem; }, 30000));
+    panel->pause();
+  }
+
+  // Issue 37: the hybrid model and the FFD surface from the Solver list (typed). The hybrid model grasps (every step
+  // converged, the held node on the jaws), its rate shows in step 7 as exact, and the scissors cut it (nodes added);
+  // the FFD is then refused with a sentence (the organ is cut) and the list shows the hybrid model again. After Reset
+  // the FFD runs: the grasp pulls (its steps say "inexact" with the sentence, Hertz's force), the scissors are refused
+  // with a sentence; chord brings the FEM back.
+  void hybridAndFfdModels() {
+    QCOMPARE(w_->step(), ui::Step::Rehearse);
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    auto* method = panel->findChild<QComboBox*>("simMethod");
+    auto* status = panel->findChild<QLabel*>("simStatus");
+    auto* rate = w_->findChild<QLabel*>("forceLoopRate");
+    QVERIFY(method && status && rate);
+    panel->play();
+    const auto& c = *w_->caseData();
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    const QPointF a = view->toWidget(QPointF(centre.x(), centre.y())), b = a + QPointF(0, -30);
+    auto graspAndPull = [&] {
+      QTest::keyClick(w_.get(), Qt::Key_R);
+      QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
+      QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+      for (int i = 1; i <= 6; ++i) {
+        QTest::mouseMove(view, (a + (b - a) * (i / 6.0)).toPoint());
+        const long now = panel->lastFrame()->steps;
+        QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+      }
+      const long at = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 10; }));
+    };
+    auto release = [&] {
+      QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
+      QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 20000));
+    };
+    // The hybrid model.
+    SessionHeard built(panel);
+    method->setFocus();
+    QTest::keyClicks(method, "h");
+    QVERIFY(method->currentText().startsWith("hybrid"));
+    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Hybrid; }, 30000));
+    QVERIFY2(waitFor([&] { return built.lines.join(" ").contains("The hybrid model: a FEM region of"); }, 10000),
+             qPrintable(built.lines.join(" | ")));
+    graspAndPull();
+    {
+      const auto f = panel->lastFrame();
+      double worst = 0;
+      for (std::size_t k = 0; k < f->tool.held.size(); ++k)
+        worst = std::max(
+            worst,
+            (f->positions[static_cast<std::size_t>(f->tool.held[k])] - (f->tool.tip + f->tool.heldOffset[k])).norm());
+      qInfo("hybrid: %zu node(s) held, %.2e m from the jaws, tool force %.3f N; step: %s", f->tool.held.size(), worst,
+            f->tool.force.norm(), f->report.status.c_str());
+      QVERIFY(worst < 1e-9);
+      QVERIFY(f->tool.force.norm() > 0.01);
+      QCOMPARE(QString::fromStdString(f->report.status), QString("converged"));
+    }
+    QVERIFY2(waitFor([&] { return status->text().contains("hybrid · converged"); }, 10000), qPrintable(status->text()));
+    QVERIFY2(waitFor([&] { return rate->text().contains(QRegularExpression("hybrid [0-9.]+ ms/step, exact")); }, 10000),
+             qPrintable(rate->text()));
+    qInfo("%s", qPrintable(rate->text()));
+    shot(*w_, "step7-hybrid");
+    release();
+    // Its cut: the scissors down the organ's left part.
+    const auto start = panel->lastFrame();
+    const auto [from, to] = strokeDownTheOrgan(c.camera, start->positions, 0.35);
+    const QPointF p = view->toWidget(QPointF(from.x(), from.y())), q = view->toWidget(QPointF(to.x(), to.y()));
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QTest::mousePress(view, Qt::LeftButton, {}, p.toPoint());
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    for (int i = 1; i <= 20; ++i) {
+      QTest::mouseMove(view, (p + (q - p) * (i / 20.0)).toPoint());
+      const long now = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, q.toPoint());
+    QVERIFY(waitFor([&] { return panel->lastFrame()->positions.size() > start->positions.size(); }, 30000));
+    qInfo("hybrid cut: %zu -> %zu nodes, %zu -> %zu elements", start->positions.size(),
+          panel->lastFrame()->positions.size(), start->elements, panel->lastFrame()->elements);
+    // The FFD on a cut organ: refused, said; the list shows what runs.
+    SessionHeard refused(panel);
+    method->setFocus();
+    QTest::keyClicks(method, "f");
+    QVERIFY(method->currentText().startsWith("FFD"));
+    QVERIFY2(
+        waitFor([&] { return refused.lines.join(" ").contains("The FFD model was refused: the organ has been cut"); },
+                30000),
+        qPrintable(refused.lines.join(" | ")));
+    QVERIFY(waitFor([&] { return method->currentText().startsWith("hybrid"); }, 10000));
+    QVERIFY(panel->session()->setup().model == simcore::BodyModel::Hybrid);
+    // Reset, then the FFD.
+    QTest::mouseClick(panel->findChild<QPushButton*>("simReset"), Qt::LeftButton);
+    QVERIFY(waitFor([&] { return panel->session()->setup().topology == 0; }, 30000));
+    panel->play();
+    SessionHeard ffd(panel);
+    method->setFocus();
+    QTest::keyClicks(method, "f");
+    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Ffd; }, 30000));
+    QVERIFY2(waitFor([&] { return ffd.lines.join(" ").contains("The FFD model: the surface on a 81 x 81"); }, 30000),
+             qPrintable(ffd.lines.join(" | ")));
+    qInfo("%s", qPrintable(ffd.lines.join(" | ")));
+    graspAndPull();
+    {
+      const auto f = panel->lastFrame();
+      qInfo("FFD: %zu node(s) held, tool force %.3f N; step: %s", f->tool.held.size(), f->tool.force.norm(),
+            f->report.status.c_str());
+      QVERIFY(f->tool.force.norm() > 0.01);
+      QVERIFY(f->report.status.find("geometric (no equilibrium)") != std::string::npos);
+    }
+    QVERIFY2(
+        waitFor([&] { return status->text().contains("FFD · ") && status->text().contains("no equilibrium"); }, 10000),
+        qPrintable(status->text()));
+    QVERIFY2(waitFor([&] { return rate->text().contains(QRegularExpression("FFD [0-9.]+ ms/step, Hertz")); }, 10000),
+             qPrintable(rate->text()));
+    shot(*w_, "step7-ffd");
+    release();
+    SessionHeard scissors(panel);
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
+    QVERIFY2(waitFor([&] { return scissors.lines.join(" ").contains("The FFD model cannot cut"); }, 20000),
+             qPrintable(scissors.lines.join(" | ")));
+    QTest::mouseRelease(view, Qt::LeftButton, {}, a.toPoint());
+    // Chord: the FEM again.
+    method->setFocus();
+    QTest::keyClicks(method, "c");
+    QCOMPARE(method->currentIndex(), static_cast<int>(simcore::NewtonMethod::Chord));
+    QVERIFY(waitFor(
+        [&] {
+          return panel->session()->setup().model == simcore::BodyModel::Fem &&
+                 panel->session()->setup().settings.method == simcore::NewtonMethod::Chord;
+        },
+        30000));
+    QTest::keyClick(w_.get(), Qt::Key_R);
     panel->pause();
   }
 

@@ -138,6 +138,7 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   f->gravity = snap.gravity;
   f->elements = snap.elements;
   f->responseKey = snap.responseKey;
+  f->model = snap.model;
   f->trocar = snap.trocar;
   f->mass = snap.mass;
   f->tets = snap.tets;
@@ -603,12 +604,20 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   // In NewtonMethod's order; chord is the default (converged every step, issue 34); linearised is faster but its one
   // solve per step is not converged (it says so: inexact above 1e-2).
   form_.method->addItems({tr("exact Newton"), tr("lagged-PCG"), tr("chord (converged)"), tr("linearised (one solve)"),
-                          tr("Newton–Krylov"), tr("precomputed linear (no cuts)")});
+                          tr("Newton–Krylov"), tr("precomputed linear (no cuts)"), tr("hybrid (FEM where you cut)"),
+                          tr("FFD surface (no cuts)")});
   form_.method->setCurrentIndex(static_cast<int>(simcore::kInteractiveMethod));
-  form_.method->setToolTip(declared("solver", "method") + QStringLiteral("\n") +
-                           tr("precomputed linear: Cotin's precomputed linear elasticity instead of the FEM: the "
-                              "organ's static answer to the instruments by superposition of responses computed when "
-                              "it starts, forces at haptic rate; it cannot cut, tear, clip or burn (said when asked)"));
+  form_.method->setToolTip(
+      declared("solver", "method") + QStringLiteral("\n") +
+      tr("precomputed linear: Cotin's precomputed linear elasticity instead of the FEM: the "
+         "organ's static answer to the instruments by superposition of responses computed when "
+         "it starts, forces at haptic rate; it cannot cut, tear, clip or burn (said when asked).\n"
+         "hybrid: a FEM region where the instruments work (it grows as they move and cut) coupled "
+         "to the rest's precomputed responses: the linear static answer of the whole organ; it "
+         "cuts, tears, clips and burns.\n"
+         "FFD surface: the surface on an 81 x 81 geometry image deformed around the grasp by a "
+         "Gaussian free-form deformation, Hertz's force: geometric, no equilibrium (every step says "
+         "inexact); it cannot cut, tear, clip or burn"));
   form->addRow(tr("Solver"), form_.method);
   form_.gravity = new QComboBox(this);
   form_.gravity->setObjectName(QStringLiteral("simGravity"));
@@ -770,9 +779,9 @@ SimulationSetup SimulationPanel::setup() const {
   // The list's entries after the Newton methods are models: the precomputed one keeps the interactive method for
   // when the FEM is chosen again.
   const int chosen = form_.method->currentIndex();
-  const bool precomputed = chosen > static_cast<int>(simcore::NewtonMethod::NewtonKrylov);
-  s.method = precomputed ? simcore::kInteractiveMethod : static_cast<simcore::NewtonMethod>(chosen);
-  s.bodyModel = precomputed ? simcore::BodyModel::Precomputed : simcore::BodyModel::Fem;
+  const int models = chosen - static_cast<int>(simcore::NewtonMethod::NewtonKrylov);  // 1 precomputed, 2 hybrid, 3 ffd
+  s.method = models > 0 ? simcore::kInteractiveMethod : static_cast<simcore::NewtonMethod>(chosen);
+  s.bodyModel = models > 0 ? static_cast<simcore::BodyModel>(models) : simcore::BodyModel::Fem;
   static const Eigen::Vector3d directions[] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
   s.gravity = 9.81 * directions[std::clamp(form_.gravity->currentIndex(), 0, 2)];
   s.startInEquilibrium = form_.start->isChecked();
@@ -876,7 +885,7 @@ void SimulationPanel::postRunParameters() {
   if (s.bodyModel != asked_.model) {
     asked_.model = s.bodyModel;
     precomputeCancelled_->store(false);
-    session_->post(parameter("body_model", s.bodyModel == simcore::BodyModel::Precomputed ? 1.0 : 0.0));
+    session_->post(parameter("body_model", static_cast<double>(s.bodyModel)));  // the enum's order
   }
   if (s.bodyModel == simcore::BodyModel::Fem && s.method != asked_.method) {
     asked_.method = s.method;
@@ -956,10 +965,13 @@ void SimulationPanel::reset() {
 
 void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
   last_ = f;
-  if (asked_.model == simcore::BodyModel::Precomputed && f->responseKey == 0 && f->message.contains(u"refused")) {
-    // The precomputed model was refused or its build cancelled: the list shows what runs (the FEM's method).
-    asked_.model = simcore::BodyModel::Fem;
-    form_.method->setCurrentIndex(static_cast<int>(asked_.method));
+  if (asked_.model != f->model && f->message.contains(u"refused")) {
+    // The model asked for was refused or its build cancelled: the list shows what runs.
+    asked_.model = f->model;
+    form_.method->setCurrentIndex(f->model == simcore::BodyModel::Fem
+                                      ? static_cast<int>(asked_.method)
+                                      : static_cast<int>(simcore::NewtonMethod::NewtonKrylov) +
+                                            static_cast<int>(f->model));
   }
   view_->setFrame(f);
   if (recorder_ && recorderFailed_->load()) {
@@ -1026,8 +1038,11 @@ QString SimulationPanel::statusText() const {
                                   : tr("t = 0. %1").arg(startWord_);
   if (!last_->message.isEmpty()) return last_->message;
   const QString rate = playing_ ? tr(" · %1 fps").arg(rate_.fps, 0, 'f', 0) : QString();
-  // The precomputed model does no Newton iteration: its name instead (the model that ran the step).
-  const QString solver = last_->responseKey != 0 ? tr("precomputed linear") : tr("%1 Newton").arg(r.newtonIterations);
+  // The fast models do no Newton iteration: their name instead (the model that ran the step).
+  const QString solver = last_->model == simcore::BodyModel::Precomputed ? tr("precomputed linear")
+                         : last_->model == simcore::BodyModel::Hybrid    ? tr("hybrid")
+                         : last_->model == simcore::BodyModel::Ffd       ? tr("FFD")
+                                                                         : tr("%1 Newton").arg(r.newtonIterations);
   return tr("t = %1 s · step %2 ms%3 · %4 · %5")
       .arg(last_->time, 0, 'f', 2)
       .arg(r.wallMs, 0, 'f', 1)

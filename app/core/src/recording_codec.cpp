@@ -639,6 +639,11 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   j["topology"] = s.topology;
   // The deformable model, when not the FEM (setups recorded before it existed, all FEM, keep their bytes and hash).
   if (s.model != simcore::BodyModel::Fem) j["model"] = simcore::bodyModelName(s.model);
+  // The hybrid model's FEM region as it had grown (a checkpoint's or a cut body's setup: a restore builds the same).
+  if (s.model == simcore::BodyModel::Hybrid && !s.regionCentres.empty()) {
+    j["regionCentres"] = json::array();
+    for (const auto& c : s.regionCentres) j["regionCentres"].push_back(vec(c));
+  }
   j["format"] = "rehearse-setup-1";
   return j.dump();
 }
@@ -696,6 +701,12 @@ simcore::BodySetup decodeSetup(const std::string& text) {
     }
     s.topology = asInt(j.at("topology"));
     if (j.contains("model")) s.model = simcore::bodyModelFromString(j.at("model").get<std::string>());
+    if (j.contains("regionCentres"))
+      for (const auto& c : j.at("regionCentres")) {
+        s.regionCentres.push_back(vec(c));
+        if (!s.regionCentres.back().allFinite()) throw std::runtime_error("a region centre is not a point");
+        if (s.regionCentres.size() > 100000) throw std::runtime_error("too many region centres");
+      }
     if (const std::string why = setupProblem(s); !why.empty()) throw std::runtime_error(why);
     return s;
   } catch (const std::exception& e) {

@@ -144,7 +144,16 @@ Eigen::Matrix3d toolStiffnessOf(const std::vector<ScalarConstraint>& c, const Ei
 std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup) { return std::make_unique<FemBody>(setup); }
 
 std::unique_ptr<DeformableBody> makeBody(const BodySetup& setup) {
-  return setup.model == BodyModel::Precomputed ? makePrecomputedBody(setup) : makeFemBody(setup);
+  switch (setup.model) {
+    case BodyModel::Precomputed:
+      return makePrecomputedBody(setup);
+    case BodyModel::Hybrid:
+      return makeHybridBody(setup);
+    case BodyModel::Ffd:
+      return makeFfdBody(setup);
+    default:
+      return makeFemBody(setup);
+  }
 }
 
 }  // namespace rehearse::simcore

@@ -4,7 +4,7 @@
 #include <rehearse/simcore/precomputed.hpp>
 #include <rehearse/simcore/session/body.hpp>
 
-#include "bodymesh.hpp"
+#include "staticbody.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -15,26 +15,13 @@ namespace {
 
 constexpr double kAllRowsBytes = 256e6;
 
-class PrecomputedBody final : public DeformableBody {
+class PrecomputedBody final : public StaticBody {
  public:
-  explicit PrecomputedBody(const BodySetup& s)
-      : settings_(s.settings), topology_(s.topology), labels_(s.mesh.tetLabels) {
-    const Mesh mesh = restMesh(s);
-    // Linear elasticity of the declared moduli and densities, whatever law the scene names (the responses are the
-    // stiffness at rest, the same for every law here; the stress drawn is the linear law's too).
-    MaterialParams fallback = s.material;
-    fallback.model = MaterialModel::Linear;
-    std::map<int, MaterialParams> byLabel = s.byLabel;
-    for (auto& [label, m] : byLabel) m.model = MaterialModel::Linear;
-    model_ = FemModel::build(mesh, byLabel, fallback);
-    labels_.resize(model_.tets.size(), 0);
-    fixed_.assign(model_.nodeCount(), 0);
-    for (int i : s.fixedNodes)
-      if (i >= 0 && static_cast<std::size_t>(i) < fixed_.size()) fixed_[static_cast<std::size_t>(i)] = 1;
+  explicit PrecomputedBody(const BodySetup& s) : StaticBody(s) {
     std::vector<int> driven;
     {
       std::vector<char> on(model_.nodeCount(), 0);
-      for (const auto& t : boundaryTriangles(mesh, false))
+      for (const auto& t : boundaryTriangles(restMesh(s), false))
         for (int v : t) on[static_cast<std::size_t>(v)] = 1;
       for (std::size_t i = 0; i < on.size(); ++i)
         if (on[i] && !fixed_[i]) driven.push_back(static_cast<int>(i));
@@ -51,83 +38,7 @@ class PrecomputedBody final : public DeformableBody {
     response_ = precomputedFor(model_, fixed_, driven, s.settings.gravity, ps, key_, from_, why);
     if (!response_) throw MeshError("The precomputed model cannot be built: " + why);
     buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
-    base_ = model_.restVector();
-    u0_ = response_->sag();
-    if (!s.start.empty()) {
-      // Started from the registered shape, which is the equilibrium: the instruments' displacements add to it.
-      if (s.start.size() != model_.nodeCount())
-        throw MeshError("The body's start positions (" + std::to_string(s.start.size()) + ") do not match its mesh (" +
-                        std::to_string(model_.nodeCount()) + " nodes).");
-      for (std::size_t i = 0; i < s.start.size(); ++i) base_.segment<3>(3 * static_cast<Eigen::Index>(i)) = s.start[i];
-      u0_.setZero(base_.size());
-    }
   }
-  std::size_t nodeCount() const override { return model_.nodeCount(); }
-  SimulationState initialState() const override {
-    SimulationState s;
-    s.x = base_ + u0_;
-    s.v.setZero(s.x.size());
-    return s;
-  }
-  StepReport step(SimulationState& state) override {
-    const auto began = std::chrono::steady_clock::now();
-    StepReport rep;
-    const double h = settings_.timeStep;
-    rep.timeStepUsed = h;
-    rep.tolerance = settings_.tolerance;
-    Eigen::VectorXd u;
-    std::string why;
-    bool solved = response_->solveConstraints(rows_, base_, u0_, u, lambda_, &W_, why);
-    if (solved && !u.allFinite()) {  // never "converged" on NaN positions
-      solved = false;
-      why = "the responses gave a displacement that is not finite";
-    }
-    if (!solved) {
-      rep.ok = false;
-      rep.outcome = StepStatus::Failed;
-      rep.status = "failed: " + why;
-      lambda_.setZero(static_cast<Eigen::Index>(rows_.size()));
-      return rep;
-    }
-    const Eigen::VectorXd x = base_ + u;
-    state.v = h > 0 ? Eigen::VectorXd((x - state.x) / h) : Eigen::VectorXd::Zero(x.size());
-    state.x = x;
-    state.time += h;
-    state.forcesValid = false;
-    double violation = 0;
-    for (std::size_t r = 0; r < rows_.size(); ++r) {
-      const auto& c = rows_[r];
-      double g = 0;
-      for (int k = 0; k < 4; ++k)
-        if (c.nodes[static_cast<std::size_t>(k)] >= 0)
-          g += c.weights[static_cast<std::size_t>(k)] *
-               c.direction.dot(x.segment<3>(3 * c.nodes[static_cast<std::size_t>(k)]));
-      violation = std::max(violation, c.unilateral ? std::max(0.0, c.value - g) : std::abs(g - c.value));
-    }
-    rep.constraintViolation = violation;
-    rep.ok = true;
-    // The linear answer is exact for its model whatever the displacement; past small strains its elements may turn
-    // inside out, which the report says as for any body.
-    const VolumeRatios vr = volumeRatios(model_, x);
-    rep.invertedElements = vr.inverted;
-    rep.minVolumeRatio = vr.smallest;
-    rep.smallestElement = vr.smallestElement;
-    rep.outcome = vr.inverted > 0 ? StepStatus::Inverted : StepStatus::Converged;
-    rep.status = vr.inverted > 0 ? "inverted" : "converged";
-    rep.wallMs = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - began).count();
-    return rep;
-  }
-  void setToolConstraints(std::vector<ScalarConstraint> c) override { rows_ = std::move(c); }
-  int topologyVersion() const override { return topology_; }
-  const std::vector<Eigen::Vector3d>& restPositions() const override { return model_.rest; }
-  void stress(const SimulationState& state, std::vector<double>& out) const override {
-    vonMisesStress(model_, state.x, out);
-  }
-  const std::vector<std::array<int, 4>>& tetrahedra() const override { return model_.tets; }
-  double mass() const override { return model_.lumpedMass.sum(); }
-  Eigen::Vector3d toolForce(bool holdsOnly) const override { return toolForceOf(rows_, lambda_, holdsOnly); }
-  // Exact for this model while the same rows act (W is the rows' compliance in m/N).
-  Eigen::Matrix3d toolStiffness() const override { return toolStiffnessOf(rows_, lambda_, W_, 1.0); }
   std::string buildNote() const override {
     char said[320];
     const std::size_t at = response_->drivenRowsOnly() ? response_->driven().size() : response_->nodeCount();
@@ -146,35 +57,19 @@ class PrecomputedBody final : public DeformableBody {
     return said;
   }
   std::uint64_t responseKey() const override { return key_; }
-  const std::vector<char>& fixedMask() const override { return fixed_; }
-  const std::vector<int>& labels() const override { return labels_; }
-  Eigen::Vector3d appliedForce(const std::vector<int>& nodes, const SimulationState&, const Eigen::VectorXd&,
-                               double) const override {
-    // Static: what acts on these nodes besides the material and gravity is the instruments' rows' force on them.
-    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-    if (lambda_.size() != static_cast<Eigen::Index>(rows_.size())) return sum;
-    for (std::size_t r = 0; r < rows_.size(); ++r)
-      for (int k = 0; k < 4; ++k)
-        if (std::find(nodes.begin(), nodes.end(), rows_[r].nodes[static_cast<std::size_t>(k)]) != nodes.end())
-          sum += lambda_[static_cast<Eigen::Index>(r)] * rows_[r].weights[static_cast<std::size_t>(k)] *
-                 rows_[r].direction;
-    return sum;
-  }
 
  private:
-  SimulationSettings settings_;
-  int topology_ = 0;
-  std::vector<int> labels_;
-  FemModel model_;
-  std::vector<char> fixed_;
+  bool solveRows(Eigen::VectorXd& u, std::string& why) override {
+    return response_->solveConstraints(rows_, base_, startDisplacement(), u, lambda_, &W_, why);
+  }
+  Eigen::VectorXd startDisplacement() const override {
+    return started_ ? Eigen::VectorXd::Zero(base_.size()) : response_->sag();
+  }
+
   std::shared_ptr<const PrecomputedElasticity> response_;
   std::uint64_t key_ = 0;
   std::string from_;  ///< "built", "cache" or "case file"
   double buildSeconds_ = 0;
-  Eigen::VectorXd base_, u0_;  ///< u = u0 + C G^T lambda is the displacement from base
-  std::vector<ScalarConstraint> rows_;
-  Eigen::VectorXd lambda_;
-  Eigen::MatrixXd W_;
 };
 
 }  // namespace

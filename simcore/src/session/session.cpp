@@ -14,8 +14,6 @@
 
 namespace rehearse::simcore {
 
-namespace {
-// The default trocar: above the organ towards the camera, twice its radius from its centre.
 Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
   for (const auto& p : rest) c += p;
@@ -24,7 +22,6 @@ Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest) {
   for (const auto& p : rest) r = std::max(r, (p - c).norm());
   return c + 2 * r * Eigen::Vector3d(0, -1, -2).normalized();
 }
-}  // namespace
 
 Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chrono::steady_clock::now()) {
   if (const std::string why = cauteryProblem(setup_.tools.cautery); !why.empty())
@@ -151,7 +148,15 @@ void Session::setPublishStress(bool on) {
 void Session::rebuildBody() {
   // A parameter edit: a new body with the same nodes; the state (positions, velocities, time) carries over,
   // the lagged factor is rebuilt at the next step (the old one belongs to the old parameters).
-  auto body = makeBody(setup_);
+  if (body_) body_->carryInto(setup_);  // the hybrid model's region (the model's responses: when they still hold)
+  std::unique_ptr<DeformableBody> body;
+  try {
+    body = makeBody(setup_);
+  } catch (...) {
+    setup_.hybridBefore.reset();
+    throw;
+  }
+  setup_.hybridBefore.reset();  // (its memory is the new body's or free)
   body_ = std::move(body);
   state_.lagged.valid = false;
   state_.forcesValid = false;
@@ -224,13 +229,17 @@ void Session::apply(const InputEvent& e, std::string& message) {
     case InputKind::Cut:
     case InputKind::Clip:
     case InputKind::Energy:
-      if (setup_.model == BodyModel::Precomputed && e.kind != InputKind::Jaw && e.on) {
-        // Its responses are the intact organ's, computed once: a change of the tissue would need them all again.
+      if (!bodyModelChangesTissue(setup_.model) && e.kind != InputKind::Jaw && e.on) {
+        // The precomputed responses are the intact organ's, computed once: a change of the tissue would need them all
+        // again; the FFD deforms the surface alone, geometrically.
         const char* what = e.kind == InputKind::Cut ? "cut" : e.kind == InputKind::Clip ? "clip" : "burn";
-        message = std::string("The precomputed model cannot ") + what +
-                  ": its responses are the intact organ's, computed once. Choose the FEM (the Simulation panel's "
-                  "model, or a scene's \"model\": \"fem\") to " +
-                  what + ".";
+        message =
+            std::string(setup_.model == BodyModel::Ffd ? "The FFD model cannot " : "The precomputed model cannot ") +
+            what +
+            (setup_.model == BodyModel::Ffd ? ": it deforms the surface alone, geometrically."
+                                            : ": its responses are the intact organ's, computed once.") +
+            " Choose the FEM or the hybrid model (the Simulation panel's model, or a scene's \"model\") to " + what +
+            ".";
         break;
       }
       for (auto& i : instruments_)
@@ -290,12 +299,18 @@ void Session::apply(const InputEvent& e, std::string& message) {
       else if (e.name == "method") {
         message = "Unknown method " + std::to_string(e.value) + "; it was not applied.";
         break;
-      } else if (e.name == "body_model" && (e.value == 0 || e.value == 1)) {
-        const BodyModel m = e.value == 1 ? BodyModel::Precomputed : BodyModel::Fem;
-        if (m == BodyModel::Precomputed && !field_.clips.empty()) {
-          message =
-              "The precomputed model was refused: the clips on the tissue hold nodes inside the organ, which its "
-              "responses (the surface's) cannot move.";
+      } else if (e.name == "body_model" && (e.value == 0 || e.value == 1 || e.value == 2 || e.value == 3)) {
+        // 0 fem, 1 precomputed, 2 hybrid, 3 ffd (the enum's order)
+        const BodyModel m = static_cast<BodyModel>(static_cast<int>(e.value));
+        if (!bodyModelChangesTissue(m) && !field_.clips.empty()) {
+          message = "The " + std::string(m == BodyModel::Ffd ? "FFD" : "precomputed") +
+                    " model was refused: the clips on the tissue hold nodes inside the organ, which it cannot move.";
+          break;
+        }
+        if (!bodyModelChangesTissue(m) && setup_.topology > 0) {
+          message = "The " + std::string(m == BodyModel::Ffd ? "FFD" : "precomputed") +
+                    " model was refused: the organ has been cut, torn or burnt, which it cannot represent (reset the "
+                    "organ first, or choose the hybrid model).";
           break;
         }
         setup_.model = m;
@@ -436,6 +451,8 @@ StepReport Session::advance() {
 
 Checkpoint Session::checkpointLocked() const {
   Checkpoint c{steps_, setup_, state_, tool_, field_, std::nullopt, restOfSweep_};
+  body_->carryInto(c.setup);  // the hybrid model's region as it grew (a restore builds the same region)
+  c.setup.hybridBefore.reset();
   if (pending_) c.pendingChange = static_cast<const TopologyChange&>(*pending_);
   return c;
 }
@@ -464,6 +481,7 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->mass = body_->mass();
   s->elements = body_->tetrahedra().size();
   s->responseKey = body_->responseKey();
+  s->model = setup_.model;
   s->tets = tets_;
   s->labels = labels_;
   s->surface = setup_.topology > 0 ? surface_ : nullptr;

@@ -25,11 +25,13 @@ void Session::tearOverStretched(std::string& message) {
   bool declared = setup_.material.tearStrain > 0;
   for (const auto& [label, m] : setup_.byLabel) declared = declared || m.tearStrain > 0;
   if (!declared) return;
-  if (setup_.model == BodyModel::Precomputed) {
+  if (!bodyModelChangesTissue(setup_.model)) {
     if (!saidNoTear_)
       message += std::string(message.empty() ? "" : " ") +
-                 "The precomputed model does not tear (its responses are the intact organ's): the scene's tear strains "
-                 "are not applied; choose the FEM to tear.";
+                 (setup_.model == BodyModel::Ffd
+                      ? "The FFD model does not tear (it deforms the surface alone, geometrically)"
+                      : "The precomputed model does not tear (its responses are the intact organ's)") +
+                 ": the scene's tear strains are not applied; choose the FEM or the hybrid model to tear.";
     saidNoTear_ = true;
     return;
   }

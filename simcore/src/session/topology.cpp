@@ -12,6 +12,7 @@
 namespace rehearse::simcore {
 
 bool Session::changeTopology(TopologyChange change, std::string& message) {
+  body_->carryInto(change.setup);  // the hybrid model's region, grown by the cut's new nodes, and its responses
   if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || change.applyAt >= 0) {
     // The new body and its first factorisation on another thread; the old body steps on meanwhile, until the
     // boundary applyAt (the same in every run) or, without one, until it is ready.
@@ -190,6 +191,7 @@ bool Session::finishPendingChange(bool wait, std::string& message) {
   }
   // The state carried across from where the tissue is now (the old body went on stepping meanwhile).
   setup_ = std::move(p.setup);
+  setup_.hybridBefore.reset();
   if (p.clearProgress) setup_.cut.clear();
   extendByCut(state_.x, p.newNodes);
   extendByCut(state_.v, p.newNodes);

@@ -185,8 +185,19 @@ void RehearsePage::updateChart() {
     std::vector<double> ms = stepMs_;
     std::nth_element(ms.begin(), ms.begin() + static_cast<std::ptrdiff_t>(ms.size() / 2), ms.end());
     const double median = ms[ms.size() / 2];
-    model = precomputed_ ? tr(" · precomputed %1 ms/step, exact").arg(median, 0, 'f', 2)
-                         : tr(" · FEM %1 ms/step, extrapolated").arg(median, 0, 'f', 1);
+    switch (model_) {
+      case simcore::BodyModel::Precomputed:
+        model = tr(" · precomputed %1 ms/step, exact").arg(median, 0, 'f', 2);
+        break;
+      case simcore::BodyModel::Hybrid:
+        model = tr(" · hybrid %1 ms/step, exact").arg(median, 0, 'f', 2);
+        break;
+      case simcore::BodyModel::Ffd:
+        model = tr(" · FFD %1 ms/step, Hertz").arg(median, 0, 'f', 2);
+        break;
+      default:
+        model = tr(" · FEM %1 ms/step, extrapolated").arg(median, 0, 'f', 1);
+    }
   }
   loopRate_->setText(tr("Force loop %1 Hz (p99 %2 ms%3)%4")
                          .arg(t.rateHz, 0, 'f', 0)
@@ -199,10 +210,15 @@ void RehearsePage::updateChart() {
           .arg(t.rateHz, 0, 'f', 0)
           .arg(t.medianPeriodMs, 0, 'f', 2)
           .arg(t.p99PeriodMs, 0, 'f', 2)
-          .arg(precomputed_ ? tr("The precomputed model's stiffness at the instrument is exact: between its steps the "
-                                 "loop renders the model's own force.")
-                            : tr("Between the FEM's steps the loop extrapolates the last step's force with its "
-                                 "stiffness (a guess until the next step).")));
+          .arg(model_ == simcore::BodyModel::Precomputed || model_ == simcore::BodyModel::Hybrid
+                   ? tr("The %1 model's stiffness at the instrument is exact (linear and static): between its steps "
+                        "the loop renders the model's own force.")
+                         .arg(model_ == simcore::BodyModel::Hybrid ? tr("hybrid") : tr("precomputed"))
+               : model_ == simcore::BodyModel::Ffd
+                   ? tr("Between the FFD model's steps the loop follows Hertz's law along the pull by its slope (the "
+                        "force itself is Hertz's law at each step).")
+                   : tr("Between the FEM's steps the loop extrapolates the last step's force with its "
+                        "stiffness (a guess until the next step).")));
 }
 
 void RehearsePage::refresh(const app::Case& c) {
@@ -220,8 +236,8 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!f) return;
   // A new session (a new organ, case, reset or recording) starts its counts from nothing.
   if (f->steps < lastSteps_ || f->steps == 0) slips_ = cuts_ = vesselCuts_ = tears_ = 0;
-  if (f->steps < lastSteps_ || f->steps == 0 || (f->responseKey != 0) != precomputed_) stepMs_.clear();
-  precomputed_ = f->responseKey != 0;
+  if (f->steps < lastSteps_ || f->steps == 0 || f->model != model_) stepMs_.clear();
+  model_ = f->model;
   if (f->steps > lastSteps_ && f->report.wallMs > 0) {
     stepMs_.push_back(f->report.wallMs);
     if (stepMs_.size() > 100) stepMs_.erase(stepMs_.begin());

@@ -14,6 +14,7 @@
 // weight, the region every node it touches (the equations are linear: any split of the load gives the same answer).
 // What the region's elements become (a cut) changes only K_R; the responses of the rest stay valid while the cut stays
 // inside the region (not built yet: the region's re-meshing by a cut, and its growth, are the next part).
+#include <rehearse/simcore/constraint_solver.hpp>
 #include <rehearse/simcore/fem.hpp>
 
 #include <Eigen/Core>
@@ -65,8 +66,19 @@ class HybridElasticity {
   bool solve(const std::vector<int>& held, const std::vector<Eigen::Vector3d>& displacement, Eigen::VectorXd& u,
              std::vector<Eigen::Vector3d>* forces, std::string& why) const;
 
+  /// The static displacement u (3n, m, from `base`) under the instruments' constraint rows (bilateral holds, unilateral
+  /// contacts, clips: PrecomputedElasticity::solveConstraints's contract), their multipliers `lambda` (N) and the rows'
+  /// compliance `W` (m/N, optional): one solve of the region's system per row (its factorisation kept), an active set
+  /// on W (settleRows), the rest by its responses. `withSag`: base is the rest shape and the organ's sag under gravity
+  /// is added; otherwise base is already the equilibrium (the registered shape) and only the instruments' share is.
+  /// False, with `why`, when a row's free node is outside the region or the rows contradict one another.
+  bool solveRows(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& base, bool withSag,
+                 Eigen::VectorXd& u, Eigen::VectorXd& lambda, Eigen::MatrixXd* W, std::string& why) const;
+
  private:
   HybridElasticity();
+  bool factorFor(const std::vector<int>& held, std::string& why) const;  ///< the region's factor for these held nodes
+  void expand(const Eigen::VectorXd& uR, Eigen::VectorXd& u) const;      ///< the region's solution -> the whole organ
   struct Parts;
   std::unique_ptr<Parts> p_;
   std::vector<int> regionNodes_, interface_, restNodes_;

@@ -46,6 +46,13 @@ struct PrecomputeSettings {
   std::function<bool(double)> progress;
 };
 
+/// The multipliers (N) of a static model's constraint rows: W lambda = e on the rows that act, W (m/N) the rows'
+/// compliance, e = value - G x0 (m) their gaps at the unconstrained answer. Bilateral rows always act, a unilateral
+/// one while it pushes (lambda >= 0; where it does not, W lambda >= e): an active set on the dense W (the precomputed
+/// and hybrid models'). False, with `why`, when the rows contradict one another or the set cycles.
+bool settleRows(const std::vector<ScalarConstraint>& rows, const Eigen::MatrixXd& W, const Eigen::VectorXd& e,
+                Eigen::VectorXd& lambda, std::string& why);
+
 class PrecomputedElasticity {
  public:
   /// Builds the responses of `model`'s stiffness at rest (K = d^2E/dx^2 at the rest shape: the linear FEM's; the

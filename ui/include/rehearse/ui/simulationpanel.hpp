@@ -85,6 +85,7 @@ struct SimulationFrame {
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();   ///< m/s^2, camera frame
   std::size_t elements = 0;
   std::uint64_t responseKey = 0;  ///< the precomputed model's responses (simcore::ResponseCache), 0 for the FEM
+  simcore::BodyModel model = simcore::BodyModel::Fem;           ///< the deformable model that ran the step
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();             ///< where the instruments enter (camera frame, m)
   double mass = 0;                                              ///< kg
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;  ///< the elements at this step

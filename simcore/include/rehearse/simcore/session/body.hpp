@@ -72,16 +72,36 @@ struct ToolSettings {
 /// law, cuts and tears). Precomputed: Cotin, Delingette and Ayache's precomputed linear elasticity (precomputed.hpp):
 /// quasi-static, the exact linear static answer under the instruments by superposition of responses computed when the
 /// body is built, tool forces at haptic rate; it cannot cut, tear, clip or burn (its responses are the intact
-/// organ's: the session refuses those with a sentence).
-enum class BodyModel { Fem, Precomputed };
-/// "fem", "precomputed" (inline: the recording codec, built alone for fuzzing, reads and writes it)
-inline std::string bodyModelName(BodyModel m) { return m == BodyModel::Precomputed ? "precomputed" : "fem"; }
+/// organ's: the session refuses those with a sentence). Hybrid: their hybrid model (hybrid.hpp): a FEM region around
+/// where the instruments work (it grows as they move and cut) coupled to the rest's precomputed responses; quasi-static
+/// and linear, equal to the linear static answer of the whole organ; it cuts, tears, clips and burns. Ffd: the
+/// parameterized mesh (paramesh.hpp): the surface's geometry image deformed by a Gaussian free-form deformation around
+/// the grasp or the deepest contact, Hertz's force; geometric (no equilibrium, said by every step), it cannot cut,
+/// tear, clip or burn.
+enum class BodyModel { Fem, Precomputed, Hybrid, Ffd };
+/// "fem", "precomputed", "hybrid", "ffd" (inline: the recording codec, built alone for fuzzing, reads and writes it)
+inline std::string bodyModelName(BodyModel m) {
+  switch (m) {
+    case BodyModel::Precomputed:
+      return "precomputed";
+    case BodyModel::Hybrid:
+      return "hybrid";
+    case BodyModel::Ffd:
+      return "ffd";
+    default:
+      return "fem";
+  }
+}
 /// Parses bodyModelName's words; throws MeshError naming them otherwise.
 inline BodyModel bodyModelFromString(const std::string& name) {
-  if (name == "fem") return BodyModel::Fem;
-  if (name == "precomputed") return BodyModel::Precomputed;
-  throw MeshError("Unknown deformable model \"" + name + "\": fem or precomputed.");
+  for (BodyModel m : {BodyModel::Fem, BodyModel::Precomputed, BodyModel::Hybrid, BodyModel::Ffd})
+    if (name == bodyModelName(m)) return m;
+  throw MeshError("Unknown deformable model \"" + name + "\": fem, precomputed, hybrid or ffd.");
 }
+/// Whether the model changes the tissue's elements (cuts, tears, clips, burns): the FEM and the hybrid model.
+inline bool bodyModelChangesTissue(BodyModel m) { return m == BodyModel::Fem || m == BodyModel::Hybrid; }
+
+class HybridElasticity;
 
 /// What a FEM body is built from (all of it is recorded with a session, so a replay rebuilds the same body).
 struct BodySetup {
@@ -102,6 +122,12 @@ struct BodySetup {
   /// Told the share done (0..1) while a body takes long to build (the precomputed model's responses); false cancels
   /// the build (makeBody then throws with the sentence). Not part of what is recorded.
   std::function<bool(double)> buildProgress;
+  /// The hybrid model's FEM region: the elements within 30 mm of these points (m, the body's frame); empty: the
+  /// surface's point nearest the trocar. Carried from body to body by the session (DeformableBody::carryInto), derived
+  /// from what the instruments did, so not recorded: a replay grows the same region at the same steps.
+  std::vector<Eigen::Vector3d> regionCentres;
+  /// The hybrid model before a topology change: its rest's responses are kept when the change left the rest as it was.
+  std::shared_ptr<const HybridElasticity> hybridBefore;
 };
 
 class DeformableBody {
@@ -154,6 +180,9 @@ class DeformableBody {
   /// What building the body took, in one sentence, when that is worth saying (the precomputed model's responses:
   /// how many, how long, how much memory); empty otherwise.
   virtual std::string buildNote() const { return {}; }
+  /// What the next body of this organ (a topology change, a parameter edit) takes from this one (the hybrid model's
+  /// region and responses); nothing for the others.
+  virtual void carryInto(BodySetup& /*next*/) const {}
   /// The key of the precomputed responses the body uses (ResponseCache; the case file stores them), 0 without.
   virtual std::uint64_t responseKey() const { return 0; }
 };
@@ -174,6 +203,13 @@ std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup);
 /// Cotin's precomputed linear elasticity (BodyModel::Precomputed; precomputedbody.cpp): its responses are computed here
 /// (about a second per thousand surface nodes). Throws MeshError when nothing holds the organ.
 std::unique_ptr<DeformableBody> makePrecomputedBody(const BodySetup& setup);
+/// The hybrid model (BodyModel::Hybrid; hybridbody.cpp). Throws MeshError when nothing holds the organ.
+std::unique_ptr<DeformableBody> makeHybridBody(const BodySetup& setup);
+/// The parameterized mesh with free-form deformation (BodyModel::Ffd; ffdbody.cpp). Throws MeshError when the organ's
+/// surface cannot be mapped onto a square (not one closed piece without handles).
+std::unique_ptr<DeformableBody> makeFfdBody(const BodySetup& setup);
+/// The default trocar: above the organ (rest positions, m) towards the camera, twice its radius from its centre.
+Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest);
 /// The body the setup's model names.
 std::unique_ptr<DeformableBody> makeBody(const BodySetup& setup);
 

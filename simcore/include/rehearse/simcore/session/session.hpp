@@ -123,6 +123,7 @@ struct Snapshot {
   double mass = 0;                  ///< kg, the body's total
   std::size_t elements = 0;
   std::uint64_t responseKey = 0;  ///< the precomputed responses the body uses (ResponseCache), 0 without
+  BodyModel model = BodyModel::Fem;  ///< the deformable model that ran the step
   /// The elements (node indices) at this step: shared between snapshots until a cut changes them.
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;
   std::shared_ptr<const std::vector<int>> labels;    ///< the elements' labels (burnt ones: isBurnt), shared likewise

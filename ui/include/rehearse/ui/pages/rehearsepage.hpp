@@ -4,6 +4,8 @@
 // jaws hold, the force on the tissue, slips), in the composited view of step 6 or the overlay.
 #include "rehearse/ui/pages/steppage.hpp"
 
+#include <rehearse/simcore/session/body.hpp>
+
 #include <functional>
 #include <memory>
 #include <optional>
@@ -72,8 +74,8 @@ class RehearsePage : public StepPage {
   std::unique_ptr<Throttle> labelThrottle_;
   int slips_ = 0, cuts_ = 0, vesselCuts_ = 0, tears_ = 0;
   long lastSteps_ = 0;  ///< the last frame's step: a smaller one is a new session
-  /// The model that steps (precomputed or FEM) and its last steps' wall times (ms), for the rate line.
-  bool precomputed_ = false;
+  /// The model that steps and its last steps' wall times (ms), for the rate line.
+  simcore::BodyModel model_ = simcore::BodyModel::Fem;
   std::vector<double> stepMs_;
   RecordHandlers record_;
   QPushButton* recordButton_ = nullptr;
