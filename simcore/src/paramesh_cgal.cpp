@@ -26,6 +26,7 @@
 #include <boost/property_map/property_map.hpp>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Geometry>
 
 #include <algorithm>
 #include <cmath>
@@ -356,29 +357,47 @@ std::optional<GeometryImage> makeGeometryImage(const std::vector<Eigen::Vector3d
       source.sourceTriangles.push_back(t);
     }
   }
-  for (SurfaceMap map : maps) {
-    std::vector<SMV> branches;
-    for (int round = 0; round <= settings.seamBranches; ++round) {
-      auto gi = imageAlong(sm, 2, map, settings.size, branches, lastWhy);
-      if (!gi) break;
-      const double d =
-          surfaceHausdorff(source.sourcePoints, source.sourceTriangles, gi->points, gi->triangles(), 20000);
-      // The surface's vertex farthest from the grid's samples: the next branch of the seam goes there.
-      std::size_t worst = 0;
-      double worstDistance = -1;
-      for (std::size_t v = 0; v < source.sourcePoints.size(); ++v) {
-        double nearest = std::numeric_limits<double>::infinity();
-        for (const auto& q : gi->points) nearest = std::min(nearest, (q - source.sourcePoints[v]).squaredNorm());
-        if (nearest > worstDistance) worstDistance = nearest, worst = v;
+  // Every map along each seam of the tree as it grows, at `n` x `n`; the nearest kept.
+  auto search = [&](int n) {
+    for (SurfaceMap map : maps) {
+      std::vector<SMV> branches;
+      for (int round = 0; round <= settings.seamBranches; ++round) {
+        auto gi = imageAlong(sm, 2, map, n, branches, lastWhy);
+        if (!gi) break;
+        const double d =
+            surfaceHausdorff(source.sourcePoints, source.sourceTriangles, gi->points, gi->triangles(), 20000);
+        // The surface's vertex farthest from the grid's samples: the next branch of the seam goes there.
+        std::size_t worst = 0;
+        double worstDistance = -1;
+        for (std::size_t v = 0; v < source.sourcePoints.size(); ++v) {
+          double nearest = std::numeric_limits<double>::infinity();
+          for (const auto& q : gi->points) nearest = std::min(nearest, (q - source.sourcePoints[v]).squaredNorm());
+          if (nearest > worstDistance) worstDistance = nearest, worst = v;
+        }
+        if (d >= 0 && d < bestDistance) bestDistance = d, best = std::move(gi), best->map = map;
+        branches.push_back(SMV(static_cast<std::uint32_t>(worst)));
       }
-      if (d >= 0 && d < bestDistance) bestDistance = d, best = std::move(gi), best->map = map;
-      branches.push_back(SMV(static_cast<std::uint32_t>(worst)));
     }
-  }
+  };
+  search(settings.size);
   if (!best) {
     why = lastWhy;
     return std::nullopt;
   }
+  // A finer grid while the nearest lies farther from the surface than the tolerance (the whole search again: the map
+  // and seam nearest at one size are not always nearest at the next; measured on scikit-surgery's kidney, the 81 x 81
+  // choice resampled at 161 x 161 stayed at 2.6 %, the search there reached 1.9 %).
+  double extent = 0;
+  {
+    Eigen::AlignedBox3d box;
+    for (const auto& p : source.sourcePoints) box.extend(p);
+    extent = box.diagonal().norm();
+  }
+  const int grow = std::max(1, (settings.size - 1) / 2);
+  for (int n = settings.size + grow; n <= settings.maxSize && bestDistance > settings.tolerance * extent; n += grow)
+    search(n);
+  best->hausdorff = bestDistance;
+  best->extent = extent;
   best->droppedPieces = static_cast<int>(pieces);
   best->sourcePoints = std::move(source.sourcePoints);
   best->sourceTriangles = std::move(source.sourceTriangles);

@@ -231,6 +231,7 @@ std::vector<Answer> ffdAnswers(const Mesh& surface, int size, double radius, con
                                const Eigen::Vector3d& front, const std::vector<Eigen::Vector3d>& samples) {
   GeometryImageSettings gs;
   gs.size = size;
+  gs.maxSize = size;  // (the resolution asked for, never grown)
   std::string why;
   const auto gi = makeGeometryImage(surface.points, surface.triangles, gs, why);
   std::vector<Answer> answers;

@@ -104,9 +104,10 @@ class TestParamesh : public QObject {
   }
 
   void geometryImageOfRealOrgans() {
-    // The acceptance is 1 % of the organ's size. It holds on BodyParts3D's liver and kidney (0.76 %, 0.37 % measured);
-    // not yet on the patient liver (1.40 %) and scikit-surgery's kidney (2.84 %), whose protrusions the single
-    // seam-tree image undersamples: their bound here is what is reached now (a regression test, not the acceptance).
+    // The acceptance is 1 % of the organ's size. The paper's 81 x 81 reaches it on BodyParts3D's liver and kidney; the
+    // grid grows (121, 161) where it does not: the patient liver reaches it at 161 x 161. Scikit-surgery's kidney does
+    // not (1.9 % at 121 and 161 alike: 48 vertices of one small pocket stay 2.2-2.5 mm from every grid point, which a
+    // finer grid does not reach): its bound here is what is reached now (a regression test, not the acceptance).
     struct Organ {
       const char* name;
       const char* file;
@@ -114,10 +115,10 @@ class TestParamesh : public QObject {
     };
     int done = 0;
     std::string over;  // the organs whose reconstruction is farther than their bound
-    for (const Organ o : {Organ{"patient liver", "scikit-surgery/patient-liver/liver.vtk", 0.016},
+    for (const Organ o : {Organ{"patient liver", "scikit-surgery/patient-liver/liver.vtk", 0.01},
                           Organ{"BodyParts3D liver", "bodyparts3d/FMA7197_Liver.obj", 0.01},
                           Organ{"BodyParts3D kidney", "bodyparts3d/FMA7205_Left_Kidney.obj", 0.01},
-                          Organ{"scikit-surgery kidney", "scikit-surgery/kidney/kidney.vtk", 0.03}}) {
+                          Organ{"scikit-surgery kidney", "scikit-surgery/kidney/kidney.vtk", 0.02}}) {
       REQUIRE_SHARED(std::string(o.file));
       const Surface s = organSurface(o.file);
       for (const SurfaceMap map : {SurfaceMap::Best}) {
@@ -134,14 +135,18 @@ class TestParamesh : public QObject {
         const double size = box.diagonal().norm();
         const double h = surfaceHausdorff(gi->sourcePoints, gi->sourceTriangles, gi->points, gi->triangles());
         qInfo(
-            "%s (%zu of the file's %zu triangles, %d other piece(s), %d hole(s) closed, %.0f mm across), %s: 81 x 81 "
+            "%s (%zu of the file's %zu triangles, %d other piece(s), %d hole(s) closed, %.0f mm across), %s: %d x %d "
             "in %.2f s, seam %d edges, %d samples placed on the nearest triangle; Hausdorff %.2f mm = %.2f %% of its "
-            "size",
+            "size (%.2f %% by the image's own measure)",
             o.name, gi->sourceTriangles.size(), s.triangles.size(), gi->droppedPieces, gi->filledHoles, 1e3 * size,
             gi->map == SurfaceMap::Authalic    ? "authalic"
             : gi->map == SurfaceMap::Conformal ? "conformal"
                                                : "mean value",
-            seconds, gi->seamEdges, gi->unplaced, 1e3 * h, 100 * h / size);
+            gi->size, gi->size, seconds, gi->seamEdges, gi->unplaced, 1e3 * h, 100 * h / size,
+            100 * gi->hausdorff / gi->extent);
+        // It grows only while it is farther than 1 % (by its own measure), and never past 161.
+        QVERIFY(gi->size == 81 || gi->size == 121 || gi->size == 161);
+        if (gi->size > 81) QVERIFY(gi->hausdorff <= 0.01 * gi->extent || gi->size == 161);
         QVERIFY(gi->sourceTriangles.size() > s.triangles.size() / 2);  // the organ, not a stray piece
         if (!(h >= 0 && h < o.bound * size)) over += std::string(o.name) + " ";
       }

@@ -32,6 +32,11 @@ struct GeometryImageSettings {
   /// Branches added to the seam, one at a time, towards the surface's point farthest from the grid (Gu, Gortler and
   /// Hoppe's refinement); the candidate nearest the surface is kept.
   int seamBranches = 3;
+  /// The grid grows (by half the start each time, up to maxSize) while the chosen candidate's grid lies farther from
+  /// the surface than `tolerance` of its size (the bounding box's diagonal): a protrusion the map squeezes into a few
+  /// cells gets more of them. maxSize = size: the grid stays as asked.
+  int maxSize = 161;
+  double tolerance = 0.01;
 };
 
 /// A surface resampled on a size x size grid over the unit square: point (i, j) at parameter (u, v) = (j, i) / (size -
@@ -46,6 +51,8 @@ struct GeometryImage {
   int unplaced = 0;       ///< grid points no parameter triangle held (placed on the nearest): 0 normally
   int droppedPieces = 0;  ///< pieces of the surface left out (the largest is the organ)
   int filledHoles = 0;    ///< small holes (under 15 % of the size around) closed before the cut
+  double hausdorff = -1;  ///< m: the grid's distance to the surface it resampled (CGAL's, 20,000 samples)
+  double extent = 0;      ///< m: that surface's size (its bounding box's diagonal)
   /// The surface it resampled: the input's largest piece with its small holes closed (for the reconstruction's check).
   std::vector<Eigen::Vector3d> sourcePoints;
   std::vector<std::array<int, 3>> sourceTriangles;
