@@ -307,10 +307,11 @@ void Session::apply(const InputEvent& e, std::string& message) {
                     " model was refused: the clips on the tissue hold nodes inside the organ, which it cannot move.";
           break;
         }
-        if (!bodyModelChangesTissue(m) && setup_.topology > 0) {
-          message = "The " + std::string(m == BodyModel::Ffd ? "FFD" : "precomputed") +
-                    " model was refused: the organ has been cut, torn or burnt, which it cannot represent (reset the "
-                    "organ first, or choose the hybrid model).";
+        if (m == BodyModel::Ffd && setup_.topology > 0) {
+          // (The precomputed model's responses are computed for the organ as it is, cut or not.)
+          message =
+              "The FFD model was refused: the organ has been cut, torn or burnt, and its surface is no longer the one "
+              "closed piece a geometry image maps (reset the organ first, or choose the hybrid model).";
           break;
         }
         setup_.model = m;
@@ -453,7 +454,10 @@ Checkpoint Session::checkpointLocked() const {
   Checkpoint c{steps_, setup_, state_, tool_, field_, std::nullopt, restOfSweep_};
   body_->carryInto(c.setup);  // the hybrid model's region as it grew (a restore builds the same region)
   c.setup.hybridBefore.reset();
-  if (pending_) c.pendingChange = static_cast<const TopologyChange&>(*pending_);
+  if (pending_) {
+    c.pendingChange = static_cast<const TopologyChange&>(*pending_);
+    c.pendingChange->setup.hybridBefore.reset();  // (a restore computes the rest's responses again: the same numbers)
+  }
   return c;
 }
 
