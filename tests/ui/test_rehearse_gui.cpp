@@ -531,6 +531,9 @@ class TestRehearseGui : public QObject {
         qPrintable(status->text()));
     QVERIFY2(waitFor([&] { return rate->text().contains(QRegularExpression("FFD [0-9.]+ ms/step, Hertz")); }, 10000),
              qPrintable(rate->text()));
+    auto* force = w_->findChild<QLabel*>("rehearseForce");
+    QVERIFY(force);
+    QVERIFY2(waitFor([&] { return force->text().contains("Hertz's contact law"); }, 10000), qPrintable(force->text()));
     shot(*w_, "step7-ffd");
     release();
     SessionHeard scissors(panel);

@@ -285,7 +285,10 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
                  .arg((t.force - t.graspForce).norm(), 0, 'f', 2);
   // A force from a step that did not converge is not the tissue's equilibrium force: said next to the number
   // (issue 32: 18 kN, then 135 N, were shown from steps with a relative residual near 1).
-  if (t.force.norm() > 0 && f->report.outcome != simcore::StepStatus::Converged)
+  // The FFD model has no equilibrium at all: its force is Hertz's contact law at the hold's or poke's depth.
+  if (t.force.norm() > 0 && f->model == simcore::BodyModel::Ffd)
+    shares += tr(" — Hertz's contact law (the FFD model is geometric: no equilibrium force)");
+  else if (t.force.norm() > 0 && f->report.outcome != simcore::StepStatus::Converged)
     shares += tr(" — step not converged (relative residual %1): not the equilibrium force")
                   .arg(f->report.residual, 0, 'g', 2);
   forceText_ = tr("Tool force %1 N%2%3").arg(t.force.norm(), 0, 'f', 2).arg(shares, extra);
