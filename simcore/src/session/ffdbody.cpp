@@ -1,8 +1,8 @@
 // The parameterized mesh as a deformable body (issue 37; paramesh.hpp): the organ's surface (its shape at t = 0)
 // resampled on an 81 x 81 geometry image, deformed by the Gaussian free-form deformation around the grasp (the held
 // nodes' centre follows the jaws) or, without one, around the instrument's deepest contact; the tool's force from
-// Hertz's law. The tetrahedral mesh is drawn: each node follows its nearest grid point, a surface node fully, an inner
-// one by the deformation's Gaussian weight of its distance to it. Geometric: no equilibrium, so every step says
+// Hertz's law. The tetrahedral mesh is drawn: each node follows its nearest grid point by the deformation's Gaussian
+// weight of its distance to it (about 1 on the surface). Geometric: no equilibrium, so every step says
 // "inexact" with how far the holds are from where the instruments put them; it cannot cut, tear, clip or burn (the
 // session refuses those with a sentence).
 #include <rehearse/simcore/paramesh.hpp>
@@ -40,8 +40,8 @@ class FfdBody final : public StaticBody {
     }
     std::string why;
     GeometryImageSettings gs;
-    // The paper's 81 x 81 (a grid grown for a protruding organ takes up to half a minute on its own thread's session
-    // step: the note says how far this one lies from the surface instead).
+    // The paper's 81 x 81 (growing the grid for a protruding organ takes up to half a minute, during which the session
+    // would not step): the build note says how far this one lies from the surface instead.
     gs.maxSize = gs.size;
     auto image = makeGeometryImage(points, surface, gs, why);
     if (!image) throw MeshError("The FFD model cannot be built: " + why);
@@ -50,7 +50,8 @@ class FfdBody final : public StaticBody {
     fs.poisson = s.material.poisson;
     if (s.tools.toolRadius > 0) fs.toolRadius = s.tools.toolRadius;
     mesh_ = std::make_unique<ParameterizedMesh>(std::move(*image), fs);
-    // Each node's nearest grid point and its weight (surface nodes 1, inner ones the Gaussian of the distance).
+    // Each node's nearest grid point and the Gaussian weight of its distance to it (about 1 on the surface, less
+    // inside: the deformation fades into the volume as it does along the surface).
     const auto& grid = mesh_->image().points;
     bound_.assign(model_.nodeCount(), 0);
     boundWeight_.assign(model_.nodeCount(), 0);
