@@ -357,11 +357,17 @@ std::optional<GeometryImage> makeGeometryImage(const std::vector<Eigen::Vector3d
       source.sourceTriangles.push_back(t);
     }
   }
-  // Every map along each seam of the tree as it grows, at `n` x `n`; the nearest kept.
+  // Every map along each seam of the tree as it grows, at `n` x `n`; the nearest kept. False when cancelled.
+  const double candidates = static_cast<double>(maps.size()) * (settings.seamBranches + 1);
+  int tried = 0;
+  bool cancelled = false;
   auto search = [&](int n) {
     for (SurfaceMap map : maps) {
       std::vector<SMV> branches;
-      for (int round = 0; round <= settings.seamBranches; ++round) {
+      for (int round = 0; round <= settings.seamBranches && !cancelled; ++round) {
+        // (a grown grid's search goes on past the first one's share: told as 99 %)
+        if (settings.progress && !settings.progress(std::min(0.99, tried++ / candidates))) cancelled = true;
+        if (cancelled) break;
         auto gi = imageAlong(sm, 2, map, n, branches, lastWhy);
         if (!gi) break;
         const double d =
@@ -380,6 +386,10 @@ std::optional<GeometryImage> makeGeometryImage(const std::vector<Eigen::Vector3d
     }
   };
   search(settings.size);
+  if (cancelled) {
+    why = "The geometry image was cancelled.";
+    return std::nullopt;
+  }
   if (!best) {
     why = lastWhy;
     return std::nullopt;
@@ -394,8 +404,14 @@ std::optional<GeometryImage> makeGeometryImage(const std::vector<Eigen::Vector3d
     extent = box.diagonal().norm();
   }
   const int grow = std::max(1, (settings.size - 1) / 2);
-  for (int n = settings.size + grow; n <= settings.maxSize && bestDistance > settings.tolerance * extent; n += grow)
+  for (int n = settings.size + grow; n <= settings.maxSize && bestDistance > settings.tolerance * extent; n += grow) {
     search(n);
+    if (cancelled) {
+      why = "The geometry image was cancelled.";
+      return std::nullopt;
+    }
+  }
+  if (settings.progress) settings.progress(1.0);
   best->hausdorff = bestDistance;
   best->extent = extent;
   best->droppedPieces = static_cast<int>(pieces);

@@ -358,6 +358,33 @@ class TestFastBodies : public QObject {
     QVERIFY(body->toolStiffness().isZero(0));
   }
 
+  // The FFD body's build tells its progress (rising to 1) and stops when told to, with a sentence (the GUI's dialog
+  // and its Cancel).
+  void theFfdBuildTellsProgressAndCancels() {
+    BodySetup s = testing::presetBody("liver");
+    s.model = BodyModel::Ffd;
+    std::vector<double> told;
+    s.buildProgress = [&](double d) {
+      told.push_back(d);
+      return true;
+    };
+    makeBody(s);
+    qInfo("told %zu times, last %.2f", told.size(), told.empty() ? -1.0 : told.back());
+    QVERIFY(told.size() >= 3);
+    QVERIFY(std::is_sorted(told.begin(), told.end()));
+    QCOMPARE(told.back(), 1.0);
+    int calls = 0;
+    s.buildProgress = [&](double) { return ++calls < 3; };
+    try {
+      makeBody(s);
+      QFAIL("a cancelled FFD build made a body");
+    } catch (const MeshError& e) {
+      qInfo("%s", e.what());
+      QVERIFY(std::string(e.what()).find("cancelled") != std::string::npos);
+    }
+    QCOMPARE(calls, 3);
+  }
+
   // Extreme and bad cases: a pull of 0.3 m (the FFD stops at its largest displacement and says so; the hybrid model's
   // linear answer turns elements inside out, counted), an organ held by nothing (both refused in a sentence), an
   // unknown model's name (refused naming the four).

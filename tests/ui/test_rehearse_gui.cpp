@@ -517,6 +517,12 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Ffd; }, 30000));
     QVERIFY2(waitFor([&] { return ffd.lines.join(" ").contains("The FFD model: the surface on a 81 x 81"); }, 30000),
              qPrintable(ffd.lines.join(" | ")));
+    // Its build's progress dialog (shown past 0.4 s) is gone when the build is done.
+    QVERIFY(waitFor([&] { return !panel->findChild<QProgressDialog*>("precomputeProgress"); }, 10000));
+    // (A window manager gives the window back its focus when a modal dialog closes; the offscreen platform does not:
+    // the window's tool keys need it.)
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     qInfo("%s", qPrintable(ffd.lines.join(" | ")));
     graspAndPull();
     {
@@ -752,6 +758,10 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return method->currentIndex() == before; }, 10000));
     QVERIFY(panel->session()->setup().model == simcore::BodyModel::Fem);
     QVERIFY(waitFor([&] { return !panel->findChild<QProgressDialog*>("precomputeProgress"); }, 10000));
+    // (A window manager gives the window back its focus when a modal dialog closes; the offscreen platform does not:
+    // the window's tool keys need it.)
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     panel->pause();
   }
 

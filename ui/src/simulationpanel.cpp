@@ -1001,16 +1001,18 @@ void SimulationPanel::showBuildProgress(double done) {
     return;
   }
   if (!buildDialog_) {
-    buildDialog_ = new QProgressDialog(tr("Computing the precomputed model's responses to each surface node..."),
+    const bool ffd = asked_.model == simcore::BodyModel::Ffd;
+    buildDialog_ = new QProgressDialog(ffd ? tr("Mapping the organ's surface onto the FFD model's geometry image...")
+                                           : tr("Computing the precomputed model's responses to each surface node..."),
                                        tr("Cancel"), 0, 1000, this);
     buildDialog_->setObjectName(QStringLiteral("precomputeProgress"));
-    buildDialog_->setWindowTitle(tr("Precomputed model"));
+    buildDialog_->setWindowTitle(ffd ? tr("FFD model") : tr("Precomputed model"));
     buildDialog_->setWindowModality(Qt::WindowModal);
     buildDialog_->setMinimumDuration(400);
     buildDialog_->setAutoClose(false);
     buildDialog_->setAutoReset(false);
     connect(buildDialog_, &QProgressDialog::canceled, this, [this, flag = precomputeCancelled_] {
-      flag->store(true);  // the build stops after its current batch; the session says so and keeps the FEM
+      flag->store(true);  // the build stops after its current batch; the session says so and keeps the model it had
       if (buildDialog_) buildDialog_->deleteLater();
       buildDialog_.clear();
     });

@@ -43,6 +43,7 @@ class FfdBody final : public StaticBody {
     // The paper's 81 x 81 (growing the grid for a protruding organ takes up to half a minute, during which the session
     // would not step): the build note says how far this one lies from the surface instead.
     gs.maxSize = gs.size;
+    gs.progress = s.buildProgress;  // (the GUI's progress dialog with its Cancel)
     auto image = makeGeometryImage(points, surface, gs, why);
     if (!image) throw MeshError("The FFD model cannot be built: " + why);
     FfdSettings fs;
@@ -108,13 +109,14 @@ class FfdBody final : public StaticBody {
     char said[480];
     std::snprintf(
         said, sizeof said,
-        "The FFD model: the surface on a %d x %d geometry image (%s map, %d seam edges), deformed within %.0f "
-        "mm of the instrument, built in %.1f s.",
+        "The FFD model: the surface on a %d x %d geometry image (%s map, %d seam edges; it lies %.1f mm = %.1f %% "
+        "of the organ's size from the surface), deformed within %.0f mm of the instrument, built in %.1f s.",
         im.size, im.size,
         im.map == SurfaceMap::Authalic    ? "authalic"
         : im.map == SurfaceMap::Conformal ? "conformal"
                                           : "mean-value",
-        im.seamEdges, 1e3 * mesh_->settings().radius, buildSeconds_);
+        im.seamEdges, 1e3 * im.hausdorff, im.extent > 0 ? 100 * im.hausdorff / im.extent : 0.0,
+        1e3 * mesh_->settings().radius, buildSeconds_);
     return said;
   }
 

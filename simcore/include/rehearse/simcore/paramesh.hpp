@@ -15,6 +15,7 @@
 #include <Eigen/Core>
 
 #include <array>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -37,6 +38,8 @@ struct GeometryImageSettings {
   /// cells gets more of them. maxSize = size: the grid stays as asked.
   int maxSize = 161;
   double tolerance = 0.01;
+  /// Told the share done (0..1) after each candidate; false cancels (nothing is made, `why` says so).
+  std::function<bool(double)> progress;
 };
 
 /// A surface resampled on a size x size grid over the unit square: point (i, j) at parameter (u, v) = (j, i) / (size -
