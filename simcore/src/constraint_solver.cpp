@@ -18,6 +18,8 @@ double applyRow(const ScalarConstraint& c, const Vec& v) {
 }
 }  // namespace
 
+double constraintValue(const ScalarConstraint& c, const Eigen::VectorXd& x) { return applyRow(c, x); }
+
 void validateConstraint(const ScalarConstraint& c, std::size_t nodes) {
   bool any = false;
   for (int k = 0; k < 4; ++k) {

@@ -466,10 +466,7 @@ bool HybridElasticity::solveRows(const std::vector<ScalarConstraint>& rows, cons
   };
   for (Eigen::Index r = 0; r < m; ++r) {
     const auto& cr = rows[static_cast<std::size_t>(r)];
-    double g = 0;
-    for (int k = 0; k < 4; ++k)
-      if (node(cr, k) >= 0) g += weight(cr, k) * cr.direction.dot(base.segment<3>(3 * node(cr, k)));
-    e(r) = cr.value - g - rowOf(cr, uR0);
+    e(r) = cr.value - constraintValue(cr, base) - rowOf(cr, uR0);
     for (Eigen::Index c = 0; c < m; ++c) W(r, c) = rowOf(cr, X.col(c));
   }
   W = (0.5 * (W + W.transpose())).eval();

@@ -337,10 +337,7 @@ bool PrecomputedElasticity::solveConstraints(const std::vector<ScalarConstraint>
   const Eigen::VectorXd at = base + u0;
   for (Eigen::Index r = 0; r < m; ++r) {
     const auto& cr = rows[static_cast<std::size_t>(r)];
-    double g = 0;
-    for (int k = 0; k < 4; ++k)
-      if (node(cr, k) >= 0) g += weight(cr, k) * cr.direction.dot(at.segment<3>(3 * node(cr, k)));
-    e(r) = cr.value - g;
+    e(r) = cr.value - constraintValue(cr, at);
     for (Eigen::Index c = 0; c < m; ++c) {
       const auto& cc = rows[static_cast<std::size_t>(c)];
       double w = 0;

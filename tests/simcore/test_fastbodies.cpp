@@ -7,6 +7,7 @@
 // answer to the same script (a different algorithm for the same equations), Hertz's formula worked here, the jaws'
 // recorded positions, and the recording's replay from its start and from checkpoints through the codec's bytes.
 #include "session_inputs.hpp"
+#include "static_checks.hpp"
 #include "test_support.hpp"
 
 #include <rehearse/app/gesture.hpp>
@@ -36,42 +37,6 @@ app::GestureScript script(const std::string& name, double duration = 0) {
   app::GestureScript s = app::parseGestureScript(ss.str());
   if (duration > 0) s.duration = duration;
   return s;
-}
-
-// The linear static balance of a state: K (x - rest) - M g at every node that is not fixed, summed over the nodes
-// where it does not vanish (1e-8 of the largest nodal weight: what an instrument or a held free piece pushes).
-struct Balance {
-  std::size_t loaded = 0;                           ///< free nodes off equilibrium
-  Eigen::Vector3d force = Eigen::Vector3d::Zero();  ///< their residual's sum (N)
-  double worstElsewhere = 0;                        ///< the largest residual at the other free nodes, over the load
-};
-Balance balance(const BodySetup& s, const Eigen::VectorXd& x, const std::vector<char>& skip = {}) {
-  Mesh mesh = s.mesh;
-  mesh.convertToMetres();
-  if (!s.rest.empty()) mesh.points = s.rest;
-  MaterialParams fallback = s.material;
-  fallback.model = MaterialModel::Linear;
-  std::map<int, MaterialParams> byLabel = s.byLabel;
-  for (auto& [label, m] : byLabel) m.model = MaterialModel::Linear;
-  const FemModel model = FemModel::build(mesh, byLabel, fallback);
-  Eigen::VectorXd res = elasticStiffness(model, model.restVector()) * (x - model.restVector());
-  std::vector<char> fixed(model.nodeCount(), 0);
-  for (int v : s.fixedNodes) fixed[static_cast<std::size_t>(v)] = 1;
-  double load = 0;
-  for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(model.nodeCount()); ++i) {
-    res.segment<3>(3 * i) -= model.lumpedMass(i) * s.settings.gravity;
-    load = std::max(load, model.lumpedMass(i) * s.settings.gravity.norm());
-  }
-  Balance b;
-  for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(model.nodeCount()); ++i) {
-    const auto v = static_cast<std::size_t>(i);
-    if (fixed[v] || (!skip.empty() && skip[v])) continue;
-    if (res.segment<3>(3 * i).norm() > 1e-8 * load) {
-      ++b.loaded;
-      b.force += res.segment<3>(3 * i);
-    }
-  }
-  return b;
 }
 
 // Nodes of pieces of the mesh that no fixed node holds (a cut took them off), 1 each.
@@ -114,7 +79,7 @@ class TestFastBodies : public QObject {
     std::sort(ms.begin(), ms.end());
     const auto& last = r.steps.back();
     QVERIFY(last.grasped > 0);
-    const Balance b = balance(s, r.final.x);
+    const testing::Balance b = testing::linearBalance(s, r.final.x);
     BodySetup p = s;
     p.model = BodyModel::Precomputed;
     const app::GestureResult q = app::runGesture(p, pull);
@@ -169,7 +134,7 @@ class TestFastBodies : public QObject {
     for (const auto& row : r.steps) converged += row.report.outcome == StepStatus::Converged, ms.push_back(row.wallMs);
     std::sort(ms.begin(), ms.end());
     const std::vector<char> off = unheldPieces(end.setup);
-    const Balance b = balance(end.setup, end.state.x, off);
+    const testing::Balance b = testing::linearBalance(end.setup, end.state.x, off);
     const auto offNodes = std::count(off.begin(), off.end(), 1);
     qInfo(
         "hybrid cut-across (liver preset): %zu cuts, %zu -> %zu elements, %zu of %zu steps converged (median %.3f ms, "
@@ -225,15 +190,8 @@ class TestFastBodies : public QObject {
             (far < 0 || (hybrid->restPositions()[static_cast<std::size_t>(v)] - trocar).norm() >
                             (hybrid->restPositions()[static_cast<std::size_t>(far)] - trocar).norm()))
           far = v;
-    std::vector<ScalarConstraint> rows;
-    for (int k = 0; k < 3; ++k) {
-      ScalarConstraint c;
-      c.nodes[0] = far;
-      c.weights[0] = 1;
-      c.direction = Eigen::Vector3d::Unit(k);
-      c.value = a.x(3 * far + k) + (k == 1 ? -0.005 : 0.0);
-      rows.push_back(c);
-    }
+    const std::vector<ScalarConstraint> rows =
+        testing::holdAt(far, a.x.segment<3>(3 * far) + Eigen::Vector3d(0, -0.005, 0));
     const auto t0 = std::chrono::steady_clock::now();
     hybrid->setToolConstraints(rows);
     const StepReport ra = hybrid->step(a);
@@ -317,24 +275,12 @@ class TestFastBodies : public QObject {
     s.model = BodyModel::Ffd;
     const auto body = makeBody(s);
     SimulationState st = body->initialState();
-    int node = -1;
-    for (const auto& t : boundaryTriangles(s.mesh, false))
-      for (int v : t)
-        if (node < 0 && !body->fixedMask()[static_cast<std::size_t>(v)]) node = v;
+    const int node = testing::firstFreeSurfaceNode(s, *body);
     const Eigen::Vector3d x0 = st.x.segment<3>(3 * node);
     const double E = s.material.young / (1 - s.material.poisson * s.material.poisson);
     auto hertz = [&](double d) { return 4.0 / 3.0 * std::sqrt(0.005) * E * std::pow(d, 1.5); };
     auto hold = [&](const Eigen::Vector3d& d) {
-      std::vector<ScalarConstraint> rows;
-      for (int a = 0; a < 3; ++a) {
-        ScalarConstraint c;
-        c.nodes[0] = node;
-        c.weights[0] = 1;
-        c.direction = Eigen::Vector3d::Unit(a);
-        c.value = x0(a) + d(a);
-        rows.push_back(c);
-      }
-      body->setToolConstraints(rows);
+      body->setToolConstraints(testing::holdAt(node, x0 + d));
       return body->step(st);
     };
     const Eigen::Vector3d d = 0.008 * Eigen::Vector3d(0.3, -0.6, -0.74).normalized();
@@ -394,20 +340,8 @@ class TestFastBodies : public QObject {
       s.model = m;
       const auto body = makeBody(s);
       SimulationState st = body->initialState();
-      int node = -1;
-      for (const auto& t : boundaryTriangles(s.mesh, false))
-        for (int v : t)
-          if (node < 0 && !body->fixedMask()[static_cast<std::size_t>(v)]) node = v;
-      std::vector<ScalarConstraint> rows;
-      for (int a = 0; a < 3; ++a) {
-        ScalarConstraint c;
-        c.nodes[0] = node;
-        c.weights[0] = 1;
-        c.direction = Eigen::Vector3d::Unit(a);
-        c.value = st.x(3 * node + a) + (a == 2 ? -0.3 : 0.0);
-        rows.push_back(c);
-      }
-      body->setToolConstraints(rows);
+      const int node = testing::firstFreeSurfaceNode(s, *body);
+      body->setToolConstraints(testing::holdAt(node, st.x.segment<3>(3 * node) + Eigen::Vector3d(0, 0, -0.3)));
       const StepReport rep = body->step(st);
       qInfo("%s pulled 0.3 m: %s; tool force %.1f N", bodyModelName(m).c_str(), statusSentence(rep).c_str(),
             body->toolForce().norm());

@@ -7,6 +7,7 @@
 // a driven node that is fixed, a node without a response, a cancelled build); a near-incompressible material.
 #include "realorgan.hpp"
 #include "session_inputs.hpp"
+#include "static_checks.hpp"
 #include "test_support.hpp"
 
 #include <rehearse/app/gesture.hpp>
@@ -32,6 +33,8 @@
 #include <random>
 #include <set>
 
+using rehearse::testing::firstFreeSurfaceNode;
+using rehearse::testing::holdAt;
 using namespace rehearse;
 using namespace rehearse::simcore;
 
@@ -119,28 +122,6 @@ std::pair<double, double> largestDifference(const std::vector<Eigen::Vector3d>& 
     largest = std::max(largest, reference[k].norm());
   }
   return {difference, largest};
-}
-
-// An instrument's hold of `node` at `at` (m): three bilateral rows along x, y, z, as the session's grasp makes them.
-std::vector<ScalarConstraint> holdAt(int node, const Eigen::Vector3d& at) {
-  std::vector<ScalarConstraint> rows;
-  for (int a = 0; a < 3; ++a) {
-    ScalarConstraint c;
-    c.nodes[0] = node;
-    c.weights[0] = 1;
-    c.direction = Eigen::Vector3d::Unit(a);
-    c.value = at(a);
-    rows.push_back(c);
-  }
-  return rows;
-}
-
-// The first surface node of the setup's mesh that the body does not hold fixed.
-int firstFreeSurfaceNode(const BodySetup& s, const DeformableBody& body) {
-  for (const auto& t : boundaryTriangles(s.mesh, false))
-    for (int v : t)
-      if (!body.fixedMask()[static_cast<std::size_t>(v)]) return v;
-  return -1;
 }
 
 }  // namespace
@@ -520,36 +501,15 @@ class TestPrecomputed : public QObject {
     const auto& last = r.steps.back();
     QVERIFY(last.grasped > 0);
     // Equilibrium by the stiffness (the session's body frame: the setup's mesh, in metres, is the rest shape).
-    Mesh mesh = s.mesh;
-    mesh.convertToMetres();
-    if (!s.rest.empty()) mesh.points = s.rest;
-    MaterialParams fallback = s.material;
-    fallback.model = MaterialModel::Linear;
-    std::map<int, MaterialParams> byLabel = s.byLabel;
-    for (auto& [label, m] : byLabel) m.model = MaterialModel::Linear;
-    const FemModel model = FemModel::build(mesh, byLabel, fallback);
-    const Eigen::VectorXd u = r.final.x - model.restVector();
-    Eigen::VectorXd res = elasticStiffness(model, model.restVector()) * u;
-    std::vector<char> fixed(model.nodeCount(), 0);
-    for (int v : s.fixedNodes) fixed[static_cast<std::size_t>(v)] = 1;
-    double load = 0;
-    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(model.nodeCount()); ++i) {
-      res.segment<3>(3 * i) -= model.lumpedMass(i) * s.settings.gravity;
-      load = std::max(load, model.lumpedMass(i) * s.settings.gravity.norm());
-    }
-    Eigen::Vector3d held = Eigen::Vector3d::Zero();
-    std::size_t loaded = 0;
-    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(model.nodeCount()); ++i)
-      if (!fixed[static_cast<std::size_t>(i)] && res.segment<3>(3 * i).norm() > 1e-8 * load) {
-        ++loaded;
-        held += res.segment<3>(3 * i);
-      }
+    const testing::Balance balance = testing::linearBalance(s, r.final.x);
+    const std::size_t loaded = balance.loaded;
+    const Eigen::Vector3d held = balance.force;
     qInfo(
         "precomputed grasp-pull (liver preset, %zu nodes): %zu steps all converged, median %.3f ms, worst %.3f ms; "
         "%zu held; %zu free nodes off equilibrium (the held ones), their force (%.4f, %.4f, %.4f) N, the session's "
         "tool force (%.4f, %.4f, %.4f) N",
-        model.nodeCount(), r.steps.size(), ms[ms.size() / 2], ms.back(), last.grasped, loaded, held.x(), held.y(),
-        held.z(), last.toolForce.x(), last.toolForce.y(), last.toolForce.z());
+        balance.nodes, r.steps.size(), ms[ms.size() / 2], ms.back(), last.grasped, loaded, held.x(), held.y(), held.z(),
+        last.toolForce.x(), last.toolForce.y(), last.toolForce.z());
     QVERIFY(loaded <= last.grasped);
     QVERIFY(last.toolForce.norm() > 0.1);
     QVERIFY((held - last.toolForce).norm() <= 1e-6 * last.toolForce.norm());
@@ -565,7 +525,7 @@ class TestPrecomputed : public QObject {
       qInfo("cut: %s", said.c_str());
       QVERIFY(said.find("The precomputed model cannot cut") != std::string::npos);
       QCOMPARE(c.cuts, std::size_t(0));
-      QCOMPARE(c.finalMesh.tets.size(), mesh.tets.size());
+      QCOMPARE(c.finalMesh.tets.size(), s.mesh.tets.size());
     }
     QVERIFY(app::decodeSetup(app::encodeSetup(s)).model == BodyModel::Precomputed);
     simcore::BodySetup fem = s;

@@ -53,6 +53,38 @@ class TestRehearseGui : public QObject {
   Q_OBJECT
   std::unique_ptr<MainWindow> w_;
 
+  // Where the grasper presses (the organ's centre of gravity in the frame) and where its 30 px pull ends (widget px).
+  std::pair<QPointF, QPointF> pullPoints() const {
+    const auto& c = *w_->caseData();
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    const QPointF a = w_->frameView()->toWidget(QPointF(centre.x(), centre.y()));
+    return {a, a + QPointF(0, -30)};
+  }
+  // The grasper (R) pressed at `a` until it holds, dragged to `b` in six moves of 3 steps each, then 10 steps more.
+  void graspAndPull(const QPointF& a, const QPointF& b) {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    for (int i = 1; i <= 6; ++i) {
+      QTest::mouseMove(view, (a + (b - a) * (i / 6.0)).toPoint());
+      const long now = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+    }
+    const long at = panel->lastFrame()->steps;
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 10; }));
+  }
+  // How far the held nodes are from their places on the jaws (m).
+  static double heldFromJaws(const ui::SimulationFrame& f) {
+    double worst = 0;
+    for (std::size_t k = 0; k < f.tool.held.size(); ++k)
+      worst = std::max(
+          worst, (f.positions[static_cast<std::size_t>(f.tool.held[k])] - (f.tool.tip + f.tool.heldOffset[k])).norm());
+    return worst;
+  }
+
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseRehearseTest");
@@ -331,27 +363,12 @@ class TestRehearseGui : public QObject {
     qInfo("%s", qPrintable(built.lines.join(" | ")));
     QVERIFY(waitFor([&] { return panel->lastFrame()->report.status == "converged"; }, 30000));
     SessionHeard heard(panel);
-    QTest::keyClick(w_.get(), Qt::Key_R);
     auto* view = w_->frameView();
-    QCOMPARE(view->tool(), ui::Tool::Grasp);
-    const auto& c = *w_->caseData();
-    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
-    const QPointF a = view->toWidget(QPointF(centre.x(), centre.y())), b = a + QPointF(0, -30);
-    QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
-    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
-    for (int i = 1; i <= 6; ++i) {
-      QTest::mouseMove(view, (a + (b - a) * (i / 6.0)).toPoint());
-      const long now = panel->lastFrame()->steps;
-      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
-    }
-    const long at = panel->lastFrame()->steps;
-    QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 10; }));
+    const auto [a, b] = pullPoints();
+    graspAndPull(a, b);
+    if (QTest::currentTestFailed()) return;
     const auto f = panel->lastFrame();
-    double worst = 0;
-    for (std::size_t k = 0; k < f->tool.held.size(); ++k)
-      worst = std::max(
-          worst,
-          (f->positions[static_cast<std::size_t>(f->tool.held[k])] - (f->tool.tip + f->tool.heldOffset[k])).norm());
+    const double worst = heldFromJaws(*f);
     qInfo("precomputed: %zu node(s) held, %.2e m from the jaws, tool force %.3f N; step: %s", f->tool.held.size(),
           worst, f->tool.force.norm(), f->report.status.c_str());
     shot(*w_, "step7-precomputed");
@@ -433,20 +450,7 @@ class TestRehearseGui : public QObject {
     QVERIFY(method && status && rate);
     panel->play();
     const auto& c = *w_->caseData();
-    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
-    const QPointF a = view->toWidget(QPointF(centre.x(), centre.y())), b = a + QPointF(0, -30);
-    auto graspAndPull = [&] {
-      QTest::keyClick(w_.get(), Qt::Key_R);
-      QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
-      QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
-      for (int i = 1; i <= 6; ++i) {
-        QTest::mouseMove(view, (a + (b - a) * (i / 6.0)).toPoint());
-        const long now = panel->lastFrame()->steps;
-        QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
-      }
-      const long at = panel->lastFrame()->steps;
-      QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 10; }));
-    };
+    const auto [a, b] = pullPoints();
     auto release = [&] {
       QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());
       QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 20000));
@@ -460,14 +464,11 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Hybrid; }, 30000));
     QVERIFY2(waitFor([&] { return built.lines.join(" ").contains("The hybrid model: a FEM region of"); }, 10000),
              qPrintable(built.lines.join(" | ")));
-    graspAndPull();
+    graspAndPull(a, b);
+    if (QTest::currentTestFailed()) return;
     {
       const auto f = panel->lastFrame();
-      double worst = 0;
-      for (std::size_t k = 0; k < f->tool.held.size(); ++k)
-        worst = std::max(
-            worst,
-            (f->positions[static_cast<std::size_t>(f->tool.held[k])] - (f->tool.tip + f->tool.heldOffset[k])).norm());
+      const double worst = heldFromJaws(*f);
       qInfo("hybrid: %zu node(s) held, %.2e m from the jaws, tool force %.3f N; step: %s", f->tool.held.size(), worst,
             f->tool.force.norm(), f->report.status.c_str());
       QVERIFY(worst < 1e-9);
@@ -524,7 +525,8 @@ class TestRehearseGui : public QObject {
     w_->activateWindow();
     QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     qInfo("%s", qPrintable(ffd.lines.join(" | ")));
-    graspAndPull();
+    graspAndPull(a, b);
+    if (QTest::currentTestFailed()) return;
     {
       const auto f = panel->lastFrame();
       qInfo("FFD: %zu node(s) held, tool force %.3f N; step: %s", f->tool.held.size(), f->tool.force.norm(),

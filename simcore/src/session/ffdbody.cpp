@@ -64,6 +64,7 @@ class FfdBody final : public StaticBody {
       boundWeight_[v] = mesh_->weight(std::sqrt(best));
     }
     buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
+    u0_.setZero(base_.size());  // (it starts at rest: the surface as built)
   }
   StepReport step(SimulationState& state) override {
     StepReport rep = StaticBody::step(state);
@@ -166,11 +167,7 @@ class FfdBody final : public StaticBody {
       const ScalarConstraint* at = nullptr;
       for (const auto& r : rows_) {
         if (!r.unilateral) continue;
-        double g = 0;
-        for (int k = 0; k < 4; ++k)
-          if (r.nodes[static_cast<std::size_t>(k)] >= 0)
-            g += r.weights[static_cast<std::size_t>(k)] *
-                 r.direction.dot(base_.segment<3>(3 * r.nodes[static_cast<std::size_t>(k)]));
+        const double g = constraintValue(r, base_);
         if (r.value - g > deepest) deepest = r.value - g, at = &r;
       }
       if (at) {
@@ -198,7 +195,6 @@ class FfdBody final : public StaticBody {
     }
     return true;
   }
-  Eigen::VectorXd startDisplacement() const override { return Eigen::VectorXd::Zero(base_.size()); }
 
   std::unique_ptr<ParameterizedMesh> mesh_;
   std::vector<int> bound_;

@@ -38,6 +38,11 @@ class HybridBody final : public StaticBody {
     }
     std::string why;
     if (!rebuild(s.hybridBefore.get(), why)) throw MeshError("The hybrid model cannot be built: " + why);
+    // Where it is at t = 0: the registered shape (the equilibrium), or the rest shape with its sag under gravity.
+    u0_.setZero(base_.size());
+    Eigen::VectorXd lambda;
+    if (!started_ && !elastic_->solveRows({}, base_, true, u0_, lambda, nullptr, why))
+      throw MeshError("The hybrid model cannot be built: " + why);
   }
   void setToolConstraints(std::vector<ScalarConstraint> c) override {
     rows_ = std::move(c);
@@ -117,13 +122,6 @@ class HybridBody final : public StaticBody {
       return false;
     }
     return true;
-  }
-  Eigen::VectorXd startDisplacement() const override {
-    if (started_) return Eigen::VectorXd::Zero(base_.size());
-    Eigen::VectorXd u, lambda;
-    std::string why;
-    if (!elastic_->solveRows({}, base_, true, u, lambda, nullptr, why)) return Eigen::VectorXd::Zero(base_.size());
-    return u;
   }
 
   Eigen::Vector3d gravity_;

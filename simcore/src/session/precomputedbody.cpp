@@ -38,6 +38,7 @@ class PrecomputedBody final : public StaticBody {
     response_ = precomputedFor(model_, fixed_, driven, s.settings.gravity, ps, key_, from_, why);
     if (!response_) throw MeshError("The precomputed model cannot be built: " + why);
     buildSeconds_ = std::chrono::duration<double>(std::chrono::steady_clock::now() - began).count();
+    u0_ = started_ ? Eigen::VectorXd::Zero(base_.size()) : response_->sag();
   }
   std::string buildNote() const override {
     char said[320];
@@ -60,10 +61,7 @@ class PrecomputedBody final : public StaticBody {
 
  private:
   bool solveRows(Eigen::VectorXd& u, std::string& why) override {
-    return response_->solveConstraints(rows_, base_, startDisplacement(), u, lambda_, &W_, why);
-  }
-  Eigen::VectorXd startDisplacement() const override {
-    return started_ ? Eigen::VectorXd::Zero(base_.size()) : response_->sag();
+    return response_->solveConstraints(rows_, base_, u0_, u, lambda_, &W_, why);
   }
 
   std::shared_ptr<const PrecomputedElasticity> response_;

@@ -40,7 +40,7 @@ class StaticBody : public DeformableBody {
   std::size_t nodeCount() const override { return model_.nodeCount(); }
   SimulationState initialState() const override {
     SimulationState s;
-    s.x = base_ + startDisplacement();
+    s.x = base_ + u0_;
     s.v.setZero(s.x.size());
     return s;
   }
@@ -71,11 +71,7 @@ class StaticBody : public DeformableBody {
     state.forcesValid = false;
     double violation = 0;
     for (const auto& c : rows_) {
-      double g = 0;
-      for (int k = 0; k < 4; ++k)
-        if (c.nodes[static_cast<std::size_t>(k)] >= 0)
-          g += c.weights[static_cast<std::size_t>(k)] *
-               c.direction.dot(x.segment<3>(3 * c.nodes[static_cast<std::size_t>(k)]));
+      const double g = constraintValue(c, x);
       violation = std::max(violation, c.unilateral ? std::max(0.0, c.value - g) : std::abs(g - c.value));
     }
     rep.constraintViolation = violation;
@@ -120,8 +116,6 @@ class StaticBody : public DeformableBody {
  protected:
   /// The displacement u from base_ under rows_ (its multipliers into lambda_, the rows' compliance into W_).
   virtual bool solveRows(Eigen::VectorXd& u, std::string& why) = 0;
-  /// The displacement from base_ at t = 0 (the sag when started from rest).
-  virtual Eigen::VectorXd startDisplacement() const = 0;
 
   SimulationSettings settings_;
   int topology_ = 0;
@@ -130,6 +124,8 @@ class StaticBody : public DeformableBody {
   std::vector<char> fixed_;
   Eigen::VectorXd base_;  ///< the rest shape, or the registered shape that is the equilibrium (started_)
   bool started_ = false;
+  Eigen::VectorXd
+      u0_;  ///< the displacement from base_ at t = 0: the sag when started from rest, else zero (the ctor's)
   std::vector<ScalarConstraint> rows_;
   Eigen::VectorXd lambda_;
   Eigen::MatrixXd W_;

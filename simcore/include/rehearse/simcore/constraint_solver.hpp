@@ -29,6 +29,8 @@ struct ScalarConstraint {
 
 /// Throws MeshError with one sentence for a constraint on a missing node, or without node, direction or value.
 void validateConstraint(const ScalarConstraint& c, std::size_t nodeCount);
+/// The constraint's left side at positions `x` (3n): sum_k weights[k] * direction . x[nodes[k]].
+double constraintValue(const ScalarConstraint& c, const Eigen::VectorXd& x);
 
 /// The compliance blocks A^-1 [e_x e_y e_z] of mesh nodes for one factor A (3 columns per node). Each node's block is
 /// solved alone, so it has the same bits whenever and wherever it is solved (the stepping thread, the thread building
