@@ -8,6 +8,22 @@
 
 namespace rehearse::simcore {
 
+const char* surfaceMapName(SurfaceMap map) {
+  switch (map) {
+    case SurfaceMap::Authalic:
+      return "authalic";
+    case SurfaceMap::Conformal:
+      return "conformal";
+    case SurfaceMap::MeanValue:
+      return "mean value";
+    case SurfaceMap::Stretch:
+      return "stretch-minimising";
+    case SurfaceMap::Best:
+      break;
+  }
+  return "best";
+}
+
 double hertzForce(double r, double effectiveModulus, double depth) {
   if (!(depth > 0) || !(r > 0) || !(effectiveModulus > 0)) return 0;
   return 4.0 / 3.0 * std::sqrt(r) * effectiveModulus * std::pow(depth, 1.5);

@@ -112,12 +112,8 @@ class FfdBody final : public StaticBody {
         said, sizeof said,
         "The FFD model: the surface on a %d x %d geometry image (%s map, %d seam edges; it lies %.1f mm = %.1f %% "
         "of the organ's size from the surface), deformed within %.0f mm of the instrument, built in %.1f s.",
-        im.size, im.size,
-        im.map == SurfaceMap::Authalic    ? "authalic"
-        : im.map == SurfaceMap::Conformal ? "conformal"
-                                          : "mean-value",
-        im.seamEdges, 1e3 * im.hausdorff, im.extent > 0 ? 100 * im.hausdorff / im.extent : 0.0,
-        1e3 * mesh_->settings().radius, buildSeconds_);
+        im.size, im.size, surfaceMapName(im.map), im.seamEdges, 1e3 * im.hausdorff,
+        im.extent > 0 ? 100 * im.hausdorff / im.extent : 0.0, 1e3 * mesh_->settings().radius, buildSeconds_);
     return said;
   }
 

@@ -23,9 +23,13 @@
 namespace rehearse::simcore {
 
 /// How the surface, cut to a disk, is mapped onto the square: CGAL's discrete authalic map (keeps areas), its discrete
-/// conformal map (keeps angles), mean value coordinates (never folds, whatever the triangles' shape), or the best of
-/// them (Best: the one whose grid lies nearest the surface).
-enum class SurfaceMap { Authalic, Conformal, MeanValue, Best };
+/// conformal map (keeps angles), mean value coordinates (never folds, whatever the triangles' shape), the mean-value
+/// map reweighted to spread its geometric stretch (Stretch: Yoshizawa, Belyaev and Seidel 2004, minimising Sander et
+/// al.'s L2 stretch, the measure Gu, Gortler and Hoppe's geometry images use; its weights stay positive, so it never
+/// folds either), or the best of them (Best: the one whose grid lies nearest the surface).
+enum class SurfaceMap { Authalic, Conformal, MeanValue, Stretch, Best };
+/// "authalic", "conformal", "mean value", "stretch-minimising", "best".
+const char* surfaceMapName(SurfaceMap map);
 
 struct GeometryImageSettings {
   int size = 81;  ///< grid points along each side (the paper's 81 x 81)
@@ -53,6 +57,9 @@ struct GeometryImage {
   SurfaceMap map = SurfaceMap::Authalic;  ///< the map used
   int unplaced = 0;       ///< grid points no parameter triangle held (placed on the nearest): 0 normally
   int droppedPieces = 0;  ///< pieces of the surface left out (the largest is the organ)
+  /// Stretch map: the reweighting rounds kept and the surface's L2 stretch (1: none) before and after them.
+  int stretchRounds = 0;
+  double stretchBefore = 0, stretchAfter = 0;
   int filledHoles = 0;    ///< small holes (under 15 % of the size around) closed before the cut
   double hausdorff = -1;  ///< m: the grid's distance to the surface it resampled (CGAL's, 20,000 samples)
   double extent = 0;      ///< m: that surface's size (its bounding box's diagonal)
