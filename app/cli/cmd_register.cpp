@@ -41,6 +41,18 @@
 
 namespace rehearse::app::cli {
 
+namespace {
+
+nlohmann::json uncertaintyJson(const simcore::RegistrationUncertainty& u) {
+  if (!u.computed) return nullptr;
+  auto mm = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };  // null: unbounded
+  return {{"surface_mm", mm(u.surfaceMm)}, {"target_mm", mm(u.targetMm)},       {"curvature_mm", mm(u.curvatureMm)},
+          {"spread_mm", u.spreadMm},       {"misfit_px", u.misfitPx},           {"correlation", u.correlation},
+          {"weakest", u.weakest},          {"sentence", uncertaintySentence(u)}};
+}
+
+}  // namespace
+
 int cmdRegister(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, registerCommand());
   for (const char* need : {"camera", "contour", "pose", "out"})
@@ -190,6 +202,7 @@ int cmdRegister(const std::vector<std::string>& args) {
                               {"sag_share", res.sagShare},
                               {"sag_apart_mm", res.sagApartMm},
                               {"deeper_minima_taken", res.adopted},
+                              {"uncertainty", uncertaintyJson(res.uncertainty)},
                               {"load_model_m_s2", {res.load.x(), res.load.y(), res.load.z()}},
                               {"load_camera_m_s2",
                                {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
@@ -200,6 +213,7 @@ int cmdRegister(const std::vector<std::string>& args) {
   std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(),
               rows.size(), last.wallMs, last.score(), rows.front().it.score(),
               rows.back().errMean >= 0 ? (", 3D error " + std::to_string(rows.back().errMean) + " mm").c_str() : "");
+  if (res.ok) std::printf("register: %s\n", uncertaintySentence(res.uncertainty).c_str());
   if (!res.ok) {
     std::fprintf(stderr, "rehearse: %s\n", res.status.c_str());
     return 3;

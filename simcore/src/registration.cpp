@@ -185,6 +185,116 @@ void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, bool
 
 }  // namespace
 
+namespace {
+
+// The cost's curvature's share of RegistrationUncertainty (see there), at the rigid stage's end.
+RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& bindings, const Eigen::VectorXd& base,
+                                            const Eigen::MatrixXd& U, const Pinhole& camera, bool sliding,
+                                            const Pose& pose, const Eigen::Vector3d& load, const Eigen::Matrix3d& prior,
+                                            const FemModel& model, const std::vector<std::array<int, 3>>& surface,
+                                            const Eigen::VectorXd& x, const Eigen::Vector3d& centre) {
+  RegistrationUncertainty u;
+  std::vector<double> r;
+  const Eigen::MatrixXd H = detail::poseSagInformation(base, U, bindings, camera, sliding, pose, load, prior, r);
+  const Eigen::Index p = H.rows();
+  if (static_cast<Eigen::Index>(r.size()) <= p || !H.allFinite()) return u;
+  double sum2 = 0;
+  for (double v : r) sum2 += v * v;
+  u.misfitPx = std::sqrt(sum2 / static_cast<double>(r.size()));
+  // How many independent points the residuals are worth: n over their integrated autocorrelation time along the
+  // contour, 1 + 2 sum_k rho_k, summed while the correlations stay positive (Sokal's window; a smooth misfit, the
+  // deformation the pose cannot explain, is correlated over long stretches of the contour).
+  double tau = 1;
+  for (std::size_t k = 1; sum2 > 0 && k < r.size() / 4; ++k) {
+    double c = 0;
+    for (std::size_t i = 0; i + k < r.size(); ++i) c += r[i] * r[i + k];
+    const double rho = c / sum2;
+    if (k == 1) u.correlation = rho;
+    if (!(rho > 0)) break;
+    tau += 2 * rho;
+  }
+  // The residuals' variance (px^2; at least a tenth of a pixel: the contour's own drawing).
+  const double variance = std::max(sum2 / static_cast<double>(r.size() - static_cast<std::size_t>(p)), 0.01);
+  const double inflation = std::min(tau, static_cast<double>(r.size()) / static_cast<double>(p));
+  // The covariance of (rotation, translation, load): variance * inflation * H^-1, by eigenvalues (a direction of
+  // negligible curvature: undetermined).
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eig(H);
+  if (eig.info() != Eigen::Success) return u;
+  const double largest = eig.eigenvalues().maxCoeff();
+  Eigen::MatrixXd C = Eigen::MatrixXd::Zero(p, p);
+  bool singular = false;
+  for (Eigen::Index k = 0; k < p; ++k) {
+    const double l = eig.eigenvalues()[k];
+    if (!(l > 1e-12 * largest)) {
+      singular = true;
+      continue;
+    }
+    C += eig.eigenvectors().col(k) * eig.eigenvectors().col(k).transpose() / l;
+  }
+  C *= variance * inflation;
+  // Each node's position (camera frame): dq = -[q]x dw + dt + R U_node da.
+  auto nodeCovariance = [&](std::size_t i) {
+    const Eigen::Vector3d q = pose.apply(x.segment<3>(3 * static_cast<Eigen::Index>(i)));
+    Eigen::MatrixXd J = Eigen::MatrixXd::Zero(3, p);
+    J.block<3, 3>(0, 0) << 0, q.z(), -q.y(), -q.z(), 0, q.x(), q.y(), -q.x(), 0;
+    J.block<3, 3>(0, 3).setIdentity();
+    if (U.cols()) J.rightCols(U.cols()) = pose.R * U.middleRows(3 * static_cast<Eigen::Index>(i), 3);
+    return Eigen::Matrix3d(J * C * J.transpose());
+  };
+  std::vector<char> onSurface(model.nodeCount(), 0), facing(model.nodeCount(), 0);
+  for (const auto& t : surface) {
+    const Eigen::Vector3d a = pose.apply(x.segment<3>(3 * t[0])), b = pose.apply(x.segment<3>(3 * t[1])),
+                          c = pose.apply(x.segment<3>(3 * t[2]));
+    const bool front = (b - a).cross(c - a).dot(a) < 0;
+    for (int v : t) {
+      onSurface[static_cast<std::size_t>(v)] = 1;
+      facing[static_cast<std::size_t>(v)] |= front;
+    }
+  }
+  double surfaceSum = 0, target = 0;
+  std::size_t facingCount = 0;
+  Eigen::Matrix3d mean = Eigen::Matrix3d::Zero();
+  for (std::size_t i = 0; i < model.nodeCount(); ++i) {
+    if (onSurface[i] && !facing[i]) continue;
+    const Eigen::Matrix3d S = nodeCovariance(i);
+    const double twoSigma = 2 * std::sqrt(std::max(0.0, S.trace()));
+    if (facing[i]) surfaceSum += twoSigma, ++facingCount, mean += S;
+    if (!onSurface[i]) target = std::max(target, twoSigma);
+  }
+  if (facingCount == 0) return u;
+  u.computed = true;
+  u.curvatureMm = 1e3 * surfaceSum / static_cast<double>(facingCount);
+  u.surfaceMm = singular ? std::numeric_limits<double>::infinity() : u.curvatureMm;
+  u.targetMm = singular ? std::numeric_limits<double>::infinity() : 1e3 * std::max(target, u.curvatureMm / 1e3);
+  // The weakest direction: the covariance's largest eigenvector, its parts in metres at the organ (a turn by its
+  // lever, the organ's extent from its centre; the load by the sag it makes).
+  double lever = 0;
+  for (std::size_t i = 0; i < model.nodeCount(); ++i)
+    lever = std::max(lever, (x.segment<3>(3 * static_cast<Eigen::Index>(i)) - centre).norm());
+  Eigen::VectorXd scale = Eigen::VectorXd::Ones(p);
+  scale.head<3>().setConstant(lever);
+  if (U.cols()) scale.tail(U.cols()).setConstant(U.norm() / std::sqrt(static_cast<double>(U.rows())));
+  const Eigen::MatrixXd Cm = scale.asDiagonal() * C * scale.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> weak(Cm);
+  const Eigen::VectorXd v = weak.eigenvectors().col(p - 1);
+  const double turn = v.head<3>().norm(), move = v.segment<3>(3).norm(), sag = U.cols() ? v.tail(U.cols()).norm() : 0;
+  const char* axes[] = {"X (across the image)", "Y (down the image)", "Z (the view)"};
+  if (sag >= turn && sag >= move) {
+    u.weakest = "the organ's sag";
+  } else if (turn >= move) {
+    Eigen::Index axis = 0;
+    v.head<3>().cwiseAbs().maxCoeff(&axis);
+    u.weakest = std::string("a turn about the camera's ") + axes[axis] + " axis";
+  } else {
+    Eigen::Index axis = 0;
+    v.segment<3>(3).cwiseAbs().maxCoeff(&axis);
+    u.weakest = axis == 2 ? "a move along the view" : std::string("a move along the camera's ") + axes[axis] + " axis";
+  }
+  return u;
+}
+
+}  // namespace
+
 RegistrationResult registerToContour(const FemModel& model, const std::vector<int>& fixedNodes,
                                      SimulationSettings settings, const std::vector<std::array<int, 3>>& surface,
                                      const std::vector<std::vector<Eigen::Vector2d>>& contour, const Pose& start,
@@ -561,6 +671,21 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     res.sagDetermined = !sagProbe.undetermined;
     res.sagShare = sagProbe.share;
     res.sagApartMm = sagProbe.apartMm;
+  }
+  if (o.rigidPrepass && !res.cancelled) {
+    const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.x, res.pose);
+    // (the sag's prior loosened as its probe loosens it: the prior's scale is a choice, not a measurement)
+    res.uncertainty = estimateUncertainty(
+        bindings, U.size() ? rest : res.x, U, camera, o.sliding, res.pose, load,
+        U.size() ? Eigen::Matrix3d(priorMatrix(res.pose, bindings.size()) / o.sagProbeLoosen) : Eigen::Matrix3d::Zero(),
+        model, surface, res.x, centre);
+    double spread = sagProbe.apartMm;
+    for (const auto& a : res.alternatives) spread = std::max(spread, a.apartMm);
+    if (res.uncertainty.computed) {
+      res.uncertainty.spreadMm = spread;
+      res.uncertainty.surfaceMm += spread;
+      res.uncertainty.targetMm += spread;
+    }
   }
   if (!U.size() && downKnown)
     load = res.pose.R.transpose() * o.gravityCamera;  // the told gravity, in the frame of the pose found

@@ -65,6 +65,13 @@ Eigen::Vector3d point(const Eigen::VectorXd& x, const Binding& b);
 void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings,
                       const Pinhole& cam, bool pointToLine, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0,
                       const Eigen::Matrix3d& prior);
+/// Gauss-Newton's information matrix of the same problem at (pose, a): J'J of the bindings' residuals (px) in the
+/// rotation increment (rad, camera frame), the translation (m) and, when U has columns, the load (m/s^2), with the
+/// prior added; `residuals` gets each binding's residual (px: along the contour normal when sliding, else its length).
+Eigen::MatrixXd poseSagInformation(const Eigen::VectorXd& base, const Eigen::MatrixXd& U,
+                                   const std::vector<Binding>& bindings, const Pinhole& cam, bool pointToLine,
+                                   const Pose& pose, const Eigen::Vector3d& a, const Eigen::Matrix3d& prior,
+                                   std::vector<double>& residuals);
 // The pose alone, the shape x as it is.
 Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam,
                 bool pointToLine);

@@ -136,6 +136,24 @@ void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, con
   refinePoseAndSag(PoseSagProblem{base, U, bindings, cam, pointToLine}, pose, a, a0, prior);
 }
 
+Eigen::MatrixXd poseSagInformation(const Eigen::VectorXd& base, const Eigen::MatrixXd& U,
+                                   const std::vector<Binding>& bindings, const Pinhole& cam, bool pointToLine,
+                                   const Pose& pose, const Eigen::Vector3d& a, const Eigen::Matrix3d& prior,
+                                   std::vector<double>& residuals) {
+  const PoseSagProblem pr{base, U, bindings, cam, pointToLine};
+  Eigen::MatrixXd JtJ;
+  Eigen::VectorXd Jtr;
+  pr.normalEquations(pose, a, JtJ, Jtr);
+  if (U.cols()) JtJ.bottomRightCorner<3, 3>() += prior;
+  residuals.clear();
+  for (const auto& b : bindings) {
+    const Eigen::Vector3d q = pose.apply(pr.at(b, a));
+    const Eigen::Vector2d r = q.z() > 0 ? Eigen::Vector2d(cam.project(q) - b.contour) : Eigen::Vector2d::Zero();
+    residuals.push_back(pr.useLine(b) ? b.normal.dot(r) : r.norm());
+  }
+  return JtJ;
+}
+
 // The pose alone, the shape x as it is.
 Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam,
                 bool pointToLine) {

@@ -103,10 +103,15 @@ int main(int argc, char** argv) {
   const imaging::Camera cam = testing::scikitSurgeryCamera();
 
   std::ofstream csv(out + "/registration-real.csv");
-  csv << "organ,fraction,side,start,start_error_mm,rigid_stage_error_mm,surface_error_mm,target_error_mm,worst_marker_mm,start_px,end_px,wall_ms,exit,sag_share,sag_apart_mm,status\n";
+  csv << "organ,fraction,side,start,start_error_mm,rigid_stage_error_mm,surface_error_mm,target_error_mm,worst_marker_"
+         "mm,start_px,end_px,wall_ms,exit,sag_share,sag_apart_mm,bound_mm,target_bound_mm,curvature_mm,spread_mm,"
+         "misfit_px,correlation,weakest,status\n";
   struct Cell {
     std::vector<double> err, target, ms, rigid;
     int silentWrong = 0, wrong = 0, flaggedGood = 0, good = 0, failed = 0, ambiguous = 0;
+    // The reported bound against the true error (surface markers' mean; the inner target): covered (error <= bound)
+    // and tight (bound <= 3x the error), over the fits that report one.
+    int bounded = 0, covered = 0, tight = 0, targetCovered = 0;
   };
   std::map<std::pair<std::string, double>, Cell> cells;
   for (const auto& spec : organs) {
@@ -412,13 +417,27 @@ int main(int argc, char** argv) {
             cell.flaggedGood += code != 0;
           }
           cell.failed += code == 3;
+          const auto& un = r.uncertainty;
+          if (un.computed) {
+            ++cell.bounded;
+            cell.covered += e1.surface <= un.surfaceMm;
+            cell.tight += un.surfaceMm <= 3 * e1.surface;
+            cell.targetCovered += e1.target <= un.targetMm;
+          }
           cell.ambiguous += code == 4;
-          std::printf("%-26s %4.0f%% %-6s %9.2f %9.2f %7.2f %9.2f %8.2f %7.0f %4d  %s\n", s.name.c_str(), 100 * fraction, fraction < 1 ? sideNames[side] : "-",
-                      e0.surface, e1.surface, e1.depth, e1.target, px, ms, code, r.status.c_str());
+          std::printf(
+              "%-26s %4.0f%% %-6s %9.2f %9.2f %7.2f %9.2f %8.2f %7.0f %4d  bound %.2f (target %.2f; curvature %.2f, "
+              "spread %.2f, misfit %.2f px, rho %.2f, weakest %s)  %s\n",
+              s.name.c_str(), 100 * fraction, fraction < 1 ? sideNames[side] : "-", e0.surface, e1.surface, e1.depth,
+              e1.target, px, ms, code, un.surfaceMm, un.targetMm, un.curvatureMm, un.spreadMm, un.misfitPx,
+              un.correlation, un.weakest.c_str(), r.status.c_str());
           std::fflush(stdout);
-          csv << spec.name << "," << fraction << "," << (fraction < 1 ? sideNames[side] : "-") << ",\"" << s.name << "\"," << e0.surface << "," << rigidError << ","
-              << e1.surface << "," << e1.target << "," << e1.worst << "," << (r.iterations.empty() ? 0 : r.iterations.front().score()) << "," << px
-              << "," << ms << "," << code << "," << r.sagShare << "," << r.sagApartMm << ",\"" << r.status << "\"\n";
+          csv << spec.name << "," << fraction << "," << (fraction < 1 ? sideNames[side] : "-") << ",\"" << s.name
+              << "\"," << e0.surface << "," << rigidError << "," << e1.surface << "," << e1.target << "," << e1.worst
+              << "," << (r.iterations.empty() ? 0 : r.iterations.front().score()) << "," << px << "," << ms << ","
+              << code << "," << r.sagShare << "," << r.sagApartMm << "," << un.surfaceMm << "," << un.targetMm << ","
+              << un.curvatureMm << "," << un.spreadMm << "," << un.misfitPx << "," << un.correlation << ",\""
+              << un.weakest << "\",\"" << r.status << "\"\n";
           if (fraction == 1.0) series.push_back(ps);
         }
       }
@@ -428,16 +447,22 @@ int main(int argc, char** argv) {
   }
   std::printf("\nsummary: surface marker error (mm) per organ and contour share (rigid mean: after the rigid stage); wrong = mean marker error > 5 mm; silent = wrong "
               "and exit 0; alarms = fits under 3 mm flagged ambiguous or failed\n");
-  std::printf("%-18s %5s %5s %7s %7s %7s %6s %10s %13s %8s %8s %11s %11s %5s %5s\n", "organ", "kept", "fits", "mean", "median", "worst", ">5mm",
-              "rigid mean", "target med/max", "med ms", "worst ms", "silent", "alarms", "amb", "fail");
+  std::printf("%-18s %5s %5s %7s %7s %7s %6s %10s %13s %8s %8s %11s %11s %5s %5s %9s %7s %9s\n", "organ", "kept",
+              "fits", "mean", "median", "worst", ">5mm", "rigid mean", "target med/max", "med ms", "worst ms", "silent",
+              "alarms", "amb", "fail", "covered", "tight", "target cov");
   for (const auto& [key, c] : cells) {
     const double mean = std::accumulate(c.err.begin(), c.err.end(), 0.0) / static_cast<double>(c.err.size());
     const auto over = std::count_if(c.err.begin(), c.err.end(), [](double e) { return e > 5; });
-    std::printf("%-18s %4.0f%% %5zu %7.2f %7.2f %7.2f %5.0f%% %10.2f %6.2f/%6.2f %8.0f %8.0f %5d of %3d %5d of %3d %5d %5d\n", key.first.c_str(),
-                100 * key.second, c.err.size(), mean, median(c.err), *std::max_element(c.err.begin(), c.err.end()), 100.0 * over / c.err.size(),
-                std::accumulate(c.rigid.begin(), c.rigid.end(), 0.0) / static_cast<double>(c.rigid.size()),
-                median(c.target), *std::max_element(c.target.begin(), c.target.end()), median(c.ms),
-                *std::max_element(c.ms.begin(), c.ms.end()), c.silentWrong, c.wrong, c.flaggedGood, c.good, c.ambiguous, c.failed);
+    std::printf(
+        "%-18s %4.0f%% %5zu %7.2f %7.2f %7.2f %5.0f%% %10.2f %6.2f/%6.2f %8.0f %8.0f %5d of %3d %5d of %3d %5d %5d "
+        "%8.0f%% %6.0f%% %8.0f%%\n",
+        key.first.c_str(), 100 * key.second, c.err.size(), mean, median(c.err),
+        *std::max_element(c.err.begin(), c.err.end()), 100.0 * over / c.err.size(),
+        std::accumulate(c.rigid.begin(), c.rigid.end(), 0.0) / static_cast<double>(c.rigid.size()), median(c.target),
+        *std::max_element(c.target.begin(), c.target.end()), median(c.ms), *std::max_element(c.ms.begin(), c.ms.end()),
+        c.silentWrong, c.wrong, c.flaggedGood, c.good, c.ambiguous, c.failed,
+        c.bounded ? 100.0 * c.covered / c.bounded : 0.0, c.bounded ? 100.0 * c.tight / c.bounded : 0.0,
+        c.bounded ? 100.0 * c.targetCovered / c.bounded : 0.0);
   }
   std::printf("wrote %s/registration-real.csv and registration-real-<organ>.png\n", out.c_str());
   return 0;

@@ -419,6 +419,18 @@ class TestRegistration : public QObject {
         withSag.status.c_str(), load.x(), load.y(), load.z(), std::acos(std::clamp(cosine, -1.0, 1.0)) * 180 / M_PI,
         1e3 * L->error(poseOnly));
     QVERIFY(L->sag > 0.015);
+    // The fit's own bound on how far its visible surface may be (issue 38) against CalculiX's truth: it covers the
+    // error and is not a blanket (at most 3x it); the weakest direction is named.
+    const auto& un = withSag.uncertainty;
+    qInfo(
+        "  bound %.2f mm (curvature %.2f, spread %.2f; misfit %.2f px, correlation %.2f), weakest %s; true error %.2f "
+        "mm",
+        un.surfaceMm, un.curvatureMm, un.spreadMm, un.misfitPx, un.correlation, un.weakest.c_str(),
+        1e3 * L->error(withSag));
+    QVERIFY(un.computed && !un.weakest.empty());
+    QVERIFY2(1e3 * L->error(withSag) <= un.surfaceMm && un.surfaceMm <= 3e3 * L->error(withSag),
+             qPrintable(QString("bound %1 mm, error %2 mm").arg(un.surfaceMm).arg(1e3 * L->error(withSag))));
+    QVERIFY(un.targetMm >= un.curvatureMm);
     QCOMPARE(poseOnly.load.norm(), 0.0);  // not estimated: the given gravity (none)
     QVERIFY(cosine > 0.8);
     QVERIFY(L->error(withSag) < 0.9 * L->error(poseOnly));

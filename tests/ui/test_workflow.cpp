@@ -255,6 +255,18 @@ class TestWorkflow : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_F);
     QCOMPARE(view->tool(), ui::Tool::Freehand);
     const int before = w_->undoStack()->index();
+    // The page's layout may still be settling (a resize the step change queued, late on a loaded machine: the first
+    // point once landed more than 2.5 px off): wait until the frame-to-widget mapping holds still.
+    QPointF was(-1e9, -1e9);
+    waitFor(
+        [&] {
+          QTest::qWait(30);
+          const QPointF now = view->toWidget(QPointF(330, 260));
+          const bool still = now == was;
+          was = now;
+          return still;
+        },
+        5000);
     // Trace the upper part of the true silhouette: points on an arc in frame pixels.
     std::vector<QPointF> pts;
     for (int i = 0; i <= 20; ++i)

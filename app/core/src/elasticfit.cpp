@@ -1,5 +1,8 @@
 #include "rehearse/app/elasticfit.hpp"
 
+#include <cmath>
+#include <cstdio>
+
 namespace rehearse::app {
 
 FitInput fitInputFromCase(const Case& c) {
@@ -37,6 +40,16 @@ simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress&
     throw simcore::MeshError("The contour has no silhouette segment and no ridge or ligament with its curve on the organ.");
   o.onIteration = progress;
   return simcore::registerToContour(model, in.attachments, in.settings, in.organ->surface, segments, in.start, in.camera, o);
+}
+
+std::string uncertaintySentence(const simcore::RegistrationUncertainty& u) {
+  if (!u.computed) return "no uncertainty was estimated (it comes from the rigid stage, which did not run)";
+  if (!std::isfinite(u.surfaceMm))
+    return "the contour does not constrain " + u.weakest + ": the fit's depth there is not determined";
+  char text[200];
+  std::snprintf(text, sizeof text, "the surface may be up to %.1f mm from where the fit put it (inner targets %.1f mm)",
+                u.surfaceMm, u.targetMm);
+  return std::string(text) + "; weakest: " + u.weakest;
 }
 
 std::shared_ptr<const ElasticFit> toCasePart(const simcore::RegistrationResult& r) {

@@ -274,7 +274,8 @@ void FitPage::runFit(bool rigidPrepass) {
       auto fit = app::toCasePart(r);
       const Pose pose = r.pose;
       const double ms = r.iterations.empty() ? 0.0 : r.iterations.back().wallMs;
-      return [this, fit, pose, status, ms, ambiguous = r.ambiguous, alternatives = r.alternatives] {
+      const QString uncertainty = QString::fromStdString(app::uncertaintySentence(r.uncertainty));
+      return [this, fit, pose, status, ms, uncertainty, ambiguous = r.ambiguous, alternatives = r.alternatives] {
         wb_.doc->edit(tr("Elastic fit"), [&](app::Case& k) {
           k.fit = fit;
           k.pose = pose;
@@ -285,7 +286,11 @@ void FitPage::runFit(bool rigidPrepass) {
         // An ambiguous fit begins with the word, in capitals: the overlay may be wrong.
         QString said = status;
         if (ambiguous && said.startsWith(QStringLiteral("ambiguous: "))) said = tr("AMBIGUOUS: %1").arg(said.mid(11));
-        status_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).").arg(said).arg(ms / 1000.0, 0, 'f', 1));
+        // How far the 3D result may be from the truth, from the fit itself (its second line).
+        status_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).\nUncertainty: %3.")
+                             .arg(said)
+                             .arg(ms / 1000.0, 0, 'f', 1)
+                             .arg(uncertainty));
         showAlternatives(alternatives, ambiguous);
         wb_.status(tr("Elastic fit: %1").arg(said));
         emit fitFinished(true, status);

@@ -148,6 +148,27 @@ struct RegistrationAlternative {
   double apartMm = 0;       ///< mean distance of the organ's nodes between this pose and the result's
 };
 
+/// How far the fit's 3D result may be from the truth, from the fit itself (never a fixed threshold):
+/// - the cost's curvature: Gauss-Newton's information matrix of the rigid stage's contour cost in the pose (and the
+///   sag's load, with its prior loosened as the sag probe loosens it) at its end, scaled by that stage's own misfit
+///   (the residuals' variance, times their integrated autocorrelation time along the contour: a smooth misfit, the
+///   deformation the pose cannot explain, is worth fewer independent points than it has), propagated to the organ's
+///   nodes (two standard deviations);
+/// - the spread of the hypotheses that fit as well: the alternatives' and the loosened sag's distance from the result.
+/// The two add (the truth may lie at the far end of the hypotheses and off by the curvature's share from there). A
+/// direction the contour does not constrain at all (a singular information matrix) makes the bound infinite
+/// (`determined` false with the direction said).
+struct RegistrationUncertainty {
+  bool computed = false;
+  double surfaceMm = -1;    ///< mean over the surface nodes facing the camera
+  double targetMm = -1;     ///< the largest over the inner nodes (any inner target)
+  double curvatureMm = -1;  ///< the cost's curvature's share (surface, mean)
+  double spreadMm = 0;      ///< the hypotheses' share (the farthest alternative or sag probe)
+  double misfitPx = 0;      ///< the rigid stage's residual (RMS, px) the curvature is scaled by
+  double correlation = 0;   ///< the residuals' lag-one correlation along the contour
+  std::string weakest;      ///< e.g. "a move along the view", "a turn about the camera's X axis", "the sag"
+};
+
 struct RegistrationResult {
   bool ok = false;          ///< a usable result (possibly not converged; see status)
   /// Usable, but the contour does not determine the pose: `alternatives` fit it nearly as well far from
@@ -171,6 +192,7 @@ struct RegistrationResult {
   int adopted = 0;
   double sagShare = 1.0;
   double sagApartMm = 0.0;
+  RegistrationUncertainty uncertainty;
 };
 
 /// Registers `model` (rest shape at the start) onto the contour (segments of pixels in the undistorted

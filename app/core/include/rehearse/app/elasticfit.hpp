@@ -44,6 +44,11 @@ using FitProgress = std::function<bool(const simcore::RegistrationIteration&, co
 /// (no silhouette segment and no curve on the organ, a mesh behind the camera, ...).
 simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress& progress = {});
 
+/// One sentence for the fit's uncertainty (simcore::RegistrationUncertainty): "the surface may be up to 2.4 mm from
+/// where the fit put it (inner targets 3.1 mm), weakest: a move along the view", or that the contour leaves a direction
+/// undetermined, or that no bound was computed (no rigid stage).
+std::string uncertaintySentence(const simcore::RegistrationUncertainty& u);
+
 /// The fit's result as the case part (model frame nodes and the status).
 std::shared_ptr<const ElasticFit> toCasePart(const simcore::RegistrationResult& r);
 
