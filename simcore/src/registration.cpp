@@ -213,6 +213,7 @@ RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& 
     if (!(rho > 0)) break;
     tau += 2 * rho;
   }
+  u.autocorrelationTime = tau;
   // The residuals' variance (px^2; at least a tenth of a pixel: the contour's own drawing).
   const double variance = std::max(sum2 / static_cast<double>(r.size() - static_cast<std::size_t>(p)), 0.01);
   const double inflation = std::min(tau, static_cast<double>(r.size()) / static_cast<double>(p));

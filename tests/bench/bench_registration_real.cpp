@@ -105,7 +105,7 @@ int main(int argc, char** argv) {
   std::ofstream csv(out + "/registration-real.csv");
   csv << "organ,fraction,side,start,start_error_mm,rigid_stage_error_mm,surface_error_mm,target_error_mm,worst_marker_"
          "mm,start_px,end_px,wall_ms,exit,sag_share,sag_apart_mm,bound_mm,target_bound_mm,curvature_mm,spread_mm,"
-         "misfit_px,correlation,weakest,status\n";
+         "misfit_px,correlation,autocorrelation_time,weakest,status\n";
   struct Cell {
     std::vector<double> err, target, ms, rigid;
     int silentWrong = 0, wrong = 0, flaggedGood = 0, good = 0, failed = 0, ambiguous = 0;
@@ -436,8 +436,8 @@ int main(int argc, char** argv) {
               << "\"," << e0.surface << "," << rigidError << "," << e1.surface << "," << e1.target << "," << e1.worst
               << "," << (r.iterations.empty() ? 0 : r.iterations.front().score()) << "," << px << "," << ms << ","
               << code << "," << r.sagShare << "," << r.sagApartMm << "," << un.surfaceMm << "," << un.targetMm << ","
-              << un.curvatureMm << "," << un.spreadMm << "," << un.misfitPx << "," << un.correlation << ",\""
-              << un.weakest << "\",\"" << r.status << "\"\n";
+              << un.curvatureMm << "," << un.spreadMm << "," << un.misfitPx << "," << un.correlation << ","
+              << un.autocorrelationTime << ",\"" << un.weakest << "\",\"" << r.status << "\"\n";
           if (fraction == 1.0) series.push_back(ps);
         }
       }

@@ -546,6 +546,15 @@ class TestSimulationGui : public QObject {
         "node difference %.2e m; %s",
         worst, fitted->fit->status.c_str());
     QVERIFY2(worst < 1e-9, qPrintable(QString::number(worst)));
+    // The fit's uncertainty (issue 38): the command says the same sentence as the fit page's status, both from the
+    // same fit, with a finite bound in millimetres.
+    const QString out = QString::fromUtf8(p.readAllStandardOutput());
+    const auto line =
+        QRegularExpression(QStringLiteral("register: (the surface may be up to ([0-9.]+) mm[^\n]*)")).match(out);
+    QVERIFY2(line.hasMatch(), qPrintable(out));
+    QVERIFY(line.captured(2).toDouble() > 0);
+    const QString page = w_->findChild<QLabel*>("fitStatus")->text();
+    QVERIFY2(page.contains(QStringLiteral("Uncertainty: ") + line.captured(1)), qPrintable(page + " | " + out));
   }
 
   // An ambiguous fit, driven as an assistant would: an organ symmetric about the view axis (an oblate

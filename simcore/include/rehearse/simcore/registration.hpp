@@ -166,6 +166,7 @@ struct RegistrationUncertainty {
   double spreadMm = 0;      ///< the hypotheses' share (the farthest alternative or sag probe)
   double misfitPx = 0;      ///< the rigid stage's residual (RMS, px) the curvature is scaled by
   double correlation = 0;   ///< the residuals' lag-one correlation along the contour
+  double autocorrelationTime = 1;  ///< their integrated autocorrelation time (points): the variance's inflation
   std::string weakest;      ///< e.g. "a move along the view", "a turn about the camera's X axis", "the sag"
 };
 
