@@ -8,7 +8,10 @@
 // from the paper's 12 perturbations (+-2 cm along, +-20 degrees about each camera axis) and 4 combined
 // ones. Markers: 40 visible surface points and one inner target. Writes registration-real.csv (one row
 // per fit) and registration-real-<organ>.png (marker error against wall time at 100 %). Not a test.
-//   bench_registration_real [OUT_DIR] [--quick] [--organ NAME] [--no-attachments] [--fractions 1,0.7,0.5]
+//   bench_registration_real [OUT_DIR] [--quick] [--organ NAME] [--no-attachments] [--fractions 1,0.7,0.5] [--ridge]
+// --ridge: every contour also carries an anatomical curve (issue 38): the shortest path over the fit mesh's surface
+// between the two visible front nodes farthest apart in the image (at least 40 px inside the outline), drawn where
+// CalculiX's deformed organ puts it (each node moved as its nearest fine surface node), +-2 px noise.
 // The fine meshes and CalculiX's answers are cached in OUT_DIR (delete them to recompute).
 #include "calculix.hpp"
 #include "plot.hpp"
@@ -78,13 +81,15 @@ int main(int argc, char** argv) {
   QCoreApplication app(argc, argv);  // QProcess (ccx) needs an event loop's thread data
   std::string out = ".";
   std::string only;
-  bool quick = false, attachments = true;
+  bool quick = false, attachments = true, ridge = false;
   std::vector<double> fractionsAsked;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") quick = true;
     else if (a == "--organ" && i + 1 < argc) only = argv[++i];
     else if (a == "--no-attachments") attachments = false;
+    else if (a == "--ridge")
+      ridge = true;
     else if (a == "--fractions" && i + 1 < argc) {
       std::stringstream list(argv[++i]);
       std::string item;
@@ -236,6 +241,67 @@ int main(int argc, char** argv) {
       }
       if (target < 0) target = deepestNode;  // a small organ: its deepest point
     }
+    // The ridge (--ridge): a curve on the fit mesh's visible front and where the truth puts it in the image.
+    imaging::ContourSegment ridgeSegment;
+    if (ridge) {
+      auto truthOf = [&](int node) {  // a fit-mesh node where CalculiX's organ has it (camera frame)
+        const Eigen::Vector3d& p = coarse.points[static_cast<std::size_t>(node)];
+        int nearest = fineSurface.front();
+        for (int n : fineSurface)
+          if ((fine.points[n] - p).squaredNorm() < (fine.points[nearest] - p).squaredNorm()) nearest = n;
+        return truth.apply(p + u.segment<3>(3 * static_cast<Eigen::Index>(nearest)));
+      };
+      auto seen = [&](const Eigen::Vector3d& q, Eigen::Vector2d& px) {
+        px = cam.project(q);
+        const int x = static_cast<int>(std::lround(px.x())), y = static_cast<int>(std::lround(px.y()));
+        if (x < 0 || y < 0 || x >= ras.depth.cols || y >= ras.depth.rows || ras.triangle(y, x) < 0) return false;
+        return q.z() <= ras.depth(y, x) + 1e-3;
+      };
+      auto insideBy = [&](const Eigen::Vector2d& px) {  // distance to the outline (px)
+        double d = 1e300;
+        for (std::size_t i = 0; i < outline.size(); ++i) {
+          const Eigen::Vector2d a = outline[i], b = outline[(i + 1) % outline.size()];
+          const double t = std::clamp((px - a).dot(b - a) / std::max(1e-12, (b - a).squaredNorm()), 0.0, 1.0);
+          d = std::min(d, (a + t * (b - a) - px).norm());
+        }
+        return d;
+      };
+      std::vector<int> front;
+      std::vector<Eigen::Vector2d> frontPx;
+      std::vector<char> onSurface(coarse.points.size(), 0);
+      for (const auto& t : organ->surface)
+        for (int v : t) onSurface[static_cast<std::size_t>(v)] = 1;
+      for (std::size_t v = 0; v < coarse.points.size(); v += 3) {
+        Eigen::Vector2d px;
+        if (onSurface[v] && seen(truthOf(static_cast<int>(v)), px) && insideBy(px) > 40)
+          front.push_back(static_cast<int>(v)), frontPx.push_back(px);
+      }
+      std::size_t ia = 0, ib = 0;
+      for (std::size_t i = 0; i < front.size(); ++i)
+        for (std::size_t j = i + 1; j < front.size(); ++j)
+          if ((frontPx[i] - frontPx[j]).squaredNorm() > (frontPx[ia] - frontPx[ib]).squaredNorm()) ia = i, ib = j;
+      const std::vector<int> path =
+          front.size() > 1 ? surfacePath(organ->surface, coarse.points, front[ia], front[ib]) : std::vector<int>{};
+      std::mt19937 ridgeRng(29);
+      std::uniform_real_distribution<double> jitter(-2.0, 2.0);
+      for (int v : path) {
+        Eigen::Vector2d px;
+        if (!seen(truthOf(v), px)) continue;  // (hidden stretches of the path are not drawn)
+        ridgeSegment.modelVertices.push_back(v);
+        ridgeSegment.points.push_back(px + Eigen::Vector2d(jitter(ridgeRng), jitter(ridgeRng)));
+      }
+      ridgeSegment.type = "ridge";
+      std::printf(
+          "ridge: %zu of %zu path nodes visible, %.0f px long in the image\n", ridgeSegment.points.size(), path.size(),
+          ridgeSegment.points.size() > 1 ? (ridgeSegment.points.front() - ridgeSegment.points.back()).norm() : 0.0);
+      // The image curve, densified (the fit binds each node to the nearest point of the drawn curve).
+      std::vector<Eigen::Vector2d> dense;
+      for (std::size_t i = 0; i + 1 < ridgeSegment.points.size(); ++i)
+        for (int k = 0; k < 4; ++k)
+          dense.push_back(ridgeSegment.points[i] + k / 4.0 * (ridgeSegment.points[i + 1] - ridgeSegment.points[i]));
+      if (!ridgeSegment.points.empty()) dense.push_back(ridgeSegment.points.back());
+      ridgeSegment.points = dense;
+    }
     std::vector<Eigen::Vector3d> markerRest, markerTruth;
     for (int v : markers) markerRest.push_back(fine.points[v]), markerTruth.push_back(truth.apply(deformed.points[v]));
     markerRest.push_back(fine.points[target]);
@@ -377,6 +443,7 @@ int main(int argc, char** argv) {
           p += far(rng) * Eigen::Vector2d(std::cos(angle), std::sin(angle));
         }
         contour.segments.push_back(seg);
+        if (ridge && ridgeSegment.modelVertices.size() >= 2) contour.segments.push_back(ridgeSegment);
         for (const auto& s : starts) {
           in.contour = contour;
           in.start = perturb(truth, s.move, s.turn, cog);
