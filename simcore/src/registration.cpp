@@ -187,6 +187,20 @@ void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, bool
 
 namespace {
 
+// A direction of the fit's unknowns in words, from its parts in metres at the organ: a turn (axis times angle times the
+// organ's extent), a move, the sag; the largest names it.
+std::string describeDirection(const Eigen::Vector3d& turn, const Eigen::Vector3d& move, double sag) {
+  const char* axes[] = {"X (across the image)", "Y (down the image)", "Z (the view)"};
+  Eigen::Index axis = 0;
+  if (sag >= turn.norm() && sag >= move.norm()) return "the organ's sag";
+  if (turn.norm() >= move.norm()) {
+    turn.cwiseAbs().maxCoeff(&axis);
+    return std::string("a turn about the camera's ") + axes[axis] + " axis";
+  }
+  move.cwiseAbs().maxCoeff(&axis);
+  return axis == 2 ? "a move along the view" : std::string("a move along the camera's ") + axes[axis] + " axis";
+}
+
 // The cost's curvature's share of RegistrationUncertainty (see there), at the rigid stage's end.
 RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& bindings, const Eigen::VectorXd& base,
                                             const Eigen::MatrixXd& U, const Pinhole& camera, bool sliding,
@@ -278,19 +292,7 @@ RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& 
   const Eigen::MatrixXd Cm = scale.asDiagonal() * C * scale.asDiagonal();
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> weak(Cm);
   const Eigen::VectorXd v = weak.eigenvectors().col(p - 1);
-  const double turn = v.head<3>().norm(), move = v.segment<3>(3).norm(), sag = U.cols() ? v.tail(U.cols()).norm() : 0;
-  const char* axes[] = {"X (across the image)", "Y (down the image)", "Z (the view)"};
-  if (sag >= turn && sag >= move) {
-    u.weakest = "the organ's sag";
-  } else if (turn >= move) {
-    Eigen::Index axis = 0;
-    v.head<3>().cwiseAbs().maxCoeff(&axis);
-    u.weakest = std::string("a turn about the camera's ") + axes[axis] + " axis";
-  } else {
-    Eigen::Index axis = 0;
-    v.segment<3>(3).cwiseAbs().maxCoeff(&axis);
-    u.weakest = axis == 2 ? "a move along the view" : std::string("a move along the camera's ") + axes[axis] + " axis";
-  }
+  u.weakest = describeDirection(v.head<3>(), v.segment<3>(3), U.cols() ? v.tail(U.cols()).norm() : 0.0);
   return u;
 }
 
@@ -625,17 +627,26 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     });
     const double resultScore = probedScore = score(res.x, res.pose);
     const double limit = std::max(resultScore + o.ambiguityPx, resultScore * (1 + o.ambiguityShare));
+    std::vector<RegistrationAlternative> fitting;  // the ends that fit nearly as well, far from the result
     for (const auto& [pose, sc] : ends) {
       if (!(sc <= limit)) continue;
       const double mm = 1e3 * apart(pose, res.pose);
-      if (mm <= o.ambiguityMm) continue;
-      bool known = false;  // one alternative per place
-      for (const auto& a : res.alternatives) known |= 1e3 * apart(a.pose, pose) <= o.ambiguityMm;
-      if (!known) res.alternatives.push_back({pose, sc, mm});
+      if (mm > o.ambiguityMm) fitting.push_back({pose, sc, mm});
     }
-    std::sort(res.alternatives.begin(), res.alternatives.end(),
-              [](const auto& a, const auto& b) { return a.score < b.score; });
-    if (res.alternatives.size() > 3) res.alternatives.resize(3);
+    // The alternatives span that set: its far ends, the truth among or between them. The farthest from the result
+    // first, then each time the one farthest from the result and from those chosen (one per place: none within
+    // ambiguityMm of another), up to three.
+    while (res.alternatives.size() < 3) {
+      const RegistrationAlternative* next = nullptr;
+      double farthest = o.ambiguityMm;
+      for (const auto& f : fitting) {
+        double nearest = f.apartMm;
+        for (const auto& a : res.alternatives) nearest = std::min(nearest, 1e3 * apart(a.pose, f.pose));
+        if (nearest > farthest) farthest = nearest, next = &f;
+      }
+      if (!next) break;
+      res.alternatives.push_back(*next);
+    }
     const auto deeper =
         std::min_element(ends.begin(), ends.end(), [](const auto& a, const auto& b) { return a.second < b.second; });
     if (round >= o.adoptRounds || deeper == ends.end() || !(deeper->second < resultScore * (1 - o.adoptShare))) break;
@@ -673,7 +684,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     res.sagShare = sagProbe.share;
     res.sagApartMm = sagProbe.apartMm;
   }
-  if (o.rigidPrepass && !res.cancelled) {
+  if ((o.rigidPrepass || !o.elastic) && !res.cancelled) {
     const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.x, res.pose);
     // (the sag's prior loosened as its probe loosens it: the prior's scale is a choice, not a measurement)
     res.uncertainty = estimateUncertainty(
@@ -681,9 +692,24 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         U.size() ? Eigen::Matrix3d(priorMatrix(res.pose, bindings.size()) / o.sagProbeLoosen) : Eigen::Matrix3d::Zero(),
         model, surface, res.x, centre);
     double spread = sagProbe.apartMm;
-    for (const auto& a : res.alternatives) spread = std::max(spread, a.apartMm);
+    const RegistrationAlternative* farthest = nullptr;
+    for (const auto& a : res.alternatives)
+      if (a.apartMm > spread) spread = a.apartMm, farthest = &a;
     if (res.uncertainty.computed) {
       res.uncertainty.spreadMm = spread;
+      // Where the hypotheses spread more than the curvature allows, they name the weakest direction.
+      if (spread > res.uncertainty.curvatureMm) {
+        if (!farthest) {
+          res.uncertainty.weakest = "the organ's sag";
+        } else {
+          double lever = 0;
+          for (std::size_t i = 0; i < model.nodeCount(); ++i)
+            lever = std::max(lever, (res.x.segment<3>(3 * static_cast<Eigen::Index>(i)) - centre).norm());
+          const Eigen::AngleAxisd turn(farthest->pose.R * res.pose.R.transpose());
+          res.uncertainty.weakest = describeDirection(turn.axis() * turn.angle() * lever,
+                                                      farthest->pose.apply(centre) - res.pose.apply(centre), 0.0);
+        }
+      }
       res.uncertainty.surfaceMm += spread;
       res.uncertainty.targetMm += spread;
     }
@@ -852,13 +878,15 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
                     alt.apartMm, alt.score < probedScore ? "slightly better than" : "nearly as well as", alt.score,
                     probedScore);
     } else {
-      const auto& alt = res.alternatives.front();
-      double nearest = alt.apartMm;
-      for (const auto& a : res.alternatives) nearest = std::min(nearest, a.apartMm);
+      const auto& alt = *std::min_element(res.alternatives.begin(), res.alternatives.end(),
+                                          [](const auto& a, const auto& b) { return a.score < b.score; });
+      double nearest = alt.apartMm, farthest = alt.apartMm;
+      for (const auto& a : res.alternatives)
+        nearest = std::min(nearest, a.apartMm), farthest = std::max(farthest, a.apartMm);
       std::snprintf(text, sizeof text,
-                    "ambiguous: %zu other poses, %.0f mm or more away, fit the contour %s the rigid fit (the best %.2f "
+                    "ambiguous: %zu other poses, %.0f to %.0f mm away, fit the contour %s the rigid fit (the best %.2f "
                     "px against %.2f px)",
-                    res.alternatives.size(), nearest,
+                    res.alternatives.size(), nearest, farthest,
                     alt.score < probedScore ? "as well as or slightly better than" : "nearly as well as", alt.score,
                     probedScore);
     }

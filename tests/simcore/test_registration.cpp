@@ -565,12 +565,16 @@ class TestRegistration : public QObject {
     o.elastic = false;
     SimulationSettings s;
     s.gravity.setZero();
+    double phantomBound = -1;
     {
       const auto res =
           registerToContour(organModel(c_), c_.attachments, s, c_.surface, outline(c_, c_.truePose, c_.surfaceView()),
                             c_.truePose, c_.camera.pinhole(), o);
-      qInfo("phantom: %s", res.status.c_str());
+      qInfo("phantom: %s; bound %.2f mm, weakest %s", res.status.c_str(), res.uncertainty.surfaceMm,
+            res.uncertainty.weakest.c_str());
       QVERIFY2(res.ok && !res.ambiguous && res.alternatives.empty(), res.status.c_str());
+      phantomBound = res.uncertainty.surfaceMm;
+      QVERIFY(res.uncertainty.computed && phantomBound > 0 && phantomBound < 5);
     }
     const Eigen::Vector3d radii(0.05, 0.05, 0.025);
     TetrahedraliseOptions to;
@@ -605,6 +609,22 @@ class TestRegistration : public QObject {
       turnAboutView |= aboutView > 10 && across < 6 && (a.pose.t - res.pose.t).norm() < 0.002;
     }
     QVERIFY(turnAboutView);  // the symmetry itself is among them
+    // They span the set (issue 38): the farthest first, each other one more than 5 mm from those before it.
+    for (std::size_t i = 1; i < res.alternatives.size(); ++i) {
+      QVERIFY(res.alternatives[i].apartMm <= res.alternatives[0].apartMm);
+      for (std::size_t j = 0; j < i; ++j) {
+        double sum = 0;
+        for (const auto& p : volume.points)
+          sum += (res.alternatives[i].pose.apply(p) - res.alternatives[j].pose.apply(p)).norm();
+        QVERIFY(1e3 * sum / static_cast<double>(volume.points.size()) > 5);
+      }
+    }
+    // The fit's bound (issue 38) names that turn as its weakest direction and is far wider than the phantom's.
+    qInfo("spheroid: bound %.2f mm (curvature %.2f, spread %.2f), weakest %s", res.uncertainty.surfaceMm,
+          res.uncertainty.curvatureMm, res.uncertainty.spreadMm, res.uncertainty.weakest.c_str());
+    QVERIFY2(res.uncertainty.weakest.find("turn about the camera's Z") != std::string::npos,
+             res.uncertainty.weakest.c_str());
+    QVERIFY(res.uncertainty.surfaceMm > 3 * phantomBound);
     // The command line: the best fit is written, the report names the alternatives, the exit code is 4.
     const std::string dir = tempPath("register-spheroid");
     std::filesystem::create_directories(dir);

@@ -167,7 +167,9 @@ struct RegistrationUncertainty {
   double misfitPx = 0;      ///< the rigid stage's residual (RMS, px) the curvature is scaled by
   double correlation = 0;   ///< the residuals' lag-one correlation along the contour
   double autocorrelationTime = 1;  ///< their integrated autocorrelation time (points): the variance's inflation
-  std::string weakest;      ///< e.g. "a move along the view", "a turn about the camera's X axis", "the sag"
+  /// e.g. "a move along the view", "a turn about the camera's X axis", "the organ's sag": the curvature's largest
+  /// direction, or, where the hypotheses spread further, the farthest one's.
+  std::string weakest;
 };
 
 struct RegistrationResult {
