@@ -268,12 +268,11 @@ RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& 
   }
   double surfaceSum = 0, target = 0;
   std::size_t facingCount = 0;
-  Eigen::Matrix3d mean = Eigen::Matrix3d::Zero();
   for (std::size_t i = 0; i < model.nodeCount(); ++i) {
     if (onSurface[i] && !facing[i]) continue;
     const Eigen::Matrix3d S = nodeCovariance(i);
     const double twoSigma = 2 * std::sqrt(std::max(0.0, S.trace()));
-    if (facing[i]) surfaceSum += twoSigma, ++facingCount, mean += S;
+    if (facing[i]) surfaceSum += twoSigma, ++facingCount;
     if (!onSurface[i]) target = std::max(target, twoSigma);
   }
   if (facingCount == 0) return u;

@@ -156,8 +156,8 @@ struct RegistrationAlternative {
 ///   nodes (two standard deviations);
 /// - the spread of the hypotheses that fit as well: the alternatives' and the loosened sag's distance from the result.
 /// The two add (the truth may lie at the far end of the hypotheses and off by the curvature's share from there). A
-/// direction the contour does not constrain at all (a singular information matrix) makes the bound infinite
-/// (`determined` false with the direction said).
+/// direction the contour does not constrain at all (a singular information matrix) makes the bound infinite, with the
+/// direction named in `weakest`. Computed after the rigid stage (not when it does not run: `computed` false).
 struct RegistrationUncertainty {
   bool computed = false;
   double surfaceMm = -1;    ///< mean over the surface nodes facing the camera
