@@ -62,7 +62,19 @@ class TestAppearanceGui : public QObject {
   // True once the simulation has taken `n` more steps.
   bool stepsOn(int n) {
     const long now = panel_->lastFrame()->steps;
-    return waitFor([&] { return panel_->lastFrame()->steps >= now + n; });
+    const bool on = waitFor([&] { return panel_->lastFrame()->steps >= now + n; });
+    if (!on) qWarning("%s", qPrintable(said()));
+    return on;
+  }
+  // What the session and the panel say (for a failure's message: CI once saw the session stop stepping here).
+  QString said() const {
+    const auto f = panel_->lastFrame();
+    return QStringLiteral("step %1, %2 playing; status: %3; step: %4; message: %5")
+        .arg(f ? f->steps : -1)
+        .arg(panel_->isPlaying() ? "" : "not")
+        .arg(panel_->statusText())
+        .arg(f ? QString::fromStdString(f->report.status) : QString())
+        .arg(f ? f->message : QString());
   }
 
   // F10 on the window, and the page's answer.
@@ -315,7 +327,8 @@ class TestAppearanceGui : public QObject {
     QCOMPARE(view->tool(), ui::Tool::Grasp);
     QTest::mouseMove(view, widget(0.5, 0.7));
     QTest::keyClick(view, Qt::Key_Space);
-    QVERIFY(waitFor([&] { return panel_->lastFrame()->tool.jawClosed && !panel_->lastFrame()->tool.held.empty(); }));
+    QVERIFY2(waitFor([&] { return panel_->lastFrame()->tool.jawClosed && !panel_->lastFrame()->tool.held.empty(); }),
+             qPrintable(said()));
     const auto bitten = panel_->lastFrame();
     const auto node = static_cast<std::size_t>(bitten->tool.held.front());
     const Eigen::Vector3d node0 = bitten->positions[node], tip0 = bitten->tool.tip;

@@ -693,8 +693,20 @@ class TestRehearseGui : public QObject {
     const int node = panel->lastFrame()->tool.held[0];
     const double y0 = panel->lastFrame()->positions[static_cast<std::size_t>(node)].y();
     QVERIFY(daemon.motion(0, 350, 0, 0, 0, 0));  // the cap pulled up, all the way
-    QVERIFY(
-        waitFor([&] { return panel->lastFrame()->positions[static_cast<std::size_t>(node)].y() < y0 - 0.005; }, 30000));
+    // Held until the node is lifted 5 mm and the device has posted at least 10 tip moves (how many steps a 5 mm lift
+    // takes depends on the machine's load: once only 8 under a parallel GUI test).
+    auto tipMoves = [&] {
+      const auto recorded = panel->session()->recorded();
+      std::size_t n = 0;
+      for (std::size_t k = before; k < recorded.size(); ++k)
+        n += recorded[k].kind == simcore::InputKind::ToolPose && recorded[k].tool == 0;
+      return n;
+    };
+    QVERIFY(waitFor(
+        [&] {
+          return panel->lastFrame()->positions[static_cast<std::size_t>(node)].y() < y0 - 0.005 && tipMoves() >= 10;
+        },
+        30000));
     QVERIFY(daemon.motion(0, 0, 0, 0, 0, 0));
     const auto pulled = panel->lastFrame();
     qInfo("3D mouse: node %d lifted %.1f mm, tool force %.2f N", node,
