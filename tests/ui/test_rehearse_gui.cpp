@@ -695,26 +695,8 @@ class TestRehearseGui : public QObject {
     QVERIFY(daemon.motion(0, 350, 0, 0, 0, 0));  // the cap pulled up, all the way
     // Held until the node is lifted 5 mm and the device has posted at least 10 tip moves (how many steps a 5 mm lift
     // takes depends on the machine's load: once only 8 under a parallel GUI test).
-    auto tipMoves = [&] {
-      const auto recorded = panel->session()->recorded();
-      std::size_t n = 0;
-      for (std::size_t k = before; k < recorded.size(); ++k)
-        n += recorded[k].kind == simcore::InputKind::ToolPose && recorded[k].tool == 0;
-      return n;
-    };
-    QVERIFY(waitFor(
-        [&] {
-          return panel->lastFrame()->positions[static_cast<std::size_t>(node)].y() < y0 - 0.005 && tipMoves() >= 10;
-        },
-        30000));
-    QVERIFY(daemon.motion(0, 0, 0, 0, 0, 0));
-    const auto pulled = panel->lastFrame();
-    qInfo("3D mouse: node %d lifted %.1f mm, tool force %.2f N", node,
-          1e3 * (y0 - pulled->positions[static_cast<std::size_t>(node)].y()), pulled->tool.force.norm());
-    shot(*w_, "step7-3d-mouse");
-    QVERIFY(daemon.button(0, false));
     std::size_t poses = 0, jaws = 0;
-    auto count = [&] {
+    auto count = [&] {  // the device's tip moves and jaw events recorded since it connected
       poses = jaws = 0;
       const auto recorded = panel->session()->recorded();
       for (std::size_t k = before; k < recorded.size(); ++k) {
@@ -723,6 +705,18 @@ class TestRehearseGui : public QObject {
       }
       return jaws >= 2;
     };
+    QVERIFY(waitFor(
+        [&] {
+          count();
+          return panel->lastFrame()->positions[static_cast<std::size_t>(node)].y() < y0 - 0.005 && poses >= 10;
+        },
+        30000));
+    QVERIFY(daemon.motion(0, 0, 0, 0, 0, 0));
+    const auto pulled = panel->lastFrame();
+    qInfo("3D mouse: node %d lifted %.1f mm, tool force %.2f N", node,
+          1e3 * (y0 - pulled->positions[static_cast<std::size_t>(node)].y()), pulled->tool.force.norm());
+    shot(*w_, "step7-3d-mouse");
+    QVERIFY(daemon.button(0, false));
     QVERIFY(waitFor(count, 30000));  // the release applied at the next step boundary
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 30000));
     qInfo("recorded from the device: %zu tip moves, %zu jaw events", poses, jaws);

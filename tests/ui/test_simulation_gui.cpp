@@ -361,6 +361,8 @@ class TestSimulationGui : public QObject {
     QTest::mouseClick(keep, Qt::LeftButton);
     QVERIFY(!keep->isEnabled() && !revert->isEnabled());
     QVERIFY(w_->findChild<QLabel*>("fitStatus")->text().startsWith("Fit kept"));
+    QVERIFY2(w_->findChild<QLabel*>("fitStatus")->text().contains("Uncertainty: the surface may be up to"),
+             qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));  // the bound stays once kept
     QCOMPARE(w_->caseData()->fit->nodes.size(), fitted.size());
     // Stored in the case file.
     const QString path = QString::fromStdString(tempPath("fit.rehearse"));

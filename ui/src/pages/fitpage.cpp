@@ -91,7 +91,10 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
     fitUndoIndex_ = -1;
     keep_->setEnabled(false);
     revert_->setEnabled(false);
-    status_->setText(tr("Fit kept: %1").arg(QString::fromStdString(data()->fit ? data()->fit->status : std::string())));
+    // The bound stays in view once the fit is kept (it is the fit's, not the case part's status).
+    status_->setText(tr("Fit kept: %1\nUncertainty: %2.")
+                         .arg(QString::fromStdString(data()->fit ? data()->fit->status : std::string()))
+                         .arg(uncertainty_));
   });
   connect(revert_, &QPushButton::clicked, this, [this] {
     if (fitUndoIndex_ != wb_.doc->undoStack()->index()) return;
@@ -281,6 +284,7 @@ void FitPage::runFit(bool rigidPrepass) {
           k.pose = pose;
         });
         fitUndoIndex_ = wb_.doc->undoStack()->index();
+        uncertainty_ = uncertainty;
         keep_->setEnabled(true);
         revert_->setEnabled(true);
         // An ambiguous fit begins with the word, in capitals: the overlay may be wrong.

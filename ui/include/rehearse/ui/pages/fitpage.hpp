@@ -43,6 +43,7 @@ class FitPage : public StepPage {
   QPushButton* keep_ = nullptr;    ///< accept the fit just made ...
   QPushButton* revert_ = nullptr;  ///< ... or revert it (its undo step), while it is the last edit
   int fitUndoIndex_ = -1;          ///< the undo index right after the fit awaiting a decision, -1 for none
+  QString uncertainty_;            ///< that fit's bound, in a sentence (kept on the status when the fit is kept)
   void runFit(bool rigidPrepass);
   /// The alternatives list (hidden when empty); the status stands out while the fit is ambiguous.
   void showAlternatives(const std::vector<simcore::RegistrationAlternative>& alternatives, bool ambiguous);
