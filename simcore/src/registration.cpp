@@ -183,9 +183,88 @@ void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, bool
   }
 }
 
+// A surface point seen in two frames (triangulated, first camera frame) and how much a metre across the surface there
+// is worth in pixels (the depth's: f b / z^2).
+struct SeenPoint {
+  Eigen::Vector3d target;
+  double pxPerMetre;
+};
+
+// Each seen point to the nearest surface node facing the first camera (its normal from the shape x), held across the
+// surface there; far ones (more than 3x the median, at least 4 px) dropped.
+std::vector<Binding> bindPoints(const std::vector<SeenPoint>& points, const std::vector<std::array<int, 3>>& surface,
+                                const Eigen::VectorXd& x, const Pose& pose, const Pinhole& cam) {
+  std::vector<Binding> out;
+  if (points.empty()) return out;
+  std::vector<Eigen::Vector3d> normal(static_cast<std::size_t>(x.size() / 3), Eigen::Vector3d::Zero());
+  for (const auto& t : surface) {
+    const Eigen::Vector3d a = x.segment<3>(3 * t[0]), b = x.segment<3>(3 * t[1]), c = x.segment<3>(3 * t[2]);
+    const Eigen::Vector3d n = (b - a).cross(c - a);  // area-weighted
+    for (int v : t) normal[static_cast<std::size_t>(v)] += n;
+  }
+  std::vector<int> front;
+  for (std::size_t i = 0; i < normal.size(); ++i) {
+    if (normal[i].squaredNorm() == 0) continue;
+    normal[i].normalize();
+    if ((pose.R * normal[i]).dot(pose.apply(x.segment<3>(3 * static_cast<Eigen::Index>(i)))) < 0)
+      front.push_back(static_cast<int>(i));
+  }
+  for (const auto& p : points) {
+    double best = std::numeric_limits<double>::infinity();
+    int node = -1;
+    for (int i : front) {
+      const double d = (pose.apply(x.segment<3>(3 * i)) - p.target).squaredNorm();
+      if (d < best) best = d, node = i;
+    }
+    if (node < 0) continue;
+    Binding b{node, node, 0, cam.project(p.target), cam.K(0, 0) * std::sqrt(best) / p.target.z()};
+    b.surfacePoint = true;
+    b.target = p.target;
+    b.surfaceNormal = normal[static_cast<std::size_t>(node)];
+    b.pxPerMetre = p.pxPerMetre;
+    out.push_back(b);
+  }
+  dropOutliers(out, 3.0, 4.0);
+  return out;
+}
+
 }  // namespace
 
+bool triangulateTrack(const Pinhole& first, const Pinhole& other, const Pose& motion, const Eigen::Vector2d& inFirst,
+                      const Eigen::Vector2d& inOther, Eigen::Vector3d& point, double& gapPx) {
+  // Midpoint of the shortest segment between the two rays (first camera frame).
+  const Eigen::Vector3d d1 = first.ray(inFirst), d2 = motion.R.transpose() * other.ray(inOther);
+  const Eigen::Vector3d c2 = -motion.R.transpose() * motion.t;
+  const double b = d1.dot(d2), denominator = 1 - b * b;
+  if (!(denominator > std::pow(std::sin(0.2 * M_PI / 180), 2))) return false;
+  const Eigen::Vector3d w = -c2;  // first origin minus second
+  const double s = (b * d2.dot(w) - d1.dot(w)) / denominator, u = (d2.dot(w) - b * d1.dot(w)) / denominator;
+  if (!(s > 0 && u > 0)) return false;
+  const Eigen::Vector3d p1 = s * d1, p2 = c2 + u * d2;
+  point = 0.5 * (p1 + p2);
+  gapPx = first.K(0, 0) * (p1 - p2).norm() / point.z();
+  return point.allFinite() && point.z() > 0;
+}
+
 namespace {
+
+// How many independent points residuals along a contour are worth: n over their integrated autocorrelation time,
+// 1 + 2 sum_k rho_k, summed while the correlations stay positive (Sokal's window; a smooth misfit, the deformation the
+// pose cannot explain, is correlated over long stretches of the contour). `lagOne` gets rho_1.
+double autocorrelationTime(const std::vector<double>& r, double* lagOne = nullptr) {
+  double sum2 = 0;
+  for (double v : r) sum2 += v * v;
+  double tau = 1;
+  for (std::size_t k = 1; sum2 > 0 && k < r.size() / 4; ++k) {
+    double c = 0;
+    for (std::size_t i = 0; i + k < r.size(); ++i) c += r[i] * r[i + k];
+    const double rho = c / sum2;
+    if (k == 1 && lagOne) *lagOne = rho;
+    if (!(rho > 0)) break;
+    tau += 2 * rho;
+  }
+  return tau;
+}
 
 // A direction of the fit's unknowns in words, from its parts in metres at the organ: a turn (axis times angle times the
 // organ's extent), a move, the sag; the largest names it.
@@ -203,30 +282,20 @@ std::string describeDirection(const Eigen::Vector3d& turn, const Eigen::Vector3d
 
 // The cost's curvature's share of RegistrationUncertainty (see there), at the rigid stage's end.
 RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& bindings, const Eigen::VectorXd& base,
-                                            const Eigen::MatrixXd& U, const Pinhole& camera, bool sliding,
-                                            const Pose& pose, const Eigen::Vector3d& load, const Eigen::Matrix3d& prior,
-                                            const FemModel& model, const std::vector<std::array<int, 3>>& surface,
-                                            const Eigen::VectorXd& x, const Eigen::Vector3d& centre) {
+                                            const Eigen::MatrixXd& U, const std::vector<detail::View>& views,
+                                            bool sliding, const Pose& pose, const Eigen::Vector3d& load,
+                                            const Eigen::Matrix3d& prior, const FemModel& model,
+                                            const std::vector<std::array<int, 3>>& surface, const Eigen::VectorXd& x,
+                                            const Eigen::Vector3d& centre) {
   RegistrationUncertainty u;
   std::vector<double> r;
-  const Eigen::MatrixXd H = detail::poseSagInformation(base, U, bindings, camera, sliding, pose, load, prior, r);
+  const Eigen::MatrixXd H = detail::poseSagInformation(base, U, bindings, views, sliding, pose, load, prior, r);
   const Eigen::Index p = H.rows();
   if (static_cast<Eigen::Index>(r.size()) <= p || !H.allFinite()) return u;
   double sum2 = 0;
   for (double v : r) sum2 += v * v;
   u.misfitPx = std::sqrt(sum2 / static_cast<double>(r.size()));
-  // How many independent points the residuals are worth: n over their integrated autocorrelation time along the
-  // contour, 1 + 2 sum_k rho_k, summed while the correlations stay positive (Sokal's window; a smooth misfit, the
-  // deformation the pose cannot explain, is correlated over long stretches of the contour).
-  double tau = 1;
-  for (std::size_t k = 1; sum2 > 0 && k < r.size() / 4; ++k) {
-    double c = 0;
-    for (std::size_t i = 0; i + k < r.size(); ++i) c += r[i] * r[i + k];
-    const double rho = c / sum2;
-    if (k == 1) u.correlation = rho;
-    if (!(rho > 0)) break;
-    tau += 2 * rho;
-  }
+  const double tau = autocorrelationTime(r, &u.correlation);
   u.autocorrelationTime = tau;
   // The residuals' variance (px^2; at least a tenth of a pixel: the contour's own drawing).
   const double variance = std::max(sum2 / static_cast<double>(r.size() - static_cast<std::size_t>(p)), 0.01);
@@ -306,6 +375,31 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   };
   checkCamera(camera);
+  // The frames: the first's camera and contour, then the further ones'.
+  std::vector<detail::View> views{{camera, Pose{}}};
+  std::vector<const std::vector<std::vector<Eigen::Vector2d>>*> contours{&contour};
+  for (const auto& f : o.frames) {
+    checkCamera(f.camera);
+    const Eigen::Matrix3d RtR = f.motion.R.transpose() * f.motion.R;
+    if (!f.motion.R.allFinite() || !f.motion.t.allFinite() || !RtR.isIdentity(1e-6) || f.motion.R.determinant() < 0)
+      throw MeshError("The camera's motion to another frame is not a rotation and a move; estimate it again.");
+    views.push_back({f.camera, f.motion});
+    contours.push_back(&f.contour);
+  }
+  // The features tracked into further frames, triangulated (rays passing more than 3 px apart: a mismatch, dropped).
+  std::vector<SeenPoint> seen;
+  for (std::size_t f = 0; f < o.frames.size(); ++f) {
+    const auto& frame = o.frames[f];
+    const double baseline = frame.motion.t.norm();
+    for (const auto& [a, b] : frame.tracks) {
+      Eigen::Vector3d p;
+      double gap = 0;
+      if (!a.allFinite() || !b.allFinite() || !triangulateTrack(camera, frame.camera, frame.motion, a, b, p, gap) ||
+          gap > 3.0)
+        continue;
+      seen.push_back({p, camera.K(0, 0) * baseline / (p.z() * p.z())});
+    }
+  }
   std::size_t points = 0;
   // Points further than this from the image are not a sketch of it (and resampling them would take forever).
   const double farPx = 100.0 * std::max(camera.width, camera.height);
@@ -317,6 +411,17 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       if (farAway(p))
         throw MeshError("The contour has points far outside the image; check that it belongs to this frame.");
     }
+  }
+  for (std::size_t v = 1; v < contours.size(); ++v) {
+    std::size_t count = 0;
+    for (const auto& seg : *contours[v]) {
+      count += seg.size();
+      for (const auto& p : seg)
+        if (!p.allFinite() || farAway(p))
+          throw MeshError("The outline on frame " + std::to_string(v + 1) +
+                          " has a point that is not a number or lies far outside the image.");
+    }
+    if (count < 2) throw MeshError("The outline on frame " + std::to_string(v + 1) + " is empty; sketch it first.");
   }
   // Anatomical curves: checked, and their image curves resampled like the contour.
   std::vector<AnatomicalCurve> curves = o.curves;
@@ -347,25 +452,34 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   std::vector<char> fixed(model.nodeCount(), 0);
   for (int f : fixedNodes)
     if (f >= 0 && static_cast<std::size_t>(f) < fixed.size()) fixed[f] = 1;
-  std::vector<std::size_t> segmentStarts;
-  std::vector<Sample> samples;
-  for (const auto& seg : contour) {
-    const auto one = contourSamples({seg}, o.spacing);
-    if (one.size() < 2) continue;
-    segmentStarts.push_back(samples.size());
-    samples.insert(samples.end(), one.begin(), one.end());
-  }
-  // The silhouette of the last state asked for: recording an iteration and binding the next one look at
+  // Each frame's contour samples, its segments' starts among them.
+  std::vector<std::vector<std::size_t>> segmentStarts(views.size());
+  std::vector<std::vector<Sample>> samples(views.size());
+  for (std::size_t v = 0; v < views.size(); ++v)
+    for (const auto& seg : *contours[v]) {
+      const auto one = contourSamples({seg}, o.spacing);
+      if (one.size() < 2) continue;
+      segmentStarts[v].push_back(samples[v].size());
+      samples[v].insert(samples[v].end(), one.begin(), one.end());
+    }
+  // The organ's silhouette in every frame.
+  using Silhouettes = std::vector<std::vector<SilhouetteEdge>>;
+  auto silhouettesOf = [&](const Eigen::VectorXd& x, const Pose& pose) {
+    Silhouettes out;
+    for (const auto& v : views) out.push_back(visibleSilhouette(surface, x, detail::viewPose(v, pose), v.camera));
+    return out;
+  };
+  // The silhouettes of the last state asked for: recording an iteration and binding the next one look at
   // the same state, and the depth buffer is the costly part.
   struct {
     Eigen::VectorXd x;
     Pose pose;
-    std::vector<SilhouetteEdge> edges;
+    Silhouettes edges;
     bool valid = false;
   } last;
-  auto silhouette = [&](const Eigen::VectorXd& x, const Pose& pose) -> const std::vector<SilhouetteEdge>& {
+  auto silhouette = [&](const Eigen::VectorXd& x, const Pose& pose) -> const Silhouettes& {
     if (!(last.valid && last.x == x && last.pose.R == pose.R && last.pose.t == pose.t)) {
-      last.edges = visibleSilhouette(surface, x, pose, camera);
+      last.edges = silhouettesOf(x, pose);
       last.x = x;
       last.pose = pose;
       last.valid = true;
@@ -376,10 +490,26 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   res.x = model.restVector();
   res.pose = start;
   // The distances of the silhouette contour and of the curves, for a shape, a pose and its silhouette.
-  auto measure = [&](const std::vector<SilhouetteEdge>& sil, const Eigen::VectorXd& x, const Pose& pose) {
+  auto measure = [&](const Silhouettes& sil, const Eigen::VectorXd& x, const Pose& pose) {
     RegistrationIteration r;
-    r.residual = contourResidual(contour, sil);
+    r.residual = contourResidual(contour, sil[0]);
+    for (std::size_t v = 1; v < views.size(); ++v) {  // all frames' distances as one (means weighted by points)
+      const Residual2D more = contourResidual(*contours[v], sil[v]);
+      const std::size_t n = r.residual.points + more.points;
+      if (n == 0) continue;
+      r.residual.mean = (r.residual.mean * r.residual.points + more.mean * more.points) / n;
+      r.residual.rms =
+          std::sqrt((r.residual.rms * r.residual.rms * r.residual.points + more.rms * more.rms * more.points) / n);
+      r.residual.hausdorff = std::max(r.residual.hausdorff, more.hausdorff);
+      r.residual.points = n;
+    }
     r.curves = curveResidual(curves, x, pose, camera);
+    if (!seen.empty()) {
+      ResidualSum sum;
+      for (const auto& b : bindPoints(seen, surface, x, pose, camera))
+        sum.add(std::abs(b.pxPerMetre * (pose.R * b.surfaceNormal).dot(pose.apply(x.segment<3>(3 * b.a)) - b.target)));
+      r.points = sum.result();
+    }
     return r;
   };
   auto record = [&](int it, const char* stage, std::size_t bound) {
@@ -398,10 +528,32 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   };
   // Correspondences for the pose (the shape is res.x): the contour onto the silhouette's edges, the curves'
   // nodes onto their image curves.
-  auto rigidBindings = [&](const std::vector<SilhouetteEdge>& sil, const Eigen::VectorXd& x, const Pose& pose) {
-    auto b = bindForRigid(samples, sil, o);
+  auto rigidBindings = [&](const Silhouettes& sil, const Eigen::VectorXd& x, const Pose& pose) {
+    std::vector<Binding> b;
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      auto one = bindForRigid(samples[v], sil[v], o);
+      for (auto& binding : one) binding.view = static_cast<int>(v);
+      b.insert(b.end(), one.begin(), one.end());
+    }
     const auto c = bindCurves(curves, x, pose, camera, nullptr);
     b.insert(b.end(), c.begin(), c.end());
+    auto p = bindPoints(seen, surface, x, pose, camera);
+    if (!p.empty() && b.size() > 6) {
+      // The two kinds weighed by what each is worth: a seen point by its depth's noise (the tracker's, in both
+      // frames), a contour point by the outline's misfit over its correlation length (the model's error, not noise,
+      // is what mostly remains along an outline).
+      std::vector<double> r;
+      static const Eigen::MatrixXd none;
+      detail::poseSagInformation(x, none, b, views, o.sliding, pose, Eigen::Vector3d::Zero(), Eigen::Matrix3d::Zero(),
+                                 r);
+      double sum2 = 0;
+      for (double v : r) sum2 += v * v;
+      const double contourSigma =
+          std::sqrt(std::max(sum2 / static_cast<double>(r.size()), 0.01) * autocorrelationTime(r));
+      const double pointSigma = std::sqrt(2.0) * std::max(o.trackNoisePx, 0.05);
+      for (auto& binding : p) binding.pxPerMetre *= contourSigma / pointSigma;
+    }
+    b.insert(b.end(), p.begin(), p.end());
     return b;
   };
   // The sag (see RegistrationOptions::estimateSag): the held model's linear responses to a small body
@@ -453,10 +605,10 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   // One ICP iteration's update of the pose (and of the load, with the sag) on its bindings.
   auto refine = [&](const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose& pose, Eigen::Vector3d& a) {
     if (!U.size()) {
-      pose = refinePose(x, bindings, pose, camera, o.sliding);
+      pose = refinePose(x, bindings, pose, views, o.sliding);
       return;
     }
-    refinePoseAndSag(rest, U, bindings, camera, o.sliding, pose, a, givenLoad, priorMatrix(pose, bindings.size()));
+    refinePoseAndSag(rest, U, bindings, views, o.sliding, pose, a, givenLoad, priorMatrix(pose, bindings.size()));
   };
   const std::size_t fewest = U.size() ? 6 : 3;  // bindings an update needs
   const RegistrationIteration first = record(0, "start", 0);
@@ -473,11 +625,11 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   };
   auto shortIcpHeld = [&](Pose pose, int iterations) {
     for (int k = 0; k < iterations; ++k) {
-      const auto bindings = rigidBindings(visibleSilhouette(surface, res.x, pose, camera), res.x, pose);
+      const auto bindings = rigidBindings(silhouettesOf(res.x, pose), res.x, pose);
       if (bindings.size() < 3) break;
-      pose = refinePose(res.x, bindings, pose, camera, o.sliding);
+      pose = refinePose(res.x, bindings, pose, views, o.sliding);
     }
-    return std::make_pair(pose, measure(visibleSilhouette(surface, res.x, pose, camera), res.x, pose).score());
+    return std::make_pair(pose, measure(silhouettesOf(res.x, pose), res.x, pose).score());
   };
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();  // the organ's centre of mass (model frame)
   for (std::size_t i = 0; i < model.nodeCount(); ++i) centre += model.rest[i] * model.lumpedMass[i];
@@ -485,12 +637,12 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   auto shortIcp = [&](Pose pose, Eigen::Vector3d a, int iterations) {
     for (int k = 0; k < iterations; ++k) {
       const Eigen::VectorXd x = shapeOf(a);
-      const auto bindings = rigidBindings(visibleSilhouette(surface, x, pose, camera), x, pose);
+      const auto bindings = rigidBindings(silhouettesOf(x, pose), x, pose);
       if (bindings.size() < fewest) break;
       refine(x, bindings, pose, a);
     }
     const Eigen::VectorXd x = shapeOf(a);
-    return IcpEnd{pose, a, measure(visibleSilhouette(surface, x, pose, camera), x, pose).score()};
+    return IcpEnd{pose, a, measure(silhouettesOf(x, pose), x, pose).score()};
   };
   int iteration = 0;
   // The best of short ICP runs from several poses (in parallel; the first of equal ends wins).
@@ -557,7 +709,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     // projected organ's centroid moved onto the contour's, and +-15 degrees about the optical axis), to
     // stay out of the local minima of a single ICP; the best continues below.
     {
-      const auto sil = silhouette(res.x, res.pose);
+      const auto& sil = silhouette(res.x, res.pose)[0];
       Eigen::Vector2d silCentre = Eigen::Vector2d::Zero(), contourCentre = Eigen::Vector2d::Zero();
       double silLength = 0, contourLength = 0;
       for (const auto& e : sil) {
@@ -666,9 +818,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     Eigen::Vector3d a = load;
     for (int k = 0; k < 8; ++k) {
       const Eigen::VectorXd x = shapeOf(a);
-      const auto bindings = rigidBindings(visibleSilhouette(surface, x, p, camera), x, p);
+      const auto bindings = rigidBindings(silhouettesOf(x, p), x, p);
       if (bindings.size() < fewest) break;
-      refinePoseAndSag(rest, U, bindings, camera, o.sliding, p, a, givenLoad,
+      refinePoseAndSag(rest, U, bindings, views, o.sliding, p, a, givenLoad,
                        priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
     }
     const Eigen::VectorXd x = shapeOf(a);
@@ -687,7 +839,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.x, res.pose);
     // (the sag's prior loosened as its probe loosens it: the prior's scale is a choice, not a measurement)
     res.uncertainty = estimateUncertainty(
-        bindings, U.size() ? rest : res.x, U, camera, o.sliding, res.pose, load,
+        bindings, U.size() ? rest : res.x, U, views, o.sliding, res.pose, load,
         U.size() ? Eigen::Matrix3d(priorMatrix(res.pose, bindings.size()) / o.sagProbeLoosen) : Eigen::Matrix3d::Zero(),
         model, surface, res.x, centre);
     double spread = sagProbe.apartMm;
@@ -766,7 +918,19 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     Eigen::VectorXd bestX = res.x;
     std::string failure;
     for (int k = 0; k < o.maxIterations; ++k) {
-      auto bindings = bindContour(samples, segmentStarts, silhouette(state.x, res.pose), fixed, o, outlierFloor);
+      // One binding per node: a node on the outline of two frames a short move apart would be held on two nearly
+      // parallel planes, which meet far from it (the first frame's binding holds it).
+      std::vector<Binding> bindings;
+      std::vector<char> boundNode(model.nodeCount(), 0);
+      const Silhouettes& sils = silhouette(state.x, res.pose);
+      for (std::size_t v = 0; v < views.size(); ++v) {
+        for (auto b : bindContour(samples[v], segmentStarts[v], sils[v], fixed, o, outlierFloor)) {
+          if (boundNode[static_cast<std::size_t>(b.a)]) continue;
+          boundNode[static_cast<std::size_t>(b.a)] = 1;
+          b.view = static_cast<int>(v);
+          bindings.push_back(b);
+        }
+      }
       bindings.erase(
           std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return b.distance > cap; }),
           bindings.end());
@@ -776,9 +940,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         dropOutliers(curveBindings, o.outlierFactor, outlierFloor);
         std::vector<char> onCurve(model.nodeCount(), 0);
         for (const auto& b : curveBindings) onCurve[b.a] = 1;
-        bindings.erase(
-            std::remove_if(bindings.begin(), bindings.end(), [&](const Binding& b) { return onCurve[b.a] != 0; }),
-            bindings.end());
+        bindings.erase(std::remove_if(bindings.begin(), bindings.end(),
+                                      [&](const Binding& b) { return b.view == 0 && onCurve[b.a] != 0; }),
+                       bindings.end());
         bindings.insert(bindings.end(), curveBindings.begin(), curveBindings.end());
       }
       if (bindings.size() < 3) {
@@ -788,7 +952,10 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         break;
       }
       std::vector<ScalarConstraint> cs;
-      for (const auto& b : bindings) rayConstraints(b, res.pose, camera, o.sliding, cs);
+      for (const auto& b : bindings) {
+        const detail::View& v = views[static_cast<std::size_t>(b.view)];
+        rayConstraints(b, detail::viewPose(v, res.pose), v.camera, o.sliding, cs);
+      }
       integrator.setConstraints(cs);
       const SimulationState before = state;
       const StepReport rep = integrator.solveStatic(state);
@@ -845,11 +1012,12 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   // only in part by stretching this one).
   if (res.ok && points > 1) {
     const double nearPx = std::max(8.0, 0.01 * diag);
-    const auto& sil = silhouette(res.x, res.pose);
-    std::size_t near = 0;
-    for (const auto& seg : contour)
-      for (const auto& p : seg) near += distanceToSilhouette(sil, p) <= nearPx;
-    const double share = static_cast<double>(near) / static_cast<double>(points);
+    const Silhouettes& sils = silhouette(res.x, res.pose);
+    std::size_t near = 0, all = 0;
+    for (std::size_t v = 0; v < views.size(); ++v)
+      for (const auto& seg : *contours[v])
+        for (const auto& p : seg) near += distanceToSilhouette(sils[v], p) <= nearPx, ++all;
+    const double share = static_cast<double>(near) / static_cast<double>(all);
     if (share < 0.5) {
       res.ok = false;
       res.status = "failed: after the fit only " + std::to_string(static_cast<int>(100 * share)) +
@@ -890,7 +1058,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
                     probedScore);
     }
     std::string decide;
-    const auto& sil = silhouette(res.x, res.pose);
+    const auto& sil = silhouette(res.x, res.pose)[0];
     Eigen::Vector2d all = Eigen::Vector2d::Zero(), open = Eigen::Vector2d::Zero();
     double allLength = 0, openLength = 0;
     const double gapPx = std::max(10.0, 0.01 * diag);

@@ -57,23 +57,45 @@ struct Binding {
   double distance;                                   // px
   Eigen::Vector2d normal = Eigen::Vector2d::Zero();  // unit normal of the contour there (for sliding)
   Eigen::Vector3d bulge = Eigen::Vector3d::Zero();   // the edge's bulge (SilhouetteEdge::bulge)
+  int view = 0;                                      // the frame its contour point is in (View)
+  // A surface point instead (`surfacePoint`): node a held near a point seen in two frames (triangulated, first camera
+  // frame), across the surface only: the residual is `pxPerMetre` (n . (node - target)), n the surface's normal at the
+  // node (model frame, turned with the pose).
+  bool surfacePoint = false;
+  Eigen::Vector3d target = Eigen::Vector3d::Zero(), surfaceNormal = Eigen::Vector3d::Zero();
+  double pxPerMetre = 0;
 };
+
+// A frame the fit sees the organ in: its camera, and the camera's motion from the first frame's (first camera frame
+// -> this one's; identity for the first). A point q of the first camera frame is at motion.apply(q) in this one.
+struct View {
+  Pinhole camera;
+  Pose motion;
+};
+// The pose model -> this frame's camera, from the pose model -> the first frame's camera.
+inline Pose viewPose(const View& v, const Pose& pose) {
+  Pose out;
+  out.R = v.motion.R * pose.R;
+  out.t = v.motion.R * pose.t + v.motion.t;
+  return out;
+}
 Eigen::Vector3d point(const Eigen::VectorXd& x, const Binding& b);
 
 /// The pose (and, when U has columns, the sag with it) refined onto the bindings (registration_pose.cpp): the bound
-/// point is base + U a; Levenberg-Marquardt with a prior (a - a0)' P (a - a0) on the load.
+/// point is base + U a, seen in its binding's view; Levenberg-Marquardt with a prior (a - a0)' P (a - a0) on the load.
 void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings,
-                      const Pinhole& cam, bool pointToLine, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0,
-                      const Eigen::Matrix3d& prior);
+                      const std::vector<View>& views, bool pointToLine, Pose& pose, Eigen::Vector3d& a,
+                      const Eigen::Vector3d& a0, const Eigen::Matrix3d& prior);
 /// Gauss-Newton's information matrix of the same problem at (pose, a): J'J of the bindings' residuals (px) in the
 /// rotation increment (rad, camera frame), the translation (m) and, when U has columns, the load (m/s^2), with the
-/// prior added; `residuals` gets each binding's residual (px: along the contour normal when sliding, else its length).
+/// prior added; `residuals` gets each contour binding's residual (px: along the contour normal when sliding, else its
+/// length; surface points' are not among them).
 Eigen::MatrixXd poseSagInformation(const Eigen::VectorXd& base, const Eigen::MatrixXd& U,
-                                   const std::vector<Binding>& bindings, const Pinhole& cam, bool pointToLine,
-                                   const Pose& pose, const Eigen::Vector3d& a, const Eigen::Matrix3d& prior,
-                                   std::vector<double>& residuals);
+                                   const std::vector<Binding>& bindings, const std::vector<View>& views,
+                                   bool pointToLine, const Pose& pose, const Eigen::Vector3d& a,
+                                   const Eigen::Matrix3d& prior, std::vector<double>& residuals);
 // The pose alone, the shape x as it is.
-Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam,
-                bool pointToLine);
+Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose,
+                const std::vector<View>& views, bool pointToLine);
 
 }  // namespace rehearse::simcore::detail

@@ -28,7 +28,7 @@ struct PoseSagProblem {
   const Eigen::VectorXd& base;
   const Eigen::MatrixXd& U;
   const std::vector<Binding>& bindings;
-  const Pinhole& cam;
+  const std::vector<View>& views;
   bool pointToLine;
 
   Eigen::Index size() const { return 6 + U.cols(); }
@@ -42,13 +42,21 @@ struct PoseSagProblem {
     if (U.cols()) p += basis(b) * load;
     return p;
   }
+  double pointResidual(const Binding& b, const Pose& pose, const Eigen::Vector3d& load) const {
+    return b.pxPerMetre * (pose.R * b.surfaceNormal).dot(pose.apply(at(b, load)) - b.target);
+  }
   // The sum of squared distances (px^2); infinite when a point is behind the camera.
   double cost(const Pose& pose, const Eigen::Vector3d& load) const {
     double c = 0;
     for (const auto& b : bindings) {
-      const Eigen::Vector3d q = pose.apply(at(b, load));
+      if (b.surfacePoint) {
+        c += std::pow(pointResidual(b, pose, load), 2);
+        continue;
+      }
+      const View& v = views[static_cast<std::size_t>(b.view)];
+      const Eigen::Vector3d q = v.motion.apply(pose.apply(at(b, load)));
       if (q.z() <= 0) return std::numeric_limits<double>::infinity();
-      const Eigen::Vector2d r = cam.project(q) - b.contour;
+      const Eigen::Vector2d r = v.camera.project(q) - b.contour;
       c += useLine(b) ? std::pow(b.normal.dot(r), 2) : r.squaredNorm();
     }
     return c;
@@ -62,15 +70,29 @@ struct PoseSagProblem {
     Eigen::Matrix<double, 3, Eigen::Dynamic, 0, 3, 9> dq(3, n);
     Eigen::Matrix<double, 2, Eigen::Dynamic, 0, 2, 9> J(2, n);
     for (const auto& b : bindings) {
-      const Eigen::Vector3d q = pose.apply(at(b, load));
+      if (b.surfacePoint) {  // across the surface, the normal held as it is
+        const Eigen::Vector3d q1 = pose.apply(at(b, load));
+        dq.leftCols<3>() = -skew(q1);
+        dq.middleCols<3>(3).setIdentity();
+        if (U.cols()) dq.rightCols(U.cols()) = pose.R * basis(b);
+        const Row Jn = b.pxPerMetre * (pose.R * b.surfaceNormal).transpose() * dq;
+        JtJ.noalias() += Jn.transpose() * Jn;
+        Jtr.noalias() += Jn.transpose() * pointResidual(b, pose, load);
+        continue;
+      }
+      // The increments are the first camera's (q1 its point); the binding's view sees q = motion (q1).
+      const View& v = views[static_cast<std::size_t>(b.view)];
+      const Pinhole& cam = v.camera;
+      const Eigen::Vector3d q1 = pose.apply(at(b, load));
+      const Eigen::Vector3d q = v.motion.apply(q1);
       const Eigen::Vector2d r = cam.project(q) - b.contour;
       Eigen::Matrix<double, 2, 3> dpi;
       const double fx = cam.K(0, 0), fy = cam.K(1, 1), z = q.z();
       dpi << fx / z, cam.K(0, 1) / z, -(fx * q.x() + cam.K(0, 1) * q.y()) / (z * z), 0, fy / z, -fy * q.y() / (z * z);
-      dq.leftCols<3>() = -skew(q);
+      dq.leftCols<3>() = -skew(q1);
       dq.middleCols<3>(3).setIdentity();
       if (U.cols()) dq.rightCols(U.cols()) = pose.R * basis(b);
-      J.noalias() = dpi * dq;
+      J.noalias() = dpi * v.motion.R * dq;
       if (useLine(b)) {
         const Row Jn = b.normal.transpose() * J;
         JtJ.noalias() += Jn.transpose() * Jn;
@@ -131,35 +153,37 @@ void refinePoseAndSag(const PoseSagProblem& pr, Pose& pose, Eigen::Vector3d& a, 
 }  // namespace
 
 void refinePoseAndSag(const Eigen::VectorXd& base, const Eigen::MatrixXd& U, const std::vector<Binding>& bindings,
-                      const Pinhole& cam, bool pointToLine, Pose& pose, Eigen::Vector3d& a, const Eigen::Vector3d& a0,
-                      const Eigen::Matrix3d& prior) {
-  refinePoseAndSag(PoseSagProblem{base, U, bindings, cam, pointToLine}, pose, a, a0, prior);
+                      const std::vector<View>& views, bool pointToLine, Pose& pose, Eigen::Vector3d& a,
+                      const Eigen::Vector3d& a0, const Eigen::Matrix3d& prior) {
+  refinePoseAndSag(PoseSagProblem{base, U, bindings, views, pointToLine}, pose, a, a0, prior);
 }
 
 Eigen::MatrixXd poseSagInformation(const Eigen::VectorXd& base, const Eigen::MatrixXd& U,
-                                   const std::vector<Binding>& bindings, const Pinhole& cam, bool pointToLine,
-                                   const Pose& pose, const Eigen::Vector3d& a, const Eigen::Matrix3d& prior,
-                                   std::vector<double>& residuals) {
-  const PoseSagProblem pr{base, U, bindings, cam, pointToLine};
+                                   const std::vector<Binding>& bindings, const std::vector<View>& views,
+                                   bool pointToLine, const Pose& pose, const Eigen::Vector3d& a,
+                                   const Eigen::Matrix3d& prior, std::vector<double>& residuals) {
+  const PoseSagProblem pr{base, U, bindings, views, pointToLine};
   Eigen::MatrixXd JtJ;
   Eigen::VectorXd Jtr;
   pr.normalEquations(pose, a, JtJ, Jtr);
   if (U.cols()) JtJ.bottomRightCorner<3, 3>() += prior;
   residuals.clear();
   for (const auto& b : bindings) {
-    const Eigen::Vector3d q = pose.apply(pr.at(b, a));
-    const Eigen::Vector2d r = q.z() > 0 ? Eigen::Vector2d(cam.project(q) - b.contour) : Eigen::Vector2d::Zero();
+    if (b.surfacePoint) continue;  // (the residuals along the contours only: their correlation is along them)
+    const View& v = views[static_cast<std::size_t>(b.view)];
+    const Eigen::Vector3d q = v.motion.apply(pose.apply(pr.at(b, a)));
+    const Eigen::Vector2d r = q.z() > 0 ? Eigen::Vector2d(v.camera.project(q) - b.contour) : Eigen::Vector2d::Zero();
     residuals.push_back(pr.useLine(b) ? b.normal.dot(r) : r.norm());
   }
   return JtJ;
 }
 
 // The pose alone, the shape x as it is.
-Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose, const Pinhole& cam,
-                bool pointToLine) {
+Pose refinePose(const Eigen::VectorXd& x, const std::vector<Binding>& bindings, Pose pose,
+                const std::vector<View>& views, bool pointToLine) {
   static const Eigen::MatrixXd none;
   Eigen::Vector3d a = Eigen::Vector3d::Zero();
-  refinePoseAndSag(PoseSagProblem{x, none, bindings, cam, pointToLine}, pose, a, a, Eigen::Matrix3d::Zero());
+  refinePoseAndSag(PoseSagProblem{x, none, bindings, views, pointToLine}, pose, a, a, Eigen::Matrix3d::Zero());
   return pose;
 }
 

@@ -9,6 +9,10 @@
 // ones. Markers: 40 visible surface points and one inner target. Writes registration-real.csv (one row
 // per fit) and registration-real-<organ>.png (marker error against wall time at 100 %). Not a test.
 //   bench_registration_real [OUT_DIR] [--quick] [--organ NAME] [--no-attachments] [--fractions 1,0.7,0.5] [--ridge]
+//                           [--second-frame MM]
+// --second-frame MM: a second frame (issue 38), the camera moved MM across the view (along its X) and turned to keep
+// the organ's centre in the middle; its outline cut like the first's (the same share, the same side missing, its own
+// noise) and 200 features tracked between the frames (0.5 px noise), the motion given.
 // --ridge: every contour also carries an anatomical curve (issue 38): the shortest path over the fit mesh's surface
 // between the two visible front nodes farthest apart in the image (at least 40 px inside the outline), drawn where
 // CalculiX's deformed organ puts it (each node moved as its nearest fine surface node), +-2 px noise.
@@ -26,6 +30,7 @@
 #include <QCoreApplication>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cstdlib>
 #include <cstdio>
@@ -82,6 +87,7 @@ int main(int argc, char** argv) {
   std::string out = ".";
   std::string only;
   bool quick = false, attachments = true, ridge = false;
+  double secondFrameMm = 0;
   std::vector<double> fractionsAsked;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -90,6 +96,8 @@ int main(int argc, char** argv) {
     else if (a == "--no-attachments") attachments = false;
     else if (a == "--ridge")
       ridge = true;
+    else if (a == "--second-frame" && i + 1 < argc)
+      secondFrameMm = std::atof(argv[++i]);
     else if (a == "--fractions" && i + 1 < argc) {
       std::stringstream list(argv[++i]);
       std::string item;
@@ -395,13 +403,44 @@ int main(int argc, char** argv) {
     std::vector<double> fractions = quick ? std::vector<double>{1.0, 0.7} : std::vector<double>{1.0, 0.9, 0.8, 0.7, 0.6, 0.5};
     if (!fractionsAsked.empty()) fractions = fractionsAsked;
     const char* sideNames[] = {"top", "right", "bottom", "left"};
-    std::size_t sideAt[4] = {0, 0, 0, 0};
-    for (std::size_t i = 0; i < outline.size(); ++i) {
-      const auto& p = outline[i];
-      if (p.y() < outline[sideAt[0]].y()) sideAt[0] = i;
-      if (p.x() > outline[sideAt[1]].x()) sideAt[1] = i;
-      if (p.y() > outline[sideAt[2]].y()) sideAt[2] = i;
-      if (p.x() < outline[sideAt[3]].x()) sideAt[3] = i;
+    // The outline's topmost, rightmost, bottommost and leftmost points.
+    auto sidesOf = [](const std::vector<Eigen::Vector2d>& line) {
+      std::array<std::size_t, 4> at{0, 0, 0, 0};
+      for (std::size_t i = 0; i < line.size(); ++i) {
+        const auto& p = line[i];
+        if (p.y() < line[at[0]].y()) at[0] = i;
+        if (p.x() > line[at[1]].x()) at[1] = i;
+        if (p.y() > line[at[2]].y()) at[2] = i;
+        if (p.x() < line[at[3]].x()) at[3] = i;
+      }
+      return at;
+    };
+    const auto sideAt = sidesOf(outline);
+    // The second frame (--second-frame): its camera, outline and tracked features.
+    RegistrationFrame second;
+    std::vector<Eigen::Vector2d> outline2;
+    std::array<std::size_t, 4> sideAt2{};
+    if (secondFrameMm > 0) {
+      const Eigen::Vector3d centre = truth.apply(organ->centreOfGravity), eye(1e-3 * secondFrameMm, 0, 0);
+      const Eigen::Vector3d z = (centre - eye).normalized(), x = Eigen::Vector3d::UnitY().cross(z).normalized();
+      second.camera = cam.pinhole();
+      second.motion.R.row(0) = x.transpose();
+      second.motion.R.row(1) = z.cross(x).transpose();
+      second.motion.R.row(2) = z.transpose();
+      second.motion.t = -second.motion.R * eye;
+      Pose seen;
+      seen.R = second.motion.R * truth.R;
+      seen.t = second.motion.R * truth.t + second.motion.t;
+      const auto borders2 = imaging::maskOutlines(imaging::renderMask(cam, seen, view));
+      if (borders2.empty()) {
+        std::printf("%s: the organ is not in the second frame; skipped\n", spec.name.c_str());
+        continue;
+      }
+      outline2 = borders2.front();
+      sideAt2 = sidesOf(outline2);
+      second.tracks = testing::trackedFeatures(view, truth, second.motion, cam, 200, 0.5, 5);
+      std::printf("second frame %.0f mm across: outline %zu px, %zu features tracked\n", secondFrameMm, outline2.size(),
+                  second.tracks.size());
     }
     struct Start {
       std::string name;
@@ -430,19 +469,28 @@ int main(int argc, char** argv) {
         imaging::Contour contour;
         contour.width = cam.width;
         contour.height = cam.height;
-        imaging::ContourSegment seg;
-        const std::size_t n = outline.size(), drop = static_cast<std::size_t>((1 - fraction) * static_cast<double>(n));
-        const std::size_t first = (sideAt[side] + drop / 2 + 1) % n;  // just past the missing arc
-        for (std::size_t k = 0; k < n - drop; ++k) seg.points.push_back(outline[(first + k) % n]);
-        seg.closed = drop == 0;
-        for (auto& p : seg.points) p += Eigen::Vector2d(noise(rng), noise(rng));
-        const std::size_t outliers = std::max<std::size_t>(3, seg.points.size() / 100);
-        for (std::size_t k = 0; k < outliers; ++k) {
-          auto& p = seg.points[(k * 7919 + 31) % seg.points.size()];
-          const double angle = 2 * M_PI * (noise(rng) + 2) / 4;
-          p += far(rng) * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+        // The share kept of an outline, the missing arc centred on the side, with noise and outliers.
+        auto cut = [&](const std::vector<Eigen::Vector2d>& line, std::size_t sidePoint) {
+          imaging::ContourSegment seg;
+          const std::size_t n = line.size(), drop = static_cast<std::size_t>((1 - fraction) * static_cast<double>(n));
+          const std::size_t first = (sidePoint + drop / 2 + 1) % n;  // just past the missing arc
+          for (std::size_t k = 0; k < n - drop; ++k) seg.points.push_back(line[(first + k) % n]);
+          seg.closed = drop == 0;
+          for (auto& p : seg.points) p += Eigen::Vector2d(noise(rng), noise(rng));
+          const std::size_t outliers = std::max<std::size_t>(3, seg.points.size() / 100);
+          for (std::size_t k = 0; k < outliers; ++k) {
+            auto& p = seg.points[(k * 7919 + 31) % seg.points.size()];
+            const double angle = 2 * M_PI * (noise(rng) + 2) / 4;
+            p += far(rng) * Eigen::Vector2d(std::cos(angle), std::sin(angle));
+          }
+          return seg;
+        };
+        contour.segments.push_back(cut(outline, sideAt[side]));
+        in.frames.clear();
+        if (secondFrameMm > 0) {
+          second.contour = {cut(outline2, sideAt2[side]).points};
+          in.frames = {second};
         }
-        contour.segments.push_back(seg);
         if (ridge && ridgeSegment.modelVertices.size() >= 2) contour.segments.push_back(ridgeSegment);
         for (const auto& s : starts) {
           in.contour = contour;

@@ -9,6 +9,7 @@
 #include <Eigen/Eigenvalues>
 
 #include <algorithm>
+#include <random>
 #include <string>
 #include <vector>
 
@@ -145,6 +146,46 @@ inline std::vector<int> visibleMarkers(const simcore::Mesh& rest, const std::vec
     markers.push_back(best);
   }
   return markers;
+}
+
+/// Features a tracker would find on the organ in two frames (issue 38's second frame): up to `count` vertices of the
+/// surface (vertices of `view`, model frame) that both cameras see (depth-tested in each), taken at random (seeded),
+/// projected into the first camera (`pose`) and the second (`motion` after it), each pixel moved by Gaussian noise of
+/// `noisePx`. Pairs (first frame's pixel, second frame's).
+inline std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> trackedFeatures(const SurfaceView& view,
+                                                                                const Pose& pose, const Pose& motion,
+                                                                                const imaging::Camera& cam,
+                                                                                std::size_t count, double noisePx,
+                                                                                unsigned seed) {
+  Pose second;
+  second.R = motion.R * pose.R;
+  second.t = motion.R * pose.t + motion.t;
+  const imaging::Rasterization r1 = imaging::rasterize(cam, pose, view), r2 = imaging::rasterize(cam, second, view);
+  auto seenIn = [&](const imaging::Rasterization& r, const Pose& p, const Eigen::Vector3d& v, Eigen::Vector2d& px) {
+    const Eigen::Vector3d q = p.apply(v);
+    if (q.z() <= 0) return false;
+    px = cam.project(q);
+    const int x = static_cast<int>(px.x()), y = static_cast<int>(px.y());
+    return x >= 0 && y >= 0 && x < cam.width && y < cam.height && std::abs(r.depth(y, x) - q.z()) < 0.002;
+  };
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> both;
+  std::vector<char> onSurface(view.vertexCount, 0);
+  for (std::size_t t = 0; t < 3 * view.triangleCount; ++t) onSurface[static_cast<std::size_t>(view.triangles[t])] = 1;
+  for (std::size_t i = 0; i < view.vertexCount; ++i) {
+    if (!onSurface[i]) continue;
+    const Eigen::Vector3d v = view.vertex(i);
+    Eigen::Vector2d a, b;
+    if (seenIn(r1, pose, v, a) && seenIn(r2, second, v, b)) both.emplace_back(a, b);
+  }
+  std::mt19937 rng(seed);
+  std::shuffle(both.begin(), both.end(), rng);
+  if (both.size() > count) both.resize(count);
+  std::normal_distribution<double> noise(0.0, noisePx);
+  for (auto& [a, b] : both) {
+    a += Eigen::Vector2d(noise(rng), noise(rng));
+    b += Eigen::Vector2d(noise(rng), noise(rng));
+  }
+  return both;
 }
 
 }  // namespace rehearse::testing

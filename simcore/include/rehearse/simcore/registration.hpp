@@ -71,14 +71,38 @@ struct RegistrationIteration {
   double wallMs = 0;          ///< since the start
   Residual2D residual;        ///< silhouette contour to the organ's silhouette
   Residual2D curves;          ///< anatomical curves (when given)
+  /// Features seen in two frames (RegistrationFrame::tracks), across the surface, in pixels of their depth's
+  /// sensitivity (f b / z^2 per metre)
+  Residual2D points;
   std::size_t bound = 0;      ///< contour and curve points bound
   std::string stage;          ///< "start", "rigid", "elastic"
-  /// The mean distance over every silhouette and curve point: what the fit minimises and compares.
+  /// The mean distance over every silhouette, curve and seen point: what the fit minimises and compares.
   double score() const {
-    const std::size_t n = residual.points + curves.points;
-    return n ? (residual.mean * residual.points + curves.mean * curves.points) / n : 0.0;
+    const std::size_t n = residual.points + curves.points + points.points;
+    return n ? (residual.mean * residual.points + curves.mean * curves.points + points.mean * points.points) / n : 0.0;
   }
 };
+
+/// Another frame of the same organ (RegistrationOptions::frames): the camera moved between the frames (the organ
+/// did not), and the outline was sketched on this frame too. Its parallax fixes what one outline leaves to the
+/// model: the depth, and the turns that keep the outline's shape.
+struct RegistrationFrame {
+  Pinhole camera;
+  /// The camera's motion from the first frame's: a point q in the first frame's camera frame is at motion.apply(q)
+  /// in this frame's (e.g. from features tracked between the frames, estimateCameraMotion).
+  Pose motion;
+  std::vector<std::vector<Eigen::Vector2d>> contour;  ///< pixels of this frame (undistorted)
+  /// Features tracked from the first frame to this one (pixel in the first, pixel in this one; undistorted): each is
+  /// triangulated through the motion and holds the organ's visible surface there (the rigid stage), weighted by how
+  /// well the baseline fixes its depth. May be empty (the outlines alone).
+  std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> tracks;
+};
+
+/// A point seen in two frames: the point of the first camera frame nearest to both rays (m), and how far apart the
+/// rays pass there in pixels of the first frame (a mismatched track passes far apart). False when the rays are nearly
+/// parallel (under 0.2 degrees) or meet behind either camera.
+bool triangulateTrack(const Pinhole& first, const Pinhole& other, const Pose& motion, const Eigen::Vector2d& inFirst,
+                      const Eigen::Vector2d& inOther, Eigen::Vector3d& point, double& gapPx);
 
 struct RegistrationOptions {
   int maxIterations = 20;
@@ -137,6 +161,11 @@ struct RegistrationOptions {
   double downAcross = 4.0;
   /// Optional anatomical curve constraints, used by the rigid and the elastic stages.
   std::vector<AnatomicalCurve> curves;
+  /// Further frames with their outlines (a second frame: the camera moved 1-2 cm): every stage fits all the
+  /// outlines at once (the pose is the first frame's). Curves are the first frame's.
+  std::vector<RegistrationFrame> frames;
+  /// The tracker's noise (px, each frame) that a seen point's depth is weighed by.
+  double trackNoisePx = 0.5;
   /// Called after every iteration with the current positions (model frame) and pose; false cancels.
   std::function<bool(const RegistrationIteration&, const Eigen::VectorXd& x, const Pose& pose)> onIteration;
 };

@@ -29,6 +29,9 @@ struct FitInput {
   bool rigidPrepass = true;
   bool elastic = true;
   int maxIterations = 20;
+  /// Further frames of the organ with their outlines and the features tracked into them
+  /// (simcore::RegistrationOptions::frames).
+  std::vector<simcore::RegistrationFrame> frames;
   FitInput() { settings.gravity.setZero(); }
 };
 
