@@ -13,6 +13,8 @@
 
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
+#include <rehearse/imaging/motion.hpp>
+#include <opencv2/imgproc.hpp>
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/registration.hpp>
 #include <rehearse/simcore/scene.hpp>
@@ -141,6 +143,78 @@ int cmdRegister(const std::vector<std::string>& args) {
     if (!(in.gravityCamera.norm() > 0))
       throw UsageError("--gravity-camera must not be zero (leave it out when down is not known)");
   }
+  if (o.count("tolerance-mm")) {
+    in.toleranceMm = parseNumber(o["tolerance-mm"], "--tolerance-mm");
+    if (!(in.toleranceMm > 0)) throw UsageError("--tolerance-mm must be a positive number of millimetres");
+  }
+  // A second frame: its outline, and the camera's motion to it (given, or from features tracked between the frames
+  // with the move's length given); the features are used by the fit too when both frames are there.
+  nlohmann::json frameReport = nullptr;
+  if (o.count("contour2")) {
+    simcore::RegistrationFrame second;
+    second.camera = camera.pinhole();
+    imaging::Contour c2 = imaging::loadContour(o["contour2"]);
+    if (c2.width == 0) c2.width = camera.width;
+    if (c2.height == 0) c2.height = camera.height;
+    if (o.count("distorted-contour")) c2 = imaging::undistortContour(c2, camera);
+    if (const std::string problem = imaging::contourProblem(c2); !problem.empty())
+      throw simcore::MeshError("The second frame's outline: " + problem);
+    for (const auto& seg : c2.segments)
+      if (seg.isSilhouette()) second.contour.push_back(seg.points);
+    if (o.count("motion") && o.count("baseline-mm"))
+      throw UsageError("--motion gives the move's length already; leave out --baseline-mm");
+    if (!o.count("motion") && !o.count("baseline-mm"))
+      throw UsageError(
+          "--contour2 needs the camera's motion to the second frame: --motion M.json, or --frame, --frame2 and "
+          "--baseline-mm (two frames give only the move's direction, not its length)");
+    if (o.count("frame") != o.count("frame2")) throw UsageError("--frame and --frame2 go together");
+    std::vector<imaging::Track> tracks;
+    if (o.count("frame")) {
+      auto read = [&](const std::string& path) {
+        cv::Mat3b image = cv::imread(path, cv::IMREAD_COLOR);
+        if (image.empty()) throw imaging::InputError("Cannot read the frame " + path + " (not an image, or missing).");
+        if (image.cols != camera.width || image.rows != camera.height)
+          throw imaging::InputError("The frame " + path + " is not the camera's size (" + std::to_string(camera.width) +
+                                    "x" + std::to_string(camera.height) + ").");
+        return imaging::undistortImage(image, camera);  // (the image itself without distortion)
+      };
+      const cv::Mat3b first = read(o["frame"]), image2 = read(o["frame2"]);
+      // Features only on the organ as sketched on the first frame (its outline filled, less a margin).
+      cv::Mat1b mask(first.size(), 0);
+      std::vector<std::vector<cv::Point>> polygons;
+      for (const auto& seg : contour.segments)
+        if (seg.isSilhouette() && seg.points.size() > 2) {
+          polygons.emplace_back();
+          for (const auto& p : seg.points)
+            polygons.back().emplace_back(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
+        }
+      cv::fillPoly(mask, polygons, cv::Scalar(255));
+      const int margin = std::max(3, first.cols / 100);
+      cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
+      tracks = imaging::trackFeatures(first, image2, mask);
+    }
+    std::string motionStatus;
+    if (o.count("motion")) {
+      second.motion = imaging::loadPose(o["motion"]);
+      motionStatus = "camera motion given (" + o["motion"] + ")";
+    } else {
+      if (!o.count("frame"))
+        throw UsageError("--baseline-mm estimates the motion from the frames: give --frame and --frame2 too");
+      const double baseline = 1e-3 * parseNumber(o["baseline-mm"], "--baseline-mm");
+      if (!(baseline > 0)) throw UsageError("--baseline-mm must be a positive number of millimetres");
+      const imaging::CameraMotion m = imaging::estimateCameraMotion(camera, tracks, baseline);
+      if (!m.ok) throw imaging::InputError("The second frame cannot be used: " + m.status + ".");
+      second.motion = m.motion;
+      tracks = m.inliers;
+      motionStatus = m.status;
+    }
+    second.tracks = tracks;
+    std::printf("register: second frame: %s; %zu features tracked\n", motionStatus.c_str(), tracks.size());
+    frameReport = {{"motion", nlohmann::json::parse(imaging::poseToJson(second.motion))},
+                   {"features", tracks.size()},
+                   {"status", motionStatus}};
+    in.frames = {second};
+  }
   struct Row {
     simcore::RegistrationIteration it;
     double errMean = -1, errMax = -1;
@@ -203,6 +277,8 @@ int cmdRegister(const std::vector<std::string>& args) {
                               {"sag_apart_mm", res.sagApartMm},
                               {"deeper_minima_taken", res.adopted},
                               {"uncertainty", uncertaintyJson(res.uncertainty)},
+                              {"tolerance_mm", in.toleranceMm},
+                              {"second_frame", frameReport},
                               {"load_model_m_s2", {res.load.x(), res.load.y(), res.load.z()}},
                               {"load_camera_m_s2",
                                {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
@@ -246,7 +322,12 @@ const Command& registerCommand() {
       "surface)\n"
       "                                   are held onto their image curves too. Exit 0: a determined fit;\n"
       "                                   4: ambiguous (the best fit is written; the report names the other\n"
-      "                                   poses that fit the contour nearly as well); 3: failed\n",
+      "                                   poses that fit the contour nearly as well, or the fit's own bound\n"
+      "                                   exceeds --tolerance-mm, 5 by default); 3: failed\n"
+      "                [--contour2 C2.json (--motion M.json | --baseline-mm MM) [--frame F1 --frame2 F2]]\n"
+      "                                   a second frame (the scope moved 1-2 cm): its outline, the camera's\n"
+      "                                   motion to it (given, or from features tracked between the frames,\n"
+      "                                   the move's length given), and the features, fitted with the first\n",
       joined(modelOptions(), {{"camera", "CAM", "the camera (OpenCV YAML or JSON intrinsics)"},
                               {"contour", "C.json", "the sketched silhouette (and curves) in pixels"},
                               {"pose", "P0.json", "the starting pose (model to camera)"},
@@ -260,7 +341,13 @@ const Command& registerCommand() {
                               {"rigid-prepass", "", "run the rigid stage first (the default)"},
                               {"no-rigid-prepass", "", "start the elastic fit from the given pose"},
                               {"rigid-only", "", "stop after the rigid stage"},
-                              {"distorted-contour", "", "the contour was drawn on the distorted frame"}}),
+                              {"distorted-contour", "", "the contour was drawn on the distorted frame"},
+                              {"tolerance-mm", "MM", "the bound a determined fit stays within (default 5)"},
+                              {"contour2", "C2.json", "the outline sketched on a second frame"},
+                              {"motion", "M.json", "the camera's motion from the first frame to the second"},
+                              {"baseline-mm", "MM", "how far the camera moved between the frames"},
+                              {"frame", "F1", "the first frame (to track features from)"},
+                              {"frame2", "F2", "the second frame (to track features into)"}}),
       withoutServices(cmdRegister)};
   return command;
 }

@@ -1025,12 +1025,22 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
                    " px of the organ's silhouette; it may belong to another organ or the start pose is too far";
     }
   }
-  if (res.ok && (!res.alternatives.empty() || sagProbe.undetermined)) {
+  const bool beyondTolerance = res.uncertainty.computed && !(res.uncertainty.surfaceMm <= o.toleranceMm);
+  if (res.ok && (!res.alternatives.empty() || sagProbe.undetermined || beyondTolerance)) {
     // Say which alternatives, and what would decide: the stretch of the organ's outline that no contour
     // covers (named by where it lies on the organ), or a curve on the organ when the outline is whole.
     res.ambiguous = true;
-    char text[240];
-    if (res.alternatives.empty()) {
+    char text[320];
+    if (res.alternatives.empty() && !sagProbe.undetermined) {
+      if (std::isfinite(res.uncertainty.surfaceMm))
+        std::snprintf(text, sizeof text,
+                      "ambiguous: the surface may be up to %.1f mm from where the fit put it, more than the %.1f mm "
+                      "asked for (weakest: %s)",
+                      res.uncertainty.surfaceMm, o.toleranceMm, res.uncertainty.weakest.c_str());
+      else
+        std::snprintf(text, sizeof text, "ambiguous: the contour does not determine %s",
+                      res.uncertainty.weakest.c_str());
+    } else if (res.alternatives.empty()) {
       std::snprintf(text, sizeof text,
                     "ambiguous: the contour does not show how far the organ sags (the sag found is %.0f %% of what the "
                     "contour alone asks for, "
@@ -1058,6 +1068,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
                     probedScore);
     }
     std::string decide;
+    // What one outline cannot give at all: the depth's parallax.
+    const std::string secondFrame = views.size() == 1 ? ", or a second frame with the scope moved 1-2 cm sideways" : "";
     const auto& sil = silhouette(res.x, res.pose)[0];
     Eigen::Vector2d all = Eigen::Vector2d::Zero(), open = Eigen::Vector2d::Zero();
     double allLength = 0, openLength = 0;
@@ -1083,9 +1095,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       if (where == "lower") where = "bottom";
       decide = "; the contour along the organ's " + where + " side (" +
                std::to_string(static_cast<int>(100 * openLength / allLength)) +
-               " % of its outline is not drawn), or a ridge or ligament curve, would decide it";
+               " % of its outline is not drawn), a ridge or ligament curve" + secondFrame + ", would decide it";
     } else {
-      decide = "; a ridge or ligament curve drawn on the organ (step 3) would decide it";
+      decide = "; a ridge or ligament curve drawn on the organ (step 3)" + secondFrame + " would decide it";
     }
     res.status = text + decide + " (the fit: " + res.status + ")";
   }

@@ -448,7 +448,11 @@ class TestRegistration : public QObject {
     qInfo("  told which way is down: with the sag %.2f mm (load %.2f %.2f %.2f m/s^2, %.0f degrees from CalculiX's)",
           1e3 * L->error(toldDown), toldLoad.x(), toldLoad.y(), toldLoad.z(),
           std::acos(std::clamp(toldLoad.normalized().dot(L->gCamera.normalized()), -1.0, 1.0)) * 180 / M_PI);
-    QVERIFY2(toldDown.ok && !toldDown.ambiguous && toldDown.sagDetermined, toldDown.status.c_str());
+    QVERIFY2(toldDown.ok && toldDown.sagDetermined, toldDown.status.c_str());
+    // Determined only within its bound (5.5 mm here, its error 3.61 mm): at the default 5 mm tolerance it says so.
+    QVERIFY2(toldDown.ambiguous == (toldDown.uncertainty.surfaceMm > 5), toldDown.status.c_str());
+    QVERIFY2(!toldDown.ambiguous || toldDown.status.find("more than the 5.0 mm asked for") != std::string::npos,
+             toldDown.status.c_str());
     // (Its size is not used: centring the sag on 1 g gave 2.48 mm here but put the kidney of
     // bench_registration_real, whose fit model sags ten times more per unit load than CalculiX's, 36 mm off.)
     QVERIFY(L->error(toldDown) < 0.004);
@@ -521,6 +525,59 @@ class TestRegistration : public QObject {
     // The bound shrinks with what the features add, and still covers the error within 3x.
     QVERIFY(two.uncertainty.computed && two.uncertainty.surfaceMm < 0.5 * one.uncertainty.surfaceMm);
     QVERIFY(1e3 * L->error(two) <= two.uncertainty.surfaceMm && two.uncertainty.surfaceMm <= 3e3 * L->error(two));
+    // The command line: the second frame's outline and the motion given; without a motion, refused with a sentence.
+    const std::string dir = tempPath("register-second-frame");
+    std::filesystem::create_directories(dir);
+    simcore::saveMesh(L->organ->volume, dir + "/liver.vtu");
+    imaging::saveCamera(L->cam, dir + "/camera.json");
+    for (const auto& [name, line] : {std::pair{std::string("contour.json"), L->outline},
+                                     std::pair{std::string("contour2.json"), second.contour.front()}}) {
+      imaging::Contour file;
+      file.width = L->cam.width;
+      file.height = L->cam.height;
+      file.segments.push_back({line, true, "silhouette", {}});
+      imaging::saveContour(file, dir + "/" + name);
+    }
+    imaging::savePose(L->start, dir + "/pose.json");
+    imaging::savePose(second.motion, dir + "/motion.json");
+    const QStringList common{"register",
+                             "--mesh",
+                             QString::fromStdString(dir + "/liver.vtu"),
+                             "--camera",
+                             QString::fromStdString(dir + "/camera.json"),
+                             "--contour",
+                             QString::fromStdString(dir + "/contour.json"),
+                             "--pose",
+                             QString::fromStdString(dir + "/pose.json"),
+                             "--out",
+                             QString::fromStdString(dir + "/registered.vtu"),
+                             "--report",
+                             QString::fromStdString(dir + "/report.json"),
+                             "--contour2",
+                             QString::fromStdString(dir + "/contour2.json")};
+    QProcess p;
+    p.start(QStringLiteral(REHEARSE_BINARY),
+            common + QStringList{"--motion", QString::fromStdString(dir + "/motion.json")});
+    QVERIFY(p.waitForFinished(300000));
+    const QString out = QString::fromUtf8(p.readAllStandardOutput()), err = QString::fromUtf8(p.readAllStandardError());
+    qInfo("%s%s(exit %d)", qPrintable(out), qPrintable(err), p.exitCode());
+    QVERIFY2(p.exitCode() == 0 || p.exitCode() == 4, qPrintable(err));
+    QVERIFY(out.contains("register: second frame: camera motion given"));
+    const QJsonObject report =
+        QJsonDocument::fromJson(QByteArray::fromStdString(readFile(dir + "/report.json"))).object();
+    QCOMPARE(report["second_frame"].toObject()["features"].toInt(), 0);
+    QCOMPARE(report["tolerance_mm"].toDouble(), 5.0);
+    QCOMPARE(report["determined"].toBool(), p.exitCode() == 0);
+    p.start(QStringLiteral(REHEARSE_BINARY), common);
+    QVERIFY(p.waitForFinished(60000));
+    QVERIFY(p.exitCode() != 0 && p.exitCode() != 4);
+    QVERIFY(QString::fromUtf8(p.readAllStandardError()).contains("needs the camera's motion"));
+    p.start(QStringLiteral(REHEARSE_BINARY),
+            common + QStringList{"--baseline-mm", "15", "--frame", QString::fromStdString(dir + "/liver.vtu"),
+                                 "--frame2", QString::fromStdString(dir + "/liver.vtu")});
+    QVERIFY(p.waitForFinished(60000));
+    QVERIFY(p.exitCode() != 0 && p.exitCode() != 4);
+    QVERIFY(QString::fromUtf8(p.readAllStandardError()).contains("Cannot read the frame"));
     // A motion that is not a rotation, or an empty outline on the second frame, is refused with a sentence.
     o.frames[0].motion.R(0, 0) = 2;
     try {

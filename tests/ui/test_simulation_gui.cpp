@@ -557,6 +557,33 @@ class TestSimulationGui : public QObject {
     QVERIFY(line.captured(2).toDouble() > 0);
     const QString page = w_->findChild<QLabel*>("fitStatus")->text();
     QVERIFY2(page.contains(QStringLiteral("Uncertainty: ") + line.captured(1)), qPrintable(page + " | " + out));
+    // The tolerance (issue 38): typed on the fit page below that bound, the same fit is not determined, the page and
+    // the command line (--tolerance-mm, exit 4) say so with the bound against it.
+    auto* tolerance = w_->findChild<QDoubleSpinBox*>("fitTolerance");
+    QVERIFY(tolerance && tolerance->isVisible());
+    QCOMPARE(tolerance->value(), 5.0);
+    tolerance->setFocus();
+    QTest::keyClick(tolerance, Qt::Key_A, Qt::ControlModifier);
+    QTest::keyClicks(tolerance, QStringLiteral("0.5"));
+    QTest::keyClick(tolerance, Qt::Key_Return);
+    QCOMPARE(tolerance->value(), 0.5);
+    w_->editCase("test: no fit", [](app::Case& k) { k.fit.reset(); });
+    QTest::keyClick(w_.get(), Qt::Key_F9);
+    QTRY_VERIFY2_WITH_TIMEOUT(w_->caseData()->hasFit(), qPrintable(w_->findChild<QLabel*>("fitStatus")->text()),
+                              120000);
+    const QString strict = w_->findChild<QLabel*>("fitStatus")->text();
+    QVERIFY2(strict.startsWith("AMBIGUOUS: the surface may be up to") &&
+                 strict.contains("more than the 0.5 mm asked for") && strict.contains("a second frame"),
+             qPrintable(strict));
+    QStringList again = p.arguments();
+    again << "--tolerance-mm"
+          << "0.5";
+    p.start(QStringLiteral(REHEARSE_BINARY), again);
+    QVERIFY(p.waitForFinished(300000));
+    const QString strictErr = QString::fromUtf8(p.readAllStandardError());
+    QCOMPARE(p.exitCode(), 4);
+    QVERIFY2(strictErr.contains("more than the 0.5 mm asked for"), qPrintable(strictErr));
+    tolerance->setValue(5.0);
   }
 
   // An ambiguous fit, driven as an assistant would: an organ symmetric about the view axis (an oblate

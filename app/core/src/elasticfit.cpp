@@ -36,6 +36,7 @@ simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress&
   o.maxIterations = in.maxIterations;
   o.gravityCamera = in.gravityCamera;
   o.frames = in.frames;
+  o.toleranceMm = in.toleranceMm;
   for (const auto& s : imaging::anatomicalSegments(in.contour)) o.curves.push_back({s.modelVertices, s.points, s.type});
   if (segments.empty() && o.curves.empty())
     throw simcore::MeshError("The contour has no silhouette segment and no ridge or ligament with its curve on the organ.");

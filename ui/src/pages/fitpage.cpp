@@ -6,6 +6,7 @@
 
 #include <QCheckBox>
 #include <QComboBox>
+#include <QDoubleSpinBox>
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QPushButton>
@@ -55,6 +56,24 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   downRow->addWidget(downLabel);
   downRow->addWidget(down_, 1);
   layout->addLayout(downRow);
+  // How sure a fit must be to count as determined: its own bound on how far its surface may be (issue 38).
+  auto* toleranceRow = new QHBoxLayout;
+  auto* toleranceLabel = new QLabel(tr("&Tolerance:"), this);
+  tolerance_ = new QDoubleSpinBox(this);
+  tolerance_->setObjectName(QStringLiteral("fitTolerance"));
+  tolerance_->setAccessibleName(tr("Tolerance"));
+  tolerance_->setRange(0.5, 50);
+  tolerance_->setSingleStep(0.5);
+  tolerance_->setDecimals(1);
+  tolerance_->setSuffix(tr(" mm"));
+  tolerance_->setValue(5.0);
+  tolerance_->setToolTip(
+      tr("A fit is determined only when its own bound on how far its surface may be from the truth is "
+         "within this; otherwise it is shown as ambiguous, with what would decide it."));
+  toleranceLabel->setBuddy(tolerance_);
+  toleranceRow->addWidget(toleranceLabel);
+  toleranceRow->addWidget(tolerance_, 1);
+  layout->addLayout(toleranceRow);
   // Anatomical curves: a ridge or ligament sketched in step 3, and the same curve clicked on the organ.
   auto* pickCurve = toolButton(this, tr("Pick Curve on Organ (K)"),
                                tr("Click along the ridge or ligament on the organ drawn over the frame; the sketched ridge or "
@@ -242,6 +261,7 @@ void FitPage::runFit(bool rigidPrepass) {
   // The case's organ, attachments and material (the Simulation panel's), through the one fit pipeline.
   app::FitInput input = app::fitInputFromCase(*c);
   input.rigidPrepass = rigidPrepass;
+  input.toleranceMm = tolerance_->value();
   status_->setText(tr("Fitting... (Esc cancels)"));
   showAlternatives({}, false);
   wb_.jobs->run(tr("Elastic fit..."), [this, c, input](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {

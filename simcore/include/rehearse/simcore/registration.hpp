@@ -166,6 +166,10 @@ struct RegistrationOptions {
   std::vector<RegistrationFrame> frames;
   /// The tracker's noise (px, each frame) that a seen point's depth is weighed by.
   double trackNoisePx = 0.5;
+  /// A fit is determined only when its own bound (RegistrationUncertainty::surfaceMm) is at most this (mm): one whose
+  /// bound is larger is ambiguous, said so with the bound and what would decide it. Infinity: the bound is reported
+  /// only.
+  double toleranceMm = 5.0;
   /// Called after every iteration with the current positions (model frame) and pose; false cancels.
   std::function<bool(const RegistrationIteration&, const Eigen::VectorXd& x, const Pose& pose)> onIteration;
 };
@@ -204,8 +208,8 @@ struct RegistrationUncertainty {
 struct RegistrationResult {
   bool ok = false;          ///< a usable result (possibly not converged; see status)
   /// Usable, but the contour does not determine the pose: `alternatives` fit it nearly as well far from
-  /// the result (or the pose has a direction the contour does not constrain); `status` says which and what
-  /// would decide it. `rehearse register` exits 4.
+  /// the result (or the pose has a direction the contour does not constrain, or the fit's own bound exceeds
+  /// RegistrationOptions::toleranceMm); `status` says which and what would decide it. `rehearse register` exits 4.
   bool ambiguous = false;
   std::vector<RegistrationAlternative> alternatives;
   bool converged = false;

@@ -32,6 +32,8 @@ struct FitInput {
   /// Further frames of the organ with their outlines and the features tracked into them
   /// (simcore::RegistrationOptions::frames).
   std::vector<simcore::RegistrationFrame> frames;
+  /// The bound a determined fit stays within (mm; simcore::RegistrationOptions::toleranceMm).
+  double toleranceMm = 5.0;
   FitInput() { settings.gravity.setZero(); }
 };
 

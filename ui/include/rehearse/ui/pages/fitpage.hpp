@@ -13,6 +13,7 @@
 
 class QCheckBox;
 class QComboBox;
+class QDoubleSpinBox;
 class QLabel;
 class QLineSeries;
 class QValueAxis;
@@ -39,6 +40,7 @@ class FitPage : public StepPage {
   QLabel* curves_ = nullptr;
   QCheckBox* rigid_ = nullptr;
   QComboBox* down_ = nullptr;  ///< which way is down in the image (the case's `down`)
+  QDoubleSpinBox* tolerance_ = nullptr;  ///< the bound a determined fit stays within (mm)
   QLabel* status_ = nullptr;
   QPushButton* keep_ = nullptr;    ///< accept the fit just made ...
   QPushButton* revert_ = nullptr;  ///< ... or revert it (its undo step), while it is the last edit
