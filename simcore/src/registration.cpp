@@ -280,13 +280,15 @@ std::string describeDirection(const Eigen::Vector3d& turn, const Eigen::Vector3d
   return axis == 2 ? "a move along the view" : std::string("a move along the camera's ") + axes[axis] + " axis";
 }
 
-// The cost's curvature's share of RegistrationUncertainty (see there), at the rigid stage's end.
+// The cost's curvature's share of RegistrationUncertainty (see there), at the rigid stage's end; `facing` and
+// `onSurface` get which nodes are on the surface facing the camera and on the surface at all.
 RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& bindings, const Eigen::VectorXd& base,
                                             const Eigen::MatrixXd& U, const std::vector<detail::View>& views,
                                             bool sliding, const Pose& pose, const Eigen::Vector3d& load,
                                             const Eigen::Matrix3d& prior, const FemModel& model,
                                             const std::vector<std::array<int, 3>>& surface, const Eigen::VectorXd& x,
-                                            const Eigen::Vector3d& centre) {
+                                            const Eigen::Vector3d& centre, std::vector<char>& facing,
+                                            std::vector<char>& onSurface) {
   RegistrationUncertainty u;
   std::vector<double> r;
   const Eigen::MatrixXd H = detail::poseSagInformation(base, U, bindings, views, sliding, pose, load, prior, r);
@@ -325,7 +327,8 @@ RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& 
     if (U.cols()) J.rightCols(U.cols()) = pose.R * U.middleRows(3 * static_cast<Eigen::Index>(i), 3);
     return Eigen::Matrix3d(J * C * J.transpose());
   };
-  std::vector<char> onSurface(model.nodeCount(), 0), facing(model.nodeCount(), 0);
+  onSurface.assign(model.nodeCount(), 0);
+  facing.assign(model.nodeCount(), 0);
   for (const auto& t : surface) {
     const Eigen::Vector3d a = pose.apply(x.segment<3>(3 * t[0])), b = pose.apply(x.segment<3>(3 * t[1])),
                           c = pose.apply(x.segment<3>(3 * t[2]));
@@ -812,6 +815,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   struct {
     bool undetermined = false;
     double share = 1, apartMm = 0;
+    Pose pose;
+    Eigen::VectorXd x;  // where the loosened sag puts the organ (empty: not probed)
   } sagProbe;
   if (U.size() && o.probeAmbiguity && !res.cancelled) {
     Pose p = res.pose;
@@ -824,6 +829,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
                        priorMatrix(p, bindings.size()) / o.sagProbeLoosen);
     }
     const Eigen::VectorXd x = shapeOf(a);
+    sagProbe.pose = p;
+    sagProbe.x = x;
     double sum = 0;
     for (std::size_t i = 0; i < model.nodeCount(); ++i)
       sum += (p.apply(x.segment<3>(3 * i)) - res.pose.apply(res.x.segment<3>(3 * i))).norm();
@@ -836,16 +843,37 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     res.sagApartMm = sagProbe.apartMm;
   }
   if ((o.rigidPrepass || !o.elastic) && !res.cancelled) {
+    std::vector<char> facing, onSurface;
     const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.x, res.pose);
     // (the sag's prior loosened as its probe loosens it: the prior's scale is a choice, not a measurement)
     res.uncertainty = estimateUncertainty(
         bindings, U.size() ? rest : res.x, U, views, o.sliding, res.pose, load,
         U.size() ? Eigen::Matrix3d(priorMatrix(res.pose, bindings.size()) / o.sagProbeLoosen) : Eigen::Matrix3d::Zero(),
-        model, surface, res.x, centre);
-    double spread = sagProbe.apartMm;
+        model, surface, res.x, centre, facing, onSurface);
+    // The hypotheses' spread, measured where the bound speaks: over the surface facing the camera (mean) and the
+    // inner nodes (largest), from the result's nodes to the hypothesis's (camera frame, mm).
+    auto spreadOf = [&](const Pose& pose, const Eigen::VectorXd& x) {
+      double sum = 0, inner = 0;
+      std::size_t count = 0;
+      for (std::size_t i = 0; i < model.nodeCount(); ++i) {
+        const auto k = static_cast<Eigen::Index>(3 * i);
+        const double d = 1e3 * (pose.apply(x.segment<3>(k)) - res.pose.apply(res.x.segment<3>(k))).norm();
+        if (facing[i]) sum += d, ++count;
+        if (!onSurface[i]) inner = std::max(inner, d);
+      }
+      return std::make_pair(count ? sum / static_cast<double>(count) : 0.0, inner);
+    };
+    std::pair<double, double> spreads{0, 0};
+    const bool measured = facing.size() == model.nodeCount();  // (not when the curvature could not be estimated)
+    if (measured && sagProbe.x.size()) spreads = spreadOf(sagProbe.pose, sagProbe.x);
     const RegistrationAlternative* farthest = nullptr;
-    for (const auto& a : res.alternatives)
-      if (a.apartMm > spread) spread = a.apartMm, farthest = &a;
+    for (const auto& a : res.alternatives) {
+      if (!measured) break;
+      const auto s = spreadOf(a.pose, res.x);
+      if (s.first > spreads.first) spreads.first = s.first, farthest = &a;
+      spreads.second = std::max(spreads.second, s.second);
+    }
+    const double spread = spreads.first;
     if (res.uncertainty.computed) {
       res.uncertainty.spreadMm = spread;
       // Where the hypotheses spread more than the curvature allows, they name the weakest direction.
@@ -862,7 +890,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         }
       }
       res.uncertainty.surfaceMm += spread;
-      res.uncertainty.targetMm += spread;
+      res.uncertainty.targetMm += std::max(spreads.second, spread);
     }
   }
   if (!U.size() && downKnown)

@@ -9,10 +9,11 @@
 // ones. Markers: 40 visible surface points and one inner target. Writes registration-real.csv (one row
 // per fit) and registration-real-<organ>.png (marker error against wall time at 100 %). Not a test.
 //   bench_registration_real [OUT_DIR] [--quick] [--organ NAME] [--no-attachments] [--fractions 1,0.7,0.5] [--ridge]
-//                           [--second-frame MM]
+//                           [--second-frame MM [--estimate-motion]]
 // --second-frame MM: a second frame (issue 38), the camera moved MM across the view (along its X) and turned to keep
 // the organ's centre in the middle; its outline cut like the first's (the same share, the same side missing, its own
-// noise) and 200 features tracked between the frames (0.5 px noise), the motion given.
+// noise) and 200 features tracked between the frames (0.5 px noise), the motion given; with --estimate-motion, the
+// motion estimated from those features (imaging::estimateCameraMotion, the move's length given).
 // --ridge: every contour also carries an anatomical curve (issue 38): the shortest path over the fit mesh's surface
 // between the two visible front nodes farthest apart in the image (at least 40 px inside the outline), drawn where
 // CalculiX's deformed organ puts it (each node moved as its nearest fine surface node), +-2 px noise.
@@ -23,6 +24,7 @@
 
 #include <rehearse/app/elasticfit.hpp>
 #include <rehearse/imaging/contour.hpp>
+#include <rehearse/imaging/motion.hpp>
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
@@ -88,6 +90,7 @@ int main(int argc, char** argv) {
   std::string only;
   bool quick = false, attachments = true, ridge = false;
   double secondFrameMm = 0;
+  bool estimateMotion = false;
   std::vector<double> fractionsAsked;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -98,6 +101,8 @@ int main(int argc, char** argv) {
       ridge = true;
     else if (a == "--second-frame" && i + 1 < argc)
       secondFrameMm = std::atof(argv[++i]);
+    else if (a == "--estimate-motion")
+      estimateMotion = true;
     else if (a == "--fractions" && i + 1 < argc) {
       std::stringstream list(argv[++i]);
       std::string item;
@@ -439,6 +444,20 @@ int main(int argc, char** argv) {
       outline2 = borders2.front();
       sideAt2 = sidesOf(outline2);
       second.tracks = testing::trackedFeatures(view, truth, second.motion, cam, 200, 0.5, 5);
+      if (estimateMotion) {
+        std::vector<imaging::Track> tracks(second.tracks.begin(), second.tracks.end());
+        const imaging::CameraMotion m = imaging::estimateCameraMotion(cam, tracks, second.motion.t.norm());
+        std::printf(
+            "estimated motion: %s; turn off by %.3f degrees, the move's direction by %.2f degrees\n", m.status.c_str(),
+            Eigen::AngleAxisd(m.motion.R * second.motion.R.transpose()).angle() * 180 / M_PI,
+            std::acos(std::clamp(m.motion.t.normalized().dot(second.motion.t.normalized()), -1.0, 1.0)) * 180 / M_PI);
+        if (!m.ok) {
+          std::printf("%s: the motion could not be estimated; skipped\n", spec.name.c_str());
+          continue;
+        }
+        second.motion = m.motion;
+        second.tracks = m.inliers;
+      }
       std::printf("second frame %.0f mm across: outline %zu px, %zu features tracked\n", secondFrameMm, outline2.size(),
                   second.tracks.size());
     }
