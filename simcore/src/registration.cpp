@@ -850,22 +850,30 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         bindings, U.size() ? rest : res.x, U, views, o.sliding, res.pose, load,
         U.size() ? Eigen::Matrix3d(priorMatrix(res.pose, bindings.size()) / o.sagProbeLoosen) : Eigen::Matrix3d::Zero(),
         model, surface, res.x, centre, facing, onSurface);
-    // The hypotheses' spread, measured where the bound speaks: over the surface facing the camera (mean), from the
-    // result's nodes to the hypothesis's (camera frame, mm).
-    const bool measured = facing.size() == model.nodeCount();  // (not when the curvature could not be estimated)
+    // The hypotheses' spread, measured where the bound speaks: over the surface facing the camera (mean) and the
+    // inner nodes (largest), from the result's nodes to the hypothesis's (camera frame, mm).
     auto spreadOf = [&](const Pose& pose, const Eigen::VectorXd& x) {
-      double sum = 0;
+      double sum = 0, inner = 0;
       std::size_t count = 0;
-      for (std::size_t i = 0; measured && i < model.nodeCount(); ++i) {
+      for (std::size_t i = 0; i < model.nodeCount(); ++i) {
         const auto k = static_cast<Eigen::Index>(3 * i);
-        if (facing[i]) sum += 1e3 * (pose.apply(x.segment<3>(k)) - res.pose.apply(res.x.segment<3>(k))).norm(), ++count;
+        const double d = 1e3 * (pose.apply(x.segment<3>(k)) - res.pose.apply(res.x.segment<3>(k))).norm();
+        if (facing[i]) sum += d, ++count;
+        if (!onSurface[i]) inner = std::max(inner, d);
       }
-      return count ? sum / static_cast<double>(count) : 0.0;
+      return std::make_pair(count ? sum / static_cast<double>(count) : 0.0, inner);
     };
-    double spread = sagProbe.x.size() ? spreadOf(sagProbe.pose, sagProbe.x) : 0.0;
+    std::pair<double, double> spreads{0, 0};
+    const bool measured = facing.size() == model.nodeCount();  // (not when the curvature could not be estimated)
+    if (measured && sagProbe.x.size()) spreads = spreadOf(sagProbe.pose, sagProbe.x);
     const RegistrationAlternative* farthest = nullptr;
-    for (const auto& a : res.alternatives)
-      if (const double d = spreadOf(a.pose, res.x); d > spread) spread = d, farthest = &a;
+    for (const auto& a : res.alternatives) {
+      if (!measured) break;
+      const auto s = spreadOf(a.pose, res.x);
+      if (s.first > spreads.first) spreads.first = s.first, farthest = &a;
+      spreads.second = std::max(spreads.second, s.second);
+    }
+    const double spread = spreads.first;
     if (res.uncertainty.computed) {
       res.uncertainty.spreadMm = spread;
       // Where the hypotheses spread more than the curvature allows, they name the weakest direction.
@@ -882,7 +890,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         }
       }
       res.uncertainty.surfaceMm += spread;
-      res.uncertainty.targetMm += spread;
+      res.uncertainty.targetMm += std::max(spreads.second, spread);
     }
   }
   if (!U.size() && downKnown)
