@@ -59,6 +59,9 @@ int cmdRegister(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, registerCommand());
   for (const char* need : {"camera", "contour", "pose", "out"})
     if (!o.count(need)) throw UsageError(std::string("register needs --") + need);
+  for (const char* needsSecond : {"motion", "baseline-mm", "frame", "frame2"})
+    if (o.count(needsSecond) && !o.count("contour2"))
+      throw UsageError(std::string("--") + needsSecond + " is for a second frame: give its outline with --contour2");
   if (o.count("rigid-prepass") && o.count("no-rigid-prepass"))
     throw UsageError("--rigid-prepass and --no-rigid-prepass contradict each other");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();

@@ -578,6 +578,13 @@ class TestRegistration : public QObject {
     QVERIFY(p.waitForFinished(60000));
     QVERIFY(p.exitCode() != 0 && p.exitCode() != 4);
     QVERIFY(QString::fromUtf8(p.readAllStandardError()).contains("Cannot read the frame"));
+    // A second frame's option without its outline is refused, not ignored.
+    QStringList withoutOutline = common.mid(0, common.size() - 2);
+    withoutOutline << "--motion" << QString::fromStdString(dir + "/motion.json");
+    p.start(QStringLiteral(REHEARSE_BINARY), withoutOutline);
+    QVERIFY(p.waitForFinished(60000));
+    QVERIFY(p.exitCode() != 0 && p.exitCode() != 4);
+    QVERIFY(QString::fromUtf8(p.readAllStandardError()).contains("--motion is for a second frame"));
     // A motion that is not a rotation, or an empty outline on the second frame, is refused with a sentence.
     o.frames[0].motion.R(0, 0) = 2;
     try {
