@@ -48,9 +48,9 @@ namespace {
 nlohmann::json uncertaintyJson(const simcore::RegistrationUncertainty& u) {
   if (!u.computed) return nullptr;
   auto mm = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };  // null: unbounded
-  return {{"surface_mm", mm(u.surfaceMm)}, {"target_mm", mm(u.targetMm)},       {"curvature_mm", mm(u.curvatureMm)},
-          {"spread_mm", u.spreadMm},       {"misfit_px", u.misfitPx},           {"correlation", u.correlation},
-          {"weakest", u.weakest},          {"sentence", uncertaintySentence(u)}};
+  return {{"surface_mm", mm(u.surfaceMm)}, {"target_mm", mm(u.targetMm)}, {"curvature_mm", mm(u.curvatureMm)},
+          {"spread_mm", u.spreadMm},       {"motion_mm", u.motionMm},     {"misfit_px", u.misfitPx},
+          {"correlation", u.correlation},  {"weakest", u.weakest},        {"sentence", uncertaintySentence(u)}};
 }
 
 }  // namespace
@@ -208,6 +208,7 @@ int cmdRegister(const std::vector<std::string>& args) {
       const imaging::CameraMotion m = imaging::estimateCameraMotion(camera, tracks, baseline);
       if (!m.ok) throw imaging::InputError("The second frame cannot be used: " + m.status + ".");
       second.motion = m.motion;
+      second.motionDepthSigmaM = m.depthSigmaM;
       tracks = m.inliers;
       motionStatus = m.status;
     }
@@ -215,6 +216,7 @@ int cmdRegister(const std::vector<std::string>& args) {
     std::printf("register: second frame: %s; %zu features tracked\n", motionStatus.c_str(), tracks.size());
     frameReport = {{"motion", nlohmann::json::parse(imaging::poseToJson(second.motion))},
                    {"features", tracks.size()},
+                   {"depth_sigma_mm", 1e3 * second.motionDepthSigmaM},
                    {"status", motionStatus}};
     in.frames = {second};
   }
@@ -265,6 +267,7 @@ int cmdRegister(const std::vector<std::string>& args) {
       }
       iterations.push_back(std::move(row));
     }
+    if (frameReport.is_object()) frameReport["set_aside"] = !res.setAsideFrames.empty();
     nlohmann::json alternatives = nlohmann::json::array();
     for (const auto& a : res.alternatives)
       alternatives.push_back({{"pose", nlohmann::json::parse(imaging::poseToJson(a.pose))},

@@ -184,7 +184,7 @@ void rayConstraints(const Binding& b, const Pose& pose, const Pinhole& cam, bool
 }
 
 // A surface point seen in two frames (triangulated, first camera frame) and how much a metre across the surface there
-// is worth in pixels (the depth's: f b / z^2).
+// is worth in the tracker's pixels (the depth's: f b / z^2, less when the motion is uncertain).
 struct SeenPoint {
   Eigen::Vector3d target;
   double pxPerMetre;
@@ -381,18 +381,41 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   // The frames: the first's camera and contour, then the further ones'.
   std::vector<detail::View> views{{camera, Pose{}}};
   std::vector<const std::vector<std::vector<Eigen::Vector2d>>*> contours{&contour};
-  for (const auto& f : o.frames) {
+  // A frame whose estimated motion leaves the depth more uncertain than the tolerance is set aside (said in the
+  // status): through it, its outline and features would drag the fit by as much (a 0.6 degree turn error put the
+  // sagged liver of test_registration 50 mm off), where the first frame alone does better.
+  std::vector<RegistrationFrame> frames;
+  std::string setAside;
+  std::vector<int> setAsideFrames;
+  for (std::size_t i = 0; i < o.frames.size(); ++i) {
+    const auto& f = o.frames[i];
     checkCamera(f.camera);
     const Eigen::Matrix3d RtR = f.motion.R.transpose() * f.motion.R;
     if (!f.motion.R.allFinite() || !f.motion.t.allFinite() || !RtR.isIdentity(1e-6) || f.motion.R.determinant() < 0)
       throw MeshError("The camera's motion to another frame is not a rotation and a move; estimate it again.");
+    if (!(f.motionDepthSigmaM >= 0) || !std::isfinite(f.motionDepthSigmaM))
+      throw MeshError("The camera motion's uncertainty is not a non-negative number; estimate the motion again.");
+    if (1e3 * f.motionDepthSigmaM > o.toleranceMm) {
+      char text[300];
+      std::snprintf(text, sizeof text,
+                    "frame %zu was set aside: its camera motion, estimated from the frames, leaves the depth uncertain "
+                    "by %.0f mm (1 sigma), more than the %.1f mm asked for (a longer move between the frames, or the "
+                    "motion of a tracked or stereo scope, would make it count)",
+                    i + 2, 1e3 * f.motionDepthSigmaM, o.toleranceMm);
+      setAside += std::string(setAside.empty() ? "" : "; ") + text;
+      setAsideFrames.push_back(static_cast<int>(i));
+      continue;
+    }
+    frames.push_back(f);
+  }
+  for (const auto& f : frames) {
     views.push_back({f.camera, f.motion});
     contours.push_back(&f.contour);
   }
   // The features tracked into further frames, triangulated (rays passing more than 3 px apart: a mismatch, dropped).
   std::vector<SeenPoint> seen;
-  for (std::size_t f = 0; f < o.frames.size(); ++f) {
-    const auto& frame = o.frames[f];
+  for (std::size_t f = 0; f < frames.size(); ++f) {
+    const auto& frame = frames[f];
     const double baseline = frame.motion.t.norm();
     for (const auto& [a, b] : frame.tracks) {
       Eigen::Vector3d p;
@@ -400,7 +423,12 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       if (!a.allFinite() || !b.allFinite() || !triangulateTrack(camera, frame.camera, frame.motion, a, b, p, gap) ||
           gap > 3.0)
         continue;
-      seen.push_back({p, camera.K(0, 0) * baseline / (p.z() * p.z())});
+      // Its depth's noise (m): the tracker's through the baseline, and the estimated motion's, whose uncertainty moves
+      // every triangulated depth (with a poorly known motion the points weigh little and cannot drag the fit off).
+      const double pxPerMetre = camera.K(0, 0) * baseline / (p.z() * p.z());
+      const double trackSigma = std::sqrt(2.0) * std::max(o.trackNoisePx, 0.05);
+      const double depthSigma = std::hypot(trackSigma / pxPerMetre, frame.motionDepthSigmaM);
+      seen.push_back({p, trackSigma / depthSigma});
     }
   }
   std::size_t points = 0;
@@ -891,6 +919,13 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       }
       res.uncertainty.surfaceMm += spread;
       res.uncertainty.targetMm += std::max(spreads.second, spread);
+      // An estimated camera motion moves the depth of what both frames see (its 2 sigma, added).
+      for (const auto& f : frames)
+        res.uncertainty.motionMm = std::max(res.uncertainty.motionMm, 2e3 * f.motionDepthSigmaM);
+      if (res.uncertainty.motionMm > std::max(spread, res.uncertainty.curvatureMm))
+        res.uncertainty.weakest = "a move along the view (the camera's motion between the frames)";
+      res.uncertainty.surfaceMm += res.uncertainty.motionMm;
+      res.uncertainty.targetMm += res.uncertainty.motionMm;
     }
   }
   if (!U.size() && downKnown)
@@ -1129,6 +1164,8 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     }
     res.status = text + decide + " (the fit: " + res.status + ")";
   }
+  if (!setAside.empty()) res.status += "; " + setAside;
+  res.setAsideFrames = setAsideFrames;
   return res;
 }
 

@@ -451,11 +451,31 @@ int main(int argc, char** argv) {
             "estimated motion: %s; turn off by %.3f degrees, the move's direction by %.2f degrees\n", m.status.c_str(),
             Eigen::AngleAxisd(m.motion.R * second.motion.R.transpose()).angle() * 180 / M_PI,
             std::acos(std::clamp(m.motion.t.normalized().dot(second.motion.t.normalized()), -1.0, 1.0)) * 180 / M_PI);
+        {  // how well each motion explains the tracks (RMS Sampson distance): the estimate should be the better
+          auto rms = [&](const Pose& M) {
+            const Eigen::Vector3d t = M.t.normalized();
+            Eigen::Matrix3d tx;
+            tx << 0, -t.z(), t.y(), t.z(), 0, -t.x(), -t.y(), t.x(), 0;
+            const Eigen::Matrix3d E = tx * M.R, Ki = cam.pinhole().K.inverse();
+            double s2 = 0;
+            for (const auto& [p, q] : tracks) {
+              const Eigen::Vector3d a = Ki * p.homogeneous(), b = Ki * q.homogeneous();
+              const Eigen::Vector3d Ea = E * a, Eb = E.transpose() * b;
+              const double r = cam.pinhole().K(0, 0) * b.dot(Ea) /
+                               std::sqrt(Ea.head<2>().squaredNorm() + Eb.head<2>().squaredNorm());
+              s2 += r * r;
+            }
+            return std::sqrt(s2 / tracks.size());
+          };
+          std::printf("the tracks' RMS Sampson distance: %.4f px to the true motion, %.4f px to the estimate\n",
+                      rms(second.motion), rms(m.motion));
+        }
         if (!m.ok) {
           std::printf("%s: the motion could not be estimated; skipped\n", spec.name.c_str());
           continue;
         }
         second.motion = m.motion;
+        second.motionDepthSigmaM = m.depthSigmaM;
         second.tracks = m.inliers;
       }
       std::printf("second frame %.0f mm across: outline %zu px, %zu features tracked\n", secondFrameMm, outline2.size(),

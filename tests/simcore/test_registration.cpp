@@ -7,6 +7,7 @@
 #include "calculix.hpp"
 #include "realorgan.hpp"
 #include "registration_cases.hpp"
+#include <rehearse/imaging/motion.hpp>
 #include <rehearse/app/elasticfit.hpp>
 
 #include "phantom/phantom.hpp"
@@ -525,6 +526,51 @@ class TestRegistration : public QObject {
     // The bound shrinks with what the features add, and still covers the error within 3x.
     QVERIFY(two.uncertainty.computed && two.uncertainty.surfaceMm < 0.5 * one.uncertainty.surfaceMm);
     QVERIFY(1e3 * L->error(two) <= two.uncertainty.surfaceMm && two.uncertainty.surfaceMm <= 3e3 * L->error(two));
+    QCOMPARE(two.uncertainty.motionMm, 0.0);  // (the motion given)
+    // The motion estimated from the same features (the move's length given): its uncertainty is in the bound, which
+    // covers the error, and a fit it leaves unsure of is not called determined.
+    {
+      std::vector<imaging::Track> tracks(o.frames[0].tracks.begin(), o.frames[0].tracks.end());
+      const imaging::CameraMotion m = imaging::estimateCameraMotion(L->cam, tracks, 0.015);
+      QVERIFY2(m.ok, m.status.c_str());
+      RegistrationOptions estimated = o;
+      estimated.frames[0].motion = m.motion;
+      estimated.frames[0].tracks = m.inliers;
+      estimated.frames[0].motionDepthSigmaM = m.depthSigmaM;
+      const auto fit = L->fit(L->outline, estimated);
+      qInfo(
+          "  the motion estimated (%s; the turn %.2f degrees off, the move's direction %.2f): %.2f mm, bound %.2f mm "
+          "(the motion's share %.2f mm), %s",
+          m.status.c_str(), Eigen::AngleAxisd(m.motion.R * second.motion.R.transpose()).angle() * 180 / M_PI,
+          std::acos(std::clamp(m.motion.t.normalized().dot(second.motion.t.normalized()), -1.0, 1.0)) * 180 / M_PI,
+          1e3 * L->error(fit), fit.uncertainty.surfaceMm, fit.uncertainty.motionMm, fit.status.c_str());
+      QVERIFY(fit.uncertainty.computed);
+      QVERIFY(1e3 * L->error(fit) <= fit.uncertainty.surfaceMm);
+      if (fit.uncertainty.surfaceMm > estimated.toleranceMm) QVERIFY(fit.ambiguous || !fit.ok);
+      if (1e3 * m.depthSigmaM > estimated.toleranceMm) {
+        // Too uncertain to count: set aside, said, and the fit is the first frame's (never worse than it).
+        QCOMPARE(fit.setAsideFrames, std::vector<int>{0});
+        QVERIFY2(fit.status.find("frame 2 was set aside") != std::string::npos, fit.status.c_str());
+        QCOMPARE(fit.uncertainty.motionMm, 0.0);
+        QCOMPARE(L->error(fit), L->error(one));
+      } else {
+        QVERIFY(fit.setAsideFrames.empty());
+        QCOMPARE(fit.uncertainty.motionMm, 2e3 * m.depthSigmaM);
+      }
+      // A tolerance wider than the motion's uncertainty keeps the frame, its share in the bound.
+      estimated.toleranceMm = 1e3 * m.depthSigmaM + 1;
+      const auto kept = L->fit(L->outline, estimated);
+      QVERIFY(kept.setAsideFrames.empty());
+      QCOMPARE(kept.uncertainty.motionMm, 2e3 * m.depthSigmaM);
+      QVERIFY(kept.uncertainty.surfaceMm >= kept.uncertainty.motionMm);
+      estimated.frames[0].motionDepthSigmaM = -1;
+      try {
+        L->fit(L->outline, estimated);
+        QFAIL("a negative uncertainty of the motion was accepted");
+      } catch (const MeshError& e) {
+        QVERIFY2(std::string(e.what()).find("uncertainty") != std::string::npos, e.what());
+      }
+    }
     // The command line: the second frame's outline and the motion given; without a motion, refused with a sentence.
     const std::string dir = tempPath("register-second-frame");
     std::filesystem::create_directories(dir);

@@ -51,7 +51,12 @@ std::string uncertaintySentence(const simcore::RegistrationUncertainty& u) {
   char text[200];
   std::snprintf(text, sizeof text, "the surface may be up to %.1f mm from where the fit put it (inner targets %.1f mm)",
                 u.surfaceMm, u.targetMm);
-  return std::string(text) + "; weakest: " + u.weakest;
+  std::string out = text;
+  if (u.motionMm > 0) {
+    std::snprintf(text, sizeof text, ", %.1f mm of it from the estimated camera motion", u.motionMm);
+    out += text;
+  }
+  return out + "; weakest: " + u.weakest;
 }
 
 std::shared_ptr<const ElasticFit> toCasePart(const simcore::RegistrationResult& r) {

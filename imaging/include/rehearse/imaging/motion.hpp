@@ -1,9 +1,10 @@
 #pragma once
 // A second frame's camera motion (issue 38): features on the organ tracked from the first frame to the second
 // (Shi-Tomasi corners, pyramidal Lucas-Kanade there and back), and the camera's motion between the frames from them
-// (OpenCV's essential matrix with RANSAC, then the rotation and the move's direction that put the points in front of
-// both cameras). Two frames fix the move's direction, never its length: that is given (a stereo scope's baseline, a
-// tracked or robot-held scope), or the fit cannot use the frame for depth.
+// (OpenCV's essential matrix with RANSAC, the rotation and the move's direction that put the points in front of both
+// cameras, refined on all the tracks they explain with OpenCV's Levenberg-Marquardt). Two frames fix the move's
+// direction, never its length: that is given (a stereo scope's baseline, a tracked or robot-held scope), or the fit
+// cannot use the frame for depth.
 #include <rehearse/imaging/camera.hpp>
 
 #include <opencv2/core.hpp>
@@ -27,6 +28,9 @@ struct CameraMotion {
   Pose motion;                 ///< first camera frame -> second (a point q of the first is at motion.apply(q))
   std::vector<Track> inliers;  ///< the tracks the motion explains
   double parallaxDegrees = 0;  ///< the median angle between the two rays of the inliers
+  /// The motion's uncertainty (1 sigma, from the tracks' misfit to it): the turn's and the move's direction's, and
+  /// how far it moves the depth of the tracked points (their median, m; the length taken as given).
+  double turnSigmaDegrees = 0, directionSigmaDegrees = 0, depthSigmaM = 0;
   std::string status;          ///< one sentence
 };
 

@@ -96,6 +96,11 @@ struct RegistrationFrame {
   /// triangulated through the motion and holds the organ's visible surface there (the rigid stage), weighted by how
   /// well the baseline fixes its depth. May be empty (the outlines alone).
   std::vector<std::pair<Eigen::Vector2d, Eigen::Vector2d>> tracks;
+  /// How far the motion's own uncertainty moves the depth of what both frames see (1 sigma, m; e.g.
+  /// imaging::CameraMotion::depthSigmaM): twice it is added to the fit's bound. 0: the motion is known (a stereo
+  /// scope's calibration, a tracked or robot-held scope). Over RegistrationOptions::toleranceMm (1 sigma): the frame is
+  /// set aside (RegistrationResult::setAsideFrames).
+  double motionDepthSigmaM = 0;
 };
 
 /// A point seen in two frames: the point of the first camera frame nearest to both rays (m), and how far apart the
@@ -197,6 +202,7 @@ struct RegistrationUncertainty {
   double targetMm = -1;     ///< the largest over the inner nodes (any inner target)
   double curvatureMm = -1;  ///< the cost's curvature's share (surface, mean)
   double spreadMm = 0;      ///< the hypotheses' share (the farthest alternative or sag probe)
+  double motionMm = 0;      ///< the estimated camera motions' share (2 sigma of the depth they move; 0: given)
   double misfitPx = 0;      ///< the rigid stage's residual (RMS, px) the curvature is scaled by
   double correlation = 0;   ///< the residuals' lag-one correlation along the contour
   double autocorrelationTime = 1;  ///< their integrated autocorrelation time (points): the variance's inflation
@@ -206,6 +212,9 @@ struct RegistrationUncertainty {
 };
 
 struct RegistrationResult {
+  /// RegistrationOptions::frames not used (their indices): an estimated motion (motionDepthSigmaM) leaving the depth
+  /// more uncertain than toleranceMm; the status says so. The fit is then the other frames'.
+  std::vector<int> setAsideFrames;
   bool ok = false;          ///< a usable result (possibly not converged; see status)
   /// Usable, but the contour does not determine the pose: `alternatives` fit it nearly as well far from
   /// the result (or the pose has a direction the contour does not constrain, or the fit's own bound exceeds
