@@ -209,6 +209,7 @@ int cmdRegister(const std::vector<std::string>& args) {
       if (!m.ok) throw imaging::InputError("The second frame cannot be used: " + m.status + ".");
       second.motion = m.motion;
       second.motionDepthSigmaM = m.depthSigmaM;
+      second.motionAtOneSigma = m.motionAtOneSigma;
       tracks = m.inliers;
       motionStatus = m.status;
     }

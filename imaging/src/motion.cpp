@@ -318,6 +318,7 @@ CameraMotion estimateCameraMotion(const Camera& camera, const std::vector<Track>
     m.directionSigmaDegrees = std::sqrt(std::max(0.0, cov.bottomRightCorner<2, 2>().trace())) * 180 / M_PI;
     all.setReference(m.motion.R, m.motion.t);
     std::vector<double> sigmas;
+    std::vector<Eigen::Matrix<double, 5, 1>> gradients;
     for (std::size_t i = 0; i < tracks.size(); ++i) {
       if (!chosen[i]) continue;
       Eigen::Matrix<double, 5, 1> g;
@@ -336,11 +337,24 @@ CameraMotion estimateCameraMotion(const Camera& camera, const std::vector<Track>
                (2 * h);
         finite = finite && std::isfinite(g[k]);
       }
-      if (finite) sigmas.push_back(std::sqrt(std::max(0.0, g.dot(cov * g))));
+      if (finite) sigmas.push_back(std::sqrt(std::max(0.0, g.dot(cov * g)))), gradients.push_back(g);
     }
     if (!sigmas.empty()) {
-      std::nth_element(sigmas.begin(), sigmas.begin() + sigmas.size() / 2, sigmas.end());
-      m.depthSigmaM = sigmas[sigmas.size() / 2];
+      std::vector<std::size_t> order(sigmas.size());
+      for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+      std::nth_element(order.begin(), order.begin() + order.size() / 2, order.end(),
+                       [&](std::size_t x, std::size_t y) { return sigmas[x] < sigmas[y]; });
+      const std::size_t median = order[order.size() / 2];
+      m.depthSigmaM = sigmas[median];
+      // The 1-sigma motion that moves that point's depth most: cov g / sqrt(g' cov g).
+      if (m.depthSigmaM > 0) {
+        const Eigen::Matrix<double, 5, 1> step = cov * gradients[median] / m.depthSigmaM;
+        Eigen::Matrix3d R;
+        Eigen::Vector3d t;
+        all.motion(step.data(), R, t);
+        m.motionAtOneSigma.R = R;
+        m.motionAtOneSigma.t = baselineM * t;
+      }
     }
   }
   std::vector<double> angles;

@@ -395,6 +395,11 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       throw MeshError("The camera's motion to another frame is not a rotation and a move; estimate it again.");
     if (!(f.motionDepthSigmaM >= 0) || !std::isfinite(f.motionDepthSigmaM))
       throw MeshError("The camera motion's uncertainty is not a non-negative number; estimate the motion again.");
+    if (f.motionAtOneSigma) {
+      const Pose& m = *f.motionAtOneSigma;
+      if (!m.R.allFinite() || !m.t.allFinite() || !(m.R.transpose() * m.R).isIdentity(1e-6) || m.R.determinant() < 0)
+        throw MeshError("The camera motion's uncertainty is not a rotation and a move; estimate the motion again.");
+    }
     if (1e3 * f.motionDepthSigmaM > o.toleranceMm) {
       char text[300];
       std::snprintf(text, sizeof text,
@@ -412,25 +417,31 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     views.push_back({f.camera, f.motion});
     contours.push_back(&f.contour);
   }
-  // The features tracked into further frames, triangulated (rays passing more than 3 px apart: a mismatch, dropped).
-  std::vector<SeenPoint> seen;
-  for (std::size_t f = 0; f < frames.size(); ++f) {
-    const auto& frame = frames[f];
-    const double baseline = frame.motion.t.norm();
-    for (const auto& [a, b] : frame.tracks) {
-      Eigen::Vector3d p;
-      double gap = 0;
-      if (!a.allFinite() || !b.allFinite() || !triangulateTrack(camera, frame.camera, frame.motion, a, b, p, gap) ||
-          gap > 3.0)
-        continue;
-      // Its depth's noise (m): the tracker's through the baseline, and the estimated motion's, whose uncertainty moves
-      // every triangulated depth (with a poorly known motion the points weigh little and cannot drag the fit off).
-      const double pxPerMetre = camera.K(0, 0) * baseline / (p.z() * p.z());
-      const double trackSigma = std::sqrt(2.0) * std::max(o.trackNoisePx, 0.05);
-      const double depthSigma = std::hypot(trackSigma / pxPerMetre, frame.motionDepthSigmaM);
-      seen.push_back({p, trackSigma / depthSigma});
+  // The features tracked into further frames, triangulated through the views' motions (rays passing more than 3 px
+  // apart: a mismatch, dropped).
+  auto triangulateSeen = [&] {
+    std::vector<SeenPoint> out;
+    for (std::size_t f = 0; f < frames.size(); ++f) {
+      const auto& frame = frames[f];
+      const Pose& motion = views[f + 1].motion;
+      const double baseline = motion.t.norm();
+      for (const auto& [a, b] : frame.tracks) {
+        Eigen::Vector3d p;
+        double gap = 0;
+        if (!a.allFinite() || !b.allFinite() || !triangulateTrack(camera, frame.camera, motion, a, b, p, gap) ||
+            gap > 3.0)
+          continue;
+        // Its depth's noise (m): the tracker's through the baseline, and the estimated motion's, whose uncertainty
+        // moves every triangulated depth (with a poorly known motion the points weigh little, cannot drag the fit off).
+        const double pxPerMetre = camera.K(0, 0) * baseline / (p.z() * p.z());
+        const double trackSigma = std::sqrt(2.0) * std::max(o.trackNoisePx, 0.05);
+        const double depthSigma = std::hypot(trackSigma / pxPerMetre, frame.motionDepthSigmaM);
+        out.push_back({p, trackSigma / depthSigma});
+      }
     }
-  }
+    return out;
+  };
+  std::vector<SeenPoint> seen = triangulateSeen();
   std::size_t points = 0;
   // Points further than this from the image are not a sketch of it (and resampling them would take forever).
   const double farPx = 100.0 * std::max(camera.width, camera.height);
@@ -919,9 +930,27 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       }
       res.uncertainty.surfaceMm += spread;
       res.uncertainty.targetMm += std::max(spreads.second, spread);
-      // An estimated camera motion moves the depth of what both frames see (its 2 sigma, added).
-      for (const auto& f : frames)
-        res.uncertainty.motionMm = std::max(res.uncertainty.motionMm, 2e3 * f.motionDepthSigmaM);
+      // An estimated camera motion's uncertainty: where the estimate gives its 1-sigma motion, the pose fitted again
+      // through it (held shape, short ICP, like the alternatives) and twice how far that moves the surface facing the
+      // camera; else twice how far it moves the triangulated depths (a single feature's, wider than the fit's).
+      for (std::size_t f = 0; f < frames.size(); ++f) {
+        if (!(frames[f].motionDepthSigmaM > 0)) continue;
+        double share = 2e3 * frames[f].motionDepthSigmaM;
+        if (frames[f].motionAtOneSigma && measured) {
+          const std::vector<detail::View> savedViews = views;
+          const std::vector<SeenPoint> savedSeen = seen;
+          views[f + 1].motion = *frames[f].motionAtOneSigma;
+          seen = triangulateSeen();
+          try {
+            share = 2 * spreadOf(shortIcpHeld(res.pose, 6).first, res.x).first;
+          } catch (const MeshError&) {
+            share = std::numeric_limits<double>::infinity();  // the organ behind a camera: unbounded
+          }
+          views = savedViews;
+          seen = savedSeen;
+        }
+        res.uncertainty.motionMm = std::max(res.uncertainty.motionMm, share);
+      }
       if (res.uncertainty.motionMm > std::max(spread, res.uncertainty.curvatureMm))
         res.uncertainty.weakest = "a move along the view (the camera's motion between the frames)";
       res.uncertainty.surfaceMm += res.uncertainty.motionMm;

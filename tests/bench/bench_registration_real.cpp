@@ -476,6 +476,7 @@ int main(int argc, char** argv) {
         }
         second.motion = m.motion;
         second.motionDepthSigmaM = m.depthSigmaM;
+        second.motionAtOneSigma = m.motionAtOneSigma;
         second.tracks = m.inliers;
       }
       std::printf("second frame %.0f mm across: outline %zu px, %zu features tracked\n", secondFrameMm, outline2.size(),

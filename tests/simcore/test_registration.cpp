@@ -537,6 +537,7 @@ class TestRegistration : public QObject {
       estimated.frames[0].motion = m.motion;
       estimated.frames[0].tracks = m.inliers;
       estimated.frames[0].motionDepthSigmaM = m.depthSigmaM;
+      estimated.frames[0].motionAtOneSigma = m.motionAtOneSigma;
       const auto fit = L->fit(L->outline, estimated);
       qInfo(
           "  the motion estimated (%s; the turn %.2f degrees off, the move's direction %.2f): %.2f mm, bound %.2f mm "
@@ -555,14 +556,21 @@ class TestRegistration : public QObject {
         QCOMPARE(L->error(fit), L->error(one));
       } else {
         QVERIFY(fit.setAsideFrames.empty());
-        QCOMPARE(fit.uncertainty.motionMm, 2e3 * m.depthSigmaM);
+        QVERIFY(fit.uncertainty.motionMm > 0);
       }
-      // A tolerance wider than the motion's uncertainty keeps the frame, its share in the bound.
+      // A tolerance wider than the motion's uncertainty keeps the frame, its share in the bound: the pose fitted
+      // again through the 1-sigma motion; without that motion, twice the features' depth spread.
       estimated.toleranceMm = 1e3 * m.depthSigmaM + 1;
       const auto kept = L->fit(L->outline, estimated);
       QVERIFY(kept.setAsideFrames.empty());
-      QCOMPARE(kept.uncertainty.motionMm, 2e3 * m.depthSigmaM);
+      QVERIFY(kept.uncertainty.motionMm > 0 && std::isfinite(kept.uncertainty.motionMm));
       QVERIFY(kept.uncertainty.surfaceMm >= kept.uncertainty.motionMm);
+      QVERIFY(1e3 * L->error(kept) <= kept.uncertainty.surfaceMm);
+      estimated.frames[0].motionAtOneSigma.reset();
+      const auto fallback = L->fit(L->outline, estimated);
+      QCOMPARE(fallback.uncertainty.motionMm, 2e3 * m.depthSigmaM);
+      qInfo("  kept with a %.0f mm tolerance: %.2f mm, the motion's share %.2f mm (a feature's depth spread: %.2f mm)",
+            estimated.toleranceMm, 1e3 * L->error(kept), kept.uncertainty.motionMm, fallback.uncertainty.motionMm);
       estimated.frames[0].motionDepthSigmaM = -1;
       try {
         L->fit(L->outline, estimated);

@@ -31,6 +31,9 @@ struct CameraMotion {
   /// The motion's uncertainty (1 sigma, from the tracks' misfit to it): the turn's and the move's direction's, and
   /// how far it moves the depth of the tracked points (their median, m; the length taken as given).
   double turnSigmaDegrees = 0, directionSigmaDegrees = 0, depthSigmaM = 0;
+  /// The motion moved by its 1-sigma uncertainty the way that moves the tracked points' depth most (for a fit to see
+  /// what that uncertainty does to its result: simcore::RegistrationFrame::motionAtOneSigma).
+  Pose motionAtOneSigma;
   std::string status;          ///< one sentence
 };
 

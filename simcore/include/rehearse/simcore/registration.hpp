@@ -11,6 +11,7 @@
 
 #include <array>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -101,6 +102,10 @@ struct RegistrationFrame {
   /// scope's calibration, a tracked or robot-held scope). Over RegistrationOptions::toleranceMm (1 sigma): the frame is
   /// set aside (RegistrationResult::setAsideFrames).
   double motionDepthSigmaM = 0;
+  /// The estimated motion moved by its 1-sigma uncertainty the way that moves depth most (e.g.
+  /// imaging::CameraMotion::motionAtOneSigma): the fit's pose is fitted again through it and twice how far that moves
+  /// the surface is the bound's motion share (RegistrationUncertainty::motionMm); without it, twice motionDepthSigmaM.
+  std::optional<Pose> motionAtOneSigma;
 };
 
 /// A point seen in two frames: the point of the first camera frame nearest to both rays (m), and how far apart the
