@@ -14,7 +14,7 @@
 namespace rehearse::imaging {
 
 namespace {
-// The motion's 5 unknowns about a reference (R0, t0 unit): a turn w (3, first camera frame, applied after R0) and the
+// The motion's 5 unknowns about a reference (R0, t0 unit): a turn w (3, applied after R0: R = exp(w) R0) and the
 // move's direction tilted by (u, v) across t0; the Sampson distances (px) of the tracks to the epipolar geometry, and
 // their Jacobian by central differences (cv::LMSolver's callback).
 struct SampsonProblem : cv::LMSolver::Callback {
