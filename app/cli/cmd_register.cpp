@@ -47,10 +47,20 @@ namespace {
 
 nlohmann::json uncertaintyJson(const simcore::RegistrationUncertainty& u) {
   if (!u.computed) return nullptr;
+  // Where the organ may be: the far ends' poses (their shapes: --ends-out).
+  nlohmann::json ends = nlohmann::json::array();
+  for (const auto& e : u.ends) ends.push_back({{"pose", nlohmann::json::parse(imaging::poseToJson(e.pose))}});
   auto mm = [](double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); };  // null: unbounded
-  return {{"surface_mm", mm(u.surfaceMm)}, {"target_mm", mm(u.targetMm)}, {"curvature_mm", mm(u.curvatureMm)},
-          {"spread_mm", u.spreadMm},       {"motion_mm", u.motionMm},     {"misfit_px", u.misfitPx},
-          {"correlation", u.correlation},  {"weakest", u.weakest},        {"sentence", uncertaintySentence(u)}};
+  return {{"surface_mm", mm(u.surfaceMm)},
+          {"target_mm", mm(u.targetMm)},
+          {"curvature_mm", mm(u.curvatureMm)},
+          {"spread_mm", u.spreadMm},
+          {"motion_mm", u.motionMm},
+          {"misfit_px", u.misfitPx},
+          {"correlation", u.correlation},
+          {"weakest", u.weakest},
+          {"sentence", uncertaintySentence(u)},
+          {"ends", ends}};
 }
 
 }  // namespace
@@ -66,6 +76,11 @@ int cmdRegister(const std::vector<std::string>& args) {
     throw UsageError("--rigid-prepass and --no-rigid-prepass contradict each other");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+  if (o.count("ends-out")) {
+    const std::string endsExt = std::filesystem::path(o["ends-out"]).extension().string();
+    if (endsExt != ".vtu" && endsExt != ".vtk" && endsExt != ".msh")
+      throw UsageError("--ends-out must end in .vtu, .vtk or .msh");
+  }
   const bool gravityGiven = o.count("gravity") > 0;
   simcore::Mesh surfaceIn;
   simcore::Scene p = modelFromOptions(o, "register", &surfaceIn);
@@ -250,6 +265,19 @@ int cmdRegister(const std::vector<std::string>& args) {
   if (res.ok) {
     simcore::saveMesh(out, o["out"]);
     if (o.count("pose-out")) imaging::savePose(res.pose, o["pose-out"]);
+    if (o.count("ends-out")) {
+      // The bound's two far ends beside it: E-1.vtu and E-2.vtu for --ends-out E.vtu (nodes in the camera frame).
+      if (res.uncertainty.ends.empty())
+        std::printf("register: no far ends written: %s\n", uncertaintySentence(res.uncertainty).c_str());
+      const std::filesystem::path stem = o["ends-out"];
+      for (std::size_t e = 0; e < res.uncertainty.ends.size(); ++e) {
+        const auto& end = res.uncertainty.ends[e];
+        for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = end.pose.apply(end.x.segment<3>(3 * i));
+        const std::filesystem::path file =
+            stem.parent_path() / (stem.stem().string() + "-" + std::to_string(e + 1) + stem.extension().string());
+        simcore::saveMesh(out, file.string());
+      }
+    }
   }
   if (o.count("report")) {
     nlohmann::json iterations = nlohmann::json::array();
@@ -314,6 +342,7 @@ const Command& registerCommand() {
       "register",
       "  rehearse register --mesh VOLUME | --scene S.json | --preset NAME [--unit u] --camera CAM --contour C.json\n"
       "                --pose P0.json --out REGISTERED.vtu|.vtk [--pose-out P.json] [--report R.json]\n"
+      "                [--ends-out E.vtu]\n"
       "                [--ground-truth GT.vtu|.vtk] [--no-rigid-prepass] [--rigid-only] [--iterations N]\n"
       "                [--image-size WxH] [--distorted-contour] [--gravity-camera X,Y,Z] [material flags of "
       "simulate]\n"
@@ -340,6 +369,9 @@ const Command& registerCommand() {
                               {"pose", "P0.json", "the starting pose (model to camera)"},
                               {"out", "OUT", "the registered volume, nodes in the camera frame: .vtu or .vtk"},
                               {"pose-out", "P.json", "the fitted pose"},
+                              {"ends-out", "E.vtu",
+                               "where the organ may be: the bound's two far ends as E-1.vtu and E-2.vtu (camera "
+                               "frame)"},
                               {"report", "R.json", "residuals, status, alternatives"},
                               {"ground-truth", "GT", "a volume in the camera frame to measure the fit against"},
                               {"iterations", "N", "the elastic fit's iterations"},

@@ -288,7 +288,7 @@ RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& 
                                             const Eigen::Matrix3d& prior, const FemModel& model,
                                             const std::vector<std::array<int, 3>>& surface, const Eigen::VectorXd& x,
                                             const Eigen::Vector3d& centre, std::vector<char>& facing,
-                                            std::vector<char>& onSurface) {
+                                            std::vector<char>& onSurface, Eigen::VectorXd& weakestDirection) {
   RegistrationUncertainty u;
   std::vector<double> r;
   const Eigen::MatrixXd H = detail::poseSagInformation(base, U, bindings, views, sliding, pose, load, prior, r);
@@ -363,7 +363,12 @@ RegistrationUncertainty estimateUncertainty(const std::vector<detail::Binding>& 
   const Eigen::MatrixXd Cm = scale.asDiagonal() * C * scale.asDiagonal();
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> weak(Cm);
   const Eigen::VectorXd v = weak.eigenvectors().col(p - 1);
-  u.weakest = describeDirection(v.head<3>(), v.segment<3>(3), U.cols() ? v.tail(U.cols()).norm() : 0.0);
+  // (the move named is the organ centre's: the pose's translation is about the camera, where a turn alone moves a far
+  // organ sideways; a tilt about the organ's centre is a turn, not a move)
+  const Eigen::Vector3d centreMove = v.segment<3>(3) + (v.head<3>() / lever).cross(pose.apply(centre));
+  u.weakest = describeDirection(v.head<3>(), centreMove, U.cols() ? v.tail(U.cols()).norm() : 0.0);
+  // In (turn, move, load) again, moving the organ by about a millimetre (a unit step would turn it by radians).
+  weakestDirection = 1e-3 * scale.cwiseInverse().asDiagonal() * v;
   return u;
 }
 
@@ -881,14 +886,32 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     res.sagShare = sagProbe.share;
     res.sagApartMm = sagProbe.apartMm;
   }
+  // The bound's direction as a hypothesis the fit's far ends lie towards (RegistrationUncertainty::ends): the pose and
+  // shape it moves the result (`from`) to.
+  struct {
+    Pose pose, fromPose;
+    Eigen::VectorXd x, fromX;  // empty: none
+  } toward;
+  std::vector<char> facing, onSurface;
   if ((o.rigidPrepass || !o.elastic) && !res.cancelled) {
-    std::vector<char> facing, onSurface;
     const auto bindings = rigidBindings(silhouette(res.x, res.pose), res.x, res.pose);
+    Eigen::VectorXd weakestDirection;
     // (the sag's prior loosened as its probe loosens it: the prior's scale is a choice, not a measurement)
     res.uncertainty = estimateUncertainty(
         bindings, U.size() ? rest : res.x, U, views, o.sliding, res.pose, load,
         U.size() ? Eigen::Matrix3d(priorMatrix(res.pose, bindings.size()) / o.sagProbeLoosen) : Eigen::Matrix3d::Zero(),
-        model, surface, res.x, centre, facing, onSurface);
+        model, surface, res.x, centre, facing, onSurface, weakestDirection);
+    if (res.uncertainty.computed && weakestDirection.size() >= 6) {
+      toward.fromPose = res.pose;
+      toward.fromX = res.x;
+      const Eigen::Vector3d w = weakestDirection.head<3>();
+      const Eigen::Matrix3d turn =
+          w.norm() > 0 ? Eigen::AngleAxisd(w.norm(), w.normalized()).toRotationMatrix() : Eigen::Matrix3d::Identity();
+      toward.pose.R = turn * res.pose.R;
+      toward.pose.t = turn * res.pose.t + weakestDirection.segment<3>(3);
+      toward.x = res.x;
+      if (U.cols() && weakestDirection.size() == 6 + U.cols()) toward.x += U * weakestDirection.tail(U.cols());
+    }
     // The hypotheses' spread, measured where the bound speaks: over the surface facing the camera (mean) and the
     // inner nodes (largest), from the result's nodes to the hypothesis's (camera frame, mm).
     auto spreadOf = [&](const Pose& pose, const Eigen::VectorXd& x) {
@@ -919,7 +942,11 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       if (spread > res.uncertainty.curvatureMm) {
         if (!farthest) {
           res.uncertainty.weakest = "the organ's sag";
+          toward.pose = sagProbe.pose;
+          toward.x = sagProbe.x;
         } else {
+          toward.pose = farthest->pose;
+          toward.x = res.x;
           double lever = 0;
           for (std::size_t i = 0; i < model.nodeCount(); ++i)
             lever = std::max(lever, (res.x.segment<3>(3 * static_cast<Eigen::Index>(i)) - centre).norm());
@@ -933,6 +960,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       // An estimated camera motion's uncertainty: where the estimate gives its 1-sigma motion, the pose fitted again
       // through it (held shape, short ICP, like the alternatives) and twice how far that moves the surface facing the
       // camera; else twice how far it moves the triangulated depths (a single feature's, wider than the fit's).
+      std::optional<Pose> motionRefit;  // the largest motion share's refit
       for (std::size_t f = 0; f < frames.size(); ++f) {
         if (!(frames[f].motionDepthSigmaM > 0)) continue;
         double share = 2e3 * frames[f].motionDepthSigmaM;
@@ -942,7 +970,9 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
           views[f + 1].motion = *frames[f].motionAtOneSigma;
           seen = triangulateSeen();
           try {
-            share = 2 * spreadOf(shortIcpHeld(res.pose, 6).first, res.x).first;
+            const Pose refit = shortIcpHeld(res.pose, 6).first;
+            share = 2 * spreadOf(refit, res.x).first;
+            if (share > res.uncertainty.motionMm) motionRefit = refit;
           } catch (const MeshError&) {
             share = std::numeric_limits<double>::infinity();  // the organ behind a camera: unbounded
           }
@@ -951,13 +981,18 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
         }
         res.uncertainty.motionMm = std::max(res.uncertainty.motionMm, share);
       }
-      if (res.uncertainty.motionMm > std::max(spread, res.uncertainty.curvatureMm))
+      if (res.uncertainty.motionMm > std::max(spread, res.uncertainty.curvatureMm)) {
         res.uncertainty.weakest = "a move along the view (the camera's motion between the frames)";
+        if (motionRefit) {
+          toward.pose = *motionRefit;
+          toward.x = res.x;
+        }
+      }
       res.uncertainty.surfaceMm += res.uncertainty.motionMm;
       res.uncertainty.targetMm += res.uncertainty.motionMm;
     }
   }
-  if (!U.size() && downKnown)
+  if (!U.size() && downKnown)  // (an organ the fit does not hold: the told gravity is the elastic stage's)
     load = res.pose.R.transpose() * o.gravityCamera;  // the told gravity, in the frame of the pose found
   settings.gravity = load;
   res.load = load;
@@ -1115,6 +1150,50 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       res.status = "failed: after the fit only " + std::to_string(static_cast<int>(100 * share)) +
                    " % of the contour lies within " + std::to_string(static_cast<int>(nearPx)) +
                    " px of the organ's silhouette; it may belong to another organ or the start pose is too far";
+    }
+  }
+  // The far ends of where the organ may be: the result moved each way towards the bound's hypothesis (its turn and move
+  // scaled by k about the result's pose, its shape change by k), k such that the surface facing the camera moves by the
+  // bound on average (three fixed-point steps each way: the move is nearly proportional to k).
+  if (res.ok && res.uncertainty.computed && std::isfinite(res.uncertainty.surfaceMm) &&
+      toward.x.size() == res.x.size() && toward.fromX.size() == res.x.size() && facing.size() == model.nodeCount()) {
+    // (turned about the organ's centre, which moves as the hypothesis moves it: a turn about the camera would move a
+    // far organ by its second order too, unevenly each way)
+    const Eigen::AngleAxisd full(toward.pose.R * toward.fromPose.R.transpose());
+    const Eigen::Vector3d move = toward.pose.apply(centre) - toward.fromPose.apply(centre);
+    const Eigen::Vector3d pivot = res.pose.apply(centre);
+    const Eigen::VectorXd shapeChange = toward.x - toward.fromX;
+    auto endAt = [&](double k) {
+      const Eigen::Matrix3d turn = Eigen::AngleAxisd(k * full.angle(), full.axis()).toRotationMatrix();
+      RegistrationEnd e;
+      e.pose.R = turn * res.pose.R;
+      e.pose.t = pivot + k * move + turn * (res.pose.t - pivot);
+      e.x = res.x + k * shapeChange;
+      return e;
+    };
+    auto movedMm = [&](const RegistrationEnd& e) {
+      double sum = 0;
+      std::size_t count = 0;
+      for (std::size_t i = 0; i < model.nodeCount(); ++i) {
+        if (!facing[i]) continue;
+        const auto k = static_cast<Eigen::Index>(3 * i);
+        sum += 1e3 * (e.pose.apply(e.x.segment<3>(k)) - res.pose.apply(res.x.segment<3>(k))).norm();
+        ++count;
+      }
+      return count ? sum / static_cast<double>(count) : 0.0;
+    };
+    const double target = res.uncertainty.surfaceMm, unit = movedMm(endAt(1));
+    if (unit > 1e-9 && target > 0) {
+      // Each way on its own (a hypothesis's move need not be symmetric in k).
+      for (const double side : {1.0, -1.0}) {
+        double k = side * target / unit;
+        for (int step = 0; step < 3; ++step) {
+          const double atK = movedMm(endAt(k));
+          if (!(atK > 1e-9)) break;
+          k *= target / atK;
+        }
+        res.uncertainty.ends.push_back(endAt(k));
+      }
     }
   }
   const bool beyondTolerance = res.uncertainty.computed && !(res.uncertainty.surfaceMm <= o.toleranceMm);

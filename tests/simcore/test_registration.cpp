@@ -68,6 +68,39 @@ class TestRegistration : public QObject {
     }
   };
   std::unique_ptr<SaggedLiver> sagged_;
+  // The bound's far ends (RegistrationUncertainty::ends), checked against their definition from scratch: two, on either
+  // side of the result, each moving the surface facing the camera (its front-facing triangles' nodes, seen from the
+  // camera at the result's pose) by the bound on average. Returns the two ends' mean moves (mm).
+  static std::pair<double, double> checkEnds(const RegistrationResult& r,
+                                             const std::vector<std::array<int, 3>>& surface) {
+    if (r.uncertainty.ends.size() != 2) {
+      qWarning("%zu ends for a bound of %.2f mm", r.uncertainty.ends.size(), r.uncertainty.surfaceMm);
+      return {-1, -1};
+    }
+    const auto n = static_cast<std::size_t>(r.x.size() / 3);
+    auto at = [](const Pose& p, const Eigen::VectorXd& x, int i) { return p.apply(x.segment<3>(3 * i)); };
+    std::vector<char> front(n, 0);
+    for (const auto& t : surface) {
+      const Eigen::Vector3d a = at(r.pose, r.x, t[0]), b = at(r.pose, r.x, t[1]), c = at(r.pose, r.x, t[2]);
+      if ((b - a).cross(c - a).dot(a) < 0)
+        for (int v : t) front[static_cast<std::size_t>(v)] = 1;
+    }
+    double moved[2] = {0, 0};
+    Eigen::Vector3d shift[2] = {Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+    std::size_t count = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!front[i]) continue;
+      ++count;
+      for (int e = 0; e < 2; ++e) {
+        const auto& end = r.uncertainty.ends[static_cast<std::size_t>(e)];
+        const Eigen::Vector3d d = at(end.pose, end.x, static_cast<int>(i)) - at(r.pose, r.x, static_cast<int>(i));
+        moved[e] += 1e3 * d.norm();
+        shift[e] += d;
+      }
+    }
+    if (count == 0 || shift[0].dot(shift[1]) > 0) return {-1, -1};  // not on either side
+    return {moved[0] / static_cast<double>(count), moved[1] / static_cast<double>(count)};
+  }
   // The fixture, or null with why ("absent: ..." when the data set is not there).
   const SaggedLiver* saggedLiver(QString& why) {
     if (sagged_) return sagged_.get();
@@ -527,6 +560,14 @@ class TestRegistration : public QObject {
     QVERIFY(two.uncertainty.computed && two.uncertainty.surfaceMm < 0.5 * one.uncertainty.surfaceMm);
     QVERIFY(1e3 * L->error(two) <= two.uncertainty.surfaceMm && two.uncertainty.surfaceMm <= 3e3 * L->error(two));
     QCOMPARE(two.uncertainty.motionMm, 0.0);  // (the motion given)
+    // Where the organ may be, drawn on the fit page: the two ends move the facing surface by the bound (within 5 %).
+    for (const auto* r : {&one, &two}) {
+      const auto moved = checkEnds(*r, L->organ->surface);
+      qInfo("  the bound's ends: %.2f and %.2f mm for a bound of %.2f mm (%s)", moved.first, moved.second,
+            r->uncertainty.surfaceMm, r->uncertainty.weakest.c_str());
+      QVERIFY(std::abs(moved.first - r->uncertainty.surfaceMm) < 0.05 * r->uncertainty.surfaceMm);
+      QVERIFY(std::abs(moved.second - r->uncertainty.surfaceMm) < 0.05 * r->uncertainty.surfaceMm);
+    }
     // The motion estimated from the same features (the move's length given): its uncertainty is in the bound, which
     // covers the error, and a fit it leaves unsure of is not called determined.
     {
@@ -566,6 +607,14 @@ class TestRegistration : public QObject {
       QVERIFY(kept.uncertainty.motionMm > 0 && std::isfinite(kept.uncertainty.motionMm));
       QVERIFY(kept.uncertainty.surfaceMm >= kept.uncertainty.motionMm);
       QVERIFY(1e3 * L->error(kept) <= kept.uncertainty.surfaceMm);
+      {
+        // Its ends lie along the motion's refit (the largest share here), again the bound's move each way.
+        const auto moved = checkEnds(kept, L->organ->surface);
+        qInfo("  kept: the bound's ends %.2f and %.2f mm for %.2f mm (%s)", moved.first, moved.second,
+              kept.uncertainty.surfaceMm, kept.uncertainty.weakest.c_str());
+        QVERIFY(std::abs(moved.first - kept.uncertainty.surfaceMm) < 0.05 * kept.uncertainty.surfaceMm);
+        QVERIFY(std::abs(moved.second - kept.uncertainty.surfaceMm) < 0.05 * kept.uncertainty.surfaceMm);
+      }
       estimated.frames[0].motionAtOneSigma.reset();
       const auto fallback = L->fit(L->outline, estimated);
       QCOMPARE(fallback.uncertainty.motionMm, 2e3 * m.depthSigmaM);
@@ -778,6 +827,19 @@ class TestRegistration : public QObject {
       QVERIFY2(res.ok && !res.ambiguous && res.alternatives.empty(), res.status.c_str());
       phantomBound = res.uncertainty.surfaceMm;
       QVERIFY(res.uncertainty.computed && phantomBound > 0 && phantomBound < 5);
+      QVERIFY2(res.uncertainty.weakest.find("a turn about") == 0, res.uncertainty.weakest.c_str());
+      // Its far ends lie along the curvature's weakest direction, by the bound each way: the phantom tilted about its
+      // centre (named so: before, the turn's move about the camera was named "a move along the camera's Y axis").
+      const auto moved = checkEnds(res, c_.surface);
+      QVERIFY(std::abs(moved.first - phantomBound) < 0.05 * phantomBound);
+      QVERIFY(std::abs(moved.second - phantomBound) < 0.05 * phantomBound);
+      for (const auto& end : res.uncertainty.ends) {
+        const Eigen::Vector3d shift = end.pose.apply(c_.centreOfGravity()) - res.pose.apply(c_.centreOfGravity());
+        const double turned = Eigen::AngleAxisd(end.pose.R * res.pose.R.transpose()).angle() * 180 / M_PI;
+        qInfo("phantom's end: its centre moved (%.3f, %.3f, %.3f) mm, turned %.3f degrees", 1e3 * shift.x(),
+              1e3 * shift.y(), 1e3 * shift.z(), turned);
+        QVERIFY(shift.norm() < 0.5 * phantomBound && turned > 0.1 && turned < 2);
+      }
     }
     const Eigen::Vector3d radii(0.05, 0.05, 0.025);
     TetrahedraliseOptions to;
@@ -828,6 +890,18 @@ class TestRegistration : public QObject {
     QVERIFY2(res.uncertainty.weakest.find("turn about the camera's Z") != std::string::npos,
              res.uncertainty.weakest.c_str());
     QVERIFY(res.uncertainty.surfaceMm > 3 * phantomBound);
+    {
+      // The far ends the fit page draws: the spheroid turned about the view each way, by the bound at its front.
+      const auto moved = checkEnds(res, surface);
+      QVERIFY(std::abs(moved.first - res.uncertainty.surfaceMm) < 0.05 * res.uncertainty.surfaceMm);
+      QVERIFY(std::abs(moved.second - res.uncertainty.surfaceMm) < 0.05 * res.uncertainty.surfaceMm);
+      for (const auto& end : res.uncertainty.ends) {
+        const Eigen::AngleAxisd turn(end.pose.R * res.pose.R.transpose());
+        qInfo("spheroid's end: turned %.1f degrees about (%.2f, %.2f, %.2f), moved %.2f mm", turn.angle() * 180 / M_PI,
+              turn.axis().x(), turn.axis().y(), turn.axis().z(), 1e3 * (end.pose.t - res.pose.t).norm());
+        QVERIFY(std::abs(turn.axis().z()) > 0.9 && turn.angle() > 2 * M_PI / 180);
+      }
+    }
     // The command line: the best fit is written, the report names the alternatives, the exit code is 4.
     const std::string dir = tempPath("register-spheroid");
     std::filesystem::create_directories(dir);
@@ -840,12 +914,12 @@ class TestRegistration : public QObject {
     imaging::saveContour(file, dir + "/contour.json");
     imaging::savePose(truth, dir + "/pose.json");
     QProcess p;
-    p.start(
-        QStringLiteral(REHEARSE_BINARY),
-        {"register", "--mesh", QString::fromStdString(dir + "/spheroid.vtu"), "--camera",
-         QString::fromStdString(dir + "/camera.json"), "--contour", QString::fromStdString(dir + "/contour.json"),
-         "--pose", QString::fromStdString(dir + "/pose.json"), "--rigid-only", "--out",
-         QString::fromStdString(dir + "/registered.vtu"), "--report", QString::fromStdString(dir + "/report.json")});
+    p.start(QStringLiteral(REHEARSE_BINARY),
+            {"register", "--mesh", QString::fromStdString(dir + "/spheroid.vtu"), "--camera",
+             QString::fromStdString(dir + "/camera.json"), "--contour", QString::fromStdString(dir + "/contour.json"),
+             "--pose", QString::fromStdString(dir + "/pose.json"), "--rigid-only", "--out",
+             QString::fromStdString(dir + "/registered.vtu"), "--report", QString::fromStdString(dir + "/report.json"),
+             "--ends-out", QString::fromStdString(dir + "/end.vtu")});
     QVERIFY(p.waitForFinished(300000));
     const QString err = QString::fromUtf8(p.readAllStandardError());
     QCOMPARE(p.exitCode(), 4);
@@ -860,6 +934,30 @@ class TestRegistration : public QObject {
       QVERIFY(a.toObject()["apart_mm"].toDouble() > 5);
       QCOMPARE(a.toObject()["pose"].toObject()["t"].toArray().size(), 3);
       QCOMPARE(a.toObject()["pose"].toObject()["R"].toArray().size(), 3);
+    }
+    // Where the organ may be: the two far ends written beside the fit (camera frame), each moving the fitted surface
+    // that faces the camera by the reported bound on average (within 5 %), their poses in the report.
+    const QJsonObject u = report["uncertainty"].toObject();
+    QCOMPARE(u["ends"].toArray().size(), 2);
+    const double bound = u["surface_mm"].toDouble();
+    const Mesh fitted = loadMesh(dir + "/registered.vtu");
+    std::vector<char> front(fitted.points.size(), 0);
+    for (const auto& t : surface) {
+      const Eigen::Vector3d &a = fitted.points[t[0]], &b = fitted.points[t[1]], &c = fitted.points[t[2]];
+      if ((b - a).cross(c - a).dot(a) < 0)
+        for (int v : t) front[static_cast<std::size_t>(v)] = 1;
+    }
+    for (const char* name : {"/end-1.vtu", "/end-2.vtu"}) {
+      QVERIFY2(std::filesystem::exists(dir + name), name);
+      const Mesh end = loadMesh(dir + name);
+      QCOMPARE(end.points.size(), fitted.points.size());
+      double sum = 0;
+      std::size_t count = 0;
+      for (std::size_t i = 0; i < end.points.size(); ++i)
+        if (front[i]) sum += 1e3 * (end.points[i] - fitted.points[i]).norm(), ++count;
+      qInfo("rehearse register --ends-out: %s moves the facing surface %.2f mm (the bound %.2f mm)", name,
+            sum / static_cast<double>(count), bound);
+      QVERIFY(std::abs(sum / static_cast<double>(count) - bound) < 0.05 * bound);
     }
   }
 };

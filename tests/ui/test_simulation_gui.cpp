@@ -337,6 +337,40 @@ class TestSimulationGui : public QObject {
           series->count(), first, last);
     QVERIFY(last < first);
     QVERIFY(w_->stepDone(ui::Step::Elastic));
+    // Where the organ may be (issue 38): the outline at the fit's two far ends, dashed over the frame and in the
+    // legend. Each lies near the fitted organ's own outline (rendered here from the case), as far as the bound allows
+    // at the organ's depth: off by more than a fifth of a pixel, by less than three times the bound seen there.
+    const QList<QPolygonF> possible = w_->frameView()->possibleOutlines();
+    QCOMPARE(possible.size(), 2);
+    bool named = false;
+    for (const auto& e : w_->frameView()->legend()) named |= e.text.startsWith("where the organ may be");
+    QVERIFY(named);
+    {
+      const auto& fc = *w_->caseData();
+      const auto own = imaging::maskOutlines(imaging::renderMask(fc.camera, fc.pose, fc.surfaceView()));
+      QVERIFY(!own.empty());
+      double depth = 0;
+      for (const auto& p : fc.fit->nodes) depth += fc.pose.apply(p).z() / static_cast<double>(fc.fit->nodes.size());
+      const QString text = w_->findChild<QLabel*>("fitStatus")->text();
+      const int at = text.indexOf("may be up to ");
+      QVERIFY2(at >= 0, qPrintable(text));
+      const double boundMm = text.mid(at + 13).section(' ', 0, 0).toDouble();
+      const double boundPx = 1e-3 * boundMm * fc.camera.K(0, 0) / depth;
+      for (const auto& poly : possible) {
+        double sum = 0;
+        for (const QPointF& q : poly) {
+          double nearest = std::numeric_limits<double>::infinity();
+          for (const auto& p : own.front()) nearest = std::min(nearest, std::hypot(p.x() - q.x(), p.y() - q.y()));
+          sum += nearest;
+        }
+        const double mean = sum / poly.size();
+        qInfo(
+            "where the organ may be: an outline %d points, %.2f px from the fit's on average (the bound %.2f mm, "
+            "%.2f px at the organ's depth)",
+            static_cast<int>(poly.size()), mean, boundMm, boundPx);
+        QVERIFY(mean > 0.2 && mean < 3 * boundPx);
+      }
+    }
     const std::vector<Eigen::Vector3d> fitted = w_->caseData()->fit->nodes;
     // Keep or revert: offered while the fit is the last edit. Revert by key and redo, then by the button.
     auto* keep = w_->findChild<QPushButton*>("fitKeep");
@@ -346,12 +380,14 @@ class TestSimulationGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
     QVERIFY(!w_->caseData()->hasFit());
     QVERIFY(!revert->isEnabled());
+    QVERIFY(w_->frameView()->possibleOutlines().isEmpty());  // no drawing of a fit that is gone
     const QKeyCombination redo = QKeySequence::keyBindings(QKeySequence::Redo).front()[0];  // the platform's redo key
     QTest::keyClick(w_.get(), redo.key(), redo.keyboardModifiers());
     QCOMPARE(w_->caseData()->fit->nodes.size(), fitted.size());
     QVERIFY(revert->isEnabled());
     QTest::mouseClick(revert, Qt::LeftButton);
     QVERIFY(!w_->caseData()->hasFit());
+    QVERIFY(w_->frameView()->possibleOutlines().isEmpty());
     const Pose& before = w_->caseData()->pose;  // the rigid pre-pass's change is reverted too
     QVERIFY((before.t - (c.groundTruth->pose.t + Eigen::Vector3d(0.003, 0, 0))).norm() < 1e-12);
     QVERIFY((before.R - c.groundTruth->pose.R).norm() < 1e-12);
@@ -360,6 +396,14 @@ class TestSimulationGui : public QObject {
     QVERIFY((w_->caseData()->pose.t - fittedPose.t).norm() < 1e-12);
     QTest::mouseClick(keep, Qt::LeftButton);
     QVERIFY(!keep->isEnabled() && !revert->isEnabled());
+    // The redone fit is the same fit: its bound is drawn again (the box hides and shows it).
+    QCOMPARE(w_->frameView()->possibleOutlines().size(), 2);
+    auto* showBound = w_->findChild<QCheckBox*>("fitShowBound");
+    QVERIFY(showBound && showBound->isChecked());
+    QTest::mouseClick(showBound, Qt::LeftButton, {}, QPoint(8, showBound->height() / 2));
+    QVERIFY(w_->frameView()->possibleOutlines().isEmpty());
+    QTest::mouseClick(showBound, Qt::LeftButton, {}, QPoint(8, showBound->height() / 2));
+    QCOMPARE(w_->frameView()->possibleOutlines().size(), 2);
     QVERIFY(w_->findChild<QLabel*>("fitStatus")->text().startsWith("Fit kept"));
     QVERIFY2(w_->findChild<QLabel*>("fitStatus")->text().contains("Uncertainty: the surface may be up to"),
              qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));  // the bound stays once kept

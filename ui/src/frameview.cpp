@@ -303,6 +303,13 @@ void FrameView::paintEvent(QPaintEvent*) {
   painter.drawImage(scaledFrame_.at, scaledFrame_.image);
   painter.setTransform(toWidget);
   if (overlayVisible_) paintOverlay(painter);
+  if (!possible_.isEmpty()) {
+    QPen pen(palette::possibleOutline(), 2.0, Qt::DashLine);
+    pen.setCosmetic(true);
+    painter.setPen(pen);
+    painter.setBrush(Qt::NoBrush);
+    for (const auto& poly : possible_) painter.drawPolygon(poly);
+  }
   // Contour: segments coloured by type.
   const auto contour = currentContour();
   for (const auto& s : contour.segments) {
@@ -324,6 +331,13 @@ void FrameView::paintEvent(QPaintEvent*) {
   paintDeviceTip(painter);
   paintWarning(painter);
   paintLegend(painter);
+}
+
+void FrameView::setPossibleOutlines(QList<QPolygonF> outlines, const QString& text) {
+  if (outlines.isEmpty() && possible_.isEmpty()) return;
+  possible_ = std::move(outlines);
+  possibleText_ = text;
+  update();
 }
 
 void FrameView::setWarning(std::vector<Eigen::Vector3d> cameraPoints, const QString& text) {
@@ -366,6 +380,7 @@ QList<LegendEntry> FrameView::legend() const {
   if (frame_.isNull()) return out;
   if (overlayVisible_ && !silhouette_.isEmpty()) out.push_back({palette::organOutline(), tr("organ outline (O hides)")});
   if (overlayVisible_ && !inner_.isNull()) out.push_back({QColor(200, 60, 60), tr("inner structures: colours as in step 1")});
+  if (!possible_.isEmpty()) out.push_back({palette::possibleOutline(), possibleText_});
   std::vector<std::string> types;
   if (case_)
     for (const auto& seg : case_->contour.segments)

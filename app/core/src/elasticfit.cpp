@@ -1,5 +1,8 @@
 #include "rehearse/app/elasticfit.hpp"
 
+#include <rehearse/imaging/render.hpp>
+
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -57,6 +60,26 @@ std::string uncertaintySentence(const simcore::RegistrationUncertainty& u) {
     out += text;
   }
   return out + "; weakest: " + u.weakest;
+}
+
+std::vector<std::vector<Eigen::Vector2d>> boundOutlines(const Case& c, const simcore::RegistrationResult& r) {
+  std::vector<std::vector<Eigen::Vector2d>> out;
+  if (!c.organ || c.organ->surface.empty() || !c.camera.problem().empty()) return out;
+  for (const auto& end : r.uncertainty.ends) {
+    if (end.x.size() != static_cast<Eigen::Index>(3 * c.organ->volume.points.size())) return {};
+    SurfaceView view = c.organ->volume.surfaceView();
+    view.vertices = end.x.data();
+    view.triangles = c.organ->surface.front().data();
+    view.triangleCount = c.organ->surface.size();
+    for (std::size_t i = 0; i < view.vertexCount; ++i)
+      if (!(end.pose.apply(view.vertex(i)).z() > 1e-3)) return {};  // (a far end behind the camera: not drawn)
+    auto outlines = imaging::maskOutlines(imaging::renderMask(c.camera, end.pose, view));
+    if (outlines.empty()) continue;
+    // The outer outline: the longest.
+    out.push_back(*std::max_element(outlines.begin(), outlines.end(),
+                                    [](const auto& a, const auto& b) { return a.size() < b.size(); }));
+  }
+  return out;
 }
 
 std::shared_ptr<const ElasticFit> toCasePart(const simcore::RegistrationResult& r) {

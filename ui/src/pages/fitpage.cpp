@@ -130,6 +130,15 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   decide->addWidget(keep_);
   decide->addWidget(revert_);
   layout->addLayout(decide);
+  // Where the organ may be: its outline at the fit's two far ends, dashed over the frame (the bound drawn).
+  showBound_ = new QCheckBox(tr("Show where the organ &may be"), this);
+  showBound_->setObjectName(QStringLiteral("fitShowBound"));
+  showBound_->setChecked(true);
+  showBound_->setToolTip(
+      tr("After a fit: the organ's outline moved each way along the direction the fit is least sure of, as far as its "
+         "bound (dashed): the organ may be anywhere between them."));
+  connect(showBound_, &QCheckBox::toggled, this, [this] { showBound(); });
+  layout->addWidget(showBound_);
   status_ = new QLabel(this);
   status_->setObjectName(QStringLiteral("fitStatus"));
   status_->setWordWrap(true);
@@ -209,7 +218,16 @@ void FitPage::useAlternative(int index) {
   runFit(false);
 }
 
+void FitPage::showBound() {
+  const auto c = data();
+  const bool current = c && c->fit && c->fit == boundFit_ && (c->pose.R - boundPose_.R).norm() < 1e-12 &&
+                       (c->pose.t - boundPose_.t).norm() < 1e-12;
+  // (kept while not drawn: Redo brings the same fit back, and its bound with it)
+  wb_.view->setPossibleOutlines(current && showBound_->isChecked() ? boundOutlines_ : QList<QPolygonF>{}, boundText_);
+}
+
 void FitPage::refresh(const app::Case& c) {
+  if (!wb_.jobs->isRunning()) showBound();  // (cleared once the fit they belong to is not the case's)
   if (!c.hasFit() && !wb_.jobs->isRunning()) {
     alternativePoses_.clear();
     alternativesBox_->setVisible(false);
@@ -264,6 +282,8 @@ void FitPage::runFit(bool rigidPrepass) {
   input.toleranceMm = tolerance_->value();
   status_->setText(tr("Fitting... (Esc cancels)"));
   showAlternatives({}, false);
+  boundFit_.reset();  // (the last fit's bound is not this one's)
+  showBound();
   wb_.jobs->run(tr("Elastic fit..."), [this, c, input](const std::atomic<bool>& cancel, const auto& progress) -> std::function<void()> {
     try {
       auto onIteration = [this, c, &cancel, &progress](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
@@ -298,11 +318,24 @@ void FitPage::runFit(bool rigidPrepass) {
       const Pose pose = r.pose;
       const double ms = r.iterations.empty() ? 0.0 : r.iterations.back().wallMs;
       const QString uncertainty = QString::fromStdString(app::uncertaintySentence(r.uncertainty));
-      return [this, fit, pose, status, ms, uncertainty, ambiguous = r.ambiguous, alternatives = r.alternatives] {
+      QList<QPolygonF> outlines;
+      for (const auto& line : app::boundOutlines(*c, r)) {
+        QPolygonF poly;
+        for (const auto& p : line) poly << QPointF(p.x(), p.y());
+        outlines << poly;
+      }
+      const double boundMm = r.uncertainty.surfaceMm;
+      return [this, fit, pose, status, ms, uncertainty, outlines, boundMm, ambiguous = r.ambiguous,
+              alternatives = r.alternatives] {
+        boundOutlines_ = outlines;
+        boundFit_ = fit;
+        boundPose_ = pose;
+        boundText_ = tr("where the organ may be (the fit's bound, %1 mm)").arg(boundMm, 0, 'f', 1);
         wb_.doc->edit(tr("Elastic fit"), [&](app::Case& k) {
           k.fit = fit;
           k.pose = pose;
         });
+        showBound();
         fitUndoIndex_ = wb_.doc->undoStack()->index();
         uncertainty_ = uncertainty;
         keep_->setEnabled(true);

@@ -201,6 +201,12 @@ struct RegistrationAlternative {
 /// The two add (the truth may lie at the far end of the hypotheses and off by the curvature's share from there). A
 /// direction the contour does not constrain at all (a singular information matrix) makes the bound infinite, with the
 /// direction named in `weakest`. Computed after the rigid stage (not when it does not run: `computed` false).
+/// One far end of where the fit may be (RegistrationUncertainty::ends): the organ's pose and nodes (model frame).
+struct RegistrationEnd {
+  Pose pose;
+  Eigen::VectorXd x;
+};
+
 struct RegistrationUncertainty {
   bool computed = false;
   double surfaceMm = -1;    ///< mean over the surface nodes facing the camera
@@ -214,6 +220,11 @@ struct RegistrationUncertainty {
   /// e.g. "a move along the view", "a turn about the camera's X axis", "the organ's sag": the curvature's largest
   /// direction, or, where the hypotheses spread further, the farthest one's.
   std::string weakest;
+  /// Where the organ may be: the result moved each way along the direction the bound's largest share comes from (the
+  /// curvature's weakest direction, the farthest hypothesis, or an estimated motion's refit), so far that the surface
+  /// facing the camera moves by surfaceMm on average. Two ends, or none (no bound computed, or an infinite one). The
+  /// fit page draws their outlines.
+  std::vector<RegistrationEnd> ends;
 };
 
 struct RegistrationResult {

@@ -83,6 +83,7 @@ inline QColor organFill() { return QColor(120, 210, 150); }
 inline QColor landmarkOnOrgan() { return QColor(255, 150, 40); }
 inline QColor landmarkInFrame() { return QColor(60, 230, 255); }
 inline QColor warning() { return QColor(255, 170, 60); }  ///< a result that may be wrong (an ambiguous fit)
+inline QColor possibleOutline() { return QColor(120, 190, 255); }  ///< where the organ may be (a fit's bound)
 }  // namespace palette
 
 class FrameView : public QWidget {
@@ -97,6 +98,10 @@ class FrameView : public QWidget {
   quint64 paints() const { return paints_; }
   void setOverlay(const QImage& organ, const QList<QPolygonF>& silhouette);
   void setInnerOverlay(const QImage& inner) { inner_ = inner; update(); }
+  /// Where the organ may be (an elastic fit's bound, app::boundOutlines): outlines in frame pixels, drawn dashed and
+  /// named in the legend by `text`; empty outlines clear them.
+  void setPossibleOutlines(QList<QPolygonF> outlines, const QString& text);
+  const QList<QPolygonF>& possibleOutlines() const { return possible_; }
   void setCase(std::shared_ptr<const app::Case> c);
   const std::shared_ptr<const app::Case>& caseData() const { return case_; }
   /// The organ as the simulation has it now (camera frame, volume node order; empty: the case's shape): what
@@ -234,6 +239,8 @@ class FrameView : public QWidget {
     bool smooth = false;
   } scaledFrame_;
   QList<QPolygonF> silhouette_;
+  QList<QPolygonF> possible_;  ///< setPossibleOutlines
+  QString possibleText_;
   bool overlayVisible_ = true;
   bool legendVisible_ = true;
   double opacity_ = 0.45;

@@ -54,6 +54,11 @@ simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress&
 /// undetermined, or that no bound was computed (no rigid stage).
 std::string uncertaintySentence(const simcore::RegistrationUncertainty& u);
 
+/// Where the organ may be after a fit: its outlines (undistorted frame pixels of the case's camera) at the fit's two
+/// far ends (simcore::RegistrationUncertainty::ends), the outer outline of each. Empty when the fit has none (no bound,
+/// or an unbounded one) or an end is behind the camera.
+std::vector<std::vector<Eigen::Vector2d>> boundOutlines(const Case& c, const simcore::RegistrationResult& r);
+
 /// The fit's result as the case part (model frame nodes and the status).
 std::shared_ptr<const ElasticFit> toCasePart(const simcore::RegistrationResult& r);
 

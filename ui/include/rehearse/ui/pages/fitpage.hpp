@@ -9,6 +9,10 @@
 
 #include <rehearse/simcore/registration.hpp>
 
+#include <QList>
+#include <QPolygonF>
+
+#include <memory>
 #include <vector>
 
 class QCheckBox;
@@ -46,6 +50,14 @@ class FitPage : public StepPage {
   QPushButton* revert_ = nullptr;  ///< ... or revert it (its undo step), while it is the last edit
   int fitUndoIndex_ = -1;          ///< the undo index right after the fit awaiting a decision, -1 for none
   QString uncertainty_;            ///< that fit's bound, in a sentence (kept on the status when the fit is kept)
+  QCheckBox* showBound_ = nullptr;  ///< draw where the organ may be
+  /// The last fit's far ends' outlines (app::boundOutlines), drawn over the frame while it is the case's fit (and
+  /// pose) and *Show where the organ may be* is ticked.
+  QList<QPolygonF> boundOutlines_;
+  QString boundText_;
+  std::shared_ptr<const app::ElasticFit> boundFit_;  ///< the fit they belong to (others: not drawn)
+  Pose boundPose_;
+  void showBound();
   void runFit(bool rigidPrepass);
   /// The alternatives list (hidden when empty); the status stands out while the fit is ambiguous.
   void showAlternatives(const std::vector<simcore::RegistrationAlternative>& alternatives, bool ambiguous);
