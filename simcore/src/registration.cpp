@@ -636,14 +636,26 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
   // The prior's weight per bound point and (m/s^2)^2: the RMS node move per unit load over sagScaleMm.
   const double sagPerLoad = U.size() ? U.norm() / std::sqrt(static_cast<double>(rest.size())) : 0.0;
   const double sagWeight = std::pow(sagPerLoad / (1e-3 * o.sagScaleMm), 2);
+  // Told which way is down: the directions (camera frame) of the sag that gravity alone cannot give and the outline
+  // barely shows, as a projector (see priorMatrix).
+  auto downAcrossCamera = [&]() -> Eigen::Matrix3d {
+    const Eigen::Vector3d g = o.gravityCamera.normalized(), inImage = g.cross(Eigen::Vector3d::UnitZ());
+    if (inImage.norm() <= 0.05) return Eigen::Matrix3d::Identity() - g * g.transpose();  // down along the view
+    const Eigen::Vector3d mixed = g.cross(inImage.normalized());
+    return mixed * mixed.transpose();
+  };
   // The prior's matrix for a pose and a number of bound points: isotropic, or, told which way is down, a
   // sag across that direction costs downAcross^2 times more.
   auto priorMatrix = [&](const Pose& pose, std::size_t bound) -> Eigen::Matrix3d {
     const double w = sagWeight * static_cast<double>(bound);
     if (!downKnown) return w * Eigen::Matrix3d::Identity();
-    const Eigen::Vector3d d = (pose.R.transpose() * o.gravityCamera).normalized();
-    const Eigen::Matrix3d along = d * d.transpose();
-    return w * (along + o.downAcross * o.downAcross * (Eigen::Matrix3d::Identity() - along));
+    // Told which way is down, only what the outline cannot show is taken from it: the sag's part along the view,
+    // relative to its part in the image (the sag across `d` in the plane of `d` and the view costs downAcross^2
+    // times more). Its part across `d` in the image plane the outline shows, and another load (an instrument, a
+    // retractor) may well put it there: not penalised beyond the usual prior. (Penalising every part across `d`
+    // made fits worse wherever a load other than gravity pushed the organ.) Down along the view: all of it.
+    const Eigen::Matrix3d acrossModel = pose.R.transpose() * downAcrossCamera() * pose.R;
+    return w * (Eigen::Matrix3d::Identity() + (o.downAcross * o.downAcross - 1) * acrossModel);
   };
   auto shapeOf = [&](const Eigen::Vector3d& a) -> Eigen::VectorXd {
     return U.size() ? Eigen::VectorXd(rest + U * a) : Eigen::VectorXd(rest);

@@ -162,11 +162,13 @@ struct RegistrationOptions {
   double sagProbeLoosen = 16.0;
   double sagDeterminedShare = 0.5;
   double sagDecisiveMm = 2.0;
-  /// Which way is down, when known: gravity in the camera frame (m/s^2; zero: not known). Its direction
-  /// (turned with the pose as the fit turns the organ) is the sag's: a sag across it costs downAcross^2
-  /// times more. Its size does not count: how far the organ sags depends on a stiffness the fit does not
-  /// know, so that is the contour's to find as without it. For an organ the fit does not hold, it is the
-  /// elastic stage's gravity.
+  /// Which way is down, when known: gravity in the camera frame (m/s^2; zero: not known). It gives what the
+  /// outline cannot show: the sag's part along the view relative to its part in the image (a sag across the
+  /// direction, in the plane of the direction and the view, costs downAcross^2 times more; down along the view:
+  /// every part across it). A sag across it within the image plane the outline shows, and loads other than
+  /// gravity (an instrument, a retractor) put one there: it costs what it costs without the direction. Its size
+  /// does not count: how far the organ sags depends on a stiffness the fit does not know, so that is the
+  /// contour's to find as without it. For an organ the fit does not hold, it is the elastic stage's gravity.
   Eigen::Vector3d gravityCamera = Eigen::Vector3d::Zero();
   double downAcross = 4.0;
   /// Optional anatomical curve constraints, used by the rigid and the elastic stages.
