@@ -1002,6 +1002,16 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
       }
       res.uncertainty.surfaceMm += res.uncertainty.motionMm;
       res.uncertainty.targetMm += res.uncertainty.motionMm;
+      // An organ the fit holds nowhere: its sag cannot be estimated (a body load on a free organ has no equilibrium)
+      // and the outline of an organ sagging on its ligaments is then explained by a wrong pose, as far from the
+      // truth as the sag is deep -- a bound that leaves the sag out would be a confident wrong answer. Unbounded,
+      // and said, with what would bound it.
+      if (!held && o.elastic && o.estimateSag) {
+        res.uncertainty.surfaceMm = res.uncertainty.targetMm = std::numeric_limits<double>::infinity();
+        res.uncertainty.weakest =
+            "the organ's sag (no node is held: mark where the ligaments hold the organ, step 1, and the fit estimates "
+            "it)";
+      }
     }
   }
   if (!U.size() && downKnown)  // (an organ the fit does not hold: the told gravity is the elastic stage's)
@@ -1282,6 +1292,10 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     } else {
       decide = "; a ridge or ligament curve drawn on the organ (step 3)" + secondFrame + " would decide it";
     }
+    // (an organ held nowhere: the attachments decide first; its weakest direction says so)
+    if (!held && o.elastic && o.estimateSag && res.alternatives.empty() && !sagProbe.undetermined &&
+        !std::isfinite(res.uncertainty.surfaceMm))
+      decide.clear();
     res.status = text + decide + " (the fit: " + res.status + ")";
   }
   if (!setAside.empty()) res.status += "; " + setAside;
