@@ -198,18 +198,7 @@ int cmdRegister(const std::vector<std::string>& args) {
       };
       const cv::Mat3b first = read(o["frame"]), image2 = read(o["frame2"]);
       // Features only on the organ as sketched on the first frame (its outline filled, less a margin).
-      cv::Mat1b mask(first.size(), 0);
-      std::vector<std::vector<cv::Point>> polygons;
-      for (const auto& seg : contour.segments)
-        if (seg.isSilhouette() && seg.points.size() > 2) {
-          polygons.emplace_back();
-          for (const auto& p : seg.points)
-            polygons.back().emplace_back(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
-        }
-      cv::fillPoly(mask, polygons, cv::Scalar(255));
-      const int margin = std::max(3, first.cols / 100);
-      cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
-      tracks = imaging::trackFeatures(first, image2, mask);
+      tracks = tracksOnOrgan(first, contour, image2);
     }
     std::string motionStatus;
     if (o.count("motion")) {

@@ -52,6 +52,8 @@ CaseDocument::Parts difference(const app::Case* a, const app::Case& b) {
   if (!(a->material == b.material)) p |= CaseDocument::MaterialPart;
   if (a->landmarks != b.landmarks) p |= CaseDocument::LandmarksPart;
   if (a->appearance != b.appearance) p |= CaseDocument::AppearancePart;
+  if (a->frame2.data != b.frame2.data || !(a->contour2 == b.contour2) || a->baselineMm != b.baselineMm)
+    p |= CaseDocument::SecondFramePart;
   return p;
 }
 

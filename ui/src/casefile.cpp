@@ -213,6 +213,14 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
     }
     if (!c.incorrectActions.empty()) part("incorrect_actions", "json", bytes(c.incorrectActions));
     if (!c.contour.segments.empty()) part("contour", "json", bytes(imaging::contourToJson(c.contour)));
+    if (!c.frame2.empty()) {  // the second frame (issue 38), its outline and how far the scope moved
+      std::vector<uchar> png;
+      cv::imencode(".png", c.frame2, png);
+      part("second_frame", "png",
+           QByteArray(reinterpret_cast<const char*>(png.data()), static_cast<qsizetype>(png.size())));
+      part("second_frame_move", "json", bytes(json{{"baseline_mm", c.baselineMm}}.dump()));
+      if (!c.contour2.segments.empty()) part("second_contour", "json", bytes(imaging::contourToJson(c.contour2)));
+    }
     if (!c.landmarks.empty()) {
       json pairs = json::array();
       for (const auto& l : c.landmarks)
@@ -309,6 +317,9 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
                                                    {"attachments", QStringLiteral("Attachments")},
                                                    {"pose", QStringLiteral("Pose")},
                                                    {"contour", QStringLiteral("Contour")},
+                                                   {"second_frame", QStringLiteral("Second frame")},
+                                                   {"second_frame_move", QStringLiteral("Second frame's move")},
+                                                   {"second_contour", QStringLiteral("Second frame's contour")},
                                                    {"elastic_fit", QStringLiteral("Elastic fit")},
                                                    {"ground_truth", QStringLiteral("Ground truth")},
                                                    {"landmarks", QStringLiteral("Landmark pairs")},
@@ -473,6 +484,28 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
     } catch (const std::exception& e) {
       c.contour = {};
       note(QStringLiteral("Contour not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (QByteArray f = read("second_frame"); !f.isEmpty()) {
+    cv::Mat raw(1, static_cast<int>(f.size()), CV_8U, f.data());
+    c.frame2 = cv::imdecode(raw, cv::IMREAD_COLOR);
+    if (c.frame2.empty()) note(QStringLiteral("Second frame not loaded: the stored image is damaged."));
+  }
+  if (QByteArray k = read("second_frame_move"); !k.isEmpty() && !c.frame2.empty()) {
+    try {
+      c.baselineMm = json::parse(k.toStdString()).at("baseline_mm").get<double>();
+      if (!(c.baselineMm >= 0 && c.baselineMm < 1e4)) throw std::runtime_error("not a distance in mm");
+    } catch (const std::exception& e) {
+      c.baselineMm = 0;
+      note(QStringLiteral("Second frame's move not loaded: %1").arg(QString::fromUtf8(e.what())));
+    }
+  }
+  if (QByteArray k = read("second_contour"); !k.isEmpty() && !c.frame2.empty()) {
+    try {
+      c.contour2 = imaging::parseContour(k.toStdString(), "the second frame's contour");
+    } catch (const std::exception& e) {
+      c.contour2 = {};
+      note(QStringLiteral("Second frame's contour not loaded: %1").arg(QString::fromUtf8(e.what())));
     }
   }
   if (QByteArray l = read("landmarks"); !l.isEmpty()) {

@@ -228,7 +228,7 @@ QPointF FrameView::toWidget(const QPointF& p) const { return frameToWidget().map
 double FrameView::scale() const { return frameToWidget().m11(); }
 
 imaging::Contour FrameView::currentContour() const {
-  imaging::Contour c = case_ ? case_->contour : imaging::Contour{};
+  imaging::Contour c = case_ ? (secondShown_ ? case_->contour2 : case_->contour) : imaging::Contour{};
   if (!frame_.isNull()) {
     c.width = frame_.width();
     c.height = frame_.height();
@@ -303,7 +303,7 @@ void FrameView::paintEvent(QPaintEvent*) {
   painter.drawImage(scaledFrame_.at, scaledFrame_.image);
   painter.setTransform(toWidget);
   if (overlayVisible_) paintOverlay(painter);
-  if (!possible_.isEmpty()) {
+  if (!possible_.isEmpty() && !secondShown_) {
     QPen pen(palette::possibleOutline(), 2.0, Qt::DashLine);
     pen.setCosmetic(true);
     painter.setPen(pen);
@@ -331,6 +331,13 @@ void FrameView::paintEvent(QPaintEvent*) {
   paintDeviceTip(painter);
   paintWarning(painter);
   paintLegend(painter);
+}
+
+void FrameView::setSecondFrameShown(bool second) {
+  if (second == secondShown_) return;
+  secondShown_ = second;
+  emit shownFrameChanged(second);
+  update();
 }
 
 void FrameView::setPossibleOutlines(QList<QPolygonF> outlines, const QString& text) {
@@ -380,10 +387,10 @@ QList<LegendEntry> FrameView::legend() const {
   if (frame_.isNull()) return out;
   if (overlayVisible_ && !silhouette_.isEmpty()) out.push_back({palette::organOutline(), tr("organ outline (O hides)")});
   if (overlayVisible_ && !inner_.isNull()) out.push_back({QColor(200, 60, 60), tr("inner structures: colours as in step 1")});
-  if (!possible_.isEmpty()) out.push_back({palette::possibleOutline(), possibleText_});
+  if (!possible_.isEmpty() && !secondShown_) out.push_back({palette::possibleOutline(), possibleText_});
   std::vector<std::string> types;
   if (case_)
-    for (const auto& seg : case_->contour.segments)
+    for (const auto& seg : (secondShown_ ? case_->contour2 : case_->contour).segments)
       if (std::find(types.begin(), types.end(), seg.type) == types.end()) types.push_back(seg.type);
   for (const char* t : {"silhouette", "ridge", "ligament"})
     if (std::find(types.begin(), types.end(), std::string(t)) != types.end())

@@ -88,9 +88,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     status_.cursor->setText(tr("u %1  v %2 px").arg(p.x(), 0, 'f', 1).arg(p.y(), 0, 'f', 1));
   });
   connect(view_, &FrameView::contourEdited, this, [this](const imaging::Contour& c, const QString& text, int merge) {
+    // (the second frame's outline while it is shown)
+    const bool second = view_->secondFrameShown();
     doc_->edit(
-        text, [&c](app::Case& k) { k.contour = c; }, merge);
+        text, [&c, second](app::Case& k) { (second ? k.contour2 : k.contour) = c; }, merge);
   });
+  connect(view_, &FrameView::shownFrameChanged, this, [this] { showFrameLayer(); });
   connect(view_, &FrameView::poseEdited, this, [this](const Pose& p, const QString& text, int merge) {
     doc_->edit(
         text,
@@ -157,6 +160,7 @@ QWidget* MainWindow::organWidget() const {
 void MainWindow::setStep(Step s) {
   step_ = s;
   keys_->stepShown(s);
+  if (s != Step::Contour) view_->setSecondFrameShown(false);  // (the second frame is sketched on in step 3 only)
   const int row = app::index(s);
   for (int i = 0; i < static_cast<int>(pages_.all.size()); ++i)
     if (pages_.all[static_cast<std::size_t>(i)]->step() == s) stepStack_->setCurrentIndex(i);
@@ -225,6 +229,14 @@ void MainWindow::onCaseChanged(CaseDocument::Parts parts) {
 
 void MainWindow::showFrameLayer() {
   // Hiding the organ (O) in the composited view shows the frame as captured: the organ is drawn into that picture.
+  if (view_->secondFrameShown() && doc_->hasCase() && !doc_->data()->frame2.empty()) {
+    // The second frame, its outline sketched over it; the organ is not drawn (the motion to it is the fit's).
+    view_->setFrame(frameToQImage(doc_->data()->frame2));
+    view_->setOverlay(QImage(), {});
+    view_->setInnerOverlay(QImage());
+    status_.viewMode->setText(tr("Second frame"));
+    return;
+  }
   const bool composited = showingComposited() && !composition_->lastComposed().isNull() && view_->overlayVisible();
   view_->setFrame(composited ? composition_->lastComposed() : doc_->frameImage());
   if (composited) {

@@ -177,7 +177,9 @@ void Case::setOrgan(std::shared_ptr<const Organ> o) {
 
 std::size_t Case::ownBytes() const {
   std::size_t bytes = sizeof(Case) + name.size() + attachments.size() * sizeof(int) + landmarks.size() * sizeof(LandmarkPair);
-  for (const auto& s : contour.segments) bytes += sizeof(s) + s.points.size() * sizeof(Eigen::Vector2d) + s.modelVertices.size() * sizeof(int);
+  for (const auto* k : {&contour, &contour2})
+    for (const auto& s : k->segments)
+      bytes += sizeof(s) + s.points.size() * sizeof(Eigen::Vector2d) + s.modelVertices.size() * sizeof(int);
   return bytes;
 }
 
@@ -190,7 +192,8 @@ std::size_t Case::sharedBytes() const {
                       organ->innerSurfaceLabels.size() * sizeof(int) + (organ->visual ? organ->visual->bytes() : 0);
   if (fit) bytes += fit->nodes.size() * sizeof(Eigen::Vector3d);
   if (appearance) bytes += sizeof(AppearanceEstimate) + appearance->status.size();
-  bytes += frame.total() * frame.elemSize() + rawFrame.total() * rawFrame.elemSize();
+  bytes +=
+      frame.total() * frame.elemSize() + rawFrame.total() * rawFrame.elemSize() + frame2.total() * frame2.elemSize();
   return bytes;
 }
 

@@ -1,6 +1,9 @@
 #include "rehearse/app/elasticfit.hpp"
 
+#include <rehearse/imaging/motion.hpp>
 #include <rehearse/imaging/render.hpp>
+
+#include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -18,6 +21,47 @@ FitInput fitInputFromCase(const Case& c) {
   in.start = c.pose;
   in.gravityCamera = 9.81 * c.down;
   return in;
+}
+
+std::vector<imaging::Track> tracksOnOrgan(const cv::Mat3b& first, const imaging::Contour& firstContour,
+                                          const cv::Mat3b& second) {
+  cv::Mat1b mask(first.size(), 0);
+  std::vector<std::vector<cv::Point>> polygons;
+  for (const auto& seg : firstContour.segments)
+    if (seg.isSilhouette() && seg.points.size() > 2) {
+      polygons.emplace_back();
+      for (const auto& p : seg.points)
+        polygons.back().emplace_back(static_cast<int>(std::lround(p.x())), static_cast<int>(std::lround(p.y())));
+    }
+  cv::fillPoly(mask, polygons, cv::Scalar(255));
+  const int margin = std::max(3, first.cols / 100);
+  cv::erode(mask, mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * margin + 1, 2 * margin + 1)));
+  return imaging::trackFeatures(first, second, mask);
+}
+
+simcore::RegistrationFrame secondFrame(const Case& c, std::string* status) {
+  if (c.frame2.empty()) throw imaging::InputError("The case has no second frame.");
+  if (c.frame2.size() != c.frame.size())
+    throw imaging::InputError("The second frame is not the first one's size; open a frame of the same video.");
+  if (!(c.baselineMm > 0))
+    throw imaging::InputError(
+        "The second frame needs how far the scope moved between the frames (mm, step 2): two frames give only the "
+        "move's direction.");
+  simcore::RegistrationFrame f;
+  f.camera = c.camera.pinhole();
+  for (const auto& seg : c.contour2.segments)
+    if (seg.isSilhouette() && seg.points.size() > 1) f.contour.push_back(seg.points);
+  if (f.contour.empty())
+    throw imaging::InputError("The second frame has no outline: sketch the organ's outline on it (step 3).");
+  const imaging::CameraMotion m =
+      imaging::estimateCameraMotion(c.camera, tracksOnOrgan(c.frame, c.contour, c.frame2), 1e-3 * c.baselineMm);
+  if (!m.ok) throw imaging::InputError("The second frame cannot be used: " + m.status + ".");
+  f.motion = m.motion;
+  f.motionDepthSigmaM = m.depthSigmaM;
+  f.motionAtOneSigma = m.motionAtOneSigma;
+  f.tracks = m.inliers;
+  if (status) *status = m.status;
+  return f;
 }
 
 simcore::FemModel fitModel(const FitInput& in) {

@@ -1,5 +1,7 @@
 #include "rehearse/ui/pages/contourpage.hpp"
 
+#include "rehearse/ui/frameview.hpp"
+
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
@@ -15,6 +17,26 @@ namespace rehearse::ui {
 
 ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Contour, parent) {
   auto* l = new QVBoxLayout(this);
+  // Which frame the outline is sketched on: the first, or the second frame of step 2 (the scope moved).
+  auto* onFrameRow = new QHBoxLayout;
+  sketchOn_ = new QComboBox(this);
+  sketchOn_->setObjectName(QStringLiteral("sketchOn"));
+  sketchOn_->addItem(tr("First frame"));
+  sketchOn_->addItem(tr("Second frame (the scope moved)"));
+  sketchOn_->setToolTip(
+      tr("Sketch the organ's outline on each frame: the fit uses both, and the camera's motion "
+         "between them, to find the depth one outline cannot show."));
+  auto* onFrameLabel = new QLabel(tr("Sketch &on"), this);
+  onFrameLabel->setBuddy(sketchOn_);
+  connect(sketchOn_, &QComboBox::currentIndexChanged, this, [this](int i) { wb_.view->setSecondFrameShown(i == 1); });
+  connect(wb_.view, &FrameView::shownFrameChanged, this, [this](bool second) {
+    const QSignalBlocker block(sketchOn_);
+    sketchOn_->setCurrentIndex(second ? 1 : 0);
+    if (data()) refresh(*data());
+  });
+  onFrameRow->addWidget(onFrameLabel);
+  onFrameRow->addWidget(sketchOn_, 1);
+  l->addLayout(onFrameRow);
   auto* grid = new QGridLayout;
   struct T {
     Tool tool;
@@ -61,8 +83,8 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
   auto* resample = new QPushButton(tr("Resample"), this);
   connect(resample, &QPushButton::clicked, this, [this] {
     const double s = spacing_->value();
-    wb_.doc->edit(tr("Resample contour"), [s](app::Case& k) {
-      for (auto& seg : k.contour.segments) seg = imaging::resampleSegment(seg, s);
+    wb_.doc->edit(tr("Resample contour"), [this, s](app::Case& k) {
+      for (auto& seg : shown(k).segments) seg = imaging::resampleSegment(seg, s);
     });
   });
   rs->addWidget(new QLabel(tr("Spacing"), this));
@@ -72,12 +94,13 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
   auto* row = new QHBoxLayout;
   auto* smooth = new QPushButton(tr("Smooth"), this);
   connect(smooth, &QPushButton::clicked, this, [this] {
-    wb_.doc->edit(tr("Smooth contour"), [](app::Case& k) {
-      for (auto& seg : k.contour.segments) seg = imaging::smoothSegment(seg, 5);
+    wb_.doc->edit(tr("Smooth contour"), [this](app::Case& k) {
+      for (auto& seg : shown(k).segments) seg = imaging::smoothSegment(seg, 5);
     });
   });
   auto* clear = new QPushButton(tr("Clear"), this);
-  connect(clear, &QPushButton::clicked, this, [this] { wb_.doc->edit(tr("Clear contour"), [](app::Case& k) { k.contour.segments.clear(); }); });
+  connect(clear, &QPushButton::clicked, this,
+          [this] { wb_.doc->edit(tr("Clear contour"), [this](app::Case& k) { shown(k).segments.clear(); }); });
   row->addWidget(smooth);
   row->addWidget(clear);
   l->addLayout(row);
@@ -116,12 +139,23 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
   l->addStretch(1);
 }
 
+imaging::Contour& ContourPage::shown(app::Case& k) const {
+  return wb_.view->secondFrameShown() && !k.frame2.empty() ? k.contour2 : k.contour;
+}
+
 void ContourPage::refresh(const app::Case& c) {
-  const std::string problem = imaging::contourProblem(c.contour);
-  status_->setText(tr("%1 segments, %2 points. %3")
-                       .arg(c.contour.segments.size())
-                       .arg(c.contour.pointCount())
-                       .arg(problem.empty() ? tr("Ready for fitting.") : QString::fromStdString(problem)));
+  sketchOn_->setEnabled(!c.frame2.empty());
+  if (c.frame2.empty() && wb_.view->secondFrameShown()) wb_.view->setSecondFrameShown(false);  // (cleared or undone)
+  const bool second = wb_.view->secondFrameShown();
+  const imaging::Contour& k = second ? c.contour2 : c.contour;
+  const std::string problem = imaging::contourProblem(k);
+  status_->setText(tr("%1%2 segments, %3 points. %4")
+                       .arg(second ? tr("Second frame: ") : QString())
+                       .arg(k.segments.size())
+                       .arg(k.pointCount())
+                       .arg(problem.empty()
+                                ? (second ? tr("The fit uses it with the first.") : tr("Ready for fitting."))
+                                : QString::fromStdString(problem)));
 }
 
 void ContourPage::setImportedPointsOn(PointsOn where) { pointsOn_->setCurrentIndex(static_cast<int>(where)); }

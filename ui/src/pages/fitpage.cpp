@@ -304,7 +304,17 @@ void FitPage::runFit(bool rigidPrepass) {
         progress(std::min(0.95, 0.05 + 0.045 * it.iteration), QStringLiteral("%1 px").arg(px, 0, 'f', 2));
         return !cancel.load();
       };
-      const simcore::RegistrationResult r = app::runElasticFit(input, onIteration);
+      // The second frame (step 2), its outline (step 3) and the camera's motion estimated from the two frames.
+      app::FitInput in = input;
+      QString secondNote;
+      if (!c->frame2.empty()) {
+        std::string motion;
+        in.frames = {app::secondFrame(*c, &motion)};
+        secondNote = tr(" Second frame: %1; %2 features.")
+                         .arg(QString::fromStdString(motion))
+                         .arg(in.frames.front().tracks.size());
+      }
+      const simcore::RegistrationResult r = app::runElasticFit(in, onIteration);
       const QString status = QString::fromStdString(r.status);
       if (r.cancelled || !r.ok) {
         return [this, status, cancelled = r.cancelled] {
@@ -325,7 +335,7 @@ void FitPage::runFit(bool rigidPrepass) {
         outlines << poly;
       }
       const double boundMm = r.uncertainty.surfaceMm;
-      return [this, fit, pose, status, ms, uncertainty, outlines, boundMm, ambiguous = r.ambiguous,
+      return [this, fit, pose, status, ms, uncertainty, outlines, boundMm, secondNote, ambiguous = r.ambiguous,
               alternatives = r.alternatives] {
         boundOutlines_ = outlines;
         boundFit_ = fit;
@@ -344,10 +354,11 @@ void FitPage::runFit(bool rigidPrepass) {
         QString said = status;
         if (ambiguous && said.startsWith(QStringLiteral("ambiguous: "))) said = tr("AMBIGUOUS: %1").arg(said.mid(11));
         // How far the 3D result may be from the truth, from the fit itself (its second line).
-        status_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).\nUncertainty: %3.")
+        status_->setText(tr("%1 (%2 s). Keep it, or revert it (Ctrl+Z).\nUncertainty: %3.%4")
                              .arg(said)
                              .arg(ms / 1000.0, 0, 'f', 1)
-                             .arg(uncertainty));
+                             .arg(uncertainty)
+                             .arg(secondNote));
         showAlternatives(alternatives, ambiguous);
         wb_.status(tr("Elastic fit: %1").arg(said));
         emit fitFinished(true, status);

@@ -67,7 +67,61 @@ FramePage::FramePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::F
   useFrameButton_->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_Return));
   connect(useFrameButton_, &QPushButton::clicked, this, &FramePage::useShownFrame);
   vl->addWidget(useFrameButton_);
+  // A second frame (issue 38): the scope moved 1-2 cm sideways; its outline (step 3) and the motion estimated from the
+  // frames give the fit the depth one outline cannot.
+  auto* secondBox = new QGroupBox(tr("Second frame (the scope moved)"), this);
+  auto* sl = new QVBoxLayout(secondBox);
+  secondLabel_ = new QLabel(secondBox);
+  secondLabel_->setObjectName(QStringLiteral("secondFrameLabel"));
+  secondLabel_->setWordWrap(true);
+  sl->addWidget(secondLabel_);
+  auto* secondRow = new QHBoxLayout;
+  auto* useSecond = new QPushButton(tr("Use Shown Video Frame"), secondBox);
+  useSecond->setObjectName(QStringLiteral("useSecondFrame"));
+  useSecond->setToolTip(tr("The video frame shown above, with the scope moved 1-2 cm sideways from the first frame"));
+  connect(useSecond, &QPushButton::clicked, this, &FramePage::useShownFrameAsSecond);
+  auto* openSecond = new QPushButton(tr("Open Image..."), secondBox);
+  connect(openSecond, &QPushButton::clicked, this, [this] {
+    const QString p =
+        QFileDialog::getOpenFileName(wb_.window, tr("Open Second Frame"), QSettings().value("lastDir").toString(),
+                                     tr("Images (*.png *.jpg *.jpeg *.bmp *.tif *.tiff)"));
+    if (!p.isEmpty()) openSecondFrame(p);
+  });
+  auto* clearSecond = new QPushButton(tr("Clear"), secondBox);
+  clearSecond->setObjectName(QStringLiteral("clearSecondFrame"));
+  connect(clearSecond, &QPushButton::clicked, this, [this] {
+    if (!data() || data()->frame2.empty()) return;
+    wb_.doc->edit(tr("Clear second frame"), [](app::Case& k) {
+      k.frame2 = cv::Mat3b();
+      k.contour2 = {};
+    });
+  });
+  secondRow->addWidget(useSecond);
+  secondRow->addWidget(openSecond);
+  secondRow->addWidget(clearSecond);
+  sl->addLayout(secondRow);
+  auto* moveRow = new QHBoxLayout;
+  auto* moveLabel = new QLabel(tr("Scope &moved:"), secondBox);
+  baseline_ = new QDoubleSpinBox(secondBox);
+  baseline_->setObjectName(QStringLiteral("secondFrameBaseline"));
+  baseline_->setRange(0, 200);
+  baseline_->setDecimals(1);
+  baseline_->setSuffix(tr(" mm"));
+  baseline_->setSpecialValueText(tr("not known"));
+  baseline_->setKeyboardTracking(false);
+  baseline_->setToolTip(
+      tr("How far the scope moved between the two frames (a tracker's, a robot's, or the port's "
+         "marks): the frames give the move's direction only, not its length."));
+  moveLabel->setBuddy(baseline_);
+  connect(baseline_, &QDoubleSpinBox::valueChanged, this, [this](double mm) {
+    if (updating_ || !data() || data()->baselineMm == mm) return;
+    wb_.doc->edit(tr("Set how far the scope moved"), [mm](app::Case& k) { k.baselineMm = mm; });
+  });
+  moveRow->addWidget(moveLabel);
+  moveRow->addWidget(baseline_, 1);
+  sl->addLayout(moveRow);
   l->addWidget(videoBox);
+  l->addWidget(secondBox);
   auto* camBox = new QGroupBox(tr("Camera intrinsics (px)"), this);
   auto* form = new QFormLayout(camBox);
   const QString names[4] = {tr("fx"), tr("fy"), tr("cx"), tr("cy")};
@@ -117,6 +171,15 @@ void FramePage::refresh(const app::Case& c) {
   const double values[4] = {c.camera.fx(), c.camera.fy(), c.camera.cx(), c.camera.cy()};
   for (int k = 0; k < 4; ++k) intrinsics_[k]->setValue(values[k]);
   const auto& d = c.camera.distortion;
+  secondLabel_->setText(c.frame2.empty()
+                            ? tr("None: one outline leaves the organ's depth to its model; a second frame with the "
+                                 "scope moved 1-2 cm sideways fixes it by parallax.")
+                            : tr("%1x%2, %3 outline segments sketched on it%4.")
+                                  .arg(c.frame2.cols)
+                                  .arg(c.frame2.rows)
+                                  .arg(c.contour2.segments.size())
+                                  .arg(c.baselineMm > 0 ? QString() : tr("; say how far the scope moved")));
+  baseline_->setValue(c.baselineMm);
   distortionLabel_->setText(QStringLiteral("k1 %1  k2 %2  p1 %3  p2 %4  k3 %5").arg(d[0]).arg(d[1]).arg(d[2]).arg(d[3]).arg(d[4]));
   updating_ = false;
 }
@@ -254,9 +317,13 @@ void FramePage::useShownFrame() {
   const bool fromVideo = video_ != nullptr && videoFrames_ > 0;
   // The outline was sketched on the frame it replaces: it does not belong to this one (another moment, maybe another
   // size). It goes with the old frame, in the same undo step, so that step 3 is to be done again.
-  const bool hadContour = !data()->contour.segments.empty();
+  const bool hadContour = !data()->contour.segments.empty(), hadSecond = !data()->frame2.empty();
   wb_.doc->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame](app::Case& k) {
     k.contour.segments.clear();
+    if (k.frame2.size() != frame.size()) {  // (a second frame of another size does not go with this one)
+      k.frame2 = cv::Mat3b();
+      k.contour2 = {};
+    }
     if (k.camera.width != frame.cols || k.camera.height != frame.rows) {
       // A frame of another size keeps no stale calibration: the stated default, editable in the panel.
       k.camera = imaging::Camera::defaultFor(frame.cols, frame.rows);
@@ -268,7 +335,56 @@ void FramePage::useShownFrame() {
   });
   QString text = fromVideo ? tr("Using frame %1 of the video.").arg(shown) : tr("Frame opened.");
   if (hadContour) text += tr(" The contour sketched on the previous frame was removed: sketch it on this one (step 3), or Undo to go back to both.");
+  if (hadSecond && data()->frame2.empty()) text += tr(" The second frame, of another size, was removed.");
   wb_.status(text);
+}
+
+void FramePage::setSecondFrame(const cv::Mat3b& bgr, const QString& what) {
+  QString problem;
+  if (!data() || data()->frame.empty())
+    problem = tr("Open the first frame before a second one.");
+  else if (bgr.cols != data()->camera.width || bgr.rows != data()->camera.height)
+    problem = tr("The second frame is %1x%2 but the first is %3x%4: take it from the same video.")
+                  .arg(bgr.cols)
+                  .arg(bgr.rows)
+                  .arg(data()->camera.width)
+                  .arg(data()->camera.height);
+  if (!problem.isEmpty()) {
+    wb_.status(problem);
+    emit frameSourceOpened(false, problem);
+    return;
+  }
+  // Undistorted with the case's camera, as the first frame is (every step works on undistorted pixels).
+  const cv::Mat3b frame = imaging::undistortImage(bgr.clone(), data()->camera);
+  wb_.doc->edit(tr("Set second frame"), [frame](app::Case& k) {
+    k.frame2 = frame;
+    k.contour2 = {};
+    k.contour2.width = frame.cols;
+    k.contour2.height = frame.rows;
+  });
+  wb_.status(tr("%1 is the second frame: sketch the organ's outline on it (step 3, Second frame) and say how far the "
+                "scope moved.")
+                 .arg(what));
+  emit frameSourceOpened(true, {});
+}
+
+void FramePage::useShownFrameAsSecond() {
+  if (shownFrame_.empty() || !video_ || videoFrames_ <= 0) {
+    wb_.status(tr("Open a video and show the frame to use as the second frame."));
+    return;
+  }
+  setSecondFrame(cv::Mat3b(shownFrame_), tr("Frame %1 of the video").arg(shownVideoFrame_));
+}
+
+void FramePage::openSecondFrame(const QString& path) {
+  const cv::Mat3b img = cv::imread(path.toStdString(), cv::IMREAD_COLOR);
+  if (img.empty()) {
+    const QString msg = tr("%1 is not a readable image; use PNG, JPEG, BMP or TIFF.").arg(QFileInfo(path).fileName());
+    wb_.status(msg);
+    emit frameSourceOpened(false, msg);
+    return;
+  }
+  setSecondFrame(img, QFileInfo(path).fileName());
 }
 
 void FramePage::loadCalibration(const QString& path) {

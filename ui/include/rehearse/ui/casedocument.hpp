@@ -40,7 +40,8 @@ class CaseDocument : public QObject {
     MaterialPart = 128,
     LandmarksPart = 256,
     AppearancePart = 512,
-    AllParts = 1023
+    SecondFramePart = 1024,  ///< the second frame, its outline, how far the scope moved
+    AllParts = 2047
   };
   Q_DECLARE_FLAGS(Parts, Part)
 

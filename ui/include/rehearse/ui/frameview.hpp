@@ -102,6 +102,11 @@ class FrameView : public QWidget {
   /// named in the legend by `text`; empty outlines clear them.
   void setPossibleOutlines(QList<QPolygonF> outlines, const QString& text);
   const QList<QPolygonF>& possibleOutlines() const { return possible_; }
+  /// Shows the case's second frame (Case::frame2) instead of the first, its contour (Case::contour2) the one drawn and
+  /// edited (contourEdited then edits it), the organ not drawn over it (the camera's motion to it is the fit's to
+  /// estimate). Emits shownFrameChanged.
+  void setSecondFrameShown(bool second);
+  bool secondFrameShown() const { return secondShown_; }
   void setCase(std::shared_ptr<const app::Case> c);
   const std::shared_ptr<const app::Case>& caseData() const { return case_; }
   /// The organ as the simulation has it now (camera frame, volume node order; empty: the case's shape): what
@@ -180,6 +185,7 @@ class FrameView : public QWidget {
   void cursorMoved(QPointF framePixel);
   /// A new contour after an edit; edits with the same non-negative mergeId form one undo step.
   void contourEdited(const rehearse::imaging::Contour& contour, const QString& text, int mergeId);
+  void shownFrameChanged(bool second);
   void poseEdited(const rehearse::Pose& pose, const QString& text, int mergeId);
   /// Landmarks tool: a click on the organ (model point) or, after one, on the frame (image point).
   void landmarkModelPicked(const Eigen::Vector3d& modelPoint);
@@ -240,6 +246,7 @@ class FrameView : public QWidget {
   } scaledFrame_;
   QList<QPolygonF> silhouette_;
   QList<QPolygonF> possible_;  ///< setPossibleOutlines
+  bool secondShown_ = false;
   QString possibleText_;
   bool overlayVisible_ = true;
   bool legendVisible_ = true;

@@ -159,6 +159,12 @@ struct Case {
   cv::Mat3b frame;                       ///< undistorted endoscope frame, BGR (what every step uses)
   cv::Mat3b rawFrame;                    ///< the frame as captured, when it had to be undistorted (else empty)
   imaging::Contour contour;              ///< sketched organ outline (pixels of the undistorted frame)
+  /// A second frame of the same scene with the scope moved 1-2 cm (issue 38; undistorted with `camera` like `frame`;
+  /// empty: none), the outline sketched on it, and how far the scope moved (mm: two frames give only the move's
+  /// direction). The fit estimates the camera's motion from features tracked between the frames (app::secondFrame).
+  cv::Mat3b frame2;
+  imaging::Contour contour2;
+  double baselineMm = 0;
   Pose pose;                             ///< current rigid alignment, model -> camera
   bool hasPose = false;                  ///< false until the organ has been placed (auto or by hand)
   bool poseAligned = false;              ///< true once the user aligned it (gizmos, fields or PnP)

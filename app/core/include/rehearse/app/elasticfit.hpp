@@ -6,6 +6,7 @@
 #include "rehearse/app/case.hpp"
 #include "rehearse/app/materials.hpp"
 
+#include <rehearse/imaging/motion.hpp>
 #include <rehearse/simcore/registration.hpp>
 
 #include <functional>
@@ -36,6 +37,17 @@ struct FitInput {
   double toleranceMm = 5.0;
   FitInput() { settings.gravity.setZero(); }
 };
+
+/// Features tracked from `first` into `second` (undistorted frames of one size) on the organ as sketched on the first
+/// frame: inside its silhouette segments, less a margin of 1 % of the width (imaging::trackFeatures).
+std::vector<imaging::Track> tracksOnOrgan(const cv::Mat3b& first, const imaging::Contour& firstContour,
+                                          const cv::Mat3b& second);
+
+/// The case's second frame for the fit (Case::frame2): its outline, the camera's motion from the first frame estimated
+/// from the features tracked on the organ (the move's length Case::baselineMm), with the motion's uncertainty and its
+/// inlier tracks; `status` gets the estimate's sentence. Throws imaging::InputError with one sentence when it cannot
+/// be used (no outline on it, no baseline, frames of another size, too few features, barely moved, ...).
+simcore::RegistrationFrame secondFrame(const Case& c, std::string* status = nullptr);
 
 /// What the GUI fits: the case as it is (its organ, attachments, material, contour, camera and pose).
 FitInput fitInputFromCase(const Case& c);

@@ -29,6 +29,9 @@ class ContourPage : public StepPage {
   QDoubleSpinBox* spacing_ = nullptr;
   QComboBox* segmentType_ = nullptr;
   QComboBox* pointsOn_ = nullptr;
+  QComboBox* sketchOn_ = nullptr;  ///< the first frame, or the second (Case::frame2)
+  /// The contour the tools edit now: the second frame's while it is shown.
+  imaging::Contour& shown(app::Case& k) const;
 };
 
 }  // namespace rehearse::ui

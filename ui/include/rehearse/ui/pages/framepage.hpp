@@ -34,6 +34,10 @@ class FramePage : public StepPage {
   void openCameraDevice(int index);           ///< live camera (opened on a worker)
   void showVideoFrame(int index);             ///< decode and preview frame `index` (-1: the next live frame)
   void useShownFrame();                       ///< take the previewed frame for the case
+  /// A second frame of the same scene, the scope moved 1-2 cm (issue 38): the previewed video frame, or an image file;
+  /// one undo step. Refused with a sentence (status bar, frameSourceOpened) without a first frame or at another size.
+  void useShownFrameAsSecond();
+  void openSecondFrame(const QString& path);
   void loadCalibration(const QString& path);
   int videoFrameCount() const { return videoFrames_; }
   int shownVideoFrame() const { return shownVideoFrame_; }
@@ -50,6 +54,9 @@ class FramePage : public StepPage {
   QLabel* videoLabel_ = nullptr;
   QPushButton* useFrameButton_ = nullptr;
   QDoubleSpinBox* intrinsics_[4] = {};  ///< fx, fy, cx, cy (px)
+  QLabel* secondLabel_ = nullptr;       ///< the second frame: there or not
+  QDoubleSpinBox* baseline_ = nullptr;  ///< how far the scope moved to it (mm)
+  void setSecondFrame(const cv::Mat3b& bgr, const QString& what);
   QLabel* distortionLabel_ = nullptr;
   std::shared_ptr<cv::VideoCapture> video_;
   std::shared_ptr<std::mutex> videoMutex_ = std::make_shared<std::mutex>();
