@@ -93,7 +93,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     doc_->edit(
         text, [&c, second](app::Case& k) { (second ? k.contour2 : k.contour) = c; }, merge);
   });
-  connect(view_, &FrameView::shownFrameChanged, this, [this] { showFrameLayer(); });
+  connect(view_, &FrameView::shownFrameChanged, this, [this] { refreshOverlay(); });
   connect(view_, &FrameView::poseEdited, this, [this](const Pose& p, const QString& text, int merge) {
     doc_->edit(
         text,
@@ -283,7 +283,10 @@ void MainWindow::refreshOverlay() {
   const auto& c = doc_->data();
   picture_ = c ? overlay_->render(*c, pages_.mesh->shownInnerLabels()) : OverlayPicture{};
   showFrameLayer();
-  if (picture_.meanDistance >= 0) {
+  if (view_->secondFrameShown()) {
+    // (the first frame's distance does not describe the second frame's outline: no organ is placed there yet)
+    status_.distance->setText(tr("Second frame: the fit places the organ in it"));
+  } else if (picture_.meanDistance >= 0) {
     const QString text = tr("Contour to silhouette: mean %1 px, RMS %2 px, max %3 px")
                              .arg(picture_.meanDistance, 0, 'f', 1)
                              .arg(picture_.rmsDistance, 0, 'f', 1)

@@ -193,6 +193,12 @@ struct RegistrationAlternative {
   double apartMm = 0;       ///< mean distance of the organ's nodes between this pose and the result's
 };
 
+/// One far end of where the fit may be (RegistrationUncertainty::ends): the organ's pose and nodes (model frame).
+struct RegistrationEnd {
+  Pose pose;
+  Eigen::VectorXd x;
+};
+
 /// How far the fit's 3D result may be from the truth, from the fit itself (never a fixed threshold):
 /// - the cost's curvature: Gauss-Newton's information matrix of the rigid stage's contour cost in the pose (and the
 ///   sag's load, with its prior loosened as the sag probe loosens it) at its end, scaled by that stage's own misfit
@@ -203,12 +209,6 @@ struct RegistrationAlternative {
 /// The two add (the truth may lie at the far end of the hypotheses and off by the curvature's share from there). A
 /// direction the contour does not constrain at all (a singular information matrix) makes the bound infinite, with the
 /// direction named in `weakest`. Computed after the rigid stage (not when it does not run: `computed` false).
-/// One far end of where the fit may be (RegistrationUncertainty::ends): the organ's pose and nodes (model frame).
-struct RegistrationEnd {
-  Pose pose;
-  Eigen::VectorXd x;
-};
-
 struct RegistrationUncertainty {
   bool computed = false;
   double surfaceMm = -1;    ///< mean over the surface nodes facing the camera
