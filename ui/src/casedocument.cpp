@@ -100,6 +100,8 @@ void CaseDocument::setVersion(std::shared_ptr<const app::Case> version) {
   if (!version) return;
   const Parts parts = difference(case_.get(), *version);
   if (parts & FramePart) frameImage_ = frameToQImage(version->frame);
+  if ((parts & SecondFramePart) && version->frame2.data != (case_ ? case_->frame2.data : nullptr))
+    secondFrameImage_ = frameToQImage(version->frame2);
   if (parts & OrganPart) qualityText_ = version->organ->empty() ? QString() : QString::fromStdString(simcore::formatQuality(version->organ->quality));
   case_ = std::move(version);
   if (parts) emit changed(parts);

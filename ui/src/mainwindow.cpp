@@ -231,7 +231,7 @@ void MainWindow::showFrameLayer() {
   // Hiding the organ (O) in the composited view shows the frame as captured: the organ is drawn into that picture.
   if (view_->secondFrameShown() && doc_->hasCase() && !doc_->data()->frame2.empty()) {
     // The second frame, its outline sketched over it; the organ is not drawn (the motion to it is the fit's).
-    view_->setFrame(frameToQImage(doc_->data()->frame2));
+    view_->setFrame(doc_->secondFrameImage());
     view_->setOverlay(QImage(), {});
     view_->setInnerOverlay(QImage());
     status_.viewMode->setText(tr("Second frame"));
@@ -281,7 +281,8 @@ void MainWindow::setViewMode(ViewMode mode) {
 
 void MainWindow::refreshOverlay() {
   const auto& c = doc_->data();
-  picture_ = c ? overlay_->render(*c, pages_.mesh->shownInnerLabels()) : OverlayPicture{};
+  // (not drawn over the second frame: not rendered while it is shown; shown again, the first frame renders it)
+  picture_ = c && !view_->secondFrameShown() ? overlay_->render(*c, pages_.mesh->shownInnerLabels()) : OverlayPicture{};
   showFrameLayer();
   if (view_->secondFrameShown()) {
     // (the first frame's distance does not describe the second frame's outline: no organ is placed there yet)

@@ -72,6 +72,7 @@ class CaseDocument : public QObject {
   QStringList notes() const { return notes_; }
   double loadSeconds() const { return loadSeconds_; }
   QImage frameImage() const { return frameImage_; }
+  QImage secondFrameImage() const { return secondFrameImage_; }  ///< Case::frame2, converted once per change
   QString qualityText() const { return qualityText_; }
 
   static QString autosavePath();
@@ -104,6 +105,7 @@ class CaseDocument : public QObject {
   QStringList notes_;
   double loadSeconds_ = 0;
   QImage frameImage_;
+  QImage secondFrameImage_;
   QString qualityText_;
   std::atomic<bool> cancel_{false};
   QFutureWatcher<LoadedCase> loadWatcher_;
