@@ -151,24 +151,35 @@ bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, do
   if (m == 0) return true;
   const Eigen::Index n3 = dx.size();
   if (!schurValid_ || W_.rows() != m || Ht_.rows() != n3 || schurFactor_ != &factor ||
-      schurFactorisations_ != factor.factorisations()) {
+      schurFactorisations_ != factor.factorisations() || schurDirect_ != directColumns) {
     if (Ht_.rows() != n3 || Ht_.cols() != m) Ht_.resize(n3, m);
     if (A_.rows() != n3 || A_.cols() != m) A_.resize(n3, m);
     Ht_.setZero();
     A_.setZero();
-    // A^-1 H^T by columns from the nodes' compliance blocks A^-1 [e_x e_y e_z] (each solved once per factor, alone:
-    // the same bits whenever it is solved): a contact row that slides over the same triangles, or a grasp row whose
-    // value changes, needs no new solve. A multi-column solve per step and contact set was most of a touching step's
-    // time (57 % of the samples on BodyParts3D's liver at 17k tets; issue 34).
-    if (!compliance_.prepare(factor, constraints_, fixed_)) return false;
     for (Eigen::Index i = 0; i < m; ++i) {
       const auto& c = constraints_[static_cast<std::size_t>(i)];
       for (int k = 0; k < 4; ++k) {
         const int node = c.nodes[k];
         if (node < 0 || fixed_[static_cast<std::size_t>(node)]) continue;
-        const Eigen::Vector3d wd = c.weights[k] * c.direction;
-        Ht_.col(i).segment<3>(3 * node) += wd;
-        A_.col(i).noalias() += compliance_.block(node) * wd;
+        Ht_.col(i).segment<3>(3 * node) += c.weights[k] * c.direction;
+      }
+    }
+    if (directColumns) {
+      // A^-1 H^T in one solve of H^T's m columns (see directColumns).
+      if (!factor.solve(Ht_, A_)) return false;
+    } else {
+      // A^-1 H^T by columns from the nodes' compliance blocks A^-1 [e_x e_y e_z] (each solved once per factor, alone:
+      // the same bits whenever it is solved): a contact row that slides over the same triangles, or a grasp row whose
+      // value changes, needs no new solve. A multi-column solve per step and contact set was most of a touching
+      // step's time (57 % of the samples on BodyParts3D's liver at 17k tets; issue 34).
+      if (!compliance_.prepare(factor, constraints_, fixed_)) return false;
+      for (Eigen::Index i = 0; i < m; ++i) {
+        const auto& c = constraints_[static_cast<std::size_t>(i)];
+        for (int k = 0; k < 4; ++k) {
+          const int node = c.nodes[k];
+          if (node < 0 || fixed_[static_cast<std::size_t>(node)]) continue;
+          A_.col(i).noalias() += compliance_.block(node) * (c.weights[k] * c.direction);
+        }
       }
     }
     if (W_.rows() != m) W_.resize(m, m);
@@ -177,6 +188,7 @@ bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, do
     for (Eigen::Index i = 0; i < m; ++i)  // symmetric up to round-off: made exactly so, in place
       for (Eigen::Index j = i + 1; j < m; ++j) W_(i, j) = W_(j, i) = 0.5 * (W_(i, j) + W_(j, i));
     schurValid_ = true;
+    schurDirect_ = directColumns;
     schurFactor_ = &factor;
     schurFactorisations_ = factor.factorisations();
     WfactorValid_ = false;

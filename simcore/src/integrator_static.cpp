@@ -18,6 +18,13 @@ using namespace detail;
 StepReport Integrator::solveStatic(SimulationState& state, const Eigen::VectorXd& extra) {
   const auto t0 = std::chrono::steady_clock::now();
   Work& w = *w_;
+  // A static solve's factor changes between solves (each rebinding of a registration, each fresh tangent): the rows'
+  // compliance in one solve of their columns, not node by node (ConstraintSolver::directColumns); steps keep theirs.
+  struct Direct {
+    ConstraintSolver& cons;
+    explicit Direct(ConstraintSolver& c) : cons(c) { cons.directColumns = true; }
+    ~Direct() { cons.directColumns = false; }
+  } direct(w.cons);
   StepReport rep;
   if (const std::string problem = settingsProblem(settings_, !constraints_.empty()); !problem.empty()) {
     rep.status = "refused: " + problem;

@@ -66,19 +66,13 @@ void dropOutliers(std::vector<Binding>& bindings, double factor, double floorPx)
 std::vector<Binding> bindForRigid(const std::vector<Sample>& samples, const std::vector<SilhouetteEdge>& sil,
                                   const RegistrationOptions& o) {
   std::vector<Binding> out;
+  const SilhouetteGrid grid(sil);
   for (const auto& s : samples) {
-    double best = std::numeric_limits<double>::infinity();
-    Binding b{-1, -1, 0, s.pixel, 0};
-    for (const auto& e : sil) {
-      if (s.normal.squaredNorm() > 0 && std::abs(s.normal.dot(e.normal)) < o.normalDot) continue;
-      double d;
-      const double t = e.nearest(s.pixel, &d);
-      if (d < best) {
-        best = d;
-        b = {e.a, e.b, t, s.pixel, d, e.normal, e.bulge};
-      }
-    }
-    if (b.a >= 0) out.push_back(b);
+    double d, t;
+    const int i = grid.nearest(s.pixel, s.normal, o.normalDot, d, t);
+    if (i < 0) continue;
+    const SilhouetteEdge& e = sil[static_cast<std::size_t>(i)];
+    out.push_back({e.a, e.b, t, s.pixel, d, e.normal, e.bulge});
   }
   dropOutliers(out, o.outlierFactor, 4.0);
   return out;
@@ -618,6 +612,7 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     SimulationSettings linear = settings;
     linear.gravity.setZero();
     if (linear.staticStepTolerance <= 0) linear.staticStepTolerance = 1e-9;
+    linear.staticChord = true;  // (linear: the first axis's factor serves the others)
     Integrator responses(model, fixedNodes, linear);
     const double small = 0.01;  // m/s^2: a sag of micrometres, where the model is linear
     Eigen::MatrixXd basis(rest.size(), 3);
@@ -1163,9 +1158,11 @@ RegistrationResult registerToContour(const FemModel& model, const std::vector<in
     const double nearPx = std::max(8.0, 0.01 * diag);
     const Silhouettes& sils = silhouette(res.x, res.pose);
     std::size_t near = 0, all = 0;
-    for (std::size_t v = 0; v < views.size(); ++v)
+    for (std::size_t v = 0; v < views.size(); ++v) {
+      const SilhouetteGrid grid(sils[v]);
       for (const auto& seg : *contours[v])
-        for (const auto& p : seg) near += distanceToSilhouette(sils[v], p) <= nearPx, ++all;
+        for (const auto& p : seg) near += grid.distance(p) <= nearPx, ++all;
+    }
     const double share = static_cast<double>(near) / static_cast<double>(all);
     if (share < 0.5) {
       res.ok = false;

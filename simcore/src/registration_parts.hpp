@@ -19,8 +19,26 @@ void checkCamera(const Pinhole& c);
 std::string pixels(double px);
 // Closest point of segment [a, b] to p: returns the parameter in [0, 1].
 double closestParameter(const Eigen::Vector2d& a, const Eigen::Vector2d& b, const Eigen::Vector2d& p);
-// Distance from p to the nearest silhouette edge (px).
-double distanceToSilhouette(const std::vector<SilhouetteEdge>& silhouette, const Eigen::Vector2d& p);
+// The silhouette's edges on a uniform grid of their boxes, for nearest-edge queries: the same answer as trying every
+// edge (the nearest, the first in the silhouette's order among equally near ones), in time that grows with the
+// distance searched rather than the number of edges (a fit asks for every contour point, hundreds of times).
+class SilhouetteGrid {
+ public:
+  explicit SilhouetteGrid(const std::vector<SilhouetteEdge>& edges);
+  // The nearest edge whose normal is within `minDot` of `normal` (|dot| >= minDot; any edge when `normal` is zero):
+  // its index (-1: none), its distance (px) and the nearest point's parameter along it (SilhouetteEdge::nearest).
+  int nearest(const Eigen::Vector2d& p, const Eigen::Vector2d& normal, double minDot, double& distance,
+              double& t) const;
+  double distance(const Eigen::Vector2d& p) const;
+  const std::vector<SilhouetteEdge>& edges() const { return edges_; }
+
+ private:
+  const std::vector<SilhouetteEdge>& edges_;
+  Eigen::Vector2d origin_ = Eigen::Vector2d::Zero();
+  double cell_ = 1;
+  int nx_ = 0, ny_ = 0;
+  std::vector<int> start_, items_;  // the edges in each cell (row-major), compressed
+};
 
 // Mean, RMS and largest of a run of distances.
 struct ResidualSum {

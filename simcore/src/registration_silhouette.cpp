@@ -4,6 +4,7 @@
 #include "registration_parts.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -37,15 +38,87 @@ double closestParameter(const Eigen::Vector2d& a, const Eigen::Vector2d& b, cons
   return l2 > 0 ? std::clamp((p - a).dot(d) / l2, 0.0, 1.0) : 0.0;
 }
 
-// Distance from p to the nearest silhouette edge (px).
-double distanceToSilhouette(const std::vector<SilhouetteEdge>& silhouette, const Eigen::Vector2d& p) {
-  double best = std::numeric_limits<double>::infinity();
-  for (const auto& e : silhouette) {
+SilhouetteGrid::SilhouetteGrid(const std::vector<SilhouetteEdge>& edges) : edges_(edges) {
+  if (edges.empty()) return;
+  Eigen::Vector2d lo = edges[0].pa, hi = edges[0].pa;
+  for (const auto& e : edges)
+    for (const Eigen::Vector2d& q : {e.pa, e.pm, e.pb}) {
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+  if (!lo.allFinite() || !hi.allFinite()) return;  // (no grid: every query tries every edge)
+  // About one edge per cell, at least a pixel wide, at most 256 cells a side.
+  const Eigen::Vector2d extent = (hi - lo).cwiseMax(1.0);
+  cell_ = std::max({1.0, std::sqrt(extent.prod() / static_cast<double>(edges.size())), extent.maxCoeff() / 256});
+  nx_ = static_cast<int>(extent.x() / cell_) + 1;
+  ny_ = static_cast<int>(extent.y() / cell_) + 1;
+  origin_ = lo;
+  std::vector<std::array<int, 4>> boxes(edges.size());
+  start_.assign(static_cast<std::size_t>(nx_) * ny_ + 1, 0);
+  for (std::size_t i = 0; i < edges.size(); ++i) {
+    const auto& e = edges[i];
+    const Eigen::Vector2d a = (e.pa.cwiseMin(e.pm).cwiseMin(e.pb) - origin_) / cell_,
+                          b = (e.pa.cwiseMax(e.pm).cwiseMax(e.pb) - origin_) / cell_;
+    boxes[i] = {std::clamp(static_cast<int>(a.x()), 0, nx_ - 1), std::clamp(static_cast<int>(a.y()), 0, ny_ - 1),
+                std::clamp(static_cast<int>(b.x()), 0, nx_ - 1), std::clamp(static_cast<int>(b.y()), 0, ny_ - 1)};
+    for (int y = boxes[i][1]; y <= boxes[i][3]; ++y)
+      for (int x = boxes[i][0]; x <= boxes[i][2]; ++x) ++start_[static_cast<std::size_t>(y) * nx_ + x + 1];
+  }
+  for (std::size_t c = 1; c < start_.size(); ++c) start_[c] += start_[c - 1];
+  items_.resize(static_cast<std::size_t>(start_.back()));
+  std::vector<int> fill(start_.begin(), start_.end() - 1);
+  for (std::size_t i = 0; i < edges.size(); ++i)
+    for (int y = boxes[i][1]; y <= boxes[i][3]; ++y)
+      for (int x = boxes[i][0]; x <= boxes[i][2]; ++x)
+        items_[static_cast<std::size_t>(fill[static_cast<std::size_t>(y) * nx_ + x]++)] = static_cast<int>(i);
+}
+
+int SilhouetteGrid::nearest(const Eigen::Vector2d& p, const Eigen::Vector2d& normal, double minDot, double& distance,
+                            double& t) const {
+  distance = std::numeric_limits<double>::infinity();
+  t = 0;
+  int best = -1;
+  const bool any = normal.squaredNorm() == 0;
+  auto tryEdge = [&](int i) {
+    const auto& e = edges_[static_cast<std::size_t>(i)];
+    if (!any && std::abs(normal.dot(e.normal)) < minDot) return;
     double d;
-    e.nearest(p, &d);
-    best = std::min(best, d);
+    const double s = e.nearest(p, &d);
+    if (d < distance || (d == distance && i < best)) distance = d, t = s, best = i;
+  };
+  if (nx_ == 0 || !p.allFinite()) {
+    for (std::size_t i = 0; i < edges_.size(); ++i) tryEdge(static_cast<int>(i));
+    return best;
+  }
+  // Rings of cells around p's (clamped into the grid): a cell r rings out is at least (r - 1) cells from p, so the
+  // search stops once the nearest found is nearer than that.
+  const Eigen::Vector2d q = (p - origin_) / cell_;
+  const int cx =
+                std::clamp(static_cast<int>(std::floor(std::clamp(q.x(), -1.0, static_cast<double>(nx_)))), 0, nx_ - 1),
+            cy =
+                std::clamp(static_cast<int>(std::floor(std::clamp(q.y(), -1.0, static_cast<double>(ny_)))), 0, ny_ - 1);
+  const int rings = std::max({cx, nx_ - 1 - cx, cy, ny_ - 1 - cy});
+  auto visit = [&](int x, int y) {
+    if (x < 0 || y < 0 || x >= nx_ || y >= ny_) return;
+    const std::size_t c = static_cast<std::size_t>(y) * nx_ + x;
+    for (int k = start_[c]; k < start_[c + 1]; ++k) tryEdge(items_[static_cast<std::size_t>(k)]);
+  };
+  for (int r = 0; r <= rings; ++r) {
+    if (distance < (r - 1) * cell_) break;
+    if (r == 0) {
+      visit(cx, cy);
+      continue;
+    }
+    for (int x = cx - r; x <= cx + r; ++x) visit(x, cy - r), visit(x, cy + r);
+    for (int y = cy - r + 1; y <= cy + r - 1; ++y) visit(cx - r, y), visit(cx + r, y);
   }
   return best;
+}
+
+double SilhouetteGrid::distance(const Eigen::Vector2d& p) const {
+  double d, t;
+  nearest(p, Eigen::Vector2d::Zero(), 0, d, t);
+  return d;
 }
 
 Foot nearestOnPolyline(const std::vector<Eigen::Vector2d>& line, const Eigen::Vector2d& p) {
@@ -77,6 +150,38 @@ double SilhouetteEdge::nearest(const Eigen::Vector2d& p, double* distance) const
   if (distance) *distance = std::min(d0, d1);
   return d0 <= d1 ? 0.5 * s0 : 0.5 + 0.5 * s1;
 }
+
+namespace {
+
+// A surface's edges (low node, high node) in order with their first two faces (-1: none), from the triangles:
+// (low node, high node, face) sorted, so the two faces of an edge are neighbours. Kept per thread for the last surface
+// asked about (a fit asks hundreds of times for the same one; comparing the triangles costs far less than sorting).
+const std::vector<std::array<int, 4>>& edgeFaces(const std::vector<std::array<int, 3>>& triangles) {
+  thread_local std::vector<std::array<int, 3>> cachedTriangles;
+  thread_local std::vector<std::array<int, 4>> cached;
+  thread_local bool valid = false;
+  if (valid && cachedTriangles == triangles) return cached;
+  std::vector<std::array<int, 3>> halfEdges;
+  halfEdges.reserve(3 * triangles.size());
+  for (std::size_t f = 0; f < triangles.size(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = triangles[f][k], b = triangles[f][(k + 1) % 3];
+      halfEdges.push_back({std::min(a, b), std::max(a, b), static_cast<int>(f)});
+    }
+  std::sort(halfEdges.begin(), halfEdges.end());
+  cached.clear();
+  for (std::size_t i = 0; i < halfEdges.size();) {
+    std::size_t j = i + 1;
+    while (j < halfEdges.size() && halfEdges[j][0] == halfEdges[i][0] && halfEdges[j][1] == halfEdges[i][1]) ++j;
+    cached.push_back({halfEdges[i][0], halfEdges[i][1], halfEdges[i][2], j - i >= 2 ? halfEdges[i + 1][2] : -1});
+    i = j;
+  }
+  cachedTriangles = triangles;
+  valid = true;
+  return cached;
+}
+
+}  // namespace
 
 std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 3>>& triangles,
                                               const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera) {
@@ -115,34 +220,76 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
     front[f] = (pc[t[1]] - pc[t[0]]).cross(pc[t[2]] - pc[t[0]]).dot(pc[t[0]]) < 0;
   }
   // Depth buffer at up to 800 pixels across (it only decides which vertices are hidden; the silhouette's
-  // edges are the exact projected mesh edges): the nearest depth per pixel.
+  // edges are the exact projected mesh edges): the nearest surface's inverse depth per pixel (affine in the image, so
+  // interpolated exactly along a row; 0: nothing drawn). Only the box the front faces cover is cleared (kept per
+  // thread: a fit asks hundreds of times).
   const double scale = std::min(1.0, 800.0 / std::max(camera.width, camera.height));
   const int W = std::max(1, static_cast<int>(camera.width * scale)),
             H = std::max(1, static_cast<int>(camera.height * scale));
-  std::vector<float> depth(static_cast<std::size_t>(W) * H, std::numeric_limits<float>::infinity());
+  int bx0 = W, bx1 = -1, by0 = H, by1 = -1;  // the box drawn into
+  for (std::size_t f = 0; f < triangles.size(); ++f) {
+    if (!front[f]) continue;
+    for (int v : triangles[f]) {
+      const Eigen::Vector2d q = pix[v] * scale;
+      bx0 = std::min(bx0, static_cast<int>(std::max(0.0, std::floor(q.x()))));
+      bx1 = std::max(bx1, static_cast<int>(std::min(W - 1.0, std::ceil(q.x()))));
+      by0 = std::min(by0, static_cast<int>(std::max(0.0, std::floor(q.y()))));
+      by1 = std::max(by1, static_cast<int>(std::min(H - 1.0, std::ceil(q.y()))));
+    }
+  }
+  thread_local std::vector<float> inverseDepth;
+  inverseDepth.resize(static_cast<std::size_t>(W) * H);
+  for (int y = by0; y <= by1; ++y)
+    std::fill_n(inverseDepth.begin() + static_cast<std::ptrdiff_t>(y) * W + bx0, std::max(0, bx1 - bx0 + 1), 0.0f);
   for (std::size_t f = 0; f < triangles.size(); ++f) {
     if (!front[f]) continue;
     const auto& t = triangles[f];
-    const Eigen::Vector2d a = pix[t[0]] * scale, b = pix[t[1]] * scale, c = pix[t[2]] * scale;
+    const Eigen::Vector2d corner[3] = {pix[t[0]] * scale, pix[t[1]] * scale, pix[t[2]] * scale};
+    const Eigen::Vector2d &a = corner[0], &b = corner[1], &c = corner[2];
     const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
     if (std::abs(area) < 1e-12) continue;
     const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a.x(), b.x(), c.x()})))),
               x1 = std::min(W - 1, static_cast<int>(std::ceil(std::max({a.x(), b.x(), c.x()})))),
               y0 = std::max(0, static_cast<int>(std::floor(std::min({a.y(), b.y(), c.y()})))),
               y1 = std::min(H - 1, static_cast<int>(std::ceil(std::max({a.y(), b.y(), c.y()}))));
-    const double iz[3] = {1 / pc[t[0]].z(), 1 / pc[t[1]].z(), 1 / pc[t[2]].z()};
-    for (int py = y0; py <= y1; ++py)
-      for (int px = x0; px <= x1; ++px) {
-        const Eigen::Vector2d p(px + 0.5, py + 0.5);
-        const double w0 = ((b - p).x() * (c - p).y() - (b - p).y() * (c - p).x()) / area;
-        const double w1 = ((c - p).x() * (a - p).y() - (c - p).y() * (a - p).x()) / area;
-        const double w2 = 1 - w0 - w1;
-        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-        const float z = static_cast<float>(1 / (w0 * iz[0] + w1 * iz[1] + w2 * iz[2]));  // perspective-correct
-        float& d = depth[static_cast<std::size_t>(py) * W + px];
-        d = std::min(d, z);
+    // The barycentric weights at pixel centre (X, Y): w_k = (e0 + ex X + ey Y) / area for the corners u, v after k;
+    // the inverse depth the same weights' mix of the corners' (exact under perspective).
+    double e0[3], ex[3], ey[3];
+    double iz0 = 0, izx = 0, izy = 0;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector2d &u = corner[(k + 1) % 3], &v = corner[(k + 2) % 3];
+      // (u.x - X)(v.y - Y) - (u.y - Y)(v.x - X)
+      e0[k] = (u.x() * v.y() - u.y() * v.x()) / area;
+      ex[k] = (u.y() - v.y()) / area;
+      ey[k] = (v.x() - u.x()) / area;
+      const double iz = 1 / pc[t[k]].z();
+      iz0 += e0[k] * iz, izx += ex[k] * iz, izy += ey[k] * iz;
+    }
+    for (int py = y0; py <= y1; ++py) {
+      const double Y = py + 0.5;
+      // The row's span inside the triangle: every weight >= 0 at the pixel centre px + 0.5.
+      double from = x0, to = x1;
+      for (int k = 0; k < 3; ++k) {
+        const double offset = e0[k] + ey[k] * Y, slope = ex[k];
+        if (slope > 0)
+          from = std::max(from, std::ceil(-offset / slope - 0.5));
+        else if (slope < 0)
+          to = std::min(to, std::floor(-offset / slope - 0.5));
+        else if (offset < 0)
+          from = to + 1;
       }
+      if (!(from <= to)) continue;
+      float* row = inverseDepth.data() + static_cast<std::ptrdiff_t>(py) * W;
+      const double rowIz = iz0 + izy * Y + izx * 0.5;
+      for (int px = static_cast<int>(from), last = static_cast<int>(to); px <= last; ++px)
+        row[px] = std::max(row[px], static_cast<float>(rowIz + izx * px));
+    }
   }
+  auto depthAt = [&](int x, int y) {  // the nearest surface's depth there (infinite: nothing drawn)
+    if (x < bx0 || x > bx1 || y < by0 || y > by1) return std::numeric_limits<double>::infinity();
+    const float iz = inverseDepth[static_cast<std::size_t>(y) * W + x];
+    return iz > 0 ? 1.0 / iz : std::numeric_limits<double>::infinity();
+  };
   // A vertex is visible unless a nearer surface covers all of its 3x3 pixel neighbourhood.
   std::vector<char> visible(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
@@ -155,7 +302,7 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
       for (int dx = -1; dx <= 1 && !vis; ++dx) {
         const int qx = px + dx, qy = py + dy;
         if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
-        vis = depth[static_cast<std::size_t>(qy) * W + qx] >= pc[i].z() - eps;
+        vis = depthAt(qx, qy) >= pc[i].z() - eps;
       }
     visible[i] = vis;
   }
@@ -165,23 +312,9 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
     const auto& t = triangles[f];
     faceVisible[f] = front[f] && visible[t[0]] && visible[t[1]] && visible[t[2]];
   }
-  // Silhouette: edges between a visible face and a non-visible one (or no other face). Edges as (low
-  // node, high node, face), sorted so the two faces of an edge are neighbours.
-  std::vector<std::array<int, 3>> halfEdges;
-  halfEdges.reserve(3 * triangles.size());
-  for (std::size_t f = 0; f < triangles.size(); ++f)
-    for (int k = 0; k < 3; ++k) {
-      const int a = triangles[f][k], b = triangles[f][(k + 1) % 3];
-      halfEdges.push_back({std::min(a, b), std::max(a, b), static_cast<int>(f)});
-    }
-  std::sort(halfEdges.begin(), halfEdges.end());
+  // Silhouette: edges between a visible face and a non-visible one (or no other face).
   std::vector<SilhouetteEdge> out;
-  for (std::size_t i = 0; i < halfEdges.size();) {
-    std::size_t j = i + 1;
-    while (j < halfEdges.size() && halfEdges[j][0] == halfEdges[i][0] && halfEdges[j][1] == halfEdges[i][1]) ++j;
-    const int f0 = halfEdges[i][2], f1 = j - i >= 2 ? halfEdges[i + 1][2] : -1;
-    const int edgeA = halfEdges[i][0], edgeB = halfEdges[i][1];
-    i = j;
+  for (const auto& [edgeA, edgeB, f0, f1] : edgeFaces(triangles)) {
     const bool v0 = faceVisible[f0], v1 = f1 >= 0 && faceVisible[f1];
     if (v0 == v1) continue;
     const int vf = v0 ? f0 : f1;
@@ -215,8 +348,9 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
 Residual2D contourResidual(const std::vector<std::vector<Eigen::Vector2d>>& contour,
                            const std::vector<SilhouetteEdge>& silhouette) {
   ResidualSum sum;
+  const SilhouetteGrid grid(silhouette);
   for (const auto& seg : contour)
-    for (const auto& p : seg) sum.add(distanceToSilhouette(silhouette, p));
+    for (const auto& p : seg) sum.add(grid.distance(p));
   return sum.result();
 }
 

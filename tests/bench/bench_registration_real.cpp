@@ -540,9 +540,13 @@ int main(int argc, char** argv) {
           RegistrationResult r;
           double rigidError = -1;
           const auto fitStart = std::chrono::steady_clock::now();
+          static const bool trace = std::getenv("REHEARSE_BENCH_TRACE") != nullptr;  // each iteration's stage and time
           try {
             r = app::runElasticFit(in, [&](const RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
               if (it.stage != "elastic") rigidError = markerError(x, pose).surface;  // the last before the elastic stage
+              if (trace)
+                std::fprintf(stderr, "  %-8s %3d %8.1f ms %6.2f px\n", it.stage.c_str(), it.iteration, it.wallMs,
+                             it.score());
               if (fraction == 1.0) {
                 ps.x.push_back(std::max(it.wallMs, 1.0));
                 ps.y.push_back(markerError(x, pose).surface);

@@ -73,40 +73,44 @@ class TestConstraintSolver : public QObject {
     }
     std::vector<ScalarConstraint> cs = {constraintOn({0}, {1, 0, 0}, 0.02), constraintOn({5, 6}, {0, 1, 1}, -0.01),
                                         constraintOn({12, 20, 30}, {1, 2, 3}, 0.005), constraintOn({39}, {0, 0, 1}, 0.03)};
-    for (const double s : {1.0, 0.01}) {
-      ConstraintSolver solver;
-      solver.setConstraints(cs, std::vector<char>(n, 0));
-      CholmodSolver chol;
-      QVERIFY(chol.factorise(A));
-      Eigen::VectorXd dx;
-      QVERIFY(chol.solve(rhs, dx));
-      int sweeps = 0;
-      QVERIFY(solver.solve(chol, x, s, dx, sweeps));
-      // Reference: the dense KKT system.
-      const Eigen::Index m = static_cast<Eigen::Index>(cs.size());
-      Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3 * n + m, 3 * n + m);
-      K.topLeftCorner(3 * n, 3 * n) = Eigen::MatrixXd(A);
-      Eigen::VectorXd f(3 * n + m);
-      f.head(3 * n) = rhs;
-      for (Eigen::Index i = 0; i < m; ++i) {
-        const auto& c = cs[static_cast<std::size_t>(i)];
-        for (int k = 0; k < 4; ++k)
-          if (c.nodes[k] >= 0)
-            for (int d = 0; d < 3; ++d) {
-              K(3 * n + i, 3 * c.nodes[k] + d) += c.weights[k] * c.direction[d];
-              K(3 * c.nodes[k] + d, 3 * n + i) -= c.weights[k] * c.direction[d];
-            }
-        f[3 * n + i] = (c.value - row(c, x)) / s;
+    // Either way of making A^-1 H^T: the nodes' compliance blocks (steps), one solve of H^T's columns (static solves).
+    for (const bool direct : {false, true})
+      for (const double s : {1.0, 0.01}) {
+        ConstraintSolver solver;
+        solver.directColumns = direct;
+        solver.setConstraints(cs, std::vector<char>(n, 0));
+        CholmodSolver chol;
+        QVERIFY(chol.factorise(A));
+        Eigen::VectorXd dx;
+        QVERIFY(chol.solve(rhs, dx));
+        int sweeps = 0;
+        QVERIFY(solver.solve(chol, x, s, dx, sweeps));
+        // Reference: the dense KKT system.
+        const Eigen::Index m = static_cast<Eigen::Index>(cs.size());
+        Eigen::MatrixXd K = Eigen::MatrixXd::Zero(3 * n + m, 3 * n + m);
+        K.topLeftCorner(3 * n, 3 * n) = Eigen::MatrixXd(A);
+        Eigen::VectorXd f(3 * n + m);
+        f.head(3 * n) = rhs;
+        for (Eigen::Index i = 0; i < m; ++i) {
+          const auto& c = cs[static_cast<std::size_t>(i)];
+          for (int k = 0; k < 4; ++k)
+            if (c.nodes[k] >= 0)
+              for (int d = 0; d < 3; ++d) {
+                K(3 * n + i, 3 * c.nodes[k] + d) += c.weights[k] * c.direction[d];
+                K(3 * c.nodes[k] + d, 3 * n + i) -= c.weights[k] * c.direction[d];
+              }
+          f[3 * n + i] = (c.value - row(c, x)) / s;
+        }
+        const Eigen::VectorXd ref = K.fullPivLu().solve(f);
+        const double dxErr = (dx - ref.head(3 * n)).norm() / ref.head(3 * n).norm();
+        const double muErr = (solver.multipliers() - ref.tail(m)).norm() / ref.tail(m).norm();
+        qInfo(
+            "%s, s = %g: dx %.2e, multipliers %.2e from the dense KKT solve; %d Gauss-Seidel sweeps; violation %.2e m",
+            direct ? "H^T's columns" : "node blocks", s, dxErr, muErr, sweeps, solver.violation(x + s * dx));
+        QVERIFY(dxErr < 1e-8);
+        QVERIFY(muErr < 1e-8);
+        QVERIFY(solver.violation(x + s * dx) < 1e-10);
       }
-      const Eigen::VectorXd ref = K.fullPivLu().solve(f);
-      const double dxErr = (dx - ref.head(3 * n)).norm() / ref.head(3 * n).norm();
-      const double muErr = (solver.multipliers() - ref.tail(m)).norm() / ref.tail(m).norm();
-      qInfo("s = %g: dx %.2e, multipliers %.2e from the dense KKT solve; %d Gauss-Seidel sweeps; violation %.2e m", s, dxErr, muErr,
-            sweeps, solver.violation(x + s * dx));
-      QVERIFY(dxErr < 1e-8);
-      QVERIFY(muErr < 1e-8);
-      QVERIFY(solver.violation(x + s * dx) < 1e-10);
-    }
   }
 
   // A grasp pulled along: the same rows with new values keep W (no multi-column solve per step, issue 34). One solver
@@ -164,14 +168,20 @@ class TestConstraintSolver : public QObject {
     Eigen::VectorXd dx;
     QVERIFY(chol.solve(rhs, dx));
     dx.segment<3>(9).setZero();
+    const Eigen::VectorXd free = dx;
+    for (const bool direct : {false, true}) {
+      dx = free;
+      ConstraintSolver solver;
+      solver.directColumns = direct;
+      solver.setConstraints(cs, fixed);
+      int sweeps = 0;
+      QVERIFY(solver.solve(chol, x, 1.0, dx, sweeps));
+      QVERIFY(dx.allFinite());
+      QVERIFY(dx.segment<3>(9).norm() == 0);  // the fixed node took no constraint force
+      QVERIFY(std::abs(row(cs[0], dx) - 0.1) < 1e-10);
+      QVERIFY(std::abs(row(cs[2], dx) - 0.05) < 1e-10);  // held by node 4 alone (node 3 does not move)
+    }
     ConstraintSolver solver;
-    solver.setConstraints(cs, fixed);
-    int sweeps = 0;
-    QVERIFY(solver.solve(chol, x, 1.0, dx, sweeps));
-    QVERIFY(dx.allFinite());
-    QVERIFY(dx.segment<3>(9).norm() == 0);  // the fixed node took no constraint force
-    QVERIFY(std::abs(row(cs[0], dx) - 0.1) < 1e-10);
-    QVERIFY(std::abs(row(cs[2], dx) - 0.05) < 1e-10);  // held by node 4 alone (node 3 does not move)
     // A bad constraint is refused with a sentence.
     QVERIFY_THROWS_EXCEPTION(MeshError, solver.setConstraints({constraintOn({n + 5}, {1, 0, 0}, 0)}, fixed));
   }

@@ -212,6 +212,52 @@ class TestRegistration : public QObject {
     QVERIFY(toCurved.mean < 0.8 * toChords.mean);
   }
 
+  // The contour's distances to the silhouette come from a grid of its edges (a fit asks hundreds of times): the same
+  // numbers, bit for bit, as trying every edge, for points on the outline, scattered over and far outside the image,
+  // on a pixel lattice (cell borders), and for a silhouette of a single edge.
+  void silhouetteDistancesMatchEveryEdge() {
+    const FemModel m = organModel(c_);
+    const auto sil = visibleSilhouette(c_.surface, m.restVector(), c_.truePose, c_.camera.pinhole());
+    std::vector<std::vector<Eigen::Vector2d>> sets{outline(c_, c_.truePose, c_.surfaceView())};
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> u(-0.5, 1.5);
+    const double w = c_.camera.width, h = c_.camera.height;
+    std::vector<Eigen::Vector2d> scattered, far, lattice;
+    for (int i = 0; i < 3000; ++i) scattered.emplace_back(u(rng) * w, u(rng) * h);
+    for (const Eigen::Vector2d& p : {Eigen::Vector2d(-5000, -5000), Eigen::Vector2d(1e5, 3), Eigen::Vector2d(3, -1e5),
+                                     Eigen::Vector2d(0.5 * w, 0.5 * h)})
+      far.push_back(p);
+    for (int y = 0; y < h; y += 7)
+      for (int x = 0; x < w; x += 7) lattice.emplace_back(x, y);
+    sets.push_back(scattered);
+    sets.push_back(far);
+    sets.push_back(lattice);
+    auto everyEdge = [](const std::vector<Eigen::Vector2d>& points, const std::vector<SilhouetteEdge>& edges) {
+      double sum = 0, sum2 = 0, largest = 0;
+      for (const auto& p : points) {
+        double best = std::numeric_limits<double>::infinity();
+        for (const auto& e : edges) {
+          double d;
+          e.nearest(p, &d);
+          best = std::min(best, d);
+        }
+        sum += best, sum2 += best * best, largest = std::max(largest, best);
+      }
+      const double n = static_cast<double>(points.size());
+      return Eigen::Vector3d(sum / n, std::sqrt(sum2 / n), largest);
+    };
+    const std::vector<SilhouetteEdge> one{sil.front()};
+    for (const auto* edges : {&sil, &one})
+      for (const auto& points : sets) {
+        const Residual2D r = contourResidual({points}, *edges);
+        const Eigen::Vector3d ref = everyEdge(points, *edges);
+        QCOMPARE(r.points, points.size());
+        QVERIFY(r.mean == ref[0] && r.rms == ref[1] && r.hausdorff == ref[2]);
+      }
+    qInfo("%zu edges; %zu outline, %zu scattered, %zu far and %zu lattice points: the same distances as every edge",
+          sil.size(), sets[0].size(), scattered.size(), far.size(), lattice.size());
+  }
+
   // Against an analytic outline: a sphere of radius r at distance d on the optical axis projects to a
   // circle of radius f r / sqrt(d^2 - r^2). An icosphere's silhouette chords cut inside it; the bent
   // edges' middles lie near it.

@@ -100,6 +100,11 @@ class ConstraintSolver {
   /// Active-set iterations of the last solve (0 when Gauss-Seidel settled it alone).
   int activeSetIterations() const { return activeSetIterations_; }
   double gaussSeidelTolerance = 1e-10;  ///< relative change of the multipliers
+  /// A^-1 H^T from one solve of H^T's m columns instead of the nodes' cached compliance blocks (3 columns a node, each
+  /// solved alone): right where the factor changes between solves and nothing is reused (static solves: a rebinding
+  /// registration's 97 rows on 97 nodes took 291 single-node columns in 97 calls, 0.5 s of a 1 s fit), and where every
+  /// row has a node of its own. Deterministic either way (the result depends on the rows and the factor only).
+  bool directColumns = false;
   std::size_t memoryBytes() const {
     return sizeof(double) * static_cast<std::size_t>(Ht_.size() + A_.size() + W_.size()) + compliance_.memoryBytes();
   }
@@ -127,6 +132,7 @@ class ConstraintSolver {
   Eigen::VectorXd fixedT_, fixedY_;
   bool activeSet();
   NodeCompliance compliance_;  // the blocks of the rows' nodes, for the factor of the last solve
+  bool schurDirect_ = false;
   bool schurValid_ = false;  // A_ and W_ belong to the current factor and constraints
   // The factor they were computed with, and its factorisation count then (a belt to invalidate()'s braces).
   const CholmodSolver* schurFactor_ = nullptr;
