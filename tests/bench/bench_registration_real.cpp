@@ -17,7 +17,8 @@
 // --ridge: every contour also carries an anatomical curve (issue 38): the shortest path over the fit mesh's surface
 // between the two visible front nodes farthest apart in the image (at least 40 px inside the outline), drawn where
 // CalculiX's deformed organ puts it (each node moved as its nearest fine surface node), +-2 px noise.
-// The fine meshes and CalculiX's answers are cached in OUT_DIR (delete them to recompute).
+// The fine meshes and CalculiX's answers are cached in OUT_DIR (delete them to recompute). REHEARSE_BENCH_TRACE=1
+// prints every iteration's stage, time and distance (stderr); REHEARSE_BENCH_ONE_START=1 runs the first start only.
 #include "calculix.hpp"
 #include "plot.hpp"
 #include "realorgan.hpp"
