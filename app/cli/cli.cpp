@@ -6,6 +6,8 @@
 // nameCommand()` (usage block, options with a line of help each) in its family's file, declare the latter in
 // support.hpp and list it in commands() below; its options are parsed from that one declaration.
 #include "cli.hpp"
+
+#include "rehearse_revision.hpp"
 #include "support.hpp"
 
 #include <rehearse/imaging/appearance_fit.hpp>
@@ -39,10 +41,11 @@ std::string usage() {
                     " - intra-operative surgical gesture rehearsal\n\n"
                     "Usage:\n"
                     "  rehearse                         start the GUI on the built-in phantom case\n"
-                    "  rehearse open CASE               start the GUI on a case folder\n";
+                    "  rehearse open [CASE]             start the GUI on a case file (.rehearse) or folder (none: the\n"
+                    "                                   built-in case; what a double-click on a case file runs)\n";
   for (const cli::Command* c : cli::commands()) out += c->usage;
   return out +
-         "  rehearse --help | --version\n\n"
+         "  rehearse --help | --version      (the version with its git revision)\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL), --opengl (OpenGL even\n"
          "  through a software rasteriser such as llvmpipe, which is otherwise not used)\n"
          "Mesh formats: .msh (Gmsh 1, 2.2, 4.1), .vtk (legacy), .vtu, .mesh (Medit), .obj .stl .ply .off .gltf .glb.\n"
@@ -63,7 +66,7 @@ int runCli(const std::vector<std::string>& args, bool& handled, const CliService
       return 0;
     }
     if (cmd == "--version") {
-      std::printf("rehearse %s\n", REHEARSE_VERSION);
+      std::printf("rehearse %s (%s)\n", REHEARSE_VERSION, REHEARSE_REVISION);
       return 0;
     }
     for (const cli::Command* c : cli::commands()) {

@@ -74,11 +74,12 @@ int runGui(int argc, char** argv) {
   const QStringList pos = parser.positionalArguments();
   QString caseDir;
   if (!pos.isEmpty()) {
-    if (pos.size() != 2 || pos[0] != QLatin1String("open")) {
+    // (`open` alone: the built-in case, as a desktop launcher with no file to give runs it)
+    if (pos.size() > 2 || pos[0] != QLatin1String("open")) {
       std::fprintf(stderr, "rehearse: expected 'open CASE'; see 'rehearse --help'\n");
       return 2;
     }
-    caseDir = pos[1];
+    if (pos.size() == 2) caseDir = pos[1];
   }
   if (parser.isSet(software) && parser.isSet(opengl)) {
     std::fprintf(stderr, "rehearse: --software and --opengl contradict each other; give one\n");

@@ -1,5 +1,6 @@
 // The main window's menus and toolbar: File, Edit, Step, View, Simulate, Help (built once, by the constructor).
 #include "rehearse/ui/devicesteering.hpp"
+#include "rehearse_revision.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/liveoverlay.hpp"
 #include "rehearse/ui/recordingcontroller.hpp"
@@ -119,12 +120,12 @@ void MainWindow::buildMenus() {
   QAction* about = help->addAction(tr("&About Rehearse"), this, [this] {
     QMessageBox::about(
         this, tr("About Rehearse"),
-        tr("<b>Rehearse %1</b><p>Intra-operative surgical gesture rehearsal. This version registers the "
-           "pre-operative organ onto an endoscope frame (steps 1-5), estimates its appearance and the light from the "
-           "frame "
-           "(step 6) and simulates it there, composited into the frame, where the grasper pulls it (step 7). Cutting, "
-           "contact, and the replay of rehearsals come in later versions.</p>")
-            .arg(QStringLiteral(REHEARSE_VERSION)));
+        tr("<b>Rehearse %1</b> (%2)<p>Intra-operative surgical gesture rehearsal. It registers the pre-operative "
+           "organ onto an endoscope frame (steps 1-5, with how sure the elastic fit is), estimates the organ's "
+           "appearance and the light from the frame (step 6) and simulates the organ there, composited into the "
+           "frame, where the grasper, scissors, clip applier and cautery hook act on it (step 7). Sessions are "
+           "recorded for replay and review.</p>")
+            .arg(QStringLiteral(REHEARSE_VERSION), QStringLiteral(REHEARSE_REVISION)));
   });
   about->setShortcut(QKeySequence::HelpContents);
 }

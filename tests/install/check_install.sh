@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# The installed layout (issue 39): `cmake --install` of the build into a scratch prefix, then what a desktop and a
+# package checker would look at, with their own tools: the desktop entry (desktop-file-validate), the AppStream
+# metainfo (appstreamcli validate --no-net), the MIME type of case files (update-mime-database maps *.rehearse to it),
+# `rehearse --version` naming the revision git reports for the sources, and the installed program writing the built-in
+# case without the build tree.  Usage: check_install.sh BUILD_DIR SOURCE_DIR SCRATCH_DIR
+set -euo pipefail
+build=$1 src=$2 out=$3
+fail() { echo "check_install: $*" >&2; exit 1; }
+for tool in desktop-file-validate appstreamcli update-mime-database; do
+  command -v "$tool" >/dev/null || fail "$tool was not found: run scripts/install-deps.sh"
+done
+rm -rf "$out"
+cmake --install "$build" --prefix "$out" >/dev/null
+id=org.rehearse.Rehearse
+for f in bin/rehearse share/applications/$id.desktop share/metainfo/$id.metainfo.xml share/mime/packages/$id.xml \
+         share/icons/hicolor/scalable/apps/$id.svg share/doc/rehearse/README.md; do
+  [ -f "$out/$f" ] || fail "not installed: $f"
+done
+desktop-file-validate "$out/share/applications/$id.desktop" || fail "the desktop entry does not validate"
+grep -q '^Exec=rehearse open %f$' "$out/share/applications/$id.desktop" || fail "the desktop entry does not open files"
+appstreamcli validate --no-net "$out/share/metainfo/$id.metainfo.xml" || fail "the metainfo does not validate"
+update-mime-database "$out/share/mime"
+grep -qx 'application/x-rehearse-case:\*.rehearse' "$out/share/mime/globs" || fail "*.rehearse is not a case file's type"
+version=$("$out/bin/rehearse" --version)
+echo "installed: $version"
+if rev=$(git -C "$src" rev-parse --short=12 HEAD 2>/dev/null); then
+  [[ "$version" == "rehearse "*"(git $rev"* ]] || fail "--version does not name the revision $rev: $version"
+else
+  [[ "$version" == *"revision unknown"* ]] || fail "--version claims a revision outside a git checkout: $version"
+fi
+"$out/bin/rehearse" phantom --out "$out/phantom-case" >/dev/null || fail "the installed program cannot write the built-in case"
+[ -n "$(ls -A "$out/phantom-case")" ] || fail "the built-in case folder is empty"
+echo "check_install: $(cd "$out" && find . -type f -not -path './phantom-case/*' | wc -l) files installed and checked"
