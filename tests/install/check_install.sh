@@ -2,12 +2,12 @@
 # The installed layout (issue 39): `cmake --install` of the build into a scratch prefix, then what a desktop and a
 # package checker would look at, with their own tools: the desktop entry (desktop-file-validate), the AppStream
 # metainfo (appstreamcli validate --no-net), the MIME type of case files (update-mime-database maps *.rehearse to it),
-# `rehearse --version` naming the revision git reports for the sources, and the installed program writing the built-in
-# case without the build tree.  Usage: check_install.sh BUILD_DIR SOURCE_DIR SCRATCH_DIR
+# `rehearse --version` naming the revision git reports for the sources, the man page (man --warnings) covering every
+# sub-command, and the installed program writing the built-in case without the build tree.  Usage: check_install.sh BUILD_DIR SOURCE_DIR SCRATCH_DIR
 set -euo pipefail
 build=$1 src=$2 out=$3
 fail() { echo "check_install: $*" >&2; exit 1; }
-for tool in desktop-file-validate appstreamcli update-mime-database; do
+for tool in desktop-file-validate appstreamcli update-mime-database man; do
   command -v "$tool" >/dev/null || fail "$tool was not found: run scripts/install-deps.sh"
 done
 rm -rf "$out"
@@ -29,6 +29,20 @@ if rev=$(git -C "$src" rev-parse --short=12 HEAD 2>/dev/null); then
 else
   [[ "$version" == *"revision unknown"* ]] || fail "--version claims a revision outside a git checkout: $version"
 fi
+# The man page: renders without a warning (as lintian checks it) and has a part for every sub-command the installed
+# program lists in its --help (those that answer `NAME --help`).
+page="$out/share/man/man1/rehearse.1"
+[ -f "$page" ] || fail "not installed: share/man/man1/rehearse.1"
+warnings=$(LC_ALL=C.UTF-8 MANROFFSEQ='' MANWIDTH=80 man --warnings -E UTF-8 -l -Tutf8 -Z "$page" 2>&1 >/dev/null)
+[ -z "$warnings" ] || fail "the man page renders with warnings: $warnings"
+listed=0
+for name in $("$out/bin/rehearse" --help | sed -n 's/^  rehearse \([a-z][a-z-]*\).*/\1/p' | sort -u); do
+  "$out/bin/rehearse" "$name" --help >/dev/null 2>&1 || continue
+  grep -qx ".SS $name" "$page" || fail "the man page has no part for 'rehearse $name'"
+  listed=$((listed + 1))
+done
+[ "$listed" -ge 5 ] || fail "only $listed sub-commands found in --help"
+echo "the man page covers $listed sub-commands"
 "$out/bin/rehearse" phantom --out "$out/phantom-case" >/dev/null || fail "the installed program cannot write the built-in case"
 [ -n "$(ls -A "$out/phantom-case")" ] || fail "the built-in case folder is empty"
 echo "check_install: $(cd "$out" && find . -type f -not -path './phantom-case/*' | wc -l) files installed and checked"
