@@ -30,7 +30,6 @@ class SilhouetteGrid {
   int nearest(const Eigen::Vector2d& p, const Eigen::Vector2d& normal, double minDot, double& distance,
               double& t) const;
   double distance(const Eigen::Vector2d& p) const;
-  const std::vector<SilhouetteEdge>& edges() const { return edges_; }
 
  private:
   const std::vector<SilhouetteEdge>& edges_;

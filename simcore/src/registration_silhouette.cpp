@@ -231,10 +231,11 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
     if (!front[f]) continue;
     for (int v : triangles[f]) {
       const Eigen::Vector2d q = pix[v] * scale;
-      bx0 = std::min(bx0, static_cast<int>(std::max(0.0, std::floor(q.x()))));
-      bx1 = std::max(bx1, static_cast<int>(std::min(W - 1.0, std::ceil(q.x()))));
-      by0 = std::min(by0, static_cast<int>(std::max(0.0, std::floor(q.y()))));
-      by1 = std::max(by1, static_cast<int>(std::min(H - 1.0, std::ceil(q.y()))));
+      // (clamped before the cast: a node just in front of the camera projects millions of pixels out)
+      bx0 = std::min(bx0, static_cast<int>(std::clamp(std::floor(q.x()), 0.0, W - 1.0)));
+      bx1 = std::max(bx1, static_cast<int>(std::clamp(std::ceil(q.x()), 0.0, W - 1.0)));
+      by0 = std::min(by0, static_cast<int>(std::clamp(std::floor(q.y()), 0.0, H - 1.0)));
+      by1 = std::max(by1, static_cast<int>(std::clamp(std::ceil(q.y()), 0.0, H - 1.0)));
     }
   }
   thread_local std::vector<float> inverseDepth;
@@ -248,10 +249,11 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
     const Eigen::Vector2d &a = corner[0], &b = corner[1], &c = corner[2];
     const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
     if (std::abs(area) < 1e-12) continue;
-    const int x0 = std::max(0, static_cast<int>(std::floor(std::min({a.x(), b.x(), c.x()})))),
-              x1 = std::min(W - 1, static_cast<int>(std::ceil(std::max({a.x(), b.x(), c.x()})))),
-              y0 = std::max(0, static_cast<int>(std::floor(std::min({a.y(), b.y(), c.y()})))),
-              y1 = std::min(H - 1, static_cast<int>(std::ceil(std::max({a.y(), b.y(), c.y()}))));
+    const double left = std::floor(std::min({a.x(), b.x(), c.x()})), right = std::ceil(std::max({a.x(), b.x(), c.x()})),
+                 top = std::floor(std::min({a.y(), b.y(), c.y()})), bottom = std::ceil(std::max({a.y(), b.y(), c.y()}));
+    if (right < 0 || bottom < 0 || left > W - 1 || top > H - 1) continue;  // wholly outside the buffer
+    const int x0 = static_cast<int>(std::max(left, 0.0)), x1 = static_cast<int>(std::min(right, W - 1.0)),
+              y0 = static_cast<int>(std::max(top, 0.0)), y1 = static_cast<int>(std::min(bottom, H - 1.0));
     // The barycentric weights at pixel centre (X, Y): w_k = (e0 + ex X + ey Y) / area for the corners u, v after k;
     // the inverse depth the same weights' mix of the corners' (exact under perspective).
     double e0[3], ex[3], ey[3];
@@ -294,8 +296,8 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
   std::vector<char> visible(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (!used[i]) continue;
-    const int px = static_cast<int>(std::floor(pix[i].x() * scale)),
-              py = static_cast<int>(std::floor(pix[i].y() * scale));
+    const int px = static_cast<int>(std::clamp(std::floor(pix[i].x() * scale), -2.0, W + 1.0)),
+              py = static_cast<int>(std::clamp(std::floor(pix[i].y() * scale), -2.0, H + 1.0));
     const double eps = 2e-3 * pc[i].z() + 1e-4;
     bool vis = px < 0 || py < 0 || px >= W || py >= H;  // outside the image: not occluded by anything drawn
     for (int dy = -1; dy <= 1 && !vis; ++dy)
