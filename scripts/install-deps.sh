@@ -9,7 +9,7 @@ PACKAGES=(
   libassimp-dev libsuitesparse-dev libopenblas-dev libtbb-dev nlohmann-json3-dev libtinyxml2-dev zlib1g-dev libsqlite3-dev libspnav-dev
   calculix-ccx xvfb xauth libgl1-mesa-dri fonts-dejavu-core poppler-utils
   postgresql libqt6sql6-psql
-  desktop-file-utils appstream shared-mime-info man-db
+  desktop-file-utils appstream shared-mime-info man-db lintian debootstrap
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

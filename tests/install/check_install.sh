@@ -31,14 +31,14 @@ else
 fi
 # The man page: renders without a warning (as lintian checks it) and has a part for every sub-command the installed
 # program lists in its --help (those that answer `NAME --help`).
-page="$out/share/man/man1/rehearse.1"
-[ -f "$page" ] || fail "not installed: share/man/man1/rehearse.1"
+page="$out/share/man/man1/rehearse.1.gz"
+[ -f "$page" ] || fail "not installed: share/man/man1/rehearse.1.gz"
 warnings=$(LC_ALL=C.UTF-8 MANROFFSEQ='' MANWIDTH=80 man --warnings -E UTF-8 -l -Tutf8 -Z "$page" 2>&1 >/dev/null)
 [ -z "$warnings" ] || fail "the man page renders with warnings: $warnings"
 listed=0
 for name in $("$out/bin/rehearse" --help | sed -n 's/^  rehearse \([a-z][a-z-]*\).*/\1/p' | sort -u); do
   "$out/bin/rehearse" "$name" --help >/dev/null 2>&1 || continue
-  grep -qx ".SS $name" "$page" || fail "the man page has no part for 'rehearse $name'"
+  gzip -dc "$page" | grep -qx ".SS $name" || fail "the man page has no part for 'rehearse $name'"
   listed=$((listed + 1))
 done
 [ "$listed" -ge 5 ] || fail "only $listed sub-commands found in --help"
