@@ -10,6 +10,8 @@ PACKAGES=(
   calculix-ccx xvfb xauth libgl1-mesa-dri fonts-dejavu-core poppler-utils
   postgresql libqt6sql6-psql
   desktop-file-utils appstream shared-mime-info man-db lintian debootstrap
+  # ITK reads segmentations (NRRD, NIfTI, MetaImage); its CMake configuration names GDCM's tools, hence gdcm-tools.
+  libinsighttoolkit5-dev libgdcm-tools
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

@@ -20,6 +20,7 @@
 #include <rehearse/simcore/quality.hpp>
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
+#include <rehearse/simcore/labelimage.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -60,33 +61,65 @@ int cmdPhantom(const std::vector<std::string>& args) {
 
 int cmdMesh(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, meshCommand());
-  if (!o.count("in") || !o.count("out")) throw UsageError("mesh needs --in SURFACE and --out VOLUME.msh|.vtk|.vtu");
+  if (!o.count("in") || !o.count("out"))
+    throw UsageError("mesh needs --in SURFACE|LABELS and --out VOLUME.msh|.vtk|.vtu");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".msh" && ext != ".vtk" && ext != ".vtu" && ext != ".mesh")
     throw UsageError("--out must end in .msh, .vtk, .vtu or .mesh");
-  simcore::LoadOptions lo;
-  if (o.count("unit")) lo.unit = o["unit"];
+  const bool labelImage = simcore::isLabelImagePath(o["in"]);
+  for (const char* opt : {"labels", "label", "ras"})
+    if (!labelImage && o.count(opt))
+      throw UsageError(std::string("--") + opt + " applies to a label image (.nrrd, .nii.gz, .mha, .inr), not to " +
+                       std::filesystem::path(o["in"]).filename().string());
+  if (labelImage && (o.count("unit") || o.count("allow-self-intersections")))
+    throw UsageError("--unit and --allow-self-intersections apply to surfaces; a label image carries its own spacing");
+  simcore::TetrahedraliseOptions to;
+  if (o.count("target-tets")) to.targetTets = parseCount(o["target-tets"], "--target-tets", 10, 5'000'000);
+  if (o.count("size")) to.cellSize = parseNumber(o["size"], "--size") * 1e-3;
+  to.allowSelfIntersections = o.count("allow-self-intersections") > 0;
+  if (isatty(fileno(stderr)))
+    to.progress = [](double f, const std::string& stage) {
+      if (f < 0)
+        std::fprintf(stderr, "\r     %-64s", stage.c_str());  // a stage of unknown length: its counts
+      else
+        std::fprintf(stderr, "\r%3.0f%% %-64s", 100 * f, stage.c_str());
+    };
   std::vector<std::string> notes;
-  auto input = simcore::loadMesh(o["in"], lo, &notes);
   simcore::Mesh volume;
   auto t0 = std::chrono::steady_clock::now();
+  if (labelImage) {
+    // A segmentation: each label a part, in the image's frame (LPS, or RAS on request).
+    const simcore::LabelImage image = simcore::readLabelImage(o["in"], o.count("labels") ? o["labels"] : std::string());
+    notes = image.notes;
+    simcore::LabelMeshOptions lo;
+    lo.tetrahedralise = to;
+    lo.ras = o.count("ras") > 0;
+    if (o.count("label")) {
+      std::stringstream list(o["label"]);
+      for (std::string part; std::getline(list, part, ',');)
+        lo.only.push_back(static_cast<int>(parseCount(part, "--label", 1, 2'147'483'647)));
+    }
+    volume = simcore::meshLabelImage(image, lo, &notes);
+    double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    if (isatty(fileno(stderr))) std::fprintf(stderr, "\r%50s\r", "");
+    simcore::saveMesh(volume, o["out"], o.count("ascii") > 0);
+    std::printf("label image: %s, %ld x %ld x %ld voxels of %.4g x %.4g x %.4g mm\n", image.format.c_str(),
+                image.size[0], image.size[1], image.size[2], image.spacing.x() * 1e3, image.spacing.y() * 1e3,
+                image.spacing.z() * 1e3);
+    for (const auto& n : notes) std::printf("note: %s\n", n.c_str());
+    std::printf("%s", simcore::formatQuality(simcore::computeQuality(volume)).c_str());
+    std::printf("meshing time: %.3f s\nwritten: %s\n", s, o["out"].c_str());
+    return 0;
+  }
+  simcore::LoadOptions lo;
+  if (o.count("unit")) lo.unit = o["unit"];
+  auto input = simcore::loadMesh(o["in"], lo, &notes);
   if (input.isVolume()) {
     volume = std::move(input);
     volume.triangles.clear();
     volume.triangleLabels.clear();
     notes.push_back("The input is already a volume mesh; it was converted, not re-meshed.");
   } else {
-    simcore::TetrahedraliseOptions to;
-    if (o.count("target-tets")) to.targetTets = parseCount(o["target-tets"], "--target-tets", 10, 5'000'000);
-    if (o.count("size")) to.cellSize = parseNumber(o["size"], "--size") * 1e-3;
-    to.allowSelfIntersections = o.count("allow-self-intersections") > 0;
-    if (isatty(fileno(stderr)))
-      to.progress = [](double f, const std::string& stage) {
-        if (f < 0)
-          std::fprintf(stderr, "\r     %-64s", stage.c_str());  // a stage of unknown length: its counts
-        else
-          std::fprintf(stderr, "\r%3.0f%% %-64s", 100 * f, stage.c_str());
-      };
     volume = simcore::tetrahedraliseSurface(input, to, &notes);
   }
   double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -101,6 +134,22 @@ int cmdMesh(const std::vector<std::string>& args) {
 int cmdInfo(const std::vector<std::string>& args) {
   if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("info needs a FILE");
   auto o = parseOptions(args, 3, infoCommand());
+  if (simcore::isLabelImagePath(args[2])) {
+    const simcore::LabelImage image = simcore::readLabelImage(args[2]);
+    std::printf("file: %s\nkind: label image (%s)\nvoxels: %ld x %ld x %ld of %.4g x %.4g x %.4g mm\n", args[2].c_str(),
+                image.format.c_str(), image.size[0], image.size[1], image.size[2], image.spacing.x() * 1e3,
+                image.spacing.y() * 1e3, image.spacing.z() * 1e3);
+    std::printf("frame: %s\n", image.frame == "LPS" ? "LPS (x to the patient's left, y posterior, z superior)"
+                                                    : "the image's own axes (no orientation stored)");
+    for (const auto& [label, count] : image.labelCounts()) {
+      auto it = image.names.find(label);
+      std::printf("label %d%s%s: %ld voxels, %.2f mL\n", label, it != image.names.end() ? " " : "",
+                  it != image.names.end() ? it->second.c_str() : "", count,
+                  static_cast<double>(count) * image.voxelVolume() * 1e6);
+    }
+    for (const auto& n : image.notes) std::printf("note: %s\n", n.c_str());
+    return 0;
+  }
   simcore::LoadOptions lo;
   if (o.count("unit")) lo.unit = o["unit"];
   std::vector<std::string> notes;
@@ -128,16 +177,24 @@ const Command& phantomCommand() {
 const Command& meshCommand() {
   static const Command command{
       "mesh",
-      "  rehearse mesh --in SURFACE --out VOLUME.msh|.vtk|.vtu [--target-tets N] [--size MM]\n"
+      "  rehearse mesh --in SURFACE|LABELS --out VOLUME.msh|.vtk|.vtu [--target-tets N] [--size MM]\n"
       "                [--unit m|dm|cm|mm] [--ascii] [--allow-self-intersections]\n"
-      "                                   tetrahedralise a closed surface (inner closed parts become labels)\n",
-      {{"in", "SURFACE", "the closed surface (any mesh format below)"},
+      "                [--labels TABLE] [--label N,...] [--ras]\n"
+      "                                   tetrahedralise a closed surface (inner closed parts become labels) or a\n"
+      "                                   segmentation (NRRD, NIfTI, MetaImage or INR label image: each label a "
+      "part)\n",
+      {{"in", "SURFACE|LABELS",
+        "the closed surface (any mesh format below) or label image (.nrrd, .nii.gz, .mha, .inr.gz)"},
        {"out", "VOLUME", ".msh, .vtk or .vtu"},
        {"target-tets", "N", "about this many tetrahedra"},
        {"size", "MM", "the largest element size instead"},
        {"unit", "U", "m, dm, cm or mm: the surface's length unit"},
        {"ascii", "", "write text instead of binary"},
-       {"allow-self-intersections", "", "mesh a surface that intersects itself (it is refused otherwise)"}},
+       {"allow-self-intersections", "", "mesh a surface that intersects itself (it is refused otherwise)"},
+       {"labels", "TABLE",
+        "a colour table naming the labels (3D Slicer .ctbl or ITK-SNAP .txt; one beside the image is used)"},
+       {"label", "N,...", "mesh only these labels"},
+       {"ras", "", "coordinates in RAS (3D Slicer's world) instead of LPS (ITK, DICOM)"}},
       withoutServices(cmdMesh)};
   return command;
 }

@@ -9,6 +9,9 @@
 #include <QProcess>
 #include <rehearse/imaging/appearance_fit.hpp>
 #include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/quality.hpp>
+
+#include <map>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -347,6 +350,50 @@ class TestCli : public QObject {
     auto s = run({"info", QString::fromStdString(sharedData("scikit-surgery/liver_downsample.stl")), "--unit", "mm"});
     QVERIFY(s.out.contains("closed: yes"));
     QVERIFY(s.out.contains("self-intersecting triangle pairs: 0"));
+  }
+  // A segmentation (issue 39): CGAL's liver.inr.gz decompressed with gzip and its header and voxels read here by hand
+  // (INR: a 256-byte text header, then the voxels), independently of the program's readers; `rehearse info` lists
+  // the same voxel counts, and `rehearse mesh --label 255` meshes the liver to within 2 % of its voxels' volume.
+  void segmentationMeshAndInfo() {
+    REQUIRE_SHARED("cgal/liver.inr.gz");
+    const QString inr = QString::fromStdString(sharedData("cgal/liver.inr.gz"));
+    QProcess gunzip;
+    gunzip.start("gzip", {"-dc", inr});
+    QVERIFY(gunzip.waitForFinished(60000));
+    const QByteArray bytes = gunzip.readAllStandardOutput();
+    const QString header = QString::fromLatin1(bytes.left(256));
+    auto field = [&](const char* key) {
+      return QRegularExpression(QString("%1=([0-9.]+)").arg(key)).match(header).captured(1).toDouble();
+    };
+    const long nx = static_cast<long>(field("XDIM")), ny = static_cast<long>(field("YDIM")),
+               nz = static_cast<long>(field("ZDIM"));
+    QVERIFY(header.contains("PIXSIZE=8 bits"));
+    QCOMPARE(bytes.size(), static_cast<qsizetype>(256 + nx * ny * nz));
+    std::map<int, long> counts;
+    for (qsizetype i = 256; i < bytes.size(); ++i)
+      if (const int v = static_cast<unsigned char>(bytes[i]); v != 0) ++counts[v];
+    auto info = run({"info", inr});
+    QVERIFY2(info.code == 0, qPrintable(info.err));
+    for (const auto& [label, n] : counts)
+      QVERIFY2(info.out.contains(QString("label %1: %2 voxels").arg(label).arg(n)), qPrintable(info.out));
+    QVERIFY(info.out.contains("no orientation"));
+    const QString out = QString::fromStdString(tempPath("liver-labels.vtu"));
+    auto r = run({"mesh", "--in", inr, "--out", out, "--label", "255", "--target-tets", "8000"});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    QVERIFY2(r.out.contains("label 255:") && r.out.contains("of voxels"), qPrintable(r.out));
+    const rehearse::simcore::Mesh m = rehearse::simcore::loadMesh(out.toStdString());
+    double volume = 0;
+    for (std::size_t t = 0; t < m.tets.size(); ++t) {
+      QCOMPARE(m.tetLabels[t], 255);
+      const auto& e = m.tets[t];
+      volume += rehearse::simcore::tetVolume(m.points[e[0]], m.points[e[1]], m.points[e[2]], m.points[e[3]]);
+    }
+    const double voxels = static_cast<double>(counts[255]) * field("VX") * field("VY") * field("VZ") * 1e-9;
+    qInfo("liver (label 255): %zu tets, %.1f mL meshed, %.1f mL of voxels", m.tets.size(), volume * 1e6, voxels * 1e6);
+    QVERIFY(std::abs(volume - voxels) < 0.02 * voxels);
+    // What the image cannot give is refused with one sentence: RAS of an image with no orientation.
+    expectOneLineError(run({"mesh", "--in", inr, "--out", out, "--ras"}), 1, "no orientation");
+    expectOneLineError(run({"mesh", "--in", inr, "--out", out, "--unit", "mm"}), 2, "carries its own spacing");
   }
   void simulate() {
     const QString out = QString::fromStdString(tempPath("sim.vtu")),

@@ -14,6 +14,7 @@
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/organoverlay.hpp"
 #include "rehearse/ui/pages/meshpage.hpp"
+#include <rehearse/simcore/labelimage.hpp>
 
 #include <QDockWidget>
 #include <QDoubleSpinBox>
@@ -342,6 +343,81 @@ class TestGui : public QObject {
     QVERIFY(imported.wait(120000));
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
     QVERIFY(w.caseData()->organ->volume.tets.size() > 5000);
+  }
+
+  // A segmentation in step 1 (issue 39): a NIfTI label image with a colour table beside it imports through the
+  // same job as a mesh (progress, cancel), each label a part named from the table, placed where the image's origin
+  // puts it; Ctrl+Z gives the previous organ back; a damaged image says one sentence and changes nothing.
+  void importsASegmentation() {
+    ui::MainWindow w;
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    w.activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(&w));
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    QVERIFY(loaded.wait(60000));
+    const auto before = w.caseData();
+    // A 60 x 50 x 40 mm block of 1 mm x 1 mm x 2 mm voxels: an ellipsoid "liver" (label 1) holding a ball (label 4).
+    simcore::LabelImage image;
+    image.size = {64, 56, 24};
+    image.spacing = Eigen::Vector3d(1e-3, 1e-3, 2e-3);
+    image.origin = Eigen::Vector3d(0.010, -0.020, 0.030);
+    image.labels.assign(static_cast<std::size_t>(64 * 56 * 24), 0);
+    long organVoxels = 0, tumourVoxels = 0;
+    for (long k = 0; k < 24; ++k)
+      for (long j = 0; j < 56; ++j)
+        for (long i = 0; i < 64; ++i) {
+          const Eigen::Vector3d p(i - 31.5, j - 27.5, 2.0 * (k - 11.5));  // mm from the block's centre
+          auto& l = image.labels[static_cast<std::size_t>(i + 64 * (j + 56 * k))];
+          if ((p - Eigen::Vector3d(8, 0, 0)).norm() < 8)
+            l = 4, ++tumourVoxels;
+          else if (std::pow(p.x() / 30, 2) + std::pow(p.y() / 25, 2) + std::pow(p.z() / 20, 2) < 1)
+            l = 1, ++organVoxels;
+        }
+    const std::string path = tempPath("segmentation.nii.gz");
+    simcore::writeLabelImage(image, path);
+    writeFile(tempPath("segmentation.ctbl"), "1 liver 200 100 100 255\n4 tumour 250 250 0 255\n");
+    w.meshPage()->setTargetTets(6000);
+    QSignalSpy imported(&w, &ui::MainWindow::meshImported);
+    w.meshPage()->importMesh(QString::fromStdString(path));
+    QVERIFY(imported.wait(120000));
+    QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+    const auto& volume = w.caseData()->organ->volume;
+    QCOMPARE(volume.labelName(1), std::string("liver"));
+    QCOMPARE(volume.labelName(4), std::string("tumour"));
+    QCOMPARE(volume.labelKind(4), simcore::StructureKind::Tumour);
+    std::map<int, double> meshed;
+    Eigen::AlignedBox3d box;
+    for (std::size_t t = 0; t < volume.tets.size(); ++t) {
+      const auto& e = volume.tets[t];
+      meshed[volume.tetLabels[t]] +=
+          simcore::tetVolume(volume.points[e[0]], volume.points[e[1]], volume.points[e[2]], volume.points[e[3]]);
+    }
+    for (const auto& p : volume.points) box.extend(p);
+    const double voxel = 2e-9;
+    qInfo("segmentation: %zu tets; liver %.2f of %.2f mL, tumour %.2f of %.2f mL", volume.tets.size(), meshed[1] * 1e6,
+          organVoxels * voxel * 1e6, meshed[4] * 1e6, tumourVoxels * voxel * 1e6);
+    QVERIFY(std::abs(meshed[1] - organVoxels * voxel) < 0.03 * organVoxels * voxel);
+    QVERIFY(std::abs(meshed[4] - tumourVoxels * voxel) < 0.10 * tumourVoxels * voxel);
+    // The ellipsoid's centre: origin + spacing x (31.5, 27.5, 11.5) voxels.
+    const Eigen::Vector3d centre = image.origin + Eigen::Vector3d(31.5e-3, 27.5e-3, 23e-3);
+    QVERIFY((box.center() - centre).norm() < 1.5e-3);
+    QVERIFY(std::abs(box.sizes().x() - 0.060) < 2.5e-3);
+    QVERIFY2(w.statusText().contains(QStringLiteral("2 labelled parts")), qPrintable(w.statusText()));
+    // Undo (the key, as a user presses it) gives the built-in organ back.
+    QTest::keyClick(&w, Qt::Key_Z, Qt::ControlModifier);
+    QTRY_VERIFY(w.caseData()->organ->volume.tets.size() == before->organ->volume.tets.size());
+    // A damaged image: one sentence, the case unchanged.
+    const auto kept = w.caseData();
+    writeFile(tempPath("damaged.nii.gz"), std::string(3000, 'x'));
+    imported.clear();
+    w.meshPage()->importMesh(QString::fromStdString(tempPath("damaged.nii.gz")));
+    QVERIFY(imported.wait(60000));
+    QCOMPARE(imported.first().at(0).toBool(), false);
+    const QString why = imported.first().at(1).toString();
+    QVERIFY2(why.startsWith(QStringLiteral("Cannot read damaged.nii.gz")) && !why.contains('\n'), qPrintable(why));
+    QVERIFY(w.caseData() == kept);
   }
 };
 

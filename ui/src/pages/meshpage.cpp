@@ -2,6 +2,7 @@
 
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
+#include <rehearse/simcore/labelimage.hpp>
 
 #include <QComboBox>
 #include <QDoubleSpinBox>
@@ -18,6 +19,7 @@
 #include <QVBoxLayout>
 
 #include <map>
+#include <set>
 
 namespace rehearse::ui {
 
@@ -148,8 +150,12 @@ void MeshPage::refresh(const app::Case& c) {
 }
 
 void MeshPage::importMeshDialog() {
-  const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
-                                                 tr("Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb)"));
+  const QString p = QFileDialog::getOpenFileName(
+      wb_.window, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
+      tr("Meshes and segmentations (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb "
+         "*.nrrd *.nhdr *.nii *.nii.gz *.mha *.mhd *.inr *.inr.gz);;"
+         "Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb);;"
+         "Segmentations: label images (*.nrrd *.nhdr *.nii *.nii.gz *.mha *.mhd *.inr *.inr.gz)"));
   if (!p.isEmpty()) importMesh(p);
 }
 
@@ -163,6 +169,37 @@ void MeshPage::importMesh(const QString& path) {
     try {
       std::vector<std::string> notes;
       progress(0.02, QStringLiteral("reading"));
+      if (simcore::isLabelImagePath(path.toStdString())) {
+        // A segmentation (NRRD, NIfTI, MetaImage, INR): meshed with each label a part, in the image's own frame
+        // (LPS, or the image's axes for INR) and millimetres (the file unit a pose matrix is read in).
+        const simcore::LabelImage image = simcore::readLabelImage(path.toStdString());
+        notes = image.notes;
+        simcore::LabelMeshOptions lo;
+        lo.tetrahedralise.targetTets = static_cast<std::size_t>(target);
+        lo.tetrahedralise.cancel = &cancel;
+        lo.tetrahedralise.progress = [&progress](double f, const std::string& s) {
+          progress(f < 0 ? f : 0.1 + 0.85 * f, QString::fromStdString(s));
+        };
+        progress(0.1, QStringLiteral("meshing %1 labels").arg(image.labelCounts().size()));
+        simcore::Mesh m = simcore::meshLabelImage(image, lo, &notes);
+        std::string visualNote;
+        auto prepared = app::Organ::fromVolume(std::move(m), path.toStdString(), 1e-3, nullptr, &visualNote);
+        if (!visualNote.empty()) notes.push_back(visualNote);
+        QStringList qnotes;
+        for (const auto& n : notes) qnotes << QString::fromStdString(n);
+        return [this, prepared, path, qnotes] {
+          importNotes_ = qnotes;
+          wb_.doc->edit(tr("Import segmentation"), [&](app::Case& k) { k.setOrgan(prepared); });
+          emit importNotesChanged();
+          const auto& volume = data()->organ->volume;
+          std::set<int> labels(volume.tetLabels.begin(), volume.tetLabels.end());
+          wb_.status(tr("Imported the segmentation %1: %2 tetrahedra in %3 labelled parts")
+                         .arg(QFileInfo(path).fileName())
+                         .arg(volume.tets.size())
+                         .arg(labels.size()));
+          emit meshImported(true, {});
+        };
+      }
       simcore::Mesh m = simcore::loadMesh(path.toStdString(), {unit}, &notes);
       const double fileUnit = simcore::metresPerUnit(unit);  // kept with the organ (a 4x4 pose matrix is read in it)
       // A size no organ has (under 1 cm or over 1 m across) is a wrong unit, not an organ: refused with the

@@ -1,0 +1,178 @@
+// Label images: the format dispatch, colour tables and the checks every reader shares (ITK's side is
+// labelimage_itk.cpp, CGAL's labelimage_cgal.cpp).
+#include <rehearse/simcore/labelimage.hpp>
+
+#include "labelimage_raw.hpp"
+
+#include <cctype>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+namespace rehearse::simcore {
+
+LabelImage readInrLabelImage(const std::string& path, std::size_t maxVoxels);  // labelimage_cgal.cpp
+
+namespace {
+
+std::string lower(std::string s) {
+  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+bool endsWith(const std::string& s, const std::string& tail) {
+  return s.size() >= tail.size() && s.compare(s.size() - tail.size(), tail.size(), tail) == 0;
+}
+
+constexpr const char* kExtensions[] = {".nii.gz", ".inr.gz", ".nrrd", ".nhdr", ".nii", ".mha", ".mhd", ".inr"};
+
+std::string fileName(const std::string& path) { return std::filesystem::path(path).filename().string(); }
+
+// The path without its image extension: "ct.seg.nrrd" -> "ct.seg", "a.nii.gz" -> "a".
+std::string stemOf(const std::string& path) {
+  const std::string l = lower(path);
+  for (const char* ext : kExtensions)
+    if (endsWith(l, ext)) return path.substr(0, path.size() - std::string(ext).size());
+  return path;
+}
+
+LabelImage fromRaw(detail::RawLabelImage raw, const std::string& name) {
+  LabelImage image;
+  image.size = raw.size;
+  for (int d = 0; d < 3; ++d) {
+    image.spacing[d] = raw.spacingMm[d] * 1e-3;
+    image.origin[d] = raw.originMm[d] * 1e-3;
+    for (int r = 0; r < 3; ++r) image.direction(r, d) = raw.direction[r * 3 + d];
+  }
+  image.labels = std::move(raw.labels);
+  image.names = std::move(raw.names);
+  image.format = raw.format;
+  image.notes = std::move(raw.notes);
+  image.frame = "LPS";
+  if (!(image.spacing.minCoeff() > 0) || !image.spacing.allFinite())
+    throw MeshError(name + " has a voxel size of zero or less; its header is damaged.");
+  if (!image.origin.allFinite()) throw MeshError(name + "'s origin is not a number; its header is damaged.");
+  if (!image.direction.allFinite() ||
+      (image.direction.transpose() * image.direction - Eigen::Matrix3d::Identity()).cwiseAbs().maxCoeff() > 1e-3)
+    throw MeshError(name + "'s axes are not perpendicular (a sheared image); resample it first.");
+  return image;
+}
+
+}  // namespace
+
+std::map<int, long> LabelImage::labelCounts() const {
+  std::map<int, long> counts;
+  for (std::int32_t l : labels)
+    if (l != 0) ++counts[l];
+  return counts;
+}
+
+bool isLabelImagePath(const std::string& path) {
+  const std::string l = lower(path);
+  for (const char* ext : kExtensions)
+    if (endsWith(l, ext)) return true;
+  return false;
+}
+
+std::map<int, std::string> parseColourTable(const std::string& text) {
+  std::map<int, std::string> names;
+  std::istringstream in(text);
+  std::string line;
+  while (std::getline(in, line)) {
+    const auto quote = line.find('"');
+    if (auto hash = line.find('#'); hash != std::string::npos && (quote == std::string::npos || hash < quote))
+      line = line.substr(0, hash);  // a comment ('#' inside a quoted ITK-SNAP name is part of the name)
+    std::istringstream fields(line);
+    long value = 0;
+    if (!(fields >> value) || value <= 0 || value > std::numeric_limits<std::int32_t>::max()) continue;
+    std::string name;
+    if (quote != std::string::npos && quote < line.size()) {
+      const auto end = line.find('"', quote + 1);
+      if (end == std::string::npos) continue;
+      name = line.substr(quote + 1, end - quote - 1);  // ITK-SNAP: IDX R G B A VIS MSH "NAME"
+    } else if (!(fields >> name)) {
+      continue;  // 3D Slicer: VALUE NAME R G B A
+    } else {
+      for (auto& c : name)
+        if (c == '_') c = ' ';  // Slicer's names cannot hold spaces
+    }
+    while (!name.empty() && std::isspace(static_cast<unsigned char>(name.back()))) name.pop_back();
+    if (name.empty() || name.size() > 200) continue;
+    names[static_cast<int>(value)] = name;
+  }
+  return names;
+}
+
+LabelImage readLabelImage(const std::string& path, const std::string& colourTable, std::size_t maxVoxels) {
+  const std::string name = fileName(path);
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(path, ec)) throw MeshError("Cannot read " + path + ": no such file.");
+  if (!isLabelImagePath(path))
+    throw MeshError(name +
+                    " is not a label image this program reads (NRRD .nrrd/.nhdr, NIfTI .nii/.nii.gz, "
+                    "MetaImage .mha/.mhd, INR .inr/.inr.gz).");
+  if (!colourTable.empty() && !std::filesystem::is_regular_file(colourTable, ec))
+    throw MeshError("Cannot read the colour table " + colourTable + ": no such file.");
+  LabelImage image;
+  const std::string l = lower(path);
+  if (endsWith(l, ".inr") || endsWith(l, ".inr.gz")) {
+    image = readInrLabelImage(path, maxVoxels);
+  } else {
+    try {
+      image = fromRaw(detail::itkReadLabelImage(path, maxVoxels), name);
+    } catch (const detail::LabelImageError& e) {
+      throw MeshError(e.what());
+    }
+  }
+  const auto counts = image.labelCounts();
+  if (counts.empty())
+    throw MeshError(name + " has no labelled voxel (every voxel is background, 0); there is nothing to mesh.");
+  // A colour table: the one given, else one beside the image.
+  std::string table = colourTable;
+  if (table.empty()) {
+    const std::string stem = stemOf(path);
+    std::vector<std::string> candidates = {stem + ".ctbl", stem + "_ColorTable.ctbl", stem + ".txt", stem + ".label"};
+    if (endsWith(lower(stem), ".seg")) candidates.push_back(stem.substr(0, stem.size() - 4) + ".ctbl");
+    for (const auto& c : candidates)
+      if (std::filesystem::is_regular_file(c, ec)) {
+        table = c;
+        break;
+      }
+  }
+  if (!table.empty()) {
+    std::ifstream in(table, std::ios::binary);
+    std::ostringstream text;
+    text << in.rdbuf();
+    if (text.str().size() > (16u << 20))
+      throw MeshError("The colour table " + fileName(table) + " is over 16 MB; it is not one.");
+    const auto names = parseColourTable(text.str());
+    int used = 0;
+    for (const auto& [label, count] : counts)
+      if (auto it = names.find(label); it != names.end()) {
+        image.names[label] = it->second;
+        ++used;
+      }
+    image.notes.push_back("Labels named from the colour table " + fileName(table) + " (" + std::to_string(used) +
+                          " of the image's " + std::to_string(counts.size()) + " labels).");
+  }
+  return image;
+}
+
+void writeLabelImage(const LabelImage& image, const std::string& path) {
+  detail::RawLabelImage raw;
+  raw.size = image.size;
+  for (int d = 0; d < 3; ++d) {
+    raw.spacingMm[d] = image.spacing[d] * 1e3;
+    raw.originMm[d] = image.origin[d] * 1e3;
+    for (int r = 0; r < 3; ++r) raw.direction[r * 3 + d] = image.direction(r, d);
+  }
+  raw.labels = image.labels;
+  try {
+    detail::itkWriteLabelImage(raw, path);
+  } catch (const detail::LabelImageError& e) {
+    throw MeshError(e.what());
+  }
+}
+
+}  // namespace rehearse::simcore

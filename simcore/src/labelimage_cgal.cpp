@@ -1,0 +1,214 @@
+// Label images with CGAL: INR read by CGAL's ImageIO, and the meshing of any label image through CGAL's
+// labelled-image interpolation (Image_3::labellized_trilinear_interpolation) and our Mesh_3 driver
+// (tetrahedraliseImplicit: progress, cancel, element count).
+#include <rehearse/simcore/labelimage.hpp>
+#include <rehearse/simcore/meshio.hpp>
+
+#include <CGAL/Image_3.h>
+#include <CGAL/ImageIO.h>
+
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <memory>
+#include <set>
+
+namespace rehearse::simcore {
+
+LabelImage readInrLabelImage(const std::string& path, std::size_t maxVoxels);
+
+namespace {
+
+struct ImageDeleter {
+  void operator()(_image* im) const {
+    if (im) ::_freeImage(im);
+  }
+};
+
+template <typename Word>
+void copyWords(const _image* im, std::vector<std::int32_t>& out, std::size_t& fractional) {
+  const Word* w = static_cast<const Word*>(im->data);
+  for (std::size_t i = 0; i < out.size(); ++i) {
+    const double v = static_cast<double>(w[i]);
+    if (!(v == std::floor(v)) || v < -2147483648.0 || v > 2147483647.0) {
+      ++fractional;
+      continue;
+    }
+    out[i] = static_cast<std::int32_t>(v);
+  }
+}
+
+std::string litres(double cubicMetres) {
+  char text[32];
+  if (cubicMetres >= 1e-4)
+    std::snprintf(text, sizeof text, "%.3f L", cubicMetres * 1e3);
+  else
+    std::snprintf(text, sizeof text, "%.2f mL", cubicMetres * 1e6);
+  return text;
+}
+
+double tetVolume(const Mesh& m, const std::array<int, 4>& t) {
+  const Eigen::Vector3d& a = m.points[static_cast<std::size_t>(t[0])];
+  return (m.points[static_cast<std::size_t>(t[1])] - a)
+             .dot((m.points[static_cast<std::size_t>(t[2])] - a).cross(m.points[static_cast<std::size_t>(t[3])] - a)) /
+         6.0;
+}
+
+}  // namespace
+
+LabelImage readInrLabelImage(const std::string& path, std::size_t maxVoxels) {
+  const std::string name = std::filesystem::path(path).filename().string();
+  int error = 0;
+  std::unique_ptr<_image, ImageDeleter> im(::_readImageHeaderAndGetError(path.c_str(), &error));
+  if (!im || error != 0) throw MeshError("Cannot read " + name + ": it is damaged or not an INR image.");
+  const double count = static_cast<double>(im->xdim) * static_cast<double>(im->ydim) * static_cast<double>(im->zdim);
+  if (im->vdim != 1)
+    throw MeshError(name + " has " + std::to_string(im->vdim) +
+                    " values per voxel (a colour or vector image); a segmentation holds one label per voxel.");
+  if (im->zdim < 2) throw MeshError(name + " is a 2D image; a segmentation must be a 3D label image.");
+  if (!(count >= 1)) throw MeshError(name + " has no voxels.");
+  if (count > static_cast<double>(maxVoxels))
+    throw MeshError(name + " has " + std::to_string(static_cast<long long>(count / 1e6)) +
+                    " million voxels; more than " + std::to_string(maxVoxels / 1000000) +
+                    " million cannot be meshed here (crop or resample it first).");
+  if (!(im->vx > 0 && im->vy > 0 && im->vz > 0) || !std::isfinite(im->vx * im->vy * im->vz))
+    throw MeshError(name + " has a voxel size of zero or less; its header is damaged.");
+  if (::_readImageData(im.get()) < 0 || !im->data)
+    throw MeshError("Cannot read " + name + "'s voxels: the file ends early or is damaged.");
+  LabelImage image;
+  image.format = "INR";
+  image.frame = "image";
+  image.size = {static_cast<long>(im->xdim), static_cast<long>(im->ydim), static_cast<long>(im->zdim)};
+  // INR stores sizes in the file's unit, by convention millimetres (CGAL's examples, its liver).
+  image.spacing = Eigen::Vector3d(im->vx, im->vy, im->vz) * 1e-3;
+  image.origin = Eigen::Vector3d(im->tx, im->ty, im->tz) * 1e-3;
+  image.labels.assign(static_cast<std::size_t>(count), 0);
+  std::size_t fractional = 0;
+  const bool isSigned = im->sign == SGN_SIGNED;
+  if (im->wordKind == WK_FLOAT) {
+    if (im->wdim == 4)
+      copyWords<float>(im.get(), image.labels, fractional);
+    else if (im->wdim == 8)
+      copyWords<double>(im.get(), image.labels, fractional);
+    else
+      throw MeshError(name + " stores voxels in a word size this program does not read.");
+  } else if (im->wordKind == WK_FIXED) {
+    switch (im->wdim) {
+      case 1:
+        isSigned ? copyWords<std::int8_t>(im.get(), image.labels, fractional)
+                 : copyWords<std::uint8_t>(im.get(), image.labels, fractional);
+        break;
+      case 2:
+        isSigned ? copyWords<std::int16_t>(im.get(), image.labels, fractional)
+                 : copyWords<std::uint16_t>(im.get(), image.labels, fractional);
+        break;
+      case 4:
+        isSigned ? copyWords<std::int32_t>(im.get(), image.labels, fractional)
+                 : copyWords<std::uint32_t>(im.get(), image.labels, fractional);
+        break;
+      default:
+        throw MeshError(name + " stores voxels in a word size this program does not read.");
+    }
+  } else {
+    throw MeshError(name + " stores voxels of a kind this program does not read.");
+  }
+  if (fractional > 0)
+    throw MeshError(name + " holds values that are not labels (" + std::to_string(fractional) +
+                    " voxels are not whole numbers: a CT or MRI?); segment it into a label image first.");
+  image.notes.push_back(name +
+                        " (INR) stores no orientation: the mesh is in the image's own axes (x along its "
+                        "columns, y its rows, z its slices), not a patient frame.");
+  return image;
+}
+
+Mesh meshLabelImage(const LabelImage& image, const LabelMeshOptions& options, std::vector<std::string>* notes) {
+  const long nx = image.size[0], ny = image.size[1], nz = image.size[2];
+  if (nx < 1 || ny < 1 || nz < 1 || image.labels.size() != static_cast<std::size_t>(nx * ny * nz))
+    throw MeshError("The label image's size does not match its voxels; it cannot be meshed.");
+  if (options.ras && image.frame != "LPS")
+    throw MeshError("The image stores no orientation (" + image.format +
+                    "), so it cannot be put in RAS; mesh it in its own axes.");
+  std::map<int, long> counts = image.labelCounts();
+  std::set<int> wanted;
+  for (int l : options.only) {
+    if (!counts.count(l))
+      throw MeshError("The image has no voxel labelled " + std::to_string(l) +
+                      "; its labels are listed by `rehearse info`.");
+    wanted.insert(l);
+  }
+  if (wanted.empty())
+    for (const auto& [l, c] : counts) wanted.insert(l);
+  if (wanted.empty()) throw MeshError("The image has no labelled voxel; there is nothing to mesh.");
+
+  // The labels in CGAL's image, padded by one background voxel on every side (a label touching the image's edge is
+  // closed half a voxel beyond its last voxel, as inside), voxel size 1: our label function scales to voxels itself,
+  // so anisotropic voxels are meshed in metres.
+  const std::size_t px = static_cast<std::size_t>(nx + 2), py = static_cast<std::size_t>(ny + 2),
+                    pz = static_cast<std::size_t>(nz + 2);
+  _image* raw = ::_createImage(px, py, pz, 1, 1.0, 1.0, 1.0, 4, WK_FIXED, SGN_SIGNED);
+  if (!raw) throw MeshError("Not enough memory to mesh the label image.");
+  CGAL::Image_3 padded(raw);
+  auto* data = static_cast<std::int32_t*>(raw->data);
+  std::fill(data, data + px * py * pz, 0);
+  for (long k = 0; k < nz; ++k)
+    for (long j = 0; j < ny; ++j)
+      for (long i = 0; i < nx; ++i) {
+        const std::int32_t l = image.labels[static_cast<std::size_t>(i + nx * (j + ny * k))];
+        data[static_cast<std::size_t>(i + 1) +
+             px * (static_cast<std::size_t>(j + 1) + py * static_cast<std::size_t>(k + 1))] = wanted.count(l) ? l : 0;
+      }
+  const Eigen::Vector3d s = image.spacing;
+  // Mesh space: metres along the image's axes, padded voxel (0,0,0) at 0.
+  LabelFunction label = [&padded, s](const Eigen::Vector3d& p) {
+    return padded.labellized_trilinear_interpolation<std::int32_t, double, int>(p.x() / s.x(), p.y() / s.y(),
+                                                                                p.z() / s.z(), 0);
+  };
+  Eigen::AlignedBox3d bounds(Eigen::Vector3d::Zero(),
+                             Eigen::Vector3d(static_cast<double>(px - 1) * s.x(), static_cast<double>(py - 1) * s.y(),
+                                             static_cast<double>(pz - 1) * s.z()));
+  double voxelVolume = 0;
+  for (int l : wanted) voxelVolume += static_cast<double>(counts[l]) * image.voxelVolume();
+  Mesh m = tetrahedraliseImplicit(label, bounds, options.tetrahedralise, voxelVolume);
+
+  // To the patient (or image) frame: unpad, scale is already metres, then origin + direction.
+  Eigen::Matrix3d frame = image.direction;
+  Eigen::Vector3d origin = image.origin;
+  if (options.ras) {
+    frame.row(0) *= -1;
+    frame.row(1) *= -1;
+    origin.x() = -origin.x();
+    origin.y() = -origin.y();
+  }
+  for (auto& p : m.points) p = origin + frame * (p - s);
+  if (frame.determinant() < 0)
+    for (auto& t : m.tets) std::swap(t[1], t[2]);  // a mirrored frame: keep the tets positively oriented
+  m.unitToMetre = 1.0;
+  std::map<int, double> meshed;
+  for (std::size_t t = 0; t < m.tets.size(); ++t) meshed[m.tetLabels[t]] += tetVolume(m, m.tets[t]);
+  auto nameOf = [&](int l) {
+    auto it = image.names.find(l);
+    return it != image.names.end() ? it->second : "label " + std::to_string(l);
+  };
+  for (int l : wanted)
+    if (image.names.count(l)) m.setLabelName(l, image.names.at(l));
+  if (notes) {
+    notes->push_back(std::string("Coordinates: metres in ") +
+                     (image.frame != "LPS" ? "the image's own axes"
+                      : options.ras        ? "RAS (x to the patient's right, y anterior, z superior)"
+                                           : "LPS (x to the patient's left, y posterior, z superior; ITK and DICOM)") +
+                     ", from the image's origin, spacing and direction.");
+    for (int l : wanted) {
+      const double voxels = static_cast<double>(counts[l]) * image.voxelVolume();
+      const double got = meshed.count(l) ? meshed[l] : 0.0;
+      char text[200];
+      std::snprintf(text, sizeof text, "%s: %s meshed, %s of voxels (%+.1f %%).", nameOf(l).c_str(),
+                    litres(got).c_str(), litres(voxels).c_str(), 100.0 * (got - voxels) / voxels);
+      notes->push_back(text);
+      if (got == 0) notes->push_back(nameOf(l) + " is too thin for the element size and got no element; mesh finer.");
+    }
+  }
+  return m;
+}
+
+}  // namespace rehearse::simcore
