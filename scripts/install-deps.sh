@@ -12,6 +12,7 @@ PACKAGES=(
   desktop-file-utils appstream shared-mime-info man-db lintian debootstrap
   # ITK reads segmentations (NRRD, NIfTI, MetaImage); its CMake configuration names GDCM's tools, hence gdcm-tools.
   libinsighttoolkit5-dev libgdcm-tools
+  qt6-l10n-tools qt6-tools-dev
 )
 missing=()
 for p in "${PACKAGES[@]}"; do

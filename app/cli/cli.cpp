@@ -47,8 +47,10 @@ std::string usage() {
   return out +
          "  rehearse --help | --version      (the version with its git revision)\n\n"
          "GUI options: --screenshot PNG (save the window and quit), --software (no OpenGL), --opengl (OpenGL even\n"
-         "  through a software rasteriser such as llvmpipe, which is otherwise not used)\n"
+         "  through a software rasteriser such as llvmpipe, which is otherwise not used), --language fr|en (the\n"
+         "  interface's language; by default the system's), --no-recover (do not offer the autosaved case)\n"
          "Mesh formats: .msh (Gmsh 1, 2.2, 4.1), .vtk (legacy), .vtu, .mesh (Medit), .obj .stl .ply .off .gltf .glb.\n"
+         "Segmentations (label images): .nrrd .nhdr .nii .nii.gz .mha .mhd .inr .inr.gz.\n"
          "Lengths are metres unless --unit says otherwise.\n";
 }
 

@@ -680,6 +680,12 @@ class TestAppearanceGui : public QObject {
     QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.held.empty(); }));
     auto* status = w_->rehearsePage()->findChild<QLabel*>("rehearseStatus");
     QString tore;
+    // What tore, as the page says it: seen on every frame shown (under load a later frame's status replaced the
+    // tear's before a poll of the label saw it).
+    const auto watching = connect(panel_, &ui::SimulationPanel::frameShown, this, [&] {
+      if (tore.isEmpty() && status->text().contains("tore")) tore = status->text();
+    });
+    const auto unwatch = qScopeGuard([&] { disconnect(watching); });
     QPoint last = from;
     for (int i = 1; i <= 40 && tore.isEmpty(); ++i) {
       last = widget(0.3 - 0.3 * i / 40.0, 0.6 + 0.6 * i / 40.0);

@@ -14,6 +14,16 @@
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/organoverlay.hpp"
 #include "rehearse/ui/pages/meshpage.hpp"
+#include "rehearse/ui/gui.hpp"
+#include <QAbstractButton>
+#include <QAbstractItemView>
+#include <QAbstractSpinBox>
+#include <QAccessible>
+#include <QComboBox>
+#include <QLineEdit>
+#include <QListWidget>
+#include <QMenuBar>
+#include <QSlider>
 #include <rehearse/simcore/labelimage.hpp>
 
 #include <QDockWidget>
@@ -418,6 +428,71 @@ class TestGui : public QObject {
     const QString why = imported.first().at(1).toString();
     QVERIFY2(why.startsWith(QStringLiteral("Cannot read damaged.nii.gz")) && !why.contains('\n'), qPrintable(why));
     QVERIFY(w.caseData() == kept);
+  }
+
+  // The interface in French (issue 39): the translation built into the program (ui/translations/rehearse_fr.ts), as
+  // `rehearse --language fr` or a French system installs it; strings it does not translate stay in English.
+  void frenchInterface() {
+    QCOMPARE(ui::installTranslation("fr"), QStringLiteral("fr"));
+    {
+      ui::MainWindow w;
+      QStringList menus;
+      for (QAction* a : w.menuBar()->actions()) menus << a->text();
+      qInfo("menus in French: %s", qPrintable(menus.join(" | ")));
+      for (const char* m : {"&Fichier", "É&dition", "&Affichage", "Si&mulation", "&Aide"})
+        QVERIFY2(menus.contains(QString::fromUtf8(m)), m);
+      auto* steps = w.findChild<QListWidget*>("workflowList");
+      QVERIFY(steps);
+      QVERIFY2(steps->item(0)->text().contains(QString::fromUtf8("Maillage de l'organe")),
+               qPrintable(steps->item(0)->text()));
+      QVERIFY(steps->item(6)->text().contains(QString::fromUtf8("Répétition")));
+    }
+    QCOMPARE(ui::installTranslation("en"), QString());
+    ui::MainWindow english;
+    QCOMPARE(english.menuBar()->actions().front()->text(), QStringLiteral("&File"));
+  }
+
+  // Accessible names (issue 39): every control a screen reader reaches on each step's page and in the window has a
+  // name (its text, its label's, or one set for it), read through Qt's accessibility interface as a reader would.
+  void controlsHaveAccessibleNames() {
+    ui::MainWindow w;
+    w.resize(1600, 900);
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    w.activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(&w));
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    QVERIFY(loaded.wait(60000));
+    QStringList unnamed;  // each control once, whichever steps show it
+    int checked = 0;
+    for (int step = 1; step <= 7; ++step) {
+      QTest::keyClick(&w, static_cast<Qt::Key>(Qt::Key_0 + step), Qt::AltModifier);
+      QTest::qWait(50);
+      for (QWidget* c : w.findChildren<QWidget*>()) {
+        if (!c->isVisible()) continue;
+        const bool control = qobject_cast<QAbstractButton*>(c) || qobject_cast<QAbstractSpinBox*>(c) ||
+                             qobject_cast<QComboBox*>(c) || qobject_cast<QSlider*>(c) ||
+                             (qobject_cast<QLineEdit*>(c) && !qobject_cast<QAbstractSpinBox*>(c->parentWidget()) &&
+                              !qobject_cast<QComboBox*>(c->parentWidget())) ||
+                             qobject_cast<QAbstractItemView*>(c);
+        if (!control || c->focusPolicy() == Qt::NoFocus) continue;
+        QAccessibleInterface* a = QAccessible::queryAccessibleInterface(c);
+        QVERIFY(a);
+        ++checked;
+        if (a->text(QAccessible::Name).trimmed().isEmpty()) {
+          const QString what =
+              QStringLiteral("%1 '%2' in %3 (tip: %4)")
+                  .arg(QString::fromLatin1(c->metaObject()->className()), c->objectName(),
+                       QString::fromLatin1(c->parentWidget()->metaObject()->className()), c->toolTip().left(60));
+          if (!unnamed.contains(what)) unnamed << what;
+        }
+      }
+    }
+    qInfo("%d controls checked over the seven steps", checked);
+    QVERIFY2(unnamed.isEmpty(),
+             qPrintable(QStringLiteral("%1 controls without an accessible name:\n").arg(unnamed.size()) +
+                        unnamed.join("\n")));
   }
 };
 

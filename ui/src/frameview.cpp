@@ -578,6 +578,16 @@ void FrameView::mouseDoubleClickEvent(QMouseEvent* e) {
   QWidget::mouseDoubleClickEvent(e);
 }
 
+std::vector<std::pair<QString, QString>> FrameView::viewKeys() {
+  return {{QStringLiteral("Home"), tr("Fit the frame to the view")},
+          {QStringLiteral("+"), tr("Zoom in")},
+          {QStringLiteral("-"), tr("Zoom out")},
+          {QStringLiteral("Return"), tr("End the click-by-click segment or the curve being picked")},
+          {QStringLiteral("Esc"), tr("Abandon what the tool is drawing")},
+          {QStringLiteral("Backspace"), tr("Take the last point of the curve on the organ back")},
+          {QStringLiteral("Space"), tr("Grasper: close the jaws at the cursor, or open them")}};
+}
+
 void FrameView::keyPressEvent(QKeyEvent* e) {
   if (current() && current()->key(e)) return;
   switch (e->key()) {

@@ -1,9 +1,14 @@
 #include "rehearse/ui/gui.hpp"
 
 #include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/crashreport.hpp"
+#include "rehearse_revision.hpp"
 
 #include <QApplication>
 #include <QCommandLineParser>
+#include <QLibraryInfo>
+#include <QLocale>
+#include <QTranslator>
 #include <QPalette>
 #include <QStyleFactory>
 #include <QTimer>
@@ -13,6 +18,36 @@
 
 namespace rehearse::ui {
 // Operating rooms are dim: a dark theme by default.
+QString installTranslation(const QString& language) {
+  static QTranslator* ours = nullptr;
+  static QTranslator* qts = nullptr;
+  for (QTranslator** t : {&ours, &qts})
+    if (*t) {
+      QCoreApplication::removeTranslator(*t);
+      delete *t;
+      *t = nullptr;
+    }
+  const QLocale locale = language.isEmpty() ? QLocale::system() : QLocale(language);
+  if (language == QLatin1String("en") || language == QLatin1String("C") || locale.language() == QLocale::English)
+    return {};
+  auto* own = new QTranslator;
+  if (!own->load(locale, QStringLiteral("rehearse"), QStringLiteral("_"), QStringLiteral(":/i18n"))) {
+    delete own;
+    return {};
+  }
+  QCoreApplication::installTranslator(own);
+  ours = own;
+  auto* base = new QTranslator;
+  if (base->load(locale, QStringLiteral("qtbase"), QStringLiteral("_"),
+                 QLibraryInfo::path(QLibraryInfo::TranslationsPath))) {
+    QCoreApplication::installTranslator(base);
+    qts = base;
+  } else {
+    delete base;
+  }
+  return QLocale::languageToCode(locale.language());
+}
+
 void applyDarkTheme(QApplication& app) {
   app.setStyle(QStyleFactory::create(QStringLiteral("Fusion")));
   QPalette p;
@@ -54,6 +89,8 @@ int runGui(int argc, char** argv) {
   QApplication::setApplicationName(QStringLiteral("Rehearse"));
   QApplication::setApplicationVersion(QStringLiteral(REHEARSE_VERSION));
   applyDarkTheme(app);
+  // Crash reports: written locally on a crash, offered at the next start (crashreport.hpp).
+  crash::install(crash::defaultFolder(), QStringLiteral(REHEARSE_VERSION " (" REHEARSE_REVISION ")"));
 
   QCommandLineParser parser;
   parser.addPositionalArgument(QStringLiteral("open"), QStringLiteral("open CASE"));
@@ -62,15 +99,20 @@ int runGui(int argc, char** argv) {
   QCommandLineOption opengl(QStringLiteral("opengl"),
                             QStringLiteral("Draw the views with OpenGL even through a software rasteriser (by default a software "
                                            "OpenGL such as Mesa's llvmpipe is not used: the CPU views are faster there)."));
+  QCommandLineOption language(QStringLiteral("language"),
+                              QStringLiteral("The interface's language (fr; en: English); by default the system's."),
+                              QStringLiteral("code"));
   QCommandLineOption noRecover(QStringLiteral("no-recover"), QStringLiteral("Do not offer to recover an autosaved case."));
   parser.addOption(screenshot);
   parser.addOption(software);
   parser.addOption(opengl);
   parser.addOption(noRecover);
+  parser.addOption(language);
   if (!parser.parse(app.arguments())) {
     std::fprintf(stderr, "rehearse: %s; see 'rehearse --help'\n", qPrintable(parser.errorText()));
     return 2;
   }
+  installTranslation(parser.value(language));
   const QStringList pos = parser.positionalArguments();
   QString caseDir;
   if (!pos.isEmpty()) {
@@ -105,6 +147,7 @@ int runGui(int argc, char** argv) {
   const bool recover = shot.isEmpty() && !parser.isSet(noRecover) && MainWindow::hasRecoverableAutosave();
   window.openCase(caseDir);
   if (recover) QTimer::singleShot(0, &window, &MainWindow::offerRecovery);
+  if (shot.isEmpty()) QTimer::singleShot(0, &window, [&window] { window.offerCrashReports(crash::defaultFolder()); });
   const int code = app.exec();
   return shot.isEmpty() ? code : exitCode;
 }

@@ -1,4 +1,6 @@
 #include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/crashreport.hpp"
+#include <rehearse/simcore/labelimage.hpp>
 #include "rehearse/ui/liveoverlay.hpp"
 #include "rehearse/ui/recordingcontroller.hpp"
 
@@ -30,6 +32,7 @@
 #include <QPlainTextEdit>
 #include <QPainter>
 #include <QProgressBar>
+#include <QPushButton>
 #include <QSettings>
 #include <QStackedWidget>
 #include <QStatusBar>
@@ -52,6 +55,13 @@ MainWindow::Renderer& rendererChoice() {
 }
 
 }  // namespace
+
+// The workflow's step titles (app::kSteps, which has no Qt) for translators: lupdate finds them here.
+[[maybe_unused]] const char* const kStepTitlesToTranslate[] = {
+    QT_TRANSLATE_NOOP("Step", "Organ mesh"),  QT_TRANSLATE_NOOP("Step", "Endoscope frame"),
+    QT_TRANSLATE_NOOP("Step", "Contour"),     QT_TRANSLATE_NOOP("Step", "Rigid alignment"),
+    QT_TRANSLATE_NOOP("Step", "Elastic fit"), QT_TRANSLATE_NOOP("Step", "Appearance"),
+    QT_TRANSLATE_NOOP("Step", "Rehearse")};
 
 QString stepName(int i) {
   return QStringLiteral("%1  %2").arg(i + 1).arg(
@@ -159,6 +169,7 @@ QWidget* MainWindow::organWidget() const {
 
 void MainWindow::setStep(Step s) {
   step_ = s;
+  crash::setActivity(activity());
   keys_->stepShown(s);
   if (s != Step::Contour) view_->setSecondFrameShown(false);  // (the second frame is sketched on in step 3 only)
   const int row = app::index(s);
@@ -377,7 +388,8 @@ void MainWindow::dropEvent(QDropEvent* e) {
   // The dropped file's kind decides the step it belongs to.
   if (QFileInfo(path).isDir() || ext == QLatin1String("rehearse"))
     openCase(path);
-  else if (QStringList{"msh", "vtk", "vtu", "mesh", "obj", "stl", "ply", "off", "gltf", "glb"}.contains(ext))
+  else if (QStringList{"msh", "vtk", "vtu", "mesh", "obj", "stl", "ply", "off", "gltf", "glb"}.contains(ext) ||
+           simcore::isLabelImagePath(path.toStdString()))
     pages_.mesh->importMesh(path);
   else if (QStringList{"png", "jpg", "jpeg", "bmp", "tif", "tiff", "mp4", "avi", "mkv", "mov"}.contains(ext))
     pages_.frame->openFrameSource(path);
@@ -408,7 +420,68 @@ QStringList MainWindow::messageLog() const {
 
 // ------------------------------------------------------------------------------------------ loading
 
+QString MainWindow::activity() const {
+  const int i = app::index(step_);
+  QString what =
+      QStringLiteral("step %1 %2").arg(i + 1).arg(QString::fromLatin1(app::kSteps[static_cast<std::size_t>(i)].title));
+  if (!busyMessage_.isEmpty()) what += QStringLiteral("; job: ") + busyMessage_;
+  return what;
+}
+
+void MainWindow::offerCrashReports(const QString& folder) {
+  const QStringList reports = crash::pendingReports(folder);
+  if (reports.isEmpty()) return;
+  const QString newest = reports.back();
+  QString doing;
+  {
+    QFile f(newest);
+    if (f.open(QIODevice::ReadOnly))
+      for (const QString& line : QString::fromUtf8(f.read(1 << 16)).split(QLatin1Char('\n')))
+        if (line.startsWith(QStringLiteral("what was running: "))) doing = line.mid(18);
+  }
+  say(tr("Rehearse stopped unexpectedly last time%1; its report is kept on this machine, never sent: %2")
+          .arg(doing.isEmpty() ? QString() : tr(" (%1)").arg(doing), newest));
+  auto* box =
+      new QMessageBox(QMessageBox::Warning, tr("Rehearse stopped unexpectedly"),
+                      tr("Rehearse stopped unexpectedly last time%1. The case open then was autosaved at most a "
+                         "minute before%2.\n\nA report (version, what was running, the program's stack) is kept "
+                         "on this machine and never sent anywhere:\n%3")
+                          .arg(doing.isEmpty() ? QString() : tr(", during %1").arg(doing),
+                               hasRecoverableAutosave() ? tr(" and is offered back") : QString(), newest),
+                      QMessageBox::NoButton, this);
+  box->setObjectName(QStringLiteral("crashReportOffer"));
+  box->setAttribute(Qt::WA_DeleteOnClose);
+  box->setWindowModality(Qt::NonModal);
+  QPushButton* show = box->addButton(tr("Show Report"), QMessageBox::ActionRole);
+  QPushButton* remove = box->addButton(tr("Delete Report"), QMessageBox::DestructiveRole);
+  box->addButton(tr("Keep"), QMessageBox::AcceptRole)->setObjectName(QStringLiteral("keepCrashReport"));
+  show->setObjectName(QStringLiteral("showCrashReport"));
+  remove->setObjectName(QStringLiteral("deleteCrashReport"));
+  connect(box, &QMessageBox::buttonClicked, this, [this, show, remove, reports, newest](QAbstractButton* b) {
+    if (b == show) {
+      auto* text = new QPlainTextEdit;
+      text->setAttribute(Qt::WA_DeleteOnClose);
+      text->setReadOnly(true);
+      text->setWindowTitle(QFileInfo(newest).fileName());
+      QFile f(newest);
+      if (f.open(QIODevice::ReadOnly)) text->setPlainText(QString::fromUtf8(f.readAll()));
+      text->resize(900, 600);
+      text->show();
+    }
+    for (const QString& r : reports) {
+      if (b == remove)
+        QFile::remove(r);
+      else
+        crash::markShown(r);
+    }
+    say(b == remove ? tr("Crash report deleted.") : tr("Crash report kept: %1").arg(newest));
+  });
+  box->show();
+}
+
 void MainWindow::setBusy(bool busy, const QString& message) {
+  busyMessage_ = busy ? message : QString();
+  crash::setActivity(activity());
   status_.progress->setVisible(busy);
   status_.stage->setVisible(busy);
   status_.cancel->setVisible(busy);

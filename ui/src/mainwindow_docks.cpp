@@ -260,6 +260,7 @@ void MainWindow::buildWorkflowPanel() {
   auto* host = new QWidget(dock);
   auto* layout = new QVBoxLayout(host);
   workflow_ = new QListWidget(host);
+  workflow_->setAccessibleName(tr("Workflow steps"));
   workflow_->setObjectName(QStringLiteral("workflowList"));
   QFont big = workflow_->font();
   big.setPointSizeF(big.pointSizeF() * 1.15);

@@ -2,6 +2,7 @@
 #include "rehearse/ui/devicesteering.hpp"
 #include "rehearse_revision.hpp"
 #include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/keyboardreference.hpp"
 #include "rehearse/ui/liveoverlay.hpp"
 #include "rehearse/ui/recordingcontroller.hpp"
 #include "rehearse/ui/trainingcontroller.hpp"
@@ -13,9 +14,16 @@
 #include "rehearse/ui/simulationpanel.hpp"
 
 #include <QAction>
+#include <QDesktopServices>
+#include <QDialog>
+#include <QDialogButtonBox>
+#include <QHeaderView>
+#include <QTableWidget>
+#include <QUrl>
 #include <QActionGroup>
 #include <QCoreApplication>
 #include <QCloseEvent>
+#include <QDir>
 #include <QDockWidget>
 #include <QDragEnterEvent>
 #include <QDateTime>
@@ -82,7 +90,8 @@ void MainWindow::buildMenus() {
   QAction* undo = doc_->undoStack()->createUndoAction(this, tr("&Undo"));
   undo->setShortcut(QKeySequence::Undo);
   QAction* redo = doc_->undoStack()->createRedoAction(this, tr("&Redo"));
-  redo->setShortcut(QKeySequence::Redo);
+  // Ctrl+Shift+Z as on every desktop, and Ctrl+Y (the platform's standard key differs: Qt's offscreen one has only Y).
+  redo->setShortcuts({QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_Z), QKeySequence(Qt::CTRL | Qt::Key_Y)});
   edit->addAction(undo);
   edit->addAction(redo);
   // Undo and redo say what they did, so that no older sentence ("Imported ...") stays in the status bar.
@@ -117,6 +126,50 @@ void MainWindow::buildMenus() {
   addAction(cancel);
 
   QMenu* help = menuBar()->addMenu(tr("&Help"));
+  // The keyboard reference, read from this window's own actions and keys (the user guide prints the same table).
+  QAction* keysAction = help->addAction(tr("&Keyboard Shortcuts"), this, [this] {
+    auto* dialog = new QDialog(this);
+    dialog->setAttribute(Qt::WA_DeleteOnClose);
+    dialog->setWindowTitle(tr("Keyboard Shortcuts"));
+    auto* layout = new QVBoxLayout(dialog);
+    auto* table = new QTableWidget(dialog);
+    table->setObjectName(QStringLiteral("keyboardReference"));
+    table->setAccessibleName(tr("Keyboard shortcuts"));
+    const auto reference = keyboardReference(*this);
+    table->setColumnCount(3);
+    table->setRowCount(static_cast<int>(reference.size()));
+    table->setHorizontalHeaderLabels({tr("Where"), tr("Keys"), tr("What")});
+    for (int r = 0; r < static_cast<int>(reference.size()); ++r) {
+      const auto& e = reference[static_cast<std::size_t>(r)];
+      table->setItem(r, 0, new QTableWidgetItem(e.where));
+      table->setItem(r, 1, new QTableWidgetItem(e.keys));
+      table->setItem(r, 2, new QTableWidgetItem(e.what));
+    }
+    table->setEditTriggers(QAbstractItemView::NoEditTriggers);
+    table->resizeColumnsToContents();
+    table->horizontalHeader()->setStretchLastSection(true);
+    layout->addWidget(table);
+    auto* buttons = new QDialogButtonBox(QDialogButtonBox::Close, dialog);
+    connect(buttons, &QDialogButtonBox::rejected, dialog, &QDialog::close);
+    layout->addWidget(buttons);
+    dialog->resize(900, 640);
+    dialog->show();
+  });
+  keysAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_Slash));
+  // The user guide, as installed with the package (HTML; a PDF beside it).
+  help->addAction(tr("User &Guide"), this, [this] {
+    // Installed beside the program: PREFIX/bin/rehearse and PREFIX/share/doc/rehearse/guide/ (GNUInstallDirs).
+    const QString installed = QDir::cleanPath(QCoreApplication::applicationDirPath() +
+                                              QStringLiteral("/../share/doc/rehearse/guide/guide.html"));
+    if (QFileInfo::exists(installed)) {
+      QDesktopServices::openUrl(QUrl::fromLocalFile(installed));
+      say(tr("The user guide opens in the web browser: %1").arg(installed));
+    } else {
+      say(tr("The user guide is not installed here (%1); build and install the package, or see the build folder's "
+             "docs/guide/guide.html.")
+              .arg(installed));
+    }
+  });
   QAction* about = help->addAction(tr("&About Rehearse"), this, [this] {
     QMessageBox::about(
         this, tr("About Rehearse"),

@@ -567,6 +567,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form_.timeStep = field("simTimeStep", tr("Time step"), 0.1, 100, 1, tr(" ms"), "implicit_euler", "dt");
   form_.timeStep->setValue(10);
   form_.jawBite = new QDoubleSpinBox(this);
+  form_.jawBite->setAccessibleName(tr("Jaw bite"));
   form_.jawBite->setObjectName(QStringLiteral("simJawBite"));
   form_.jawBite->setRange(1, 30);
   form_.jawBite->setDecimals(1);

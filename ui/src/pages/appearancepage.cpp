@@ -52,7 +52,7 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   row->addWidget(clear);
   layout->addLayout(row);
   // F10 from anywhere: to this step, and estimate.
-  auto* key = new QAction(this);
+  auto* key = new QAction(tr("Estimate Appearance (from any step)"), this);  // named: the keyboard reference
   key->setShortcut(QKeySequence(Qt::Key_F10));
   connect(key, &QAction::triggered, this, &AppearancePage::estimate);
   wb_.window->addAction(key);
@@ -63,6 +63,7 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   layout->addWidget(status_);
   // The fitted parameters, as DejaVu's Table 1: the light's position and per-channel reflectances.
   table_ = new QTableWidget(4, 3, this);
+  table_->setAccessibleName(tr("Estimated light and reflectance"));
   table_->setObjectName(QStringLiteral("appearanceTable"));
   table_->setHorizontalHeaderLabels({tr("x / R"), tr("y / G"), tr("z / B")});
   table_->setVerticalHeaderLabels({tr("Light (mm)"), tr("k_d"), tr("k_s"), tr("\u03c3 / n")});

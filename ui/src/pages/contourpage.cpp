@@ -3,6 +3,7 @@
 #include "rehearse/ui/frameview.hpp"
 
 #include <QCheckBox>
+#include <QRegularExpression>
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QFileDialog>
@@ -53,7 +54,9 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
                      "in Edit, drag a point, Ctrl+click inserts, right-click deletes."));
     const Tool tool = t.tool;
     connect(b, &QPushButton::clicked, this, [this, tool] { wb_.view->setTool(tool); });
-    stepKey(QKeySequence(t.key), [this, tool] { wb_.view->setTool(tool); });
+    stepKey(
+        QKeySequence(t.key), [this, tool] { wb_.view->setTool(tool); },
+        tr("Contour tool: %1").arg(QString(tr(t.name)).remove(QRegularExpression(QStringLiteral("\\s*\\(.*\\)$")))));
     grid->addWidget(b, i / 2, i % 2);
     ++i;
   }
@@ -77,6 +80,7 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
   l->addLayout(typeRow);
   auto* rs = new QHBoxLayout;
   spacing_ = new QDoubleSpinBox(this);
+  spacing_->setAccessibleName(tr("Resampling spacing"));
   spacing_->setRange(1, 100);
   spacing_->setValue(8);
   spacing_->setSuffix(tr(" px"));

@@ -60,6 +60,7 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   auto* toleranceRow = new QHBoxLayout;
   auto* toleranceLabel = new QLabel(tr("&Tolerance:"), this);
   tolerance_ = new QDoubleSpinBox(this);
+  tolerance_->setAccessibleName(tr("Tolerance"));
   tolerance_->setObjectName(QStringLiteral("fitTolerance"));
   tolerance_->setAccessibleName(tr("Tolerance"));
   tolerance_->setRange(0.5, 50);

@@ -30,6 +30,7 @@ FramePage::FramePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::F
   l->addWidget(open);
   auto* cam = new QHBoxLayout;
   auto* device = new QSpinBox(this);
+  device->setAccessibleName(tr("Camera device number"));
   device->setRange(0, 9);
   auto* openDevice = new QPushButton(tr("Live Camera"), this);
   connect(openDevice, &QPushButton::clicked, this, [this, device] { openCameraDevice(device->value()); });
@@ -103,6 +104,7 @@ FramePage::FramePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::F
   auto* moveRow = new QHBoxLayout;
   auto* moveLabel = new QLabel(tr("Scope &moved:"), secondBox);
   baseline_ = new QDoubleSpinBox(secondBox);
+  baseline_->setAccessibleName(tr("How far the scope moved"));
   baseline_->setObjectName(QStringLiteral("secondFrameBaseline"));
   baseline_->setRange(0, 200);
   baseline_->setDecimals(1);

@@ -49,6 +49,7 @@ MeshPage::MeshPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Mes
   l->addLayout(form);
   l->addWidget(new QLabel(tr("Labels (tick to show inner structures)"), this));
   labels_ = new QTreeWidget(this);
+  labels_->setAccessibleName(tr("Labels of the organ"));
   labels_->setObjectName(QStringLiteral("labelList"));
   labels_->setHeaderLabels({tr("Label"), tr("Kind"), tr("Elements")});
   labels_->setRootIsDecorated(false);

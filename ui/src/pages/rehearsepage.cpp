@@ -64,6 +64,7 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   // Recording for the trainer: into the case file, as the rehearsal runs (from rest: the simulation restarts).
   auto* recordRow = new QHBoxLayout;
   trainee_ = new QLineEdit(this);
+  trainee_->setAccessibleName(tr("Trainee"));
   trainee_->setObjectName(QStringLiteral("traineeName"));
   trainee_->setPlaceholderText(tr("trainee (name or id)"));
   trainee_->setToolTip(tr("Who rehearses: recorded with the session"));

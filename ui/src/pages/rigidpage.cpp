@@ -19,6 +19,41 @@
 #include <cmath>
 
 namespace rehearse::ui {
+namespace {
+// What a nudge key does (the keyboard reference): the camera's axes, 1 mm or 1 degree, Shift 10 mm or 5 degrees.
+QString nudgeDescription(Qt::Key key, bool shift) {
+  const QString mm = shift ? QStringLiteral("10 mm") : QStringLiteral("1 mm");
+  const QString deg = shift ? QStringLiteral("5 degrees") : QStringLiteral("1 degree");
+  switch (key) {
+    case Qt::Key_Left:
+      return QObject::tr("Move the organ left %1").arg(mm);
+    case Qt::Key_Right:
+      return QObject::tr("Move the organ right %1").arg(mm);
+    case Qt::Key_Up:
+      return QObject::tr("Move the organ up %1").arg(mm);
+    case Qt::Key_Down:
+      return QObject::tr("Move the organ down %1").arg(mm);
+    case Qt::Key_PageUp:
+      return QObject::tr("Move the organ away from the camera %1").arg(mm);
+    case Qt::Key_PageDown:
+      return QObject::tr("Move the organ towards the camera %1").arg(mm);
+    case Qt::Key_W:
+      return QObject::tr("Turn the organ about the camera's x axis %1").arg(deg);
+    case Qt::Key_S:
+      return QObject::tr("Turn the organ about the camera's x axis back %1").arg(deg);
+    case Qt::Key_A:
+      return QObject::tr("Turn the organ about the camera's y axis %1").arg(deg);
+    case Qt::Key_D:
+      return QObject::tr("Turn the organ about the camera's y axis back %1").arg(deg);
+    case Qt::Key_Q:
+      return QObject::tr("Turn the organ about the camera's z axis %1").arg(deg);
+    case Qt::Key_E:
+      return QObject::tr("Turn the organ about the camera's z axis back %1").arg(deg);
+    default:
+      return {};
+  }
+}
+}  // namespace
 
 RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Rigid, parent) {
   auto* l = new QVBoxLayout(this);
@@ -84,6 +119,7 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
   ll->addWidget(toolButton(lmBox, tr("Pick Landmarks (L)"), tr("Click a point on the organ, then where it is in the frame; 4 pairs or more"),
                            Tool::Landmarks, Qt::Key_L));
   landmarkList_ = new QListWidget(lmBox);
+  landmarkList_->setAccessibleName(tr("Landmark pairs"));
   landmarkList_->setMaximumHeight(110);
   ll->addWidget(landmarkList_);
   auto* lrow = new QHBoxLayout;
@@ -112,15 +148,18 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
   for (const Qt::Key key : {Qt::Key_Left, Qt::Key_Right, Qt::Key_Up, Qt::Key_Down, Qt::Key_PageUp, Qt::Key_PageDown, Qt::Key_W, Qt::Key_S,
                             Qt::Key_A, Qt::Key_D, Qt::Key_Q, Qt::Key_E})
     for (const bool shift : {false, true})
-      stepKey(QKeySequence(shift ? (Qt::SHIFT | key) : QKeyCombination(key)), [this, key, shift] {
-        if (!data()) return;
-        if (const auto p = nudgedPose(*data(), key, shift))
-          wb_.doc->edit(tr("Nudge"), [&](app::Case& k) {
-            k.pose = *p;
-            k.hasPose = true;
-            k.poseAligned = true;
-          });
-      });
+      stepKey(
+          QKeySequence(shift ? (Qt::SHIFT | key) : QKeyCombination(key)),
+          [this, key, shift] {
+            if (!data()) return;
+            if (const auto p = nudgedPose(*data(), key, shift))
+              wb_.doc->edit(tr("Nudge"), [&](app::Case& k) {
+                k.pose = *p;
+                k.hasPose = true;
+                k.poseAligned = true;
+              });
+          },
+          nudgeDescription(key, shift));
 
   // The Landmarks tool reports its clicks; the pairs live here until the pose is solved.
   connect(wb_.view, &FrameView::landmarkModelPicked, this, [this](const Eigen::Vector3d& m) {

@@ -11,8 +11,12 @@ QPushButton* StepPage::toolButton(QWidget* parent, const QString& text, const QS
   auto* button = new QPushButton(text, parent);
   button->setToolTip(tip);
   connect(button, &QPushButton::clicked, this, [this, tool] { wb_.view->setTool(tool); });
-  auto* shortcut = new QAction(this);
+  auto* shortcut = new QAction(text, this);  // named: the keyboard reference lists it
   shortcut->setShortcut(QKeySequence(key));
+  shortcut->setProperty("rehearseWhere",
+                        QStringLiteral("Step %1 %2")
+                            .arg(app::index(step_) + 1)
+                            .arg(QString::fromLatin1(app::kSteps[static_cast<std::size_t>(app::index(step_))].title)));
   connect(shortcut, &QAction::triggered, this, [this, tool] {
     wb_.goToStep(step_);
     wb_.view->setTool(tool);
@@ -21,9 +25,11 @@ QPushButton* StepPage::toolButton(QWidget* parent, const QString& text, const QS
   return button;
 }
 
-void StepPage::stepKey(const QKeySequence& key, std::function<void()> handler) { wb_.keys->bind(key, step_, std::move(handler)); }
+void StepPage::stepKey(const QKeySequence& key, std::function<void()> handler, const QString& what) {
+  wb_.keys->bind(key, step_, std::move(handler), what);
+}
 
-void StepKeys::bind(const QKeySequence& key, app::Step step, std::function<void()> handler) {
+void StepKeys::bind(const QKeySequence& key, app::Step step, std::function<void()> handler, const QString& what) {
   const QString text = key.toString();
   auto& byStep = handlers_[text];
   if (byStep.empty()) {
@@ -37,6 +43,9 @@ void StepKeys::bind(const QKeySequence& key, app::Step step, std::function<void(
     actions_[text] = a;
   }
   byStep[step] = std::move(handler);
+  QVariantMap described = actions_[text]->property("rehearseStepKeys").toMap();
+  described[QString::number(app::index(step))] = what;
+  actions_[text]->setProperty("rehearseStepKeys", described);
   actions_[text]->setEnabled(current_() == step || byStep.count(current_()));
 }
 

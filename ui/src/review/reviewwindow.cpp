@@ -234,27 +234,40 @@ void ReviewWindow::build(const QString& title) {
   connect(timer_, &QTimer::timeout, this, &ReviewWindow::tick);
   // The review's keys are actions of this window: they work whichever of its widgets has the keyboard focus (a session
   // list that took the focus swallowed Space, Home and End), and they are not the main window's (Home there fits the frame).
-  auto key = [this](QKeySequence sequence, std::function<void()> f) {
-    auto* a = new QAction(this);
+  auto key = [this](QKeySequence sequence, std::function<void()> f, const QString& what) {
+    auto* a = new QAction(what, this);  // named: the keyboard reference lists it
+    a->setProperty("rehearseWhere", tr("Review window"));
     a->setShortcut(sequence);
     a->setShortcutContext(Qt::WindowShortcut);
     connect(a, &QAction::triggered, this, std::move(f));
     addAction(a);
   };
-  key(Qt::Key_Space, [this] { setPlaying(!playing_); });
-  key(Qt::Key_Left, [this] { stepBy(-1); });
-  key(Qt::Key_Right, [this] { stepBy(1); });
-  key(QKeySequence(Qt::SHIFT | Qt::Key_Left), [this] { stepBy(-10); });
-  key(QKeySequence(Qt::SHIFT | Qt::Key_Right), [this] { stepBy(10); });
-  key(Qt::Key_Home, [this] {
-    setPlaying(false);
-    seekTime(0);
-  });
-  key(Qt::Key_End, [this] {
-    setPlaying(false);
-    seekTime(duration(0));
-  });
-  key(Qt::Key_V, [this] { setThreeD(!threeD_); });
+  key(
+      Qt::Key_Space, [this] { setPlaying(!playing_); }, tr("Play or pause"));
+  key(
+      Qt::Key_Left, [this] { stepBy(-1); }, tr("One step back"));
+  key(
+      Qt::Key_Right, [this] { stepBy(1); }, tr("One step on"));
+  key(
+      QKeySequence(Qt::SHIFT | Qt::Key_Left), [this] { stepBy(-10); }, tr("Ten steps back"));
+  key(
+      QKeySequence(Qt::SHIFT | Qt::Key_Right), [this] { stepBy(10); }, tr("Ten steps on"));
+  key(
+      Qt::Key_Home,
+      [this] {
+        setPlaying(false);
+        seekTime(0);
+      },
+      tr("To the start"));
+  key(
+      Qt::Key_End,
+      [this] {
+        setPlaying(false);
+        seekTime(duration(0));
+      },
+      tr("To the end"));
+  key(
+      Qt::Key_V, [this] { setThreeD(!threeD_); }, tr("The 3D view (drag to turn) or the frame"));
   for (QComboBox* c : {first_, second_, speed_}) c->setFocusPolicy(Qt::ClickFocus);
   fillSessionLists();
   connect(first_, &QComboBox::activated, this, [this](int) { openSession(0, first_->currentData().toLongLong()); });

@@ -19,6 +19,8 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <utility>
+#include <vector>
 
 namespace rehearse::ui {
 
@@ -89,6 +91,9 @@ inline QColor possibleOutline() { return QColor(120, 190, 255); }  ///< where th
 class FrameView : public QWidget {
   Q_OBJECT
  public:
+  /// The keys the view itself answers while it has the focus (keyPressEvent and its tools' key()), with what each
+  /// does: the keyboard reference lists them (keyboardreference.hpp).
+  static std::vector<std::pair<QString, QString>> viewKeys();
   explicit FrameView(QWidget* parent = nullptr);
   ~FrameView() override;
   void setFrame(const QImage& frame);

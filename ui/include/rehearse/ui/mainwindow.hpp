@@ -150,6 +150,9 @@ class MainWindow : public QMainWindow {
  public slots:
   void cancelLoading();
   void offerRecovery();
+  /// Offers the newest crash report an earlier run left in `folder` (crashreport.hpp): a non-modal box that shows,
+  /// deletes or keeps it (kept reports are not offered again).
+  void offerCrashReports(const QString& folder);
 
  protected:
   void closeEvent(QCloseEvent*) override;
@@ -232,6 +235,8 @@ class MainWindow : public QMainWindow {
   QStackedWidget* stepStack_ = nullptr;
   Step step_ = Step::Mesh;
   Workbench wb_;
+  QString busyMessage_;  ///< the running job's message (crash reports say what was running)
+  QString activity() const;
   std::unique_ptr<StepKeys> keys_;
   Pages pages_;
   QMenu* recentMenu_ = nullptr;

@@ -26,7 +26,9 @@ namespace rehearse::ui {
 class StepKeys {
  public:
   StepKeys(QWidget* window, std::function<app::Step()> currentStep) : window_(window), current_(std::move(currentStep)) {}
-  void bind(const QKeySequence& key, app::Step step, std::function<void()> handler);
+  /// `what` (what the key does in that step) goes to the keyboard reference (keyboardreference.hpp), kept on the
+  /// key's action as its "rehearseStepKeys" property (step number -> what).
+  void bind(const QKeySequence& key, app::Step step, std::function<void()> handler, const QString& what = {});
   /// A step is shown: only its keys are live (a key no step uses here goes to the focused widget: the
   /// arrows to a list or a combo box in step 3, to the pose nudges in step 4).
   void stepShown(app::Step step);
@@ -65,7 +67,7 @@ class StepPage : public QWidget {
   /// this page's step.
   QPushButton* toolButton(QWidget* parent, const QString& text, const QString& tip, Tool tool, Qt::Key key);
   /// A key that does `handler` while this page's step is shown (StepKeys).
-  void stepKey(const QKeySequence& key, std::function<void()> handler);
+  void stepKey(const QKeySequence& key, std::function<void()> handler, const QString& what = {});
   const std::shared_ptr<const app::Case>& data() const { return wb_.doc->data(); }
 
   Workbench& wb_;
