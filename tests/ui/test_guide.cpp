@@ -5,6 +5,7 @@
 // With REHEARSE_GUIDE_OUT set (the build's `rehearse_guide` target) it writes there, for installing.
 #include "test_support.hpp"
 #include "window_support.hpp"
+#include "sagged_outline.hpp"
 
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/gui.hpp"
@@ -13,9 +14,6 @@
 #include "rehearse/ui/reviewwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 #include "rehearse/ui/pages/appearancepage.hpp"
-#include <rehearse/imaging/render.hpp>
-#include <rehearse/simcore/fem.hpp>
-#include <rehearse/simcore/integrator.hpp>
 
 #include <QDir>
 #include <QLabel>
@@ -75,19 +73,8 @@ class TestGuide : public QObject {
     // The assistant's outline: the organ's, sagging a little sideways, as the frame would show it; the rigid
     // alignment 3 mm off (what the fit then corrects).
     const auto& c = *w_->caseData();
-    const simcore::FemModel model =
-        simcore::FemModel::build(c.organ->volume, {}, {simcore::MaterialModel::Corotational, 27e3, 0.4, 1000});
-    simcore::SimulationSettings load;
-    load.gravity = c.groundTruth->pose.R.transpose() * Eigen::Vector3d(2 * 9.81, 0, 0);
-    simcore::Integrator sag(model, c.attachments, load);
-    auto sagged = sag.initialState();
-    QVERIFY(sag.solveStatic(sagged).ok);
-    SurfaceView deformed = c.surfaceView();
-    deformed.vertices = sagged.x.data();
-    const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, c.groundTruth->pose, deformed));
-    QVERIFY(!borders.empty());
-    imaging::ContourSegment seg;
-    for (std::size_t i = 0; i < borders.front().size(); i += 3) seg.points.push_back(borders.front()[i]);
+    const imaging::ContourSegment seg = saggedOutline(c);
+    QVERIFY(!seg.points.empty());
     w_->editCase("guide: the assistant's outline", [&](app::Case& k) {
       k.contour.width = k.camera.width;
       k.contour.height = k.camera.height;

@@ -11,6 +11,7 @@
 #include "rehearse/ui/simulationpanel.hpp"
 #include "rehearse/ui/pages/framepage.hpp"
 #include "second_view.hpp"
+#include "sagged_outline.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 
@@ -301,19 +302,8 @@ class TestSimulationGui : public QObject {
     const auto& c = *w_->caseData();
     // The assistant's contour: the outline at the true pose of the organ sagging 2 g sideways (a
     // deformation the fit must find); the rigid alignment: the true pose moved 3 mm sideways.
-    const simcore::FemModel model =
-        simcore::FemModel::build(c.organ->volume, {}, {simcore::MaterialModel::Corotational, 27e3, 0.4, 1000});
-    simcore::SimulationSettings load;
-    load.gravity = c.groundTruth->pose.R.transpose() * Eigen::Vector3d(2 * 9.81, 0, 0);
-    simcore::Integrator sag(model, c.attachments, load);
-    auto sagged = sag.initialState();
-    QVERIFY(sag.solveStatic(sagged).ok);
-    SurfaceView deformed = c.surfaceView();
-    deformed.vertices = sagged.x.data();
-    const auto borders = imaging::maskOutlines(imaging::renderMask(c.camera, c.groundTruth->pose, deformed));
-    QVERIFY(!borders.empty());
-    imaging::ContourSegment seg;
-    for (std::size_t i = 0; i < borders.front().size(); i += 3) seg.points.push_back(borders.front()[i]);
+    const imaging::ContourSegment seg = saggedOutline(c);
+    QVERIFY(!seg.points.empty());
     w_->editCase("test: contour and pose", [&](app::Case& k) {
       k.contour.width = k.camera.width;
       k.contour.height = k.camera.height;

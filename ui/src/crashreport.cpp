@@ -7,6 +7,7 @@
 #include <QStandardPaths>
 
 #include <algorithm>
+#include <atomic>
 #include <csignal>
 #include <cstring>
 
@@ -104,12 +105,15 @@ void install(const QString& folder, const QString& version) {
 }
 
 void setActivity(const QString& what) {
+  // The handler may read the buffer at any moment: end it first, write the text behind the end, then move the end.
   const QByteArray text = what.toUtf8().left(static_cast<int>(sizeof activity) - 1);
-  activity[0] = 0;  // a reader in between sees an empty sentence, never a torn one past the end
-  std::memcpy(activity + 1, text.constData() + (text.isEmpty() ? 0 : 1),
-              text.isEmpty() ? 0 : static_cast<std::size_t>(text.size() - 1));
+  activity[0] = 0;
+  std::atomic_signal_fence(std::memory_order_seq_cst);
+  if (text.isEmpty()) return;
+  std::memcpy(activity + 1, text.constData() + 1, static_cast<std::size_t>(text.size() - 1));
   activity[text.size()] = 0;
-  if (!text.isEmpty()) activity[0] = text[0];
+  std::atomic_signal_fence(std::memory_order_seq_cst);  // the text is in place before the handler can see it
+  activity[0] = text[0];
 }
 
 QStringList pendingReports(const QString& folder) {

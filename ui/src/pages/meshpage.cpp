@@ -170,9 +170,13 @@ void MeshPage::importMesh(const QString& path) {
     try {
       std::vector<std::string> notes;
       progress(0.02, QStringLiteral("reading"));
-      if (simcore::isLabelImagePath(path.toStdString())) {
+      const bool segmentation = simcore::isLabelImagePath(path.toStdString());
+      simcore::Mesh m;
+      double fileUnit = 1e-3;    // kept with the organ (a 4x4 pose matrix is read in it)
+      simcore::Mesh ownSurface;  // the surface as imported: drawn in the composited view, carried by the tetrahedra
+      if (segmentation) {
         // A segmentation (NRRD, NIfTI, MetaImage, INR): meshed with each label a part, in the image's own frame
-        // (LPS, or the image's axes for INR) and millimetres (the file unit a pose matrix is read in).
+        // (LPS, or the image's axes for INR) and millimetres.
         const simcore::LabelImage image = simcore::readLabelImage(path.toStdString());
         notes = image.notes;
         simcore::LabelMeshOptions lo;
@@ -182,60 +186,50 @@ void MeshPage::importMesh(const QString& path) {
           progress(f < 0 ? f : 0.1 + 0.85 * f, QString::fromStdString(s));
         };
         progress(0.1, QStringLiteral("meshing %1 labels").arg(image.labelCounts().size()));
-        simcore::Mesh m = simcore::meshLabelImage(image, lo, &notes);
-        std::string visualNote;
-        auto prepared = app::Organ::fromVolume(std::move(m), path.toStdString(), 1e-3, nullptr, &visualNote);
-        if (!visualNote.empty()) notes.push_back(visualNote);
-        QStringList qnotes;
-        for (const auto& n : notes) qnotes << QString::fromStdString(n);
-        return [this, prepared, path, qnotes] {
-          importNotes_ = qnotes;
-          wb_.doc->edit(tr("Import segmentation"), [&](app::Case& k) { k.setOrgan(prepared); });
-          emit importNotesChanged();
-          const auto& volume = data()->organ->volume;
-          std::set<int> labels(volume.tetLabels.begin(), volume.tetLabels.end());
-          wb_.status(tr("Imported the segmentation %1: %2 tetrahedra in %3 labelled parts")
-                         .arg(QFileInfo(path).fileName())
-                         .arg(volume.tets.size())
-                         .arg(labels.size()));
-          emit meshImported(true, {});
-        };
-      }
-      simcore::Mesh m = simcore::loadMesh(path.toStdString(), {unit}, &notes);
-      const double fileUnit = simcore::metresPerUnit(unit);  // kept with the organ (a 4x4 pose matrix is read in it)
-      // A size no organ has (under 1 cm or over 1 m across) is a wrong unit, not an organ: refused with the
-      // likely unit, before anything is built (the case is unchanged).
-      if (!m.points.empty()) {
-        m.convertToMetres();
-        const double size = m.bounds().sizes().maxCoeff();
-        if (!(size >= 0.01 && size <= 1.0)) {
-          // The file's coordinates in its own unit, and the units that would make it 3 to 50 cm across.
-          const std::map<std::string, double> metresPer = {{"m", 1.0}, {"dm", 0.1}, {"cm", 0.01}, {"mm", 0.001}};
-          const auto chosen = metresPer.find(unit);
-          const double perUnit = size / (chosen != metresPer.end() ? chosen->second : 1.0);
-          QString likely;
-          double likelySize = 0;
-          for (const auto& [name, metres] : metresPer)
-            if (perUnit * metres >= 0.03 && perUnit * metres <= 0.5) {
-              likely = QString::fromStdString(name);
-              likelySize = perUnit * metres;
-            }
-          const QString what = tr("With the file unit %1 this organ would measure %2 mm across; organs measure 10 to 1000 mm.")
-                                   .arg(QString::fromStdString(unit)).arg(size * 1e3, 0, 'g', 3);
-          throw simcore::MeshError((likely.isEmpty() ? what + tr(" Check the file.")
-                                                     : what + tr(" The file is probably in %1 (%2 mm across): choose that file unit and import again.")
-                                                                  .arg(likely).arg(likelySize * 1e3, 0, 'f', 0))
-                                       .toStdString());
+        m = simcore::meshLabelImage(image, lo, &notes);
+      } else {
+        m = simcore::loadMesh(path.toStdString(), {unit}, &notes);
+        fileUnit = simcore::metresPerUnit(unit);
+        // A size no organ has (under 1 cm or over 1 m across) is a wrong unit, not an organ: refused with the
+        // likely unit, before anything is built (the case is unchanged).
+        if (!m.points.empty()) {
+          m.convertToMetres();
+          const double size = m.bounds().sizes().maxCoeff();
+          if (!(size >= 0.01 && size <= 1.0)) {
+            // The file's coordinates in its own unit, and the units that would make it 3 to 50 cm across.
+            const std::map<std::string, double> metresPer = {{"m", 1.0}, {"dm", 0.1}, {"cm", 0.01}, {"mm", 0.001}};
+            const auto chosen = metresPer.find(unit);
+            const double perUnit = size / (chosen != metresPer.end() ? chosen->second : 1.0);
+            QString likely;
+            double likelySize = 0;
+            for (const auto& [name, metres] : metresPer)
+              if (perUnit * metres >= 0.03 && perUnit * metres <= 0.5) {
+                likely = QString::fromStdString(name);
+                likelySize = perUnit * metres;
+              }
+            const QString what =
+                tr("With the file unit %1 this organ would measure %2 mm across; organs measure 10 to 1000 mm.")
+                    .arg(QString::fromStdString(unit))
+                    .arg(size * 1e3, 0, 'g', 3);
+            throw simcore::MeshError(
+                (likely.isEmpty()
+                     ? what + tr(" Check the file.")
+                     : what + tr(" The file is probably in %1 (%2 mm across): choose that file unit and import again.")
+                                  .arg(likely)
+                                  .arg(likelySize * 1e3, 0, 'f', 0))
+                    .toStdString());
+          }
         }
-      }
-      simcore::Mesh ownSurface;  // the surface as imported: drawn in the composited view, carried by the tetrahedra
-      if (!m.isVolume()) {
-        simcore::TetrahedraliseOptions o;
-        o.outerSurface = &ownSurface;
-        o.targetTets = static_cast<std::size_t>(target);
-        o.cancel = &cancel;
-        o.progress = [&progress](double f, const std::string& s) { progress(f < 0 ? f : 0.05 + 0.9 * f, QString::fromStdString(s)); };
-        m = simcore::tetrahedraliseSurface(m, o, &notes);
+        if (!m.isVolume()) {
+          simcore::TetrahedraliseOptions o;
+          o.outerSurface = &ownSurface;
+          o.targetTets = static_cast<std::size_t>(target);
+          o.cancel = &cancel;
+          o.progress = [&progress](double f, const std::string& s) {
+            progress(f < 0 ? f : 0.05 + 0.9 * f, QString::fromStdString(s));
+          };
+          m = simcore::tetrahedraliseSurface(m, o, &notes);
+        }
       }
       m.triangles.clear();
       m.triangleLabels.clear();
@@ -246,13 +240,19 @@ void MeshPage::importMesh(const QString& path) {
       if (!visualNote.empty()) notes.push_back(visualNote);
       QStringList qnotes;
       for (const auto& n : notes) qnotes << QString::fromStdString(n);
-      return [this, prepared, path, qnotes] {
+      return [this, prepared, path, qnotes, segmentation] {
         importNotes_ = qnotes;
-        wb_.doc->edit(tr("Import mesh"), [&](app::Case& k) { k.setOrgan(prepared); });
+        wb_.doc->edit(segmentation ? tr("Import segmentation") : tr("Import mesh"),
+                      [&](app::Case& k) { k.setOrgan(prepared); });
         emit importNotesChanged();
         const auto& organ = *data()->organ;
+        const std::set<int> labels(organ.volume.tetLabels.begin(), organ.volume.tetLabels.end());
         wb_.status(
-            organ.visual
+            segmentation ? tr("Imported the segmentation %1: %2 tetrahedra in %3 labelled parts")
+                               .arg(QFileInfo(path).fileName())
+                               .arg(organ.volume.tets.size())
+                               .arg(labels.size())
+            : organ.visual
                 ? tr("Imported %1: %2 tetrahedra, drawn through its own surface (%3 triangles)")
                       .arg(QFileInfo(path).fileName())
                       .arg(organ.volume.tets.size())
