@@ -142,7 +142,13 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
 
   QSettings settings;
   if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) resize(1600, 900);
-  restoreState(settings.value(QStringLiteral("window/state")).toByteArray());
+  if (!restoreState(settings.value(QStringLiteral("window/state")).toByteArray())) {
+    // A first start: the frame gets the room. The docks are given their widths here, so that a long text in one of
+    // them later (a status, a refusal) does not widen its area and squeeze the frame to its minimum.
+    auto* workflow = findChild<QDockWidget*>(QStringLiteral("workflowDock"));
+    auto* organ = findChild<QDockWidget*>(QStringLiteral("organDock"));
+    if (workflow && organ) resizeDocks({workflow, organ}, {470, 400}, Qt::Horizontal);
+  }
   setStep(Step::Mesh);
 }
 
