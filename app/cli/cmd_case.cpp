@@ -109,7 +109,14 @@ int cmdMesh(const std::vector<std::string>& args) {
     for (const auto& n : notes) std::printf("note: %s\n", n.c_str());
     std::printf("%s", simcore::formatQuality(simcore::computeQuality(volume)).c_str());
     std::printf("meshing time: %.3f s\nwritten: %s\n", s, o["out"].c_str());
-    return 0;
+    // A part that got no element is not in the written mesh: said, and exit 4 (the mesh is not the segmentation).
+    const std::vector<int> missing = simcore::unmeshedLabels(image, lo, volume);
+    for (int l : missing)
+      std::fprintf(stderr,
+                   "%s is thinner than the elements and got none; it is not in %s. Mesh finer (--size or "
+                   "--target-tets).\n",
+                   simcore::describeLabel(image, l).c_str(), o["out"].c_str());
+    return missing.empty() ? 0 : 4;
   }
   simcore::LoadOptions lo;
   if (o.count("unit")) lo.unit = o["unit"];
@@ -182,7 +189,8 @@ const Command& meshCommand() {
       "                [--labels TABLE] [--label N,...] [--ras]\n"
       "                                   tetrahedralise a closed surface (inner closed parts become labels) or a\n"
       "                                   segmentation (NRRD, NIfTI, MetaImage or INR label image: each label a "
-      "part)\n",
+      "part;\n"
+      "                                   exit 4 when a label is too thin to get an element: written without it)\n",
       {{"in", "SURFACE|LABELS",
         "the closed surface (any mesh format below) or label image (.nrrd, .nii.gz, .mha, .inr.gz)"},
        {"out", "VOLUME", ".msh, .vtk or .vtu"},

@@ -4,10 +4,16 @@
 
 #include "labelimage_raw.hpp"
 
+#include <zlib.h>
+
+#include <algorithm>
 #include <cctype>
+#include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <set>
 #include <sstream>
 
 namespace rehearse::simcore {
@@ -59,7 +65,96 @@ LabelImage fromRaw(detail::RawLabelImage raw, const std::string& name) {
   return image;
 }
 
+// ITK's NIfTI reader makes the image's axes orthonormal with an SVD that never returns on a matrix of huge or
+// non-finite values (a damaged sform or pixdim: LINPACK's loop does not converge). The header's geometry is checked
+// here first, NIfTI-1 and NIfTI-2, either byte order, through zlib for .nii.gz; what ITK would reject on its own is
+// left to it.
+void checkNiftiGeometry(const std::string& path, const std::string& name) {
+  unsigned char h[540] = {};
+  gzFile f = gzopen(path.c_str(), "rb");
+  if (!f) return;
+  const int got = gzread(f, h, sizeof h);
+  gzclose(f);
+  if (got < 348) return;
+  auto i32 = [&](int at, bool swap) {
+    std::uint32_t v;
+    std::memcpy(&v, h + at, 4);
+    if (swap) v = __builtin_bswap32(v);
+    std::int32_t r;
+    std::memcpy(&r, &v, 4);
+    return r;
+  };
+  auto i16 = [&](int at, bool swap) {
+    std::uint16_t v;
+    std::memcpy(&v, h + at, 2);
+    if (swap) v = __builtin_bswap16(v);
+    return static_cast<std::int16_t>(v);
+  };
+  auto f32 = [&](int at, bool swap) {
+    std::uint32_t v;
+    std::memcpy(&v, h + at, 4);
+    if (swap) v = __builtin_bswap32(v);
+    float r;
+    std::memcpy(&r, &v, 4);
+    return static_cast<double>(r);
+  };
+  auto f64 = [&](int at, bool swap) {
+    std::uint64_t v;
+    std::memcpy(&v, h + at, 8);
+    if (swap) v = __builtin_bswap64(v);
+    double r;
+    std::memcpy(&r, &v, 8);
+    return r;
+  };
+  std::vector<double> spacing, quaternion, offsets, rows;
+  int qform = 0, sform = 0;
+  for (bool swap : {false, true}) {
+    const std::int32_t size = i32(0, swap);
+    if (size == 348) {
+      for (int d = 1; d <= 3; ++d) spacing.push_back(f32(76 + 4 * d, swap));
+      qform = i16(252, swap);
+      sform = i16(254, swap);
+      for (int k = 0; k < 3; ++k) quaternion.push_back(f32(256 + 4 * k, swap));
+      for (int k = 0; k < 3; ++k) offsets.push_back(f32(268 + 4 * k, swap));
+      for (int k = 0; k < 12; ++k) rows.push_back(f32(280 + 4 * k, swap));
+      break;
+    }
+    if (size == 540 && got >= 540) {
+      for (int d = 1; d <= 3; ++d) spacing.push_back(f64(104 + 8 * d, swap));
+      qform = i32(344, swap);
+      sform = i32(348, swap);
+      for (int k = 0; k < 3; ++k) quaternion.push_back(f64(352 + 8 * k, swap));
+      for (int k = 0; k < 3; ++k) offsets.push_back(f64(376 + 8 * k, swap));
+      for (int k = 0; k < 12; ++k) rows.push_back(f64(400 + 8 * k, swap));
+      break;
+    }
+  }
+  if (spacing.empty()) return;  // not a NIfTI header: ITK says so
+  // Millimetres: a voxel or an offset beyond 100 m, or a quaternion component beyond 1, is damage, not anatomy.
+  auto fine = [](const std::vector<double>& v, double limit) {
+    return std::all_of(v.begin(), v.end(), [limit](double x) { return std::isfinite(x) && std::abs(x) <= limit; });
+  };
+  if (!fine(spacing, 1e5) || (qform > 0 && (!fine(quaternion, 1.001) || !fine(offsets, 1e5))) ||
+      (sform > 0 && !fine(rows, 1e5)))
+    throw MeshError(name +
+                    "'s header is damaged: its voxel size or orientation holds values that are not numbers "
+                    "or far too large.");
+}
+
 }  // namespace
+
+std::vector<int> unmeshedLabels(const LabelImage& image, const LabelMeshOptions& options, const Mesh& mesh) {
+  std::set<int> wanted(options.only.begin(), options.only.end());
+  if (wanted.empty())
+    for (const auto& [label, count] : image.labelCounts()) wanted.insert(label);
+  for (int label : mesh.tetLabels) wanted.erase(label);
+  return {wanted.begin(), wanted.end()};
+}
+
+std::string describeLabel(const LabelImage& image, int label) {
+  auto it = image.names.find(label);
+  return "label " + std::to_string(label) + (it != image.names.end() ? " (" + it->second + ")" : std::string());
+}
 
 std::map<int, long> LabelImage::labelCounts() const {
   std::map<int, long> counts;
@@ -119,6 +214,7 @@ LabelImage readLabelImage(const std::string& path, const std::string& colourTabl
   if (endsWith(l, ".inr") || endsWith(l, ".inr.gz")) {
     image = readInrLabelImage(path, maxVoxels);
   } else {
+    if (endsWith(l, ".nii") || endsWith(l, ".nii.gz")) checkNiftiGeometry(path, name);
     try {
       image = fromRaw(detail::itkReadLabelImage(path, maxVoxels), name);
     } catch (const detail::LabelImageError& e) {

@@ -205,7 +205,6 @@ Mesh meshLabelImage(const LabelImage& image, const LabelMeshOptions& options, st
       std::snprintf(text, sizeof text, "%s: %s meshed, %s of voxels (%+.1f %%).", nameOf(l).c_str(),
                     litres(got).c_str(), litres(voxels).c_str(), 100.0 * (got - voxels) / voxels);
       notes->push_back(text);
-      if (got == 0) notes->push_back(nameOf(l) + " is too thin for the element size and got no element; mesh finer.");
     }
   }
   return m;

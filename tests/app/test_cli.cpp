@@ -11,6 +11,7 @@
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/quality.hpp>
 
+#include <algorithm>
 #include <map>
 
 #include <opencv2/imgcodecs.hpp>
@@ -394,6 +395,43 @@ class TestCli : public QObject {
     // What the image cannot give is refused with one sentence: RAS of an image with no orientation.
     expectOneLineError(run({"mesh", "--in", inr, "--out", out, "--ras"}), 1, "no orientation");
     expectOneLineError(run({"mesh", "--in", inr, "--out", out, "--unit", "mm"}), 2, "carries its own spacing");
+  }
+  // A label thinner than the elements gets none: the mesh is written without it, and the command says so and exits 4
+  // (0 when only the labels that were meshed are asked for). The image is a MetaImage written here by hand.
+  void segmentationThinLabelSaid() {
+    const int n = 40;
+    QByteArray voxels(n * n * n, 0);
+    long ball = 0;
+    for (int k = 0; k < n; ++k)
+      for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i)
+          if ((i - 19.5) * (i - 19.5) + (j - 19.5) * (j - 19.5) + (k - 19.5) * (k - 19.5) <= 15.0 * 15.0) {
+            voxels[i + n * (j + n * k)] = 1;
+            ++ball;
+          }
+    voxels[37 + n * (37 + n * 37)] = 7;  // one voxel, 1 mm, 26 mm from the ball's centre
+    const std::string mha = tempPath("thin-label.mha");
+    writeFile(mha,
+              "ObjectType = Image\nNDims = 3\nDimSize = 40 40 40\nElementSpacing = 1 1 1\nOffset = 0 0 0\n"
+              "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+                  voxels.toStdString());
+    const QString out = QString::fromStdString(tempPath("thin-label.vtu"));
+    auto r = run({"mesh", "--in", QString::fromStdString(mha), "--out", out, "--target-tets", "400"});
+    QVERIFY2(r.code == 4, qPrintable(QString("exit %1: %2").arg(r.code).arg(r.err)));
+    QVERIFY2(r.err.contains("label 7 is thinner than the elements and got none"), qPrintable(r.err));
+    const rehearse::simcore::Mesh m = rehearse::simcore::loadMesh(out.toStdString());
+    QVERIFY(m.tets.size() > 100);
+    QVERIFY(std::count(m.tetLabels.begin(), m.tetLabels.end(), 7) == 0);
+    QVERIFY(std::count(m.tetLabels.begin(), m.tetLabels.end(), 1) == static_cast<long>(m.tets.size()));
+    double volume = 0;
+    for (const auto& e : m.tets)
+      volume += rehearse::simcore::tetVolume(m.points[e[0]], m.points[e[1]], m.points[e[2]], m.points[e[3]]);
+    qInfo("ball of %ld voxels (%.2f mL): %zu tets, %.2f mL meshed; the one-voxel label 7 left out, exit 4", ball,
+          ball * 1e-3, m.tets.size(), volume * 1e6);
+    QVERIFY(std::abs(volume - ball * 1e-9) < 0.05 * ball * 1e-9);
+    auto only =
+        run({"mesh", "--in", QString::fromStdString(mha), "--out", out, "--target-tets", "400", "--label", "1"});
+    QVERIFY2(only.code == 0, qPrintable(only.err));
   }
   void simulate() {
     const QString out = QString::fromStdString(tempPath("sim.vtu")),

@@ -26,6 +26,8 @@
 #include <QSlider>
 #include <rehearse/simcore/labelimage.hpp>
 
+#include <algorithm>
+
 #include <QDockWidget>
 #include <QDoubleSpinBox>
 #include <QPlainTextEdit>
@@ -385,9 +387,10 @@ class TestGui : public QObject {
           else if (std::pow(p.x() / 30, 2) + std::pow(p.y() / 25, 2) + std::pow(p.z() / 20, 2) < 1)
             l = 1, ++organVoxels;
         }
+    image.labels[static_cast<std::size_t>(2 + 64 * (2 + 56 * 2))] = 9;  // one voxel (1 x 1 x 2 mm) far from the organ
     const std::string path = tempPath("segmentation.nii.gz");
     simcore::writeLabelImage(image, path);
-    writeFile(tempPath("segmentation.ctbl"), "1 liver 200 100 100 255\n4 tumour 250 250 0 255\n");
+    writeFile(tempPath("segmentation.ctbl"), "1 liver 200 100 100 255\n4 tumour 250 250 0 255\n9 clip 0 0 255 255\n");
     w.meshPage()->setTargetTets(6000);
     QSignalSpy imported(&w, &ui::MainWindow::meshImported);
     w.meshPage()->importMesh(QString::fromStdString(path));
@@ -415,6 +418,10 @@ class TestGui : public QObject {
     QVERIFY((box.center() - centre).norm() < 1.5e-3);
     QVERIFY(std::abs(box.sizes().x() - 0.060) < 2.5e-3);
     QVERIFY2(w.statusText().contains(QStringLiteral("2 labelled parts")), qPrintable(w.statusText()));
+    // The one-voxel label is too thin for 6000 elements: none of it is in the mesh, and the status says so.
+    QCOMPARE(std::count(volume.tetLabels.begin(), volume.tetLabels.end(), 9), 0);
+    QVERIFY2(w.statusText().contains(QStringLiteral("label 9 (clip) thinner than the elements, not meshed")),
+             qPrintable(w.statusText()));
     // Undo (the key, as a user presses it) gives the built-in organ back.
     QTest::keyClick(&w, Qt::Key_Z, Qt::ControlModifier);
     QTRY_VERIFY(w.caseData()->organ->volume.tets.size() == before->organ->volume.tets.size());

@@ -171,6 +171,7 @@ void MeshPage::importMesh(const QString& path) {
       std::vector<std::string> notes;
       progress(0.02, QStringLiteral("reading"));
       const bool segmentation = simcore::isLabelImagePath(path.toStdString());
+      QStringList unmeshed;  // a segmentation's labels too thin to get an element
       simcore::Mesh m;
       double fileUnit = 1e-3;    // kept with the organ (a 4x4 pose matrix is read in it)
       simcore::Mesh ownSurface;  // the surface as imported: drawn in the composited view, carried by the tetrahedra
@@ -187,6 +188,8 @@ void MeshPage::importMesh(const QString& path) {
         };
         progress(0.1, QStringLiteral("meshing %1 labels").arg(image.labelCounts().size()));
         m = simcore::meshLabelImage(image, lo, &notes);
+        for (int l : simcore::unmeshedLabels(image, lo, m))
+          unmeshed << QString::fromStdString(simcore::describeLabel(image, l));
       } else {
         m = simcore::loadMesh(path.toStdString(), {unit}, &notes);
         fileUnit = simcore::metresPerUnit(unit);
@@ -240,7 +243,7 @@ void MeshPage::importMesh(const QString& path) {
       if (!visualNote.empty()) notes.push_back(visualNote);
       QStringList qnotes;
       for (const auto& n : notes) qnotes << QString::fromStdString(n);
-      return [this, prepared, path, qnotes, segmentation] {
+      return [this, prepared, path, qnotes, segmentation, unmeshed] {
         importNotes_ = qnotes;
         wb_.doc->edit(segmentation ? tr("Import segmentation") : tr("Import mesh"),
                       [&](app::Case& k) { k.setOrgan(prepared); });
@@ -248,10 +251,15 @@ void MeshPage::importMesh(const QString& path) {
         const auto& organ = *data()->organ;
         const std::set<int> labels(organ.volume.tetLabels.begin(), organ.volume.tetLabels.end());
         wb_.status(
-            segmentation ? tr("Imported the segmentation %1: %2 tetrahedra in %3 labelled parts")
-                               .arg(QFileInfo(path).fileName())
-                               .arg(organ.volume.tets.size())
-                               .arg(labels.size())
+            segmentation
+                ? tr("Imported the segmentation %1: %2 tetrahedra in %3 labelled parts")
+                          .arg(QFileInfo(path).fileName())
+                          .arg(organ.volume.tets.size())
+                          .arg(labels.size()) +
+                      (unmeshed.isEmpty() ? QString()
+                                          : tr("; %1 thinner than the elements, not meshed: raise the target count and "
+                                               "import again")
+                                                .arg(unmeshed.join(QStringLiteral(", "))))
             : organ.visual
                 ? tr("Imported %1: %2 tetrahedra, drawn through its own surface (%3 triangles)")
                       .arg(QFileInfo(path).fileName())

@@ -78,6 +78,14 @@ struct LabelMeshOptions {
 Mesh meshLabelImage(const LabelImage& image, const LabelMeshOptions& options,
                     std::vector<std::string>* notes = nullptr);
 
+/// The labels meshLabelImage was asked for (`options.only`, or every label in the image) that have no element in
+/// `mesh`: a part thinner than the elements, left out of an otherwise written mesh. Callers say so (the command line
+/// exits 4, step 1's status names them): the mesh is not the segmentation it was asked to be.
+std::vector<int> unmeshedLabels(const LabelImage& image, const LabelMeshOptions& options, const Mesh& mesh);
+
+/// "label 7" or "label 7 (tumour)" when the image names it.
+std::string describeLabel(const LabelImage& image, int label);
+
 /// Whether a path names a label image format readLabelImage reads (by its extension).
 bool isLabelImagePath(const std::string& path);
 
