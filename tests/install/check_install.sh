@@ -20,6 +20,21 @@ done
 desktop-file-validate "$out/share/applications/$id.desktop" || fail "the desktop entry does not validate"
 grep -q '^Exec=rehearse open %f$' "$out/share/applications/$id.desktop" || fail "the desktop entry does not open files"
 appstreamcli validate --no-net "$out/share/metainfo/$id.metainfo.xml" || fail "the metainfo does not validate"
+# Screenshots: named only where the build says docs/ is published (REHEARSE_SCREENSHOT_URL); written here with an
+# address under the reserved .example domain, the metainfo validates with them, names the program's own pictures
+# from docs/, and an address that is not https is refused.
+shots="$out/with-screenshots.metainfo.xml"
+cmake -DIN="$src/packaging/$id.metainfo.xml.in" -DOUTPUT="$shots" -DURL=https://rehearse.example/docs \
+  -DDOCS="$src/docs" -P "$src/cmake/Metainfo.cmake" || fail "the metainfo with screenshots was not written"
+appstreamcli validate --no-net "$shots" || fail "the metainfo with screenshots does not validate"
+n=$(grep -c '<image>https://rehearse.example/docs/[a-z0-9-]*\.png</image>' "$shots" || true)
+[ "$n" -ge 3 ] && grep -q '<screenshot type="default">' "$shots" || fail "the metainfo names $n screenshots"
+grep -q '<screenshot' "$out/share/metainfo/$id.metainfo.xml" && [ -z "$(sed -n 's/^REHEARSE_SCREENSHOT_URL:STRING=//p' "$build/CMakeCache.txt")" ] &&
+  fail "the metainfo names screenshots although the build names no address for them"
+if cmake -DIN="$src/packaging/$id.metainfo.xml.in" -DOUTPUT="$out/refused.xml" -DURL=http://rehearse.example/ \
+     -P "$src/cmake/Metainfo.cmake" 2>"$out/refused.txt"; then fail "an http:// screenshot address was taken"; fi
+grep -q "must be an https:// address" "$out/refused.txt" || fail "the refusal does not say why: $(cat "$out/refused.txt")"
+echo "metainfo: $n screenshots named when an address is given; none without one"
 update-mime-database "$out/share/mime"
 grep -qx 'application/x-rehearse-case:\*.rehearse' "$out/share/mime/globs" || fail "*.rehearse is not a case file's type"
 version=$("$out/bin/rehearse" --version)
