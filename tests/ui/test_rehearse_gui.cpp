@@ -124,7 +124,8 @@ class TestRehearseGui : public QObject {
     const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
     auto* view = w_->frameView();
     const QPointF a = view->toWidget(QPointF(centre.x(), centre.y()));
-    const QPointF b = a + QPointF(0, -45);  // about 2 cm at the organ (checked below)
+    // 130 frame pixels up: about 2 cm at the organ (checked below), whatever size the window gives the frame.
+    const QPointF b = view->toWidget(QPointF(centre.x(), centre.y() - 130));
     double peak = 0;
     int contacts = 0;
     std::optional<Eigen::Vector3d> tipAtGrasp;
