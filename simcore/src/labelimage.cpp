@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -75,70 +76,78 @@ void checkNiftiGeometry(const std::string& path, const std::string& name) {
   if (!f) return;
   const int got = gzread(f, h, sizeof h);
   gzclose(f);
-  if (got < 348) return;
-  auto i32 = [&](int at, bool swap) {
-    std::uint32_t v;
-    std::memcpy(&v, h + at, 4);
-    if (swap) v = __builtin_bswap32(v);
-    std::int32_t r;
-    std::memcpy(&r, &v, 4);
-    return r;
+  // Where the geometry lies in each version: header size, bytes of a real and of a form code, offsets of pixdim[0],
+  // qform_code (sform_code follows it), quatern_b, qoffset_x and srow_x[0] (the NIfTI-1 and NIfTI-2 layouts).
+  struct Layout {
+    int size, real, code, pixdim, qform, quatern, offset, srow;
   };
-  auto i16 = [&](int at, bool swap) {
-    std::uint16_t v;
-    std::memcpy(&v, h + at, 2);
-    if (swap) v = __builtin_bswap16(v);
-    return static_cast<std::int16_t>(v);
-  };
-  auto f32 = [&](int at, bool swap) {
-    std::uint32_t v;
-    std::memcpy(&v, h + at, 4);
-    if (swap) v = __builtin_bswap32(v);
-    float r;
-    std::memcpy(&r, &v, 4);
-    return static_cast<double>(r);
-  };
-  auto f64 = [&](int at, bool swap) {
-    std::uint64_t v;
-    std::memcpy(&v, h + at, 8);
-    if (swap) v = __builtin_bswap64(v);
-    double r;
-    std::memcpy(&r, &v, 8);
-    return r;
-  };
-  std::vector<double> spacing, quaternion, offsets, rows;
-  int qform = 0, sform = 0;
-  for (bool swap : {false, true}) {
-    const std::int32_t size = i32(0, swap);
-    if (size == 348) {
-      for (int d = 1; d <= 3; ++d) spacing.push_back(f32(76 + 4 * d, swap));
-      qform = i16(252, swap);
-      sform = i16(254, swap);
-      for (int k = 0; k < 3; ++k) quaternion.push_back(f32(256 + 4 * k, swap));
-      for (int k = 0; k < 3; ++k) offsets.push_back(f32(268 + 4 * k, swap));
-      for (int k = 0; k < 12; ++k) rows.push_back(f32(280 + 4 * k, swap));
-      break;
+  // A number of `bytes` at `at`, in the file's byte order (swapped when it is not this machine's).
+  auto number = [&h](int at, int bytes, bool swap, bool integer) -> double {
+    unsigned char b[8];
+    std::memcpy(b, h + at, static_cast<std::size_t>(bytes));
+    if (swap) std::reverse(b, b + bytes);
+    if (integer) {
+      std::int32_t i32 = 0;
+      std::int16_t i16 = 0;
+      return bytes == 4 ? (std::memcpy(&i32, b, 4), i32) : (std::memcpy(&i16, b, 2), i16);
     }
-    if (size == 540 && got >= 540) {
-      for (int d = 1; d <= 3; ++d) spacing.push_back(f64(104 + 8 * d, swap));
-      qform = i32(344, swap);
-      sform = i32(348, swap);
-      for (int k = 0; k < 3; ++k) quaternion.push_back(f64(352 + 8 * k, swap));
-      for (int k = 0; k < 3; ++k) offsets.push_back(f64(376 + 8 * k, swap));
-      for (int k = 0; k < 12; ++k) rows.push_back(f64(400 + 8 * k, swap));
-      break;
+    float f32 = 0;
+    double f64 = 0;
+    return bytes == 4 ? (std::memcpy(&f32, b, 4), static_cast<double>(f32)) : (std::memcpy(&f64, b, 8), f64);
+  };
+  for (const Layout& v : {Layout{348, 4, 2, 76, 252, 256, 268, 280}, Layout{540, 8, 4, 104, 344, 352, 376, 400}})
+    for (bool swap : {false, true}) {
+      if (got < v.size || number(0, 4, swap, true) != v.size) continue;
+      auto reals = [&](int at, int n) {
+        std::vector<double> r;
+        for (int k = 0; k < n; ++k) r.push_back(number(at + k * v.real, v.real, swap, false));
+        return r;
+      };
+      // Millimetres: a voxel or an offset beyond 100 m, or a quaternion component beyond 1, is damage, not anatomy.
+      auto fine = [](const std::vector<double>& values, double limit) {
+        return std::all_of(values.begin(), values.end(),
+                           [limit](double x) { return std::isfinite(x) && std::abs(x) <= limit; });
+      };
+      const bool qform = number(v.qform, v.code, swap, true) > 0,
+                 sform = number(v.qform + v.code, v.code, swap, true) > 0;
+      if (!fine(reals(v.pixdim + v.real, 3), 1e5) ||
+          (qform && (!fine(reals(v.quatern, 3), 1.001) || !fine(reals(v.offset, 3), 1e5))) ||
+          (sform && !fine(reals(v.srow, 12), 1e5)))
+        throw MeshError(name +
+                        "'s header is damaged: its voxel size or orientation holds values that are not numbers "
+                        "or far too large.");
+      return;
     }
+  // Not a NIfTI header: ITK says so.
+}
+
+// MetaIO (ITK's MetaImage reader) reads fields sized by the header's NDims before it checks it: a damaged
+// "NDims = 399999999" kept it busy for minutes (a TransformMatrix of NDims x NDims values). The count is checked here
+// first; MetaIO itself handles at most 10 dimensions.
+void checkMetaImageHeader(const std::string& path, const std::string& name) {
+  std::ifstream in(path, std::ios::binary);
+  std::string line;
+  std::size_t read = 0;
+  auto trim = [](std::string t) {
+    while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
+    std::size_t b = 0;
+    while (b < t.size() && std::isspace(static_cast<unsigned char>(t[b]))) ++b;
+    return t.substr(b);
+  };
+  while (read < 65536 && std::getline(in, line)) {
+    read += line.size() + 1;
+    const auto eq = line.find('=');
+    if (eq == std::string::npos) continue;
+    const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
+    if (key == "NDims") {
+      char* end = nullptr;
+      const long n = std::strtol(value.c_str(), &end, 10);
+      if (end == value.c_str() || n < 1 || n > 10)
+        throw MeshError(name + "'s header is damaged: NDims = " + value.substr(0, 24) +
+                        " (a label image has 3 dimensions).");
+    }
+    if (key == "ElementDataFile") break;  // the voxels follow
   }
-  if (spacing.empty()) return;  // not a NIfTI header: ITK says so
-  // Millimetres: a voxel or an offset beyond 100 m, or a quaternion component beyond 1, is damage, not anatomy.
-  auto fine = [](const std::vector<double>& v, double limit) {
-    return std::all_of(v.begin(), v.end(), [limit](double x) { return std::isfinite(x) && std::abs(x) <= limit; });
-  };
-  if (!fine(spacing, 1e5) || (qform > 0 && (!fine(quaternion, 1.001) || !fine(offsets, 1e5))) ||
-      (sform > 0 && !fine(rows, 1e5)))
-    throw MeshError(name +
-                    "'s header is damaged: its voxel size or orientation holds values that are not numbers "
-                    "or far too large.");
 }
 
 }  // namespace
@@ -214,7 +223,9 @@ LabelImage readLabelImage(const std::string& path, const std::string& colourTabl
   if (endsWith(l, ".inr") || endsWith(l, ".inr.gz")) {
     image = readInrLabelImage(path, maxVoxels);
   } else {
+    // Headers that would keep ITK's readers busy for minutes are refused first (the rest is ITK's to judge).
     if (endsWith(l, ".nii") || endsWith(l, ".nii.gz")) checkNiftiGeometry(path, name);
+    if (endsWith(l, ".mha") || endsWith(l, ".mhd")) checkMetaImageHeader(path, name);
     try {
       image = fromRaw(detail::itkReadLabelImage(path, maxVoxels), name);
     } catch (const detail::LabelImageError& e) {

@@ -14,9 +14,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
-#include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <mutex>
 
@@ -65,35 +63,6 @@ std::map<int, std::string> slicerSegmentNames(const itk::MetaDataDictionary& dic
   return names;
 }
 
-// MetaIO (ITK's MetaImage reader) reads fields sized by the header's NDims before it checks it: a damaged
-// "NDims = 399999999" kept it busy for minutes (a TransformMatrix of NDims x NDims values). The count is checked here
-// first; MetaIO itself handles at most 10 dimensions.
-void checkMetaImageHeader(const std::string& path, const std::string& name) {
-  std::ifstream in(path, std::ios::binary);
-  std::string line;
-  std::size_t read = 0;
-  auto trim = [](std::string t) {
-    while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
-    std::size_t b = 0;
-    while (b < t.size() && std::isspace(static_cast<unsigned char>(t[b]))) ++b;
-    return t.substr(b);
-  };
-  while (read < 65536 && std::getline(in, line)) {
-    read += line.size() + 1;
-    const auto eq = line.find('=');
-    if (eq == std::string::npos) continue;
-    const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
-    if (key == "NDims") {
-      char* end = nullptr;
-      const long n = std::strtol(value.c_str(), &end, 10);
-      if (end == value.c_str() || n < 1 || n > 10)
-        throw LabelImageError(name + "'s header is damaged: NDims = " + value.substr(0, 24) +
-                              " (a label image has 3 dimensions).");
-    }
-    if (key == "ElementDataFile") break;  // the voxels follow
-  }
-}
-
 template <typename Pixel>
 typename itk::Image<Pixel, 3>::Pointer readAs(itk::ImageIOBase* io, const std::string& path) {
   auto reader = itk::ImageFileReader<itk::Image<Pixel, 3>>::New();
@@ -108,11 +77,6 @@ typename itk::Image<Pixel, 3>::Pointer readAs(itk::ImageIOBase* io, const std::s
 RawLabelImage itkReadLabelImage(const std::string& path, std::size_t maxVoxels) {
   registerFormats();
   const std::string name = fileName(path);
-  {
-    std::string ext = std::filesystem::path(path).extension().string();
-    for (auto& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (ext == ".mha" || ext == ".mhd") checkMetaImageHeader(path, name);
-  }
   itk::ImageIOBase::Pointer io =
       itk::ImageIOFactory::CreateImageIO(path.c_str(), itk::ImageIOFactory::IOFileModeEnum::ReadMode);
   if (!io) throw LabelImageError("Cannot read " + name + ": it is damaged or not a NRRD, NIfTI or MetaImage file.");
