@@ -30,6 +30,7 @@
 #include <QDoubleSpinBox>
 #include <QTableWidget>
 #include <QTemporaryDir>
+#include <QThread>
 #include <QStatusBar>
 #include <QUndoStack>
 
@@ -172,6 +173,33 @@ class TestAppearanceGui : public QObject {
     }
   }
 
+  // A composition that finished while nothing handled events (its watcher's finished signal still queued) is shown
+  // once waitForIdle returns: the view then shows the newest request's composition (CI once compared the view with
+  // the last snapshot while the composition before it was still shown: waitForIdle asked the watcher whether it ran,
+  // which says no before the finished signal is delivered).
+  void waitForIdleShowsTheNewestComposition() {
+    auto* composition = w_->composition();
+    QVERIFY(composition->ready());
+    QVERIFY(w_->showingComposited());
+    QTest::qWait(200);
+    composition->waitForIdle();  // nothing composing or waiting to be handled
+    const auto& c = *w_->caseData();
+    std::vector<Eigen::Vector3d> moved;  // the organ 4 mm to the right in the camera frame
+    for (const auto& p : c.shapeNodes()) moved.push_back(c.pose.apply(p) + Eigen::Vector3d(0.004, 0, 0));
+    const QImage before = w_->frameView()->shownFrame();
+    composition->request(moved);
+    QThread::msleep(3000);  // the worker composes (about 0.1 s) and its finished signal waits in the event queue
+    composition->waitForIdle();
+    const QImage expected = composition->composeNow(moved);
+    QVERIFY(!expected.isNull());
+    QVERIFY(expected != before);
+    QVERIFY(composition->lastComposed() == expected);
+    QVERIFY(w_->frameView()->shownFrame() == expected);
+    composition->request();  // the organ at rest again
+    composition->waitForIdle();
+    QVERIFY(w_->frameView()->shownFrame() == composition->composeNow());
+  }
+
   // Play deforms the organ in the frame: the view shows the composition of the simulation's snapshot, and
   // where the organ was and is no more, I_B. (The organ starts where the frame shows it, in equilibrium: the tissue is
   // made 4x softer on the Simulation panel first, a live edit, so that it sags from there.)
@@ -180,7 +208,15 @@ class TestAppearanceGui : public QObject {
     const cv::Mat3b rest = toMat(w_->frameView()->shownFrame());
     auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
     QVERIFY(young);
-    young->setValue(young->value() / 4);
+    // The tissue as it was (a live edit again) and the run from rest, whatever this function's checks say: the
+    // functions after it cut and pull the organ at its own stiffness (CI once saw a failure here leave it 4x softer,
+    // and the cut under traction then opened nothing).
+    const double stiffness = young->value();
+    const auto restore = qScopeGuard([&] {
+      young->setValue(stiffness);
+      panel_->reset();
+    });
+    young->setValue(stiffness / 4);
     QTest::keyClick(w_.get(), Qt::Key_F5);
     QVERIFY(waitFor([&] { return panel_->lastFrame() && panel_->lastFrame()->steps > 30; }));
     QTest::keyClick(w_.get(), Qt::Key_F5);
@@ -194,7 +230,16 @@ class TestAppearanceGui : public QObject {
     cv::absdiff(shown, expected, diff);
     double worst = 0;
     cv::minMaxLoc(diff.reshape(1), nullptr, &worst);
-    QCOMPARE(worst, 0.0);  // the view shows the last snapshot's composition
+    std::vector<cv::Mat1b> channels;
+    cv::split(diff, channels);
+    const cv::Mat1b differs = (channels[0] | channels[1] | channels[2]) > 0;
+    // the view shows the last snapshot's composition
+    QVERIFY2(worst == 0,
+             qPrintable(QString("the view differs from the composition of the last snapshot (step %1) by up "
+                                "to %2 levels on %3 px")
+                            .arg(f->steps)
+                            .arg(worst)
+                            .arg(cv::countNonZero(differs))));
     cv::absdiff(shown, rest, diff);
     cv::Mat1b changed;
     cv::inRange(diff, cv::Scalar(10, 10, 10), cv::Scalar(255, 255, 255), changed);
@@ -227,8 +272,6 @@ class TestAppearanceGui : public QObject {
     } else {
       qInfo("the organ sagged within its own outline: nothing uncovered");
     }
-    young->setValue(young->value() * 4);  // the tissue as it was (a live edit again)
-    panel_->reset();
   }
 
   // A cut in step 7 keeps the composited view (issue 35; it gave way to the overlay before): the view shows the cut

@@ -32,6 +32,7 @@ Composition::Composition(QObject* parent) : QObject(parent) {
     }
   });
   connect(&composeWatcher_, &QFutureWatcher<QImage>::finished, this, [this] {
+    composing_ = false;
     const QImage j = composeWatcher_.result();
     if (!j.isNull() && compositor_) {
       last_ = j;
@@ -55,7 +56,9 @@ void Composition::useOpenGL(bool on, bool evenInSoftware) {
 }
 
 void Composition::waitForIdle() {
-  while (prepareWatcher_.isRunning() || composeWatcher_.isRunning() || waiting_ || glPending_) {
+  // Until the finish handlers have run, not only until the jobs have finished: a watcher's finished signal comes as a
+  // posted event, after isRunning() already says false (a test that read the view then saw the composition before).
+  while (preparing_ || composing_ || waiting_ || glPending_) {
     prepareWatcher_.waitForFinished();
     composeWatcher_.waitForFinished();
     QCoreApplication::processEvents();  // the finish handlers run here (and may start the waiting request)
@@ -93,7 +96,7 @@ void Composition::setCase(std::shared_ptr<const app::Case> c) {
     }
   }
   whyNot_ = tr("the appearance is being applied...");
-  if (prepareWatcher_.isRunning()) return;  // its finish handler looks at the case again
+  if (preparing_) return;  // its finish handler (not run yet) looks at the case again
   preparing_ = case_->appearance;
   prepareWatcher_.setFuture(QtConcurrent::run([c = case_]() {
     auto p = std::make_shared<Prepared>();
@@ -216,7 +219,7 @@ void Composition::request(std::vector<Eigen::Vector3d> cameraPositions,
     }
     return;
   }
-  if (!composeWatcher_.isRunning()) startNext();
+  if (!composing_) startNext();  // else the finish handler starts it
 }
 
 void Composition::startNext() {
@@ -229,6 +232,7 @@ void Composition::startNext() {
   auto cut = std::move(waitingCut_);
   waiting_.reset();
   waitingCut_.reset();
+  composing_ = true;
   composeWatcher_.setFuture(QtConcurrent::run(
       [compositor = compositor_, c = case_, cache = cutCache_, pose = estimate_->pose, positions = std::move(positions),
        cut = std::move(cut)]() -> QImage { return composeWith(compositor, c, cache, pose, positions, cut); }));

@@ -56,7 +56,7 @@ class Composition : public QObject {
   QImage lastComposed() const { return last_; }
   /// Why there is no composited view (empty when ready): a sentence for the status bar.
   QString whyNot() const { return whyNot_; }
-  /// Waits for the worker (tests).
+  /// Waits for the worker and for what its results start (tests): the view then shows the newest composition.
   void waitForIdle();
 
  signals:
@@ -90,6 +90,7 @@ class Composition : public QObject {
   QFutureWatcher<std::shared_ptr<Prepared>> prepareWatcher_;
   std::shared_ptr<const app::AppearanceEstimate> preparing_;
   QFutureWatcher<QImage> composeWatcher_;
+  bool composing_ = false;  ///< a composition job started whose finish handler has not run yet
   std::optional<std::vector<Eigen::Vector3d>> waiting_;
   std::shared_ptr<const simcore::CutSurface> waitingCut_;
   std::shared_ptr<CutCache> cutCache_ = std::make_shared<CutCache>();
