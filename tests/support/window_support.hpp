@@ -1,6 +1,7 @@
 #pragma once
 // The GUI suites' shared hand: the real main window opened on the built-in phantom case as the application shows it
 // (dark theme, 1600x900, active for keyboard shortcuts), a screenshot for the README, a drag as a hand makes it.
+#include "fresh_start.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
@@ -73,7 +74,7 @@ inline std::pair<Eigen::Vector2d, Eigen::Vector2d> strokeDownTheOrgan(const rehe
 // Opens the main window on the phantom case; false (with a QWARN) when it did not come up.
 [[nodiscard]] inline bool openPhantomCase(std::unique_ptr<rehearse::ui::MainWindow>& w) {
   using rehearse::ui::MainWindow;
-  QStandardPaths::setTestModeEnabled(true);
+  forgetEarlierRuns();
   rehearse::ui::applyDarkTheme(*qApp);  // as the application runs (and as the README screenshots show it)
   w = std::make_unique<MainWindow>();
   w->resize(1600, 900);

@@ -89,7 +89,7 @@ class TestAppearanceGui : public QObject {
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseAppearanceTest");
-    QStandardPaths::setTestModeEnabled(true);
+    forgetEarlierRuns();
     ui::applyDarkTheme(*qApp);
     MainWindow::setRenderer(MainWindow::Renderer::Software);
     w_ = std::make_unique<MainWindow>();

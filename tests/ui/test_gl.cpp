@@ -3,6 +3,7 @@
 // --software (or where no GL context can be made) the software view and the CPU overlay are used.
 #include <QtTest>
 
+#include "fresh_start.hpp"
 #include "phantom/phantom.hpp"
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/glcompositor.hpp"
@@ -36,7 +37,7 @@ class TestGl : public QObject {
   Q_OBJECT
  private slots:
   void initTestCase() {
-    QStandardPaths::setTestModeEnabled(true);
+    forgetEarlierRuns();
     if (QGuiApplication::platformName() != QLatin1String("xcb")) QSKIP("needs an X server with OpenGL (run under xvfb-run)");
     // These tests check the OpenGL views, even through llvmpipe (which the Automatic choice would not use).
     ui::MainWindow::setRenderer(ui::MainWindow::Renderer::OpenGL);

@@ -1,5 +1,6 @@
 // The real main window, driven with QTest events offscreen: the built-in case loads on a worker thread
 // and the frame shows the organ over it; keys toggle the overlay; a damaged case folder opens with a message.
+#include "fresh_start.hpp"
 #include "test_support.hpp"
 #include "icosphere.hpp"
 
@@ -82,6 +83,7 @@ class TestGui : public QObject {
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseTest");
     QStandardPaths::setTestModeEnabled(true);  // settings and autosave go to a test location
+    forgetEarlierRuns();
   }
 
   // Save through the window, reopen in a new window, compare; autosave exists while open and is

@@ -88,7 +88,7 @@ class TestRehearseGui : public QObject {
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseRehearseTest");
-    QStandardPaths::setTestModeEnabled(true);
+    forgetEarlierRuns();
     ui::applyDarkTheme(*qApp);
     MainWindow::setRenderer(MainWindow::Renderer::Software);
     w_ = std::make_unique<MainWindow>();

@@ -65,7 +65,7 @@ class TestReviewGui : public QObject {
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseReviewTest");
-    QStandardPaths::setTestModeEnabled(true);
+    forgetEarlierRuns();
     ui::applyDarkTheme(*qApp);
     MainWindow::setRenderer(MainWindow::Renderer::Software);
     w_ = std::make_unique<MainWindow>();

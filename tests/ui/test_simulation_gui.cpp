@@ -2,6 +2,7 @@
 // play and pause with the keyboard (F5), a live edit of Young's modulus taking effect at the next step
 // boundary, colouring by von Mises stress, reset. The simulation runs off the GUI thread (asserted).
 // With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot of the panel there (for the README).
+#include "fresh_start.hpp"
 #include "test_support.hpp"
 
 #include "rehearse/ui/casefile.hpp"
@@ -63,7 +64,7 @@ class TestSimulationGui : public QObject {
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseSimulationTest");
-    QStandardPaths::setTestModeEnabled(true);
+    forgetEarlierRuns();
     ui::applyDarkTheme(*qApp);
     MainWindow::setRenderer(MainWindow::Renderer::Software);
     w_ = std::make_unique<MainWindow>();

@@ -8,6 +8,7 @@
 //    seeks to its straight replay's states; its path length equals the scripted pull (to 1e-9 m);
 //  - the cohort view lists the 5 trainees and plots each one's 10 attempts (the scripted distances).
 // The connection goes through a libpq service file (PGSERVICEFILE), as a centre would configure it.
+#include "fresh_start.hpp"
 #include "replay_checks.hpp"
 #include "test_support.hpp"
 
@@ -158,7 +159,7 @@ class TestTraining : public QObject {
 
  private slots:
   void initTestCase() {
-    QStandardPaths::setTestModeEnabled(true);
+    forgetEarlierRuns();
     server_ = std::make_unique<PgServer>();
     const QString e = server_->start({"training", "twin"});
     // The set-up installs the server: its absence is a failure of the run, never a suite that quietly shrinks.
