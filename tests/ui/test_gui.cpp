@@ -16,6 +16,7 @@
 #include "rehearse/ui/organoverlay.hpp"
 #include "rehearse/ui/pages/meshpage.hpp"
 #include "rehearse/ui/gui.hpp"
+#include "rehearse/ui/jobrunner.hpp"
 #include <QAbstractButton>
 #include <QAbstractItemView>
 #include <QAbstractSpinBox>
@@ -37,6 +38,7 @@
 #include <QLabel>
 #include <QSettings>
 #include <QSignalSpy>
+#include <QThread>
 #include <QStandardPaths>
 
 using namespace rehearse;
@@ -267,6 +269,32 @@ class TestGui : public QObject {
     QVERIFY(status);
     QVERIFY2(status->text().endsWith("gone.rehearse does not exist."), qPrintable(status->text()));
     QVERIFY(w.infoText().contains("Frame not loaded"));
+  }
+
+  // A job whose worker is done but whose result is not applied yet (its finished signal still queued behind other
+  // events) is still the running job: the next one asked for is refused, said in a sentence, and the first one's
+  // result is applied, never dropped. (A job started in that moment used to replace the watcher's future, and the
+  // finished signal and the result went with it.)
+  void aFinishedJobsResultIsAppliedBeforeTheNext() {
+    ui::JobRunner jobs;
+    QSignalSpy refused(&jobs, &ui::JobRunner::refused);
+    int applied = 0;
+    const auto job = [&](int n) {
+      return [&applied, n](const std::atomic<bool>&, const ui::JobRunner::Progress&) {
+        return std::function<void()>([&applied, n] { applied = n; });
+      };
+    };
+    QVERIFY(jobs.run("first", job(1)));
+    QThread::msleep(500);  // the worker is done (nothing to do); its finished signal waits in the event queue
+    QVERIFY(jobs.isRunning());
+    QVERIFY(!jobs.run("second", job(2)));
+    QCOMPARE(refused.count(), 1);
+    QVERIFY(refused.front().front().toString().contains("Another job is running"));
+    QTRY_COMPARE(applied, 1);
+    QVERIFY(!jobs.isRunning());
+    QVERIFY(jobs.run("second", job(2)));
+    QTRY_COMPARE(applied, 2);
+    QVERIFY(!jobs.isRunning());
   }
 
   // Choices kept between runs: the organ's drawing style (V) and the attachment patch radius come back in

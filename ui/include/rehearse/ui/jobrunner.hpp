@@ -25,7 +25,9 @@ class JobRunner : public QObject {
   /// Starts `job` unless another one runs (then false, with a sentence through busyChanged's message).
   bool run(const QString& message, Job job);
   void cancel() { cancel_ = true; }
-  bool isRunning() const { return watcher_.isRunning(); }
+  /// True from run() until the job's finish step has run on the GUI thread (not only until the worker is done: a job
+  /// finished whose result is not applied yet still counts, so that a next job never replaces it unapplied).
+  bool isRunning() const { return busy_; }
   void waitForFinished() { watcher_.waitForFinished(); }
 
  signals:
@@ -36,6 +38,7 @@ class JobRunner : public QObject {
  private:
   std::atomic<bool> cancel_{false};
   QFutureWatcher<std::function<void()>> watcher_;
+  bool busy_ = false;
 };
 
 }  // namespace rehearse::ui
