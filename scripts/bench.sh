@@ -2,7 +2,7 @@
 # Runs the benchmarks and writes their CSVs to build/bench/ (summarised by hand in BENCHMARKS.md).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/build.sh --target bench_foundation bench_dynamics bench_registration bench_registration_real bench_inpainting bench_appearance bench_appearance_real bench_gl_compose bench_rehearsal bench_rehearsal_view bench_replay bench_start bench_operative
+scripts/build.sh --target bench_foundation bench_dynamics bench_registration bench_registration_real bench_inpainting bench_appearance bench_appearance_real bench_gl_compose bench_rehearsal bench_rehearsal_view bench_replay bench_kernels bench_start bench_operative
 mkdir -p build/bench
 build/tests/bench_foundation build/bench/bench_foundation.csv
 build/tests/bench_dynamics build/bench
@@ -15,6 +15,7 @@ xvfb-run -a -s "-screen 0 1600x1000x24" build/tests/bench_gl_compose build/bench
 build/tests/bench_rehearsal build/bench
 build/tests/bench_start build/bench
 build/tests/bench_replay build/bench
+build/tests/bench_kernels build/bench
 xvfb-run -a -s "-screen 0 2560x1440x24" build/tests/bench_rehearsal_view build/bench --software
 xvfb-run -a -s "-screen 0 2560x1440x24" build/tests/bench_rehearsal_view build/bench --opengl
 xvfb-run -a -s "-screen 0 2560x1440x24" build/tests/bench_rehearsal_view build/bench

@@ -2,6 +2,8 @@
 // training database.
 #include "support.hpp"
 
+#include <rehearse/text_input.hpp>
+
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
 #include "rehearse/app/casefolder.hpp"
@@ -84,12 +86,10 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
     }
   }
   if (o.count("thresholds")) {
-    std::ifstream in(o["thresholds"]);
-    if (!in) throw UsageError("cannot read the thresholds " + o["thresholds"]);
-    std::stringstream text;
-    text << in.rdbuf();
+    std::string text, why;
+    if (!readTextInput(o["thresholds"], text, why)) throw UsageError("the thresholds " + why);
     try {
-      thresholds = parseThresholds(text.str());
+      thresholds = parseThresholds(text);
     } catch (const std::runtime_error& e) {
       throw UsageError(o["thresholds"] + ": " + e.what());
     }
@@ -127,12 +127,13 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
       for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
       return q + "\"";
     };
-    long differing = 0;
+    long differing = 0, damaged = 0;
     const auto sessions = listSessions();
     for (const auto& s : sessions) {
       const ReplayResult r = replayRecording(loadSession(s.id), ro);
       const SessionMetrics& m = r.metrics;
       differing += r.verify.mismatches;
+      damaged += static_cast<long>(r.verify.damagedCheckpoints.size());
       csv << s.id << ',' << quoted(s.meta.trainee) << ',' << s.startedUtc << ',' << (s.complete ? 1 : 0) << ','
           << r.verify.steps << ',' << m.durationS << ',' << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ','
           << m.slips << ',' << m.cuts << ',' << opt(m.vesselCuts) << ',' << m.maxForceN << ',' << m.meanForceN << ','
@@ -148,6 +149,11 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
     std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());
     if (differing) {
       std::fprintf(stderr, "rehearse: %ld checksums differ on replay (column checksums_differing)\n", differing);
+      return 4;
+    }
+    if (damaged) {
+      std::fprintf(stderr, "rehearse: %ld checkpoints are damaged (rehearse replay CASE --session ID --verify names them)\n",
+                   damaged);
       return 4;
     }
     return 0;
@@ -232,6 +238,10 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
         throw UsageError("--size takes WIDTHxHEIGHT in pixels, e.g. 1280x720");
     }
     Replayer replayer(rec);
+    replayer.avoidCheckpoints(replayed.verify);  // the video seeks from the sound ones
+    for (const auto& [step, why] : replayed.verify.damagedCheckpoints)
+      std::fprintf(stderr, "rehearse: the checkpoint after step %ld is damaged (%s): the video seeks past it\n", step,
+                   why.c_str());
     ReviewRenderer renderer(rec.setup, width, height);
     if (o.count("video")) {
       const double fps = o.count("fps") ? parseNumber(o["fps"], "--fps") : 25.0;
@@ -261,7 +271,7 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
   if (!o.count("verify")) {
     // Metrics, a video or a report of a replay that is not the recorded run are written (they say so) but not taken
     // as the trainee's: exit 4, as --verify and --metrics-csv do.
-    if (replayed.verify.mismatches) {
+    if (replayed.verify.mismatches || !replayed.verify.damagedCheckpoints.empty()) {
       std::fprintf(stderr, "rehearse: session %lld %s\n", static_cast<long long>(id),
                    replayCheckSentence(replayed.verify).c_str());
       return 4;
@@ -271,15 +281,34 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
   const VerifyResult& v = replayed.verify;
   if (v.mismatches) {
     std::fprintf(stderr,
-                 "rehearse: session %lld does not replay: %ld of %ld checksums differ, the first after step %ld\n",
-                 static_cast<long long>(id), v.mismatches, v.checked, v.firstMismatch);
+                 "rehearse: session %lld does not replay: %ld of %ld checksums differ, the first after step %ld; %s\n",
+                 static_cast<long long>(id), v.mismatches, v.checked, v.firstMismatch, replayProvenance(v).c_str());
     return 4;
   }
   if (v.checked == 0) {
     std::fprintf(stderr, "rehearse: session %lld has no checksum to verify against\n", static_cast<long long>(id));
     return 4;
   }
-  std::printf("verified: %ld steps replayed, all %ld checksums match\n", v.steps, v.checked);
+  if (!v.damagedCheckpoints.empty()) {
+    for (const auto& [step, why] : v.damagedCheckpoints)
+      std::fprintf(stderr, "rehearse: session %lld: the checkpoint after step %ld is damaged: %s\n",
+                   static_cast<long long>(id), step, why.c_str());
+    std::fprintf(stderr,
+                 "rehearse: session %lld does not verify: %zu of %ld checkpoints are damaged (the run replays: all %ld "
+                 "checksums match)\n",
+                 static_cast<long long>(id), v.damagedCheckpoints.size(), v.checkpointsChecked, v.checked);
+    return 4;
+  }
+  if (v.incompleteCheckpoints.empty())
+    std::printf("verified: %ld steps replayed, all %ld checksums match, all %ld checkpoints restore the replay's state\n",
+                v.steps, v.checked, v.checkpointsChecked);
+  else
+    std::printf("verified: %ld steps replayed, all %ld checksums match, %ld of %ld checkpoints restore the replay's "
+                "state; %zu by an older build do not hold the instruments' or the field's whole state (seeking replays "
+                "past them)\n",
+                v.steps, v.checked, v.checkpointsChecked - static_cast<long>(v.incompleteCheckpoints.size()),
+                v.checkpointsChecked, v.incompleteCheckpoints.size());
+  std::printf("kernel: %s\n", v.replayed.kernel.c_str());
   return 0;
 }
 

@@ -1,4 +1,5 @@
 #include <rehearse/simcore/linear_solver.hpp>
+#include <rehearse/simcore/numerics.hpp>
 
 #include <Eigen/Dense>
 #include <Eigen/IterativeLinearSolvers>
@@ -35,6 +36,10 @@ void singleThreadedBlas() {
   }();
   (void)done;
 }
+
+// OpenBLAS's kernels pinned before main, while no thread calls BLAS: every process that links the solvers computes the
+// same bits on any x86-64 processor (numerics.hpp).
+[[gnu::constructor]] void pinBlasAtStart() { pinBlasKernel(); }
 
 }  // namespace
 

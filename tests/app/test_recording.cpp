@@ -9,6 +9,7 @@
 #include "session_inputs.hpp"
 
 #include <rehearse/app/recording.hpp>
+#include <rehearse/simcore/numerics.hpp>
 
 #include <QDir>
 #include <QFile>
@@ -64,6 +65,97 @@ class TestRecording : public QObject {
     QCOMPARE(m["grasps"].toInt(), 1);
     QVERIFY(m["cut_updates"].toInt() > 0);
     QCOMPARE(m["vessel_cuts"].toInt(), 1);
+  }
+
+  // Issue 60: a session recorded on one machine verifies on any other. The recording's process is told another OpenBLAS
+  // kernel set (OPENBLAS_CORETYPE, as some machines set it; a processor's own choice is the same thing), and the replay
+  // runs under each of the kernel sets a machine here may choose or be told, unset, and with the reference BLAS as the
+  // machine's libblas.so.3 (what update-alternatives may select): every one verifies, since the program pins its
+  // kernels. The recording names what made it, and --verify says what replayed it.
+  void aSessionVerifiesUnderEveryKernel() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QProcessEnvironment recordEnv = QProcessEnvironment::systemEnvironment();
+    recordEnv.insert("OPENBLAS_CORETYPE", "SkylakeX");
+    recordEnv.remove("GLIBC_TUNABLES");  // the recording process masks glibc's FMA itself
+    recordEnv.remove("REHEARSE_LIBM_RESTARTED");
+    const Run a = run(gestureArgs(dir.path(), "grasp-pull.json", file), 300000, &recordEnv);
+    QVERIFY2(::testing::tookEveryStep(a), qPrintable(a.out + a.err));
+    const auto rec = app::loadRecording(file.toStdString(), 1);
+    const QString kernel = QString::fromStdString(rec.numerics.kernel);
+    qInfo("recorded with: %s; built by: %s", qPrintable(kernel), rec.numerics.build.c_str());
+    QVERIFY2(kernel.startsWith("CHOLMOD supernodal, OpenBLAS ") &&
+                 kernel.contains(QString(simcore::kPinnedBlasCore) + "; glibc ") && kernel.endsWith("libm without FMA"),
+             qPrintable(kernel));
+    QVERIFY2(QString::fromStdString(rec.numerics.build).contains("x86-64 baseline"), rec.numerics.build.c_str());
+    const QString referenceBlas = "/usr/lib/x86_64-linux-gnu/blas", referenceLapack = "/usr/lib/x86_64-linux-gnu/lapack";
+    QVERIFY2(QFile::exists(referenceBlas + "/libblas.so.3"),
+             "the reference BLAS (Debian's libblas3, which scripts/install-deps.sh installs) is missing");
+    struct Variant {
+      QString name, core, libraryPath, tunables;
+    };
+    const std::vector<Variant> variants = {{"Prescott", "Prescott", ""},   {"Haswell", "Haswell", ""},
+                                           {"SkylakeX", "SkylakeX", ""},   {"Zen", "Zen", ""},
+                                           {"Cooperlake", "Cooperlake", ""}, {"unset", "", ""},
+                                           {"reference BLAS as libblas.so.3", "", referenceBlas + ":" + referenceLapack},
+                                           // A processor without AVX or FMA, as glibc sees it (its libm and string
+                                           // functions choose their SSE2 versions).
+                                           {"no AVX, no FMA", "Prescott", "",
+                                            "glibc.cpu.hwcaps=-AVX2,-FMA,-FMA4,-AVX,-AVX512F,-AVX512VL"}};
+    for (const Variant& v : variants) {
+      QProcessEnvironment env = QProcessEnvironment::systemEnvironment();
+      env.remove("OPENBLAS_CORETYPE");
+      if (!v.core.isEmpty()) env.insert("OPENBLAS_CORETYPE", v.core);
+      if (!v.libraryPath.isEmpty()) env.insert("LD_LIBRARY_PATH", v.libraryPath);
+      env.remove("GLIBC_TUNABLES");  // what this test process was started with: each variant says its own
+      env.remove("REHEARSE_LIBM_RESTARTED");
+      if (!v.tunables.isEmpty()) env.insert("GLIBC_TUNABLES", v.tunables);
+      const Run r = run({"replay", file, "--session", "1", "--verify"}, 300000, &env);
+      qInfo("replayed under %s: exit %d, %s", qPrintable(v.name), r.code,
+            qPrintable((r.out + r.err).trimmed().split('\n').mid(1).join(" | ")));
+      QVERIFY2(r.code == 0, qPrintable(v.name + ": " + r.out + r.err));
+      QVERIFY2(r.out.contains("kernel: " + kernel), qPrintable(v.name + ": " + r.out));
+    }
+  }
+
+  // Issue 60: a replay that cannot reproduce its recording says which differs. A session recorded in-process on another
+  // kernel set (one this processor runs: selected for the test, as a benchmark does) does not verify on the pinned one,
+  // and the replay check names both kernels, in the API and on the command line.
+  void aReplayThatDiffersNamesTheKernels() {
+    const char* other = nullptr;
+    for (const char* core : {"SkylakeX", "Haswell", "Zen"})
+      if (!other && simcore::selectBlasCore(core)) other = core;
+    if (!other) {
+      QVERIFY(simcore::pinBlasKernel());
+      QSKIP("this processor has neither AVX2 nor AVX-512: no other OpenBLAS kernel set to record with");
+    }
+    const std::string otherKernel = simcore::linearSolveKernel(false);
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/kernel.rehearse";
+    {
+      simcore::Session session(rehearse::testing::presetBody("liver"));
+      app::SessionMeta meta;
+      meta.trainee = "K. Ernel";
+      meta.appVersion = "0.1.0";
+      app::Recorder recorder(file.toStdString(), meta, session.setup());
+      session.setStepHook([&](const simcore::StepRecord& r) { recorder.afterStep(r); });
+      for (int k = 0; k < 40; ++k) session.advance();
+      recorder.finish(40);
+    }
+    QVERIFY(simcore::pinBlasKernel());
+    const auto rec = app::loadRecording(file.toStdString(), 1);
+    QCOMPARE(rec.numerics.kernel, otherKernel);
+    const app::VerifyResult v = app::replayRecording(rec).verify;
+    const std::string pinnedKernel = simcore::linearSolveKernel(false);
+    const QString sentence = QString::fromStdString(app::replayCheckSentence(v));
+    qInfo("%s", qPrintable(sentence));
+    QVERIFY2(v.mismatches > 0, "the kernel sets gave the same bits: this test shows nothing here");
+    const QString both = QString::fromStdString("recorded with kernel " + otherKernel + ", replayed with " + pinnedKernel);
+    QVERIFY2(sentence.startsWith("DOES NOT VERIFY") && sentence.contains(both), qPrintable(sentence));
+    const Run r = run({"replay", file, "--session", "1", "--verify"});
+    QCOMPARE(r.code, 4);
+    QCOMPARE(r.err.trimmed().count('\n'), 0);
+    QVERIFY2(r.err.contains(both), qPrintable(r.err));
   }
 
   // Two sessions into one file (grasp-pull, then cut-across, both with the asynchronous refresh the GUI

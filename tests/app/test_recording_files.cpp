@@ -101,18 +101,46 @@ class TestRecordingFiles : public QObject {
         ++stepped;
       }
     };
-    for (std::size_t n = 0; n < good.size(); n += 1 + good.size() / 1500) attempt(good.substr(0, n));
+    // Issue 60: a checkpoint carries the digest of its bytes, so every truncation and every change is refused before
+    // any byte is read as a state. The decoder behind the digest is exercised as a forger would: each damaged body
+    // sealed again with a digest of its own.
+    const std::string body = good.substr(0, good.size() - 8);
+    auto sealed = [](const std::string& b) {
+      std::uint64_t h = 1469598103934665603ull;
+      for (char ch : b) h = (h ^ static_cast<unsigned char>(ch)) * 1099511628211ull;
+      return b + std::string(reinterpret_cast<const char*>(&h), 8);
+    };
+    QCOMPARE(sealed(body), good);  // the digest is FNV-1a 64 of the bytes before it
+    int digestRefused = 0, changedAtAll = 0;
+    auto refusedAsStored = [&](const std::string& bytes) {
+      if (bytes == good) return;
+      ++changedAtAll;
+      try {
+        app::decodeCheckpointState(bytes, setupOf);
+      } catch (const std::runtime_error&) {
+        ++digestRefused;
+      }
+    };
+    for (std::size_t n = 0; n < body.size(); n += 1 + body.size() / 1500) {
+      refusedAsStored(good.substr(0, n));
+      attempt(sealed(body.substr(0, n)));
+    }
     std::mt19937 rng(3);
     for (int k = 0; k < 3000; ++k) {
-      std::string bad = good;
+      std::string bad = body, badStored = good;
       const int changes = 1 + static_cast<int>(rng() % 4);
       for (int j = 0; j < changes; ++j) {
         // Mostly in the first 200 bytes (magic, step, lengths) where a change matters most.
         const std::size_t at = (rng() % 4 ? rng() % std::min<std::size_t>(200, bad.size()) : rng() % bad.size());
-        bad[at] = static_cast<char>(rng());
+        const char value = static_cast<char>(rng());
+        bad[at] = value;
+        badStored[at] = value;
       }
-      attempt(bad);
+      refusedAsStored(badStored);
+      attempt(sealed(bad));
     }
+    qInfo("as stored: %d of %d damaged checkpoints refused by their digest", digestRefused, changedAtAll);
+    QCOMPARE(digestRefused, changedAtAll);
     QVERIFY2(decoded > 100, "random changes in the doubles decode (the test must reach the restore)");
     QVERIFY(stepped > 10);
     qInfo("damaged checkpoints: %d refused, %d decoded (changes in doubles), %d of these restored and stepped 3 steps",
@@ -124,12 +152,87 @@ class TestRecordingFiles : public QObject {
     QCOMPARE(sqlite3_exec(db, "UPDATE rehearsal_checkpoints SET state = x'00112233'", nullptr, nullptr, nullptr),
              SQLITE_OK);
     sqlite3_close(db);
+    // Issue 60: it passes over every damaged one (with a sentence naming the nearest) and replays from the start,
+    // landing on the recorded state.
     app::Replayer replayer(app::loadRecording(file.toStdString(), 1));
-    try {
-      replayer.seek(300);
-      QFAIL("a damaged checkpoint was used");
-    } catch (const std::runtime_error& e) {
-      QVERIFY2(QString(e.what()).count('\n') == 0 && QString(e.what()).contains("checkpoint"), e.what());
+    replayer.seek(300);
+    QCOMPARE(replayer.step(), 300L);
+    QVERIFY(replayer.lastSeekFrom() <= 0);  // from the start (where the replayer was)
+    const QString note = QString::fromStdString(replayer.lastSeekNote());
+    long nearest = 0;  // the checkpoint a seek to 300 starts from when it is sound
+    for (long st : rec.checkpointSteps)
+      if (st <= 300) nearest = std::max(nearest, st);
+    QVERIFY2(note.count('\n') == 0 && note.contains(QString("the checkpoint after step %1 is damaged").arg(nearest)),
+             qPrintable(note));
+    QVERIFY(rec.checksums.count(300));
+    QCOMPARE(app::stateChecksum(replayer.state()), rec.checksums.at(300));
+  }
+
+  // Issue 60: --verify checks every checkpoint (decoded, and the state it restores the straight replay's at its step).
+  // One truncated to a third and one with a single byte changed are each named with their step (exit 4); the run
+  // itself still verifies, and a seek onto either starts from the nearest sound one with a sentence, landing on the
+  // recorded state.
+  void damagedCheckpointsAreNamedByVerify() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QVERIFY(::testing::tookEveryStep(run(gestureArgs(dir.path(), "grasp-pull.json", file))));
+    const auto rows = app::loadRecordingRows(file.toStdString(), 1);
+    QVERIFY(rows.checkpoints.size() >= 6);
+    const Run sound = run({"replay", file, "--session", "1", "--verify"});
+    QVERIFY2(sound.code == 0, qPrintable(sound.err));
+    QVERIFY2(sound.out.contains(QString("all %1 checkpoints restore the replay's state").arg(rows.checkpoints.size())),
+             qPrintable(sound.out));
+    const long truncated = rows.checkpoints[1].step, flipped = rows.checkpoints[4].step;
+    sqlite3* db = nullptr;
+    QCOMPARE(sqlite3_open(file.toUtf8().constData(), &db), SQLITE_OK);
+    QCOMPARE(sqlite3_exec(db,
+                          ("UPDATE rehearsal_checkpoints SET state = substr(state, 1, length(state) / 3) WHERE step = " +
+                           std::to_string(truncated))
+                              .c_str(),
+                          nullptr, nullptr, nullptr),
+             SQLITE_OK);
+    QCOMPARE(sqlite3_changes(db), 1);
+    std::string bytes = rows.checkpoints[4].state;
+    bytes[bytes.size() / 2] = static_cast<char>(bytes[bytes.size() / 2] ^ 0x10);  // one byte, in the state's doubles
+    sqlite3_stmt* q = nullptr;
+    QCOMPARE(sqlite3_prepare_v2(db, "UPDATE rehearsal_checkpoints SET state = ? WHERE step = ?", -1, &q, nullptr),
+             SQLITE_OK);
+    sqlite3_bind_blob(q, 1, bytes.data(), static_cast<int>(bytes.size()), SQLITE_TRANSIENT);
+    sqlite3_bind_int64(q, 2, flipped);
+    QCOMPARE(sqlite3_step(q), SQLITE_DONE);
+    sqlite3_finalize(q);
+    sqlite3_close(db);
+    const Run v = run({"replay", file, "--session", "1", "--verify"});
+    qInfo("%s", qPrintable(v.err.trimmed()));
+    QCOMPARE(v.code, 4);
+    QVERIFY2(v.err.contains(QString("the checkpoint after step %1 is damaged").arg(truncated)), qPrintable(v.err));
+    QVERIFY2(v.err.contains(QString("the checkpoint after step %1 is damaged").arg(flipped)), qPrintable(v.err));
+    QVERIFY2(v.err.contains(QString("2 of %1 checkpoints are damaged").arg(rows.checkpoints.size())),
+             qPrintable(v.err));
+    QVERIFY2(v.err.contains("all 35 checksums match"), qPrintable(v.err));
+    // The metrics say so too (the replay check), exit 4.
+    const Run m = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/m.json"});
+    QCOMPARE(m.code, 4);  // written, and saying why they are not taken as verified
+    QCOMPARE(m.err.trimmed().count('\n'), 0);
+    QVERIFY2(m.err.contains(QString("the checkpoint after step %1 is damaged").arg(truncated)), qPrintable(m.err));
+    QFile mj(dir.path() + "/m.json");
+    QVERIFY(mj.open(QIODevice::ReadOnly));
+    const QJsonObject metrics = QJsonDocument::fromJson(mj.readAll()).object();
+    QCOMPARE(metrics["replay_verified"].toBool(true), false);
+    QVERIFY2(metrics["replay_check"].toString().contains(QString("the checkpoint after step %1 is damaged").arg(truncated)),
+             qPrintable(metrics["replay_check"].toString()));
+    // Seeking without a verify first: each damaged one is found when met, passed over with a sentence.
+    const app::Recording rec = app::loadRecording(file.toStdString(), 1);
+    for (const long damaged : {flipped, truncated}) {
+      app::Replayer replayer(rec);
+      const long target = damaged + 10;
+      replayer.seek(target);
+      const QString note = QString::fromStdString(replayer.lastSeekNote());
+      qInfo("seek to %ld: %s", target, qPrintable(note));
+      QVERIFY2(note.contains(QString("the checkpoint after step %1 is damaged").arg(damaged)), qPrintable(note));
+      QVERIFY(replayer.lastSeekFrom() < damaged);
+      QVERIFY(rec.checksums.count(target));
+      QCOMPARE(app::stateChecksum(replayer.state()), rec.checksums.at(target));
     }
   }
 

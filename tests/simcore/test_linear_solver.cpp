@@ -5,9 +5,11 @@
 #include <QtTest>
 
 #include <rehearse/simcore/linear_solver.hpp>
+#include <rehearse/simcore/numerics.hpp>
 
 #include <Eigen/Dense>
 
+#include <cstring>
 #include <random>
 
 using namespace rehearse::simcore;
@@ -56,9 +58,54 @@ Eigen::VectorXd randomVector(Eigen::Index n, unsigned seed) {
 }
 }  // namespace
 
+namespace {
+// The bytes of a supernodal (or simplicial) solve of the grid system: equal only for bit-identical results.
+QByteArray solveBits(bool simplicial) {
+  const Eigen::SparseMatrix<double> A = gridMatrix(14, 0.01);  // 8,232 dofs: supernodes large enough for BLAS-3
+  const Eigen::VectorXd b = randomVector(A.rows(), 7);
+  CholmodSolver solver;
+  solver.setSimplicial(simplicial);
+  Eigen::VectorXd x;
+  if (!solver.factorise(A) || !solver.solve(b, x)) return {};
+  return QByteArray(reinterpret_cast<const char*>(x.data()), static_cast<int>(x.size() * sizeof(double)));
+}
+}  // namespace
+
 class TestLinearSolver : public QObject {
   Q_OBJECT
  private slots:
+  // Issue 60: the process's OpenBLAS is pinned to one kernel set whatever OPENBLAS_CORETYPE says (ctest runs this suite
+  // under Prescott, Haswell, SkylakeX, Zen, Cooperlake and unset), and CHOLMOD's calls reach it whatever BLAS the
+  // machine's alternatives select. The kernels do round differently (another core's solve differs in its bits), so the
+  // pin is what makes a recording's checksums the same on every processor; the simplicial factor calls no BLAS.
+  void blasKernelIsPinnedWhateverTheProcessor() {
+    const QByteArray env = qgetenv("OPENBLAS_CORETYPE");
+    const std::string kernel = blasKernel();
+    qInfo("OPENBLAS_CORETYPE=%s: %s", env.isEmpty() ? "(unset)" : env.constData(), kernel.c_str());
+    QVERIFY2(kernel.rfind("OpenBLAS ", 0) == 0, kernel.c_str());  // CHOLMOD's dgemm_ is OpenBLAS's, not libblas.so.3's
+    QVERIFY2(kernel.size() > 9 && kernel.substr(kernel.size() - std::strlen(kPinnedBlasCore)) == kPinnedBlasCore,
+             kernel.c_str());
+    QVERIFY(pinBlasKernel());
+    const QByteArray pinned = solveBits(false), simplicial = solveBits(true);
+    QVERIFY(!pinned.isEmpty() && !simplicial.isEmpty());
+    // Another kernel set, where this processor runs one: the supernodal solve's bits change, the simplicial one's not.
+    const char* other = nullptr;
+    for (const char* core : {"SkylakeX", "Haswell", "Zen"})
+      if (!other && selectBlasCore(core)) other = core;
+    if (other) {
+      const std::string otherKernel = blasKernel();
+      const QByteArray supernodalThere = solveBits(false), simplicialThere = solveBits(true);
+      QVERIFY(pinBlasKernel());
+      QCOMPARE(QString::fromStdString(blasKernel()), QString::fromStdString(kernel));
+      qInfo("%s: supernodal solve %s the pinned one's bits; simplicial %s", otherKernel.c_str(),
+            supernodalThere == pinned ? "equals" : "differs from", simplicialThere == simplicial ? "equal" : "differ");
+      QVERIFY2(supernodalThere != pinned, "another kernel set gave the same bits: this test shows nothing here");
+      QCOMPARE(simplicialThere, simplicial);
+    }
+    QCOMPARE(solveBits(false), pinned);  // back on the pinned kernels: the same bits again
+    if (!other) QSKIP("this processor has neither AVX2 nor AVX-512: no other OpenBLAS kernel set to compare with");
+  }
+
   void cholmodMatchesDenseCholesky() {
     const auto A = gridMatrix(9, 0.05);  // 2187 dofs
     const Eigen::VectorXd b = randomVector(A.rows(), 1);

@@ -5,6 +5,8 @@
 #include "recording_codec.hpp"
 #include "recording_store.hpp"
 
+#include <rehearse/simcore/numerics.hpp>
+
 #include <nlohmann/json.hpp>
 #include <sqlite3.h>
 
@@ -19,6 +21,12 @@ namespace rehearse::app {
 
 using nlohmann::json;
 using namespace detail;
+
+RecordedNumerics currentNumerics(const simcore::BodySetup& setup, const std::string& appVersion) {
+  return {simcore::linearSolveKernel(setup.settings.simplicialFactor),
+          "Rehearse " + (appVersion.empty() ? std::string("(version not given)") : appVersion) + ", " +
+              simcore::numericalBuild()};
+}
 
 struct Recorder::Statements {
   Statement event, checksum, checksumAgain, steps, setup, checkpoint;
@@ -43,7 +51,8 @@ Recorder::Recorder(const std::string& path, const SessionMeta& meta, const simco
   uuid_ = newSessionUuid();
   meta_ = meta;
   startedUtc_ = utcNow();
-  setupText_ = encodeSetup(setup);
+  numerics_ = currentNumerics(setup, meta.appVersion);
+  setupText_ = withRecordedNumerics(encodeSetup(setup), numerics_);
   timeStep_ = setup.settings.timeStep;
   open(path);
 }
@@ -262,7 +271,8 @@ void Recorder::afterStep(const simcore::StepRecord& r) {
     auto store = [this](const simcore::BodySetup& s) {
       const std::uint64_t h = setupHash(s);  // the mesh is copied and encoded only for a setup not written yet
       if (std::find(setupsWritten_.begin(), setupsWritten_.end(), h) != setupsWritten_.end()) return h;
-      std::string text = encodeSetup(sharedSetup(s));
+      // Marked as written by a build that hashes setups as this one does: a reader checks it against its hash.
+      std::string text = withRecordedNumerics(encodeSetup(sharedSetup(s)), numerics_);
       if (suspended_) {
         keptSetups_.emplace_back(h, std::move(text));
         setupsWritten_.push_back(h);

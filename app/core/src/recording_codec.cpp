@@ -4,6 +4,9 @@
 
 #include "rehearse/app/recording.hpp"
 
+#include <rehearse/simcore/input_ranges.hpp>
+#include <rehearse/text_input.hpp>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -193,6 +196,15 @@ constexpr std::uint32_t kCheckpointMagicV3 = 0x334B4352;  // "RCK3": + ToolState
 constexpr std::uint32_t kCheckpointMagicV4 = 0x344B4352;  // "RCK4": + ToolState::jawTip and jawTool
 constexpr std::uint32_t kCheckpointMagic =
     0x354B4352;  // "RCK5": + the operative field (clips, bleeding, blood lost, the cautery's heat), the change's kind
+// "RCK6": RCK5's bytes followed by their FNV-1a 64 digest, so that a seek finds any changed byte before it restores the
+// state (a byte changed inside a double decoded, and a seek restored it without a word: issue 60).
+constexpr std::uint32_t kCheckpointMagicDigest = 0x364B4352;
+
+std::uint64_t fnv1a(const char* p, std::size_t n) {
+  std::uint64_t h = 1469598103934665603ull;
+  for (std::size_t i = 0; i < n; ++i) h = (h ^ static_cast<unsigned char>(p[i])) * 1099511628211ull;
+  return h;
+}
 
 }  // namespace
 
@@ -346,6 +358,10 @@ std::string encodeCheckpoint(const simcore::Checkpoint& c, std::uint64_t setupHa
     o.pod(static_cast<std::uint8_t>(p->clearProgress));
     o.pod(static_cast<std::int64_t>(p->applyAt));
   }
+  // RCK6: the same bytes under their own magic, then their digest.
+  std::memcpy(o.b.data(), &kCheckpointMagicDigest, sizeof kCheckpointMagicDigest);
+  const std::uint64_t digest = fnv1a(o.b.data(), o.b.size());
+  o.b.append(reinterpret_cast<const char*>(&digest), sizeof digest);
   return o.b;
 }
 }  // namespace detail
@@ -354,8 +370,25 @@ std::string encodeCheckpointState(const simcore::Checkpoint& c) {
   return detail::encodeCheckpoint(c, setupHash(c.setup), c.pendingChange ? setupHash(c.pendingChange->setup) : 0);
 }
 
-simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
+simcore::Checkpoint decodeCheckpointState(const std::string& stored,
                                           const std::function<simcore::BodySetup(std::uint64_t)>& setupOf) {
+  // The digest first: a checkpoint whose bytes changed is refused before any of them is read as a state.
+  std::string withDigestRemoved;
+  const std::string* source = &stored;
+  std::uint32_t first = 0;
+  if (stored.size() >= sizeof first) std::memcpy(&first, stored.data(), sizeof first);
+  if (first == kCheckpointMagicDigest) {
+    if (stored.size() < sizeof first + sizeof(std::uint64_t))
+      throw std::runtime_error("a recorded checkpoint is truncated");
+    std::uint64_t digest = 0;
+    std::memcpy(&digest, stored.data() + stored.size() - sizeof digest, sizeof digest);
+    if (fnv1a(stored.data(), stored.size() - sizeof digest) != digest)
+      throw std::runtime_error("a recorded checkpoint's bytes do not match their digest (truncated or changed)");
+    withDigestRemoved = stored.substr(0, stored.size() - sizeof digest);
+    std::memcpy(withDigestRemoved.data(), &kCheckpointMagic, sizeof kCheckpointMagic);
+    source = &withDigestRemoved;
+  }
+  const std::string& bytes = *source;
   simcore::Checkpoint c;
   Reader r{bytes.data(), bytes.data() + bytes.size()};
   const std::uint32_t magic = r.pod<std::uint32_t>();
@@ -649,6 +682,8 @@ std::string encodeSetup(const simcore::BodySetup& s) {
 }
 
 simcore::BodySetup decodeSetup(const std::string& text) {
+  if (const std::string why = jsonTextProblem(text, "a recorded setup", std::size_t{1} << 30); !why.empty())
+    throw std::runtime_error(why);
   try {
     const json j = json::parse(text);
     if (j.value("format", "") != "rehearse-setup-1") throw std::runtime_error("unknown format");
@@ -729,6 +764,8 @@ std::string encodeEvent(const simcore::InputEvent& e) {
 }
 
 simcore::InputEvent decodeEvent(const std::string& text) {
+  if (const std::string why = jsonTextProblem(text, "a recorded event", std::size_t{1} << 20); !why.empty())
+    throw std::runtime_error(why);
   try {
     const json j = json::parse(text);
     simcore::InputEvent e;
@@ -831,6 +868,11 @@ std::string setupProblem(const simcore::BodySetup& s) {
   if (tool.tearLatencySteps < -1 || tool.tearLatencySteps > 1000)
     return "the tear's latency is not between -1 and 1000 steps";
   if (s.topology < 0) return "the topology version is negative";
+  // The ranges every input path holds (a run inside the old ones could be set never to end).
+  if (const std::string why = simcore::settingsProblem(t); !why.empty()) return why;
+  if (auto p = simcore::materialRangeProblem(s.material, "the organ"); !p.empty()) return p;
+  for (const auto& [label, mat] : s.byLabel)
+    if (auto p = simcore::materialRangeProblem(mat, "label " + std::to_string(label)); !p.empty()) return p;
   return {};
 }
 
@@ -870,6 +912,28 @@ std::string eventProblem(const simcore::InputEvent& e) {
     if (e.label < 0) return "a recorded parameter names a negative label";
   }
   return {};
+}
+
+std::string withRecordedNumerics(const std::string& setupText, const RecordedNumerics& n) {
+  json j = json::parse(setupText);
+  j["recorded_with"] = {{"kernel", n.kernel}, {"build", n.build}};
+  return j.dump(-1, ' ', false, json::error_handler_t::replace);
+}
+
+RecordedNumerics recordedNumerics(const std::string& setupText) {
+  RecordedNumerics n;
+  try {
+    const json j = json::parse(setupText);
+    if (!j.is_object() || !j.contains("recorded_with") || !j["recorded_with"].is_object()) return n;
+    const json& r = j["recorded_with"];
+    auto text = [&](const char* key) {
+      return r.contains(key) && r[key].is_string() ? r[key].get<std::string>().substr(0, 512) : std::string();
+    };
+    n.kernel = text("kernel");
+    n.build = text("build");
+  } catch (const json::exception&) {
+  }
+  return n;
 }
 
 std::string newSessionUuid() {

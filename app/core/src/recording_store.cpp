@@ -5,6 +5,8 @@
 #include "recording_codec.hpp"
 #include "recording_store.hpp"
 
+#include <rehearse/simcore/input_ranges.hpp>
+
 #include <nlohmann/json.hpp>
 #include <sqlite3.h>
 
@@ -157,6 +159,7 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
       if (sqlite3_step(q.s) != SQLITE_ROW)
         throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
       r.setup = decodeSetup(q.column(0));
+      r.numerics = recordedNumerics(q.column(0));
       r.checksumEvery = sqlite3_column_int(q.s, 1);
       if (r.checksumEvery < 1)
         throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has no checksum interval");
@@ -202,6 +205,8 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
   // A session cut short: its last checksum bounds what can be verified.
   if (!r.checksums.empty()) r.summary.steps = std::max(r.summary.steps, r.checksums.rbegin()->first);
   r.path = path;
+  if (const std::string why = recordingLengthProblem(r); !why.empty())
+    throw std::runtime_error("session " + std::to_string(id) + " in " + path + " " + why);
   return r;
 }
 
@@ -276,7 +281,7 @@ simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, lon
       if (sqlite3_step(q.s) != SQLITE_ROW)
         throw std::runtime_error(path + ": the checkpoint at step " + std::to_string(step) +
                                  " names a setup that is missing");
-      return decodeSetup(q.column(0));
+      return decodeSharedSetup(q.column(0), hash);
     });
   } catch (...) {
     sqlite3_close(db);
@@ -388,6 +393,25 @@ int copyRecordings(const std::string& from, const std::string& to) {
   run("DETACH DATABASE prev");
   sqlite3_close(db);
   return sessions;
+}
+
+simcore::BodySetup decodeSharedSetup(const std::string& text, std::uint64_t hash) {
+  simcore::BodySetup s = decodeSetup(text);
+  // Setups written by a build that names what recorded them hash as this one does; older ones (their hash from an
+  // older setupHash) are checked by --verify instead, which compares the state each checkpoint restores.
+  if (!recordedNumerics(text).kernel.empty() && setupHash(s) != hash)
+    throw std::runtime_error("a setup the checkpoints name is not the one its hash says (the file was edited or damaged)");
+  return s;
+}
+
+std::string recordingLengthProblem(const Recording& r) {
+  long last = r.summary.steps;
+  if (!r.checksums.empty()) last = std::max(last, r.checksums.rbegin()->first);
+  if (!r.events.empty()) last = std::max(last, r.events.back().step);
+  for (long s : r.checkpointSteps) last = std::max(last, s);
+  if (last < 1) return {};
+  const std::string why = simcore::runLengthProblem(static_cast<double>(last), r.setup.settings.timeStep);
+  return why.empty() ? why : "says it ran " + std::to_string(last) + " steps: " + why + " (the file is damaged)";
 }
 
 VerifyResult verifyRecording(const Recording& r) {

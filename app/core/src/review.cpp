@@ -1,5 +1,7 @@
 #include "rehearse/app/review.hpp"
 
+#include <rehearse/text_input.hpp>
+
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/mesh.hpp>
 
@@ -85,6 +87,7 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
 }
 
 std::vector<Threshold> parseThresholds(const std::string& text) {
+  if (const std::string why = jsonTextProblem(text, "the thresholds file"); !why.empty()) throw std::runtime_error(why);
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(text);
@@ -361,7 +364,18 @@ int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const s
 }
 
 bool replayVerified(const VerifyResult& v) {
-  return v.checked > 0 && v.mismatches == 0;
+  return v.checked > 0 && v.mismatches == 0 && v.damagedCheckpoints.empty();
+}
+
+std::string replayProvenance(const VerifyResult& v) {
+  const RecordedNumerics &a = v.recorded, &b = v.replayed;
+  if (a.kernel.empty())
+    return "the recording does not name the numerical kernel that made it (recorded before recordings named it); "
+           "replayed with " + b.kernel;
+  if (a.kernel != b.kernel) return "recorded with kernel " + a.kernel + ", replayed with " + b.kernel;
+  if (a.build != b.build)
+    return "the same kernel (" + a.kernel + "); recorded by " + a.build + ", replayed by " + b.build;
+  return "the same build and kernel (" + b.kernel + ") replayed it: the file was damaged or edited";
 }
 
 std::string replayCheckSentence(const VerifyResult& v) {
@@ -369,9 +383,26 @@ std::string replayCheckSentence(const VerifyResult& v) {
   if (v.mismatches)
     return "DOES NOT VERIFY: " + std::to_string(v.mismatches) + " of " + std::to_string(v.checked) +
            " checksums differ, the first after step " + std::to_string(v.firstMismatch) +
-           " - what is shown is not the run that was recorded (another build or kind of machine, or a damaged file)";
-  return "verified: all " + std::to_string(v.checked) +
-         " checksums match (bit-exact replay holds for the same build on the same kind of machine)";
+           " - what is shown is not the run that was recorded: " + replayProvenance(v);
+  if (!v.damagedCheckpoints.empty()) {
+    const auto& [step, why] = v.damagedCheckpoints.front();
+    std::string s = "DOES NOT VERIFY: the checkpoint after step " + std::to_string(step) + " is damaged (" + why + ")";
+    if (v.damagedCheckpoints.size() > 1)
+      s += ", and " + std::to_string(v.damagedCheckpoints.size() - 1) + " more of the " +
+           std::to_string(v.checkpointsChecked) + " checkpoints";
+    return s + "; the run itself replays (all " + std::to_string(v.checked) +
+           " checksums match) and seeking starts from the sound ones";
+  }
+  if (v.checkpointsChecked == 0)
+    return "verified: all " + std::to_string(v.checked) + " checksums match (" + v.replayed.kernel + ")";
+  const long sound = v.checkpointsChecked - static_cast<long>(v.incompleteCheckpoints.size());
+  std::string s = "verified: all " + std::to_string(v.checked) + " checksums and " + std::to_string(sound) +
+                  " checkpoints match (" + v.replayed.kernel + ")";
+  if (!v.incompleteCheckpoints.empty())
+    s += "; " + std::to_string(v.incompleteCheckpoints.size()) +
+         " checkpoints by an older build do not hold the instruments' or the field's whole state: seeking replays past "
+         "them";
+  return s;
 }
 
 ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds,

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <functional>
 #include <set>
 
 namespace rehearse::app {
@@ -26,6 +27,39 @@ double distanceToSegment(const Eigen::Vector3d& p, const Eigen::Vector3d& a, con
   const double s = len2 > 0 ? std::clamp((p - a).dot(d) / len2, 0.0, 1.0) : 0.0;
   return (p - (a + s * d)).norm();
 }
+}  // namespace
+
+namespace {
+// Which parts of a stored checkpoint differ from the straight replay's at its step (none: empty). Each part is put into
+// the replay's checkpoint in turn and the encodings compared, so every byte a checkpoint carries counts.
+std::vector<std::string> checkpointDifference(const simcore::Checkpoint& stored, const simcore::Checkpoint& replayed) {
+  const std::string reference = encodeCheckpointState(replayed);
+  if (encodeCheckpointState(stored) == reference) return {};
+  std::vector<std::string> parts;
+  auto differs = [&](const char* what, const std::function<void(simcore::Checkpoint&)>& take) {
+    simcore::Checkpoint mixed = replayed;
+    take(mixed);
+    if (encodeCheckpointState(mixed) != reference) parts.push_back(what);
+  };
+  if (stateChecksum(stored.state) != stateChecksum(replayed.state)) parts.push_back("positions and velocities");
+  else differs("solver state", [&](simcore::Checkpoint& c) { c.state = stored.state; });
+  differs("body setup", [&](simcore::Checkpoint& c) { c.setup = stored.setup; });
+  differs("instruments", [&](simcore::Checkpoint& c) { c.tool = stored.tool; });
+  differs("operative field", [&](simcore::Checkpoint& c) { c.field = stored.field; });
+  differs("cut under way", [&](simcore::Checkpoint& c) {
+    c.pendingChange = stored.pendingChange;
+    c.restOfSweep = stored.restOfSweep;
+  });
+  if (parts.empty()) parts.push_back("bytes");
+  return parts;
+}
+
+std::string joinedParts(const std::vector<std::string>& parts) {
+  std::string out = "its ";
+  for (std::size_t i = 0; i < parts.size(); ++i) out += (i ? (i + 1 == parts.size() ? " and " : ", ") : "") + parts[i];
+  return out + (parts.size() > 1 ? " differ" : " differs");
+}
+
 }  // namespace
 
 ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
@@ -89,6 +123,38 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
         lastTool = e.tool;
       }
   }
+  v.recorded = r.numerics;
+  v.replayed = currentNumerics(r.setup, REHEARSE_APP_VERSION);
+  // Every checkpoint is checked against the straight replay (issue 60): it decodes, and the state it restores (encoded
+  // again, setups by their hashes) is the replay's own at its step. A seek starts from these.
+  const std::set<long> checkpointSteps(r.checkpointSteps.begin(), r.checkpointSteps.end());
+  const bool canLoadCheckpoints = options.checkpoints && (r.checkpointSource || !r.path.empty());
+  auto checkCheckpoint = [&](long step, const simcore::Session& session) {
+    ++v.checkpointsChecked;
+    try {
+      simcore::Checkpoint stored =
+          r.checkpointSource ? r.checkpointSource(step) : loadCheckpoint(r.path, r.summary.id, step);
+      // As a seek restores it (Replayer::startAt): the setup as a replay runs it (the refresh deferred to the recorded
+      // swaps).
+      stored.setup = simcore::replaySetup(std::move(stored.setup));
+      if (stored.pendingChange) stored.pendingChange->setup = simcore::replaySetup(std::move(stored.pendingChange->setup));
+      if (stored.step != step)
+        v.damagedCheckpoints.emplace_back(step, "it says it was taken after step " + std::to_string(stored.step));
+      else if (const auto parts = checkpointDifference(stored, session.checkpoint()); !parts.empty()) {
+        // A recording made before recordings named their kernels was checkpointed by an older build, whose checkpoints
+        // did not carry the instruments' and the field's whole state (and the cut's, as it is now): such a checkpoint
+        // is sound for what it holds but a seek from it would not land on the straight run. Incomplete, not damaged.
+        const bool olderFormat = r.numerics.kernel.empty() &&
+                                 std::all_of(parts.begin(), parts.end(), [](const std::string& p) {
+                                   return p == "instruments" || p == "operative field" || p == "cut under way";
+                                 });
+        (olderFormat ? v.incompleteCheckpoints : v.damagedCheckpoints)
+            .emplace_back(step, "it restores another state than the replay's at that step (" + joinedParts(parts) + ")");
+      }
+    } catch (const std::exception& e) {
+      v.damagedCheckpoints.emplace_back(step, e.what());
+    }
+  };
   simcore::replaySession(r.setup, r.events, steps, [&](long step, const simcore::Session& session) {
     ++v.steps;
     if (const auto it = r.checksums.find(step); it != r.checksums.end()) {
@@ -98,6 +164,7 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
         if (v.firstMismatch < 0) v.firstMismatch = step;
       }
     }
+    if (canLoadCheckpoints && checkpointSteps.count(step)) checkCheckpoint(step, session);
     const auto snap = session.snapshot();
     const auto& tool = snap->tool;
     if (tool.present) {

@@ -372,6 +372,7 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
     try {
       raw->result = raw->watcher->result();
       raw->replayer = std::make_unique<app::Replayer>(raw->recording);
+      raw->replayer->avoidCheckpoints(raw->result.verify);  // seeking starts from sound ones
       raw->orbitRenderer = std::make_unique<app::ReviewRenderer>(raw->recording.setup, 800, 600);
       if (camera_) raw->frameRenderer = std::make_unique<app::ReviewRenderer>(raw->recording.setup, 0, 0, camera_, frame_);
       raw->timelineView->timeline = &raw->result.timeline;
@@ -399,6 +400,7 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
   app::ReplayOptions options;
   options.strain = true;
   options.timeline = true;
+  options.checkpoints = !a->recording.checkpointSource;  // a database session's connection is this thread's
   const app::Recording rec = a->recording;
   a->watcher->setFuture(QtConcurrent::run([rec, options] { return app::replayRecording(rec, options); }));
   attempts_[static_cast<std::size_t>(attempt)] = std::move(a);
@@ -524,6 +526,8 @@ void ReviewWindow::refresh() {
     a->timelineView->now = time_;
     a->timelineView->update();
     state << tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(step).arg(a->replayer->steps());
+    if (!a->replayer->lastSeekNote().empty())  // a damaged checkpoint passed over: said, the view still shows the step
+      state << QString::fromStdString(a->replayer->lastSeekNote());
   }
   const QString mode = threeD_ || !camera_ ? tr("3D view (drag to turn)") : tr("over the case's frame");
   status_->setText(tr("%1  t = %2 s  %3  %4x  %5").arg(playing_ ? tr("playing") : tr("paused")).arg(time_, 0, 'f', 2).arg(state.join("; ")).arg(speedFactor_).arg(mode));
@@ -587,6 +591,7 @@ QString ReviewWindow::exportFirst(const std::function<QString(ReviewAttempt&, ap
   QString err;
   try {
     app::Replayer replayer(a->recording);  // its own: the view's stays where it is
+    replayer.avoidCheckpoints(a->result.verify);
     status_->setText(write(*a, replayer, a->renderer(threeD_)));
   } catch (const std::exception& e) {
     err = QString::fromStdString(e.what());

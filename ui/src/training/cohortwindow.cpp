@@ -141,8 +141,8 @@ void CohortWindow::fill() {
     auto* verified =
         new QTableWidgetItem(s.verifiedOn.isEmpty() ? tr("at publishing (machine not kept)") : s.verifiedOn);
     verified->setToolTip(
-        tr("Bit-exact replay holds for the same build on the same kind of machine; opening the session replays and "
-           "verifies it here."));
+        tr("A session replays bit for bit with the same build on any x86-64 processor (its numerical kernels are "
+           "pinned); opening the session replays and verifies it here."));
     table_->setItem(row, 4 + static_cast<int>(shown.size()), verified);
   }
   table_->resizeColumnsToContents();

@@ -36,8 +36,8 @@ constexpr const char* kSchema[] = {
     "CREATE TABLE IF NOT EXISTS rehearse_checkpoints(uid TEXT NOT NULL REFERENCES rehearse_sessions(uid) ON DELETE "
     "CASCADE, step BIGINT NOT NULL, "
     "setup_hash TEXT NOT NULL, state BYTEA NOT NULL, PRIMARY KEY(uid, step))",
-    // Where its replay was verified before it was published (bit-exact replay holds for the same build on the same
-    // kind of machine): a receiving machine verifies again when it opens the session and says where it did.
+    // Where its replay was verified before it was published (a replay is bit-exact with the same build on any x86-64
+    // processor, its kernels pinned): a receiving machine verifies again when it opens the session and says where.
     "ALTER TABLE rehearse_sessions ADD COLUMN IF NOT EXISTS verified_on TEXT",
     // The incorrect-action rules of the scene it was rehearsed in (SessionMeta::rules).
     "ALTER TABLE rehearse_sessions ADD COLUMN IF NOT EXISTS rules TEXT",
@@ -286,6 +286,7 @@ app::Recording TrainingDatabase::load(qint64 id) {
                       q.value(6).toString().toStdString(), ""};
     r.summary.startedUtc = q.value(2).toString().toStdString();
     r.setup = app::decodeSetup(q.value(7).toString().toStdString());
+    r.numerics = app::recordedNumerics(q.value(7).toString().toStdString());
     r.checksumEvery = q.value(8).toInt();
     r.summary.steps = static_cast<long>(q.value(9).toLongLong());
     r.summary.complete = q.value(10).toBool();
@@ -324,9 +325,11 @@ app::Recording TrainingDatabase::load(qint64 id) {
       s.addBindValue(QString::number(hash));
       run(s, "the training database cannot be read");
       if (!s.next()) throw std::runtime_error("a published checkpoint names a setup that is missing");
-      return app::decodeSetup(s.value(0).toString().toStdString());
+      return app::decodeSharedSetup(s.value(0).toString().toStdString(), hash);
     });
   };
+  if (const std::string why = app::recordingLengthProblem(r); !why.empty())
+    throw std::runtime_error("the published session " + std::to_string(id) + " " + why);
   return r;
 }
 

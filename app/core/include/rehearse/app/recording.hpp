@@ -27,6 +27,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -51,6 +52,19 @@ simcore::InputEvent decodeEvent(const std::string& json);
 std::string setupProblem(const simcore::BodySetup& s);
 /// The same for a recorded event (an unknown kind or parameter, a value outside its range, no number).
 std::string eventProblem(const simcore::InputEvent& e);
+/// What made a recording (issue 60): the numerical kernel of its linear solves (simcore::linearSolveKernel) and the
+/// build (program version, compiler, floating-point flags). Kept in the session's setup text under "recorded_with",
+/// so that every copy (another file, the training database) carries it; empty in a recording made before.
+struct RecordedNumerics {
+  std::string kernel, build;
+};
+/// The setup text with `n` added; and read back from a setup text (empty fields when absent or not text; each at
+/// most 512 characters, longer ones are cut).
+std::string withRecordedNumerics(const std::string& setupText, const RecordedNumerics& n);
+RecordedNumerics recordedNumerics(const std::string& setupText);
+/// The same for this process (what a recording made or replayed here says).
+RecordedNumerics currentNumerics(const simcore::BodySetup& setup, const std::string& appVersion);
+
 /// A new random identity for a recorded session (32 hex digits).
 std::string newSessionUuid();
 
@@ -123,6 +137,7 @@ class Recorder {
   SessionMeta meta_;
   std::string startedUtc_;
   std::string setupText_;  // the session's row again when a copy lost it
+  RecordedNumerics numerics_;
   double timeStep_ = 0;
   bool suspended_ = false;
   std::string broken_;  // why the recorder cannot write any more (a reopen that failed)
@@ -162,6 +177,7 @@ struct Recording {
   std::vector<simcore::InputEvent> events;
   std::map<long, std::uint64_t> checksums;  ///< after step -> checksum
   std::vector<long> checkpointSteps;        ///< the steps with a complete-state checkpoint (loadCheckpoint)
+  RecordedNumerics numerics;                ///< what made it (empty fields: recorded before they were named)
   std::string path;                         ///< the file it was loaded from
   /// Where its checkpoints come from when not from `path` (a session read from the training database).
   std::function<simcore::Checkpoint(long step)> checkpointSource;
@@ -196,6 +212,13 @@ simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, lon
 std::string encodeCheckpointState(const simcore::Checkpoint& c);
 simcore::Checkpoint decodeCheckpointState(const std::string& bytes,
                                           const std::function<simcore::BodySetup(std::uint64_t hash)>& setupOf);
+/// A setup a checkpoint names, decoded and checked against the hash it is stored under (an edited setup text is
+/// refused; setups recorded before recordings named their kernels hashed otherwise and are not checked here: --verify
+/// compares the state their checkpoints restore). Throws std::runtime_error with one sentence.
+simcore::BodySetup decodeSharedSetup(const std::string& text, std::uint64_t hash);
+/// Why a recording's length cannot be replayed (its steps, checksums, events or checkpoints beyond a run's limits:
+/// a damaged step count made --verify run forever), or empty. Every loader runs it.
+std::string recordingLengthProblem(const Recording& r);
 /// A setup as a checkpoint stores it: without its cut progress.
 simcore::BodySetup sharedSetup(const simcore::BodySetup& s);
 /// A hash of a body setup (its mesh, attachments, materials, settings and tools; not the cut in progress, which
@@ -205,6 +228,8 @@ std::uint64_t setupHash(const simcore::BodySetup& s);
 /// A recording replayed with seeking: any step is reached from the nearest checkpoint at or before it
 /// (or from the step it is at, when that is nearer), replaying the recorded events from there. The states
 /// are those of a straight replay, bit for bit (the checkpoints are complete).
+struct VerifyResult;
+
 class Replayer {
  public:
   explicit Replayer(Recording r);
@@ -222,6 +247,13 @@ class Replayer {
   simcore::SimulationState state() const;
   /// How the last seek got there: from a checkpoint (its step), from the start (0) or onwards (-1).
   long lastSeekFrom() const { return lastSeekFrom_; }
+  /// Checkpoints a seek must not start from, as a verify found them: damaged ones (a seek that would have started from
+  /// one says so) and incomplete ones of an older build (passed over without a word).
+  void avoidCheckpoints(const VerifyResult& v);
+  /// Why the last seek did not start from the nearest checkpoint (one that does not decode, or whose state is not the
+  /// recorded one at its step, or one a verify found damaged): a sentence naming it and where the seek started
+  /// instead; empty when it did.
+  const std::string& lastSeekNote() const { return lastSeekNote_; }
 
  private:
   void startAt(const simcore::Checkpoint* c);
@@ -230,6 +262,9 @@ class Replayer {
   long lastSeekFrom_ = -1;
   std::unique_ptr<simcore::Session> session_;
   std::map<long, simcore::Checkpoint> cache_;  // checkpoints read so far
+  std::map<long, std::string> damaged_;        // checkpoints found damaged, and why
+  std::set<long> incomplete_;                  // an older build's checkpoints that hold less than the state
+  std::string lastSeekNote_;
   simcore::Checkpoint start_;                  // at rest (restoring it is cheaper than building the session)
 };
 
@@ -248,6 +283,15 @@ struct VerifyResult {
   long checked = 0;  ///< checksums compared
   long mismatches = 0;
   long firstMismatch = -1;  ///< step, -1 when none
+  /// Checkpoints compared with the straight replay (decoded, and the state they restore equal to the replay's at their
+  /// step); each one that is not, with its step and why.
+  long checkpointsChecked = 0;
+  std::vector<std::pair<long, std::string>> damagedCheckpoints;
+  /// Checkpoints of a recording made by an older build (one that did not name its kernels) that hold less than a
+  /// checkpoint holds now (the instruments' or the field's whole state): sound for what they hold, not damaged, but a
+  /// seek must not start from them (Replayer::avoidCheckpoints).
+  std::vector<std::pair<long, std::string>> incompleteCheckpoints;
+  RecordedNumerics recorded, replayed;  ///< what made the recording, and what replayed it here
 };
 /// Re-simulates the recording from its setup and events (simcore::replay) and compares every recorded
 /// checksum. Bit-identical on the same build.
@@ -332,6 +376,9 @@ struct ReplayOptions {
   std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> plannedCut;
   bool strain = false;    ///< compute the tissue's largest strain at every step (one pass over the elements)
   bool timeline = false;  ///< keep the per-step samples
+  /// Compare every checkpoint with the straight replay (VerifyResult::damagedCheckpoints). Off where the checkpoints'
+  /// source cannot be read from the replaying thread (a training database's connection belongs to its thread).
+  bool checkpoints = true;
 };
 /// One replay: the checksums compared and the metrics computed.
 ReplayResult replayRecording(const Recording& r, const ReplayOptions& options);

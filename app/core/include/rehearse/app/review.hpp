@@ -31,13 +31,17 @@ struct MetricValue {
 };
 std::vector<MetricValue> metricValues(const SessionMetrics& m);
 
-/// Whether a replay reproduced the recording: every recorded checksum compared and equal. A session that does not
-/// verify shows another run than the one recorded (its metrics and pictures are not the trainee's): every place that
-/// shows a session says so (review window, report, cohort view, metrics).
+/// Whether a replay reproduced the recording: every recorded checksum compared and equal, and every checkpoint sound.
+/// A session that does not verify shows another run than the one recorded (its metrics and pictures are not the
+/// trainee's): every place that shows a session says so (review window, report, cohort view, metrics).
 bool replayVerified(const VerifyResult& v);
-/// In one sentence: "verified: all 35 checksums match (bit-exact replay holds for the same build on the same kind of
-/// machine)", "DOES NOT VERIFY: 88 of 89 checksums differ, the first after step 430 - ...", or "not verified: ...".
+/// In one sentence: "verified: all 35 checksums and 18 checkpoints match (CHOLMOD supernodal, OpenBLAS 0.3.21
+/// Prescott)", "DOES NOT VERIFY: 88 of 89 checksums differ, the first after step 430 - ...: recorded with kernel X,
+/// replayed with Y" (replayProvenance), "DOES NOT VERIFY: the checkpoint after step 40 is damaged (...)", or "not
+/// verified: ...".
 std::string replayCheckSentence(const VerifyResult& v);
+/// What made the recording and what replayed it, where they differ ("recorded with kernel X, replayed with Y").
+std::string replayProvenance(const VerifyResult& v);
 
 /// A trainer's limit on a metric: the session passes it when min <= value <= max.
 struct Threshold {
