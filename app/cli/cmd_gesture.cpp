@@ -1,6 +1,8 @@
 // rehearse gesture: a scripted rehearsal without a window (issue 15), through the simulation session.
 #include "support.hpp"
 
+#include <rehearse/text_input.hpp>
+
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
 #include "rehearse/app/casefolder.hpp"
@@ -50,13 +52,11 @@ int cmdGesture(const std::vector<std::string>& args) {
   if (!o.count("out")) throw UsageError("gesture needs --out OUT.vtu|.vtk|.msh");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
-  std::ifstream in(o["script"]);
-  if (!in) throw UsageError("cannot read the gesture script " + o["script"]);
-  std::stringstream ss;
-  ss << in.rdbuf();
+  std::string scriptText, unreadable;
+  if (!readTextInput(o["script"], scriptText, unreadable)) throw UsageError("the gesture script " + unreadable);
   GestureScript script;
   try {
-    script = parseGestureScript(ss.str());
+    script = parseGestureScript(scriptText);
   } catch (const std::runtime_error& e) {
     throw UsageError(std::string(o["script"]) + ": " + e.what());
   }
@@ -68,7 +68,15 @@ int cmdGesture(const std::vector<std::string>& args) {
       if (o.count(k))
         throw UsageError(std::string("--case takes the case's organ, attachments and material; --") + k +
                          " cannot be combined with it");
-    const Case c = loadCaseDirectory(o["case"]);
+    std::vector<std::string> notes;
+    const Case c = loadCaseDirectory(o["case"], &notes);
+    // What the case could not give is said, and a rehearsal without its organ or its ligaments is refused: the organ
+    // would hang from nothing (a damaged attachments.json was dropped without a word before).
+    for (const auto& n : notes) {
+      if (n.rfind("Attachments not loaded", 0) == 0 || n.rfind("Organ mesh not loaded", 0) == 0)
+        throw UsageError(o["case"] + ": " + n);
+      std::fprintf(stderr, "rehearse: note: %s\n", n.c_str());
+    }
     if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
     mesh = c.organ->volume;
     setup.fixedNodes = c.attachments;
@@ -101,6 +109,7 @@ int cmdGesture(const std::vector<std::string>& args) {
           "--refresh async rebuilds the lagged factorisation of the chord, lagged-pcg, linearised and newton-krylov "
           "methods; the exact method has none (choose --method)");
   }
+  refuseOutOfRange(setup.settings, setup.material, setup.byLabel);
   mesh.convertToMetres();
   setup.mesh = mesh;
   // --start equilibrium: the mesh as given is where the organ hangs (as registered): its rest shape solved first.

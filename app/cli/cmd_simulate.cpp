@@ -1,6 +1,8 @@
 // rehearse simulate: a FEM simulation of a scene, a preset or a mesh, without a window.
 #include "support.hpp"
 
+#include <rehearse/simcore/input_ranges.hpp>
+
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
 #include "rehearse/app/casefolder.hpp"
@@ -67,6 +69,11 @@ int cmdSimulate(const std::vector<std::string>& args) {
     throw UsageError(e.what());
   }
   const long steps = o.count("steps") ? parseCount(o["steps"], "--steps", 1, 1'000'000) : p.steps;
+  refuseOutOfRange(p.settings, p.defaultMaterial, p.materials);
+  if (!p.staticSolve && !o.count("static"))
+    if (const std::string why = simcore::runLengthProblem(static_cast<double>(steps), p.settings.timeStep);
+        !why.empty())
+      throw UsageError(why);
   if (p.staticSolve) o["static"] = "";
   const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial, p.embedded);
   for (const auto& e : model.embeddings)

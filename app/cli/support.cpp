@@ -2,6 +2,9 @@
 // model from its options, reports and the steps' outcomes.
 #include "support.hpp"
 
+#include <rehearse/simcore/input_ranges.hpp>
+#include <rehearse/text_input.hpp>
+
 #include "phantom/presets.hpp"
 #include "rehearse/app/materials.hpp"
 
@@ -136,10 +139,9 @@ std::vector<int> parseNodes(const std::string& s) {
     if (!std::filesystem::is_regular_file(s, ec))
       throw UsageError("--fixed-nodes takes node indices (\"3 39 64\") or a file of them; '" + s.substr(0, 40) +
                        (s.size() > 40 ? "...'" : "'") + " is neither");
-    std::ifstream in(s);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    text = ss.str();
+    std::string why;
+    if (!readTextInput(s, text, why)) throw UsageError("--fixed-nodes: " + why);
+    if (const std::string deep = jsonTextProblem(text, s); !deep.empty()) throw UsageError("--fixed-nodes: " + deep);
     // A case folder's attachments.json ({"nodes": [...], "indexing": "0-based ..."}): its node list.
     if (text.find_first_not_of(" \t\r\n") != std::string::npos && text[text.find_first_not_of(" \t\r\n")] == '{') {
       const auto j = nlohmann::json::parse(text, nullptr, false);
@@ -219,6 +221,15 @@ simcore::Scene modelFromOptions(Options& o, const char* command, simcore::Mesh* 
   if (o.count("fixed-nodes")) p.fixedNodes = parseNodes(o["fixed-nodes"]);
   if (o.count("gravity")) p.settings.gravity = parseVector(o["gravity"], "--gravity");
   return p;
+}
+
+void refuseOutOfRange(const simcore::SimulationSettings& settings, const simcore::MaterialParams& fallback,
+                      const std::map<int, simcore::MaterialParams>& byLabel) {
+  if (const std::string why = simcore::settingsProblem(settings); !why.empty()) throw UsageError(why);
+  if (const std::string why = simcore::materialRangeProblem(fallback, "the organ"); !why.empty()) throw UsageError(why);
+  for (const auto& [label, m] : byLabel)
+    if (const std::string why = simcore::materialRangeProblem(m, "label " + std::to_string(label)); !why.empty())
+      throw UsageError(why);
 }
 
 constexpr simcore::StepStatus kStatuses[] = {simcore::StepStatus::Converged, simcore::StepStatus::Inexact,

@@ -77,6 +77,10 @@ void writeReport(const std::string& path, const nlohmann::json& report);
 nlohmann::json statusCounts(const std::vector<const simcore::StepReport*>& reports);
 /// The steps' outcomes on stdout (and stderr when one did not converge); the exit code (0, 3 or 5).
 int statusSummary(const std::vector<const simcore::StepReport*>& reports);
+/// Settings and materials outside the ranges every input path holds them to (simcore/input_ranges.hpp): a
+/// UsageError with the sentence.
+void refuseOutOfRange(const simcore::SimulationSettings& settings, const simcore::MaterialParams& fallback,
+                      const std::map<int, simcore::MaterialParams>& byLabel);
 
 // The commands, one declaration each (in their family's file).
 const Command& phantomCommand();

@@ -1,4 +1,5 @@
 #include <rehearse/imaging/appearance.hpp>
+#include <rehearse/text_input.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -38,14 +39,23 @@ Eigen::Vector3d Appearance::shade(const Eigen::Vector3d& p, const Eigen::Vector3
   return kd * d + ks * s;
 }
 
+std::string appearanceProblem(const Appearance& a, bool zeroRoughness) {
+  auto inRange = [](const Eigen::Vector3d& v, double hi) { return v.allFinite() && v.minCoeff() >= 0 && v.maxCoeff() <= hi; };
+  if (!inRange(a.kd, 100) || !inRange(a.ks, 100)) return "k_d and k_s must be between 0 and 100 in every channel";
+  if (!a.lightPosition.allFinite() || a.lightPosition.norm() > 10) return "the light must be within 10 m of the camera";
+  if (!(std::isfinite(a.roughness) && a.roughness <= 10 && (a.roughness > 0 || (zeroRoughness && a.roughness == 0))))
+    return "the roughness must be a positive angle of at most 10 rad";
+  if (!(a.falloff >= 0 && a.falloff <= 200)) return "falloff (the n of cos^n off the scope's axis) must be between 0 and 200";
+  return {};
+}
+
 Appearance loadAppearance(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw InputError("The appearance file " + path + " cannot be opened; check the path.");
-  std::stringstream ss;
-  ss << in.rdbuf();
+  std::string text, why;
+  if (!readTextInput(path, text, why, std::size_t{1} << 20)) throw InputError("The appearance file " + why + ".");
   const std::string name = std::filesystem::path(path).filename().string();
+  if (const std::string deep = jsonTextProblem(text, name); !deep.empty()) throw InputError(deep + ".");
   try {
-    auto j = nlohmann::json::parse(ss.str());
+    auto j = nlohmann::json::parse(text);
     Appearance a;
     for (int k = 0; k < 3; ++k) {
       a.lightPosition[k] = j.at("light_position").at(k).get<double>();
@@ -54,10 +64,7 @@ Appearance loadAppearance(const std::string& path) {
     }
     a.roughness = j.at("roughness").get<double>();
     a.falloff = j.value("falloff", 0.0);  // files from before the laparoscope's fall-off: an isotropic light
-    if (!(a.roughness > 0) || !a.kd.allFinite() || !a.ks.allFinite() || !a.lightPosition.allFinite())
-      throw InputError(name + ": roughness must be positive and every value finite.");
-    if (!(a.falloff >= 0 && a.falloff <= 200))
-      throw InputError(name + ": falloff (the n of cos^n off the scope's axis) must be between 0 and 200.");
+    if (const std::string why = appearanceProblem(a); !why.empty()) throw InputError(name + ": " + why + ".");
     return a;
   } catch (const InputError&) {
     throw;

@@ -95,13 +95,16 @@ std::uint64_t header(const char* p, const Context& c) {
   return c.headerSize == 8 ? detail::readBinary<std::uint64_t>(p, c.big) : detail::readBinary<std::uint32_t>(p, c.big);
 }
 
-// Binary payload (after the header) of one array, from a byte blob that starts with its header.
-std::string payload(std::string_view blob, const Context& c, std::size_t* consumed) {
+// Binary payload (after the header) of one array, from a byte blob that starts with its header; at most `maxBytes`
+// of it (what the piece's declared points and cells can hold): a small file whose compressed blocks claim gigabytes is
+// refused before anything is decompressed.
+std::string payload(std::string_view blob, const Context& c, std::size_t* consumed, std::uint64_t maxBytes) {
   const std::size_t hs = c.headerSize;
   if (!c.compressed) {
     if (blob.size() < hs) fail("a binary array is truncated");
     std::uint64_t n = header(blob.data(), c);
     if (n > blob.size() - hs) fail("a binary array is truncated");
+    if (n > maxBytes) fail("a binary array holds more data than the piece's points and cells declare");
     if (consumed) *consumed = hs + n;
     return std::string(blob.substr(hs, n));
   }
@@ -111,6 +114,14 @@ std::string payload(std::string_view blob, const Context& c, std::size_t* consum
   std::uint64_t lastSize = header(blob.data() + 2 * hs, c);
   if (blocks > (blob.size() - 3 * hs) / hs) fail("a compressed array header is inconsistent");
   std::size_t pos = (3 + blocks) * hs;
+  {
+    std::uint64_t total = 0;  // what the blocks say they expand to, before any is expanded
+    for (std::uint64_t b = 0; b < blocks && total <= maxBytes; ++b)
+      total += (b + 1 == blocks && lastSize) ? lastSize : blockSize;
+    if (total > maxBytes)
+      fail("a compressed array claims more data than the piece's points and cells declare (at least " +
+           std::to_string(total >> 20) + " MiB)");
+  }
   std::string out;
   for (std::uint64_t b = 0; b < blocks; ++b) {
     std::uint64_t csize = header(blob.data() + (3 + b) * hs, c);
@@ -148,16 +159,18 @@ std::vector<double> readArray(const tinyxml2::XMLElement* e, const Context& c, s
     }
   } else {
     std::string bytes;
+    // Up to 16 components per declared value (a vector array read for its first one), and a MiB of slack.
+    const std::uint64_t maxBytes = static_cast<std::uint64_t>(expected) * typeSize(t) * 16 + (std::uint64_t{1} << 20);
     if (f == "binary") {
       const char* text = e->GetText();
       std::string raw = decodeBase64(text ? text : "");
-      bytes = payload(raw, c, nullptr);
+      bytes = payload(raw, c, nullptr, maxBytes);
     } else if (f == "appended") {
       std::int64_t offset = e->Int64Attribute("offset", -1);
       if (offset < 0 || static_cast<std::uint64_t>(offset) > c.appended.size()) fail("a DataArray has a bad appended offset");
       auto rest = c.appended.substr(offset);
       if (c.appendedRaw) {
-        bytes = payload(rest, c, nullptr);
+        bytes = payload(rest, c, nullptr, maxBytes);
       } else {
         // base64: decode the header segment first to learn the data size.
         const std::size_t hs = c.headerSize;
@@ -182,7 +195,7 @@ std::vector<double> readArray(const tinyxml2::XMLElement* e, const Context& c, s
           std::string d = decodeBase64(rest.substr(std::min(hchars, rest.size())), (total + 2) / 3 * 4);
           bytes = h.substr(0, (3 + blocks) * hs) + d;
         }
-        bytes = payload(bytes, c, nullptr);
+        bytes = payload(bytes, c, nullptr, maxBytes);
       }
     } else {
       fail("DataArray format '" + std::string(f) + "' is not supported");

@@ -1,8 +1,11 @@
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/scene.hpp>
+#include <rehearse/simcore/input_ranges.hpp>
+#include <rehearse/text_input.hpp>
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <set>
@@ -130,6 +133,16 @@ auto named(F f) {
   }
 }
 
+// A whole number in [lo, hi] (a float such as 1e12 or 2.5, or a number beyond the range, is refused, not truncated).
+long wholeNumber(const json& v, const std::string& what, long lo, long hi) {
+  if (!v.is_number()) fail(what + " must be a whole number.");
+  const double d = v.get<double>();
+  if (!(d >= static_cast<double>(lo) && d <= static_cast<double>(hi)) || d != std::floor(d))
+    fail(what + " must be a whole number in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], not " +
+         v.dump() + ".");
+  return static_cast<long>(d);
+}
+
 json value(const json& component, const ComponentDecl& decl, const std::string& name) {
   for (const auto& p : decl.parameters)
     if (p.name == name) {
@@ -142,6 +155,7 @@ json value(const json& component, const ComponentDecl& decl, const std::string& 
 }  // namespace
 
 Scene parseScene(const std::string& text, const std::string& baseDir) {
+  if (const std::string why = jsonTextProblem(text, "the scene"); !why.empty()) fail(why + ".");
   json root;
   try {
     root = json::parse(text);
@@ -183,11 +197,13 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
                          value(c, *decl, "young").get<double>(), value(c, *decl, "poisson").get<double>(),
                          value(c, *decl, "density").get<double>(), value(c, *decl, "tear_strain").get<double>()};
         if (!(p.tearStrain >= 0 && p.tearStrain <= 10)) fail("'tear_strain' must be in [0, 10] (0: it does not tear).");
-        const int label = value(c, *decl, "label").get<int>();
+        const int label = static_cast<int>(wholeNumber(value(c, *decl, "label"), "a material's label", -1, 1000000));
         if (label < 0) s.defaultMaterial = p;
         else s.materials[label] = p;
       } else if (type == "attachments") {
-        s.fixedNodes = value(c, *decl, "nodes").get<std::vector<int>>();
+        s.fixedNodes.clear();
+        for (const auto& n : value(c, *decl, "nodes"))
+          s.fixedNodes.push_back(static_cast<int>(wholeNumber(n, "an attachment's node index", 0, 1L << 30)));
         s.settings.attachments = named([&] { return attachmentModeFromString(value(c, *decl, "mode").get<std::string>()); });
       } else if (type == "embedded") {
         std::filesystem::path file = value(c, *decl, "file").get<std::string>();
@@ -208,15 +224,17 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.settings.rayleighStiffness = value(c, *decl, "rayleigh_stiffness").get<double>();
       } else if (type == "implicit_euler") {
         s.settings.timeStep = value(c, *decl, "dt").get<double>();
-        s.steps = value(c, *decl, "steps").get<long>();
-        s.settings.maxNewtonIterations = value(c, *decl, "newton_iterations").get<int>();
+        s.steps = wholeNumber(value(c, *decl, "steps"), "implicit_euler's steps", 1, InputRanges::maxSteps);
+        s.settings.maxNewtonIterations = static_cast<int>(
+            wholeNumber(value(c, *decl, "newton_iterations"), "newton_iterations", 1, InputRanges::maxNewtonIterations));
         s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
         s.settings.strict = value(c, *decl, "strict").get<bool>();
         s.settings.inversionGuard = value(c, *decl, "inversion_guard").get<bool>();
         if (!(s.settings.timeStep > 0) || s.steps < 1) fail("implicit_euler needs dt > 0 and steps >= 1.");
       } else if (type == "static") {
         s.staticSolve = true;
-        s.settings.maxNewtonIterations = value(c, *decl, "newton_iterations").get<int>();
+        s.settings.maxNewtonIterations = static_cast<int>(
+            wholeNumber(value(c, *decl, "newton_iterations"), "newton_iterations", 1, InputRanges::maxNewtonIterations));
         s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
       } else if (type == "model") {
         s.bodyModel = value(c, *decl, "kind").get<std::string>();
@@ -239,16 +257,28 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
     s.components.push_back(type);
   }
   if (!haveMesh) fail("it declares no 'mesh' component.");
+  for (int n : s.fixedNodes)
+    if (s.mesh.isVolume() && static_cast<std::size_t>(n) >= s.mesh.points.size())
+      fail("an attachment names node " + std::to_string(n) + ", which the mesh (" + std::to_string(s.mesh.points.size()) +
+           " nodes) has not.");
   if (seen.count("implicit_euler") && seen.count("static")) fail("declare either 'implicit_euler' or 'static', not both.");
+  // The ranges every input path holds (input_ranges.hpp): inside the old ones a run could be set never to end.
+  if (const std::string why = settingsProblem(s.settings); !why.empty()) fail(why + ".");
+  if (const std::string why = materialRangeProblem(s.defaultMaterial, "the default material"); !why.empty())
+    fail(why + ".");
+  for (const auto& [label, m] : s.materials)
+    if (const std::string why = materialRangeProblem(m, "the material of label " + std::to_string(label)); !why.empty())
+      fail(why + ".");
+  if (seen.count("implicit_euler"))
+    if (const std::string why = runLengthProblem(static_cast<double>(s.steps), s.settings.timeStep); !why.empty())
+      fail(why + ".");
   return s;
 }
 
 Scene loadScene(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw MeshError("The scene file " + path + " cannot be opened; check the path.");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parseScene(ss.str(), std::filesystem::path(path).parent_path().string());
+  std::string text, why;
+  if (!readTextInput(path, text, why)) throw MeshError("The scene file " + why + ".");
+  return parseScene(text, std::filesystem::path(path).parent_path().string());
 }
 
 }  // namespace rehearse::simcore

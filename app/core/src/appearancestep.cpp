@@ -1,4 +1,5 @@
 #include "rehearse/app/appearancestep.hpp"
+#include <rehearse/text_input.hpp>
 
 #include <rehearse/imaging/render.hpp>
 
@@ -169,16 +170,15 @@ std::string appearanceEstimateToJson(const AppearanceEstimate& e) {
 }
 
 std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::string& text) {
+  if (const std::string why = jsonTextProblem(text, "the appearance estimate"); !why.empty()) throw std::runtime_error(why);
   const json j = json::parse(text);
   auto e = std::make_shared<AppearanceEstimate>();
   e->theta.lightPosition = vec3(j.at("light_position"));
   e->theta.kd = vec3(j.at("kd"));
   e->theta.ks = vec3(j.at("ks"));
   e->theta.roughness = j.at("roughness").get<double>();
-  if (!std::isfinite(e->theta.roughness) || e->theta.roughness < 0) throw std::runtime_error("the roughness is not a non-negative number");
   e->theta.falloff = j.value("falloff", 0.0);  // estimates from before the scope's fall-off: an isotropic light
-  if (!(e->theta.falloff >= 0 && e->theta.falloff <= 200))
-    throw std::runtime_error("the fall-off is not between 0 and 200");
+  if (const std::string why = imaging::appearanceProblem(e->theta, true); !why.empty()) throw std::runtime_error(why);
   e->highlightFound = j.value("highlight_found", false);
   e->textureOnly = j.value("texture_only", false);
   e->smoothShare = j.value("smooth_share", 0.0);

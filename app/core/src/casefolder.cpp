@@ -1,5 +1,7 @@
 // A case as a folder of ordinary files (what `rehearse phantom --out DIR` writes and `rehearse open DIR` reads).
 #include "rehearse/app/casefolder.hpp"
+
+#include <rehearse/text_input.hpp>
 #include "rehearse/app/materials.hpp"
 
 #include <rehearse/simcore/meshio.hpp>
@@ -105,13 +107,16 @@ void writeCaseDirectory(const Case& c, const std::string& dir) {
 
 Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) {
   auto path = [&](const std::string& f) { return (fs::path(dir) / f).string(); };
-  std::ifstream in(path("case.json"));
-  if (!in) throw imaging::InputError(dir + " is not a case folder (it has no case.json); choose a folder written by 'rehearse phantom'.");
-  std::stringstream ss;
-  ss << in.rdbuf();
+  std::string manifestText, unreadable;
+  if (!fs::exists(path("case.json")))
+    throw imaging::InputError(dir + " is not a case folder (it has no case.json); choose a folder written by 'rehearse phantom'.");
+  if (!readTextInput(path("case.json"), manifestText, unreadable, std::size_t{1} << 20))
+    throw imaging::InputError("The case folder's manifest: " + unreadable + ".");
+  if (const std::string why = jsonTextProblem(manifestText, "case.json in " + dir); !why.empty())
+    throw imaging::InputError(why + "; the case folder is damaged.");
   json manifest;
   try {
-    manifest = json::parse(ss.str());
+    manifest = json::parse(manifestText);
   } catch (const std::exception&) {
     throw imaging::InputError("case.json in " + dir + " is not valid JSON; the case folder is damaged.");
   }
@@ -151,20 +156,35 @@ Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) 
   c.frame = cv::imread(path(files.value("frame", "frame.png")), cv::IMREAD_COLOR);
   if (c.frame.empty()) note("Frame not loaded: " + files.value("frame", "frame.png") + " is missing or not an image.");
   else if (c.camera.width == 0) c.camera = imaging::Camera::defaultFor(c.frame.cols, c.frame.rows);
-  try {
-    std::ifstream a(path(files.value("attachments", "attachments.json")));
-    if (a) {
-      std::stringstream as;
-      as << a.rdbuf();
-      const json parsed = json::parse(as.str());  // keep it alive: the loop below iterates into it
-      for (const auto& n : parsed.at("nodes")) {
-        const int v = n.get<int>();
-        if (v < 0 || v >= static_cast<int>(c.organ->volume.points.size())) throw std::out_of_range("node index");
-        c.attachments.push_back(v);
+  // The ligaments: every node index a whole number naming a node of the organ, or the attachments are not loaded and
+  // the note says why (a command that simulates the case refuses it: the organ would hang from nothing).
+  {
+    const std::string name = files.value("attachments", "attachments.json");
+    std::string text, why;
+    if (!readTextInput(path(name), text, why)) {
+      note("Attachments not loaded: " + why + ".");
+    } else if (const std::string deep = jsonTextProblem(text, name); !deep.empty()) {
+      note("Attachments not loaded: " + deep + ".");
+    } else {
+      try {
+        const json parsed = json::parse(text);  // keep it alive: the loop below iterates into it
+        const std::size_t n = c.organ ? c.organ->volume.points.size() : 0;
+        std::vector<int> nodes;
+        for (const auto& v : parsed.at("nodes")) {
+          if (!v.is_number_integer()) throw std::runtime_error("a node index that is not a whole number");
+          const auto k = v.get<std::int64_t>();
+          if (k < 0 || static_cast<std::uint64_t>(k) >= n)
+            throw std::runtime_error("node " + std::to_string(k) + ", which the organ (" + std::to_string(n) +
+                                     " nodes) has not");
+          nodes.push_back(static_cast<int>(k));
+        }
+        c.attachments = std::move(nodes);
+      } catch (const json::exception&) {
+        note("Attachments not loaded: " + name + " is not a {\"nodes\": [...]} list of node indices.");
+      } catch (const std::exception& e) {
+        note("Attachments not loaded: " + name + " names " + e.what() + ".");
       }
     }
-  } catch (const std::exception&) {
-    note("Attachments not loaded: attachments.json is damaged.");
   }
   if (!c.organ->volume.empty()) {
     c.pose = c.automaticPose();

@@ -1,6 +1,9 @@
 #include "rehearse/app/gesture.hpp"
 #include "rehearse/app/incorrect_actions.hpp"
 
+#include <rehearse/simcore/input_ranges.hpp>
+#include <rehearse/text_input.hpp>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -43,6 +46,7 @@ simcore::InputEvent toolAt(const Eigen::Vector3d& p, int tool = 0) {
 }  // namespace
 
 GestureScript parseGestureScript(const std::string& text) {
+  if (const std::string why = jsonTextProblem(text, "the gesture script"); !why.empty()) throw std::runtime_error(why);
   json j;
   try {
     j = json::parse(text);
@@ -53,7 +57,14 @@ GestureScript parseGestureScript(const std::string& text) {
     throw std::runtime_error("the gesture script must be an object with \"format\": \"rehearse-gesture\" (README, File formats)");
   GestureScript s;
   s.duration = number(j, "duration", 1.0, 1e-6, 3600);
-  s.dt = number(j, "dt", 0.0, 0.0, 1.0);
+  s.dt = number(j, "dt", 0.0, 0.0, simcore::InputRanges::maxTimeStep);
+  // No time step (the scene's), or one in the range every input path holds; and a run that ends.
+  if (s.dt != 0 && s.dt < simcore::InputRanges::minTimeStep)
+    throw std::runtime_error("the gesture script's dt " + simcore::detail::number(s.dt) + " s is below " +
+                             simcore::detail::number(simcore::InputRanges::minTimeStep) + " s");
+  if (s.dt > 0)
+    if (const std::string why = simcore::runLengthProblem(s.duration / s.dt, s.dt); !why.empty())
+      throw std::runtime_error("the gesture script: " + why);
   if (j.contains("tools")) {
     const auto& t = j["tools"];
     if (t.contains("grasp_radius_mm")) s.graspRadius = 1e-3 * number(t, "grasp_radius_mm", 6, 0.1, 100);
@@ -193,6 +204,8 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   for (const auto& [label, strain] : script.tearStrainByLabel)
     setup.byLabel.try_emplace(label, setup.material).first->second.tearStrain = strain;
   const double h = setup.settings.timeStep;
+  if (const std::string why = simcore::runLengthProblem(script.duration / h, h); !why.empty())
+    throw std::runtime_error("the gesture script: " + why);
   const long steps = std::max(1L, static_cast<long>(std::lround(script.duration / h)));
   if (hooks.start) hooks.start(setup);
   simcore::Session session(setup);

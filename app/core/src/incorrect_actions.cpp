@@ -1,5 +1,6 @@
 // The trainer's incorrect actions: rules from JSON and their finder over a replay's steps (incorrect_actions.hpp).
 #include <rehearse/app/incorrect_actions.hpp>
+#include <rehearse/text_input.hpp>
 
 #include <Eigen/Geometry>
 #include <nlohmann/json.hpp>
@@ -96,6 +97,8 @@ json viewJson(const ActionView& v) {
 ActionRules parseActionRules(const std::string& text) {
   ActionRules r;
   if (text.empty()) return r;
+  if (const std::string why = jsonTextProblem(text, "the incorrect-action rules"); !why.empty())
+    throw std::runtime_error(why);
   json j;
   try {
     j = json::parse(text);

@@ -26,6 +26,11 @@ struct Appearance {
 };
 
 Appearance loadAppearance(const std::string& path);  ///< JSON of DESIGN.md; throws InputError
+/// Why these values cannot be an organ's appearance (one sentence without a full stop), or empty: k_d and k_s in
+/// [0, 100] per channel (a pixel's value at 1 cm from the light is then at most 10^6: any brighter is no organ), the
+/// light within 10 m of the camera, the roughness in (0, 10] rad ([0, 10] with `zeroRoughness`: an estimate that found
+/// no highlight), the fall-off in [0, 200].
+std::string appearanceProblem(const Appearance& a, bool zeroRoughness = false);
 void saveAppearance(const Appearance& a, const std::string& path);
 
 }  // namespace rehearse::imaging

@@ -70,7 +70,11 @@ Contour distortContour(const Contour& c, const Camera& camera);
 /// True when any distortion coefficient of the camera is non-zero.
 bool hasDistortion(const Camera& camera);
 
-/// Empty when the contour can be used for fitting; otherwise one sentence (empty, a single point,
+/// The most points a contour holds (a file with more is refused; a sketch with more is not fitted): an outline drawn at
+/// one point per pixel around a 4K frame holds about 12,000.
+inline constexpr std::size_t kMaxContourPoints = 20000;
+
+/// Empty when the contour can be used for fitting; otherwise one sentence (empty, a single point, too many points,
 /// points outside the image, a segment that crosses itself).
 std::string contourProblem(const Contour& c);
 
