@@ -456,6 +456,25 @@ class TestReviewGui : public QObject {
     review->openSession(0, 2);  // an untouched one
     QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
     QVERIFY2(shows("verified: all"), "an untouched session says it verified");
+    // Issue 60: its last checkpoint truncated to a third: the title names it, and a seek past it (End below) starts
+    // from the checkpoint before, said in the status bar, and shows the step.
+    const auto second = app::loadRecording(path.toStdString(), 2);
+    QVERIFY(!second.checkpointSteps.empty());
+    const long lastCheckpoint = second.checkpointSteps.back();
+    {
+      sqlite3* db = nullptr;
+      QCOMPARE(sqlite3_open(path.toUtf8().constData(), &db), SQLITE_OK);
+      const std::string sql =
+          "UPDATE rehearsal_checkpoints SET state = substr(state, 1, length(state) / 3) WHERE session = 2 AND step = " +
+          std::to_string(lastCheckpoint);
+      QCOMPARE(sqlite3_exec(db, sql.c_str(), nullptr, nullptr, nullptr), SQLITE_OK);
+      QCOMPARE(sqlite3_changes(db), 1);
+      sqlite3_close(db);
+    }
+    review->openSession(0, 2);
+    QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
+    const QString damaged = QString("the checkpoint after step %1 is damaged").arg(lastCheckpoint);
+    QVERIFY2(shows("DOES NOT VERIFY: " + damaged), "the title names the damaged checkpoint");
     table = review->findChildren<QTableWidget*>().value(0);
     QVERIFY(table);
     // The keys with the session list focused (as after choosing a session in it).
@@ -466,6 +485,7 @@ class TestReviewGui : public QObject {
     QVERIFY(list->hasFocus());
     QTest::keyClick(list, Qt::Key_End);
     QCOMPARE(review->stepShown(0), app::loadRecording(path.toStdString(), 2).summary.steps);
+    QVERIFY2(shows(damaged), "the status bar says the seek passed over the damaged checkpoint");
     QTest::keyClick(list, Qt::Key_Home);
     QCOMPARE(review->stepShown(0), 0L);
     QTest::keyClick(list, Qt::Key_Space);

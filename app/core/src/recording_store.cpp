@@ -144,13 +144,18 @@ std::vector<RecordingSummary> listRecordings(const std::string& path) {
 
 Recording loadRecording(const std::string& path, std::int64_t id) {
   Recording r;
-  bool found = false;
+  int found = 0;
   for (auto& s : listRecordings(path))
     if (s.id == id) {
       r.summary = std::move(s);
-      found = true;
+      ++found;
     }
   if (!found) throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
+  // A file written by another program can hold a sessions table without its key: two rows of one session would mix
+  // one's setup with the other's summary.
+  if (found > 1)
+    throw std::runtime_error(path + " holds session " + std::to_string(id) + " " + std::to_string(found) +
+                             " times (the file is damaged)");
   sqlite3* db = openStore(path, false);
   try {
     {
