@@ -7,7 +7,7 @@ SECONDS_EACH="${1:-30}"
 if [ ! -f build-fuzz/CMakeCache.txt ]; then cmake --preset fuzz >/dev/null; fi
 cmake --build build-fuzz -j"$(nproc)"
 status=0
-for target in gmsh vtk vtu medit recording; do
+for target in gmsh vtk vtu medit recording input_checks; do
   corpus="build-fuzz/corpus-$target"
   artifacts="build-fuzz/findings-$target/"
   mkdir -p "$corpus" "$artifacts"

@@ -1,4 +1,5 @@
 #include <rehearse/imaging/camera.hpp>
+#include <rehearse/simcore/input_checks.hpp>
 
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
@@ -12,6 +13,10 @@
 namespace fs = std::filesystem;
 
 namespace rehearse::imaging {
+
+namespace {
+constexpr double kMaxPoseTranslationMetres = 10;
+}
 
 std::string Camera::problem() const {
   if (width <= 0 || height <= 0) return "The camera has no image size; give image_width and image_height.";
@@ -56,8 +61,22 @@ double num(const nlohmann::json& j) {
   throw InputError("expected a number");
 }
 
+// An image size from a JSON number: whole and within int (a cast of 1e300 is undefined); 0 (refused later) otherwise.
+int imageSize(double v) { return std::isfinite(v) && v >= 0 && v <= 1e6 ? static_cast<int>(v) : 0; }
+
 Camera finish(Camera c, const std::string& path) {
-  if (auto p = c.problem(); !p.empty()) throw InputError(fs::path(path).filename().string() + ": " + p);
+  const std::string name = fs::path(path).filename().string();
+  if (auto p = c.problem(); !p.empty()) throw InputError(name + ": " + p);
+  // Plausible for the image: a focal length of 1e-300 px or 1e300 px is damage, and overflowed the registration's
+  // integer pixel casts ("-2147483648 px"). A 1 degree to 179.4 degree field of view lies well inside these bounds.
+  const double w = c.width, h = c.height;
+  if (c.fx() < 0.01 * w || c.fx() > 100 * w || c.fy() < 0.01 * w || c.fy() > 100 * w)
+    throw InputError(name + ": the focal lengths (" + std::to_string(c.fx()).substr(0, 16) + ", " +
+                     std::to_string(c.fy()).substr(0, 16) + " px) are implausible for a " + std::to_string(c.width) +
+                     " px wide image (0.01 to 100 times its width); check the calibration file.");
+  if (!(c.K(0, 2) >= -w && c.K(0, 2) <= 2 * w && c.K(1, 2) >= -h && c.K(1, 2) <= 2 * h) || !(std::abs(c.K(0, 1)) <= 100 * w))
+    throw InputError(name + ": the principal point lies far outside the " + std::to_string(c.width) + " x " +
+                     std::to_string(c.height) + " image (or the skew is absurd); check the calibration file.");
   return c;
 }
 }  // namespace
@@ -69,7 +88,11 @@ Camera loadCamera(const std::string& path, int width, int height) {
   c.width = width;
   c.height = height;
   if (e == ".yaml" || e == ".yml" || e == ".xml") {
-    readText(path, "camera");  // existence check with our message
+    // Existence and size with our messages, then our own scan: cv::FileStorage crashed (SIGSEGV) on a file nested
+    // 50,000 deep.
+    const std::string text = readText(path, "camera");
+    if (const std::string p = simcore::checks::calibrationMarkupProblem(text, e == ".xml"); !p.empty())
+      throw InputError(name + " is not a camera calibration this program reads: " + p + "; check the file.");
     try {
       cv::FileStorage fsx(path, cv::FileStorage::READ);
       if (!fsx.isOpened()) throw InputError(name + " is not an OpenCV calibration file; check its format.");
@@ -114,8 +137,8 @@ Camera loadCamera(const std::string& path, int width, int height) {
       } else {
         throw InputError(name + " has neither \"K\" nor \"fx\"; see \"File formats\" in the README.");
       }
-      if (j.contains("width")) c.width = static_cast<int>(num(j["width"]));
-      if (j.contains("height")) c.height = static_cast<int>(num(j["height"]));
+      if (j.contains("width")) c.width = imageSize(num(j["width"]));
+      if (j.contains("height")) c.height = imageSize(num(j["height"]));
     } catch (const InputError&) {
       throw;
     } catch (const std::exception& ex) {
@@ -182,9 +205,12 @@ Pose loadPose(const std::string& path, double matrixUnitToMetre) {
     p.R = M.topLeftCorner<3, 3>();
     p.t = M.topRightCorner<3, 1>() * matrixUnitToMetre;
   }
-  if (!p.R.allFinite() || !p.t.allFinite() || (p.R.transpose() * p.R - Eigen::Matrix3d::Identity()).norm() > 1e-3 ||
-      p.R.determinant() < 0)
+  if (!p.R.allFinite() || (p.R.transpose() * p.R - Eigen::Matrix3d::Identity()).norm() > 1e-3 || p.R.determinant() < 0)
     throw InputError(name + ": R is not a rotation matrix (orthonormal, determinant +1); check the pose file.");
+  // The organ lies within an arm's length of the scope: a translation beyond 10 m (1e308 overflowed the
+  // registration's pixel casts) is a damaged file or a wrong unit.
+  if (!p.t.allFinite() || p.t.norm() > kMaxPoseTranslationMetres)
+    throw InputError(name + ": the translation t is not a number or beyond 10 m; check the pose file and its unit.");
   return p;
 }
 

@@ -1,5 +1,6 @@
 // Label images: the format dispatch, colour tables and the checks every reader shares (ITK's side is
 // labelimage_itk.cpp, CGAL's labelimage_cgal.cpp).
+#include <rehearse/simcore/input_checks.hpp>
 #include <rehearse/simcore/labelimage.hpp>
 
 #include "labelimage_raw.hpp"
@@ -16,6 +17,7 @@
 #include <limits>
 #include <set>
 #include <sstream>
+#include <vector>
 
 namespace rehearse::simcore {
 
@@ -70,7 +72,8 @@ LabelImage fromRaw(detail::RawLabelImage raw, const std::string& name) {
 // non-finite values (a damaged sform or pixdim: LINPACK's loop does not converge). The header's geometry is checked
 // here first, NIfTI-1 and NIfTI-2, either byte order, through zlib for .nii.gz; what ITK would reject on its own is
 // left to it.
-void checkNiftiGeometry(const std::string& path, const std::string& name) {
+void checkNiftiGeometry(const std::string& path, const std::string& name, std::size_t maxVoxels) {
+  const bool gz = endsWith(lower(path), ".gz");
   unsigned char h[540] = {};
   gzFile f = gzopen(path.c_str(), "rb");
   if (!f) return;
@@ -116,37 +119,152 @@ void checkNiftiGeometry(const std::string& path, const std::string& name) {
         throw MeshError(name +
                         "'s header is damaged: its voxel size or orientation holds values that are not numbers "
                         "or far too large.");
+      // Where the voxels start and how many bytes they take (dim[0..7], bitpix, vox_offset): a truncated file or a
+      // vox_offset of 1e12, -100 or NaN was read as garbage or zeros without a word.
+      const bool one = v.size == 348;
+      const int dimAt = one ? 40 : 16, dimBytes = one ? 2 : 8, bitpixAt = one ? 72 : 14, voxOffsetAt = one ? 108 : 168;
+      const double rank = number(dimAt + (dimBytes == 8 && swap ? 4 : 0), dimBytes == 2 ? 2 : 4, swap, true);
+      if (!(rank >= 1 && rank <= 7)) return;  // ITK refuses the dimensions
+      double voxels = 1;
+      for (int d = 1; d <= static_cast<int>(rank); ++d) {
+        // NIfTI-2's dimensions are 64-bit: read the low or high half as the byte order says (sizes below 2^31).
+        const int at = dimAt + d * dimBytes + (dimBytes == 8 && swap ? 4 : 0);
+        const double n = number(at, dimBytes == 2 ? 2 : 4, swap, true);
+        if (!(n >= 1)) return;  // ITK refuses the dimensions
+        voxels *= n;
+      }
+      const double bitpix = number(bitpixAt, 2, swap, true);
+      double voxOffset = 0;
+      if (one) {
+        voxOffset = number(voxOffsetAt, 4, swap, false);
+      } else {
+        std::int64_t o = 0;
+        unsigned char b[8];
+        std::memcpy(b, h + voxOffsetAt, 8);
+        if (swap) std::reverse(b, b + 8);
+        std::memcpy(&o, b, 8);
+        voxOffset = static_cast<double>(o);
+      }
+      std::error_code ec;
+      const double fileBytes = static_cast<double>(std::filesystem::file_size(path, ec));
+      // A .nii.gz's header is followed by at most a few extensions: an offset past 1 GiB is damage (and would make
+      // us inflate a gigabyte to find out).
+      if (!std::isfinite(voxOffset) || voxOffset < 0 || voxOffset > (gz ? double(1 << 30) : fileBytes)) {
+        char b[32];
+        std::snprintf(b, sizeof b, "%.3g", voxOffset);
+        throw MeshError(name + "'s header is damaged: its voxels start at byte " + b +
+                        ", which is not in the file; re-export the image.");
+      }
+      if (!(bitpix >= 8) || voxels > static_cast<double>(maxVoxels)) return;  // ITK refuses, with our message
+      const double needed = voxOffset + voxels * bitpix / 8;
+      double held = fileBytes;
+      if (gz) {
+        // Decompressed bytes, counted in a stream and no further than needed (a hostile .nii.gz may inflate to
+        // terabytes).
+        held = 0;
+        gzFile z = gzopen(path.c_str(), "rb");
+        if (!z) return;
+        std::vector<char> chunk(1 << 16);
+        int n = 0;
+        while (held < needed && (n = gzread(z, chunk.data(), static_cast<unsigned>(chunk.size()))) > 0) held += n;
+        const bool broken = n < 0;
+        gzclose(z);
+        if (broken)
+          throw MeshError(name + "'s compressed data is damaged (zlib cannot inflate it); re-export the image.");
+      }
+      if (held < needed) {
+        char share[32];
+        std::snprintf(share, sizeof share, "%.1f", std::max(0.0, held - voxOffset) / (needed - voxOffset) * 100);
+        throw MeshError(name + " is truncated: it holds " + share + " % of its voxels' bytes; copy the whole file again.");
+      }
       return;
     }
   // Not a NIfTI header: ITK says so.
 }
 
-// MetaIO (ITK's MetaImage reader) reads fields sized by the header's NDims before it checks it: a damaged
-// "NDims = 399999999" kept it busy for minutes (a TransformMatrix of NDims x NDims values). The count is checked here
-// first; MetaIO itself handles at most 10 dimensions.
+// MetaIO (ITK's MetaImage reader) trusts its header: NDims sized fields before it was checked (a damaged
+// "NDims = 399999999" kept it busy for minutes), a '%' pattern in ElementDataFile went to snprintf as a format
+// (SIGSEGV), and a truncated, missing or undecodable data file was meshed from uninitialised memory. The header
+// (checks::metaImageHeaderProblem) and the bytes of the voxels are checked here first.
 void checkMetaImageHeader(const std::string& path, const std::string& name) {
   std::ifstream in(path, std::ios::binary);
-  std::string line;
-  std::size_t read = 0;
-  auto trim = [](std::string t) {
-    while (!t.empty() && std::isspace(static_cast<unsigned char>(t.back()))) t.pop_back();
-    std::size_t b = 0;
-    while (b < t.size() && std::isspace(static_cast<unsigned char>(t[b]))) ++b;
-    return t.substr(b);
+  std::string head(65536 + 4096, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  checks::MetaImageLayout layout;
+  if (const std::string p = checks::metaImageHeaderProblem(head, &layout); !p.empty())
+    throw MeshError(name + "'s header is damaged: " + p + ".");
+  if (layout.dataFile.empty() || layout.expectedBytes <= 0) return;  // MetaIO says what is missing
+  const bool local = layout.dataFile == "LOCAL";
+  const std::filesystem::path data =
+      local ? std::filesystem::path(path) : std::filesystem::path(path).parent_path() / layout.dataFile;
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(data, ec))
+    throw MeshError(name + "'s data file " + data.filename().string() + " is missing or not a file; keep it beside the header.");
+  const double size = static_cast<double>(std::filesystem::file_size(data, ec));
+  double offset = local ? static_cast<double>(layout.dataOffset) : 0;
+  if (layout.headerSize > 0) offset += static_cast<double>(layout.headerSize);
+  if (layout.headerSize == -1) offset = std::max(offset, size - layout.expectedBytes);  // the voxels are the last bytes
+  auto truncated = [&](double held) {
+    char share[32];
+    std::snprintf(share, sizeof share, "%.1f", std::max(0.0, held) / layout.expectedBytes * 100);
+    return MeshError(name + " is truncated: its data hold " + share + " % of the voxels' bytes its header declares; copy "
+                     "the whole file again.");
   };
-  while (read < 65536 && std::getline(in, line)) {
-    read += line.size() + 1;
-    const auto eq = line.find('=');
-    if (eq == std::string::npos) continue;
-    const std::string key = trim(line.substr(0, eq)), value = trim(line.substr(eq + 1));
-    if (key == "NDims") {
-      char* end = nullptr;
-      const long n = std::strtol(value.c_str(), &end, 10);
-      if (end == value.c_str() || n < 1 || n > 10)
-        throw MeshError(name + "'s header is damaged: NDims = " + value.substr(0, 24) +
-                        " (a label image has 3 dimensions).");
+  if (!layout.compressed) {
+    if (size - offset < layout.expectedBytes) throw truncated(size - offset);
+    return;
+  }
+  // Inflated here, in a stream, counting the bytes and stopping past the expected size.
+  std::ifstream raw(data, std::ios::binary);
+  raw.seekg(static_cast<std::streamoff>(offset));
+  z_stream z{};
+  if (inflateInit2(&z, 15 + 32) != Z_OK) return;  // zlib or gzip
+  std::vector<unsigned char> input(1 << 16), output(1 << 16);
+  double produced = 0;
+  int status = Z_OK;
+  while (status == Z_OK && produced <= layout.expectedBytes) {
+    if (z.avail_in == 0) {
+      raw.read(reinterpret_cast<char*>(input.data()), static_cast<std::streamsize>(input.size()));
+      z.avail_in = static_cast<uInt>(raw.gcount());
+      z.next_in = input.data();
+      if (z.avail_in == 0) break;
     }
-    if (key == "ElementDataFile") break;  // the voxels follow
+    z.next_out = output.data();
+    z.avail_out = static_cast<uInt>(output.size());
+    status = inflate(&z, Z_NO_FLUSH);
+    produced += static_cast<double>(output.size() - z.avail_out);
+  }
+  inflateEnd(&z);
+  if (status != Z_OK && status != Z_STREAM_END)
+    throw MeshError(name + "'s compressed data is damaged (zlib cannot inflate it); re-export the image.");
+  if (produced > layout.expectedBytes)
+    throw MeshError(name + "'s compressed data hold more bytes than its header declares; re-export the image.");
+  if (status != Z_STREAM_END || produced < layout.expectedBytes) throw truncated(produced);
+}
+
+// ITK's NRRD reader smashed its stack on "dimension: 10", read a NaN spacing as 1 mm and followed data-file patterns
+// of two billion files: the header is checked here first (checks::nrrdHeaderProblem).
+void checkNrrdHeader(const std::string& path, const std::string& name) {
+  std::ifstream in(path, std::ios::binary);
+  std::string head(65536, '\0');
+  in.read(head.data(), static_cast<std::streamsize>(head.size()));
+  head.resize(static_cast<std::size_t>(in.gcount()));
+  if (const std::string p = checks::nrrdHeaderProblem(head); !p.empty())
+    throw MeshError(name + "'s header is damaged: " + p + ".");
+}
+
+// Every format (CGAL's INR too): a voxel outside 0.001-100 mm is a damaged header or another unit, and CGAL's mesher
+// never finished on 1e300 or 1e-300 mm.
+void checkVoxelSize(const LabelImage& image, const std::string& name) {
+  for (int d = 0; d < 3; ++d) {
+    const double mm = image.spacing[d] * 1e3;
+    if (!(mm >= checks::kMinVoxelMm && mm <= checks::kMaxVoxelMm)) {
+      char b[32];
+      std::snprintf(b, sizeof b, "%.3g", mm);
+      throw MeshError(name + " has a voxel size of " + b + " mm; a medical image's lies between 0.001 and 100 mm, so its "
+                      "header is damaged.");
+    }
   }
 }
 
@@ -224,8 +342,9 @@ LabelImage readLabelImage(const std::string& path, const std::string& colourTabl
     image = readInrLabelImage(path, maxVoxels);
   } else {
     // Headers that would keep ITK's readers busy for minutes are refused first (the rest is ITK's to judge).
-    if (endsWith(l, ".nii") || endsWith(l, ".nii.gz")) checkNiftiGeometry(path, name);
+    if (endsWith(l, ".nii") || endsWith(l, ".nii.gz")) checkNiftiGeometry(path, name, maxVoxels);
     if (endsWith(l, ".mha") || endsWith(l, ".mhd")) checkMetaImageHeader(path, name);
+    if (endsWith(l, ".nrrd") || endsWith(l, ".nhdr")) checkNrrdHeader(path, name);
     try {
       image = fromRaw(detail::itkReadLabelImage(path, maxVoxels), name);
     } catch (const detail::LabelImageError& e) {
@@ -235,6 +354,7 @@ LabelImage readLabelImage(const std::string& path, const std::string& colourTabl
   const auto counts = image.labelCounts();
   if (counts.empty())
     throw MeshError(name + " has no labelled voxel (every voxel is background, 0); there is nothing to mesh.");
+  checkVoxelSize(image, name);
   // A colour table: the one given, else one beside the image.
   std::string table = colourTable;
   if (table.empty()) {
@@ -248,11 +368,12 @@ LabelImage readLabelImage(const std::string& path, const std::string& colourTabl
       }
   }
   if (!table.empty()) {
+    // The size first: the table used to be read whole before this check.
+    if (std::filesystem::file_size(table, ec) > (16u << 20) || ec)
+      throw MeshError("The colour table " + fileName(table) + " is over 16 MB or unreadable; it is not one.");
     std::ifstream in(table, std::ios::binary);
     std::ostringstream text;
     text << in.rdbuf();
-    if (text.str().size() > (16u << 20))
-      throw MeshError("The colour table " + fileName(table) + " is over 16 MB; it is not one.");
     const auto names = parseColourTable(text.str());
     int used = 0;
     for (const auto& [label, count] : counts)

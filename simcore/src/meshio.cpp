@@ -1,9 +1,11 @@
 // Mesh file dispatch: size checks, format by extension, validation, unit conversion, repairs.
+#include <rehearse/simcore/input_checks.hpp>
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/quality.hpp>
 
 #include "text_reader.hpp"
 
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -50,7 +52,16 @@ Mesh loadMesh(const std::string& path, const LoadOptions& options, std::vector<s
     else if (ext == ".vtu") m = parseVtu(readAll(path));
     else if (ext == ".mesh") m = parseMedit(readAll(path));
     else if (ext == ".obj" || ext == ".stl" || ext == ".ply" || ext == ".off" || ext == ".gltf" || ext == ".glb") {
-      readAll(path).size();  // existence and size checks with our messages
+      // Existence and size checks with our messages, then our own look at the structure: assimp crashes, hangs or
+      // silently drops data on damaged files (issue 60).
+      const std::string bytes = readAll(path);
+      std::string problem;
+      if (ext == ".ply") problem = checks::plyProblem(bytes);
+      else if (ext == ".off") problem = checks::offProblem(bytes);
+      else if (ext == ".obj") problem = checks::objProblem(bytes);
+      else if (ext == ".gltf" || ext == ".glb") problem = checks::gltfProblem(bytes, ext == ".glb");
+      if (!problem.empty())
+        throw MeshError(name + " is damaged: " + problem + "; re-export it from the program that made it.");
       m = loadSurfaceAssimp(path);
     } else {
       throw MeshError("The file type '" + ext + "' of " + name +
@@ -66,9 +77,23 @@ Mesh loadMesh(const std::string& path, const LoadOptions& options, std::vector<s
   validateMesh(m, name);
   m.unitToMetre = scale;
   m.convertToMetres();
+  // An organ fits in a few decimetres: a coordinate beyond this is a wrong unit or a damaged file, and an overflowing
+  // one (1e308 in a file) would give infinite bounds downstream.
+  for (std::size_t i = 0; i < m.points.size(); ++i)
+    if (!m.points[i].allFinite() || m.points[i].cwiseAbs().maxCoeff() > kMaxCoordinateMetres)
+      throw MeshError(name + " has a coordinate of " + [&] {
+        char b[32];
+        std::snprintf(b, sizeof b, "%.3g", m.points[i].cwiseAbs().maxCoeff());
+        return std::string(b);
+      }() + " m at point " + std::to_string(i) + ", beyond " + std::to_string(static_cast<int>(kMaxCoordinateMetres)) +
+                      " m from the origin; check the length unit (--unit) or the file.");
+  const bool volume = m.isVolume();
   auto repairs = repairVolume(m);
   if (notes) notes->insert(notes->end(), repairs.begin(), repairs.end());
-  if (m.isVolume() && m.tets.empty()) throw MeshError(name + " has only degenerate tetrahedra.");
+  // Checked against what the file held: the repair removes degenerate tetrahedra, and a volume left without any would
+  // otherwise pass as a surface of its boundary triangles (or an empty one).
+  if (volume && m.tets.empty())
+    throw MeshError(name + " has only degenerate tetrahedra (flat or zero volume); re-mesh the volume.");
   return m;
 }
 

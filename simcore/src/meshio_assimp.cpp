@@ -7,12 +7,14 @@
 #include <assimp/scene.h>
 
 #include <map>
+#include <utility>
+#include <vector>
 
 namespace rehearse::simcore {
 namespace {
 
-void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent, Mesh& m) {
-  const aiMatrix4x4 transform = parent * node->mTransformation;
+// One node's meshes, with its accumulated transform.
+void collectNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& transform, Mesh& m) {
   for (unsigned i = 0; i < node->mNumMeshes; ++i) {
     const aiMesh* mesh = scene->mMeshes[node->mMeshes[i]];
     if (!(mesh->mPrimitiveTypes & aiPrimitiveType_TRIANGLE)) continue;
@@ -44,7 +46,23 @@ void collect(const aiScene* scene, const aiNode* node, const aiMatrix4x4& parent
       m.triangleLabels.push_back(label);
     }
   }
-  for (unsigned c = 0; c < node->mNumChildren; ++c) collect(scene, node->mChildren[c], transform, m);
+}
+
+// Every node of the hierarchy, without recursion (a damaged file's 20,000-deep chain overflowed the stack), and
+// at most kMaxNodeVisits of them (our glTF check bounds instances first; this bounds any other format).
+void collect(const aiScene* scene, Mesh& m) {
+  constexpr std::size_t kMaxNodeVisits = 1'000'000;
+  std::vector<std::pair<const aiNode*, aiMatrix4x4>> todo = {{scene->mRootNode, scene->mRootNode->mTransformation}};
+  std::size_t visits = 0;
+  while (!todo.empty()) {
+    auto [node, transform] = todo.back();
+    todo.pop_back();
+    if (++visits > kMaxNodeVisits)
+      throw MeshError("This surface file's node hierarchy has more than a million nodes; flatten it first.");
+    collectNode(scene, node, transform, m);
+    for (unsigned c = node->mNumChildren; c-- > 0;)
+      todo.emplace_back(node->mChildren[c], transform * node->mChildren[c]->mTransformation);
+  }
 }
 
 }  // namespace
@@ -58,12 +76,15 @@ Mesh loadSurfaceAssimp(const std::string& path) {
                                                           aiComponent_CAMERAS | aiComponent_MATERIALS);
   importer.SetPropertyInteger(AI_CONFIG_PP_SBP_REMOVE, aiPrimitiveType_POINT | aiPrimitiveType_LINE);
   const aiScene* scene = importer.ReadFile(
-      path, aiProcess_RemoveComponent | aiProcess_Triangulate | aiProcess_JoinIdenticalVertices | aiProcess_SortByPType);
+      // ValidateDataStructure first: assimp's own check of what the importer built (face indices beyond the vertex
+      // count crashed the later steps).
+      path, aiProcess_ValidateDataStructure | aiProcess_RemoveComponent | aiProcess_Triangulate |
+                aiProcess_JoinIdenticalVertices | aiProcess_SortByPType);
   if (!scene || !scene->mRootNode)
     throw MeshError("This surface file cannot be read: " + std::string(importer.GetErrorString()) +
                     "; check that the file is complete and in the format its extension says.");
   Mesh m;
-  collect(scene, scene->mRootNode, aiMatrix4x4(), m);
+  collect(scene, m);
   return m;
 }
 

@@ -232,6 +232,58 @@ class TestCamera : public QObject {
     QVERIFY((back.R - rot.R).norm() < 1e-12 && (back.t - rot.t).norm() < 1e-12);
   }
 
+
+  // Issue 60, findings 14-15: a calibration nested 50,000 deep crashed cv::FileStorage (SIGSEGV); intrinsics of
+  // 1e-300 and translations of 1e308 were accepted and overflowed the registration's integer pixel casts.
+  void hostileCalibrationsAndPoses() {
+    auto refused = [](const std::string& file, const std::string& bytes, const char* must, bool pose = false) {
+      const std::string p = tempPath(file);
+      writeFile(p, bytes);
+      try {
+        if (pose) imaging::loadPose(p);
+        else imaging::loadCamera(p);
+        QFAIL(qPrintable(QString::fromStdString("accepted: " + file)));
+      } catch (const imaging::InputError& e) {
+        const QString w = e.what();
+        QVERIFY2(w.contains(QString::fromStdString(file)) && w.contains(must) && !w.contains('\n'), qPrintable(w));
+      }
+    };
+    const std::string deep(50000, '[');
+    refused("deep.yaml", "%YAML:1.0\n---\nimage_width: 640\nx: " + deep + "\n", "nested more than 32 levels");
+    std::string xml = "<?xml version=\"1.0\"?>\n<opencv_storage>\n";
+    for (int i = 0; i < 50000; ++i) xml += "<a>";
+    refused("deep.xml", xml, "nested more than 32 levels");
+    std::string block = "%YAML:1.0\n---\n";
+    for (int i = 0; i < 40; ++i) block += std::string(static_cast<std::size_t>(i), ' ') + "k" + std::to_string(i) + ":\n";
+    refused("block.yaml", block, "nested more than 32 levels");
+    refused("big.yaml", "%YAML:1.0\n---\n# " + std::string(2 << 20, 'x') + "\n", "more than a calibration file's 1024 kB");
+    // Intrinsics: the same calibration with fx = 1e-300, fx = 1e300, a principal point 1e6 px away; then intact.
+    imaging::Camera c = imaging::Camera::defaultFor(1280, 720);
+    for (const char* ext : {".yaml", ".xml"}) {
+      const std::string p = tempPath(std::string("intrinsics") + ext);
+      for (double fx : {1e-300, 1e300}) {
+        c.K(0, 0) = fx;
+        imaging::saveCamera(c, p);
+        refused(std::string("intrinsics") + ext, readFile(p), "focal lengths");
+      }
+      c.K(0, 0) = 1000;
+      c.K(0, 2) = 1e6;
+      imaging::saveCamera(c, p);
+      refused(std::string("intrinsics") + ext, readFile(p), "principal point");
+      c.K(0, 2) = 639.5;
+      imaging::saveCamera(c, p);
+      QCOMPARE(imaging::loadCamera(p).fx(), 1000.0);
+    }
+    refused("fx.json", R"({"fx": 1e-300, "fy": 1e-300, "cx": 320, "cy": 240, "width": 640, "height": 480})", "focal lengths");
+    refused("width.json", R"({"fx": 500, "fy": 500, "cx": 320, "cy": 240, "width": 1e300, "height": 480})", "image size");
+    // Poses: translation 1e308 m, 11 m, NaN; 9 m is accepted (JSON and 4x4 text in mm).
+    refused("far.json", R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 1e308]})", "beyond 10 m", true);
+    refused("eleven.json", R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 11, 0]})", "beyond 10 m", true);
+    refused("far.txt", "1 0 0 0\n0 1 0 0\n0 0 1 1e308\n0 0 0 1\n", "beyond 10 m", true);
+    writeFile(tempPath("nine.json"), R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, 9000], "unit": "mm"})");
+    QCOMPARE(imaging::loadPose(tempPath("nine.json")).t.z(), 9.0);
+  }
+
   // A mesh behind the camera renders nothing (no crash); a mesh crossing the image plane is clipped.
   // Picking a point on the organ (landmarks, curves on the organ) casts one ray; it must see what the
   // depth buffer sees: two spheres, the near one hiding part of the far one, turned 30 degrees.

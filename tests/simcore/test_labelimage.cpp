@@ -3,6 +3,7 @@
 // NIfTI and NRRD (by ITK) read back bit for bit and mesh to the same mesh, placed where the image's origin, spacing
 // and direction put the voxels (LPS, and RAS on request); colour tables and 3D Slicer's segment names; bad, 2D, 4D,
 // non-integer, empty and huge images refused with one sentence before anything large is allocated; cancel.
+#include "cli_run.hpp"
 #include "test_support.hpp"
 
 #include <rehearse/simcore/labelimage.hpp>
@@ -15,6 +16,9 @@
 #include <functional>
 #include <map>
 #include <numbers>
+
+#include <QElapsedTimer>
+#include <zlib.h>
 
 using namespace rehearse::simcore;
 
@@ -47,6 +51,35 @@ void checkOneSentence(const std::string& e, const char* must) {
   QVERIFY2(e.size() < 260, e.c_str());
   QVERIFY2(e.back() == '.', e.c_str());
   QVERIFY2(e.find(must) != std::string::npos, e.c_str());
+}
+
+// A small label image (9 x 7 x 5, 0.8 x 0.8 x 2.5 mm) with two labels.
+LabelImage smallImage() {
+  LabelImage image;
+  image.size = {9, 7, 5};
+  image.spacing = Eigen::Vector3d(0.8, 0.8, 2.5) * 1e-3;
+  image.labels.assign(9 * 7 * 5, 0);
+  for (std::size_t i = 0; i < image.labels.size(); ++i) image.labels[i] = static_cast<std::int32_t>(i % 7 == 0 ? 3 : i % 5 == 0);
+  return image;
+}
+
+// Refused with one sentence naming the file and containing `must`; with `cli`, `rehearse info` on it exits 1-123 (no
+// signal) within 60 s, printing one line.
+void expectImageRefused(const std::string& file, const char* must, bool cli = false) {
+  const std::string e = errorOf([&] { readLabelImage(tempPath(file)); });
+  checkOneSentence(e, must);
+  QVERIFY2(e.find(file) != std::string::npos, e.c_str());
+  if (!cli) return;
+  const auto r = testing::run({"info", QString::fromStdString(tempPath(file))}, 60000);
+  QVERIFY2(r.code >= 1 && r.code <= 123 && r.err.trimmed().count('\n') == 0 && r.err.contains(must),
+           qPrintable(QString("exit %1: %2").arg(r.code).arg(r.err)));
+}
+
+std::string gzipped(const std::string& bytes, const std::string& path) {
+  gzFile z = gzopen(path.c_str(), "wb");
+  gzwrite(z, bytes.data(), static_cast<unsigned>(bytes.size()));
+  gzclose(z);
+  return readFile(path);
 }
 
 // The liver's labels with a spherical "tumour" (label 2) carved inside it, on float-exact spacing and origin (NIfTI
@@ -401,6 +434,117 @@ class TestLabelImage : public QObject {
       qInfo("%s: %d damaged copies, %d read, %d refused with one sentence", ext.c_str(), kMutations, read, refused);
       QVERIFY(refused > 0);
     }
+  }
+
+
+  // Issue 60, findings 8-13: headers and data that ITK's readers crash on (NRRD "dimension: 10" smashed the stack, a
+  // MetaImage data-file pattern went to snprintf), follow (two billion data files), or read as garbage (NaN spacing
+  // as 1 mm, truncated or undecodable voxels from uninitialised memory), and voxel sizes CGAL never finishes meshing.
+  void hostileNrrd() {
+    const std::string head = "NRRD0004\nencoding: raw\nendian: little\ntype: unsigned char\n";
+    writeFile(tempPath("dim10.nrrd"), head + "dimension: 10\nsizes: 1 1 1 1 1 1 1 1 1 2\nspace origin: (0,0,0)\n\n" +
+                                          std::string(2, '\1'));
+    expectImageRefused("dim10.nrrd", "10 dimensions", true);
+    writeFile(tempPath("nan.nrrd"), head + "dimension: 3\nsizes: 2 2 2\nspacings: nan 1 1\n\n" + std::string(8, '\1'));
+    expectImageRefused("nan.nrrd", "not a number", true);
+    writeFile(tempPath("nandir.nrrd"), head + "dimension: 3\nsizes: 2 2 2\nspace: left-posterior-superior\n"
+                                              "space directions: (nan,0,0) (0,1,0) (0,0,1)\n\n" + std::string(8, '\1'));
+    expectImageRefused("nandir.nrrd", "not a number");
+    writeFile(tempPath("pattern.nhdr"), head + "dimension: 3\nsizes: 2 2 2\ndata file: slice%d.raw 0 2147483647 1\n");
+    expectImageRefused("pattern.nhdr", "pattern", true);
+    writeFile(tempPath("list.nhdr"), head + "dimension: 3\nsizes: 2 2 2\ndata file: LIST\na.raw\n");
+    expectImageRefused("list.nhdr", "pattern");
+    for (const char* spacing : {"1e300", "1e-300"}) {
+      writeFile(tempPath("voxel.nrrd"), head + "dimension: 3\nsizes: 2 2 2\nspacings: " + spacing + " 1 1\n\n" + std::string(8, '\1'));
+      expectImageRefused("voxel.nrrd", "voxel size of");
+    }
+    // The same header with sensible spacings is read.
+    writeFile(tempPath("fine.nrrd"), head + "dimension: 3\nsizes: 2 2 2\nspacings: 0.5 0.5 2\n\n" + std::string(8, '\1'));
+    QCOMPARE(readLabelImage(tempPath("fine.nrrd")).labelCounts().at(1), 8L);
+  }
+  void hostileMetaImage() {
+    const std::string head = "ObjectType = Image\nNDims = 3\nDimSize = 9 7 5\nElementType = MET_UCHAR\n";
+    writeFile(tempPath("format.mhd"), head + "ElementDataFile = %s%n%s%n%s%n.raw\n");
+    expectImageRefused("format.mhd", "pattern", true);
+    writeFile(tempPath("list.mhd"), head + "ElementDataFile = LIST\na.raw\n");
+    expectImageRefused("list.mhd", "pattern");
+    std::filesystem::create_directories(tempPath("voxels.d"));
+    writeFile(tempPath("dir.mhd"), head + "ElementDataFile = voxels.d\n");
+    expectImageRefused("dir.mhd", "not a file", true);
+    // Uncompressed, 200 of 315 bytes.
+    writeFile(tempPath("short.mha"), head + "ElementDataFile = LOCAL\n" + std::string(200, '\1'));
+    expectImageRefused("short.mha", "truncated", true);
+    writeFile(tempPath("whole.mha"), head + "ElementDataFile = LOCAL\n" + std::string(315, '\1'));
+    QCOMPARE(readLabelImage(tempPath("whole.mha")).labelCounts().at(1), 315L);
+    writeFile(tempPath("tiny.mha"), "ObjectType = Image\nNDims = 3\nDimSize = 2 2 2\nElementSpacing = 1e-300 1 1\n"
+                                    "ElementType = MET_UCHAR\nElementDataFile = LOCAL\n" + std::string(8, '\1'));
+    expectImageRefused("tiny.mha", "voxel size of");
+    // ITK writes compressed MetaImages: cut short, and with garbage in place of the compressed data.
+    writeLabelImage(smallImage(), tempPath("intact.mha"));
+    const std::string bytes = readFile(tempPath("intact.mha"));
+    QVERIFY(bytes.find("CompressedData = True") != std::string::npos);
+    const std::size_t data = bytes.find("ElementDataFile = LOCAL\n") + 24;
+    writeFile(tempPath("cut.mha"), bytes.substr(0, data + (bytes.size() - data) / 2));
+    expectImageRefused("cut.mha", "cut.mha");
+    std::string garbage = bytes;
+    for (std::size_t i = data + 2; i < garbage.size(); ++i) garbage[i] = static_cast<char>(i * 7919 % 251);
+    writeFile(tempPath("garbage.mha"), garbage);
+    expectImageRefused("garbage.mha", "compressed data", true);
+    QCOMPARE(readLabelImage(tempPath("intact.mha")).labels, smallImage().labels);
+  }
+  void hostileNifti() {
+    writeLabelImage(smallImage(), tempPath("intact.nii"));
+    const std::string bytes = readFile(tempPath("intact.nii"));
+    float voxOffset = 0;
+    std::memcpy(&voxOffset, &bytes[108], 4);
+    QVERIFY(voxOffset >= 348 && bytes.size() >= voxOffset + 315);
+    // 20 % and 99.9 % of the voxels' bytes (ITK writes them as unsigned char here or wider: measured from the file).
+    const double dataBytes = static_cast<double>(bytes.size()) - voxOffset;
+    for (double share : {0.2, 0.999}) {
+      const std::string cut = bytes.substr(0, static_cast<std::size_t>(voxOffset + share * dataBytes));
+      writeFile(tempPath("cut.nii"), cut);
+      expectImageRefused("cut.nii", "truncated", share < 0.5);
+      gzipped(cut, tempPath("cut.nii.gz"));
+      expectImageRefused("cut.nii.gz", "truncated");
+    }
+    for (float offset : {1e12f, -100.f, std::nanf("")}) {
+      std::string b = bytes;
+      std::memcpy(&b[108], &offset, 4);
+      writeFile(tempPath("offset.nii"), b);
+      expectImageRefused("offset.nii", "not in the file");
+      gzipped(b, tempPath("offset.nii.gz"));
+      expectImageRefused("offset.nii.gz", "not in the file");
+    }
+    // Voxel sizes of 1e-30 mm and 1000 mm (pixdim[1], a float at byte 80).
+    for (float size : {1e-30f, 1000.f}) {
+      std::string b = bytes;
+      std::memcpy(&b[80], &size, 4);
+      writeFile(tempPath("pixdim.nii"), b);
+      expectImageRefused("pixdim.nii", "voxel size of");
+    }
+    gzipped(bytes, tempPath("whole.nii.gz"));
+    QCOMPARE(readLabelImage(tempPath("whole.nii.gz")).labels, smallImage().labels);
+    QCOMPARE(readLabelImage(tempPath("intact.nii")).labels, smallImage().labels);
+  }
+  void hostileInrVoxelSize() {
+    for (const char* vx : {"1e300", "1e-300"}) {
+      std::string h = std::string("#INRIMAGE-4#{\nXDIM=2\nYDIM=2\nZDIM=2\nVDIM=1\nTYPE=unsigned fixed\nPIXSIZE=8 bits\n"
+                                  "CPU=decm\nVX=") + vx + "\nVY=1\nVZ=1\n";
+      h += std::string(252 - h.size(), '\n') + "##}\n";
+      writeFile(tempPath("voxel.inr"), h + std::string(8, '\1'));
+      expectImageRefused("voxel.inr", "voxel size of", true);
+    }
+  }
+  // Finding 13: the colour table's size is checked before it is read (a 3 GiB sparse file, refused at once).
+  void hugeColourTable() {
+    writeLabelImage(smallImage(), tempPath("tabled.nii.gz"));
+    writeFile(tempPath("tabled.ctbl"), "1 one 0 0 0 255\n");
+    std::filesystem::resize_file(tempPath("tabled.ctbl"), std::uintmax_t(3) << 30);
+    QElapsedTimer t;
+    t.start();
+    checkOneSentence(errorOf([] { readLabelImage(tempPath("tabled.nii.gz")); }), "over 16 MB");
+    QVERIFY2(t.elapsed() < 2000, qPrintable(QString("%1 ms").arg(t.elapsed())));
+    std::filesystem::remove(tempPath("tabled.ctbl"));
   }
 
   void cancelStopsMeshing() {

@@ -1,8 +1,11 @@
 // Mesh loaders on real files from other projects, write->read round trips for every writer and
 // format variant, and bad input for every loader.
+#include "cli_run.hpp"
 #include "test_support.hpp"
 
 #include <rehearse/simcore/meshio.hpp>
+
+#include <QElapsedTimer>
 #include <rehearse/simcore/quality.hpp>
 
 #include <nlohmann/json.hpp>
@@ -247,6 +250,41 @@ int glbTrianglePrimitives(const std::string& glb) {
   for (const auto& mesh : j.at("meshes"))
     for (const auto& p : mesh.at("primitives")) n += p.value("mode", 4) == 4;
   return n;
+}
+}  // namespace
+
+
+namespace {
+// A damaged file is refused by loadMesh with one sentence that names the file and contains `expect`, and (when
+// `cli`) `rehearse info` on it exits 1-123, without a signal, within 60 s, printing one line on stderr.
+void expectFileRefused(const std::string& file, const std::string& bytes, const QString& expect, bool cli = true,
+                       const LoadOptions& options = {}) {
+  const std::string p = tempPath(file);
+  writeFile(p, bytes);
+  try {
+    loadMesh(p, options);
+    QFAIL(qPrintable("accepted: " + QString::fromStdString(file)));
+  } catch (const MeshError& e) {
+    const QString w = QString::fromUtf8(e.what());
+    QVERIFY2(w.contains(QString::fromStdString(file)) && w.contains(expect) && !w.contains('\n'), qPrintable(w));
+  }
+  if (!cli) return;
+  const auto r = testing::run({"info", QString::fromStdString(p)}, 60000);
+  QVERIFY2(r.code >= 1 && r.code <= 123, qPrintable(QString("%1: exit %2 %3").arg(QString::fromStdString(file)).arg(r.code).arg(r.err)));
+  QVERIFY2(r.err.trimmed().count('\n') == 0 && r.err.contains(expect), qPrintable(r.err));
+}
+
+std::string plyHeader(const char* format, int vertices, int faces, const char* listType = "uchar int") {
+  return std::string("ply\nformat ") + format + " 1.0\nelement vertex " + std::to_string(vertices) +
+         "\nproperty float x\nproperty float y\nproperty float z\nelement face " + std::to_string(faces) +
+         "\nproperty list " + listType + " vertex_indices\nend_header\n";
+}
+
+// A .gltf of `nodes` (JSON text of the nodes array) and one triangle mesh whose accessor has no buffer (zeros).
+std::string gltfWith(const std::string& nodes, const std::string& roots = "[0]", const std::string& extra = "") {
+  return R"({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": )" + roots + R"(}], "nodes": )" + nodes +
+         R"(, "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "accessors": [{"componentType": 5126,
+         "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}])" + extra + "}";
 }
 }  // namespace
 
@@ -541,6 +579,129 @@ class TestMeshIO : public QObject {
     QVERIFY_THROWS_EXCEPTION(MeshError, loadMesh(p));
     expectRefused(parseGmsh, "$NOD\n99999999999999\n", "absurd count");
     expectRefused(parseMedit, "MeshVersionFormatted 2\nDimension 3\nVertices\n1\n0 0 0 0\nTetrahedra\n1\n1 2 3 4 0\nEnd\n", "bad index");
+  }
+
+  // Issue 60, findings 1-3: PLY and OFF files whose header declares more than they hold, or faces that refer to
+  // vertices they do not have, crashed assimp (SIGSEGV, SIGABRT) or gave a wrong triangle count.
+  void damagedPlyAndOff() {
+    const std::string xyz = "0 0 0\n1 0 0\n0 1 0\n";
+    expectFileRefused("index.ply", plyHeader("ascii", 3, 1) + xyz + "3 0 1 7\n", "refers to vertex 7");
+    expectFileRefused("short.ply", plyHeader("ascii", 3, 2) + xyz + "3 0 1 2\n", "declares 2 faces but holds 1");
+    expectFileRefused("fewvertices.ply", plyHeader("ascii", 5, 1) + xyz, "declares 5 vertices but holds 3");
+    // Binary: a face list count of 255 with only three indices behind it; and an index beyond the vertices.
+    std::string bin = plyHeader("binary_little_endian", 3, 1);
+    for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) putLE(bin, v);
+    std::string good = bin;
+    bin += char(255);
+    for (std::int32_t i : {0, 1, 2}) putLE(bin, i);
+    expectFileRefused("count255.ply", bin, "declares 1 face but holds 0");
+    std::string far = good;
+    far += char(3);
+    for (std::int32_t i : {0, 1, 100000}) putLE(far, i);
+    expectFileRefused("farindex.ply", far, "refers to vertex 100000");
+    std::string truncated = good.substr(0, good.size() - 5);
+    expectFileRefused("truncated.ply", truncated, "declares 3 vertices but holds 2");
+    // Big endian reads as such: the same triangle is accepted.
+    std::string be = plyHeader("binary_big_endian", 3, 1);
+    auto putBE = [&be](auto v) {
+      char b[sizeof v];
+      std::memcpy(b, &v, sizeof v);
+      for (int k = sizeof v - 1; k >= 0; --k) be += b[k];
+    };
+    for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) putBE(v);
+    be += char(3);
+    for (std::int32_t i : {0, 1, 2}) putBE(i);
+    writeFile(tempPath("be.ply"), be);
+    QCOMPARE(loadMesh(tempPath("be.ply")).triangles.size(), std::size_t(1));
+    // OFF: a face index 99 on 3 vertices, 2 faces declared and 1 held, a vertex missing.
+    expectFileRefused("index.off", "OFF\n3 1 0\n" + xyz + "3 0 1 99\n", "refers to vertex 99");
+    expectFileRefused("short.off", "OFF\n3 2 0\n" + xyz + "3 0 1 2\n", "declares 2 faces but holds 1");
+    expectFileRefused("fewvertices.off", "OFF\n4 1 0\n" + xyz, "declares 4 vertices but holds 3");
+    writeFile(tempPath("ok.off"), "OFF 3 1 0\n# a comment\n" + xyz + "3 0 1 2\n");
+    QCOMPARE(loadMesh(tempPath("ok.off")).triangles.size(), std::size_t(1));
+  }
+  // Finding 4: a 20,000-deep glTF node chain (stack overflow), a DAG of 24 shared levels (2^24 instances), a cycle,
+  // and accessors reaching beyond their buffer or indices beyond the vertices (silently dropped by assimp).
+  void damagedGltf() {
+    std::string chain = "[";
+    for (int i = 0; i < 20000; ++i) chain += "{\"children\": [" + std::to_string(i + 1) + "]},";
+    chain += "{\"mesh\": 0}]";
+    expectFileRefused("chain.gltf", gltfWith(chain), "more than 64 levels deep");
+    std::string dag = "[";
+    for (int i = 0; i < 24; ++i) dag += "{\"children\": [" + std::to_string(i + 1) + ", " + std::to_string(i + 1) + "]},";
+    dag += "{\"mesh\": 0}]";
+    expectFileRefused("dag.gltf", gltfWith(dag), "16777216 mesh instances");
+    expectFileRefused("cycle.gltf", gltfWith(R"([{"children": [1]}, {"children": [0], "mesh": 0}])"), "cycle");
+    expectFileRefused("badchild.gltf", gltfWith(R"([{"children": [5]}])"), "child it does not have");
+    // An accessor of 100 positions in a 36-byte view.
+    const std::string overrun = R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "buffers": [{"byteLength": 36,
+      "uri": "data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}], "accessors": [{"bufferView": 0, "componentType": 5126,
+      "count": 100, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}]})";
+    expectFileRefused("overrun.gltf", overrun, "declares 100 values");
+    // A GLB whose triangle refers to vertex 5 of 3.
+    std::string binChunk;
+    for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) putLE(binChunk, v);
+    for (std::uint16_t i : {0, 1, 5, 0}) putLE(binChunk, i);  // three indices and padding
+    std::string json = R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+      "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}], "buffers": [{"byteLength": 44}],
+      "bufferViews": [{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 6}],
+      "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3", "min": [0, 0, 0],
+      "max": [1, 1, 0]}, {"bufferView": 1, "componentType": 5123, "count": 3, "type": "SCALAR"}]})";
+    while (json.size() % 4) json += ' ';
+    auto glb = [&](const std::string& indices) {
+      std::string b = binChunk;
+      std::memcpy(b.data() + 36, indices.data(), 6);
+      std::string g = "glTF";
+      putLE(g, std::uint32_t(2));
+      putLE(g, std::uint32_t(12 + 8 + json.size() + 8 + b.size()));
+      putLE(g, std::uint32_t(json.size()));
+      putLE(g, std::uint32_t(0x4E4F534A));
+      g += json;
+      putLE(g, std::uint32_t(b.size()));
+      putLE(g, std::uint32_t(0x004E4942));
+      return g + b;
+    };
+    expectFileRefused("index.glb", glb(std::string("\0\0\1\0\5\0", 6)), "holds vertex index 5");
+    writeFile(tempPath("ok.glb"), glb(std::string("\0\0\1\0\2\0", 6)));
+    QCOMPARE(loadMesh(tempPath("ok.glb")).triangles.size(), std::size_t(1));
+  }
+  // Finding 5: an OBJ face of 900,000 corners kept assimp's triangulation busy for ever (quadratic).
+  void objFaceCorners() {
+    std::string obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf";
+    for (int i = 0; i < 900000; ++i) obj += " " + std::to_string(i % 3 + 1);
+    QElapsedTimer t;
+    t.start();
+    expectFileRefused("huge-face.obj", obj + "\n", "has 900000 corners");
+    QVERIFY2(t.elapsed() < 60000, "refused within 60 s");
+  }
+  // Finding 6: a 1e308 coordinate passed as finite and gave infinite bounds; a coordinate beyond 10 m is no organ.
+  void implausibleCoordinates() {
+    // assimp reads OBJ as floats: 1e308 is infinite there (refused before as now); VTK and MSH keep doubles.
+    expectFileRefused("huge.obj", "v 1e308 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "non-finite coordinate");
+    Mesh huge = twoTets();
+    huge.points[4].x() = 1e308;
+    expectFileRefused("huge.msh", writeGmsh22(huge), "1e+308 m at point 4");
+    expectFileRefused("far.off", "OFF\n3 1 0\n0 0 0\n0.1 0 0\n0 11 0\n3 0 1 2\n", "beyond 10 m");
+    // A file in millimetres read as metres (200 m) is refused, read in mm (0.2 m) accepted.
+    const std::string mm = "OFF\n3 1 0\n0 0 0\n200 0 0\n0 100 0\n3 0 1 2\n";
+    expectFileRefused("mm.off", mm, "check the length unit", false);
+    QCOMPARE(loadMesh(tempPath("mm.off"), {"mm"}).triangles.size(), std::size_t(1));
+    Mesh far = twoTets();
+    far.points[4] *= 1e6;
+    expectFileRefused("far.vtk", writeVtkLegacy(far, true), "beyond 10 m");
+  }
+  // Finding 7: a volume of only degenerate (flat) tetrahedra came out as a surface.
+  void onlyDegenerateTets() {
+    Mesh flat;
+    flat.points = {{0, 0, 0}, {0.01, 0, 0}, {0, 0.01, 0}, {0.01, 0.01, 0}};
+    flat.tets = {{0, 1, 2, 3}};
+    flat.tetLabels = {1};
+    flat.triangles = {{0, 1, 2}};
+    flat.triangleLabels = {1};
+    expectFileRefused("flat.vtk", writeVtkLegacy(flat, true), "only degenerate tetrahedra");
+    expectFileRefused("flat.msh", writeGmsh22(flat), "only degenerate tetrahedra");
   }
   void fileLevelErrors() {
     QVERIFY_THROWS_EXCEPTION(MeshError, loadMesh(tempPath("does-not-exist.msh")));

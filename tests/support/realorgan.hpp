@@ -18,7 +18,9 @@ namespace rehearse::testing {
 /// Metres, whatever the file's unit (the files are in mm or m; no organ is over 2 m or under 2 cm across);
 /// only the labelled part `part` when given.
 inline simcore::Mesh loadOrganSurface(const std::string& path, const std::string& part = {}) {
-  simcore::Mesh m = simcore::loadMesh(path, {"m"});
+  // Read as mm (loadMesh refuses coordinates beyond 10 m, which a mm file read as metres has); a file in metres then
+  // measures under 2 mm across and is scaled back below, the same test as before in the other unit.
+  simcore::Mesh m = simcore::loadMesh(path, {"mm"});
   if (!part.empty()) {
     std::vector<std::array<int, 3>> kept;
     for (std::size_t i = 0; i < m.triangles.size(); ++i)
@@ -32,8 +34,8 @@ inline simcore::Mesh loadOrganSurface(const std::string& path, const std::string
   m.convertToMetres();
   Eigen::AlignedBox3d box;
   for (const auto& p : m.points) box.extend(p);
-  if (box.diagonal().norm() > 2)
-    for (auto& p : m.points) p *= 1e-3;
+  if (box.diagonal().norm() <= 2e-3)
+    for (auto& p : m.points) p *= 1e3;
   return m;
 }
 
