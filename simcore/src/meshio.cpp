@@ -77,8 +77,9 @@ Mesh loadMesh(const std::string& path, const LoadOptions& options, std::vector<s
   validateMesh(m, name);
   m.unitToMetre = scale;
   m.convertToMetres();
-  // An organ fits in a few decimetres: a coordinate beyond this is a wrong unit or a damaged file, and an overflowing
-  // one (1e308 in a file) would give infinite bounds downstream.
+  // No unit makes an organ 10 km across (a file in mm read as metres is at most a few hundred metres, which the import
+  // says with the likely unit): a coordinate beyond that is a damaged file, and an overflowing one (1e308) would give
+  // infinite bounds downstream.
   for (std::size_t i = 0; i < m.points.size(); ++i)
     if (!m.points[i].allFinite() || m.points[i].cwiseAbs().maxCoeff() > kMaxCoordinateMetres)
       throw MeshError(name + " has a coordinate of " + [&] {
@@ -86,7 +87,7 @@ Mesh loadMesh(const std::string& path, const LoadOptions& options, std::vector<s
         std::snprintf(b, sizeof b, "%.3g", m.points[i].cwiseAbs().maxCoeff());
         return std::string(b);
       }() + " m at point " + std::to_string(i) + ", beyond " + std::to_string(static_cast<int>(kMaxCoordinateMetres)) +
-                      " m from the origin; check the length unit (--unit) or the file.");
+                      " m from the origin, which no length unit makes an organ; the file is damaged.");
   const bool volume = m.isVolume();
   auto repairs = repairVolume(m);
   if (notes) notes->insert(notes->end(), repairs.begin(), repairs.end());

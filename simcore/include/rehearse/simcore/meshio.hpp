@@ -15,7 +15,7 @@ inline constexpr std::uintmax_t kMaxMeshFileBytes = std::uintmax_t(2) << 30;
 /// Refuse meshes with more points or elements than this.
 inline constexpr std::size_t kMaxMeshItems = 20'000'000;
 /// Refuse meshes with a coordinate farther than this from the origin, after unit conversion (metres).
-inline constexpr double kMaxCoordinateMetres = 10;
+inline constexpr double kMaxCoordinateMetres = 1e4;
 
 struct LoadOptions {
   std::string unit = "m";  // length unit of the file's coordinates ("m", "dm", "cm", "mm")
