@@ -1,4 +1,5 @@
 #include <rehearse/imaging/camera.hpp>
+#include <rehearse/text_input.hpp>
 #include <rehearse/simcore/input_checks.hpp>
 
 #include <nlohmann/json.hpp>
@@ -42,11 +43,9 @@ namespace {
 std::string readText(const std::string& path, const char* what) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw InputError(std::string("The ") + what + " file " + path + " does not exist; check the path.");
-  if (fs::file_size(path, ec) > (64u << 20)) throw InputError(std::string("The ") + what + " file " + path + " is too large to be one.");
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  std::string text, why;
+  if (!readTextInput(path, text, why, std::size_t{1} << 20)) throw InputError(std::string("The ") + what + " file " + why + ".");
+  return text;
 }
 
 std::string ext(const std::string& path) {
@@ -122,6 +121,7 @@ Camera loadCamera(const std::string& path, int width, int height) {
   }
   const std::string text = readText(path, "camera");
   if (e == ".json") {
+    if (const std::string why = jsonTextProblem(text, name); !why.empty()) throw InputError(why + ".");
     try {
       auto j = nlohmann::json::parse(text);
       if (j.contains("K")) {
@@ -141,8 +141,9 @@ Camera loadCamera(const std::string& path, int width, int height) {
       if (j.contains("height")) c.height = imageSize(num(j["height"]));
     } catch (const InputError&) {
       throw;
-    } catch (const std::exception& ex) {
-      throw InputError(name + " is not a valid camera JSON file (" + std::string(ex.what()).substr(0, 80) + ").");
+    } catch (const std::exception&) {
+      throw InputError(name + " is not a camera file this program reads: it needs \"K\" (3x3 numbers) or \"fx\", "
+                       "\"fy\", \"cx\", \"cy\" as numbers; see \"File formats\" in the README.");
     }
     return finish(c, path);
   }

@@ -27,6 +27,8 @@ std::string readAll(const std::string& path) {
   std::error_code ec;
   if (!fs::exists(path, ec)) throw MeshError("The file " + path + " does not exist; check the path.");
   if (fs::is_directory(path, ec)) throw MeshError(path + " is a folder, not a mesh file; choose a file inside it.");
+  if (!fs::is_regular_file(path, ec))
+    throw MeshError(path + " is not a regular file (a pipe or a device), not a mesh file to read.");
   auto size = fs::file_size(path, ec);
   if (ec) throw MeshError("The file " + path + " cannot be read (" + ec.message() + ").");
   if (size > kMaxMeshFileBytes)

@@ -188,6 +188,15 @@ class TestHostileInputs : public QObject {
     qInfo("edited setup: exit %d: %s", v.code, qPrintable(v.err.trimmed().split('\n').last()));
     QCOMPARE(v.code, 4);
     QVERIFY2(v.err.contains("is not the one its hash says"), qPrintable(v.err));
+    // A checkpoint row whose setup column was changed (its bytes untouched): named, exit 4.
+    const QString column = variant("column",
+                                   "UPDATE rehearsal_checkpoints SET setup_hash = '3735928559' WHERE step = (SELECT "
+                                   "MIN(step) FROM rehearsal_checkpoints)");
+    QVERIFY(!column.isEmpty());
+    const Run c = ::testing::run({"replay", column, "--session", "1", "--verify"}, kLimitMs);
+    qInfo("changed setup column: exit %d: %s", c.code, qPrintable(c.err.trimmed().split('\n').first()));
+    QCOMPARE(c.code, 4);
+    QVERIFY2(c.err.contains("names another setup in its row than in its bytes"), qPrintable(c.err));
   }
 
   // `gesture --case` with a damaged, missing or out-of-range attachments.json dropped the ligaments and exited 0 (an

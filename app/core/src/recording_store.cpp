@@ -268,9 +268,9 @@ simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, lon
   sqlite3* db = openStore(path, false);
   simcore::Checkpoint c;
   try {
-    std::string bytes;
+    std::string bytes, namedHash;
     {
-      Statement q(db, "SELECT state FROM rehearsal_checkpoints WHERE session = ? AND step = ?");
+      Statement q(db, "SELECT state, setup_hash FROM rehearsal_checkpoints WHERE session = ? AND step = ?");
       sqlite3_bind_int64(q.s, 1, id);
       sqlite3_bind_int64(q.s, 2, step);
       if (sqlite3_step(q.s) != SQLITE_ROW)
@@ -278,6 +278,15 @@ simcore::Checkpoint loadCheckpoint(const std::string& path, std::int64_t id, lon
                                  std::to_string(id));
       const auto* blob = static_cast<const char*>(sqlite3_column_blob(q.s, 0));
       bytes.assign(blob ? blob : "", static_cast<std::size_t>(sqlite3_column_bytes(q.s, 0)));
+      namedHash = q.column(1);
+    }
+    // The row names the setup its bytes name (the first hash they hold): a row whose column was changed is damaged.
+    if (bytes.size() >= 20) {
+      std::uint64_t inBytes = 0;
+      std::memcpy(&inBytes, bytes.data() + 12, sizeof inBytes);  // after the magic (4 bytes) and the step (8 bytes)
+      if (namedHash != std::to_string(inBytes))
+        throw std::runtime_error(path + ": the checkpoint at step " + std::to_string(step) +
+                                 " names another setup in its row than in its bytes (damaged)");
     }
     c = decodeCheckpointState(bytes, [&](std::uint64_t hash) {
       Statement q(db, "SELECT setup FROM rehearsal_setups WHERE session = ? AND hash = ?");

@@ -102,7 +102,7 @@ void Replayer::seek(long target) {
     lastSeekNote_ += lastSeekFrom_ > 0    ? "; the seek started from the checkpoint after step " +
                                                 std::to_string(lastSeekFrom_) + " instead"
                      : lastSeekFrom_ == 0 ? "; the seek replayed from the start instead"
-                                          : "; the seek went on from where the replay was";
+                                          : "; the seek went on from step " + std::to_string(now);
   while (step() < target) session_->advance();
 }
 

@@ -500,7 +500,7 @@ void ReviewWindow::tick() {
 }
 
 void ReviewWindow::refresh() {
-  QStringList state;
+  QStringList state, seekNotes;
   for (std::size_t k = 0; k < attempts_.size(); ++k) {
     auto& a = attempts_[k];
     if (!a) continue;
@@ -527,10 +527,14 @@ void ReviewWindow::refresh() {
     a->timelineView->update();
     state << tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(step).arg(a->replayer->steps());
     if (!a->replayer->lastSeekNote().empty())  // a damaged checkpoint passed over: said, the view still shows the step
-      state << QString::fromStdString(a->replayer->lastSeekNote());
+      seekNotes << tr("session %1: %2").arg(a->recording.summary.id).arg(QString::fromStdString(a->replayer->lastSeekNote()));
   }
   const QString mode = threeD_ || !camera_ ? tr("3D view (drag to turn)") : tr("over the case's frame");
-  status_->setText(tr("%1  t = %2 s  %3  %4x  %5").arg(playing_ ? tr("playing") : tr("paused")).arg(time_, 0, 'f', 2).arg(state.join("; ")).arg(speedFactor_).arg(mode));
+  // A seek that passed over a damaged checkpoint says so first (the status line is cut at the window's width; the
+  // whole sentence is its tooltip).
+  const QString line = tr("%1  t = %2 s  %3  %4x  %5").arg(playing_ ? tr("playing") : tr("paused")).arg(time_, 0, 'f', 2).arg(state.join("; ")).arg(speedFactor_).arg(mode);
+  status_->setText(seekNotes.isEmpty() ? line : seekNotes.join("; ") + "  |  " + line);
+  status_->setToolTip(status_->text());
 }
 
 void ReviewWindow::fillMetrics(ReviewAttempt& a) {
@@ -543,8 +547,15 @@ void ReviewWindow::fillMetrics(ReviewAttempt& a) {
     const bool verified = app::replayVerified(a.result.verify);
     const auto& v = a.result.verify;
     a.table->setItem(0, 0, new QTableWidgetItem(tr("replay check")));
-    auto* value = new QTableWidgetItem(verified ? tr("%1 of %1 checksums match").arg(v.checked)
-                                                : v.checked ? tr("%1 of %2 checksums differ").arg(v.mismatches).arg(v.checked) : tr("no checksum"));
+    auto* value = new QTableWidgetItem(
+        verified            ? tr("%1 of %1 checksums match").arg(v.checked)
+        : v.mismatches      ? tr("%1 of %2 checksums differ").arg(v.mismatches).arg(v.checked)
+        : !v.damagedCheckpoints.empty()
+            ? tr("%1 of %2 checkpoints damaged (first after step %3)")
+                  .arg(v.damagedCheckpoints.size())
+                  .arg(v.checkpointsChecked)
+                  .arg(v.damagedCheckpoints.front().first)
+        : tr("no checksum"));
     value->setToolTip(QString::fromStdString(app::replayCheckSentence(v)));
     a.table->setItem(0, 1, value);
     auto* word = new QTableWidgetItem(verified ? tr("verified") : v.checked ? tr("DOES NOT VERIFY") : tr("not verified"));
