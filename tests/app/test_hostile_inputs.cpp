@@ -165,10 +165,10 @@ class TestHostileInputs : public QObject {
     const QString file = dir_.path() + "/rec.rehearse";
     QVERIFY(::testing::tookEveryStep(::testing::run(gestureArgs(dir_.path(), "grasp-pull.json", file))));
     // A copy of the recording with one change made in SQL (empty when the change did not apply).
-    auto variant = [&](const char* name, const std::string& sql) -> QString {
+    auto variant = [&](const char* name, const std::string& sql, int leastChanged = 1) -> QString {
       const QString copy = dir_.path() + "/" + name + ".rehearse";
       QFile::remove(copy);
-      if (!QFile::copy(file, copy) || execSql(copy, sql) < 1) return {};
+      if (!QFile::copy(file, copy) || execSql(copy, sql) < leastChanged) return {};
       return copy;
     };
     const QString steps = variant("steps", "UPDATE rehearsal_sessions SET steps = 1000000000000");
@@ -188,6 +188,14 @@ class TestHostileInputs : public QObject {
     qInfo("edited setup: exit %d: %s", v.code, qPrintable(v.err.trimmed().split('\n').last()));
     QCOMPARE(v.code, 4);
     QVERIFY2(v.err.contains("is not the one its hash says"), qPrintable(v.err));
+    // A sessions table without its key holding one session twice (another program's file): refused, not mixed.
+    const QString twice = variant("twice",
+                                  "CREATE TABLE copy AS SELECT * FROM rehearsal_sessions; DROP TABLE rehearsal_sessions; "
+                                  "CREATE TABLE rehearsal_sessions AS SELECT * FROM copy UNION ALL SELECT * FROM copy; "
+                                  "DROP TABLE copy",
+                                  0);
+    QVERIFY(!twice.isEmpty());
+    expectRefused({"replay", twice, "--session", "1", "--verify"}, "holds session 1 2 times", "a session held twice");
     // A checkpoint row whose setup column was changed (its bytes untouched): named, exit 4.
     const QString column = variant("column",
                                    "UPDATE rehearsal_checkpoints SET setup_hash = '3735928559' WHERE step = (SELECT "
