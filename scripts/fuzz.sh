@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Builds the libFuzzer targets of the hand-written parsers and the recording's decoders with clang (ASan + UBSan) and runs each for
+# Builds the libFuzzer targets of the hand-written parsers, the recording's decoders, our checks on third-party
+# formats and the surface readers behind them (assimp) with clang (ASan + UBSan) and runs each for
 # the given number of seconds (default 30), starting from the seed files in tests/fuzz/seeds.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -7,12 +8,16 @@ SECONDS_EACH="${1:-30}"
 if [ ! -f build-fuzz/CMakeCache.txt ]; then cmake --preset fuzz >/dev/null; fi
 cmake --build build-fuzz -j"$(nproc)"
 status=0
-for target in gmsh vtk vtu medit recording input_checks; do
+for target in gmsh vtk vtu medit recording input_checks surfaces; do
+  # The surface readers run assimp, which leaks on some files it refuses (a library's, not ours): leaks are not findings
+  # there; crashes, hangs and memory past the limit are.
+  leaks=1
+  if [ "$target" = surfaces ]; then leaks=0; fi
   corpus="build-fuzz/corpus-$target"
   artifacts="build-fuzz/findings-$target/"
   mkdir -p "$corpus" "$artifacts"
   echo "== fuzzing the $target parser for ${SECONDS_EACH}s"
-  if ! build-fuzz/tests/fuzz/fuzz_$target -max_total_time="$SECONDS_EACH" -max_len=65536 -rss_limit_mb=2048 \
+  if ! ASAN_OPTIONS="detect_leaks=$leaks" build-fuzz/tests/fuzz/fuzz_$target -max_total_time="$SECONDS_EACH" -max_len=65536 -rss_limit_mb=2048 -timeout=20 \
       -artifact_prefix="$artifacts" -print_final_stats=1 "$corpus" "tests/fuzz/seeds/$target" > "build-fuzz/fuzz-$target.log" 2>&1; then
     echo "fuzz: the $target parser failed; input saved in $artifacts, log in build-fuzz/fuzz-$target.log:" >&2
     grep -E "ERROR|SUMMARY|runtime error" "build-fuzz/fuzz-$target.log" | head -5 >&2

@@ -107,7 +107,9 @@ std::string elementWord(const std::string& name) { return name == "vertex" ? "ve
 std::string plyProblem(std::string_view bytes) {
   std::size_t pos = 0;
   std::string_view line;
-  if (!nextLine(bytes, pos, line) || trim(line) != "ply") return {};  // not PLY: assimp says so
+  // A .ply whose first line is not "ply", or whose header holds a line that is not PLY, is refused here: assimp took
+  // such headers and looped seeking through the file (found by fuzzing).
+  if (!nextLine(bytes, pos, line) || trim(line) != "ply") return "its first line is not 'ply'";
   std::vector<PlyElement> elements;
   int format = -1;  // 0 ascii, 1 little endian, 2 big endian
   bool ended = false;
@@ -121,6 +123,10 @@ std::string plyProblem(std::string_view bytes) {
     if (w[0] == "format" && w.size() >= 2) {
       format = w[1] == "ascii" ? 0 : w[1] == "binary_little_endian" ? 1 : w[1] == "binary_big_endian" ? 2 : -2;
       if (format == -2) return "its header names an unknown format '" + std::string(w[1].substr(0, 40)) + "'";
+    } else if (w[0] == "comment" || w[0] == "obj_info") {
+      continue;
+    } else if (w[0] != "element" && w[0] != "property") {
+      return "its header has a line that is not PLY ('" + std::string(w[0].substr(0, 20)) + "')";
     } else if (w[0] == "element") {
       long long n = 0;
       if (w.size() < 3 || !toLong(w[2], n) || n < 0) return "its header has an element without a valid count";
@@ -190,6 +196,10 @@ std::string plyProblem(std::string_view bytes) {
           if (n < 0 || n > kMaxFaceCorners)
             return "its " + e.name + " " + num(static_cast<double>(row)) + " has a list of " + num(static_cast<double>(n)) +
                    " values (at most " + num(kMaxFaceCorners) + ")";
+          // A face of fewer than 3 corners is none (one of 0 corners aborted assimp's triangulation: found by fuzzing).
+          if (isIndexList(e, p) && n < 3)
+            return "its " + e.name + " " + num(static_cast<double>(row)) + " has " + num(static_cast<double>(n)) +
+                   " corners; a face needs 3 or more";
           for (long long k = 0; k < n; ++k) {
             if (!token(t)) return shortOf(e, row);
             if (isIndexList(e, p)) {
@@ -245,6 +255,8 @@ std::string plyProblem(std::string_view bytes) {
         if (n < 0 || n > kMaxFaceCorners)
           return "its " + e.name + " " + num(static_cast<double>(r)) + " has a list of " + num(n) + " values (at most " +
                  num(kMaxFaceCorners) + ")";
+        if (isIndexList(e, p) && n < 3)
+          return "its " + e.name + " " + num(static_cast<double>(r)) + " has " + num(n) + " corners; a face needs 3 or more";
         const std::size_t need = static_cast<std::size_t>(n) * static_cast<std::size_t>(p.valueBytes);
         if (body.size() - at < need) return shortOf(e, r);
         if (!isIndexList(e, p)) {
@@ -301,9 +313,9 @@ std::string offProblem(std::string_view bytes) {
   for (long long f = 0; f < nf; ++f) {
     if (!content(w)) return "it declares " + plural(static_cast<double>(nf), "face") + " but holds " + num(static_cast<double>(f));
     long long n = 0;
-    if (!toLong(w[0], n) || n < 1 || n > kMaxFaceCorners)
+    if (!toLong(w[0], n) || n < 3 || n > kMaxFaceCorners)
       return "its face " + num(static_cast<double>(f)) + " declares " + std::string(w[0].substr(0, 20)) +
-             " corners (1 to " + num(kMaxFaceCorners) + ")";
+             " corners (3 to " + num(kMaxFaceCorners) + ")";
     if (static_cast<long long>(w.size()) - 1 < n)
       return "its face " + num(static_cast<double>(f)) + " declares " + num(static_cast<double>(n)) + " corners but lists " +
              num(static_cast<double>(w.size() - 1));

@@ -588,6 +588,22 @@ class TestMeshIO : public QObject {
     expectFileRefused("index.ply", plyHeader("ascii", 3, 1) + xyz + "3 0 1 7\n", "refers to vertex 7");
     expectFileRefused("short.ply", plyHeader("ascii", 3, 2) + xyz + "3 0 1 2\n", "declares 2 faces but holds 1");
     expectFileRefused("fewvertices.ply", plyHeader("ascii", 5, 1) + xyz, "declares 5 vertices but holds 3");
+    // Found by fuzzing the readers (tests/fuzz/fuzz_surfaces): a face of 0 corners aborted assimp's triangulation
+    // (SIGABRT), ascii or binary; a header line that is not PLY, or a first line that is not 'ply', made assimp loop.
+    expectFileRefused("nocorners.ply", plyHeader("ascii", 3, 1) + xyz + "0\n", "has 0 corners; a face needs 3 or more");
+    {
+      std::string b = plyHeader("binary_little_endian", 1, 1);
+      const float v[3] = {0, 0, 1};
+      b.append(reinterpret_cast<const char*>(v), sizeof v);
+      b.push_back('\0');  // the face's corner count
+      b.append(24, '\0');  // what follows, not part of any element
+      expectFileRefused("nocorners-bin.ply", b, "has 0 corners; a face needs 3 or more");
+    }
+    expectFileRefused("notply.ply", "ply\xf7\xff\n" + plyHeader("ascii", 3, 1).substr(4) + xyz + "3 0 1 2\n",
+                      "its first line is not 'ply'");
+    expectFileRefused("garbage-header.ply", "ply\nformat ascii 1.0\nprot160\n" + plyHeader("ascii", 3, 1).substr(21) + xyz +
+                                                "3 0 1 2\n",
+                      "its header has a line that is not PLY ('prot160')");
     // Binary: a face list count of 255 with only three indices behind it; and an index beyond the vertices.
     std::string bin = plyHeader("binary_little_endian", 3, 1);
     for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) putLE(bin, v);
