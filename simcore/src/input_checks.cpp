@@ -353,7 +353,8 @@ std::string objProblem(std::string_view bytes) {
 
 // ---- glTF ----
 
-std::string gltfProblem(std::string_view bytes, bool binary) {
+std::string gltfProblem(std::string_view bytes, bool binary,
+                        const std::function<long long(const std::string& uri)>& externalBytes) {
   std::string_view json = bytes, bin;
   bool haveBin = false;
   auto u32 = [&](std::size_t at) {
@@ -407,6 +408,32 @@ std::string gltfProblem(std::string_view bytes, bool binary) {
     if (!(length >= 0)) return "its buffer " + num(static_cast<double>(b)) + " has no valid byteLength";
     if (binary && b == 0 && !buffers[b].contains("uri") && (!haveBin || length > static_cast<double>(bin.size())))
       return "its buffer 0 declares " + num(length) + " bytes but the binary chunk holds " + num(static_cast<double>(bin.size()));
+    // A buffer's own file, or its embedded base64, must hold what it declares (assimp read past a short one).
+    if (buffers[b].is_object() && buffers[b].contains("uri") && buffers[b]["uri"].is_string()) {
+      const std::string uri = buffers[b]["uri"].get<std::string>();
+      double held = -1;
+      std::string where;
+      if (uri.rfind("data:", 0) == 0) {
+        const auto comma = uri.find(',');
+        if (comma == std::string::npos || uri.find(";base64", 0) > comma)
+          return "its buffer " + num(static_cast<double>(b)) + " embeds data that is not base64";
+        const std::size_t chars = uri.size() - comma - 1;
+        std::size_t pad = 0;
+        for (std::size_t i = uri.size(); i > comma + 1 && uri[i - 1] == '='; --i) ++pad;
+        held = static_cast<double>(chars / 4 * 3) - static_cast<double>(std::min<std::size_t>(pad, 2));
+        where = "its embedded data";
+      } else if (externalBytes) {
+        const long long size = externalBytes(uri);
+        if (size < 0)
+          return "its buffer " + num(static_cast<double>(b)) + " names the file '" + uri.substr(0, 60) +
+                 "', which is not a file beside it";
+        held = static_cast<double>(size);
+        where = "the file '" + uri.substr(0, 60) + "'";
+      }
+      if (held >= 0 && length > held)
+        return "its buffer " + num(static_cast<double>(b)) + " declares " + num(length) + " bytes but " + where +
+               " holds " + num(held);
+    }
   }
   for (std::size_t v = 0; v < views.size(); ++v) {
     long long b = 0;

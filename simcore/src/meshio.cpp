@@ -6,6 +6,7 @@
 #include "text_reader.hpp"
 
 #include <cstdio>
+#include <cctype>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -61,7 +62,30 @@ Mesh loadMesh(const std::string& path, const LoadOptions& options, std::vector<s
       if (ext == ".ply") problem = checks::plyProblem(bytes);
       else if (ext == ".off") problem = checks::offProblem(bytes);
       else if (ext == ".obj") problem = checks::objProblem(bytes);
-      else if (ext == ".gltf" || ext == ".glb") problem = checks::gltfProblem(bytes, ext == ".glb");
+      else if (ext == ".gltf" || ext == ".glb")
+        problem = checks::gltfProblem(bytes, ext == ".glb", [&](const std::string& uri) -> long long {
+          // A buffer file beside the glTF (or below its folder): not an absolute path, no "..", a regular file (a
+          // pipe or a device would block the reader).
+          std::string decoded;  // URIs are percent-encoded ("my%20mesh.bin")
+          for (std::size_t i = 0; i < uri.size(); ++i) {
+            if (uri[i] == '%' && i + 2 < uri.size() && std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
+                std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
+              decoded += static_cast<char>(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
+              i += 2;
+            } else {
+              decoded += uri[i];
+            }
+          }
+          const fs::path rel(decoded);
+          if (decoded.empty() || rel.is_absolute()) return -1;
+          for (const auto& part : rel)
+            if (part == "..") return -1;
+          std::error_code ec;
+          const fs::path file = fs::path(path).parent_path() / rel;
+          if (!fs::is_regular_file(file, ec)) return -1;
+          const auto size = fs::file_size(file, ec);
+          return ec ? -1 : static_cast<long long>(size);
+        });
       if (!problem.empty())
         throw MeshError(name + " is damaged: " + problem + "; re-export it from the program that made it.");
       m = loadSurfaceAssimp(path);

@@ -656,6 +656,30 @@ class TestMeshIO : public QObject {
       "bufferViews": [{"buffer": 0, "byteLength": 36}], "accessors": [{"bufferView": 0, "componentType": 5126,
       "count": 100, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}]})";
     expectFileRefused("overrun.gltf", overrun, "declares 100 values");
+    // A buffer's own file must hold the bytes it declares, and be a file beside the glTF (not a device, not outside).
+    {
+      std::string tri;
+      for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) putLE(tri, v);
+      writeFile(tempPath("tri.bin"), tri);
+      writeFile(tempPath("tri-short.bin"), tri.substr(0, 20));
+      auto withBuffer = [](const std::string& buffer) {
+        return R"({"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
+          "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}], "buffers": [)" + buffer + R"(],
+          "bufferViews": [{"buffer": 0, "byteLength": 36}], "accessors": [{"bufferView": 0, "componentType": 5126,
+          "count": 3, "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}]})";
+      };
+      writeFile(tempPath("external.gltf"), withBuffer(R"({"byteLength": 36, "uri": "tri.bin"})"));
+      QCOMPARE(loadMesh(tempPath("external.gltf")).triangles.size(), std::size_t(1));
+      expectFileRefused("short-bin.gltf", withBuffer(R"({"byteLength": 36, "uri": "tri-short.bin"})"),
+                        "declares 36 bytes but the file 'tri-short.bin' holds 20");
+      for (const char* uri : {"missing.bin", "/dev/zero", "../tri.bin"})
+        expectFileRefused("uri.gltf", withBuffer(std::string(R"({"byteLength": 36, "uri": ")") + uri + "\"}"),
+                          "which is not a file beside it");
+      expectFileRefused("short-data.gltf",
+                        withBuffer(R"({"byteLength": 36, "uri": "data:application/octet-stream;base64,)"
+                                   R"(AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAA"})"),
+                        "declares 36 bytes but its embedded data holds 24");
+    }
     // A GLB whose triangle refers to vertex 5 of 3.
     std::string binChunk;
     for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) putLE(binChunk, v);

@@ -8,6 +8,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <string_view>
 
@@ -35,8 +36,11 @@ std::string offProblem(std::string_view bytes);
 std::string objProblem(std::string_view bytes);
 /// glTF: the JSON (a .gltf's text, or a .glb's JSON chunk): node references, hierarchy depth and cycles, mesh
 /// instances and triangles reached through the hierarchy, accessors against buffer views and buffers, and (.glb)
-/// index values against the vertex count.
-std::string gltfProblem(std::string_view bytes, bool binary);
+/// index values against the vertex count. `externalBytes(uri)` gives the size of a buffer's external file (-1: it is
+/// missing, or not a regular file inside the glTF's folder), checked against the byteLength the buffer declares;
+/// without it external buffers are not checked. Embedded (data:) buffers are checked against their decoded size.
+std::string gltfProblem(std::string_view bytes, bool binary,
+                        const std::function<long long(const std::string& uri)>& externalBytes = nullptr);
 
 /// NRRD header text (a .nrrd up to its blank line, or a whole .nhdr): dimension 3 or 4, sizes, spacings, space
 /// directions and origin finite and plausible, a single data file (no pattern or LIST).
