@@ -191,6 +191,10 @@ std::string plyProblem(std::string_view bytes) {
           double d = 0;
           if (!toLong(t, n)) {
             if (!toDouble(t, d) || d != std::floor(d)) return "its " + e.name + " " + num(static_cast<double>(row)) + " has a list length that is not a whole number";
+            // Compared as a double first: a length such as 3e118 does not fit a whole number type (found by fuzzing).
+            if (!(d >= 0 && d <= kMaxFaceCorners))
+              return "its " + e.name + " " + num(static_cast<double>(row)) + " has a list of " + num(d) +
+                     " values (at most " + num(kMaxFaceCorners) + ")";
             n = static_cast<long long>(d);
           }
           if (n < 0 || n > kMaxFaceCorners)
@@ -562,7 +566,11 @@ std::string gltfProblem(std::string_view bytes, bool binary,
       const int cb = componentBytes(number(acc, "componentType", 0));
       const double vertices = number(accessors[static_cast<std::size_t>(pa)], "count", 0);
       const double stride = number(view, "byteStride", cb);
-      const auto start = static_cast<std::size_t>(number(view, "byteOffset", 0) + number(acc, "byteOffset", 0));
+      const double first = number(view, "byteOffset", 0) + number(acc, "byteOffset", 0);
+      if (!(stride >= 0 && stride <= static_cast<double>(bin.size()) && first >= 0 &&
+            first <= static_cast<double>(bin.size())))
+        return "its accessor " + num(static_cast<double>(ia)) + " reaches beyond the binary chunk";
+      const auto start = static_cast<std::size_t>(first);
       const auto count = static_cast<std::size_t>(number(acc, "count", 0));
       for (std::size_t i = 0; i < count; ++i) {
         const std::size_t at = start + i * static_cast<std::size_t>(stride);
