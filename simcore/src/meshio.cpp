@@ -59,6 +59,22 @@ Mesh loadMesh(const std::string& path, const LoadOptions& options, std::vector<s
       // silently drops data on damaged files (issue 60).
       const std::string bytes = readAll(path);
       std::string problem;
+      // assimp picks its reader by the content when the one the name says refuses it: a PLY named .glb went to its PLY
+      // reader past our PLY check (and crashed it: found by fuzzing). The content must be what the name says.
+      const std::string_view head(bytes.data(), std::min<std::size_t>(bytes.size(), 8));
+      const auto firstText = bytes.find_first_not_of(" \t\r\n\xef\xbb\xbf");
+      const std::string holds = head.substr(0, 3) == "ply" && bytes.size() > 3 && (bytes[3] == '\n' || bytes[3] == '\r')
+                                    ? ".ply"
+                                : head.substr(0, 4) == "glTF" ? ".glb"
+                                : firstText != std::string::npos && bytes[firstText] == '{' ? ".gltf"
+                                                                                           : "";
+      if (ext == ".glb" && holds != ".glb")
+        throw MeshError(name + " is not a GLB file (it does not begin with 'glTF'); check that it is complete.");
+      if (ext == ".gltf" && holds != ".gltf")
+        throw MeshError(name + " is not a glTF file (it does not begin with '{'); check that it is complete.");
+      if (!holds.empty() && holds != ext)
+        throw MeshError(name + " holds a " + holds.substr(1) + " file but is named " + ext + "; rename it to " + holds +
+                        ".");
       if (ext == ".ply") problem = checks::plyProblem(bytes);
       else if (ext == ".off") problem = checks::offProblem(bytes);
       else if (ext == ".obj") problem = checks::objProblem(bytes);

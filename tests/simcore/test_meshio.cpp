@@ -599,6 +599,11 @@ class TestMeshIO : public QObject {
       b.append(24, '\0');  // what follows, not part of any element
       expectFileRefused("nocorners-bin.ply", b, "has 0 corners; a face needs 3 or more");
     }
+    // assimp chose its reader by the content when the name's refused it: a PLY named .glb reached its PLY reader
+    // past our check (SIGSEGV, found by fuzzing). The content must be what the name says.
+    expectFileRefused("disguised.glb", plyHeader("ascii", 3, 1) + xyz + "3 0 1 2\n", "is not a GLB file");
+    expectFileRefused("disguised.obj", plyHeader("ascii", 3, 1) + xyz + "3 0 1 2\n", "holds a ply file but is named .obj");
+    expectFileRefused("disguised.gltf", plyHeader("ascii", 3, 1) + xyz + "3 0 1 2\n", "is not a glTF file");
     expectFileRefused("notply.ply", "ply\xf7\xff\n" + plyHeader("ascii", 3, 1).substr(4) + xyz + "3 0 1 2\n",
                       "its first line is not 'ply'");
     expectFileRefused("garbage-header.ply", "ply\nformat ascii 1.0\nprot160\n" + plyHeader("ascii", 3, 1).substr(21) + xyz +
