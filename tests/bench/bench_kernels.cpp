@@ -9,6 +9,7 @@
 // Each kernel set this processor can run is measured: Prescott (pinned), Haswell (AVX2), SkylakeX (AVX-512), and the
 // simplicial factor. Writes blas-kernels.csv into the directory given (default ".").
 //   bench_kernels [OUT_DIR] [--quick]
+#include "bench_args.hpp"
 #include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
@@ -41,25 +42,16 @@ double msSince(std::chrono::steady_clock::time_point t0) {
 }
 
 struct Variant {
-  std::string name, core;  // core empty: the simplicial factor (no BLAS) on the pinned kernels
-  bool simplicial = false;
+  std::string name, core;  // the OpenBLAS kernel set selected for the run
+  bool simplicial = false;  // the simplicial factor (no BLAS at all)
 };
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string out = ".";
-  bool quick = false;
-  for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--quick") == 0) quick = true;
-    else out = argv[i];
-  }
-  std::filesystem::create_directories(out);
+  const auto [out, quick] = testing::benchArgs(argc, argv);
   const std::string shared = REHEARSE_SHARED_DATA;
-  std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull-cut.json");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const app::GestureScript script = app::parseGestureScript(ss.str());
+  const app::GestureScript script = testing::gestureScript("grasp-pull-cut.json");
 
   std::printf("OpenBLAS chose %s for this processor at start; pinned to %s (%s)\n",
               simcore::blasCoreChosenAtStart().c_str(), simcore::kPinnedBlasCore, simcore::blasKernel().c_str());

@@ -7,6 +7,7 @@
 // seeks (median, largest), each checked against the straight replay's checksum (a wrong seek is an error).
 // Writes replay-seek.csv into the directory given (default ".").
 //   bench_replay [OUT_DIR] [--quick]
+#include "bench_args.hpp"
 #include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
@@ -41,19 +42,10 @@ double msSince(std::chrono::steady_clock::time_point t0) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string out = ".";
-  bool quick = false;
-  for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--quick") == 0) quick = true;
-    else out = argv[i];
-  }
-  std::filesystem::create_directories(out);
+  const auto [out, quick] = testing::benchArgs(argc, argv);
 
   const std::string shared = REHEARSE_SHARED_DATA;
-  std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull-cut.json");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  const app::GestureScript script = app::parseGestureScript(ss.str());
+  const app::GestureScript script = testing::gestureScript("grasp-pull-cut.json");
   std::ofstream csv(out + "/replay-seek.csv");
   csv << "organ,elements,steps,checkpoints,restore_median_ms,step_median_ms,seeks,seek_median_ms,seek_max_ms,seeks_over_200ms,wrong_seeks\n";
   int wrong = 0;

@@ -10,6 +10,7 @@
 // Time per step: the median step of a run, the median of 3 runs (1 with --quick, and fewer steps).
 // Writes stability.csv into the directory given (default ".").
 //   bench_stability [OUT_DIR] [--quick]
+#include "bench_args.hpp"
 #include "phantom/presets.hpp"
 #include "session_inputs.hpp"
 
@@ -108,13 +109,7 @@ Row run(const std::string& organ, const FemModel& model, const std::vector<int>&
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string out = ".";
-  bool quick = false;
-  for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--quick") == 0) quick = true;
-    else out = argv[i];
-  }
-  std::filesystem::create_directories(out);
+  const auto [out, quick] = testing::benchArgs(argc, argv);
   const std::string shared = REHEARSE_SHARED_DATA;
   const int repeats = quick ? 1 : 3, softSteps = quick ? 10 : 50;
   std::vector<Row> rows;
@@ -177,10 +172,7 @@ int main(int argc, char** argv) {
   }
   // The everyday case: the shipped grasp-pull on the liver preset, linearised (the GUI's method).
   {
-    std::ifstream in(std::string(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json");
-    std::stringstream ss;
-    ss << in.rdbuf();
-    const app::GestureScript script = app::parseGestureScript(ss.str());
+    const app::GestureScript script = testing::gestureScript("grasp-pull.json");
     BodySetup setup = testing::presetBody("liver", shared);
     setup.settings.method = NewtonMethod::Linearised;
     Row row;

@@ -681,12 +681,27 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   return j.dump();
 }
 
-simcore::BodySetup decodeSetup(const std::string& text) {
+namespace {
+RecordedNumerics recordedNumerics(const json& j) {
+  RecordedNumerics n;
+  if (!j.is_object() || !j.contains("recorded_with") || !j["recorded_with"].is_object()) return n;
+  const json& r = j["recorded_with"];
+  auto text = [&](const char* key) {
+    return r.contains(key) && r[key].is_string() ? r[key].get<std::string>().substr(0, 512) : std::string();
+  };
+  n.kernel = text("kernel");
+  n.build = text("build");
+  return n;
+}
+}  // namespace
+
+simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numerics) {
   if (const std::string why = jsonTextProblem(text, "a recorded setup", std::size_t{1} << 30); !why.empty())
     throw std::runtime_error(why);
   try {
     const json j = json::parse(text);
     if (j.value("format", "") != "rehearse-setup-1") throw std::runtime_error("unknown format");
+    if (numerics) *numerics = recordedNumerics(j);
     simcore::BodySetup s;
     const auto& m = j.at("mesh");
     for (const auto& p : m.at("points")) s.mesh.points.push_back(vec(p));
@@ -915,25 +930,13 @@ std::string eventProblem(const simcore::InputEvent& e) {
 }
 
 std::string withRecordedNumerics(const std::string& setupText, const RecordedNumerics& n) {
-  json j = json::parse(setupText);
-  j["recorded_with"] = {{"kernel", n.kernel}, {"build", n.build}};
-  return j.dump(-1, ' ', false, json::error_handler_t::replace);
-}
-
-RecordedNumerics recordedNumerics(const std::string& setupText) {
-  RecordedNumerics n;
-  try {
-    const json j = json::parse(setupText);
-    if (!j.is_object() || !j.contains("recorded_with") || !j["recorded_with"].is_object()) return n;
-    const json& r = j["recorded_with"];
-    auto text = [&](const char* key) {
-      return r.contains(key) && r[key].is_string() ? r[key].get<std::string>().substr(0, 512) : std::string();
-    };
-    n.kernel = text("kernel");
-    n.build = text("build");
-  } catch (const json::exception&) {
-  }
-  return n;
+  // Spliced in before the object's closing brace: the setup (a whole mesh) is not parsed and printed again on the
+  // stepping thread.
+  const auto close = setupText.find_last_of('}');
+  if (close == std::string::npos) throw std::runtime_error("a setup text is not a JSON object");
+  const json with = {{"kernel", n.kernel}, {"build", n.build}};
+  return setupText.substr(0, close) + ",\"recorded_with\":" + with.dump(-1, ' ', false, json::error_handler_t::replace) +
+         setupText.substr(close);
 }
 
 std::string newSessionUuid() {

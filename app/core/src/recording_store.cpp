@@ -163,8 +163,7 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
       sqlite3_bind_int64(q.s, 1, id);
       if (sqlite3_step(q.s) != SQLITE_ROW)
         throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
-      r.setup = decodeSetup(q.column(0));
-      r.numerics = recordedNumerics(q.column(0));
+      r.setup = decodeSetup(q.column(0), &r.numerics);
       r.checksumEvery = sqlite3_column_int(q.s, 1);
       if (r.checksumEvery < 1)
         throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has no checksum interval");
@@ -410,10 +409,11 @@ int copyRecordings(const std::string& from, const std::string& to) {
 }
 
 simcore::BodySetup decodeSharedSetup(const std::string& text, std::uint64_t hash) {
-  simcore::BodySetup s = decodeSetup(text);
+  RecordedNumerics numerics;
+  simcore::BodySetup s = decodeSetup(text, &numerics);
   // Setups written by a build that names what recorded them hash as this one does; older ones (their hash from an
   // older setupHash) are checked by --verify instead, which compares the state each checkpoint restores.
-  if (!recordedNumerics(text).kernel.empty() && setupHash(s) != hash)
+  if (!numerics.kernel.empty() && setupHash(s) != hash)
     throw std::runtime_error("a setup the checkpoints name is not the one its hash says (the file was edited or damaged)");
   return s;
 }

@@ -3,11 +3,13 @@
 // files, case folders' JSON, recorded JSON): read only from a regular file of bounded size, and refused when nested
 // deeper than any file of ours is (issue 60: a FIFO blocked the open; whole files were read with no size cap; a
 // script nested 100,000 deep crashed the JSON library's recursive printing). Header-only, no dependency.
+#include <cerrno>
 #include <cstddef>
-#include <fstream>
 #include <string>
 #include <string_view>
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 namespace rehearse {
 
@@ -51,30 +53,38 @@ inline std::string jsonTextProblem(std::string_view text, const std::string& wha
 /// `why` (one sentence without a full stop, naming the file) when it cannot be.
 inline bool readTextInput(const std::string& path, std::string& text, std::string& why,
                           std::size_t maxBytes = kMaxJsonInputBytes) {
-  struct stat st {};
-  if (::stat(path.c_str(), &st) != 0) {
-    why = path + " does not exist or cannot be reached";
+  // Opened without blocking, then looked at through the descriptor: what is read is what was checked (a pipe put in
+  // the file's place between a check and the open would block it).
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    why = path + (errno == ENOENT ? " does not exist" : " cannot be opened; check its permissions");
     return false;
   }
-  if (!S_ISREG(st.st_mode)) {
-    why = path + (S_ISDIR(st.st_mode) ? " is a folder" : " is not a regular file (a pipe or a device)") +
+  struct stat st {};
+  const bool statted = ::fstat(fd, &st) == 0;
+  if (!statted || !S_ISREG(st.st_mode)) {
+    ::close(fd);
+    why = path + (statted && S_ISDIR(st.st_mode) ? " is a folder" : " is not a regular file (a pipe or a device)") +
           ", not a file to read";
     return false;
   }
   if (static_cast<std::size_t>(st.st_size) > maxBytes) {
+    ::close(fd);
     why = path + " is " + std::to_string(static_cast<long long>(st.st_size) >> 20) + " MiB; at most " +
           std::to_string(maxBytes >> 20) + " MiB is read";
     return false;
   }
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    why = path + " cannot be opened; check its permissions";
-    return false;
-  }
+  // Up to the size it had: a file that grows while it is read is never read past the limit.
   text.assign(static_cast<std::size_t>(st.st_size), '\0');
-  in.read(text.data(), static_cast<std::streamsize>(text.size()));
-  text.resize(static_cast<std::size_t>(in.gcount()));
-  // A file that grew while it was read is read up to the size it had: never more than the limit.
+  std::size_t got = 0;
+  while (got < text.size()) {
+    const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) break;
+    got += static_cast<std::size_t>(n);
+  }
+  ::close(fd);
+  text.resize(got);
   return true;
 }
 

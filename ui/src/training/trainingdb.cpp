@@ -285,8 +285,7 @@ app::Recording TrainingDatabase::load(qint64 id) {
                       q.value(4).toString().toStdString(), q.value(5).toString().toStdString(),
                       q.value(6).toString().toStdString(), ""};
     r.summary.startedUtc = q.value(2).toString().toStdString();
-    r.setup = app::decodeSetup(q.value(7).toString().toStdString());
-    r.numerics = app::recordedNumerics(q.value(7).toString().toStdString());
+    r.setup = app::decodeSetup(q.value(7).toString().toStdString(), &r.numerics);
     r.checksumEvery = q.value(8).toInt();
     r.summary.steps = static_cast<long>(q.value(9).toLongLong());
     r.summary.complete = q.value(10).toBool();

@@ -39,11 +39,24 @@ namespace rehearse::app {
 /// FNV-1a 64 over the bytes of the positions, velocities and time: equal only for bit-identical states.
 std::uint64_t stateChecksum(const simcore::SimulationState& s);
 
+/// What made a recording (issue 60): the numerical kernel of its linear solves (simcore::linearSolveKernel) and the
+/// build (program version, compiler, floating-point flags). Kept in the session's setup text under "recorded_with",
+/// so that every copy (another file, the training database) carries it; empty in a recording made before.
+struct RecordedNumerics {
+  std::string kernel, build;
+};
+/// The setup text (an object, as encodeSetup writes it) with `n` added; decodeSetup reads it back.
+std::string withRecordedNumerics(const std::string& setupText, const RecordedNumerics& n);
+/// The same for this process (what a recording made or replayed here says).
+RecordedNumerics currentNumerics(const simcore::BodySetup& setup, const std::string& appVersion);
+
 /// A body setup as JSON text (every field, doubles to the last bit) and back. Throws std::runtime_error
 /// with one sentence for text that is not one. A setup with a cut in progress is refused (a recording
 /// starts from a body at rest).
 std::string encodeSetup(const simcore::BodySetup& s);
-simcore::BodySetup decodeSetup(const std::string& json);
+/// `numerics`, when given, receives what the text says made it (empty fields when it says nothing; each at most 512
+/// characters).
+simcore::BodySetup decodeSetup(const std::string& json, RecordedNumerics* numerics = nullptr);
 std::string encodeEvent(const simcore::InputEvent& e);
 simcore::InputEvent decodeEvent(const std::string& json);
 /// What makes a decoded setup unusable (node indices out of range, sizes that disagree, an unknown enum, a
@@ -52,19 +65,6 @@ simcore::InputEvent decodeEvent(const std::string& json);
 std::string setupProblem(const simcore::BodySetup& s);
 /// The same for a recorded event (an unknown kind or parameter, a value outside its range, no number).
 std::string eventProblem(const simcore::InputEvent& e);
-/// What made a recording (issue 60): the numerical kernel of its linear solves (simcore::linearSolveKernel) and the
-/// build (program version, compiler, floating-point flags). Kept in the session's setup text under "recorded_with",
-/// so that every copy (another file, the training database) carries it; empty in a recording made before.
-struct RecordedNumerics {
-  std::string kernel, build;
-};
-/// The setup text with `n` added; and read back from a setup text (empty fields when absent or not text; each at
-/// most 512 characters, longer ones are cut).
-std::string withRecordedNumerics(const std::string& setupText, const RecordedNumerics& n);
-RecordedNumerics recordedNumerics(const std::string& setupText);
-/// The same for this process (what a recording made or replayed here says).
-RecordedNumerics currentNumerics(const simcore::BodySetup& setup, const std::string& appVersion);
-
 /// A new random identity for a recorded session (32 hex digits).
 std::string newSessionUuid();
 
