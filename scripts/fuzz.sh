@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets of the hand-written parsers, the recording's decoders, our checks on third-party
-# formats and the surface readers behind them (assimp) with clang (ASan + UBSan) and runs each for
+# formats and the surface and label-image readers behind them (assimp, ITK, CGAL's ImageIO) with clang (ASan + UBSan) and runs each for
 # the given number of seconds (default 30), starting from the seed files in tests/fuzz/seeds.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -8,11 +8,11 @@ SECONDS_EACH="${1:-30}"
 if [ ! -f build-fuzz/CMakeCache.txt ]; then cmake --preset fuzz >/dev/null; fi
 cmake --build build-fuzz -j"$(nproc)"
 status=0
-for target in gmsh vtk vtu medit recording input_checks surfaces; do
-  # The surface readers run assimp, which leaks on some files it refuses (a library's, not ours): leaks are not findings
-  # there; crashes, hangs and memory past the limit are.
+for target in gmsh vtk vtu medit recording input_checks surfaces images; do
+  # The surface and image readers run assimp and ITK, which leak on some files they refuse (a library's, not ours):
+  # leaks are not findings there; crashes, hangs and memory past the limit are.
   leaks=1
-  if [ "$target" = surfaces ]; then leaks=0; fi
+  if [ "$target" = surfaces ] || [ "$target" = images ]; then leaks=0; fi
   corpus="build-fuzz/corpus-$target"
   artifacts="build-fuzz/findings-$target/"
   mkdir -p "$corpus" "$artifacts"

@@ -707,9 +707,18 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
   std::string_view line;
   std::map<std::string, std::string> fields;
   bool sawData = false;
-  while (pos < 65536 && nextLine(bytes, pos, line)) {
+  // MetaIO reads a field's name up to the next '=', across line ends, and copies it into a 255-byte buffer with strcpy
+  // (found by fuzzing: a 400-character name overflowed it, caught by glibc's fortify as SIGABRT). Names here are short.
+  std::size_t keyStart = 0;
+  while (pos < 65536) {
+    const std::size_t lineStart = pos;
+    if (!nextLine(bytes, pos, line)) break;
     const std::size_t eq = line.find('=');
     if (eq == std::string_view::npos) continue;
+    if (const std::size_t nameBytes = lineStart + eq - keyStart; nameBytes > 200)
+      return "a field name of " + num(static_cast<double>(nameBytes)) +
+             " characters (the text before an '='; MetaImage names are a few words)";
+    keyStart = pos;
     const std::string key(trim(line.substr(0, eq)));
     fields[key] = std::string(trim(line.substr(eq + 1)));
     if (key == "ElementDataFile") {

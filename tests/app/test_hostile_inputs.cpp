@@ -2,7 +2,8 @@
 // program: JSON nested 100,000 deep, a FIFO where a file goes, settings inside the old ranges that never end, a
 // recording whose step count says 10^12, a setup edited under its hash, a case folder's damaged ligaments, an
 // appearance of 10^308, a contour of 400,000 points, a VTU whose blocks claim gigabytes. Each is refused with one
-// sentence and an exit code in 1-123: no signal, no hang (every run here is bounded at 60 s), never accepted silently.
+// sentence and an exit code in 1-123: no signal, no hang (every run here is bounded at 60 s), no memory past 8 GiB (each
+// run's data is limited to that), never accepted silently.
 #include "cli_run.hpp"
 #include "gesture_args.hpp"
 #include "test_support.hpp"
@@ -33,7 +34,7 @@ constexpr int kLimitMs = 60000;
 void expectRefused(const QStringList& args, const QString& fragment, const char* what) {
   QElapsedTimer t;
   t.start();
-  const Run r = ::testing::run(args, kLimitMs);
+  const Run r = ::testing::run(args, kLimitMs, nullptr, /*boundMemory=*/true);
   const qint64 ms = t.elapsed();
   qInfo("%s: exit %d after %lld ms: %s", what, r.code, static_cast<long long>(ms), qPrintable(r.err.trimmed()));
   QVERIFY2(r.code >= 1 && r.code <= 123, qPrintable(QString("%1: exit %2 (-1: a signal or no end within 60 s) %3")
@@ -81,6 +82,23 @@ class TestHostileInputs : public QObject {
     caseDir_ = dir_.path() + "/case";
     const Run r = ::testing::run({"phantom", "--out", caseDir_});
     QVERIFY2(r.code == 0, qPrintable(r.err));
+  }
+
+  // The memory bound the runs here are under holds in the child: the shell a QProcess starts under it reports 8 GiB
+  // (`ulimit -d`, in KiB), and a child that asks for more than that is refused memory.
+  void runsAreBoundedInMemory() {
+    QProcess p;
+    p.setChildProcessModifier(::testing::limitChildMemory);
+    p.start("/bin/sh", {"-c", "ulimit -d"});
+    QVERIFY(p.waitForFinished(10000));
+    QCOMPARE(QString::fromUtf8(p.readAllStandardOutput()).trimmed(), QString::number(8 * 1024 * 1024));
+    // dd with a 9 GiB block asks for it at once: without the bound it copies one block and exits 0.
+    QProcess q;
+    q.setChildProcessModifier(::testing::limitChildMemory);
+    q.start("/bin/dd", {"if=/dev/zero", "of=/dev/null", "bs=9G", "count=1"});
+    QVERIFY(q.waitForFinished(30000));
+    const QString said = QString::fromUtf8(q.readAllStandardError());
+    QVERIFY2(q.exitCode() != 0 && said.contains("memory"), qPrintable(said));
   }
 
   // JSON nested deeper than any file of ours (the gesture script's incorrect actions 100,000 deep crashed the JSON

@@ -4,6 +4,8 @@
 #include <QString>
 #include <QStringList>
 
+#include <sys/resource.h>
+
 namespace testing {
 
 struct Run {
@@ -11,9 +13,20 @@ struct Run {
   QString out, err;
 };
 
-inline Run run(const QStringList& args, int timeoutMs = 300000, const QProcessEnvironment* env = nullptr) {
+/// The most memory a hostile file may make the program take (issue 60): 8 GiB of data (heap, anonymous mappings and
+/// stacks; RLIMIT_DATA counts what is written, not address space reserved), applied in the child before it starts.
+inline constexpr rlim_t kHostileMemoryLimit = rlim_t{8} << 30;
+inline void limitChildMemory() {
+  const rlimit limit{kHostileMemoryLimit, kHostileMemoryLimit};
+  ::setrlimit(RLIMIT_DATA, &limit);
+}
+
+/// Runs the command line; with `boundMemory`, under kHostileMemoryLimit (past it, allocation fails in the child).
+inline Run run(const QStringList& args, int timeoutMs = 300000, const QProcessEnvironment* env = nullptr,
+               bool boundMemory = false) {
   QProcess p;
   if (env) p.setProcessEnvironment(*env);
+  if (boundMemory) p.setChildProcessModifier(limitChildMemory);
   p.start(QStringLiteral(REHEARSE_BINARY), args);
   p.waitForFinished(timeoutMs);
   return {p.exitStatus() == QProcess::NormalExit ? p.exitCode() : -1, QString::fromUtf8(p.readAllStandardOutput()),
