@@ -95,11 +95,25 @@ Camera loadCamera(const std::string& path, int width, int height) {
     try {
       cv::FileStorage fsx(path, cv::FileStorage::READ);
       if (!fsx.isOpened()) throw InputError(name + " is not an OpenCV calibration file; check its format.");
+      // OpenCV allocates a matrix of the rows and columns its node declares before it reads the data (found by
+      // fuzzing: "cols: 2147483647" asked for 16 GiB): a calibration's matrices are small, so larger ones are refused
+      // before they are read.
+      auto read = [&](const char* key, cv::Mat& m) {
+        const cv::FileNode node = fsx[key];
+        if (node.empty()) return;
+        const double count = node.isMap() ? static_cast<double>(static_cast<int>(node["rows"])) *
+                                                static_cast<double>(static_cast<int>(node["cols"]))
+                                          : static_cast<double>(node.size());
+        if (!(count >= 0 && count <= 64))
+          throw InputError(name + "'s " + key + " declares " + std::to_string(static_cast<long long>(count)) +
+                           " values; a calibration matrix holds at most 64. Check the calibration file.");
+        node >> m;
+      };
       cv::Mat K, D;
-      fsx["camera_matrix"] >> K;
-      fsx["distortion_coefficients"] >> D;
-      if (K.empty()) fsx["K"] >> K;
-      if (D.empty()) fsx["D"] >> D;
+      read("camera_matrix", K);
+      read("distortion_coefficients", D);
+      if (K.empty()) read("K", K);
+      if (D.empty()) read("D", D);
       if (K.rows != 3 || K.cols != 3) throw InputError(name + " has no 3x3 camera_matrix; check the calibration file.");
       K.convertTo(K, CV_64F);
       for (int r = 0; r < 3; ++r)
@@ -114,7 +128,11 @@ Camera loadCamera(const std::string& path, int width, int height) {
       if (!fsx["image_height"].empty()) fsx["image_height"] >> h;
       if (w > 0) c.width = w;
       if (h > 0) c.height = h;
-    } catch (const cv::Exception&) {
+    } catch (const InputError&) {
+      throw;
+    } catch (const std::exception&) {
+      // cv::Exception, and what its parser lets through of the standard library's (found by fuzzing: a damaged YAML
+      // matrix made FileStorage throw std::length_error, which ended the program).
       throw InputError(name + " is not a readable OpenCV calibration file; check its format.");
     }
     return finish(c, path);

@@ -1,6 +1,8 @@
 // Checks of our own on input files before assimp, ITK or cv::FileStorage read them (see input_checks.hpp).
 #include <rehearse/simcore/input_checks.hpp>
 
+#include <tinyxml2.h>
+
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
@@ -778,6 +780,15 @@ std::string calibrationMarkupProblem(std::string_view bytes, bool xml) {
     return "it is " + num(static_cast<double>(bytes.size() >> 10)) + " kB, more than a calibration file's " +
            num(static_cast<double>(kMaxCalibrationBytes >> 10)) + " kB";
   const std::string deep = "it is nested more than " + num(kMaxCalibrationDepth) + " levels deep";
+  // A calibration is text. OpenCV's parsers read it as C strings: a NUL byte inside an XML declaration made its XML
+  // parser follow a null pointer (SIGSEGV, found by fuzzing). Control characters other than tab and line ends are
+  // refused.
+  for (std::size_t i = 0; i < bytes.size(); ++i) {
+    const auto c = static_cast<unsigned char>(bytes[i]);
+    if ((c < 0x20 && c != '\t' && c != '\n' && c != '\r') || c == 0x7f)
+      return "it holds a control character (byte " + num(c) + " at offset " + num(static_cast<double>(i)) +
+             "), which a calibration's text does not";
+  }
   if (xml) {
     int depth = 0;
     for (std::size_t i = 0; i + 1 < bytes.size(); ++i) {
@@ -793,6 +804,13 @@ std::string calibrationMarkupProblem(std::string_view bytes, bool xml) {
       if (close == std::string_view::npos) break;
       i = close;
     }
+    // Then the XML itself, by a parser that checks it (OpenCV's does not): well formed, an OpenCV storage.
+    tinyxml2::XMLDocument doc;
+    if (doc.Parse(bytes.data(), bytes.size()) != tinyxml2::XML_SUCCESS)
+      return std::string("it is not well-formed XML (") + doc.ErrorName() + " at line " + num(doc.ErrorLineNum()) + ")";
+    const tinyxml2::XMLElement* root = doc.RootElement();
+    if (!root || std::string_view(root->Name()) != "opencv_storage")
+      return "its XML is not an OpenCV storage (the root element is not <opencv_storage>)";
     return {};
   }
   // YAML: block levels (distinct indentations, and "- " entries) plus flow brackets.

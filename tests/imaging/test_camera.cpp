@@ -284,6 +284,43 @@ class TestCamera : public QObject {
     QCOMPARE(imaging::loadPose(tempPath("nine.json")).t.z(), 9.0);
   }
 
+  // Found by fuzzing loadCamera (fuzz_calibration): cv::FileStorage threw std::length_error on a damaged YAML matrix
+  // (uncaught: the program ended), allocated the 16 GiB a matrix node's "cols: 2147483647" asks for before reading
+  // its data, and followed a null pointer on an XML declaration holding NUL bytes (SIGSEGV). Each refused with one
+  // sentence, as the fuzzer's saved inputs and as the smallest files that show it; a sound XML and YAML still load.
+  void fuzzedCalibrationsAreRefused() {
+    auto refused = [](const std::string& file, const std::string& bytes, const char* must) {
+      const std::string p = tempPath(file);
+      writeFile(p, bytes);
+      try {
+        imaging::loadCamera(p);
+        QFAIL(qPrintable(QString::fromStdString("accepted: " + file)));
+      } catch (const imaging::InputError& e) {
+        const QString w = e.what();
+        QVERIFY2(w.contains(QString::fromStdString(file)) && w.contains(must) && !w.contains('\n'), qPrintable(w));
+      }
+    };
+    // The fuzzer's inputs: the first byte chose the extension (0 .yaml, 1 .yml, 2 .xml).
+    const std::string seeds = std::string(REHEARSE_SOURCE_DIR) + "/tests/fuzz/seeds/calibration/";
+    refused("length.yml", readFile(seeds + "crash-yaml-length-error").substr(1), "not a readable OpenCV calibration");
+    refused("cols.yaml", readFile(seeds + "oom-yaml-matrix-cols").substr(1), "declares 2147483647 values");
+    refused("nul.xml", readFile(seeds + "crash-xml-nul-in-declaration").substr(1), "control character");
+    const std::string matrix = "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
+                               "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
+                               "   data: [ 520., 0., 320., 0., 520., 240., 0., 0., 1. ]\n";
+    refused("huge.yaml", matrix + "distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 2147483647\n"
+                                  "   dt: d\n   data: [ 0.1 ]\n", "declares 2147483647 values");
+    refused("negative.yaml", matrix + "distortion_coefficients: !!opencv-matrix\n   rows: -1\n   cols: 5\n"
+                                      "   dt: d\n   data: [ 0.1 ]\n", "declares -5 values");
+    refused("root.xml", "<?xml version=\"1.0\"?>\n<storage><camera_matrix/></storage>\n", "not an OpenCV storage");
+    refused("open.xml", "<?xml version=\"1.0\"?>\n<opencv_storage><camera_matrix>\n", "not well-formed XML");
+    writeFile(tempPath("sound.yaml"), matrix);
+    QCOMPARE(imaging::loadCamera(tempPath("sound.yaml")).fx(), 520.0);
+    imaging::Camera c = imaging::Camera::defaultFor(640, 480);
+    imaging::saveCamera(c, tempPath("sound.xml"));
+    QCOMPARE(imaging::loadCamera(tempPath("sound.xml")).fx(), c.fx());
+  }
+
   // A mesh behind the camera renders nothing (no crash); a mesh crossing the image plane is clipped.
   // Picking a point on the organ (landmarks, curves on the organ) casts one ray; it must see what the
   // depth buffer sees: two spheres, the near one hiding part of the far one, turned 30 degrees.
