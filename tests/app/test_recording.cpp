@@ -96,10 +96,10 @@ class TestRecording : public QObject {
     struct Variant {
       QString name, core, libraryPath, tunables;
     };
-    const std::vector<Variant> variants = {{"Prescott", "Prescott", ""},   {"Haswell", "Haswell", ""},
-                                           {"SkylakeX", "SkylakeX", ""},   {"Zen", "Zen", ""},
-                                           {"Cooperlake", "Cooperlake", ""}, {"unset", "", ""},
-                                           {"reference BLAS as libblas.so.3", "", referenceBlas + ":" + referenceLapack},
+    const std::vector<Variant> variants = {{"Prescott", "Prescott", "", ""},   {"Haswell", "Haswell", "", ""},
+                                           {"SkylakeX", "SkylakeX", "", ""},   {"Zen", "Zen", "", ""},
+                                           {"Cooperlake", "Cooperlake", "", ""}, {"unset", "", "", ""},
+                                           {"reference BLAS as libblas.so.3", "", referenceBlas + ":" + referenceLapack, ""},
                                            // A processor without AVX or FMA, as glibc sees it (its libm and string
                                            // functions choose their SSE2 versions).
                                            {"no AVX, no FMA", "Prescott", "",
