@@ -101,11 +101,12 @@ Camera loadCamera(const std::string& path, int width, int height) {
       auto read = [&](const char* key, cv::Mat& m) {
         const cv::FileNode node = fsx[key];
         if (node.empty()) return;
-        const double count = node.isMap() ? static_cast<double>(static_cast<int>(node["rows"])) *
-                                                static_cast<double>(static_cast<int>(node["cols"]))
-                                          : static_cast<double>(node.size());
-        if (!(count >= 0 && count <= 64))
-          throw InputError(name + "'s " + key + " declares " + std::to_string(static_cast<long long>(count)) +
+        // (Two ints multiply exactly in 64 bits.)
+        const long long count = node.isMap() ? static_cast<long long>(static_cast<int>(node["rows"])) *
+                                                   static_cast<long long>(static_cast<int>(node["cols"]))
+                                             : static_cast<long long>(node.size());
+        if (count < 0 || count > 64)
+          throw InputError(name + "'s " + key + " declares " + std::to_string(count) +
                            " values; a calibration matrix holds at most 64. Check the calibration file.");
         node >> m;
       };

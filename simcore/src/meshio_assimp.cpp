@@ -80,9 +80,15 @@ Mesh loadSurfaceAssimp(const std::string& path) {
       // count crashed the later steps).
       path, aiProcess_ValidateDataStructure | aiProcess_RemoveComponent | aiProcess_Triangulate |
                 aiProcess_JoinIdenticalVertices | aiProcess_SortByPType);
-  if (!scene || !scene->mRootNode)
-    throw MeshError("This surface file cannot be read: " + std::string(importer.GetErrorString()) +
+  if (!scene || !scene->mRootNode) {
+    // assimp's validation speaks of its own structures ("aiScene::mNumMeshes is 0"): said in the file's terms.
+    const std::string error = importer.GetErrorString();
+    if (error.find("mNumMeshes is 0") != std::string::npos)
+      throw MeshError("This surface file holds no surface (no triangles were found in it); check that it is the "
+                      "organ's surface and in the format its extension says.");
+    throw MeshError("This surface file cannot be read: " + error +
                     "; check that the file is complete and in the format its extension says.");
+  }
   Mesh m;
   collect(scene, m);
   return m;

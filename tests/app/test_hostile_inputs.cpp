@@ -134,6 +134,12 @@ class TestHostileInputs : public QObject {
     expectRefused({"compose", "--case", caseDir_, "--pose", caseDir_ + "/pose.json", "--theta", fifo, "--out",
                    dir_.path() + "/j.png"},
                   "is not a regular file", "appearance a FIFO");
+    // A recording: SQLite's open blocked on it (a user's check found `replay` hung until killed).
+    const QString recordingFifo = dir_.path() + "/pipe.rehearse";
+    QCOMPARE(::mkfifo(recordingFifo.toUtf8().constData(), 0600), 0);
+    expectRefused({"replay", recordingFifo, "--session", "1", "--verify"}, "is not a regular file",
+                  "recording a FIFO");
+    expectRefused({"replay", fifo}, "is not a regular file", "recording a FIFO named .json");
   }
 
   // Values the old ranges let through and that never end (or make no sense): each refused with its range.

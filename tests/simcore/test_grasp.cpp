@@ -449,6 +449,56 @@ class TestGrasp : public QObject {
     QVERIFY(slipped);
   }
 
+  // Issue 61: a quick 20 mm pull let go at 34.9 N with a maximum of 15 N (the chart peaked at 39 N): the slip came
+  // after a whole step's pull. The jaws now let go at the limit, to first order: on the liver preset, grasped and
+  // pulled away from the organ at 0.5, 2 and 5 mm per step and in one 20 mm jump, the grasp force is never above
+  // the limit by more than 10 % and the tissue slips at it within 15 % (measured: 15.3, 16.0, 15.3, 15.3 N of 15); the
+  // same pulls as recorded before (slipAtLimit false) went past it: 21.5 N at 5 mm per step, 99.1 N for the jump
+  // (the test's own contrast: the jump at least 1.5x the limit).
+  void letsGoAtTheMaximumForce() {
+    struct Pull {
+      double mmPerStep;
+      int steps;
+    };
+    for (const bool atLimit : {true, false})
+      for (const Pull pull : {Pull{0.5, 200}, Pull{2, 60}, Pull{5, 30}, Pull{20, 3}}) {
+        simcore::BodySetup s = liverSetup();
+        s.tools.slipAtLimit = atLimit;
+        const double max = s.tools.maxGraspForce;
+        simcore::Session session(s);
+        for (int k = 0; k < 50; ++k) session.advance();
+        Eigen::Vector3d tip = session.snapshot()->positions.front();
+        for (const auto& p : session.snapshot()->positions)
+          if ((p - Eigen::Vector3d(0, 0, -0.05)).norm() < (tip - Eigen::Vector3d(0, 0, -0.05)).norm()) tip = p;
+        session.post(toolAt(tip));
+        session.post(jaws(true));
+        session.advance();
+        QVERIFY(!session.snapshot()->tool.held.empty());
+        double peak = 0, slipForce = -1;
+        for (int k = 1; k <= pull.steps && slipForce < 0; ++k) {
+          // Up and away from the organ (its attachments are on top: the pull stretches it).
+          session.post(toolAt(tip + Eigen::Vector3d(0, 0, -0.001 * pull.mmPerStep * k)));
+          session.advance();
+          const auto snap = session.snapshot();
+          peak = std::max(peak, snap->tool.graspForce.norm());
+          if (std::find(snap->events.begin(), snap->events.end(), "slip") != snap->events.end()) {
+            std::sscanf(snap->message.c_str(), "The tissue slipped out of the grasper at %lf N", &slipForce);
+            peak = std::max(peak, slipForce);  // (the snapshot's force is the hold's after it let go: none)
+            QVERIFY2(snap->tool.held.empty(), snap->message.c_str());
+          }
+        }
+        qInfo("%s, %.1f mm per step: peak grasp force %.2f N, slipped at %.2f N (limit %.0f N)",
+              atLimit ? "at the limit" : "as recorded before", pull.mmPerStep, peak, slipForce, max);
+        QVERIFY2(slipForce > 0, "the pull never slipped");
+        if (atLimit) {
+          QVERIFY(peak <= 1.10 * max);
+          QVERIFY(std::abs(slipForce - max) <= 0.15 * max);
+        } else if (pull.mmPerStep == 20) {
+          QVERIFY2(slipForce > 1.5 * max, "the overshoot this test is about is no longer there to remove");
+        }
+      }
+  }
+
   // Contact (triangle-based, off by default: README): a 40 x 20 x 20 mm block (5 mm elements) on a fixed base;
   // a vertical instrument of 6 mm radius (wider than an element) and one of 1 mm (thinner: it meets the face
   // between nodes) comes down on the middle of its top face, its tip 2 mm below where the face was. Every

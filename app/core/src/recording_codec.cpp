@@ -23,6 +23,21 @@ namespace {
 
 using nlohmann::json;
 
+// Why a recorded text could not be read, in words a person can act on: the JSON library's error without its
+// "[json.exception...]" tag, a parse error as where it is (not the damaged bytes it read, which may not even be
+// UTF-8), other bytes outside printable ASCII as '?', at most 160 characters.
+std::string readableReason(const std::exception& e) {
+  if (const auto* p = dynamic_cast<const json::parse_error*>(&e))
+    return "its text is not valid JSON at byte " + std::to_string(p->byte);
+  std::string why = e.what();
+  if (why.rfind("[json.exception.", 0) == 0)
+    if (const std::size_t end = why.find("] "); end != std::string::npos) why.erase(0, end + 2);
+  for (char& c : why)
+    if (static_cast<unsigned char>(c) < 0x20 || static_cast<unsigned char>(c) >= 0x7f) c = '?';
+  if (why.size() > 160) why = why.substr(0, 157) + "...";
+  return why;
+}
+
 // A field added to these structs must be recorded too: these sizes stop the build until encodeSetup knows it.
 static_assert(sizeof(simcore::MaterialParams) == 40,
               "MaterialParams changed: record the new field in encodeSetup/decodeSetup");
@@ -659,6 +674,8 @@ std::string encodeSetup(const simcore::BodySetup& s) {
                   {"snapFront", t.cut.snapFront}}}};
   // Written only where it differs from the cut's (the text of every setup from before it existed stays as it was).
   if (t.tearLatencySteps != t.cutLatencySteps) j["tools"]["tearLatencySteps"] = t.tearLatencySteps;
+  // Written only when on (setups recorded before it existed let go after a whole step: their text stays as it was).
+  if (t.slipAtLimit) j["tools"]["slipAtLimit"] = true;
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
   if (!(t.clip == simcore::ClipSettings{}))  // (setups recorded before the clip applier keep their text and hash)
     j["tools"]["clip"] = {
@@ -730,6 +747,7 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
     s.tools.tearLatencySteps =  // ... and tears at the cut's latency, as they were
         t.contains("tearLatencySteps") ? asInt(t.at("tearLatencySteps")) : s.tools.cutLatencySteps;
     s.tools.jawsKeepTheirHold = t.value("jawsKeepTheirHold", false);          // ... and the jaws followed every tip
+    s.tools.slipAtLimit = t.value("slipAtLimit", false);  // ... and the jaws let go after a whole step's pull
     s.tools.cut.snap = t.at("cut").at("snap");
     s.tools.cut.minQuality = t.at("cut").at("minQuality");
     s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");
@@ -760,7 +778,7 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
     if (const std::string why = setupProblem(s); !why.empty()) throw std::runtime_error(why);
     return s;
   } catch (const std::exception& e) {
-    throw std::runtime_error(std::string("the recorded setup cannot be read (") + e.what() + ")");
+    throw std::runtime_error("the recorded setup cannot be read (" + readableReason(e) + ")");
   }
 }
 
@@ -797,7 +815,7 @@ simcore::InputEvent decodeEvent(const std::string& text) {
     if (const std::string why = eventProblem(e); !why.empty()) throw std::runtime_error(why);
     return e;
   } catch (const std::exception& e) {
-    throw std::runtime_error(std::string("a recorded event cannot be read (") + e.what() + ")");
+    throw std::runtime_error("a recorded event cannot be read (" + readableReason(e) + ")");
   }
 }
 

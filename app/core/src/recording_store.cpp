@@ -9,6 +9,7 @@
 
 #include <nlohmann/json.hpp>
 #include <sqlite3.h>
+#include <sys/stat.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -47,6 +48,11 @@ constexpr const char* kSchema =
     "PRIMARY KEY(session, step));";
 
 sqlite3* openStore(const std::string& path, bool create) {
+  // A FIFO or a device where the recording goes: SQLite's open and first read would block on it for ever (a replay of
+  // a FIFO named .rehearse hung). Only a regular file (or none yet, to create) is opened.
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
+    throw std::runtime_error(path + " is not a regular file (a folder, a pipe or a device); a recording is a file");
   sqlite3* db = nullptr;
   const int flags = create ? SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE : SQLITE_OPEN_READONLY;
   if (sqlite3_open_v2(path.c_str(), &db, flags, nullptr) != SQLITE_OK) {
@@ -163,7 +169,11 @@ Recording loadRecording(const std::string& path, std::int64_t id) {
       sqlite3_bind_int64(q.s, 1, id);
       if (sqlite3_step(q.s) != SQLITE_ROW)
         throw std::runtime_error(path + " has no recorded session " + std::to_string(id));
-      r.setup = decodeSetup(q.column(0), &r.numerics);
+      try {
+        r.setup = decodeSetup(q.column(0), &r.numerics);
+      } catch (const std::exception& e) {
+        throw std::runtime_error("session " + std::to_string(id) + " in " + path + ": " + e.what());
+      }
       r.checksumEvery = sqlite3_column_int(q.s, 1);
       if (r.checksumEvery < 1)
         throw std::runtime_error("session " + std::to_string(id) + " in " + path + " has no checksum interval");

@@ -78,8 +78,9 @@ class Grasper final : public Instrument {
   bool stepped(ToolState& tool, InstrumentHost& host, std::string& message) override {
     // Pulled harder than the jaws can hold: the tissue slips out (the jaws stay closed, holding nothing). The jaws' own
     // share decides: the shaft pressing on the tissue does not open them.
+    // The jaws held back at the limit this step let go whatever the force came to (near the limit, to first order).
     const double max = host.tools().maxGraspForce;
-    if (tool.held.empty() || !(tool.graspForce.norm() > max)) return false;
+    if (tool.held.empty() || !(tool.graspForce.norm() > max || host.jawsAtGraspLimit())) return false;
     char buf[200];
     std::snprintf(buf, sizeof buf,
                   "The tissue slipped out of the grasper at %.3g N (the scene's maximum grasp force is %.3g N).",

@@ -358,6 +358,31 @@ void Session::apply(const InputEvent& e, std::string& message) {
     updateToolConstraints();  // rebuildBody did it for the others
 }
 
+bool Session::limitJawsAtGraspForce() {
+  // Where the jaws were at the last step's end: the held nodes sit at their offsets from them (the hold's rows).
+  if (!setup_.tools.slipAtLimit || !tool_.jawClosed || tool_.held.empty() || tool_.jawTip != tool_.tip) return false;
+  Eigen::Vector3d before = Eigen::Vector3d::Zero(), velocity = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < tool_.held.size(); ++k) {
+    const Eigen::Index i = 3 * static_cast<Eigen::Index>(tool_.held[k]);
+    before += state_.x.segment<3>(i) - tool_.heldOffset[k];
+    velocity += state_.v.segment<3>(i);
+  }
+  before /= static_cast<double>(tool_.held.size());
+  velocity /= static_cast<double>(tool_.held.size());
+  // The grasp force along the move, to first order: F(s) = F + s K d for the share s of the move d taken, d the jaws'
+  // move beyond where the held tissue goes on its own over the step (K, the step's stiffness, includes the tissue's
+  // inertia: a steady pull adds only what the tissue's stretching adds, and lets go within that one step's change).
+  const double h = setup_.settings.timeStep;
+  const Eigen::Vector3d d = tool_.jawTip - before - velocity * h, f = tool_.graspForce, kd = tool_.stiffness * d;
+  const double max = setup_.tools.maxGraspForce;
+  if (!(f + kd).allFinite() || (f + kd).norm() <= max || kd.squaredNorm() == 0) return false;
+  // |f + s kd| = max: the larger root of a s^2 + b s + c = 0 (c < 0 when the force is below the limit now).
+  const double a = kd.squaredNorm(), b = 2 * f.dot(kd), c = f.squaredNorm() - max * max;
+  const double share = c >= 0 ? 0.0 : std::clamp((-b + std::sqrt(b * b - 4 * a * c)) / (2 * a), 0.0, 1.0);
+  tool_.jawTip = before + velocity * h + share * d;
+  return true;
+}
+
 StepReport Session::advance() {
   std::lock_guard<std::mutex> stepLock(stepMutex_);
   // The events due at this boundary, in the order they were posted.
@@ -392,10 +417,11 @@ StepReport Session::advance() {
     recorded_.push_back(e);
   }
   if (stroke_.open && !tool_.cutting && !pending_ && !restOfSweep_) finishStroke(message);
+  slipDue_ = limitJawsAtGraspForce();
   for (auto& i : instruments_) i->stepping(setup_.settings.timeStep, tool_, *this, message);  // the cautery heats
   // Contacts move with the tissue: detected at every step. The clips' rows are made at every step too (closing ones
   // close further; made from the time alone, so a session restored at any step makes the same rows).
-  if ((tool_.present && setup_.tools.toolRadius > 0) || !field_.clips.empty()) updateToolConstraints();
+  if ((tool_.present && setup_.tools.toolRadius > 0) || !field_.clips.empty() || slipDue_) updateToolConstraints();
   const double timeBefore = state_.time;
   const StepReport rep = body_->step(state_);
   if (rep.ok && state_.time > timeBefore)

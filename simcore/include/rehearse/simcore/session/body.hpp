@@ -22,6 +22,12 @@ namespace rehearse::simcore {
 struct ToolSettings {
   double graspRadius = 0.006;   ///< m: closing the jaws holds the nodes within this distance of the tip
   double maxGraspForce = 15.0;  ///< N: above this pull the tissue slips out of the jaws (an event)
+  /// The jaws let go at maxGraspForce within a step's change: before a step that would pull the held tissue past it
+  /// (the last step's grasp force and tool stiffness, extrapolated along the jaws' move), the jaws go only as far as the
+  /// force reaches it, and the tissue slips after that step. false: a step's whole move was taken and the tissue slipped
+  /// after it, however far past the limit the force had gone (a quick 20 mm pull let go at 34.9 N of 15; the sessions
+  /// recorded before this existed).
+  bool slipAtLimit = true;
   /// Where the instruments' shafts enter (m, body frame); unset: above the organ towards the camera
   /// (the session sets it from the rest shape: twice the organ's radius from its centre along (0, -1, -2)).
   std::optional<Eigen::Vector3d> trocar;
@@ -59,7 +65,7 @@ struct ToolSettings {
   ClipSettings clip;        ///< the clip applier's jaws and clips (field.hpp)
   CauterySettings cautery;  ///< the cautery hook's reach, burn time and the stiffening of burnt tissue (field.hpp)
   bool operator==(const ToolSettings& o) const {
-    return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce &&
+    return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && slipAtLimit == o.slipAtLimit &&
            trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
            bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
            cutLatencySteps == o.cutLatencySteps && tearLatencySteps == o.tearLatencySteps && cut.snap == o.cut.snap &&

@@ -33,6 +33,8 @@ class InstrumentHost {
   virtual const ToolSettings& tools() const = 0;
   virtual const SimulationSettings& settings() const = 0;  ///< the time step and method in use
   virtual double meanEdge() const = 0;                   ///< of the uncut mesh (m)
+  /// The jaws were held back this step to let go at the grasp limit (ToolSettings::slipAtLimit): let go now.
+  virtual bool jawsAtGraspLimit() const { return false; }
   virtual void emitEvent(const std::string& event) = 0;  ///< (not "emit": a Qt macro wherever Qt is included)
   /// Tissue that was inside the shaft when it became free to touch it is eased out from the next contact detection.
   virtual void seedContactEasing() = 0;

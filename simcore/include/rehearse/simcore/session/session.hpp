@@ -249,6 +249,10 @@ class Session : private InstrumentHost {
   void apply(const InputEvent& e, std::string& message);
   void rebuildBody();
   void updateToolConstraints();
+  /// Before a step: the jaws held back where the grasp force reaches the limit (ToolSettings::slipAtLimit); true when
+  /// they were (the tissue then slips after the step).
+  bool limitJawsAtGraspForce();
+  bool jawsAtGraspLimit() const override { return slipDue_; }
   // InstrumentHost: what an instrument may ask of the session.
   const Eigen::VectorXd& positions() const override { return state_.x; }
   const std::vector<char>& fixedMask() const override { return body_->fixedMask(); }
@@ -322,6 +326,9 @@ class Session : private InstrumentHost {
   // waits.
   void tearOverStretched(std::string& message);
   bool saidNoTear_ = false;   ///< the precomputed model's sentence that it does not tear, said once
+  /// The jaws were held back this step to let go at the grasp limit (ToolSettings::slipAtLimit): the tissue slips
+  /// after it. Set and read within one advance().
+  bool slipDue_ = false;
   bool tearRefused_ = false;  ///< the last tear could not be made (said once until one is made)
 
   // The cut (cutting.cpp): what the blade's sweep asks of the cut module, and what a cut says.
