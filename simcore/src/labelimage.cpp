@@ -181,12 +181,14 @@ void checkNiftiGeometry(const std::string& path, const std::string& name, std::s
     }
   // ITK's NIfTI library reads headers whose size field is neither (found by fuzzing: a size of 16220 with a NaN in
   // its sform reached an assertion in ITK's SVD, SIGABRT); the standard fixes it at 348 or 540, so nothing else is read.
-  if (got < 0) throw MeshError(name + "'s compressed data is damaged (zlib cannot inflate it); re-export the image.");
+  if (got < 0)
+    throw MeshError("Cannot read " + name + ": its compressed data is damaged (zlib cannot inflate it); re-export the "
+                    "image.");
   if (got < 348)
-    throw MeshError(name + " is not a NIfTI image: it holds " + std::to_string(std::max(got, 0)) +
-                    " bytes, fewer than a NIfTI header's 348.");
-  throw MeshError(name + " is not a NIfTI image: its header does not begin with a NIfTI-1 or NIfTI-2 header size "
-                         "(348 or 540 bytes, either byte order).");
+    throw MeshError("Cannot read " + name + ": it is not a NIfTI image (it holds " + std::to_string(std::max(got, 0)) +
+                    " bytes, fewer than a NIfTI header's 348).");
+  throw MeshError("Cannot read " + name + ": it is not a NIfTI image (its header does not begin with a NIfTI-1 or "
+                  "NIfTI-2 header size, 348 or 540 bytes in either byte order).");
 }
 
 // MetaIO (ITK's MetaImage reader) trusts its header: NDims sized fields before it was checked (a damaged

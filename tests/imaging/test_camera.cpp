@@ -18,6 +18,27 @@
 
 using namespace rehearse;
 
+namespace {
+
+// `bytes` written as `file` and read as a camera (or a pose): refused with one sentence naming the file and holding
+// `must`.
+void refused(const std::string& file, const std::string& bytes, const char* must, bool pose = false) {
+  const std::string p = tempPath(file);
+  writeFile(p, bytes);
+  try {
+    if (pose)
+      imaging::loadPose(p);
+    else
+      imaging::loadCamera(p);
+    QFAIL(qPrintable(QString::fromStdString("accepted: " + file)));
+  } catch (const imaging::InputError& e) {
+    const QString w = e.what();
+    QVERIFY2(w.contains(QString::fromStdString(file)) && w.contains(must) && !w.contains('\n'), qPrintable(w));
+  }
+}
+
+}  // namespace
+
 class TestCamera : public QObject {
   Q_OBJECT
  private slots:
@@ -236,18 +257,6 @@ class TestCamera : public QObject {
   // Issue 60, findings 14-15: a calibration nested 50,000 deep crashed cv::FileStorage (SIGSEGV); intrinsics of
   // 1e-300 and translations of 1e308 were accepted and overflowed the registration's integer pixel casts.
   void hostileCalibrationsAndPoses() {
-    auto refused = [](const std::string& file, const std::string& bytes, const char* must, bool pose = false) {
-      const std::string p = tempPath(file);
-      writeFile(p, bytes);
-      try {
-        if (pose) imaging::loadPose(p);
-        else imaging::loadCamera(p);
-        QFAIL(qPrintable(QString::fromStdString("accepted: " + file)));
-      } catch (const imaging::InputError& e) {
-        const QString w = e.what();
-        QVERIFY2(w.contains(QString::fromStdString(file)) && w.contains(must) && !w.contains('\n'), qPrintable(w));
-      }
-    };
     const std::string deep(50000, '[');
     refused("deep.yaml", "%YAML:1.0\n---\nimage_width: 640\nx: " + deep + "\n", "nested more than 32 levels");
     std::string xml = "<?xml version=\"1.0\"?>\n<opencv_storage>\n";
@@ -289,22 +298,14 @@ class TestCamera : public QObject {
   // its data, and followed a null pointer on an XML declaration holding NUL bytes (SIGSEGV). Each refused with one
   // sentence, as the fuzzer's saved inputs and as the smallest files that show it; a sound XML and YAML still load.
   void fuzzedCalibrationsAreRefused() {
-    auto refused = [](const std::string& file, const std::string& bytes, const char* must) {
-      const std::string p = tempPath(file);
-      writeFile(p, bytes);
-      try {
-        imaging::loadCamera(p);
-        QFAIL(qPrintable(QString::fromStdString("accepted: " + file)));
-      } catch (const imaging::InputError& e) {
-        const QString w = e.what();
-        QVERIFY2(w.contains(QString::fromStdString(file)) && w.contains(must) && !w.contains('\n'), qPrintable(w));
-      }
-    };
     // The fuzzer's inputs: the first byte chose the extension (0 .yaml, 1 .yml, 2 .xml).
     const std::string seeds = std::string(REHEARSE_SOURCE_DIR) + "/tests/fuzz/seeds/calibration/";
-    refused("length.yml", readFile(seeds + "crash-yaml-length-error").substr(1), "not a readable OpenCV calibration");
-    refused("cols.yaml", readFile(seeds + "oom-yaml-matrix-cols").substr(1), "declares 2147483647 values");
-    refused("nul.xml", readFile(seeds + "crash-xml-nul-in-declaration").substr(1), "control character");
+    const std::string length = readFile(seeds + "found-yaml-length-error"), cols = readFile(seeds + "oom-yaml-matrix-cols"),
+                      nul = readFile(seeds + "found-xml-nul-in-declaration");
+    QVERIFY2(!length.empty() && !cols.empty() && !nul.empty(), "the fuzzer's saved inputs are missing from the tree");
+    refused("length.yml", length.substr(1), "not a readable OpenCV calibration");
+    refused("cols.yaml", cols.substr(1), "declares 2147483647 values");
+    refused("nul.xml", nul.substr(1), "control character");
     const std::string matrix = "%YAML:1.0\n---\nimage_width: 640\nimage_height: 480\n"
                                "camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n"
                                "   data: [ 520., 0., 320., 0., 520., 240., 0., 0., 1. ]\n";

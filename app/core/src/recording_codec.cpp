@@ -683,6 +683,9 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   // (written only when not the default, so that setups recorded before it was written keep their text and hash; a
   // replay of those with another squeeze diverged: a script's clip_min_squeeze was not recorded)
   if (t.clip.minSqueeze != simcore::ClipSettings{}.minSqueeze) j["tools"]["clip"]["minSqueeze"] = t.clip.minSqueeze;
+  // Written only when physiological (the setups recorded before it existed bled by area: their text stays as it was).
+  if (t.bleeding.physiological)
+    j["tools"]["bleeding"] = {{"physiological", true}, {"organSupply", t.bleeding.organSupply}};
   if (!(t.cautery == simcore::CauterySettings{}))
     j["tools"]["cautery"] = {
         {"radius", t.cautery.radius}, {"burnTime", t.cautery.burnTime}, {"stiffening", t.cautery.stiffening}};
@@ -760,6 +763,11 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
       s.tools.clip.gap = c.at("gap");
       s.tools.clip.closeTime = c.at("closeTime");
       s.tools.clip.minSqueeze = c.value("minSqueeze", simcore::ClipSettings{}.minSqueeze);
+    }
+    s.tools.bleeding.physiological = false;  // recorded before it existed: a stump bled its area times a speed
+    if (t.contains("bleeding")) {
+      s.tools.bleeding.physiological = t.at("bleeding").at("physiological");
+      s.tools.bleeding.organSupply = t.at("bleeding").at("organSupply");
     }
     if (t.contains("cautery")) {
       const auto& c = t.at("cautery");
@@ -896,6 +904,8 @@ std::string setupProblem(const simcore::BodySetup& s) {
   if (tool.trocar && !finite(*tool.trocar)) return "the trocar is not a point";
   if (!(tool.clip.minSqueeze >= 0 && tool.clip.minSqueeze <= 1)) return "the clip's least squeeze is outside [0, 1]";
   if (const std::string why = simcore::cauteryProblem(tool.cautery); !why.empty()) return why;
+  if (!(tool.bleeding.organSupply >= 0 && tool.bleeding.organSupply <= 1e-3))
+    return "the organ's blood supply is not a flow between 0 and 60 L/min";
   if (tool.cutLatencySteps < -1 || tool.cutLatencySteps > 1000)
     return "the cut's latency is not between -1 and 1000 steps";
   if (tool.tearLatencySteps < -1 || tool.tearLatencySteps > 1000)

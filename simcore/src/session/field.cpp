@@ -11,6 +11,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <numbers>
 #include <numeric>
 
 namespace rehearse::simcore {
@@ -293,10 +294,46 @@ double bleedSpeed(StructureKind kind) {
   }
 }
 
+VesselPhysiology bleedingPhysiology(StructureKind kind) {
+  constexpr double mmHg = 133.322, litrePerMinute = 1e-3 / 60;
+  switch (kind) {
+    case StructureKind::Artery:
+      return {90 * mmHg, 4.5e-3, 0.35 * litrePerMinute};
+    case StructureKind::PortalVein:
+      return {8 * mmHg, 12e-3, 1.1 * litrePerMinute};
+    case StructureKind::Vein:
+    case StructureKind::Vessel:
+      return {5 * mmHg, 10e-3, 0.5 * litrePerMinute};
+    default:
+      return {};
+  }
+}
+
+double stumpBleedRate(StructureKind kind, double area) {
+  const VesselPhysiology v = bleedingPhysiology(kind);
+  if (!(area > 0) || !(v.trunkFlow > 0)) return 0;
+  constexpr double dischargeCoefficient = 0.61, bloodDensity = 1060;  // kg/m^3
+  const double orifice = dischargeCoefficient * area * std::sqrt(2 * v.pressure / bloodDensity);
+  const double diameter = 2 * std::sqrt(area / std::numbers::pi);
+  const double carried = v.trunkFlow * std::pow(std::min(1.0, diameter / v.trunkDiameter), 3);
+  return std::min(orifice, carried);
+}
+
+double boundToSupply(std::vector<Bleed>& bleeds, double supply) {
+  double total = 0;
+  for (const Bleed& b : bleeds)
+    if (b.stoppedBy < 0) total += b.rate;
+  if (!(total > supply) || !(supply >= 0)) return 1;
+  const double factor = supply / total;
+  for (Bleed& b : bleeds)
+    if (b.stoppedBy < 0) b.rate *= factor;
+  return factor;
+}
+
 std::vector<Bleed> findBleeds(const CutSurface& surface, const std::vector<std::array<int, 4>>& tets,
                               const std::vector<int>& labels, const std::vector<Clip>& clips,
                               const std::vector<Bleed>& previous, const std::function<StructureKind(int)>& kindOf,
-                              double meanEdge) {
+                              double meanEdge, const BleedingSettings& bleeding) {
   std::vector<Bleed> out;
   const auto& rest = surface.rest;
   const std::size_t n = rest.size();
@@ -359,7 +396,7 @@ std::vector<Bleed> findBleeds(const CutSurface& surface, const std::vector<std::
         if (!(b.area > 0)) continue;
         b.at = sumC / b.area;
         b.normal = sumN.norm() > 0 ? Eigen::Vector3d(sumN.normalized()) : Eigen::Vector3d(side * d);
-        b.rate = b.area * speed[label];
+        b.rate = bleeding.physiological ? stumpBleedRate(kindOf(label), b.area) : b.area * speed[label];
         double nearest = std::numeric_limits<double>::infinity();
         for (int v : nodes)
           if (const double dist = (rest[static_cast<std::size_t>(v)] - b.at).norm(); dist < nearest)
@@ -384,6 +421,7 @@ std::vector<Bleed> findBleeds(const CutSurface& surface, const std::vector<std::
       }
     }
   }
+  if (bleeding.physiological) boundToSupply(out, bleeding.organSupply);
   return out;
 }
 

@@ -121,7 +121,7 @@ void Session::updateBleeds(std::string& message) {
   const std::vector<Bleed> before = field_.bleeds;
   field_.bleeds = findBleeds(
       *surface_, body_->tetrahedra(), body_->labels(), field_.clips, before,
-      [this](int label) { return setup_.mesh.labelKind(label); }, meanEdge_);
+      [this](int label) { return setup_.mesh.labelKind(label); }, meanEdge_, setup_.tools.bleeding);
   // What changed: a stump that bleeds now and did not (a new one, or one whose clip is gone), one a clip stopped.
   auto was = [&before, this](const Bleed& b) -> const Bleed* {
     for (const Bleed& p : before)

@@ -64,13 +64,14 @@ struct ToolSettings {
   bool jawsKeepTheirHold = true;
   ClipSettings clip;        ///< the clip applier's jaws and clips (field.hpp)
   CauterySettings cautery;  ///< the cautery hook's reach, burn time and the stiffening of burnt tissue (field.hpp)
+  BleedingSettings bleeding;  ///< how fast a cut vessel bleeds (field.hpp)
   bool operator==(const ToolSettings& o) const {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && slipAtLimit == o.slipAtLimit &&
            trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
            bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
            cutLatencySteps == o.cutLatencySteps && tearLatencySteps == o.tearLatencySteps && cut.snap == o.cut.snap &&
            cut.minQuality == o.cut.minQuality && cut.minVolumeFraction == o.cut.minVolumeFraction &&
-           jawsKeepTheirHold == o.jawsKeepTheirHold && clip == o.clip && cautery == o.cautery;
+           jawsKeepTheirHold == o.jawsKeepTheirHold && clip == o.clip && cautery == o.cautery && bleeding == o.bleeding;
   }
 };
 
