@@ -98,7 +98,7 @@ Camera loadCamera(const std::string& path, int width, int height) {
       // OpenCV allocates a matrix of the rows and columns its node declares before it reads the data (found by
       // fuzzing: "cols: 2147483647" asked for 16 GiB): a calibration's matrices are small, so larger ones are refused
       // before they are read.
-      auto read = [&](const char* key, cv::Mat& m) {
+      auto readMatrix = [&](const char* key, cv::Mat& m) {
         const cv::FileNode node = fsx[key];
         if (node.empty()) return;
         // (Two ints multiply exactly in 64 bits.)
@@ -111,10 +111,10 @@ Camera loadCamera(const std::string& path, int width, int height) {
         node >> m;
       };
       cv::Mat K, D;
-      read("camera_matrix", K);
-      read("distortion_coefficients", D);
-      if (K.empty()) read("K", K);
-      if (D.empty()) read("D", D);
+      readMatrix("camera_matrix", K);
+      readMatrix("distortion_coefficients", D);
+      if (K.empty()) readMatrix("K", K);
+      if (D.empty()) readMatrix("D", D);
       if (K.rows != 3 || K.cols != 3) throw InputError(name + " has no 3x3 camera_matrix; check the calibration file.");
       K.convertTo(K, CV_64F);
       for (int r = 0; r < 3; ++r)

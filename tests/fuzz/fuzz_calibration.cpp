@@ -5,26 +5,17 @@
 // or any other exception is a finding.
 #include <rehearse/imaging/camera.hpp>
 
-#include <unistd.h>
+#include "fuzz_file.hpp"
 
 #include <cstdint>
-#include <cstdio>
 #include <string>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  if (size == 0) return 0;
-  static const char* extensions[] = {".yaml", ".yml", ".xml", ".json", ".txt"};
-  const std::string path = "/tmp/fuzz-camera-" + std::to_string(::getpid()) + extensions[data[0] % 5];
-  if (FILE* f = std::fopen(path.c_str(), "wb")) {
-    std::fwrite(data + 1, 1, size - 1, f);
-    std::fclose(f);
-  } else {
-    return 0;
-  }
-  try {
-    rehearse::imaging::loadCamera(path, 640, 480);
-  } catch (const rehearse::imaging::InputError&) {
-  }
-  std::remove(path.c_str());
+  readAsFile(data, size, {".yaml", ".yml", ".xml", ".json", ".txt"}, "camera", [](const std::string& path) {
+    try {
+      rehearse::imaging::loadCamera(path, 640, 480);
+    } catch (const rehearse::imaging::InputError&) {
+    }
+  });
   return 0;
 }

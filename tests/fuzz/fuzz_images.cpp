@@ -6,26 +6,18 @@
 #include <rehearse/simcore/labelimage.hpp>
 #include <rehearse/simcore/mesh.hpp>
 
-#include <unistd.h>
+#include "fuzz_file.hpp"
 
 #include <cstdint>
-#include <cstdio>
 #include <string>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  if (size == 0) return 0;
-  static const char* extensions[] = {".nrrd", ".nhdr", ".nii", ".nii.gz", ".mha", ".mhd", ".inr", ".inr.gz"};
-  const std::string path = "/tmp/fuzz-image-" + std::to_string(::getpid()) + extensions[data[0] % 8];
-  if (FILE* f = std::fopen(path.c_str(), "wb")) {
-    std::fwrite(data + 1, 1, size - 1, f);
-    std::fclose(f);
-  } else {
-    return 0;
-  }
-  try {
-    rehearse::simcore::readLabelImage(path, {}, 4'000'000);
-  } catch (const rehearse::simcore::MeshError&) {
-  }
-  std::remove(path.c_str());
+  readAsFile(data, size, {".nrrd", ".nhdr", ".nii", ".nii.gz", ".mha", ".mhd", ".inr", ".inr.gz"}, "image",
+             [](const std::string& path) {
+               try {
+                 rehearse::simcore::readLabelImage(path, {}, 4'000'000);
+               } catch (const rehearse::simcore::MeshError&) {
+               }
+             });
   return 0;
 }

@@ -4,27 +4,17 @@
 // (MeshError) is the expected outcome of most inputs; a crash, a hang or any other exception is a finding.
 #include <rehearse/simcore/meshio.hpp>
 
-#include <unistd.h>
+#include "fuzz_file.hpp"
 
 #include <cstdint>
-#include <cstdio>
 #include <string>
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  if (size == 0) return 0;
-  static const char* extensions[] = {".ply", ".off", ".obj", ".gltf", ".glb"};
-  const std::string path =
-      "/tmp/fuzz-surface-" + std::to_string(::getpid()) + extensions[data[0] % 5];
-  if (FILE* f = std::fopen(path.c_str(), "wb")) {
-    std::fwrite(data + 1, 1, size - 1, f);
-    std::fclose(f);
-  } else {
-    return 0;
-  }
-  try {
-    rehearse::simcore::loadMesh(path);
-  } catch (const rehearse::simcore::MeshError&) {
-  }
-  std::remove(path.c_str());
+  readAsFile(data, size, {".ply", ".off", ".obj", ".gltf", ".glb"}, "surface", [](const std::string& path) {
+    try {
+      rehearse::simcore::loadMesh(path);
+    } catch (const rehearse::simcore::MeshError&) {
+    }
+  });
   return 0;
 }

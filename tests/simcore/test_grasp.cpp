@@ -30,6 +30,18 @@ simcore::BodySetup liverSetup() {
   s.settings.method = simcore::NewtonMethod::Exact;
   return s;
 }
+// The liver settled for 50 steps, then the jaws closed on the node nearest (0, 0, -5 cm), above the organ: returns
+// where they closed.
+Eigen::Vector3d settleAndGrasp(simcore::Session& session) {
+  for (int k = 0; k < 50; ++k) session.advance();
+  Eigen::Vector3d tip = session.snapshot()->positions.front();
+  for (const auto& p : session.snapshot()->positions)
+    if ((p - Eigen::Vector3d(0, 0, -0.05)).norm() < (tip - Eigen::Vector3d(0, 0, -0.05)).norm()) tip = p;
+  session.post(toolAt(tip));
+  session.post(jaws(true));
+  session.advance();
+  return tip;
+}
 }  // namespace
 
 class TestGrasp : public QObject {
@@ -425,13 +437,7 @@ class TestGrasp : public QObject {
     simcore::BodySetup s = liverSetup();
     s.tools.maxGraspForce = 0.5;
     simcore::Session session(s);
-    for (int k = 0; k < 50; ++k) session.advance();
-    Eigen::Vector3d tip = session.snapshot()->positions.front();
-    for (const auto& p : session.snapshot()->positions)
-      if ((p - Eigen::Vector3d(0, 0, -0.05)).norm() < (tip - Eigen::Vector3d(0, 0, -0.05)).norm()) tip = p;
-    session.post(toolAt(tip));
-    session.post(jaws(true));
-    session.advance();
+    const Eigen::Vector3d tip = settleAndGrasp(session);
     QVERIFY(!session.snapshot()->tool.held.empty());
     bool slipped = false;
     for (int k = 1; k <= 200 && !slipped; ++k) {
@@ -466,13 +472,7 @@ class TestGrasp : public QObject {
         s.tools.slipAtLimit = atLimit;
         const double max = s.tools.maxGraspForce;
         simcore::Session session(s);
-        for (int k = 0; k < 50; ++k) session.advance();
-        Eigen::Vector3d tip = session.snapshot()->positions.front();
-        for (const auto& p : session.snapshot()->positions)
-          if ((p - Eigen::Vector3d(0, 0, -0.05)).norm() < (tip - Eigen::Vector3d(0, 0, -0.05)).norm()) tip = p;
-        session.post(toolAt(tip));
-        session.post(jaws(true));
-        session.advance();
+        const Eigen::Vector3d tip = settleAndGrasp(session);
         QVERIFY(!session.snapshot()->tool.held.empty());
         double peak = 0, slipForce = -1;
         for (int k = 1; k <= pull.steps && slipForce < 0; ++k) {
