@@ -247,13 +247,7 @@ class TestGrasp : public QObject {
     s.settings.method = simcore::NewtonMethod::Linearised;
     s.tools.maxGraspForce = 1e6;
     simcore::Session session(s);
-    for (int k = 0; k < 50; ++k) session.advance();
-    Eigen::Vector3d tip = session.snapshot()->positions.front();
-    for (const auto& p : session.snapshot()->positions)
-      if ((p - Eigen::Vector3d(0, 0, -0.05)).norm() < (tip - Eigen::Vector3d(0, 0, -0.05)).norm()) tip = p;
-    session.post(toolAt(tip));
-    session.post(jaws(true));
-    session.advance();
+    const Eigen::Vector3d tip = settleAndGrasp(session);
     const Eigen::Vector3d pull(0.208, 0.366, -0.907);
     for (int k = 1; k <= 30; ++k) {
       session.post(toolAt(tip + 0.0002 * k * pull));
