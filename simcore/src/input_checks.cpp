@@ -813,18 +813,46 @@ std::string calibrationMarkupProblem(std::string_view bytes, bool xml) {
       return "its XML is not an OpenCV storage (the root element is not <opencv_storage>)";
     return {};
   }
-  // YAML: block levels (distinct indentations, and "- " entries) plus flow brackets.
-  std::size_t pos = 0;
+  // YAML: block levels (distinct indentations, and "- " entries) plus flow brackets, which must pair up.
+  std::size_t pos = 0, lineNumber = 0;
   std::string_view line;
   std::vector<std::size_t> indents;
-  int flow = 0;
+  std::string open;  // the flow brackets open, innermost last
+  std::size_t openedOn = 0, topLine = 0;
   while (nextLine(bytes, pos, line)) {
+    ++lineNumber;
+    const int flow = static_cast<int>(open.size());
     std::size_t indent = 0;
     while (indent < line.size() && (line[indent] == ' ' || line[indent] == '\t')) ++indent;
-    if (indent == line.size() || line[indent] == '#' || line[indent] == '%') continue;
+    if (indent == line.size() || line[indent] == '#') continue;
+    if (line[indent] == '%') {
+      if (topLine > 0) return "its line " + num(static_cast<double>(lineNumber)) + " is a directive inside the mapping";
+      continue;
+    }
+    // OpenCV 4.6's YAML parser skips three bytes after a top-level collection that ends before the file does and never
+    // returned from what followed (found by fuzzing: "   - 1" then "]" at column 0; "--- a: 1" then "  - 2"; a flow
+    // list's "]" at column 0; "..." then more). A calibration is one mapping at column 0, as OpenCV and ROS write it:
+    // its first entry is a key at column 0, "---" stands alone before it, no document follows, and the lines inside a
+    // flow are indented.
+    const std::string_view rest = line.substr(indent);
+    const std::string where = "its line " + num(static_cast<double>(lineNumber));
+    if (rest.substr(0, 3) == "---" || rest.substr(0, 3) == "...") {
+      std::size_t after = indent + 3;
+      while (after < line.size() && (line[after] == ' ' || line[after] == '\t')) ++after;
+      if (topLine > 0 || rest[0] == '.' || indent > 0 || (after < line.size() && line[after] != '#'))
+        return where + " is a YAML document marker where a calibration (one mapping) has none";
+      continue;
+    }
     if (flow == 0) {
+      if (topLine == 0) {
+        if (indent > 0 || rest[0] == '-' || rest[0] == '[' || rest[0] == '{')
+          return where + " should begin the calibration's mapping at column 0 (\"key: value\")";
+        topLine = lineNumber;
+      }
       while (!indents.empty() && indents.back() >= indent) indents.pop_back();
       indents.push_back(indent);
+    } else if (indent == 0) {
+      return where + " continues a flow list at column 0; indent it";
     }
     int dashes = 0;
     for (std::size_t k = indent; k + 1 < line.size() && line[k] == '-' && line[k + 1] == ' ';) {
@@ -843,12 +871,19 @@ std::string calibrationMarkupProblem(std::string_view bytes, bool xml) {
       if (c == '"' || c == '\'') quote = c;
       else if (c == '#' && k > 0 && isSpace(line[k - 1])) break;
       else if (c == '[' || c == '{') {
-        if (static_cast<int>(indents.size()) + dashes + ++flow > kMaxCalibrationDepth) return deep;
-      } else if ((c == ']' || c == '}') && flow > 0) {
-        --flow;
+        if (open.empty()) openedOn = lineNumber;
+        open.push_back(c);
+        if (static_cast<int>(indents.size() + open.size()) + dashes > kMaxCalibrationDepth) return deep;
+      } else if (c == ']' || c == '}') {
+        if (open.empty() || open.back() != (c == ']' ? '[' : '{'))
+          return std::string("its '") + c + "' on line " + num(static_cast<double>(lineNumber)) + " closes no '" +
+                 (c == ']' ? '[' : '{') + "'";
+        open.pop_back();
       }
     }
   }
+  if (!open.empty())
+    return std::string("its '") + open.front() + "' on line " + num(static_cast<double>(openedOn)) + " is never closed";
   return {};
 }
 
