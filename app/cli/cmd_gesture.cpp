@@ -17,6 +17,7 @@
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/inverse_rest.hpp>
+#include <rehearse/simcore/support.hpp>
 #include <rehearse/simcore/registration.hpp>
 #include <rehearse/simcore/scene.hpp>
 #include <rehearse/simcore/meshio.hpp>
@@ -116,7 +117,20 @@ int cmdGesture(const std::vector<std::string>& args) {
   std::string startWord = "rest";
   if (o.count("start") && o["start"] != "rest") {
     if (o["start"] != "equilibrium") throw UsageError("--start takes rest or equilibrium, not '" + o["start"] + "'");
+  }
+  if (o.count("support") && !(o.count("start") && o["start"] == "equilibrium"))
+    throw UsageError("--support places the tissue that carries the organ at its starting shape; it needs --start "
+                     "equilibrium");
+  if (o.count("start") && o["start"] != "rest") {
     simcore::InverseRestOptions io;
+    io.supportModulus = simcore::kDefaultSupportModulus;
+    if (o.count("support")) {
+      char* end = nullptr;
+      const double m = std::strtod(o["support"].c_str(), &end);
+      if (end == o["support"].c_str() || *end || !std::isfinite(m) || m < 0 || m > 1e9)
+        throw UsageError("--support takes the support's modulus in Pa/m (0 to 1e9; 0: none), not '" + o["support"] + "'");
+      io.supportModulus = m;
+    }
     io.progress = [](int k, double error) {
       std::fprintf(stderr, "start: static solve %d, %.3g mm from the shape\n", k, 1e3 * error);
       return true;
@@ -278,6 +292,10 @@ const Command& gestureCommand() {
               {"start", "S",
                "rest (the mesh is the rest shape; default) or equilibrium (the mesh is where the organ hangs under "
                "gravity on its attachments, as registered: its rest shape is solved first; exit 4 when none is found)"},
+              {"support", "PA_PER_M",
+               "with --start equilibrium: the tissue around the organ carries it, an elastic foundation under the "
+               "surface facing along gravity with this modulus (default 1e5 Pa/m, support.hpp; 0: only the held "
+               "nodes hold it)"},
               {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
               {"trainee", "NAME", "the trainee the recording names (with --record)"},
               {"notes", "TEXT", "notes kept with the recording (with --record)"}}),

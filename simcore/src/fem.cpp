@@ -50,8 +50,9 @@ void scatterElementVectors(const FemModel& m, const double* buf, Eigen::VectorXd
   }
 }
 
-// The embedded springs' forces -dE/dx added to f.
+// The embedded springs' and the anchors' forces -dE/dx added to f.
 void addSpringForces(const FemModel& m, const Eigen::VectorXd& x, Eigen::VectorXd& f) {
+  for (const auto& a : m.anchors) f.segment<3>(3 * a.node) -= a.stiffness * (x.segment<3>(3 * a.node) - a.at);
   for (const auto& sp : m.springs) {
     const Eigen::Vector3d d = springVector(sp, x);
     const double l = d.norm();
@@ -229,6 +230,7 @@ double elasticEnergy(const FemModel& m, const Eigen::VectorXd& x) {
           const double l = springVector(sp, x).norm() - sp.restLength;
           e += 0.5 * sp.stiffness * l * l;
         }
+        for (const auto& a : m.anchors) e += 0.5 * a.stiffness * (x.segment<3>(3 * a.node) - a.at).squaredNorm();
         return e;
       }();
 }
@@ -284,7 +286,7 @@ namespace {
 // scatter).
 template <class ElementDifferential, class SpringHessian>
 void applyTangent(const FemModel& m, const Eigen::VectorXd& v, Eigen::VectorXd& out, ElementDifferential dP,
-                  SpringHessian hessian) {
+                  SpringHessian hessian, double anchorScale) {
   if (out.size() != v.size()) out.resize(v.size());
   out.setZero();
   thread_local std::vector<double> buffer;
@@ -302,6 +304,7 @@ void applyTangent(const FemModel& m, const Eigen::VectorXd& v, Eigen::VectorXd& 
     const Eigen::Vector3d hd = hessian(i) * springVector(sp, v);
     for (int k = 0; k < 8; ++k) out.segment<3>(3 * sp.nodes[k]) += sp.weights[k] * hd;
   }
+  for (const auto& a : m.anchors) out.segment<3>(3 * a.node) += (anchorScale * a.stiffness) * v.segment<3>(3 * a.node);
 }
 }  // namespace
 
@@ -311,7 +314,7 @@ void applyStiffness(const FemModel& m, const TangentState& state, const Eigen::V
       [&](std::size_t e, const Eigen::Matrix3d& dF) {
         return firstPiolaDifferential(m.model[e], m.lame[e], state.F[e], state.cache[e], dF);
       },
-      [&](std::size_t i) -> const Eigen::Matrix3d& { return state.springHessian[i]; });
+      [&](std::size_t i) -> const Eigen::Matrix3d& { return state.springHessian[i]; }, 1.0);
 }
 
 void applyStiffnessPair(const FemModel& m, const TangentState& atA, double a, const TangentState& atB, double b,
@@ -322,7 +325,7 @@ void applyStiffnessPair(const FemModel& m, const TangentState& atA, double a, co
         return a * firstPiolaDifferential(m.model[e], m.lame[e], atA.F[e], atA.cache[e], dF) +
                b * firstPiolaDifferential(m.model[e], m.lame[e], atB.F[e], atB.cache[e], dF);
       },
-      [&](std::size_t i) -> Eigen::Matrix3d { return a * atA.springHessian[i] + b * atB.springHessian[i]; });
+      [&](std::size_t i) -> Eigen::Matrix3d { return a * atA.springHessian[i] + b * atB.springHessian[i]; }, a + b);
 }
 
 void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<double>& out) {
@@ -409,6 +412,8 @@ void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::Spars
     for (int c = 0; c < 24; ++c)
       for (int r = 0; r < 24; ++r) values[slot[24 * c + r]] += sp.weights[r / 3] * sp.weights[c / 3] * H(r % 3, c % 3);
   }
+  for (const auto& a : m.anchors)
+    for (int d = 0; d < 3; ++d) values[m.diagonalSlot[static_cast<std::size_t>(3 * a.node + d)]] += a.stiffness;
 }
 
 Eigen::SparseMatrix<double> elasticStiffness(const FemModel& m, const Eigen::VectorXd& x) {

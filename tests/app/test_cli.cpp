@@ -128,6 +128,33 @@ class TestCli : public QObject {
         run({"gesture", "--preset", "liver", "--script", one, "--start", "sagging", "--out", dir + "/x.vtu"});
     QCOMPARE(bad.code, 2);
     QVERIFY2(bad.err.contains("--start takes rest or equilibrium"), qPrintable(bad.err));
+    // Issue 61: held at one picked node (a file of indices, as the GUI's picks are saved), carried by the tissue around
+    // it (the default support): it starts where it is and stays there.
+    {
+      QFile picks(dir + "/one-node.txt");
+      QVERIFY(picks.open(QIODevice::WriteOnly));
+      picks.write("0\n");
+    }
+    auto supported = [&](const QString& s, const QString& out) {
+      const auto r = run({"gesture", "--preset", "liver", "--script", s, "--start", "equilibrium", "--fixed-nodes",
+                          dir + "/one-node.txt", "--out", dir + "/" + out});
+      if (r.code != 0) qWarning("%s", qPrintable(r.err + r.out));
+      return std::pair{rehearse::simcore::loadMesh((dir + "/" + out).toStdString()), r.out};
+    };
+    const auto [s1, said] = supported(one, "s1.vtu");
+    const auto [s2, _] = supported(two, "s2.vtu");
+    const double held = largest(s1, s2);
+    qInfo("liver preset held at one node on its supports over 2 s: %.4f mm; %s", 1e3 * held,
+          qPrintable(said.section('\n', 0, 0)));
+    QVERIFY(held < 5e-5);
+    QVERIFY2(said.contains("the tissue around it carries"), qPrintable(said));
+    for (const QStringList& wrong : {QStringList{"--start", "equilibrium", "--support", "-1"},
+                                     QStringList{"--start", "equilibrium", "--support", "soft"},
+                                     QStringList{"--support", "1e5"}}) {
+      const auto r = run(QStringList{"gesture", "--preset", "liver", "--script", one, "--out", dir + "/x.vtu"} + wrong);
+      QCOMPARE(r.code, 2);
+      QVERIFY2(r.err.contains("--support"), qPrintable(r.err));
+    }
   }
 
   void gestureScript() {

@@ -5,6 +5,7 @@
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/meshio.hpp>
+#include <rehearse/simcore/tetrahedralise.hpp>
 
 #include <Eigen/Eigenvalues>
 
@@ -98,6 +99,32 @@ inline std::vector<int> highestSurfaceNodes(const simcore::Mesh& v, double share
   const auto count = std::min(height.size(), std::max<std::size_t>(3, static_cast<std::size_t>(share * height.size())));
   for (std::size_t k = 0; k < count; ++k) held.push_back(height[k].second);
   return held;
+}
+
+/// The picks an assistant makes to hold an organ under gravity along +z (issue 61): none, one node, 22 along its top
+/// (the surface nodes highest against gravity: a thin band), the 8 % highest. Each named.
+inline std::vector<std::pair<const char*, std::vector<int>>> assistantPicks(const simcore::Mesh& v) {
+  std::vector<std::pair<double, int>> height;
+  for (int n : surfaceNodes(v)) height.emplace_back(v.points[static_cast<std::size_t>(n)].z(), n);
+  std::sort(height.begin(), height.end());
+  auto highest = [&](std::size_t count) {
+    std::vector<int> held;
+    for (std::size_t k = 0; k < count && k < height.size(); ++k) held.push_back(height[k].second);
+    return held;
+  };
+  return {{"none", {}},
+          {"one", highest(1)},
+          {"22 along the top", highest(22)},
+          {"8 % highest", highest(static_cast<std::size_t>(0.08 * static_cast<double>(height.size())))}};
+}
+
+/// A real organ's surface meshed as the rehearsal meshes it (self-intersections allowed, seed 0), about `tets` tets.
+inline simcore::Mesh meshedOrgan(const simcore::Mesh& surface, std::size_t tets) {
+  simcore::TetrahedraliseOptions to;
+  to.allowSelfIntersections = true;
+  to.targetTets = tets;
+  to.seed = 0;
+  return simcore::tetrahedraliseSurface(surface, to);
 }
 
 /// The depth (m, camera frame at `pose`) beyond which lie the `share` of the surface nodes farthest from

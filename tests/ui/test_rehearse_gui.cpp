@@ -368,7 +368,7 @@ class TestRehearseGui : public QObject {
     method->setFocus();
     QTest::keyClicks(method, "p");  // (the list's keyboard search: the entry starting with p)
     QVERIFY(method->currentText().startsWith("precomputed"));
-    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Precomputed; }, 30000));
+    QVERIFY(waitFor([&] { return panel->session() && panel->session()->setup().model == simcore::BodyModel::Precomputed; }, 30000));
     QVERIFY2(waitFor([&] { return built.lines.join(" ").contains("The precomputed model's responses"); }, 10000),
              qPrintable(built.lines.join(" | ")));
     qInfo("%s", qPrintable(built.lines.join(" | ")));
@@ -414,7 +414,7 @@ class TestRehearseGui : public QObject {
     // (The three choices reach the session at its step boundaries, perhaps not all at the same one.)
     QVERIFY(waitFor(
         [&] {
-          return panel->session()->setup().model == simcore::BodyModel::Fem &&
+          return panel->session() && panel->session()->setup().model == simcore::BodyModel::Fem &&
                  panel->session()->setup().settings.method == simcore::NewtonMethod::Chord;
         },
         30000));
@@ -445,7 +445,7 @@ class TestRehearseGui : public QObject {
     qInfo("%s; saved with the case: %.1f MB", qPrintable(again.lines.join(" | ")),
           simcore::ResponseCache::shared().storedBytes(key)->size() / 1e6);
     for (int k = 0; k < 3; ++k) QTest::keyClick(method, Qt::Key_Up);
-    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Fem; }, 30000));
+    QVERIFY(waitFor([&] { return panel->session() && panel->session()->setup().model == simcore::BodyModel::Fem; }, 30000));
     panel->pause();
   }
 
@@ -475,7 +475,7 @@ class TestRehearseGui : public QObject {
     QTest::keyClicks(method, "p");  // the precomputed model (its responses from the last build), then the next entry
     QTest::keyClick(method, Qt::Key_Down);
     QVERIFY(method->currentText().startsWith("hybrid"));
-    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Hybrid; }, 30000));
+    QVERIFY(waitFor([&] { return panel->session() && panel->session()->setup().model == simcore::BodyModel::Hybrid; }, 30000));
     QVERIFY2(waitFor([&] { return built.lines.join(" ").contains("The hybrid model: a FEM region of"); }, 10000),
              qPrintable(built.lines.join(" | ")));
     graspAndPull(a, b);
@@ -529,7 +529,7 @@ class TestRehearseGui : public QObject {
     SessionHeard ffd(panel);
     method->setFocus();
     QTest::keyClick(method, Qt::Key_End);
-    QVERIFY(waitFor([&] { return panel->session()->setup().model == simcore::BodyModel::Ffd; }, 30000));
+    QVERIFY(waitFor([&] { return panel->session() && panel->session()->setup().model == simcore::BodyModel::Ffd; }, 30000));
     QVERIFY2(waitFor([&] { return ffd.lines.join(" ").contains("The FFD model: the surface on a 81 x 81"); }, 30000),
              qPrintable(ffd.lines.join(" | ")));
     // Its build's progress dialog (shown past 0.4 s) is gone when the build is done.
@@ -566,7 +566,7 @@ class TestRehearseGui : public QObject {
     QCOMPARE(method->currentIndex(), static_cast<int>(simcore::NewtonMethod::Chord));
     QVERIFY(waitFor(
         [&] {
-          return panel->session()->setup().model == simcore::BodyModel::Fem &&
+          return panel->session() && panel->session()->setup().model == simcore::BodyModel::Fem &&
                  panel->session()->setup().settings.method == simcore::NewtonMethod::Chord;
         },
         30000));

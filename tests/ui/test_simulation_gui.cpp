@@ -248,12 +248,15 @@ class TestSimulationGui : public QObject {
   // magenta, and the frame view carries the warning with a ring per inverted element. The frame's list (worked
   // out in the GUI from the positions) has as many elements as the engine's count.
   void invertedElementsAreShownOnTheOrgan() {
+    // Hung on its attachments alone (no support: a new start), gravity down the image, then the soft law.
+    panel_->findChild<QDoubleSpinBox*>("simSupport")->setValue(0);
+    auto* gravity = panel_->findChild<QComboBox*>("simGravity");
+    gravity->setCurrentIndex(0);  // down in the image
+    QTRY_VERIFY_WITH_TIMEOUT(panel_->session() && panel_->session()->setup().supports.empty(), 60000);
     auto* model = panel_->findChild<QComboBox*>("simMaterial");
     auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
     model->setCurrentText("stvk");
     young->setValue(0.1);  // kPa
-    auto* gravity = panel_->findChild<QComboBox*>("simGravity");
-    gravity->setCurrentIndex(0);  // down in the image
     auto* reset = panel_->findChild<QPushButton*>("simReset");
     QTest::mouseClick(reset, Qt::LeftButton);
     w_->frameView()->setFocus();

@@ -208,7 +208,8 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
                       {"density", m.density},
                       {"vessel_young", m.vesselYoung},
                       {"vessel_poisson", m.vesselPoisson},
-                      {"tear_strain", m.tearStrain}}
+                      {"tear_strain", m.tearStrain},
+                      {"support_modulus", m.supportModulus}}
                      .dump()));
     }
     if (!c.incorrectActions.empty()) part("incorrect_actions", "json", bytes(c.incorrectActions));
@@ -462,6 +463,9 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
       s.vesselPoisson = j.value("vessel_poisson", 0.45);
       s.tearStrain = j.value("tear_strain", 0.0);
       if (!(s.tearStrain >= 0 && s.tearStrain <= 10)) throw std::runtime_error("its tear strain is outside [0, 10]");
+      s.supportModulus = j.value("support_modulus", s.supportModulus);  // (cases saved before it: the default)
+      if (!(s.supportModulus >= 0 && s.supportModulus <= 1e9))
+        throw std::runtime_error("its support modulus is outside [0, 1e9] Pa/m");
       c.material = s;
     } catch (const std::exception& e) {
       note(QStringLiteral("Material not loaded (the default is used): %1").arg(QString::fromUtf8(e.what())));

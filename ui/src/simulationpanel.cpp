@@ -5,6 +5,7 @@
 
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/inverse_rest.hpp>
+#include <rehearse/simcore/support.hpp>
 #include <rehearse/simcore/scene.hpp>
 
 #include <QCheckBox>
@@ -188,6 +189,7 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
            "complete)."));
   }
   const long generation = ++generation_;
+  startRefused_ = false;
   buildCancelled_->store(true);  // the session being built (its rest-shape solve) is not wanted any more
   buildCancelled_ = std::make_shared<std::atomic<bool>>(false);
   startWord_.clear();
@@ -212,6 +214,7 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
     const bool cancelled = cancelRecord_;
     recordPending_ = cancelRecord_ = false;
     if (!result->first) {
+      startRefused_ = true;  // a setting changed on the panel tries again (postRunParameters)
       onFailed(result->second);
       if (*recorder) emit recordingStopped(tr("The recording did not start: %1").arg(result->second));
       return;
@@ -279,10 +282,29 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
             Qt::QueuedConnection);
         return !cancelled->load() && !precompute->load();
       };
-      if (s.startInEquilibrium && b.settings.gravity.norm() > 0 && !b.fixedNodes.empty()) {
+      // The tissue around the organ carries it (the FEM's springs; the other models hang it from its held nodes).
+      const double support = b.model == simcore::BodyModel::Fem ? s.supportModulus : 0.0;
+      const bool heavy = b.settings.gravity.norm() > 0;
+      if (heavy && b.fixedNodes.empty() && !(support > 0)) {
+        // A falling organ is not a rehearsal: said, with what to change.
+        result->second =
+            s.supportModulus > 0
+                ? tr("The organ was not started: nothing holds it under gravity (the %1 model cannot stand it on the "
+                     "tissue around it); hold nodes (H), choose the FEM, or turn gravity off.")
+                      .arg(QString::fromStdString(simcore::bodyModelName(b.model)))
+                : tr("The organ was not started: nothing holds it under gravity; hold nodes (H), let the tissue around "
+                     "it carry it (Support, on this panel), or turn gravity off.");
+        return;
+      }
+      if (s.supportModulus > 0 && !(support > 0) && heavy)
+        *started = tr("The %1 model hangs the organ from its held nodes; the tissue around it carries it in the FEM "
+                      "only. ")
+                       .arg(QString::fromStdString(simcore::bodyModelName(b.model)));
+      if (s.startInEquilibrium && heavy) {
         // The organ as the frame shows it is the equilibrium: the rest shape that sags into it, solved first (a few
         // static solves; said on the status line as they go, stopped when a newer session is asked for).
         simcore::InverseRestOptions o;
+        o.supportModulus = support;
         o.progress = [self, cancelled, generation](int k, double error) {
           const QString text =
               tr("Solving the rest shape that sags into the registered one: static solve %1, %2 mm from it...")
@@ -299,7 +321,8 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
         const std::vector<Eigen::Vector3d> shape = b.rest;
         // The same organ, shape, attachments, material and settings as the last session (Record, a reset while
         // recording): its rest shape again, not solved again (12 s on a 16k-tet liver).
-        const std::uint64_t key = app::setupHash(b);
+        std::uint64_t key = app::setupHash(b);
+        key ^= std::hash<double>{}(support) * 0x9e3779b97f4a7c15ULL;  // (the support is placed by the solve)
         simcore::InverseRestResult r;
         bool reused = false;
         {
@@ -313,15 +336,29 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
           cache->key = key;
           cache->result = r;
         }
+        if (!r.converged()) {
+          // No equilibrium at the registered shape: the organ would leave the frame at once. Not started; said.
+          result->second = tr("The organ was not started: %1").arg(QString::fromStdString(r.status));
+          return;
+        }
         simcore::useRestShape(b, shape, r);
-        *started = r.converged() ? tr("The organ starts where the frame shows it, in equilibrium under gravity on its "
-                                      "attachments: %1%2")
-                                       .arg(QString::fromStdString(r.status))
-                                       .arg(reused ? tr(" (solved for the last session, the same organ)") : QString())
-                                 : tr("The organ starts at rest on the registered shape and will sag from it: %1")
-                                       .arg(QString::fromStdString(r.status));
-      } else if (b.settings.gravity.norm() > 0 && !b.fixedNodes.empty()) {
-        *started = tr("The organ starts at rest on the registered shape and will sag from it under gravity.");
+        *started += tr("The organ starts where the frame shows it, in equilibrium under gravity on %1: %2%3")
+                       .arg(b.supports.empty()      ? tr("its attachments")
+                            : b.fixedNodes.empty() ? tr("the tissue around it")
+                                                   : tr("its attachments and the tissue around it"))
+                       .arg(QString::fromStdString(r.status))
+                       .arg(reused ? tr(" (solved for the last session, the same organ)") : QString());
+      } else if (heavy) {
+        if (support > 0) {
+          // Started at rest on the registered shape: the support carries the weight there, so it sags, not falls.
+          simcore::Mesh rest = b.mesh;
+          rest.points = b.rest;
+          const simcore::FemModel m = simcore::FemModel::build(rest, b.byLabel, b.material);
+          b.supports = simcore::placeSupports(b.mesh.tets, b.rest, m.lumpedMass, b.fixedNodes, b.settings.gravity,
+                                              support)
+                           .anchors;
+        }
+        *started += tr("The organ starts at rest on the registered shape and will sag from it under gravity.");
       }
       if (record) *recorder = std::make_shared<app::Recorder>(record->file, record->meta, b);
       ctx->organ = s.organ;
@@ -455,6 +492,31 @@ void SimulationView::paintEvent(QPaintEvent*) {
   for (int a : organCase.attachments)
     if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0)
       painter.drawEllipse(project(cam[a]), 2.5, 2.5);
+  // Gravity, as the case states it, turned with the view: an arrow (a crossed circle where it points into the view, a
+  // dotted one where it points out of it).
+  if (frame_->gravity.norm() > 0) {
+    const Eigen::Vector3d d = R * frame_->gravity.normalized();
+    const QPointF o(30, 56), tip = o + 24 * QPointF(d.x(), d.y());
+    painter.setPen(QPen(QColor(120, 200, 255), 2));
+    painter.setBrush(Qt::NoBrush);
+    if (std::hypot(d.x(), d.y()) > 0.25) {
+      painter.drawLine(o, tip);
+      const QPointF back = (o - tip) / std::max(1e-9, std::hypot(o.x() - tip.x(), o.y() - tip.y()));
+      const QPointF side(-back.y(), back.x());
+      painter.drawLine(tip, tip + 7 * back + 4 * side);
+      painter.drawLine(tip, tip + 7 * back - 4 * side);
+    }
+    if (std::abs(d.z()) > 0.5) {
+      painter.drawEllipse(o, 7, 7);
+      if (d.z() > 0) {
+        painter.drawLine(o + QPointF(-5, -5), o + QPointF(5, 5));
+        painter.drawLine(o + QPointF(-5, 5), o + QPointF(5, -5));
+      } else {
+        painter.drawEllipse(o, 1.5, 1.5);
+      }
+    }
+    painter.drawText(QRectF(o.x() + 12, o.y() - 22, 120, 16), Qt::AlignLeft, tr("gravity"));
+  }
   // Colour bar with its unit.
   const QRect bar(width() - 62, 30, 14, height() - 70);
   QLinearGradient g(bar.bottomLeft(), bar.topLeft());
@@ -549,6 +611,18 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
       tr("\nThe presets set the tissue's density (liver 1,079 kg/m³); the organ's mass follows its volume."));
   form_.mass = new QLabel(this);
   form_.mass->setObjectName(QStringLiteral("simMass"));
+  // Two fields on one form row, the second named by a label between them (a row more would take room from the view).
+  auto pairRow = [this, form](const QString& name, QWidget* first, const QString& between, QWidget* second) {
+    auto* row = new QWidget(this);
+    auto* h = new QHBoxLayout(row);
+    h->setContentsMargins(0, 0, 0, 0);
+    h->addWidget(first, 1);
+    auto* label = new QLabel(between, row);
+    label->setBuddy(second);
+    h->addWidget(label);
+    h->addWidget(second, 1);
+    form->addRow(name, row);
+  };
   // Where the tissue tears: on the jaw bite's row (the grasp slips or the tissue tears, whichever comes first; a row
   // more, or a wider one, would take room from the frame view).
   form_.tearStrain = new QDoubleSpinBox(this);
@@ -577,17 +651,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form_.jawBite->setToolTip(
       tr("The grasper's bite: closing the jaws holds the tissue's nodes within this distance of the tip. A coarse "
          "mesh's nodes can be a centimetre apart, so a wider bite holds more of it (applies at the next grasp)"));
-  {
-    auto* row = new QWidget(this);
-    auto* h = new QHBoxLayout(row);
-    h->setContentsMargins(0, 0, 0, 0);
-    h->addWidget(form_.jawBite, 1);
-    auto* label = new QLabel(tr("tears at"), row);
-    label->setBuddy(form_.tearStrain);
-    h->addWidget(label);
-    h->addWidget(form_.tearStrain, 1);
-    form->addRow(tr("Jaw bite"), row);
-  }
+  pairRow(tr("Jaw bite"), form_.jawBite, tr("tears at"), form_.tearStrain);
   form_.clipLength = new QDoubleSpinBox(this);
   form_.clipLength->setObjectName(QStringLiteral("simClipLength"));
   form_.clipLength->setRange(3, 20);
@@ -623,9 +687,27 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form_.gravity = new QComboBox(this);
   form_.gravity->setObjectName(QStringLiteral("simGravity"));
   form_.gravity->addItems({tr("down in the image"), tr("into the scene"), tr("off")});
+  // A laparoscope looks down into a supine patient: gravity runs mostly along the view, into the scene.
+  form_.gravity->setCurrentIndex(1);
   form_.gravity->setToolTip(
-      tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it"));
+      tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it. Into the scene "
+         "(the default): a laparoscope looking down into a supine patient; down in the image: a camera looking "
+         "across"));
+  form_.support = new QDoubleSpinBox(this);
+  form_.support->setObjectName(QStringLiteral("simSupport"));
+  form_.support->setRange(0, 1e6);
+  form_.support->setDecimals(0);
+  form_.support->setSuffix(tr(" Pa/mm"));
+  form_.support->setKeyboardTracking(false);
+  form_.support->setSpecialValueText(tr("none"));
+  form_.support->setAccessibleName(tr("Carried by the tissue around it"));
+  form_.support->setToolTip(
+      tr("The tissue around the organ carries it: the surface facing along gravity rests on an elastic bed of this "
+         "stiffness per mm it is pressed (100 Pa/mm: a few kPa of tissue a few centimetres deep), which carries its "
+         "weight where the frame shows it; the held nodes hold it too. None: only the held nodes hold it. The FEM "
+         "only; a change starts the organ again."));
   form->addRow(tr("Gravity"), form_.gravity);
+  form->addRow(tr("Support"), form_.support);
   connect(form_.gravity, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
   form_.start = new QCheckBox(tr("Start where the frame shows it"), this);
   form_.start->setObjectName(QStringLiteral("simStartInEquilibrium"));
@@ -689,7 +771,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   connect(form_.timeStep, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
   connect(form_.jawBite, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
   connect(form_.clipLength, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::postRunParameters);
-  for (QDoubleSpinBox* s : {form_.young, form_.poisson, form_.density, form_.tearStrain})
+  for (QDoubleSpinBox* s : {form_.young, form_.poisson, form_.density, form_.tearStrain, form_.support})
     connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::materialFieldsEdited);
   connect(form_.density, &QDoubleSpinBox::valueChanged, this, &SimulationPanel::updateMass);
   connect(form_.colouring, &QComboBox::currentIndexChanged, this, [this](int c) {
@@ -773,6 +855,7 @@ SimulationSetup SimulationPanel::setup() const {
     s.vesselYoung = m.vesselYoung;
     s.vesselPoisson = m.vesselPoisson;
     s.tearStrain = m.tearStrain;
+    s.supportModulus = m.supportModulus;
   }
   s.timeStep = 1e-3 * form_.timeStep->value();
   s.graspRadius = 1e-3 * form_.jawBite->value();
@@ -796,6 +879,7 @@ void SimulationPanel::fillMaterial(const app::MaterialSettings& m) {
   form_.poisson->setValue(m.poisson);
   form_.density->setValue(m.density);
   form_.tearStrain->setValue(100 * m.tearStrain);
+  form_.support->setValue(m.supportModulus / 1e3);
   filling_ = false;
   updateMass();
 }
@@ -813,6 +897,7 @@ app::MaterialSettings SimulationPanel::fieldsMaterial() const {
   m.poisson = take(form_.poisson, m.poisson, 1.0);
   m.density = take(form_.density, m.density, 1.0);
   m.tearStrain = take(form_.tearStrain, m.tearStrain, 0.01);
+  m.supportModulus = take(form_.support, m.supportModulus, 1e3);
   return m;
 }
 
@@ -823,8 +908,11 @@ void SimulationPanel::setCase(std::shared_ptr<const app::Case> c) {
   if (sameBody(previous.get(), organ_.get())) {
     // The same organ in the same shape, place and attachments keeps running; a material edit is applied
     // at the next step boundary, keeping the state.
-    if (!(previous->material == organ_->material)) postMaterial(previous->material, organ_->material);
-    return;
+    // A new support is a new start (its springs are placed on the registered shape, the rest shape solved on them).
+    if (previous->material.supportModulus == organ_->material.supportModulus) {
+      if (!(previous->material == organ_->material)) postMaterial(previous->material, organ_->material);
+      return;
+    }
   }
   playing_ = false;
   pendingPlay_ = false;
@@ -877,7 +965,15 @@ void SimulationPanel::materialFieldsEdited() {
 void SimulationPanel::postRunParameters() {
   // Run parameters (time step, solver, gravity): events applied at the next step boundary, keeping the state; each
   // compared with what was last asked (the session's own setup lags until that boundary).
-  if (!session_) return;
+  if (!session_) {
+    // The organ was not started (no equilibrium where the frame shows it, nothing holding it): what the assistant
+    // changes on the panel is tried at once.
+    if (startRefused_ && organ_) {
+      startSession(setup());
+      updateButtons();
+    }
+    return;
+  }
   const SimulationSetup s = setup();
   if (s.timeStep != asked_.timeStep) session_->post(parameter("dt", asked_.timeStep = s.timeStep));
   if (s.graspRadius != asked_.graspRadius)
@@ -891,6 +987,18 @@ void SimulationPanel::postRunParameters() {
   if (s.bodyModel == simcore::BodyModel::Fem && s.method != asked_.method) {
     asked_.method = s.method;
     session_->post(parameter("method", static_cast<double>(s.method)));
+  }
+  if (s.gravity != asked_.gravity && !recordRequest_ && !session_->setup().supports.empty() &&
+      session_->setup().topology == 0) {
+    // The supports carry the weight along the gravity they were placed for: another gravity is a new start (placed
+    // and solved for it), as long as nothing was cut (then it acts on the running organ, as without supports).
+    const bool wasPlaying = playing_;
+    playing_ = false;
+    pendingPlay_ = false;
+    startSession(s);
+    if (wasPlaying) play();
+    updateButtons();
+    return;
   }
   if (s.gravity != asked_.gravity) {
     simcore::InputEvent g;

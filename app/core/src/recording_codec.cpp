@@ -615,6 +615,12 @@ std::uint64_t setupHash(const simcore::BodySetup& s) {
   arr(s.rest);
   if (!s.start.empty()) arr(s.start);  // (setups recorded before it existed keep their hash)
   arr(s.fixedNodes);
+  // The supports field by field (a NodeAnchor has padding); none for setups recorded before they existed.
+  for (const auto& a : s.supports) {
+    h = fnv(h, &a.node, sizeof a.node);
+    h = fnv(h, a.at.data(), 3 * sizeof(double));
+    h = fnv(h, &a.stiffness, sizeof a.stiffness);
+  }
   // The small rest through its text (materials, settings, tools, topology).
   simcore::BodySetup light;
   light.material = s.material;
@@ -654,6 +660,15 @@ std::string encodeSetup(const simcore::BodySetup& s) {
     j["start"] = start;
   }
   j["fixedNodes"] = s.fixedNodes;
+  if (!s.supports.empty()) {  // (setups recorded before the supports existed keep their text)
+    json nodes = json::array(), at = json::array(), stiffness = json::array();
+    for (const auto& a : s.supports) {
+      nodes.push_back(a.node);
+      at.push_back(vec(a.at));
+      stiffness.push_back(a.stiffness);
+    }
+    j["supports"] = {{"nodes", nodes}, {"at", at}, {"stiffness", stiffness}};
+  }
   j["material"] = material(s.material);
   json byLabel = json::array();
   for (const auto& [label, m] : s.byLabel) byLabel.push_back({{"label", label}, {"material", material(m)}});
@@ -735,6 +750,21 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
     if (j.contains("start"))
       for (const auto& p : j.at("start")) s.start.push_back(vec(p));
     s.fixedNodes = asInts(j.at("fixedNodes"));
+    if (j.contains("supports")) {
+      const auto& sp = j.at("supports");
+      const std::vector<int> nodes = asInts(sp.at("nodes"));
+      const auto& at = sp.at("at");
+      const auto& stiffness = sp.at("stiffness");
+      if (at.size() != nodes.size() || stiffness.size() != nodes.size())
+        throw std::runtime_error("the supports' nodes, points and stiffnesses differ in number");
+      for (std::size_t k = 0; k < nodes.size(); ++k) {
+        simcore::NodeAnchor a;
+        a.node = nodes[k];
+        a.at = vec(at.at(k));
+        a.stiffness = stiffness.at(k).get<double>();
+        s.supports.push_back(a);
+      }
+    }
     s.material = material(j.at("material"));
     for (const auto& b : j.at("byLabel")) s.byLabel[asInt(b.at("label"))] = material(b.at("material"));
     s.settings = settings(j.at("settings"));
@@ -875,6 +905,9 @@ std::string setupProblem(const simcore::BodySetup& s) {
     return "the triangle labels do not match the triangles";
   if (!std::all_of(s.fixedNodes.begin(), s.fixedNodes.end(), inRange))
     return "an attachment names a node the body has not";
+  for (const auto& a : s.supports)
+    if (!inRange(a.node) || !a.at.allFinite() || !finite(a.stiffness) || a.stiffness < 0)
+      return "a support names a node the body has not or is not a finite spring";
   if (!finite(m.unitToMetre) || m.unitToMetre <= 0) return "the mesh's unit is not a positive number";
   if (auto p = materialProblem(s.material, "the organ"); !p.empty()) return p;
   for (const auto& [label, mat] : s.byLabel)

@@ -83,7 +83,13 @@ class FemBody final : public DeformableBody {
   }
   static FemModel build(const BodySetup& s) {
     const Mesh mesh = restMesh(s);
-    return FemModel::build(mesh, s.byLabel, s.material);
+    FemModel m = FemModel::build(mesh, s.byLabel, s.material);
+    for (const auto& a : s.supports)
+      if (a.node < 0 || static_cast<std::size_t>(a.node) >= m.nodeCount() || !(a.stiffness >= 0) || !a.at.allFinite())
+        throw MeshError("A support of the organ names node " + std::to_string(a.node) + " of " +
+                        std::to_string(m.nodeCount()) + " or is not a finite spring: the body cannot be built.");
+    m.anchors = s.supports;
+    return m;
   }
   FemModel model_;
   Integrator integrator_;
@@ -144,6 +150,13 @@ Eigen::Matrix3d toolStiffnessOf(const std::vector<ScalarConstraint>& c, const Ei
 std::unique_ptr<DeformableBody> makeFemBody(const BodySetup& setup) { return std::make_unique<FemBody>(setup); }
 
 std::unique_ptr<DeformableBody> makeBody(const BodySetup& setup) {
+  if (!setup.supports.empty() && setup.model != BodyModel::Fem) {
+    // The other models' responses are of the organ held at its attachments alone: they hang it from its held nodes
+    // (the session says so; the FEM stands it on its supports again).
+    BodySetup held = setup;
+    held.supports.clear();
+    return makeBody(held);
+  }
   switch (setup.model) {
     case BodyModel::Precomputed:
       return makePrecomputedBody(setup);

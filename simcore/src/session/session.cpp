@@ -333,7 +333,12 @@ void Session::apply(const InputEvent& e, std::string& message) {
       }
       try {
         rebuildBody();
-        if (e.name == "body_model") message = body_->buildNote();
+        if (e.name == "body_model") {
+          message = body_->buildNote();
+          if (setup_.model != BodyModel::Fem && !setup_.supports.empty())
+            message += std::string(message.empty() ? "" : " ") + "The " + bodyModelName(setup_.model) +
+                       " model hangs the organ from its held nodes; the tissue around it carries it in the FEM only.";
+        }
       } catch (const std::exception& ex) {
         setup_ = std::move(before);
         rebuildBody();

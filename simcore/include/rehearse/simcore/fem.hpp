@@ -53,6 +53,15 @@ struct EmbeddedSpring {
   double restLength = 0;          ///< m
 };
 
+/// A node held elastically to a point: force -stiffness (x - at), zero-length. The tissue around an organ carrying it
+/// (BodySetup::supports, support.hpp).
+struct NodeAnchor {
+  int node = 0;
+  Eigen::Vector3d at = Eigen::Vector3d::Zero();  ///< m
+  double stiffness = 0;                          ///< N/m
+  bool operator==(const NodeAnchor& o) const { return node == o.node && at == o.at && stiffness == o.stiffness; }
+};
+
 struct FemModel {
   std::vector<Eigen::Vector3d> rest;        ///< rest positions (m)
   std::vector<std::array<int, 4>> tets;
@@ -69,6 +78,8 @@ struct FemModel {
   std::vector<SurfaceEmbedding> embeddings;
   std::vector<EmbeddedSpring> springs;
   std::vector<std::array<int, 576>> springSlots;  ///< 24x24 blocks, column-major, like elementSlots
+  /// Nodes held elastically to points (set after build; their energy, forces and stiffness join the material's).
+  std::vector<NodeAnchor> anchors;
 
   std::size_t nodeCount() const { return rest.size(); }
   /// Bytes held by the model, including the per-element scratch of assembly (144 doubles per tet).

@@ -17,6 +17,9 @@ namespace rehearse::simcore {
 struct InverseRestOptions {
   double tolerance = 1e-5;  ///< m: the largest node distance between the rest shape's equilibrium and the target
   int maxIterations = 40;
+  /// Pa/m: the tissue around the organ carries it (support.hpp): the supports are placed on the target for the
+  /// weight of each rest shape tried, and the result's `supports` are the last ones. 0: the setup's supports as given.
+  double supportModulus = 0;
   /// After each iteration: its number (1-based) and the largest node distance (m); false cancels.
   std::function<bool(int iteration, double error)> progress;
 };
@@ -26,6 +29,8 @@ struct InverseRestResult {
   Outcome outcome = Outcome::Refused;
   std::vector<Eigen::Vector3d> rest;         ///< the rest shape (m, the target's frame)
   std::vector<Eigen::Vector3d> equilibrium;  ///< its static equilibrium under the loads (within `error` of the target)
+  std::vector<NodeAnchor> supports;          ///< the supports it stands on (the setup's, or those placed)
+  double supportLoad = 0;                    ///< N: the weight the supports carry at the target (0 without)
   double error = 0;                          ///< m: the largest node distance between equilibrium and target
   double sag = 0;                            ///< m: the largest node distance between rest and equilibrium
   int iterations = 0;                        ///< static solves done
@@ -34,7 +39,8 @@ struct InverseRestResult {
 };
 
 /// The rest shape whose equilibrium under `setup`'s gravity, held at `setup.fixedNodes`, is `target` (one position per
-/// node of setup.mesh, metres). `setup.rest` and `setup.start` are not read. Without gravity the target is its own
+/// node of setup.mesh, metres), standing on the setup's supports or on those placed (options.supportModulus).
+/// `setup.rest` and `setup.start` are not read. Without gravity the target is its own
 /// rest shape (no solve). Refused, with a sentence, when nothing holds the body under gravity, the target does not
 /// match the mesh or is not finite, or an element of the target is inverted. Never throws for a numerical failure: a
 /// static solve that fails or an iteration that stops approaching the target ends with NotConverged and the best rest
@@ -43,7 +49,7 @@ InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen
                                  const InverseRestOptions& options = {});
 
 /// `setup` made to start from `target` on a solved rest shape `r` (solveRestShape for this setup and target): rest
-/// `r.rest`, start `target`. Nothing changes unless `r` converged; true when it did.
+/// `r.rest`, start `target`, supports `r.supports`. Nothing changes unless `r` converged; true when it did.
 bool useRestShape(BodySetup& setup, const std::vector<Eigen::Vector3d>& target, const InverseRestResult& r);
 
 /// `setup` made to start from `target` in equilibrium: its rest shape solved (solveRestShape), `start` the target

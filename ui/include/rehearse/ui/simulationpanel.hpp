@@ -48,7 +48,7 @@ struct SimulationSetup {
   /// The deformable model (the Solver list's last entry: Cotin's precomputed linear elasticity; it cannot cut).
   simcore::BodyModel bodyModel = simcore::BodyModel::Fem;
   double vesselPoisson = 0.45;
-  Eigen::Vector3d gravity = Eigen::Vector3d(0, 9.81, 0);  ///< m/s^2 in the camera frame (default: down in the image)
+  Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, 9.81);  ///< m/s^2 in the camera frame (default: into the scene)
   /// m: the instruments' shaft radius for contact (a 5 mm laparoscopic instrument): the tissue is pushed, not
   /// penetrated; 0 turns contact off.
   double toolRadius = 0.0025;
@@ -61,6 +61,9 @@ struct SimulationSetup {
   /// sags into the registered one is solved first (simcore/inverse_rest.hpp). Off: it starts at rest on that shape
   /// (and sags away from it).
   bool startInEquilibrium = true;
+  /// Pa/m: the tissue around the organ carries it (simcore/support.hpp; the case's MaterialSettings::supportModulus);
+  /// 0: only the held nodes hold it. The FEM only (the other models hang the organ from its held nodes).
+  double supportModulus = 1e5;
 };
 
 /// Published after each step: positions and the coloured quantity per node.
@@ -229,6 +232,7 @@ class SimulationPanel : public QWidget {
   std::shared_ptr<std::atomic<bool>> precomputeCancelled_ = std::make_shared<std::atomic<bool>>(false);
   QPointer<QProgressDialog> buildDialog_;
   QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not
+  bool startRefused_ = false;  ///< the last start was refused (a run setting changed on the panel tries again)
   std::atomic<int> colouring_{0};
   bool pendingPlay_ = false;         ///< Play pressed while the session was being built ...
   int pendingSteps_ = 0;             ///< ... and single steps
@@ -246,6 +250,7 @@ class SimulationPanel : public QWidget {
     QDoubleSpinBox* poisson = nullptr;
     QDoubleSpinBox* density = nullptr;
     QDoubleSpinBox* tearStrain = nullptr;  ///< % strain the tissue tears at (0: never)
+    QDoubleSpinBox* support = nullptr;     ///< Pa/mm: the tissue around the organ carries it (0: none)
     QDoubleSpinBox* timeStep = nullptr;
     QDoubleSpinBox* jawBite = nullptr;  ///< the grasper's reach: closing holds the nodes within it of the tip (mm)
     QDoubleSpinBox* clipLength = nullptr;  ///< the clip applier's jaws' length (mm)

@@ -136,6 +136,9 @@ struct MaterialSettings {
   /// The engineering strain at which the tissue (and the vessels) tear in the rehearsal (MaterialParams::tearStrain);
   /// 0: they do not tear.
   double tearStrain = 0;
+  /// Pa/m: the tissue around the organ carries it, an elastic foundation under the surface facing along gravity
+  /// (simcore/support.hpp; its default, 1e5, is simcore::kDefaultSupportModulus); 0: only the held nodes hold it.
+  double supportModulus = 1e5;
   bool operator==(const MaterialSettings&) const = default;
 };
 

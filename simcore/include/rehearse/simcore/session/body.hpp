@@ -119,6 +119,11 @@ struct BodySetup {
   /// solved for it (inverse_rest.hpp). Empty: it starts at rest. Cleared by a topology change (the state carries on).
   std::vector<Eigen::Vector3d> start;
   std::vector<int> fixedNodes;            ///< ligament attachments
+  /// The tissue around the organ carrying it (support.hpp): zero-length springs from nodes of the surface facing along
+  /// gravity, preloaded to carry the weight at the registered shape. Kept by node through cuts and tears (the nodes
+  /// a cut adds carry none). The FEM only (the other models hang the organ from its held nodes). Empty: none (the
+  /// sessions recorded before this existed).
+  std::vector<NodeAnchor> supports;
   MaterialParams material;                ///< parenchyma and unlisted labels
   std::map<int, MaterialParams> byLabel;  ///< e.g. the vessels' label
   SimulationSettings settings;            ///< time step, method, gravity (m/s^2, in the body's frame), ...
