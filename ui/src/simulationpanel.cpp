@@ -988,10 +988,12 @@ void SimulationPanel::postRunParameters() {
     asked_.method = s.method;
     session_->post(parameter("method", static_cast<double>(s.method)));
   }
-  if (s.gravity != asked_.gravity && !recordRequest_ && !session_->setup().supports.empty() &&
-      session_->setup().topology == 0) {
-    // The supports carry the weight along the gravity they were placed for: another gravity is a new start (placed
-    // and solved for it), as long as nothing was cut (then it acts on the running organ, as without supports).
+  // (What the session ran is read from its last frame: its setup belongs to the stepping thread.)
+  const bool cut = last_ && last_->surface;
+  if (s.gravity != asked_.gravity && !recordRequest_ && s.startInEquilibrium && !cut) {
+    // The start (and the supports) are solved for the gravity they were placed for: another gravity is a new start,
+    // solved for it, as long as nothing was cut (then it acts on the running organ). Posted to the running organ, it
+    // sagged 5 mm while the panel still said it started in equilibrium (a user's check).
     const bool wasPlaying = playing_;
     playing_ = false;
     pendingPlay_ = false;
