@@ -233,6 +233,7 @@ bool useRestShape(BodySetup& setup, const std::vector<Eigen::Vector3d>& target, 
   if (!r.converged()) return false;
   setup.rest = r.rest;
   setup.start = target;  // exactly where the frame shows it; its equilibrium is within r.error
+  setup.tearFrom = target;  // what the instruments stretch is measured from there
   setup.supports = r.supports;
   return true;
 }

@@ -297,6 +297,96 @@ class TestTear : public QObject {
     }
   }
 
+  // Tearing measured from where the organ starts (issue 61): the bar starts 20 % longer than its rest shape
+  // (BodySetup::start, as an organ whose rest shape sags into the registered shape starts stretched), the grasper
+  // holding its end there. With its tears measured from the start (tearFrom, as startInEquilibrium sets it) it never
+  // tears at rest, though it tears at 15 % (measured from its rest shape it tears untouched: the test can fail); pulled,
+  // it tears when the pull adds the declared 25 % to the start's length ((1.2 L + u) / 1.2 L - 1: u = 0.3 L, not the
+  // 0.05 L its rest shape would say); released just after the first tear, it tears no more; and the positions go
+  // through the tear's new nodes and a recording.
+  void aTearIsMeasuredFromWhereTheOrganStarts() {
+    constexpr double kStretch = 1.2;
+    auto started = [&](double tearStrain, bool fromStart) {
+      simcore::BodySetup s = bar(tearStrain);
+      s.start = s.mesh.points;
+      for (auto& p : s.start) p.x() *= kStretch;
+      if (fromStart) s.tearFrom = s.start;
+      return s;
+    };
+    const Eigen::Vector3d tip0(kStretch * kL, 0.5 * kSide, 0.5 * kSide);
+    struct Run {
+      long tearStep = -1, tears = 0, tearsAfterRelease = 0;
+      double tearPull = 0;
+      std::size_t nodes = 0;
+      bool tornKeepsItsStart = false;
+      std::string firstMessage;
+    };
+    // Held at the start for `hold` steps, then pulled kStep per step up to `to` (m); released at the first tear.
+    auto run = [&](const simcore::BodySetup& setup, int hold, double to, int after) {
+      Run out;
+      simcore::Session s(setup);
+      s.post(toolAt(tip0));
+      s.post(jaws(true));
+      s.advance();
+      out.firstMessage = s.snapshot()->message;
+      const int steps = static_cast<int>(std::lround(to / kStep));
+      long releasedAt = -1;
+      for (int k = 1; k <= hold + steps + after; ++k) {
+        const double u = std::clamp(k - hold, 0, steps) * kStep;
+        if (releasedAt < 0) s.post(toolAt(tip0 + Eigen::Vector3d(u, 0, 0)));
+        s.advance();
+        const auto snap = s.snapshot();
+        if (!has(snap->events, "tear")) continue;
+        ++out.tears;
+        if (releasedAt >= 0) ++out.tearsAfterRelease;
+        if (out.tearStep < 0) {
+          out.tearStep = k;
+          out.tearPull = u;
+          releasedAt = k;
+          s.post(jaws(false));
+          s.post(toolAt(tip0 + Eigen::Vector3d(u, 0.05, 0)));  // and away
+        }
+      }
+      out.nodes = s.snapshot()->positions.size();
+      if (out.tearStep > 0) {  // the torn body keeps where its tears are measured from, new nodes included
+        const simcore::BodySetup& torn = s.setup();
+        const simcore::BodySetup back = app::decodeSetup(app::encodeSetup(torn));
+        out.tornKeepsItsStart = torn.tearFrom.size() == torn.mesh.points.size() && torn.topology > 0 &&
+                                back.tearFrom == torn.tearFrom && app::setupHash(back) == app::setupHash(torn);
+      }
+      return out;
+    };
+    // At rest, 300 steps (3 s) held where it started.
+    const Run still = run(started(0.15, true), 300, 0, 0);
+    qInfo("starts 20 %% past its rest shape, tears at 15 %% from the start: %ld tears in 3 s (%s)", still.tears,
+          still.firstMessage.c_str());
+    QCOMPARE(still.tears, 0L);
+    QVERIFY(still.firstMessage.find("at the start") == std::string::npos);
+    const Run fromRest = run(started(0.15, false), 300, 0, 0);
+    qInfo("the same measured from its rest shape: first tear at step %ld (%s)", fromRest.tearStep,
+          fromRest.firstMessage.c_str());
+    QVERIFY(fromRest.tearStep > 0);
+    // Pulled past 25 % of the start's length, released at the first tear.
+    const Run pulled = run(started(kTear, true), 10, 0.4 * kL, 100);
+    const double strain = pulled.tearPull / (kStretch * kL);
+    qInfo("pulled: torn at a pull of %.2f mm, %.4f of the start's length (declared %.2f; from the rest shape it "
+          "would be %.2f mm); %ld tears, %ld after the release",
+          1e3 * pulled.tearPull, strain, kTear, 1e3 * (1 + kTear - kStretch) * kL, pulled.tears,
+          pulled.tearsAfterRelease);
+    QVERIFY(pulled.tearStep > 0);
+    QVERIFY(strain >= kTear);
+    QVERIFY(strain <= kTear + kStep / (kStretch * kL) + 1e-3);
+    QCOMPARE(pulled.tearsAfterRelease, 0L);
+    QVERIFY(pulled.tornKeepsItsStart);
+    // The positions are part of the setup's hash and text only when given (older setups keep theirs).
+    simcore::BodySetup plain = started(kTear, false);
+    QVERIFY(app::encodeSetup(plain).find("tearFrom") == std::string::npos);
+    simcore::BodySetup measured = started(kTear, true);
+    QVERIFY(app::setupHash(measured) != app::setupHash(plain));
+    measured.tearFrom.pop_back();
+    QVERIFY(app::setupProblem(measured).find("tears are measured from") != std::string::npos);
+  }
+
   // A tear opens (the torn body replaces the old one) a fixed number of steps after the tissue passed its limit: the
   // setting's 5 steps, or at once with -1, whatever the cut's latency; the same pull tears the same way each run. The
   // setting is kept by a recording where it differs from the cut's, and a recording from before it existed tears at

@@ -614,6 +614,11 @@ std::uint64_t setupHash(const simcore::BodySetup& s) {
   arr(s.mesh.triangleLabels);
   arr(s.rest);
   if (!s.start.empty()) arr(s.start);  // (setups recorded before it existed keep their hash)
+  if (!s.tearFrom.empty()) {           // (likewise)
+    static constexpr char kTag[] = "tearFrom";
+    h = fnv(h, kTag, sizeof kTag);
+    arr(s.tearFrom);
+  }
   arr(s.fixedNodes);
   // The supports field by field (a NodeAnchor has padding); none for setups recorded before they existed.
   for (const auto& a : s.supports) {
@@ -658,6 +663,11 @@ std::string encodeSetup(const simcore::BodySetup& s) {
     json start = json::array();
     for (const auto& p : s.start) start.push_back(vec(p));
     j["start"] = start;
+  }
+  if (!s.tearFrom.empty()) {  // (setups recorded before it existed keep their text)
+    json from = json::array();
+    for (const auto& p : s.tearFrom) from.push_back(vec(p));
+    j["tearFrom"] = from;
   }
   j["fixedNodes"] = s.fixedNodes;
   if (!s.supports.empty()) {  // (setups recorded before the supports existed keep their text)
@@ -749,6 +759,8 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
     for (const auto& p : j.at("rest")) s.rest.push_back(vec(p));
     if (j.contains("start"))
       for (const auto& p : j.at("start")) s.start.push_back(vec(p));
+    if (j.contains("tearFrom"))
+      for (const auto& p : j.at("tearFrom")) s.tearFrom.push_back(vec(p));
     s.fixedNodes = asInts(j.at("fixedNodes"));
     if (j.contains("supports")) {
       const auto& sp = j.at("supports");
@@ -888,6 +900,11 @@ std::string setupProblem(const simcore::BodySetup& s) {
   if (!s.start.empty() && s.start.size() != n)
     return "the body's start positions (" + std::to_string(s.start.size()) + ") do not match its nodes (" +
            std::to_string(n) + ")";
+  if (!s.tearFrom.empty() && s.tearFrom.size() != n)
+    return "the positions the body's tears are measured from (" + std::to_string(s.tearFrom.size()) +
+           ") do not match its nodes (" + std::to_string(n) + ")";
+  if (!std::all_of(s.tearFrom.begin(), s.tearFrom.end(), [](const Eigen::Vector3d& p) { return finite(p); }))
+    return "a node's position is not a number";
   if (!std::all_of(m.points.begin(), m.points.end(), [](const Eigen::Vector3d& p) { return finite(p); }) ||
       !std::all_of(s.rest.begin(), s.rest.end(), [](const Eigen::Vector3d& p) { return finite(p); }) ||
       !std::all_of(s.start.begin(), s.start.end(), [](const Eigen::Vector3d& p) { return finite(p); }))

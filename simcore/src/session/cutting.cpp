@@ -63,6 +63,13 @@ TopologyChange Session::changeFromCut(const CutResult& r, std::vector<Eigen::Vec
   next.mesh.tetLabels = std::move(labels);
   next.rest.clear();
   next.start.clear();  // the state carries on
+  if (!next.tearFrom.empty()) {  // and so does where a tear's stretch is measured from
+    Eigen::VectorXd from(3 * static_cast<Eigen::Index>(next.tearFrom.size()));
+    for (std::size_t k = 0; k < next.tearFrom.size(); ++k) from.segment<3>(3 * static_cast<Eigen::Index>(k)) = next.tearFrom[k];
+    extendByCut(from, r.newNodes);
+    next.tearFrom.resize(static_cast<std::size_t>(from.size() / 3));
+    for (std::size_t k = 0; k < next.tearFrom.size(); ++k) next.tearFrom[k] = from.segment<3>(3 * static_cast<Eigen::Index>(k));
+  }
   next.cut = std::move(progress);
   const auto& fixed = body_->fixedMask();
   for (std::size_t k = 0; k < r.duplicateOf.size(); ++k)

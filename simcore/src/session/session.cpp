@@ -626,6 +626,7 @@ void Session::run() {
         setup_.mesh = uncut_.mesh;
         setup_.rest = uncut_.rest;
         setup_.start = uncut_.start;
+        setup_.tearFrom = uncut_.tearFrom;
         setup_.fixedNodes = uncut_.fixedNodes;
         setup_.topology = uncut_.topology;
         setup_.cut = uncut_.cut;

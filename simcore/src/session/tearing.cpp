@@ -3,7 +3,9 @@
 // minus 1) is split across that stretch: a square in the plane through its centre, normal to the stretched direction,
 // as large as the element, cut through the cut module's re-meshing (cut.hpp) and applied by the session's topology
 // mechanism (topology.cpp) like a blade's cut, with the scene's latency. A torn vessel bleeds like a cut one
-// (field.cpp: its torn faces are open stumps). Nothing is measured unless some material declares a tear strain.
+// (field.cpp: its torn faces are open stumps). Nothing is measured unless some material declares a tear strain. The
+// stretch is measured from where the organ started (BodySetup::tearFrom: the registered shape it starts in equilibrium
+// at, whose rest shape sags into it stretched): the in-vivo organ is not torn, what tears it is what the instruments add.
 #include <rehearse/simcore/session/session.hpp>
 
 #include <Eigen/Dense>
@@ -36,6 +38,9 @@ void Session::tearOverStretched(std::string& message) {
     return;
   }
   const auto& rest = body_->restPositions();
+  // The stretch is the instruments' (and the tissue's own since): measured from where the organ started, when it
+  // started deformed (BodySetup::tearFrom), else from its rest shape.
+  const auto& from = setup_.tearFrom.size() == rest.size() ? setup_.tearFrom : rest;
   const auto& tets = body_->tetrahedra();
   const auto& labels = body_->labels();
   auto at = [this](int i) -> Eigen::Vector3d { return state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)); };
@@ -53,7 +58,7 @@ void Session::tearOverStretched(std::string& message) {
     Eigen::Matrix3d Dm, Ds;
     for (int k = 0; k < 3; ++k) {
       Dm.col(k) =
-          rest[static_cast<std::size_t>(t[static_cast<std::size_t>(k + 1)])] - rest[static_cast<std::size_t>(t[0])];
+          from[static_cast<std::size_t>(t[static_cast<std::size_t>(k + 1)])] - from[static_cast<std::size_t>(t[0])];
       Ds.col(k) = at(t[static_cast<std::size_t>(k + 1)]) - at(t[0]);
     }
     if (!(std::abs(Dm.determinant()) > 0)) continue;

@@ -118,6 +118,10 @@ struct BodySetup {
   /// The positions at t = 0 (m), when the body starts deformed: the registered shape in equilibrium on the rest shape
   /// solved for it (inverse_rest.hpp). Empty: it starts at rest. Cleared by a topology change (the state carries on).
   std::vector<Eigen::Vector3d> start;
+  /// The positions a tear's stretch is measured from (m): the state the organ started in (`start`: the in-vivo organ is
+  /// not torn, whatever its rest shape sags through to reach it), carried through cuts and tears like the state (new
+  /// nodes interpolated). Empty: the rest shape (bodies that start at rest, and sessions recorded before it existed).
+  std::vector<Eigen::Vector3d> tearFrom;
   std::vector<int> fixedNodes;            ///< ligament attachments
   /// The tissue around the organ carrying it (support.hpp): zero-length springs from nodes of the surface facing along
   /// gravity, preloaded to carry the weight at the registered shape. Kept by node through cuts and tears (the nodes
