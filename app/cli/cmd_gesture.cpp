@@ -115,6 +115,7 @@ int cmdGesture(const std::vector<std::string>& args) {
   setup.mesh = mesh;
   // --start equilibrium: the mesh as given is where the organ hangs (as registered): its rest shape solved first.
   std::string startWord = "rest";
+  double startError = -1;  // m, the start's equilibrium from the shape (--start equilibrium)
   if (o.count("start") && o["start"] != "rest") {
     if (o["start"] != "equilibrium") throw UsageError("--start takes rest or equilibrium, not '" + o["start"] + "'");
   }
@@ -142,6 +143,7 @@ int cmdGesture(const std::vector<std::string>& args) {
       return 4;
     }
     startWord = "equilibrium";
+    startError = start.error;
   }
   // --record: the session (setup, events, a state checksum every 10 steps) written into CASE as it runs.
   std::unique_ptr<Recorder> recorder;
@@ -218,6 +220,8 @@ int cmdGesture(const std::vector<std::string>& args) {
                  {"method", simcore::toString(setup.settings.method)},
                  {"refresh", setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous ? "async" : "sync"},
                  {"start", startWord},
+                 {"start_error_m", startError >= 0 ? nlohmann::json(startError) : nlohmann::json(nullptr)},
+                 {"supported_nodes", setup.supports.size()},
                  {"statuses", statusCounts(all)},
                  {"slips", r.slips},
                  {"cuts", r.cuts},

@@ -21,6 +21,8 @@
 #include <QSqlError>
 #include <QCryptographicHash>
 
+#include <nlohmann/json.hpp>
+
 #include <cstdio>
 #include <optional>
 #include <random>
@@ -167,6 +169,8 @@ class TestCaseFile : public QObject {
     edited.pose.t = {0.0123, -0.004, 0.21};
     edited.poseAligned = true;
     edited.down = Eigen::Vector3d(0.6, 0.8, 0);
+    edited.material.supportModulus = 2.5e4;
+    edited.material.gravity = app::GravityChoice::DownInTheImage;  // issue 61: a stated choice of the case
     {
       auto organ = std::make_shared<app::Organ>(*edited.organ);
       organ->sourceUnitToMetre = 0.001;  // imported from a file in mm
@@ -193,6 +197,8 @@ class TestCaseFile : public QObject {
     auto back = ui::loadCaseFile(path, &notes);
     QVERIFY2(notes.isEmpty(), qPrintable(notes.join('\n')));
     compareCases(edited, back);
+    QVERIFY(back.material == edited.material);
+    QCOMPARE(back.material.gravity, app::GravityChoice::DownInTheImage);
     QCOMPARE(back.organ->sourceUnitToMetre, 0.001);
     QVERIFY(back.organ->visual);
     QCOMPARE(back.organ->visual->triangles, edited.organ->visual->triangles);
@@ -403,6 +409,48 @@ class TestCaseFile : public QObject {
     QVERIFY2(!notes[0].contains("checksum"), qPrintable(notes[0]));
     QCOMPARE(c.camera.K, phantomCase().camera.K);
     QVERIFY(c.groundTruth != nullptr);
+  }
+
+  // A case's gravity that is none of the panel's choices is refused with a sentence (the material falls back to its
+  // defaults, the rest of the case opens); a case saved before gravity was stored opens with it into the scene.
+  void aCaseGravityIsOneOfThePanelsChoices() {
+    const QString path = QString::fromStdString(tempPath("gravity.rehearse"));
+    for (const char* gravity : {"sideways", ""}) {
+      app::Case c = phantomCase();
+      c.material.gravity = app::GravityChoice::Off;
+      c.material.young = 12e3;
+      ui::saveCaseFile(c, path);
+      {
+        auto db = QSqlDatabase::addDatabase("QSQLITE", "gravity");
+        db.setDatabaseName(path);
+        QVERIFY(db.open());
+        QSqlQuery q(db);
+        QVERIFY(q.exec("SELECT data FROM parts WHERE name = 'material'") && q.next());
+        nlohmann::json j = nlohmann::json::parse(q.value(0).toByteArray().toStdString());
+        if (*gravity)
+          j["gravity"] = gravity;
+        else
+          j.erase("gravity");
+        const QByteArray bytes = QByteArray::fromStdString(j.dump());
+        q.prepare("UPDATE parts SET data = ?, sha256 = ? WHERE name = 'material'");
+        q.addBindValue(bytes);
+        q.addBindValue(QCryptographicHash::hash(bytes, QCryptographicHash::Sha256));
+        QVERIFY(q.exec());
+        db.close();
+      }
+      QSqlDatabase::removeDatabase("gravity");
+      QStringList notes;
+      const app::Case back = ui::loadCaseFile(path, &notes);
+      qInfo("gravity '%s': %s", gravity, qPrintable(notes.join(" | ")));
+      if (*gravity) {
+        QCOMPARE(notes.size(), 1);
+        QVERIFY2(notes[0].contains("gravity is not one of"), qPrintable(notes[0]));
+      } else {
+        QVERIFY2(notes.isEmpty(), qPrintable(notes.join(" | ")));
+        QCOMPARE(back.material.gravity, app::GravityChoice::IntoTheScene);
+        QCOMPARE(back.material.young, 12e3);
+      }
+    }
   }
 
   // The precomputed model's responses (issue 37) are kept with the case: saved under their key, offered back to the

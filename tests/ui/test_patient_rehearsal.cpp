@@ -378,6 +378,8 @@ class TestPatientRehearsal : public QObject {
     // carries it (the default support, gravity into the scene), so it starts where the frame shows it and stays.
     panel->findChild<QComboBox*>("simGravity")->setCurrentIndex(1);
     panel->findChild<QDoubleSpinBox*>("simSupport")->setValue(100);  // Pa/mm, the default
+    // Gravity is the case's stated choice (saved with it, undoable under its own name).
+    QCOMPARE(w_->caseData()->material.gravity, app::GravityChoice::IntoTheScene);
     QTest::keyClick(w_.get(), Qt::Key_1, Qt::AltModifier);
     auto* release = w_->findChild<QPushButton*>("clearAttachments");
     QVERIFY(release);
@@ -393,6 +395,8 @@ class TestPatientRehearsal : public QObject {
     QVERIFY2(panel->startSentence().contains("starts where the frame shows it") &&
                  panel->startSentence().contains("the tissue around it"),
              qPrintable(panel->startSentence()));
+    QVERIFY(panel->lastFrame()->supports && panel->lastFrame()->supports->size() > 50);  // drawn in the 3D view
+    qInfo("carried by the tissue around it at %zu nodes", panel->lastFrame()->supports->size());
     {
       const long at = panel->lastFrame()->steps;
       double far = 0;

@@ -252,6 +252,16 @@ class TestSimulationGui : public QObject {
     panel_->findChild<QDoubleSpinBox*>("simSupport")->setValue(0);
     auto* gravity = panel_->findChild<QComboBox*>("simGravity");
     gravity->setCurrentIndex(0);  // down in the image
+    // Both are the case's (issue 61): undoable under their own names, and Undo shows the case's value again.
+    QCOMPARE(w_->caseData()->material.gravity, app::GravityChoice::DownInTheImage);
+    QCOMPARE(w_->caseData()->material.supportModulus, 0.0);
+    QCOMPARE(w_->undoStack()->undoText(), QStringLiteral("Change gravity"));
+    w_->undoStack()->undo();
+    QCOMPARE(gravity->currentIndex(), 1);
+    QCOMPARE(w_->caseData()->material.gravity, app::GravityChoice::IntoTheScene);
+    QCOMPARE(w_->undoStack()->undoText(), QStringLiteral("Change support"));
+    w_->undoStack()->redo();
+    QCOMPARE(gravity->currentIndex(), 0);
     QTRY_VERIFY_WITH_TIMEOUT(panel_->session() && panel_->session()->setup().supports.empty(), 60000);
     auto* model = panel_->findChild<QComboBox*>("simMaterial");
     auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");

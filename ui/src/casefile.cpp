@@ -112,6 +112,19 @@ QString sqlProblem(const QSqlError& e) {
     default: return QStringLiteral("the database reported error %1").arg(code);
   }
 }
+// The case file's words for where gravity points (material.json's "gravity").
+const char* gravityWord(app::GravityChoice g) {
+  switch (g) {
+    case app::GravityChoice::DownInTheImage:
+      return "down in the image";
+    case app::GravityChoice::Off:
+      return "off";
+    case app::GravityChoice::IntoTheScene:
+      break;
+  }
+  return "into the scene";
+}
+
 }  // namespace
 
 bool isCaseFile(const QString& path) {
@@ -209,7 +222,8 @@ void saveCaseFile(const app::Case& c, const QString& path, const QString& record
                       {"vessel_young", m.vesselYoung},
                       {"vessel_poisson", m.vesselPoisson},
                       {"tear_strain", m.tearStrain},
-                      {"support_modulus", m.supportModulus}}
+                      {"support_modulus", m.supportModulus},
+                      {"gravity", gravityWord(m.gravity)}}
                      .dump()));
     }
     if (!c.incorrectActions.empty()) part("incorrect_actions", "json", bytes(c.incorrectActions));
@@ -466,6 +480,15 @@ app::Case loadCaseFile(const QString& path, QStringList* notes) {
       s.supportModulus = j.value("support_modulus", s.supportModulus);  // (cases saved before it: the default)
       if (!(s.supportModulus >= 0 && s.supportModulus <= 1e9))
         throw std::runtime_error("its support modulus is outside [0, 1e9] Pa/m");
+      if (j.contains("gravity")) {  // (cases saved before it: into the scene)
+        const json& g = j.at("gravity");
+        bool known = false;
+        for (const auto choice : {app::GravityChoice::IntoTheScene, app::GravityChoice::DownInTheImage,
+                                  app::GravityChoice::Off})
+          if (g.is_string() && g.get<std::string>() == gravityWord(choice)) s.gravity = choice, known = true;
+        if (!known)
+          throw std::runtime_error("its gravity is not one of \"into the scene\", \"down in the image\" or \"off\"");
+      }
       c.material = s;
     } catch (const std::exception& e) {
       note(QStringLiteral("Material not loaded (the default is used): %1").arg(QString::fromUtf8(e.what())));

@@ -201,7 +201,17 @@ void MainWindow::buildDocks() {
       showFrameLayer();
   });
   connect(simulation_, &SimulationPanel::materialEdited, this, [this](const app::MaterialSettings& m) {
-    doc_->edit(tr("Edit material"), [m](app::Case& k) { k.material = m; });
+    // Named by what changed (the history and Undo's label read it).
+    if (!doc_->data()) return;
+    const app::MaterialSettings was = doc_->data()->material;
+    app::MaterialSettings only = was;
+    QString what = tr("Edit material");
+    only.supportModulus = m.supportModulus;
+    if (only == m && m.supportModulus != was.supportModulus) what = tr("Change support");
+    only = was;
+    only.gravity = m.gravity;
+    if (only == m && m.gravity != was.gravity) what = tr("Change gravity");
+    doc_->edit(what, [m](app::Case& k) { k.material = m; });
   });
 }
 

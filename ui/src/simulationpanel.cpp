@@ -51,7 +51,10 @@ struct SimulationPanel::FrameContext {
   std::vector<Eigen::Vector3d> rest;  ///< camera frame (m)
   std::vector<std::array<int, 4>> tets;
   std::vector<int> incidence;  ///< elements per node (stress averaged onto nodes)
+  std::shared_ptr<const std::vector<int>> supports;  ///< the supported nodes (kept by index through cuts)
   long generation = 0;         ///< frames of an older session are dropped
+  // On the session's thread (its published callback, once per step): steps not converged since the start or a Reset.
+  long lastStep = 0, notConverged = 0;
 };
 
 namespace {
@@ -137,6 +140,8 @@ std::shared_ptr<const SimulationFrame> SimulationPanel::makeFrame(const FrameCon
   f->field = snap.field;
   f->labels = snap.labels;
   f->gravity = snap.gravity;
+  f->supports = ctx.supports;
+  f->stepsNotConverged = ctx.notConverged;
   f->elements = snap.elements;
   f->responseKey = snap.responseKey;
   f->model = snap.model;
@@ -215,6 +220,9 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
     recordPending_ = cancelRecord_ = false;
     if (!result->first) {
       startRefused_ = true;  // a setting changed on the panel tries again (postRunParameters)
+      // The last session's organ is not what runs: no frame of it stays on show (it kept its time and attachments).
+      last_.reset();
+      view_->clearFrame(result->second);
       onFailed(result->second);
       if (*recorder) emit recordingStopped(tr("The recording did not start: %1").arg(result->second));
       return;
@@ -246,7 +254,13 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
     forceLoop_->start();
     session_->setPublishedCallback([this, s = session_.get(), ctx]() {
       // On the session's thread: the frame is made here, the GUI thread only draws it.
-      auto frame = makeFrame(*ctx, *s->snapshot(), colouring_.load());
+      const auto snap = s->snapshot();
+      if (snap->step > ctx->lastStep)
+        ctx->notConverged += snap->report.outcome != simcore::StepStatus::Converged;
+      else if (snap->step < ctx->lastStep)
+        ctx->notConverged = 0;  // a Reset: counted again from the start
+      ctx->lastStep = snap->step;
+      auto frame = makeFrame(*ctx, *snap, colouring_.load());
       QMetaObject::invokeMethod(
           this,
           [this, frame, generation = ctx->generation] {
@@ -367,6 +381,11 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
       ctx->incidence.assign(ctx->rest.size(), 0);
       for (const auto& t : ctx->tets)
         for (int v : t) ++ctx->incidence[static_cast<std::size_t>(v)];
+      {
+        auto supported = std::make_shared<std::vector<int>>();
+        for (const auto& a : b.supports) supported->push_back(a.node);
+        ctx->supports = std::move(supported);
+      }
       ctx->generation = generation;
       result->first = std::make_shared<simcore::Session>(std::move(b));
     } catch (const std::exception& e) {
@@ -425,13 +444,20 @@ void SimulationView::setFrame(std::shared_ptr<const SimulationFrame> f) {
   update();
 }
 
+void SimulationView::clearFrame(const QString& why) {
+  frame_.reset();
+  emptyText_ = why;
+  update();
+}
+
 void SimulationView::paintEvent(QPaintEvent*) {
   QPainter painter(this);
   painter.fillRect(rect(), QColor(24, 25, 28));
   if (!frame_ || !frame_->organ || frame_->positions.empty()) {
     painter.setPen(QColor(150, 150, 150));
     painter.drawText(rect().adjusted(12, 12, -12, -12), Qt::AlignCenter | Qt::TextWordWrap,
-                     tr("No simulation yet: choose a preset and press Step or Play"));
+                     emptyText_.isEmpty() ? tr("No simulation yet: choose a preset and press Step or Play")
+                                          : emptyText_);
     return;
   }
   const app::Case& organCase = *frame_->organ;
@@ -492,6 +518,19 @@ void SimulationView::paintEvent(QPaintEvent*) {
   for (int a : organCase.attachments)
     if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0)
       painter.drawEllipse(project(cam[a]), 2.5, 2.5);
+  // The tissue around the organ carrying it: its supported nodes, small and blue-grey (under the organ's surface,
+  // where gravity presses it: seen when the view is turned), and said under the arrow.
+  if (frame_->supports && !frame_->supports->empty()) {
+    painter.setBrush(QColor(110, 170, 210, 200));
+    for (int a : *frame_->supports)
+      if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0)
+        painter.drawEllipse(project(cam[a]), 1.6, 1.6);
+    painter.setPen(QColor(110, 170, 210));
+    painter.drawText(QRectF(18, 70, 260, 16), Qt::AlignLeft,
+                     tr("carried by the tissue around it (%n nodes)", nullptr,
+                        static_cast<int>(frame_->supports->size())));
+    painter.setPen(Qt::NoPen);
+  }
   // Gravity, as the case states it, turned with the view: an arrow (a crossed circle where it points into the view, a
   // dotted one where it points out of it).
   if (frame_->gravity.norm() > 0) {
@@ -692,7 +731,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form_.gravity->setToolTip(
       tr("Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it. Into the scene "
          "(the default): a laparoscope looking down into a supine patient; down in the image: a camera looking "
-         "across"));
+         "across. Stored with the case; drawn as an arrow in the 3D view"));
   form_.support = new QDoubleSpinBox(this);
   form_.support->setObjectName(QStringLiteral("simSupport"));
   form_.support->setRange(0, 1e6);
@@ -709,13 +748,15 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form->addRow(tr("Gravity"), form_.gravity);
   form->addRow(tr("Support"), form_.support);
   connect(form_.gravity, &QComboBox::currentIndexChanged, this, &SimulationPanel::postRunParameters);
+  // A stated choice of the case (saved with it, undoable) as well as a run parameter.
+  connect(form_.gravity, &QComboBox::currentIndexChanged, this, &SimulationPanel::materialFieldsEdited);
   form_.start = new QCheckBox(tr("Start where the frame shows it"), this);
   form_.start->setObjectName(QStringLiteral("simStartInEquilibrium"));
   form_.start->setChecked(true);
   form_.start->setToolTip(
-      tr("The organ starts on the registered shape in equilibrium under gravity on its ligaments (its rest shape is "
-         "solved first) and stays there until an instrument acts. Off: the registered shape is its rest shape, and it "
-         "sags from there."));
+      tr("The organ starts on the registered shape in equilibrium under gravity, held by its attachment nodes and "
+         "carried by the tissue around it (Support): its rest shape is solved first, and it stays there until an "
+         "instrument acts. Off: the registered shape is its rest shape, and it sags from there."));
   form->addRow(QString(), form_.start);
   connect(form_.start, &QCheckBox::toggled, this, [this](bool on) {
     if (recordRequest_) {  // a recorded session's start is part of it: not changed under it
@@ -756,10 +797,15 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   statusThrottle_ = std::make_unique<Throttle>(this, [this] {
     const QString text = statusText();
     status_->setText(text);
+    status_->setToolTip(text);
     emit statusChanged(text);
   });
   status_->setObjectName(QStringLiteral("simStatus"));
   status_->setWordWrap(true);
+  // A fixed height of six lines, the text from the top: the controls below stay put whatever the sentence's length
+  // (they moved with every message); a longer one is whole in the tooltip.
+  status_->setAlignment(Qt::AlignTop | Qt::AlignLeft);
+  status_->setFixedHeight(6 * status_->fontMetrics().lineSpacing() + 4);
   layout->addWidget(status_);
 
   connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
@@ -880,6 +926,7 @@ void SimulationPanel::fillMaterial(const app::MaterialSettings& m) {
   form_.density->setValue(m.density);
   form_.tearStrain->setValue(100 * m.tearStrain);
   form_.support->setValue(m.supportModulus / 1e3);
+  form_.gravity->setCurrentIndex(static_cast<int>(m.gravity));  // (acts on the run through postRunParameters)
   filling_ = false;
   updateMass();
 }
@@ -898,6 +945,7 @@ app::MaterialSettings SimulationPanel::fieldsMaterial() const {
   m.density = take(form_.density, m.density, 1.0);
   m.tearStrain = take(form_.tearStrain, m.tearStrain, 0.01);
   m.supportModulus = take(form_.support, m.supportModulus, 1e3);
+  m.gravity = static_cast<app::GravityChoice>(std::clamp(form_.gravity->currentIndex(), 0, 2));
   return m;
 }
 
@@ -911,6 +959,7 @@ void SimulationPanel::setCase(std::shared_ptr<const app::Case> c) {
     // A new support is a new start (its springs are placed on the registered shape, the rest shape solved on them).
     if (previous->material.supportModulus == organ_->material.supportModulus) {
       if (!(previous->material == organ_->material)) postMaterial(previous->material, organ_->material);
+      postRunParameters();  // the case's gravity (an undo, a redo): a new start or posted, as the panel's own change
       return;
     }
   }
@@ -965,6 +1014,7 @@ void SimulationPanel::materialFieldsEdited() {
 void SimulationPanel::postRunParameters() {
   // Run parameters (time step, solver, gravity): events applied at the next step boundary, keeping the state; each
   // compared with what was last asked (the session's own setup lags until that boundary).
+  if (filling_) return;  // a case's fields being shown: setCase acts on them once shown
   if (!session_) {
     // The organ was not started (no equilibrium where the frame shows it, nothing holding it): what the assistant
     // changes on the panel is tried at once.
@@ -1143,12 +1193,14 @@ QString SimulationPanel::statusText() const {
   if (!error_.isEmpty()) return error_;
   if (!last_) return tr("Simulation ready");
   const auto& r = last_->report;
-  const bool loose = organ_ && organ_->attachments.empty();  // an imported organ has no ligament nodes
+  // An imported organ has no ligament nodes: it falls only where nothing else carries it (no support, gravity on).
+  const bool loose = organ_ && organ_->attachments.empty() && !(last_->supports && !last_->supports->empty()) &&
+                     last_->gravity.norm() > 0;
   if (last_->steps == 0)
-    return loose ? tr("Simulation at rest (t = 0). This organ has no attachment nodes: it will fall freely under "
-                      "gravity.")
-           : startWord_.isEmpty() ? tr("Simulation at rest (t = 0)")
-                                  : tr("t = 0. %1").arg(startWord_);
+    return !startWord_.isEmpty() ? tr("t = 0. %1").arg(startWord_)
+           : loose ? tr("Simulation at rest (t = 0). Nothing holds this organ (no attachment nodes, no support): it "
+                        "will fall under gravity.")
+                   : tr("Simulation at rest (t = 0)");
   if (!last_->message.isEmpty()) return last_->message;
   const QString rate = playing_ ? tr(" · %1 fps").arg(rate_.fps, 0, 'f', 0) : QString();
   // The fast models do no Newton iteration: their name instead (the model that ran the step).

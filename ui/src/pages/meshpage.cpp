@@ -128,7 +128,8 @@ void MeshPage::refresh(const app::Case& c) {
     labelsFor_ = c.organ;
   }
   attachmentsLabel_->setText(c.attachments.empty()
-                                 ? tr("No ligament attachments: the organ is free (it falls in the simulation).")
+                                 ? tr("No ligament attachments: in the simulation the tissue around the organ carries it (the Simulation "
+                                      "panel's Support; with none, it falls).")
                                  : tr("Ligament attachments: %n node(s).", nullptr, static_cast<int>(c.attachments.size())));
   labels_->clear();
   std::map<int, std::size_t> counts;

@@ -86,6 +86,11 @@ struct SimulationFrame {
   simcore::OperativeField field;                       ///< clips, bleeding stumps, blood lost, the cautery's heat
   std::shared_ptr<const std::vector<int>> labels;      ///< the elements' labels (burnt ones: simcore::isBurnt)
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();   ///< m/s^2, camera frame
+  /// The nodes the tissue around the organ carries (BodySetup::supports; drawn beneath the organ), none without.
+  std::shared_ptr<const std::vector<int>> supports;
+  /// Steps since the start (or the last Reset) that did not converge to the scene's tolerance: every step counted,
+  /// whether or not its frame was drawn.
+  long stepsNotConverged = 0;
   std::size_t elements = 0;
   std::uint64_t responseKey = 0;  ///< the precomputed model's responses (simcore::ResponseCache), 0 for the FEM
   simcore::BodyModel model = simcore::BodyModel::Fem;           ///< the deformable model that ran the step
@@ -110,6 +115,8 @@ class SimulationView : public QWidget {
  public:
   explicit SimulationView(QWidget* parent = nullptr);
   void setFrame(std::shared_ptr<const SimulationFrame> f);
+  /// No frame, and why (drawn in its place; empty: the invitation to start).
+  void clearFrame(const QString& why);
   QSize sizeHint() const override { return {420, 320}; }
 
  protected:
@@ -121,6 +128,7 @@ class SimulationView : public QWidget {
 
  private:
   std::shared_ptr<const SimulationFrame> frame_;
+  QString emptyText_;
   Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();  ///< the organ's centre of gravity (m)
   double size_ = 0.05;                                ///< its bounding sphere's radius (m), from the first frame
   Turntable turntable_;

@@ -125,6 +125,10 @@ struct AppearanceEstimate {
   double frameDigest = 0;                      ///< ... and content (Case::frameDigest)
 };
 
+/// Where gravity points in the rehearsal, a stated choice of the case (the Simulation panel's Gravity): into the scene
+/// (along the camera's view: a laparoscope looks down into a supine patient), down in the image (+y), or off.
+enum class GravityChoice { DownInTheImage = 0, IntoTheScene = 1, Off = 2 };
+
 /// The case's material, set in the Simulation panel and used by both the elastic fit and the simulation.
 struct MaterialSettings {
   simcore::MaterialModel model = simcore::MaterialModel::Corotational;
@@ -139,6 +143,8 @@ struct MaterialSettings {
   /// Pa/m: the tissue around the organ carries it, an elastic foundation under the surface facing along gravity
   /// (simcore/support.hpp; its default, 1e5, is simcore::kDefaultSupportModulus); 0: only the held nodes hold it.
   double supportModulus = 1e5;
+  /// Where gravity points in the rehearsal (cases saved before it: into the scene).
+  GravityChoice gravity = GravityChoice::IntoTheScene;
   bool operator==(const MaterialSettings&) const = default;
 };
 
