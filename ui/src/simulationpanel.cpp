@@ -526,9 +526,12 @@ void SimulationView::paintEvent(QPaintEvent*) {
       if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0)
         painter.drawEllipse(project(cam[a]), 1.6, 1.6);
     painter.setPen(QColor(110, 170, 210));
-    painter.drawText(QRectF(18, 70, 260, 16), Qt::AlignLeft,
-                     tr("carried by the tissue around it (%n nodes)", nullptr,
-                        static_cast<int>(frame_->supports->size())));
+    // Within the drawing area (left of the colour bar), elided where narrow; the whole sentence in the panel's status.
+    const QRectF caption(18, 70, std::max(W - 24, 10.0), 16);
+    painter.drawText(caption, Qt::AlignLeft,
+                     painter.fontMetrics().elidedText(tr("on its supports (%n nodes)", nullptr,
+                                                         static_cast<int>(frame_->supports->size())),
+                                                      Qt::ElideRight, static_cast<int>(caption.width())));
     painter.setPen(Qt::NoPen);
   }
   // Gravity, as the case states it, turned with the view: an arrow (a crossed circle where it points into the view, a
