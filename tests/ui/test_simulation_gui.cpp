@@ -924,6 +924,33 @@ class TestSimulationGui : public QObject {
     QVERIFY(status->palette().color(QPalette::WindowText) != ui::palette::warning());
   }
 
+  // Issue 61, from a user's check: nothing holds the organ (no attachment, no support, gravity on): step 7 does not
+  // start it and says why; Play does not pretend to play; the view shows the reason, not the last session's frame; and
+  // once the support is given back (paused) the organ starts and the reason goes (it stayed until Play was pressed).
+  void aRefusedStartIsSaidUntilItsCauseGoes() {
+    auto* status = panel_->findChild<QLabel*>("simStatus");
+    panel_->pause();
+    panel_->findChild<QComboBox*>("simGravity")->setCurrentIndex(1);
+    panel_->findChild<QDoubleSpinBox*>("simSupport")->setValue(0);
+    QTest::keyClick(w_.get(), Qt::Key_1, Qt::AltModifier);
+    QTest::mouseClick(w_->findChild<QPushButton*>("clearAttachments"), Qt::LeftButton);
+    QVERIFY(w_->caseData()->attachments.empty());
+    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
+    QTRY_VERIFY_WITH_TIMEOUT(status->text().contains("was not started"), 120000);
+    qInfo("refused: %s", qPrintable(status->text()));
+    QVERIFY(status->text().contains("nothing holds it"));
+    QVERIFY(!panel_->lastFrame());  // no frame of an organ that is not running
+    QTest::mouseClick(panel_->findChild<QPushButton*>("simPlay"), Qt::LeftButton);
+    QVERIFY(!panel_->isPlaying());
+    QVERIFY(status->text().contains("was not started"));
+    // The support given back, paused: it starts, and says so.
+    panel_->findChild<QDoubleSpinBox*>("simSupport")->setValue(100);
+    QTRY_VERIFY_WITH_TIMEOUT(panel_->lastFrame() && status->text().contains("on the tissue around it"), 120000);
+    qInfo("given its support back: %s", qPrintable(status->text()));
+    QVERIFY(!status->text().contains("was not started"));
+    QVERIFY(!panel_->isPlaying());
+  }
+
   void cleanupTestCase() { w_.reset(); }
 };
 

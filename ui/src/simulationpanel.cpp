@@ -228,6 +228,11 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
       return;
     }
     session_ = std::move(result->first);
+    // A refusal said before (nothing held it, no equilibrium) is over: the organ runs (it said so while paused too).
+    if (!error_.isEmpty()) {
+      error_.clear();
+      statusThrottle_->request();
+    }
     {
       const auto& b = session_->setup();
       asked_ = {b.settings.timeStep, b.tools.graspRadius, b.tools.clip.length, b.settings.method, b.model,
@@ -527,11 +532,13 @@ void SimulationView::paintEvent(QPaintEvent*) {
         painter.drawEllipse(project(cam[a]), 1.6, 1.6);
     painter.setPen(QColor(110, 170, 210));
     // Within the drawing area (left of the colour bar), elided where narrow; the whole sentence in the panel's status.
-    const QRectF caption(18, 70, std::max(W - 24, 10.0), 16);
-    painter.drawText(caption, Qt::AlignLeft,
-                     painter.fontMetrics().elidedText(tr("on its supports (%n nodes)", nullptr,
-                                                         static_cast<int>(frame_->supports->size())),
-                                                      Qt::ElideRight, static_cast<int>(caption.width())));
+    // Below the gravity arrow (which reaches 30 px down), on a dark band so that the organ behind does not hide it.
+    const QString text = painter.fontMetrics().elidedText(
+        tr("on its supports (%n nodes)", nullptr, static_cast<int>(frame_->supports->size())), Qt::ElideRight,
+        static_cast<int>(std::max(W - 24, 10.0)));
+    const QRectF caption(18, 92, painter.fontMetrics().horizontalAdvance(text) + 6, 16);
+    painter.fillRect(caption, QColor(24, 25, 28, 190));
+    painter.drawText(caption.adjusted(3, 0, 0, 0), Qt::AlignLeft, text);
     painter.setPen(Qt::NoPen);
   }
   // Gravity, as the case states it, turned with the view: an arrow (a crossed circle where it points into the view, a
@@ -1073,6 +1080,10 @@ bool SimulationPanel::post(simcore::InputEvent e) {
 
 void SimulationPanel::play() {
   if (!organ_) return;
+  if (!session_ && startRefused_) {  // nothing runs until a setting lets it start: Play does not pretend it plays
+    updateButtons();
+    return;
+  }
   playing_ = true;
   error_.clear();
   rate_.clock.start();

@@ -129,7 +129,7 @@ void MeshPage::refresh(const app::Case& c) {
   }
   attachmentsLabel_->setText(c.attachments.empty()
                                  ? tr("No ligament attachments: in the simulation the tissue around the organ carries it (the Simulation "
-                                      "panel's Support; with none, it falls).")
+                                      "panel's Support; with none, nothing holds it and it is not started).")
                                  : tr("Ligament attachments: %n node(s).", nullptr, static_cast<int>(c.attachments.size())));
   labels_->clear();
   std::map<int, std::size_t> counts;
