@@ -44,6 +44,7 @@
 #include <QtTest>
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <numeric>
 #include <set>
@@ -571,7 +572,11 @@ class TestOperativeGui : public QObject {
                                                  "force is ([0-9.]+) N\\)"));
       const auto m = at.match(ended);
       QVERIFY2(m.hasMatch(), qPrintable(ended));
-      QVERIFY(m.captured(1).toDouble() > m.captured(2).toDouble());
+      // At the limit, within one step's change (issue 61: the jaws let go where the force reaches it, to first order
+      // from the last step: 14.2 and 15.3 N seen for 15 N; before that the slip came at 27-39 N). It asserted "above"
+      // and failed on a fresh clone when the jaws let go at 14.2 N.
+      QVERIFY2(std::abs(m.captured(1).toDouble() - m.captured(2).toDouble()) <= 0.25 * m.captured(2).toDouble(),
+               qPrintable(ended));
       QVERIFY(panel_->lastFrame()->tool.held.empty());
     }
     QVERIFY(stepsOn(10));
