@@ -71,6 +71,10 @@ int main(int argc, char** argv) {
   const app::GestureScript all = app::parseGestureScript(ss.str());
   std::ofstream csv(out + "/operative-steps.csv");
   csv << "variant,script,phase,steps,median_ms,p99_ms,max_ms,converged,inexact,other,events\n";
+  // Every step of each variant's last run: what a slow step did (its Newton iterations, retries, factorisations).
+  std::ofstream perStep(out + "/operative-each-step.csv");
+  perStep << "variant,step,time_s,phase,wall_ms,outcome,newton_iterations,retries,factorisations,inversion_limited,"
+             "residual,elements,events\n";
   std::printf("%-22s %-14s %-14s %6s %9s %9s %9s %s\n", "variant", "script", "phase", "steps", "median ms", "p99",
               "worst", "converged/inexact/other  events");
   struct Variant {
@@ -104,6 +108,17 @@ int main(int argc, char** argv) {
           for (const auto& e : step.events)
             if (e == "clip" || e == "cut" || e == "burn" || e == "tear" || e == "vessel cut") ++events[phase][e];
         }
+        if (r + 1 == repeat)
+          for (std::size_t i = 0; i < g.steps.size(); ++i) {
+            const auto& step = g.steps[i];
+            std::string said;
+            for (const auto& e : step.events) said += (said.empty() ? "" : " ") + e;
+            perStep << '"' << v.name << "\"," << i + 1 << ',' << step.time << ',' << phaseOf(step.time) << ','
+                    << step.wallMs << ',' << static_cast<int>(step.report.outcome) << ','
+                    << step.report.newtonIterations << ',' << step.report.retries << ','
+                    << step.report.factorisations << ',' << step.report.inversionLimited << ','
+                    << step.report.residual << ',' << step.elements << ",\"" << said << "\"\n";
+          }
         for (const auto& [phase, t] : ms) {
           medians[phase].push_back(percentile(t, 0.5));
           p99s[phase].push_back(percentile(t, 0.99));

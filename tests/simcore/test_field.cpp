@@ -531,6 +531,68 @@ class TestField : public QObject {
     }
   }
 
+  // A stroke of the powered hook that burns nothing says so when the power goes off, with what to change: away from the
+  // tissue (38 mm above the block), and on it for less than the burn time; a stroke that burns does not.
+  void aCauteryStrokeThatBurnsNothingSaysSo() {
+    simcore::BodySetup setup = vesselBlock();
+    setup.tools.cautery.radius = 0.004;
+    const double dt = setup.settings.timeStep;
+    simcore::InputEvent on;
+    on.kind = simcore::InputKind::Energy;
+    on.tool = 4;
+    on.on = true;
+    simcore::InputEvent off = on;
+    off.on = false;
+    auto hookAt = [](const Eigen::Vector3d& p) {
+      auto e = toolAt(p);
+      e.tool = 4;
+      return e;
+    };
+    // The power on for `steps`, then off: the messages of every step, the events, the heat gathered.
+    auto stroke = [&](const Eigen::Vector3d& at, int steps, std::string& said, std::vector<std::string>& events) {
+      simcore::Session s(setup);
+      s.post(hookAt(at));
+      s.post(on);
+      for (int k = 0; k < steps; ++k) {
+        QVERIFY(s.advance().ok);
+        said += s.snapshot()->message + "|";
+        events.insert(events.end(), s.snapshot()->events.begin(), s.snapshot()->events.end());
+      }
+      s.post(off);
+      for (int k = 0; k < 2; ++k) {
+        QVERIFY(s.advance().ok);
+        said += s.snapshot()->message + "|";
+      }
+    };
+    {  // in the air
+      std::string said;
+      std::vector<std::string> events;
+      stroke({0.015, 0.006, 0.05}, 30, said, events);
+      QVERIFY(!has(events, "burn"));
+      QVERIFY2(QString::fromStdString(said).contains("The hook burnt nothing: the power was on with no tissue within 4 mm"),
+               said.c_str());
+    }
+    {  // on the tissue for 5 steps of 10 ms: 0.05 s of heat, where it burns after 0.2 s
+      QCOMPARE(setup.tools.cautery.burnTime, 0.2);
+      std::string said;
+      std::vector<std::string> events;
+      const int steps = 5;
+      stroke({0.015, 0.0, 0.0}, steps, said, events);
+      QVERIFY(!has(events, "burn"));
+      char expected[120];
+      std::snprintf(expected, sizeof expected, "no spot of tissue was heated more than %.2f s, and tissue burns after 0.20 s",
+                    steps * dt);
+      QVERIFY2(QString::fromStdString(said).contains(expected), said.c_str());
+    }
+    {  // on the tissue for 30 steps: it burns, and nothing is said of burning nothing
+      std::string said;
+      std::vector<std::string> events;
+      stroke({0.015, 0.0, 0.0}, 30, said, events);
+      QVERIFY(has(events, "burn"));
+      QVERIFY2(!QString::fromStdString(said).contains("burnt nothing"), said.c_str());
+    }
+  }
+
   // A session with clips, bleeding and the cautery (clip, cut between, seal a stump, with the cut's and the burn's
   // bodies built on another thread and swapped in 3 steps later) replays bit for bit from its recording, and
   // continues bit for bit from checkpoints taken through the codec's bytes (heat under way, a burn being built).

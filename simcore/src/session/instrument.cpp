@@ -81,10 +81,17 @@ class Grasper final : public Instrument {
     // The jaws held back at the limit this step let go whatever the force came to (near the limit, to first order).
     const double max = host.tools().maxGraspForce;
     if (tool.held.empty() || !(tool.graspForce.norm() > max || host.jawsAtGraspLimit())) return false;
-    char buf[200];
-    std::snprintf(buf, sizeof buf,
-                  "The tissue slipped out of the grasper at %.3g N (the scene's maximum grasp force is %.3g N).",
-                  tool.graspForce.norm(), max);
+    char buf[400];
+    if (host.stepConverged() || !(tool.graspForce.norm() > 1.25 * max))
+      std::snprintf(buf, sizeof buf,
+                    "The tissue slipped out of the grasper at %.3g N (the scene's maximum grasp force is %.3g N).",
+                    tool.graspForce.norm(), max);
+    else  // a force read on a step that did not converge is not the tissue's at equilibrium
+      std::snprintf(buf, sizeof buf,
+                    "The tissue slipped out of the grasper on a step that did not converge: its force there reads "
+                    "%.3g N, which is not the tissue's at equilibrium (the scene's maximum grasp force is %.3g N); "
+                    "pull more slowly for forces the chart can be read by.",
+                    tool.graspForce.norm(), max);
     message = buf;
     tool.released = tool.held;  // the tissue leaves the jaws
     std::sort(tool.released.begin(), tool.released.end());
@@ -203,9 +210,35 @@ class Cautery final : public Instrument {
  public:
   const char* name() const override { return "cautery hook"; }
   bool handles(InputKind kind) const override { return kind == InputKind::Energy; }
-  void act(const InputEvent& e, ToolState&, InstrumentHost& host, std::string&) override {
+  void act(const InputEvent& e, ToolState&, InstrumentHost& host, std::string& message) override {
     OperativeField& f = host.field();
-    if (e.on && !f.energy) f.energyOn.clear();
+    if (e.on && !f.energy) {
+      f.energyOn.clear();
+      stroke_ = Stroke{};
+      stroke_.active = true;
+    }
+    // A stroke that burnt nothing is said when the power goes off, with what to change (a stroke that burnt says so as
+    // its burn comes in). What the stroke did is a sentence's, not the physics': it is not in the checkpoint (a replay
+    // from a checkpoint taken during a stroke says nothing of that stroke).
+    const CauterySettings& c = host.tools().cautery;
+    bool due = false;  // heated enough, waiting for a change under way: it burns at a later step
+    for (const auto& [element, heat] : f.heating) due = due || heat >= c.burnTime;
+    if (!e.on && f.energy && stroke_.active && !stroke_.burnt && !due) {
+      char said[320];
+      if (stroke_.touching > 0)
+        std::snprintf(said, sizeof said,
+                      "The hook burnt nothing: no spot of tissue was heated more than %.2f s, and tissue burns after "
+                      "%.2f s within %.0f mm of the powered tip; hold the hook still on the tissue longer, or drag it "
+                      "more slowly.",
+                      stroke_.longest, c.burnTime, 1e3 * c.radius);
+      else
+        std::snprintf(said, sizeof said,
+                      "The hook burnt nothing: the power was on with no tissue within %.0f mm of its tip; touch the "
+                      "tissue with the hook's tip while the power is on.",
+                      1e3 * c.radius);
+      message += (message.empty() ? "" : " ") + std::string(said);
+    }
+    if (!e.on) stroke_.active = false;
     f.energy = e.on;
   }
   void moved(const Eigen::Vector3d&, ToolState&, InstrumentHost&, std::string&) override {}
@@ -244,7 +277,7 @@ class Cautery final : public Instrument {
       touching = true;
       if (!isBurnt(e < labels.size() ? labels[e] : 0)) reached.push_back(static_cast<int>(e));
     }
-    if (touching) f.energyTime += dt;
+    if (touching) f.energyTime += dt, stroke_.touching += dt;
     if (reached.empty()) return;
     // Heat: the sorted list gains the reached elements.
     std::vector<std::pair<int, double>> heated;
@@ -260,6 +293,7 @@ class Cautery final : public Instrument {
       }
     }
     f.heating = std::move(heated);
+    for (const auto& [e, heat] : f.heating) stroke_.longest = std::max(stroke_.longest, heat);
     // A named structure reached: said once per activation.
     for (int e : reached) {
       const int label = labels[static_cast<std::size_t>(e)];
@@ -276,9 +310,19 @@ class Cautery final : public Instrument {
     std::vector<int> burnt;
     for (const auto& [e, heat] : f.heating)
       if (heat >= c.burnTime) burnt.push_back(e);
-    if (!burnt.empty() && host.burn(burnt, message))
+    if (!burnt.empty() && host.burn(burnt, message)) {
       std::erase_if(f.heating, [&c](const std::pair<int, double>& h) { return h.second >= c.burnTime; });
+      stroke_.burnt = true;
+    }
   }
+
+ private:
+  struct Stroke {
+    bool active = false;  ///< the power came on in this session (a stroke from before a checkpoint is not judged)
+    bool burnt = false;   ///< some tissue burnt since
+    double touching = 0;  ///< s with tissue within the radius
+    double longest = 0;   ///< s, the most heat any element gathered
+  } stroke_;
 };
 
 }  // namespace

@@ -450,6 +450,7 @@ StepReport Session::advance() {
     for (auto& [tri, keep] : tool_.easing) keep += by;
     std::erase_if(tool_.easing, [r](const std::pair<int, double>& e) { return e.second >= r; });
   }
+  stepConverged_ = rep.outcome == StepStatus::Converged;
   if ((!tool_.held.empty() || contactConstraints_ > 0) && rep.ok) {
     tool_.force = body_->toolForce();
     tool_.graspForce = tool_.held.empty() ? Eigen::Vector3d::Zero() : body_->toolForce(true);

@@ -35,6 +35,9 @@ class InstrumentHost {
   virtual double meanEdge() const = 0;                   ///< of the uncut mesh (m)
   /// The jaws were held back this step to let go at the grasp limit (ToolSettings::slipAtLimit): let go now.
   virtual bool jawsAtGraspLimit() const { return false; }
+  /// Whether the step just taken converged (an inexact step's forces are not the equilibrium's: a force read there is
+  /// said with that word).
+  virtual bool stepConverged() const { return true; }
   virtual void emitEvent(const std::string& event) = 0;  ///< (not "emit": a Qt macro wherever Qt is included)
   /// Tissue that was inside the shaft when it became free to touch it is eased out from the next contact detection.
   virtual void seedContactEasing() = 0;

@@ -253,6 +253,7 @@ class Session : private InstrumentHost {
   /// they were (the tissue then slips after the step).
   bool limitJawsAtGraspForce();
   bool jawsAtGraspLimit() const override { return slipDue_; }
+  bool stepConverged() const override { return stepConverged_; }
   // InstrumentHost: what an instrument may ask of the session.
   const Eigen::VectorXd& positions() const override { return state_.x; }
   const std::vector<char>& fixedMask() const override { return body_->fixedMask(); }
@@ -329,6 +330,7 @@ class Session : private InstrumentHost {
   /// The jaws were held back this step to let go at the grasp limit (ToolSettings::slipAtLimit): the tissue slips
   /// after it. Set and read within one advance().
   bool slipDue_ = false;
+  bool stepConverged_ = true;  ///< the last step's outcome was Converged (InstrumentHost::stepConverged)
   bool tearRefused_ = false;  ///< the last tear could not be made (said once until one is made)
 
   // The cut (cutting.cpp): what the blade's sweep asks of the cut module, and what a cut says.
