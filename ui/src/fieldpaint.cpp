@@ -2,8 +2,10 @@
 // the structure it closed, and the blood lost from each open stump as a film spreading over the organ's surface from
 // the stump (a surface fluid, no fluid solver: the film covers the surface within the radius its volume fills at
 // 0.5 mm thick, its distance measured along the surface's edges and shorter downhill, so the blood runs down and
-// pools below the cut). Front-facing triangles only, far to near.
+// pools below the cut); burnt tissue as a line along the hook's path. Front-facing triangles only, far to near.
 #include "rehearse/ui/frameview.hpp"
+
+#include <rehearse/simcore/session/contact.hpp>
 
 #include <QPainter>
 
@@ -54,6 +56,7 @@ std::vector<std::array<int, 3>> burntBoundary(const std::vector<std::array<int, 
   }
   return out;
 }
+
 }  // namespace
 
 void FrameView::setLiveField(simcore::OperativeField field, const Eigen::Vector3d& gravity,
@@ -71,6 +74,44 @@ namespace {
 constexpr double kFilm = 0.0005;  ///< m: the blood film's thickness
 }  // namespace
 
+void FrameView::followHook(long step, const Eigen::Vector3d& tip, bool present, bool energy, double radius) {
+  if (step < hookStep_) clearBurnTrail();  // a reset or a new session: its trail starts again
+  hookStep_ = step;
+  hookRadius_ = radius;
+  if (energy && !hookPowered_) ++hookStroke_;  // the power came on: a new stroke
+  hookPowered_ = energy;
+  if (!energy || !present || !case_ || !case_->organ || live_.empty() || !tip.allFinite()) return;
+  // The nearest point of the surface (the cut one once cut) within the hook's radius: where it burns.
+  const auto& triangles = liveSurface_ ? liveSurface_->triangles : case_->organ->surface;
+  const std::size_t n = live_.size();
+  double best = radius * radius;
+  BurnTrailPoint at;
+  bool found = false;
+  for (const auto& t : triangles) {
+    if (std::any_of(t.begin(), t.end(), [n](int v) { return v < 0 || static_cast<std::size_t>(v) >= n; })) continue;
+    const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
+                          &c = live_[static_cast<std::size_t>(t[2])];
+    Eigen::Vector3d w;
+    const double d2 = (simcore::closestOnTriangle(tip, a, b, c, w) - tip).squaredNorm();
+    if (d2 <= best) best = d2, at.nodes = t, at.weights = w, found = true;
+  }
+  if (!found) return;
+  at.stroke = hookStroke_;
+  auto place = [this](const BurnTrailPoint& p) {
+    Eigen::Vector3d x = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) x += p.weights[k] * live_[static_cast<std::size_t>(p.nodes[static_cast<std::size_t>(k)])];
+    return x;
+  };
+  // A point every fifth of the radius along the stroke (the line between them is drawn).
+  if (!burnTrail_.empty() && burnTrail_.back().stroke == at.stroke &&
+      std::all_of(burnTrail_.back().nodes.begin(), burnTrail_.back().nodes.end(),
+                  [n](int v) { return v >= 0 && static_cast<std::size_t>(v) < n; }) &&
+      (place(burnTrail_.back()) - place(at)).norm() < 0.2 * radius)
+    return;
+  burnTrail_.push_back(at);
+  update();
+}
+
 void FrameView::paintField(QPainter& painter) {
   const bool anyBurnt = fieldLabels_ && std::any_of(fieldLabels_->begin(), fieldLabels_->end(), simcore::isBurnt);
   if (!case_ || live_.empty() || (field_.clips.empty() && field_.bleeds.empty() && !anyBurnt)) return;
@@ -83,7 +124,8 @@ void FrameView::paintField(QPainter& painter) {
   const std::size_t n = live_.size();
   if (!fieldGraph_) fieldGraph_ = std::make_shared<FieldGraph>();
   if (anyBurnt && fieldTets_ && fieldLabels_) {
-    // Burnt tissue whitens: its faces on the surface, front-facing, far to near, in a pale tan over the organ.
+    // Burnt tissue whitens: its faces on the surface, front-facing, far to near, in a pale tan over the organ (as
+    // coarse as the mesh: the line along the hook's path is drawn over them, below).
     if (fieldGraph_->labels != fieldLabels_.get() || fieldGraph_->tets != fieldTets_.get()) {
       fieldGraph_->labels = fieldLabels_.get();
       fieldGraph_->tets = fieldTets_.get();
@@ -103,10 +145,58 @@ void FrameView::paintField(QPainter& painter) {
     std::sort(faces.begin(), faces.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
     painter.save();
     painter.setRenderHint(QPainter::Antialiasing, false);
-    const QColor ash(228, 214, 188, 215);
-    painter.setPen(QPen(ash, 0.8));
+    const QColor ash(228, 214, 188, 110);
+    painter.setPen(Qt::NoPen);
     painter.setBrush(ash);
     for (const auto& [depth, poly] : faces) painter.drawPolygon(poly);
+    painter.restore();
+  }
+  // The burn along the hook's path (followHook): where the powered tip went over the tissue, as wide as it burns (twice
+  // its radius at that depth), coagulated tissue pale around a charred core; on a coarse mesh the burnt elements' faces
+  // alone were a flat polygon about 10 mm across, not a line (issue 61).
+  if (anyBurnt && !burnTrail_.empty()) {  // (a stroke that burnt nothing says so, and draws nothing)
+    const double scale = std::abs(toWidget(QPointF(1, 0)).x() - toWidget(QPointF(0, 0)).x());  // widget px per image px
+    struct Stroke {
+      double depth;
+      QPointF from, to;
+      double width;
+    };
+    std::vector<Stroke> strokes;
+    auto place = [&](const BurnTrailPoint& p, Eigen::Vector3d& x) {
+      x.setZero();
+      for (int k = 0; k < 3; ++k) {
+        const int v = p.nodes[static_cast<std::size_t>(k)];
+        if (v < 0 || static_cast<std::size_t>(v) >= n) return false;
+        x += p.weights[k] * live_[static_cast<std::size_t>(v)];
+      }
+      const Eigen::Vector3d &a = live_[static_cast<std::size_t>(p.nodes[0])],
+                            &b = live_[static_cast<std::size_t>(p.nodes[1])],
+                            &c = live_[static_cast<std::size_t>(p.nodes[2])];
+      return (b - a).cross(c - a).dot(a) < 0 && x.z() > 1e-6;  // on a face the camera sees
+    };
+    for (std::size_t i = 0; i < burnTrail_.size(); ++i) {
+      Eigen::Vector3d p, q;
+      if (!place(burnTrail_[i], p)) continue;
+      const bool joined = i + 1 < burnTrail_.size() && burnTrail_[i + 1].stroke == burnTrail_[i].stroke &&
+                          place(burnTrail_[i + 1], q);
+      if (!joined) q = p;
+      const auto wp = toW(p), wq = toW(q);
+      if (!wp || !wq) continue;
+      const double depth = 0.5 * (p.z() + q.z());
+      strokes.push_back({depth, *wp, *wq, std::max(3.0, 2 * hookRadius_ * cam.fx() / depth * scale)});
+    }
+    std::sort(strokes.begin(), strokes.end(), [](const Stroke& x, const Stroke& y) { return x.depth > y.depth; });
+    painter.save();
+    painter.setRenderHint(QPainter::Antialiasing, true);
+    const QColor coagulated(232, 220, 196, 225), charred(88, 64, 46, 235);
+    for (const auto& st : strokes) {
+      painter.setPen(QPen(coagulated, st.width, Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
+      painter.drawLine(st.from, st.to);
+    }
+    for (const auto& st : strokes) {
+      painter.setPen(QPen(charred, std::max(1.5, 0.3 * st.width), Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
+      painter.drawLine(st.from, st.to);
+    }
     painter.restore();
   }
   const bool bleeding = std::any_of(field_.bleeds.begin(), field_.bleeds.end(), [n](const simcore::Bleed& b) {

@@ -166,6 +166,8 @@ void MainWindow::buildDocks() {
       view_->setLiveShape(f->positions);
       view_->setLiveSurface(f->surface);
       view_->setLiveField(f->field, f->gravity, f->labels, f->tets);
+      view_->followHook(f->steps, f->tool.tip, f->tool.present, f->field.energy,
+                        simcore::CauterySettings{}.radius);  // (the GUI's hook has the default radius)
       if (f->surface && showingComposited() && f->surface != lastCutComposited_) {
         // The composited view draws the cut organ (its cut faces in preset interior colours): said once per cut.
         lastCutComposited_ = f->surface;

@@ -701,6 +701,8 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   if (t.tearLatencySteps != t.cutLatencySteps) j["tools"]["tearLatencySteps"] = t.tearLatencySteps;
   // Written only when on (setups recorded before it existed let go after a whole step: their text stays as it was).
   if (t.slipAtLimit) j["tools"]["slipAtLimit"] = true;
+  // (likewise: setups recorded before it existed refused a tear their element could not make alone)
+  if (t.tearThroughNeighbours) j["tools"]["tearThroughNeighbours"] = true;
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
   if (!(t.clip == simcore::ClipSettings{}))  // (setups recorded before the clip applier keep their text and hash)
     j["tools"]["clip"] = {
@@ -793,6 +795,7 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
         t.contains("tearLatencySteps") ? asInt(t.at("tearLatencySteps")) : s.tools.cutLatencySteps;
     s.tools.jawsKeepTheirHold = t.value("jawsKeepTheirHold", false);          // ... and the jaws followed every tip
     s.tools.slipAtLimit = t.value("slipAtLimit", false);  // ... and the jaws let go after a whole step's pull
+    s.tools.tearThroughNeighbours = t.value("tearThroughNeighbours", false);  // ... and tears were the element's alone
     s.tools.cut.snap = t.at("cut").at("snap");
     s.tools.cut.minQuality = t.at("cut").at("minQuality");
     s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");

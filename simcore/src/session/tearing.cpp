@@ -96,13 +96,20 @@ void Session::tearOverStretched(std::string& message) {
   // between its nodes along the stretch (as far from them as it can be: a plane near a node snaps to it and may cross
   // nothing). When the furthest element cannot be split (a sliver, a plane through its nodes), the next ones are
   // tried: the tear goes on where the tissue is over-stretched.
+  // When none of them can (each square crosses edges its neighbours share, and the cut's front snaps those to nodes),
+  // the same squares twice as large, across the neighbours too (ToolSettings::tearThroughNeighbours).
   constexpr std::size_t kTries = 8;
+  const std::size_t tries = std::min(kTries, over.size());
+  const std::size_t attempts = setup_.tools.tearThroughNeighbours ? 2 * tries : tries;
   CutResult r;
   std::vector<Eigen::Vector3d> restCopy, current;
   std::vector<std::array<int, 4>> tetsCopy;
   std::vector<int> labelsCopy;
   const Over* torn = nullptr;
-  for (std::size_t i = 0; i < std::min(kTries, over.size()) && !torn; ++i) {
+  std::string firstStatus;  // why the element alone could not tear (said when no attempt could)
+  for (std::size_t attempt = 0; attempt < attempts && !torn; ++attempt) {
+    const std::size_t i = attempt % tries;
+    const double widen = attempt < tries ? 1.05 : 2.1;
     const Over& o = over[i];
     const auto& t = tets[static_cast<std::size_t>(o.element)];
     Eigen::Vector3d centre = Eigen::Vector3d::Zero();
@@ -116,7 +123,7 @@ void Session::tearOverStretched(std::string& message) {
     centre += offset * o.direction;
     double reach = 0;
     for (int v : t) reach = std::max(reach, (at(v) - centre).norm());
-    reach *= 1.05;
+    reach *= widen;
     const Eigen::Vector3d u = o.direction.unitOrthogonal(), w = o.direction.cross(u);
     const BladeSweep square{centre - reach * u - reach * w, centre - reach * u + reach * w,
                             centre + reach * u - reach * w, centre + reach * u + reach * w};
@@ -127,6 +134,7 @@ void Session::tearOverStretched(std::string& message) {
     labelsCopy = labels;
     r = cutTetrahedra(restCopy, current, tetsCopy, labelsCopy, square, setup_.tools.cut, nullptr);
     if (r.changed && r.separatedFaces > 0) torn = &o;
+    if (attempt == 0) firstStatus = r.status;
   }
   char buf[320];
   if (!torn) {
@@ -135,7 +143,8 @@ void Session::tearOverStretched(std::string& message) {
       std::snprintf(buf, sizeof buf,
                     "The tissue is stretched %.0f %% where its material tears at %.0f %%, but the tear could not be "
                     "made there: %s",
-                    100 * over.front().strain, 100 * over.front().limit, r.status.c_str());
+                    100 * over.front().strain, 100 * over.front().limit,
+                    (firstStatus.empty() ? r.status : firstStatus).c_str());
       message += (message.empty() ? "" : " ") + std::string(buf);
     }
     tearRefused_ = true;

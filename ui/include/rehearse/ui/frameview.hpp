@@ -132,6 +132,18 @@ class FrameView : public QWidget {
                     std::shared_ptr<const std::vector<int>> labels = nullptr,
                     std::shared_ptr<const std::vector<std::array<int, 4>>> tets = nullptr);
   const simcore::OperativeField& liveField() const { return field_; }
+  /// Where the powered cautery hook went over the tissue, kept on the surface it touched (three nodes and barycentric
+  /// weights, so it follows the tissue as it moves), one stroke per time the power came on: the burn is drawn along it.
+  struct BurnTrailPoint {
+    std::array<int, 3> nodes{};
+    Eigen::Vector3d weights = Eigen::Vector3d::Zero();
+    int stroke = 0;
+  };
+  /// Follows the simulation's step `step` (camera frame): the hook's tip while the power is on and tissue is within
+  /// `radius` of it extends the trail. A step before the last one (a reset, a new session) starts it again.
+  void followHook(long step, const Eigen::Vector3d& tip, bool present, bool energy, double radius);
+  const std::vector<BurnTrailPoint>& burnTrail() const { return burnTrail_; }
+  void clearBurnTrail() { burnTrail_.clear(), hookStep_ = -1, hookPowered_ = false; }
   void setOverlayVisible(bool visible);
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
@@ -233,6 +245,11 @@ class FrameView : public QWidget {
   void paintWarning(QPainter& painter);
   std::shared_ptr<const simcore::CutSurface> liveSurface_;
   simcore::OperativeField field_;
+  std::vector<BurnTrailPoint> burnTrail_;
+  long hookStep_ = -1;
+  bool hookPowered_ = false;
+  int hookStroke_ = 0;
+  double hookRadius_ = 0.003;
   std::shared_ptr<const std::vector<int>> fieldLabels_;
   std::shared_ptr<const std::vector<std::array<int, 4>>> fieldTets_;
   Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();

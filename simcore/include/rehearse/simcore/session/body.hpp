@@ -56,6 +56,12 @@ struct ToolSettings {
   /// of 150 inexact); with 5, 7 tears in every run, 24-29 ms (BENCHMARKS.md). Sessions recorded before it existed:
   /// their cut's latency, as their tears had.
   int tearLatencySteps = 5;
+  /// A tear the over-stretched element cannot make alone (its square, as large as the element, crosses edges the
+  /// elements around it share, and the cut's front snaps those to nodes: nothing is crossed) is made across its
+  /// neighbours too, a square twice the element's reach. false: refused, as the sessions recorded before this existed
+  /// did (the patient liver pulled beside an attachment stayed at 235 % where it tears at 110 %, "the tear could not be
+  /// made there", until the jaws slipped).
+  bool tearThroughNeighbours = true;
   CutSettings cut;  ///< snapping and the quality the re-meshing keeps
   /// The jaws keep their hold where their own instrument left them while another instrument moves (InputEvent::tool:
   /// the grasper's traction while the scissors cut, as an assistant holds it); false: they follow every move of the
@@ -69,7 +75,8 @@ struct ToolSettings {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && slipAtLimit == o.slipAtLimit &&
            trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
            bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
-           cutLatencySteps == o.cutLatencySteps && tearLatencySteps == o.tearLatencySteps && cut.snap == o.cut.snap &&
+           cutLatencySteps == o.cutLatencySteps && tearLatencySteps == o.tearLatencySteps &&
+           tearThroughNeighbours == o.tearThroughNeighbours && cut.snap == o.cut.snap &&
            cut.minQuality == o.cut.minQuality && cut.minVolumeFraction == o.cut.minVolumeFraction &&
            jawsKeepTheirHold == o.jawsKeepTheirHold && clip == o.clip && cautery == o.cautery && bleeding == o.bleeding;
   }
