@@ -276,6 +276,10 @@ class TestTear : public QObject {
     const std::string older = app::encodeSetup(plain);
     QVERIFY(older.find("tearThroughNeighbours") == std::string::npos);
     QVERIFY(!app::decodeSetup(older).tools.tearThroughNeighbours);
+    QVERIFY(back.tools.tearOnlyUnderLoad);
+    plain.tools.tearOnlyUnderLoad = false;
+    QVERIFY(app::encodeSetup(plain).find("tearOnlyUnderLoad") == std::string::npos);
+    QVERIFY(!app::decodeSetup(app::encodeSetup(plain)).tools.tearOnlyUnderLoad);
     s.tools.clip.minSqueeze = 1.5;
     QVERIFY(app::setupProblem(s).find("squeeze") != std::string::npos);
   }
@@ -468,6 +472,34 @@ class TestTear : public QObject {
           refused[0], refused[1]);
     QVERIFY(refused[0] >= 5);  // the case this is about is there to remove
     QVERIFY(2 * refused[1] <= refused[0]);
+  }
+
+  // A tear grows while the jaws pull the tissue and stops when they let go (issue 61: on the patient liver, 17
+  // tears in the 100 steps after a release). The bar starts 40 % longer than its rest shape, past its 25 % (measured
+  // from its rest shape, tearFrom empty), with nothing touching it: it does not tear over 50 steps (as recorded before
+  // this existed, tearOnlyUnderLoad false, it tears untouched: the test can fail); grasped and pulled, it tears.
+  void tissueTearsOnlyUnderAnInstrumentsLoad() {
+    for (const bool rule : {true, false}) {
+      simcore::BodySetup s = bar();
+      s.tools.tearOnlyUnderLoad = rule;
+      s.start = s.mesh.points;
+      for (auto& p : s.start) p.x() *= 1.4;
+      simcore::Session session(s);
+      int untouched = 0;
+      for (int k = 0; k < 50; ++k) {
+        session.advance();
+        untouched += static_cast<int>(has(session.snapshot()->events, "tear"));
+      }
+      qInfo("%s: %d tears untouched over 50 steps", rule ? "under load only" : "as recorded before", untouched);
+      if (rule) {
+        QCOMPARE(untouched, 0);
+        // Grasped at its free end and pulled past 25 %: under the instrument's load it tears.
+        const Pull p = pull(session, 0.3 * kL, 10);
+        QVERIFY2(p.tearStep > 0, "grasped, the over-stretched bar did not tear");
+      } else {
+        QVERIFY(untouched > 0);
+      }
+    }
   }
 
   void badTearSettingsAreRefused() {

@@ -286,6 +286,11 @@ class TestRehearseGui : public QObject {
     qInfo("released: the bitten nodes %.1f mm from where they had settled while pulled, %.1f mm after 100 steps",
           1e3 * before, 1e3 * after);
     QVERIFY(after < 0.3 * before);
+    // Reset (Shift+F5): a new session, and what the last one said goes with it (a user's check: "Released: the tissue
+    // relaxes." stayed over the next case's organ).
+    QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);
+    QVERIFY(waitFor([&] { return panel->lastFrame() && panel->lastFrame()->steps < released; }, 60000));
+    QVERIFY(waitFor([&] { return !w_->findChild<QLabel*>("rehearseStatus")->text().startsWith("Released"); }, 10000));
     panel->pause();
   }
 

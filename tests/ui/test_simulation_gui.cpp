@@ -949,6 +949,19 @@ class TestSimulationGui : public QObject {
     qInfo("given its support back: %s", qPrintable(status->text()));
     QVERIFY(!status->text().contains("was not started"));
     QVERIFY(!panel_->isPlaying());
+    // Playing, a new support or a new gravity starts again and plays on, either way (a user's check: the support's
+    // new start stopped, the gravity's played on).
+    QTest::mouseClick(panel_->findChild<QPushButton*>("simPlay"), Qt::LeftButton);
+    QVERIFY(panel_->isPlaying());
+    panel_->findChild<QDoubleSpinBox*>("simSupport")->setValue(50);
+    QTRY_VERIFY_WITH_TIMEOUT(status->text().contains("on the tissue around it"), 120000);
+    QVERIFY(panel_->isPlaying());
+    const long steps = panel_->lastFrame()->steps;
+    QTRY_VERIFY_WITH_TIMEOUT(panel_->lastFrame()->steps > steps + 5, 60000);
+    panel_->findChild<QComboBox*>("simGravity")->setCurrentIndex(0);
+    QTRY_VERIFY_WITH_TIMEOUT(panel_->lastFrame() && panel_->lastFrame()->steps > 5, 120000);
+    QVERIFY(panel_->isPlaying());
+    panel_->pause();
   }
 
   void cleanupTestCase() { w_.reset(); }

@@ -963,7 +963,8 @@ void SimulationPanel::setCase(std::shared_ptr<const app::Case> c) {
   const auto previous = organ_;
   organ_ = std::move(c);
   if (organ_) fillMaterial(organ_->material);
-  if (sameBody(previous.get(), organ_.get())) {
+  const bool sameOrgan = sameBody(previous.get(), organ_.get());
+  if (sameOrgan) {
     // The same organ in the same shape, place and attachments keeps running; a material edit is applied
     // at the next step boundary, keeping the state.
     // A new support is a new start (its springs are placed on the registered shape, the rest shape solved on them).
@@ -973,9 +974,13 @@ void SimulationPanel::setCase(std::shared_ptr<const app::Case> c) {
       return;
     }
   }
+  // A new support's start plays on if the organ was playing, as a new gravity's does (it stopped, a user's check); a
+  // new organ starts paused.
+  const bool playOn = sameOrgan && playing_;
   playing_ = false;
   pendingPlay_ = false;
   startSession(setup());
+  if (playOn) play();
   updateButtons();
 }
 

@@ -82,16 +82,23 @@ void Session::tearOverStretched(std::string& message) {
   // Over-stretched at the first step, before any instrument touched it: the organ hangs stretched past its limit (a
   // registered shape hung on a few attachments stretches beside them) and tears untouched. Said with what
   // to change, before the tear's own sentence.
+  // Tearing only while the jaws pull it (ToolSettings::tearOnlyUnderLoad), it tears at the first grasp instead. (Not a
+  // shaft's contact: a released grasper stays where it let go, and the tissue springing back onto it tore 12 times in
+  // 100 steps on the patient liver.)
+  const bool loaded = !tool_.held.empty();
   if (steps_ <= 1 && !tool_.present) {
     char said[320];
     std::snprintf(
         said, sizeof said,
         "The tissue is stretched %.0f %% at the start, before anything touched it, where its material tears "
-        "at %.0f %%: it tears without being touched. Raise the tear strain above that (the Simulation panel's "
+        "at %.0f %%: it tears %s. Raise the tear strain above that (the Simulation panel's "
         "\"tears at\") or hold the organ by more attachments.",
-        100 * over.front().strain, 100 * over.front().limit);
+        100 * over.front().strain, 100 * over.front().limit,
+        setup_.tools.tearOnlyUnderLoad ? "as soon as the grasper pulls it" : "without being touched");
     message += (message.empty() ? "" : " ") + std::string(said);
   }
+  // A tear grows while the jaws pull the tissue and stops when they let go (issue 61).
+  if (setup_.tools.tearOnlyUnderLoad && !loaded) return;
   // The tear: a square across the stretch, reaching the element's farthest node, through the middle of the widest gap
   // between its nodes along the stretch (as far from them as it can be: a plane near a node snaps to it and may cross
   // nothing). When the furthest element cannot be split (a sliver, a plane through its nodes), the next ones are

@@ -236,7 +236,11 @@ RehearsePage::~RehearsePage() = default;
 void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (!f) return;
   // A new session (a new organ, case, reset or recording) starts its counts from nothing.
-  if (f->steps < lastSteps_ || f->steps == 0) slips_ = cuts_ = vesselCuts_ = tears_ = 0;
+  if (f->steps < lastSteps_ || f->steps == 0) {
+    slips_ = cuts_ = vesselCuts_ = tears_ = 0;
+    // ... and what the last one said goes with it ("Released: the tissue relaxes." stayed over a new case's organ).
+    if (!status_->text().isEmpty()) pendingStatus_ = QString();
+  }
   if (f->steps < lastSteps_ || f->steps == 0 || f->model != model_) stepMs_.clear();
   model_ = f->model;
   if (f->steps > lastSteps_ && f->report.wallMs > 0) {
