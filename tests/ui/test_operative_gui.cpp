@@ -383,10 +383,11 @@ class TestOperativeGui : public QObject {
       }
       // The blade goes in 20 mm behind the pressed surface, spans 30 mm back from there, and the wheel takes it 2 mm
       // deeper a notch (or shallower): as a surgeon does, the notches that put the artery's centre in the blade's
-      // middle, and when the session says nothing was cut, a stroke again 4 mm deeper (as it asks).
+      // middle, and while the artery is not cut (the session says nothing was cut, or the cut missed it: one face opened
+      // above it, in one run of four), a stroke again 4 mm deeper (as it asks).
       const double pressedAt = hit(m - 60 * n);
       int notches = std::clamp(static_cast<int>(std::lround((arteryAt + 15 - pressedAt - 20) / 2)), -30, 10);
-      for (int stroke = 0; stroke < 3; ++stroke, notches += 2) {
+      for (int stroke = 0; stroke < 4; ++stroke, notches += 2) {
         QTest::mousePress(view, Qt::LeftButton, {}, a);
         QVERIFY2(waitFor([&] { return panel_->lastFrame()->tool.cutting; }, 20000),
                  qPrintable(w_->statusBar()->currentMessage()));
@@ -410,7 +411,8 @@ class TestOperativeGui : public QObject {
                      },
                      60000),
                  qPrintable(said()));
-        if (!said().contains("Nothing was cut")) break;
+        if (!panel_->lastFrame()->field.bleeds.empty() || said().contains("An artery (cystic artery, label 2) was cut"))
+          break;
       }
     }
     QVERIFY2(waitFor([&] { return !panel_->lastFrame()->field.bleeds.empty(); }, 60000),
