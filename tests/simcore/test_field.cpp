@@ -79,6 +79,20 @@ bool has(const std::vector<std::string>& events, const char* e) {
   return std::find(events.begin(), events.end(), e) != events.end();
 }
 
+// The cautery hook (instrument 4): its power on or off, and its tip at p.
+simcore::InputEvent hookPower(bool on) {
+  simcore::InputEvent e;
+  e.kind = simcore::InputKind::Energy;
+  e.tool = 4;
+  e.on = on;
+  return e;
+}
+simcore::InputEvent hookAt(const Eigen::Vector3d& p) {
+  auto e = toolAt(p);
+  e.tool = 4;
+  return e;
+}
+
 }  // namespace
 
 class TestField : public QObject {
@@ -460,17 +474,7 @@ class TestField : public QObject {
   void cauteryBurnsSealsAndIsCounted() {
     simcore::BodySetup setup = vesselBlock();
     setup.tools.cautery.radius = 0.004;
-    simcore::InputEvent on;
-    on.kind = simcore::InputKind::Energy;
-    on.tool = 4;
-    on.on = true;
-    simcore::InputEvent off = on;
-    off.on = false;
-    auto hookAt = [](const Eigen::Vector3d& p) {
-      auto e = toolAt(p);
-      e.tool = 4;
-      return e;
-    };
+    const simcore::InputEvent on = hookPower(true), off = hookPower(false);
     {  // plain tissue at the block's edge, 6 mm from the vessel's surface: burnt, nothing said
       simcore::Session s(setup);
       s.post(hookAt({0.015, 0.0, 0.0}));
@@ -537,17 +541,7 @@ class TestField : public QObject {
     simcore::BodySetup setup = vesselBlock();
     setup.tools.cautery.radius = 0.004;
     const double dt = setup.settings.timeStep;
-    simcore::InputEvent on;
-    on.kind = simcore::InputKind::Energy;
-    on.tool = 4;
-    on.on = true;
-    simcore::InputEvent off = on;
-    off.on = false;
-    auto hookAt = [](const Eigen::Vector3d& p) {
-      auto e = toolAt(p);
-      e.tool = 4;
-      return e;
-    };
+    const simcore::InputEvent on = hookPower(true), off = hookPower(false);
     // The power on for `steps`, then off: the messages of every step, the events, the heat gathered.
     auto stroke = [&](const Eigen::Vector3d& at, int steps, std::string& said, std::vector<std::string>& events) {
       simcore::Session s(setup);

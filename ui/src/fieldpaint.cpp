@@ -74,6 +74,16 @@ namespace {
 constexpr double kFilm = 0.0005;  ///< m: the blood film's thickness
 }  // namespace
 
+bool FrameView::trailPlace(const BurnTrailPoint& p, Eigen::Vector3d& x) const {
+  x.setZero();
+  for (int k = 0; k < 3; ++k) {
+    const int v = p.nodes[static_cast<std::size_t>(k)];
+    if (v < 0 || static_cast<std::size_t>(v) >= live_.size()) return false;
+    x += p.weights[k] * live_[static_cast<std::size_t>(v)];
+  }
+  return true;
+}
+
 void FrameView::followHook(long step, const Eigen::Vector3d& tip, bool present, bool energy, double radius) {
   if (step < hookStep_) clearBurnTrail();  // a reset or a new session: its trail starts again
   hookStep_ = step;
@@ -97,16 +107,10 @@ void FrameView::followHook(long step, const Eigen::Vector3d& tip, bool present, 
   }
   if (!found) return;
   at.stroke = hookStroke_;
-  auto place = [this](const BurnTrailPoint& p) {
-    Eigen::Vector3d x = Eigen::Vector3d::Zero();
-    for (int k = 0; k < 3; ++k) x += p.weights[k] * live_[static_cast<std::size_t>(p.nodes[static_cast<std::size_t>(k)])];
-    return x;
-  };
   // A point every fifth of the radius along the stroke (the line between them is drawn).
-  if (!burnTrail_.empty() && burnTrail_.back().stroke == at.stroke &&
-      std::all_of(burnTrail_.back().nodes.begin(), burnTrail_.back().nodes.end(),
-                  [n](int v) { return v >= 0 && static_cast<std::size_t>(v) < n; }) &&
-      (place(burnTrail_.back()) - place(at)).norm() < 0.2 * radius)
+  Eigen::Vector3d last, here;
+  if (!burnTrail_.empty() && burnTrail_.back().stroke == at.stroke && trailPlace(burnTrail_.back(), last) &&
+      trailPlace(at, here) && (last - here).norm() < 0.2 * radius)
     return;
   burnTrail_.push_back(at);
   update();
@@ -163,12 +167,7 @@ void FrameView::paintField(QPainter& painter) {
     };
     std::vector<Stroke> strokes;
     auto place = [&](const BurnTrailPoint& p, Eigen::Vector3d& x) {
-      x.setZero();
-      for (int k = 0; k < 3; ++k) {
-        const int v = p.nodes[static_cast<std::size_t>(k)];
-        if (v < 0 || static_cast<std::size_t>(v) >= n) return false;
-        x += p.weights[k] * live_[static_cast<std::size_t>(v)];
-      }
+      if (!trailPlace(p, x)) return false;
       const Eigen::Vector3d &a = live_[static_cast<std::size_t>(p.nodes[0])],
                             &b = live_[static_cast<std::size_t>(p.nodes[1])],
                             &c = live_[static_cast<std::size_t>(p.nodes[2])];

@@ -37,6 +37,12 @@ void Session::tearOverStretched(std::string& message) {
     saidNoTear_ = true;
     return;
   }
+  // A tear grows while the jaws pull the tissue and stops when they let go (ToolSettings::tearOnlyUnderLoad, issue 61):
+  // with nothing held, no element is measured after the first step (that one says if the organ starts past its limit).
+  // (Not a shaft's contact: a released grasper stays where it let go, and the tissue springing back onto it tore 12
+  // times in 100 steps on the patient liver.)
+  const bool loaded = !tool_.held.empty();
+  if (setup_.tools.tearOnlyUnderLoad && !loaded && steps_ > 1) return;
   const auto& rest = body_->restPositions();
   // The stretch is the instruments' (and the tissue's own since): measured from where the organ started, when it
   // started deformed (BodySetup::tearFrom), else from its rest shape.
@@ -82,10 +88,7 @@ void Session::tearOverStretched(std::string& message) {
   // Over-stretched at the first step, before any instrument touched it: the organ hangs stretched past its limit (a
   // registered shape hung on a few attachments stretches beside them) and tears untouched. Said with what
   // to change, before the tear's own sentence.
-  // Tearing only while the jaws pull it (ToolSettings::tearOnlyUnderLoad), it tears at the first grasp instead. (Not a
-  // shaft's contact: a released grasper stays where it let go, and the tissue springing back onto it tore 12 times in
-  // 100 steps on the patient liver.)
-  const bool loaded = !tool_.held.empty();
+  // (Tearing only while the jaws pull it, it tears at the first grasp instead.)
   if (steps_ <= 1 && !tool_.present) {
     char said[320];
     std::snprintf(
@@ -97,7 +100,6 @@ void Session::tearOverStretched(std::string& message) {
         setup_.tools.tearOnlyUnderLoad ? "as soon as the grasper pulls it" : "without being touched");
     message += (message.empty() ? "" : " ") + std::string(said);
   }
-  // A tear grows while the jaws pull the tissue and stops when they let go (issue 61).
   if (setup_.tools.tearOnlyUnderLoad && !loaded) return;
   // The tear: a square across the stretch, reaching the element's farthest node, through the middle of the widest gap
   // between its nodes along the stretch (as far from them as it can be: a plane near a node snaps to it and may cross

@@ -250,6 +250,8 @@ class FrameView : public QWidget {
   bool hookPowered_ = false;
   int hookStroke_ = 0;
   double hookRadius_ = 0.003;
+  /// Where a trail point is on the live shape; false when its nodes are not the live shape's.
+  bool trailPlace(const BurnTrailPoint& p, Eigen::Vector3d& x) const;
   std::shared_ptr<const std::vector<int>> fieldLabels_;
   std::shared_ptr<const std::vector<std::array<int, 4>>> fieldTets_;
   Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
