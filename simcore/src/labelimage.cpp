@@ -98,9 +98,32 @@ void checkNiftiGeometry(const std::string& path, const std::string& name, std::s
     double f64 = 0;
     return bytes == 4 ? (std::memcpy(&f32, b, 4), static_cast<double>(f32)) : (std::memcpy(&f64, b, 8), f64);
   };
+  // The byte order as the NIfTI library decides it (need_nhdr_swap): by dim[0] when it is not 0, by the header size
+  // only when it is. A file whose size field reads 348 one way and whose dim[0] reads 1-7 only the other way is read
+  // swapped by ITK (found by fuzzing: its geometry, unchecked in that order, reached an SVD that aborts on NaN).
+  auto dim0 = [&h](bool nifti1, bool swap) -> long long {
+    unsigned char b[8];
+    const int bytes = nifti1 ? 2 : 8;
+    std::memcpy(b, h + (nifti1 ? 40 : 16), static_cast<std::size_t>(bytes));
+    if (swap) std::reverse(b, b + bytes);
+    std::int16_t i16 = 0;
+    std::int64_t i64 = 0;
+    return nifti1 ? (std::memcpy(&i16, b, 2), i16) : (std::memcpy(&i64, b, 8), i64);
+  };
   for (const Layout& v : {Layout{348, 4, 2, 76, 252, 256, 268, 280}, Layout{540, 8, 4, 104, 344, 352, 376, 400}})
-    for (bool swap : {false, true}) {
-      if (got < v.size || number(0, 4, swap, true) != v.size) continue;
+    for (bool sizeSwap : {false, true}) {
+      if (got < v.size || number(0, 4, sizeSwap, true) != v.size) continue;
+      const bool one = v.size == 348;
+      bool swap = sizeSwap;
+      if (const long long d0 = dim0(one, false); d0 != 0) {
+        if (d0 >= 1 && d0 <= 7)
+          swap = false;
+        else if (const long long s0 = dim0(one, true); s0 >= 1 && s0 <= 7)
+          swap = true;
+        else
+          throw MeshError("Cannot read " + name + ": it is not a NIfTI image (its number of dimensions, " +
+                          std::to_string(d0) + ", is not 1 to 7 in either byte order).");
+      }
       auto reals = [&](int at, int n) {
         std::vector<double> r;
         for (int k = 0; k < n; ++k) r.push_back(number(at + k * v.real, v.real, swap, false));
@@ -121,7 +144,6 @@ void checkNiftiGeometry(const std::string& path, const std::string& name, std::s
                         "or far too large.");
       // Where the voxels start and how many bytes they take (dim[0..7], bitpix, vox_offset): a truncated file or a
       // vox_offset of 1e12, -100 or NaN was read as garbage or zeros without a word.
-      const bool one = v.size == 348;
       const int dimAt = one ? 40 : 16, dimBytes = one ? 2 : 8, bitpixAt = one ? 72 : 14, voxOffsetAt = one ? 108 : 168;
       const double rank = number(dimAt + (dimBytes == 8 && swap ? 4 : 0), dimBytes == 2 ? 2 : 4, swap, true);
       if (!(rank >= 1 && rank <= 7)) return;  // ITK refuses the dimensions

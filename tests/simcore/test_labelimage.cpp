@@ -539,6 +539,17 @@ class TestLabelImage : public QObject {
     std::memcpy(&nifti[280 + 11 * 4], &nan, 4);  // srow_z[3]
     writeFile(tempPath("oddsize.nii"), nifti);
     expectImageRefused("oddsize.nii", "not a NIfTI image", true);
+    // The NIfTI library takes the byte order from dim[0] when it is not 0: a size field of 348 in this order with a
+    // dim[0] of 3 only in the other (bytes 00 03) was read swapped, its swapped pixdim NaN, and ITK's SVD aborted.
+    std::string swapped = readFile(tempPath("sized.nii"));
+    swapped[40] = '\0', swapped[41] = '\3';
+    const char bigEndianNan[4] = {'\x7f', '\xc0', '\0', '\0'};
+    std::memcpy(&swapped[80], bigEndianNan, 4);  // pixdim[1], as the swapped reading sees it
+    writeFile(tempPath("dim0swapped.nii"), swapped);
+    expectImageRefused("dim0swapped.nii", "header is damaged", true);
+    swapped[40] = '\x09', swapped[41] = '\x09';  // 2313 either way
+    writeFile(tempPath("dim0bad.nii"), swapped);
+    expectImageRefused("dim0bad.nii", "not 1 to 7 in either byte order", true);
     writeFile(tempPath("short.nii"), nifti.substr(0, 100));
     expectImageRefused("short.nii", "fewer than a NIfTI header", true);
     const std::string longName(300, 'x');
