@@ -721,7 +721,11 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
       return "a field name of " + num(static_cast<double>(nameBytes)) +
              " characters (the text before an '='; MetaImage names are a few words)";
     keyStart = pos;
-    const std::string key(trim(line.substr(0, eq)));
+    // MetaIO holds the name as a C string: it ends at a NUL byte (found by fuzzing: "NDims\0<bytes> = 1.6e18" was
+    // taken for NDims, unchecked here, and MetaIO read values for minutes).
+    std::string_view name = line.substr(0, eq);
+    name = name.substr(0, name.find('\0'));
+    const std::string key(trim(name));
     fields[key] = std::string(trim(line.substr(eq + 1)));
     if (key == "ElementDataFile") {
       sawData = true;

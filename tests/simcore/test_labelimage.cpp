@@ -564,6 +564,11 @@ class TestLabelImage : public QObject {
                                           "DimSize = 2 2 2\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
                                           std::string(8, '\1'));
     expectImageRefused("spread.mha", "field name of", true);
+    // MetaIO's field name is a C string: "NDims", a NUL and bytes after it is NDims (MetaIO read 1.6e18 values).
+    writeFile(tempPath("nulname.mha"), "ObjectType = Image\nNDims" + std::string(2, '\0') +
+                                           "`\x80X = 1605389506728077994\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+                                           "ElementDataFile = LOCAL\n" + std::string(8, '\1'));
+    expectImageRefused("nulname.mha", "NDims", true);
     writeFile(tempPath("pgm.inr"), "P5\n2 2\n255\n");
     expectImageRefused("pgm.inr", "not an INR image", true);
     // The same shapes, sound, are read: a MetaImage with a short unknown field, and the NIfTI as ITK wrote it.
