@@ -1,8 +1,12 @@
 #pragma once
 // A GUI suite's run starts as a first start on a fresh machine (see forgetEarlierRuns).
 #include <QDir>
+#include <QMessageBox>
+#include <QPushButton>
 #include <QSettings>
 #include <QStandardPaths>
+#include <QTest>
+#include <QWidget>
 
 namespace {
 // Every run of a GUI suite is a first start, as on a fresh machine (CI's): the settings (window layout, recent files,
@@ -18,5 +22,14 @@ inline void forgetEarlierRuns() {
   settings.clear();
   settings.sync();
   QDir(QStandardPaths::writableLocation(QStandardPaths::AppDataLocation)).removeRecursively();
+}
+
+// Closes a main window as a person who does not keep its unsaved changes: Discard in the box that asks (issue 62), if
+// it asks. True when the window closed.
+inline bool closeDiscardingChanges(QWidget& window) {
+  window.close();
+  if (auto* box = window.findChild<QMessageBox*>(QStringLiteral("unsavedChangesBox")))
+    QTest::mouseClick(box->button(QMessageBox::Discard), Qt::LeftButton);
+  return !window.isVisible();
 }
 }  // namespace

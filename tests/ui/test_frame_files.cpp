@@ -391,7 +391,7 @@ class TestFrameFiles : public QObject {
   }
 
   void cleanupTestCase() {
-    w_->close();
+    closeDiscardingChanges(*w_);
     w_.reset();
   }
 };

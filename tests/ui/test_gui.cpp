@@ -341,7 +341,7 @@ class TestGui : public QObject {
       QVERIFY(!w.document()->autosaveIfChanged());  // just loaded: nothing to write
       w.editCase("test: move", [i](app::Case& k) { k.pose.t.x() += 1e-3 * (i + 1); });
       QVERIFY(w.document()->autosaveIfChanged());   // started on a worker ...
-      w.close();                                    // ... and the window closes at once
+      QVERIFY(closeDiscardingChanges(w));           // ... and the window closes at once
       QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
       QVERIFY2(folder.entryList({"*.saving-*"}, QDir::Files | QDir::Hidden).isEmpty(), "a temporary autosave was left behind");
     }

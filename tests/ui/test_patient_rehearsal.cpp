@@ -420,7 +420,7 @@ class TestPatientRehearsal : public QObject {
   }
 
   void cleanupTestCase() {
-    w_->close();
+    closeDiscardingChanges(*w_);
     w_.reset();
   }
 };

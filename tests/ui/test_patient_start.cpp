@@ -421,7 +421,7 @@ class TestPatientStart : public QObject {
   }
 
   void cleanupTestCase() {
-    w_->close();
+    closeDiscardingChanges(*w_);
     w_.reset();
   }
 };

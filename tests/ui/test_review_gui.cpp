@@ -537,7 +537,7 @@ class TestReviewGui : public QObject {
   }
 
   void cleanupTestCase() {
-    w_->close();
+    closeDiscardingChanges(*w_);
     w_.reset();
   }
 };

@@ -600,7 +600,7 @@ class TestWorkflow : public QObject {
   }
 
   void cleanupTestCase() {
-    w_->close();
+    closeDiscardingChanges(*w_);
     w_.reset();
   }
 };

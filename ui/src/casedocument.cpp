@@ -5,6 +5,7 @@
 #include <rehearse/simcore/quality.hpp>
 
 #include <QDir>
+#include <QFile>
 #include <QFileInfo>
 #include <QSettings>
 #include <QStandardPaths>
@@ -74,11 +75,14 @@ CaseDocument::CaseDocument(QObject* parent) : QObject(parent) {
       path_ = savingPath_;
       addRecent(savingPath_);
       undo_.setClean();
+      setSaved(savingVersion_);  // (edits made while it was written stay unsaved)
     }
+    savingVersion_.reset();
     emit saved(error.isEmpty(), error.isEmpty() ? tr("Saved %1").arg(savingPath_) : error);
   });
   autosaveTimer_.setInterval(60'000);
   connect(&autosaveTimer_, &QTimer::timeout, this, [this] { autosaveIfChanged(); });
+  connect(&autosaveWatcher_, &QFutureWatcher<void>::finished, this, &CaseDocument::autosaved);
   autosaveTimer_.start();
 }
 
@@ -103,8 +107,34 @@ void CaseDocument::setVersion(std::shared_ptr<const app::Case> version) {
   if ((parts & SecondFramePart) && version->frame2.data != (case_ ? case_->frame2.data : nullptr))
     secondFrameImage_ = frameToQImage(version->frame2);
   if (parts & OrganPart) qualityText_ = version->organ->empty() ? QString() : QString::fromStdString(simcore::formatQuality(version->organ->quality));
+  const bool was = isModified();
   case_ = std::move(version);
   if (parts) emit changed(parts);
+  if (isModified() != was) emit modifiedChanged(isModified());
+}
+
+void CaseDocument::setSaved(std::shared_ptr<const app::Case> version) {
+  const bool was = isModified();
+  saved_ = std::move(version);
+  if (isModified() != was) emit modifiedChanged(isModified());
+}
+
+void CaseDocument::newCase() {
+  if (loadWatcher_.isRunning()) {
+    cancel_ = true;
+    loadWatcher_.waitForFinished();
+  }
+  undo_.clear();
+  notes_.clear();
+  loadSeconds_ = 0;
+  path_.clear();
+  auto empty = std::make_shared<app::Case>();
+  empty->name = tr("Untitled case").toStdString();
+  case_.reset();  // everything changed
+  setVersion(empty);
+  autosaved_ = case_;
+  setSaved(case_);  // nothing in it to lose
+  emit loaded(true, {});
 }
 
 void CaseDocument::open(const QString& path) {
@@ -133,11 +163,16 @@ void CaseDocument::onLoaded() {
   undo_.clear();
   notes_ = result.notes;
   loadSeconds_ = result.seconds;
-  path_ = isCaseFile(loadingPath_) && loadingPath_ != autosavePath() ? loadingPath_ : QString();
-  if (!path_.isEmpty()) addRecent(path_);
+  const bool recovered = loadingPath_ == autosavePath();
+  path_ = isCaseFile(loadingPath_) && !recovered ? loadingPath_ : QString();
+  // A recovered autosave is the work of the file it was made from: saved there, not into the autosave.
+  if (recovered && isCaseFile(recoveredFrom_)) path_ = recoveredFrom_;
+  recoveredFrom_.clear();
+  if (!path_.isEmpty() && !recovered) addRecent(path_);
   case_.reset();  // everything changed
   setVersion(result.data);
   autosaved_ = case_;
+  setSaved(recovered ? nullptr : case_);  // recovered work is in no file of the user's until saved
   emit loaded(true, {});
 }
 
@@ -148,6 +183,7 @@ void CaseDocument::saveAs(const QString& path) {
   }
   savingPath_ = path;
   auto data = case_;
+  savingVersion_ = case_;
   // The recordings come from the file the case lives in now (a Save As carries them to the new one).
   const QString from = path_.isEmpty() ? QString() : path_;
   const std::uint64_t responses = responseKey_ ? responseKey_() : 0;
@@ -167,12 +203,41 @@ QString CaseDocument::autosavePath() {
 
 bool CaseDocument::hasRecoverableAutosave() { return isCaseFile(autosavePath()); }
 
+namespace {
+// Where the autosave's case lives (its file, or empty): kept beside it so that a recovery saves back there.
+QString autosaveSourcePath() { return CaseDocument::autosavePath() + QStringLiteral(".source"); }
+QString autosaveSource() {
+  QFile f(autosaveSourcePath());
+  return f.open(QIODevice::ReadOnly) ? QString::fromUtf8(f.readAll()).trimmed() : QString();
+}
+void writeAutosaveSource(const QString& path) {
+  QFile f(autosaveSourcePath());
+  if (f.open(QIODevice::WriteOnly | QIODevice::Truncate)) f.write(path.toUtf8());
+}
+}  // namespace
+
+bool CaseDocument::autosaveNewerThanCase() const {
+  if (!hasRecoverableAutosave()) return false;
+  const QFileInfo autosave(autosavePath());
+  // The case's own file, or the one the autosave was made from when the case open now has none.
+  const QString file = path_.isEmpty() ? autosaveSource() : path_;
+  if (file.isEmpty() || !QFileInfo::exists(file)) return true;
+  return autosave.lastModified() > QFileInfo(file).lastModified();
+}
+
+void CaseDocument::recoverAutosave() {
+  recoveredFrom_ = autosaveSource();
+  open(autosavePath());
+}
+
 void CaseDocument::autosaveNow() {
   if (!case_) return;
   waitForAutosave();
   QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
+  writeAutosaveSource(path_);
   saveCaseFile(*case_, autosavePath());
   autosaved_ = case_;
+  emit autosaved();
 }
 
 bool CaseDocument::autosaveIfChanged() {
@@ -180,9 +245,10 @@ bool CaseDocument::autosaveIfChanged() {
   if (autosaved_.lock() == case_) return false;  // nothing changed since the last autosave (or the load)
   auto data = case_;
   autosaved_ = case_;
+  QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
+  writeAutosaveSource(path_);
   autosaveWatcher_.setFuture(QtConcurrent::run([data] {
     try {
-      QDir().mkpath(QFileInfo(autosavePath()).absolutePath());
       saveCaseFile(*data, autosavePath());
     } catch (const std::exception&) {
       // The next change tries again; the user's work is in memory and in their own file.
@@ -199,6 +265,7 @@ void CaseDocument::closeCleanly() {
   saveWatcher_.waitForFinished();
   waitForAutosave();
   QFile::remove(autosavePath());
+  QFile::remove(autosaveSourcePath());
 }
 
 QStringList CaseDocument::recentFiles() const { return QSettings().value(QStringLiteral("recentFiles")).toStringList(); }

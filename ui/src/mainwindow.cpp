@@ -128,8 +128,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(doc_, &CaseDocument::loaded, this, &MainWindow::onLoadFinished);
   connect(doc_, &CaseDocument::progress, this, &MainWindow::showProgress);
   connect(jobs_, &JobRunner::progress, this, &MainWindow::showProgress);
+  connect(doc_, &CaseDocument::modifiedChanged, this, [this] { updateTitle(); });
+  connect(doc_, &CaseDocument::autosaved, this, [this] {
+    if (recoverAction_) recoverAction_->setEnabled(doc_->autosaveNewerThanCase());
+  });
   connect(doc_, &CaseDocument::saved, this, [this](bool ok, const QString& message) {
-    if (ok) setWindowTitle(tr("%1 - Rehearse").arg(QFileInfo(doc_->path()).fileName()));
+    if (ok) updateTitle();
     // A recording goes on into the file as saved (or, when the save failed, into the file it was in).
     if (!doc_->isSaving()) simulation_->caseFileReplaced(doc_->path());
     say(message);
@@ -326,7 +330,7 @@ void MainWindow::rebuildRecentMenu() {
   for (int i = 0; i < list.size(); ++i) {
     QAction* a = recentMenu_->addAction(QStringLiteral("&%1 %2").arg(i + 1).arg(list[i]));
     const QString path = list[i];
-    connect(a, &QAction::triggered, this, [this, path] { openCase(path); });
+    connect(a, &QAction::triggered, this, [this, path] { openCaseAsked(path); });
   }
   recentMenu_->setEnabled(!list.isEmpty());
 }
@@ -360,6 +364,7 @@ void MainWindow::saveAs() {
 }
 
 void MainWindow::openFileDialog() {
+  askToKeepChanges(tr("opening another case"), [this] {
   QSettings s;
   const QString path =
       QFileDialog::getOpenFileName(this, tr("Open Case"), s.value(QStringLiteral("lastDir")).toString(),
@@ -367,6 +372,7 @@ void MainWindow::openFileDialog() {
   if (path.isEmpty()) return;
   s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
   openCase(path);
+  });
 }
 
 void MainWindow::offerRecovery() {
@@ -377,7 +383,7 @@ void MainWindow::offerRecovery() {
   box->setAttribute(Qt::WA_DeleteOnClose);
   box->setWindowModality(Qt::NonModal);
   connect(box, &QMessageBox::finished, this, [this](int r) {
-    if (r == QMessageBox::Yes) openCase(autosavePath());
+    if (r == QMessageBox::Yes) recoverAutosaveAsked();
   });
   box->show();
 }
@@ -393,7 +399,7 @@ void MainWindow::dropEvent(QDropEvent* e) {
   const QString ext = QFileInfo(path).suffix().toLower();
   // The dropped file's kind decides the step it belongs to.
   if (QFileInfo(path).isDir() || ext == QLatin1String("rehearse"))
-    openCase(path);
+    openCaseAsked(path);
   else if (QStringList{"msh", "vtk", "vtu", "mesh", "obj", "stl", "ply", "off", "gltf", "glb"}.contains(ext) ||
            simcore::isLabelImagePath(path.toStdString()))
     pages_.mesh->importMesh(path);
@@ -522,6 +528,63 @@ void MainWindow::openCase(const QString& path) {
   doc_->open(path);
 }
 
+void MainWindow::openCaseAsked(const QString& path) {
+  askToKeepChanges(tr("opening another case"), [this, path] { openCase(path); });
+}
+
+void MainWindow::newCaseAsked() {
+  askToKeepChanges(tr("starting a new case"), [this] {
+    if (doc_->isLoading()) cancelLoading();
+    doc_->newCase();
+  });
+}
+
+void MainWindow::recoverAutosaveAsked() {
+  askToKeepChanges(tr("recovering the autosaved case"), [this] {
+    setBusy(true, tr("Recovering the autosaved case..."));
+    doc_->recoverAutosave();
+  });
+}
+
+void MainWindow::updateTitle() {
+  if (!doc_->hasCase()) return setWindowTitle(tr("Rehearse"));
+  const QString name =
+      doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
+  setWindowTitle(tr("%1[*] - Rehearse").arg(name));
+  setWindowModified(doc_->isModified());
+}
+
+void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> then) {
+  if (!doc_->isModified()) return then();
+  const QString name =
+      doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
+  auto* box = new QMessageBox(QMessageBox::Warning, tr("Unsaved changes"),
+                              tr("The case \u201c%1\u201d has changes that are not saved. Save them before %2?")
+                                  .arg(name, doing),
+                              QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel, this);
+  box->setObjectName(QStringLiteral("unsavedChangesBox"));
+  box->setInformativeText(tr("Discard loses them; Cancel goes back to the case."));
+  box->setDefaultButton(QMessageBox::Save);
+  box->setAttribute(Qt::WA_DeleteOnClose);
+  box->setWindowModality(Qt::WindowModal);
+  connect(box, &QMessageBox::finished, this, [this, box, then = std::move(then)](int) {
+    const auto button = box->standardButton(box->clickedButton());
+    if (button == QMessageBox::Discard) return then();
+    if (button != QMessageBox::Save) return say(tr("Cancelled: the case and its unsaved changes stay open."));
+    if (doc_->path().isEmpty() || !isCaseFile(doc_->path()))
+      saveAs();
+    else
+      saveCaseAs(doc_->path());
+    if (!doc_->isSaving()) return;  // Save As cancelled: nothing saved, nothing replaced
+    auto once = std::make_shared<QMetaObject::Connection>();
+    *once = connect(doc_, &CaseDocument::saved, this, [this, once, then](bool ok, const QString&) {
+      disconnect(*once);
+      if (ok) then();  // (a failed save said why; the case stays)
+    });
+  });
+  box->open();
+}
+
 void MainWindow::cancelLoading() {
   doc_->cancelLoading();
   jobs_->cancel();
@@ -539,9 +602,15 @@ void MainWindow::onLoadFinished(bool ok, const QString& error) {
   view_->fitToWindow();
   const QString name =
       doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
-  setWindowTitle(tr("%1 - Rehearse").arg(name));
-  say(tr("%1 loaded in %2 s").arg(name).arg(doc_->loadSeconds(), 0, 'f', 2) +
-      (doc_->notes().isEmpty() ? QString() : tr(" (%1 problems, see the Case panel)").arg(doc_->notes().size())));
+  updateTitle();
+  if (recoverAction_) recoverAction_->setEnabled(doc_->autosaveNewerThanCase());
+  if (doc_->data()->organ->empty() && doc_->data()->frame.empty())
+    say(tr("New case: import the organ's mesh first (step 1, Ctrl+I), then open the endoscope frame (step 2, Ctrl+F)."));
+  else if (doc_->isModified())
+    say(tr("%1 recovered from its autosave: save it (Ctrl+S) to keep it.").arg(name));
+  else
+    say(tr("%1 loaded in %2 s").arg(name).arg(doc_->loadSeconds(), 0, 'f', 2) +
+        (doc_->notes().isEmpty() ? QString() : tr(" (%1 problems, see the Case panel)").arg(doc_->notes().size())));
   // Go to the first step that is not done yet.
   const int next = app::nextStep(*doc_->data());
   if (next < app::index(Step::Elastic)) setStep(static_cast<Step>(next));
@@ -558,6 +627,15 @@ void MainWindow::showCaseInfo() {
 }
 
 void MainWindow::closeEvent(QCloseEvent* e) {
+  if (!closeAsked_ && doc_->isModified()) {
+    e->ignore();
+    askToKeepChanges(tr("closing Rehearse"), [this] {
+      closeAsked_ = true;
+      close();
+    });
+    return;
+  }
+  closeAsked_ = false;
   cancelLoading();
   pages_.frame->stopCamera();
   jobs_->waitForFinished();

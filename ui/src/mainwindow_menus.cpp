@@ -56,20 +56,26 @@ namespace rehearse::ui {
 
 void MainWindow::buildMenus() {
   QMenu* file = menuBar()->addMenu(tr("&File"));
+  QAction* newCase = file->addAction(tr("&New Case"), this, &MainWindow::newCaseAsked);
+  newCase->setObjectName(QStringLiteral("newCaseAction"));
+  newCase->setShortcut(QKeySequence::New);
+  newCase->setStatusTip(tr("Start an empty case: its organ mesh first, then its frame"));
   QAction* openFile = file->addAction(tr("&Open Case..."), this, &MainWindow::openFileDialog);
   openFile->setShortcut(QKeySequence::Open);
   QAction* open = file->addAction(tr("Open Case &Folder..."), this, [this] {
-    QSettings s;
-    const QString dir =
-        QFileDialog::getExistingDirectory(this, tr("Open Case Folder"), s.value(QStringLiteral("lastDir")).toString());
-    if (dir.isEmpty()) return;
-    s.setValue(QStringLiteral("lastDir"), dir);
-    openCase(dir);
+    askToKeepChanges(tr("opening another case"), [this] {
+      QSettings s;
+      const QString dir = QFileDialog::getExistingDirectory(this, tr("Open Case Folder"),
+                                                            s.value(QStringLiteral("lastDir")).toString());
+      if (dir.isEmpty()) return;
+      s.setValue(QStringLiteral("lastDir"), dir);
+      openCase(dir);
+    });
   });
   open->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_O));
   recentMenu_ = file->addMenu(tr("Open &Recent"));
   rebuildRecentMenu();
-  file->addAction(tr("Open &Built-in Phantom"), this, [this] { openCase({}); })
+  file->addAction(tr("Open &Built-in Phantom"), this, [this] { openCaseAsked({}); })
       ->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_P));
   file->addSeparator();
   QAction* importAction = file->addAction(tr("&Import Mesh..."), pages_.mesh, &MeshPage::importMeshDialog);
@@ -81,8 +87,13 @@ void MainWindow::buildMenus() {
   saveAction->setShortcut(QKeySequence::Save);
   file->addAction(tr("Save &As..."), this, &MainWindow::saveAs)
       ->setShortcut(QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_S));
-  recoverAction_ = file->addAction(tr("Recover &Autosaved Case"), this, [this] { openCase(autosavePath()); });
+  recoverAction_ = file->addAction(tr("Recover &Autosaved Case"), this, &MainWindow::recoverAutosaveAsked);
+  recoverAction_->setObjectName(QStringLiteral("recoverAutosaveAction"));
+  recoverAction_->setStatusTip(tr("Open the work autosaved after the case's file was last saved"));
   recoverAction_->setEnabled(hasRecoverableAutosave());
+  // Offered whenever an autosave newer than the case exists (one written a minute ago included).
+  connect(file, &QMenu::aboutToShow, this,
+          [this] { recoverAction_->setEnabled(doc_->autosaveNewerThanCase()); });
   file->addSeparator();
   file->addAction(tr("&Quit"), this, &QWidget::close)->setShortcut(QKeySequence::Quit);
 

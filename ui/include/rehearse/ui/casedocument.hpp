@@ -58,6 +58,11 @@ class CaseDocument : public QObject {
   /// Replaces the displayed version (undo/redo, the end of a preview).
   void setVersion(std::shared_ptr<const app::Case> version);
 
+  /// Whether the case holds work that is in no file: edited since it was opened or saved (an undo back to that
+  /// version is not a change), or recovered from an autosave. A new case or the built-in phantom, untouched, is not.
+  bool isModified() const { return case_ && case_ != saved_; }
+  /// Starts an empty case (no organ, no frame): its steps say what comes first. Emits loaded().
+  void newCase();
   /// Loads a case file, a case folder, or the built-in phantom when `path` is empty, on a worker thread.
   /// The current case stays until the new one has loaded. Emits loaded().
   void open(const QString& path);
@@ -77,6 +82,10 @@ class CaseDocument : public QObject {
 
   static QString autosavePath();
   static bool hasRecoverableAutosave();
+  /// An autosave written after the case's own file (or the case has no file): work that File > Recover brings back.
+  bool autosaveNewerThanCase() const;
+  /// Opens the autosave as the case it was made from (that file's path, so Save writes there; its changes unsaved).
+  void recoverAutosave();
   /// Writes the autosave now, on this thread.
   void autosaveNow();
   /// Starts an autosave on a worker when something changed since the last one; false when none was needed.
@@ -93,6 +102,8 @@ class CaseDocument : public QObject {
   void saved(bool ok, const QString& message);
   void progress(double fraction, const QString& stage);
   void recentFilesChanged();
+  void modifiedChanged(bool modified);
+  void autosaved();  ///< an autosave was written (on the GUI thread, once it is on disk)
 
  private:
   std::function<std::uint64_t()> responseKey_;  ///< setResponseKeySource
@@ -100,8 +111,12 @@ class CaseDocument : public QObject {
   void onLoaded();
 
   std::shared_ptr<const app::Case> case_;
+  std::shared_ptr<const app::Case> saved_;  ///< the version in the case's file (or as opened); isModified()
+  void setSaved(std::shared_ptr<const app::Case> version);
+  QString recoveredFrom_;  ///< the file the autosave being opened was made from (recoverAutosave)
   QUndoStack undo_;
   QString path_, loadingPath_, savingPath_;
+  std::shared_ptr<const app::Case> savingVersion_;  ///< the version a running save writes
   QStringList notes_;
   double loadSeconds_ = 0;
   QImage frameImage_;

@@ -57,6 +57,17 @@ class MainWindow : public QMainWindow {
   /// Loads a case file (.rehearse), a case folder, or the built-in phantom when `path` is empty, on a
   /// worker thread. The current case stays until the new one has loaded.
   void openCase(const QString& path);
+  /// What a person's File > Open, Open Recent, Built-in Phantom, New Case, Recover and a dropped case do: asks
+  /// Save / Discard / Cancel first when the case has unsaved changes (askToKeepChanges), then opens.
+  void openCaseAsked(const QString& path);
+  void newCaseAsked();
+  void recoverAutosaveAsked();
+  /// Runs `then` at once when the case has no unsaved changes; otherwise asks (a window-modal box, objectName
+  /// "unsavedChangesBox") whether to save them before `doing` ("opening another case"): Save runs `then` once the
+  /// save has succeeded (Save As asks where when the case has no file), Discard runs it at once, Cancel not at all.
+  void askToKeepChanges(const QString& doing, std::function<void()> then);
+  bool isModified() const { return doc_->isModified(); }
+  bool autosaveNewerThanCase() const { return doc_->autosaveNewerThanCase(); }
   /// Records the rehearsal (step 7) into the current case file from rest, the trainee named; one sentence on
   /// error (the case not saved to a file yet, a file that cannot be written), empty when recording.
   QString startRecording(const QString& trainee);
@@ -241,6 +252,8 @@ class MainWindow : public QMainWindow {
   Pages pages_;
   QMenu* recentMenu_ = nullptr;
   QAction* recoverAction_ = nullptr;
+  void updateTitle();
+  bool closeAsked_ = false;  ///< the unsaved changes were settled: the next close goes through
 };
 
 }  // namespace rehearse::ui

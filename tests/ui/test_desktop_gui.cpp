@@ -1,0 +1,205 @@
+// A desktop application a person can trust with an afternoon's work (issue 62), through the real main window
+// (offscreen), driven by QTest keys and mouse clicks:
+//  - the title names the case and marks unsaved changes (Qt's [*]); an undo back to the saved version clears it;
+//  - Open (Ctrl+O), the built-in phantom (Ctrl+Shift+P), New Case (Ctrl+N) and closing the window over unsaved work
+//    ask Save / Discard / Cancel: Cancel keeps the case and its undo history, Discard goes on, Save writes the case
+//    file first (and only then goes on);
+//  - File > New Case starts an empty case whose steps say what comes first;
+//  - File > Recover Autosaved Case is offered once an autosave newer than the case's file exists (not only after a
+//    crash) and brings that work back as the file's unsaved changes; Ctrl+S then writes it into that file.
+#include "test_support.hpp"
+#include "window_support.hpp"
+
+#include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/mainwindow.hpp"
+
+#include <rehearse/app/case.hpp>
+
+#include <QAction>
+#include <QMessageBox>
+#include <QPushButton>
+#include <QSignalSpy>
+#include <QTemporaryDir>
+#include <QUndoStack>
+
+using namespace rehearse;
+using ui::MainWindow;
+
+class TestDesktopGui : public QObject {
+  Q_OBJECT
+  std::unique_ptr<MainWindow> w_;
+  QTemporaryDir dir_;
+
+  // One undoable edit as a person makes it: a three-click ridge segment on the frame in step 3 (C, clicks, Return).
+  void addContourSegment() {
+    auto* view = w_->frameView();
+    view->setFocus();
+    QTest::keyClick(w_.get(), Qt::Key_3, Qt::AltModifier);
+    QCOMPARE(w_->step(), ui::Step::Contour);
+    QTest::keyClick(w_.get(), Qt::Key_C);
+    const auto& c = *w_->caseData();
+    const std::size_t before = c.contour.segments.size();
+    const Eigen::Vector2d centre(c.camera.width / 2.0, c.camera.height / 2.0);
+    for (double dx : {-120.0, 0.0, 120.0})
+      QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier,
+                        view->toWidget(QPointF(centre.x() + dx, centre.y() + 0.3 * dx)).toPoint());
+    QTest::keyClick(view, Qt::Key_Return);
+    QCOMPARE(w_->caseData()->contour.segments.size(), before + 1);
+  }
+  QMessageBox* unsavedBox() {
+    QMessageBox* box = nullptr;
+    waitFor(
+        [&] {
+          box = w_->findChild<QMessageBox*>("unsavedChangesBox");
+          return box && box->isVisible();
+        },
+        10000);
+    return box;
+  }
+  bool answer(QMessageBox::StandardButton b) {
+    QMessageBox* box = unsavedBox();
+    if (!box) return false;
+    QTest::mouseClick(box->button(b), Qt::LeftButton);
+    if (!waitFor([&] { return !w_->findChild<QMessageBox*>("unsavedChangesBox"); }, 10000)) return false;
+    if (!w_->isVisible()) return true;
+    w_->activateWindow();  // (the window manager gives it back after a box; offscreen has none)
+    return QTest::qWaitForWindowActive(w_.get());
+  }
+  bool titleMarked() const { return w_->isWindowModified() && w_->windowTitle().contains("[*]"); }
+  QString caseFile() const { return dir_.path() + "/afternoon.rehearse"; }
+
+ private slots:
+  void initTestCase() {
+    QCoreApplication::setOrganizationName("RehearseDesktopTest");
+    QVERIFY(openPhantomCase(w_));
+  }
+
+  // The title names the case and marks unsaved changes; an undo back to the version as opened clears the mark.
+  void titleMarksUnsavedChanges() {
+    QVERIFY2(w_->windowTitle().startsWith(QString::fromStdString(w_->caseData()->name)), qPrintable(w_->windowTitle()));
+    QVERIFY(!w_->isModified() && !w_->isWindowModified());
+    addContourSegment();
+    QVERIFY(w_->isModified());
+    QVERIFY2(titleMarked(), qPrintable(w_->windowTitle()));
+    QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
+    QVERIFY(!w_->isModified() && !w_->isWindowModified());
+    QTest::keyClick(w_.get(), Qt::Key_Y, Qt::ControlModifier);  // redo
+    QVERIFY(w_->isModified() && titleMarked());
+  }
+
+  // Ctrl+O over unsaved work asks; Cancel leaves the case, its changes and its undo history as they were. The
+  // built-in phantom (Ctrl+Shift+P) asks too; Discard opens it.
+  void openOverUnsavedWorkAsks() {
+    QVERIFY(w_->isModified());
+    const auto before = w_->caseData();
+    const int undoIndex = w_->undoStack()->index();
+    QTest::keyClick(w_.get(), Qt::Key_O, Qt::ControlModifier);
+    QMessageBox* box = unsavedBox();
+    QVERIFY2(box, "Ctrl+O over unsaved work opened no question");
+    QVERIFY2(box->text().contains(QString::fromStdString(before->name)), qPrintable(box->text()));
+    QVERIFY(box->button(QMessageBox::Save) && box->button(QMessageBox::Discard) && box->button(QMessageBox::Cancel));
+    QVERIFY(answer(QMessageBox::Cancel));
+    QCOMPARE(w_->caseData(), before);
+    QCOMPARE(w_->undoStack()->index(), undoIndex);
+    QVERIFY(w_->undoStack()->canUndo());
+    QVERIFY(w_->isModified());
+    QTest::keyClick(w_.get(), Qt::Key_P, Qt::ControlModifier | Qt::ShiftModifier);
+    QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
+    QVERIFY(answer(QMessageBox::Discard));
+    QVERIFY(!loaded.isEmpty() || loaded.wait(60000));
+    loaded.clear();
+    QVERIFY(w_->caseData() != before);
+    QVERIFY(!w_->isModified() && !w_->isWindowModified());
+    QCOMPARE(w_->caseData()->contour.segments.size(), before->contour.segments.size() - 1);
+  }
+
+  // Saved to a file, the title names the file; New Case over an edit asks, and Save writes the edit into the file
+  // before the empty case replaces it. The new case's steps say what comes first.
+  void newCaseSavesFirstWhenAsked() {
+    QSignalSpy saved(w_.get(), &MainWindow::caseSaved);
+    w_->saveCaseAs(caseFile());
+    QVERIFY(saved.wait(60000));
+    QVERIFY(saved.front().at(0).toBool());
+    QVERIFY2(w_->windowTitle().startsWith("afternoon.rehearse"), qPrintable(w_->windowTitle()));
+    QVERIFY(!w_->isModified());
+    addContourSegment();
+    const std::size_t edited = w_->caseData()->contour.segments.size();
+    QVERIFY(titleMarked());
+    QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
+    QTest::keyClick(w_.get(), Qt::Key_N, Qt::ControlModifier);
+    QVERIFY(answer(QMessageBox::Save));
+    QVERIFY(!loaded.isEmpty() || loaded.wait(60000));
+    loaded.clear();
+    QVERIFY(w_->caseData()->organ->empty() && w_->caseData()->frame.empty());
+    QVERIFY(!w_->isModified());
+    QVERIFY2(w_->windowTitle().startsWith("Untitled case"), qPrintable(w_->windowTitle()));
+    QCOMPARE(w_->step(), ui::Step::Mesh);
+    QVERIFY2(w_->statusText().contains("import the organ"), qPrintable(w_->statusText()));
+    shot(*w_, "new-case");
+    // The file holds the edit that was saved on the way.
+    QVERIFY(!w_->undoStack()->canUndo());
+    w_->openCase(caseFile());
+    QVERIFY(!loaded.isEmpty() || loaded.wait(60000));
+    loaded.clear();
+    QCOMPARE(w_->caseData()->contour.segments.size(), edited);
+    QVERIFY(!w_->isModified());
+  }
+
+  // An autosave newer than the case's file is offered back (the menu item is enabled) while Rehearse runs, not only
+  // after a crash; recovering it after the edits were discarded brings them back as unsaved changes of that file,
+  // and Ctrl+S writes them there.
+  void recoveryBringsBackAutosavedWork() {
+    auto* recover = w_->findChild<QAction*>("recoverAutosaveAction");
+    QVERIFY(recover);
+    QVERIFY(!w_->autosaveNewerThanCase());
+    QVERIFY(!recover->isEnabled());
+    QTest::qWait(1100);  // (file times: the autosave must be written after the case file, as a minute later)
+    addContourSegment();
+    const std::size_t edited = w_->caseData()->contour.segments.size();
+    w_->autosaveNow();  // what the minute's timer does
+    QVERIFY(w_->autosaveNewerThanCase());
+    QVERIFY(recover->isEnabled());
+    // The edit discarded: the built-in phantom opened over it.
+    QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
+    QTest::keyClick(w_.get(), Qt::Key_P, Qt::ControlModifier | Qt::ShiftModifier);
+    QVERIFY(answer(QMessageBox::Discard));
+    QVERIFY(!loaded.isEmpty() || loaded.wait(60000));
+    loaded.clear();
+    QVERIFY(recover->isEnabled());
+    recover->trigger();
+    QVERIFY(!loaded.isEmpty() || loaded.wait(60000));
+    loaded.clear();
+    QCOMPARE(w_->caseData()->contour.segments.size(), edited);
+    QVERIFY2(w_->windowTitle().startsWith("afternoon.rehearse") && titleMarked(), qPrintable(w_->windowTitle()));
+    QCOMPARE(w_->currentPath(), caseFile());
+    QVERIFY2(w_->statusText().contains("recovered"), qPrintable(w_->statusText()));
+    QSignalSpy saved(w_.get(), &MainWindow::caseSaved);
+    QTest::keyClick(w_.get(), Qt::Key_S, Qt::ControlModifier);
+    QVERIFY(saved.wait(60000));
+    QVERIFY(saved.front().at(0).toBool());
+    QVERIFY(!w_->isModified());
+    w_->openCase(caseFile());
+    QVERIFY(!loaded.isEmpty() || loaded.wait(60000));
+    loaded.clear();
+    QCOMPARE(w_->caseData()->contour.segments.size(), edited);
+  }
+
+  // Closing the window over unsaved work asks: Cancel keeps it open, Discard closes it.
+  void closingAsks() {
+    addContourSegment();
+    QVERIFY(w_->isModified());
+    w_->close();
+    QVERIFY(answer(QMessageBox::Cancel));
+    QVERIFY(w_->isVisible());
+    QVERIFY(w_->isModified());
+    w_->close();
+    QVERIFY(answer(QMessageBox::Discard));
+    QVERIFY(waitFor([&] { return !w_->isVisible(); }, 10000));
+    QVERIFY(!QFile::exists(MainWindow::autosavePath()));  // a clean exit leaves no autosave
+  }
+
+  void cleanupTestCase() { w_.reset(); }
+};
+
+QTEST_MAIN(TestDesktopGui)
+#include "test_desktop_gui.moc"
