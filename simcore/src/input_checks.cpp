@@ -726,6 +726,9 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
     std::string_view name = line.substr(0, eq);
     name = name.substr(0, name.find('\0'));
     const std::string key(trim(name));
+    // MetaIO takes a field given twice as it comes (found by fuzzing: "NDims = 1.6e18" before a later "NDims = 3",
+    // which was all this check saw; MetaIO read values for minutes): a header says each once.
+    if (fields.count(key)) return "its field '" + key.substr(0, 40) + "' is given twice";
     fields[key] = std::string(trim(line.substr(eq + 1)));
     if (key == "ElementDataFile") {
       sawData = true;

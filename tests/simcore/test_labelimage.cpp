@@ -569,6 +569,11 @@ class TestLabelImage : public QObject {
                                            "`\x80X = 1605389506728077994\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
                                            "ElementDataFile = LOCAL\n" + std::string(8, '\1'));
     expectImageRefused("nulname.mha", "NDims", true);
+    // ... and a field given twice is refused: MetaIO read "NDims = 1.6e18" before the "NDims = 3" this check kept.
+    writeFile(tempPath("twice.mha"), "ObjectType = Image\nNDims = 1605389506728077994\nDimSize = 2 2 2\n"
+                                     "NDims = 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
+                                         std::string(8, '\1'));
+    expectImageRefused("twice.mha", "given twice", true);
     writeFile(tempPath("pgm.inr"), "P5\n2 2\n255\n");
     expectImageRefused("pgm.inr", "not an INR image", true);
     // The same shapes, sound, are read: a MetaImage with a short unknown field, and the NIfTI as ITK wrote it.
