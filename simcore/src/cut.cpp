@@ -757,8 +757,8 @@ CutResult cutTetrahedra(std::vector<V3>& rest, std::vector<V3>& current, std::ve
                 r.separatedFaces, r.duplicatedNodes);
   r.status = buf;
   if (!r.changed)
-    r.status = !crossedAny ? (r.skippedInverted ? "The blade crossed only inverted elements; nothing was cut." : "The blade crossed no tissue.")
-                           : "The blade passed between the elements' nodes without crossing any element; nothing was cut.";
+    r.status = !crossedAny ? (r.skippedInverted ? "The blade crossed only tissue crushed inside out, which cannot be cut; nothing was cut." : "The blade crossed no tissue.")
+                           : "The blade only grazed the tissue (it touched it without passing through); nothing was cut: draw it across the tissue again, a little deeper.";
   return r;
 }
 

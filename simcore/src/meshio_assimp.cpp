@@ -6,6 +6,7 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <filesystem>
 #include <map>
 #include <utility>
 #include <vector>
@@ -86,8 +87,15 @@ Mesh loadSurfaceAssimp(const std::string& path) {
     if (error.find("mNumMeshes is 0") != std::string::npos)
       throw MeshError("This surface file holds no surface (no triangles were found in it); check that it is the "
                       "organ's surface and in the format its extension says.");
-    throw MeshError("This surface file cannot be read: " + error +
-                    "; check that the file is complete and in the format its extension says.");
+    // The library's sentence, quoted without its own full stop (it read "OBJ-file is too small.;" here before).
+    std::string said = error;
+    while (!said.empty() && (said.back() == '.' || said.back() == ' ' || said.back() == '\n')) said.pop_back();
+    std::error_code ec;
+    const auto bytes = std::filesystem::file_size(path, ec);
+    if (!ec && bytes == 0)
+      throw MeshError("This surface file is empty (0 bytes); copy the whole file again.");
+    throw MeshError("This surface file cannot be read (the reader says \u201c" + said +
+                    "\u201d); check that the file is complete and in the format its extension says.");
   }
   Mesh m;
   collect(scene, m);

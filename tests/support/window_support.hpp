@@ -15,6 +15,7 @@
 #include <QAbstractSpinBox>
 #include <QApplication>
 #include <QElapsedTimer>
+#include <QTimer>
 #include <QWheelEvent>
 #include <QSignalSpy>
 #include <QStandardPaths>
@@ -157,5 +158,50 @@ class SessionHeard : public QObject {
     });
   }
   QStringList lines;
+};
+
+// A review window's seek lands off the GUI thread (issue 62): the time asks for `step` at once, the view shows it
+// when the seek has landed.
+template <class Review>
+[[nodiscard]] inline bool landsOn(Review* review, int attempt, long step, int ms = 60000) {
+  if (review->stepWanted(attempt) != step) {
+    qWarning("the review's time asks for step %ld, not %ld", review->stepWanted(attempt), step);
+    return false;
+  }
+  if (!waitFor([&] { return review->stepShown(attempt) == step && !review->seeking(); }, ms)) {
+    qWarning("the review's view shows step %ld, not %ld", review->stepShown(attempt), step);
+    return false;
+  }
+  return true;
+}
+
+// The ping monitor of issue 62: a timer every 10 ms on the GUI thread; the longest gap between two of its ticks is the
+// longest the window was frozen (busy on the GUI thread) while it ran.
+class PingMonitor {
+ public:
+  void start() {
+    clock_.start();
+    last_ = 0;
+    worst_ = 0;
+    QObject::connect(&timer_, &QTimer::timeout, [this] {
+      const qint64 now = clock_.elapsed();
+      worst_ = std::max(worst_, now - last_);
+      last_ = now;
+    });
+    timer_.start(10);
+  }
+  qint64 stop() {
+    const qint64 now = clock_.elapsed();
+    worst_ = std::max(worst_, now - last_);
+    timer_.stop();
+    timer_.disconnect();
+    return worst_;
+  }
+  qint64 worst() const { return worst_; }
+
+ private:
+  QTimer timer_;
+  QElapsedTimer clock_;
+  qint64 last_ = 0, worst_ = 0;
 };
 }  // namespace

@@ -1,5 +1,6 @@
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/crashreport.hpp"
+#include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/labelimage.hpp>
 #include "rehearse/ui/liveoverlay.hpp"
 #include "rehearse/ui/recordingcontroller.hpp"
@@ -317,7 +318,15 @@ void MainWindow::refreshOverlay() {
     pages_.rigid->setDistanceText(text);
   } else {
     status_.distance->clear();
-    pages_.rigid->setDistanceText(tr("Sketch a contour (step 3) to see its distance to the silhouette."));
+    // Why there is no distance, as the case has it (a two-segment contour is not "no contour").
+    const bool anyContour = c && !c->contour.segments.empty();
+    const bool silhouette = c && !imaging::silhouetteSegments(c->contour).empty();
+    pages_.rigid->setDistanceText(
+        !anyContour   ? tr("Sketch a contour (step 3) to see its distance to the silhouette.")
+        : !silhouette ? tr("The contour has no silhouette segment (step 3's segment type): the distance is measured "
+                           "from silhouette segments only.")
+                      : tr("The organ's silhouette is not in the frame (behind or outside the camera's view): place "
+                           "the organ over the frame to see the contour's distance to it."));
   }
 }
 

@@ -1226,7 +1226,8 @@ QString SimulationPanel::statusText() const {
   const QString solver = last_->model == simcore::BodyModel::Precomputed ? tr("precomputed linear")
                          : last_->model == simcore::BodyModel::Hybrid    ? tr("hybrid")
                          : last_->model == simcore::BodyModel::Ffd       ? tr("FFD")
-                                                                         : tr("%1 Newton").arg(r.newtonIterations);
+                         : r.newtonIterations == 1                       ? tr("1 Newton iteration")
+                                                                         : tr("%1 Newton iterations").arg(r.newtonIterations);
   return tr("t = %1 s · step %2 ms%3 · %4 · %5")
       .arg(last_->time, 0, 'f', 2)
       .arg(r.wallMs, 0, 'f', 1)

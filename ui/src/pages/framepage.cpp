@@ -168,6 +168,16 @@ FramePage::FramePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::F
 
 FramePage::~FramePage() { cameraTimer_.stop(); }
 
+namespace {
+// Why an image file gave no picture, in the file's terms: empty, missing, or not an image format we read.
+QString unreadableImage(const QString& path) {
+  const QFileInfo info(path);
+  if (!info.exists()) return FramePage::tr("%1 does not exist (moved or deleted?).").arg(info.fileName());
+  if (info.size() == 0) return FramePage::tr("%1 is empty (0 bytes); copy the whole file again.").arg(info.fileName());
+  return FramePage::tr("%1 is not a readable image; use PNG, JPEG, BMP or TIFF.").arg(info.fileName());
+}
+}  // namespace
+
 void FramePage::refresh(const app::Case& c) {
   updating_ = true;
   const double values[4] = {c.camera.fx(), c.camera.fy(), c.camera.cx(), c.camera.cy()};
@@ -199,7 +209,7 @@ void FramePage::openFrameSource(const QString& path) {
   if (!isVideo) {
     cv::Mat3b img = cv::imread(path.toStdString(), cv::IMREAD_COLOR);
     if (img.empty()) {
-      const QString msg = tr("%1 is not a readable image; use PNG, JPEG, BMP or TIFF.").arg(QFileInfo(path).fileName());
+      const QString msg = unreadableImage(path);
       wb_.status(msg);
       emit frameSourceOpened(false, msg);
       return;
@@ -381,7 +391,7 @@ void FramePage::useShownFrameAsSecond() {
 void FramePage::openSecondFrame(const QString& path) {
   const cv::Mat3b img = cv::imread(path.toStdString(), cv::IMREAD_COLOR);
   if (img.empty()) {
-    const QString msg = tr("%1 is not a readable image; use PNG, JPEG, BMP or TIFF.").arg(QFileInfo(path).fileName());
+    const QString msg = unreadableImage(path);
     wb_.status(msg);
     emit frameSourceOpened(false, msg);
     return;

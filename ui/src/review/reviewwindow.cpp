@@ -6,6 +6,9 @@
 #include <QApplication>
 #include <QComboBox>
 #include <QDateTime>
+#include <QDir>
+#include <QFileInfo>
+#include <QEventLoop>
 #include <QFileDialog>
 #include <QFutureWatcher>
 #include <QHBoxLayout>
@@ -31,6 +34,7 @@
 #include <QtConcurrent/QtConcurrentRun>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 
 namespace rehearse::ui {
@@ -47,6 +51,7 @@ class TimelineWidget : public QWidget {
   const std::vector<app::TimelineSample>* timeline = nullptr;
   double threshold = 0, now = 0;
   TimelineWidget() {
+    setObjectName(QStringLiteral("timeline"));
     setMinimumHeight(110);
     setCursor(Qt::PointingHandCursor);
     setToolTip(
@@ -132,8 +137,20 @@ class ViewLabel : public QLabel {
 
 }  // namespace
 
+// Where a seek landed (computed off the GUI thread: a seek replays up to a checkpoint interval of steps, a second or
+// more on a large organ; issue 62 measured a 7.6 s freeze while dragging the timeline).
+struct SeekResult {
+  long step = 0;
+  std::shared_ptr<const simcore::Snapshot> snapshot;
+  std::string note;   ///< Replayer::lastSeekNote
+  std::string error;  ///< the seek failed (a damaged recording)
+};
+
 class ReviewAttempt {
  public:
+  ~ReviewAttempt() {
+    if (seeker) seeker->waitForFinished();  // it uses the replayer
+  }
   QWidget* widget = nullptr;
   QLabel* title = nullptr;
   ViewLabel* view = nullptr;
@@ -146,6 +163,16 @@ class ReviewAttempt {
   bool ready = false;
   QString error;
   QFutureWatcher<app::ReplayResult>* watcher = nullptr;
+  // The view's seek, one at a time on a worker: the newest step asked for while one runs is sought next (a drag's
+  // intermediate positions are skipped); the view shows `shown` (its snapshot) until the next one lands.
+  std::unique_ptr<QFutureWatcher<SeekResult>> seeker;
+  long wanted = -1;  ///< the step the window's time asks for
+  long shown = -1;   ///< the step the view shows (-1: none yet)
+  long lastStep = 0; ///< Replayer::steps(), read once (the replayer is the worker's while a seek runs)
+  std::shared_ptr<const simcore::Snapshot> snapshot;
+  std::string seekNote;
+  long renderedStep = -1;  ///< what the view's picture shows (drawn again only when it changes, or stale)
+  bool renderedThreeD = false, renderStale = true;
 
   long stepAt(double t) const { return app::stepAtTime(result.timeline, t); }
   /// The view's renderer: the case's frame, or the 3D view (always without a case camera).
@@ -204,13 +231,15 @@ void ReviewWindow::build(const QString& title) {
   view3d->setToolTip(tr("Switch between the organ over the case's frame and a 3D view turned by dragging (V)"));
   QMenu* fileMenu = menuBar()->addMenu(tr("&Review"));
   fileMenu->addAction(tr("Export &Video..."), this, [this] {
-    const QString path = QFileDialog::getSaveFileName(this, tr("Export video"), {}, tr("MP4 video (*.mp4)"));
+    const QString path =
+        QFileDialog::getSaveFileName(this, tr("Export video"), suggestedExportPath("mp4"), tr("MP4 video (*.mp4)"));
     if (path.isEmpty()) return;
     const QString err = exportVideo(path, 0, duration(0));
     if (!err.isEmpty()) QMessageBox::warning(this, tr("Export video"), err);
   })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_E));
   fileMenu->addAction(tr("Export &Report (PDF)..."), this, [this] {
-    const QString path = QFileDialog::getSaveFileName(this, tr("Export report"), {}, tr("PDF (*.pdf)"));
+    const QString path =
+        QFileDialog::getSaveFileName(this, tr("Export report"), suggestedExportPath("pdf"), tr("PDF (*.pdf)"));
     if (path.isEmpty()) return;
     const QString err = exportReport(path);
     if (!err.isEmpty()) QMessageBox::warning(this, tr("Export report"), err);
@@ -360,6 +389,7 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
     auto& at = attempts_[static_cast<std::size_t>(attempt)];
     if (!at || !at->orbitRenderer || !threeD_) return;
     at->orbitRenderer->orbit(yaw, pitch);
+    at->renderStale = true;
     refresh();
   };
   const auto& s = a->recording.summary;
@@ -373,6 +403,9 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
       raw->result = raw->watcher->result();
       raw->replayer = std::make_unique<app::Replayer>(raw->recording);
       raw->replayer->avoidCheckpoints(raw->result.verify);  // seeking starts from sound ones
+      raw->lastStep = raw->replayer->steps();
+      raw->seeker = std::make_unique<QFutureWatcher<SeekResult>>();
+      connect(raw->seeker.get(), &QFutureWatcher<SeekResult>::finished, this, [this, raw] { seekLanded(*raw); });
       raw->orbitRenderer = std::make_unique<app::ReviewRenderer>(raw->recording.setup, 800, 600);
       if (camera_) raw->frameRenderer = std::make_unique<app::ReviewRenderer>(raw->recording.setup, 0, 0, camera_, frame_);
       raw->timelineView->timeline = &raw->result.timeline;
@@ -423,7 +456,64 @@ double ReviewWindow::duration(int attempt) const {
 
 long ReviewWindow::stepShown(int attempt) const {
   const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
-  return a && a->replayer ? a->replayer->step() : -1;
+  return a && a->replayer ? a->shown : -1;
+}
+
+QString ReviewWindow::suggestedExportPath(const QString& extension) const {
+  // Beside the case file, named after it and the session shown: "liver-session-3.mp4".
+  const auto& a = attempts_[0];
+  const QFileInfo kase(file_);
+  const QString dir = file_.isEmpty() ? QDir::homePath() : kase.absolutePath();
+  const QString base = file_.isEmpty() ? tr("review") : kase.completeBaseName();
+  const QString session = a ? tr("-session-%1").arg(a->recording.summary.id) : QString();
+  return QDir(dir).filePath(base + session + "." + extension);
+}
+
+long ReviewWindow::stepWanted(int attempt) const {
+  const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
+  return a && a->ready ? a->stepAt(time_) : -1;
+}
+
+bool ReviewWindow::seeking() const {
+  return std::any_of(attempts_.begin(), attempts_.end(), [](const auto& a) {
+    return a && a->seeker && (a->seeker->isRunning() || (a->ready && a->error.isEmpty() && a->shown != a->wanted));
+  });
+}
+
+void ReviewWindow::startSeek(ReviewAttempt& a) {
+  if (!a.seeker || a.seeker->isRunning() || !a.error.isEmpty()) return;  // the one running lands first
+  const long step = a.wanted;
+  app::Replayer* replayer = a.replayer.get();
+  a.seeker->setFuture(QtConcurrent::run([replayer, step] {
+    SeekResult r;
+    r.step = step;
+    try {
+      replayer->seek(step);
+      r.snapshot = replayer->snapshot();
+      r.note = replayer->lastSeekNote();
+    } catch (const std::exception& e) {
+      r.error = e.what();
+    }
+    return r;
+  }));
+}
+
+void ReviewWindow::seekLanded(ReviewAttempt& a) {
+  const SeekResult r = a.seeker->result();
+  if (!r.error.empty()) {  // a damaged checkpoint: said, and the attempt shows no more
+    a.error = tr("Session %1 cannot be shown at step %2: %3")
+                  .arg(a.recording.summary.id)
+                  .arg(r.step)
+                  .arg(QString::fromStdString(r.error));
+    a.view->setText(a.error);
+  } else {
+    a.shown = r.step;
+    a.snapshot = r.snapshot;
+    a.seekNote = r.note;
+  }
+  if (a.error.isEmpty() && a.wanted != a.shown) startSeek(a);  // the newest position asked meanwhile
+  refresh();
+  emit stepLanded();
 }
 
 app::SessionMetrics ReviewWindow::metrics(int attempt) const {
@@ -457,7 +547,7 @@ void ReviewWindow::seekTime(double seconds) {
 void ReviewWindow::stepBy(int steps) {
   const auto& a = attempts_[0];
   if (!a || !a->ready || a->result.timeline.empty()) return;
-  const long target = std::clamp(a->stepAt(time_) + steps, 0L, a->replayer->steps());
+  const long target = std::clamp(a->stepAt(time_) + steps, 0L, a->lastStep);
   const app::TimelineSample* s = app::sampleAt(a->result.timeline, target);
   const double t = s ? s->time : 0.0;
   setPlaying(false);
@@ -509,25 +599,32 @@ void ReviewWindow::refresh() {
       continue;
     }
     if (!a->ready) continue;
-    const long step = a->stepAt(time_);
-    try {
-      a->replayer->seek(step);
-    } catch (const std::exception& e) {  // a damaged checkpoint: said, and the attempt shows no more
-      a->error = tr("Session %1 cannot be shown at step %2: %3").arg(a->recording.summary.id).arg(step).arg(QString::fromStdString(e.what()));
-      a->view->setText(a->error);
-      continue;
-    }
-    const auto snap = a->replayer->snapshot();
-    const app::ReviewRenderer& r = a->renderer(threeD_);
-    const std::string who = "session " + std::to_string(a->recording.summary.id);
-    const QImage img = toQImage(r.render(*snap, app::tipPath(a->result.timeline, step), app::captionAt(a->result.timeline, step, who)));
-    a->view->setPixmap(QPixmap::fromImage(img.scaled(a->view->size(), Qt::KeepAspectRatio, Qt::SmoothTransformation)));
-    a->view->setProperty("image", img);
+    // The playhead moves at once; the view follows when its seek lands (off the GUI thread).
+    a->wanted = a->stepAt(time_);
     a->timelineView->now = time_;
     a->timelineView->update();
-    state << tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(step).arg(a->replayer->steps());
-    if (!a->replayer->lastSeekNote().empty())  // a damaged checkpoint passed over: said, the view still shows the step
-      seekNotes << tr("session %1: %2").arg(a->recording.summary.id).arg(QString::fromStdString(a->replayer->lastSeekNote()));
+    if (a->wanted != a->shown) startSeek(*a);
+    if (a->snapshot && (a->renderStale || a->renderedStep != a->shown || a->renderedThreeD != threeD_)) {
+      const long step = a->shown;
+      a->renderedStep = step;
+      a->renderedThreeD = threeD_;
+      a->renderStale = false;
+      const app::ReviewRenderer& r = a->renderer(threeD_);
+      const std::string who = "session " + std::to_string(a->recording.summary.id);
+      const QImage img =
+          toQImage(r.render(*a->snapshot, app::tipPath(a->result.timeline, step), app::captionAt(a->result.timeline, step, who)));
+      a->view->setPixmap(QPixmap::fromImage(img.scaled(a->view->size(), Qt::KeepAspectRatio, Qt::SmoothTransformation)));
+      a->view->setProperty("image", img);
+    }
+    state << (a->shown == a->wanted || a->shown < 0
+                  ? tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(a->wanted).arg(a->lastStep)
+                  : tr("session %1: step %2 of %3 (seeking from %4)")
+                        .arg(a->recording.summary.id)
+                        .arg(a->wanted)
+                        .arg(a->lastStep)
+                        .arg(a->shown));
+    if (!a->seekNote.empty())  // a damaged checkpoint passed over: said, the view still shows the step
+      seekNotes << tr("session %1: %2").arg(a->recording.summary.id).arg(QString::fromStdString(a->seekNote));
   }
   const QString mode = threeD_ || !camera_ ? tr("3D view (drag to turn)") : tr("over the case's frame");
   // A seek that passed over a damaged checkpoint says so first (the status line is cut at the window's width; the
@@ -595,48 +692,93 @@ QImage ReviewWindow::viewImage(int attempt) const {
   return a ? a->view->property("image").value<QImage>() : QImage();
 }
 
-QString ReviewWindow::exportFirst(const std::function<QString(ReviewAttempt&, app::Replayer&, const app::ReviewRenderer&)>& write) {
+QString ReviewWindow::exportFirst(const QString& doing, bool cancellable, const ExportWork& write) {
   auto& a = attempts_[0];
   if (!a || !a->ready) return tr("The session is still being replayed; export when its timeline shows.");
-  QApplication::setOverrideCursor(Qt::WaitCursor);
-  QString err;
-  try {
-    app::Replayer replayer(a->recording);  // its own: the view's stays where it is
-    replayer.avoidCheckpoints(a->result.verify);
-    status_->setText(write(*a, replayer, a->renderer(threeD_)));
-  } catch (const std::exception& e) {
-    err = QString::fromStdString(e.what());
-    if (err == QLatin1String("cancelled")) err = tr("The export was cancelled; the partial file was left as it is.");
-  }
-  QApplication::restoreOverrideCursor();
-  return err;
+  setPlaying(false);
+  // On a worker (issue 62: a report froze the window 9 s, a video 6 s): a replayer of its own (the view's stays where
+  // it is) and a copy of the view's renderer (the view may turn meanwhile); progress and Cancel here.
+  auto replayer = std::make_shared<app::Replayer>(a->recording);
+  replayer->avoidCheckpoints(a->result.verify);
+  auto renderer = std::make_shared<app::ReviewRenderer>(a->renderer(threeD_));
+  struct Shared {
+    std::atomic<int> done{0}, total{0};
+    std::atomic<bool> cancel{false};
+  };
+  auto shared = std::make_shared<Shared>();
+  QProgressDialog progress(doing, cancellable ? tr("Cancel") : QString(), 0, 0, this);
+  progress.setObjectName(QStringLiteral("exportProgress"));
+  progress.setWindowModality(Qt::WindowModal);
+  progress.setMinimumDuration(300);
+  if (!cancellable) progress.setCancelButton(nullptr);
+  connect(&progress, &QProgressDialog::canceled, this, [shared] { shared->cancel = true; });
+  struct Outcome {
+    QString status, error;
+  };
+  QFutureWatcher<Outcome> watcher;
+  QEventLoop loop;
+  connect(&watcher, &QFutureWatcher<Outcome>::finished, &loop, &QEventLoop::quit);
+  ReviewAttempt* attempt = a.get();
+  watcher.setFuture(QtConcurrent::run([attempt, replayer, renderer, shared, write]() -> Outcome {
+    try {
+      return {write(*attempt, *replayer, *renderer,
+                    [shared](int done, int total) {
+                      shared->done = done;
+                      shared->total = total;
+                      return !shared->cancel.load();
+                    }),
+              {}};
+    } catch (const std::exception& e) {
+      return {{}, QString::fromStdString(e.what())};
+    }
+  }));
+  QTimer poll;
+  poll.setInterval(100);
+  connect(&poll, &QTimer::timeout, this, [&] {
+    if (shared->cancel) return;
+    const int total = shared->total;
+    if (total > 0) {
+      progress.setMaximum(total);
+      progress.setLabelText(tr("%1: frame %2 of %3").arg(doing).arg(shared->done.load()).arg(total));
+      progress.setValue(std::min(shared->done.load(), total - 1));
+    } else {
+      progress.setValue(0);  // (busy: shown after its minimum duration)
+    }
+  });
+  poll.start();
+  progress.setValue(0);
+  if (!watcher.isFinished()) loop.exec();
+  poll.stop();
+  const Outcome out = watcher.result();
+  progress.reset();
+  if (!out.error.isEmpty())
+    return out.error == QLatin1String("cancelled") ? tr("The export was cancelled; the partial file was left as it is.")
+                                                   : out.error;
+  status_->setText(out.status);
+  return {};
 }
 
 QString ReviewWindow::exportVideo(const QString& path, double from, double to) {
-  return exportFirst([&](ReviewAttempt& a, app::Replayer& replayer, const app::ReviewRenderer& r) {
-    const long first = a.stepAt(from);
-    // Progress and cancel (a long session takes seconds); the dialog is modal to this window only.
-    QProgressDialog progress(tr("Writing the video..."), tr("Cancel"), 0, 100, this);
-    progress.setWindowModality(Qt::WindowModal);
-    progress.setMinimumDuration(300);
-    const int frames = app::writeReviewVideo(replayer, r, a.result.timeline, first, std::max(a.stepAt(to), first + 1), 25, path.toStdString(),
-                                             [&progress](int done, int total) {
-                                               progress.setMaximum(total);
-                                               progress.setLabelText(tr("Writing the video: frame %1 of %2").arg(done).arg(total));
-                                               progress.setValue(done);
-                                               // A modal dialog's setValue processes events itself, its Cancel button's clicks
-                                               // included (excluding user input, as before, made Cancel unreachable).
-                                               return !progress.wasCanceled();
-                                             });
-    return tr("Video of %1 frames written to %2").arg(frames).arg(path);
-  });
+  return exportFirst(tr("Writing the video"), true,
+                     [this, path, from, to](ReviewAttempt& a, app::Replayer& replayer, const app::ReviewRenderer& r,
+                                            const std::function<bool(int, int)>& progress) {
+                       const long first = a.stepAt(from);
+                       const int frames =
+                           app::writeReviewVideo(replayer, r, a.result.timeline, first, std::max(a.stepAt(to), first + 1),
+                                                 25, path.toStdString(), progress);
+                       return tr("Video of %1 frames written to %2").arg(frames).arg(path);
+                     });
 }
 
 QString ReviewWindow::exportReport(const QString& path) {
-  return exportFirst([&](ReviewAttempt& a, app::Replayer& replayer, const app::ReviewRenderer& r) {
-    writeReviewPdf(app::makeReviewReport(a.recording, a.result, thresholds_, replayer, r), path.toStdString());
-    return tr("Report written to %1").arg(path);
-  });
+  const auto thresholds = thresholds_;
+  return exportFirst(tr("Writing the report (replaying the session for its key frames)"), false,
+                     [this, path, thresholds](ReviewAttempt& a, app::Replayer& replayer, const app::ReviewRenderer& r,
+                                              const std::function<bool(int, int)>&) {
+                       writeReviewPdf(app::makeReviewReport(a.recording, a.result, thresholds, replayer, r),
+                                      path.toStdString());
+                       return tr("Report written to %1").arg(path);
+                     });
 }
 
 bool ReviewWindow::event(QEvent* e) {

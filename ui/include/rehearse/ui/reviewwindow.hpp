@@ -47,7 +47,11 @@ class ReviewWindow : public QMainWindow {
   void setPlaying(bool on);
   bool playing() const { return playing_; }
   void setSpeed(double factor);
+  /// The step the view shows (its seek runs off the GUI thread, so it lands after the time moved) and the step the
+  /// window's time asks for; seeking(): a seek is under way or due.
   long stepShown(int attempt) const;
+  long stepWanted(int attempt) const;
+  bool seeking() const;
   double duration(int attempt) const;
   app::SessionMetrics metrics(int attempt) const;
   std::vector<app::Verdict> verdicts(int attempt) const;
@@ -67,6 +71,7 @@ class ReviewWindow : public QMainWindow {
 
  signals:
   void attemptReady(int attempt);
+  void stepLanded();  ///< a seek landed (the view shows a new step)
 
  protected:
   void keyPressEvent(QKeyEvent* e) override;
@@ -75,11 +80,17 @@ class ReviewWindow : public QMainWindow {
  private:
   void tick();
   void refresh();
+  void startSeek(ReviewAttempt& a);
+  QString suggestedExportPath(const QString& extension) const;
+  void seekLanded(ReviewAttempt& a);
   void fillSessionLists();
   void fillMetrics(ReviewAttempt& a);
-  /// Runs an export of the first attempt (a replayer of its own, the view's renderer), with the wait cursor;
-  /// `write` returns the status sentence. One sentence on error, empty on success.
-  QString exportFirst(const std::function<QString(ReviewAttempt&, app::Replayer&, const app::ReviewRenderer&)>& write);
+  /// Runs an export of the first attempt on a worker (a replayer of its own, a copy of the view's renderer) while the
+  /// window stays responsive, with a progress dialog (`doing`; Cancel when `cancellable`); `write` returns the status
+  /// sentence. One sentence on error, empty on success.
+  using ExportWork = std::function<QString(ReviewAttempt&, app::Replayer&, const app::ReviewRenderer&,
+                                           const std::function<bool(int, int)>& progress)>;
+  QString exportFirst(const QString& doing, bool cancellable, const ExportWork& write);
   void build(const QString& title);
   std::function<std::vector<app::RecordingSummary>()> list_;
   std::function<app::Recording(qint64)> load_;
