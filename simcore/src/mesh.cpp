@@ -43,6 +43,21 @@ StructureKind structureKind(const std::string& name) {
   return StructureKind::Tissue;
 }
 
+std::string structureWords(StructureKind kind, const std::string& labelName) {
+  auto lowered = [](std::string t) {
+    for (char& ch : t) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+    return t;
+  };
+  const std::string what = structureKindName(kind), name = lowered(labelName), k = lowered(what);
+  if (name.empty() || name == k || name == k + "s") return what;
+  if (name.find(k) != std::string::npos) return labelName;
+  return what + " (" + labelName + ")";
+}
+
+const char* indefiniteArticle(const std::string& words) {
+  return !words.empty() && std::string("aeiouAEIOU").find(words[0]) != std::string::npos ? "An" : "A";
+}
+
 const char* structureKindName(StructureKind kind) {
   switch (kind) {
     case StructureKind::Tissue:

@@ -280,11 +280,11 @@ class TestCut : public QObject {
   void aVesselIsALabelNamedAsOne() {
     // Each named structure cut is one event of its kind, said in a sentence; a vessel's is also a "vessel cut".
     const std::vector<std::array<const char*, 3>> structures = {
-        {"tumour", "tumour cut", "The tumour (tumour, label 2) was cut into."},
-        {"portal vein", "portal vein cut", "A portal vein (portal vein, label 2) was cut."},
-        {"hepatic artery", "artery cut", "An artery (hepatic artery, label 2) was cut."},
-        {"tumour margin", "tumour margin breached", "The tumour margin (tumour margin, label 2) was breached."},
-        {"common bile duct", "bile duct cut", "A bile duct (common bile duct, label 2) was cut."}};
+        {"tumour", "tumour cut", "The tumour was cut into."},
+        {"portal vein", "portal vein cut", "A portal vein was cut."},
+        {"hepatic artery", "artery cut", "A hepatic artery was cut."},
+        {"tumour margin", "tumour margin breached", "The tumour margin was breached."},
+        {"common bile duct", "bile duct cut", "A common bile duct was cut."}};
     for (const auto& [name, event, sentence] : structures) {
       simcore::BodySetup s;
       s.mesh = boxMesh(0.04, 0.02, 0.02, 8, 4, 4);

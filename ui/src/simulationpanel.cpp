@@ -18,6 +18,8 @@
 #include <QMouseEvent>
 #include <QPainter>
 #include <QPointer>
+
+#include <future>
 #include <QPushButton>
 #include <QFutureWatcher>
 #include <QSignalBlocker>
@@ -177,14 +179,30 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   // Building the body (model, first factorisation) takes a while on a large organ: on a worker; the old
   // session keeps its thread until the new one is ready. Commands given meanwhile apply to the new one.
   forceLoop_.reset();  // it reads the session's snapshots
-  session_.reset();
-  if (recorder_) {  // a new session is a new recording (or none)
-    try {
-      recorder_->finish(recorder_->lastStep());
-    } catch (const std::exception& e) {
-      emit recordingStopped(
-          tr("The recorded session could not be marked complete: %1").arg(QString::fromStdString(e.what())));
-    }
+  // The old session's thread is joined (its step, a cut's build under way) and its recording marked complete on a
+  // thread of their own (issue 62: Reset while recording froze the window 2 s); what records next waits for it.
+  if (session_ || recorder_) {
+    QPointer<SimulationPanel> self(this);
+    retired_ = std::async(std::launch::async, [old = std::move(session_), rec = std::move(recorder_),
+                                               previous = retired_, self]() mutable {
+                 if (previous.valid()) previous.wait();
+                 old.reset();
+                 if (!rec) return;
+                 try {
+                   rec->finish(rec->lastStep());  // a new session is a new recording (or none)
+                 } catch (const std::exception& e) {
+                   const QString why = QString::fromStdString(e.what());
+                   QMetaObject::invokeMethod(
+                       self.data(),
+                       [self, why] {
+                         if (self)
+                           emit self->recordingStopped(
+                               tr("The recorded session could not be marked complete: %1").arg(why));
+                       },
+                       Qt::QueuedConnection);
+                 }
+               }).share();
+    session_.reset();
     recorder_.reset();
   }
   if (!record && recordRequest_) {  // a new organ (or none) ends the recording: said, never silently
@@ -287,8 +305,9 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   buildDialog_.clear();
   watcher->setFuture(QtConcurrent::run([s, result, ctx, generation, record, recorder, started, self,
                                         cancelled = buildCancelled_, cache = startCache_,
-                                        precompute = precomputeCancelled_] {
+                                        precompute = precomputeCancelled_, retiring = retired_] {
     try {
+      if (record && retiring.valid()) retiring.wait();  // the last session's recording is complete in the file first
       simcore::BodySetup b = bodySetup(s);
       // A long body build (the precomputed model's responses, now or when chosen later in the Solver list) shows its
       // progress with a Cancel; it stops when a newer session is asked for too.
@@ -844,6 +863,7 @@ SimulationPanel::~SimulationPanel() {
   buildCancelled_->store(true);
   forceLoop_.reset();
   session_.reset();  // joins the session's thread before the panel goes
+  waitForRetired();
   if (recorder_) {
     try {
       recorder_->finish(recorder_->lastStep());
@@ -872,6 +892,7 @@ QString SimulationPanel::startRecording(const QString& file, const app::SessionM
 void SimulationPanel::stopRecording() {
   recordRequest_.reset();
   if (recordPending_) cancelRecord_ = true;
+  waitForRetired();
   if (!recorder_) return;
   if (session_) session_->setStepHook({});  // waits for the step in progress
   try {
@@ -885,7 +906,12 @@ void SimulationPanel::stopRecording() {
 qint64 SimulationPanel::recordingId() const { return recorder_ ? recorder_->id() : 0; }
 
 void SimulationPanel::suspendRecording() {
+  waitForRetired();  // (a session a reset ended is being marked complete in the file about to be copied)
   if (recorder_) recorder_->suspend();
+}
+
+void SimulationPanel::waitForRetired() {
+  if (retired_.valid()) retired_.wait();
 }
 
 void SimulationPanel::caseFileReplaced(const QString& file) {

@@ -112,22 +112,19 @@ void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message)
         std::find(tool_.structuresCut.begin(), tool_.structuresCut.end(), label) != tool_.structuresCut.end())
       continue;
     tool_.structuresCut.push_back(label);
-    const std::string what = structureKindName(kind),
-                      which = " (" + setup_.mesh.labelName(label) + ", label " + std::to_string(label) + ")";
+    const std::string what = structureKindName(kind), words = structureWords(kind, setup_.mesh.labelName(label));
     if (kind == StructureKind::TumourMargin)
       events_.push_back("tumour margin breached");
     else if (kind != StructureKind::Vessel)
       events_.push_back(what + " cut");
-    if (isVessel(kind)) {
-      events_.push_back("vessel cut");
-      message = std::string(kind == StructureKind::Artery ? "An " : "A ") + what + which + " was cut.";
-    } else if (kind == StructureKind::Tumour) {
-      message = "The tumour" + which + " was cut into.";
-    } else if (kind == StructureKind::TumourMargin) {
-      message = "The tumour margin" + which + " was breached.";
-    } else {
-      message = (kind == StructureKind::BileDuct ? "A bile duct" : "A ligament") + which + " was cut.";
-    }
+    // In a surgeon's words: "A cystic artery was cut." (the label's number is in the event "cut through label N").
+    if (kind == StructureKind::Tumour)
+      message = "The " + words + " was cut into.";
+    else if (kind == StructureKind::TumourMargin)
+      message = "The " + words + " was breached.";
+    else
+      message = std::string(indefiniteArticle(words)) + " " + words + " was cut.";
+    if (isVessel(kind)) events_.push_back("vessel cut");
   }
 }
 

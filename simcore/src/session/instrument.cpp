@@ -177,15 +177,8 @@ class ClipApplier final : public Instrument {
     }
     const StructureKind kind = host.mesh().labelKind(clip.label);
     const std::string name = host.mesh().labelName(clip.label);
-    // The label's name in brackets when it says more than the kind ("vessel (portal vein)", not "vessel (vessels)").
-    const std::string kindName = structureKindName(kind);
-    auto lowered = [](std::string t) {
-      for (char& ch : t) ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-      return t;
-    };
-    const bool saysMore = !name.empty() && lowered(name).rfind(lowered(kindName), 0) != 0;
-    const std::string what =
-        kind == StructureKind::Tissue ? std::string("tissue") : kindName + (saysMore ? " (" + name + ")" : "");
+    // "the cystic artery", "the vessel" (not "vessel (vessels)").
+    const std::string what = kind == StructureKind::Tissue ? std::string("tissue") : structureWords(kind, name);
     host.field().clips.push_back(std::move(clip));
     host.emitEvent("clip");
     const Clip& placed = host.field().clips.back();

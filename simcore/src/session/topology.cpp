@@ -154,8 +154,7 @@ void Session::updateBleeds(std::string& message) {
     std::string names;
     for (int l : startingLabels) {
       const std::string n = setup_.mesh.labelName(l);
-      names += (names.empty() ? "" : ", ") + std::string(structureKindName(setup_.mesh.labelKind(l))) +
-               (n.empty() ? "" : " (" + n + ")");
+      names += (names.empty() ? "" : ", ") + structureWords(setup_.mesh.labelKind(l), n);
     }
     std::snprintf(buf, sizeof buf, " The %s bleeds: %.2f mL/s from the cut.", names.c_str(), 1e6 * starting);
     message += buf;

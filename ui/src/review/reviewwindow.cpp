@@ -141,9 +141,11 @@ class ViewLabel : public QLabel {
 // more on a large organ; issue 62 measured a 7.6 s freeze while dragging the timeline).
 struct SeekResult {
   long step = 0;
-  std::shared_ptr<const simcore::Snapshot> snapshot;
-  std::string note;   ///< Replayer::lastSeekNote
-  std::string error;  ///< the seek failed (a damaged recording)
+  long generation = 0;  ///< ReviewAttempt::viewGeneration it was drawn for
+  QImage image;         ///< the view's picture (drawn on the worker too)
+  QImage scaled;        ///< the same at the view's size
+  std::string note;     ///< Replayer::lastSeekNote
+  std::string error;    ///< the seek failed (a damaged recording)
 };
 
 class ReviewAttempt {
@@ -169,10 +171,10 @@ class ReviewAttempt {
   long wanted = -1;  ///< the step the window's time asks for
   long shown = -1;   ///< the step the view shows (-1: none yet)
   long lastStep = 0; ///< Replayer::steps(), read once (the replayer is the worker's while a seek runs)
-  std::shared_ptr<const simcore::Snapshot> snapshot;
   std::string seekNote;
-  long renderedStep = -1;  ///< what the view's picture shows (drawn again only when it changes, or stale)
-  bool renderedThreeD = false, renderStale = true;
+  long viewGeneration = 0;   ///< counts changes of the view (3D or frame, a turn): a picture for an older one is stale
+  long shownGeneration = -1; ///< the generation of the picture shown
+  bool stale() const { return shown != wanted || shownGeneration != viewGeneration; }
 
   long stepAt(double t) const { return app::stepAtTime(result.timeline, t); }
   /// The view's renderer: the case's frame, or the 3D view (always without a case camera).
@@ -389,7 +391,7 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
     auto& at = attempts_[static_cast<std::size_t>(attempt)];
     if (!at || !at->orbitRenderer || !threeD_) return;
     at->orbitRenderer->orbit(yaw, pitch);
-    at->renderStale = true;
+    ++at->viewGeneration;
     refresh();
   };
   const auto& s = a->recording.summary;
@@ -476,21 +478,30 @@ long ReviewWindow::stepWanted(int attempt) const {
 
 bool ReviewWindow::seeking() const {
   return std::any_of(attempts_.begin(), attempts_.end(), [](const auto& a) {
-    return a && a->seeker && (a->seeker->isRunning() || (a->ready && a->error.isEmpty() && a->shown != a->wanted));
+    return a && a->seeker && (a->seeker->isRunning() || (a->ready && a->error.isEmpty() && a->stale()));
   });
 }
 
 void ReviewWindow::startSeek(ReviewAttempt& a) {
   if (!a.seeker || a.seeker->isRunning() || !a.error.isEmpty()) return;  // the one running lands first
-  const long step = a.wanted;
+  const long step = a.wanted, generation = a.viewGeneration;
   app::Replayer* replayer = a.replayer.get();
-  a.seeker->setFuture(QtConcurrent::run([replayer, step] {
+  // The picture is drawn there too, with a copy of the view's renderer (a turn may change the view's meanwhile).
+  auto renderer = std::make_shared<app::ReviewRenderer>(a.renderer(threeD_));
+  const std::vector<app::TimelineSample>* timeline = &a.result.timeline;  // (fixed once the attempt is ready)
+  const std::string who = "session " + std::to_string(a.recording.summary.id);
+  const QSize size = a.view->size();
+  a.seeker->setFuture(QtConcurrent::run([replayer, renderer, timeline, who, size, step, generation] {
     SeekResult r;
     r.step = step;
+    r.generation = generation;
     try {
       replayer->seek(step);
-      r.snapshot = replayer->snapshot();
       r.note = replayer->lastSeekNote();
+      const QImage img = toQImage(renderer->render(*replayer->snapshot(), app::tipPath(*timeline, step),
+                                                   app::captionAt(*timeline, step, who)));
+      r.image = img;
+      r.scaled = img.scaled(size, Qt::KeepAspectRatio, Qt::SmoothTransformation);
     } catch (const std::exception& e) {
       r.error = e.what();
     }
@@ -508,10 +519,12 @@ void ReviewWindow::seekLanded(ReviewAttempt& a) {
     a.view->setText(a.error);
   } else {
     a.shown = r.step;
-    a.snapshot = r.snapshot;
+    a.shownGeneration = r.generation;
     a.seekNote = r.note;
+    a.view->setPixmap(QPixmap::fromImage(r.scaled));
+    a.view->setProperty("image", r.image);
   }
-  if (a.error.isEmpty() && a.wanted != a.shown) startSeek(a);  // the newest position asked meanwhile
+  if (a.error.isEmpty() && a.stale()) startSeek(a);  // the newest position (or view) asked meanwhile
   refresh();
   emit stepLanded();
 }
@@ -574,6 +587,8 @@ void ReviewWindow::setSpeed(double factor) {
 
 void ReviewWindow::setThreeD(bool on) {
   threeD_ = on;
+  for (auto& a : attempts_)
+    if (a) ++a->viewGeneration;
   refresh();
 }
 
@@ -603,19 +618,7 @@ void ReviewWindow::refresh() {
     a->wanted = a->stepAt(time_);
     a->timelineView->now = time_;
     a->timelineView->update();
-    if (a->wanted != a->shown) startSeek(*a);
-    if (a->snapshot && (a->renderStale || a->renderedStep != a->shown || a->renderedThreeD != threeD_)) {
-      const long step = a->shown;
-      a->renderedStep = step;
-      a->renderedThreeD = threeD_;
-      a->renderStale = false;
-      const app::ReviewRenderer& r = a->renderer(threeD_);
-      const std::string who = "session " + std::to_string(a->recording.summary.id);
-      const QImage img =
-          toQImage(r.render(*a->snapshot, app::tipPath(a->result.timeline, step), app::captionAt(a->result.timeline, step, who)));
-      a->view->setPixmap(QPixmap::fromImage(img.scaled(a->view->size(), Qt::KeepAspectRatio, Qt::SmoothTransformation)));
-      a->view->setProperty("image", img);
-    }
+    if (a->stale()) startSeek(*a);
     state << (a->shown == a->wanted || a->shown < 0
                   ? tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(a->wanted).arg(a->lastStep)
                   : tr("session %1: step %2 of %3 (seeking from %4)")

@@ -22,6 +22,12 @@ enum class StructureKind { Tissue, Ligament, Vessel, Artery, Vein, PortalVein, B
 StructureKind structureKind(const std::string& name);
 /// "tissue", "ligament", "vessel", "artery", "vein", "portal vein", "bile duct", "tumour", "tumour margin".
 const char* structureKindName(StructureKind kind);
+/// A structure as a sentence names it: its label's name when that says the kind ("hepatic artery", "common bile
+/// duct"), the kind alone when the name only repeats it ("vessel" for "vessels"), else the kind and the name ("vessel
+/// (left branch)").
+std::string structureWords(StructureKind kind, const std::string& labelName);
+/// "A" or "An" before `words`.
+const char* indefiniteArticle(const std::string& words);
 /// A blood vessel: vessel, artery, vein or portal vein.
 bool isVessel(StructureKind kind);
 

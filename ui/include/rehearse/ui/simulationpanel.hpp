@@ -18,6 +18,7 @@
 
 #include <atomic>
 #include <cstdint>
+#include <future>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -213,6 +214,9 @@ class SimulationPanel : public QWidget {
   app::MaterialSettings fieldsMaterial() const;
 
   std::shared_ptr<simcore::Session> session_;
+  /// The sessions replaced (a reset, a new organ) being joined and their recordings completed, off the GUI thread.
+  std::shared_future<void> retired_;
+  void waitForRetired();
   /// The run parameters as last asked of the session (built into it, then posted): the session applies them at its next
   /// step boundary, so its own setup lags the list; compared with it, a quick scroll through the Solver list (exact,
   /// lagged-PCG, chord) posted exact and lagged-PCG, then nothing for chord, and the session ran lagged-PCG.
