@@ -17,6 +17,8 @@
 
 #include <QAction>
 #include <QMessageBox>
+#include <QPlainTextEdit>
+#include <QScrollBar>
 #include <QPushButton>
 #include <QSignalSpy>
 #include <QTemporaryDir>
@@ -182,6 +184,21 @@ class TestDesktopGui : public QObject {
     QVERIFY(!loaded.isEmpty() || loaded.wait(60000));
     loaded.clear();
     QCOMPARE(w_->caseData()->contour.segments.size(), edited);
+  }
+
+  // The Messages panel opens on its newest entry (it stayed at its top, laid out while hidden behind the Case tab).
+  void messagesShowTheNewest() {
+    addContourSegment();
+    for (int k = 0; k < 25; ++k) {
+      QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
+      QTest::keyClick(w_.get(), Qt::Key_Y, Qt::ControlModifier);
+    }
+    QVERIFY(w_->messageLog().size() > 50);
+    QTest::keyClick(w_.get(), Qt::Key_L, Qt::ControlModifier);
+    auto* log = w_->findChild<QPlainTextEdit*>("messageLog");
+    QVERIFY(log);
+    QVERIFY(waitFor([&] { return log->isVisible() && log->verticalScrollBar()->maximum() > 0; }, 5000));
+    QVERIFY(waitFor([&] { return log->verticalScrollBar()->value() == log->verticalScrollBar()->maximum(); }, 5000));
   }
 
   // Closing the window over unsaved work asks: Cancel keeps it open, Discard closes it.

@@ -31,6 +31,7 @@
 #include <QLineEdit>
 #include <QMimeData>
 #include <QPlainTextEdit>
+#include <QScrollBar>
 #include <QPainter>
 #include <QProgressBar>
 #include <QPushButton>
@@ -427,8 +428,11 @@ void MainWindow::dropEvent(QDropEvent* e) {
 void MainWindow::say(const QString& text) {
   status_.caseText->setText(text);
   status_.caseText->setToolTip(text);
-  if (!text.isEmpty())
+  if (!text.isEmpty()) {
     messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + text);
+    // The newest entry in sight (appendPlainText scrolls only when the panel is laid out and already at its end).
+    messages_->verticalScrollBar()->setValue(messages_->verticalScrollBar()->maximum());
+  }
 }
 
 QString MainWindow::statusText() const {

@@ -29,6 +29,7 @@
 #include <QLineEdit>
 #include <QMimeData>
 #include <QPlainTextEdit>
+#include <QScrollBar>
 #include <QPainter>
 #include <QProgressBar>
 #include <QSettings>
@@ -90,6 +91,13 @@ void MainWindow::buildDocks() {
   messages_->setReadOnly(true);
   messages_->setMaximumBlockCount(5000);
   messagesDock_->setWidget(messages_);
+  // Shown (its tab raised, Ctrl+L), the panel opens on the newest entry (it was laid out hidden, at the top).
+  connect(messagesDock_, &QDockWidget::visibilityChanged, this, [this](bool visible) {
+    if (visible)
+      QTimer::singleShot(0, messages_, [this] {
+        messages_->verticalScrollBar()->setValue(messages_->verticalScrollBar()->maximum());
+      });
+  });
   addDockWidget(Qt::RightDockWidgetArea, messagesDock_);
   tabifyDockWidget(infoDock, messagesDock_);
   infoDock->raise();
