@@ -16,6 +16,7 @@
 #include <rehearse/app/case.hpp>
 
 #include <QAction>
+#include <QDockWidget>
 #include <QMessageBox>
 #include <QPlainTextEdit>
 #include <QScrollBar>
@@ -213,6 +214,28 @@ class TestDesktopGui : public QObject {
     QVERIFY(answer(QMessageBox::Discard));
     QVERIFY(waitFor([&] { return !w_->isVisible(); }, 10000));
     QVERIFY(!QFile::exists(MainWindow::autosavePath()));  // a clean exit leaves no autosave
+  }
+
+  // A second launch keeps the layout the person left, but never a frame squeezed by a dock widened in the last session
+  // (issue 62: the left dock came back 580 px wide and the frame 490 px).
+  void secondLaunchKeepsTheFrameRoom() {
+    {
+      MainWindow first;
+      first.resize(1600, 900);
+      first.show();
+      QVERIFY(QTest::qWaitForWindowExposed(&first));
+      auto* workflow = first.findChild<QDockWidget*>("workflowDock");
+      QVERIFY(workflow);
+      first.resizeDocks({workflow}, {900}, Qt::Horizontal);  // a long sentence widened it
+      QVERIFY(waitFor([&] { return first.centralWidget()->width() < 800; }, 5000));
+      QVERIFY(closeDiscardingChanges(first));
+    }
+    MainWindow second;
+    second.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&second));
+    QVERIFY2(waitFor([&] { return second.centralWidget()->width() >= second.width() * 2 / 5; }, 5000),
+             qPrintable(QString("the frame has %1 of %2 px").arg(second.centralWidget()->width()).arg(second.width())));
+    QVERIFY(closeDiscardingChanges(second));
   }
 
   void cleanupTestCase() { w_.reset(); }

@@ -148,12 +148,20 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
 
   QSettings settings;
   if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) resize(1600, 900);
+  auto* workflow = findChild<QDockWidget*>(QStringLiteral("workflowDock"));
+  auto* organ = findChild<QDockWidget*>(QStringLiteral("organDock"));
   if (!restoreState(settings.value(QStringLiteral("window/state")).toByteArray())) {
     // A first start: the frame gets the room. The docks are given their widths here, so that a long text in one of
     // them later (a status, a refusal) does not widen its area and squeeze the frame to its minimum.
-    auto* workflow = findChild<QDockWidget*>(QStringLiteral("workflowDock"));
-    auto* organ = findChild<QDockWidget*>(QStringLiteral("organDock"));
     if (workflow && organ) resizeDocks({workflow, organ}, {470, 400}, Qt::Horizontal);
+  } else if (workflow && organ) {
+    // A later start keeps the layout the person left, but not a frame squeezed by a dock a long text widened in the
+    // last session (issue 62: the left dock came back 580 px wide and the frame 490 px): the frame keeps at least
+    // two fifths of the window (a first start gives it 45 %), the docks back to their first widths when it would not.
+    QTimer::singleShot(0, this, [this, workflow, organ] {
+      if (centralWidget() && centralWidget()->width() < width() * 2 / 5)
+        resizeDocks({workflow, organ}, {470, 400}, Qt::Horizontal);
+    });
   }
   setStep(Step::Mesh);
 }
