@@ -17,6 +17,7 @@
 
 #include <QAction>
 #include <QDockWidget>
+#include <QScreen>
 #include <QMessageBox>
 #include <QPlainTextEdit>
 #include <QScrollBar>
@@ -231,6 +232,11 @@ class TestDesktopGui : public QObject {
       QVERIFY(closeDiscardingChanges(first));
     }
     MainWindow second;
+    // Restored on the screen (offscreen's is 800 x 800, smaller than the window's minimum: its top left corner in it).
+    const QRect room = second.screen()->availableGeometry();
+    QVERIFY2(room.contains(second.geometry().topLeft()),
+             qPrintable(QString("window at %1,%2").arg(second.geometry().x()).arg(second.geometry().y())));
+    second.resize(1600, 900);  // (the screen a person has)
     second.show();
     QVERIFY(QTest::qWaitForWindowExposed(&second));
     QVERIFY2(waitFor([&] { return second.centralWidget()->width() >= second.width() * 2 / 5; }, 5000),

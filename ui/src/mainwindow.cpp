@@ -32,6 +32,10 @@
 #include <QMimeData>
 #include <QPlainTextEdit>
 #include <QScrollBar>
+#include <QScreen>
+#include <QLocale>
+#include <QFile>
+#include <QDir>
 #include <QPainter>
 #include <QProgressBar>
 #include <QPushButton>
@@ -147,7 +151,20 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   setAcceptDrops(true);
 
   QSettings settings;
-  if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) resize(1600, 900);
+  if (!restoreGeometry(settings.value(QStringLiteral("window/geometry")).toByteArray())) {
+    resize(1600, 900);
+  } else if (screen()) {
+    // Restored whole on the screen it is on (issue 62: a second launch came back 12 px below the screen's bottom,
+    // the status bar out of sight).
+    const QRect room = screen()->availableGeometry();
+    QRect g = geometry();
+    g.setSize(g.size().boundedTo(room.size()));
+    if (g.bottom() > room.bottom()) g.moveBottom(room.bottom());
+    if (g.right() > room.right()) g.moveRight(room.right());
+    if (g.top() < room.top()) g.moveTop(room.top());
+    if (g.left() < room.left()) g.moveLeft(room.left());
+    setGeometry(g);
+  }
   auto* workflow = findChild<QDockWidget*>(QStringLiteral("workflowDock"));
   auto* organ = findChild<QDockWidget*>(QStringLiteral("organDock"));
   if (!restoreState(settings.value(QStringLiteral("window/state")).toByteArray())) {
@@ -159,8 +176,10 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     // last session (issue 62: the left dock came back 580 px wide and the frame 490 px): the frame keeps at least
     // two fifths of the window (a first start gives it 45 %), the docks back to their first widths when it would not.
     QTimer::singleShot(0, this, [this, workflow, organ] {
-      if (centralWidget() && centralWidget()->width() < width() * 2 / 5)
-        resizeDocks({workflow, organ}, {470, 400}, Qt::Horizontal);
+      if (centralWidget() && centralWidget()->width() < width() * 2 / 5) {
+        const double share = std::min(1.0, width() / 1600.0);  // a first start's widths at 1600 px, narrower below
+        resizeDocks({workflow, organ}, {static_cast<int>(470 * share), static_cast<int>(400 * share)}, Qt::Horizontal);
+      }
     });
   }
   setStep(Step::Mesh);
@@ -373,8 +392,13 @@ void MainWindow::save() {
 
 void MainWindow::saveAs() {
   QSettings s;
-  QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), s.value(QStringLiteral("lastDir")).toString(),
-                                              tr("Rehearse cases (*.rehearse)"));
+  // A name to start from: the case's file, or its name in the folder last used ("Built-in liver phantom.rehearse").
+  QString suggested = doc_->path();
+  if (suggested.isEmpty() && doc_->hasCase()) {
+    const QString dir = s.value(QStringLiteral("lastDir"), QDir::homePath()).toString();
+    suggested = QDir(dir).filePath(QString::fromStdString(doc_->data()->name).replace('/', '-') + ".rehearse");
+  }
+  QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), suggested, tr("Rehearse cases (*.rehearse)"));
   if (path.isEmpty()) return;
   if (!path.endsWith(QStringLiteral(".rehearse"))) path += QStringLiteral(".rehearse");
   s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
@@ -395,9 +419,16 @@ void MainWindow::openFileDialog() {
 
 void MainWindow::offerRecovery() {
   if (!hasRecoverableAutosave()) return;
-  auto* box = new QMessageBox(QMessageBox::Question, tr("Recover case"),
-                              tr("Rehearse did not close cleanly last time. Recover the case that was open then?"),
-                              QMessageBox::Yes | QMessageBox::No, this);
+  // Which work and from when: the file it was made from (or the case's name) and the autosave's time.
+  const QFileInfo autosave(autosavePath());
+  QFile sourceFile(autosavePath() + QStringLiteral(".source"));
+  const QString source = sourceFile.open(QIODevice::ReadOnly) ? QString::fromUtf8(sourceFile.readAll()).trimmed() : QString();
+  const QString what = source.isEmpty() ? tr("a case not saved to a file") : QFileInfo(source).fileName();
+  auto* box = new QMessageBox(
+      QMessageBox::Question, tr("Recover case"),
+      tr("Rehearse did not close cleanly last time. Recover the work autosaved at %1 (%2)?")
+          .arg(QLocale().toString(autosave.lastModified(), QLocale::ShortFormat), what),
+      QMessageBox::Yes | QMessageBox::No, this);
   box->setAttribute(Qt::WA_DeleteOnClose);
   box->setWindowModality(Qt::NonModal);
   connect(box, &QMessageBox::finished, this, [this](int r) {

@@ -153,10 +153,11 @@ void ContourPage::refresh(const app::Case& c) {
   const bool second = wb_.view->secondFrameShown();
   const imaging::Contour& k = second ? c.contour2 : c.contour;
   const std::string problem = imaging::contourProblem(k);
-  status_->setText(tr("%1%2 segments, %3 points. %4")
+  const int segments = static_cast<int>(k.segments.size()), points = static_cast<int>(k.pointCount());
+  status_->setText(tr("%1%2, %3. %4")
                        .arg(second ? tr("Second frame: ") : QString())
-                       .arg(k.segments.size())
-                       .arg(k.pointCount())
+                       .arg(segments == 1 ? tr("1 segment") : tr("%1 segments").arg(segments))
+                       .arg(points == 1 ? tr("1 point") : tr("%1 points").arg(points))
                        .arg(problem.empty()
                                 ? (second ? tr("The fit uses it with the first.") : tr("Ready for fitting."))
                                 : QString::fromStdString(problem)));
@@ -183,7 +184,9 @@ void ContourPage::importContour(const QString& path) {
     }
     wb_.doc->edit(tr("Import contour"), [&c](app::Case& k) { k.contour = c; });
     wb_.goToStep(app::Step::Contour);
-    wb_.status(tr("Contour imported: %1 segments.").arg(c.segments.size()) + how);
+    wb_.status((c.segments.size() == 1 ? tr("Contour imported: 1 segment.")
+                                       : tr("Contour imported: %1 segments.").arg(c.segments.size())) +
+               how);
   } catch (const std::exception& e) {
     wb_.status(QString::fromUtf8(e.what()));
   }
