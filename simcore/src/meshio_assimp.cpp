@@ -84,16 +84,15 @@ Mesh loadSurfaceAssimp(const std::string& path) {
   if (!scene || !scene->mRootNode) {
     // assimp's validation speaks of its own structures ("aiScene::mNumMeshes is 0"): said in the file's terms.
     const std::string error = importer.GetErrorString();
+    std::error_code ec;
+    if (std::filesystem::file_size(path, ec) == 0 && !ec)
+      throw MeshError("This surface file is empty (0 bytes); copy the whole file again.");
     if (error.find("mNumMeshes is 0") != std::string::npos)
       throw MeshError("This surface file holds no surface (no triangles were found in it); check that it is the "
                       "organ's surface and in the format its extension says.");
     // The library's sentence, quoted without its own full stop (it read "OBJ-file is too small.;" here before).
     std::string said = error;
     while (!said.empty() && (said.back() == '.' || said.back() == ' ' || said.back() == '\n')) said.pop_back();
-    std::error_code ec;
-    const auto bytes = std::filesystem::file_size(path, ec);
-    if (!ec && bytes == 0)
-      throw MeshError("This surface file is empty (0 bytes); copy the whole file again.");
     throw MeshError("This surface file cannot be read (the reader says \u201c" + said +
                     "\u201d); check that the file is complete and in the format its extension says.");
   }

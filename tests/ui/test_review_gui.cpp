@@ -82,22 +82,10 @@ class TestReviewGui : public QObject {
   // The scissors (B) dragged down across the left quarter of the organ, then 30 steps.
   void cutAcrossTheLeftPart() {
     auto* panel = w_->simulationPanel();
-    const auto& c = *w_->caseData();
     auto* view = w_->frameView();
     QTest::keyClick(w_.get(), Qt::Key_B);
-    const auto start = panel->lastFrame();
-    double x0 = 1e9, x1 = -1e9;
-    std::vector<Eigen::Vector2d> px;
-    for (const auto& p : start->positions) {
-      px.push_back(c.camera.project(p));
-      x0 = std::min(x0, px.back().x()), x1 = std::max(x1, px.back().x());
-    }
-    const double column = x0 + 0.25 * (x1 - x0);
-    double y0 = 1e9, y1 = -1e9;
-    for (const auto& p : px)
-      if (std::abs(p.x() - column) < 6) y0 = std::min(y0, p.y()), y1 = std::max(y1, p.y());
-    const QPointF ca = view->toWidget(QPointF(column, y0 + 0.15 * (y1 - y0))),
-                  cb = view->toWidget(QPointF(column, y1 + 0.1 * (y1 - y0)));
+    const auto [from, to] = strokeDownTheOrgan(w_->caseData()->camera, panel->lastFrame()->positions, 0.25);
+    const QPointF ca = view->toWidget(QPointF(from.x(), from.y())), cb = view->toWidget(QPointF(to.x(), to.y()));
     QTest::mousePress(view, Qt::LeftButton, {}, ca.toPoint());
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
     for (int i = 1; i <= 16; ++i) {

@@ -206,15 +206,21 @@ bool CaseDocument::hasRecoverableAutosave() { return isCaseFile(autosavePath());
 namespace {
 // Where the autosave's case lives (its file, or empty): kept beside it so that a recovery saves back there.
 QString autosaveSourcePath() { return CaseDocument::autosavePath() + QStringLiteral(".source"); }
-QString autosaveSource() {
-  QFile f(autosaveSourcePath());
-  return f.open(QIODevice::ReadOnly) ? QString::fromUtf8(f.readAll()).trimmed() : QString();
-}
 void writeAutosaveSource(const QString& path) {
   QFile f(autosaveSourcePath());
   if (f.open(QIODevice::WriteOnly | QIODevice::Truncate)) f.write(path.toUtf8());
 }
 }  // namespace
+
+QString CaseDocument::autosaveSource() {
+  QFile f(autosaveSourcePath());
+  return f.open(QIODevice::ReadOnly) ? QString::fromUtf8(f.readAll()).trimmed() : QString();
+}
+
+QString CaseDocument::displayName() const {
+  if (!path_.isEmpty()) return QFileInfo(path_).fileName();
+  return case_ ? QString::fromStdString(case_->name) : QString();
+}
 
 bool CaseDocument::autosaveNewerThanCase() const {
   if (!hasRecoverableAutosave()) return false;

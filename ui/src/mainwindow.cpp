@@ -34,7 +34,6 @@
 #include <QScrollBar>
 #include <QScreen>
 #include <QLocale>
-#include <QFile>
 #include <QDir>
 #include <QPainter>
 #include <QProgressBar>
@@ -407,13 +406,13 @@ void MainWindow::saveAs() {
 
 void MainWindow::openFileDialog() {
   askToKeepChanges(tr("opening another case"), [this] {
-  QSettings s;
-  const QString path =
-      QFileDialog::getOpenFileName(this, tr("Open Case"), s.value(QStringLiteral("lastDir")).toString(),
-                                   tr("Rehearse cases (*.rehearse);;All files (*)"));
-  if (path.isEmpty()) return;
-  s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
-  openCase(path);
+    QSettings s;
+    const QString path =
+        QFileDialog::getOpenFileName(this, tr("Open Case"), s.value(QStringLiteral("lastDir")).toString(),
+                                     tr("Rehearse cases (*.rehearse);;All files (*)"));
+    if (path.isEmpty()) return;
+    s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
+    openCase(path);
   });
 }
 
@@ -421,8 +420,7 @@ void MainWindow::offerRecovery() {
   if (!hasRecoverableAutosave()) return;
   // Which work and from when: the file it was made from (or the case's name) and the autosave's time.
   const QFileInfo autosave(autosavePath());
-  QFile sourceFile(autosavePath() + QStringLiteral(".source"));
-  const QString source = sourceFile.open(QIODevice::ReadOnly) ? QString::fromUtf8(sourceFile.readAll()).trimmed() : QString();
+  const QString source = CaseDocument::autosaveSource();
   const QString what = source.isEmpty() ? tr("a case not saved to a file") : QFileInfo(source).fileName();
   auto* box = new QMessageBox(
       QMessageBox::Question, tr("Recover case"),
@@ -600,19 +598,15 @@ void MainWindow::recoverAutosaveAsked() {
 
 void MainWindow::updateTitle() {
   if (!doc_->hasCase()) return setWindowTitle(tr("Rehearse"));
-  const QString name =
-      doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
-  setWindowTitle(tr("%1[*] - Rehearse").arg(name));
+  setWindowTitle(tr("%1[*] - Rehearse").arg(doc_->displayName()));
   setWindowModified(doc_->isModified());
 }
 
 void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> then) {
   if (!doc_->isModified()) return then();
-  const QString name =
-      doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
   auto* box = new QMessageBox(QMessageBox::Warning, tr("Unsaved changes"),
                               tr("The case \u201c%1\u201d has changes that are not saved. Save them before %2?")
-                                  .arg(name, doing),
+                                  .arg(doc_->displayName(), doing),
                               QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel, this);
   box->setObjectName(QStringLiteral("unsavedChangesBox"));
   box->setInformativeText(tr("Discard loses them; Cancel goes back to the case."));
@@ -623,10 +617,7 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
     const auto button = box->standardButton(box->clickedButton());
     if (button == QMessageBox::Discard) return then();
     if (button != QMessageBox::Save) return say(tr("Cancelled: the case and its unsaved changes stay open."));
-    if (doc_->path().isEmpty() || !isCaseFile(doc_->path()))
-      saveAs();
-    else
-      saveCaseAs(doc_->path());
+    save();                          // (Save As asks where for a case without a file)
     if (!doc_->isSaving()) return;  // Save As cancelled: nothing saved, nothing replaced
     auto once = std::make_shared<QMetaObject::Connection>();
     *once = connect(doc_, &CaseDocument::saved, this, [this, once, then](bool ok, const QString&) {
@@ -652,8 +643,7 @@ void MainWindow::onLoadFinished(bool ok, const QString& error) {
   for (StepPage* p : pages_.all) p->caseLoaded();
   showCaseInfo();
   view_->fitToWindow();
-  const QString name =
-      doc_->path().isEmpty() ? QString::fromStdString(doc_->data()->name) : QFileInfo(doc_->path()).fileName();
+  const QString name = doc_->displayName();
   updateTitle();
   if (recoverAction_) recoverAction_->setEnabled(doc_->autosaveNewerThanCase());
   if (doc_->data()->organ->empty() && doc_->data()->frame.empty())

@@ -18,8 +18,6 @@
 #include <QMouseEvent>
 #include <QPainter>
 #include <QPointer>
-
-#include <future>
 #include <QPushButton>
 #include <QFutureWatcher>
 #include <QSignalBlocker>
@@ -28,6 +26,7 @@
 #include <QVBoxLayout>
 #include <QWheelEvent>
 
+#include <future>
 #include <algorithm>
 #include <mutex>
 #include <cmath>
@@ -192,7 +191,8 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
                    rec->finish(rec->lastStep());  // a new session is a new recording (or none)
                  } catch (const std::exception& e) {
                    const QString why = QString::fromStdString(e.what());
-                   QMetaObject::invokeMethod(
+                   if (self)
+                     QMetaObject::invokeMethod(
                        self.data(),
                        [self, why] {
                          if (self)

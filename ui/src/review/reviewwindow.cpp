@@ -348,6 +348,10 @@ void ReviewWindow::fillSessionLists() {
 
 void ReviewWindow::openSession(int attempt, qint64 id) {
   if (attempt < 0 || attempt > 1) return;
+  if (exporting_) {
+    status_->setText(tr("An export is being written; choose the session again when it is done."));
+    return;
+  }
   if (auto& old = attempts_[static_cast<std::size_t>(attempt)]) {
     if (old->watcher) {
       old->watcher->disconnect(this);  // its finished signal must not reach the attempt deleted here
@@ -526,7 +530,6 @@ void ReviewWindow::seekLanded(ReviewAttempt& a) {
   }
   if (a.error.isEmpty() && a.stale()) startSeek(a);  // the newest position (or view) asked meanwhile
   refresh();
-  emit stepLanded();
 }
 
 app::SessionMetrics ReviewWindow::metrics(int attempt) const {
@@ -720,6 +723,7 @@ QString ReviewWindow::exportFirst(const QString& doing, bool cancellable, const 
   };
   QFutureWatcher<Outcome> watcher;
   QEventLoop loop;
+  exporting_ = true;
   connect(&watcher, &QFutureWatcher<Outcome>::finished, &loop, &QEventLoop::quit);
   ReviewAttempt* attempt = a.get();
   watcher.setFuture(QtConcurrent::run([attempt, replayer, renderer, shared, write]() -> Outcome {
@@ -751,6 +755,7 @@ QString ReviewWindow::exportFirst(const QString& doing, bool cancellable, const 
   poll.start();
   progress.setValue(0);
   if (!watcher.isFinished()) loop.exec();
+  exporting_ = false;
   poll.stop();
   const Outcome out = watcher.result();
   progress.reset();

@@ -74,6 +74,8 @@ class CaseDocument : public QObject {
   void setResponseKeySource(std::function<std::uint64_t()> source) { responseKey_ = std::move(source); }
   bool isSaving() const { return saveWatcher_.isRunning(); }
   QString path() const { return path_; }
+  /// What the title and the questions call the case: its file's name, or its own name before it has a file.
+  QString displayName() const;
   QStringList notes() const { return notes_; }
   double loadSeconds() const { return loadSeconds_; }
   QImage frameImage() const { return frameImage_; }
@@ -84,6 +86,8 @@ class CaseDocument : public QObject {
   static bool hasRecoverableAutosave();
   /// An autosave written after the case's own file (or the case has no file): work that File > Recover brings back.
   bool autosaveNewerThanCase() const;
+  /// The case file the autosave was made from (empty: a case without a file, or no autosave).
+  static QString autosaveSource();
   /// Opens the autosave as the case it was made from (that file's path, so Save writes there; its changes unsaved).
   void recoverAutosave();
   /// Writes the autosave now, on this thread.

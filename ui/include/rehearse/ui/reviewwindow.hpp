@@ -71,7 +71,6 @@ class ReviewWindow : public QMainWindow {
 
  signals:
   void attemptReady(int attempt);
-  void stepLanded();  ///< a seek landed (the view shows a new step)
 
  protected:
   void keyPressEvent(QKeyEvent* e) override;
@@ -111,6 +110,7 @@ class ReviewWindow : public QMainWindow {
   double speedFactor_ = 1;
   bool playing_ = false;
   bool threeD_ = false;
+  bool exporting_ = false;  ///< an export's worker reads attempt 0: it is not replaced meanwhile
   qint64 lastTick_ = 0;
 };
 
