@@ -339,6 +339,45 @@ class TestRecording : public QObject {
   // built on the second thread while it steps on) is recorded with checkpoints; ten seeks to random steps, in
   // random order (backwards too), each land on the state of a straight replay, bit for bit (checksums of every
   // step of the straight run, computed here).
+  // The review's replay reports as it goes (issue 62): after every step, in order, the samples so far (the whole
+  // replay's, sample for sample) and the checksums compared up to that step; a progress that returns false stops it.
+  void aReplayReportsItsProgressAndStops() {
+    QTemporaryDir dir;
+    const QString file = dir.path() + "/case.rehearse";
+    QVERIFY(::testing::tookEveryStep(run(gestureArgs(dir.path(), "grasp-pull.json", file))));
+    const app::Recording rec = app::loadRecording(file.toStdString(), 1);
+    app::ReplayOptions plain;
+    plain.timeline = true;
+    const app::ReplayResult whole = app::replayRecording(rec, plain);
+    QCOMPARE(static_cast<long>(whole.timeline.size()), rec.summary.steps);
+    long calls = 0;
+    bool inOrder = true, prefix = true, checkedSoFar = true;
+    app::ReplayOptions watched = plain;
+    watched.progress = [&](long step, long steps, const app::ReplayResult& soFar) {
+      inOrder = inOrder && step == ++calls && steps == rec.summary.steps &&
+                static_cast<long>(soFar.timeline.size()) == step;
+      const auto& s = soFar.timeline.back();
+      const auto& w = whole.timeline[static_cast<std::size_t>(step - 1)];
+      prefix = prefix && s.step == w.step && s.time == w.time && s.force == w.force && s.tip == w.tip;
+      const long due = static_cast<long>(std::count_if(rec.checksums.begin(), rec.checksums.end(),
+                                                       [&](const auto& c) { return c.first <= step; }));
+      checkedSoFar = checkedSoFar && soFar.verify.checked == due && soFar.verify.mismatches == 0;
+      return true;
+    };
+    const app::ReplayResult reported = app::replayRecording(rec, watched);
+    QCOMPARE(calls, rec.summary.steps);
+    QVERIFY(inOrder && prefix && checkedSoFar);
+    QCOMPARE(reported.verify.checked, whole.verify.checked);
+    long stoppedAt = 0;
+    app::ReplayOptions stopping = plain;
+    stopping.progress = [&](long step, long, const app::ReplayResult&) {
+      stoppedAt = step;
+      return step < 100;
+    };
+    QVERIFY_THROWS_EXCEPTION(app::ReplayStopped, app::replayRecording(rec, stopping));
+    QCOMPARE(stoppedAt, 100L);
+  }
+
   void seekingLandsOnTheStraightRun() {
     QTemporaryDir dir;
     const QString file = dir.path() + "/case.rehearse";

@@ -27,6 +27,7 @@
 #include <QDialogButtonBox>
 #include <QDoubleSpinBox>
 #include <QLineEdit>
+#include <QPointer>
 #include <QProcess>
 #include <QPushButton>
 #include <QSignalSpy>
@@ -251,13 +252,54 @@ class TestReviewGui : public QObject {
     QVERIFY(QTest::qWaitForWindowExposed(review));
     QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
     QCOMPARE(review->attemptsShown(), 1);
-    review->openSession(0, first_);
-    QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
     const app::Recording rec = app::loadRecording(file_.toStdString(), first_);
     // The keys go to the active window (under X the main window stays active until the review's activation is
     // through, and its Home shortcut would take the key).
     review->activateWindow();
     QVERIFY(QTest::qWaitForWindowActive(review));
+    {
+      // Issue 62: a session's first replay showed a blank view that ignored clicks for 10-17 s. The timeline grows as
+      // the replay checks the session and the view seeks as far as it has checked; choosing another session or
+      // closing the window while one replays does not wait for it. The replay is held a third of the way (however
+      // fast this machine replays) while the trainer clicks.
+      const long hold = rec.summary.steps / 3;
+      review->holdReplaysAt(hold);
+      PingMonitor ping;
+      ping.start();
+      review->openSession(0, second_);  // (replaced at once below, while its replay runs)
+      review->openSession(0, first_);
+      QVERIFY(waitFor([&] { return review->stepsReplayed(0) == hold && review->stepShown(0) >= 0; }, 120000));
+      QVERIFY(!review->ready(0));
+      auto* timeline = review->findChild<QWidget*>("timeline");
+      QVERIFY(timeline);
+      const int y = timeline->height() / 2;
+      QTest::mouseClick(timeline, Qt::LeftButton, {}, QPoint(timeline->width() * 9 / 10, y));
+      QCOMPARE(review->stepWanted(0), hold);  // past the part checked: as far as it goes, and said
+      QVERIFY(landsOn(review, 0, hold));
+      QVERIFY2(review->statusText().contains(QStringLiteral("replayed to %1").arg(hold)), qPrintable(review->statusText()));
+      QTest::mouseClick(timeline, Qt::LeftButton, {}, QPoint(timeline->width() / 10, y));
+      const long early = review->stepWanted(0);
+      QVERIFY2(early > 0 && early < hold, qPrintable(QString::number(early)));
+      QVERIFY(landsOn(review, 0, early));
+      QVERIFY(!review->ready(0));
+      QTest::keyClick(review, Qt::Key_Right);  // the keys too
+      QVERIFY(landsOn(review, 0, early + 1));
+      qint64 beforeScreenshot = 0;  // (the test's own grab of the window is not the window's freeze)
+      if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) {
+        beforeScreenshot = ping.stop();
+        review->grab().save(QString::fromLocal8Bit(dir) + "/review-replaying.png");
+        ping.start();
+      }
+      review->holdReplaysAt(-1);
+      QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
+      QCOMPARE(review->stepsReplayed(0), rec.summary.steps);
+      const qint64 worst = std::max(beforeScreenshot, ping.stop());
+      qInfo("longest freeze while the replay ran (two sessions opened, two clicks, a key): %lld ms", worst);
+      QVERIFY2(worst <= 100, qPrintable(QString("frozen %1 ms").arg(worst)));
+      QTest::mouseClick(timeline, Qt::LeftButton, {}, QPoint(timeline->width() * 9 / 10, y));
+      QVERIFY(review->stepWanted(0) > hold);  // the whole session now
+      QVERIFY(landsOn(review, 0, review->stepWanted(0)));
+    }
     QTest::keyClick(review, Qt::Key_End);
     QVERIFY(landsOn(review, 0, rec.summary.steps));
     QTest::keyClick(review, Qt::Key_Home);
@@ -390,7 +432,17 @@ class TestReviewGui : public QObject {
     QVERIFY2(words.contains("Incorrect actions") && words.contains("incorrect action cyan"),
              qPrintable(words.right(3000)));
     QVERIFY2(!words.contains("outside_view: not counted"), qPrintable(words.right(3000)));
+    // Closed while a replay runs (held after 5 steps): the window goes at once (its replay stops at its next step).
+    review->holdReplaysAt(5);
+    review->openSession(0, first_);
+    QVERIFY(waitFor([&] { return review->stepsReplayed(0) == 5; }, 120000));
+    QPointer<ui::ReviewWindow> gone(review);
+    PingMonitor ping;
+    ping.start();
     review->close();
+    QVERIFY(waitFor([&] { return gone.isNull(); }, 5000));
+    const qint64 closing = ping.stop();
+    QVERIFY2(closing <= 100, qPrintable(QString("closing froze %1 ms").arg(closing)));
   }
 
   // Issue 32, as a trainee and a trainer would: the name typed and Ctrl+R records under it; Reset (Shift+F5) while

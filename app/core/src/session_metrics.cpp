@@ -280,6 +280,7 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       for (const auto& a : incorrect) t.events.push_back("incorrect action: " + a.rule);
       out.timeline.push_back(std::move(t));
     }
+    if (options.progress && !options.progress(step, steps, out)) throw ReplayStopped();
   });
   if (options.plannedCut) {
     if (cuttingSteps)

@@ -27,6 +27,7 @@
 #include <QSplitter>
 #include <QStatusBar>
 #include <QSysInfo>
+#include <QThreadPool>
 #include <QTableWidget>
 #include <QTimer>
 #include <QToolBar>
@@ -35,7 +36,10 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
+#include <condition_variable>
+#include <mutex>
 
 namespace rehearse::ui {
 
@@ -48,8 +52,12 @@ QImage toQImage(const cv::Mat3b& m) { return QImage(m.data, m.cols, m.rows, stat
 class TimelineWidget : public QWidget {
  public:
   std::function<void(double)> seek;
-  const std::vector<app::TimelineSample>* timeline = nullptr;
+  /// The samples replayed so far (all of them once the replay is done).
+  std::shared_ptr<const std::vector<app::TimelineSample>> timeline;
   double threshold = 0, now = 0;
+  double total = 1;               ///< s: the time axis' length (the session's, expected from its steps while replaying)
+  long replayed = 0, steps = 0;   ///< while the replay runs: how far it is
+  bool done = false;              ///< the replay is complete
   TimelineWidget() {
     setObjectName(QStringLiteral("timeline"));
     setMinimumHeight(110);
@@ -60,24 +68,29 @@ class TimelineWidget : public QWidget {
            "line, red tick), incorrect action (cyan, longer). Click or drag to seek."));
   }
   double timeAt(double x) const {
-    if (!timeline || timeline->empty()) return 0;
-    const double t1 = timeline->back().time;
-    return std::clamp((x - 8) / std::max(1.0, width() - 16.0), 0.0, 1.0) * t1;
+    return std::clamp((x - 8) / std::max(1.0, width() - 16.0), 0.0, 1.0) * total;
   }
-  double xAt(double t) const {
-    const double t1 = timeline && !timeline->empty() ? std::max(1e-9, timeline->back().time) : 1;
-    return 8 + t / t1 * (width() - 16.0);
-  }
+  double xAt(double t) const { return 8 + t / std::max(1e-9, total) * (width() - 16.0); }
 
  protected:
   void paintEvent(QPaintEvent*) override {
     QPainter p(this);
     p.fillRect(rect(), QColor(30, 32, 36));
-    if (!timeline || timeline->empty()) {
-      p.setPen(Qt::lightGray);
-      p.drawText(rect(), Qt::AlignCenter, tr("replaying for the timeline..."));
-      return;
+    if (!done) {  // the part not replayed yet, shaded, and how far the replay is
+      const double x0 = timeline && !timeline->empty() ? xAt(timeline->back().time) : 8;
+      p.fillRect(QRectF(x0, 0, width() - x0, height()), QColor(45, 48, 54));
+      p.setPen(Qt::lightGray);  // in the part still to come (shorter where it is narrow)
+      const QRectF rest(x0 + 8, 20, width() - x0 - 16, height() - 24);
+      const QString full = steps > 0 ? tr("replaying the session to check it: step %1 of %2 (the view reaches the part "
+                                          "replayed)")
+                                           .arg(replayed)
+                                           .arg(steps)
+                                     : tr("replaying the session to check it...");
+      const QString brief = steps > 0 ? tr("replaying: %1 %").arg(100 * replayed / std::max(1L, steps)) : tr("replaying");
+      const bool fits = p.fontMetrics().boundingRect(rest.toRect(), Qt::TextWordWrap, full).height() <= rest.height();
+      p.drawText(rest, Qt::AlignCenter | Qt::TextWordWrap, fits ? full : brief);
     }
+    if (!timeline || timeline->empty()) return;
     double fmax = std::max(threshold, 1e-6);
     for (const auto& s : *timeline) fmax = std::max(fmax, s.force);
     fmax *= 1.1;
@@ -148,11 +161,48 @@ struct SeekResult {
   std::string error;    ///< the seek failed (a damaged recording)
 };
 
+// Between a session's replay (on the window's replay pool) and the GUI thread: the replay leaves what it has so far here
+// (the GUI thread takes it on a timer; nothing is posted to a window that may be gone), and stops when asked.
+struct ReplayControl {
+  std::mutex mutex;
+  std::condition_variable changed;
+  bool stop = false;
+  long holdAt = -1;  ///< the replay waits after this step until it is changed (ReviewWindow::holdReplaysAt)
+  bool fresh = false;
+  long step = 0, steps = 0;
+  std::shared_ptr<const std::vector<app::TimelineSample>> line;
+  app::VerifyResult verify;
+  std::chrono::steady_clock::time_point published;
+  void halt() {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      stop = true;
+    }
+    changed.notify_all();
+  }
+  void hold(long step) {
+    {
+      std::lock_guard<std::mutex> lock(mutex);
+      holdAt = step;
+    }
+    changed.notify_all();
+  }
+};
+
+// The view's replayer and renderers, built on a worker (a large organ's session takes a while to build).
+struct ReviewViewer {
+  std::shared_ptr<app::Replayer> replayer;
+  std::unique_ptr<app::ReviewRenderer> frame, orbit;
+};
+
 class ReviewAttempt {
  public:
   ~ReviewAttempt() {
-    if (seeker) seeker->waitForFinished();  // it uses the replayer
+    // Nothing is waited for: the replay stops at its next step, and the reading, the view's building and a seek hold
+    // what they use (their watchers go with the attempt, so nothing lands here).
+    if (control) control->halt();
   }
+  std::unique_ptr<QFutureWatcher<app::Recording>> loader;
   QWidget* widget = nullptr;
   QLabel* title = nullptr;
   ViewLabel* view = nullptr;
@@ -160,11 +210,20 @@ class ReviewAttempt {
   QTableWidget* table = nullptr;
   app::Recording recording;
   app::ReplayResult result;
-  std::unique_ptr<app::Replayer> replayer;
+  std::shared_ptr<app::Replayer> replayer;  ///< the view's (a seek on a worker holds it too)
   std::unique_ptr<app::ReviewRenderer> frameRenderer, orbitRenderer;
   bool ready = false;
   QString error;
   QFutureWatcher<app::ReplayResult>* watcher = nullptr;
+  std::shared_ptr<ReplayControl> control;
+  std::unique_ptr<QFutureWatcher<std::shared_ptr<ReviewViewer>>> viewerWatcher;
+  bool viewable = false;  ///< the replayer and renderers are built: the view seeks (as far as the replay has checked)
+  /// The samples replayed so far (the whole timeline once ready), the checksums and checkpoints compared so far, how
+  /// far the replay is and how long the session is expected to be (its steps times its time step).
+  std::shared_ptr<const std::vector<app::TimelineSample>> line = std::make_shared<const std::vector<app::TimelineSample>>();
+  app::VerifyResult checkedSoFar;
+  long replayed = 0, replaySteps = 0;
+  double expectedDuration = 0;
   // The view's seek, one at a time on a worker: the newest step asked for while one runs is sought next (a drag's
   // intermediate positions are skipped); the view shows `shown` (its snapshot) until the next one lands.
   std::unique_ptr<QFutureWatcher<SeekResult>> seeker;
@@ -176,15 +235,19 @@ class ReviewAttempt {
   long shownGeneration = -1; ///< the generation of the picture shown
   bool stale() const { return shown != wanted || shownGeneration != viewGeneration; }
 
-  long stepAt(double t) const { return app::stepAtTime(result.timeline, t); }
+  /// The last step a seek may go to: the replay's checked part until it is done.
+  long reachable() const { return viewable ? (ready ? lastStep : std::min(replayed, lastStep)) : 0; }
+  long stepAt(double t) const { return std::min(app::stepAtTime(*line, t), reachable()); }
+  /// The time shown so far (the replayed part).
+  double available() const { return line->empty() ? 0 : line->back().time; }
   /// The view's renderer: the case's frame, or the 3D view (always without a case camera).
   const app::ReviewRenderer& renderer(bool threeD) const { return threeD || !frameRenderer ? *orbitRenderer : *frameRenderer; }
-  double duration() const { return result.timeline.empty() ? 0 : result.timeline.back().time; }
+  double duration() const { return ready ? available() : std::max(expectedDuration, available()); }
 };
 
 ReviewWindow::ReviewWindow(const QString& file, std::optional<imaging::Camera> camera, cv::Mat3b frame, QWidget* parent)
     : ReviewWindow([f = file.toStdString()] { return app::listRecordings(f); }, [f = file.toStdString()](qint64 id) { return app::loadRecording(f, id); }, file,
-                   std::move(camera), std::move(frame), parent) {
+                   std::move(camera), std::move(frame), parent, true) {
   file_ = file;
   try {
     const std::string kept = app::loadCaseThresholds(file.toStdString());
@@ -198,8 +261,9 @@ ReviewWindow::ReviewWindow(const QString& file, std::optional<imaging::Camera> c
 }
 
 ReviewWindow::ReviewWindow(std::function<std::vector<app::RecordingSummary>()> list, std::function<app::Recording(qint64)> load, const QString& title,
-                           std::optional<imaging::Camera> camera, cv::Mat3b frame, QWidget* parent)
-    : QMainWindow(parent), list_(std::move(list)), load_(std::move(load)), camera_(std::move(camera)), frame_(std::move(frame)) {
+                           std::optional<imaging::Camera> camera, cv::Mat3b frame, QWidget* parent, bool loadOnWorker)
+    : QMainWindow(parent), list_(std::move(list)), load_(std::move(load)), camera_(std::move(camera)), frame_(std::move(frame)),
+      loadOnWorker_(loadOnWorker) {
   build(title);
 }
 
@@ -260,6 +324,11 @@ void ReviewWindow::build(const QString& title) {
   setCentralWidget(split_);
   status_ = new QLabel;
   statusBar()->addWidget(status_, 1);
+  replayPool_ = new QThreadPool(this);
+  replayPool_->setMaxThreadCount(2);  // two sessions compared replay side by side
+  progressTimer_ = new QTimer(this);
+  progressTimer_->setInterval(50);
+  connect(progressTimer_, &QTimer::timeout, this, &ReviewWindow::pollReplays);
   timer_ = new QTimer(this);
   timer_->setInterval(33);
   connect(timer_, &QTimer::timeout, this, &ReviewWindow::tick);
@@ -311,8 +380,53 @@ ReviewWindow::~ReviewWindow() {
   for (auto& a : attempts_)
     if (a && a->watcher) {
       a->watcher->disconnect(this);
-      a->watcher->waitForFinished();
+      a->control->halt();
     }
+  replayPool_->waitForDone();  // each replay stops at its next step
+}
+
+QString ReviewWindow::attemptTitle(const ReviewAttempt& a) const {
+  const auto& s = a.recording.summary;
+  return tr("<b>Session %1</b> - %2 - %3")
+      .arg(s.id)
+      .arg(QString::fromStdString(s.meta.trainee).toHtmlEscaped())
+      .arg(QString::fromStdString(s.startedUtc));
+}
+
+void ReviewWindow::holdReplaysAt(long step) {
+  holdReplaysAt_ = step;
+  for (auto& a : attempts_)
+    if (a && a->control) a->control->hold(step);
+}
+
+long ReviewWindow::stepsReplayed(int attempt) const {
+  const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
+  return a ? a->replayed : 0;
+}
+
+void ReviewWindow::pollReplays() {
+  bool running = false;
+  for (auto& a : attempts_) {
+    if (!a || a->ready || !a->error.isEmpty()) continue;
+    running = true;
+    if (!a->control) continue;  // still being read
+    {
+      std::lock_guard<std::mutex> lock(a->control->mutex);
+      if (!a->control->fresh) continue;
+      a->control->fresh = false;
+      a->line = a->control->line;
+      a->checkedSoFar = a->control->verify;
+      a->replayed = a->control->step;
+      a->replaySteps = a->control->steps;
+    }
+    a->timelineView->timeline = a->line;
+    a->timelineView->replayed = a->replayed;
+    a->timelineView->steps = a->replaySteps;
+    a->timelineView->total = std::max({a->expectedDuration, a->available(), 1e-3});
+    a->title->setText(attemptTitle(*a) + tr("<br>replaying to check it: step %1 of %2").arg(a->replayed).arg(a->replaySteps));
+    refresh();
+  }
+  if (!running) progressTimer_->stop();
 }
 
 void ReviewWindow::refreshSessions() {
@@ -355,8 +469,7 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
   if (auto& old = attempts_[static_cast<std::size_t>(attempt)]) {
     if (old->watcher) {
       old->watcher->disconnect(this);  // its finished signal must not reach the attempt deleted here
-      old->watcher->waitForFinished();
-      old->watcher->deleteLater();
+      old->watcher->deleteLater();     // (its replay stops at its next step: ~ReviewAttempt halts it)
     }
     delete old->widget;
     old.reset();
@@ -366,12 +479,9 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
     return;
   }
   auto a = std::make_unique<ReviewAttempt>();
-  try {
-    a->recording = load_(id);
-  } catch (const std::exception& e) {
-    status_->setText(QString::fromStdString(e.what()));
-    return;
-  }
+  a->recording.summary.id = id;  // (the title's, until it is loaded)
+  for (const auto& s : sessions_)
+    if (s.id == id) a->recording.summary = s;
   a->widget = new QWidget;
   auto* v = new QVBoxLayout(a->widget);
   a->title = new QLabel;
@@ -398,37 +508,68 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
     ++at->viewGeneration;
     refresh();
   };
-  const auto& s = a->recording.summary;
-  a->title->setText(tr("<b>Session %1</b> - %2 - %3").arg(s.id).arg(QString::fromStdString(s.meta.trainee)).arg(QString::fromStdString(s.startedUtc)));
+  a->title->setWordWrap(true);
+  a->title->setText(attemptTitle(*a) + tr("<br>reading the session..."));
   split_->insertWidget(attempt, a->widget);
-  // The replay for the timeline and the metrics, off the GUI thread.
-  a->watcher = new QFutureWatcher<app::ReplayResult>(this);
   ReviewAttempt* raw = a.get();
+  attempts_[static_cast<std::size_t>(attempt)] = std::move(a);
+  if (attempt == 0) first_->setCurrentIndex(first_->findData(id));
+  else second_->setCurrentIndex(second_->findData(id));
+  status_->setText(tr("Reading session %1...").arg(id));
+  auto loaded = [this, raw, attempt, id](const std::function<app::Recording()>& read) {
+    try {
+      raw->recording = read();
+    } catch (const std::exception& e) {  // said where the session would be shown, and in the status bar
+      raw->error = tr("Session %1 cannot be read: %2").arg(id).arg(QString::fromStdString(e.what()));
+      raw->title->setText(attemptTitle(*raw));
+      status_->setText(raw->error);
+      refresh();
+      return;
+    }
+    beginReplay(*raw, attempt);
+  };
+  if (!loadOnWorker_) {  // (a store whose connection belongs to this thread)
+    loaded([&] { return load_(id); });
+    return;
+  }
+  // Read on a worker: a session's setup holds its whole mesh (a large organ's takes a while to decode).
+  raw->loader = std::make_unique<QFutureWatcher<app::Recording>>();
+  connect(raw->loader.get(), &QFutureWatcher<app::Recording>::finished, this,
+          [raw, loaded] { loaded([raw] { return raw->loader->result(); }); });
+  raw->loader->setFuture(QtConcurrent::run([load = load_, id] { return load(id); }));
+}
+
+void ReviewWindow::beginReplay(ReviewAttempt& attempt0, int attempt) {
+  ReviewAttempt* a = &attempt0;
+  a->title->setText(attemptTitle(*a));
+  // The replay for the timeline and the metrics, off the GUI thread (on the window's own pool: the seeks and exports
+  // run on the global one, so a long replay does not hold them back). Its progress is taken on a timer (pollReplays):
+  // the timeline grows as it runs and the view seeks as far as it has checked.
+  a->control = std::make_shared<ReplayControl>();
+  a->control->holdAt = holdReplaysAt_;
+  a->expectedDuration = static_cast<double>(a->recording.summary.steps) * a->recording.setup.settings.timeStep;
+  a->timelineView->total = std::max(a->expectedDuration, 1e-3);
+  a->watcher = new QFutureWatcher<app::ReplayResult>(this);
+  ReviewAttempt* raw = a;
   connect(a->watcher, &QFutureWatcher<app::ReplayResult>::finished, this, [this, raw, attempt] {
     try {
       raw->result = raw->watcher->result();
-      raw->replayer = std::make_unique<app::Replayer>(raw->recording);
-      raw->replayer->avoidCheckpoints(raw->result.verify);  // seeking starts from sound ones
-      raw->lastStep = raw->replayer->steps();
-      raw->seeker = std::make_unique<QFutureWatcher<SeekResult>>();
-      connect(raw->seeker.get(), &QFutureWatcher<SeekResult>::finished, this, [this, raw] { seekLanded(*raw); });
-      raw->orbitRenderer = std::make_unique<app::ReviewRenderer>(raw->recording.setup, 800, 600);
-      if (camera_) raw->frameRenderer = std::make_unique<app::ReviewRenderer>(raw->recording.setup, 0, 0, camera_, frame_);
-      raw->timelineView->timeline = &raw->result.timeline;
+      raw->line = std::make_shared<const std::vector<app::TimelineSample>>(raw->result.timeline);
+      raw->checkedSoFar = raw->result.verify;
+      raw->replayed = raw->replaySteps = raw->result.verify.steps;
+      raw->timelineView->timeline = raw->line;
+      raw->timelineView->total = std::max(raw->available(), 1e-9);
+      raw->timelineView->done = true;
       raw->timelineView->threshold = raw->result.metrics.forceThresholdN;
       raw->ready = true;
       // Whether this replay is the run that was recorded, in the attempt's title (red when it is not).
-      const auto& s = raw->recording.summary;
       const bool verified = app::replayVerified(raw->result.verify);
-      raw->title->setText(tr("<b>Session %1</b> - %2 - %3<br><span style=\"color:%4\">%5</span>")
-                              .arg(s.id)
-                              .arg(QString::fromStdString(s.meta.trainee).toHtmlEscaped())
-                              .arg(QString::fromStdString(s.startedUtc))
+      raw->title->setText(attemptTitle(*raw) +
+                          tr("<br><span style=\"color:%1\">%2</span>")
                               .arg(verified ? QStringLiteral("#60c060") : QStringLiteral("#ff5050"))
                               .arg((QString::fromStdString(app::replayCheckSentence(raw->result.verify)) +
                                     tr(" - replayed here, on %1").arg(QSysInfo::machineHostName()))
                                        .toHtmlEscaped()));
-      raw->title->setWordWrap(true);
       fillMetrics(*raw);
     } catch (const std::exception& e) {
       raw->error = QString::fromStdString(e.what());
@@ -440,12 +581,51 @@ void ReviewWindow::openSession(int attempt, qint64 id) {
   options.strain = true;
   options.timeline = true;
   options.checkpoints = !a->recording.checkpointSource;  // a database session's connection is this thread's
+  options.progress = [control = a->control](long step, long steps, const app::ReplayResult& soFar) {
+    std::unique_lock<std::mutex> lock(control->mutex);
+    if (control->stop) return false;
+    const auto now = std::chrono::steady_clock::now();
+    if (step == 1 || step == steps || step == control->holdAt || now - control->published > std::chrono::milliseconds(100)) {
+      control->line = std::make_shared<const std::vector<app::TimelineSample>>(soFar.timeline);
+      control->verify = soFar.verify;
+      control->step = step;
+      control->steps = steps;
+      control->fresh = true;
+      control->published = now;
+    }
+    control->changed.wait(lock, [&] { return control->stop || control->holdAt != step; });
+    return !control->stop;
+  };
   const app::Recording rec = a->recording;
-  a->watcher->setFuture(QtConcurrent::run([rec, options] { return app::replayRecording(rec, options); }));
-  attempts_[static_cast<std::size_t>(attempt)] = std::move(a);
-  status_->setText(tr("Replaying session %1 for its timeline and metrics...").arg(id));
-  if (attempt == 0) first_->setCurrentIndex(first_->findData(id));
-  else second_->setCurrentIndex(second_->findData(id));
+  a->watcher->setFuture(QtConcurrent::run(replayPool_, [rec, options] { return app::replayRecording(rec, options); }));
+  // The view's replayer and renderers, built on a worker too; the view seeks once they are.
+  a->viewerWatcher = std::make_unique<QFutureWatcher<std::shared_ptr<ReviewViewer>>>();
+  connect(a->viewerWatcher.get(), &QFutureWatcher<std::shared_ptr<ReviewViewer>>::finished, this, [this, raw] {
+    try {
+      const auto viewer = raw->viewerWatcher->result();
+      raw->replayer = std::move(viewer->replayer);
+      raw->orbitRenderer = std::move(viewer->orbit);
+      raw->frameRenderer = std::move(viewer->frame);
+      raw->lastStep = raw->replayer->steps();
+      raw->seeker = std::make_unique<QFutureWatcher<SeekResult>>();
+      connect(raw->seeker.get(), &QFutureWatcher<SeekResult>::finished, this, [this, raw] { seekLanded(*raw); });
+      raw->viewable = true;
+    } catch (const std::exception& e) {
+      raw->error = QString::fromStdString(e.what());
+    }
+    refresh();
+  });
+  const std::optional<imaging::Camera> camera = camera_;
+  const cv::Mat3b frame = frame_;
+  a->viewerWatcher->setFuture(QtConcurrent::run([rec, camera, frame] {
+    auto v = std::make_shared<ReviewViewer>();
+    v->replayer = std::make_shared<app::Replayer>(rec);
+    v->orbit = std::make_unique<app::ReviewRenderer>(rec.setup, 800, 600);
+    if (camera) v->frame = std::make_unique<app::ReviewRenderer>(rec.setup, 0, 0, camera, frame);
+    return v;
+  }));
+  if (!progressTimer_->isActive()) progressTimer_->start();
+  status_->setText(tr("Replaying session %1 to check it, for its timeline and metrics...").arg(a->recording.summary.id));
 }
 
 bool ReviewWindow::ready(int attempt) const {
@@ -477,29 +657,31 @@ QString ReviewWindow::suggestedExportPath(const QString& extension) const {
 
 long ReviewWindow::stepWanted(int attempt) const {
   const auto& a = attempts_[static_cast<std::size_t>(std::clamp(attempt, 0, 1))];
-  return a && a->ready ? a->stepAt(time_) : -1;
+  return a && a->viewable ? a->stepAt(time_) : -1;
 }
 
 bool ReviewWindow::seeking() const {
   return std::any_of(attempts_.begin(), attempts_.end(), [](const auto& a) {
-    return a && a->seeker && (a->seeker->isRunning() || (a->ready && a->error.isEmpty() && a->stale()));
+    return a && a->seeker && (a->seeker->isRunning() || (a->viewable && a->error.isEmpty() && a->stale()));
   });
 }
 
 void ReviewWindow::startSeek(ReviewAttempt& a) {
   if (!a.seeker || a.seeker->isRunning() || !a.error.isEmpty()) return;  // the one running lands first
   const long step = a.wanted, generation = a.viewGeneration;
-  app::Replayer* replayer = a.replayer.get();
+  const std::shared_ptr<app::Replayer> replayer = a.replayer;
   // The picture is drawn there too, with a copy of the view's renderer (a turn may change the view's meanwhile).
   auto renderer = std::make_shared<app::ReviewRenderer>(a.renderer(threeD_));
-  const std::vector<app::TimelineSample>* timeline = &a.result.timeline;  // (fixed once the attempt is ready)
+  const auto timeline = a.line;  // the samples so far (a new vector replaces it as the replay goes on)
+  const app::VerifyResult checked = a.checkedSoFar;  // the checkpoints it found damaged are not started from
   const std::string who = "session " + std::to_string(a.recording.summary.id);
   const QSize size = a.view->size();
-  a.seeker->setFuture(QtConcurrent::run([replayer, renderer, timeline, who, size, step, generation] {
+  a.seeker->setFuture(QtConcurrent::run([replayer, renderer, timeline, checked, who, size, step, generation] {
     SeekResult r;
     r.step = step;
     r.generation = generation;
     try {
+      replayer->avoidCheckpoints(checked);
       replayer->seek(step);
       r.note = replayer->lastSeekNote();
       const QImage img = toQImage(renderer->render(*replayer->snapshot(), app::tipPath(*timeline, step),
@@ -562,16 +744,16 @@ void ReviewWindow::seekTime(double seconds) {
 
 void ReviewWindow::stepBy(int steps) {
   const auto& a = attempts_[0];
-  if (!a || !a->ready || a->result.timeline.empty()) return;
-  const long target = std::clamp(a->stepAt(time_) + steps, 0L, a->lastStep);
-  const app::TimelineSample* s = app::sampleAt(a->result.timeline, target);
+  if (!a || !a->viewable || a->line->empty()) return;
+  const long target = std::clamp(a->stepAt(time_) + steps, 0L, a->reachable());
+  const app::TimelineSample* s = app::sampleAt(*a->line, target);
   const double t = s ? s->time : 0.0;
   setPlaying(false);
   seekTime(t);
 }
 
 void ReviewWindow::setPlaying(bool on) {
-  playing_ = on && ready(0);
+  playing_ = on && attempts_[0] && attempts_[0]->viewable;
   if (playing_) {
     if (time_ >= duration(0) - 1e-9) time_ = 0;  // from the start again
     lastTick_ = 0;
@@ -599,11 +781,17 @@ void ReviewWindow::tick() {
   const qint64 now = QDateTime::currentMSecsSinceEpoch();
   const double dt = lastTick_ ? (now - lastTick_) / 1000.0 : 0.0;
   lastTick_ = now;
-  double longest = 0;
+  // While a replay runs, playing goes as far as it has replayed and waits there; at the end of the longest, it stops.
+  double longest = 0, available = 0;
+  bool replaying = false;
   for (const auto& a : attempts_)
-    if (a) longest = std::max(longest, a->duration());
-  time_ = std::min(longest, time_ + dt * speedFactor_);
-  if (time_ >= longest) playing_ = false, timer_->stop();
+    if (a && a->error.isEmpty()) {
+      longest = std::max(longest, a->duration());
+      available = std::max(available, a->available());
+      replaying = replaying || !a->ready;
+    }
+  time_ = std::max(time_, std::min(replaying ? available : longest, time_ + dt * speedFactor_));
+  if (!replaying && time_ >= longest) playing_ = false, timer_->stop();
   refresh();
 }
 
@@ -616,19 +804,21 @@ void ReviewWindow::refresh() {
       a->view->setText(a->error);
       continue;
     }
-    if (!a->ready) continue;
-    // The playhead moves at once; the view follows when its seek lands (off the GUI thread).
-    a->wanted = a->stepAt(time_);
     a->timelineView->now = time_;
     a->timelineView->update();
+    if (!a->viewable) continue;
+    // The playhead moves at once; the view follows when its seek lands (off the GUI thread).
+    a->wanted = a->stepAt(time_);
     if (a->stale()) startSeek(*a);
-    state << (a->shown == a->wanted || a->shown < 0
-                  ? tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(a->wanted).arg(a->lastStep)
-                  : tr("session %1: step %2 of %3 (seeking from %4)")
-                        .arg(a->recording.summary.id)
-                        .arg(a->wanted)
-                        .arg(a->lastStep)
-                        .arg(a->shown));
+    QString where = a->shown == a->wanted || a->shown < 0
+                        ? tr("session %1: step %2 of %3").arg(a->recording.summary.id).arg(a->wanted).arg(a->lastStep)
+                        : tr("session %1: step %2 of %3 (seeking from %4)")
+                              .arg(a->recording.summary.id)
+                              .arg(a->wanted)
+                              .arg(a->lastStep)
+                              .arg(a->shown);
+    if (!a->ready) where += tr(", replayed to %1").arg(a->replayed);
+    state << where;
     if (!a->seekNote.empty())  // a damaged checkpoint passed over: said, the view still shows the step
       seekNotes << tr("session %1: %2").arg(a->recording.summary.id).arg(QString::fromStdString(a->seekNote));
   }
@@ -704,8 +894,6 @@ QString ReviewWindow::exportFirst(const QString& doing, bool cancellable, const 
   setPlaying(false);
   // On a worker (issue 62: a report froze the window 9 s, a video 6 s): a replayer of its own (the view's stays where
   // it is) and a copy of the view's renderer (the view may turn meanwhile); progress and Cancel here.
-  auto replayer = std::make_shared<app::Replayer>(a->recording);
-  replayer->avoidCheckpoints(a->result.verify);
   auto renderer = std::make_shared<app::ReviewRenderer>(a->renderer(threeD_));
   struct Shared {
     std::atomic<int> done{0}, total{0};
@@ -726,9 +914,11 @@ QString ReviewWindow::exportFirst(const QString& doing, bool cancellable, const 
   exporting_ = true;
   connect(&watcher, &QFutureWatcher<Outcome>::finished, &loop, &QEventLoop::quit);
   ReviewAttempt* attempt = a.get();
-  watcher.setFuture(QtConcurrent::run([attempt, replayer, renderer, shared, write]() -> Outcome {
+  watcher.setFuture(QtConcurrent::run([attempt, renderer, shared, write]() -> Outcome {
     try {
-      return {write(*attempt, *replayer, *renderer,
+      app::Replayer replayer(attempt->recording);  // (building it takes a while on a large organ: here, not on the GUI thread)
+      replayer.avoidCheckpoints(attempt->result.verify);
+      return {write(*attempt, replayer, *renderer,
                     [shared](int done, int total) {
                       shared->done = done;
                       shared->total = total;

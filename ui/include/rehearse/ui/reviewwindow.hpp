@@ -19,6 +19,7 @@ class QLabel;
 class QTimer;
 class QSplitter;
 class QDoubleSpinBox;
+class QThreadPool;
 
 namespace rehearse::ui {
 
@@ -30,15 +31,24 @@ class ReviewWindow : public QMainWindow {
   /// `file`: a case file with recorded sessions; `camera` and `frame`: the case's (the organ is drawn over the
   /// frame, in that camera's frame: the GUI's sessions are), else a virtual camera.
   explicit ReviewWindow(const QString& file, std::optional<imaging::Camera> camera = std::nullopt, cv::Mat3b frame = {}, QWidget* parent = nullptr);
-  /// The same over any store of sessions (the training database): `list` and `load` called on the GUI thread.
+  /// The same over any store of sessions (the training database): `list` called on the GUI thread, `load` too unless
+  /// `loadOnWorker` (then on a worker thread, so that a large session is read while the window answers).
   ReviewWindow(std::function<std::vector<app::RecordingSummary>()> list, std::function<app::Recording(qint64)> load, const QString& title,
-               std::optional<imaging::Camera> camera = std::nullopt, cv::Mat3b frame = {}, QWidget* parent = nullptr);
+               std::optional<imaging::Camera> camera = std::nullopt, cv::Mat3b frame = {}, QWidget* parent = nullptr,
+               bool loadOnWorker = false);
   ~ReviewWindow() override;
 
   /// Shows session `id` as attempt 0 (the first) or 1 (compared side by side; id <= 0 removes it). Replays it
-  /// once for its timeline and metrics (on a worker thread; `ready` tells when).
+  /// once for its timeline and metrics (on a worker thread; `ready` tells when); meanwhile the timeline grows
+  /// and the view seeks as far as the replay has checked.
   void openSession(int attempt, qint64 id);
   bool ready(int attempt) const;
+  /// How many steps the attempt's replay has checked so far (all of them once ready): until it is done the timeline
+  /// grows and the view seeks as far as that.
+  long stepsReplayed(int attempt) const;
+  /// Every replay (running or started later) waits after step `step` until this is called again with another (-1: none);
+  /// for tests that look at the window while a replay runs, however fast the machine.
+  void holdReplaysAt(long step);
   int attemptsShown() const;
   /// The common time (s) both attempts show, each clamped to its own duration.
   double time() const { return time_; }
@@ -79,6 +89,9 @@ class ReviewWindow : public QMainWindow {
  private:
   void tick();
   void refresh();
+  void pollReplays();  ///< takes the running replays' progress (their timeline so far, how far they checked)
+  QString attemptTitle(const ReviewAttempt& a) const;
+  void beginReplay(ReviewAttempt& a, int attempt);  ///< once its recording is read
   void startSeek(ReviewAttempt& a);
   QString suggestedExportPath(const QString& extension) const;
   void seekLanded(ReviewAttempt& a);
@@ -106,6 +119,10 @@ class ReviewWindow : public QMainWindow {
   QComboBox* speed_ = nullptr;
   QLabel* status_ = nullptr;
   QTimer* timer_ = nullptr;
+  QTimer* progressTimer_ = nullptr;
+  QThreadPool* replayPool_ = nullptr;
+  long holdReplaysAt_ = -1;
+  bool loadOnWorker_ = false;  ///< `load_` may run on a worker (a case file: a connection of its own)
   double time_ = 0;
   double speedFactor_ = 1;
   bool playing_ = false;

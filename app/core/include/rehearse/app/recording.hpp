@@ -28,6 +28,7 @@
 #include <mutex>
 #include <optional>
 #include <set>
+#include <stdexcept>
 #include <string>
 #include <tuple>
 #include <vector>
@@ -379,6 +380,15 @@ struct ReplayOptions {
   /// Compare every checkpoint with the straight replay (VerifyResult::damagedCheckpoints). Off where the checkpoints'
   /// source cannot be read from the replaying thread (a training database's connection belongs to its thread).
   bool checkpoints = true;
+  /// Called on the replaying thread after every step with what is known so far (the samples kept, the checksums and
+  /// checkpoints compared up to `step`, the metrics so far), `steps` being how many the replay makes: the review draws
+  /// its timeline and seeks as far as the replay has checked while it runs. Returning false stops the replay:
+  /// replayRecording then throws ReplayStopped.
+  std::function<bool(long step, long steps, const ReplayResult& soFar)> progress;
+};
+/// A replay its progress callback stopped (a review closed, or another session chosen, while it ran).
+struct ReplayStopped : std::runtime_error {
+  ReplayStopped() : std::runtime_error("the replay was stopped before its end") {}
 };
 /// One replay: the checksums compared and the metrics computed.
 ReplayResult replayRecording(const Recording& r, const ReplayOptions& options);
