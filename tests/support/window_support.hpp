@@ -12,7 +12,21 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include <QAbstractItemView>
+#include <QAbstractScrollArea>
 #include <QAbstractSpinBox>
+#include <QCheckBox>
+#include <QComboBox>
+#include <QDockWidget>
+#include <QGraphicsView>
+#include <QLabel>
+#include <QLineEdit>
+#include <QMenuBar>
+#include <QProgressBar>
+#include <QRadioButton>
+#include <QSlider>
+#include <QTabBar>
+#include <QToolBar>
 #include <QApplication>
 #include <QElapsedTimer>
 #include <QTimer>
@@ -90,6 +104,89 @@ inline std::pair<Eigen::Vector2d, Eigen::Vector2d> strokeDownTheOrgan(const rehe
 }  // namespace
 
 namespace {
+// What a person would find cut off or drawn over in `window` at its present size (issue 62): a label or button whose
+// text needs more room than it has, a widget reaching outside the window, two widgets drawn over each other. Widgets
+// inside a scroll area count where they can be scrolled to (the part outside its viewport is not cut off); the inner
+// parts of boxes, lists and tool bars are theirs. One line per problem; empty when there is none.
+inline QString shownText(const QLabel* label) {  // without its mnemonic's ampersand ("&Tolerance:")
+  QString t = label->text();
+  if (label->buddy()) t.replace(QRegularExpression("&(?=[^&])"), QString());
+  return t;
+}
+inline QStringList layoutProblems(QWidget* window) {
+  auto name = [](QWidget* w) {
+    QString n = w->objectName().isEmpty() ? QString::fromLatin1(w->metaObject()->className()) : w->objectName();
+    if (auto* l = qobject_cast<QLabel*>(w)) n += " \"" + l->text().left(50) + "\"";
+    if (auto* b = qobject_cast<QAbstractButton*>(w)) n += " \"" + b->text() + "\"";
+    return n;
+  };
+  auto insideOf = [](QWidget* w, auto isKind) {
+    for (QWidget* p = w->parentWidget(); p; p = p->parentWidget())
+      if (isKind(p)) return true;
+    return false;
+  };
+  auto part = [](QWidget* p) {  // widgets whose children are their own inner parts
+    return qobject_cast<QComboBox*>(p) || qobject_cast<QAbstractSpinBox*>(p) || qobject_cast<QAbstractItemView*>(p) ||
+           qobject_cast<QToolBar*>(p) || qobject_cast<QTabBar*>(p) || qobject_cast<QMenuBar*>(p);
+  };
+  auto scrolled = [](QWidget* p) { return qobject_cast<QAbstractScrollArea*>(p) != nullptr; };
+  auto seen = [window](QWidget* w) {  // the part a person sees, in the window's coordinates
+    QRect r(w->mapTo(window, QPoint(0, 0)), w->size());
+    for (QWidget* p = w->parentWidget(); p && p != window; p = p->parentWidget())
+      r &= QRect(p->mapTo(window, QPoint(0, 0)), p->size());
+    return r & window->rect();
+  };
+  QStringList out;
+  std::vector<std::pair<QWidget*, QRect>> shown;
+  for (QWidget* w : window->findChildren<QWidget*>()) {
+    if (!w->isVisible() || w->isWindow() || insideOf(w, part) || w->inherits("QDockWidgetTitleButton")) continue;
+    auto* label = qobject_cast<QLabel*>(w);
+    auto* button = qobject_cast<QAbstractButton*>(w);
+    const bool leaf = (label && !label->text().isEmpty()) || button || qobject_cast<QComboBox*>(w) ||
+                      qobject_cast<QAbstractSpinBox*>(w) || qobject_cast<QLineEdit*>(w) ||
+                      qobject_cast<QGraphicsView*>(w) || qobject_cast<QProgressBar*>(w) || qobject_cast<QSlider*>(w);
+    if (!leaf) continue;
+    const QRect whole(w->mapTo(window, QPoint(0, 0)), w->size());
+    if (!insideOf(w, scrolled) && !window->rect().contains(whole))
+      out << QString("%1 reaches outside the window (%2,%3 %4x%5 in %6x%7)")
+                 .arg(name(w))
+                 .arg(whole.x())
+                 .arg(whole.y())
+                 .arg(whole.width())
+                 .arg(whole.height())
+                 .arg(window->width())
+                 .arg(window->height());
+    if (label && label->pixmap().isNull() && !label->property("elidesItsText").toBool()) {
+      const QRect room = label->contentsRect();
+      const int needs = label->wordWrap() ? label->heightForWidth(label->width()) : label->sizeHint().height();
+      if (needs > label->height() + 1)
+        out << QString("%1 is cut off: its text needs %2 px of height, it has %3").arg(name(w)).arg(needs).arg(label->height());
+      else if (!label->wordWrap() && label->sizePolicy().horizontalPolicy() != QSizePolicy::Ignored &&
+               label->fontMetrics().horizontalAdvance(shownText(label)) > room.width() + 1 &&
+               label->textFormat() != Qt::RichText && !Qt::mightBeRichText(label->text()))
+        out << QString("%1 is cut off: its text needs %2 px of width, it has %3")
+                   .arg(name(w))
+                   .arg(label->fontMetrics().horizontalAdvance(shownText(label)))
+                   .arg(room.width());
+    }
+    if (button && !button->text().isEmpty() && button->sizeHint().width() > button->width() + 1 &&
+        !qobject_cast<QCheckBox*>(w) && !qobject_cast<QRadioButton*>(w))
+      out << QString("%1 is cut off: it needs %2 px of width, it has %3").arg(name(w)).arg(button->sizeHint().width()).arg(button->width());
+    const QRect r = seen(w);
+    if (!r.isEmpty()) shown.emplace_back(w, r);
+  }
+  for (std::size_t i = 0; i < shown.size(); ++i)
+    for (std::size_t j = i + 1; j < shown.size(); ++j) {
+      const auto& [a, ra] = shown[i];
+      const auto& [b, rb] = shown[j];
+      if (a->isAncestorOf(b) || b->isAncestorOf(a)) continue;
+      const QRect both = ra & rb;
+      if (both.width() > 2 && both.height() > 2)
+        out << QString("%1 and %2 are drawn over each other (%3x%4 px)").arg(name(a), name(b)).arg(both.width()).arg(both.height());
+    }
+  return out;
+}
+
 inline void shot(QWidget& w, const char* name) {
   const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
   if (dir.isEmpty()) return;

@@ -244,6 +244,32 @@ class TestDesktopGui : public QObject {
     QVERIFY(closeDiscardingChanges(second));
   }
 
+  // At 1280x800 (a laptop's screen; issue 62): every step's page, the organ running in step 7, shows nothing cut off,
+  // outside the window or drawn over another widget.
+  void everyStepFitsALaptopScreen() {
+    QVERIFY(openPhantomCase(w_));  // (the last one was closed)
+    const Pose truth = w_->caseData()->groundTruth->pose;
+    w_->editCase("Register (test)", [&truth](app::Case& c) {
+      c.pose = truth;
+      c.hasPose = c.poseAligned = true;
+    });
+    w_->resize(1280, 800);
+    QTest::qWait(100);
+    QVERIFY2(w_->width() <= 1280 && w_->height() <= 800,  // (its docks' pages were 905 px tall: it could not be)
+             qPrintable(QString("%1x%2").arg(w_->width()).arg(w_->height())));
+    QStringList all;
+    for (int k = 1; k <= 7; ++k) {
+      QTest::keyClick(w_.get(), static_cast<Qt::Key>(Qt::Key_0 + k), Qt::AltModifier);
+      QCOMPARE(static_cast<int>(w_->step()), k - 1);
+      if (k == 7) QVERIFY(waitFor([&] { return w_->simulationPanel()->lastFrame() != nullptr; }, 120000));
+      QTest::qWait(400);
+      const QStringList problems = layoutProblems(w_.get());
+      for (const auto& p : problems) all << QString("step %1: %2").arg(k).arg(p);
+      shot(*w_, qPrintable(QString("laptop-step%1").arg(k)));
+    }
+    QVERIFY2(all.isEmpty(), qPrintable(all.join("\n")));
+  }
+
   void cleanupTestCase() { w_.reset(); }
 };
 

@@ -360,6 +360,17 @@ class TestReviewGui : public QObject {
     review->seekTime(0.5);
     QVERIFY(landsOn(review, 0, 50L));  // 10 ms steps
     QVERIFY(landsOn(review, 1, 50L));
+    {
+      // Two sessions side by side on a laptop's screen (1280x800; issue 62): nothing cut off or drawn over.
+      const QSize before = review->size();
+      review->resize(1280, 800);
+      QTest::qWait(200);
+      QVERIFY(review->height() <= 800);
+      const QStringList problems = layoutProblems(review);
+      shot(*review, "laptop-review");
+      QVERIFY2(problems.isEmpty(), qPrintable(problems.join("\n")));
+      review->resize(before);
+    }
     // Metrics with verdicts: the grasp counted; a force limit the first attempt exceeds fails, one it keeps passes.
     const app::SessionMetrics m = review->metrics(0);
     QVERIFY(m.grasps >= 1 && m.cuts >= 1 && m.maxForceN > 0 && m.maxStrain.value_or(0) > 0);
@@ -432,6 +443,28 @@ class TestReviewGui : public QObject {
     QVERIFY2(words.contains("Incorrect actions") && words.contains("incorrect action cyan"),
              qPrintable(words.right(3000)));
     QVERIFY2(!words.contains("outside_view: not counted"), qPrintable(words.right(3000)));
+    {
+      // Nothing runs off a page (issue 62: the replay check, a metric's note and an incorrect action's reason were cut
+      // at the page's edge): every word poppler finds lies inside its page.
+      QProcess boxes;
+      boxes.start("pdftotext", {"-bbox", pdf, "-"});
+      QVERIFY(boxes.waitForFinished(60000) && boxes.exitCode() == 0);
+      const QString html = QString::fromUtf8(boxes.readAllStandardOutput());
+      const auto page = QRegularExpression("<page width=\"([0-9.]+)\" height=\"([0-9.]+)\"").match(html);
+      QVERIFY(page.hasMatch());
+      const double pageW = page.captured(1).toDouble(), pageH = page.captured(2).toDouble();
+      int words = 0;
+      QStringList outside;
+      auto it = QRegularExpression("<word xMin=\"([0-9.]+)\" yMin=\"([0-9.]+)\" xMax=\"([0-9.]+)\" yMax=\"([0-9.]+)\">([^<]*)<")
+                    .globalMatch(html);
+      while (it.hasNext()) {
+        const auto m = it.next();
+        ++words;
+        if (m.captured(3).toDouble() > pageW - 1 || m.captured(4).toDouble() > pageH - 1) outside << m.captured(5);
+      }
+      QVERIFY(words > 100);
+      QVERIFY2(outside.isEmpty(), qPrintable("off the page: " + outside.join(' ')));
+    }
     // Closed while a replay runs (held after 5 steps): the window goes at once (its replay stops at its next step).
     review->holdReplaysAt(5);
     review->openSession(0, first_);

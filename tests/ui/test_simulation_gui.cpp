@@ -3,6 +3,7 @@
 // boundary, colouring by von Mises stress, reset. The simulation runs off the GUI thread (asserted).
 // With REHEARSE_SCREENSHOT_DIR set, it saves a screenshot of the panel there (for the README).
 #include "fresh_start.hpp"
+#include "window_support.hpp"
 #include "test_support.hpp"
 
 #include "rehearse/ui/casefile.hpp"
@@ -895,6 +896,18 @@ class TestSimulationGui : public QObject {
     qInfo("%s", qPrintable(status->text()));
     QVERIFY2(status->text().startsWith("AMBIGUOUS: "), qPrintable(status->text()));
     QCOMPARE(status->palette().color(QPalette::WindowText), ui::palette::warning());  // it stands out
+    {
+      // On a laptop's screen (1280x800; issue 62: the paragraph was cut off top and bottom and pushed its chart off
+      // the window) nothing of the page is cut off or drawn over.
+      const QSize before = w_->size();
+      w_->resize(1280, 800);
+      QTest::qWait(200);
+      QVERIFY(w_->height() <= 800);
+      const QStringList problems = layoutProblems(w_.get());
+      shot(*w_, "laptop-step5-ambiguous");
+      QVERIFY2(problems.isEmpty(), qPrintable(problems.join("\n")));
+      w_->resize(before);
+    }
     auto* list = w_->findChild<QComboBox*>("fitAlternatives");
     QVERIFY(list && list->isVisible());
     const auto alternatives = w_->fitPage()->alternatives();

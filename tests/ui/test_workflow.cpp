@@ -133,6 +133,32 @@ class TestWorkflow : public QObject {
       w_->undoStack()->undo();
       QVERIFY(w_->caseData()->attachments.empty());
       QCOMPARE(w_->undoStack()->index(), index);
+      // A click beside held nodes (not on one: its patch overlaps theirs) adds its own, as clicks along an edge do; it
+      // released them all when any node of its patch was held.
+      QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, at);
+      QCOMPARE(w_->caseData()->attachments, attached);
+      std::optional<QPoint> beside;
+      for (int i = 1; i < 160 * 160 && !beside; ++i) {  // a 480 px square around the click, on a 3 px grid
+        const QPoint p = at + QPoint(3 * (i % 160 - 80), 3 * (i / 160 - 80));
+        const QPointF f = view->toFrame(p);
+        const auto hit = view->organAt(Eigen::Vector2d(f.x(), f.y()));
+        if (!hit || std::binary_search(attached.begin(), attached.end(), hit->node)) continue;
+        bool near = false, onDot = false;  // near held nodes, but not on one's dot (that click releases)
+        for (int a : attached) {
+          near = near || (sv.vertex(static_cast<std::size_t>(a)) - hit->model).norm() < view->attachmentRadius();
+          const auto uv = k0->camera.project(k0->pose.apply(sv.vertex(static_cast<std::size_t>(a))));
+          onDot = onDot || QLineF(QPointF(p), view->toWidget(QPointF(uv.x(), uv.y()))).length() < 10;
+        }
+        if (near && !onDot) beside = p;
+      }
+      QVERIFY(beside);
+      QTest::mouseClick(view, Qt::LeftButton, Qt::NoModifier, *beside);
+      const std::vector<int> both = w_->caseData()->attachments;
+      QVERIFY2(both.size() > attached.size() && std::includes(both.begin(), both.end(), attached.begin(), attached.end()),
+               qPrintable(QString("%1 held after the second click, %2 before").arg(both.size()).arg(attached.size())));
+      w_->undoStack()->undo();
+      w_->undoStack()->undo();
+      QVERIFY(w_->caseData()->attachments.empty());
       radius->setValue(radiusBefore);
       w_->setStep(ui::Step::Mesh);
       // The simulation worker follows (its organ is rebuilt at each change, off the GUI thread).

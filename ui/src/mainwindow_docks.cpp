@@ -29,6 +29,7 @@
 #include <QLineEdit>
 #include <QMimeData>
 #include <QPlainTextEdit>
+#include <QScrollArea>
 #include <QScrollBar>
 #include <QPainter>
 #include <QProgressBar>
@@ -52,7 +53,7 @@ namespace {
 // ellipsis, and the whole sentence in its tooltip (and in the Messages panel).
 class SentenceLabel : public QLabel {
  public:
-  using QLabel::QLabel;
+  explicit SentenceLabel(QWidget* parent = nullptr) : QLabel(parent) { setProperty("elidesItsText", true); }
   QSize minimumSizeHint() const override { return {200, QLabel::minimumSizeHint().height()}; }
   QSize sizeHint() const override {
     return {std::min(520, fontMetrics().horizontalAdvance(text()) + 8), QLabel::sizeHint().height()};
@@ -66,6 +67,20 @@ class SentenceLabel : public QLabel {
     p.drawText(r, Qt::AlignLeft | Qt::AlignVCenter, fontMetrics().elidedText(text(), Qt::ElideRight, r.width()));
   }
 };
+
+// A dock's content in a scroll area (issue 62): on a laptop's screen (1280x800) a tall page scrolls instead of making
+// the window taller than the screen or squeezing its widgets over each other. As wide as the content needs, so that only
+// the height scrolls.
+QScrollArea* scrolling(QWidget* content, QWidget* parent) {
+  auto* area = new QScrollArea(parent);
+  area->setObjectName(content->objectName() + QStringLiteral("Scroll"));
+  area->setWidget(content);
+  area->setWidgetResizable(true);
+  area->setFrameShape(QFrame::NoFrame);
+  area->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  area->setMinimumWidth(content->minimumSizeHint().width() + area->verticalScrollBar()->sizeHint().width());
+  return area;
+}
 }  // namespace
 
 // ---------------------------------------------------------------------------------------------- docks
@@ -143,7 +158,7 @@ void MainWindow::buildDocks() {
   simulationDock_->setObjectName(QStringLiteral("simulationDock"));
   simulation_ = new SimulationPanel(simulationDock_);
   simulation_->setObjectName(QStringLiteral("simulationPanel"));
-  simulationDock_->setWidget(simulation_);
+  simulationDock_->setWidget(scrolling(simulation_, simulationDock_));
   addDockWidget(Qt::RightDockWidgetArea, simulationDock_);
   tabifyDockWidget(organDock, simulationDock_);
   organDock->raise();
@@ -318,7 +333,17 @@ void MainWindow::buildWorkflowPanel() {
   connect(pages_.mesh, &MeshPage::importNotesChanged, this, &MainWindow::showCaseInfo);
   connect(pages_.frame, &FramePage::frameSourceOpened, this, &MainWindow::frameSourceOpened);
   connect(pages_.frame, &FramePage::videoFrameShown, this, &MainWindow::videoFrameShown);
-  layout->addWidget(stepStack_, 1);
+  // Only the page shown counts for the stack's size (a stack is as tall as its tallest page otherwise), and it scrolls.
+  stepStack_->setObjectName(QStringLiteral("stepPages"));
+  auto fitToPage = [this](int shown) {
+    for (int i = 0; i < stepStack_->count(); ++i)
+      stepStack_->widget(i)->setSizePolicy(i == shown ? QSizePolicy::Preferred : QSizePolicy::Ignored,
+                                           i == shown ? QSizePolicy::Preferred : QSizePolicy::Ignored);
+    stepStack_->adjustSize();
+  };
+  connect(stepStack_, &QStackedWidget::currentChanged, this, fitToPage);
+  fitToPage(stepStack_->currentIndex());
+  layout->addWidget(scrolling(stepStack_, host), 1);
   dock->setWidget(host);
   dock->setMinimumWidth(330);
   addDockWidget(Qt::LeftDockWidgetArea, dock);

@@ -14,6 +14,7 @@
 #include <QFormLayout>
 #include <QHBoxLayout>
 #include <QLabel>
+#include <QScrollArea>
 #include <QLinearGradient>
 #include <QMouseEvent>
 #include <QPainter>
@@ -832,10 +833,16 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   status_->setObjectName(QStringLiteral("simStatus"));
   status_->setWordWrap(true);
   // A fixed height of six lines, the text from the top: the controls below stay put whatever the sentence's length
-  // (they moved with every message); a longer one is whole in the tooltip.
+  // (they moved with every message); a longer one scrolls (it was cut off at the sixth line) and is whole in the tooltip.
   status_->setAlignment(Qt::AlignTop | Qt::AlignLeft);
-  status_->setFixedHeight(6 * status_->fontMetrics().lineSpacing() + 4);
-  layout->addWidget(status_);
+  auto* statusScroll = new QScrollArea(this);
+  statusScroll->setObjectName(QStringLiteral("simStatusScroll"));
+  statusScroll->setWidget(status_);
+  statusScroll->setWidgetResizable(true);
+  statusScroll->setFrameShape(QFrame::NoFrame);
+  statusScroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
+  statusScroll->setFixedHeight(6 * status_->fontMetrics().lineSpacing() + 4);
+  layout->addWidget(statusScroll);
 
   connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
   connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::stepOnce);

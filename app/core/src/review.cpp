@@ -12,6 +12,7 @@
 #include <opencv2/videoio.hpp>
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <limits>
 #include <cstdio>
@@ -84,6 +85,35 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m) {
               x.name == "vessel_cuts_without_clips" || x.name == "force_over_limit" ||
               x.name == "instrument_outside_view";
   return v;
+}
+
+std::string metricWords(const std::string& name) {
+  static const std::map<std::string, std::string> words = {
+      {"duration_s", "duration"},
+      {"path_length_m", "path length"},
+      {"economy_of_motion", "economy of motion"},
+      {"cut_updates", "cut updates"},
+      {"vessel_cuts", "vessels cut"},
+      {"max_force_n", "largest force"},
+      {"mean_force_n", "mean force"},
+      {"time_over_threshold_s", "time over the force threshold"},
+      {"max_strain", "largest strain"},
+      {"cut_length_m", "cut length"},
+      {"cut_deviation_mean_m", "mean distance from the planned cut"},
+      {"cut_deviation_max_m", "largest distance from the planned cut"},
+      {"tumour_breaches", "cuts into the tumour"},
+      {"attachments_torn", "attachments torn"},
+      {"misplaced_clips", "misplaced clips"},
+      {"blood_loss_ml", "blood loss"},
+      {"energy_time_s", "energy applied"},
+      {"energy_on_structures", "energy on named structures"},
+      {"incorrect_actions", "incorrect actions"},
+      {"vessel_cuts_without_clips", "vessels cut without clips"},
+      {"force_over_limit", "force over the limit"},
+      {"instrument_outside_view", "instrument outside the view"},
+  };
+  const auto it = words.find(name);
+  return it == words.end() ? name : it->second;  // (grasps, slips, tears, clips: already words)
 }
 
 std::vector<Threshold> parseThresholds(const std::string& text) {

@@ -147,11 +147,29 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     p.drawText(QRectF(0, y, W, 60), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(r.title));
     y += 80;
     p.setFont(body);
+    // Every text wraps in its column (issue 62: the replay check, a metric's note and an incorrect action's reason ran
+    // off the page's edge): `tall` measures it with the painter's font, `put` draws it; a row that does not fit the
+    // page starts the next one.
+    auto tall = [&p](double width, const QString& text, double line) {
+      return std::max(line, p.boundingRect(QRectF(0, 0, width, 1e6), Qt::AlignLeft | Qt::TextWordWrap, text).height());
+    };
+    auto put = [&p](const QRectF& box, const QString& text) {
+      p.drawText(box, Qt::AlignLeft | Qt::AlignVCenter | Qt::TextWordWrap, text);
+    };
+    auto room = [&](double height) {
+      if (y + height > H - 10) {
+        pdf.newPage();
+        y = 0;
+      }
+    };
     for (const auto& [k, v] : r.facts) {
       if (v.empty()) continue;
-      p.drawText(QRectF(0, y, 300, 32), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(k));
-      p.drawText(QRectF(300, y, W - 300, 32), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(v));
-      y += 34;
+      const QString key = QString::fromStdString(k), value = QString::fromStdString(v);
+      const double h = std::max(tall(290, key, 32), tall(W - 300, value, 32));
+      room(h);
+      put(QRectF(0, y, 290, h), key);
+      put(QRectF(300, y, W - 300, h), value);
+      y += h + 2;
     }
     y += 30;
     p.setFont(heading);
@@ -169,32 +187,31 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     y += 36;
     p.setFont(body);
     for (const auto& m : r.metrics) {
-      if (y > H - 70) {  // a long list goes on over the page
-        pdf.newPage();
-        y = 0;
-      }
       const auto v = std::find_if(r.verdicts.begin(), r.verdicts.end(),
                                   [&](const app::Verdict& x) { return x.metric.name == m.name; });
-      p.drawText(QRectF(c1, y, c2, 30), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(m.name));
+      const QString words = QString::fromStdString(app::metricWords(m.name));
       // Counts (grasps, slips, cuts) are whole numbers: "1", not "1.000".
       QString value = m.value ? (m.count ? QString::number(std::llround(*m.value)) : number(*m.value)) +
                                     (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
                               : "not determined";
-      p.drawText(QRectF(c2, y, c3 - c2, 30), Qt::AlignLeft | Qt::AlignVCenter, value);
+      const double h = std::max(tall(c2 - c1 - 10, words, 30), tall(c3 - c2 - 10, value, 30));
+      room(h + 30);  // (with its note, if any)
+      put(QRectF(c1, y, c2 - c1 - 10, h), words);
+      put(QRectF(c2, y, c3 - c2 - 10, h), value);
       if (v != r.verdicts.end()) {
         QString limit;
         if (v->threshold.min) limit += ">= " + number(*v->threshold.min) + " ";
         if (v->threshold.max) limit += "<= " + number(*v->threshold.max);
-        p.drawText(QRectF(c3, y, c4 - c3, 30), Qt::AlignLeft | Qt::AlignVCenter, limit);
+        p.drawText(QRectF(c3, y, c4 - c3, h), Qt::AlignLeft | Qt::AlignVCenter, limit);
         p.save();
         p.setPen(v->result == app::Verdict::Result::Pass   ? QColor(20, 130, 20)
                  : v->result == app::Verdict::Result::Fail ? QColor(190, 0, 0)
                                                            : QColor(90, 90, 90));
         p.setFont(bold);
-        p.drawText(QRectF(c4, y, W - c4, 30), Qt::AlignLeft | Qt::AlignVCenter, app::resultWord(v->result));
+        p.drawText(QRectF(c4, y, W - c4, h), Qt::AlignLeft | Qt::AlignVCenter, app::resultWord(v->result));
         p.restore();
       }
-      y += 32;
+      y += h + 2;
       if (!m.value && !m.why.empty()) {
         p.save();
         QFont small = body;
@@ -202,9 +219,12 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
         small.setItalic(true);
         p.setFont(small);
         p.setPen(QColor(90, 90, 90));
-        p.drawText(QRectF(c2, y - 4, W - c2, 26), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(m.why));
+        const QString why = QString::fromStdString(m.why);
+        const double n = tall(W - c2, why, 26);
+        room(n);
+        put(QRectF(c2, y - 4, W - c2, n), why);
         p.restore();
-        y += 26;
+        y += n;
       }
     }
     // Page 2: plots over time.
@@ -233,34 +253,34 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
       y += 36;
     }
     for (const auto& a : r.incorrectActions) {
-      if (y > H - 40) {
-        pdf.newPage();
-        y = 0;
-      }
       std::string words = a.rule;
       for (const auto& [name, w] : app::actionRuleNames())
         if (name == a.rule) words = w;
+      const QString rule = QString::fromStdString(words), what = QString::fromStdString(a.what);
+      p.save();
+      p.setFont(bold);
+      const double ruleHeight = tall(W * 0.35, rule, 30);
+      p.restore();
+      const double h = std::max(ruleHeight, tall(W * 0.5, what, 30));
+      room(h);
       p.save();
       p.setPen(reviewEventColour("incorrect action: " + a.rule));
       p.setFont(bold);
-      p.drawText(QRectF(0, y, W * 0.14, 30), Qt::AlignLeft | Qt::AlignVCenter, number(a.time) + " s");
-      p.drawText(QRectF(W * 0.14, y, W * 0.36, 30), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(words));
+      p.drawText(QRectF(0, y, W * 0.14, h), Qt::AlignLeft | Qt::AlignVCenter, number(a.time) + " s");
+      put(QRectF(W * 0.14, y, W * 0.35, h), rule);
       p.restore();
-      p.drawText(QRectF(W * 0.5, y, W * 0.5, 30), Qt::AlignLeft | Qt::AlignVCenter | Qt::TextSingleLine,
-                 p.fontMetrics().elidedText(QString::fromStdString(a.what), Qt::ElideRight, static_cast<int>(W * 0.5)));
-      y += 32;
+      put(QRectF(W * 0.5, y, W * 0.5, h), what);
+      y += h + 4;
     }
     for (const auto& [rule, why] : r.rulesNotCounted) {
-      if (y > H - 40) {
-        pdf.newPage();
-        y = 0;
-      }
+      const QString line = QString::fromStdString(rule + ": not counted, " + why);
+      const double h = tall(W, line, 30);
+      room(h);
       p.save();
       p.setPen(QColor(90, 90, 90));
-      p.drawText(QRectF(0, y, W, 30), Qt::AlignLeft | Qt::AlignVCenter,
-                 QString::fromStdString(rule + ": not counted, " + why));
+      put(QRectF(0, y, W, h), line);
       p.restore();
-      y += 32;
+      y += h + 2;
     }
     // Page 3: key frames, two by two.
     if (!r.keyFrames.empty()) {

@@ -858,7 +858,9 @@ void ReviewWindow::fillMetrics(ReviewAttempt& a) {
   for (int i = 0; i < static_cast<int>(values.size()); ++i) {
     const auto& m = values[static_cast<std::size_t>(i)];
     const int row = i + 1;
-    a.table->setItem(row, 0, new QTableWidgetItem(QString::fromStdString(m.name)));
+    auto* name = new QTableWidgetItem(QString::fromStdString(app::metricWords(m.name)));
+    name->setToolTip(tr("%1 in the thresholds (Ctrl+T) and on the command line").arg(QString::fromStdString(m.name)));
+    a.table->setItem(row, 0, name);
     auto* value = new QTableWidgetItem(m.value ? QString::number(*m.value, 'g', 5) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
                                                : tr("not determined"));
     if (!m.value) value->setToolTip(QString::fromStdString(m.why));

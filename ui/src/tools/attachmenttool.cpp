@@ -1,7 +1,9 @@
 // Ligament attachments (step 1): a click on the organ drawn over the frame holds the surface nodes within
-// the patch radius; a click on held nodes releases them (one undo step each). Held nodes are drawn orange.
+// the patch radius; a click on a held node's dot releases the held nodes around it (one undo step each). Held nodes
+// are drawn orange.
 #include "tools.hpp"
 
+#include <QLineF>
 #include <QMouseEvent>
 #include <QPainter>
 
@@ -12,6 +14,8 @@ namespace rehearse::ui::tools {
 namespace {
 
 class AttachmentTool final : public FrameTool {
+  static constexpr double kDotPickPixels = 6;  ///< a held node's dot is 3.5 px in radius: a click this near is on it
+
  public:
   using FrameTool::FrameTool;
 
@@ -61,7 +65,25 @@ class AttachmentTool final : public FrameTool {
     std::vector<int> nodes = c->attachments;
     std::sort(nodes.begin(), nodes.end());
     std::sort(patch.begin(), patch.end());
-    const bool release = std::any_of(patch.begin(), patch.end(), [&](int v) { return std::binary_search(nodes.begin(), nodes.end(), v); });
+    // A click on a held node's orange dot (within a few pixels of it on the screen) releases the held nodes within the
+    // radius of the click, and that node; a click anywhere else adds its patch (clicks along an edge a few millimetres apart released each other's
+    // nodes when any node of the patch, or the node nearest the click, was held).
+    const QPointF clicked = view_.toWidget(QPointF(f.x(), f.y()));
+    int onDot = -1;
+    double nearest = kDotPickPixels;
+    for (int a : nodes) {
+      if (a < 0 || static_cast<std::size_t>(a) >= sv.vertexCount) continue;
+      const Eigen::Vector3d xc = c->pose.apply(sv.vertex(static_cast<std::size_t>(a)));
+      if (xc.z() <= 0) continue;
+      const auto uv = c->camera.project(xc);
+      const double d = QLineF(clicked, view_.toWidget(QPointF(uv.x(), uv.y()))).length();
+      if (d <= nearest) nearest = d, onDot = a;
+    }
+    const bool release = onDot >= 0;
+    if (release) {  // the held nodes of the clicked patch, and the dot's own
+      patch.push_back(onDot);
+      std::sort(patch.begin(), patch.end());
+    }
     std::vector<int> result;
     if (release) std::set_difference(nodes.begin(), nodes.end(), patch.begin(), patch.end(), std::back_inserter(result));
     else std::set_union(nodes.begin(), nodes.end(), patch.begin(), patch.end(), std::back_inserter(result));

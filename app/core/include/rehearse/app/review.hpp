@@ -30,6 +30,9 @@ struct MetricValue {
   bool count = false;  ///< a whole number (grasps, slips, ...)
 };
 std::vector<MetricValue> metricValues(const SessionMetrics& m);
+/// A metric's name in words for a person ("path length" for path_length_m; the unit goes with its value); the name
+/// itself is what thresholds and the command line use.
+std::string metricWords(const std::string& name);
 
 /// Whether a replay reproduced the recording: every recorded checksum compared and equal, and every checkpoint sound.
 /// A session that does not verify shows another run than the one recorded (its metrics and pictures are not the
