@@ -173,6 +173,18 @@ inline QStringList layoutProblems(QWidget* window) {
         !qobject_cast<QCheckBox*>(w) && !qobject_cast<QRadioButton*>(w))
       out << QString("%1 is cut off: it needs %2 px of width, it has %3").arg(name(w)).arg(button->sizeHint().width()).arg(button->width());
     const QRect r = seen(w);
+    // Cut off by a scroll area that does not scroll sideways (its page wider than its viewport).
+    for (QWidget* p = w->parentWidget(); p; p = p->parentWidget())
+      if (auto* area = qobject_cast<QAbstractScrollArea*>(p);
+          area && area->horizontalScrollBarPolicy() == Qt::ScrollBarAlwaysOff && !qobject_cast<QAbstractItemView*>(area)) {
+        const QRect port(area->viewport()->mapTo(window, QPoint(0, 0)), area->viewport()->size());
+        if (whole.right() > port.right() + 1 && whole.left() < port.right())
+          out << QString("%1 is cut off on the right by its scroll area (%2 px of %3)")
+                     .arg(name(w))
+                     .arg(port.right() - whole.left())
+                     .arg(whole.width());
+        break;
+      }
     if (!r.isEmpty()) shown.emplace_back(w, r);
   }
   for (std::size_t i = 0; i < shown.size(); ++i)

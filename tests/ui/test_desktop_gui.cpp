@@ -17,6 +17,7 @@
 
 #include <QAction>
 #include <QDockWidget>
+#include <QDoubleSpinBox>
 #include <QScreen>
 #include <QMessageBox>
 #include <QPlainTextEdit>
@@ -268,6 +269,20 @@ class TestDesktopGui : public QObject {
       shot(*w_, qPrintable(QString("laptop-step%1").arg(k)));
     }
     QVERIFY2(all.isEmpty(), qPrintable(all.join("\n")));
+    // The wheel over a scrolled panel scrolls it: a spin box under the pointer does not take it unless it has the
+    // keyboard focus (a helper's scroll over the Simulation panel changed the jaw bite from 6 to 1 mm).
+    auto* jaw = w_->findChild<QDoubleSpinBox*>("simJawBite");
+    QVERIFY(jaw);
+    const double bite = jaw->value();
+    w_->frameView()->setFocus();
+    wheelDeeper(jaw, QPoint(jaw->width() / 2, jaw->height() / 2), 3);
+    wheelDeeper(jaw, QPoint(jaw->width() / 2, jaw->height() / 2), -3);
+    QCOMPARE(jaw->value(), bite);
+    QTest::mouseClick(jaw, Qt::LeftButton, {}, QPoint(jaw->width() / 3, jaw->height() / 2));  // focused: it takes it
+    QVERIFY(jaw->hasFocus());
+    wheelDeeper(jaw, QPoint(jaw->width() / 2, jaw->height() / 2), -1);
+    QVERIFY(jaw->value() != bite);
+    typeInto(jaw, QString::number(bite));
   }
 
   void cleanupTestCase() { w_.reset(); }

@@ -27,6 +27,7 @@
 #include <QDialogButtonBox>
 #include <QDoubleSpinBox>
 #include <QLineEdit>
+#include <QPlainTextEdit>
 #include <QPointer>
 #include <QProcess>
 #include <QPushButton>
@@ -244,11 +245,18 @@ class TestReviewGui : public QObject {
     QTest::mouseClick(record, Qt::LeftButton);
     QVERIFY(!w_->recording());
 
+    QVERIFY(panel->isPlaying());
     QTest::mouseClick(child<QPushButton>("reviewButton"), Qt::LeftButton);
     ui::ReviewWindow* review = nullptr;
     for (QWidget* t : QApplication::topLevelWidgets())
       if (auto* r = qobject_cast<ui::ReviewWindow*>(t)) review = r;
     QVERIFY(review);
+    // The organ's simulation, unrecorded, pauses while the review replays (its core goes to the replay), and says so.
+    QVERIFY(!panel->isPlaying());
+    QVERIFY2(w_->findChild<QPlainTextEdit*>("messageLog")->toPlainText().contains("paused while the review replays"),
+             "the pause is said");
+    QTest::mouseClick(panel->findChild<QPushButton*>("simPlay"), Qt::LeftButton);  // the trainee goes on
+    QVERIFY(panel->isPlaying());
     QVERIFY(QTest::qWaitForWindowExposed(review));
     QVERIFY(waitFor([&] { return review->ready(0); }, 120000));
     QCOMPARE(review->attemptsShown(), 1);
@@ -270,6 +278,19 @@ class TestReviewGui : public QObject {
       review->openSession(0, first_);
       QVERIFY(waitFor([&] { return review->stepsReplayed(0) == hold && review->stepShown(0) >= 0; }, 120000));
       QVERIFY(!review->ready(0));
+      {  // its picture fills the view (a helper saw the view blank after choosing a session, until a click)
+        auto* view = review->findChild<QLabel*>("reviewView");
+        QVERIFY(view);
+        const QSize shown = view->pixmap().size();
+        QVERIFY2(shown.width() >= view->width() - 2 || shown.height() >= view->height() - 2,
+                 qPrintable(QString("picture %1x%2 in a view of %3x%4")
+                                .arg(shown.width())
+                                .arg(shown.height())
+                                .arg(view->width())
+                                .arg(view->height())));
+      }
+      review->openSession(0, first_);  // chosen again in its list while it replays: the replay goes on
+      QCOMPARE(review->stepsReplayed(0), hold);
       auto* timeline = review->findChild<QWidget*>("timeline");
       QVERIFY(timeline);
       const int y = timeline->height() / 2;
@@ -492,7 +513,7 @@ class TestReviewGui : public QObject {
     QTest::keyClicks(name, "Trainee Two");
     QTest::keyClick(name, Qt::Key_R,
                     Qt::ControlModifier);  // the keyboard focus is in the name field, as after typing it
-    QVERIFY2(w_->recording(), qPrintable(w_->messageLog().join(" | ")));
+    QVERIFY2(w_->recording(), qPrintable(w_->messageLog().mid(std::max<qsizetype>(0, w_->messageLog().size() - 4)).join(" | ")));
     QVERIFY(waitFor(
         [&] { return panel->recordingId() > second_ && panel->session()->snapshot()->step > 40 && steps() > 40; }));
     const qint64 beforeReset = panel->recordingId();
@@ -607,7 +628,9 @@ class TestReviewGui : public QObject {
         if (l->isVisible() && l->text().contains(text)) return true;
       return false;
     };
-    QVERIFY2(shows("DOES NOT VERIFY: 1 of"), "the review window's title says the session does not verify");
+    QVERIFY2(shows("DOES NOT VERIFY: 1 of"), qPrintable("the review window's title says the session does not verify: " +
+                                                          review->findChildren<QLabel*>().value(0)->text() + " / " +
+                                                          review->statusText()));
     auto* table = review->findChildren<QTableWidget*>().value(0);
     QVERIFY(table);
     QCOMPARE(table->item(0, 0)->text(), QStringLiteral("replay check"));
@@ -657,6 +680,8 @@ class TestReviewGui : public QObject {
     w_->activateWindow();
     QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     auto* panel = w_->simulationPanel();
+    QVERIFY(!panel->isPlaying());  // (paused while the review replayed)
+    QTest::mouseClick(panel->findChild<QPushButton*>("simPlay"), Qt::LeftButton);
     QTest::mouseClick(child<QPushButton>("recordButton"), Qt::LeftButton);
     QVERIFY(
         waitFor([&] { return panel->recordingId() > before.back().id && panel->session()->snapshot()->step > 20; }));

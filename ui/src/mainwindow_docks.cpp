@@ -10,6 +10,9 @@
 #include "rehearse/ui/simulationpanel.hpp"
 
 #include <QAction>
+#include <QAbstractSlider>
+#include <QComboBox>
+#include <QAbstractSpinBox>
 #include <QActionGroup>
 #include <QCoreApplication>
 #include <QCloseEvent>
@@ -68,6 +71,28 @@ class SentenceLabel : public QLabel {
   }
 };
 
+// In a scrolled page the wheel scrolls the page: a spin box or a list box under the pointer takes it only once it has
+// the keyboard focus (a click, Tab). A helper's scroll over the Simulation panel changed the jaw bite from 6 to 1 mm.
+class WheelGuard : public QObject {
+ public:
+  using QObject::QObject;
+  bool eventFilter(QObject* o, QEvent* e) override {
+    if (e->type() != QEvent::Wheel) return false;
+    auto* w = qobject_cast<QWidget*>(o);
+    if (!w || w->hasFocus() || !w->parentWidget()) return false;
+    QCoreApplication::sendEvent(w->parentWidget(), e);  // (passed up to the scroll area, as a wheel event is)
+    return true;
+  }
+};
+void guardWheel(QWidget* content) {
+  auto* guard = new WheelGuard(content);
+  for (QWidget* w : content->findChildren<QWidget*>())
+    if (qobject_cast<QAbstractSpinBox*>(w) || qobject_cast<QComboBox*>(w) || qobject_cast<QAbstractSlider*>(w)) {
+      w->setFocusPolicy(Qt::StrongFocus);  // (not the wheel's focus)
+      w->installEventFilter(guard);
+    }
+}
+
 // A dock's content in a scroll area (issue 62): on a laptop's screen (1280x800) a tall page scrolls instead of making
 // the window taller than the screen or squeezing its widgets over each other. As wide as the content needs, so that only
 // the height scrolls.
@@ -79,6 +104,7 @@ QScrollArea* scrolling(QWidget* content, QWidget* parent) {
   area->setFrameShape(QFrame::NoFrame);
   area->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
   area->setMinimumWidth(content->minimumSizeHint().width() + area->verticalScrollBar()->sizeHint().width());
+  guardWheel(content);
   return area;
 }
 }  // namespace
@@ -335,15 +361,19 @@ void MainWindow::buildWorkflowPanel() {
   connect(pages_.frame, &FramePage::videoFrameShown, this, &MainWindow::videoFrameShown);
   // Only the page shown counts for the stack's size (a stack is as tall as its tallest page otherwise), and it scrolls.
   stepStack_->setObjectName(QStringLiteral("stepPages"));
-  auto fitToPage = [this](int shown) {
+  // The scroll area is as wide as the page shown needs (only the height scrolls: pages were cut off on the right).
+  auto* pageScroll = scrolling(stepStack_, host);
+  auto fitToPage = [this, pageScroll](int shown) {
     for (int i = 0; i < stepStack_->count(); ++i)
       stepStack_->widget(i)->setSizePolicy(i == shown ? QSizePolicy::Preferred : QSizePolicy::Ignored,
                                            i == shown ? QSizePolicy::Preferred : QSizePolicy::Ignored);
     stepStack_->adjustSize();
+    if (QWidget* page = stepStack_->widget(shown))
+      pageScroll->setMinimumWidth(page->minimumSizeHint().width() + pageScroll->verticalScrollBar()->sizeHint().width());
   };
   connect(stepStack_, &QStackedWidget::currentChanged, this, fitToPage);
   fitToPage(stepStack_->currentIndex());
-  layout->addWidget(scrolling(stepStack_, host), 1);
+  layout->addWidget(pageScroll, 1);
   dock->setWidget(host);
   dock->setMinimumWidth(330);
   addDockWidget(Qt::LeftDockWidgetArea, dock);

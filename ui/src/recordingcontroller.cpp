@@ -117,6 +117,12 @@ ReviewWindow* RecordingController::openReview() {
     camera = doc_->data()->camera;
     frame = doc_->data()->frame;
   }
+  // The review replays its sessions on the machine's cores: the organ's simulation, playing beside it unrecorded,
+  // pauses (said; Play goes on) so that a two-core machine gives them to the replay. A recording goes on.
+  if (simulation_->isPlaying() && !simulation_->recording()) {
+    simulation_->pause();
+    say_(tr("The simulation is paused while the review replays its sessions; press Play (step 7) to go on."));
+  }
   auto* w = new ReviewWindow(path, camera, frame, window_);
   w->setAttribute(Qt::WA_DeleteOnClose);
   w->setWindowFlag(Qt::Window);

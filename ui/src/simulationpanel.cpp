@@ -14,6 +14,7 @@
 #include <QFormLayout>
 #include <QHBoxLayout>
 #include <QLabel>
+#include <QPaintEvent>
 #include <QScrollArea>
 #include <QLinearGradient>
 #include <QMouseEvent>
@@ -60,6 +61,36 @@ struct SimulationPanel::FrameContext {
 };
 
 namespace {
+// A word-wrapped label of a fixed number of lines: a longer text is drawn as far as they hold it, ending in an
+// ellipsis (text() stays whole; the panel puts it in the tooltip).
+class LinesLabel : public QLabel {
+ public:
+  LinesLabel(int lines, QWidget* parent) : QLabel(parent), lines_(lines) { setProperty("elidesItsText", true); }
+
+ protected:
+  void paintEvent(QPaintEvent*) override {
+    QPainter p(this);
+    p.setPen(palette().color(QPalette::WindowText));
+    const QRect room = contentsRect();
+    const QFontMetrics fm = fontMetrics();
+    const QRect lines(0, 0, room.width(), lines_ * fm.lineSpacing());
+    auto fits = [&](const QString& t) { return fm.boundingRect(lines, Qt::TextWordWrap, t).height() <= lines.height(); };
+    QString shown = text();
+    if (!fits(shown)) {
+      int lo = 0, hi = static_cast<int>(shown.size());
+      while (lo < hi) {
+        const int mid = (lo + hi + 1) / 2;
+        if (fits(shown.left(mid) + QChar(0x2026))) lo = mid;
+        else hi = mid - 1;
+      }
+      shown = shown.left(lo) + QChar(0x2026);
+    }
+    p.drawText(room, Qt::AlignTop | Qt::AlignLeft | Qt::TextWordWrap, shown);
+  }
+
+ private:
+  int lines_;
+};
 
 // The body the session simulates: the case's organ as the frame shows it (current shape, posed in the
 // camera frame), its attachments and material by label, the run's settings.
@@ -823,7 +854,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   buttons->addWidget(stepButton_);
   buttons->addWidget(resetButton_);
   layout->addLayout(buttons);
-  status_ = new QLabel(this);
+  status_ = new LinesLabel(6, this);
   statusThrottle_ = std::make_unique<Throttle>(this, [this] {
     const QString text = statusText();
     status_->setText(text);
@@ -833,16 +864,11 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   status_->setObjectName(QStringLiteral("simStatus"));
   status_->setWordWrap(true);
   // A fixed height of six lines, the text from the top: the controls below stay put whatever the sentence's length
-  // (they moved with every message); a longer one scrolls (it was cut off at the sixth line) and is whole in the tooltip.
+  // (they moved with every message); a longer one ends in an ellipsis at the sixth line (it was cut off mid-line) and
+  // is whole in the tooltip. (In a scroll area of its own it cost the GUI thread 50 ms at each new sentence.)
   status_->setAlignment(Qt::AlignTop | Qt::AlignLeft);
-  auto* statusScroll = new QScrollArea(this);
-  statusScroll->setObjectName(QStringLiteral("simStatusScroll"));
-  statusScroll->setWidget(status_);
-  statusScroll->setWidgetResizable(true);
-  statusScroll->setFrameShape(QFrame::NoFrame);
-  statusScroll->setHorizontalScrollBarPolicy(Qt::ScrollBarAlwaysOff);
-  statusScroll->setFixedHeight(6 * status_->fontMetrics().lineSpacing() + 4);
-  layout->addWidget(statusScroll);
+  status_->setFixedHeight(6 * status_->fontMetrics().lineSpacing() + 4);
+  layout->addWidget(status_);
 
   connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
   connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::stepOnce);

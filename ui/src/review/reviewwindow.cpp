@@ -11,6 +11,7 @@
 #include <QEventLoop>
 #include <QFileDialog>
 #include <QFutureWatcher>
+#include <QGuiApplication>
 #include <QHBoxLayout>
 #include <QHeaderView>
 #include <QInputDialog>
@@ -19,10 +20,12 @@
 #include <QMenuBar>
 #include <QMessageBox>
 #include <QMouseEvent>
+#include <QResizeEvent>
 #include <QPainter>
 #include <QPainterPath>
 #include <QProgressDialog>
 #include <QPushButton>
+#include <QScreen>
 #include <QSignalBlocker>
 #include <QSplitter>
 #include <QStatusBar>
@@ -88,7 +91,10 @@ class TimelineWidget : public QWidget {
                                      : tr("replaying the session to check it...");
       const QString brief = steps > 0 ? tr("replaying: %1 %").arg(100 * replayed / std::max(1L, steps)) : tr("replaying");
       const bool fits = p.fontMetrics().boundingRect(rest.toRect(), Qt::TextWordWrap, full).height() <= rest.height();
-      p.drawText(rest, Qt::AlignCenter | Qt::TextWordWrap, fits ? full : brief);
+      if (fits)
+        p.drawText(rest, Qt::AlignCenter | Qt::TextWordWrap, full);
+      else  // (a narrow part left: at the right edge, whole)
+        p.drawText(QRectF(8, rest.top(), width() - 16, rest.height()), Qt::AlignRight | Qt::AlignVCenter, brief);
     }
     if (!timeline || timeline->empty()) return;
     double fmax = std::max(threshold, 1e-6);
@@ -130,12 +136,18 @@ class ViewLabel : public QLabel {
  public:
   std::function<void(double, double)> turn;
   ViewLabel() {
+    setObjectName(QStringLiteral("reviewView"));
     setMinimumSize(320, 240);
     setAlignment(Qt::AlignCenter);
     setStyleSheet("background: #202226");
   }
 
  protected:
+  void resizeEvent(QResizeEvent* e) override {  // the picture follows the view's size
+    QLabel::resizeEvent(e);
+    const QImage image = property("image").value<QImage>();
+    if (!image.isNull()) setPixmap(QPixmap::fromImage(image.scaled(size(), Qt::KeepAspectRatio, Qt::SmoothTransformation)));
+  }
   void mousePressEvent(QMouseEvent* e) override { last_ = e->position(); }
   void mouseMoveEvent(QMouseEvent* e) override {
     if (!(e->buttons() & Qt::LeftButton) || !turn) return;
@@ -269,7 +281,9 @@ ReviewWindow::ReviewWindow(std::function<std::vector<app::RecordingSummary>()> l
 
 void ReviewWindow::build(const QString& title) {
   setWindowTitle(tr("Review - %1").arg(title));
-  resize(1500, 900);
+  // As large as the screen allows (it opened 1500x900 on a laptop's 1280x800, its right and bottom off the screen).
+  const QRect room = (parentWidget() ? parentWidget()->screen() : QGuiApplication::primaryScreen())->availableGeometry();
+  resize(std::min(1500, room.width() - 40), std::min(900, room.height() - 60));
   auto* bar = addToolBar(tr("Review"));
   bar->setObjectName("reviewToolbar");
   bar->addWidget(new QLabel(tr(" Session ")));
@@ -462,6 +476,9 @@ void ReviewWindow::fillSessionLists() {
 
 void ReviewWindow::openSession(int attempt, qint64 id) {
   if (attempt < 0 || attempt > 1) return;
+  if (const auto& shown = attempts_[static_cast<std::size_t>(attempt)];
+      shown && shown->recording.summary.id == id && shown->error.isEmpty() && !shown->ready)
+    return;  // chosen again in its list while it replays: its replay goes on (it started over)
   if (exporting_) {
     status_->setText(tr("An export is being written; choose the session again when it is done."));
     return;
@@ -707,7 +724,12 @@ void ReviewWindow::seekLanded(ReviewAttempt& a) {
     a.shown = r.step;
     a.shownGeneration = r.generation;
     a.seekNote = r.note;
-    a.view->setPixmap(QPixmap::fromImage(r.scaled));
+    // Drawn at the view's size when the seek started; a view laid out or resized since (a session just opened is
+    // laid out after its first seek starts: its picture came out blank) is scaled here.
+    const QSize wanted = r.image.size().scaled(a.view->size(), Qt::KeepAspectRatio);
+    const QImage fitted =
+        r.scaled.size() == wanted ? r.scaled : r.image.scaled(wanted, Qt::IgnoreAspectRatio, Qt::SmoothTransformation);
+    a.view->setPixmap(QPixmap::fromImage(fitted));
     a.view->setProperty("image", r.image);
   }
   if (a.error.isEmpty() && a.stale()) startSeek(a);  // the newest position (or view) asked meanwhile
