@@ -838,7 +838,6 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   form_.colouring->setObjectName(QStringLiteral("simColouring"));
   form_.colouring->addItems({tr("displacement (mm)"), tr("von Mises stress (kPa)")});
   form->addRow(tr("Colour by"), form_.colouring);
-  layout->addLayout(form);
 
   auto* buttons = new QHBoxLayout;
   playButton_ = new QPushButton(tr("Play"), this);
@@ -869,6 +868,9 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_
   status_->setAlignment(Qt::AlignTop | Qt::AlignLeft);
   status_->setFixedHeight(6 * status_->fontMetrics().lineSpacing() + 4);
   layout->addWidget(status_);
+  // The settings below the controls and the status: on a 900-px screen Play, Step, Reset and what the simulation says
+  // stay in view without scrolling the panel (the settings, changed less often, scroll).
+  layout->addLayout(form);
 
   connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
   connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::stepOnce);
