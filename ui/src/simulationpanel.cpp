@@ -15,7 +15,6 @@
 #include <QHBoxLayout>
 #include <QLabel>
 #include <QPaintEvent>
-#include <QScrollArea>
 #include <QLinearGradient>
 #include <QMouseEvent>
 #include <QPainter>

@@ -115,7 +115,8 @@ void CohortWindow::fill() {
                              "max_strain",
                              "incorrect_actions"};
   QStringList headers = {tr("session"), tr("trainee"), tr("started (UTC)"), tr("case")};
-  headers += shown;
+  for (const QString& metric : shown)  // in words, as the review window and the report name them
+    headers += QString::fromStdString(app::metricWords(metric.toStdString()));
   headers += tr("replay verified");
   table_->clear();
   table_->setColumnCount(headers.size());
