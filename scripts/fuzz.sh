@@ -20,7 +20,10 @@ for target in gmsh vtk vtu medit recording input_checks surfaces images calibrat
   if ! ASAN_OPTIONS="detect_leaks=$leaks" build-fuzz/tests/fuzz/fuzz_$target -max_total_time="$SECONDS_EACH" -max_len=65536 -rss_limit_mb=2048 -timeout=20 \
       -artifact_prefix="$artifacts" -print_final_stats=1 "$corpus" "tests/fuzz/seeds/$target" > "build-fuzz/fuzz-$target.log" 2>&1; then
     echo "fuzz: the $target parser failed; input saved in $artifacts, log in build-fuzz/fuzz-$target.log:" >&2
-    grep -E "ERROR|SUMMARY|runtime error" "build-fuzz/fuzz-$target.log" | head -5 >&2
+    # The sanitizer's and libFuzzer's own lines, not the libraries' chatter on the inputs they refuse.
+    grep -E "^==[0-9]+== ?ERROR|^SUMMARY|runtime error|deadly signal|ALARM|out-of-memory|Test unit written" \
+      "build-fuzz/fuzz-$target.log" | head -8 >&2
+    ls "$artifacts" >&2
     status=1
   else
     grep -E "^stat::(number_of_executed_units|peak_rss_mb)" "build-fuzz/fuzz-$target.log"

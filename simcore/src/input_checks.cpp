@@ -10,6 +10,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <limits>
 #include <map>
@@ -280,7 +281,72 @@ std::string plyProblem(std::string_view bytes) {
 
 // ---- OFF ----
 
+// The vertex and face counts as assimp 5.2's OFF reader takes them from the header, before it allocates for them:
+// optional prefix letters (ST, C, N, 4, n) and OFF, or no keyword at all (then the first token must be a digit), an
+// optional dimension, then the counts read as unsigned decimal digits (no digits: 0; wrapping past 2^32 as it does).
+// False when assimp refuses the header itself. Its reading differs from ours (case, the prefixes, the dimension), so
+// the counts it would allocate for are checked on their own.
+bool assimpOffCounts(std::string_view bytes, std::uint32_t& nv, std::uint32_t& nf) {
+  std::string buf(bytes);
+  buf.push_back('\0');
+  const char* car = buf.data();
+  const char* end = buf.data() + buf.size();
+  auto skipSpacesAndLineEnd = [&] {
+    while (*car == ' ' || *car == '\t' || *car == '\r' || *car == '\n') ++car;
+  };
+  auto skipLine = [&] {
+    while (*car != '\r' && *car != '\n' && *car != '\0') ++car;
+    while (*car == '\r' || *car == '\n') ++car;
+  };
+  auto nextToken = [&] {
+    skipSpacesAndLineEnd();
+    while (car < end && (*car == '#' || *car == '\n' || *car == '\r')) {
+      skipLine();
+      skipSpacesAndLineEnd();
+    }
+  };
+  auto strtoul10 = [&] {
+    std::uint32_t v = 0;
+    while (*car >= '0' && *car <= '9') v = v * 10u + static_cast<std::uint32_t>(*car++ - '0');
+    return v;
+  };
+  nextToken();
+  bool hasDimension = false;
+  if (car < end - 2 && car[0] == 'S' && car[1] == 'T') car += 2;
+  if (car < end - 1 && car[0] == 'C') ++car;
+  if (car < end - 1 && car[0] == 'N') ++car;
+  if (car < end - 1 && car[0] == '4') ++car;
+  if (car < end - 1 && car[0] == 'n') {
+    hasDimension = true;
+    ++car;
+  }
+  if (car < end - 3 && car[0] == 'O' && car[1] == 'F' && car[2] == 'F') {
+    car += 3;
+    nextToken();
+  } else {
+    nextToken();
+    if (car >= end - 1 || *car < '0' || *car > '9') return false;
+  }
+  if (hasDimension) {
+    if (strtoul10() > 3) return false;
+    nextToken();
+  }
+  nextToken();
+  nv = strtoul10();
+  nextToken();
+  nf = strtoul10();
+  return true;
+}
+
 std::string offProblem(std::string_view bytes) {
+  // Each vertex and each face takes a line of its own: a count beyond the file's lines is refused before assimp
+  // allocates for it (a header's "946735786" asked for 11 GB).
+  if (std::uint32_t nv = 0, nf = 0; assimpOffCounts(bytes, nv, nf)) {
+    const double lines = static_cast<double>(std::count(bytes.begin(), bytes.end(), '\n')) + 1;
+    if (nv > lines || nf > lines)
+      return "its header declares " + plural(static_cast<double>(nv > lines ? nv : nf), nv > lines ? "vertice" : "face") +
+             " but the file has only " + plural(lines, "line");
+  }
   std::size_t pos = 0;
   std::string_view line;
   // Lines without comments, blank ones skipped.

@@ -638,6 +638,12 @@ class TestMeshIO : public QObject {
     expectFileRefused("index.off", "OFF\n3 1 0\n" + xyz + "3 0 1 99\n", "refers to vertex 99");
     expectFileRefused("short.off", "OFF\n3 2 0\n" + xyz + "3 0 1 2\n", "declares 2 faces but holds 1");
     expectFileRefused("fewvertices.off", "OFF\n4 1 0\n" + xyz, "declares 4 vertices but holds 3");
+    // Counts as assimp reads them, which is not always as the OFF keyword says: without a keyword, or with a
+    // dimension after "nOFF", a count of 946735786 made assimp ask for 11 GB before reading a vertex.
+    expectFileRefused("nokeyword.off", "946735786 1 0\n0 0 0\n", "declares 946735786 vertices but the file has only 3 lines");
+    expectFileRefused("dimension.off", "nOFF\n3 3 946735786 0\n" + xyz + "3 0 1 2\n", "declares 946735786 faces");
+    writeFile(tempPath("nokeyword-ok.off"), "3 1 0\n" + xyz + "3 0 1 2\n");
+    QCOMPARE(loadMesh(tempPath("nokeyword-ok.off")).triangles.size(), std::size_t(1));
     writeFile(tempPath("ok.off"), "OFF 3 1 0\n# a comment\n" + xyz + "3 0 1 2\n");
     QCOMPARE(loadMesh(tempPath("ok.off")).triangles.size(), std::size_t(1));
   }
