@@ -804,8 +804,14 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
   long long dims = 0;
   if (fields.count("NDims") && (!toLong(fields["NDims"], dims) || dims < 1 || dims > 10))
     return "its NDims = " + fields["NDims"].substr(0, 24) + " (a label image has 3 dimensions)";
-  if (!sawData) return {};  // MetaIO says the header is incomplete
+  // MetaIO does not always say so itself (found by fuzzing: a name "ElementDataFile" ended by a NUL byte and no '='
+  // after it, with CompressedData = True, made it allocate 2^63 bytes for the compressed voxels).
+  if (!sawData) return "it has no ElementDataFile field (where its voxels are)";
   const std::string& file = fields["ElementDataFile"];
+  // A name with control characters or a NUL byte is damage (found by fuzzing: MetaIO cut such a name at the NUL and
+  // read on into a compressed size of 2^63 bytes).
+  if (std::any_of(file.begin(), file.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20 || c == 0x7f; }))
+    return "its ElementDataFile is not a file name (it holds control characters)";
   if (file.find('%') != std::string::npos || file.substr(0, 4) == "LIST" || words(file).size() != 1)
     return "its ElementDataFile is a list or a file-name pattern ('" + file.substr(0, 40) +
            "'), which this program does not read; save it as one .mha file";

@@ -393,6 +393,13 @@ class TestLabelImage : public QObject {
       b.replace(b.find("NDims = 3"), 9, "NDims = 399999999");
       writeFile(tempPath("ndims.mha"), b);
       checkOneSentence(errorOf([] { readLabelImage(tempPath("ndims.mha")); }), "header is damaged");
+      // Two the fuzzer found that made MetaIO ask for 2^63 bytes of compressed voxels: an ElementDataFile name ended
+      // by a NUL byte with no '=' after it, and a data file name of control characters and NUL bytes.
+      const std::string head = "ObjectType = Image\nNDims = 3\nDimSize = 4 3 2\nElementType = MET_UCHAR\nCompressedData = True\n";
+      writeFile(tempPath("nodata.mha"), head + std::string("ElementDataFile\0NRRD0004\nLLLL\n", 30));
+      checkOneSentence(errorOf([] { readLabelImage(tempPath("nodata.mha")); }), "no ElementDataFile field");
+      writeFile(tempPath("controlname.mha"), head + std::string("ElementDataFile = \xff\xff\x0f\0\0\0\xffLOCALx\n", 32));
+      checkOneSentence(errorOf([] { readLabelImage(tempPath("controlname.mha")); }), "not a file name");
     }
     const int kMutations =
         qEnvironmentVariableIntValue("MUTATIONS") > 0 ? qEnvironmentVariableIntValue("MUTATIONS") : 1000;
