@@ -153,6 +153,15 @@ class TestIncorrectActions : public QObject {
     QCOMPARE(count(clipped, "vessel_cut_without_clips"), 0);        // ...between its clips
     QCOMPARE(clipped.replayed.metrics.bloodLossMl.value_or(-1), 0.0);
     QCOMPARE(clipped.replayed.metrics.incorrectCount("vessel_cut_without_clips").value_or(-1), 0);
+    // One stroke across the artery opens its two stumps one after the other: one vessel cut without clips, as the
+    // metrics count one vessel cut (a trainer saw "vessels cut 1" beside "vessels cut without clips 2").
+    const Run across = runRecorded(script(1.8, "", R"({"t": 0.3, "tool": "scissors", "tip": [0.015, -0.004, -0.003]},
+            {"t": 0.35, "cut": "on"}, {"t": 0.35, "move": [0, 0.02, 0], "over": 1.2}, {"t": 1.6, "cut": "off"})"),
+        next());
+    qInfo("a slow stroke across the artery: %s; %ld vessel cuts", qPrintable(listed(across)),
+          long(across.replayed.metrics.vesselCuts.value_or(-1)));
+    QVERIFY(across.replayed.metrics.vesselCuts.value_or(0) >= 1);
+    QCOMPARE(count(across, "vessel_cut_without_clips"), int(across.replayed.metrics.vesselCuts.value_or(0)));
     // Off in the scene's rules: not counted, and said so.
     const Run off = runRecorded(script(0.5, R"({"vessel_cut_without_clips": false})", kCutAt15), next());
     QCOMPARE(count(off, "vessel_cut_without_clips"), 0);
@@ -287,6 +296,32 @@ class TestIncorrectActions : public QObject {
     QVERIFY2(why.find("cannot be read") != std::string::npos, why.c_str());
     for (const auto& v : app::metricValues(again.metrics))
       if (v.name == "incorrect_actions") QVERIFY(!v.value && !v.why.empty());
+  }
+
+  // The amounts a trainer reads (review table, report, cohort): in a surgeon's units, not the metric's SI value with
+  // six digits (a helper read "path length 0.532917 m", "economy of motion 1", "energy applied 2.3 s").
+  void amountsReadAsASurgeonWrites() {
+    app::SessionMetrics m;
+    m.pathLengthM = 0.532917;
+    m.economy = 0.8236;
+    m.maxForceN = 31.2649;
+    m.grasps = 3;
+    m.maxStrain = 0.15371;
+    m.bloodLossMl = 1.6382;
+    m.energyTimeS = 2.318;
+    std::map<std::string, std::string> said;
+    for (const auto& v : app::metricValues(m)) said[v.name] = app::metricText(v);
+    QCOMPARE(said["path_length_m"], std::string("532.9 mm"));
+    QCOMPARE(said["economy_of_motion"], std::string("0.82 of 1"));
+    QCOMPARE(said["max_force_n"], std::string("31.3 N"));
+    QCOMPARE(said["grasps"], std::string("3"));
+    QCOMPARE(said["max_strain"], std::string("15.4 %"));
+    QCOMPARE(said["blood_loss_ml"], std::string("1.64 mL"));
+    QCOMPARE(said["energy_time_s"], std::string("2.3 s"));
+    QCOMPARE(app::metricWords("energy_time_s"), std::string("energy applied for"));
+    m.maxStrain = std::nullopt;
+    for (const auto& v : app::metricValues(m))
+      if (v.name == "max_strain") QCOMPARE(app::metricText(v), std::string("not determined"));
   }
 };
 

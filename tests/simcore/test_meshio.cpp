@@ -622,6 +622,22 @@ class TestMeshIO : public QObject {
     expectFileRefused("farindex.ply", far, "refers to vertex 100000");
     std::string truncated = good.substr(0, good.size() - 5);
     expectFileRefused("truncated.ply", truncated, "declares 3 vertices but holds 2");
+    // A carriage return at the start of a header line (the fuzzer's "x\n\rproperty float y"): assimp then read the
+    // faces from the wrong bytes and aborted on its own assertion; CR LF line ends are fine.
+    std::string cr = good;
+    cr.replace(cr.find("property float y"), 0, "\r");
+    cr += char(3);
+    for (std::int32_t i : {0, 1, 2}) putLE(cr, i);
+    expectFileRefused("cr.ply", cr, "carriage return inside a line");
+    std::string crlf = good;
+    const std::size_t headerEnd = crlf.find("end_header\n") + 11;
+    std::string head = crlf.substr(0, headerEnd);
+    for (std::size_t at = head.find('\n'); at != std::string::npos; at = head.find('\n', at + 2)) head.insert(at, "\r");
+    crlf = head + crlf.substr(headerEnd);
+    crlf += char(3);
+    for (std::int32_t i : {0, 1, 2}) putLE(crlf, i);
+    writeFile(tempPath("crlf.ply"), crlf);
+    QCOMPARE(loadMesh(tempPath("crlf.ply")).triangles.size(), std::size_t(1));
     // Big endian reads as such: the same triangle is accepted.
     std::string be = plyHeader("binary_big_endian", 3, 1);
     auto putBE = [&be](auto v) {

@@ -20,6 +20,8 @@
 #include <QDoubleSpinBox>
 #include <QScreen>
 #include <QMessageBox>
+#include <QToolButton>
+#include <QToolBar>
 #include <QPlainTextEdit>
 #include <QScrollBar>
 #include <QPushButton>
@@ -90,6 +92,32 @@ class TestDesktopGui : public QObject {
     QVERIFY(!w_->isModified() && !w_->isWindowModified());
     QTest::keyClick(w_.get(), Qt::Key_Y, Qt::ControlModifier);  // redo
     QVERIFY(w_->isModified() && titleMarked());
+  }
+
+  // The toolbar's buttons stay where they are whatever Undo would undo (its text had grown with the command's name,
+  // "Undo Add contour segment", moving every button after it); the tooltip names it.
+  void toolbarButtonsStayPut() {
+    auto* bar = w_->findChild<QToolBar*>("mainToolbar");
+    QVERIFY(bar);
+    auto places = [&] {
+      QList<QRect> r;
+      for (auto* b : bar->findChildren<QToolButton*>())
+        if (b->isVisible()) r << b->geometry();
+      return r;
+    };
+    QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
+    QTest::qWait(50);
+    const auto before = places();
+    QVERIFY(before.size() >= 3);
+    QTest::keyClick(w_.get(), Qt::Key_Y, Qt::ControlModifier);
+    QTest::qWait(50);
+    QCOMPARE(places(), before);
+    QToolButton* undo = nullptr;
+    for (auto* b : bar->findChildren<QToolButton*>())
+      if (b->defaultAction() && b->defaultAction()->shortcut() == QKeySequence(QKeySequence::Undo)) undo = b;
+    QVERIFY(undo);
+    QCOMPARE(undo->text(), QStringLiteral("Undo"));
+    QVERIFY2(undo->toolTip().contains(w_->undoStack()->undoText()), qPrintable(undo->toolTip()));
   }
 
   // Ctrl+O over unsaved work asks; Cancel leaves the case, its changes and its undo history as they were. The

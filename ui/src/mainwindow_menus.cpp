@@ -105,6 +105,18 @@ void MainWindow::buildMenus() {
   redo->setShortcuts({QKeySequence(Qt::CTRL | Qt::SHIFT | Qt::Key_Z), QKeySequence(Qt::CTRL | Qt::Key_Y)});
   edit->addAction(undo);
   edit->addAction(redo);
+  // On the toolbar a fixed word (the menu's text, "Undo Edit pose fields", had moved every button after it as it
+  // changed); what it would undo is in its tooltip.
+  undo->setIconText(tr("Undo"));
+  redo->setIconText(tr("Redo"));
+  auto tips = [this, undo, redo] {
+    const QUndoStack* stack = doc_->undoStack();
+    undo->setToolTip(stack->canUndo() ? tr("Undo %1 (Ctrl+Z)").arg(stack->undoText()) : tr("Nothing to undo"));
+    redo->setToolTip(stack->canRedo() ? tr("Redo %1 (Ctrl+Shift+Z)").arg(stack->redoText()) : tr("Nothing to redo"));
+  };
+  tips();
+  connect(doc_->undoStack(), &QUndoStack::indexChanged, this, tips);
+  connect(doc_->undoStack(), &QUndoStack::cleanChanged, this, tips);
   // Undo and redo say what they did, so that no older sentence ("Imported ...") stays in the status bar.
   connect(undo, &QAction::triggered, this, [this] {
     const QUndoStack* stack = doc_->undoStack();

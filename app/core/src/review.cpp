@@ -91,7 +91,7 @@ std::string metricWords(const std::string& name) {
   static const std::map<std::string, std::string> words = {
       {"duration_s", "duration"},
       {"path_length_m", "path length"},
-      {"economy_of_motion", "economy of motion"},
+      {"economy_of_motion", "economy of motion (1: the straight path)"},
       {"cut_updates", "cut updates"},
       {"vessel_cuts", "vessels cut"},
       {"max_force_n", "largest force"},
@@ -105,7 +105,7 @@ std::string metricWords(const std::string& name) {
       {"attachments_torn", "attachments torn"},
       {"misplaced_clips", "misplaced clips"},
       {"blood_loss_ml", "blood loss"},
-      {"energy_time_s", "energy applied"},
+      {"energy_time_s", "energy applied for"},
       {"energy_on_structures", "energy on named structures"},
       {"incorrect_actions", "incorrect actions"},
       {"vessel_cuts_without_clips", "vessels cut without clips"},
@@ -115,6 +115,27 @@ std::string metricWords(const std::string& name) {
   const auto it = words.find(name);
   return it == words.end() ? name : it->second;  // (grasps, slips, tears, clips: already words)
 }
+
+std::string metricAmount(const MetricValue& m, double v) {
+  char b[64];
+  if (m.count)
+    std::snprintf(b, sizeof b, "%lld", std::llround(v));
+  else if (m.unit == "m")
+    std::snprintf(b, sizeof b, "%.1f mm", 1e3 * v);
+  else if (m.unit == "N" || m.unit == "s")
+    std::snprintf(b, sizeof b, "%.1f %s", v, m.unit.c_str());
+  else if (m.unit == "mL")
+    std::snprintf(b, sizeof b, std::abs(v) < 10 ? "%.2f mL" : "%.1f mL", v);
+  else if (m.name == "max_strain")
+    std::snprintf(b, sizeof b, "%.1f %%", 100 * v);
+  else if (m.name == "economy_of_motion")
+    std::snprintf(b, sizeof b, "%.2f of 1", v);
+  else
+    std::snprintf(b, sizeof b, "%.3g%s%s", v, m.unit.empty() ? "" : " ", m.unit.c_str());
+  return b;
+}
+
+std::string metricText(const MetricValue& m) { return m.value ? metricAmount(m, *m.value) : "not determined"; }
 
 std::vector<Threshold> parseThresholds(const std::string& text) {
   if (const std::string why = jsonTextProblem(text, "the thresholds file"); !why.empty()) throw std::runtime_error(why);

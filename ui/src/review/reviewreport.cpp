@@ -131,6 +131,7 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     QPdfWriter pdf(&buffer);
     pdf.setPageSize(QPageSize(QPageSize::A4));
     pdf.setResolution(150);
+    pdf.setPageMargins(QMarginsF(18, 18, 18, 18), QPageLayout::Millimeter);  // a printer's margin (Qt's is 10 pt)
     pdf.setTitle(QString::fromStdString(r.title));
     pdf.setCreator("Rehearse");
     QPainter p;
@@ -191,17 +192,15 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
                                   [&](const app::Verdict& x) { return x.metric.name == m.name; });
       const QString words = QString::fromStdString(app::metricWords(m.name));
       // Counts (grasps, slips, cuts) are whole numbers: "1", not "1.000".
-      QString value = m.value ? (m.count ? QString::number(std::llround(*m.value)) : number(*m.value)) +
-                                    (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
-                              : "not determined";
+      const QString value = QString::fromStdString(app::metricText(m));
       const double h = std::max(tall(c2 - c1 - 10, words, 30), tall(c3 - c2 - 10, value, 30));
       room(h + 30);  // (with its note, if any)
       put(QRectF(c1, y, c2 - c1 - 10, h), words);
       put(QRectF(c2, y, c3 - c2 - 10, h), value);
       if (v != r.verdicts.end()) {
         QString limit;
-        if (v->threshold.min) limit += ">= " + number(*v->threshold.min) + " ";
-        if (v->threshold.max) limit += "<= " + number(*v->threshold.max);
+        if (v->threshold.min) limit += ">= " + QString::fromStdString(app::metricAmount(m, *v->threshold.min)) + " ";
+        if (v->threshold.max) limit += "<= " + QString::fromStdString(app::metricAmount(m, *v->threshold.max));
         p.drawText(QRectF(c3, y, c4 - c3, h), Qt::AlignLeft | Qt::AlignVCenter, limit);
         p.save();
         p.setPen(v->result == app::Verdict::Result::Pass   ? QColor(20, 130, 20)

@@ -6,6 +6,7 @@
 #include <QApplication>
 #include <QComboBox>
 #include <QDateTime>
+#include <QLocale>
 #include <QDir>
 #include <QFileInfo>
 #include <QEventLoop>
@@ -399,12 +400,18 @@ ReviewWindow::~ReviewWindow() {
   replayPool_->waitForDone();  // each replay stops at its next step
 }
 
+QString sessionTime(const std::string& startedUtc) {
+  QDateTime t = QDateTime::fromString(QString::fromStdString(startedUtc), Qt::ISODate);
+  if (!t.isValid()) return QString::fromStdString(startedUtc);
+  return QLocale().toString(t.toLocalTime(), QLocale::ShortFormat);
+}
+
 QString ReviewWindow::attemptTitle(const ReviewAttempt& a) const {
   const auto& s = a.recording.summary;
   return tr("<b>Session %1</b> - %2 - %3")
       .arg(s.id)
       .arg(QString::fromStdString(s.meta.trainee).toHtmlEscaped())
-      .arg(QString::fromStdString(s.startedUtc));
+      .arg(sessionTime(s.startedUtc));
 }
 
 void ReviewWindow::holdReplaysAt(long step) {
@@ -467,7 +474,7 @@ void ReviewWindow::fillSessionLists() {
     const QString label = QStringLiteral("%1  %2  %3%4")
                               .arg(s.id)
                               .arg(QString::fromStdString(s.meta.trainee.empty() ? std::string("(no name)") : s.meta.trainee))
-                              .arg(QString::fromStdString(s.startedUtc))
+                              .arg(sessionTime(s.startedUtc))
                               .arg(s.complete ? QString() : tr("  (cut short)"));
     first_->addItem(label, qint64(s.id));
     second_->addItem(label, qint64(s.id));
@@ -883,8 +890,7 @@ void ReviewWindow::fillMetrics(ReviewAttempt& a) {
     auto* name = new QTableWidgetItem(QString::fromStdString(app::metricWords(m.name)));
     name->setToolTip(tr("%1 in the thresholds (Ctrl+T) and on the command line").arg(QString::fromStdString(m.name)));
     a.table->setItem(row, 0, name);
-    auto* value = new QTableWidgetItem(m.value ? QString::number(*m.value, 'g', 5) + (m.unit.empty() ? "" : " " + QString::fromStdString(m.unit))
-                                               : tr("not determined"));
+    auto* value = new QTableWidgetItem(QString::fromStdString(app::metricText(m)));
     if (!m.value) value->setToolTip(QString::fromStdString(m.why));
     if (m.name == "incorrect_actions" && m.value) {  // each one with its time (the timeline's cyan ticks)
       QStringList lines;

@@ -19,6 +19,7 @@
 #include <QtCharts/QLineSeries>
 #include <QtCharts/QValueAxis>
 
+#include <algorithm>
 #include <map>
 
 namespace rehearse::ui {
@@ -132,11 +133,16 @@ void CohortWindow::fill() {
     id->setToolTip(s.uid);
     table_->setItem(row, 0, id);
     table_->setItem(row, 1, new QTableWidgetItem(who));
-    table_->setItem(row, 2, new QTableWidgetItem(QString::fromStdString(s.summary.startedUtc)));
+    auto* when = new QTableWidgetItem(sessionTime(s.summary.startedUtc));
+    when->setToolTip(QString::fromStdString(s.summary.startedUtc));
+    table_->setItem(row, 2, when);
     table_->setItem(row, 3, new QTableWidgetItem(QString::fromStdString(s.summary.meta.caseName)));
     for (int k = 0; k < shown.size(); ++k) {
       const auto v = metricOf(s, shown[k]);
-      table_->setItem(row, 4 + k, new QTableWidgetItem(v ? QString::number(*v, 'g', 4) : tr("n/d")));
+      const auto m = std::find_if(names().begin(), names().end(), [&](const app::MetricValue& x) { return QString::fromStdString(x.name) == shown[k]; });
+      table_->setItem(row, 4 + k, new QTableWidgetItem(!v ? tr("n/d")
+                                                       : m != names().end() ? QString::fromStdString(app::metricAmount(*m, *v))
+                                                                            : QString::number(*v, 'g', 4)));
     }
     // Where its replay was verified (a session opened here is replayed and verified again, and the review says so).
     auto* verified =

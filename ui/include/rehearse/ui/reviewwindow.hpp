@@ -25,6 +25,10 @@ namespace rehearse::ui {
 
 class ReviewAttempt;
 
+/// When a session started, as a person reads it: the recording's UTC time ("2026-11-30T03:21:20Z") in this machine's
+/// time zone and the locale's short format; the text itself when it is not such a time.
+QString sessionTime(const std::string& startedUtc);
+
 class ReviewWindow : public QMainWindow {
   Q_OBJECT
  public:

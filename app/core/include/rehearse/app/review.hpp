@@ -33,6 +33,12 @@ std::vector<MetricValue> metricValues(const SessionMetrics& m);
 /// A metric's name in words for a person ("path length" for path_length_m; the unit goes with its value); the name
 /// itself is what thresholds and the command line use.
 std::string metricWords(const std::string& name);
+/// A metric's amount as a person reads it, in the unit a surgeon uses for it (lengths in mm, strain in %, forces
+/// to 0.1 N, durations to 0.1 s, counts whole, economy of motion as a share of 1): "12.4 mm", "31.2 N", "3", "0.82
+/// of 1". `v` is in the metric's own unit (MetricValue::unit: m, N, s, mL, or none). Thresholds use it too.
+std::string metricAmount(const MetricValue& m, double v);
+/// metricAmount of its value, or "not determined".
+std::string metricText(const MetricValue& m);
 
 /// Whether a replay reproduced the recording: every recorded checksum compared and equal, and every checkpoint sound.
 /// A session that does not verify shows another run than the one recorded (its metrics and pictures are not the
