@@ -117,10 +117,13 @@ std::string plyProblem(std::string_view bytes) {
   int format = -1;  // 0 ascii, 1 little endian, 2 big endian
   bool ended = false;
   while (nextLine(bytes, pos, line)) {
-    // A line ends with LF or CR LF; a CR anywhere else moved assimp's idea of where the binary data starts, and its
-    // faces then came out of the wrong bytes and failed its own assertion (found by fuzzing: "x\n\rproperty").
-    if (line.find('\r') != std::string_view::npos)
+    // A line ends with LF or CR LF; a CR or a NUL byte anywhere else moved assimp's idea of where the binary data
+    // starts, and its faces then came out of the wrong bytes and failed its own assertion (found by fuzzing:
+    // "x\n\rproperty", "float +\0\x80..."). A header is text: tabs, no other control characters.
+    if (std::any_of(line.begin(), line.end(), [](char c) { return c == '\r'; }))
       return "its header has a carriage return inside a line";
+    if (std::any_of(line.begin(), line.end(), [](char c) { return static_cast<unsigned char>(c) < 0x20 && c != '\t'; }))
+      return "its header holds a control character or a NUL byte";
     const auto w = words(line);
     if (w.empty()) continue;
     if (w[0] == "end_header") {

@@ -629,6 +629,11 @@ class TestMeshIO : public QObject {
     cr += char(3);
     for (std::int32_t i : {0, 1, 2}) putLE(cr, i);
     expectFileRefused("cr.ply", cr, "carriage return inside a line");
+    std::string nul = good;
+    nul.replace(nul.find("float y"), 7, std::string("float +\0\x80\0y", 11));
+    nul += char(3);
+    for (std::int32_t i : {0, 1, 2}) putLE(nul, i);
+    expectFileRefused("nul.ply", nul, "control character or a NUL byte");
     std::string crlf = good;
     const std::size_t headerEnd = crlf.find("end_header\n") + 11;
     std::string head = crlf.substr(0, headerEnd);
