@@ -24,6 +24,9 @@
 #include <QToolBar>
 #include <QPlainTextEdit>
 #include <QScrollBar>
+#include <QStackedWidget>
+#include <QLayout>
+#include <QScrollArea>
 #include <QPushButton>
 #include <QSignalSpy>
 #include <QTemporaryDir>
@@ -294,6 +297,20 @@ class TestDesktopGui : public QObject {
       QTest::qWait(400);
       const QStringList problems = layoutProblems(w_.get());
       for (const auto& p : problems) all << QString("step %1: %2").arg(k).arg(p);
+      // The page scrolls only as far as its content needs at its width (step 3's scrolled into 170 px of nothing).
+      if (auto* pages = w_->findChild<QScrollArea*>("stepPagesScroll")) {
+        auto* stack = qobject_cast<QStackedWidget*>(pages->widget());
+        QWidget* page = stack ? stack->currentWidget() : nullptr;
+        QVERIFY(page && page->layout());
+        const int vw = pages->viewport()->width(), vh = pages->viewport()->height();
+        const int needs = page->layout()->hasHeightForWidth() ? page->layout()->totalHeightForWidth(vw)
+                                                              : page->minimumSizeHint().height();
+        const int range = pages->verticalScrollBar()->maximum();
+        if (range > std::max(0, needs - vh) + 4)
+          all << QString("step %1: its page scrolls %2 px, its content needs %3 px of the %4 shown").arg(k).arg(range).arg(needs).arg(vh);
+      } else {
+        all << "no scroll area stepPagesScroll";
+      }
       shot(*w_, qPrintable(QString("laptop-step%1").arg(k)));
     }
     QVERIFY2(all.isEmpty(), qPrintable(all.join("\n")));

@@ -47,6 +47,8 @@
 #include <QUndoStack>
 #include <QVBoxLayout>
 
+#include <algorithm>
+
 #include "mainwindow_parts.hpp"
 
 namespace rehearse::ui {
@@ -84,6 +86,19 @@ class WheelGuard : public QObject {
     return true;
   }
 };
+// A stack of pages whose height for a width is its shown page's: QStackedLayout answers the tallest page's, and a
+// scroll area around it (which asks) scrolled step 3's page into 450 px of nothing.
+class ShownPageStack : public QStackedWidget {
+ public:
+  using QStackedWidget::QStackedWidget;
+  int heightForWidth(int w) const override {
+    const QWidget* page = currentWidget();
+    if (!page) return QStackedWidget::heightForWidth(w);
+    const int h = page->hasHeightForWidth() ? page->heightForWidth(w) : page->minimumSizeHint().height();
+    return std::max(h, minimumHeight());
+  }
+};
+
 void guardWheel(QWidget* content) {
   auto* guard = new WheelGuard(content);
   for (QWidget* w : content->findChildren<QWidget*>())
@@ -342,7 +357,7 @@ void MainWindow::buildWorkflowPanel() {
       setStep(static_cast<Step>(row));
   });
   layout->addWidget(workflow_);
-  stepStack_ = new QStackedWidget(host);
+  stepStack_ = new ShownPageStack(host);
   pages_.mesh = new MeshPage(wb_);
   pages_.frame = new FramePage(wb_);
   pages_.contour = new ContourPage(wb_);
