@@ -290,10 +290,29 @@ class TestDesktopGui : public QObject {
     QVERIFY2(w_->width() <= 1280 && w_->height() <= 800,  // (its docks' pages were 905 px tall: it could not be)
              qPrintable(QString("%1x%2").arg(w_->width()).arg(w_->height())));
     QStringList all;
+    auto* pageScroll = w_->findChild<QScrollArea*>("stepPagesScroll");
+    QVERIFY(pageScroll);
     for (int k = 1; k <= 7; ++k) {
+      pageScroll->verticalScrollBar()->setValue(pageScroll->verticalScrollBar()->maximum());  // the last page scrolled down
       QTest::keyClick(w_.get(), static_cast<Qt::Key>(Qt::Key_0 + k), Qt::AltModifier);
       QCOMPARE(static_cast<int>(w_->step()), k - 1);
-      if (k == 7) QVERIFY(waitFor([&] { return w_->simulationPanel()->lastFrame() != nullptr; }, 120000));
+      QTest::qWait(50);
+      if (pageScroll->verticalScrollBar()->value() != 0)  // each page opens at its top (step 7's opened mid-sentence)
+        all << QString("step %1: its page opened scrolled %2 px down").arg(k).arg(pageScroll->verticalScrollBar()->value());
+      if (k == 7) {
+        QVERIFY(waitFor([&] { return w_->simulationPanel()->lastFrame() != nullptr; }, 120000));
+        // The instrument in hand shows on its button: R, then B.
+        auto* grasper = w_->findChild<QPushButton*>("grasperTool");
+        auto* scissors = w_->findChild<QPushButton*>("scissorsTool");
+        QVERIFY(grasper && scissors);
+        QTest::keyClick(w_.get(), Qt::Key_R);
+        QVERIFY(grasper->isChecked() && !scissors->isChecked());
+        QTest::keyClick(w_.get(), Qt::Key_B);
+        QVERIFY(!grasper->isChecked() && scissors->isChecked());
+        QTest::mouseClick(scissors, Qt::LeftButton);  // a click on the one in hand keeps it
+        QVERIFY(scissors->isChecked() && w_->frameView()->tool() == ui::Tool::Scissors);
+        QTest::keyClick(w_.get(), Qt::Key_R);
+      }
       QTest::qWait(400);
       const QStringList problems = layoutProblems(w_.get());
       for (const auto& p : problems) all << QString("step %1: %2").arg(k).arg(p);

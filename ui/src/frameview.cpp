@@ -190,9 +190,11 @@ void FrameView::setTool(Tool t) {
   }
   if (t == Tool::OrganCurve && tool_ != Tool::OrganCurve)
     emit toolMessage(tr("Click along the ridge or ligament on the organ drawn over the frame; the nearest sketched one gets the curve."));
+  const bool changed = t != tool_;
   tool_ = t;
   setCursor(current() ? current()->cursor() : Qt::OpenHandCursor);
   update();
+  if (changed) emit toolChanged(t);
 }
 
 void FrameView::finishSegment() {

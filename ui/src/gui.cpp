@@ -62,6 +62,7 @@ void applyDarkTheme(QApplication& app) {
   p.setColor(QPalette::HighlightedText, Qt::white);
   p.setColor(QPalette::ToolTipBase, QColor(50, 50, 50));
   p.setColor(QPalette::ToolTipText, Qt::white);
+  p.setColor(QPalette::PlaceholderText, QColor(150, 150, 150));  // (Fusion's dark grey was nearly invisible on Base)
   p.setColor(QPalette::Disabled, QPalette::Text, QColor(110, 110, 110));
   p.setColor(QPalette::Disabled, QPalette::ButtonText, QColor(110, 110, 110));
   p.setColor(QPalette::Disabled, QPalette::WindowText, QColor(110, 110, 110));

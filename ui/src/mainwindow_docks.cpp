@@ -383,6 +383,7 @@ void MainWindow::buildWorkflowPanel() {
       stepStack_->widget(i)->setSizePolicy(i == shown ? QSizePolicy::Preferred : QSizePolicy::Ignored,
                                            i == shown ? QSizePolicy::Preferred : QSizePolicy::Ignored);
     stepStack_->adjustSize();
+    pageScroll->verticalScrollBar()->setValue(0);  // a step's page opens at its top (not where the last one was scrolled)
     if (QWidget* page = stepStack_->widget(shown))
       pageScroll->setMinimumWidth(page->minimumSizeHint().width() + pageScroll->verticalScrollBar()->sizeHint().width());
   };

@@ -1,5 +1,7 @@
 #include "rehearse/ui/pages/steppage.hpp"
 
+#include "rehearse/ui/frameview.hpp"
+
 #include <QAction>
 #include <QPushButton>
 
@@ -10,7 +12,16 @@ StepPage::StepPage(Workbench& wb, app::Step step, QWidget* parent) : QWidget(par
 QPushButton* StepPage::toolButton(QWidget* parent, const QString& text, const QString& tip, Tool tool, Qt::Key key) {
   auto* button = new QPushButton(text, parent);
   button->setToolTip(tip);
-  connect(button, &QPushButton::clicked, this, [this, tool] { wb_.view->setTool(tool); });
+  // Pressed while its tool is in hand (a helper pressed R and could not tell which instrument it held).
+  button->setCheckable(true);
+  connect(button, &QPushButton::clicked, this, [this, tool, button] {
+    wb_.view->setTool(tool);
+    button->setChecked(wb_.view->tool() == tool);
+  });
+  if (wb_.view) {
+    button->setChecked(wb_.view->tool() == tool);
+    connect(wb_.view, &FrameView::toolChanged, button, [button, tool](Tool t) { button->setChecked(t == tool); });
+  }
   auto* shortcut = new QAction(text, this);  // named: the keyboard reference lists it
   shortcut->setShortcut(QKeySequence(key));
   shortcut->setProperty("rehearseWhere",

@@ -209,6 +209,8 @@ class FrameView : public QWidget {
   void landmarkImagePicked(const Eigen::Vector2d& imagePoint);
   /// A sentence for the status bar about the current tool (what to do next, or why a click did nothing).
   void toolMessage(const QString& text);
+  /// The tool in hand changed (a button, a key, Esc).
+  void toolChanged(rehearse::ui::Tool tool);
   /// Attachments tool: the organ's new attachment nodes (sorted volume node indices) after a click.
   void attachmentsEdited(const std::vector<int>& nodes, const QString& text);
   /// Rehearsal instruments: an input for the simulation session (tip pose in the camera frame, jaws).
