@@ -604,6 +604,9 @@ class TestOperativeGui : public QObject {
       QVERIFY2(std::abs(m.captured(1).toDouble() - m.captured(2).toDouble()) <= 0.25 * m.captured(2).toDouble(),
                qPrintable(ended));
       QVERIFY(panel_->lastFrame()->tool.held.empty());
+      // The status bar says it too (it had kept "Grasped: drag to pull" beside the page's "closed on nothing").
+      QVERIFY2(waitFor([&] { return w_->statusText().contains("slipped out of the grasper"); }, 5000),
+               qPrintable(w_->statusText()));
     }
     QVERIFY(stepsOn(10));
     shot(*w_, "liver-tear");

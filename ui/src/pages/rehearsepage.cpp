@@ -251,6 +251,10 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   slips_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "slip"));
   cuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "cut"));
   vesselCuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "vessel cut"));
+  // A slip is said in the status bar too, where "Grasped: drag to pull" stood (a helper read it beside "the jaws are
+  // closed on nothing"): the sentence says at what force and what the scene allows.
+  if (std::count(f->events.begin(), f->events.end(), "slip") > 0 && !f->message.isEmpty() && wb_.status)
+    wb_.status(f->message);
   const int tore = static_cast<int>(std::count(f->events.begin(), f->events.end(), "tear"));
   tears_ += tore;
   auto status = [this](const QString& text) { pendingStatus_ = text; };
