@@ -165,8 +165,13 @@ class TestAppearanceGui : public QObject {
     QVERIFY(leftMean < 30);
     QVERIFY(table->item(3, 1)->text().startsWith("n "));
     QVERIFY(std::abs(table->item(3, 1)->text().mid(2).toDouble() - c.appearance->theta.falloff) < 0.01);
-    QVERIFY(std::abs(table->item(3, 2)->text().split(' ')[1].toDouble() -
+    QVERIFY(table->item(3, 2)->text().endsWith(" mm"));  // the light's distance from the lens, whole in its cell
+    QVERIFY(std::abs(table->item(3, 2)->text().split(' ')[0].toDouble() -
                      1e3 * c.appearance->theta.lightPosition.norm()) < 0.1);
+    QVERIFY(table->item(3, 2)->toolTip().contains("from the lens"));
+    QVERIFY2(table->visualItemRect(table->item(3, 2)).width() >=
+                 table->fontMetrics().horizontalAdvance(table->item(3, 2)->text()) + 4,
+             "the light's distance is cut in its cell");
     if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) {
       QTest::qWait(50);
       w_->grab().save(QString::fromLocal8Bit(dir) + "/step6-appearance.png");

@@ -66,12 +66,12 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   table_->setAccessibleName(tr("Estimated light and reflectance"));
   table_->setObjectName(QStringLiteral("appearanceTable"));
   table_->setHorizontalHeaderLabels({tr("x / R"), tr("y / G"), tr("z / B")});
-  table_->setVerticalHeaderLabels({tr("Light (mm)"), tr("k_d"), tr("k_s"), tr("\u03c3 / n")});
+  table_->setVerticalHeaderLabels({tr("Light (mm)"), tr("k_d"), tr("k_s"), tr("\u03c3 / n / light")});
   table_->setWordWrap(false);
   table_->setToolTip(tr(
       "Theta as DejaVu's Table 1: the light's position in the camera frame, the diffuse and specular reflectance per "
       "colour channel, the roughness \u03c3 and the scope's fall-off n (cos^n off its axis: the light's cone and the "
-      "lens vignetting). "
+      "lens vignetting) and the light's distance from the lens. "
       "* marks a channel the frame does not measure (clipped over its highlight)."));
   table_->setEditTriggers(QAbstractItemView::NoEditTriggers);
   table_->horizontalHeader()->setSectionResizeMode(QHeaderView::Stretch);
@@ -145,11 +145,17 @@ void AppearancePage::refresh(const app::Case& c) {
         else if (r == 3 && k == 1)
           text = tr("n %1").arg(t.falloff, 0, 'f', 2);
         else if (r == 3 && k == 2)
-          text = tr("light %1 mm off lens").arg(1e3 * t.lightPosition.norm(), 0, 'f', 1);
+          text = tr("%1 mm").arg(1e3 * t.lightPosition.norm(), 0, 'f', 1);  // ("light 20.7 mm off lens" was cut)
       }
       auto* item = table_->item(r, k);
       if (!item) table_->setItem(r, k, item = new QTableWidgetItem);
       item->setText(text);
+      QString tip;
+      if (a && r == 3 && k == 2) tip = tr("The light is %1 mm from the lens.").arg(1e3 * a->theta.lightPosition.norm(), 0, 'f', 1);
+      if (a && r == 2 && a->highlightFound && !a->ksMeasured[static_cast<std::size_t>(k)])
+        tip = tr("* not measured: this channel is clipped all over the highlight, so its specular reflectance is the "
+                 "other channels' mean.");
+      item->setToolTip(tip);
     }
   if (!a) {
     report_->clear();
