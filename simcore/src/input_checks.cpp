@@ -294,45 +294,45 @@ std::string plyProblem(std::string_view bytes) {
 // False when assimp refuses the header itself. Its reading differs from ours (case, the prefixes, the dimension), so
 // the counts it would allocate for are checked on their own.
 bool assimpOffCounts(std::string_view bytes, std::uint32_t& nv, std::uint32_t& nf) {
-  std::string buf(bytes);
-  buf.push_back('\0');
-  const char* car = buf.data();
-  const char* end = buf.data() + buf.size();
+  // Read in place (not a copy of the file): position i in assimp's buffer, which is the file and a NUL after it.
+  const std::size_t end = bytes.size() + 1;
+  std::size_t i = 0;
+  auto at = [&](std::size_t k) { return k < bytes.size() ? bytes[k] : '\0'; };
   auto skipSpacesAndLineEnd = [&] {
-    while (*car == ' ' || *car == '\t' || *car == '\r' || *car == '\n') ++car;
+    while (at(i) == ' ' || at(i) == '\t' || at(i) == '\r' || at(i) == '\n') ++i;
   };
   auto skipLine = [&] {
-    while (*car != '\r' && *car != '\n' && *car != '\0') ++car;
-    while (*car == '\r' || *car == '\n') ++car;
+    while (at(i) != '\r' && at(i) != '\n' && at(i) != '\0') ++i;
+    while (at(i) == '\r' || at(i) == '\n') ++i;
   };
   auto nextToken = [&] {
     skipSpacesAndLineEnd();
-    while (car < end && (*car == '#' || *car == '\n' || *car == '\r')) {
+    while (i < end && (at(i) == '#' || at(i) == '\n' || at(i) == '\r')) {
       skipLine();
       skipSpacesAndLineEnd();
     }
   };
   auto strtoul10 = [&] {
     std::uint32_t v = 0;
-    while (*car >= '0' && *car <= '9') v = v * 10u + static_cast<std::uint32_t>(*car++ - '0');
+    while (at(i) >= '0' && at(i) <= '9') v = v * 10u + static_cast<std::uint32_t>(at(i++) - '0');
     return v;
   };
   nextToken();
   bool hasDimension = false;
-  if (car < end - 2 && car[0] == 'S' && car[1] == 'T') car += 2;
-  if (car < end - 1 && car[0] == 'C') ++car;
-  if (car < end - 1 && car[0] == 'N') ++car;
-  if (car < end - 1 && car[0] == '4') ++car;
-  if (car < end - 1 && car[0] == 'n') {
+  if (i + 2 < end && at(i) == 'S' && at(i + 1) == 'T') i += 2;
+  if (i + 1 < end && at(i) == 'C') ++i;
+  if (i + 1 < end && at(i) == 'N') ++i;
+  if (i + 1 < end && at(i) == '4') ++i;
+  if (i + 1 < end && at(i) == 'n') {
     hasDimension = true;
-    ++car;
+    ++i;
   }
-  if (car < end - 3 && car[0] == 'O' && car[1] == 'F' && car[2] == 'F') {
-    car += 3;
+  if (i + 3 < end && at(i) == 'O' && at(i + 1) == 'F' && at(i + 2) == 'F') {
+    i += 3;
     nextToken();
   } else {
     nextToken();
-    if (car >= end - 1 || *car < '0' || *car > '9') return false;
+    if (i + 1 >= end || at(i) < '0' || at(i) > '9') return false;
   }
   if (hasDimension) {
     if (strtoul10() > 3) return false;
