@@ -123,9 +123,23 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
 int cmdAppearance(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, appearanceCommand());
   if (!o.count("out")) throw UsageError("appearance needs --out THETA.json");
-  const AppearanceInput in = appearanceInput(o, "appearance");
+  if (o.count("contour") && !o.count("turned-pose"))
+    throw UsageError(
+        "appearance --contour may turn the organ (the turn the outline leaves open): give --turned-pose P.json to "
+        "receive the pose the light and reflectance were fitted at");
+  if (o.count("turned-pose") && !o.count("contour"))
+    throw UsageError("appearance --turned-pose needs --contour C.json: without an outline no turn is searched");
+  AppearanceInput in = appearanceInput(o, "appearance");
+  in.turnByShading = o.count("contour") > 0;
+  if (in.turnByShading) {
+    in.contour = imaging::loadContour(o["contour"]);
+    if (in.contour.width > 0 && in.contour.width != in.camera.width)
+      throw UsageError("the contour is drawn on a " + std::to_string(in.contour.width) + " px wide image, the camera's is " +
+                       std::to_string(in.camera.width) + " px; give the outline of this frame");
+  }
   const AppearanceOutput r = runAppearance(in);
   imaging::saveAppearance(r.fit.theta, o["out"]);
+  if (o.count("turned-pose")) imaging::savePose(r.turn.pose, o["turned-pose"]);
   if (o.count("background"))
     imaging::writeFileAtomically(o["background"], [&] {
       std::vector<uchar> buf;
@@ -164,7 +178,21 @@ int cmdAppearance(const std::vector<std::string>& args) {
                  {"highlight_pixels", r.fit.separation.count},
                  {"rest_psnr_db", r.restPsnr},
                  {"total_ms", r.totalMs},
-                 {"stages", stages}});
+                 {"stages", stages},
+                 {"turn",
+                  {{"searched", r.turn.searched},
+                   {"adopted", r.turn.adopted},
+                   {"about_x_deg", r.turn.aboutXDeg},
+                   {"about_y_deg", r.turn.aboutYDeg},
+                   {"explained_before", r.turn.explainedBefore},
+                   {"explained_after", r.turn.explainedAfter},
+                   {"outline_before_px", r.turn.outlineBeforePx},
+                   {"outline_after_px", r.turn.outlineAfterPx},
+                   {"candidates", r.turn.candidates},
+                   {"scored_before", r.turn.scoredBefore},
+                   {"scored_best", r.turn.scoredBest},
+                   {"ms", r.turn.ms},
+                   {"said", r.turn.sentence}}}});
   }
   std::printf(
       "%s\nlight (%.1f, %.1f, %.1f) mm (%.1f mm from the lens), fall-off cos^%.2f, kd (%.4f, %.4f, %.4f), ks (%.4f, "
@@ -174,6 +202,7 @@ int cmdAppearance(const std::vector<std::string>& args) {
       1e3 * r.fit.theta.lightPosition.z(), 1e3 * r.fit.theta.lightPosition.norm(), r.fit.theta.falloff,
       r.fit.theta.kd.x(), r.fit.theta.kd.y(), r.fit.theta.kd.z(), r.fit.theta.ks.x(), r.fit.theta.ks.y(),
       r.fit.theta.ks.z(), r.fit.theta.roughness, r.restPsnr, r.totalMs);
+  if (!r.turn.sentence.empty()) std::printf("%s\n", r.turn.sentence.c_str());
   // A fit too poor to re-shade is still written (texture mapping uses it), but says so with its own exit code.
   return r.fit.textureOnly ? 4 : 0;
 }
@@ -256,12 +285,18 @@ const Command& appearanceCommand() {
       "                [--visual SURFACE [--visual-unit u]] [--report R.json] [--inpaint telea|ns|shiftmap|fsr] "
       "[--background IB.png] "
       "[--diffuse ID.png]\n"
+      "                [--contour C.json --turned-pose P2.json]\n"
       "                                   estimate the light and the organ's reflectance from the frame (step 6);\n"
       "                                   exit 4 when the model explains too little (texture mapping only)\n",
       joined(frameInputOptions(), {{"out", "THETA.json", "the estimated light and reflectance"},
                                    {"report", "R.json", "what the frame did and did not determine"},
                                    {"background", "IB.png", "write the frame without the organ"},
-                                   {"diffuse", "ID.png", "write the organ's diffuse albedo"}}),
+                                   {"diffuse", "ID.png", "write the organ's diffuse albedo"},
+                                   {"contour", "C.json",
+                                    "the outline sketched on the frame: also settle by the shading the turn it leaves "
+                                    "open"},
+                                   {"turned-pose", "P2.json",
+                                    "with --contour: write the pose the estimate was fitted at (turned or not)"}}),
       withoutServices(cmdAppearance)};
   return command;
 }

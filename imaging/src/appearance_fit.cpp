@@ -168,7 +168,8 @@ struct VarProFunctor {
 };
 
 // Returns false when it did not settle (the evaluation budget ran out or the values went non-finite).
-bool refine(const std::vector<Sample>& samples, Light& light, double& sigma, bool specular, const Parts& parts = {}) {
+bool refine(const std::vector<Sample>& samples, Light& light, double& sigma, bool specular, const Parts& parts = {},
+            int evaluations = 400) {
   VarProFunctor f{&samples, specular, parts};
   Eigen::VectorXd x(specular ? 5 : 4);
   x.head<3>() = searchFromLight(light.position);
@@ -176,7 +177,7 @@ bool refine(const std::vector<Sample>& samples, Light& light, double& sigma, boo
   if (specular) x[4] = std::log(sigma);
   Eigen::NumericalDiff<VarProFunctor> nd(f, 1e-6);
   Eigen::LevenbergMarquardt<Eigen::NumericalDiff<VarProFunctor>> lm(nd);
-  lm.parameters.maxfev = 400;
+  lm.parameters.maxfev = evaluations;
   lm.parameters.xtol = 1e-10;
   lm.parameters.ftol = 1e-12;
   if (!parts.falloff) x[3] = 0;  // held at n = 0: its column is zero, which the solver treats as a fixed unknown
@@ -777,6 +778,26 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
     res.status += "; the " + unmeasured + " channel is clipped all over the highlight, so its specular reflectance is not measured: taken as the other channels' mean";
   report(1.0, "done");
   return res;
+}
+
+double diffuseShareAt(const cv::Mat3b& diffuse, const SurfaceGeometry& geometry, const cv::Mat1b& use, const Appearance& start,
+                      std::size_t maxSamples, int evaluations, Appearance* refined) {
+  if (diffuse.size() != geometry.triangle.size() || use.size() != geometry.triangle.size())
+    throw InputError("The image, the pixels to use and the organ's geometry differ in size.");
+  const std::vector<Sample> samples = collect(diffuse, geometry, use & geometry.mask(), maxSamples);
+  if (samples.size() < 50) return 0;
+  Light light{start.lightPosition, start.falloff};
+  double sigma = 0.1;
+  if (evaluations > 0) refine(samples, light, sigma, false, {}, evaluations);  // keeps the start unless it ends finite
+  Eigen::VectorXd r;
+  const Projected p = solveLinear(samples, light, sigma, false, &r);
+  if (refined) {
+    *refined = start;
+    refined->lightPosition = light.position;
+    refined->falloff = light.falloff;
+    refined->kd = p.kd;
+  }
+  return std::clamp(explainedShare(samples, r), -1.0, 1.0);
 }
 
 cv::Mat3f albedoRatio(const cv::Mat3b& diffuse, const SurfaceGeometry& rest, const Appearance& theta, const cv::Mat1b& usable) {

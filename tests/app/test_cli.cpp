@@ -1,6 +1,7 @@
 // The command line, run as a user would: exit codes, one-line errors, files written.
 #include "cli_run.hpp"
 #include "test_support.hpp"
+#include "opencas.hpp"
 
 #include <QJsonArray>
 #include <QDir>
@@ -8,11 +9,15 @@
 #include <QJsonObject>
 #include <QProcess>
 #include <rehearse/imaging/appearance_fit.hpp>
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
+#include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/quality.hpp>
 
 #include <algorithm>
 #include <map>
+#include <random>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -214,6 +219,160 @@ class TestCli : public QObject {
     QCOMPARE(r.code, 2);
     QVERIFY2(r.err.contains("cuts with the grasper"), qPrintable(r.err));
     QVERIFY(!QFile::exists(dir + "/bad.vtu"));
+  }
+
+  // Issue 62: the turn an outline leaves open, settled by the shading. The phantom's frame, its organ's outline traced
+  // as a hand would (two pieces with a gap, wavering 2 px), and the organ registered off the frame's pose by a turn about
+  // the camera's X or Y axis through its centre (what a contour fit leaves, "weakest: a turn about the camera's X axis").
+  // Without the outline step 6 explains less than 90 % there; with it the organ is turned back to within 1.5 degrees of
+  // the frame's pose (the truth the frame was rendered at) and the shading explained to 90 % or more. At the frame's
+  // pose, and moved sideways (which the outline itself rules out), it is left where it was.
+  void appearanceSettlesTheOpenTurn_data() {
+    QTest::addColumn<double>("aboutX");
+    QTest::addColumn<double>("aboutY");
+    QTest::addColumn<double>("sidewaysMm");
+    QTest::addColumn<bool>("turns");
+    QTest::newRow("turned 5 degrees about X") << 5.0 << 0.0 << 0.0 << true;
+    QTest::newRow("turned -6 about X and 4 about Y") << -6.0 << 4.0 << 0.0 << true;
+    QTest::newRow("turned 9 degrees about X and 2 about Y") << 9.0 << 2.0 << 0.0 << true;
+    // About Y a light at the lens shades the organ nearly alike: it explains over 90 % already, and no turn is asked.
+    QTest::newRow("turned 8 degrees about Y") << 0.0 << 8.0 << 0.0 << false;
+    QTest::newRow("at the frame's pose") << 0.0 << 0.0 << 0.0 << false;
+    QTest::newRow("moved 4 mm sideways") << 0.0 << 0.0 << 4.0 << false;
+  }
+  void appearanceSettlesTheOpenTurn() {
+    QFETCH(double, aboutX);
+    QFETCH(double, aboutY);
+    QFETCH(double, sidewaysMm);
+    QFETCH(bool, turns);
+    using namespace rehearse;
+    static const QString dir = [] {
+      const QString d = QString::fromStdString(tempPath("cli-turn"));
+      run({"phantom", "--out", d});
+      return d;
+    }();
+    QVERIFY(QFile::exists(dir + "/frame.png"));
+    const Pose truth = imaging::loadPose((dir + "/pose.json").toStdString());
+    simcore::Mesh m = simcore::loadMesh((dir + "/organ.vtu").toStdString());
+    m.convertToMetres();
+    const auto triangles = simcore::boundaryTriangles(m, false);
+    std::vector<double> vertices;
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const auto& p : m.points) vertices.insert(vertices.end(), {p.x(), p.y(), p.z()}), centre += truth.apply(p);
+    centre /= double(m.points.size());
+    const SurfaceView surface{vertices.data(), m.points.size(), triangles.front().data(), triangles.size()};
+    const cv::Mat frame = cv::imread((dir + "/frame.png").toStdString());
+    const imaging::Camera camera = imaging::loadCamera((dir + "/camera.yaml").toStdString(), frame.cols, frame.rows);
+    // The outline of the organ the frame shows, traced in two pieces.
+    const auto borders = imaging::maskOutlines(imaging::renderMask(camera, truth, surface));
+    QVERIFY(!borders.empty());
+    const auto& b = borders.front();
+    imaging::Contour contour;
+    contour.width = camera.width, contour.height = camera.height;
+    contour.segments.resize(2);
+    std::mt19937 rng(11);
+    std::normal_distribution<double> n01;
+    for (std::size_t i = 0; i < b.size(); i += 6) {
+      if (i > b.size() * 45 / 100 && i < b.size() * 55 / 100) continue;
+      const Eigen::Vector2d along = b[(i + 2) % b.size()] - b[(i + b.size() - 2) % b.size()];
+      const Eigen::Vector2d normal = Eigen::Vector2d(along.y(), -along.x()).normalized();
+      contour.segments[i < b.size() / 2 ? 0 : 1].points.push_back(b[i] + 2 * n01(rng) * normal);
+    }
+    imaging::saveContour(contour, (dir + "/outline.json").toStdString());
+    const Eigen::Matrix3d Q = (Eigen::AngleAxisd(aboutX * M_PI / 180, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(aboutY * M_PI / 180, Eigen::Vector3d::UnitY()))
+                                  .toRotationMatrix();
+    Pose registered = truth.turnedAbout(Q, centre);
+    registered.t.x() += 1e-3 * sidewaysMm;
+    imaging::savePose(registered, (dir + "/registered.json").toStdString());
+    const QStringList common{"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml",
+                             "--pose", dir + "/registered.json", "--image", dir + "/frame.png"};
+    auto readJson = [](const QString& path) {
+      QFile f(path);
+      f.open(QIODevice::ReadOnly);
+      return QJsonDocument::fromJson(f.readAll()).object();
+    };
+    auto without = run(common + QStringList{"--out", dir + "/theta0.json", "--report", dir + "/report0.json"});
+    QVERIFY2(without.code == 0 || without.code == 4, qPrintable(without.err));
+    const double before = readJson(dir + "/report0.json")["explained"].toDouble();
+    auto with = run(common + QStringList{"--out", dir + "/theta.json", "--report", dir + "/report.json", "--contour",
+                                         dir + "/outline.json", "--turned-pose", dir + "/turned.json"});
+    QVERIFY2(with.code == 0, qPrintable(with.err + with.out));
+    const QJsonObject report = readJson(dir + "/report.json"), turn = report["turn"].toObject();
+    const Pose turned = imaging::loadPose((dir + "/turned.json").toStdString());
+    const double offDeg = Eigen::AngleAxisd(turned.R * truth.R.transpose()).angle() * 180 / M_PI;
+    const double wasDeg = Eigen::AngleAxisd(registered.R * truth.R.transpose()).angle() * 180 / M_PI;
+    qInfo("registered %.1f deg off: explains %.1f %%; settled %s (%.1f, %.1f deg, %d turns scored, %.1f -> %.1f %% at the "
+          "working resolution, %.0f ms): %.1f deg off, explains %.1f %%; outline %.2f -> %.2f px",
+          wasDeg, 100 * before, turn["adopted"].toBool() ? "turned" : "not turned", turn["about_x_deg"].toDouble(),
+          turn["about_y_deg"].toDouble(), turn["candidates"].toInt(), 100 * turn["scored_before"].toDouble(),
+          100 * turn["scored_best"].toDouble(), turn["ms"].toDouble(), offDeg,
+          100 * report["explained"].toDouble(), turn["outline_before_px"].toDouble(),
+          turn["outline_after_px"].toDouble());
+    QVERIFY(turn["searched"].toBool());
+    QVERIFY2(with.out.contains(turn["said"].toString()), qPrintable(with.out));
+    if (turns) {
+      QVERIFY2(before < 0.9, qPrintable(QString::number(before)));  // the case it is for
+      QVERIFY2(turn["adopted"].toBool(), qPrintable(turn["said"].toString()));
+      QVERIFY2(offDeg <= 1.5, qPrintable(QString::number(offDeg)));
+      QVERIFY(report["explained"].toDouble() >= 0.9);
+      QVERIFY(turn["said"].toString().contains("Undo puts it back"));
+    } else {
+      QVERIFY2(!turn["adopted"].toBool(), qPrintable(turn["said"].toString()));
+      QCOMPARE(report["explained"].toDouble(), before);
+      QVERIFY((turned.t - registered.t).norm() == 0 && (turned.R - registered.R).norm() == 0);
+    }
+    // --contour without --turned-pose, and the reverse, are refused in one sentence.
+    expectOneLineError(run(common + QStringList{"--out", dir + "/t.json", "--contour", dir + "/outline.json"}), 2,
+                       "give --turned-pose");
+    expectOneLineError(run(common + QStringList{"--out", dir + "/t.json", "--turned-pose", dir + "/t2.json"}), 2,
+                       "needs --contour");
+  }
+
+  // The same on the real ex-vivo frame (Open-CAS), whose CT surface is in the camera's frame and whose shading no
+  // laparoscope light explains (BENCHMARKS.md: at most 47 % for any point light, 0 % within the scope's): the outline
+  // of that surface given, the organ at the CT's pose or turned 5 degrees off it is left where it is (texture only,
+  // exit 4), never turned on shading the model does not explain.
+  void appearanceTurnIsNotTakenFromAFrameTheModelDoesNotExplain_data() {
+    QTest::addColumn<double>("aboutX");
+    QTest::newRow("at the CT's pose") << 0.0;
+    QTest::newRow("turned 5 degrees about X") << 5.0;
+  }
+  void appearanceTurnIsNotTakenFromAFrameTheModelDoesNotExplain() {
+    QFETCH(double, aboutX);
+    using namespace rehearse;
+    REQUIRE_SHARED("open-cas/Stereo_SD_d_complete_22_IMG_left.bmp");
+    const auto oc = testdata::OpenCas::load();
+    const QString dir = QString::fromStdString(tempPath("cli-turn-opencas"));
+    QDir().mkpath(dir);
+    imaging::saveCamera(oc.camera, (dir + "/camera.yaml").toStdString());
+    QVERIFY(cv::imwrite((dir + "/frame.png").toStdString(), oc.frame));
+    imaging::Contour contour;
+    contour.width = oc.camera.width, contour.height = oc.camera.height;
+    for (const auto& b : imaging::maskOutlines(imaging::renderMask(oc.camera, Pose{}, oc.surface())))
+      contour.segments.push_back({b, true, "silhouette", {}});
+    QVERIFY(!contour.segments.empty());
+    imaging::saveContour(contour, (dir + "/outline.json").toStdString());
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < oc.vertices.size(); i += 3) centre += Eigen::Vector3d(oc.vertices[i], oc.vertices[i + 1], oc.vertices[i + 2]);
+    centre /= double(oc.vertices.size() / 3);
+    const Pose registered = Pose{}.turnedAbout(Eigen::AngleAxisd(aboutX * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix(), centre);
+    imaging::savePose(registered, (dir + "/registered.json").toStdString());
+    const auto r = run({"appearance", "--mesh", testdata::OpenCas::directory().c_str() + QString("Stereo_SD_d_complete_22_CT_cut.stl"),
+                        "--unit", "mm", "--camera", dir + "/camera.yaml", "--pose", dir + "/registered.json", "--image",
+                        dir + "/frame.png", "--out", dir + "/theta.json", "--report", dir + "/report.json", "--contour",
+                        dir + "/outline.json", "--turned-pose", dir + "/turned.json"});
+    QVERIFY2(r.code == 4, qPrintable(r.err + r.out));  // texture only, as without the search
+    QFile f(dir + "/report.json");
+    QVERIFY(f.open(QIODevice::ReadOnly));
+    const QJsonObject turn = QJsonDocument::fromJson(f.readAll()).object()["turn"].toObject();
+    qInfo("%s (%d turns scored, at the working resolution %.1f -> %.1f %%, %.0f ms)", qPrintable(turn["said"].toString()),
+          turn["candidates"].toInt(), 100 * turn["scored_before"].toDouble(), 100 * turn["scored_best"].toDouble(),
+          turn["ms"].toDouble());
+    QVERIFY(turn["searched"].toBool());
+    QVERIFY(!turn["adopted"].toBool());
+    const Pose turned = imaging::loadPose((dir + "/turned.json").toStdString());
+    QVERIFY((turned.R - registered.R).norm() == 0 && (turned.t - registered.t).norm() == 0);
   }
 
   void appearanceAndCompose() {

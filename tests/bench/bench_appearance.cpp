@@ -7,6 +7,7 @@
 #include "realorgan.hpp"
 
 #include <rehearse/app/appearancestep.hpp>
+#include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/session/session.hpp>
 #include <rehearse/simcore/tetrahedralise.hpp>
 
@@ -18,8 +19,67 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
 
 using namespace rehearse;
+
+namespace {
+// Issue 62: step 6's search of the turn an outline leaves open, on a frame rendered at `truth`: the organ registered
+// turned off it about the camera's X (and Y) axis through its centre, the outline of the organ the frame shows traced in
+// two pieces wavering 2 px; the whole step with the search (app::runAppearance). One CSV row and one line per turn.
+void turnRows(std::ofstream& csv, const std::string& name, const imaging::Camera& cam, const Pose& truth, const SurfaceView& sv,
+              const cv::Mat3b& frame, int repeat) {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < sv.vertexCount; ++i)
+    centre += truth.apply(Eigen::Vector3d(sv.vertices[3 * i], sv.vertices[3 * i + 1], sv.vertices[3 * i + 2]));
+  centre /= static_cast<double>(sv.vertexCount);
+  const auto borders = imaging::maskOutlines(imaging::renderMask(cam, truth, sv));
+  if (borders.empty()) return;
+  const auto& b = borders.front();
+  imaging::Contour contour;
+  contour.width = cam.width, contour.height = cam.height;
+  contour.segments.resize(2);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> n01;
+  for (std::size_t i = 0; i < b.size(); i += 6) {
+    if (i > b.size() * 45 / 100 && i < b.size() * 55 / 100) continue;
+    const Eigen::Vector2d along = b[(i + 2) % b.size()] - b[(i + b.size() - 2) % b.size()];
+    const Eigen::Vector2d normal = Eigen::Vector2d(along.y(), -along.x()).normalized();
+    contour.segments[i < b.size() / 2 ? 0 : 1].points.push_back(b[i] + 2 * n01(rng) * normal);
+  }
+  for (const auto& [ax, ay] : std::vector<std::pair<double, double>>{{5, 0}, {-8, 3}, {0, 0}}) {
+    app::AppearanceInput in;
+    in.camera = cam;
+    in.frame = frame;
+    in.vertices.assign(sv.vertices, sv.vertices + 3 * sv.vertexCount);
+    for (std::size_t t = 0; t < sv.triangleCount; ++t)
+      in.triangles.push_back({sv.triangles[3 * t], sv.triangles[3 * t + 1], sv.triangles[3 * t + 2]});
+    in.contour = contour;
+    in.pose = truth.turnedAbout((Eigen::AngleAxisd(ax * M_PI / 180, Eigen::Vector3d::UnitX()) *
+                                 Eigen::AngleAxisd(ay * M_PI / 180, Eigen::Vector3d::UnitY()))
+                                    .toRotationMatrix(),
+                                centre);
+    std::vector<double> searchMs, totalMs;
+    app::AppearanceOutput r;
+    for (int k = 0; k < repeat; ++k) {
+      r = app::runAppearance(in);
+      searchMs.push_back(r.turn.ms);
+      totalMs.push_back(r.totalMs);
+    }
+    std::sort(searchMs.begin(), searchMs.end());
+    std::sort(totalMs.begin(), totalMs.end());
+    auto offDeg = [&](const Pose& p) { return Eigen::AngleAxisd(p.R * truth.R.transpose()).angle() * 180 / M_PI; };
+    std::printf("%-18s turned (%+.0f, %+.0f) deg: explains %5.1f %% -> %5.1f %%, %4.1f -> %4.1f deg off, %s, %d turns, "
+                "search %.0f ms, whole step %.0f ms\n",
+                name.c_str(), ax, ay, 100 * r.turn.explainedBefore, 100 * r.fit.explained, offDeg(in.pose),
+                offDeg(r.turn.pose), r.turn.adopted ? "turned" : "left", r.turn.candidates, searchMs[searchMs.size() / 2],
+                totalMs[totalMs.size() / 2]);
+    csv << name << "," << ax << "," << ay << "," << r.turn.explainedBefore << "," << r.fit.explained << ","
+        << offDeg(in.pose) << "," << offDeg(r.turn.pose) << "," << r.turn.adopted << "," << r.turn.candidates << ","
+        << searchMs[searchMs.size() / 2] << "," << totalMs[totalMs.size() / 2] << "\n";
+  }
+}
+}  // namespace
 
 int main(int argc, char** argv) {
   std::string out = ".";
@@ -152,6 +212,9 @@ int main(int argc, char** argv) {
   // The CPU composition as the viewport uses it (imaging::Compositor, prepared once per registered organ,
   // then one deformed shape per frame) at 1280x720: the phantom and each real organ shape below, moved
   // 3 mm and bent, with no anti-aliasing and with 2x2 and 4x4 samples on the rim.
+  std::ofstream tcsv(out + "/appearance_turn.csv");
+  tcsv << "organ,about_x_deg,about_y_deg,explained_before,explained_after,off_deg_before,off_deg_after,turned,turns_scored,search_ms_median,step_ms_median\n";
+  turnRows(tcsv, "phantom", c.camera, c.truePose, c.surfaceView(), frame, repeat);
   std::ofstream ccsv(out + "/compose.csv");
   ccsv << "organ,triangles,tetrahedra,width,height,rim_samples,organ_pixels,compose_ms_median\n";
   // `carried`: the surface is the organ's own, carried by a simulation mesh's tetrahedra (app::VisualSurface):
@@ -380,6 +443,7 @@ int main(int argc, char** argv) {
     cv::Mat3b seen720;
     cv::resize(seen, seen720, cv::Size(cam720.width, cam720.height), 0, 0, cv::INTER_AREA);
     viewport(name, cam720, pose, sv, seen720, r.theta);
+    turnRows(tcsv, name, cam, pose, sv, seen, repeat);
     // The same surface as the organ's own, drawn over a simulation mesh of about 3,500 tetrahedra (issue 35).
     simcore::Mesh own;
     simcore::TetrahedraliseOptions to;
@@ -403,6 +467,6 @@ int main(int argc, char** argv) {
                               carried->visual->triangles.front().data(), carried->visual->triangles.size()};
     viewport(name, cam720, pose, ownView, seen720, r.theta, carried.get());
   }
-  std::printf("wrote %s/appearance.csv and %s/compose.csv\n", out.c_str(), out.c_str());
+  std::printf("wrote %s/appearance.csv, %s/appearance_turn.csv and %s/compose.csv\n", out.c_str(), out.c_str(), out.c_str());
   return 0;
 }

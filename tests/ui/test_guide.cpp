@@ -15,6 +15,7 @@
 #include "rehearse/ui/simulationpanel.hpp"
 #include "rehearse/ui/pages/appearancepage.hpp"
 
+#include <QCheckBox>
 #include <QDir>
 #include <QLabel>
 #include <QProcess>
@@ -232,15 +233,19 @@ class TestGuide : public QObject {
     QTest::addColumn<QByteArray>("keys");  // gizmo keys: W/S A/D Q/E turn 1 degree (5 with Shift: upper case here)
     QTest::addColumn<double>("outside");   // the traced line's distance outside the organ's outline, px (< 0 inside)
     QTest::addColumn<double>("waver");     // its random waver, px (standard deviation)
-    QTest::newRow("turned 8 and 5 degrees, traced 4 px outside") << false << QByteArray("wwwwwwwwaaaaaq") << 4.0 << 2.0;
-    QTest::newRow("turned 15 degrees, traced 4 px inside") << false << QByteArray("WWWee") << -4.0 << 3.0;
-    QTest::newRow("left where it was placed, traced on the outline") << true << QByteArray() << 0.0 << 3.0;
+    QTest::addColumn<bool>("sides");       // only the organ's left and right sides traced (its top and bottom left out)
+    QTest::newRow("turned 8 and 5 degrees, traced 4 px outside") << false << QByteArray("wwwwwwwwaaaaaq") << 4.0 << 2.0 << false;
+    QTest::newRow("turned 15 degrees, traced 4 px inside") << false << QByteArray("WWWee") << -4.0 << 3.0 << false;
+    QTest::newRow("left where it was placed, traced on the outline") << true << QByteArray() << 0.0 << 3.0 << false;
+    // The outline's sides alone leave a turn about the camera's X axis open to the contour fit: the shading settles it.
+    QTest::newRow("turned 10 degrees, only its sides traced") << false << QByteArray("WW") << 2.0 << 2.0 << true;
   }
   void demoFittedByHandIsReshaded() {
     QFETCH(bool, automatic);
     QFETCH(QByteArray, keys);
     QFETCH(double, outside);
     QFETCH(double, waver);
+    QFETCH(bool, sides);
     QVERIFY(openPhantomCase(w_));
     const auto truth = w_->caseData()->groundTruth->pose;
     w_->editCase("guide: placed", [&](app::Case& k) {
@@ -270,17 +275,30 @@ class TestGuide : public QObject {
     QCOMPARE(view->tool(), ui::Tool::Freehand);
     std::mt19937 rng(5);
     std::normal_distribution<double> n01;
-    std::vector<QPoint> pieces[2];
+    std::vector<std::vector<QPoint>> runs;  // stretches traced without lifting the mouse
+    bool lifted = true;
     for (std::size_t i = 0; i < b.size(); i += 12) {
-      if (i > b.size() * 45 / 100 && i < b.size() * 55 / 100) continue;  // the gap between the pieces
+      if (i > b.size() * 45 / 100 && i < b.size() * 55 / 100) {  // the gap between the pieces
+        lifted = true;
+        continue;
+      }
       const Eigen::Vector2d along = b[(i + 2) % b.size()] - b[(i + b.size() - 2) % b.size()];
       Eigen::Vector2d out = Eigen::Vector2d(along.y(), -along.x()).normalized();
+      if (sides && std::abs(out.x()) < 0.7) {  // its top or bottom: not traced
+        lifted = true;
+        continue;
+      }
       if (inOrgan(b[i] + 3 * out)) out = -out;
       const Eigen::Vector2d at = b[i] + (outside + waver * n01(rng)) * out;
       const QPoint p = view->toWidget(QPointF(at.x(), at.y())).toPoint();
-      auto& piece = pieces[i < b.size() / 2 ? 0 : 1];
-      if (piece.empty() || p != piece.back()) piece.push_back(p);
+      if (lifted) runs.emplace_back(), lifted = false;
+      if (runs.back().empty() || p != runs.back().back()) runs.back().push_back(p);
     }
+    // Two pieces: the two longest stretches, in the order they were traced.
+    while (runs.size() > 2)
+      runs.erase(std::min_element(runs.begin(), runs.end(), [](const auto& a, const auto& b) { return a.size() < b.size(); }));
+    QVERIFY(runs.size() == 2 && runs[1].size() >= 5 && runs[0].size() >= 5);
+    const auto& pieces = runs;
     for (const auto& piece : pieces) {
       QTest::mousePress(view, Qt::LeftButton, {}, piece.front());
       for (const QPoint& p : piece) QTest::mouseMove(view, p);
@@ -297,16 +315,58 @@ class TestGuide : public QObject {
     QVERIFY2(waitFor([&] { return w_->caseData()->hasFit(); }, 180000), qPrintable(w_->statusText()));
     QTest::keyClick(w_.get(), Qt::Key_6, Qt::AltModifier);
     QSignalSpy estimated(w_->appearancePage(), &ui::AppearancePage::estimated);
+    const Pose fitted = w_->caseData()->pose;
+    auto* turn = w_->appearancePage()->findChild<QCheckBox*>("appearanceTurn");
+    QVERIFY(turn && turn->isChecked() && turn->isVisible());
+    double leftAlone = 0;
+    if (sides) {
+      // With the turn left alone (the box unticked with a click) the shading is explained less than 90 %: the case
+      // this row is for.
+      QTest::mouseClick(turn, Qt::LeftButton, {}, QPoint(8, turn->height() / 2));
+      QVERIFY(!turn->isChecked());
+      QTest::keyClick(w_.get(), Qt::Key_F10);
+      QVERIFY(estimated.wait(180000));
+      QVERIFY(w_->caseData()->appearance && !w_->caseData()->appearance->turned);
+      leftAlone = w_->caseData()->appearance->explained;
+      qInfo("the turn left alone: explained %.1f %%", 100 * leftAlone);
+      QVERIFY2(w_->caseData()->appearance->explained < 0.9, w_->caseData()->appearance->status.c_str());
+      QTest::mouseClick(turn, Qt::LeftButton, {}, QPoint(8, turn->height() / 2));
+      QVERIFY(turn->isChecked());
+    }
     QTest::keyClick(w_.get(), Qt::Key_F10);
     QVERIFY(estimated.wait(180000));
     const auto& c = *w_->caseData();
     QVERIFY(c.appearance);
+    qInfo("turn: %s", c.appearance->turnSaid.c_str());
+    qInfo("fit: %s", c.fit ? c.fit->status.c_str() : "none");
     const double fitDeg = Eigen::AngleAxisd(c.pose.R * truth.R.transpose()).angle() * 180 / M_PI;
     qInfo("by hand %.1f deg and %.1f mm from the frame's pose, the fit %.1f deg and %.1f mm; explained %.1f %%, %s", handDeg,
           handMm, fitDeg, 1e3 * (c.pose.t - truth.t).norm(), 100 * c.appearance->explained,
           c.appearance->textureOnly ? "texture only" : "re-shaded");
     QVERIFY2(!c.appearance->textureOnly, c.appearance->status.c_str());
-    QVERIFY2(c.appearance->explained >= 0.9, c.appearance->status.c_str());
+    // A fit the outline determines explains 90 % or more. One it does not (step 5 says "ambiguous" and what would
+    // decide it: here the other pose 8 mm away the outline's sides allow) is not held to it; the turn still takes
+    // back what the shading can tell.
+    const bool ambiguous = c.fit && c.fit->status.rfind("ambiguous", 0) == 0;
+    if (!ambiguous) QVERIFY2(c.appearance->explained >= 0.9, c.appearance->status.c_str());
+    if (sides) {
+      QVERIFY2(c.appearance->turned, c.appearance->turnSaid.c_str());
+      QVERIFY(c.appearance->explained >= leftAlone + 0.1);
+    }
+    if (c.appearance->turned) {
+      // Said where the estimate is shown, and one step of Undo puts the organ back where the fit left it.
+      auto* status = w_->appearancePage()->findChild<QLabel*>("appearanceStatus");
+      QVERIFY2(status->text().contains("Undo puts it back"), qPrintable(status->text()));
+      const double estimated = c.appearance->explained;
+      QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
+      const auto& undone = *w_->caseData();
+      QVERIFY((undone.pose.R - fitted.R).norm() < 1e-12 && (undone.pose.t - fitted.t).norm() < 1e-12);
+      QVERIFY(!undone.appearance || !undone.appearance->turned);
+      QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier | Qt::ShiftModifier);
+      QVERIFY(w_->caseData()->appearance && w_->caseData()->appearance->turned);
+      QCOMPARE(w_->caseData()->appearance->explained, estimated);
+      QVERIFY(w_->caseData()->appearanceCurrent());
+    }
   }
 
   void cleanupTestCase() { w_.reset(); }

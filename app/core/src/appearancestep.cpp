@@ -7,6 +7,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <map>
+#include <optional>
 
 namespace rehearse::app {
 namespace {
@@ -58,6 +63,7 @@ AppearanceInput appearanceInputFromCase(const Case& c) {
   for (const auto& x : points) in.vertices.insert(in.vertices.end(), {x.x(), x.y(), x.z()});
   in.triangles = visual.empty() ? c.organ->surface : c.organ->visual->triangles;
   in.frame = c.frame;
+  in.contour = c.contour;
   return in;
 }
 
@@ -111,11 +117,13 @@ std::shared_ptr<const AppearanceEstimate> estimateFromRun(const AppearanceOutput
   e->lightAtBound = out.fit.lightAtBound;
   e->checks = out.fit.checks;
   e->status = out.fit.status;
+  e->turnSaid = out.turn.sentence;
+  e->turned = out.turn.adopted;
   e->inpaint = imaging::inpaintMethodName(inpaint);
   e->stages = out.fit.stages;
   e->restPsnr = out.restPsnr;
   e->totalMs = out.totalMs;
-  e->pose = c.pose;
+  e->pose = out.turn.adopted ? out.turn.pose : c.pose;
   e->shapeDigest = c.shapeDigest();
   e->frameWidth = c.frame.cols;
   e->frameHeight = c.frame.rows;
@@ -157,6 +165,8 @@ std::string appearanceEstimateToJson(const AppearanceEstimate& e) {
                  return c;
                }()},
               {"status", e.status},
+              {"turn_said", e.turnSaid},
+              {"turned", e.turned},
               {"inpaint", e.inpaint},
               {"stages", stages},
               {"rest_psnr_db", e.restPsnr},
@@ -191,6 +201,8 @@ std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::
   for (std::size_t i = 0; i < 3; ++i) e->ksMeasured[i] = m.at(i).get<bool>();
   e->explained = j.value("explained", 0.0);
   e->status = j.value("status", std::string());
+  e->turnSaid = j.value("turn_said", std::string());
+  e->turned = j.value("turned", false);
   e->inpaint = j.value("inpaint", std::string("ns"));
   for (const auto& s : j.value("stages", json::array()))
     e->stages.push_back({s.at("name").get<std::string>(), s.at("rms_levels").get<double>(), s.at("ms").get<double>(), s.at("pixels").get<std::size_t>()});
@@ -207,14 +219,254 @@ std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::
   return e;
 }
 
-AppearanceOutput runAppearance(const AppearanceInput& in) {
+namespace {
+
+// The outline's points' mean distance (pixels of `mask`) to the silhouette's edge in `mask`; infinite when the
+// mask is empty.
+double outlineDistance(const cv::Mat1b& mask, const std::vector<Eigen::Vector2d>& points) {
+  cv::Mat1b eroded;
+  cv::erode(mask, eroded, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)), cv::Point(-1, -1), 1,
+            cv::BORDER_CONSTANT, cv::Scalar(0));
+  const cv::Mat1b edge = mask & ~eroded;
+  if (cv::countNonZero(edge) == 0) return std::numeric_limits<double>::infinity();
+  cv::Mat1f d;
+  cv::distanceTransform(~edge, d, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  double sum = 0;
+  std::size_t n = 0;
+  for (const auto& p : points) {
+    const int x = static_cast<int>(std::lround(p.x())), y = static_cast<int>(std::lround(p.y()));
+    if (x < 0 || y < 0 || x >= d.cols || y >= d.rows) continue;
+    sum += d(y, x), ++n;
+  }
+  return n ? sum / static_cast<double>(n) : std::numeric_limits<double>::infinity();
+}
+
+// The outline's silhouette points in pixels of the camera scaled by `scale` (pixel centres kept).
+std::vector<Eigen::Vector2d> outlinePoints(const imaging::Contour& contour, const imaging::Camera& camera, double scale) {
+  std::vector<Eigen::Vector2d> out;
+  const double toCamera = contour.width > 0 ? static_cast<double>(camera.width) / contour.width : 1.0;
+  for (const auto& segment : contour.segments)
+    if (segment.isSilhouette())
+      for (const auto& p : segment.points) out.push_back(((toCamera * p).array() + 0.5) * scale - 0.5);
+  return out;
+}
+
+std::string degrees(double d) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.1f\u00b0", std::abs(d));
+  return text;
+}
+
+std::string turnText(double x, double y) {
+  std::string text;
+  if (std::abs(x) >= 0.05)
+    text = degrees(x) + (x > 0 ? " about the camera's X axis (its top nearer)" : " about the camera's X axis (its top away)");
+  if (std::abs(y) >= 0.05)
+    text += std::string(text.empty() ? "" : " and ") + degrees(y) +
+            (y > 0 ? " about its Y axis (its right side nearer)" : " about its Y axis (its left side nearer)");
+  return text;
+}
+
+// One round of the search of the turn the outline leaves open (ShadingTurn), from `in.pose` whose fit is `first` and
+// geometry `current`; the outline is held to how well `registered` (the pose as registered) met it. `progress` takes
+// shares of the round (0..1).
+ShadingTurn searchTurn(const AppearanceInput& in, const imaging::SurfaceGeometry& current, const Pose& registered,
+                       const imaging::AppearanceFitResult& first, const imaging::AppearanceFitOptions& fitOptions,
+                       const std::function<bool(double, const std::string&)>& progress,
+                       imaging::AppearanceFitResult* turnedFit) {
+  const auto t0 = std::chrono::steady_clock::now();
+  ShadingTurn turn;
+  turn.pose = in.pose;
+  turn.explainedBefore = turn.explainedAfter = first.explained;
+  const std::vector<Eigen::Vector2d> full = outlinePoints(in.contour, in.camera, 1.0);
+  if (full.size() < 10) {
+    turn.sentence = "The turn the outline leaves open was not searched: there is no silhouette outline (step 3) to keep the organ on.";
+    return turn;
+  }
+  turn.searched = true;
+  turn.outlineBeforePx = turn.outlineAfterPx = outlineDistance(current.mask(), full);
+  // The working camera, at most 960 px wide.
+  const double scale = std::min(1.0, 960.0 / in.camera.width);
+  imaging::Camera small = in.camera;
+  small.width = std::max(1, static_cast<int>(std::lround(in.camera.width * scale)));
+  small.height = std::max(1, static_cast<int>(std::lround(in.camera.height * scale)));
+  small.K(0, 0) *= scale, small.K(1, 1) *= scale, small.K(0, 1) *= scale;
+  small.K(0, 2) = (in.camera.K(0, 2) + 0.5) * scale - 0.5;
+  small.K(1, 2) = (in.camera.K(1, 2) + 0.5) * scale - 0.5;
+  const cv::Size size(small.width, small.height);
+  cv::Mat3b diffuse;
+  cv::resize(first.separation.diffuse, diffuse, size, 0, 0, cv::INTER_AREA);
+  // The pixels the shading is compared on: the registered organ's usable ones of its colour, away from highlights.
+  cv::Mat1b base = first.usable.clone();
+  if (!first.foreign.empty()) base &= ~first.foreign;
+  if (first.separation.count > 0) {
+    cv::Mat1b grown;
+    cv::dilate(first.separation.highlights, grown, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(9, 9)));
+    base.setTo(0, grown);
+  }
+  cv::resize(base, base, size, 0, 0, cv::INTER_NEAREST);
+  const std::vector<Eigen::Vector2d> points = outlinePoints(in.contour, in.camera, scale);
+  const SurfaceView surface = in.surface();
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (std::size_t i = 0; i < surface.vertexCount; ++i)
+    centre += in.pose.apply(Eigen::Vector3d(surface.vertices[3 * i], surface.vertices[3 * i + 1], surface.vertices[3 * i + 2]));
+  centre /= static_cast<double>(std::max<std::size_t>(1, surface.vertexCount));
+  auto turned = [&](double ax, double ay) {
+    const Eigen::Matrix3d Q = (Eigen::AngleAxisd(ax * M_PI / 180, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(ay * M_PI / 180, Eigen::Vector3d::UnitY()))
+                                  .toRotationMatrix();
+    return in.pose.turnedAbout(Q, centre);
+  };
+  constexpr double kOutlineSlackPx = 1.5, kMaxDeg = 15;
+  const double allowed = outlineDistance(imaging::renderMask(small, registered, surface), points) / scale + kOutlineSlackPx;
+  std::map<std::pair<long, long>, double> scored;  // (x, y) in 1/1000 degree -> share (-inf: off the outline)
+  auto score = [&](double ax, double ay) {
+    const std::pair<long, long> key{std::lround(ax * 1000), std::lround(ay * 1000)};
+    if (const auto it = scored.find(key); it != scored.end()) return it->second;
+    double share = -std::numeric_limits<double>::infinity();
+    try {
+      const imaging::SurfaceGeometry g = imaging::surfaceGeometry(small, turned(ax, ay), surface);
+      const cv::Mat1b mask = g.mask();
+      const double distance = outlineDistance(mask, points) / scale;
+      if (distance <= allowed || key == std::pair<long, long>{0, 0}) {
+        cv::Mat1b inner;
+        cv::erode(mask, inner, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)));
+        share = imaging::diffuseShareAt(diffuse, g, base & inner, first.theta, 1500, 40);
+        ++turn.candidates;
+      }
+    } catch (const imaging::InputError&) {
+    }
+    scored[key] = share;
+    return share;
+  };
+  auto say = [&](double share, const char* what) {
+    if (progress && !progress(share, what)) throw imaging::AppearanceCancelled();
+  };
+  say(0.0, "settling the turn the outline leaves open");
+  double bestX = 0, bestY = 0, best = score(0, 0);
+  const double registeredShare = best;
+  int k = 0;
+  for (double ax = -10; ax <= 10; ax += 5)
+    for (double ay = -10; ay <= 10; ay += 5) {
+      say(0.6 * (k++) / 25.0, "settling the turn the outline leaves open");
+      if (const double v = score(ax, ay); v > best) best = v, bestX = ax, bestY = ay;
+    }
+  for (double step = 2.5; step >= 0.6; step /= 2) {
+    for (bool moved = true; moved;) {
+      moved = false;
+      say(0.6 + 0.3 * (2.5 - step) / 1.9, "settling the turn the outline leaves open");
+      const double cx = bestX, cy = bestY;
+      for (const auto& [dx, dy] : {std::pair{step, 0.0}, {-step, 0.0}, {0.0, step}, {0.0, -step}}) {
+        const double ax = cx + dx, ay = cy + dy;
+        if (std::abs(ax) > kMaxDeg || std::abs(ay) > kMaxDeg) continue;
+        if (const double v = score(ax, ay); v > best + 1e-4) best = v, bestX = ax, bestY = ay, moved = true;
+      }
+    }
+  }
+  turn.aboutXDeg = bestX, turn.aboutYDeg = bestY;
+  turn.scoredBefore = registeredShare, turn.scoredBest = best;
+  auto finish = [&] {
+    turn.ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    return turn;
+  };
+  char text[400];
+  if ((bestX == 0 && bestY == 0) || best < registeredShare + 0.02) {
+    std::snprintf(text, sizeof text,
+                  "The shading asks for no turn of the organ: of %d turns that keep it on the outline, none explains "
+                  "clearly more of it.",
+                  turn.candidates);
+    turn.sentence = text;
+    return finish();
+  }
+  // The working resolution's share is within a few points of the full fit's: far below what re-shading needs, no
+  // turn is worth a full fit.
+  if (best < fitOptions.poorShare - 0.1) {
+    std::snprintf(text, sizeof text,
+                  "The organ was left where it was registered: no turn that keeps it on the outline lets the light "
+                  "explain enough of the shading (at best %.0f %%, of %d turns).",
+                  100 * std::max(best, 0.0), turn.candidates);
+    turn.sentence = text;
+    return finish();
+  }
+  say(0.9, "fitting the appearance at the turned pose");
+  const Pose pose = turned(bestX, bestY);
+  const imaging::SurfaceGeometry g = imaging::surfaceGeometry(in.camera, pose, surface);
+  const double outline = outlineDistance(g.mask(), full);
+  imaging::AppearanceFitResult refit = imaging::fitAppearance(in.frame, g, fitOptions);
+  turn.explainedAfter = refit.explained;
+  turn.outlineAfterPx = outline;
+  // (The outline was held at the working resolution, where the turn was chosen; `outline` is reported.)
+  if (refit.explained >= first.explained + 0.03 && refit.explained >= fitOptions.poorShare) {
+    turn.adopted = true;
+    turn.pose = pose;
+    *turnedFit = std::move(refit);
+  } else {
+    std::snprintf(text, sizeof text,
+                  "The organ was left where it was: turned %s it explains %.0f %% of the shading (here %.0f %%), "
+                  "too little to move it for.",
+                  turnText(bestX, bestY).c_str(), 100 * refit.explained, 100 * first.explained);
+    turn.sentence = text;
+  }
+  return finish();
+}
+
+}  // namespace
+
+AppearanceOutput runAppearance(const AppearanceInput& input) {
   const auto t0 = std::chrono::steady_clock::now();
   auto since = [](auto a) { return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count(); };
-  const imaging::SurfaceGeometry g = restGeometry(in);
+  const imaging::SurfaceGeometry registered = restGeometry(input);
   AppearanceOutput out;
   imaging::AppearanceFitOptions o;
-  o.progress = [&](double share, const std::string& what) { return !in.progress || in.progress(0.8 * share, what); };
-  out.fit = imaging::fitAppearance(in.frame, g, o);
+  const bool search = input.turnByShading;
+  const double fitShare = search ? 0.45 : 0.8;
+  o.progress = [&](double share, const std::string& what) { return !input.progress || input.progress(fitShare * share, what); };
+  out.fit = imaging::fitAppearance(input.frame, registered, o);
+  out.turn.pose = input.pose;
+  AppearanceInput in = input;  // at the turned pose once one is adopted
+  std::optional<imaging::SurfaceGeometry> turnedGeometry;
+  if (search) {
+    // Rounds of up to 15 degrees each, from where the last one turned the organ, while each is taken.
+    imaging::AppearanceFitOptions quiet = o;
+    constexpr int kRounds = 3;
+    ShadingTurn& total = out.turn;
+    for (int round = 0; round < kRounds; ++round) {
+      const double from = 0.45 + 0.35 * round / kRounds, span = 0.35 / kRounds;
+      quiet.progress = [&](double share, const std::string& what) {
+        return !input.progress || input.progress(from + span * (0.8 + 0.2 * share), what);
+      };
+      imaging::AppearanceFitResult refit;
+      const ShadingTurn t = searchTurn(
+          in, turnedGeometry ? *turnedGeometry : registered, input.pose, out.fit, quiet,
+          [&](double share, const std::string& what) { return !input.progress || input.progress(from + span * 0.8 * share, what); },
+          &refit);
+      if (round == 0) total = t;
+      else total.candidates += t.candidates, total.ms += t.ms;
+      if (!t.adopted) break;
+      total.adopted = true;
+      total.pose = t.pose;
+      total.explainedAfter = t.explainedAfter;
+      total.outlineAfterPx = t.outlineAfterPx;
+      total.scoredBest = t.scoredBest;
+      out.fit = std::move(refit);
+      in.pose = t.pose;
+      turnedGeometry = imaging::surfaceGeometry(in.camera, in.pose, in.surface());
+    }
+    if (total.adopted) {
+      // The whole turn as angles about the camera's X and Y axes (R = Rx(a) Ry(b) up to a small turn about Z).
+      const Eigen::Matrix3d Q = total.pose.R * input.pose.R.transpose();
+      total.aboutYDeg = std::asin(std::clamp(Q(0, 2), -1.0, 1.0)) * 180 / M_PI;
+      total.aboutXDeg = std::atan2(-Q(1, 2), Q(2, 2)) * 180 / M_PI;
+      char text[500];
+      std::snprintf(text, sizeof text,
+                    "The organ was turned %s, a turn the outline leaves open: the shading then explains %.0f %% instead "
+                    "of %.0f %%, the outline %.1f px from its silhouette (was %.1f px). Undo puts it back.",
+                    turnText(total.aboutXDeg, total.aboutYDeg).c_str(), 100 * total.explainedAfter, 100 * total.explainedBefore, total.outlineAfterPx,
+                    total.outlineBeforePx);
+      total.sentence = text;
+    }
+  }
+  const imaging::SurfaceGeometry& g = turnedGeometry ? *turnedGeometry : registered;
   if (in.progress && !in.progress(0.8, "filling the background behind the organ")) throw imaging::AppearanceCancelled();
   restLayers(in, g, out.fit.theta, out.fit.separation.diffuse, out.fit.usable, out.background, out.albedo, &out.inpaintMs);
   const cv::Mat3b rest = composeAppearance(in, out.fit.theta, out.background, out.albedo, out.fit.textureOnly, {}, 1);  // the rim is not measured: no supersampling

@@ -12,6 +12,7 @@
 #include <QLabel>
 #include <QPushButton>
 #include <QTableWidget>
+#include <QCheckBox>
 #include <QVBoxLayout>
 
 namespace rehearse::ui {
@@ -38,6 +39,14 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   fillRow->addWidget(fillLabel);
   fillRow->addWidget(inpaint_, 1);
   layout->addLayout(fillRow);
+  turn_ = new QCheckBox(tr("Let the shading settle the &turn the outline leaves open"), this);
+  turn_->setObjectName(QStringLiteral("appearanceTurn"));
+  turn_->setChecked(true);
+  turn_->setToolTip(
+      tr("An outline hardly changes when the organ turns about the camera's X or Y axis, but its shading does: the "
+         "estimate also tries turns up to 15\u00b0 that keep the organ on the outline (step 3) and takes the one whose "
+         "shading the light explains clearly best, as one step Undo puts back. Off: the organ stays as registered."));
+  layout->addWidget(turn_);
   auto* row = new QHBoxLayout;
   auto* run = new QPushButton(tr("Estimate Appearance (F10)"), this);
   run->setObjectName(QStringLiteral("appearanceRun"));
@@ -181,10 +190,12 @@ void AppearancePage::refresh(const app::Case& c) {
                      (k.holds ? QString() : tr(" (not seen)"));
     lines << tr("Left out: %1.").arg(without.join(QStringLiteral(", ")));
   }
+  if (!a->turnSaid.empty() && !a->turned) lines << QString::fromStdString(a->turnSaid);
   report_->setText(lines.join(QLatin1Char('\n')));
   if (!wb_.jobs->isRunning()) {
     QString text = QString::fromStdString(a->status);
     if (!text.isEmpty()) text[0] = text[0].toUpper();
+    if (a->turned) text += QStringLiteral(". ") + QString::fromStdString(a->turnSaid);
     if (!c.appearanceCurrent())
       text = tr("STALE: estimated at another pose, shape or frame; the composited view is off until it is estimated again (F10). %1").arg(text);
     status_->setText(text);
@@ -204,6 +215,7 @@ void AppearancePage::estimate() {
   app::AppearanceInput input = app::appearanceInputFromCase(*c);
   const imaging::InpaintMethod method = imaging::parseInpaintMethod(inpaint_->currentData().toString().toStdString());
   input.inpaint = method;
+  input.turnByShading = turn_->isChecked();
   status_->setText(tr("Estimating... (Esc cancels)"));
   status_->setStyleSheet(QString());
   wb_.jobs->run(tr("Estimating the appearance..."), [this, c, input, method](const std::atomic<bool>& cancel, const auto& progress) mutable -> std::function<void()> {
@@ -215,15 +227,21 @@ void AppearancePage::estimate() {
       const app::AppearanceOutput out = app::runAppearance(input);
       auto estimate = app::estimateFromRun(out, *c, method);
       app::AppearanceLayers layers{out.fit.separation.diffuse, out.background, out.albedo, out.residual};
-      return [this, c, estimate, layers] {
+      const Pose turnedPose = out.turn.pose;
+      return [this, c, estimate, layers, turnedPose] {
         if (data()->pose.t != c->pose.t || data()->pose.R != c->pose.R || data()->shapeDigest() != c->shapeDigest()) {
           status_->setText(tr("The organ moved while its appearance was estimated; estimate it again (F10)."));
           emit estimated(false, status_->text());
           return;
         }
         composition_->offer(estimate, layers);
-        wb_.doc->edit(tr("Estimate appearance"), [&](app::Case& k) { k.appearance = estimate; });
-        const QString said = QString::fromStdString(estimate->status);
+        wb_.doc->edit(estimate->turned ? tr("Estimate appearance and turn the organ") : tr("Estimate appearance"),
+                      [&](app::Case& k) {
+                        k.appearance = estimate;
+                        if (estimate->turned) k.pose = turnedPose;
+                      });
+        QString said = QString::fromStdString(estimate->status);
+        if (estimate->turned) said += QStringLiteral(". ") + QString::fromStdString(estimate->turnSaid);
         wb_.status(tr("Appearance: %1 (%2 s)").arg(said).arg(estimate->totalMs / 1000, 0, 'f', 1));
         emit estimated(true, said);
       };

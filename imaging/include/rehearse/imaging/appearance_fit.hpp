@@ -108,6 +108,15 @@ struct AppearanceCancelled : std::runtime_error {
 /// organ at scale 1). Throws InputError when the organ covers too few usable pixels to fit anything.
 AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry& geometry, const AppearanceFitOptions& options = {});
 
+/// What a diffuse light explains of the organ's shading seen through `geometry`: the share
+/// AppearanceFitResult::explained counts, on up to `maxSamples` of `use`'s organ pixels of `diffuse` (the
+/// specular-free image, the geometry's size), with the light and fall-off refined from `start`'s in at most
+/// `evaluations` evaluations (0: held where they are) and kd in closed form; `refined` receives them. Below 0
+/// when the model does worse than the organ's mean colour; 0 with fewer than 50 pixels. Step 6 compares poses
+/// with it (app::runAppearance's search of the turn an outline leaves open).
+double diffuseShareAt(const cv::Mat3b& diffuse, const SurfaceGeometry& geometry, const cv::Mat1b& use, const Appearance& start,
+                      std::size_t maxSamples = 2000, int evaluations = 120, Appearance* refined = nullptr);
+
 /// Per-pixel albedo (RGB ratios to Theta's kd, float): the diffuse image over the fitted diffuse shading at
 /// rest, so that a deformed organ keeps its texture while its shading follows its normals; 1 where the rest
 /// shading is too dark to divide by or the pixel is not usable.

@@ -21,11 +21,37 @@ struct AppearanceInput {
   cv::Mat3b frame;                ///< undistorted, BGR
   imaging::InpaintMethod inpaint = imaging::InpaintMethod::NavierStokes;  ///< the best trade-off measured (BENCHMARKS.md)
   std::function<bool(double, const std::string&)> progress;  ///< false cancels (imaging::AppearanceCancelled)
+  /// The outline sketched in step 3 (undistorted pixels of the frame). With a silhouette in it and `turnByShading`,
+  /// step 6 also settles the turn the outline leaves open (ShadingTurn); without one that turn is not searched.
+  imaging::Contour contour;
+  bool turnByShading = true;
   SurfaceView surface() const { return {vertices.data(), vertices.size() / 3, triangles.empty() ? nullptr : triangles.front().data(), triangles.size()}; }
+};
+
+/// Step 6's search of the turn an outline leaves open: a turn about the camera's X or Y axis through the organ's
+/// centre moves its silhouette little but its shading much, so where the contour fit could not tell (its status says
+/// "weakest: a turn about the camera's X axis") the shading can. Candidate turns up to 15 degrees that keep the
+/// silhouette on the outline (the outline's points on average within 1.5 px of where they were from the
+/// registered pose's silhouette) are scored by the share of the shading a diffuse light explains through them (at
+/// most 960 px wide); the best is refitted in full and adopted when it explains at least 3 points more than the
+/// registered pose and at least enough to re-shade (AppearanceFitOptions::poorShare).
+struct ShadingTurn {
+  bool searched = false;
+  bool adopted = false;
+  Pose pose;                       ///< where Theta was fitted: the turned pose when adopted, else the input's
+  double aboutXDeg = 0, aboutYDeg = 0;  ///< the turn found (camera axes, through the organ's centre)
+  double explainedBefore = 0;      ///< the registered pose's full fit
+  double explainedAfter = 0;       ///< the turned pose's full fit (when one was made)
+  double outlineBeforePx = 0, outlineAfterPx = 0;  ///< the outline's points' mean distance to the silhouette (frame px)
+  int candidates = 0;              ///< turns scored
+  double scoredBefore = 0, scoredBest = 0;  ///< the working resolution's shares: the registered pose's, the best turn's
+  double ms = 0;
+  std::string sentence;            ///< what was done or why not; empty when not asked
 };
 
 struct AppearanceOutput {
   imaging::AppearanceFitResult fit;
+  ShadingTurn turn;
   cv::Mat3b background;  ///< I_B
   cv::Mat3f albedo;      ///< albedo ratios at rest
   double inpaintMs = 0, totalMs = 0;

@@ -115,6 +115,10 @@ struct AppearanceEstimate {
   bool lightAtBound = false;  ///< the light ended on the search's bound: not placed by the frame
   std::vector<imaging::AppearanceFitResult::Check> checks;  ///< each part of the model switched off
   std::string status;                          ///< one sentence
+  /// What step 6 did about the turn the outline leaves open (app::ShadingTurn::sentence; empty: not asked), and
+  /// whether it turned the organ (the pose below is then the turned one, which the case took with the estimate).
+  std::string turnSaid;
+  bool turned = false;
   std::string inpaint = "ns";                  ///< how I_B was filled (imaging::parseInpaintMethod)
   std::vector<imaging::AppearanceStage> stages;
   double restPsnr = 0;                         ///< dB, the organ composed at rest against the frame inside its mask

@@ -7,6 +7,7 @@
 // (View menu: composited / overlay / 3D).
 #include "rehearse/ui/pages/steppage.hpp"
 
+class QCheckBox;
 class QComboBox;
 class QLabel;
 class QTableWidget;
@@ -30,6 +31,7 @@ class AppearancePage : public StepPage {
   void showLayers();
   Composition* composition_;
   QComboBox* inpaint_ = nullptr;
+  QCheckBox* turn_ = nullptr;
   QLabel* status_ = nullptr;
   QTableWidget* table_ = nullptr;
   QLabel* report_ = nullptr;
