@@ -30,9 +30,9 @@ struct AppearanceInput {
 
 /// Step 6's search of the turn an outline leaves open: a turn about the camera's X or Y axis through the organ's
 /// centre moves its silhouette little but its shading much, so where the contour fit could not tell (its status says
-/// "weakest: a turn about the camera's X axis") the shading can. Candidate turns up to 15 degrees that keep the
-/// silhouette on the outline (the outline's points on average within 1.5 px of where they were from the
-/// registered pose's silhouette) are scored by the share of the shading a diffuse light explains through them (at
+/// "weakest: a turn about the camera's X axis") the shading can. Candidate turns up to 15 degrees (in up to three
+/// rounds) that keep the silhouette on the outline (the outline's points on average no further from it than from the
+/// registered pose's silhouette plus half a pixel and half that distance) are scored by the share of the shading a diffuse light explains through them (at
 /// most 960 px wide); the best is refitted in full and adopted when it explains at least 3 points more than the
 /// registered pose and at least enough to re-shade (AppearanceFitOptions::poorShare).
 struct ShadingTurn {
