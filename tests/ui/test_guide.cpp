@@ -246,6 +246,7 @@ class TestGuide : public QObject {
     QTest::newRow("left where it was placed, traced on the outline") << true << QByteArray() << 0.0 << 3.0 << false;
     // The outline's sides alone leave a turn about the camera's X axis open to the contour fit: the shading settles it.
     QTest::newRow("turned 10 degrees, only its sides traced") << false << QByteArray("WW") << 2.0 << 2.0 << true;
+    QTest::newRow("left where it was placed, only its sides traced") << true << QByteArray() << 0.0 << 2.0 << true;
   }
   void demoFittedByHandIsReshaded() {
     QFETCH(bool, automatic);
@@ -327,8 +328,7 @@ class TestGuide : public QObject {
     QVERIFY(turn && turn->isChecked() && turn->isVisible());
     double leftAlone = 0;
     if (sides) {
-      // With the turn left alone (the box unticked with a click) the shading is explained less than 90 %: the case
-      // this row is for.
+      // With the turn left alone (the box unticked with a click): what the search then adds.
       QTest::mouseClick(turn, Qt::LeftButton, {}, QPoint(8, turn->height() / 2));
       QVERIFY(!turn->isChecked());
       QTest::keyClick(w_.get(), Qt::Key_F10);
@@ -336,7 +336,6 @@ class TestGuide : public QObject {
       QVERIFY(w_->caseData()->appearance && !w_->caseData()->appearance->turned);
       leftAlone = w_->caseData()->appearance->explained;
       qInfo("the turn left alone: explained %.1f %%", 100 * leftAlone);
-      QVERIFY2(w_->caseData()->appearance->explained < 0.9, w_->caseData()->appearance->status.c_str());
       QTest::mouseClick(turn, Qt::LeftButton, {}, QPoint(8, turn->height() / 2));
       QVERIFY(turn->isChecked());
     }
@@ -357,8 +356,9 @@ class TestGuide : public QObject {
     const bool ambiguous = c.fit && c.fit->status.rfind("ambiguous", 0) == 0;
     if (!ambiguous) QVERIFY2(c.appearance->explained >= 0.9, c.appearance->status.c_str());
     if (sides) {
-      QVERIFY2(c.appearance->turned, c.appearance->turnSaid.c_str());
-      QVERIFY(c.appearance->explained >= leftAlone + 0.1);
+      // Never worse than the turn left alone; turned wherever that left it below 90 %.
+      QVERIFY(c.appearance->explained >= leftAlone - 0.005);
+      if (leftAlone < 0.9) QVERIFY2(c.appearance->turned && c.appearance->explained >= leftAlone + 0.1, c.appearance->turnSaid.c_str());
     }
     if (c.appearance->turned) {
       // Said where the estimate is shown, and one step of Undo puts the organ back where the fit left it.
@@ -374,6 +374,44 @@ class TestGuide : public QObject {
       QCOMPARE(w_->caseData()->appearance->explained, estimated);
       QVERIFY(w_->caseData()->appearanceCurrent());
     }
+    if (!ambiguous) return;
+    // As the guide says of an AMBIGUOUS fit: more of the outline decides it. The organ's top traced as a third piece,
+    // F9 and F10 again: now 90 % or more, re-shaded.
+    QTest::keyClick(w_.get(), Qt::Key_3, Qt::AltModifier);
+    QTest::keyClick(w_.get(), Qt::Key_F);
+    std::vector<QPoint> top;
+    for (std::size_t i = 0; i < b.size(); i += 12) {
+      const Eigen::Vector2d along = b[(i + 2) % b.size()] - b[(i + b.size() - 2) % b.size()];
+      Eigen::Vector2d out = Eigen::Vector2d(along.y(), -along.x()).normalized();
+      if (inOrgan(b[i] + 3 * out)) out = -out;
+      if (out.y() > -0.7) {  // not the top
+        if (top.size() < 5) top.clear();
+        else break;
+        continue;
+      }
+      const Eigen::Vector2d at = b[i] + (outside + waver * n01(rng)) * out;
+      const QPoint p = view->toWidget(QPointF(at.x(), at.y())).toPoint();
+      if (top.empty() || p != top.back()) top.push_back(p);
+    }
+    QVERIFY(top.size() >= 5);
+    QTest::mousePress(view, Qt::LeftButton, {}, top.front());
+    for (const QPoint& p : top) QTest::mouseMove(view, p);
+    QTest::mouseRelease(view, Qt::LeftButton, {}, top.back());
+    QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(3));
+    const auto before = w_->caseData()->fit;
+    QTest::keyClick(w_.get(), Qt::Key_5, Qt::AltModifier);
+    QTest::keyClick(w_.get(), Qt::Key_F9);
+    QVERIFY2(waitFor([&] { return w_->caseData()->fit && w_->caseData()->fit != before; }, 180000), qPrintable(w_->statusText()));
+    QTest::keyClick(w_.get(), Qt::Key_6, Qt::AltModifier);
+    estimated.clear();
+    QTest::keyClick(w_.get(), Qt::Key_F10);
+    QVERIFY(estimated.wait(180000));
+    const auto& d = *w_->caseData();
+    qInfo("with its top traced too: the fit %s; %.1f deg and %.1f mm from the frame's pose; explained %.1f %%, %s; %s",
+          d.fit->status.substr(0, 40).c_str(), Eigen::AngleAxisd(d.pose.R * truth.R.transpose()).angle() * 180 / M_PI,
+          1e3 * (d.pose.t - truth.t).norm(), 100 * d.appearance->explained, d.appearance->textureOnly ? "texture only" : "re-shaded",
+          d.appearance->turnSaid.c_str());
+    QVERIFY2(!d.appearance->textureOnly && d.appearance->explained >= 0.9, d.appearance->status.c_str());
   }
 
   void cleanupTestCase() { w_.reset(); }
