@@ -45,7 +45,7 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   turn_->setToolTip(
       tr("An outline hardly changes when the organ turns about the camera's X or Y axis, but its shading does: the "
          "estimate also tries turns up to 15\u00b0 that keep the organ on the outline (step 3) and takes the one whose "
-         "shading the light explains clearly best, as one step Undo puts back. Off: the organ stays as registered."));
+         "shading the light explains clearly best, as one step Undo puts back. Off: the organ stays where it is now (Undo puts back a turn taken earlier)."));
   layout->addWidget(turn_);
   auto* row = new QHBoxLayout;
   auto* run = new QPushButton(tr("Estimate Appearance (F10)"), this);
