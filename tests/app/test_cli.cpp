@@ -2,6 +2,7 @@
 #include "cli_run.hpp"
 #include "test_support.hpp"
 #include "opencas.hpp"
+#include "traced_outline.hpp"
 
 #include <QJsonArray>
 #include <QDir>
@@ -226,7 +227,7 @@ class TestCli : public QObject {
   // the camera's X or Y axis through its centre (what a contour fit leaves, "weakest: a turn about the camera's X axis").
   // Without the outline step 6 explains less than 90 % there; with it the organ is turned back to within 1.5 degrees of
   // the frame's pose (the truth the frame was rendered at) and the shading explained to 90 % or more. At the frame's
-  // pose, and moved sideways (which the outline itself rules out), it is left where it was.
+  // pose, and moved sideways, it is left where it was.
   void appearanceSettlesTheOpenTurn_data() {
     QTest::addColumn<double>("aboutX");
     QTest::addColumn<double>("aboutY");
@@ -238,6 +239,8 @@ class TestCli : public QObject {
     // About Y a light at the lens shades the organ nearly alike: it explains over 90 % already, and no turn is asked.
     QTest::newRow("turned 8 degrees about Y") << 0.0 << 8.0 << 0.0 << false;
     QTest::newRow("at the frame's pose") << 0.0 << 0.0 << 0.0 << false;
+    // Moved sideways, not turned: the best turn the outline allows scores 1.8 points more at the working resolution,
+    // under the 2 a refit needs (and a refit would need 3 more to be taken).
     QTest::newRow("moved 4 mm sideways") << 0.0 << 0.0 << 4.0 << false;
   }
   void appearanceSettlesTheOpenTurn() {
@@ -264,20 +267,8 @@ class TestCli : public QObject {
     const cv::Mat frame = cv::imread((dir + "/frame.png").toStdString());
     const imaging::Camera camera = imaging::loadCamera((dir + "/camera.yaml").toStdString(), frame.cols, frame.rows);
     // The outline of the organ the frame shows, traced in two pieces.
-    const auto borders = imaging::maskOutlines(imaging::renderMask(camera, truth, surface));
-    QVERIFY(!borders.empty());
-    const auto& b = borders.front();
-    imaging::Contour contour;
-    contour.width = camera.width, contour.height = camera.height;
-    contour.segments.resize(2);
-    std::mt19937 rng(11);
-    std::normal_distribution<double> n01;
-    for (std::size_t i = 0; i < b.size(); i += 6) {
-      if (i > b.size() * 45 / 100 && i < b.size() * 55 / 100) continue;
-      const Eigen::Vector2d along = b[(i + 2) % b.size()] - b[(i + b.size() - 2) % b.size()];
-      const Eigen::Vector2d normal = Eigen::Vector2d(along.y(), -along.x()).normalized();
-      contour.segments[i < b.size() / 2 ? 0 : 1].points.push_back(b[i] + 2 * n01(rng) * normal);
-    }
+    const imaging::Contour contour = handTracedOutline(camera, truth, surface);
+    QVERIFY(!contour.empty());
     imaging::saveContour(contour, (dir + "/outline.json").toStdString());
     const Eigen::Matrix3d Q = (Eigen::AngleAxisd(aboutX * M_PI / 180, Eigen::Vector3d::UnitX()) *
                                Eigen::AngleAxisd(aboutY * M_PI / 180, Eigen::Vector3d::UnitY()))

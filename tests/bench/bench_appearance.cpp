@@ -5,6 +5,7 @@
 //   bench_appearance [OUT_DIR] [--repeat N]
 #include "phantom/phantom.hpp"
 #include "realorgan.hpp"
+#include "traced_outline.hpp"
 
 #include <rehearse/app/appearancestep.hpp>
 #include <rehearse/imaging/contour.hpp>
@@ -33,20 +34,8 @@ void turnRows(std::ofstream& csv, const std::string& name, const imaging::Camera
   for (std::size_t i = 0; i < sv.vertexCount; ++i)
     centre += truth.apply(Eigen::Vector3d(sv.vertices[3 * i], sv.vertices[3 * i + 1], sv.vertices[3 * i + 2]));
   centre /= static_cast<double>(sv.vertexCount);
-  const auto borders = imaging::maskOutlines(imaging::renderMask(cam, truth, sv));
-  if (borders.empty()) return;
-  const auto& b = borders.front();
-  imaging::Contour contour;
-  contour.width = cam.width, contour.height = cam.height;
-  contour.segments.resize(2);
-  std::mt19937 rng(11);
-  std::normal_distribution<double> n01;
-  for (std::size_t i = 0; i < b.size(); i += 6) {
-    if (i > b.size() * 45 / 100 && i < b.size() * 55 / 100) continue;
-    const Eigen::Vector2d along = b[(i + 2) % b.size()] - b[(i + b.size() - 2) % b.size()];
-    const Eigen::Vector2d normal = Eigen::Vector2d(along.y(), -along.x()).normalized();
-    contour.segments[i < b.size() / 2 ? 0 : 1].points.push_back(b[i] + 2 * n01(rng) * normal);
-  }
+  const imaging::Contour contour = handTracedOutline(cam, truth, sv);
+  if (contour.empty()) return;
   for (const auto& [ax, ay] : std::vector<std::pair<double, double>>{{5, 0}, {-8, 3}, {0, 0}}) {
     app::AppearanceInput in;
     in.camera = cam;
