@@ -21,6 +21,9 @@ namespace {
 // and the patient liver).
 constexpr int kKrylovBudget = 40;
 constexpr int kKrylovDrift = 2;
+// Accelerated chord, asynchronous refresh: the slow iterations (not halving the residual) after which a step rebuilds
+// the factor in itself once.
+constexpr int kAndersonStall = 4;
 }  // namespace
 
 NewtonMethod newtonMethodFromString(const std::string& name) {
@@ -458,6 +461,58 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
                                      : settings_.maxNewtonIterations;
   bool ok = false;
   bool dampingProjected = false;
+  // Anderson acceleration of the chord iteration (SimulationSettings::chordAcceleration): the chord map
+  // v -> v + dv(v), dv = P^-1 (-r(v)) with the lagged factor P, is a fixed-point iteration whose contraction is poor
+  // when P is far from the tangent (a tear, a new contact); mixing its last corrections (type II: the combination of
+  // the last iterates' images whose corrections combine to the smallest one, Walker and Ni 2011) recovers what a
+  // Krylov method would from the same solves, at the cost of a few inner products. The multipliers are mixed with the
+  // same weights (each plain iterate meets the constraints' linear equations; an affine combination does too).
+  const bool accelerate = lagged && settings_.method == NewtonMethod::Chord && settings_.chordAcceleration;
+  int slowIterations = 0;    // accelerated: iterations that did not halve the residual
+  bool rebuiltHere = false;  // accelerated, asynchronous: the factor was rebuilt in this step once already
+  Work::Anderson& aa = w.anderson;
+  aa.reset();
+  if (accelerate) aa.size(w.v.size(), w.cons.multipliers().size());
+  auto andersonMix = [&]() -> bool {
+    // The multipliers are mixed when the solve kept their count (it is the constraints', fixed within a step).
+    const bool withMu = w.cons.multipliers().size() > 0 && aa.mu.size() == w.cons.multipliers().size();
+    if (w.cons.multipliers().size() != aa.mu.size()) return false;
+    aa.plainDv = w.dv;
+    if (withMu) aa.plainMu = w.cons.multipliers();
+    w.vn = w.v + w.dv;  // g
+    if (aa.havePrevious) {
+      const int slot = aa.next;
+      aa.dG[slot] = w.vn - aa.g;
+      aa.dF[slot] = w.dv - aa.f;
+      if (withMu) aa.dMu[slot] = w.cons.multipliers() - aa.mu;
+      aa.next = (slot + 1) % Work::Anderson::kDepth;
+      aa.count = std::min(aa.count + 1, Work::Anderson::kDepth);
+    }
+    aa.g = w.vn;
+    aa.f = w.dv;
+    aa.mu = w.cons.multipliers();
+    aa.havePrevious = true;
+    const int m = aa.count;
+    if (m == 0) return false;
+    aa.gram.resize(m, m);
+    aa.rhs.resize(m);
+    for (int i = 0; i < m; ++i) {
+      for (int j = 0; j <= i; ++j) aa.gram(i, j) = aa.gram(j, i) = aa.dF[i].dot(aa.dF[j]);
+      aa.rhs(i) = aa.dF[i].dot(w.dv);
+    }
+    // Tikhonov's small shift keeps nearly dependent differences from blowing the weights up.
+    const double shift = 1e-12 * aa.gram.diagonal().sum() / m;
+    if (!(shift > 0) || !std::isfinite(shift)) return false;
+    aa.gram.diagonal().array() += shift;
+    aa.gamma = Eigen::LDLT<decltype(aa.gram)>(aa.gram).solve(aa.rhs);
+    if (!aa.gamma.allFinite()) return false;
+    // v_next = g - dG gamma: the correction from v.
+    for (int i = 0; i < m; ++i) {
+      w.dv.noalias() -= aa.gamma(i) * aa.dG[i];
+      if (withMu) w.cons.multipliers().noalias() -= aa.gamma(i) * aa.dMu[i];
+    }
+    return w.dv.allFinite();
+  };
   for (int it = 0; it < maxIterations; ++it) {
     if (!std::isfinite(rn)) break;
     if (rn <= settings_.tolerance * scale && !(hasConstraints && it == 0)) {
@@ -608,12 +663,34 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
       rep.status = "failed: the linear system could not be solved";
       break;
     }
+    const bool mixed = accelerate && andersonMix();
     w.xt = w.x0 + h * w.v;
-    if (guardMove(w.xt, w.dv, h)) rep.inversionLimited = true;
+    bool guarded = guardMove(w.xt, w.dv, h);
     double t = 1.0;
     w.vn = w.v + w.dv;
     residual(w.vn, w.rn);
     double rnew = netNorm(w.rn);
+    if (mixed && (guarded || !std::isfinite(rnew) || rnew > rn)) {
+      // The mixed move did not lower the residual (or met the inversion guard): the plain chord move instead, and
+      // the mixing starts again from it.
+      w.dv = aa.plainDv;
+      if (aa.plainMu.size() > 0 && aa.plainMu.size() == w.cons.multipliers().size())
+        w.cons.multipliers() = aa.plainMu;
+      aa.reset();
+      aa.g = w.v + w.dv;
+      aa.f = w.dv;
+      aa.mu = w.cons.multipliers();
+      aa.havePrevious = true;
+      w.xt = w.x0 + h * w.v;
+      guarded = guardMove(w.xt, w.dv, h);
+      w.vn = w.v + w.dv;
+      residual(w.vn, w.rn);
+      rnew = netNorm(w.rn);
+    }
+    if (guarded) {
+      rep.inversionLimited = true;
+      aa.reset();  // a shortened move is not the chord map's: mix only unshortened ones
+    }
     const bool searchable = settings_.lineSearch && !(settings_.method == NewtonMethod::Linearised && lagged);
     if (searchable && (!std::isfinite(rnew) || rnew > rn)) {
       // The full step does not reduce the residual. Without constraints the step minimises the
@@ -649,13 +726,25 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
     // divide it by ten (the steps go on meanwhile; on the liver preset's paced grasp-pull 3.1 iterations per step
     // instead of 5.0, and 2.7 instead of 4.7 on the patient liver at 16k tets: BENCHMARKS.md).
     const double contraction = settings_.factorRefresh != FactorRefresh::Synchronous ? 0.1 : 0.5;
+    // Accelerated with the factor built on the second thread: a step whose iterations keep failing to halve the
+    // residual (a factor from before a tear, moves the inversion guard keeps shortening) rebuilds it here once, rather
+    // than running its 30 iterations and retrying at half the step (each retry a factorisation too).
+    if (accelerate && rn > 0.5 * previous && rn > settings_.tolerance * scale) ++slowIterations;
+    const bool stalled = accelerate && settings_.factorRefresh != FactorRefresh::Synchronous && !rebuiltHere &&
+                         slowIterations >= kAndersonStall;
     if (lagged && settings_.method == NewtonMethod::Chord && rn > contraction * previous &&
         rn > settings_.tolerance * scale) {
       w.xt = w.x0 + h * w.v;
-      if (settings_.factorRefresh != FactorRefresh::Synchronous && w.chol->valid()) {
+      if (stalled) {
+        rebuiltHere = true;
+        if (!refreshLagged(w.xt)) break;
+        aa.reset();
+      } else if (settings_.factorRefresh != FactorRefresh::Synchronous && w.chol->valid()) {
         requestFactor(w.xt, h, rep);  // built on the second thread; this step iterates on with the old factor
       } else if (!refreshLagged(w.xt)) {
         break;
+      } else {
+        aa.reset();  // another factor: another chord map
       }
     }
   }

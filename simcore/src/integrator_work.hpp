@@ -63,6 +63,42 @@ struct Integrator::Work {
   bool tangentItValid = false;
   Eigen::VectorXd bestX, bestV;  // the attempt with the smallest residual (a step that does not converge)
   std::vector<int> limiting;     // elements a move would have taken below their floor (guardMove)
+  // Chord method, SimulationSettings::chordAcceleration: Anderson's mixing of the last chord corrections (Walker and
+  // Ni 2011, type II). g = v + dv (the plain chord iterate), f = dv (the lagged factor's preconditioned residual),
+  // gMu the multipliers after that solve; differences of consecutive ones, at most kDepth kept (a ring).
+  struct Anderson {
+    static constexpr int kDepth = 6;
+    std::vector<Eigen::VectorXd> dG, dF, dMu;
+    Eigen::VectorXd g, f, mu;  // the last iteration's g, f and multipliers
+    int count = 0;             // differences held (<= kDepth)
+    int next = 0;              // the ring's next slot
+    bool havePrevious = false;
+    // At most kDepth x kDepth, held in place (a step that converges allocates nothing: test_allocation).
+    Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kDepth, kDepth> gram;
+    Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kDepth, 1> rhs, gamma;
+    Eigen::VectorXd plainDv, plainMu;  // the plain chord correction of this iteration (the safeguard falls back to it)
+    /// Sizes the ring for 3n velocities and `constraints` multipliers (allocates only when those change).
+    void size(Eigen::Index n, Eigen::Index constraints) {
+      dG.resize(kDepth);
+      dF.resize(kDepth);
+      dMu.resize(kDepth);
+      for (int i = 0; i < kDepth; ++i) {
+        if (dG[i].size() != n) dG[i].setZero(n);
+        if (dF[i].size() != n) dF[i].setZero(n);
+        if (dMu[i].size() != constraints) dMu[i].setZero(constraints);
+      }
+      if (g.size() != n) g.setZero(n);
+      if (f.size() != n) f.setZero(n);
+      if (plainDv.size() != n) plainDv.setZero(n);
+      if (mu.size() != constraints) mu.setZero(constraints);
+      if (plainMu.size() != constraints) plainMu.setZero(constraints);
+    }
+    void reset() {
+      count = 0;
+      next = 0;
+      havePrevious = false;
+    }
+  } anderson;
 };
 
 namespace detail {

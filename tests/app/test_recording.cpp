@@ -650,7 +650,7 @@ class TestRecording : public QObject {
     QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.inversionGuard, false);
     QJsonObject j = QJsonDocument::fromJson(QByteArray::fromStdString(app::encodeSetup(s))).object();
     QJsonObject settings = j["settings"].toObject();
-    for (const char* key : {"strict", "inversionGuard", "linearisedTolerance"}) {
+    for (const char* key : {"strict", "inversionGuard", "linearisedTolerance", "chordAcceleration"}) {
       QVERIFY2(settings.contains(key), key);
       settings.remove(key);
     }
@@ -659,6 +659,15 @@ class TestRecording : public QObject {
     QCOMPARE(old.settings.strict, true);
     QCOMPARE(old.settings.inversionGuard, false);
     QCOMPARE(old.settings.linearisedTolerance, simcore::SimulationSettings{}.linearisedTolerance);
+    // The chord's acceleration: written only when on (a setup without it keeps its text and hash), and a setup recorded
+    // before it existed replays the plain chord it ran.
+    QVERIFY(simcore::SimulationSettings{}.chordAcceleration);
+    QVERIFY(app::decodeSetup(app::encodeSetup(s)).settings.chordAcceleration);
+    QVERIFY(QString::fromStdString(app::encodeSetup(s)).contains("\"chordAcceleration\":true"));
+    s.settings.chordAcceleration = false;
+    QVERIFY(!QString::fromStdString(app::encodeSetup(s)).contains("chordAcceleration"));
+    QVERIFY(!app::decodeSetup(app::encodeSetup(s)).settings.chordAcceleration);
+    QVERIFY(!old.settings.chordAcceleration);
   }
 
   void strainMatchesClosedForms() {

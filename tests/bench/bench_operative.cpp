@@ -5,9 +5,10 @@
 // with the statuses of those steps. (The grasp's pull alone, without the cut that parted the liver before it, pulls
 // the whole organ from its attachments: steps of seconds, no baseline; measured once, not kept.) Variants: the script's
 // own (chord, synchronous refresh, topology changes 5 steps after they are asked for: the same mesh every run) and the
-// GUI's (chord with the asynchronous refresh, changes swapped in when built). Writes operative-steps.csv into the
+// GUI's (chord with the asynchronous refresh, changes swapped in when built), each accelerated (the default) and plain
+// (SimulationSettings::chordAcceleration off, as before it existed). Writes operative-steps.csv into the
 // directory given (default ".").
-//   bench_operative [OUT_DIR] [--repeat N]
+//   bench_operative [OUT_DIR] [--repeat N] [--only TEXT]
 #include "percentile.hpp"
 #include "operative_case.hpp"
 #include "session_inputs.hpp"
@@ -47,9 +48,12 @@ const char* phaseOf(double t) {
 int main(int argc, char** argv) {
   std::string out = ".";
   int repeat = 3;
+  std::string only;  // run only the variants whose name contains this
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--repeat") == 0 && i + 1 < argc)
       repeat = std::max(1, std::atoi(argv[++i]));
+    else if (std::strcmp(argv[i], "--only") == 0 && i + 1 < argc)
+      only = argv[++i];
     else
       out = argv[i];
   }
@@ -81,12 +85,18 @@ int main(int argc, char** argv) {
     const char* name;
     simcore::FactorRefresh refresh;
     int latency;
+    bool accelerated;  // SimulationSettings::chordAcceleration
   };
-  for (const Variant v : {Variant{"chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5},
-                          Variant{"chord, async (GUI)", simcore::FactorRefresh::Asynchronous, -1}}) {
+  for (const Variant v :
+       {Variant{"chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, true},
+        Variant{"chord, async (GUI)", simcore::FactorRefresh::Asynchronous, -1, true},
+        Variant{"plain chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, false},
+        Variant{"plain chord, async", simcore::FactorRefresh::Asynchronous, -1, false}}) {
+    if (!only.empty() && std::string(v.name).find(only) == std::string::npos) continue;
     {
       simcore::BodySetup s = base;
       s.settings.factorRefresh = v.refresh;
+      s.settings.chordAcceleration = v.accelerated;
       app::GestureScript script = all;
       script.cutLatencySteps = v.latency;
       // phase -> per run: the step times; and the last run's statuses and events

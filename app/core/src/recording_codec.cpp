@@ -98,7 +98,7 @@ simcore::MaterialParams material(const json& j) {
 }
 
 json settings(const simcore::SimulationSettings& s) {
-  return {{"timeStep", s.timeStep},
+  json j = {{"timeStep", s.timeStep},
           {"gravity", vec(s.gravity)},
           {"rayleighMass", s.rayleighMass},
           {"rayleighStiffness", s.rayleighStiffness},
@@ -122,6 +122,9 @@ json settings(const simcore::SimulationSettings& s) {
           {"linearisedTolerance", s.linearisedTolerance},
           {"strict", s.strict},
           {"inversionGuard", s.inversionGuard}};
+  // Written only when on: setups recorded before it keep their text and hash, and replay without it.
+  if (s.chordAcceleration) j["chordAcceleration"] = true;
+  return j;
 }
 simcore::SimulationSettings settings(const json& j) {
   simcore::SimulationSettings s;
@@ -151,6 +154,7 @@ simcore::SimulationSettings settings(const json& j) {
   s.linearisedTolerance = j.value("linearisedTolerance", s.linearisedTolerance);
   s.strict = j.value("strict", true);
   s.inversionGuard = j.value("inversionGuard", false);
+  s.chordAcceleration = j.value("chordAcceleration", false);
   return s;
 }
 
