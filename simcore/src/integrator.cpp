@@ -474,9 +474,9 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   aa.reset();
   if (accelerate) aa.size(w.v.size(), w.cons.multipliers().size());
   auto andersonMix = [&]() -> bool {
-    // The multipliers are mixed when the solve kept their count (it is the constraints', fixed within a step).
-    const bool withMu = w.cons.multipliers().size() > 0 && aa.mu.size() == w.cons.multipliers().size();
+    // The multipliers are mixed with the velocities (their count is the constraints', fixed within a step).
     if (w.cons.multipliers().size() != aa.mu.size()) return false;
+    const bool withMu = aa.mu.size() > 0;
     aa.plainDv = w.dv;
     if (withMu) aa.plainMu = w.cons.multipliers();
     w.vn = w.v + w.dv;  // g

@@ -65,7 +65,7 @@ struct Integrator::Work {
   std::vector<int> limiting;     // elements a move would have taken below their floor (guardMove)
   // Chord method, SimulationSettings::chordAcceleration: Anderson's mixing of the last chord corrections (Walker and
   // Ni 2011, type II). g = v + dv (the plain chord iterate), f = dv (the lagged factor's preconditioned residual),
-  // gMu the multipliers after that solve; differences of consecutive ones, at most kDepth kept (a ring).
+  // mu the multipliers after that solve; differences of consecutive ones, at most kDepth kept (a ring).
   struct Anderson {
     static constexpr int kDepth = 6;
     std::vector<Eigen::VectorXd> dG, dF, dMu;
