@@ -4,6 +4,7 @@
 
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
+#include "rehearse/app/casefile.hpp"
 #include "rehearse/app/casefolder.hpp"
 #include "rehearse/app/elasticfit.hpp"
 #include "rehearse/app/appearancestep.hpp"
@@ -51,21 +52,31 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
   bool haveSurface = false, havePose = false;
   simcore::Mesh volume;  // the organ's volume, when it has one (--visual is carried by it)
   std::shared_ptr<const VisualSurface> own;
+  bool atCaseShape = false;  // in.vertices hold a case file's organ at the shape its frame shows (its own surface)
   if (o.count("case")) {
-    if (!std::filesystem::is_directory(o["case"]))
-      throw UsageError(
-          std::string(command) +
-          " --case takes a case folder (as 'rehearse phantom --out DIR' writes); open a .rehearse file in the GUI");
-    const Case c = loadCaseDirectory(o["case"]);
-    in.camera = c.camera;
-    in.frame = c.frame;
-    // A case folder stores no alignment: its pose is the automatic first guess, which no fit should take as the
-    // organ's pose in the frame (it put the phantom's light 69 mm off): --pose is required with --case.
-    const SurfaceView v = c.surfaceView();
-    in.vertices.assign(v.vertices, v.vertices + 3 * v.vertexCount);
-    in.triangles.resize(v.triangleCount);
-    for (std::size_t t = 0; t < v.triangleCount; ++t)
-      in.triangles[t] = {v.triangles[3 * t], v.triangles[3 * t + 1], v.triangles[3 * t + 2]};
+    std::vector<std::string> notes;
+    const Case c = loadCase(o["case"], &notes);
+    for (const auto& n : notes) std::fprintf(stderr, "rehearse: note: %s\n", n.c_str());
+    if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
+    if (isCaseFile(o["case"])) {
+      // A case file (as the GUI saves it): the organ at the shape its frame shows (the elastic fit's, else at rest),
+      // drawn through its own surface, and the pose it was aligned at (a pose never aligned is only the automatic
+      // first guess, which no fit should take as the organ's pose: --pose is then required).
+      in = appearanceInputFromCase(c);
+      in.contour = {};  // (its outline turns the organ only when --contour asks)
+      havePose = c.hasPose && c.poseAligned;
+      atCaseShape = true;
+    } else {
+      in.camera = c.camera;
+      in.frame = c.frame;
+      // A case folder stores no alignment: its pose is the automatic first guess, which no fit should take as the
+      // organ's pose in the frame (it put the phantom's light 69 mm off): --pose is required with a case folder.
+      const SurfaceView v = c.surfaceView();
+      in.vertices.assign(v.vertices, v.vertices + 3 * v.vertexCount);
+      in.triangles.resize(v.triangleCount);
+      for (std::size_t t = 0; t < v.triangleCount; ++t)
+        in.triangles[t] = {v.triangles[3 * t], v.triangles[3 * t + 1], v.triangles[3 * t + 2]};
+    }
     volume = c.organ->volume;
     own = c.organ->visual;
     haveSurface = true;
@@ -81,6 +92,7 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
     volume = m.isVolume() ? std::move(m) : simcore::Mesh{};
     own.reset();
     haveSurface = true;
+    atCaseShape = false;
   }
   if (o.count("visual")) {
     if (volume.tets.empty())
@@ -93,8 +105,9 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
     std::string why;
     own = VisualSurface::make(volume, simcore::loadMesh(o["visual"], lo), &why);
     if (!own) throw simcore::MeshError(why);
+    atCaseShape = false;
   }
-  if (own) {  // the organ drawn through its own surface, at rest
+  if (own && !atCaseShape) {  // the organ drawn through its own surface, at rest
     in.vertices.clear();
     for (const auto& p : own->points) in.vertices.insert(in.vertices.end(), {p.x(), p.y(), p.z()});
     in.triangles = own->triangles;
@@ -112,7 +125,8 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
   if (in.camera.width == 0) throw UsageError(std::string(command) + " needs --camera (or a --case with one)");
   if (!havePose)
     throw UsageError(std::string(command) +
-                     " needs --pose (the organ's pose in the camera; a case folder stores no alignment)");
+                     " needs --pose (the organ's pose in the camera; a case folder stores no alignment, and this case "
+                     "file's organ was never aligned)");
   if (const std::string problem = in.camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
   // A frame from a camera with lens distortion is undistorted first (every step works on the undistorted frame).
   if (o.count("image")) in.frame = imaging::undistortImage(in.frame, in.camera);
@@ -263,8 +277,9 @@ namespace {
 // The organ, camera, pose and frame both commands take (appearanceInput), and how the organ is removed from the frame.
 const std::vector<OptionSpec>& frameInputOptions() {
   static const std::vector<OptionSpec> options = {
-      {"case", "DIR",
-       "a case folder (its organ, camera and frame; the files below override them; it stores no pose: give --pose)"},
+      {"case", "CASE",
+       "a case file (.rehearse, as the GUI saves it: its organ at its fitted shape, camera, frame and aligned pose) or "
+       "a case folder (its organ, camera and frame; it stores no pose: give --pose); the files below override them"},
       {"mesh", "M", "the organ"},
       {"unit", "U", "m, dm, cm or mm: the mesh's length unit"},
       {"camera", "CAM", "the camera"},
@@ -280,7 +295,7 @@ const std::vector<OptionSpec>& frameInputOptions() {
 const Command& appearanceCommand() {
   static const Command command{
       "appearance",
-      "  rehearse appearance --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out "
+      "  rehearse appearance --case CASE | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --out "
       "THETA.json\n"
       "                [--visual SURFACE [--visual-unit u]] [--report R.json] [--inpaint telea|ns|shiftmap|fsr] "
       "[--background IB.png] "
@@ -304,7 +319,7 @@ const Command& appearanceCommand() {
 const Command& composeCommand() {
   static const Command command{
       "compose",
-      "  rehearse compose --case DIR | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta "
+      "  rehearse compose --case CASE | --mesh M [--unit u] --camera CAM --pose P.json --image FRAME --theta "
       "THETA.json\n"
       "                [--visual SURFACE [--visual-unit u]] [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint "
       "telea|ns|shiftmap|fsr]\n"

@@ -3,6 +3,7 @@
 
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
+#include "rehearse/app/casefile.hpp"
 #include "rehearse/app/casefolder.hpp"
 #include "rehearse/app/elasticfit.hpp"
 #include "rehearse/app/appearancestep.hpp"
@@ -44,13 +45,17 @@ namespace rehearse::app::cli {
 
 int cmdPhantom(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, phantomCommand());
-  if (!o.count("out")) throw UsageError("phantom needs --out DIR");
+  if (!o.count("out")) throw UsageError("phantom needs --out DIR (or --out CASE.rehearse)");
   phantom::PhantomOptions po;
   if (o.count("tets")) po.targetTets = parseCount(o["tets"], "--tets", 100, 2'000'000);
   if (o.count("seed")) po.seed = static_cast<unsigned>(parseCount(o["seed"], "--seed", 0, 1'000'000));
   auto t0 = std::chrono::steady_clock::now();
   const auto c = phantom::makePhantom(po);
-  writeCaseDirectory(caseFromPhantom(c), o["out"]);
+  // CASE.rehearse: one case file, as the GUI saves it (and opens: `rehearse open CASE.rehearse`); else a folder.
+  if (std::filesystem::path(o["out"]).extension() == std::string(".") + kCaseSuffix)
+    saveCaseFile(caseFromPhantom(c), o["out"]);
+  else
+    writeCaseDirectory(caseFromPhantom(c), o["out"]);
   double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::printf(
       "phantom written to %s: %zu nodes, %zu tets, %zu surface triangles, %zu attachment nodes, frame %dx%d (%.2f s)\n",
@@ -172,9 +177,10 @@ int cmdInfo(const std::vector<std::string>& args) {
 
 const Command& phantomCommand() {
   static const Command command{"phantom",
-                               "  rehearse phantom --out DIR [--tets N] [--seed S]\n"
-                               "                                   write the built-in phantom case as ordinary files\n",
-                               {{"out", "DIR", "the folder to write the case into (created)"},
+                               "  rehearse phantom --out DIR|CASE.rehearse [--tets N] [--seed S]\n"
+                               "                                   write the built-in phantom case as ordinary files, "
+                               "or as one case file\n",
+                               {{"out", "DIR", "the folder to write the case into (created), or a .rehearse case file"},
                                 {"tets", "N", "about this many tetrahedra (default 3,800)"},
                                 {"seed", "S", "the random seed of the frame's texture"}},
                                withoutServices(cmdPhantom)};

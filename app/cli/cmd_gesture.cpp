@@ -5,6 +5,7 @@
 
 #include "phantom/phantom.hpp"
 #include "phantom/presets.hpp"
+#include "rehearse/app/casefile.hpp"
 #include "rehearse/app/casefolder.hpp"
 #include "rehearse/app/elasticfit.hpp"
 #include "rehearse/app/appearancestep.hpp"
@@ -70,7 +71,7 @@ int cmdGesture(const std::vector<std::string>& args) {
         throw UsageError(std::string("--case takes the case's organ, attachments and material; --") + k +
                          " cannot be combined with it");
     std::vector<std::string> notes;
-    const Case c = loadCaseDirectory(o["case"], &notes);
+    const Case c = loadCase(o["case"], &notes);
     // What the case could not give is said, and a rehearsal without its organ or its ligaments is refused: the organ
     // would hang from nothing (a damaged attachments.json was dropped without a word before).
     for (const auto& n : notes) {
@@ -264,7 +265,7 @@ int cmdGesture(const std::vector<std::string>& args) {
 const Command& gestureCommand() {
   static const Command command{
       "gesture",
-      "  rehearse gesture --case DIR | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of "
+      "  rehearse gesture --case CASE | --scene S.json | --preset NAME | --mesh M [--unit u] [material flags of "
       "simulate]\n"
       "                --script G.json --out OUT.vtu|.vtk|.msh [--report R.json] [--method "
       "chord|exact|lagged-pcg|linearised|newton-krylov]\n"
@@ -282,7 +283,7 @@ const Command& gestureCommand() {
       "                [--record CASE [--trainee NAME] [--notes TEXT]]  the session (setup, events, a state checksum "
       "every\n"
       "                                   10 steps) written into CASE (a .rehearse file) as it runs\n",
-      joined(joined({{"case", "DIR", "a case folder's organ, attachments and material"}}, modelOptions()),
+      joined(joined({{"case", "CASE", "a case file's (.rehearse) or case folder's organ, attachments and material"}}, modelOptions()),
              {{"script", "G.json", "the timed instrument events (README, File formats)"},
               {"out", "OUT", "the volume at the end: .vtu, .vtk or .msh"},
               {"report", "R.json", "a row per step: wall time, mass, elements, tool force, events, outcome"},

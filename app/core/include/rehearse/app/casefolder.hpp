@@ -2,7 +2,7 @@
 // A case as a folder of ordinary files (what `rehearse phantom --out DIR` writes and `rehearse open DIR`
 // reads): case.json (manifest and ground truth), organ.vtu and organ.msh (volume), organ_surface.obj,
 // vessels_surface.obj, camera.yaml, frame.png, pose.json and appearance.json (ground truth),
-// attachments.json. The case file (one SQLite file) is ui/casefile.hpp.
+// attachments.json. The case file (one SQLite file) is casefile.hpp; loadCase there takes either.
 #include "rehearse/app/case.hpp"
 
 #include <string>
