@@ -11,6 +11,7 @@
 #include "rehearse/app/appearancestep.hpp"
 #include "rehearse/app/gesture.hpp"
 #include "rehearse/app/recording.hpp"
+#include "rehearse/app/sessionstart.hpp"
 #include "rehearse/app/review.hpp"
 #include "rehearse/app/materials.hpp"
 
@@ -64,6 +65,7 @@ int cmdGesture(const std::vector<std::string>& args) {
   }
   simcore::BodySetup setup;
   simcore::Mesh mesh;
+  double caseSupport = -1;  // Pa/m: the case's support (its material), when the organ comes from a case
   if (o.count("case")) {
     for (const char* k :
          {"scene", "preset", "mesh", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes"})
@@ -82,6 +84,7 @@ int cmdGesture(const std::vector<std::string>& args) {
     if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
     mesh = c.organ->volume;
     setup.fixedNodes = c.attachments;
+    caseSupport = c.material.supportModulus;
     const LabelMaterials lm = labelMaterials(c.material);
     setup.material = lm.fallback;
     setup.byLabel = lm.byLabel;
@@ -114,38 +117,49 @@ int cmdGesture(const std::vector<std::string>& args) {
   refuseOutOfRange(setup.settings, setup.material, setup.byLabel);
   mesh.convertToMetres();
   setup.mesh = mesh;
-  // --start equilibrium: the mesh as given is where the organ hangs (as registered): its rest shape solved first.
-  std::string startWord = "rest";
-  double startError = -1;  // m, the start's equilibrium from the shape (--start equilibrium)
-  if (o.count("start") && o["start"] != "rest") {
-    if (o["start"] != "equilibrium") throw UsageError("--start takes rest or equilibrium, not '" + o["start"] + "'");
+  // The start, made as the GUI's Simulation panel makes it (app/sessionstart.hpp): at rest on the mesh as given (the
+  // default), or in equilibrium there (--start equilibrium: the mesh is where the organ hangs, as registered; its rest
+  // shape solved first); the tissue around it (--support; in equilibrium by default the case's, else 1e5 Pa/m) placed
+  // at that shape. A body nothing holds under gravity, or with no equilibrium at the shape, is not started.
+  if (o.count("start") && o["start"] != "rest" && o["start"] != "equilibrium")
+    throw UsageError("--start takes rest or equilibrium, not '" + o["start"] + "'");
+  StartOptions startAs;
+  startAs.inEquilibrium = o.count("start") && o["start"] == "equilibrium";
+  if (startAs.inEquilibrium) startAs.supportModulus = caseSupport >= 0 ? caseSupport : simcore::kDefaultSupportModulus;
+  if (o.count("support")) {
+    char* end = nullptr;
+    const double m = std::strtod(o["support"].c_str(), &end);
+    if (end == o["support"].c_str() || *end || !std::isfinite(m) || m < 0 || m > 1e9)
+      throw UsageError("--support takes the support's modulus in Pa/m (0 to 1e9; 0: none), not '" + o["support"] + "'");
+    startAs.supportModulus = m;
   }
-  if (o.count("support") && !(o.count("start") && o["start"] == "equilibrium"))
-    throw UsageError("--support places the tissue that carries the organ at its starting shape; it needs --start "
-                     "equilibrium");
-  if (o.count("start") && o["start"] != "rest") {
-    simcore::InverseRestOptions io;
-    io.supportModulus = simcore::kDefaultSupportModulus;
-    if (o.count("support")) {
-      char* end = nullptr;
-      const double m = std::strtod(o["support"].c_str(), &end);
-      if (end == o["support"].c_str() || *end || !std::isfinite(m) || m < 0 || m > 1e9)
-        throw UsageError("--support takes the support's modulus in Pa/m (0 to 1e9; 0: none), not '" + o["support"] + "'");
-      io.supportModulus = m;
-    }
-    io.progress = [](int k, double error) {
-      std::fprintf(stderr, "start: static solve %d, %.3g mm from the shape\n", k, 1e3 * error);
-      return true;
-    };
-    const simcore::InverseRestResult start = simcore::startInEquilibrium(setup, mesh.points, io);
-    std::printf("start: %s\n", start.status.c_str());
-    if (!start.converged()) {
-      std::fprintf(stderr, "The organ cannot start in equilibrium on this shape: %s\n", start.status.c_str());
+  startAs.progress = [](int k, double error) {
+    std::fprintf(stderr, "start: static solve %d, %.3g mm from the shape\n", k, 1e3 * error);
+    return true;
+  };
+  SessionStart prepared = prepareStart(std::move(setup), startAs);
+  if (prepared.rest) std::printf("start: %s\n", prepared.rest->status.c_str());
+  switch (prepared.outcome) {
+    case SessionStart::Outcome::NothingHolds:
+      std::fprintf(stderr,
+                   "The organ cannot start: nothing holds it under gravity; hold nodes (--fixed-nodes), let the "
+                   "tissue around it carry it (--support, the FEM only), or turn gravity off (--gravity 0,0,0).\n");
       return 4;
-    }
-    startWord = "equilibrium";
-    startError = start.error;
+    case SessionStart::Outcome::NoEquilibrium:
+      std::fprintf(stderr, "The organ cannot start in equilibrium on this shape: %s\n", prepared.rest->status.c_str());
+      return 4;
+    case SessionStart::Outcome::Cancelled:  // (nothing cancels it here)
+      return 4;
+    case SessionStart::Outcome::Ready:
+      break;
   }
+  if (prepared.supportNotInModel)
+    std::fprintf(stderr, "rehearse: note: the %s model hangs the organ from its held nodes; --support acts in the FEM "
+                 "only\n", simcore::bodyModelName(prepared.body.model).c_str());
+  setup = std::move(prepared.body);
+  const bool inEquilibrium = prepared.start == SessionStart::Start::InEquilibrium;
+  const std::string startWord = inEquilibrium ? "equilibrium" : "rest";
+  const double startError = inEquilibrium ? prepared.rest->error : -1;  // m, the start's equilibrium from the shape
   // --record: the session (setup, events, a state checksum every 10 steps) written into CASE as it runs.
   std::unique_ptr<Recorder> recorder;
   GestureHooks hooks;
@@ -298,9 +312,9 @@ const Command& gestureCommand() {
                "rest (the mesh is the rest shape; default) or equilibrium (the mesh is where the organ hangs under "
                "gravity on its attachments, as registered: its rest shape is solved first; exit 4 when none is found)"},
               {"support", "PA_PER_M",
-               "with --start equilibrium: the tissue around the organ carries it, an elastic foundation under the "
-               "surface facing along gravity with this modulus (default 1e5 Pa/m, support.hpp; 0: only the held "
-               "nodes hold it)"},
+               "the tissue around the organ carries it, an elastic foundation under the surface facing along gravity "
+               "with this modulus, placed at the starting shape (with --start equilibrium default the case's or 1e5 "
+               "Pa/m, support.hpp; with --start rest default 0; 0: only the held nodes hold it)"},
               {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
               {"trainee", "NAME", "the trainee the recording names (with --record)"},
               {"notes", "TEXT", "notes kept with the recording (with --record)"}}),

@@ -40,14 +40,6 @@ namespace rehearse::ui {
 
 // What turns the session's snapshots into frames for this panel: fixed for one organ (one session), read
 // on the session's thread.
-// The last rest shape solved for a session's start (simcore/inverse_rest.hpp), by the hash of the setup it was solved
-// for: read and written on the workers that build sessions.
-struct SimulationPanel::StartCache {
-  std::mutex mutex;
-  std::uint64_t key = 0;
-  std::optional<simcore::InverseRestResult> result;
-};
-
 struct SimulationPanel::FrameContext {
   std::shared_ptr<const app::Case> organ;
   std::vector<Eigen::Vector3d> rest;  ///< camera frame (m)
@@ -90,36 +82,6 @@ class LinesLabel : public QLabel {
  private:
   int lines_;
 };
-
-// The body the session simulates: the case's organ as the frame shows it (current shape, posed in the
-// camera frame), its attachments and material by label, the run's settings.
-simcore::BodySetup bodySetup(const SimulationSetup& s) {
-  simcore::BodySetup b;
-  b.mesh = s.organ->organ->volume;
-  b.mesh.convertToMetres();
-  const auto& shape = s.organ->shapeNodes();
-  b.rest.resize(shape.size());
-  for (std::size_t i = 0; i < shape.size(); ++i) b.rest[i] = s.organ->pose.apply(shape[i]);
-  b.fixedNodes = s.organ->attachments;
-  const app::LabelMaterials m = app::labelMaterials(
-      app::MaterialSettings{s.model, s.young, s.poisson, s.density, s.vesselYoung, s.vesselPoisson, s.tearStrain});
-  b.material = m.fallback;
-  b.byLabel = m.byLabel;
-  b.settings.timeStep = s.timeStep;
-  b.settings.method = s.method;
-  b.model = s.bodyModel;
-  b.settings.factorRefresh =
-      simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)
-  b.settings.gravity = s.gravity;
-  b.tools.toolRadius = s.toolRadius;
-  b.tools.graspRadius = s.graspRadius;
-  b.tools.clip.length = s.clipLength;
-  // ... nor for a cut: its body comes in as soon as it is built (the step it came in at is recorded, so the replay
-  // is exact). A fixed latency (the command line's, for runs that must end with the same mesh every time) made the
-  // stepping thread wait for a late build: on the liver preset about 50 ms per cut when steps outrun real time.
-  b.tools.cutLatencySteps = -1;
-  return b;
-}
 
 simcore::InputEvent parameter(const std::string& name, double value, int label = 0) {
   simcore::InputEvent e;
@@ -339,10 +301,10 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
                                         precompute = precomputeCancelled_, retiring = retired_] {
     try {
       if (record && retiring.valid()) retiring.wait();  // the last session's recording is complete in the file first
-      simcore::BodySetup b = bodySetup(s);
+      simcore::BodySetup body = app::bodySetup(s);
       // A long body build (the precomputed model's responses, now or when chosen later in the Solver list) shows its
       // progress with a Cancel; it stops when a newer session is asked for too.
-      b.buildProgress = [self, generation, cancelled, precompute](double done) {
+      body.buildProgress = [self, generation, cancelled, precompute](double done) {
         QMetaObject::invokeMethod(
             self,
             [self, done, generation] {
@@ -351,84 +313,58 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
             Qt::QueuedConnection);
         return !cancelled->load() && !precompute->load();
       };
-      // The tissue around the organ carries it (the FEM's springs; the other models hang it from its held nodes).
-      const double support = b.model == simcore::BodyModel::Fem ? s.supportModulus : 0.0;
-      const bool heavy = b.settings.gravity.norm() > 0;
-      if (heavy && b.fixedNodes.empty() && !(support > 0)) {
-        // A falling organ is not a rehearsal: said, with what to change.
-        result->second =
-            s.supportModulus > 0
-                ? tr("The organ was not started: nothing holds it under gravity (the %1 model cannot stand it on the "
-                     "tissue around it); hold nodes (H), choose the FEM, or turn gravity off.")
-                      .arg(QString::fromStdString(simcore::bodyModelName(b.model)))
-                : tr("The organ was not started: nothing holds it under gravity; hold nodes (H), let the tissue around "
-                     "it carry it (Support, on this panel), or turn gravity off.");
-        return;
+      app::StartOptions options;
+      options.inEquilibrium = s.startInEquilibrium;
+      options.supportModulus = s.supportModulus;
+      options.cache = cache.get();
+      // The rest shape that sags into the registered one is solved in a few static solves: said on the status line
+      // as they go, stopped when a newer session is asked for.
+      options.progress = [self, cancelled, generation](int k, double error) {
+        const QString text = tr("Solving the rest shape that sags into the registered one: static solve %1, %2 mm from it...")
+                                 .arg(k)
+                                 .arg(1e3 * error, 0, 'g', 3);
+        QMetaObject::invokeMethod(
+            self,
+            [self, text, generation] {
+              if (self && self->generation_ == generation) self->status_->setText(text);
+            },
+            Qt::QueuedConnection);
+        return !cancelled->load();
+      };
+      app::SessionStart start = app::prepareStart(std::move(body), options);
+      const QString model = QString::fromStdString(simcore::bodyModelName(start.body.model));
+      switch (start.outcome) {
+        case app::SessionStart::Outcome::Cancelled:
+          return;
+        case app::SessionStart::Outcome::NothingHolds:  // a falling organ is not a rehearsal: said, with what to change
+          result->second =
+              start.supportNotInModel
+                  ? tr("The organ was not started: nothing holds it under gravity (the %1 model cannot stand it on "
+                       "the tissue around it); hold nodes (H), choose the FEM, or turn gravity off.")
+                        .arg(QString::fromStdString(simcore::bodyModelName(s.bodyModel)))
+                  : tr("The organ was not started: nothing holds it under gravity; hold nodes (H), let the tissue "
+                       "around it carry it (Support, on this panel), or turn gravity off.");
+          return;
+        case app::SessionStart::Outcome::NoEquilibrium:  // the organ would leave the frame at once: not started
+          result->second = tr("The organ was not started: %1").arg(QString::fromStdString(start.rest->status));
+          return;
+        case app::SessionStart::Outcome::Ready:
+          break;
       }
-      if (s.supportModulus > 0 && !(support > 0) && heavy)
+      if (start.supportNotInModel)
         *started = tr("The %1 model hangs the organ from its held nodes; the tissue around it carries it in the FEM "
                       "only. ")
-                       .arg(QString::fromStdString(simcore::bodyModelName(b.model)));
-      if (s.startInEquilibrium && heavy) {
-        // The organ as the frame shows it is the equilibrium: the rest shape that sags into it, solved first (a few
-        // static solves; said on the status line as they go, stopped when a newer session is asked for).
-        simcore::InverseRestOptions o;
-        o.supportModulus = support;
-        o.progress = [self, cancelled, generation](int k, double error) {
-          const QString text =
-              tr("Solving the rest shape that sags into the registered one: static solve %1, %2 mm from it...")
-                  .arg(k)
-                  .arg(1e3 * error, 0, 'g', 3);
-          QMetaObject::invokeMethod(
-              self,
-              [self, text, generation] {
-                if (self && self->generation_ == generation) self->status_->setText(text);
-              },
-              Qt::QueuedConnection);
-          return !cancelled->load();
-        };
-        const std::vector<Eigen::Vector3d> shape = b.rest;
-        // The same organ, shape, attachments, material and settings as the last session (Record, a reset while
-        // recording): its rest shape again, not solved again (12 s on a 16k-tet liver).
-        std::uint64_t key = app::setupHash(b);
-        key ^= std::hash<double>{}(support) * 0x9e3779b97f4a7c15ULL;  // (the support is placed by the solve)
-        simcore::InverseRestResult r;
-        bool reused = false;
-        {
-          std::lock_guard<std::mutex> lock(cache->mutex);
-          if (cache->key == key && cache->result) r = *cache->result, reused = true;
-        }
-        if (!reused) r = simcore::solveRestShape(b, shape, o);
-        if (r.outcome == simcore::InverseRestResult::Outcome::Cancelled) return;
-        if (!reused) {
-          std::lock_guard<std::mutex> lock(cache->mutex);
-          cache->key = key;
-          cache->result = r;
-        }
-        if (!r.converged()) {
-          // No equilibrium at the registered shape: the organ would leave the frame at once. Not started; said.
-          result->second = tr("The organ was not started: %1").arg(QString::fromStdString(r.status));
-          return;
-        }
-        simcore::useRestShape(b, shape, r);
+                       .arg(model);
+      simcore::BodySetup& b = start.body;
+      if (start.start == app::SessionStart::Start::InEquilibrium)
         *started += tr("The organ starts where the frame shows it, in equilibrium under gravity on %1: %2%3")
-                       .arg(b.supports.empty()      ? tr("its attachments")
-                            : b.fixedNodes.empty() ? tr("the tissue around it")
-                                                   : tr("its attachments and the tissue around it"))
-                       .arg(QString::fromStdString(r.status))
-                       .arg(reused ? tr(" (solved for the last session, the same organ)") : QString());
-      } else if (heavy) {
-        if (support > 0) {
-          // Started at rest on the registered shape: the support carries the weight there, so it sags, not falls.
-          simcore::Mesh rest = b.mesh;
-          rest.points = b.rest;
-          const simcore::FemModel m = simcore::FemModel::build(rest, b.byLabel, b.material);
-          b.supports = simcore::placeSupports(b.mesh.tets, b.rest, m.lumpedMass, b.fixedNodes, b.settings.gravity,
-                                              support)
-                           .anchors;
-        }
+                        .arg(b.supports.empty()      ? tr("its attachments")
+                             : b.fixedNodes.empty() ? tr("the tissue around it")
+                                                    : tr("its attachments and the tissue around it"))
+                        .arg(QString::fromStdString(start.rest->status))
+                        .arg(start.reused ? tr(" (solved for the last session, the same organ)") : QString());
+      else if (start.start == app::SessionStart::Start::SagsFromShape)
         *started += tr("The organ starts at rest on the registered shape and will sag from it under gravity.");
-      }
       if (record) *recorder = std::make_shared<app::Recorder>(record->file, record->meta, b);
       ctx->organ = s.organ;
       ctx->rest = b.start.empty() ? b.rest : b.start;  // displacements from where the rehearsal starts
@@ -669,7 +605,7 @@ void SimulationView::wheelEvent(QWheelEvent* e) {
 
 // ------------------------------------------------------------------------------------------- panel
 
-SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_(std::make_shared<StartCache>()) {
+SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent), startCache_(std::make_shared<app::RestShapeCache>()) {
   qRegisterMetaType<std::shared_ptr<const SimulationFrame>>();
   auto* layout = new QVBoxLayout(this);
   layout->setContentsMargins(4, 4, 4, 4);

@@ -3,9 +3,11 @@
 // simcore::Session on the session's own thread (play, pause, single step, reset); material and run
 // parameters edited live go to the session as timestamped input events (applied at the next step
 // boundary, recorded with the run); a 3D view of the deformed mesh coloured by displacement or von Mises
-// stress. No simulation state lives here: the panel only draws the session's published snapshots.
+// stress. No simulation state lives here: the panel only draws the session's published snapshots, and the session
+// starts through the application core (app/sessionstart.hpp), as `rehearse gesture` starts its own.
 #include <rehearse/app/case.hpp>
 #include <rehearse/app/recording.hpp>
+#include <rehearse/app/sessionstart.hpp>
 #include "rehearse/ui/organview.hpp"
 
 #include <rehearse/simcore/session/forceloop.hpp>
@@ -35,37 +37,8 @@ class Throttle;
 
 namespace rehearse::ui {
 
-/// What the simulation runs: the case's organ as the frame shows it (its fitted shape once there is one,
-/// posed in the camera frame, metres), its attachments, the case's material and the run's parameters.
-struct SimulationSetup {
-  std::shared_ptr<const app::Case> organ;
-  simcore::MaterialModel model = simcore::MaterialModel::Corotational;
-  double young = 27e3;  ///< Pa, parenchyma
-  double poisson = 0.4;
-  double density = 1000;   ///< kg/m^3
-  double vesselYoung = 0;  ///< Pa, label 2 (0: as the parenchyma)
-  double timeStep = 0.01;  ///< s
-  simcore::NewtonMethod method = simcore::kInteractiveMethod;
-  /// The deformable model (the Solver list's last entry: Cotin's precomputed linear elasticity; it cannot cut).
-  simcore::BodyModel bodyModel = simcore::BodyModel::Fem;
-  double vesselPoisson = 0.45;
-  Eigen::Vector3d gravity = Eigen::Vector3d(0, 0, 9.81);  ///< m/s^2 in the camera frame (default: into the scene)
-  /// m: the instruments' shaft radius for contact (a 5 mm laparoscopic instrument): the tissue is pushed, not
-  /// penetrated; 0 turns contact off.
-  double toolRadius = 0.0025;
-  /// m: the grasper's bite: closing the jaws holds the free nodes within this distance of the tip (a coarse mesh's
-  /// nodes can be a centimetre apart: 6 mm may hold one).
-  double graspRadius = 0.006;
-  double clipLength = 0.009;  ///< m, the clip applier's jaws
-  double tearStrain = 0;      ///< where the tissue tears (MaterialSettings::tearStrain; 0: never)
-  /// The organ starts where the frame shows it, in equilibrium under gravity on its attachments: the rest shape that
-  /// sags into the registered one is solved first (simcore/inverse_rest.hpp). Off: it starts at rest on that shape
-  /// (and sags away from it).
-  bool startInEquilibrium = true;
-  /// Pa/m: the tissue around the organ carries it (simcore/support.hpp; the case's MaterialSettings::supportModulus);
-  /// 0: only the held nodes hold it. The FEM only (the other models hang the organ from its held nodes).
-  double supportModulus = 1e5;
-};
+/// What the simulation runs (app/sessionstart.hpp: the panel asks, the application core starts it).
+using SimulationSetup = app::SessionRequest;
 
 /// Published after each step: positions and the coloured quantity per node.
 struct SimulationFrame {
@@ -235,8 +208,7 @@ class SimulationPanel : public QWidget {
   simcore::VirtualDevice device_;                  ///< the mouse-driven instrument's tip, for the force loop
   std::unique_ptr<simcore::ForceLoop> forceLoop_;  ///< declared after session_: stopped before it goes
   long generation_ = 0;                            ///< bumped per session: frames of an older one are dropped
-  struct StartCache;
-  std::shared_ptr<StartCache> startCache_;  ///< the last starting rest shape solved (made in the constructor)
+  std::shared_ptr<app::RestShapeCache> startCache_;  ///< the last starting rest shape solved (made in the constructor)
   /// Set when a newer session replaces the one being built (its rest-shape solve stops early).
   std::shared_ptr<std::atomic<bool>> buildCancelled_ = std::make_shared<std::atomic<bool>>(false);
   /// Set by the build progress dialog's Cancel: the precomputed responses being built stop (the session keeps its
