@@ -5,6 +5,7 @@
 
 #include "phantom/phantom.hpp"
 
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <QThread>
@@ -108,6 +109,42 @@ std::vector<SimulationState> run(NewtonMethod m) {
 class TestSession : public QObject {
   Q_OBJECT
  private slots:
+  // The events' words are the recordings' format (issue 63: typed events): each kind reads back from its word, the
+  // words recorded before the kinds existed are these exact strings, and a word no kind has stays Other.
+  void eventWordsAreTheRecordingsFormat() {
+    using K = simcore::EventKind;
+    const std::vector<std::pair<std::string, K>> recorded = {
+        {"grasp", K::Grasp}, {"release", K::Release}, {"slip", K::Slip}, {"cut", K::Cut},
+        {"cut through label 2", K::CutThroughLabel}, {"portal vein cut", K::StructureCut},
+        {"vessel cut", K::VesselCut}, {"tumour margin breached", K::TumourMarginBreached}, {"clip", K::Clip},
+        {"clip misplaced", K::ClipMisplaced}, {"burn", K::Burn}, {"energy on structure", K::EnergyOnStructure},
+        {"energy on artery", K::EnergyOnNamedStructure}, {"bleeding", K::Bleeding},
+        {"bleeding stopped", K::BleedingStopped}, {"tear", K::Tear}, {"artery torn", K::StructureTorn},
+        {"vessel torn", K::VesselTorn}, {"attachment torn", K::AttachmentTorn},
+        {"force over threshold", K::ForceOverThreshold}, {"incorrect action: tear", K::IncorrectAction},
+        {"cut through label x", K::Other}, {"grasped", K::Other}, {"", K::Other}};
+    for (const auto& [word, kind] : recorded) {
+      QVERIFY2(simcore::eventKind(word) == kind, word.c_str());
+      if (*simcore::eventWord(kind)) QCOMPARE(std::string(simcore::eventWord(kind)), word);
+    }
+    QCOMPARE(simcore::cutThroughLabelWord(17), std::string("cut through label 17"));
+    QCOMPARE(simcore::cutLabelOf("cut through label 17"), 17);
+    QCOMPARE(simcore::cutLabelOf("cut through label 17 "), -1);
+    QCOMPARE(simcore::cutLabelOf("cut through label -3"), -1);
+    QCOMPARE(simcore::structureEventWord(K::StructureTorn, "bile duct"), std::string("bile duct torn"));
+    QCOMPARE(simcore::structureEventWord(K::EnergyOnNamedStructure, "vein"), std::string("energy on vein"));
+    simcore::EventCounts c;
+    c.add({"grasp", "cut", "cut through label 2", "vessel cut", "portal vein cut", "tear", "tear", "artery torn",
+           "vessel torn", "attachment torn", "slip", "energy on artery", "energy on structure"});
+    QCOMPARE(c.grasps, 1);
+    QCOMPARE(c.cuts, 1);
+    QCOMPARE(c.vesselCuts, 1);
+    QCOMPARE(c.tears, 2);
+    QCOMPARE(c.attachmentsTorn, 1);
+    QCOMPARE(c.slips, 1);
+    QCOMPARE(c.energyOnStructures, 1);
+    QCOMPARE(c.clips + c.burns + c.bleedings + c.releases, 0);
+  }
   void recordedRunIsBitIdentical_data() {
     QTest::addColumn<int>("method");
     QTest::newRow("exact") << static_cast<int>(NewtonMethod::Exact);

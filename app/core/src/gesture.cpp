@@ -1,6 +1,7 @@
 #include "rehearse/app/gesture.hpp"
 #include "rehearse/app/incorrect_actions.hpp"
 
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/input_ranges.hpp>
 #include <rehearse/text_input.hpp>
 
@@ -169,18 +170,18 @@ GestureScript parseGestureScript(const std::string& text) {
 namespace {
 // What a step's events add to the run's counts.
 void countEvents(const std::vector<std::string>& events, GestureResult& out) {
-  for (const auto& e : events) {
-    out.slips += e == "slip";
-    out.cuts += e == "cut";
-    out.vesselCuts += e == "vessel cut";
-    out.clips += e == "clip";
-    out.misplacedClips += e == "clip misplaced";
-    out.bleedings += e == "bleeding";
-    out.burns += e == "burn";
-    out.energyOnStructures += e == "energy on structure";
-    out.tears += e == "tear";
-    out.attachmentsTorn += e == "attachment torn";
-  }
+  simcore::EventCounts c;
+  c.add(events);
+  out.slips += c.slips;
+  out.cuts += c.cuts;
+  out.vesselCuts += c.vesselCuts;
+  out.clips += c.clips;
+  out.misplacedClips += c.misplacedClips;
+  out.bleedings += c.bleedings;
+  out.burns += c.burns;
+  out.energyOnStructures += c.energyOnStructures;
+  out.tears += c.tears;
+  out.attachmentsTorn += c.attachmentsTorn;
 }
 }  // namespace
 

@@ -1,4 +1,5 @@
 // The trainer's incorrect actions: rules from JSON and their finder over a replay's steps (incorrect_actions.hpp).
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/app/incorrect_actions.hpp>
 #include <rehearse/text_input.hpp>
 
@@ -194,18 +195,21 @@ std::vector<IncorrectAction> IncorrectActionFinder::step(const StepFacts& s) {
   };
   static const std::vector<std::string> none;
   const auto& events = s.events ? *s.events : none;
-  auto has = [&](const char* e) { return std::find(events.begin(), events.end(), e) != events.end(); };
+  auto has = [&](simcore::EventKind k) {
+    return std::any_of(events.begin(), events.end(), [k](const std::string& e) { return simcore::eventKind(e) == k; });
+  };
   // A cut that opened a bleeding stump: the vessel had no clip behind the cut.
-  if (has("bleeding") && has("cut"))
+  if (has(simcore::EventKind::Bleeding) && has(simcore::EventKind::Cut))
     add("vessel_cut_without_clips", "a vessel was cut where no clip closes it: it bleeds");
   for (const auto& e : events) {
-    if (e.rfind("energy on ", 0) == 0 && e != "energy on structure") add("energy_on_structure", e);
-    if (e == "tear") {  // one over-pull tears element after element: one action, however many tears follow it
+    const simcore::EventKind kind = simcore::eventKind(e);
+    if (kind == simcore::EventKind::EnergyOnNamedStructure) add("energy_on_structure", e);
+    if (kind == simcore::EventKind::Tear) {  // one over-pull tears element after element: one action, however many tears follow it
       constexpr double kTearSpell = 0.5;
       if (s.time - lastTear_ > kTearSpell) add("tear", "tissue was pulled past the strain its material tears at");
       lastTear_ = s.time;
     }
-    if (e == "clip misplaced") add("clip_misplaced", "a clip was left on no vessel or duct, or not across all of it");
+    if (kind == simcore::EventKind::ClipMisplaced) add("clip_misplaced", "a clip was left on no vessel or duct, or not across all of it");
   }
   // The force above the limit for longer than the rule allows: once per spell.
   if (s.force > rules_.forceLimitN) {
@@ -221,7 +225,7 @@ std::vector<IncorrectAction> IncorrectActionFinder::step(const StepFacts& s) {
     overSince_ = -1;
   }
   // An instrument acting (holding, cutting, burning, leaving a clip) where the camera does not see it: once per spell.
-  const bool acting = s.toolPresent && (s.holding || s.cutting || s.energy || has("clip"));
+  const bool acting = s.toolPresent && (s.holding || s.cutting || s.energy || has(simcore::EventKind::Clip));
   const bool outside = acting && rules_.view && !rules_.view->sees(s.tip);
   if (outside && !outside_) {
     const char* doing = s.cutting ? "cutting" : s.energy ? "burning" : s.holding ? "holding tissue" : "leaving a clip";

@@ -5,6 +5,7 @@
 #include "recording_codec.hpp"
 #include "recording_store.hpp"
 
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/numerics.hpp>
 
 #include <nlohmann/json.hpp>
@@ -265,7 +266,7 @@ void Recorder::afterStep(const simcore::StepRecord& r) {
   // Every `checkpointEvery` steps, and just after the body changed (a cut applied: seeking past it then starts
   // after it instead of building the cut body again).
   bool changed = false;
-  for (const auto& e : r.snapshot->events) changed |= e == "cut";
+  for (const auto& e : r.snapshot->events) changed |= simcore::eventKind(e) == simcore::EventKind::Cut;
   if (r.step - lastCheckpoint_ >= checkpointEvery_ || changed) {
     const simcore::Checkpoint c = r.checkpoint();
     auto store = [this](const simcore::BodySetup& s) {

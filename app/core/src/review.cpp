@@ -1,5 +1,6 @@
 #include "rehearse/app/review.hpp"
 
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/text_input.hpp>
 
 #include <rehearse/imaging/render.hpp>
@@ -489,14 +490,15 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
       maxForceStep = t.step;
     }
     // (event, caption): each event's first step is a key frame
-    static const std::pair<const char*, const char*> firsts[] = {{"grasp", "First grasp"},
-                                                                 {"cut", "First cut"},
-                                                                 {"clip", "First clip"},
-                                                                 {"bleeding", "Bleeding"},
-                                                                 {"tear", "First tear"}};
+    using K = simcore::EventKind;
+    static const std::pair<K, const char*> firsts[] = {{K::Grasp, "First grasp"},
+                                                       {K::Cut, "First cut"},
+                                                       {K::Clip, "First clip"},
+                                                       {K::Bleeding, "Bleeding"},
+                                                       {K::Tear, "First tear"}};
     for (const auto& e : t.events)
       for (const auto& [event, caption] : firsts)
-        if (e == event && std::none_of(keys.begin(), keys.end(), [c = caption](const auto& k) { return k.first == c; }))
+        if (simcore::eventKind(e) == event && std::none_of(keys.begin(), keys.end(), [c = caption](const auto& k) { return k.first == c; }))
           keys.push_back({caption, t.step});
   }
   if (maxForceStep > 0) keys.push_back({"Largest force", maxForceStep});

@@ -6,6 +6,7 @@
 
 #include "rehearse/app/review.hpp"
 
+#include <rehearse/simcore/session/events.hpp>
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -221,18 +222,19 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
     const bool overBefore = previousForce > forceThresholdN;
     previousForce = f;
     time = snap->time;
-    for (const auto& e : snap->events) {
-      m.grasps += e == "grasp";
-      m.slips += e == "slip";
-      m.cuts += e == "cut";
-      m.clips += e == "clip";
-      m.misplacedClips += e == "clip misplaced";
-      m.energyOnStructures += e == "energy on structure";
-      if (m.tears && e == "tear") ++*m.tears;
-      if (m.attachmentsTorn && e == "attachment torn") ++*m.attachmentsTorn;
-      if (m.vesselCuts && e == "vessel cut") ++*m.vesselCuts;
-      if (tumourLabel && e == "cut through label " + std::to_string(tumourLabel)) ++*m.tumourBreaches;
-    }
+    simcore::EventCounts c;
+    c.add(snap->events);
+    m.grasps += c.grasps;
+    m.slips += c.slips;
+    m.cuts += c.cuts;
+    m.clips += c.clips;
+    m.misplacedClips += c.misplacedClips;
+    m.energyOnStructures += c.energyOnStructures;
+    if (m.tears) *m.tears += c.tears;
+    if (m.attachmentsTorn) *m.attachmentsTorn += c.attachmentsTorn;
+    if (m.vesselCuts) *m.vesselCuts += c.vesselCuts;
+    for (const auto& e : snap->events)
+      if (tumourLabel && simcore::cutLabelOf(e) == tumourLabel) ++*m.tumourBreaches;
     if (tool.present && tool.cutting) {
       if (wasCutting) m.cutLengthM += (tool.tip - lastCut).norm();
       lastCut = tool.tip;
@@ -276,8 +278,8 @@ ReplayResult replayRecording(const Recording& r, const ReplayOptions& options) {
       t.cutting = tool.cutting;
       t.newInstrument = swapped.count(step) > 0;
       t.events = snap->events;
-      if (over && !overBefore) t.events.push_back("force over threshold");
-      for (const auto& a : incorrect) t.events.push_back("incorrect action: " + a.rule);
+      if (over && !overBefore) t.events.push_back(simcore::eventWord(simcore::EventKind::ForceOverThreshold));
+      for (const auto& a : incorrect) t.events.push_back(simcore::incorrectActionWord(a.rule));
       out.timeline.push_back(std::move(t));
     }
     if (options.progress && !options.progress(step, steps, out)) throw ReplayStopped();

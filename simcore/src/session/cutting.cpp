@@ -1,6 +1,7 @@
 // The cut: what the blade's sweep asks of the cut module (cut.hpp computes the new mesh; the session's topology
 // mechanism, topology.cpp, builds and swaps the body), and what a cut says: its events, the vessels it cut, and the
 // stroke's sentence once all of it is in (whether the organ came apart).
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <algorithm>
@@ -101,8 +102,8 @@ void Session::continueSweep(std::string& message) {
 
 void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message) {
   seedEasing_ = true;  // the surface is new: what lies inside the shaft now is eased out at the next constraints
-  events_.push_back("cut");
-  for (int label : cutLabels) events_.push_back("cut through label " + std::to_string(label));
+  events_.push_back(eventWord(EventKind::Cut));
+  for (int label : cutLabels) events_.push_back(cutThroughLabelWord(label));
   // A named structure (a label whose name gives it a kind, Mesh::labelKind) cut by this stroke is one event, however
   // many updates the cut takes: "portal vein cut", "artery cut", "vein cut", "bile duct cut", "ligament cut", "tumour
   // cut", "tumour margin breached"; a blood vessel of any kind is also a "vessel cut" (what the metrics count).
@@ -114,9 +115,9 @@ void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message)
     tool_.structuresCut.push_back(label);
     const std::string what = structureKindName(kind), words = structureWords(kind, setup_.mesh.labelName(label));
     if (kind == StructureKind::TumourMargin)
-      events_.push_back("tumour margin breached");
+      events_.push_back(eventWord(EventKind::TumourMarginBreached));
     else if (kind != StructureKind::Vessel)
-      events_.push_back(what + " cut");
+      events_.push_back(structureEventWord(EventKind::StructureCut, what));
     // In a surgeon's words: "A cystic artery was cut." (the label's number is in the event "cut through label N").
     if (kind == StructureKind::Tumour)
       message = "The " + words + " was cut into.";
@@ -124,7 +125,7 @@ void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message)
       message = "The " + words + " was breached.";
     else
       message = std::string(indefiniteArticle(words)) + " " + words + " was cut.";
-    if (isVessel(kind)) events_.push_back("vessel cut");
+    if (isVessel(kind)) events_.push_back(eventWord(EventKind::VesselCut));
   }
 }
 

@@ -1,5 +1,6 @@
 // The instruments the session runs (instrument.hpp): the grasper, the scissors/hook, the clip applier and the cautery
 // hook.
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/contact.hpp>
 #include <rehearse/simcore/session/instrument.hpp>
 #include <rehearse/simcore/session/session.hpp>
@@ -32,7 +33,7 @@ class Grasper final : public Instrument {
     tool.force.setZero();
     tool.graspForce.setZero();
     if (!e.on) {
-      host.emitEvent("release");
+      host.emitEvent(eventWord(EventKind::Release));
       host.seedContactEasing();  // the tissue the jaws held may be inside the shaft
       return;
     }
@@ -50,7 +51,7 @@ class Grasper final : public Instrument {
       tool.heldOffset.push_back(x.segment<3>(3 * static_cast<Eigen::Index>(i)) - tool.jawTip);
     }
     if (!near.empty())
-      host.emitEvent("grasp");
+      host.emitEvent(eventWord(EventKind::Grasp));
     else
       message = "The jaws closed on nothing: no tissue within " +
                 std::to_string(static_cast<int>(std::lround(1e3 * radius))) + " mm of the tip.";
@@ -99,7 +100,7 @@ class Grasper final : public Instrument {
     tool.heldOffset.clear();
     tool.stiffness.setZero();  // nothing held: the force does not follow the tool any more
     tool.graspForce.setZero();
-    host.emitEvent("slip");
+    host.emitEvent(eventWord(EventKind::Slip));
     return true;
   }
 };
@@ -179,14 +180,14 @@ class ClipApplier final : public Instrument {
     // "the cystic artery", "the vessel" (not "vessel (vessels)").
     const std::string what = kind == StructureKind::Tissue ? std::string("tissue") : structureWords(kind, name);
     host.field().clips.push_back(std::move(clip));
-    host.emitEvent("clip");
+    host.emitEvent(eventWord(EventKind::Clip));
     const Clip& placed = host.field().clips.back();
     const bool closable = isVessel(kind) || kind == StructureKind::BileDuct;
     if (!closable) {
-      host.emitEvent("clip misplaced");
+      host.emitEvent(eventWord(EventKind::ClipMisplaced));
       message = "A clip was placed on " + what + ", not on a vessel or a duct.";
     } else if (!placed.spans) {
-      host.emitEvent("clip misplaced");
+      host.emitEvent(eventWord(EventKind::ClipMisplaced));
       message = "A clip was placed on the " + what + " but does not close it.";
     } else {
       message =
@@ -300,8 +301,8 @@ class Cautery final : public Instrument {
       if (kind == StructureKind::Tissue || std::find(f.energyOn.begin(), f.energyOn.end(), label) != f.energyOn.end())
         continue;
       f.energyOn.push_back(label);
-      host.emitEvent("energy on structure");
-      host.emitEvent(std::string("energy on ") + structureKindName(kind));
+      host.emitEvent(eventWord(EventKind::EnergyOnStructure));
+      host.emitEvent(structureEventWord(EventKind::EnergyOnNamedStructure, structureKindName(kind)));
       const std::string name = host.mesh().labelName(label);
       message = std::string("Energy reached the ") + structureKindName(kind) + (name.empty() ? "" : " (" + name + ")") +
                 ", which the hook should not touch.";

@@ -6,6 +6,7 @@
 // (field.cpp: its torn faces are open stumps). Nothing is measured unless some material declares a tear strain. The
 // stretch is measured from where the organ started (BodySetup::tearFrom: the registered shape it starts in equilibrium
 // at, whose rest shape sags into it stretched): the in-vivo organ is not torn, what tears it is what the instruments add.
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <Eigen/Dense>
@@ -174,21 +175,22 @@ void Session::tearOverStretched(std::string& message) {
     return;
   }
   // What tore: the tissue, each named structure the tear went through, an attachment.
-  events_.push_back("tear");
+  events_.push_back(eventWord(EventKind::Tear));
   std::string structures;
   for (int l : tornLabels) {
     const StructureKind kind = setup_.mesh.labelKind(l);
     if (kind == StructureKind::Tissue) continue;
     attached = attached || kind == StructureKind::Ligament;
     const std::string what = structureKindName(kind);
-    if (std::find(events_.begin(), events_.end(), what + " torn") == events_.end()) {
-      events_.push_back(what + " torn");
-      if (isVessel(kind) && kind != StructureKind::Vessel) events_.push_back("vessel torn");
+    const std::string torn = structureEventWord(EventKind::StructureTorn, what);
+    if (std::find(events_.begin(), events_.end(), torn) == events_.end()) {
+      events_.push_back(torn);
+      if (isVessel(kind) && kind != StructureKind::Vessel) events_.push_back(eventWord(EventKind::VesselTorn));
       const std::string name = setup_.mesh.labelName(l);
       structures += (structures.empty() ? "" : ", ") + what + (name.empty() ? "" : " (" + name + ")");
     }
   }
-  if (attached) events_.push_back("attachment torn");
+  if (attached) events_.push_back(eventWord(EventKind::AttachmentTorn));
   std::snprintf(buf, sizeof buf, "The %s tore: stretched %.0f %% where its material tears at %.0f %%%s.",
                 attached ? "tissue at its attachment" : "tissue", 100 * worstStrain, 100 * worstLimit,
                 structures.empty() ? "" : (", through the " + structures).c_str());

@@ -2,6 +2,7 @@
 // and burning next): a request (TopologyChange: the new body's setup and how the state extends onto new nodes), the
 // new body built at once or on the second thread while the old one steps on, and a swap at a step boundary with the
 // state carried across; then the new boundary for drawing and contact. The kind of change only words its events.
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <algorithm>
@@ -101,7 +102,7 @@ bool Session::burn(const std::vector<int>& elements, std::string& message) {
 }
 
 void Session::burnEvents(std::string& message) {
-  events_.push_back("burn");
+  events_.push_back(eventWord(EventKind::Burn));
   char buf[200];
   std::snprintf(
       buf, sizeof buf,
@@ -150,7 +151,7 @@ void Session::updateBleeds(std::string& message) {
   }
   char buf[240];
   if (starting > 0) {
-    events_.push_back("bleeding");
+    events_.push_back(eventWord(EventKind::Bleeding));
     std::string names;
     for (int l : startingLabels) {
       const std::string n = setup_.mesh.labelName(l);
@@ -159,7 +160,7 @@ void Session::updateBleeds(std::string& message) {
     std::snprintf(buf, sizeof buf, " The %s bleeds: %.2f mL/s from the cut.", names.c_str(), 1e6 * starting);
     message += buf;
   }
-  if (stopped > 0 || sealed > 0) events_.push_back("bleeding stopped");
+  if (stopped > 0 || sealed > 0) events_.push_back(eventWord(EventKind::BleedingStopped));
   if (stopped > 0) {
     std::snprintf(buf, sizeof buf, " The clip stops %.2f mL/s of bleeding.", 1e6 * stopped);
     message += buf;

@@ -3,6 +3,7 @@
 #include "rehearse/ui/simulationpanel.hpp"
 #include "rehearse/ui/throttle.hpp"
 
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/forceloop.hpp>
 
 #include <QHBoxLayout>
@@ -248,14 +249,16 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     if (stepMs_.size() > 100) stepMs_.erase(stepMs_.begin());
   }
   lastSteps_ = f->steps;
-  slips_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "slip"));
-  cuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "cut"));
-  vesselCuts_ += static_cast<int>(std::count(f->events.begin(), f->events.end(), "vessel cut"));
+  simcore::EventCounts counted;
+  counted.add(f->events);
+  slips_ += counted.slips;
+  cuts_ += counted.cuts;
+  vesselCuts_ += counted.vesselCuts;
   // A slip is said in the status bar too, where "Grasped: drag to pull" stood (a helper read it beside "the jaws are
   // closed on nothing"): the sentence says at what force and what the scene allows.
-  if (std::count(f->events.begin(), f->events.end(), "slip") > 0 && !f->message.isEmpty() && wb_.status)
+  if (counted.slips > 0 && !f->message.isEmpty() && wb_.status)
     wb_.status(f->message);
-  const int tore = static_cast<int>(std::count(f->events.begin(), f->events.end(), "tear"));
+  const int tore = counted.tears;
   tears_ += tore;
   auto status = [this](const QString& text) { pendingStatus_ = text; };
   const auto& t = f->tool;

@@ -2,6 +2,7 @@
 // trainer's thresholds and verdicts, the force and strain over time with the events marked, and key frames.
 #include "rehearse/ui/reviewreport.hpp"
 #include "rehearse/ui/qtapplication.hpp"
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/app/incorrect_actions.hpp>
 
 #include <QCoreApplication>
@@ -28,22 +29,31 @@
 namespace rehearse::ui {
 
 // The events' tick colours, the ones the plot's legend names.
+// A vessel cut's and an incorrect action's ticks are longer than the others.
+static bool longTick(const std::string& e) {
+  const simcore::EventKind k = simcore::eventKind(e);
+  return k == simcore::EventKind::VesselCut || k == simcore::EventKind::IncorrectAction;
+}
+
 QColor reviewEventColour(const std::string& e) {
-  if (e == "grasp") return QColor(40, 160, 40);                // green
-  if (e == "release") return QColor(40, 160, 160);             // teal
-  if (e == "slip") return QColor(230, 140, 0);                 // orange
-  if (e == "cut") return QColor(120, 0, 160);                  // purple
-  if (e == "vessel cut") return QColor(200, 0, 0);             // red
-  if (e == "force over threshold") return QColor(90, 90, 90);  // grey
-  if (e == "clip") return QColor(120, 130, 150);               // steel
-  if (e == "clip misplaced") return QColor(220, 180, 0);       // amber
-  if (e == "bleeding") return QColor(110, 0, 20);              // dark red
-  if (e == "bleeding stopped") return QColor(230, 110, 150);   // pink
-  if (e == "burn") return QColor(200, 190, 150);               // ash
-  if (e == "energy on structure") return QColor(255, 60, 200);  // magenta
-  if (e == "tear") return QColor(150, 90, 40);                  // brown
-  if (e.rfind("incorrect action", 0) == 0) return QColor(0, 200, 230);  // cyan
-  return {};
+  using K = simcore::EventKind;
+  switch (simcore::eventKind(e)) {
+    case K::Grasp: return QColor(40, 160, 40);               // green
+    case K::Release: return QColor(40, 160, 160);            // teal
+    case K::Slip: return QColor(230, 140, 0);                // orange
+    case K::Cut: return QColor(120, 0, 160);                 // purple
+    case K::VesselCut: return QColor(200, 0, 0);             // red
+    case K::ForceOverThreshold: return QColor(90, 90, 90);   // grey
+    case K::Clip: return QColor(120, 130, 150);              // steel
+    case K::ClipMisplaced: return QColor(220, 180, 0);       // amber
+    case K::Bleeding: return QColor(110, 0, 20);             // dark red
+    case K::BleedingStopped: return QColor(230, 110, 150);   // pink
+    case K::Burn: return QColor(200, 190, 150);              // ash
+    case K::EnergyOnStructure: return QColor(255, 60, 200);  // magenta
+    case K::Tear: return QColor(150, 90, 40);                // brown
+    case K::IncorrectAction: return QColor(0, 200, 230);     // cyan
+    default: return {};
+  }
 }
 const char* const kReviewEventLegend =
     "ticks: grasp green, release teal, slip orange, cut purple, vessel cut red (longer), force over the threshold "
@@ -109,7 +119,7 @@ void plot(QPainter& p, const QRectF& box, const QString& title, const QString& u
       if (!c.isValid()) continue;
       p.setPen(QPen(c, 3));
       p.drawLine(QPointF(X(s.time), area.top()),
-                 QPointF(X(s.time), area.top() + (e == "vessel cut" || e.rfind("incorrect action", 0) == 0 ? 45 : 25)));
+                 QPointF(X(s.time), area.top() + (longTick(e) ? 45 : 25)));
     }
   }
   QPainterPath path;

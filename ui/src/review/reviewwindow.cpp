@@ -2,6 +2,7 @@
 
 #include "rehearse/ui/reviewreport.hpp"
 
+#include <rehearse/simcore/session/events.hpp>
 #include <QAction>
 #include <QApplication>
 #include <QComboBox>
@@ -117,7 +118,7 @@ class TimelineWidget : public QWidget {
         const QColor c = reviewEventColour(e);  // as the report names them
         if (!c.isValid()) continue;
         p.setPen(QPen(c, 3));
-        p.drawLine(QPointF(xAt(s.time), 2), QPointF(xAt(s.time), e.rfind("incorrect action", 0) == 0 ? 34 : 16));
+        p.drawLine(QPointF(xAt(s.time), 2), QPointF(xAt(s.time), simcore::eventKind(e) == simcore::EventKind::IncorrectAction ? 34 : 16));
       }
     p.setPen(QPen(Qt::white, 2));
     p.drawLine(QPointF(xAt(now), 0), QPointF(xAt(now), height()));
