@@ -155,7 +155,7 @@ int cmdAppearance(const std::vector<std::string>& args) {
   imaging::saveAppearance(r.fit.theta, o["out"]);
   if (o.count("turned-pose")) imaging::savePose(r.turn.pose, o["turned-pose"]);
   if (o.count("background"))
-    imaging::writeFileAtomically(o["background"], [&] {
+    rehearse::writeFileAtomically(o["background"], [&] {
       std::vector<uchar> buf;
       cv::imencode(".png", r.background, buf);
       return std::string(buf.begin(), buf.end());
@@ -163,7 +163,7 @@ int cmdAppearance(const std::vector<std::string>& args) {
   if (o.count("diffuse")) {
     std::vector<uchar> buf;
     cv::imencode(".png", r.fit.separation.diffuse, buf);
-    imaging::writeFileAtomically(o["diffuse"], std::string(buf.begin(), buf.end()));
+    rehearse::writeFileAtomically(o["diffuse"], std::string(buf.begin(), buf.end()));
   }
   if (o.count("report")) {
     nlohmann::json stages = nlohmann::json::array();
@@ -268,7 +268,7 @@ int cmdCompose(const std::vector<std::string>& args) {
   }
   std::vector<uchar> buf;
   cv::imencode(ext, j, buf);
-  imaging::writeFileAtomically(o["out"], std::string(buf.begin(), buf.end()));
+  rehearse::writeFileAtomically(o["out"], std::string(buf.begin(), buf.end()));
   std::printf("written: %s\n", o["out"].c_str());
   return 0;
 }

@@ -190,9 +190,9 @@ int cmdRegister(const std::vector<std::string>& args) {
     if (o.count("frame")) {
       auto read = [&](const std::string& path) {
         cv::Mat3b image = cv::imread(path, cv::IMREAD_COLOR);
-        if (image.empty()) throw imaging::InputError("Cannot read the frame " + path + " (not an image, or missing).");
+        if (image.empty()) throw rehearse::InputError("Cannot read the frame " + path + " (not an image, or missing).");
         if (image.cols != camera.width || image.rows != camera.height)
-          throw imaging::InputError("The frame " + path + " is not the camera's size (" + std::to_string(camera.width) +
+          throw rehearse::InputError("The frame " + path + " is not the camera's size (" + std::to_string(camera.width) +
                                     "x" + std::to_string(camera.height) + ").");
         return imaging::undistortImage(image, camera);  // (the image itself without distortion)
       };
@@ -210,7 +210,7 @@ int cmdRegister(const std::vector<std::string>& args) {
       const double baseline = 1e-3 * parseNumber(o["baseline-mm"], "--baseline-mm");
       if (!(baseline > 0)) throw UsageError("--baseline-mm must be a positive number of millimetres");
       const imaging::CameraMotion m = imaging::estimateCameraMotion(camera, tracks, baseline);
-      if (!m.ok) throw imaging::InputError("The second frame cannot be used: " + m.status + ".");
+      if (!m.ok) throw rehearse::InputError("The second frame cannot be used: " + m.status + ".");
       second.motion = m.motion;
       second.motionDepthSigmaM = m.depthSigmaM;
       second.motionAtOneSigma = m.motionAtOneSigma;

@@ -145,7 +145,7 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
           << opt(m.incorrectCount("force_over_limit")) << ',' << opt(m.incorrectCount("outside_view")) << ','
           << r.verify.checked << ',' << r.verify.mismatches << '\n';
     }
-    imaging::writeFileAtomically(o["metrics-csv"], csv.str());
+    rehearse::writeFileAtomically(o["metrics-csv"], csv.str());
     std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());
     if (differing) {
       std::fprintf(stderr, "rehearse: %ld checksums differ on replay (column checksums_differing)\n", differing);

@@ -26,7 +26,7 @@ namespace rehearse::app::cli {
 
 // A JSON report, written atomically (a reader never sees half of it).
 void writeReport(const std::string& path, const nlohmann::json& report) {
-  imaging::writeFileAtomically(path, report.dump(2) + "\n");
+  rehearse::writeFileAtomically(path, report.dump(2) + "\n");
 }
 
 Options parseOptions(const std::vector<std::string>& args, std::size_t from, const Command& command) {

@@ -244,24 +244,6 @@ std::string poseToJson(const Pose& p) {
 
 void savePose(const Pose& p, const std::string& path) { writeFileAtomically(path, poseToJson(p) + "\n"); }
 
-void writeFileAtomically(const std::string& path, const std::string& bytes) {
-  const std::string tmp = path + ".part";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError("Cannot write " + path + "; check that the folder exists and is writable.");
-    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw InputError("Writing " + path + " failed (disk full?); nothing was changed.");
-    }
-  }
-  std::error_code ec;
-  fs::rename(tmp, path, ec);
-  if (ec) throw InputError("Cannot replace " + path + " (" + ec.message() + ").");
-}
-
 cv::Mat3b undistortImage(const cv::Mat3b& image, const Camera& camera) {
   if (image.empty() || !camera.distorted()) return image;
   cv::Mat K(3, 3, CV_64F), D(1, 5, CV_64F);

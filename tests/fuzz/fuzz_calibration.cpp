@@ -14,7 +14,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   readAsFile(data, size, {".yaml", ".yml", ".xml", ".json", ".txt"}, "camera", [](const std::string& path) {
     try {
       rehearse::imaging::loadCamera(path, 640, 480);
-    } catch (const rehearse::imaging::InputError&) {
+    } catch (const rehearse::InputError&) {
     }
   });
   return 0;

@@ -276,8 +276,8 @@ class TestAppearance : public QObject {
     in.rest = in.deformed = c_.surfaceView();
     in.frame = in.background = frame;
     in.textureOnly = true;
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::composeNovelView(in, c_.camera, behind));
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::composeNovelView(in, c_.camera, view2, cv::Mat3b(10, 10)));
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError, imaging::composeNovelView(in, c_.camera, behind));
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError, imaging::composeNovelView(in, c_.camera, view2, cv::Mat3b(10, 10)));
   }
 
   // A deformed organ in the novel view: moved by d in its own frame, it is drawn as the organ at rest seen from a
@@ -307,7 +307,7 @@ class TestAppearance : public QObject {
           cv::countNonZero(a.covered), cv::countNonZero(b.covered));
     QVERIFY(cv::countNonZero(a.covered) > 100000);
     QVERIFY(db >= 45);
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError,
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError,
                              imaging::composeNovelView(in, c_.camera, view, {}, std::vector<double>(9, 0.0)));
   }
 
@@ -352,9 +352,9 @@ class TestAppearance : public QObject {
       QVERIFY(checked > 100000);
       QVERIFY(worst <= 1.0);
     }
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, plain.reshaped(c_.surfaceView(), {1, 1}, {ratio}));
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError, plain.reshaped(c_.surfaceView(), {1, 1}, {ratio}));
     QVERIFY_THROWS_EXCEPTION(
-        imaging::InputError,
+        rehearse::InputError,
         plain.reshaped(c_.surfaceView(), std::vector<int>(c_.surfaceView().triangleCount, 2), {ratio}));
   }
 
@@ -381,7 +381,7 @@ class TestAppearance : public QObject {
           "bad.json",
           R"({"light_position": [0, 0, 0], "kd": [0.1, 0.1, 0.1], "ks": [0, 0, 0], "roughness": 0.1, "falloff": -2})"));
       QFAIL("a negative fall-off was accepted");
-    } catch (const imaging::InputError& e) {
+    } catch (const rehearse::InputError& e) {
       QVERIFY(std::string(e.what()).find("falloff") != std::string::npos);
     }
   }
@@ -471,7 +471,7 @@ class TestAppearance : public QObject {
     QVERIFY(rimDb >= 35.0);
     QVERIFY(rimDb > plainDb + 6);
     // A shape of another mesh is refused in one sentence.
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, compositor.compose(std::vector<double>(9, 0.0), 1));
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError, compositor.compose(std::vector<double>(9, 0.0), 1));
   }
 
   // The texture follows the tissue: dots painted on the organ in the frame land, after the organ moves,
@@ -615,7 +615,7 @@ class TestAppearance : public QObject {
     try {
       imaging::fitAppearance(c_.frame, g);
       QFAIL("a few pixels were fitted");
-    } catch (const imaging::InputError& e) {
+    } catch (const rehearse::InputError& e) {
       QVERIFY(std::string(e.what()).find("fewer than 200 usable pixels") != std::string::npos);
     }
   }
@@ -627,7 +627,7 @@ class TestAppearance : public QObject {
     try {
       imaging::surfaceGeometry(c_.camera, behind, c_.surfaceView());
       QFAIL("an organ behind the camera was accepted");
-    } catch (const imaging::InputError& e) {
+    } catch (const rehearse::InputError& e) {
       QVERIFY(std::string(e.what()).find("behind the camera") != std::string::npos);
     }
     const auto g = imaging::surfaceGeometry(c_.camera, c_.truePose, c_.surfaceView());
@@ -637,7 +637,7 @@ class TestAppearance : public QObject {
       try {
         imaging::fitAppearance(flat, g);
         QFAIL("a flat frame was fitted");
-      } catch (const imaging::InputError& e) {
+      } catch (const rehearse::InputError& e) {
         QVERIFY(std::string(e.what()).find("usable pixels") != std::string::npos);
       }
     }
@@ -646,7 +646,7 @@ class TestAppearance : public QObject {
     away.t.x() += 5.0;
     const auto off = imaging::surfaceGeometry(c_.camera, away, c_.surfaceView());
     QCOMPARE(cv::countNonZero(off.mask()), 0);
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::fitAppearance(c_.frame, off));
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError, imaging::fitAppearance(c_.frame, off));
   }
 };
 

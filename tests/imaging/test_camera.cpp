@@ -31,7 +31,7 @@ void refused(const std::string& file, const std::string& bytes, const char* must
     else
       imaging::loadCamera(p);
     QFAIL(qPrintable(QString::fromStdString("accepted: " + file)));
-  } catch (const imaging::InputError& e) {
+  } catch (const rehearse::InputError& e) {
     const QString w = e.what();
     QVERIFY2(w.contains(QString::fromStdString(file)) && w.contains(must) && !w.contains('\n'), qPrintable(w));
   }
@@ -228,21 +228,21 @@ class TestCamera : public QObject {
     try {
       imaging::loadCamera(p, 1280, 720);
       QFAIL("a zero focal length was accepted");
-    } catch (const imaging::InputError& e) {
+    } catch (const rehearse::InputError& e) {
       QVERIFY(QString(e.what()).contains("degenerate"));
     }
     writeFile(p, "1000 0 640\n0 1000 360\n0 0 1\n");
     try {
       imaging::loadCamera(p);  // no image size
       QFAIL("a camera without an image size was accepted");
-    } catch (const imaging::InputError& e) {
+    } catch (const rehearse::InputError& e) {
       QVERIFY(QString(e.what()).contains("image size"));
     }
     writeFile(p, "garbage");
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::loadCamera(p, 640, 480));
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError, imaging::loadCamera(p, 640, 480));
     const std::string pj = tempPath("pose.json");
     writeFile(pj, R"({"R": [[1,0,0],[0,1,0],[0,0,2]], "t": [0,0,0.2]})");
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, imaging::loadPose(pj));
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError, imaging::loadPose(pj));
     writeFile(pj, R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0,0,20], "unit": "cm"})");
     QCOMPARE(imaging::loadPose(pj).t.z(), 0.2);
     Pose rot;

@@ -10,6 +10,7 @@
 #include <random>
 
 using namespace rehearse::imaging;
+using rehearse::InputError;
 
 namespace {
 ContourSegment circle(double cx, double cy, double r, int n, bool closed = true) {

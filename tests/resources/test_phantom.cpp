@@ -96,7 +96,7 @@ class TestPhantom : public QObject {
   }
 
   // The renderer that makes the phantom frame, against an independent reference: a sphere shaded in
-  // closed form (ray-sphere intersection, the sphere's exact normal, DESIGN.md's simplified Torrance-Sparrow
+  // closed form (ray-sphere intersection, the sphere's exact normal, ../shared/DESIGN.md's simplified Torrance-Sparrow
   // written out here, radiance 1 = level 255). The frame check above shows the frame is that renderer
   // with the stored truth; this shows the renderer is the model.
   void rendererMatchesAnalyticSphere() {
@@ -196,7 +196,7 @@ class TestPhantom : public QObject {
     QCOMPARE(r.frame.cols, 1280);
     QCOMPARE(r.camera.width, 1280);  // default camera from the frame size
     // No manifest at all: a clear error.
-    QVERIFY_THROWS_EXCEPTION(imaging::InputError, app::loadCaseDirectory(tempPath("no-such-case")));
+    QVERIFY_THROWS_EXCEPTION(rehearse::InputError, app::loadCaseDirectory(tempPath("no-such-case")));
   }
 };
 

@@ -30,7 +30,7 @@ LoadedCase loadCaseOrThrow(const QString& dir, const std::function<void(double, 
     };
     *c = app::caseFromPhantom(phantom::makePhantom(po));
   } else if (!QFileInfo::exists(dir)) {
-    throw imaging::InputError(QStringLiteral("%1 does not exist.").arg(dir).toStdString());
+    throw rehearse::InputError(QStringLiteral("%1 does not exist.").arg(dir).toStdString());
   } else if (QFileInfo(dir).isFile()) {
     *c = loadCaseFile(dir, &out.notes);
   } else {

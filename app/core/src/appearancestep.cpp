@@ -39,13 +39,13 @@ cv::Mat3b residualOn(const AppearanceInput& in, const imaging::Appearance& theta
 
 // The organ's geometry at rest, refusing an organ the frame does not show.
 imaging::SurfaceGeometry restGeometry(const AppearanceInput& in) {
-  if (in.frame.empty()) throw imaging::InputError("There is no frame to estimate the appearance from; grab a frame first (step 2).");
+  if (in.frame.empty()) throw rehearse::InputError("There is no frame to estimate the appearance from; grab a frame first (step 2).");
   if (in.frame.cols != in.camera.width || in.frame.rows != in.camera.height)
-    throw imaging::InputError("The frame is " + std::to_string(in.frame.cols) + "x" + std::to_string(in.frame.rows) + " but the camera is calibrated for " +
+    throw rehearse::InputError("The frame is " + std::to_string(in.frame.cols) + "x" + std::to_string(in.frame.rows) + " but the camera is calibrated for " +
                               std::to_string(in.camera.width) + "x" + std::to_string(in.camera.height) + "; use the camera of this frame.");
-  if (in.triangles.empty()) throw imaging::InputError("The organ has no surface; load the organ first (step 1).");
+  if (in.triangles.empty()) throw rehearse::InputError("The organ has no surface; load the organ first (step 1).");
   imaging::SurfaceGeometry g = imaging::surfaceGeometry(in.camera, in.pose, in.surface());
-  if (cv::countNonZero(g.mask()) == 0) throw imaging::InputError("The organ is not in the frame at this pose; align it first (step 4).");
+  if (cv::countNonZero(g.mask()) == 0) throw rehearse::InputError("The organ is not in the frame at this pose; align it first (step 4).");
   return g;
 }
 
@@ -71,7 +71,7 @@ CutComposition makeCutCompositor(const imaging::Compositor& base, const Case& c,
   const auto& volume = c.organ->volume;
   const std::size_t n0 = volume.points.size(), n = cut.rest.size();
   if (n < n0 || n0 == 0 || cut.triangles.empty() || cut.cut.size() != cut.triangles.size())
-    throw imaging::InputError("The cut organ is not this case's organ; it cannot be composited.");
+    throw rehearse::InputError("The cut organ is not this case's organ; it cannot be composited.");
   const auto& shape = c.shapeNodes();
   std::vector<Eigen::Vector3d> placed(shape.begin(), shape.end());
   if (n > n0) {
@@ -338,7 +338,7 @@ ShadingTurn searchTurn(const AppearanceInput& in, const imaging::SurfaceGeometry
         share = imaging::diffuseShareAt(diffuse, g, base & inner, first.theta, 1500, 40);
         ++turn.candidates;
       }
-    } catch (const imaging::InputError&) {
+    } catch (const rehearse::InputError&) {
     }
     scored[key] = share;
     return share;
@@ -486,7 +486,7 @@ AppearanceOutput runAppearance(const AppearanceInput& input) {
 cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance& theta, const cv::Mat3b& background, const cv::Mat3f& albedo,
                             bool textureOnly, const std::vector<double>& deformedVertices, int supersampling) {
   if (!deformedVertices.empty() && deformedVertices.size() != in.vertices.size())
-    throw imaging::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) + " nodes, the registered one " +
+    throw rehearse::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) + " nodes, the registered one " +
                               std::to_string(in.vertices.size() / 3) + "; they must be the same mesh in the same order.");
   imaging::CompositionInput c = compositionInput(in, AppearanceLayers{{}, background, albedo, {}}, theta, textureOnly);
   if (!deformedVertices.empty()) c.deformed.vertices = deformedVertices.data();
@@ -530,7 +530,7 @@ imaging::NovelView composeNovelViewWithTheta(const AppearanceInput& in, const im
                                              const cv::Mat3b& viewImage, const std::vector<double>& deformedVertices,
                                              bool textureOnly) {
   if (!deformedVertices.empty() && deformedVertices.size() != in.vertices.size())
-    throw imaging::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) +
+    throw rehearse::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) +
                               " nodes, the registered one " + std::to_string(in.vertices.size() / 3) +
                               "; they must be the same mesh in the same order.");
   const AppearanceLayers layers = appearanceLayers(in, theta);

@@ -51,34 +51,34 @@ Eigen::Vector3d vec3(const json& j) { return {j.at(0).get<double>(), j.at(1).get
 void writeCaseDirectory(const Case& c, const std::string& dir) {
   std::error_code ec;
   fs::create_directories(dir, ec);
-  if (ec) throw imaging::InputError("Cannot create the folder " + dir + " (" + ec.message() + ").");
+  if (ec) throw rehearse::InputError("Cannot create the folder " + dir + " (" + ec.message() + ").");
   auto path = [&](const char* f) { return (fs::path(dir) / f).string(); };
   const simcore::Mesh& volume = c.organ->volume;
   try {
     simcore::saveMesh(volume, path("organ.vtu"));
     simcore::saveMesh(volume, path("organ.msh"));
   } catch (const simcore::MeshError& e) {
-    throw imaging::InputError(e.what());
+    throw rehearse::InputError(e.what());
   }
-  imaging::writeFileAtomically(path("organ_surface.obj"), objText(volume, c.organ->surface, "organ outer surface"));
+  rehearse::writeFileAtomically(path("organ_surface.obj"), objText(volume, c.organ->surface, "organ outer surface"));
   std::vector<int> labels;
   auto all = simcore::boundaryTriangles(volume, true, &labels);
   std::vector<std::array<int, 3>> vessel;
   for (std::size_t i = 0; i < all.size(); ++i)
     if (labels[i] == kVesselLabel) vessel.push_back(all[i]);
-  imaging::writeFileAtomically(path("vessels_surface.obj"), objText(volume, vessel, "vessel tree surface"));
+  rehearse::writeFileAtomically(path("vessels_surface.obj"), objText(volume, vessel, "vessel tree surface"));
   if (const auto& visual = c.organ->visual) {  // the organ's own surface, drawn in the composited view
     simcore::Mesh surface;
     surface.points = visual->points;
     surface.triangles = visual->triangles;
-    imaging::writeFileAtomically(path("organ_visual.obj"),
+    rehearse::writeFileAtomically(path("organ_visual.obj"),
                                  objText(surface, surface.triangles, "organ's own surface, drawn over the volume"));
   }
   imaging::saveCamera(c.camera, path("camera.yaml"));
   std::vector<uchar> png;
-  if (!cv::imencode(".png", c.frame, png)) throw imaging::InputError("The frame could not be encoded as PNG.");
-  imaging::writeFileAtomically(path("frame.png"), std::string(png.begin(), png.end()));
-  imaging::writeFileAtomically(path("attachments.json"), json{{"nodes", c.attachments}, {"indexing", "0-based, organ.vtu node order"}}.dump() + "\n");
+  if (!cv::imencode(".png", c.frame, png)) throw rehearse::InputError("The frame could not be encoded as PNG.");
+  rehearse::writeFileAtomically(path("frame.png"), std::string(png.begin(), png.end()));
+  rehearse::writeFileAtomically(path("attachments.json"), json{{"nodes", c.attachments}, {"indexing", "0-based, organ.vtu node order"}}.dump() + "\n");
 
   json manifest;
   manifest["format"] = "rehearse-case-folder";
@@ -102,26 +102,26 @@ void writeCaseDirectory(const Case& c, const std::string& dir) {
     manifest["ground_truth"] = {{"pose", "pose.json"}, {"appearance", "appearance.json"}, {"vessel_tree", tree},
                                 {"note", "frame.png was rendered from organ_surface.obj at pose.json with appearance.json"}};
   }
-  imaging::writeFileAtomically(path("case.json"), manifest.dump(2) + "\n");
+  rehearse::writeFileAtomically(path("case.json"), manifest.dump(2) + "\n");
 }
 
 Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes) {
   auto path = [&](const std::string& f) { return (fs::path(dir) / f).string(); };
   std::string manifestText, unreadable;
   if (!fs::exists(path("case.json")))
-    throw imaging::InputError(dir + " is not a case folder (it has no case.json); choose a folder written by 'rehearse phantom'.");
+    throw rehearse::InputError(dir + " is not a case folder (it has no case.json); choose a folder written by 'rehearse phantom'.");
   if (!readTextInput(path("case.json"), manifestText, unreadable, std::size_t{1} << 20))
-    throw imaging::InputError("The case folder's manifest: " + unreadable + ".");
+    throw rehearse::InputError("The case folder's manifest: " + unreadable + ".");
   if (const std::string why = jsonTextProblem(manifestText, "case.json in " + dir); !why.empty())
-    throw imaging::InputError(why + "; the case folder is damaged.");
+    throw rehearse::InputError(why + "; the case folder is damaged.");
   json manifest;
   try {
     manifest = json::parse(manifestText);
   } catch (const std::exception&) {
-    throw imaging::InputError("case.json in " + dir + " is not valid JSON; the case folder is damaged.");
+    throw rehearse::InputError("case.json in " + dir + " is not valid JSON; the case folder is damaged.");
   }
   if (manifest.value("format", "") != "rehearse-case-folder")
-    throw imaging::InputError("case.json in " + dir + " is not a Rehearse case manifest.");
+    throw rehearse::InputError("case.json in " + dir + " is not a Rehearse case manifest.");
   Case c;
   c.name = manifest.value("name", fs::path(dir).filename().string());
   auto note = [&](const std::string& s) {

@@ -40,11 +40,11 @@ std::vector<imaging::Track> tracksOnOrgan(const cv::Mat3b& first, const imaging:
 }
 
 simcore::RegistrationFrame secondFrame(const Case& c, std::string* status) {
-  if (c.frame2.empty()) throw imaging::InputError("The case has no second frame.");
+  if (c.frame2.empty()) throw rehearse::InputError("The case has no second frame.");
   if (c.frame2.size() != c.frame.size())
-    throw imaging::InputError("The second frame is not the first one's size; open a frame of the same video.");
+    throw rehearse::InputError("The second frame is not the first one's size; open a frame of the same video.");
   if (!(c.baselineMm > 0))
-    throw imaging::InputError(
+    throw rehearse::InputError(
         "The second frame needs how far the scope moved between the frames (mm, step 2): two frames give only the "
         "move's direction.");
   simcore::RegistrationFrame f;
@@ -52,10 +52,10 @@ simcore::RegistrationFrame secondFrame(const Case& c, std::string* status) {
   for (const auto& seg : c.contour2.segments)
     if (seg.isSilhouette() && seg.points.size() > 1) f.contour.push_back(seg.points);
   if (f.contour.empty())
-    throw imaging::InputError("The second frame has no outline: sketch the organ's outline on it (step 3).");
+    throw rehearse::InputError("The second frame has no outline: sketch the organ's outline on it (step 3).");
   const imaging::CameraMotion m =
       imaging::estimateCameraMotion(c.camera, tracksOnOrgan(c.frame, c.contour, c.frame2), 1e-3 * c.baselineMm);
-  if (!m.ok) throw imaging::InputError("The second frame cannot be used: " + m.status + ".");
+  if (!m.ok) throw rehearse::InputError("The second frame cannot be used: " + m.status + ".");
   f.motion = m.motion;
   f.motionDepthSigmaM = m.depthSigmaM;
   f.motionAtOneSigma = m.motionAtOneSigma;

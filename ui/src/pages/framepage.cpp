@@ -405,7 +405,7 @@ void FramePage::loadCalibration(const QString& path) {
     const int w = data()->frame.empty() ? 0 : data()->frame.cols, h = data()->frame.empty() ? 0 : data()->frame.rows;
     imaging::Camera cam = imaging::loadCamera(path.toStdString(), w, h);
     if (w > 0 && (cam.width != w || cam.height != h))
-      throw imaging::InputError(tr("The calibration is for %1x%2 images but the frame is %3x%4; choose the matching calibration.")
+      throw rehearse::InputError(tr("The calibration is for %1x%2 images but the frame is %3x%4; choose the matching calibration.")
                                     .arg(cam.width).arg(cam.height).arg(w).arg(h).toStdString());
     wb_.doc->edit(tr("Load calibration"), [cam](app::Case& k) {
       if (k.rawFrame.empty()) k.rawFrame = k.frame;  // the frame so far was taken as captured

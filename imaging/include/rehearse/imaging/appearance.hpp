@@ -1,5 +1,5 @@
 #pragma once
-// Simplified Torrance-Sparrow reflectance of DESIGN.md, per colour channel c (values in [0,1], no gamma), lit by
+// Simplified Torrance-Sparrow reflectance (the project's design brief, ../shared/DESIGN.md, beside the repository), per colour channel c (values in [0,1], no gamma), lit by
 // a laparoscope's light:
 //   J_c = F(p) [kd_c cos(theta_i) / r^2 + ks_c / (r^2 cos(theta_r)) * exp(-alpha^2 / (2 sigma^2))]
 // with F = cos^n(psi), psi the angle between the scope's axis (camera z) and the ray to the point: the light
@@ -25,7 +25,7 @@ struct Appearance {
   void terms(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double& diffuse, double& specular) const;
 };
 
-Appearance loadAppearance(const std::string& path);  ///< JSON of DESIGN.md; throws InputError
+Appearance loadAppearance(const std::string& path);  ///< THETA.json (README.md, "File formats"); throws InputError
 /// Why these values cannot be an organ's appearance (one sentence without a full stop), or empty: k_d and k_s in
 /// [0, 100] per channel (a pixel's value at 1 cm from the light is then at most 10^6: any brighter is no organ), the
 /// light within 10 m of the camera, the roughness in (0, 10] rad ([0, 10] with `zeroRoughness`: an estimate that found

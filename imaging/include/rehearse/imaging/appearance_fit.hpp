@@ -1,5 +1,5 @@
 #pragma once
-// Appearance estimation and composition (DejaVu's step 6, DESIGN.md): the organ's reflectance and the
+// Appearance estimation and composition (DejaVu's step 6; the design brief ../shared/DESIGN.md): the organ's reflectance and the
 // scene's light (Theta of the simplified Torrance-Sparrow model, appearance.hpp) fitted to the frame
 // through the registered organ's per-pixel geometry, in the paper's stages (light position from the
 // specular peaks, then diffuse on the specular-free image, then specular and roughness on the frame); the

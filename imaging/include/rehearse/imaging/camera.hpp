@@ -1,6 +1,7 @@
 #pragma once
 // Pinhole camera with OpenCV conventions (x right, y down, z forward; pixel centres at integers),
-// and the camera / pose file formats of DESIGN.md.
+// and the camera / pose file formats (README.md, "File formats").
+#include <rehearse/files.hpp>  // InputError (what the readers here throw), writeFileAtomically
 #include <rehearse/types.hpp>
 
 #include <opencv2/core.hpp>
@@ -10,11 +11,6 @@
 #include <string>
 
 namespace rehearse::imaging {
-
-/// A user-facing input error: `what()` is one sentence saying what is wrong and what to do.
-struct InputError : std::runtime_error {
-  using std::runtime_error::runtime_error;
-};
 
 struct Camera {
   Eigen::Matrix3d K = Eigen::Matrix3d::Identity();  ///< intrinsics in pixels
@@ -68,7 +64,5 @@ void savePose(const Pose& pose, const std::string& path);
 /// The pose as savePose writes it (JSON text, metres).
 std::string poseToJson(const Pose& pose);
 
-/// Writes bytes to `path` through a temporary file and a rename (never half-written). Throws InputError.
-void writeFileAtomically(const std::string& path, const std::string& bytes);
 
 }  // namespace rehearse::imaging

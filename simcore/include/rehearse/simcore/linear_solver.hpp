@@ -4,7 +4,7 @@
 //  - CholmodSolver: a thin CHOLMOD (supernodal or simplicial Cholesky) wrapper that keeps everything it
 //    allocates: the symbolic analysis (redone only when the sparsity pattern changes), the numeric factor,
 //    and the solve's result and workspace (cholmod_solve2), so repeated factorise/solve calls do not
-//    allocate. OpenBLAS is set to one thread (2x faster here on these systems, DESIGN.md).
+//    allocate. OpenBLAS is set to one thread (2x faster here on these systems: the design brief, ../shared/DESIGN.md).
 //  - factoriseShifted: a Cholesky of a matrix that may be indefinite (a nonlinear material's tangent under
 //    large deformation), shifting its diagonal until it factorises.
 //  - solveOnce: one solve with CHOLMOD, incomplete-Cholesky preconditioned CG, or a dense LDL^T (reference).

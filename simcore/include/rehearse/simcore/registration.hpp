@@ -1,5 +1,5 @@
 #pragma once
-// Elastic registration of the organ onto a sketched silhouette (Adagolodjo et al. 2017, DESIGN.md):
+// Elastic registration of the organ onto a sketched silhouette (Adagolodjo et al. 2017; the design brief ../shared/DESIGN.md):
 // the visible silhouette of the deformed surface is projected through the camera, every contour point is
 // bound to the nearest compatible silhouette point (2D normals, outliers rejected), and the bound points
 // are held on the rays through their contour points (constraints in the image plane only; the elastic

@@ -65,13 +65,13 @@ AppearanceInput appearanceInputFromCase(const Case& c);
 /// What the case keeps of a run (Theta, what it could tell, its report) and what it was fitted on.
 std::shared_ptr<const AppearanceEstimate> estimateFromRun(const AppearanceOutput& out, const Case& c, imaging::InpaintMethod inpaint);
 
-/// The estimate as JSON (Theta in DESIGN.md's THETA.json fields, the report, what it was fitted on), and
+/// The estimate as JSON (Theta in THETA.json's fields, README.md "File formats"; the report, what it was fitted on), and
 /// back; the reader throws std::exception naming what is wrong.
 std::string appearanceEstimateToJson(const AppearanceEstimate& e);
 std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::string& text);
 
 /// What composition takes from the frame at rest, for a Theta: the specular-free image I_D, the background
-/// behind the organ I_B, and the albedo ratios. Throws imaging::InputError as runAppearance does.
+/// behind the organ I_B, and the albedo ratios. Throws rehearse::InputError as runAppearance does.
 struct AppearanceLayers {
   cv::Mat3b diffuse, background;
   cv::Mat3f albedo;
@@ -91,7 +91,7 @@ std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, c
 /// (a new node by its barycentric weights in the uncut rest mesh, applied to the case's shape), drawn with `base`'s
 /// frame, layers and Theta. The organ's own faces keep the frame's albedo; its cut faces take a preset interior
 /// colour re-shaded by Theta: the parenchyma's, a vessel's blood, or another inner structure's (`said` names
-/// them). Throws imaging::InputError when `cut` is not of this case's organ.
+/// them). Throws rehearse::InputError when `cut` is not of this case's organ.
 struct CutComposition {
   std::unique_ptr<imaging::Compositor> compositor;
   std::vector<double> restVertices;  ///< the cut mesh's nodes where the frame showed them (model frame, 3n)
@@ -99,7 +99,7 @@ struct CutComposition {
 };
 CutComposition makeCutCompositor(const imaging::Compositor& base, const Case& c, const simcore::CutSurface& cut);
 
-/// Throws imaging::InputError with one sentence for unusable input (organ behind the camera or off the
+/// Throws rehearse::InputError with one sentence for unusable input (organ behind the camera or off the
 /// frame, a frame of another size, nothing usable to fit).
 AppearanceOutput runAppearance(const AppearanceInput& in);
 
@@ -109,7 +109,7 @@ cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance
                             bool textureOnly, const std::vector<double>& deformedVertices = {}, int supersampling = 2);
 
 /// J with a Theta given (no fitting): the background and albedo taken from the frame at rest, the organ moved
-/// to `deformedVertices` (empty: at rest). Throws imaging::InputError as runAppearance does.
+/// to `deformedVertices` (empty: at rest). Throws rehearse::InputError as runAppearance does.
 cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices = {});
 
 /// A novel view with a Theta given (issue 35, imaging::composeNovelView): the layers taken from the frame at

@@ -46,7 +46,7 @@ bool isCaseFile(const std::string& path);
 
 /// A case as the command line takes it: a case file (.rehearse, what the GUI saves) or a case folder (what `rehearse
 /// phantom --out DIR` writes, casefolder.hpp). Parts that could not be read are described in `notes`. Throws
-/// std::runtime_error (or imaging::InputError) with one sentence when `path` is neither.
+/// std::runtime_error (or rehearse::InputError) with one sentence when `path` is neither.
 Case loadCase(const std::string& path, std::vector<std::string>* notes = nullptr);
 
 }  // namespace rehearse::app

@@ -10,11 +10,11 @@
 
 namespace rehearse::app {
 
-/// Writes `c` in `dir` (created if needed). Throws imaging::InputError with one sentence.
+/// Writes `c` in `dir` (created if needed). Throws rehearse::InputError with one sentence.
 void writeCaseDirectory(const Case& c, const std::string& dir);
 
 /// Reads a case directory written by writeCaseDirectory. Missing optional parts are reported in `notes`.
-/// Throws imaging::InputError or simcore::MeshError with one sentence.
+/// Throws rehearse::InputError or simcore::MeshError with one sentence.
 Case loadCaseDirectory(const std::string& dir, std::vector<std::string>* notes = nullptr);
 
 }  // namespace rehearse::app

@@ -45,7 +45,7 @@ std::vector<imaging::Track> tracksOnOrgan(const cv::Mat3b& first, const imaging:
 
 /// The case's second frame for the fit (Case::frame2): its outline, the camera's motion from the first frame estimated
 /// from the features tracked on the organ (the move's length Case::baselineMm), with the motion's uncertainty and its
-/// inlier tracks; `status` gets the estimate's sentence. Throws imaging::InputError with one sentence when it cannot
+/// inlier tracks; `status` gets the estimate's sentence. Throws rehearse::InputError with one sentence when it cannot
 /// be used (no outline on it, no baseline, frames of another size, too few features, barely moved, ...).
 simcore::RegistrationFrame secondFrame(const Case& c, std::string* status = nullptr);
 
@@ -57,7 +57,7 @@ simcore::FemModel fitModel(const FitInput& in);
 
 using FitProgress = std::function<bool(const simcore::RegistrationIteration&, const Eigen::VectorXd& x, const Pose& pose)>;
 
-/// Runs the fit. Throws simcore::MeshError / imaging::InputError with one sentence for unusable input
+/// Runs the fit. Throws simcore::MeshError / rehearse::InputError with one sentence for unusable input
 /// (no silhouette segment and no curve on the organ, a mesh behind the camera, ...).
 simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress& progress = {});
 

@@ -1,5 +1,5 @@
 #pragma once
-// The workflow: the steps of a case in the order they are worked (DESIGN.md), what each needs, whether it
+// The workflow: the steps of a case in the order they are worked (README.md, "Working a case"), what each needs, whether it
 // is done, and which comes next. Counts come from the table (kSteps), never from literals: a new step
 // (appearance, rehearsal) is one row here and one page class in ui/.
 #include "rehearse/app/case.hpp"

@@ -14,7 +14,7 @@
 namespace rehearse::simcore {
 namespace {
 
-// OpenBLAS on one thread: factorising these sparse systems was 2x faster than on two here (DESIGN.md).
+// OpenBLAS on one thread: factorising these sparse systems was 2x faster than on two here (measured in the design brief, ../shared/DESIGN.md, beside the repository).
 void singleThreadedBlas() {
   static const bool done = [] {
     using Fn = void (*)(int);
