@@ -3980,7 +3980,7 @@ FFD surface: the surface on an 81 x 81 geometry image deformed around the grasp 
     <name>rehearse::ui::TimelineWidget</name>
     <message>
         <location filename="../src/review/reviewwindow.cpp" line="53"/>
-        <source>Tool force over time; ticks: grasp (green), slip (orange), cut (purple), vessel cut (red), force over the threshold (dashed line, red tick), incorrect action (cyan, longer). Click or drag to seek.</source>
+        <source>Tool force over time; ticks: grasp (green), slip (orange), cut (purple), vessel cut (red), force over the threshold (grey; the threshold is the dashed line), incorrect action (cyan, longer). Click or drag to seek.</source>
         <translation type="unfinished"></translation>
     </message>
     <message>

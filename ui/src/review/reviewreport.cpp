@@ -112,16 +112,17 @@ void plot(QPainter& p, const QRectF& box, const QString& title, const QString& u
     p.setPen(QPen(QColor(200, 60, 60), 2, Qt::DashLine));
     p.drawLine(QPointF(area.left(), Y(threshold)), QPointF(area.right(), Y(threshold)));
   }
-  for (const auto& s : tl) {
-    for (const auto& e : s.events) {
-      // The colours the legend names (eventColour); a vessel cut's tick is longer, drawn over its cut's.
-      const QColor c = eventColour(e);
-      if (!c.isValid()) continue;
-      p.setPen(QPen(c, 3));
-      p.drawLine(QPointF(X(s.time), area.top()),
-                 QPointF(X(s.time), area.top() + (longTick(e) ? 45 : 25)));
-    }
-  }
+  // The colours the legend names (eventColour); a vessel cut's tick is longer, drawn over its cut's. The force
+  // crossing the threshold first: what happened at the same step (a slip at the grasp's limit) is drawn over it.
+  for (const bool crossings : {true, false})
+    for (const auto& s : tl)
+      for (const auto& e : s.events) {
+        if ((simcore::eventKind(e) == simcore::EventKind::ForceOverThreshold) != crossings) continue;
+        const QColor c = eventColour(e);
+        if (!c.isValid()) continue;
+        p.setPen(QPen(c, 3));
+        p.drawLine(QPointF(X(s.time), area.top()), QPointF(X(s.time), area.top() + (longTick(e) ? 45 : 25)));
+      }
   QPainterPath path;
   path.moveTo(X(tl.front().time), Y(value(tl.front())));
   for (const auto& s : tl) path.lineTo(X(s.time), Y(value(s)));

@@ -69,8 +69,8 @@ class TimelineWidget : public QWidget {
     setCursor(Qt::PointingHandCursor);
     setToolTip(
         tr("Tool force over time; ticks: grasp (green), slip (orange), cut (purple), vessel cut (red), force over the "
-           "threshold (dashed "
-           "line, red tick), incorrect action (cyan, longer). Click or drag to seek."));
+           "threshold (grey; the threshold is the dashed line), incorrect action (cyan, longer). Click or drag to "
+           "seek."));
   }
   double timeAt(double x) const {
     return std::clamp((x - 8) / std::max(1.0, width() - 16.0), 0.0, 1.0) * total;
@@ -113,13 +113,19 @@ class TimelineWidget : public QWidget {
     for (const auto& s : *timeline) path.lineTo(xAt(s.time), Y(s.force));
     p.setPen(QPen(QColor(90, 160, 255), 1.5));
     p.drawPath(path);
-    for (const auto& s : *timeline)
-      for (const auto& e : s.events) {
-        const QColor c = reviewEventColour(e);  // as the report names them
-        if (!c.isValid()) continue;
-        p.setPen(QPen(c, 3));
-        p.drawLine(QPointF(xAt(s.time), 2), QPointF(xAt(s.time), simcore::eventKind(e) == simcore::EventKind::IncorrectAction ? 34 : 16));
-      }
+    // The force crossing the threshold first: what happened at the same step (a slip at the grasp's limit) is drawn
+    // over its grey tick, not hidden under it.
+    for (const bool crossings : {true, false})
+      for (const auto& s : *timeline)
+        for (const auto& e : s.events) {
+          const simcore::EventKind kind = simcore::eventKind(e);
+          if ((kind == simcore::EventKind::ForceOverThreshold) != crossings) continue;
+          const QColor c = reviewEventColour(e);  // as the report names them
+          if (!c.isValid()) continue;
+          p.setPen(QPen(c, 3));
+          p.drawLine(QPointF(xAt(s.time), 2),
+                     QPointF(xAt(s.time), kind == simcore::EventKind::IncorrectAction ? 34 : 16));
+        }
     p.setPen(QPen(Qt::white, 2));
     p.drawLine(QPointF(xAt(now), 0), QPointF(xAt(now), height()));
     p.setPen(Qt::lightGray);
