@@ -1,7 +1,7 @@
 #pragma once
-// What the registration's translation units share (registration.cpp: the fit; registration_silhouette.cpp: the
-// silhouette, its distances and the contour's residuals; registration_pose.cpp: the pose and sag refinement). Internal
-// to simcore.
+// What the registration's translation units share (registration.cpp and the stages' files, contour_registration.hpp:
+// the fit; registration_silhouette.cpp: the silhouette, its distances and the contour's residuals;
+// registration_pose.cpp: the pose and sag refinement). Internal to simcore.
 #include <rehearse/simcore/registration.hpp>
 
 #include <Eigen/Core>
