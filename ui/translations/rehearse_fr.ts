@@ -3496,445 +3496,559 @@ A report (version, what was running, the program&apos;s stack) is kept on this m
 <context>
     <name>rehearse::ui::SimulationPanel</name>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="180"/>
-        <source>The recorded session could not be marked complete: %1</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="187"/>
+        <location filename="../src/simulationpanel.cpp"/>
         <source>The recording ended: the organ, its shape, pose or attachments changed (what was recorded is kept, complete).</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="198"/>
+        <location filename="../src/simulationpanel.cpp"/>
         <source>No organ volume to simulate; load or tetrahedralise a mesh first.</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="216"/>
+        <location filename="../src/simulationpanel.cpp"/>
         <source>The recording did not start: %1</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="288"/>
-        <source>Solving the rest shape that sags into the registered one: static solve %1, %2 mm from it...</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="317"/>
-        <source>The organ starts where the frame shows it, in equilibrium under gravity on its attachments: %1%2</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="320"/>
-        <source> (solved for the last session, the same organ)</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="321"/>
-        <source>The organ starts at rest on the registered shape and will sag from it: %1</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="324"/>
-        <source>The organ starts at rest on the registered shape and will sag from it under gravity.</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="523"/>
-        <source>Materials of the DejaVu cases, on the current organ</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="524"/>
+        <location filename="../src/simulationpanel.cpp"/>
         <source>Preset</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="527"/>
+        <location filename="../src/simulationpanel.cpp"/>
         <source>linear</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="527"/>
-        <source>corotational</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="527"/>
-        <source>stvk</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="527"/>
-        <source>neohookean</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="527"/>
-        <source>neohookean-split</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="529"/>
+        <location filename="../src/simulationpanel.cpp"/>
         <source>Material</source>
         <translation>Matériau</translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="543"/>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source> %</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>never</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source> ms</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source> mm</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>off</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Gravity</source>
+        <translation>Gravité</translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Stop the recording first: how the organ starts is part of the recorded session.</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Play</source>
+        <translation>Lecture</translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Play or pause the simulation (F5)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Step</source>
+        <translation>Pas</translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>One time step (F6)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Reset</source>
+        <translation>Réinitialiser</translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Back to the rest shape (Shift+F5)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Save the case to a file first (File &gt; Save): the rehearsal is recorded into it.</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>No organ volume to rehearse on; load or tetrahedralise a mesh first.</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Reset: the run from rest is recorded as a new session.</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>The recording stopped (what was recorded is kept): %1</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Simulation: %1</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Simulation ready</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Simulation at rest (t = 0). This organ has no attachment nodes: it will fall freely under gravity.</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Simulation at rest (t = 0)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>t = 0. %1</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source> · %1 fps</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>precomputed linear</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>hybrid</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>FFD</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>%1 Newton</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>t = %1 s · step %2 ms%3 · %4 · %5</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationpanel.cpp"/>
+        <source>Pause</source>
+        <translation type="unfinished"></translation>
+    </message>
+</context>
+<context>
+    <name>rehearse::ui::SimulationForm</name>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
+        <source>Materials of the DejaVu cases, on the current organ</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
+        <source>Preset</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
+        <source>linear</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
+        <source>corotational</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
+        <source>stvk</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
+        <source>neohookean</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
+        <source>neohookean-split</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
+        <source>Material</source>
+        <translation>Matériau</translation>
+    </message>
+    <message>
+        <location filename="../src/simulationform.cpp"/>
         <source>Young&apos;s modulus</source>
         <translation>Module de Young</translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="543"/>
+        <location filename="../src/simulationform.cpp"/>
         <source> kPa</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="544"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Poisson&apos;s ratio</source>
         <translation>Coefficient de Poisson</translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="546"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Density</source>
         <translation>Densité</translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="546"/>
+        <location filename="../src/simulationform.cpp"/>
         <source> kg/m³</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="549"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>
 The presets set the tissue&apos;s density (liver 1,079 kg/m³); the organ&apos;s mass follows its volume.</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="558"/>
+        <location filename="../src/simulationform.cpp"/>
         <source> %</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="560"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>never</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="561"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Tears at strain</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="564"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>
 Pulled further than this, the tissue and its vessels tear (a torn vessel bleeds); the grasp slips or the tissue tears, whichever comes first. Never: it does not tear.</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="566"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Organ mass</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="567"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Time step</source>
         <translation>Pas de temps</translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="567"/>
+        <location filename="../src/simulationform.cpp"/>
         <source> ms</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="574"/>
-        <location filename="../src/simulationpanel.cpp" line="595"/>
+        <location filename="../src/simulationform.cpp"/>
+        <location filename="../src/simulationform.cpp"/>
         <source> mm</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="578"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>The grasper&apos;s bite: closing the jaws holds the tissue&apos;s nodes within this distance of the tip. A coarse mesh&apos;s nodes can be a centimetre apart, so a wider bite holds more of it (applies at the next grasp)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="585"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>tears at</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="570"/>
-        <location filename="../src/simulationpanel.cpp" line="589"/>
+        <location filename="../src/simulationform.cpp"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Jaw bite</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="599"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>The clip applier&apos;s clips: their jaws&apos; length across the vessel. A clip shorter than the vessel (as the mesh has it: a coarse mesh makes it wider) does not close it and is counted as misplaced (applies at the next clip)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="602"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Clip length</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="607"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>exact Newton</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="607"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>lagged-PCG</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="607"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>chord (converged)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="607"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>linearised (one solve)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="608"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Newton–Krylov</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="608"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>precomputed linear (no cuts)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="608"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>hybrid (FEM where you cut)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="609"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>FFD surface (no cuts)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="613"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>precomputed linear: Cotin&apos;s precomputed linear elasticity instead of the FEM: the organ&apos;s static answer to the instruments by superposition of responses computed when it starts, forces at haptic rate; it cannot cut, tear, clip or burn (said when asked).
 hybrid: a FEM region where the instruments work (it grows as they move and cut) coupled to the rest&apos;s precomputed responses: the linear static answer of the whole organ; it cuts, tears, clips and burns.
 FFD surface: the surface on an 81 x 81 geometry image deformed around the grasp by a Gaussian free-form deformation, Hertz&apos;s force: geometric, no equilibrium (every step says inexact); it cannot cut, tear, clip or burn</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="622"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Solver</source>
         <translation>Solveur</translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="625"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>down in the image</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="625"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>into the scene</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="625"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>off</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="627"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Gravity in the camera frame (9.81 m/s²): the organ is simulated where the frame shows it</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="628"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Gravity</source>
         <translation>Gravité</translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="630"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Start where the frame shows it</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="634"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>The organ starts on the registered shape in equilibrium under gravity on its ligaments (its rest shape is solved first) and stays there until an instrument acts. Off: the registered shape is its rest shape, and it sags from there.</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="642"/>
-        <source>Stop the recording first: how the organ starts is part of the recorded session.</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="655"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>displacement (mm)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="655"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>von Mises stress (kPa)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="656"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Colour by</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="660"/>
-        <location filename="../src/simulationpanel.cpp" line="1058"/>
-        <source>Play</source>
-        <translation>Lecture</translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="662"/>
-        <source>Play or pause the simulation (F5)</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="663"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>Step</source>
         <translation>Pas</translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="665"/>
-        <source>One time step (F6)</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="666"/>
-        <source>Reset</source>
-        <translation>Réinitialiser</translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="668"/>
-        <source>Back to the rest shape (Shift+F5)</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="718"/>
-        <source>Save the case to a file first (File &gt; Save): the rehearsal is recorded into it.</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="720"/>
-        <source>No organ volume to rehearse on; load or tetrahedralise a mesh first.</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="864"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>%1 g (%2 cm³ x density)</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="867"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>no volume mesh</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="957"/>
-        <source>Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="960"/>
-        <source>Reset: the run from rest is recorded as a new session.</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="981"/>
-        <source>The recording stopped (what was recorded is kept): %1</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1006"/>
-        <source>Mapping the organ&apos;s surface onto the FFD model&apos;s geometry image...</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1007"/>
-        <source>Computing the precomputed model&apos;s responses to each surface node...</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1008"/>
-        <source>Cancel</source>
-        <translation>Annuler</translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1010"/>
-        <source>FFD model</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1010"/>
-        <source>Precomputed model</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1028"/>
-        <source>Simulation: %1</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1034"/>
-        <source>Simulation ready</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1038"/>
-        <source>Simulation at rest (t = 0). This organ has no attachment nodes: it will fall freely under gravity.</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1040"/>
-        <source>Simulation at rest (t = 0)</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1041"/>
-        <source>t = 0. %1</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1043"/>
-        <source> · %1 fps</source>
-        <translation type="unfinished"></translation>
-    </message>
-    <message>
-        <location filename="../src/simulationpanel.cpp" line="1045"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>precomputed linear</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="1046"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>hybrid</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="1047"/>
+        <location filename="../src/simulationform.cpp"/>
         <source>FFD</source>
         <translation type="unfinished"></translation>
     </message>
+</context>
+<context>
+    <name>rehearse::ui::SessionHost</name>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="1048"/>
-        <source>%1 Newton</source>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>The recorded session could not be marked complete: %1</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="1049"/>
-        <source>t = %1 s · step %2 ms%3 · %4 · %5</source>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Solving the rest shape that sags into the registered one: static solve %1, %2 mm from it...</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
-        <location filename="../src/simulationpanel.cpp" line="1058"/>
-        <source>Pause</source>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>The organ starts where the frame shows it, in equilibrium under gravity on its attachments: %1%2</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source> (solved for the last session, the same organ)</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>The organ starts at rest on the registered shape and will sag from it: %1</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>The organ starts at rest on the registered shape and will sag from it under gravity.</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source> %</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <location filename="../src/sessionhost.cpp"/>
+        <source> mm</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Solver</source>
+        <translation>Solveur</translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>off</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Play</source>
+        <translation>Lecture</translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Step</source>
+        <translation>Pas</translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Reset</source>
+        <translation>Réinitialiser</translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Mapping the organ&apos;s surface onto the FFD model&apos;s geometry image...</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Computing the precomputed model&apos;s responses to each surface node...</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Cancel</source>
+        <translation>Annuler</translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>FFD model</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>Precomputed model</source>
+        <translation type="unfinished"></translation>
+    </message>
+    <message>
+        <location filename="../src/sessionhost.cpp"/>
+        <source>FFD</source>
         <translation type="unfinished"></translation>
     </message>
 </context>

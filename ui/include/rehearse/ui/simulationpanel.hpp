@@ -3,35 +3,31 @@
 // simcore::Session on the session's own thread (play, pause, single step, reset); material and run
 // parameters edited live go to the session as timestamped input events (applied at the next step
 // boundary, recorded with the run); a 3D view of the deformed mesh coloured by displacement or von Mises
-// stress. No simulation state lives here: the panel only draws the session's published snapshots, and the session
-// starts through the application core (app/sessionstart.hpp), as `rehearse gesture` starts its own.
+// stress. No simulation state lives here: the panel shows and asks; the session is run for it by a SessionHost
+// (sessionhost.hpp), which starts it through the application core (app/sessionlauncher.hpp), as `rehearse gesture`
+// starts its own (app/sessionstart.hpp); the settings are a SimulationForm, the drawing a SimulationView.
 #include <rehearse/app/case.hpp>
 #include <rehearse/app/recording.hpp>
 #include <rehearse/app/sessionstart.hpp>
-#include "rehearse/ui/organview.hpp"
+#include "rehearse/ui/simulationview.hpp"
+#include "rehearse/ui/sessionhost.hpp"
 
 #include <rehearse/simcore/session/forceloop.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <QElapsedTimer>
-#include <QPointer>
-#include <QProgressDialog>
 #include <QWidget>
 
-#include <atomic>
 #include <cstdint>
-#include <future>
 #include <memory>
 #include <optional>
 #include <vector>
 
-class QCheckBox;
-class QComboBox;
-class QDoubleSpinBox;
 class QLabel;
 class QPushButton;
 
 namespace rehearse::ui {
+class SimulationForm;
 class Throttle;
 }
 
@@ -39,74 +35,6 @@ namespace rehearse::ui {
 
 /// What the simulation runs (app/sessionstart.hpp: the panel asks, the application core starts it).
 using SimulationSetup = app::SessionRequest;
-
-/// Published after each step: positions and the coloured quantity per node.
-struct SimulationFrame {
-  std::vector<Eigen::Vector3d> positions;  ///< per node, camera frame (m)
-  std::vector<double> value;               ///< per node: displacement (mm) or von Mises (kPa)
-  double valueMax = 0;
-  double valueScale = 0;  ///< top of the colour bar: the 98th percentile (stress peaks at attachments)
-  int colouring = 0;      ///< 0 displacement, 1 von Mises
-  simcore::StepReport report;
-  double time = 0;  ///< simulated time (s)
-  long steps = 0;
-  double youngInUse = 0;        ///< Pa (shows when a live edit took effect)
-  Qt::HANDLE thread = nullptr;  ///< the thread that computed it (never the GUI thread)
-  std::shared_ptr<const app::Case> organ;
-  QString message;                  ///< the session's sentence about the last applied input, if any
-  simcore::ToolState tool;          ///< the instrument after the step (tip, held nodes, force on the tissue)
-  std::vector<std::string> events;  ///< grasp, release, slip, cut, vessel cut at this step
-  std::shared_ptr<const simcore::CutSurface> surface;  ///< after a cut: the boundary to draw (cut tissue marked)
-  simcore::OperativeField field;                       ///< clips, bleeding stumps, blood lost, the cautery's heat
-  std::shared_ptr<const std::vector<int>> labels;      ///< the elements' labels (burnt ones: simcore::isBurnt)
-  Eigen::Vector3d gravity = Eigen::Vector3d::Zero();   ///< m/s^2, camera frame
-  /// The nodes the tissue around the organ carries (BodySetup::supports; drawn beneath the organ), none without.
-  std::shared_ptr<const std::vector<int>> supports;
-  /// Steps since the start (or the last Reset) that did not converge to the scene's tolerance: every step counted,
-  /// whether or not its frame was drawn.
-  long stepsNotConverged = 0;
-  std::size_t elements = 0;
-  std::uint64_t responseKey = 0;  ///< the precomputed model's responses (simcore::ResponseCache), 0 for the FEM
-  simcore::BodyModel model = simcore::BodyModel::Fem;           ///< the deformable model that ran the step
-  Eigen::Vector3d trocar = Eigen::Vector3d::Zero();             ///< where the instruments enter (camera frame, m)
-  double mass = 0;                                              ///< kg
-  std::shared_ptr<const std::vector<std::array<int, 4>>> tets;  ///< the elements at this step
-  /// Elements inside out after this step (when the report counts any): their indices, their nodes (per node, 1 when
-  /// one of its elements is) and their centroids (camera frame, m), for the warning drawn on the organ.
-  std::vector<int> inverted;
-  std::vector<char> invertedNode;
-  std::vector<Eigen::Vector3d> invertedAt;
-};
-
-/// The warning a frame's step calls for, in one sentence (empty when none): elements inside out, or a step held back
-/// to keep them from inverting. Shown on the organ in the simulation view and over the frame in step 7.
-QString warningText(const SimulationFrame& f);
-
-/// Draws a SimulationFrame: the organ's surface with the frame's positions, per-vertex colours and a
-/// colour bar; turntable controls as in the organ view.
-class SimulationView : public QWidget {
-  Q_OBJECT
- public:
-  explicit SimulationView(QWidget* parent = nullptr);
-  void setFrame(std::shared_ptr<const SimulationFrame> f);
-  /// No frame, and why (drawn in its place; empty: the invitation to start).
-  void clearFrame(const QString& why);
-  QSize sizeHint() const override { return {420, 320}; }
-
- protected:
-  void paintEvent(QPaintEvent*) override;
-  void mousePressEvent(QMouseEvent*) override;
-  void mouseMoveEvent(QMouseEvent*) override;
-  void mouseDoubleClickEvent(QMouseEvent*) override;
-  void wheelEvent(QWheelEvent*) override;
-
- private:
-  std::shared_ptr<const SimulationFrame> frame_;
-  QString emptyText_;
-  Eigen::Vector3d centre_ = Eigen::Vector3d::Zero();  ///< the organ's centre of gravity (m)
-  double size_ = 0.05;                                ///< its bounding sphere's radius (m), from the first frame
-  Turntable turntable_;
-};
 
 class SimulationPanel : public QWidget {
   Q_OBJECT
@@ -131,9 +59,9 @@ class SimulationPanel : public QWidget {
   std::shared_ptr<const SimulationFrame> lastFrame() const { return last_; }
   /// The tool-force loop of the current session (1 kHz on its own thread; the instrument's tip drives its
   /// virtual device), null while no session runs. A haptic device driver would take the VirtualDevice's place.
-  const simcore::ForceLoop* forceLoop() const { return forceLoop_.get(); }
+  const simcore::ForceLoop* forceLoop() const { return host_->forceLoop(); }
   /// The current session (read-only: its setup and counters), null while none runs.
-  const simcore::Session* session() const { return session_.get(); }
+  const simcore::Session* session() const { return host_->session(); }
   SimulationSetup setup() const;
   QString statusText() const;
   /// Starts the simulation again from rest, recording the session into the case file `file` (SQLite, as it
@@ -141,7 +69,7 @@ class SimulationPanel : public QWidget {
   QString startRecording(const QString& file, const app::SessionMeta& meta);
   /// Ends the recording (the session is marked complete); the simulation goes on unrecorded.
   void stopRecording();
-  bool recording() const { return recorder_ != nullptr || recordPending_; }
+  bool recording() const { return host_->recording(); }
   qint64 recordingId() const;
   /// How the current session started: where the frame shows it, in equilibrium (and whether its rest shape was solved
   /// for the last session already), or why the organ will sag; empty without gravity or attachments.
@@ -165,31 +93,19 @@ class SimulationPanel : public QWidget {
   void recordingRestarted(const QString& text);
 
  private:
-  struct FrameContext;
-  static std::shared_ptr<const SimulationFrame> makeFrame(const FrameContext& ctx, const simcore::Snapshot& snap,
-                                                          int colouring);
-  /// With `record`: the new session is recorded (the recorder made on the worker from the session's setup).
-  struct RecordRequest {
-    std::string file;
-    app::SessionMeta meta;
-  };
+  using RecordRequest = SessionHost::RecordRequest;
+  /// A new session (recorded when `record`): the old one's recording ends unless `record` goes on with it.
   void startSession(const SimulationSetup& s, std::optional<RecordRequest> record = std::nullopt);
+  void sessionStarted(const QString& words);
+  void sessionRefused(const QString& why, bool wasRecorded);
+  void startToggled(bool inEquilibrium);
   void postMaterial(const app::MaterialSettings& before, const app::MaterialSettings& m);
   void onFrame(std::shared_ptr<const SimulationFrame> f);
   void onFailed(const QString& message);
   void materialFieldsEdited();
   void postRunParameters();
-  /// The body's build (the precomputed responses) is `done` (0..1) along: a progress dialog with Cancel past 0.4 s.
-  void showBuildProgress(double done);
-  void updateMass();
   void updateButtons();
-  void fillMaterial(const app::MaterialSettings& m);
-  app::MaterialSettings fieldsMaterial() const;
 
-  std::shared_ptr<simcore::Session> session_;
-  /// The sessions replaced (a reset, a new organ) being joined and their recordings completed, off the GUI thread.
-  std::shared_future<void> retired_;
-  void waitForRetired();
   /// The run parameters as last asked of the session (built into it, then posted): the session applies them at its next
   /// step boundary, so its own setup lags the list; compared with it, a quick scroll through the Solver list (exact,
   /// lagged-PCG, chord) posted exact and lagged-PCG, then nothing for chord, and the session ran lagged-PCG.
@@ -199,47 +115,13 @@ class SimulationPanel : public QWidget {
     simcore::BodyModel model = simcore::BodyModel::Fem;
     Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
   } asked_;
-  std::shared_ptr<app::Recorder> recorder_;     ///< while recording: written from the session's thread (step hook)
   std::optional<RecordRequest> recordRequest_;  ///< what is being recorded (a reset starts a new session with it)
-  bool recordPending_ = false;                  ///< the recorded session is being built
-  bool cancelRecord_ = false;                   ///< ... and the recording was stopped meanwhile
-  std::shared_ptr<std::atomic<bool>> recorderFailed_ = std::make_shared<std::atomic<bool>>(false);
-  std::shared_ptr<std::string> recorderError_ = std::make_shared<std::string>();
-  simcore::VirtualDevice device_;                  ///< the mouse-driven instrument's tip, for the force loop
-  std::unique_ptr<simcore::ForceLoop> forceLoop_;  ///< declared after session_: stopped before it goes
-  long generation_ = 0;                            ///< bumped per session: frames of an older one are dropped
-  std::shared_ptr<app::RestShapeCache> startCache_;  ///< the last starting rest shape solved (made in the constructor)
-  /// Set when a newer session replaces the one being built (its rest-shape solve stops early).
-  std::shared_ptr<std::atomic<bool>> buildCancelled_ = std::make_shared<std::atomic<bool>>(false);
-  /// Set by the build progress dialog's Cancel: the precomputed responses being built stop (the session keeps its
-  /// model).
-  std::shared_ptr<std::atomic<bool>> precomputeCancelled_ = std::make_shared<std::atomic<bool>>(false);
-  QPointer<QProgressDialog> buildDialog_;
+  SessionHost* host_ = nullptr;                 ///< runs the session (a child of the panel)
   QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not
   bool startRefused_ = false;  ///< the last start was refused (a run setting changed on the panel tries again)
-  std::atomic<int> colouring_{0};
-  bool pendingPlay_ = false;         ///< Play pressed while the session was being built ...
-  int pendingSteps_ = 0;             ///< ... and single steps
   app::MaterialSettings builtWith_;  ///< the material the session's body was built with
   SimulationView* view_ = nullptr;
-  /// The parameter form: material (the case's), run settings (the session's) and colouring.
-  struct Form {
-    QComboBox* preset = nullptr;
-    QComboBox* model = nullptr;
-    QComboBox* method = nullptr;
-    QComboBox* colouring = nullptr;
-    QComboBox* gravity = nullptr;
-    QCheckBox* start = nullptr;  ///< start where the frame shows it (SimulationSetup::startInEquilibrium)
-    QDoubleSpinBox* young = nullptr;
-    QDoubleSpinBox* poisson = nullptr;
-    QDoubleSpinBox* density = nullptr;
-    QDoubleSpinBox* tearStrain = nullptr;  ///< % strain the tissue tears at (0: never)
-    QDoubleSpinBox* support = nullptr;     ///< Pa/mm: the tissue around the organ carries it (0: none)
-    QDoubleSpinBox* timeStep = nullptr;
-    QDoubleSpinBox* jawBite = nullptr;  ///< the grasper's reach: closing holds the nodes within it of the tip (mm)
-    QDoubleSpinBox* clipLength = nullptr;  ///< the clip applier's jaws' length (mm)
-    QLabel* mass = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
-  } form_;
+  SimulationForm* form_ = nullptr;  ///< the material (the case's), the run's settings and the colouring
   QPushButton* playButton_ = nullptr;
   QPushButton* stepButton_ = nullptr;
   QPushButton* resetButton_ = nullptr;
@@ -248,7 +130,6 @@ class SimulationPanel : public QWidget {
   std::shared_ptr<const app::Case> organ_;
   std::shared_ptr<const SimulationFrame> last_;
   bool playing_ = false;
-  bool filling_ = false;
   struct {
     QElapsedTimer clock;
     int frames = 0;
