@@ -7,7 +7,6 @@
 
 #ifdef REHEARSE_WITH_GUI
 #include "rehearse/ui/gui.hpp"
-#include "rehearse/ui/cohortwindow.hpp"
 #include "rehearse/ui/reviewreport.hpp"
 #endif
 
@@ -17,8 +16,6 @@ int main(int argc, char** argv) {
   rehearse::app::CliServices services;  // what the command line reaches through Qt: none without the GUI library
 #ifdef REHEARSE_WITH_GUI
   services.writeReport = rehearse::ui::writeReviewPdf;  // replay --report writes through Qt's QPdfWriter
-  services.training =
-      rehearse::ui::makeTrainingStore();  // publish, replay postgresql: through Qt SQL's PostgreSQL driver
 #endif
   int code = rehearse::app::runCli(args, handled, services);
   if (handled) return code;

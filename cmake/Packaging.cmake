@@ -1,7 +1,7 @@
 # The Debian package (issue 39): `cpack -G DEB` in the build folder (or `cmake --build build --target package`)
 # writes rehearse_<version>_<arch>.deb from the install rules. Its Depends come from dpkg-shlibdeps (the libraries
 # the program links) plus what no linker sees: Qt's platform plugins (xcb, offscreen) and its SQLite driver, which
-# opens case files. The training database's PostgreSQL driver and Mesa's software renderer are recommended.
+# opens case files. Mesa's software renderer is recommended (the training database's libpq is linked: a Depends).
 include(GNUInstallDirs)
 
 # Documentation Debian policy asks of every package: the copyright, and the changelog compressed with gzip -9n
@@ -38,7 +38,7 @@ set(CPACK_DEBIAN_PACKAGE_PRIORITY optional)
 set(CPACK_DEBIAN_FILE_NAME DEB-DEFAULT)
 set(CPACK_DEBIAN_PACKAGE_SHLIBDEPS ON)
 set(CPACK_DEBIAN_PACKAGE_DEPENDS "qt6-qpa-plugins, libqt6sql6-sqlite")
-set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "libqt6sql6-psql, libgl1-mesa-dri")
+set(CPACK_DEBIAN_PACKAGE_RECOMMENDS "libgl1-mesa-dri")
 set(CPACK_DEBIAN_PACKAGE_CONTROL_STRICT_PERMISSION ON)
 set(CPACK_STRIP_FILES ON)
 set(CPACK_PACKAGING_INSTALL_PREFIX /usr)

@@ -8,8 +8,10 @@ PACKAGES=(
   libeigen3-dev libopencv-dev libopencv-contrib-dev libcgal-dev libgmp-dev libmpfr-dev libboost-dev
   libassimp-dev libsuitesparse-dev libopenblas-dev libtbb-dev
   # The reference BLAS and LAPACK: test_recording replays with them as the machine's libblas.so.3 (issue 60).
-  libblas3 liblapack3 nlohmann-json3-dev libtinyxml2-dev zlib1g-dev libsqlite3-dev libssl-dev libspnav-dev
+  libblas3 liblapack3 nlohmann-json3-dev libtinyxml2-dev zlib1g-dev libsqlite3-dev libssl-dev libpq-dev libspnav-dev
   calculix-ccx xvfb xauth libgl1-mesa-dri fonts-dejavu-core poppler-utils
+  # The server test_training starts; Qt SQL's PostgreSQL driver for its probe of a publisher at work (the program
+  # itself reaches the training database through libpq).
   postgresql libqt6sql6-psql
   desktop-file-utils appstream shared-mime-info man-db lintian debootstrap
   # ITK reads segmentations (NRRD, NIfTI, MetaImage); its CMake configuration names GDCM's tools, hence gdcm-tools.

@@ -13,6 +13,7 @@
 #include "rehearse/app/recording.hpp"
 #include "rehearse/app/review.hpp"
 #include "rehearse/app/materials.hpp"
+#include "rehearse/app/trainingdb.hpp"
 
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
@@ -53,14 +54,16 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
   // postgresql:[SERVICE]: the training centre's database (libpq service name, or the environment when empty).
   const bool fromDb = file.rfind("postgresql:", 0) == 0;
   const std::string service = fromDb ? file.substr(11) : std::string();
-  if (fromDb && !services.training.load)
-    throw UsageError(
-        "the training database is read through Qt SQL's PostgreSQL driver, which this build has not (configured with "
-        "REHEARSE_BUILD_GUI=OFF)");
   if (!fromDb && !std::filesystem::exists(file)) throw UsageError(file + " does not exist");
-  auto listSessions = [&] { return fromDb ? services.training.list(service) : listRecordings(file); };
+  auto listSessions = [&] {
+    if (!fromDb) return listRecordings(file);
+    std::vector<RecordingSummary> out;
+    for (const auto& p : TrainingDatabase(service).sessions()) out.push_back(p.summary);
+    return out;
+  };
   auto loadSession = [&](std::int64_t sid) {
-    return fromDb ? services.training.load(service, sid) : loadRecording(file, sid);
+    // A session from the database keeps its connection open for its checkpoints.
+    return fromDb ? TrainingDatabase(service).load(sid) : loadRecording(file, sid);
   };
   const double threshold = o.count("force-threshold") ? parseNumber(o["force-threshold"], "--force-threshold") : 10.0;
   if (!(threshold >= 0)) throw UsageError("--force-threshold must be a force in N, 0 or more");
@@ -312,7 +315,7 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
   return 0;
 }
 
-int cmdPublish(const std::vector<std::string>& args, const CliServices& services) {
+int cmdPublish(const std::vector<std::string>& args, const CliServices&) {
   std::vector<std::string> files;
   std::size_t i = 2;
   for (; i < args.size() && args[i].rfind("--", 0) != 0; ++i) files.push_back(args[i]);
@@ -320,12 +323,15 @@ int cmdPublish(const std::vector<std::string>& args, const CliServices& services
   auto o = parseOptions(args, i, publishCommand());
   for (const auto& f : files)
     if (!std::filesystem::exists(f)) throw UsageError(f + " does not exist");
-  if (!services.training.publish)
-    throw UsageError(
-        "publishing goes through Qt SQL's PostgreSQL driver, which this build has not (configured with "
-        "REHEARSE_BUILD_GUI=OFF)");
-  for (const auto& line : services.training.publish(files, o.count("service") ? o["service"] : std::string()))
-    std::printf("%s\n", line.c_str());
+  TrainingDatabase db(o.count("service") ? o["service"] : std::string());
+  std::vector<std::string> lines;  // said once every file is published (a database error: only the error)
+  for (const auto& f : files) {
+    const auto r = db.publish(f);
+    lines.push_back(f + ": " + std::to_string(r.published) + " published, " + std::to_string(r.already) +
+                    " already there, " + std::to_string(r.skipped) + " not published");
+    for (const auto& n : r.notes) lines.push_back("  " + n);
+  }
+  for (const auto& line : lines) std::printf("%s\n", line.c_str());
   return 0;
 }
 

@@ -34,7 +34,7 @@ struct OptionSpec {
   std::string help;   ///< one line
 };
 
-/// How a sub-command runs; `services`: what the GUI library provides (the PDF writer, the training database).
+/// How a sub-command runs; `services`: what the GUI library provides (the PDF writer).
 using CommandRun = std::function<int(const std::vector<std::string>& args, const CliServices& services)>;
 
 /// A sub-command: its block of `rehearse --help` (synopsis and description), its options and what runs it.

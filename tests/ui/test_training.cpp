@@ -18,7 +18,7 @@
 
 #include "rehearse/ui/cohortwindow.hpp"
 #include "rehearse/ui/reviewwindow.hpp"
-#include "rehearse/ui/trainingdb.hpp"
+#include <rehearse/app/trainingdb.hpp>
 
 #include <QDir>
 #include <QJsonDocument>
@@ -140,16 +140,16 @@ class TestTraining : public QObject {
   }
   // Every session of the case files is in the database exactly once, with the same events and checksums.
   void compareWithFiles(const QString& service) {
-    ui::TrainingDatabase db(service);
+    app::TrainingDatabase db(service.toStdString());
     const auto published = db.sessions();
     QCOMPARE(static_cast<int>(published.size()), kFiles * kPerFile);
-    std::set<QString> uids;
+    std::set<std::string> uids;
     for (const auto& p : published) uids.insert(p.uid);
     QCOMPARE(static_cast<int>(uids.size()), kFiles * kPerFile);
     for (const QString& f : files_)
       for (const auto& s : app::listRecordings(f.toStdString())) {
-        const QString uid = ui::sessionUid(app::loadRecordingRows(f.toStdString(), s.id), s);
-        const auto it = std::find_if(published.begin(), published.end(), [&](const ui::PublishedSession& p) { return p.uid == uid; });
+        const std::string uid = app::sessionUid(app::loadRecordingRows(f.toStdString(), s.id), s);
+        const auto it = std::find_if(published.begin(), published.end(), [&](const app::PublishedSession& p) { return p.uid == uid; });
         QVERIFY2(it != published.end(), qPrintable(f + " session " + QString::number(s.id) + " is missing"));
         const app::Recording fromFile = app::loadRecording(f.toStdString(), s.id), fromDb = db.load(it->id);
         QVERIFY(fromDb.checksums == fromFile.checksums);
@@ -198,7 +198,7 @@ class TestTraining : public QObject {
     p.kill();  // SIGKILL
     p.waitForFinished();
     {
-      ui::TrainingDatabase db("training");
+      app::TrainingDatabase db("training");
       const auto published = db.sessions();
       QVERIFY(!published.empty() && static_cast<int>(published.size()) < kFiles * kPerFile);
       // Whole sessions only: each has all its events and checksums (200 steps: 20 checksums; 33 events posted:
@@ -244,7 +244,7 @@ class TestTraining : public QObject {
 
   // A session from the database replays and verifies like one from a case file; its metrics are the script's.
   void sessionFromTheDatabaseReplays() {
-    ui::TrainingDatabase db("training");
+    app::TrainingDatabase db("training");
     const auto published = db.sessions();
     QVERIFY(!published.empty());
     const auto& s = published[published.size() / 2];
@@ -274,7 +274,7 @@ class TestTraining : public QObject {
 
   // The cohort view: 5 trainees, 10 attempts each, the path length of each attempt plotted.
   void cohortView() {
-    auto db = std::make_shared<ui::TrainingDatabase>("training");
+    auto db = std::make_shared<app::TrainingDatabase>("training");
     ui::CohortWindow w(db);
     w.resize(1400, 850);
     w.show();

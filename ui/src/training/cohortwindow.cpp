@@ -1,6 +1,5 @@
 #include "rehearse/ui/cohortwindow.hpp"
 
-#include "rehearse/ui/qtapplication.hpp"
 #include "rehearse/ui/reviewwindow.hpp"
 
 #include <QComboBox>
@@ -29,14 +28,14 @@ const std::vector<app::MetricValue>& names() {
   static const std::vector<app::MetricValue> n = app::metricValues(app::SessionMetrics{});
   return n;
 }
-std::optional<double> metricOf(const PublishedSession& s, const QString& name) {
+std::optional<double> metricOf(const app::PublishedSession& s, const QString& name) {
   for (const auto& m : s.metrics)
     if (QString::fromStdString(m.name) == name) return m.value;
   return std::nullopt;
 }
 }  // namespace
 
-CohortWindow::CohortWindow(std::shared_ptr<TrainingDatabase> db, QWidget* parent)
+CohortWindow::CohortWindow(std::shared_ptr<app::TrainingDatabase> db, QWidget* parent)
     : QMainWindow(parent), db_(std::move(db)) {
   setWindowTitle(tr("Training cohort - Rehearse"));
   resize(1400, 850);
@@ -129,8 +128,8 @@ void CohortWindow::fill() {
     const int row = table_->rowCount();
     table_->insertRow(row);
     auto* id = new QTableWidgetItem(QString::number(s.id));
-    id->setData(Qt::UserRole, s.id);
-    id->setToolTip(s.uid);
+    id->setData(Qt::UserRole, static_cast<qlonglong>(s.id));
+    id->setToolTip(QString::fromStdString(s.uid));
     table_->setItem(row, 0, id);
     table_->setItem(row, 1, new QTableWidgetItem(who));
     auto* when = new QTableWidgetItem(sessionTime(s.summary.startedUtc));
@@ -145,8 +144,8 @@ void CohortWindow::fill() {
                                                                             : QString::number(*v, 'g', 4)));
     }
     // Where its replay was verified (a session opened here is replayed and verified again, and the review says so).
-    auto* verified =
-        new QTableWidgetItem(s.verifiedOn.isEmpty() ? tr("at publishing (machine not kept)") : s.verifiedOn);
+    auto* verified = new QTableWidgetItem(s.verifiedOn.empty() ? tr("at publishing (machine not kept)")
+                                                                : QString::fromStdString(s.verifiedOn));
     verified->setToolTip(
         tr("A session replays bit for bit with the same build on any x86-64 processor (its numerical kernels are "
            "pinned); opening the session replays and verifies it here."));
@@ -231,35 +230,6 @@ ReviewWindow* CohortWindow::openSession(qint64 id) {
   w->openSession(0, id);
   w->show();
   return w;
-}
-
-app::TrainingStore makeTrainingStore() {
-  app::TrainingStore s;
-  s.publish = [](const std::vector<std::string>& files, const std::string& service) {
-    ensureGuiApplication();
-    TrainingDatabase db(QString::fromStdString(service));
-    std::vector<std::string> lines;
-    for (const auto& f : files) {
-      const auto r = db.publish(QString::fromStdString(f));
-      lines.push_back(f + ": " + std::to_string(r.published) + " published, " + std::to_string(r.already) +
-                      " already there, " + std::to_string(r.skipped) + " not published");
-      for (const auto& n : r.notes) lines.push_back("  " + n.toStdString());
-    }
-    return lines;
-  };
-  s.list = [](const std::string& service) {
-    ensureGuiApplication();
-    TrainingDatabase db(QString::fromStdString(service));
-    std::vector<app::RecordingSummary> out;
-    for (const auto& p : db.sessions()) out.push_back(p.summary);
-    return out;
-  };
-  s.load = [](const std::string& service, std::int64_t id) {
-    ensureGuiApplication();
-    TrainingDatabase db(QString::fromStdString(service));
-    return db.load(id);  // its checkpoints keep the connection open
-  };
-  return s;
 }
 
 }  // namespace rehearse::ui

@@ -2,7 +2,6 @@
 
 #include "rehearse/ui/casedocument.hpp"
 #include "rehearse/ui/cohortwindow.hpp"
-#include "rehearse/ui/trainingdb.hpp"
 
 #include <QFileInfo>
 #include <QFutureWatcher>
@@ -50,13 +49,13 @@ void TrainingController::publish(const QString& service) {
   });
   watcher->setFuture(QtConcurrent::run([path, service] {
     try {
-      TrainingDatabase db(service);  // its own connection, on this thread
-      const auto r = db.publish(path);
+      app::TrainingDatabase db(service.toStdString());  // its own connection, on this thread
+      const auto r = db.publish(path.toStdString());
       QString text = tr("Published %1 sessions (%2 already there, %3 not published).")
                          .arg(r.published)
                          .arg(r.already)
                          .arg(r.skipped);
-      if (!r.notes.isEmpty()) text += " " + r.notes.join(" ");
+      for (const std::string& note : r.notes) text += " " + QString::fromStdString(note);
       return text;
     } catch (const std::exception& e) {
       return tr("Publishing failed: %1").arg(QString::fromStdString(e.what()));
@@ -66,7 +65,7 @@ void TrainingController::publish(const QString& service) {
 
 void TrainingController::openCohort(const QString& service) {
   try {
-    auto* w = new CohortWindow(std::make_shared<TrainingDatabase>(service), window_);
+    auto* w = new CohortWindow(std::make_shared<app::TrainingDatabase>(service.toStdString()), window_);
     w->setAttribute(Qt::WA_DeleteOnClose);
     w->setWindowFlag(Qt::Window);
     w->show();

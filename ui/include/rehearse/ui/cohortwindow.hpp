@@ -2,7 +2,7 @@
 // The trainer's cohort view (issue 16): the sessions published in the training database, by trainee, with
 // their metrics, and one metric over each trainee's attempts as a plot (a learning curve). A double click
 // opens the session in the review window (read from the database).
-#include "rehearse/ui/trainingdb.hpp"
+#include <rehearse/app/trainingdb.hpp>
 
 #include <QMainWindow>
 
@@ -23,7 +23,7 @@ class CohortWindow : public QMainWindow {
   Q_OBJECT
  public:
   /// `db` stays open while the window (and the review windows it opens) live.
-  explicit CohortWindow(std::shared_ptr<TrainingDatabase> db, QWidget* parent = nullptr);
+  explicit CohortWindow(std::shared_ptr<app::TrainingDatabase> db, QWidget* parent = nullptr);
   /// Reads the sessions again (after a publish).
   void reload();
   QStringList trainees() const;
@@ -36,8 +36,8 @@ class CohortWindow : public QMainWindow {
 
  private:
   void fill();
-  std::shared_ptr<TrainingDatabase> db_;
-  std::vector<PublishedSession> sessions_;
+  std::shared_ptr<app::TrainingDatabase> db_;
+  std::vector<app::PublishedSession> sessions_;
   QListWidget* trainees_ = nullptr;
   QTableWidget* table_ = nullptr;
   QComboBox* metric_ = nullptr;
@@ -45,8 +45,5 @@ class CohortWindow : public QMainWindow {
   QLabel* status_ = nullptr;
   QString trainee_;
 };
-
-/// Registers the training database for the command line (`rehearse publish`, `rehearse replay postgresql:`).
-app::TrainingStore makeTrainingStore();
 
 }  // namespace rehearse::ui

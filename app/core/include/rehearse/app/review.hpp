@@ -137,21 +137,11 @@ ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, co
 /// The PDF writer the GUI library provides (app core has no Qt of its own); empty in a build without it.
 using ReportWriter = std::function<void(const ReviewReport&, const std::string& path)>;
 
-/// The training database as the command line reaches it (the GUI build provides Qt SQL's PostgreSQL; a build
-/// without Qt has none). `service`: a libpq service name, empty for the environment.
-struct TrainingStore {
-  /// Publishes the complete sessions of the case files; returns a line per file; throws std::runtime_error.
-  std::function<std::vector<std::string>(const std::vector<std::string>& caseFiles, const std::string& service)>
-      publish;
-  std::function<std::vector<RecordingSummary>(const std::string& service)> list;
-  std::function<Recording(const std::string& service, std::int64_t id)> load;
-};
-
 /// What the command line reaches through the GUI library, passed in by main() (no globals: app core stays below Qt).
-/// Empty in a build without Qt: a command that needs one says so in one sentence.
+/// Empty in a build without Qt: a command that needs one says so in one sentence. (The training database is app
+/// core's own, through libpq: trainingdb.hpp.)
 struct CliServices {
   ReportWriter writeReport;  ///< rehearse replay --report (Qt's QPdfWriter)
-  TrainingStore training;    ///< rehearse publish, rehearse replay postgresql: (Qt SQL's PostgreSQL driver)
 };
 
 }  // namespace rehearse::app
