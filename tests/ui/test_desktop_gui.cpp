@@ -7,6 +7,7 @@
 //  - File > New Case starts an empty case whose steps say what comes first;
 //  - File > Recover Autosaved Case is offered once an autosave newer than the case's file exists (not only after a
 //    crash) and brings that work back as the file's unsaved changes; Ctrl+S then writes it into that file.
+#include "cli_run.hpp"
 #include "test_support.hpp"
 #include "window_support.hpp"
 
@@ -14,6 +15,7 @@
 #include "rehearse/ui/mainwindow.hpp"
 
 #include <rehearse/app/case.hpp>
+#include <rehearse/imaging/camera.hpp>
 
 #include <QAction>
 #include <QDockWidget>
@@ -347,6 +349,51 @@ class TestDesktopGui : public QObject {
     wheelDeeper(jaw, QPoint(jaw->width() / 2, jaw->height() / 2), -1);
     QVERIFY(jaw->value() != bite);
     typeInto(jaw, QString::number(bite));
+  }
+
+  // A case the window saved opens on the command line, and in the build without the GUI (issue 63: the case file is
+  // read and written below the GUI): `rehearse appearance --case SAVED.rehearse` takes the window's aligned pose and
+  // answers what the same phantom as a case folder (written by `rehearse phantom`) answers with that pose, bit for bit.
+  void aCaseTheWindowSavedOpensWithoutTheGui() {
+    const QString folder = dir_.path() + "/phantom-folder";
+    testing::Run r = testing::run({"phantom", "--out", folder});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    const Pose pose = imaging::loadPose((folder + "/pose.json").toStdString());
+    w_->editCase("Register (test)", [&pose](app::Case& c) {  // step 4 accepted with this pose
+      c.pose = pose;
+      c.hasPose = c.poseAligned = true;
+    });
+    const QString saved = dir_.path() + "/saved-by-the-window.rehearse";
+    QSignalSpy done(w_.get(), &MainWindow::caseSaved);
+    w_->saveCaseAs(saved);
+    QVERIFY(done.wait(60000));
+    QVERIFY(done.front().at(0).toBool());
+    auto theta = [](const QString& path) {
+      QFile f(path);
+      return f.open(QIODevice::ReadOnly) ? f.readAll() : QByteArray();
+    };
+    const QString fromFolder = dir_.path() + "/theta-folder.json", fromSaved = dir_.path() + "/theta-saved.json";
+    r = testing::run({"appearance", "--case", folder, "--pose", folder + "/pose.json", "--out", fromFolder});
+    QVERIFY2(r.code == 0 || r.code == 4, qPrintable(r.err));
+    r = testing::run({"appearance", "--case", saved, "--out", fromSaved});  // the window's pose, no --pose
+    QVERIFY2(r.code == 0 || r.code == 4, qPrintable(r.err));
+    QVERIFY(!theta(fromFolder).isEmpty());
+    QCOMPARE(theta(fromSaved), theta(fromFolder));
+    // The program built without Qt (scripts/test.sh builds it before the suites run, and asks for it).
+    const QString nogui = QStringLiteral(REHEARSE_SOURCE_DIR "/build-nogui/app/rehearse");
+    if (!QFile::exists(nogui)) {
+      QVERIFY2(qgetenv("REHEARSE_REQUIRE_NOGUI") != "1", qPrintable(nogui + " is missing (scripts/test.sh builds it)"));
+      qInfo("not checked with the build without the GUI: %s is not built (scripts/test.sh builds it)", qPrintable(nogui));
+      return;
+    }
+    QProcess p;
+    const QString fromNogui = dir_.path() + "/theta-nogui.json";
+    p.start(nogui, {"appearance", "--case", saved, "--out", fromNogui});
+    QVERIFY(p.waitForFinished(300000));
+    QVERIFY2(p.exitCode() == 0 || p.exitCode() == 4, p.readAllStandardError().constData());
+    QCOMPARE(theta(fromNogui), theta(fromFolder));
+    qInfo("a case the window saved: THETA from the GUI build, the GUI-less build and the case folder equal (%lld bytes)",
+          static_cast<long long>(theta(fromFolder).size()));
   }
 
   void cleanupTestCase() { w_.reset(); }
