@@ -187,6 +187,11 @@ inline NewtonMethod defaultMethodFor(LinearSolverKind solver) {
   return solver == LinearSolverKind::Cholmod ? kInteractiveMethod : NewtonMethod::Exact;
 }
 
+namespace detail {
+class NewtonIteration;  // the Newton iterations of a step (src/physics/newton_iteration.hpp)
+class StaticSolve;      // the static solve's iterations (src/physics/integrator_static.cpp)
+}  // namespace detail
+
 class Integrator {
  public:
   /// `fixedNodes`: 0-based node indices held at their current position. Throws MeshError with one sentence
@@ -237,6 +242,8 @@ class Integrator {
   const Eigen::VectorXd& multipliers() const;
 
  private:
+  friend class detail::NewtonIteration;
+  friend class detail::StaticSolve;
   struct Work;
   enum class Try { Converged, Inexact, Failed };
   /// One implicit Euler step of h from (x, v): converged, or inexact (x and v hold the best iterate, rep.residual

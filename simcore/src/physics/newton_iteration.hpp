@@ -1,0 +1,162 @@
+#pragma once
+// The Newton iterations of one implicit Euler step (Integrator::tryStep), one class per NewtonMethod behind one
+// interface (NewtonIteration::run), as Drake's integrators are: the state a step's iterations share (NewtonStep), the
+// Newton loop with its line search (NewtonLoop), and what each method owns (its solve, its factor policy).
+// Defined in integrator_newton.cpp. Internal to simcore.
+#include <rehearse/simcore/integrator.hpp>
+
+#include "integrator_work.hpp"
+
+namespace rehearse::simcore::detail {
+
+/// What one step's iterations share: set up by Integrator::tryStep (which also made the step's factor or K(x0)),
+/// read and updated by the iteration.
+struct NewtonStep {
+  Eigen::VectorXd& x;  ///< the step's start positions; its end when it advanced
+  Eigen::VectorXd& v;  ///< the step's start velocities; its end when it advanced
+  double h;            ///< s, this step's time step
+  StepReport& rep;     ///< counters, residual, status
+  bool lagged;          ///< a lagged factorisation stands for the tangent (any method but exact, on CHOLMOD)
+  bool hasConstraints;  ///< attachments as Lagrange multipliers or extra constraints
+  double scale = 0;     ///< the residual's scale (momentum units)
+  double rn = 0;        ///< Newton loop: the norm of the current residual w.r
+};
+
+/// One step's iterations: the interface Integrator::tryStep runs. The base gives the derived classes the integrator's
+/// private parts they use (friendship is not inherited).
+class NewtonIteration {
+ public:
+  using Try = Integrator::Try;
+  using Work = Integrator::Work;
+  NewtonIteration(Integrator& in, NewtonStep& s);
+  virtual ~NewtonIteration() = default;
+  NewtonIteration(const NewtonIteration&) = delete;
+  NewtonIteration& operator=(const NewtonIteration&) = delete;
+  /// The step from w.x0, w.v: converged, inexact (s.x and s.v hold the best iterate) or failed (unchanged).
+  virtual Try run() = 0;
+
+ protected:
+  void project(Eigen::VectorXd& r) const { in_.project(r); }
+  bool solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double positionScale, Eigen::VectorXd& dx,
+                        StepReport& rep, bool freeGiven = false, const Eigen::VectorXd* carried = nullptr) {
+    return in_.solveConstrained(rhs, x, positionScale, dx, rep, freeGiven, carried);
+  }
+  bool guardMove(const Eigen::VectorXd& x, Eigen::VectorXd& vel, double h) { return in_.guardMove(x, vel, h); }
+  bool refreshLagged(const Eigen::VectorXd& at) { return in_.refreshLaggedAt(at, h, rep); }
+  void requestFactor(const Eigen::VectorXd& at) { in_.requestFactor(at, h, rep); }
+  bool factoriseShifted(const Eigen::SparseMatrix<double>& A) { return in_.factoriseShifted(A, rep); }
+  bool solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd& y) {
+    return in_.solveLinear(A, b, y);
+  }
+  // The Newton matrix (1 + h alpha) M + h beta Kd + h^2 K into J: exact with Kd = K(x0); the lagged
+  // methods use one lagged K for both (leaving K(x0) out of the damping Jacobian costs the exact method
+  // many iterations: measured 6-9 instead of 2 per step on the liver preset).
+  void buildNewtonMatrix(const Eigen::SparseMatrix<double>& K, Eigen::SparseMatrix<double>& J) const {
+    in_.newtonMatrix(K, J, h);
+  }
+
+  Integrator& in_;
+  NewtonStep& s_;
+  Work& w;
+  const FemModel& model_;
+  const SimulationSettings& settings_;
+  const Eigen::VectorXd& mass3_;
+  const Eigen::VectorXd& gravityForce_;
+  const double h, alpha, beta;
+  const bool lagged, hasConstraints;
+  StepReport& rep;
+};
+
+/// Linearised implicit Euler: one solve with the lagged factor per step, no Newton loop (SOFA's default).
+class LinearisedStep final : public NewtonIteration {
+ public:
+  using NewtonIteration::NewtonIteration;
+  Try run() override;
+
+ private:
+  void prepare();
+  void applyJ0(const Eigen::VectorXd& in, Eigen::VectorXd& out);
+  double linearisedResidual();
+  void correctWithPcg();
+  Try finish();
+};
+
+/// The Newton loop shared by the exact, lagged-pcg, chord and Newton-Krylov methods: the residual and the incremental
+/// potential, the convergence test, the guarded move, the line search and the step's end. The derived classes solve
+/// for the correction and own their factor policy.
+class NewtonLoop : public NewtonIteration {
+ public:
+  NewtonLoop(Integrator& in, NewtonStep& s, bool krylov);
+  Try run() final;
+
+ protected:
+  /// J dv = -r + H^T mu into w.dv, with w.tmp = -r and w.xt = x0 + h v; false when it could not be solved.
+  virtual bool solve() = 0;
+  /// After the step's first residual, before the first iteration.
+  virtual void started() {}
+  /// The move from w.v along w.dv (shortened by the inversion guard: `guarded`) into w.vn with its residual in w.rn;
+  /// returns that residual's norm net of the constraint forces.
+  virtual double move(bool& guarded);
+  /// After an iterate was taken (s_.rn its residual's norm, `previous` the last one's); false ends the iterations.
+  virtual bool iterated(double previous) { return true; }
+
+  void residual(const Eigen::VectorXd& vel, Eigen::VectorXd& out);
+  double potential(const Eigen::VectorXd& vel);
+  double netNorm(const Eigen::VectorXd& res);
+
+ private:
+  void start();
+  double lineSearch(double rnew);
+  Try finish(bool ok, int maxIterations);
+  const bool prepareInResidual_;
+};
+
+/// Exact Newton: the tangent assembled and factorised at every iteration (projected, then shifted, when indefinite);
+/// also every method with the cg and dense solvers.
+class ExactNewton final : public NewtonLoop {
+ public:
+  ExactNewton(Integrator& in, NewtonStep& s) : NewtonLoop(in, s, false) {}
+
+ private:
+  bool solve() override;
+  bool dampingProjected_ = false;
+};
+
+/// Lagged-pcg: the exact tangent solved by CG preconditioned with the lagged factor.
+class LaggedPcgNewton final : public NewtonLoop {
+ public:
+  LaggedPcgNewton(Integrator& in, NewtonStep& s) : NewtonLoop(in, s, false) {}
+
+ private:
+  bool solve() override;
+};
+
+/// Chord: the lagged factor's solves to the tolerance, with Anderson acceleration and the factor's refresh when the
+/// residual contracts too slowly.
+class ChordNewton final : public NewtonLoop {
+ public:
+  ChordNewton(Integrator& in, NewtonStep& s);
+
+ private:
+  bool solve() override;
+  void started() override;
+  double move(bool& guarded) override;
+  bool iterated(double previous) override;
+  bool andersonMix();
+  const bool accelerate_;
+  Work::Anderson& aa;
+  int slowIterations_ = 0;    // accelerated: iterations that did not halve the residual
+  bool rebuiltHere_ = false;  // accelerated, asynchronous: the factor was rebuilt in this step once already
+};
+
+/// Newton-Krylov: inexact Newton, the exact tangent applied matrix-free, CG preconditioned with the lagged factor.
+class KrylovNewton final : public NewtonLoop {
+ public:
+  KrylovNewton(Integrator& in, NewtonStep& s) : NewtonLoop(in, s, true) {}
+
+ private:
+  bool solve() override;
+  void applyJ(const Eigen::VectorXd& in, Eigen::VectorXd& out);
+};
+
+}  // namespace rehearse::simcore::detail
