@@ -106,34 +106,41 @@ struct Reader {
   }
 };
 
-}  // namespace
+// Which elements each input cell became, for cell labels: kind (0 none, 1 triangles, 2 tet), first, count.
+struct Target {
+  int kind;
+  std::size_t first, count = 1;
+};
 
-Mesh parseVtkLegacy(std::string_view bytes) {
-  Reader R{TextReader(bytes, "VTK legacy")};
-  auto& r = R.r;
-  if (bytes.substr(0, 22).find("# vtk DataFile") == std::string_view::npos) r.fail("the '# vtk DataFile' header is missing");
-  r.line();
-  r.line();  // title
-  auto enc = r.token();
-  if (iequals(enc, "BINARY")) R.binary = true;
-  else if (!iequals(enc, "ASCII")) r.fail("expected ASCII or BINARY");
-  auto ds = r.token();
-  if (!iequals(ds, "DATASET")) r.fail("expected DATASET");
-  auto kind = r.token();
-  bool poly = iequals(kind, "POLYDATA");
-  if (!poly && !iequals(kind, "UNSTRUCTURED_GRID"))
-    r.fail("dataset type " + std::string(kind) + " is not supported (use POLYDATA or UNSTRUCTURED_GRID)");
-
+// One legacy file's parse: the reader, the mesh so far, and what the cells became.
+struct LegacyParse {
+  Reader R;
+  bool poly = false;
   Mesh m;
   std::vector<std::vector<long long>> ugCells;
   std::vector<double> ugTypes;
-  // Which elements each input cell became, for cell labels: kind (0 none, 1 triangles, 2 tet), first, count.
-  struct Target {
-    int kind;
-    std::size_t first, count = 1;
-  };
   std::vector<Target> cellTarget;
-  auto applyLabels = [&](const std::vector<double>& v) {
+
+  explicit LegacyParse(std::string_view bytes) : R{TextReader(bytes, "VTK legacy")} {}
+
+  // The '# vtk DataFile' line, the title, ASCII or BINARY, and the dataset type.
+  void header(std::string_view bytes) {
+    auto& r = R.r;
+    if (bytes.substr(0, 22).find("# vtk DataFile") == std::string_view::npos) r.fail("the '# vtk DataFile' header is missing");
+    r.line();
+    r.line();  // title
+    auto enc = r.token();
+    if (iequals(enc, "BINARY")) R.binary = true;
+    else if (!iequals(enc, "ASCII")) r.fail("expected ASCII or BINARY");
+    auto ds = r.token();
+    if (!iequals(ds, "DATASET")) r.fail("expected DATASET");
+    auto kind = r.token();
+    poly = iequals(kind, "POLYDATA");
+    if (!poly && !iequals(kind, "UNSTRUCTURED_GRID"))
+      r.fail("dataset type " + std::string(kind) + " is not supported (use POLYDATA or UNSTRUCTURED_GRID)");
+  }
+
+  void applyLabels(const std::vector<double>& v) {
     for (std::size_t i = 0; i < cellTarget.size(); ++i) {
       const auto& t = cellTarget[i];
       for (std::size_t k = 0; k < t.count; ++k) {
@@ -141,8 +148,9 @@ Mesh parseVtkLegacy(std::string_view bytes) {
         if (t.kind == 1) m.triangleLabels[t.first + k] = detail::toLabel(v[i]);
       }
     }
-  };
-  auto addPoly = [&](const std::vector<long long>& c) {
+  }
+
+  void addPoly(const std::vector<long long>& c) {
     if (c.size() < 3) {
       cellTarget.push_back({0, 0});
       return;
@@ -153,163 +161,220 @@ Mesh parseVtkLegacy(std::string_view bytes) {
       m.triangleLabels.push_back(0);
     }
     cellTarget.push_back({1, first, m.triangles.size() - first});
-  };
-  auto toInt = [&](long long v) {
+  }
+
+  int toInt(long long v) {
+    auto& r = R.r;
     if (v < 0 || v > static_cast<long long>(kMaxMeshItems)) r.fail("a cell refers to point " + std::to_string(v) + ", which is out of range");
     return static_cast<int>(v);
-  };
+  }
+
+  // POINTS n type, then the coordinates.
+  void points() {
+    auto& r = R.r;
+    std::size_t n = r.count("point", kMaxMeshItems);
+    auto type = r.token();
+    auto v = R.values(3 * n, type);
+    m.points.resize(n);
+    for (std::size_t i = 0; i < n; ++i) m.points[i] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+  }
+
+  // POLYGONS, VERTICES or LINES of a POLYDATA.
+  void polyCells(bool polygons) {
+    auto cells = R.cells("cell");
+    for (auto& c : cells) {
+      for (auto& v : c) v = toInt(v);
+      if (polygons) addPoly(c);
+      else cellTarget.push_back({0, 0});
+    }
+  }
+
+  // TRIANGLE_STRIPS of a POLYDATA, as triangles.
+  void strips() {
+    auto cells = R.cells("strip");
+    for (auto& c : cells) {
+      std::size_t first = m.triangles.size();
+      for (std::size_t k = 0; k + 2 < c.size(); ++k) {
+        int a = toInt(c[k]), b = toInt(c[k + 1]), d = toInt(c[k + 2]);
+        if (k % 2) std::swap(a, b);
+        m.triangles.push_back({a, b, d});
+        m.triangleLabels.push_back(0);
+      }
+      cellTarget.push_back({1, first, m.triangles.size() - first});
+    }
+  }
+
+  // CELL_TYPES of an UNSTRUCTURED_GRID: its CELLS become tets, triangles or polygons.
+  void cellTypes() {
+    auto& r = R.r;
+    std::size_t n = r.count("cell type", kMaxMeshItems);
+    ugTypes = R.values(n, "int");
+    if (ugTypes.size() != ugCells.size()) r.fail("CELL_TYPES and CELLS have different counts");
+    for (std::size_t i = 0; i < ugCells.size(); ++i) {
+      int t = detail::toLabel(ugTypes[i]);
+      auto& c = ugCells[i];
+      if ((t == 10 || t == 24) && c.size() >= 4) {  // tetra, quadratic tetra (corners first)
+        cellTarget.push_back({2, m.tets.size()});
+        m.tets.push_back({toInt(c[0]), toInt(c[1]), toInt(c[2]), toInt(c[3])});
+        m.tetLabels.push_back(0);
+      } else if ((t == 5 || t == 22) && c.size() >= 3) {
+        cellTarget.push_back({1, m.triangles.size()});
+        m.triangles.push_back({toInt(c[0]), toInt(c[1]), toInt(c[2])});
+        m.triangleLabels.push_back(0);
+      } else if ((t == 7 || t == 9) && c.size() >= 3) {  // polygon, quad
+        for (auto& v : c) v = toInt(v);
+        addPoly(c);
+      } else {
+        cellTarget.push_back({0, 0});
+      }
+    }
+  }
+
+  // SCALARS of a data section of n values; the first integer one of a cell section labels the cells.
+  void scalars(std::size_t n, bool cellData, bool& labelled) {
+    auto& r = R.r;
+    r.token();
+    auto type = r.token();
+    std::size_t comps = 1;
+    auto rest = r.line();
+    if (!rest.empty()) {
+      std::string s(rest);
+      int c = std::atoi(s.c_str());
+      if (c < 1 || c > 4) r.fail("SCALARS has an impossible component count");
+      comps = c;
+    }
+    if (iequals(r.peekToken(), "LOOKUP_TABLE")) {
+      r.token();
+      r.token();
+    }
+    auto v = R.values(n * comps, type);
+    if (cellData && !labelled && comps == 1 && isIntegerType(type) && n == cellTarget.size()) {
+      labelled = true;
+      applyLabels(v);
+    }
+  }
+
+  // FIELD inside a data section; its first integer one-component array of a cell section labels the cells.
+  void dataField(bool cellData, bool& labelled) {
+    auto& r = R.r;
+    r.token();
+    std::size_t arrays = r.count("field array", 10000);
+    for (std::size_t k = 0; k < arrays; ++k) {
+      auto name = r.token();
+      if (iequals(name, "METADATA")) {  // skip metadata lines up to a blank line
+        r.skipLineEnd();
+        while (!r.exhausted() && !r.line().empty()) {
+        }
+        --k;
+        continue;
+      }
+      std::size_t comps = r.count("field components", 1024);
+      std::size_t tuples = r.count("field tuples", kMaxMeshItems);
+      auto type = r.token();
+      auto v = R.values(comps * tuples, type);
+      if (cellData && !labelled && comps == 1 && tuples == cellTarget.size() && isIntegerType(type)) {
+        labelled = true;
+        applyLabels(v);
+      }
+    }
+  }
+
+  // A CELL_DATA or POINT_DATA section and its attributes.
+  void dataSection(bool cellData) {
+    auto& r = R.r;
+    std::size_t n = r.count("attribute", kMaxMeshItems);
+    bool labelled = false;
+    // Attributes until the next data section or the end.
+    while (!r.atEnd()) {
+      auto a = r.peekToken();
+      if (iequals(a, "CELL_DATA") || iequals(a, "POINT_DATA")) break;
+      r.token();
+      if (iequals(a, "SCALARS")) {
+        scalars(n, cellData, labelled);
+      } else if (iequals(a, "VECTORS") || iequals(a, "NORMALS")) {
+        r.token();
+        R.values(3 * n, r.token());
+      } else if (iequals(a, "TENSORS")) {
+        r.token();
+        R.values(9 * n, r.token());
+      } else if (iequals(a, "TEXTURE_COORDINATES")) {
+        r.token();
+        std::size_t d = r.count("texture dimension", 3);
+        R.values(d * n, r.token());
+      } else if (iequals(a, "COLOR_SCALARS")) {
+        r.token();
+        std::size_t c = r.count("colour component", 4);
+        R.values(c * n, R.binary ? "unsigned_char" : "float");
+      } else if (iequals(a, "LOOKUP_TABLE")) {
+        r.token();
+        std::size_t s = r.count("lookup table size", kMaxMeshItems);
+        R.values(4 * s, R.binary ? "unsigned_char" : "float");
+      } else if (iequals(a, "FIELD")) {
+        dataField(cellData, labelled);
+      } else if (iequals(a, "METADATA")) {
+        metadata();
+      } else {
+        r.fail("attribute '" + std::string(a.substr(0, 30)) + "' is not supported");
+      }
+    }
+  }
+
+  // METADATA: lines up to a blank line.
+  void metadata() {
+    auto& r = R.r;
+    r.skipLineEnd();
+    while (!r.exhausted()) {  // metadata lines up to a blank line
+      auto l = r.line();
+      if (l.empty()) break;
+    }
+  }
+
+  // FIELD at the top level: its arrays, skipped.
+  void field() {
+    auto& r = R.r;
+    r.token();
+    std::size_t arrays = r.count("field array", 10000);
+    for (std::size_t k = 0; k < arrays; ++k) {
+      r.token();
+      std::size_t comps = r.count("field components", 1024);
+      std::size_t tuples = r.count("field tuples", kMaxMeshItems);
+      R.values(comps * tuples, r.token());
+    }
+  }
+};
+
+}  // namespace
+
+Mesh parseVtkLegacy(std::string_view bytes) {
+  LegacyParse P(bytes);
+  auto& r = P.R.r;
+  P.header(bytes);
+  const bool poly = P.poly;
 
   while (!r.atEnd()) {
     auto key = r.token();
     if (iequals(key, "POINTS")) {
-      std::size_t n = r.count("point", kMaxMeshItems);
-      auto type = r.token();
-      auto v = R.values(3 * n, type);
-      m.points.resize(n);
-      for (std::size_t i = 0; i < n; ++i) m.points[i] = {v[3 * i], v[3 * i + 1], v[3 * i + 2]};
+      P.points();
     } else if (poly && (iequals(key, "POLYGONS") || iequals(key, "VERTICES") || iequals(key, "LINES"))) {
-      bool polygons = iequals(key, "POLYGONS");
-      auto cells = R.cells("cell");
-      for (auto& c : cells) {
-        for (auto& v : c) v = toInt(v);
-        if (polygons) addPoly(c);
-        else cellTarget.push_back({0, 0});
-      }
+      P.polyCells(iequals(key, "POLYGONS"));
     } else if (poly && iequals(key, "TRIANGLE_STRIPS")) {
-      auto cells = R.cells("strip");
-      for (auto& c : cells) {
-        std::size_t first = m.triangles.size();
-        for (std::size_t k = 0; k + 2 < c.size(); ++k) {
-          int a = toInt(c[k]), b = toInt(c[k + 1]), d = toInt(c[k + 2]);
-          if (k % 2) std::swap(a, b);
-          m.triangles.push_back({a, b, d});
-          m.triangleLabels.push_back(0);
-        }
-        cellTarget.push_back({1, first, m.triangles.size() - first});
-      }
+      P.strips();
     } else if (!poly && iequals(key, "CELLS")) {
-      ugCells = R.cells("cell");
+      P.ugCells = P.R.cells("cell");
     } else if (!poly && iequals(key, "CELL_TYPES")) {
-      std::size_t n = r.count("cell type", kMaxMeshItems);
-      ugTypes = R.values(n, "int");
-      if (ugTypes.size() != ugCells.size()) r.fail("CELL_TYPES and CELLS have different counts");
-      for (std::size_t i = 0; i < ugCells.size(); ++i) {
-        int t = detail::toLabel(ugTypes[i]);
-        auto& c = ugCells[i];
-        if ((t == 10 || t == 24) && c.size() >= 4) {  // tetra, quadratic tetra (corners first)
-          cellTarget.push_back({2, m.tets.size()});
-          m.tets.push_back({toInt(c[0]), toInt(c[1]), toInt(c[2]), toInt(c[3])});
-          m.tetLabels.push_back(0);
-        } else if ((t == 5 || t == 22) && c.size() >= 3) {
-          cellTarget.push_back({1, m.triangles.size()});
-          m.triangles.push_back({toInt(c[0]), toInt(c[1]), toInt(c[2])});
-          m.triangleLabels.push_back(0);
-        } else if ((t == 7 || t == 9) && c.size() >= 3) {  // polygon, quad
-          for (auto& v : c) v = toInt(v);
-          addPoly(c);
-        } else {
-          cellTarget.push_back({0, 0});
-        }
-      }
+      P.cellTypes();
     } else if (iequals(key, "CELL_DATA") || iequals(key, "POINT_DATA")) {
-      bool cellData = iequals(key, "CELL_DATA");
-      std::size_t n = r.count("attribute", kMaxMeshItems);
-      bool labelled = false;
-      // Attributes until the next data section or the end.
-      while (!r.atEnd()) {
-        auto a = r.peekToken();
-        if (iequals(a, "CELL_DATA") || iequals(a, "POINT_DATA")) break;
-        r.token();
-        if (iequals(a, "SCALARS")) {
-          r.token();
-          auto type = r.token();
-          std::size_t comps = 1;
-          auto rest = r.line();
-          if (!rest.empty()) {
-            std::string s(rest);
-            int c = std::atoi(s.c_str());
-            if (c < 1 || c > 4) r.fail("SCALARS has an impossible component count");
-            comps = c;
-          }
-          if (iequals(r.peekToken(), "LOOKUP_TABLE")) {
-            r.token();
-            r.token();
-          }
-          auto v = R.values(n * comps, type);
-          if (cellData && !labelled && comps == 1 && isIntegerType(type) && n == cellTarget.size()) {
-            labelled = true;
-            applyLabels(v);
-          }
-        } else if (iequals(a, "VECTORS") || iequals(a, "NORMALS")) {
-          r.token();
-          R.values(3 * n, r.token());
-        } else if (iequals(a, "TENSORS")) {
-          r.token();
-          R.values(9 * n, r.token());
-        } else if (iequals(a, "TEXTURE_COORDINATES")) {
-          r.token();
-          std::size_t d = r.count("texture dimension", 3);
-          R.values(d * n, r.token());
-        } else if (iequals(a, "COLOR_SCALARS")) {
-          r.token();
-          std::size_t c = r.count("colour component", 4);
-          R.values(c * n, R.binary ? "unsigned_char" : "float");
-        } else if (iequals(a, "LOOKUP_TABLE")) {
-          r.token();
-          std::size_t s = r.count("lookup table size", kMaxMeshItems);
-          R.values(4 * s, R.binary ? "unsigned_char" : "float");
-        } else if (iequals(a, "FIELD")) {
-          r.token();
-          std::size_t arrays = r.count("field array", 10000);
-          for (std::size_t k = 0; k < arrays; ++k) {
-            auto name = r.token();
-            if (iequals(name, "METADATA")) {  // skip metadata lines up to a blank line
-              r.skipLineEnd();
-              while (!r.exhausted() && !r.line().empty()) {
-              }
-              --k;
-              continue;
-            }
-            std::size_t comps = r.count("field components", 1024);
-            std::size_t tuples = r.count("field tuples", kMaxMeshItems);
-            auto type = r.token();
-            auto v = R.values(comps * tuples, type);
-            if (cellData && !labelled && comps == 1 && tuples == cellTarget.size() && isIntegerType(type)) {
-              labelled = true;
-              applyLabels(v);
-            }
-          }
-        } else if (iequals(a, "METADATA")) {
-          r.skipLineEnd();
-          while (!r.exhausted()) {
-            auto l = r.line();
-            if (l.empty()) break;
-          }
-        } else {
-          r.fail("attribute '" + std::string(a.substr(0, 30)) + "' is not supported");
-        }
-      }
+      P.dataSection(iequals(key, "CELL_DATA"));
     } else if (iequals(key, "METADATA")) {
-      r.skipLineEnd();
-      while (!r.exhausted()) {  // metadata lines up to a blank line
-        auto l = r.line();
-        if (l.empty()) break;
-      }
+      P.metadata();
     } else if (iequals(key, "FIELD")) {
-      r.token();
-      std::size_t arrays = r.count("field array", 10000);
-      for (std::size_t k = 0; k < arrays; ++k) {
-        r.token();
-        std::size_t comps = r.count("field components", 1024);
-        std::size_t tuples = r.count("field tuples", kMaxMeshItems);
-        R.values(comps * tuples, r.token());
-      }
+      P.field();
     } else {
       r.fail("section '" + std::string(key.substr(0, 30)) + "' is not supported");
     }
   }
-  if (!poly && !ugCells.empty() && ugTypes.empty()) r.fail("CELL_TYPES is missing");
-  return m;
+  if (!poly && !P.ugCells.empty() && P.ugTypes.empty()) r.fail("CELL_TYPES is missing");
+  return std::move(P.m);
 }
 
 std::string writeVtkLegacy(const Mesh& m, bool ascii) {
