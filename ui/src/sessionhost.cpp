@@ -11,6 +11,8 @@ SessionHost::SessionHost(QWidget* dialogs) : QObject(dialogs), dialogs_(dialogs)
 SessionHost::~SessionHost() {
   ++generation_;
   buildCancelled_->store(true);
+  precomputeCancelled_->store(true);
+  for (QFuture<void>& b : builds_) b.waitForFinished();  // a session being built uses the host's callbacks till done
   forceLoop_.reset();
   session_.reset();  // joins the session's thread before the host goes
   waitForRetired();
@@ -61,8 +63,11 @@ bool SessionHost::start(const app::SessionRequest& s, std::optional<RecordReques
   model_ = s.bodyModel;
   if (buildDialog_) buildDialog_->deleteLater();  // an older session's build: its progress will not come
   buildDialog_.clear();
-  watcher->setFuture(QtConcurrent::run([s, built, generation, record = record.has_value(),
-                                        options = launchOptions(generation, record), retiring = retired_] {
+  std::erase_if(builds_, [](const QFuture<void>& b) { return b.isFinished(); });
+  QFuture<void> build = QtConcurrent::run([s, built, generation, record = record.has_value(),
+                              options = launchOptions(generation, record), retiring = retired_,
+                              cache = startCache_]() mutable {
+    options.cache = cache.get();  // (kept alive by this task)
     try {
       if (record && retiring.valid()) retiring.wait();  // the last session's recording is complete in the file first
       app::Launch launch = app::launchSession(s, options);
@@ -78,7 +83,9 @@ bool SessionHost::start(const app::SessionRequest& s, std::optional<RecordReques
     } catch (const std::exception& e) {
       built->words = QString::fromStdString(e.what());
     }
-  }));
+  });
+  watcher->setFuture(build);
+  builds_.push_back(build);
   return true;
 }
 
@@ -110,7 +117,6 @@ app::LaunchOptions SessionHost::launchOptions(long generation, const std::option
         Qt::QueuedConnection);
     return !cancelled->load();
   };
-  options.cache = startCache_.get();
   if (record) options.record = app::RecordTarget{record->file, record->meta};
   return options;
 }

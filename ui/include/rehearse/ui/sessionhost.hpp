@@ -9,6 +9,7 @@
 
 #include <rehearse/simcore/session/forceloop.hpp>
 
+#include <QFuture>
 #include <QObject>
 #include <QPointer>
 #include <QProgressDialog>
@@ -20,6 +21,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace rehearse::ui {
 
@@ -99,6 +101,8 @@ class SessionHost : public QObject {
   bool cancelRecord_ = false;                      ///< ... and the recording was stopped meanwhile
   simcore::VirtualDevice device_;                  ///< the mouse-driven instrument's tip, for the force loop
   std::unique_ptr<simcore::ForceLoop> forceLoop_;  ///< declared after session_: stopped before it goes
+  /// The sessions being built (a newer one asked for cancels the older ones): the host waits for them before it goes.
+  std::vector<QFuture<void>> builds_;
   long generation_ = 0;                            ///< bumped per session: frames of an older one are dropped
   std::shared_ptr<app::RestShapeCache> startCache_ = std::make_shared<app::RestShapeCache>();
   /// Set when a newer session replaces the one being built (its rest-shape solve stops early).
