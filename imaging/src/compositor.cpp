@@ -153,6 +153,18 @@ struct Compositor::Impl {
       bgr[k] = 255.0f * falloff * (albedoHere[k] * kdF[2 - k] * diffuse + ksF[2 - k] * specular);
     return true;
   }
+
+  /// A deformed shape as compose() draws it: its vertices in the camera frame (double and single precision), their
+  /// normals, its triangles' planes, its vertices' image points and what the camera sees of it.
+  struct Shape {
+    std::vector<Eigen::Vector3d> X;
+    std::vector<Eigen::Vector3f> Xf, Nf;
+    std::vector<Plane> P;
+    std::vector<Eigen::Vector2d> uv;
+    Rasterization seen;
+  };
+  void shadeCovered(const Shape& s, const cv::Rect& box, int scale, cv::Mat3b& out, cv::Mat1b& onRim) const;
+  cv::Vec3b supersample(const Shape& s, const cv::Point& q, int scale, const cv::Mat3b& out) const;
 };
 
 Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()) {
@@ -242,46 +254,34 @@ cv::Mat3b Compositor::compose(const std::vector<double>& deformedVertices, int s
   return compose(SurfaceView{v.data(), d.vertexCount, d.triangles.data(), d.triangles.size() / 3}, scale);
 }
 
-cv::Mat3b Compositor::compose(const SurfaceView& deformed, int scale) const {
-  const Impl& d = *d_;
-  if (deformed.vertexCount != d.vertexCount || deformed.triangleCount * 3 != d.triangles.size())
-    throw InputError("The deformed organ has " + std::to_string(deformed.vertexCount) + " vertices, the registered one " + std::to_string(d.vertexCount) +
-                     "; they must be the same mesh in the same order.");
-  const SurfaceView surface{deformed.vertices, deformed.vertexCount, d.triangles.data(), deformed.triangleCount};
-  std::vector<Eigen::Vector3d> X(d.vertexCount);
-  for (std::size_t i = 0; i < d.vertexCount; ++i) X[i] = d.pose.apply(surface.vertex(i));
-  const std::vector<Eigen::Vector3d> N = vertexNormals(X, surface);
-  const Rasterization seen = rasterizeCameraFrame(d.camera, X, surface, 1, 1e-3, d.cull);
-  const std::vector<Impl::Plane> P = Impl::planes(X, d.triangles);
-  std::vector<Eigen::Vector3f> Xf(X.size()), Nf(N.size());
-  for (std::size_t i = 0; i < X.size(); ++i) Xf[i] = X[i].cast<float>(), Nf[i] = N[i].cast<float>();
-  cv::Mat3b out = d.background.clone();
-  // Clamped first: saturate_cast rounds through int, and a radiance beyond 2^31 (a grazing highlight) would wrap to
-  // black.
-  auto put = [](const cv::Vec3f& c) {
-    return cv::Vec3b(cv::saturate_cast<uchar>(std::min(c[0], 255.0f)), cv::saturate_cast<uchar>(std::min(c[1], 255.0f)),
-                     cv::saturate_cast<uchar>(std::min(c[2], 255.0f)));
-  };
-  std::vector<Eigen::Vector2d> uv(d.vertexCount);
-  for (std::size_t i = 0; i < d.vertexCount; ++i)
-    uv[i] = X[i].z() > 0 ? Eigen::Vector2d(d.camera.K(0, 0) * X[i].x() / X[i].z() + d.camera.K(0, 1) * X[i].y() / X[i].z() + d.camera.K(0, 2),
-                                           d.camera.K(1, 1) * X[i].y() / X[i].z() + d.camera.K(1, 2))
-                         : Eigen::Vector2d(-1e9, -1e9);
-  // Only inside the organ's box on the image (a pixel beyond it, and its neighbours, show no organ).
+namespace {
+// Clamped first: saturate_cast rounds through int, and a radiance beyond 2^31 (a grazing highlight) would wrap to
+// black.
+cv::Vec3b put(const cv::Vec3f& c) {
+  return cv::Vec3b(cv::saturate_cast<uchar>(std::min(c[0], 255.0f)), cv::saturate_cast<uchar>(std::min(c[1], 255.0f)),
+                   cv::saturate_cast<uchar>(std::min(c[2], 255.0f)));
+}
+
+// The organ's box on the image (its vertices in front of the camera, widened by their neighbours), within the image.
+cv::Rect organBox(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector2d>& uv, int cols, int rows) {
   cv::Rect box(0, 0, 0, 0);
-  {
-    double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
-    for (std::size_t i = 0; i < d.vertexCount; ++i)
-      if (X[i].z() > 0) x0 = std::min(x0, uv[i].x()), x1 = std::max(x1, uv[i].x()), y0 = std::min(y0, uv[i].y()), y1 = std::max(y1, uv[i].y());
-    if (x1 >= x0)
-      box = cv::Rect(cv::Point(static_cast<int>(std::max(-1.0, std::floor(x0) - 2)), static_cast<int>(std::max(-1.0, std::floor(y0) - 2))),
-                     cv::Point(static_cast<int>(std::min(out.cols + 1.0, std::ceil(x1) + 3)), static_cast<int>(std::min(out.rows + 1.0, std::ceil(y1) + 3)))) &
-            cv::Rect(0, 0, out.cols, out.rows);
-  }
-  // Each covered pixel shaded once at its centre; with supersampling, the rim marked on the way: pixels with the
-  // organ on one side and the background (or a farther part of the organ: a fold in front of it, a step in depth
-  // of 3 mm) on the other, against the four neighbours.
-  cv::Mat1b onRim(box.size(), uchar(0));
+  double x0 = 1e30, y0 = 1e30, x1 = -1e30, y1 = -1e30;
+  for (std::size_t i = 0; i < X.size(); ++i)
+    if (X[i].z() > 0) x0 = std::min(x0, uv[i].x()), x1 = std::max(x1, uv[i].x()), y0 = std::min(y0, uv[i].y()), y1 = std::max(y1, uv[i].y());
+  if (x1 >= x0)
+    box = cv::Rect(cv::Point(static_cast<int>(std::max(-1.0, std::floor(x0) - 2)), static_cast<int>(std::max(-1.0, std::floor(y0) - 2))),
+                   cv::Point(static_cast<int>(std::min(cols + 1.0, std::ceil(x1) + 3)), static_cast<int>(std::min(rows + 1.0, std::ceil(y1) + 3)))) &
+          cv::Rect(0, 0, cols, rows);
+  return box;
+}
+}  // namespace
+
+// Each covered pixel shaded once at its centre; with supersampling, the rim marked on the way: pixels with the
+// organ on one side and the background (or a farther part of the organ: a fold in front of it, a step in depth
+// of 3 mm) on the other, against the four neighbours.
+void Compositor::Impl::shadeCovered(const Shape& s, const cv::Rect& box, int scale, cv::Mat3b& out,
+                                    cv::Mat1b& onRim) const {
+  const Rasterization& seen = s.seen;
   cv::parallel_for_(cv::Range(box.y, box.y + box.height), [&](const cv::Range& rows) {
     for (int y = rows.start; y < rows.end; ++y) {
       const int* tid = seen.triangle.ptr<int>(y);
@@ -295,7 +295,7 @@ cv::Mat3b Compositor::compose(const SurfaceView& deformed, int scale) const {
       for (int x = box.x; x < box.x + box.width; ++x) {
         const int t = tid[x];
         cv::Vec3f c;
-        if (t >= 0 && d.shadeAt(Xf, Nf, P, t, x, y, c)) row[x] = put(c);
+        if (t >= 0 && shadeAt(s.Xf, s.Nf, s.P, t, x, y, c)) row[x] = put(c);
         if (scale <= 1) continue;
         auto differs = [&](int u, float zu) {
           return (u < 0) != (t < 0) || (t >= 0 && u >= 0 && std::abs(zu - z[x]) > 0.003f);
@@ -305,90 +305,122 @@ cv::Mat3b Compositor::compose(const SurfaceView& deformed, int scale) const {
       }
     }
   });
+}
+
+// A rim pixel's colour from scale x scale samples; a sample takes the nearest of the triangles its 3x3
+// neighbourhood shows that covers it, or the background.
+cv::Vec3b Compositor::Impl::supersample(const Shape& s, const cv::Point& q, int scale, const cv::Mat3b& out) const {
+  const Rasterization& seen = s.seen;
+  std::array<int, 9> candidates;
+  int count = 0;
+  for (int dy = -1; dy <= 1; ++dy)
+    for (int dx = -1; dx <= 1; ++dx) {
+      const int yy = q.y + dy, xx = q.x + dx;
+      if (yy < 0 || xx < 0 || yy >= out.rows || xx >= out.cols) continue;
+      const int u = seen.triangle(yy, xx);
+      if (u >= 0 && std::find(candidates.begin(), candidates.begin() + count, u) == candidates.begin() + count) candidates[static_cast<std::size_t>(count++)] = u;
+    }
+  const cv::Vec3f back(background(q.y, q.x)[0], background(q.y, q.x)[1], background(q.y, q.x)[2]);
+  // Which triangle each sample takes; each triangle is then shaded once, at its samples' mean position
+  // (its colour does not change within a pixel), the samples it does not take showing the background.
+  std::array<int, 9> taken{};
+  std::array<double, 9> meanX{}, meanY{};
+  int none = 0;
+  // Each candidate's barycentric weights as linear functions of the image point (w = e + gx x + gy y), and
+  // its vertices' inverse depths (1/z is linear on the image).
+  struct Edge {
+    double e0, gx0, gy0, e1, gx1, gy1, iz0, iz1, iz2;
+    bool ok;
+  };
+  std::array<Edge, 9> edge;
+  for (int k = 0; k < count; ++k) {
+    const int* tri = triangles.data() + 3 * candidates[static_cast<std::size_t>(k)];
+    const Eigen::Vector2d &a = s.uv[tri[0]], &b = s.uv[tri[1]], &c = s.uv[tri[2]];
+    const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+    Edge& E = edge[static_cast<std::size_t>(k)];
+    E.ok = std::abs(area) >= 1e-12;
+    if (!E.ok) continue;
+    const double inv = 1.0 / area;
+    // w0 = ((b.x - x)(c.y - y) - (b.y - y)(c.x - x)) / area, w1 likewise with (c, a).
+    E.e0 = (b.x() * c.y() - b.y() * c.x()) * inv, E.gx0 = (b.y() - c.y()) * inv, E.gy0 = (c.x() - b.x()) * inv;
+    E.e1 = (c.x() * a.y() - c.y() * a.x()) * inv, E.gx1 = (c.y() - a.y()) * inv, E.gy1 = (a.x() - c.x()) * inv;
+    E.iz0 = 1.0 / s.X[tri[0]].z(), E.iz1 = 1.0 / s.X[tri[1]].z(), E.iz2 = 1.0 / s.X[tri[2]].z();
+  }
+  for (int sy = 0; sy < scale; ++sy)
+    for (int sx = 0; sx < scale; ++sx) {
+      const double px = q.x + (sx + 0.5) / scale - 0.5, py = q.y + (sy + 0.5) / scale - 0.5;
+      int best = -1;
+      double bestInvZ = 0;
+      for (int k = 0; k < count; ++k) {
+        const Edge& E = edge[static_cast<std::size_t>(k)];
+        if (!E.ok) continue;
+        const double w0 = E.e0 + E.gx0 * px + E.gy0 * py, w1 = E.e1 + E.gx1 * px + E.gy1 * py, w2 = 1 - w0 - w1;
+        if (w0 < 0 || w1 < 0 || w2 < 0) continue;
+        const double invZ = w0 * E.iz0 + w1 * E.iz1 + w2 * E.iz2;  // the nearest has the largest 1/z
+        if (best < 0 || invZ > bestInvZ) best = k, bestInvZ = invZ;
+      }
+      if (best < 0) {
+        ++none;
+        continue;
+      }
+      const auto b = static_cast<std::size_t>(best);
+      ++taken[b];
+      meanX[b] += px;
+      meanY[b] += py;
+    }
+  // The pixel's own triangle was shaded at its centre already (or gave the background there): its samples
+  // take that colour.
+  const int own = seen.triangle(q.y, q.x);
+  const cv::Vec3f centre(out(q)[0], out(q)[1], out(q)[2]);
+  cv::Vec3f sum = back * static_cast<float>(none);
+  for (int k = 0; k < count; ++k) {
+    const auto b = static_cast<std::size_t>(k);
+    if (taken[b] == 0) continue;
+    cv::Vec3f c;
+    if (candidates[b] == own)
+      c = centre;
+    else if (!shadeAt(s.Xf, s.Nf, s.P, candidates[b], meanX[b] / taken[b], meanY[b] / taken[b], c))
+      c = back;
+    // Each sample saturates as a pixel would (a highlight brighter than white does not bleed past the rim).
+    for (int ch = 0; ch < 3; ++ch) c[ch] = std::clamp(c[ch], 0.0f, 255.0f);
+    sum += static_cast<float>(taken[b]) * c;
+  }
+  return put(sum / static_cast<float>(scale * scale));
+}
+cv::Mat3b Compositor::compose(const SurfaceView& deformed, int scale) const {
+  const Impl& d = *d_;
+  if (deformed.vertexCount != d.vertexCount || deformed.triangleCount * 3 != d.triangles.size())
+    throw InputError("The deformed organ has " + std::to_string(deformed.vertexCount) + " vertices, the registered one " + std::to_string(d.vertexCount) +
+                     "; they must be the same mesh in the same order.");
+  const SurfaceView surface{deformed.vertices, deformed.vertexCount, d.triangles.data(), deformed.triangleCount};
+  Impl::Shape s;
+  std::vector<Eigen::Vector3d>& X = s.X;
+  X.resize(d.vertexCount);
+  for (std::size_t i = 0; i < d.vertexCount; ++i) X[i] = d.pose.apply(surface.vertex(i));
+  const std::vector<Eigen::Vector3d> N = vertexNormals(X, surface);
+  s.seen = rasterizeCameraFrame(d.camera, X, surface, 1, 1e-3, d.cull);
+  s.P = Impl::planes(X, d.triangles);
+  s.Xf.resize(X.size()), s.Nf.resize(N.size());
+  for (std::size_t i = 0; i < X.size(); ++i) s.Xf[i] = X[i].cast<float>(), s.Nf[i] = N[i].cast<float>();
+  cv::Mat3b out = d.background.clone();
+  s.uv.resize(d.vertexCount);
+  for (std::size_t i = 0; i < d.vertexCount; ++i)
+    s.uv[i] = X[i].z() > 0 ? Eigen::Vector2d(d.camera.K(0, 0) * X[i].x() / X[i].z() + d.camera.K(0, 1) * X[i].y() / X[i].z() + d.camera.K(0, 2),
+                                             d.camera.K(1, 1) * X[i].y() / X[i].z() + d.camera.K(1, 2))
+                           : Eigen::Vector2d(-1e9, -1e9);
+  // Only inside the organ's box on the image (a pixel beyond it, and its neighbours, show no organ).
+  const cv::Rect box = organBox(X, s.uv, out.cols, out.rows);
+  cv::Mat1b onRim(box.size(), uchar(0));
+  d.shadeCovered(s, box, scale, out, onRim);
   if (scale <= 1) return out;
-  // The rim: each of its pixels gets scale x scale samples; a sample takes the nearest of the triangles its 3x3
-  // neighbourhood shows that covers it, or the background.
+  // The rim: each of its pixels gets scale x scale samples (Impl::supersample).
   std::vector<cv::Point> rim;
   if (!onRim.empty()) cv::findNonZero(onRim, rim);
   for (auto& q : rim) q += box.tl();
   cv::parallel_for_(cv::Range(0, static_cast<int>(rim.size())), [&](const cv::Range& range) {
     for (int i = range.start; i < range.end; ++i) {
       const cv::Point q = rim[static_cast<std::size_t>(i)];
-      std::array<int, 9> candidates;
-      int count = 0;
-      for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-          const int yy = q.y + dy, xx = q.x + dx;
-          if (yy < 0 || xx < 0 || yy >= out.rows || xx >= out.cols) continue;
-          const int u = seen.triangle(yy, xx);
-          if (u >= 0 && std::find(candidates.begin(), candidates.begin() + count, u) == candidates.begin() + count) candidates[static_cast<std::size_t>(count++)] = u;
-        }
-      const cv::Vec3f back(d.background(q.y, q.x)[0], d.background(q.y, q.x)[1], d.background(q.y, q.x)[2]);
-      // Which triangle each sample takes; each triangle is then shaded once, at its samples' mean position
-      // (its colour does not change within a pixel), the samples it does not take showing the background.
-      std::array<int, 9> taken{};
-      std::array<double, 9> meanX{}, meanY{};
-      int none = 0;
-      // Each candidate's barycentric weights as linear functions of the image point (w = e + gx x + gy y), and
-      // its vertices' inverse depths (1/z is linear on the image).
-      struct Edge {
-        double e0, gx0, gy0, e1, gx1, gy1, iz0, iz1, iz2;
-        bool ok;
-      };
-      std::array<Edge, 9> edge;
-      for (int k = 0; k < count; ++k) {
-        const int* tri = d.triangles.data() + 3 * candidates[static_cast<std::size_t>(k)];
-        const Eigen::Vector2d &a = uv[tri[0]], &b = uv[tri[1]], &c = uv[tri[2]];
-        const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
-        Edge& E = edge[static_cast<std::size_t>(k)];
-        E.ok = std::abs(area) >= 1e-12;
-        if (!E.ok) continue;
-        const double inv = 1.0 / area;
-        // w0 = ((b.x - x)(c.y - y) - (b.y - y)(c.x - x)) / area, w1 likewise with (c, a).
-        E.e0 = (b.x() * c.y() - b.y() * c.x()) * inv, E.gx0 = (b.y() - c.y()) * inv, E.gy0 = (c.x() - b.x()) * inv;
-        E.e1 = (c.x() * a.y() - c.y() * a.x()) * inv, E.gx1 = (c.y() - a.y()) * inv, E.gy1 = (a.x() - c.x()) * inv;
-        E.iz0 = 1.0 / X[tri[0]].z(), E.iz1 = 1.0 / X[tri[1]].z(), E.iz2 = 1.0 / X[tri[2]].z();
-      }
-      for (int sy = 0; sy < scale; ++sy)
-        for (int sx = 0; sx < scale; ++sx) {
-          const double px = q.x + (sx + 0.5) / scale - 0.5, py = q.y + (sy + 0.5) / scale - 0.5;
-          int best = -1;
-          double bestInvZ = 0;
-          for (int k = 0; k < count; ++k) {
-            const Edge& E = edge[static_cast<std::size_t>(k)];
-            if (!E.ok) continue;
-            const double w0 = E.e0 + E.gx0 * px + E.gy0 * py, w1 = E.e1 + E.gx1 * px + E.gy1 * py, w2 = 1 - w0 - w1;
-            if (w0 < 0 || w1 < 0 || w2 < 0) continue;
-            const double invZ = w0 * E.iz0 + w1 * E.iz1 + w2 * E.iz2;  // the nearest has the largest 1/z
-            if (best < 0 || invZ > bestInvZ) best = k, bestInvZ = invZ;
-          }
-          if (best < 0) {
-            ++none;
-            continue;
-          }
-          const auto b = static_cast<std::size_t>(best);
-          ++taken[b];
-          meanX[b] += px;
-          meanY[b] += py;
-        }
-      // The pixel's own triangle was shaded at its centre already (or gave the background there): its samples
-      // take that colour.
-      const int own = seen.triangle(q.y, q.x);
-      const cv::Vec3f centre(out(q)[0], out(q)[1], out(q)[2]);
-      cv::Vec3f sum = back * static_cast<float>(none);
-      for (int k = 0; k < count; ++k) {
-        const auto b = static_cast<std::size_t>(k);
-        if (taken[b] == 0) continue;
-        cv::Vec3f c;
-        if (candidates[b] == own)
-          c = centre;
-        else if (!d.shadeAt(Xf, Nf, P, candidates[b], meanX[b] / taken[b], meanY[b] / taken[b], c))
-          c = back;
-        // Each sample saturates as a pixel would (a highlight brighter than white does not bleed past the rim).
-        for (int ch = 0; ch < 3; ++ch) c[ch] = std::clamp(c[ch], 0.0f, 255.0f);
-        sum += static_cast<float>(taken[b]) * c;
-      }
-      out(q) = put(sum / static_cast<float>(scale * scale));
+      out(q) = d.supersample(s, q, scale, out);
     }
   });
   return out;

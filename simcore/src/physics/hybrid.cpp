@@ -94,6 +94,144 @@ Eigen::SparseMatrix<double> restrict(const Eigen::SparseMatrix<double>& K, const
   out.setFromTriplets(t.begin(), t.end());
   return out;
 }
+
+constexpr const char* kRestNotHeld =
+    "The part of the organ outside the FEM region is not held by an attachment: a free part has no static "
+    "response (attach the organ there too).";
+
+// A piece of the organ no attachment holds (a cut took it off) has no static equilibrium: it would fall. A static
+// model cannot let it, so it is held where it is (its nodes fixed at rest), counted and said (freePieces). Returns how
+// many pieces were held.
+std::size_t holdFreePieces(const FemModel& model, std::vector<char>& fixed) {
+  const std::size_t n = model.nodeCount();
+  std::size_t freePieces = 0;
+  Pieces pieces(n);
+  const auto find = [&](int v) { return pieces.find(v); };
+  for (const auto& t : model.tets) pieces.join(t);
+  std::vector<char> anchored(n, 0), used(n, 0);
+  for (const auto& t : model.tets)
+    for (int v : t) used[static_cast<std::size_t>(v)] = 1;
+  for (std::size_t v = 0; v < n; ++v)
+    if (fixed[v]) anchored[static_cast<std::size_t>(find(static_cast<int>(v)))] = 1;
+  std::vector<char> counted(n, 0);
+  for (std::size_t v = 0; v < n; ++v) {
+    const auto r = static_cast<std::size_t>(find(static_cast<int>(v)));
+    if (!used[v] || anchored[r]) continue;
+    fixed[v] = 1;
+    if (!counted[r]) counted[r] = 1, ++freePieces;
+  }
+  return freePieces;
+}
+
+// The rest's pieces (its elements joined through shared nodes) that no attachment holds would float: each has no
+// static response of its own (its stiffness is singular), so it joins the FEM region.
+void absorbFloatingRest(const FemModel& model, const std::vector<char>& fixed, std::vector<char>& inRegion) {
+  const std::size_t n = model.nodeCount(), m = model.tets.size();
+  Pieces pieces(n);
+  const auto find = [&](int v) { return pieces.find(v); };
+  for (std::size_t e = 0; e < m; ++e)
+    if (!inRegion[e]) pieces.join(model.tets[e]);
+  std::vector<char> anchored(n, 0);
+  for (std::size_t e = 0; e < m; ++e)
+    if (!inRegion[e])
+      for (int v : model.tets[e])
+        if (fixed[static_cast<std::size_t>(v)]) anchored[static_cast<std::size_t>(find(v))] = 1;
+  for (std::size_t e = 0; e < m; ++e)
+    if (!inRegion[e] && !anchored[static_cast<std::size_t>(find(model.tets[e][0]))]) inRegion[e] = 1;
+}
+
+// The rest's responses at the interface and its stiffness condensed onto it (see HybridElasticity::Parts).
+struct RestCondensation {
+  Eigen::VectorXd restSag;
+  Eigen::MatrixXd responses;
+  std::vector<int> interfaceDofs, restDofs;
+  Eigen::MatrixXd condensed;
+  Eigen::VectorXd restPull;
+};
+
+// The rest's free unknowns split into the interface's (G) and the others (I), K_II factorised, and from it u_I^0,
+// R_IG, S and K_GI u_I^0 (see build()). False, with `why`, when the rest's stiffness is singular.
+bool condenseRest(const FemModel& model, const std::vector<char>& restElements, const std::vector<int>& pIndex, int np,
+                  const std::vector<int>& interfaceNodes, const std::vector<int>& restNodes,
+                  const Eigen::Vector3d& gravity, RestCondensation& p, std::string& why) {
+  const Eigen::SparseMatrix<double> KP = restrict(partStiffness(model, restElements), pIndex, np);
+  std::vector<int> split(static_cast<std::size_t>(3 * np), -1);  // P unknown -> G index (>= 0) or -(I index) - 2
+  int ng = 0, ni = 0;
+  for (int v : interfaceNodes)
+    if (pIndex[static_cast<std::size_t>(v)] >= 0)
+      for (int a = 0; a < 3; ++a) {
+        const int dof = 3 * pIndex[static_cast<std::size_t>(v)] + a;
+        split[static_cast<std::size_t>(dof)] = ng++;
+        p.interfaceDofs.push_back(dof);
+      }
+  p.restDofs.clear();
+  for (int dof = 0; dof < 3 * np; ++dof)
+    if (split[static_cast<std::size_t>(dof)] < 0)
+      split[static_cast<std::size_t>(dof)] = -(ni++) - 2, p.restDofs.push_back(dof);
+  std::vector<Eigen::Triplet<double>> tII, tIG;
+  Eigen::MatrixXd KGG = Eigen::MatrixXd::Zero(ng, ng);
+  for (int c = 0; c < KP.outerSize(); ++c)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(KP, c); it; ++it) {
+      const int r = split[static_cast<std::size_t>(it.row())], k = split[static_cast<std::size_t>(c)];
+      if (r < -1 && k < -1)
+        tII.emplace_back(-r - 2, -k - 2, it.value());
+      else if (r < -1 && k >= 0)
+        tIG.emplace_back(-r - 2, k, it.value());
+      else if (r >= 0 && k >= 0)
+        KGG(r, k) += it.value();
+    }
+  Eigen::SparseMatrix<double> KII(ni, ni), KIG(ni, ng);
+  KII.setFromTriplets(tII.begin(), tII.end());
+  KIG.setFromTriplets(tIG.begin(), tIG.end());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> restSolver(KII);
+  if (restSolver.info() != Eigen::Success) {
+    why = "The stiffness of the part outside the FEM region could not be factorised (a piece of it is free).";
+    return false;
+  }
+  Eigen::VectorXd fI = Eigen::VectorXd::Zero(ni);
+  for (int v : restNodes)
+    if (pIndex[static_cast<std::size_t>(v)] >= 0)
+      for (int a = 0; a < 3; ++a)
+        fI[-split[static_cast<std::size_t>(3 * pIndex[static_cast<std::size_t>(v)] + a)] - 2] =
+            model.lumpedMass[v] * gravity[a];
+  p.restSag = restSolver.solve(fI);
+  p.responses = -restSolver.solve(Eigen::MatrixXd(KIG));
+  if (!p.responses.allFinite() || !p.restSag.allFinite()) {
+    why = "The responses of the part outside the FEM region are not finite (its stiffness is singular).";
+    return false;
+  }
+  p.condensed = KGG + Eigen::MatrixXd(KIG.transpose()) * p.responses;
+  p.condensed = 0.5 * (p.condensed + p.condensed.transpose());
+  p.restPull = KIG.transpose() * p.restSag;  // K_GI u_I^0: the rest's weight felt at the interface
+  return true;
+}
+
+// The region's system: its own stiffness over its free nodes plus S on the interface (A); its load: every node it
+// touches, and S u_G^g from the rest (b).
+void assembleRegion(const FemModel& model, const std::vector<char>& inRegion, const std::vector<int>& rIndex, int nr,
+                    const std::vector<int>& interfaceNodes, const std::vector<int>& regionNodes,
+                    const Eigen::MatrixXd& condensed, const Eigen::VectorXd& restPull, int ng,
+                    const Eigen::Vector3d& gravity, Eigen::SparseMatrix<double>& A, Eigen::VectorXd& b) {
+  Eigen::SparseMatrix<double> KR = restrict(partStiffness(model, inRegion), rIndex, nr);
+  std::vector<int> gInR;  // the interface's free unknowns in the region's numbering (same order as interfaceDofs)
+  for (int v : interfaceNodes)
+    if (rIndex[static_cast<std::size_t>(v)] >= 0)
+      for (int a = 0; a < 3; ++a) gInR.push_back(3 * rIndex[static_cast<std::size_t>(v)] + a);
+  std::vector<Eigen::Triplet<double>> t;
+  for (int c = 0; c < KR.outerSize(); ++c)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(KR, c); it; ++it)
+      t.emplace_back(static_cast<int>(it.row()), c, it.value());
+  for (int i = 0; i < ng; ++i)
+    for (int j = 0; j < ng; ++j)
+      t.emplace_back(gInR[static_cast<std::size_t>(i)], gInR[static_cast<std::size_t>(j)], condensed(i, j));
+  A.resize(3 * nr, 3 * nr);
+  A.setFromTriplets(t.begin(), t.end());
+  b = Eigen::VectorXd::Zero(3 * nr);
+  for (int v : regionNodes)
+    if (rIndex[static_cast<std::size_t>(v)] >= 0)
+      b.segment<3>(3 * rIndex[static_cast<std::size_t>(v)]) = model.lumpedMass[v] * gravity;
+  for (int k = 0; k < ng; ++k) b[gInR[static_cast<std::size_t>(k)]] -= restPull[k];
+}
 }  // namespace
 
 std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, const std::vector<char>& fixedIn,
@@ -108,53 +246,18 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
     why = "The organ is not held by an attachment: a free body has no static response (attach it first).";
     return std::nullopt;
   }
-  // A piece of the organ no attachment holds (a cut took it off) has no static equilibrium: it would fall. A static
-  // model cannot let it, so it is held where it is (its nodes fixed at rest), counted and said (freePieces).
   std::vector<char> fixed = fixedIn;
-  std::size_t freePieces = 0;
-  {
-    Pieces pieces(n);
-    const auto find = [&](int v) { return pieces.find(v); };
-    for (const auto& t : model.tets) pieces.join(t);
-    std::vector<char> anchored(n, 0), used(n, 0);
-    for (const auto& t : model.tets)
-      for (int v : t) used[static_cast<std::size_t>(v)] = 1;
-    for (std::size_t v = 0; v < n; ++v)
-      if (fixed[v]) anchored[static_cast<std::size_t>(find(static_cast<int>(v)))] = 1;
-    std::vector<char> counted(n, 0);
-    for (std::size_t v = 0; v < n; ++v) {
-      const auto r = static_cast<std::size_t>(find(static_cast<int>(v)));
-      if (!used[v] || anchored[r]) continue;
-      fixed[v] = 1;
-      if (!counted[r]) counted[r] = 1, ++freePieces;
-    }
-  }
+  const std::size_t freePieces = holdFreePieces(model, fixed);
   const auto inRegionCount = static_cast<std::size_t>(std::count(region.begin(), region.end(), 1));
   if (inRegionCount == 0 || inRegionCount == m) {
     why = inRegionCount == 0 ? "The hybrid model's FEM region is empty: choose the precomputed model instead."
                              : "The hybrid model's FEM region is the whole organ: choose the FEM instead.";
     return std::nullopt;
   }
-  // The rest's pieces (its elements joined through shared nodes) that no attachment holds would float: each has no
-  // static response of its own (its stiffness is singular), so it joins the FEM region.
   std::vector<char> inRegion(region.begin(), region.end());
-  {
-    Pieces pieces(n);
-    const auto find = [&](int v) { return pieces.find(v); };
-    for (std::size_t e = 0; e < m; ++e)
-      if (!inRegion[e]) pieces.join(model.tets[e]);
-    std::vector<char> anchored(n, 0);
-    for (std::size_t e = 0; e < m; ++e)
-      if (!inRegion[e])
-        for (int v : model.tets[e])
-          if (fixed[static_cast<std::size_t>(v)]) anchored[static_cast<std::size_t>(find(v))] = 1;
-    for (std::size_t e = 0; e < m; ++e)
-      if (!inRegion[e] && !anchored[static_cast<std::size_t>(find(model.tets[e][0]))]) inRegion[e] = 1;
-  }
+  absorbFloatingRest(model, fixed, inRegion);
   if (std::count(inRegion.begin(), inRegion.end(), 1) == static_cast<long>(m)) {
-    why =
-        "The part of the organ outside the FEM region is not held by an attachment: a free part has no static "
-        "response (attach the organ there too).";
+    why = kRestNotHeld;
     return std::nullopt;
   }
   std::vector<char> inR(n, 0), inP(n, 0);
@@ -166,9 +269,7 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
   bool held = false;
   for (std::size_t v = 0; v < n; ++v) held = held || (inP[v] && fixed[v]);
   if (!held) {
-    why =
-        "The part of the organ outside the FEM region is not held by an attachment: a free part has no static "
-        "response (attach the organ there too).";
+    why = kRestNotHeld;
     return std::nullopt;
   }
   HybridElasticity h;
@@ -202,91 +303,28 @@ std::optional<HybridElasticity> HybridElasticity::build(const FemModel& model, c
   for (int v : p.pNode)
     for (int a = 0; a < 3; ++a) restKey.push_back(model.rest[static_cast<std::size_t>(v)][a]);
   for (int v : h.restNodes_) restKey.push_back(model.lumpedMass[v]);  // (the interface's weight is the region's)
-  int ng = 0;
   if (previous && previous->p_->restTets == restTets && previous->interface_ == h.interface_ &&
       previous->p_->pNode == p.pNode && previous->p_->gravity == gravity && previous->p_->restKey == restKey) {
     // The rest is as it was (a cut stayed in the region, which may have grown without reaching it): its responses hold.
     const Parts& q = *previous->p_;
     p.restSag = q.restSag, p.responses = q.responses, p.condensed = q.condensed, p.restPull = q.restPull;
     p.interfaceDofs = q.interfaceDofs, p.restDofs = q.restDofs;
-    ng = static_cast<int>(p.interfaceDofs.size());
     h.reused_ = true;
   } else {
-    const Eigen::SparseMatrix<double> KP = restrict(partStiffness(model, restElements), p.pIndex, np);
-    std::vector<int> split(static_cast<std::size_t>(3 * np), -1);  // P unknown -> G index (>= 0) or -(I index) - 2
-    int ni = 0;
-    for (int v : h.interface_)
-      if (p.pIndex[static_cast<std::size_t>(v)] >= 0)
-        for (int a = 0; a < 3; ++a) {
-          const int dof = 3 * p.pIndex[static_cast<std::size_t>(v)] + a;
-          split[static_cast<std::size_t>(dof)] = ng++;
-          p.interfaceDofs.push_back(dof);
-        }
-    p.restDofs.clear();
-    for (int dof = 0; dof < 3 * np; ++dof)
-      if (split[static_cast<std::size_t>(dof)] < 0)
-        split[static_cast<std::size_t>(dof)] = -(ni++) - 2, p.restDofs.push_back(dof);
-    std::vector<Eigen::Triplet<double>> tII, tIG;
-    Eigen::MatrixXd KGG = Eigen::MatrixXd::Zero(ng, ng);
-    for (int c = 0; c < KP.outerSize(); ++c)
-      for (Eigen::SparseMatrix<double>::InnerIterator it(KP, c); it; ++it) {
-        const int r = split[static_cast<std::size_t>(it.row())], k = split[static_cast<std::size_t>(c)];
-        if (r < -1 && k < -1)
-          tII.emplace_back(-r - 2, -k - 2, it.value());
-        else if (r < -1 && k >= 0)
-          tIG.emplace_back(-r - 2, k, it.value());
-        else if (r >= 0 && k >= 0)
-          KGG(r, k) += it.value();
-      }
-    Eigen::SparseMatrix<double> KII(ni, ni), KIG(ni, ng);
-    KII.setFromTriplets(tII.begin(), tII.end());
-    KIG.setFromTriplets(tIG.begin(), tIG.end());
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> restSolver(KII);
-    if (restSolver.info() != Eigen::Success) {
-      why = "The stiffness of the part outside the FEM region could not be factorised (a piece of it is free).";
+    RestCondensation c;
+    if (!condenseRest(model, restElements, p.pIndex, np, h.interface_, h.restNodes_, gravity, c, why))
       return std::nullopt;
-    }
-    Eigen::VectorXd fI = Eigen::VectorXd::Zero(ni);
-    for (int v : h.restNodes_)
-      if (p.pIndex[static_cast<std::size_t>(v)] >= 0)
-        for (int a = 0; a < 3; ++a)
-          fI[-split[static_cast<std::size_t>(3 * p.pIndex[static_cast<std::size_t>(v)] + a)] - 2] =
-              model.lumpedMass[v] * gravity[a];
-    p.restSag = restSolver.solve(fI);
-    p.responses = -restSolver.solve(Eigen::MatrixXd(KIG));
-    if (!p.responses.allFinite() || !p.restSag.allFinite()) {
-      why = "The responses of the part outside the FEM region are not finite (its stiffness is singular).";
-      return std::nullopt;
-    }
-    p.condensed = KGG + Eigen::MatrixXd(KIG.transpose()) * p.responses;
-    p.condensed = 0.5 * (p.condensed + p.condensed.transpose());
-    p.restPull = KIG.transpose() * p.restSag;  // K_GI u_I^0: the rest's weight felt at the interface
+    p.restSag = std::move(c.restSag), p.responses = std::move(c.responses);
+    p.interfaceDofs = std::move(c.interfaceDofs), p.restDofs = std::move(c.restDofs);
+    p.condensed = std::move(c.condensed), p.restPull = std::move(c.restPull);
   }
+  const int ng = static_cast<int>(p.interfaceDofs.size());
   p.restTets = std::move(restTets);
   p.restKey = std::move(restKey);
   p.gravity = gravity;
-  // The region: its own stiffness over its free nodes plus S on the interface; its load: every node it touches, and
-  // S u_G^g from the rest.
   h.absorbed_ = static_cast<std::size_t>(std::count(inRegion.begin(), inRegion.end(), 1)) - inRegionCount;
-  Eigen::SparseMatrix<double> KR = restrict(partStiffness(model, inRegion), p.rIndex, nr);
-  std::vector<int> gInR;  // the interface's free unknowns in the region's numbering (same order as interfaceDofs)
-  for (int v : h.interface_)
-    if (p.rIndex[static_cast<std::size_t>(v)] >= 0)
-      for (int a = 0; a < 3; ++a) gInR.push_back(3 * p.rIndex[static_cast<std::size_t>(v)] + a);
-  std::vector<Eigen::Triplet<double>> t;
-  for (int c = 0; c < KR.outerSize(); ++c)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(KR, c); it; ++it)
-      t.emplace_back(static_cast<int>(it.row()), c, it.value());
-  for (int i = 0; i < ng; ++i)
-    for (int j = 0; j < ng; ++j)
-      t.emplace_back(gInR[static_cast<std::size_t>(i)], gInR[static_cast<std::size_t>(j)], p.condensed(i, j));
-  p.A.resize(3 * nr, 3 * nr);
-  p.A.setFromTriplets(t.begin(), t.end());
-  p.b = Eigen::VectorXd::Zero(3 * nr);
-  for (int v : h.regionNodes_)
-    if (p.rIndex[static_cast<std::size_t>(v)] >= 0)
-      p.b.segment<3>(3 * p.rIndex[static_cast<std::size_t>(v)]) = model.lumpedMass[v] * gravity;
-  for (int k = 0; k < ng; ++k) p.b[gInR[static_cast<std::size_t>(k)]] -= p.restPull[k];
+  assembleRegion(model, inRegion, p.rIndex, nr, h.interface_, h.regionNodes_, p.condensed, p.restPull, ng, gravity,
+                 p.A, p.b);
   return h;
 }
 

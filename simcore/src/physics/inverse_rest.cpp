@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <string>
+#include <vector>
 
 namespace rehearse::simcore {
 namespace {
@@ -23,7 +25,6 @@ std::string mm(double metres) {
   return buf;
 }
 
-// The first element whose orientation differs between two placements of the nodes (-1: none).
 // The rigid motion nearest (least squares over the nodes) to the displacement field d of nodes at x: t + w x (x - c).
 Eigen::VectorXd rigidPart(const Eigen::VectorXd& d, const Eigen::VectorXd& x) {
   const Eigen::Index n = x.size() / 3;
@@ -50,6 +51,7 @@ std::string newtons(double n) {
   return buf;
 }
 
+// The first element whose orientation differs between two placements of the nodes (-1: none).
 int flippedElement(const std::vector<std::array<int, 4>>& tets, const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
   auto volume = [](const Eigen::VectorXd& x, const std::array<int, 4>& t) {
     Eigen::Matrix3d D;
@@ -61,139 +63,185 @@ int flippedElement(const std::vector<std::array<int, 4>>& tets, const Eigen::Vec
   return -1;
 }
 
-}  // namespace
-
-InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen::Vector3d>& target,
-                                 const InverseRestOptions& options) {
-  InverseRestResult r;
+// Why no rest shape can be solved for `target` (in r, false), or true; without gravity the target is its own rest
+// shape (r converged, false).
+bool solvable(const BodySetup& setup, const std::vector<Eigen::Vector3d>& target, const InverseRestOptions& options,
+              InverseRestResult& r) {
   const std::size_t n = setup.mesh.points.size();
   if (target.size() != n) {
     r.status = "The shape to start from has " + std::to_string(target.size()) + " nodes and the body " +
                std::to_string(n) + ": no rest shape was solved.";
-    return r;
+    return false;
   }
   if (!std::all_of(target.begin(), target.end(), [](const Eigen::Vector3d& p) { return p.allFinite(); })) {
     r.status = "The shape to start from has a position that is not a number: no rest shape was solved.";
-    return r;
+    return false;
   }
-  Eigen::VectorXd goal(static_cast<Eigen::Index>(3 * n));
-  for (std::size_t i = 0; i < n; ++i) goal.segment<3>(static_cast<Eigen::Index>(3 * i)) = target[i];
-  const Eigen::Vector3d g = setup.settings.gravity;
-  if (g.norm() == 0) {
+  if (setup.settings.gravity.norm() == 0) {
     r.outcome = InverseRestResult::Outcome::Converged;
     r.rest = r.equilibrium = target;
     r.status = "Without gravity the shape is its own rest shape.";
-    return r;
+    return false;
   }
-  const bool placing = options.supportModulus > 0;
-  if (setup.fixedNodes.empty() && setup.supports.empty() && !placing) {
+  if (setup.fixedNodes.empty() && setup.supports.empty() && !(options.supportModulus > 0)) {
     r.status = "Nothing holds the organ (no attachments, no support): under gravity it has no equilibrium to start "
                "from; hold nodes (H) or let the tissue around it carry it (Support on the Simulation panel).";
-    return r;
+    return false;
   }
-  // The static solves: exact Newton to a tight residual (the start must be an equilibrium of the rehearsal's own
-  // steps, whatever their method), on the setup's material, attachments and gravity.
-  SimulationSettings s = setup.settings;
+  return true;
+}
+
+// The static solves: exact Newton to a tight residual (the start must be an equilibrium of the rehearsal's own
+// steps, whatever their method), on the setup's material, attachments and gravity.
+SimulationSettings staticSettings(const SimulationSettings& settings) {
+  SimulationSettings s = settings;
   s.method = NewtonMethod::Exact;
   s.factorRefresh = FactorRefresh::Synchronous;
   s.tolerance = std::min(s.tolerance, 1e-8);  // (1e-9 stalls on round-off for stiff neo-Hookean beams)
   s.maxNewtonIterations = std::max(s.maxNewtonIterations, 50);
-  Mesh mesh = setup.mesh;
+  return s;
+}
+
+// The fixed point's state: the rest shape X, the last solve's displacement u, the supports and their shift, the best
+// rest shape so far with its equilibrium, supports and load, and the step's relaxation.
+struct RestIteration {
+  enum class Solve { Ok, Failed, Refused };
+
+  const BodySetup& setup;
+  const std::vector<Eigen::Vector3d>& target;
+  const InverseRestOptions& options;
+  const std::size_t n;
+  Eigen::VectorXd goal;
+  const Eigen::Vector3d g;
+  const bool placing;
+  const SimulationSettings s;
+  Mesh mesh;
+  Eigen::VectorXd X, u, bestX, bestX_eq;
+  std::vector<NodeAnchor> supports, bestSupports;
+  Eigen::VectorXd shift, bestShift;
+  bool shifting;
+  double load = 0, bestLoad = 0;
+  double best = std::numeric_limits<double>::infinity(), previous = best, relax = 1.0;
+  std::string stop;
+
+  RestIteration(const BodySetup& setup_, const std::vector<Eigen::Vector3d>& target_,
+                const InverseRestOptions& options_);
+  Solve equilibrium(int k, SimulationState& state, InverseRestResult& r);
+  void keepBest(const SimulationState& state, double error);
+  bool correct(const SimulationState& state, double error);
+  InverseRestResult& finish(InverseRestResult& r) const;
+};
+
+RestIteration::RestIteration(const BodySetup& setup_, const std::vector<Eigen::Vector3d>& target_,
+                             const InverseRestOptions& options_)
+    : setup(setup_),
+      target(target_),
+      options(options_),
+      n(setup_.mesh.points.size()),
+      goal(static_cast<Eigen::Index>(3 * n)),
+      g(setup_.settings.gravity),
+      placing(options_.supportModulus > 0),
+      s(staticSettings(setup_.settings)),
+      mesh(setup_.mesh) {
+  for (std::size_t i = 0; i < n; ++i) goal.segment<3>(static_cast<Eigen::Index>(3 * i)) = target[i];
   mesh.unitToMetre = 1.0;
-  Eigen::VectorXd X = goal, u = Eigen::VectorXd::Zero(goal.size()), bestX = goal, bestX_eq;
-  std::vector<NodeAnchor> supports = setup.supports, bestSupports;
+  X = goal, u = Eigen::VectorXd::Zero(goal.size()), bestX = goal;
+  supports = setup.supports;
   // The supports' points follow the corrections' rigid part: a rigid move of the rest shape hardly moves an organ its
   // supports hold (its equilibrium follows their points instead), so the rest shape alone approached the target at
   // 13 % per solve on a liver held at one node. At convergence the organ is in equilibrium at the target all the same.
-  Eigen::VectorXd shift = Eigen::VectorXd::Zero(goal.size()), bestShift = shift;
-  const bool shifting = placing || !setup.supports.empty();
-  double load = 0, bestLoad = 0;
+  shift = Eigen::VectorXd::Zero(goal.size()), bestShift = shift;
+  shifting = placing || !setup.supports.empty();
   if (!placing) {
     // The setup's own supports carry what they carry at the target.
     Eigen::Vector3d sum = Eigen::Vector3d::Zero();
     for (const auto& a : supports) sum += a.stiffness * (a.at - target[static_cast<std::size_t>(a.node)]);
     load = sum.norm();
   }
-  double best = std::numeric_limits<double>::infinity(), previous = best, relax = 1.0;
-  std::string stop;
-  for (int k = 1; k <= std::max(1, options.maxIterations); ++k) {
-    for (std::size_t i = 0; i < n; ++i) mesh.points[i] = X.segment<3>(static_cast<Eigen::Index>(3 * i));
-    SimulationState state;
-    try {
-      FemModel model = FemModel::build(mesh, setup.byLabel, setup.material);
-      if (placing) {
-        // The weight of this rest shape, carried at the target.
-        SupportPlacement placed =
-            placeSupports(mesh.tets, target, model.lumpedMass, setup.fixedNodes, g, options.supportModulus);
-        if (!placed.problem.empty() && setup.fixedNodes.empty()) {
-          r.status = "Nothing holds the organ: no attachments, and the tissue around it cannot carry it (" +
-                     placed.problem + "); hold nodes (H) or change gravity on the Simulation panel.";
-          return r;
-        }
-        supports = std::move(placed.anchors);
-        load = placed.load;
-      } else {
-        supports = setup.supports;
+}
+
+// The equilibrium of rest shape k (the k-th static solve) in `state`. Refused (r says why) when nothing can hold the
+// organ; Failed (`stop` says why) when the solve did not converge or the shape cannot be simulated.
+RestIteration::Solve RestIteration::equilibrium(int k, SimulationState& state, InverseRestResult& r) {
+  for (std::size_t i = 0; i < n; ++i) mesh.points[i] = X.segment<3>(static_cast<Eigen::Index>(3 * i));
+  try {
+    FemModel model = FemModel::build(mesh, setup.byLabel, setup.material);
+    if (placing) {
+      // The weight of this rest shape, carried at the target.
+      SupportPlacement placed =
+          placeSupports(mesh.tets, target, model.lumpedMass, setup.fixedNodes, g, options.supportModulus);
+      if (!placed.problem.empty() && setup.fixedNodes.empty()) {
+        r.status = "Nothing holds the organ: no attachments, and the tissue around it cannot carry it (" +
+                   placed.problem + "); hold nodes (H) or change gravity on the Simulation panel.";
+        return Solve::Refused;
       }
-      for (auto& a : supports) a.at += shift.segment<3>(3 * static_cast<Eigen::Index>(a.node));
-      model.anchors = supports;
-      Integrator integrator(model, setup.fixedNodes, s);
-      state = integrator.initialState();
-      state.x = X + u;  // from the last solve's displacement: near its equilibrium
-      const StepReport rep = integrator.solveStatic(state);
-      if (!rep.ok || !state.x.allFinite()) {
-        stop = "the static solve from rest shape " + std::to_string(k) + " did not converge (" + rep.status + ")";
-        break;
-      }
-    } catch (const std::exception& e) {
-      stop = std::string("rest shape ") + std::to_string(k) + " cannot be simulated (" + e.what() + ")";
-      break;
-    }
-    r.iterations = k;
-    const double error = largestDistance(state.x, goal);
-    if (error < best) {
-      best = error;
-      bestX = X;
-      bestX_eq = state.x;
-      bestSupports = supports;
-      bestLoad = load;
-      bestShift = shift;
-    }
-    if (options.progress && !options.progress(k, error)) {
-      r.outcome = InverseRestResult::Outcome::Cancelled;
-      stop = "cancelled";
-      break;
-    }
-    if (error <= options.tolerance) break;
-    // The correction starts from the best rest shape so far (after an overshoot: soft tissue, large sag, with a shorter
-    // step), and is shortened while it would turn an element inside out (a sliver of a fine mesh can).
-    Eigen::VectorXd base = X, correction = state.x - goal, baseShift = shift;
-    if (error > previous) {
-      relax *= 0.5;
-      base = bestX;
-      baseShift = bestShift;
-      correction = bestX_eq - goal;
-      u = bestX_eq - bestX;
-      previous = best;
+      supports = std::move(placed.anchors);
+      load = placed.load;
     } else {
-      previous = error;
-      u = state.x - X;
+      supports = setup.supports;
     }
-    int flipped = -1;
-    for (; relax >= 1.0 / 16; relax *= 0.5) {
-      X = base - relax * correction;
-      if ((flipped = flippedElement(mesh.tets, X, goal)) < 0) break;
+    for (auto& a : supports) a.at += shift.segment<3>(3 * static_cast<Eigen::Index>(a.node));
+    model.anchors = supports;
+    Integrator integrator(model, setup.fixedNodes, s);
+    state = integrator.initialState();
+    state.x = X + u;  // from the last solve's displacement: near its equilibrium
+    const StepReport rep = integrator.solveStatic(state);
+    if (!rep.ok || !state.x.allFinite()) {
+      stop = "the static solve from rest shape " + std::to_string(k) + " did not converge (" + rep.status + ")";
+      return Solve::Failed;
     }
-    if (shifting) shift = baseShift - relax * rigidPart(correction, goal);
-    if (relax < 1.0 / 16) {
-      stop = flipped >= 0
-                 ? "the rest shape would turn element " + std::to_string(flipped) +
-                       " inside out (the organ sags too far for its mesh)"
-                 : "the iteration stopped approaching the shape (error " + mm(error) + " after " + mm(best) + ")";
-      break;
-    }
-    if (error <= previous) relax = std::min(1.0, 2 * relax);  // back to full corrections while they work
+  } catch (const std::exception& e) {
+    stop = std::string("rest shape ") + std::to_string(k) + " cannot be simulated (" + e.what() + ")";
+    return Solve::Failed;
   }
+  return Solve::Ok;
+}
+
+void RestIteration::keepBest(const SimulationState& state, double error) {
+  best = error;
+  bestX = X;
+  bestX_eq = state.x;
+  bestSupports = supports;
+  bestLoad = load;
+  bestShift = shift;
+}
+
+// The next rest shape, corrected by the equilibrium's distance from the goal; false (`stop` says why) when no
+// correction can go on.
+bool RestIteration::correct(const SimulationState& state, double error) {
+  // The correction starts from the best rest shape so far (after an overshoot: soft tissue, large sag, with a shorter
+  // step), and is shortened while it would turn an element inside out (a sliver of a fine mesh can).
+  Eigen::VectorXd base = X, correction = state.x - goal, baseShift = shift;
+  if (error > previous) {
+    relax *= 0.5;
+    base = bestX;
+    baseShift = bestShift;
+    correction = bestX_eq - goal;
+    u = bestX_eq - bestX;
+    previous = best;
+  } else {
+    previous = error;
+    u = state.x - X;
+  }
+  int flipped = -1;
+  for (; relax >= 1.0 / 16; relax *= 0.5) {
+    X = base - relax * correction;
+    if ((flipped = flippedElement(mesh.tets, X, goal)) < 0) break;
+  }
+  if (shifting) shift = baseShift - relax * rigidPart(correction, goal);
+  if (relax < 1.0 / 16) {
+    stop = flipped >= 0
+               ? "the rest shape would turn element " + std::to_string(flipped) +
+                     " inside out (the organ sags too far for its mesh)"
+               : "the iteration stopped approaching the shape (error " + mm(error) + " after " + mm(best) + ")";
+    return false;
+  }
+  if (error <= previous) relax = std::min(1.0, 2 * relax);  // back to full corrections while they work
+  return true;
+}
+
+// The result: the best rest shape and its equilibrium, and what was found.
+InverseRestResult& RestIteration::finish(InverseRestResult& r) const {
   if (bestX_eq.size() == 0) {
     r.outcome = r.outcome == InverseRestResult::Outcome::Cancelled ? r.outcome : InverseRestResult::Outcome::Refused;
     r.status = "No rest shape was found: " + stop + ".";
@@ -207,7 +255,7 @@ InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen
   }
   r.error = best;
   r.sag = largestDistance(bestX, bestX_eq);
-  r.supports = std::move(bestSupports);
+  r.supports = bestSupports;
   r.supportLoad = bestLoad;
   if (r.outcome == InverseRestResult::Outcome::Cancelled) {
     r.status = "The rest shape's solve was cancelled.";
@@ -227,6 +275,32 @@ InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen
                "it (Support on the Simulation panel), stiffen that support, or hold more nodes (H).";
   }
   return r;
+}
+
+}  // namespace
+
+InverseRestResult solveRestShape(const BodySetup& setup, const std::vector<Eigen::Vector3d>& target,
+                                 const InverseRestOptions& options) {
+  InverseRestResult r;
+  if (!solvable(setup, target, options, r)) return r;
+  RestIteration it(setup, target, options);
+  for (int k = 1; k <= std::max(1, options.maxIterations); ++k) {
+    SimulationState state;
+    const RestIteration::Solve solved = it.equilibrium(k, state, r);
+    if (solved == RestIteration::Solve::Refused) return r;
+    if (solved == RestIteration::Solve::Failed) break;
+    r.iterations = k;
+    const double error = largestDistance(state.x, it.goal);
+    if (error < it.best) it.keepBest(state, error);
+    if (options.progress && !options.progress(k, error)) {
+      r.outcome = InverseRestResult::Outcome::Cancelled;
+      it.stop = "cancelled";
+      break;
+    }
+    if (error <= options.tolerance) break;
+    if (!it.correct(state, error)) break;
+  }
+  return it.finish(r);
 }
 
 bool useRestShape(BodySetup& setup, const std::vector<Eigen::Vector3d>& target, const InverseRestResult& r) {

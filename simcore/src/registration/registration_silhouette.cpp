@@ -181,30 +181,38 @@ const std::vector<std::array<int, 4>>& edgeFaces(const std::vector<std::array<in
   return cached;
 }
 
-}  // namespace
+// The surface's nodes in the camera frame and in the image, and which of them its triangles use (only those are
+// projected).
+struct ProjectedNodes {
+  std::vector<Eigen::Vector3d> pc;
+  std::vector<Eigen::Vector2d> pix;
+  std::vector<char> used;
+};
 
-std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 3>>& triangles,
-                                              const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera) {
-  checkCamera(camera);
+ProjectedNodes projectNodes(const std::vector<std::array<int, 3>>& triangles, const Eigen::VectorXd& x,
+                            const Pose& pose, const Pinhole& camera) {
   const std::size_t n = static_cast<std::size_t>(x.size() / 3);
-  std::vector<Eigen::Vector3d> pc(n);
-  std::vector<Eigen::Vector2d> pix(n);
-  std::vector<char> used(n, 0);
+  ProjectedNodes p{std::vector<Eigen::Vector3d>(n), std::vector<Eigen::Vector2d>(n), std::vector<char>(n, 0)};
   for (const auto& t : triangles)
     for (int v : t) {
       if (v < 0 || static_cast<std::size_t>(v) >= n)
         throw MeshError("A surface triangle refers to a node that does not exist.");
-      used[v] = 1;
+      p.used[v] = 1;
     }
   for (std::size_t i = 0; i < n; ++i) {
-    pc[i] = pose.apply(x.segment<3>(3 * i));
-    if (!used[i]) continue;
-    if (!(pc[i].z() > 1e-6) || !pc[i].allFinite())
+    p.pc[i] = pose.apply(x.segment<3>(3 * i));
+    if (!p.used[i]) continue;
+    if (!(p.pc[i].z() > 1e-6) || !p.pc[i].allFinite())
       throw MeshError(
           "The organ is behind the camera (or crosses its image plane); place it in front of the camera first.");
-    pix[i] = camera.project(pc[i]);
+    p.pix[i] = camera.project(p.pc[i]);
   }
-  // Vertex normals (area-weighted, model frame) for the edges' bulge.
+  return p;
+}
+
+// Vertex normals (area-weighted, model frame) for the edges' bulge.
+std::vector<Eigen::Vector3d> vertexNormals(const std::vector<std::array<int, 3>>& triangles, const Eigen::VectorXd& x,
+                                           std::size_t n) {
   std::vector<Eigen::Vector3d> normals(n, Eigen::Vector3d::Zero());
   for (const auto& t : triangles) {
     const Eigen::Vector3d a = x.segment<3>(3 * t[0]), b = x.segment<3>(3 * t[1]), c = x.segment<3>(3 * t[2]);
@@ -213,20 +221,44 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
   }
   for (auto& nv : normals)
     if (nv.norm() > 0) nv.normalize();
-  // Front faces (the nearest surface of a closed organ is always a front face, so only they are drawn).
-  std::vector<char> front(triangles.size(), 0);
-  for (std::size_t f = 0; f < triangles.size(); ++f) {
-    const auto& t = triangles[f];
-    front[f] = (pc[t[1]] - pc[t[0]]).cross(pc[t[2]] - pc[t[0]]).dot(pc[t[0]]) < 0;
+  return normals;
+}
+
+// Depth buffer at up to 800 pixels across (it only decides which vertices are hidden; the silhouette's
+// edges are the exact projected mesh edges): the nearest surface's inverse depth per pixel (affine in the image, so
+// interpolated exactly along a row; 0: nothing drawn). Only the box the front faces cover is cleared (kept per
+// thread: a fit asks hundreds of times).
+struct DepthBuffer {
+  double scale;
+  int W, H;
+  int bx0, bx1, by0, by1;  // the box drawn into
+  std::vector<float>& inverseDepth;
+
+  DepthBuffer(const Pinhole& camera, const std::vector<std::array<int, 3>>& triangles, const std::vector<char>& front,
+              const std::vector<Eigen::Vector2d>& pix);
+  void draw(const std::array<int, 3>& t, const std::vector<Eigen::Vector2d>& pix,
+            const std::vector<Eigen::Vector3d>& pc);
+  double depthAt(int x, int y) const {  // the nearest surface's depth there (infinite: nothing drawn)
+    if (x < bx0 || x > bx1 || y < by0 || y > by1) return std::numeric_limits<double>::infinity();
+    const float iz = inverseDepth[static_cast<std::size_t>(y) * W + x];
+    return iz > 0 ? 1.0 / iz : std::numeric_limits<double>::infinity();
   }
-  // Depth buffer at up to 800 pixels across (it only decides which vertices are hidden; the silhouette's
-  // edges are the exact projected mesh edges): the nearest surface's inverse depth per pixel (affine in the image, so
-  // interpolated exactly along a row; 0: nothing drawn). Only the box the front faces cover is cleared (kept per
-  // thread: a fit asks hundreds of times).
-  const double scale = std::min(1.0, 800.0 / std::max(camera.width, camera.height));
-  const int W = std::max(1, static_cast<int>(camera.width * scale)),
-            H = std::max(1, static_cast<int>(camera.height * scale));
-  int bx0 = W, bx1 = -1, by0 = H, by1 = -1;  // the box drawn into
+  static std::vector<float>& threadBuffer() {
+    thread_local std::vector<float> buffer;
+    return buffer;
+  }
+};
+
+DepthBuffer::DepthBuffer(const Pinhole& camera, const std::vector<std::array<int, 3>>& triangles,
+                         const std::vector<char>& front, const std::vector<Eigen::Vector2d>& pix)
+    : scale(std::min(1.0, 800.0 / std::max(camera.width, camera.height))),
+      W(std::max(1, static_cast<int>(camera.width * scale))),
+      H(std::max(1, static_cast<int>(camera.height * scale))),
+      bx0(W),
+      bx1(-1),
+      by0(H),
+      by1(-1),
+      inverseDepth(threadBuffer()) {
   for (std::size_t f = 0; f < triangles.size(); ++f) {
     if (!front[f]) continue;
     for (int v : triangles[f]) {
@@ -238,76 +270,128 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
       by1 = std::max(by1, static_cast<int>(std::clamp(std::ceil(q.y()), 0.0, H - 1.0)));
     }
   }
-  thread_local std::vector<float> inverseDepth;
   inverseDepth.resize(static_cast<std::size_t>(W) * H);
   for (int y = by0; y <= by1; ++y)
     std::fill_n(inverseDepth.begin() + static_cast<std::ptrdiff_t>(y) * W + bx0, std::max(0, bx1 - bx0 + 1), 0.0f);
-  for (std::size_t f = 0; f < triangles.size(); ++f) {
-    if (!front[f]) continue;
-    const auto& t = triangles[f];
-    const Eigen::Vector2d corner[3] = {pix[t[0]] * scale, pix[t[1]] * scale, pix[t[2]] * scale};
-    const Eigen::Vector2d &a = corner[0], &b = corner[1], &c = corner[2];
-    const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
-    if (std::abs(area) < 1e-12) continue;
-    const double left = std::floor(std::min({a.x(), b.x(), c.x()})), right = std::ceil(std::max({a.x(), b.x(), c.x()})),
-                 top = std::floor(std::min({a.y(), b.y(), c.y()})), bottom = std::ceil(std::max({a.y(), b.y(), c.y()}));
-    if (right < 0 || bottom < 0 || left > W - 1 || top > H - 1) continue;  // wholly outside the buffer
-    const int x0 = static_cast<int>(std::max(left, 0.0)), x1 = static_cast<int>(std::min(right, W - 1.0)),
-              y0 = static_cast<int>(std::max(top, 0.0)), y1 = static_cast<int>(std::min(bottom, H - 1.0));
-    // The barycentric weights at pixel centre (X, Y): w_k = (e0 + ex X + ey Y) / area for the corners u, v after k;
-    // the inverse depth the same weights' mix of the corners' (exact under perspective).
-    double e0[3], ex[3], ey[3];
-    double iz0 = 0, izx = 0, izy = 0;
-    for (int k = 0; k < 3; ++k) {
-      const Eigen::Vector2d &u = corner[(k + 1) % 3], &v = corner[(k + 2) % 3];
-      // (u.x - X)(v.y - Y) - (u.y - Y)(v.x - X)
-      e0[k] = (u.x() * v.y() - u.y() * v.x()) / area;
-      ex[k] = (u.y() - v.y()) / area;
-      ey[k] = (v.x() - u.x()) / area;
-      const double iz = 1 / pc[t[k]].z();
-      iz0 += e0[k] * iz, izx += ex[k] * iz, izy += ey[k] * iz;
-    }
-    for (int py = y0; py <= y1; ++py) {
-      const double Y = py + 0.5;
-      // The row's span inside the triangle: every weight >= 0 at the pixel centre px + 0.5.
-      double from = x0, to = x1;
-      for (int k = 0; k < 3; ++k) {
-        const double offset = e0[k] + ey[k] * Y, slope = ex[k];
-        if (slope > 0)
-          from = std::max(from, std::ceil(-offset / slope - 0.5));
-        else if (slope < 0)
-          to = std::min(to, std::floor(-offset / slope - 0.5));
-        else if (offset < 0)
-          from = to + 1;
-      }
-      if (!(from <= to)) continue;
-      float* row = inverseDepth.data() + static_cast<std::ptrdiff_t>(py) * W;
-      const double rowIz = iz0 + izy * Y + izx * 0.5;
-      for (int px = static_cast<int>(from), last = static_cast<int>(to); px <= last; ++px)
-        row[px] = std::max(row[px], static_cast<float>(rowIz + izx * px));
-    }
+}
+
+// Draws front face `t` into the buffer.
+void DepthBuffer::draw(const std::array<int, 3>& t, const std::vector<Eigen::Vector2d>& pix,
+                       const std::vector<Eigen::Vector3d>& pc) {
+  const Eigen::Vector2d corner[3] = {pix[t[0]] * scale, pix[t[1]] * scale, pix[t[2]] * scale};
+  const Eigen::Vector2d &a = corner[0], &b = corner[1], &c = corner[2];
+  const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+  if (std::abs(area) < 1e-12) return;
+  const double left = std::floor(std::min({a.x(), b.x(), c.x()})), right = std::ceil(std::max({a.x(), b.x(), c.x()})),
+               top = std::floor(std::min({a.y(), b.y(), c.y()})), bottom = std::ceil(std::max({a.y(), b.y(), c.y()}));
+  if (right < 0 || bottom < 0 || left > W - 1 || top > H - 1) return;  // wholly outside the buffer
+  const int x0 = static_cast<int>(std::max(left, 0.0)), x1 = static_cast<int>(std::min(right, W - 1.0)),
+            y0 = static_cast<int>(std::max(top, 0.0)), y1 = static_cast<int>(std::min(bottom, H - 1.0));
+  // The barycentric weights at pixel centre (X, Y): w_k = (e0 + ex X + ey Y) / area for the corners u, v after k;
+  // the inverse depth the same weights' mix of the corners' (exact under perspective).
+  double e0[3], ex[3], ey[3];
+  double iz0 = 0, izx = 0, izy = 0;
+  for (int k = 0; k < 3; ++k) {
+    const Eigen::Vector2d &u = corner[(k + 1) % 3], &v = corner[(k + 2) % 3];
+    // (u.x - X)(v.y - Y) - (u.y - Y)(v.x - X)
+    e0[k] = (u.x() * v.y() - u.y() * v.x()) / area;
+    ex[k] = (u.y() - v.y()) / area;
+    ey[k] = (v.x() - u.x()) / area;
+    const double iz = 1 / pc[t[k]].z();
+    iz0 += e0[k] * iz, izx += ex[k] * iz, izy += ey[k] * iz;
   }
-  auto depthAt = [&](int x, int y) {  // the nearest surface's depth there (infinite: nothing drawn)
-    if (x < bx0 || x > bx1 || y < by0 || y > by1) return std::numeric_limits<double>::infinity();
-    const float iz = inverseDepth[static_cast<std::size_t>(y) * W + x];
-    return iz > 0 ? 1.0 / iz : std::numeric_limits<double>::infinity();
-  };
-  // A vertex is visible unless a nearer surface covers all of its 3x3 pixel neighbourhood.
+  for (int py = y0; py <= y1; ++py) {
+    const double Y = py + 0.5;
+    // The row's span inside the triangle: every weight >= 0 at the pixel centre px + 0.5.
+    double from = x0, to = x1;
+    for (int k = 0; k < 3; ++k) {
+      const double offset = e0[k] + ey[k] * Y, slope = ex[k];
+      if (slope > 0)
+        from = std::max(from, std::ceil(-offset / slope - 0.5));
+      else if (slope < 0)
+        to = std::min(to, std::floor(-offset / slope - 0.5));
+      else if (offset < 0)
+        from = to + 1;
+    }
+    if (!(from <= to)) continue;
+    float* row = inverseDepth.data() + static_cast<std::ptrdiff_t>(py) * W;
+    const double rowIz = iz0 + izy * Y + izx * 0.5;
+    for (int px = static_cast<int>(from), last = static_cast<int>(to); px <= last; ++px)
+      row[px] = std::max(row[px], static_cast<float>(rowIz + izx * px));
+  }
+}
+
+// A vertex is visible unless a nearer surface covers all of its 3x3 pixel neighbourhood.
+std::vector<char> visibleNodes(const ProjectedNodes& p, const DepthBuffer& depth) {
+  const std::size_t n = p.pc.size();
+  const double scale = depth.scale;
+  const int W = depth.W, H = depth.H;
   std::vector<char> visible(n, 0);
   for (std::size_t i = 0; i < n; ++i) {
-    if (!used[i]) continue;
-    const int px = static_cast<int>(std::clamp(std::floor(pix[i].x() * scale), -2.0, W + 1.0)),
-              py = static_cast<int>(std::clamp(std::floor(pix[i].y() * scale), -2.0, H + 1.0));
-    const double eps = 2e-3 * pc[i].z() + 1e-4;
+    if (!p.used[i]) continue;
+    const int px = static_cast<int>(std::clamp(std::floor(p.pix[i].x() * scale), -2.0, W + 1.0)),
+              py = static_cast<int>(std::clamp(std::floor(p.pix[i].y() * scale), -2.0, H + 1.0));
+    const double eps = 2e-3 * p.pc[i].z() + 1e-4;
     bool vis = px < 0 || py < 0 || px >= W || py >= H;  // outside the image: not occluded by anything drawn
     for (int dy = -1; dy <= 1 && !vis; ++dy)
       for (int dx = -1; dx <= 1 && !vis; ++dx) {
         const int qx = px + dx, qy = py + dy;
         if (qx < 0 || qy < 0 || qx >= W || qy >= H) continue;
-        vis = depthAt(qx, qy) >= pc[i].z() - eps;
+        vis = depth.depthAt(qx, qy) >= p.pc[i].z() - eps;
       }
     visible[i] = vis;
   }
+  return visible;
+}
+
+// The silhouette edge between nodes a and b of visible face `vf`: its normal away from the face and its bulge. False
+// when it is too short to have a normal.
+bool silhouetteEdge(int a, int b, const std::array<int, 3>& vf, const Eigen::VectorXd& x,
+                    const std::vector<Eigen::Vector3d>& normals, const std::vector<Eigen::Vector2d>& pix,
+                    const Pose& pose, const Pinhole& camera, SilhouetteEdge& e) {
+  e.a = a;
+  e.b = b;
+  e.pa = pix[e.a];
+  e.pb = pix[e.b];
+  const Eigen::Vector2d d = e.pb - e.pa;
+  if (d.norm() < 1e-9) return false;
+  e.normal = Eigen::Vector2d(-d.y(), d.x()).normalized();
+  int third = vf[0];
+  for (int v : vf)
+    if (v != e.a && v != e.b) third = v;
+  if (e.normal.dot(pix[third] - e.pa) > 0) e.normal = -e.normal;  // away from the visible face
+  // PN-triangle edge: the middle of the cubic through the nodes tangent to their planes. At most a
+  // quarter of the edge's length (creases and bad normals would otherwise throw it far off).
+  const Eigen::Vector3d A = x.segment<3>(3 * e.a), B = x.segment<3>(3 * e.b);
+  e.bulge = -((B - A).dot(normals[e.a]) * normals[e.a] + (A - B).dot(normals[e.b]) * normals[e.b]) / 8;
+  const double cap = 0.25 * (B - A).norm();
+  if (!(e.bulge.norm() <= cap))
+    e.bulge = e.bulge.allFinite() && e.bulge.norm() > 0 ? Eigen::Vector3d(e.bulge.normalized() * cap)
+                                                        : Eigen::Vector3d::Zero();
+  const Eigen::Vector3d mid = pose.apply(0.5 * (A + B) + e.bulge);
+  e.pm = mid.z() > 1e-6 ? camera.project(mid) : Eigen::Vector2d(0.5 * (e.pa + e.pb));
+  return true;
+}
+
+}  // namespace
+
+std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 3>>& triangles,
+                                              const Eigen::VectorXd& x, const Pose& pose, const Pinhole& camera) {
+  checkCamera(camera);
+  const std::size_t n = static_cast<std::size_t>(x.size() / 3);
+  const ProjectedNodes p = projectNodes(triangles, x, pose, camera);
+  const std::vector<Eigen::Vector3d>& pc = p.pc;
+  const std::vector<Eigen::Vector3d> normals = vertexNormals(triangles, x, n);
+  // Front faces (the nearest surface of a closed organ is always a front face, so only they are drawn).
+  std::vector<char> front(triangles.size(), 0);
+  for (std::size_t f = 0; f < triangles.size(); ++f) {
+    const auto& t = triangles[f];
+    front[f] = (pc[t[1]] - pc[t[0]]).cross(pc[t[2]] - pc[t[0]]).dot(pc[t[0]]) < 0;
+  }
+  DepthBuffer depth(camera, triangles, front, p.pix);
+  for (std::size_t f = 0; f < triangles.size(); ++f)
+    if (front[f]) depth.draw(triangles[f], p.pix, pc);
+  const std::vector<char> visible = visibleNodes(p, depth);
   // Visible faces: front-facing with three visible vertices.
   std::vector<char> faceVisible(triangles.size(), 0);
   for (std::size_t f = 0; f < triangles.size(); ++f) {
@@ -321,28 +405,7 @@ std::vector<SilhouetteEdge> visibleSilhouette(const std::vector<std::array<int, 
     if (v0 == v1) continue;
     const int vf = v0 ? f0 : f1;
     SilhouetteEdge e;
-    e.a = edgeA;
-    e.b = edgeB;
-    e.pa = pix[e.a];
-    e.pb = pix[e.b];
-    const Eigen::Vector2d d = e.pb - e.pa;
-    if (d.norm() < 1e-9) continue;
-    e.normal = Eigen::Vector2d(-d.y(), d.x()).normalized();
-    int third = triangles[vf][0];
-    for (int v : triangles[vf])
-      if (v != e.a && v != e.b) third = v;
-    if (e.normal.dot(pix[third] - e.pa) > 0) e.normal = -e.normal;  // away from the visible face
-    // PN-triangle edge: the middle of the cubic through the nodes tangent to their planes. At most a
-    // quarter of the edge's length (creases and bad normals would otherwise throw it far off).
-    const Eigen::Vector3d A = x.segment<3>(3 * e.a), B = x.segment<3>(3 * e.b);
-    e.bulge = -((B - A).dot(normals[e.a]) * normals[e.a] + (A - B).dot(normals[e.b]) * normals[e.b]) / 8;
-    const double cap = 0.25 * (B - A).norm();
-    if (!(e.bulge.norm() <= cap))
-      e.bulge = e.bulge.allFinite() && e.bulge.norm() > 0 ? Eigen::Vector3d(e.bulge.normalized() * cap)
-                                                          : Eigen::Vector3d::Zero();
-    const Eigen::Vector3d mid = pose.apply(0.5 * (A + B) + e.bulge);
-    e.pm = mid.z() > 1e-6 ? camera.project(mid) : Eigen::Vector2d(0.5 * (e.pa + e.pb));
-    out.push_back(e);
+    if (silhouetteEdge(edgeA, edgeB, triangles[vf], x, normals, p.pix, pose, camera, e)) out.push_back(e);
   }
   return out;
 }

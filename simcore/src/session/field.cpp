@@ -37,31 +37,28 @@ struct UnionFind {
   }
   void join(int a, int b) { parent[static_cast<std::size_t>(find(a))] = find(b); }
 };
-}  // namespace
 
-Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& tets, const std::vector<int>& labels,
-               const std::vector<char>& fixed, const Eigen::Vector3d& tip, const Eigen::Vector3d& trocar,
-               const Eigen::Vector3d& across, double reach, const ClipSettings& s, double time,
-               const std::function<StructureKind(int)>& kindOf, std::string& message, int aimed) {
-  Clip clip;
-  clip.placedAt = time;
-  clip.gap = s.gap;
-  // The structure the jaws close on: the label of the element whose centre is nearest the tip, within reach, a
-  // vessel's or a duct's before any other, and a vessel's or a duct's element that holds the tip (inside it or on one
-  // of its nodes, within 1 mm: a click aims at the shape the view shows, a step or two behind) before all. When no
-  // centre is within reach (a mesh coarser than the reach: on the patient liver at 5,000 elements their centres lie 9
-  // mm from their nodes, and a click on an artery's node closed on nothing, or on the tissue beside it), the elements
-  // the tip touches: by their nodes within reach, or holding the tip.
-  auto holds = [&](const std::array<int, 4>& t, double onNode) {
-    for (int v : t)
-      if ((node(x, v) - tip).squaredNorm() <= onNode * onNode) return true;
-    Eigen::Matrix3d D;
-    for (int k = 0; k < 3; ++k) D.col(k) = node(x, t[static_cast<std::size_t>(k + 1)]) - node(x, t[0]);
-    const Eigen::Vector3d r = tip - node(x, t[0]);
-    if (r.squaredNorm() > D.colwise().squaredNorm().maxCoeff()) return false;  // too far to be inside
-    const Eigen::Vector3d b = D.fullPivLu().solve(r);
-    return b.allFinite() && b.minCoeff() >= 0 && b.sum() <= 1;
-  };
+// Does element `t` hold the tip: one of its nodes within `onNode` of it, or the tip inside it?
+bool holdsTip(const Eigen::VectorXd& x, const std::array<int, 4>& t, const Eigen::Vector3d& tip, double onNode) {
+  for (int v : t)
+    if ((node(x, v) - tip).squaredNorm() <= onNode * onNode) return true;
+  Eigen::Matrix3d D;
+  for (int k = 0; k < 3; ++k) D.col(k) = node(x, t[static_cast<std::size_t>(k + 1)]) - node(x, t[0]);
+  const Eigen::Vector3d r = tip - node(x, t[0]);
+  if (r.squaredNorm() > D.colwise().squaredNorm().maxCoeff()) return false;  // too far to be inside
+  const Eigen::Vector3d b = D.fullPivLu().solve(r);
+  return b.allFinite() && b.minCoeff() >= 0 && b.sum() <= 1;
+}
+
+// The element whose label the jaws close on (-1: none within reach). The label of the element whose centre is
+// nearest the tip, within reach, a vessel's or a duct's before any other, and a vessel's or a duct's element that
+// holds the tip (inside it or on one of its nodes, within 1 mm: a click aims at the shape the view shows, a step or two
+// behind) before all. When no centre is within reach (a mesh coarser than the reach: on the patient liver at 5,000
+// elements their centres lie 9 mm from their nodes, and a click on an artery's node closed on nothing, or on the
+// tissue beside it), the elements the tip touches: by their nodes within reach, or holding the tip.
+int nearestElement(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& tets,
+                   const std::vector<int>& labels, const Eigen::Vector3d& tip, double reach,
+                   const std::function<StructureKind(int)>& kindOf) {
   double best = reach * reach, bestClosable = reach * reach;
   int nearest = -1, nearestClosable = -1;
   std::map<int, bool> closable;
@@ -85,16 +82,22 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
         d = (0.25 * c - tip).squaredNorm();
       } else {
         for (int v : t) d = std::min(d, (node(x, v) - tip).squaredNorm());
-        if (d > best && holds(t, 0)) d = 0;
+        if (d > best && holdsTip(x, t, tip, 0)) d = 0;
       }
       double dc = d;  // as a closable structure's element
-      if (vessel && dc > 0 && holds(t, 1e-3)) dc = 0;
+      if (vessel && dc > 0 && holdsTip(x, t, tip, 1e-3)) dc = 0;
       if (d <= best) best = d, nearest = static_cast<int>(e);
       if (vessel && dc <= bestClosable) bestClosable = dc, nearestClosable = static_cast<int>(e);
     }
   }
   if (nearestClosable >= 0) nearest = nearestClosable;
-  // The structure aimed at, when one of its elements is within reach (by a node, or holding the tip).
+  return nearest;
+}
+
+// The structure aimed at, when one of its elements is within reach (by a node, or holding the tip): `nearest` becomes
+// that element. Otherwise the note saying why it was not (empty when nothing was aimed at).
+std::string aimAt(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& tets, const std::vector<int>& labels,
+                  const Eigen::Vector3d& tip, double reach, int aimed, int& nearest) {
   std::string aimedNote;
   if (aimed > 0 && tip.allFinite()) {
     double bestAimed = std::numeric_limits<double>::infinity();
@@ -103,7 +106,7 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
       if (labels[e] != aimed) continue;
       double d = std::numeric_limits<double>::infinity();
       for (int v : tets[e]) d = std::min(d, (node(x, v) - tip).squaredNorm());
-      if (d > reach * reach && holds(tets[e], 0)) d = 0;
+      if (d > reach * reach && holdsTip(x, tets[e], tip, 0)) d = 0;
       if (d < bestAimed) bestAimed = d, nearestAimed = static_cast<int>(e);
     }
     if (nearestAimed >= 0 && bestAimed <= reach * reach) {
@@ -119,21 +122,25 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
       aimedNote = buf;
     }
   }
-  if (nearest < 0 || !tip.allFinite()) {
-    char buf[160];
-    std::snprintf(buf, sizeof buf, "The clip closed on nothing: no tissue within %.0f mm of the tip.", 1e3 * reach);
-    message = buf;
-    message += aimedNote;
-    return clip;
-  }
-  clip.label = static_cast<std::size_t>(nearest) < labels.size() ? labels[static_cast<std::size_t>(nearest)] : 0;
+  return aimedNote;
+}
+
+// The clipped label's nodes near the tip (sorted) and its elements' mean edge there.
+struct NearStructure {
+  std::vector<int> near;
+  double edge = 0;
+};
+
+NearStructure structureNearTip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& tets,
+                               const std::vector<int>& labels, int label, int nearest, const Eigen::Vector3d& tip,
+                               double search, double width) {
+  NearStructure out;
   // The label's nodes near the tip, and its elements' mean edge there.
-  const double search = std::max(s.length, reach);
   std::vector<char> inLabel(static_cast<std::size_t>(x.size() / 3), 0);
   double edgeSum = 0;
   int edges = 0;
   for (std::size_t e = 0; e < tets.size(); ++e) {
-    if ((e < labels.size() ? labels[e] : 0) != clip.label) continue;
+    if ((e < labels.size() ? labels[e] : 0) != label) continue;
     const auto& t = tets[e];
     if ((node(x, t[0]) - tip).norm() > 2 * search) continue;
     for (int v : t) inLabel[static_cast<std::size_t>(v)] = 1;
@@ -141,7 +148,7 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
       for (int b = a + 1; b < 4; ++b)
         edgeSum += (node(x, t[static_cast<std::size_t>(a)]) - node(x, t[static_cast<std::size_t>(b)])).norm(), ++edges;
   }
-  const double edge = edges ? edgeSum / edges : s.width;
+  out.edge = edges ? edgeSum / edges : width;
   // The structure near the tip: its nodes within reach that its elements join to the one nearest the tip (another
   // branch beside it, joined only further away, is not part of what the jaws close on).
   std::vector<char> within(inLabel.size(), 0);
@@ -149,7 +156,7 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
     within[i] = inLabel[i] && (node(x, static_cast<int>(i)) - tip).norm() <= search;
   std::map<int, std::vector<int>> adjacent;
   for (std::size_t e = 0; e < tets.size(); ++e) {
-    if ((e < labels.size() ? labels[e] : 0) != clip.label) continue;
+    if ((e < labels.size() ? labels[e] : 0) != label) continue;
     const auto& t = tets[e];
     for (int a = 0; a < 4; ++a)
       for (int b = 0; b < 4; ++b)
@@ -162,7 +169,6 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
   for (int v : tets[static_cast<std::size_t>(nearest)])
     if (within[static_cast<std::size_t>(v)] && (node(x, v) - tip).norm() < seedDistance)
       seedDistance = (node(x, v) - tip).norm(), seed = v;
-  std::vector<int> near;
   if (seed >= 0) {
     std::vector<char> seen(within.size(), 0);
     std::vector<int> queue = {seed};
@@ -173,10 +179,16 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
           seen[static_cast<std::size_t>(w)] = 1;
           queue.push_back(w);
         }
-    near = std::move(queue);
-    std::sort(near.begin(), near.end());
+    out.near = std::move(queue);
+    std::sort(out.near.begin(), out.near.end());
   }
-  // The structure's direction: the principal axis of its nodes near the tip.
+  return out;
+}
+
+// The structure's direction: the principal axis of its nodes near the tip (the clip's axis), and the jaws' closing
+// direction across it.
+void orientClip(Clip& clip, const Eigen::VectorXd& x, const std::vector<int>& near, const Eigen::Vector3d& tip,
+                const Eigen::Vector3d& trocar, const Eigen::Vector3d& across) {
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();
   for (int i : near) mean += node(x, i);
   mean /= std::max<double>(1, static_cast<double>(near.size()));
@@ -187,51 +199,60 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
                                                               : Eigen::Vector3d::UnitX();
   const Eigen::Vector3d hint = across.norm() > 0 ? across : Eigen::Vector3d(tip - trocar);
   clip.across = perpendicular(clip.axis, hint);
-  const Eigen::Vector3d jaw = clip.axis.cross(clip.across).normalized();
-  // The jaws: their length across the structure, their opening along the closing direction (either side of the
-  // centre: as wide as they are long, at least the reach they close within), the clip's width along the structure (at
-  // least half an element edge).
-  const double halfWidth = std::max(0.5 * s.width, 0.5 * edge), halfLength = 0.5 * s.length,
-               opening = std::max(s.length, reach);
-  // The nodes between the jaws; the clip's centre recentred on them across and along the jaws (a clip placed on the
-  // vessel's side closes on its middle).
-  Eigen::Vector3d centre = tip;
+}
+
+// The jaws' frame and extent: their length across the structure (along `jaw`), their opening along the closing
+// direction, the clip's width along the structure.
+struct Jaws {
+  Eigen::Vector3d jaw;
+  double halfWidth, halfLength, opening;
+};
+
+// The nodes between the jaws; the clip's centre recentred on them across and along the jaws (a clip placed on the
+// vessel's side closes on its middle).
+std::vector<int> nodesBetweenJaws(const Eigen::VectorXd& x, const std::vector<int>& near, const std::vector<char>& fixed,
+                                  const Clip& clip, const Jaws& j, Eigen::Vector3d& centre) {
   std::vector<int> between;
   for (int pass = 0; pass < 2; ++pass) {
     between.clear();
     for (int i : near) {
       const Eigen::Vector3d d = node(x, i) - centre;
-      if (!fixed[static_cast<std::size_t>(i)] && std::abs(d.dot(clip.axis)) <= halfWidth &&
-          std::abs(d.dot(jaw)) <= halfLength && std::abs(d.dot(clip.across)) <= opening)
+      if (!fixed[static_cast<std::size_t>(i)] && std::abs(d.dot(clip.axis)) <= j.halfWidth &&
+          std::abs(d.dot(j.jaw)) <= j.halfLength && std::abs(d.dot(clip.across)) <= j.opening)
         between.push_back(i);
     }
     if (between.empty()) break;
     Eigen::Vector3d m = Eigen::Vector3d::Zero();
     for (int i : between) m += node(x, i);
     m /= static_cast<double>(between.size());
-    centre += (m - centre).dot(clip.across) * clip.across + (m - centre).dot(jaw) * jaw;
+    centre += (m - centre).dot(clip.across) * clip.across + (m - centre).dot(j.jaw) * j.jaw;
   }
-  if (between.size() < 2) {
-    message = "The clip closed on nothing: fewer than two free nodes of the tissue lie between its jaws.";
-    message += aimedNote;
-    return clip;
-  }
-  // Does the structure go on beyond the jaws (the clip does not close all of it)? Its nodes are where the mesh puts
-  // them: within half an element edge past the jaws' ends it is taken as closed.
-  double reaches = 0;  // how far the structure reaches from the clip's centre along the jaws
+  return between;
+}
+
+// How far the structure reaches from the clip's centre along the jaws.
+double reachAlongJaws(const Eigen::VectorXd& x, const std::vector<int>& near, const Clip& clip, const Jaws& j,
+                      const Eigen::Vector3d& centre) {
+  double reaches = 0;
   for (int i : near) {
     const Eigen::Vector3d d = node(x, i) - centre;
-    if (std::abs(d.dot(clip.axis)) <= halfWidth && std::abs(d.dot(clip.across)) <= opening)
-      reaches = std::max(reaches, std::abs(d.dot(jaw)));
+    if (std::abs(d.dot(clip.axis)) <= j.halfWidth && std::abs(d.dot(clip.across)) <= j.opening)
+      reaches = std::max(reaches, std::abs(d.dot(j.jaw)));
   }
-  clip.spans = reaches <= halfLength + 0.5 * edge;
+  return reaches;
+}
+
+// The clip's nodes and their offsets across the jaws, closed to within half the gap (no further than the squeeze
+// allows); the node nearest the centre is the anchor. Returns the widest offset, and the scale in `scale`.
+double closeOnNodes(Clip& clip, const Eigen::VectorXd& x, const std::vector<int>& between,
+                    const Eigen::Vector3d& centre, const ClipSettings& s, double& scale) {
   double widest = 0;
   std::vector<double> offset;
   for (int i : between) {
     offset.push_back((node(x, i) - centre).dot(clip.across));
     widest = std::max(widest, std::abs(offset.back()));
   }
-  const double scale = widest > 0.5 * s.gap ? std::max(0.5 * s.gap / widest, std::min(1.0, s.minSqueeze)) : 1.0;
+  scale = widest > 0.5 * s.gap ? std::max(0.5 * s.gap / widest, std::min(1.0, s.minSqueeze)) : 1.0;
   std::size_t a = 0;
   for (std::size_t k = 1; k < between.size(); ++k)
     if (std::abs(offset[k]) < std::abs(offset[a])) a = k;
@@ -244,6 +265,50 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
     clip.from.push_back(offset[k]);
     clip.to.push_back(offset[k] * scale);
   }
+  return widest;
+}
+}  // namespace
+
+Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& tets, const std::vector<int>& labels,
+               const std::vector<char>& fixed, const Eigen::Vector3d& tip, const Eigen::Vector3d& trocar,
+               const Eigen::Vector3d& across, double reach, const ClipSettings& s, double time,
+               const std::function<StructureKind(int)>& kindOf, std::string& message, int aimed) {
+  Clip clip;
+  clip.placedAt = time;
+  clip.gap = s.gap;
+  int nearest = nearestElement(x, tets, labels, tip, reach, kindOf);
+  const std::string aimedNote = aimAt(x, tets, labels, tip, reach, aimed, nearest);
+  if (nearest < 0 || !tip.allFinite()) {
+    char buf[160];
+    std::snprintf(buf, sizeof buf, "The clip closed on nothing: no tissue within %.0f mm of the tip.", 1e3 * reach);
+    message = buf;
+    message += aimedNote;
+    return clip;
+  }
+  clip.label = static_cast<std::size_t>(nearest) < labels.size() ? labels[static_cast<std::size_t>(nearest)] : 0;
+  const double search = std::max(s.length, reach);
+  const NearStructure structure = structureNearTip(x, tets, labels, clip.label, nearest, tip, search, s.width);
+  const std::vector<int>& near = structure.near;
+  const double edge = structure.edge;
+  orientClip(clip, x, near, tip, trocar, across);
+  // The jaws: their length across the structure, their opening along the closing direction (either side of the
+  // centre: as wide as they are long, at least the reach they close within), the clip's width along the structure (at
+  // least half an element edge).
+  const Jaws jaws{clip.axis.cross(clip.across).normalized(), std::max(0.5 * s.width, 0.5 * edge), 0.5 * s.length,
+                  std::max(s.length, reach)};
+  Eigen::Vector3d centre = tip;
+  const std::vector<int> between = nodesBetweenJaws(x, near, fixed, clip, jaws, centre);
+  if (between.size() < 2) {
+    message = "The clip closed on nothing: fewer than two free nodes of the tissue lie between its jaws.";
+    message += aimedNote;
+    return clip;
+  }
+  // Does the structure go on beyond the jaws (the clip does not close all of it)? Its nodes are where the mesh puts
+  // them: within half an element edge past the jaws' ends it is taken as closed.
+  const double reaches = reachAlongJaws(x, near, clip, jaws, centre);
+  clip.spans = reaches <= jaws.halfLength + 0.5 * edge;
+  double scale = 1.0;
+  const double widest = closeOnNodes(clip, x, between, centre, s, scale);
   if (!clip.spans) {
     char buf[240];
     std::snprintf(buf, sizeof buf,

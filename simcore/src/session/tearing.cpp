@@ -16,8 +16,97 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <functional>
+#include <string>
+#include <vector>
 
 namespace rehearse::simcore {
+namespace {
+Eigen::Vector3d nodeAt(const Eigen::VectorXd& x, int i) { return x.segment<3>(3 * static_cast<Eigen::Index>(i)); }
+
+// Appends a sentence to the message, after a space when it already says something.
+void say(std::string& message, const std::string& sentence) { message += (message.empty() ? "" : " ") + sentence; }
+
+// An element past its limit, with its stretched direction.
+struct Over {
+  double ratio, strain, limit;
+  int element;
+  Eigen::Vector3d direction;
+};
+
+// The elements past their limit, furthest first (by strain over limit), each with its stretched direction.
+std::vector<Over> overStretched(const std::vector<std::array<int, 4>>& tets, const std::vector<int>& labels,
+                                const std::vector<Eigen::Vector3d>& from, const Eigen::VectorXd& x,
+                                const std::function<double(int)>& limitOf) {
+  std::vector<Over> over;
+  for (std::size_t e = 0; e < tets.size(); ++e) {
+    const double limit = limitOf(e < labels.size() ? labels[e] : 0);
+    if (!(limit > 0)) continue;
+    const auto& t = tets[e];
+    Eigen::Matrix3d Dm, Ds;
+    for (int k = 0; k < 3; ++k) {
+      Dm.col(k) =
+          from[static_cast<std::size_t>(t[static_cast<std::size_t>(k + 1)])] - from[static_cast<std::size_t>(t[0])];
+      Ds.col(k) = nodeAt(x, t[static_cast<std::size_t>(k + 1)]) - nodeAt(x, t[0]);
+    }
+    if (!(std::abs(Dm.determinant()) > 0)) continue;
+    const Eigen::Matrix3d F = Ds * Dm.inverse();
+    if (!(F.determinant() > 0) || !F.allFinite()) continue;  // an inverted element is compressed, not torn
+    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
+    es.computeDirect(F.transpose() * F);
+    const double strain = std::sqrt(std::max(es.eigenvalues()(2), 0.0)) - 1;
+    if (!(strain > limit)) continue;
+    const Eigen::Vector3d stretched = F * es.eigenvectors().col(2);  // the stretched direction, where the tissue is
+    over.push_back({strain / limit, strain, limit, static_cast<int>(e),
+                    stretched.norm() > 0 ? Eigen::Vector3d(stretched.normalized()) : Eigen::Vector3d::UnitX()});
+  }
+  std::sort(over.begin(), over.end(), [](const Over& a, const Over& b) {
+    return a.ratio != b.ratio ? a.ratio > b.ratio : a.element < b.element;
+  });
+  return over;
+}
+
+// The tear's square across the stretch of element `t`, reaching its farthest node (times `widen`), through the middle
+// of the widest gap between its nodes along the stretch.
+BladeSweep tearSquare(const Over& o, const std::array<int, 4>& t, const Eigen::VectorXd& x, double widen) {
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (int v : t) centre += 0.25 * nodeAt(x, v);
+  std::array<double, 4> along{};
+  for (std::size_t k = 0; k < 4; ++k) along[k] = (nodeAt(x, t[k]) - centre).dot(o.direction);
+  std::sort(along.begin(), along.end());
+  double offset = 0, gap = -1;
+  for (std::size_t k = 0; k + 1 < 4; ++k)
+    if (along[k + 1] - along[k] > gap) gap = along[k + 1] - along[k], offset = 0.5 * (along[k] + along[k + 1]);
+  centre += offset * o.direction;
+  double reach = 0;
+  for (int v : t) reach = std::max(reach, (nodeAt(x, v) - centre).norm());
+  reach *= widen;
+  const Eigen::Vector3d u = o.direction.unitOrthogonal(), w = o.direction.cross(u);
+  return BladeSweep{centre - reach * u - reach * w, centre - reach * u + reach * w, centre + reach * u - reach * w,
+                    centre + reach * u + reach * w};
+}
+
+// The named structures the tear went through, each new one's events recorded ("a, b (name)"); `attached` is set when
+// one is a ligament.
+std::string tornStructures(const std::vector<int>& tornLabels, const Mesh& mesh, std::vector<std::string>& events,
+                           bool& attached) {
+  std::string structures;
+  for (int l : tornLabels) {
+    const StructureKind kind = mesh.labelKind(l);
+    if (kind == StructureKind::Tissue) continue;
+    attached = attached || kind == StructureKind::Ligament;
+    const std::string what = structureKindName(kind);
+    const std::string torn = structureEventWord(EventKind::StructureTorn, what);
+    if (std::find(events.begin(), events.end(), torn) == events.end()) {
+      events.push_back(torn);
+      if (isVessel(kind) && kind != StructureKind::Vessel) events.push_back(eventWord(EventKind::VesselTorn));
+      const std::string name = mesh.labelName(l);
+      structures += (structures.empty() ? "" : ", ") + what + (name.empty() ? "" : " (" + name + ")");
+    }
+  }
+  return structures;
+}
+}  // namespace
 
 void Session::tearOverStretched(std::string& message) {
   if (pending_) return;  // one change at a time: an element still over-stretched tears once this one is in
@@ -30,11 +119,10 @@ void Session::tearOverStretched(std::string& message) {
   if (!declared) return;
   if (!bodyModelChangesTissue(setup_.model)) {
     if (!saidNoTear_)
-      message += std::string(message.empty() ? "" : " ") +
-                 (setup_.model == BodyModel::Ffd
-                      ? "The FFD model does not tear (it deforms the surface alone, geometrically)"
-                      : "The precomputed model does not tear (its responses are the intact organ's)") +
-                 ": the scene's tear strains are not applied; choose the FEM or the hybrid model to tear.";
+      say(message, std::string(setup_.model == BodyModel::Ffd
+                                   ? "The FFD model does not tear (it deforms the surface alone, geometrically)"
+                                   : "The precomputed model does not tear (its responses are the intact organ's)") +
+                       ": the scene's tear strains are not applied; choose the FEM or the hybrid model to tear.");
     saidNoTear_ = true;
     return;
   }
@@ -50,42 +138,11 @@ void Session::tearOverStretched(std::string& message) {
   const auto& from = setup_.tearFrom.size() == rest.size() ? setup_.tearFrom : rest;
   const auto& tets = body_->tetrahedra();
   const auto& labels = body_->labels();
-  auto at = [this](int i) -> Eigen::Vector3d { return state_.x.segment<3>(3 * static_cast<Eigen::Index>(i)); };
-  // The elements past their limit, furthest first (by strain over limit), each with its stretched direction.
-  struct Over {
-    double ratio, strain, limit;
-    int element;
-    Eigen::Vector3d direction;
-  };
-  std::vector<Over> over;
-  for (std::size_t e = 0; e < tets.size(); ++e) {
-    const double limit = limitOf(e < labels.size() ? labels[e] : 0);
-    if (!(limit > 0)) continue;
-    const auto& t = tets[e];
-    Eigen::Matrix3d Dm, Ds;
-    for (int k = 0; k < 3; ++k) {
-      Dm.col(k) =
-          from[static_cast<std::size_t>(t[static_cast<std::size_t>(k + 1)])] - from[static_cast<std::size_t>(t[0])];
-      Ds.col(k) = at(t[static_cast<std::size_t>(k + 1)]) - at(t[0]);
-    }
-    if (!(std::abs(Dm.determinant()) > 0)) continue;
-    const Eigen::Matrix3d F = Ds * Dm.inverse();
-    if (!(F.determinant() > 0) || !F.allFinite()) continue;  // an inverted element is compressed, not torn
-    Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es;
-    es.computeDirect(F.transpose() * F);
-    const double strain = std::sqrt(std::max(es.eigenvalues()(2), 0.0)) - 1;
-    if (!(strain > limit)) continue;
-    const Eigen::Vector3d stretched = F * es.eigenvectors().col(2);  // the stretched direction, where the tissue is
-    over.push_back({strain / limit, strain, limit, static_cast<int>(e),
-                    stretched.norm() > 0 ? Eigen::Vector3d(stretched.normalized()) : Eigen::Vector3d::UnitX()});
-  }
+  const std::vector<Over> over = overStretched(tets, labels, from, state_.x, limitOf);
   if (over.empty()) {
     tearRefused_ = false;
     return;
   }
-  std::sort(over.begin(), over.end(), [](const Over& a, const Over& b) {
-    return a.ratio != b.ratio ? a.ratio > b.ratio : a.element < b.element;
-  });
   // Over-stretched at the first step, before any instrument touched it: the organ hangs stretched past its limit (a
   // registered shape hung on a few attachments stretches beside them) and tears untouched. Said with what
   // to change, before the tear's own sentence.
@@ -99,7 +156,7 @@ void Session::tearOverStretched(std::string& message) {
         "\"tears at\") or hold the organ by more attachments.",
         100 * over.front().strain, 100 * over.front().limit,
         setup_.tools.tearOnlyUnderLoad ? "as soon as the grasper pulls it" : "without being touched");
-    message += (message.empty() ? "" : " ") + std::string(said);
+    say(message, said);
   }
   if (setup_.tools.tearOnlyUnderLoad && !loaded) return;
   // The tear: a square across the stretch, reaching the element's farthest node, through the middle of the widest gap
@@ -121,25 +178,10 @@ void Session::tearOverStretched(std::string& message) {
     const std::size_t i = attempt % tries;
     const double widen = attempt < tries ? 1.05 : 2.1;
     const Over& o = over[i];
-    const auto& t = tets[static_cast<std::size_t>(o.element)];
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (int v : t) centre += 0.25 * at(v);
-    std::array<double, 4> along{};
-    for (std::size_t k = 0; k < 4; ++k) along[k] = (at(t[k]) - centre).dot(o.direction);
-    std::sort(along.begin(), along.end());
-    double offset = 0, gap = -1;
-    for (std::size_t k = 0; k + 1 < 4; ++k)
-      if (along[k + 1] - along[k] > gap) gap = along[k + 1] - along[k], offset = 0.5 * (along[k] + along[k + 1]);
-    centre += offset * o.direction;
-    double reach = 0;
-    for (int v : t) reach = std::max(reach, (at(v) - centre).norm());
-    reach *= widen;
-    const Eigen::Vector3d u = o.direction.unitOrthogonal(), w = o.direction.cross(u);
-    const BladeSweep square{centre - reach * u - reach * w, centre - reach * u + reach * w,
-                            centre + reach * u - reach * w, centre + reach * u + reach * w};
+    const BladeSweep square = tearSquare(o, tets[static_cast<std::size_t>(o.element)], state_.x, widen);
     restCopy = rest;
     current.resize(restCopy.size());
-    for (std::size_t k = 0; k < current.size(); ++k) current[k] = at(static_cast<int>(k));
+    for (std::size_t k = 0; k < current.size(); ++k) current[k] = nodeAt(state_.x, static_cast<int>(k));
     tetsCopy = tets;
     labelsCopy = labels;
     r = cutTetrahedra(restCopy, current, tetsCopy, labelsCopy, square, setup_.tools.cut, nullptr);
@@ -155,7 +197,7 @@ void Session::tearOverStretched(std::string& message) {
                     "made there: %s",
                     100 * over.front().strain, 100 * over.front().limit,
                     (firstStatus.empty() ? r.status : firstStatus).c_str());
-      message += (message.empty() ? "" : " ") + std::string(buf);
+      say(message, buf);
     }
     tearRefused_ = true;
     return;
@@ -171,30 +213,17 @@ void Session::tearOverStretched(std::string& message) {
   const std::vector<int> tornLabels = change.labels;
   std::string sentence;
   if (!changeTopology(std::move(change), sentence)) {
-    message += (message.empty() ? "" : " ") + std::string("The tear could not be made: ") + sentence;
+    say(message, "The tear could not be made: " + sentence);
     return;
   }
   // What tore: the tissue, each named structure the tear went through, an attachment.
   events_.push_back(eventWord(EventKind::Tear));
-  std::string structures;
-  for (int l : tornLabels) {
-    const StructureKind kind = setup_.mesh.labelKind(l);
-    if (kind == StructureKind::Tissue) continue;
-    attached = attached || kind == StructureKind::Ligament;
-    const std::string what = structureKindName(kind);
-    const std::string torn = structureEventWord(EventKind::StructureTorn, what);
-    if (std::find(events_.begin(), events_.end(), torn) == events_.end()) {
-      events_.push_back(torn);
-      if (isVessel(kind) && kind != StructureKind::Vessel) events_.push_back(eventWord(EventKind::VesselTorn));
-      const std::string name = setup_.mesh.labelName(l);
-      structures += (structures.empty() ? "" : ", ") + what + (name.empty() ? "" : " (" + name + ")");
-    }
-  }
+  const std::string structures = tornStructures(tornLabels, setup_.mesh, events_, attached);
   if (attached) events_.push_back(eventWord(EventKind::AttachmentTorn));
   std::snprintf(buf, sizeof buf, "The %s tore: stretched %.0f %% where its material tears at %.0f %%%s.",
                 attached ? "tissue at its attachment" : "tissue", 100 * worstStrain, 100 * worstLimit,
                 structures.empty() ? "" : (", through the " + structures).c_str());
-  message += (message.empty() ? "" : " ") + std::string(buf);
+  say(message, buf);
   if (!sentence.empty()) message += " " + sentence;
 }
 
