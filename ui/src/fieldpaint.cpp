@@ -57,6 +57,11 @@ std::vector<std::array<int, 3>> burntBoundary(const std::vector<std::array<int, 
   return out;
 }
 
+// Whether the triangle's nodes are all nodes of a shape of `n`.
+bool onShape(const std::array<int, 3>& t, std::size_t n) {
+  return std::none_of(t.begin(), t.end(), [n](int v) { return v < 0 || static_cast<std::size_t>(v) >= n; });
+}
+
 }  // namespace
 
 void FrameView::setLiveField(simcore::OperativeField field, const Eigen::Vector3d& gravity,
@@ -72,6 +77,93 @@ void FrameView::setLiveField(simcore::OperativeField field, const Eigen::Vector3
 
 namespace {
 constexpr double kFilm = 0.0005;  ///< m: the blood film's thickness
+
+// The surface's edges, each node's neighbours (the nodes of a shape of `n`).
+std::vector<std::vector<int>> surfaceNeighbours(const simcore::CutSurface& surface, std::size_t n) {
+  std::vector<std::vector<int>> neighbours(n);
+  for (const auto& t : surface.triangles)
+    for (int k = 0; k < 3; ++k) {
+      const int a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)];
+      if (a < 0 || b < 0 || static_cast<std::size_t>(a) >= n || static_cast<std::size_t>(b) >= n) continue;
+      neighbours[static_cast<std::size_t>(a)].push_back(b);
+      neighbours[static_cast<std::size_t>(b)].push_back(a);
+    }
+  return neighbours;
+}
+
+// 0..1: how thick the blood is at each node (1 at the stump): each bleed's film covers the nodes within the radius its
+// volume fills, measured along the surface's edges (`nb`) and shorter downhill.
+std::vector<double> bloodFilm(const std::vector<simcore::Bleed>& bleeds, const std::vector<Eigen::Vector3d>& live,
+                              const std::vector<std::vector<int>>& nb, const Eigen::Vector3d& down) {
+  const std::size_t n = live.size();
+  std::vector<double> film(n, 0.0);
+  std::vector<double> dist(n);
+  for (const auto& b : bleeds) {
+    if (!(b.lost > 0) || b.node < 0 || static_cast<std::size_t>(b.node) >= n) continue;
+    const double R = std::sqrt(b.lost / (M_PI * kFilm));
+    std::fill(dist.begin(), dist.end(), std::numeric_limits<double>::infinity());
+    using Item = std::pair<double, int>;
+    std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+    dist[static_cast<std::size_t>(b.node)] = 0;
+    queue.emplace(0.0, b.node);
+    while (!queue.empty()) {
+      const auto [d, v] = queue.top();
+      queue.pop();
+      if (d > dist[static_cast<std::size_t>(v)] || d > R) continue;
+      film[static_cast<std::size_t>(v)] = std::max(film[static_cast<std::size_t>(v)], 1 - d / R);
+      for (int w : nb[static_cast<std::size_t>(v)]) {
+        const Eigen::Vector3d e = live[static_cast<std::size_t>(w)] - live[static_cast<std::size_t>(v)];
+        const double len = e.norm();
+        if (!(len > 0)) continue;
+        const double cost = len * (1 - 0.6 * down.dot(e) / len);  // downhill is nearer
+        if (d + cost < dist[static_cast<std::size_t>(w)]) {
+          dist[static_cast<std::size_t>(w)] = d + cost;
+          queue.emplace(d + cost, w);
+        }
+      }
+    }
+  }
+  return film;
+}
+
+// A surface triangle the blood film covers, as drawn.
+struct FilmTriangle {
+  double depth;
+  QPolygonF poly;
+  double film;
+  double light;  ///< how the film faces the scope (its light): 0..1
+};
+
+// The film's triangles (far to near) drawn into a layer of their own, then softened (a film has no facets or hard
+// edges), then over the view (`view`: the widget's rectangle).
+void paintFilm(QPainter& painter, const std::vector<FilmTriangle>& tris, const QRect& view) {
+  QRectF bounds;
+  for (const auto& t : tris) bounds |= t.poly.boundingRect();
+  const QRect area = bounds.toAlignedRect().adjusted(-6, -6, 6, 6) & view;
+  if (area.isEmpty()) return;
+  QImage layer(area.size(), QImage::Format_ARGB32_Premultiplied);
+  layer.fill(Qt::transparent);
+  {
+    QPainter lp(&layer);
+    lp.translate(-area.topLeft());
+    lp.setRenderHint(QPainter::Antialiasing, false);  // no seams between the film's triangles
+    for (const auto& t : tris) {
+      // Blood: dark where it pools, brighter where thin; lit by the scope's light (facing it) with a gloss.
+      const double k = std::clamp(t.film, 0.0, 1.0), lit = 0.55 + 0.45 * t.light;
+      const double gloss = std::pow(t.light, 40.0);
+      const QColor c(std::clamp(static_cast<int>((150 - 70 * k) * lit + 200 * gloss), 0, 255),
+                     std::clamp(static_cast<int>((14 - 10 * k) * lit + 160 * gloss), 0, 255),
+                     std::clamp(static_cast<int>((12 - 8 * k) * lit + 150 * gloss), 0, 255),
+                     static_cast<int>(185 + 65 * k));
+      lp.setPen(QPen(c, 1.0));
+      lp.setBrush(c);
+      lp.drawPolygon(t.poly);
+    }
+  }
+  cv::Mat bgra(layer.height(), layer.width(), CV_8UC4, layer.bits(), static_cast<std::size_t>(layer.bytesPerLine()));
+  cv::GaussianBlur(bgra, bgra, cv::Size(5, 5), 1.2);
+  painter.drawImage(area.topLeft(), layer);
+}
 }  // namespace
 
 bool FrameView::trailPlace(const BurnTrailPoint& p, Eigen::Vector3d& x) const {
@@ -98,7 +190,7 @@ void FrameView::followHook(long step, const Eigen::Vector3d& tip, bool present, 
   BurnTrailPoint at;
   bool found = false;
   for (const auto& t : triangles) {
-    if (std::any_of(t.begin(), t.end(), [n](int v) { return v < 0 || static_cast<std::size_t>(v) >= n; })) continue;
+    if (!onShape(t, n)) continue;
     const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
                           &c = live_[static_cast<std::size_t>(t[2])];
     Eigen::Vector3d w;
@@ -119,186 +211,134 @@ void FrameView::followHook(long step, const Eigen::Vector3d& tip, bool present, 
 void FrameView::paintField(QPainter& painter) {
   const bool anyBurnt = fieldLabels_ && std::any_of(fieldLabels_->begin(), fieldLabels_->end(), simcore::isBurnt);
   if (!case_ || live_.empty() || (field_.clips.empty() && field_.bleeds.empty() && !anyBurnt)) return;
-  const imaging::Camera& cam = case_->camera;
-  auto toW = [&](const Eigen::Vector3d& p) -> std::optional<QPointF> {
-    if (!(p.z() > 1e-6)) return std::nullopt;
-    const auto uv = cam.project(p);
-    return toWidget(QPointF(uv.x(), uv.y()));
-  };
   const std::size_t n = live_.size();
   if (!fieldGraph_) fieldGraph_ = std::make_shared<FieldGraph>();
-  if (anyBurnt && fieldTets_ && fieldLabels_) {
-    // Burnt tissue whitens: its faces on the surface, front-facing, far to near, in a pale tan over the organ (as
-    // coarse as the mesh: the line along the hook's path is drawn over them, below).
-    if (fieldGraph_->labels != fieldLabels_.get() || fieldGraph_->tets != fieldTets_.get()) {
-      fieldGraph_->labels = fieldLabels_.get();
-      fieldGraph_->tets = fieldTets_.get();
-      fieldGraph_->burnt = burntBoundary(*fieldTets_, *fieldLabels_);
-    }
-    std::vector<std::pair<double, QPolygonF>> faces;
-    for (const auto& t : fieldGraph_->burnt) {
-      if (std::any_of(t.begin(), t.end(), [n](int v) { return v < 0 || static_cast<std::size_t>(v) >= n; })) continue;
-      const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
-                            &c = live_[static_cast<std::size_t>(t[2])];
-      if ((b - a).cross(c - a).dot(a) >= 0) continue;  // facing away from the camera
-      QPolygonF poly;
-      for (const Eigen::Vector3d* p : {&a, &b, &c})
-        if (const auto w = toW(*p)) poly << *w;
-      if (poly.size() == 3) faces.emplace_back((a.z() + b.z() + c.z()) / 3, poly);
-    }
-    std::sort(faces.begin(), faces.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
-    painter.save();
-    painter.setRenderHint(QPainter::Antialiasing, false);
-    const QColor ash(228, 214, 188, 110);
-    painter.setPen(Qt::NoPen);
-    painter.setBrush(ash);
-    for (const auto& [depth, poly] : faces) painter.drawPolygon(poly);
-    painter.restore();
-  }
-  // The burn along the hook's path (followHook): where the powered tip went over the tissue, as wide as it burns (twice
-  // its radius at that depth), coagulated tissue pale around a charred core; on a coarse mesh the burnt elements' faces
-  // alone were a flat polygon about 10 mm across, not a line (issue 61).
-  if (anyBurnt && !burnTrail_.empty()) {  // (a stroke that burnt nothing says so, and draws nothing)
-    const double scale = std::abs(toWidget(QPointF(1, 0)).x() - toWidget(QPointF(0, 0)).x());  // widget px per image px
-    struct Stroke {
-      double depth;
-      QPointF from, to;
-      double width;
-    };
-    std::vector<Stroke> strokes;
-    auto place = [&](const BurnTrailPoint& p, Eigen::Vector3d& x) {
-      if (!trailPlace(p, x)) return false;
-      const Eigen::Vector3d &a = live_[static_cast<std::size_t>(p.nodes[0])],
-                            &b = live_[static_cast<std::size_t>(p.nodes[1])],
-                            &c = live_[static_cast<std::size_t>(p.nodes[2])];
-      return (b - a).cross(c - a).dot(a) < 0 && x.z() > 1e-6;  // on a face the camera sees
-    };
-    for (std::size_t i = 0; i < burnTrail_.size(); ++i) {
-      Eigen::Vector3d p, q;
-      if (!place(burnTrail_[i], p)) continue;
-      const bool joined = i + 1 < burnTrail_.size() && burnTrail_[i + 1].stroke == burnTrail_[i].stroke &&
-                          place(burnTrail_[i + 1], q);
-      if (!joined) q = p;
-      const auto wp = toW(p), wq = toW(q);
-      if (!wp || !wq) continue;
-      const double depth = 0.5 * (p.z() + q.z());
-      strokes.push_back({depth, *wp, *wq, std::max(3.0, 2 * hookRadius_ * cam.fx() / depth * scale)});
-    }
-    std::sort(strokes.begin(), strokes.end(), [](const Stroke& x, const Stroke& y) { return x.depth > y.depth; });
-    painter.save();
-    painter.setRenderHint(QPainter::Antialiasing, true);
-    const QColor coagulated(232, 220, 196, 225), charred(88, 64, 46, 235);
-    for (const auto& st : strokes) {
-      painter.setPen(QPen(coagulated, st.width, Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
-      painter.drawLine(st.from, st.to);
-    }
-    for (const auto& st : strokes) {
-      painter.setPen(QPen(charred, std::max(1.5, 0.3 * st.width), Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
-      painter.drawLine(st.from, st.to);
-    }
-    painter.restore();
-  }
+  if (anyBurnt && fieldTets_ && fieldLabels_) paintBurntFaces(painter);
+  if (anyBurnt && !burnTrail_.empty()) paintBurnTrail(painter);  // (a stroke that burnt nothing says so, and draws nothing)
   const bool bleeding = std::any_of(field_.bleeds.begin(), field_.bleeds.end(), [n](const simcore::Bleed& b) {
     return b.lost > 0 && b.node >= 0 && static_cast<std::size_t>(b.node) < n;
   });
-  if (bleeding && liveSurface_) {
-    const auto& surface = *liveSurface_;
-    if (fieldGraph_->surface != &surface || fieldGraph_->nodes != n) {
-      fieldGraph_->surface = &surface;
-      fieldGraph_->nodes = n;
-      fieldGraph_->neighbours.assign(n, {});
-      for (const auto& t : surface.triangles)
-        for (int k = 0; k < 3; ++k) {
-          const int a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)];
-          if (a < 0 || b < 0 || static_cast<std::size_t>(a) >= n || static_cast<std::size_t>(b) >= n) continue;
-          fieldGraph_->neighbours[static_cast<std::size_t>(a)].push_back(b);
-          fieldGraph_->neighbours[static_cast<std::size_t>(b)].push_back(a);
-        }
-    }
-    const auto& nb = fieldGraph_->neighbours;
-    const Eigen::Vector3d down = gravity_.norm() > 0 ? Eigen::Vector3d(gravity_.normalized()) : Eigen::Vector3d::Zero();
-    std::vector<double> film(n, 0.0);  // 0..1: how thick the blood is at each node (1 at the stump)
-    std::vector<double> dist(n);
-    for (const auto& b : field_.bleeds) {
-      if (!(b.lost > 0) || b.node < 0 || static_cast<std::size_t>(b.node) >= n) continue;
-      const double R = std::sqrt(b.lost / (M_PI * kFilm));
-      std::fill(dist.begin(), dist.end(), std::numeric_limits<double>::infinity());
-      using Item = std::pair<double, int>;
-      std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
-      dist[static_cast<std::size_t>(b.node)] = 0;
-      queue.emplace(0.0, b.node);
-      while (!queue.empty()) {
-        const auto [d, v] = queue.top();
-        queue.pop();
-        if (d > dist[static_cast<std::size_t>(v)] || d > R) continue;
-        film[static_cast<std::size_t>(v)] = std::max(film[static_cast<std::size_t>(v)], 1 - d / R);
-        for (int w : nb[static_cast<std::size_t>(v)]) {
-          const Eigen::Vector3d e = live_[static_cast<std::size_t>(w)] - live_[static_cast<std::size_t>(v)];
-          const double len = e.norm();
-          if (!(len > 0)) continue;
-          const double cost = len * (1 - 0.6 * down.dot(e) / len);  // downhill is nearer
-          if (d + cost < dist[static_cast<std::size_t>(w)]) {
-            dist[static_cast<std::size_t>(w)] = d + cost;
-            queue.emplace(d + cost, w);
-          }
-        }
-      }
-    }
-    struct Tri {
-      double depth;
-      QPolygonF poly;
-      double film;
-      double light;  ///< how the film faces the scope (its light): 0..1
-    };
-    std::vector<Tri> tris;
-    for (const auto& t : surface.triangles) {
-      if (std::any_of(t.begin(), t.end(), [n](int v) { return v < 0 || static_cast<std::size_t>(v) >= n; })) continue;
-      const double f = (film[static_cast<std::size_t>(t[0])] + film[static_cast<std::size_t>(t[1])] +
-                        film[static_cast<std::size_t>(t[2])]) /
-                       3;
-      if (!(f > 0.02)) continue;
-      const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
-                            &c = live_[static_cast<std::size_t>(t[2])];
-      const Eigen::Vector3d normal = (b - a).cross(c - a);
-      if (normal.dot(a) >= 0) continue;  // facing away from the camera
-      QPolygonF poly;
-      for (const Eigen::Vector3d* p : {&a, &b, &c})
-        if (const auto w = toW(*p)) poly << *w;
-      const double facing = -normal.normalized().dot(((a + b + c) / 3).normalized());
-      if (poly.size() == 3) tris.push_back({(a.z() + b.z() + c.z()) / 3, poly, f, std::clamp(facing, 0.0, 1.0)});
-    }
-    std::sort(tris.begin(), tris.end(), [](const Tri& x, const Tri& y) { return x.depth > y.depth; });
-    // Drawn into a layer of its own, then softened (a film has no facets or hard edges), then over the view.
-    QRectF bounds;
-    for (const auto& t : tris) bounds |= t.poly.boundingRect();
-    const QRect area = bounds.toAlignedRect().adjusted(-6, -6, 6, 6) & rect();
-    if (!area.isEmpty()) {
-      QImage layer(area.size(), QImage::Format_ARGB32_Premultiplied);
-      layer.fill(Qt::transparent);
-      {
-        QPainter lp(&layer);
-        lp.translate(-area.topLeft());
-        lp.setRenderHint(QPainter::Antialiasing, false);  // no seams between the film's triangles
-        for (const auto& t : tris) {
-          // Blood: dark where it pools, brighter where thin; lit by the scope's light (facing it) with a gloss.
-          const double k = std::clamp(t.film, 0.0, 1.0), lit = 0.55 + 0.45 * t.light;
-          const double gloss = std::pow(t.light, 40.0);
-          const QColor c(std::clamp(static_cast<int>((150 - 70 * k) * lit + 200 * gloss), 0, 255),
-                         std::clamp(static_cast<int>((14 - 10 * k) * lit + 160 * gloss), 0, 255),
-                         std::clamp(static_cast<int>((12 - 8 * k) * lit + 150 * gloss), 0, 255),
-                         static_cast<int>(185 + 65 * k));
-          lp.setPen(QPen(c, 1.0));
-          lp.setBrush(c);
-          lp.drawPolygon(t.poly);
-        }
-      }
-      cv::Mat bgra(layer.height(), layer.width(), CV_8UC4, layer.bits(),
-                   static_cast<std::size_t>(layer.bytesPerLine()));
-      cv::GaussianBlur(bgra, bgra, cv::Size(5, 5), 1.2);
-      painter.drawImage(area.topLeft(), layer);
-    }
+  if (bleeding && liveSurface_) paintBlood(painter);
+  paintClips(painter);
+}
+
+std::optional<QPointF> FrameView::fieldPoint(const Eigen::Vector3d& p) const {
+  if (!(p.z() > 1e-6)) return std::nullopt;
+  const auto uv = case_->camera.project(p);
+  return toWidget(QPointF(uv.x(), uv.y()));
+}
+
+std::optional<std::pair<double, QPolygonF>> FrameView::fieldFace(const std::array<int, 3>& t) const {
+  const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
+                        &c = live_[static_cast<std::size_t>(t[2])];
+  if ((b - a).cross(c - a).dot(a) >= 0) return std::nullopt;  // facing away from the camera
+  QPolygonF poly;
+  for (const Eigen::Vector3d* p : {&a, &b, &c})
+    if (const auto w = fieldPoint(*p)) poly << *w;
+  if (poly.size() != 3) return std::nullopt;
+  return std::make_pair((a.z() + b.z() + c.z()) / 3, poly);
+}
+
+void FrameView::paintBurntFaces(QPainter& painter) {
+  // Burnt tissue whitens: its faces on the surface, front-facing, far to near, in a pale tan over the organ (as
+  // coarse as the mesh: the line along the hook's path is drawn over them, below).
+  if (fieldGraph_->labels != fieldLabels_.get() || fieldGraph_->tets != fieldTets_.get()) {
+    fieldGraph_->labels = fieldLabels_.get();
+    fieldGraph_->tets = fieldTets_.get();
+    fieldGraph_->burnt = burntBoundary(*fieldTets_, *fieldLabels_);
   }
+  const std::size_t n = live_.size();
+  std::vector<std::pair<double, QPolygonF>> faces;
+  for (const auto& t : fieldGraph_->burnt) {
+    if (!onShape(t, n)) continue;
+    if (auto face = fieldFace(t)) faces.push_back(std::move(*face));
+  }
+  std::sort(faces.begin(), faces.end(), [](const auto& x, const auto& y) { return x.first > y.first; });
+  painter.save();
+  painter.setRenderHint(QPainter::Antialiasing, false);
+  const QColor ash(228, 214, 188, 110);
+  painter.setPen(Qt::NoPen);
+  painter.setBrush(ash);
+  for (const auto& [depth, poly] : faces) painter.drawPolygon(poly);
+  painter.restore();
+}
+
+// The burn along the hook's path (followHook): where the powered tip went over the tissue, as wide as it burns (twice
+// its radius at that depth), coagulated tissue pale around a charred core; on a coarse mesh the burnt elements' faces
+// alone were a flat polygon about 10 mm across, not a line (issue 61).
+void FrameView::paintBurnTrail(QPainter& painter) {
+  const double scale = std::abs(toWidget(QPointF(1, 0)).x() - toWidget(QPointF(0, 0)).x());  // widget px per image px
+  struct Stroke {
+    double depth;
+    QPointF from, to;
+    double width;
+  };
+  std::vector<Stroke> strokes;
+  auto place = [&](const BurnTrailPoint& p, Eigen::Vector3d& x) {
+    if (!trailPlace(p, x)) return false;
+    const Eigen::Vector3d &a = live_[static_cast<std::size_t>(p.nodes[0])],
+                          &b = live_[static_cast<std::size_t>(p.nodes[1])],
+                          &c = live_[static_cast<std::size_t>(p.nodes[2])];
+    return (b - a).cross(c - a).dot(a) < 0 && x.z() > 1e-6;  // on a face the camera sees
+  };
+  for (std::size_t i = 0; i < burnTrail_.size(); ++i) {
+    Eigen::Vector3d p, q;
+    if (!place(burnTrail_[i], p)) continue;
+    const bool joined = i + 1 < burnTrail_.size() && burnTrail_[i + 1].stroke == burnTrail_[i].stroke &&
+                        place(burnTrail_[i + 1], q);
+    if (!joined) q = p;
+    const auto wp = fieldPoint(p), wq = fieldPoint(q);
+    if (!wp || !wq) continue;
+    const double depth = 0.5 * (p.z() + q.z());
+    strokes.push_back({depth, *wp, *wq, std::max(3.0, 2 * hookRadius_ * case_->camera.fx() / depth * scale)});
+  }
+  std::sort(strokes.begin(), strokes.end(), [](const Stroke& x, const Stroke& y) { return x.depth > y.depth; });
+  painter.save();
+  painter.setRenderHint(QPainter::Antialiasing, true);
+  const QColor coagulated(232, 220, 196, 225), charred(88, 64, 46, 235);
+  for (const auto& st : strokes) {
+    painter.setPen(QPen(coagulated, st.width, Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
+    painter.drawLine(st.from, st.to);
+  }
+  for (const auto& st : strokes) {
+    painter.setPen(QPen(charred, std::max(1.5, 0.3 * st.width), Qt::SolidLine, Qt::RoundCap, Qt::RoundJoin));
+    painter.drawLine(st.from, st.to);
+  }
+  painter.restore();
+}
+
+void FrameView::paintBlood(QPainter& painter) {
+  const auto& surface = *liveSurface_;
+  const std::size_t n = live_.size();
+  if (fieldGraph_->surface != &surface || fieldGraph_->nodes != n) {
+    fieldGraph_->surface = &surface;
+    fieldGraph_->nodes = n;
+    fieldGraph_->neighbours = surfaceNeighbours(surface, n);
+  }
+  const Eigen::Vector3d down = gravity_.norm() > 0 ? Eigen::Vector3d(gravity_.normalized()) : Eigen::Vector3d::Zero();
+  const std::vector<double> film = bloodFilm(field_.bleeds, live_, fieldGraph_->neighbours, down);
+  std::vector<FilmTriangle> tris;
+  for (const auto& t : surface.triangles) {
+    if (!onShape(t, n)) continue;
+    const double f = (film[static_cast<std::size_t>(t[0])] + film[static_cast<std::size_t>(t[1])] +
+                      film[static_cast<std::size_t>(t[2])]) /
+                     3;
+    if (!(f > 0.02)) continue;
+    const auto face = fieldFace(t);  // (none when facing away from the camera)
+    if (!face) continue;
+    const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
+                          &c = live_[static_cast<std::size_t>(t[2])];
+    const Eigen::Vector3d normal = (b - a).cross(c - a);
+    const double facing = -normal.normalized().dot(((a + b + c) / 3).normalized());
+    tris.push_back({face->first, face->second, f, std::clamp(facing, 0.0, 1.0)});
+  }
+  std::sort(tris.begin(), tris.end(), [](const FilmTriangle& x, const FilmTriangle& y) { return x.depth > y.depth; });
+  paintFilm(painter, tris, rect());
+}
+
+void FrameView::paintClips(QPainter& painter) {
   // The clips: a bar across the structure each closed, as long as the nodes between its jaws reach.
+  const std::size_t n = live_.size();
   painter.save();
   for (const auto& clip : field_.clips) {
     if (clip.anchor < 0 || static_cast<std::size_t>(clip.anchor) >= n) continue;
@@ -309,9 +349,9 @@ void FrameView::paintField(QPainter& painter) {
       if (v >= 0 && static_cast<std::size_t>(v) < n)
         reach = std::max(reach, std::abs(jaw.dot(live_[static_cast<std::size_t>(v)] - p)));
     reach += 0.001;
-    const auto a = toW(p - reach * jaw), b = toW(p + reach * jaw);
+    const auto a = fieldPoint(p - reach * jaw), b = fieldPoint(p + reach * jaw);
     if (!a || !b) continue;
-    const auto side = toW(p + 0.0015 * clip.axis);  // the clip's 1.5 mm width on the screen
+    const auto side = fieldPoint(p + 0.0015 * clip.axis);  // the clip's 1.5 mm width on the screen
     const double width = std::clamp(
         side ? std::hypot(side->x() - a->x() / 2 - b->x() / 2, side->y() - a->y() / 2 - b->y() / 2) : 4.0, 4.0, 14.0);
     painter.setPen(QPen(QColor(40, 40, 48), width + 3, Qt::SolidLine, Qt::RoundCap));

@@ -127,6 +127,13 @@ QScrollArea* scrolling(QWidget* content, QWidget* parent) {
 // ---------------------------------------------------------------------------------------------- docks
 
 void MainWindow::buildDocks() {
+  QDockWidget* infoDock = buildCaseDocks();
+  QDockWidget* organDock = buildOrganDock(infoDock);
+  buildSimulationDock(organDock);
+  connectSimulation();
+}
+
+QDockWidget* MainWindow::buildCaseDocks() {
   auto* infoDock = new QDockWidget(tr("Case"), this);
   infoDock->setObjectName(QStringLiteral("caseDock"));
   info_ = new QPlainTextEdit(infoDock);
@@ -157,6 +164,10 @@ void MainWindow::buildDocks() {
   addDockWidget(Qt::RightDockWidgetArea, messagesDock_);
   tabifyDockWidget(infoDock, messagesDock_);
   infoDock->raise();
+  return infoDock;
+}
+
+QDockWidget* MainWindow::buildOrganDock(QDockWidget* infoDock) {
   auto* organDock = new QDockWidget(tr("Organ 3D"), this);
   organDock->setObjectName(QStringLiteral("organDock"));
   const QString glRenderer = renderer() == Renderer::Software ? QString() : OrganGLView::openGLRenderer();
@@ -195,6 +206,10 @@ void MainWindow::buildDocks() {
     centreOrgan_ = new OrganView(centre_);
   centreOrgan_->setObjectName(QStringLiteral("centreOrganView"));
   centre_->addWidget(centreOrgan_);
+  return organDock;
+}
+
+void MainWindow::buildSimulationDock(QDockWidget* organDock) {
   simulationDock_ = new QDockWidget(tr("Simulation"), this);
   simulationDock_->setObjectName(QStringLiteral("simulationDock"));
   simulation_ = new SimulationPanel(simulationDock_);
@@ -203,6 +218,9 @@ void MainWindow::buildDocks() {
   addDockWidget(Qt::RightDockWidgetArea, simulationDock_);
   tabifyDockWidget(organDock, simulationDock_);
   organDock->raise();
+}
+
+void MainWindow::connectSimulation() {
   connect(simulation_, &SimulationPanel::statusChanged, this, [this](const QString& text) {
     status_.simulation->setText(text);
     status_.simulation->setToolTip(text);  // the whole sentence (the bar shows what fits)
@@ -216,46 +234,7 @@ void MainWindow::buildDocks() {
             }
           });
   // The composited view follows the simulation: each snapshot shown is composed (on a worker, newest first).
-  connect(simulation_, &SimulationPanel::frameShown, this, [this] {
-    const auto f = simulation_->lastFrame();
-    if (pages_.rehearse) pages_.rehearse->showFrame(f);
-    // What happened in the rehearsal (a slip, a vessel cut, a refused edit) is kept in the Messages panel, once each.
-    if (f && !f->message.isEmpty() && f->message != lastSimulationMessage_) {
-      messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) +
-                                 tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));
-    }
-    if (f) lastSimulationMessage_ = f->message;
-    if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
-      view_->setWarning(f->invertedAt, warningText(*f));
-      view_->setLiveShape(f->positions);
-      view_->setLiveSurface(f->surface);
-      view_->setLiveField(f->field, f->gravity, f->labels, f->tets);
-      view_->followHook(f->steps, f->tool.tip, f->tool.present, f->field.energy,
-                        simcore::CauterySettings{}.radius);  // (the GUI's hook has the default radius)
-      if (f->surface && showingComposited() && f->surface != lastCutComposited_) {
-        // The composited view draws the cut organ (its cut faces in preset interior colours): said once per cut.
-        lastCutComposited_ = f->surface;
-        statusBar()->showMessage(
-            tr("The organ is cut: the composited view draws its cut mesh's boundary; cut faces take preset interior "
-               "colours (parenchyma, a vessel's blood, other structures), not colours estimated from this frame."),
-            8000);
-      }
-      // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation: drawn on a
-      // worker (newest first), at most 60 times a second and only once the last drawing was painted.
-      if (step_ == Step::Rehearse && !showingComposited()) {
-        LiveOverlay::Job job;
-        job.c = doc_->data();
-        job.surface = f->surface;
-        job.inner = pages_.mesh->shownInnerLabels();
-        job.positions = f->positions;  // the case with these nodes is made on the worker (not at 100 Hz here)
-        liveOverlay_->request(std::move(job));
-      }
-    } else {
-      view_->setWarning({}, {});  // another organ's frame (or none): its warning is not this organ's
-    }
-    if (showingComposited() && f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ)
-      composition_->request(f->positions, f->surface);
-  });
+  connect(simulation_, &SimulationPanel::frameShown, this, [this] { showSimulationFrame(); });
   connect(composition_, &Composition::composed, this, [this] {
     if (showingComposited()) showFrameLayer();
   });
@@ -279,6 +258,47 @@ void MainWindow::buildDocks() {
     if (only == m && m.gravity != was.gravity) what = tr("Change gravity");
     doc_->edit(what, [m](app::Case& k) { k.material = m; });
   });
+}
+
+void MainWindow::showSimulationFrame() {
+  const auto f = simulation_->lastFrame();
+  if (pages_.rehearse) pages_.rehearse->showFrame(f);
+  // What happened in the rehearsal (a slip, a vessel cut, a refused edit) is kept in the Messages panel, once each.
+  if (f && !f->message.isEmpty() && f->message != lastSimulationMessage_) {
+    messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) +
+                               tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));
+  }
+  if (f) lastSimulationMessage_ = f->message;
+  if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
+    view_->setWarning(f->invertedAt, warningText(*f));
+    view_->setLiveShape(f->positions);
+    view_->setLiveSurface(f->surface);
+    view_->setLiveField(f->field, f->gravity, f->labels, f->tets);
+    view_->followHook(f->steps, f->tool.tip, f->tool.present, f->field.energy,
+                      simcore::CauterySettings{}.radius);  // (the GUI's hook has the default radius)
+    if (f->surface && showingComposited() && f->surface != lastCutComposited_) {
+      // The composited view draws the cut organ (its cut faces in preset interior colours): said once per cut.
+      lastCutComposited_ = f->surface;
+      statusBar()->showMessage(
+          tr("The organ is cut: the composited view draws its cut mesh's boundary; cut faces take preset interior "
+             "colours (parenchyma, a vessel's blood, other structures), not colours estimated from this frame."),
+          8000);
+    }
+    // While rehearsing in the overlay view, the organ drawn over the frame follows the simulation: drawn on a
+    // worker (newest first), at most 60 times a second and only once the last drawing was painted.
+    if (step_ == Step::Rehearse && !showingComposited()) {
+      LiveOverlay::Job job;
+      job.c = doc_->data();
+      job.surface = f->surface;
+      job.inner = pages_.mesh->shownInnerLabels();
+      job.positions = f->positions;  // the case with these nodes is made on the worker (not at 100 Hz here)
+      liveOverlay_->request(std::move(job));
+    }
+  } else {
+    view_->setWarning({}, {});  // another organ's frame (or none): its warning is not this organ's
+  }
+  if (showingComposited() && f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ)
+    composition_->request(f->positions, f->surface);
 }
 
 void MainWindow::buildStatusBar() {
@@ -396,3 +416,4 @@ void MainWindow::buildWorkflowPanel() {
 }
 
 }  // namespace rehearse::ui
+

@@ -55,6 +55,33 @@ namespace rehearse::ui {
 // -------------------------------------------------------------------------------------------- menus
 
 void MainWindow::buildMenus() {
+  const QList<QAction*> fileTools = buildFileMenu();
+  const QList<QAction*> editTools = buildEditMenu();
+
+  QMenu* stepMenu = menuBar()->addMenu(tr("&Step"));
+  for (int i = 0; i < app::kStepCount; ++i) {
+    if (!app::kSteps[static_cast<std::size_t>(i)].available) continue;
+    QAction* a = stepMenu->addAction(stepName(i), this, [this, i] { setStep(static_cast<Step>(i)); });
+    a->setShortcut(QKeySequence(Qt::ALT | static_cast<Qt::Key>(Qt::Key_1 + i)));
+  }
+  QToolBar* tools = addToolBar(tr("Main"));
+  tools->setObjectName(QStringLiteral("mainToolbar"));
+  tools->setIconSize(QSize(28, 28));
+  for (QAction* a : fileTools) tools->addAction(a);
+  tools->addSeparator();
+  for (QAction* a : editTools) tools->addAction(a);
+  buildViewMenu();
+  buildSimulationMenu();
+
+  QAction* cancel = new QAction(tr("Cancel"), this);
+  cancel->setShortcut(QKeySequence(Qt::Key_Escape));
+  connect(cancel, &QAction::triggered, this, &MainWindow::cancelLoading);
+  addAction(cancel);
+
+  buildHelpMenu();
+}
+
+QList<QAction*> MainWindow::buildFileMenu() {
   QMenu* file = menuBar()->addMenu(tr("&File"));
   QAction* newCase = file->addAction(tr("&New Case"), this, &MainWindow::newCaseAsked);
   newCase->setObjectName(QStringLiteral("newCaseAction"));
@@ -96,7 +123,10 @@ void MainWindow::buildMenus() {
           [this] { recoverAction_->setEnabled(doc_->autosaveNewerThanCase()); });
   file->addSeparator();
   file->addAction(tr("&Quit"), this, &QWidget::close)->setShortcut(QKeySequence::Quit);
+  return {openFile, saveAction, importAction, frameAction};
+}
 
+QList<QAction*> MainWindow::buildEditMenu() {
   QMenu* edit = menuBar()->addMenu(tr("&Edit"));
   QAction* undo = doc_->undoStack()->createUndoAction(this, tr("&Undo"));
   undo->setShortcut(QKeySequence::Undo);
@@ -126,58 +156,13 @@ void MainWindow::buildMenus() {
     const QUndoStack* stack = doc_->undoStack();
     if (stack->index() > 0) say(tr("Redone: %1").arg(stack->text(stack->index() - 1)));
   });
+  return {undo, redo};
+}
 
-  QMenu* stepMenu = menuBar()->addMenu(tr("&Step"));
-  for (int i = 0; i < app::kStepCount; ++i) {
-    if (!app::kSteps[static_cast<std::size_t>(i)].available) continue;
-    QAction* a = stepMenu->addAction(stepName(i), this, [this, i] { setStep(static_cast<Step>(i)); });
-    a->setShortcut(QKeySequence(Qt::ALT | static_cast<Qt::Key>(Qt::Key_1 + i)));
-  }
-  QToolBar* tools = addToolBar(tr("Main"));
-  tools->setObjectName(QStringLiteral("mainToolbar"));
-  tools->setIconSize(QSize(28, 28));
-  for (QAction* a : {openFile, saveAction, importAction, frameAction}) tools->addAction(a);
-  tools->addSeparator();
-  tools->addAction(undo);
-  tools->addAction(redo);
-  buildViewMenu();
-  buildSimulationMenu();
-
-  QAction* cancel = new QAction(tr("Cancel"), this);
-  cancel->setShortcut(QKeySequence(Qt::Key_Escape));
-  connect(cancel, &QAction::triggered, this, &MainWindow::cancelLoading);
-  addAction(cancel);
-
+void MainWindow::buildHelpMenu() {
   QMenu* help = menuBar()->addMenu(tr("&Help"));
   // The keyboard reference, read from this window's own actions and keys (the user guide prints the same table).
-  QAction* keysAction = help->addAction(tr("&Keyboard Shortcuts"), this, [this] {
-    auto* dialog = new QDialog(this);
-    dialog->setAttribute(Qt::WA_DeleteOnClose);
-    dialog->setWindowTitle(tr("Keyboard Shortcuts"));
-    auto* layout = new QVBoxLayout(dialog);
-    auto* table = new QTableWidget(dialog);
-    table->setObjectName(QStringLiteral("keyboardReference"));
-    table->setAccessibleName(tr("Keyboard shortcuts"));
-    const auto reference = keyboardReference(*this);
-    table->setColumnCount(3);
-    table->setRowCount(static_cast<int>(reference.size()));
-    table->setHorizontalHeaderLabels({tr("Where"), tr("Keys"), tr("What")});
-    for (int r = 0; r < static_cast<int>(reference.size()); ++r) {
-      const auto& e = reference[static_cast<std::size_t>(r)];
-      table->setItem(r, 0, new QTableWidgetItem(e.where));
-      table->setItem(r, 1, new QTableWidgetItem(e.keys));
-      table->setItem(r, 2, new QTableWidgetItem(e.what));
-    }
-    table->setEditTriggers(QAbstractItemView::NoEditTriggers);
-    table->resizeColumnsToContents();
-    table->horizontalHeader()->setStretchLastSection(true);
-    layout->addWidget(table);
-    auto* buttons = new QDialogButtonBox(QDialogButtonBox::Close, dialog);
-    connect(buttons, &QDialogButtonBox::rejected, dialog, &QDialog::close);
-    layout->addWidget(buttons);
-    dialog->resize(900, 640);
-    dialog->show();
-  });
+  QAction* keysAction = help->addAction(tr("&Keyboard Shortcuts"), this, [this] { showKeyboardReference(); });
   keysAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_Slash));
   // The user guide, as installed with the package (HTML; a PDF beside it).
   help->addAction(tr("User &Guide"), this, [this] {
@@ -204,6 +189,35 @@ void MainWindow::buildMenus() {
             .arg(QStringLiteral(REHEARSE_VERSION), QStringLiteral(REHEARSE_REVISION)));
   });
   about->setShortcut(QKeySequence::HelpContents);
+}
+
+void MainWindow::showKeyboardReference() {
+  auto* dialog = new QDialog(this);
+  dialog->setAttribute(Qt::WA_DeleteOnClose);
+  dialog->setWindowTitle(tr("Keyboard Shortcuts"));
+  auto* layout = new QVBoxLayout(dialog);
+  auto* table = new QTableWidget(dialog);
+  table->setObjectName(QStringLiteral("keyboardReference"));
+  table->setAccessibleName(tr("Keyboard shortcuts"));
+  const auto reference = keyboardReference(*this);
+  table->setColumnCount(3);
+  table->setRowCount(static_cast<int>(reference.size()));
+  table->setHorizontalHeaderLabels({tr("Where"), tr("Keys"), tr("What")});
+  for (int r = 0; r < static_cast<int>(reference.size()); ++r) {
+    const auto& e = reference[static_cast<std::size_t>(r)];
+    table->setItem(r, 0, new QTableWidgetItem(e.where));
+    table->setItem(r, 1, new QTableWidgetItem(e.keys));
+    table->setItem(r, 2, new QTableWidgetItem(e.what));
+  }
+  table->setEditTriggers(QAbstractItemView::NoEditTriggers);
+  table->resizeColumnsToContents();
+  table->horizontalHeader()->setStretchLastSection(true);
+  layout->addWidget(table);
+  auto* buttons = new QDialogButtonBox(QDialogButtonBox::Close, dialog);
+  connect(buttons, &QDialogButtonBox::rejected, dialog, &QDialog::close);
+  layout->addWidget(buttons);
+  dialog->resize(900, 640);
+  dialog->show();
 }
 
 void MainWindow::buildViewMenu() {
@@ -331,3 +345,4 @@ void MainWindow::stopRecording() { recorder_->stop(); }
 ReviewWindow* MainWindow::openReview() { return recorder_->openReview(); }
 
 }  // namespace rehearse::ui
+

@@ -30,6 +30,16 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   rigid_->setObjectName(QStringLiteral("fitRigid"));
   rigid_->setChecked(true);
   layout->addWidget(rigid_);
+  addDownRow(layout);
+  addToleranceRow(layout);
+  addCurvePicking(layout);
+  addFitButtons(layout);
+  addBoundAndStatus(layout);
+  addAlternatives(layout);
+  addChart(layout);
+}
+
+void FitPage::addDownRow(QVBoxLayout* layout) {
   // Which way is down: the fit estimates the organ's sag with its pose; told the direction of gravity it
   // also finds the part of the sag along the view, which the outline cannot show.
   auto* downRow = new QHBoxLayout;
@@ -56,6 +66,9 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   downRow->addWidget(downLabel);
   downRow->addWidget(down_, 1);
   layout->addLayout(downRow);
+}
+
+void FitPage::addToleranceRow(QVBoxLayout* layout) {
   // How sure a fit must be to count as determined: its own bound on how far its surface may be (issue 38).
   auto* toleranceRow = new QHBoxLayout;
   auto* toleranceLabel = new QLabel(tr("&Tolerance:"), this);
@@ -75,6 +88,9 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   toleranceRow->addWidget(toleranceLabel);
   toleranceRow->addWidget(tolerance_, 1);
   layout->addLayout(toleranceRow);
+}
+
+void FitPage::addCurvePicking(QVBoxLayout* layout) {
   // Anatomical curves: a ridge or ligament sketched in step 3, and the same curve clicked on the organ.
   auto* pickCurve = toolButton(this, tr("Pick Curve on Organ (K)"),
                                tr("Click along the ridge or ligament on the organ drawn over the frame; the sketched ridge or "
@@ -86,6 +102,9 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   curves_->setObjectName(QStringLiteral("fitCurves"));
   curves_->setWordWrap(true);
   layout->addWidget(curves_);
+}
+
+void FitPage::addFitButtons(QVBoxLayout* layout) {
   auto* row = new QHBoxLayout;
   auto* fit = new QPushButton(tr("Fit to Contour (F9)"), this);
   fit->setObjectName(QStringLiteral("fitButton"));
@@ -131,6 +150,9 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   decide->addWidget(keep_);
   decide->addWidget(revert_);
   layout->addLayout(decide);
+}
+
+void FitPage::addBoundAndStatus(QVBoxLayout* layout) {
   // Where the organ may be: its outline at the fit's two far ends, dashed over the frame (the bound drawn).
   showBound_ = new QCheckBox(tr("Show where the organ &may be"), this);
   showBound_->setObjectName(QStringLiteral("fitShowBound"));
@@ -144,6 +166,9 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
   status_->setObjectName(QStringLiteral("fitStatus"));
   status_->setWordWrap(true);
   layout->addWidget(status_);
+}
+
+void FitPage::addAlternatives(QVBoxLayout* layout) {
   // An ambiguous fit's alternatives: choosing one previews the organ there over the frame.
   alternativesBox_ = new QWidget(this);
   auto* altRow = new QHBoxLayout(alternativesBox_);
@@ -170,6 +195,9 @@ FitPage::FitPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::Elast
     wb_.view->setCase(preview);
   });
   connect(useAlt, &QPushButton::clicked, this, [this] { useAlternative(alternativesList_->currentIndex() - 1); });
+}
+
+void FitPage::addChart(QVBoxLayout* layout) {
   // Live chart: the contour-to-silhouette distance against run time.
   series_ = new QLineSeries;
   series_->setName(tr("mean distance (px)"));
@@ -376,3 +404,4 @@ void FitPage::runFit(bool rigidPrepass) {
 }
 
 }  // namespace rehearse::ui
+

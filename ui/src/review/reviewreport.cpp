@@ -131,6 +131,189 @@ void plot(QPainter& p, const QRectF& box, const QString& title, const QString& u
   p.restore();
 }
 
+// The report's pages as they are written: the PDF's painter, the page's size and fonts, and where the next row goes.
+class ReportPages {
+ public:
+  ReportPages(QPdfWriter& pdf, QPainter& p) : pdf_(pdf), p_(p), W(pdf.width()), H(pdf.height()) {
+    body_.setPixelSize(22);
+    heading_ = body_;
+    heading_.setPixelSize(34);
+    heading_.setBold(true);
+    bold_ = body_;
+    bold_.setBold(true);
+  }
+
+  // Page 1: the session and its metrics.
+  void writeFacts(const app::ReviewReport& r) {
+    headline(QRectF(0, y_, W, 60), QString::fromStdString(r.title));
+    y_ += 80;
+    for (const auto& [k, v] : r.facts) {
+      if (v.empty()) continue;
+      const QString key = QString::fromStdString(k), value = QString::fromStdString(v);
+      const double h = std::max(tall(290, key, 32), tall(W - 300, value, 32));
+      room(h);
+      put(QRectF(0, y_, 290, h), key);
+      put(QRectF(300, y_, W - 300, h), value);
+      y_ += h + 2;
+    }
+    y_ += 30;
+  }
+
+  void writeMetrics(const app::ReviewReport& r) {
+    headline(QRectF(0, y_, W, 50), "Metrics");
+    y_ += 60;
+    const double c1 = 0, c2 = W * 0.36, c3 = W * 0.60, c4 = W * 0.82;
+    p_.setFont(bold_);
+    p_.drawText(QRectF(c1, y_, c2, 32), Qt::AlignLeft | Qt::AlignVCenter, "metric");
+    p_.drawText(QRectF(c2, y_, c3 - c2, 32), Qt::AlignLeft | Qt::AlignVCenter, "value");
+    p_.drawText(QRectF(c3, y_, c4 - c3, 32), Qt::AlignLeft | Qt::AlignVCenter, "threshold");
+    p_.drawText(QRectF(c4, y_, W - c4, 32), Qt::AlignLeft | Qt::AlignVCenter, "verdict");
+    y_ += 36;
+    p_.setFont(body_);
+    for (const auto& m : r.metrics) {
+      const auto v = std::find_if(r.verdicts.begin(), r.verdicts.end(),
+                                  [&](const app::Verdict& x) { return x.metric.name == m.name; });
+      const QString words = QString::fromStdString(app::metricWords(m.name));
+      // Counts (grasps, slips, cuts) are whole numbers: "1", not "1.000".
+      const QString value = QString::fromStdString(app::metricText(m));
+      const double h = std::max(tall(c2 - c1 - 10, words, 30), tall(c3 - c2 - 10, value, 30));
+      room(h + 30);  // (with its note, if any)
+      put(QRectF(c1, y_, c2 - c1 - 10, h), words);
+      put(QRectF(c2, y_, c3 - c2 - 10, h), value);
+      if (v != r.verdicts.end()) {
+        QString limit;
+        if (v->threshold.min) limit += ">= " + QString::fromStdString(app::metricAmount(m, *v->threshold.min)) + " ";
+        if (v->threshold.max) limit += "<= " + QString::fromStdString(app::metricAmount(m, *v->threshold.max));
+        p_.drawText(QRectF(c3, y_, c4 - c3, h), Qt::AlignLeft | Qt::AlignVCenter, limit);
+        p_.save();
+        p_.setPen(v->result == app::Verdict::Result::Pass   ? QColor(20, 130, 20)
+                  : v->result == app::Verdict::Result::Fail ? QColor(190, 0, 0)
+                                                            : QColor(90, 90, 90));
+        p_.setFont(bold_);
+        p_.drawText(QRectF(c4, y_, W - c4, h), Qt::AlignLeft | Qt::AlignVCenter, app::resultWord(v->result));
+        p_.restore();
+      }
+      y_ += h + 2;
+      if (!m.value && !m.why.empty()) {
+        p_.save();
+        QFont small = body_;
+        small.setPixelSize(18);
+        small.setItalic(true);
+        p_.setFont(small);
+        p_.setPen(QColor(90, 90, 90));
+        const QString why = QString::fromStdString(m.why);
+        const double n = tall(W - c2, why, 26);
+        room(n);
+        put(QRectF(c2, y_ - 4, W - c2, n), why);
+        p_.restore();
+        y_ += n;
+      }
+    }
+  }
+
+  // Page 2: plots over time.
+  void writePlots(const app::ReviewReport& r) {
+    pdf_.newPage();
+    headline(QRectF(0, 0, W, 60), "Over time");
+    plot(
+        p_, QRectF(0, 80, W, H * 0.4),
+        QStringLiteral("Tool force on the tissue (dashed: the threshold; %1)").arg(QLatin1String(kEventLegend)), "N",
+        r.timeline, [](const app::TimelineSample& s) { return s.force; }, r.forceThresholdN);
+    plot(
+        p_, QRectF(0, 100 + H * 0.45, W, H * 0.4), "Largest tissue strain (principal Green strain)", "", r.timeline,
+        [](const app::TimelineSample& s) { return s.strain; }, 0);
+  }
+
+  // The incorrect actions under the session's rules, each with its time (one line each, over pages as needed).
+  void writeIncorrectActions(const app::ReviewReport& r) {
+    pdf_.newPage();
+    headline(QRectF(0, 0, W, 60), "Incorrect actions");
+    y_ = 80;
+    if (!r.rulesError.empty()) {
+      p_.drawText(QRectF(0, y_, W, 60), Qt::AlignLeft | Qt::TextWordWrap, QString::fromStdString(r.rulesError));
+      y_ += 64;
+    } else if (r.incorrectActions.empty()) {
+      p_.drawText(QRectF(0, y_, W, 32), Qt::AlignLeft | Qt::AlignVCenter, "None under the session's rules.");
+      y_ += 36;
+    }
+    for (const auto& a : r.incorrectActions) {
+      std::string words = a.rule;
+      for (const auto& [name, w] : app::actionRuleNames())
+        if (name == a.rule) words = w;
+      const QString rule = QString::fromStdString(words), what = QString::fromStdString(a.what);
+      p_.save();
+      p_.setFont(bold_);
+      const double ruleHeight = tall(W * 0.35, rule, 30);
+      p_.restore();
+      const double h = std::max(ruleHeight, tall(W * 0.5, what, 30));
+      room(h);
+      p_.save();
+      p_.setPen(reviewEventColour("incorrect action: " + a.rule));
+      p_.setFont(bold_);
+      p_.drawText(QRectF(0, y_, W * 0.14, h), Qt::AlignLeft | Qt::AlignVCenter, number(a.time) + " s");
+      put(QRectF(W * 0.14, y_, W * 0.35, h), rule);
+      p_.restore();
+      put(QRectF(W * 0.5, y_, W * 0.5, h), what);
+      y_ += h + 4;
+    }
+    for (const auto& [rule, why] : r.rulesNotCounted) {
+      const QString line = QString::fromStdString(rule + ": not counted, " + why);
+      const double h = tall(W, line, 30);
+      room(h);
+      p_.save();
+      p_.setPen(QColor(90, 90, 90));
+      put(QRectF(0, y_, W, h), line);
+      p_.restore();
+      y_ += h + 2;
+    }
+  }
+
+  // Page 3: key frames, two by two.
+  void writeKeyFrames(const app::ReviewReport& r) {
+    if (r.keyFrames.empty()) return;
+    pdf_.newPage();
+    headline(QRectF(0, 0, W, 60), "Key frames");
+    const double cellW = W / 2 - 20, cellH = (H - 100) / 2 - 20;
+    for (std::size_t k = 0; k < r.keyFrames.size() && k < 4; ++k) {
+      const QImage img = toQImage(r.keyFrames[k].second);
+      const double x = (k % 2) * (W / 2), yy = 80 + (k / 2) * (cellH + 40);
+      QSizeF s = img.size().scaled(QSizeF(cellW, cellH - 40).toSize(), Qt::KeepAspectRatio);
+      p_.drawImage(QRectF(x, yy + 40, s.width(), s.height()), img);
+      p_.drawText(QRectF(x, yy, cellW, 36), Qt::AlignLeft | Qt::AlignVCenter,
+                  QString::fromStdString(r.keyFrames[k].first));
+    }
+  }
+
+ private:
+  QPdfWriter& pdf_;
+  QPainter& p_;
+  const double W, H;
+  QFont body_{"DejaVu Sans"}, heading_, bold_;
+  double y_ = 0;
+
+  // A page's or a section's heading in `box`; the body's font after it.
+  void headline(const QRectF& box, const QString& text) {
+    p_.setFont(heading_);
+    p_.drawText(box, Qt::AlignLeft | Qt::AlignVCenter, text);
+    p_.setFont(body_);
+  }
+  // Every text wraps in its column (issue 62: the replay check, a metric's note and an incorrect action's reason ran
+  // off the page's edge): `tall` measures it with the painter's font, `put` draws it; a row that does not fit the
+  // page starts the next one (`room`).
+  double tall(double width, const QString& text, double line) const {
+    return std::max(line, p_.boundingRect(QRectF(0, 0, width, 1e6), Qt::AlignLeft | Qt::TextWordWrap, text).height());
+  }
+  void put(const QRectF& box, const QString& text) {
+    p_.drawText(box, Qt::AlignLeft | Qt::AlignVCenter | Qt::TextWordWrap, text);
+  }
+  void room(double height) {
+    if (y_ + height > H - 10) {
+      pdf_.newPage();
+      y_ = 0;
+    }
+  }
+};
+
 }  // namespace
 
 void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
@@ -147,167 +330,12 @@ void writeReviewPdf(const app::ReviewReport& r, const std::string& path) {
     pdf.setCreator("Rehearse");
     QPainter p;
     if (!p.begin(&pdf)) throw std::runtime_error("the PDF report could not be started");
-    const double W = pdf.width(), H = pdf.height();
-    QFont body("DejaVu Sans");
-    body.setPixelSize(22);
-    QFont heading = body;
-    heading.setPixelSize(34);
-    heading.setBold(true);
-    // Page 1: the session and its metrics.
-    p.setFont(heading);
-    double y = 0;
-    p.drawText(QRectF(0, y, W, 60), Qt::AlignLeft | Qt::AlignVCenter, QString::fromStdString(r.title));
-    y += 80;
-    p.setFont(body);
-    // Every text wraps in its column (issue 62: the replay check, a metric's note and an incorrect action's reason ran
-    // off the page's edge): `tall` measures it with the painter's font, `put` draws it; a row that does not fit the
-    // page starts the next one.
-    auto tall = [&p](double width, const QString& text, double line) {
-      return std::max(line, p.boundingRect(QRectF(0, 0, width, 1e6), Qt::AlignLeft | Qt::TextWordWrap, text).height());
-    };
-    auto put = [&p](const QRectF& box, const QString& text) {
-      p.drawText(box, Qt::AlignLeft | Qt::AlignVCenter | Qt::TextWordWrap, text);
-    };
-    auto room = [&](double height) {
-      if (y + height > H - 10) {
-        pdf.newPage();
-        y = 0;
-      }
-    };
-    for (const auto& [k, v] : r.facts) {
-      if (v.empty()) continue;
-      const QString key = QString::fromStdString(k), value = QString::fromStdString(v);
-      const double h = std::max(tall(290, key, 32), tall(W - 300, value, 32));
-      room(h);
-      put(QRectF(0, y, 290, h), key);
-      put(QRectF(300, y, W - 300, h), value);
-      y += h + 2;
-    }
-    y += 30;
-    p.setFont(heading);
-    p.drawText(QRectF(0, y, W, 50), Qt::AlignLeft | Qt::AlignVCenter, "Metrics");
-    y += 60;
-    p.setFont(body);
-    const double c1 = 0, c2 = W * 0.36, c3 = W * 0.60, c4 = W * 0.82;
-    QFont bold = body;
-    bold.setBold(true);
-    p.setFont(bold);
-    p.drawText(QRectF(c1, y, c2, 32), Qt::AlignLeft | Qt::AlignVCenter, "metric");
-    p.drawText(QRectF(c2, y, c3 - c2, 32), Qt::AlignLeft | Qt::AlignVCenter, "value");
-    p.drawText(QRectF(c3, y, c4 - c3, 32), Qt::AlignLeft | Qt::AlignVCenter, "threshold");
-    p.drawText(QRectF(c4, y, W - c4, 32), Qt::AlignLeft | Qt::AlignVCenter, "verdict");
-    y += 36;
-    p.setFont(body);
-    for (const auto& m : r.metrics) {
-      const auto v = std::find_if(r.verdicts.begin(), r.verdicts.end(),
-                                  [&](const app::Verdict& x) { return x.metric.name == m.name; });
-      const QString words = QString::fromStdString(app::metricWords(m.name));
-      // Counts (grasps, slips, cuts) are whole numbers: "1", not "1.000".
-      const QString value = QString::fromStdString(app::metricText(m));
-      const double h = std::max(tall(c2 - c1 - 10, words, 30), tall(c3 - c2 - 10, value, 30));
-      room(h + 30);  // (with its note, if any)
-      put(QRectF(c1, y, c2 - c1 - 10, h), words);
-      put(QRectF(c2, y, c3 - c2 - 10, h), value);
-      if (v != r.verdicts.end()) {
-        QString limit;
-        if (v->threshold.min) limit += ">= " + QString::fromStdString(app::metricAmount(m, *v->threshold.min)) + " ";
-        if (v->threshold.max) limit += "<= " + QString::fromStdString(app::metricAmount(m, *v->threshold.max));
-        p.drawText(QRectF(c3, y, c4 - c3, h), Qt::AlignLeft | Qt::AlignVCenter, limit);
-        p.save();
-        p.setPen(v->result == app::Verdict::Result::Pass   ? QColor(20, 130, 20)
-                 : v->result == app::Verdict::Result::Fail ? QColor(190, 0, 0)
-                                                           : QColor(90, 90, 90));
-        p.setFont(bold);
-        p.drawText(QRectF(c4, y, W - c4, h), Qt::AlignLeft | Qt::AlignVCenter, app::resultWord(v->result));
-        p.restore();
-      }
-      y += h + 2;
-      if (!m.value && !m.why.empty()) {
-        p.save();
-        QFont small = body;
-        small.setPixelSize(18);
-        small.setItalic(true);
-        p.setFont(small);
-        p.setPen(QColor(90, 90, 90));
-        const QString why = QString::fromStdString(m.why);
-        const double n = tall(W - c2, why, 26);
-        room(n);
-        put(QRectF(c2, y - 4, W - c2, n), why);
-        p.restore();
-        y += n;
-      }
-    }
-    // Page 2: plots over time.
-    pdf.newPage();
-    p.setFont(heading);
-    p.drawText(QRectF(0, 0, W, 60), Qt::AlignLeft | Qt::AlignVCenter, "Over time");
-    p.setFont(body);
-    plot(
-        p, QRectF(0, 80, W, H * 0.4),
-        QStringLiteral("Tool force on the tissue (dashed: the threshold; %1)").arg(QLatin1String(kEventLegend)), "N",
-        r.timeline, [](const app::TimelineSample& s) { return s.force; }, r.forceThresholdN);
-    plot(
-        p, QRectF(0, 100 + H * 0.45, W, H * 0.4), "Largest tissue strain (principal Green strain)", "", r.timeline,
-        [](const app::TimelineSample& s) { return s.strain; }, 0);
-    // The incorrect actions under the session's rules, each with its time (one line each, over pages as needed).
-    pdf.newPage();
-    p.setFont(heading);
-    p.drawText(QRectF(0, 0, W, 60), Qt::AlignLeft | Qt::AlignVCenter, "Incorrect actions");
-    p.setFont(body);
-    y = 80;
-    if (!r.rulesError.empty()) {
-      p.drawText(QRectF(0, y, W, 60), Qt::AlignLeft | Qt::TextWordWrap, QString::fromStdString(r.rulesError));
-      y += 64;
-    } else if (r.incorrectActions.empty()) {
-      p.drawText(QRectF(0, y, W, 32), Qt::AlignLeft | Qt::AlignVCenter, "None under the session's rules.");
-      y += 36;
-    }
-    for (const auto& a : r.incorrectActions) {
-      std::string words = a.rule;
-      for (const auto& [name, w] : app::actionRuleNames())
-        if (name == a.rule) words = w;
-      const QString rule = QString::fromStdString(words), what = QString::fromStdString(a.what);
-      p.save();
-      p.setFont(bold);
-      const double ruleHeight = tall(W * 0.35, rule, 30);
-      p.restore();
-      const double h = std::max(ruleHeight, tall(W * 0.5, what, 30));
-      room(h);
-      p.save();
-      p.setPen(reviewEventColour("incorrect action: " + a.rule));
-      p.setFont(bold);
-      p.drawText(QRectF(0, y, W * 0.14, h), Qt::AlignLeft | Qt::AlignVCenter, number(a.time) + " s");
-      put(QRectF(W * 0.14, y, W * 0.35, h), rule);
-      p.restore();
-      put(QRectF(W * 0.5, y, W * 0.5, h), what);
-      y += h + 4;
-    }
-    for (const auto& [rule, why] : r.rulesNotCounted) {
-      const QString line = QString::fromStdString(rule + ": not counted, " + why);
-      const double h = tall(W, line, 30);
-      room(h);
-      p.save();
-      p.setPen(QColor(90, 90, 90));
-      put(QRectF(0, y, W, h), line);
-      p.restore();
-      y += h + 2;
-    }
-    // Page 3: key frames, two by two.
-    if (!r.keyFrames.empty()) {
-      pdf.newPage();
-      p.setFont(heading);
-      p.drawText(QRectF(0, 0, W, 60), Qt::AlignLeft | Qt::AlignVCenter, "Key frames");
-      p.setFont(body);
-      const double cellW = W / 2 - 20, cellH = (H - 100) / 2 - 20;
-      for (std::size_t k = 0; k < r.keyFrames.size() && k < 4; ++k) {
-        const QImage img = toQImage(r.keyFrames[k].second);
-        const double x = (k % 2) * (W / 2), yy = 80 + (k / 2) * (cellH + 40);
-        QSizeF s = img.size().scaled(QSizeF(cellW, cellH - 40).toSize(), Qt::KeepAspectRatio);
-        p.drawImage(QRectF(x, yy + 40, s.width(), s.height()), img);
-        p.drawText(QRectF(x, yy, cellW, 36), Qt::AlignLeft | Qt::AlignVCenter,
-                   QString::fromStdString(r.keyFrames[k].first));
-      }
-    }
+    ReportPages pages(pdf, p);
+    pages.writeFacts(r);
+    pages.writeMetrics(r);
+    pages.writePlots(r);
+    pages.writeIncorrectActions(r);
+    pages.writeKeyFrames(r);
     p.end();
   }
   QSaveFile out(QString::fromStdString(path));

@@ -26,7 +26,8 @@ inline void saveCaseFile(const app::Case& c, const QString& path, const QString&
 inline app::Case loadCaseFile(const QString& path, QStringList* notes = nullptr) {
   std::vector<std::string> said;
   app::Case c = app::loadCaseFile(localPath(path), notes ? &said : nullptr);
-  for (const auto& n : said) *notes << QString::fromStdString(n);
+  if (notes)
+    for (const auto& n : said) *notes << QString::fromStdString(n);
   return c;
 }
 

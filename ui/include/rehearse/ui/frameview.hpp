@@ -261,6 +261,17 @@ class FrameView : public QWidget {
   struct FieldGraph;
   std::shared_ptr<FieldGraph> fieldGraph_;
   void paintField(QPainter& painter);
+  // paintField's layers (fieldpaint.cpp), each drawn over the last: the burnt faces, the burn along the hook's path,
+  // the blood film, the clips.
+  void paintBurntFaces(QPainter& painter);
+  void paintBurnTrail(QPainter& painter);
+  void paintBlood(QPainter& painter);
+  void paintClips(QPainter& painter);
+  /// A point of the live shape (camera frame) on the widget; none behind the camera.
+  std::optional<QPointF> fieldPoint(const Eigen::Vector3d& p) const;
+  /// A live-shape triangle as the camera sees it: its depth and polygon on the widget; none when it faces away or a
+  /// corner is behind the camera.
+  std::optional<std::pair<double, QPolygonF>> fieldFace(const std::array<int, 3>& t) const;
   QImage frame_, overlay_, inner_;
   quint64 paints_ = 0;
   struct {

@@ -172,9 +172,20 @@ class MainWindow : public QMainWindow {
 
  private:
   void buildDocks();
+  // buildDocks' parts (mainwindow_docks.cpp), in this order.
+  QDockWidget* buildCaseDocks();  ///< the Case and Messages docks, tabbed; returns the Case dock
+  QDockWidget* buildOrganDock(QDockWidget* infoDock);  ///< the organ in 3D, in its dock and the centre; returns the dock
+  void buildSimulationDock(QDockWidget* organDock);
+  void connectSimulation();    ///< what follows the simulation panel (the status bar, the views, the case's material)
+  void showSimulationFrame();  ///< the views follow the simulation's frame just shown
   void buildStatusBar();
   void buildWorkflowPanel();
   void buildMenus();
+  // buildMenus' parts (mainwindow_menus.cpp); the File and Edit menus return the actions the toolbar shows too.
+  QList<QAction*> buildFileMenu();
+  QList<QAction*> buildEditMenu();
+  void buildHelpMenu();
+  void showKeyboardReference();  ///< Help > Keyboard Shortcuts: the table of this window's keys, in a dialog
   void buildViewMenu();
   void buildSimulationMenu();
   void save();

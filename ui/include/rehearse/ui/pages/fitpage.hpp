@@ -21,6 +21,7 @@ class QDoubleSpinBox;
 class QLabel;
 class QLineSeries;
 class QValueAxis;
+class QVBoxLayout;
 
 namespace rehearse::ui {
 
@@ -57,6 +58,14 @@ class FitPage : public StepPage {
   QString boundText_;
   std::shared_ptr<const app::ElasticFit> boundFit_;  ///< the fit they belong to (others: not drawn)
   Pose boundPose_;
+  // The constructor's parts, each adding its widgets to the page's layout, in this order.
+  void addDownRow(QVBoxLayout* layout);
+  void addToleranceRow(QVBoxLayout* layout);
+  void addCurvePicking(QVBoxLayout* layout);
+  void addFitButtons(QVBoxLayout* layout);  ///< fit and clear; keep or revert
+  void addBoundAndStatus(QVBoxLayout* layout);
+  void addAlternatives(QVBoxLayout* layout);
+  void addChart(QVBoxLayout* layout);
   void showBound();
   void runFit(bool rigidPrepass);
   /// The alternatives list (hidden when empty); the status stands out while the fit is ambiguous.
