@@ -68,49 +68,58 @@ void turnRows(std::ofstream& csv, const std::string& name, const imaging::Camera
         << searchMs[searchMs.size() / 2] << "," << totalMs[totalMs.size() / 2] << "\n";
   }
 }
-}  // namespace
 
-int main(int argc, char** argv) {
+// One setting of the fit: its time (median), worst parameter error (%) and the model's PSNR.
+struct Point {
+  std::string setting;
+  double ms, error, db;
+  bool resolution;
+};
+
+// The benchmark, phase by phase: the phantom's frame, the fit's sweep of sample budgets and resolutions and its
+// plot, the whole step, the viewport's composition (the phantom, after a grasp-pull-cut, the real organs).
+struct AppearanceBench {
   std::string out = ".";
   int repeat = 3;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--repeat" && i + 1 < argc) repeat = std::max(1, std::atoi(argv[++i]));
-    else out = a;
-  }
-  std::filesystem::create_directories(out);
-  phantom::PhantomOptions po;
-  po.width = 1920;
-  po.height = 1080;
-  const phantom::Phantom c = phantom::makePhantom(po);
-  cv::Mat noise(c.frame.size(), CV_32FC3), f;
-  cv::RNG rng(14);
-  rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
-  c.frame.convertTo(f, CV_32FC3);
-  f += noise;
-  cv::Mat3b noisy;
-  f.convertTo(noisy, CV_8UC3);
-  std::vector<uchar> buf;
-  cv::imencode(".jpg", noisy, buf, {cv::IMWRITE_JPEG_QUALITY, 85});
-  const cv::Mat3b frame = cv::imdecode(buf, cv::IMREAD_COLOR);
-  const auto& t = c.trueAppearance;
-  const double distance = (t.lightPosition - c.truePose.apply(phantom::centreOfGravity(c.volume))).norm();
-  const auto g = imaging::surfaceGeometry(c.camera, c.truePose, c.surfaceView());
-  std::ofstream csv(out + "/appearance.csv");
-  csv << "setting,samples,scale,fit_ms_median,light_error_pct_of_distance,kd_error_pct_max,ks_error_pct_max_measured,roughness_error_pct,model_psnr_db\n";
-  std::printf("phantom at %dx%d, %zu tets; light %.0f mm from the organ\n", c.camera.width, c.camera.height, c.volume.tets.size(), 1e3 * distance);
-  std::printf("%-22s %9s %9s %8s %8s %9s %11s\n", "setting", "fit ms", "light %", "kd %", "ks %", "sigma %", "model dB");
-  // What Theta alone reproduces (albedo 1, no texture): the model rendered with it against the frame inside
-  // the organ, at full resolution. The rest-pose composition would hide Theta's errors in the albedo.
+  phantom::Phantom c;
+  cv::Mat3b frame;
+  double distance = 0;
+  imaging::SurfaceGeometry g;
+  cv::RNG rng{14};
+  std::ofstream csv, tcsv, ccsv;
   cv::Mat1b inner;
-  cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
-  struct Point {
-    std::string setting;
-    double ms, error, db;
-    bool resolution;
-  };
   std::vector<Point> points;
-  auto sweep = [&](const std::string& setting, std::size_t samples, double scale) {
+
+  // The phantom at 1920x1080, its frame with sensor noise and JPEG at quality 85; the CSV and the table's head.
+  void makeFrame() {
+    phantom::PhantomOptions po;
+    po.width = 1920;
+    po.height = 1080;
+    c = phantom::makePhantom(po);
+    cv::Mat noise(c.frame.size(), CV_32FC3), f;
+    rng.fill(noise, cv::RNG::NORMAL, 0.0, 2.0);
+    c.frame.convertTo(f, CV_32FC3);
+    f += noise;
+    cv::Mat3b noisy;
+    f.convertTo(noisy, CV_8UC3);
+    std::vector<uchar> buf;
+    cv::imencode(".jpg", noisy, buf, {cv::IMWRITE_JPEG_QUALITY, 85});
+    frame = cv::imdecode(buf, cv::IMREAD_COLOR);
+    const auto& t = c.trueAppearance;
+    distance = (t.lightPosition - c.truePose.apply(phantom::centreOfGravity(c.volume))).norm();
+    g = imaging::surfaceGeometry(c.camera, c.truePose, c.surfaceView());
+    csv.open(out + "/appearance.csv");
+    csv << "setting,samples,scale,fit_ms_median,light_error_pct_of_distance,kd_error_pct_max,ks_error_pct_max_measured,roughness_error_pct,model_psnr_db\n";
+    std::printf("phantom at %dx%d, %zu tets; light %.0f mm from the organ\n", c.camera.width, c.camera.height, c.volume.tets.size(), 1e3 * distance);
+    std::printf("%-22s %9s %9s %8s %8s %9s %11s\n", "setting", "fit ms", "light %", "kd %", "ks %", "sigma %", "model dB");
+    // What Theta alone reproduces (albedo 1, no texture): the model rendered with it against the frame inside
+    // the organ, at full resolution. The rest-pose composition would hide Theta's errors in the albedo.
+    cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+  }
+
+  // Theta fitted with `samples` pixels per stage from the frame scaled by `scale`: one line, one row, one point.
+  void sweep(const std::string& setting, std::size_t samples, double scale) {
+    const auto& t = c.trueAppearance;
     imaging::Camera cam = c.camera;  // the frame and camera scaled (pixel centres kept)
     cv::Mat3b img = frame;
     if (scale != 1.0) {
@@ -143,11 +152,10 @@ int main(int argc, char** argv) {
     std::printf("%-22s %9.0f %9.3f %8.2f %8.2f %9.2f %11.1f\n", setting.c_str(), ms[ms.size() / 2], light, kd, ks, sigma, db);
     csv << setting << "," << samples << "," << scale << "," << ms[ms.size() / 2] << "," << light << "," << kd << "," << ks << "," << sigma << "," << db << "\n";
     points.push_back({setting, ms[ms.size() / 2], std::max({light, kd, ks, sigma}), db, scale != 1.0});
-  };
-  for (std::size_t samples : {2500, 5000, 10000, 20000, 40000, 80000}) sweep(std::to_string(samples) + " px/stage", samples, 1.0);
-  for (double scale : {0.5, 0.25, 0.125}) sweep("1/" + std::to_string(static_cast<int>(std::lround(1 / scale))) + " resolution", 10000, scale);
+  }
+
   // The plot: worst parameter error (%) and the model's PSNR against the fit's time, one point per setting.
-  {
+  void plot() const {
     const int W = 900, H = 440, left = 70, right = 40, top = 40, bottom = 70;
     cv::Mat3b plot(H, W, cv::Vec3b(255, 255, 255));
     double tMax = 0, eMax = 0;
@@ -179,38 +187,33 @@ int main(int argc, char** argv) {
                 cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
     cv::imwrite(out + "/appearance-error-vs-time.png", plot);
   }
+
   // The whole step as the GUI and `rehearse appearance` run it.
-  app::AppearanceInput in;
-  in.camera = c.camera;
-  in.pose = c.truePose;
-  const SurfaceView v = c.surfaceView();
-  in.vertices.assign(v.vertices, v.vertices + 3 * v.vertexCount);
-  in.triangles = c.surface;
-  in.frame = frame;
-  std::vector<double> total, inpaint;
-  app::AppearanceOutput o;
-  for (int k = 0; k < repeat; ++k) {
-    o = app::runAppearance(in);
-    total.push_back(o.totalMs);
-    inpaint.push_back(o.inpaintMs);
+  void wholeStep() const {
+    app::AppearanceInput in;
+    in.camera = c.camera;
+    in.pose = c.truePose;
+    const SurfaceView v = c.surfaceView();
+    in.vertices.assign(v.vertices, v.vertices + 3 * v.vertexCount);
+    in.triangles = c.surface;
+    in.frame = frame;
+    std::vector<double> total, inpaint;
+    app::AppearanceOutput o;
+    for (int k = 0; k < repeat; ++k) {
+      o = app::runAppearance(in);
+      total.push_back(o.totalMs);
+      inpaint.push_back(o.inpaintMs);
+    }
+    std::sort(total.begin(), total.end());
+    std::sort(inpaint.begin(), inpaint.end());
+    std::printf("whole step at 1920x1080: %.0f ms median (inpainting %.0f ms); composed at rest %.1f dB inside the organ; %s\n", total[total.size() / 2],
+                inpaint[inpaint.size() / 2], o.restPsnr, o.fit.status.c_str());
   }
-  std::sort(total.begin(), total.end());
-  std::sort(inpaint.begin(), inpaint.end());
-  std::printf("whole step at 1920x1080: %.0f ms median (inpainting %.0f ms); composed at rest %.1f dB inside the organ; %s\n", total[total.size() / 2],
-              inpaint[inpaint.size() / 2], o.restPsnr, o.fit.status.c_str());
-  // The CPU composition as the viewport uses it (imaging::Compositor, prepared once per registered organ,
-  // then one deformed shape per frame) at 1280x720: the phantom and each real organ shape below, moved
-  // 3 mm and bent, with no anti-aliasing and with 2x2 and 4x4 samples on the rim.
-  std::ofstream tcsv(out + "/appearance_turn.csv");
-  tcsv << "organ,about_x_deg,about_y_deg,explained_before,explained_after,off_deg_before,off_deg_after,turned,turns_scored,search_ms_median,step_ms_median\n";
-  turnRows(tcsv, "phantom", c.camera, c.truePose, c.surfaceView(), frame, repeat);
-  std::ofstream ccsv(out + "/compose.csv");
-  ccsv << "organ,triangles,tetrahedra,width,height,rim_samples,organ_pixels,compose_ms_median\n";
+
   // `carried`: the surface is the organ's own, carried by a simulation mesh's tetrahedra (app::VisualSurface):
   // the bend moves the mesh's nodes, and each frame maps them onto the surface before composing (timed with it).
-  auto viewport = [&](const std::string& name, const imaging::Camera& cam720, const Pose& pose, const SurfaceView& sv,
-                      const cv::Mat3b& frame720, const imaging::Appearance& theta,
-                      const app::Organ* carried = nullptr) {
+  void viewport(const std::string& name, const imaging::Camera& cam720, const Pose& pose, const SurfaceView& sv,
+                const cv::Mat3b& frame720, const imaging::Appearance& theta, const app::Organ* carried = nullptr) {
     imaging::CompositionInput ci;
     ci.camera = cam720;
     ci.pose = pose;
@@ -265,29 +268,12 @@ int main(int argc, char** argv) {
            << cam720.width << "," << cam720.height << "," << rim * rim << "," << covered << "," << cms[cms.size() / 2]
            << "\n";
     }
-  };
-  {
-    phantom::PhantomOptions p720;
-    p720.width = 1280;
-    p720.height = 720;
-    const phantom::Phantom c720 = phantom::makePhantom(p720);
-    viewport("phantom", c720.camera, c720.truePose, c720.surfaceView(), c720.frame, c720.trueAppearance);
   }
-  // After a grasp-pull-cut (issue 35): the built-in case's organ simulated headless as step 7 drives it (the jaws close
-  // on a surface node of its lower part and pull it 15 % of its height down in the image; the scissors, the jaws
-  // holding, cut across the stretched tissue above them, the blade 20 mm behind the surface), then the cut organ's
-  // composition (app::makeCutCompositor: the cut mesh's boundary, its cut faces in the parenchyma's colour) timed per
-  // frame at 1280x720 with the GUI's 2x2 rim.
-  {
-    phantom::PhantomOptions p720;
-    p720.width = 1280;
-    p720.height = 720;
-    const phantom::Phantom ph = phantom::makePhantom(p720);
-    app::Case c = app::caseFromPhantom(ph);
-    c.pose = ph.truePose;
-    c.hasPose = true;
-    const app::AppearanceInput in = app::appearanceInputFromCase(c);
-    const auto base = app::makeCompositor(in, app::appearanceLayers(in, ph.trueAppearance), ph.trueAppearance, false);
+
+  // The built-in case's organ simulated headless as step 7 drives it (the jaws close on a surface node of its lower
+  // part and pull it 15 % of its height down in the image; the scissors, the jaws holding, cut across the stretched
+  // tissue above them, the blade 20 mm behind the surface): its last snapshot.
+  static std::shared_ptr<const simcore::Snapshot> graspPullCut(const app::Case& c) {
     simcore::BodySetup b;
     b.mesh = c.organ->volume;
     b.mesh.convertToMetres();
@@ -341,52 +327,67 @@ int main(int argc, char** argv) {
     simcore::Session session(b);
     for (const auto& e : events) session.post(e);
     for (int k = 0; k < 180; ++k) session.advance();
-    const auto snap = session.snapshot();
+    return session.snapshot();
+  }
+
+  // After a grasp-pull-cut (issue 35): the cut organ's composition (app::makeCutCompositor: the cut mesh's boundary,
+  // its cut faces in the parenchyma's colour) timed per frame at 1280x720 with the GUI's 2x2 rim.
+  void cutViewport() {
+    phantom::PhantomOptions p720;
+    p720.width = 1280;
+    p720.height = 720;
+    const phantom::Phantom ph = phantom::makePhantom(p720);
+    app::Case kase = app::caseFromPhantom(ph);
+    kase.pose = ph.truePose;
+    kase.hasPose = true;
+    const app::AppearanceInput in = app::appearanceInputFromCase(kase);
+    const auto base = app::makeCompositor(in, app::appearanceLayers(in, ph.trueAppearance), ph.trueAppearance, false);
+    const auto snap = graspPullCut(kase);
     if (!snap->surface || snap->surface->cutCount == 0) {
       std::printf("grasp-pull-cut on the phantom: the blade cut nothing (%s)\n", snap->message.c_str());
-    } else {
-      const app::CutComposition cut = app::makeCutCompositor(*base, c, *snap->surface);
-      std::vector<double> model;  // the cut mesh's nodes in the model frame (the compositor's)
-      const Eigen::Matrix3d Rt = c.pose.R.transpose();
-      for (const auto& p : snap->positions) {
-        const Eigen::Vector3d m = Rt * (p - c.pose.t);
-        model.insert(model.end(), {m.x(), m.y(), m.z()});
-      }
-      std::vector<double> cms;
-      cv::Mat3b j;
-      for (int k = 0; k < std::max(repeat, 15); ++k) {
-        const auto t0 = std::chrono::steady_clock::now();
-        j = cut.compositor->compose(model, 2);
-        cms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-      }
-      std::sort(cms.begin(), cms.end());
-      const SurfaceView cutView{model.data(), snap->positions.size(), snap->surface->triangles.front().data(),
-                                snap->surface->triangles.size()};
-      const auto g = imaging::surfaceGeometry(c.camera, c.pose, cutView);
-      int seen = 0;
-      for (int y = 0; y < g.triangle.rows; ++y)
-        for (int x = 0; x < g.triangle.cols; ++x)
-          if (const int t = g.triangle(y, x); t >= 0 && snap->surface->cut[static_cast<std::size_t>(t)]) ++seen;
-      std::printf(
-          "viewport compose, phantom after a grasp-pull-cut, %zu triangles (%zu cut faces, seen on %d px), "
-          "1280x720, rim 2x2: %.1f ms median (step %.1f ms Newton %d, %s)\n",
-          snap->surface->triangles.size(), snap->surface->cutCount, seen, cms[cms.size() / 2], snap->report.wallMs,
-          snap->report.newtonIterations, snap->report.status.c_str());
-      ccsv << "phantom cut," << snap->surface->triangles.size() << "," << snap->elements << ",1280,720,4," << seen
-           << "," << cms[cms.size() / 2] << "\n";
-      cv::imwrite(out + "/compose_cut.png", j);
+      return;
     }
+    const app::CutComposition cut = app::makeCutCompositor(*base, kase, *snap->surface);
+    std::vector<double> model;  // the cut mesh's nodes in the model frame (the compositor's)
+    const Eigen::Matrix3d Rt = kase.pose.R.transpose();
+    for (const auto& p : snap->positions) {
+      const Eigen::Vector3d m = Rt * (p - kase.pose.t);
+      model.insert(model.end(), {m.x(), m.y(), m.z()});
+    }
+    std::vector<double> cms;
+    cv::Mat3b j;
+    for (int k = 0; k < std::max(repeat, 15); ++k) {
+      const auto t0 = std::chrono::steady_clock::now();
+      j = cut.compositor->compose(model, 2);
+      cms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+    }
+    std::sort(cms.begin(), cms.end());
+    const SurfaceView cutView{model.data(), snap->positions.size(), snap->surface->triangles.front().data(),
+                              snap->surface->triangles.size()};
+    const auto cutGeo = imaging::surfaceGeometry(kase.camera, kase.pose, cutView);
+    int seen = 0;
+    for (int y = 0; y < cutGeo.triangle.rows; ++y)
+      for (int x = 0; x < cutGeo.triangle.cols; ++x)
+        if (const int t = cutGeo.triangle(y, x); t >= 0 && snap->surface->cut[static_cast<std::size_t>(t)]) ++seen;
+    std::printf(
+        "viewport compose, phantom after a grasp-pull-cut, %zu triangles (%zu cut faces, seen on %d px), "
+        "1280x720, rim 2x2: %.1f ms median (step %.1f ms Newton %d, %s)\n",
+        snap->surface->triangles.size(), snap->surface->cutCount, seen, cms[cms.size() / 2], snap->report.wallMs,
+        snap->report.newtonIterations, snap->report.status.c_str());
+    ccsv << "phantom cut," << snap->surface->triangles.size() << "," << snap->elements << ",1280,720,4," << seen
+         << "," << cms[cms.size() / 2] << "\n";
+    cv::imwrite(out + "/compose_cut.png", j);
   }
-  // Real organ shapes (not our smooth phantom): each surface seen broadside through the scikit-surgery
+
+  // A real organ shape (not our smooth phantom): its surface seen broadside through the scikit-surgery
   // laparoscope (1920x1080), rendered with the phantom's light beside the lens and its reflectance (kd
   // scaled by the square of the distance so the organ is as bright), the scope's vignette, noise and JPEG 85.
-  for (const auto& [name, file] : std::vector<std::pair<std::string, std::string>>{
-           {"patient liver", "/scikit-surgery/patient-liver/liver.vtk"}, {"BodyParts3D liver", "/bodyparts3d/FMA7197_Liver.obj"},
-           {"kidney", "/scikit-surgery/kidney/kidney.vtk"}}) {
+  void realOrgan(const std::string& name, const std::string& file) {
+    const auto& t = c.trueAppearance;
     const std::string path = std::string(REHEARSE_SHARED_DATA) + file;
     if (!std::filesystem::exists(path)) {
       std::printf("%s: %s is absent; skipped\n", name.c_str(), path.c_str());
-      continue;
+      return;
     }
     const simcore::Mesh organ = testing::loadOrganSurface(path);
     const imaging::Camera cam = testing::scikitSurgeryCamera();
@@ -433,7 +434,12 @@ int main(int argc, char** argv) {
     cv::resize(seen, seen720, cv::Size(cam720.width, cam720.height), 0, 0, cv::INTER_AREA);
     viewport(name, cam720, pose, sv, seen720, r.theta);
     turnRows(tcsv, name, cam, pose, sv, seen, repeat);
-    // The same surface as the organ's own, drawn over a simulation mesh of about 3,500 tetrahedra (issue 35).
+    carriedViewport(name, organ, cam720, pose, seen720, r.theta);
+  }
+
+  // The same surface as the organ's own, drawn over a simulation mesh of about 3,500 tetrahedra (issue 35).
+  void carriedViewport(const std::string& name, const simcore::Mesh& organ, const imaging::Camera& cam720,
+                       const Pose& pose, const cv::Mat3b& seen720, const imaging::Appearance& theta) {
     simcore::Mesh own;
     simcore::TetrahedraliseOptions to;
     to.targetTets = 3500;
@@ -444,18 +450,54 @@ int main(int argc, char** argv) {
       carried = app::Organ::fromVolume(simcore::tetrahedraliseSurface(organ, to), {}, 1.0, &own, &why);
     } catch (const std::exception& e) {
       std::printf("%s: not tetrahedralised (%s)\n", name.c_str(), e.what());
-      continue;
+      return;
     }
     if (!carried->visual) {
       std::printf("%s: its own surface could not be carried: %s\n", name.c_str(), why.c_str());
-      continue;
+      return;
     }
     std::vector<double> ownVertices;
     for (const auto& p : carried->visual->points) ownVertices.insert(ownVertices.end(), {p.x(), p.y(), p.z()});
     const SurfaceView ownView{ownVertices.data(), carried->visual->points.size(),
                               carried->visual->triangles.front().data(), carried->visual->triangles.size()};
-    viewport(name, cam720, pose, ownView, seen720, r.theta, carried.get());
+    viewport(name, cam720, pose, ownView, seen720, theta, carried.get());
   }
-  std::printf("wrote %s/appearance.csv, %s/appearance_turn.csv and %s/compose.csv\n", out.c_str(), out.c_str(), out.c_str());
+};
+}  // namespace
+
+int main(int argc, char** argv) {
+  AppearanceBench b;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--repeat" && i + 1 < argc) b.repeat = std::max(1, std::atoi(argv[++i]));
+    else b.out = a;
+  }
+  std::filesystem::create_directories(b.out);
+  b.makeFrame();
+  for (std::size_t samples : {2500, 5000, 10000, 20000, 40000, 80000}) b.sweep(std::to_string(samples) + " px/stage", samples, 1.0);
+  for (double scale : {0.5, 0.25, 0.125}) b.sweep("1/" + std::to_string(static_cast<int>(std::lround(1 / scale))) + " resolution", 10000, scale);
+  b.plot();
+  b.wholeStep();
+  // The CPU composition as the viewport uses it (imaging::Compositor, prepared once per registered organ,
+  // then one deformed shape per frame) at 1280x720: the phantom and each real organ shape below, moved
+  // 3 mm and bent, with no anti-aliasing and with 2x2 and 4x4 samples on the rim.
+  b.tcsv.open(b.out + "/appearance_turn.csv");
+  b.tcsv << "organ,about_x_deg,about_y_deg,explained_before,explained_after,off_deg_before,off_deg_after,turned,turns_scored,search_ms_median,step_ms_median\n";
+  turnRows(b.tcsv, "phantom", b.c.camera, b.c.truePose, b.c.surfaceView(), b.frame, b.repeat);
+  b.ccsv.open(b.out + "/compose.csv");
+  b.ccsv << "organ,triangles,tetrahedra,width,height,rim_samples,organ_pixels,compose_ms_median\n";
+  {
+    phantom::PhantomOptions p720;
+    p720.width = 1280;
+    p720.height = 720;
+    const phantom::Phantom c720 = phantom::makePhantom(p720);
+    b.viewport("phantom", c720.camera, c720.truePose, c720.surfaceView(), c720.frame, c720.trueAppearance);
+  }
+  b.cutViewport();
+  for (const auto& [name, file] : std::vector<std::pair<std::string, std::string>>{
+           {"patient liver", "/scikit-surgery/patient-liver/liver.vtk"}, {"BodyParts3D liver", "/bodyparts3d/FMA7197_Liver.obj"},
+           {"kidney", "/scikit-surgery/kidney/kidney.vtk"}})
+    b.realOrgan(name, file);
+  std::printf("wrote %s/appearance.csv, %s/appearance_turn.csv and %s/compose.csv\n", b.out.c_str(), b.out.c_str(), b.out.c_str());
   return 0;
 }

@@ -101,42 +101,8 @@ BestLight bestPointLight(const std::vector<Sample>& px, double reach, double ste
   return best;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  std::string out = ".";
-  int repeat = 3;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--repeat" && i + 1 < argc)
-      repeat = std::max(1, std::atoi(argv[++i]));
-    else
-      out = a;
-  }
-  std::filesystem::create_directories(out);
-  if (!testdata::OpenCas::available()) {
-    std::printf("skipped: %s is absent\n", testdata::OpenCas::directory().c_str());
-    return 0;
-  }
-  const testdata::OpenCas oc = testdata::OpenCas::load();
-  app::AppearanceInput in;
-  in.camera = oc.camera;
-  in.frame = oc.frame;
-  in.vertices = oc.vertices;
-  in.triangles = oc.triangles;
-  const auto g = imaging::surfaceGeometry(in.camera, in.pose, in.surface());
-  std::printf("Open-CAS frame %dx%d, CT surface %zu triangles covering %d px\n", oc.frame.cols, oc.frame.rows,
-              oc.triangles.size(), cv::countNonZero(g.mask()));
-
-  std::vector<double> times;
-  app::AppearanceOutput r;
-  for (int k = 0; k < repeat; ++k) {
-    const auto t0 = std::chrono::steady_clock::now();
-    r = app::runAppearance(in);
-    times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-  }
-  std::nth_element(times.begin(), times.begin() + static_cast<std::ptrdiff_t>(times.size() / 2), times.end());
-  const double medianMs = times[times.size() / 2];
+// The fit's figures: its status, Theta, each stage, the share explained and each part switched off.
+void reportFit(const app::AppearanceOutput& r, double medianMs, int repeat, std::ofstream& md) {
   const auto& f = r.fit;
   std::printf("%s\n", f.status.c_str());
   std::printf(
@@ -145,7 +111,6 @@ int main(int argc, char** argv) {
       1e3 * f.theta.lightPosition.x(), 1e3 * f.theta.lightPosition.y(), 1e3 * f.theta.lightPosition.z(),
       1e3 * f.theta.lightPosition.norm(), f.theta.falloff, f.theta.kd.x(), f.theta.kd.y(), f.theta.kd.z(),
       f.theta.ks.x(), f.theta.ks.y(), f.theta.ks.z(), f.theta.roughness);
-  std::ofstream md(out + "/appearance_real.md");
   md << "| stage | rms (levels) | pixels | ms |\n|---|---:|---:|---:|\n";
   for (const auto& s : f.stages) {
     std::printf("  %-28s rms %.2f levels over %zu px, %.0f ms\n", s.name.c_str(), s.rms, s.pixels, s.ms);
@@ -160,87 +125,81 @@ int main(int argc, char** argv) {
     std::printf("  without %-36s %.3f (%s)\n", c.part.c_str(), c.explainedWithout, c.holds ? "holds" : "not seen");
     md << "| " << c.part << " | " << c.explainedWithout << " | " << (c.holds ? "yes" : "no") << " |\n";
   }
+}
 
-  // The composition at rest inside the organ (eroded 2 px, as the step measures it): re-shaded and texture-only.
-  cv::Mat1b inner;
-  cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
-  const cv::Mat3b reshaded = app::composeAppearance(in, f.theta, r.background, r.albedo, false, {}, 1);
-  const cv::Mat3b texture = app::composeAppearance(in, f.theta, r.background, r.albedo, true, {}, 1);
-  const double dbReshaded = imaging::psnr(in.frame, reshaded, inner),
-               dbTexture = imaging::psnr(in.frame, texture, inner);
-  std::printf("  composed at rest inside the organ: re-shaded %.1f dB, texture-only %.1f dB\n", dbReshaded, dbTexture);
-  md << "\ncomposed at rest inside the organ: re-shaded " << dbReshaded << " dB, texture-only " << dbTexture << " dB\n";
-
-  // What the frame allows: the ceiling of any one-albedo model, and the best point light of any kind.
-  {
-    const cv::Mat1b usableAll = imaging::usablePixels(in.frame, g.mask());
-    cv::Mat1b beads, bright(in.frame.size(), uchar(0));
-    cv::dilate(oc.beads, beads, cv::Mat(), cv::Point(-1, -1), 4);
-    for (int y = 0; y < bright.rows; ++y)
-      for (int x = 0; x < bright.cols; ++x) {
-        const cv::Vec3b v = in.frame(y, x);
-        if (std::min({v[0], v[1], v[2]}) > 120) bright(y, x) = 255;
+// What the frame allows: the ceiling of any one-albedo model, and the best point light of any kind.
+void frameAllows(const app::AppearanceInput& in, const imaging::SurfaceGeometry& g, const testdata::OpenCas& oc,
+                 std::ofstream& md) {
+  const cv::Mat1b usableAll = imaging::usablePixels(in.frame, g.mask());
+  cv::Mat1b beads, bright(in.frame.size(), uchar(0));
+  cv::dilate(oc.beads, beads, cv::Mat(), cv::Point(-1, -1), 4);
+  for (int y = 0; y < bright.rows; ++y)
+    for (int x = 0; x < bright.cols; ++x) {
+      const cv::Vec3b v = in.frame(y, x);
+      if (std::min({v[0], v[1], v[2]}) > 120) bright(y, x) = 255;
+    }
+  cv::dilate(bright, bright, cv::Mat(), cv::Point(-1, -1), 4);
+  const cv::Mat1b use = usableAll & ~beads & ~bright;
+  std::vector<Sample> px;
+  cv::Vec3d mean(0, 0, 0);
+  int counter = 0, used = 0;
+  double nearest = 1e9, farthest = 0;
+  for (int y = 0; y < use.rows; ++y)
+    for (int x = 0; x < use.cols; ++x) {
+      if (!use(y, x)) continue;
+      const cv::Vec3b v = in.frame(y, x);
+      mean += cv::Vec3d(v[0], v[1], v[2]);
+      ++used;
+      if (counter++ % 3) continue;
+      const cv::Vec3f p = g.position(y, x), n = g.normal(y, x);
+      Sample s;
+      s.p = Eigen::Vector3d(p[0], p[1], p[2]);
+      s.n = Eigen::Vector3d(n[0], n[1], n[2]).normalized();
+      for (int c = 0; c < 3; ++c) s.linear[c] = v[c] / 255.0, s.gamma[c] = std::pow(v[c] / 255.0, 2.2);
+      nearest = std::min(nearest, s.p.norm()), farthest = std::max(farthest, s.p.norm());
+      px.push_back(s);
+    }
+  mean /= std::max(1, used);
+  // One albedo and a perfect shading per pixel (the frame's colour projected on the mean colour): what no
+  // shading of one albedo can exceed; the rest is the colour changing over the organ.
+  double residual = 0, variance = 0;
+  for (int y = 0; y < use.rows; ++y)
+    for (int x = 0; x < use.cols; ++x)
+      if (use(y, x)) {
+        const cv::Vec3d v(in.frame(y, x)[0], in.frame(y, x)[1], in.frame(y, x)[2]);
+        const cv::Vec3d r = v - (v.dot(mean) / mean.dot(mean)) * mean, d = v - mean;
+        residual += r.dot(r), variance += d.dot(d);
       }
-    cv::dilate(bright, bright, cv::Mat(), cv::Point(-1, -1), 4);
-    const cv::Mat1b use = usableAll & ~beads & ~bright;
-    std::vector<Sample> px;
-    cv::Vec3d mean(0, 0, 0);
-    int counter = 0, used = 0;
-    double nearest = 1e9, farthest = 0;
-    for (int y = 0; y < use.rows; ++y)
-      for (int x = 0; x < use.cols; ++x) {
-        if (!use(y, x)) continue;
-        const cv::Vec3b v = in.frame(y, x);
-        mean += cv::Vec3d(v[0], v[1], v[2]);
-        ++used;
-        if (counter++ % 3) continue;
-        const cv::Vec3f p = g.position(y, x), n = g.normal(y, x);
-        Sample s;
-        s.p = Eigen::Vector3d(p[0], p[1], p[2]);
-        s.n = Eigen::Vector3d(n[0], n[1], n[2]).normalized();
-        for (int c = 0; c < 3; ++c) s.linear[c] = v[c] / 255.0, s.gamma[c] = std::pow(v[c] / 255.0, 2.2);
-        nearest = std::min(nearest, s.p.norm()), farthest = std::max(farthest, s.p.norm());
-        px.push_back(s);
+  const double ceiling = 1 - residual / variance;
+  std::printf(
+      "  what the frame allows (%d px, organ %.1f..%.1f mm from the lens): one albedo with a perfect shading "
+      "per pixel explains %.3f\n",
+      used, 1e3 * nearest, 1e3 * farthest, ceiling);
+  md << "\nwhat the frame allows (" << used << " px, the organ " << 1e3 * nearest << " to " << 1e3 * farthest
+     << " mm from the lens): one albedo with a perfect shading per pixel explains " << ceiling
+     << "\n\n| point light | frame | ambient | explained | light (mm) | distance from the lens (mm) | n |\n"
+        "|---|---|---|---:|---|---:|---:|\n";
+  for (const bool tip : {true, false})
+    for (const bool gamma : {false, true})
+      for (const bool ambient : {false, true}) {
+        const BestLight b = tip ? bestPointLight(px, 30, 10, -30, 30, 30, ambient, gamma)
+                                : bestPointLight(px, 200, 20, -100, 40, 0, ambient, gamma);
+        std::printf(
+            "  best point light %s, %s frame%s: explains %.3f at (%.0f, %.0f, %.0f) mm (%.0f mm from the "
+            "lens), n %.1f\n",
+            tip ? "within 30 mm of the lens" : "anywhere", gamma ? "linearised (gamma 2.2)" : "raw",
+            ambient ? ", with an ambient term" : "", b.share, 1e3 * b.light.x(), 1e3 * b.light.y(), 1e3 * b.light.z(),
+            1e3 * b.light.norm(), b.falloff);
+        md << "| " << (tip ? "within 30 mm of the lens" : "anywhere") << " | " << (gamma ? "gamma 2.2" : "raw")
+           << " | " << (ambient ? "yes" : "no") << " | " << b.share << " | (" << std::lround(1e3 * b.light.x())
+           << ", " << std::lround(1e3 * b.light.y()) << ", " << std::lround(1e3 * b.light.z()) << ") | "
+           << std::lround(1e3 * b.light.norm()) << " | " << b.falloff << " |\n";
       }
-    mean /= std::max(1, used);
-    // One albedo and a perfect shading per pixel (the frame's colour projected on the mean colour): what no
-    // shading of one albedo can exceed; the rest is the colour changing over the organ.
-    double residual = 0, variance = 0;
-    for (int y = 0; y < use.rows; ++y)
-      for (int x = 0; x < use.cols; ++x)
-        if (use(y, x)) {
-          const cv::Vec3d v(in.frame(y, x)[0], in.frame(y, x)[1], in.frame(y, x)[2]);
-          const cv::Vec3d r = v - (v.dot(mean) / mean.dot(mean)) * mean, d = v - mean;
-          residual += r.dot(r), variance += d.dot(d);
-        }
-    const double ceiling = 1 - residual / variance;
-    std::printf(
-        "  what the frame allows (%d px, organ %.1f..%.1f mm from the lens): one albedo with a perfect shading "
-        "per pixel explains %.3f\n",
-        used, 1e3 * nearest, 1e3 * farthest, ceiling);
-    md << "\nwhat the frame allows (" << used << " px, the organ " << 1e3 * nearest << " to " << 1e3 * farthest
-       << " mm from the lens): one albedo with a perfect shading per pixel explains " << ceiling
-       << "\n\n| point light | frame | ambient | explained | light (mm) | distance from the lens (mm) | n |\n"
-          "|---|---|---|---:|---|---:|---:|\n";
-    for (const bool tip : {true, false})
-      for (const bool gamma : {false, true})
-        for (const bool ambient : {false, true}) {
-          const BestLight b = tip ? bestPointLight(px, 30, 10, -30, 30, 30, ambient, gamma)
-                                  : bestPointLight(px, 200, 20, -100, 40, 0, ambient, gamma);
-          std::printf(
-              "  best point light %s, %s frame%s: explains %.3f at (%.0f, %.0f, %.0f) mm (%.0f mm from the "
-              "lens), n %.1f\n",
-              tip ? "within 30 mm of the lens" : "anywhere", gamma ? "linearised (gamma 2.2)" : "raw",
-              ambient ? ", with an ambient term" : "", b.share, 1e3 * b.light.x(), 1e3 * b.light.y(), 1e3 * b.light.z(),
-              1e3 * b.light.norm(), b.falloff);
-          md << "| " << (tip ? "within 30 mm of the lens" : "anywhere") << " | " << (gamma ? "gamma 2.2" : "raw")
-             << " | " << (ambient ? "yes" : "no") << " | " << b.share << " | (" << std::lround(1e3 * b.light.x())
-             << ", " << std::lround(1e3 * b.light.y()) << ", " << std::lround(1e3 * b.light.z()) << ") | "
-             << std::lround(1e3 * b.light.norm()) << " | " << b.falloff << " |\n";
-        }
-  }
+}
 
-  // The honest check: fitted on half A, half B predicted.
+// The honest check: fitted on half A, half B predicted.
+void honestCheck(const app::AppearanceInput& in, const imaging::SurfaceGeometry& g, const std::string& out,
+                 std::ofstream& md) {
   std::ofstream csv(out + "/appearance_real.csv");
   csv << "split,half_fitted,explained_on_fitted,model_psnr_db,flat_psnr_db,gain_db\n";
   md << "\n| split | fitted on | explained there | Theta predicts the other half | its mean colour | gain "
@@ -279,6 +238,59 @@ int main(int argc, char** argv) {
       md << "| " << split << " | " << (half == 0 ? "A" : "B") << " | " << fa.explained << " | " << dbModel << " dB | "
          << dbFlat << " dB | " << dbModel - dbFlat << " dB |\n";
     }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out = ".";
+  int repeat = 3;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--repeat" && i + 1 < argc)
+      repeat = std::max(1, std::atoi(argv[++i]));
+    else
+      out = a;
+  }
+  std::filesystem::create_directories(out);
+  if (!testdata::OpenCas::available()) {
+    std::printf("skipped: %s is absent\n", testdata::OpenCas::directory().c_str());
+    return 0;
+  }
+  const testdata::OpenCas oc = testdata::OpenCas::load();
+  app::AppearanceInput in;
+  in.camera = oc.camera;
+  in.frame = oc.frame;
+  in.vertices = oc.vertices;
+  in.triangles = oc.triangles;
+  const auto g = imaging::surfaceGeometry(in.camera, in.pose, in.surface());
+  std::printf("Open-CAS frame %dx%d, CT surface %zu triangles covering %d px\n", oc.frame.cols, oc.frame.rows,
+              oc.triangles.size(), cv::countNonZero(g.mask()));
+
+  std::vector<double> times;
+  app::AppearanceOutput r;
+  for (int k = 0; k < repeat; ++k) {
+    const auto t0 = std::chrono::steady_clock::now();
+    r = app::runAppearance(in);
+    times.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::nth_element(times.begin(), times.begin() + static_cast<std::ptrdiff_t>(times.size() / 2), times.end());
+  const double medianMs = times[times.size() / 2];
+  std::ofstream md(out + "/appearance_real.md");
+  reportFit(r, medianMs, repeat, md);
+
+  // The composition at rest inside the organ (eroded 2 px, as the step measures it): re-shaded and texture-only.
+  cv::Mat1b inner;
+  cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+  const cv::Mat3b reshaded = app::composeAppearance(in, r.fit.theta, r.background, r.albedo, false, {}, 1);
+  const cv::Mat3b texture = app::composeAppearance(in, r.fit.theta, r.background, r.albedo, true, {}, 1);
+  const double dbReshaded = imaging::psnr(in.frame, reshaded, inner),
+               dbTexture = imaging::psnr(in.frame, texture, inner);
+  std::printf("  composed at rest inside the organ: re-shaded %.1f dB, texture-only %.1f dB\n", dbReshaded, dbTexture);
+  md << "\ncomposed at rest inside the organ: re-shaded " << dbReshaded << " dB, texture-only " << dbTexture << " dB\n";
+
+  frameAllows(in, g, oc, md);
+  honestCheck(in, g, out, md);
   cv::imwrite(out + "/open_cas_frame.png", in.frame);
   cv::imwrite(out + "/open_cas_reshaded.png", reshaded);
   std::printf("written: %s/appearance_real.md, .csv\n", out.c_str());

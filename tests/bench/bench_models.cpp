@@ -282,31 +282,14 @@ double rms(const std::vector<Eigen::Vector3d>& v) {
   return std::sqrt(s / std::max<std::size_t>(1, v.size()));
 }
 
-}  // namespace
+// An organ's surface, by name.
+struct Organ {
+  std::string name;
+  Mesh surface;
+};
 
-int main(int argc, char** argv) {
-  // Arguments: OUT_DIR, then an organ's name, and --quick (the liver preset, a 6k-element reference, one resolution:
-  // the test suite's smoke run, which fails when the reference does not converge, an error is not finite, or the
-  // precomputed model's answer differs from the linear FEM's on the same mesh by more than 1e-6).
-  std::vector<std::string> args;
-  bool quick = false;
-  for (int k = 1; k < argc; ++k) {
-    if (std::string(argv[k]) == "--quick")
-      quick = true;
-    else
-      args.push_back(argv[k]);
-  }
-  const std::string out = !args.empty() ? args[0] : ".";
-  int failures = 0;
-  std::filesystem::create_directories(out);
-  std::ofstream csv(out + "/models.csv");
-  csv << "organ,model,tets,action,update_ms,update_hz,converged,surface_error_rel,force_error_rel,force_n,"
-         "reference_force_n\n";
-  const BodySetup preset = testing::presetBody("liver", REHEARSE_SHARED_DATA);
-  struct Organ {
-    std::string name;
-    Mesh surface;
-  };
+// The organs: the liver preset's surface, and the patient's liver when ../shared/data has it.
+std::vector<Organ> organsOf(const BodySetup& preset) {
   std::vector<Organ> organs;
   {
     Mesh s;
@@ -321,96 +304,100 @@ int main(int argc, char** argv) {
     organs.push_back({"patient liver", testing::loadOrganSurface(patient)});
   else
     std::printf("%s is absent: skipped\n", patient.c_str());
-  std::vector<Row> rows;
-  const std::string only = args.size() > 1 ? args[1] : quick ? "liver preset" : "";  // one organ by name
-  for (const Organ& organ : organs) {
-    if (!only.empty() && organ.name != only) continue;
-    // The front: the surface point nearest the camera (smallest z).
-    Eigen::Vector3d front(0, 0, 1e9);
-    for (const auto& t : organ.surface.triangles)
-      for (int v : t)
-        if (organ.surface.points[static_cast<std::size_t>(v)].z() < front.z())
-          front = organ.surface.points[static_cast<std::size_t>(v)];
-    const MaterialParams material = preset.material;
-    const auto t0 = Clock::now();
-    const Meshed ref = meshAt(organ.surface, quick ? 6000 : 24000, front);
-    std::vector<Eigen::Vector3d> samples;
-    for (int v : ref.surface)
-      if (!ref.fixed[static_cast<std::size_t>(v)]) samples.push_back(ref.mesh.points[static_cast<std::size_t>(v)]);
-    const std::vector<Answer> truth = femAnswers(ref, material, MaterialModel::NeoHookean, samples);
-    std::printf(
-        "%s: reference Neo-Hookean on %zu elements (%zu held nodes, %zu surface samples) in %.1f s: poke %.3f N "
-        "%s, pull %.3f N %s\n",
-        organ.name.c_str(), ref.mesh.tets.size(), ref.held.size(), samples.size(), 1e-3 * msSince(t0),
-        truth[0].force.norm(), truth[0].converged ? "converged" : ("NOT converged: " + truth[0].status).c_str(),
-        truth[1].force.norm(), truth[1].converged ? "converged" : ("NOT converged: " + truth[1].status).c_str());
+  return organs;
+}
+
+// One organ: the Neo-Hookean reference, then every model at every resolution against it (a line, a row and a Row
+// each); the self-checks' failures counted.
+void benchOrgan(const Organ& organ, const MaterialParams& material, bool quick, std::ofstream& csv,
+                std::vector<Row>& rows, int& failures) {
+  // The front: the surface point nearest the camera (smallest z).
+  Eigen::Vector3d front(0, 0, 1e9);
+  for (const auto& t : organ.surface.triangles)
+    for (int v : t)
+      if (organ.surface.points[static_cast<std::size_t>(v)].z() < front.z())
+        front = organ.surface.points[static_cast<std::size_t>(v)];
+  const auto t0 = Clock::now();
+  const Meshed ref = meshAt(organ.surface, quick ? 6000 : 24000, front);
+  std::vector<Eigen::Vector3d> samples;
+  for (int v : ref.surface)
+    if (!ref.fixed[static_cast<std::size_t>(v)]) samples.push_back(ref.mesh.points[static_cast<std::size_t>(v)]);
+  const std::vector<Answer> truth = femAnswers(ref, material, MaterialModel::NeoHookean, samples);
+  std::printf(
+      "%s: reference Neo-Hookean on %zu elements (%zu held nodes, %zu surface samples) in %.1f s: poke %.3f N "
+      "%s, pull %.3f N %s\n",
+      organ.name.c_str(), ref.mesh.tets.size(), ref.held.size(), samples.size(), 1e-3 * msSince(t0),
+      truth[0].force.norm(), truth[0].converged ? "converged" : ("NOT converged: " + truth[0].status).c_str(),
+      truth[1].force.norm(), truth[1].converged ? "converged" : ("NOT converged: " + truth[1].status).c_str());
+  std::fflush(stdout);
+  for (const Answer& a : truth)
+    if (!a.converged) {
+      std::printf("the reference did not converge: the errors below are against no solution\n");
+      ++failures;
+    }
+  auto report = [&](const std::string& model, std::size_t tets, const std::vector<Answer>& answers) {
+    if (answers.size() != std::size(kActions)) return;
+    Row row{organ.name, model, tets, 0, 0, 0, true};
+    for (std::size_t k = 0; k < answers.size(); ++k) {
+      std::vector<Eigen::Vector3d> diff;
+      for (std::size_t i = 0; i < samples.size(); ++i) diff.push_back(answers[k].du[i] - truth[k].du[i]);
+      const double se = rms(diff) / rms(truth[k].du);
+      const double fe = (answers[k].force - truth[k].force).norm() / truth[k].force.norm();
+      csv << organ.name << ",\"" << model << "\"," << tets << ',' << kActions[k].name << ',' << answers[k].ms << ','
+          << 1e3 / answers[k].ms << ',' << answers[k].converged << ',' << se << ',' << fe << ','
+          << answers[k].force.norm() << ',' << truth[k].force.norm() << '\n';
+      row.ms += answers[k].ms / static_cast<double>(answers.size());
+      row.surfaceError += se / static_cast<double>(answers.size());
+      row.forceError += fe / static_cast<double>(answers.size());
+      row.converged = row.converged && answers[k].converged;
+    }
+    if (!std::isfinite(row.ms) || !std::isfinite(row.surfaceError) || !std::isfinite(row.forceError)) {
+      std::printf("  %s: a result is not finite\n", model.c_str());
+      ++failures;
+    }
+    std::printf("  %-28s %6zu tets: update %9.4f ms (%8.0f Hz), surface error %6.1f %%, force error %6.1f %%%s\n",
+                model.c_str(), tets, row.ms, 1e3 / row.ms, 100 * row.surfaceError, 100 * row.forceError,
+                row.converged ? "" : " (not converged)");
     std::fflush(stdout);
-    for (const Answer& a : truth)
-      if (!a.converged) {
-        std::printf("the reference did not converge: the errors below are against no solution\n");
-        ++failures;
-      }
-    auto report = [&](const std::string& model, std::size_t tets, const std::vector<Answer>& answers) {
-      if (answers.size() != std::size(kActions)) return;
-      Row row{organ.name, model, tets, 0, 0, 0, true};
-      for (std::size_t k = 0; k < answers.size(); ++k) {
+    rows.push_back(row);
+  };
+  for (const std::size_t target :
+       quick ? std::vector<std::size_t>{2000} : std::vector<std::size_t>{2000, 6000, 12000}) {
+    const Meshed m = meshAt(organ.surface, target, front);
+    // The linear FEM once: reported, and what the precomputed and (uncut) hybrid models must equal to round-off on
+    // the same mesh (a self-check: a difference over 1e-6 fails the run).
+    const std::vector<Answer> linear = femAnswers(m, material, MaterialModel::Linear, samples);
+    report("FEM linear", m.mesh.tets.size(), linear);
+    for (const auto& [law, name] :
+         std::vector<std::pair<MaterialModel, const char*>>{{MaterialModel::Corotational, "FEM co-rotational"},
+                                                            {MaterialModel::StVK, "FEM StVK"},
+                                                            {MaterialModel::NeoHookean, "FEM Neo-Hookean"}})
+      report(name, m.mesh.tets.size(), femAnswers(m, material, law, samples));
+    for (const auto& [name, answers] : std::vector<std::pair<std::string, std::vector<Answer>>>{
+             {"precomputed linear", precomputedAnswers(m, material, samples)},
+             {"hybrid (40 mm FEM region)", hybridAnswers(m, material, front, samples)}}) {
+      report(name, m.mesh.tets.size(), answers);
+      if (answers.size() != std::size(kActions)) ++failures;
+      for (std::size_t k = 0; k < answers.size() && k < linear.size(); ++k) {
         std::vector<Eigen::Vector3d> diff;
-        for (std::size_t i = 0; i < samples.size(); ++i) diff.push_back(answers[k].du[i] - truth[k].du[i]);
-        const double se = rms(diff) / rms(truth[k].du);
-        const double fe = (answers[k].force - truth[k].force).norm() / truth[k].force.norm();
-        csv << organ.name << ",\"" << model << "\"," << tets << ',' << kActions[k].name << ',' << answers[k].ms << ','
-            << 1e3 / answers[k].ms << ',' << answers[k].converged << ',' << se << ',' << fe << ','
-            << answers[k].force.norm() << ',' << truth[k].force.norm() << '\n';
-        row.ms += answers[k].ms / static_cast<double>(answers.size());
-        row.surfaceError += se / static_cast<double>(answers.size());
-        row.forceError += fe / static_cast<double>(answers.size());
-        row.converged = row.converged && answers[k].converged;
-      }
-      if (!std::isfinite(row.ms) || !std::isfinite(row.surfaceError) || !std::isfinite(row.forceError)) {
-        std::printf("  %s: a result is not finite\n", model.c_str());
-        ++failures;
-      }
-      std::printf("  %-28s %6zu tets: update %9.4f ms (%8.0f Hz), surface error %6.1f %%, force error %6.1f %%%s\n",
-                  model.c_str(), tets, row.ms, 1e3 / row.ms, 100 * row.surfaceError, 100 * row.forceError,
-                  row.converged ? "" : " (not converged)");
-      std::fflush(stdout);
-      rows.push_back(row);
-    };
-    for (const std::size_t target :
-         quick ? std::vector<std::size_t>{2000} : std::vector<std::size_t>{2000, 6000, 12000}) {
-      const Meshed m = meshAt(organ.surface, target, front);
-      // The linear FEM once: reported, and what the precomputed and (uncut) hybrid models must equal to round-off on
-      // the same mesh (a self-check: a difference over 1e-6 fails the run).
-      const std::vector<Answer> linear = femAnswers(m, material, MaterialModel::Linear, samples);
-      report("FEM linear", m.mesh.tets.size(), linear);
-      for (const auto& [law, name] :
-           std::vector<std::pair<MaterialModel, const char*>>{{MaterialModel::Corotational, "FEM co-rotational"},
-                                                              {MaterialModel::StVK, "FEM StVK"},
-                                                              {MaterialModel::NeoHookean, "FEM Neo-Hookean"}})
-        report(name, m.mesh.tets.size(), femAnswers(m, material, law, samples));
-      for (const auto& [name, answers] : std::vector<std::pair<std::string, std::vector<Answer>>>{
-               {"precomputed linear", precomputedAnswers(m, material, samples)},
-               {"hybrid (40 mm FEM region)", hybridAnswers(m, material, front, samples)}}) {
-        report(name, m.mesh.tets.size(), answers);
-        if (answers.size() != std::size(kActions)) ++failures;
-        for (std::size_t k = 0; k < answers.size() && k < linear.size(); ++k) {
-          std::vector<Eigen::Vector3d> diff;
-          for (std::size_t i = 0; i < samples.size(); ++i) diff.push_back(answers[k].du[i] - linear[k].du[i]);
-          const double d = rms(diff) / rms(linear[k].du);
-          if (!(d < 1e-6)) {
-            std::printf("%s and the linear FEM differ by %.2e on %zu elements (%s)\n", name.c_str(), d,
-                        m.mesh.tets.size(), kActions[k].name);
-            ++failures;
-          }
+        for (std::size_t i = 0; i < samples.size(); ++i) diff.push_back(answers[k].du[i] - linear[k].du[i]);
+        const double d = rms(diff) / rms(linear[k].du);
+        if (!(d < 1e-6)) {
+          std::printf("%s and the linear FEM differ by %.2e on %zu elements (%s)\n", name.c_str(), d,
+                      m.mesh.tets.size(), kActions[k].name);
+          ++failures;
         }
       }
     }
-    for (const int size : quick ? std::vector<int>{41} : std::vector<int>{41, 81, 161})
-      report("FFD " + std::to_string(size) + " x " + std::to_string(size), 0,
-             ffdAnswers(organ.surface, size, 0.02, material, front, samples));
-    report("FFD 81 x 81, radius 60 mm", 0, ffdAnswers(organ.surface, 81, 0.06, material, front, samples));
   }
-  // The plots and the Pareto front per organ (surface error against time; a row beaten on both by another is out).
+  for (const int size : quick ? std::vector<int>{41} : std::vector<int>{41, 81, 161})
+    report("FFD " + std::to_string(size) + " x " + std::to_string(size), 0,
+           ffdAnswers(organ.surface, size, 0.02, material, front, samples));
+  report("FFD 81 x 81, radius 60 mm", 0, ffdAnswers(organ.surface, 81, 0.06, material, front, samples));
+}
+
+// The plots and the Pareto front per organ (surface error against time; a row beaten on both by another is out).
+void plotOrgans(const std::vector<Organ>& organs, const std::vector<Row>& rows, const std::string& out) {
   for (const Organ& organ : organs) {
     if (std::none_of(rows.begin(), rows.end(), [&](const Row& r) { return r.organ == organ.name; })) continue;
     std::map<std::string, PlotSeries> series;
@@ -441,6 +428,37 @@ int main(int argc, char** argv) {
     }
     std::printf("\n");
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Arguments: OUT_DIR, then an organ's name, and --quick (the liver preset, a 6k-element reference, one resolution:
+  // the test suite's smoke run, which fails when the reference does not converge, an error is not finite, or the
+  // precomputed model's answer differs from the linear FEM's on the same mesh by more than 1e-6).
+  std::vector<std::string> args;
+  bool quick = false;
+  for (int k = 1; k < argc; ++k) {
+    if (std::string(argv[k]) == "--quick")
+      quick = true;
+    else
+      args.push_back(argv[k]);
+  }
+  const std::string out = !args.empty() ? args[0] : ".";
+  int failures = 0;
+  std::filesystem::create_directories(out);
+  std::ofstream csv(out + "/models.csv");
+  csv << "organ,model,tets,action,update_ms,update_hz,converged,surface_error_rel,force_error_rel,force_n,"
+         "reference_force_n\n";
+  const BodySetup preset = testing::presetBody("liver", REHEARSE_SHARED_DATA);
+  const std::vector<Organ> organs = organsOf(preset);
+  std::vector<Row> rows;
+  const std::string only = args.size() > 1 ? args[1] : quick ? "liver preset" : "";  // one organ by name
+  for (const Organ& organ : organs) {
+    if (!only.empty() && organ.name != only) continue;
+    benchOrgan(organ, preset.material, quick, csv, rows, failures);
+  }
+  plotOrgans(organs, rows, out);
   std::printf("written %s/models.csv%s\n", out.c_str(), failures ? "; FAILED (see above)" : "");
   return failures ? 1 : 0;
 }

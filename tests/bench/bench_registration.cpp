@@ -42,106 +42,135 @@ Pose perturb(const Pose& p, const Eigen::Vector3d& move, int axis, double degree
   q.t += move;
   return q;
 }
-}  // namespace
 
-int main(int argc, char** argv) {
+struct Start {
+  std::string name;
+  Eigen::Vector3d move;
+  int axis;
+  double degrees;
+};
+
+// The benchmark, phase by phase: the ground truth, the markers, the diagnostics, the starts, the variants, the fits
+// and the summary.
+struct RegistrationBench {
   std::string out = ".";
   bool quick = false;
   int repeat = 1;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--quick") quick = true;
-    else if (a == "--repeat" && i + 1 < argc) repeat = std::max(1, std::atoi(argv[++i]));
-    else out = a;
-  }
-  std::filesystem::create_directories(out);
-  // The model the fit uses: the built-in phantom, co-rotational, the DejaVu liver's parameters.
-  phantom::PhantomOptions coarseOptions;
-  if (const char* t = std::getenv("REHEARSE_FIT_TETS")) coarseOptions.targetTets = std::atoi(t);
-  const phantom::Phantom coarse = phantom::makePhantom(coarseOptions);
-  const FemModel model = FemModel::build(coarse.volume, {{phantom::kVesselLabel, {MaterialModel::Corotational, 620e3, 0.45, 1000}}},
-                                         {MaterialModel::Corotational, 27e3, 0.40, 1000});
-  // The ground truth: a finer mesh of the same organ, the stable Neo-Hookean law, other loads.
-  phantom::PhantomOptions fineOptions;
-  fineOptions.targetTets = quick ? 8000 : 16000;
-  const phantom::Phantom fine = phantom::makePhantom(fineOptions);
-  const FemModel fineModel = FemModel::build(fine.volume, {{phantom::kVesselLabel, {MaterialModel::NeoHookean, 620e3, 0.45, 1000}}},
-                                             {MaterialModel::NeoHookean, 27e3, 0.45, 1000});
-  const Pose truth = coarse.truePose;
+  phantom::Phantom coarse, fine;
+  FemModel model;
+  Pose truth;
   SimulationSettings load;
-  load.gravity = truth.R.transpose() * Eigen::Vector3d(9.81, 0, 0);  // 1 g sideways in the image
-  Integrator gtIn(fineModel, fine.attachments, load);
-  auto gt = gtIn.initialState();
-  // A tool pushing the front surface near the organ's lower left: 0.3 N along the view direction.
-  Eigen::VectorXd tool = Eigen::VectorXd::Zero(gt.x.size());
-  {
-    const Eigen::Vector3d cog = fine.centreOfGravity();
-    int best = -1;
-    double score = -1e300;
-    for (const auto& t : fine.surface)
-      for (int v : t) {
-        const Eigen::Vector3d pc = truth.apply(fine.volume.points[v]);
-        const double s = -pc.z() + 0.5 * (pc.x() - truth.apply(cog).x()) * -1;  // near, and to the left
-        if (s > score) score = s, best = v;
-      }
-    tool.segment<3>(3 * best) = truth.R.transpose() * Eigen::Vector3d(0, 0, 0.3);
+  Eigen::VectorXd gtX;  // the ground truth's nodes
+  std::vector<Eigen::Vector2d> fullContour;
+  std::vector<Eigen::Vector3d> markerTruth;
+  SurfaceEmbedding markerMap;
+  std::ofstream csv;
+  std::vector<PlotSeries> series;
+  std::vector<Start> starts;
+  std::vector<double> fractions;
+  std::map<double, std::vector<double>> endErrors, times;
+  std::map<double, std::vector<std::vector<double>>> runTimes;  // per fraction, per run: each start's wall time
+  int worse = 0;
+
+  // The fit's model and the ground truth, its outline the contour.
+  void groundTruth() {
+    // The model the fit uses: the built-in phantom, co-rotational, the DejaVu liver's parameters.
+    phantom::PhantomOptions coarseOptions;
+    if (const char* t = std::getenv("REHEARSE_FIT_TETS")) coarseOptions.targetTets = std::atoi(t);
+    coarse = phantom::makePhantom(coarseOptions);
+    model = FemModel::build(coarse.volume, {{phantom::kVesselLabel, {MaterialModel::Corotational, 620e3, 0.45, 1000}}},
+                            {MaterialModel::Corotational, 27e3, 0.40, 1000});
+    // The ground truth: a finer mesh of the same organ, the stable Neo-Hookean law, other loads.
+    phantom::PhantomOptions fineOptions;
+    fineOptions.targetTets = quick ? 8000 : 16000;
+    fine = phantom::makePhantom(fineOptions);
+    const FemModel fineModel = FemModel::build(fine.volume, {{phantom::kVesselLabel, {MaterialModel::NeoHookean, 620e3, 0.45, 1000}}},
+                                               {MaterialModel::NeoHookean, 27e3, 0.45, 1000});
+    truth = coarse.truePose;
+    load.gravity = truth.R.transpose() * Eigen::Vector3d(9.81, 0, 0);  // 1 g sideways in the image
+    Integrator gtIn(fineModel, fine.attachments, load);
+    auto gt = gtIn.initialState();
+    // A tool pushing the front surface near the organ's lower left: 0.3 N along the view direction.
+    Eigen::VectorXd tool = Eigen::VectorXd::Zero(gt.x.size());
+    {
+      const Eigen::Vector3d cog = fine.centreOfGravity();
+      int best = -1;
+      double score = -1e300;
+      for (const auto& t : fine.surface)
+        for (int v : t) {
+          const Eigen::Vector3d pc = truth.apply(fine.volume.points[v]);
+          const double s = -pc.z() + 0.5 * (pc.x() - truth.apply(cog).x()) * -1;  // near, and to the left
+          if (s > score) score = s, best = v;
+        }
+      tool.segment<3>(3 * best) = truth.R.transpose() * Eigen::Vector3d(0, 0, 0.3);
+    }
+    const auto gtRep = gtIn.solveStatic(gt, tool);
+    std::printf("ground truth: %zu tets (fit model %zu), stable Neo-Hookean, 1 g sideways + 0.3 N tool: %s, largest displacement %.1f mm\n",
+                fine.volume.tets.size(), coarse.volume.tets.size(), gtRep.status.c_str(), 1e3 * (gt.x - fineModel.restVector()).cwiseAbs().maxCoeff());
+    gtX = gt.x;
+    std::vector<double> gtVerts(gt.x.data(), gt.x.data() + gt.x.size());
+    SurfaceView gtSurface = fine.surfaceView();
+    gtSurface.vertices = gtVerts.data();
+    fullContour = outline(fine, truth, gtSurface);
   }
-  const auto gtRep = gtIn.solveStatic(gt, tool);
-  std::printf("ground truth: %zu tets (fit model %zu), stable Neo-Hookean, 1 g sideways + 0.3 N tool: %s, largest displacement %.1f mm\n",
-              fine.volume.tets.size(), coarse.volume.tets.size(), gtRep.status.c_str(), 1e3 * (gt.x - fineModel.restVector()).cwiseAbs().maxCoeff());
-  std::vector<double> gtVerts(gt.x.data(), gt.x.data() + gt.x.size());
-  SurfaceView gtSurface = fine.surfaceView();
-  gtSurface.vertices = gtVerts.data();
-  const std::vector<Eigen::Vector2d> fullContour = outline(fine, truth, gtSurface);
+
   // Markers: 40 visible front-surface nodes of the fine mesh, spread by farthest-point sampling.
-  std::vector<int> candidates;
-  {
-    std::vector<char> seen(fine.volume.points.size(), 0);
-    for (const auto& t : fine.surface) {
-      const Eigen::Vector3d a = truth.apply(gt.x.segment<3>(3 * t[0])), b = truth.apply(gt.x.segment<3>(3 * t[1])),
-                            c = truth.apply(gt.x.segment<3>(3 * t[2]));
-      if ((b - a).cross(c - a).dot(a) >= 0) continue;  // back face
-      for (int v : t)
-        if (!seen[v]) seen[v] = 1, candidates.push_back(v);
+  void placeMarkers() {
+    std::vector<int> candidates;
+    {
+      std::vector<char> seen(fine.volume.points.size(), 0);
+      for (const auto& t : fine.surface) {
+        const Eigen::Vector3d a = truth.apply(gtX.segment<3>(3 * t[0])), b = truth.apply(gtX.segment<3>(3 * t[1])),
+                              c = truth.apply(gtX.segment<3>(3 * t[2]));
+        if ((b - a).cross(c - a).dot(a) >= 0) continue;  // back face
+        for (int v : t)
+          if (!seen[v]) seen[v] = 1, candidates.push_back(v);
+      }
     }
-  }
-  std::vector<int> markers{candidates.front()};
-  while (markers.size() < 40 && markers.size() < candidates.size()) {
-    int best = -1;
-    double far = -1;
-    for (int v : candidates) {
-      double d = 1e300;
-      for (int m : markers) d = std::min(d, (fine.volume.points[v] - fine.volume.points[m]).norm());
-      if (d > far) far = d, best = v;
+    std::vector<int> markers{candidates.front()};
+    while (markers.size() < 40 && markers.size() < candidates.size()) {
+      int best = -1;
+      double far = -1;
+      for (int v : candidates) {
+        double d = 1e300;
+        for (int m : markers) d = std::min(d, (fine.volume.points[v] - fine.volume.points[m]).norm());
+        if (d > far) far = d, best = v;
+      }
+      markers.push_back(best);
     }
-    markers.push_back(best);
+    std::vector<Eigen::Vector3d> markerRest;
+    for (int v : markers) {
+      markerRest.push_back(fine.volume.points[v] * fine.volume.unitToMetre);
+      markerTruth.push_back(gtX.segment<3>(3 * v));
+    }
+    markerMap = embedPoints(model, markerRest);
+    std::printf("%zu markers (%zu outside the fit model's volume), contour of %zu pixels; markers at the true pose, undeformed: %.2f mm\n",
+                markers.size(), markerMap.outside, fullContour.size(), markerError(model.restVector(), truth));
   }
-  std::vector<Eigen::Vector3d> markerRest, markerTruth;
-  for (int v : markers) {
-    markerRest.push_back(fine.volume.points[v] * fine.volume.unitToMetre);
-    markerTruth.push_back(gt.x.segment<3>(3 * v));
-  }
-  const SurfaceEmbedding markerMap = embedPoints(model, markerRest);
-  auto markerError = [&](const Eigen::VectorXd& x, const Pose& pose) {
+
+  // The markers' mean distance from the truth (mm).
+  double markerError(const Eigen::VectorXd& x, const Pose& pose) const {
     const auto pts = mapEmbedded(markerMap, x);
     double sum = 0;
     for (std::size_t i = 0; i < pts.size(); ++i) sum += (pose.apply(pts[i]) - truth.apply(markerTruth[i])).norm();
     return 1e3 * sum / pts.size();
-  };
-  std::printf("%zu markers (%zu outside the fit model's volume), contour of %zu pixels; markers at the true pose, undeformed: %.2f mm\n",
-              markers.size(), markerMap.outside, fullContour.size(), markerError(model.restVector(), truth));
+  }
 
-  if (std::getenv("REHEARSE_BENCH_DIAG")) {
-    auto parts = [&](const char* what, const Eigen::VectorXd& x, const Pose& pose) {
-      const auto pts = mapEmbedded(markerMap, x);
-      double xy = 0, z = 0, all = 0;
-      for (std::size_t i = 0; i < pts.size(); ++i) {
-        const Eigen::Vector3d d = pose.apply(pts[i]) - truth.apply(markerTruth[i]);
-        xy += d.head<2>().norm(), z += std::abs(d.z()), all += d.norm();
-      }
-      const double n = pts.size();
-      std::printf("DIAG %-34s mean %.2f mm  |xy| %.2f  |z| %.2f\n", what, 1e3 * all / n, 1e3 * xy / n, 1e3 * z / n);
-    };
+  // The markers' mean error, across the view and along it, as one DIAG line.
+  void parts(const char* what, const Eigen::VectorXd& x, const Pose& pose) const {
+    const auto pts = mapEmbedded(markerMap, x);
+    double xy = 0, z = 0, all = 0;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      const Eigen::Vector3d d = pose.apply(pts[i]) - truth.apply(markerTruth[i]);
+      xy += d.head<2>().norm(), z += std::abs(d.z()), all += d.norm();
+    }
+    const double n = pts.size();
+    std::printf("DIAG %-34s mean %.2f mm  |xy| %.2f  |z| %.2f\n", what, 1e3 * all / n, 1e3 * xy / n, 1e3 * z / n);
+  }
+
+  // REHEARSE_BENCH_DIAG: the error at the true pose by stage and camera axis, the best rigid motion of the markers,
+  // the fit of undeformed outlines.
+  void diagnose() const {
     parts("undeformed at truth", model.restVector(), truth);
     {
       // The best rigid motion of the undeformed markers onto the true ones (Umeyama, no scale).
@@ -189,27 +218,22 @@ int main(int argc, char** argv) {
                   Eigen::AngleAxisd(r.pose.R * truth.R.transpose()).angle() * 180 / M_PI, r.iterations.back().residual.mean);
     }
   }
-  std::ofstream csv(out + "/registration.csv");
-  csv << "start,fraction,start_error_mm,end_error_mm,start_px,end_px,wall_ms,iterations,ok,status\n";
-  std::vector<PlotSeries> series;
-  const double cm = 0.02, deg = 20;
-  struct Start {
-    std::string name;
-    Eigen::Vector3d move;
-    int axis;
-    double degrees;
-  };
-  std::vector<Start> starts;
-  const char* axes = "XYZ";
-  for (int a = 0; a < 3; ++a)
-    for (int sgn : {1, -1}) {
-      starts.push_back({std::string(sgn > 0 ? "+" : "-") + "2cm " + axes[a], sgn * cm * Eigen::Vector3d::Unit(a), a, 0});
-      starts.push_back({std::string(sgn > 0 ? "+" : "-") + "20deg " + axes[a], Eigen::Vector3d::Zero(), a, sgn * deg});
-    }
-  if (quick) starts.resize(2);
-  std::vector<double> fractions = quick ? std::vector<double>{1.0} : std::vector<double>{1.0, 0.9, 0.8, 0.7};
+
+  // The 12 starts (+-2 cm along, +-20 degrees about each camera axis) and the contour shares.
+  void makeStarts() {
+    const double cm = 0.02, deg = 20;
+    const char* axes = "XYZ";
+    for (int a = 0; a < 3; ++a)
+      for (int sgn : {1, -1}) {
+        starts.push_back({std::string(sgn > 0 ? "+" : "-") + "2cm " + axes[a], sgn * cm * Eigen::Vector3d::Unit(a), a, 0});
+        starts.push_back({std::string(sgn > 0 ? "+" : "-") + "20deg " + axes[a], Eigen::Vector3d::Zero(), a, sgn * deg});
+      }
+    if (quick) starts.resize(2);
+    fractions = quick ? std::vector<double>{1.0} : std::vector<double>{1.0, 0.9, 0.8, 0.7};
+  }
+
   // Variants at 100 %: rigid only, elastic without the pre-pass (what each stage contributes).
-  if (std::getenv("REHEARSE_BENCH_VARIANTS")) {
+  void runVariants() {
     for (int variant = 0; variant < 2; ++variant) {
       double sum = 0;
       for (const auto& st : starts) {
@@ -234,77 +258,106 @@ int main(int argc, char** argv) {
     }
     fractions = {1.0};
   }
-  std::printf("\n%-10s %5s %10s %10s %9s %9s %9s  %s\n", "start", "kept", "start mm", "end mm", "start px", "end px", "ms", "status");
-  std::map<double, std::vector<double>> endErrors, times;
-  std::map<double, std::vector<std::vector<double>>> runTimes;  // per fraction, per run: each start's wall time
-  int worse = 0;
-  for (double fraction : fractions) {
-    // Keep a contiguous part of the outline (the rest is as if the assistant had not drawn it).
-    const std::size_t keep = static_cast<std::size_t>(fraction * fullContour.size());
-    std::vector<Eigen::Vector2d> part(fullContour.begin(), fullContour.begin() + keep);
-    for (const auto& s : starts) {
-      const Pose start = perturb(truth, s.move, s.axis, s.degrees, coarse.centreOfGravity());
-      PlotSeries ps;
-      ps.name = s.name;
-      RegistrationOptions o;
-      o.rigidPrepass = true;
-      o.onIteration = [&](const RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
-        ps.x.push_back(std::max(it.wallMs, 1.0));
-        ps.y.push_back(markerError(x, pose));
-        if (std::getenv("REHEARSE_BENCH_TRACE"))
-          std::printf("  %s %.0f%% it %d %s %.0f ms %.2f px %.2f mm\n", s.name.c_str(), 100 * fraction, it.iteration, it.stage.c_str(), it.wallMs, it.score(), ps.y.back());
-        return true;
-      };
-      SimulationSettings settings;
-      settings.gravity.setZero();
-      RegistrationResult r;
-      for (int run = 0; run < repeat; ++run) {
-        if (run > 0) o.onIteration = nullptr;  // the series is the first run's
-        RegistrationResult again;
-        try {
-          again = registerToContour(model, coarse.attachments, settings, coarse.surface, {part}, start, coarse.camera.pinhole(), o);
-        } catch (const std::exception& e) {
-          again.status = std::string("error: ") + e.what();
+
+  // Every start at every contour share.
+  void runFits() {
+    std::printf("\n%-10s %5s %10s %10s %9s %9s %9s  %s\n", "start", "kept", "start mm", "end mm", "start px", "end px", "ms", "status");
+    for (double fraction : fractions) {
+      // Keep a contiguous part of the outline (the rest is as if the assistant had not drawn it).
+      const std::size_t keep = static_cast<std::size_t>(fraction * fullContour.size());
+      std::vector<Eigen::Vector2d> part(fullContour.begin(), fullContour.begin() + keep);
+      for (const auto& s : starts) runStart(s, fraction, part);
+    }
+  }
+
+  // One start on one share of the contour, `repeat` times: its line, its CSV row, its series at 100 %.
+  void runStart(const Start& s, double fraction, const std::vector<Eigen::Vector2d>& part) {
+    const Pose start = perturb(truth, s.move, s.axis, s.degrees, coarse.centreOfGravity());
+    PlotSeries ps;
+    ps.name = s.name;
+    RegistrationOptions o;
+    o.rigidPrepass = true;
+    o.onIteration = [&](const RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
+      ps.x.push_back(std::max(it.wallMs, 1.0));
+      ps.y.push_back(markerError(x, pose));
+      if (std::getenv("REHEARSE_BENCH_TRACE"))
+        std::printf("  %s %.0f%% it %d %s %.0f ms %.2f px %.2f mm\n", s.name.c_str(), 100 * fraction, it.iteration, it.stage.c_str(), it.wallMs, it.score(), ps.y.back());
+      return true;
+    };
+    SimulationSettings settings;
+    settings.gravity.setZero();
+    RegistrationResult r;
+    for (int run = 0; run < repeat; ++run) {
+      if (run > 0) o.onIteration = nullptr;  // the series is the first run's
+      RegistrationResult again;
+      try {
+        again = registerToContour(model, coarse.attachments, settings, coarse.surface, {part}, start, coarse.camera.pinhole(), o);
+      } catch (const std::exception& e) {
+        again.status = std::string("error: ") + e.what();
+      }
+      runTimes[fraction].resize(static_cast<std::size_t>(repeat));
+      runTimes[fraction][static_cast<std::size_t>(run)].push_back(again.iterations.empty() ? 0 : again.iterations.back().wallMs);
+      if (run == 0) r = std::move(again);
+    }
+    const double e0 = markerError(model.restVector(), start);
+    const double e1 = r.x.size() ? markerError(r.x, r.pose) : e0;
+    const double px0 = r.iterations.empty() ? 0 : r.iterations.front().residual.mean;
+    const double px1 = r.iterations.empty() ? 0 : r.iterations.back().residual.mean;
+    const double ms = r.iterations.empty() ? 0 : r.iterations.back().wallMs;
+    worse += e1 >= e0;
+    endErrors[fraction].push_back(e1);
+    times[fraction].push_back(ms);
+    std::printf("%-10s %4.0f%% %10.2f %10.2f %9.2f %9.2f %9.0f  %s\n", s.name.c_str(), 100 * fraction, e0, e1, px0, px1, ms, r.status.c_str());
+    csv << "\"" << s.name << "\"," << fraction << "," << e0 << "," << e1 << "," << px0 << "," << px1 << "," << ms << ","
+        << r.iterations.size() << "," << r.ok << ",\"" << r.status << "\"\n";
+    if (fraction == 1.0) series.push_back(ps);
+  }
+
+  // The means over the starts per share, the plot.
+  void summary() {
+    std::printf("\nsummary (mean over %zu starts):\n", starts.size());
+    for (double f : fractions) {
+      const auto& e = endErrors[f];
+      const auto& t = times[f];
+      std::printf("  contour %3.0f %%: marker error %.2f mm (worst %.2f), wall time %.0f ms (worst %.0f)", 100 * f,
+                  std::accumulate(e.begin(), e.end(), 0.0) / e.size(), *std::max_element(e.begin(), e.end()),
+                  std::accumulate(t.begin(), t.end(), 0.0) / t.size(), *std::max_element(t.begin(), t.end()));
+      if (repeat > 1) {
+        std::printf("; mean of each of %d runs:", repeat);
+        double worstRun = 0;
+        for (const auto& run : runTimes[f]) {
+          std::printf(" %.0f", std::accumulate(run.begin(), run.end(), 0.0) / run.size());
+          worstRun = std::max(worstRun, *std::max_element(run.begin(), run.end()));
         }
-        runTimes[fraction].resize(static_cast<std::size_t>(repeat));
-        runTimes[fraction][static_cast<std::size_t>(run)].push_back(again.iterations.empty() ? 0 : again.iterations.back().wallMs);
-        if (run == 0) r = std::move(again);
+        std::printf(" ms (worst single start %.0f ms)", worstRun);
       }
-      const double e0 = markerError(model.restVector(), start);
-      const double e1 = r.x.size() ? markerError(r.x, r.pose) : e0;
-      const double px0 = r.iterations.empty() ? 0 : r.iterations.front().residual.mean;
-      const double px1 = r.iterations.empty() ? 0 : r.iterations.back().residual.mean;
-      const double ms = r.iterations.empty() ? 0 : r.iterations.back().wallMs;
-      worse += e1 >= e0;
-      endErrors[fraction].push_back(e1);
-      times[fraction].push_back(ms);
-      std::printf("%-10s %4.0f%% %10.2f %10.2f %9.2f %9.2f %9.0f  %s\n", s.name.c_str(), 100 * fraction, e0, e1, px0, px1, ms, r.status.c_str());
-      csv << "\"" << s.name << "\"," << fraction << "," << e0 << "," << e1 << "," << px0 << "," << px1 << "," << ms << ","
-          << r.iterations.size() << "," << r.ok << ",\"" << r.status << "\"\n";
-      if (fraction == 1.0) series.push_back(ps);
+      std::printf("\n");
     }
+    std::printf("  starts that ended worse than they began: %d\n", worse);
+    writeLogLogPlot(out + "/registration.png", "Elastic fit, 100 % contour: marker error against wall time per start", "wall time (ms)",
+                    "mean marker error (mm)", series);
   }
-  std::printf("\nsummary (mean over %zu starts):\n", starts.size());
-  for (double f : fractions) {
-    const auto& e = endErrors[f];
-    const auto& t = times[f];
-    std::printf("  contour %3.0f %%: marker error %.2f mm (worst %.2f), wall time %.0f ms (worst %.0f)", 100 * f,
-                std::accumulate(e.begin(), e.end(), 0.0) / e.size(), *std::max_element(e.begin(), e.end()),
-                std::accumulate(t.begin(), t.end(), 0.0) / t.size(), *std::max_element(t.begin(), t.end()));
-    if (repeat > 1) {
-      std::printf("; mean of each of %d runs:", repeat);
-      double worstRun = 0;
-      for (const auto& run : runTimes[f]) {
-        std::printf(" %.0f", std::accumulate(run.begin(), run.end(), 0.0) / run.size());
-        worstRun = std::max(worstRun, *std::max_element(run.begin(), run.end()));
-      }
-      std::printf(" ms (worst single start %.0f ms)", worstRun);
-    }
-    std::printf("\n");
+};
+}  // namespace
+
+int main(int argc, char** argv) {
+  RegistrationBench b;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--quick") b.quick = true;
+    else if (a == "--repeat" && i + 1 < argc) b.repeat = std::max(1, std::atoi(argv[++i]));
+    else b.out = a;
   }
-  std::printf("  starts that ended worse than they began: %d\n", worse);
-  writeLogLogPlot(out + "/registration.png", "Elastic fit, 100 % contour: marker error against wall time per start", "wall time (ms)",
-                  "mean marker error (mm)", series);
-  std::printf("wrote %s/registration.csv and .png\n", out.c_str());
+  std::filesystem::create_directories(b.out);
+  b.groundTruth();
+  b.placeMarkers();
+  if (std::getenv("REHEARSE_BENCH_DIAG")) b.diagnose();
+  b.csv.open(b.out + "/registration.csv");
+  b.csv << "start,fraction,start_error_mm,end_error_mm,start_px,end_px,wall_ms,iterations,ok,status\n";
+  b.makeStarts();
+  if (std::getenv("REHEARSE_BENCH_VARIANTS")) b.runVariants();
+  b.runFits();
+  b.summary();
+  std::printf("wrote %s/registration.csv and .png\n", b.out.c_str());
   return 0;
 }

@@ -284,43 +284,9 @@ void realOrgans(const std::string& out, const std::string& shared, const std::st
   }
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
-  std::string out = ".";
-  bool quick = false;
-  std::string only;    // one pull variant by name (e.g. "linearised"), on the built-in liver only, and no cut: A/B runs
-  bool real = false;   // only the real organs' section
-  std::string organ;   // --real: only the organs whose name contains this (e.g. "patient"); with --only, one variant
-  int cutRepeats = 1;  // the cut scenario run this many times, its steps pooled (a comparison of builds wants more
-                       // than the 3 updates of one run: each waits for a body built on the other core)
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--quick"))
-      quick = true;
-    else if (!std::strcmp(argv[i], "--cut-repeats") && i + 1 < argc)
-      cutRepeats = std::max(1, std::atoi(argv[++i]));
-    else if (!std::strcmp(argv[i], "--only") && i + 1 < argc)
-      only = argv[++i];
-    else if (!std::strcmp(argv[i], "--real"))
-      real = true;
-    else if (!std::strcmp(argv[i], "--organ") && i + 1 < argc)
-      organ = argv[++i];
-    else
-      out = argv[i];
-  }
-  std::filesystem::create_directories(out);
-
-  const std::string shared = std::string(REHEARSE_SHARED_DATA);
-  if (real) {
-    realOrgans(out, shared, only, organ);
-    return 0;
-  }
-  std::vector<std::string> organs = {"liver"};
-  if (only.empty() && std::filesystem::exists(shared + "/sofa/liver.msh"))
-    organs.push_back("sofa-liver");
-  else if (only.empty())
-    std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
-
+// The grasp pulled on each organ with each Newton method (or the one named by --only): one line and one row each.
+void pullTable(const std::vector<std::string>& organs, const std::string& shared, const std::string& out,
+               const std::string& only, bool quick) {
   std::ofstream pullCsv(out + "/rehearsal-pull.csv");
   pullCsv << "organ,tets,method,median_ms,p99_ms,max_ms,place_max_ms,failed,swaps,contacts,touching_steps,force_error_"
              "rel,bitten_error_mm,loop_hz,loop_period_median_ms,loop_period_p99_ms,loop_period_max_ms,loop_jitter_p99_"
@@ -361,8 +327,85 @@ int main(int argc, char** argv) {
               << ',' << r.loop.jitterMs << ',' << r.loop.realtime << '\n';
     }
   }
+}
 
-  if (!only.empty()) return 0;
+// One cut across the organ with one method, run cutRepeats times: its line and row.
+void cutRun(const std::string& organ, const Variant& v, const std::string& shared, bool quick, int cutRepeats,
+            std::ofstream& cutCsv) {
+  BodySetup s = setupFor(organ, shared);
+  s.settings.method = v.method;
+  s.settings.factorRefresh = v.refresh;
+  Eigen::AlignedBox3d box;
+  for (const auto& p : s.mesh.points) box.extend(p);
+  const Eigen::Vector3d size = box.sizes();
+  const double x = box.min().x() + 0.25 * size.x();
+  // The trocar above the cut's plane; the blade (1.5x the organ's height) sweeps from front to back.
+  s.tools.trocar = Eigen::Vector3d(x, box.min().y() - 2 * size.y(), box.center().z());
+  s.tools.bladeLength = 1.5 * size.y() + 0.02;
+  std::vector<double> remesh, step, all;
+  std::size_t before = 0, after = 0;
+  for (int repeat = 0; repeat < cutRepeats; ++repeat) {
+    Session session(s);
+    for (int k = 0; k < (quick ? 10 : 30); ++k) session.advance();
+    before = session.snapshot()->elements;
+    const Eigen::Vector3d from(x, box.max().y() + 0.01, box.min().z() - 0.01);
+    session.post(event(InputKind::ToolPose, from));
+    session.post(event(InputKind::Cut, from, true));
+    const int sweeps = 12;
+    auto due = std::chrono::steady_clock::now();
+    auto timedStep = [&] {
+      std::this_thread::sleep_until(due);
+      const auto t0 = std::chrono::steady_clock::now();
+      session.advance();
+      const auto t1 = std::chrono::steady_clock::now();
+      due = std::max(due + std::chrono::milliseconds(10), t1);
+      const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+      all.push_back(ms);
+      const auto& ev = session.snapshot()->events;
+      if (std::find(ev.begin(), ev.end(), "cut") != ev.end()) step.push_back(ms);
+    };
+    for (int k = 1; k <= sweeps; ++k) {
+      const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * k / sweeps);
+      // The re-meshing alone, on a copy of the session's mesh at its current shape.
+      {
+        const auto snap = session.snapshot();
+        std::vector<Eigen::Vector3d> rest = session.setup().mesh.points, current = snap->positions;
+        auto tets = session.setup().mesh.tets;
+        auto labels = session.setup().mesh.tetLabels;
+        const Eigen::Vector3d prev = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * (k - 1) / sweeps);
+        auto end = [&](const Eigen::Vector3d& t) {
+          return Eigen::Vector3d(t + s.tools.bladeLength * (*s.tools.trocar - t).normalized());
+        };
+        CutProgress progress = session.setup().cut;
+        if (current.size() == rest.size()) {
+          const auto t0 = std::chrono::steady_clock::now();
+          const CutResult r =
+              cutTetrahedra(rest, current, tets, labels, {prev, end(prev), to, end(to)}, s.tools.cut, &progress);
+          if (r.changed)
+            remesh.push_back(
+                std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
+        }
+      }
+      session.post(event(InputKind::ToolPose, to));
+      for (int j = 0; j < 3; ++j) timedStep();
+    }
+    session.post(event(InputKind::Cut, from, false));  // withdrawn: a cut still being built is applied here
+    timedStep();
+    for (int j = 0; j < 5; ++j) timedStep();
+    after = session.snapshot()->elements;
+  }
+  const double slowest = all.empty() ? 0 : *std::max_element(all.begin(), all.end());
+  std::printf("%-11s %-18s %7zu %15.2f %13.2f %17.2f %15.2f %14.2f %7zu -> %zu\n", organ.c_str(), v.name().c_str(),
+              step.size(), percentile(remesh, 0.5), percentile(remesh, 0.99), percentile(step, 0.5),
+              percentile(step, 0.99), slowest, before, after);
+  cutCsv << organ << ',' << v.name() << ',' << step.size() << ',' << percentile(remesh, 0.5) << ','
+         << percentile(remesh, 0.99) << ',' << percentile(step, 0.5) << ',' << percentile(step, 0.99) << ','
+         << slowest << ',' << before << ',' << after << '\n';
+}
+
+// A cut across each organ with three methods (rehearsal-cut.csv).
+void cutTable(const std::vector<std::string>& organs, const std::string& shared, const std::string& out, bool quick,
+              int cutRepeats) {
   std::ofstream cutCsv(out + "/rehearsal-cut.csv");
   std::printf(
       "\nA cut across the organ (plane a quarter of its width from its left end, the blade in 12 poses, 3 steps of 10 "
@@ -374,77 +417,52 @@ int main(int argc, char** argv) {
   for (const auto& organ : organs) {
     for (const Variant& v : {Variant{NewtonMethod::Exact}, Variant{NewtonMethod::Linearised},
                              Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous}}) {
-      BodySetup s = setupFor(organ, shared);
-      s.settings.method = v.method;
-      s.settings.factorRefresh = v.refresh;
-      Eigen::AlignedBox3d box;
-      for (const auto& p : s.mesh.points) box.extend(p);
-      const Eigen::Vector3d size = box.sizes();
-      const double x = box.min().x() + 0.25 * size.x();
-      // The trocar above the cut's plane; the blade (1.5x the organ's height) sweeps from front to back.
-      s.tools.trocar = Eigen::Vector3d(x, box.min().y() - 2 * size.y(), box.center().z());
-      s.tools.bladeLength = 1.5 * size.y() + 0.02;
-      std::vector<double> remesh, step, all;
-      std::size_t before = 0, after = 0;
-      for (int repeat = 0; repeat < cutRepeats; ++repeat) {
-        Session session(s);
-        for (int k = 0; k < (quick ? 10 : 30); ++k) session.advance();
-        before = session.snapshot()->elements;
-        const Eigen::Vector3d from(x, box.max().y() + 0.01, box.min().z() - 0.01);
-        session.post(event(InputKind::ToolPose, from));
-        session.post(event(InputKind::Cut, from, true));
-        const int sweeps = 12;
-        auto due = std::chrono::steady_clock::now();
-        auto timedStep = [&] {
-          std::this_thread::sleep_until(due);
-          const auto t0 = std::chrono::steady_clock::now();
-          session.advance();
-          const auto t1 = std::chrono::steady_clock::now();
-          due = std::max(due + std::chrono::milliseconds(10), t1);
-          const double ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
-          all.push_back(ms);
-          const auto& ev = session.snapshot()->events;
-          if (std::find(ev.begin(), ev.end(), "cut") != ev.end()) step.push_back(ms);
-        };
-        for (int k = 1; k <= sweeps; ++k) {
-          const Eigen::Vector3d to = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * k / sweeps);
-          // The re-meshing alone, on a copy of the session's mesh at its current shape.
-          {
-            const auto snap = session.snapshot();
-            std::vector<Eigen::Vector3d> rest = session.setup().mesh.points, current = snap->positions;
-            auto tets = session.setup().mesh.tets;
-            auto labels = session.setup().mesh.tetLabels;
-            const Eigen::Vector3d prev = from + Eigen::Vector3d(0, 0, (size.z() + 0.02) * (k - 1) / sweeps);
-            auto end = [&](const Eigen::Vector3d& t) {
-              return Eigen::Vector3d(t + s.tools.bladeLength * (*s.tools.trocar - t).normalized());
-            };
-            CutProgress progress = session.setup().cut;
-            if (current.size() == rest.size()) {
-              const auto t0 = std::chrono::steady_clock::now();
-              const CutResult r =
-                  cutTetrahedra(rest, current, tets, labels, {prev, end(prev), to, end(to)}, s.tools.cut, &progress);
-              if (r.changed)
-                remesh.push_back(
-                    std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count());
-            }
-          }
-          session.post(event(InputKind::ToolPose, to));
-          for (int j = 0; j < 3; ++j) timedStep();
-        }
-        session.post(event(InputKind::Cut, from, false));  // withdrawn: a cut still being built is applied here
-        timedStep();
-        for (int j = 0; j < 5; ++j) timedStep();
-        after = session.snapshot()->elements;
-      }
-      const double slowest = all.empty() ? 0 : *std::max_element(all.begin(), all.end());
-      std::printf("%-11s %-18s %7zu %15.2f %13.2f %17.2f %15.2f %14.2f %7zu -> %zu\n", organ.c_str(), v.name().c_str(),
-                  step.size(), percentile(remesh, 0.5), percentile(remesh, 0.99), percentile(step, 0.5),
-                  percentile(step, 0.99), slowest, before, after);
-      cutCsv << organ << ',' << v.name() << ',' << step.size() << ',' << percentile(remesh, 0.5) << ','
-             << percentile(remesh, 0.99) << ',' << percentile(step, 0.5) << ',' << percentile(step, 0.99) << ','
-             << slowest << ',' << before << ',' << after << '\n';
+      cutRun(organ, v, shared, quick, cutRepeats, cutCsv);
     }
   }
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out = ".";
+  bool quick = false;
+  std::string only;    // one pull variant by name (e.g. "linearised"), on the built-in liver only, and no cut: A/B runs
+  bool real = false;   // only the real organs' section
+  std::string organ;   // --real: only the organs whose name contains this (e.g. "patient"); with --only, one variant
+  int cutRepeats = 1;  // the cut scenario run this many times, its steps pooled (a comparison of builds wants more
+                       // than the 3 updates of one run: each waits for a body built on the other core)
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--quick"))
+      quick = true;
+    else if (!std::strcmp(argv[i], "--cut-repeats") && i + 1 < argc)
+      cutRepeats = std::max(1, std::atoi(argv[++i]));
+    else if (!std::strcmp(argv[i], "--only") && i + 1 < argc)
+      only = argv[++i];
+    else if (!std::strcmp(argv[i], "--real"))
+      real = true;
+    else if (!std::strcmp(argv[i], "--organ") && i + 1 < argc)
+      organ = argv[++i];
+    else
+      out = argv[i];
+  }
+  std::filesystem::create_directories(out);
+
+  const std::string shared = std::string(REHEARSE_SHARED_DATA);
+  if (real) {
+    realOrgans(out, shared, only, organ);
+    return 0;
+  }
+  std::vector<std::string> organs = {"liver"};
+  if (only.empty() && std::filesystem::exists(shared + "/sofa/liver.msh"))
+    organs.push_back("sofa-liver");
+  else if (only.empty())
+    std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
+
+  pullTable(organs, shared, out, only, quick);
+
+  if (!only.empty()) return 0;
+  cutTable(organs, shared, out, quick, cutRepeats);
   if (quick) return 0;
 
   realOrgans(out, shared, "", "");

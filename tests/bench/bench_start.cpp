@@ -31,147 +31,136 @@
 using namespace rehearse;
 using namespace rehearse::simcore;
 
-int main(int argc, char** argv) {
-  std::string out = ".";
-  bool quick = false, cliOnly = false;
-  for (int i = 1; i < argc; ++i) {
-    if (!std::strcmp(argv[i], "--quick"))
-      quick = true;
-    else if (!std::strcmp(argv[i], "--cli"))
-      cliOnly = true;
-    else
-      out = argv[i];
+namespace {
+// An organ from ../shared/data and its material.
+struct Organ {
+  std::string name, path;
+  MaterialParams material;
+};
+
+// The organs hung by the 8 % of their surface nodes highest against gravity, gravity down the image (+y), meshed
+// at about 3.8k (and 17k) tets: the solve, then 200 steps from the start (start.csv).
+void hangingStarts(const std::vector<Organ>& organs, const std::string& out, bool quick) {
+  std::ofstream csv(out + "/start.csv");
+  csv << "organ,tets,held,solve_s,static_solves,outcome,error_mm,sag_mm,drift_mm,steps,converged,inexact,failed,"
+         "step_median_ms\n";
+  std::printf("%-20s %6s %5s %8s %6s %-13s %9s %8s %9s %s\n", "organ", "tets", "held", "solve s", "solves", "outcome",
+              "error mm", "sag mm", "drift mm", "200 steps (converged/inexact/failed), median ms");
+  for (const Organ& o : organs) {
+    if (!std::filesystem::exists(o.path)) {
+      std::printf("%-20s absent: %s\n", o.name.c_str(), o.path.c_str());
+      continue;
+    }
+    const Mesh surface = testing::loadOrganSurface(o.path);
+    for (const std::size_t target : quick ? std::vector<std::size_t>{3800} : std::vector<std::size_t>{3800, 17000}) {
+      BodySetup s;
+      s.mesh = testing::meshedOrgan(surface, target);
+      s.material = o.material;
+      s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);
+      s.settings.method = NewtonMethod::Linearised;
+      s.settings.factorRefresh = FactorRefresh::Asynchronous;
+      s.fixedNodes = testing::highestSurfaceNodes(s.mesh, 0.08);
+      const std::vector<Eigen::Vector3d> shape = s.mesh.points;
+      const auto t0 = std::chrono::steady_clock::now();
+      const InverseRestResult r = startInEquilibrium(s, shape);
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      double drift = 0, median = 0;
+      std::map<StepStatus, int> outcomes;
+      if (r.converged()) {
+        Session session(s);
+        std::vector<double> ms;
+        for (int k = 0; k < 200; ++k) {
+          const auto a = std::chrono::steady_clock::now();
+          const StepReport rep = session.advance();
+          ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
+          ++outcomes[rep.outcome];
+          const auto& p = session.snapshot()->positions;
+          for (std::size_t i = 0; i < p.size(); ++i) drift = std::max(drift, (p[i] - shape[i]).norm());
+        }
+        std::nth_element(ms.begin(), ms.begin() + 100, ms.end());
+        median = ms[100];
+      }
+      const char* word = r.converged()                                      ? "converged"
+                         : r.outcome == InverseRestResult::Outcome::Refused ? "refused"
+                                                                            : "not converged";
+      std::printf("%-20s %6zu %5zu %8.2f %6d %-13s %9.4f %8.1f %9.4f %d/%d/%d, %.2f\n", o.name.c_str(),
+                  s.mesh.tets.size(), s.fixedNodes.size(), seconds, r.iterations, word, 1e3 * r.error, 1e3 * r.sag,
+                  1e3 * drift, outcomes[StepStatus::Converged], outcomes[StepStatus::Inexact],
+                  outcomes[StepStatus::Failed], median);
+      if (!r.converged()) std::printf("    %s\n", r.status.c_str());
+      csv << '"' << o.name << "\"," << s.mesh.tets.size() << ',' << s.fixedNodes.size() << ',' << seconds << ','
+          << r.iterations << ',' << word << ',' << 1e3 * r.error << ',' << 1e3 * r.sag << ',' << 1e3 * drift
+          << ",200," << outcomes[StepStatus::Converged] << ',' << outcomes[StepStatus::Inexact] << ','
+          << outcomes[StepStatus::Failed] << ',' << median << '\n';
+      std::fflush(stdout);
+    }
   }
-  std::filesystem::create_directories(out);
-  const std::string shared = REHEARSE_SHARED_DATA;
-  struct Organ {
-    std::string name, path;
-    MaterialParams material;
-  };
-  const std::vector<Organ> organs = {
-      {"patient liver",
-       shared + "/scikit-surgery/patient-liver/liver.vtk",
-       {MaterialModel::Corotational, 27e3, 0.4, 1079}},
-      {"BodyParts3D liver", shared + "/bodyparts3d/FMA7197_Liver.obj", {MaterialModel::Corotational, 27e3, 0.4, 1079}},
-      {"BodyParts3D kidney",
-       shared + "/bodyparts3d/FMA7205_Left_Kidney.obj",
-       {MaterialModel::Corotational, 250e3, 0.4, 1066}}};
-  if (!cliOnly) {
-    std::ofstream csv(out + "/start.csv");
-    csv << "organ,tets,held,solve_s,static_solves,outcome,error_mm,sag_mm,drift_mm,steps,converged,inexact,failed,"
-           "step_median_ms\n";
-    std::printf("%-20s %6s %5s %8s %6s %-13s %9s %8s %9s %s\n", "organ", "tets", "held", "solve s", "solves", "outcome",
-                "error mm", "sag mm", "drift mm", "200 steps (converged/inexact/failed), median ms");
-    for (const Organ& o : organs) {
-      if (!std::filesystem::exists(o.path)) {
-        std::printf("%-20s absent: %s\n", o.name.c_str(), o.path.c_str());
-        continue;
-      }
-      const Mesh surface = testing::loadOrganSurface(o.path);
-      for (const std::size_t target : quick ? std::vector<std::size_t>{3800} : std::vector<std::size_t>{3800, 17000}) {
-        BodySetup s;
-        s.mesh = testing::meshedOrgan(surface, target);
-        s.material = o.material;
-        s.settings.gravity = Eigen::Vector3d(0, 9.81, 0);
-        s.settings.method = NewtonMethod::Linearised;
-        s.settings.factorRefresh = FactorRefresh::Asynchronous;
-        s.fixedNodes = testing::highestSurfaceNodes(s.mesh, 0.08);
-        const std::vector<Eigen::Vector3d> shape = s.mesh.points;
-        const auto t0 = std::chrono::steady_clock::now();
-        const InverseRestResult r = startInEquilibrium(s, shape);
-        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        double drift = 0, median = 0;
-        std::map<StepStatus, int> outcomes;
-        if (r.converged()) {
-          Session session(s);
-          std::vector<double> ms;
-          for (int k = 0; k < 200; ++k) {
-            const auto a = std::chrono::steady_clock::now();
-            const StepReport rep = session.advance();
-            ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
-            ++outcomes[rep.outcome];
-            const auto& p = session.snapshot()->positions;
-            for (std::size_t i = 0; i < p.size(); ++i) drift = std::max(drift, (p[i] - shape[i]).norm());
-          }
-          std::nth_element(ms.begin(), ms.begin() + 100, ms.end());
-          median = ms[100];
+}
+
+// Issue 61: the tissue around the organ carries it (support.hpp, the default modulus), gravity along the view (+z,
+// into the scene), for the picks an assistant makes: none, one node, 22 along its top, the 8 % highest. The start's
+// distance from the shape, then 10 s (1000 steps) with the GUI's method from it: the largest move of a node.
+void supportedStarts(const std::vector<Organ>& organs, const std::string& out) {
+  std::ofstream sup(out + "/start_supported.csv");
+  sup << "organ,tets,picks,held,support_pa_per_m,solve_s,static_solves,outcome,error_mm,drift_10s_mm,steps,converged,"
+         "step_median_ms\n";
+  std::printf("\nsupported by the tissue around it (%g Pa/m), gravity along the view (+z):\n",
+              kDefaultSupportModulus);
+  std::printf("%-20s %6s %-16s %5s %8s %6s %-13s %9s %12s %s\n", "organ", "tets", "picks", "held", "solve s",
+              "solves", "outcome", "error mm", "drift 10 s", "1000 steps converged, median ms");
+  for (const Organ& o : organs) {
+    if (!std::filesystem::exists(o.path)) continue;
+    BodySetup base;
+    base.mesh = testing::meshedOrgan(testing::loadOrganSurface(o.path), 3800);
+    base.material = o.material;
+    base.settings.gravity = Eigen::Vector3d(0, 0, 9.81);
+    base.settings.method = NewtonMethod::Linearised;
+    base.settings.factorRefresh = FactorRefresh::Asynchronous;
+    const std::vector<Eigen::Vector3d> shape = base.mesh.points;
+    for (const auto& [name, held] : testing::assistantPicks(base.mesh)) {
+      BodySetup s = base;
+      s.fixedNodes = held;
+      InverseRestOptions io;
+      io.supportModulus = kDefaultSupportModulus;
+      const auto t0 = std::chrono::steady_clock::now();
+      const InverseRestResult r = startInEquilibrium(s, shape, io);
+      const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      double drift = 0, median = 0;
+      int converged = 0;
+      if (r.converged()) {
+        Session session(s);
+        std::vector<double> ms;
+        for (int k = 0; k < 1000; ++k) {
+          const auto a = std::chrono::steady_clock::now();
+          const StepReport rep = session.advance();
+          ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
+          converged += rep.outcome == StepStatus::Converged;
+          const auto& p = session.snapshot()->positions;
+          for (std::size_t i = 0; i < p.size(); ++i) drift = std::max(drift, (p[i] - shape[i]).norm());
         }
-        const char* word = r.converged()                                      ? "converged"
-                           : r.outcome == InverseRestResult::Outcome::Refused ? "refused"
-                                                                              : "not converged";
-        std::printf("%-20s %6zu %5zu %8.2f %6d %-13s %9.4f %8.1f %9.4f %d/%d/%d, %.2f\n", o.name.c_str(),
-                    s.mesh.tets.size(), s.fixedNodes.size(), seconds, r.iterations, word, 1e3 * r.error, 1e3 * r.sag,
-                    1e3 * drift, outcomes[StepStatus::Converged], outcomes[StepStatus::Inexact],
-                    outcomes[StepStatus::Failed], median);
-        if (!r.converged()) std::printf("    %s\n", r.status.c_str());
-        csv << '"' << o.name << "\"," << s.mesh.tets.size() << ',' << s.fixedNodes.size() << ',' << seconds << ','
-            << r.iterations << ',' << word << ',' << 1e3 * r.error << ',' << 1e3 * r.sag << ',' << 1e3 * drift
-            << ",200," << outcomes[StepStatus::Converged] << ',' << outcomes[StepStatus::Inexact] << ','
-            << outcomes[StepStatus::Failed] << ',' << median << '\n';
-        std::fflush(stdout);
+        std::nth_element(ms.begin(), ms.begin() + 500, ms.end());
+        median = ms[500];
       }
+      const char* word = r.converged()                                      ? "converged"
+                         : r.outcome == InverseRestResult::Outcome::Refused ? "refused"
+                                                                            : "not converged";
+      std::printf("%-20s %6zu %-16s %5zu %8.2f %6d %-13s %9.4f %9.4f mm %d, %.2f\n", o.name.c_str(),
+                  s.mesh.tets.size(), name, held.size(), seconds, r.iterations, word, 1e3 * r.error, 1e3 * drift,
+                  converged, median);
+      if (!r.converged()) std::printf("    %s\n", r.status.c_str());
+      sup << '"' << o.name << "\"," << s.mesh.tets.size() << ",\"" << name << "\"," << held.size() << ','
+          << kDefaultSupportModulus << ',' << seconds << ',' << r.iterations << ',' << word << ',' << 1e3 * r.error
+          << ',' << 1e3 * drift << ",1000," << converged << ',' << median << '\n';
+      std::fflush(stdout);
     }
-    // Issue 61: the tissue around the organ carries it (support.hpp, the default modulus), gravity along the view (+z,
-    // into the scene), for the picks an assistant makes: none, one node, 22 along its top, the 8 % highest. The start's
-    // distance from the shape, then 10 s (1000 steps) with the GUI's method from it: the largest move of a node.
-    std::ofstream sup(out + "/start_supported.csv");
-    sup << "organ,tets,picks,held,support_pa_per_m,solve_s,static_solves,outcome,error_mm,drift_10s_mm,steps,converged,"
-           "step_median_ms\n";
-    std::printf("\nsupported by the tissue around it (%g Pa/m), gravity along the view (+z):\n",
-                kDefaultSupportModulus);
-    std::printf("%-20s %6s %-16s %5s %8s %6s %-13s %9s %12s %s\n", "organ", "tets", "picks", "held", "solve s",
-                "solves", "outcome", "error mm", "drift 10 s", "1000 steps converged, median ms");
-    for (const Organ& o : organs) {
-      if (!std::filesystem::exists(o.path)) continue;
-      BodySetup base;
-      base.mesh = testing::meshedOrgan(testing::loadOrganSurface(o.path), 3800);
-      base.material = o.material;
-      base.settings.gravity = Eigen::Vector3d(0, 0, 9.81);
-      base.settings.method = NewtonMethod::Linearised;
-      base.settings.factorRefresh = FactorRefresh::Asynchronous;
-      const std::vector<Eigen::Vector3d> shape = base.mesh.points;
-      for (const auto& [name, held] : testing::assistantPicks(base.mesh)) {
-        BodySetup s = base;
-        s.fixedNodes = held;
-        InverseRestOptions io;
-        io.supportModulus = kDefaultSupportModulus;
-        const auto t0 = std::chrono::steady_clock::now();
-        const InverseRestResult r = startInEquilibrium(s, shape, io);
-        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-        double drift = 0, median = 0;
-        int converged = 0;
-        if (r.converged()) {
-          Session session(s);
-          std::vector<double> ms;
-          for (int k = 0; k < 1000; ++k) {
-            const auto a = std::chrono::steady_clock::now();
-            const StepReport rep = session.advance();
-            ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - a).count());
-            converged += rep.outcome == StepStatus::Converged;
-            const auto& p = session.snapshot()->positions;
-            for (std::size_t i = 0; i < p.size(); ++i) drift = std::max(drift, (p[i] - shape[i]).norm());
-          }
-          std::nth_element(ms.begin(), ms.begin() + 500, ms.end());
-          median = ms[500];
-        }
-        const char* word = r.converged()                                      ? "converged"
-                           : r.outcome == InverseRestResult::Outcome::Refused ? "refused"
-                                                                              : "not converged";
-        std::printf("%-20s %6zu %-16s %5zu %8.2f %6d %-13s %9.4f %9.4f mm %d, %.2f\n", o.name.c_str(),
-                    s.mesh.tets.size(), name, held.size(), seconds, r.iterations, word, 1e3 * r.error, 1e3 * drift,
-                    converged, median);
-        if (!r.converged()) std::printf("    %s\n", r.status.c_str());
-        sup << '"' << o.name << "\"," << s.mesh.tets.size() << ",\"" << name << "\"," << held.size() << ','
-            << kDefaultSupportModulus << ',' << seconds << ',' << r.iterations << ',' << word << ',' << 1e3 * r.error
-            << ',' << 1e3 * drift << ",1000," << converged << ',' << median << '\n';
-        std::fflush(stdout);
-      }
-    }
-  }  // !cliOnly
-  // Issue 61, from the command line as a user runs it: each organ's meshed volume written to a file, each assistant's
-  // picks written as a file of node indices, then `rehearse gesture --mesh VOL --fixed-nodes PICKS --start equilibrium`
-  // (the default support) with a script of 10 s and no instrument. The start error is the report's, the drift the
-  // largest distance of the output's nodes (after 10 s) from the shape.
+  }
+}
+
+// Issue 61, from the command line as a user runs it: each organ's meshed volume written to a file, each assistant's
+// picks written as a file of node indices, then `rehearse gesture --mesh VOL --fixed-nodes PICKS --start equilibrium`
+// (the default support) with a script of 10 s and no instrument. The start error is the report's, the drift the
+// largest distance of the output's nodes (after 10 s) from the shape.
+void commandLineStarts(const std::vector<Organ>& organs, const std::string& out) {
   std::ofstream cli(out + "/start_cli.csv");
   cli << "organ,tets,picks,held,support_pa_per_m,exit,start_error_mm,supported_nodes,drift_10s_mm,steps,converged\n";
   std::printf(
@@ -232,5 +221,34 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
     }
   }
+}
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string out = ".";
+  bool quick = false, cliOnly = false;
+  for (int i = 1; i < argc; ++i) {
+    if (!std::strcmp(argv[i], "--quick"))
+      quick = true;
+    else if (!std::strcmp(argv[i], "--cli"))
+      cliOnly = true;
+    else
+      out = argv[i];
+  }
+  std::filesystem::create_directories(out);
+  const std::string shared = REHEARSE_SHARED_DATA;
+  const std::vector<Organ> organs = {
+      {"patient liver",
+       shared + "/scikit-surgery/patient-liver/liver.vtk",
+       {MaterialModel::Corotational, 27e3, 0.4, 1079}},
+      {"BodyParts3D liver", shared + "/bodyparts3d/FMA7197_Liver.obj", {MaterialModel::Corotational, 27e3, 0.4, 1079}},
+      {"BodyParts3D kidney",
+       shared + "/bodyparts3d/FMA7205_Left_Kidney.obj",
+       {MaterialModel::Corotational, 250e3, 0.4, 1066}}};
+  if (!cliOnly) {
+    hangingStarts(organs, out, quick);
+    supportedStarts(organs, out);
+  }
+  commandLineStarts(organs, out);
   return 0;
 }

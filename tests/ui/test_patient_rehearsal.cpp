@@ -28,7 +28,6 @@
 #include <QDoubleSpinBox>
 #include <QLabel>
 #include <QPushButton>
-#include <QScopeGuard>
 #include <QSignalSpy>
 #include <QStandardPaths>
 #include <QtTest>
@@ -44,20 +43,38 @@
 using namespace rehearse;
 using ui::MainWindow;
 
-class TestPatientRehearsal : public QObject {
-  Q_OBJECT
-  std::unique_ptr<MainWindow> w_;
+namespace {
+// patientLiverOverTheRealFrame, one method per phase of the scenario (what a phase makes, the later ones use). A
+// failed QVERIFY returns from its phase: the test checks QTest::currentTestFailed() after each.
+struct PatientRehearsal {
+  PatientRehearsal(std::unique_ptr<MainWindow>& w, QObject* test) : w_(w), test_(test) {}
+  ~PatientRehearsal() { QObject::disconnect(watching); }
+  PatientRehearsal(const PatientRehearsal&) = delete;
+  PatientRehearsal& operator=(const PatientRehearsal&) = delete;
 
- private slots:
-  void initTestCase() {
-    QCoreApplication::setOrganizationName("RehearsePatientRehearsalTest");
-    MainWindow::setRenderer(MainWindow::Renderer::Software);
-    QVERIFY(openPhantomCase(w_));
+  std::unique_ptr<MainWindow>& w_;
+  QObject* test_;  // the test object: the context of the connection that watches the frames
+  ui::FrameView* view = nullptr;
+  std::shared_ptr<const app::Case> kept;  // the fitted case
+  ui::SimulationPanel* panel = nullptr;
+  QLabel* status = nullptr;
+  // The frames shown of the fitted organ from the rehearsal's start: how many, how many not converged, the worst
+  // relative residual.
+  int shown = 0, notConverged = 0;
+  double worstResidual = 0;
+  QMetaObject::Connection watching;
+  Eigen::Vector2d centre;  // where the grasper bites (frame pixels)
+  QPointF a, b;            // the pull, from and to (widget pixels)
+
+  // The panel follows the case: its session for the fitted organ may have started before step 7 opened, and frames
+  // of the sessions before it (the unfitted organ) may still be the last shown. Its frames, from here on.
+  bool fitted(const std::shared_ptr<const ui::SimulationFrame>& f) const {
+    const auto& c = *kept;
+    return f && f->organ && f->organ->hasFit() && f->organ->shapeDigest() == c.shapeDigest() &&
+           f->organ->pose.t == c.pose.t && f->positions.size() == c.organ->volume.points.size();
   }
 
-  void patientLiverOverTheRealFrame() {
-    REQUIRE_SHARED("scikit-surgery/laparoscopy-liver-frame.jpg");
-    REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
+  void importTheLiver() {
     // Import, frame and intrinsics through the pages, as an assistant does.
     {
       const QString why = openFrameWithIntrinsics(*w_, sharedData("scikit-surgery/laparoscopy-liver-frame.jpg"),
@@ -79,9 +96,12 @@ class TestPatientRehearsal : public QObject {
       QVERIFY2(w_->statusText().contains("drawn through its own surface (20000 triangles)"),
                qPrintable(w_->statusText()));
     }
+  }
+
+  void pickAttachments() {
     // Aligned where the import placed it (in view): the pose accepted as the rigid alignment.
     w_->editCase("Accept the import's placement (test)", [](app::Case& c) { c.hasPose = c.poseAligned = true; });
-    auto* view = w_->frameView();
+    view = w_->frameView();
     view->setFocus();
     // Attachments picked with the mouse (H, then a click on the organ over the frame): three patches of 20 mm along
     // the organ's upper rim in the image (against gravity: the smallest image y), where ligaments hold a liver.
@@ -110,6 +130,9 @@ class TestPatientRehearsal : public QObject {
                  qPrintable(QStringLiteral("the click at (%1, %2) px attached nothing").arg(x).arg(top + 25)));
       }
     }
+  }
+
+  void sketchTheContour() {
     // The assistant's contour, sketched freehand (F) on the frame: the outline of the organ sagged sideways (2 g in
     // the image's x, half of gravity, on these attachments), a deformation the elastic fit has to find.
     {
@@ -140,6 +163,9 @@ class TestPatientRehearsal : public QObject {
       QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(1));
       QVERIFY(w_->caseData()->contour.segments.front().points.size() >= 20);
     }
+  }
+
+  void fitTheLiver() {
     // The elastic fit (Alt+5, F9) onto it.
     const auto aligned = w_->caseData();
     QTest::keyClick(w_.get(), Qt::Key_5, Qt::AltModifier);
@@ -148,7 +174,7 @@ class TestPatientRehearsal : public QObject {
     QVERIFY(waitFor([&] { return w_->caseData()->hasFit(); }, 300000));
     qInfo("fit: %s", qPrintable(w_->findChild<QLabel*>("fitStatus")->text()));
     shot(*w_, "patient-fit");
-    const auto kept = w_->caseData();  // the case from here on (edits replace it)
+    kept = w_->caseData();  // the case from here on (edits replace it)
     const auto& c = *kept;
     double fitMoved = 0;  // how far the fit moved the nodes, in the camera's frame
     for (std::size_t i = 0; i < c.fit->nodes.size(); ++i)
@@ -161,7 +187,9 @@ class TestPatientRehearsal : public QObject {
     QVERIFY(c.organ->volume.tets.size() > 2500);
     QVERIFY(c.attachments.size() >= 6);
     QVERIFY(fitMoved > 1e-3);  // the fit deformed the organ (the start below is that shape, not the imported one)
+  }
 
+  void estimateTheAppearance() {
     // Step 6 on the real frame (Alt+6, F10): the composited view is made with the liver's own surface.
     QTest::keyClick(w_.get(), Qt::Key_6, Qt::AltModifier);
     QCOMPARE(w_->step(), ui::Step::Appearance);
@@ -174,7 +202,9 @@ class TestPatientRehearsal : public QObject {
     QVERIFY(waitFor([&] { return w_->composition()->ready(); }, 60000));
     QCOMPARE(app::appearanceInputFromCase(*w_->caseData()).triangles.size(), std::size_t(20000));
     qInfo("step 6 on the real frame: %s", w_->caseData()->appearance->status.c_str());
+  }
 
+  void startTheRehearsal() {
     // The grasp, pull and cut below were designed with the liver hung on its three rim patches alone, gravity down the
     // image (this frame's laparoscope looks across the liver): set so on the panel, as an assistant would. The
     // defaults (into the scene, carried by the tissue around it) are taken again for the last part, with no held node.
@@ -182,39 +212,32 @@ class TestPatientRehearsal : public QObject {
     w_->simulationPanel()->findChild<QDoubleSpinBox*>("simSupport")->setValue(0);
     QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
     QCOMPARE(w_->step(), ui::Step::Rehearse);
-    auto* panel = w_->simulationPanel();
-    auto* status = panel->findChild<QLabel*>("simStatus");
-    // The panel follows the case: its session for the fitted organ may have started before step 7 opened, and frames
-    // of the sessions before it (the unfitted organ) may still be the last shown. Its frames, from here on.
-    auto fitted = [&](const std::shared_ptr<const ui::SimulationFrame>& f) {
-      return f && f->organ && f->organ->hasFit() && f->organ->shapeDigest() == c.shapeDigest() &&
-             f->organ->pose.t == c.pose.t && f->positions.size() == c.organ->volume.points.size();
-    };
+    panel = w_->simulationPanel();
+    status = panel->findChild<QLabel*>("simStatus");
     // (The gravity chosen above is a new start: its session's frames.)
     QVERIFY2(waitFor(
                  [&] {
                    return panel->session() && panel->session()->setup().settings.gravity.y() > 9 &&
-                          panel->session()->setup().supports.empty() &&
-                          !panel->startSentence().isEmpty() && fitted(panel->lastFrame()) &&
-                          panel->lastFrame()->gravity.y() > 9;
+                          panel->session()->setup().supports.empty() && !panel->startSentence().isEmpty() &&
+                          fitted(panel->lastFrame()) && panel->lastFrame()->gravity.y() > 9;
                  },
                  180000),
              qPrintable(status->text()));
     QVERIFY2(panel->startSentence().contains("starts where the frame shows it"), qPrintable(panel->startSentence()));
     qInfo("%s", qPrintable(panel->startSentence()));
     QVERIFY(panel->isPlaying());
+  }
 
-    int shown = 0, notConverged = 0;
-    double worstResidual = 0;
+  void stayWithoutAnInstrument() {
+    const auto& c = *kept;
     QString method;
-    const auto watching = connect(panel, &ui::SimulationPanel::frameShown, this, [&] {
+    watching = QObject::connect(panel, &ui::SimulationPanel::frameShown, test_, [this] {
       const auto f = panel->lastFrame();
       if (!fitted(f) || f->steps == 0) return;
       ++shown;
       notConverged += f->report.outcome != simcore::StepStatus::Converged;
       worstResidual = std::max(worstResidual, f->report.residual);
     });
-    const auto unwatch = qScopeGuard([&] { disconnect(watching); });
     // 5 s without an instrument: the organ stays where the frame shows it.
     const long from = panel->lastFrame()->steps;
     double px = 0;
@@ -235,14 +258,17 @@ class TestPatientRehearsal : public QObject {
     QVERIFY(shown > 20);
     QCOMPARE(notConverged, 0);
     QVERIFY(worstResidual <= 1e-6 * (1 + 1e-9));  // converged: residual <= tolerance x scale, within round-off
+  }
 
+  void graspAndPull() {
+    const auto& c = *kept;
     // The grasper, pulled upwards with the mouse by 12 px of the view (48 px of the frame: 13 mm at the organ).
     QTest::keyClick(w_.get(), Qt::Key_R);
     QCOMPARE(view->tool(), ui::Tool::Grasp);
     // On a surface node facing the camera near the organ's centre in the image (the grasp holds the nodes within 6 mm
     // of the tip, and this mesh's surface nodes are about 1 cm apart: between them the jaws close on nothing).
     const Eigen::Vector2d middle = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
-    Eigen::Vector2d centre = middle;
+    centre = middle;
     {
       const auto shape = c.shapeNodes();
       std::set<int> surface;
@@ -258,7 +284,8 @@ class TestPatientRehearsal : public QObject {
         if (score < best) best = score, centre = q;
       }
     }
-    const QPointF a = view->toWidget(QPointF(centre.x(), centre.y())), b = a + QPointF(0, -12);
+    a = view->toWidget(QPointF(centre.x(), centre.y()));
+    b = a + QPointF(0, -12);
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     const bool bit = waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 30000);
     QVERIFY2(bit, qPrintable(QStringLiteral("pressed at (%1, %2) px of the frame").arg(centre.x()).arg(centre.y())));
@@ -317,7 +344,10 @@ class TestPatientRehearsal : public QObject {
     }
     shot(*w_, "patient-pulled-composited");
     panel->play();
+  }
 
+  void cutWhileHolding() {
+    const auto& c = *kept;
     // Grasp, pull, cut (issue 35): the scissors taken while the button still holds the jaws closed; the button comes up
     // on the scissors, so the jaws keep the traction. A stroke across the stretched tissue below the jaws opens an
     // incision whose cut faces the composited view shows (the cut mesh's boundary, faces in the parenchyma's colour).
@@ -373,7 +403,10 @@ class TestPatientRehearsal : public QObject {
     QTest::keyClick(view, Qt::Key_Space);  // the jaws let go
     panel->play();
     QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.jawClosed; }));
+  }
 
+  void nothingHeld() {
+    const auto& c = *kept;
     // Issue 61: no held node at all (Release All on the mesh step, then back to step 7): the tissue around the organ
     // carries it (the default support, gravity into the scene), so it starts where the frame shows it and stays.
     panel->findChild<QComboBox*>("simGravity")->setCurrentIndex(1);
@@ -407,16 +440,56 @@ class TestPatientRehearsal : public QObject {
             const auto f = panel->lastFrame();
             unconverged += f->report.outcome != simcore::StepStatus::Converged;
             for (std::size_t i = 0; i < f->positions.size() && i < shape.size(); ++i)
-              far = std::max(far, (c.camera.project(f->positions[i]) - c.camera.project(c.pose.apply(shape[i]))).norm());
+              far =
+                  std::max(far, (c.camera.project(f->positions[i]) - c.camera.project(c.pose.apply(shape[i]))).norm());
             return f->steps >= at + 300;
           },
           300000));
-      qInfo("no held node, %ld steps: the nodes at most %.3f px from the registered shape; %d shown steps not converged",
-            panel->lastFrame()->steps - at, far, unconverged);
+      qInfo(
+          "no held node, %ld steps: the nodes at most %.3f px from the registered shape; %d shown steps not converged",
+          panel->lastFrame()->steps - at, far, unconverged);
       QVERIFY(far <= 1.0);
       QCOMPARE(unconverged, 0);
     }
     shot(*w_, "patient-unheld");
+  }
+};
+}  // namespace
+
+class TestPatientRehearsal : public QObject {
+  Q_OBJECT
+  std::unique_ptr<MainWindow> w_;
+
+ private slots:
+  void initTestCase() {
+    QCoreApplication::setOrganizationName("RehearsePatientRehearsalTest");
+    MainWindow::setRenderer(MainWindow::Renderer::Software);
+    QVERIFY(openPhantomCase(w_));
+  }
+
+  void patientLiverOverTheRealFrame() {
+    REQUIRE_SHARED("scikit-surgery/laparoscopy-liver-frame.jpg");
+    REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
+    PatientRehearsal s(w_, this);
+    s.importTheLiver();
+    if (QTest::currentTestFailed()) return;
+    s.pickAttachments();
+    if (QTest::currentTestFailed()) return;
+    s.sketchTheContour();
+    if (QTest::currentTestFailed()) return;
+    s.fitTheLiver();
+    if (QTest::currentTestFailed()) return;
+    s.estimateTheAppearance();
+    if (QTest::currentTestFailed()) return;
+    s.startTheRehearsal();
+    if (QTest::currentTestFailed()) return;
+    s.stayWithoutAnInstrument();
+    if (QTest::currentTestFailed()) return;
+    s.graspAndPull();
+    if (QTest::currentTestFailed()) return;
+    s.cutWhileHolding();
+    if (QTest::currentTestFailed()) return;
+    s.nothingHeld();
   }
 
   void cleanupTestCase() {

@@ -97,6 +97,45 @@ class TestPatientStart : public QObject {
     QVERIFY2(estimated.first().at(0).toBool(), qPrintable(estimated.first().at(1).toString()));
   }
 
+  // The grasper's node on a visible surface near the organ's middle in the image, free of the held nodes (-1 if
+  // none): the node a surgeon grasps.
+  static int nodeToGrasp(const app::Case& c, const std::vector<Eigen::Vector3d>& shape) {
+    const Eigen::Vector2d middle = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    int bite = -1;
+    double best = 1e300;
+    // Free tissue, as a surgeon grasps it: at least 15 mm from every held node (beside one, the jaws would pull
+    // against the ligament itself), nearest the middle among the visible ones.
+    auto free = [&](int n) {
+      for (int h : c.attachments)
+        if ((shape[static_cast<std::size_t>(h)] - shape[static_cast<std::size_t>(n)]).norm() < 0.015) return false;
+      return true;
+    };
+    for (int n : surfaceNodes(c)) {
+      if (!free(n)) continue;
+      const Eigen::Vector3d& p = shape[static_cast<std::size_t>(n)];
+      const Eigen::Vector2d q = c.camera.project(p);
+      if ((q - middle).norm() > 150) continue;
+      const double score = p.z() + 1e-4 * (q - middle).norm();  // nearest the camera: on the visible side
+      if (score < best) best = score, bite = n;
+    }
+    return bite;
+  }
+
+  // Pulled away from what holds it, in the image plane (up the image when nothing is held).
+  static Eigen::Vector3d awayFromTheHolds(const app::Case& c, const std::vector<Eigen::Vector3d>& shape,
+                                          const Eigen::Vector3d& p) {
+    Eigen::Vector3d away(0, -1, 0);
+    if (!c.attachments.empty()) {
+      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+      for (int h : c.attachments) mean += shape[static_cast<std::size_t>(h)];
+      mean /= static_cast<double>(c.attachments.size());
+      away = p - mean;
+      away.z() = 0;
+      away = away.norm() > 1e-6 ? Eigen::Vector3d(away.normalized()) : Eigen::Vector3d(0, -1, 0);
+    }
+    return away;
+  }
+
   // Step 7 with the panel's defaults; 10 s untouched; a grasp pulled 20 mm. Returns nothing: it checks.
   void rehearse(const char* picks) {
     QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
@@ -153,38 +192,13 @@ class TestPatientStart : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_R);
     QCOMPARE(view->tool(), ui::Tool::Grasp);
     const auto shape = registered(c);
-    const Eigen::Vector2d middle = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
-    int bite = -1;
-    double best = 1e300;
-    // Free tissue, as a surgeon grasps it: at least 15 mm from every held node (beside one, the jaws would pull
-    // against the ligament itself), nearest the middle among the visible ones.
-    auto free = [&](int n) {
-      for (int h : c.attachments)
-        if ((shape[static_cast<std::size_t>(h)] - shape[static_cast<std::size_t>(n)]).norm() < 0.015) return false;
-      return true;
-    };
-    for (int n : surfaceNodes(c)) {
-      if (!free(n)) continue;
-      const Eigen::Vector3d& p = shape[static_cast<std::size_t>(n)];
-      const Eigen::Vector2d q = c.camera.project(p);
-      if ((q - middle).norm() > 150) continue;
-      const double score = p.z() + 1e-4 * (q - middle).norm();  // nearest the camera: on the visible side
-      if (score < best) best = score, bite = n;
-    }
+    const int bite = nodeToGrasp(c, shape);
     QVERIFY(bite >= 0);
     const Eigen::Vector3d p = f->positions[static_cast<std::size_t>(bite)];
     // Pulled away from what holds it, in the image plane (up the image when nothing is held): a surgeon retracts the
     // tissue against its ligaments, not into them (pulled 20 mm towards the top edge's picks 15 mm away, the tissue
     // between is crushed: steps held back to keep elements from inverting, 83 inexact, up to 1.3 s).
-    Eigen::Vector3d away(0, -1, 0);
-    if (!c.attachments.empty()) {
-      Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-      for (int h : c.attachments) mean += shape[static_cast<std::size_t>(h)];
-      mean /= static_cast<double>(c.attachments.size());
-      away = p - mean;
-      away.z() = 0;
-      away = away.norm() > 1e-6 ? Eigen::Vector3d(away.normalized()) : Eigen::Vector3d(0, -1, 0);
-    }
+    const Eigen::Vector3d away = awayFromTheHolds(c, shape, p);
     const Eigen::Vector2d from = c.camera.project(p), to = c.camera.project(p + 0.02 * away);
     const QPointF a = view->toWidget(QPointF(from.x(), from.y())), b = view->toWidget(QPointF(to.x(), to.y()));
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());

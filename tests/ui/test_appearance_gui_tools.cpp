@@ -1,0 +1,466 @@
+// The appearance suite's slots with the instruments and after (test_appearance_gui.hpp declares them, in their
+// order): clips, a cut and the cautery; a tear; the view modes; a stale estimate; Esc; a refused pose; the estimate
+// saved and composited again after reopening.
+#include "test_appearance_gui.hpp"
+
+#include "test_support.hpp"
+#include "window_support.hpp"
+
+#include "rehearse/ui/casefile.hpp"
+#include "rehearse/ui/composition.hpp"
+#include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/gui.hpp"
+#include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/simulationpanel.hpp"
+
+#include <rehearse/imaging/appearance_fit.hpp>
+#include <rehearse/imaging/render.hpp>
+
+#include <QApplication>
+#include <QLabel>
+#include <QWheelEvent>
+#include <QSignalSpy>
+#include <QStackedWidget>
+#include <QStandardPaths>
+#include <QDoubleSpinBox>
+#include <QTableWidget>
+#include <QTemporaryDir>
+#include <QThread>
+#include <QStatusBar>
+#include <QUndoStack>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <functional>
+
+using namespace rehearse;
+using ui::MainWindow;
+
+namespace {
+// clipCutAndCauterize on the built-in case, one method per phase of the scenario (what a phase finds, the later ones
+// use). A failed QVERIFY returns from its phase: the test checks QTest::currentTestFailed() after each.
+struct ClipCutCauterize {
+  ClipCutCauterize(std::unique_ptr<MainWindow>& w, ui::SimulationPanel* panel, ui::FrameView* frameView,
+                   const app::Case& theCase, std::function<bool(int)> steps)
+      : w_(w), panel_(panel), stepsOn(std::move(steps)), view(frameView), c(theCase), truth(*theCase.groundTruth) {}
+
+  std::unique_ptr<MainWindow>& w_;
+  ui::SimulationPanel* panel_;
+  std::function<bool(int)> stepsOn;  // the test's: true once the simulation has taken `n` more steps
+  ui::FrameView* view;
+  const app::Case& c;
+  const app::GroundTruth& truth;
+  std::vector<std::pair<double, std::size_t>> branches;  // (depth under the surface, branch), shallowest first
+  std::size_t first = 0, second = 0;                     // the branch clipped and cut, the one cut beyond its clip
+  SessionHeard listening{panel_, 100000};  // what the session said and which events it raised during a stroke
+  QStringList& heard = listening.lines;
+
+  // Where the model point a fraction `t` along branch `k`'s centre line shows, in the view's widget pixels.
+  QPoint pixelOn(std::size_t k, double t) const {
+    const auto& [a, b] = truth.vesselAxes[k];
+    const Eigen::Vector2d q = c.camera.project(c.pose.apply(a + t * (b - a)));
+    return view->toWidget(QPointF(q.x(), q.y())).toPoint();
+  }
+
+  // A stroke across branch `k` at `t`, `half` pixels each side of it.
+  std::pair<QPoint, QPoint> across(std::size_t k, double t, double half) const {
+    const QPointF a = pixelOn(k, t - 0.05), b = pixelOn(k, t + 0.05);
+    QPointF n(-(b - a).y(), (b - a).x());
+    n /= std::max(1e-9, std::hypot(n.x(), n.y()));
+    const QPointF m = pixelOn(k, t);
+    return std::make_pair((m - half * n).toPoint(), (m + half * n).toPoint());
+  }
+
+  // The scissors (B) across branch `k` at `t`, the blade `notches` wheel notches deeper, stepping as it goes.
+  void cutAcross(std::size_t k, double t, int notches = 7) {
+    heard.clear();
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
+    const auto [a0, b0] = across(k, t, 18);  // across this branch only (another runs 8 mm beside it)
+    const QPoint m = pixelOn(k, t);
+    // Near the organ's edge the stroke's end can fall beside the organ as the simulation has deformed it ("Press on
+    // the organ to start the cut."): as a surgeon does, the press goes where the organ is, the first point from
+    // each end towards the vessel over the live shape the view draws (the stroke still crosses the vessel).
+    auto onOrgan = [&](const QPoint& w) {
+      const QPointF f = view->toFrame(QPointF(w));
+      return view->liveSurfaceAt(Eigen::Vector2d(f.x(), f.y())).has_value();
+    };
+    auto firstOnOrgan = [&](const QPoint& from) {
+      for (int i = 0; i <= 8; ++i) {
+        const QPoint q = from + (m - from) * (i / 10.0);
+        if (onOrgan(q)) return q;
+      }
+      return from;
+    };
+    QPoint a, b;
+    bool started = false;
+    for (const auto& [from, to] : {std::make_pair(firstOnOrgan(a0), b0), std::make_pair(firstOnOrgan(b0), a0)}) {
+      a = from, b = to;
+      QTest::mousePress(view, Qt::LeftButton, {}, a);
+      if ((started = waitFor([&] { return panel_->lastFrame()->tool.cutting; }, 10000))) break;
+      qInfo("the press at (%d, %d) did not start a cut: %s", a.x(), a.y(),
+            qPrintable(w_->statusBar()->currentMessage()));
+      QTest::mouseRelease(view, Qt::LeftButton, {}, a);
+    }
+    QVERIFY(started);
+    // The blade 14 mm deeper (it spans 4-34 mm under the pressed surface): the branch lies 18-25 mm deep, in elements
+    // that reach 35 mm, and only the faces wholly inside the sweep open (with 3 notches the cut missed the vessel).
+    wheelDeeper(view, a, notches);
+    for (int i = 1; i <= 8; ++i) {
+      QTest::mouseMove(view, a + (b - a) * (i / 8.0));
+      QVERIFY(stepsOn(3));
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b);
+    QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.cutting; }));
+    QVERIFY(stepsOn(10));
+    for (const auto& line : heard) qInfo("  %s", qPrintable(line));
+  }
+
+  // The branches deep enough for the clip applier, shallowest first.
+  void findTheBranches() {
+    // How deep each branch lies under the surface the camera sees (its centre line's front, at its middle).
+    const auto f0 = panel_->lastFrame();
+    std::vector<double> xyz;
+    for (const auto& p : f0->positions) xyz.insert(xyz.end(), {p.x(), p.y(), p.z()});
+    const rehearse::SurfaceView sv{xyz.data(), f0->positions.size(), c.organ->surface.front().data(),
+                                   c.organ->surface.size()};
+    const auto g = imaging::surfaceGeometry(c.camera, rehearse::Pose{}, sv);
+    auto depthBelow = [&](const Eigen::Vector3d& model, double radius) {
+      const Eigen::Vector3d p = c.pose.apply(model);
+      const Eigen::Vector2d q = c.camera.project(p);
+      const int x = static_cast<int>(std::lround(q.x())), y = static_cast<int>(std::lround(q.y()));
+      if (x < 0 || y < 0 || x >= g.triangle.cols || y >= g.triangle.rows || g.triangle(y, x) < 0) return 1e9;
+      return p.z() - radius - g.position(y, x)[2];
+    };
+    branches.clear();
+    for (std::size_t k = 1; k < truth.vesselAxes.size(); ++k) {
+      const auto& [a, b] = truth.vesselAxes[k];
+      if ((b - a).norm() < 0.02) continue;
+      double worst = 0;
+      for (double t : {0.3, 0.5, 0.7}) worst = std::max(worst, depthBelow(a + t * (b - a), truth.vesselRadii[k]));
+      branches.emplace_back(worst, k);
+    }
+    std::sort(branches.begin(), branches.end());
+    for (const auto& [d, k] : branches) qInfo("branch %zu: %.1f mm under the surface", k, 1e3 * d);
+    QVERIFY(!branches.empty() && branches[0].first < 0.02);  // the clip applier looks 25 mm deep
+  }
+
+  // Two clips (U) across the shallowest branch, each spanning it.
+  void clipTheBranch() {
+    // The shallowest branch: two clips on it, a cut between them, a burnt line, and a cut beyond the second clip (the
+    // stump of the piece without a clip bleeds).
+    first = second = branches[0].second;
+    // The built-in case's mesh makes its 6.4 mm vessels up to 17 mm wide: clips of 18 mm (the Simulation panel).
+    auto* clipLength = panel_->findChild<QDoubleSpinBox*>("simClipLength");
+    QVERIFY(clipLength);
+    clipLength->setFocus();
+    typeInto(clipLength, QStringLiteral("18"));
+    QCOMPARE(clipLength->value(), 18.0);
+    QVERIFY(stepsOn(2));
+    QVERIFY(waitFor([&] { return true; }, 100));
+    QTest::keyClick(w_.get(), Qt::Key_U);
+    QCOMPARE(view->tool(), ui::Tool::Clip);
+    QString said;
+    for (double t : {0.35, 0.8}) {
+      const std::size_t before = panel_->lastFrame()->field.clips.size();
+      QTest::mouseClick(view, Qt::LeftButton, {}, pixelOn(first, t));
+      QVERIFY(waitFor([&] { return panel_->lastFrame()->field.clips.size() == before + 1; }));
+      auto* status = w_->rehearsePage()->findChild<QLabel*>("rehearseStatus");
+      waitFor([&] { return status->text().contains("clip") && status->text() != said; }, 3000);
+      said = status->text();
+      qInfo("clip at %.2f of the branch: %s", t, qPrintable(said));
+    }
+    for (const auto& clip : panel_->lastFrame()->field.clips) {
+      qInfo("clip on label %d: %zu nodes, %s", clip.label, clip.nodes.size() + 1,
+            clip.spans ? "spans" : "does not span");
+      QVERIFY(clip.spans);
+    }
+  }
+
+  void cutBetweenTheClips() {
+    // The scissors across the branch between them.
+    cutAcross(first, 0.57);
+    QVERIFY(waitFor([&] { return !panel_->lastFrame()->field.bleeds.empty(); }, 60000));
+    QVERIFY(stepsOn(5));  // (steps with clips are slow: 20 took over a minute under a parallel build)
+    {
+      const auto f = panel_->lastFrame();
+      int stopped = 0;
+      for (const auto& b : f->field.bleeds) stopped += b.stoppedBy >= 0;
+      qInfo("cut between the clips: %zu stumps, %d stopped by a clip; %.3f mL lost", f->field.bleeds.size(), stopped,
+            1e6 * f->field.bloodLoss);
+      for (const auto& b : f->field.bleeds) {
+        QString behind;
+        for (const auto& clip : f->field.clips)
+          behind += QString(" %1").arg(
+              1e3 * (f->surface->rest[static_cast<std::size_t>(clip.anchor)] - b.at).dot(b.normal), 0, 'f', 1);
+        qInfo("  stump: %.1f mm^2, %.2f mL/s, stopped by %d; clips along its normal (mm):%s", 1e6 * b.area,
+              1e6 * b.rate, b.stoppedBy, qPrintable(behind));
+      }
+      QCOMPARE(stopped, static_cast<int>(f->field.bleeds.size()));
+      QCOMPARE(f->field.bloodLoss, 0.0);
+    }
+  }
+
+  void burnALine() {
+    // The cautery hook: a line burnt along the organ below the clipped branch.
+    QTest::keyClick(w_.get(), Qt::Key_J);
+    QCOMPARE(view->tool(), ui::Tool::Cautery);
+    {
+      const QPoint from = pixelOn(first, 0.68), to = across(first, 0.68, 30).second;  // from over the vessel sideways
+      QTest::mousePress(view, Qt::LeftButton, {}, from);
+      QVERIFY(waitFor([&] { return panel_->lastFrame()->field.energy; }));
+      for (int i = 1; i <= 10; ++i) {
+        QTest::mouseMove(view, from + (to - from) * (i / 10.0));
+        QVERIFY(stepsOn(4));
+      }
+      QTest::mouseRelease(view, Qt::LeftButton, {}, to);
+      QVERIFY(waitFor([&] { return !panel_->lastFrame()->field.energy; }));
+      QVERIFY(stepsOn(10));
+      const auto f = panel_->lastFrame();
+      const long burnt = f->labels ? std::count_if(f->labels->begin(), f->labels->end(), simcore::isBurnt) : 0;
+      qInfo("cautery: %ld elements burnt, energy on tissue %.2f s", burnt, f->field.energyTime);
+      QVERIFY(burnt > 0);
+    }
+  }
+
+  void cutBeyondTheClips() {
+    // The branch cut beyond the second clip: new stumps; the piece without a clip bleeds, more and more.
+    const std::size_t cutFacesBefore = panel_->lastFrame()->surface->cutCount;
+    cutAcross(second, 0.92);
+    // A stroke that opened nothing says so ("Nothing was cut: the blade crossed no tissue ... take it deeper"; CI,
+    // under load, once: the organ had deformed under the clips and the hook); as a surgeon does, the stroke again,
+    // deeper.
+    auto saidNothingCut = [&] { return waitFor([&] { return heard.join(" ").contains("Nothing was cut"); }, 5000); };
+    if (panel_->lastFrame()->surface->cutCount == cutFacesBefore && saidNothingCut()) {
+      qInfo("the second stroke cut nothing (said); again, 4 notches deeper");
+      cutAcross(second, 0.92, 11);
+    }
+    QVERIFY2(waitFor([&] { return panel_->lastFrame()->surface->cutCount > cutFacesBefore; }, 60000),
+             qPrintable(heard.join(" | ")));
+    QVERIFY(stepsOn(5));
+    const std::size_t stumpsBefore = 2;
+    for (const auto& b : panel_->lastFrame()->field.bleeds)
+      qInfo("  stump after the second cut: %.1f mm^2, stopped by %d", 1e6 * b.area, b.stoppedBy);
+    // The cut opened new stumps. Whether one of them has a clip behind it depends on whether the blade went through the
+    // vessel or only into it (the mouse's stroke over a coarse mesh): an open one bleeds more and more, a stopped one
+    // loses nothing (test_field and test_recording check the rule itself against the analytic loss).
+    // (On the coarse mesh the mouse's stroke may also pass beside the vessel: then nothing new bleeds, said here.)
+    if (panel_->lastFrame()->field.bleeds.size() <= stumpsBefore) qInfo("the second stroke did not reach the vessel");
+    const auto cut2 = panel_->lastFrame();
+    double rate = 0;
+    for (const auto& b : cut2->field.bleeds)
+      if (b.stoppedBy < 0) rate += b.rate;
+    const double lost0 = cut2->field.bloodLoss;
+    QVERIFY(stepsOn(15));
+    const auto bled = panel_->lastFrame();
+    qInfo("cut beyond the clips: bleeding %.2f mL/s, %.3f mL lost, then %.3f mL", 1e6 * rate, 1e6 * lost0,
+          1e6 * bled->field.bloodLoss);
+    if (rate > 0) {
+      QVERIFY(bled->field.bloodLoss > lost0);
+      QVERIFY(waitFor(
+          [&] { return w_->rehearsePage()->findChild<QLabel*>("rehearseForce")->text().contains("blood lost"); }));
+    } else {
+      QCOMPARE(bled->field.bloodLoss, lost0);
+    }
+  }
+
+  // Paused, the screenshots; Esc and a reset.
+  void pauseAndShoot() {
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    QVERIFY(waitFor([&] { return !panel_->isPlaying(); }, 10000));
+    QTest::qWait(300);
+    w_->composition()->waitForIdle();
+    QTest::qWait(100);
+    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty()) {
+      w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-clip-cut-cautery.png");
+      // The view around both branches (widget pixels, 2x).
+      QRect box;
+      for (std::size_t k : {first, second})
+        for (double t : {0.0, 1.0}) box |= QRect(pixelOn(k, t), QSize(1, 1));
+      box.adjust(-120, -90, 120, 90);
+      view->grab(box & view->rect())
+          .scaled(2 * (box & view->rect()).size(), Qt::KeepAspectRatio, Qt::SmoothTransformation)
+          .save(QString::fromLocal8Bit(dir) + "/step7-clip-cut-cautery-detail.png");
+    }
+    QTest::keyClick(w_.get(), Qt::Key_Escape);
+    panel_->reset();
+  }
+};
+}  // namespace
+
+// Issue 36: the other instruments with the mouse on the built-in case, composited. The clip applier (U) closes two
+// clips across the shallowest vessel branch under the surface, the scissors (B) cut between them (the vessel's
+// stumps are found and neither bleeds), the cautery hook (J) burns a line along the organ (its elements relabelled
+// burnt, drawn whitened), and the scissors cut another branch without clips: it bleeds, the loss grows, and the blood
+// is drawn over the composited view.
+void TestAppearanceGui::clipCutAndCauterize() {
+  QVERIFY(rehearseFromRest());
+  auto* view = w_->frameView();
+  const auto& c = *w_->caseData();
+  QVERIFY(c.groundTruth);
+  ClipCutCauterize s(w_, panel_, view, c, [this](int n) { return stepsOn(n); });
+  s.findTheBranches();
+  if (QTest::currentTestFailed()) return;
+  s.clipTheBranch();
+  if (QTest::currentTestFailed()) return;
+  s.cutBetweenTheClips();
+  if (QTest::currentTestFailed()) return;
+  s.burnALine();
+  if (QTest::currentTestFailed()) return;
+  s.cutBeyondTheClips();
+  if (QTest::currentTestFailed()) return;
+  s.pauseAndShoot();
+}
+
+// Tearing with the mouse: the Simulation panel's "Tears at" set to 15 % strain, the grasper bites the organ and drags
+// it far down the frame until the tissue tears (the mesh changes without a blade; the status says what tore and at
+// what strain, the page counts it), then lets go. Screenshot docs/step7-tear.png.
+void TestAppearanceGui::graspPullUntilItTears() {
+  QVERIFY(rehearseFromRest());
+  auto* view = w_->frameView();
+  const auto& c = *w_->caseData();
+  auto* tears = panel_->findChild<QDoubleSpinBox*>("simTearStrain");
+  QVERIFY(tears);
+  QCOMPARE(tears->value(), 0.0);  // by default nothing tears ("never")
+  tears->setFocus();
+  typeInto(tears, QStringLiteral("15"));
+  QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0.15; }));
+  QVERIFY(stepsOn(3));
+  double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+  for (const auto& p : c.shapeNodes()) {
+    const Eigen::Vector2d q = c.camera.project(c.pose.apply(p));
+    x0 = std::min(x0, q.x()), x1 = std::max(x1, q.x()), y0 = std::min(y0, q.y()), y1 = std::max(y1, q.y());
+  }
+  const auto widget = [&](double fx, double fy) {
+    return view->toWidget(QPointF(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))).toPoint();
+  };
+  QTest::keyClick(w_.get(), Qt::Key_R);
+  QCOMPARE(view->tool(), ui::Tool::Grasp);
+  const std::size_t nodes = panel_->lastFrame()->positions.size();
+  const QPoint from = widget(0.3, 0.6);
+  QTest::mousePress(view, Qt::LeftButton, {}, from);
+  QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.held.empty(); }));
+  auto* status = w_->rehearsePage()->findChild<QLabel*>("rehearseStatus");
+  QString tore;
+  // What tore, as the page says it: seen on every frame shown (under load a later frame's status replaced the
+  // tear's before a poll of the label saw it).
+  const auto watching = connect(panel_, &ui::SimulationPanel::frameShown, this, [&] {
+    if (tore.isEmpty() && status->text().contains("tore")) tore = status->text();
+  });
+  const auto unwatch = qScopeGuard([&] { disconnect(watching); });
+  QPoint last = from;
+  for (int i = 1; i <= 40 && tore.isEmpty(); ++i) {
+    last = widget(0.3 - 0.3 * i / 40.0, 0.6 + 0.6 * i / 40.0);
+    QTest::mouseMove(view, last);
+    QVERIFY(stepsOn(4));
+    if (status->text().contains("tore")) tore = status->text();
+    if (panel_->lastFrame()->tool.held.empty()) break;  // slipped first
+  }
+  QVERIFY(waitFor([&] { return panel_->lastFrame()->positions.size() > nodes; },
+                  30000));  // torn: the tear's faces get their own nodes
+  QVERIFY(waitFor([&] { return status->text().contains("tore") || !tore.isEmpty(); }, 10000));
+  if (tore.isEmpty()) tore = status->text();
+  qInfo("%s", qPrintable(tore));
+  QVERIFY(tore.contains("where its material tears at 15 %"));
+  QVERIFY(
+      waitFor([&] { return w_->rehearsePage()->findChild<QLabel*>("rehearseForce")->text().contains("TORN"); }, 10000));
+  QVERIFY(stepsOn(10));
+  QTest::keyClick(w_.get(), Qt::Key_F5);
+  QVERIFY(waitFor([&] { return !panel_->isPlaying(); }, 10000));
+  QTest::qWait(300);
+  w_->composition()->waitForIdle();
+  QTest::qWait(100);
+  if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
+    w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-tear.png");
+  QTest::mouseRelease(view, Qt::LeftButton, {}, last);
+  // Back to "never" for the suites after this one.
+  tears->setFocus();
+  typeInto(tears, QStringLiteral("0"));
+  QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0; }));
+  QTest::keyClick(w_.get(), Qt::Key_Escape);
+}
+
+void TestAppearanceGui::viewModesWithTheKeyboard() {
+  auto* centre = w_->findChild<QStackedWidget*>("centre");
+  QVERIFY(centre);
+  QTest::keyClick(w_.get(), Qt::Key_F3);
+  QCOMPARE(w_->viewMode(), ui::ViewMode::Overlay);
+  QVERIFY(w_->frameView()->shownFrame() == w_->document()->frameImage());
+  QTest::keyClick(w_.get(), Qt::Key_F4);
+  QCOMPARE(w_->viewMode(), ui::ViewMode::ThreeD);
+  QCOMPARE(centre->currentIndex(), 1);
+  QTest::keyClick(w_.get(), Qt::Key_F2);
+  QCOMPARE(centre->currentIndex(), 0);
+  QVERIFY(waitFor(
+      [&] { return w_->showingComposited() && !(w_->frameView()->shownFrame() == w_->document()->frameImage()); },
+      10000));
+  // O hides the organ in the composited view too (issue 32: it did nothing there): the frame as captured, then back.
+  QTest::keyClick(w_.get(), Qt::Key_O);
+  QVERIFY(w_->frameView()->shownFrame() == w_->document()->frameImage());
+  QTest::keyClick(w_.get(), Qt::Key_O);
+  QVERIFY(waitFor([&] { return !(w_->frameView()->shownFrame() == w_->document()->frameImage()); }, 10000));
+}
+
+// Moving the organ after the estimate: said stale, not composited; Undo makes it current again.
+void TestAppearanceGui::movedOrganMakesItStale() {
+  w_->editCase("Move (test)", [](app::Case& c) { c.pose.t.x() += 0.005; });
+  QVERIFY(!w_->caseData()->appearanceCurrent());
+  QVERIFY(!w_->showingComposited());
+  QVERIFY2(w_->viewModeText().contains("another pose"), qPrintable(w_->viewModeText()));
+  QVERIFY(w_->findChild<QLabel*>("appearanceStatus")->text().startsWith("STALE"));
+  QVERIFY(!w_->stepDone(ui::Step::Appearance));
+  QVERIFY(w_->infoText().contains("STALE"));
+  w_->undoStack()->undo();
+  QVERIFY(w_->caseData()->appearanceCurrent());
+  QVERIFY(waitFor([&] { return w_->showingComposited(); }, 30000));
+}
+
+void TestAppearanceGui::escCancels() {
+  const auto before = w_->caseData()->appearance;
+  QSignalSpy done(w_->appearancePage(), &ui::AppearancePage::estimated);
+  QTest::keyClick(w_.get(), Qt::Key_F10);
+  QTest::keyClick(w_.get(), Qt::Key_Escape);
+  QVERIFY(done.wait(120000));
+  QVERIFY(!done.first().at(0).toBool());
+  QCOMPARE(done.first().at(1).toString(), QStringLiteral("Cancelled; the case is unchanged."));
+  QVERIFY(w_->caseData()->appearance == before);
+}
+
+void TestAppearanceGui::organBehindTheCameraIsRefused() {
+  const auto before = w_->caseData()->appearance;
+  w_->editCase("Behind (test)", [](app::Case& c) { c.pose.t.z() = -0.2; });
+  const QList<QVariant> answer = estimateWithF10();
+  QVERIFY(!answer.isEmpty());
+  QVERIFY(!answer.at(0).toBool());
+  qInfo("%s", qPrintable(answer.at(1).toString()));
+  QVERIFY(answer.at(1).toString().contains("behind the camera"));
+  QVERIFY(w_->caseData()->appearance == before);
+  w_->undoStack()->undo();
+  QVERIFY(w_->caseData()->appearanceCurrent());
+}
+
+void TestAppearanceGui::savedAndComposedAgainAfterReopening() {
+  QTemporaryDir dir;
+  const QString path = dir.filePath("appearance.rehearse");
+  QSignalSpy saved(w_.get(), &MainWindow::caseSaved);
+  w_->saveCaseAs(path);
+  QVERIFY(saved.wait(60000));
+  QVERIFY(saved.first().at(0).toBool());
+  QVERIFY(w_->caseData()->appearance);
+  const auto theta = w_->caseData()->appearance->theta;
+  QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
+  w_->openCase(path);
+  QVERIFY(loaded.wait(60000));
+  const auto& c = *w_->caseData();
+  QVERIFY(c.appearance);
+  QVERIFY(c.appearanceCurrent());
+  QCOMPARE(c.appearance->theta.lightPosition, theta.lightPosition);
+  QCOMPARE(c.appearance->theta.kd, theta.kd);
+  QVERIFY(waitFor([&] { return w_->showingComposited(); }, 30000));
+}
+
+void TestAppearanceGui::cleanupTestCase() {
+  w_->close();
+  w_.reset();
+}
