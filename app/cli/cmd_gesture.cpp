@@ -47,7 +47,10 @@
 
 namespace rehearse::app::cli {
 
-int cmdGesture(const std::vector<std::string>& args) {
+namespace {
+
+// The options checked before anything is read.
+Options checkGestureOptions(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, gestureCommand());
   if ((o.count("trainee") || o.count("notes")) && !o.count("record"))
     throw UsageError("--trainee and --notes go with --record CASE");
@@ -55,52 +58,65 @@ int cmdGesture(const std::vector<std::string>& args) {
   if (!o.count("out")) throw UsageError("gesture needs --out OUT.vtu|.vtk|.msh");
   const std::string ext = std::filesystem::path(o["out"]).extension().string();
   if (ext != ".vtu" && ext != ".vtk" && ext != ".msh") throw UsageError("--out must end in .vtu, .vtk or .msh");
+  return o;
+}
+
+GestureScript loadScript(Options& o) {
   std::string scriptText, unreadable;
   if (!readTextInput(o["script"], scriptText, unreadable)) throw UsageError("the gesture script " + unreadable);
-  GestureScript script;
   try {
-    script = parseGestureScript(scriptText);
+    return parseGestureScript(scriptText);
   } catch (const std::runtime_error& e) {
     throw UsageError(std::string(o["script"]) + ": " + e.what());
   }
-  simcore::BodySetup setup;
-  simcore::Mesh mesh;
-  double caseSupport = -1;  // Pa/m: the case's support (its material), when the organ comes from a case
-  if (o.count("case")) {
-    for (const char* k :
-         {"scene", "preset", "mesh", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes"})
-      if (o.count(k))
-        throw UsageError(std::string("--case takes the case's organ, attachments and material; --") + k +
-                         " cannot be combined with it");
-    std::vector<std::string> notes;
-    const Case c = loadCase(o["case"], &notes);
-    // What the case could not give is said, and a rehearsal without its organ or its ligaments is refused: the organ
-    // would hang from nothing (a damaged attachments.json was dropped without a word before).
-    for (const auto& n : notes) {
-      if (n.rfind("Attachments not loaded", 0) == 0 || n.rfind("Organ mesh not loaded", 0) == 0)
-        throw UsageError(o["case"] + ": " + n);
-      std::fprintf(stderr, "rehearse: note: %s\n", n.c_str());
-    }
-    if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
-    mesh = c.organ->volume;
-    setup.fixedNodes = c.attachments;
-    caseSupport = c.material.supportModulus;
-    const LabelMaterials lm = labelMaterials(c.material);
-    setup.material = lm.fallback;
-    setup.byLabel = lm.byLabel;
-    if (o.count("gravity")) setup.settings.gravity = parseVector(o["gravity"], "--gravity");
-  } else {
-    simcore::Scene p = modelFromOptions(o, "gesture");
-    if (!p.embedded.empty())
-      throw UsageError("the scene embeds surfaces (" + p.embedded.front().name +
-                       "), which the gesture session does not carry yet; remove them or use simulate");
-    mesh = p.mesh;
-    setup.fixedNodes = p.fixedNodes;
-    setup.material = p.defaultMaterial;
-    setup.byLabel = p.materials;
-    setup.settings = p.settings;
-    setup.model = simcore::bodyModelFromString(p.bodyModel);
+}
+
+// --case: the case's organ, attachments and material; `caseSupport` gets its support (Pa/m, its material's).
+simcore::BodySetup bodyFromCase(Options& o, simcore::Mesh& mesh, double& caseSupport) {
+  for (const char* k :
+       {"scene", "preset", "mesh", "material", "young", "poisson", "density", "vessel-young", "fixed-nodes"})
+    if (o.count(k))
+      throw UsageError(std::string("--case takes the case's organ, attachments and material; --") + k +
+                       " cannot be combined with it");
+  std::vector<std::string> notes;
+  const Case c = loadCase(o["case"], &notes);
+  // What the case could not give is said, and a rehearsal without its organ or its ligaments is refused: the organ
+  // would hang from nothing (a damaged attachments.json was dropped without a word before).
+  for (const auto& n : notes) {
+    if (n.rfind("Attachments not loaded", 0) == 0 || n.rfind("Organ mesh not loaded", 0) == 0)
+      throw UsageError(o["case"] + ": " + n);
+    std::fprintf(stderr, "rehearse: note: %s\n", n.c_str());
   }
+  if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
+  simcore::BodySetup setup;
+  mesh = c.organ->volume;
+  setup.fixedNodes = c.attachments;
+  caseSupport = c.material.supportModulus;
+  const LabelMaterials lm = labelMaterials(c.material);
+  setup.material = lm.fallback;
+  setup.byLabel = lm.byLabel;
+  if (o.count("gravity")) setup.settings.gravity = parseVector(o["gravity"], "--gravity");
+  return setup;
+}
+
+// --scene, --preset or --mesh with the material flags.
+simcore::BodySetup bodyFromModel(Options& o, simcore::Mesh& mesh) {
+  simcore::Scene p = modelFromOptions(o, "gesture");
+  if (!p.embedded.empty())
+    throw UsageError("the scene embeds surfaces (" + p.embedded.front().name +
+                     "), which the gesture session does not carry yet; remove them or use simulate");
+  simcore::BodySetup setup;
+  mesh = p.mesh;
+  setup.fixedNodes = p.fixedNodes;
+  setup.material = p.defaultMaterial;
+  setup.byLabel = p.materials;
+  setup.settings = p.settings;
+  setup.model = simcore::bodyModelFromString(p.bodyModel);
+  return setup;
+}
+
+// --model, --method and --refresh.
+void applySolverOptions(Options& o, simcore::BodySetup& setup) {
   if (o.count("model")) setup.model = simcore::bodyModelFromString(o["model"]);
   if (o.count("method")) setup.settings.method = simcore::newtonMethodFromString(o["method"]);
   if (o.count("refresh")) {
@@ -114,13 +130,26 @@ int cmdGesture(const std::vector<std::string>& args) {
           "--refresh async rebuilds the lagged factorisation of the chord, lagged-pcg, linearised and newton-krylov "
           "methods; the exact method has none (choose --method)");
   }
+}
+
+// The body the script runs on, in metres, its settings and materials in range; `caseSupport` the case's support
+// (Pa/m) when the organ comes from a case, else -1.
+simcore::BodySetup loadBody(Options& o, double& caseSupport) {
+  simcore::Mesh mesh;
+  caseSupport = -1;
+  simcore::BodySetup setup = o.count("case") ? bodyFromCase(o, mesh, caseSupport) : bodyFromModel(o, mesh);
+  applySolverOptions(o, setup);
   refuseOutOfRange(setup.settings, setup.material, setup.byLabel);
   mesh.convertToMetres();
   setup.mesh = mesh;
-  // The start, made as the GUI's Simulation panel makes it (app/sessionstart.hpp): at rest on the mesh as given (the
-  // default), or in equilibrium there (--start equilibrium: the mesh is where the organ hangs, as registered; its rest
-  // shape solved first); the tissue around it (--support; in equilibrium by default the case's, else 1e5 Pa/m) placed
-  // at that shape. A body nothing holds under gravity, or with no equilibrium at the shape, is not started.
+  return setup;
+}
+
+// How the session starts, made as the GUI's Simulation panel makes it (app/sessionstart.hpp): at rest on the mesh as
+// given (the default), or in equilibrium there (--start equilibrium: the mesh is where the organ hangs, as registered;
+// its rest shape solved first); the tissue around it (--support; in equilibrium by default the case's, else 1e5 Pa/m)
+// placed at that shape.
+StartOptions startOptions(Options& o, double caseSupport) {
   if (o.count("start") && o["start"] != "rest" && o["start"] != "equilibrium")
     throw UsageError("--start takes rest or equilibrium, not '" + o["start"] + "'");
   StartOptions startAs;
@@ -137,6 +166,20 @@ int cmdGesture(const std::vector<std::string>& args) {
     std::fprintf(stderr, "start: static solve %d, %.3g mm from the shape\n", k, 1e3 * error);
     return true;
   };
+  return startAs;
+}
+
+// How the body started: its word in the report and its equilibrium's distance from the shape (m; -1 at rest), or the
+// exit code when it could not.
+struct GestureStart {
+  int refused = 0;
+  std::string word;
+  double error = -1;
+};
+
+// `setup` made ready to start. A body nothing holds under gravity, or with no equilibrium at the shape, is not started
+// (exit 4).
+GestureStart startBody(simcore::BodySetup& setup, const StartOptions& startAs) {
   SessionStart prepared = prepareStart(std::move(setup), startAs);
   if (prepared.rest) std::printf("start: %s\n", prepared.rest->status.c_str());
   switch (prepared.outcome) {
@@ -144,12 +187,12 @@ int cmdGesture(const std::vector<std::string>& args) {
       std::fprintf(stderr,
                    "The organ cannot start: nothing holds it under gravity; hold nodes (--fixed-nodes), let the "
                    "tissue around it carry it (--support, the FEM only), or turn gravity off (--gravity 0,0,0).\n");
-      return 4;
+      return {4, {}, -1};
     case SessionStart::Outcome::NoEquilibrium:
       std::fprintf(stderr, "The organ cannot start in equilibrium on this shape: %s\n", prepared.rest->status.c_str());
-      return 4;
+      return {4, {}, -1};
     case SessionStart::Outcome::Cancelled:  // (nothing cancels it here)
-      return 4;
+      return {4, {}, -1};
     case SessionStart::Outcome::Ready:
       break;
   }
@@ -158,103 +201,119 @@ int cmdGesture(const std::vector<std::string>& args) {
                  "only\n", simcore::bodyModelName(prepared.body.model).c_str());
   setup = std::move(prepared.body);
   const bool inEquilibrium = prepared.start == SessionStart::Start::InEquilibrium;
-  const std::string startWord = inEquilibrium ? "equilibrium" : "rest";
-  const double startError = inEquilibrium ? prepared.rest->error : -1;  // m, the start's equilibrium from the shape
-  // --record: the session (setup, events, a state checksum every 10 steps) written into CASE as it runs.
-  std::unique_ptr<Recorder> recorder;
+  GestureStart started;
+  started.word = inEquilibrium ? "equilibrium" : "rest";
+  started.error = inEquilibrium ? prepared.rest->error : -1;
+  return started;
+}
+
+// --record: the session (setup, events, a state checksum every 10 steps) written into CASE as it runs, by `recorder`
+// (made when the session starts).
+GestureHooks recordingHooks(Options& o, const GestureScript& script, std::unique_ptr<Recorder>& recorder) {
   GestureHooks hooks;
-  if (o.count("record")) {
-    SessionMeta meta;
-    meta.trainee = o.count("trainee") ? o["trainee"] : "";
-    meta.notes = o.count("notes") ? o["notes"] : "";
-    meta.caseName = o.count("case")     ? o["case"]
-                    : o.count("preset") ? "preset " + o["preset"]
-                    : o.count("scene")  ? o["scene"]
-                    : o.count("mesh")   ? o["mesh"]
-                                        : "";
-    meta.sceneVersion = o["script"];
-    meta.appVersion = REHEARSE_VERSION;
-    meta.rules = script.incorrectActions;
-    hooks.start = [&recorder, meta, path = o["record"]](const simcore::BodySetup& s) {
-      try {
-        recorder = std::make_unique<Recorder>(path, meta, s);
-      } catch (const std::runtime_error& e) {
-        throw UsageError(e.what());
-      }
-    };
-    hooks.step = [&recorder](const simcore::StepRecord& r) { recorder->afterStep(r); };
-  }
-  const GestureResult r = runGesture(setup, script, hooks);
-  if (recorder) {
-    recorder->finish(static_cast<long>(r.steps.size()));
-    std::printf("recorded: session %lld in %s (%zu steps)\n", static_cast<long long>(recorder->id()),
-                o["record"].c_str(), r.steps.size());
-  }
-  const simcore::Mesh& out = r.finalMesh;
-  simcore::saveMesh(out, o["out"]);
+  if (!o.count("record")) return hooks;
+  SessionMeta meta;
+  meta.trainee = o.count("trainee") ? o["trainee"] : "";
+  meta.notes = o.count("notes") ? o["notes"] : "";
+  meta.caseName = o.count("case")     ? o["case"]
+                  : o.count("preset") ? "preset " + o["preset"]
+                  : o.count("scene")  ? o["scene"]
+                  : o.count("mesh")   ? o["mesh"]
+                                      : "";
+  meta.sceneVersion = o["script"];
+  meta.appVersion = REHEARSE_VERSION;
+  meta.rules = script.incorrectActions;
+  hooks.start = [&recorder, meta, path = o["record"]](const simcore::BodySetup& s) {
+    try {
+      recorder = std::make_unique<Recorder>(path, meta, s);
+    } catch (const std::runtime_error& e) {
+      throw UsageError(e.what());
+    }
+  };
+  hooks.step = [&recorder](const simcore::StepRecord& r) { recorder->afterStep(r); };
+  return hooks;
+}
+
+// Over the steps: the tool's peak force (N), the wall time (ms) and the most nodes grasped at once.
+struct StepTotals {
   double peak = 0, wall = 0;
   std::size_t grasped = 0;
+};
+
+StepTotals stepTotals(const GestureResult& r) {
+  StepTotals t;
   for (const auto& s : r.steps) {
-    peak = std::max(peak, s.toolForce.norm());
-    wall += s.wallMs;
-    grasped = std::max(grasped, s.grasped);
+    t.peak = std::max(t.peak, s.toolForce.norm());
+    t.wall += s.wallMs;
+    t.grasped = std::max(t.grasped, s.grasped);
   }
-  if (o.count("report")) {
-    nlohmann::json rows = nlohmann::json::array();
-    for (const auto& s : r.steps)
-      rows.push_back({{"step", s.step},
-                      {"time_s", s.time},
-                      {"wall_ms", s.wallMs},
-                      {"mass_kg", s.massKg},
-                      {"elements", s.elements},
-                      {"nodes", s.nodes},
-                      {"grasped_nodes", s.grasped},
-                      {"contacts", s.contacts},
-                      {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
-                      {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}},
-                      {"events", s.events},
-                      {"message", s.message},
-                      {"ok", s.report.ok},
-                      {"outcome", toString(s.report.outcome)},
-                      {"status", simcore::statusSentence(s.report)},
-                      {"residual", s.report.residual},
-                      {"inverted_elements", s.report.invertedElements},
-                      {"min_volume_ratio", s.report.minVolumeRatio},
-                      {"factorisations", s.report.factorisations},
-                      {"newton_iterations", s.report.newtonIterations},
-                      {"retries", s.report.retries},
-                      {"inversion_limited", s.report.inversionLimited},
-                      {"constraint_violation_m", s.report.constraintViolation},
-                      {"factor_requested", s.report.factorRequested},
-                      {"factor_swapped", s.report.factorSwapped}});
-    std::vector<const simcore::StepReport*> all;
-    for (const auto& s : r.steps) all.push_back(&s.report);
-    writeReport(o["report"],
-                {{"steps", rows},
-                 {"model", simcore::bodyModelName(setup.model)},
-                 {"method", simcore::toString(setup.settings.method)},
-                 {"refresh", setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous ? "async" : "sync"},
-                 {"start", startWord},
-                 {"start_error_m", startError >= 0 ? nlohmann::json(startError) : nlohmann::json(nullptr)},
-                 {"supported_nodes", setup.supports.size()},
-                 {"statuses", statusCounts(all)},
-                 {"slips", r.slips},
-                 {"cuts", r.cuts},
-                 {"vessel_cuts", setup.mesh.namesAVessel() ? nlohmann::json(r.vesselCuts) : nlohmann::json(nullptr)},
-                 {"clips", r.clips},
-                 {"misplaced_clips", r.misplacedClips},
-                 {"bleedings", r.bleedings},
-                 {"blood_loss_ml", 1e6 * r.bloodLoss},
-                 {"burns", r.burns},
-                 {"energy_on_structures", r.energyOnStructures},
-                 {"tears", r.tears},
-                 {"attachments_torn", r.attachmentsTorn},
-                 {"failed_steps", r.failed},
-                 {"peak_tool_force_n", peak},
-                 {"elements", out.tets.size()},
-                 {"nodes", out.points.size()},
-                 {"contact_queries", r.contactQueries}});
-  }
+  return t;
+}
+
+// --report: a row per step, then the session's totals.
+void writeGestureReport(const std::string& path, const GestureResult& r, const simcore::BodySetup& setup,
+                        const GestureStart& start, double peak) {
+  const simcore::Mesh& out = r.finalMesh;
+  nlohmann::json rows = nlohmann::json::array();
+  for (const auto& s : r.steps)
+    rows.push_back({{"step", s.step},
+                    {"time_s", s.time},
+                    {"wall_ms", s.wallMs},
+                    {"mass_kg", s.massKg},
+                    {"elements", s.elements},
+                    {"nodes", s.nodes},
+                    {"grasped_nodes", s.grasped},
+                    {"contacts", s.contacts},
+                    {"tool_force_n", {s.toolForce.x(), s.toolForce.y(), s.toolForce.z()}},
+                    {"tip_m", {s.tip.x(), s.tip.y(), s.tip.z()}},
+                    {"events", s.events},
+                    {"message", s.message},
+                    {"ok", s.report.ok},
+                    {"outcome", toString(s.report.outcome)},
+                    {"status", simcore::statusSentence(s.report)},
+                    {"residual", s.report.residual},
+                    {"inverted_elements", s.report.invertedElements},
+                    {"min_volume_ratio", s.report.minVolumeRatio},
+                    {"factorisations", s.report.factorisations},
+                    {"newton_iterations", s.report.newtonIterations},
+                    {"retries", s.report.retries},
+                    {"inversion_limited", s.report.inversionLimited},
+                    {"constraint_violation_m", s.report.constraintViolation},
+                    {"factor_requested", s.report.factorRequested},
+                    {"factor_swapped", s.report.factorSwapped}});
+  std::vector<const simcore::StepReport*> all;
+  for (const auto& s : r.steps) all.push_back(&s.report);
+  writeReport(path,
+              {{"steps", rows},
+               {"model", simcore::bodyModelName(setup.model)},
+               {"method", simcore::toString(setup.settings.method)},
+               {"refresh", setup.settings.factorRefresh == simcore::FactorRefresh::Asynchronous ? "async" : "sync"},
+               {"start", start.word},
+               {"start_error_m", start.error >= 0 ? nlohmann::json(start.error) : nlohmann::json(nullptr)},
+               {"supported_nodes", setup.supports.size()},
+               {"statuses", statusCounts(all)},
+               {"slips", r.slips},
+               {"cuts", r.cuts},
+               {"vessel_cuts", setup.mesh.namesAVessel() ? nlohmann::json(r.vesselCuts) : nlohmann::json(nullptr)},
+               {"clips", r.clips},
+               {"misplaced_clips", r.misplacedClips},
+               {"bleedings", r.bleedings},
+               {"blood_loss_ml", 1e6 * r.bloodLoss},
+               {"burns", r.burns},
+               {"energy_on_structures", r.energyOnStructures},
+               {"tears", r.tears},
+               {"attachments_torn", r.attachmentsTorn},
+               {"failed_steps", r.failed},
+               {"peak_tool_force_n", peak},
+               {"elements", out.tets.size()},
+               {"nodes", out.points.size()},
+               {"contact_queries", r.contactQueries}});
+}
+
+// The session's line on stdout.
+void printGestureSummary(const std::string& outPath, const GestureResult& r, const simcore::BodySetup& setup,
+                         const StepTotals& t) {
+  const simcore::Mesh& out = r.finalMesh;
   const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.vesselCuts) + " vessel cut(s)"
                                                         : "vessels unknown (the mesh names none)";
   std::printf(
@@ -266,14 +325,42 @@ int cmdGesture(const std::vector<std::string>& args) {
       (setup.model == simcore::BodyModel::Fem ? simcore::toString(setup.settings.method)
                                               : simcore::bodyModelName(setup.model) + " model")
           .c_str(),
-      r.steps.size(), wall / static_cast<double>(r.steps.size()), grasped, peak, r.slips, r.cuts, vessels.c_str(),
+      r.steps.size(), t.wall / static_cast<double>(r.steps.size()), t.grasped, t.peak, r.slips, r.cuts, vessels.c_str(),
       r.clips, r.misplacedClips, 1e6 * r.bloodLoss, r.tears, r.failed, out.tets.size(), out.points.size(),
-      o["out"].c_str());
+      outPath.c_str());
+}
+
+// The steps' outcomes (statusSummary prints them); exit 3 when a step failed.
+int gestureExit(const GestureResult& r) {
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);
   const int code = statusSummary(all);
   // A cut refused or another input the session turned down is not a step's failure: r.failed counts steps not taken.
   return r.failed ? 3 : code;
+}
+
+}  // namespace
+
+int cmdGesture(const std::vector<std::string>& args) {
+  Options o = checkGestureOptions(args);
+  const GestureScript script = loadScript(o);
+  double caseSupport = -1;  // Pa/m: the case's support (its material), when the organ comes from a case
+  simcore::BodySetup setup = loadBody(o, caseSupport);
+  const GestureStart start = startBody(setup, startOptions(o, caseSupport));
+  if (start.refused) return start.refused;
+  std::unique_ptr<Recorder> recorder;
+  const GestureHooks hooks = recordingHooks(o, script, recorder);
+  const GestureResult r = runGesture(setup, script, hooks);
+  if (recorder) {
+    recorder->finish(static_cast<long>(r.steps.size()));
+    std::printf("recorded: session %lld in %s (%zu steps)\n", static_cast<long long>(recorder->id()),
+                o["record"].c_str(), r.steps.size());
+  }
+  simcore::saveMesh(r.finalMesh, o["out"]);
+  const StepTotals totals = stepTotals(r);
+  if (o.count("report")) writeGestureReport(o["report"], r, setup, start, totals.peak);
+  printGestureSummary(o["out"], r, setup, totals);
+  return gestureExit(r);
 }
 
 const Command& gestureCommand() {

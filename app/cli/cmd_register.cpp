@@ -63,9 +63,8 @@ nlohmann::json uncertaintyJson(const simcore::RegistrationUncertainty& u) {
           {"ends", ends}};
 }
 
-}  // namespace
-
-int cmdRegister(const std::vector<std::string>& args) {
+// The options checked before anything is read: the required ones, the second frame's, contradictions, file suffixes.
+Options checkRegisterOptions(const std::vector<std::string>& args) {
   auto o = parseOptions(args, 2, registerCommand());
   for (const char* need : {"camera", "contour", "pose", "out"})
     if (!o.count(need)) throw UsageError(std::string("register needs --") + need);
@@ -81,13 +80,26 @@ int cmdRegister(const std::vector<std::string>& args) {
     if (endsExt != ".vtu" && endsExt != ".vtk" && endsExt != ".msh")
       throw UsageError("--ends-out must end in .vtu, .vtk or .msh");
   }
-  const bool gravityGiven = o.count("gravity") > 0;
-  simcore::Mesh surfaceIn;
+  return o;
+}
+
+// The organ model in metres; `surfaceIn` gets the surface it was made from, when it came as one.
+simcore::Scene loadOrganModel(Options& o, bool gravityGiven, simcore::Mesh& surfaceIn) {
   simcore::Scene p = modelFromOptions(o, "register", &surfaceIn);
   // A registration has no gravity unless the scene or --gravity asks for it (the pre-operative shape is
   // the organ as it lies).
   if (!gravityGiven && !o.count("scene")) p.settings.gravity.setZero();
   p.mesh.convertToMetres();
+  return p;
+}
+
+// The first frame's outline (sized by the camera, undistorted when drawn on the distorted frame) and the camera.
+struct FirstFrame {
+  imaging::Contour contour;
+  imaging::Camera camera;
+};
+
+FirstFrame loadFirstFrame(Options& o) {
   imaging::Contour contour = imaging::loadContour(o["contour"]);
   int width = contour.width, height = contour.height;
   if (o.count("image-size")) {
@@ -102,12 +114,15 @@ int cmdRegister(const std::vector<std::string>& args) {
   if (contour.height == 0) contour.height = camera.height;
   if (o.count("distorted-contour")) contour = imaging::undistortContour(contour, camera);
   if (const std::string problem = imaging::contourProblem(contour); !problem.empty()) throw simcore::MeshError(problem);
-  const Pose start = imaging::loadPose(o["pose"]);
-  // When the organ came as a surface, curve vertices index that surface: they go to the nearest surface
-  // node of the volume made from it.
+  return {std::move(contour), camera};
+}
+
+// When the organ came as a surface, curve vertices index that surface: they go to the nearest surface
+// node of the volume made from it.
+void mapCurvesToVolume(imaging::Contour& contour, const simcore::Mesh& surfaceIn, const simcore::Mesh& volume) {
   std::vector<int> boundaryNodes;
   if (!surfaceIn.points.empty()) {
-    for (const auto& t : simcore::boundaryTriangles(p.mesh, false))
+    for (const auto& t : simcore::boundaryTriangles(volume, false))
       boundaryNodes.insert(boundaryNodes.end(), t.begin(), t.end());
     std::sort(boundaryNodes.begin(), boundaryNodes.end());
     boundaryNodes.erase(std::unique(boundaryNodes.begin(), boundaryNodes.end()), boundaryNodes.end());
@@ -120,33 +135,41 @@ int cmdRegister(const std::vector<std::string>& args) {
                                  ", which the surface does not have.");
       int best = boundaryNodes.front();
       for (int n : boundaryNodes)
-        if ((p.mesh.points[n] - surfaceIn.points[v]).squaredNorm() <
-            (p.mesh.points[best] - surfaceIn.points[v]).squaredNorm())
+        if ((volume.points[n] - surfaceIn.points[v]).squaredNorm() <
+            (volume.points[best] - surfaceIn.points[v]).squaredNorm())
           best = n;
       v = best;
     }
     seg.modelVertices.erase(std::unique(seg.modelVertices.begin(), seg.modelVertices.end()), seg.modelVertices.end());
   }
+}
+
+// --ground-truth: the organ's volume where it truly is (camera frame), node for node; empty without.
+simcore::Mesh loadGroundTruth(Options& o, const simcore::Mesh& volume) {
   simcore::Mesh truth;
   if (o.count("ground-truth")) {
     simcore::LoadOptions lo;
     if (o.count("unit")) lo.unit = o["unit"];
     truth = simcore::loadMesh(o["ground-truth"], lo);
     truth.convertToMetres();
-    if (truth.points.size() != p.mesh.points.size())
+    if (truth.points.size() != volume.points.size())
       throw simcore::MeshError("The ground truth has " + std::to_string(truth.points.size()) + " nodes, the organ " +
-                               std::to_string(p.mesh.points.size()) +
+                               std::to_string(volume.points.size()) +
                                "; they must be the same mesh in the same order.");
   }
-  // The one fit pipeline the GUI uses too (app/elasticfit.hpp).
+  return truth;
+}
+
+// The input of the one fit pipeline the GUI uses too (app/elasticfit.hpp), with the fit's options.
+FitInput fitInput(Options& o, simcore::Scene& p, const FirstFrame& frame, const Pose& start, bool gravityGiven) {
   FitInput in;
-  in.organ = Organ::fromVolume(std::move(p.mesh));  // moved: the output below copies it from the organ
+  in.organ = Organ::fromVolume(std::move(p.mesh));  // moved: the output copies it from the organ
   in.attachments = p.fixedNodes;
   in.materials = {p.defaultMaterial, p.materials};
   in.embedded = p.embedded;
   in.settings = p.settings;
-  in.contour = contour;
-  in.camera = camera.pinhole();
+  in.contour = frame.contour;
+  in.camera = frame.camera.pinhole();
   in.start = start;
   // The rigid stage runs first unless asked not to (as in the GUI): the elastic stage alone cannot recover
   // a pose that is centimetres off (BENCHMARKS.md).
@@ -165,73 +188,88 @@ int cmdRegister(const std::vector<std::string>& args) {
     in.toleranceMm = parseNumber(o["tolerance-mm"], "--tolerance-mm");
     if (!(in.toleranceMm > 0)) throw UsageError("--tolerance-mm must be a positive number of millimetres");
   }
-  // A second frame: its outline, and the camera's motion to it (given, or from features tracked between the frames
-  // with the move's length given); the features are used by the fit too when both frames are there.
-  nlohmann::json frameReport = nullptr;
-  if (o.count("contour2")) {
-    simcore::RegistrationFrame second;
-    second.camera = camera.pinhole();
-    imaging::Contour c2 = imaging::loadContour(o["contour2"]);
-    if (c2.width == 0) c2.width = camera.width;
-    if (c2.height == 0) c2.height = camera.height;
-    if (o.count("distorted-contour")) c2 = imaging::undistortContour(c2, camera);
-    if (const std::string problem = imaging::contourProblem(c2); !problem.empty())
-      throw simcore::MeshError("The second frame's outline: " + problem);
-    for (const auto& seg : c2.segments)
-      if (seg.isSilhouette()) second.contour.push_back(seg.points);
-    if (o.count("motion") && o.count("baseline-mm"))
-      throw UsageError("--motion gives the move's length already; leave out --baseline-mm");
-    if (!o.count("motion") && !o.count("baseline-mm"))
-      throw UsageError(
-          "--contour2 needs the camera's motion to the second frame: --motion M.json, or --frame, --frame2 and "
-          "--baseline-mm (two frames give only the move's direction, not its length)");
-    if (o.count("frame") != o.count("frame2")) throw UsageError("--frame and --frame2 go together");
-    std::vector<imaging::Track> tracks;
-    if (o.count("frame")) {
-      auto read = [&](const std::string& path) {
-        cv::Mat3b image = cv::imread(path, cv::IMREAD_COLOR);
-        if (image.empty()) throw rehearse::InputError("Cannot read the frame " + path + " (not an image, or missing).");
-        if (image.cols != camera.width || image.rows != camera.height)
-          throw rehearse::InputError("The frame " + path + " is not the camera's size (" + std::to_string(camera.width) +
-                                    "x" + std::to_string(camera.height) + ").");
-        return imaging::undistortImage(image, camera);  // (the image itself without distortion)
-      };
-      const cv::Mat3b first = read(o["frame"]), image2 = read(o["frame2"]);
-      // Features only on the organ as sketched on the first frame (its outline filled, less a margin).
-      tracks = tracksOnOrgan(first, contour, image2);
-    }
-    std::string motionStatus;
-    if (o.count("motion")) {
-      second.motion = imaging::loadPose(o["motion"]);
-      motionStatus = "camera motion given (" + o["motion"] + ")";
-    } else {
-      if (!o.count("frame"))
-        throw UsageError("--baseline-mm estimates the motion from the frames: give --frame and --frame2 too");
-      const double baseline = 1e-3 * parseNumber(o["baseline-mm"], "--baseline-mm");
-      if (!(baseline > 0)) throw UsageError("--baseline-mm must be a positive number of millimetres");
-      const imaging::CameraMotion m = imaging::estimateCameraMotion(camera, tracks, baseline);
-      if (!m.ok) throw rehearse::InputError("The second frame cannot be used: " + m.status + ".");
-      second.motion = m.motion;
-      second.motionDepthSigmaM = m.depthSigmaM;
-      second.motionAtOneSigma = m.motionAtOneSigma;
-      tracks = m.inliers;
-      motionStatus = m.status;
-    }
-    second.tracks = tracks;
-    std::printf("register: second frame: %s; %zu features tracked\n", motionStatus.c_str(), tracks.size());
-    frameReport = {{"motion", nlohmann::json::parse(imaging::poseToJson(second.motion))},
-                   {"features", tracks.size()},
-                   {"depth_sigma_mm", 1e3 * second.motionDepthSigmaM},
-                   {"status", motionStatus}};
-    in.frames = {second};
+  return in;
+}
+
+// A second frame (--contour2): its outline, and the camera's motion to it (given, or from features tracked between the
+// frames with the move's length given); the features are used by the fit too when both frames are there. Added to
+// `in`; its part of the report (null without one).
+nlohmann::json addSecondFrame(Options& o, const FirstFrame& frame, FitInput& in) {
+  if (!o.count("contour2")) return nullptr;
+  const imaging::Camera& camera = frame.camera;
+  simcore::RegistrationFrame second;
+  second.camera = camera.pinhole();
+  imaging::Contour c2 = imaging::loadContour(o["contour2"]);
+  if (c2.width == 0) c2.width = camera.width;
+  if (c2.height == 0) c2.height = camera.height;
+  if (o.count("distorted-contour")) c2 = imaging::undistortContour(c2, camera);
+  if (const std::string problem = imaging::contourProblem(c2); !problem.empty())
+    throw simcore::MeshError("The second frame's outline: " + problem);
+  for (const auto& seg : c2.segments)
+    if (seg.isSilhouette()) second.contour.push_back(seg.points);
+  if (o.count("motion") && o.count("baseline-mm"))
+    throw UsageError("--motion gives the move's length already; leave out --baseline-mm");
+  if (!o.count("motion") && !o.count("baseline-mm"))
+    throw UsageError(
+        "--contour2 needs the camera's motion to the second frame: --motion M.json, or --frame, --frame2 and "
+        "--baseline-mm (two frames give only the move's direction, not its length)");
+  if (o.count("frame") != o.count("frame2")) throw UsageError("--frame and --frame2 go together");
+  std::vector<imaging::Track> tracks;
+  if (o.count("frame")) {
+    auto read = [&](const std::string& path) {
+      cv::Mat3b image = cv::imread(path, cv::IMREAD_COLOR);
+      if (image.empty()) throw rehearse::InputError("Cannot read the frame " + path + " (not an image, or missing).");
+      if (image.cols != camera.width || image.rows != camera.height)
+        throw rehearse::InputError("The frame " + path + " is not the camera's size (" + std::to_string(camera.width) +
+                                  "x" + std::to_string(camera.height) + ").");
+      return imaging::undistortImage(image, camera);  // (the image itself without distortion)
+    };
+    const cv::Mat3b first = read(o["frame"]), image2 = read(o["frame2"]);
+    // Features only on the organ as sketched on the first frame (its outline filled, less a margin).
+    tracks = tracksOnOrgan(first, frame.contour, image2);
   }
-  struct Row {
-    simcore::RegistrationIteration it;
-    double errMean = -1, errMax = -1;
-  };
-  std::vector<Row> rows;
+  std::string motionStatus;
+  if (o.count("motion")) {
+    second.motion = imaging::loadPose(o["motion"]);
+    motionStatus = "camera motion given (" + o["motion"] + ")";
+  } else {
+    if (!o.count("frame"))
+      throw UsageError("--baseline-mm estimates the motion from the frames: give --frame and --frame2 too");
+    const double baseline = 1e-3 * parseNumber(o["baseline-mm"], "--baseline-mm");
+    if (!(baseline > 0)) throw UsageError("--baseline-mm must be a positive number of millimetres");
+    const imaging::CameraMotion m = imaging::estimateCameraMotion(camera, tracks, baseline);
+    if (!m.ok) throw rehearse::InputError("The second frame cannot be used: " + m.status + ".");
+    second.motion = m.motion;
+    second.motionDepthSigmaM = m.depthSigmaM;
+    second.motionAtOneSigma = m.motionAtOneSigma;
+    tracks = m.inliers;
+    motionStatus = m.status;
+  }
+  second.tracks = tracks;
+  std::printf("register: second frame: %s; %zu features tracked\n", motionStatus.c_str(), tracks.size());
+  nlohmann::json frameReport = {{"motion", nlohmann::json::parse(imaging::poseToJson(second.motion))},
+                                {"features", tracks.size()},
+                                {"depth_sigma_mm", 1e3 * second.motionDepthSigmaM},
+                                {"status", motionStatus}};
+  in.frames = {second};
+  return frameReport;
+}
+
+// The fit, with a row per iteration (and its 3D error, mm, against the ground truth when there is one).
+struct FitRow {
+  simcore::RegistrationIteration it;
+  double errMean = -1, errMax = -1;
+};
+struct FitRun {
+  simcore::RegistrationResult res;
+  std::vector<FitRow> rows;
+};
+
+FitRun runFit(const FitInput& in, const simcore::Mesh& truth) {
+  FitRun run;
+  std::vector<FitRow>& rows = run.rows;
   const FitProgress record = [&](const simcore::RegistrationIteration& it, const Eigen::VectorXd& x, const Pose& pose) {
-    Row r{it};
+    FitRow r{it};
     if (!truth.points.empty()) {
       double sum = 0, worst = 0;
       for (std::size_t i = 0; i < truth.points.size(); ++i) {
@@ -245,70 +283,82 @@ int cmdRegister(const std::vector<std::string>& args) {
     rows.push_back(r);
     return true;
   };
-  const simcore::RegistrationResult res = runElasticFit(in, record);
-  // Registered nodes in the camera frame, input order.
+  run.res = runElasticFit(in, record);
+  return run;
+}
+
+// A fit that succeeded: the registered volume (nodes in the camera frame, input order), --pose-out and --ends-out.
+void writeRegistered(Options& o, const FitInput& in, const simcore::RegistrationResult& res) {
   simcore::Mesh out = in.organ->volume;
   out.triangles.clear();
   out.triangleLabels.clear();
   for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = res.pose.apply(res.x.segment<3>(3 * i));
-  if (res.ok) {
-    simcore::saveMesh(out, o["out"]);
-    if (o.count("pose-out")) imaging::savePose(res.pose, o["pose-out"]);
-    if (o.count("ends-out")) {
-      // The bound's two far ends beside it: E-1.vtu and E-2.vtu for --ends-out E.vtu (nodes in the camera frame).
-      if (res.uncertainty.ends.empty())
-        std::printf("register: no far ends written: %s\n", uncertaintySentence(res.uncertainty).c_str());
-      const std::filesystem::path stem = o["ends-out"];
-      for (std::size_t e = 0; e < res.uncertainty.ends.size(); ++e) {
-        const auto& end = res.uncertainty.ends[e];
-        for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = end.pose.apply(end.x.segment<3>(3 * i));
-        const std::filesystem::path file =
-            stem.parent_path() / (stem.stem().string() + "-" + std::to_string(e + 1) + stem.extension().string());
-        simcore::saveMesh(out, file.string());
-      }
+  if (!res.ok) return;
+  simcore::saveMesh(out, o["out"]);
+  if (o.count("pose-out")) imaging::savePose(res.pose, o["pose-out"]);
+  if (o.count("ends-out")) {
+    // The bound's two far ends beside it: E-1.vtu and E-2.vtu for --ends-out E.vtu (nodes in the camera frame).
+    if (res.uncertainty.ends.empty())
+      std::printf("register: no far ends written: %s\n", uncertaintySentence(res.uncertainty).c_str());
+    const std::filesystem::path stem = o["ends-out"];
+    for (std::size_t e = 0; e < res.uncertainty.ends.size(); ++e) {
+      const auto& end = res.uncertainty.ends[e];
+      for (std::size_t i = 0; i < out.points.size(); ++i) out.points[i] = end.pose.apply(end.x.segment<3>(3 * i));
+      const std::filesystem::path file =
+          stem.parent_path() / (stem.stem().string() + "-" + std::to_string(e + 1) + stem.extension().string());
+      simcore::saveMesh(out, file.string());
     }
   }
-  if (o.count("report")) {
-    nlohmann::json iterations = nlohmann::json::array();
-    for (const auto& r : rows) {
-      nlohmann::json row = {{"iteration", r.it.iteration}, {"stage", r.it.stage},
-                            {"wall_ms", r.it.wallMs},      {"mean_px", r.it.residual.mean},
-                            {"rms_px", r.it.residual.rms}, {"hausdorff_px", r.it.residual.hausdorff},
-                            {"bound", r.it.bound}};
-      if (r.it.curves.points) {
-        row["curve_mean_px"] = r.it.curves.mean;
-        row["curve_hausdorff_px"] = r.it.curves.hausdorff;
-      }
-      if (r.errMean >= 0) {
-        row["error_mean_mm"] = r.errMean;
-        row["error_max_mm"] = r.errMax;
-      }
-      iterations.push_back(std::move(row));
+}
+
+// --report: the outcome, the alternatives, the sag, the bound, the second frame and a row per iteration.
+void writeRegisterReport(const std::string& path, const FitRun& fit, nlohmann::json frameReport, double toleranceMm) {
+  const simcore::RegistrationResult& res = fit.res;
+  nlohmann::json iterations = nlohmann::json::array();
+  for (const auto& r : fit.rows) {
+    nlohmann::json row = {{"iteration", r.it.iteration}, {"stage", r.it.stage},
+                          {"wall_ms", r.it.wallMs},      {"mean_px", r.it.residual.mean},
+                          {"rms_px", r.it.residual.rms}, {"hausdorff_px", r.it.residual.hausdorff},
+                          {"bound", r.it.bound}};
+    if (r.it.curves.points) {
+      row["curve_mean_px"] = r.it.curves.mean;
+      row["curve_hausdorff_px"] = r.it.curves.hausdorff;
     }
-    if (frameReport.is_object()) frameReport["set_aside"] = !res.setAsideFrames.empty();
-    nlohmann::json alternatives = nlohmann::json::array();
-    for (const auto& a : res.alternatives)
-      alternatives.push_back({{"pose", nlohmann::json::parse(imaging::poseToJson(a.pose))},
-                              {"mean_px", a.score},
-                              {"apart_mm", a.apartMm}});
-    writeReport(o["report"], {{"ok", res.ok},
-                              {"converged", res.converged},
-                              {"determined", res.ok && !res.ambiguous},
-                              {"ambiguous", res.ambiguous},
-                              {"alternatives", alternatives},
-                              {"sag_determined", res.sagDetermined},
-                              {"sag_share", res.sagShare},
-                              {"sag_apart_mm", res.sagApartMm},
-                              {"deeper_minima_taken", res.adopted},
-                              {"uncertainty", uncertaintyJson(res.uncertainty)},
-                              {"tolerance_mm", in.toleranceMm},
-                              {"second_frame", frameReport},
-                              {"load_model_m_s2", {res.load.x(), res.load.y(), res.load.z()}},
-                              {"load_camera_m_s2",
-                               {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
-                              {"status", res.status},
-                              {"iterations", iterations}});
+    if (r.errMean >= 0) {
+      row["error_mean_mm"] = r.errMean;
+      row["error_max_mm"] = r.errMax;
+    }
+    iterations.push_back(std::move(row));
   }
+  if (frameReport.is_object()) frameReport["set_aside"] = !res.setAsideFrames.empty();
+  nlohmann::json alternatives = nlohmann::json::array();
+  for (const auto& a : res.alternatives)
+    alternatives.push_back({{"pose", nlohmann::json::parse(imaging::poseToJson(a.pose))},
+                            {"mean_px", a.score},
+                            {"apart_mm", a.apartMm}});
+  writeReport(path, {{"ok", res.ok},
+                     {"converged", res.converged},
+                     {"determined", res.ok && !res.ambiguous},
+                     {"ambiguous", res.ambiguous},
+                     {"alternatives", alternatives},
+                     {"sag_determined", res.sagDetermined},
+                     {"sag_share", res.sagShare},
+                     {"sag_apart_mm", res.sagApartMm},
+                     {"deeper_minima_taken", res.adopted},
+                     {"uncertainty", uncertaintyJson(res.uncertainty)},
+                     {"tolerance_mm", toleranceMm},
+                     {"second_frame", frameReport},
+                     {"load_model_m_s2", {res.load.x(), res.load.y(), res.load.z()}},
+                     {"load_camera_m_s2",
+                      {(res.pose.R * res.load).x(), (res.pose.R * res.load).y(), (res.pose.R * res.load).z()}},
+                     {"status", res.status},
+                     {"iterations", iterations}});
+}
+
+// The fit's line and its bound's sentence; the exit code: 0 a determined fit, 4 ambiguous, 3 failed.
+int registerSummary(const FitRun& fit) {
+  const simcore::RegistrationResult& res = fit.res;
+  const std::vector<FitRow>& rows = fit.rows;
   const auto& last = rows.back().it;
   std::printf("register: %s; %zu iterations, %.0f ms; mean distance %.2f px (start %.2f px)%s\n", res.status.c_str(),
               rows.size(), last.wallMs, last.score(), rows.front().it.score(),
@@ -324,6 +374,25 @@ int cmdRegister(const std::vector<std::string>& args) {
     return 4;
   }
   return 0;
+}
+
+}  // namespace
+
+int cmdRegister(const std::vector<std::string>& args) {
+  Options o = checkRegisterOptions(args);
+  const bool gravityGiven = o.count("gravity") > 0;
+  simcore::Mesh surfaceIn;
+  simcore::Scene p = loadOrganModel(o, gravityGiven, surfaceIn);
+  FirstFrame frame = loadFirstFrame(o);
+  const Pose start = imaging::loadPose(o["pose"]);
+  mapCurvesToVolume(frame.contour, surfaceIn, p.mesh);
+  const simcore::Mesh truth = loadGroundTruth(o, p.mesh);
+  FitInput in = fitInput(o, p, frame, start, gravityGiven);
+  const nlohmann::json frameReport = addSecondFrame(o, frame, in);
+  const FitRun fit = runFit(in, truth);
+  writeRegistered(o, in, fit.res);
+  if (o.count("report")) writeRegisterReport(o["report"], fit, frameReport, in.toleranceMm);
+  return registerSummary(fit);
 }
 
 const Command& registerCommand() {

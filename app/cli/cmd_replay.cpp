@@ -45,44 +45,60 @@
 
 namespace rehearse::app::cli {
 
-int cmdReplay(const std::vector<std::string>& args, const CliServices& services) {
-  if (args.size() < 3 || args[2].rfind("--", 0) == 0)
-    throw UsageError(
-        "replay needs the case file (or postgresql:[SERVICE]): rehearse replay CASE [--session ID] [--verify]");
-  const std::string file = args[2];
-  auto o = parseOptions(args, 3, replayCommand());
-  // postgresql:[SERVICE]: the training centre's database (libpq service name, or the environment when empty).
-  const bool fromDb = file.rfind("postgresql:", 0) == 0;
-  const std::string service = fromDb ? file.substr(11) : std::string();
-  if (!fromDb && !std::filesystem::exists(file)) throw UsageError(file + " does not exist");
-  auto listSessions = [&] {
+namespace {
+
+// Where the sessions come from: a case file, or the training centre's database (postgresql:[SERVICE]: the libpq service
+// name, or the environment when empty).
+struct SessionSource {
+  std::string file;
+  bool fromDb = false;
+  std::string service;
+
+  std::vector<RecordingSummary> list() const {
     if (!fromDb) return listRecordings(file);
     std::vector<RecordingSummary> out;
     for (const auto& p : TrainingDatabase(service).sessions()) out.push_back(p.summary);
     return out;
-  };
-  auto loadSession = [&](std::int64_t sid) {
+  }
+  Recording load(std::int64_t sid) const {
     // A session from the database keeps its connection open for its checkpoints.
     return fromDb ? TrainingDatabase(service).load(sid) : loadRecording(file, sid);
-  };
+  }
+};
+
+// The command line read and checked: the sessions' source, the replay's options and the trainer's thresholds.
+struct ReplayRequest {
+  Options o;
+  SessionSource source;
+  ReplayOptions ro;
+  std::vector<Threshold> thresholds;
+};
+
+// --force-threshold and --planned-cut.
+void readMeasureOptions(ReplayRequest& req) {
+  Options& o = req.o;
   const double threshold = o.count("force-threshold") ? parseNumber(o["force-threshold"], "--force-threshold") : 10.0;
   if (!(threshold >= 0)) throw UsageError("--force-threshold must be a force in N, 0 or more");
-  ReplayOptions ro;
-  ro.forceThresholdN = threshold;
+  req.ro.forceThresholdN = threshold;
   if (o.count("planned-cut")) {
     const std::string& p = o["planned-cut"];
     const auto colon = p.find(':');
     if (colon == std::string::npos)
       throw UsageError("--planned-cut takes two points X,Y,Z:X,Y,Z (m, the recording's frame)");
-    ro.plannedCut = std::make_pair(parseVector(p.substr(0, colon), "--planned-cut"),
-                                   parseVector(p.substr(colon + 1), "--planned-cut"));
+    req.ro.plannedCut = std::make_pair(parseVector(p.substr(0, colon), "--planned-cut"),
+                                       parseVector(p.substr(colon + 1), "--planned-cut"));
   }
-  std::vector<Threshold> thresholds;
-  if (!o.count("thresholds") && !fromDb) {  // the trainer's thresholds kept in the case file
+}
+
+// The trainer's thresholds: --thresholds, else the ones kept in the case file.
+void loadThresholds(ReplayRequest& req) {
+  Options& o = req.o;
+  const std::string& file = req.source.file;
+  if (!o.count("thresholds") && !req.source.fromDb) {
     const std::string kept = loadCaseThresholds(file);
     if (!kept.empty()) {
       try {
-        thresholds = parseThresholds(kept);
+        req.thresholds = parseThresholds(kept);
       } catch (const std::runtime_error& e) {
         throw UsageError(file + ": its kept thresholds: " + e.what());
       }
@@ -92,11 +108,15 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
     std::string text, why;
     if (!readTextInput(o["thresholds"], text, why)) throw UsageError("the thresholds " + why);
     try {
-      thresholds = parseThresholds(text);
+      req.thresholds = parseThresholds(text);
     } catch (const std::runtime_error& e) {
       throw UsageError(o["thresholds"] + ": " + e.what());
     }
   }
+}
+
+// --video, --report and the video's options: for one session, with the right suffixes, the report with its writer.
+void checkOneSessionOutputs(Options& o, const CliServices& services) {
   const bool oneSession =
       o.count("video") || o.count("report") || o.count("from") || o.count("to") || o.count("fps") || o.count("size");
   if (oneSession && !o.count("session"))
@@ -110,120 +130,143 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
   if (o.count("report") && !services.writeReport)
     throw UsageError(
         "--report needs the PDF writer of the GUI build (this build was configured with REHEARSE_BUILD_GUI=OFF)");
-  if (o.count("metrics-csv")) {
-    // Every session's metrics, one row each (a trainer's spreadsheet across attempts); each replay verified.
-    if (o.count("session") || o.count("metrics") || o.count("verify"))
-      throw UsageError("--metrics-csv covers every session; --session, --metrics and --verify are for one");
-    std::ostringstream csv;
-    csv.precision(17);
-    csv << "session,trainee,started_utc,complete,steps,duration_s,path_length_m,economy_of_motion,grasps,slips,cut_"
-           "updates,vessel_cuts,max_force_n,"
-           "mean_force_n,force_threshold_n,time_over_threshold_s,max_strain,cut_length_m,cut_deviation_mean_m,cut_"
-           "deviation_max_m,tumour_breaches,"
-           "tears,attachments_torn,clips,misplaced_clips,blood_loss_ml,energy_time_s,energy_on_structures,"
-           "incorrect_actions,vessel_cuts_without_clips,force_over_limit,instrument_outside_view,checksums,"
-           "checksums_differing\n";
-    ro.strain = true;
-    auto opt = [](const auto& v) { return v ? std::to_string(*v) : std::string(); };  // empty: not determined
-    auto quoted = [](const std::string& s) {
-      std::string q = "\"";
-      for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-      return q + "\"";
-    };
-    long differing = 0, damaged = 0;
-    const auto sessions = listSessions();
-    for (const auto& s : sessions) {
-      const ReplayResult r = replayRecording(loadSession(s.id), ro);
-      const SessionMetrics& m = r.metrics;
-      differing += r.verify.mismatches;
-      damaged += static_cast<long>(r.verify.damagedCheckpoints.size());
-      csv << s.id << ',' << quoted(s.meta.trainee) << ',' << s.startedUtc << ',' << (s.complete ? 1 : 0) << ','
-          << r.verify.steps << ',' << m.durationS << ',' << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ','
-          << m.slips << ',' << m.cuts << ',' << opt(m.vesselCuts) << ',' << m.maxForceN << ',' << m.meanForceN << ','
-          << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << opt(m.maxStrain) << ',' << m.cutLengthM << ','
-          << opt(m.cutDeviationMeanM) << ',' << opt(m.cutDeviationMaxM) << ',' << opt(m.tumourBreaches) << ','
-          << opt(m.tears) << ',' << opt(m.attachmentsTorn) << ',' << m.clips << ',' << m.misplacedClips << ','
-          << opt(m.bloodLossMl) << ',' << m.energyTimeS << ',' << m.energyOnStructures << ','
-          << opt(m.incorrectCount("")) << ',' << opt(m.incorrectCount("vessel_cut_without_clips")) << ','
-          << opt(m.incorrectCount("force_over_limit")) << ',' << opt(m.incorrectCount("outside_view")) << ','
-          << r.verify.checked << ',' << r.verify.mismatches << '\n';
-    }
-    rehearse::writeFileAtomically(o["metrics-csv"], csv.str());
-    std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());
-    if (differing) {
-      std::fprintf(stderr, "rehearse: %ld checksums differ on replay (column checksums_differing)\n", differing);
-      return 4;
-    }
-    if (damaged) {
-      std::fprintf(stderr, "rehearse: %ld checkpoints are damaged (rehearse replay CASE --session ID --verify names them)\n",
-                   damaged);
-      return 4;
-    }
-    return 0;
+}
+
+ReplayRequest parseReplayRequest(const std::vector<std::string>& args, const CliServices& services) {
+  if (args.size() < 3 || args[2].rfind("--", 0) == 0)
+    throw UsageError(
+        "replay needs the case file (or postgresql:[SERVICE]): rehearse replay CASE [--session ID] [--verify]");
+  ReplayRequest req;
+  req.source.file = args[2];
+  req.o = parseOptions(args, 3, replayCommand());
+  const std::string& file = req.source.file;
+  req.source.fromDb = file.rfind("postgresql:", 0) == 0;
+  req.source.service = req.source.fromDb ? file.substr(11) : std::string();
+  if (!req.source.fromDb && !std::filesystem::exists(file)) throw UsageError(file + " does not exist");
+  readMeasureOptions(req);
+  loadThresholds(req);
+  checkOneSessionOutputs(req.o, services);
+  return req;
+}
+
+// --metrics-csv: every session's metrics, one row each (a trainer's spreadsheet across attempts); each replay verified.
+int writeMetricsCsv(ReplayRequest& req) {
+  Options& o = req.o;
+  if (o.count("session") || o.count("metrics") || o.count("verify"))
+    throw UsageError("--metrics-csv covers every session; --session, --metrics and --verify are for one");
+  std::ostringstream csv;
+  csv.precision(17);
+  csv << "session,trainee,started_utc,complete,steps,duration_s,path_length_m,economy_of_motion,grasps,slips,cut_"
+         "updates,vessel_cuts,max_force_n,"
+         "mean_force_n,force_threshold_n,time_over_threshold_s,max_strain,cut_length_m,cut_deviation_mean_m,cut_"
+         "deviation_max_m,tumour_breaches,"
+         "tears,attachments_torn,clips,misplaced_clips,blood_loss_ml,energy_time_s,energy_on_structures,"
+         "incorrect_actions,vessel_cuts_without_clips,force_over_limit,instrument_outside_view,checksums,"
+         "checksums_differing\n";
+  ReplayOptions ro = req.ro;
+  ro.strain = true;
+  auto opt = [](const auto& v) { return v ? std::to_string(*v) : std::string(); };  // empty: not determined
+  auto quoted = [](const std::string& s) {
+    std::string q = "\"";
+    for (char ch : s) q += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+    return q + "\"";
+  };
+  long differing = 0, damaged = 0;
+  const auto sessions = req.source.list();
+  for (const auto& s : sessions) {
+    const ReplayResult r = replayRecording(req.source.load(s.id), ro);
+    const SessionMetrics& m = r.metrics;
+    differing += r.verify.mismatches;
+    damaged += static_cast<long>(r.verify.damagedCheckpoints.size());
+    csv << s.id << ',' << quoted(s.meta.trainee) << ',' << s.startedUtc << ',' << (s.complete ? 1 : 0) << ','
+        << r.verify.steps << ',' << m.durationS << ',' << m.pathLengthM << ',' << m.economy << ',' << m.grasps << ','
+        << m.slips << ',' << m.cuts << ',' << opt(m.vesselCuts) << ',' << m.maxForceN << ',' << m.meanForceN << ','
+        << m.forceThresholdN << ',' << m.timeOverThresholdS << ',' << opt(m.maxStrain) << ',' << m.cutLengthM << ','
+        << opt(m.cutDeviationMeanM) << ',' << opt(m.cutDeviationMaxM) << ',' << opt(m.tumourBreaches) << ','
+        << opt(m.tears) << ',' << opt(m.attachmentsTorn) << ',' << m.clips << ',' << m.misplacedClips << ','
+        << opt(m.bloodLossMl) << ',' << m.energyTimeS << ',' << m.energyOnStructures << ','
+        << opt(m.incorrectCount("")) << ',' << opt(m.incorrectCount("vessel_cut_without_clips")) << ','
+        << opt(m.incorrectCount("force_over_limit")) << ',' << opt(m.incorrectCount("outside_view")) << ','
+        << r.verify.checked << ',' << r.verify.mismatches << '\n';
   }
-  if (!o.count("session")) {
-    const auto sessions = listSessions();
-    if (sessions.empty()) std::printf("%s holds no recorded session\n", file.c_str());
-    for (const auto& s : sessions)
-      std::printf("session %lld  %s  trainee '%s'  case '%s'  %ld steps%s\n", static_cast<long long>(s.id),
-                  s.startedUtc.c_str(), s.meta.trainee.c_str(), s.meta.caseName.c_str(), s.steps,
-                  s.complete ? "" : "  (cut short)");
-    if (o.count("verify")) throw UsageError("--verify needs --session ID (the list above)");
-    return 0;
+  rehearse::writeFileAtomically(o["metrics-csv"], csv.str());
+  std::printf("metrics of %zu sessions written to %s\n", sessions.size(), o["metrics-csv"].c_str());
+  if (differing) {
+    std::fprintf(stderr, "rehearse: %ld checksums differ on replay (column checksums_differing)\n", differing);
+    return 4;
   }
-  std::int64_t id = 0;
+  if (damaged) {
+    std::fprintf(stderr, "rehearse: %ld checkpoints are damaged (rehearse replay CASE --session ID --verify names them)\n",
+                 damaged);
+    return 4;
+  }
+  return 0;
+}
+
+// Without --session: the list.
+int printSessions(ReplayRequest& req) {
+  const auto sessions = req.source.list();
+  if (sessions.empty()) std::printf("%s holds no recorded session\n", req.source.file.c_str());
+  for (const auto& s : sessions)
+    std::printf("session %lld  %s  trainee '%s'  case '%s'  %ld steps%s\n", static_cast<long long>(s.id),
+                s.startedUtc.c_str(), s.meta.trainee.c_str(), s.meta.caseName.c_str(), s.steps,
+                s.complete ? "" : "  (cut short)");
+  if (req.o.count("verify")) throw UsageError("--verify needs --session ID (the list above)");
+  return 0;
+}
+
+std::int64_t sessionId(Options& o) {
   try {
     std::size_t used = 0;
-    id = std::stoll(o["session"], &used);
+    const std::int64_t id = std::stoll(o["session"], &used);
     if (used != o["session"].size()) throw std::invalid_argument("trailing");
+    return id;
   } catch (const std::exception&) {
     throw UsageError("--session takes a session number, not '" + o["session"] + "'");
   }
-  const Recording rec = loadSession(id);
-  std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(),
-              rec.checksums.size(), rec.summary.steps,
-              rec.summary.complete ? "" : " (cut short: what was recorded is replayed)");
-  if (!o.count("verify") && !o.count("metrics") && !o.count("video") && !o.count("report")) return 0;
-  ro.strain = o.count("metrics") || o.count("report") || !thresholds.empty();
-  ro.timeline = o.count("video") || o.count("report");
-  const ReplayResult replayed = replayRecording(rec, ro);
-  const auto verdicts = judge(replayed.metrics, thresholds);
-  if (o.count("metrics")) {
-    nlohmann::json j = {{"session", id},
-                        {"trainee", rec.summary.meta.trainee},
-                        {"started_utc", rec.summary.startedUtc},
-                        {"force_threshold_n", replayed.metrics.forceThresholdN},
-                        {"replay_verified", replayVerified(replayed.verify)},
-                        {"replay_check", replayCheckSentence(replayed.verify)},
-                        {"checksums", replayed.verify.checked},
-                        {"checksums_differing", replayed.verify.mismatches}};
-    for (const auto& v : metricValues(replayed.metrics)) {
-      j[v.name] = !v.value  ? nlohmann::json(nullptr)
-                  : v.count ? nlohmann::json(std::lround(*v.value))
-                            : nlohmann::json(*v.value);
-      if (!v.value) j[v.name + "_why"] = v.why;
-    }
-    nlohmann::json js = nlohmann::json::array();
-    for (const auto& v : verdicts) {
-      nlohmann::json row = {{"metric", v.metric.name}, {"result", resultWord(v.result)}};
-      row["value"] = v.metric.value ? nlohmann::json(*v.metric.value) : nlohmann::json(nullptr);
-      if (v.threshold.min) row["min"] = *v.threshold.min;
-      if (v.threshold.max) row["max"] = *v.threshold.max;
-      js.push_back(row);
-    }
-    j["verdicts"] = js;
-    // The incorrect actions, each with its time (the rules the session was recorded with).
-    nlohmann::json ia = nlohmann::json::array();
-    for (const auto& a : replayed.metrics.incorrectActions)
-      ia.push_back({{"rule", a.rule}, {"step", a.step}, {"time_s", a.time}, {"what", a.what}});
-    j["incorrect_action_list"] = ia;
-    if (!replayed.metrics.rulesError.empty()) j["incorrect_actions_why"] = replayed.metrics.rulesError;
-    writeReport(o["metrics"], j);
-    std::printf("metrics written to %s\n", o["metrics"].c_str());
+}
+
+// --metrics: the session's metrics, their verdicts and the incorrect actions as JSON.
+void writeMetricsJson(const std::string& path, std::int64_t id, const Recording& rec, const ReplayResult& replayed,
+                      const std::vector<Verdict>& verdicts) {
+  nlohmann::json j = {{"session", id},
+                      {"trainee", rec.summary.meta.trainee},
+                      {"started_utc", rec.summary.startedUtc},
+                      {"force_threshold_n", replayed.metrics.forceThresholdN},
+                      {"replay_verified", replayVerified(replayed.verify)},
+                      {"replay_check", replayCheckSentence(replayed.verify)},
+                      {"checksums", replayed.verify.checked},
+                      {"checksums_differing", replayed.verify.mismatches}};
+  for (const auto& v : metricValues(replayed.metrics)) {
+    j[v.name] = !v.value  ? nlohmann::json(nullptr)
+                : v.count ? nlohmann::json(std::lround(*v.value))
+                          : nlohmann::json(*v.value);
+    if (!v.value) j[v.name + "_why"] = v.why;
   }
+  nlohmann::json js = nlohmann::json::array();
+  for (const auto& v : verdicts) {
+    nlohmann::json row = {{"metric", v.metric.name}, {"result", resultWord(v.result)}};
+    row["value"] = v.metric.value ? nlohmann::json(*v.metric.value) : nlohmann::json(nullptr);
+    if (v.threshold.min) row["min"] = *v.threshold.min;
+    if (v.threshold.max) row["max"] = *v.threshold.max;
+    js.push_back(row);
+  }
+  j["verdicts"] = js;
+  // The incorrect actions, each with its time (the rules the session was recorded with).
+  nlohmann::json ia = nlohmann::json::array();
+  for (const auto& a : replayed.metrics.incorrectActions)
+    ia.push_back({{"rule", a.rule}, {"step", a.step}, {"time_s", a.time}, {"what", a.what}});
+  j["incorrect_action_list"] = ia;
+  if (!replayed.metrics.rulesError.empty()) j["incorrect_actions_why"] = replayed.metrics.rulesError;
+  writeReport(path, j);
+  std::printf("metrics written to %s\n", path.c_str());
+}
+
+// The incorrect actions, the replay check when it has something to say (and --verify does not), the verdicts.
+void printFindings(bool verify, const ReplayResult& replayed, const std::vector<Verdict>& verdicts) {
   for (const auto& a : replayed.metrics.incorrectActions)
     std::printf("incorrect action at %.2f s (step %ld): %s: %s\n", a.time, a.step, a.rule.c_str(), a.what.c_str());
-  if (!o.count("verify") && replayed.verify.mismatches == 0 && !replayVerified(replayed.verify))
+  if (!verify && replayed.verify.mismatches == 0 && !replayVerified(replayed.verify))
     std::printf("replay check: %s\n", replayCheckSentence(replayed.verify).c_str());
   for (const auto& v : verdicts) {
     const auto& m = v.metric;  // counts as whole numbers ("grasps: pass (1)")
@@ -232,56 +275,63 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
                                         : std::to_string(*m.value);
     std::printf("%s: %s (%s)\n", m.name.c_str(), resultWord(v.result), value.c_str());
   }
-  if (o.count("video") || o.count("report")) {
-    int width = 640, height = 480;
-    if (o.count("size")) {
-      char x = 0;
-      std::istringstream in(o["size"]);
-      if (!(in >> width >> x >> height) || x != 'x' || !in.eof())
-        throw UsageError("--size takes WIDTHxHEIGHT in pixels, e.g. 1280x720");
-    }
-    Replayer replayer(rec);
-    replayer.avoidCheckpoints(replayed.verify);  // the video seeks from the sound ones
-    for (const auto& [step, why] : replayed.verify.damagedCheckpoints)
-      std::fprintf(stderr, "rehearse: the checkpoint after step %ld is damaged (%s): the video seeks past it\n", step,
-                   why.c_str());
-    ReviewRenderer renderer(rec.setup, width, height);
-    if (o.count("video")) {
-      const double fps = o.count("fps") ? parseNumber(o["fps"], "--fps") : 25.0;
-      auto stepAt = [&](const std::string& key, long fallback) {
-        if (!o.count(key)) return fallback;
-        const double t = parseNumber(o[key], key == "from" ? "--from" : "--to");
-        if (!(t >= 0)) throw UsageError("--" + key + " must be a time in seconds, 0 or more");
-        long step = 0;
-        for (const auto& s : replayed.timeline)
-          if (s.time <= t + 1e-9) step = s.step;
-        return step;
-      };
-      const long from = stepAt("from", 0), to = stepAt("to", replayer.steps());
-      if (from >= to)
-        throw UsageError("--from must come before --to within the session (" +
-                         std::to_string(replayed.metrics.durationS) + " s)");
-      const int frames = writeReviewVideo(replayer, renderer, replayed.timeline, from, to, fps, o["video"]);
-      std::printf("video: %d frames of %dx%d at %g fps (steps %ld to %ld) written to %s\n", frames,
-                  renderer.camera().width, renderer.camera().height, fps, from, to, o["video"].c_str());
-    }
-    if (o.count("report")) {
-      const ReviewReport report = makeReviewReport(rec, replayed, thresholds, replayer, renderer);
-      services.writeReport(report, o["report"]);
-      std::printf("report written to %s\n", o["report"].c_str());
-    }
+}
+
+// --video and --report: drawn by a replayer that seeks from the sound checkpoints.
+void writeVideoAndReport(ReplayRequest& req, const Recording& rec, const ReplayResult& replayed,
+                         const CliServices& services) {
+  Options& o = req.o;
+  int width = 640, height = 480;
+  if (o.count("size")) {
+    char x = 0;
+    std::istringstream in(o["size"]);
+    if (!(in >> width >> x >> height) || x != 'x' || !in.eof())
+      throw UsageError("--size takes WIDTHxHEIGHT in pixels, e.g. 1280x720");
   }
-  if (!o.count("verify")) {
-    // Metrics, a video or a report of a replay that is not the recorded run are written (they say so) but not taken
-    // as the trainee's: exit 4, as --verify and --metrics-csv do.
-    if (replayed.verify.mismatches || !replayed.verify.damagedCheckpoints.empty()) {
-      std::fprintf(stderr, "rehearse: session %lld %s\n", static_cast<long long>(id),
-                   replayCheckSentence(replayed.verify).c_str());
-      return 4;
-    }
-    return 0;
+  Replayer replayer(rec);
+  replayer.avoidCheckpoints(replayed.verify);  // the video seeks from the sound ones
+  for (const auto& [step, why] : replayed.verify.damagedCheckpoints)
+    std::fprintf(stderr, "rehearse: the checkpoint after step %ld is damaged (%s): the video seeks past it\n", step,
+                 why.c_str());
+  ReviewRenderer renderer(rec.setup, width, height);
+  if (o.count("video")) {
+    const double fps = o.count("fps") ? parseNumber(o["fps"], "--fps") : 25.0;
+    auto stepAt = [&](const std::string& key, long fallback) {
+      if (!o.count(key)) return fallback;
+      const double t = parseNumber(o[key], key == "from" ? "--from" : "--to");
+      if (!(t >= 0)) throw UsageError("--" + key + " must be a time in seconds, 0 or more");
+      long step = 0;
+      for (const auto& s : replayed.timeline)
+        if (s.time <= t + 1e-9) step = s.step;
+      return step;
+    };
+    const long from = stepAt("from", 0), to = stepAt("to", replayer.steps());
+    if (from >= to)
+      throw UsageError("--from must come before --to within the session (" +
+                       std::to_string(replayed.metrics.durationS) + " s)");
+    const int frames = writeReviewVideo(replayer, renderer, replayed.timeline, from, to, fps, o["video"]);
+    std::printf("video: %d frames of %dx%d at %g fps (steps %ld to %ld) written to %s\n", frames,
+                renderer.camera().width, renderer.camera().height, fps, from, to, o["video"].c_str());
   }
-  const VerifyResult& v = replayed.verify;
+  if (o.count("report")) {
+    const ReviewReport report = makeReviewReport(rec, replayed, req.thresholds, replayer, renderer);
+    services.writeReport(report, o["report"]);
+    std::printf("report written to %s\n", o["report"].c_str());
+  }
+}
+
+// Without --verify: metrics, a video or a report of a replay that is not the recorded run are written (they say so) but
+// not taken as the trainee's: exit 4, as --verify and --metrics-csv do.
+int replayCheckExit(std::int64_t id, const VerifyResult& v) {
+  if (v.mismatches || !v.damagedCheckpoints.empty()) {
+    std::fprintf(stderr, "rehearse: session %lld %s\n", static_cast<long long>(id), replayCheckSentence(v).c_str());
+    return 4;
+  }
+  return 0;
+}
+
+// --verify: every checksum and checkpoint (exit 4 when one differs, or there is nothing to verify against).
+int verifyExit(std::int64_t id, const VerifyResult& v) {
   if (v.mismatches) {
     std::fprintf(stderr,
                  "rehearse: session %lld does not replay: %ld of %ld checksums differ, the first after step %ld; %s\n",
@@ -313,6 +363,35 @@ int cmdReplay(const std::vector<std::string>& args, const CliServices& services)
                 v.checkpointsChecked, v.incompleteCheckpoints.size());
   std::printf("kernel: %s\n", v.replayed.kernel.c_str());
   return 0;
+}
+
+// --session ID: the session loaded and, when anything is asked of it, replayed once for all the outputs.
+int replayOneSession(ReplayRequest& req, const CliServices& services) {
+  Options& o = req.o;
+  const std::int64_t id = sessionId(o);
+  const Recording rec = req.source.load(id);
+  std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(),
+              rec.checksums.size(), rec.summary.steps,
+              rec.summary.complete ? "" : " (cut short: what was recorded is replayed)");
+  if (!o.count("verify") && !o.count("metrics") && !o.count("video") && !o.count("report")) return 0;
+  ReplayOptions ro = req.ro;
+  ro.strain = o.count("metrics") || o.count("report") || !req.thresholds.empty();
+  ro.timeline = o.count("video") || o.count("report");
+  const ReplayResult replayed = replayRecording(rec, ro);
+  const auto verdicts = judge(replayed.metrics, req.thresholds);
+  if (o.count("metrics")) writeMetricsJson(o["metrics"], id, rec, replayed, verdicts);
+  printFindings(o.count("verify") > 0, replayed, verdicts);
+  if (o.count("video") || o.count("report")) writeVideoAndReport(req, rec, replayed, services);
+  return o.count("verify") ? verifyExit(id, replayed.verify) : replayCheckExit(id, replayed.verify);
+}
+
+}  // namespace
+
+int cmdReplay(const std::vector<std::string>& args, const CliServices& services) {
+  ReplayRequest req = parseReplayRequest(args, services);
+  if (req.o.count("metrics-csv")) return writeMetricsCsv(req);
+  if (!req.o.count("session")) return printSessions(req);
+  return replayOneSession(req, services);
 }
 
 int cmdPublish(const std::vector<std::string>& args, const CliServices&) {
