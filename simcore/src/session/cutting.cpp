@@ -1,6 +1,6 @@
 // The cut: what the blade's sweep asks of the cut module (cut.hpp computes the new mesh; the session's topology
 // mechanism, topology.cpp, builds and swaps the body), and what a cut says: its events, the vessels it cut, and the
-// stroke's sentence once all of it is in (whether the organ came apart).
+// stroke's sentence once all of it is in (whether the organ came apart; the stroke's own record: strokes.cpp).
 #include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
@@ -11,7 +11,7 @@ namespace rehearse::simcore {
 
 bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::string& message) {
   // One change at a time: while the last one's body is being built the sweep grows (the blade's start stays).
-  if (pending_) return false;
+  if (builds_.underWay()) return false;
   // The blade: from the tip back along the shaft towards the trocar; its sweep between the two poses is
   // planar (both shafts pass through the trocar).
   const Eigen::Vector3d trocar = *setup_.tools.trocar;
@@ -29,17 +29,8 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   std::vector<int> labels = body_->labels();
   CutProgress progress = setup_.cut;
   const CutResult r = cutTetrahedra(rest, current, tets, labels, sweep, setup_.tools.cut, &progress);
-  ++stroke_.sweeps;
-  if (!r.changed) {
-    stroke_.lastStatus = r.status;
-    if (r.status.rfind("The cut was refused", 0) == 0) message = stroke_.lastRefusal = r.status;
-    return false;
-  }
-  ++stroke_.updates;
-  stroke_.split += r.splitElements;
-  stroke_.separatedFaces += r.separatedFaces;
-  stroke_.skippedInverted += r.skippedInverted;
-  stroke_.lastRefusal.clear();
+  strokes_.counted(r, message);
+  if (!r.changed) return false;
   ++constructions_.cutMeshes;
   TopologyChange change =
       changeFromCut(r, std::move(rest), std::move(tets), std::move(labels), std::move(progress), ChangeKind::Cut);
@@ -91,11 +82,11 @@ TopologyChange Session::changeFromCut(const CutResult& r, std::vector<Eigen::Vec
 
 void Session::continueSweep(std::string& message) {
   // The rest of a sweep the blade finished while the last cut was being built.
-  if (!restOfSweep_) return;
-  const auto [from, to] = *restOfSweep_;
-  restOfSweep_.reset();
-  if (cut(from, to, message) && pending_)
-    pending_->clearProgress = true;
+  const auto rest = strokes_.takeRestOfSweep();
+  if (!rest) return;
+  const auto [from, to] = *rest;
+  if (cut(from, to, message) && builds_.underWay())
+    builds_.pending()->clearProgress = true;
   else
     setup_.cut.clear();
 }
@@ -146,58 +137,20 @@ std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::si
   return pieces;
 }
 
-namespace {
-// "The blade crossed no tissue." after a colon: "the blade crossed no tissue."
-std::string lowerFirst(std::string s) {
-  if (!s.empty() && s[0] >= 'A' && s[0] <= 'Z') s[0] = static_cast<char>(s[0] - 'A' + 'a');
-  return s;
-}
-}  // namespace
-
 void Session::finishStroke(std::string& message) {
-  const Stroke s = stroke_;
-  stroke_ = {};
-  if (!s.open) return;
-  const std::size_t pieces = connectedPieces(body_->tetrahedra(), body_->nodeCount());
-  std::string m;
-  if (s.updates == 0 && !s.lastRefusal.empty()) {
-    m = "Nothing was cut: " + s.lastRefusal;
-  } else if (s.updates == 0) {
-    // A stroke that opened nothing is said too: the surgeon swept the blade and the tissue did not change.
-    m = s.sweeps == 0
-            ? "Nothing was cut: the blade did not move while it was on."
-            : "Nothing was cut: " +
-                  (s.lastStatus.empty() ? std::string("the blade opened no face.") : lowerFirst(s.lastStatus)) +
-                  " The blade reaches from its tip back along the shaft: take it deeper into the tissue (the "
-                  "wheel, in the view) or stroke further across it.";
-  } else {
-    m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) +
-        " element(s) split in " + std::to_string(s.updates) + " update(s); ";
-    m += pieces > s.piecesBefore
-             ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
-                   " before)."
-             : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
-                   " (the cut did not go through).";
-    if (s.skippedInverted > 0)
-      m += " " + std::to_string(s.skippedInverted) +
-           " crossed element(s) were inverted and not cut: tissue still joins there.";
-    if (!s.lastRefusal.empty()) m += " The stroke's last sweep was not cut: " + s.lastRefusal;
-  }
-  if (!message.empty()) message += " ";
-  message += m;
+  if (const auto s = strokes_.end())
+    StrokeTracker::say(*s, connectedPieces(body_->tetrahedra(), body_->nodeCount()), message);
 }
 
 void Session::forgetCutProgress() {
-  if (pending_)
-    pending_->clearProgress = true;
+  if (builds_.underWay())
+    builds_.pending()->clearProgress = true;
   else
     setup_.cut.clear();
 }
 
 void Session::beginStroke() {
-  stroke_ = {};
-  stroke_.open = true;
-  stroke_.piecesBefore = connectedPieces(body_->tetrahedra(), body_->nodeCount());
+  strokes_.begin(connectedPieces(body_->tetrahedra(), body_->nodeCount()));
 }
 
 }  // namespace rehearse::simcore

@@ -64,58 +64,36 @@ Session::Session(BodySetup setup) : setup_(std::move(setup)), started_(std::chro
   rest.ok = true;
   rest.outcome = StepStatus::Converged;  // no step taken: nothing left unsolved
   publish(rest, {});
-  thread_ = std::thread([this] { run(); });
+  loop_.start([this] { run(); });
 }
 
 Session::~Session() {
-  {
-    std::lock_guard<std::mutex> lock(mailboxMutex_);
-    quit_ = true;
-    playing_ = false;
-  }
-  wake_.notify_all();
-  thread_.join();
+  loop_.stop();
 }
 
 void Session::post(InputEvent e) {
   if (e.wallTime == 0) e.wallTime = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
-  std::lock_guard<std::mutex> lock(mailboxMutex_);
-  mailbox_.push_back(std::move(e));
+  loop_.post(std::move(e));
 }
 
 void Session::play() {
-  {
-    std::lock_guard<std::mutex> lock(mailboxMutex_);
-    playing_ = true;
-  }
-  wake_.notify_all();
+  loop_.play();
 }
 
 void Session::pause() {
-  playing_ = false;
-  wake_.notify_all();
+  loop_.pause();
 }
 
 void Session::stepOnce() {
-  {
-    std::lock_guard<std::mutex> lock(mailboxMutex_);
-    playing_ = false;
-    ++pendingSteps_;
-  }
-  wake_.notify_all();
+  loop_.stepOnce();
 }
 
 void Session::reset() {
-  {
-    std::lock_guard<std::mutex> lock(mailboxMutex_);
-    playing_ = false;
-    pendingReset_ = true;
-  }
-  wake_.notify_all();
+  loop_.reset();
 }
 
 ToolForceModel Session::toolForce() const {
-  const std::array<double, 18> v = toolForce_.load();
+  const std::array<double, 18> v = loop_.toolForce();
   ToolForceModel m;
   m.step = static_cast<long>(v[0]);
   m.tip = Eigen::Vector3d(v[1], v[2], v[3]);
@@ -127,22 +105,15 @@ ToolForceModel Session::toolForce() const {
 }
 
 std::shared_ptr<const Snapshot> Session::snapshot() const {
-  std::lock_guard<std::mutex> lock(mailboxMutex_);
-  return snapshot_;
+  return loop_.snapshot();
 }
 
 void Session::setPublishedCallback(std::function<void()> f) {
-  std::lock_guard<std::mutex> lock(mailboxMutex_);
-  published_ = std::move(f);
+  loop_.setPublishedCallback(std::move(f));
 }
 
 void Session::setPublishStress(bool on) {
-  publishStress_ = on;
-  {
-    std::lock_guard<std::mutex> lock(mailboxMutex_);
-    republish_ = true;
-  }
-  wake_.notify_all();
+  loop_.setPublishStress(on);
 }
 
 void Session::rebuildBody() {
@@ -356,7 +327,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
     case InputKind::CutApplied:
       // Only replays post these: the live run applied its cut here. A cut with a latency is applied at its own step
       // (advance), the same in the replay; the event then names that one, already applied, not the next one.
-      if (pending_ && pending_->applyAt < 0) finishPendingChange(true, message);
+      if (builds_.underWay() && builds_.pending()->applyAt < 0) finishPendingChange(true, message);
       break;
   }
   if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw || e.kind == InputKind::Clip)
@@ -391,25 +362,14 @@ bool Session::limitJawsAtGraspForce() {
 StepReport Session::advance() {
   std::lock_guard<std::mutex> stepLock(stepMutex_);
   // The events due at this boundary, in the order they were posted.
-  std::vector<InputEvent> due;
-  {
-    std::lock_guard<std::mutex> lock(mailboxMutex_);
-    for (auto it = mailbox_.begin(); it != mailbox_.end();) {
-      if (it->step < 0 || it->step <= steps_) {
-        due.push_back(std::move(*it));
-        it = mailbox_.erase(it);
-      } else {
-        ++it;
-      }
-    }
-  }
+  std::vector<InputEvent> due = loop_.takeDue(steps_);
   std::string message;
   // A cut whose body was built on another thread replaces the body as soon as it is ready (recorded, so that
   // a replay applies it at the same boundary; the replay itself waits for the recording's word).
-  const bool cutDue =
-      pending_ && (pending_->applyAt >= 0 ? steps_ >= pending_->applyAt
-                                          : setup_.settings.factorRefresh == FactorRefresh::Asynchronous);
-  if (cutDue && finishPendingChange(pending_->applyAt >= 0, message)) {
+  const bool cutDue = builds_.underWay() &&
+                      (builds_.pending()->applyAt >= 0 ? steps_ >= builds_.pending()->applyAt
+                                                       : setup_.settings.factorRefresh == FactorRefresh::Asynchronous);
+  if (cutDue && finishPendingChange(builds_.pending()->applyAt >= 0, message)) {
     InputEvent c;
     c.kind = InputKind::CutApplied;
     c.step = steps_;
@@ -421,7 +381,7 @@ StepReport Session::advance() {
     apply(e, message);
     recorded_.push_back(e);
   }
-  if (stroke_.open && !tool_.cutting && !pending_ && !restOfSweep_) finishStroke(message);
+  if (strokes_.open() && !tool_.cutting && !builds_.underWay() && !strokes_.restOfSweep()) finishStroke(message);
   slipDue_ = limitJawsAtGraspForce();
   for (auto& i : instruments_) i->stepping(setup_.settings.timeStep, tool_, *this, message);  // the cautery heats
   // Contacts move with the tissue: detected at every step. The clips' rows are made at every step too (closing ones
@@ -483,11 +443,11 @@ StepReport Session::advance() {
 }
 
 Checkpoint Session::checkpointLocked() const {
-  Checkpoint c{steps_, setup_, state_, tool_, field_, std::nullopt, restOfSweep_};
+  Checkpoint c{steps_, setup_, state_, tool_, field_, std::nullopt, strokes_.restOfSweep()};
   body_->carryInto(c.setup);  // the hybrid model's region as it grew (a restore builds the same region)
   c.setup.hybridBefore.reset();
-  if (pending_) {
-    c.pendingChange = static_cast<const TopologyChange&>(*pending_);
+  if (const TopologyBuilds::PendingChange* pending = builds_.pending()) {
+    c.pendingChange = static_cast<const TopologyChange&>(*pending);
     c.pendingChange->setup.hybridBefore.reset();  // (a restore computes the rest's responses again: the same numbers)
   }
   return c;
@@ -523,7 +483,7 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->surface = setup_.topology > 0 ? surface_ : nullptr;
   s->trocar = *setup_.tools.trocar;
   s->gravity = setup_.settings.gravity;
-  if (publishStress_) body_->stress(state_, s->stress);
+  if (loop_.publishStress()) body_->stress(state_, s->stress);
   {
     std::array<double, 18> v{};
     v[0] = static_cast<double>(steps_);
@@ -534,15 +494,9 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
     for (int k = 0; k < 9; ++k) v[static_cast<std::size_t>(7 + k)] = tool_.stiffness.data()[k];
     v[16] = tool_.held.empty() ? 0 : setup_.tools.maxGraspForce;
     v[17] = toolReach(setup_.tools);
-    toolForce_.store(v);
+    loop_.publishToolForce(v);
   }
-  std::function<void()> callback;
-  {
-    std::lock_guard<std::mutex> lock(mailboxMutex_);
-    snapshot_ = std::move(s);
-    callback = published_;
-  }
-  if (callback) callback();
+  loop_.publish(std::move(s));
 }
 
 std::vector<InputEvent> Session::recorded() const {
@@ -557,9 +511,8 @@ Checkpoint Session::checkpoint() const {
 
 void Session::restore(const Checkpoint& c) {
   std::lock_guard<std::mutex> lock(stepMutex_);
-  dropPendingChange(false);  // a change of the state left behind finishes on its own thread
-  restOfSweep_ = c.restOfSweep;
-  stroke_ = {};
+  builds_.drop(false);  // a change of the state left behind finishes on its own thread
+  strokes_.clear(c.restOfSweep);
   setup_ = c.setup;
   body_ = makeBody(setup_);
   elementsChanged();
@@ -572,10 +525,7 @@ void Session::restore(const Checkpoint& c) {
   field_ = c.field;
   steps_ = c.step;
   if (c.pendingChange) {  // the change under way is built again from the same inputs (the same body)
-    PendingChange p;
-    static_cast<TopologyChange&>(p) = *c.pendingChange;
-    launchBuild(p);
-    pending_ = std::move(p);
+    builds_.launch(*c.pendingChange, uncut_, meanEdge_);
   }
   updateToolConstraints();
   StepReport rest;
@@ -595,32 +545,18 @@ void Session::run() {
   double simAtStart = 0;
   bool wasPlaying = false;
   for (;;) {
-    bool doReset = false, doStep = false;
-    {
-      std::unique_lock<std::mutex> lock(mailboxMutex_);
-      wake_.wait(lock, [this] { return quit_ || playing_ || pendingSteps_ > 0 || pendingReset_ || republish_; });
-      if (quit_) return;
-      if (republish_ && !playing_ && pendingSteps_ == 0 && !pendingReset_) {
-        republish_ = false;
-        lock.unlock();
-        std::lock_guard<std::mutex> stepLock(stepMutex_);
-        const auto last = snapshot();
-        publish(last->report, last->message);
-        continue;
-      }
-      republish_ = false;
-      doReset = pendingReset_;
-      pendingReset_ = false;
-      if (!doReset && pendingSteps_ > 0) {
-        --pendingSteps_;
-        doStep = true;
-      }
-    }
-    if (doReset) {
+    const SessionLoop::Order order = loop_.next();  // (its mutex released before the step mutex is taken)
+    if (order == SessionLoop::Order::Quit) return;
+    if (order == SessionLoop::Order::Republish) {
       std::lock_guard<std::mutex> stepLock(stepMutex_);
-      dropPendingChange(true);
-      restOfSweep_.reset();
-      stroke_ = {};
+      const auto last = snapshot();
+      publish(last->report, last->message);
+      continue;
+    }
+    if (order == SessionLoop::Order::Reset) {
+      std::lock_guard<std::mutex> stepLock(stepMutex_);
+      builds_.drop(true);
+      strokes_.clear();
       if (setup_.topology != uncut_.topology || setup_.mesh.tetLabels != uncut_.mesh.tetLabels) {
         // Back to the organ before any cut or burn (parameter edits stay).
         std::erase_if(setup_.byLabel, [](const auto& m) { return isBurnt(m.first); });
@@ -648,7 +584,8 @@ void Session::run() {
       wasPlaying = false;
       continue;
     }
-    const bool play = playing_ && !doStep;
+    const bool doStep = order == SessionLoop::Order::Step;
+    const bool play = loop_.playing() && !doStep;
     if (play && !wasPlaying) {
       playStart = clock::now();
       simAtStart = state().time;
@@ -656,7 +593,7 @@ void Session::run() {
     wasPlaying = play;
     const StepReport rep = advance();
     if (!rep.ok) {
-      playing_ = false;  // the step was rolled back; the snapshot's status says why
+      loop_.stopPlaying();  // the step was rolled back; the snapshot's status says why
       wasPlaying = false;
       continue;
     }
@@ -664,11 +601,7 @@ void Session::run() {
       // Real time: wait while the simulation is ahead of the wall clock (woken early by pause or quit).
       const double ahead =
           (state().time - simAtStart) - std::chrono::duration<double>(clock::now() - playStart).count();
-      if (ahead > 0) {
-        std::unique_lock<std::mutex> lock(mailboxMutex_);
-        wake_.wait_for(lock, std::chrono::duration<double>(std::min(ahead, 1.0)),
-                       [this] { return quit_ || !playing_ || pendingReset_; });
-      }
+      if (ahead > 0) loop_.waitWhileAhead(ahead);
     }
   }
 }

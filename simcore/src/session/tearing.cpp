@@ -109,7 +109,7 @@ std::string tornStructures(const std::vector<int>& tornLabels, const Mesh& mesh,
 }  // namespace
 
 void Session::tearOverStretched(std::string& message) {
-  if (pending_) return;  // one change at a time: an element still over-stretched tears once this one is in
+  if (builds_.underWay()) return;  // one change at a time: an element still over-stretched tears once this one is in
   auto limitOf = [this](int label) {
     const auto it = setup_.byLabel.find(label);
     return it != setup_.byLabel.end() ? it->second.tearStrain : setup_.material.tearStrain;

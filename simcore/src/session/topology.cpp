@@ -1,7 +1,8 @@
 // Topology changes of the session, one mechanism whatever computed the new mesh (a cut today, cutting.cpp; tearing
 // and burning next): a request (TopologyChange: the new body's setup and how the state extends onto new nodes), the
 // new body built at once or on the second thread while the old one steps on, and a swap at a step boundary with the
-// state carried across; then the new boundary for drawing and contact. The kind of change only words its events.
+// state carried across; then the new boundary for drawing and contact. The kind of change only words its events. The
+// builds themselves (started, held, dropped): topologybuilds.cpp.
 #include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
@@ -17,10 +18,7 @@ bool Session::changeTopology(TopologyChange change, std::string& message) {
   if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || change.applyAt >= 0) {
     // The new body and its first factorisation on another thread; the old body steps on meanwhile, until the
     // boundary applyAt (the same in every run) or, without one, until it is ready.
-    PendingChange p;
-    static_cast<TopologyChange&>(p) = std::move(change);
-    launchBuild(p);
-    pending_ = std::move(p);
+    builds_.launch(std::move(change), uncut_, meanEdge_);
     return true;
   }
   const BodySetup before = setup_;
@@ -47,17 +45,6 @@ bool Session::changeTopology(TopologyChange change, std::string& message) {
   return true;
 }
 
-void Session::launchBuild(PendingChange& p) const {
-  p.built = std::async(std::launch::async, [setup = p.setup, at = p.factorAt, uncut = uncut_, edge = meanEdge_]() {
-    Built b;
-    b.body = makeBody(setup);
-    b.body->prepareFactor(at);
-    b.surface = makeCutSurface(uncut, setup.mesh, edge);
-    b.contact = contactSurface(b.body->restPositions(), b.body->tetrahedra());
-    return b;
-  });
-}
-
 void Session::topologyChanged(const TopologyChange& change, std::string& message) {
   if (change.kind == ChangeKind::Cut) {
     cutEvents(change.labels, message);
@@ -72,7 +59,7 @@ void Session::topologyChanged(const TopologyChange& change, std::string& message
 }
 
 bool Session::burn(const std::vector<int>& elements, std::string& message) {
-  if (pending_) return false;  // one change at a time: the heat is kept, they burn at a later step
+  if (builds_.underWay()) return false;  // one change at a time: the heat is kept, they burn at a later step
   TopologyChange change;
   change.kind = ChangeKind::Burn;
   change.setup = setup_;
@@ -173,11 +160,10 @@ void Session::updateBleeds(std::string& message) {
 }
 
 bool Session::finishPendingChange(bool wait, std::string& message) {
-  if (!pending_) return false;
-  if (!wait && pending_->built.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
-  PendingChange p = std::move(*pending_);
-  pending_.reset();
-  Built built;
+  if (!builds_.underWay()) return false;
+  if (!wait && !builds_.ready()) return false;
+  TopologyBuilds::PendingChange p = builds_.take();
+  TopologyBuilds::Built built;
   try {
     built = p.built.get();
   } catch (const std::exception& ex) {
@@ -186,7 +172,7 @@ bool Session::finishPendingChange(bool wait, std::string& message) {
                           : p.kind == ChangeKind::Tear ? "The tear could not be made: "
                                                        : "The burn could not be made: ") +
               ex.what();
-    if (p.kind == ChangeKind::Cut) restOfSweep_.reset();
+    if (p.kind == ChangeKind::Cut) strokes_.dropRestOfSweep();
     return false;
   }
   // The state carried across from where the tissue is now (the old body went on stepping meanwhile).
@@ -204,7 +190,7 @@ bool Session::finishPendingChange(bool wait, std::string& message) {
   }
   state_.forcesValid = false;
   state_.forces.resize(0);
-  retire(std::move(body_));
+  builds_.retire(std::move(body_));
   body_ = std::move(built.body);
   elementsChanged();
   useContactSurface(std::move(built.contact));
@@ -216,21 +202,9 @@ bool Session::finishPendingChange(bool wait, std::string& message) {
   return true;
 }
 
-void Session::dropPendingChange(bool wait) {
-  if (!pending_) return;
-  if (wait) {
-    pending_->built.wait();
-  } else {  // not waited for: it finishes on its own thread
-    for (auto it = abandoned_.begin(); it != abandoned_.end();)
-      it = it->wait_for(std::chrono::seconds(0)) == std::future_status::ready ? abandoned_.erase(it) : it + 1;
-    abandoned_.push_back(std::move(pending_->built));
-  }
-  pending_.reset();
-}
-
 bool Session::applyPendingChange() {
   std::lock_guard<std::mutex> stepLock(stepMutex_);
-  if (!pending_) return false;
+  if (!builds_.underWay()) return false;
   std::string message;
   const bool applied = finishPendingChange(true, message);
   if (applied) {
@@ -243,14 +217,6 @@ bool Session::applyPendingChange() {
     events_.clear();
   }
   return applied;
-}
-
-void Session::retire(std::unique_ptr<DeformableBody> body) {
-  for (auto it = retired_.begin(); it != retired_.end();)
-    it = it->wait_for(std::chrono::seconds(0)) == std::future_status::ready ? retired_.erase(it) : it + 1;
-  if (!body) return;
-  std::shared_ptr<DeformableBody> old(std::move(body));
-  retired_.push_back(std::async(std::launch::async, [old]() mutable { old.reset(); }));
 }
 
 std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, const Mesh& cutMesh, double meanEdge) {
@@ -311,8 +277,7 @@ void Session::updateCutSurface() {
 }
 
 void Session::discardPending() {
-  std::lock_guard<std::mutex> lock(mailboxMutex_);
-  mailbox_.clear();
+  loop_.discard();
 }
 
 }  // namespace rehearse::simcore

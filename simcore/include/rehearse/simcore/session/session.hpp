@@ -11,8 +11,11 @@
 // tests drive it without its thread through advance().
 #include <rehearse/simcore/session/body.hpp>
 #include <rehearse/simcore/session/contact.hpp>
+#include <rehearse/simcore/session/input.hpp>
 #include <rehearse/simcore/session/instrument.hpp>
-#include <rehearse/simcore/session/seqcell.hpp>
+#include <rehearse/simcore/session/sessionloop.hpp>
+#include <rehearse/simcore/session/strokes.hpp>
+#include <rehearse/simcore/session/topologybuilds.hpp>
 
 #include <atomic>
 #include <condition_variable>
@@ -25,40 +28,6 @@
 #include <thread>
 
 namespace rehearse::simcore {
-
-enum class InputKind {
-  ToolPose,   ///< the tool tip moved to `position` (m, body frame)
-  Jaw,        ///< the jaws closed (`on`) or opened
-  Cut,        ///< the cutting instrument on (`on`) or off
-  Parameter,  ///< `name` ("young", "poisson", "density", "model", "dt", "method", "tear_strain": where the material
-              ///< tears (MaterialParams::tearStrain; 0 never), "clip_length": the clip applier's
-              ///< next clips, "grasp_radius": the jaws' bite, what
-              ///< their next closing holds) set to `value` (SI; model and method:
-              ///< MaterialModel / NewtonMethod index); with `label` > 0, "young" and "poisson" of that label's
-              ///< material (e.g. the vessels'; "young" 0 removes it: the label then uses the parenchyma's)
-  Gravity,    ///< gravity set to `vector` (m/s^2, body frame)
-  Factor,  ///< recorded, not posted by a user: the lagged factor requested earlier (asynchronous refresh) was swapped
-           ///< in at this step boundary; a replay (FactorRefresh::Deferred) installs it at the same boundary
-  CutApplied,  ///< recorded, not posted by a user: a cut computed earlier, whose new body was built on another thread
-               ///< (asynchronous refresh), replaced the body at this step boundary; a replay applies it here
-  Clip,        ///< the clip applier's jaws closed at the tip: a clip is left there (`vector`: the jaws' closing
-               ///< direction; zero: the shaft's, made perpendicular to the clipped structure)
-  Energy,      ///< the cautery hook's power on (`on`) or off: tissue within its radius of the tip burns over time
-};
-
-struct InputEvent {
-  InputKind kind = InputKind::ToolPose;
-  double wallTime = 0;  ///< s since the session started, when posted (for review; replay goes by `step`)
-  long step = -1;       ///< the step boundary it applies at: set by the session when applied; a replay posts it
-  int tool = 0;
-  int label = 0;  ///< Parameter: 0 the parenchyma (and unlisted labels), else an element label
-  Eigen::Vector3d position = Eigen::Vector3d::Zero();
-  Eigen::Vector3d vector = Eigen::Vector3d::Zero();
-  bool on = false;
-  std::string name;
-  double value = 0;
-  bool operator==(const InputEvent&) const = default;
-};
 
 /// What the tools hold between steps (part of a checkpoint: it decides the next step's constraints).
 struct ToolState {
@@ -133,23 +102,6 @@ struct Snapshot {
   std::shared_ptr<const CutSurface> surface;
 };
 
-/// A topology change (a cut, a tear, a burn) as its module computed it: the new body's setup and
-/// how the state extends onto the new nodes. The session builds the new body (at once, or on the second thread while
-/// the old one steps on) and swaps it in at a step boundary, carrying the state across (topology.cpp). A checkpoint
-/// keeps a change still under way, so that a session restored from it builds the same body again.
-/// Cut: the blade's sweep; Burn: the cautery relabels elements (no new node, no new face); Tear: an over-stretched
-/// element split across its stretch (tearing.cpp; its events are said when it is asked for).
-enum class ChangeKind { Cut, Burn, Tear };
-struct TopologyChange {
-  ChangeKind kind = ChangeKind::Cut;  ///< what words its events (a burn relabels elements: no new node, no new face)
-  BodySetup setup;                ///< the new body's setup (new mesh, topology + 1, the change's progress)
-  std::vector<CutNode> newNodes;  ///< how the state extends onto the new nodes (each interpolated from old ones)
-  std::vector<int> labels;        ///< element labels the change went through (a cut: its events, the vessels it cut)
-  Eigen::VectorXd factorAt;       ///< the positions the new body's first factor is built at (asynchronous build)
-  bool clearProgress = false;     ///< the instrument was withdrawn meanwhile: the new body starts without progress
-  long applyAt = -1;  ///< the step boundary it replaces the body at (ToolSettings::cutLatencySteps); -1: when ready
-};
-
 /// Everything needed to continue a run exactly from a step: the body's setup (parameters as edited so
 /// far), the complete state, the tools, and a cut under way (being built, and the rest of the sweep).
 struct Checkpoint {
@@ -202,7 +154,7 @@ class Session : private InstrumentHost {
   void pause();
   void stepOnce();
   void reset();
-  bool playing() const { return playing_; }
+  bool playing() const { return loop_.playing(); }
   /// Any thread: the last published snapshot (never null).
   std::shared_ptr<const Snapshot> snapshot() const;
   /// Any thread, without a lock (the tool-force loop's source): the last published step's tool force and
@@ -263,12 +215,10 @@ class Session : private InstrumentHost {
   void emitEvent(const std::string& event) override { events_.push_back(event); }
   void seedContactEasing() override { seedEasing_ = true; }
   void finishTopologyChange(std::string& message) override { finishPendingChange(true, message); }
-  bool topologyChangeUnderWay() const override { return pending_.has_value(); }
+  bool topologyChangeUnderWay() const override { return builds_.underWay(); }
   bool cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
            std::string& message) override;  ///< true when the tissue changed (or will)
-  void cutWhenIn(const Eigen::Vector3d& from, const Eigen::Vector3d& to) override {
-    restOfSweep_ = std::make_pair(from, to);
-  }
+  void cutWhenIn(const Eigen::Vector3d& from, const Eigen::Vector3d& to) override { strokes_.cutWhenIn(from, to); }
   void forgetCutProgress() override;
   void beginStroke() override;
   OperativeField& field() override { return field_; }
@@ -287,32 +237,17 @@ class Session : private InstrumentHost {
   // a request, the new body built at once or on another thread while the old body goes on stepping, and a swap at a
   // step boundary (the first after it is ready, or the change's own applyAt), the state carried across from where
   // the tissue is by then (the change's interpolation of new nodes).
-  struct Built {
-    std::unique_ptr<DeformableBody> body;
-    std::shared_ptr<const CutSurface> surface;
-    ContactSurface contact;
-  };
-  struct PendingChange : TopologyChange {
-    std::future<Built> built;
-  };
   /// Applies `change` now (synchronous refresh without a latency), or starts building its body on another thread.
   /// False, with `message`, when the new body could not be built (the old one stays).
   bool changeTopology(TopologyChange change, std::string& message);
-  /// Starts building the change's body on another thread.
-  void launchBuild(PendingChange& p) const;
   /// Swaps the pending change's body in when it is ready (or, with `wait`, after waiting); true when swapped.
   bool finishPendingChange(bool wait, std::string& message);
-  /// Drops the change under way (reset waits for its build, a restore leaves it to finish on its own thread).
-  void dropPendingChange(bool wait);
   /// What every applied change does after the body changed: elements, surfaces, contact, then its events.
   void topologyChanged(const TopologyChange& change, std::string& message);
   /// What a burn applied says: the elements burnt, the stumps it stopped.
   void burnEvents(std::string& message);
-  std::optional<PendingChange> pending_;
-  std::vector<std::future<Built>> abandoned_;  ///< builds a restore left behind (waited for at the end)
-  /// Old bodies being destroyed on another thread (an asynchronous refresh under way ends first).
-  std::vector<std::future<void>> retired_;
-  void retire(std::unique_ptr<DeformableBody> body);
+  /// The change under way and the bodies built and dropped on other threads (topologybuilds.hpp).
+  TopologyBuilds builds_;
 
   /// The cut module's new mesh (copies of the body's, cut) as the next body's setup: new nodes held where their
   /// originals were (duplicates of fixed nodes fixed), topology + 1, applied after the scene's latency (a tear's
@@ -334,22 +269,11 @@ class Session : private InstrumentHost {
   bool tearRefused_ = false;  ///< the last tear could not be made (said once until one is made)
 
   // The cut (cutting.cpp): what the blade's sweep asks of the cut module, and what a cut says.
-  /// The rest of a sweep asked for while a cut was being built (the blade withdrawn meanwhile): cut when it is in.
-  std::optional<std::pair<Eigen::Vector3d, Eigen::Vector3d>> restOfSweep_;
+  /// The blade's stroke and the rest of a sweep asked for while a cut was being built (strokes.hpp; the rest of the
+  /// sweep is part of a checkpoint, the stroke is not).
+  StrokeTracker strokes_;
   /// After a swap: the rest of the sweep the blade finished while the change was being built.
   void continueSweep(std::string& message);
-  /// What one blade stroke (cut on to cut off, and the cuts still coming in after it) did, said when it is all in:
-  /// whether the organ came apart, and what the stroke left uncut (inverted elements it crossed, a last sweep
-  /// refused), so that "Cut" is never said over tissue that still joins. Not part of a checkpoint (it only words
-  /// the message).
-  struct Stroke {
-    bool open = false;
-    std::size_t updates = 0, split = 0, separatedFaces = 0, skippedInverted = 0, piecesBefore = 1;
-    std::string lastRefusal;  ///< why the stroke's last attempt was refused (empty when its last sweep was cut)
-    std::size_t sweeps = 0;   ///< sweeps the stroke asked the cut module to cut (updates: those that cut)
-    std::string lastStatus;   ///< what the cut module said of the last sweep that cut nothing
-  };
-  Stroke stroke_;
   /// The stroke's sentence once nothing of it is under way any more.
   void finishStroke(std::string& message);
   /// A cut applied (either way): its events ("cut", "cut through label N", "vessel cut" once per vessel and stroke),
@@ -391,20 +315,10 @@ class Session : private InstrumentHost {
   std::vector<std::string> events_;  ///< what the events applied at this boundary did, for the next snapshot
   std::chrono::steady_clock::time_point started_;
 
-  mutable std::mutex stepMutex_;     // body, state, tools, recording
-  mutable std::mutex mailboxMutex_;  // mailbox, snapshot, control flags
-  SeqCell<18> toolForce_;            // written at each publish, read by the force loop without a lock
-  std::deque<InputEvent> mailbox_;
-  std::shared_ptr<const Snapshot> snapshot_;
-  std::function<void()> published_;
-  std::condition_variable wake_;
-  std::atomic<bool> playing_{false};
-  std::atomic<bool> publishStress_{false};
-  bool republish_ = false;
-  int pendingSteps_ = 0;
-  bool pendingReset_ = false;
-  bool quit_ = false;
-  std::thread thread_;
+  mutable std::mutex stepMutex_;  // body, state, tools, strokes, recording
+  /// The session's thread, its mailbox, control flags and what is published (sessionloop.hpp; its own mutex, the
+  /// "mailbox" one, taken after stepMutex_ when both are held).
+  SessionLoop loop_;
 };
 
 /// Runs a body from rest through `steps` steps with a recorded list of events (each applied at its

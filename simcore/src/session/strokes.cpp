@@ -1,0 +1,80 @@
+#include <rehearse/simcore/session/strokes.hpp>
+
+namespace rehearse::simcore {
+
+void StrokeTracker::begin(std::size_t piecesBefore) {
+  stroke_ = {};
+  stroke_.open = true;
+  stroke_.piecesBefore = piecesBefore;
+}
+
+void StrokeTracker::counted(const CutResult& r, std::string& message) {
+  ++stroke_.sweeps;
+  if (!r.changed) {
+    stroke_.lastStatus = r.status;
+    if (r.status.rfind("The cut was refused", 0) == 0) message = stroke_.lastRefusal = r.status;
+    return;
+  }
+  ++stroke_.updates;
+  stroke_.split += r.splitElements;
+  stroke_.separatedFaces += r.separatedFaces;
+  stroke_.skippedInverted += r.skippedInverted;
+  stroke_.lastRefusal.clear();
+}
+
+std::optional<StrokeTracker::Stroke> StrokeTracker::end() {
+  const Stroke s = stroke_;
+  stroke_ = {};
+  if (!s.open) return std::nullopt;
+  return s;
+}
+
+std::optional<StrokeTracker::Sweep> StrokeTracker::takeRestOfSweep() {
+  std::optional<Sweep> rest = restOfSweep_;
+  restOfSweep_.reset();
+  return rest;
+}
+
+void StrokeTracker::clear(const std::optional<Sweep>& rest) {
+  restOfSweep_ = rest;
+  stroke_ = {};
+}
+
+namespace {
+// "The blade crossed no tissue." after a colon: "the blade crossed no tissue."
+std::string lowerFirst(std::string s) {
+  if (!s.empty() && s[0] >= 'A' && s[0] <= 'Z') s[0] = static_cast<char>(s[0] - 'A' + 'a');
+  return s;
+}
+}  // namespace
+
+void StrokeTracker::say(const Stroke& s, std::size_t pieces, std::string& message) {
+  std::string m;
+  if (s.updates == 0 && !s.lastRefusal.empty()) {
+    m = "Nothing was cut: " + s.lastRefusal;
+  } else if (s.updates == 0) {
+    // A stroke that opened nothing is said too: the surgeon swept the blade and the tissue did not change.
+    m = s.sweeps == 0
+            ? "Nothing was cut: the blade did not move while it was on."
+            : "Nothing was cut: " +
+                  (s.lastStatus.empty() ? std::string("the blade opened no face.") : lowerFirst(s.lastStatus)) +
+                  " The blade reaches from its tip back along the shaft: take it deeper into the tissue (the "
+                  "wheel, in the view) or stroke further across it.";
+  } else {
+    m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) +
+        " element(s) split in " + std::to_string(s.updates) + " update(s); ";
+    m += pieces > s.piecesBefore
+             ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
+                   " before)."
+             : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
+                   " (the cut did not go through).";
+    if (s.skippedInverted > 0)
+      m += " " + std::to_string(s.skippedInverted) +
+           " crossed element(s) were inverted and not cut: tissue still joins there.";
+    if (!s.lastRefusal.empty()) m += " The stroke's last sweep was not cut: " + s.lastRefusal;
+  }
+  if (!message.empty()) message += " ";
+  message += m;
+}
+
+}  // namespace rehearse::simcore
