@@ -14,7 +14,7 @@ for tool in cpack lintian debootstrap dpkg-deb desktop-file-validate appstreamcl
   command -v "$tool" >/dev/null || fail "$tool was not found: run scripts/install-deps.sh"
 done
 root="$out/root"
-rm -rf "$out"
+rm -rf --one-file-system "$out"  # never into a /proc a killed debootstrap left mounted
 mkdir -p "$out/pkg" "$out/contents"
 
 cpack --config "$build/CPackConfig.cmake" -G DEB -B "$out/pkg" >/dev/null
@@ -27,9 +27,19 @@ for d in qt6-qpa-plugins libqt6sql6-sqlite libqt6widgets6 libopencv-core406; do
   [[ ", $depends," == *", $d"[\ ,]* ]] || fail "Depends lacks $d: $depends"
 done
 
-lintian --fail-on error,warning,info --info --pedantic --display-experimental "$deb" 2>&1 |
-  grep -v 'running with root privileges' || true
-lintian --fail-on error,warning,info "$deb" >/dev/null 2>&1 || fail "lintian reports errors, warnings or informational tags (above)"
+# The clean root is made meanwhile (debootstrap waits on the archive; lintian on the processor).
+mirror=${REHEARSE_DEBIAN_MIRROR:-http://deb.debian.org/debian}
+debootstrap --variant=minbase bookworm "$root" "$mirror" >"$out/debootstrap.log" 2>&1 &
+debootstrap_pid=$!
+# A check that fails meanwhile stops it (the next run removes the root it was making).
+trap 'kill "$debootstrap_pid" 2>/dev/null && pkill -P "$debootstrap_pid" 2>/dev/null; true' EXIT
+# One run shows everything (pedantic and experimental tags too); its error, warning and informational tags fail.
+lintian --info --pedantic --display-experimental "$deb" >"$out/lintian.log" 2>&1 || true
+grep -v 'running with root privileges' "$out/lintian.log" || true
+if grep -qE '^[EWI]: ' "$out/lintian.log"; then
+  wait $debootstrap_pid || true
+  fail "lintian reports errors, warnings or informational tags (above)"
+fi
 echo "lintian: no errors, warnings or informational tags"
 
 dpkg-deb -x "$deb" "$out/contents"
@@ -39,16 +49,17 @@ appstreamcli validate --no-net "$out/contents/usr/share/metainfo/$id.metainfo.xm
   fail "the packaged metainfo does not validate"
 
 # A clean Debian 12 root from the same archive this machine uses (its own apt sources, with the security updates).
-mirror=${REHEARSE_DEBIAN_MIRROR:-http://deb.debian.org/debian}
-debootstrap --variant=minbase bookworm "$root" "$mirror" >"$out/debootstrap.log" 2>&1 ||
-  fail "debootstrap could not make a Debian 12 root from $mirror (see $out/debootstrap.log)"
+wait $debootstrap_pid || fail "debootstrap could not make a Debian 12 root from $mirror (see $out/debootstrap.log)"
+# dpkg without a sync per file (the root is thrown away; what Debian's own image builders do): the install takes
+# half the time. Only the package's Depends are installed (--no-install-recommends): they alone must make it run.
+echo force-unsafe-io > "$root/etc/dpkg/dpkg.cfg.d/unsafe-io"
 if [ -f /etc/apt/sources.list.d/debian.sources ]; then
   rm -f "$root/etc/apt/sources.list"
   cp /etc/apt/sources.list.d/debian.sources "$root/etc/apt/sources.list.d/"
 fi
 cp "$deb" "$root/tmp/"
 export DEBIAN_FRONTEND=noninteractive
-{ chroot "$root" apt-get update -qq && chroot "$root" apt-get install -y -qq "/tmp/$(basename "$deb")"; } \
+{ chroot "$root" apt-get update -qq && chroot "$root" apt-get install -y -qq --no-install-recommends "/tmp/$(basename "$deb")"; } \
   >"$out/apt.log" 2>&1 || { tail -20 "$out/apt.log" >&2; fail "apt-get install ./$(basename "$deb") failed in the clean root"; }
 echo "installed into a clean root with $(grep -c '^Setting up' "$out/apt.log") packages from the archive"
 
@@ -72,5 +83,5 @@ echo "the installed GUI's main window: ${w}x${h}, $size bytes"
 [ "$(head -c 8 "$shot" | od -An -tx1 | tr -d ' \n')" = 89504e470d0a1a0a ] || fail "the screenshot is not a PNG"
 [ "$w" -ge 800 ] && [ "$h" -ge 500 ] && [ "$size" -gt 60000 ] || fail "the screenshot looks empty (${w}x${h}, $size bytes)"
 cp "$shot" "$out/window.png"
-rm -rf "$root"
+rm -rf --one-file-system "$root"
 echo "check_deb: the package installs into a clean Debian 12 root and runs there"

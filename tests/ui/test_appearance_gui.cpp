@@ -89,18 +89,8 @@ QList<QVariant> TestAppearanceGui::estimateWithF10() {
 
 void TestAppearanceGui::initTestCase() {
   QCoreApplication::setOrganizationName("RehearseAppearanceTest");
-  forgetEarlierRuns();
-  ui::applyDarkTheme(*qApp);
   MainWindow::setRenderer(MainWindow::Renderer::Software);
-  w_ = std::make_unique<MainWindow>();
-  w_->resize(1600, 900);
-  w_->show();
-  QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
-  w_->activateWindow();
-  QVERIFY(QTest::qWaitForWindowActive(w_.get()));
-  QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
-  w_->openCase({});
-  QVERIFY(loaded.wait(60000));
+  QVERIFY(openPhantomCase(w_));
   panel_ = w_->simulationPanel();
   // Registered: the phantom at its true pose (steps 4-5 are tested elsewhere; here the appearance).
   const Pose truth = w_->caseData()->groundTruth->pose;

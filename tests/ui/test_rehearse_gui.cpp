@@ -147,18 +147,8 @@ class TestRehearseGui : public QObject {
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseRehearseTest");
-    forgetEarlierRuns();
-    ui::applyDarkTheme(*qApp);
     MainWindow::setRenderer(MainWindow::Renderer::Software);
-    w_ = std::make_unique<MainWindow>();
-    w_->resize(1600, 900);
-    w_->show();
-    QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
-    w_->activateWindow();
-    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
-    QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
-    w_->openCase({});
-    QVERIFY(loaded.wait(60000));
+    QVERIFY(openPhantomCase(w_));
     const Pose truth = w_->caseData()->groundTruth->pose;
     w_->editCase("Register (test)", [&truth](app::Case& c) {
       c.pose = truth;

@@ -31,18 +31,8 @@ using ui::MainWindow;
 
 void TestSimulationGui::initTestCase() {
   QCoreApplication::setOrganizationName("RehearseSimulationTest");
-  forgetEarlierRuns();
-  ui::applyDarkTheme(*qApp);
   MainWindow::setRenderer(MainWindow::Renderer::Software);
-  w_ = std::make_unique<MainWindow>();
-  w_->resize(1600, 900);
-  w_->show();
-  QVERIFY(QTest::qWaitForWindowExposed(w_.get()));
-  w_->activateWindow();
-  QVERIFY(QTest::qWaitForWindowActive(w_.get()));
-  QSignalSpy loaded(w_.get(), &MainWindow::caseLoaded);
-  w_->openCase({});
-  QVERIFY(loaded.wait(60000));
+  QVERIFY(openPhantomCase(w_));
   panel_ = w_->simulationPanel();
   QVERIFY(panel_);
   auto* dock = w_->findChild<QDockWidget*>("simulationDock");
