@@ -34,9 +34,11 @@ debootstrap_pid=$!
 # A check that fails meanwhile stops it (the next run removes the root it was making).
 trap 'kill "$debootstrap_pid" 2>/dev/null && pkill -P "$debootstrap_pid" 2>/dev/null; true' EXIT
 # One run shows everything (pedantic and experimental tags too); its error, warning and informational tags fail.
-lintian --info --pedantic --display-experimental "$deb" >"$out/lintian.log" 2>&1 || true
+# A lintian that failed without a tag (it could not run) fails too.
+lintian_status=0
+lintian --info --pedantic --display-experimental "$deb" >"$out/lintian.log" 2>&1 || lintian_status=$?
 grep -v 'running with root privileges' "$out/lintian.log" || true
-if grep -qE '^[EWI]: ' "$out/lintian.log"; then
+if [ "$lintian_status" -ne 0 ] || grep -qE '^[EWI]: ' "$out/lintian.log"; then
   wait $debootstrap_pid || true
   fail "lintian reports errors, warnings or informational tags (above)"
 fi
