@@ -60,11 +60,11 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
     if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
     if (isCaseFile(o["case"])) {
       // A case file (as the GUI saves it): the organ at the shape its frame shows (the elastic fit's, else at rest),
-      // drawn through its own surface, and the pose it was aligned at (a pose never aligned is only the automatic
-      // first guess, which no fit should take as the organ's pose: --pose is then required).
+      // drawn through its own surface, and its pose when aligned or placed by the elastic fit (otherwise only the
+      // automatic first guess, which no fit should take as the organ's pose: --pose is then required).
       in = appearanceInputFromCase(c);
       in.contour = {};  // (its outline turns the organ only when --contour asks)
-      havePose = c.hasPose && c.poseAligned;
+      havePose = c.poseDetermined();
       atCaseShape = true;
     } else {
       in.camera = c.camera;
@@ -126,7 +126,7 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
   if (!havePose)
     throw UsageError(std::string(command) +
                      " needs --pose (the organ's pose in the camera; a case folder stores no alignment, and this case "
-                     "file's organ was never aligned)");
+                     "file's organ was neither aligned nor fitted)");
   if (const std::string problem = in.camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
   // A frame from a camera with lens distortion is undistorted first (every step works on the undistorted frame).
   if (o.count("image")) in.frame = imaging::undistortImage(in.frame, in.camera);

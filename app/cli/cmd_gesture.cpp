@@ -89,6 +89,7 @@ simcore::BodySetup bodyFromCase(Options& o, simcore::Mesh& mesh, double& caseSup
   }
   if (c.organ->empty()) throw UsageError(o["case"] + " has no organ mesh");
   simcore::BodySetup setup;
+  setup.settings.method = simcore::kInteractiveMethod;  // --method's default, as for scenes and presets without one
   mesh = c.organ->volume;
   setup.fixedNodes = c.attachments;
   caseSupport = c.material.supportModulus;

@@ -11,6 +11,8 @@
 
 #include <QCryptographicHash>
 #include <QFile>
+#include <QJsonDocument>
+#include <QJsonObject>
 #include <QTemporaryDir>
 #include <QtTest>
 
@@ -114,7 +116,7 @@ class TestCaseCommands : public QObject {
     // A case whose pose was never aligned gives no pose: the automatic guess is not taken for one.
     r = run({"appearance", "--case", file_, "--out", dir_.path() + "/none.json"});
     QCOMPARE(r.code, 2);
-    QVERIFY2(r.err.contains("was never aligned"), qPrintable(r.err));
+    QVERIFY2(r.err.contains("neither aligned nor fitted"), qPrintable(r.err));
     QVERIFY(!QFile::exists(dir_.path() + "/none.json"));
 
     // Aligned (as step 4 leaves it), the case file's own pose is the one used: no --pose needed.
@@ -128,6 +130,20 @@ class TestCaseCommands : public QObject {
     QVERIFY2(r.code == 0 || r.code == 4, qPrintable(r.err));
     QCOMPARE(readAll(thetaAligned), readAll(thetaFolder));
 
+    // Placed by the elastic fit and never moved by hand (F9 then Keep Fit, as the GUI saves it): the fit found the
+    // pose, so it is the one used (a helper's path: refused before as 'never aligned'). The fit's nodes here are the
+    // rest shape, so the answer is the folder's at that pose.
+    app::Case fitted = app::loadCaseFile(file_.toStdString());
+    fitted.pose = imaging::loadPose(pose.toStdString());
+    fitted.poseAligned = false;
+    fitted.fit = std::make_shared<const app::ElasticFit>(app::ElasticFit{fitted.organ->volume.points, "fitted (test)"});
+    QVERIFY(fitted.poseDetermined());
+    const QString fittedFile = dir_.path() + "/fitted.rehearse", thetaFitted = dir_.path() + "/fitted.json";
+    app::saveCaseFile(fitted, fittedFile.toStdString());
+    r = run({"appearance", "--case", fittedFile, "--out", thetaFitted});
+    QVERIFY2(r.code == 0 || r.code == 4, qPrintable(r.err));
+    QCOMPARE(readAll(thetaFitted), readAll(thetaFolder));
+
     const QString jFile = dir_.path() + "/j-file.png", jFolder = dir_.path() + "/j-folder.png";
     r = run({"compose", "--case", alignedFile, "--theta", thetaAligned, "--out", jFile});
     QVERIFY2(r.code == 0, qPrintable(r.err));
@@ -138,8 +154,12 @@ class TestCaseCommands : public QObject {
 
     const QString script = QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json";
     const QString outFile = dir_.path() + "/pulled-file.vtu", outFolder = dir_.path() + "/pulled-folder.vtu";
-    r = run({"gesture", "--case", file_, "--script", script, "--out", outFile});
+    const QString reportFile = dir_.path() + "/pulled-file.json";
+    r = run({"gesture", "--case", file_, "--script", script, "--out", outFile, "--report", reportFile});
     QVERIFY2(::testing::tookEveryStep(r), qPrintable(r.err + r.out));
+    // The method --help names as the default (a case's run took the library's exact method instead: a helper saw it).
+    const QJsonObject report = QJsonDocument::fromJson(QByteArray::fromStdString(readAll(reportFile))).object();
+    QCOMPARE(report.value("method").toString(), QStringLiteral("chord"));
     r = run({"gesture", "--case", folder_, "--script", script, "--out", outFolder});
     QVERIFY2(::testing::tookEveryStep(r), qPrintable(r.err + r.out));
     const simcore::Mesh a = simcore::loadMesh(outFile.toStdString()), b = simcore::loadMesh(outFolder.toStdString());

@@ -29,7 +29,7 @@ QString caseInfoText(const app::Case& c, const QStringList& notes, const QString
            .arg(cam.width).arg(cam.height)
            .arg(cam.fx(), 0, 'f', 1).arg(cam.fy(), 0, 'f', 1).arg(cam.cx(), 0, 'f', 1).arg(cam.cy(), 0, 'f', 1)
            .arg(cam.distortion[0]).arg(cam.distortion[1]).arg(cam.distortion[2]).arg(cam.distortion[3]).arg(cam.distortion[4]);
-  if (c.hasPose) t += tr("Pose (model to camera, %1)\n%2\n").arg(c.poseAligned ? tr("aligned") : tr("automatic placement"), poseText(c.pose));
+  if (c.hasPose) t += tr("Pose (model to camera, %1)\n%2\n").arg(c.poseAligned ? tr("aligned") : c.hasFit() ? tr("placed by the elastic fit") : tr("automatic placement"), poseText(c.pose));
   if (c.hasFit()) t += tr("Elastic fit: %1\n\n").arg(QString::fromStdString(c.fit->status));
   if (c.appearance) {
     const auto& a = c.appearance->theta;

@@ -8,7 +8,7 @@ bool stepDone(const Case& c, Step s) {
     case Step::Frame: return !c.frame.empty() && c.camera.problem().empty();
     case Step::Contour: return imaging::contourProblem(c.contour).empty();
     // Aligned by hand, or placed by a completed fit (which finds the pose too): not "(next)" after the fit.
-    case Step::Rigid: return c.hasPose && (c.poseAligned || c.hasFit());
+    case Step::Rigid: return c.poseDetermined();
     case Step::Elastic: return c.hasFit();
     case Step::Appearance: return c.appearanceCurrent();
     default: return false;

@@ -193,6 +193,9 @@ struct Case {
   /// the rest shape before. Sized like organ->volume.points.
   const std::vector<Eigen::Vector3d>& shapeNodes() const;
   bool hasFit() const { return fit && fit->nodes.size() == organ->volume.points.size(); }
+  /// The pose is the organ's in the frame: aligned by the user, or placed by a completed elastic fit (which finds the
+  /// pose with the shape). Otherwise it is at most the automatic first guess, which nothing should take for one.
+  bool poseDetermined() const { return hasPose && (poseAligned || hasFit()); }
   /// A number that changes when the shape (shapeNodes) changes, and one for the frame's pixels.
   double shapeDigest() const;
   double frameDigest() const;
