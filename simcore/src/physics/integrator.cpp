@@ -117,12 +117,22 @@ Integrator::Integrator(const FemModel& model, std::vector<int> fixedNodes, Simul
 }
 
 Integrator::~Integrator() {
-  if (w_ && w_->request.job.valid()) w_->request.job.wait();  // it reads the model
+  if (!w_) return;
+  // Their builds read the model.
+  if (w_->request->job.valid()) w_->request->job.wait();
+  for (auto& q : w_->abandoned)
+    if (q->job.valid()) q->job.wait();
 }
 
-int Integrator::symbolicAnalyses() const { return w_->chol->analyses() + w_->request.chol->analyses(); }
+int Integrator::symbolicAnalyses() const {
+  int n = w_->chol->analyses() + w_->request->chol->analyses();
+  for (const auto& q : w_->abandoned) n += q->chol->analyses();
+  return n;
+}
 int Integrator::numericFactorisations() const {
-  return w_->chol->factorisations() + w_->request.chol->factorisations();
+  int n = w_->chol->factorisations() + w_->request->chol->factorisations();
+  for (const auto& q : w_->abandoned) n += q->chol->factorisations();
+  return n;
 }
 const Eigen::VectorXd& Integrator::multipliers() const { return w_->lambdaOut; }
 const Eigen::MatrixXd& Integrator::constraintCompliance() const { return w_->cons.schur(); }
@@ -140,8 +150,10 @@ std::size_t Integrator::memoryBytes() const {
              static_cast<std::size_t>(m->outerSize() + 1) * sizeof(int);
   for (const TangentState* t : {&w.tangent0, &w.tangentIt, &w.tangentEnd})
     bytes += t->F.size() * (sizeof(Eigen::Matrix3d) + sizeof(TangentCache));
-  bytes += w.cons.memoryBytes() + w.request.compliance.memoryBytes();
-  bytes += (w.chol->factorEntries() + w.request.chol->factorEntries()) * (sizeof(double) + sizeof(int));
+  bytes += w.cons.memoryBytes() + w.request->compliance.memoryBytes();
+  bytes += (w.chol->factorEntries() + w.request->chol->factorEntries()) * (sizeof(double) + sizeof(int));
+  for (const auto& q : w.abandoned)
+    bytes += q->compliance.memoryBytes() + q->chol->factorEntries() * (sizeof(double) + sizeof(int));
   return bytes;
 }
 
@@ -249,7 +261,7 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
         rep.status = "failed: the linear system could not be solved";
         return Try::Failed;
       }
-    } else if (w.drift && !w.request.pending) {
+    } else if (w.drift && !w.request->pending) {
       requestFactor(w.x0, h, rep);  // asynchronous or deferred: this step goes on with the old factor
       w.drift = false;
     }

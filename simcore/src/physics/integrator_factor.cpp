@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -38,7 +39,7 @@ bool Integrator::buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& K
 }
 
 void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& rep) {
-  Work::Request& q = w_->request;
+  Work::Request& q = *w_->request;
   if (q.pending) return;  // one at a time: the steps keep the old factor until it is in
   if (q.Kd.size() == 0) q.Kd = q.J = model_.pattern;
   q.at = at;
@@ -53,7 +54,9 @@ void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& 
   {
     const double alpha = settings_.rayleighMass, beta = settings_.rayleighStiffness;
     const bool simplicial = settings_.simplicialFactor;
-    q.job = std::async(std::launch::async, [this, &q, alpha, beta, simplicial] {
+    Work::Request* const build = &q;  // its address is stable (the request may be abandoned while it runs)
+    q.job = std::async(std::launch::async, [this, build, alpha, beta, simplicial] {
+      Work::Request& q = *build;
       // The stepping thread comes first: this thread yields its core to it (nice 10: a tenth of its share when both
       // want the core; the steps are paced, so the build has the rest), and its element loop runs here alone instead
       // of taking the stepping thread's worker (an arena of one). Measured on the liver preset's paced grasp-pull:
@@ -71,7 +74,7 @@ void Integrator::requestFactor(const Eigen::VectorXd& at, double h, StepReport& 
 // Swaps the requested factor in when it is built (asynchronous: the job finished; deferred: installed).
 bool Integrator::swapInRequested(StepReport& rep) {
   Work& w = *w_;
-  Work::Request& q = w.request;
+  Work::Request& q = *w.request;
   if (!q.pending) return false;
   if (settings_.factorRefresh != FactorRefresh::Deferred && q.job.valid()) {
     if (q.job.wait_for(std::chrono::seconds(0)) != std::future_status::ready) return false;
@@ -94,7 +97,7 @@ bool Integrator::swapInRequested(StepReport& rep) {
 }
 
 bool Integrator::installRequestedFactor() {
-  Work::Request& q = w_->request;
+  Work::Request& q = *w_->request;
   if (!q.pending) return false;
   if (q.job.valid()) {
     q.ok = q.job.get();
@@ -107,7 +110,35 @@ bool Integrator::installRequestedFactor() {
   return q.ok;
 }
 
-bool Integrator::factorPending() const { return w_->request.pending; }
+void Integrator::dropRequest() {
+  Work& w = *w_;
+  auto finished = [](const Work::Request& q) {
+    return !q.job.valid() || q.job.wait_for(std::chrono::seconds(0)) == std::future_status::ready;
+  };
+  if (finished(*w.request)) {
+    if (w.request->job.valid()) (void)w.request->job.get();
+  } else {
+    // Still being built: left to finish on the second thread. A request abandoned earlier whose build has ended
+    // takes its place; if none has and two are still running, the oldest is waited for (a bound on the builds
+    // left running beside the steps).
+    auto spare = std::find_if(w.abandoned.begin(), w.abandoned.end(), [&](const auto& q) { return finished(*q); });
+    if (spare == w.abandoned.end() && w.abandoned.size() >= 2) spare = w.abandoned.begin();
+    std::unique_ptr<Work::Request> next;
+    if (spare != w.abandoned.end()) {
+      next = std::move(*spare);
+      w.abandoned.erase(spare);
+      if (next->job.valid()) (void)next->job.get();
+    } else {
+      next = std::make_unique<Work::Request>();
+    }
+    w.abandoned.push_back(std::move(w.request));
+    w.request = std::move(next);
+  }
+  w.request->pending = false;
+  w.request->built = false;
+}
+
+bool Integrator::factorPending() const { return w_->request->pending; }
 
 bool Integrator::prepareLagged(const Eigen::VectorXd& at) {
   if (settings_.method == NewtonMethod::Exact || settings_.solver != LinearSolverKind::Cholmod ||
@@ -123,13 +154,13 @@ bool Integrator::refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport
   w.laggedAt = at;  // the factor's identity, part of the complete state (SimulationState::lagged)
   w.refresh = false;
   w.drift = false;
-  if (!keepRequest && w.request.pending) {
+  if (!keepRequest && w.request->pending) {
     // A factor requested before this one is older. Left pending until its build ended (live) or a recorded swap
     // installed it (a replay, which has none for it), it blocked the requests after it for a time that depended on
-    // the second thread: a chord run's replay differed from step 14 on (issue 34). Dropped now, in both.
-    if (w.request.job.valid()) (void)w.request.job.get();
-    w.request.pending = false;
-    w.request.built = false;
+    // the second thread: a chord run's replay differed from step 14 on (issue 34). Dropped now, in both, without
+    // waiting for its build: this build does not queue behind it (the steps that rebuild their factor in the step
+    // waited for both, one after the other).
+    dropRequest();
   }
   w.cons.invalidate();
   return buildLagged(*w.chol, w.Kd, w.J, at, h, settings_.rayleighMass, settings_.rayleighStiffness,
@@ -170,7 +201,7 @@ bool Integrator::adopt(const SimulationState& state, StepReport& rep) {
 }
 
 void Integrator::requestAgain(const SimulationState& state) {
-  if (!state.lagged.requested || w_->request.pending || settings_.factorRefresh == FactorRefresh::Synchronous ||
+  if (!state.lagged.requested || w_->request->pending || settings_.factorRefresh == FactorRefresh::Synchronous ||
       state.lagged.requestedAt.size() != state.x.size())
     return;
   StepReport rep;
@@ -190,10 +221,10 @@ void Integrator::record(SimulationState& state) const {
   }
   state.forcesValid = w.forcesValid && w.forcesAt.size() == state.x.size() && w.forcesAt == state.x;
   if (state.forcesValid) state.forces = w.forces;
-  state.lagged.requested = w.request.pending;
+  state.lagged.requested = w.request->pending;
   if (state.lagged.requested) {
-    state.lagged.requestedAt = w.request.at;  // same size from the second request on: no allocation
-    state.lagged.requestedStep = w.request.step;
+    state.lagged.requestedAt = w.request->at;  // same size from the second request on: no allocation
+    state.lagged.requestedStep = w.request->step;
   }
 }
 

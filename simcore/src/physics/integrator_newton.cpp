@@ -58,7 +58,7 @@ NewtonIteration::Try LinearisedStep::run() {
   // A factor known to have drifted (its replacement is being built on the second thread) preconditions
   // conjugate gradients on the exact linearised matrix instead of standing for it (the asynchronous
   // preconditioner of Courtecuisse et al. 2014): used alone, a stale factor lets the step diverge.
-  if (settings_.factorRefresh != FactorRefresh::Synchronous && w.request.pending) correctWithPcg();
+  if (settings_.factorRefresh != FactorRefresh::Synchronous && w.request->pending) correctWithPcg();
   w.v += w.dv;
   if (!std::isfinite(rep.residual) || !w.v.allFinite()) {
     rep.status = "failed: the state became NaN or infinite";

@@ -47,7 +47,12 @@ struct Integrator::Work {
     // met it: 20 nodes x 5.5 ms at 17k tets).
     std::vector<ScalarConstraint> rows;
     NodeCompliance compliance;
-  } request;
+  };
+  // On the heap: the build on the second thread writes into it by its address, so a request dropped while still being
+  // built moves to `abandoned` whole (its job left to finish there, its result never used) and the step that dropped
+  // it does not wait for it; a finished one is taken back as the next request's buffers (its solver's analysis kept).
+  std::unique_ptr<Request> request = std::make_unique<Request>();
+  std::vector<std::unique_ptr<Request>> abandoned;
   int staticFactor = -1;             // chol.factorisations() just after a static tangent was factorised
   Eigen::VectorXd forcesAt, forces;  // elastic forces at the end of the last step (projected), and where
   bool forcesValid = false;

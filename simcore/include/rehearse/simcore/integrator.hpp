@@ -267,10 +267,13 @@ class Integrator {
                    int& attempts) const;
   void requestFactor(const Eigen::VectorXd& at, double h, StepReport& rep);
   bool swapInRequested(StepReport& rep);
-  /// Builds the lagged factor at `at` now. A factor requested before it is older: it is dropped at once (waiting for
-  /// its build to end), so that the next request is made at the same step live and in a replay, whatever the second
-  /// thread's timing — unless `keepRequest` (a restored state rebuilding its factor: the request it names is newer).
+  /// Builds the lagged factor at `at` now. A factor requested before it is older: it is dropped at once (its build
+  /// left to end on the second thread, never used), so that the next request is made at the same step live and in a
+  /// replay, whatever the second thread's timing — unless `keepRequest` (a restored state rebuilding its factor: the
+  /// request it names is newer).
   bool refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep, bool keepRequest = false);
+  /// Drops the pending request without waiting for its build (see Work::abandoned).
+  void dropRequest();
   double totalEnergy(const SimulationState& s) const;
   void project(Eigen::VectorXd& r) const;
   void projectMatrix(Eigen::SparseMatrix<double>& A) const;
