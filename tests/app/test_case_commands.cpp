@@ -188,7 +188,14 @@ class TestCaseCommands : public QObject {
                SQLITE_OK);
       sqlite3_close(db);
     }
-    const std::vector<std::pair<QString, QString>> cases = {{text, "is not a case"},
+    // What 'gesture --record' writes holds recorded sessions and no case: said as that, not as damaged.
+    const QString recordings = dir_.path() + "/recordings.rehearse";
+    const Run recorded = run({"gesture", "--preset", "liver", "--script",
+                              QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json", "--out",
+                              dir_.path() + "/recorded.vtu", "--record", recordings});
+    QVERIFY2(::testing::tookEveryStep(recorded), qPrintable(recorded.err + recorded.out));
+    const std::vector<std::pair<QString, QString>> cases = {{recordings, "holds recorded sessions but no case"},
+                                                            {text, "is not a case"},
                                                             {truncated, "damaged"},
                                                             {newer, "saved by a newer Rehearse (schema 99"},
                                                             {dir_.path() + "/missing.rehearse", "does not exist"}};

@@ -318,6 +318,10 @@ class TestIncorrectActions : public QObject {
     QCOMPARE(said["max_strain"], std::string("15.4 %"));
     QCOMPARE(said["blood_loss_ml"], std::string("1.64 mL"));
     QCOMPARE(said["energy_time_s"], std::string("2.3 s"));
+    // One step over the threshold is not "0.0 s" (a helper read that beside an over-threshold tick).
+    m.timeOverThresholdS = 0.01;
+    for (const auto& v : app::metricValues(m))
+      if (v.name == "time_over_threshold_s") QCOMPARE(app::metricText(v), std::string("0.01 s"));
     QCOMPARE(app::metricWords("energy_time_s"), std::string("energy applied for"));
     m.maxStrain = std::nullopt;
     for (const auto& v : app::metricValues(m))

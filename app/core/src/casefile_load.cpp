@@ -80,7 +80,14 @@ class CaseReader {
     const std::string name = fileName(path);
     if (!db_.open()) fail(name + " cannot be opened: " + sqlProblem(db_.code()) + ".");
     const auto versionText = db_.meta("schema_version");
-    if (!versionText) fail(name + " is damaged or not a Rehearse case (no schema version).");
+    if (!versionText) {
+      // A file only 'rehearse gesture --record' wrote holds recorded sessions and no case (a helper was told it was
+      // damaged although it replays): said as what it is.
+      if (db_.row("SELECT name FROM sqlite_master WHERE type = 'table' AND name = ?", "rehearsal_sessions", 1))
+        fail(name + " holds recorded sessions but no case (as 'rehearse gesture --record' writes them); replay them "
+                    "with 'rehearse replay " + name + "'.");
+      fail(name + " is damaged or not a Rehearse case (no schema version).");
+    }
     const int version = std::atoi(versionText->c_str());
     if (version < 1) fail(name + " has an unknown schema version.");
     if (version > kCaseSchemaVersion)

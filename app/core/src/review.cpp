@@ -123,6 +123,8 @@ std::string metricAmount(const MetricValue& m, double v) {
     std::snprintf(b, sizeof b, "%lld", std::llround(v));
   else if (m.unit == "m")
     std::snprintf(b, sizeof b, "%.1f mm", 1e3 * v);
+  else if (m.unit == "s" && v > 0 && v < 0.095)  // a step or a few (10 ms each): not "0.0 s"
+    std::snprintf(b, sizeof b, "%.2f s", v);
   else if (m.unit == "N" || m.unit == "s")
     std::snprintf(b, sizeof b, "%.1f %s", v, m.unit.c_str());
   else if (m.unit == "mL")

@@ -6,6 +6,7 @@
 
 #include <rehearse/simcore/session/events.hpp>
 #include <QMouseEvent>
+#include <algorithm>
 #include <QPainter>
 #include <QPainterPath>
 #include <QResizeEvent>
@@ -43,9 +44,9 @@ void TimelineWidget::paintEvent(QPaintEvent*) {
       p.drawText(QRectF(8, rest.top(), width() - 16, rest.height()), Qt::AlignRight | Qt::AlignVCenter, brief);
   }
   if (!timeline || timeline->empty()) return;
-  double fmax = std::max(threshold, 1e-6);
-  for (const auto& s : *timeline) fmax = std::max(fmax, s.force);
-  fmax *= 1.1;
+  double peak = 0;
+  for (const auto& s : *timeline) peak = std::max(peak, s.force);
+  const double fmax = 1.1 * std::max({threshold, peak, 1e-6});
   const double top = 22, bottom = height() - 6;
   auto Y = [&](double f) { return bottom - f / fmax * (bottom - top); };
   if (threshold > 0) {
@@ -57,13 +58,17 @@ void TimelineWidget::paintEvent(QPaintEvent*) {
   for (const auto& s : *timeline) path.lineTo(xAt(s.time), Y(s.force));
   p.setPen(QPen(QColor(90, 160, 255), 1.5));
   p.drawPath(path);
-  // The force crossing the threshold first: what happened at the same step (a slip at the grasp's limit) is drawn
-  // over its grey tick, not hidden under it.
-  for (const bool crossings : {true, false})
+  // The force crossing the threshold first, then the incorrect actions' long ticks, then the rest: what happened at
+  // the same step (a slip at the grasp's limit, the vessel cut an incorrect action names) is drawn over them, not
+  // hidden under them.
+  auto layer = [](simcore::EventKind kind) {
+    return kind == simcore::EventKind::ForceOverThreshold ? 0 : kind == simcore::EventKind::IncorrectAction ? 1 : 2;
+  };
+  for (const int pass : {0, 1, 2})
     for (const auto& s : *timeline)
       for (const auto& e : s.events) {
         const simcore::EventKind kind = simcore::eventKind(e);
-        if ((kind == simcore::EventKind::ForceOverThreshold) != crossings) continue;
+        if (layer(kind) != pass) continue;
         const QColor c = reviewEventColour(e);  // as the report names them
         if (!c.isValid()) continue;
         p.setPen(QPen(c, 3));
@@ -73,7 +78,7 @@ void TimelineWidget::paintEvent(QPaintEvent*) {
   p.setPen(QPen(Qt::white, 2));
   p.drawLine(QPointF(xAt(now), 0), QPointF(xAt(now), height()));
   p.setPen(Qt::lightGray);
-  p.drawText(QRectF(width() - 160, 2, 150, 18), Qt::AlignRight, QStringLiteral("%1 N max").arg(fmax / 1.1, 0, 'f', 1));
+  p.drawText(QRectF(width() - 160, 2, 150, 18), Qt::AlignRight, tr("peak %1 N").arg(peak, 0, 'f', 1));
 }
 
 void TimelineWidget::mousePressEvent(QMouseEvent* e) {
