@@ -9,8 +9,7 @@ namespace rehearse::app {
 
 /// Runs a command-line sub-command. Sets `handled` false when the arguments are for the GUI
 /// (no arguments, `open CASE`, or GUI options), in which case nothing was done.
-/// `services`: the PDF writer where the build has it (the GUI library's).
-int runCli(const std::vector<std::string>& args, bool& handled, const CliServices& services = {});
+int runCli(const std::vector<std::string>& args, bool& handled);
 
 std::string usage();
 

@@ -7,17 +7,12 @@
 
 #ifdef REHEARSE_WITH_GUI
 #include "rehearse/ui/gui.hpp"
-#include "rehearse/ui/reviewreport.hpp"
 #endif
 
 int main(int argc, char** argv) {
   std::vector<std::string> args(argv, argv + argc);
   bool handled = false;
-  rehearse::app::CliServices services;  // what the command line reaches through Qt: none without the GUI library
-#ifdef REHEARSE_WITH_GUI
-  services.writeReport = rehearse::ui::writeReviewPdf;  // replay --report writes through Qt's QPdfWriter
-#endif
-  int code = rehearse::app::runCli(args, handled, services);
+  int code = rehearse::app::runCli(args, handled);
   if (handled) return code;
 #ifdef REHEARSE_WITH_GUI
   return rehearse::ui::runGui(argc, argv);

@@ -9,6 +9,8 @@ PACKAGES=(
   libassimp-dev libsuitesparse-dev libopenblas-dev libtbb-dev
   # The reference BLAS and LAPACK: test_recording replays with them as the machine's libblas.so.3 (issue 60).
   libblas3 liblapack3 nlohmann-json3-dev libtinyxml2-dev zlib1g-dev libsqlite3-dev libssl-dev libpq-dev libspnav-dev
+  # The review's PDF report (cairo and pango, below the GUI).
+  libcairo2-dev libpango1.0-dev
   calculix-ccx xvfb xauth libgl1-mesa-dri fonts-dejavu-core poppler-utils
   # The server test_training starts; Qt SQL's PostgreSQL driver for its probe of a publisher at work (the program
   # itself reaches the training database through libpq).

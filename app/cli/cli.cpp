@@ -54,7 +54,7 @@ std::string usage() {
          "Lengths are metres unless --unit says otherwise.\n";
 }
 
-int runCli(const std::vector<std::string>& args, bool& handled, const CliServices& services) {
+int runCli(const std::vector<std::string>& args, bool& handled) {
   handled = true;
   if (args.size() < 2 || args[1] == "open" ||
       (args[1].rfind("--", 0) == 0 && args[1] != "--help" && args[1] != "--version" && args[1] != "-h")) {
@@ -79,7 +79,7 @@ int runCli(const std::vector<std::string>& args, bool& handled, const CliService
         std::printf("%s", cli::commandHelp(*c).c_str());
         return 0;
       }
-      return c->run(args, services);
+      return c->run(args);
     }
     throw cli::UsageError("unknown command '" + cmd + "'; see 'rehearse --help'");
   } catch (const cli::UsageError& e) {

@@ -312,7 +312,7 @@ const Command& appearanceCommand() {
                                     "open"},
                                    {"turned-pose", "P2.json",
                                     "with --contour: write the pose the estimate was fitted at (turned or not)"}}),
-      withoutServices(cmdAppearance)};
+      cmdAppearance};
   return command;
 }
 
@@ -335,7 +335,7 @@ const Command& composeCommand() {
               {"view-image", "IMG2", "draw the novel view over this frame of the view's camera (else black)"},
               {"texture-only", "", "paste the fitted frame's colours instead of re-shading (the comparison)"},
               {"out", "J.png", "the composited image"}}),
-      withoutServices(cmdCompose)};
+      cmdCompose};
   return command;
 }
 

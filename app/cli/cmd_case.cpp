@@ -183,7 +183,7 @@ const Command& phantomCommand() {
                                {{"out", "DIR", "the folder to write the case into (created), or a .rehearse case file"},
                                 {"tets", "N", "about this many tetrahedra (default 3,800)"},
                                 {"seed", "S", "the random seed of the frame's texture"}},
-                               withoutServices(cmdPhantom)};
+                               cmdPhantom};
   return command;
 }
 
@@ -209,7 +209,7 @@ const Command& meshCommand() {
         "a colour table naming the labels (3D Slicer .ctbl or ITK-SNAP .txt; one beside the image is used)"},
        {"label", "N,...", "mesh only these labels"},
        {"ras", "", "coordinates in RAS (3D Slicer's world) instead of LPS (ITK, DICOM)"}},
-      withoutServices(cmdMesh)};
+      cmdMesh};
   return command;
 }
 
@@ -219,7 +219,7 @@ const Command& infoCommand() {
       "  rehearse info FILE [--unit m|dm|cm|mm]\n"
       "                                   node, element and label counts, bounds and quality\n",
       {{"unit", "U", "m, dm, cm or mm: the file's length unit"}},
-      withoutServices(cmdInfo)};
+      cmdInfo};
   return command;
 }
 

@@ -57,7 +57,7 @@ const Command& deviceCommand() {
       "default);\n"
       "                                   exit 1 with a sentence when no spacenavd runs\n",
       {{"seconds", "S", "how long to read the device (s)"}},
-      withoutServices(cmdDevice)};
+      cmdDevice};
   return command;
 }
 

@@ -293,17 +293,17 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
                {"start_error_m", start.error >= 0 ? nlohmann::json(start.error) : nlohmann::json(nullptr)},
                {"supported_nodes", setup.supports.size()},
                {"statuses", statusCounts(all)},
-               {"slips", r.slips},
-               {"cuts", r.cuts},
-               {"vessel_cuts", setup.mesh.namesAVessel() ? nlohmann::json(r.vesselCuts) : nlohmann::json(nullptr)},
-               {"clips", r.clips},
-               {"misplaced_clips", r.misplacedClips},
-               {"bleedings", r.bleedings},
+               {"slips", r.events.slips},
+               {"cuts", r.events.cuts},
+               {"vessel_cuts", setup.mesh.namesAVessel() ? nlohmann::json(r.events.vesselCuts) : nlohmann::json(nullptr)},
+               {"clips", r.events.clips},
+               {"misplaced_clips", r.events.misplacedClips},
+               {"bleedings", r.events.bleedings},
                {"blood_loss_ml", 1e6 * r.bloodLoss},
-               {"burns", r.burns},
-               {"energy_on_structures", r.energyOnStructures},
-               {"tears", r.tears},
-               {"attachments_torn", r.attachmentsTorn},
+               {"burns", r.events.burns},
+               {"energy_on_structures", r.events.energyOnStructures},
+               {"tears", r.events.tears},
+               {"attachments_torn", r.events.attachmentsTorn},
                {"failed_steps", r.failed},
                {"peak_tool_force_n", peak},
                {"elements", out.tets.size()},
@@ -315,19 +315,19 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
 void printGestureSummary(const std::string& outPath, const GestureResult& r, const simcore::BodySetup& setup,
                          const StepTotals& t) {
   const simcore::Mesh& out = r.finalMesh;
-  const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.vesselCuts) + " vessel cut(s)"
+  const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.events.vesselCuts) + " vessel cut(s)"
                                                         : "vessels unknown (the mesh names none)";
   std::printf(
-      "gesture (%s): %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %zu slips, %zu cut "
-      "updates, %s, %zu clip(s) (%zu misplaced), %.2f mL of blood lost, %zu tear(s), %zu failed steps; %zu elements, "
+      "gesture (%s): %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %d slips, %d cut "
+      "updates, %s, %d clip(s) (%d misplaced), %.2f mL of blood lost, %d tear(s), %zu failed steps; %zu elements, "
       "%zu "
       "nodes "
       "written to %s\n",
       (setup.model == simcore::BodyModel::Fem ? simcore::toString(setup.settings.method)
                                               : simcore::bodyModelName(setup.model) + " model")
           .c_str(),
-      r.steps.size(), t.wall / static_cast<double>(r.steps.size()), t.grasped, t.peak, r.slips, r.cuts, vessels.c_str(),
-      r.clips, r.misplacedClips, 1e6 * r.bloodLoss, r.tears, r.failed, out.tets.size(), out.points.size(),
+      r.steps.size(), t.wall / static_cast<double>(r.steps.size()), t.grasped, t.peak, r.events.slips, r.events.cuts, vessels.c_str(),
+      r.events.clips, r.events.misplacedClips, 1e6 * r.bloodLoss, r.events.tears, r.failed, out.tets.size(), out.points.size(),
       outPath.c_str());
 }
 
@@ -406,7 +406,7 @@ const Command& gestureCommand() {
               {"record", "CASE", "record the session into CASE (a .rehearse file) as it runs"},
               {"trainee", "NAME", "the trainee the recording names (with --record)"},
               {"notes", "TEXT", "notes kept with the recording (with --record)"}}),
-      withoutServices(cmdGesture)};
+      cmdGesture};
   return command;
 }
 

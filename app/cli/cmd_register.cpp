@@ -445,7 +445,7 @@ const Command& registerCommand() {
                               {"baseline-mm", "MM", "how far the camera moved between the frames"},
                               {"frame", "F1", "the first frame (to track features from)"},
                               {"frame2", "F2", "the second frame (to track features into)"}}),
-      withoutServices(cmdRegister)};
+      cmdRegister};
   return command;
 }
 

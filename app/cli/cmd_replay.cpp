@@ -116,7 +116,7 @@ void loadThresholds(ReplayRequest& req) {
 }
 
 // --video, --report and the video's options: for one session, with the right suffixes, the report with its writer.
-void checkOneSessionOutputs(Options& o, const CliServices& services) {
+void checkOneSessionOutputs(Options& o) {
   const bool oneSession =
       o.count("video") || o.count("report") || o.count("from") || o.count("to") || o.count("fps") || o.count("size");
   if (oneSession && !o.count("session"))
@@ -127,12 +127,9 @@ void checkOneSessionOutputs(Options& o, const CliServices& services) {
     throw UsageError("--video must end in .mp4");
   if (o.count("report") && std::filesystem::path(o["report"]).extension() != ".pdf")
     throw UsageError("--report must end in .pdf");
-  if (o.count("report") && !services.writeReport)
-    throw UsageError(
-        "--report needs the PDF writer of the GUI build (this build was configured with REHEARSE_BUILD_GUI=OFF)");
 }
 
-ReplayRequest parseReplayRequest(const std::vector<std::string>& args, const CliServices& services) {
+ReplayRequest parseReplayRequest(const std::vector<std::string>& args) {
   if (args.size() < 3 || args[2].rfind("--", 0) == 0)
     throw UsageError(
         "replay needs the case file (or postgresql:[SERVICE]): rehearse replay CASE [--session ID] [--verify]");
@@ -145,7 +142,7 @@ ReplayRequest parseReplayRequest(const std::vector<std::string>& args, const Cli
   if (!req.source.fromDb && !std::filesystem::exists(file)) throw UsageError(file + " does not exist");
   readMeasureOptions(req);
   loadThresholds(req);
-  checkOneSessionOutputs(req.o, services);
+  checkOneSessionOutputs(req.o);
   return req;
 }
 
@@ -278,8 +275,7 @@ void printFindings(bool verify, const ReplayResult& replayed, const std::vector<
 }
 
 // --video and --report: drawn by a replayer that seeks from the sound checkpoints.
-void writeVideoAndReport(ReplayRequest& req, const Recording& rec, const ReplayResult& replayed,
-                         const CliServices& services) {
+void writeVideoAndReport(ReplayRequest& req, const Recording& rec, const ReplayResult& replayed) {
   Options& o = req.o;
   int width = 640, height = 480;
   if (o.count("size")) {
@@ -315,7 +311,7 @@ void writeVideoAndReport(ReplayRequest& req, const Recording& rec, const ReplayR
   }
   if (o.count("report")) {
     const ReviewReport report = makeReviewReport(rec, replayed, req.thresholds, replayer, renderer);
-    services.writeReport(report, o["report"]);
+    writeReviewPdf(report, o["report"]);
     std::printf("report written to %s\n", o["report"].c_str());
   }
 }
@@ -366,7 +362,7 @@ int verifyExit(std::int64_t id, const VerifyResult& v) {
 }
 
 // --session ID: the session loaded and, when anything is asked of it, replayed once for all the outputs.
-int replayOneSession(ReplayRequest& req, const CliServices& services) {
+int replayOneSession(ReplayRequest& req) {
   Options& o = req.o;
   const std::int64_t id = sessionId(o);
   const Recording rec = req.source.load(id);
@@ -381,20 +377,20 @@ int replayOneSession(ReplayRequest& req, const CliServices& services) {
   const auto verdicts = judge(replayed.metrics, req.thresholds);
   if (o.count("metrics")) writeMetricsJson(o["metrics"], id, rec, replayed, verdicts);
   printFindings(o.count("verify") > 0, replayed, verdicts);
-  if (o.count("video") || o.count("report")) writeVideoAndReport(req, rec, replayed, services);
+  if (o.count("video") || o.count("report")) writeVideoAndReport(req, rec, replayed);
   return o.count("verify") ? verifyExit(id, replayed.verify) : replayCheckExit(id, replayed.verify);
 }
 
 }  // namespace
 
-int cmdReplay(const std::vector<std::string>& args, const CliServices& services) {
-  ReplayRequest req = parseReplayRequest(args, services);
+int cmdReplay(const std::vector<std::string>& args) {
+  ReplayRequest req = parseReplayRequest(args);
   if (req.o.count("metrics-csv")) return writeMetricsCsv(req);
   if (!req.o.count("session")) return printSessions(req);
-  return replayOneSession(req, services);
+  return replayOneSession(req);
 }
 
-int cmdPublish(const std::vector<std::string>& args, const CliServices&) {
+int cmdPublish(const std::vector<std::string>& args) {
   std::vector<std::string> files;
   std::size_t i = 2;
   for (; i < args.size() && args[i].rfind("--", 0) != 0; ++i) files.push_back(args[i]);

@@ -169,7 +169,7 @@ const Command& simulateCommand() {
               {"attachments", "A", "projection or lagrange"},
               {"strict", "", "a step that does not converge fails (rolled back) instead of being kept inexact"},
               {"list-components", "", "print the scene components and their parameters, then stop"}}),
-      withoutServices(cmdSimulate)};
+      cmdSimulate};
   return command;
 }
 

@@ -57,10 +57,6 @@ Options parseOptions(const std::vector<std::string>& args, std::size_t from, con
   return out;
 }
 
-CommandRun withoutServices(int (*run)(const std::vector<std::string>& args)) {
-  return [run](const std::vector<std::string>& args, const CliServices&) { return run(args); };
-}
-
 std::vector<OptionSpec> joined(std::vector<OptionSpec> first, const std::vector<OptionSpec>& then) {
   first.insert(first.end(), then.begin(), then.end());
   return first;

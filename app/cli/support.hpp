@@ -34,19 +34,17 @@ struct OptionSpec {
   std::string help;   ///< one line
 };
 
-/// How a sub-command runs; `services`: what the GUI library provides (the PDF writer).
-using CommandRun = std::function<int(const std::vector<std::string>& args, const CliServices& services)>;
+/// How a sub-command runs.
+using CommandRun = std::function<int(const std::vector<std::string>& args)>;
 
 /// A sub-command: its block of `rehearse --help` (synopsis and description), its options and what runs it.
 struct Command {
   std::string name;
   std::string usage;  ///< the lines `rehearse --help` shows for it (each "  ...\n")
   std::vector<OptionSpec> options;
-  CommandRun run;  ///< empty services without Qt
+  CommandRun run;
 };
 
-/// A sub-command that needs none of the services.
-CommandRun withoutServices(int (*run)(const std::vector<std::string>& args));
 /// Option lists one after the other (shared groups and a command's own).
 std::vector<OptionSpec> joined(std::vector<OptionSpec> first, const std::vector<OptionSpec>& then);
 

@@ -447,8 +447,8 @@ class TestCut : public QObject {
     s.settings.method = simcore::NewtonMethod::Linearised;
     const app::GestureResult r = app::runGesture(s, script);
     QCOMPARE(r.failed, std::size_t(0));
-    QVERIFY(r.cuts > 0);
-    QVERIFY(r.vesselCuts > 0);
+    QVERIFY(r.events.cuts > 0);
+    QVERIFY(r.events.vesselCuts > 0);
     const double mass0 = r.steps.front().massKg;
     for (const auto& row : r.steps) QVERIFY(std::abs(row.massKg - mass0) < 1e-9 * mass0);
     QVERIFY(r.final.x.allFinite());
@@ -457,7 +457,7 @@ class TestCut : public QObject {
     std::map<int, double> pieceVolume;
     for (std::size_t t = 0; t < r.finalMesh.tets.size(); ++t)
       pieceVolume[group[t]] += volume(r.finalMesh.points, r.finalMesh.tets[t]);
-    qInfo("cut-across: %zu cut updates (%zu through a vessel), %zu -> %zu elements, %d pieces", r.cuts, r.vesselCuts,
+    qInfo("cut-across: %d cut updates (%d through a vessel), %zu -> %zu elements, %d pieces", r.events.cuts, r.events.vesselCuts,
           r.steps.front().elements, r.finalMesh.tets.size(), groups);
     for (const auto& [g, v] : pieceVolume) qInfo("  piece %d: %.1f cm^3 (deformed)", g, 1e6 * v);
     QCOMPARE(groups, 2);
@@ -517,7 +517,7 @@ class TestCut : public QObject {
     for (const auto& row : r.steps)
       if (row.message.find("cut") != std::string::npos) said = row.message;
     qInfo("said: %s", said.c_str());
-    QCOMPARE(r.cuts, std::size_t(0));
+    QCOMPARE(r.events.cuts, 0);
     QCOMPARE(r.finalMesh.points.size(), r.steps.front().nodes);
     QCOMPARE(r.finalMesh.tets.size(), r.steps.front().elements);
     QVERIFY(QString::fromStdString(said).startsWith("Nothing was cut: the blade crossed no tissue."));
@@ -543,24 +543,24 @@ class TestCut : public QObject {
       const app::GestureResult sync = run(simcore::FactorRefresh::Synchronous);
       std::vector<app::GestureResult> async;
       for (int k = 0; k < 3; ++k) async.push_back(run(simcore::FactorRefresh::Asynchronous));
-      QVERIFY(sync.cuts > 0);
+      QVERIFY(sync.events.cuts > 0);
       double worst = 0;
       for (const auto& a : async) {
         QCOMPARE(a.finalMesh.tets.size(), sync.finalMesh.tets.size());
         QCOMPARE(a.finalMesh.points.size(), sync.finalMesh.points.size());
         QVERIFY2(a.finalMesh.tets == sync.finalMesh.tets,
                  "the asynchronous run's elements differ from the synchronous run's");
-        QCOMPARE(a.cuts, sync.cuts);
-        QCOMPARE(a.vesselCuts, sync.vesselCuts);
+        QCOMPARE(a.events.cuts, sync.events.cuts);
+        QCOMPARE(a.events.vesselCuts, sync.events.vesselCuts);
         for (std::size_t i = 0; i < a.finalMesh.points.size(); ++i)
           worst = std::max(worst, (a.finalMesh.points[i] - sync.finalMesh.points[i]).norm());
         for (std::size_t k = 0; k < a.steps.size(); ++k)
           QCOMPARE(a.steps[k].elements, sync.steps[k].elements);  // each cut at the same step
       }
       qInfo(
-          "%s: %zu elements, %zu nodes, %zu cut updates (%zu through a vessel), sync and 3 async runs alike; final "
+          "%s: %zu elements, %zu nodes, %d cut updates (%d through a vessel), sync and 3 async runs alike; final "
           "positions within %.3g mm",
-          name, sync.finalMesh.tets.size(), sync.finalMesh.points.size(), sync.cuts, sync.vesselCuts, 1e3 * worst);
+          name, sync.finalMesh.tets.size(), sync.finalMesh.points.size(), sync.events.cuts, sync.events.vesselCuts, 1e3 * worst);
       // Positions: the asynchronous factor swaps' timing is the one difference left (the linearised steps' inexactness,
       // relative residual up to 1e-2; 0.92 mm measured after the lobe swung free): far below an element (18 mm).
       QVERIFY(worst < 5e-3);

@@ -137,12 +137,12 @@ class TestFastBodies : public QObject {
     const testing::Balance b = testing::linearBalance(end.setup, end.state.x, off);
     const auto offNodes = std::count(off.begin(), off.end(), 1);
     qInfo(
-        "hybrid cut-across (liver preset): %zu cuts, %zu -> %zu elements, %zu of %zu steps converged (median %.3f ms, "
+        "hybrid cut-across (liver preset): %d cuts, %zu -> %zu elements, %zu of %zu steps converged (median %.3f ms, "
         "worst %.1f ms); %zu free nodes off equilibrium (the pieces cut off: %ld nodes, held)",
-        r.cuts, s.mesh.tets.size(), r.finalMesh.tets.size(), converged, r.steps.size(), ms[ms.size() / 2], ms.back(),
+        r.events.cuts, s.mesh.tets.size(), r.finalMesh.tets.size(), converged, r.steps.size(), ms[ms.size() / 2], ms.back(),
         b.loaded, static_cast<long>(offNodes));
     QCOMPARE(r.failed, std::size_t(0));
-    QVERIFY(r.cuts > 0);
+    QVERIFY(r.events.cuts > 0);
     QVERIFY(r.finalMesh.tets.size() > s.mesh.tets.size());
     QCOMPARE(converged, r.steps.size());
     QVERIFY(r.final.x.allFinite());
@@ -262,7 +262,7 @@ class TestFastBodies : public QObject {
       if (row.message.find("cannot cut") != std::string::npos) refused = row.message;
     qInfo("cut: %s", refused.c_str());
     QVERIFY(refused.find("The FFD model cannot cut") != std::string::npos);
-    QCOMPARE(c.cuts, std::size_t(0));
+    QCOMPARE(c.events.cuts, 0);
     QCOMPARE(c.finalMesh.tets.size(), s.mesh.tets.size());
     QVERIFY(app::decodeSetup(app::encodeSetup(s)).model == BodyModel::Ffd);
   }

@@ -740,8 +740,8 @@ class TestGrasp : public QObject {
     const app::GestureResult r = app::runGesture(s, script);
     std::size_t most = 0;
     for (const auto& row : r.steps) most = std::max(most, row.grasped);
-    qInfo("grasp-pull.json on the liver preset: %zu steps, up to %zu nodes grasped, %zu slips, %zu failed",
-          r.steps.size(), most, r.slips, r.failed);
+    qInfo("grasp-pull.json on the liver preset: %zu steps, up to %zu nodes grasped, %d slips, %zu failed",
+          r.steps.size(), most, r.events.slips, r.failed);
     QCOMPARE(r.steps.size(), std::size_t(350));
     QVERIFY(most > 0);
     QCOMPARE(r.failed, std::size_t(0));

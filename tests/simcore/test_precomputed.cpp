@@ -437,7 +437,7 @@ class TestPrecomputed : public QObject {
         if (row.message.find("cannot cut") != std::string::npos) said = row.message;
       qInfo("cut: %s", said.c_str());
       QVERIFY(said.find("The precomputed model cannot cut") != std::string::npos);
-      QCOMPARE(c.cuts, std::size_t(0));
+      QCOMPARE(c.events.cuts, 0);
       QCOMPARE(c.finalMesh.tets.size(), s.mesh.tets.size());
     }
     QVERIFY(app::decodeSetup(app::encodeSetup(s)).model == BodyModel::Precomputed);

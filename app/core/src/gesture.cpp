@@ -167,24 +167,6 @@ GestureScript parseGestureScript(const std::string& text) {
   return s;
 }
 
-namespace {
-// What a step's events add to the run's counts.
-void countEvents(const std::vector<std::string>& events, GestureResult& out) {
-  simcore::EventCounts c;
-  c.add(events);
-  out.slips += c.slips;
-  out.cuts += c.cuts;
-  out.vesselCuts += c.vesselCuts;
-  out.clips += c.clips;
-  out.misplacedClips += c.misplacedClips;
-  out.bleedings += c.bleedings;
-  out.burns += c.burns;
-  out.energyOnStructures += c.energyOnStructures;
-  out.tears += c.tears;
-  out.attachmentsTorn += c.attachmentsTorn;
-}
-}  // namespace
-
 GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, const GestureHooks& hooks) {
   if (script.dt > 0) setup.settings.timeStep = script.dt;
   if (script.graspRadius) setup.tools.graspRadius = *script.graspRadius;
@@ -306,7 +288,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
     row.report = rep;
     row.message = snap->message;
     out.failed += !rep.ok;
-    countEvents(row.events, out);
+    out.events.add(row.events);
     out.bloodLoss = snap->field.bloodLoss;
     out.steps.push_back(std::move(row));
   }
@@ -316,7 +298,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
     const auto snap = session.snapshot();
     auto& last = out.steps.back();
     for (const auto& e : snap->events) last.events.push_back(e);
-    countEvents(snap->events, out);
+    out.events.add(snap->events);
     out.bloodLoss = snap->field.bloodLoss;
     last.elements = snap->elements;
     last.nodes = snap->positions.size();

@@ -2,14 +2,15 @@
 // seeks) and its view (the rendered picture, scaled to fit; a drag turns the 3D view).
 #include "reviewparts.hpp"
 
-#include "rehearse/ui/reviewreport.hpp"
-
+#include <rehearse/app/review.hpp>
 #include <rehearse/simcore/session/events.hpp>
+
 #include <QMouseEvent>
-#include <algorithm>
 #include <QPainter>
 #include <QPainterPath>
 #include <QResizeEvent>
+
+#include <algorithm>
 
 namespace rehearse::ui {
 
@@ -69,9 +70,9 @@ void TimelineWidget::paintEvent(QPaintEvent*) {
       for (const auto& e : s.events) {
         const simcore::EventKind kind = simcore::eventKind(e);
         if (layer(kind) != pass) continue;
-        const QColor c = reviewEventColour(e);  // as the report names them
-        if (!c.isValid()) continue;
-        p.setPen(QPen(c, 3));
+        const std::optional<app::Rgb> c = app::reviewEventRgb(e);  // as the report names them
+        if (!c) continue;
+        p.setPen(QPen(QColor(c->r, c->g, c->b), 3));
         p.drawLine(QPointF(xAt(s.time), 2),
                    QPointF(xAt(s.time), kind == simcore::EventKind::IncorrectAction ? 34 : 16));
       }

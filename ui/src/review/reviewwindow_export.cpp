@@ -2,7 +2,6 @@
 // replayer of its own while a progress dialog shows (and Cancel stops a video), and where they are suggested.
 #include "rehearse/ui/reviewwindow.hpp"
 
-#include "rehearse/ui/reviewreport.hpp"
 #include "reviewparts.hpp"
 
 #include <QDir>
@@ -113,7 +112,7 @@ QString ReviewWindow::exportReport(const QString& path) {
   return exportFirst(tr("Writing the report (replaying the session for its key frames)"), false,
                      [this, path, thresholds](ReviewAttempt& a, app::Replayer& replayer, const app::ReviewRenderer& r,
                                               const std::function<bool(int, int)>&) {
-                       writeReviewPdf(app::makeReviewReport(a.recording, a.result, thresholds, replayer, r),
+                       app::writeReviewPdf(app::makeReviewReport(a.recording, a.result, thresholds, replayer, r),
                                       path.toStdString());
                        return tr("Report written to %1").arg(path);
                      });

@@ -21,6 +21,7 @@
 // it when it is within their reach, and say so when it is not).
 // "tear_strain": 0.3 makes every material tear at that strain; "tear_strain_by_label": {"2": 0.6} one label's.
 // "incorrect_actions": {...} the rules the trainer counts (incorrect_actions.hpp; default: all, without a view).
+#include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <functional>
@@ -83,11 +84,11 @@ struct GestureStep {
 struct GestureResult {
   std::vector<GestureStep> steps;
   simcore::SimulationState final;
-  std::size_t slips = 0, failed = 0, cuts = 0, vesselCuts = 0;
-  std::size_t clips = 0, misplacedClips = 0, bleedings = 0;  ///< clips left, of them misplaced; stumps that bled
-  double bloodLoss = 0;                                      ///< m^3 at the end
-  std::size_t burns = 0, energyOnStructures = 0;             ///< burn updates; named structures energy reached
-  std::size_t tears = 0, attachmentsTorn = 0;                ///< tears; of them at an attachment
+  /// The run's events, counted where every count is made (cuts: cut updates applied; clips: clips left, of them
+  /// misplaced; bleedings: stumps that bled; burns: burn updates; tears, of them at an attachment).
+  simcore::EventCounts events;
+  std::size_t failed = 0;  ///< steps not taken
+  double bloodLoss = 0;    ///< m^3 at the end
   long contactQueries = 0;  ///< 0 when the script moves no instrument
   simcore::Mesh finalMesh;  ///< the volume at the end: nodes and elements after any cut, at the final positions
 };

@@ -117,7 +117,7 @@ int writeReviewVideo(Replayer& replayer, const ReviewRenderer& renderer, const s
                      long fromStep, long toStep, double fps, const std::string& path,
                      const std::function<bool(int, int)>& progress = {});
 
-/// What a session's report holds; the GUI library writes it as PDF (ui::writeReviewPdf, Qt's QPdfWriter).
+/// What a session's report holds; writeReviewPdf writes it.
 struct ReviewReport {
   std::string title;
   std::vector<std::pair<std::string, std::string>> facts;  ///< who, when, case, versions, notes, the replay's check
@@ -134,14 +134,17 @@ struct ReviewReport {
 /// Gathers a report: `result` from replayRecording with the timeline; key frames drawn by `renderer` from `replayer`.
 ReviewReport makeReviewReport(const Recording& r, const ReplayResult& result, const std::vector<Threshold>& thresholds,
                               Replayer& replayer, const ReviewRenderer& renderer);
-/// The PDF writer the GUI library provides (app core has no Qt of its own); empty in a build without it.
-using ReportWriter = std::function<void(const ReviewReport&, const std::string& path)>;
+/// Writes the report as PDF on A4 pages (cairo and pango, no Qt: the GUI and the GUI-less command line write the same
+/// file), through a temporary file (never half-written). Throws std::runtime_error with one sentence.
+void writeReviewPdf(const ReviewReport& report, const std::string& path);
 
-/// What the command line reaches through the GUI library, passed in by main() (no globals: app core stays below Qt).
-/// Empty in a build without Qt: a command that needs one says so in one sentence. (The training database is app
-/// core's own, through libpq: trainingdb.hpp.)
-struct CliServices {
-  ReportWriter writeReport;  ///< rehearse replay --report (Qt's QPdfWriter)
+/// A colour, 0-255 per channel.
+struct Rgb {
+  unsigned char r = 0, g = 0, b = 0;
 };
+/// The timeline's tick colour of a recorded event (the review window's and the report's; none: not ticked).
+std::optional<Rgb> reviewEventRgb(const std::string& event);
+/// The legend of those ticks, in words.
+extern const char* const kReviewEventLegend;
 
 }  // namespace rehearse::app
