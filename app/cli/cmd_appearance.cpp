@@ -152,7 +152,13 @@ int cmdAppearance(const std::vector<std::string>& args) {
                        std::to_string(in.camera.width) + " px; give the outline of this frame");
   }
   const AppearanceOutput r = runAppearance(in);
-  imaging::saveAppearance(r.fit.theta, o["out"]);
+  // The fit's verdict goes with it: a THETA that explains too little is marked so, and compose does not re-shade with it.
+  imaging::AppearanceVerdict verdict;
+  verdict.known = true;
+  verdict.explained = r.fit.explained;
+  verdict.reshade = !r.fit.textureOnly;
+  verdict.said = r.fit.status;
+  imaging::saveAppearance(r.fit.theta, o["out"], verdict);
   if (o.count("turned-pose")) imaging::savePose(r.turn.pose, o["turned-pose"]);
   if (o.count("background"))
     rehearse::writeFileAtomically(o["background"], [&] {
@@ -229,7 +235,11 @@ int cmdCompose(const std::vector<std::string>& args) {
   if (ext != ".png" && ext != ".jpg" && ext != ".jpeg") throw UsageError("--out must end in .png or .jpg");
   std::shared_ptr<const VisualSurface> visual;
   const AppearanceInput in = appearanceInput(o, "compose", &visual);
-  const imaging::Appearance theta = imaging::loadAppearance(o["theta"]);
+  imaging::AppearanceVerdict verdict;
+  const imaging::Appearance theta = imaging::loadAppearance(o["theta"], &verdict);
+  // A fit that explained too little does not re-shade (issue 65): the frame's texture is drawn instead, and said so.
+  const bool untrusted = verdict.known && !verdict.reshade;
+  const bool textureOnly = o.count("texture-only") > 0 || untrusted;
   std::vector<double> deformed;
   if (o.count("deformed")) {
     simcore::LoadOptions lo;
@@ -244,8 +254,8 @@ int cmdCompose(const std::vector<std::string>& args) {
     }
     for (const auto& p : d.points) deformed.insert(deformed.end(), {p.x(), p.y(), p.z()});
   }
-  if (!o.count("view-camera") && (o.count("view-pose") || o.count("view-image") || o.count("texture-only")))
-    throw UsageError("--view-pose, --view-image and --texture-only draw a novel view: they need --view-camera");
+  if (!o.count("view-camera") && (o.count("view-pose") || o.count("view-image")))
+    throw UsageError("--view-pose and --view-image draw a novel view: they need --view-camera");
   cv::Mat3b j;
   if (o.count("view-camera")) {
     // A novel view: the organ through another camera at another pose, lit by that scope (its undistorted view).
@@ -261,10 +271,21 @@ int cmdCompose(const std::vector<std::string>& args) {
       throw simcore::MeshError("The view's camera: " + problem);
     viewImage = imaging::undistortImage(viewImage, view);
     j = composeNovelViewWithTheta(in, theta, view, imaging::loadPose(o["view-pose"]), viewImage, deformed,
-                                  o.count("texture-only") > 0)
+                                  textureOnly)
             .image;
   } else {
-    j = composeWithTheta(in, theta, deformed);
+    j = composeWithTheta(in, theta, deformed, textureOnly);
+  }
+  if (untrusted) {
+    char share[32];
+    std::snprintf(share, sizeof share, "%.0f %%", 100 * verdict.explained);
+    std::printf("not re-shaded: the fit behind %s explained %s of the organ's shading, too little to re-shade with "
+                "(texture only); the frame's own colours are drawn instead\n",
+                std::filesystem::path(o["theta"]).filename().c_str(), share);
+  } else if (!verdict.known && !textureOnly) {
+    std::printf("re-shaded with %s as given: it carries no fit's verdict (written by hand, or before 'rehearse "
+                "appearance' kept one)\n",
+                std::filesystem::path(o["theta"]).filename().c_str());
   }
   std::vector<uchar> buf;
   cv::imencode(ext, j, buf);
@@ -323,17 +344,20 @@ const Command& composeCommand() {
       "THETA.json\n"
       "                [--visual SURFACE [--visual-unit u]] [--deformed DEFORMED.vtu|.vtk] --out J.png [--inpaint "
       "telea|ns|shiftmap|fsr]\n"
-      "                [--view-camera CAM2 --view-pose P2.json [--view-image IMG2] [--texture-only]]\n"
+      "                [--view-camera CAM2 --view-pose P2.json [--view-image IMG2]] [--texture-only]\n"
       "                                   the organ (deformed: its nodes in the input order) re-shaded in the "
       "frame,\n"
-      "                                   or through another camera (a novel view, lit by that scope)\n",
+      "                                   or through another camera (a novel view, lit by that scope); a THETA "
+      "whose fit\n"
+      "                                   explained too little (texture only) draws the frame's colours, not "
+      "re-shaded\n",
       joined(frameInputOptions(),
              {{"theta", "THETA.json", "the appearance (rehearse appearance --out)"},
               {"deformed", "D.vtu", "the deformed organ (nodes in the input order)"},
               {"view-camera", "CAM2", "draw a novel view through this camera (undistorted)"},
               {"view-pose", "P2.json", "the organ's pose in the view's camera (model to camera)"},
               {"view-image", "IMG2", "draw the novel view over this frame of the view's camera (else black)"},
-              {"texture-only", "", "paste the fitted frame's colours instead of re-shading (the comparison)"},
+              {"texture-only", "", "draw the fitted frame's colours instead of re-shading (the comparison)"},
               {"out", "J.png", "the composited image"}}),
       cmdCompose};
   return command;

@@ -49,7 +49,7 @@ std::string appearanceProblem(const Appearance& a, bool zeroRoughness) {
   return {};
 }
 
-Appearance loadAppearance(const std::string& path) {
+Appearance loadAppearance(const std::string& path, AppearanceVerdict* verdict) {
   std::string text, why;
   if (!readTextInput(path, text, why, std::size_t{1} << 20)) throw InputError("The appearance file " + why + ".");
   const std::string name = std::filesystem::path(path).filename().string();
@@ -65,21 +65,37 @@ Appearance loadAppearance(const std::string& path) {
     a.roughness = j.at("roughness").get<double>();
     a.falloff = j.value("falloff", 0.0);  // files from before the laparoscope's fall-off: an isotropic light
     if (const std::string why = appearanceProblem(a); !why.empty()) throw InputError(name + ": " + why + ".");
+    if (verdict) {
+      *verdict = {};
+      if (j.contains("fit")) {
+        const auto& f = j.at("fit");
+        verdict->known = true;
+        verdict->explained = f.at("explained").get<double>();
+        verdict->reshade = f.at("reshade").get<bool>();
+        verdict->said = f.value("said", std::string());
+        if (!std::isfinite(verdict->explained))
+          throw InputError(name + ": the fit's explained share must be a number.");
+      }
+    }
     return a;
   } catch (const InputError&) {
     throw;
   } catch (const std::exception&) {
-    throw InputError(name + " is not an appearance file: it needs light_position, kd, ks and roughness.");
+    throw InputError(name +
+                     " is not an appearance file: it needs light_position, kd, ks and roughness (and a fit's "
+                     "explained share and reshade flag, when it has a fit).");
   }
 }
 
-void saveAppearance(const Appearance& a, const std::string& path) {
+void saveAppearance(const Appearance& a, const std::string& path, const AppearanceVerdict& verdict) {
   nlohmann::json j;
   j["light_position"] = {a.lightPosition.x(), a.lightPosition.y(), a.lightPosition.z()};
   j["kd"] = {a.kd.x(), a.kd.y(), a.kd.z()};
   j["ks"] = {a.ks.x(), a.ks.y(), a.ks.z()};
   j["roughness"] = a.roughness;
   j["falloff"] = a.falloff;
+  if (verdict.known)
+    j["fit"] = {{"explained", verdict.explained}, {"reshade", verdict.reshade}, {"said", verdict.said}};
   writeFileAtomically(path, j.dump(2) + "\n");
 }
 

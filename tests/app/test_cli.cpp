@@ -379,6 +379,81 @@ class TestCli : public QObject {
     QVERIFY((turned.R - registered.R).norm() == 0 && (turned.t - registered.t).norm() == 0);
   }
 
+  // Issue 65: a fit's verdict travels with its THETA. On the Open-CAS frame (no scope light explains it: texture
+  // only, exit 4) the THETA is marked so, and compose with it says so and does not re-shade, in the frame and in a
+  // novel view: its image is, pixel for pixel, the one `--texture-only` draws with the same values stripped of their
+  // verdict, and not the re-shaded one those values give (which compose says it drew "as given").
+  void composeDoesNotReshadeWithAFitThatExplainedTooLittle() {
+    using namespace rehearse;
+    REQUIRE_SHARED("open-cas/Stereo_SD_d_complete_22_IMG_left.bmp");
+    const auto oc = testdata::OpenCas::load();
+    const QString dir = QString::fromStdString(tempPath("cli-untrusted-theta"));
+    QDir().mkpath(dir);
+    imaging::saveCamera(oc.camera, (dir + "/camera.yaml").toStdString());
+    QVERIFY(cv::imwrite((dir + "/frame.png").toStdString(), oc.frame));
+    imaging::savePose(Pose{}, (dir + "/pose.json").toStdString());
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < oc.vertices.size(); i += 3)
+      centre += Eigen::Vector3d(oc.vertices[i], oc.vertices[i + 1], oc.vertices[i + 2]);
+    centre /= double(oc.vertices.size() / 3);
+    // The novel view: the organ turned 15 degrees about the camera's vertical axis through its centre.
+    imaging::savePose(Pose{}.turnedAbout(Eigen::AngleAxisd(15 * M_PI / 180, Eigen::Vector3d::UnitY()).toRotationMatrix(),
+                                         centre),
+                      (dir + "/view-pose.json").toStdString());
+    const QStringList organ = {"--mesh", testdata::OpenCas::directory().c_str() + QString("Stereo_SD_d_complete_22_CT_cut.stl"),
+                               "--unit", "mm", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json",
+                               "--image", dir + "/frame.png"};
+    const Run fit = run(QStringList{"appearance"} + organ + QStringList{"--out", dir + "/theta.json"});
+    QVERIFY2(fit.code == 4, qPrintable(fit.err + fit.out));  // texture only
+    QFile f(dir + "/theta.json");
+    QVERIFY(f.open(QIODevice::ReadOnly));
+    QJsonObject theta = QJsonDocument::fromJson(f.readAll()).object();
+    f.close();
+    const QJsonObject verdict = theta["fit"].toObject();
+    qInfo("THETA's verdict: explained %.3f, reshade %s: %s", verdict["explained"].toDouble(),
+          verdict["reshade"].toBool() ? "yes" : "no", qPrintable(verdict["said"].toString()));
+    QVERIFY(verdict.contains("reshade") && !verdict["reshade"].toBool());
+    QVERIFY(verdict["explained"].toDouble() < 0.5);
+    QVERIFY(!verdict["said"].toString().isEmpty());
+    // The same values without their verdict (as a hand-written THETA would give them).
+    theta.remove("fit");
+    QFile bare(dir + "/bare.json");
+    QVERIFY(bare.open(QIODevice::WriteOnly));
+    bare.write(QJsonDocument(theta).toJson());
+    bare.close();
+    const QStringList novel = {"--view-camera", dir + "/camera.yaml", "--view-pose", dir + "/view-pose.json"};
+    for (const bool novelView : {false, true}) {
+      const QStringList view = novelView ? novel : QStringList();
+      const QString tag = novelView ? "novel" : "frame";
+      const Run untrusted = run(QStringList{"compose"} + organ + view + QStringList{"--theta", dir + "/theta.json", "--out", dir + "/u-" + tag + ".png"});
+      QVERIFY2(untrusted.code == 0, qPrintable(untrusted.err));
+      QVERIFY2(untrusted.out.contains("not re-shaded: the fit behind theta.json explained") &&
+                   untrusted.out.contains("texture only"),
+               qPrintable(untrusted.out));
+      const Run texture = run(QStringList{"compose"} + organ + view +
+                              QStringList{"--theta", dir + "/bare.json", "--texture-only", "--out", dir + "/t-" + tag + ".png"});
+      QVERIFY2(texture.code == 0, qPrintable(texture.err));
+      QVERIFY2(!texture.out.contains("re-shaded"), qPrintable(texture.out));
+      const Run given = run(QStringList{"compose"} + organ + view + QStringList{"--theta", dir + "/bare.json", "--out", dir + "/g-" + tag + ".png"});
+      QVERIFY2(given.code == 0, qPrintable(given.err));
+      QVERIFY2(given.out.contains("re-shaded with bare.json as given: it carries no fit's verdict"), qPrintable(given.out));
+      const cv::Mat3b u = cv::imread((dir + "/u-" + tag + ".png").toStdString()),
+                      t = cv::imread((dir + "/t-" + tag + ".png").toStdString()),
+                      g = cv::imread((dir + "/g-" + tag + ".png").toStdString());
+      QVERIFY(!u.empty() && u.size() == t.size() && u.size() == g.size());
+      cv::Mat diffTexture, diffGiven;
+      cv::absdiff(u, t, diffTexture);
+      cv::absdiff(u, g, diffGiven);
+      const int differTexture = cv::countNonZero(diffTexture.reshape(1) > 0),
+                differGiven = cv::countNonZero(diffGiven.reshape(1) > 2);
+      qInfo("%s: the untrusted THETA's image differs from --texture-only's in %d channel values, from the re-shaded "
+            "one's in %d (by more than 2 levels)",
+            qPrintable(tag), differTexture, differGiven);
+      QCOMPARE(differTexture, 0);
+      QVERIFY(differGiven > 1000);
+    }
+  }
+
   void appearanceAndCompose() {
     const QString dir = QString::fromStdString(tempPath("cli-appearance"));
     QCOMPARE(run({"phantom", "--out", dir}).code, 0);
@@ -406,6 +481,9 @@ class TestCli : public QObject {
     QVERIFY(report["rest_psnr_db"].toDouble() >= 30);
     QVERIFY(report["status"].toString().contains(
         "red channel is clipped"));  // the phantom's red clips at its highlight: said
+    // The fit's verdict travels with THETA (issue 65): this one explains the phantom's shading and may re-shade.
+    QVERIFY(fitted["fit"].toObject()["reshade"].toBool());
+    QVERIFY(std::abs(fitted["fit"].toObject()["explained"].toDouble() - report["explained"].toDouble()) < 1e-12);
     // Compose a sag simulated on the same mesh (the liver preset is the built-in phantom hung by its
     // ligaments; nodes in the input order).
     QCOMPARE(run({"simulate", "--preset", "liver", "--steps", "10", "--out", dir + "/sag.vtu"}).code, 0);
@@ -418,6 +496,7 @@ class TestCli : public QObject {
              "--image", dir + "/frame.png", "--theta", dir + "/theta.json", "--deformed", dir + "/sag.vtu", "--out",
              dir + "/j.png"});
     QVERIFY2(r.code == 0, qPrintable(r.err));
+    QVERIFY2(!r.out.contains("re-shaded"), qPrintable(r.out));  // a trusted fit re-shades without a word
     QVERIFY(QFile(dir + "/j.png").size() > 10000);
     // Drawn through a surface of its own (--visual, issue 35) carried by the volume's tetrahedra: here the volume's
     // own boundary, whose vertices are nodes, so the carried sag is the sag itself and the image the same.

@@ -520,9 +520,10 @@ std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, c
   return std::make_unique<imaging::Compositor>(compositionInput(in, layers, theta, textureOnly));
 }
 
-cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices) {
+cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,
+                           const std::vector<double>& deformedVertices, bool textureOnly) {
   const AppearanceLayers layers = appearanceLayers(in, theta);
-  return composeAppearance(in, theta, layers.background, layers.albedo, false, deformedVertices);
+  return composeAppearance(in, theta, layers.background, layers.albedo, textureOnly, deformedVertices);
 }
 
 imaging::NovelView composeNovelViewWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,

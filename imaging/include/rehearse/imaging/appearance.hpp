@@ -25,12 +25,24 @@ struct Appearance {
   void terms(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double& diffuse, double& specular) const;
 };
 
-Appearance loadAppearance(const std::string& path);  ///< THETA.json (README.md, "File formats"); throws InputError
+/// What a fit said of itself, kept in THETA.json beside the values (issue 65: a fit's verdict travels with it): how
+/// much of the organ's shading it explained, whether it may re-shade the organ, and its sentence. A THETA written by
+/// hand (a known light) or before the verdict was kept carries none (`known` false).
+struct AppearanceVerdict {
+  bool known = false;
+  double explained = 0;  ///< share of the organ's shading the fit explained (AppearanceFitResult::explained)
+  bool reshade = true;   ///< false: the fit explained too little, show the frame's texture instead (texture only)
+  std::string said;      ///< the fit's status sentence
+};
+
+/// THETA.json (README.md, "File formats"); throws InputError. `verdict` receives what the fit said of itself.
+Appearance loadAppearance(const std::string& path, AppearanceVerdict* verdict = nullptr);
 /// Why these values cannot be an organ's appearance (one sentence without a full stop), or empty: k_d and k_s in
 /// [0, 100] per channel (a pixel's value at 1 cm from the light is then at most 10^6: any brighter is no organ), the
 /// light within 10 m of the camera, the roughness in (0, 10] rad ([0, 10] with `zeroRoughness`: an estimate that found
 /// no highlight), the fall-off in [0, 200].
 std::string appearanceProblem(const Appearance& a, bool zeroRoughness = false);
-void saveAppearance(const Appearance& a, const std::string& path);
+/// Writes THETA.json, with the fit's verdict when `verdict.known`.
+void saveAppearance(const Appearance& a, const std::string& path, const AppearanceVerdict& verdict = {});
 
 }  // namespace rehearse::imaging

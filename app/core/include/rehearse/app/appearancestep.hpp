@@ -110,7 +110,9 @@ cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance
 
 /// J with a Theta given (no fitting): the background and albedo taken from the frame at rest, the organ moved
 /// to `deformedVertices` (empty: at rest). Throws rehearse::InputError as runAppearance does.
-cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta, const std::vector<double>& deformedVertices = {});
+/// `textureOnly`: the frame's own colours follow the tissue, not re-shaded (a fit that explained too little).
+cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,
+                           const std::vector<double>& deformedVertices = {}, bool textureOnly = false);
 
 /// A novel view with a Theta given (issue 35, imaging::composeNovelView): the layers taken from the frame at
 /// rest, the organ (moved to `deformedVertices` when given) drawn through `viewCamera` at `viewPose` (model ->
