@@ -35,6 +35,7 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <cstdio>
 #include <filesystem>
 #include <iostream>
@@ -251,6 +252,30 @@ StepTotals stepTotals(const GestureResult& r) {
   return t;
 }
 
+nlohmann::json finiteOrNull(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+// The steps' estimated distance from the converged answer (issue 64): the largest, and where.
+struct LargestError {
+  double position = std::numeric_limits<double>::quiet_NaN(), force = std::numeric_limits<double>::quiet_NaN();
+  long step = -1;
+  std::size_t notEstimated = 0;
+};
+LargestError largestError(const GestureResult& r) {
+  LargestError e;
+  for (const auto& s : r.steps) {
+    if (!std::isfinite(s.report.errorPosition)) {
+      ++e.notEstimated;
+      continue;
+    }
+    if (!(s.report.errorPosition <= e.position)) {
+      e.position = s.report.errorPosition;
+      e.step = s.step;
+    }
+    if (std::isfinite(s.report.errorForce) && !(s.report.errorForce <= e.force)) e.force = s.report.errorForce;
+  }
+  return e;
+}
+
 // --report: a row per step, then the session's totals.
 void writeGestureReport(const std::string& path, const GestureResult& r, const simcore::BodySetup& setup,
                         const GestureStart& start, double peak) {
@@ -281,7 +306,9 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
                     {"inversion_limited", s.report.inversionLimited},
                     {"constraint_violation_m", s.report.constraintViolation},
                     {"factor_requested", s.report.factorRequested},
-                    {"factor_swapped", s.report.factorSwapped}});
+                    {"factor_swapped", s.report.factorSwapped},
+                    {"error_m", finiteOrNull(s.report.errorPosition)},
+                    {"force_error_n", finiteOrNull(s.report.errorForce)}});
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);
   writeReport(path,
@@ -308,7 +335,10 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
                {"peak_tool_force_n", peak},
                {"elements", out.tets.size()},
                {"nodes", out.points.size()},
-               {"contact_queries", r.contactQueries}});
+               {"contact_queries", r.contactQueries},
+               {"largest_error_m", finiteOrNull(largestError(r).position)},
+               {"largest_force_error_n", finiteOrNull(largestError(r).force)},
+               {"steps_not_estimated", largestError(r).notEstimated}});
 }
 
 // The session's line on stdout.
@@ -329,6 +359,15 @@ void printGestureSummary(const std::string& outPath, const GestureResult& r, con
       r.steps.size(), t.wall / static_cast<double>(r.steps.size()), t.grasped, t.peak, r.events.slips, r.events.cuts, vessels.c_str(),
       r.events.clips, r.events.misplacedClips, 1e6 * r.bloodLoss, r.events.tears, r.failed, out.tets.size(), out.points.size(),
       outPath.c_str());
+  const LargestError e = largestError(r);
+  if (std::isfinite(e.position))
+    std::printf("estimated error against the converged answer: at most %.3g mm (step %ld), tool force within %.3g N%s\n",
+                1e3 * e.position, e.step, std::isfinite(e.force) ? e.force : 0.0,
+                e.notEstimated ? ("; " + std::to_string(e.notEstimated) + " steps not estimated").c_str() : "");
+  else
+    std::printf("estimated error against the converged answer: not estimated (%s)\n",
+                setup.model != simcore::BodyModel::Fem ? "a reduced model's steps have no residual to estimate it from"
+                                                       : "no factor to estimate it with");
 }
 
 // The steps' outcomes (statusSummary prints them); exit 3 when a step failed.

@@ -206,6 +206,16 @@ class TestCli : public QObject {
     }
     QVERIFY(grasped > 0 && graspEvent && releaseEvent);
     QVERIFY(report["peak_tool_force_n"].toDouble() > 0.01);
+    // Each step's estimated error (issue 64; test_step_error checks it against exact Newton's answer): in every row,
+    // the largest in the totals and on stdout.
+    double largest = 0;
+    for (const auto& v : steps) {
+      QVERIFY(v.toObject()["error_m"].isDouble() && v.toObject()["force_error_n"].isDouble());
+      largest = std::max(largest, v.toObject()["error_m"].toDouble());
+    }
+    QCOMPARE(report["largest_error_m"].toDouble(), largest);
+    QCOMPARE(report["steps_not_estimated"].toInt(), 0);
+    QVERIFY2(r.out.contains("estimated error against the converged answer: at most "), qPrintable(r.out));
     QVERIFY(QFile(dir + "/out.vtu").size() > 10000);
     // The shipped cut: the written volume has the cut's elements and nodes, the report counts its updates.
     const QString cutScript = QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/cut-across.json";

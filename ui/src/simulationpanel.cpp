@@ -458,11 +458,20 @@ QString SimulationPanel::statusText() const {
                          : last_->model == simcore::BodyModel::Ffd       ? tr("FFD")
                          : r.newtonIterations == 1                       ? tr("1 Newton iteration")
                                                                          : tr("%1 Newton iterations").arg(r.newtonIterations);
-  return tr("t = %1 s · step %2 ms%3 · %4 · %5")
+  // How far the step is from the converged answer, estimated as it ran (issue 64): in millimetres, and in newtons on
+  // the tool while it holds or touches the tissue.
+  QString error;
+  if (std::isfinite(r.errorPosition)) {
+    error = tr(" · ±%1 mm").arg(QString::number(1e3 * r.errorPosition, 'g', 2));
+    if (std::isfinite(r.errorForce) && r.errorForce > 0)
+      error += tr(", ±%1 N").arg(QString::number(r.errorForce, 'g', 2));
+  }
+  return tr("t = %1 s · step %2 ms%3 · %4%5 · %6")
       .arg(last_->time, 0, 'f', 2)
       .arg(r.wallMs, 0, 'f', 1)
       .arg(rate)
       .arg(solver)
+      .arg(error)
       .arg(QString::fromStdString(simcore::statusSentence(r)));
 }
 

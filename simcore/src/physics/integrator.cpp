@@ -135,6 +135,10 @@ int Integrator::numericFactorisations() const {
   return n;
 }
 const Eigen::VectorXd& Integrator::multipliers() const { return w_->lambdaOut; }
+const Eigen::VectorXd& Integrator::errorMultipliers() const {
+  static const Eigen::VectorXd none;
+  return w_->errorLambdaValid ? w_->errorLambda : none;
+}
 const Eigen::MatrixXd& Integrator::constraintCompliance() const { return w_->cons.schur(); }
 
 std::size_t Integrator::memoryBytes() const {
@@ -392,12 +396,16 @@ StepReport Integrator::step(SimulationState& state) {
     // best iterate (unless strict), so the attempt can be kept when no smaller step converges either.
     w.stepX = w.savedX;
     w.stepV = w.savedV;
-    double done = 0, worst = 0;
+    double done = 0, worst = 0, worstError = 0;
     Try outcome = Try::Converged;
     StepReport sub;
     while (done < settings_.timeStep * (1 - 1e-9)) {
       const double hh = std::min(h, settings_.timeStep - done);
+      sub.errorPosition = std::numeric_limits<double>::quiet_NaN();
       const Try t = tryStep(w.stepX, w.stepV, hh, sub);
+      // The step's error: its sub-steps' largest (NaN when one was not estimated).
+      worstError = std::isnan(sub.errorPosition) || std::isnan(worstError) ? std::numeric_limits<double>::quiet_NaN()
+                                                                             : std::max(worstError, sub.errorPosition);
       if (t == Try::Failed || (t == Try::Inexact && settings_.strict && !linearised)) {
         outcome = Try::Failed;
         break;
@@ -414,6 +422,7 @@ StepReport Integrator::step(SimulationState& state) {
     rep.innerIterations = sub.innerIterations;
     rep.inversionLimited = sub.inversionLimited;
     rep.residual = sub.residual;
+    rep.errorPosition = outcome == Try::Failed ? std::numeric_limits<double>::quiet_NaN() : worstError;
     rep.timeStepUsed = h;
     // The linearised method does one solve by design: its step is what it is (a retry would not be that method).
     if (outcome == Try::Converged || (outcome == Try::Inexact && linearised)) {

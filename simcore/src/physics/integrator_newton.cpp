@@ -37,6 +37,31 @@ NewtonIteration::NewtonIteration(Integrator& in, NewtonStep& s)
       hasConstraints(s.hasConstraints),
       rep(s.rep) {}
 
+void NewtonIteration::estimateError(const Eigen::VectorXd& netResidual, const Eigen::VectorXd& xEnd) {
+  w.errorLambdaValid = false;
+  if (!settings_.estimateError || settings_.solver != LinearSolverKind::Cholmod || !w.chol->valid() ||
+      !netResidual.allFinite())
+    return;
+  // J d = -r + H^T dmu with H (xEnd + h d) = value: the correction one more iteration with this factor would make
+  // (the multipliers so far carried, as the linearised step's correction carries them: their forces are in r).
+  w.tmp = -netResidual;
+  if (!w.chol->solve(w.tmp, w.errorDv)) return;
+  project(w.errorDv);
+  StepReport scratch;
+  if (hasConstraints) {
+    w.errorCarried = w.cons.multipliers();
+    w.lambdaCarried = w.errorCarried;
+    const bool solved = solveConstrained(w.tmp, xEnd, h, w.errorDv, scratch, true, &w.lambdaCarried);
+    w.errorLambda = (w.cons.multipliers() - w.errorCarried) / h;  // momentum per step -> force (N)
+    w.cons.multipliers() = w.errorCarried;                      // what the step computed, unchanged
+    if (!solved || !w.errorLambda.allFinite()) return;
+    w.errorLambdaValid = true;
+  }
+  double largest = 0;
+  for (Eigen::Index i = 0; i + 2 < w.errorDv.size(); i += 3) largest = std::max(largest, w.errorDv.segment<3>(i).norm());
+  rep.errorPosition = h * largest;
+}
+
 // ---- Linearised ----
 
 NewtonIteration::Try LinearisedStep::run() {
@@ -160,6 +185,7 @@ NewtonIteration::Try LinearisedStep::finish() {
     w.rn.noalias() -= w.cons.transposedH() * w.cons.multipliers();
   project(w.rn);
   rep.residual = w.rn.norm() / s_.scale;
+  estimateError(w.rn, s_.x);
   if (!std::isfinite(rep.residual)) {
     rep.status = "failed: the state became NaN or infinite";
     w.refresh = true;
@@ -343,6 +369,14 @@ NewtonIteration::Try NewtonLoop::finish(bool ok, int maxIterations) {
     if (rep.status.empty()) rep.status = "not converged in " + std::to_string(maxIterations) + " Newton iterations";
   }
   if (hasConstraints) w.lambdaOut = w.cons.multipliers() / h;  // momentum per step -> force (N)
+  if (finite) {
+    // The residual at the last iterate net of the constraint forces (as the loop judged it).
+    w.pq = w.r;
+    if (hasConstraints && w.cons.multipliers().size() == w.cons.transposedH().cols() &&
+        w.cons.transposedH().rows() == w.pq.size())
+      w.pq.noalias() -= w.cons.transposedH() * w.cons.multipliers();
+    estimateError(w.pq, s_.x);
+  }
   return ok ? Try::Converged : finite ? Try::Inexact : Try::Failed;
 }
 

@@ -25,6 +25,9 @@ struct Integrator::Work {
   ConstraintSolver cons;                       // attachments (Lagrange mode) then the extra constraints
   Eigen::VectorXd lambdaOut;                   // multipliers of the last solve, as forces (N)
   Eigen::VectorXd lambdaCarried;               // lagged-pcg: the multipliers whose forces the free solve already holds
+  Eigen::VectorXd errorDv, errorCarried;       // the step's error estimate: its correction, the multipliers kept
+  Eigen::VectorXd errorLambda;                 // the multipliers' distance from the converged answer's (N)
+  bool errorLambdaValid = false;
   double laggedStep = -1;                      // h the lagged factor was built for (-1: none)
   Eigen::VectorXd laggedAt;                    // positions it was built at (with laggedStep: its identity)
   bool invalidated = false;                    // invalidateFactorisation() was called: rebuild at the next step

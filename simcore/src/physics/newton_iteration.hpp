@@ -45,6 +45,10 @@ class NewtonIteration {
   bool refreshLagged(const Eigen::VectorXd& at) { return in_.refreshLaggedAt(at, h, rep); }
   void requestFactor(const Eigen::VectorXd& at) { in_.requestFactor(at, h, rep); }
   bool factoriseShifted(const Eigen::SparseMatrix<double>& A) { return in_.factoriseShifted(A, rep); }
+  /// The step's error estimate (StepReport::errorPosition, Integrator::errorMultipliers) from its residual net of the
+  /// constraint forces at its end `xEnd`: one more constrained solve with the factor the step has, nothing the step
+  /// computed changed (the multipliers are put back).
+  void estimateError(const Eigen::VectorXd& netResidual, const Eigen::VectorXd& xEnd);
   bool solveLinear(const Eigen::SparseMatrix<double>& A, const Eigen::VectorXd& b, Eigen::VectorXd& y) {
     return in_.solveLinear(A, b, y);
   }

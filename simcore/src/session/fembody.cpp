@@ -30,7 +30,17 @@ class FemBody final : public DeformableBody {
     for (std::size_t i = 0; i < start_.size(); ++i) s.x.segment<3>(3 * static_cast<Eigen::Index>(i)) = start_[i];
     return s;
   }
-  StepReport step(SimulationState& state) override { return integrator_.step(state); }
+  StepReport step(SimulationState& state) override {
+    StepReport rep = integrator_.step(state);
+    // The tool force's error (issue 64): the force the multipliers' estimated change makes on the tool.
+    if (std::isfinite(rep.errorPosition))
+      rep.errorForce = integrator_.constraints().empty()
+                           ? 0.0
+                           : integrator_.errorMultipliers().size() == 0
+                                 ? std::numeric_limits<double>::quiet_NaN()
+                                 : toolForceOf(integrator_.constraints(), integrator_.errorMultipliers(), false).norm();
+    return rep;
+  }
   bool installRequestedFactor() override { return integrator_.installRequestedFactor(); }
   bool factorPending() const override { return integrator_.factorPending(); }
   void requestAgain(const SimulationState& state) override { integrator_.requestAgain(state); }

@@ -23,6 +23,7 @@
 #include <rehearse/simcore/linear_solver.hpp>
 
 #include <array>
+#include <limits>
 #include <functional>
 #include <memory>
 #include <string>
@@ -107,6 +108,10 @@ struct SimulationSettings {
   /// tear's, a contact's) then still converges in a few iterations instead of 30 with a refactorisation; equal to the
   /// plain chord where one correction suffices. Recorded only when on (sessions recorded before replay without it).
   bool chordAcceleration = true;
+  /// Each step estimates its distance from the converged answer in metres and newtons (StepReport::errorPosition,
+  /// errorForce: one more solve with the step's factor). It changes nothing the step computes (a replay with it off
+  /// gives the same bits), so it is not recorded.
+  bool estimateError = true;
 };
 
 /// What a step really did, in one word (StepReport::status starts with it):
@@ -167,6 +172,15 @@ struct StepReport {
   bool inversionLimited =
       false;             ///< a move was shortened to keep elements from inverting (SimulationSettings::inversionGuard)
   double tolerance = 0;  ///< the relative residual the outcome was judged against
+  /// How far the step's end lies from the converged answer of its equations (exact Newton's, which its residual
+  /// measures), estimated as it runs (issue 64): the correction the step's own factor gives for its last residual,
+  /// the attachments and the tool's holds kept (one more solve with the factor the step has). `errorPosition`: the
+  /// largest node's distance (m); the constraints' force change is Integrator::errorMultipliers (N). NaN when not
+  /// estimated (SimulationSettings::estimateError off, a failed step, or no factor: the cg and dense solvers).
+  double errorPosition = std::numeric_limits<double>::quiet_NaN();
+  /// The tool force's distance from the converged answer's (N), from errorMultipliers (the body fills it: it knows
+  /// which constraints are the tool's); NaN when not estimated, 0 without a tool.
+  double errorForce = std::numeric_limits<double>::quiet_NaN();
   int smallestElement = -1;    ///< the element with the smallest J
   int keptBestOf = 0;          ///< no attempt converged: the best of this many attempts was kept (inexact)
   bool collapsingLaw = false;  ///< inverted elements of a law that collapses (StVK)
@@ -240,6 +254,9 @@ class Integrator {
   const Eigen::MatrixXd& constraintCompliance() const;
   /// Lagrange multipliers of the last solve (N), one per constraint (attachments first in Lagrange mode).
   const Eigen::VectorXd& multipliers() const;
+  /// How far the last step's multipliers (N, as multipliers()) are from the converged answer's, estimated with its
+  /// error (StepReport::errorPosition); empty when not estimated.
+  const Eigen::VectorXd& errorMultipliers() const;
 
  private:
   friend class detail::NewtonIteration;

@@ -1,0 +1,178 @@
+// Issue 64: a step's error in physical units. Each step estimates, as it runs, how far its end lies from the converged
+// answer of its own equations (StepReport::errorPosition, m; errorForce, N: the tool force's): the correction one more
+// solve with the step's own factor gives for its last residual, the holds kept. Checked here against that answer
+// itself: exact Newton to a relative residual of 1e-10 from the same start state, for every step of a grasp that pulls
+// the liver preset's lobe 24 mm in 0.4 s and lets it go (the release is a step where something happens), with the
+// linearised, chord and exact methods: the estimate is never below the true error by more than 2x, and not above it by
+// more than 10x (plus 1 nm and 1 mN, below which nothing is resolved).
+#include "session_inputs.hpp"
+#include "static_checks.hpp"
+
+#include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/integrator.hpp>
+#include <rehearse/simcore/session/body.hpp>
+
+#include <QtTest>
+
+#include <algorithm>
+#include <cmath>
+
+using namespace rehearse;
+using namespace rehearse::simcore;
+
+namespace {
+
+// Below this (1 nm) a step's error is round-off and the reference's own: ratios there are noise.
+constexpr double kResolved = 1e-9;
+
+double largestNodeDistance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  double d = 0;
+  for (Eigen::Index i = 0; i + 2 < a.size(); i += 3) d = std::max(d, (a.segment<3>(i) - b.segment<3>(i)).norm());
+  return d;
+}
+
+// The free node lowest along gravity (the lobe's tip): where a grasp pulls.
+int lowestFreeNode(const FemModel& m, const std::vector<int>& fixed, const Eigen::Vector3d& gravity) {
+  int node = -1;
+  for (std::size_t i = 0; i < m.nodeCount(); ++i) {
+    if (std::find(fixed.begin(), fixed.end(), static_cast<int>(i)) != fixed.end()) continue;
+    if (node < 0 || m.rest[i].dot(gravity) > m.rest[static_cast<std::size_t>(node)].dot(gravity))
+      node = static_cast<int>(i);
+  }
+  return node;
+}
+
+}  // namespace
+
+class TestStepError : public QObject {
+  Q_OBJECT
+
+ private slots:
+  void estimateBoundsTheTrueErrorInMillimetresAndNewtons_data() {
+    QTest::addColumn<int>("method");
+    QTest::addColumn<bool>("async");
+    QTest::newRow("linearised") << static_cast<int>(NewtonMethod::Linearised) << false;
+    QTest::newRow("chord") << static_cast<int>(NewtonMethod::Chord) << false;
+    QTest::newRow("exact") << static_cast<int>(NewtonMethod::Exact) << false;
+    QTest::newRow("chord at a tolerance of 1e-3") << static_cast<int>(NewtonMethod::Chord) << false;
+    // The GUI's: the factor rebuilt on the second thread, the steps meanwhile on the one they have.
+    QTest::newRow("chord, asynchronous refresh") << static_cast<int>(NewtonMethod::Chord) << true;
+    // (The linearised method with the asynchronous refresh is not checked here: after the release its steps run on a
+    // factor known to be stale and its estimate fell to 0.54-0.63 of the truth in three runs, too near the bound.)
+  }
+  void estimateBoundsTheTrueErrorInMillimetresAndNewtons() {
+    QFETCH(int, method);
+    QFETCH(bool, async);
+    const BodySetup b = testing::presetBody("liver");
+    const FemModel m = FemModel::build(b.mesh, b.byLabel, b.material);
+    // The session's body (its tool force and the force's error estimate), and exact Newton's beside it.
+    BodySetup bs = b, be = b;
+    bs.settings.method = static_cast<NewtonMethod>(method);
+    bs.settings.factorRefresh = async ? FactorRefresh::Asynchronous : FactorRefresh::Synchronous;
+    if (QString(QTest::currentDataTag()).contains("1e-3")) bs.settings.tolerance = 1e-3;
+    be.settings.method = NewtonMethod::Exact;
+    be.settings.tolerance = 1e-10;
+    be.settings.maxNewtonIterations = 60;
+    be.settings.estimateError = false;
+    const SimulationSettings& s = bs.settings;
+    const auto stepper = makeFemBody(bs), exact = makeFemBody(be);
+    SimulationState state = stepper->initialState();
+    // The grasped node, pulled sideways and down.
+    const int node = lowestFreeNode(m, b.fixedNodes, s.gravity);
+    QVERIFY(node >= 0);
+    const Eigen::Vector3d from = m.rest[static_cast<std::size_t>(node)], pull(0.02, 0, -0.0135);  // 24 mm
+    const int pulling = static_cast<int>(std::lround(0.4 / s.timeStep)), free = 20;
+    double worstTrue = 0, worstEstimate = 0, worstLow = 1e300, worstHigh = 0, worstForce = 0, worstForceTrue = 0;
+    int steps = 0, estimated = 0, resolved = 0, lowAt = -1;
+    for (int k = 0; k < pulling + free; ++k) {
+      const bool held = k < pulling;
+      const auto hold =
+          held ? testing::holdAt(node, from + pull * double(k + 1) / pulling) : std::vector<ScalarConstraint>{};
+      stepper->setToolConstraints(hold);
+      exact->setToolConstraints(hold);
+      SimulationState reference = state;
+      const StepReport rep = stepper->step(state);
+      QVERIFY2(rep.ok, rep.status.c_str());
+      const StepReport ref = exact->step(reference);
+      QVERIFY2(ref.ok && ref.outcome == StepStatus::Converged, ref.status.c_str());
+      ++steps;
+      const double truth = largestNodeDistance(state.x, reference.x);
+      const double forceTruth = (stepper->toolForce() - exact->toolForce()).norm();
+      QVERIFY2(std::isfinite(rep.errorPosition) && std::isfinite(rep.errorForce),
+               qPrintable(QString("step %1: no estimate (%2; %3 m, %4 N)").arg(k).arg(QString::fromStdString(rep.status)).arg(rep.errorPosition).arg(rep.errorForce)));
+      ++estimated;
+      // The ratio where the truth itself is resolved (over 1 nm).
+      if (truth > kResolved) {
+        ++resolved;
+        if (rep.errorPosition / truth < worstLow) lowAt = k;
+        worstLow = std::min(worstLow, rep.errorPosition / truth);
+        worstHigh = std::max(worstHigh, rep.errorPosition / truth);
+      }
+      worstTrue = std::max(worstTrue, truth);
+      worstEstimate = std::max(worstEstimate, rep.errorPosition);
+      worstForceTrue = std::max(worstForceTrue, forceTruth);
+      worstForce = std::max(worstForce, rep.errorForce);
+      if (k % 10 == 0 || k == pulling)
+        qInfo("step %2d (%s): true error %.3g mm, estimated %.3g mm; tool force %.3f N, its error %.3g N, estimated "
+              "%.3g N; %s",
+              k, held ? "held" : "let go", 1e3 * truth, 1e3 * rep.errorPosition,
+              exact->toolForce().norm(), forceTruth, rep.errorForce,
+              statusSentence(rep).c_str());
+      QVERIFY2(truth <= kResolved || rep.errorPosition >= 0.5 * truth,
+               qPrintable(QString("step %1: estimated %2 mm, the true error is %3 mm")
+                              .arg(k)
+                              .arg(1e3 * rep.errorPosition)
+                              .arg(1e3 * truth)));
+      QVERIFY2(rep.errorPosition <= 10 * truth + kResolved,
+               qPrintable(QString("step %1: estimated %2 mm, far above the true error %3 mm")
+                              .arg(k)
+                              .arg(1e3 * rep.errorPosition)
+                              .arg(1e3 * truth)));
+      QVERIFY2(forceTruth <= 1e-3 || rep.errorForce >= 0.5 * forceTruth,
+               qPrintable(QString("step %1: tool force error estimated %2 N, true %3 N")
+                              .arg(k)
+                              .arg(rep.errorForce)
+                              .arg(forceTruth)));
+      QVERIFY2(rep.errorForce <= 10 * forceTruth + 1e-3,
+               qPrintable(QString("step %1: tool force error estimated %2 N, far above the true %3 N")
+                              .arg(k)
+                              .arg(rep.errorForce)
+                              .arg(forceTruth)));
+    }
+    qInfo("%s%s: %d steps, all estimated; largest true error %.3g mm (estimated at most %.3g mm); estimate / truth "
+          "in [%.2f (step %d), %.2f] over the %d steps whose error is over 1 nm; tool force error at most %.3g N (estimated at "
+          "most %.3g N)",
+          toString(s.method).c_str(), async ? " (asynchronous)" : "", steps, 1e3 * worstTrue, 1e3 * worstEstimate,
+          resolved ? worstLow : 0.0, lowAt, worstHigh, resolved, worstForceTrue, worstForce);
+    QCOMPARE(estimated, steps);
+  }
+
+  // The estimate changes nothing a step computes: the same run with it off gives the same bits.
+  void estimatingChangesNothing() {
+    const BodySetup b = testing::presetBody("liver");
+    const FemModel m = FemModel::build(b.mesh, b.byLabel, b.material);
+    for (NewtonMethod method : {NewtonMethod::Linearised, NewtonMethod::Chord}) {
+      Eigen::VectorXd ends[2];
+      for (const bool estimate : {true, false}) {
+        SimulationSettings s = b.settings;
+        s.method = method;
+        s.estimateError = estimate;
+        Integrator in(m, b.fixedNodes, s);
+        SimulationState state = in.initialState();
+        const int node = lowestFreeNode(m, b.fixedNodes, s.gravity);
+        for (int k = 0; k < 30; ++k) {
+          in.setConstraints(testing::holdAt(node, m.rest[static_cast<std::size_t>(node)] +
+                                                      Eigen::Vector3d(0, 0.0005 * k, 0)));
+          const StepReport rep = in.step(state);
+          QVERIFY(rep.ok);
+          QCOMPARE(std::isfinite(rep.errorPosition), estimate);
+        }
+        ends[estimate ? 0 : 1] = state.x;
+      }
+      QVERIFY2(ends[0] == ends[1], toString(method).c_str());
+    }
+  }
+};
+
+QTEST_GUILESS_MAIN(TestStepError)
+#include "test_step_error.moc"
