@@ -279,8 +279,8 @@ int cmdCompose(const std::vector<std::string>& args) {
   if (untrusted) {
     char share[32];
     std::snprintf(share, sizeof share, "%.0f %%", 100 * verdict.explained);
-    std::printf("not re-shaded: the fit behind %s explained %s of the organ's shading, too little to re-shade with "
-                "(texture only); the frame's own colours are drawn instead\n",
+    std::printf("not re-shaded: the fit behind %s is marked texture only (it explained %s of the organ's shading); "
+                "the frame's own colours are drawn instead\n",
                 std::filesystem::path(o["theta"]).filename().c_str(), share);
   } else if (!verdict.known && !textureOnly) {
     std::printf("re-shaded with %s as given: it carries no fit's verdict (written by hand, or before 'rehearse "

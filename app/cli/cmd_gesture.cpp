@@ -121,6 +121,7 @@ simcore::BodySetup bodyFromModel(Options& o, simcore::Mesh& mesh) {
 void applySolverOptions(Options& o, simcore::BodySetup& setup) {
   if (o.count("model")) setup.model = simcore::bodyModelFromString(o["model"]);
   if (o.count("method")) setup.settings.method = simcore::newtonMethodFromString(o["method"]);
+  setup.settings.estimateErrorEvery = 1;  // the report's every row (a case's session estimates every 10th step live)
   if (o.count("refresh")) {
     if (o["refresh"] == "async")
       setup.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;

@@ -127,6 +127,17 @@ void checkOneSessionOutputs(Options& o) {
     throw UsageError("--video must end in .mp4");
   if (o.count("report") && std::filesystem::path(o["report"]).extension() != ".pdf")
     throw UsageError("--report must end in .pdf");
+  // Said before the replay, not after it (it takes seconds).
+  for (const char* key : {"video", "report"}) {
+    if (!o.count(key)) continue;
+    std::filesystem::path folder = std::filesystem::path(o[key]).parent_path();
+    if (folder.empty()) folder = ".";
+    std::error_code ec;
+    if (!std::filesystem::is_directory(folder, ec))
+      throw UsageError(std::string("--") + key + ": the folder " + folder.string() + " does not exist");
+    if (::access(folder.c_str(), W_OK) != 0)
+      throw UsageError(std::string("--") + key + ": the folder " + folder.string() + " is not writable");
+  }
 }
 
 ReplayRequest parseReplayRequest(const std::vector<std::string>& args) {

@@ -73,13 +73,15 @@ Appearance loadAppearance(const std::string& path, AppearanceVerdict* verdict) {
         verdict->explained = f.at("explained").get<double>();
         verdict->reshade = f.at("reshade").get<bool>();
         verdict->said = f.value("said", std::string());
-        if (!std::isfinite(verdict->explained))
-          throw InputError(name + ": the fit's explained share must be a number.");
+        if (!(verdict->explained >= 0 && verdict->explained <= 1))
+          throw InputError(name + ": the fit's explained share must be between 0 and 1.");
       }
     }
     return a;
   } catch (const InputError&) {
     throw;
+  } catch (const nlohmann::json::parse_error& e) {
+    throw InputError(name + " is not valid JSON (at byte " + std::to_string(e.byte) + "); write it again.");
   } catch (const std::exception&) {
     throw InputError(name +
                      " is not an appearance file: it needs light_position, kd, ks and roughness (and a fit's "

@@ -271,6 +271,21 @@ class TestHostileInputs : public QObject {
                      dir_.path() + "/j.png"},
                     "k_d and k_s must be between 0 and 100", what);
     }
+    // A fit's verdict out of range or of the wrong kind, and a file cut short (issue 65): each its own sentence.
+    const QByteArray values = "\"light_position\": [0, 0, 0], \"kd\": [0.5, 0.5, 0.5], \"ks\": [0.1, 0.1, 0.1], "
+                              "\"roughness\": 0.3";
+    for (const auto& [what, text, said] :
+         {std::tuple{"explained 2", "{" + values + ", \"fit\": {\"explained\": 2, \"reshade\": true}}",
+                     "explained share must be between 0 and 1"},
+          std::tuple{"reshade a word", "{" + values + ", \"fit\": {\"explained\": 0.4, \"reshade\": \"no\"}}",
+                     "is not an appearance file"},
+          std::tuple{"cut short", "{" + values + ", \"fit\": {\"expl", "is not valid JSON"}}) {
+      const QString theta = dir_.path() + "/theta.json";
+      write(theta, text);
+      expectRefused({"compose", "--case", caseDir_, "--pose", caseDir_ + "/pose.json", "--theta", theta, "--out",
+                     dir_.path() + "/j.png"},
+                    said, what);
+    }
   }
 
   // A contour of 400,000 points (the self-intersection test was quadratic: it never ended): refused at once. The

@@ -202,9 +202,10 @@ void TestRecording::exportsAndMetricsFromTheScript() {
   QVERIFY(th.open(QIODevice::WriteOnly));
   th.write(R"({"max_force_n": {"max": 1000}, "vessel_cuts": {"max": 0}, "tumour_breaches": {"max": 0}})");
   th.close();
-  const Run r = run({"replay", file, "--session", "1", "--verify", "--metrics", dir.path() + "/m.json", "--thresholds",
-                     dir.path() + "/t.json", "--planned-cut", "-0.055,0.05,-0.04:-0.055,0.05,0.05", "--video",
-                     dir.path() + "/v.mp4", "--report", dir.path() + "/r.pdf"});
+  const QStringList judged = {"replay", file, "--session", "1", "--verify", "--thresholds", dir.path() + "/t.json",
+                              "--planned-cut", "-0.055,0.05,-0.04:-0.055,0.05,0.05"};
+  const Run r = run(judged + QStringList{"--metrics", dir.path() + "/m.json", "--video", dir.path() + "/v.mp4",
+                                         "--report", dir.path() + "/r.pdf"});
   QVERIFY2(r.code == 0, qPrintable(r.out + r.err));
   QVERIFY2(r.out.contains("video: 91 frames of 640x480"), qPrintable(r.out));
   QFile mf(dir.path() + "/m.json");
@@ -285,7 +286,7 @@ void TestRecording::exportsAndMetricsFromTheScript() {
       qInfo("the GUI-less build's report not checked: %s is not built", qPrintable(nogui));
     } else {
       QProcess p;
-      p.start(nogui, {"replay", file, "--session", "1", "--report", dir.path() + "/r-nogui.pdf"});
+      p.start(nogui, judged + QStringList{"--report", dir.path() + "/r-nogui.pdf"});
       QVERIFY(p.waitForFinished(300000));
       QVERIFY2(p.exitCode() == 0 || p.exitCode() == 4, p.readAllStandardError().constData());
       auto words = [](const QString& pdf) {
@@ -303,6 +304,12 @@ void TestRecording::exportsAndMetricsFromTheScript() {
   const Run bad = run({"replay", file, "--session", "1", "--video", dir.path() + "/v.avi"});
   QCOMPARE(bad.code, 2);
   QCOMPARE(bad.err.trimmed().count('\n'), 0);
+  // A report into a folder that is not there is refused before the replay, in one sentence.
+  const Run nowhere = run({"replay", file, "--session", "1", "--report", dir.path() + "/missing/r.pdf"});
+  QCOMPARE(nowhere.code, 2);
+  QVERIFY2(nowhere.err.trimmed().count('\n') == 0 && nowhere.err.contains("missing does not exist") &&
+               !nowhere.out.contains("verified"),
+           qPrintable(nowhere.out + nowhere.err));
   const Run badThresholds = run({"replay", file, "--session", "1", "--metrics", dir.path() + "/m2.json", "--thresholds",
                                  script("grasp-pull.json")});
   QCOMPARE(badThresholds.code, 2);

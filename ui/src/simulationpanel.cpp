@@ -406,6 +406,13 @@ void SimulationPanel::reset() {
 
 void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
   last_ = f;
+  // The session estimates its error every 10th step: the last estimate stays shown between them.
+  if (std::isfinite(f->report.errorPosition)) {
+    lastError_ = f->report.errorPosition;
+    lastForceError_ = std::isfinite(f->report.errorForce) ? f->report.errorForce : 0;
+  } else if (f->steps == 0) {
+    lastError_ = std::numeric_limits<double>::quiet_NaN();
+  }
   if (asked_.model != f->model && f->message.contains(u"refused")) {
     // The model asked for was refused or its build cancelled: the list shows what runs.
     asked_.model = f->model;
@@ -461,10 +468,9 @@ QString SimulationPanel::statusText() const {
   // How far the step is from the converged answer, estimated as it ran (issue 64): in millimetres, and in newtons on
   // the tool while it holds or touches the tissue.
   QString error;
-  if (std::isfinite(r.errorPosition)) {
-    error = tr(" · ±%1 mm").arg(QString::number(1e3 * r.errorPosition, 'g', 2));
-    if (std::isfinite(r.errorForce) && r.errorForce > 0)
-      error += tr(", ±%1 N").arg(QString::number(r.errorForce, 'g', 2));
+  if (std::isfinite(lastError_)) {
+    error = tr(" · ±%1 mm").arg(QString::number(1e3 * lastError_, 'g', 2));
+    if (lastForceError_ > 0) error += tr(", ±%1 N").arg(QString::number(lastForceError_, 'g', 2));
   }
   return tr("t = %1 s · step %2 ms%3 · %4%5 · %6")
       .arg(last_->time, 0, 'f', 2)

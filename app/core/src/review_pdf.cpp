@@ -384,11 +384,7 @@ void writeReviewPdf(const ReviewReport& r, const std::string& path) {
       throw std::runtime_error(std::string("the PDF report could not be written (") +
                                cairo_status_to_string(cairo_surface_status(surface.get())) + ")");
   }
-  try {
-    writeFileAtomically(path, bytes);
-  } catch (const std::exception& e) {
-    throw std::runtime_error(std::string("cannot write the report: ") + e.what());
-  }
+  writeFileAtomically(path, bytes);  // (its sentence names the file and what to check)
 }
 
 }  // namespace rehearse::app

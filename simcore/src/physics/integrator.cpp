@@ -383,6 +383,8 @@ StepReport Integrator::step(SimulationState& state) {
   // within a step: a replay installs it at the same step boundary, FactorRefresh::Deferred).
   StepReport swap;
   if (settings_.factorRefresh != FactorRefresh::Synchronous) swapInRequested(swap);
+  w.estimateThisStep = settings_.estimateErrorEvery <= 1 || w.stepsTaken % settings_.estimateErrorEvery == 0;
+  ++w.stepsTaken;
   double h = settings_.timeStep;
   const bool linearised = settings_.method == NewtonMethod::Linearised && settings_.solver == LinearSolverKind::Cholmod;
   const double tolerance = linearised ? settings_.linearisedTolerance : settings_.tolerance;

@@ -39,7 +39,7 @@ NewtonIteration::NewtonIteration(Integrator& in, NewtonStep& s)
 
 void NewtonIteration::estimateError(const Eigen::VectorXd& netResidual, const Eigen::VectorXd& xEnd) {
   w.errorLambdaValid = false;
-  if (!settings_.estimateError || settings_.solver != LinearSolverKind::Cholmod || !w.chol->valid() ||
+  if (!settings_.estimateError || !w.estimateThisStep || settings_.solver != LinearSolverKind::Cholmod || !w.chol->valid() ||
       !netResidual.allFinite())
     return;
   // J d = -r + H^T dmu with H (xEnd + h d) = value: the correction one more iteration with this factor would make

@@ -10,6 +10,7 @@
 #include <QDateTime>
 #include <QLocale>
 #include <QFileDialog>
+#include <QFileInfo>
 #include <QGuiApplication>
 #include <QHeaderView>
 #include <QInputDialog>
@@ -85,16 +86,22 @@ void ReviewWindow::build(const QString& title) {
   QAction* view3d = bar->addAction(tr("3D / Frame view"), this, [this] { setThreeD(!threeD_); });
   view3d->setToolTip(tr("Switch between the organ over the case's frame and a 3D view turned by dragging (V)"));
   QMenu* fileMenu = menuBar()->addMenu(tr("&Review"));
-  fileMenu->addAction(tr("Export &Video..."), this, [this] {
-    const QString path =
-        QFileDialog::getSaveFileName(this, tr("Export video"), suggestedExportPath("mp4"), tr("MP4 video (*.mp4)"));
+  // A name typed without the file's kind gets it (a report named "r.txt" was written as PDF under that name).
+  auto withSuffix = [](QString path, const QString& suffix) {
+    if (!path.isEmpty() && QFileInfo(path).suffix().compare(suffix, Qt::CaseInsensitive) != 0) path += "." + suffix;
+    return path;
+  };
+  fileMenu->addAction(tr("Export &Video..."), this, [this, withSuffix] {
+    const QString path = withSuffix(
+        QFileDialog::getSaveFileName(this, tr("Export video"), suggestedExportPath("mp4"), tr("MP4 video (*.mp4)")),
+        "mp4");
     if (path.isEmpty()) return;
     const QString err = exportVideo(path, 0, duration(0));
     if (!err.isEmpty()) QMessageBox::warning(this, tr("Export video"), err);
   })->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_E));
-  fileMenu->addAction(tr("Export &Report (PDF)..."), this, [this] {
-    const QString path =
-        QFileDialog::getSaveFileName(this, tr("Export report"), suggestedExportPath("pdf"), tr("PDF (*.pdf)"));
+  fileMenu->addAction(tr("Export &Report (PDF)..."), this, [this, withSuffix] {
+    const QString path = withSuffix(
+        QFileDialog::getSaveFileName(this, tr("Export report"), suggestedExportPath("pdf"), tr("PDF (*.pdf)")), "pdf");
     if (path.isEmpty()) return;
     const QString err = exportReport(path);
     if (!err.isEmpty()) QMessageBox::warning(this, tr("Export report"), err);

@@ -112,6 +112,9 @@ struct SimulationSettings {
   /// errorForce: one more solve with the step's factor). It changes nothing the step computes (a replay with it off
   /// gives the same bits), so it is not recorded.
   bool estimateError = true;
+  /// ... at every this many steps (the others report NaN): the interactive session estimates every 10th step (0.1 s,
+  /// the status line's refresh), so the window stays responsive; the command line every step.
+  int estimateErrorEvery = 1;
 };
 
 /// What a step really did, in one word (StepReport::status starts with it):

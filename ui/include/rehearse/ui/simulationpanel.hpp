@@ -19,6 +19,7 @@
 #include <QWidget>
 
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -129,6 +130,7 @@ class SimulationPanel : public QWidget {
   std::unique_ptr<Throttle> statusThrottle_;
   std::shared_ptr<const app::Case> organ_;
   std::shared_ptr<const SimulationFrame> last_;
+  double lastError_ = std::numeric_limits<double>::quiet_NaN(), lastForceError_ = 0;  // the last step that estimated
   bool playing_ = false;
   struct {
     QElapsedTimer clock;
