@@ -407,10 +407,11 @@ void SimulationPanel::reset() {
 void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
   last_ = f;
   // The session estimates its error every 10th step: the last estimate stays shown between them.
+  // (The fast models estimate nothing: no estimate of an earlier body is shown for them.)
   if (std::isfinite(f->report.errorPosition)) {
     lastError_ = f->report.errorPosition;
     lastForceError_ = std::isfinite(f->report.errorForce) ? f->report.errorForce : 0;
-  } else if (f->steps == 0) {
+  } else if (f->steps == 0 || f->model != simcore::BodyModel::Fem) {
     lastError_ = std::numeric_limits<double>::quiet_NaN();
   }
   if (asked_.model != f->model && f->message.contains(u"refused")) {
