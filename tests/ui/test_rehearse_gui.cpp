@@ -471,9 +471,10 @@ class TestRehearseGui : public QObject {
     // The hybrid model.
     SessionHeard built(panel);
     method->setFocus();
-    QTest::keyClicks(method, "p");  // the precomputed model (its responses from the last build), then the next entry
-    QTest::keyClick(method, Qt::Key_Down);
-    QVERIFY(method->currentText().startsWith("hybrid"));
+    // Down through the list to the hybrid model, as a person does (past the precomputed model: its responses from the
+    // last build). (The list's keyboard search for "p" left it at the chord here on some runs.)
+    for (int k = 0; k < 8 && !method->currentText().startsWith("hybrid"); ++k) QTest::keyClick(method, Qt::Key_Down);
+    QVERIFY2(method->currentText().startsWith("hybrid"), qPrintable(method->currentText()));
     QVERIFY(waitFor([&] { return panel->session() && panel->session()->setup().model == simcore::BodyModel::Hybrid; }, 30000));
     QVERIFY2(waitFor([&] { return built.lines.join(" ").contains("The hybrid model: a FEM region of"); }, 10000),
              qPrintable(built.lines.join(" | ")));
