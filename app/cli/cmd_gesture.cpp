@@ -312,6 +312,7 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
                     {"force_error_n", finiteOrNull(s.report.errorForce)}});
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);
+  const LargestError largest = largestError(r);
   writeReport(path,
               {{"steps", rows},
                {"model", simcore::bodyModelName(setup.model)},
@@ -337,9 +338,9 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
                {"elements", out.tets.size()},
                {"nodes", out.points.size()},
                {"contact_queries", r.contactQueries},
-               {"largest_error_m", finiteOrNull(largestError(r).position)},
-               {"largest_force_error_n", finiteOrNull(largestError(r).force)},
-               {"steps_not_estimated", largestError(r).notEstimated}});
+               {"largest_error_m", finiteOrNull(largest.position)},
+               {"largest_force_error_n", finiteOrNull(largest.force)},
+               {"steps_not_estimated", largest.notEstimated}});
 }
 
 // The session's line on stdout.
