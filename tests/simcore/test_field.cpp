@@ -141,6 +141,57 @@ class TestField : public QObject {
     QVERIFY(snap->report.outcome == simcore::StepStatus::Converged);
   }
 
+  // A clip the tissue did not let close (the step the inversion guard held back ended with its rows off) stays as far
+  // as it closed: its offsets become its nodes' offsets from the anchor across the jaws, wherever in its closing it
+  // was; a clip whose rows were met is left as it is.
+  void aHeldBackClipStaysAsFarAsItClosed() {
+    simcore::Clip c;
+    c.across = Eigen::Vector3d(0, 0.6, 0.8);
+    c.anchor = 0;
+    c.nodes = {1, 2};
+    c.from = {0.003, -0.002};
+    c.to = {0.0015, -0.001};
+    c.anchorFrom = 0.0002;
+    c.anchorTo = 0.0001;
+    c.placedAt = 1.0;
+    const double closeTime = 0.1, time = 1.05;  // half closed
+    Eigen::VectorXd x = Eigen::VectorXd::Zero(9);
+    x.segment<3>(0) = Eigen::Vector3d(0.01, 0.002, 0.001);
+    // The rows met exactly: each node at (1 - s) from + s to from the anchor's (1 - s) anchorFrom + s anchorTo.
+    const double s = 0.5, anchorAt = (1 - s) * c.anchorFrom + s * c.anchorTo;
+    const Eigen::Vector3d anchor = x.segment<3>(0);
+    for (int k = 0; k < 2; ++k)
+      x.segment<3>(3 + 3 * k) = anchor + Eigen::Vector3d(0.001 * (k + 1), 0, 0) +
+                                ((1 - s) * c.from[k] + s * c.to[k] - anchorAt) * c.across;
+    simcore::Clip met = c;
+    QCOMPARE(simcore::settleHeldBackClip(met, x, time, closeTime, 1e-5), -1.0);
+    QVERIFY(met == c);
+    // Node 1 held back 0.4 mm short of its target: the clip keeps the offsets its nodes have.
+    x.segment<3>(3) += 0.0004 * c.across;
+    simcore::Clip held = c;
+    const double width = simcore::settleHeldBackClip(held, x, time, closeTime, 1e-5);
+    const double o1 = (x.segment<3>(3) - anchor).dot(c.across), o2 = (x.segment<3>(6) - anchor).dot(c.across);
+    QCOMPARE(held.from, held.to);
+    QVERIFY(std::abs(held.to[0] - o1) < 1e-15 && std::abs(held.to[1] - o2) < 1e-15);
+    QCOMPARE(held.anchorFrom, 0.0);
+    QCOMPARE(held.anchorTo, 0.0);
+    QVERIFY(std::abs(width - (o1 - o2)) < 1e-15);
+    qInfo("held back: %.2f mm across the jaws (targets %.2f and %.2f mm, held at %.2f and %.2f mm)", 1e3 * width,
+          1e3 * (0.5 * (c.from[0] + c.to[0]) - anchorAt), 1e3 * (0.5 * (c.from[1] + c.to[1]) - anchorAt), 1e3 * o1,
+          1e3 * o2);
+    // Its rows, made again at any later time, are met where the nodes are.
+    simcore::OperativeField f;
+    f.clips = {held};
+    std::vector<simcore::ScalarConstraint> rows;
+    simcore::clipRows(f, time + 1, closeTime, rows);
+    QCOMPARE(rows.size(), std::size_t(2));
+    for (const auto& r : rows) {
+      const double value =
+          (x.segment<3>(3 * r.nodes[0]) - x.segment<3>(3 * r.nodes[1])).dot(r.direction);
+      QVERIFY(std::abs(value - r.value) < 1e-15);
+    }
+  }
+
   // A clip on plain tissue, a clip too short for the vessel, and one closed on nothing.
   void aMisplacedClipIsSaid() {
     {

@@ -344,7 +344,10 @@ std::string statusSentence(const StepReport& r) {
   if (r.outcome == StepStatus::Converged) return r.status;
   const std::string residual =
       "relative residual " + figure(r.residual) + " above the tolerance " + figure(r.tolerance);
-  const std::string shortened = r.inversionLimited ? "; moves were shortened to keep elements from inverting" : "";
+  const std::string shortened =
+      r.guardStalled       ? "; moves were shortened to keep elements from inverting until they made no more progress"
+      : r.inversionLimited ? "; moves were shortened to keep elements from inverting"
+                           : "";
   const std::string kept = r.keptBestOf > 0
                                ? " (no attempt converged; kept the best of " + std::to_string(r.keptBestOf) +
                                      ", time step " + figure(r.timeStepUsed) + " s)"
@@ -423,6 +426,7 @@ StepReport Integrator::step(SimulationState& state) {
     rep.factorSwapped = swap.factorSwapped;
     rep.innerIterations = sub.innerIterations;
     rep.inversionLimited = sub.inversionLimited;
+    rep.guardStalled = sub.guardStalled;
     rep.residual = sub.residual;
     rep.errorPosition = outcome == Try::Failed ? std::numeric_limits<double>::quiet_NaN() : worstError;
     rep.timeStepUsed = h;

@@ -20,6 +20,10 @@ constexpr int kKrylovDrift = 2;
 // Accelerated chord, asynchronous refresh: the slow iterations (not halving the residual) after which a step rebuilds
 // the factor in itself once.
 constexpr int kAndersonStall = 4;
+// Held back by the inversion guard: this many guarded moves in a row, none lowering the residual below this share of
+// the one before, end the step's iterations.
+constexpr int kHeldBackIterations = 4;
+constexpr double kHeldBackProgress = 0.99;
 }  // namespace
 
 NewtonIteration::NewtonIteration(Integrator& in, NewtonStep& s)
@@ -207,6 +211,7 @@ NewtonIteration::Try NewtonLoop::run() {
   start();
   const int maxIterations = lagged ? std::max(settings_.maxNewtonIterations, 30) : settings_.maxNewtonIterations;
   bool ok = false;
+  int heldBack = 0;  // guarded moves in a row that did not lower the residual
   for (int it = 0; it < maxIterations; ++it) {
     if (!std::isfinite(s_.rn)) break;
     if (s_.rn <= settings_.tolerance * s_.scale && !(hasConstraints && it == 0)) {
@@ -229,6 +234,15 @@ NewtonIteration::Try NewtonLoop::run() {
     ++rep.newtonIterations;
     std::swap(w.r, w.rn);
     s_.rn = rnew;
+    // Moves the inversion guard shortened without lowering the residual, several times running: the equations ask
+    // for a shape the guard does not let the elements take (a clip or a shaft pressing nodes through their
+    // neighbours). More iterations, new factors and halved steps did not change that (the phantom with clips and the
+    // hook: 30 such iterations per attempt, two attempts, a second per step); the step ends here, inexact, and says so.
+    heldBack = guarded && !(rnew < kHeldBackProgress * previous) ? heldBack + 1 : 0;
+    if (heldBack >= kHeldBackIterations) {
+      rep.guardStalled = true;
+      break;
+    }
     if (!iterated(previous)) break;
   }
   return finish(ok, maxIterations);
@@ -552,6 +566,12 @@ bool ChordNewton::iterated(double previous) {
   if (accelerate_ && rn > 0.5 * previous && rn > settings_.tolerance * scale) ++slowIterations_;
   const bool stalled = accelerate_ && settings_.factorRefresh != FactorRefresh::Synchronous && !rebuiltHere_ &&
                        slowIterations_ >= kAndersonStall;
+  // A projected factor rebuilt at the last iterate (the tangent there was indefinite: after a cut or a tear) that
+  // still contracts this slowly is as good as a factor gets here: another one would be projected too. Rebuilding it
+  // at every iteration bought nothing (after a cut on the liver preset: five rebuilds of two factorisations each per
+  // step, 250 ms, each contracting by 0.62), so this step iterates on with it.
+  const bool rebuiltLast = projectedLast_;
+  projectedLast_ = false;
   if (rn > contraction * previous && rn > settings_.tolerance * scale) {
     w.xt = w.x0 + h * w.v;
     if (stalled) {
@@ -560,9 +580,12 @@ bool ChordNewton::iterated(double previous) {
       aa.reset();
     } else if (settings_.factorRefresh != FactorRefresh::Synchronous && w.chol->valid()) {
       requestFactor(w.xt);  // built on the second thread; this step iterates on with the old factor
-    } else if (!refreshLagged(w.xt)) {
-      return false;
+    } else if (rebuiltLast || keptFactor_) {
+      keptFactor_ = true;
     } else {
+      const int before = rep.factorisations;
+      if (!refreshLagged(w.xt)) return false;
+      projectedLast_ = rep.factorisations - before > 1;  // the exact tangent's factorisation failed first
       aa.reset();  // another factor: another chord map
     }
   }

@@ -151,6 +151,8 @@ class ChordNewton final : public NewtonLoop {
   Work::Anderson& aa;
   int slowIterations_ = 0;    // accelerated: iterations that did not halve the residual
   bool rebuiltHere_ = false;  // accelerated, asynchronous: the factor was rebuilt in this step once already
+  bool projectedLast_ = false;  // synchronous: a projected factor was rebuilt at the last iterate
+  bool keptFactor_ = false;     // synchronous: a projected factor rebuilt here contracted no better; kept this step
 };
 
 /// Newton-Krylov: inexact Newton, the exact tangent applied matrix-free, CG preconditioned with the lagged factor.

@@ -345,6 +345,24 @@ void clipRows(const OperativeField& f, double time, double closeTime, std::vecto
   }
 }
 
+double settleHeldBackClip(Clip& c, const Eigen::VectorXd& x, double time, double closeTime, double tolerance) {
+  if (c.anchor < 0) return -1;
+  const double s = closeTime > 0 ? std::clamp((time - c.placedAt) / closeTime, 0.0, 1.0) : 1.0;
+  const double anchorAt = (1 - s) * c.anchorFrom + s * c.anchorTo;
+  const double anchor = node(x, c.anchor).dot(c.across);
+  double off = 0, low = 0, high = 0;
+  for (std::size_t k = 0; k < c.nodes.size(); ++k) {
+    const double now = node(x, c.nodes[k]).dot(c.across) - anchor;
+    off = std::max(off, std::abs(now - ((1 - s) * c.from[k] + s * c.to[k] - anchorAt)));
+    low = std::min(low, now), high = std::max(high, now);
+  }
+  if (!(off > tolerance)) return -1;
+  c.anchorFrom = c.anchorTo = 0;
+  for (std::size_t k = 0; k < c.nodes.size(); ++k)
+    c.from[k] = c.to[k] = node(x, c.nodes[k]).dot(c.across) - anchor;
+  return high - low;
+}
+
 double bleedSpeed(StructureKind kind) {
   switch (kind) {
     case StructureKind::Artery:

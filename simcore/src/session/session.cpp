@@ -389,6 +389,7 @@ StepReport Session::advance() {
   if ((tool_.present && setup_.tools.toolRadius > 0) || !field_.clips.empty() || slipDue_) updateToolConstraints();
   const double timeBefore = state_.time;
   const StepReport rep = body_->step(state_);
+  if (rep.guardStalled) settleHeldBackClips(message);
   if (rep.ok && state_.time > timeBefore)
     for (auto& b : field_.bleeds)
       if (b.stoppedBy < 0) {  // an open stump loses blood at its rate
@@ -440,6 +441,27 @@ StepReport Session::advance() {
     stepHook_(r);
   }
   return rep;
+}
+
+// A step the inversion guard held back: the clips whose rows it did not meet close no further than their nodes are
+// (on a mesh coarser than the vessel, a long clip asked for a squeeze its neighbours could only take inside out, and
+// every step after it ran its iterations out: a second a step on the phantom with 18 mm clips).
+void Session::settleHeldBackClips(std::string& message) {
+  constexpr double kMet = 1e-5;  // m: rows met within a hundredth of a millimetre
+  for (std::size_t i = 0; i < field_.clips.size(); ++i) {
+    // Said while it closes; a closed clip held back later (a stalled step elsewhere: the hook, the shaft) keeps where
+    // its nodes are without a word, at every such step.
+    const bool closing = state_.time - field_.clips[i].placedAt <= setup_.tools.clip.closeTime;
+    const double width =
+        settleHeldBackClip(field_.clips[i], state_.x, state_.time, setup_.tools.clip.closeTime, kMet);
+    if (width < 0 || !closing) continue;
+    char buf[200];
+    std::snprintf(buf, sizeof buf,
+                  " Clip %zu closes no further than %.1f mm across its jaws: the tissue around it would turn inside "
+                  "out beyond (its elements are coarser than the structure).",
+                  i + 1, 1e3 * width);
+    message += buf;
+  }
 }
 
 Checkpoint Session::checkpointLocked() const {

@@ -174,6 +174,9 @@ struct StepReport {
   double minVolumeRatio = 1;  ///< the smallest J after the step
   bool inversionLimited =
       false;             ///< a move was shortened to keep elements from inverting (SimulationSettings::inversionGuard)
+  /// The inversion guard held the iterations back: its shortened moves stopped lowering the residual (the equations
+  /// ask for a shape the elements cannot take without turning inside out), and the step ended there, inexact.
+  bool guardStalled = false;
   double tolerance = 0;  ///< the relative residual the outcome was judged against
   /// How far the step's end lies from the converged answer of its equations (exact Newton's, which its residual
   /// measures), estimated as it runs (issue 64): the correction the step's own factor gives for its last residual,

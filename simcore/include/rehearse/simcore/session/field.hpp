@@ -151,6 +151,11 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
 /// The rows that hold every clip's nodes at their offsets at `time` (closing linearly over `closeTime`), each
 /// relative to the clip's anchor (weights 1 and -1: the clip's force is internal, not the instrument's).
 void clipRows(const OperativeField& f, double time, double closeTime, std::vector<ScalarConstraint>& rows);
+/// A clip the tissue did not let close: when its rows at `time` are off by more than `tolerance` (m) at positions `x`
+/// (a step the inversion guard held back ended there: closing further would turn the elements around it inside out),
+/// it stays as far as it closed, its offsets from now on the ones its nodes have. Returns the width it holds across
+/// its jaws (m), or a negative number when its rows were met (nothing changed).
+double settleHeldBackClip(Clip& c, const Eigen::VectorXd& x, double time, double closeTime, double tolerance);
 /// m/s: the mean flow speed a stump of this kind bleeds at (artery 0.30, portal vein 0.15, vein and unnamed vessel
 /// 0.10; 0 for anything that is not a blood vessel).
 double bleedSpeed(StructureKind kind);

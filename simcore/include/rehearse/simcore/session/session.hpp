@@ -261,6 +261,7 @@ class Session : private InstrumentHost {
   // kind Tear; its events and sentence are said at once. One change at a time: while one is being built the next
   // waits.
   void tearOverStretched(std::string& message);
+  void settleHeldBackClips(std::string& message);
   bool saidNoTear_ = false;   ///< the precomputed model's sentence that it does not tear, said once
   /// The jaws were held back this step to let go at the grasp limit (ToolSettings::slipAtLimit): the tissue slips
   /// after it. Set and read within one advance().
