@@ -148,7 +148,8 @@ void TestRecording::stabilitySettingsAreRecorded() {
   QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.inversionGuard, false);
   QJsonObject j = QJsonDocument::fromJson(QByteArray::fromStdString(app::encodeSetup(s))).object();
   QJsonObject settings = j["settings"].toObject();
-  for (const char* key : {"strict", "inversionGuard", "linearisedTolerance", "chordAcceleration"}) {
+  for (const char* key :
+       {"strict", "inversionGuard", "linearisedTolerance", "chordAcceleration", "checkedProjection", "heldBackStop"}) {
     QVERIFY2(settings.contains(key), key);
     settings.remove(key);
   }
@@ -166,6 +167,16 @@ void TestRecording::stabilitySettingsAreRecorded() {
   QVERIFY(!QString::fromStdString(app::encodeSetup(s)).contains("chordAcceleration"));
   QVERIFY(!app::decodeSetup(app::encodeSetup(s)).settings.chordAcceleration);
   QVERIFY(!old.settings.chordAcceleration);
+  // The same for the projection of an indefinite tangent and the end of a step the inversion guard holds back.
+  for (bool simcore::SimulationSettings::*flag :
+       {&simcore::SimulationSettings::checkedProjection, &simcore::SimulationSettings::heldBackStop}) {
+    s.settings = simcore::SimulationSettings{};
+    QVERIFY(s.settings.*flag);
+    QVERIFY(app::decodeSetup(app::encodeSetup(s)).settings.*flag);
+    s.settings.*flag = false;
+    QVERIFY(!(app::decodeSetup(app::encodeSetup(s)).settings.*flag));
+    QVERIFY(!(old.settings.*flag));
+  }
 }
 
 void TestRecording::strainMatchesClosedForms() {

@@ -124,6 +124,8 @@ json settings(const simcore::SimulationSettings& s) {
           {"inversionGuard", s.inversionGuard}};
   // Written only when on: setups recorded before it keep their text and hash, and replay without it.
   if (s.chordAcceleration) j["chordAcceleration"] = true;
+  if (s.checkedProjection) j["checkedProjection"] = true;
+  if (s.heldBackStop) j["heldBackStop"] = true;
   return j;
 }
 simcore::SimulationSettings settings(const json& j) {
@@ -155,6 +157,8 @@ simcore::SimulationSettings settings(const json& j) {
   s.strict = j.value("strict", true);
   s.inversionGuard = j.value("inversionGuard", false);
   s.chordAcceleration = j.value("chordAcceleration", false);
+  s.checkedProjection = j.value("checkedProjection", false);
+  s.heldBackStop = j.value("heldBackStop", false);
   return s;
 }
 

@@ -1,6 +1,7 @@
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/quality.hpp>
 
+#include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
@@ -371,9 +372,35 @@ void elementStiffness(const FemModel& m, std::size_t e, const Eigen::VectorXd& x
       for (int r = 0; r < 3; ++r) col[r] = -sum[r];
     }
 }
+
+// Projected Newton's element tangent: the 12x12 matrix with its negative eigenvalues set to zero, only where the
+// element's stress tangent dP/dF (9x9) is not positive definite (a Cholesky fails). Where it is, the matrix
+// V G^T (dP/dF) G is positive semi-definite already and stays as elementStiffness wrote it: the eigen-decomposition
+// runs for the few inverted or strongly compressed elements, not for all (where it changed only rounding).
+void projectElementTangent(double* out) {
+  Eigen::Map<Eigen::Matrix<double, 12, 12>> Ke(out);
+  const Eigen::Matrix<double, 12, 12> sym = 0.5 * (Ke + Ke.transpose());
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(sym);
+  if (eig.eigenvalues().minCoeff() < 0)
+    Ke = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+}
+bool stressTangentDefinite(const FemModel& m, std::size_t e, const Eigen::VectorXd& x) {
+  const Eigen::Matrix3d F = deformationGradient(m, e, x);
+  const TangentCache cache = prepareTangent(m.model[e], F);
+  Eigen::Matrix<double, 9, 9> H;
+  for (int j = 0; j < 9; ++j) {
+    Eigen::Matrix3d dF = Eigen::Matrix3d::Zero();
+    dF(j % 3, j / 3) = 1.0;
+    const Eigen::Matrix3d dP = firstPiolaDifferential(m.model[e], m.lame[e], F, cache, dF);
+    H.col(j) = Eigen::Map<const Eigen::Matrix<double, 9, 1>>(dP.data());
+  }
+  return Eigen::LLT<Eigen::Matrix<double, 9, 9>>(0.5 * (H + H.transpose())).info() == Eigen::Success;
+}
 }  // namespace
 
-void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K, bool projectDefinite) {
+void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K,
+                       TangentProjection projection) {
+  const bool projectDefinite = projection != TangentProjection::None;
   if (K.nonZeros() != m.pattern.nonZeros() || K.rows() != m.pattern.rows()) K = m.pattern;
   double* values = K.valuePtr();
   std::fill(values, values + K.nonZeros(), 0.0);
@@ -386,13 +413,10 @@ void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::Spars
   tbb::parallel_for(tbb::blocked_range<long>(0, count, 64), [&](const tbb::blocked_range<long>& r) {
     for (long e = r.begin(); e < r.end(); ++e) {
       elementStiffness(m, static_cast<std::size_t>(e), x, buf + 144 * e);
-      if (projectDefinite) {
-        // Projected Newton: the element's tangent with its negative eigenvalues clamped to zero.
-        Eigen::Map<Eigen::Matrix<double, 12, 12>> Ke(buf + 144 * e);
-        const Eigen::Matrix<double, 12, 12> sym = 0.5 * (Ke + Ke.transpose());
-        Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, 12, 12>> eig(sym);
-        if (eig.eigenvalues().minCoeff() < 0)
-          Ke = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+      if (projection == TangentProjection::Checked) {
+        if (!stressTangentDefinite(m, static_cast<std::size_t>(e), x)) projectElementTangent(buf + 144 * e);
+      } else if (projectDefinite) {
+        projectElementTangent(buf + 144 * e);  // every element, as sessions recorded before Checked ran
       }
     }
   });

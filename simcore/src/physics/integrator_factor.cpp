@@ -33,7 +33,7 @@ bool Integrator::buildLagged(CholmodSolver& chol, Eigen::SparseMatrix<double>& K
   chol.setSimplicial(simplicial);
   if (chol.factorise(J)) return true;
   // Indefinite (inverted or strongly compressed elements): projected Newton, then a diagonal shift.
-  assembleStiffness(model_, at, Kd, true);
+  assembleStiffness(model_, at, Kd, projectionOf(settings_));
   newtonMatrix(Kd, Kd, J, h, alpha, beta);
   return simcore::factoriseShifted(chol, J, model_.diagonalSlot, attempts);
 }

@@ -239,7 +239,7 @@ NewtonIteration::Try NewtonLoop::run() {
     // neighbours). More iterations, new factors and halved steps did not change that (the phantom with clips and the
     // hook: 30 such iterations per attempt, two attempts, a second per step); the step ends here, inexact, and says so.
     heldBack = guarded && !(rnew < kHeldBackProgress * previous) ? heldBack + 1 : 0;
-    if (heldBack >= kHeldBackIterations) {
+    if (settings_.heldBackStop && heldBack >= kHeldBackIterations) {
       rep.guardStalled = true;
       break;
     }
@@ -413,13 +413,13 @@ bool ExactNewton::solve() {
   // The damping matrix K(x0) is projected too (an indefinite one would inject energy and leave the
   // incremental potential unbounded below); the residual follows it from here on.
   if (!dampingProjected_ && beta != 0) {
-    assembleStiffness(model_, w.x0, w.Kd, true);
+    assembleStiffness(model_, w.x0, w.Kd, projectionOf(settings_));
     dampingProjected_ = true;
     residual(w.v, w.r);
     s_.rn = w.r.norm();
     w.tmp = -w.r;
   }
-  assembleStiffness(model_, w.xt, w.K, true);
+  assembleStiffness(model_, w.xt, w.K, projectionOf(settings_));
   buildNewtonMatrix(w.K, w.J);
   return factoriseShifted(w.J) && solveConstrained(w.tmp, w.xt, h, w.dv, rep);
 }

@@ -98,7 +98,7 @@ bool StaticSolve::usableStep(Eigen::VectorXd& d) const {
 }
 
 void StaticSolve::buildTangent(bool projected) {
-  assembleStiffness(model_, x, w.K, projected);
+  assembleStiffness(model_, x, w.K, projected ? projectionOf(settings_) : TangentProjection::None);
   if (regularisation > 0)
     for (Eigen::Index i = 0; i < w.K.rows(); ++i)
       w.K.valuePtr()[model_.diagonalSlot[i]] += regularisation * in_.mass3_[i];

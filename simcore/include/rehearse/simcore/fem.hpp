@@ -138,9 +138,17 @@ void applyStiffnessPair(const FemModel& m, const TangentState& atA, double a, co
 /// elements (J <= 0) report the first Piola-Kirchhoff stress's equivalent instead.
 void vonMisesStress(const FemModel& m, const Eigen::VectorXd& x, std::vector<double>& out);
 /// Same, into an existing matrix that has the model's pattern (no allocation; elements in parallel).
-/// With projectDefinite, each element's tangent has its negative eigenvalues clamped to zero (projected
-/// Newton: a positive semi-definite K for indefinite states such as inverted or strongly compressed elements).
-void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K, bool projectDefinite = false);
+/// Projected Newton's tangent (TangentProjection): a positive semi-definite K for indefinite states such as inverted,
+/// strongly compressed or torn elements, element by element.
+enum class TangentProjection {
+  None,     ///< the tangent as it is
+  Element,  ///< each element's 12x12 matrix with its negative eigenvalues set to zero (sessions recorded before
+            ///< SimulationSettings::checkedProjection)
+  Checked,  ///< the same, only for the elements whose 9x9 stress tangent dP/dF a Cholesky shows not positive
+            ///< definite (the others' matrices are positive semi-definite already and are kept bit for bit)
+};
+void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::SparseMatrix<double>& K,
+                       TangentProjection projection = TangentProjection::None);
 
 /// Volume ratios J = det F (deformed over rest signed volume) at positions x: how many elements are inverted
 /// (J <= 0), the smallest J and its element. With `inverted`, the inverted elements' indices (ascending).

@@ -108,6 +108,15 @@ struct SimulationSettings {
   /// tear's, a contact's) then still converges in a few iterations instead of 30 with a refactorisation; equal to the
   /// plain chord where one correction suffices. Recorded only when on (sessions recorded before replay without it).
   bool chordAcceleration = true;
+  /// Projected Newton (an indefinite tangent: inverted, strongly compressed or torn elements) eigen-decomposes only the
+  /// elements whose 9x9 stress tangent dP/dF a Cholesky shows not positive definite (TangentProjection::Checked); off,
+  /// every element's 12x12 matrix (TangentProjection::Element, 15-30 % of a step's time where it runs, changing
+  /// the definite ones only by rounding). Recorded only when on (sessions recorded before replay without it).
+  bool checkedProjection = true;
+  /// A Newton attempt whose moves the inversion guard shortened four times in a row without lowering the residual by
+  /// 1 % ends there (StepReport::guardStalled), and a clip its tissue cannot close further stays as far as it closed
+  /// (Session::settleHeldBackClips). Recorded only when on (sessions recorded before replay without it).
+  bool heldBackStop = true;
   /// Each step estimates its distance from the converged answer in metres and newtons (StepReport::errorPosition,
   /// errorForce: one more solve with the step's factor). It changes nothing the step computes (a replay with it off
   /// gives the same bits), so it is not recorded.
@@ -116,6 +125,11 @@ struct SimulationSettings {
   /// the status line's refresh), so the window stays responsive; the command line every step.
   int estimateErrorEvery = 1;
 };
+
+/// The projection SimulationSettings::checkedProjection chooses.
+inline TangentProjection projectionOf(const SimulationSettings& s) {
+  return s.checkedProjection ? TangentProjection::Checked : TangentProjection::Element;
+}
 
 /// What a step really did, in one word (StepReport::status starts with it):
 ///   converged: the residual is under the tolerance and no element is inverted;
