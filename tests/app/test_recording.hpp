@@ -12,6 +12,7 @@ class TestRecording : public QObject {
   void initTestCase();
   void recordingFromBeforeTheMoveVerifies();
   void aSessionVerifiesUnderEveryKernel();
+  void aSessionRecordedUnderThisKernelVerifiesElsewhere();
   void aReplayThatDiffersNamesTheKernels();
   void recordAndVerify();
   void clipsStopTheBleedingInARecordedSession();

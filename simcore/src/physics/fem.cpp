@@ -352,10 +352,10 @@ Eigen::VectorXd elasticForces(const FemModel& m, const Eigen::VectorXd& x) {
 
 namespace {
 // 12x12 element stiffness, column-major (column = the moving dof: node a, axis d).
-void elementStiffness(const FemModel& m, std::size_t e, const Eigen::VectorXd& x, double* out) {
-  const Eigen::Matrix3d F = deformationGradient(m, e, x);
+// F and its tangent cache are the caller's (stressTangentDefinite reads the same ones).
+void elementStiffness(const FemModel& m, std::size_t e, const Eigen::Matrix3d& F, const TangentCache& cache,
+                      double* out) {
   const Eigen::Matrix3d BmT = m.Bm[e].transpose();
-  const TangentCache cache = prepareTangent(m.model[e], F);
   for (int a = 0; a < 4; ++a)
     for (int d = 0; d < 3; ++d) {
       Eigen::Matrix3d dDs = Eigen::Matrix3d::Zero();
@@ -384,9 +384,7 @@ void projectElementTangent(double* out) {
   if (eig.eigenvalues().minCoeff() < 0)
     Ke = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
 }
-bool stressTangentDefinite(const FemModel& m, std::size_t e, const Eigen::VectorXd& x) {
-  const Eigen::Matrix3d F = deformationGradient(m, e, x);
-  const TangentCache cache = prepareTangent(m.model[e], F);
+bool stressTangentDefinite(const FemModel& m, std::size_t e, const Eigen::Matrix3d& F, const TangentCache& cache) {
   Eigen::Matrix<double, 9, 9> H;
   for (int j = 0; j < 9; ++j) {
     Eigen::Matrix3d dF = Eigen::Matrix3d::Zero();
@@ -412,9 +410,12 @@ void assembleStiffness(const FemModel& m, const Eigen::VectorXd& x, Eigen::Spars
   const auto count = static_cast<long>(m.tets.size());
   tbb::parallel_for(tbb::blocked_range<long>(0, count, 64), [&](const tbb::blocked_range<long>& r) {
     for (long e = r.begin(); e < r.end(); ++e) {
-      elementStiffness(m, static_cast<std::size_t>(e), x, buf + 144 * e);
+      const auto i = static_cast<std::size_t>(e);
+      const Eigen::Matrix3d F = deformationGradient(m, i, x);
+      const TangentCache cache = prepareTangent(m.model[i], F);
+      elementStiffness(m, i, F, cache, buf + 144 * e);
       if (projection == TangentProjection::Checked) {
-        if (!stressTangentDefinite(m, static_cast<std::size_t>(e), x)) projectElementTangent(buf + 144 * e);
+        if (!stressTangentDefinite(m, i, F, cache)) projectElementTangent(buf + 144 * e);
       } else if (projectDefinite) {
         projectElementTangent(buf + 144 * e);  // every element, as sessions recorded before Checked ran
       }
