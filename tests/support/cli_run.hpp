@@ -3,6 +3,7 @@
 #include <QProcess>
 #include <QString>
 #include <QStringList>
+#include <QTest>
 
 #include <sys/resource.h>
 
@@ -45,6 +46,13 @@ inline bool tookEveryStep(const Run& r) {
   const bool loose = line.contains(QLatin1String(" inexact")) || line.contains(QLatin1String(" inverted"));
   const bool failed = line.contains(QLatin1String(" failed")) || line.contains(QLatin1String(" refused"));
   return !failed && r.code == (loose ? 5 : 0);
+}
+
+/// A refusal as the command line gives it: the exit code, one line on stderr, and a fragment of its sentence.
+inline void expectOneLineError(const Run& r, int code, const char* fragment) {
+  QVERIFY2(r.code == code, qPrintable(QString("exit %1, stderr: %2").arg(r.code).arg(r.err)));
+  QCOMPARE(r.err.trimmed().count('\n'), 0);
+  QVERIFY2(r.err.contains(QLatin1String(fragment)), qPrintable(r.err));
 }
 
 }  // namespace testing

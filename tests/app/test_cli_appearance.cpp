@@ -1,0 +1,404 @@
+// The command line's appearance step, run as a user would (split from test_cli.cpp): the fit and its verdict, the turn
+// an outline leaves open, composing with a fitted or untrusted THETA, on the phantom and the real Open-CAS frame.
+#include "cli_run.hpp"
+#include "test_support.hpp"
+#include "opencas.hpp"
+#include "traced_outline.hpp"
+
+#include <QDir>
+#include <QJsonArray>
+#include <QJsonDocument>
+#include <QJsonObject>
+#include <rehearse/imaging/appearance_fit.hpp>
+#include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
+#include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/meshio.hpp>
+
+#include <algorithm>
+#include <cmath>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+namespace {
+using testing::expectOneLineError;
+using testing::Run;
+using testing::run;
+}  // namespace
+
+class TestCliAppearance : public QObject {
+  Q_OBJECT
+ private slots:
+  // Issue 62: the turn an outline leaves open, settled by the shading. The phantom's frame, its organ's outline traced
+  // as a hand would (two pieces with a gap, wavering 2 px), and the organ registered off the frame's pose by a turn about
+  // the camera's X or Y axis through its centre (what a contour fit leaves, "weakest: a turn about the camera's X axis").
+  // Without the outline step 6 explains less than 90 % there; with it the organ is turned back to within 1.5 degrees of
+  // the frame's pose (the truth the frame was rendered at) and the shading explained to 90 % or more. At the frame's
+  // pose, and moved sideways, it is left where it was.
+  void appearanceSettlesTheOpenTurn_data() {
+    QTest::addColumn<double>("aboutX");
+    QTest::addColumn<double>("aboutY");
+    QTest::addColumn<double>("sidewaysMm");
+    QTest::addColumn<bool>("turns");
+    QTest::newRow("turned 5 degrees about X") << 5.0 << 0.0 << 0.0 << true;
+    QTest::newRow("turned -6 about X and 4 about Y") << -6.0 << 4.0 << 0.0 << true;
+    QTest::newRow("turned 9 degrees about X and 2 about Y") << 9.0 << 2.0 << 0.0 << true;
+    // About Y a light at the lens shades the organ nearly alike: it explains over 90 % already, and no turn is asked.
+    QTest::newRow("turned 8 degrees about Y") << 0.0 << 8.0 << 0.0 << false;
+    QTest::newRow("at the frame's pose") << 0.0 << 0.0 << 0.0 << false;
+    // Moved sideways, not turned: the best turn the outline allows scores 1.8 points more at the working resolution,
+    // under the 2 a refit needs (and a refit would need 3 more to be taken).
+    QTest::newRow("moved 4 mm sideways") << 0.0 << 0.0 << 4.0 << false;
+  }
+  void appearanceSettlesTheOpenTurn() {
+    QFETCH(double, aboutX);
+    QFETCH(double, aboutY);
+    QFETCH(double, sidewaysMm);
+    QFETCH(bool, turns);
+    using namespace rehearse;
+    static const QString dir = [] {
+      const QString d = QString::fromStdString(tempPath("cli-turn"));
+      run({"phantom", "--out", d});
+      return d;
+    }();
+    QVERIFY(QFile::exists(dir + "/frame.png"));
+    const Pose truth = imaging::loadPose((dir + "/pose.json").toStdString());
+    simcore::Mesh m = simcore::loadMesh((dir + "/organ.vtu").toStdString());
+    m.convertToMetres();
+    const auto triangles = simcore::boundaryTriangles(m, false);
+    std::vector<double> vertices;
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const auto& p : m.points) vertices.insert(vertices.end(), {p.x(), p.y(), p.z()}), centre += truth.apply(p);
+    centre /= double(m.points.size());
+    const SurfaceView surface{vertices.data(), m.points.size(), triangles.front().data(), triangles.size()};
+    const cv::Mat frame = cv::imread((dir + "/frame.png").toStdString());
+    const imaging::Camera camera = imaging::loadCamera((dir + "/camera.yaml").toStdString(), frame.cols, frame.rows);
+    // The outline of the organ the frame shows, traced in two pieces.
+    const imaging::Contour contour = handTracedOutline(camera, truth, surface);
+    QVERIFY(!contour.empty());
+    imaging::saveContour(contour, (dir + "/outline.json").toStdString());
+    const Eigen::Matrix3d Q = (Eigen::AngleAxisd(aboutX * M_PI / 180, Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(aboutY * M_PI / 180, Eigen::Vector3d::UnitY()))
+                                  .toRotationMatrix();
+    Pose registered = truth.turnedAbout(Q, centre);
+    registered.t.x() += 1e-3 * sidewaysMm;
+    imaging::savePose(registered, (dir + "/registered.json").toStdString());
+    const QStringList common{"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml",
+                             "--pose", dir + "/registered.json", "--image", dir + "/frame.png"};
+    auto readJson = [](const QString& path) {
+      QFile f(path);
+      f.open(QIODevice::ReadOnly);
+      return QJsonDocument::fromJson(f.readAll()).object();
+    };
+    auto without = run(common + QStringList{"--out", dir + "/theta0.json", "--report", dir + "/report0.json"});
+    QVERIFY2(without.code == 0 || without.code == 4, qPrintable(without.err));
+    const double before = readJson(dir + "/report0.json")["explained"].toDouble();
+    auto with = run(common + QStringList{"--out", dir + "/theta.json", "--report", dir + "/report.json", "--contour",
+                                         dir + "/outline.json", "--turned-pose", dir + "/turned.json"});
+    QVERIFY2(with.code == 0, qPrintable(with.err + with.out));
+    const QJsonObject report = readJson(dir + "/report.json"), turn = report["turn"].toObject();
+    const Pose turned = imaging::loadPose((dir + "/turned.json").toStdString());
+    const double offDeg = Eigen::AngleAxisd(turned.R * truth.R.transpose()).angle() * 180 / M_PI;
+    const double wasDeg = Eigen::AngleAxisd(registered.R * truth.R.transpose()).angle() * 180 / M_PI;
+    qInfo("registered %.1f deg off: explains %.1f %%; settled %s (%.1f, %.1f deg, %d turns scored, %.1f -> %.1f %% at the "
+          "working resolution, %.0f ms): %.1f deg off, explains %.1f %%; outline %.2f -> %.2f px",
+          wasDeg, 100 * before, turn["adopted"].toBool() ? "turned" : "not turned", turn["about_x_deg"].toDouble(),
+          turn["about_y_deg"].toDouble(), turn["candidates"].toInt(), 100 * turn["scored_before"].toDouble(),
+          100 * turn["scored_best"].toDouble(), turn["ms"].toDouble(), offDeg,
+          100 * report["explained"].toDouble(), turn["outline_before_px"].toDouble(),
+          turn["outline_after_px"].toDouble());
+    QVERIFY(turn["searched"].toBool());
+    QVERIFY2(with.out.contains(turn["said"].toString()), qPrintable(with.out));
+    if (turns) {
+      QVERIFY2(before < 0.9, qPrintable(QString::number(before)));  // the case it is for
+      QVERIFY2(turn["adopted"].toBool(), qPrintable(turn["said"].toString()));
+      QVERIFY2(offDeg <= 1.5, qPrintable(QString::number(offDeg)));
+      QVERIFY(report["explained"].toDouble() >= 0.9);
+      QVERIFY(turn["said"].toString().contains("Undo puts it back"));
+    } else {
+      QVERIFY2(!turn["adopted"].toBool(), qPrintable(turn["said"].toString()));
+      QCOMPARE(report["explained"].toDouble(), before);
+      QVERIFY((turned.t - registered.t).norm() == 0 && (turned.R - registered.R).norm() == 0);
+    }
+    // --contour without --turned-pose, and the reverse, are refused in one sentence.
+    expectOneLineError(run(common + QStringList{"--out", dir + "/t.json", "--contour", dir + "/outline.json"}), 2,
+                       "give --turned-pose");
+    expectOneLineError(run(common + QStringList{"--out", dir + "/t.json", "--turned-pose", dir + "/t2.json"}), 2,
+                       "needs --contour");
+  }
+
+  // The same on the real ex-vivo frame (Open-CAS), whose CT surface is in the camera's frame and whose shading no
+  // laparoscope light explains (BENCHMARKS.md: at most 47 % for any point light, 0 % within the scope's): the outline
+  // of that surface given, the organ at the CT's pose or turned 5 degrees off it is left where it is (texture only,
+  // exit 4), never turned on shading the model does not explain.
+  void appearanceTurnIsNotTakenFromAFrameTheModelDoesNotExplain_data() {
+    QTest::addColumn<double>("aboutX");
+    QTest::newRow("at the CT's pose") << 0.0;
+    QTest::newRow("turned 5 degrees about X") << 5.0;
+  }
+  void appearanceTurnIsNotTakenFromAFrameTheModelDoesNotExplain() {
+    QFETCH(double, aboutX);
+    using namespace rehearse;
+    REQUIRE_SHARED("open-cas/Stereo_SD_d_complete_22_IMG_left.bmp");
+    const auto oc = testdata::OpenCas::load();
+    const QString dir = QString::fromStdString(tempPath("cli-turn-opencas"));
+    QDir().mkpath(dir);
+    imaging::saveCamera(oc.camera, (dir + "/camera.yaml").toStdString());
+    QVERIFY(cv::imwrite((dir + "/frame.png").toStdString(), oc.frame));
+    imaging::Contour contour;
+    contour.width = oc.camera.width, contour.height = oc.camera.height;
+    for (const auto& b : imaging::maskOutlines(imaging::renderMask(oc.camera, Pose{}, oc.surface())))
+      contour.segments.push_back({b, true, "silhouette", {}});
+    QVERIFY(!contour.segments.empty());
+    imaging::saveContour(contour, (dir + "/outline.json").toStdString());
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < oc.vertices.size(); i += 3) centre += Eigen::Vector3d(oc.vertices[i], oc.vertices[i + 1], oc.vertices[i + 2]);
+    centre /= double(oc.vertices.size() / 3);
+    const Pose registered = Pose{}.turnedAbout(Eigen::AngleAxisd(aboutX * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix(), centre);
+    imaging::savePose(registered, (dir + "/registered.json").toStdString());
+    const auto r = run({"appearance", "--mesh", testdata::OpenCas::directory().c_str() + QString("Stereo_SD_d_complete_22_CT_cut.stl"),
+                        "--unit", "mm", "--camera", dir + "/camera.yaml", "--pose", dir + "/registered.json", "--image",
+                        dir + "/frame.png", "--out", dir + "/theta.json", "--report", dir + "/report.json", "--contour",
+                        dir + "/outline.json", "--turned-pose", dir + "/turned.json"});
+    QVERIFY2(r.code == 4, qPrintable(r.err + r.out));  // texture only, as without the search
+    QFile f(dir + "/report.json");
+    QVERIFY(f.open(QIODevice::ReadOnly));
+    const QJsonObject turn = QJsonDocument::fromJson(f.readAll()).object()["turn"].toObject();
+    qInfo("%s (%d turns scored, at the working resolution %.1f -> %.1f %%, %.0f ms)", qPrintable(turn["said"].toString()),
+          turn["candidates"].toInt(), 100 * turn["scored_before"].toDouble(), 100 * turn["scored_best"].toDouble(),
+          turn["ms"].toDouble());
+    QVERIFY(turn["searched"].toBool());
+    QVERIFY(!turn["adopted"].toBool());
+    const Pose turned = imaging::loadPose((dir + "/turned.json").toStdString());
+    QVERIFY((turned.R - registered.R).norm() == 0 && (turned.t - registered.t).norm() == 0);
+  }
+
+  // Issue 65: a fit's verdict travels with its THETA. On the Open-CAS frame (no scope light explains it: texture
+  // only, exit 4) the THETA is marked so, and compose with it says so and does not re-shade, in the frame and in a
+  // novel view: its image is, pixel for pixel, the one `--texture-only` draws with the same values stripped of their
+  // verdict, and not the re-shaded one those values give (which compose says it drew "as given").
+  void composeDoesNotReshadeWithAFitThatExplainedTooLittle() {
+    using namespace rehearse;
+    REQUIRE_SHARED("open-cas/Stereo_SD_d_complete_22_IMG_left.bmp");
+    const auto oc = testdata::OpenCas::load();
+    const QString dir = QString::fromStdString(tempPath("cli-untrusted-theta"));
+    QDir().mkpath(dir);
+    imaging::saveCamera(oc.camera, (dir + "/camera.yaml").toStdString());
+    QVERIFY(cv::imwrite((dir + "/frame.png").toStdString(), oc.frame));
+    imaging::savePose(Pose{}, (dir + "/pose.json").toStdString());
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < oc.vertices.size(); i += 3)
+      centre += Eigen::Vector3d(oc.vertices[i], oc.vertices[i + 1], oc.vertices[i + 2]);
+    centre /= double(oc.vertices.size() / 3);
+    // The novel view: the organ turned 15 degrees about the camera's vertical axis through its centre.
+    imaging::savePose(Pose{}.turnedAbout(Eigen::AngleAxisd(15 * M_PI / 180, Eigen::Vector3d::UnitY()).toRotationMatrix(),
+                                         centre),
+                      (dir + "/view-pose.json").toStdString());
+    const QStringList organ = {"--mesh", testdata::OpenCas::directory().c_str() + QString("Stereo_SD_d_complete_22_CT_cut.stl"),
+                               "--unit", "mm", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json",
+                               "--image", dir + "/frame.png"};
+    const Run fit = run(QStringList{"appearance"} + organ + QStringList{"--out", dir + "/theta.json"});
+    QVERIFY2(fit.code == 4, qPrintable(fit.err + fit.out));  // texture only
+    QFile f(dir + "/theta.json");
+    QVERIFY(f.open(QIODevice::ReadOnly));
+    QJsonObject theta = QJsonDocument::fromJson(f.readAll()).object();
+    f.close();
+    const QJsonObject verdict = theta["fit"].toObject();
+    qInfo("THETA's verdict: explained %.3f, reshade %s: %s", verdict["explained"].toDouble(),
+          verdict["reshade"].toBool() ? "yes" : "no", qPrintable(verdict["said"].toString()));
+    QVERIFY(verdict.contains("reshade") && !verdict["reshade"].toBool());
+    QVERIFY(verdict["explained"].toDouble() < 0.5);
+    QVERIFY(!verdict["said"].toString().isEmpty());
+    // The same values without their verdict (as a hand-written THETA would give them).
+    theta.remove("fit");
+    QFile bare(dir + "/bare.json");
+    QVERIFY(bare.open(QIODevice::WriteOnly));
+    bare.write(QJsonDocument(theta).toJson());
+    bare.close();
+    const QStringList novel = {"--view-camera", dir + "/camera.yaml", "--view-pose", dir + "/view-pose.json"};
+    for (const bool novelView : {false, true}) {
+      const QStringList view = novelView ? novel : QStringList();
+      const QString tag = novelView ? "novel" : "frame";
+      const Run untrusted = run(QStringList{"compose"} + organ + view + QStringList{"--theta", dir + "/theta.json", "--out", dir + "/u-" + tag + ".png"});
+      QVERIFY2(untrusted.code == 0, qPrintable(untrusted.err));
+      QVERIFY2(untrusted.out.contains("not re-shaded: the fit behind theta.json is marked texture only (it explained 0 %"),
+               qPrintable(untrusted.out));
+      const Run texture = run(QStringList{"compose"} + organ + view +
+                              QStringList{"--theta", dir + "/bare.json", "--texture-only", "--out", dir + "/t-" + tag + ".png"});
+      QVERIFY2(texture.code == 0, qPrintable(texture.err));
+      QVERIFY2(!texture.out.contains("re-shaded"), qPrintable(texture.out));
+      const Run given = run(QStringList{"compose"} + organ + view + QStringList{"--theta", dir + "/bare.json", "--out", dir + "/g-" + tag + ".png"});
+      QVERIFY2(given.code == 0, qPrintable(given.err));
+      QVERIFY2(given.out.contains("re-shaded with bare.json as given: it carries no fit's verdict"), qPrintable(given.out));
+      const cv::Mat3b u = cv::imread((dir + "/u-" + tag + ".png").toStdString()),
+                      t = cv::imread((dir + "/t-" + tag + ".png").toStdString()),
+                      g = cv::imread((dir + "/g-" + tag + ".png").toStdString());
+      QVERIFY(!u.empty() && u.size() == t.size() && u.size() == g.size());
+      cv::Mat diffTexture, diffGiven;
+      cv::absdiff(u, t, diffTexture);
+      cv::absdiff(u, g, diffGiven);
+      const int differTexture = cv::countNonZero(diffTexture.reshape(1) > 0),
+                differGiven = cv::countNonZero(diffGiven.reshape(1) > 2);
+      qInfo("%s: the untrusted THETA's image differs from --texture-only's in %d channel values, from the re-shaded "
+            "one's in %d (by more than 2 levels)",
+            qPrintable(tag), differTexture, differGiven);
+      QCOMPARE(differTexture, 0);
+      QVERIFY(differGiven > 1000);
+    }
+  }
+
+  void appearanceAndCompose() {
+    const QString dir = QString::fromStdString(tempPath("cli-appearance"));
+    QCOMPARE(run({"phantom", "--out", dir}).code, 0);
+    auto r = run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                  dir + "/pose.json", "--image", dir + "/frame.png", "--out", dir + "/theta.json", "--report",
+                  dir + "/report.json", "--inpaint", "ns"});
+    QVERIFY2(r.code == 0, qPrintable(r.err + r.out));
+    auto readJson = [](const QString& path) {
+      QFile f(path);
+      f.open(QIODevice::ReadOnly);
+      return QJsonDocument::fromJson(f.readAll()).object();
+    };
+    const QJsonObject fitted = readJson(dir + "/theta.json"), truth = readJson(dir + "/appearance.json");
+    const QJsonObject report = readJson(dir + "/report.json");
+    for (int k = 0; k < 3; ++k) {
+      const double kd = fitted["kd"].toArray()[k].toDouble(), kdTrue = truth["kd"].toArray()[k].toDouble();
+      QVERIFY2(std::abs(kd - kdTrue) < 0.05 * kdTrue,
+               qPrintable(QString("kd %1: %2 against %3").arg(k).arg(kd).arg(kdTrue)));
+      QVERIFY(std::abs(fitted["light_position"].toArray()[k].toDouble() -
+                       truth["light_position"].toArray()[k].toDouble()) < 0.005);
+    }
+    QVERIFY(std::abs(fitted["roughness"].toDouble() - truth["roughness"].toDouble()) <
+            0.1 * truth["roughness"].toDouble());
+    QCOMPARE(report["stages"].toArray().size(), 4);
+    QVERIFY(report["rest_psnr_db"].toDouble() >= 30);
+    QVERIFY(report["status"].toString().contains(
+        "red channel is clipped"));  // the phantom's red clips at its highlight: said
+    // The fit's verdict travels with THETA (issue 65): this one explains the phantom's shading and may re-shade.
+    QVERIFY(fitted["fit"].toObject()["reshade"].toBool());
+    QVERIFY(std::abs(fitted["fit"].toObject()["explained"].toDouble() - report["explained"].toDouble()) < 1e-12);
+    // Compose a sag simulated on the same mesh (the liver preset is the built-in phantom hung by its
+    // ligaments; nodes in the input order).
+    QCOMPARE(run({"simulate", "--preset", "liver", "--steps", "10", "--out", dir + "/sag.vtu"}).code, 0);
+    // The case folder's own attachments.json is read by --fixed-nodes too (it was refused before).
+    QCOMPARE(run({"simulate", "--mesh", dir + "/organ.vtu", "--fixed-nodes", dir + "/attachments.json", "--steps", "2",
+                  "--out", dir + "/held.vtu"})
+                 .code,
+             0);
+    r = run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json",
+             "--image", dir + "/frame.png", "--theta", dir + "/theta.json", "--deformed", dir + "/sag.vtu", "--out",
+             dir + "/j.png"});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    QVERIFY2(!r.out.contains("re-shaded"), qPrintable(r.out));  // a trusted fit re-shades without a word
+    QVERIFY(QFile(dir + "/j.png").size() > 10000);
+    // Drawn through a surface of its own (--visual, issue 35) carried by the volume's tetrahedra: here the volume's
+    // own boundary, whose vertices are nodes, so the carried sag is the sag itself and the image the same.
+    r = run({"compose", "--mesh", dir + "/organ.vtu", "--visual", dir + "/organ_surface.obj", "--camera",
+             dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image", dir + "/frame.png", "--theta",
+             dir + "/theta.json", "--deformed", dir + "/sag.vtu", "--out", dir + "/jv.png"});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    {
+      const cv::Mat3b direct = cv::imread((dir + "/j.png").toStdString()),
+                      carried = cv::imread((dir + "/jv.png").toStdString());
+      const double db = rehearse::imaging::psnr(direct, carried, cv::Mat1b(direct.size(), uchar(255)));
+      qInfo("the sag drawn through the boundary as a surface of its own: %.1f dB against the nodes drawn directly", db);
+      QVERIFY(db >= 50);
+    }
+    // --visual needs a volume to carry it, and a surface of that organ: one sentence each.
+    expectOneLineError(run({"compose", "--mesh", dir + "/organ_surface.obj", "--visual", dir + "/organ_surface.obj",
+                            "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image",
+                            dir + "/frame.png", "--theta", dir + "/theta.json", "--out", dir + "/v.png"}),
+                       2, "needs the organ's volume");
+    {
+      rehearse::simcore::Mesh shifted = rehearse::simcore::loadMesh((dir + "/organ_surface.obj").toStdString());
+      for (auto& p : shifted.points) p.x() += 0.05;
+      rehearse::simcore::saveMesh(shifted, (dir + "/shifted.vtu").toStdString());
+    }
+    expectOneLineError(run({"compose", "--mesh", dir + "/organ.vtu", "--visual", dir + "/shifted.vtu", "--camera",
+                            dir + "/camera.yaml", "--pose", dir + "/pose.json", "--image", dir + "/frame.png",
+                            "--theta", dir + "/theta.json", "--out", dir + "/v.png"}),
+                       1, "outside its volume mesh");
+    QVERIFY(!QFile::exists(dir + "/v.png"));
+    // A novel view (issue 35) through the fitting camera at the fitting pose is the frame again inside the organ,
+    // re-shaded and texture-only; the novel-view options without a view camera are a usage error.
+    const cv::Mat3b frame = cv::imread((dir + "/frame.png").toStdString(), cv::IMREAD_COLOR);
+    for (const bool texture : {false, true}) {
+      QStringList args{"compose",
+                       "--mesh",
+                       dir + "/organ.vtu",
+                       "--camera",
+                       dir + "/camera.yaml",
+                       "--pose",
+                       dir + "/pose.json",
+                       "--image",
+                       dir + "/frame.png",
+                       "--theta",
+                       dir + "/theta.json",
+                       "--view-camera",
+                       dir + "/camera.yaml",
+                       "--view-pose",
+                       dir + "/pose.json",
+                       "--out",
+                       dir + "/novel.png"};
+      if (texture) args << "--texture-only";
+      r = run(args);
+      QVERIFY2(r.code == 0, qPrintable(r.err));
+      const cv::Mat3b view = cv::imread((dir + "/novel.png").toStdString(), cv::IMREAD_COLOR);
+      QCOMPARE(view.size(), frame.size());
+      cv::Mat1b organ;
+      cv::cvtColor(view, organ, cv::COLOR_BGR2GRAY);
+      organ = organ > 0;
+      cv::erode(organ, organ, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7)));
+      const double db = rehearse::imaging::psnr(frame, view, organ);
+      qInfo("novel view at the fitting pose (%s): %d px, %.1f dB", texture ? "texture-only" : "re-shaded",
+            cv::countNonZero(organ), db);
+      QVERIFY(cv::countNonZero(organ) > 50000);
+      QVERIFY(db >= 30);
+    }
+    expectOneLineError(run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/pose.json", "--image", dir + "/frame.png", "--theta", dir + "/theta.json",
+                            "--view-pose", dir + "/pose.json", "--out", dir + "/n.png"}),
+                       2, "need --view-camera");
+    // Bad input: the organ behind the camera, a deformed mesh of another organ, an unknown inpainting method.
+    QFile behind(dir + "/behind.json");
+    behind.open(QIODevice::WriteOnly);
+    behind.write(R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0, 0, -0.5]})");
+    behind.close();
+    expectOneLineError(run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/behind.json", "--image", dir + "/frame.png", "--out", dir + "/x.json"}),
+                       1, "behind the camera");
+    QVERIFY(!QFile::exists(dir + "/x.json"));
+    expectOneLineError(run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/pose.json", "--image", dir + "/frame.png", "--theta", dir + "/theta.json",
+                            "--deformed", dir + "/organ_surface.obj", "--out", dir + "/k.png"}),
+                       1, "same mesh in the same order");
+    // Issue 35's bad input: a frame with no organ pixels (black), a wholly saturated organ (white), a mesh that
+    // misses the frame: one sentence each, no THETA written.
+    for (const auto& [value, name] : {std::pair{0, "black.png"}, std::pair{255, "white.png"}}) {
+      cv::imwrite((dir + "/" + name).toStdString(), cv::Mat3b(frame.size(), cv::Vec3b(value, value, value)));
+      expectOneLineError(run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                              dir + "/pose.json", "--image", dir + "/" + name, "--out", dir + "/z.json"}),
+                         1, "usable pixels");
+      QVERIFY(!QFile::exists(dir + "/z.json"));
+    }
+    QFile aside(dir + "/aside.json");
+    aside.open(QIODevice::WriteOnly);
+    aside.write(R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [5, 0, 0.2]})");
+    aside.close();
+    expectOneLineError(run({"appearance", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/aside.json", "--image", dir + "/frame.png", "--out", dir + "/z.json"}),
+                       1, "not in the frame");
+    QVERIFY(!QFile::exists(dir + "/z.json"));
+    // A case folder stores no alignment: without --pose the fit would take the automatic first guess as the pose.
+    expectOneLineError(run({"appearance", "--case", dir, "--out", dir + "/y.json"}), 2,
+                       "a case folder stores no alignment");
+    QVERIFY(!QFile::exists(dir + "/y.json"));
+    expectOneLineError(run({"appearance", "--case", dir, "--pose", dir + "/pose.json", "--out", dir + "/y.json",
+                            "--inpaint", "magic"}),
+                       1, "choose telea, ns, shiftmap or fsr");
+  }
+};
+
+QTEST_MAIN(TestCliAppearance)
+#include "test_cli_appearance.moc"
