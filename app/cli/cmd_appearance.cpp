@@ -126,7 +126,7 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
   if (!havePose)
     throw UsageError(std::string(command) +
                      " needs --pose (the organ's pose in the camera; a case folder stores no alignment, and this case "
-                     "file's organ was neither aligned nor fitted)");
+                     "file's organ was neither aligned nor fitted: align it in the window, steps 4 and 5, and save)");
   if (const std::string problem = in.camera.problem(); !problem.empty()) throw simcore::MeshError(problem);
   // A frame from a camera with lens distortion is undistorted first (every step works on the undistorted frame).
   if (o.count("image")) in.frame = imaging::undistortImage(in.frame, in.camera);

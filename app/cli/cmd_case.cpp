@@ -1,4 +1,4 @@
-// rehearse phantom | mesh | info: the built-in case as files, a surface tetrahedralised, a mesh described.
+// rehearse phantom | mesh | info: the built-in case as files, a surface tetrahedralised, a mesh or a case described.
 #include "support.hpp"
 
 #include "phantom/phantom.hpp"
@@ -143,9 +143,62 @@ int cmdMesh(const std::vector<std::string>& args) {
   return 0;
 }
 
+namespace {
+// `info` on a case (a .rehearse file the window saved, or a case folder): what it holds, step by step, then its organ's
+// counts and quality as for a mesh file.
+int caseInfo(const std::string& path) {
+  std::vector<std::string> notes;
+  const Case c = loadCase(path, &notes);
+  const bool file = isCaseFile(path);
+  std::printf("file: %s\nkind: case (%s)\nname: %s\n", path.c_str(),
+              file ? "a case file, as the window saves it" : "a case folder", c.name.c_str());
+  const simcore::Mesh& volume = c.organ->volume;
+  if (c.organ->empty()) {
+    std::printf("organ: none (step 1 not done)\n");
+  } else {
+    std::printf("organ: %zu nodes, %zu tetrahedra%s%s\n", volume.points.size(), volume.tets.size(),
+                c.organ->source.empty() ? "" : ", imported from ", c.organ->source.c_str());
+    std::printf("attachments: %zu node(s)\n", c.attachments.size());
+  }
+  if (c.frame.empty()) std::printf("frame: none (step 2 not done)\n");
+  else std::printf("frame: %d x %d px%s\n", c.frame.cols, c.frame.rows, c.rawFrame.empty() ? "" : " (undistorted)");
+  if (c.camera.width > 0)
+    std::printf("camera: fx %.1f, fy %.1f, cx %.1f, cy %.1f px\n", c.camera.fx(), c.camera.fy(), c.camera.cx(), c.camera.cy());
+  else
+    std::printf("camera: none\n");
+  if (c.contour.segments.empty())
+    std::printf("contour: none (step 3 not done)\n");
+  else
+    std::printf("contour: %zu piece(s), %zu points\n", c.contour.segments.size(), c.contour.pointCount());
+  std::printf("pose: %s\n", !c.hasPose         ? "none (step 4 not done)"
+                            : c.hasFit()       ? "aligned and elastically fitted (step 5)"
+                            : c.poseAligned    ? "aligned by hand (step 4)"
+                                               : "placed automatically, not aligned (steps 4 and 5 not done)");
+  if (c.appearance)
+    std::printf("appearance: the model explains %.0f %% of the organ's shading; %s\n", 100 * c.appearance->explained,
+                c.appearance->textureOnly ? "texture only (the frame's colours are drawn, not re-shaded)"
+                                          : "re-shaded");
+  else
+    std::printf("appearance: not estimated (step 6 not done)\n");
+  if (file) {
+    const auto sessions = listRecordings(path);
+    long complete = 0;
+    for (const auto& r : sessions) complete += r.complete;
+    std::printf("recordings: %zu session(s), %ld complete\n", sessions.size(), complete);
+  }
+  for (const auto& n : notes) std::printf("note: %s\n", n.c_str());
+  if (!c.organ->empty()) std::printf("%s", simcore::formatQuality(simcore::computeQuality(volume)).c_str());
+  return 0;
+}
+}  // namespace
+
 int cmdInfo(const std::vector<std::string>& args) {
   if (args.size() < 3 || args[2].rfind("--", 0) == 0) throw UsageError("info needs a FILE");
   auto o = parseOptions(args, 3, infoCommand());
+  if (isCaseFile(args[2]) || std::filesystem::is_directory(args[2])) {
+    if (o.count("unit")) throw UsageError("--unit is for mesh files: a case stores its organ in metres");
+    return caseInfo(args[2]);
+  }
   if (simcore::isLabelImagePath(args[2])) {
     const simcore::LabelImage image = simcore::readLabelImage(args[2]);
     std::printf("file: %s\nkind: label image (%s)\nvoxels: %ld x %ld x %ld of %.4g x %.4g x %.4g mm\n", args[2].c_str(),
@@ -216,9 +269,10 @@ const Command& meshCommand() {
 const Command& infoCommand() {
   static const Command command{
       "info",
-      "  rehearse info FILE [--unit m|dm|cm|mm]\n"
-      "                                   node, element and label counts, bounds and quality\n",
-      {{"unit", "U", "m, dm, cm or mm: the file's length unit"}},
+      "  rehearse info FILE|CASE [--unit m|dm|cm|mm]\n"
+      "                                   node, element and label counts, bounds and quality; of a case (.rehearse\n"
+      "                                   or folder) what each step holds and its recordings too\n",
+      {{"unit", "U", "m, dm, cm or mm: a mesh file's length unit (a case stores metres)"}},
       cmdInfo};
   return command;
 }

@@ -172,6 +172,49 @@ class TestCaseCommands : public QObject {
     QVERIFY2(moved > 1e-3, qPrintable(QString("the pull moved the organ %1 m").arg(moved)));  // a pull happened
   }
 
+  // `info` on a case (a helper expected it to take the case file the window saved): what each step holds, the
+  // recorded sessions and the organ's counts, as the case's own reader finds them; --unit, which a case cannot
+  // honour, is refused. (Runs after commandsTakeACaseFile, whose aligned and fitted cases it reads.)
+  void infoDescribesACase() {
+    const app::Case c = app::loadCaseFile(file_.toStdString());
+    const QString organ = QStringLiteral("organ: %1 nodes, %2 tetrahedra\n")
+                              .arg(c.organ->volume.points.size())
+                              .arg(c.organ->volume.tets.size());
+    Run r = run({"info", file_});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    for (const QString& line :
+         {QStringLiteral("kind: case (a case file, as the window saves it)"), organ,
+          QStringLiteral("attachments: %1 node(s)").arg(c.attachments.size()),
+          QStringLiteral("frame: %1 x %2 px").arg(c.frame.cols).arg(c.frame.rows),
+          QStringLiteral("pose: placed automatically, not aligned"), QStringLiteral("appearance: not estimated"),
+          QStringLiteral("recordings: 0 session(s)"), QStringLiteral("tetrahedra: %1").arg(c.organ->volume.tets.size())})
+      QVERIFY2(r.out.contains(line), qPrintable(line + " not in:\n" + r.out));
+    r = run({"info", folder_});
+    QVERIFY2(r.code == 0 && r.out.contains("kind: case (a case folder)") && r.out.contains(organ), qPrintable(r.out));
+    QVERIFY(!r.out.contains("recordings:"));  // a folder holds none
+    r = run({"info", dir_.path() + "/aligned.rehearse"});
+    QVERIFY2(r.out.contains("pose: aligned by hand (step 4)"), qPrintable(r.out));
+    r = run({"info", dir_.path() + "/fitted.rehearse"});
+    QVERIFY2(r.out.contains("pose: aligned and elastically fitted (step 5)"), qPrintable(r.out));
+    // A fit that explained too little is said as texture only; a session recorded into the case is counted.
+    app::Case estimated = c;
+    auto e = std::make_shared<app::AppearanceEstimate>();
+    e->explained = 0.12;
+    e->textureOnly = true;
+    estimated.appearance = e;
+    const QString estimatedFile = dir_.path() + "/estimated.rehearse";
+    app::saveCaseFile(estimated, estimatedFile.toStdString());
+    r = run({"gesture", "--case", estimatedFile, "--script",
+             QStringLiteral(REHEARSE_SOURCE_DIR) + "/resources/gestures/grasp-pull.json", "--out",
+             dir_.path() + "/estimated.vtu", "--record", estimatedFile});
+    QVERIFY2(::testing::tookEveryStep(r), qPrintable(r.err + r.out));
+    r = run({"info", estimatedFile});
+    QVERIFY2(r.out.contains("appearance: the model explains 12 % of the organ's shading; texture only"),
+             qPrintable(r.out));
+    QVERIFY2(r.out.contains("recordings: 1 session(s), 1 complete"), qPrintable(r.out));
+    expectOneLineError(run({"info", file_, "--unit", "mm"}), 2, "--unit is for mesh files");
+  }
+
   // What is not a case is refused in one sentence, whatever the command; a case file saved by a newer build too.
   void notACaseIsRefused() {
     const QString text = dir_.path() + "/notes.rehearse";
