@@ -33,6 +33,7 @@ class TestAppearanceGui : public QObject {
   void initTestCase();
   void estimateWithTheKeyboard();
   void waitForIdleShowsTheNewestComposition();
+  void aTextureOnlyEstimateIsNotReshaded();
   void compositedViewFollowsTheSimulation();
   void cutOrganIsComposited();
   void graspPullCut();
