@@ -196,10 +196,10 @@ void TestAppearanceGui::waitForIdleShowsTheNewestComposition() {
 }
 
 // Issue 65: the window's composition honours a fit's verdict. An estimate marked texture only (what step 6 stores when
-// the model explains too little of the frame's shading) is not re-shaded: at rest the organ shows the frame itself
-// closer than the re-shaded composition does, and turned 10 degrees it shows the frame's colours carried, not the
-// re-shaded ones. The case's own estimate is put back afterwards. (Not the frame bit for bit at rest: the texture is
-// carried at the surface's sampling, not per pixel, issue 65's open point.)
+// the model explains too little of the frame's shading) is not re-shaded: at rest the organ shows the frame itself (as
+// the re-shaded composition nearly does too), and turned 10 degrees it shows the frame's colours carried, not the
+// re-shaded ones. The case's own estimate is put back afterwards. (At rest 203 of 287,603 inner pixels differ from the
+// frame, along a fold near the organ's lower edge where it hides part of itself.)
 void TestAppearanceGui::aTextureOnlyEstimateIsNotReshaded() {
   auto* composition = w_->composition();
   QVERIFY(composition->ready());
@@ -229,14 +229,22 @@ void TestAppearanceGui::aTextureOnlyEstimateIsNotReshaded() {
   cv::Mat1b inner;  // away from the rim, where the outline's pixels blend organ and background
   cv::erode(organ, inner, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(5, 5)));
   const double textureDb = imaging::psnr(k.frame, rest, inner), reshadedDb = imaging::psnr(k.frame, reshadedRest, inner);
+  auto sameAsTheFrame = [&](const cv::Mat3b& j) {  // inner pixels equal to the frame's in every channel
+    cv::Mat3b d;
+    cv::absdiff(j, k.frame, d);
+    cv::Mat1b any;
+    cv::inRange(d, cv::Scalar(1, 1, 1), cv::Scalar(255, 255, 255), any);
+    return cv::countNonZero(inner) - cv::countNonZero(any & inner);
+  };
+  const int textureSame = sameAsTheFrame(rest), reshadedSame = sameAsTheFrame(reshadedRest);
   cv::Mat3b diff;
   cv::absdiff(shifted, reshadedMoved, diff);
   cv::Mat1b differs;
   cv::inRange(diff, cv::Scalar(3, 3, 3), cv::Scalar(255, 255, 255), differs);
-  qInfo("at rest inside the organ (%d px): texture only %.1f dB against the frame, re-shaded %.1f dB; turned, %d px "
-        "differ from the re-shaded composition by 3 levels or more",
-        cv::countNonZero(inner), textureDb, reshadedDb, cv::countNonZero(differs));
-  QVERIFY2(textureDb >= reshadedDb + 3, qPrintable(QString("%1 dB against %2").arg(textureDb).arg(reshadedDb)));
+  qInfo("at rest inside the organ (%d px): texture only %d px equal to the frame's, %.1f dB; re-shaded %d px, %.1f dB; "
+        "turned, %d px differ from the re-shaded composition by 3 levels or more",
+        cv::countNonZero(inner), textureSame, textureDb, reshadedSame, reshadedDb, cv::countNonZero(differs));
+  QVERIFY2(textureSame >= 0.995 * cv::countNonZero(inner), qPrintable(QString::number(textureSame)));
   QVERIFY(cv::countNonZero(differs) > 10000);
   composition->request();  // the view shows it too
   composition->waitForIdle();
