@@ -212,6 +212,8 @@ class TestCaseCommands : public QObject {
     QVERIFY2(r.out.contains("appearance: the model explains 12 % of the organ's shading; texture only"),
              qPrintable(r.out));
     QVERIFY2(r.out.contains("recordings: 1 session(s), 1 complete"), qPrintable(r.out));
+    // Reading a case recorded into (a WAL database) leaves nothing beside it (a helper found -wal and -shm files).
+    for (const char* suffix : {"-wal", "-shm"}) QVERIFY2(!QFile::exists(estimatedFile + suffix), suffix);
     expectOneLineError(run({"info", file_, "--unit", "mm"}), 2, "--unit is for mesh files");
   }
 

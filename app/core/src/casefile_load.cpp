@@ -1,6 +1,7 @@
 // Loading a case file: its reader, then one step per part of the case; a damaged part is named and left out.
 #include "rehearse/app/casefile.hpp"
 #include "casefile_parts.hpp"
+#include "recording_store.hpp"
 
 #include <rehearse/app/appearancestep.hpp>
 #include <rehearse/app/casefolder.hpp>
@@ -76,7 +77,7 @@ void refuseNotACaseFile(const std::string& path) {
 class CaseReader {
  public:
   CaseReader(const std::string& path, std::vector<std::string>* notes)
-      : db_(path, SQLITE_OPEN_READONLY), notes_(notes) {
+      : db_(path, detail::readingFlags(path)), notes_(notes) {
     const std::string name = fileName(path);
     if (!db_.open()) fail(name + " cannot be opened: " + sqlProblem(db_.code()) + ".");
     const auto versionText = db_.meta("schema_version");

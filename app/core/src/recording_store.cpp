@@ -10,10 +10,12 @@
 #include <nlohmann/json.hpp>
 #include <sqlite3.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <ctime>
 #include <set>
 #include <stdexcept>
@@ -47,6 +49,12 @@ constexpr const char* kSchema =
     "NOT NULL, state BLOB NOT NULL, "
     "PRIMARY KEY(session, step));";
 
+int readingFlags(const std::string& path) {
+  const std::string folder = std::filesystem::path(path).parent_path().string();
+  const bool writable = ::access(path.c_str(), W_OK) == 0 && ::access(folder.empty() ? "." : folder.c_str(), W_OK) == 0;
+  return writable ? SQLITE_OPEN_READWRITE : SQLITE_OPEN_READONLY;
+}
+
 sqlite3* openStore(const std::string& path, bool create) {
   // A FIFO or a device where the recording goes: SQLite's open and first read would block on it for ever (a replay of
   // a FIFO named .rehearse hung). Only a regular file (or none yet, to create) is opened.
@@ -54,7 +62,7 @@ sqlite3* openStore(const std::string& path, bool create) {
   if (::stat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode))
     throw std::runtime_error(path + " is not a regular file (a folder, a pipe or a device); a recording is a file");
   sqlite3* db = nullptr;
-  const int flags = create ? SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE : SQLITE_OPEN_READONLY;
+  const int flags = create ? SQLITE_OPEN_READWRITE | SQLITE_OPEN_CREATE : readingFlags(path);
   if (sqlite3_open_v2(path.c_str(), &db, flags, nullptr) != SQLITE_OK) {
     const std::string why = db ? sqlite3_errmsg(db) : "out of memory";
     sqlite3_close(db);

@@ -31,7 +31,11 @@ struct Statement {
   }
 };
 
-/// Opens the store (read-write and created when `create`, else read-only); throws a sentence.
+/// How a file is opened to be read: read-write (never created) where this process may write the file and its folder,
+/// read-only elsewhere. A file recorded into is in WAL mode, and a read-only connection can neither checkpoint nor
+/// remove the -wal and -shm files it makes beside it: a listing or a replay left them next to the user's case.
+int readingFlags(const std::string& path);
+/// Opens the store (read-write and created when `create`, else as readingFlags says); throws a sentence.
 sqlite3* openStore(const std::string& path, bool create);
 /// A session's checksum after `step` through `q` (INSERT, or INSERT OR IGNORE when written again).
 void writeChecksum(sqlite3* db, Statement& q, std::int64_t session, long step, std::uint64_t sum);
