@@ -17,6 +17,7 @@
 
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
+#include <rehearse/simcore/input_ranges.hpp>
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/inverse_rest.hpp>
 #include <rehearse/simcore/support.hpp>
@@ -122,6 +123,15 @@ void applySolverOptions(Options& o, simcore::BodySetup& setup) {
   if (o.count("model")) setup.model = simcore::bodyModelFromString(o["model"]);
   if (o.count("method")) setup.settings.method = simcore::newtonMethodFromString(o["method"]);
   setup.settings.estimateErrorEvery = 1;  // the report's every row (a case's session estimates every 10th step live)
+  if (o.count("accuracy")) {  // mm, as the window's Simulation panel asks it
+    char* end = nullptr;
+    const double mm = std::strtod(o["accuracy"].c_str(), &end);
+    if (end == o["accuracy"].c_str() || *end || !(mm >= 0 && mm <= 1e3 * simcore::InputRanges::maxAccuracy))
+      throw UsageError("--accuracy takes millimetres from 0 to " + std::to_string(static_cast<int>(
+                           1e3 * simcore::InputRanges::maxAccuracy)) +
+                       " (0: the relative residual alone), not '" + o["accuracy"] + "'");
+    setup.settings.accuracyPosition = 1e-3 * mm;
+  }
   if (o.count("refresh")) {
     if (o["refresh"] == "async")
       setup.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;
@@ -437,6 +447,9 @@ const Command& gestureCommand() {
                "and the rest's precomputed responses (quasi-static, linear; it cuts); ffd: the surface's geometry "
                "image with free-form deformation and Hertz's force (geometric; it cannot cut: said)"},
               {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
+              {"accuracy", "MM",
+               "each step ends once every node is estimated within MM of the converged answer and the tool force "
+               "within 0.5 % (the window's default 0.05); default: the scene's, else the relative residual alone"},
               {"start", "S",
                "rest (the mesh is the rest shape; default) or equilibrium (the mesh is where the organ hangs under "
                "gravity on its attachments, as registered: its rest shape is solved first; exit 4 when none is found)"},

@@ -177,6 +177,16 @@ void TestRecording::stabilitySettingsAreRecorded() {
     QVERIFY(!(app::decodeSetup(app::encodeSetup(s)).settings.*flag));
     QVERIFY(!(old.settings.*flag));
   }
+  // The accuracy asked in millimetres (issue 64): off by default, written only when on (with its force share), and
+  // off in a setup recorded before it existed.
+  s.settings = simcore::SimulationSettings{};
+  QCOMPARE(s.settings.accuracyPosition, 0.0);
+  QVERIFY(!QString::fromStdString(app::encodeSetup(s)).contains("accuracy"));
+  s.settings.accuracyPosition = 5e-5;
+  s.settings.accuracyForce = 0.01;
+  QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.accuracyPosition, 5e-5);
+  QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.accuracyForce, 0.01);
+  QCOMPARE(old.settings.accuracyPosition, 0.0);
 }
 
 void TestRecording::strainMatchesClosedForms() {

@@ -5,8 +5,10 @@
 // with the statuses of those steps. (The grasp's pull alone, without the cut that parted the liver before it, pulls
 // the whole organ from its attachments: steps of seconds, no baseline; measured once, not kept.) Variants: the script's
 // own (chord, synchronous refresh, topology changes 5 steps after they are asked for: the same mesh every run) and the
-// GUI's (chord with the asynchronous refresh, changes swapped in when built), each accelerated (the default) and plain
-// (SimulationSettings::chordAcceleration off, as before it existed). Writes operative-steps.csv into the
+// GUI's (chord with the asynchronous refresh, changes swapped in when built, steps ended at the accuracy of 0.05 mm and
+// 0.5 % of the tool force), each accelerated (the default) and plain (SimulationSettings::chordAcceleration off, as
+// before it existed), and each with and without the accuracy (SimulationSettings::accuracyPosition; 1e-6: the relative
+// residual alone). Writes operative-steps.csv into the
 // directory given (default ".").
 //   bench_operative [OUT_DIR] [--repeat N] [--only TEXT]
 #include "percentile.hpp"
@@ -18,6 +20,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
@@ -74,43 +77,51 @@ int main(int argc, char** argv) {
   ss << in.rdbuf();
   const app::GestureScript all = app::parseGestureScript(ss.str());
   std::ofstream csv(out + "/operative-steps.csv");
-  csv << "variant,script,phase,steps,median_ms,p99_ms,max_ms,converged,inexact,other,events\n";
+  csv << "variant,script,phase,steps,median_ms,p99_ms,max_ms,converged,inexact,other,largest_error_mm,events\n";
   // Every step of each variant's last run: what a slow step did (its Newton iterations, retries, factorisations).
   std::ofstream perStep(out + "/operative-each-step.csv");
   perStep << "variant,step,time_s,phase,wall_ms,outcome,newton_iterations,retries,factorisations,inversion_limited,"
              "residual,elements,events\n";
   std::printf("%-22s %-14s %-14s %6s %9s %9s %9s %s\n", "variant", "script", "phase", "steps", "median ms", "p99",
-              "worst", "converged/inexact/other  events");
+              "worst", "converged/inexact/other  largest error estimate  events");
   struct Variant {
     const char* name;
     simcore::FactorRefresh refresh;
     int latency;
     bool accelerated;  // SimulationSettings::chordAcceleration
+    double accuracy;   // SimulationSettings::accuracyPosition (m; 0: the relative residual alone)
   };
   for (const Variant v :
-       {Variant{"chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, true},
-        Variant{"chord, async (GUI)", simcore::FactorRefresh::Asynchronous, -1, true},
-        Variant{"plain chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, false},
-        Variant{"plain chord, async", simcore::FactorRefresh::Asynchronous, -1, false}}) {
+       {Variant{"chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, true, 0},
+        Variant{"chord, async (GUI)", simcore::FactorRefresh::Asynchronous, -1, true, 5e-5},
+        Variant{"chord, async, 1e-6", simcore::FactorRefresh::Asynchronous, -1, true, 0},
+        Variant{"chord, sync, 0.05 mm", simcore::FactorRefresh::Synchronous, 5, true, 5e-5},
+        Variant{"plain chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, false, 0},
+        Variant{"plain chord, async", simcore::FactorRefresh::Asynchronous, -1, false, 0}}) {
     if (!only.empty() && std::string(v.name).find(only) == std::string::npos) continue;
     {
       simcore::BodySetup s = base;
       s.settings.factorRefresh = v.refresh;
       s.settings.chordAcceleration = v.accelerated;
+      s.settings.accuracyPosition = v.accuracy;
       app::GestureScript script = all;
       script.cutLatencySteps = v.latency;
       // phase -> per run: the step times; and the last run's statuses and events
       std::map<std::string, std::vector<double>> medians, p99s, worsts;
       std::map<std::string, std::array<int, 3>> statuses;
       std::map<std::string, std::map<std::string, int>> events;
+      std::map<std::string, double> largestError;  // m: the last run's largest error estimate per phase
       for (int r = 0; r < repeat; ++r) {
         const app::GestureResult g = app::runGesture(s, script);
         std::map<std::string, std::vector<double>> ms;
         statuses.clear();
         events.clear();
+        largestError.clear();
         for (const auto& step : g.steps) {
           const std::string phase = phaseOf(step.time);
           ms[phase].push_back(step.wallMs);
+          if (std::isfinite(step.report.errorPosition))
+            largestError[phase] = std::max(largestError[phase], step.report.errorPosition);
           auto& st = statuses[phase];
           ++st[step.report.outcome == simcore::StepStatus::Converged ? 0
                : step.report.outcome == simcore::StepStatus::Inexact ? 1
@@ -141,12 +152,13 @@ int main(int argc, char** argv) {
         for (const auto& [e, n] : events[phase]) said += (said.empty() ? "" : " ") + e + " x" + std::to_string(n);
         const auto& st = statuses[phase];
         const int n = st[0] + st[1] + st[2];
-        std::printf("%-22s %-14s %-14s %6d %9.2f %9.2f %9.2f %d/%d/%d  %s\n", v.name, "every instrument", phase, n,
-                    percentile(medians[phase], 0.5), percentile(p99s[phase], 0.5), percentile(worsts[phase], 0.5),
-                    st[0], st[1], st[2], said.c_str());
+        std::printf("%-22s %-14s %-14s %6d %9.2f %9.2f %9.2f %d/%d/%d  %.3g mm  %s\n", v.name, "every instrument",
+                    phase, n, percentile(medians[phase], 0.5), percentile(p99s[phase], 0.5),
+                    percentile(worsts[phase], 0.5), st[0], st[1], st[2], 1e3 * largestError[phase], said.c_str());
         csv << '"' << v.name << "\"," << ("every instrument") << ',' << phase << ',' << n << ','
             << percentile(medians[phase], 0.5) << ',' << percentile(p99s[phase], 0.5) << ','
-            << percentile(worsts[phase], 0.5) << ',' << st[0] << ',' << st[1] << ',' << st[2] << ",\"" << said
+            << percentile(worsts[phase], 0.5) << ',' << st[0] << ',' << st[1] << ',' << st[2] << ','
+            << 1e3 * largestError[phase] << ",\"" << said
             << "\"\n";
       }
       std::fflush(stdout);

@@ -46,7 +46,7 @@ SimulationForm::SimulationForm(QWidget* parent) : QWidget(parent) {
   for (QDoubleSpinBox* s : {fields_.young, fields_.poisson, fields_.density, fields_.tearStrain, fields_.support})
     connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationForm::relayMaterial);
   connect(fields_.method, &QComboBox::currentIndexChanged, this, &SimulationForm::relayRun);
-  for (QDoubleSpinBox* s : {fields_.timeStep, fields_.jawBite, fields_.clipLength})
+  for (QDoubleSpinBox* s : {fields_.timeStep, fields_.jawBite, fields_.clipLength, fields_.accuracy})
     connect(s, &QDoubleSpinBox::valueChanged, this, &SimulationForm::relayRun);
   connect(fields_.density, &QDoubleSpinBox::valueChanged, this, &SimulationForm::updateMass);
   connect(fields_.start, &QCheckBox::toggled, this, &SimulationForm::startToggled);
@@ -169,6 +169,21 @@ void SimulationForm::addSolverRow() {
          "Gaussian free-form deformation, Hertz's force: geometric, no equilibrium (every step says "
          "inexact); it cannot cut, tear, clip or burn"));
   form_->addRow(tr("Solver"), fields_.method);
+  fields_.accuracy = new QDoubleSpinBox(this);
+  fields_.accuracy->setObjectName(QStringLiteral("simAccuracy"));
+  fields_.accuracy->setAccessibleName(tr("Accuracy"));
+  fields_.accuracy->setRange(0, 1);
+  fields_.accuracy->setDecimals(3);
+  fields_.accuracy->setSingleStep(0.01);
+  fields_.accuracy->setSuffix(tr(" mm"));
+  fields_.accuracy->setSpecialValueText(tr("residual 1e-6"));
+  fields_.accuracy->setValue(1e3 * app::SessionRequest{}.accuracy);
+  fields_.accuracy->setKeyboardTracking(false);
+  fields_.accuracy->setToolTip(
+      tr("How close each step comes to the tissue's equilibrium: a step ends once every node is estimated within "
+         "this of the converged answer and the instrument's force within 0.5 % (at least 1 mN). The status line "
+         "shows each step's estimate. 0: until the relative residual is under 1e-6 (nanometres; slower)."));
+  form_->addRow(tr("Accuracy"), fields_.accuracy);
 }
 
 void SimulationForm::addGravityRows() {
@@ -261,6 +276,7 @@ void SimulationForm::runSettings(app::SessionRequest& s) const {
   const int chosen = fields_.method->currentIndex();
   const int models = chosen - static_cast<int>(simcore::NewtonMethod::NewtonKrylov);  // 1 precomputed, 2 hybrid, 3 ffd
   s.method = models > 0 ? simcore::kInteractiveMethod : static_cast<simcore::NewtonMethod>(chosen);
+  s.accuracy = 1e-3 * fields_.accuracy->value();
   s.bodyModel = models > 0 ? static_cast<simcore::BodyModel>(models) : simcore::BodyModel::Fem;
   static const Eigen::Vector3d directions[] = {{0, 1, 0}, {0, 0, 1}, {0, 0, 0}};
   s.gravity = 9.81 * directions[std::clamp(fields_.gravity->currentIndex(), 0, 2)];

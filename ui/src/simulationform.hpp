@@ -71,6 +71,7 @@ class SimulationForm : public QWidget {
     QDoubleSpinBox* timeStep = nullptr;
     QDoubleSpinBox* jawBite = nullptr;  ///< the grasper's reach: closing holds the nodes within it of the tip (mm)
     QDoubleSpinBox* clipLength = nullptr;  ///< the clip applier's jaws' length (mm)
+    QDoubleSpinBox* accuracy = nullptr;    ///< mm: the accuracy a step is asked for (0: the relative residual alone)
     QLabel* mass = nullptr;  ///< density x the organ's volume, so a preset's density reads as the mass it gives
   } fields_;
   double volume_ = 0;  ///< m^3

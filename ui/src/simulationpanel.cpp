@@ -99,7 +99,12 @@ void SimulationPanel::sessionStarted(const QString& words) {
     statusThrottle_->request();
   }
   const auto& b = host_->session()->setup();
-  asked_ = {b.settings.timeStep, b.tools.graspRadius, b.tools.clip.length, b.settings.method, b.model,
+  asked_ = {b.settings.timeStep,
+            b.tools.graspRadius,
+            b.tools.clip.length,
+            b.settings.accuracyPosition,
+            b.settings.method,
+            b.model,
             b.settings.gravity};
   // What was asked while the body was being built: edits first (they apply at the first step), then the run.
   if (organ_ && !(organ_->material == builtWith_)) postMaterial(builtWith_, organ_->material);
@@ -318,6 +323,7 @@ void SimulationPanel::postRunParameters() {
   if (s.graspRadius != asked_.graspRadius)
     session->post(parameter("grasp_radius", asked_.graspRadius = s.graspRadius));
   if (s.clipLength != asked_.clipLength) session->post(parameter("clip_length", asked_.clipLength = s.clipLength));
+  if (s.accuracy != asked_.accuracy) session->post(parameter("accuracy", asked_.accuracy = s.accuracy));
   if (s.bodyModel != asked_.model) {
     asked_.model = s.bodyModel;
     host_->modelAsked(s.bodyModel);

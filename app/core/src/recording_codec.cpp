@@ -126,6 +126,10 @@ json settings(const simcore::SimulationSettings& s) {
   if (s.chordAcceleration) j["chordAcceleration"] = true;
   if (s.checkedProjection) j["checkedProjection"] = true;
   if (s.heldBackStop) j["heldBackStop"] = true;
+  if (s.accuracyPosition > 0) {
+    j["accuracyPosition"] = s.accuracyPosition;
+    j["accuracyForce"] = s.accuracyForce;
+  }
   return j;
 }
 simcore::SimulationSettings settings(const json& j) {
@@ -159,6 +163,8 @@ simcore::SimulationSettings settings(const json& j) {
   s.chordAcceleration = j.value("chordAcceleration", false);
   s.checkedProjection = j.value("checkedProjection", false);
   s.heldBackStop = j.value("heldBackStop", false);
+  s.accuracyPosition = j.value("accuracyPosition", 0.0);  // the residual alone decided before it existed
+  s.accuracyForce = j.value("accuracyForce", s.accuracyForce);
   return s;
 }
 

@@ -26,6 +26,8 @@ simcore::BodySetup bodySetup(const SessionRequest& s) {
   b.byLabel = m.byLabel;
   b.settings.timeStep = s.timeStep;
   b.settings.method = s.method;
+  b.settings.accuracyPosition = s.accuracy;  // the surgeon's accuracy in millimetres and newtons (issue 64)
+  b.settings.accuracyForce = 0.005;
   b.model = s.bodyModel;
   b.settings.factorRefresh =
       simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)

@@ -20,6 +20,20 @@ double applyRow(const ScalarConstraint& c, const Vec& v) {
 
 double constraintValue(const ScalarConstraint& c, const Eigen::VectorXd& x) { return applyRow(c, x); }
 
+Eigen::Vector3d toolForceOf(const std::vector<ScalarConstraint>& c, const Eigen::VectorXd& lambda, bool holdsOnly) {
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  if (lambda.size() < static_cast<Eigen::Index>(c.size())) return sum;
+  const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
+  // A constraint's force on the body is its multiplier along its direction, spread over its nodes by its weights (a
+  // triangle's barycentric ones sum to 1).
+  for (std::size_t k = 0; k < c.size(); ++k) {
+    if (holdsOnly && c[k].unilateral) continue;
+    const double spread = c[k].weights[0] + c[k].weights[1] + c[k].weights[2] + c[k].weights[3];
+    sum += lambda[first + static_cast<Eigen::Index>(k)] * spread * c[k].direction;
+  }
+  return sum;
+}
+
 void validateConstraint(const ScalarConstraint& c, std::size_t nodes) {
   bool any = false;
   for (int k = 0; k < 4; ++k) {

@@ -427,6 +427,7 @@ StepReport Integrator::step(SimulationState& state) {
     rep.innerIterations = sub.innerIterations;
     rep.inversionLimited = sub.inversionLimited;
     rep.guardStalled = sub.guardStalled;
+    rep.withinAccuracy = sub.withinAccuracy;
     rep.residual = sub.residual;
     rep.errorPosition = outcome == Try::Failed ? std::numeric_limits<double>::quiet_NaN() : worstError;
     rep.timeStepUsed = h;

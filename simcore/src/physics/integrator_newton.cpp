@@ -23,6 +23,12 @@ constexpr int kAndersonStall = 4;
 // Held back by the inversion guard: this many guarded moves in a row, none lowering the residual below this share of
 // the one before, end the step's iterations.
 constexpr int kHeldBackIterations = 4;
+// SimulationSettings::accuracyPosition: the contraction taken for a step's first iterate (none measured yet), the
+// largest one an estimate is trusted at (beyond, the iterations go on to the residual's tolerance), and the tool force
+// resolved whatever its size (N).
+constexpr double kFirstContraction = 0.5;
+constexpr double kAccuracyContraction = 0.9;
+constexpr double kAccuracyForceFloor = 1e-3;
 constexpr double kHeldBackProgress = 0.99;
 }  // namespace
 
@@ -205,7 +211,9 @@ NewtonIteration::Try LinearisedStep::finish() {
 // iterate: their residual prepares it too (a tenth more per pass, one pass of the element rotations less per step).
 // Newton-Krylov: the residual's pass over the elements also prepares the tangent at the iterate (matrix-free).
 NewtonLoop::NewtonLoop(Integrator& in, NewtonStep& s, bool krylov)
-    : NewtonIteration(in, s), prepareInResidual_(krylov || (s.lagged && in.settings().rayleighStiffness != 0)) {}
+    : NewtonIteration(in, s),
+      prepareInResidual_(krylov || (s.lagged && in.settings().rayleighStiffness != 0)),
+      accuracy_(in.settings().accuracyPosition > 0) {}
 
 NewtonIteration::Try NewtonLoop::run() {
   start();
@@ -221,14 +229,21 @@ NewtonIteration::Try NewtonLoop::run() {
     // J dv = -r + H^T mu, with mu the total multipliers (momentum units).
     w.tmp = -w.r;
     w.xt = w.x0 + h * w.v;
+    if (accuracy_ && hasConstraints) w.muBefore = w.cons.multipliers();
     if (!solve() || !w.dv.allFinite()) {
       rep.status = "failed: the linear system could not be solved";
+      break;
+    }
+    if (accuracy_ && withinAccuracy(it)) {
+      ok = true;
+      rep.withinAccuracy = true;
       break;
     }
     bool guarded = false;
     double rnew = move(guarded);
     if (guarded) rep.inversionLimited = true;
-    if (settings_.lineSearch && (!std::isfinite(rnew) || rnew > s_.rn)) rnew = lineSearch(rnew);
+    const bool searched = settings_.lineSearch && (!std::isfinite(rnew) || rnew > s_.rn);
+    if (searched) rnew = lineSearch(rnew);
     const double previous = s_.rn;
     w.v = w.vn;
     ++rep.newtonIterations;
@@ -243,9 +258,39 @@ NewtonIteration::Try NewtonLoop::run() {
       rep.guardStalled = true;
       break;
     }
+    // The contraction the accuracy's estimate divides by: the largest residual ratio of this step's plain moves (a
+    // move shortened by the guard or the line search, or mixed with earlier ones, says nothing of the plain
+    // correction's; before any plain one, none is known).
+    const bool plain = accuracy_ && plainMove_ && !guarded && !searched;
+    if (plain) contraction_ = std::max(measured_ ? contraction_ : 0.0, previous > 0 ? rnew / previous : 1.0);
+    measured_ = measured_ || plain;
     if (!iterated(previous)) break;
   }
   return finish(ok, maxIterations);
+}
+
+// Issue 64: the iterate is within the accuracy asked in physical units (SimulationSettings::accuracyPosition,
+// accuracyForce) when the correction just solved for (w.dv, the multipliers' change), divided by one minus the
+// contraction, is. A chord correction undershoots Newton's: the remaining corrections sum to it times 1 / (1 - rho).
+// The holds' first solve is never the last (the multipliers start from zero there). Ending here, the correction is not
+// applied: the iterate, its forces and residual are the step's end, and its multipliers are put back.
+bool NewtonLoop::withinAccuracy(int it) {
+  if (hasConstraints && it == 0) return false;
+  const double rho = it == 0 ? kFirstContraction : measured_ ? contraction_ : 1.0;
+  if (!(rho <= kAccuracyContraction)) return false;
+  const double gain = 1.0 / (1.0 - rho);
+  double largest = 0;
+  for (Eigen::Index i = 0; i + 2 < w.dv.size(); i += 3) largest = std::max(largest, w.dv.segment<3>(i).squaredNorm());
+  if (!(gain * h * std::sqrt(largest) <= settings_.accuracyPosition)) return false;
+  const auto& rows = in_.constraints();
+  if (hasConstraints && !rows.empty() && w.cons.multipliers().size() == w.muBefore.size()) {
+    w.muChange = w.cons.multipliers() - w.muBefore;
+    const double force = toolForceOf(rows, w.cons.multipliers(), false).norm() / h;
+    const double change = toolForceOf(rows, w.muChange, false).norm() / h;
+    if (!(gain * change <= std::max(settings_.accuracyForce * force, kAccuracyForceFloor))) return false;
+    w.cons.multipliers() = w.muBefore;
+  }
+  return true;
 }
 
 // The first iterate, the damping tangent at the step's start, the residual's scale and the first residual.
@@ -536,6 +581,7 @@ bool ChordNewton::andersonMix() {
 double ChordNewton::move(bool& guarded) {
   const bool mixed = accelerate_ && andersonMix();
   double rnew = NewtonLoop::move(guarded);
+  plainMove_ = !mixed;
   if (mixed && (guarded || !std::isfinite(rnew) || rnew > s_.rn)) {
     // The mixed move did not lower the residual (or met the inversion guard): the plain chord move instead, and
     // the mixing starts again from it.
@@ -548,6 +594,7 @@ double ChordNewton::move(bool& guarded) {
     aa.mu = w.cons.multipliers();
     aa.havePrevious = true;
     rnew = NewtonLoop::move(guarded);
+    plainMove_ = true;
   }
   if (guarded) aa.reset();  // a shortened move is not the chord map's: mix only unshortened ones
   return rnew;

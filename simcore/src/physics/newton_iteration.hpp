@@ -111,8 +111,15 @@ class NewtonLoop : public NewtonIteration {
  private:
   void start();
   double lineSearch(double rnew);
+  bool withinAccuracy(int it);
   Try finish(bool ok, int maxIterations);
   const bool prepareInResidual_;
+  const bool accuracy_;       // SimulationSettings::accuracyPosition is on
+  double contraction_ = 1.0;  // the largest residual ratio of this step's plain moves (with measured_)
+  bool measured_ = false;
+
+ protected:
+  bool plainMove_ = true;  // the last move was the plain correction (the chord's: not mixed)
 };
 
 /// Exact Newton: the tangent assembled and factorised at every iteration (projected, then shifted, when indefinite);

@@ -106,7 +106,12 @@ const std::vector<ComponentDecl>& sceneComponents() {
          "inexact)"},
         {"estimate_error", "boolean", "true", "",
          "each step estimates its distance from the converged answer in mm and N (one more solve with its factor: "
-         "about 2-3 ms a step on a 9k-element liver); false saves that time"}}},
+         "about 2-3 ms a step on a 9k-element liver); false saves that time"},
+        {"accuracy_mm", "number", "0", "mm",
+         "the accuracy a step is asked for: it ends once its largest node is estimated within this of the converged "
+         "answer and the tool force within accuracy_force_percent (or the residual is under the tolerance); 0: the "
+         "relative residual alone (the window's rehearsal asks 0.05)"},
+        {"accuracy_force_percent", "number", "0.5", "%", "with accuracy_mm: the tool force's share asked (at least 1 mN)"}}},
   };
   return decls;
 }
@@ -254,6 +259,8 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.settings.linearisedTolerance = value(c, *decl, "linearised_tolerance").get<double>();
         if (!(s.settings.linearisedTolerance > 0)) fail("the solver's linearised_tolerance must be positive.");
         s.settings.estimateError = value(c, *decl, "estimate_error").get<bool>();
+        s.settings.accuracyPosition = 1e-3 * value(c, *decl, "accuracy_mm").get<double>();
+        s.settings.accuracyForce = 1e-2 * value(c, *decl, "accuracy_force_percent").get<double>();
       }
     } catch (const json::exception&) {
       fail("a parameter of component '" + type + "' has the wrong kind of value; see 'rehearse simulate --list-components'.");

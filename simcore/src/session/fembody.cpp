@@ -112,20 +112,6 @@ class FemBody final : public DeformableBody {
 
 }  // namespace
 
-Eigen::Vector3d toolForceOf(const std::vector<ScalarConstraint>& c, const Eigen::VectorXd& lambda, bool holdsOnly) {
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  if (lambda.size() < static_cast<Eigen::Index>(c.size())) return sum;
-  const Eigen::Index first = lambda.size() - static_cast<Eigen::Index>(c.size());
-  // A constraint's force on the body is its multiplier along its direction, spread over its nodes by its weights (a
-  // triangle's barycentric ones sum to 1).
-  for (std::size_t k = 0; k < c.size(); ++k) {
-    if (holdsOnly && c[k].unilateral) continue;
-    const double spread = c[k].weights[0] + c[k].weights[1] + c[k].weights[2] + c[k].weights[3];
-    sum += lambda[first + static_cast<Eigen::Index>(k)] * spread * c[k].direction;
-  }
-  return sum;
-}
-
 Eigen::Matrix3d toolStiffnessOf(const std::vector<ScalarConstraint>& c, const Eigen::VectorXd& lambda,
                                 const Eigen::MatrixXd& W, double scale) {
   if (c.empty() || lambda.size() < static_cast<Eigen::Index>(c.size()) || W.rows() != lambda.size())

@@ -1,5 +1,6 @@
 #include <rehearse/simcore/session/session.hpp>
 #include <rehearse/simcore/session/forceloop.hpp>
+#include <rehearse/simcore/input_ranges.hpp>
 
 #include <algorithm>
 #include <numeric>
@@ -260,6 +261,15 @@ void Session::apply(const InputEvent& e, std::string& message) {
         setup_.material.density = e.value;
       else if (e.name == "dt")
         setup_.settings.timeStep = e.value;
+      else if (e.name == "accuracy" && e.value >= 0 && e.value <= InputRanges::maxAccuracy)  // m (0: the residual alone)
+        setup_.settings.accuracyPosition = e.value;
+      else if (e.name == "accuracy") {
+        char buf[160];
+        std::snprintf(buf, sizeof buf, "The accuracy %g mm was not applied: it is asked in [0, %g] mm.", 1e3 * e.value,
+                      1e3 * InputRanges::maxAccuracy);
+        message = buf;
+        break;
+      }
       else if (e.name == "method" && !field_.clips.empty() &&
                static_cast<NewtonMethod>(std::clamp(static_cast<int>(e.value), 0, 4)) == NewtonMethod::Linearised) {
         message = "The linearised method was refused: its one solve per step diverges under the clips on the tissue.";

@@ -27,6 +27,10 @@ struct ScalarConstraint {
   bool unilateral = false;
 };
 
+/// The tool's force on the tissue (N) from its constraint rows and their multipliers (row k's is lambda[first + k],
+/// first = lambda.size() - rows.size(): a body's own rows, e.g. Lagrange attachments, come first): each row's
+/// multiplier along its direction, spread by its weights' sum; `holdsOnly`: the bilateral rows alone.
+Eigen::Vector3d toolForceOf(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& lambda, bool holdsOnly);
 /// Throws MeshError with one sentence for a constraint on a missing node, or without node, direction or value.
 void validateConstraint(const ScalarConstraint& c, std::size_t nodeCount);
 /// The constraint's left side at positions `x` (3n): sum_k weights[k] * direction . x[nodes[k]].

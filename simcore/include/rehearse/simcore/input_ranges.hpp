@@ -16,6 +16,7 @@ struct InputRanges {
   static constexpr double minTimeStep = 1e-5, maxTimeStep = 1.0;          ///< s
   static constexpr int maxNewtonIterations = 200, maxRetries = 10;        ///< per step
   static constexpr double minTolerance = 1e-14, maxTolerance = 1.0;       ///< relative residual
+  static constexpr double maxAccuracy = 0.01;  ///< m: SimulationSettings::accuracyPosition (0 turns it off)
   static constexpr int maxSolverIterations = 100000;                      ///< CG, Gauss-Seidel sweeps
   static constexpr double maxDamping = 1e3;                               ///< Rayleigh alpha (1/s), beta (s)
   static constexpr double maxGravity = 1e3;                               ///< m/s^2
@@ -66,6 +67,10 @@ inline std::string settingsProblem(const SimulationSettings& t) {
       !(std::isfinite(t.linearisedTolerance) && t.linearisedTolerance > 0 && t.linearisedTolerance <= 1))
     return "a tolerance of the solver is not a number in its range (linearised tolerance in (0, 1], the others in "
            "[0, 1])";
+  if (!inClosed(t.accuracyPosition, 0, R::maxAccuracy) || !(t.accuracyForce > 0 && t.accuracyForce <= 1))
+    return "the accuracy asked of a step (" + number(1e3 * t.accuracyPosition) + " mm, " +
+           number(100 * t.accuracyForce) + " % of the tool force) is outside [0, " + number(1e3 * R::maxAccuracy) +
+           "] mm and (0, 100] %";
   return {};
 }
 

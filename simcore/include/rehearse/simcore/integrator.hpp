@@ -121,6 +121,16 @@ struct SimulationSettings {
   /// errorForce: one more solve with the step's factor). It changes nothing the step computes (a replay with it off
   /// gives the same bits), so it is not recorded.
   bool estimateError = true;
+  /// The accuracy a step is asked for, in physical units (issue 64): a Newton method's step ends once its largest
+  /// node is estimated within `accuracyPosition` (m) of the converged answer of its equations and the tool force within
+  /// `accuracyForce` of its size (at least 1 mN), or once the relative residual is under `tolerance`, whichever comes
+  /// first. The estimate is the correction the step's own factor gives at the iterate (one solve, which the next
+  /// iteration needed anyway), divided by one minus the contraction the step's iterations showed (a lagged factor's
+  /// correction falls short of Newton's by that much); the first iterate is taken as contracting by 0.5, and the holds'
+  /// first solve is never the last. 0: off, the relative residual alone decides (SimulationSettings{}, the sessions
+  /// recorded before it existed). Recorded only when on.
+  double accuracyPosition = 0;
+  double accuracyForce = 0.005;  ///< fraction of the tool force (with accuracyPosition on)
   /// ... at every this many steps (the others report NaN): the interactive session estimates every 10th step (0.1 s,
   /// the status line's refresh), so the window stays responsive; the command line every step.
   int estimateErrorEvery = 1;
@@ -192,6 +202,9 @@ struct StepReport {
   /// ask for a shape the elements cannot take without turning inside out), and the step ended there, inexact.
   bool guardStalled = false;
   double tolerance = 0;  ///< the relative residual the outcome was judged against
+  /// The step ended on the accuracy asked in millimetres and newtons (SimulationSettings::accuracyPosition), its
+  /// relative residual still above `tolerance`.
+  bool withinAccuracy = false;
   /// How far the step's end lies from the converged answer of its equations (exact Newton's, which its residual
   /// measures), estimated as it runs (issue 64): the correction the step's own factor gives for its last residual,
   /// the attachments and the tool's holds kept (one more solve with the factor the step has). `errorPosition`: the

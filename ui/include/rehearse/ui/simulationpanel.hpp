@@ -111,7 +111,7 @@ class SimulationPanel : public QWidget {
   /// step boundary, so its own setup lags the list; compared with it, a quick scroll through the Solver list (exact,
   /// lagged-PCG, chord) posted exact and lagged-PCG, then nothing for chord, and the session ran lagged-PCG.
   struct Asked {
-    double timeStep = 0, graspRadius = 0, clipLength = 0;
+    double timeStep = 0, graspRadius = 0, clipLength = 0, accuracy = 0;
     simcore::NewtonMethod method = simcore::kInteractiveMethod;
     simcore::BodyModel model = simcore::BodyModel::Fem;
     Eigen::Vector3d gravity = Eigen::Vector3d::Zero();

@@ -216,10 +216,7 @@ class DeformableBody {
   virtual std::uint64_t responseKey() const { return 0; }
 };
 
-/// The tool's force on the tissue (N) from its constraint rows and their multipliers (row k's is lambda[first + k],
-/// first = lambda.size() - rows.size(): a body's own rows, e.g. Lagrange attachments, come first): each row's
-/// multiplier along its direction, spread by its weights' sum; `holdsOnly`: the bilateral rows alone.
-Eigen::Vector3d toolForceOf(const std::vector<ScalarConstraint>& rows, const Eigen::VectorXd& lambda, bool holdsOnly);
+/// toolForceOf (the tool's force from its rows' multipliers): constraint_solver.hpp.
 /// The tool's stiffness (N/m), scale * S^T W_a^-1 G over the rows that act (bilateral; unilateral ones that push), W
 /// the rows' compliance indexed like lambda: how the tool force changes per metre the tool moves (DeformableBody::
 /// toolStiffness). Zero when no row acts or W does not match.
