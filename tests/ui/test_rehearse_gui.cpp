@@ -359,6 +359,7 @@ class TestRehearseGui : public QObject {
   // residual's rule) goes back to the relative residual alone. A grasp and pull at the default converges with the
   // step's own estimate within what was asked.
   void accuracyIsAskedInMillimetres() {
+    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
     QCOMPARE(w_->step(), ui::Step::Rehearse);
     auto* panel = w_->simulationPanel();
     auto* accuracy = panel->findChild<QDoubleSpinBox*>("simAccuracy");
