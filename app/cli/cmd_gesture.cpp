@@ -133,7 +133,7 @@ void applySolverOptions(Options& o, simcore::BodySetup& setup) {
     setup.settings.accuracyPosition = 1e-3 * mm;
   }
   if (o.count("refresh")) {
-    if (o["refresh"] == "async")
+    if (o["refresh"] == "async")  // as the window runs it: no step waits for a factor
       setup.settings.factorRefresh = simcore::FactorRefresh::Asynchronous;
     else if (o["refresh"] != "sync")
       throw UsageError("--refresh takes sync or async, not '" + o["refresh"] + "'");

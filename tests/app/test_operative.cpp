@@ -84,11 +84,13 @@ class TestOperative : public QObject {
     QVERIFY(listed.filter("clip_misplaced").isEmpty());
     QVERIFY(metrics["instrument_outside_view"].isNull());  // the script declares no view: not determined
     // The GUI's way: the factor rebuilt on the second thread, taken in at a step's start when built or, where the
-    // accelerated chord stalls after a tear, waited for within the step (issue 61). Recorded and replayed bit for bit:
-    // the replay takes each factor where the run did, whatever its second thread's timing.
+    // accelerated chord stalls after a tear, waited for within the step (issue 61); steps ended at 0.05 mm (issue 64).
+    // Recorded and replayed bit for bit: the replay takes each factor where the run did, whatever its second thread's
+    // timing.
     const QString asyncFile = dir.path() + "/async.rehearse";
     const Run a = run({"gesture", "--scene", dir.path() + "/scene.json", "--script", dir.path() + "/chole.json",
-                       "--method", "chord", "--refresh", "async", "--out", dir.path() + "/async.vtu", "--record",
+                       "--method", "chord", "--refresh", "async", "--accuracy", "0.05", "--out",
+                       dir.path() + "/async.vtu", "--record",
                        asyncFile, "--report", dir.path() + "/async-report.json"});
     QVERIFY2(::testing::tookEveryStep(a), qPrintable(QString::number(a.code) + ": " + a.out + a.err));
     QFile af(dir.path() + "/async-report.json");

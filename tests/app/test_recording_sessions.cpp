@@ -187,6 +187,12 @@ void TestRecording::stabilitySettingsAreRecorded() {
   QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.accuracyPosition, 5e-5);
   QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.accuracyForce, 0.01);
   QCOMPARE(old.settings.accuracyPosition, 0.0);
+  // A tear's body taken in when built (the window's): written only when on, off in a setup from before it existed.
+  QVERIFY(!simcore::ToolSettings{}.tearWhenBuilt);
+  QVERIFY(!QString::fromStdString(app::encodeSetup(s)).contains("tearWhenBuilt"));
+  s.tools.tearWhenBuilt = true;
+  QVERIFY(app::decodeSetup(app::encodeSetup(s)).tools.tearWhenBuilt);
+  QVERIFY(!old.tools.tearWhenBuilt);
 }
 
 void TestRecording::strainMatchesClosedForms() {

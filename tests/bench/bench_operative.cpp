@@ -90,10 +90,12 @@ int main(int argc, char** argv) {
     int latency;
     bool accelerated;  // SimulationSettings::chordAcceleration
     double accuracy;   // SimulationSettings::accuracyPosition (m; 0: the relative residual alone)
+    bool tearWhenBuilt = false;  // ToolSettings::tearWhenBuilt (the GUI's)
   };
   for (const Variant v :
        {Variant{"chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, true, 0},
         Variant{"chord, async (GUI)", simcore::FactorRefresh::Asynchronous, -1, true, 5e-5},
+        Variant{"chord, async, 0.05 mm, tears when built", simcore::FactorRefresh::Asynchronous, -1, true, 5e-5, true},
         Variant{"chord, async, 1e-6", simcore::FactorRefresh::Asynchronous, -1, true, 0},
         Variant{"chord, sync, 0.05 mm", simcore::FactorRefresh::Synchronous, 5, true, 5e-5},
         Variant{"plain chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, false, 0},
@@ -104,6 +106,7 @@ int main(int argc, char** argv) {
       s.settings.factorRefresh = v.refresh;
       s.settings.chordAcceleration = v.accelerated;
       s.settings.accuracyPosition = v.accuracy;
+      s.tools.tearWhenBuilt = v.tearWhenBuilt;
       app::GestureScript script = all;
       script.cutLatencySteps = v.latency;
       // phase -> per run: the step times; and the last run's statuses and events

@@ -124,12 +124,12 @@ class TestStepError : public QObject {
       worstEstimate = std::max(worstEstimate, rep.errorPosition);
       worstForceTrue = std::max(worstForceTrue, forceTruth);
       worstForce = std::max(worstForce, rep.errorForce);
-      if (k % 10 == 0 || k == pulling)
+      if (k % 10 == 0 || k == pulling || (asked > 0 && truth > 0.8 * asked))
         qInfo("step %2d (%s): true error %.3g mm, estimated %.3g mm; tool force %.3f N, its error %.3g N, estimated "
-              "%.3g N; %s",
+              "%.3g N; %s; %d iterations%s",
               k, held ? "held" : "let go", 1e3 * truth, 1e3 * rep.errorPosition,
               exact->toolForce().norm(), forceTruth, rep.errorForce,
-              statusSentence(rep).c_str());
+              statusSentence(rep).c_str(), rep.newtonIterations, rep.withinAccuracy ? ", ended on the accuracy" : "");
       QVERIFY2(truth <= kResolved || rep.errorPosition >= 0.5 * truth,
                qPrintable(QString("step %1: estimated %2 mm, the true error is %3 mm")
                               .arg(k)

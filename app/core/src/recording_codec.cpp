@@ -280,6 +280,8 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   if (t.slipAtLimit) j["tools"]["slipAtLimit"] = true;
   // (likewise: setups recorded before it existed refused a tear their element could not make alone)
   if (t.tearThroughNeighbours) j["tools"]["tearThroughNeighbours"] = true;
+  // (likewise: setups recorded before it existed waited for a tear's body at its boundary)
+  if (t.tearWhenBuilt) j["tools"]["tearWhenBuilt"] = true;
   if (t.tearOnlyUnderLoad) j["tools"]["tearOnlyUnderLoad"] = true;  // (likewise: they tore whatever stretched them)
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
   if (!(t.clip == simcore::ClipSettings{}))  // (setups recorded before the clip applier keep their text and hash)
@@ -375,6 +377,7 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
     s.tools.slipAtLimit = t.value("slipAtLimit", false);  // ... and the jaws let go after a whole step's pull
     s.tools.tearThroughNeighbours = t.value("tearThroughNeighbours", false);  // ... and tears were the element's alone
     s.tools.tearOnlyUnderLoad = t.value("tearOnlyUnderLoad", false);  // ... made whatever stretched the tissue
+    s.tools.tearWhenBuilt = t.value("tearWhenBuilt", false);  // ... and waited for a tear's body at its boundary
     s.tools.cut.snap = t.at("cut").at("snap");
     s.tools.cut.minQuality = t.at("cut").at("minQuality");
     s.tools.cut.minVolumeFraction = t.at("cut").at("minVolumeFraction");

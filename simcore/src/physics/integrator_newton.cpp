@@ -23,10 +23,8 @@ constexpr int kAndersonStall = 4;
 // Held back by the inversion guard: this many guarded moves in a row, none lowering the residual below this share of
 // the one before, end the step's iterations.
 constexpr int kHeldBackIterations = 4;
-// SimulationSettings::accuracyPosition: the contraction taken for a step's first iterate (none measured yet), the
-// largest one an estimate is trusted at (beyond, the iterations go on to the residual's tolerance), and the tool force
-// resolved whatever its size (N).
-constexpr double kFirstContraction = 0.5;
+// SimulationSettings::accuracyPosition: the largest contraction an estimate is trusted at (beyond, the iterations go on
+// to the residual's tolerance), and the tool force resolved whatever its size (N).
 constexpr double kAccuracyContraction = 0.9;
 constexpr double kAccuracyForceFloor = 1e-3;
 constexpr double kHeldBackProgress = 0.99;
@@ -234,7 +232,7 @@ NewtonIteration::Try NewtonLoop::run() {
       rep.status = "failed: the linear system could not be solved";
       break;
     }
-    if (accuracy_ && withinAccuracy(it)) {
+    if (accuracy_ && it > 0 && withinAccuracy()) {
       ok = true;
       rep.withinAccuracy = true;
       break;
@@ -270,24 +268,25 @@ NewtonIteration::Try NewtonLoop::run() {
 }
 
 // Issue 64: the iterate is within the accuracy asked in physical units (SimulationSettings::accuracyPosition,
-// accuracyForce) when the correction just solved for (w.dv, the multipliers' change), divided by one minus the
-// contraction, is. A chord correction undershoots Newton's: the remaining corrections sum to it times 1 / (1 - rho).
-// The holds' first solve is never the last (the multipliers start from zero there). Ending here, the correction is not
-// applied: the iterate, its forces and residual are the step's end, and its multipliers are put back.
-bool NewtonLoop::withinAccuracy(int it) {
-  if (hasConstraints && it == 0) return false;
-  const double rho = it == 0 ? kFirstContraction : measured_ ? contraction_ : 1.0;
-  if (!(rho <= kAccuracyContraction)) return false;
-  const double gain = 1.0 / (1.0 - rho);
+// accuracyForce) when the correction just solved for at it (w.dv, the multipliers' change) divided by 1 - rho is: the
+// corrections a fixed-point iteration contracting by rho still makes sum to that (rho: the largest residual ratio of
+// this step's plain moves; none measured, no estimate). Never at a step's first iterate: its first correction is
+// always taken (the holds' multipliers start from zero there, and a small load still moves the organ). Ending here,
+// the correction is not applied: the iterate, its forces and residual are the step's end, its multipliers put back.
+bool NewtonLoop::withinAccuracy() {
+  if (!measured_ || !(contraction_ <= kAccuracyContraction)) return false;
+  const double gain = 1.0 / (1.0 - contraction_);
   double largest = 0;
   for (Eigen::Index i = 0; i + 2 < w.dv.size(); i += 3) largest = std::max(largest, w.dv.segment<3>(i).squaredNorm());
   if (!(gain * h * std::sqrt(largest) <= settings_.accuracyPosition)) return false;
   const auto& rows = in_.constraints();
-  if (hasConstraints && !rows.empty() && w.cons.multipliers().size() == w.muBefore.size()) {
-    w.muChange = w.cons.multipliers() - w.muBefore;
-    const double force = toolForceOf(rows, w.cons.multipliers(), false).norm() / h;
-    const double change = toolForceOf(rows, w.muChange, false).norm() / h;
-    if (!(gain * change <= std::max(settings_.accuracyForce * force, kAccuracyForceFloor))) return false;
+  if (hasConstraints && w.cons.multipliers().size() == w.muBefore.size()) {
+    if (!rows.empty()) {
+      w.muChange = w.cons.multipliers() - w.muBefore;
+      const double force = toolForceOf(rows, w.cons.multipliers(), false).norm() / h;
+      const double change = toolForceOf(rows, w.muChange, false).norm() / h;
+      if (!(gain * change <= std::max(settings_.accuracyForce * force, kAccuracyForceFloor))) return false;
+    }
     w.cons.multipliers() = w.muBefore;
   }
   return true;
@@ -435,6 +434,12 @@ NewtonIteration::Try NewtonLoop::finish(bool ok, int maxIterations) {
         w.cons.transposedH().rows() == w.pq.size())
       w.pq.noalias() -= w.cons.transposedH() * w.cons.multipliers();
     estimateError(w.pq, s_.x);
+    // With the accuracy asked, the estimate is the remaining corrections' sum, as the step was ended on: the next
+    // correction divided by one minus the contraction this step showed.
+    if (accuracy_ && measured_ && contraction_ < 1 && std::isfinite(rep.errorPosition)) {
+      rep.errorPosition /= 1.0 - contraction_;
+      if (w.errorLambdaValid) w.errorLambda /= 1.0 - contraction_;
+    }
   }
   return ok ? Try::Converged : finite ? Try::Inexact : Try::Failed;
 }

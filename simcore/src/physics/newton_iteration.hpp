@@ -111,7 +111,7 @@ class NewtonLoop : public NewtonIteration {
  private:
   void start();
   double lineSearch(double rnew);
-  bool withinAccuracy(int it);
+  bool withinAccuracy();
   Try finish(bool ok, int maxIterations);
   const bool prepareInResidual_;
   const bool accuracy_;       // SimulationSettings::accuracyPosition is on

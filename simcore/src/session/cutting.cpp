@@ -73,6 +73,8 @@ TopologyChange Session::changeFromCut(const CutResult& r, std::vector<Eigen::Vec
   // A tear opens at its own latency (ToolSettings::tearLatencySteps), a blade's cut at the cut's.
   const int latency = kind == ChangeKind::Tear ? setup_.tools.tearLatencySteps : setup_.tools.cutLatencySteps;
   change.applyAt = latency >= 0 ? steps_ + latency : -1;
+  change.late = kind == ChangeKind::Tear && latency >= 0 && setup_.tools.tearWhenBuilt &&
+                setup_.settings.factorRefresh != FactorRefresh::Synchronous;
   if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) {
     change.factorAt = state_.x;
     extendByCut(change.factorAt, r.newNodes);

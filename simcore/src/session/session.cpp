@@ -337,7 +337,8 @@ void Session::apply(const InputEvent& e, std::string& message) {
     case InputKind::CutApplied:
       // Only replays post these: the live run applied its cut here. A cut with a latency is applied at its own step
       // (advance), the same in the replay; the event then names that one, already applied, not the next one.
-      if (builds_.underWay() && builds_.pending()->applyAt < 0) finishPendingChange(true, message);
+      if (builds_.underWay() && (builds_.pending()->applyAt < 0 || builds_.pending()->late))
+        finishPendingChange(true, message);
       break;
   }
   if (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw || e.kind == InputKind::Clip)
@@ -376,10 +377,13 @@ StepReport Session::advance() {
   std::string message;
   // A cut whose body was built on another thread replaces the body as soon as it is ready (recorded, so that
   // a replay applies it at the same boundary; the replay itself waits for the recording's word).
-  const bool cutDue = builds_.underWay() &&
-                      (builds_.pending()->applyAt >= 0 ? steps_ >= builds_.pending()->applyAt
-                                                       : setup_.settings.factorRefresh == FactorRefresh::Asynchronous);
-  if (cutDue && finishPendingChange(builds_.pending()->applyAt >= 0, message)) {
+  // One with a boundary that may come late (TopologyChange::late) comes in there or after, when built, never waited
+  // for; the replay's (deferred refresh) comes in at the recorded step.
+  const bool live = setup_.settings.factorRefresh == FactorRefresh::Asynchronous;
+  const TopologyBuilds::PendingChange* pending = builds_.pending();
+  const bool cutDue =
+      pending && (pending->applyAt >= 0 ? steps_ >= pending->applyAt && (!pending->late || live) : live);
+  if (cutDue && finishPendingChange(pending->applyAt >= 0 && !pending->late, message)) {
     InputEvent c;
     c.kind = InputKind::CutApplied;
     c.step = steps_;

@@ -124,11 +124,11 @@ struct SimulationSettings {
   /// The accuracy a step is asked for, in physical units (issue 64): a Newton method's step ends once its largest
   /// node is estimated within `accuracyPosition` (m) of the converged answer of its equations and the tool force within
   /// `accuracyForce` of its size (at least 1 mN), or once the relative residual is under `tolerance`, whichever comes
-  /// first. The estimate is the correction the step's own factor gives at the iterate (one solve, which the next
-  /// iteration needed anyway), divided by one minus the contraction the step's iterations showed (a lagged factor's
-  /// correction falls short of Newton's by that much); the first iterate is taken as contracting by 0.5, and the holds'
-  /// first solve is never the last. 0: off, the relative residual alone decides (SimulationSettings{}, the sessions
-  /// recorded before it existed). Recorded only when on.
+  /// first. The estimate is the correction the step's own factor gives at the iterate (the solve the next move needs)
+  /// divided by 1 - rho, rho the largest residual ratio of the step's plain moves: what an iteration contracting by rho
+  /// still has to go; the step's first correction is always taken. StepReport::errorPosition is then the same figure.
+  /// 0: off, the relative residual alone decides (SimulationSettings{}, the sessions recorded before it existed).
+  /// Recorded only when on.
   double accuracyPosition = 0;
   double accuracyForce = 0.005;  ///< fraction of the tool force (with accuracyPosition on)
   /// ... at every this many steps (the others report NaN): the interactive session estimates every 10th step (0.1 s,

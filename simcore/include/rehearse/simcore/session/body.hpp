@@ -56,6 +56,13 @@ struct ToolSettings {
   /// of 150 inexact); with 5, 7 tears in every run, 24-29 ms (BENCHMARKS.md). Sessions recorded before it existed:
   /// their cut's latency, as their tears had.
   int tearLatencySteps = 5;
+  /// A tear's torn body comes in at that boundary if built by then, else at the first boundary after (TopologyChange::
+  /// late; recorded, replays follow). With the asynchronous refresh only. Not used by the window: measured on the
+  /// patient liver (bench_operative, 2026-12-02) the tear steps no longer waited (200-330 ms) but the pull tore 16
+  /// times instead of 7, 58 of 151 steps inexact, p99 7.8 s: the torn body came in on a state its factor and its tear
+  /// front were not made for, and each late tear over-stretched the next. An experiment kept for the bench; false:
+  /// it waits (the sessions recorded before it existed, and the window's).
+  bool tearWhenBuilt = false;
   /// A tear the over-stretched element cannot make alone (its square, as large as the element, crosses edges the
   /// elements around it share, and the cut's front snaps those to nodes: nothing is crossed) is made across its
   /// neighbours too, a square twice the element's reach. false: refused, as the sessions recorded before this existed
@@ -81,6 +88,7 @@ struct ToolSettings {
            trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
            bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
            cutLatencySteps == o.cutLatencySteps && tearLatencySteps == o.tearLatencySteps &&
+           tearWhenBuilt == o.tearWhenBuilt &&
            tearThroughNeighbours == o.tearThroughNeighbours && tearOnlyUnderLoad == o.tearOnlyUnderLoad &&
            cut.snap == o.cut.snap &&
            cut.minQuality == o.cut.minQuality && cut.minVolumeFraction == o.cut.minVolumeFraction &&

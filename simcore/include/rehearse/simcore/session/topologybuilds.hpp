@@ -35,6 +35,10 @@ struct TopologyChange {
   Eigen::VectorXd factorAt;    ///< the positions the new body's first factor is built at (asynchronous build)
   bool clearProgress = false;  ///< the instrument was withdrawn meanwhile: the new body starts without progress
   long applyAt = -1;  ///< the step boundary it replaces the body at (ToolSettings::cutLatencySteps); -1: when ready
+  /// With applyAt: at that boundary if built by then, else at the first boundary after it is built (the asynchronous
+  /// refresh's live run never waits; ToolSettings::tearWhenBuilt). The step it came in at is recorded (CutApplied),
+  /// and a replay (the deferred refresh) applies it there; a synchronous run waits at applyAt as without it.
+  bool late = false;
 };
 
 class TopologyBuilds {
