@@ -354,48 +354,6 @@ class TestRehearseGui : public QObject {
     panel->pause();
   }
 
-  // Issue 64: the accuracy each step is asked for, in millimetres on the Simulation panel: the session runs with the
-  // field's value (0.05 mm by default), a value typed there reaches the running session, and 0 (shown as the
-  // residual's rule) goes back to the relative residual alone. A grasp and pull at the default converges with the
-  // step's own estimate within what was asked.
-  void accuracyIsAskedInMillimetres() {
-    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
-    QCOMPARE(w_->step(), ui::Step::Rehearse);
-    auto* panel = w_->simulationPanel();
-    auto* accuracy = panel->findChild<QDoubleSpinBox*>("simAccuracy");
-    QVERIFY(accuracy);
-    panel->play();
-    QVERIFY(waitFor([&] { return panel->session() && panel->lastFrame(); }, 30000));
-    QCOMPARE(accuracy->value(), 0.05);
-    QCOMPARE(panel->session()->setup().settings.accuracyPosition, 5e-5);
-    auto typeInto = [&](const char* text) {
-      accuracy->setFocus();
-      accuracy->selectAll();
-      QTest::keyClicks(accuracy, text);
-      QTest::keyClick(accuracy, Qt::Key_Return);
-    };
-    typeInto("0.01");
-    QVERIFY(waitFor([&] { return panel->session()->setup().settings.accuracyPosition == 1e-5; }, 10000));
-    typeInto("0");
-    QCOMPARE(accuracy->text(), QString("residual 1e-6"));
-    QVERIFY(waitFor([&] { return panel->session()->setup().settings.accuracyPosition == 0; }, 10000));
-    typeInto("0.05");
-    QVERIFY(waitFor([&] { return panel->session()->setup().settings.accuracyPosition == 5e-5; }, 10000));
-    const auto [a, b] = pullPoints();
-    graspAndPull(a, b);
-    if (QTest::currentTestFailed()) return;
-    // The estimate is made every 10th step: wait for one made while the jaws hold.
-    QVERIFY(waitFor([&] { return std::isfinite(panel->lastFrame()->report.errorPosition); }, 20000));
-    const auto f = panel->lastFrame();
-    qInfo("0.05 mm asked: the step %s, estimated %.3g mm and %.3g N from the converged answer (tool force %.3f N)",
-          f->report.status.c_str(), 1e3 * f->report.errorPosition, f->report.errorForce, f->tool.force.norm());
-    QCOMPARE(QString::fromStdString(f->report.status), QString("converged"));
-    QVERIFY(f->report.errorPosition <= 5e-5);
-    QTest::mouseRelease(w_->frameView(), Qt::LeftButton, {}, b.toPoint());
-    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 20000));
-    panel->pause();
-  }
-
   // Issue 37: the Solver list's last entry runs Cotin's precomputed linear elasticity instead of the FEM (chosen with
   // the keyboard); the grasper pulls the organ with it (every step converged, the held node exactly on the jaws, a
   // tool force), the scissors are refused with a sentence, and chord brings the FEM back.

@@ -26,6 +26,8 @@
 #include <QRegularExpression>
 #include <QStandardPaths>
 
+#include <cmath>
+
 using namespace rehearse;
 using ui::MainWindow;
 
@@ -304,6 +306,43 @@ void TestSimulationGui::aRefusedStartIsSaidUntilItsCauseGoes() {
   QTRY_VERIFY_WITH_TIMEOUT(panel_->lastFrame() && panel_->lastFrame()->steps > 5, 120000);
   QVERIFY(panel_->isPlaying());
   panel_->pause();
+}
+
+// Issue 64: the accuracy each step is asked for, in millimetres on the Simulation panel: the session runs with the
+// field's value (0.05 mm by default), a value typed there reaches the running session, 0 (shown as the residual's rule)
+// goes back to the relative residual alone; the steps it runs say they are within it.
+void TestSimulationGui::accuracyIsAskedInMillimetres() {
+  auto* accuracy = panel_->findChild<QDoubleSpinBox*>("simAccuracy");
+  QVERIFY(accuracy);
+  QCOMPARE(accuracy->value(), 0.05);
+  const long before = panel_->lastFrame()->steps;
+  QTest::keyClick(w_.get(), Qt::Key_F6);  // single step: the session runs with the panel's accuracy
+  QVERIFY(waitForSteps(before));
+  QCOMPARE(panel_->session()->setup().settings.accuracyPosition, 5e-5);
+  QTest::keyClick(w_.get(), Qt::Key_F5);  // playing: a value typed applies at the next step
+  auto typeInto = [&](const char* text) {
+    accuracy->setFocus();
+    accuracy->selectAll();
+    QTest::keyClicks(accuracy, text);
+    QTest::keyClick(accuracy, Qt::Key_Return);
+  };
+  typeInto("0.01");
+  QVERIFY(waitFor([&] { return panel_->session()->setup().settings.accuracyPosition == 1e-5; }, 10000));
+  typeInto("0");
+  QCOMPARE(accuracy->text(), QString("residual 1e-6"));
+  QVERIFY(waitFor([&] { return panel_->session()->setup().settings.accuracyPosition == 0; }, 10000));
+  typeInto("0.05");
+  QVERIFY(waitFor([&] { return panel_->session()->setup().settings.accuracyPosition == 5e-5; }, 10000));
+  // The steps converge and their estimates (every 10th step) are within what was asked.
+  const long from = panel_->lastFrame()->steps;
+  QVERIFY(waitFor([&] { return panel_->lastFrame()->steps > from + 30; }, 30000));
+  QVERIFY(waitFor([&] { return std::isfinite(panel_->lastFrame()->report.errorPosition); }, 30000));
+  const auto f = panel_->lastFrame();
+  QTest::keyClick(w_.get(), Qt::Key_F5);
+  qInfo("0.05 mm asked: %s, estimated %.3g mm from the converged answer", f->report.status.c_str(),
+        1e3 * f->report.errorPosition);
+  QCOMPARE(QString::fromStdString(f->report.status), QString("converged"));
+  QVERIFY(f->report.errorPosition <= 5e-5);
 }
 
 void TestSimulationGui::cleanupTestCase() {

@@ -33,6 +33,7 @@ class TestSimulationGui : public QObject {
   void playAndPauseWithTheKeyboard();
   void simulationViewShowsTheWholeOrgan();
   void liveEditAppliesAtTheNextStep();
+  void accuracyIsAskedInMillimetres();
   void vonMisesColouring();
   void resetReturnsToRest();
   void startWhereTheFrameShowsIt();
