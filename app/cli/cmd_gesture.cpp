@@ -449,7 +449,7 @@ const Command& gestureCommand() {
               {"refresh", "R", "sync or async: how a drifted lagged factorisation is rebuilt"},
               {"accuracy", "MM",
                "each step ends once every node is estimated within MM of the converged answer and the tool force "
-               "within 0.5 % (the window's default 0.05); default: the scene's, else the relative residual alone"},
+               "within 0.5 %; default: the scene's, else the relative residual alone"},
               {"start", "S",
                "rest (the mesh is the rest shape; default) or equilibrium (the mesh is where the organ hangs under "
                "gravity on its attachments, as registered: its rest shape is solved first; exit 4 when none is found)"},

@@ -94,9 +94,9 @@ int main(int argc, char** argv) {
   };
   for (const Variant v :
        {Variant{"chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, true, 0},
-        Variant{"chord, async (GUI)", simcore::FactorRefresh::Asynchronous, -1, true, 5e-5},
+        Variant{"chord, async, 0.05 mm", simcore::FactorRefresh::Asynchronous, -1, true, 5e-5},
         Variant{"chord, async, 0.05 mm, tears when built", simcore::FactorRefresh::Asynchronous, -1, true, 5e-5, true},
-        Variant{"chord, async, 1e-6", simcore::FactorRefresh::Asynchronous, -1, true, 0},
+        Variant{"chord, async (GUI), 1e-6", simcore::FactorRefresh::Asynchronous, -1, true, 0},
         Variant{"chord, sync, 0.05 mm", simcore::FactorRefresh::Synchronous, 5, true, 5e-5},
         Variant{"plain chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, false, 0},
         Variant{"plain chord, async", simcore::FactorRefresh::Asynchronous, -1, false, 0}}) {

@@ -110,7 +110,7 @@ const std::vector<ComponentDecl>& sceneComponents() {
         {"accuracy_mm", "number", "0", "mm",
          "the accuracy a step is asked for: it ends once its largest node is estimated within this of the converged "
          "answer and the tool force within accuracy_force_percent (or the residual is under the tolerance); 0: the "
-         "relative residual alone (the window's rehearsal asks 0.05)"},
+         "relative residual alone"},
         {"accuracy_force_percent", "number", "0.5", "%", "with accuracy_mm: the tool force's share asked (at least 1 mN)"}}},
   };
   return decls;
