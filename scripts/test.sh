@@ -3,7 +3,7 @@
 # build, and fuzz the hand-written parsers for a bounded time. Incremental on later runs.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-FUZZ_SECONDS="${FUZZ_SECONDS:-20}"
+FUZZ_SECONDS="${FUZZ_SECONDS:-10}"
 scripts/install-deps.sh
 scripts/build.sh
 echo "== core and command line without the GUI (REHEARSE_BUILD_GUI=OFF)"

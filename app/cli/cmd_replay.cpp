@@ -20,6 +20,7 @@
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/registration.hpp>
 #include <rehearse/simcore/scene.hpp>
+#include <rehearse/simcore/session/step_truth.hpp>
 #include <rehearse/simcore/meshio.hpp>
 #include <rehearse/simcore/quality.hpp>
 #include <rehearse/simcore/fem.hpp>
@@ -121,8 +122,11 @@ void checkOneSessionOutputs(Options& o) {
       o.count("video") || o.count("report") || o.count("from") || o.count("to") || o.count("fps") || o.count("size");
   if (oneSession && !o.count("session"))
     throw UsageError("--video, --report, --from, --to, --fps and --size are for one session: give --session ID");
-  if ((o.count("from") || o.count("to") || o.count("fps") || o.count("size")) && !o.count("video"))
-    throw UsageError("--from, --to, --fps and --size set the video: give --video OUT.mp4");
+  if ((o.count("fps") || o.count("size")) && !o.count("video"))
+    throw UsageError("--fps and --size set the video: give --video OUT.mp4");
+  if ((o.count("from") || o.count("to")) && !o.count("video") && !o.count("exact-check"))
+    throw UsageError("--from and --to set the span of the video or of the exact check: give --video OUT.mp4 or "
+                     "--exact-check OUT.csv");
   if (o.count("video") && std::filesystem::path(o["video"]).extension() != ".mp4")
     throw UsageError("--video must end in .mp4");
   if (o.count("report") && std::filesystem::path(o["report"]).extension() != ".pdf")
@@ -372,6 +376,81 @@ int verifyExit(std::int64_t id, const VerifyResult& v) {
   return 0;
 }
 
+// --exact-check OUT.csv: every step (or every N, and every step with an event) taken again from the same start by exact
+// Newton to a relative residual of 1e-10; the run's distance from that answer (mm, N) beside its own estimate, one row
+// per step. Exit 4 when a step the run ended on its accuracy is farther than that accuracy, or an estimate is under half
+// the truth (the estimate is what the window shows); steps exact Newton cannot resolve are counted and said, not judged.
+int exactCheck(std::int64_t id, const Recording& rec, const Options& o) {
+  simcore::ExactCheckOptions eo;
+  if (o.count("every")) eo.every = parseCount(o.at("every"), "--every", 1, 1000000);
+  const long steps = rec.summary.complete || rec.checksums.empty() ? rec.summary.steps : rec.checksums.rbegin()->first;
+  // --from/--to: the span in seconds of simulated time (the steps that end inside it)
+  const double dt = rec.setup.settings.timeStep;
+  for (const char* key : {"from", "to"})
+    if (o.count(key)) {
+      const double t = parseNumber(o.at(key), key[0] == 'f' ? "--from" : "--to");
+      if (!(t >= 0)) throw UsageError(std::string("--") + key + " must be a time in seconds, 0 or more");
+      const long step = key[0] == 'f' ? std::max(1L, static_cast<long>(std::ceil(t / dt - 1e-9)))
+                                      : static_cast<long>(std::floor(t / dt + 1e-9));
+      (key[0] == 'f' ? eo.from : eo.to) = step;
+    }
+  if (eo.to >= 0 && eo.to < eo.from) throw UsageError("--to comes before --from: no step to check");
+  const double asked = rec.setup.settings.accuracyPosition;
+  const std::string out = o.at("exact-check");
+  std::ofstream csv(out);
+  if (!csv) throw UsageError("--exact-check: " + out + " cannot be written");
+  csv << "step,time_s,events,outcome,ended_on_accuracy,residual,iterations,factorisations,estimate_mm,true_mm,"
+         "force_estimate_n,force_error_n,force_n,exact_iterations,exact_events,resolved,why\n";
+  long checked = 0, unresolved = 0, beyond = 0, under = 0, lowAt = -1, worstAt = -1;
+  double worst = 0, worstForce = 0, lowest = 1e300;
+  std::printf("checking session %lld against exact Newton (relative residual 1e-10), %s\n",
+              static_cast<long long>(id), eo.every > 1 ? ("every " + std::to_string(eo.every) + " steps and every step with an event").c_str() : "every step");
+  eo.each = [&](const simcore::StepTruth& t) {
+    ++checked;
+    std::string said;
+    for (const auto& e : t.events) said += (said.empty() ? "" : " ") + e;
+    std::string exactSaid;
+    for (const auto& e : t.exactEvents) exactSaid += (exactSaid.empty() ? "" : " ") + e;
+    csv << t.step << ',' << t.time << ",\"" << said << "\"," << static_cast<int>(t.report.outcome) << ','
+        << t.report.withinAccuracy << ',' << t.report.residual << ',' << t.report.newtonIterations << ','
+        << t.report.factorisations << ',' << 1e3 * t.report.errorPosition << ',' << 1e3 * t.errorPosition << ','
+        << t.report.errorForce << ',' << t.errorForce << ',' << t.force << ',' << t.exactIterations << ",\""
+        << exactSaid << "\"," << t.resolved << ",\"" << t.why << "\"\n";
+    if (!t.resolved) {
+      ++unresolved;
+      return true;
+    }
+    if (t.errorPosition > worst) worst = t.errorPosition, worstAt = t.step;
+    worstForce = std::max(worstForce, t.errorForce);
+    if (t.report.withinAccuracy && asked > 0 && t.errorPosition > asked) ++beyond;
+    if (t.errorPosition > 1e-9 && std::isfinite(t.report.errorPosition)) {
+      const double ratio = t.report.errorPosition / t.errorPosition;
+      if (ratio < lowest) lowest = ratio, lowAt = t.step;
+      if (ratio < 0.5) ++under;
+    }
+    if (checked % 50 == 0) std::printf("  %ld steps checked, the largest error so far %.4f mm\n", checked, 1e3 * worst), std::fflush(stdout);
+    return true;
+  };
+  simcore::checkAgainstExact(rec.setup, rec.events, steps, eo);
+  std::printf("checked %ld of %ld steps: the largest distance from exact Newton's answer %.4f mm (step %ld), tool force %.4f N;"
+              " %ld not resolved by exact Newton (no truth there)\n",
+              checked, steps, 1e3 * worst, worstAt, worstForce, unresolved);
+  if (lowAt >= 0)
+    std::printf("the run's own estimate at least %.2f times the truth (step %ld) where the truth is over 1 nm; %ld under half\n",
+                lowest, lowAt, under);
+  if (asked > 0)
+    std::printf("asked %.4f mm: %ld step(s) ended on it are farther\n", 1e3 * asked, beyond);
+  else
+    std::printf("no accuracy asked (the relative residual 1e-6 ended the steps)\n");
+  std::printf("written %s\n", out.c_str());
+  if (beyond > 0 || under > 0) {
+    std::fprintf(stderr, "rehearse: session %lld: %ld step(s) farther than the accuracy asked, %ld estimate(s) under half "
+                 "the true error\n", static_cast<long long>(id), beyond, under);
+    return 4;
+  }
+  return 0;
+}
+
 // --session ID: the session loaded and, when anything is asked of it, replayed once for all the outputs.
 int replayOneSession(ReplayRequest& req) {
   Options& o = req.o;
@@ -380,6 +459,12 @@ int replayOneSession(ReplayRequest& req) {
   std::printf("session %lld: %zu events, %zu checksums, %ld steps%s\n", static_cast<long long>(id), rec.events.size(),
               rec.checksums.size(), rec.summary.steps,
               rec.summary.complete ? "" : " (cut short: what was recorded is replayed)");
+  if (o.count("exact-check")) {
+    if (o.count("verify") || o.count("metrics") || o.count("video") || o.count("report"))
+      throw UsageError("--exact-check replays on its own: ask it without --verify, --metrics, --video or --report");
+    return exactCheck(id, rec, o);
+  }
+  if (o.count("every")) throw UsageError("--every is for --exact-check");
   if (!o.count("verify") && !o.count("metrics") && !o.count("video") && !o.count("report")) return 0;
   ReplayOptions ro = req.ro;
   ro.strain = o.count("metrics") || o.count("report") || !req.thresholds.empty();
@@ -426,7 +511,7 @@ const Command& replayCommand() {
       "replay",
       "  rehearse replay CASE [--session ID [--verify] [--metrics OUT.json] [--video OUT.mp4] [--report OUT.pdf]\n"
       "                [--from S] [--to S] [--fps N] [--size WxH] | --metrics-csv OUT.csv] [--force-threshold N]\n"
-      "                [--thresholds T.json] [--planned-cut X,Y,Z:X,Y,Z]\n"
+      "                [--thresholds T.json] [--planned-cut X,Y,Z:X,Y,Z] [--exact-check OUT.csv [--every N]]\n"
       "                                   the sessions recorded in CASE; --verify re-simulates one and compares "
       "every\n"
       "                                   recorded checksum (exit 4 when one differs); --metrics writes the "
@@ -445,7 +530,9 @@ const Command& replayCommand() {
       "--metrics-csv:\n"
       "                                   every session's metrics, one row each (exit 4 when a replay differs); "
       "CASE\n"
-      "                                   postgresql:[SERVICE] reads the training database instead (below)\n",
+      "                                   postgresql:[SERVICE] reads the training database instead (below);\n"
+      "                                   --exact-check: each step taken again by exact Newton from the same start,\n"
+      "                                   its distance (mm, N) beside the run's estimate (exit 4: farther than asked)\n",
       {{"session", "ID", "the session to replay (the list without it)"},
        {"list", "", "list the sessions (the default without --session)"},
        {"verify", "", "re-simulate and compare every recorded checksum (exit 4 when one differs)"},
@@ -456,10 +543,12 @@ const Command& replayCommand() {
        {"planned-cut", "A:B", "the planned cut line, X,Y,Z:X,Y,Z in metres"},
        {"video", "OUT.mp4", "the span [--from, --to] as a video"},
        {"report", "OUT.pdf", "metrics, plots and key frames"},
-       {"from", "S", "the video's first second"},
-       {"to", "S", "the video's last second"},
+       {"from", "S", "the video's (or --exact-check's) first second"},
+       {"to", "S", "the video's (or --exact-check's) last second"},
        {"fps", "N", "the video's frames per second of simulated time (default 25)"},
-       {"size", "WxH", "the video's size (default 640x480)"}},
+       {"size", "WxH", "the video's size (default 640x480)"},
+       {"exact-check", "OUT.csv", "each step against exact Newton's answer from the same start, one row per step"},
+       {"every", "N", "--exact-check every N steps (and every step with an event)"}},
       cmdReplay};
   return command;
 }

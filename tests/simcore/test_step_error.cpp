@@ -11,6 +11,7 @@
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/session/body.hpp>
+#include <rehearse/simcore/session/step_truth.hpp>
 
 #include <QtTest>
 
@@ -208,6 +209,96 @@ class TestStepError : public QObject {
           iterations[0], iterations[1], 1e3 * apart);
     QVERIFY(iterations[1] < iterations[0]);
     QVERIFY2(apart < 5e-4, "the two runs' motions parted by more than ten times the accuracy");
+  }
+
+  // The offline check a trainer runs on a recording (`rehearse replay --exact-check`): a session on the liver preset
+  // with the window's chord and asynchronous refresh at 0.05 mm (a grasp that pulls 15 mm and lets go, then a hook
+  // that cuts the left lobe off) is replayed and every step is taken again by exact Newton from the same start. Every
+  // step is resolved, within the accuracy asked, its estimate never under half the truth; the same session run by
+  // exact Newton itself (relative residual 1e-10) is found where the check's own exact Newton is (a check that took
+  // another step's inputs or start would put it millimetres away).
+  void aSessionCheckedAgainstExactNewtonOffline() {
+    BodySetup b = testing::presetBody("liver");
+    b.tools.graspRadius = 0.006;
+    b.tools.maxGraspForce = 30;
+    b.tools.bladeLength = 0.09;
+    b.tools.trocar = Eigen::Vector3d(-0.06, -0.2, 0.0);
+    Eigen::Vector3d grip = b.mesh.points.front();
+    for (const auto& p : b.mesh.points)
+      if ((p - Eigen::Vector3d(0, 0, -0.05)).norm() < (grip - Eigen::Vector3d(0, 0, -0.05)).norm()) grip = p;
+    auto session = [&](const BodySetup& setup, int steps) {
+      Session s(setup);
+      for (int k = 0; k < steps; ++k) {
+        if (k == 20) s.post(testing::toolAt(grip)), s.post(testing::jaws(true));
+        if (k > 20 && k <= 60) s.post(testing::toolAt(grip + Eigen::Vector3d(0, 0, -0.015) * (k - 20) / 40.0));
+        if (k == 75) s.post(testing::jaws(false));
+        if (k == 90) {
+          InputEvent hook = testing::toolAt({-0.06, 0.05, -0.04});
+          hook.tool = 1;
+          s.post(hook);
+          s.post(testing::cutting(true));
+        }
+        if (k > 90 && k <= 150) {
+          InputEvent hook = testing::toolAt({-0.06, 0.05, -0.04 + 0.09 * (k - 90) / 60.0});
+          hook.tool = 1;
+          s.post(hook);
+        }
+        if (k == 150) s.post(testing::cutting(false));
+        s.advance();
+      }
+      return s.recorded();
+    };
+    BodySetup window = b;
+    window.settings.method = NewtonMethod::Chord;
+    window.settings.factorRefresh = FactorRefresh::Asynchronous;
+    window.settings.accuracyPosition = 5e-5;
+    const int steps = 170;
+    const std::vector<InputEvent> events = session(window, steps);
+    int checked = 0, cuts = 0, onAccuracy = 0, resolved = 0;
+    double worst = 0, worstForce = 0, lowest = 1e300;
+    ExactCheckOptions o;
+    o.each = [&](const StepTruth& t) {
+      ++checked;
+      cuts += static_cast<int>(std::count(t.events.begin(), t.events.end(), "cut"));
+      if (!t.resolved) return true;
+      ++resolved;
+      worst = std::max(worst, t.errorPosition);
+      worstForce = std::max(worstForce, t.errorForce);
+      if (t.report.withinAccuracy) {
+        ++onAccuracy;
+        [&] { QVERIFY2(t.errorPosition <= 5e-5, qPrintable(QString("step %1: %2 mm from exact Newton's answer").arg(t.step).arg(1e3 * t.errorPosition))); }();
+      }
+      if (t.errorPosition > kResolved) lowest = std::min(lowest, t.report.errorPosition / t.errorPosition);
+      return true;
+    };
+    checkAgainstExact(window, events, steps, o);
+    qInfo("%d steps checked against exact Newton (%d resolved, %d ended on the accuracy, %d cut updates): at most %.4f mm "
+          "and %.4f N from its answer; estimate at least %.2f x the truth",
+          checked, resolved, onAccuracy, cuts, 1e3 * worst, worstForce, lowest);
+    QCOMPARE(checked, steps);
+    QCOMPARE(resolved, steps);
+    QVERIFY(cuts > 0 && onAccuracy > steps / 2);
+    QVERIFY2(worst <= 5e-5, qPrintable(QString::number(1e3 * worst)));
+    QVERIFY2(lowest >= 0.5, qPrintable(QString::number(lowest)));
+
+    BodySetup exact = b;
+    exact.settings.method = NewtonMethod::Exact;
+    exact.settings.tolerance = 1e-10;
+    exact.settings.maxNewtonIterations = 60;
+    const int exactSteps = 80;  // the grasp, its pull and the release
+    const std::vector<InputEvent> exactEvents = session(exact, exactSteps);
+    double apart = 0;
+    int exactChecked = 0;
+    o.each = [&](const StepTruth& t) {
+      ++exactChecked;
+      [&] { QVERIFY2(t.resolved, t.why.c_str()); }();
+      if (t.resolved) apart = std::max(apart, t.errorPosition);
+      return true;
+    };
+    checkAgainstExact(exact, exactEvents, exactSteps, o);
+    qInfo("the session run by exact Newton itself: at most %.3g mm from the check's", 1e3 * apart);
+    QCOMPARE(exactChecked, exactSteps);
+    QVERIFY2(apart < 1e-9, qPrintable(QString::number(apart)));
   }
 
   // The estimate changes nothing a step computes: the same run with it off gives the same bits.

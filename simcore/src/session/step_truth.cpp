@@ -1,0 +1,83 @@
+#include <rehearse/simcore/session/step_truth.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <optional>
+
+namespace rehearse::simcore {
+
+namespace {
+
+// Exact Newton to the tolerance asked, nothing else changed: the same inputs, the same topology changes.
+BodySetup exactSetup(BodySetup s, const ExactCheckOptions& o) {
+  s.settings.method = NewtonMethod::Exact;
+  s.settings.tolerance = o.tolerance;
+  s.settings.maxNewtonIterations = o.maxIterations;
+  s.settings.accuracyPosition = 0;  // the residual's rule alone
+  s.settings.estimateError = false;
+  return s;
+}
+
+double largestNodeDistance(const Eigen::VectorXd& a, const Eigen::VectorXd& b) {
+  double worst = 0;
+  for (Eigen::Index i = 0; i + 2 < a.size(); i += 3) worst = std::max(worst, (a.segment<3>(i) - b.segment<3>(i)).norm());
+  return worst;
+}
+
+}  // namespace
+
+void checkAgainstExact(const BodySetup& setup, const std::vector<InputEvent>& events, long steps,
+                       const ExactCheckOptions& o) {
+  BodySetup runSetup = replaySetup(setup);
+  runSetup.settings.estimateError = true;  // the run's own estimates (computed after the step: no bit changes)
+  Session run(runSetup);
+  std::map<long, std::vector<InputEvent>> byStep;  // the events applied at each boundary (before step k + 1)
+  for (const auto& e : events) {
+    run.post(e);
+    byStep[e.step].push_back(e);
+  }
+  // The exact session starts from the recording's own setup (its uncut organ is what later cuts are built from).
+  std::unique_ptr<Session> exact;
+  const long last = o.to < 0 ? steps : std::min(steps, o.to);
+  const long every = std::max(1L, o.every);
+  for (long k = 0; k < last; ++k) {
+    const long n = k + 1;
+    const bool asked = n >= o.from && ((n - o.from) % every == 0 || byStep.count(k) > 0);
+    std::optional<Checkpoint> start;
+    if (asked) start = run.checkpoint();
+    run.advance();
+    if (!asked) continue;
+    const auto snap = run.snapshot();
+    StepTruth t;
+    t.step = n;
+    t.time = snap->time;
+    t.report = snap->report;
+    t.events = snap->events;
+    if (!exact) exact = std::make_unique<Session>(exactSetup(runSetup, o));
+    start->setup = exactSetup(start->setup, o);
+    exact->discardPending();
+    exact->restore(*start);
+    if (const auto it = byStep.find(k); it != byStep.end())
+      for (const auto& e : it->second) exact->post(e);
+    const StepReport ref = exact->advance();
+    t.exactIterations = ref.newtonIterations;
+    const auto exactSnap = exact->snapshot();
+    t.exactEvents = exactSnap->events;
+    if (!ref.ok || ref.outcome != StepStatus::Converged) {
+      t.why = ref.status.empty() ? std::string("exact Newton did not reach its tolerance") : ref.status;
+    } else if (exactSnap->positions.size() != snap->positions.size()) {
+      t.why = "exact Newton's step has another mesh (" + std::to_string(exactSnap->positions.size()) + " nodes, the run " +
+              std::to_string(snap->positions.size()) + ")";
+    } else {
+      t.resolved = true;
+      t.errorPosition = largestNodeDistance(run.state().x, exact->state().x);
+      t.errorForce = (snap->tool.force - exactSnap->tool.force).norm();
+      t.force = exactSnap->tool.force.norm();
+    }
+    if (o.each && !o.each(t)) return;
+  }
+}
+
+}  // namespace rehearse::simcore
