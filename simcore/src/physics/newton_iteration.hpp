@@ -117,6 +117,12 @@ class NewtonLoop : public NewtonIteration {
   const bool accuracy_;       // SimulationSettings::accuracyPosition is on
   double contraction_ = 1.0;  // the largest residual ratio of this step's plain moves (with measured_)
   bool measured_ = false;
+  // The corrections' own contraction: the largest ratio of a correction to the one before it in this step (the same
+  // largest-node norm as the estimate), and the last correction taken in full (m; 0: shortened, none to compare with).
+  double correctionRatio_ = 0;
+  double lastCorrection_ = 0;
+  bool ratioMeasured_ = false;
+  double rho() const { return std::max(contraction_, correctionRatio_); }
 
  protected:
   bool plainMove_ = true;  // the last move was the plain correction (the chord's: not mixed)

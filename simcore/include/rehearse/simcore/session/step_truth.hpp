@@ -26,6 +26,12 @@ struct StepTruth {
   double force = 0;  ///< N, the size of exact Newton's tool force
   int exactIterations = 0;
   std::vector<std::string> exactEvents;  ///< what happened in exact Newton's step (a tear or a slip the run had not)
+  /// Where the run is farther from exact Newton's answer than it asked (or than twice its estimate), the same step by
+  /// the run's own method converged to the same tolerance: its distance from the run (m) and from exact Newton's answer
+  /// (m). Near the run and far from exact Newton's: the step's equations have another solution there, which exact
+  /// Newton went to (a torn flap resting either way). NaN when not taken or not converged.
+  double ownConverged = std::numeric_limits<double>::quiet_NaN();
+  double ownToExact = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct ExactCheckOptions {
