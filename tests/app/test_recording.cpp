@@ -219,6 +219,32 @@ void TestRecording::recordAndVerify() {
     QVERIFY(rec.summary.complete);
     QCOMPARE(QString::fromStdString(rec.summary.meta.trainee), QStringLiteral("A. Trainee"));
   }
+  // Issue 64: the pull's steps from 0.5 to 0.7 s against exact Newton's answer, one row each; the options it takes and
+  // the ones it refuses, in one sentence each.
+  const QString csv = dir.path() + "/exact.csv";
+  const Run x = run({"replay", file, "--session", "1", "--exact-check", csv, "--from", "0.5", "--to", "0.7"});
+  QVERIFY2(x.code == 0 || x.code == 4, qPrintable(x.out + x.err));
+  QVERIFY2(x.out.contains("checked 21 of ") && x.out.contains("0 not resolved") &&
+               x.out.contains("no accuracy asked"),
+           qPrintable(x.out));
+  QFile f(csv);
+  QVERIFY(f.open(QIODevice::ReadOnly));
+  const QStringList rows = QString::fromUtf8(f.readAll()).trimmed().split('\n');
+  QCOMPARE(rows.size(), 22);  // the header and steps 50-70
+  QVERIFY(rows[0].startsWith("step,time_s,events,outcome,ended_on_accuracy,residual,"));
+  const int trueColumn = rows[0].split(',').indexOf("true_mm");
+  QVERIFY(trueColumn > 0);
+  for (int i = 1; i < rows.size(); ++i) {
+    bool number = false;
+    const double mm = rows[i].split(',').value(trueColumn).toDouble(&number);
+    QVERIFY2(number && mm >= 0 && mm < 1, qPrintable(rows[i]));  // the linearised step: micrometres from the answer
+  }
+  for (const QStringList& refused :
+       {QStringList{"--every", "5"}, QStringList{"--exact-check", csv, "--verify"},
+        QStringList{"--exact-check", csv, "--every", "0"}, QStringList{"--exact-check", csv, "--from", "0.7", "--to", "0.5"}}) {
+    const Run r = run(QStringList{"replay", file, "--session", "1"} + refused);
+    QVERIFY2(r.code == 2 && r.err.trimmed().count('\n') == 0, qPrintable(refused.join(' ') + ": " + r.err));
+  }
 }
 
 // Issue 36: two clips across the left lobe's vessel branch and the hook's cut between them (clip-clip-cut.json, with

@@ -8,15 +8,19 @@
 // GUI's (chord with the asynchronous refresh, changes swapped in when built, steps ended at the accuracy of 0.05 mm and
 // 0.5 % of the tool force), each accelerated (the default) and plain (SimulationSettings::chordAcceleration off, as
 // before it existed), and each with and without the accuracy (SimulationSettings::accuracyPosition; 1e-6: the relative
-// residual alone). Writes operative-steps.csv into the
-// directory given (default ".").
-//   bench_operative [OUT_DIR] [--repeat N] [--only TEXT]
+// residual alone). With --exact-check, each variant's last run is replayed and every step taken again by exact Newton
+// from the same start (simcore::checkAgainstExact, as `rehearse replay --exact-check`): per phase the largest true
+// error, the lowest estimate for its truth (where the truth is over 5 um), the steps past the accuracy asked, and those
+// where exact Newton went to another solution of the step's equations. Writes operative-steps.csv into the directory
+// given (default "."). --only TEXT runs the variants whose name contains TEXT (=NAME: that one).
+//   bench_operative [OUT_DIR] [--repeat N] [--only TEXT] [--exact-check]
 #include "percentile.hpp"
 #include "operative_case.hpp"
 #include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
 #include <rehearse/simcore/scene.hpp>
+#include <rehearse/simcore/session/step_truth.hpp>
 
 #include <algorithm>
 #include <array>
@@ -25,6 +29,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 #include <string>
@@ -52,8 +57,11 @@ int main(int argc, char** argv) {
   std::string out = ".";
   int repeat = 3;
   std::string only;  // run only the variants whose name contains this
+  bool exactCheck = false;
   for (int i = 1; i < argc; ++i) {
-    if (std::strcmp(argv[i], "--repeat") == 0 && i + 1 < argc)
+    if (std::strcmp(argv[i], "--exact-check") == 0)
+      exactCheck = true;
+    else if (std::strcmp(argv[i], "--repeat") == 0 && i + 1 < argc)
       repeat = std::max(1, std::atoi(argv[++i]));
     else if (std::strcmp(argv[i], "--only") == 0 && i + 1 < argc)
       only = argv[++i];
@@ -77,11 +85,19 @@ int main(int argc, char** argv) {
   ss << in.rdbuf();
   const app::GestureScript all = app::parseGestureScript(ss.str());
   std::ofstream csv(out + "/operative-steps.csv");
-  csv << "variant,script,phase,steps,median_ms,p99_ms,max_ms,converged,inexact,other,largest_error_mm,events\n";
+  csv << "variant,script,phase,steps,median_ms,p99_ms,max_ms,converged,inexact,other,largest_error_mm,events,"
+         "largest_true_error_mm,lowest_estimate_over_truth,past_accuracy,other_solution\n";
   // Every step of each variant's last run: what a slow step did (its Newton iterations, retries, factorisations).
   std::ofstream perStep(out + "/operative-each-step.csv");
   perStep << "variant,step,time_s,phase,wall_ms,outcome,newton_iterations,retries,factorisations,inversion_limited,"
              "residual,elements,events\n";
+  // --exact-check: every step of each variant's last run against exact Newton's answer.
+  std::ofstream exactRows;
+  if (exactCheck) {
+    exactRows.open(out + "/operative-exact.csv");
+    exactRows << "variant,step,time_s,events,ended_on_accuracy,residual,iterations,factorisations,estimate_mm,true_mm,"
+                 "force_error_n,resolved,own_converged_mm,own_to_exact_mm,why\n";
+  }
   std::printf("%-22s %-14s %-14s %6s %9s %9s %9s %s\n", "variant", "script", "phase", "steps", "median ms", "p99",
               "worst", "converged/inexact/other  largest error estimate  events");
   struct Variant {
@@ -100,7 +116,8 @@ int main(int argc, char** argv) {
         Variant{"chord, sync, 0.05 mm", simcore::FactorRefresh::Synchronous, 5, true, 5e-5},
         Variant{"plain chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, false, 0},
         Variant{"plain chord, async", simcore::FactorRefresh::Asynchronous, -1, false, 0}}) {
-    if (!only.empty() && std::string(v.name).find(only) == std::string::npos) continue;
+    if (!only.empty() && (only[0] == '=' ? only.substr(1) != v.name : std::string(v.name).find(only) == std::string::npos))
+      continue;
     {
       simcore::BodySetup s = base;
       s.settings.factorRefresh = v.refresh;
@@ -114,8 +131,17 @@ int main(int argc, char** argv) {
       std::map<std::string, std::array<int, 3>> statuses;
       std::map<std::string, std::map<std::string, int>> events;
       std::map<std::string, double> largestError;  // m: the last run's largest error estimate per phase
+      simcore::BodySetup ran;  // the last run's setup and events (for --exact-check)
+      std::vector<simcore::InputEvent> recorded;
+      long stepsRun = 0;
+      app::GestureHooks hooks;
+      hooks.start = [&](const simcore::BodySetup& b) { ran = b; };
+      hooks.step = [&](const simcore::StepRecord& r) {
+        stepsRun = r.step;
+        if (r.recorded) recorded = *r.recorded;
+      };
       for (int r = 0; r < repeat; ++r) {
-        const app::GestureResult g = app::runGesture(s, script);
+        const app::GestureResult g = app::runGesture(s, script, hooks);
         std::map<std::string, std::vector<double>> ms;
         statuses.clear();
         events.clear();
@@ -149,6 +175,34 @@ int main(int argc, char** argv) {
           worsts[phase].push_back(percentile(t, 1.0));
         }
       }
+      // The last run against exact Newton, per phase: the largest true error (m), the lowest estimate / truth, the steps
+      // ended on the accuracy and past it, the steps where exact Newton went to another solution.
+      struct Truth {
+        double worst = 0, lowest = std::numeric_limits<double>::infinity();
+        int past = 0, other = 0, unresolved = 0;
+      };
+      std::map<std::string, Truth> truths;
+      if (exactCheck) {
+        simcore::ExactCheckOptions o;
+        const double asked = ran.settings.accuracyPosition;
+        o.each = [&](const simcore::StepTruth& t) {
+          std::string said;
+          for (const auto& e : t.events) said += (said.empty() ? "" : " ") + e;
+          exactRows << '"' << v.name << "\"," << t.step << ',' << t.time << ",\"" << said << "\"," << t.report.withinAccuracy
+                    << ',' << t.report.residual << ',' << t.report.newtonIterations << ',' << t.report.factorisations << ','
+                    << 1e3 * t.report.errorPosition << ',' << 1e3 * t.errorPosition << ',' << t.errorForce << ','
+                    << t.resolved << ',' << 1e3 * t.ownConverged << ',' << 1e3 * t.ownToExact << ",\"" << t.why << "\"\n";
+          Truth& p = truths[phaseOf(t.time)];
+          if (!t.resolved) return ++p.unresolved, true;
+          const double own = std::max({asked, 2 * t.report.errorPosition, 1e-9});
+          if (t.ownConverged <= own && t.ownToExact > own) return ++p.other, true;
+          p.worst = std::max(p.worst, t.errorPosition);
+          if (t.errorPosition > 5e-6) p.lowest = std::min(p.lowest, t.report.errorPosition / t.errorPosition);
+          p.past += t.report.withinAccuracy && asked > 0 && t.errorPosition > asked;
+          return true;
+        };
+        simcore::checkAgainstExact(ran, recorded, stepsRun, o);
+      }
       for (const char* phase : {"settle", "clips", "cut", "cautery", "pull and tear"}) {
         if (!medians.count(phase)) continue;
         std::string said;
@@ -158,11 +212,21 @@ int main(int argc, char** argv) {
         std::printf("%-22s %-14s %-14s %6d %9.2f %9.2f %9.2f %d/%d/%d  %.3g mm  %s\n", v.name, "every instrument",
                     phase, n, percentile(medians[phase], 0.5), percentile(p99s[phase], 0.5),
                     percentile(worsts[phase], 0.5), st[0], st[1], st[2], 1e3 * largestError[phase], said.c_str());
+        const Truth& tr = truths[phase];
+        if (exactCheck)
+          std::printf("%-22s %-14s %-14s against exact Newton: at most %.4f mm, estimate >= %.2f x the truth (over 5 um), "
+                      "%d past the accuracy, %d to another solution, %d unresolved\n",
+                      "", "", phase, 1e3 * tr.worst, std::isfinite(tr.lowest) ? tr.lowest : 0.0, tr.past, tr.other,
+                      tr.unresolved);
         csv << '"' << v.name << "\"," << ("every instrument") << ',' << phase << ',' << n << ','
             << percentile(medians[phase], 0.5) << ',' << percentile(p99s[phase], 0.5) << ','
             << percentile(worsts[phase], 0.5) << ',' << st[0] << ',' << st[1] << ',' << st[2] << ','
-            << 1e3 * largestError[phase] << ",\"" << said
-            << "\"\n";
+            << 1e3 * largestError[phase] << ",\"" << said << "\",";
+        if (exactCheck)
+          csv << 1e3 * tr.worst << ',' << (std::isfinite(tr.lowest) ? tr.lowest : 0.0) << ',' << tr.past << ',' << tr.other;
+        else
+          csv << ",,,";
+        csv << "\n";
       }
       std::fflush(stdout);
     }
