@@ -225,8 +225,15 @@ struct ClipCutCauterize {
       QTest::mouseRelease(view, Qt::LeftButton, {}, to);
       QVERIFY(waitFor([&] { return !panel_->lastFrame()->field.energy; }));
       QVERIFY(stepsOn(10));
+      // The burnt elements' body is built on the second thread and comes in when built (one change at a time: after a
+      // cut still being built, later): under a loaded CI machine that took longer than the 10 steps above.
+      auto burntNow = [&] {
+        const auto f = panel_->lastFrame();
+        return f->labels ? std::count_if(f->labels->begin(), f->labels->end(), simcore::isBurnt) : 0L;
+      };
+      QVERIFY(waitFor([&] { return burntNow() > 0; }, 30000));
       const auto f = panel_->lastFrame();
-      const long burnt = f->labels ? std::count_if(f->labels->begin(), f->labels->end(), simcore::isBurnt) : 0;
+      const long burnt = burntNow();
       qInfo("cautery: %ld elements burnt, energy on tissue %.2f s", burnt, f->field.energyTime);
       QVERIFY(burnt > 0);
     }
