@@ -426,10 +426,7 @@ int exactCheck(std::int64_t id, const Recording& rec, const Options& o) {
       ++unresolved;
       return true;
     }
-    // The run's own method converged lies where the run is (within what it asked, or twice its estimate) and exact
-    // Newton's answer elsewhere: the step's equations have two solutions there; the run's is one of them.
-    const double own = std::max({asked, 2 * t.report.errorPosition, 1e-9});
-    if (t.ownConverged <= own && t.ownToExact > own) {
+    if (t.anotherSolution(asked)) {
       ++otherSolution;
       otherApart = std::max(otherApart, t.ownToExact);
       return true;

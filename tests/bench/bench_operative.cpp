@@ -194,8 +194,7 @@ int main(int argc, char** argv) {
                     << t.resolved << ',' << 1e3 * t.ownConverged << ',' << 1e3 * t.ownToExact << ",\"" << t.why << "\"\n";
           Truth& p = truths[phaseOf(t.time)];
           if (!t.resolved) return ++p.unresolved, true;
-          const double own = std::max({asked, 2 * t.report.errorPosition, 1e-9});
-          if (t.ownConverged <= own && t.ownToExact > own) return ++p.other, true;
+          if (t.anotherSolution(asked)) return ++p.other, true;
           p.worst = std::max(p.worst, t.errorPosition);
           if (t.errorPosition > 5e-6) p.lowest = std::min(p.lowest, t.report.errorPosition / t.errorPosition);
           p.past += t.report.withinAccuracy && asked > 0 && t.errorPosition > asked;

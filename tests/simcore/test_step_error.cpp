@@ -5,6 +5,9 @@
 // the liver preset's lobe 24 mm in 0.4 s and lets it go (the release is a step where something happens), with the
 // linearised, chord and exact methods: the estimate is never below the true error by more than 2x, and not above it by
 // more than 10x (20x for a step ended on the accuracy asked; plus 1 nm and 1 mN, below which nothing is resolved).
+// With the accuracy asked and a lagged factor, the step's end is confirmed on the tangent at it (the Newton correction
+// there): checked offline on a whole session, and on a bar torn and swung about, where the factor is not the tangent.
+#include "box_mesh.hpp"
 #include "session_inputs.hpp"
 #include "static_checks.hpp"
 
@@ -17,6 +20,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numeric>
 
 using namespace rehearse;
 using namespace rehearse::simcore;
@@ -309,6 +313,100 @@ class TestStepError : public QObject {
     qInfo("the session run by exact Newton itself: at most %.3g mm from the check's", 1e3 * apart);
     QCOMPARE(exactChecked, exactSteps);
     QVERIFY2(apart < 1e-9, qPrintable(QString::number(apart)));
+  }
+
+  // After a tear the steps have a factor built for the torn body where the tear was launched (the window's configuration:
+  // tears swapped in when built, the factor refreshed on the second thread): far stiffer than the torn piece's tangent as
+  // it swings free. The factor's own one-solve estimate and the relative residual then said 0.0001-0.001 mm where exact
+  // Newton's answer was 0.04-2.25 mm away (bench_operative --exact-check on the patient liver). A bar grasped at its end
+  // and pulled until it tears, the torn piece swung on the grasper and let go, checked offline: no step says it is
+  // within 0.05 mm of exact Newton's answer and is not; every estimate at least half its truth (over 0.025 mm), or
+  // saying it does not know. (Ending the steps on the check instead, the steps' own Newton correction driving them, kept
+  // every step within 0.05 mm here but cost 2.5 times the median step on the patient liver, 0.8 s in its pull.)
+  void aTearCheckedAgainstExactNewtonOffline() {
+    BodySetup b;
+    b.mesh = boxMesh(0.04, 0.01, 0.01, 8, 2, 2);
+    b.fixedNodes = nodesAtX(b.mesh, 0.0);
+    b.material = {MaterialModel::Corotational, 10e3, 0.3, 1000, 0.25};
+    b.settings.method = NewtonMethod::Chord;
+    b.settings.factorRefresh = FactorRefresh::Asynchronous;
+    b.settings.accuracyPosition = 5e-5;
+    b.settings.timeStep = 0.01;
+    b.settings.rayleighMass = 2;
+    b.settings.rayleighStiffness = 0.1;
+    b.tools.graspRadius = 0.008;
+    b.tools.maxGraspForce = 1e3;  // the tissue tears before the jaws let go
+    b.tools.trocar = Eigen::Vector3d(0.2, 0.005, 0.005);
+    b.tools.tearWhenBuilt = true;
+    const Eigen::Vector3d tip(0.04, 0.005, 0.005);
+    const int steps = 110;
+    int tears = 0, tornAt = -1;
+    std::vector<InputEvent> events;
+    {
+      Session s(b);
+      for (int k = 0; k < steps; ++k) {
+        if (k == 0) s.post(testing::toolAt(tip)), s.post(testing::jaws(true));
+        if (k > 0 && k <= 60) s.post(testing::toolAt(tip + Eigen::Vector3d(0.0003 * k, 0, 0)));
+        if (k > 60 && k <= 90)  // the torn piece swung up and down on the grasper
+          s.post(testing::toolAt(tip + Eigen::Vector3d(0.018, 0.01 * std::sin(0.2 * (k - 60)), 0)));
+        if (k == 90) s.post(testing::jaws(false));
+        s.advance();
+        const auto snap = s.snapshot();
+        const int here = static_cast<int>(std::count(snap->events.begin(), snap->events.end(), "tear"));
+        if (here > 0 && tornAt < 0) tornAt = k;
+        tears += here;
+      }
+      events = s.recorded();
+    }
+    QVERIFY2(tears > 0 && tornAt < 60, qPrintable(QString("%1 tears, the first at step %2").arg(tears).arg(tornAt)));
+    int checked = 0, resolved = 0, onAccuracy = 0, unknown = 0, afterTear = 0, other = 0, claimedPast = 0, saidPast = 0;
+    double worst = 0, lowest = 1e300;
+    QString worstAt, lowestAt;
+    ExactCheckOptions o;
+    o.each = [&](const StepTruth& t) {
+      ++checked;
+      if (!t.resolved) return true;
+      ++resolved;
+      if (t.step > tornAt) ++afterTear;
+      if (!std::isfinite(t.report.errorPosition)) {
+        ++unknown;  // said: the tangent there is indefinite
+        return true;
+      }
+      // The run's method converged stays by the run, exact Newton's answer lies elsewhere (the torn piece let go: its
+      // step's equations have two solutions there); counted apart, as the command line does.
+      if (t.anotherSolution(5e-5)) {
+        ++other;
+        return true;
+      }
+      if (t.errorPosition > worst) {
+        worst = t.errorPosition;
+        worstAt = QString("step %1: %2 mm, estimated %3 mm, %4; the run's method converged %5 mm from it, %6 mm from exact Newton's").arg(t.step).arg(1e3 * t.errorPosition).arg(1e3 * t.report.errorPosition).arg(t.report.withinAccuracy ? "ended on the accuracy" : "ended otherwise").arg(1e3 * t.ownConverged).arg(1e3 * t.ownToExact) + QString("; events [%1], exact Newton's [%2]; %3 iterations, %4 inner, residual %5, %6").arg(QString::fromStdString(std::accumulate(t.events.begin(), t.events.end(), std::string(), [](std::string a, const std::string& b) { return a + b + " "; }))).arg(QString::fromStdString(std::accumulate(t.exactEvents.begin(), t.exactEvents.end(), std::string(), [](std::string a, const std::string& b) { return a + b + " "; }))).arg(t.report.newtonIterations).arg(t.report.innerIterations).arg(t.report.residual).arg(QString::fromStdString(statusSentence(t.report)));
+      }
+      if (t.report.withinAccuracy) ++onAccuracy;
+      if (t.errorPosition > 5e-5) ++(t.report.withinAccuracy ? claimedPast : saidPast);
+      // The estimate is of the distance to the answer of the step's equations nearest the run: where the run's own method
+      // converged from the same start (taken where the run is off) lies nearer the run than exact Newton's answer, that
+      // one (exact Newton went to another solution within the accuracy asked).
+      const double truth = std::isfinite(t.ownConverged) ? std::min(t.ownConverged, t.errorPosition) : t.errorPosition;
+      // Judged where the truth is over half the accuracy asked, where an estimate's shortfall could put a step past it
+      // unsaid; below, the factor's own estimate (trusted where its iterations contracted well and it was built near
+      // there) came to 0.3 x a truth of 0.007 mm in one run of ten: within the accuracy either way, said in the note.
+      if (truth > 2.5e-5 && t.report.errorPosition / truth < lowest) {
+        lowest = t.report.errorPosition / truth;
+        lowestAt = QString("step %1: %2 mm estimated, %3 mm true").arg(t.step).arg(1e3 * t.report.errorPosition).arg(1e3 * truth);
+      }
+      return true;
+    };
+    checkAgainstExact(b, events, steps, o);
+    qInfo("%d tears (the first at step %d); %d steps checked, %d resolved, %d after the tear, %d ended on the accuracy, %d "
+          "with the distance unknown, %d where exact Newton went to another solution, %d past the accuracy and saying "
+          "so, %d past it and saying within; the farthest %s; the lowest estimate for its truth %s",
+          tears, tornAt, checked, resolved, afterTear, onAccuracy, unknown, other, saidPast, claimedPast,
+          qPrintable(worstAt), qPrintable(lowestAt));
+    QCOMPARE(checked, steps);
+    QVERIFY(resolved >= steps - 2 && afterTear > 30 && other <= 5);
+    QVERIFY2(claimedPast == 0, qPrintable(worstAt));  // never a step said within the accuracy and past it
+    QVERIFY2(lowest >= 0.5, qPrintable(lowestAt));
   }
 
   // The estimate changes nothing a step computes: the same run with it off gives the same bits.

@@ -99,4 +99,9 @@ void checkAgainstExact(const BodySetup& setup, const std::vector<InputEvent>& ev
   }
 }
 
+bool StepTruth::anotherSolution(double asked) const {
+  const double own = std::max({asked, 2 * report.errorPosition, 1e-9});
+  return ownConverged <= own && ownToExact > own;
+}
+
 }  // namespace rehearse::simcore

@@ -125,8 +125,12 @@ struct SimulationSettings {
   /// node is estimated within `accuracyPosition` (m) of the converged answer of its equations and the tool force within
   /// `accuracyForce` of its size (at least 1 mN), or once the relative residual is under `tolerance`, whichever comes
   /// first. The estimate is the correction the step's own factor gives at the iterate (the solve the next move needs)
-  /// divided by 1 - rho, rho the largest residual ratio of the step's plain moves: what an iteration contracting by rho
-  /// still has to go; the step's first correction is always taken. StepReport::errorPosition is then the same figure.
+  /// divided by 1 - rho, rho the iteration's contraction (from its residuals and its corrections); the step's first
+  /// correction is always taken. Where that factor is not to be trusted (a lagged factor whose iterations contracted
+  /// slowly, or built more than 2 mm from where the organ now is: after a tear) the end's distance is measured again on
+  /// the tangent there (the Newton correction, conjugate gradients preconditioned by the factor): StepReport::
+  /// errorPosition is that figure (NaN where it cannot be known: an indefinite tangent, the contacts' problem unsolved or
+  /// changing), and withinAccuracy is false unless it confirms the accuracy. The step itself is unchanged by that check.
   /// 0: off, the relative residual alone decides (SimulationSettings{}, the sessions recorded before it existed).
   /// Recorded only when on.
   double accuracyPosition = 0;
@@ -203,11 +207,13 @@ struct StepReport {
   bool guardStalled = false;
   double tolerance = 0;  ///< the relative residual the outcome was judged against
   /// The step ended on the accuracy asked in millimetres and newtons (SimulationSettings::accuracyPosition), its
-  /// relative residual still above `tolerance`.
+  /// relative residual still above `tolerance`, and no check on the tangent at its end said otherwise.
   bool withinAccuracy = false;
   /// How far the step's end lies from the converged answer of its equations (exact Newton's, which its residual
   /// measures), estimated as it runs (issue 64): the correction the step's own factor gives for its last residual,
-  /// the attachments and the tool's holds kept (one more solve with the factor the step has). `errorPosition`: the
+  /// the attachments and the tool's holds kept (one more solve with the factor the step has); with the accuracy asked
+  /// and a factor not to be trusted, the Newton correction on the tangent at the end (SimulationSettings::
+  /// accuracyPosition), NaN where that distance cannot be known. `errorPosition`: the
   /// largest node's distance (m); the constraints' force change is Integrator::errorMultipliers (N). NaN when not
   /// estimated (SimulationSettings::estimateError off, a failed step, or no factor: the cg and dense solvers).
   double errorPosition = std::numeric_limits<double>::quiet_NaN();

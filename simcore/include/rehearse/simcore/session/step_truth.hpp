@@ -32,6 +32,9 @@ struct StepTruth {
   /// Newton went to (a torn flap resting either way). NaN when not taken or not converged.
   double ownConverged = std::numeric_limits<double>::quiet_NaN();
   double ownToExact = std::numeric_limits<double>::quiet_NaN();
+  /// The run's own method converged lies where the run is (within `asked`, m, or twice its estimate) and exact Newton's
+  /// answer elsewhere: the step's equations have two solutions there, the run's one of them (not an error of the run).
+  bool anotherSolution(double asked) const;
 };
 
 struct ExactCheckOptions {
