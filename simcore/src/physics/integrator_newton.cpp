@@ -35,8 +35,8 @@ constexpr int kVerifyBudget = 40;
 constexpr double kVerifyMargin = 0.8;
 // The factor's estimate is checked on the tangent when the iterations contracted by more than this, or the factor was
 // built more than this far (m, the largest node) from the step's start.
-constexpr double kVerifyRho = 0.5;
-constexpr double kStaleFactor = 2e-3;
+constexpr double kVerifyRho = 0.8;
+constexpr double kStaleFactor = 5e-3;
 
 // The factor's correction within this factor of the Newton correction: the factor stands for the tangent there.
 constexpr double kVerifyAgree = 1.5;
