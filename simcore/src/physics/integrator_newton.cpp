@@ -353,27 +353,24 @@ bool NewtonLoop::contactsChange() {
 }
 
 // Issue 64: the correction exact Newton would make at the iterate, its largest node's (m) the iterate's distance from
-// the step's answer: the lagged factor's constrained correction (already in w.dv and the multipliers when
-// `haveCorrection`), refined by conjugate gradients on the tangent at the iterate preconditioned by the factor (the
+// the step's answer: the lagged factor's constrained correction, refined by conjugate gradients on the tangent at the iterate preconditioned by the factor (the
 // Newton-Krylov solve) to 1e-5 of the residual (at 1e-2 the correction was off by up to 2x on a torn bar: the tangent is
 // ill-conditioned). Within: confirmed within the accuracy asked (the multipliers put back). Indefinite: a direction of
 // non-positive curvature met (a torn flap, a buckling one). Unresolved: the contacts' problem was not solved or changes
 // its set. Move: not confirmed; w.dv and the multipliers hold the Newton step there.
-NewtonLoop::Verdict NewtonLoop::verify(bool haveCorrection) {
+NewtonLoop::Verdict NewtonLoop::verify() {
   w.xt = w.x0 + h * w.v;
-  if (!haveCorrection) {
-    w.tmp = -w.r;
-    if (hasConstraints) w.muBefore = w.cons.multipliers();
-    const int before = rep.innerIterations;
-    if (!solveConstrained(w.tmp, w.xt, h, w.dv, rep) || !w.dv.allFinite()) return Verdict::Failed;
-    lastSweeps_ = rep.innerIterations - before;
-  }
+  w.tmp = -w.r;
+  if (hasConstraints) w.muBefore = w.cons.multipliers();
+  const int before = rep.innerIterations;
+  if (!solveConstrained(w.tmp, w.xt, h, w.dv, rep) || !w.dv.allFinite()) return Verdict::Failed;
+  const int sweeps = rep.innerIterations - before;
   // Unilateral rows (the shaft's contacts) whose Gauss-Seidel ran all its sweeps kept its best iterate, not a solution
   // (the active set that follows it failed too): the correction is not the equations' (a bar's torn piece against the
   // shaft: 600 sweeps in a step, its estimate 0.005 mm where exact Newton's answer was 0.18 mm away).
   bool unilateral = false;
   for (const auto& c : in_.constraints()) unilateral = unilateral || c.unilateral;
-  if (unilateral && lastSweeps_ >= settings_.gaussSeidelIterations) return Verdict::Unresolved;
+  if (unilateral && sweeps >= settings_.gaussSeidelIterations) return Verdict::Unresolved;
   if (!(w.tangentItValid && w.tangentItAt.size() == w.xt.size() && w.tangentItAt == w.xt)) {
     prepareTangentState(model_, w.xt, w.tangentIt);
     w.tangentItAt = w.xt;
@@ -386,7 +383,7 @@ NewtonLoop::Verdict NewtonLoop::verify(bool haveCorrection) {
   double chord = 0;  // m: the lagged factor's correction, before the refinement
   for (Eigen::Index i = 0; i + 2 < w.dv.size(); i += 3) chord = std::max(chord, w.dv.segment<3>(i).squaredNorm());
   chord = h * std::sqrt(chord);
-  const bool solved = refineOnTangent(target, 0.0, kVerifyBudget, true, definite, net, k);
+  const bool solved = refineOnTangent(target, kVerifyBudget, true, definite, net, k);
   rep.innerIterations += k;
   project(w.dv);
   if (!solved || !w.dv.allFinite()) return Verdict::Failed;
@@ -415,14 +412,9 @@ NewtonLoop::Verdict NewtonLoop::verify(bool haveCorrection) {
   // The Newton correction is the distance to first order where the factor's own correction agrees with it (the factor
   // stands for the tangent there); else it is reported, not confirmed. After a tear on the patient liver corrections of
   // 0.004-0.013 mm stood where the answer was 0.06-0.65 mm away, the factor's correction far from them.
-  const double estimate = verifiedEstimate_;
-  const bool region = chord <= kVerifyAgree * verifiedEstimate_ && verifiedEstimate_ <= kVerifyAgree * chord;
+  const bool region = chord <= kVerifyAgree * newton && newton <= kVerifyAgree * chord;
   // A margin for the rest (a correction of 0.047 mm was 0.052 mm from exact Newton's answer after a tear, 0.05 asked).
-  const bool within = resolved && region && estimate <= kVerifyMargin * settings_.accuracyPosition && forceWithin;
-  if (within && hasConstraints && w.cons.multipliers().size() == w.muBefore.size()) w.cons.multipliers() = w.muBefore;
-  if (within) return Verdict::Within;
-  // Not within: w.dv and the multipliers are the refined correction, a descent direction of the step's potential even
-  // where the tangent is indefinite (conjugate gradients stopped before the direction of non-positive curvature).
+  if (resolved && region && newton <= kVerifyMargin * settings_.accuracyPosition && forceWithin) return Verdict::Within;
   return definite ? Verdict::Move : Verdict::Indefinite;
 }
 
@@ -576,13 +568,13 @@ NewtonIteration::Try NewtonLoop::finish(bool ok, int maxIterations) {
     }
     // Issue 64: where the factor's estimate is not to be trusted (its iterations contracted slowly, or it was built
     // where the organ no longer is: after a tear), the distance is measured on the tangent at the end instead, and a
-    // step that ended on the accuracy but is not confirmed within it there does not say it is. The step itself is
-    // unchanged (the same bits as without this check).
+    // step that ended on the accuracy but is not confirmed within it there does not say it is. The step's end is not
+    // moved (its positions, velocities and multipliers as it left them).
     const bool verifying = accuracy_ && lagged && settings_.solver == LinearSolverKind::Cholmod && w.chol->valid();
     if (verifying && suspect()) {
-      if (hasConstraints) w.muEnd = w.cons.multipliers();
-      const Verdict v = verify(false);
-      if (hasConstraints && w.muEnd.size() == w.cons.multipliers().size()) w.cons.multipliers() = w.muEnd;
+      const Verdict v = verify();
+      // The multipliers the step ended with (verify() kept them in muBefore).
+      if (hasConstraints && w.muBefore.size() == w.cons.multipliers().size()) w.cons.multipliers() = w.muBefore;
       if (v == Verdict::Within || v == Verdict::Move) {
         rep.errorPosition = verifiedEstimate_;
       } else {
@@ -809,8 +801,8 @@ void NewtonLoop::applyJ(const Eigen::VectorXd& in, Eigen::VectorXd& out) {
   project(out);
 }
 
-bool NewtonLoop::refineOnTangent(double target, double relative, int budget, bool curvature, bool& definite,
-                                 double& net, int& iterations) {
+bool NewtonLoop::refineOnTangent(double target, int budget, bool curvature, bool& definite, double& net,
+                                 int& iterations) {
   const bool constrained = hasConstraints && w.cons.fixActiveSet();
   auto netOf = [&](const Eigen::VectorXd& res, const Eigen::VectorXd& y) {
     if (!constrained) return res.norm();
@@ -826,7 +818,6 @@ bool NewtonLoop::refineOnTangent(double target, double relative, int budget, boo
   project(w.pr);
   bool solved = w.cons.projectedSolve(*w.chol, w.pr, w.pz, w.py);
   net = netOf(w.pr, w.py);
-  target = std::max(target, relative * net);
   w.pp = w.pz;
   double rz = w.pr.dot(w.pz);
   for (; solved && k < budget && net > target && rz > 0; ++k) {
@@ -871,7 +862,7 @@ bool KrylovNewton::solve() {
         std::max(0.1 * settings_.tolerance * scale, std::min(1e-4, 0.1 * rn / scale) * std::max(rn, 1e-300));
     bool definite = true;
     double net = 0;
-    solved = refineOnTangent(target, 0.0, kKrylovBudget, false, definite, net, k);
+    solved = refineOnTangent(target, kKrylovBudget, false, definite, net, k);
   }
   rep.innerIterations += k;
   if (k > kKrylovDrift) w.drift = true;  // the lagged factor has drifted: a new one at the next step's start

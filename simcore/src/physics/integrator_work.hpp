@@ -28,7 +28,7 @@ struct Integrator::Work {
   Eigen::VectorXd errorDv, errorCarried;       // the step's error estimate: its correction, the multipliers kept
   Eigen::VectorXd errorLambda;                 // the multipliers' distance from the converged answer's (N)
   bool errorLambdaValid = false;
-  Eigen::VectorXd muBefore, muChange, muEnd;  // SimulationSettings::accuracyPosition: the multipliers before a solve, their change
+  Eigen::VectorXd muBefore, muChange;  // SimulationSettings::accuracyPosition: the multipliers before a solve, their change
   bool estimateThisStep = true;  // Integrator::step: this step estimates its error (SimulationSettings::estimateErrorEvery)
   long stepsTaken = 0;
   double laggedStep = -1;                      // h the lagged factor was built for (-1: none)

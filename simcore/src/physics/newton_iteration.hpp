@@ -106,7 +106,6 @@ class NewtonLoop : public NewtonIteration {
   /// After an iterate was taken (s_.rn its residual's norm, `previous` the last one's); false ends the iterations.
   virtual bool iterated(double previous) { return true; }
 
-
   void residual(const Eigen::VectorXd& vel, Eigen::VectorXd& out);
   double potential(const Eigen::VectorXd& vel);
   double netNorm(const Eigen::VectorXd& res);
@@ -114,21 +113,20 @@ class NewtonLoop : public NewtonIteration {
   void applyJ(const Eigen::VectorXd& in, Eigen::VectorXd& out);
   /// The lagged factor's constrained correction in w.dv (its multipliers the constraints') refined by conjugate
   /// gradients on J at the iterate, preconditioned by the factor with the constraints' active set fixed (Newton-Krylov's
-  /// solve), until the net residual is under max(target, relative x the first one) or `budget` iterations (counted in
-  /// `iterations`); `net` the last net residual. With `curvature`, an iteration meeting a direction of non-positive
-  /// curvature stops there and sets `definite` false (the tangent at the iterate is indefinite).
-  bool refineOnTangent(double target, double relative, int budget, bool curvature, bool& definite, double& net,
-                       int& iterations);
+  /// solve), until the net residual is under `target` or `budget` iterations (counted in `iterations`); `net` the last
+  /// net residual. With `curvature`, an iteration meeting a direction of non-positive curvature stops there and sets
+  /// `definite` false (the tangent at the iterate is indefinite).
+  bool refineOnTangent(double target, int budget, bool curvature, bool& definite, double& net, int& iterations);
 
  private:
-  // Within: confirmed within the accuracy. Move: not (w.dv the Newton step there). Indefinite: the tangent at the iterate is (the
-  // refined correction so far in w.dv, a descent direction). Unresolved: the contacts' complementarity problem was not
-  // solved (its sweeps ran out), so nothing the iterate's solves say is its distance. Failed: no solve.
+  // Within: confirmed within the accuracy. Move: not (w.dv the Newton step there). Indefinite: the tangent at the
+  // iterate is. Unresolved: the contacts' problem was not solved (its sweeps ran out) or changes its set. Failed: no
+  // solve.
   enum class Verdict { Within, Move, Indefinite, Unresolved, Failed };
   void start();
   double lineSearch(double rnew);
   bool withinAccuracy();
-  Verdict verify(bool haveCorrection);
+  Verdict verify();
   bool contactsChange();
   bool suspect() const;
   Try finish(bool ok, int maxIterations);
@@ -144,7 +142,6 @@ class NewtonLoop : public NewtonIteration {
   double rho() const { return std::max(contraction_, correctionRatio_); }
   // The check's estimate of the end's distance on the tangent there (m; NaN: none made).
   double verifiedEstimate_ = std::numeric_limits<double>::quiet_NaN();
-  int lastSweeps_ = 0;            // the constraint solver's sweeps in this iteration's solve
 
  protected:
   bool plainMove_ = true;  // the last move was the plain correction (the chord's: not mixed)

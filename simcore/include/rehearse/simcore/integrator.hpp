@@ -126,11 +126,11 @@ struct SimulationSettings {
   /// `accuracyForce` of its size (at least 1 mN), or once the relative residual is under `tolerance`, whichever comes
   /// first. The estimate is the correction the step's own factor gives at the iterate (the solve the next move needs)
   /// divided by 1 - rho, rho the iteration's contraction (from its residuals and its corrections); the step's first
-  /// correction is always taken. Where that factor is not to be trusted (a lagged factor whose iterations contracted
-  /// slowly, or built more than 2 mm from where the organ now is: after a tear) the end's distance is measured again on
-  /// the tangent there (the Newton correction, conjugate gradients preconditioned by the factor): StepReport::
+  /// correction is always taken. Where that factor is not to be trusted (a lagged factor whose iterations contracted by
+  /// more than 0.8, or built more than 5 mm from where the organ now is: after a tear) the end's distance is measured
+  /// again on the tangent there (the Newton correction, conjugate gradients preconditioned by the factor): StepReport::
   /// errorPosition is that figure (NaN where it cannot be known: an indefinite tangent, the contacts' problem unsolved or
-  /// changing), and withinAccuracy is false unless it confirms the accuracy. The step itself is unchanged by that check.
+  /// changing), and withinAccuracy is false unless it confirms the accuracy. The step's end is not moved by that check.
   /// 0: off, the relative residual alone decides (SimulationSettings{}, the sessions recorded before it existed).
   /// Recorded only when on.
   double accuracyPosition = 0;
