@@ -396,7 +396,7 @@ class TestStepError : public QObject {
       if (t.report.retries > 0) ++halved;
       if (truth > 2.5e-5 && t.report.retries == 0 && t.report.errorPosition / truth < lowest) {
         lowest = t.report.errorPosition / truth;
-        lowestAt = QString("step %1: %2 mm estimated, %3 mm true").arg(t.step).arg(1e3 * t.report.errorPosition).arg(1e3 * truth);
+        lowestAt = QString("step %1: %2 mm estimated, %3 mm true; %4 iterations, %5 inner, residual %6, %7").arg(t.step).arg(1e3 * t.report.errorPosition).arg(1e3 * truth).arg(t.report.newtonIterations).arg(t.report.innerIterations).arg(t.report.residual).arg(t.report.withinAccuracy ? "ended on the accuracy" : "ended otherwise");
       }
       return true;
     };
