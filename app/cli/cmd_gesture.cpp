@@ -270,12 +270,13 @@ struct LargestError {
   double position = std::numeric_limits<double>::quiet_NaN(), force = std::numeric_limits<double>::quiet_NaN();
   long step = -1;
   std::size_t notEstimated = 0;
+  std::size_t unknown = 0;  // checked on the tangent and found not knowable there (StepReport::errorUnknown)
 };
 LargestError largestError(const GestureResult& r) {
   LargestError e;
   for (const auto& s : r.steps) {
     if (!std::isfinite(s.report.errorPosition)) {
-      ++e.notEstimated;
+      ++(s.report.errorUnknown ? e.unknown : e.notEstimated);
       continue;
     }
     if (!(s.report.errorPosition <= e.position)) {
@@ -319,6 +320,7 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
                     {"factor_requested", s.report.factorRequested},
                     {"factor_swapped", s.report.factorSwapped},
                     {"error_m", finiteOrNull(s.report.errorPosition)},
+                    {"error_unknown", s.report.errorUnknown},
                     {"force_error_n", finiteOrNull(s.report.errorForce)}});
   std::vector<const simcore::StepReport*> all;
   for (const auto& s : r.steps) all.push_back(&s.report);
@@ -350,7 +352,8 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
                {"contact_queries", r.contactQueries},
                {"largest_error_m", finiteOrNull(largest.position)},
                {"largest_force_error_n", finiteOrNull(largest.force)},
-               {"steps_not_estimated", largest.notEstimated}});
+               {"steps_not_estimated", largest.notEstimated},
+               {"steps_error_unknown", largest.unknown}});
 }
 
 // The session's line on stdout.
@@ -373,9 +376,17 @@ void printGestureSummary(const std::string& outPath, const GestureResult& r, con
       outPath.c_str());
   const LargestError e = largestError(r);
   if (std::isfinite(e.position))
-    std::printf("estimated error against the converged answer: at most %.3g mm (step %ld), tool force within %.3g N%s\n",
+    std::printf("estimated error against the converged answer: at most %.3g mm (step %ld), tool force within %.3g N%s%s\n",
                 1e3 * e.position, e.step, std::isfinite(e.force) ? e.force : 0.0,
-                e.notEstimated ? ("; " + std::to_string(e.notEstimated) + " steps not estimated").c_str() : "");
+                e.notEstimated ? ("; " + std::to_string(e.notEstimated) + " steps not estimated").c_str() : "",
+                e.unknown ? ("; " + std::to_string(e.unknown) +
+                             " steps' distance not known (an indefinite tangent, or the contacts changing)")
+                                .c_str()
+                          : "");
+  else if (e.unknown > 0)
+    std::printf("estimated error against the converged answer: not known (%zu steps checked on the tangent: an "
+                "indefinite tangent, or the contacts changing)\n",
+                e.unknown);
   else
     std::printf("estimated error against the converged answer: not estimated (%s)\n",
                 setup.model != simcore::BodyModel::Fem ? "a reduced model's steps have no residual to estimate it from"

@@ -414,11 +414,18 @@ void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
   last_ = f;
   // The session estimates its error every 10th step: the last estimate stays shown between them.
   // (The fast models estimate nothing: no estimate of an earlier body is shown for them.)
+  // A step whose distance the check on the tangent found cannot be known says so (the estimate before it is not shown
+  // as if it held).
   if (std::isfinite(f->report.errorPosition)) {
     lastError_ = f->report.errorPosition;
     lastForceError_ = std::isfinite(f->report.errorForce) ? f->report.errorForce : 0;
+    errorUnknown_ = false;
+  } else if (f->report.errorUnknown) {
+    lastError_ = std::numeric_limits<double>::quiet_NaN();
+    errorUnknown_ = true;
   } else if (f->steps == 0 || f->model != simcore::BodyModel::Fem) {
     lastError_ = std::numeric_limits<double>::quiet_NaN();
+    errorUnknown_ = false;
   }
   if (asked_.model != f->model && f->message.contains(u"refused")) {
     // The model asked for was refused or its build cancelled: the list shows what runs.
@@ -478,6 +485,8 @@ QString SimulationPanel::statusText() const {
   if (std::isfinite(lastError_)) {
     error = tr(" · ±%1 mm").arg(QString::number(1e3 * lastError_, 'g', 2));
     if (lastForceError_ > 0) error += tr(", ±%1 N").arg(QString::number(lastForceError_, 'g', 2));
+  } else if (errorUnknown_) {
+    error = tr(" · distance from the converged answer not known");
   }
   return tr("t = %1 s · step %2 ms%3 · %4%5 · %6")
       .arg(last_->time, 0, 'f', 2)

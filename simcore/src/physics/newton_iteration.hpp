@@ -139,12 +139,22 @@ class NewtonLoop : public NewtonIteration {
   double correctionRatio_ = 0;
   double lastCorrection_ = 0;
   bool ratioMeasured_ = false;
-  double rho() const { return std::max(contraction_, correctionRatio_); }
+  bool beyondFirst_ = false;  // a correction's ratio measured beyond the step's first (not along the first move)
+  // The contraction the estimates divide by. Before any correction's ratio beyond the step's first is measured, at
+  // least kFirstMoveContraction: the first ratio is measured along the first move, the new load's direction, which the
+  // factor holds well; the error left lies elsewhere (integrator_newton.cpp).
+  double rho() const {
+    return std::max({contraction_, correctionRatio_, beyondFirst_ || !chordMap_ ? 0.0 : kFirstMoveContraction});
+  }
+  static constexpr double kFirstMoveContraction = 0.5;
   // The check's estimate of the end's distance on the tangent there (m; NaN: none made).
   double verifiedEstimate_ = std::numeric_limits<double>::quiet_NaN();
 
  protected:
   bool plainMove_ = true;  // the last move was the plain correction (the chord's: not mixed)
+  // The moves are the lagged factor's corrections (the chord): their contraction is the factor's mismatch with the
+  // tangent, direction by direction (the Newton methods solve with the tangent itself).
+  bool chordMap_ = false;
 };
 
 /// Exact Newton: the tangent assembled and factorised at every iteration (projected, then shifted, when indefinite);

@@ -217,6 +217,9 @@ struct StepReport {
   /// largest node's distance (m); the constraints' force change is Integrator::errorMultipliers (N). NaN when not
   /// estimated (SimulationSettings::estimateError off, a failed step, or no factor: the cg and dense solvers).
   double errorPosition = std::numeric_limits<double>::quiet_NaN();
+  /// The check on the tangent ran and found the distance cannot be known there (an indefinite tangent, the contacts'
+  /// problem unsolved or changing): errorPosition is NaN for that reason, not for want of an estimate.
+  bool errorUnknown = false;
   /// The tool force's distance from the converged answer's (N), from errorMultipliers (the body fills it: it knows
   /// which constraints are the tool's); NaN when not estimated, 0 without a tool.
   double errorForce = std::numeric_limits<double>::quiet_NaN();

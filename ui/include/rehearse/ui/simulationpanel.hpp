@@ -131,6 +131,7 @@ class SimulationPanel : public QWidget {
   std::shared_ptr<const app::Case> organ_;
   std::shared_ptr<const SimulationFrame> last_;
   double lastError_ = std::numeric_limits<double>::quiet_NaN(), lastForceError_ = 0;  // the last step that estimated
+  bool errorUnknown_ = false;  // the last step's check said its distance cannot be known
   bool playing_ = false;
   struct {
     QElapsedTimer clock;
