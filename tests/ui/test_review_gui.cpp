@@ -528,6 +528,13 @@ class TestReviewGui : public QObject {
     QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     auto* panel = w_->simulationPanel();
     auto* name = child<QLineEdit>("traineeName");
+    // The main window active and the name field focused before the keys (the review window was active last: on the
+    // offscreen platform the activation can lag, and Ctrl+R is the window's shortcut).
+    QVERIFY(waitFor([&] {
+      if (!w_->isActiveWindow()) w_->activateWindow();
+      name->setFocus();
+      return w_->isActiveWindow() && name->hasFocus();
+    }, 10000));
     name->clear();
     QTest::keyClicks(name, "Trainee Two");
     QTest::keyClick(name, Qt::Key_R,
@@ -683,8 +690,12 @@ class TestReviewGui : public QObject {
     review->activateWindow();
     QVERIFY(QTest::qWaitForWindowActive(review));
     auto* list = review->findChild<QComboBox*>("firstSession");
-    list->setFocus();
-    QVERIFY(list->hasFocus());
+    // (Two top-level windows on the offscreen platform: the activation can lag the call; asked again until it holds.)
+    QVERIFY(waitFor([&] {
+      if (!review->isActiveWindow()) review->activateWindow();
+      list->setFocus();
+      return list->hasFocus();
+    }, 10000));
     QTest::keyClick(list, Qt::Key_End);
     QVERIFY(landsOn(review, 0, app::loadRecording(path.toStdString(), 2).summary.steps));
     QVERIFY2(shows(damaged), "the status bar says the seek passed over the damaged checkpoint");
