@@ -432,7 +432,8 @@ StepReport Integrator::step(SimulationState& state) {
     rep.withinAccuracy = sub.withinAccuracy && retries == 0;
     rep.residual = sub.residual;
     rep.errorPosition = outcome == Try::Failed ? std::numeric_limits<double>::quiet_NaN() : worstError;
-    rep.errorUnknown = outcome != Try::Failed && sub.errorUnknown;  // a sub-step's distance not known: the step's
+    // A sub-step whose distance was found not knowable makes the whole step's not known.
+    rep.errorUnknown = outcome != Try::Failed && sub.errorUnknown;
     rep.timeStepUsed = h;
     // The linearised method does one solve by design: its step is what it is (a retry would not be that method).
     if (outcome == Try::Converged || (outcome == Try::Inexact && linearised)) {
