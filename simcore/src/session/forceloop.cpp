@@ -150,17 +150,19 @@ ForceLoop::Timing ForceLoop::timing() const {
     t.realtime = realtime_;
   }
   if (p.empty()) return t;
-  auto at = [](std::vector<double> v, double q) {
-    std::sort(v.begin(), v.end());
-    return v[static_cast<std::size_t>(std::lround(q * static_cast<double>(v.size() - 1)))];
+  // The quantiles by selection, not by sorting: the Rehearse page asks 10 times a second on the GUI thread, and four
+  // sorts of the last 10,000 periods took 4-10 ms there (a visible share of a frame).
+  auto at = [](std::vector<double>& v, double q) {
+    const auto k = static_cast<std::ptrdiff_t>(std::lround(q * static_cast<double>(v.size() - 1)));
+    std::nth_element(v.begin(), v.begin() + k, v.end());
+    return v[static_cast<std::size_t>(k)];
   };
-  t.medianPeriodMs = at(p, 0.5);
+  t.maxPeriodMs = *std::max_element(p.begin(), p.end());
   t.p99PeriodMs = at(p, 0.99);
-  t.maxPeriodMs = at(p, 1.0);
+  t.medianPeriodMs = at(p, 0.5);
   const double nominal = 1000.0 / rate_;
-  std::vector<double> dev(p.size());
-  for (std::size_t i = 0; i < p.size(); ++i) dev[i] = std::abs(p[i] - nominal);
-  t.jitterMs = at(dev, 0.99);
+  for (double& v : p) v = std::abs(v - nominal);
+  t.jitterMs = at(p, 0.99);
   return t;
 }
 
