@@ -62,9 +62,11 @@ CaseDocument::Parts difference(const app::Case* a, const app::Case& b) {
 
 QImage frameToQImage(const cv::Mat3b& bgr) {
   if (bgr.empty()) return {};
-  cv::Mat rgb;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  return QImage(rgb.data, rgb.cols, rgb.rows, static_cast<int>(rgb.step), QImage::Format_RGB888).copy();
+  // As 32-bit pixels (B, G, R, 255 in memory: QImage::Format_RGB32): the format QPainter draws without converting
+  // (a 24-bit image was converted at each repaint of the composited view, on the GUI thread).
+  cv::Mat bgra;
+  cv::cvtColor(bgr, bgra, cv::COLOR_BGR2BGRA);
+  return QImage(bgra.data, bgra.cols, bgra.rows, static_cast<int>(bgra.step), QImage::Format_RGB32).copy();
 }
 
 CaseDocument::CaseDocument(QObject* parent) : QObject(parent) {

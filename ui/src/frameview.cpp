@@ -1,5 +1,7 @@
 #include "rehearse/ui/frameview.hpp"
 
+#include <QTimer>
+
 #include "tools/tools.hpp"
 
 #include <rehearse/imaging/render.hpp>
@@ -21,6 +23,10 @@ FrameView::FrameView(QWidget* parent) : QWidget(parent) {
   setMouseTracking(true);
   setFocusPolicy(Qt::StrongFocus);
   setAttribute(Qt::WA_OpaquePaintEvent);
+  settle_ = new QTimer(this);
+  settle_->setSingleShot(true);
+  settle_->setInterval(250);
+  connect(settle_, &QTimer::timeout, this, [this] { scaleFrame(); });
   tools_[Tool::Freehand] = tools::makeDrawTool(*this, true);
   tools_[Tool::ClickPoints] = tools::makeDrawTool(*this, false);
   tools_[Tool::EditPoints] = tools::makeEditPointsTool(*this);
@@ -46,6 +52,20 @@ void FrameView::setFrame(const QImage& frame) {
   const bool sameSize = frame.size() == frame_.size();
   frame_ = frame;
   if (!sameSize) fitToWindow();
+  update();
+}
+
+void FrameView::scaleFrame() {
+  if (frame_.isNull()) return;
+  const QTransform toWidget = frameToWidget();
+  const bool smooth = zoom_ < 2.0;
+  if (scaledFrame_.key == frame_.cacheKey() && scaledFrame_.transform == toWidget && scaledFrame_.smooth == smooth) return;
+  const QRectF target = toWidget.mapRect(QRectF(QPointF(0, 0), QSizeF(frame_.size())));
+  scaledFrame_.image = frame_.scaled(target.size().toSize(), Qt::IgnoreAspectRatio, smooth ? Qt::SmoothTransformation : Qt::FastTransformation);
+  scaledFrame_.at = target.topLeft();
+  scaledFrame_.key = frame_.cacheKey();
+  scaledFrame_.transform = toWidget;
+  scaledFrame_.smooth = smooth;
   update();
 }
 
@@ -291,18 +311,21 @@ void FrameView::paintEvent(QPaintEvent*) {
   painter.setRenderHint(QPainter::SmoothPixmapTransform, zoom_ < 2.0);
   painter.setRenderHint(QPainter::Antialiasing);
   const QTransform toWidget = frameToWidget();
-  // The frame scaled to the view, kept while neither changes: while rehearsing only the organ over it
-  // changes, and a smooth scale of the whole frame was half of each repaint (bench_rehearsal_view).
+  // The frame scaled to the view, kept while neither changes: while rehearsing over the frame only the organ over it
+  // changes, and a smooth scale of the whole frame was half of each repaint (bench_rehearsal_view). A frame that
+  // changes at each step (the composited view) is drawn through the painter's transform instead until it has stayed
+  // the same a quarter of a second: scaling each new one first took 7-24 ms of the GUI thread per repaint (the patient
+  // liver's 1920x1080 frame, the simulation running on both cores), the window's longest pauses while rehearsing.
   const bool smooth = zoom_ < 2.0;
-  if (scaledFrame_.key != frame_.cacheKey() || scaledFrame_.transform != toWidget || scaledFrame_.smooth != smooth) {
-    const QRectF target = toWidget.mapRect(QRectF(QPointF(0, 0), QSizeF(frame_.size())));
-    scaledFrame_.image = frame_.scaled(target.size().toSize(), Qt::IgnoreAspectRatio, smooth ? Qt::SmoothTransformation : Qt::FastTransformation);
-    scaledFrame_.at = target.topLeft();
-    scaledFrame_.key = frame_.cacheKey();
-    scaledFrame_.transform = toWidget;
-    scaledFrame_.smooth = smooth;
+  if (scaledFrame_.key == frame_.cacheKey() && scaledFrame_.transform == toWidget && scaledFrame_.smooth == smooth) {
+    painter.drawImage(scaledFrame_.at, scaledFrame_.image);
+  } else {
+    painter.save();
+    painter.setTransform(toWidget);
+    painter.drawImage(QPointF(0, 0), frame_);
+    painter.restore();
+    settle_->start();  // (again: the frame or the view changed since it was started)
   }
-  painter.drawImage(scaledFrame_.at, scaledFrame_.image);
   painter.setTransform(toWidget);
   if (overlayVisible_) paintOverlay(painter);
   if (!possible_.isEmpty() && !secondShown_) {

@@ -171,7 +171,7 @@ struct GLCompositor::Impl {
     const QImage image = fbo->toImage();
     fbo->release();
     if (image.isNull()) return false;
-    out = image.convertToFormat(QImage::Format_RGB888);
+    out = image.convertToFormat(QImage::Format_RGB32);  // (the format QPainter draws as it is)
     return true;
   }
 };

@@ -16,6 +16,8 @@
 #include <rehearse/simcore/session/session.hpp>
 #include <QWidget>
 
+class QTimer;
+
 #include <map>
 #include <memory>
 #include <optional>
@@ -218,6 +220,9 @@ class FrameView : public QWidget {
 
  protected:
   void paintEvent(QPaintEvent*) override;
+  /// The frame scaled to the view, kept for the repaints while it stays the same (paintEvent draws a frame that
+  /// changes through the painter's transform).
+  void scaleFrame();
   void wheelEvent(QWheelEvent*) override;
   void mousePressEvent(QMouseEvent*) override;
   void mouseMoveEvent(QMouseEvent*) override;
@@ -281,6 +286,7 @@ class FrameView : public QWidget {
     QTransform transform;
     bool smooth = false;
   } scaledFrame_;
+  QTimer* settle_ = nullptr;  ///< scales the frame once it has stayed the same a while (paintEvent)
   QList<QPolygonF> silhouette_;
   QList<QPolygonF> possible_;  ///< setPossibleOutlines
   bool secondShown_ = false;
