@@ -1,12 +1,17 @@
 #include <rehearse/simcore/session/sessionloop.hpp>
 
+#include <rehearse/simcore/session/background.hpp>
+
 #include <algorithm>
 #include <chrono>
 
 namespace rehearse::simcore {
 
 void SessionLoop::start(std::function<void()> body) {
-  thread_ = std::thread(std::move(body));
+  thread_ = std::thread([body = std::move(body)] {
+    workInBackground();  // below the window's thread, where a window runs it (the factorisations it starts inherit it)
+    body();
+  });
 }
 
 void SessionLoop::stop() {
