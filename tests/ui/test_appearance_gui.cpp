@@ -420,18 +420,24 @@ void TestAppearanceGui::graspPullCut() {
   };
   QTest::keyClick(w_.get(), Qt::Key_R);
   QCOMPARE(view->tool(), ui::Tool::Grasp);
+  ActionPauses pauses(QStringLiteral("the built-in phantom"));
+  pauses.start();
   QTest::mouseMove(view, widget(0.5, 0.7));
   QTest::keyClick(view, Qt::Key_Space);
   QVERIFY2(waitFor([&] { return panel_->lastFrame()->tool.jawClosed && !panel_->lastFrame()->tool.held.empty(); }),
            qPrintable(said()));
+  QVERIFY(stepsOn(3));
+  pauses.stop("grasp");
   const auto bitten = panel_->lastFrame();
   const auto node = static_cast<std::size_t>(bitten->tool.held.front());
   const Eigen::Vector3d node0 = bitten->positions[node], tip0 = bitten->tool.tip;
+  pauses.start();
   for (int i = 1; i <= 20; ++i) {
     QTest::mouseMove(view, widget(0.5, 0.7 + 0.15 * i / 20.0));
     QVERIFY(stepsOn(6));
   }
   QVERIFY(stepsOn(30));
+  pauses.stop("pull");
   const auto pulled = panel_->lastFrame();
   QVERIFY(pulled->tool.jawClosed && !pulled->tool.held.empty());
   const Eigen::Vector3d tipMoved = pulled->tool.tip - tip0, nodeMoved = pulled->positions[node] - node0;
@@ -445,6 +451,7 @@ void TestAppearanceGui::graspPullCut() {
   QVERIFY2(w_->statusBar()->currentMessage().contains("keeps its hold"), qPrintable(w_->statusBar()->currentMessage()));
   // A stroke across the stretched tissue above the jaws, from the middle leftwards.
   const QPoint a = widget(0.6, 0.62), b = widget(0.2, 0.62);
+  pauses.start();
   QTest::mousePress(view, Qt::LeftButton, {}, a);
   QVERIFY(waitFor([&] { return panel_->lastFrame()->tool.cutting; }, 20000));
   bool slipped = false;
@@ -456,6 +463,7 @@ void TestAppearanceGui::graspPullCut() {
   QTest::mouseRelease(view, Qt::LeftButton, {}, b);
   QVERIFY(waitFor([&] { return panel_->lastFrame()->surface && panel_->lastFrame()->surface->cutCount > 0; }, 60000));
   QVERIFY(stepsOn(60));
+  pauses.stop("cut while grasping");
   const auto cut = panel_->lastFrame();
   QVERIFY(!slipped);
   QVERIFY(cut->tool.jawClosed && !cut->tool.held.empty());

@@ -55,6 +55,7 @@ struct ClipCutCauterize {
   std::size_t first = 0, second = 0;                     // the branch clipped and cut, the one cut beyond its clip
   SessionHeard listening{panel_, 100000};  // what the session said and which events it raised during a stroke
   QStringList& heard = listening.lines;
+  ActionPauses pauses{QStringLiteral("the built-in phantom")};  // the window's longest pause in each action
 
   // Where the model point a fraction `t` along branch `k`'s centre line shows, in the view's widget pixels.
   QPoint pixelOn(std::size_t k, double t) const {
@@ -95,7 +96,9 @@ struct ClipCutCauterize {
     };
     QPoint a, b;
     bool started = false;
-    for (const auto& [from, to] : {std::make_pair(firstOnOrgan(a0), b0), std::make_pair(firstOnOrgan(b0), a0)}) {
+    const auto strokes = {std::make_pair(firstOnOrgan(a0), b0), std::make_pair(firstOnOrgan(b0), a0)};
+    pauses.start();
+    for (const auto& [from, to] : strokes) {
       a = from, b = to;
       QTest::mousePress(view, Qt::LeftButton, {}, a);
       if ((started = waitFor([&] { return panel_->lastFrame()->tool.cutting; }, 10000))) break;
@@ -114,6 +117,7 @@ struct ClipCutCauterize {
     QTest::mouseRelease(view, Qt::LeftButton, {}, b);
     QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.cutting; }));
     QVERIFY(stepsOn(10));
+    pauses.stop("cut");
     for (const auto& line : heard) qInfo("  %s", qPrintable(line));
   }
 
@@ -164,10 +168,13 @@ struct ClipCutCauterize {
     QString said;
     for (double t : {0.35, 0.8}) {
       const std::size_t before = panel_->lastFrame()->field.clips.size();
-      QTest::mouseClick(view, Qt::LeftButton, {}, pixelOn(first, t));
-      QVERIFY(waitFor([&] { return panel_->lastFrame()->field.clips.size() == before + 1; }));
       auto* status = w_->rehearsePage()->findChild<QLabel*>("rehearseStatus");
+      const QPoint at = pixelOn(first, t);
+      pauses.start();
+      QTest::mouseClick(view, Qt::LeftButton, {}, at);
+      QVERIFY(waitFor([&] { return panel_->lastFrame()->field.clips.size() == before + 1; }));
       waitFor([&] { return status->text().contains("clip") && status->text() != said; }, 3000);
+      pauses.stop("clip");
       said = status->text();
       qInfo("clip at %.2f of the branch: %s", t, qPrintable(said));
     }
@@ -189,8 +196,10 @@ struct ClipCutCauterize {
   void cutBetweenTheClips() {
     // The scissors across the branch between them.
     cutAcross(first, 0.57);
+    pauses.start();
     QVERIFY(waitFor([&] { return !panel_->lastFrame()->field.bleeds.empty(); }, 60000));
     QVERIFY(stepsOn(5));  // (steps with clips are slow: 20 took over a minute under a parallel build)
+    pauses.stop("cut");
     {
       const auto f = panel_->lastFrame();
       int stopped = 0;
@@ -216,6 +225,7 @@ struct ClipCutCauterize {
     QCOMPARE(view->tool(), ui::Tool::Cautery);
     {
       const QPoint from = pixelOn(first, 0.68), to = across(first, 0.68, 30).second;  // from over the vessel sideways
+      pauses.start();
       QTest::mousePress(view, Qt::LeftButton, {}, from);
       QVERIFY(waitFor([&] { return panel_->lastFrame()->field.energy; }));
       for (int i = 1; i <= 10; ++i) {
@@ -232,6 +242,8 @@ struct ClipCutCauterize {
         return f->labels ? std::count_if(f->labels->begin(), f->labels->end(), simcore::isBurnt) : 0L;
       };
       QVERIFY(waitFor([&] { return burntNow() > 0; }, 30000));
+      QVERIFY(stepsOn(5));
+      pauses.stop("cautery");
       const auto f = panel_->lastFrame();
       const long burnt = burntNow();
       qInfo("cautery: %ld elements burnt, energy on tissue %.2f s", burnt, f->field.energyTime);
@@ -251,9 +263,11 @@ struct ClipCutCauterize {
       qInfo("the second stroke cut nothing (said); again, 4 notches deeper");
       cutAcross(second, 0.92, 11);
     }
+    pauses.start();
     QVERIFY2(waitFor([&] { return panel_->lastFrame()->surface->cutCount > cutFacesBefore; }, 60000),
              qPrintable(heard.join(" | ")));
     QVERIFY(stepsOn(5));
+    pauses.stop("cut");
     const std::size_t stumpsBefore = 2;
     for (const auto& b : panel_->lastFrame()->field.bleeds)
       qInfo("  stump after the second cut: %.1f mm^2, stopped by %d", 1e6 * b.area, b.stoppedBy);
@@ -354,8 +368,12 @@ void TestAppearanceGui::graspPullUntilItTears() {
   QCOMPARE(view->tool(), ui::Tool::Grasp);
   const std::size_t nodes = panel_->lastFrame()->positions.size();
   const QPoint from = widget(0.3, 0.6);
+  ActionPauses pauses(QStringLiteral("the built-in phantom"));
+  pauses.start();
   QTest::mousePress(view, Qt::LeftButton, {}, from);
   QVERIFY(waitFor([&] { return !panel_->lastFrame()->tool.held.empty(); }));
+  QVERIFY(stepsOn(3));
+  pauses.stop("grasp");
   auto* status = w_->rehearsePage()->findChild<QLabel*>("rehearseStatus");
   QString tore;
   // What tore, as the page says it: seen on every frame shown (under load a later frame's status replaced the
@@ -365,6 +383,7 @@ void TestAppearanceGui::graspPullUntilItTears() {
   });
   const auto unwatch = qScopeGuard([&] { disconnect(watching); });
   QPoint last = from;
+  pauses.start();
   for (int i = 1; i <= 40 && tore.isEmpty(); ++i) {
     last = widget(0.3 - 0.3 * i / 40.0, 0.6 + 0.6 * i / 40.0);
     QTest::mouseMove(view, last);
@@ -381,6 +400,7 @@ void TestAppearanceGui::graspPullUntilItTears() {
   QVERIFY(
       waitFor([&] { return w_->rehearsePage()->findChild<QLabel*>("rehearseForce")->text().contains("TORN"); }, 10000));
   QVERIFY(stepsOn(10));
+  pauses.stop("pull and tear");
   QTest::keyClick(w_.get(), Qt::Key_F5);
   QVERIFY(waitFor([&] { return !panel_->isPlaying(); }, 10000));
   QTest::qWait(300);

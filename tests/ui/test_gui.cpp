@@ -10,6 +10,7 @@
 
 #include "phantom/phantom.hpp"
 #include <rehearse/app/casefolder.hpp>
+#include "rehearse/ui/casedocument.hpp"
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/organview.hpp"
@@ -29,6 +30,8 @@
 #include <rehearse/simcore/labelimage.hpp>
 
 #include <algorithm>
+
+#include <opencv2/imgproc.hpp>
 
 #include <QDockWidget>
 #include <QDoubleSpinBox>
@@ -80,6 +83,51 @@ class TestGui : public QObject {
     qInfo("inner structures: %d pixels in label 2's colour, %d in label 3's", nearTwo, nearThree);
     QVERIFY(nearTwo > 100);
     QVERIFY(nearThree > 100);
+  }
+
+  // The frame view draws a frame that changes at each step (the composited view) through the painter's transform, and
+  // scales and keeps it only once it has stayed the same a while (issue 64: scaling each new frame first paused the
+  // window). Both drawings are the frame averaged down to the rectangle the view shows it in, as OpenCV's area
+  // resampling makes it (an independent reference), within a few levels of 255: smooth gradients and a checker of
+  // 16-pixel squares (edges, where the two filters differ most).
+  void aChangingFrameIsDrawnAsTheFrameScaled() {
+    cv::Mat3b bgr(720, 1280);
+    for (int y = 0; y < bgr.rows; ++y)
+      for (int x = 0; x < bgr.cols; ++x)
+        bgr(y, x) = cv::Vec3b(static_cast<uchar>(x * 255 / 1279), static_cast<uchar>(y * 255 / 719),
+                              ((x / 16 + y / 16) % 2) ? 200 : 60);
+    ui::FrameView view;
+    view.resize(700, 460);
+    view.setFrame(ui::frameToQImage(bgr));
+    view.fitToWindow();
+    const QImage first = view.grab().toImage();  // its first repaint: through the transform
+    QTest::qWait(400);                              // stayed 250 ms: kept scaled
+    const QImage kept = view.grab().toImage();
+    const QPointF a = view.toWidget(QPointF(0, 0)), b = view.toWidget(QPointF(1280, 720));
+    const QRect target = QRectF(a, b).toAlignedRect();
+    QVERIFY(target.width() > 300 && target.width() < 1280);  // scaled down
+    cv::Mat3b reference;
+    cv::resize(bgr, reference, cv::Size(target.width(), target.height()), 0, 0, cv::INTER_AREA);
+    auto meanDifference = [&](const QImage& drawn) {
+      const QImage rgb = drawn.convertToFormat(QImage::Format_RGB888);
+      double sum = 0;
+      long n = 0;
+      for (int y = 2; y + 2 < target.height(); ++y)  // (the rectangle's edge pixels are partly the background)
+        for (int x = 2; x + 2 < target.width(); ++x) {
+          const int wx = target.x() + x, wy = target.y() + y;
+          if (wx < 0 || wy < 0 || wx >= rgb.width() || wy >= rgb.height()) continue;
+          const uchar* p = rgb.constScanLine(wy) + 3 * wx;
+          const cv::Vec3b r = reference(y, x);
+          sum += std::abs(p[0] - r[2]) + std::abs(p[1] - r[1]) + std::abs(p[2] - r[0]);
+          n += 3;
+        }
+      return n > 0 ? sum / static_cast<double>(n) : 1e9;
+    };
+    const double drawnFirst = meanDifference(first), drawnKept = meanDifference(kept);
+    qInfo("the frame drawn in %d x %d px: %.2f levels from the reference as first drawn, %.2f once kept scaled",
+          target.width(), target.height(), drawnFirst, drawnKept);
+    QVERIFY(drawnFirst < 4.0);
+    QVERIFY(drawnKept < 4.0);
   }
 
   void initTestCase() {

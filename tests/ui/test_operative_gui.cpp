@@ -77,6 +77,7 @@ struct Cholecystectomy {
   std::size_t nodesBeforeTear = 0;
   Eigen::Vector2d grip, away;  // where the grasper bites, and the way it pulls (frame pixels)
   QString ended;               // what ended the pull, as the session said it
+  ActionPauses pauses{QStringLiteral("the patient liver")};  // the window's longest pause in each action
 
   bool stepsOn(int n, int ms = 120000) {
     const long now = panel_->lastFrame()->steps;
@@ -356,13 +357,16 @@ struct Cholecystectomy {
         const std::size_t before = panel_->lastFrame()->field.clips.size();
         const QString was = status->text();
         const Eigen::Vector2d at = onArtery(t);
-        QTest::mouseClick(view, Qt::LeftButton, {}, widget(at));
+        const QPoint click = widget(at);
+        pauses.start();
+        QTest::mouseClick(view, Qt::LeftButton, {}, click);
         QVERIFY2(waitFor([&] { return panel_->lastFrame()->field.clips.size() == before + 1; }),
                  qPrintable(w_->statusBar()->currentMessage() + " | " + status->text()));
         ++placed;
         QVERIFY2(w_->statusBar()->currentMessage().contains("aimed at the cystic artery"),
                  qPrintable(w_->statusBar()->currentMessage()));
         QVERIFY(waitFor([&] { return status->text() != was && status->text().contains("clip"); }, 10000));
+        pauses.stop("clip");
         const auto& clip = panel_->lastFrame()->field.clips.back();
         qInfo("clip at %.2f of the artery, on label %d, %zu nodes: %s", t, clip.label, clip.nodes.size() + 1,
               qPrintable(status->text()));
@@ -426,14 +430,15 @@ struct Cholecystectomy {
       const double pressedAt = hit(m - 60 * n);
       int notches = std::clamp(static_cast<int>(std::lround((arteryAt + 15 - pressedAt - 20) / 2)), -30, 10);
       for (int stroke = 0; stroke < 4; ++stroke, notches += 2) {
+        qInfo(
+            "scissors: pressing where the surface is %.0f mm deep, the artery's centre %.0f mm deep under a surface "
+            "%.0f mm deep: %d notches deeper",
+            hit(m - 60 * n), arteryAt, hit(m), notches);
+        pauses.start();
         QTest::mousePress(view, Qt::LeftButton, {}, a);
         QVERIFY2(waitFor([&] { return panel_->lastFrame()->tool.cutting; }, 20000),
                  qPrintable(w_->statusBar()->currentMessage()));
         heard.clear();
-        qInfo(
-            "scissors: pressed where the surface is %.0f mm deep, the artery's centre %.0f mm deep under a surface "
-            "%.0f mm deep: %d notches deeper",
-            hit(m - 60 * n), arteryAt, hit(m), notches);
         wheelDeeper(view, a, notches);
         for (int i = 1; i <= 12; ++i) {
           QTest::mouseMove(view, a + (b - a) * (i / 12.0));
@@ -449,11 +454,14 @@ struct Cholecystectomy {
                      },
                      60000),
                  qPrintable(said()));
+        pauses.stop("cut");
         if (!panel_->lastFrame()->field.bleeds.empty() || said().contains("A cystic artery was cut")) break;
       }
     }
+    pauses.start();
     QVERIFY2(waitFor([&] { return !panel_->lastFrame()->field.bleeds.empty(); }, 60000), qPrintable(heard.join(" | ")));
     QVERIFY(stepsOn(10));
+    pauses.stop("cut");
     {
       const auto f = panel_->lastFrame();
       int stopped = 0;
@@ -488,7 +496,9 @@ struct Cholecystectomy {
     {
       const Eigen::Vector2d from = c.camera.project(onLine(0.4)) + Eigen::Vector2d(0, 0.25 * (y1 - y0)),
                             to = c.camera.project(onLine(0.6)) + Eigen::Vector2d(0, 0.25 * (y1 - y0));
-      QTest::mousePress(view, Qt::LeftButton, {}, widget(from));
+      const QPoint pressed = widget(from);
+      pauses.start();
+      QTest::mousePress(view, Qt::LeftButton, {}, pressed);
       QVERIFY2(waitFor([&] { return panel_->lastFrame()->field.energy; }),
                qPrintable(w_->statusBar()->currentMessage()));
       QVERIFY(stepsOn(25));  // (the hook burns what it holds for 0.2 s: a line of dwells on this mesh)
@@ -499,6 +509,7 @@ struct Cholecystectomy {
       QTest::mouseRelease(view, Qt::LeftButton, {}, widget(to));
       QVERIFY(waitFor([&] { return !panel_->lastFrame()->field.energy; }));
       QVERIFY(stepsOn(5));
+      pauses.stop("cautery");
       const auto f = panel_->lastFrame();
       const long burnt = f->labels ? std::count_if(f->labels->begin(), f->labels->end(), simcore::isBurnt) : 0;
       qInfo("cautery: %ld elements burnt, energy on tissue %.2f s", burnt, f->field.energyTime);
@@ -584,9 +595,11 @@ struct Cholecystectomy {
     }
     heard.clear();
     QSignalSpy said(view, &ui::FrameView::toolMessage);  // what the grasper says when pressed (the status bar forgets)
-    QTest::mouseMove(view, widget(grip));
+    const QPoint bite = widget(grip);
+    pauses.start();
+    QTest::mouseMove(view, bite);
     // (a press soon after the hook's release would be taken for a double click: a hand takes longer)
-    QTest::mousePress(view, Qt::LeftButton, {}, widget(grip), 1000);
+    QTest::mousePress(view, Qt::LeftButton, {}, bite, 1000);
     const long pressedAtStep = panel_->lastFrame()->steps;
     if (!waitFor([&] { return !panel_->lastFrame()->tool.held.empty(); }, 30000)) {
       w_->grab().save(QDir::temp().filePath("operative-gui-grasp-failed.png"));
@@ -601,6 +614,8 @@ struct Cholecystectomy {
                             .arg(panel_->lastFrame()->steps) +
                         (said.isEmpty() ? QString("the grasper said nothing") : said.last().at(0).toString()) + " | " +
                         status->text() + " | " + heard.join(" | ")));
+    QVERIFY(stepsOn(3));
+    pauses.stop("grasp");
   }
 
   void pullUntilItTearsOrSlips() {
@@ -611,6 +626,7 @@ struct Cholecystectomy {
     // after 3 mm, before the element there, stretched 59-67 % at rest, reached the 90 % it tears at).
     int slips = 0, torn = 0;
     Eigen::Vector2d last = grip;
+    pauses.start();
     for (int i = 1; i <= 150 && ended.isEmpty(); ++i) {
       last = grip + 6.0 * i * away;
       QTest::mouseMove(view, widget(last));
@@ -659,9 +675,13 @@ struct Cholecystectomy {
                qPrintable(w_->statusText()));
     }
     QVERIFY(stepsOn(10));
+    pauses.stop(ended.contains("tore") ? "pull and tear" : "pull and slip");
     shot(*w_, "liver-tear");
-    QTest::mouseRelease(view, Qt::LeftButton, {}, widget(last));
+    const QPoint released = widget(last);
+    pauses.start();
+    QTest::mouseRelease(view, Qt::LeftButton, {}, released);
     QVERIFY(stepsOn(5));
+    pauses.stop("release");
     QTest::mouseClick(record, Qt::LeftButton);  // stop
     QVERIFY2(!w_->recording(), qPrintable(w_->messageLog().join(" | ")));
     panel_->pause();
@@ -729,6 +749,7 @@ class TestOperativeGui : public QObject {
     REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
     Cholecystectomy s(w_, panel_, dir_);
     s.openTheFrame();
+
     if (QTest::currentTestFailed()) return;
     s.labelTheArtery();
     if (QTest::currentTestFailed()) return;
