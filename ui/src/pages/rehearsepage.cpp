@@ -178,6 +178,10 @@ void RehearsePage::updateChart() {
   }
   series_->replace(points);
   axisY_->setRange(0, std::ceil(top * 1.1));
+  // The rates below, twice a second (statistics of the last 10 s): each new text lays the page out again, 10-25 ms of
+  // the GUI thread on 2 cores under the simulation's load (issue 64), 15 times a second with the chart.
+  if (loopRateShown_.isValid() && loopRateShown_.elapsed() < 500) return;
+  loopRateShown_.start();
   const auto t = loop->timing();
   // The model's own rate beside the loop's (one line: the chart above keeps its height): how long the deformation's
   // step takes, and whether the loop's force between steps is the model's (the precomputed model's stiffness is exact)

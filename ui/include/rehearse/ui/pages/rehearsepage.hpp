@@ -4,6 +4,8 @@
 // jaws hold, the force on the tissue, slips), in the composited view of step 6 or the overlay.
 #include "rehearse/ui/pages/steppage.hpp"
 
+#include <QElapsedTimer>
+
 #include <rehearse/simcore/session/body.hpp>
 
 #include <functional>
@@ -66,6 +68,7 @@ class RehearsePage : public StepPage {
   QValueAxis* axisX_ = nullptr;
   QValueAxis* axisY_ = nullptr;
   QLabel* loopRate_ = nullptr;
+  QElapsedTimer loopRateShown_;  ///< when loopRate_'s text was last made (updateChart)
   QTimer* chartTimer_ = nullptr;
   QLabel* status_ = nullptr;
   QLabel* force_ = nullptr;
