@@ -23,6 +23,7 @@
 #include <sstream>
 
 #if defined(__linux__)
+#include <pthread.h>
 #include <sys/resource.h>
 #include <sys/syscall.h>
 #include <unistd.h>
@@ -768,8 +769,8 @@ class TestGrasp : public QObject {
 
   // A window's workers below its thread (simcore/session/background.hpp; issue 64): a thread that starts working for
   // the window takes the background nice value, the sweep lowers a thread that did not (as a library's worker), and
-  // leaves the caller and a thread that stays in the foreground (the force loop) as they are; each read back from the
-  // kernel. (Last: the sweep lowers this process's other threads too.)
+  // leaves the caller, a thread that stays in the foreground (the force loop) and one that passes the window its input
+  // (by its name) as they are; each read back from the kernel. (Last: the sweep lowers this process's other threads too.)
   void windowWorkersGoBelowIt() {
 #if defined(__linux__)
     auto tid = [] { return static_cast<long>(::syscall(SYS_gettid)); };
@@ -786,7 +787,7 @@ class TestGrasp : public QObject {
     simcore::workInBackground();  // with no value set: nothing
     QCOMPARE(niceOf(self), own);
     simcore::setBackgroundNice(below);
-    std::atomic<long> worker{0}, library{0}, foreground{0};
+    std::atomic<long> worker{0}, library{0}, foreground{0}, input{0};
     std::atomic<bool> done{false};
     auto wait = [&] {
       while (!done) std::this_thread::sleep_for(std::chrono::milliseconds(1));
@@ -805,21 +806,29 @@ class TestGrasp : public QObject {
       foreground = tid();
       wait();
     });
-    while (!worker || !library || !foreground) std::this_thread::sleep_for(std::chrono::milliseconds(1));
+    std::thread d([&] {
+      ::pthread_setname_np(::pthread_self(), "QXcbEventQueue");  // as Qt names its X connection's reader
+      input = tid();
+      wait();
+    });
+    while (!worker || !library || !foreground || !input) std::this_thread::sleep_for(std::chrono::milliseconds(1));
     QCOMPARE(niceOf(worker), below);
     QCOMPARE(niceOf(library), own);
     QCOMPARE(niceOf(foreground), own);
     const int lowered = simcore::sendOthersToBackground();
-    const int libraryAfter = niceOf(library), foregroundAfter = niceOf(foreground), selfAfter = niceOf(self);
+    const int libraryAfter = niceOf(library), foregroundAfter = niceOf(foreground), selfAfter = niceOf(self),
+              inputAfter = niceOf(input);
     done = true;
     a.join();
     b.join();
     c.join();
+    d.join();
     simcore::setBackgroundNice(0);
     QVERIFY(lowered >= 1);  // the library's thread (and any other of this process's at `own`)
     QCOMPARE(libraryAfter, below);
     QCOMPARE(foregroundAfter, own);
     QCOMPARE(selfAfter, own);
+    QCOMPARE(inputAfter, own);
 #else
     QSKIP("a thread's own nice value is Linux's");
 #endif

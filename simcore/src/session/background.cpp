@@ -2,7 +2,9 @@
 
 #include <atomic>
 #include <cerrno>
+#include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <set>
 
@@ -22,6 +24,21 @@ std::set<long> foreground;  // thread ids kept as they are
 
 #if defined(__linux__)
 long threadId() { return ::syscall(SYS_gettid); }
+
+// Threads that only pass the window its input (the X connection's reader, D-Bus, GLib's): kept as they are, by name.
+bool passesInput(long tid) {
+  char path[64];
+  std::snprintf(path, sizeof path, "/proc/self/task/%ld/comm", tid);
+  std::FILE* f = std::fopen(path, "r");
+  if (!f) return false;
+  char name[32] = {};
+  const bool read = std::fgets(name, sizeof name, f) != nullptr;
+  std::fclose(f);
+  if (!read) return false;
+  for (const char* prefix : {"QXcb", "QDBus", "gdbus", "gmain", "dconf"})
+    if (std::strncmp(name, prefix, std::strlen(prefix)) == 0) return true;
+  return false;
+}
 
 // Raises thread `tid`'s nice value to `nice` if it is below; true if it did.
 bool lower(long tid, int nice) {
@@ -69,7 +86,7 @@ int sendOthersToBackground() {
   while (const dirent* e = ::readdir(tasks)) {
     char* end = nullptr;
     const long tid = std::strtol(e->d_name, &end, 10);
-    if (end == e->d_name || *end != '\0' || keep.count(tid)) continue;
+    if (end == e->d_name || *end != '\0' || keep.count(tid) || passesInput(tid)) continue;
     lowered += lower(tid, nice);
   }
   ::closedir(tasks);
