@@ -153,8 +153,8 @@ ForceLoop::Timing ForceLoop::timing() const {
     t.realtime = realtime_;
   }
   if (p.empty()) return t;
-  // The quantiles by selection, not by sorting: the Rehearse page asks 10 times a second on the GUI thread, and four
-  // sorts of the last 10,000 periods took 4-10 ms there (a visible share of a frame).
+  // The quantiles by selection, not by sorting: the Rehearse page asks on the GUI thread, where four sorts of the last
+  // 10,000 periods took 4-10 ms (a visible share of a frame).
   auto at = [](std::vector<double>& v, double q) {
     const auto k = static_cast<std::ptrdiff_t>(std::lround(q * static_cast<double>(v.size() - 1)));
     std::nth_element(v.begin(), v.begin() + k, v.end());

@@ -21,9 +21,10 @@ void workInBackground();
 void stayInForeground();
 
 /// Every thread of this process but the caller, those that stay in the foreground and those that pass the window its
-/// input (Qt's X connection reader, D-Bus, GLib's, by their names) takes the background nice value if below it: the threads the libraries start (TBB's workers for OpenCV, BLAS) inherit their creator's, often the GUI
-/// thread's. The GUI calls it now and then; it returns how many threads it lowered (0 where the platform has no
-/// per-thread nice value or the value is 0).
+/// input (Qt's X connection reader, D-Bus, GLib's, by their names) takes the background nice value if below it: the
+/// threads the libraries start (TBB's workers for OpenCV, BLAS's) inherit their creator's, often the GUI thread's. The
+/// GUI calls it now and then; it returns how many threads it lowered (0 where the platform has no per-thread nice value
+/// or the value is 0).
 int sendOthersToBackground();
 
 }  // namespace rehearse::simcore
