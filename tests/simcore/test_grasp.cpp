@@ -9,25 +9,15 @@
 #include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
-#include <rehearse/simcore/session/background.hpp>
 #include <rehearse/simcore/session/forceloop.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <Eigen/Dense>
 
-#include <atomic>
-#include <cerrno>
 #include <fstream>
 #include <limits>
 #include <thread>
 #include <sstream>
-
-#if defined(__linux__)
-#include <pthread.h>
-#include <sys/resource.h>
-#include <sys/syscall.h>
-#include <unistd.h>
-#endif
 
 using namespace rehearse;
 using simcore::InputEvent;
@@ -765,73 +755,6 @@ class TestGrasp : public QObject {
     QCOMPARE(r.steps.size(), std::size_t(350));
     QVERIFY(most > 0);
     QCOMPARE(r.failed, std::size_t(0));
-  }
-
-  // A window's workers below its thread (simcore/session/background.hpp; issue 64): a thread that starts working for
-  // the window takes the background nice value, the sweep lowers a thread that did not (as a library's worker), and
-  // leaves the caller, a thread that stays in the foreground (the force loop) and one that passes the window its input
-  // (by its name) as they are; each read back from the kernel. (Last: the sweep lowers this process's other threads too.)
-  void windowWorkersGoBelowIt() {
-#if defined(__linux__)
-    auto tid = [] { return static_cast<long>(::syscall(SYS_gettid)); };
-    auto niceOf = [](long t) {
-      errno = 0;
-      const int n = ::getpriority(PRIO_PROCESS, static_cast<id_t>(t));
-      return errno == 0 ? n : -100;
-    };
-    const long self = tid();
-    const int own = niceOf(self);
-    const int below = std::min(19, own + 5);  // (relative: the suite may itself run niced)
-    QVERIFY(below > own);
-    QCOMPARE(simcore::backgroundNice(), 0);
-    simcore::workInBackground();  // with no value set: nothing
-    QCOMPARE(niceOf(self), own);
-    simcore::setBackgroundNice(below);
-    std::atomic<long> worker{0}, library{0}, foreground{0}, input{0};
-    std::atomic<bool> done{false};
-    auto wait = [&] {
-      while (!done) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    };
-    std::thread a([&] {
-      simcore::workInBackground();
-      worker = tid();
-      wait();
-    });
-    std::thread b([&] {
-      library = tid();
-      wait();
-    });
-    std::thread c([&] {
-      simcore::stayInForeground();
-      foreground = tid();
-      wait();
-    });
-    std::thread d([&] {
-      ::pthread_setname_np(::pthread_self(), "QXcbEventQueue");  // as Qt names its X connection's reader
-      input = tid();
-      wait();
-    });
-    while (!worker || !library || !foreground || !input) std::this_thread::sleep_for(std::chrono::milliseconds(1));
-    QCOMPARE(niceOf(worker), below);
-    QCOMPARE(niceOf(library), own);
-    QCOMPARE(niceOf(foreground), own);
-    const int lowered = simcore::sendOthersToBackground();
-    const int libraryAfter = niceOf(library), foregroundAfter = niceOf(foreground), selfAfter = niceOf(self),
-              inputAfter = niceOf(input);
-    done = true;
-    a.join();
-    b.join();
-    c.join();
-    d.join();
-    simcore::setBackgroundNice(0);
-    QVERIFY(lowered >= 1);  // the library's thread (and any other of this process's at `own`)
-    QCOMPARE(libraryAfter, below);
-    QCOMPARE(foregroundAfter, own);
-    QCOMPARE(selfAfter, own);
-    QCOMPARE(inputAfter, own);
-#else
-    QSKIP("a thread's own nice value is Linux's");
-#endif
   }
 };
 

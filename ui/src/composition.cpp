@@ -1,7 +1,5 @@
 #include "rehearse/ui/composition.hpp"
 
-#include <rehearse/simcore/session/background.hpp>
-
 #include "rehearse/ui/casedocument.hpp"
 #include "rehearse/ui/glcompositor.hpp"
 
@@ -101,7 +99,6 @@ void Composition::setCase(std::shared_ptr<const app::Case> c) {
   if (preparing_) return;  // its finish handler (not run yet) looks at the case again
   preparing_ = case_->appearance;
   prepareWatcher_.setFuture(QtConcurrent::run([c = case_]() {
-    simcore::workInBackground();
     auto p = std::make_shared<Prepared>();
     p->estimate = c->appearance;
     try {
@@ -238,10 +235,7 @@ void Composition::startNext() {
   composing_ = true;
   composeWatcher_.setFuture(QtConcurrent::run(
       [compositor = compositor_, c = case_, cache = cutCache_, pose = estimate_->pose, positions = std::move(positions),
-       cut = std::move(cut)]() -> QImage {
-        simcore::workInBackground();
-        return composeWith(compositor, c, cache, pose, positions, cut);
-      }));
+       cut = std::move(cut)]() -> QImage { return composeWith(compositor, c, cache, pose, positions, cut); }));
 }
 
 }  // namespace rehearse::ui

@@ -1,7 +1,5 @@
 #include "rehearse/ui/jobrunner.hpp"
 
-#include <rehearse/simcore/session/background.hpp>
-
 #include <QtConcurrent/QtConcurrent>
 
 namespace rehearse::ui {
@@ -34,10 +32,7 @@ bool JobRunner::run(const QString& message, Job job) {
   Progress progress = [this](double f, QString stage) {
     QMetaObject::invokeMethod(this, [this, f, stage] { emit this->progress(f, stage); }, Qt::QueuedConnection);
   };
-  watcher_.setFuture(QtConcurrent::run([this, job = std::move(job), progress]() -> std::function<void()> {
-    simcore::workInBackground();
-    return job(cancel_, progress);
-  }));
+  watcher_.setFuture(QtConcurrent::run([this, job = std::move(job), progress]() -> std::function<void()> { return job(cancel_, progress); }));
   return true;
 }
 

@@ -1,7 +1,5 @@
 #include "rehearse/ui/liveoverlay.hpp"
 
-#include <rehearse/simcore/session/background.hpp>
-
 #include "rehearse/ui/frameview.hpp"
 
 #include <QFutureWatcher>
@@ -48,7 +46,6 @@ void LiveOverlay::drawIfDue() {
     drawIfDue();
   });
   watcher->setFuture(QtConcurrent::run([overlay = overlay_, job = std::move(job)] {
-    simcore::workInBackground();
     if (job.surface) return overlay->renderLive(*job.c, job.positions, *job.surface);
     // Uncut: the case with the simulated nodes as its shape (as an elastic fit's), drawn as the case is.
     app::Case live(*job.c);

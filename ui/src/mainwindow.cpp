@@ -1,6 +1,4 @@
 #include "rehearse/ui/mainwindow.hpp"
-
-#include <rehearse/simcore/session/background.hpp>
 #include "rehearse/ui/crashreport.hpp"
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/labelimage.hpp>
@@ -76,13 +74,6 @@ QString stepName(int i) {
 }
 
 MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
-  // A window runs in this process: the threads that work for it (the simulation and what it starts, compositions,
-  // jobs, replays) take nice +5 where they start, and the libraries' own workers (TBB's for OpenCV, BLAS's) at the
-  // next sweep, once a second (simcore/session/background.hpp): the GUI thread is served first.
-  simcore::setBackgroundNice(5);
-  auto* sweep = new QTimer(this);
-  connect(sweep, &QTimer::timeout, this, [] { simcore::sendOthersToBackground(); });
-  sweep->start(1000);
   setWindowTitle(tr("Rehearse"));
   setObjectName(QStringLiteral("MainWindow"));
   doc_ = new CaseDocument(this);

@@ -1,8 +1,6 @@
 // The session the Simulation panel shows, run for the GUI (sessionhost.hpp).
 #include "rehearse/ui/sessionhost.hpp"
 
-#include <rehearse/simcore/session/background.hpp>
-
 #include <QFutureWatcher>
 #include <QtConcurrent/QtConcurrent>
 
@@ -69,7 +67,6 @@ bool SessionHost::start(const app::SessionRequest& s, std::optional<RecordReques
   QFuture<void> build = QtConcurrent::run([s, built, generation, record = record.has_value(),
                               options = launchOptions(generation, record), retiring = retired_,
                               cache = startCache_]() mutable {
-    simcore::workInBackground();  // (and the session's thread, which this task starts)
     options.cache = cache.get();  // (kept alive by this task)
     try {
       if (record && retiring.valid()) retiring.wait();  // the last session's recording is complete in the file first

@@ -6,8 +6,6 @@
 #include <pthread.h>
 #include <sched.h>
 
-#include <rehearse/simcore/session/background.hpp>
-
 namespace rehearse::simcore {
 
 ToolForceModel toolForceModel(const Snapshot& s, double maxGraspForce, double reach) {
@@ -83,7 +81,6 @@ Eigen::Vector3d ForceLoop::tick() {
 }
 
 void ForceLoop::run() {
-  stayInForeground();  // (a window sends its other threads below its own; this one keeps its period)
   // Haptic loops run at a real-time priority where the system grants one (a 1 ms sleep per period leaves the
   // other threads their time); where it does not, at the normal one, and timing() says which.
   sched_param param{};

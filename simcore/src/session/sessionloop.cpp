@@ -1,17 +1,12 @@
 #include <rehearse/simcore/session/sessionloop.hpp>
 
-#include <rehearse/simcore/session/background.hpp>
-
 #include <algorithm>
 #include <chrono>
 
 namespace rehearse::simcore {
 
 void SessionLoop::start(std::function<void()> body) {
-  thread_ = std::thread([body = std::move(body)] {
-    workInBackground();  // below the window's thread, where a window runs it (the factorisations it starts inherit it)
-    body();
-  });
+  thread_ = std::thread(std::move(body));
 }
 
 void SessionLoop::stop() {

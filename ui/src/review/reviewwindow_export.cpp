@@ -2,8 +2,6 @@
 // replayer of its own while a progress dialog shows (and Cancel stops a video), and where they are suggested.
 #include "rehearse/ui/reviewwindow.hpp"
 
-#include <rehearse/simcore/session/background.hpp>
-
 #include "reviewparts.hpp"
 
 #include <QDir>
@@ -56,7 +54,6 @@ QString ReviewWindow::exportFirst(const QString& doing, bool cancellable, const 
   connect(&watcher, &QFutureWatcher<Outcome>::finished, &loop, &QEventLoop::quit);
   ReviewAttempt* attempt = a.get();
   watcher.setFuture(QtConcurrent::run([attempt, renderer, shared, write]() -> Outcome {
-    simcore::workInBackground();
     try {
       app::Replayer replayer(attempt->recording);  // (building it takes a while on a large organ: here, not on the GUI thread)
       replayer.avoidCheckpoints(attempt->result.verify);

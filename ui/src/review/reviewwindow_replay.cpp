@@ -3,8 +3,6 @@
 // stepping, and the status line.
 #include "rehearse/ui/reviewwindow.hpp"
 
-#include <rehearse/simcore/session/background.hpp>
-
 #include "reviewparts.hpp"
 
 #include <QComboBox>
@@ -120,10 +118,7 @@ void ReviewWindow::beginReplay(ReviewAttempt& attempt0, int attempt) {
     return !control->stop;
   };
   const app::Recording rec = a->recording;
-  a->watcher->setFuture(QtConcurrent::run(replayPool_, [rec, options] {
-    simcore::workInBackground();
-    return app::replayRecording(rec, options);
-  }));
+  a->watcher->setFuture(QtConcurrent::run(replayPool_, [rec, options] { return app::replayRecording(rec, options); }));
   // The view's replayer and renderers, built on a worker too; the view seeks once they are.
   a->viewerWatcher = std::make_unique<QFutureWatcher<std::shared_ptr<ReviewViewer>>>();
   connect(a->viewerWatcher.get(), &QFutureWatcher<std::shared_ptr<ReviewViewer>>::finished, this, [this, raw] {
@@ -144,7 +139,6 @@ void ReviewWindow::beginReplay(ReviewAttempt& attempt0, int attempt) {
   const std::optional<imaging::Camera> camera = camera_;
   const cv::Mat3b frame = frame_;
   a->viewerWatcher->setFuture(QtConcurrent::run([rec, camera, frame] {
-    simcore::workInBackground();
     auto v = std::make_shared<ReviewViewer>();
     v->replayer = std::make_shared<app::Replayer>(rec);
     v->orbit = std::make_unique<app::ReviewRenderer>(rec.setup, 800, 600);
@@ -182,7 +176,6 @@ void ReviewWindow::startSeek(ReviewAttempt& a) {
   const std::string who = "session " + std::to_string(a.recording.summary.id);
   const QSize size = a.view->size();
   a.seeker->setFuture(QtConcurrent::run([replayer, renderer, timeline, checked, who, size, step, generation] {
-    simcore::workInBackground();
     SeekResult r;
     r.step = step;
     r.generation = generation;
