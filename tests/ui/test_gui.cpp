@@ -18,6 +18,8 @@
 #include "rehearse/ui/pages/meshpage.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/jobrunner.hpp"
+#include "rehearse/ui/steadybox.hpp"
+#include "window_support.hpp"
 #include <QAbstractButton>
 #include <QAbstractItemView>
 #include <QAbstractSpinBox>
@@ -39,6 +41,8 @@
 #include <QScrollBar>
 #include <QStatusBar>
 #include <QLabel>
+#include <QHBoxLayout>
+#include <QVBoxLayout>
 #include <QSettings>
 #include <QSignalSpy>
 #include <QThread>
@@ -128,6 +132,74 @@ class TestGui : public QObject {
           target.width(), target.height(), drawnFirst, drawnKept);
     QVERIFY(drawnFirst < 4.0);
     QVERIFY(drawnKept < 4.0);
+  }
+
+  // A text that changes many times a second in a SteadyBox is repainted, not laid out (issue 64): the window above it
+  // hears of it only when the text needs another line, or (one that does not wrap) more width than it has. Qt's own
+  // label beside it is the reference: each of its new texts is a layout pass of the window.
+  void aChangingTextLaysTheWindowOutOnlyWhenItNeedsMoreRoom() {
+    QWidget window;
+    auto* column = new QVBoxLayout(&window);
+    auto* wrapped = new QLabel;
+    wrapped->setWordWrap(true);
+    column->addWidget(new ui::SteadyBox(wrapped, &window));
+    auto* bare = new QLabel;  // the reference
+    column->addWidget(bare);
+    auto* row = new QHBoxLayout;
+    auto* single = new QLabel(QStringLiteral("u 1.0  v 1.0 px"));
+    auto* singleBox = new ui::SteadyBox(single, &window);
+    row->addWidget(singleBox);
+    row->addStretch(1);
+    column->addLayout(row);
+    auto* lines = new ui::LinesLabel(3, &window);
+    column->addWidget(new ui::SteadyBox(lines, &window));
+    column->addStretch(1);  // (each gets the height it asks for)
+    window.resize(400, 300);
+    wrapped->setText(QStringLiteral("Tool force 0.00 N"));
+    window.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&window));
+    QCoreApplication::processEvents();
+    LayoutRequests layouts(&window);
+    const int wrappedHeight = wrapped->height(), linesHeight = lines->height();
+    auto settle = [] { QCoreApplication::processEvents(); };
+    // The window's own layout pass for the reference's new texts, one per text.
+    for (int i = 0; i < 20; ++i) {
+      bare->setText(QStringLiteral("Tool force %1 N").arg(0.37 * i, 0, 'f', 2));
+      settle();
+    }
+    const int byTheReference = layouts.count();
+    // The same texts, and a long sentence over three lines, in the boxes: none.
+    for (int i = 0; i < 20; ++i) {
+      wrapped->setText(QStringLiteral("Tool force %1 N").arg(0.37 * i, 0, 'f', 2));
+      single->setText(QStringLiteral("u %1  v %2 px").arg(1.0 + i * 0.1, 0, 'f', 1).arg(9.9 - i * 0.1, 0, 'f', 1));
+      lines->setText(QString(QStringLiteral("A long sentence of the session, over its lines and more: %1. ")).arg(i).repeated(1 + i % 6));
+      settle();
+    }
+    const int byTheBoxes = layouts.count() - byTheReference;
+    QCOMPARE(wrapped->height(), wrappedHeight);
+    QCOMPARE(lines->height(), linesHeight);  // a longer text ends in an ellipsis; the widgets below stay put
+    QVERIFY(lines->text().endsWith(QStringLiteral(". ")));  // (the text itself whole)
+    // Another line, and a longer single line: laid out, and each then has the room its text needs.
+    wrapped->setText(QStringLiteral("Tool force 1.23 N (jaws 1.20 N, shaft 0.03 N) — step not converged (relative "
+                                    "residual 0.0012): not the equilibrium force   slips: 1   cuts: 2"));
+    single->setText(QStringLiteral("u 1234.5  v 6789.0 px, and a longer word"));
+    settle();
+    settle();
+    const int forMoreRoom = layouts.count() - byTheReference - byTheBoxes;
+    qInfo("layout passes: %d for Qt's label's 20 texts, %d for 20 texts in boxes, %d when they needed more room",
+          byTheReference, byTheBoxes, forMoreRoom);
+    QVERIFY(byTheReference >= 15);  // (the reference: Qt lays the window out at each new text)
+    QCOMPARE(byTheBoxes, 0);
+    QVERIFY(forMoreRoom >= 1);
+    QCOMPARE(wrapped->height(), wrapped->heightForWidth(wrapped->width()));
+    QVERIFY(wrapped->height() > wrappedHeight);
+    QVERIFY(single->width() >= single->fontMetrics().horizontalAdvance(single->text()));
+    // A shorter single line keeps the width it had (nothing beside it jitters), without a layout pass.
+    const int singleWidth = single->width(), before = layouts.count();
+    single->setText(QStringLiteral("u 1.0  v 2.0 px"));
+    settle();
+    QCOMPARE(layouts.count(), before);
+    QCOMPARE(single->width(), singleWidth);
   }
 
   void initTestCase() {

@@ -199,6 +199,10 @@ class TestRehearseGui : public QObject {
     }
     const QSize viewSize =
         view->size();  // the page's labels must not resize the frame under the hand (a long force line did)
+    // ... nor lay the window out again as their texts change (issue 64): the step's pages, the main window.
+    auto* pages = w_->findChild<QWidget*>("stepPages");
+    QVERIFY(pages);
+    LayoutRequests pageLayouts(pages), windowLayouts(w_.get());
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     const bool grasped = waitFor([&] { return panel->lastFrame() && !panel->lastFrame()->tool.held.empty(); }, 20000);
     QVERIFY2(
@@ -218,6 +222,13 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 40; }));
     const auto f = panel->lastFrame();
     QCOMPARE(view->size(), viewSize);
+    // Over the grasp and the pull the page's status and force lines changed about 15 times a second; the cursor's
+    // pixel in the status bar at each move. The window's layout may follow the status bar's temporary message (the
+    // grasp's sentence hides the case's) and a cursor text grown by a digit, not each text.
+    qInfo("layout passes over the grasp and pull (%ld steps): step pages %d, main window %d", f->steps - at + 40,
+          pageLayouts.count(), windowLayouts.count());
+    QCOMPARE(pageLayouts.count(), 0);
+    QVERIFY(windowLayouts.count() <= 4);
     QVERIFY2(!f->tool.held.empty(), qPrintable(QString("peak %1 N; %2").arg(peak).arg(slipMessage)));
     double worst = 0;
     for (std::size_t k = 0; k < f->tool.held.size(); ++k)

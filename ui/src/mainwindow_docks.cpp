@@ -8,6 +8,7 @@
 #include "rehearse/ui/organglview.hpp"
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
+#include "rehearse/ui/steadybox.hpp"
 
 #include <QAction>
 #include <QAbstractSlider>
@@ -341,10 +342,12 @@ void MainWindow::buildStatusBar() {
   status_.viewMode->setObjectName(QStringLiteral("statusViewMode"));
   statusBar()->addWidget(status_.caseText, 1);
   statusBar()->addWidget(log);
-  statusBar()->addPermanentWidget(status_.simulation);
-  statusBar()->addPermanentWidget(status_.distance);
+  // The simulation's sentence (15 times a second), the distance and the cursor's pixel (at each mouse move, in every
+  // drag) change often: in SteadyBoxes they lay out the window again only when they need more room.
+  statusBar()->addPermanentWidget(new SteadyBox(status_.simulation, this));
+  statusBar()->addPermanentWidget(new SteadyBox(status_.distance, this));
   statusBar()->addPermanentWidget(status_.viewMode);
-  statusBar()->addPermanentWidget(status_.cursor);
+  statusBar()->addPermanentWidget(new SteadyBox(status_.cursor, this));
   statusBar()->addPermanentWidget(status_.stage);
   statusBar()->addPermanentWidget(status_.progress);
   statusBar()->addPermanentWidget(status_.cancel);

@@ -1,5 +1,6 @@
 #include "rehearse/ui/simulationpanel.hpp"
 #include "rehearse/ui/throttle.hpp"
+#include "rehearse/ui/steadybox.hpp"
 #include "simulationform.hpp"
 
 #include <rehearse/app/materials.hpp>
@@ -24,37 +25,6 @@ Q_DECLARE_METATYPE(std::shared_ptr<const rehearse::ui::SimulationFrame>)
 namespace rehearse::ui {
 
 namespace {
-// A word-wrapped label of a fixed number of lines: a longer text is drawn as far as they hold it, ending in an
-// ellipsis (text() stays whole; the panel puts it in the tooltip).
-class LinesLabel : public QLabel {
- public:
-  LinesLabel(int lines, QWidget* parent) : QLabel(parent), lines_(lines) { setProperty("elidesItsText", true); }
-
- protected:
-  void paintEvent(QPaintEvent*) override {
-    QPainter p(this);
-    p.setPen(palette().color(QPalette::WindowText));
-    const QRect room = contentsRect();
-    const QFontMetrics fm = fontMetrics();
-    const QRect lines(0, 0, room.width(), lines_ * fm.lineSpacing());
-    auto fits = [&](const QString& t) { return fm.boundingRect(lines, Qt::TextWordWrap, t).height() <= lines.height(); };
-    QString shown = text();
-    if (!fits(shown)) {
-      int lo = 0, hi = static_cast<int>(shown.size());
-      while (lo < hi) {
-        const int mid = (lo + hi + 1) / 2;
-        if (fits(shown.left(mid) + QChar(0x2026))) lo = mid;
-        else hi = mid - 1;
-      }
-      shown = shown.left(lo) + QChar(0x2026);
-    }
-    p.drawText(room, Qt::AlignTop | Qt::AlignLeft | Qt::TextWordWrap, shown);
-  }
-
- private:
-  int lines_;
-};
-
 simcore::InputEvent parameter(const std::string& name, double value, int label = 0) {
   simcore::InputEvent e;
   e.kind = simcore::InputKind::Parameter;
@@ -164,8 +134,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   // (they moved with every message); a longer one ends in an ellipsis at the sixth line (it was cut off mid-line) and
   // is whole in the tooltip. (In a scroll area of its own it cost the GUI thread 50 ms at each new sentence.)
   status_->setAlignment(Qt::AlignTop | Qt::AlignLeft);
-  status_->setFixedHeight(6 * status_->fontMetrics().lineSpacing() + 4);
-  layout->addWidget(status_);
+  layout->addWidget(new SteadyBox(status_, this));  // a new sentence is repainted, the panel not laid out again
   // The settings below the controls and the status: on a 900-px screen Play, Step, Reset and what the simulation says
   // stay in view without scrolling the panel (the settings, changed less often, scroll).
   layout->addWidget(form_);

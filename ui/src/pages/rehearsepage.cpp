@@ -1,6 +1,7 @@
 #include "rehearse/ui/pages/rehearsepage.hpp"
 
 #include "rehearse/ui/simulationpanel.hpp"
+#include "rehearse/ui/steadybox.hpp"
 #include "rehearse/ui/throttle.hpp"
 
 #include <rehearse/simcore/session/events.hpp>
@@ -97,23 +98,30 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   connect(review, &QPushButton::clicked, this, [this] {
     if (record_.review) record_.review();
   });
-  status_ = new QLabel(this);
+  // The status and the force lines change many times a second while the instruments work: each has a fixed number
+  // of lines (a longer text ends in an ellipsis, whole in the tooltip) and sits in a SteadyBox, so that a new text is
+  // only repainted. They were laid out anew at each change, and at each change of their line count the whole page
+  // with them (13-22 ms of the GUI thread each, issue 64); the chart and the buttons below moved up and down.
+  status_ = new LinesLabel(4, this);
   status_->setObjectName(QStringLiteral("rehearseStatus"));
-  status_->setWordWrap(true);
-  layout->addWidget(status_);
-  force_ = new QLabel(this);
+  layout->addWidget(new SteadyBox(status_, this));
+  force_ = new LinesLabel(3, this);
   labelThrottle_ = std::make_unique<Throttle>(this, [this] {
-    if (pendingStatus_) status_->setText(*pendingStatus_);
+    if (pendingStatus_) {
+      status_->setText(*pendingStatus_);
+      status_->setToolTip(*pendingStatus_);
+    }
     pendingStatus_.reset();
     force_->setText(forceText_);
+    force_->setToolTip(forceText_);
   });
   force_->setObjectName(QStringLiteral("rehearseForce"));
-  force_->setWordWrap(true);  // a long line (shares, counts, a step not converged) wraps; it never widens the panel and
-                              // shrinks the frame
+  // (A long line, with the shares, counts or a step not converged, wraps: it never widens the panel and shrinks the
+  // frame.)
   QFont big = force_->font();
   big.setPointSizeF(big.pointSizeF() * 1.4);
   force_->setFont(big);
-  layout->addWidget(force_);
+  layout->addWidget(new SteadyBox(force_, this));
   // The tool force as the 1 kHz loop computes it (the force on the tissue; a haptic device renders its opposite).
   series_ = new QLineSeries;
   auto* chart = new QChart;
@@ -140,7 +148,7 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   // Its length changes with the numbers in it: it never widens the panel (which would shrink the frame under the hand);
   // the tooltip has it all.
   loopRate_->setSizePolicy(QSizePolicy::Ignored, QSizePolicy::Preferred);
-  layout->addWidget(loopRate_);
+  layout->addWidget(new SteadyBox(loopRate_, this));
   chartTimer_ = new QTimer(this);
   chartTimer_->setInterval(66);  // 15 Hz: the GUI thread's time goes to the organ's view first
   connect(chartTimer_, &QTimer::timeout, this, &RehearsePage::updateChart);
@@ -178,8 +186,8 @@ void RehearsePage::updateChart() {
   }
   series_->replace(points);
   axisY_->setRange(0, std::ceil(top * 1.1));
-  // The rates below, twice a second (statistics of the last 10 s): each new text lays the page out again, 10-25 ms of
-  // the GUI thread on 2 cores under the simulation's load (issue 64), 15 times a second with the chart.
+  // The rates below, twice a second (statistics of the last 10 s; the text in a SteadyBox does not lay the page out
+  // again, which cost 10-25 ms of the GUI thread per change on 2 cores under the simulation's load, issue 64).
   if (loopRateShown_.isValid() && loopRateShown_.elapsed() < 500) return;
   loopRateShown_.start();
   const auto t = loop->timing();
