@@ -134,6 +134,54 @@ class TestGui : public QObject {
     QVERIFY(drawnKept < 4.0);
   }
 
+  // A frame given with its copy already scaled to the view (the composited view's worker makes one for each frame it
+  // composes, issue 64) is drawn from that copy as it is: the same pixels as the frame the view kept scaled itself
+  // (checked against OpenCV above). A copy of another size is not used.
+  void aFrameScaledOffTheGuiThreadIsDrawnAsGiven() {
+    cv::Mat3b bgr(720, 1280);
+    for (int y = 0; y < bgr.rows; ++y)
+      for (int x = 0; x < bgr.cols; ++x)
+        bgr(y, x) = cv::Vec3b(static_cast<uchar>(x * 255 / 1279), static_cast<uchar>(255 - y * 255 / 719),
+                              ((x / 20 + y / 12) % 2) ? 220 : 30);
+    ui::FrameView view;
+    view.resize(700, 460);
+    view.setFrame(ui::frameToQImage(bgr));
+    view.fitToWindow();
+    view.grab();        // drawn through the transform
+    QTest::qWait(400);  // stayed 250 ms since: the view scaled it itself
+    const quint64 before = view.paintsFromScaled();
+    const QImage kept = view.grab().toImage();
+    QCOMPARE(view.paintsFromScaled(), before + 1);
+    const QPointF a = view.toWidget(QPointF(0, 0)), b = view.toWidget(QPointF(1280, 720));
+    const QSize size = view.frameSizeInView();
+    QCOMPARE(size, QRectF(a, b).size().toSize());
+    QVERIFY(size.width() > 300 && size.width() < 1280);
+    const QImage next = ui::frameToQImage(bgr);  // another image (another cache key), the same pixels
+    view.setFrame(next, next.scaled(size, Qt::IgnoreAspectRatio, Qt::SmoothTransformation));
+    const QImage given = view.grab().toImage();
+    QCOMPARE(view.paintsFromScaled(), before + 2);
+    QCOMPARE(given, kept);
+    // A copy of another size (the view was resized since it was asked): drawn through the transform, within the
+    // levels the first test allows of the scaled drawing.
+    const QImage third = ui::frameToQImage(bgr);
+    view.setFrame(third, third.scaled(size - QSize(40, 22), Qt::IgnoreAspectRatio, Qt::SmoothTransformation));
+    const QImage transformed = view.grab().toImage();
+    QCOMPARE(view.paintsFromScaled(), before + 2);
+    QCOMPARE(transformed.size(), kept.size());
+    double sum = 0;
+    long n = 0;
+    const QRect inner = QRectF(a, b).toAlignedRect().adjusted(2, 2, -2, -2);
+    for (int y = inner.top(); y <= inner.bottom(); ++y)
+      for (int x = inner.left(); x <= inner.right(); ++x) {
+        const QRgb p = transformed.pixel(x, y), q = kept.pixel(x, y);
+        sum += std::abs(qRed(p) - qRed(q)) + std::abs(qGreen(p) - qGreen(q)) + std::abs(qBlue(p) - qBlue(q));
+        n += 3;
+      }
+    qInfo("drawn through the transform: %.2f levels from the scaled copy", sum / static_cast<double>(n));
+    QVERIFY(sum / static_cast<double>(n) < 4.0);
+    QVERIFY(transformed != kept);  // (the wrong-sized copy was not drawn: it would be placed at another size)
+  }
+
   // A text that changes many times a second in a SteadyBox is repainted, not laid out (issue 64): the window above it
   // hears of it only when the text needs another line, or (one that does not wrap) more width than it has. Qt's own
   // label beside it is the reference: each of its new texts is a layout pass of the window.

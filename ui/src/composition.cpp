@@ -31,11 +31,12 @@ Composition::Composition(QObject* parent) : QObject(parent) {
       setCase(case_);  // the case moved on while the layers were made
     }
   });
-  connect(&composeWatcher_, &QFutureWatcher<QImage>::finished, this, [this] {
+  connect(&composeWatcher_, &QFutureWatcher<Composed>::finished, this, [this] {
     composing_ = false;
-    const QImage j = composeWatcher_.result();
-    if (!j.isNull() && compositor_) {
-      last_ = j;
+    const Composed j = composeWatcher_.result();
+    if (!j.image.isNull() && compositor_) {
+      last_ = j.image;
+      lastScaled_ = j.scaled;
       emit composed(last_);
     }
     startNext();
@@ -72,7 +73,7 @@ void Composition::setCase(std::shared_ptr<const app::Case> c) {
     compositor_.reset();
     glPrepared_ = false;
     estimate_.reset();
-    diffuse_ = background_ = residual_ = last_ = QImage();
+    diffuse_ = background_ = residual_ = last_ = lastScaled_ = QImage();
     waiting_.reset();
     waitingCut_.reset();
     whyNot_ = why;
@@ -132,6 +133,7 @@ void Composition::install(const std::shared_ptr<const app::Case>& c, const app::
   residual_ = layers.residual.empty() ? QImage() : frameToQImage(layers.residual);
   whyNot_.clear();
   last_ = composeNow();
+  lastScaled_ = QImage();
   emit readyChanged(true);
   emit composed(last_);
 }
@@ -213,6 +215,7 @@ void Composition::request(std::vector<Eigen::Vector3d> cameraPositions,
         const QImage j = composeNow(positions, cut);
         if (!j.isNull()) {
           last_ = j;
+          lastScaled_ = QImage();
           emit composed(last_);
         }
       });
@@ -233,9 +236,15 @@ void Composition::startNext() {
   waiting_.reset();
   waitingCut_.reset();
   composing_ = true;
-  composeWatcher_.setFuture(QtConcurrent::run(
-      [compositor = compositor_, c = case_, cache = cutCache_, pose = estimate_->pose, positions = std::move(positions),
-       cut = std::move(cut)]() -> QImage { return composeWith(compositor, c, cache, pose, positions, cut); }));
+  composeWatcher_.setFuture(QtConcurrent::run([compositor = compositor_, c = case_, cache = cutCache_,
+                                                pose = estimate_->pose, positions = std::move(positions),
+                                                cut = std::move(cut), scale = viewScale_]() -> Composed {
+    Composed j{composeWith(compositor, c, cache, pose, positions, cut), {}};
+    // The view's copy, as FrameView::scaleFrame makes it: scaling each new frame on the GUI thread paused the window.
+    if (!j.image.isNull() && !scale.isEmpty())
+      j.scaled = j.image.scaled(scale, Qt::IgnoreAspectRatio, Qt::SmoothTransformation);
+    return j;
+  }));
 }
 
 }  // namespace rehearse::ui

@@ -287,7 +287,12 @@ void MainWindow::showFrameLayer() {
     return;
   }
   const bool composited = showingComposited() && !composition_->lastComposed().isNull() && view_->overlayVisible();
-  view_->setFrame(composited ? composition_->lastComposed() : doc_->frameImage());
+  if (composited)
+    view_->setFrame(composition_->lastComposed(), composition_->lastScaled());
+  else
+    view_->setFrame(doc_->frameImage());
+  // The composition's worker scales the frames it makes to the view's size (the GUI thread then only draws them).
+  composition_->setViewScale(showingComposited() ? view_->frameSizeInView() : QSize());
   if (composited) {
     view_->setOverlay(QImage(), {});
     view_->setInnerOverlay(QImage());

@@ -54,6 +54,12 @@ class Composition : public QObject {
   QImage backgroundImage() const { return background_; }
   QImage residualImage() const { return residual_; }  ///< what Theta leaves of the frame on the organ (x 3)
   QImage lastComposed() const { return last_; }
+  /// lastComposed() scaled smoothly to the size setViewScale asked when it was requested (null when none was asked, or
+  /// composed with OpenGL): the frame view draws it as it is (FrameView::setFrame(frame, scaled)).
+  QImage lastScaled() const { return lastScaled_; }
+  /// The size the composited view draws a frame at (FrameView::frameSizeInView): each composition the worker makes
+  /// from now on is scaled to it there too, off the GUI thread. Empty: none.
+  void setViewScale(QSize size) { viewScale_ = size; }
   /// Why there is no composited view (empty when ready): a sentence for the status bar.
   QString whyNot() const { return whyNot_; }
   /// Waits for the worker and for what its results start (tests): the view then shows the newest composition.
@@ -73,6 +79,10 @@ class Composition : public QObject {
     std::string said;
   };
   /// J for `cameraPositions` (empty: at rest), of the cut organ when `cut` is given; null when it cannot be made.
+  /// A composition and its copy at the view's scale.
+  struct Composed {
+    QImage image, scaled;
+  };
   static QImage composeWith(const std::shared_ptr<const imaging::Compositor>& compositor,
                             const std::shared_ptr<const app::Case>& c, const std::shared_ptr<CutCache>& cache,
                             const Pose& pose, const std::vector<Eigen::Vector3d>& cameraPositions,
@@ -85,11 +95,12 @@ class Composition : public QObject {
   std::shared_ptr<const app::AppearanceEstimate> estimate_;  ///< the estimate the layers belong to
   std::shared_ptr<const app::Case> case_;
   std::shared_ptr<const imaging::Compositor> compositor_;
-  QImage diffuse_, background_, residual_, last_;
+  QImage diffuse_, background_, residual_, last_, lastScaled_;
+  QSize viewScale_;
   QString whyNot_;
   QFutureWatcher<std::shared_ptr<Prepared>> prepareWatcher_;
   std::shared_ptr<const app::AppearanceEstimate> preparing_;
-  QFutureWatcher<QImage> composeWatcher_;
+  QFutureWatcher<Composed> composeWatcher_;
   bool composing_ = false;  ///< a composition job started whose finish handler has not run yet
   std::optional<std::vector<Eigen::Vector3d>> waiting_;
   std::shared_ptr<const simcore::CutSurface> waitingCut_;

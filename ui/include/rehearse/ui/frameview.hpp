@@ -99,6 +99,15 @@ class FrameView : public QWidget {
   explicit FrameView(QWidget* parent = nullptr);
   ~FrameView() override;
   void setFrame(const QImage& frame);
+  /// The frame with a copy of it already scaled to frameSizeInView() (made off the GUI thread, as the composited view's
+  /// worker does): drawn as it is while the view's scale stays; a copy of another size is not used.
+  void setFrame(const QImage& frame, const QImage& scaledToView);
+  /// The size the frame is drawn at in the view now, smoothly scaled: the size a worker scales a frame to for
+  /// setFrame(frame, scaled); empty without a frame or when it is drawn enlarged (zoom 2 and over).
+  QSize frameSizeInView() const;
+  /// Paints that drew the frame from its scaled copy (kept, or given by setFrame(frame, scaled)) rather than through
+  /// the painter's transform.
+  quint64 paintsFromScaled() const { return paintsFromScaled_; }
   /// The picture under the overlay as shown now (the frame, or the composited frame).
   const QImage& shownFrame() const { return frame_; }
   /// Paints so far (the live overlay waits for its last drawing to be painted before drawing the next).
@@ -233,6 +242,8 @@ class FrameView : public QWidget {
 
  private:
   QTransform frameToWidget() const;
+  /// True when scaledFrame_ is frame_ at the view's present scale.
+  bool scaledFrameFits() const;
   FrameTool* current() const;
   void rebuildWireframe();
   void paintOverlay(QPainter& painter);
@@ -278,7 +289,7 @@ class FrameView : public QWidget {
   /// corner is behind the camera.
   std::optional<std::pair<double, QPolygonF>> fieldFace(const std::array<int, 3>& t) const;
   QImage frame_, overlay_, inner_;
-  quint64 paints_ = 0;
+  quint64 paints_ = 0, paintsFromScaled_ = 0;
   struct {
     QImage image;  ///< frame_ at the view's scale
     QPointF at;
