@@ -28,8 +28,10 @@ struct Compositor::Impl {
   Rasterization restSeen;                ///< what the frame shows of the organ at rest (triangle, depth)
   cv::Mat3b frame, background;
   cv::Mat3f albedo;
+  cv::Mat3f residual;  ///< frameResidual(); empty while it is made (and when texture only)
   Appearance theta;
   bool textureOnly = false;
+  bool frameDetail = true;
   std::vector<int> triangleMaterial;  ///< CompositionInput's (empty: all the organ's surface)
   std::vector<cv::Vec3f> materials;
   /// exp(-alpha^2 / 2 sigma^2) against cos(alpha) in [0, 1] (the specular lobe), linearly interpolated.
@@ -151,8 +153,13 @@ struct Compositor::Impl {
     const float falloff = falloffAt(p, p2);  // the scope's light cone and vignetting
     for (int k = 0; k < 3; ++k)
       bgr[k] = 255.0f * falloff * (albedoHere[k] * kdF[2 - k] * diffuse + ksF[2 - k] * specular);
+    if (material == 0 && seen && !residual.empty()) {  // the frame's detail, over the model as a frame can show it
+      const cv::Vec3f detail = bilinear(residual, qx, qy);
+      for (int k = 0; k < 3; ++k) bgr[k] = std::min(bgr[k], 255.0f) + detail[k];
+    }
     return true;
   }
+  void makeResidual();
 
   /// A deformed shape as compose() draws it: its vertices in the camera frame (double and single precision), their
   /// normals, its triangles' planes, its vertices' image points and what the camera sees of it.
@@ -196,6 +203,7 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   d.albedo = in.albedo.empty() ? cv::Mat3f(size, cv::Vec3f(1, 1, 1)) : in.albedo;
   d.theta = in.theta;
   d.textureOnly = in.textureOnly;
+  d.frameDetail = in.frameDetail;
   if (!in.triangleMaterial.empty()) {
     if (in.triangleMaterial.size() != in.rest.triangleCount)
       throw InputError("The surface's materials are not one per triangle.");
@@ -222,9 +230,39 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
       d.falloff[i] = static_cast<float>(
           std::pow(static_cast<double>(i) / static_cast<double>(d.falloff.size() - 1), 0.5 * in.theta.falloff));
   }
+  if (!d.textureOnly && d.frameDetail) d.makeResidual();
+}
+
+// The frame minus the model at rest, on the organ's pixels whose four neighbours show the organ too (a rim pixel
+// mixes the organ with what is behind it: carried inward when the organ moves, it would draw a seam).
+void Compositor::Impl::makeResidual() {
+  std::vector<Eigen::Vector3f> N(restCam.size());
+  const std::vector<Eigen::Vector3d> normals =
+      vertexNormals(restCam, SurfaceView{restVertices.data(), vertexCount, triangles.data(), triangles.size() / 3});
+  for (std::size_t i = 0; i < N.size(); ++i) N[i] = normals[i].cast<float>();
+  const std::vector<Plane> P = planes(restCam, triangles);
+  cv::Mat3f out(frame.size(), cv::Vec3f(0, 0, 0));
+  const cv::Mat1i& tri = restSeen.triangle;
+  cv::parallel_for_(cv::Range(1, std::max(1, frame.rows - 1)), [&](const cv::Range& rows) {
+    for (int y = rows.start; y < rows.end; ++y)
+      for (int x = 1; x + 1 < frame.cols; ++x) {
+        const int t = tri(y, x);
+        if (t < 0 || tri(y - 1, x) < 0 || tri(y + 1, x) < 0 || tri(y, x - 1) < 0 || tri(y, x + 1) < 0) continue;
+        if (!triangleMaterial.empty() && triangleMaterial[static_cast<std::size_t>(t)] != 0) continue;
+        cv::Vec3f model;
+        if (!shadeAt(restCamF, N, P, t, x, y, model)) continue;
+        // Against the model as the frame can show it (a highlight brighter than white is white there): a clipped
+        // highlight carries nothing to where the organ moves.
+        const cv::Vec3b f = frame(y, x);
+        for (int k = 0; k < 3; ++k) out(y, x)[k] = f[k] - std::min(model[k], 255.0f);
+      }
+  });
+  residual = out;
 }
 
 Compositor::~Compositor() = default;
+
+const cv::Mat3f& Compositor::frameResidual() const { return d_->residual; }
 
 const Camera& Compositor::camera() const { return d_->camera; }
 
@@ -240,6 +278,7 @@ std::unique_ptr<Compositor> Compositor::reshaped(const SurfaceView& rest, std::v
   in.albedo = d.albedo;
   in.theta = d.theta;
   in.textureOnly = d.textureOnly;
+  in.frameDetail = d.frameDetail;
   in.triangleMaterial = std::move(triangleMaterial);
   in.materials = std::move(materials);
   return std::make_unique<Compositor>(in);

@@ -33,6 +33,14 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
   }
   // What the fitted frame saw of the organ at rest (its depth), and the organ through the view.
   const Rasterization fittedSeen = rasterize(in.camera, in.pose, rest, 1);
+  // What the model leaves of the fitted frame (Compositor::frameResidual), carried with the tissue it was seen on.
+  cv::Mat3f residual;
+  if (!in.textureOnly && in.frameDetail) {
+    CompositionInput atRest = in;
+    atRest.deformed = atRest.rest;
+    if (atRest.background.size() != atRest.frame.size()) atRest.background = atRest.frame;
+    residual = Compositor(atRest).frameResidual();
+  }
   const SurfaceGeometry g = surfaceGeometry(view, viewPose, shape);  // throws for an organ behind the view
   NovelView out;
   out.image = background.empty() ? cv::Mat3b(size, cv::Vec3b(0, 0, 0)) : background.clone();
@@ -69,13 +77,16 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
           continue;
         }
         const cv::Vec3f albedo = seen ? bilinear(in.albedo, qx, qy) : cv::Vec3f(1, 1, 1);
+        const cv::Vec3f carried = seen && !residual.empty() ? bilinear(residual, qx, qy) : cv::Vec3f(0, 0, 0);
         const cv::Vec3f pf = g.position(y, x), nf = g.normal(y, x);
         double diffuse, specular;
         in.theta.terms(Eigen::Vector3d(pf[0], pf[1], pf[2]), Eigen::Vector3d(nf[0], nf[1], nf[2]), diffuse, specular);
         cv::Vec3b& o = out.image(y, x);
         for (int k = 0; k < 3; ++k)
-          o[k] = cv::saturate_cast<uchar>(255.0 *
-                                          (albedo[k] * in.theta.kd[2 - k] * diffuse + in.theta.ks[2 - k] * specular));
+          o[k] = cv::saturate_cast<uchar>(std::min(
+              std::min(255.0 * (albedo[k] * in.theta.kd[2 - k] * diffuse + in.theta.ks[2 - k] * specular), 255.0) +
+                  carried[k],
+              255.0));
         out.covered(y, x) = 255;
       }
   });

@@ -57,6 +57,7 @@ in vec3 vRest;
 uniform sampler2D albedo;     // BGR ratios, sampled as RGB
 uniform sampler2D frame;
 uniform sampler2D restDepth;  // camera z of what the frame shows at rest, 0 where it shows no organ
+uniform sampler2D residual;   // what the model leaves of the frame at rest (imaging::Compositor::frameResidual), 0..1 units
 uniform vec2 size;
 uniform vec4 intrinsics;      // fx, fy, cx, cy
 uniform float skew;
@@ -99,7 +100,8 @@ void main() {
     specular = sigma > 0.0 ? exp(-alpha * alpha / (2.0 * sigma * sigma)) / (r2 * cosR) : 0.0;
   }
   float f = falloff > 0.0 ? pow(max(p.z, 0.0) / length(p), falloff) : 1.0;
-  colour = vec4(clamp(f * (a * kd * diffuse + ks * specular), 0.0, 1.0), 1.0);
+  vec3 detail = seen ? texture(residual, uv).rgb : vec3(0.0);  // the frame's detail, carried with the tissue
+  colour = vec4(clamp(min(f * (a * kd * diffuse + ks * specular), 1.0) + detail, 0.0, 1.0), 1.0);
 })";
 
 }  // namespace
@@ -110,7 +112,7 @@ struct GLCompositor::Impl {
   QOpenGLShaderProgram quad, organ;
   std::unique_ptr<QOpenGLFramebufferObject> fbo;
   int fboSamples = -1;
-  GLuint background = 0, albedo = 0, frame = 0, restDepth = 0;
+  GLuint background = 0, albedo = 0, frame = 0, restDepth = 0, residual = 0;
   bool ok = false, prepared = false, software = false;
   imaging::Camera camera;
   Pose pose;
@@ -189,7 +191,7 @@ GLCompositor::GLCompositor() : d_(std::make_unique<Impl>()) {
 GLCompositor::~GLCompositor() {
   if (d_->context.isValid() && d_->context.makeCurrent(&d_->surface)) {
     auto* gl = d_->context.extraFunctions();
-    for (GLuint* t : {&d_->background, &d_->albedo, &d_->frame, &d_->restDepth})
+    for (GLuint* t : {&d_->background, &d_->albedo, &d_->frame, &d_->restDepth, &d_->residual})
       if (*t) gl->glDeleteTextures(1, t);
     d_->fbo.reset();
     d_->quad.removeAllShaders();
@@ -225,12 +227,23 @@ bool GLCompositor::prepare(const imaging::CompositionInput& in) {
   d.theta = in.theta;
   d.textureOnly = in.textureOnly;
   const cv::Mat3f albedo = in.albedo.empty() ? cv::Mat3f(size, cv::Vec3f(1, 1, 1)) : in.albedo;
+  // The frame's detail, as the CPU compositor carries it (0 where none: texture only, or the model alone asked).
+  cv::Mat3f residual(size, cv::Vec3f(0, 0, 0));
+  if (!in.textureOnly && in.frameDetail) {
+    try {
+      const cv::Mat3f r = imaging::Compositor(in).frameResidual();
+      if (r.size() == size) residual = r * (1.0 / 255.0);
+    } catch (const std::exception&) {
+      return false;  // the CPU compositor refuses this input: so does this one
+    }
+  }
   if (!d.context.makeCurrent(&d.surface)) return false;
   auto* gl = d.context.extraFunctions();
   d.background = d.upload(gl, d.background, in.background, GL_RGB8, GL_BGR, GL_UNSIGNED_BYTE, GL_LINEAR);
   d.frame = d.upload(gl, d.frame, in.frame, GL_RGB8, GL_BGR, GL_UNSIGNED_BYTE, GL_LINEAR);
   d.albedo = d.upload(gl, d.albedo, albedo, GL_RGB32F, GL_BGR, GL_FLOAT, GL_LINEAR);
   d.restDepth = d.upload(gl, d.restDepth, depth, GL_R32F, GL_RED, GL_FLOAT, GL_NEAREST);
+  d.residual = d.upload(gl, d.residual, residual, GL_RGB32F, GL_BGR, GL_FLOAT, GL_LINEAR);
   d.context.doneCurrent();
   d.prepared = true;
   return true;
@@ -306,9 +319,9 @@ bool GLCompositor::compose(const std::vector<double>& deformedVertices, QImage& 
       p.setAttributeBuffer(a, GL_FLOAT, static_cast<int>(3 * a * sizeof(float)), 3, static_cast<int>(9 * sizeof(float)));
     }
     p.setUniformValue("projection", projection);
-    const GLuint textures[] = {d.albedo, d.frame, d.restDepth};
-    const char* names[] = {"albedo", "frame", "restDepth"};
-    for (int t = 0; t < 3; ++t) {
+    const GLuint textures[] = {d.albedo, d.frame, d.restDepth, d.residual};
+    const char* names[] = {"albedo", "frame", "restDepth", "residual"};
+    for (int t = 0; t < 4; ++t) {
       gl->glActiveTexture(GL_TEXTURE0 + static_cast<GLenum>(t));
       gl->glBindTexture(GL_TEXTURE_2D, textures[t]);
       p.setUniformValue(names[t], t);

@@ -133,6 +133,9 @@ struct CompositionInput {
   cv::Mat3f albedo;      ///< albedoRatio at rest
   Appearance theta;
   bool textureOnly = false;  ///< no re-shading: the frame's own colours follow the tissue
+  /// Re-shaded, a point the frame saw carries what Theta's model leaves of the frame there (Compositor::frameResidual):
+  /// the frame's detail kept, at rest the frame itself. False: the model alone (its own tests).
+  bool frameDetail = true;
   /// Per rest triangle (empty: all 0): 0, the organ's surface (the frame's albedo where it saw it); k >= 1, tissue
   /// the frame never showed (a cut's faces) drawn with `materials[k - 1]`, an albedo ratio (BGR, against k_d) that
   /// Theta re-shades, even when the surface is only texture-mapped.
@@ -162,6 +165,11 @@ class Compositor {
   /// The same with the deformed vertices given as 3n model-frame coordinates (empty: the rest shape).
   cv::Mat3b compose(const std::vector<double>& deformedVertices, int scale = 2) const;
   const Camera& camera() const;
+  /// What Theta's model leaves of the frame on the organ at rest (BGR, 0..255 units, float, frame size): the frame
+  /// minus the model there, on the organ's pixels away from its rim (1 px), 0 elsewhere and when texture only. A
+  /// re-shaded point the frame saw carries it from where the frame saw it (issue 65: the frame's detail is kept and
+  /// the model changes the colours only by what changed; at rest the composite is the frame).
+  const cv::Mat3f& frameResidual() const;
   /// The same frame, layers and Theta for another surface of the organ at rest (a cut organ's boundary: its
   /// vertices where the frame showed them, model frame), with its triangles' materials (CompositionInput).
   std::unique_ptr<Compositor> reshaped(const SurfaceView& rest, std::vector<int> triangleMaterial,
