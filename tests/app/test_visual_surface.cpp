@@ -119,6 +119,7 @@ cv::Mat1b drawnMask(const imaging::Camera& cam, const Pose& pose, const std::vec
   in.theta.kd = Eigen::Vector3d(1e4, 1e4, 1e4);
   in.theta.ks = Eigen::Vector3d::Zero();
   in.theta.roughness = 0.1;
+  in.frameDetail = false;  // a mask: the model alone, saturated white (the grey frame's residual would shift the rim)
   const imaging::Compositor compositor(in);
   const cv::Mat3b j = compositor.compose(d, 4);
   cv::Mat1b grey, mask;

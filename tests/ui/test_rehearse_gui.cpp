@@ -28,6 +28,7 @@
 
 #include <QComboBox>
 #include <QLabel>
+#include <QScrollArea>
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
 
@@ -165,6 +166,19 @@ class TestRehearseGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
     QCOMPARE(w_->step(), ui::Step::Rehearse);
     QCOMPARE(w_->frameView()->tool(), ui::Tool::Grasp);
+    {  // The page opens on what the instruments do: the status and force lines in view without scrolling, above the
+       // intro (above them, it pushed them below the fold at 1600x900).
+      auto* force = w_->findChild<QLabel*>("rehearseForce");
+      auto* intro = w_->findChild<QLabel*>("rehearseIntro");
+      QVERIFY(force && intro);
+      QScrollArea* area = nullptr;
+      for (QWidget* p = force->parentWidget(); p && !area; p = p->parentWidget()) area = qobject_cast<QScrollArea*>(p);
+      QVERIFY(area);
+      const QPoint bottom = force->mapTo(area->viewport(), QPoint(0, force->height()));
+      qInfo("the force line ends %d px down the page's %d px viewport", bottom.y(), area->viewport()->height());
+      QVERIFY(bottom.y() <= area->viewport()->height());
+      QVERIFY(force->mapTo(area->viewport(), QPoint()).y() < intro->mapTo(area->viewport(), QPoint()).y());
+    }
     auto* panel = w_->simulationPanel();
     QVERIFY(panel->isPlaying());  // the step plays the simulation: the organ settles on its ligaments first
     const QImage restOverlay = w_->organOverlay();

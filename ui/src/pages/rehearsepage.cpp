@@ -40,7 +40,9 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
          "colours; the overlay (F3) shows cut tissue in dark red."),
       this);
   intro->setWordWrap(true);
-  layout->addWidget(intro);
+  intro->setObjectName(QStringLiteral("rehearseIntro"));
+  // (Added last, below the chart: the tools, what they do and the force come first, where the page opens; above
+  // them the intro pushed the status and the force below the fold at 1600x900.)
   auto* grasper =
       toolButton(this, tr("Grasper (R)"), tr("Press on the organ to grasp it, drag to pull, release to let go"),
                  Tool::Grasp, Qt::Key_R);
@@ -149,6 +151,7 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   // the tooltip has it all.
   loopRate_->setSizePolicy(QSizePolicy::Ignored, QSizePolicy::Preferred);
   layout->addWidget(new SteadyBox(loopRate_, this));
+  layout->addWidget(intro);
   chartTimer_ = new QTimer(this);
   chartTimer_->setInterval(66);  // 15 Hz: the GUI thread's time goes to the organ's view first
   connect(chartTimer_, &QTimer::timeout, this, &RehearsePage::updateChart);
