@@ -674,6 +674,11 @@ struct Cholecystectomy {
       // The status bar says it too (it had kept "Grasped: drag to pull" beside the page's "closed on nothing").
       QVERIFY2(waitFor([&] { return w_->statusText().contains("slipped out of the grasper"); }, 5000),
                qPrintable(w_->statusText()));
+      // As a person sees the status bar: its temporary message when there is one (the grasper's "Grasped: drag to
+      // pull" hid the slip's sentence for 10 s), else the case's line.
+      const QString seen =
+          w_->statusBar()->currentMessage().isEmpty() ? w_->statusText() : w_->statusBar()->currentMessage();
+      QVERIFY2(seen.contains("slipped out of the grasper"), qPrintable(seen));
     }
     QVERIFY(stepsOn(10));
     pauses.stop(ended.contains("tore") ? "pull and tear" : "pull and slip");

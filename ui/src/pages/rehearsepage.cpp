@@ -271,8 +271,12 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   vesselCuts_ += counted.vesselCuts;
   // A slip is said in the status bar too, where "Grasped: drag to pull" stood (a helper read it beside "the jaws are
   // closed on nothing"): the sentence says at what force and what the scene allows.
-  if (counted.slips > 0 && !f->message.isEmpty() && wb_.status)
+  if (counted.slips > 0 && !f->message.isEmpty() && wb_.status) {
     wb_.status(f->message);
+    // Over the grasper's own line too: its "Grasped: drag to pull" stays on top of the status bar for 10 s and hid the
+    // slip's sentence beside the page's "the jaws are closed on nothing".
+    if (wb_.view) emit wb_.view->toolMessage(f->message);
+  }
   const int tore = counted.tears;
   tears_ += tore;
   auto status = [this](const QString& text) { pendingStatus_ = text; };
