@@ -182,6 +182,7 @@ int cmdAppearance(const std::vector<std::string>& args) {
                  {"highlight_found", r.fit.highlightFound},
                  {"texture_only", r.fit.textureOnly},
                  {"explained", r.fit.explained},
+                 {"reshade_trust", verdict.reshading().trust},
                  {"smooth_share", r.fit.smoothShare},
                  {"checks",
                   [&] {
@@ -223,6 +224,10 @@ int cmdAppearance(const std::vector<std::string>& args) {
       r.fit.theta.kd.x(), r.fit.theta.kd.y(), r.fit.theta.kd.z(), r.fit.theta.ks.x(), r.fit.theta.ks.y(),
       r.fit.theta.ks.z(), r.fit.theta.roughness, r.restPsnr, r.totalMs);
   if (!r.turn.sentence.empty()) std::printf("%s\n", r.turn.sentence.c_str());
+  if (!r.fit.textureOnly && verdict.reshading().trust < 1)
+    std::printf("re-shading applies %.0f %% of the model's change to the frame's colours (it explained %.0f %%; in full "
+                "from 90 %%)\n",
+                100 * verdict.reshading().trust, 100 * r.fit.explained);
   // A fit too poor to re-shade is still written (texture mapping uses it), but says so with its own exit code.
   return r.fit.textureOnly ? 4 : 0;
 }
@@ -240,6 +245,8 @@ int cmdCompose(const std::vector<std::string>& args) {
   // A fit that explained too little does not re-shade (issue 65): the frame's texture is drawn instead, and said so.
   const bool untrusted = verdict.known && !verdict.reshade;
   const bool textureOnly = o.count("texture-only") > 0 || untrusted;
+  // Re-shaded as far as the fit earned it (imaging::reshadeTrust): the model's change applied at that share.
+  const imaging::Reshading how = textureOnly ? imaging::Reshading{true, 0.0} : verdict.reshading();
   std::vector<double> deformed;
   if (o.count("deformed")) {
     simcore::LoadOptions lo;
@@ -270,11 +277,10 @@ int cmdCompose(const std::vector<std::string>& args) {
     if (const std::string problem = view.problem(); !problem.empty())
       throw simcore::MeshError("The view's camera: " + problem);
     viewImage = imaging::undistortImage(viewImage, view);
-    j = composeNovelViewWithTheta(in, theta, view, imaging::loadPose(o["view-pose"]), viewImage, deformed,
-                                  textureOnly)
+    j = composeNovelViewWithTheta(in, theta, view, imaging::loadPose(o["view-pose"]), viewImage, deformed, how)
             .image;
   } else {
-    j = composeWithTheta(in, theta, deformed, textureOnly);
+    j = composeWithTheta(in, theta, deformed, how);
   }
   if (untrusted) {
     char share[32];
@@ -282,6 +288,10 @@ int cmdCompose(const std::vector<std::string>& args) {
     std::printf("not re-shaded: the fit behind %s is marked texture only (it explained %s of the organ's shading); "
                 "the frame's own colours are drawn instead\n",
                 std::filesystem::path(o["theta"]).filename().c_str(), share);
+  } else if (!textureOnly && how.trust < 1) {
+    std::printf("re-shaded at %.0f %% of the model's change: the fit behind %s explained %.0f %% of the organ's shading "
+                "(in full from 90 %%); the rest of each colour is the frame's own\n",
+                100 * how.trust, std::filesystem::path(o["theta"]).filename().c_str(), 100 * verdict.explained);
   } else if (!verdict.known && !textureOnly) {
     std::printf("re-shaded with %s as given: it carries no fit's verdict (written by hand, or before 'rehearse "
                 "appearance' kept one)\n",

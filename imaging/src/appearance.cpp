@@ -3,6 +3,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -31,6 +32,16 @@ void Appearance::terms(const Eigen::Vector3d& p, const Eigen::Vector3d& n, doubl
   const double f = falloffAt(p);
   diffuse = f * cosI / r2;
   specular = f * std::exp(-alpha * alpha / (2 * roughness * roughness)) / (r2 * cosR);
+}
+
+double reshadeTrust(double explained) {
+  constexpr double kPoor = 0.5, kEarned = 0.9;
+  if (!std::isfinite(explained)) return 0;
+  return std::clamp((explained - kPoor) / (kEarned - kPoor), 0.0, 1.0);
+}
+
+Reshading Reshading::of(double explained, bool textureOnly) {
+  return textureOnly ? Reshading{true, 0.0} : Reshading{false, reshadeTrust(explained)};
 }
 
 Eigen::Vector3d Appearance::shade(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {

@@ -32,6 +32,7 @@ struct Compositor::Impl {
   Appearance theta;
   bool textureOnly = false;
   bool frameDetail = true;
+  float trust = 1;  ///< CompositionInput::trust (1 while the residual is made: that is the model's own)
   std::vector<int> triangleMaterial;  ///< CompositionInput's (empty: all the organ's surface)
   std::vector<cv::Vec3f> materials;
   /// exp(-alpha^2 / 2 sigma^2) against cos(alpha) in [0, 1] (the specular lobe), linearly interpolated.
@@ -157,6 +158,10 @@ struct Compositor::Impl {
       const cv::Vec3f detail = bilinear(residual, qx, qy);
       for (int k = 0; k < 3; ++k) bgr[k] = std::min(bgr[k], 255.0f) + detail[k];
     }
+    if (material == 0 && seen && trust < 1) {  // the model's change applied as far as the fit earned it
+      const cv::Vec3f f = bilinear(frame, qx, qy);
+      for (int k = 0; k < 3; ++k) bgr[k] = trust * bgr[k] + (1 - trust) * f[k];
+    }
     return true;
   }
   void makeResidual();
@@ -179,6 +184,8 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   const cv::Size size(in.camera.width, in.camera.height);
   if (in.frame.size() != size || in.background.size() != size) throw InputError("The frame's size is not the camera's.");
   if (!in.textureOnly && in.albedo.size() != size) throw InputError("The albedo's size is not the camera's.");
+  if (!(in.trust >= 0 && in.trust <= 1))
+    throw InputError("The share of the model's change to apply (the fit's trust) must be within 0 and 1.");
   Impl& d = *d_;
   d.camera = in.camera;
   d.pose = in.pose;
@@ -231,6 +238,7 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
           std::pow(static_cast<double>(i) / static_cast<double>(d.falloff.size() - 1), 0.5 * in.theta.falloff));
   }
   if (!d.textureOnly && d.frameDetail) d.makeResidual();
+  d.trust = static_cast<float>(in.trust);
 }
 
 // The frame minus the model at rest, on the organ's pixels whose four neighbours show the organ too (a rim pixel
@@ -279,6 +287,7 @@ std::unique_ptr<Compositor> Compositor::reshaped(const SurfaceView& rest, std::v
   in.theta = d.theta;
   in.textureOnly = d.textureOnly;
   in.frameDetail = d.frameDetail;
+  in.trust = d.trust;
   in.triangleMaterial = std::move(triangleMaterial);
   in.materials = std::move(materials);
   return std::make_unique<Compositor>(in);

@@ -23,6 +23,8 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
     throw InputError("The frame's size is not the camera's.");
   if (!in.textureOnly && in.albedo.size() != in.frame.size())
     throw InputError("The albedo's size is not the camera's.");
+  if (!(in.trust >= 0 && in.trust <= 1))
+    throw InputError("The share of the model's change to apply (the fit's trust) must be within 0 and 1.");
   const SurfaceView& rest = in.rest;
   SurfaceView shape = rest;
   if (!deformedVertices.empty()) {
@@ -81,12 +83,17 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
         const cv::Vec3f pf = g.position(y, x), nf = g.normal(y, x);
         double diffuse, specular;
         in.theta.terms(Eigen::Vector3d(pf[0], pf[1], pf[2]), Eigen::Vector3d(nf[0], nf[1], nf[2]), diffuse, specular);
+        // The model's change applied as far as the fit earned it (CompositionInput::trust): the rest is the frame's
+        // own colour where it saw the point.
+        const double trust = seen ? in.trust : 1.0;
+        const cv::Vec3f own = trust < 1 ? bilinear(in.frame, qx, qy) : cv::Vec3f(0, 0, 0);
         cv::Vec3b& o = out.image(y, x);
-        for (int k = 0; k < 3; ++k)
-          o[k] = cv::saturate_cast<uchar>(std::min(
+        for (int k = 0; k < 3; ++k) {
+          const double model =
               std::min(255.0 * (albedo[k] * in.theta.kd[2 - k] * diffuse + in.theta.ks[2 - k] * specular), 255.0) +
-                  carried[k],
-              255.0));
+              carried[k];
+          o[k] = cv::saturate_cast<uchar>(std::min(trust * model + (1 - trust) * own[k], 255.0));
+        }
         out.covered(y, x) = 255;
       }
   });

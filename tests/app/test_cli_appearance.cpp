@@ -216,6 +216,15 @@ class TestCliAppearance : public QObject {
     QVERIFY(bare.open(QIODevice::WriteOnly));
     bare.write(QJsonDocument(theta).toJson());
     bare.close();
+    // And with a verdict of 70 % explained (re-shaded half way: imaging::reshadeTrust).
+    QJsonObject earned = verdict;
+    earned["explained"] = 0.7;
+    earned["reshade"] = true;
+    theta["fit"] = earned;
+    QFile half(dir + "/half.json");
+    QVERIFY(half.open(QIODevice::WriteOnly));
+    half.write(QJsonDocument(theta).toJson());
+    half.close();
     const QStringList novel = {"--view-camera", dir + "/camera.yaml", "--view-pose", dir + "/view-pose.json"};
     for (const bool novelView : {false, true}) {
       const QStringList view = novelView ? novel : QStringList();
@@ -245,6 +254,35 @@ class TestCliAppearance : public QObject {
             qPrintable(tag), differTexture, differGiven);
       QCOMPARE(differTexture, 0);
       QVERIFY(differGiven > 1000);
+      // Half way: where texture only draws the organ, the mean of it and the full re-shade (within a level).
+      const Run halfWay = run(QStringList{"compose"} + organ + view + QStringList{"--theta", dir + "/half.json", "--out", dir + "/h-" + tag + ".png"});
+      QVERIFY2(halfWay.code == 0, qPrintable(halfWay.err));
+      QVERIFY2(halfWay.out.contains("re-shaded at 50 % of the model's change: the fit behind half.json explained 70 %"),
+               qPrintable(halfWay.out));
+      const cv::Mat3b h = cv::imread((dir + "/h-" + tag + ".png").toStdString());
+      QVERIFY(h.size() == t.size());
+      int drawn = 0, nearMean = 0, fromGiven = 0;
+      for (int y = 0; y < h.rows; ++y)
+        for (int x = 0; x < h.cols; ++x) {
+          const cv::Vec3b tv = t(y, x), gv = g(y, x), hv = h(y, x);
+          if (tv == cv::Vec3b(0, 0, 0)) continue;  // texture only drew nothing here (the novel view)
+          if (tv == gv) continue;                                   // no change to mix
+          ++drawn;
+          int worst = 0, apart = 0;
+          for (int k = 0; k < 3; ++k) {
+            worst = std::max(worst, std::abs(2 * hv[k] - tv[k] - gv[k]));
+            apart = std::max(apart, std::abs(hv[k] - gv[k]));
+          }
+          nearMean += worst <= 3;  // twice the level, and the two roundings
+          fromGiven += apart >= 2;
+        }
+      qInfo("%s, THETA explained 70 %%: of %d px where texture only and the full re-shade differ, %d within a level of "
+            "their mean, %d 2+ levels from the full re-shade",
+            qPrintable(tag), drawn, nearMean, fromGiven);
+      if (novelView) {  // at rest both ends are the frame, but for the rim's samples the frame never saw
+        QVERIFY(drawn > 10000);
+        QVERIFY(nearMean >= 0.98 * drawn);
+      }
     }
   }
 

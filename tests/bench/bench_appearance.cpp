@@ -341,7 +341,7 @@ struct AppearanceBench {
     kase.pose = ph.truePose;
     kase.hasPose = true;
     const app::AppearanceInput in = app::appearanceInputFromCase(kase);
-    const auto base = app::makeCompositor(in, app::appearanceLayers(in, ph.trueAppearance), ph.trueAppearance, false);
+    const auto base = app::makeCompositor(in, app::appearanceLayers(in, ph.trueAppearance), ph.trueAppearance, imaging::Reshading{});
     const auto snap = graspPullCut(kase);
     if (!snap->surface || snap->surface->cutCount == 0) {
       std::printf("grasp-pull-cut on the phantom: the blade cut nothing (%s)\n", snap->message.c_str());

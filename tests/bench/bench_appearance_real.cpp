@@ -282,8 +282,8 @@ int main(int argc, char** argv) {
   // The composition at rest inside the organ (eroded 2 px, as the step measures it): re-shaded and texture-only.
   cv::Mat1b inner;
   cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
-  const cv::Mat3b reshaded = app::composeAppearance(in, r.fit.theta, r.background, r.albedo, false, {}, 1);
-  const cv::Mat3b texture = app::composeAppearance(in, r.fit.theta, r.background, r.albedo, true, {}, 1);
+  const cv::Mat3b reshaded = app::composeAppearance(in, r.fit.theta, r.background, r.albedo, imaging::Reshading{}, {}, 1);
+  const cv::Mat3b texture = app::composeAppearance(in, r.fit.theta, r.background, r.albedo, imaging::Reshading{true, 0.0}, {}, 1);
   const double dbReshaded = imaging::psnr(in.frame, reshaded, inner),
                dbTexture = imaging::psnr(in.frame, texture, inner);
   std::printf("  composed at rest inside the organ: re-shaded %.1f dB, texture-only %.1f dB\n", dbReshaded, dbTexture);

@@ -318,6 +318,144 @@ class TestAppearance : public QObject {
                              imaging::composeNovelView(in, c_.camera, view, {}, std::vector<double>(9, 0.0)));
   }
 
+  // Issue 65: the model changes the frame's colours only as far as the fit earned it (imaging::reshadeTrust): not at all
+  // at or below the texture-only line (50 % explained), in full from 90 %, in proportion between. Checked against the
+  // two ends drawn on their own paths: where the frame saw the tissue, trust 0 draws what texture only draws and half
+  // trust the mean of texture only and the full re-shade, in the novel view and in the compositor on a moved organ; at
+  // rest every trust gives the frame; the moved highlights come nearer the truth as the trust rises.
+  void reshadingFollowsWhatTheFitEarned() {
+    QCOMPARE(imaging::reshadeTrust(0.3), 0.0);
+    QCOMPARE(imaging::reshadeTrust(0.5), 0.0);
+    QVERIFY(std::abs(imaging::reshadeTrust(0.7) - 0.5) < 1e-12);
+    QCOMPARE(imaging::reshadeTrust(0.9), 1.0);
+    QCOMPARE(imaging::reshadeTrust(0.999), 1.0);
+    QCOMPARE(imaging::reshadeTrust(std::nan("")), 0.0);
+    QVERIFY(imaging::Reshading::of(0.95, true).textureOnly && imaging::Reshading::of(0.95, true).trust == 0);
+    imaging::AppearanceVerdict verdict;
+    QCOMPARE(verdict.reshading().trust, 1.0);  // no fit's verdict: a light given by hand, taken as known
+    verdict.known = true;
+    verdict.explained = 0.8;
+    QVERIFY(!verdict.reshading().textureOnly && std::abs(verdict.reshading().trust - 0.75) < 1e-12);
+    verdict.reshade = false;
+    QVERIFY(verdict.reshading().textureOnly);
+
+    const auto g = imaging::surfaceGeometry(c_.camera, c_.truePose, c_.surfaceView());
+    const cv::Mat3b frame = withNoiseAndJpeg(c_.frame, 2.0, 90);
+    const auto r = imaging::fitAppearance(frame, g);
+    imaging::CompositionInput in;
+    in.camera = c_.camera;
+    in.pose = c_.truePose;
+    in.rest = in.deformed = c_.surfaceView();
+    in.frame = frame;
+    in.background = imaging::inpaintRegion(frame, g.mask());
+    in.albedo = imaging::albedoRatio(r.separation.diffuse, g, r.theta, r.usable);
+    in.theta = r.theta;
+    // The share of pixels of `where` on which `a` is within `levels` of `b` in every channel.
+    auto within = [](const cv::Mat3b& a, const cv::Mat3b& b, const cv::Mat1b& where, int levels) {
+      cv::Mat3b d;
+      cv::absdiff(a, b, d);
+      cv::Mat1b off;
+      cv::inRange(d, cv::Scalar(levels + 1, levels + 1, levels + 1), cv::Scalar(255, 255, 255), off);
+      cv::Mat1b anyOff = cv::Mat1b::zeros(d.size());
+      for (int y = 0; y < d.rows; ++y)
+        for (int x = 0; x < d.cols; ++x) {
+          const cv::Vec3b v = d(y, x);
+          anyOff(y, x) = std::max({v[0], v[1], v[2]}) > levels ? 255 : 0;
+        }
+      return 1.0 - static_cast<double>(cv::countNonZero(anyOff & where)) / std::max(1, cv::countNonZero(where));
+    };
+    auto mean = [](const cv::Mat3b& a, const cv::Mat3b& b) {
+      cv::Mat3b m;
+      cv::addWeighted(a, 0.5, b, 0.5, 0.0, m);
+      return m;
+    };
+
+    // The novel view, turned 14 degrees.
+    const Eigen::Vector3d centre = c_.truePose.apply(c_.centreOfGravity());
+    const Pose view2 = c_.truePose.turnedAbout(
+        Eigen::AngleAxisd(14 * M_PI / 180, Eigen::Vector3d::UnitY()).toRotationMatrix(), centre);
+    auto novel = [&](double trust, bool textureOnly) {
+      imaging::CompositionInput k = in;
+      k.trust = trust;
+      k.textureOnly = textureOnly;
+      return imaging::composeNovelView(k, c_.camera, view2);
+    };
+    const auto full = novel(1, false), half = novel(0.5, false), none = novel(0, false), texture = novel(0, true);
+    cv::Mat1b both = full.covered & full.seen;
+    cv::erode(both, both, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7)));
+    const double noneIsTexture = within(none.image, texture.image, both, 1),
+                 halfIsMean = within(half.image, mean(full.image, texture.image), both, 1);
+    const cv::Mat3b truth = imaging::renderShaded(c_.camera, view2, c_.surfaceView(), c_.trueAppearance,
+                                                  cv::Mat3b(frame.size(), cv::Vec3b(0, 0, 0)), 2);
+    imaging::Appearance specularOnly = c_.trueAppearance;
+    specularOnly.kd.setZero();
+    cv::Mat1b highlights;
+    cv::cvtColor(imaging::renderShaded(c_.camera, view2, c_.surfaceView(), specularOnly,
+                                       cv::Mat3b(frame.size(), cv::Vec3b(0, 0, 0)), 1),
+                 highlights, cv::COLOR_BGR2GRAY);
+    highlights = (highlights > 20) & both;
+    const double hiTexture = imaging::psnr(truth, texture.image, highlights),
+                 hiHalf = imaging::psnr(truth, half.image, highlights), hiFull = imaging::psnr(truth, full.image, highlights);
+    qInfo("novel view, %d px seen by both: trust 0 draws texture only's colours on %.3f %% (within 1 level), half trust "
+          "their mean with the full re-shade's on %.3f %%; at the %d moved highlight px texture %.2f dB, half %.2f, full %.2f",
+          cv::countNonZero(both), 100 * noneIsTexture, 100 * halfIsMean, cv::countNonZero(highlights), hiTexture, hiHalf,
+          hiFull);
+    QVERIFY(cv::countNonZero(both) > 20000 && cv::countNonZero(highlights) > 300);
+    QVERIFY(noneIsTexture >= 0.999);
+    QVERIFY(halfIsMean >= 0.99);
+    QVERIFY(hiHalf > hiTexture + 1.0 && hiFull > hiHalf + 1.0);
+
+    // The compositor: the organ moved 3 mm across the view and turned 6 degrees (nearly all of it still seen).
+    std::vector<double> moved(c_.surfaceView().vertices, c_.surfaceView().vertices + 3 * c_.surfaceView().vertexCount);
+    const Eigen::Vector3d cog = c_.centreOfGravity();
+    const Eigen::Matrix3d turn = Eigen::AngleAxisd(6 * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix();
+    for (std::size_t i = 0; i < moved.size(); i += 3) {
+      const Eigen::Vector3d p(moved[i], moved[i + 1], moved[i + 2]);
+      const Eigen::Vector3d q = cog + turn * (p - cog) + Eigen::Vector3d(0.003, 0, 0);
+      for (int k = 0; k < 3; ++k) moved[i + static_cast<std::size_t>(k)] = q[k];
+    }
+    auto composed = [&](double trust, bool textureOnly, bool atRest) {
+      imaging::CompositionInput k = in;
+      k.trust = trust;
+      k.textureOnly = textureOnly;
+      return imaging::Compositor(k).compose(atRest ? std::vector<double>{} : moved, 1);
+    };
+    const cv::Mat3b cFull = composed(1, false, false), cHalf = composed(0.5, false, false),
+                    cNone = composed(0, false, false), cTexture = composed(0, true, false);
+    // Where the moved organ is drawn, away from its rim (nearly all of it tissue the frame saw).
+    SurfaceView movedView = c_.surfaceView();
+    movedView.vertices = moved.data();
+    cv::Mat1b drawn = imaging::renderMask(c_.camera, c_.truePose, movedView);
+    cv::erode(drawn, drawn, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(7, 7)));
+    const double cNoneIsTexture = within(cNone, cTexture, drawn, 1),
+                 cHalfIsMean = within(cHalf, mean(cFull, cTexture), drawn, 1);
+    cv::Mat3b moveDiff;
+    cv::absdiff(cFull, cTexture, moveDiff);
+    cv::Mat1b changed;
+    cv::inRange(moveDiff, cv::Scalar(4, 4, 4), cv::Scalar(255, 255, 255), changed);
+    qInfo("compositor, organ moved (%d inner px, %d where the full re-shade differs from texture only by 4+ levels): trust 0 "
+          "is texture only's on %.3f %%, half trust their mean on %.3f %%",
+          cv::countNonZero(drawn), cv::countNonZero(changed & drawn), 100 * cNoneIsTexture, 100 * cHalfIsMean);
+    QVERIFY(cv::countNonZero(changed & drawn) > 2000);  // the move changed the shading: the mix is not trivial
+    QVERIFY(cNoneIsTexture >= 0.99);
+    QVERIFY(cHalfIsMean >= 0.99);
+    // At rest every trust draws the frame.
+    cv::Mat1b inner;
+    cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
+    for (double trust : {0.0, 0.5}) {
+      const double same = within(composed(trust, false, true), frame, inner, 3);
+      qInfo("at rest, trust %.1f: %.3f %% of the inner pixels the frame's within 3 levels", trust, 100 * same);
+      QVERIFY(same >= 0.995);
+    }
+    // A trust outside [0, 1] is refused with a sentence, not clamped.
+    for (double bad : {1.5, -0.1, std::nan("")}) {
+      imaging::CompositionInput k = in;
+      k.trust = bad;
+      QVERIFY_THROWS_EXCEPTION(rehearse::InputError, imaging::Compositor{k});
+      QVERIFY_THROWS_EXCEPTION(rehearse::InputError, imaging::composeNovelView(k, c_.camera, view2));
+    }
+  }
+
   // Tissue the frame never showed (a cut's faces, issue 35) takes its material's albedo ratio, re-shaded by Theta,
   // also when the organ's surface is only texture-mapped: with no specular term, its colour is the ratio times the
   // colour of the same surface with albedo 1, channel by channel (to the 8-bit rounding). A material list that does

@@ -251,6 +251,42 @@ void TestAppearanceGui::aTextureOnlyEstimateIsNotReshaded() {
   QVERIFY(w_->showingComposited());
   QVERIFY(toMat(w_->frameView()->shownFrame()).size() == rest.size());
   QVERIFY(cv::norm(toMat(w_->frameView()->shownFrame()), rest, cv::NORM_INF) == 0);
+
+  // A fit that explained 70 % re-shades half way (imaging::reshadeTrust: nothing at 50 %, in full from 90 %): turned, the
+  // organ's colours where the frame saw it are the mean of the full re-shade's and texture only's, and the appearance
+  // page says how far the model's change is applied.
+  auto withShare = [&](double explained) {
+    auto e = std::make_shared<app::AppearanceEstimate>(*original);
+    e->textureOnly = false;
+    e->explained = explained;
+    w_->editCase("Estimate (test)", [&](app::Case& k) { k.appearance = e; });
+    [&] { QVERIFY(waitFor([&] { return composition->ready() && w_->caseData()->appearance == e; })); }();
+    composition->waitForIdle();
+    return toMat(composition->composeNow(moved));
+  };
+  const cv::Mat3b full = withShare(0.95), half = withShare(0.7);
+  cv::Mat3b mean;
+  cv::addWeighted(full, 0.5, shifted, 0.5, 0.0, mean);
+  // Inside the organ at rest, away from its rim (the turned organ covers nearly all of it).
+  cv::Mat3b fromMean, fromFull;
+  cv::absdiff(half, mean, fromMean);
+  cv::absdiff(half, full, fromFull);
+  int nearMean = 0, counted = 0, moves = 0;
+  for (int y = 0; y < inner.rows; ++y)
+    for (int x = 0; x < inner.cols; ++x) {
+      if (!inner(y, x)) continue;
+      const cv::Vec3b a = fromMean(y, x), b = fromFull(y, x);
+      ++counted;
+      nearMean += std::max({a[0], a[1], a[2]}) <= 1;
+      moves += std::max({b[0], b[1], b[2]}) >= 2;
+    }
+  const QString said = w_->findChild<QLabel*>(QStringLiteral("appearanceReport"))->text();
+  qInfo("explained 70 %%: %d of %d inner px within a level of the mean of the full re-shade and texture only, %d px "
+        "2+ levels from the full re-shade; the page says: %s",
+        nearMean, counted, moves, qPrintable(said.section(QLatin1Char('\n'), -2)));
+  QVERIFY(nearMean >= 0.98 * counted);
+  QVERIFY(moves > 5000);
+  QVERIFY2(said.contains(QStringLiteral("Re-shading applies 50 % of the model's change")), qPrintable(said));
 }
 
 // Play deforms the organ in the frame: the view shows the composition of the simulation's snapshot, and

@@ -278,7 +278,7 @@ class TestGl : public QObject {
     in.frame = c.frame;
     const app::AppearanceOutput o = app::runAppearance(in);
     const app::AppearanceLayers layers{o.fit.separation.diffuse, o.background, o.albedo, {}};
-    const auto cpu = app::makeCompositor(in, layers, o.fit.theta, false);
+    const auto cpu = app::makeCompositor(in, layers, o.fit.theta, imaging::Reshading{});
     imaging::CompositionInput ci;
     ci.camera = c.camera;
     ci.pose = c.truePose;
@@ -328,13 +328,32 @@ class TestGl : public QObject {
       SurfaceView moved = v;
       moved.vertices = bent.data();
       const cv::Mat1b organ = imaging::renderMask(c.camera, c.truePose, moved);
-      const double asTexture = imaging::psnr(app::makeCompositor(in, layers, o.fit.theta, true)->compose(bent, 2), glBgr, organ),
+      const double asTexture = imaging::psnr(app::makeCompositor(in, layers, o.fit.theta, imaging::Reshading{true, 0.0})->compose(bent, 2), glBgr, organ),
                    asReshaded = imaging::psnr(cpu->compose(bent, 2), glBgr, organ);
       qInfo("texture only, bent and moved: OpenGL against the CPU compositor's texture-only composition %.1f dB inside "
             "the organ, against its re-shaded one %.1f dB",
             asTexture, asReshaded);
       QVERIFY(asTexture >= 35.0);
       QVERIFY(asTexture >= asReshaded + 3);
+      // A fit that earned half the model's change (issue 65, imaging::reshadeTrust): as the CPU compositor mixes it.
+      imaging::CompositionInput half = ci;
+      half.trust = 0.5;
+      QVERIFY(gl.prepare(half));
+      QVERIFY(gl.compose(bent, j, 4));
+      const QImage rgbHalf = j.convertToFormat(QImage::Format_RGB888);
+      cv::cvtColor(cv::Mat(rgbHalf.height(), rgbHalf.width(), CV_8UC3, const_cast<uchar*>(rgbHalf.constBits()),
+                           static_cast<std::size_t>(rgbHalf.bytesPerLine())),
+                   glBgr, cv::COLOR_RGB2BGR);
+      const double asHalf = imaging::psnr(app::makeCompositor(in, layers, o.fit.theta, imaging::Reshading{false, 0.5})->compose(bent, 2), glBgr, organ),
+                   halfAsFull = imaging::psnr(cpu->compose(bent, 2), glBgr, organ),
+                   halfAsTexture = imaging::psnr(app::makeCompositor(in, layers, o.fit.theta, imaging::Reshading{true, 0.0})->compose(bent, 2), glBgr, organ);
+      qInfo("half trust, bent and moved: OpenGL against the CPU compositor's half-trust composition %.1f dB inside the "
+            "organ, its full re-shade %.1f dB, its texture only %.1f dB",
+            asHalf, halfAsFull, halfAsTexture);
+      QVERIFY(asHalf >= 35.0);
+      QVERIFY(asHalf >= std::max(halfAsFull, halfAsTexture) + 3);
+      half.trust = 2;
+      QVERIFY(!gl.prepare(half));  // refused, as the CPU compositor refuses it
       QVERIFY(gl.prepare(ci));
     }
     QImage j;

@@ -89,7 +89,7 @@ void Composition::setCase(std::shared_ptr<const app::Case> c) {
     offered_.reset();
     offeredLayers_ = {};
     try {
-      install(case_, layers, app::makeCompositor(app::appearanceInputFromCase(*case_), layers, case_->appearance->theta, case_->appearance->textureOnly));
+      install(case_, layers, app::makeCompositor(app::appearanceInputFromCase(*case_), layers, case_->appearance->theta, case_->appearance->reshading()));
       return;
     } catch (const std::exception& e) {
       whyNot_ = tr("the appearance could not be applied: %1").arg(QString::fromUtf8(e.what()));
@@ -106,7 +106,7 @@ void Composition::setCase(std::shared_ptr<const app::Case> c) {
       app::AppearanceInput in = app::appearanceInputFromCase(*c);
       in.inpaint = imaging::parseInpaintMethod(p->estimate->inpaint);
       p->layers = app::appearanceLayers(in, p->estimate->theta);
-      p->compositor = app::makeCompositor(in, p->layers, p->estimate->theta, p->estimate->textureOnly);
+      p->compositor = app::makeCompositor(in, p->layers, p->estimate->theta, p->estimate->reshading());
     } catch (const std::exception& e) {
       p->error = QString::fromUtf8(e.what());
     }
@@ -126,7 +126,7 @@ void Composition::install(const std::shared_ptr<const app::Case>& c, const app::
   glPrepared_ = false;
   if (gl_) {
     const app::AppearanceInput in = app::appearanceInputFromCase(*c);
-    glPrepared_ = gl_->prepare(app::compositionInput(in, layers, c->appearance->theta, c->appearance->textureOnly));  // false: the CPU compositor draws instead
+    glPrepared_ = gl_->prepare(app::compositionInput(in, layers, c->appearance->theta, c->appearance->reshading()));  // false: the CPU compositor draws instead
   }
   diffuse_ = frameToQImage(layers.diffuse);
   background_ = frameToQImage(layers.background);

@@ -67,6 +67,7 @@ uniform vec3 ks;
 uniform float sigma;
 uniform float falloff;       // n of cos^n off the scope's axis (appearance.hpp)
 uniform bool textureOnly;
+uniform float trust;         // the share of the model's change applied where the frame saw the tissue (CompositionInput::trust)
 out vec4 colour;
 void main() {
   vec3 p = vPosition;
@@ -101,7 +102,9 @@ void main() {
   }
   float f = falloff > 0.0 ? pow(max(p.z, 0.0) / length(p), falloff) : 1.0;
   vec3 detail = seen ? texture(residual, uv).rgb : vec3(0.0);  // the frame's detail, carried with the tissue
-  colour = vec4(clamp(min(f * (a * kd * diffuse + ks * specular), 1.0) + detail, 0.0, 1.0), 1.0);
+  vec3 model = min(f * (a * kd * diffuse + ks * specular), 1.0) + detail;
+  if (seen) model = mix(texture(frame, uv).rgb, model, trust);
+  colour = vec4(clamp(model, 0.0, 1.0), 1.0);
 })";
 
 }  // namespace
@@ -121,6 +124,7 @@ struct GLCompositor::Impl {
   std::vector<float> restCam;  ///< 3 per vertex
   imaging::Appearance theta;
   bool textureOnly = false;
+  float trust = 1;
   double zMax = 1;
 
   GLuint upload(QOpenGLExtraFunctions* gl, GLuint tex, const cv::Mat& m, GLint internal, GLenum format, GLenum type, GLint filter) {
@@ -226,6 +230,8 @@ bool GLCompositor::prepare(const imaging::CompositionInput& in) {
   depth.setTo(0.0f, seen.triangle < 0);
   d.theta = in.theta;
   d.textureOnly = in.textureOnly;
+  if (!(in.trust >= 0 && in.trust <= 1)) return false;  // the CPU compositor refuses it with its sentence
+  d.trust = static_cast<float>(in.trust);
   const cv::Mat3f albedo = in.albedo.empty() ? cv::Mat3f(size, cv::Vec3f(1, 1, 1)) : in.albedo;
   // The frame's detail, as the CPU compositor carries it (0 where none: texture only, or the model alone asked).
   cv::Mat3f residual(size, cv::Vec3f(0, 0, 0));
@@ -336,6 +342,7 @@ bool GLCompositor::compose(const std::vector<double>& deformedVertices, QImage& 
     p.setUniformValue("sigma", float(th.roughness));
     p.setUniformValue("falloff", float(th.falloff));
     p.setUniformValue("textureOnly", d.textureOnly);
+    p.setUniformValue("trust", d.trust);
     gl->glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(indices.size()), GL_UNSIGNED_INT, nullptr);
     p.release();
     vao.release();

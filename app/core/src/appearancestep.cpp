@@ -473,7 +473,7 @@ AppearanceOutput runAppearance(const AppearanceInput& input) {
   const imaging::SurfaceGeometry& g = turnedGeometry ? *turnedGeometry : registered;
   if (in.progress && !in.progress(0.8, "filling the background behind the organ")) throw imaging::AppearanceCancelled();
   restLayers(in, g, out.fit.theta, out.fit.separation.diffuse, out.fit.usable, out.background, out.albedo, &out.inpaintMs);
-  const cv::Mat3b rest = composeAppearance(in, out.fit.theta, out.background, out.albedo, out.fit.textureOnly, {}, 1);  // the rim is not measured: no supersampling
+  const cv::Mat3b rest = composeAppearance(in, out.fit.theta, out.background, out.albedo, imaging::Reshading::of(out.fit.explained, out.fit.textureOnly), {}, 1);  // the rim is not measured: no supersampling
   cv::Mat1b inner;
   cv::erode(g.mask(), inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(5, 5)));
   out.restPsnr = imaging::psnr(in.frame, rest, inner);
@@ -484,11 +484,11 @@ AppearanceOutput runAppearance(const AppearanceInput& input) {
 }
 
 cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance& theta, const cv::Mat3b& background, const cv::Mat3f& albedo,
-                            bool textureOnly, const std::vector<double>& deformedVertices, int supersampling) {
+                            imaging::Reshading how, const std::vector<double>& deformedVertices, int supersampling) {
   if (!deformedVertices.empty() && deformedVertices.size() != in.vertices.size())
     throw rehearse::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) + " nodes, the registered one " +
                               std::to_string(in.vertices.size() / 3) + "; they must be the same mesh in the same order.");
-  imaging::CompositionInput c = compositionInput(in, AppearanceLayers{{}, background, albedo, {}}, theta, textureOnly);
+  imaging::CompositionInput c = compositionInput(in, AppearanceLayers{{}, background, albedo, {}}, theta, how);
   if (!deformedVertices.empty()) c.deformed.vertices = deformedVertices.data();
   return imaging::compose(c, supersampling);
 }
@@ -503,7 +503,7 @@ AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appe
   return layers;
 }
 
-imaging::CompositionInput compositionInput(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly) {
+imaging::CompositionInput compositionInput(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, imaging::Reshading how) {
   imaging::CompositionInput c;
   c.camera = in.camera;
   c.pose = in.pose;
@@ -512,30 +512,31 @@ imaging::CompositionInput compositionInput(const AppearanceInput& in, const Appe
   c.background = layers.background;
   c.albedo = layers.albedo;
   c.theta = theta;
-  c.textureOnly = textureOnly;
+  c.textureOnly = how.textureOnly;
+  c.trust = how.textureOnly ? 0.0 : how.trust;
   return c;
 }
 
-std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly) {
-  return std::make_unique<imaging::Compositor>(compositionInput(in, layers, theta, textureOnly));
+std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, imaging::Reshading how) {
+  return std::make_unique<imaging::Compositor>(compositionInput(in, layers, theta, how));
 }
 
 cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,
-                           const std::vector<double>& deformedVertices, bool textureOnly) {
+                           const std::vector<double>& deformedVertices, imaging::Reshading how) {
   const AppearanceLayers layers = appearanceLayers(in, theta);
-  return composeAppearance(in, theta, layers.background, layers.albedo, textureOnly, deformedVertices);
+  return composeAppearance(in, theta, layers.background, layers.albedo, how, deformedVertices);
 }
 
 imaging::NovelView composeNovelViewWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,
                                              const imaging::Camera& viewCamera, const Pose& viewPose,
                                              const cv::Mat3b& viewImage, const std::vector<double>& deformedVertices,
-                                             bool textureOnly) {
+                                             imaging::Reshading how) {
   if (!deformedVertices.empty() && deformedVertices.size() != in.vertices.size())
     throw rehearse::InputError("The deformed organ has " + std::to_string(deformedVertices.size() / 3) +
                               " nodes, the registered one " + std::to_string(in.vertices.size() / 3) +
                               "; they must be the same mesh in the same order.");
   const AppearanceLayers layers = appearanceLayers(in, theta);
-  return imaging::composeNovelView(compositionInput(in, layers, theta, textureOnly), viewCamera, viewPose, viewImage,
+  return imaging::composeNovelView(compositionInput(in, layers, theta, how), viewCamera, viewPose, viewImage,
                                    deformedVertices);
 }
 

@@ -183,6 +183,12 @@ void AppearancePage::refresh(const app::Case& c) {
                .arg(100 * a->smoothShare, 0, 'f', 0)
                .arg(a->restPsnr, 0, 'f', 1)
                .arg(a->totalMs / 1000, 0, 'f', 2);
+  // How far the composited view follows the model (imaging::reshadeTrust): said whenever it is not in full.
+  if (a->textureOnly)
+    lines << tr("Drawn as texture only: the frame's own colours follow the tissue.");
+  else if (a->reshading().trust < 1)
+    lines << tr("Re-shading applies %1 % of the model's change to the frame's colours (in full from 90 % explained).")
+                 .arg(100 * a->reshading().trust, 0, 'f', 0);
   if (!a->checks.empty()) {
     QStringList without;
     for (const auto& k : a->checks)

@@ -25,6 +25,21 @@ struct Appearance {
   void terms(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double& diffuse, double& specular) const;
 };
 
+/// Issue 65: how far a fit has earned re-shading the organ: the share of the model's change (the organ moved, deformed or
+/// seen from elsewhere) applied to the colours the frame showed. 0 up to the share explained below which a fit is texture
+/// only (0.5, AppearanceFitOptions::poorShare), 1 from 0.9 on (the model then predicts the frame's shading to within its
+/// noise and texture: the phantom's 99 %), linear between; so a fit just over the line changes the frame's colours little.
+double reshadeTrust(double explained);
+
+/// How an organ is drawn from a fit: texture only (the frame's colours follow the tissue, what the frame never saw is
+/// not drawn), or re-shaded with the model's change applied at `trust` (0..1) of its size.
+struct Reshading {
+  bool textureOnly = false;
+  double trust = 1;
+  /// From a fit's share explained and its verdict (texture only: trust 0).
+  static Reshading of(double explained, bool textureOnly);
+};
+
 /// What a fit said of itself, kept in THETA.json beside the values (issue 65: a fit's verdict travels with it): how
 /// much of the organ's shading it explained, whether it may re-shade the organ, and its sentence. A THETA written by
 /// hand (a known light) or before the verdict was kept carries none (`known` false).
@@ -33,6 +48,9 @@ struct AppearanceVerdict {
   double explained = 0;  ///< share of the organ's shading the fit explained (AppearanceFitResult::explained)
   bool reshade = true;   ///< false: the fit explained too little, show the frame's texture instead (texture only)
   std::string said;      ///< the fit's status sentence
+  /// How the fit may draw the organ: its share explained made a trust (reshadeTrust); none known, re-shaded in full (a
+  /// light given by hand is taken as known).
+  Reshading reshading() const { return known ? Reshading::of(explained, !reshade) : Reshading{}; }
 };
 
 /// THETA.json (README.md, "File formats"); throws InputError. `verdict` receives what the fit said of itself.

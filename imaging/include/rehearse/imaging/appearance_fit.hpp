@@ -136,6 +136,9 @@ struct CompositionInput {
   /// Re-shaded, a point the frame saw carries what Theta's model leaves of the frame there (Compositor::frameResidual):
   /// the frame's detail kept, at rest the frame itself. False: the model alone (its own tests).
   bool frameDetail = true;
+  /// Re-shaded, how far the model's change moves the colours of tissue the frame saw (Reshading::trust): 1 the model's
+  /// prediction (with the frame's detail), 0 the frame's own colours carried with the tissue, between a mix.
+  double trust = 1;
   /// Per rest triangle (empty: all 0): 0, the organ's surface (the frame's albedo where it saw it); k >= 1, tissue
   /// the frame never showed (a cut's faces) drawn with `materials[k - 1]`, an albedo ratio (BGR, against k_d) that
   /// Theta re-shades, even when the surface is only texture-mapped.

@@ -81,10 +81,10 @@ AppearanceLayers appearanceLayers(const AppearanceInput& in, const imaging::Appe
 
 /// What composition takes for `in`'s organ at rest with those layers (its surface views point into `in`,
 /// which must outlive it).
-imaging::CompositionInput compositionInput(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly);
+imaging::CompositionInput compositionInput(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, imaging::Reshading how);
 
 /// The compositor of `in`'s organ at rest (imaging::Compositor) with those layers.
-std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, bool textureOnly);
+std::unique_ptr<imaging::Compositor> makeCompositor(const AppearanceInput& in, const AppearanceLayers& layers, const imaging::Appearance& theta, imaging::Reshading how);
 
 /// The composited view after cuts (issue 35): the cut organ's boundary (simcore::CutSurface, the cut mesh's
 /// nodes: the organ's volume nodes first, then the cuts' new ones), each node placed where the frame showed it
@@ -106,21 +106,22 @@ AppearanceOutput runAppearance(const AppearanceInput& in);
 /// J for the organ's surface moved to `deformedVertices` (same vertex order, model frame, 3n; empty: at rest),
 /// its edges anti-aliased by `supersampling`.
 cv::Mat3b composeAppearance(const AppearanceInput& in, const imaging::Appearance& theta, const cv::Mat3b& background, const cv::Mat3f& albedo,
-                            bool textureOnly, const std::vector<double>& deformedVertices = {}, int supersampling = 2);
+                            imaging::Reshading how, const std::vector<double>& deformedVertices = {}, int supersampling = 2);
 
 /// J with a Theta given (no fitting): the background and albedo taken from the frame at rest, the organ moved
 /// to `deformedVertices` (empty: at rest). Throws rehearse::InputError as runAppearance does.
-/// `textureOnly`: the frame's own colours follow the tissue, not re-shaded (a fit that explained too little).
+/// `how`: re-shaded as far as the fit earned it, or texture only (the frame's own colours follow the tissue).
 cv::Mat3b composeWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,
-                           const std::vector<double>& deformedVertices = {}, bool textureOnly = false);
+                           const std::vector<double>& deformedVertices = {}, imaging::Reshading how = {});
 
 /// A novel view with a Theta given (issue 35, imaging::composeNovelView): the layers taken from the frame at
 /// rest, the organ (moved to `deformedVertices` when given) drawn through `viewCamera` at `viewPose` (model ->
-/// that camera) over `viewImage` (or black), re-shaded with the view's own scope light, or texture-only.
+/// that camera) over `viewImage` (or black), re-shaded with the view's own scope light (as far as `how` says), or
+/// texture-only.
 imaging::NovelView composeNovelViewWithTheta(const AppearanceInput& in, const imaging::Appearance& theta,
                                              const imaging::Camera& viewCamera, const Pose& viewPose,
                                              const cv::Mat3b& viewImage = {},
                                              const std::vector<double>& deformedVertices = {},
-                                             bool textureOnly = false);
+                                             imaging::Reshading how = {});
 
 }  // namespace rehearse::app

@@ -111,6 +111,9 @@ struct AppearanceEstimate {
   bool textureOnly = false;                    ///< the model explained too little: the frame's texture is shown, not re-shaded
   std::array<bool, 3> ksMeasured{true, true, true};
   double explained = 0;                        ///< share of the organ's shading the diffuse model explains
+  /// How the organ is drawn from this estimate: texture only, or re-shaded as far as its share explained earned
+  /// (imaging::reshadeTrust).
+  imaging::Reshading reshading() const { return imaging::Reshading::of(explained, textureOnly); }
   double smoothShare = 0;     ///< the same share for a smooth function of the image position (a reference)
   bool lightAtBound = false;  ///< the light ended on the search's bound: not placed by the frame
   std::vector<imaging::AppearanceFitResult::Check> checks;  ///< each part of the model switched off
