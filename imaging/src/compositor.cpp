@@ -33,6 +33,9 @@ struct Compositor::Impl {
   bool textureOnly = false;
   bool frameDetail = true;
   float trust = 1;  ///< CompositionInput::trust (1 while the residual is made: that is the model's own)
+  /// What a re-shaded point the frame saw carries from where the frame saw it: trust x residual + (1 - trust) x the
+  /// frame (shadeAt); empty while the residual is made, and when there is nothing to carry.
+  cv::Mat3f carried;
   std::vector<int> triangleMaterial;  ///< CompositionInput's (empty: all the organ's surface)
   std::vector<cv::Vec3f> materials;
   /// exp(-alpha^2 / 2 sigma^2) against cos(alpha) in [0, 1] (the specular lobe), linearly interpolated.
@@ -53,11 +56,11 @@ struct Compositor::Impl {
     return (1 - f) * falloff[i] + f * falloff[i + 1];
   }
 
-  float lobeAt(double cosAlpha) const {
-    const double u = std::clamp(cosAlpha, 0.0, 1.0) * static_cast<double>(lobe.size() - 1);
+  float lobeAt(float cosAlpha) const {
+    const float u = std::clamp(cosAlpha, 0.0f, 1.0f) * static_cast<float>(lobe.size() - 1);
     const std::size_t i = std::min(static_cast<std::size_t>(u), lobe.size() - 2);
-    const double f = u - static_cast<double>(i);
-    return static_cast<float>((1 - f) * lobe[i] + f * lobe[i + 1]);
+    const float f = u - static_cast<float>(i);
+    return (1 - f) * lobe[i] + f * lobe[i + 1];
   }
 
   /// A deformed triangle's plane (n . x = offset) and its barycentric gradients (w_a = ga . (p - b),
@@ -112,10 +115,10 @@ struct Compositor::Impl {
       if (ix >= 0 && iy >= 0 && ix < camera.width && iy < camera.height) {
         const int shownTriangle = restSeen.triangle(iy, ix);
         if (shownTriangle >= 0) {
+          seen = restSeen.depth(iy, ix) > r.z() - 0.002f;
           const int* shown = triangles.data() + 3 * shownTriangle;
           for (int i = 0; i < 3 && !seen; ++i)
             for (int j = 0; j < 3; ++j) seen |= shown[i] == tri[j];
-          seen |= restSeen.depth(iy, ix) > r.z() - 0.002f;
         }
       }
     }
@@ -154,13 +157,11 @@ struct Compositor::Impl {
     const float falloff = falloffAt(p, p2);  // the scope's light cone and vignetting
     for (int k = 0; k < 3; ++k)
       bgr[k] = 255.0f * falloff * (albedoHere[k] * kdF[2 - k] * diffuse + ksF[2 - k] * specular);
-    if (material == 0 && seen && !residual.empty()) {  // the frame's detail, over the model as a frame can show it
-      const cv::Vec3f detail = bilinear(residual, qx, qy);
-      for (int k = 0; k < 3; ++k) bgr[k] = std::min(bgr[k], 255.0f) + detail[k];
-    }
-    if (material == 0 && seen && trust < 1) {  // the model's change applied as far as the fit earned it
-      const cv::Vec3f f = bilinear(frame, qx, qy);
-      for (int k = 0; k < 3; ++k) bgr[k] = trust * bgr[k] + (1 - trust) * f[k];
+    // The frame's detail over the model as a frame can show it, and the model's change applied as far as the fit
+    // earned it: trust (min(model, 255) + residual) + (1 - trust) frame, one lookup of `carried` (made once).
+    if (material == 0 && seen && !carried.empty()) {
+      const cv::Vec3f c = bilinear(carried, qx, qy);
+      for (int k = 0; k < 3; ++k) bgr[k] = trust * std::min(bgr[k], 255.0f) + c[k];
     }
     return true;
   }
@@ -239,6 +240,13 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   }
   if (!d.textureOnly && d.frameDetail) d.makeResidual();
   d.trust = static_cast<float>(in.trust);
+  if (!d.textureOnly && d.trust < 1) {
+    cv::Mat3f own;
+    d.frame.convertTo(own, CV_32FC3, 1.0 - d.trust);
+    d.carried = d.residual.empty() ? own : cv::Mat3f(d.residual * d.trust + own);
+  } else if (!d.residual.empty()) {
+    d.carried = d.residual;
+  }
 }
 
 // The frame minus the model at rest, on the organ's pixels whose four neighbours show the organ too (a rim pixel

@@ -8,7 +8,7 @@
 namespace rehearse::imaging {
 
 template <typename T>
-cv::Vec3f bilinear(const cv::Mat_<cv::Vec<T, 3>>& img, double qx, double qy) {
+[[gnu::always_inline]] inline cv::Vec3f bilinear(const cv::Mat_<cv::Vec<T, 3>>& img, double qx, double qy) {
   const double x = std::clamp(qx, 0.0, img.cols - 1.0), y = std::clamp(qy, 0.0, img.rows - 1.0);
   const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
   const int x1 = std::min(x0 + 1, img.cols - 1), y1 = std::min(y0 + 1, img.rows - 1);
