@@ -225,9 +225,9 @@ int cmdAppearance(const std::vector<std::string>& args) {
       r.fit.theta.ks.z(), r.fit.theta.roughness, r.restPsnr, r.totalMs);
   if (!r.turn.sentence.empty()) std::printf("%s\n", r.turn.sentence.c_str());
   if (!r.fit.textureOnly && verdict.reshading().trust < 1)
-    std::printf("re-shading applies %.0f %% of the model's change to the frame's colours (it explained %.0f %%; in full "
+    std::printf("re-shading applies %d %% of the model's change to the frame's colours (it explained %d %%; in full "
                 "from 90 %%)\n",
-                100 * verdict.reshading().trust, 100 * r.fit.explained);
+                imaging::trustPercent(verdict.reshading().trust), imaging::explainedPercent(r.fit.explained));
   // A fit too poor to re-shade is still written (texture mapping uses it), but says so with its own exit code.
   return r.fit.textureOnly ? 4 : 0;
 }
@@ -288,10 +288,16 @@ int cmdCompose(const std::vector<std::string>& args) {
     std::printf("not re-shaded: the fit behind %s is marked texture only (it explained %s of the organ's shading); "
                 "the frame's own colours are drawn instead\n",
                 std::filesystem::path(o["theta"]).filename().c_str(), share);
+  } else if (!textureOnly && imaging::trustPercent(how.trust) == 0) {
+    std::printf("not re-shaded where the frame saw the tissue: the fit behind %s explained %d %% of the organ's shading, "
+                "too little for the model to change the frame's colours (it starts above 50 %%, in full from 90 %%); "
+                "the frame's own colours are drawn there\n",
+                std::filesystem::path(o["theta"]).filename().c_str(), imaging::explainedPercent(verdict.explained));
   } else if (!textureOnly && how.trust < 1) {
-    std::printf("re-shaded at %.0f %% of the model's change: the fit behind %s explained %.0f %% of the organ's shading "
+    std::printf("re-shaded at %d %% of the model's change: the fit behind %s explained %d %% of the organ's shading "
                 "(in full from 90 %%); the rest of each colour is the frame's own\n",
-                100 * how.trust, std::filesystem::path(o["theta"]).filename().c_str(), 100 * verdict.explained);
+                imaging::trustPercent(how.trust), std::filesystem::path(o["theta"]).filename().c_str(),
+                imaging::explainedPercent(verdict.explained));
   } else if (!verdict.known && !textureOnly) {
     std::printf("re-shaded with %s as given: it carries no fit's verdict (written by hand, or before 'rehearse "
                 "appearance' kept one)\n",

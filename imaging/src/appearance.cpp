@@ -40,6 +40,16 @@ double reshadeTrust(double explained) {
   return std::clamp((explained - kPoor) / (kEarned - kPoor), 0.0, 1.0);
 }
 
+int trustPercent(double trust) {
+  if (!(trust > 0)) return 0;
+  if (trust >= 1) return 100;
+  return std::clamp(static_cast<int>(std::lround(100 * trust)), 1, 99);
+}
+
+int explainedPercent(double explained) {
+  return std::isfinite(explained) ? std::clamp(static_cast<int>(std::floor(100 * explained + 1e-9)), 0, 100) : 0;
+}
+
 Reshading Reshading::of(double explained, bool textureOnly) {
   return textureOnly ? Reshading{true, 0.0} : Reshading{false, reshadeTrust(explained)};
 }
@@ -65,39 +75,50 @@ Appearance loadAppearance(const std::string& path, AppearanceVerdict* verdict) {
   if (!readTextInput(path, text, why, std::size_t{1} << 20)) throw InputError("The appearance file " + why + ".");
   const std::string name = std::filesystem::path(path).filename().string();
   if (const std::string deep = jsonTextProblem(text, name); !deep.empty()) throw InputError(deep + ".");
+  nlohmann::json j;
   try {
-    auto j = nlohmann::json::parse(text);
-    Appearance a;
-    for (int k = 0; k < 3; ++k) {
-      a.lightPosition[k] = j.at("light_position").at(k).get<double>();
-      a.kd[k] = j.at("kd").at(k).get<double>();
-      a.ks[k] = j.at("ks").at(k).get<double>();
-    }
-    a.roughness = j.at("roughness").get<double>();
-    a.falloff = j.value("falloff", 0.0);  // files from before the laparoscope's fall-off: an isotropic light
-    if (const std::string why = appearanceProblem(a); !why.empty()) throw InputError(name + ": " + why + ".");
-    if (verdict) {
-      *verdict = {};
-      if (j.contains("fit")) {
-        const auto& f = j.at("fit");
-        verdict->known = true;
-        verdict->explained = f.at("explained").get<double>();
-        verdict->reshade = f.at("reshade").get<bool>();
-        verdict->said = f.value("said", std::string());
-        if (!(verdict->explained >= 0 && verdict->explained <= 1))
-          throw InputError(name + ": the fit's explained share must be between 0 and 1.");
-      }
-    }
-    return a;
-  } catch (const InputError&) {
-    throw;
+    j = nlohmann::json::parse(text);
   } catch (const nlohmann::json::parse_error& e) {
     throw InputError(name + " is not valid JSON (at byte " + std::to_string(e.byte) + "); write it again.");
-  } catch (const std::exception&) {
-    throw InputError(name +
-                     " is not an appearance file: it needs light_position, kd, ks and roughness (and a fit's "
-                     "explained share and reshade flag, when it has a fit).");
   }
+  if (!j.is_object())
+    throw InputError(name + " is not an appearance file: it needs light_position, kd, ks and roughness.");
+  // Each field read on its own, so that the sentence names the one that is missing or not what it must be.
+  auto number = [&](const nlohmann::json& o, const char* key, const std::string& what) {
+    if (!o.contains(key) || !o.at(key).is_number()) throw InputError(name + ": \"" + key + "\" must be " + what + ".");
+    return o.at(key).get<double>();
+  };
+  auto triple = [&](const char* key, const char* what) {
+    if (!j.contains(key) || !j.at(key).is_array() || j.at(key).size() != 3 ||
+        !std::all_of(j.at(key).begin(), j.at(key).end(), [](const nlohmann::json& v) { return v.is_number(); }))
+      throw InputError(name + ": \"" + key + "\" must be three numbers (" + what + ").");
+    return Eigen::Vector3d(j.at(key)[0].get<double>(), j.at(key)[1].get<double>(), j.at(key)[2].get<double>());
+  };
+  Appearance a;
+  a.lightPosition = triple("light_position", "the light's position in the camera frame, metres");
+  a.kd = triple("kd", "the diffuse reflectance, red, green, blue");
+  a.ks = triple("ks", "the specular reflectance, red, green, blue");
+  a.roughness = number(j, "roughness", "a number (the specular lobe's width, radians)");
+  // Files from before the laparoscope's fall-off: an isotropic light.
+  a.falloff = j.contains("falloff") ? number(j, "falloff", "a number (the n of cos^n off the scope's axis)") : 0.0;
+  if (const std::string problem = appearanceProblem(a); !problem.empty()) throw InputError(name + ": " + problem + ".");
+  if (verdict) {
+    *verdict = {};
+    if (j.contains("fit")) {
+      const auto& f = j.at("fit");
+      if (!f.is_object())
+        throw InputError(name + ": \"fit\" must be what a fit said of itself: {\"explained\": share, \"reshade\": true or false}.");
+      verdict->known = true;
+      verdict->explained = number(f, "explained", "the share of the shading the fit explained, a number between 0 and 1");
+      if (!f.contains("reshade") || !f.at("reshade").is_boolean())
+        throw InputError(name + ": the fit's \"reshade\" must be true or false.");
+      verdict->reshade = f.at("reshade").get<bool>();
+      if (f.contains("said") && f.at("said").is_string()) verdict->said = f.at("said").get<std::string>();
+      if (!(verdict->explained >= 0 && verdict->explained <= 1))
+        throw InputError(name + ": the fit's explained share must be between 0 and 1.");
+    }
+  }
+  return a;
 }
 
 void saveAppearance(const Appearance& a, const std::string& path, const AppearanceVerdict& verdict) {

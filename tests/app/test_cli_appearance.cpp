@@ -225,6 +225,17 @@ class TestCliAppearance : public QObject {
     QVERIFY(half.open(QIODevice::WriteOnly));
     half.write(QJsonDocument(theta).toJson());
     half.close();
+    // At the texture-only line with the flag still saying re-shade: nothing of the model's change, and said so.
+    earned["explained"] = 0.5;
+    theta["fit"] = earned;
+    QFile line(dir + "/line.json");
+    QVERIFY(line.open(QIODevice::WriteOnly));
+    line.write(QJsonDocument(theta).toJson());
+    line.close();
+    const Run atLine = run(QStringList{"compose"} + organ + QStringList{"--theta", dir + "/line.json", "--out", dir + "/line.png"});
+    QVERIFY2(atLine.code == 0, qPrintable(atLine.err));
+    QVERIFY2(atLine.out.contains("not re-shaded where the frame saw the tissue: the fit behind line.json explained 50 %"),
+             qPrintable(atLine.out));
     const QStringList novel = {"--view-camera", dir + "/camera.yaml", "--view-pose", dir + "/view-pose.json"};
     for (const bool novelView : {false, true}) {
       const QStringList view = novelView ? novel : QStringList();

@@ -278,7 +278,15 @@ class TestHostileInputs : public QObject {
          {std::tuple{"explained 2", "{" + values + ", \"fit\": {\"explained\": 2, \"reshade\": true}}",
                      "explained share must be between 0 and 1"},
           std::tuple{"reshade a word", "{" + values + ", \"fit\": {\"explained\": 0.4, \"reshade\": \"no\"}}",
-                     "is not an appearance file"},
+                     "the fit's \"reshade\" must be true or false"},
+          std::tuple{"explained a word", "{" + values + ", \"fit\": {\"explained\": \"abc\", \"reshade\": true}}",
+                     "\"explained\" must be the share of the shading the fit explained"},
+          std::tuple{"fit a number", "{" + values + ", \"fit\": 7}", "\"fit\" must be what a fit said of itself"},
+          std::tuple{"kd two numbers", QByteArray("{\"light_position\": [0, 0, 0], \"kd\": [0.5, 0.5], \"ks\": [0.1, 0.1, 0.1], \"roughness\": 0.3}"),
+                     "\"kd\" must be three numbers"},
+          std::tuple{"no roughness", QByteArray("{\"light_position\": [0, 0, 0], \"kd\": [0.5, 0.5, 0.5], \"ks\": [0.1, 0.1, 0.1]}"),
+                     "\"roughness\" must be a number"},
+          std::tuple{"an array", QByteArray("[1, 2, 3]"), "is not an appearance file"},
           std::tuple{"cut short", "{" + values + ", \"fit\": {\"expl", "is not valid JSON"}}) {
       const QString theta = dir_.path() + "/theta.json";
       write(theta, text);

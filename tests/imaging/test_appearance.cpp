@@ -331,6 +331,15 @@ class TestAppearance : public QObject {
     QCOMPARE(imaging::reshadeTrust(0.999), 1.0);
     QCOMPARE(imaging::reshadeTrust(std::nan("")), 0.0);
     QVERIFY(imaging::Reshading::of(0.95, true).textureOnly && imaging::Reshading::of(0.95, true).trust == 0);
+    // As sentences say them: 0 and 100 only at the ends, the share floored beside them.
+    QCOMPARE(imaging::trustPercent(imaging::reshadeTrust(0.8995)), 99);
+    QCOMPARE(imaging::explainedPercent(0.8995), 89);
+    QCOMPARE(imaging::trustPercent(imaging::reshadeTrust(0.501)), 1);
+    QCOMPARE(imaging::trustPercent(0.0), 0);
+    QCOMPARE(imaging::trustPercent(1.0), 100);
+    QCOMPARE(imaging::trustPercent(0.5), 50);
+    QCOMPARE(imaging::explainedPercent(0.29), 29);
+    QCOMPARE(imaging::explainedPercent(0.7), 70);
     imaging::AppearanceVerdict verdict;
     QCOMPARE(verdict.reshading().trust, 1.0);  // no fit's verdict: a light given by hand, taken as known
     verdict.known = true;

@@ -187,8 +187,9 @@ void AppearancePage::refresh(const app::Case& c) {
   if (a->textureOnly)
     lines << tr("Drawn as texture only: the frame's own colours follow the tissue.");
   else if (a->reshading().trust < 1)
-    lines << tr("Re-shading applies %1 % of the model's change to the frame's colours (in full from 90 % explained).")
-                 .arg(100 * a->reshading().trust, 0, 'f', 0);
+    lines << tr("Re-shading applies %1 % of the model's change to the frame's colours (it explained %2 %; in full from 90 %).")
+                 .arg(imaging::trustPercent(a->reshading().trust))
+                 .arg(imaging::explainedPercent(a->explained));
   if (!a->checks.empty()) {
     QStringList without;
     for (const auto& k : a->checks)

@@ -31,6 +31,12 @@ struct Appearance {
 /// noise and texture: the phantom's 99 %), linear between; so a fit just over the line changes the frame's colours little.
 double reshadeTrust(double explained);
 
+/// A trust as a whole percentage for a sentence: 0 and 100 only at the ends, so that a fit just inside the range never
+/// reads as none or as full (0.9987 is 99 %, 0.002 is 1 %).
+int trustPercent(double trust);
+/// A share explained as a whole percentage beside a trust (floored: 0.8995, re-shaded at 99 %, reads 89 %, not 90 %).
+int explainedPercent(double explained);
+
 /// How an organ is drawn from a fit: texture only (the frame's colours follow the tissue, what the frame never saw is
 /// not drawn), or re-shaded with the model's change applied at `trust` (0..1) of its size.
 struct Reshading {
