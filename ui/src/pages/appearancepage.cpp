@@ -178,8 +178,9 @@ void AppearancePage::refresh(const app::Case& c) {
   QStringList lines;
   for (const auto& s : a->stages)
     lines << tr("%1: %2 levels, %3 ms").arg(QString::fromStdString(s.name)).arg(s.rms, 0, 'f', 2).arg(s.ms, 0, 'f', 0);
+  // The share floored, as the re-shading's line below says it (89.95 % is not yet the 90 % that re-shades in full).
   lines << tr("Explains %1 % of the shading (smooth: %2 %); at rest %3 dB in the organ; %4 s.")
-               .arg(100 * a->explained, 0, 'f', 0)
+               .arg(imaging::explainedPercent(a->explained))
                .arg(100 * a->smoothShare, 0, 'f', 0)
                .arg(a->restPsnr, 0, 'f', 1)
                .arg(a->totalMs / 1000, 0, 'f', 2);
@@ -187,9 +188,8 @@ void AppearancePage::refresh(const app::Case& c) {
   if (a->textureOnly)
     lines << tr("Drawn as texture only: the frame's own colours follow the tissue.");
   else if (a->reshading().trust < 1)
-    lines << tr("Re-shading applies %1 % of the model's change to the frame's colours (it explained %2 %; in full from 90 %).")
-                 .arg(imaging::trustPercent(a->reshading().trust))
-                 .arg(imaging::explainedPercent(a->explained));
+    lines << tr("Re-shading applies %1 % of the model's change to the frame's colours (in full from 90 % explained).")
+                 .arg(imaging::trustPercent(a->reshading().trust));
   if (!a->checks.empty()) {
     QStringList without;
     for (const auto& k : a->checks)
