@@ -1,9 +1,7 @@
-#include <rehearse/simcore/constraint_solver.hpp>
-
-#include <rehearse/simcore/mesh.hpp>
-
 #include <algorithm>
 #include <cmath>
+#include <rehearse/simcore/constraint_solver.hpp>
+#include <rehearse/simcore/mesh.hpp>
 #include <string>
 
 namespace rehearse::simcore {
@@ -18,7 +16,9 @@ double applyRow(const ScalarConstraint& c, const Vec& v) {
 }
 }  // namespace
 
-double constraintValue(const ScalarConstraint& c, const Eigen::VectorXd& x) { return applyRow(c, x); }
+double constraintValue(const ScalarConstraint& c, const Eigen::VectorXd& x) {
+  return applyRow(c, x);
+}
 
 Eigen::Vector3d toolForceOf(const std::vector<ScalarConstraint>& c, const Eigen::VectorXd& lambda, bool holdsOnly) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();
@@ -113,6 +113,14 @@ bool ConstraintSolver::projectedSolve(CholmodSolver& factor, const Eigen::Vector
 
 bool NodeCompliance::prepare(CholmodSolver& factor, const std::vector<ScalarConstraint>& rows,
                              const std::vector<char>& fixed) {
+  rowNodes_.clear();
+  for (const auto& c : rows)
+    for (int node : c.nodes)
+      if (node >= 0) rowNodes_.push_back(node);
+  return prepare(factor, rowNodes_, fixed);
+}
+
+bool NodeCompliance::prepare(CholmodSolver& factor, const std::vector<int>& want, const std::vector<char>& fixed) {
   const std::size_t nodes = fixed.size();
   const auto n3 = static_cast<Eigen::Index>(3 * nodes);
   if (factor_ != &factor || factorisations_ != factor.factorisations() || slotOf_.size() != nodes ||
@@ -127,35 +135,33 @@ bool NodeCompliance::prepare(CholmodSolver& factor, const std::vector<ScalarCons
   };
   const auto capacity = std::max<std::size_t>(16, (24u << 20) / (sizeof(double) * 9 * std::max<std::size_t>(nodes, 1)));
   std::size_t missing = 0;  // an upper bound (a node in two rows counts twice)
-  for (const auto& c : rows)
-    for (int node : c.nodes) missing += wanted(node) && slotOf_[static_cast<std::size_t>(node)] < 0;
+  for (int node : want) missing += wanted(node) && slotOf_[static_cast<std::size_t>(node)] < 0;
   if (slotNodes_.size() + missing > capacity) {
     for (int node : slotNodes_) slotOf_[static_cast<std::size_t>(node)] = -1;
     slotNodes_.clear();
   }
-  for (const auto& c : rows)
-    for (int node : c.nodes) {
-      if (!wanted(node) || slotOf_[static_cast<std::size_t>(node)] >= 0) continue;
-      const auto slot = static_cast<Eigen::Index>(slotNodes_.size());
-      if (cols_.rows() != n3 || cols_.cols() < 3 * (slot + 1)) {
-        // Grown by doubling (it allocates only then), up to the bound; rows on more nodes than the bound still get a
-        // block each (the bound only decides when to start again).
-        const Eigen::Index cols = std::max<Eigen::Index>(
-            3 * (slot + 1), std::min<Eigen::Index>(3 * static_cast<Eigen::Index>(capacity), 2 * cols_.cols()));
-        if (cols_.rows() != n3)
-          cols_.resize(n3, std::max<Eigen::Index>(cols, 24));
-        else
-          cols_.conservativeResize(Eigen::NoChange, cols);
-      }
-      if (unit_.rows() != n3 || unit_.cols() != 3) unit_.setZero(n3, 3);
-      for (int d = 0; d < 3; ++d) unit_(3 * node + d, d) = 1;
-      const bool ok = factor.solve(unit_, solved_);
-      for (int d = 0; d < 3; ++d) unit_(3 * node + d, d) = 0;
-      if (!ok || solved_.rows() != n3 || solved_.cols() != 3) return false;
-      cols_.middleCols<3>(3 * slot) = solved_;
-      slotOf_[static_cast<std::size_t>(node)] = static_cast<int>(slot);
-      slotNodes_.push_back(node);
+  for (int node : want) {
+    if (!wanted(node) || slotOf_[static_cast<std::size_t>(node)] >= 0) continue;
+    const auto slot = static_cast<Eigen::Index>(slotNodes_.size());
+    if (cols_.rows() != n3 || cols_.cols() < 3 * (slot + 1)) {
+      // Grown by doubling (it allocates only then), up to the bound; rows on more nodes than the bound still get a
+      // block each (the bound only decides when to start again).
+      const Eigen::Index cols = std::max<Eigen::Index>(
+          3 * (slot + 1), std::min<Eigen::Index>(3 * static_cast<Eigen::Index>(capacity), 2 * cols_.cols()));
+      if (cols_.rows() != n3)
+        cols_.resize(n3, std::max<Eigen::Index>(cols, 24));
+      else
+        cols_.conservativeResize(Eigen::NoChange, cols);
     }
+    if (unit_.rows() != n3 || unit_.cols() != 3) unit_.setZero(n3, 3);
+    for (int d = 0; d < 3; ++d) unit_(3 * node + d, d) = 1;
+    const bool ok = factor.solve(unit_, solved_);
+    for (int d = 0; d < 3; ++d) unit_(3 * node + d, d) = 0;
+    if (!ok || solved_.rows() != n3 || solved_.cols() != 3) return false;
+    cols_.middleCols<3>(3 * slot) = solved_;
+    slotOf_[static_cast<std::size_t>(node)] = static_cast<int>(slot);
+    slotNodes_.push_back(node);
+  }
   return true;
 }
 

@@ -140,12 +140,19 @@ void Integrator::dropRequest() {
 
 bool Integrator::factorPending() const { return w_->request->pending; }
 
-bool Integrator::prepareLagged(const Eigen::VectorXd& at) {
+bool Integrator::prepareLagged(const Eigen::VectorXd& at, const std::vector<int>& toolNodes) {
   if (settings_.method == NewtonMethod::Exact || settings_.solver != LinearSolverKind::Cholmod ||
       at.size() != rest_.size())
     return false;
   StepReport rep;
-  return refreshLaggedAt(at, settings_.timeStep, rep);
+  if (!refreshLaggedAt(at, settings_.timeStep, rep)) return false;
+  std::vector<int> nodes = toolNodes;
+  for (const auto& c : attachmentConstraints_)
+    for (int node : c.nodes)
+      if (node >= 0) nodes.push_back(node);
+  // The steps' constrained solves (ConstraintSolver::solve) take their blocks from this cache, keyed on the factor.
+  (void)w_->cons.compliance().prepare(*w_->chol, nodes, fixed_);  // a failed solve: the step solves them again
+  return true;
 }
 
 bool Integrator::refreshLaggedAt(const Eigen::VectorXd& at, double h, StepReport& rep, bool keepRequest) {

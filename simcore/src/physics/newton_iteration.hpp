@@ -195,6 +195,7 @@ class ChordNewton final : public NewtonLoop {
   bool rebuiltHere_ = false;  // accelerated, asynchronous: the factor was rebuilt in this step once already
   bool projectedLast_ = false;  // synchronous: a projected factor was rebuilt at the last iterate
   bool keptFactor_ = false;     // synchronous: a projected factor rebuilt here contracted no better; kept this step
+  int rebuilds_ = 0;            // synchronous: factors rebuilt at an iterate in this try
 };
 
 /// Newton-Krylov: inexact Newton, the exact tangent applied matrix-free, CG preconditioned with the lagged factor.

@@ -44,7 +44,9 @@ class FemBody final : public DeformableBody {
   bool installRequestedFactor() override { return integrator_.installRequestedFactor(); }
   bool factorPending() const override { return integrator_.factorPending(); }
   void requestAgain(const SimulationState& state) override { integrator_.requestAgain(state); }
-  bool prepareFactor(const Eigen::VectorXd& x) override { return integrator_.prepareLagged(x); }
+  bool prepareFactor(const Eigen::VectorXd& x, const std::vector<int>& toolNodes) override {
+    return integrator_.prepareLagged(x, toolNodes);
+  }
   void setToolConstraints(std::vector<ScalarConstraint> c) override { integrator_.setConstraints(std::move(c)); }
   int topologyVersion() const override { return topology_; }
   const std::vector<Eigen::Vector3d>& restPositions() const override { return model_.rest; }

@@ -168,6 +168,10 @@ void Session::updateToolConstraints() {
     for (auto& r : clips)
       if (std::find(tool_.held.begin(), tool_.held.end(), r.nodes[0]) == tool_.held.end()) c.push_back(r);
   }
+  toolNodes_.clear();
+  for (const auto& r : c)
+    for (int node : r.nodes)
+      if (node >= 0) toolNodes_.push_back(node);
   body_->setToolConstraints(std::move(c));
 }
 

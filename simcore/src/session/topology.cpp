@@ -18,6 +18,7 @@ bool Session::changeTopology(TopologyChange change, std::string& message) {
   if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || change.applyAt >= 0) {
     // The new body and its first factorisation on another thread; the old body steps on meanwhile, until the
     // boundary applyAt (the same in every run) or, without one, until it is ready.
+    change.toolNodes = toolNodes_;
     builds_.launch(std::move(change), uncut_, meanEdge_);
     return true;
   }

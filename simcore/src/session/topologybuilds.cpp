@@ -8,14 +8,15 @@ namespace rehearse::simcore {
 void TopologyBuilds::launch(TopologyChange change, const BodySetup& uncut, double meanEdge) {
   PendingChange p;
   static_cast<TopologyChange&>(p) = std::move(change);
-  p.built = std::async(std::launch::async, [setup = p.setup, at = p.factorAt, uncut = uncut, edge = meanEdge]() {
-    Built b;
-    b.body = makeBody(setup);
-    b.body->prepareFactor(at);
-    b.surface = makeCutSurface(uncut, setup.mesh, edge);
-    b.contact = contactSurface(b.body->restPositions(), b.body->tetrahedra());
-    return b;
-  });
+  p.built = std::async(std::launch::async,
+                       [setup = p.setup, at = p.factorAt, nodes = p.toolNodes, uncut = uncut, edge = meanEdge]() {
+                         Built b;
+                         b.body = makeBody(setup);
+                         b.body->prepareFactor(at, nodes);
+                         b.surface = makeCutSurface(uncut, setup.mesh, edge);
+                         b.contact = contactSurface(b.body->restPositions(), b.body->tetrahedra());
+                         return b;
+                       });
   pending_ = std::move(p);
 }
 

@@ -45,6 +45,9 @@ class NodeCompliance {
   /// at the same factorisation count. Bounded (24 MB, at least 16 nodes): full, it starts again from these rows' nodes.
   /// False when a solve failed.
   bool prepare(CholmodSolver& factor, const std::vector<ScalarConstraint>& rows, const std::vector<char>& fixed);
+  /// The same for a list of nodes (the ones outside the mesh or fixed skipped): a body built on another thread solves
+  /// the blocks of the nodes the tool holds and touches there, so the first step after a cut or a tear does not.
+  bool prepare(CholmodSolver& factor, const std::vector<int>& nodes, const std::vector<char>& fixed);
   /// The 3n x 3 block of `node` (prepare() made it).
   auto block(int node) const {
     return cols_.middleCols<3>(3 * static_cast<Eigen::Index>(slotOf_[static_cast<std::size_t>(node)]));
@@ -57,6 +60,7 @@ class NodeCompliance {
  private:
   Eigen::MatrixXd cols_, unit_, solved_;
   std::vector<int> slotOf_, slotNodes_;  // node -> slot (-1: none), slot -> node
+  std::vector<int> rowNodes_;            // the rows' nodes, in their order (scratch)
   const CholmodSolver* factor_ = nullptr;
   int factorisations_ = -1;
 };

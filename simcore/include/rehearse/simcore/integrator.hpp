@@ -288,8 +288,10 @@ class Integrator {
   void requestAgain(const SimulationState& state);
   /// Builds the lagged factor at positions `at` for the configured time step now (a body built on another
   /// thread arrives with it, so no step waits for it). False for the exact method (nothing to keep) or when
-  /// it could not be factorised. A state naming it (SimulationState::lagged: at, step) then uses it.
-  bool prepareLagged(const Eigen::VectorXd& at);
+  /// it could not be factorised. A state naming it (SimulationState::lagged: at, step) then uses it. The compliance
+  /// blocks of the attachments' nodes and of `toolNodes` (the nodes the instruments hold and touch) are solved with it
+  /// too, so that the first constrained step does not (each alone: the same bits as when a step solves them).
+  bool prepareLagged(const Eigen::VectorXd& at, const std::vector<int>& toolNodes = {});
   /// The constraints' compliance W = H A^-1 H^T of the last solve (attachments first in Lagrange mode, then the
   /// constraints), with A the step's matrix (kg): a change de of the constraint values (m) changes the multipliers
   /// by W^-1 de / h (N s). Empty before the first constrained solve.

@@ -184,7 +184,8 @@ class DeformableBody {
   virtual void requestAgain(const SimulationState& /*state*/) {}
   /// Builds the lagged factor at positions `x` now (Integrator::prepareLagged); true when the body keeps one,
   /// which a state naming (x, the time step) then uses without refactorising.
-  virtual bool prepareFactor(const Eigen::VectorXd& /*x*/) { return false; }
+  /// `toolNodes`: the nodes the instruments hold and touch, whose compliance the first constrained step needs.
+  virtual bool prepareFactor(const Eigen::VectorXd& /*x*/, const std::vector<int>& /*toolNodes*/ = {}) { return false; }
   /// Tool constraints (grasp holds, contacts) for the next steps; replaces the previous ones.
   virtual void setToolConstraints(std::vector<ScalarConstraint> constraints) = 0;
   /// Bumped by every topology change (a cut); views rebuild what they derived from the topology.

@@ -268,6 +268,7 @@ class Session : private InstrumentHost {
   bool slipDue_ = false;
   bool stepConverged_ = true;  ///< the last step's outcome was Converged (InstrumentHost::stepConverged)
   bool tearRefused_ = false;  ///< the last tear could not be made (said once until one is made)
+  bool tearHeld_ = false;     ///< an over-stretched element not torn because the step did not converge (said once)
 
   // The cut (cutting.cpp): what the blade's sweep asks of the cut module, and what a cut says.
   /// The blade's stroke and the rest of a sweep asked for while a cut was being built (strokes.hpp; the rest of the
@@ -306,6 +307,8 @@ class Session : private InstrumentHost {
   long contactQueries_ = 0;
   Constructions constructions_;
   int contactConstraints_ = 0;  ///< contact constraints in the body now (touching or within reach)
+  /// The nodes of the tool's rows now (a topology change's build solves their compliance blocks).
+  std::vector<int> toolNodes_;
   /// Surface became free to touch the shaft at this boundary (release, blade off, cut applied, instrument appeared):
   /// what is inside it then is eased out (ToolState::easing). Set and consumed within one advance().
   bool seedEasing_ = false;

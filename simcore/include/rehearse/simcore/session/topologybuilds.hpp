@@ -33,6 +33,9 @@ struct TopologyChange {
   std::vector<CutNode> newNodes;      ///< how the state extends onto the new nodes (each interpolated from old ones)
   std::vector<int> labels;     ///< element labels the change went through (a cut: its events, the vessels it cut)
   Eigen::VectorXd factorAt;    ///< the positions the new body's first factor is built at (asynchronous build)
+  /// The nodes the instruments held and touched when it was asked for (their numbers stay: a change only adds
+  /// nodes): their compliance blocks are solved with that first factor on the build's thread, not by the first step.
+  std::vector<int> toolNodes;
   bool clearProgress = false;  ///< the instrument was withdrawn meanwhile: the new body starts without progress
   long applyAt = -1;  ///< the step boundary it replaces the body at (ToolSettings::cutLatencySteps); -1: when ready
   /// With applyAt: at that boundary if built by then, else at the first boundary after it is built (the asynchronous
