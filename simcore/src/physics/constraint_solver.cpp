@@ -1,7 +1,9 @@
+#include <rehearse/simcore/constraint_solver.hpp>
+
+#include <rehearse/simcore/mesh.hpp>
+
 #include <algorithm>
 #include <cmath>
-#include <rehearse/simcore/constraint_solver.hpp>
-#include <rehearse/simcore/mesh.hpp>
 #include <string>
 
 namespace rehearse::simcore {
@@ -16,9 +18,7 @@ double applyRow(const ScalarConstraint& c, const Vec& v) {
 }
 }  // namespace
 
-double constraintValue(const ScalarConstraint& c, const Eigen::VectorXd& x) {
-  return applyRow(c, x);
-}
+double constraintValue(const ScalarConstraint& c, const Eigen::VectorXd& x) { return applyRow(c, x); }
 
 Eigen::Vector3d toolForceOf(const std::vector<ScalarConstraint>& c, const Eigen::VectorXd& lambda, bool holdsOnly) {
   Eigen::Vector3d sum = Eigen::Vector3d::Zero();

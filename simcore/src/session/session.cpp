@@ -614,6 +614,7 @@ void Session::run() {
       state_ = body_->initialState();
       updateSurfaceNodes();
       steps_ = 0;
+      tearHeld_ = false;  // said again in the new run
       tool_ = {};
       field_ = {};
       updateToolConstraints();
