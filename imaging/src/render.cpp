@@ -162,17 +162,17 @@ Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen
           if (empty) continue;
           const int xs = std::max(x0, static_cast<int>(std::ceil(lo)) - 1),
                     xe = std::min(x1, static_cast<int>(std::floor(hi)) + 1);
+          // Without a branch (vectorised): a pixel outside the triangle, or behind what is drawn there, keeps it.
+          const double bx = b.x(), by = b.y(), cx = c.x(), cy = c.y(), ax = a.x(), ay = a.y();
           for (int x = xs; x <= xe; ++x) {
             const double px = x;
-            const double w0 = ((b.x() - px) * (c.y() - py) - (b.y() - py) * (c.x() - px)) * inv;
-            const double w1 = ((c.x() - px) * (a.y() - py) - (c.y() - py) * (a.x() - px)) * inv;
+            const double w0 = ((bx - px) * (cy - py) - (by - py) * (cx - px)) * inv;
+            const double w1 = ((cx - px) * (ay - py) - (cy - py) * (ax - px)) * inv;
             const double w2 = 1.0 - w0 - w1;
-            if (w0 < 0 || w1 < 0 || w2 < 0) continue;
             const double z = 1.0 / (w0 * iz0 + w1 * iz1 + w2 * iz2);
-            if (z < dep[x]) {
-              dep[x] = static_cast<float>(z);
-              tid[x] = t;
-            }
+            const bool nearer = (w0 >= 0) & (w1 >= 0) & (w2 >= 0) & (z < static_cast<double>(dep[x]));
+            dep[x] = nearer ? static_cast<float>(z) : dep[x];
+            tid[x] = nearer ? t : tid[x];
           }
         }
       }

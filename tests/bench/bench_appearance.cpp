@@ -2,7 +2,8 @@
 // rendered with a known light and reflectance, then sensor noise and JPEG at quality 85), Theta fitted
 // from it at several sample budgets; parameter errors against the fit's time, and the whole step (fit,
 // inpainting, albedo, the rest-pose composition) against the 2 s target. Median of repeated runs. Not a test.
-//   bench_appearance [OUT_DIR] [--repeat N]
+//   bench_appearance [OUT_DIR] [--repeat N] [--compose-only]
+// --compose-only: the viewport's compositions alone (compose.csv), the fits' sweeps and the turn search skipped.
 #include "phantom/phantom.hpp"
 #include "realorgan.hpp"
 #include "traced_outline.hpp"
@@ -81,6 +82,7 @@ struct Point {
 struct AppearanceBench {
   std::string out = ".";
   int repeat = 3;
+  bool composeOnly = false;  ///< --compose-only
   phantom::Phantom c;
   cv::Mat3b frame;
   double distance = 0;
@@ -433,7 +435,7 @@ struct AppearanceBench {
     cv::Mat3b seen720;
     cv::resize(seen, seen720, cv::Size(cam720.width, cam720.height), 0, 0, cv::INTER_AREA);
     viewport(name, cam720, pose, sv, seen720, r.theta);
-    turnRows(tcsv, name, cam, pose, sv, seen, repeat);
+    if (!composeOnly) turnRows(tcsv, name, cam, pose, sv, seen, repeat);
     carriedViewport(name, organ, cam720, pose, seen720, r.theta);
   }
 
@@ -470,20 +472,23 @@ int main(int argc, char** argv) {
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--repeat" && i + 1 < argc) b.repeat = std::max(1, std::atoi(argv[++i]));
+    else if (a == "--compose-only") b.composeOnly = true;
     else b.out = a;
   }
   std::filesystem::create_directories(b.out);
   b.makeFrame();
-  for (std::size_t samples : {2500, 5000, 10000, 20000, 40000, 80000}) b.sweep(std::to_string(samples) + " px/stage", samples, 1.0);
-  for (double scale : {0.5, 0.25, 0.125}) b.sweep("1/" + std::to_string(static_cast<int>(std::lround(1 / scale))) + " resolution", 10000, scale);
-  b.plot();
-  b.wholeStep();
+  if (!b.composeOnly) {
+    for (std::size_t samples : {2500, 5000, 10000, 20000, 40000, 80000}) b.sweep(std::to_string(samples) + " px/stage", samples, 1.0);
+    for (double scale : {0.5, 0.25, 0.125}) b.sweep("1/" + std::to_string(static_cast<int>(std::lround(1 / scale))) + " resolution", 10000, scale);
+    b.plot();
+    b.wholeStep();
+  }
+  b.tcsv.open(b.out + "/appearance_turn.csv");
+  b.tcsv << "organ,about_x_deg,about_y_deg,explained_before,explained_after,off_deg_before,off_deg_after,turned,turns_scored,search_ms_median,step_ms_median\n";
+  if (!b.composeOnly) turnRows(b.tcsv, "phantom", b.c.camera, b.c.truePose, b.c.surfaceView(), b.frame, b.repeat);
   // The CPU composition as the viewport uses it (imaging::Compositor, prepared once per registered organ,
   // then one deformed shape per frame) at 1280x720: the phantom and each real organ shape below, moved
   // 3 mm and bent, with no anti-aliasing and with 2x2 and 4x4 samples on the rim.
-  b.tcsv.open(b.out + "/appearance_turn.csv");
-  b.tcsv << "organ,about_x_deg,about_y_deg,explained_before,explained_after,off_deg_before,off_deg_after,turned,turns_scored,search_ms_median,step_ms_median\n";
-  turnRows(b.tcsv, "phantom", b.c.camera, b.c.truePose, b.c.surfaceView(), b.frame, b.repeat);
   b.ccsv.open(b.out + "/compose.csv");
   b.ccsv << "organ,triangles,tetrahedra,width,height,rim_samples,organ_pixels,compose_ms_median\n";
   {
