@@ -47,6 +47,10 @@ struct Compositor::Impl {
   /// The organ's surface is closed and wound outward: its triangles facing away from the camera are hidden,
   /// and are not rasterised (half the rasteriser's work).
   bool cull = false;
+  /// With `cull`: the triangles that faced away from the camera at rest (1). The frame cannot have shown them: a point
+  /// of one is never given the frame's colours, even where its rest position lands on a triangle sharing a vertex with
+  /// it (a fold: the underside a pull turns into view took the lit top's colours, a bright tick at each shared vertex).
+  std::vector<char> restBack;
   bool specular_ = false;  ///< Theta has a specular lobe (ks > 0, sigma > 0)
 
   float falloffAt(const Eigen::Vector3f& p, float squaredNorm) const {
@@ -206,13 +210,14 @@ void Compositor::Impl::shadeBatch(const std::vector<Plane>& P, int t, int n, con
   const cv::Vec3f materialAlbedo = material > 0 ? materials[static_cast<std::size_t>(material - 1)] : cv::Vec3f();
   const int* shownTriangle = restSeen.triangle.ptr<int>(0);
   const float* shownDepth = restSeen.depth.ptr<float>(0);
+  const bool backAtRest = !restBack.empty() && restBack[static_cast<std::size_t>(t)];
   for (int i = 0; i < n; ++i) {
     ok[i] = false;
     if (!(valid[i] > 0)) continue;
     // Whether the frame showed the point where it was at rest (the triangle, one sharing a vertex with it, or a
     // surface no nearer than 2 mm in front of it: not hidden behind another part of the organ).
     bool seen = false;
-    if (const int at = nearest[i]; at >= 0) {
+    if (const int at = nearest[i]; at >= 0 && !backAtRest) {
       if (const int shownT = shownTriangle[at]; shownT >= 0) {
         seen = shownDepth[at] > rzs[i] - 0.002f;
         const int* shown = triangles.data() + 3 * shownT;
@@ -295,6 +300,14 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   d.ksF = in.theta.ks.cast<float>();
   d.cull = closedAndOutward(d.restCam, in.rest);
   d.restSeen = rasterizeCameraFrame(in.camera, d.restCam, in.rest, 1, 1e-3, d.cull);
+  if (d.cull) {
+    d.restBack.resize(in.rest.triangleCount);
+    for (std::size_t t = 0; t < in.rest.triangleCount; ++t) {
+      const Eigen::Vector3d &a = d.restCam[d.triangles[3 * t]], &b = d.restCam[d.triangles[3 * t + 1]],
+                            &c = d.restCam[d.triangles[3 * t + 2]];
+      d.restBack[t] = a.dot((b - a).cross(c - a)) >= 0;  // the rasteriser's culling test (render.cpp)
+    }
+  }
   d.frame = in.frame;
   d.background = in.background;
   d.albedo = in.albedo.empty() ? cv::Mat3f(size, cv::Vec3f(1, 1, 1)) : in.albedo;
