@@ -303,6 +303,7 @@ void MainWindow::showSimulationFrame() {
 }
 
 void MainWindow::buildStatusBar() {
+  setStatusBar(new ElidingStatusBar(this));  // a long message ends in an ellipsis, not cut against the simulation's line
   status_.progress = new QProgressBar(this);
   status_.progress->setRange(0, 100);
   status_.progress->setMaximumWidth(260);

@@ -3,6 +3,9 @@
 #include <QEvent>
 #include <QPainter>
 #include <QResizeEvent>
+#include <QStyle>
+#include <QStyleOption>
+#include <QSizeGrip>
 
 #include <algorithm>
 
@@ -109,6 +112,42 @@ void LinesLabel::paintEvent(QPaintEvent*) {
     shown = shown.left(lo) + QChar(0x2026);
   }
   p.drawText(room, Qt::AlignTop | Qt::AlignLeft | Qt::TextWordWrap, shown);
+}
+
+ElidingStatusBar::ElidingStatusBar(QWidget* parent) : QStatusBar(parent) {
+  connect(this, &QStatusBar::messageChanged, this, [this](const QString& message) { setToolTip(message); });
+}
+
+// As QStatusBar::paintEvent (the panel, the frames of the widgets shown beside the message, the message from the left
+// to the first of them), with the message elided to that room.
+void ElidingStatusBar::paintEvent(QPaintEvent* e) {
+  const QString message = currentMessage();
+  if (message.isEmpty()) {
+    QStatusBar::paintEvent(e);
+    return;
+  }
+  QPainter p(this);
+  QStyleOption opt;
+  opt.initFrom(this);
+  style()->drawPrimitive(QStyle::PE_PanelStatusBar, &opt, &p, this);
+  const bool rtl = layoutDirection() == Qt::RightToLeft;
+  int left = 6, right = width() - 12;
+  // While a message is shown QStatusBar hides its normal widgets: the ones still visible are the permanent ones.
+  for (QWidget* w : findChildren<QWidget*>(QString(), Qt::FindDirectChildrenOnly)) {
+    if (!w->isVisible() || w->isWindow()) continue;
+    if (!qobject_cast<QSizeGrip*>(w)) {
+      opt.rect = w->geometry().adjusted(-1, -1, 1, 1);
+      style()->drawPrimitive(QStyle::PE_FrameStatusBarItem, &opt, &p, w);
+      if (rtl)
+        left = std::max(left, w->x() + w->width() + 2);
+      else
+        right = std::min(right, w->x() - 2);
+    }
+  }
+  const QRect room(left, 0, std::max(0, right - left), height());
+  p.setPen(palette().windowText().color());
+  p.drawText(room, Qt::AlignLeading | Qt::AlignVCenter | Qt::TextSingleLine,
+             fontMetrics().elidedText(message, Qt::ElideRight, room.width()));
 }
 
 }  // namespace rehearse::ui

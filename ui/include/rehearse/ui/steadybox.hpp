@@ -5,6 +5,7 @@
 // its size on only when the room it needs at its present width changes (a line more or less); otherwise the new text
 // is only repainted.
 #include <QLabel>
+#include <QStatusBar>
 #include <QWidget>
 
 namespace rehearse::ui {
@@ -50,6 +51,17 @@ class LinesLabel : public QLabel {
  private:
   void fixHeight();
   int lines_;
+};
+
+/// QStatusBar draws a temporary message (showMessage) up to its first permanent widget and cuts it there, mid-letter,
+/// against that widget's text. This one ends it in an ellipsis; currentMessage() stays whole, and is the bar's tooltip
+/// while it is shown (the Messages panel keeps what say() said).
+class ElidingStatusBar : public QStatusBar {
+ public:
+  explicit ElidingStatusBar(QWidget* parent);
+
+ protected:
+  void paintEvent(QPaintEvent* e) override;
 };
 
 }  // namespace rehearse::ui
