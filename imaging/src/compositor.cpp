@@ -18,7 +18,6 @@ namespace rehearse::imaging {
 struct Compositor::Impl {
   Camera camera;
   Pose pose;
-  Eigen::Matrix3d Kinv;
   std::vector<int> triangles;  ///< 3 per triangle (the rest's; a deformed shape must have the same)
   std::size_t vertexCount = 0;
   std::vector<double> restVertices;  ///< model frame, 3n (compose() with no shape)
@@ -281,7 +280,6 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   Impl& d = *d_;
   d.camera = in.camera;
   d.pose = in.pose;
-  d.Kinv = in.camera.K.inverse();
   d.triangles.assign(in.rest.triangles, in.rest.triangles + 3 * in.rest.triangleCount);
   d.vertexCount = in.rest.vertexCount;
   d.restVertices.assign(in.rest.vertices, in.rest.vertices + 3 * in.rest.vertexCount);
@@ -292,9 +290,10 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   d.kf[0] = static_cast<float>(in.camera.K(0, 0)), d.kf[1] = static_cast<float>(in.camera.K(0, 1)),
   d.kf[2] = static_cast<float>(in.camera.K(0, 2));
   d.kf[3] = static_cast<float>(in.camera.K(1, 1)), d.kf[4] = static_cast<float>(in.camera.K(1, 2));
-  d.kinvF[0] = static_cast<float>(d.Kinv(0, 0)), d.kinvF[1] = static_cast<float>(d.Kinv(0, 1)),
-  d.kinvF[2] = static_cast<float>(d.Kinv(0, 2)), d.kinvF[3] = static_cast<float>(d.Kinv(1, 1)),
-  d.kinvF[4] = static_cast<float>(d.Kinv(1, 2));
+  const Eigen::Matrix3d Kinv = in.camera.K.inverse();
+  d.kinvF[0] = static_cast<float>(Kinv(0, 0)), d.kinvF[1] = static_cast<float>(Kinv(0, 1)),
+  d.kinvF[2] = static_cast<float>(Kinv(0, 2)), d.kinvF[3] = static_cast<float>(Kinv(1, 1)),
+  d.kinvF[4] = static_cast<float>(Kinv(1, 2));
   d.lightF = in.theta.lightPosition.cast<float>();
   d.kdF = in.theta.kd.cast<float>();
   d.ksF = in.theta.ks.cast<float>();

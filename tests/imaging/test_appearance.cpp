@@ -103,6 +103,16 @@ class TestAppearance : public QObject {
     QVERIFY(std::abs(f.roughness - t.roughness) < 0.10 * t.roughness);
   }
 
+ // The phantom seen through its own camera and true pose, its surface at rest and as `deformed`.
+  imaging::CompositionInput phantomInput(const SurfaceView& deformed) const {
+    imaging::CompositionInput in;
+    in.camera = c_.camera;
+    in.pose = c_.truePose;
+    in.rest = c_.surfaceView();
+    in.deformed = deformed;
+    return in;
+  }
+
  private slots:
   void initTestCase() { c_ = phantom::makePhantom(); }
 
@@ -539,11 +549,7 @@ class TestAppearance : public QObject {
     }
     SurfaceView deformed = rest;
     deformed.vertices = moved.data();
-    imaging::CompositionInput in;
-    in.camera = c_.camera;
-    in.pose = c_.truePose;
-    in.rest = rest;
-    in.deformed = deformed;
+    imaging::CompositionInput in = phantomInput(deformed);
     in.frame = c_.frame;
     in.background = cv::Mat3b(c_.frame.size(), cv::Vec3b(0, 0, 0));
     in.theta = c_.trueAppearance;
@@ -682,11 +688,7 @@ class TestAppearance : public QObject {
     SurfaceView deformed = c_.surfaceView();
     deformed.vertices = moved.data();
     const cv::Mat3b bg = imaging::makeTissueBackground(c_.camera.width, c_.camera.height, 11);
-    imaging::CompositionInput in;
-    in.camera = c_.camera;
-    in.pose = c_.truePose;
-    in.rest = c_.surfaceView();
-    in.deformed = deformed;
+    imaging::CompositionInput in = phantomInput(deformed);
     in.frame = c_.frame;
     in.background = bg;
     in.albedo = cv::Mat3f(bg.size(), cv::Vec3f(1, 1, 1));
@@ -745,11 +747,7 @@ class TestAppearance : public QObject {
     const SurfaceView rest = c_.surfaceView();
     SurfaceView deformed = rest;
     deformed.vertices = moved.data();
-    imaging::CompositionInput in;
-    in.camera = c_.camera;
-    in.pose = c_.truePose;
-    in.rest = rest;
-    in.deformed = deformed;
+    imaging::CompositionInput in = phantomInput(deformed);
     in.frame = frame;
     in.background = imaging::inpaintRegion(frame, g.mask());
     in.albedo = imaging::albedoRatio(frame, g, r.theta, r.usable);
