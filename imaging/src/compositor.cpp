@@ -32,6 +32,8 @@ struct Compositor::Impl {
   cv::Mat3f residual;  ///< frameResidual(); empty while it is made (and when texture only)
   Appearance theta;
   bool textureOnly = false;
+  /// Texture only: the colour of tissue the frame never showed (meanOrganColour: the organ's mean in the frame).
+  cv::Vec3f unseenColour;
   bool frameDetail = true;
   float trust = 1;  ///< CompositionInput::trust (1 while the residual is made: that is the model's own)
   /// What a re-shaded point the frame saw carries from where the frame saw it: trust x residual + (1 - trust) x the
@@ -228,8 +230,9 @@ void Compositor::Impl::shadeBatch(const std::vector<Plane>& P, int t, int n, con
                           tapFx[i], tapFy[i]};
     cv::Vec3f& out = bgr[i];
     if (textureOnly && material == 0) {
-      if (!seen) continue;
-      out = bilinear(frame, tap);
+      // Tissue the frame never showed (an underside a pull turns into view) has no texture to carry: it takes the
+      // organ's mean colour rather than showing the background through the organ.
+      out = seen ? bilinear(frame, tap) : unseenColour;
       ok[i] = true;
       continue;
     }
@@ -268,6 +271,15 @@ void Compositor::Impl::shadeRow(const std::vector<Plane>& P, const int* tri, int
     }
     x = end;
   }
+}
+
+cv::Vec3f meanOrganColour(const cv::Mat3b& frame, const cv::Mat1i& triangleAtRest) {
+  cv::Scalar m;
+  if (triangleAtRest.size() == frame.size() && cv::countNonZero(triangleAtRest >= 0) > 0)
+    m = cv::mean(frame, triangleAtRest >= 0);
+  else
+    m = cv::mean(frame);  // the frame shows none of the organ at rest: its own mean
+  return cv::Vec3f(static_cast<float>(m[0]), static_cast<float>(m[1]), static_cast<float>(m[2]));
 }
 
 Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()) {
@@ -312,6 +324,7 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   d.albedo = in.albedo.empty() ? cv::Mat3f(size, cv::Vec3f(1, 1, 1)) : in.albedo;
   d.theta = in.theta;
   d.textureOnly = in.textureOnly;
+  d.unseenColour = meanOrganColour(in.frame, d.restSeen.triangle);
   d.frameDetail = in.frameDetail;
   if (!in.triangleMaterial.empty()) {
     if (in.triangleMaterial.size() != in.rest.triangleCount)

@@ -335,6 +335,47 @@ class TestGl : public QObject {
             asTexture, asReshaded);
       QVERIFY(asTexture >= 35.0);
       QVERIFY(asTexture >= asReshaded + 3);
+      // Turned half a turn about the camera's vertical axis (its back, which the frame never showed, to the front):
+      // that tissue in the organ's mean colour on both paths, not the background through the organ.
+      {
+        Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+        for (std::size_t i = 0; i < v.vertexCount; ++i) centre += v.vertex(i);
+        centre /= static_cast<double>(v.vertexCount);
+        const Eigen::AngleAxisd turn(M_PI, c.truePose.R.transpose() * Eigen::Vector3d::UnitY());
+        std::vector<double> turned(3 * v.vertexCount);
+        for (std::size_t i = 0; i < v.vertexCount; ++i) {
+          const Eigen::Vector3d q = centre + turn * (v.vertex(i) - centre);
+          for (int k = 0; k < 3; ++k) turned[3 * i + static_cast<std::size_t>(k)] = q[k];
+        }
+        QImage t;
+        QVERIFY(gl.compose(turned, t, 4));
+        const QImage rgbTurned = t.convertToFormat(QImage::Format_RGB888);
+        cv::Mat3b glTurned;
+        cv::cvtColor(cv::Mat(rgbTurned.height(), rgbTurned.width(), CV_8UC3, const_cast<uchar*>(rgbTurned.constBits()),
+                             static_cast<std::size_t>(rgbTurned.bytesPerLine())),
+                     glTurned, cv::COLOR_RGB2BGR);
+        SurfaceView turnedView = v;
+        turnedView.vertices = turned.data();
+        cv::Mat1b inner;
+        cv::erode(imaging::renderMask(c.camera, c.truePose, turnedView), inner, cv::Mat());
+        const cv::Scalar mean = cv::mean(c.frame, imaging::renderMask(c.camera, c.truePose, v));
+        int far = 0;  // inner pixels more than 2 levels from the organ's mean colour in some channel
+        for (int y = 0; y < inner.rows; ++y)
+          for (int x = 0; x < inner.cols; ++x)
+            if (inner(y, x))
+              for (int k = 0; k < 3; ++k)
+                if (std::abs(glTurned(y, x)[k] - mean[k]) > 2) {
+                  ++far;
+                  break;
+                }
+        const double turnedAsCpu = imaging::psnr(
+            app::makeCompositor(in, layers, o.fit.theta, imaging::Reshading{true, 0.0})->compose(turned, 2), glTurned, inner);
+        qInfo("texture only, turned half a turn: %d of %d inner px more than 2 levels from the organ's mean colour; "
+              "OpenGL against the CPU compositor %.1f dB inside",
+              far, cv::countNonZero(inner), turnedAsCpu);
+        QCOMPARE(far, 0);
+        QVERIFY(turnedAsCpu >= 35.0);
+      }
       // A fit that earned half the model's change (issue 65, imaging::reshadeTrust): as the CPU compositor mixes it.
       imaging::CompositionInput half = ci;
       half.trust = 0.5;

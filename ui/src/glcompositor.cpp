@@ -67,22 +67,29 @@ uniform vec3 ks;
 uniform float sigma;
 uniform float falloff;       // n of cos^n off the scope's axis (appearance.hpp)
 uniform bool textureOnly;
+uniform vec3 unseenColour;   // texture only: tissue the frame never showed (imaging::meanOrganColour)
+uniform bool restCull;       // the surface is closed and wound outward (imaging::closedAndOutward)
 uniform float trust;         // the share of the model's change applied where the frame saw the tissue (CompositionInput::trust)
 out vec4 colour;
 void main() {
   vec3 p = vPosition;
   vec3 r = vRest;
+  // The rest triangle's normal as its vertices wind (the CPU compositor's restBack): the rest position's derivatives
+  // across the window span the rest triangle, their cross product is its normal times the window-space orientation of
+  // the triangle drawn now (gl_FrontFacing: counter-clockwise). A triangle that faced away from the camera at rest was
+  // never shown by the frame.
+  vec3 restNormal = (gl_FrontFacing ? 1.0 : -1.0) * cross(dFdx(r), dFdy(r));
+  bool backAtRest = restCull && dot(r, restNormal) >= 0.0;
   bool seen = false;
   vec2 q = vec2(-1.0);
-  if (r.z > 0.0) {
+  if (r.z > 0.0 && !backAtRest) {
     q = vec2(intrinsics.x * r.x / r.z + skew * r.y / r.z + intrinsics.z, intrinsics.y * r.y / r.z + intrinsics.w);
     ivec2 i = ivec2(floor(q + 0.5));
     if (i.x >= 0 && i.y >= 0 && i.x < int(size.x) && i.y < int(size.y)) seen = texelFetch(restDepth, i, 0).r > r.z - 0.002;
   }
   vec2 uv = (clamp(q, vec2(0.0), size - 1.0) + 0.5) / size;
   if (textureOnly) {
-    if (!seen) discard;
-    colour = vec4(texture(frame, uv).rgb, 1.0);
+    colour = vec4(seen ? texture(frame, uv).rgb : unseenColour, 1.0);
     return;
   }
   vec3 a = seen ? texture(albedo, uv).rgb : vec3(1.0);
@@ -124,6 +131,8 @@ struct GLCompositor::Impl {
   std::vector<float> restCam;  ///< 3 per vertex
   imaging::Appearance theta;
   bool textureOnly = false;
+  QVector3D unseenColour;  ///< RGB 0..1: texture only, tissue the frame never showed (imaging::meanOrganColour)
+  bool restCull = false;   ///< imaging::closedAndOutward at rest: triangles that faced away then were never seen
   float trust = 1;
   double zMax = 1;
 
@@ -230,6 +239,9 @@ bool GLCompositor::prepare(const imaging::CompositionInput& in) {
   depth.setTo(0.0f, seen.triangle < 0);
   d.theta = in.theta;
   d.textureOnly = in.textureOnly;
+  const cv::Vec3f unseen = imaging::meanOrganColour(in.frame, seen.triangle) * (1.0f / 255.0f);  // BGR
+  d.unseenColour = QVector3D(unseen[2], unseen[1], unseen[0]);
+  d.restCull = imaging::closedAndOutward(restCam, in.rest);
   if (!(in.trust >= 0 && in.trust <= 1)) return false;  // the CPU compositor refuses it with its sentence
   d.trust = static_cast<float>(in.trust);
   const cv::Mat3f albedo = in.albedo.empty() ? cv::Mat3f(size, cv::Vec3f(1, 1, 1)) : in.albedo;
@@ -342,6 +354,8 @@ bool GLCompositor::compose(const std::vector<double>& deformedVertices, QImage& 
     p.setUniformValue("sigma", float(th.roughness));
     p.setUniformValue("falloff", float(th.falloff));
     p.setUniformValue("textureOnly", d.textureOnly);
+    p.setUniformValue("unseenColour", d.unseenColour);
+    p.setUniformValue("restCull", d.restCull);
     p.setUniformValue("trust", d.trust);
     gl->glDrawElements(GL_TRIANGLES, static_cast<GLsizei>(indices.size()), GL_UNSIGNED_INT, nullptr);
     p.release();

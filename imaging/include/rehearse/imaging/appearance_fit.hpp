@@ -150,6 +150,11 @@ struct CompositionInput {
 /// shows I_B. One Compositor, used once.
 cv::Mat3b compose(const CompositionInput& in, int scale = 2);
 
+/// The organ's mean colour in the frame (BGR, 0..255) over the pixels where `triangleAtRest` (the rest's
+/// rasterisation) shows it; the whole frame's mean where it shows none. Texture only, the compositors draw tissue the
+/// frame never showed (an underside a pull turns into view) in it, not the background through the organ.
+cv::Vec3f meanOrganColour(const cv::Mat3b& frame, const cv::Mat1i& triangleAtRest);
+
 /// Composition prepared once for a registered organ at rest, for a stream of deformed shapes (the viewport
 /// following a simulation, a replay): the rest geometry through the camera, the frame's texture, the albedo
 /// and the background are kept; each shape then costs its own rasterisation at the frame's resolution,
