@@ -140,29 +140,33 @@ bool NodeCompliance::prepare(CholmodSolver& factor, const std::vector<int>& want
     for (int node : slotNodes_) slotOf_[static_cast<std::size_t>(node)] = -1;
     slotNodes_.clear();
   }
+  // The missing nodes get their slots first, then their blocks are solved together (each alone: solveUnitBlocks).
+  newNodes_.clear();
+  newSlots_.clear();
   for (int node : want) {
     if (!wanted(node) || slotOf_[static_cast<std::size_t>(node)] >= 0) continue;
-    const auto slot = static_cast<Eigen::Index>(slotNodes_.size());
-    if (cols_.rows() != n3 || cols_.cols() < 3 * (slot + 1)) {
-      // Grown by doubling (it allocates only then), up to the bound; rows on more nodes than the bound still get a
-      // block each (the bound only decides when to start again).
-      const Eigen::Index cols = std::max<Eigen::Index>(
-          3 * (slot + 1), std::min<Eigen::Index>(3 * static_cast<Eigen::Index>(capacity), 2 * cols_.cols()));
-      if (cols_.rows() != n3)
-        cols_.resize(n3, std::max<Eigen::Index>(cols, 24));
-      else
-        cols_.conservativeResize(Eigen::NoChange, cols);
-    }
-    if (unit_.rows() != n3 || unit_.cols() != 3) unit_.setZero(n3, 3);
-    for (int d = 0; d < 3; ++d) unit_(3 * node + d, d) = 1;
-    const bool ok = factor.solve(unit_, solved_);
-    for (int d = 0; d < 3; ++d) unit_(3 * node + d, d) = 0;
-    if (!ok || solved_.rows() != n3 || solved_.cols() != 3) return false;
-    cols_.middleCols<3>(3 * slot) = solved_;
-    slotOf_[static_cast<std::size_t>(node)] = static_cast<int>(slot);
+    const auto slot = static_cast<int>(slotNodes_.size());
+    slotOf_[static_cast<std::size_t>(node)] = slot;
     slotNodes_.push_back(node);
+    newNodes_.push_back(node);
+    newSlots_.push_back(slot);
   }
-  return true;
+  if (newNodes_.empty()) return true;
+  const auto needed = 3 * static_cast<Eigen::Index>(slotNodes_.size());
+  if (cols_.rows() != n3 || cols_.cols() < needed) {
+    // Grown by doubling (it allocates only then), up to the bound; rows on more nodes than the bound still get a
+    // block each (the bound only decides when to start again).
+    const Eigen::Index cols =
+        std::max<Eigen::Index>(needed, std::min<Eigen::Index>(3 * static_cast<Eigen::Index>(capacity), 2 * cols_.cols()));
+    if (cols_.rows() != n3)
+      cols_.resize(n3, std::max<Eigen::Index>(cols, 24));
+    else
+      cols_.conservativeResize(Eigen::NoChange, cols);
+  }
+  if (factor.solveUnitBlocks(newNodes_.data(), newSlots_.data(), newNodes_.size(), cols_)) return true;
+  for (int node : newNodes_) slotOf_[static_cast<std::size_t>(node)] = -1;  // not solved: not kept
+  slotNodes_.resize(slotNodes_.size() - newNodes_.size());
+  return false;
 }
 
 bool ConstraintSolver::solve(CholmodSolver& factor, const Eigen::VectorXd& x, double s, Eigen::VectorXd& dx,

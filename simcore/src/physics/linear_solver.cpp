@@ -6,8 +6,11 @@
 
 #include <cholmod.h>
 #include <dlfcn.h>
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cstring>
 #include <vector>
 
@@ -106,6 +109,27 @@ struct CholmodSolver::Impl {
   std::vector<double> cx;
   Eigen::VectorXd bp;
   Eigen::MatrixXd Bp;
+  // solveUnitBlocks: each thread's own CHOLMOD workspace (a solve writes its common and its X, Y, E; the factor is
+  // only read), kept from call to call.
+  struct Workspace {
+    cholmod_common common{};
+    cholmod_dense *x = nullptr, *y = nullptr, *e = nullptr;
+    Eigen::MatrixXd unit, permuted;
+    Workspace() {
+      cholmod_start(&common);
+      common.print = 0;
+      common.error_handler = nullptr;
+    }
+    ~Workspace() {
+      cholmod_free_dense(&x, &common);
+      cholmod_free_dense(&y, &common);
+      cholmod_free_dense(&e, &common);
+      cholmod_finish(&common);
+    }
+    Workspace(const Workspace&) = delete;
+    Workspace& operator=(const Workspace&) = delete;
+  };
+  tbb::enumerable_thread_specific<Workspace> workspaces;
 
   // A symmetric matrix in compressed columns, seen by CHOLMOD without a copy; stype -1 reads the lower
   // triangle, +1 the upper one.
@@ -318,6 +342,58 @@ bool CholmodSolver::solve(const Eigen::MatrixXd& b, Eigen::MatrixXd& x) {
   if (x.rows() != b.rows() || x.cols() != b.cols()) x.resize(b.rows(), b.cols());
   std::memcpy(x.data(), d.x->x, sizeof(double) * static_cast<std::size_t>(b.size()));
   return x.allFinite();
+}
+
+bool CholmodSolver::solveUnitBlocks(const int* nodes, const int* slots, std::size_t count, Eigen::MatrixXd& X) {
+  Impl& d = *d_;
+  if (!d.ok || X.rows() != d.rows) return false;
+  for (std::size_t k = 0; k < count; ++k)
+    if (nodes[k] < 0 || 3 * static_cast<Eigen::Index>(nodes[k]) + 3 > d.rows || slots[k] < 0 ||
+        3 * static_cast<Eigen::Index>(slots[k]) + 3 > X.cols())
+      return false;
+  std::atomic<bool> ok{true};
+  // One block a task: blocks are few (the nodes a tool holds and touches) and each costs milliseconds.
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, count, 1), [&](const tbb::blocked_range<std::size_t>& r) {
+    Impl::Workspace& w = d.workspaces.local();
+    const Eigen::Index n = d.rows;
+    for (std::size_t k = r.begin(); k != r.end(); ++k) {
+      const Eigen::Index node = nodes[k], first = 3 * static_cast<Eigen::Index>(slots[k]);
+      if (w.unit.rows() != n || w.unit.cols() != 3) w.unit.setZero(n, 3);
+      if (d.isSimplicial) {
+        // As solve(B, X): permuted, each column swept alone (no BLAS).
+        if (w.permuted.rows() != n || w.permuted.cols() != 3) w.permuted.resize(n, 3);
+        w.permuted.setZero();
+        for (int c = 0; c < 3; ++c) w.permuted(d.inverse[static_cast<std::size_t>(3 * node + c)], c) = 1;
+        bool solved = true;
+        for (int c = 0; c < 3; ++c) solved &= d.solvePermutedInPlace(w.permuted.col(c).data());
+        if (!solved) {
+          ok = false;
+          continue;
+        }
+        for (Eigen::Index i = 0; i < n; ++i)
+          X.block<1, 3>(i, first) = w.permuted.row(d.inverse[static_cast<std::size_t>(i)]);
+      } else {
+        for (int c = 0; c < 3; ++c) w.unit(3 * node + c, c) = 1;
+        cholmod_dense B{};
+        B.nrow = static_cast<size_t>(n);
+        B.ncol = 3;
+        B.d = B.nrow;
+        B.nzmax = B.nrow * B.ncol;
+        B.x = w.unit.data();
+        B.xtype = CHOLMOD_REAL;
+        B.dtype = CHOLMOD_DOUBLE;
+        const bool solved = cholmod_solve2(CHOLMOD_A, d.factor, &B, nullptr, &w.x, nullptr, &w.y, &w.e, &w.common) != 0;
+        for (int c = 0; c < 3; ++c) w.unit(3 * node + c, c) = 0;
+        if (!solved) {
+          ok = false;
+          continue;
+        }
+        std::memcpy(X.col(first).data(), w.x->x, sizeof(double) * static_cast<std::size_t>(3 * n));
+      }
+      if (!X.middleCols<3>(first).allFinite()) ok = false;
+    }
+  });
+  return ok;
 }
 
 int CholmodSolver::analyses() const { return d_->analyses; }

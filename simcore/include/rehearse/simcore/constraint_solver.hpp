@@ -38,7 +38,8 @@ double constraintValue(const ScalarConstraint& c, const Eigen::VectorXd& x);
 
 /// The compliance blocks A^-1 [e_x e_y e_z] of mesh nodes for one factor A (3 columns per node). Each node's block is
 /// solved alone, so it has the same bits whenever and wherever it is solved (the stepping thread, the thread building
-/// a factor, a replay): which nodes are cached changes the time a step takes, never its result.
+/// a factor, a replay, either core: CholmodSolver::solveUnitBlocks spreads a call's new blocks over the threads): which
+/// nodes are cached changes the time a step takes, never its result.
 class NodeCompliance {
  public:
   /// Blocks for every node of `rows` (not fixed) with `factor` as it is now; kept while the factor is the same object
@@ -53,13 +54,14 @@ class NodeCompliance {
     return cols_.middleCols<3>(3 * static_cast<Eigen::Index>(slotOf_[static_cast<std::size_t>(node)]));
   }
   std::size_t memoryBytes() const {
-    return sizeof(double) * static_cast<std::size_t>(cols_.size() + unit_.size() + solved_.size()) +
-           sizeof(int) * (slotOf_.size() + slotNodes_.size());
+    return sizeof(double) * static_cast<std::size_t>(cols_.size()) +
+           sizeof(int) * (slotOf_.size() + slotNodes_.size() + newNodes_.size() + newSlots_.size());
   }
 
  private:
-  Eigen::MatrixXd cols_, unit_, solved_;
+  Eigen::MatrixXd cols_;
   std::vector<int> slotOf_, slotNodes_;  // node -> slot (-1: none), slot -> node
+  std::vector<int> newNodes_, newSlots_;  // prepare()'s missing nodes and their slots (scratch)
   std::vector<int> rowNodes_;            // the rows' nodes, in their order (scratch)
   const CholmodSolver* factor_ = nullptr;
   int factorisations_ = -1;
