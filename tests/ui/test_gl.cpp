@@ -4,6 +4,7 @@
 #include <QtTest>
 
 #include "fresh_start.hpp"
+#include "window_support.hpp"
 #include "phantom/phantom.hpp"
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/glcompositor.hpp"
@@ -299,10 +300,7 @@ class TestGl : public QObject {
       QImage j;
       QVERIFY(gl.compose(shape, j, 4));
       QCOMPARE(j.size(), QSize(c.camera.width, c.camera.height));
-      const QImage rgb = j.convertToFormat(QImage::Format_RGB888);
-      cv::Mat3b glBgr;
-      cv::cvtColor(cv::Mat(rgb.height(), rgb.width(), CV_8UC3, const_cast<uchar*>(rgb.constBits()), static_cast<std::size_t>(rgb.bytesPerLine())), glBgr,
-                   cv::COLOR_RGB2BGR);
+      const cv::Mat3b glBgr = toMat(j);
       const cv::Mat3b reference = cpu->compose(shape, 2);
       SurfaceView moved = v;
       if (!shape.empty()) moved.vertices = shape.data();
@@ -320,11 +318,7 @@ class TestGl : public QObject {
       QVERIFY(gl.prepare(textureOnly));
       QImage j;
       QVERIFY(gl.compose(bent, j, 4));
-      const QImage rgb = j.convertToFormat(QImage::Format_RGB888);
-      cv::Mat3b glBgr;
-      cv::cvtColor(cv::Mat(rgb.height(), rgb.width(), CV_8UC3, const_cast<uchar*>(rgb.constBits()),
-                           static_cast<std::size_t>(rgb.bytesPerLine())),
-                   glBgr, cv::COLOR_RGB2BGR);
+      cv::Mat3b glBgr = toMat(j);
       SurfaceView moved = v;
       moved.vertices = bent.data();
       const cv::Mat1b organ = imaging::renderMask(c.camera, c.truePose, moved);
@@ -349,11 +343,7 @@ class TestGl : public QObject {
         }
         QImage t;
         QVERIFY(gl.compose(turned, t, 4));
-        const QImage rgbTurned = t.convertToFormat(QImage::Format_RGB888);
-        cv::Mat3b glTurned;
-        cv::cvtColor(cv::Mat(rgbTurned.height(), rgbTurned.width(), CV_8UC3, const_cast<uchar*>(rgbTurned.constBits()),
-                             static_cast<std::size_t>(rgbTurned.bytesPerLine())),
-                     glTurned, cv::COLOR_RGB2BGR);
+        const cv::Mat3b glTurned = toMat(t);
         SurfaceView turnedView = v;
         turnedView.vertices = turned.data();
         cv::Mat1b inner;
@@ -381,10 +371,7 @@ class TestGl : public QObject {
       half.trust = 0.5;
       QVERIFY(gl.prepare(half));
       QVERIFY(gl.compose(bent, j, 4));
-      const QImage rgbHalf = j.convertToFormat(QImage::Format_RGB888);
-      cv::cvtColor(cv::Mat(rgbHalf.height(), rgbHalf.width(), CV_8UC3, const_cast<uchar*>(rgbHalf.constBits()),
-                           static_cast<std::size_t>(rgbHalf.bytesPerLine())),
-                   glBgr, cv::COLOR_RGB2BGR);
+      glBgr = toMat(j);
       const double asHalf = imaging::psnr(app::makeCompositor(in, layers, o.fit.theta, imaging::Reshading{false, 0.5})->compose(bent, 2), glBgr, organ),
                    halfAsFull = imaging::psnr(cpu->compose(bent, 2), glBgr, organ),
                    halfAsTexture = imaging::psnr(app::makeCompositor(in, layers, o.fit.theta, imaging::Reshading{true, 0.0})->compose(bent, 2), glBgr, organ);
@@ -420,10 +407,7 @@ class TestGl : public QObject {
     QVERIFY2(estimated.first().at(0).toBool(), qPrintable(estimated.first().at(1).toString()));
     QTRY_VERIFY_WITH_TIMEOUT(w.showingComposited(), 10000);
     QVERIFY(w.composition()->usesOpenGL());
-    const QImage shown = w.frameView()->shownFrame().convertToFormat(QImage::Format_RGB888);
-    cv::Mat3b shownBgr;
-    cv::cvtColor(cv::Mat(shown.height(), shown.width(), CV_8UC3, const_cast<uchar*>(shown.constBits()), static_cast<std::size_t>(shown.bytesPerLine())),
-                 shownBgr, cv::COLOR_RGB2BGR);
+    const cv::Mat3b shownBgr = toMat(w.frameView()->shownFrame());
     const double db = imaging::psnr(cpu->compose(std::vector<double>{}, 2), shownBgr);
     qInfo("the main window's composited view (OpenGL) against the CPU compositor: %.1f dB", db);
     QVERIFY(db >= 35.0);
