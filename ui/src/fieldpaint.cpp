@@ -1,10 +1,11 @@
 // The operative field over the frame while rehearsing (FrameView::paintField): each clip as a titanium bar across
-// the structure it closed, and the blood lost from each open stump as a film spreading over the organ's surface from
-// the stump (a surface fluid, no fluid solver: the film covers the surface within the radius its volume fills at
-// 0.5 mm thick, its distance measured along the surface's edges and shorter downhill, so the blood runs down and
-// pools below the cut); burnt tissue as a line along the hook's path. Front-facing triangles only, far to near.
+// the structure it closed, and the blood from each stump as a film running down the organ's surface from the stump
+// (simcore::bloodFilm: a falling film, no fluid solver; the surface holds what flowed out while the film runs off the
+// organ, not all the blood lost); burnt tissue as a line along the hook's path. Front-facing triangles only, far to
+// near.
 #include "rehearse/ui/frameview.hpp"
 
+#include <rehearse/simcore/session/bloodfilm.hpp>
 #include <rehearse/simcore/session/contact.hpp>
 
 #include <QPainter>
@@ -14,7 +15,6 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
-#include <queue>
 
 namespace rehearse::ui {
 
@@ -76,56 +76,6 @@ void FrameView::setLiveField(simcore::OperativeField field, const Eigen::Vector3
 }
 
 namespace {
-constexpr double kFilm = 0.0005;  ///< m: the blood film's thickness
-
-// The surface's edges, each node's neighbours (the nodes of a shape of `n`).
-std::vector<std::vector<int>> surfaceNeighbours(const simcore::CutSurface& surface, std::size_t n) {
-  std::vector<std::vector<int>> neighbours(n);
-  for (const auto& t : surface.triangles)
-    for (int k = 0; k < 3; ++k) {
-      const int a = t[static_cast<std::size_t>(k)], b = t[static_cast<std::size_t>((k + 1) % 3)];
-      if (a < 0 || b < 0 || static_cast<std::size_t>(a) >= n || static_cast<std::size_t>(b) >= n) continue;
-      neighbours[static_cast<std::size_t>(a)].push_back(b);
-      neighbours[static_cast<std::size_t>(b)].push_back(a);
-    }
-  return neighbours;
-}
-
-// 0..1: how thick the blood is at each node (1 at the stump): each bleed's film covers the nodes within the radius its
-// volume fills, measured along the surface's edges (`nb`) and shorter downhill.
-std::vector<double> bloodFilm(const std::vector<simcore::Bleed>& bleeds, const std::vector<Eigen::Vector3d>& live,
-                              const std::vector<std::vector<int>>& nb, const Eigen::Vector3d& down) {
-  const std::size_t n = live.size();
-  std::vector<double> film(n, 0.0);
-  std::vector<double> dist(n);
-  for (const auto& b : bleeds) {
-    if (!(b.lost > 0) || b.node < 0 || static_cast<std::size_t>(b.node) >= n) continue;
-    const double R = std::sqrt(b.lost / (M_PI * kFilm));
-    std::fill(dist.begin(), dist.end(), std::numeric_limits<double>::infinity());
-    using Item = std::pair<double, int>;
-    std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
-    dist[static_cast<std::size_t>(b.node)] = 0;
-    queue.emplace(0.0, b.node);
-    while (!queue.empty()) {
-      const auto [d, v] = queue.top();
-      queue.pop();
-      if (d > dist[static_cast<std::size_t>(v)] || d > R) continue;
-      film[static_cast<std::size_t>(v)] = std::max(film[static_cast<std::size_t>(v)], 1 - d / R);
-      for (int w : nb[static_cast<std::size_t>(v)]) {
-        const Eigen::Vector3d e = live[static_cast<std::size_t>(w)] - live[static_cast<std::size_t>(v)];
-        const double len = e.norm();
-        if (!(len > 0)) continue;
-        const double cost = len * (1 - 0.6 * down.dot(e) / len);  // downhill is nearer
-        if (d + cost < dist[static_cast<std::size_t>(w)]) {
-          dist[static_cast<std::size_t>(w)] = d + cost;
-          queue.emplace(d + cost, w);
-        }
-      }
-    }
-  }
-  return film;
-}
-
 // A surface triangle the blood film covers, as drawn.
 struct FilmTriangle {
   double depth;
@@ -313,10 +263,11 @@ void FrameView::paintBlood(QPainter& painter) {
   if (fieldGraph_->surface != &surface || fieldGraph_->nodes != n) {
     fieldGraph_->surface = &surface;
     fieldGraph_->nodes = n;
-    fieldGraph_->neighbours = surfaceNeighbours(surface, n);
+    fieldGraph_->neighbours = simcore::surfaceNeighbours(surface.triangles, n);
   }
   const Eigen::Vector3d down = gravity_.norm() > 0 ? Eigen::Vector3d(gravity_.normalized()) : Eigen::Vector3d::Zero();
-  const std::vector<double> film = bloodFilm(field_.bleeds, live_, fieldGraph_->neighbours, down);
+  const std::vector<double> film =
+      simcore::bloodFilm(field_.bleeds, live_, surface.triangles, fieldGraph_->neighbours, down).film;
   std::vector<FilmTriangle> tris;
   for (const auto& t : surface.triangles) {
     if (!onShape(t, n)) continue;
