@@ -11,6 +11,7 @@
 // The suite's class is in test_appearance_gui.hpp; the slots from clipCutAndCauterize on are in
 // test_appearance_gui_tools.cpp.
 #include "test_appearance_gui.hpp"
+#include "rehearse/ui/organview.hpp"
 
 #include "test_support.hpp"
 #include "window_support.hpp"
@@ -360,6 +361,81 @@ void TestAppearanceGui::compositedViewFollowsTheSimulation() {
   } else {
     qInfo("the organ sagged within its own outline: nothing uncovered");
   }
+}
+
+// Step 7, the organ softened (it sags from its start) and paused: the overlay (F3) and the 3D view (F4) show the organ
+// the composited view shows, not the case at rest (a person's check: after the composited view had followed the
+// simulation, F3 showed the overlay drawn before it, at rest, and F4 always showed the case at rest).
+void TestAppearanceGui::everyViewShowsTheSimulatedOrgan() {
+  QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
+  QCOMPARE(w_->step(), ui::Step::Rehearse);
+  QVERIFY(waitFor([&] { return w_->showingComposited(); }, 10000));
+  const QImage restOverlay = w_->organOverlay();
+  auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
+  QVERIFY(young);
+  const double stiffness = young->value();
+  const auto restore = qScopeGuard([&] {
+    young->setValue(stiffness);
+    panel_->reset();
+    QTest::keyClick(w_.get(), Qt::Key_F2);
+  });
+  young->setValue(stiffness / 4);
+  if (!panel_->isPlaying()) QTest::keyClick(w_.get(), Qt::Key_F5);
+  const long from = panel_->lastFrame() ? panel_->lastFrame()->steps : 0;
+  QVERIFY(waitFor([&] { return panel_->lastFrame() && panel_->lastFrame()->steps > from + 30; }));
+  QTest::keyClick(w_.get(), Qt::Key_F5);
+  QVERIFY(waitFor([&] { return !panel_->isPlaying(); }, 10000));
+  QTest::qWait(200);
+  const auto f = panel_->lastFrame();
+  const auto& c = *w_->caseData();
+  double sag = 0;
+  std::vector<double> now(3 * f->positions.size());
+  for (std::size_t i = 0; i < f->positions.size(); ++i) {
+    sag = std::max(sag, (f->positions[i] - c.pose.apply(c.shapeNodes()[i])).norm());
+    const Eigen::Vector3d m = c.pose.R.transpose() * (f->positions[i] - c.pose.t);
+    for (int k = 0; k < 3; ++k) now[3 * i + k] = m[k];
+  }
+  QVERIFY(sag > 1e-3);
+  SurfaceView moved = c.surfaceView();
+  moved.vertices = now.data();
+  const cv::Mat1b was = imaging::renderMask(c.camera, c.pose, c.surfaceView()),
+                  is = imaging::renderMask(c.camera, c.pose, moved);
+  QTest::keyClick(w_.get(), Qt::Key_F3);
+  QCOMPARE(w_->viewMode(), ui::ViewMode::Overlay);
+  QVERIFY(waitFor([&] { return !(w_->organOverlay() == restOverlay); }, 10000));
+  {
+    const QImage o = w_->organOverlay().convertToFormat(QImage::Format_ARGB32);
+    QCOMPARE(o.width(), c.camera.width);
+    cv::Mat1b drawn(o.height(), o.width(), uchar(0));
+    for (int y = 0; y < o.height(); ++y)
+      for (int x = 0; x < o.width(); ++x) drawn(y, x) = qAlpha(o.pixel(x, y)) > 0 ? 255 : 0;
+    cv::Mat1b offNow, offRest;
+    cv::bitwise_xor(drawn, is, offNow);
+    cv::bitwise_xor(drawn, was, offRest);
+    qInfo("sagged %.1f mm: the overlay (F3) differs from the snapshot's silhouette on %d px, from the rest shape's on "
+          "%d px",
+          1e3 * sag, cv::countNonZero(offNow), cv::countNonZero(offRest));
+    QVERIFY(cv::countNonZero(offNow) * 4 < cv::countNonZero(offRest));
+  }
+  auto* organ3d = w_->findChild<ui::OrganView*>("centreOrganView");
+  QVERIFY(organ3d);
+  const auto render3d = [&] {
+    organ3d->repaint();
+    return organ3d->rendered();
+  };
+  QTest::keyClick(w_.get(), Qt::Key_F4);
+  QVERIFY(waitFor([&] { return organ3d->isVisible(); }));
+  QCOMPARE(w_->viewModeText(), QStringLiteral("3D"));
+  const QImage sagged3d = render3d();
+  organ3d->setCase(w_->caseData());  // the case at rest, as the view drew it before
+  const QImage rest3d = render3d();
+  int differ = 0;
+  for (int y = 0; y < std::min(rest3d.height(), sagged3d.height()); ++y)
+    for (int x = 0; x < std::min(rest3d.width(), sagged3d.width()); ++x)
+      differ += rest3d.pixel(x, y) != sagged3d.pixel(x, y);
+  qInfo("the 3D view (F4) of the snapshot differs from the case at rest on %d of %d px", differ,
+        rest3d.width() * rest3d.height());
+  QVERIFY(differ > 500);
 }
 
 // A cut in step 7 keeps the composited view (issue 35; it gave way to the overlay before): the view shows the cut

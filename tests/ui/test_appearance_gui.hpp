@@ -35,6 +35,7 @@ class TestAppearanceGui : public QObject {
   void waitForIdleShowsTheNewestComposition();
   void aTextureOnlyEstimateIsNotReshaded();
   void compositedViewFollowsTheSimulation();
+  void everyViewShowsTheSimulatedOrgan();
   void cutOrganIsComposited();
   void graspPullCut();
   void clipCutAndCauterize();

@@ -1,6 +1,7 @@
 #include "rehearse/ui/liveoverlay.hpp"
 
 #include "rehearse/ui/frameview.hpp"
+#include "simulatedcase.hpp"
 
 #include <QFutureWatcher>
 #include <QtConcurrent/QtConcurrent>
@@ -48,13 +49,7 @@ void LiveOverlay::drawIfDue() {
   watcher->setFuture(QtConcurrent::run([overlay = overlay_, job = std::move(job)] {
     if (job.surface) return overlay->renderLive(*job.c, job.positions, *job.surface);
     // Uncut: the case with the simulated nodes as its shape (as an elastic fit's), drawn as the case is.
-    app::Case live(*job.c);
-    auto fit = std::make_shared<app::ElasticFit>();
-    fit->nodes.reserve(job.positions.size());
-    for (const auto& x : job.positions) fit->nodes.push_back(job.c->pose.R.transpose() * (x - job.c->pose.t));
-    fit->status = "simulated";
-    live.fit = fit;
-    return overlay->render(live, job.inner);
+    return overlay->render(simulatedCase(*job.c, job.positions), job.inner);
   }));
 }
 

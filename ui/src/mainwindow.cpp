@@ -1,4 +1,5 @@
 #include "rehearse/ui/mainwindow.hpp"
+#include "simulatedcase.hpp"
 #include "rehearse/ui/crashreport.hpp"
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/labelimage.hpp>
@@ -232,7 +233,10 @@ void MainWindow::setStep(Step s) {
   if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors ||
                               view_->tool() == Tool::Clip || view_->tool() == Tool::Cautery))
     view_->setTool(Tool::Navigate);
-  if (s != Step::Rehearse && doc_->hasCase()) refreshOverlay();  // the case's organ again, not the simulation's
+  if (s != Step::Rehearse && doc_->hasCase()) {
+    refreshOverlay();  // the case's organ again, not the simulation's
+    showInOrganView(centreOrgan_, doc_->data());
+  }
   updateWorkflow();
 }
 
@@ -264,10 +268,7 @@ void MainWindow::onCaseChanged(CaseDocument::Parts parts) {
   if (organView_) organView_->setCase(data);
   if (organGLView_) organGLView_->setCase(data);
   simulation_->setCase(data);
-  if (auto* o = qobject_cast<OrganGLView*>(centreOrgan_))
-    o->setCase(data);
-  else if (auto* o2 = qobject_cast<OrganView*>(centreOrgan_))
-    o2->setCase(data);
+  showInOrganView(centreOrgan_, data);
   composition_->setCase(data);
   if (data)
     for (StepPage* p : pages_.all) p->refresh(*data);
@@ -311,6 +312,9 @@ QString MainWindow::viewModeText() const {
     case ViewMode::Overlay:
       return tr("Overlay");
     case ViewMode::ThreeD:
+      if (step_ == Step::Rehearse)
+        if (const auto f = simulation_->lastFrame(); f && f->surface)
+          return tr("3D: the organ at rest (the cut organ is drawn in the composited and overlay views, F2 and F3)");
       return tr("3D");
   }
   return {};
@@ -328,6 +332,9 @@ void MainWindow::setViewMode(ViewMode mode) {
                               ? f->positions
                               : std::vector<Eigen::Vector3d>{});
   }
+  // While rehearsing, the view shown follows the simulation from where it is now (the overlay and the 3D view too: they
+  // showed the last shape drawn in them, at rest when they had not been shown since the start).
+  if (step_ == Step::Rehearse && simulation_->lastFrame()) showSimulationFrame();
   showFrameLayer();
   if (mode == ViewMode::Composited && !composition_->ready())
     say(tr("The composited view needs the appearance: %1.").arg(composition_->whyNot()));

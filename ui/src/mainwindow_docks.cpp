@@ -9,6 +9,7 @@
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
 #include "rehearse/ui/steadybox.hpp"
+#include "simulatedcase.hpp"
 
 #include <QAction>
 #include <QAbstractSlider>
@@ -294,6 +295,15 @@ void MainWindow::showSimulationFrame() {
       job.inner = pages_.mesh->shownInnerLabels();
       job.positions = f->positions;  // the case with these nodes is made on the worker (not at 100 Hz here)
       liveOverlay_->request(std::move(job));
+    }
+    // The 3D view (F4) while rehearsing shows the organ as simulated, not at rest (uncut: a cut organ's new nodes are
+    // not the case's; the view then says it shows the organ at rest).
+    if (step_ == Step::Rehearse && viewMode_ == ViewMode::ThreeD) {
+      if (!f->surface && f->positions.size() == doc_->data()->organ->volume.points.size())
+        showInOrganView(centreOrgan_, std::make_shared<const app::Case>(simulatedCase(*doc_->data(), f->positions)));
+      else
+        showInOrganView(centreOrgan_, doc_->data());
+      status_.viewMode->setText(viewModeText());
     }
   } else {
     view_->setWarning({}, {});  // another organ's frame (or none): its warning is not this organ's
