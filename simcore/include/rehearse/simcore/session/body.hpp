@@ -24,7 +24,8 @@ struct ToolSettings {
   double maxGraspForce = 15.0;  ///< N: above this pull the tissue slips out of the jaws (an event)
   /// The jaws let go at maxGraspForce within a step's change: before a step that would pull the held tissue past it
   /// (the last step's grasp force and tool stiffness, extrapolated along the jaws' move), the jaws go only as far as the
-  /// force reaches it, and the tissue slips after that step. false: a step's whole move was taken and the tissue slipped
+  /// force reaches it, and the tissue slips after that step when the force it solved came within 5 % of the limit (else
+  /// the jaws hold there: the first-order prediction overshot). false: a step's whole move was taken and the tissue slipped
   /// after it, however far past the limit the force had gone (a quick 20 mm pull let go at 34.9 N of 15; the sessions
   /// recorded before this existed).
   bool slipAtLimit = true;
