@@ -14,6 +14,7 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
+#include <chrono>
 #include <cmath>
 #include <string>
 
@@ -198,6 +199,14 @@ class TestBloodFilm : public QObject {
       std::sort(byHeight.begin(), byHeight.end(), [&](int a, int b) {
         return down.dot(m.points[static_cast<std::size_t>(a)]) < down.dot(m.points[static_cast<std::size_t>(b)]);
       });
+      {  // What a view pays for it per new snapshot: six stumps (three cuts' two sides), not asserted (a benchmark's).
+        std::vector<simcore::Bleed> six;
+        for (int k = 0; k < 6; ++k) six.push_back(stump(byHeight[byHeight.size() * static_cast<std::size_t>(k) / 6], 2e-6, 1e-4));
+        const auto t0 = std::chrono::steady_clock::now();
+        for (int r = 0; r < 5; ++r) (void)simcore::bloodFilm(six, m.points, m.triangles, nb, down);
+        qInfo("%s: %zu surface nodes, six stumps' film in %.2f ms", file, byHeight.size(),
+              1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / 5);
+      }
       // The bleed the check saw (11.3 mL/s: more than a kidney's whole artery carries, so on the livers only), and a
       // cut 3 mm artery's (its physiological rate, 1.7 mL/s).
       const bool liver = std::string(file).find("iver") != std::string::npos;

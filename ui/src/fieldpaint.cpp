@@ -22,6 +22,11 @@ struct FrameView::FieldGraph {
   const simcore::CutSurface* surface = nullptr;
   std::size_t nodes = 0;
   std::vector<std::vector<int>> neighbours;
+  // The blood film last drawn and what it was drawn from (a paint without a new snapshot draws it again as it was).
+  std::vector<simcore::Bleed> filmBleeds;
+  std::vector<Eigen::Vector3d> filmLive;
+  Eigen::Vector3d filmDown = Eigen::Vector3d::Zero();
+  std::vector<double> film;
   // The burnt elements' faces on the boundary (outward), for the labels and elements they were found on.
   const std::vector<int>* labels = nullptr;
   const std::vector<std::array<int, 4>>* tets = nullptr;
@@ -264,10 +269,17 @@ void FrameView::paintBlood(QPainter& painter) {
     fieldGraph_->surface = &surface;
     fieldGraph_->nodes = n;
     fieldGraph_->neighbours = simcore::surfaceNeighbours(surface.triangles, n);
+    fieldGraph_->film.clear();
   }
   const Eigen::Vector3d down = gravity_.norm() > 0 ? Eigen::Vector3d(gravity_.normalized()) : Eigen::Vector3d::Zero();
-  const std::vector<double> film =
-      simcore::bloodFilm(field_.bleeds, live_, surface.triangles, fieldGraph_->neighbours, down).film;
+  auto& g = *fieldGraph_;
+  if (g.film.size() != n || g.filmBleeds != field_.bleeds || g.filmDown != down || g.filmLive != live_) {
+    g.film = simcore::bloodFilm(field_.bleeds, live_, surface.triangles, g.neighbours, down).film;
+    g.filmBleeds = field_.bleeds;
+    g.filmLive = live_;
+    g.filmDown = down;
+  }
+  const std::vector<double>& film = g.film;
   std::vector<FilmTriangle> tris;
   for (const auto& t : surface.triangles) {
     if (!onShape(t, n)) continue;
