@@ -155,6 +155,41 @@ class TestBloodFilm : public QObject {
     }
   }
 
+  // A stump deep in an incision (a wall of cut faces hanging 10 mm down from a row of the inclined plane, its stump at
+  // the wall's foot): the blood fills the incision to its lip and the stream starts at the lip's lowest point, on the
+  // plane the camera sees, running down to the foot; without the cut faces said, it starts at the stump.
+  void aStumpInAnIncisionFillsItAndSpills() {
+    simcore::BloodFilmSettings s;
+    s.lowest = 1e-9;
+    const double step = 0.002;
+    Plane p = inclined(0.1, 0.06, step, 30);
+    const int i0 = 20, j1 = 8, j2 = 22;
+    std::vector<char> cut(p.triangles.size(), 0);
+    const int first = static_cast<int>(p.points.size());
+    for (int j = j1; j <= j2; ++j) p.points.push_back(p.points[static_cast<std::size_t>(p.at(i0, j))] + Eigen::Vector3d(0, 0, -0.01));
+    for (int j = j1; j < j2; ++j) {
+      const int a = p.at(i0, j), b = p.at(i0, j + 1), c = first + (j - j1), d = first + (j + 1 - j1);
+      p.triangles.push_back({a, c, d});
+      p.triangles.push_back({a, d, b});
+      cut.push_back(1);
+      cut.push_back(1);
+    }
+    const auto nb = simcore::surfaceNeighbours(p.triangles, p.points.size());
+    const int stumpNode = first + (15 - j1);
+    const auto f = simcore::bloodFilm({stump(stumpNode, 1e-6, 60e-6)}, p.points, p.triangles, nb,
+                                      Eigen::Vector3d(0, 0, -1), s, cut);
+    qInfo("the stream starts at node %d (the lip above the stump is %d), runs off in %.4f s", f.source[0],
+          p.at(i0, 15), f.runOff[0]);
+    QCOMPARE(f.source[0], p.at(i0, 15));  // the lip is level: its nearest point to the stump
+    for (int j = j1; j <= j2; ++j) QCOMPARE(f.film[static_cast<std::size_t>(first + (j - j1))], 1.0);  // full
+    for (int i = i0; i < p.rows; ++i) QVERIFY(f.film[static_cast<std::size_t>(p.at(i, 15))] > 0);  // down the plane
+    const double T = (p.rows - 1 - i0) * step / simcore::filmSpeed(s.thickness, 0.5, s);
+    QVERIFY(std::abs(f.runOff[0] - T) <= 1e-9 * T);
+    const auto alone = simcore::bloodFilm({stump(stumpNode, 1e-6, 60e-6)}, p.points, p.triangles, nb,
+                                          Eigen::Vector3d(0, 0, -1), s);
+    QCOMPARE(alone.source[0], stumpNode);
+  }
+
   // Without gravity nothing runs off: the surface keeps all that was lost.
   void withoutGravityTheSurfaceKeepsItAll() {
     const Plane p = inclined(0.1, 0.06, 0.002, 30);

@@ -317,6 +317,45 @@ class TestGrasp : public QObject {
     QVERIFY(std::isfinite(extrapolated) && held > 0);
   }
 
+  // The shaft pressed into the tissue and swept across it (nothing held), a hand's pace (1 mm a step, 0.5 mm a step):
+  // the force the loop renders between steps (the last step's model at the next step's tip) against the force that step
+  // solves there. A person saw the chart spike to about 48 N at a touch that solved a few newtons.
+  void shaftContactForceBetweenSteps() {
+    for (const double mmPerStep : {0.5, 1.0}) {
+      simcore::BodySetup s = liverSetup();
+      s.settings.method = simcore::NewtonMethod::Chord;
+      s.tools.toolRadius = 0.0025;
+      simcore::Session session(s);
+      for (int k = 0; k < 50; ++k) session.advance();
+      Eigen::Vector3d top = session.snapshot()->positions.front();
+      for (const auto& p : session.snapshot()->positions)
+        if ((p - Eigen::Vector3d(0, 0, -0.05)).norm() < (top - Eigen::Vector3d(0, 0, -0.05)).norm()) top = p;
+      // From 6 mm above the surface down 10 mm into it, then 20 mm sideways.
+      std::vector<Eigen::Vector3d> path;
+      for (double d = -6; d <= 4; d += mmPerStep) path.push_back(top + 0.001 * Eigen::Vector3d(0, 0, d));
+      for (double x = mmPerStep; x <= 20; x += mmPerStep) path.push_back(path.back() + 0.001 * mmPerStep * Eigen::Vector3d::UnitX());
+      auto previous = session.snapshot();
+      double worst = 0, worstSolved = 0, worstRendered = 0, peakSolved = 0, peakRendered = 0;
+      int touched = -1;
+      for (std::size_t k = 0; k < path.size(); ++k) {
+        const simcore::ToolForceModel model = simcore::toolForceModel(*previous, s.tools.maxGraspForce, s.tools.toolRadius);
+        session.post(toolAt(path[k]));
+        session.advance();
+        const auto now = session.snapshot();
+        if (touched < 0 && now->tool.contacts > 0) touched = static_cast<int>(k);
+        const Eigen::Vector3d rendered = model.step >= 0 ? simcore::extrapolateForce(model, path[k]) : Eigen::Vector3d::Zero();
+        const double off = (rendered - now->tool.force).norm();
+        peakSolved = std::max(peakSolved, now->tool.force.norm());
+        peakRendered = std::max(peakRendered, rendered.norm());
+        if (off > worst) worst = off, worstSolved = now->tool.force.norm(), worstRendered = rendered.norm();
+        previous = now;
+      }
+      qInfo("shaft pressed and swept at %.1f mm a step (touching from step %d of %zu): solved up to %.2f N, rendered "
+            "between steps up to %.2f N; worst step %.2f N off (rendered %.2f N where the step solved %.2f N)",
+            mmPerStep, touched, path.size(), peakSolved, peakRendered, worst, worstRendered, worstSolved);
+    }
+  }
+
   // The loop itself: a tick renders minus the extrapolated force to the device, capped at the model's maximum;
   // the thread ticks, keeps its samples and its periods, and stops.
   void forceLoopRendersTheExtrapolatedForce() {

@@ -334,6 +334,34 @@ class TestRehearseGui : public QObject {
     panel->pause();
   }
 
+  // The 3D view (F4) taken while the grasper's drag holds the tissue: the drag ends as its release would (a person's
+  // check: the button's release reached the 3D view, the jaws kept holding, and the next moves of the mouse without a
+  // button pulled the tissue until it slipped).
+  void threeDViewEndsTheDrag() {
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(w_->frameView()->tool(), ui::Tool::Grasp);
+    auto* panel = w_->simulationPanel();
+    panel->play();
+    auto* view = w_->frameView();
+    const auto [a, b] = pullPoints();
+    QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    QTest::mouseMove(view, b.toPoint());
+    QVERIFY(QGuiApplication::mouseButtons() & Qt::LeftButton);  // (the press is down, as a hand's)
+    QTest::keyClick(w_.get(), Qt::Key_F4);
+    QCOMPARE(w_->viewMode(), ui::ViewMode::ThreeD);
+    QVERIFY(
+        waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }, 20000));
+    QTest::keyClick(w_.get(), Qt::Key_F3);
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b.toPoint());  // the hand lets go over the frame again
+    QTest::mouseMove(view, (b + QPointF(0, -20)).toPoint());
+    const long at = panel->lastFrame()->steps;
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 10; }));
+    QVERIFY(panel->lastFrame()->tool.held.empty());
+    qInfo("F4 in the drag: the jaws opened; the moves after it held nothing");
+    panel->pause();
+  }
+
   // The Simulation panel's jaw bite: typed in, it reaches the session (a recorded event), and the next closing holds
   // exactly the free nodes within it of the tip (counted here from the snapshot's positions); 6 mm again after.
   void jawBiteHoldsWhatIsWithinIt() {

@@ -274,7 +274,7 @@ void FrameView::paintBlood(QPainter& painter) {
   const Eigen::Vector3d down = gravity_.norm() > 0 ? Eigen::Vector3d(gravity_.normalized()) : Eigen::Vector3d::Zero();
   auto& g = *fieldGraph_;
   if (g.film.size() != n || g.filmBleeds != field_.bleeds || g.filmDown != down || g.filmLive != live_) {
-    g.film = simcore::bloodFilm(field_.bleeds, live_, surface.triangles, g.neighbours, down).film;
+    g.film = simcore::bloodFilm(field_.bleeds, live_, surface.triangles, g.neighbours, down, {}, surface.cut).film;
     g.filmBleeds = field_.bleeds;
     g.filmLive = live_;
     g.filmDown = down;

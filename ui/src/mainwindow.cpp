@@ -15,6 +15,9 @@
 #include <QAction>
 #include <QActionGroup>
 #include <QCoreApplication>
+#include <QCursor>
+#include <QGuiApplication>
+#include <QMouseEvent>
 #include <QCloseEvent>
 #include <QDockWidget>
 #include <QDragEnterEvent>
@@ -321,6 +324,15 @@ QString MainWindow::viewModeText() const {
 }
 
 void MainWindow::setViewMode(ViewMode mode) {
+  if (mode == ViewMode::ThreeD && viewMode_ != ViewMode::ThreeD && (QGuiApplication::mouseButtons() & Qt::LeftButton)) {
+    // A drag on the frame ends where the frame view goes out of sight (the button's release would reach the 3D view,
+    // and the grasper kept holding, pulling the tissue with the next moves of the mouse without a button): ended as
+    // its release ends it.
+    const QPoint at = view_->mapFromGlobal(QCursor::pos());
+    QMouseEvent release(QEvent::MouseButtonRelease, QPointF(at), QPointF(QCursor::pos()), Qt::LeftButton,
+                        QGuiApplication::mouseButtons() & ~Qt::LeftButton, QGuiApplication::keyboardModifiers());
+    QCoreApplication::sendEvent(view_, &release);
+  }
   viewMode_ = mode;
   centre_->setCurrentIndex(mode == ViewMode::ThreeD ? 1 : 0);
   const auto i = static_cast<std::size_t>(mode);

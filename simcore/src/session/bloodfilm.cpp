@@ -35,13 +35,14 @@ std::vector<std::vector<int>> surfaceNeighbours(const std::vector<std::array<int
 
 BloodFilm bloodFilm(const std::vector<Bleed>& bleeds, const std::vector<Eigen::Vector3d>& live,
                     const std::vector<std::array<int, 3>>& triangles, const std::vector<std::vector<int>>& neighbours,
-                    const Eigen::Vector3d& down, const BloodFilmSettings& s) {
+                    const Eigen::Vector3d& down, const BloodFilmSettings& s, const std::vector<char>& cutFaces) {
   const std::size_t n = live.size();
   BloodFilm out;
   out.film.assign(n, 0.0);
   out.onSurface.assign(bleeds.size(), 0.0);
   out.runOff.assign(bleeds.size(), std::numeric_limits<double>::infinity());
   out.covered.assign(bleeds.size(), 0.0);
+  out.source.assign(bleeds.size(), -1);
   if (n == 0 || neighbours.size() != n || !(s.thickness > 0)) return out;
   const bool gravity = down.allFinite() && down.norm() > 0.5;
 
@@ -72,6 +73,14 @@ BloodFilm bloodFilm(const std::vector<Bleed>& bleeds, const std::vector<Eigen::V
     }
   }
 
+  // The incisions: nodes of a cut's faces, and of the organ's own surface (both: an incision's lip).
+  std::vector<char> inCut(n, 0), outer(n, 0);
+  const bool incisions = gravity && cutFaces.size() == triangles.size();
+  if (incisions)
+    for (std::size_t f = 0; f < triangles.size(); ++f)
+      for (int v : triangles[f])
+        if (v >= 0 && static_cast<std::size_t>(v) < n) (cutFaces[f] ? inCut : outer)[static_cast<std::size_t>(v)] = 1;
+
   const double vertical = filmSpeed(s.thickness, 1.0, s), slowest = s.crawl * vertical;
   auto edgeTime = [&](int v, int w) {
     const Eigen::Vector3d e = live[static_cast<std::size_t>(w)] - live[static_cast<std::size_t>(v)];
@@ -85,13 +94,42 @@ BloodFilm bloodFilm(const std::vector<Bleed>& bleeds, const std::vector<Eigen::V
   for (std::size_t i = 0; i < bleeds.size(); ++i) {
     const Bleed& b = bleeds[i];
     if (!(b.lost > 0) || b.node < 0 || static_cast<std::size_t>(b.node) >= n || !(vertical > 0)) continue;
-    // The stream's path: the quickest way down from the stump to where the blood leaves the organ (the film's time
+    int source = b.node;
+    if (incisions && inCut[static_cast<std::size_t>(b.node)] && !outer[static_cast<std::size_t>(b.node)]) {
+      // Inside an incision: the blood fills it to the lowest point of its lip (the incision's faces reached from the
+      // stump; ties: the nearest to it), and runs on from there. The incision's nodes below that level are full.
+      std::vector<int> reached{b.node}, lip;
+      std::vector<char> seen(n, 0);
+      seen[static_cast<std::size_t>(b.node)] = 1;
+      for (std::size_t k = 0; k < reached.size(); ++k)
+        for (int w : neighbours[static_cast<std::size_t>(reached[k])])
+          if (inCut[static_cast<std::size_t>(w)] && !seen[static_cast<std::size_t>(w)]) {
+            seen[static_cast<std::size_t>(w)] = 1;
+            reached.push_back(w);
+            if (outer[static_cast<std::size_t>(w)]) lip.push_back(w);
+          }
+      const Eigen::Vector3d& at = live[static_cast<std::size_t>(b.node)];
+      for (int v : lip) {
+        const double dv = down.dot(live[static_cast<std::size_t>(v)]), ds = down.dot(live[static_cast<std::size_t>(source)]);
+        if (source == b.node || dv > ds + 1e-9 ||
+            (dv > ds - 1e-9 && (live[static_cast<std::size_t>(v)] - at).norm() <
+                                   (live[static_cast<std::size_t>(source)] - at).norm()))
+          source = v;
+      }
+      if (source != b.node) {
+        const double level = down.dot(live[static_cast<std::size_t>(source)]);
+        for (int v : reached)
+          if (down.dot(live[static_cast<std::size_t>(v)]) >= level - 1e-9) out.film[static_cast<std::size_t>(v)] = 1;
+      }
+    }
+    out.source[i] = source;
+    // The stream's path: the quickest way down from its source to where the blood leaves the organ (the film's time
     // along each edge at its speed on the edge's slope).
     std::fill(time.begin(), time.end(), std::numeric_limits<double>::infinity());
     std::fill(from.begin(), from.end(), -1);
     std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
-    time[static_cast<std::size_t>(b.node)] = 0;
-    queue.emplace(0.0, b.node);
+    time[static_cast<std::size_t>(source)] = 0;
+    queue.emplace(0.0, source);
     int exit = -1;
     while (!queue.empty()) {
       const auto [t, v] = queue.top();
@@ -127,8 +165,8 @@ BloodFilm bloodFilm(const std::vector<Bleed>& bleeds, const std::vector<Eigen::V
         wet.emplace(spread[static_cast<std::size_t>(v)], v);
       }
     if (wet.empty()) {
-      spread[static_cast<std::size_t>(b.node)] = 0;
-      wet.emplace(0.0, b.node);
+      spread[static_cast<std::size_t>(source)] = 0;
+      wet.emplace(0.0, source);
     }
     // The stream as wide as its blood covers at the film's thickness: the nodes the film reaches soonest from its
     // path (where it cannot run off: from the stump, a pool).

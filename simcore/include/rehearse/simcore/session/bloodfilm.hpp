@@ -44,14 +44,19 @@ struct BloodFilm {
   std::vector<double> runOff;     ///< per bleed, s: the time the film takes from the stump to where it leaves the organ
                                   ///< (infinite where it cannot leave: it pools)
   std::vector<double> covered;    ///< per bleed, m^2: the area of the nodes its film covers
+  std::vector<int> source;        ///< per bleed: the node its stream starts from (the stump's, or its incision's spill)
 };
 
 /// The film of `bleeds` on the surface `triangles` at node positions `live`, `neighbours` from surfaceNeighbours,
 /// `down` gravity's direction (unit; zero: no gravity, the film spreads evenly and never runs off). A stump's blood
 /// covers the nodes it reaches soonest (each node's area a third of its triangles') until their area holds its blood
 /// on the surface at the film's thickness. Deterministic.
+/// `cutFaces` (per triangle, nonzero for a cut's face; empty: none): a stump inside an incision fills it up to the
+/// lowest point of its lip (the incision's nodes below that are drawn full) and the stream starts there (a cut trunk
+/// deep in an incision ran down its walls and off the organ's back, and the camera saw no blood).
 BloodFilm bloodFilm(const std::vector<Bleed>& bleeds, const std::vector<Eigen::Vector3d>& live,
                     const std::vector<std::array<int, 3>>& triangles, const std::vector<std::vector<int>>& neighbours,
-                    const Eigen::Vector3d& down, const BloodFilmSettings& s = {});
+                    const Eigen::Vector3d& down, const BloodFilmSettings& s = {},
+                    const std::vector<char>& cutFaces = {});
 
 }  // namespace rehearse::simcore
