@@ -11,6 +11,7 @@
 // The suite's class is in test_appearance_gui.hpp; the slots from clipCutAndCauterize on are in
 // test_appearance_gui_tools.cpp.
 #include "test_appearance_gui.hpp"
+#include <functional>
 #include "rehearse/ui/organview.hpp"
 
 #include "test_support.hpp"
@@ -293,20 +294,30 @@ void TestAppearanceGui::aTextureOnlyEstimateIsNotReshaded() {
 // Play deforms the organ in the frame: the view shows the composition of the simulation's snapshot, and
 // where the organ was and is no more, I_B. (The organ starts where the frame shows it, in equilibrium: the tissue is
 // made 4x softer on the Simulation panel first, a live edit, so that it sags from there.)
+namespace {
+// The tissue 4x softer (a live edit: the organ sags from its start) until the guard returned goes; then the tissue as
+// it was (a live edit again), the run from rest and `after`, whatever the function's checks said: the functions after
+// it cut and pull the organ at its own stiffness (CI once saw a failure leave it 4x softer, and the cut under traction
+// then opened nothing).
+[[nodiscard]] auto softenedTissue(ui::SimulationPanel* panel, std::function<void()> after = {}) {
+  auto* young = panel->findChild<QDoubleSpinBox*>("simYoung");
+  const double stiffness = young ? young->value() : 0;
+  if (young) young->setValue(stiffness / 4);
+  return qScopeGuard([=] {
+    if (young) {
+      young->setValue(stiffness);
+      panel->reset();
+    }
+    if (after) after();
+  });
+}
+}  // namespace
+
 void TestAppearanceGui::compositedViewFollowsTheSimulation() {
   QVERIFY(w_->showingComposited());
   const cv::Mat3b rest = toMat(w_->frameView()->shownFrame());
-  auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
-  QVERIFY(young);
-  // The tissue as it was (a live edit again) and the run from rest, whatever this function's checks say: the
-  // functions after it cut and pull the organ at its own stiffness (CI once saw a failure here leave it 4x softer,
-  // and the cut under traction then opened nothing).
-  const double stiffness = young->value();
-  const auto restore = qScopeGuard([&] {
-    young->setValue(stiffness);
-    panel_->reset();
-  });
-  young->setValue(stiffness / 4);
+  QVERIFY(panel_->findChild<QDoubleSpinBox*>("simYoung"));
+  const auto restore = softenedTissue(panel_);
   QTest::keyClick(w_.get(), Qt::Key_F5);
   QVERIFY(waitFor([&] { return panel_->lastFrame() && panel_->lastFrame()->steps > 30; }));
   QTest::keyClick(w_.get(), Qt::Key_F5);
@@ -371,15 +382,8 @@ void TestAppearanceGui::everyViewShowsTheSimulatedOrgan() {
   QCOMPARE(w_->step(), ui::Step::Rehearse);
   QVERIFY(waitFor([&] { return w_->showingComposited(); }, 10000));
   const QImage restOverlay = w_->organOverlay();
-  auto* young = panel_->findChild<QDoubleSpinBox*>("simYoung");
-  QVERIFY(young);
-  const double stiffness = young->value();
-  const auto restore = qScopeGuard([&] {
-    young->setValue(stiffness);
-    panel_->reset();
-    QTest::keyClick(w_.get(), Qt::Key_F2);
-  });
-  young->setValue(stiffness / 4);
+  QVERIFY(panel_->findChild<QDoubleSpinBox*>("simYoung"));
+  const auto restore = softenedTissue(panel_, [this] { QTest::keyClick(w_.get(), Qt::Key_F2); });
   if (!panel_->isPlaying()) QTest::keyClick(w_.get(), Qt::Key_F5);
   const long from = panel_->lastFrame() ? panel_->lastFrame()->steps : 0;
   QVERIFY(waitFor([&] { return panel_->lastFrame() && panel_->lastFrame()->steps > from + 30; }));
