@@ -721,6 +721,73 @@ class TestRehearseGui : public QObject {
     panel->pause();
   }
 
+  // A person's check, on the phantom as it opens (gravity along the view): the scissors pressed over the organ's
+  // middle, the wheel 10 notches deeper (the tip 40 mm under the surface, past the 30 mm blade), a stroke down across
+  // the vessel trunk. The incision opens from the surface down to the tip (the blade's sweep reaches back along the
+  // shaft to where it leaves the tissue), the trunk bleeds, and the blood shows where the camera sees it: pixels of
+  // fresh blood in the view that were not there before the cut. Before: the cut was a crack 10 mm under intact tissue,
+  // its blood drawn dark over the surface that hid it, and nothing where a person could see blood.
+  void aCutTrunkBleedsWhereTheCameraSeesIt() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    panel->reset();
+    panel->play();
+    const std::size_t nodes = c.organ->volume.points.size();
+    QVERIFY(waitFor([&] {
+      return panel->lastFrame() && panel->lastFrame()->steps > 5 && panel->lastFrame()->positions.size() == nodes;
+    }));
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
+    // Fresh blood: red, little green or blue (the frame's tissue, the organ's shading and the overlay's cut tissue,
+    // 160:30:40, are not).
+    auto bloodPixels = [&] {
+      const QImage img = view->grab().toImage();
+      int count = 0;
+      for (int y = 0; y < img.height(); ++y)
+        for (int x = 0; x < img.width(); ++x) {
+          const QColor p = img.pixelColor(x, y);
+          count += p.red() >= 100 && p.green() <= 0.18 * p.red() && p.blue() <= 0.2 * p.red();
+        }
+      return count;
+    };
+    const int before = bloodPixels();
+    const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.55);
+    const QPoint a = view->toWidget(QPointF(from.x(), from.y())).toPoint(),
+                 b = view->toWidget(QPointF(to.x(), to.y())).toPoint();
+    QTest::mousePress(view, Qt::LeftButton, {}, a);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    wheelDeeper(view, a, 10);
+    for (int i = 1; i <= 20; ++i) {
+      QTest::mouseMove(view, a + (b - a) * (i / 20.0));
+      const long now = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.cutting; }));
+    auto rate = [&] {
+      double q = 0;
+      for (const auto& bl : panel->lastFrame()->field.bleeds)
+        if (bl.stoppedBy < 0) q += bl.rate;
+      return q;
+    };
+    QVERIFY2(waitFor([&] { return rate() > 0; }, 60000), "the stroke cut no vessel that bleeds");
+    const long at = panel->lastFrame()->steps;
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 100; }, 60000));  // a second of bleeding
+    QTest::qWait(100);
+    const int after = bloodPixels();
+    const auto f = panel->lastFrame();
+    qInfo("the trunk cut: %zu cut faces, bleeding %.2f mL/s, %.1f mL lost; fresh-blood pixels in the view %d before, "
+          "%d after (of %d)",
+          f->surface ? f->surface->cutCount : 0, 1e6 * rate(), 1e6 * f->field.bloodLoss, before, after,
+          view->width() * view->height());
+    if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); !dir.isEmpty())
+      w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-trunk-bleeds.png");
+    QVERIFY(after - before >= 250);
+    panel->pause();
+    QTest::keyClick(w_.get(), Qt::Key_R);
+  }
+
   // Simulate > Connect 3D Mouse: with no spacenavd it says how to get one; against the stand-in daemon (its real
   // protocol, read by libspnav) the cap's left button closes the grasper's jaws on the organ at the frame's centre,
   // pulling the cap up lifts the held node (the tip's moves posted and recorded like the mouse's), releasing it lets

@@ -1,10 +1,12 @@
 // The operative field over the frame while rehearsing (FrameView::paintField): each clip as a titanium bar across
 // the structure it closed, and the blood from each stump as a film running down the organ's surface from the stump
 // (simcore::bloodFilm: a falling film, no fluid solver; the surface holds what flowed out while the film runs off the
-// organ, not all the blood lost); burnt tissue as a line along the hook's path. Front-facing triangles only, far to
-// near.
+// organ, not all the blood lost), drawn where the camera sees it (the live surface's depth buffer: blood in an incision
+// under intact tissue is hidden by it); burnt tissue as a line along the hook's path. Front-facing triangles only, far
+// to near.
 #include "rehearse/ui/frameview.hpp"
 
+#include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/session/bloodfilm.hpp>
 #include <rehearse/simcore/session/contact.hpp>
 
@@ -27,6 +29,8 @@ struct FrameView::FieldGraph {
   std::vector<Eigen::Vector3d> filmLive;
   Eigen::Vector3d filmDown = Eigen::Vector3d::Zero();
   std::vector<double> film;
+  QImage blood;        ///< the film as the camera sees it, frame pixels (premultiplied), from `bloodAt`
+  QPoint bloodAt;
   // The burnt elements' faces on the boundary (outward), for the labels and elements they were found on.
   const std::vector<int>* labels = nullptr;
   const std::vector<std::array<int, 4>>* tets = nullptr;
@@ -81,43 +85,81 @@ void FrameView::setLiveField(simcore::OperativeField field, const Eigen::Vector3
 }
 
 namespace {
-// A surface triangle the blood film covers, as drawn.
-struct FilmTriangle {
-  double depth;
-  QPolygonF poly;
-  double film;
-  double light;  ///< how the film faces the scope (its light): 0..1
-};
-
-// The film's triangles (far to near) drawn into a layer of their own, then softened (a film has no facets or hard
-// edges), then over the view (`view`: the widget's rectangle).
-void paintFilm(QPainter& painter, const std::vector<FilmTriangle>& tris, const QRect& view) {
-  QRectF bounds;
-  for (const auto& t : tris) bounds |= t.poly.boundingRect();
-  const QRect area = bounds.toAlignedRect().adjusted(-6, -6, 6, 6) & view;
-  if (area.isEmpty()) return;
-  QImage layer(area.size(), QImage::Format_ARGB32_Premultiplied);
-  layer.fill(Qt::transparent);
-  {
-    QPainter lp(&layer);
-    lp.translate(-area.topLeft());
-    lp.setRenderHint(QPainter::Antialiasing, false);  // no seams between the film's triangles
-    for (const auto& t : tris) {
-      // Blood: dark where it pools, brighter where thin; lit by the scope's light (facing it) with a gloss.
-      const double k = std::clamp(t.film, 0.0, 1.0), lit = 0.55 + 0.45 * t.light;
-      const double gloss = std::pow(t.light, 40.0);
-      const QColor c(std::clamp(static_cast<int>((150 - 70 * k) * lit + 200 * gloss), 0, 255),
-                     std::clamp(static_cast<int>((14 - 10 * k) * lit + 160 * gloss), 0, 255),
-                     std::clamp(static_cast<int>((12 - 8 * k) * lit + 150 * gloss), 0, 255),
-                     static_cast<int>(185 + 65 * k));
-      lp.setPen(QPen(c, 1.0));
-      lp.setBrush(c);
-      lp.drawPolygon(t.poly);
-    }
+// The blood film as the camera sees it, in frame pixels: the live surface rasterised (its depth buffer hides what the
+// organ's own tissue covers), each pixel of a wet triangle coloured by the film interpolated across it (a film has no
+// facets: the nodes' values blended, its edge fading where the film thins out), lit by the scope's light with a gloss,
+// then softened by a pixel. Null when nothing wet is in view.
+QImage bloodImage(const imaging::Camera& camera, const std::vector<Eigen::Vector3d>& live,
+                  const std::vector<std::array<int, 3>>& triangles, const std::vector<double>& film, QPoint& at) {
+  const std::size_t n = live.size();
+  std::vector<char> wet(triangles.size(), 0);
+  Eigen::AlignedBox2d box;
+  for (std::size_t k = 0; k < triangles.size(); ++k) {
+    const auto& t = triangles[k];
+    if (std::any_of(t.begin(), t.end(), [n](int v) { return v < 0 || static_cast<std::size_t>(v) >= n; })) return {};
+    if (!(std::max({film[static_cast<std::size_t>(t[0])], film[static_cast<std::size_t>(t[1])],
+                    film[static_cast<std::size_t>(t[2])]}) > 0.02))
+      continue;
+    wet[k] = 1;
+    for (int v : t)
+      if (live[static_cast<std::size_t>(v)].z() > 1e-6) box.extend(camera.project(live[static_cast<std::size_t>(v)]));
   }
-  cv::Mat bgra(layer.height(), layer.width(), CV_8UC4, layer.bits(), static_cast<std::size_t>(layer.bytesPerLine()));
-  cv::GaussianBlur(bgra, bgra, cv::Size(5, 5), 1.2);
-  painter.drawImage(area.topLeft(), layer);
+  if (box.isEmpty()) return {};
+  const int x0 = std::max(0, static_cast<int>(std::floor(box.min().x())) - 2),
+            y0 = std::max(0, static_cast<int>(std::floor(box.min().y())) - 2),
+            x1 = std::min(camera.width - 1, static_cast<int>(std::ceil(box.max().x())) + 2),
+            y1 = std::min(camera.height - 1, static_cast<int>(std::ceil(box.max().y())) + 2);
+  if (x1 < x0 || y1 < y0) return {};
+  SurfaceView sv;
+  std::vector<double> vertices;
+  vertices.reserve(3 * n);
+  for (const auto& p : live) vertices.insert(vertices.end(), {p.x(), p.y(), p.z()});
+  sv.vertices = vertices.data();
+  sv.vertexCount = n;
+  sv.triangles = triangles.front().data();
+  sv.triangleCount = triangles.size();
+  imaging::Rasterization r;
+  try {
+    r = imaging::rasterizeCameraFrame(camera, live, sv, 1, 1e-3, true);
+  } catch (const std::exception&) {
+    return {};  // a bad camera: nothing to draw
+  }
+  cv::Mat bgra(y1 - y0 + 1, x1 - x0 + 1, CV_8UC4, cv::Scalar(0, 0, 0, 0));
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) {
+      const int k = r.triangle(y, x);
+      if (k < 0 || !wet[static_cast<std::size_t>(k)]) continue;
+      const auto& t = triangles[static_cast<std::size_t>(k)];
+      const Eigen::Vector3d &A = live[static_cast<std::size_t>(t[0])], &B = live[static_cast<std::size_t>(t[1])],
+                            &C = live[static_cast<std::size_t>(t[2])];
+      const Eigen::Vector2d a = camera.project(A), b = camera.project(B), c = camera.project(C);
+      const Eigen::Vector2d p(x + 0.5, y + 0.5);
+      const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
+      if (!(std::abs(area) > 1e-12)) continue;
+      const double wb = ((p - a).x() * (c - a).y() - (p - a).y() * (c - a).x()) / area,
+                   wc = ((b - a).x() * (p - a).y() - (b - a).y() * (p - a).x()) / area;
+      const double wa = 1 - wb - wc;
+      const double f = std::clamp(wa * film[static_cast<std::size_t>(t[0])] + wb * film[static_cast<std::size_t>(t[1])] +
+                                      wc * film[static_cast<std::size_t>(t[2])],
+                                  0.0, 1.0);
+      const double edge = std::clamp((f - 0.05) / 0.2, 0.0, 1.0);  // the film's edge fades out
+      if (!(edge > 0)) continue;
+      const Eigen::Vector3d normal = (B - A).cross(C - A).normalized();
+      const double light = std::clamp(-normal.dot(((A + B + C) / 3).normalized()), 0.0, 1.0);
+      // Fresh blood under the scope's light: bright red where thin, darker where it pools, with a gloss.
+      const double lit = 0.6 + 0.4 * light, gloss = 0.5 * std::pow(light, 400.0);  // (the scope's light is at the eye)
+      const double red = (195 - 75 * f) * lit + 60 * gloss, green = (24 - 16 * f) * lit + 120 * gloss,
+                   blue = (20 - 12 * f) * lit + 110 * gloss;
+      const double alpha = (0.8 + 0.18 * f) * edge;
+      bgra.at<cv::Vec4b>(y - y0, x - x0) = cv::Vec4b(cv::saturate_cast<uchar>(alpha * blue),
+                                                     cv::saturate_cast<uchar>(alpha * green),
+                                                     cv::saturate_cast<uchar>(alpha * red),
+                                                     cv::saturate_cast<uchar>(255 * alpha));
+    }
+  cv::GaussianBlur(bgra, bgra, cv::Size(3, 3), 0.8);
+  at = QPoint(x0, y0);
+  return QImage(bgra.data, bgra.cols, bgra.rows, static_cast<int>(bgra.step), QImage::Format_ARGB32_Premultiplied)
+      .copy();
 }
 }  // namespace
 
@@ -278,25 +320,14 @@ void FrameView::paintBlood(QPainter& painter) {
     g.filmBleeds = field_.bleeds;
     g.filmLive = live_;
     g.filmDown = down;
+    g.blood = surface.triangles.empty() ? QImage() : bloodImage(case_->camera, live_, surface.triangles, g.film, g.bloodAt);
   }
-  const std::vector<double>& film = g.film;
-  std::vector<FilmTriangle> tris;
-  for (const auto& t : surface.triangles) {
-    if (!onShape(t, n)) continue;
-    const double f = (film[static_cast<std::size_t>(t[0])] + film[static_cast<std::size_t>(t[1])] +
-                      film[static_cast<std::size_t>(t[2])]) /
-                     3;
-    if (!(f > 0.02)) continue;
-    const auto face = fieldFace(t);  // (none when facing away from the camera)
-    if (!face) continue;
-    const Eigen::Vector3d &a = live_[static_cast<std::size_t>(t[0])], &b = live_[static_cast<std::size_t>(t[1])],
-                          &c = live_[static_cast<std::size_t>(t[2])];
-    const Eigen::Vector3d normal = (b - a).cross(c - a);
-    const double facing = -normal.normalized().dot(((a + b + c) / 3).normalized());
-    tris.push_back({face->first, face->second, f, std::clamp(facing, 0.0, 1.0)});
-  }
-  std::sort(tris.begin(), tris.end(), [](const FilmTriangle& x, const FilmTriangle& y) { return x.depth > y.depth; });
-  paintFilm(painter, tris, rect());
+  if (g.blood.isNull()) return;
+  painter.save();
+  painter.setTransform(frameToWidget());
+  painter.setRenderHint(QPainter::SmoothPixmapTransform, true);
+  painter.drawImage(g.bloodAt, g.blood);
+  painter.restore();
 }
 
 void FrameView::paintClips(QPainter& painter) {

@@ -51,9 +51,11 @@ struct BloodFilm {
 /// `down` gravity's direction (unit; zero: no gravity, the film spreads evenly and never runs off). A stump's blood
 /// covers the nodes it reaches soonest (each node's area a third of its triangles') until their area holds its blood
 /// on the surface at the film's thickness. Deterministic.
-/// `cutFaces` (per triangle, nonzero for a cut's face; empty: none): a stump inside an incision fills it up to the
-/// lowest point of its lip (the incision's nodes below that are drawn full) and the stream starts there (a cut trunk
-/// deep in an incision ran down its walls and off the organ's back, and the camera saw no blood).
+/// `cutFaces` (per triangle, nonzero for a cut's face; empty: none): a stump inside an incision is driven out by the
+/// vessel's pressure at the incision's mouth nearest it (along the incision's faces), not its lowest lip: the incision
+/// is drawn full as far around the stump as that mouth, and the stream starts there. (A cut trunk deep in an incision
+/// first ran down its walls and off the organ's back; then, filling to the lowest lip, out at the organ's side under a
+/// laparoscope looking down: either way the camera saw no blood.)
 BloodFilm bloodFilm(const std::vector<Bleed>& bleeds, const std::vector<Eigen::Vector3d>& live,
                     const std::vector<std::array<int, 3>>& triangles, const std::vector<std::vector<int>>& neighbours,
                     const Eigen::Vector3d& down, const BloodFilmSettings& s = {},
