@@ -679,6 +679,11 @@ struct Cholecystectomy {
       const QString seen =
           w_->statusBar()->currentMessage().isEmpty() ? w_->statusText() : w_->statusBar()->currentMessage();
       QVERIFY2(seen.contains("slipped out of the grasper"), qPrintable(seen));
+      // And the Messages panel keeps it once (it was logged twice: as the status bar's line and as the simulation's).
+      const QString slip = m.captured(0);
+      const QStringList log = w_->messageLog();
+      const auto logged = std::count_if(log.begin(), log.end(), [&](const QString& l) { return l.contains(slip); });
+      QVERIFY2(logged == 1, qPrintable(log.join(" | ")));
     }
     QVERIFY(stepsOn(10));
     pauses.stop(ended.contains("tore") ? "pull and tear" : "pull and slip");

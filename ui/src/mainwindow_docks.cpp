@@ -21,6 +21,8 @@
 #include <QDockWidget>
 #include <QDragEnterEvent>
 #include <QDateTime>
+#include <QTextBlock>
+#include <QTextDocument>
 #include <QDropEvent>
 #include <QFileDialog>
 #include <QFileInfo>
@@ -265,8 +267,10 @@ void MainWindow::connectSimulation() {
 void MainWindow::showSimulationFrame() {
   const auto f = simulation_->lastFrame();
   if (pages_.rehearse) pages_.rehearse->showFrame(f);
-  // What happened in the rehearsal (a slip, a vessel cut, a refused edit) is kept in the Messages panel, once each.
-  if (f && !f->message.isEmpty() && f->message != lastSimulationMessage_) {
+  // What happened in the rehearsal (a slip, a vessel cut, a refused edit) is kept in the Messages panel, once each
+  // (a slip's sentence the page has just said in the status bar is there already: it was logged twice).
+  if (f && !f->message.isEmpty() && f->message != lastSimulationMessage_ &&
+      !messages_->document()->lastBlock().text().endsWith(f->message)) {
     messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) +
                                tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));
   }
