@@ -788,6 +788,46 @@ class TestRehearseGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_R);
   }
 
+  // The grasper pulled down across the frame until the tissue slips out of the jaws: the sentence is in the status bar
+  // and once in the Messages panel (a person's check found it there twice: the status bar's line and the
+  // simulation's "Simulation (step N): ..." after it).
+  void aSlipIsLoggedOnce() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    panel->reset();
+    panel->play();
+    const std::size_t nodes = c.organ->volume.points.size();
+    QVERIFY(waitFor([&] {
+      return panel->lastFrame() && panel->lastFrame()->steps > 5 && panel->lastFrame()->positions.size() == nodes;
+    }));
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.5);
+    const QPoint a = view->toWidget(QPointF(0.5 * (from.x() + to.x()), 0.5 * (from.y() + to.y()))).toPoint();
+    QTest::mousePress(view, Qt::LeftButton, {}, a);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    QString slip;
+    QPoint at = a;
+    for (int i = 1; i <= 60 && slip.isEmpty(); ++i) {
+      at = a + QPoint(0, 8 * i);
+      QTest::mouseMove(view, at);
+      const long now = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 2; }));
+      if (panel->lastFrame()->message.contains("slipped out of the grasper")) slip = panel->lastFrame()->message;
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, at);
+    QVERIFY2(!slip.isEmpty(), "the pull did not slip");
+    QVERIFY(waitFor([&] { return w_->statusText().contains("slipped out of the grasper"); }, 5000));
+    const long now = panel->lastFrame()->steps;
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 10; }));
+    const QStringList log = w_->messageLog();
+    const auto logged = std::count_if(log.begin(), log.end(), [&](const QString& l) { return l.contains(slip); });
+    qInfo("%s; logged %ld time(s)", qPrintable(slip), static_cast<long>(logged));
+    QCOMPARE(static_cast<long>(logged), 1L);
+    panel->pause();
+  }
+
   // Simulate > Connect 3D Mouse: with no spacenavd it says how to get one; against the stand-in daemon (its real
   // protocol, read by libspnav) the cap's left button closes the grasper's jaws on the organ at the frame's centre,
   // pulling the cap up lifts the held node (the tip's moves posted and recorded like the mouse's), releasing it lets
