@@ -118,16 +118,23 @@ QImage bloodImage(const imaging::Camera& camera, const std::vector<Eigen::Vector
   sv.vertexCount = n;
   sv.triangles = triangles.front().data();
   sv.triangleCount = triangles.size();
+  // Only the wet part's box of the frame (the camera's principal point moved into it): a whole 1920x1080 frame's
+  // buffers for a stream 100 px long were most of the cost.
+  imaging::Camera part = camera;
+  part.K(0, 2) -= x0;
+  part.K(1, 2) -= y0;
+  part.width = x1 - x0 + 1;
+  part.height = y1 - y0 + 1;
   imaging::Rasterization r;
   try {
-    r = imaging::rasterizeCameraFrame(camera, live, sv, 1, 1e-3, true);
+    r = imaging::rasterizeCameraFrame(part, live, sv, 1, 1e-3, true);
   } catch (const std::exception&) {
     return {};  // a bad camera: nothing to draw
   }
   cv::Mat bgra(y1 - y0 + 1, x1 - x0 + 1, CV_8UC4, cv::Scalar(0, 0, 0, 0));
   for (int y = y0; y <= y1; ++y)
     for (int x = x0; x <= x1; ++x) {
-      const int k = r.triangle(y, x);
+      const int k = r.triangle(y - y0, x - x0);
       if (k < 0 || !wet[static_cast<std::size_t>(k)]) continue;
       const auto& t = triangles[static_cast<std::size_t>(k)];
       const Eigen::Vector3d &A = live[static_cast<std::size_t>(t[0])], &B = live[static_cast<std::size_t>(t[1])],

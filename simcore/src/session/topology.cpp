@@ -135,8 +135,14 @@ void Session::updateBleeds(std::string& message) {
     const bool still = std::any_of(field_.bleeds.begin(), field_.bleeds.end(), [&](const Bleed& b) {
       return b.label == p.label && (p.at - b.at).norm() <= meanEdge_ && p.normal.dot(b.normal) > 0;
     });
-    if (!still) sealed += p.rate;
+    // (A stump of a vessel a cut's update has just opened again further along is the cut moving on, not a seal:
+    // "The cautery seals ..." was said during a scissors stroke.)
+    const bool reopened = std::find(startingLabels.begin(), startingLabels.end(), p.label) != startingLabels.end();
+    if (!still && !reopened) sealed += p.rate;
   }
+  double open = 0;  // all that bleeds now (the page's rate): the sentences below say what changed
+  for (const Bleed& b : field_.bleeds)
+    if (b.stoppedBy < 0) open += b.rate;
   char buf[240];
   if (starting > 0) {
     events_.push_back(eventWord(EventKind::Bleeding));
@@ -145,7 +151,8 @@ void Session::updateBleeds(std::string& message) {
       const std::string n = setup_.mesh.labelName(l);
       names += (names.empty() ? "" : ", ") + structureWords(setup_.mesh.labelKind(l), n);
     }
-    std::snprintf(buf, sizeof buf, " The %s bleeds: %.2f mL/s from the cut.", names.c_str(), 1e6 * starting);
+    std::snprintf(buf, sizeof buf, " The %s bleeds: %.2f mL/s from the cut (%.2f mL/s in all).", names.c_str(),
+                  1e6 * starting, 1e6 * open);
     message += buf;
   }
   if (stopped > 0 || sealed > 0) events_.push_back(eventWord(EventKind::BleedingStopped));
