@@ -752,6 +752,21 @@ class TestRehearseGui : public QObject {
       return count;
     };
     const int before = bloodPixels();
+    {
+      // First a press that misses the organ (the view's corner) and the wheel turned while the button holds: it cuts
+      // nothing, says so, and does not zoom the view (15 notches had shrunk the frame into a corner).
+      const double zoom = view->zoom();
+      QString tool;
+      const auto told = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { tool = m; });
+      QTest::mousePress(view, Qt::LeftButton, {}, QPoint(5, 5));
+      wheelDeeper(view, QPoint(5, 5), 15);
+      QTest::mouseRelease(view, Qt::LeftButton, {}, QPoint(5, 5));
+      disconnect(told);
+      qInfo("a missed press and 15 notches: zoom %.3f -> %.3f; \"%s\"", zoom, view->zoom(), qPrintable(tool));
+      QCOMPARE(view->zoom(), zoom);
+      QVERIFY2(tool.contains("press on the organ to start the cut"), qPrintable(tool));
+      QVERIFY(!panel->lastFrame()->tool.cutting);
+    }
     const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.55);
     const QPoint a = view->toWidget(QPointF(from.x(), from.y())).toPoint(),
                  b = view->toWidget(QPointF(to.x(), to.y())).toPoint();

@@ -71,7 +71,13 @@ class GraspTool final : public FrameTool {
   void paintIdle(QPainter& painter) override { paint(painter); }
   // The wheel while holding: the jaws towards (up) or away from the camera, 2 mm a notch.
   bool wheel(QWheelEvent* e) override {
-    if (!holding_) return false;
+    if (!holding_) {
+      if (!(e->buttons() & Qt::LeftButton)) return false;  // (a press that missed the organ: not a zoom either)
+      emit view_.toolMessage(
+          QObject::tr("The jaws hold nothing: press on the organ to grasp it; the wheel then moves them towards or "
+                      "away from the camera."));
+      return true;
+    }
     depth_ = std::max(1e-3, depth_ - 0.002 * e->angleDelta().y() / 120.0);
     send(simcore::InputKind::ToolPose, tipAt(last_), false);
     return true;

@@ -56,7 +56,15 @@ class ScissorsTool final : public FrameTool {
     return true;
   }
   bool wheel(QWheelEvent* e) override {
-    if (!cutting_) return false;
+    if (!cutting_) {
+      // A press that missed the organ holds no blade: the wheel then is a person reaching for depth, not a zoom (the
+      // view had shrunk to a corner under 15 notches).
+      if (!(e->buttons() & Qt::LeftButton)) return false;
+      emit view_.toolMessage(
+          QObject::tr("The scissors are not cutting: press on the organ to start the cut; the wheel then takes the "
+                      "blade deeper or shallower."));
+      return true;
+    }
     depth_ = std::max(1e-3, depth_ - 0.002 * e->angleDelta().y() / 120.0);
     send(simcore::InputKind::ToolPose, pointAtDepth(view_, path_.back(), depth_), false);
     return true;
