@@ -87,6 +87,16 @@ class TestRehearseGui : public QObject {
   }
 
  private:
+  // The simulation reset and playing again on the uncut organ (Simulate > Reset), a few steps in.
+  [[nodiscard]] bool startedAgain() {
+    auto* panel = w_->simulationPanel();
+    panel->reset();
+    panel->play();
+    const std::size_t nodes = w_->caseData()->organ->volume.points.size();
+    return waitFor([&] {
+      return panel->lastFrame() && panel->lastFrame()->steps > 5 && panel->lastFrame()->positions.size() == nodes;
+    });
+  }
   // A build's progress dialog (the precomputed and FFD models, shown past 0.4 s) is gone, and the window is active
   // again: a window manager gives the window back its focus when a modal dialog closes; the offscreen platform does
   // not, and the window's tool keys (R, B, U, J) need it.
@@ -731,12 +741,7 @@ class TestRehearseGui : public QObject {
     auto* panel = w_->simulationPanel();
     auto* view = w_->frameView();
     const auto& c = *w_->caseData();
-    panel->reset();
-    panel->play();
-    const std::size_t nodes = c.organ->volume.points.size();
-    QVERIFY(waitFor([&] {
-      return panel->lastFrame() && panel->lastFrame()->steps > 5 && panel->lastFrame()->positions.size() == nodes;
-    }));
+    QVERIFY(startedAgain());
     QTest::keyClick(w_.get(), Qt::Key_B);
     QCOMPARE(view->tool(), ui::Tool::Scissors);
     // Fresh blood: red, little green or blue (the frame's tissue, the organ's shading and the overlay's cut tissue,
@@ -824,12 +829,7 @@ class TestRehearseGui : public QObject {
     auto* panel = w_->simulationPanel();
     auto* view = w_->frameView();
     const auto& c = *w_->caseData();
-    panel->reset();
-    panel->play();
-    const std::size_t nodes = c.organ->volume.points.size();
-    QVERIFY(waitFor([&] {
-      return panel->lastFrame() && panel->lastFrame()->steps > 5 && panel->lastFrame()->positions.size() == nodes;
-    }));
+    QVERIFY(startedAgain());
     QTest::keyClick(w_.get(), Qt::Key_R);
     QCOMPARE(view->tool(), ui::Tool::Grasp);
     const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.5);
