@@ -1,6 +1,7 @@
 // Benchmark of the rehearsal view (issue 15; not a test): the real main window on the built-in phantom
 // case (a 1280x720 frame), step 7, driven with mouse events as a hand would (a move every 16 ms): while
-// pulling with the grasper for 4 s, then while cutting across the organ with the scissors for 4 s, the
+// pulling with the grasper for 4 s, then while cutting across the organ with the scissors for 4 s, then 4 s while the cut
+// bleeds (no input), the
 // frame view's repaints per second, how many of them showed a new drawing of the simulated organ over the
 // frame, the time each paint takes, and the simulation steps done meanwhile. The window is 2560x1400, so the frame view
 // shows the frame at least at its own size. Needs an X server (xvfb-run); --software draws the overlay without OpenGL
@@ -168,6 +169,33 @@ int main(int argc, char** argv) {
   const Phase cut = measure(
       "cutting", [&](double s) { return a + (b - a) * s; }, Qt::Key_B);
   std::printf("cut: %zu elements now\n", panel->lastFrame()->elements);
+  // Bleeding: 4 s with no input after the cut, the blood on the surface drawn anew for each new snapshot while a stump
+  // bleeds (its film and its layer, on the GUI thread at paint time).
+  auto bleedingRate = [&] {
+    double rate = 0;
+    for (const auto& bl : panel->lastFrame()->field.bleeds)
+      if (bl.stoppedBy < 0) rate += bl.rate;
+    return rate;
+  };
+  Phase bleeding{"bleeding"};
+  {
+    panel->play();
+    meter.ms.clear();
+    meter.organFrames = 0;
+    const long steps0 = panel->lastFrame()->steps;
+    QElapsedTimer t;
+    t.start();
+    while (t.elapsed() < 4000) QTest::qWait(16);
+    const double elapsed = static_cast<double>(t.elapsed()) / 1000;
+    bleeding.seconds = elapsed;
+    bleeding.fps = static_cast<double>(meter.ms.size()) / elapsed;
+    bleeding.organFps = static_cast<double>(meter.organFrames) / elapsed;
+    bleeding.paintMedianMs = percentile(meter.ms, 0.5);
+    bleeding.paintP99Ms = percentile(meter.ms, 0.99);
+    bleeding.stepsPerSecond = static_cast<double>(panel->lastFrame()->steps - steps0) / elapsed;
+  }
+  std::printf("bleeding: %.2f mL/s from the cut's open stumps%s\n", 1e6 * bleedingRate(),
+              bleedingRate() > 0 ? "" : " (the cut opened no vessel: the phase measures a view without blood)");
 
   std::filesystem::create_directories(out);
   const std::string file = out + "/rehearsal-view-" + mode + ".csv";
@@ -176,7 +204,7 @@ int main(int argc, char** argv) {
          "w,view_h\n";
   std::printf("%-9s %8s %9s %10s %14s %12s %12s\n", "phase", "seconds", "view fps", "organ fps", "paint med ms",
               "paint p99", "steps/s");
-  for (const Phase& p : {pull, cut}) {
+  for (const Phase& p : {pull, cut, bleeding}) {
     std::printf("%-9s %8.2f %9.1f %10.1f %14.2f %12.2f %12.1f\n", p.name, p.seconds, p.fps, p.organFps, p.paintMedianMs,
                 p.paintP99Ms, p.stepsPerSecond);
     csv << mode << ',' << p.name << ',' << p.seconds << ',' << p.fps << ',' << p.organFps << ',' << p.paintMedianMs

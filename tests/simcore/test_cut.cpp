@@ -11,10 +11,12 @@
 #include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
+#include <rehearse/app/recording.hpp>
 #include <rehearse/simcore/cut.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
 #include <QtTest>
+#include <nlohmann/json.hpp>
 
 #include <fstream>
 #include <sstream>
@@ -170,6 +172,61 @@ class TestCut : public QObject {
       else
         QVERIFY(mean < 0.2 * fall);
     }
+  }
+
+  // A tip pushed 17 mm under the block's top (5 mm elements) with a 12 mm blade, stroked across it in 2 mm moves: it
+  // has cut its way there, so the incision reaches from the tip up through the top (the shaft's last crossing of the
+  // surface, 2 mm beyond; the elements the blade crosses whole: 5 to 20 mm, 2 x 20 x 15 = 600 mm^2 of new boundary).
+  // With the blade's length alone (the sessions recorded before, ToolSettings::bladeReachesTheSurface false) it cut a
+  // crack inside the block (3 to 15 mm: the layers at 5-10 and 10-15 mm, 400 mm^2), the top intact; a setup read from a
+  // recording without the setting cuts so.
+  void aDeepTipCutsItsWayFromTheSurface() {
+    std::map<bool, double> top, added;
+    for (bool reach : {true, false}) {
+      simcore::BodySetup s;
+      s.mesh = boxMesh(0.04, 0.02, 0.02, 8, 4, 4);
+      s.fixedNodes = nodesAtX(s.mesh, 0.0);
+      s.material = {simcore::MaterialModel::Corotational, 50e3, 0.3, 1000};
+      s.settings.gravity = Eigen::Vector3d::Zero();  // at rest throughout: positions are the rest's, areas exact
+      s.tools.trocar = Eigen::Vector3d(0.0137, 0.01, 0.1);
+      s.tools.bladeLength = 0.012;
+      s.tools.cutLatencySteps = -1;
+      s.tools.bladeReachesTheSurface = reach;
+      if (!reach) {  // what a recording from before the setting decodes to
+        auto before = nlohmann::json::parse(app::encodeSetup(s));
+        before["tools"].erase("bladeReachesTheSurface");
+        QVERIFY(app::encodeSetup(s).find("bladeReachesTheSurface") == std::string::npos);
+        s = app::decodeSetup(before.dump());
+        QVERIFY(!s.tools.bladeReachesTheSurface);
+      } else {
+        QVERIFY(app::decodeSetup(app::encodeSetup(s)).tools.bladeReachesTheSurface);
+      }
+      simcore::Session session(s);
+      const std::size_t nodes0 = s.mesh.points.size();
+      int overused = 0;
+      const double area0 = area(s.mesh.points, boundaryFaces(s.mesh.tets, &overused));
+      session.post(toolAt({0.0137, -0.004, 0.003}));
+      QVERIFY(session.advance().ok);
+      session.post(cutting(true));
+      for (double y = -0.002; y < 0.0241; y += 0.002) {
+        session.post(toolAt({0.0137, y, 0.003}));
+        QVERIFY(session.advance().ok);
+      }
+      session.post(cutting(false));
+      for (int k = 0; k < 3; ++k) QVERIFY(session.advance().ok);
+      const auto snap = session.snapshot();
+      double highest = -1;
+      for (std::size_t i = nodes0; i < snap->positions.size(); ++i) highest = std::max(highest, snap->positions[i].z());
+      top[reach] = highest;
+      added[reach] = area(snap->positions, boundaryFaces(*snap->tets, &overused)) - area0;
+      QCOMPARE(overused, 0);
+      qInfo("%s: the incision's top at z = %.2f mm (the block's top at 20 mm), %.1f mm^2 of new boundary",
+            reach ? "reaching back to the surface" : "the blade's length only", 1e3 * highest, 1e6 * added[reach]);
+    }
+    QVERIFY(top[true] > 0.02 - 1e-9);                                       // through the top
+    QVERIFY(std::abs(added[true] - 2 * 0.02 * 0.015) < 2 * 0.02 * 0.0025);  // 600 mm^2, within half an element
+    QVERIFY(top[false] < 0.0151);                                           // the top intact
+    QVERIFY(std::abs(added[false] - 2 * 0.02 * 0.010) < 2 * 0.02 * 0.0025);  // 400 mm^2
   }
 
   // Issue 32: a vessel was "label 2 with its own material", so a stiff tumour counted as a vessel and a vessel without

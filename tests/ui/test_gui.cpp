@@ -515,6 +515,69 @@ class TestGui : public QObject {
     }
   }
 
+  // The work a crash left is offered back at the next start; a person who clicks beside the question and presses
+  // Ctrl+Q has not answered it: the question keeps the window (window-modal: the click and the key reach nothing
+  // behind it), and a close that happens anyway keeps the autosave for the launch after, which offers it again. Before,
+  // the question was not modal: the click went to the window, Ctrl+Q quit cleanly, and the clean exit removed the
+  // autosave (the work lost). No discards it.
+  void anUnansweredRecoveryKeepsTheWork() {
+    const QString autosave = ui::MainWindow::autosavePath();
+    const QString kept = QString::fromStdString(tempPath("gui-crash-left.rehearse"));
+    double moved = 0;
+    {
+      ui::MainWindow w;
+      w.show();
+      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+      w.openCase({});
+      QVERIFY(loaded.wait(60000));
+      w.editCase("test: move", [](app::Case& k) { k.pose.t.x() += 7e-3; });
+      moved = w.caseData()->pose.t.x();
+      w.autosaveNow();
+      QFile::remove(kept);
+      QVERIFY(QFile::copy(autosave, kept));  // what a crash would leave: the autosave, not removed
+      QVERIFY(closeDiscardingChanges(w));
+      QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
+      QVERIFY(QFile::copy(kept, autosave));
+    }
+    auto launch = [](ui::MainWindow& w) {
+      w.show();
+      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+      w.openCase({});
+      if (!loaded.wait(60000)) return (QMessageBox*)nullptr;
+      if (!QTest::qWaitForWindowActive(&w)) return (QMessageBox*)nullptr;
+      w.offerRecovery();  // (what gui.cpp does at a start that finds the autosave)
+      QMessageBox* box = nullptr;
+      waitFor([&] {
+        box = w.findChild<QMessageBox*>("recoverCaseBox");
+        return box && box->isVisible();
+      });
+      return box;
+    };
+    {
+      ui::MainWindow w;
+      QMessageBox* box = launch(w);
+      QVERIFY(box);
+      const Qt::WindowModality modality = box->windowModality();  // (the box is gone once the window closes)
+      QTest::mouseClick(w.centralWidget(), Qt::LeftButton, Qt::NoModifier, QPoint(40, 40));  // beside the question
+      // Ctrl+Q (File > Quit closes the window; the offscreen platform binds no key to it): however the window closes
+      // with the question unanswered, the work stays for the next launch.
+      w.close();
+      QVERIFY2(ui::MainWindow::hasRecoverableAutosave(), "the work a crash left was removed before it was answered");
+      QCOMPARE(modality, Qt::WindowModal);  // (and under X the click and the key reach nothing behind it)
+    }
+    {
+      ui::MainWindow w;
+      QMessageBox* box = launch(w);
+      QVERIFY2(box, "the next launch did not offer the work again");
+      QTest::mouseClick(box->button(QMessageBox::Yes), Qt::LeftButton);
+      QVERIFY(waitFor([&] { return w.isWindowModified(); }, 60000));  // recovered: unsaved changes of the phantom
+      QCOMPARE(w.caseData()->pose.t.x(), moved);  // the work the crash left
+      QVERIFY(closeDiscardingChanges(w));
+      QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
+    }
+    QFile::remove(kept);
+  }
+
   // Cancel (Esc) of a long job: an import whose meshing is cancelled leaves the case exactly as it was, says
   // so, and the window goes on working (a second import of the same file completes).
   void cancelKeepsTheWindowUsable() {

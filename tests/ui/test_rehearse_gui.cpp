@@ -857,6 +857,64 @@ class TestRehearseGui : public QObject {
     panel->pause();
   }
 
+  // The instrument in hand shows on its button (R, then B): the pressed one in the theme's highlight, the others not
+  // (Fusion's pressed shade of the dark theme's button was 8 levels off the others': a person could not tell).
+  void theToolInHandLooksPressed() {
+    auto* grasper = w_->findChild<QPushButton*>("grasperTool");
+    auto* scissors = w_->findChild<QPushButton*>("scissorsTool");
+    QVERIFY(grasper && scissors);
+    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
+    auto mean = [](QPushButton* b) -> Eigen::Vector3d {
+      const QImage im = b->grab().toImage().convertToFormat(QImage::Format_RGB32);
+      double r = 0, g = 0, bl = 0;
+      long count = 0;
+      for (int y = im.height() / 4; y < 3 * im.height() / 4; ++y)
+        for (int x = im.width() / 8; x < 7 * im.width() / 8; ++x) {
+          const QRgb c = im.pixel(x, y);
+          r += qRed(c), g += qGreen(c), bl += qBlue(c), ++count;
+        }
+      return Eigen::Vector3d(r, g, bl) / std::max(1L, count);
+    };
+    for (const auto& [key, in, out] : {std::tuple{Qt::Key_R, grasper, scissors}, std::tuple{Qt::Key_B, scissors, grasper}}) {
+      QTest::keyClick(w_.get(), key);
+      QVERIFY(in->isChecked() && !out->isChecked());
+      const Eigen::Vector3d a = mean(in), b = mean(out);
+      qInfo("%s pressed: mean (%.0f, %.0f, %.0f), %s: (%.0f, %.0f, %.0f)", qPrintable(in->text()), a.x(), a.y(), a.z(),
+            qPrintable(out->text()), b.x(), b.y(), b.z());
+      QVERIFY2((a - b).norm() > 40, "the pressed tool's button looks like the others");
+    }
+  }
+
+  // Closing over unsaved work while the organ moves: the Save / Discard / Cancel question stops the simulation (its
+  // steps stand still while the question is read; before, it ran on behind it), and Cancel plays it on.
+  void theOrganWaitsWhileUnsavedChangesAreAsked() {
+    auto* panel = w_->simulationPanel();
+    QVERIFY(startedAgain());
+    QVERIFY(w_->isWindowModified());  // (the registration this suite made is not saved)
+    w_->close();  // (the window's close button; Ctrl+Q under X: the offscreen platform binds no key to Quit)
+    QMessageBox* box = nullptr;
+    QVERIFY(waitFor(
+        [&] {
+          box = w_->findChild<QMessageBox*>("unsavedChangesBox");
+          return box && box->isVisible();
+        },
+        10000));
+    QTest::qWait(150);  // (a step under way when it was asked ends)
+    const long at = panel->lastFrame()->steps;
+    QTest::qWait(800);
+    qInfo("steps while the question was up: %ld", panel->lastFrame()->steps - at);
+    QVERIFY(!panel->isPlaying());
+    QCOMPARE(panel->lastFrame()->steps, at);
+    QTest::mouseClick(box->button(QMessageBox::Cancel), Qt::LeftButton);
+    QVERIFY(waitFor([&] { return !w_->findChild<QMessageBox*>("unsavedChangesBox"); }, 10000));
+    QVERIFY(w_->isVisible());
+    QVERIFY(panel->isPlaying());
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= at + 5; }));
+    w_->activateWindow();  // (a window manager gives it back after a box; offscreen has none)
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    panel->pause();
+  }
+
   // Simulate > Connect 3D Mouse: with no spacenavd it says how to get one; against the stand-in daemon (its real
   // protocol, read by libspnav) the cap's left button closes the grasper's jaws on the organ at the frame's centre,
   // pulling the cap up lifts the held node (the tip's moves posted and recorded like the mouse's), releasing it lets

@@ -267,11 +267,12 @@ bool CaseDocument::autosaveIfChanged() {
 
 void CaseDocument::waitForAutosave() { autosaveWatcher_.waitForFinished(); }
 
-void CaseDocument::closeCleanly() {
+void CaseDocument::closeCleanly(bool keepAutosave) {
   cancelLoading();
   loadWatcher_.waitForFinished();
   saveWatcher_.waitForFinished();
   waitForAutosave();
+  if (keepAutosave) return;
   QFile::remove(autosavePath());
   QFile::remove(autosaveSourcePath());
 }

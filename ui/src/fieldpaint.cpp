@@ -92,7 +92,13 @@ namespace {
 QImage bloodImage(const imaging::Camera& camera, const std::vector<Eigen::Vector3d>& live,
                   const std::vector<std::array<int, 3>>& triangles, const std::vector<double>& film, QPoint& at) {
   const std::size_t n = live.size();
-  std::vector<char> wet(triangles.size(), 0);
+  // Per wet triangle, once: its corners in the frame and its light (not per pixel).
+  struct WetTriangle {
+    Eigen::Vector2d a, ab, ac;
+    double area = 0, light = 0;
+  };
+  std::vector<int> wet(triangles.size(), -1);
+  std::vector<WetTriangle> wets;
   Eigen::AlignedBox2d box;
   for (std::size_t k = 0; k < triangles.size(); ++k) {
     const auto& t = triangles[k];
@@ -100,9 +106,24 @@ QImage bloodImage(const imaging::Camera& camera, const std::vector<Eigen::Vector
     if (!(std::max({film[static_cast<std::size_t>(t[0])], film[static_cast<std::size_t>(t[1])],
                     film[static_cast<std::size_t>(t[2])]}) > 0.02))
       continue;
-    wet[k] = 1;
-    for (int v : t)
-      if (live[static_cast<std::size_t>(v)].z() > 1e-6) box.extend(camera.project(live[static_cast<std::size_t>(v)]));
+    const Eigen::Vector3d &A = live[static_cast<std::size_t>(t[0])], &B = live[static_cast<std::size_t>(t[1])],
+                          &C = live[static_cast<std::size_t>(t[2])];
+    if (!(A.z() > 1e-6 && B.z() > 1e-6 && C.z() > 1e-6)) continue;  // (crossing the eye: never drawn)
+    WetTriangle w;
+    w.a = camera.project(A);
+    const Eigen::Vector2d pb = camera.project(B), pc = camera.project(C);
+    w.ab = pb - w.a;
+    w.ac = pc - w.a;
+    w.area = w.ab.x() * w.ac.y() - w.ab.y() * w.ac.x();
+    if (!(std::abs(w.area) > 1e-12)) continue;
+    const Eigen::Vector3d normal = (B - A).cross(C - A).normalized();
+    w.light = std::clamp(-normal.dot(((A + B + C) / 3).normalized()), 0.0, 1.0);
+    if (!std::isfinite(w.light)) w.light = 0;
+    wet[k] = static_cast<int>(wets.size());
+    wets.push_back(w);
+    box.extend(w.a);
+    box.extend(pb);
+    box.extend(pc);
   }
   if (box.isEmpty()) return {};
   const int x0 = std::max(0, static_cast<int>(std::floor(box.min().x())) - 2),
@@ -135,24 +156,19 @@ QImage bloodImage(const imaging::Camera& camera, const std::vector<Eigen::Vector
   for (int y = y0; y <= y1; ++y)
     for (int x = x0; x <= x1; ++x) {
       const int k = r.triangle(y - y0, x - x0);
-      if (k < 0 || !wet[static_cast<std::size_t>(k)]) continue;
+      if (k < 0 || wet[static_cast<std::size_t>(k)] < 0) continue;
       const auto& t = triangles[static_cast<std::size_t>(k)];
-      const Eigen::Vector3d &A = live[static_cast<std::size_t>(t[0])], &B = live[static_cast<std::size_t>(t[1])],
-                            &C = live[static_cast<std::size_t>(t[2])];
-      const Eigen::Vector2d a = camera.project(A), b = camera.project(B), c = camera.project(C);
-      const Eigen::Vector2d p(x + 0.5, y + 0.5);
-      const double area = (b - a).x() * (c - a).y() - (b - a).y() * (c - a).x();
-      if (!(std::abs(area) > 1e-12)) continue;
-      const double wb = ((p - a).x() * (c - a).y() - (p - a).y() * (c - a).x()) / area,
-                   wc = ((b - a).x() * (p - a).y() - (b - a).y() * (p - a).x()) / area;
+      const WetTriangle& w = wets[static_cast<std::size_t>(wet[static_cast<std::size_t>(k)])];
+      const Eigen::Vector2d p = Eigen::Vector2d(x + 0.5, y + 0.5) - w.a;
+      const double wb = (p.x() * w.ac.y() - p.y() * w.ac.x()) / w.area,
+                   wc = (w.ab.x() * p.y() - w.ab.y() * p.x()) / w.area;
       const double wa = 1 - wb - wc;
       const double f = std::clamp(wa * film[static_cast<std::size_t>(t[0])] + wb * film[static_cast<std::size_t>(t[1])] +
                                       wc * film[static_cast<std::size_t>(t[2])],
                                   0.0, 1.0);
       const double edge = std::clamp((f - 0.05) / 0.2, 0.0, 1.0);  // the film's edge fades out
       if (!(edge > 0)) continue;
-      const Eigen::Vector3d normal = (B - A).cross(C - A).normalized();
-      const double light = std::clamp(-normal.dot(((A + B + C) / 3).normalized()), 0.0, 1.0);
+      const double light = w.light;
       // Fresh blood under the scope's light: bright red where thin, darker where it pools, with a gloss.
       const double lit = 0.6 + 0.4 * light, gloss = 0.5 * std::pow(light, 400.0);  // (the scope's light is at the eye)
       const double red = (195 - 75 * f) * lit + 60 * gloss, green = (24 - 16 * f) * lit + 120 * gloss,

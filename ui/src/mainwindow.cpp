@@ -451,9 +451,14 @@ void MainWindow::offerRecovery() {
       tr("Rehearse did not close cleanly last time. Recover the work autosaved at %1 (%2)?")
           .arg(QLocale().toString(autosave.lastModified(), QLocale::ShortFormat), what),
       QMessageBox::Yes | QMessageBox::No, this);
+  box->setObjectName(QStringLiteral("recoverCaseBox"));
   box->setAttribute(Qt::WA_DeleteOnClose);
-  box->setWindowModality(Qt::NonModal);
+  // Answered before anything else (a stray click and Ctrl+Q quit past it, and the clean exit removed the autosave:
+  // the work the crash left was lost). Yes opens it; No discards it at the next clean exit.
+  box->setWindowModality(Qt::WindowModal);
+  recoveryBox_ = box;
   connect(box, &QMessageBox::finished, this, [this](int r) {
+    recoveryBox_.clear();
     if (r == QMessageBox::Yes) recoverAutosaveAsked();
   });
   box->show();
@@ -637,16 +642,27 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
   box->setDefaultButton(QMessageBox::Save);
   box->setAttribute(Qt::WA_DeleteOnClose);
   box->setWindowModality(Qt::WindowModal);
-  connect(box, &QMessageBox::finished, this, [this, box, then = std::move(then)](int) {
+  // The organ does not go on moving behind the question (what it is asked about would change while it is read);
+  // Cancel plays it on from where it stopped.
+  const bool wasPlaying = simulation_ && simulation_->isPlaying();
+  if (wasPlaying) simulation_->pause();
+  auto resume = [this, wasPlaying] {
+    if (wasPlaying && simulation_) simulation_->play();
+  };
+  connect(box, &QMessageBox::finished, this, [this, box, resume, then = std::move(then)](int) {
     const auto button = box->standardButton(box->clickedButton());
     if (button == QMessageBox::Discard) return then();
-    if (button != QMessageBox::Save) return say(tr("Cancelled: the case and its unsaved changes stay open."));
-    save();                          // (Save As asks where for a case without a file)
-    if (!doc_->isSaving()) return;  // Save As cancelled: nothing saved, nothing replaced
+    if (button != QMessageBox::Save) {
+      resume();
+      return say(tr("Cancelled: the case and its unsaved changes stay open."));
+    }
+    save();  // (Save As asks where for a case without a file)
+    if (!doc_->isSaving()) return resume();  // Save As cancelled: nothing saved, nothing replaced
     auto once = std::make_shared<QMetaObject::Connection>();
-    *once = connect(doc_, &CaseDocument::saved, this, [this, once, then](bool ok, const QString&) {
+    *once = connect(doc_, &CaseDocument::saved, this, [this, once, then, resume](bool ok, const QString&) {
       disconnect(*once);
-      if (ok) then();  // (a failed save said why; the case stays)
+      if (!ok) return resume();  // (a failed save said why; the case stays)
+      then();
     });
   });
   box->open();
@@ -706,8 +722,11 @@ void MainWindow::closeEvent(QCloseEvent* e) {
   pages_.frame->stopCamera();
   jobs_->waitForFinished();
   // A clean exit leaves no autosave behind (after waiting for one being written): its presence at start
-  // means the last session crashed.
-  doc_->closeCleanly();
+  // means the last session crashed. Unless the work a crash left is still being offered back: it stays, and the next
+  // launch offers it again.
+  const bool unanswered = !recoveryBox_.isNull();
+  if (unanswered) recoveryBox_->close();
+  doc_->closeCleanly(unanswered);
   QSettings settings;
   settings.setValue(QStringLiteral("window/geometry"), saveGeometry());
   settings.setValue(QStringLiteral("window/state"), saveState());

@@ -15,9 +15,10 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
   if (builds_.underWay()) return false;
   // The blade: from the tip back along the shaft towards the trocar; its sweep between the two poses is
   // planar (both shafts pass through the trocar). A tip pushed deeper than the blade reaches (the wheel, 2 mm a notch)
-  // has cut its way there: the sweep then reaches back along the shaft to where the shaft leaves the tissue (its
-  // last crossing of the surface, 2 mm beyond). With the blade alone, a stroke 40 mm deep opened a crack 10 mm under an
-  // intact surface: the vessel it cut bled where no one could see it, and the stroke left no mark on the organ.
+  // has cut its way there (ToolSettings::bladeReachesTheSurface): the sweep then reaches back along the shaft to where
+  // the shaft leaves the tissue (its last crossing of the surface, 2 mm beyond). With the blade alone, a stroke 40 mm
+  // deep opened a crack 10 mm under an intact surface: the vessel it cut bled where no one could see it, and the
+  // stroke left no mark on the organ (the sessions recorded before it existed still cut so).
   const Eigen::Vector3d trocar = *setup_.tools.trocar;
   auto bladeEnd = [&](const Eigen::Vector3d& tip) {
     const Eigen::Vector3d d = trocar - tip;
@@ -26,6 +27,7 @@ bool Session::cut(const Eigen::Vector3d& from, const Eigen::Vector3d& to, std::s
     double reach = setup_.tools.bladeLength;
     // (Moller-Trumbore on the boundary at the current positions: the farthest crossing along the shaft.)
     for (const auto& t : contact_.triangles) {
+      if (!setup_.tools.bladeReachesTheSurface) break;
       const Eigen::Vector3d a = state_.x.segment<3>(3 * static_cast<Eigen::Index>(t[0]));
       const Eigen::Vector3d e1 = state_.x.segment<3>(3 * static_cast<Eigen::Index>(t[1])) - a;
       const Eigen::Vector3d e2 = state_.x.segment<3>(3 * static_cast<Eigen::Index>(t[2])) - a;

@@ -14,6 +14,11 @@ QPushButton* StepPage::toolButton(QWidget* parent, const QString& text, const QS
   button->setToolTip(tip);
   // Pressed while its tool is in hand (a helper pressed R and could not tell which instrument it held).
   button->setCheckable(true);
+  // In the theme's highlight while pressed: Fusion's sunken shade of the dark theme's button (40 against 48 levels) did
+  // not show which one was (a person's check: "the tool buttons never look pressed").
+  button->setStyleSheet(QStringLiteral("QPushButton:checked { background-color: palette(highlight); color: "
+                                       "palette(highlighted-text); font-weight: bold; border: 1px solid "
+                                       "palette(light); border-radius: 3px; padding: 4px 8px; }"));
   connect(button, &QPushButton::clicked, this, [this, tool, button] {
     wb_.view->setTool(tool);
     button->setChecked(wb_.view->tool() == tool);

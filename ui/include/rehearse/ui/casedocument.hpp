@@ -96,8 +96,9 @@ class CaseDocument : public QObject {
   bool autosaveIfChanged();
   /// Waits for a running autosave (closing the window calls it before removing the file).
   void waitForAutosave();
-  /// A clean exit: waits for the workers and removes the autosave (its presence at start means a crash).
-  void closeCleanly();
+  /// A clean exit: waits for the workers and removes the autosave (its presence at start means a crash), unless
+  /// `keepAutosave` (the work a crash left was offered back and not answered yet: it is offered again next time).
+  void closeCleanly(bool keepAutosave = false);
   QStringList recentFiles() const;
 
  signals:

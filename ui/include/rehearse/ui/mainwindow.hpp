@@ -20,6 +20,8 @@
 
 #include <QElapsedTimer>
 #include <QMainWindow>
+#include <QMessageBox>
+#include <QPointer>
 #include <QTimer>
 
 #include <memory>
@@ -264,6 +266,8 @@ class MainWindow : public QMainWindow {
   QMenu* recentMenu_ = nullptr;
   QAction* recoverAction_ = nullptr;
   void updateTitle();
+  /// The question offering back the work a crash left, while it is not answered (a close keeps that work then).
+  QPointer<QMessageBox> recoveryBox_;
   bool closeAsked_ = false;  ///< the unsaved changes were settled: the next close goes through
 };
 

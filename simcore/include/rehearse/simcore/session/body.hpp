@@ -33,6 +33,11 @@ struct ToolSettings {
   /// (the session sets it from the rest shape: twice the organ's radius from its centre along (0, -1, -2)).
   std::optional<Eigen::Vector3d> trocar;
   double bladeLength = 0.03;  ///< m: the cutting instrument's blade, from the tip back along the shaft
+  /// A tip deeper in the tissue than the blade is long has cut its way there: the sweep reaches back along the shaft to
+  /// where the shaft last crosses the surface (2 mm beyond), so the stroke opens the surface above it. false: the blade's
+  /// length only (a stroke 40 mm deep with a 30 mm blade cut a crack 10 mm under an intact surface; the sessions
+  /// recorded before this existed, whose replays must cut as they did).
+  bool bladeReachesTheSurface = true;
   /// m: the instrument's radius for contact (its shaft, from the tip to the trocar, is a capsule of this
   /// radius); the boundary triangles near it are kept out by unilateral constraints at their closest points
   /// to its axis (between nodes too). 0 (no contact) unless a scene states its instrument's radius.
@@ -87,7 +92,8 @@ struct ToolSettings {
   bool operator==(const ToolSettings& o) const {
     return graspRadius == o.graspRadius && maxGraspForce == o.maxGraspForce && slipAtLimit == o.slipAtLimit &&
            trocar.has_value() == o.trocar.has_value() && (!trocar || *trocar == *o.trocar) &&
-           bladeLength == o.bladeLength && toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
+           bladeLength == o.bladeLength && bladeReachesTheSurface == o.bladeReachesTheSurface &&
+           toolRadius == o.toolRadius && depenetrationSpeed == o.depenetrationSpeed &&
            cutLatencySteps == o.cutLatencySteps && tearLatencySteps == o.tearLatencySteps &&
            tearWhenBuilt == o.tearWhenBuilt &&
            tearThroughNeighbours == o.tearThroughNeighbours && tearOnlyUnderLoad == o.tearOnlyUnderLoad &&
