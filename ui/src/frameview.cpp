@@ -287,7 +287,7 @@ std::optional<OrganHit> FrameView::organAt(const Eigen::Vector2d& fp) const {
   return OrganHit{pick->model, pick->nearestVertex};
 }
 
-std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f) const {
+std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f, bool outerPoint) const {
   const auto& c = case_;
   if (!c || !c->hasPose) return std::nullopt;
   const auto& live = live_;
@@ -295,10 +295,17 @@ std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f
   SurfaceView sv = c->surfaceView();
   Pose pose = c->pose;
   const auto& cut = liveSurface_;
+  std::vector<std::array<int, 3>> outer;
   if (cut && !live.empty()) {
     sv.triangles = cut->triangles.empty() ? nullptr : cut->triangles.front().data();
     sv.triangleCount = cut->triangles.size();
     sv.vertexCount = live.size();
+    if (outerPoint && cut->cut.size() == cut->triangles.size()) {
+      for (std::size_t k = 0; k < cut->triangles.size(); ++k)
+        if (!cut->cut[k]) outer.push_back(cut->triangles[k]);
+      sv.triangles = outer.empty() ? nullptr : outer.front().data();
+      sv.triangleCount = outer.size();
+    }
   }
   if (live.size() == sv.vertexCount) {
     vertices.reserve(3 * live.size());
@@ -309,6 +316,7 @@ std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f
   try {
     const auto hit = imaging::pickSurface(c->camera, pose, sv, f);
     if (!hit) return std::nullopt;
+    if (outerPoint) return pose.apply(hit->model);
     return pose.apply(hit->nearestVertex >= 0 ? sv.vertex(static_cast<std::size_t>(hit->nearestVertex)) : hit->model);
   } catch (const std::exception&) {
     return std::nullopt;

@@ -278,6 +278,8 @@ void MainWindow::showSimulationFrame() {
   if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
     view_->setWarning(f->invertedAt, warningText(*f));
     view_->setLiveShape(f->positions);
+    view_->setTrocar(f->trocar.allFinite() && f->trocar.norm() > 0 ? std::optional<Eigen::Vector3d>(f->trocar)
+                                                                     : std::nullopt);
     view_->setLiveSurface(f->surface);
     view_->setLiveField(f->field, f->gravity, f->labels, f->tets);
     view_->followHook(f->steps, f->tool.tip, f->tool.present, f->field.energy,

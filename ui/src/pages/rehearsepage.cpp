@@ -34,7 +34,7 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
          "and drag "
          "to burn a line (burnt tissue stiffens, whitens and is cut without bleeding). Take the scissors or the clip "
          "applier while the jaws hold and they keep the traction, which opens the incision. The wheel moves the "
-         "instrument's tip along the view ray while you hold it. "
+         "instrument's tip deeper or shallower while you hold it. "
          "The simulation runs while you work (Simulation panel: material, ligaments); the view shows it "
          "composited into the frame once the appearance is estimated (step 6), cut faces in preset interior "
          "colours; the overlay (F3) shows cut tissue in dark red."),

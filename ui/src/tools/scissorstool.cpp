@@ -1,8 +1,10 @@
 // The scissors (step 7): press on the organ drawn over the frame to open the cut there, drag to cut, release
-// to stop. The blade lies on the shaft, from the tip back towards the trocar; the tip goes in behind the
-// pressed surface point by most of the blade's length (so the blade spans the tissue in front of it), and
-// the wheel moves it along the view ray, 2 mm a notch. Every input goes to the simulation session as a
-// timestamped event (camera frame), so it is recorded with the run.
+// to stop. The blade lies on the shaft, from the tip back towards the trocar; the shaft goes through the surface
+// under the cursor (at the pressed point's depth) and the tip lies beyond it by most of the blade's length (so the
+// blade spans the tissue in front of it, and the incision opens under the cursor); the wheel moves the tip along the
+// shaft, 2 mm a notch. (With the tip 20 mm behind the surface along the view ray, the shaft from an off-axis trocar
+// crossed the surface 25-50 px beside the stroke on the phantom: the cut opened where the surgeon had not drawn.)
+// Every input goes to the simulation session as a timestamped event (camera frame), so it is recorded with the run.
 #include "tools.hpp"
 
 #include <QMouseEvent>
@@ -25,29 +27,35 @@ class ScissorsTool final : public FrameTool {
       emit view_.toolMessage(QObject::tr("The scissors work on the organ placed over the frame: place it first (step 4)."));
       return true;
     }
-    const auto hit = view_.liveSurfaceAt(f);
+    const auto hit = view_.liveSurfaceAt(f, true);
     if (!hit) {
       emit view_.toolMessage(QObject::tr("Press on the organ to start the cut."));
       return true;
     }
-    depth_ = hit->z() + kBladeDepth;
+    surfaceDepth_ = hit->z();
+    depth_ = kBladeDepth;
     cutting_ = true;
     path_.clear();
     path_.push_back(f);
-    send(simcore::InputKind::ToolPose, pointAtDepth(view_, f, depth_), false);
-    send(simcore::InputKind::Cut, pointAtDepth(view_, f, depth_), true);
+    send(simcore::InputKind::ToolPose, tipAt(f), false);
+    send(simcore::InputKind::Cut, tipAt(f), true);
     emit view_.toolMessage(QObject::tr("Cutting: drag across the organ, release to stop (wheel: deeper or shallower)."));
     return true;
   }
   void move(const QPointF&, const Eigen::Vector2d& f) override {
     if (!cutting_) return;
+    // The shaft through the organ's outer surface under the cursor as it is now (it bulges towards the camera and
+    // falls away: at the pressed depth, the shaft crossed the surface 57 px above a stroke across the phantom's
+    // middle); not deeper than 5 mm past the last (the ray through the opened incision meets its far wall, or the
+    // organ's back), and kept off the organ.
+    if (const auto hit = view_.liveSurfaceAt(f, true); hit && hit->z() < surfaceDepth_ + 0.005) surfaceDepth_ = hit->z();
     path_.push_back(f);
-    send(simcore::InputKind::ToolPose, pointAtDepth(view_, f, depth_), false);
+    send(simcore::InputKind::ToolPose, tipAt(f), false);
   }
   void release(QMouseEvent*) override {
     if (!cutting_) return;
     cutting_ = false;
-    send(simcore::InputKind::Cut, pointAtDepth(view_, path_.back(), depth_), false);
+    send(simcore::InputKind::Cut, tipAt(path_.back()), false);
     emit view_.toolMessage(QObject::tr("Cut ended."));
   }
   bool abandon() override {
@@ -66,7 +74,7 @@ class ScissorsTool final : public FrameTool {
       return true;
     }
     depth_ = std::max(1e-3, depth_ - 0.002 * e->angleDelta().y() / 120.0);
-    send(simcore::InputKind::ToolPose, pointAtDepth(view_, path_.back(), depth_), false);
+    send(simcore::InputKind::ToolPose, tipAt(path_.back()), false);
     return true;
   }
   void paint(QPainter& painter) override {
@@ -79,10 +87,22 @@ class ScissorsTool final : public FrameTool {
   Qt::CursorShape cursor() const override { return Qt::CrossCursor; }
 
  private:
-  static constexpr double kBladeDepth = 0.02;  ///< m behind the pressed surface point (the blade is 30 mm)
+  static constexpr double kBladeDepth = 0.02;  ///< m beyond the pressed surface point (the blade is 30 mm)
+  /// The tip for the cursor at frame pixel `f`: on the line from the trocar through the point under the cursor at the
+  /// pressed surface's depth, depth_ beyond it (along the view ray when no trocar is known or it lies beyond the point).
+  Eigen::Vector3d tipAt(const Eigen::Vector2d& f) const {
+    const Eigen::Vector3d at = pointAtDepth(view_, f, surfaceDepth_);
+    Eigen::Vector3d along = at.normalized();
+    if (const auto& trocar = view_.trocar()) {
+      const Eigen::Vector3d shaft = at - *trocar;
+      if (shaft.norm() > 1e-6 && shaft.normalized().dot(along) > 0.1) along = shaft.normalized();
+    }
+    return at + depth_ * along;
+  }
   void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) { postInstrument(view_, kind, tip, on, 1); }
   bool cutting_ = false;
-  double depth_ = 0;
+  double surfaceDepth_ = 0;  ///< m: the pressed surface point's depth (camera z)
+  double depth_ = 0;         ///< m: the tip beyond the surface along the shaft
   std::vector<Eigen::Vector2d> path_;
 };
 
