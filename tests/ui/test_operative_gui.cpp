@@ -519,18 +519,25 @@ struct Cholecystectomy {
       // in the frame as the drag at least (the tissue the shaft pushes moves with the hook, and the trail with the
       // tissue).
       const auto& trail = view->burnTrail();
-      QVERIFY(trail.size() >= 4);
+      QVERIFY2(trail.size() >= 4, qPrintable(QStringLiteral("%1 trail points; %2 s of energy on tissue")
+                                                  .arg(trail.size())
+                                                  .arg(f->field.energyTime)));
       Eigen::AlignedBox2d extent;
+      double off = 0;  // px: the trail's farthest point from the drag
       for (const auto& t : trail) {
         QCOMPARE(t.stroke, trail.front().stroke);
         Eigen::Vector3d x = Eigen::Vector3d::Zero();
         for (int k = 0; k < 3; ++k)
           x += t.weights[k] * f->positions[static_cast<std::size_t>(t.nodes[static_cast<std::size_t>(k)])];
         extent.extend(c.camera.project(x));
+        const Eigen::Vector2d q = c.camera.project(x);
+        const double s = std::clamp((q - from).dot(to - from) / (to - from).squaredNorm(), 0.0, 1.0);
+        off = std::max(off, (q - (from + s * (to - from))).norm());
       }
       const double dragged = (to - from).norm();
-      qInfo("the burn's trail: %zu points over %.0f x %.0f px of the frame, for a drag of %.0f px", trail.size(),
-            extent.sizes().x(), extent.sizes().y(), dragged);
+      qInfo("the burn's trail: %zu points over %.0f x %.0f px of the frame, for a drag of %.0f px; at most %.0f px "
+            "from it",
+            trail.size(), extent.sizes().x(), extent.sizes().y(), dragged, off);
       QVERIFY(extent.sizes().norm() >= 0.5 * dragged);
     }
     shot(*w_, "liver-cautery");

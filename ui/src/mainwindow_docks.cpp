@@ -283,7 +283,8 @@ void MainWindow::showSimulationFrame() {
     view_->setLiveSurface(f->surface);
     view_->setLiveField(f->field, f->gravity, f->labels, f->tets);
     view_->followHook(f->steps, f->tool.tip, f->tool.present, f->field.energy,
-                      simcore::CauterySettings{}.radius);  // (the GUI's hook has the default radius)
+                      simcore::CauterySettings{}.radius,  // (the GUI's hook has the default radius)
+                      f->field.energyTime);
     if (f->surface && showingComposited() && f->surface != lastCutComposited_) {
       // The composited view draws the cut organ (its cut faces in preset interior colours): said once per cut.
       lastCutComposited_ = f->surface;

@@ -154,11 +154,12 @@ class FrameView : public QWidget {
     Eigen::Vector3d weights = Eigen::Vector3d::Zero();
     int stroke = 0;
   };
-  /// Follows the simulation's step `step` (camera frame): the hook's tip while the power is on and tissue is within
-  /// `radius` of it extends the trail. A step before the last one (a reset, a new session) starts it again.
-  void followHook(long step, const Eigen::Vector3d& tip, bool present, bool energy, double radius);
+  /// Follows the simulation's step `step` (camera frame): the hook's tip while the power is on and the simulation's
+  /// time with tissue within `radius` of it (`touchedTime`, s) grew since the last call extends the trail, at the
+  /// nearest surface point. A step or a time before the last one (a reset, a new session) starts it again.
+  void followHook(long step, const Eigen::Vector3d& tip, bool present, bool energy, double radius, double touchedTime);
   const std::vector<BurnTrailPoint>& burnTrail() const { return burnTrail_; }
-  void clearBurnTrail() { burnTrail_.clear(), hookStep_ = -1, hookPowered_ = false; }
+  void clearBurnTrail() { burnTrail_.clear(), hookStep_ = -1, hookPowered_ = false, hookTouched_ = 0; }
   void setOverlayVisible(bool visible);
   bool overlayVisible() const { return overlayVisible_; }
   void setOverlayOpacity(double opacity);
@@ -271,6 +272,7 @@ class FrameView : public QWidget {
   std::vector<BurnTrailPoint> burnTrail_;
   long hookStep_ = -1;
   bool hookPowered_ = false;
+  double hookTouched_ = 0;  ///< s: the simulation's time on tissue at the last frame followed
   int hookStroke_ = 0;
   double hookRadius_ = 0.003;
   /// Where a trail point is on the live shape; false when its nodes are not the live shape's.
