@@ -566,6 +566,17 @@ class TestGui : public QObject {
       QCOMPARE(modality, Qt::WindowModal);  // (and under X the click and the key reach nothing behind it)
     }
     {
+      // The question's own window closed (no button: a person without a window manager's title bar did so), then the
+      // window: the work stays too (it was removed at that clean exit before).
+      ui::MainWindow w;
+      QMessageBox* box = launch(w);
+      QVERIFY2(box, "the second launch did not offer the work again");
+      box->close();
+      QVERIFY(waitFor([&] { return !w.findChild<QMessageBox*>("recoverCaseBox"); }));
+      w.close();
+      QVERIFY2(ui::MainWindow::hasRecoverableAutosave(), "the work a crash left was removed: its question was closed");
+    }
+    {
       ui::MainWindow w;
       QMessageBox* box = launch(w);
       QVERIFY2(box, "the next launch did not offer the work again");

@@ -992,7 +992,7 @@ class TestRehearseGui : public QObject {
         10000));
     QTest::qWait(150);  // (a step under way when it was asked ends)
     const long at = panel->lastFrame()->steps;
-    QTest::qWait(800);
+    QTest::qWait(1800);
     qInfo("steps while the question was up: %ld", panel->lastFrame()->steps - at);
     QVERIFY(!panel->isPlaying());
     QCOMPARE(panel->lastFrame()->steps, at);
@@ -1001,6 +1001,17 @@ class TestRehearseGui : public QObject {
     QVERIFY(w_->isVisible());
     QVERIFY(panel->isPlaying());
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= at + 5; }));
+    // And plays on in real time: the 1.8 s the question was up are not made up afterwards (a person saw 43 s of
+    // simulation in the 27 s after Cancel).
+    {
+      const double t0 = panel->lastFrame()->time;
+      QElapsedTimer wall;
+      wall.start();
+      QTest::qWait(1000);
+      const double simulated = panel->lastFrame()->time - t0, elapsed = 1e-3 * static_cast<double>(wall.elapsed());
+      qInfo("after Cancel: %.2f s simulated in %.2f s", simulated, elapsed);
+      QVERIFY2(simulated <= 1.15 * elapsed, qPrintable(QString::number(simulated)));
+    }
     w_->activateWindow();  // (a window manager gives it back after a box; offscreen has none)
     QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     panel->pause();

@@ -457,9 +457,14 @@ void MainWindow::offerRecovery() {
   // the work the crash left was lost). Yes opens it; No discards it at the next clean exit.
   box->setWindowModality(Qt::WindowModal);
   recoveryBox_ = box;
-  connect(box, &QMessageBox::finished, this, [this](int r) {
+  // Only a button answers it (clicked, or Escape for No): the question's window closed without one (a person did so
+  // with no window manager's buttons: the clean exit after it removed the autosave) leaves the work for the next launch.
+  auto answered = std::make_shared<bool>(false);
+  connect(box, &QMessageBox::buttonClicked, this, [answered](QAbstractButton*) { *answered = true; });
+  connect(box, &QMessageBox::finished, this, [this, answered](int r) {
     recoveryBox_.clear();
-    if (r == QMessageBox::Yes) recoverAutosaveAsked();
+    recoveryUnanswered_ = !*answered;
+    if (*answered && r == QMessageBox::Yes) recoverAutosaveAsked();
   });
   box->show();
 }
@@ -724,8 +729,8 @@ void MainWindow::closeEvent(QCloseEvent* e) {
   // A clean exit leaves no autosave behind (after waiting for one being written): its presence at start
   // means the last session crashed. Unless the work a crash left is still being offered back: it stays, and the next
   // launch offers it again.
-  const bool unanswered = !recoveryBox_.isNull();
-  if (unanswered) recoveryBox_->close();
+  const bool unanswered = !recoveryBox_.isNull() || recoveryUnanswered_;
+  if (recoveryBox_) recoveryBox_->close();
   doc_->closeCleanly(unanswered);
   QSettings settings;
   settings.setValue(QStringLiteral("window/geometry"), saveGeometry());
