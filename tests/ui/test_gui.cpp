@@ -580,9 +580,28 @@ class TestGui : public QObject {
       ui::MainWindow w;
       QMessageBox* box = launch(w);
       QVERIFY2(box, "the next launch did not offer the work again");
-      QTest::mouseClick(box->button(QMessageBox::Yes), Qt::LeftButton);
+      // Closed unanswered again, then File > Recover Autosaved Case: the work is back, and a Discard at the end
+      // leaves no autosave to offer (the menu answered the question).
+      box->close();
+      QVERIFY(waitFor([&] { return !w.findChild<QMessageBox*>("recoverCaseBox"); }));
+      QAction* recover = nullptr;
+      for (auto* a : w.findChildren<QAction*>())
+        if (a->text().remove('&') == QLatin1String("Recover Autosaved Case")) recover = a;
+      QVERIFY(recover);
+      recover->trigger();
       QVERIFY(waitFor([&] { return w.isWindowModified(); }, 60000));  // recovered: unsaved changes of the phantom
       QCOMPARE(w.caseData()->pose.t.x(), moved);  // the work the crash left
+      QVERIFY(closeDiscardingChanges(w));
+      QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
+    }
+    QVERIFY(QFile::copy(kept, autosave));  // the crash again: this time Yes
+    {
+      ui::MainWindow w;
+      QMessageBox* box = launch(w);
+      QVERIFY2(box, "the launch after a crash did not offer its work");
+      QTest::mouseClick(box->button(QMessageBox::Yes), Qt::LeftButton);
+      QVERIFY(waitFor([&] { return w.isWindowModified(); }, 60000));
+      QCOMPARE(w.caseData()->pose.t.x(), moved);
       QVERIFY(closeDiscardingChanges(w));
       QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
     }

@@ -625,6 +625,7 @@ void MainWindow::newCaseAsked() {
 
 void MainWindow::recoverAutosaveAsked() {
   askToKeepChanges(tr("recovering the autosaved case"), [this] {
+    recoveryUnanswered_ = false;  // (File > Recover answers the question closed unanswered: the work is open again)
     setBusy(true, tr("Recovering the autosaved case..."));
     doc_->recoverAutosave();
   });
