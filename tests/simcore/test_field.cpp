@@ -465,6 +465,89 @@ class TestField : public QObject {
       }
   }
 
+  // What the messages say adds up (a person read "16.67 mL/s from the cut (20.28 mL/s in all)", then "0.40 mL/s from
+  // the cut (21.28 mL/s in all)": the stump cut first had grown as the blade went on through the vessel, unsaid). The
+  // blade drawn across the vessel 1 mm a step: each message's "in all" is the last one's plus what it says the cut
+  // added, less what it says a clip stopped, and equals the open stumps' rates in its snapshot.
+  void whatTheBleedingMessagesSayAddsUp() {
+    simcore::BodySetup setup = vesselBlock("portal vein");
+    simcore::Session s(setup);
+    for (int i = 0; i < 5; ++i) QVERIFY(s.advance().ok);
+    const double x = 0.015;
+    s.post(toolAt({x, -0.004, -0.003}));
+    s.post(cutting(true));
+    double inAllBefore = 0;
+    int said = 0;
+    auto check = [&](const std::shared_ptr<const simcore::Snapshot>& snap) {
+      double open = 0;
+      for (const auto& b : snap->field.bleeds)
+        if (b.stoppedBy < 0) open += b.rate;
+      const QString m = QString::fromStdString(snap->message);
+      const QRegularExpression fromCut(R"(([0-9.]+) mL/s from the cut \(([0-9.]+) mL/s in all[,)])");
+      const QRegularExpression stops(R"(The clip stops ([0-9.]+) mL/s)");
+      const auto c = fromCut.match(m);
+      const auto st = stops.match(m);
+      if (c.hasMatch()) {
+        ++said;
+        const double added = c.captured(1).toDouble(), inAll = c.captured(2).toDouble();
+        const double stopped = st.hasMatch() ? st.captured(1).toDouble() : 0;
+        qInfo("%s", qPrintable(m));
+        QVERIFY2(std::abs(inAllBefore + added - stopped - inAll) <= 0.015,
+                 qPrintable(QString("%1 before, +%2, -%3: %4 said").arg(inAllBefore).arg(added).arg(stopped).arg(inAll)));
+        QVERIFY2(std::abs(1e6 * open - inAll) <= 0.006, qPrintable(QString("%1 open").arg(1e6 * open)));
+        inAllBefore = inAll;
+      } else {
+        // Nothing said: nothing changed.
+        QVERIFY2(std::abs(1e6 * open - inAllBefore) <= 0.006,
+                 qPrintable(QString("%1 mL/s open, %2 said last: %3").arg(1e6 * open).arg(inAllBefore).arg(m)));
+      }
+    };
+    // Two strokes: the first stops in the vessel's middle, the second goes on from there through it.
+    for (int k = 1; k <= 21; ++k) {
+      if (k == 12) {
+        s.post(cutting(false));
+        QVERIFY(s.advance().ok);
+        check(s.snapshot());
+        s.post(cutting(true));
+      }
+      s.post(toolAt({x, -0.004 + 0.001 * std::min(k, 20) - (k <= 11 ? 0.0005 : 0.0), -0.003}));
+      QVERIFY(s.advance().ok);
+      check(s.snapshot());
+    }
+    s.post(cutting(false));
+    for (int k = 0; k < 3; ++k) {
+      QVERIFY(s.advance().ok);
+      check(s.snapshot());
+    }
+    QVERIFY(said >= 2);  // the vessel was opened in more than one step
+    QVERIFY(inAllBefore > 0);
+
+    // The loss is said as it passes each class of haemorrhage of the ATLS table for a 70 kg adult (written here from
+    // the table: class II from 750 mL, III from 1,500 mL, IV from 2,000 mL), once. Restored just below each bound.
+    QCOMPARE(simcore::haemorrhageClass(0), 0);
+    QCOMPARE(simcore::haemorrhageClass(749e-6), 1);
+    QCOMPARE(simcore::haemorrhageClass(751e-6), 2);
+    QCOMPARE(simcore::haemorrhageClass(1499e-6), 2);
+    QCOMPARE(simcore::haemorrhageClass(1501e-6), 3);
+    QCOMPARE(simcore::haemorrhageClass(2001e-6), 4);
+    for (const auto& [below, words] : {std::pair{749.995e-6, "class II"}, std::pair{1499.995e-6, "class III"},
+                                       std::pair{1999.995e-6, "class IV"}}) {
+      simcore::Checkpoint c = s.checkpoint();
+      c.field.bloodLoss = below;
+      s.restore(c);
+      QVERIFY(s.advance().ok);
+      const auto crossed = s.snapshot();
+      qInfo("%s", crossed->message.c_str());
+      QVERIFY2(crossed->field.bloodLoss > below + 1e-9, crossed->message.c_str());
+      QVERIFY2(QString::fromStdString(crossed->message).contains(QString("%1 mL of blood lost").arg(std::round(1e6 * crossed->field.bloodLoss))),
+               crossed->message.c_str());
+      QVERIFY2(QString::fromStdString(crossed->message).contains(QString(words) + " haemorrhage"),
+               crossed->message.c_str());
+      QVERIFY(s.advance().ok);
+      QVERIFY2(!QString::fromStdString(s.snapshot()->message).contains("haemorrhage"), s.snapshot()->message.c_str());
+    }
+  }
+
   // Burnt tissue's stiffness against the declared factor (a patch test): a block burnt through by the cautery, under
   // a uniform uniaxial strain of 1e-4, pushes back on its end face with (lambda + 2 mu) epsilon times the face's area
   // times the declared stiffening (3), the unburnt block with (lambda + 2 mu) epsilon A.

@@ -402,6 +402,27 @@ double stumpBleedRate(StructureKind kind, double area) {
   return std::min(orifice, carried);
 }
 
+int haemorrhageClass(double lost) {
+  if (!(lost > 0)) return 0;
+  const double ml = 1e6 * lost;
+  return ml <= 750 ? 1 : ml <= 1500 ? 2 : ml <= 2000 ? 3 : 4;
+}
+
+std::string haemorrhageWords(int haemorrhageClass) {
+  switch (haemorrhageClass) {
+    case 1:
+      return "up to 15 % of an adult's blood, a class I haemorrhage";
+    case 2:
+      return "more than 15 % of an adult's blood (750 mL), a class II haemorrhage";
+    case 3:
+      return "more than 30 % of an adult's blood (1,500 mL), a class III haemorrhage";
+    case 4:
+      return "more than 40 % of an adult's blood (2,000 mL), a class IV haemorrhage: life-threatening";
+    default:
+      return {};
+  }
+}
+
 double boundToSupply(std::vector<Bleed>& bleeds, double supply) {
   double total = 0;
   for (const Bleed& b : bleeds)

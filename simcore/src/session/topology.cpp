@@ -117,17 +117,24 @@ void Session::updateBleeds(std::string& message) {
       if (p.label == b.label && (p.at - b.at).norm() <= meanEdge_ && p.normal.dot(b.normal) > 0) return &p;
     return nullptr;
   };
-  double starting = 0, stopped = 0;
-  std::vector<int> startingLabels;
+  double starting = 0, stopped = 0, grown = 0;
+  std::vector<int> startingLabels, grownLabels;
+  auto note = [](std::vector<int>& labels, int label) {
+    if (std::find(labels.begin(), labels.end(), label) == labels.end()) labels.push_back(label);
+  };
   for (const Bleed& b : field_.bleeds) {
     const Bleed* p = was(b);
     const bool open = b.stoppedBy < 0, openBefore = p && p->stoppedBy < 0;
     if (open && !openBefore) {
       starting += b.rate;
-      if (std::find(startingLabels.begin(), startingLabels.end(), b.label) == startingLabels.end())
-        startingLabels.push_back(b.label);
+      note(startingLabels, b.label);
     }
     if (!open && openBefore) stopped += p->rate;
+    // A stump that was open and is wider now (the blade went on through the vessel): the cut added to it.
+    if (open && openBefore && b.rate > p->rate * (1 + 1e-6)) {
+      grown += b.rate - p->rate;
+      note(grownLabels, b.label);
+    }
   }
   double sealed = 0;  // open stumps that are gone: burnt (their faces are burnt tissue now)
   for (const Bleed& p : before) {
@@ -140,19 +147,29 @@ void Session::updateBleeds(std::string& message) {
     const bool reopened = std::find(startingLabels.begin(), startingLabels.end(), p.label) != startingLabels.end();
     if (!still && !reopened) sealed += p.rate;
   }
-  double open = 0;  // all that bleeds now (the page's rate): the sentences below say what changed
+  double open = 0, openBefore = 0;  // all that bleeds now (the page's rate), and before this change
   for (const Bleed& b : field_.bleeds)
     if (b.stoppedBy < 0) open += b.rate;
-  char buf[240];
-  if (starting > 0) {
-    events_.push_back(eventWord(EventKind::Bleeding));
+  for (const Bleed& p : before)
+    if (p.stoppedBy < 0) openBefore += p.rate;
+  char buf[320];
+  // What the cut added is what makes the sentences add up: the rate before, plus it, less what a clip stopped and the
+  // cautery sealed, is the rate in all (a stump the blade widened, one that moved along the vessel, the share of the
+  // organ's supply each keeps when it is reached: all in it).
+  const double added = open - openBefore + stopped + sealed;
+  if (starting > 0 || grown > 0) {
+    if (starting > 0) events_.push_back(eventWord(EventKind::Bleeding));
     std::string names;
-    for (int l : startingLabels) {
-      const std::string n = setup_.mesh.labelName(l);
-      names += (names.empty() ? "" : ", ") + structureWords(setup_.mesh.labelKind(l), n);
-    }
-    std::snprintf(buf, sizeof buf, " The %s bleeds: %.2f mL/s from the cut (%.2f mL/s in all).", names.c_str(),
-                  1e6 * starting, 1e6 * open);
+    for (const std::vector<int>* labels : {&startingLabels, &grownLabels})
+      for (int l : *labels) {
+        const std::string n = structureWords(setup_.mesh.labelKind(l), setup_.mesh.labelName(l));
+        if (names.find(n) == std::string::npos) names += (names.empty() ? "" : ", ") + n;
+      }
+    const bool atSupply = setup_.tools.bleeding.physiological && setup_.tools.bleeding.organSupply > 0 &&
+                          open >= setup_.tools.bleeding.organSupply * (1 - 1e-9);
+    std::snprintf(buf, sizeof buf, " The %s bleeds%s: %.2f mL/s from the cut (%.2f mL/s in all%s).", names.c_str(),
+                  starting > 0 ? "" : " more", 1e6 * std::max(0.0, added), 1e6 * open,
+                  atSupply ? ", all the organ's supply" : "");
     message += buf;
   }
   if (stopped > 0 || sealed > 0) events_.push_back(eventWord(EventKind::BleedingStopped));

@@ -304,8 +304,13 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     double rate = 0;
     for (const auto& b : f->field.bleeds)
       if (b.stoppedBy < 0) rate += b.rate;
-    extra += tr("   blood lost: %1 mL%2")
+    // From 750 mL on, the class of haemorrhage it is for an adult (ATLS), in capitals from class III.
+    static const char* const classes[] = {"", "", QT_TR_NOOP("class II haemorrhage"),
+                                          QT_TR_NOOP("CLASS III HAEMORRHAGE"), QT_TR_NOOP("CLASS IV HAEMORRHAGE")};
+    const int c = simcore::haemorrhageClass(f->field.bloodLoss);
+    extra += tr("   blood lost: %1 mL%2%3")
                  .arg(1e6 * f->field.bloodLoss, 0, 'f', 1)
+                 .arg(c >= 2 ? QStringLiteral(", ") + tr(classes[c]) : QString())
                  .arg(rate > 0 ? tr(" (bleeding %1 mL/s)").arg(1e6 * rate, 0, 'f', 2) : QString());
   }
   // While the jaws hold and the shaft touches, the two shares (the jaws' decides a slip).

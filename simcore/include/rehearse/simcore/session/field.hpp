@@ -123,6 +123,13 @@ double stumpBleedRate(StructureKind kind, double area);
 /// when within it).
 double boundToSupply(std::vector<Bleed>& bleeds, double supply);
 
+/// The class of haemorrhage a blood loss of `lost` (m^3) is for an adult of 70 kg (70 mL/kg, 4.9 L of blood; ATLS,
+/// American College of Surgeons, 10th edition, 2018): 1 up to 15 % of it (750 mL), 2 up to 30 % (1,500 mL), 3 up to
+/// 40 % (2,000 mL), 4 beyond; 0 for no loss.
+int haemorrhageClass(double lost);
+/// The words for a class of haemorrhage ("more than 30 % of an adult's blood, a class III haemorrhage"); empty for 0.
+std::string haemorrhageWords(int haemorrhageClass);
+
 /// Why these settings cannot burn (a radius below 0, a burn time or stiffening not above 0: burnt tissue would have
 /// no stiffness, and every burn would be refused), in words; empty when they can. (Inline: the recording codec's
 /// fuzzer links the codec without the session.)
