@@ -287,10 +287,12 @@ std::optional<OrganHit> FrameView::organAt(const Eigen::Vector2d& fp) const {
   return OrganHit{pick->model, pick->nearestVertex};
 }
 
-std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f, bool outerPoint) const {
+std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f, SurfacePick pick,
+                                                       const std::vector<Eigen::Vector3d>* shape) const {
+  const bool outerPoint = pick == SurfacePick::OuterPoint;
   const auto& c = case_;
   if (!c || !c->hasPose) return std::nullopt;
-  const auto& live = live_;
+  const auto& live = shape && shape->size() == live_.size() ? *shape : live_;
   std::vector<double> vertices;
   SurfaceView sv = c->surfaceView();
   Pose pose = c->pose;
@@ -316,7 +318,7 @@ std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f
   try {
     const auto hit = imaging::pickSurface(c->camera, pose, sv, f);
     if (!hit) return std::nullopt;
-    if (outerPoint) return pose.apply(hit->model);
+    if (pick != SurfacePick::Node) return pose.apply(hit->model);
     return pose.apply(hit->nearestVertex >= 0 ? sv.vertex(static_cast<std::size_t>(hit->nearestVertex)) : hit->model);
   } catch (const std::exception&) {
     return std::nullopt;

@@ -278,6 +278,7 @@ void MainWindow::showSimulationFrame() {
   if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {
     view_->setWarning(f->invertedAt, warningText(*f));
     view_->setLiveShape(f->positions);
+    view_->setShaftRadius(f->toolRadius);
     view_->setTrocar(f->trocar.allFinite() && f->trocar.norm() > 0 ? std::optional<Eigen::Vector3d>(f->trocar)
                                                                      : std::nullopt);
     view_->setLiveSurface(f->surface);

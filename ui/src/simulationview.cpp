@@ -73,6 +73,7 @@ std::shared_ptr<const SimulationFrame> makeSimulationFrame(FrameBasis& ctx, cons
   f->responseKey = snap.responseKey;
   f->model = snap.model;
   f->trocar = snap.trocar;
+  f->toolRadius = snap.toolRadius;
   f->mass = snap.mass;
   f->tets = snap.tets;
   f->message = QString::fromStdString(snap.message);

@@ -408,12 +408,22 @@ StepReport Session::advance() {
   const double timeBefore = state_.time;
   const StepReport rep = body_->step(state_);
   if (rep.guardStalled) settleHeldBackClips(message);
-  if (rep.ok && state_.time > timeBefore)
+  if (rep.ok && state_.time > timeBefore) {
+    const double lossBefore = field_.bloodLoss;
     for (auto& b : field_.bleeds)
       if (b.stoppedBy < 0) {  // an open stump loses blood at its rate
         b.lost += b.rate * (state_.time - timeBefore);
         field_.bloodLoss += b.rate * (state_.time - timeBefore);
       }
+    // The loss said as it passes each class of haemorrhage (a person saw 2,443 mL lost and nothing said).
+    if (const int now = haemorrhageClass(field_.bloodLoss); now >= 2 && now > haemorrhageClass(lossBefore)) {
+      char buf[200];
+      std::snprintf(buf, sizeof buf, " %.0f mL of blood lost: %s.", 1e6 * field_.bloodLoss,
+                    haemorrhageWords(now).c_str());
+      message += buf;
+      if (message.front() == ' ') message.erase(0, 1);
+    }
+  }
   if (rep.factorSwapped) {
     // The asynchronous refresh swapped a factor in at this boundary: recorded, so a replay installs it here.
     InputEvent f;
@@ -522,6 +532,7 @@ void Session::publish(const StepReport& rep, const std::string& message, std::ve
   s->labels = labels_;
   s->surface = setup_.topology > 0 ? surface_ : nullptr;
   s->trocar = *setup_.tools.trocar;
+  s->toolRadius = setup_.tools.toolRadius;
   s->gravity = setup_.settings.gravity;
   if (loop_.publishStress()) body_->stress(state_, s->stress);
   {

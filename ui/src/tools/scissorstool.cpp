@@ -27,7 +27,7 @@ class ScissorsTool final : public FrameTool {
       emit view_.toolMessage(QObject::tr("The scissors work on the organ placed over the frame: place it first (step 4)."));
       return true;
     }
-    const auto hit = view_.liveSurfaceAt(f, true);
+    const auto hit = view_.liveSurfaceAt(f, FrameView::SurfacePick::OuterPoint);
     if (!hit) {
       emit view_.toolMessage(QObject::tr("Press on the organ to start the cut."));
       return true;
@@ -48,7 +48,7 @@ class ScissorsTool final : public FrameTool {
     // falls away: at the pressed depth, the shaft crossed the surface 57 px above a stroke across the phantom's
     // middle); not deeper than 5 mm past the last (the ray through the opened incision meets its far wall, or the
     // organ's back), and kept off the organ.
-    if (const auto hit = view_.liveSurfaceAt(f, true); hit && hit->z() < surfaceDepth_ + 0.005) surfaceDepth_ = hit->z();
+    if (const auto hit = view_.liveSurfaceAt(f, FrameView::SurfacePick::OuterPoint); hit && hit->z() < surfaceDepth_ + 0.005) surfaceDepth_ = hit->z();
     path_.push_back(f);
     send(simcore::InputKind::ToolPose, tipAt(f), false);
   }

@@ -133,6 +133,9 @@ class FrameView : public QWidget {
   /// shaft through the pressed point from there.
   void setTrocar(const std::optional<Eigen::Vector3d>& trocar) { trocar_ = trocar; }
   const std::optional<Eigen::Vector3d>& trocar() const { return trocar_; }
+  /// The shafts' radius for contact (m; 0: they do not touch the tissue), as the simulation has it.
+  void setShaftRadius(double r) { shaftRadius_ = r; }
+  double shaftRadius() const { return shaftRadius_; }
   /// The simulation's warning over the frame: a sentence at the top and magenta rings at `cameraPoints` (camera
   /// frame, m: the elements it is about). Empty text clears it.
   void setWarning(std::vector<Eigen::Vector3d> cameraPoints, const QString& text);
@@ -208,9 +211,13 @@ class FrameView : public QWidget {
   std::optional<OrganHit> organAt(const Eigen::Vector2d& framePixel) const;
   /// The organ's surface point under a frame pixel as the simulation has it now (the live shape, its cut boundary
   /// after a cut), snapped to the nearest surface node; camera frame (m). Nothing off the organ: what the
-  /// instruments press on (and what tests aim at). `outerPoint`: the point itself on the organ's outer surface (a cut's
-  /// faces left out), not its nearest node: where the scissors' shaft goes through.
-  std::optional<Eigen::Vector3d> liveSurfaceAt(const Eigen::Vector2d& framePixel, bool outerPoint = false) const;
+  /// instruments press on (and what tests aim at). `pick`: Node as above; Point, the point itself (the cautery hook
+  /// glides over the surface: snapped to nodes 8 mm apart, a straight drag burnt a zigzag); OuterPoint, the point
+  /// itself on the organ's outer surface (a cut's faces left out): where the scissors' shaft goes through.
+  enum class SurfacePick { Node, Point, OuterPoint };
+  /// `shape`: positions to pick on instead of the live shape (as many nodes; the live shape when not).
+  std::optional<Eigen::Vector3d> liveSurfaceAt(const Eigen::Vector2d& framePixel, SurfacePick pick = SurfacePick::Node,
+                                               const std::vector<Eigen::Vector3d>* shape = nullptr) const;
   /// Where a 3D input device holds the active instrument's tip (camera frame, m): drawn as a ring (filled while the
   /// instrument works) with its depth to the tissue under it, which the flat frame does not show; none: not drawn.
   void setDeviceTip(std::optional<Eigen::Vector3d> tip, bool working);
@@ -281,6 +288,7 @@ class FrameView : public QWidget {
   std::shared_ptr<const std::vector<std::array<int, 4>>> fieldTets_;
   Eigen::Vector3d gravity_ = Eigen::Vector3d::Zero();
   std::optional<Eigen::Vector3d> trocar_;
+  double shaftRadius_ = 0;
   /// The surface's edges (fieldpaint.cpp), kept while the cut surface is the same.
   struct FieldGraph;
   std::shared_ptr<FieldGraph> fieldGraph_;

@@ -48,6 +48,7 @@ struct SimulationFrame {
   std::uint64_t responseKey = 0;  ///< the precomputed model's responses (simcore::ResponseCache), 0 for the FEM
   simcore::BodyModel model = simcore::BodyModel::Fem;           ///< the deformable model that ran the step
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();             ///< where the instruments enter (camera frame, m)
+  double toolRadius = 0;                                        ///< m: the shafts' radius for contact
   double mass = 0;                                              ///< kg
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;  ///< the elements at this step
   /// Elements inside out after this step (when the report counts any): their indices, their nodes (per node, 1 when

@@ -97,6 +97,7 @@ struct Snapshot {
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;
   std::shared_ptr<const std::vector<int>> labels;    ///< the elements' labels (burnt ones: isBurnt), shared likewise
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();  ///< where the shafts enter (m, body frame)
+  double toolRadius = 0;  ///< m: the shafts' radius for contact (0: the shafts do not touch the tissue)
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();  ///< m/s^2, body frame (the way blood runs)
   /// After a cut (topologyVersion > 0): the boundary to draw, cut tissue marked; null before any cut.
   std::shared_ptr<const CutSurface> surface;
