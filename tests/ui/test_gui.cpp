@@ -11,6 +11,7 @@
 #include "phantom/phantom.hpp"
 #include <rehearse/app/casefolder.hpp>
 #include "rehearse/ui/casedocument.hpp"
+#include "rehearse/ui/casefile.hpp"
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/organview.hpp"
@@ -47,6 +48,8 @@
 #include <QSignalSpy>
 #include <QThread>
 #include <QStandardPaths>
+#include <QLockFile>
+#include <QScopeGuard>
 
 using namespace rehearse;
 
@@ -606,6 +609,126 @@ class TestGui : public QObject {
       QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
     }
     QFile::remove(kept);
+  }
+
+  // The work a crash left outlives the next run's autosaves: the question closed unanswered, the next run works on (its
+  // own autosave written), then quits; the launch after offers the crash's work, not the next run's. Before, the two
+  // were one file: the next run's autosave overwrote the crash's (its work lost), and that was offered back instead.
+  // A crash during that run too: both are kept, the older one under its time.
+  void aCrashsWorkOutlivesTheNextRunsAutosave() {
+    const QString autosave = ui::MainWindow::autosavePath();
+    double crashed = 0;
+    {
+      ui::MainWindow w;
+      w.show();
+      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+      w.openCase({});
+      QVERIFY(loaded.wait(60000));
+      w.editCase("test: move", [](app::Case& k) { k.pose.t.x() += 11e-3; });
+      crashed = w.caseData()->pose.t.x();
+      w.autosaveNow();
+      const QString kept = autosave + ".test-copy";
+      QFile::remove(kept);
+      QVERIFY(QFile::copy(autosave, kept));
+      QVERIFY(closeDiscardingChanges(w));
+      QFile::remove(autosave);
+      QVERIFY(QFile::rename(kept, autosave));  // what a crash leaves: the autosave, not removed
+    }
+    auto launch = [](ui::MainWindow& w) {
+      w.show();
+      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+      w.openCase({});
+      if (!loaded.wait(60000) || !QTest::qWaitForWindowActive(&w)) return (QMessageBox*)nullptr;
+      w.offerRecovery();
+      QMessageBox* box = nullptr;
+      waitFor([&] {
+        box = w.findChild<QMessageBox*>("recoverCaseBox");
+        return box && box->isVisible();
+      });
+      return box;
+    };
+    double worked = 0;
+    {
+      ui::MainWindow w;
+      QMessageBox* box = launch(w);
+      QVERIFY(box);
+      box->close();  // unanswered
+      QVERIFY(waitFor([&] { return !w.findChild<QMessageBox*>("recoverCaseBox"); }));
+      w.editCase("test: other work", [](app::Case& k) { k.pose.t.y() += 5e-3; });
+      worked = w.caseData()->pose.t.y();
+      w.autosaveNow();  // this run's own autosave (the timer's, a minute on)
+      // ... and this run crashes too: its autosave stays beside the first crash's.
+      const QString kept = autosave + ".test-copy";
+      QFile::remove(kept);
+      QVERIFY(QFile::copy(autosave, kept));
+      QVERIFY(closeDiscardingChanges(w));
+      QVERIFY2(ui::MainWindow::hasRecoverableAutosave(), "the crash's work was removed");
+      QFile::remove(autosave);  // (this run's own autosave: what its crash leaves instead is the copy)
+      QVERIFY(QFile::rename(kept, autosave));
+    }
+    {
+      ui::MainWindow w;
+      QMessageBox* box = launch(w);
+      QVERIFY2(box, "the next launch did not offer the work back");
+      qInfo("%s", qPrintable(box->text()));
+      QVERIFY2(box->text().contains("earlier crash"), qPrintable(box->text()));
+      QTest::mouseClick(box->button(QMessageBox::Yes), Qt::LeftButton);
+      QVERIFY(waitFor([&] { return w.isWindowModified(); }, 60000));
+      QCOMPARE(w.caseData()->pose.t.y(), worked);  // the newest crash's work
+      // The earlier crash's work is kept under its time, whole.
+      const QDir folder(QFileInfo(autosave).absolutePath());
+      const QStringList earlier = folder.entryList({QFileInfo(autosave).completeBaseName() + ".crashed-*.rehearse"});
+      QCOMPARE(earlier.size(), 1);
+      const auto back = ui::loadCaseFile(folder.filePath(earlier.front()));
+      QCOMPARE(back.pose.t.x(), crashed);
+      QVERIFY(QFile::remove(folder.filePath(earlier.front())));
+      QVERIFY(closeDiscardingChanges(w));
+      QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
+    }
+  }
+
+  // A second program launched on the same machine while the first runs (its autosave's slot held by a lock file, with
+  // work autosaved in it): the second offers nothing back (the first did not crash), autosaves into a slot of its own,
+  // and its clean exit leaves the first's autosave as it was. Before, one file served both: the second launch offered
+  // the running program's work back as a crash's, wrote over it, and removed it at its exit.
+  void aSecondLaunchKeepsToItsOwnAutosave() {
+    const QString organisation = QCoreApplication::organizationName();
+    QCoreApplication::setOrganizationName(organisation + "SecondLaunch");
+    const auto restore = qScopeGuard([&] { QCoreApplication::setOrganizationName(organisation); });
+    const QDir folder(QStandardPaths::writableLocation(QStandardPaths::AppDataLocation));
+    QVERIFY(QDir().mkpath(folder.path()));
+    for (const QString& f : folder.entryList(QDir::Files | QDir::Hidden)) QFile::remove(folder.filePath(f));
+    // The first program: its lock, and its work autosaved.
+    QLockFile first(folder.filePath("autosave.lock"));
+    first.setStaleLockTime(0);
+    QVERIFY(first.tryLock(0));
+    app::Case work = app::caseFromPhantom(phantom::makePhantom());
+    work.pose.t.x() += 13e-3;
+    ui::saveCaseFile(work, folder.filePath("autosave.rehearse"));
+    const QDateTime written = QFileInfo(folder.filePath("autosave.rehearse")).lastModified();
+    {
+      ui::MainWindow w;  // the second program
+      w.show();
+      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+      w.openCase({});
+      QVERIFY(loaded.wait(60000));
+      qInfo("the second program's autosave: %s", qPrintable(ui::MainWindow::autosavePath()));
+      QVERIFY2(!ui::MainWindow::hasRecoverableAutosave(), "the running program's work was taken for a crash's");
+      w.offerRecovery();
+      QTest::qWait(200);
+      QVERIFY(!w.findChild<QMessageBox*>("recoverCaseBox"));
+      QVERIFY(ui::MainWindow::autosavePath() != folder.filePath("autosave.rehearse"));
+      w.editCase("test: move", [](app::Case& k) { k.pose.t.y() += 3e-3; });
+      w.autosaveNow();
+      QVERIFY(QFile::exists(ui::MainWindow::autosavePath()));
+      QVERIFY(closeDiscardingChanges(w));
+      QVERIFY(!QFile::exists(ui::MainWindow::autosavePath()));  // its own, removed at its clean exit
+    }
+    QVERIFY2(QFile::exists(folder.filePath("autosave.rehearse")), "the first program's autosave was removed");
+    QCOMPARE(QFileInfo(folder.filePath("autosave.rehearse")).lastModified(), written);
+    QCOMPARE(ui::loadCaseFile(folder.filePath("autosave.rehearse")).pose.t.x(), work.pose.t.x());
+    first.unlock();
+    QFile::remove(folder.filePath("autosave.rehearse"));
   }
 
   // Cancel (Esc) of a long job: an import whose meshing is cancelled leaves the case exactly as it was, says

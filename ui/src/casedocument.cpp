@@ -7,9 +7,13 @@
 #include <QDir>
 #include <QFile>
 #include <QFileInfo>
+#include <QLockFile>
 #include <QSettings>
 #include <QStandardPaths>
 #include <QUndoCommand>
+
+#include <map>
+#include <memory>
 #include <QtConcurrent/QtConcurrent>
 
 #include <opencv2/imgproc.hpp>
@@ -165,7 +169,7 @@ void CaseDocument::onLoaded() {
   undo_.clear();
   notes_ = result.notes;
   loadSeconds_ = result.seconds;
-  const bool recovered = loadingPath_ == autosavePath();
+  const bool recovered = loadingPath_ == autosavePath() || loadingPath_ == crashedAutosavePath();
   path_ = isCaseFile(loadingPath_) && !recovered ? loadingPath_ : QString();
   // A recovered autosave is the work of the file it was made from: saved there, not into the autosave.
   if (recovered && isCaseFile(recoveredFrom_)) path_ = recoveredFrom_;
@@ -199,23 +203,64 @@ void CaseDocument::saveAs(const QString& path) {
   }));
 }
 
-QString CaseDocument::autosavePath() {
-  return QStandardPaths::writableLocation(QStandardPaths::AppDataLocation) + QStringLiteral("/autosave.rehearse");
-}
-
-bool CaseDocument::hasRecoverableAutosave() { return isCaseFile(autosavePath()); }
-
 namespace {
-// Where the autosave's case lives (its file, or empty): kept beside it so that a recovery saves back there.
-QString autosaveSourcePath() { return CaseDocument::autosavePath() + QStringLiteral(".source"); }
+// Each running program autosaves into a slot of its own: autosave.rehearse, or autosave-2.rehearse ... for a second
+// one launched on the same machine, each held by a lock file while the program runs (QLockFile: a lock whose program is
+// no longer running is stale and taken over). A second launch had shared the first's file: it offered the running
+// program's work back as a crash's, wrote its own autosaves over it, and its clean exit removed it.
+QString slotName(int k) { return k == 0 ? QStringLiteral("autosave") : QStringLiteral("autosave-%1").arg(k + 1); }
+QString claimSlot(const QString& dir) {
+  static std::map<QString, std::pair<QString, std::unique_ptr<QLockFile>>> held;  // by folder (tests change it)
+  if (auto it = held.find(dir); it != held.end()) return it->second.first;
+  QDir().mkpath(dir);
+  for (int k = 0; k < 16; ++k) {
+    const QString base = dir + '/' + slotName(k);
+    auto lock = std::make_unique<QLockFile>(base + QStringLiteral(".lock"));
+    lock->setStaleLockTime(0);  // held as long as the program runs; stale only once it is gone
+    if (lock->tryLock(0)) return held.emplace(dir, std::make_pair(base, std::move(lock))).first->second.first;
+  }
+  // Sixteen programs running (or a folder that takes no lock): the first slot, as before the slots existed.
+  return held.emplace(dir, std::make_pair(dir + '/' + slotName(0), nullptr)).first->second.first;
+}
+QString slotBase() { return claimSlot(QStandardPaths::writableLocation(QStandardPaths::AppDataLocation)); }
+// Where an autosave's case lives (its file, or empty): kept beside it so that a recovery saves back there.
+QString sourcePathOf(const QString& autosave) { return autosave + QStringLiteral(".source"); }
+QString autosaveSourcePath() { return sourcePathOf(CaseDocument::autosavePath()); }
 void writeAutosaveSource(const QString& path) {
   QFile f(autosaveSourcePath());
   if (f.open(QIODevice::WriteOnly | QIODevice::Truncate)) f.write(path.toUtf8());
 }
+bool moveWithSource(const QString& from, const QString& to) {
+  QFile::remove(to);
+  QFile::remove(sourcePathOf(to));
+  if (!QFile::rename(from, to)) return false;
+  if (QFile::exists(sourcePathOf(from))) QFile::rename(sourcePathOf(from), sourcePathOf(to));
+  return true;
+}
 }  // namespace
 
+QString CaseDocument::autosavePath() { return slotBase() + QStringLiteral(".rehearse"); }
+
+QString CaseDocument::crashedAutosavePath() { return slotBase() + QStringLiteral(".crashed.rehearse"); }
+
+QString CaseDocument::setAsideCrashedAutosave() {
+  const QString autosave = autosavePath(), crashed = crashedAutosavePath();
+  if (!isCaseFile(autosave)) return {};
+  QString kept;
+  if (isCaseFile(crashed)) {
+    // An earlier crash's work, still not answered: kept beside it under its time, never overwritten.
+    kept = slotBase() + QStringLiteral(".crashed-%1.rehearse")
+                            .arg(QFileInfo(crashed).lastModified().toString(QStringLiteral("yyyyMMdd-HHmmss")));
+    if (!moveWithSource(crashed, kept)) kept.clear();
+  }
+  moveWithSource(autosave, crashed);
+  return kept;
+}
+
+bool CaseDocument::hasRecoverableAutosave() { return isCaseFile(crashedAutosavePath()) || isCaseFile(autosavePath()); }
+
 QString CaseDocument::autosaveSource() {
-  QFile f(autosaveSourcePath());
+  QFile f(sourcePathOf(isCaseFile(crashedAutosavePath()) ? crashedAutosavePath() : autosavePath()));
   return f.open(QIODevice::ReadOnly) ? QString::fromUtf8(f.readAll()).trimmed() : QString();
 }
 
@@ -226,6 +271,7 @@ QString CaseDocument::displayName() const {
 
 bool CaseDocument::autosaveNewerThanCase() const {
   if (!hasRecoverableAutosave()) return false;
+  if (isCaseFile(crashedAutosavePath())) return true;  // a crash's work, not yet recovered or discarded
   const QFileInfo autosave(autosavePath());
   // The case's own file, or the one the autosave was made from when the case open now has none.
   const QString file = path_.isEmpty() ? autosaveSource() : path_;
@@ -235,7 +281,7 @@ bool CaseDocument::autosaveNewerThanCase() const {
 
 void CaseDocument::recoverAutosave() {
   recoveredFrom_ = autosaveSource();
-  open(autosavePath());
+  open(isCaseFile(crashedAutosavePath()) ? crashedAutosavePath() : autosavePath());
 }
 
 void CaseDocument::autosaveNow() {
@@ -272,9 +318,12 @@ void CaseDocument::closeCleanly(bool keepAutosave) {
   loadWatcher_.waitForFinished();
   saveWatcher_.waitForFinished();
   waitForAutosave();
-  if (keepAutosave) return;
+  // This run's own autosave goes (its work was saved or discarded); a crash's set aside goes too once answered.
   QFile::remove(autosavePath());
   QFile::remove(autosaveSourcePath());
+  if (keepAutosave) return;
+  QFile::remove(crashedAutosavePath());
+  QFile::remove(sourcePathOf(crashedAutosavePath()));
 }
 
 QStringList CaseDocument::recentFiles() const { return QSettings().value(QStringLiteral("recentFiles")).toStringList(); }

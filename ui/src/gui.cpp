@@ -144,6 +144,9 @@ int runGui(int argc, char** argv) {
       });
     });
   }
+  // This program's autosave slot is held from the start (a second program launched beside it takes another), and a
+  // crash's autosave found in it is set aside at once: this run's autosaves never overwrite it, asked or not.
+  CaseDocument::setAsideCrashedAutosave();
   window.show();
   const bool recover = shot.isEmpty() && !parser.isSet(noRecover) && MainWindow::hasRecoverableAutosave();
   window.openCase(caseDir);

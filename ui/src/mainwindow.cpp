@@ -442,15 +442,20 @@ void MainWindow::openFileDialog() {
 
 void MainWindow::offerRecovery() {
   if (!hasRecoverableAutosave()) return;
+  // Set aside first: this run's own autosaves go to the slot's file and never overwrite the crash's work (they had,
+  // while the question waited unanswered: the next launch then offered this run's work, the crash's lost).
+  const QString earlier = CaseDocument::setAsideCrashedAutosave();
+  if (!QFileInfo::exists(CaseDocument::crashedAutosavePath())) return;
   // Which work and from when: the file it was made from (or the case's name) and the autosave's time.
-  const QFileInfo autosave(autosavePath());
+  const QFileInfo autosave(CaseDocument::crashedAutosavePath());
   const QString source = CaseDocument::autosaveSource();
   const QString what = source.isEmpty() ? tr("a case not saved to a file") : QFileInfo(source).fileName();
-  auto* box = new QMessageBox(
-      QMessageBox::Question, tr("Recover case"),
-      tr("Rehearse did not close cleanly last time. Recover the work autosaved at %1 (%2)?")
-          .arg(QLocale().toString(autosave.lastModified(), QLocale::ShortFormat), what),
-      QMessageBox::Yes | QMessageBox::No, this);
+  QString text = tr("Rehearse did not close cleanly last time. Recover the work autosaved at %1 (%2)?")
+                     .arg(QLocale().toString(autosave.lastModified(), QLocale::ShortFormat), what);
+  if (!earlier.isEmpty())
+    text += ' ' + tr("The work an earlier crash left, not recovered then, is kept in %1 (File > Open).")
+                      .arg(QDir::toNativeSeparators(earlier));
+  auto* box = new QMessageBox(QMessageBox::Question, tr("Recover case"), text, QMessageBox::Yes | QMessageBox::No, this);
   box->setObjectName(QStringLiteral("recoverCaseBox"));
   box->setAttribute(Qt::WA_DeleteOnClose);
   // Answered before anything else (a stray click and Ctrl+Q quit past it, and the clean exit removed the autosave:
@@ -463,7 +468,7 @@ void MainWindow::offerRecovery() {
   connect(box, &QMessageBox::buttonClicked, this, [answered](QAbstractButton*) { *answered = true; });
   connect(box, &QMessageBox::finished, this, [this, answered](int r) {
     recoveryBox_.clear();
-    recoveryUnanswered_ = !*answered;
+    recoveryAnswered_ = recoveryAnswered_ || *answered;
     if (*answered && r == QMessageBox::Yes) recoverAutosaveAsked();
   });
   box->show();
@@ -625,7 +630,7 @@ void MainWindow::newCaseAsked() {
 
 void MainWindow::recoverAutosaveAsked() {
   askToKeepChanges(tr("recovering the autosaved case"), [this] {
-    recoveryUnanswered_ = false;  // (File > Recover answers the question closed unanswered: the work is open again)
+    recoveryAnswered_ = true;  // (File > Recover answers the question closed unanswered: the work is open again)
     setBusy(true, tr("Recovering the autosaved case..."));
     doc_->recoverAutosave();
   });
@@ -730,7 +735,8 @@ void MainWindow::closeEvent(QCloseEvent* e) {
   // A clean exit leaves no autosave behind (after waiting for one being written): its presence at start
   // means the last session crashed. Unless the work a crash left is still being offered back: it stays, and the next
   // launch offers it again.
-  const bool unanswered = !recoveryBox_.isNull() || recoveryUnanswered_;
+  // (A crash's work set aside at start and never asked about, --no-recover, stays too.)
+  const bool unanswered = !recoveryBox_.isNull() || !recoveryAnswered_;
   if (recoveryBox_) recoveryBox_->close();
   doc_->closeCleanly(unanswered);
   QSettings settings;

@@ -82,7 +82,15 @@ class CaseDocument : public QObject {
   QImage secondFrameImage() const { return secondFrameImage_; }  ///< Case::frame2, converted once per change
   QString qualityText() const { return qualityText_; }
 
+  /// This program's autosave (a slot of its own, held while it runs: a second program on the machine has another).
   static QString autosavePath();
+  /// Where the autosave a crash left in this slot is set aside while it is offered back, so that this run's own
+  /// autosaves never overwrite it.
+  static QString crashedAutosavePath();
+  /// Sets the autosave a crash left (in this slot, found at start) aside to crashedAutosavePath(). An earlier crash's
+  /// still there is kept under its time: returns that file's path (empty when none).
+  static QString setAsideCrashedAutosave();
+  /// A crash's work to offer back: set aside, or still in this slot's autosave.
   static bool hasRecoverableAutosave();
   /// An autosave written after the case's own file (or the case has no file): work that File > Recover brings back.
   bool autosaveNewerThanCase() const;
@@ -96,8 +104,8 @@ class CaseDocument : public QObject {
   bool autosaveIfChanged();
   /// Waits for a running autosave (closing the window calls it before removing the file).
   void waitForAutosave();
-  /// A clean exit: waits for the workers and removes the autosave (its presence at start means a crash), unless
-  /// `keepAutosave` (the work a crash left was offered back and not answered yet: it is offered again next time).
+  /// A clean exit: waits for the workers and removes this run's autosave (its presence at start means a crash), and
+  /// the crash's set aside unless `keepAutosave` (it was offered back and not answered yet: offered again next time).
   void closeCleanly(bool keepAutosave = false);
   QStringList recentFiles() const;
 

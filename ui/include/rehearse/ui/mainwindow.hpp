@@ -268,7 +268,7 @@ class MainWindow : public QMainWindow {
   void updateTitle();
   /// The question offering back the work a crash left, while it is not answered (a close keeps that work then).
   QPointer<QMessageBox> recoveryBox_;
-  bool recoveryUnanswered_ = false;  ///< the recovery question's window was closed without an answer
+  bool recoveryAnswered_ = false;  ///< a button of the recovery question or File > Recover answered it
   bool closeAsked_ = false;  ///< the unsaved changes were settled: the next close goes through
 };
 
