@@ -148,6 +148,11 @@ void Session::cutEvents(const std::vector<int>& cutLabels, std::string& message)
 }
 
 std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes) {
+  return pieceVolumes(tets, std::vector<Eigen::Vector3d>(nodes, Eigen::Vector3d::Zero())).size();
+}
+
+std::vector<double> pieceVolumes(const std::vector<std::array<int, 4>>& tets, const std::vector<Eigen::Vector3d>& rest) {
+  const std::size_t nodes = rest.size();
   std::vector<int> parent(nodes);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](int i) {
@@ -157,16 +162,21 @@ std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::si
   };
   for (const auto& t : tets)
     for (int k = 1; k < 4; ++k) parent[static_cast<std::size_t>(find(t[static_cast<std::size_t>(k)]))] = find(t[0]);
-  std::vector<char> root(nodes, 0);
-  std::size_t pieces = 0;
-  for (const auto& t : tets)
-    if (const int r = find(t[0]); !root[static_cast<std::size_t>(r)]) root[static_cast<std::size_t>(r)] = 1, ++pieces;
-  return pieces;
+  std::vector<int> piece(nodes, -1);
+  std::vector<double> volume;
+  for (const auto& t : tets) {
+    const auto r = static_cast<std::size_t>(find(t[0]));
+    if (piece[r] < 0) piece[r] = static_cast<int>(volume.size()), volume.push_back(0);
+    const auto p = [&](int k) -> const Eigen::Vector3d& { return rest[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])]; };
+    volume[static_cast<std::size_t>(piece[r])] += std::abs((p(1) - p(0)).cross(p(2) - p(0)).dot(p(3) - p(0))) / 6;
+  }
+  std::sort(volume.begin(), volume.end(), std::greater<>());
+  return volume;
 }
 
 void Session::finishStroke(std::string& message) {
   if (const auto s = strokes_.end())
-    StrokeTracker::say(*s, connectedPieces(body_->tetrahedra(), body_->nodeCount()), message);
+    StrokeTracker::say(*s, pieceVolumes(body_->tetrahedra(), body_->restPositions()), message);
 }
 
 void Session::forgetCutProgress() {

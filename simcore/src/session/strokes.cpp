@@ -1,5 +1,8 @@
 #include <rehearse/simcore/session/strokes.hpp>
 
+#include <algorithm>
+#include <cstdio>
+
 namespace rehearse::simcore {
 
 void StrokeTracker::begin(std::size_t piecesBefore) {
@@ -48,7 +51,8 @@ std::string lowerFirst(std::string s) {
 }
 }  // namespace
 
-void StrokeTracker::say(const Stroke& s, std::size_t pieces, std::string& message) {
+void StrokeTracker::say(const Stroke& s, const std::vector<double>& volumes, std::string& message) {
+  const std::size_t pieces = volumes.size();
   std::string m;
   if (s.updates == 0 && !s.lastRefusal.empty()) {
     m = "Nothing was cut: " + s.lastRefusal;
@@ -63,9 +67,23 @@ void StrokeTracker::say(const Stroke& s, std::size_t pieces, std::string& messag
   } else {
     m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) +
         " element(s) split in " + std::to_string(s.updates) + " update(s); ";
+    // What came off, by its volume: a sliver at the organ's thin edge said apart from a lobe (a person read "the
+    // organ came apart (2 pieces)" and could not tell which).
+    std::string off;
+    if (pieces > s.piecesBefore) {
+      char buf[64];
+      std::snprintf(buf, sizeof buf, "%.1f mL", 1e6 * volumes.front());
+      off = ": the largest piece is " + std::string(buf) + ", the smallest";
+      const std::size_t shown = std::min<std::size_t>(pieces - 1, 3);
+      for (std::size_t k = 0; k < shown; ++k) {
+        std::snprintf(buf, sizeof buf, "%s%.1f mL", k == 0 ? " " : k + 1 == shown ? " and " : ", ",
+                      1e6 * volumes[pieces - 1 - k]);
+        off += buf;
+      }
+    }
     m += pieces > s.piecesBefore
              ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
-                   " before)."
+                   " before)" + off + "."
              : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
                    " (the cut did not go through).";
     if (s.skippedInverted > 0)

@@ -37,7 +37,8 @@ class StrokeTracker {
   /// Ends the stroke (a new one starts closed): what it did when it was open.
   std::optional<Stroke> end();
   /// The stroke's sentence after `message`, the organ now in `pieces` pieces.
-  static void say(const Stroke& s, std::size_t pieces, std::string& message);
+  /// `pieces`: their volumes at rest (m^3), largest first; the ones a stroke cut off are said with theirs.
+  static void say(const Stroke& s, const std::vector<double>& pieces, std::string& message);
 
   /// The rest of a sweep asked for while a cut was being built (the blade withdrawn meanwhile): cut when it is in.
   void cutWhenIn(const Eigen::Vector3d& from, const Eigen::Vector3d& to) { restOfSweep_ = std::make_pair(from, to); }
