@@ -521,6 +521,23 @@ class TestField : public QObject {
     }
     QVERIFY(said >= 2);  // the vessel was opened in more than one step
     QVERIFY(inAllBefore > 0);
+    // A clip on one side stops its stump: the sentence says what it stopped and what still bleeds, and they add up.
+    clipAt(s, 0.008);
+    QString stopped;
+    for (int k = 0; k < 20 && stopped.isEmpty(); ++k) {
+      QVERIFY(s.advance().ok);
+      const QString m = QString::fromStdString(s.snapshot()->message);
+      if (m.contains("The clip stops")) stopped = m;
+    }
+    qInfo("%s", qPrintable(stopped));
+    const auto st = QRegularExpression(R"(The clip stops ([0-9.]+) mL/s of bleeding \(([0-9.]+) mL/s in all now\))")
+                        .match(stopped);
+    QVERIFY2(st.hasMatch(), qPrintable(stopped));
+    double open = 0;
+    for (const auto& b : s.snapshot()->field.bleeds)
+      if (b.stoppedBy < 0) open += b.rate;
+    QVERIFY(std::abs(inAllBefore - st.captured(1).toDouble() - st.captured(2).toDouble()) <= 0.015);
+    QVERIFY(std::abs(1e6 * open - st.captured(2).toDouble()) <= 0.006);
 
     // The loss is said as it passes each class of haemorrhage of the ATLS table for a 70 kg adult (written here from
     // the table: class II from 750 mL, III from 1,500 mL, IV from 2,000 mL), once. Restored just below each bound.
@@ -539,7 +556,9 @@ class TestField : public QObject {
       const auto crossed = s.snapshot();
       qInfo("%s", crossed->message.c_str());
       QVERIFY2(crossed->field.bloodLoss > below + 1e-9, crossed->message.c_str());
-      QVERIFY2(QString::fromStdString(crossed->message).contains(QString("%1 mL of blood lost").arg(std::round(1e6 * crossed->field.bloodLoss))),
+      QVERIFY2(QString::fromStdString(crossed->message)
+                   .contains(QLocale(QLocale::English).toString(std::lround(1e6 * crossed->field.bloodLoss)) +
+                             " mL of blood lost"),
                crossed->message.c_str());
       QVERIFY2(QString::fromStdString(crossed->message).contains(QString(words) + " haemorrhage"),
                crossed->message.c_str());

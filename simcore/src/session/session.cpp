@@ -418,8 +418,12 @@ StepReport Session::advance() {
     // The loss said as it passes each class of haemorrhage (a person saw 2,443 mL lost and nothing said).
     if (const int now = haemorrhageClass(field_.bloodLoss); now >= 2 && now > haemorrhageClass(lossBefore)) {
       char buf[200];
-      std::snprintf(buf, sizeof buf, " %.0f mL of blood lost: %s.", 1e6 * field_.bloodLoss,
-                    haemorrhageWords(now).c_str());
+      const long ml = std::lround(1e6 * field_.bloodLoss);  // (written as the sentence's bounds are: 1,500 mL)
+      if (ml >= 1000)
+        std::snprintf(buf, sizeof buf, " %ld,%03ld mL of blood lost: %s.", ml / 1000, ml % 1000,
+                      haemorrhageWords(now).c_str());
+      else
+        std::snprintf(buf, sizeof buf, " %ld mL of blood lost: %s.", ml, haemorrhageWords(now).c_str());
       message += buf;
       if (message.front() == ' ') message.erase(0, 1);
     }

@@ -174,11 +174,13 @@ void Session::updateBleeds(std::string& message) {
   }
   if (stopped > 0 || sealed > 0) events_.push_back(eventWord(EventKind::BleedingStopped));
   if (stopped > 0) {
-    std::snprintf(buf, sizeof buf, " The clip stops %.2f mL/s of bleeding.", 1e6 * stopped);
+    std::snprintf(buf, sizeof buf, " The clip stops %.2f mL/s of bleeding (%.2f mL/s in all now).", 1e6 * stopped,
+                  1e6 * open);
     message += buf;
   }
   if (sealed > 0) {
-    std::snprintf(buf, sizeof buf, " The cautery seals %.2f mL/s of bleeding.", 1e6 * sealed);
+    std::snprintf(buf, sizeof buf, " The cautery seals %.2f mL/s of bleeding (%.2f mL/s in all now).", 1e6 * sealed,
+                  1e6 * open);
     message += buf;
   }
   if (!message.empty() && message.front() == ' ') message.erase(0, 1);

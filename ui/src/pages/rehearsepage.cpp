@@ -294,12 +294,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   else if (cuts_ > 0 && pendingStatus_.value_or(status_->text()).startsWith(tr("Cutting")))
     status(tr("Cut: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
   QString extra;
-  if (slips_) extra += tr("   slips: %1").arg(slips_);
-  if (cuts_) extra += tr("   cuts: %1").arg(cuts_);
-  if (vesselCuts_) extra += tr("   vessels cut: %1").arg(vesselCuts_);
-  if (tears_) extra += tr("   TORN: %1").arg(tears_);
-  if (!f->field.clips.empty()) extra += tr("   clips: %1").arg(f->field.clips.size());
-  if (f->field.energy) extra += tr("   ENERGY ON");
+  // The blood first (the counts after it: three lines at the page's width had cut "bleeding 1..." off).
   if (f->field.bloodLoss > 0) {
     double rate = 0;
     for (const auto& b : f->field.bleeds)
@@ -313,6 +308,12 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
                  .arg(c >= 2 ? QStringLiteral(", ") + tr(classes[c]) : QString())
                  .arg(rate > 0 ? tr(" (bleeding %1 mL/s)").arg(1e6 * rate, 0, 'f', 2) : QString());
   }
+  if (slips_) extra += tr("   slips: %1").arg(slips_);
+  if (cuts_) extra += tr("   cuts: %1").arg(cuts_);
+  if (vesselCuts_) extra += tr("   vessels cut: %1").arg(vesselCuts_);
+  if (tears_) extra += tr("   TORN: %1").arg(tears_);
+  if (!f->field.clips.empty()) extra += tr("   clips: %1").arg(f->field.clips.size());
+  if (f->field.energy) extra += tr("   ENERGY ON");
   // While the jaws hold and the shaft touches, the two shares (the jaws' decides a slip).
   QString shares;
   if (!t.held.empty() && (t.force - t.graspForce).norm() >= 0.005)
