@@ -738,6 +738,30 @@ class TestField : public QObject {
       QVERIFY(has(events, "burn"));
       QVERIFY2(!QString::fromStdString(said).contains("burnt nothing"), said.c_str());
     }
+    {  // burnt, then a second stroke on the same spot: only burnt tissue within reach, and said so (a person read "no
+       // spot of tissue was heated more than 0.00 s" there)
+      simcore::Session s(setup);
+      s.post(hookAt({0.015, 0.0, 0.0}));
+      s.post(on);
+      for (int k = 0; k < 60; ++k) QVERIFY(s.advance().ok);
+      s.post(off);
+      for (int k = 0; k < 5; ++k) QVERIFY(s.advance().ok);
+      s.post(on);
+      std::string said;
+      for (int k = 0; k < 10; ++k) {
+        QVERIFY(s.advance().ok);
+        said += s.snapshot()->message + "|";
+      }
+      s.post(off);
+      for (int k = 0; k < 2; ++k) {
+        QVERIFY(s.advance().ok);
+        said += s.snapshot()->message + "|";
+      }
+      qInfo("%s", said.c_str());
+      QVERIFY2(QString::fromStdString(said).contains("burnt nothing more: the tissue within 4 mm of its tip was burnt "
+                                                     "already"),
+               said.c_str());
+    }
   }
 
   // A session with clips, bleeding and the cautery (clip, cut between, seal a stump, with the cut's and the burn's

@@ -232,7 +232,13 @@ class Cautery final : public Instrument {
     for (const auto& [element, heat] : f.heating) due = due || heat >= c.burnTime;
     if (!e.on && f.energy && stroke_.active && !stroke_.burnt && !due) {
       char said[320];
-      if (stroke_.touching > 0)
+      if (stroke_.touching > 0 && !(stroke_.onUnburnt > 0))
+        // (It said "no spot of tissue was heated more than 0.00 s" over tissue an earlier stroke had burnt.)
+        std::snprintf(said, sizeof said,
+                      "The hook burnt nothing more: the tissue within %.0f mm of its tip was burnt already; move it "
+                      "onto unburnt tissue to burn further.",
+                      1e3 * c.radius);
+      else if (stroke_.touching > 0)
         std::snprintf(said, sizeof said,
                       "The hook burnt nothing: no spot of tissue was heated more than %.2f s, and tissue burns after "
                       "%.2f s within %.0f mm of the powered tip; hold the hook still on the tissue longer, or drag it "
@@ -286,6 +292,7 @@ class Cautery final : public Instrument {
     }
     if (touching) f.energyTime += dt, stroke_.touching += dt;
     if (reached.empty()) return;
+    stroke_.onUnburnt += dt;
     // Heat: the sorted list gains the reached elements.
     std::vector<std::pair<int, double>> heated;
     heated.reserve(f.heating.size() + reached.size());
@@ -329,6 +336,7 @@ class Cautery final : public Instrument {
     bool burnt = false;   ///< some tissue burnt since
     double touching = 0;  ///< s with tissue within the radius
     double longest = 0;   ///< s, the most heat any element gathered
+    double onUnburnt = 0;  ///< s with unburnt tissue within the radius
   } stroke_;
 };
 
