@@ -55,6 +55,21 @@ using namespace rehearse;
 
 class TestGui : public QObject {
   Q_OBJECT
+  // A launch on the phantom that finds a crash's autosave: the recovery question it shows (null when none).
+  static QMessageBox* launch(ui::MainWindow& w) {
+    w.show();
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    if (!loaded.wait(60000) || !QTest::qWaitForWindowActive(&w)) return nullptr;
+    w.offerRecovery();  // (what gui.cpp does at a start that finds the autosave)
+    QMessageBox* box = nullptr;
+    waitFor([&] {
+      box = w.findChild<QMessageBox*>("recoverCaseBox");
+      return box && box->isVisible();
+    });
+    return box;
+  }
+
  private slots:
   // Several ticked inner structures are each drawn in their own colour: the phantom's vessel elements split
   // into two labels (2 and 3) give pixels of both label colours, where one colour was drawn before.
@@ -542,20 +557,6 @@ class TestGui : public QObject {
       QVERIFY(!ui::MainWindow::hasRecoverableAutosave());
       QVERIFY(QFile::copy(kept, autosave));
     }
-    auto launch = [](ui::MainWindow& w) {
-      w.show();
-      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
-      w.openCase({});
-      if (!loaded.wait(60000)) return (QMessageBox*)nullptr;
-      if (!QTest::qWaitForWindowActive(&w)) return (QMessageBox*)nullptr;
-      w.offerRecovery();  // (what gui.cpp does at a start that finds the autosave)
-      QMessageBox* box = nullptr;
-      waitFor([&] {
-        box = w.findChild<QMessageBox*>("recoverCaseBox");
-        return box && box->isVisible();
-      });
-      return box;
-    };
     {
       ui::MainWindow w;
       QMessageBox* box = launch(w);
@@ -634,19 +635,6 @@ class TestGui : public QObject {
       QFile::remove(autosave);
       QVERIFY(QFile::rename(kept, autosave));  // what a crash leaves: the autosave, not removed
     }
-    auto launch = [](ui::MainWindow& w) {
-      w.show();
-      QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
-      w.openCase({});
-      if (!loaded.wait(60000) || !QTest::qWaitForWindowActive(&w)) return (QMessageBox*)nullptr;
-      w.offerRecovery();
-      QMessageBox* box = nullptr;
-      waitFor([&] {
-        box = w.findChild<QMessageBox*>("recoverCaseBox");
-        return box && box->isVisible();
-      });
-      return box;
-    };
     double worked = 0;
     {
       ui::MainWindow w;
