@@ -57,19 +57,25 @@ bool closedAndOutward(const std::vector<Eigen::Vector3d>& points, const SurfaceV
   if (s.triangleCount == 0 || points.size() != s.vertexCount) return false;
   std::vector<std::pair<int, int>> edges;  // directed, as the triangles run them
   edges.reserve(3 * s.triangleCount);
-  double volume = 0;
+  double volume = 0, area = 0;
   for (std::size_t t = 0; t < s.triangleCount; ++t) {
     const int* tri = s.triangles + 3 * t;
     for (int k = 0; k < 3; ++k) edges.emplace_back(tri[k], tri[(k + 1) % 3]);
     volume += points[tri[0]].dot(points[tri[1]].cross(points[tri[2]]));
+    area += 0.5 * (points[tri[1]] - points[tri[0]]).cross(points[tri[2]] - points[tri[0]]).norm();
   }
   std::sort(edges.begin(), edges.end());
+  // The edges not shared with a triangle running them the other way: borders, and edges run twice the same way (a
+  // triangle turned over, a non-manifold edge). A hole no wider than half its border's length shows the inside
+  // through it; culling hides that inside (the background shows instead) and nothing else.
+  double defects = 0;
   for (std::size_t i = 0; i < edges.size(); ++i) {
-    if (i + 1 < edges.size() && edges[i + 1] == edges[i]) return false;  // an edge run twice the same way
-    if (!std::binary_search(edges.begin(), edges.end(), std::make_pair(edges[i].second, edges[i].first)))
-      return false;  // a border
+    const bool twice = (i + 1 < edges.size() && edges[i + 1] == edges[i]) || (i > 0 && edges[i - 1] == edges[i]);
+    if (twice || !std::binary_search(edges.begin(), edges.end(), std::make_pair(edges[i].second, edges[i].first)))
+      defects += (points[static_cast<std::size_t>(edges[i].first)] - points[static_cast<std::size_t>(edges[i].second)]).norm();
   }
-  return volume > 0;
+  constexpr double kOpening = 0.02;  // of the square root of the area: the widest opening culled (render.hpp)
+  return volume > 0 && 0.5 * defects <= kOpening * std::sqrt(area);
 }
 
 Rasterization rasterizeCameraFrame(const Camera& camera, const std::vector<Eigen::Vector3d>& pts, const SurfaceView& s,
