@@ -180,6 +180,17 @@ class TestRehearseGui : public QObject {
     panel->play();
   }
 
+  // What the page counts as cuts ("cuts: N": strokes that cut, not the cut's updates; a person read "cuts: 10" after
+  // three strokes); -1 when it shows no count.
+  int cutsOnThePage() const {
+    QString counts;
+    for (auto* l : w_->rehearsePage()->findChildren<QLabel*>())
+      if (l->text().contains("cuts: ")) counts = l->text();
+    const auto m = QRegularExpression(QStringLiteral("cuts: (\\d+)")).match(counts);
+    qInfo("the page's counts: '%s'", qPrintable(counts.simplified()));
+    return m.hasMatch() ? m.captured(1).toInt() : -1;
+  }
+
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearseRehearseTest");
@@ -706,6 +717,7 @@ class TestRehearseGui : public QObject {
     QVERIFY(f->positions.size() > nodes0);
     QVERIFY(std::abs(f->mass - mass0) < 1e-9 * mass0);
     QVERIFY(f->surface->cutCount > 0);
+    QCOMPARE(cutsOnThePage(), 1);
     {  // Issue 32: the status says whether the organ came apart (never "Cut" over tissue that still joins); pieces
        // counted here (elements sharing a node are one piece).
       auto* status = w_->findChild<QLabel*>("rehearseStatus");
@@ -839,6 +851,7 @@ class TestRehearseGui : public QObject {
       if (l.contains(" bleeds: ") || l.contains(" bleeds more: ")) bleeds = l;
     }
     qInfo("last in Messages: %s", qPrintable(bleeds));
+    QCOMPARE(cutsOnThePage(), 1);  // one stroke (its updates opened the trunk's stumps one after another)
     const QRegularExpression all(QStringLiteral("\\(([0-9.]+) mL/s in all[,)]"));
     const auto m = all.match(bleeds);
     QVERIFY2(m.hasMatch(), qPrintable(bleeds));
@@ -944,6 +957,7 @@ class TestRehearseGui : public QObject {
     for (double o : off) mean += o / static_cast<double>(off.size());
     qInfo("the incision's mouth: %zu edges beside a %.0f px stroke, %.1f px above it at the median (mean %.1f, %.1f to "
           "%.1f)", off.size(), (p1 - p0).norm(), median, mean, off.front(), off.back());
+    QCOMPARE(cutsOnThePage(), 1);
     panel->pause();
   }
 

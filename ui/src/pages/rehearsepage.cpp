@@ -254,6 +254,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   // A new session (a new organ, case, reset or recording) starts its counts from nothing.
   if (f->steps < lastSteps_ || f->steps == 0) {
     slips_ = cuts_ = vesselCuts_ = tears_ = 0;
+    wasCutting_ = strokeCounted_ = false;
     // ... and what the last one said goes with it ("Released: the tissue relaxes." stayed over a new case's organ).
     if (!status_->text().isEmpty()) pendingStatus_ = QString();
   }
@@ -267,7 +268,14 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   simcore::EventCounts counted;
   counted.add(f->events);
   slips_ += counted.slips;
-  cuts_ += counted.cuts;
+  // Strokes that cut, not the cut's updates (a person read "cuts: 10" after three strokes): a stroke counts at its
+  // first cut; one still being built when the blade is lifted is the same stroke.
+  if (f->tool.cutting && !wasCutting_) strokeCounted_ = false;
+  wasCutting_ = f->tool.cutting;
+  if (counted.cuts > 0 && !strokeCounted_) {
+    ++cuts_;
+    strokeCounted_ = true;
+  }
   vesselCuts_ += counted.vesselCuts;
   // A slip is said in the status bar too, where "Grasped: drag to pull" stood (a helper read it beside "the jaws are
   // closed on nothing"): the sentence says at what force and what the scene allows.

@@ -75,7 +75,8 @@ class RehearsePage : public StepPage {
   std::optional<QString> pendingStatus_;  // set per frame, shown through labelThrottle_
   QString forceText_;
   std::unique_ptr<Throttle> labelThrottle_;
-  int slips_ = 0, cuts_ = 0, vesselCuts_ = 0, tears_ = 0;
+  int slips_ = 0, cuts_ = 0, vesselCuts_ = 0, tears_ = 0;  // (cuts_: strokes that cut)
+  bool wasCutting_ = false, strokeCounted_ = false;
   long lastSteps_ = 0;  ///< the last frame's step: a smaller one is a new session
   /// The model that steps and its last steps' wall times (ms), for the rate line.
   simcore::BodyModel model_ = simcore::BodyModel::Fem;
