@@ -1024,6 +1024,67 @@ class TestRehearseGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_R);
   }
 
+  // A cautery drag that leaves the organ lifts the hook off it: past the outline it follows the cursor through the air,
+  // touching nothing, and says so once; the power stays on (the button is held) and nothing more burns. A person's drag
+  // past the phantom's outline left the hook at the edge, burning there with ENERGY ON shown, the cursor far away.
+  void aDragOffTheOrganLiftsTheHook() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    QVERIFY(startedAgain());
+    QTest::keyClick(w_.get(), Qt::Key_J);
+    QCOMPARE(view->tool(), ui::Tool::Cautery);
+    Eigen::AlignedBox2d box;
+    for (const auto& p : panel->lastFrame()->positions) box.extend(c.camera.project(p));
+    // Out past the side of the outline with the most room in the frame, 60 % of the way to the frame's edge.
+    const std::array<double, 4> room{box.min().x(), c.camera.width - box.max().x(), box.min().y(),
+                                     c.camera.height - box.max().y()};
+    const auto side = std::max_element(room.begin(), room.end()) - room.begin();
+    const Eigen::Vector2d dir = std::array<Eigen::Vector2d, 4>{Eigen::Vector2d(-1, 0), Eigen::Vector2d(1, 0),
+                                                               Eigen::Vector2d(0, -1), Eigen::Vector2d(0, 1)}[side];
+    const Eigen::Vector2d mid = box.center();
+    const double half = std::abs(dir.dot(box.sizes())) / 2;
+    const Eigen::Vector2d p0 = mid + 0.2 * half * dir, p1 = mid + (half + 0.6 * room[side]) * dir;
+    QVERIFY(room[side] > 40);
+    const QPoint a = view->toWidget(QPointF(p0.x(), p0.y())).toPoint(), b = view->toWidget(QPointF(p1.x(), p1.y())).toPoint();
+    QStringList told;
+    const auto listen = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told << m; });
+    QTest::mousePress(view, Qt::LeftButton, {}, a);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->field.energy; }, 20000));
+    auto steps = [&](long n) {
+      const long now = panel->lastFrame()->steps;
+      return waitFor([&] { return panel->lastFrame()->steps >= now + n; });
+    };
+    QVERIFY(steps(25));
+    for (int i = 1; i <= 20; ++i) {
+      QTest::mouseMove(view, a + (b - a) * (i / 20.0));
+      QVERIFY(steps(3));
+    }
+    QVERIFY(steps(10));
+    auto burnt = [&] {
+      const auto f = panel->lastFrame();
+      return f->labels ? std::count_if(f->labels->begin(), f->labels->end(), simcore::isBurnt) : 0L;
+    };
+    const long burntOff = burnt();
+    QVERIFY(steps(60));
+    const auto f = panel->lastFrame();
+    const Eigen::Vector2d tip = c.camera.project(f->tool.tip);
+    disconnect(listen);
+    qInfo("dragged %.0f px past the outline: the hook's tip %.1f px from the cursor, %.3f N, energy %s; burnt %ld "
+          "elements when it left, %ld after 0.6 s off; said: %s",
+          0.6 * room[side], (tip - p1).norm(), f->tool.force.norm(), f->field.energy ? "on" : "off", burntOff,
+          burnt(), qPrintable(told.join(" | ")));
+    QVERIFY2((tip - p1).norm() < 2.0, "the hook stayed behind the cursor");
+    QVERIFY(f->tool.force.norm() < 0.05);
+    QVERIFY(f->field.energy);
+    QCOMPARE(burnt(), burntOff);
+    QCOMPARE(told.filter("off the organ").size(), 1);
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->field.energy; }));
+    panel->pause();
+    QTest::keyClick(w_.get(), Qt::Key_R);
+  }
+
   // The instrument in hand shows on its button (R, then B): the pressed one in the theme's highlight, the others not
   // (Fusion's pressed shade of the dark theme's button was 8 levels off the others': a person could not tell).
   void theToolInHandLooksPressed() {

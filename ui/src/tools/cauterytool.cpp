@@ -30,6 +30,7 @@ class CauteryTool final : public FrameTool {
     }
     pressed_ = view_.liveShape();
     on_ = true;
+    off_ = false;
     path_.assign(1, f);
     tip_ = onSurface(*hit);
     postInstrument(view_, simcore::InputKind::ToolPose, tip_, false, kTool);
@@ -39,14 +40,25 @@ class CauteryTool final : public FrameTool {
   }
   void move(const QPointF&, const Eigen::Vector2d& f) override {
     if (!on_) return;
-    // The hook follows the surface under the cursor (it stays where it was off the organ), the surface as it was when
+    // The hook follows the surface under the cursor (off the organ, the cursor's ray in the air), the surface as it was when
     // the power came on: the one under the cursor now is the one the hook's own shaft pushed and dragged (a straight
     // drag across the phantom built up 18 N on the hook, the tissue carried along in front of the shaft).
     if (const auto hit = view_.liveSurfaceAt(f, FrameView::SurfacePick::Point, &pressed_)) {
       tip_ = onSurface(*hit);
       path_.push_back(f);
-      postInstrument(view_, simcore::InputKind::ToolPose, tip_, false, kTool);
+      off_ = false;
+    } else {
+      // Off the organ the hook leaves the tissue: it follows the cursor through the air at the depth it had (the ray
+      // misses the organ, so no point of it is in the tissue). It stayed at the edge, burning there with the power
+      // still on, while the cursor went on (a person's drag past the organ's outline).
+      const Eigen::Vector3d ray = view_.caseData()->camera.K.inverse() * Eigen::Vector3d(f.x(), f.y(), 1.0);
+      tip_ = ray * (tip_.z() / ray.z());
+      if (!off_)
+        emit view_.toolMessage(
+            QObject::tr("The hook is off the organ: it burns nothing until it is back on the tissue."));
+      off_ = true;
     }
+    postInstrument(view_, simcore::InputKind::ToolPose, tip_, false, kTool);
   }
   void release(QMouseEvent*) override {
     if (!on_) return;
@@ -88,6 +100,7 @@ class CauteryTool final : public FrameTool {
   static constexpr int kTool = 4;           ///< the cautery's instrument index (scripts' "cautery")
   static constexpr double kPress = 0.0005;  ///< m: how far the shaft's end presses into the surface under the cursor
   bool on_ = false;
+  bool off_ = false;  ///< the drag has left the organ: the hook is in the air
   Eigen::Vector3d tip_ = Eigen::Vector3d::Zero();
   std::vector<Eigen::Vector2d> path_;
   std::vector<Eigen::Vector3d> pressed_;  ///< the live shape when the power came on (camera frame)
