@@ -14,6 +14,7 @@
 #include <rehearse/app/recording.hpp>
 #include <rehearse/simcore/cut.hpp>
 #include <rehearse/simcore/session/session.hpp>
+#include <rehearse/simcore/session/strokes.hpp>
 
 #include <QtTest>
 #include <nlohmann/json.hpp>
@@ -567,6 +568,36 @@ class TestCut : public QObject {
     QCOMPARE(partwayPieces, 1);
     QVERIFY(partwayNodes > nodes1);  // it cut (faces opened: nodes duplicated), part of the way
     QVERIFY(partway.contains("still in one piece (the cut did not go through)"));
+  }
+
+  // A stroke that chips a fragment off the organ (under 1 % of it) does not say the organ came apart: a person's three
+  // shallow strokes across the phantom each read "the organ came apart", its smallest pieces 0.1-0.3 mL of 415 mL.
+  // A piece of 1 % or more still does (the through-cut above: 21.4 mL of 414.7, 5 %).
+  void aChippedFragmentIsNotTheOrganComingApart() {
+    simcore::StrokeTracker::Stroke st;
+    st.updates = 3;
+    st.split = 24;
+    st.separatedFaces = 25;
+    st.sweeps = 3;
+    auto said = [&](std::size_t before, std::vector<double> mL) {
+      st.piecesBefore = before;
+      for (double& v : mL) v *= 1e-6;
+      std::string m;
+      simcore::StrokeTracker::say(st, mL, m);
+      qInfo("%zu before, %zu pieces: %s", before, mL.size(), m.c_str());
+      return QString::fromStdString(m);
+    };
+    const QString chip = said(1, {415.3, 0.3});
+    QVERIFY(!chip.contains("came apart"));
+    QVERIFY(chip.contains("in one piece but for a fragment under 1 % of it (2 pieces, 1 before)"));
+    QVERIFY(chip.contains("the smallest 0.3 mL"));
+    const QString chips = said(3, {414.8, 0.3, 0.2, 0.1});
+    QVERIFY(chips.contains("but for 3 fragments"));
+    // 4.2 mL is 1.0 % of the 419.5 mL organ: a piece, not a fragment.
+    QVERIFY(said(1, {415.3, 4.2}).contains("the organ came apart (2 pieces, 1 before)"));
+    QVERIFY(said(1, {415.3, 4.1}).contains("but for a fragment"));
+    QVERIFY(said(1, {393.3, 21.4}).contains("the organ came apart (2 pieces, 1 before)"));
+    QVERIFY(said(2, {393.3, 21.4}).contains("still in 2 pieces"));
   }
 
   // A stroke that cut nothing is said too (a blade swept beside the organ used to end in silence: the GUI's scissors

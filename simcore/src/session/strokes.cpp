@@ -49,6 +49,7 @@ std::string lowerFirst(std::string s) {
   if (!s.empty() && s[0] >= 'A' && s[0] <= 'Z') s[0] = static_cast<char>(s[0] - 'A' + 'a');
   return s;
 }
+constexpr double kFragmentShare = 0.01;  // of the organ's volume: a smaller piece is a fragment
 }  // namespace
 
 void StrokeTracker::say(const Stroke& s, const std::vector<double>& volumes, std::string& message) {
@@ -81,7 +82,18 @@ void StrokeTracker::say(const Stroke& s, const std::vector<double>& volumes, std
         off += buf;
       }
     }
-    m += pieces > s.piecesBefore
+    // Pieces under 1 % of the organ are fragments the blade chipped off, not the organ coming apart (a person's three
+    // shallow strokes across the phantom each read "the organ came apart", its smallest pieces 0.1-0.3 mL of 415).
+    double total = 0;
+    for (double v : volumes) total += v;
+    std::size_t fragments = 0;
+    for (std::size_t k = 1; k < pieces; ++k) fragments += volumes[k] < kFragmentShare * total;
+    const bool chipped = pieces > s.piecesBefore && fragments + 1 == pieces;
+    m += chipped ? "the organ is in one piece but for " +
+                       std::string(fragments == 1 ? "a fragment" : std::to_string(fragments) + " fragments") +
+                       " under 1 % of it (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
+                       " before)" + off + "."
+         : pieces > s.piecesBefore
              ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
                    " before)" + off + "."
              : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
