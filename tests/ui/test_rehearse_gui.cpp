@@ -97,6 +97,21 @@ class TestRehearseGui : public QObject {
       return panel->lastFrame() && panel->lastFrame()->steps > 5 && panel->lastFrame()->positions.size() == nodes;
     });
   }
+  // Started again with the instrument `key` picks in hand: the organ's extent in the frame (pixels), as it is now.
+  [[nodiscard]] bool startedAgainWith(Qt::Key key, ui::Tool tool, Eigen::AlignedBox2d& organ) {
+    if (!startedAgain()) return false;
+    QTest::keyClick(w_.get(), key);
+    if (w_->frameView()->tool() != tool) return false;
+    organ.setEmpty();
+    for (const auto& p : w_->simulationPanel()->lastFrame()->positions) organ.extend(w_->caseData()->camera.project(p));
+    return true;
+  }
+  // `n` more steps played.
+  [[nodiscard]] bool stepsOn(long n) {
+    auto* panel = w_->simulationPanel();
+    const long now = panel->lastFrame()->steps;
+    return waitFor([&] { return panel->lastFrame()->steps >= now + n; });
+  }
   // The incision's mouth (the edges between a cut face and the organ's outer surface where that surface faces the
   // camera), each edge's midpoint's signed distance in frame pixels from the line p0 -> p1 (positive to its left in the
   // image, i.e. above a stroke drawn left to right), for the edges beside the stroke (not beyond its ends).
@@ -907,11 +922,8 @@ class TestRehearseGui : public QObject {
     auto* panel = w_->simulationPanel();
     auto* view = w_->frameView();
     const auto& c = *w_->caseData();
-    QVERIFY(startedAgain());
-    QTest::keyClick(w_.get(), Qt::Key_B);
-    QCOMPARE(view->tool(), ui::Tool::Scissors);
     Eigen::AlignedBox2d box;
-    for (const auto& p : panel->lastFrame()->positions) box.extend(c.camera.project(p));
+    QVERIFY(startedAgainWith(Qt::Key_B, ui::Tool::Scissors, box));
     const double y = box.center().y();
     const Eigen::Vector2d p0(box.min().x() + 0.3 * box.sizes().x(), y), p1(box.min().x() + 0.7 * box.sizes().x(), y);
     const QPoint a = view->toWidget(QPointF(p0.x(), p0.y())).toPoint(), b = view->toWidget(QPointF(p1.x(), p1.y())).toPoint();
@@ -919,8 +931,7 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
     for (int i = 1; i <= 20; ++i) {
       QTest::mouseMove(view, a + (b - a) * (i / 20.0));
-      const long now = panel->lastFrame()->steps;
-      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+      QVERIFY(stepsOn(3));
     }
     {
       const auto f = panel->lastFrame();
@@ -975,11 +986,8 @@ class TestRehearseGui : public QObject {
     auto* panel = w_->simulationPanel();
     auto* view = w_->frameView();
     const auto& c = *w_->caseData();
-    QVERIFY(startedAgain());
-    QTest::keyClick(w_.get(), Qt::Key_J);
-    QCOMPARE(view->tool(), ui::Tool::Cautery);
     Eigen::AlignedBox2d box;
-    for (const auto& p : panel->lastFrame()->positions) box.extend(c.camera.project(p));
+    QVERIFY(startedAgainWith(Qt::Key_J, ui::Tool::Cautery, box));
     const double y = box.center().y() + 0.1 * box.sizes().y();
     const Eigen::Vector2d p0(box.min().x() + 0.3 * box.sizes().x(), y), p1(box.min().x() + 0.7 * box.sizes().x(), y);
     const QPoint a = view->toWidget(QPointF(p0.x(), p0.y())).toPoint(), b = view->toWidget(QPointF(p1.x(), p1.y())).toPoint();
@@ -1032,11 +1040,8 @@ class TestRehearseGui : public QObject {
     auto* panel = w_->simulationPanel();
     auto* view = w_->frameView();
     const auto& c = *w_->caseData();
-    QVERIFY(startedAgain());
-    QTest::keyClick(w_.get(), Qt::Key_J);
-    QCOMPARE(view->tool(), ui::Tool::Cautery);
     Eigen::AlignedBox2d box;
-    for (const auto& p : panel->lastFrame()->positions) box.extend(c.camera.project(p));
+    QVERIFY(startedAgainWith(Qt::Key_J, ui::Tool::Cautery, box));
     // Out past the side of the outline with the most room in the frame, 60 % of the way to the frame's edge.
     const std::array<double, 4> room{box.min().x(), c.camera.width - box.max().x(), box.min().y(),
                                      c.camera.height - box.max().y()};
@@ -1052,22 +1057,18 @@ class TestRehearseGui : public QObject {
     const auto listen = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told << m; });
     QTest::mousePress(view, Qt::LeftButton, {}, a);
     QVERIFY(waitFor([&] { return panel->lastFrame()->field.energy; }, 20000));
-    auto steps = [&](long n) {
-      const long now = panel->lastFrame()->steps;
-      return waitFor([&] { return panel->lastFrame()->steps >= now + n; });
-    };
-    QVERIFY(steps(25));
+    QVERIFY(stepsOn(25));
     for (int i = 1; i <= 20; ++i) {
       QTest::mouseMove(view, a + (b - a) * (i / 20.0));
-      QVERIFY(steps(3));
+      QVERIFY(stepsOn(3));
     }
-    QVERIFY(steps(10));
+    QVERIFY(stepsOn(10));
     auto burnt = [&] {
       const auto f = panel->lastFrame();
       return f->labels ? std::count_if(f->labels->begin(), f->labels->end(), simcore::isBurnt) : 0L;
     };
     const long burntOff = burnt();
-    QVERIFY(steps(60));
+    QVERIFY(stepsOn(60));
     const auto f = panel->lastFrame();
     const Eigen::Vector2d tip = c.camera.project(f->tool.tip);
     disconnect(listen);
