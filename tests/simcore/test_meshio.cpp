@@ -4,6 +4,7 @@
 #include "test_support.hpp"
 #include "test_meshio_support.hpp"
 
+#include <rehearse/simcore/isolated.hpp>
 #include <rehearse/simcore/meshio.hpp>
 
 #include <QElapsedTimer>
@@ -12,8 +13,12 @@
 #include <nlohmann/json.hpp>
 #include <zlib.h>
 
+#include <csignal>
 #include <cstdint>
+#include <cstdlib>
 #include <cstring>
+#include <fcntl.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <numbers>
@@ -544,6 +549,56 @@ class TestMeshIO : public QObject {
       writeFile(p, "");
       QVERIFY_THROWS_EXCEPTION(MeshError, loadMesh(p));
     }
+  }
+  // The surface reader (assimp 5.2, with known memory errors on damaged files) runs in a child process: its crash, its
+  // hang or its exception is a refusal here, this process goes on, and the crash handler the application installs does
+  // not run for the child (it would write a crash report in this process's name).
+  void aReaderThatCrashesIsARefusal() {
+    static char marker[512];
+    const std::string m = tempPath("crash-handler-ran");
+    std::filesystem::remove(m);
+    std::snprintf(marker, sizeof marker, "%s", m.c_str());
+    struct sigaction mine {}, before[2];
+    mine.sa_handler = [](int) {
+      const int fd = ::open(marker, O_WRONLY | O_CREAT, 0600);
+      if (fd >= 0) ::close(fd);
+      ::_exit(3);
+    };
+    sigemptyset(&mine.sa_mask);
+    ::sigaction(SIGSEGV, &mine, &before[0]);
+    ::sigaction(SIGABRT, &mine, &before[1]);
+    const IsolatedResult segv = runIsolated([]() -> std::string { std::raise(SIGSEGV); return "survived"; }, 60);
+    const IsolatedResult abrt = runIsolated([]() -> std::string { std::abort(); }, 60);
+    ::sigaction(SIGSEGV, &before[0], nullptr);
+    ::sigaction(SIGABRT, &before[1], nullptr);
+    QCOMPARE(int(segv.status), int(IsolatedResult::Status::Crashed));
+    QVERIFY2(QString::fromStdString(segv.message).contains("Segmentation fault"), segv.message.c_str());
+    QCOMPARE(int(abrt.status), int(IsolatedResult::Status::Crashed));
+    QVERIFY2(QString::fromStdString(abrt.message).contains("Aborted"), abrt.message.c_str());
+    QVERIFY2(!std::filesystem::exists(m), "the parent's crash handler ran in the child");
+    // An exception crosses as its sentence; a result far larger than the pipe's buffer (64 KiB) arrives whole.
+    const IsolatedResult threw =
+        runIsolated([]() -> std::string { throw MeshError("This surface file is refused for the test."); }, 60);
+    QCOMPARE(int(threw.status), int(IsolatedResult::Status::Threw));
+    QCOMPARE(threw.message, std::string("This surface file is refused for the test."));
+    std::string big(3 << 20, '\0');
+    for (std::size_t i = 0; i < big.size(); ++i) big[i] = static_cast<char>((i * 2654435761u) >> 13);
+    const IsolatedResult done = runIsolated([&] { return big; }, 60);
+    QCOMPARE(int(done.status), int(IsolatedResult::Status::Done));
+    QVERIFY(done.bytes == big);
+    // A reader stuck on a file is stopped.
+    const IsolatedResult stuck = runIsolated([]() -> std::string { ::sleep(600); return {}; }, 0.5);
+    QCOMPARE(int(stuck.status), int(IsolatedResult::Status::TimedOut));
+    // Through the loader: a mesh comes back exactly as read (the corners' coordinates, the part's name).
+    const std::string p = tempPath("named.obj");
+    writeFile(p, "o capsule\nv 0.1 0.2 0.3\nv 1e-7 -4.5 6\nv 7 8 9.25\nv 1 1 1\nf 1 2 3\nf 1 3 4\n");
+    const Mesh read = loadMesh(p);
+    QCOMPARE(read.points.size(), std::size_t(4));
+    QCOMPARE(read.triangles.size(), std::size_t(2));
+    QCOMPARE(read.points[1].x(), double(1e-7f));  // assimp keeps single precision
+    QCOMPARE(read.points[2].z(), 9.25);
+    QCOMPARE(read.labelNames.size(), std::size_t(1));
+    QCOMPARE(QString::fromStdString(read.labelNames[0].second), QString("capsule"));
   }
 };
 

@@ -6,13 +6,23 @@
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 
+#include <rehearse/simcore/isolated.hpp>
+
+#include <cstdint>
+#include <cstring>
 #include <filesystem>
+#include <new>
+#include <string_view>
 #include <map>
 #include <utility>
 #include <vector>
 
 namespace rehearse::simcore {
 namespace {
+
+// The largest surface we accept (kMaxSurfaceItems) reads in well under a minute; a reader still busy after this is
+// stuck on a damaged file.
+constexpr double kSurfaceReadSeconds = 300;
 
 // One node's meshes, with its accumulated transform.
 void collectNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& transform, Mesh& m) {
@@ -66,9 +76,68 @@ void collect(const aiScene* scene, Mesh& m) {
   }
 }
 
-}  // namespace
+// The mesh through the pipe from the child: counts, then the arrays as they lie in memory (the same program on both
+// ends), then the part names.
+template <typename T>
+void put(std::string& out, const T& v) {
+  out.append(reinterpret_cast<const char*>(&v), sizeof v);
+}
+template <typename T>
+void putArray(std::string& out, const std::vector<T>& v) {
+  put(out, static_cast<std::uint64_t>(v.size()));
+  if (!v.empty()) out.append(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(T));
+}
+std::string encode(const Mesh& m) {
+  std::string out;
+  putArray(out, m.points);
+  putArray(out, m.triangles);
+  putArray(out, m.triangleLabels);
+  put(out, static_cast<std::uint64_t>(m.labelNames.size()));
+  for (const auto& [label, name] : m.labelNames) {
+    put(out, static_cast<std::int64_t>(label));
+    put(out, static_cast<std::uint64_t>(name.size()));
+    out += name;
+  }
+  return out;
+}
+struct Reader {
+  std::string_view in;
+  std::size_t at = 0;
+  template <typename T>
+  T get() {
+    if (in.size() - at < sizeof(T)) throw MeshError("This surface file's reader returned a damaged mesh.");
+    T v;
+    std::memcpy(&v, in.data() + at, sizeof v);
+    at += sizeof v;
+    return v;
+  }
+  template <typename T>
+  void getArray(std::vector<T>& v) {
+    const auto n = get<std::uint64_t>();
+    if (n > (in.size() - at) / sizeof(T)) throw MeshError("This surface file's reader returned a damaged mesh.");
+    v.resize(n);
+    if (n > 0) std::memcpy(static_cast<void*>(v.data()), in.data() + at, n * sizeof(T));
+    at += n * sizeof(T);
+  }
+};
+Mesh decode(std::string_view bytes) {
+  Mesh m;
+  Reader r{bytes};
+  r.getArray(m.points);
+  r.getArray(m.triangles);
+  r.getArray(m.triangleLabels);
+  const auto names = r.get<std::uint64_t>();
+  for (std::uint64_t i = 0; i < names; ++i) {
+    const auto label = r.get<std::int64_t>();
+    const auto size = r.get<std::uint64_t>();
+    if (size > bytes.size() - r.at) throw MeshError("This surface file's reader returned a damaged mesh.");
+    m.labelNames.emplace_back(static_cast<int>(label), std::string(bytes.substr(r.at, size)));
+    r.at += size;
+  }
+  return m;
+}
 
-Mesh loadSurfaceAssimp(const std::string& path) {
+Mesh readInThisProcess(const std::string& path) {
   Assimp::Importer importer;
   importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS, aiComponent_NORMALS | aiComponent_TANGENTS_AND_BITANGENTS |
                                                           aiComponent_COLORS | aiComponent_TEXCOORDS |
@@ -99,6 +168,38 @@ Mesh loadSurfaceAssimp(const std::string& path) {
   Mesh m;
   collect(scene, m);
   return m;
+}
+
+}  // namespace
+
+Mesh loadSurfaceAssimp(const std::string& path) {
+  // assimp 5.2 is not ours to mend and its readers have known memory errors on damaged files (a fuzzing run found one
+  // that our checks before it let through): it reads in a child process, and a crash there refuses the file.
+  const IsolatedResult r = runIsolated(
+      [&] {
+        try {
+          return encode(readInThisProcess(path));
+        } catch (const MeshError&) {
+          throw;
+        } catch (const std::bad_alloc&) {
+          throw MeshError("This surface file needs more memory than is available; decimate the mesh first.");
+        } catch (const std::exception& e) {
+          throw MeshError(std::string("This surface file cannot be read (") + e.what() +
+                          "); check that the file is complete and in the format its extension says.");
+        }
+      },
+      kSurfaceReadSeconds);
+  switch (r.status) {
+    case IsolatedResult::Status::Done:
+      return decode(r.bytes);
+    case IsolatedResult::Status::Threw:
+      throw MeshError(r.message);
+    case IsolatedResult::Status::Crashed:
+    case IsolatedResult::Status::TimedOut:
+      break;
+  }
+  throw MeshError("This surface file cannot be read: the reader " + r.message +
+                  " on it; check that the file is complete and in the format its extension says (nothing was changed).");
 }
 
 }  // namespace rehearse::simcore
