@@ -95,18 +95,18 @@ IsolatedResult runIsolated(const std::function<std::string()>& work, double time
   }
   if (timedOut) {
     r.status = IsolatedResult::Status::TimedOut;
-    r.message = "it did not finish within " + std::to_string(static_cast<int>(timeoutSeconds)) + " s";
+    r.message = "did not finish within " + std::to_string(static_cast<int>(timeoutSeconds)) + " s";
     return r;
   }
   if (WIFSIGNALED(status)) {
     r.status = IsolatedResult::Status::Crashed;
     const char* name = ::strsignal(WTERMSIG(status));
-    r.message = std::string("it crashed (") + (name ? name : "signal " + std::to_string(WTERMSIG(status))) + ")";
+    r.message = std::string("crashed (") + (name ? name : "signal " + std::to_string(WTERMSIG(status))) + ")";
     return r;
   }
   if (got.empty() || (got[0] != kDone && got[0] != kThrew) || !WIFEXITED(status) || WEXITSTATUS(status) != 0) {
     r.status = IsolatedResult::Status::Crashed;
-    r.message = "it stopped without a result (exit code " +
+    r.message = "stopped without a result (exit code " +
                 std::to_string(WIFEXITED(status) ? WEXITSTATUS(status) : -1) + ")";
     return r;
   }

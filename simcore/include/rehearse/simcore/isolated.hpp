@@ -17,6 +17,8 @@ struct IsolatedResult {
   };
   Status status = Status::Crashed;
   std::string bytes;
+  /// Threw: the exception's sentence. Crashed, TimedOut: what the child did, to follow "the reader" ("crashed
+  /// (Segmentation fault)", "did not finish within 300 s").
   std::string message;
 };
 
