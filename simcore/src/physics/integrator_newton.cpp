@@ -338,6 +338,7 @@ bool NewtonLoop::withinAccuracy() {
 // factor was built where the organ no longer is (a torn body's first factor is built where the tear began; its flap
 // then springs away).
 bool NewtonLoop::suspect() const {
+  if (in_.verifyEveryEstimate()) return true;
   if ((measured_ && !(contraction_ <= kVerifyRho)) || (ratioMeasured_ && !(correctionRatio_ <= kVerifyRho))) return true;
   if (w.laggedAt.size() != w.x0.size()) return true;
   double far = 0;
