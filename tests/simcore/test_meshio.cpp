@@ -327,8 +327,8 @@ class TestMeshIO : public QObject {
   void damagedPlyAndOff() {
     const std::string xyz = "0 0 0\n1 0 0\n0 1 0\n";
     expectFileRefused("index.ply", plyHeader("ascii", 3, 1) + xyz + "3 0 1 7\n", "refers to vertex 7");
-    expectFileRefused("short.ply", plyHeader("ascii", 3, 2) + xyz + "3 0 1 2\n", "declares 2 faces but holds 1");
-    expectFileRefused("fewvertices.ply", plyHeader("ascii", 5, 1) + xyz, "declares 5 vertices but holds 3");
+    expectFileRefused("short.ply", plyHeader("ascii", 3, 2) + xyz + "3 0 1 2\n", "declares 2 faces but the values after its header make only 1");
+    expectFileRefused("fewvertices.ply", plyHeader("ascii", 5, 1) + xyz, "declares 5 vertices but the values after its header make only 3");
     // Found by fuzzing the readers (tests/fuzz/fuzz_surfaces): a face of 0 corners aborted assimp's triangulation
     // (SIGABRT), ascii or binary; a header line that is not PLY, or a first line that is not 'ply', made assimp loop.
     expectFileRefused("nocorners.ply", plyHeader("ascii", 3, 1) + xyz + "0\n", "has 0 corners; a face needs 3 or more");
@@ -356,13 +356,13 @@ class TestMeshIO : public QObject {
     std::string good = bin;
     bin += char(255);
     for (std::int32_t i : {0, 1, 2}) putLE(bin, i);
-    expectFileRefused("count255.ply", bin, "declares 1 face but holds 0");
+    expectFileRefused("count255.ply", bin, "declares 1 face but the bytes after its header make only 0");
     std::string far = good;
     far += char(3);
     for (std::int32_t i : {0, 1, 100000}) putLE(far, i);
     expectFileRefused("farindex.ply", far, "refers to vertex 100000");
     std::string truncated = good.substr(0, good.size() - 5);
-    expectFileRefused("truncated.ply", truncated, "declares 3 vertices but holds 2");
+    expectFileRefused("truncated.ply", truncated, "declares 3 vertices but the bytes after its header make only 2");
     // A carriage return at the start of a header line (the fuzzer's "x\n\rproperty float y"): assimp then read the
     // faces from the wrong bytes and aborted on its own assertion; CR LF line ends are fine.
     std::string cr = good;
@@ -599,6 +599,15 @@ class TestMeshIO : public QObject {
     QCOMPARE(read.points[2].z(), 9.25);
     QCOMPARE(read.labelNames.size(), std::size_t(1));
     QCOMPARE(QString::fromStdString(read.labelNames[0].second), QString("capsule"));
+    // A vertex that is not a number is refused, not welded into another point with its triangles dropped (a person
+    // imported an OBJ with one "v nan nan nan": 2 triangles fewer and no word).
+    writeFile(p, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv nan nan nan\nf 1 2 3\nf 1 3 4\nf 1 4 2\n");
+    try {
+      loadMesh(p);
+      QFAIL("a vertex that is not a number was accepted");
+    } catch (const MeshError& e) {
+      QVERIFY2(QString(e.what()).contains("non-finite coordinate (NaN or infinity) at vertex"), e.what());
+    }
   }
 };
 

@@ -50,8 +50,12 @@ std::string badIndex(const PlyElement& e, long long row, double index, long long
          plural(static_cast<double>(vertices), "vertice");
 }
 
-std::string shortOf(const PlyElement& e, long long rows) {
-  return "it declares " + plural(static_cast<double>(e.count), elementWord(e.name)) + " but holds " + num(static_cast<double>(rows));
+// The rows the data after the header is enough for, counted in the header's order: a text file's values are not tied to
+// its lines, so a face's line read where a vertex is declared counts as one (a person's file with 3 vertices and a face
+// read "holds 4").
+std::string shortOf(const PlyElement& e, long long rows, bool binary) {
+  return "it declares " + plural(static_cast<double>(e.count), elementWord(e.name)) + " but the " +
+         (binary ? "bytes" : "values") + " after its header make only " + num(static_cast<double>(rows));
 }
 
 // A "property" line of the header (its words `w`), added to the last element.
@@ -134,7 +138,7 @@ std::string plyAsciiProblem(const std::vector<PlyElement>& elements, std::string
   for (const auto& e : elements)
     for (long long row = 0; row < e.count; ++row)
       for (const auto& p : e.properties) {
-        if (!token(t)) return shortOf(e, row);
+        if (!token(t)) return shortOf(e, row, false);
         if (!p.list) continue;
         long long n = 0;
         double d = 0;
@@ -154,7 +158,7 @@ std::string plyAsciiProblem(const std::vector<PlyElement>& elements, std::string
           return "its " + e.name + " " + num(static_cast<double>(row)) + " has " + num(static_cast<double>(n)) +
                  " corners; a face needs 3 or more";
         for (long long k = 0; k < n; ++k) {
-          if (!token(t)) return shortOf(e, row);
+          if (!token(t)) return shortOf(e, row, false);
           if (isIndexList(e, p)) {
             if (!toDouble(t, d)) return "its " + e.name + " " + num(static_cast<double>(row)) + " has a vertex index that is not a number";
             if (!(d >= 0 && d < static_cast<double>(vertices))) return badIndex(e, row, d, vertices);
@@ -195,18 +199,18 @@ std::string plyBinaryProblem(const std::vector<PlyElement>& elements, std::strin
       for (const auto& p : e.properties) row += static_cast<std::size_t>(p.valueBytes);
       const std::size_t left = body.size() - at;
       if (row > 0 && static_cast<double>(row) * static_cast<double>(e.count) > static_cast<double>(left))
-        return shortOf(e, static_cast<long long>(left / row));
+        return shortOf(e, static_cast<long long>(left / row), true);
       at += row * static_cast<std::size_t>(e.count);
       continue;
     }
     for (long long r = 0; r < e.count; ++r)
       for (const auto& p : e.properties) {
         if (!p.list) {
-          if (body.size() - at < static_cast<std::size_t>(p.valueBytes)) return shortOf(e, r);
+          if (body.size() - at < static_cast<std::size_t>(p.valueBytes)) return shortOf(e, r, true);
           at += static_cast<std::size_t>(p.valueBytes);
           continue;
         }
-        if (body.size() - at < static_cast<std::size_t>(p.countBytes)) return shortOf(e, r);
+        if (body.size() - at < static_cast<std::size_t>(p.countBytes)) return shortOf(e, r, true);
         const double n = read(p.countBytes, p.countSigned, false);
         if (n < 0 || n > kMaxFaceCorners)
           return "its " + e.name + " " + num(static_cast<double>(r)) + " has a list of " + num(n) + " values (at most " +
@@ -214,7 +218,7 @@ std::string plyBinaryProblem(const std::vector<PlyElement>& elements, std::strin
         if (isIndexList(e, p) && n < 3)
           return "its " + e.name + " " + num(static_cast<double>(r)) + " has " + num(n) + " corners; a face needs 3 or more";
         const std::size_t need = static_cast<std::size_t>(n) * static_cast<std::size_t>(p.valueBytes);
-        if (body.size() - at < need) return shortOf(e, r);
+        if (body.size() - at < need) return shortOf(e, r, true);
         if (!isIndexList(e, p)) {
           at += need;
           continue;

@@ -8,6 +8,7 @@
 
 #include <rehearse/simcore/isolated.hpp>
 
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -38,6 +39,11 @@ void collectNode(const aiScene* scene, const aiNode* node, const aiMatrix4x4& tr
     std::vector<int> index(mesh->mNumVertices);
     for (unsigned v = 0; v < mesh->mNumVertices; ++v) {
       aiVector3D p = transform * mesh->mVertices[v];
+      // Before the weld: a NaN key compares equal to any other in the map, so a "v nan nan nan" was merged into another
+      // point, its triangles dropped as degenerate, and the file imported with a hole and no word (a person's check).
+      if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z))
+        throw MeshError("This surface file has a non-finite coordinate (NaN or infinity) at vertex " + std::to_string(v) +
+                        " of its part '" + std::string(mesh->mName.C_Str()).substr(0, 60) + "'; the file is damaged.");
       std::array<double, 3> key = {p.x, p.y, p.z};
       auto [it, inserted] = weld.emplace(key, static_cast<int>(m.points.size()));
       if (inserted) m.points.emplace_back(p.x, p.y, p.z);
