@@ -278,8 +278,9 @@ class Integrator {
   const std::vector<ScalarConstraint>& constraints() const { return constraints_; }
   /// Forces the lagged factorisation to be rebuilt at the next step (after a parameter change).
   void invalidateFactorisation();
-  /// With the accuracy asked (SimulationSettings::accuracyPosition), every step that ends on it has its estimate checked
-  /// on the tangent at its end (issue 64): a body that was cut or torn (its flaps' stiffness far from any factor's: on the
+  /// With the accuracy asked (SimulationSettings::accuracyPosition) and a lagged CHOLMOD factor, every step's estimate
+  /// is checked on the tangent at its end, whatever ended it (issue 64): for a body that was cut or torn (FemBody sets it
+  /// from BodySetup::topology; its flaps' stiffness is far from any factor's: on the
   /// patient liver after tears, steps ending after 1-3 chord iterations estimated 0.003-0.025 mm where exact Newton's
   /// answer was 0.09-0.52 mm away). The step's end is not moved; a distance not confirmed is said as such.
   void setVerifyEveryEstimate(bool on) { verifyEveryEstimate_ = on; }
