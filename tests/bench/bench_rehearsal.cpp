@@ -8,6 +8,8 @@
 // Writes rehearsal-pull.csv and rehearsal-cut.csv into the directory given (default ".").
 //   bench_rehearsal [OUT_DIR] [--quick] [--cut-repeats N] [--only VARIANT]   (N runs of the cut scenario, their steps
 //   pooled; only one pull variant on the built-in liver, no cut)
+//   bench_rehearsal [OUT_DIR] --cut TEXT [--cut-repeats N]   (the cut table alone, its variants whose name contains
+//   TEXT: "chord" is the window's default, chord with the asynchronous refresh and the 0.05 mm accuracy)
 //   bench_rehearsal [OUT_DIR] --real [--organ NAME] [--only VARIANT]   (only the real organs: grasp-pull and
 //   contact-pull at the patient's size, started in equilibrium; also part of a full run, not of --quick)
 #include "phantom/presets.hpp"
@@ -84,9 +86,11 @@ struct Variant {
   // 3 cm away) instead of coming from the default trocar: it presses on the tissue beside the grasp while pulling.
   bool shaftOnSurface = false;
   double tolerance = 1e-6;  // relative residual (not the linearised method's: its one solve is its step)
+  double accuracy = 0;      // m: SimulationSettings::accuracyPosition (the GUI's 0.05 mm; 0: the residual alone)
   std::string name() const {
     char tol[32] = "";
     if (tolerance != 1e-6) std::snprintf(tol, sizeof tol, "@%g", tolerance);
+    if (accuracy > 0) std::snprintf(tol, sizeof tol, "@%g mm", 1e3 * accuracy);
     return toString(method) + (refresh == FactorRefresh::Asynchronous ? "+async" : "") +
            (toolRadius > 0 ? "+contact" : "") + (shaftOnSurface ? "+touching" : "") + tol;
   }
@@ -335,6 +339,7 @@ void cutRun(const std::string& organ, const Variant& v, const std::string& share
   BodySetup s = setupFor(organ, shared);
   s.settings.method = v.method;
   s.settings.factorRefresh = v.refresh;
+  s.settings.accuracyPosition = v.accuracy;
   Eigen::AlignedBox3d box;
   for (const auto& p : s.mesh.points) box.extend(p);
   const Eigen::Vector3d size = box.sizes();
@@ -405,7 +410,7 @@ void cutRun(const std::string& organ, const Variant& v, const std::string& share
 
 // A cut across each organ with three methods (rehearsal-cut.csv).
 void cutTable(const std::vector<std::string>& organs, const std::string& shared, const std::string& out, bool quick,
-              int cutRepeats) {
+              int cutRepeats, const std::string& cutOnly) {
   std::ofstream cutCsv(out + "/rehearsal-cut.csv");
   std::printf(
       "\nA cut across the organ (plane a quarter of its width from its left end, the blade in 12 poses, 3 steps of 10 "
@@ -415,8 +420,11 @@ void cutTable(const std::vector<std::string>& organs, const std::string& shared,
   cutCsv << "organ,method,updates,remesh_median_ms,remesh_p99_ms,step_with_cut_median_ms,step_with_cut_p99_ms,slowest_"
             "step_ms,elements_before,elements_after\n";
   for (const auto& organ : organs) {
+    Variant gui{NewtonMethod::Chord, FactorRefresh::Asynchronous};  // the window's default
+    gui.accuracy = 5e-5;
     for (const Variant& v : {Variant{NewtonMethod::Exact}, Variant{NewtonMethod::Linearised},
-                             Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous}}) {
+                             Variant{NewtonMethod::Linearised, FactorRefresh::Asynchronous}, gui}) {
+      if (!cutOnly.empty() && v.name().find(cutOnly) == std::string::npos) continue;
       cutRun(organ, v, shared, quick, cutRepeats, cutCsv);
     }
   }
@@ -430,6 +438,7 @@ int main(int argc, char** argv) {
   std::string only;    // one pull variant by name (e.g. "linearised"), on the built-in liver only, and no cut: A/B runs
   bool real = false;   // only the real organs' section
   std::string organ;   // --real: only the organs whose name contains this (e.g. "patient"); with --only, one variant
+  std::string cutOnly;  // --cut VARIANT: only the cut table, its variants whose name contains this
   int cutRepeats = 1;  // the cut scenario run this many times, its steps pooled (a comparison of builds wants more
                        // than the 3 updates of one run: each waits for a body built on the other core)
   for (int i = 1; i < argc; ++i) {
@@ -439,6 +448,8 @@ int main(int argc, char** argv) {
       cutRepeats = std::max(1, std::atoi(argv[++i]));
     else if (!std::strcmp(argv[i], "--only") && i + 1 < argc)
       only = argv[++i];
+    else if (!std::strcmp(argv[i], "--cut") && i + 1 < argc)
+      cutOnly = argv[++i];
     else if (!std::strcmp(argv[i], "--real"))
       real = true;
     else if (!std::strcmp(argv[i], "--organ") && i + 1 < argc)
@@ -459,10 +470,11 @@ int main(int argc, char** argv) {
   else if (only.empty())
     std::printf("(sofa-liver skipped: %s/sofa/liver.msh is absent)\n", shared.c_str());
 
-  pullTable(organs, shared, out, only, quick);
+  if (cutOnly.empty()) pullTable(organs, shared, out, only, quick);
 
   if (!only.empty()) return 0;
-  cutTable(organs, shared, out, quick, cutRepeats);
+  cutTable(organs, shared, out, quick, cutRepeats, cutOnly);
+  if (!cutOnly.empty()) return 0;
   if (quick) return 0;
 
   realOrgans(out, shared, "", "");

@@ -710,6 +710,15 @@ class TestRehearseGui : public QObject {
     const QPointF a = view->toWidget(QPointF(from.x(), from.y())), b = view->toWidget(QPointF(to.x(), to.y()));
     const std::size_t elements0 = start->elements, nodes0 = start->positions.size();
     const double mass0 = start->mass;
+    // The slowest step from the press to 30 steps after the release, for the log (issue 64: a person saw one of 727 ms
+    // after a stroke on the phantom).
+    simcore::StepReport slowest;
+    long slowestAt = 0;
+    const auto watched = connect(panel, &ui::SimulationPanel::frameShown, this, [&] {
+      const auto f = panel->lastFrame();
+      if (f->report.wallMs > slowest.wallMs) slowest = f->report, slowestAt = f->steps;
+    });
+    const auto unwatch = qScopeGuard([&] { disconnect(watched); });
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
     QStringList said;  // what the session said during the stroke (each sentence once), for the log
@@ -725,6 +734,10 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.cutting; }));
     const long at = panel->lastFrame()->steps;
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 30; }));
+    disconnect(watched);
+    qInfo("slowest step of the stroke and after it: step %ld, %.1f ms, %d Newton iterations, %d retries, %d "
+          "factorisations%s", slowestAt, slowest.wallMs, slowest.newtonIterations, slowest.retries,
+          slowest.factorisations, slowest.inversionLimited ? ", inversion-limited" : "");
     const auto f = panel->lastFrame();
     QVERIFY(f->surface != nullptr);
     qInfo("cut: %zu -> %zu elements, %zu -> %zu nodes, mass %.12f -> %.12f kg, %zu cut-tissue triangles", elements0,
