@@ -404,7 +404,7 @@ int exactCheck(std::int64_t id, const Recording& rec, const Options& o) {
   std::ofstream csv(out);
   if (!csv) throw UsageError("--exact-check: " + out + " cannot be written");
   csv << "step,time_s,events,outcome,ended_on_accuracy,residual,iterations,factorisations,estimate_mm,true_mm,"
-         "force_estimate_n,force_error_n,force_n,exact_iterations,exact_events,resolved,own_converged_mm,own_to_exact_mm,why\n";
+         "force_estimate_n,force_error_n,force_n,exact_iterations,exact_events,resolved,own_converged_mm,own_to_exact_mm,exact_from_end_mm,why\n";
   long checked = 0, unresolved = 0, beyond = 0, under = 0, lowAt = -1, worstAt = -1, otherSolution = 0;
   double otherApart = 0;
   double worst = 0, worstForce = 0, lowest = 1e300;
@@ -420,15 +420,15 @@ int exactCheck(std::int64_t id, const Recording& rec, const Options& o) {
         << t.report.withinAccuracy << ',' << t.report.residual << ',' << t.report.newtonIterations << ','
         << t.report.factorisations << ',' << 1e3 * t.report.errorPosition << ',' << 1e3 * t.errorPosition << ','
         << t.report.errorForce << ',' << t.errorForce << ',' << t.force << ',' << t.exactIterations << ",\""
-        << exactSaid << "\"," << t.resolved << ',' << 1e3 * t.ownConverged << ',' << 1e3 * t.ownToExact << ",\""
-        << t.why << "\"\n";
+        << exactSaid << "\"," << t.resolved << ',' << 1e3 * t.ownConverged << ',' << 1e3 * t.ownToExact << ','
+        << 1e3 * t.exactFromEnd << ",\"" << t.why << "\"\n";
     if (!t.resolved) {
       ++unresolved;
       return true;
     }
     if (t.anotherSolution(asked)) {
       ++otherSolution;
-      otherApart = std::max(otherApart, t.ownToExact);
+      otherApart = std::max(otherApart, std::isfinite(t.ownToExact) ? t.ownToExact : t.errorPosition);
       return true;
     }
     if (t.errorPosition > worst) worst = t.errorPosition, worstAt = t.step;

@@ -96,7 +96,7 @@ int main(int argc, char** argv) {
   if (exactCheck) {
     exactRows.open(out + "/operative-exact.csv");
     exactRows << "variant,step,time_s,events,ended_on_accuracy,residual,iterations,factorisations,estimate_mm,true_mm,"
-                 "force_error_n,resolved,own_converged_mm,own_to_exact_mm,why\n";
+                 "force_error_n,resolved,own_converged_mm,own_to_exact_mm,exact_from_end_mm,why\n";
   }
   std::printf("%-22s %-14s %-14s %6s %9s %9s %9s %s\n", "variant", "script", "phase", "steps", "median ms", "p99",
               "worst", "converged/inexact/other  largest error estimate  events");
@@ -191,7 +191,8 @@ int main(int argc, char** argv) {
           exactRows << '"' << v.name << "\"," << t.step << ',' << t.time << ",\"" << said << "\"," << t.report.withinAccuracy
                     << ',' << t.report.residual << ',' << t.report.newtonIterations << ',' << t.report.factorisations << ','
                     << 1e3 * t.report.errorPosition << ',' << 1e3 * t.errorPosition << ',' << t.errorForce << ','
-                    << t.resolved << ',' << 1e3 * t.ownConverged << ',' << 1e3 * t.ownToExact << ",\"" << t.why << "\"\n";
+                    << t.resolved << ',' << 1e3 * t.ownConverged << ',' << 1e3 * t.ownToExact << ','
+                    << 1e3 * t.exactFromEnd << ",\"" << t.why << "\"\n";
           Truth& p = truths[phaseOf(t.time)];
           if (!t.resolved) return ++p.unresolved, true;
           if (t.anotherSolution(asked)) return ++p.other, true;

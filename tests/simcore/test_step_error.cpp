@@ -445,6 +445,46 @@ class TestStepError : public QObject {
     QVERIFY2(lowest >= 0.5, qPrintable(lowestAt));
   }
 
+  // The offline check's second start (checkAgainstExact, StepTruth::exactFromEnd): SimulationState::firstIterate moves
+  // only where a step's Newton iterations start, not its equations. Started at its own answer, exact Newton stays there
+  // (no iteration, the same positions to its tolerance); started twice as far out as the answer's move, it comes back to
+  // the same answer (this pull has one); the field is cleared by the step.
+  void aStepStartedElsewhereSolvesTheSameEquations() {
+    const BodySetup b = testing::presetBody("liver");
+    const FemModel m = FemModel::build(b.mesh, b.byLabel, b.material);
+    SimulationSettings s = b.settings;
+    s.method = NewtonMethod::Exact;
+    s.tolerance = 1e-10;
+    s.maxNewtonIterations = 60;
+    Integrator in(m, b.fixedNodes, s);
+    SimulationState state = in.initialState();
+    const int node = lowestFreeNode(m, b.fixedNodes, s.gravity);
+    for (int k = 0; k < 5; ++k) {  // a pull under way: the step below starts moving
+      in.setConstraints(testing::holdAt(node, m.rest[static_cast<std::size_t>(node)] + Eigen::Vector3d(0, 0.002 * k, 0)));
+      QVERIFY(in.step(state).ok);
+    }
+    in.setConstraints(testing::holdAt(node, m.rest[static_cast<std::size_t>(node)] + Eigen::Vector3d(0, 0.012, 0)));
+    const SimulationState start = state;
+    SimulationState plain = start;
+    const StepReport ref = in.step(plain);
+    QVERIFY2(ref.ok && ref.outcome == StepStatus::Converged, ref.status.c_str());
+    const double moved = largestNodeDistance(plain.x, start.x);
+    QVERIFY(moved > 1e-4);  // the step moves the organ (m)
+    const Eigen::VectorXd answer = (plain.x - start.x) / s.timeStep;
+    for (const double far : {1.0, 2.0}) {
+      SimulationState again = start;
+      again.firstIterate = far * answer;
+      const StepReport rep = in.step(again);
+      QVERIFY2(rep.ok && rep.outcome == StepStatus::Converged, rep.status.c_str());
+      QCOMPARE(again.firstIterate.size(), Eigen::Index(0));
+      const double apart = largestNodeDistance(again.x, plain.x);
+      qInfo("started %.0fx the answer's move (%.3f mm): %d iterations (from the step's start %d), %.2e mm from its answer",
+            far, 1e3 * far * moved, rep.newtonIterations, ref.newtonIterations, 1e3 * apart);
+      QVERIFY2(apart < 1e-3 * moved, qPrintable(QString::number(1e3 * apart) + " mm apart"));
+      if (far == 1.0) QVERIFY(rep.newtonIterations <= 1);
+    }
+  }
+
   // The estimate changes nothing a step computes: the same run with it off gives the same bits.
   void estimatingChangesNothing() {
     const BodySetup b = testing::presetBody("liver");

@@ -255,7 +255,8 @@ Integrator::Try Integrator::tryStep(Eigen::VectorXd& x, Eigen::VectorXd& v, doub
   const bool hasConstraints = !attachmentConstraints_.empty() || !constraints_.empty();
   w.x0 = x;
   w.v0 = v;
-  w.v = v;
+  w.v = w.useFirstIterate ? w.firstIterate : v;  // (an offline check starts Newton where a run ended)
+  w.useFirstIterate = false;
   project(w.v);
   w.Mv0 = mass3_.cwiseProduct(w.v0);
   if (lagged) {
@@ -370,6 +371,9 @@ StepReport Integrator::step(SimulationState& state) {
   Work& w = *w_;
   w.savedX = state.x;
   w.savedV = state.v;
+  w.useFirstIterate = state.firstIterate.size() == state.v.size() && state.v.size() > 0;
+  if (w.useFirstIterate) w.firstIterate.swap(state.firstIterate);
+  state.firstIterate.resize(0);
   StepReport rep;
   // Settings edited after construction are checked again: refused, never silently changed.
   if (const std::string problem = settingsProblem(settings_, !constraints_.empty()); !problem.empty()) {

@@ -21,6 +21,8 @@ struct Integrator::Work {
   Eigen::SparseMatrix<double> K;   // tangent stiffness at the current iterate
   Eigen::SparseMatrix<double> J;   // the factorised Newton matrix (exact, or lagged)
   Eigen::VectorXd x0, v0, Mv0, v, vn, xt, r, rn, dv, f, tmp, savedX, savedV, stepX, stepV;
+  Eigen::VectorXd firstIterate;   // SimulationState::firstIterate, for the step's first try
+  bool useFirstIterate = false;
   Eigen::VectorXd pr, pz, pp, pq, pk, pn, py;  // PCG (py: newton-krylov's multiplier correction)
   ConstraintSolver cons;                       // attachments (Lagrange mode) then the extra constraints
   Eigen::VectorXd lambdaOut;                   // multipliers of the last solve, as forces (N)

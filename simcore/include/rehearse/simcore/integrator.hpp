@@ -181,6 +181,10 @@ struct SimulationState {
   } lagged;
   Eigen::VectorXd forces;  ///< elastic forces at x from the last step (3n, projected), when forcesValid
   bool forcesValid = false;
+  /// An offline check's (checkAgainstExact): the velocities (3n) the next step's first try starts its iterations from,
+  /// instead of v (the step's equations stay v's: only where Newton starts changes). Taken and cleared by the step;
+  /// empty otherwise. Not part of a recording's state.
+  Eigen::VectorXd firstIterate;
 };
 
 struct StepReport {

@@ -32,8 +32,14 @@ struct StepTruth {
   /// Newton went to (a torn flap resting either way). NaN when not taken or not converged.
   double ownConverged = std::numeric_limits<double>::quiet_NaN();
   double ownToExact = std::numeric_limits<double>::quiet_NaN();
-  /// The run's own method converged lies where the run is (within `asked`, m, or twice its estimate) and exact Newton's
-  /// answer elsewhere: the step's equations have two solutions there, the run's one of them (not an error of the run).
+  /// Taken where ownConverged is: exact Newton on the same step's equations started where the run ended
+  /// (SimulationState::firstIterate) instead of at the step's start: its answer's distance from the run's end (m). Small,
+  /// the run lies by a solution of its equations, another than the one exact Newton reached from the start. NaN when
+  /// not taken or not converged.
+  double exactFromEnd = std::numeric_limits<double>::quiet_NaN();
+  /// The run's own method converged, or exact Newton started where the run ended, lies where the run is (within `asked`,
+  /// m, or twice its estimate) and exact Newton's answer from the start elsewhere: the step's equations have two
+  /// solutions there, the run's one of them (not an error of the run).
   bool anotherSolution(double asked) const;
 };
 
