@@ -428,7 +428,7 @@ int exactCheck(std::int64_t id, const Recording& rec, const Options& o) {
     }
     if (t.anotherSolution(asked)) {
       ++otherSolution;
-      otherApart = std::max(otherApart, std::isfinite(t.ownToExact) ? t.ownToExact : t.errorPosition);
+      otherApart = std::max(otherApart, t.errorPosition);  // where exact Newton's other answer lies from the run
       return true;
     }
     if (t.errorPosition > worst) worst = t.errorPosition, worstAt = t.step;
@@ -448,7 +448,8 @@ int exactCheck(std::int64_t id, const Recording& rec, const Options& o) {
               checked, steps, 1e3 * worst, worstAt, worstForce, unresolved);
   if (otherSolution > 0)
     std::printf("%ld step(s) where exact Newton went to another solution of the step's equations (up to %.4f mm away): the "
-                "run's own method, converged as far, stays by the run's answer; not counted above\n",
+                "run's own method converged as far, or exact Newton started where the run ended, stays by the run's answer; not "
+                "counted above\n",
                 otherSolution, 1e3 * otherApart);
   if (lowAt >= 0)
     std::printf("the run's own estimate at least %.2f times the truth (step %ld) where the truth is over %.4f mm; %ld under "

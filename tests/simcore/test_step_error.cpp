@@ -485,6 +485,26 @@ class TestStepError : public QObject {
     }
   }
 
+  // What the check counts as another solution rather than the run's error: a converged answer by the run (its own
+  // method's, or exact Newton's started where it ended) within what it asked, exact Newton's from the start beyond it.
+  void anotherSolutionNeedsAnAnswerByTheRun() {
+    StepTruth t;
+    t.report.errorPosition = 1e-5;  // estimated 0.01 mm; 0.05 mm asked
+    t.errorPosition = 4e-4;         // exact Newton's answer 0.4 mm away
+    QVERIFY(!t.anotherSolution(5e-5));  // nothing found by the run: its error
+    t.exactFromEnd = 3e-4;              // Newton from the run's end went as far: no answer by it either
+    QVERIFY(!t.anotherSolution(5e-5));
+    t.exactFromEnd = 2e-5;  // an answer 0.02 mm from the run
+    QVERIFY(t.anotherSolution(5e-5));
+    t.errorPosition = 3e-5;  // exact Newton's own answer is within the accuracy too: the same one, no other
+    QVERIFY(!t.anotherSolution(5e-5));
+    StepTruth own;
+    own.report.errorPosition = 1e-5;
+    own.errorPosition = 4e-4;
+    own.ownConverged = 1e-5, own.ownToExact = 3.9e-4;  // the run's method converged by the run, far from exact Newton's
+    QVERIFY(own.anotherSolution(5e-5));
+  }
+
   // The estimate changes nothing a step computes: the same run with it off gives the same bits.
   void estimatingChangesNothing() {
     const BodySetup b = testing::presetBody("liver");
