@@ -12,13 +12,16 @@
 // from the same start (simcore::checkAgainstExact, as `rehearse replay --exact-check`): per phase the largest true
 // error, the lowest estimate for its truth (where the truth is over 5 um), the steps past the accuracy asked, and those
 // where exact Newton went to another solution of the step's equations. Writes operative-steps.csv into the directory
-// given (default "."). --only TEXT runs the variants whose name contains TEXT (=NAME: that one).
-//   bench_operative [OUT_DIR] [--repeat N] [--only TEXT] [--exact-check]
+// given (default "."). --only TEXT runs the variants whose name contains TEXT (=NAME: that one). --record CASE records
+// each variant's last run into CASE (a .rehearse file, as `rehearse gesture --record`): a run of the asynchronous
+// variants is not repeatable, and `rehearse replay CASE --exact-check` checks a kept one again.
+//   bench_operative [OUT_DIR] [--repeat N] [--only TEXT] [--exact-check] [--record CASE]
 #include "percentile.hpp"
 #include "operative_case.hpp"
 #include "session_inputs.hpp"
 
 #include <rehearse/app/gesture.hpp>
+#include <rehearse/app/recording.hpp>
 #include <rehearse/simcore/scene.hpp>
 #include <rehearse/simcore/session/step_truth.hpp>
 
@@ -31,6 +34,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <memory>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -58,6 +62,7 @@ int main(int argc, char** argv) {
   int repeat = 3;
   std::string only;  // run only the variants whose name contains this
   bool exactCheck = false;
+  std::string record;  // --record CASE
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--exact-check") == 0)
       exactCheck = true;
@@ -65,6 +70,8 @@ int main(int argc, char** argv) {
       repeat = std::max(1, std::atoi(argv[++i]));
     else if (std::strcmp(argv[i], "--only") == 0 && i + 1 < argc)
       only = argv[++i];
+    else if (std::strcmp(argv[i], "--record") == 0 && i + 1 < argc)
+      record = argv[++i];
     else
       out = argv[i];
   }
@@ -134,14 +141,34 @@ int main(int argc, char** argv) {
       simcore::BodySetup ran;  // the last run's setup and events (for --exact-check)
       std::vector<simcore::InputEvent> recorded;
       long stepsRun = 0;
+      std::unique_ptr<app::Recorder> recorder;  // --record: the last run
+      bool last = false;
       app::GestureHooks hooks;
-      hooks.start = [&](const simcore::BodySetup& b) { ran = b; };
+      hooks.start = [&](const simcore::BodySetup& b) {
+        ran = b;
+        if (last && !record.empty()) {
+          app::SessionMeta meta;
+          meta.caseName = dir + "/scene.json";
+          meta.sceneVersion = dir + "/chole.json";
+          meta.appVersion = REHEARSE_VERSION;
+          meta.notes = std::string("bench_operative, ") + v.name;
+          recorder = std::make_unique<app::Recorder>(record, meta, b);
+        }
+      };
       hooks.step = [&](const simcore::StepRecord& r) {
         stepsRun = r.step;
         if (r.recorded) recorded = *r.recorded;
+        if (recorder) recorder->afterStep(r);
       };
       for (int r = 0; r < repeat; ++r) {
+        last = r + 1 == repeat;
         const app::GestureResult g = app::runGesture(s, script, hooks);
+        if (recorder) {
+          recorder->finish(stepsRun);
+          std::printf("recorded: session %lld in %s (%ld steps)\n", static_cast<long long>(recorder->id()),
+                      record.c_str(), stepsRun);
+          recorder.reset();
+        }
         std::map<std::string, std::vector<double>> ms;
         statuses.clear();
         events.clear();

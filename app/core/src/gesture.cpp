@@ -204,6 +204,7 @@ GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, 
   std::size_t next = 0;
   int tool = 0;  // 0 grasper, 1 scissors, 2 hook, 3 clip applier, 4 cautery
   for (long k = 0; k < steps; ++k) {
+    if (hooks.boundary) hooks.boundary(k, session);
     const double t = k * h;
     while (next < script.events.size() && script.events[next].t <= t + 1e-9) {
       const GestureEvent& e = script.events[next++];

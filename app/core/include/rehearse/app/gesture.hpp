@@ -95,10 +95,12 @@ struct GestureResult {
 
 /// Called as the script runs (e.g. to record it): `start` with the setup the session is built from (the
 /// script's tools and time step applied), `step` after each step (the session's step hook: on the stepping
-/// thread, under its lock).
+/// thread, under its lock), `boundary` at each step boundary before the script's own events there (k: the steps taken;
+/// e.g. a test posting the factors and topology changes an asynchronous run recorded, on a deferred session).
 struct GestureHooks {
   std::function<void(const simcore::BodySetup&)> start;
   std::function<void(const simcore::StepRecord&)> step;
+  std::function<void(long k, simcore::Session&)> boundary;
 };
 /// Runs the script on a session built from `setup` (its tools and time step set from the script).
 GestureResult runGesture(simcore::BodySetup setup, const GestureScript& script, const GestureHooks& hooks = {});
