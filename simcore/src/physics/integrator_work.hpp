@@ -72,6 +72,7 @@ struct Integrator::Work {
   // Newton-Krylov: the tangent prepared with the last residual (at tangentItAt: the current iterate, then the step's
   // end, which the next step starting there reuses for its damping).
   TangentState tangentIt;
+  TangentState tangentSpare;  // NewtonLoop::secondCorrection's tangent (tangentIt stays the step end's)
   Eigen::VectorXd tangentItAt;
   bool tangentItValid = false;
   Eigen::VectorXd bestX, bestV;  // the attempt with the smallest residual (a step that does not converge)

@@ -122,11 +122,13 @@ class NewtonLoop : public NewtonIteration {
   // Within: confirmed within the accuracy. Move: not (w.dv the Newton step there). Indefinite: the tangent at the
   // iterate is. Unresolved: the contacts' problem was not solved (its sweeps ran out) or changes its set. Failed: no
   // solve.
-  enum class Verdict { Within, Move, Indefinite, Unresolved, Failed };
+  // Far: outside Newton's region (its second correction more than a tenth of its first): the distance is not known.
+  enum class Verdict { Within, Move, Indefinite, Unresolved, Far, Failed };
   void start();
   double lineSearch(double rnew);
   bool withinAccuracy();
   Verdict verify();
+  double secondCorrection();
   bool contactsChange();
   bool suspect() const;
   Try finish(bool ok, int maxIterations);
