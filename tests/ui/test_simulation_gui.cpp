@@ -311,6 +311,58 @@ void TestSimulationGui::aRefusedStartIsSaidUntilItsCauseGoes() {
 // Issue 64: the accuracy each step is asked for, in millimetres on the Simulation panel: the session runs with the
 // field's value (0, shown as the residual's rule, by default), a value typed there reaches the running session, 0
 // goes back to the relative residual alone; the steps run at 0.05 mm say they are within it.
+// Issue 64 (a person's check after a tear on the phantom): the status line showed a step inexact at a relative residual
+// of 1.8 with "±5e-06 mm", the estimate of an earlier step (the window estimates every 10th step and keeps the last one
+// between them). A step that did not converge and estimated nothing now says its distance is not known.
+void TestSimulationGui::aStepThatDidNotConvergeShowsNoEarlierDistance() {
+  using rehearse::ui::SimulationPanel;
+  rehearse::ui::SimulationFrame f;
+  f.model = rehearse::simcore::BodyModel::Fem;
+  f.steps = 10;
+  f.report.outcome = rehearse::simcore::StepStatus::Converged;
+  f.report.errorPosition = 5e-9;
+  f.report.errorForce = 2e-10;
+  SimulationPanel::ShownError shown = SimulationPanel::shownError(f, {});
+  QCOMPARE(shown.position, 5e-9);
+  QCOMPARE(shown.force, 2e-10);
+  QVERIFY(!shown.unknown);
+  // The next step converged and estimated nothing: the last estimate stays shown.
+  f.steps = 11;
+  f.report = {};
+  f.report.outcome = rehearse::simcore::StepStatus::Converged;
+  shown = SimulationPanel::shownError(f, shown);
+  QCOMPARE(shown.position, 5e-9);
+  // One that did not converge and estimated nothing: not known, and it stays so until a step estimates again.
+  for (const auto outcome : {rehearse::simcore::StepStatus::Inexact, rehearse::simcore::StepStatus::Failed}) {
+    f.steps = 12;
+    f.report.outcome = outcome;
+    f.report.residual = 1.8;
+    const SimulationPanel::ShownError after = SimulationPanel::shownError(f, shown);
+    QVERIFY(!std::isfinite(after.position));
+    QVERIFY(after.unknown);
+    f.steps = 13;
+    f.report = {};
+    f.report.outcome = rehearse::simcore::StepStatus::Converged;
+    QVERIFY(SimulationPanel::shownError(f, after).unknown);
+  }
+  // An inexact step with an estimate of its own shows it.
+  f.report.outcome = rehearse::simcore::StepStatus::Inexact;
+  f.report.errorPosition = 3e-4;
+  shown = SimulationPanel::shownError(f, shown);
+  QCOMPARE(shown.position, 3e-4);
+  QVERIFY(!shown.unknown);
+  // The check on the tangent found it cannot be known.
+  f.report = {};
+  f.report.outcome = rehearse::simcore::StepStatus::Converged;
+  f.report.errorUnknown = true;
+  QVERIFY(SimulationPanel::shownError(f, shown).unknown);
+  // A model that estimates nothing shows nothing, whatever came before.
+  f.report.errorUnknown = false;
+  f.model = rehearse::simcore::BodyModel::Precomputed;
+  const SimulationPanel::ShownError fast = SimulationPanel::shownError(f, shown);
+  QVERIFY(!std::isfinite(fast.position) && !fast.unknown);
+}
+
 void TestSimulationGui::accuracyIsAskedInMillimetres() {
   auto* accuracy = panel_->findChild<QDoubleSpinBox*>("simAccuracy");
   QVERIFY(accuracy);

@@ -34,6 +34,7 @@ class TestSimulationGui : public QObject {
   void simulationViewShowsTheWholeOrgan();
   void liveEditAppliesAtTheNextStep();
   void accuracyIsAskedInMillimetres();
+  void aStepThatDidNotConvergeShowsNoEarlierDistance();
   void vonMisesColouring();
   void resetReturnsToRest();
   void startWhereTheFrameShowsIt();

@@ -379,23 +379,29 @@ void SimulationPanel::reset() {
   updateButtons();
 }
 
-void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
-  last_ = f;
+SimulationPanel::ShownError SimulationPanel::shownError(const SimulationFrame& f, const ShownError& last) {
   // The session estimates its error every 10th step: the last estimate stays shown between them.
   // (The fast models estimate nothing: no estimate of an earlier body is shown for them.)
   // A step whose distance the check on the tangent found cannot be known says so (the estimate before it is not shown
-  // as if it held).
-  if (std::isfinite(f->report.errorPosition)) {
-    lastError_ = f->report.errorPosition;
-    lastForceError_ = std::isfinite(f->report.errorForce) ? f->report.errorForce : 0;
-    errorUnknown_ = false;
-  } else if (f->report.errorUnknown) {
-    lastError_ = std::numeric_limits<double>::quiet_NaN();
-    errorUnknown_ = true;
-  } else if (f->steps == 0 || f->model != simcore::BodyModel::Fem) {
-    lastError_ = std::numeric_limits<double>::quiet_NaN();
-    errorUnknown_ = false;
+  // as if it held), and so does a step that did not converge and estimated nothing.
+  ShownError out;
+  if (std::isfinite(f.report.errorPosition)) {
+    out.position = f.report.errorPosition;
+    out.force = std::isfinite(f.report.errorForce) ? f.report.errorForce : 0;
+  } else if (f.steps == 0 || f.model != simcore::BodyModel::Fem) {
+    // nothing shown
+  } else if (f.report.errorUnknown || f.report.outcome == simcore::StepStatus::Inexact ||
+             f.report.outcome == simcore::StepStatus::Failed) {
+    out.unknown = true;
+  } else {
+    out = last;
   }
+  return out;
+}
+
+void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
+  last_ = f;
+  shown_ = shownError(*f, shown_);
   if (asked_.model != f->model && f->message.contains(u"refused")) {
     // The model asked for was refused or its build cancelled: the list shows what runs.
     asked_.model = f->model;
@@ -451,10 +457,10 @@ QString SimulationPanel::statusText() const {
   // How far the step is from the converged answer, estimated as it ran (issue 64): in millimetres, and in newtons on
   // the tool while it holds or touches the tissue.
   QString error;
-  if (std::isfinite(lastError_)) {
-    error = tr(" · ±%1 mm").arg(QString::number(1e3 * lastError_, 'g', 2));
-    if (lastForceError_ > 0) error += tr(", ±%1 N").arg(QString::number(lastForceError_, 'g', 2));
-  } else if (errorUnknown_) {
+  if (std::isfinite(shown_.position)) {
+    error = tr(" · ±%1 mm").arg(QString::number(1e3 * shown_.position, 'g', 2));
+    if (shown_.force > 0) error += tr(", ±%1 N").arg(QString::number(shown_.force, 'g', 2));
+  } else if (shown_.unknown) {
     error = tr(" · distance from the converged answer not known");
   }
   return tr("t = %1 s · step %2 ms%3 · %4%5 · %6")
