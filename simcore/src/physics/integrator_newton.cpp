@@ -460,7 +460,6 @@ NewtonLoop::Verdict NewtonLoop::verify() {
 // start); w.dv and the iterate as they were. NaN: not solved, or the tangent there is indefinite.
 double NewtonLoop::secondCorrection() {
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  const Eigen::VectorXd end = w.xt;
   w.pk = w.dv;
   std::swap(w.tangentIt, w.tangentSpare);
   w.vn = w.v + w.dv;
@@ -479,9 +478,9 @@ double NewtonLoop::secondCorrection() {
   double largest = 0;
   for (Eigen::Index i = 0; i + 2 < w.dv.size(); i += 3) largest = std::max(largest, w.dv.segment<3>(i).squaredNorm());
   std::swap(w.tangentIt, w.tangentSpare);
-  w.tangentItAt = end;
+  w.xt = w.x0 + h * w.v;  // the step's end again, as verify() made it (into the buffers: nothing allocated in a step)
+  w.tangentItAt = w.xt;
   w.tangentItValid = true;
-  w.xt = end;
   w.dv = w.pk;
   return solved ? h * std::sqrt(largest) : nan;
 }
