@@ -14,8 +14,9 @@
 // where exact Newton went to another solution of the step's equations. Writes operative-steps.csv into the directory
 // given (default "."). --only TEXT runs the variants whose name contains TEXT (=NAME: that one). --record CASE records
 // each variant's last run into CASE (a .rehearse file, as `rehearse gesture --record`): a run of the asynchronous
-// variants is not repeatable, and `rehearse replay CASE --exact-check` checks a kept one again.
-//   bench_operative [OUT_DIR] [--repeat N] [--only TEXT] [--exact-check] [--record CASE]
+// variants is not repeatable, and `rehearse replay CASE --exact-check` checks a kept one again. --damping A,B sets the
+// Rayleigh damping (alpha 1/s, beta s; the case's scene has 1, 0; the GUI's is SimulationSettings{}'s 0.1, 0.1).
+//   bench_operative [OUT_DIR] [--repeat N] [--only TEXT] [--exact-check] [--record CASE] [--damping A,B]
 #include "percentile.hpp"
 #include "operative_case.hpp"
 #include "session_inputs.hpp"
@@ -63,9 +64,17 @@ int main(int argc, char** argv) {
   std::string only;  // run only the variants whose name contains this
   bool exactCheck = false;
   std::string record;  // --record CASE
+  double dampingAlpha = -1, dampingBeta = -1;  // --damping A,B (negative: the scene's)
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--exact-check") == 0)
       exactCheck = true;
+    else if (std::strcmp(argv[i], "--damping") == 0 && i + 1 < argc) {
+      if (std::sscanf(argv[++i], "%lf,%lf", &dampingAlpha, &dampingBeta) != 2 || !(dampingAlpha >= 0) ||
+          !(dampingBeta >= 0)) {
+        std::fprintf(stderr, "--damping takes ALPHA,BETA (two numbers, at least 0)\n");
+        return 2;
+      }
+    }
     else if (std::strcmp(argv[i], "--repeat") == 0 && i + 1 < argc)
       repeat = std::max(1, std::atoi(argv[++i]));
     else if (std::strcmp(argv[i], "--only") == 0 && i + 1 < argc)
@@ -87,6 +96,11 @@ int main(int argc, char** argv) {
   std::printf("patient liver: %zu elements, %zu nodes; cystic artery %d elements\n", oc.elements, oc.nodes, oc.artery);
   simcore::BodySetup base = testing::sceneBody(simcore::loadScene(dir + "/scene.json"));
   base.settings.method = simcore::NewtonMethod::Chord;
+  if (dampingAlpha >= 0) {
+    base.settings.rayleighMass = dampingAlpha;
+    base.settings.rayleighStiffness = dampingBeta;
+  }
+  std::printf("damping: alpha %g 1/s, beta %g s\n", base.settings.rayleighMass, base.settings.rayleighStiffness);
   std::ifstream in(dir + "/chole.json");
   std::stringstream ss;
   ss << in.rdbuf();
