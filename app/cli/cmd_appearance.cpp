@@ -191,6 +191,14 @@ int cmdAppearance(const std::vector<std::string>& args) {
                       c.push_back({{"without", k.part}, {"explained", k.explainedWithout}, {"holds", k.holds}});
                     return c;
                   }()},
+                 {"scope_explained", r.fit.scopeExplained},
+                 {"second_sources",
+                  [&] {
+                    nlohmann::json c = nlohmann::json::array();
+                    for (const auto& k : r.fit.sources)
+                      c.push_back({{"name", k.name}, {"explained", k.explainedWith}, {"used", k.used}});
+                    return c;
+                  }()},
                  {"light_from_lens_mm", 1e3 * r.fit.theta.lightPosition.norm()},
                  {"light_at_bound", r.fit.lightAtBound},
                  {"highlights_disagree", r.fit.highlightsDisagree},
@@ -223,6 +231,13 @@ int cmdAppearance(const std::vector<std::string>& args) {
       1e3 * r.fit.theta.lightPosition.z(), 1e3 * r.fit.theta.lightPosition.norm(), r.fit.theta.falloff,
       r.fit.theta.kd.x(), r.fit.theta.kd.y(), r.fit.theta.kd.z(), r.fit.theta.ks.x(), r.fit.theta.ks.y(),
       r.fit.theta.ks.z(), r.fit.theta.roughness, r.restPsnr, r.totalMs);
+  if (r.fit.theta.hasDistantLight())
+    std::printf("second source: a distant light towards (%.3f, %.3f, %.3f) (camera frame), kr (%.4f, %.4f, %.4f)\n",
+                r.fit.theta.roomDirection.x(), r.fit.theta.roomDirection.y(), r.fit.theta.roomDirection.z(),
+                r.fit.theta.kr.x(), r.fit.theta.kr.y(), r.fit.theta.kr.z());
+  if (r.fit.theta.hasAmbient())
+    std::printf("second source: an ambient term, ka (%.4f, %.4f, %.4f)\n", r.fit.theta.ka.x(), r.fit.theta.ka.y(),
+                r.fit.theta.ka.z());
   if (!r.turn.sentence.empty()) std::printf("%s\n", r.turn.sentence.c_str());
   if (!r.fit.textureOnly && verdict.reshading().trust < 1)
     std::printf("re-shading applies %d %% of the model's change to the frame's colours (it explained %d %%; in full "

@@ -54,16 +54,24 @@ Reshading Reshading::of(double explained, bool textureOnly) {
   return textureOnly ? Reshading{true, 0.0} : Reshading{false, reshadeTrust(explained)};
 }
 
+Eigen::Vector3d Appearance::secondSource(const Eigen::Vector3d& n) const {
+  return kr * std::max(0.0, n.dot(roomDirection)) + ka;
+}
+
 Eigen::Vector3d Appearance::shade(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const {
   double d, s;
   terms(p, n, d, s);
-  return kd * d + ks * s;
+  return kd * d + ks * s + secondSource(n);
 }
 
 std::string appearanceProblem(const Appearance& a, bool zeroRoughness) {
   auto inRange = [](const Eigen::Vector3d& v, double hi) { return v.allFinite() && v.minCoeff() >= 0 && v.maxCoeff() <= hi; };
   if (!inRange(a.kd, 100) || !inRange(a.ks, 100)) return "k_d and k_s must be between 0 and 100 in every channel";
   if (!a.lightPosition.allFinite() || a.lightPosition.norm() > 10) return "the light must be within 10 m of the camera";
+  if (!inRange(a.kr, 100) || !inRange(a.ka, 100)) return "k_r and k_a must be between 0 and 100 in every channel";
+  if (!a.roomDirection.allFinite() || (a.roomDirection.squaredNorm() > 0 && std::abs(a.roomDirection.norm() - 1) > 1e-6) ||
+      (a.roomDirection.squaredNorm() == 0 && a.kr.maxCoeff() > 0))
+    return "the distant light's direction must be a unit vector (towards the light, camera frame)";
   if (!(std::isfinite(a.roughness) && a.roughness <= 10 && (a.roughness > 0 || (zeroRoughness && a.roughness == 0))))
     return "the roughness must be a positive angle of at most 10 rad";
   if (!(a.falloff >= 0 && a.falloff <= 200)) return "falloff (the n of cos^n off the scope's axis) must be between 0 and 200";
@@ -101,6 +109,23 @@ Appearance loadAppearance(const std::string& path, AppearanceVerdict* verdict) {
   a.roughness = number(j, "roughness", "a number (the specular lobe's width, radians)");
   // Files from before the laparoscope's fall-off: an isotropic light.
   a.falloff = j.contains("falloff") ? number(j, "falloff", "a number (the n of cos^n off the scope's axis)") : 0.0;
+  // A second source (files without one, or from before it: none).
+  if (j.contains("distant_light")) {
+    const auto& d = j.at("distant_light");
+    auto bad = [&] {
+      return InputError(name + ": \"distant_light\" must be {\"direction\": three numbers (unit, towards the light, camera " +
+                        "frame), \"kr\": three numbers (its diffuse reflection, red, green, blue)}.");
+    };
+    auto three = [&](const char* key) {
+      if (!d.is_object() || !d.contains(key) || !d.at(key).is_array() || d.at(key).size() != 3 ||
+          !std::all_of(d.at(key).begin(), d.at(key).end(), [](const nlohmann::json& v) { return v.is_number(); }))
+        throw bad();
+      return Eigen::Vector3d(d.at(key)[0].get<double>(), d.at(key)[1].get<double>(), d.at(key)[2].get<double>());
+    };
+    a.roomDirection = three("direction");
+    a.kr = three("kr");
+  }
+  if (j.contains("ambient")) a.ka = triple("ambient", "the ambient term's diffuse reflection, red, green, blue");
   if (const std::string problem = appearanceProblem(a); !problem.empty()) throw InputError(name + ": " + problem + ".");
   if (verdict) {
     *verdict = {};
@@ -128,6 +153,10 @@ void saveAppearance(const Appearance& a, const std::string& path, const Appearan
   j["ks"] = {a.ks.x(), a.ks.y(), a.ks.z()};
   j["roughness"] = a.roughness;
   j["falloff"] = a.falloff;
+  if (a.hasDistantLight())
+    j["distant_light"] = {{"direction", {a.roomDirection.x(), a.roomDirection.y(), a.roomDirection.z()}},
+                          {"kr", {a.kr.x(), a.kr.y(), a.kr.z()}}};
+  if (a.hasAmbient()) j["ambient"] = {a.ka.x(), a.ka.y(), a.ka.z()};
   if (verdict.known)
     j["fit"] = {{"explained", verdict.explained}, {"reshade", verdict.reshade}, {"said", verdict.said}};
   writeFileAtomically(path, j.dump(2) + "\n");

@@ -195,6 +195,7 @@ AppearanceFitResult fitAppearance(const cv::Mat3b& frame, const SurfaceGeometry&
   fit.fillUnmeasuredKs();
   fit.deliverTheta();
   fit.measureShares();
+  fit.fitSecondSource();
   fit.writeStatus();
   return fit.finish();
 }
@@ -229,7 +230,7 @@ cv::Mat3f albedoRatio(const cv::Mat3b& diffuse, const SurfaceGeometry& rest, con
       Sample s{Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d::Zero()};
       double d, sp;
       detail::basis(s, Light{theta.lightPosition, theta.falloff}, theta.roughness, d, sp);
-      peak = std::max(peak, d);
+      peak = std::max(peak, (theta.kd * d + theta.secondSource(s.n)).maxCoeff());
     }
   for (int y = 0; y < diffuse.rows; ++y)
     for (int x = 0; x < diffuse.cols; ++x) {
@@ -238,11 +239,13 @@ cv::Mat3f albedoRatio(const cv::Mat3b& diffuse, const SurfaceGeometry& rest, con
       Sample s{Eigen::Vector3d(p[0], p[1], p[2]), Eigen::Vector3d(n[0], n[1], n[2]), Eigen::Vector3d::Zero()};
       double d, sp;
       detail::basis(s, Light{theta.lightPosition, theta.falloff}, theta.roughness, d, sp);
-      if (d < 0.05 * peak) continue;
+      // The diffuse shading of both sources (the albedo scales a second source's as it scales the scope's).
+      const Eigen::Vector3d shading = theta.kd * d + theta.secondSource(s.n);
+      if (shading.maxCoeff() < 0.05 * peak) continue;
       const cv::Vec3b c = diffuse(y, x);
       for (int k = 0; k < 3; ++k) {
-        const double kd = theta.kd[2 - k];  // BGR pixel, RGB kd
-        if (kd > 0) out(y, x)[k] = static_cast<float>(std::clamp(c[k] / 255.0 / (kd * d), 0.0, 5.0));
+        const double lit = shading[2 - k];  // BGR pixel, RGB shading
+        if (lit > 0) out(y, x)[k] = static_cast<float>(std::clamp(c[k] / 255.0 / lit, 0.0, 5.0));
       }
     }
   return out;

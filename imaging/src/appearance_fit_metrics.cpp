@@ -2,6 +2,7 @@
 // (appearance_fit_stages.hpp).
 #include "appearance_fit_stages.hpp"
 
+#include <cmath>
 #include <cstdio>
 #include <string>
 #include <utility>
@@ -63,6 +64,23 @@ void AppearanceFitter::writeStatus() {
       100 * res_.explained, 100 * res_.smoothShare,
       res_.textureOnly ? ": too little, so the organ is shown with the frame's own texture, not re-shaded" : "");
   res_.status = text;
+  if (!res_.sources.empty()) {
+    // Which light the frame shows: the scope's alone, and each second source tried beside it.
+    const AppearanceFitResult::Source* used = nullptr;
+    std::string tried;
+    for (const auto& s : res_.sources) {
+      if (s.used) used = &s;
+      tried += std::string(tried.empty() ? "" : ", ") + s.name + " " +
+               std::to_string(static_cast<int>(std::lround(100 * s.explainedWith))) + " %";
+    }
+    const std::string alone = std::to_string(static_cast<int>(std::lround(100 * res_.scopeExplained)));
+    if (used)
+      res_.status += "; the scope's light alone explains " + alone + " %, with " + used->name + " " +
+                     std::to_string(static_cast<int>(std::lround(100 * used->explainedWith))) +
+                     " %, which is used (tried beside the scope's light: " + tried + ")";
+    else
+      res_.status += "; no second light source is borne out (the scope's light alone " + alone + " %; with " + tried + ")";
+  }
   std::string notSeen;
   for (const auto& c : res_.checks)
     if (!c.holds) notSeen += std::string(notSeen.empty() ? "" : ", ") + c.part;

@@ -28,6 +28,9 @@ class AppearanceFitter {
   void fillUnmeasuredKs();
   void deliverTheta();
   void measureShares();
+  // The light the frame shows (appearance_fit_room.cpp): a distant light and an ambient term beside the scope's, kept
+  // where the frame bears them out.
+  void fitSecondSource();
   void writeStatus();
   AppearanceFitResult finish();
 

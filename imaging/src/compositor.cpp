@@ -26,6 +26,8 @@ struct Compositor::Impl {
   float kf[5] = {};                       ///< K's fx, skew, cx, fy, cy
   float kinvF[5] = {};                    ///< K^-1's (0,0), (0,1), (0,2), (1,1), (1,2) (K is upper triangular)
   Eigen::Vector3f lightF = Eigen::Vector3f::Zero(), kdF = Eigen::Vector3f::Zero(), ksF = Eigen::Vector3f::Zero();
+  /// The second source (appearance.hpp): the distant light's direction and reflection, the ambient term (RGB).
+  Eigen::Vector3f roomF = Eigen::Vector3f::Zero(), krF = Eigen::Vector3f::Zero(), kaF = Eigen::Vector3f::Zero();
   Rasterization restSeen;                ///< what the frame shows of the organ at rest (triangle, depth)
   cv::Mat3b frame, background;
   cv::Mat3f albedo;
@@ -153,7 +155,8 @@ void Compositor::Impl::shadeBatch(const std::vector<Plane>& P, int t, int n, con
   // that point was at rest and its image there, the interpolated normal, Theta's diffuse and specular terms before
   // their tables (appearance.hpp: F [kd cos(theta_i) / r^2 + ks exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r))]).
   alignas(64) float valid[kBatch], rzs[kBatch], diffuse[kBatch], specular[kBatch], lobeF[kBatch], fallF[kBatch],
-      tapFx[kBatch], tapFy[kBatch];
+      tapFx[kBatch], tapFy[kBatch], room[kBatch];
+  const float dx_ = roomF.x(), dy_ = roomF.y(), dz_ = roomF.z();
   alignas(64) int nearest[kBatch], lobeK[kBatch], fallK[kBatch], tapX[kBatch], tapY[kBatch];
   const int width = camera.width, height = camera.height;
   const float lastX = static_cast<float>(width - 1), lastY = static_cast<float>(height - 1);
@@ -186,6 +189,7 @@ void Compositor::Impl::shadeBatch(const std::vector<Plane>& P, int t, int n, con
     // Normalised, and turned towards the camera (an open surface seen from inside).
     const float scale = (mx * x + my * y + mz * z > 0 ? -1.0f : 1.0f) / std::sqrt(std::max(length2, 1e-30f));
     mx *= scale, my *= scale, mz *= scale;
+    room[i] = std::max(0.0f, mx * dx_ + my * dy_ + mz * dz_);
     const float tx = lx - x, ty = ly - y, tz = lz - z;
     const float r2 = std::max(tx * tx + ty * ty + tz * tz, 1e-12f), inv2 = 1.0f / r2, invR = std::sqrt(inv2);
     const float cosI = (mx * tx + my * ty + mz * tz) * invR;
@@ -244,7 +248,9 @@ void Compositor::Impl::shadeBatch(const std::vector<Plane>& P, int t, int n, con
     const float fall = !withFalloff ? 1.0f
                        : fallK[i] < 0 ? 0.0f
                                       : (1 - fallF[i]) * falloff[fallK[i]] + fallF[i] * falloff[fallK[i] + 1];
-    for (int k = 0; k < 3; ++k) out[k] = 255.0f * fall * (albedoHere[k] * kdF[2 - k] * diffuse[i] + ksF[2 - k] * spec);
+    for (int k = 0; k < 3; ++k)
+      out[k] = 255.0f * fall * (albedoHere[k] * kdF[2 - k] * diffuse[i] + ksF[2 - k] * spec) +
+               255.0f * albedoHere[k] * (krF[2 - k] * room[i] + kaF[2 - k]);
     // The frame's detail over the model as a frame can show it, and the model's change applied as far as the fit
     // earned it: trust (min(model, 255) + residual) + (1 - trust) frame, one lookup of `carried` (made once).
     if (material == 0 && seen && !carried.empty()) {
@@ -309,6 +315,8 @@ Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()
   d.lightF = in.theta.lightPosition.cast<float>();
   d.kdF = in.theta.kd.cast<float>();
   d.ksF = in.theta.ks.cast<float>();
+  if (in.theta.hasDistantLight()) d.roomF = in.theta.roomDirection.cast<float>(), d.krF = in.theta.kr.cast<float>();
+  d.kaF = in.theta.ka.cast<float>();
   d.cull = closedAndOutward(d.restCam, in.rest);
   d.restSeen = rasterizeCameraFrame(in.camera, d.restCam, in.rest, 1, 1e-3, d.cull);
   if (d.cull) {

@@ -44,6 +44,10 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
     residual = Compositor(atRest).frameResidual();
   }
   const SurfaceGeometry g = surfaceGeometry(view, viewPose, shape);  // throws for an organ behind the view
+  // The scope's light moves with the view; a second source is the scene's (appearance.hpp): its direction, fixed to
+  // the organ's surroundings, turned from the fitted camera's frame into the view's.
+  Appearance theta = in.theta;
+  theta.roomDirection = viewPose.R * (in.pose.R.transpose() * in.theta.roomDirection);
   NovelView out;
   out.image = background.empty() ? cv::Mat3b(size, cv::Vec3b(0, 0, 0)) : background.clone();
   out.covered = cv::Mat1b(size, uchar(0));
@@ -82,7 +86,9 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
         const cv::Vec3f carried = seen && !residual.empty() ? bilinear(residual, qx, qy) : cv::Vec3f(0, 0, 0);
         const cv::Vec3f pf = g.position(y, x), nf = g.normal(y, x);
         double diffuse, specular;
-        in.theta.terms(Eigen::Vector3d(pf[0], pf[1], pf[2]), Eigen::Vector3d(nf[0], nf[1], nf[2]), diffuse, specular);
+        const Eigen::Vector3d normal(nf[0], nf[1], nf[2]);
+        theta.terms(Eigen::Vector3d(pf[0], pf[1], pf[2]), normal, diffuse, specular);
+        const Eigen::Vector3d second = theta.secondSource(normal);
         // The model's change applied as far as the fit earned it (CompositionInput::trust): the rest is the frame's
         // own colour where it saw the point.
         const double trust = seen ? in.trust : 1.0;
@@ -90,7 +96,8 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
         cv::Vec3b& o = out.image(y, x);
         for (int k = 0; k < 3; ++k) {
           const double model =
-              std::min(255.0 * (albedo[k] * in.theta.kd[2 - k] * diffuse + in.theta.ks[2 - k] * specular), 255.0) +
+              std::min(255.0 * (albedo[k] * (theta.kd[2 - k] * diffuse + second[2 - k]) + theta.ks[2 - k] * specular),
+                       255.0) +
               carried[k];
           o[k] = cv::saturate_cast<uchar>(std::min(trust * model + (1 - trust) * own[k], 255.0));
         }

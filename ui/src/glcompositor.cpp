@@ -66,6 +66,9 @@ uniform vec3 kd;
 uniform vec3 ks;
 uniform float sigma;
 uniform float falloff;       // n of cos^n off the scope's axis (appearance.hpp)
+uniform vec3 roomDirection;  // a second source (appearance.hpp): the distant light's direction (0: none) ...
+uniform vec3 kr;             // ... its diffuse reflection ...
+uniform vec3 ka;             // ... and the ambient term
 uniform bool textureOnly;
 uniform vec3 unseenColour;   // texture only: tissue the frame never showed (imaging::meanOrganColour)
 uniform bool restCull;       // the surface is closed and wound outward (imaging::closedAndOutward)
@@ -109,7 +112,8 @@ void main() {
   }
   float f = falloff > 0.0 ? pow(max(p.z, 0.0) / length(p), falloff) : 1.0;
   vec3 detail = seen ? texture(residual, uv).rgb : vec3(0.0);  // the frame's detail, carried with the tissue
-  vec3 model = min(f * (a * kd * diffuse + ks * specular), 1.0) + detail;
+  vec3 second = a * (kr * max(dot(n, roomDirection), 0.0) + ka);
+  vec3 model = min(f * (a * kd * diffuse + ks * specular) + second, 1.0) + detail;
   if (seen) model = mix(texture(frame, uv).rgb, model, trust);
   colour = vec4(clamp(model, 0.0, 1.0), 1.0);
 })";
@@ -353,6 +357,12 @@ bool GLCompositor::compose(const std::vector<double>& deformedVertices, QImage& 
     p.setUniformValue("ks", QVector3D(float(th.ks.x()), float(th.ks.y()), float(th.ks.z())));
     p.setUniformValue("sigma", float(th.roughness));
     p.setUniformValue("falloff", float(th.falloff));
+    const bool distant = th.hasDistantLight();
+    p.setUniformValue("roomDirection", distant ? QVector3D(float(th.roomDirection.x()), float(th.roomDirection.y()),
+                                                           float(th.roomDirection.z()))
+                                               : QVector3D(0, 0, 0));
+    p.setUniformValue("kr", distant ? QVector3D(float(th.kr.x()), float(th.kr.y()), float(th.kr.z())) : QVector3D(0, 0, 0));
+    p.setUniformValue("ka", QVector3D(float(th.ka.x()), float(th.ka.y()), float(th.ka.z())));
     p.setUniformValue("textureOnly", d.textureOnly);
     p.setUniformValue("unseenColour", d.unseenColour);
     p.setUniformValue("restCull", d.restCull);

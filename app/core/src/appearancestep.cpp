@@ -116,6 +116,8 @@ std::shared_ptr<const AppearanceEstimate> estimateFromRun(const AppearanceOutput
   e->smoothShare = out.fit.smoothShare;
   e->lightAtBound = out.fit.lightAtBound;
   e->checks = out.fit.checks;
+  e->scopeExplained = out.fit.scopeExplained;
+  e->sources = out.fit.sources;
   e->status = out.fit.status;
   e->turnSaid = out.turn.sentence;
   e->turned = out.turn.adopted;
@@ -151,6 +153,18 @@ std::string appearanceEstimateToJson(const AppearanceEstimate& e) {
               {"ks", vec(e.theta.ks)},
               {"roughness", e.theta.roughness},
               {"falloff", e.theta.falloff},
+              {"distant_light",
+               e.theta.hasDistantLight() ? json{{"direction", vec(e.theta.roomDirection)}, {"kr", vec(e.theta.kr)}}
+                                         : json(nullptr)},
+              {"ambient", e.theta.hasAmbient() ? vec(e.theta.ka) : json(nullptr)},
+              {"scope_explained", e.scopeExplained},
+              {"second_sources",
+               [&] {
+                 json c = json::array();
+                 for (const auto& k : e.sources)
+                   c.push_back({{"name", k.name}, {"explained", k.explainedWith}, {"used", k.used}});
+                 return c;
+               }()},
               {"highlight_found", e.highlightFound},
               {"texture_only", e.textureOnly},
               {"ks_measured", {e.ksMeasured[0], e.ksMeasured[1], e.ksMeasured[2]}},
@@ -188,6 +202,16 @@ std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::
   e->theta.ks = vec3(j.at("ks"));
   e->theta.roughness = j.at("roughness").get<double>();
   e->theta.falloff = j.value("falloff", 0.0);  // estimates from before the scope's fall-off: an isotropic light
+  // A second source (estimates without one, or from before it: none).
+  if (j.contains("distant_light") && !j.at("distant_light").is_null()) {
+    e->theta.roomDirection = vec3(j.at("distant_light").at("direction"));
+    e->theta.kr = vec3(j.at("distant_light").at("kr"));
+  }
+  if (j.contains("ambient") && !j.at("ambient").is_null()) e->theta.ka = vec3(j.at("ambient"));
+  e->scopeExplained = j.value("scope_explained", j.value("explained", 0.0));
+  if (j.contains("second_sources"))
+    for (const auto& k : j.at("second_sources"))
+      e->sources.push_back({k.at("name").get<std::string>(), k.at("explained").get<double>(), k.at("used").get<bool>()});
   if (const std::string why = imaging::appearanceProblem(e->theta, true); !why.empty()) throw std::runtime_error(why);
   e->highlightFound = j.value("highlight_found", false);
   e->textureOnly = j.value("texture_only", false);
@@ -277,7 +301,10 @@ ShadingTurn searchTurn(const AppearanceInput& in, const imaging::SurfaceGeometry
   const auto t0 = std::chrono::steady_clock::now();
   ShadingTurn turn;
   turn.pose = in.pose;
-  turn.explainedBefore = turn.explainedAfter = first.explained;
+  // The turn is judged by what the scope's light alone explains (AppearanceFitResult::scopeExplained): a second source
+  // (a distant light) can stand in for a wrong orientation of the organ's normals, so the full fits' shares would hide
+  // the turn the shading asks for.
+  turn.explainedBefore = turn.explainedAfter = first.scopeExplained;
   const std::vector<Eigen::Vector2d> full = outlinePoints(in.contour, in.camera, 1.0);
   if (full.size() < 10) {
     turn.sentence = "The turn the outline leaves open was not searched: there is no silhouette outline (step 3) to keep the organ on.";
@@ -335,7 +362,7 @@ ShadingTurn searchTurn(const AppearanceInput& in, const imaging::SurfaceGeometry
       if (distance <= allowed || key == std::pair<long, long>{0, 0}) {
         cv::Mat1b inner;
         cv::erode(mask, inner, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)));
-        share = imaging::diffuseShareAt(diffuse, g, base & inner, first.theta, 1500, 40);
+        share = imaging::diffuseShareAt(diffuse, g, base & inner, first.scopeTheta, 1500, 40);
         ++turn.candidates;
       }
     } catch (const rehearse::InputError&) {
@@ -397,18 +424,18 @@ ShadingTurn searchTurn(const AppearanceInput& in, const imaging::SurfaceGeometry
   const imaging::SurfaceGeometry g = imaging::surfaceGeometry(in.camera, pose, surface);
   const double outline = outlineDistance(g.mask(), full);
   imaging::AppearanceFitResult refit = imaging::fitAppearance(in.frame, g, fitOptions);
-  turn.explainedAfter = refit.explained;
+  turn.explainedAfter = refit.scopeExplained;
   turn.outlineAfterPx = outline;
   // (The outline was held at the working resolution, where the turn was chosen; `outline` is reported.)
-  if (refit.explained >= first.explained + 0.03 && refit.explained >= fitOptions.poorShare) {
+  if (refit.scopeExplained >= first.scopeExplained + 0.03 && refit.explained >= fitOptions.poorShare) {
     turn.adopted = true;
     turn.pose = pose;
     *turnedFit = std::move(refit);
   } else {
     std::snprintf(text, sizeof text,
-                  "The organ was left where it was: turned %s it explains %.0f %% of the shading (here %.0f %%), "
-                  "too little to move it for.",
-                  turnText(bestX, bestY).c_str(), 100 * refit.explained, 100 * first.explained);
+                  "The organ was left where it was: turned %s the scope's light explains %.0f %% of the shading (here "
+                  "%.0f %%), too little to move it for.",
+                  turnText(bestX, bestY).c_str(), 100 * refit.scopeExplained, 100 * first.scopeExplained);
     turn.sentence = text;
   }
   return finish();
@@ -463,7 +490,7 @@ AppearanceOutput runAppearance(const AppearanceInput& input) {
       total.aboutXDeg = std::atan2(-Q(1, 2), Q(2, 2)) * 180 / M_PI;
       char text[500];
       std::snprintf(text, sizeof text,
-                    "The organ was turned %s, a turn the outline leaves open: the shading then explains %.0f %% instead "
+                    "The organ was turned %s, a turn the outline leaves open: the scope's light then explains %.0f %% instead "
                     "of %.0f %%, the outline %.1f px from its silhouette (was %.1f px). Undo puts it back.",
                     turnText(total.aboutXDeg, total.aboutYDeg).c_str(), 100 * total.explainedAfter, 100 * total.explainedBefore, total.outlineAfterPx,
                     total.outlineBeforePx);

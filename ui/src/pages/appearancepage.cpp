@@ -190,6 +190,24 @@ void AppearancePage::refresh(const app::Case& c) {
   else if (a->reshading().trust < 1)
     lines << tr("Re-shading applies %1 % of the model's change to the frame's colours (in full from 90 % explained).")
                  .arg(imaging::trustPercent(a->reshading().trust));
+  if (!a->sources.empty()) {
+    // The light the frame shows: the scope's alone, each second source tried beside it, and the one Theta carries.
+    QStringList tried;
+    for (const auto& k : a->sources)
+      tried << tr("%1 %2 %").arg(QString::fromStdString(k.name)).arg(100 * k.explainedWith, 0, 'f', 0) +
+                   (k.used ? tr(" (used)") : QString());
+    lines << tr("Light: the scope's alone explains %1 %; with %2.").arg(100 * a->scopeExplained, 0, 'f', 0).arg(tried.join(QStringLiteral(", ")));
+    auto rgb = [](const Eigen::Vector3d& v) {
+      return QStringLiteral("%1 / %2 / %3").arg(v.x(), 0, 'g', 3).arg(v.y(), 0, 'g', 3).arg(v.z(), 0, 'g', 3);
+    };
+    if (a->theta.hasDistantLight())
+      lines << tr("Distant light towards (%1, %2, %3) in the camera frame, k_r %4.")
+                   .arg(a->theta.roomDirection.x(), 0, 'f', 2)
+                   .arg(a->theta.roomDirection.y(), 0, 'f', 2)
+                   .arg(a->theta.roomDirection.z(), 0, 'f', 2)
+                   .arg(rgb(a->theta.kr));
+    if (a->theta.hasAmbient()) lines << tr("Ambient term k_a %1.").arg(rgb(a->theta.ka));
+  }
   if (!a->checks.empty()) {
     QStringList without;
     for (const auto& k : a->checks)

@@ -5,6 +5,11 @@
 // with F = cos^n(psi), psi the angle between the scope's axis (camera z) and the ray to the point: the light
 // cone's fall-off and the lens vignetting together (both depend on that angle alone, so one frame cannot tell
 // them apart). n = 0 is an isotropic point light seen through an ideal lens.
+// A second source (issue 65), kept only where the frame bears it out (fitAppearance): light from outside the scope,
+// the same at every point of the organ and fixed to the scene, not to the scope, so without the scope's fall-off:
+//   + kr_c max(0, n . d) + ka_c
+// a distant light from direction d (a room's lamp, a window: an ex-vivo set-up's light) and an ambient term (light
+// scattered from everything around). Both are diffuse reflection, so a pixel's albedo scales them as it scales kd.
 #include <rehearse/imaging/camera.hpp>
 
 namespace rehearse::imaging {
@@ -15,13 +20,22 @@ struct Appearance {
   Eigen::Vector3d ks = Eigen::Vector3d::Zero();             ///< specular, RGB
   double roughness = 0.1;                                   ///< sigma, radians
   double falloff = 0;                                       ///< n of F = cos^n(psi), >= 0
+  Eigen::Vector3d roomDirection = Eigen::Vector3d::Zero();  ///< the distant light's: unit, camera frame, towards it; 0: none
+  Eigen::Vector3d kr = Eigen::Vector3d::Zero();             ///< the distant light's diffuse reflection, RGB
+  Eigen::Vector3d ka = Eigen::Vector3d::Zero();             ///< the ambient term, RGB
+
+  /// Whether a distant light is part of the model (a direction and some reflection), and an ambient term.
+  bool hasDistantLight() const { return roomDirection.squaredNorm() > 0 && kr.maxCoeff() > 0; }
+  bool hasAmbient() const { return ka.maxCoeff() > 0; }
+  /// The second source's part of the radiance (RGB) at unit normal `n` (camera frame): kr max(0, n . d) + ka.
+  Eigen::Vector3d secondSource(const Eigen::Vector3d& n) const;
 
   /// F at camera-frame point `p`: cos^n of its angle off the scope's axis (1 on the axis; 0 behind).
   double falloffAt(const Eigen::Vector3d& p) const;
 
   /// Radiance (RGB) at camera-frame point `p` (m) with unit normal `n`, seen from the camera at the origin.
   Eigen::Vector3d shade(const Eigen::Vector3d& p, const Eigen::Vector3d& n) const;
-  /// The model's two scalar terms there, fall-off included: shade = kd * diffuse + ks * specular.
+  /// The scope light's two scalar terms there, fall-off included: shade = kd * diffuse + ks * specular + secondSource(n).
   void terms(const Eigen::Vector3d& p, const Eigen::Vector3d& n, double& diffuse, double& specular) const;
 };
 

@@ -59,6 +59,9 @@ struct AppearanceStage {
 struct AppearanceFitOptions {
   std::size_t maxSamples = 10000;  ///< pixels per stage (a regular subsample of the usable ones; 2,500-80,000 fit the phantom equally well, BENCHMARKS.md)
   double poorShare = 0.5;          ///< below this share of the organ's variance explained: texture mapping only
+  /// Try a second light source beside the scope's (a distant light, an ambient term: AppearanceFitResult::sources);
+  /// false: the scope's light alone, nothing else tried.
+  bool secondSource = true;
   /// Called between stages (share done, stage name); false cancels (throws simcore-free Cancelled below).
   std::function<bool(double, const std::string&)> progress;
 };
@@ -85,6 +88,20 @@ struct AppearanceFitResult {
     bool holds = true;
   };
   std::vector<Check> checks;
+  /// The light the frame shows (issue 65): what the scope's light alone explains (the same share as `explained`), and
+  /// each second source tried beside it (appearance.hpp: "an ambient term", "a distant light", "a distant light and an
+  /// ambient term"), its share with the scope's light, and whether Theta carries it. A source is used only where the
+  /// frame bears it out: each of its terms adds at least kSecondSourceGain to the share of the model without that term;
+  /// of those, the one that explains most. `explained` is then the share of the model as delivered.
+  struct Source {
+    std::string name;
+    double explainedWith = 0;
+    bool used = false;
+  };
+  double scopeExplained = 0;
+  Appearance scopeTheta;  ///< Theta of the scope's light alone, before a second source (what scopeExplained is of)
+  std::vector<Source> sources;
+  static constexpr double kSecondSourceGain = 0.02;
   bool highlightsDisagree =
       false;  ///< the specular stage's light would explain the shading worse: the diffuse stage's kept
   bool lightAtBound =

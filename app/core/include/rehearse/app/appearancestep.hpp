@@ -40,8 +40,8 @@ struct ShadingTurn {
   bool adopted = false;
   Pose pose;                       ///< where Theta was fitted: the turned pose when adopted, else the input's
   double aboutXDeg = 0, aboutYDeg = 0;  ///< the turn found (camera axes, through the organ's centre)
-  double explainedBefore = 0;      ///< the registered pose's full fit
-  double explainedAfter = 0;       ///< the turned pose's full fit (when one was made)
+  double explainedBefore = 0;      ///< the registered pose's full fit: what its scope's light alone explains
+  double explainedAfter = 0;       ///< the same at the turned pose (when one was made)
   double outlineBeforePx = 0, outlineAfterPx = 0;  ///< the outline's points' mean distance to the silhouette (frame px)
   int candidates = 0;              ///< turns scored
   double scoredBefore = 0, scoredBest = 0;  ///< the working resolution's shares: the registered pose's, the best turn's

@@ -117,6 +117,8 @@ struct AppearanceEstimate {
   double smoothShare = 0;     ///< the same share for a smooth function of the image position (a reference)
   bool lightAtBound = false;  ///< the light ended on the search's bound: not placed by the frame
   std::vector<imaging::AppearanceFitResult::Check> checks;  ///< each part of the model switched off
+  double scopeExplained = 0;  ///< the share the scope's light alone explains (AppearanceFitResult::scopeExplained)
+  std::vector<imaging::AppearanceFitResult::Source> sources;  ///< the second sources tried, and the one used
   std::string status;                          ///< one sentence
   /// What step 6 did about the turn the outline leaves open (app::ShadingTurn::sentence; empty: not asked), and
   /// whether it turned the organ (the pose below is then the turned one, which the case took with the estimate).
