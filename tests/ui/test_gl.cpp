@@ -382,6 +382,22 @@ class TestGl : public QObject {
       QVERIFY(asHalf >= std::max(halfAsFull, halfAsTexture) + 3);
       half.trust = 2;
       QVERIFY(!gl.prepare(half));  // refused, as the CPU compositor refuses it
+      // A second source (issue 65: a distant light and an ambient term beside the scope's): shaded as the CPU compositor
+      // shades it, and visibly not as without it.
+      imaging::CompositionInput second = ci;
+      second.theta.roomDirection = Eigen::Vector3d(0.3, -0.5, -0.8).normalized();
+      second.theta.kr = 0.3 * o.fit.theta.kd / o.fit.theta.kd.maxCoeff();
+      second.theta.ka = 0.1 * o.fit.theta.kd / o.fit.theta.kd.maxCoeff();
+      QVERIFY(gl.prepare(second));
+      QVERIFY(gl.compose(bent, j, 4));
+      glBgr = toMat(j);
+      const double asSecond = imaging::psnr(app::makeCompositor(in, layers, second.theta, imaging::Reshading{})->compose(bent, 2), glBgr, organ),
+                   asWithout = imaging::psnr(cpu->compose(bent, 2), glBgr, organ);
+      qInfo("a second source, bent and moved: OpenGL against the CPU compositor with it %.1f dB inside the organ, "
+            "without it %.1f dB",
+            asSecond, asWithout);
+      QVERIFY(asSecond >= 35.0);
+      QVERIFY(asSecond >= asWithout + 10);
       QVERIFY(gl.prepare(ci));
     }
     QImage j;
