@@ -121,9 +121,12 @@ Candidate fitCandidate(const std::vector<Sample>& kept, const std::vector<Sample
   best.distant = distant, best.ambient = ambient;
   best.share = -std::numeric_limits<double>::infinity();
   auto score = [&](const Eigen::Vector3d& d) {
-    if (distant) distantColumn(kept, d, ck.distant), distantColumn(all, d, ca.distant);
+    if (distant) {
+      distantColumn(kept, d, ck.distant);
+      if (&all != &kept) distantColumn(all, d, ca.distant);
+    }
     const Reflectances f = solveNonNegative(kept, ck, distant, ambient);
-    const double s = shareWith(all, ca, f);
+    const double s = shareWith(all, &all == &kept ? ck : ca, f);  // the same samples: one set of columns
     if (s > best.share) best.share = s, best.f = f, best.direction = distant ? d : Eigen::Vector3d::Zero();
     return s;
   };
@@ -155,8 +158,10 @@ Candidate fitCandidate(const std::vector<Sample>& kept, const std::vector<Sample
       const double z = 1 - 2 * (k + 0.5) / kDirections;
       const double rho = std::sqrt(std::max(0.0, 1 - z * z));
       const Eigen::Vector3d d(rho * std::cos(golden * k), rho * std::sin(golden * k), z);
-      distantColumn(keptSub, d, cks.distant), distantColumn(allSub, d, cas.distant);
-      const double s = shareWith(allSub, cas, solveNonNegative(keptSub, cks, distant, ambient));
+      distantColumn(keptSub, d, cks.distant);
+      if (&all != &kept) distantColumn(allSub, d, cas.distant);
+      const double s = &all != &kept ? shareWith(allSub, cas, solveNonNegative(keptSub, cks, distant, ambient))
+                                     : shareWith(keptSub, cks, solveNonNegative(keptSub, cks, distant, ambient));
       if (s > bestSub) bestSub = s, best.direction = d;
     }
     score(best.direction);
@@ -164,7 +169,7 @@ Candidate fitCandidate(const std::vector<Sample>& kept, const std::vector<Sample
   double polar = std::acos(std::clamp(best.direction.z(), -1.0, 1.0));
   double azimuth = std::atan2(best.direction.y(), best.direction.x());
   double current = best.share;
-  for (double step = 0.08; step > 0.002; step *= 0.5) {
+  for (double step = from ? 0.02 : 0.08; step > 0.002; step *= 0.5) {
     for (bool moved = true; moved;) {
       moved = false;
       for (const auto& [dp, da] : std::array<std::pair<double, double>, 4>{{{step, 0}, {-step, 0}, {0, step}, {0, -step}}}) {
@@ -178,13 +183,13 @@ Candidate fitCandidate(const std::vector<Sample>& kept, const std::vector<Sample
 }
 
 // A candidate with the scope's light refitted beside it, in turns: the second source fitted at the light, then the light
-// (and its fall-off) refined on what the second source leaves of the samples (a subsample of at most 3,000), three
+// (and its fall-off) refined on what the second source leaves of the samples (a subsample of at most 1,500), three
 // rounds. The scope's light stays within the search's bound.
 constexpr int kRounds = 3;
 Candidate jointly(const std::vector<Sample>& kept, const std::vector<Sample>& all, Light light, double sigma,
                   bool distant, bool ambient, bool moveLight = true) {
   std::vector<Sample> sub;
-  const std::size_t stride = std::max<std::size_t>(1, kept.size() / 3000);
+  const std::size_t stride = std::max<std::size_t>(1, kept.size() / 1500);
   for (std::size_t i = 0; i < kept.size(); i += stride) sub.push_back(kept[i]);
   Candidate c;
   for (int round = 0; round < kRounds; ++round) {
@@ -197,7 +202,7 @@ Candidate jointly(const std::vector<Sample>& kept, const std::vector<Sample>& al
     for (auto& s : left) s.rgb -= c.f.kr * (distant ? std::max(0.0, s.n.dot(c.direction)) : 0.0) + c.f.ka;
     Light moved = light;
     double sg = sigma;
-    refine(left, moved, sg, false, {}, 120);
+    refine(left, moved, sg, false, {}, 80);
     if (moved.position.allFinite() && std::isfinite(moved.falloff)) light = moved;
   }
   return c;

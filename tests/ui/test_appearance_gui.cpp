@@ -145,6 +145,11 @@ void TestAppearanceGui::estimateWithTheKeyboard() {
   qInfo("composited view at rest: %.1f dB inside the organ (%d px); %s", db, cv::countNonZero(inner),
         qPrintable(w_->appearancePage()->findChild<QLabel*>("appearanceReport")->text()));
   QVERIFY(db >= 30.0);
+  // Issue 65: the page says which light the frame shows; the phantom's is its scope's alone, no second source used.
+  const QString report = w_->appearancePage()->findChild<QLabel*>("appearanceReport")->text();
+  QVERIFY2(report.contains(QStringLiteral("Light: the scope's alone explains")) && report.contains(QStringLiteral("an ambient term")) &&
+               !report.contains(QStringLiteral("(used)")) && !report.contains(QStringLiteral("Distant light towards")),
+           qPrintable(report));
   QVERIFY(!w_->composition()->diffuseImage().isNull() && !w_->composition()->backgroundImage().isNull());
   // What the model leaves (x 3): on the phantom, rendered with the model, little but noise; the scope's
   // fall-off and the light's distance from the lens, as the table shows them.
