@@ -2,7 +2,8 @@
 // it (issue 65). A distant light (one direction everywhere: a room's lamp, a window) and an ambient term are tried
 // beside the scope's light on the specular-free image's samples of the diffuse stage, with the reflectances in closed
 // form (non-negative) and the distant light's direction searched over the sphere; a source is kept only where the frame
-// bears it out (AppearanceFitResult::Source). The scope's light stays where the stages before placed it.
+// bears it out (AppearanceFitResult::Source). The scope's light is refitted beside each where the highlights place it
+// (fitSecondSource); its specular lobe is not refitted.
 #include "appearance_fit_stages.hpp"
 
 #include <array>
@@ -228,7 +229,7 @@ void AppearanceFitter::fitSecondSource() {
   // Fitted on all the diffuse stage's samples: those it trimmed as outliers of the scope's light alone are where a
   // second source shows most.
   const std::vector<Sample>& fitOn = all;
-  const Candidate scope = jointly(kept, all, est_.lit, est_.sigma, false, false);
+  const Candidate scope = jointly(fitOn, all, est_.lit, est_.sigma, false, false);  // the same samples, for the rule
   const Candidate ambient = jointly(fitOn, all, start, est_.sigma, false, true, move);
   const Candidate distant = jointly(fitOn, all, start, est_.sigma, true, false, move);
   // Both: the distant light's direction searched again with the ambient term beside it.
