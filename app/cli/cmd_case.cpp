@@ -174,10 +174,17 @@ int caseInfo(const std::string& path) {
                             : c.hasFit()       ? "aligned and elastically fitted (step 5)"
                             : c.poseAligned    ? "aligned by hand (step 4)"
                                                : "placed automatically, not aligned (steps 4 and 5 not done)");
-  if (c.appearance)
-    std::printf("appearance: the model explains %.0f %% of the organ's shading; %s\n", 100 * c.appearance->explained,
+  if (c.appearance) {
+    std::string second;
+    for (const auto& s : c.appearance->sources)
+      if (s.used)
+        second = " with " + s.name + " beside the scope's light (the scope's alone " +
+                 std::to_string(static_cast<int>(std::lround(100 * c.appearance->scopeExplained))) + " %)";
+    std::printf("appearance: the model explains %.0f %% of the organ's shading%s; %s\n", 100 * c.appearance->explained,
+                second.c_str(),
                 c.appearance->textureOnly ? "texture only (the frame's colours are drawn, not re-shaded)"
                                           : "re-shaded");
+  }
   else
     std::printf("appearance: not estimated (step 6 not done)\n");
   if (file) {

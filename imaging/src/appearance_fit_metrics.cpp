@@ -77,7 +77,9 @@ void AppearanceFitter::writeStatus() {
     if (used)
       res_.status += "; the scope's light alone explains " + alone + " %, with " + used->name + " " +
                      std::to_string(static_cast<int>(std::lround(100 * used->explainedWith))) +
-                     " %, which is used (tried beside the scope's light: " + tried + ")";
+                     " %, which is used (tried beside the scope's light: " + tried +
+                     "); a second source can also stand in for an organ registered where the frame does not show it, so "
+                     "check the registration (the overlay) before trusting the light";
     else
       res_.status += "; no second light source is borne out (the scope's light alone " + alone + " %; with " + tried + ")";
   }
@@ -85,7 +87,8 @@ void AppearanceFitter::writeStatus() {
   for (const auto& c : res_.checks)
     if (!c.holds) notSeen += std::string(notSeen.empty() ? "" : ", ") + c.part;
   if (!notSeen.empty())
-    res_.status += "; the frame does not bear out the model's " + notSeen + " (without it the model explains as much)";
+    res_.status += "; the frame does not bear out the scope light's " + notSeen +
+                   " (without each, the scope's light explains as much)";
   if (res_.lightAtBound)
     res_.status += "; the light ends on the search's bound (" + std::to_string(static_cast<int>(kLightBound * 1e3)) +
                    " mm from the lens): the frame does not place it";

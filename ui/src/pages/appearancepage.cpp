@@ -213,7 +213,9 @@ void AppearancePage::refresh(const app::Case& c) {
     for (const auto& k : a->checks)
       without << tr("%1 %2 %").arg(QString::fromStdString(k.part)).arg(100 * k.explainedWithout, 0, 'f', 0) +
                      (k.holds ? QString() : tr(" (not seen)"));
-    lines << tr("Left out: %1.").arg(without.join(QStringLiteral(", ")));
+    lines << tr("Left out of the scope's light (%1 % with every part): %2.")
+                 .arg(100 * a->scopeExplained, 0, 'f', 0)
+                 .arg(without.join(QStringLiteral(", ")));
   }
   if (!a->turnSaid.empty() && !a->turned) lines << QString::fromStdString(a->turnSaid);
   report_->setText(lines.join(QLatin1Char('\n')));
@@ -224,7 +226,9 @@ void AppearancePage::refresh(const app::Case& c) {
     if (!c.appearanceCurrent())
       text = tr("STALE: estimated at another pose, shape or frame; the composited view is off until it is estimated again (F10). %1").arg(text);
     status_->setText(text);
-    const bool warn = a->textureOnly || !a->highlightFound || a->lightAtBound || !c.appearanceCurrent();
+    // A second source used is a warning too: it can stand in for an organ registered off the frame's.
+    const bool secondSource = a->theta.hasDistantLight() || a->theta.hasAmbient();
+    const bool warn = a->textureOnly || !a->highlightFound || a->lightAtBound || !c.appearanceCurrent() || secondSource;
     status_->setStyleSheet(warn ? QStringLiteral("color: %1; font-weight: bold;").arg(palette::warning().name()) : QString());
   }
 }
