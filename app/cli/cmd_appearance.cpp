@@ -299,7 +299,7 @@ int cmdCompose(const std::vector<std::string>& args) {
   }
   if (untrusted) {
     char share[32];
-    std::snprintf(share, sizeof share, "%.0f %%", 100 * verdict.explained);
+    std::snprintf(share, sizeof share, "%d %%", imaging::explainedPercent(verdict.explained));
     std::printf("not re-shaded: the fit behind %s is marked texture only (it explained %s of the organ's shading); "
                 "the frame's own colours are drawn instead\n",
                 std::filesystem::path(o["theta"]).filename().c_str(), share);

@@ -12,6 +12,7 @@
 #include "rehearse/app/review.hpp"
 #include "rehearse/app/materials.hpp"
 
+#include <rehearse/imaging/appearance.hpp>
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/integrator.hpp>
@@ -180,7 +181,8 @@ int caseInfo(const std::string& path) {
       if (s.used)
         second = " with " + s.name + " beside the scope's light (the scope's alone " +
                  std::to_string(static_cast<int>(std::lround(100 * c.appearance->scopeExplained))) + " %)";
-    std::printf("appearance: the model explains %.0f %% of the organ's shading%s; %s\n", 100 * c.appearance->explained,
+    std::printf("appearance: the model explains %d %% of the organ's shading%s; %s\n",
+                imaging::explainedPercent(c.appearance->explained),
                 second.c_str(),
                 c.appearance->textureOnly ? "texture only (the frame's colours are drawn, not re-shaded)"
                                           : "re-shaded");

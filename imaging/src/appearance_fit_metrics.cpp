@@ -56,12 +56,12 @@ void AppearanceFitter::writeStatus() {
   char text[600];
   std::snprintf(
       text, sizeof text,
-      "%s; the diffuse model explains %.0f %% of the organ's shading (a smooth function of the image position: %.0f "
+      "%s; the diffuse model explains %d %% of the organ's shading (a smooth function of the image position: %.0f "
       "%%)%s",
       res_.highlightFound ? "fitted"
                           : "no specular highlight found: the light started at the lens and the specular part is not "
                             "determined (ks = 0)",
-      100 * res_.explained, 100 * res_.smoothShare,
+      explainedPercent(res_.explained), 100 * res_.smoothShare,  // floored, as the page and the verdict say it
       res_.textureOnly ? ": too little, so the organ is shown with the frame's own texture, not re-shaded" : "");
   res_.status = text;
   if (!res_.sources.empty()) {

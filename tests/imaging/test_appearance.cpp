@@ -304,7 +304,7 @@ class TestAppearance : public QObject {
           r.smoothShare);
     QVERIFY(r.theta.lightPosition.norm() <= 0.0301);
     QVERIFY(r.theta.kd.allFinite() && r.theta.ks.allFinite());
-    QVERIFY(r.status.find(QString::number(std::lround(100 * r.explained)).toStdString() + " %") != std::string::npos);
+    QVERIFY(r.status.find("explains " + std::to_string(imaging::explainedPercent(r.explained)) + " %") != std::string::npos);
     // The share recomputed: the specular-free image against Theta's diffuse part rendered by renderShaded,
     // over the pixels the diffuse stage could use (usable, not foreign, away from highlights, no channel near
     // clipping); the fit samples a regular subset of them.
