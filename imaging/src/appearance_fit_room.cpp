@@ -3,7 +3,7 @@
 // beside the scope's light on the specular-free image's samples of the diffuse stage, with the reflectances in closed
 // form (non-negative) and the distant light's direction searched over the sphere; a source is kept only where the frame
 // bears it out (AppearanceFitResult::Source). The scope's light is refitted beside each where the highlights place it
-// (fitSecondSource); its specular lobe is not refitted.
+// (fitSecondSource), and k_s then refitted at the roughness found (ksBeside).
 #include "appearance_fit_stages.hpp"
 
 #include <array>
@@ -209,6 +209,32 @@ Candidate jointly(const std::vector<Sample>& kept, const std::vector<Sample>& al
   return c;
 }
 
+// The specular lobe's k_s again once the scope's light has moved beside a second source: per measured channel, in closed
+// form (non-negative) at the roughness found, on the frame's samples around the highlights less both sources' diffuse
+// parts there; a channel not measured takes the measured ones' mean, as before (`ks` kept where nothing is measured).
+Eigen::Vector3d ksBeside(const std::vector<Sample>& spec, const Candidate& chosen, double sigma,
+                         const std::array<bool, 3>& measured, Eigen::Vector3d ks) {
+  Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
+  for (const Sample& q : spec) {
+    double d, sp;
+    basis(q, chosen.light, sigma, d, sp);
+    const double room = chosen.distant ? std::max(0.0, q.n.dot(chosen.direction)) : 0.0;
+    const Eigen::Vector3d rest = q.rgb - chosen.f.kd * d - chosen.f.kr * room - chosen.f.ka;
+    num += sp * rest.cwiseProduct(q.weight);
+    den += sp * sp * q.weight;
+  }
+  double sum = 0;
+  int n = 0;
+  for (int c = 0; c < 3; ++c)
+    if (measured[static_cast<std::size_t>(c)] && den[c] > 0) {
+      ks[c] = std::max(0.0, num[c] / den[c]);
+      sum += ks[c], ++n;
+    }
+  for (int c = 0; c < 3; ++c)
+    if (!measured[static_cast<std::size_t>(c)] && n > 0) ks[c] = sum / n;
+  return ks;
+}
+
 }  // namespace
 
 void AppearanceFitter::fitSecondSource() {
@@ -257,6 +283,9 @@ void AppearanceFitter::fitSecondSource() {
     res_.theta.ka = chosen->ambient ? chosen->f.ka : Eigen::Vector3d::Zero();
     res_.explained = std::clamp(chosen->share, 0.0, 1.0);
     res_.textureOnly = res_.explained < in_.o.poorShare;
+    if (move && res_.highlightFound)
+      res_.theta.ks = ksBeside(specularSamples(res_.usable & ~res_.foreign), *chosen, est_.sigma, res_.ksMeasured,
+                               res_.theta.ks);
   }
   const Candidate& delivered = chosen ? *chosen : scope;
   Columns ca = columnsOf(all, delivered.light, est_.sigma);
