@@ -107,7 +107,7 @@ Eigen::Vector3d fromAngles(double polar, double azimuth) {
   return {std::sin(polar) * std::cos(azimuth), std::sin(polar) * std::sin(azimuth), std::cos(polar)};
 }
 
-// A model with or without each second source, fitted on `kept` and measured on `all`.
+// A model with or without each second source, fitted and measured on the same samples.
 struct Candidate {
   Light light;  ///< the scope's light, refitted beside the second source
   bool distant = false, ambient = false;
@@ -116,18 +116,15 @@ struct Candidate {
   double share = 0;
 };
 
-Candidate fitCandidate(const std::vector<Sample>& kept, const std::vector<Sample>& all, Columns& ck, Columns& ca,
-                       bool distant, bool ambient, const Eigen::Vector3d* from = nullptr) {
+Candidate fitCandidate(const std::vector<Sample>& samples, Columns& c, bool distant, bool ambient,
+                       const Eigen::Vector3d* from = nullptr) {
   Candidate best;
   best.distant = distant, best.ambient = ambient;
   best.share = -std::numeric_limits<double>::infinity();
   auto score = [&](const Eigen::Vector3d& d) {
-    if (distant) {
-      distantColumn(kept, d, ck.distant);
-      if (&all != &kept) distantColumn(all, d, ca.distant);
-    }
-    const Reflectances f = solveNonNegative(kept, ck, distant, ambient);
-    const double s = shareWith(all, &all == &kept ? ck : ca, f);  // the same samples: one set of columns
+    if (distant) distantColumn(samples, d, c.distant);
+    const Reflectances f = solveNonNegative(samples, c, distant, ambient);
+    const double s = shareWith(samples, c, f);
     if (s > best.share) best.share = s, best.f = f, best.direction = distant ? d : Eigen::Vector3d::Zero();
     return s;
   };
@@ -135,23 +132,16 @@ Candidate fitCandidate(const std::vector<Sample>& kept, const std::vector<Sample
     score(Eigen::Vector3d::Zero());
     return best;
   }
-  // The sphere of directions (a Fibonacci lattice of 400) scored on a subsample of at most 2,000 samples of each set,
-  // then the best refined on all of them by a pattern search on its angles.
+  // The sphere of directions (a Fibonacci lattice of 400) scored on a subsample of at most 2,000 samples, then the best
+  // refined on all of them by a pattern search on its angles (from `from`, when given, with the pattern search alone).
   if (from) {
     score(*from);
   } else {
-    auto every = [](const std::vector<Sample>& v) {
-      std::vector<Sample> out;
-      const std::size_t stride = std::max<std::size_t>(1, v.size() / 2000);
-      for (std::size_t i = 0; i < v.size(); i += stride) out.push_back(v[i]);
-      return out;
-    };
-    const std::vector<Sample> keptSub = every(kept), allSub = every(all);
-    Columns cks{std::vector<double>(keptSub.size()), std::vector<double>(keptSub.size(), 0.0)},
-        cas{std::vector<double>(allSub.size()), std::vector<double>(allSub.size(), 0.0)};
-    const std::size_t ks = std::max<std::size_t>(1, kept.size() / 2000), as = std::max<std::size_t>(1, all.size() / 2000);
-    for (std::size_t i = 0; i < keptSub.size(); ++i) cks.scope[i] = ck.scope[i * ks];
-    for (std::size_t i = 0; i < allSub.size(); ++i) cas.scope[i] = ca.scope[i * as];
+    const std::size_t stride = std::max<std::size_t>(1, samples.size() / 2000);
+    std::vector<Sample> sub;
+    Columns cs;
+    for (std::size_t i = 0; i < samples.size(); i += stride) sub.push_back(samples[i]), cs.scope.push_back(c.scope[i]);
+    cs.distant.assign(sub.size(), 0.0);
     constexpr int kDirections = 400;
     const double golden = M_PI * (3 - std::sqrt(5.0));
     double bestSub = -std::numeric_limits<double>::infinity();
@@ -159,10 +149,8 @@ Candidate fitCandidate(const std::vector<Sample>& kept, const std::vector<Sample
       const double z = 1 - 2 * (k + 0.5) / kDirections;
       const double rho = std::sqrt(std::max(0.0, 1 - z * z));
       const Eigen::Vector3d d(rho * std::cos(golden * k), rho * std::sin(golden * k), z);
-      distantColumn(keptSub, d, cks.distant);
-      if (&all != &kept) distantColumn(allSub, d, cas.distant);
-      const double s = &all != &kept ? shareWith(allSub, cas, solveNonNegative(keptSub, cks, distant, ambient))
-                                     : shareWith(keptSub, cks, solveNonNegative(keptSub, cks, distant, ambient));
+      distantColumn(sub, d, cs.distant);
+      const double s = shareWith(sub, cs, solveNonNegative(sub, cs, distant, ambient));
       if (s > bestSub) bestSub = s, best.direction = d;
     }
     score(best.direction);
@@ -187,16 +175,16 @@ Candidate fitCandidate(const std::vector<Sample>& kept, const std::vector<Sample
 // (and its fall-off) refined on what the second source leaves of the samples (a subsample of at most 1,500), three
 // rounds. The scope's light stays within the search's bound.
 constexpr int kRounds = 3;
-Candidate jointly(const std::vector<Sample>& kept, const std::vector<Sample>& all, Light light, double sigma,
-                  bool distant, bool ambient, bool moveLight = true) {
+Candidate jointly(const std::vector<Sample>& samples, Light light, double sigma, bool distant, bool ambient,
+                  bool moveLight = true) {
   std::vector<Sample> sub;
-  const std::size_t stride = std::max<std::size_t>(1, kept.size() / 1500);
-  for (std::size_t i = 0; i < kept.size(); i += stride) sub.push_back(kept[i]);
+  const std::size_t stride = std::max<std::size_t>(1, samples.size() / 1500);
+  for (std::size_t i = 0; i < samples.size(); i += stride) sub.push_back(samples[i]);
   Candidate c;
   for (int round = 0; round < kRounds; ++round) {
-    Columns ck = columnsOf(kept, light, sigma), ca = columnsOf(all, light, sigma);
+    Columns columns = columnsOf(samples, light, sigma);
     const Eigen::Vector3d from = c.direction;
-    c = fitCandidate(kept, all, ck, ca, distant, ambient, round > 0 && distant ? &from : nullptr);
+    c = fitCandidate(samples, columns, distant, ambient, round > 0 && distant ? &from : nullptr);
     c.light = light;
     if (round == kRounds - 1 || (!distant && !ambient) || !moveLight) break;
     std::vector<Sample> left = sub;
@@ -242,8 +230,8 @@ void AppearanceFitter::fitSecondSource() {
   report(0.95, "trying a second light source");
   res_.scopeExplained = res_.explained;
   res_.scopeTheta = res_.theta;
-  const std::vector<Sample>&kept = diffuse_.kept, &all = diffuse_.all;
-  if (!in_.o.secondSource || kept.size() < 50 || all.size() < 50) return;
+  const std::vector<Sample>& all = diffuse_.all;
+  if (!in_.o.secondSource || all.size() < 50) return;
   // Where the scope's light goes beside a second source. The stages before fitted it without one, so a second source
   // in the frame pulls it away (on the phantom lit from outside too, to the search's bound). The highlights are the
   // scope's light's own (the second source has no lobe): where they were found and agree with the shading, the light is
@@ -252,14 +240,13 @@ void AppearanceFitter::fitSecondSource() {
   // predicted 6.4 dB worse than with the light held).
   const bool move = res_.highlightFound && !res_.highlightsDisagree && est_.highlightLight.norm() > 0;
   const Light start = move ? Light{est_.highlightLight, est_.lit.falloff} : est_.lit;
-  // Fitted on all the diffuse stage's samples: those it trimmed as outliers of the scope's light alone are where a
-  // second source shows most.
-  const std::vector<Sample>& fitOn = all;
-  const Candidate scope = jointly(fitOn, all, est_.lit, est_.sigma, false, false);  // the same samples, for the rule
-  const Candidate ambient = jointly(fitOn, all, start, est_.sigma, false, true, move);
-  const Candidate distant = jointly(fitOn, all, start, est_.sigma, true, false, move);
+  // Fitted on all the diffuse stage's samples, the scope's light alone too (the rule compares like with like): those
+  // the stage trimmed as outliers of the scope's light alone are where a second source shows most.
+  const Candidate scope = jointly(all, est_.lit, est_.sigma, false, false);
+  const Candidate ambient = jointly(all, start, est_.sigma, false, true, move);
+  const Candidate distant = jointly(all, start, est_.sigma, true, false, move);
   // Both: the distant light's direction searched again with the ambient term beside it.
-  const Candidate both = jointly(fitOn, all, start, est_.sigma, true, true, move);
+  const Candidate both = jointly(all, start, est_.sigma, true, true, move);
   constexpr double gain = AppearanceFitResult::kSecondSourceGain;
   const bool ambientHolds = ambient.share - scope.share >= gain;
   const bool distantHolds = distant.share - scope.share >= gain;
