@@ -497,6 +497,21 @@ class TestLabelImage : public QObject {
     for (std::size_t i = data + 2; i < garbage.size(); ++i) garbage[i] = static_cast<char>(i * 7919 % 251);
     writeFile(tempPath("garbage.mha"), garbage);
     expectImageRefused("garbage.mha", "compressed data", true);
+    // MetaIO allocates the CompressedDataSize it is given at once (the fuzzer's: 1e30 asked for 2^63 bytes, -5 for
+    // 2^64 - 5), so a size that is not a number of bytes, or more bytes than the file holds, is refused first.
+    const std::size_t field = bytes.find("CompressedDataSize = ");
+    QVERIFY(field != std::string::npos && field < data);
+    const std::size_t valueAt = field + 21, valueEnd = bytes.find('\n', valueAt);
+    const long long written = std::stoll(bytes.substr(valueAt, valueEnd - valueAt));
+    QCOMPARE(written, static_cast<long long>(bytes.size() - data));  // ITK's own size: what the file holds
+    for (const std::string& value : std::vector<std::string>{"1e30", "-5", "0", "12.5", "7x", std::to_string(written + 1)}) {
+      std::string b = bytes;
+      b.replace(valueAt, valueEnd - valueAt, value);
+      writeFile(tempPath("compressedsize.mha"), b);
+      const std::string why = errorOf([] { readLabelImage(tempPath("compressedsize.mha")); });
+      checkOneSentence(why, "CompressedDataSize");
+      QVERIFY2(why.find("header is damaged") != std::string::npos, (value + ": " + why).c_str());
+    }
     QCOMPARE(readLabelImage(tempPath("intact.mha")).labels, smallImage().labels);
   }
   void hostileNifti() {

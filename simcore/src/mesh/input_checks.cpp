@@ -405,18 +405,34 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
         if (!toDouble(s, v)) return std::string("its ") + key + " is not numbers";
         if (auto p = voxelProblem(std::abs(v)); !p.empty()) return std::string("its ") + key + " gives " + p;
       }
+  // MetaIO allocates CompressedDataSize bytes at once, as given (found by fuzzing: "CompressedDataSize = 1e30" asked
+  // for 2^63 bytes, a negative one for 2^64 - 5): a whole number of bytes, checked against the file by the reader.
+  double compressedBytes = 0;
+  if (fields.count("CompressedDataSize")) {
+    const std::string& c = fields["CompressedDataSize"];
+    if (!toDouble(c, compressedBytes) || !(compressedBytes >= 1) || compressedBytes > 1e15 ||
+        compressedBytes != std::floor(compressedBytes))
+      return "its CompressedDataSize = " + c.substr(0, 24) + " is not a number of bytes";
+  }
+  if (layout) {  // (where the voxels are, whatever their type)
+    layout->compressedBytes = compressedBytes;
+    layout->dataFile = file;
+    layout->dataOffset = std::min(pos, bytes.size());
+  }
   static const std::map<std::string, int> typeBytes = {
       {"MET_CHAR", 1},  {"MET_UCHAR", 1}, {"MET_SHORT", 2},     {"MET_USHORT", 2},     {"MET_INT", 4},
       {"MET_UINT", 4},  {"MET_LONG", 4},  {"MET_ULONG", 4},     {"MET_LONG_LONG", 8},  {"MET_ULONG_LONG", 8},
       {"MET_FLOAT", 4}, {"MET_DOUBLE", 8}};
-  auto type = typeBytes.find(fields["ElementType"]);
+  // MetaIO reads the type's name up to the first byte that cannot be in it (found by fuzzing: "MET_UCHAR\xff\xff"
+  // was a UCHAR image to it, and unknown here, which skipped the data's checks).
+  std::string typeName = fields["ElementType"];
+  typeName = typeName.substr(0, typeName.find_first_not_of("ABCDEFGHIJKLMNOPQRSTUVWXYZ_"));
+  auto type = typeBytes.find(typeName);
   if (type == typeBytes.end()) return {};  // MetaIO or ITK refuse the type
   long long channels = 1;
   if (fields.count("ElementNumberOfChannels") && (!toLong(fields["ElementNumberOfChannels"], channels) || channels < 1 || channels > 64))
     return "its ElementNumberOfChannels is not a small positive number";
   if (layout) {
-    layout->dataFile = file;
-    layout->dataOffset = std::min(pos, bytes.size());
     layout->expectedBytes = voxels * static_cast<double>(channels) * type->second;
     const std::string c = lowerCopy(fields["CompressedData"]);
     layout->compressed = c == "true" || c == "1";

@@ -225,7 +225,7 @@ void checkMetaImageHeader(const std::string& path, const std::string& name) {
   checks::MetaImageLayout layout;
   if (const std::string p = checks::metaImageHeaderProblem(head, &layout); !p.empty())
     throw MeshError(name + "'s header is damaged: " + p + ".");
-  if (layout.dataFile.empty() || layout.expectedBytes <= 0) return;  // MetaIO says what is missing
+  if (layout.dataFile.empty()) return;  // MetaIO says what is missing
   const bool local = layout.dataFile == "LOCAL";
   const std::filesystem::path data =
       local ? std::filesystem::path(path) : std::filesystem::path(path).parent_path() / layout.dataFile;
@@ -234,6 +234,11 @@ void checkMetaImageHeader(const std::string& path, const std::string& name) {
     throw MeshError(name + "'s data file " + data.filename().string() + " is missing or not a file; keep it beside the header.");
   const double size = static_cast<double>(std::filesystem::file_size(data, ec));
   double offset = local ? static_cast<double>(layout.dataOffset) : 0;
+  if (layout.compressedBytes > size - offset)
+    throw MeshError(name + "'s header is damaged: its CompressedDataSize declares " +
+                    std::to_string(static_cast<long long>(layout.compressedBytes)) + " bytes, more than the " +
+                    std::to_string(static_cast<long long>(std::max(0.0, size - offset))) + " its data file holds.");
+  if (layout.expectedBytes <= 0) return;  // a type MetaIO or ITK refuse
   if (layout.headerSize > 0) offset += static_cast<double>(layout.headerSize);
   if (layout.headerSize == -1) offset = std::max(offset, size - layout.expectedBytes);  // the voxels are the last bytes
   auto truncated = [&](double held) {

@@ -53,6 +53,7 @@ struct MetaImageLayout {
   long long headerSize = 0;         ///< bytes to skip in the data file; -1: the voxels are its last bytes
   double expectedBytes = 0;         ///< voxels x channels x bytes per value
   bool compressed = false;
+  double compressedBytes = 0;       ///< CompressedDataSize when the header gives one (MetaIO allocates it whole)
 };
 /// MetaImage header (.mha / .mhd): NDims, DimSize, spacing, element type, and ElementDataFile (no '%' pattern, no
 /// LIST). Fills `layout` when it passes.
