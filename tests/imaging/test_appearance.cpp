@@ -15,6 +15,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <thread>
 #include <opencv2/imgproc.hpp>
 
 using namespace rehearse;
@@ -918,6 +919,19 @@ private:
     qInfo("rim (%d px): %.1f dB with 4x4 rim samples, %.1f dB without", cv::countNonZero(rim), rimDb, plainDb);
     QVERIFY(rimDb >= 35.0);
     QVERIFY(rimDb > plainDb + 6);
+    // The rasterisation's buffers are kept from one shape to the next (and a compose on another thread allocates its
+    // own): a shape drawn after others, or beside another on a second thread, is drawn as when it was the first.
+    const cv::Mat3b rest = compositor.compose(std::vector<double>{}, 1);
+    QVERIFY(cv::norm(rest, one, cv::NORM_INF) > 0);  // two different pictures
+    QCOMPARE(cv::norm(compositor.compose(moved, 1), one, cv::NORM_INF), 0.0);
+    for (int round = 0; round < 3; ++round) {
+      cv::Mat3b a, b;
+      std::thread other([&] { a = compositor.compose(std::vector<double>{}, 1); });
+      b = compositor.compose(moved, 1);
+      other.join();
+      QCOMPARE(cv::norm(a, rest, cv::NORM_INF), 0.0);
+      QCOMPARE(cv::norm(b, one, cv::NORM_INF), 0.0);
+    }
     // A shape of another mesh is refused in one sentence.
     QVERIFY_THROWS_EXCEPTION(rehearse::InputError, compositor.compose(std::vector<double>(9, 0.0), 1));
   }
