@@ -84,7 +84,7 @@ Eigen::Vector3d Phantom::centreOfGravity() const { return phantom::centreOfGravi
 
 Phantom makePhantom(const PhantomOptions& options) {
   Phantom c;
-  c.name = "Built-in liver phantom";
+  c.name = kBuiltInName;
   c.vesselTree = phantomVesselTree();
   // 1. Volume mesh of the labelled implicit organ.
   simcore::TetrahedraliseOptions mo = options.meshing;

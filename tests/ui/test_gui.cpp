@@ -29,6 +29,7 @@
 #include <QLineEdit>
 #include <QListWidget>
 #include <QMenuBar>
+#include <QMessageBox>
 #include <QSlider>
 #include <rehearse/simcore/labelimage.hpp>
 
@@ -757,6 +758,29 @@ class TestGui : public QObject {
     QVERIFY(imported.wait(120000));
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
     QVERIFY(w.caseData()->organ->volume.tets.size() > 5000);
+    // The built-in case, its phantom replaced by the user's organ, is named after it: the title, the question before
+    // Ctrl+N throws it away (a person's check found "Built-in liver phantom" asked about the imported liver), and
+    // Ctrl+Z gives the phantom and its name back.
+    QCOMPARE(before->name, std::string("Built-in liver phantom"));
+    QCOMPARE(w.caseData()->name, std::string("sphere"));
+    QVERIFY2(w.windowTitle().startsWith(QStringLiteral("sphere")), qPrintable(w.windowTitle()));
+    QTest::keyClick(&w, Qt::Key_N, Qt::ControlModifier);
+    QMessageBox* box = nullptr;
+    QVERIFY(waitFor(
+        [&] {
+          box = w.findChild<QMessageBox*>("unsavedChangesBox");
+          return box && box->isVisible();
+        },
+        10000));
+    QVERIFY2(box->text().contains(QStringLiteral("\u201csphere\u201d")), qPrintable(box->text()));
+    QTest::mouseClick(box->button(QMessageBox::Cancel), Qt::LeftButton);
+    QVERIFY(waitFor([&] { return !w.findChild<QMessageBox*>("unsavedChangesBox"); }, 10000));
+    QCOMPARE(w.caseData()->name, std::string("sphere"));  // cancelled: the case stays
+    w.activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(&w));
+    QTest::keyClick(&w, Qt::Key_Z, Qt::ControlModifier);
+    QCOMPARE(w.caseData()->name, std::string("Built-in liver phantom"));
+    QCOMPARE(w.caseData()->organ->volume.tets.size(), before->organ->volume.tets.size());
   }
 
   // A segmentation in step 1 (issue 39): a NIfTI label image with a colour table beside it imports through the

@@ -4,6 +4,8 @@
 #include <rehearse/simcore/tetrahedralise.hpp>
 #include <rehearse/simcore/labelimage.hpp>
 
+#include "phantom/phantom.hpp"
+
 #include <QComboBox>
 #include <QDoubleSpinBox>
 #include <QFileDialog>
@@ -246,8 +248,14 @@ void MeshPage::importMesh(const QString& path) {
       for (const auto& n : notes) qnotes << QString::fromStdString(n);
       return [this, prepared, path, qnotes, segmentation, unmeshed] {
         importNotes_ = qnotes;
-        wb_.doc->edit(segmentation ? tr("Import segmentation") : tr("Import mesh"),
-                      [&](app::Case& k) { k.setOrgan(prepared); });
+        // A case without a file that was the built-in phantom is named after the organ that replaces the phantom's
+        // (the unsaved-changes question and Save As name it so); undone with the import.
+        const bool renamed = wb_.doc->path().isEmpty() && data()->name == phantom::kBuiltInName;
+        const std::string named = QFileInfo(path).completeBaseName().toStdString();
+        wb_.doc->edit(segmentation ? tr("Import segmentation") : tr("Import mesh"), [&](app::Case& k) {
+          k.setOrgan(prepared);
+          if (renamed && !named.empty()) k.name = named;
+        });
         emit importNotesChanged();
         const auto& organ = *data()->organ;
         const std::set<int> labels(organ.volume.tetLabels.begin(), organ.volume.tetLabels.end());
