@@ -16,6 +16,7 @@
 #include <rehearse/imaging/appearance_fit.hpp>
 #include <rehearse/imaging/render.hpp>
 
+#include <QAction>
 #include <QApplication>
 #include <QLabel>
 #include <QWheelEvent>
@@ -449,9 +450,21 @@ void TestAppearanceGui::movedOrganMakesItStale() {
   QVERIFY(w_->findChild<QLabel*>("appearanceStatus")->text().startsWith("STALE"));
   QVERIFY(!w_->stepDone(ui::Step::Appearance));
   QVERIFY(w_->infoText().contains("STALE"));
+  // The toolbar's button pressed is the view shown: the overlay (a person's check found Composited View still
+  // pressed after an undo while the view and the status bar said "Overlay (not composited: ...)"); F2 there says why
+  // and leaves it so.
+  auto* composited = w_->findChild<QAction*>("viewMode0");
+  auto* overlay = w_->findChild<QAction*>("viewMode1");
+  QVERIFY(composited && overlay);
+  QVERIFY(!composited->isChecked() && overlay->isChecked());
+  QTest::keyClick(w_.get(), Qt::Key_F2);
+  QVERIFY(!w_->showingComposited());
+  QVERIFY(!composited->isChecked() && overlay->isChecked());
+  QVERIFY2(w_->viewModeText().startsWith("Overlay (not composited"), qPrintable(w_->viewModeText()));
   w_->undoStack()->undo();
   QVERIFY(w_->caseData()->appearanceCurrent());
   QVERIFY(waitFor([&] { return w_->showingComposited(); }, 30000));
+  QVERIFY(composited->isChecked() && !overlay->isChecked());
 }
 
 void TestAppearanceGui::escCancels() {

@@ -305,6 +305,16 @@ void MainWindow::showFrameLayer() {
     view_->setInnerOverlay(picture_.inner);
   }
   status_.viewMode->setText(viewModeText());
+  checkShownViewMode();
+}
+
+void MainWindow::checkShownViewMode() {
+  // The button pressed is the view shown: the composited view asked for while it cannot be made (no appearance yet,
+  // or its estimate undone) shows the overlay, and the Overlay button says so; it comes back when the composition can
+  // be made (Composition::readyChanged). (Checking an action does not trigger it: the mode asked for stays.)
+  const ViewMode shown = viewMode_ == ViewMode::Composited && !composition_->ready() ? ViewMode::Overlay : viewMode_;
+  const auto i = static_cast<std::size_t>(shown);
+  if (i < viewModeActions_.size() && !viewModeActions_[i]->isChecked()) viewModeActions_[i]->setChecked(true);
 }
 
 QString MainWindow::viewModeText() const {
@@ -335,8 +345,6 @@ void MainWindow::setViewMode(ViewMode mode) {
   }
   viewMode_ = mode;
   centre_->setCurrentIndex(mode == ViewMode::ThreeD ? 1 : 0);
-  const auto i = static_cast<std::size_t>(mode);
-  if (i < viewModeActions_.size() && !viewModeActions_[i]->isChecked()) viewModeActions_[i]->setChecked(true);
   if (mode == ViewMode::Composited && composition_->ready()) {
     // Follow the simulation from where it is now.
     const auto f = simulation_->lastFrame();
@@ -348,6 +356,7 @@ void MainWindow::setViewMode(ViewMode mode) {
   // showed the last shape drawn in them, at rest when they had not been shown since the start).
   if (step_ == Step::Rehearse && simulation_->lastFrame()) showSimulationFrame();
   showFrameLayer();
+  checkShownViewMode();
   if (mode == ViewMode::Composited && !composition_->ready())
     say(tr("The composited view needs the appearance: %1.").arg(composition_->whyNot()));
 }

@@ -199,6 +199,7 @@ class MainWindow : public QMainWindow {
   void showCaseInfo();
   void refreshOverlay();
   /// The frame view's picture for the view mode: the composited frame, or the frame under the overlay.
+  void checkShownViewMode();
   void showFrameLayer();
   void updateWorkflow();
   void setBusy(bool busy, const QString& message = {});
