@@ -3,12 +3,13 @@
 // beside the scope's light on the specular-free image's samples of the diffuse stage, with the reflectances in closed
 // form (non-negative) and the distant light's direction searched over the sphere; a source is kept only where the frame
 // bears it out (AppearanceFitResult::Source). The scope's light is refitted beside each where the highlights place it
-// (fitSecondSource), and k_s then refitted at the roughness found (ksBeside).
+// (fitSecondSource), and the specular lobe (k_s and the roughness) then refitted beside it (lobeBeside).
 #include "appearance_fit_stages.hpp"
 
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <limits>
 
 namespace rehearse::imaging::detail {
 namespace {
@@ -197,30 +198,65 @@ Candidate jointly(const std::vector<Sample>& samples, Light light, double sigma,
   return c;
 }
 
-// The specular lobe's k_s again once the scope's light has moved beside a second source: per measured channel, in closed
-// form (non-negative) at the roughness found, on the frame's samples around the highlights less both sources' diffuse
-// parts there; a channel not measured takes the measured ones' mean, as before (`ks` kept where nothing is measured).
-Eigen::Vector3d ksBeside(const std::vector<Sample>& spec, const Candidate& chosen, double sigma,
-                         const std::array<bool, 3>& measured, Eigen::Vector3d ks) {
-  Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero();
-  for (const Sample& q : spec) {
+// The specular lobe again once the scope's light has moved beside a second source: its roughness and, per measured
+// channel, k_s in closed form (non-negative) at each roughness tried, on the frame's samples around the highlights less
+// both sources' diffuse parts there. The roughness as stage 3 finds it (a log grid, the cost not convex in it), then a
+// golden section in its logarithm between the grid's neighbours. A channel not measured takes the measured ones' mean,
+// as before (`ks` and `sigma` kept where nothing is measured).
+struct Lobe {
+  Eigen::Vector3d ks;
+  double sigma;
+};
+Lobe lobeBeside(const std::vector<Sample>& spec, const Candidate& chosen, const std::array<bool, 3>& measured,
+                Lobe lobe) {
+  // What the specular lobe is left to explain at each sample (the same at every roughness).
+  std::vector<Eigen::Vector3d> rest(spec.size());
+  for (std::size_t i = 0; i < spec.size(); ++i) {
     double d, sp;
-    basis(q, chosen.light, sigma, d, sp);
-    const double room = chosen.distant ? std::max(0.0, q.n.dot(chosen.direction)) : 0.0;
-    const Eigen::Vector3d rest = q.rgb - chosen.f.kd * d - chosen.f.kr * room - chosen.f.ka;
-    num += sp * rest.cwiseProduct(q.weight);
-    den += sp * sp * q.weight;
+    basis(spec[i], chosen.light, lobe.sigma, d, sp);
+    const double room = chosen.distant ? std::max(0.0, spec[i].n.dot(chosen.direction)) : 0.0;
+    rest[i] = spec[i].rgb - chosen.f.kd * d - chosen.f.kr * room - chosen.f.ka;
   }
+  auto at = [&](double sigma, Eigen::Vector3d& ks) {
+    Eigen::Vector3d num = Eigen::Vector3d::Zero(), den = Eigen::Vector3d::Zero(), rr = Eigen::Vector3d::Zero();
+    for (std::size_t i = 0; i < spec.size(); ++i) {
+      double d, sp;
+      basis(spec[i], chosen.light, sigma, d, sp);
+      num += sp * rest[i].cwiseProduct(spec[i].weight);
+      den += sp * sp * spec[i].weight;
+      rr += rest[i].cwiseProduct(rest[i]).cwiseProduct(spec[i].weight);
+    }
+    double cost = 0;
+    for (int c = 0; c < 3; ++c) {
+      if (!measured[static_cast<std::size_t>(c)] || !(den[c] > 0)) continue;
+      ks[c] = std::max(0.0, num[c] / den[c]);
+      cost += rr[c] - 2 * ks[c] * num[c] + ks[c] * ks[c] * den[c];  // sum w (rest - ks sp)^2
+    }
+    return cost;
+  };
+  bool any = false;
+  for (int c = 0; c < 3; ++c) any = any || measured[static_cast<std::size_t>(c)];
+  if (!any || spec.empty()) return lobe;
+  Eigen::Vector3d ks = lobe.ks;
+  double best = std::numeric_limits<double>::infinity(), bestSigma = lobe.sigma;
+  for (double sg = 0.02; sg <= kMaxRoughness; sg *= 1.25)
+    if (const double c = at(sg, ks); c < best) best = c, bestSigma = sg;
+  double lo = std::log(bestSigma / 1.25), hi = std::log(std::min(bestSigma * 1.25, kMaxRoughness));
+  for (int it = 0; it < 30; ++it) {
+    const double a = hi - 0.618 * (hi - lo), b = lo + 0.618 * (hi - lo);
+    if (at(std::exp(a), ks) < at(std::exp(b), ks)) hi = b;
+    else lo = a;
+  }
+  lobe.sigma = std::exp(0.5 * (lo + hi));
+  at(lobe.sigma, ks);
   double sum = 0;
   int n = 0;
   for (int c = 0; c < 3; ++c)
-    if (measured[static_cast<std::size_t>(c)] && den[c] > 0) {
-      ks[c] = std::max(0.0, num[c] / den[c]);
-      sum += ks[c], ++n;
-    }
+    if (measured[static_cast<std::size_t>(c)]) sum += ks[c], ++n;
   for (int c = 0; c < 3; ++c)
     if (!measured[static_cast<std::size_t>(c)] && n > 0) ks[c] = sum / n;
-  return ks;
+  lobe.ks = ks;
+  return lobe;
 }
 
 }  // namespace
@@ -270,9 +306,12 @@ void AppearanceFitter::fitSecondSource() {
     res_.theta.ka = chosen->ambient ? chosen->f.ka : Eigen::Vector3d::Zero();
     res_.explained = std::clamp(chosen->share, 0.0, 1.0);
     res_.textureOnly = res_.explained < in_.o.poorShare;
-    if (move && res_.highlightFound)
-      res_.theta.ks = ksBeside(specularSamples(res_.usable & ~res_.foreign), *chosen, est_.sigma, res_.ksMeasured,
-                               res_.theta.ks);
+    if (move && res_.highlightFound) {
+      const Lobe lobe = lobeBeside(specularSamples(res_.usable & ~res_.foreign), *chosen, res_.ksMeasured,
+                                   Lobe{res_.theta.ks, res_.theta.roughness});
+      res_.theta.ks = lobe.ks;
+      res_.theta.roughness = lobe.sigma;
+    }
   }
   const Candidate& delivered = chosen ? *chosen : scope;
   Columns ca = columnsOf(all, delivered.light, est_.sigma);
