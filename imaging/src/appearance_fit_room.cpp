@@ -247,7 +247,10 @@ Lobe lobeBeside(const std::vector<Sample>& spec, const Candidate& chosen, const 
     if (at(std::exp(a), ks) < at(std::exp(b), ks)) hi = b;
     else lo = a;
   }
-  lobe.sigma = std::exp(0.5 * (lo + hi));
+  // (Never worse than the roughness found before, k_s refitted at it.)
+  Eigen::Vector3d ksBefore = lobe.ks;
+  const double sigma = std::exp(0.5 * (lo + hi));
+  if (at(sigma, ks) <= at(lobe.sigma, ksBefore)) lobe.sigma = sigma;
   at(lobe.sigma, ks);
   double sum = 0;
   int n = 0;
