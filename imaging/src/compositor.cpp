@@ -112,14 +112,19 @@ struct Compositor::Impl {
   /// points (px[i], py[i]); ok[i] false where the ray grazes the triangle (the caller keeps the background). The
   /// geometry and the light are computed for all points first, in loops the compiler vectorises (no branch, no lookup),
   /// then each point's tables and images are read: this halved the shading's time against one point at a time.
-  static constexpr int kBatch = 64;
+  /// The first loop runs over whole groups of kLanes points (px and py hold at least n rounded up to kLanes; the
+  /// points past n are computed and dropped): a run of a few pixels on one small triangle is then shaded in one
+  /// vector iteration, not in the loop's scalar remainder. Each point's arithmetic is the same either way.
+  static constexpr int kBatch = 64, kLanes = 8;
   void shadeBatch(const std::vector<Plane>& P, int t, int n, const float* px, const float* py, cv::Vec3f* bgr,
                   bool* ok) const;
   /// One point (the rim's samples).
   bool shadeAt(const std::vector<Plane>& P, int t, double px, double py, cv::Vec3f& bgr) const {
-    const float x = static_cast<float>(px), y = static_cast<float>(py);
+    alignas(32) float x[kLanes], y[kLanes];
+    std::fill(x, x + kLanes, static_cast<float>(px));
+    std::fill(y, y + kLanes, static_cast<float>(py));
     bool ok = false;
-    shadeBatch(P, t, 1, &x, &y, &bgr, &ok);
+    shadeBatch(P, t, 1, x, y, &bgr, &ok);
     return ok;
   }
   /// Shades the pixels [x0, x1) of row y, whose triangles are tri[x] (-1: none), into colour[x - x0] and ok[x - x0].
@@ -168,7 +173,9 @@ __attribute__((target_clones("avx2", "default"))) void Compositor::Impl::shadeBa
   const int width = camera.width, height = camera.height;
   const float lastX = static_cast<float>(width - 1), lastY = static_cast<float>(height - 1);
   const int lobeLast = static_cast<int>(lobe.size()) - 2, fallLast = withFalloff ? static_cast<int>(falloff.size()) - 2 : 0;
-  for (int i = 0; i < n; ++i) {
+  static_assert(kBatch % kLanes == 0);
+  const int lanes = (n + kLanes - 1) / kLanes * kLanes;
+  for (int i = 0; i < lanes; ++i) {
     const float dx = kinvF[0] * px[i] + kinvF[1] * py[i] + kinvF[2], dy = kinvF[3] * py[i] + kinvF[4];
     const float denom = nx * dx + ny * dy + nz;
     const float s = offset / denom;
@@ -279,7 +286,8 @@ void Compositor::Impl::shadeRow(const std::vector<Plane>& P, const int* tri, int
     if (t < 0) {
       std::fill(ok + (x - x0), ok + (end - x0), false);
     } else {
-      for (int i = 0; i < end - x; ++i) px[i] = static_cast<float>(x + i);
+      const int lanes = (end - x + kLanes - 1) / kLanes * kLanes;  // (past the run: shadeBatch's last group)
+      for (int i = 0; i < lanes; ++i) px[i] = static_cast<float>(x + i);
       shadeBatch(P, t, end - x, px, py, colour + (x - x0), ok + (x - x0));
     }
     x = end;
