@@ -277,6 +277,7 @@ void MainWindow::onCaseChanged(CaseDocument::Parts parts) {
     for (StepPage* p : pages_.all) p->refresh(*data);
   refreshOverlay();
   showCaseInfo();
+  updateTitle();  // (the name may change with an edit: an organ imported into the built-in case names it)
   updateWorkflow();
 }
 
@@ -287,7 +288,7 @@ void MainWindow::showFrameLayer() {
     view_->setFrame(doc_->secondFrameImage());
     view_->setOverlay(QImage(), {});
     view_->setInnerOverlay(QImage());
-    status_.viewMode->setText(tr("Second frame"));
+    setViewModeLine(tr("Second frame"));
     return;
   }
   const bool composited = showingComposited() && !composition_->lastComposed().isNull() && view_->overlayVisible();
@@ -304,8 +305,15 @@ void MainWindow::showFrameLayer() {
     view_->setOverlay(picture_.organ, picture_.silhouette);
     view_->setInnerOverlay(picture_.inner);
   }
-  status_.viewMode->setText(viewModeText());
+  setViewModeLine(viewModeText());
   checkShownViewMode();
+}
+
+void MainWindow::setViewModeLine(const QString& text) {
+  // Elided where it is longer than its room (a person's check saw a stale estimate's sentence widen the window past the
+  // screen), whole in its tooltip.
+  status_.viewMode->setText(text);
+  status_.viewMode->setToolTip(text);
 }
 
 void MainWindow::checkShownViewMode() {

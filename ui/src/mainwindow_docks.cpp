@@ -311,7 +311,7 @@ void MainWindow::showSimulationFrame() {
         showInOrganView(centreOrgan_, std::make_shared<const app::Case>(simulatedCase(*doc_->data(), f->positions)));
       else
         showInOrganView(centreOrgan_, doc_->data());
-      status_.viewMode->setText(viewModeText());
+      setViewModeLine(viewModeText());
     }
   } else {
     view_->setWarning({}, {});  // another organ's frame (or none): its warning is not this organ's
@@ -357,8 +357,9 @@ void MainWindow::buildStatusBar() {
   status_.simulation->setObjectName(QStringLiteral("statusSimulation"));
   status_.simulation->setMaximumWidth(520);
   status_.distance = new QLabel(this);
-  status_.viewMode = new QLabel(this);
+  status_.viewMode = new SentenceLabel(this);
   status_.viewMode->setObjectName(QStringLiteral("statusViewMode"));
+  status_.viewMode->setMaximumWidth(360);
   statusBar()->addWidget(status_.caseText, 1);
   statusBar()->addWidget(log);
   // The simulation's sentence (15 times a second), the distance and the cursor's pixel (at each mouse move, in every

@@ -200,6 +200,7 @@ class MainWindow : public QMainWindow {
   void refreshOverlay();
   /// The frame view's picture for the view mode: the composited frame, or the frame under the overlay.
   void checkShownViewMode();
+  void setViewModeLine(const QString& text);
   void showFrameLayer();
   void updateWorkflow();
   void setBusy(bool busy, const QString& message = {});
