@@ -462,8 +462,8 @@ void TestAppearanceGui::movedOrganMakesItStale() {
   QVERIFY(!w_->stepDone(ui::Step::Appearance));
   QVERIFY(w_->infoText().contains("STALE"));
   // The toolbar's button pressed is the view shown: the overlay (a person's check found Composited View still
-  // pressed after an undo while the view and the status bar said "Overlay (not composited: ...)"); F2 there says why
-  // and leaves it so.
+  // pressed after an undo while the view and the status bar said it showed the overlay); F2 there says why and leaves
+  // it so.
   auto* composited = w_->findChild<QAction*>("viewMode0");
   auto* overlay = w_->findChild<QAction*>("viewMode1");
   QVERIFY(composited && overlay);
@@ -471,7 +471,7 @@ void TestAppearanceGui::movedOrganMakesItStale() {
   QTest::keyClick(w_.get(), Qt::Key_F2);
   QVERIFY(!w_->showingComposited());
   QVERIFY(!composited->isChecked() && overlay->isChecked());
-  QVERIFY2(w_->viewModeText().startsWith("Overlay (not composited"), qPrintable(w_->viewModeText()));
+  QVERIFY2(w_->viewModeText().startsWith("Overlay, not composited:"), qPrintable(w_->viewModeText()));
   w_->undoStack()->undo();
   QVERIFY(w_->caseData()->appearanceCurrent());
   QVERIFY(waitFor([&] { return w_->showingComposited(); }, 30000));

@@ -329,7 +329,7 @@ QString MainWindow::viewModeText() const {
   switch (viewMode_) {
     case ViewMode::Composited:
       return composition_->ready() ? (composition_->usesOpenGL() ? tr("Composited (OpenGL)") : tr("Composited"))
-                                   : tr("Overlay (not composited: %1)").arg(composition_->whyNot());
+                                   : tr("Overlay, not composited: %1").arg(composition_->whyNot());
     case ViewMode::Overlay:
       return tr("Overlay");
     case ViewMode::ThreeD:

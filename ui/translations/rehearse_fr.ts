@@ -2454,7 +2454,7 @@ roughness: %10 rad
     </message>
     <message>
         <location filename="../src/mainwindow.cpp" line="267"/>
-        <source>Overlay (not composited: %1)</source>
+        <source>Overlay, not composited: %1</source>
         <translation type="unfinished"></translation>
     </message>
     <message>
