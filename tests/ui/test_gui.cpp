@@ -388,6 +388,19 @@ class TestGui : public QObject {
     view->setFocus();
     QTest::keyClick(view, Qt::Key_Home);
     QCOMPARE(view->zoom(), 1.0);
+
+    // The status bar reads out the frame's pixel under the pointer, and nothing once the pointer has left the frame.
+    auto* cursor = w.findChild<QLabel*>("statusCursor");
+    QVERIFY(cursor);
+    const QPoint at = centre + QPoint(7, 5);
+    QMouseEvent move(QEvent::MouseMove, QPointF(at), view->mapToGlobal(QPointF(at)), Qt::NoButton, Qt::NoButton,
+                     Qt::NoModifier);
+    QApplication::sendEvent(view, &move);
+    const QPointF pixel = view->toFrame(at);
+    QVERIFY2(cursor->text().startsWith(QStringLiteral("u %1").arg(pixel.x(), 0, 'f', 1)), qPrintable(cursor->text()));
+    QEvent leave(QEvent::Leave);
+    QApplication::sendEvent(view, &leave);
+    QVERIFY2(cursor->text().isEmpty(), qPrintable(cursor->text()));
   }
 
   // Messages are read whole: a long error is shortened in the status bar, never pushes the widgets beside

@@ -216,6 +216,7 @@ void FrameView::paintDeviceTip(QPainter& painter) {
 void FrameView::leaveEvent(QEvent* e) {
   if (pointer_) update(QRect(pointer_->toPoint() + QPoint(10, 8), QSize(180, 36)));
   pointer_.reset();
+  emit cursorLeft();
   QWidget::leaveEvent(e);
 }
 

@@ -106,6 +106,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(view_, &FrameView::cursorMoved, this, [this](QPointF p) {
     status_.cursor->setText(tr("u %1  v %2 px").arg(p.x(), 0, 'f', 1).arg(p.y(), 0, 'f', 1));
   });
+  // (a person's check found the last pixel still read out after the pointer had left the frame)
+  connect(view_, &FrameView::cursorLeft, this, [this] { status_.cursor->clear(); });
   connect(view_, &FrameView::contourEdited, this, [this](const imaging::Contour& c, const QString& text, int merge) {
     // (the second frame's outline while it is shown)
     const bool second = view_->secondFrameShown();

@@ -77,6 +77,17 @@ class SentenceLabel : public QLabel {
   }
 };
 
+// The status bar's view mode: a short word as a QLabel asks for its whole width, a long sentence (why the view is not
+// composited) elided within 360 px and never more than 90 px of the window's least width (a stale estimate's sentence
+// widened the window past the screen); the whole sentence is its tooltip (MainWindow::setViewModeLine).
+class ModeLabel : public SentenceLabel {
+ public:
+  using SentenceLabel::SentenceLabel;
+  QSize minimumSizeHint() const override {
+    return {std::min(90, fontMetrics().horizontalAdvance(text()) + 8), QLabel::minimumSizeHint().height()};
+  }
+};
+
 // In a scrolled page the wheel scrolls the page: a spin box or a list box under the pointer takes it only once it has
 // the keyboard focus (a click, Tab). A helper's scroll over the Simulation panel changed the jaw bite from 6 to 1 mm.
 class WheelGuard : public QObject {
@@ -352,12 +363,13 @@ void MainWindow::buildStatusBar() {
     messagesDock_->raise();
   });
   status_.cursor = new QLabel(this);
+  status_.cursor->setObjectName(QStringLiteral("statusCursor"));
   // The simulation's line is bounded (elided, whole in its tooltip) so that the case's sentence keeps its room.
   status_.simulation = new SentenceLabel(this);
   status_.simulation->setObjectName(QStringLiteral("statusSimulation"));
   status_.simulation->setMaximumWidth(520);
   status_.distance = new QLabel(this);
-  status_.viewMode = new SentenceLabel(this);
+  status_.viewMode = new ModeLabel(this);
   status_.viewMode->setObjectName(QStringLiteral("statusViewMode"));
   status_.viewMode->setMaximumWidth(360);
   statusBar()->addWidget(status_.caseText, 1);

@@ -224,6 +224,8 @@ class FrameView : public QWidget {
 
  signals:
   void cursorMoved(QPointF framePixel);
+  /// The pointer left the view (the pixel under it is no longer shown).
+  void cursorLeft();
   /// A new contour after an edit; edits with the same non-negative mergeId form one undo step.
   void contourEdited(const rehearse::imaging::Contour& contour, const QString& text, int mergeId);
   void shownFrameChanged(bool second);
