@@ -246,7 +246,7 @@ class TestAppearance : public QObject {
   // Beside a second source, the scope's light within 5 % of its distance to the organ, k_d within 5 % per channel, k_s
   // within 15 % on the channels the frame measures and the roughness within 5 %, both refitted after the light moved
   // (measured: k_s 2.3-7.8 % and the roughness 0.0-1.6 %; with k_s alone refitted at the roughness fitted before, k_s
-  // 3.8-11 % and the roughness 5.9-15 %; without any refit k_s 5.5-9 % with both sources, 24 % with the ambient term
+  // 8.6-11 % and the roughness 5.9-15 %; without any refit k_s 5.5-9 % with both sources, 24 % with the ambient term
   // alone).
   void checkScopeLight(const imaging::AppearanceFitResult& r, const imaging::Appearance& truth) {
     qInfo("ks (%.5f %.5f %.5f) true (%.5f %.5f %.5f), measured %d%d%d; before the second source (%.5f %.5f %.5f)",
