@@ -26,12 +26,12 @@ struct VesselSegment {
   double radius;         ///< metres
 };
 
-/// The built-in phantom as generated: the labelled organ, its ligament attachments, a camera, the
-/// synthetic frame and the ground truth it was rendered from (pose, light, reflectance, vessel tree).
-/// The case document a user works on is app::Case (app/core), made from this by app::caseFromPhantom.
 /// The built-in case's name (a case without a file keeps it until an organ of the user's replaces the phantom's).
 inline constexpr const char* kBuiltInName = "Built-in liver phantom";
 
+/// The built-in phantom as generated: the labelled organ, its ligament attachments, a camera, the
+/// synthetic frame and the ground truth it was rendered from (pose, light, reflectance, vessel tree).
+/// The case document a user works on is app::Case (app/core), made from this by app::caseFromPhantom.
 struct Phantom {
   std::string name;
   simcore::Mesh volume;                  ///< tets, labels 1 parenchyma / 2 vessels, metres, model frame
