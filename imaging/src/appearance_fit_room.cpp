@@ -241,11 +241,22 @@ Lobe lobeBeside(const std::vector<Sample>& spec, const Candidate& chosen, const 
   double best = std::numeric_limits<double>::infinity(), bestSigma = lobe.sigma;
   for (double sg = 0.02; sg <= kMaxRoughness; sg *= 1.25)
     if (const double c = at(sg, ks); c < best) best = c, bestSigma = sg;
+  // (Each iteration evaluates one new point: the other is the last one's, at the golden ratio. 24 iterations leave
+  // the logarithm within 5e-6.)
+  const double golden = 0.5 * (std::sqrt(5.0) - 1.0);
   double lo = std::log(bestSigma / 1.25), hi = std::log(std::min(bestSigma * 1.25, kMaxRoughness));
-  for (int it = 0; it < 30; ++it) {
-    const double a = hi - 0.618 * (hi - lo), b = lo + 0.618 * (hi - lo);
-    if (at(std::exp(a), ks) < at(std::exp(b), ks)) hi = b;
-    else lo = a;
+  double a = hi - golden * (hi - lo), b = lo + golden * (hi - lo);
+  double fa = at(std::exp(a), ks), fb = at(std::exp(b), ks);
+  for (int it = 0; it < 24; ++it) {
+    if (fa < fb) {
+      hi = b, b = a, fb = fa;
+      a = hi - golden * (hi - lo);
+      fa = at(std::exp(a), ks);
+    } else {
+      lo = a, a = b, fa = fb;
+      b = lo + golden * (hi - lo);
+      fb = at(std::exp(b), ks);
+    }
   }
   // (Never worse than the roughness found before, k_s refitted at it.)
   Eigen::Vector3d ksBefore = lobe.ks;
