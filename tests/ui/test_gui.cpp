@@ -839,6 +839,7 @@ class TestGui : public QObject {
     w.meshPage()->importMesh(QString::fromStdString(path));
     QVERIFY(imported.wait(120000));
     QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+    QCOMPARE(w.caseData()->name, std::string("segmentation"));  // (segmentation.nii.gz into the built-in case)
     const auto& volume = w.caseData()->organ->volume;
     QCOMPARE(volume.labelName(1), std::string("liver"));
     QCOMPARE(volume.labelName(4), std::string("tumour"));

@@ -251,7 +251,9 @@ void MeshPage::importMesh(const QString& path) {
         // A case without a file that was the built-in phantom is named after the organ that replaces the phantom's
         // (the unsaved-changes question and Save As name it so); undone with the import.
         const bool renamed = wb_.doc->path().isEmpty() && data()->name == phantom::kBuiltInName;
-        const std::string named = QFileInfo(path).completeBaseName().toStdString();
+        QString base = QFileInfo(path).completeBaseName();  // (liver.vtk: liver; a segmentation's .nii.gz: its name)
+        if (base.endsWith(QStringLiteral(".nii"), Qt::CaseInsensitive)) base.chop(4);
+        const std::string named = base.toStdString();
         wb_.doc->edit(segmentation ? tr("Import segmentation") : tr("Import mesh"), [&](app::Case& k) {
           k.setOrgan(prepared);
           if (renamed && !named.empty()) k.name = named;
