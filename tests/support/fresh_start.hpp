@@ -25,11 +25,12 @@ inline void forgetEarlierRuns() {
 }
 
 // Closes a main window as a person who does not keep its unsaved changes: Discard in the box that asks (issue 62), if
-// it asks. True when the window closed.
+// it asks (about the case's unsaved changes, or about a rehearsal nothing keeps). True when the window closed.
 inline bool closeDiscardingChanges(QWidget& window) {
   window.close();
-  if (auto* box = window.findChild<QMessageBox*>(QStringLiteral("unsavedChangesBox")))
-    QTest::mouseClick(box->button(QMessageBox::Discard), Qt::LeftButton);
+  for (const char* name : {"unsavedChangesBox", "unkeptRehearsalBox"})
+    if (auto* box = window.findChild<QMessageBox*>(QString::fromLatin1(name)))
+      QTest::mouseClick(box->button(QMessageBox::Discard), Qt::LeftButton);
   return !window.isVisible();
 }
 }  // namespace

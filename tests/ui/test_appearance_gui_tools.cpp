@@ -16,6 +16,7 @@
 #include <rehearse/imaging/appearance_fit.hpp>
 #include <rehearse/imaging/render.hpp>
 
+#include <QMessageBox>
 #include <QAction>
 #include <QApplication>
 #include <QLabel>
@@ -317,7 +318,34 @@ struct ClipCutCauterize {
           .save(QString::fromLocal8Bit(dir) + "/step7-clip-cut-cautery-detail.png");
     }
     QTest::keyClick(w_.get(), Qt::Key_Escape);
+  }
+
+  // Closing the window over this rehearsal: its cuts, its burn and its clips are not the case's (saving does not keep
+  // them, a recording would), so the window asks before it ends them and says what would be lost; Cancel keeps them.
+  // (Ctrl+Q after a cut quit without a word.) After Reset there is nothing left to ask about.
+  void closingAsksAboutTheRehearsal() {
+    const QString unkept = panel_->unkeptWork();
+    QVERIFY2(unkept.contains("cut or torn") && unkept.contains("burnt") && unkept.contains("clip"), qPrintable(unkept));
+    w_->close();
+    QMessageBox* box = nullptr;
+    QVERIFY(waitFor(
+        [&] {
+          box = w_->findChild<QMessageBox*>("unkeptRehearsalBox");
+          if (!box) box = w_->findChild<QMessageBox*>("unsavedChangesBox");  // (the case has unsaved edits too)
+          return box && box->isVisible();
+        },
+        10000));
+    const QString said = box->text() + " " + box->informativeText(), name = box->objectName();
+    qInfo("asked (%s): %s", qPrintable(name), qPrintable(said));
+    QVERIFY2(said.contains(unkept) && said.contains("recording"), qPrintable(said));
+    QTest::mouseClick(box->button(QMessageBox::Cancel), Qt::LeftButton);
+    QVERIFY(waitFor([&] { return !w_->findChild<QMessageBox*>(name); }, 10000));
+    QVERIFY(w_->isVisible());
+    w_->activateWindow();  // (the window manager gives it back after a box; offscreen has none)
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    QCOMPARE(panel_->unkeptWork(), unkept);
     panel_->reset();
+    QVERIFY(waitFor([&] { return panel_->lastFrame() && panel_->unkeptWork().isEmpty(); }, 20000));
   }
 };
 }  // namespace
@@ -344,6 +372,8 @@ void TestAppearanceGui::clipCutAndCauterize() {
   s.cutBeyondTheClips();
   if (QTest::currentTestFailed()) return;
   s.pauseAndShoot();
+  if (QTest::currentTestFailed()) return;
+  s.closingAsksAboutTheRehearsal();
 }
 
 // Tearing with the mouse: the Simulation panel's "Tears at" set to 15 % strain, the grasper bites the organ and drags

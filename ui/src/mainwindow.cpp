@@ -662,14 +662,30 @@ void MainWindow::updateTitle() {
 }
 
 void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> then) {
-  if (!doc_->isModified()) return then();
-  auto* box = new QMessageBox(QMessageBox::Warning, tr("Unsaved changes"),
-                              tr("The case \u201c%1\u201d has changes that are not saved. Save them before %2?")
-                                  .arg(doc_->displayName(), doing),
-                              QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel, this);
-  box->setObjectName(QStringLiteral("unsavedChangesBox"));
-  box->setInformativeText(tr("Discard loses them; Cancel goes back to the case."));
-  box->setDefaultButton(QMessageBox::Save);
+  // The rehearsal's cuts, burns and clips (step 7) are not the case's: saving does not keep them, only a recording
+  // does. Ending a rehearsal that changed the organ is asked about too (Ctrl+Q after a cut quit without a word).
+  const QString unkept = simulation_ ? simulation_->unkeptWork() : QString();
+  const bool unsaved = doc_->isModified();
+  if (!unsaved && unkept.isEmpty()) return then();
+  const QString rehearsal = tr("Only a recording keeps a rehearsal (Ctrl+R records it into the case file).");
+  auto* box =
+      unsaved ? new QMessageBox(QMessageBox::Warning, tr("Unsaved changes"),
+                                tr("The case \u201c%1\u201d has changes that are not saved. Save them before %2?")
+                                    .arg(doc_->displayName(), doing),
+                                QMessageBox::Save | QMessageBox::Discard | QMessageBox::Cancel, this)
+              : new QMessageBox(QMessageBox::Warning, tr("Rehearsal not kept"),
+                                tr("The rehearsal on \u201c%1\u201d (%2) is not kept: %3 ends it.")
+                                    .arg(doc_->displayName(), unkept, doing),
+                                QMessageBox::Discard | QMessageBox::Cancel, this);
+  box->setObjectName(unsaved ? QStringLiteral("unsavedChangesBox") : QStringLiteral("unkeptRehearsalBox"));
+  if (unsaved)
+    box->setInformativeText(tr("Discard loses them; Cancel goes back to the case.") +
+                            (unkept.isEmpty() ? QString()
+                                              : QStringLiteral(" ") + tr("Saving keeps the case, not the rehearsal "
+                                                                         "(%1). %2").arg(unkept, rehearsal)));
+  else
+    box->setInformativeText(rehearsal + QStringLiteral(" ") + tr("Discard ends it; Cancel goes back to it."));
+  box->setDefaultButton(unsaved ? QMessageBox::Save : QMessageBox::Cancel);
   box->setAttribute(Qt::WA_DeleteOnClose);
   box->setWindowModality(Qt::WindowModal);
   // The organ does not go on moving behind the question (what it is asked about would change while it is read);
@@ -679,12 +695,13 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
   auto resume = [this, wasPlaying] {
     if (wasPlaying && simulation_) simulation_->play();
   };
-  connect(box, &QMessageBox::finished, this, [this, box, resume, then = std::move(then)](int) {
+  connect(box, &QMessageBox::finished, this, [this, box, resume, unsaved, then = std::move(then)](int) {
     const auto button = box->standardButton(box->clickedButton());
     if (button == QMessageBox::Discard) return then();
     if (button != QMessageBox::Save) {
       resume();
-      return say(tr("Cancelled: the case and its unsaved changes stay open."));
+      return say(unsaved ? tr("Cancelled: the case and its unsaved changes stay open.")
+                         : tr("Cancelled: the rehearsal stays as it is."));
     }
     save();  // (Save As asks where for a case without a file)
     if (!doc_->isSaving()) return resume();  // Save As cancelled: nothing saved, nothing replaced
@@ -739,7 +756,7 @@ void MainWindow::showCaseInfo() {
 }
 
 void MainWindow::closeEvent(QCloseEvent* e) {
-  if (!closeAsked_ && doc_->isModified()) {
+  if (!closeAsked_ && (doc_->isModified() || (simulation_ && !simulation_->unkeptWork().isEmpty()))) {
     e->ignore();
     askToKeepChanges(tr("closing Rehearse"), [this] {
       closeAsked_ = true;

@@ -6,6 +6,7 @@
 #include <rehearse/app/materials.hpp>
 
 #include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/session/field.hpp>
 
 #include <QFutureWatcher>
 #include <QHBoxLayout>
@@ -14,6 +15,7 @@
 #include <QPaintEvent>
 #include <QPointer>
 #include <QPushButton>
+#include <QStringList>
 #include <QtConcurrent/QtConcurrent>
 #include <QVBoxLayout>
 
@@ -432,6 +434,18 @@ void SimulationPanel::onFailed(const QString& message) {
   status_->setText(message);
   emit statusChanged(tr("Simulation: %1").arg(message));
   updateButtons();
+}
+
+QString SimulationPanel::unkeptWork() const {
+  if (!last_ || recording()) return {};
+  QStringList done;
+  // A cut or a tear splits elements (the organ's element count grows); a burn relabels them.
+  const std::size_t uncut = last_->organ ? last_->organ->organ->volume.tets.size() : 0;
+  if (last_->surface && last_->elements != uncut) done << tr("cut or torn");
+  if (last_->labels && std::any_of(last_->labels->begin(), last_->labels->end(), simcore::isBurnt)) done << tr("burnt");
+  if (const auto clips = static_cast<int>(last_->field.clips.size()); clips > 0)
+    done << (clips == 1 ? tr("a clip") : tr("%1 clips").arg(clips));
+  return done.join(QStringLiteral(", "));
 }
 
 QString SimulationPanel::statusText() const {

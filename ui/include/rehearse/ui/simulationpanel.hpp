@@ -82,6 +82,10 @@ class SimulationPanel : public QWidget {
   void stopRecording();
   bool recording() const { return host_->recording(); }
   qint64 recordingId() const;
+  /// What the instruments did to the organ since the session's start or its last Reset that nothing keeps (the case
+  /// keeps no simulation state, a recording keeps the session): "cut or torn, burnt, 2 clips", empty when nothing
+  /// (or when it is being recorded). The window asks before it ends such a rehearsal (quit, new or another case).
+  QString unkeptWork() const;
   /// How the current session started: where the frame shows it, in equilibrium (and whether its rest shape was solved
   /// for the last session already), or why the organ will sag; empty without gravity or attachments.
   QString startSentence() const { return startWord_; }
