@@ -45,5 +45,6 @@ class TestAppearanceGui : public QObject {
   void escCancels();
   void organBehindTheCameraIsRefused();
   void savedAndComposedAgainAfterReopening();
+  void aNewCaseEndsTheRehearsal();
   void cleanupTestCase();
 };

@@ -552,6 +552,58 @@ void TestAppearanceGui::savedAndComposedAgainAfterReopening() {
   QVERIFY(waitFor([&] { return w_->showingComposited(); }, 30000));
 }
 
+// New Case over a rehearsal that burnt the organ asks first (Discard / Cancel); Discard starts the empty case, which
+// shows no simulated organ and asks nothing more about the old one's rehearsal. (A person's check found the old organ
+// kept on show, greyed at t = 20.59 s, and its cut asked about again at every Ctrl+Q, Ctrl+N and Ctrl+O.)
+void TestAppearanceGui::aNewCaseEndsTheRehearsal() {
+  QVERIFY(rehearseFromRest());
+  auto* view = w_->frameView();
+  const auto& c = *w_->caseData();
+  double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+  for (const auto& p : c.shapeNodes()) {
+    const Eigen::Vector2d q = c.camera.project(c.pose.apply(p));
+    x0 = std::min(x0, q.x()), x1 = std::max(x1, q.x()), y0 = std::min(y0, q.y()), y1 = std::max(y1, q.y());
+  }
+  const auto widget = [&](double fx, double fy) {
+    return view->toWidget(QPointF(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))).toPoint();
+  };
+  QCOMPARE(panel_->unkeptWork(), QString());
+  // A line burnt across the organ's middle with the cautery hook, slowly (tissue burns after 0.2 s under the tip).
+  QTest::keyClick(w_.get(), Qt::Key_J);
+  QCOMPARE(view->tool(), ui::Tool::Cautery);
+  const QPoint from = widget(0.35, 0.5), to = widget(0.6, 0.5);
+  QTest::mousePress(view, Qt::LeftButton, {}, from);
+  QVERIFY(waitFor([&] { return panel_->lastFrame()->field.energy; }));
+  for (int i = 1; i <= 10; ++i) {
+    QTest::mouseMove(view, from + (to - from) * (i / 10.0));
+    QVERIFY(stepsOn(8));
+  }
+  QTest::mouseRelease(view, Qt::LeftButton, {}, to);
+  QVERIFY2(waitFor([&] { return panel_->unkeptWork().contains("burnt"); }, 30000), qPrintable(panel_->unkeptWork()));
+  const QString unkept = panel_->unkeptWork();
+  QTest::keyClick(w_.get(), Qt::Key_N, Qt::ControlModifier);
+  QMessageBox* box = nullptr;
+  QVERIFY(waitFor(
+      [&] {
+        box = w_->findChild<QMessageBox*>("unkeptRehearsalBox");
+        return box && box->isVisible();
+      },
+      10000));
+  qInfo("asked: %s", qPrintable(box->text()));
+  QVERIFY2(box->text().contains(unkept) && box->text().contains("starting a new case"), qPrintable(box->text()));
+  QTest::mouseClick(box->button(QMessageBox::Discard), Qt::LeftButton);
+  QVERIFY(waitFor([&] { return w_->caseData() && w_->caseData()->organ->empty(); }, 10000));
+  QVERIFY(waitFor([&] { return !panel_->lastFrame(); }, 10000));  // the old organ is not shown on
+  QCOMPARE(panel_->unkeptWork(), QString());
+  w_->activateWindow();  // (the window manager gives it back after a box; offscreen has none)
+  QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+  // Nothing more to ask: New Case again goes ahead at once.
+  QTest::keyClick(w_.get(), Qt::Key_N, Qt::ControlModifier);
+  QTest::qWait(300);
+  QVERIFY(!w_->findChild<QMessageBox*>("unkeptRehearsalBox"));
+  QVERIFY(!w_->findChild<QMessageBox*>("unsavedChangesBox"));
+}
+
 void TestAppearanceGui::cleanupTestCase() {
   w_->close();
   w_.reset();

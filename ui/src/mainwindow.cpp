@@ -667,7 +667,7 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
   const QString unkept = simulation_ ? simulation_->unkeptWork() : QString();
   const bool unsaved = doc_->isModified();
   if (!unsaved && unkept.isEmpty()) return then();
-  const QString rehearsal = tr("Only a recording keeps a rehearsal (Ctrl+R records it into the case file).");
+  const QString rehearsal = tr("Only a recording keeps a rehearsal (Ctrl+R, into the case's file once it is saved).");
   auto* box =
       unsaved ? new QMessageBox(QMessageBox::Warning, tr("Unsaved changes"),
                                 tr("The case \u201c%1\u201d has changes that are not saved. Save them before %2?")
@@ -697,7 +697,14 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
   };
   connect(box, &QMessageBox::finished, this, [this, box, resume, unsaved, then = std::move(then)](int) {
     const auto button = box->standardButton(box->clickedButton());
-    if (button == QMessageBox::Discard) return then();
+    if (button == QMessageBox::Discard) {
+      // When what was asked for did not happen (its file dialog cancelled: the same case, nothing loading, the window
+      // open), the organ plays on as it was (it stayed paused, unsaid).
+      const auto before = doc_->data();
+      then();
+      if (isVisible() && !closeAsked_ && !doc_->isLoading() && doc_->data() == before) resume();
+      return;
+    }
     if (button != QMessageBox::Save) {
       resume();
       return say(unsaved ? tr("Cancelled: the case and its unsaved changes stay open.")

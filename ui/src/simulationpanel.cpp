@@ -56,8 +56,14 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   }
   startRefused_ = false;
   startWord_.clear();
+  kept_.reset();
   if (!started) {
-    onFailed(tr("No organ volume to simulate; load or tetrahedralise a mesh first."));
+    // The old session is over: its organ is not shown on (a new case without an organ kept showing it, greyed, and
+    // its cut was asked about).
+    const QString why = tr("No organ volume to simulate; load or tetrahedralise a mesh first.");
+    last_.reset();
+    view_->clearFrame(why);
+    onFailed(why);
     return;
   }
   builtWith_ = s.organ->material;
@@ -187,6 +193,8 @@ QString SimulationPanel::startRecording(const QString& file, const app::SessionM
 
 void SimulationPanel::stopRecording() {
   recordRequest_.reset();
+  // The recording keeps the session as it is now (what the instruments do after it is not kept).
+  if (last_ && recording()) kept_ = workOf(*last_);
   host_->stopRecording();
 }
 
@@ -436,15 +444,31 @@ void SimulationPanel::onFailed(const QString& message) {
   updateButtons();
 }
 
+SimulationPanel::Work SimulationPanel::workOf(const SimulationFrame& f) {
+  Work w;
+  w.cutFaces = f.surface ? f.surface->cutCount : 0;
+  w.elements = f.elements;
+  if (f.labels) w.burnt = static_cast<std::size_t>(std::count_if(f.labels->begin(), f.labels->end(), simcore::isBurnt));
+  w.clips = f.field.clips.size();
+  w.bloodLoss = f.field.bloodLoss;
+  return w;
+}
+
 QString SimulationPanel::unkeptWork() const {
-  if (!last_ || recording()) return {};
+  // Nothing when the frame on show is not of the case's organ (a new case without one shows none).
+  if (!last_ || recording() || !organ_ || !last_->organ || last_->organ->organ != organ_->organ) return {};
+  const Work now = workOf(*last_);
+  // What a recording stopped since this session's start keeps: only what the instruments did after it is unkept.
+  if (kept_ && now.cutFaces == kept_->cutFaces && now.elements == kept_->elements && now.burnt == kept_->burnt &&
+      now.clips == kept_->clips && now.bloodLoss == kept_->bloodLoss)
+    return {};
   QStringList done;
-  // A cut or a tear splits elements (the organ's element count grows); a burn relabels them.
-  const std::size_t uncut = last_->organ ? last_->organ->organ->volume.tets.size() : 0;
-  if (last_->surface && last_->elements != uncut) done << tr("cut or torn");
-  if (last_->labels && std::any_of(last_->labels->begin(), last_->labels->end(), simcore::isBurnt)) done << tr("burnt");
-  if (const auto clips = static_cast<int>(last_->field.clips.size()); clips > 0)
-    done << (clips == 1 ? tr("a clip") : tr("%1 clips").arg(clips));
+  // A cut or a tear opens faces (and splits elements, unless the cut ran along their faces); a burn relabels them.
+  const std::size_t uncut = last_->organ->organ->volume.tets.size();
+  if (now.cutFaces > 0 || (last_->surface && now.elements != uncut)) done << tr("cut or torn");
+  if (now.burnt > 0) done << tr("burnt");
+  if (now.clips > 0) done << (now.clips == 1 ? tr("a clip") : tr("%1 clips").arg(now.clips));
+  if (now.bloodLoss > 0) done << tr("%1 mL of blood lost").arg(1e6 * now.bloodLoss, 0, 'f', 1);
   return done.join(QStringLiteral(", "));
 }
 

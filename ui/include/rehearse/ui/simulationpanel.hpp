@@ -86,6 +86,12 @@ class SimulationPanel : public QWidget {
   /// keeps no simulation state, a recording keeps the session): "cut or torn, burnt, 2 clips", empty when nothing
   /// (or when it is being recorded). The window asks before it ends such a rehearsal (quit, new or another case).
   QString unkeptWork() const;
+  /// What the instruments did to the organ, from a frame (SimulationPanel::unkeptWork compares and words it).
+  struct Work {
+    std::size_t cutFaces = 0, elements = 0, burnt = 0, clips = 0;
+    double bloodLoss = 0;
+  };
+  static Work workOf(const SimulationFrame& f);
   /// How the current session started: where the frame shows it, in equilibrium (and whether its rest shape was solved
   /// for the last session already), or why the organ will sag; empty without gravity or attachments.
   QString startSentence() const { return startWord_; }
@@ -131,6 +137,7 @@ class SimulationPanel : public QWidget {
     Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
   } asked_;
   std::optional<RecordRequest> recordRequest_;  ///< what is being recorded (a reset starts a new session with it)
+  std::optional<Work> kept_;  ///< what a recording of this session, stopped, keeps (unkeptWork: only more is unkept)
   SessionHost* host_ = nullptr;                 ///< runs the session (a child of the panel)
   QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not
   bool startRefused_ = false;  ///< the last start was refused (a run setting changed on the panel tries again)
