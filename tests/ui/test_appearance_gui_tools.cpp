@@ -40,6 +40,33 @@ using namespace rehearse;
 using ui::MainWindow;
 
 namespace {
+// A point of the registered organ's box on the frame (fx, fy from 0 to 1 across it), in the frame view's pixels.
+std::function<QPoint(double, double)> organBoxPoint(ui::FrameView* view, const app::Case& c) {
+  double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
+  for (const auto& p : c.shapeNodes()) {
+    const Eigen::Vector2d q = c.camera.project(c.pose.apply(p));
+    x0 = std::min(x0, q.x()), x1 = std::max(x1, q.x()), y0 = std::min(y0, q.y()), y1 = std::max(y1, q.y());
+  }
+  return [=](double fx, double fy) {
+    return view->toWidget(QPointF(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))).toPoint();
+  };
+}
+
+// The cautery hook pressed at `from`, dragged to `to` and released, slowly: tissue burns after 0.2 s under the powered
+// tip (at 4 steps a notch the hook's dwell was 0.18-0.2 s, and "The hook burnt nothing: no spot of tissue was heated
+// more than 0.18 s ..." came whenever the window followed the mouse at once). False when its power did not come on, the
+// simulation stalled or the power did not go off.
+bool dragTheHook(QWidget* view, ui::SimulationPanel* panel, QPoint from, QPoint to,
+                 const std::function<bool(int)>& stepsOn) {
+  QTest::mousePress(view, Qt::LeftButton, {}, from);
+  if (!waitFor([&] { return panel->lastFrame()->field.energy; })) return false;
+  for (int i = 1; i <= 10; ++i) {
+    QTest::mouseMove(view, from + (to - from) * (i / 10.0));
+    if (!stepsOn(8)) return false;
+  }
+  QTest::mouseRelease(view, Qt::LeftButton, {}, to);
+  return waitFor([&] { return !panel->lastFrame()->field.energy; });
+}
 // clipCutAndCauterize on the built-in case, one method per phase of the scenario (what a phase finds, the later ones
 // use). A failed QVERIFY returns from its phase: the test checks QTest::currentTestFailed() after each.
 struct ClipCutCauterize {
@@ -228,17 +255,7 @@ struct ClipCutCauterize {
     {
       const QPoint from = pixelOn(first, 0.68), to = across(first, 0.68, 30).second;  // from over the vessel sideways
       pauses.start();
-      QTest::mousePress(view, Qt::LeftButton, {}, from);
-      QVERIFY(waitFor([&] { return panel_->lastFrame()->field.energy; }));
-      // Slowly: tissue burns after 0.2 s under the powered tip. At 4 steps a notch the hook's dwell was 0.18-0.2 s, and
-      // "The hook burnt nothing: no spot of tissue was heated more than 0.18 s ..." came whenever the window followed
-      // the mouse at once (each notch then got exactly 4 steps).
-      for (int i = 1; i <= 10; ++i) {
-        QTest::mouseMove(view, from + (to - from) * (i / 10.0));
-        QVERIFY(stepsOn(8));
-      }
-      QTest::mouseRelease(view, Qt::LeftButton, {}, to);
-      QVERIFY(waitFor([&] { return !panel_->lastFrame()->field.energy; }));
+      QVERIFY(dragTheHook(view, panel_, from, to, stepsOn));
       QVERIFY(stepsOn(10));
       // The burnt elements' body is built on the second thread and comes in when built (one change at a time: after a
       // cut still being built, later): under a loaded CI machine that took longer than the 10 steps above.
@@ -390,14 +407,7 @@ void TestAppearanceGui::graspPullUntilItTears() {
   typeInto(tears, QStringLiteral("15"));
   QVERIFY(waitFor([&] { return w_->caseData()->material.tearStrain == 0.15; }));
   QVERIFY(stepsOn(3));
-  double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
-  for (const auto& p : c.shapeNodes()) {
-    const Eigen::Vector2d q = c.camera.project(c.pose.apply(p));
-    x0 = std::min(x0, q.x()), x1 = std::max(x1, q.x()), y0 = std::min(y0, q.y()), y1 = std::max(y1, q.y());
-  }
-  const auto widget = [&](double fx, double fy) {
-    return view->toWidget(QPointF(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))).toPoint();
-  };
+  const auto widget = organBoxPoint(view, c);
   QTest::keyClick(w_.get(), Qt::Key_R);
   QCOMPARE(view->tool(), ui::Tool::Grasp);
   const std::size_t nodes = panel_->lastFrame()->positions.size();
@@ -559,26 +569,13 @@ void TestAppearanceGui::aNewCaseEndsTheRehearsal() {
   QVERIFY(rehearseFromRest());
   auto* view = w_->frameView();
   const auto& c = *w_->caseData();
-  double x0 = 1e9, x1 = -1e9, y0 = 1e9, y1 = -1e9;
-  for (const auto& p : c.shapeNodes()) {
-    const Eigen::Vector2d q = c.camera.project(c.pose.apply(p));
-    x0 = std::min(x0, q.x()), x1 = std::max(x1, q.x()), y0 = std::min(y0, q.y()), y1 = std::max(y1, q.y());
-  }
-  const auto widget = [&](double fx, double fy) {
-    return view->toWidget(QPointF(x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))).toPoint();
-  };
+  const auto widget = organBoxPoint(view, c);
   QCOMPARE(panel_->unkeptWork(), QString());
   // A line burnt across the organ's middle with the cautery hook, slowly (tissue burns after 0.2 s under the tip).
   QTest::keyClick(w_.get(), Qt::Key_J);
   QCOMPARE(view->tool(), ui::Tool::Cautery);
   const QPoint from = widget(0.35, 0.5), to = widget(0.6, 0.5);
-  QTest::mousePress(view, Qt::LeftButton, {}, from);
-  QVERIFY(waitFor([&] { return panel_->lastFrame()->field.energy; }));
-  for (int i = 1; i <= 10; ++i) {
-    QTest::mouseMove(view, from + (to - from) * (i / 10.0));
-    QVERIFY(stepsOn(8));
-  }
-  QTest::mouseRelease(view, Qt::LeftButton, {}, to);
+  QVERIFY(dragTheHook(view, panel_, from, to, [this](int n) { return stepsOn(n); }));
   QVERIFY2(waitFor([&] { return panel_->unkeptWork().contains("burnt"); }, 30000), qPrintable(panel_->unkeptWork()));
   const QString unkept = panel_->unkeptWork();
   QTest::keyClick(w_.get(), Qt::Key_N, Qt::ControlModifier);
