@@ -406,6 +406,10 @@ class TestReviewGui : public QObject {
     QVERIFY(!QTest::currentTestFailed());
     QTest::mouseClick(record, Qt::LeftButton);  // stop
     QVERIFY2(!w_->recording(), qPrintable(w_->messageLog().join(" | ")));
+    // The stopped recording keeps the session's cut: closing or opening another case has nothing more to ask about it
+    // (a person's check: Ctrl+Q called it "not kept").
+    QVERIFY(ui::SimulationPanel::workOf(*panel->lastFrame()).cutFaces > 0);
+    QCOMPARE(panel->unkeptWork(), QString());
     // Headless, as a trainer's machine would: every checksum matches.
     QProcess p;
     p.start(QStringLiteral(REHEARSE_BINARY), {"replay", file_, "--session", QString::number(first_), "--verify"});

@@ -459,8 +459,9 @@ QString SimulationPanel::unkeptWork() const {
   if (!last_ || recording() || !organ_ || !last_->organ || last_->organ->organ != organ_->organ) return {};
   const Work now = workOf(*last_);
   // What a recording stopped since this session's start keeps: only what the instruments did after it is unkept.
+  // (Not the blood lost: stumps the recording kept bleed on, with nothing done.)
   if (kept_ && now.cutFaces == kept_->cutFaces && now.elements == kept_->elements && now.burnt == kept_->burnt &&
-      now.clips == kept_->clips && now.bloodLoss == kept_->bloodLoss)
+      now.clips == kept_->clips)
     return {};
   QStringList done;
   // A cut or a tear opens faces (and splits elements, unless the cut ran along their faces); a burn relabels them.
@@ -468,7 +469,7 @@ QString SimulationPanel::unkeptWork() const {
   if (now.cutFaces > 0 || (last_->surface && now.elements != uncut)) done << tr("cut or torn");
   if (now.burnt > 0) done << tr("burnt");
   if (now.clips > 0) done << (now.clips == 1 ? tr("a clip") : tr("%1 clips").arg(now.clips));
-  if (now.bloodLoss > 0) done << tr("%1 mL of blood lost").arg(1e6 * now.bloodLoss, 0, 'f', 1);
+  if (now.bloodLoss > 0 && !done.isEmpty()) done << tr("%1 mL of blood lost").arg(1e6 * now.bloodLoss, 0, 'f', 1);
   return done.join(QStringLiteral(", "));
 }
 
