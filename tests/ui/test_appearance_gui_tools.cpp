@@ -17,6 +17,7 @@
 #include <rehearse/imaging/render.hpp>
 
 #include <QMessageBox>
+#include <QPushButton>
 #include <QAction>
 #include <QApplication>
 #include <QLabel>
@@ -562,8 +563,9 @@ void TestAppearanceGui::savedAndComposedAgainAfterReopening() {
   QVERIFY(waitFor([&] { return w_->showingComposited(); }, 30000));
 }
 
-// New Case over a rehearsal that burnt the organ asks first (Discard / Cancel); Discard starts the empty case, which
-// shows no simulated organ and asks nothing more about the old one's rehearsal. (A person's check found the old organ
+// New Case over a rehearsal that burnt the organ asks first (Discard / Cancel), naming only what a stopped recording
+// did not keep; Discard starts the empty case, which shows no simulated organ and asks nothing more about the old
+// one's rehearsal. (A person's check found the old organ
 // kept on show, greyed at t = 20.59 s, and its cut asked about again at every Ctrl+Q, Ctrl+N and Ctrl+O.)
 void TestAppearanceGui::aNewCaseEndsTheRehearsal() {
   QVERIFY(rehearseFromRest());
@@ -571,13 +573,32 @@ void TestAppearanceGui::aNewCaseEndsTheRehearsal() {
   const auto& c = *w_->caseData();
   const auto widget = organBoxPoint(view, c);
   QCOMPARE(panel_->unkeptWork(), QString());
-  // A line burnt across the organ's middle with the cautery hook, slowly (tissue burns after 0.2 s under the tip).
+  auto burnt = [&] { return ui::SimulationPanel::workOf(*panel_->lastFrame()).burnt; };
+  // Recorded (saved to a file first: the rehearsal is recorded into it), a line burnt across the organ with the
+  // cautery hook, the recording stopped: the recording keeps that burn, nothing is asked about it.
+  QTemporaryDir dir;
+  QSignalSpy saved(w_.get(), &MainWindow::caseSaved);
+  w_->saveCaseAs(dir.filePath("burnt.rehearse"));
+  QVERIFY(saved.wait(60000));
+  QVERIFY(saved.first().at(0).toBool());
+  auto* record = w_->findChild<QPushButton*>("recordButton");
+  QVERIFY(record);
+  QTest::mouseClick(record, Qt::LeftButton);
+  QVERIFY2(w_->recording(), qPrintable(w_->messageLog().join(" | ")));
+  QVERIFY(stepsOn(5));
   QTest::keyClick(w_.get(), Qt::Key_J);
   QCOMPARE(view->tool(), ui::Tool::Cautery);
-  const QPoint from = widget(0.35, 0.5), to = widget(0.6, 0.5);
-  QVERIFY(dragTheHook(view, panel_, from, to, [this](int n) { return stepsOn(n); }));
-  QVERIFY2(waitFor([&] { return panel_->unkeptWork().contains("burnt"); }, 30000), qPrintable(panel_->unkeptWork()));
+  QVERIFY(dragTheHook(view, panel_, widget(0.35, 0.4), widget(0.6, 0.4), [this](int n) { return stepsOn(n); }));
+  QVERIFY(waitFor([&] { return burnt() > 0; }, 30000));
+  const std::size_t recorded = burnt();
+  QTest::mouseClick(record, Qt::LeftButton);  // stop
+  QVERIFY(!w_->recording());
+  QCOMPARE(panel_->unkeptWork(), QString());
+  // A second line, after the recording: only that one is named, as such.
+  QVERIFY(dragTheHook(view, panel_, widget(0.35, 0.6), widget(0.6, 0.6), [this](int n) { return stepsOn(n); }));
+  QVERIFY2(waitFor([&] { return burnt() > recorded; }, 30000), qPrintable(panel_->unkeptWork()));
   const QString unkept = panel_->unkeptWork();
+  QCOMPARE(unkept, QStringLiteral("burnt since the recording stopped"));
   QTest::keyClick(w_.get(), Qt::Key_N, Qt::ControlModifier);
   QMessageBox* box = nullptr;
   QVERIFY(waitFor(

@@ -679,10 +679,10 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
                                 QMessageBox::Discard | QMessageBox::Cancel, this);
   box->setObjectName(unsaved ? QStringLiteral("unsavedChangesBox") : QStringLiteral("unkeptRehearsalBox"));
   if (unsaved)
-    box->setInformativeText(tr("Discard loses them; Cancel goes back to the case.") +
-                            (unkept.isEmpty() ? QString()
-                                              : QStringLiteral(" ") + tr("Saving keeps the case, not the rehearsal "
-                                                                         "(%1). %2").arg(unkept, rehearsal)));
+    box->setInformativeText(unkept.isEmpty() ? tr("Discard loses them; Cancel goes back to the case.")
+                                             : tr("Discard loses them and the rehearsal; Cancel goes back to the case. "
+                                                  "Saving keeps the case, not the rehearsal (%1). %2")
+                                                   .arg(unkept, rehearsal));
   else
     box->setInformativeText(rehearsal + QStringLiteral(" ") + tr("Discard ends it; Cancel goes back to it."));
   box->setDefaultButton(unsaved ? QMessageBox::Save : QMessageBox::Cancel);

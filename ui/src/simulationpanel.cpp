@@ -458,18 +458,19 @@ QString SimulationPanel::unkeptWork() const {
   // Nothing when the frame on show is not of the case's organ (a new case without one shows none).
   if (!last_ || recording() || !organ_ || !last_->organ || last_->organ->organ != organ_->organ) return {};
   const Work now = workOf(*last_);
-  // What a recording stopped since this session's start keeps: only what the instruments did after it is unkept.
-  // (Not the blood lost: stumps the recording kept bleed on, with nothing done.)
-  if (kept_ && now.cutFaces == kept_->cutFaces && now.elements == kept_->elements && now.burnt == kept_->burnt &&
-      now.clips == kept_->clips)
-    return {};
+  // What a recording stopped since this session's start keeps: only what the instruments did after it is unkept, and
+  // only that is named (a person read the recorded cut among what the question said was lost). Not the blood lost:
+  // stumps the recording kept bleed on, with nothing done.
+  const Work before = kept_.value_or(Work{0, last_->organ->organ->volume.tets.size(), 0, 0, 0});
   QStringList done;
   // A cut or a tear opens faces (and splits elements, unless the cut ran along their faces); a burn relabels them.
-  const std::size_t uncut = last_->organ->organ->volume.tets.size();
-  if (now.cutFaces > 0 || (last_->surface && now.elements != uncut)) done << tr("cut or torn");
-  if (now.burnt > 0) done << tr("burnt");
-  if (now.clips > 0) done << (now.clips == 1 ? tr("a clip") : tr("%1 clips").arg(now.clips));
-  if (now.bloodLoss > 0 && !done.isEmpty()) done << tr("%1 mL of blood lost").arg(1e6 * now.bloodLoss, 0, 'f', 1);
+  if (now.cutFaces > before.cutFaces || (last_->surface && now.elements != before.elements)) done << tr("cut or torn");
+  if (now.burnt > before.burnt) done << tr("burnt");
+  if (const std::size_t clips = now.clips > before.clips ? now.clips - before.clips : 0; clips > 0)
+    done << (clips == 1 ? tr("a clip") : tr("%1 clips").arg(clips));
+  if (done.isEmpty()) return {};
+  if (kept_) return tr("%1 since the recording stopped").arg(done.join(QStringLiteral(", ")));
+  if (now.bloodLoss > 0) done << tr("%1 mL of blood lost").arg(1e6 * now.bloodLoss, 0, 'f', 1);
   return done.join(QStringLiteral(", "));
 }
 
