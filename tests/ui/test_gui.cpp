@@ -106,6 +106,20 @@ class TestGui : public QObject {
     qInfo("inner structures: %d pixels in label 2's colour, %d in label 3's", nearTwo, nearThree);
     QVERIFY(nearTwo > 100);
     QVERIFY(nearThree > 100);
+    // The legend's key names each structure in the colour it is drawn in (a single red swatch stood for them before).
+    QCOMPARE(pic.innerKey.size(), 2);
+    QCOMPARE(pic.innerKey[0].first, ui::labelColour(2));
+    QCOMPARE(pic.innerKey[1].first, ui::labelColour(3));
+    ui::FrameView view;
+    view.setFrame(QImage(320, 240, QImage::Format_RGB32));
+    view.setInnerOverlay(pic.inner, pic.innerKey);
+    QStringList inside;
+    for (const auto& e : view.legend())
+      if (e.text.startsWith("inside: ")) {
+        inside << e.text;
+        QVERIFY(e.colour == ui::labelColour(2) || e.colour == ui::labelColour(3));
+      }
+    QCOMPARE(inside.size(), 2);
   }
 
   // The frame view draws a frame that changes at each step (the composited view) through the painter's transform, and

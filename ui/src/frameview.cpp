@@ -445,7 +445,11 @@ QList<LegendEntry> FrameView::legend() const {
   QList<LegendEntry> out;
   if (frame_.isNull()) return out;
   if (overlayVisible_ && !silhouette_.isEmpty()) out.push_back({palette::organOutline(), tr("organ outline (O hides)")});
-  if (overlayVisible_ && !inner_.isNull()) out.push_back({QColor(200, 60, 60), tr("inner structures: colours as in step 1")});
+  // Each inner structure in the colour it is drawn in (a single red swatch stood for yellow vessels before).
+  if (overlayVisible_ && !inner_.isNull()) {
+    if (innerKey_.isEmpty()) out.push_back({QColor(200, 60, 60), tr("inner structures: colours as in step 1")});
+    for (const auto& [colour, name] : innerKey_) out.push_back({colour, tr("inside: %1").arg(name)});
+  }
   if (!possible_.isEmpty() && !secondShown_) out.push_back({palette::possibleOutline(), possibleText_});
   std::vector<std::string> types;
   if (case_)

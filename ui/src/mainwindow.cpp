@@ -305,7 +305,7 @@ void MainWindow::showFrameLayer() {
     view_->setInnerOverlay(QImage());
   } else {
     view_->setOverlay(picture_.organ, picture_.silhouette);
-    view_->setInnerOverlay(picture_.inner);
+    view_->setInnerOverlay(picture_.inner, picture_.innerKey);
   }
   setViewModeLine(viewModeText());
   checkShownViewMode();

@@ -77,6 +77,9 @@ OverlayPicture OrganOverlay::render(const app::Case& c, const std::vector<int>& 
     const SurfaceView view = c.innerSurfaceView({label}, storage);
     if (storage.empty()) continue;
     const QImage layer = organImage(cam, c.pose, view, labelColour(label));
+    const std::string name = c.organ->volume.labelName(label);
+    out.innerKey.push_back({labelColour(label), name.empty() ? QString::fromUtf8(simcore::structureKindName(c.organ->volume.labelKind(label))) + QStringLiteral(" (label %1)").arg(label)
+                                                             : QString::fromStdString(name)});
     if (out.inner.isNull()) {
       out.inner = layer;
     } else {

@@ -113,7 +113,12 @@ class FrameView : public QWidget {
   /// Paints so far (the live overlay waits for its last drawing to be painted before drawing the next).
   quint64 paints() const { return paints_; }
   void setOverlay(const QImage& organ, const QList<QPolygonF>& silhouette);
-  void setInnerOverlay(const QImage& inner) { inner_ = inner; update(); }
+  /// The inner structures' picture and, for the legend, each structure's colour and name (as in step 1).
+  void setInnerOverlay(const QImage& inner, QList<QPair<QColor, QString>> key = {}) {
+    inner_ = inner;
+    innerKey_ = std::move(key);
+    update();
+  }
   /// Where the organ may be (an elastic fit's bound, app::boundOutlines): outlines in frame pixels, drawn dashed and
   /// named in the legend by `text`; empty outlines clear them.
   void setPossibleOutlines(QList<QPolygonF> outlines, const QString& text);
@@ -307,6 +312,7 @@ class FrameView : public QWidget {
   /// corner is behind the camera.
   std::optional<std::pair<double, QPolygonF>> fieldFace(const std::array<int, 3>& t) const;
   QImage frame_, overlay_, inner_;
+  QList<QPair<QColor, QString>> innerKey_;
   quint64 paints_ = 0, paintsFromScaled_ = 0;
   struct {
     QImage image;  ///< frame_ at the view's scale

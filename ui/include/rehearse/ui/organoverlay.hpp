@@ -21,6 +21,8 @@ struct OverlayPicture {
   QImage organ;                  ///< RGBA, possibly at a reduced resolution (drawn scaled onto the frame)
   QList<QPolygonF> silhouette;   ///< frame pixels
   QImage inner;                  ///< inner structures, same size as `organ` (null when none is shown)
+  /// Each inner structure drawn in `inner`: its colour (labelColour, as in step 1) and its name, in label order.
+  QList<QPair<QColor, QString>> innerKey;
   double meanDistance = -1;      ///< px; negative when it cannot be computed (no contour, behind the camera)
   double rmsDistance = -1, maxDistance = -1;
 };
