@@ -362,8 +362,46 @@ struct ClipCutCauterize {
     w_->activateWindow();  // (the window manager gives it back after a box; offscreen has none)
     QVERIFY(QTest::qWaitForWindowActive(w_.get()));
     QCOMPARE(panel_->unkeptWork(), unkept);
-    panel_->reset();
+    // The reply to Cancel leaves the status bar after a while (it stayed there until the next message); the Messages
+    // panel keeps it.
+    const QString cancelled = name == "unsavedChangesBox"
+                                  ? QStringLiteral("Cancelled: the case and its unsaved changes stay open.")
+                                  : QStringLiteral("Cancelled: the rehearsal stays as it is.");
+    QCOMPARE(w_->statusText(), cancelled);
+    QVERIFY(waitFor([&] { return w_->statusText() != cancelled; }, ui::MainWindow::kBriefMessageMs + 10000));
+    QVERIFY2(w_->statusText().isEmpty() || !w_->messageLog().last().endsWith(cancelled), qPrintable(w_->statusText()));
+    QVERIFY(w_->messageLog().join('\n').contains(cancelled));
+    // Reset ends the rehearsal too: Shift+F5 asks first (it discarded the cuts without a word); Cancel keeps them, and
+    // the panel's Reset button, answered Reset, takes the organ back to rest. Then nothing is left to ask about.
+    auto resetBox = [&] {
+      QMessageBox* b = nullptr;
+      waitFor(
+          [&] {
+            b = w_->findChild<QMessageBox*>("resetRehearsalBox");
+            return b && b->isVisible();
+          },
+          10000);
+      return b && b->isVisible() ? b : nullptr;
+    };
+    QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);
+    box = resetBox();
+    QVERIFY(box);
+    QVERIFY2(box->text().contains(unkept) && box->informativeText().contains("recording"), qPrintable(box->text()));
+    QTest::mouseClick(box->button(QMessageBox::Cancel), Qt::LeftButton);
+    QVERIFY(waitFor([&] { return !w_->findChild<QMessageBox*>("resetRehearsalBox"); }, 10000));
+    QCOMPARE(panel_->unkeptWork(), unkept);
+    auto* resetButton = panel_->findChild<QPushButton*>("simReset");
+    QVERIFY(resetButton && resetButton->isEnabled());
+    QTest::mouseClick(resetButton, Qt::LeftButton);
+    box = resetBox();
+    QVERIFY(box);
+    QTest::mouseClick(box->button(QMessageBox::Reset), Qt::LeftButton);
     QVERIFY(waitFor([&] { return panel_->lastFrame() && panel_->unkeptWork().isEmpty(); }, 20000));
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+    QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);  // nothing to ask about now
+    QTest::qWait(300);
+    QVERIFY(!w_->findChild<QMessageBox*>("resetRehearsalBox"));
   }
 };
 }  // namespace

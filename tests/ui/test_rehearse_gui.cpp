@@ -21,6 +21,7 @@
 
 #include <QTemporaryDir>
 #include <QProgressDialog>
+#include <QMessageBox>
 #include <QPushButton>
 #include <QRegularExpression>
 #include <QScopeGuard>
@@ -637,8 +638,17 @@ class TestRehearseGui : public QObject {
         qPrintable(refused.lines.join(" | ")));
     QVERIFY(waitFor([&] { return method->currentText().startsWith("hybrid"); }, 10000));
     QVERIFY(panel->session()->setup().model == simcore::BodyModel::Hybrid);
-    // Reset, then the FFD.
+    // Reset, then the FFD. The cut is not recorded: Reset asks before it ends the rehearsal, and is answered Reset.
     QTest::mouseClick(panel->findChild<QPushButton*>("simReset"), Qt::LeftButton);
+    QMessageBox* resetBox = nullptr;
+    QVERIFY(waitFor(
+        [&] {
+          resetBox = w_->findChild<QMessageBox*>("resetRehearsalBox");
+          return resetBox && resetBox->isVisible();
+        },
+        10000));
+    QVERIFY2(resetBox->text().contains("cut or torn"), qPrintable(resetBox->text()));
+    QTest::mouseClick(resetBox->button(QMessageBox::Reset), Qt::LeftButton);
     QVERIFY(waitFor([&] { return panel->session()->setup().topology == 0; }, 30000));
     panel->play();
     SessionHeard ffd(panel);

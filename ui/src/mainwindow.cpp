@@ -530,6 +530,18 @@ void MainWindow::say(const QString& text) {
   }
 }
 
+void MainWindow::sayBriefly(const QString& text) {
+  say(text);
+  // A reply to the person, not news of the case: it leaves the status bar after a while (the Messages panel keeps it),
+  // unless something else was said meanwhile.
+  QTimer::singleShot(kBriefMessageMs, status_.caseText, [label = status_.caseText, text] {
+    if (label->text() == text) {
+      label->clear();
+      label->setToolTip({});
+    }
+  });
+}
+
 QString MainWindow::statusText() const {
   return status_.caseText->text();
 }
@@ -707,8 +719,8 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
     }
     if (button != QMessageBox::Save) {
       resume();
-      return say(unsaved ? tr("Cancelled: the case and its unsaved changes stay open.")
-                         : tr("Cancelled: the rehearsal stays as it is."));
+      return sayBriefly(unsaved ? tr("Cancelled: the case and its unsaved changes stay open.")
+                                : tr("Cancelled: the rehearsal stays as it is."));
     }
     save();  // (Save As asks where for a case without a file)
     if (!doc_->isSaving()) return resume();  // Save As cancelled: nothing saved, nothing replaced

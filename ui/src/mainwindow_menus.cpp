@@ -321,7 +321,7 @@ void MainWindow::buildSimulationMenu() {
                     simulation_->stepOnce();
                   })
       ->setShortcut(QKeySequence(Qt::Key_F6));
-  simMenu->addAction(tr("&Reset"), this, [this] { simulation_->reset(); })
+  simMenu->addAction(tr("&Reset"), this, [this] { simulation_->resetAsked(); })
       ->setShortcut(QKeySequence(Qt::SHIFT | Qt::Key_F5));
   simMenu->addSeparator();
   recorder_ =

@@ -14,6 +14,7 @@
 #include <QPainter>
 #include <QPaintEvent>
 #include <QPointer>
+#include <QMessageBox>
 #include <QPushButton>
 #include <QStringList>
 #include <QtConcurrent/QtConcurrent>
@@ -149,7 +150,7 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
 
   connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
   connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::stepOnce);
-  connect(resetButton_, &QPushButton::clicked, this, &SimulationPanel::reset);
+  connect(resetButton_, &QPushButton::clicked, this, &SimulationPanel::resetAsked);
   connect(form_, &SimulationForm::presetChosen, this, &SimulationPanel::applyPreset);
   connect(form_, &SimulationForm::materialEdited, this, &SimulationPanel::materialFieldsEdited);
   connect(form_, &SimulationForm::runEdited, this, &SimulationPanel::postRunParameters);
@@ -387,6 +388,30 @@ void SimulationPanel::reset() {
     host_->reset();
   }
   updateButtons();
+}
+
+void SimulationPanel::resetAsked() {
+  const QString unkept = unkeptWork();
+  if (unkept.isEmpty()) return reset();
+  // Reset discarded an unrecorded cut without a word, where quitting or opening another case asked.
+  auto* box = new QMessageBox(QMessageBox::Warning, tr("Rehearsal not kept"),
+                              tr("Reset takes the organ back to rest and ends this rehearsal (%1), which is not "
+                                 "recorded.")
+                                  .arg(unkept),
+                              QMessageBox::Reset | QMessageBox::Cancel, this);
+  box->setObjectName(QStringLiteral("resetRehearsalBox"));
+  box->setInformativeText(tr("Only a recording keeps a rehearsal (Ctrl+R). Reset ends it; Cancel goes back to it."));
+  box->setDefaultButton(QMessageBox::Cancel);
+  box->setAttribute(Qt::WA_DeleteOnClose);
+  box->setWindowModality(Qt::WindowModal);
+  // The organ waits while the question is read (what it names would change); Cancel plays it on.
+  const bool wasPlaying = isPlaying();
+  if (wasPlaying) pause();
+  connect(box, &QMessageBox::finished, this, [this, box, wasPlaying](int) {
+    if (box->standardButton(box->clickedButton()) == QMessageBox::Reset) return reset();
+    if (wasPlaying) play();
+  });
+  box->open();
 }
 
 SimulationPanel::ShownError SimulationPanel::shownError(const SimulationFrame& f, const ShownError& last) {

@@ -53,6 +53,8 @@ enum class ViewMode { Composited = 0, Overlay, ThreeD };
 class MainWindow : public QMainWindow {
   Q_OBJECT
  public:
+  /// ms a reply such as "Cancelled: ..." stays in the status bar (sayBriefly).
+  static constexpr int kBriefMessageMs = 6000;
   explicit MainWindow(QWidget* parent = nullptr);
   ~MainWindow() override;
 
@@ -207,6 +209,9 @@ class MainWindow : public QMainWindow {
   void showProgress(double fraction, const QString& stage);
   /// Shows a sentence in the status bar and adds it to the Messages panel.
   void say(const QString& text);
+  /// say() for a reply that is not news of the case ("Cancelled: ..."): gone from the status bar after
+  /// kBriefMessageMs unless replaced.
+  void sayBriefly(const QString& text);
 
   struct Pages {
     MeshPage* mesh = nullptr;

@@ -51,6 +51,9 @@ class SimulationPanel : public QWidget {
   void togglePlay();
   void stepOnce();
   void reset();
+  /// Reset as a person asks for it (the button, Shift+F5): a rehearsal that changed the organ and is not recorded
+  /// (unkeptWork) is asked about first ("resetRehearsalBox": Reset / Cancel), as quitting and opening are.
+  void resetAsked();
   /// An instrument input (tip pose, jaws) for the session's next step, in the camera frame; plays the
   /// simulation when it is paused (a grasp acts on a live organ). False when no session runs.
   bool post(simcore::InputEvent e);
