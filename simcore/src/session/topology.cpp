@@ -167,9 +167,14 @@ void Session::updateBleeds(std::string& message) {
       }
     const bool atSupply = setup_.tools.bleeding.physiological && setup_.tools.bleeding.organSupply > 0 &&
                           open >= setup_.tools.bleeding.organSupply * (1 - 1e-9);
-    std::snprintf(buf, sizeof buf, " The %s bleeds%s: %.2f mL/s from the cut (%.2f mL/s in all%s).", names.c_str(),
-                  starting > 0 ? "" : " more", 1e6 * std::max(0.0, added), 1e6 * open,
-                  atSupply ? ", all the organ's supply" : "");
+    // (A stump the blade widened by a sliver read "bleeds more: 0.00 mL/s from the cut".)
+    char fromCut[40];
+    if (1e6 * added < 0.005)
+      std::snprintf(fromCut, sizeof fromCut, "under 0.01 mL/s");
+    else
+      std::snprintf(fromCut, sizeof fromCut, "%.2f mL/s", 1e6 * added);
+    std::snprintf(buf, sizeof buf, " The %s bleeds%s: %s from the cut (%.2f mL/s in all%s).", names.c_str(),
+                  starting > 0 ? "" : " more", fromCut, 1e6 * open, atSupply ? ", all the organ's supply" : "");
     message += buf;
   }
   if (stopped > 0 || sealed > 0) events_.push_back(eventWord(EventKind::BleedingStopped));
