@@ -523,23 +523,20 @@ void MainWindow::dropEvent(QDropEvent* e) {
 void MainWindow::say(const QString& text) {
   status_.caseText->setText(text);
   status_.caseText->setToolTip(text);
-  if (!text.isEmpty()) {
-    messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + text);
-    // The newest entry in sight (appendPlainText scrolls only when the panel is laid out and already at its end).
-    messages_->verticalScrollBar()->setValue(messages_->verticalScrollBar()->maximum());
-  }
+  if (!text.isEmpty()) logMessage(text);
+}
+
+void MainWindow::logMessage(const QString& text) {
+  messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) + text);
+  // The newest entry in sight (appendPlainText scrolls only when the panel is laid out and already at its end).
+  messages_->verticalScrollBar()->setValue(messages_->verticalScrollBar()->maximum());
 }
 
 void MainWindow::sayBriefly(const QString& text) {
-  say(text);
-  // A reply to the person, not news of the case: it leaves the status bar after a while (the Messages panel keeps it),
-  // unless something else was said meanwhile.
-  QTimer::singleShot(kBriefMessageMs, status_.caseText, [label = status_.caseText, text] {
-    if (label->text() == text) {
-      label->clear();
-      label->setToolTip({});
-    }
-  });
+  // A reply to the person, not news of the case: the status bar's temporary message, over whatever hint is showing
+  // (said into the case's line, a tool's hint shown over it hid it), gone after a while; the Messages panel keeps it.
+  logMessage(text);
+  statusBar()->showMessage(text, kBriefMessageMs);
 }
 
 QString MainWindow::statusText() const {

@@ -209,9 +209,11 @@ class MainWindow : public QMainWindow {
   void showProgress(double fraction, const QString& stage);
   /// Shows a sentence in the status bar and adds it to the Messages panel.
   void say(const QString& text);
-  /// say() for a reply that is not news of the case ("Cancelled: ..."): gone from the status bar after
-  /// kBriefMessageMs unless replaced.
+  /// say() for a reply that is not news of the case ("Cancelled: ..."): the status bar's temporary message for
+  /// kBriefMessageMs (over a tool's hint), the case's line left as it was.
   void sayBriefly(const QString& text);
+  /// Adds a sentence to the Messages panel, with the time.
+  void logMessage(const QString& text);
 
   struct Pages {
     MeshPage* mesh = nullptr;
