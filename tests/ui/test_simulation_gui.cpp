@@ -257,6 +257,25 @@ void TestSimulationGui::invertedElementsAreShownOnTheOrgan() {
   qInfo("StVK at 100 Pa: %s; %d magenta pixels in the simulation view", simcore::statusSentence(f->report).c_str(),
         magenta);
   QVERIFY(magenta > 20);
+  // The warning's own colour lies along the bottom, in its area, and none in the top-left marks (it was drawn over the
+  // gravity arrow's word: a person's check).
+  const double dpr = view->devicePixelRatioF();
+  const QRect marks = ui::SimulationView::marksArea();
+  const QRect warned = ui::SimulationView::warningArea(view->size(), view->fontMetrics(), ui::warningText(*f));
+  int inMarks = 0, inArea = 0;
+  for (int y = 0; y < img.height(); ++y)
+    for (int x = 0; x < img.width(); ++x) {
+      const QColor c(img.pixel(x, y));
+      if (std::abs(c.red() - 255) > 12 || std::abs(c.green() - 120) > 12 || std::abs(c.blue() - 255) > 12) continue;
+      const QPoint p(static_cast<int>(x / dpr), static_cast<int>(y / dpr));
+      inMarks += marks.contains(p);
+      inArea += warned.contains(p);
+    }
+  qInfo("warning's colour: %d pixels in its area %d,%d %dx%d, %d in the top-left marks", inArea, warned.x(), warned.y(),
+        warned.width(), warned.height(), inMarks);
+  QVERIFY(!warned.intersects(marks));
+  QVERIFY(inArea > 20);
+  QCOMPARE(inMarks, 0);
   const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR");
   if (!dir.isEmpty()) w_->grab().save(QString::fromLocal8Bit(dir) + "/inverted-warning.png");
   // Back to a tissue the organ keeps.

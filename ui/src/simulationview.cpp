@@ -268,9 +268,22 @@ void SimulationView::paintEvent(QPaintEvent*) {
   painter.drawText(rect().adjusted(6, 4, -80, -4), Qt::AlignLeft | Qt::AlignTop,
                    tr("t = %1 s, %2 steps").arg(frame_->time, 0, 'f', 2).arg(frame_->steps));
   if (const QString w = warningText(*frame_); !w.isEmpty()) {
+    const QRect area = warningArea(QWidget::size(), painter.fontMetrics(), w);
+    painter.fillRect(area.adjusted(-3, -2, 3, 2), QColor(24, 25, 28, 190));  // the organ behind does not hide it
     painter.setPen(QColor(255, 120, 255));
-    painter.drawText(rect().adjusted(6, 24, -80, -4), Qt::AlignLeft | Qt::AlignTop | Qt::TextWordWrap, w);
+    painter.drawText(area, Qt::AlignLeft | Qt::AlignTop | Qt::TextWordWrap, w);
   }
+}
+
+QRect SimulationView::marksArea() {
+  // The time line (y 4-24), the arrow about (30, 56) reaching 30 px, its word to x 162, the caption at y 92-108.
+  return QRect(0, 0, 170, 110);
+}
+
+QRect SimulationView::warningArea(const QSize& size, const QFontMetrics& fm, const QString& text) {
+  const int width = std::max(size.width() - 86, 40);
+  const QRect wrapped = fm.boundingRect(QRect(0, 0, width, 10000), Qt::AlignLeft | Qt::AlignTop | Qt::TextWordWrap, text);
+  return QRect(6, size.height() - 6 - wrapped.height(), width, wrapped.height());
 }
 
 QString warningText(const SimulationFrame& f) {

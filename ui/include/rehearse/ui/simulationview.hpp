@@ -8,6 +8,8 @@
 #include <rehearse/simcore/session/body.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
+#include <QFontMetrics>
+#include <QRect>
 #include <QString>
 #include <QWidget>
 
@@ -72,6 +74,12 @@ class SimulationView : public QWidget {
   /// No frame, and why (drawn in its place; empty: the invitation to start).
   void clearFrame(const QString& why);
   QSize sizeHint() const override { return {420, 320}; }
+  /// Where the view's top-left marks go (the time line, the gravity arrow and its word, the supports' caption), in a
+  /// view of any size.
+  static QRect marksArea();
+  /// Where a warning (warningText) is drawn in a view of `size` with the font `fm`: along the bottom, left of the colour
+  /// bar, as many lines as it wraps to (over the gravity arrow it hid its word, a person's check).
+  static QRect warningArea(const QSize& size, const QFontMetrics& fm, const QString& text);
 
  protected:
   void paintEvent(QPaintEvent*) override;
