@@ -47,7 +47,8 @@ void LiveOverlay::drawIfDue() {
     drawIfDue();
   });
   watcher->setFuture(QtConcurrent::run([overlay = overlay_, job = std::move(job)] {
-    if (job.surface) return overlay->renderLive(*job.c, job.positions, *job.surface);
+    if (job.surface)
+      return overlay->renderLive(*job.c, job.positions, *job.surface, job.tets, job.labels.get(), job.inner);
     // Uncut: the case with the simulated nodes as its shape (as an elastic fit's), drawn as the case is.
     return overlay->render(simulatedCase(*job.c, job.positions), job.inner);
   }));

@@ -312,6 +312,8 @@ void MainWindow::showSimulationFrame() {
       job.c = doc_->data();
       job.surface = f->surface;
       job.inner = pages_.mesh->shownInnerLabels();
+      job.tets = f->tets;
+      job.labels = f->labels;
       job.positions = f->positions;  // the case with these nodes is made on the worker (not at 100 Hz here)
       liveOverlay_->request(std::move(job));
     }

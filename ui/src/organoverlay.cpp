@@ -4,7 +4,9 @@
 #include "rehearse/ui/pages/meshpage.hpp"
 
 #include <rehearse/imaging/render.hpp>
+#include <rehearse/simcore/mesh.hpp>
 #include <rehearse/simcore/registration.hpp>
+#include <rehearse/simcore/session/field.hpp>
 
 #include <QPainter>
 
@@ -70,23 +72,9 @@ OverlayPicture OrganOverlay::render(const app::Case& c, const std::vector<int>& 
   const imaging::Camera cam = overlayCamera(c.camera, s);
   out.organ = organImage(cam, c.pose, c.surfaceView(), palette::organFill());
   out.silhouette = silhouetteOf(out.organ, s);
-  // Inner structures the user ticked, on the organ's current shape (fitted or rest), each label in its own
-  // colour (one render per label, composed in label order).
-  for (int label : innerLabels) {
-    std::vector<std::array<int, 3>> storage;
-    const SurfaceView view = c.innerSurfaceView({label}, storage);
-    if (storage.empty()) continue;
-    const QImage layer = organImage(cam, c.pose, view, labelColour(label));
-    const std::string name = c.organ->volume.labelName(label);
-    out.innerKey.push_back({labelColour(label), name.empty() ? QString::fromUtf8(simcore::structureKindName(c.organ->volume.labelKind(label))) + QStringLiteral(" (label %1)").arg(label)
-                                                             : QString::fromStdString(name)});
-    if (out.inner.isNull()) {
-      out.inner = layer;
-    } else {
-      QPainter p(&out.inner);
-      p.drawImage(0, 0, layer);
-    }
-  }
+  // Inner structures the user ticked, on the organ's current shape (fitted or rest).
+  drawInner(out, cam, c.pose, c.surfaceView(), c.organ->innerSurface, c.organ->innerSurfaceLabels, innerLabels,
+            c.organ->volume);
   // The distance the elastic fit measures: the silhouette contour's points to the organ's visible
   // silhouette (its bent edges), in pixels of the frame.
   if (const auto segments = imaging::silhouetteSegments(c.contour); !segments.empty()) {
@@ -107,7 +95,35 @@ OverlayPicture OrganOverlay::render(const app::Case& c, const std::vector<int>& 
   return out;
 }
 
-OverlayPicture OrganOverlay::renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface) {
+void OrganOverlay::drawInner(OverlayPicture& out, const imaging::Camera& camera, const Pose& pose, SurfaceView view,
+                             const std::vector<std::array<int, 3>>& faces, const std::vector<int>& faceLabels,
+                             const std::vector<int>& innerLabels, const simcore::Mesh& names) {
+  // Each label in its own colour (one render per label, composed in label order), named in the legend's key.
+  std::vector<std::array<int, 3>> storage;
+  for (int label : innerLabels) {
+    storage.clear();
+    for (std::size_t i = 0; i < faces.size() && i < faceLabels.size(); ++i)
+      if (faceLabels[i] == label) storage.push_back(faces[i]);
+    if (storage.empty()) continue;
+    view.triangles = storage.front().data();
+    view.triangleCount = storage.size();
+    const QImage layer = organImage(camera, pose, view, labelColour(label));
+    const std::string name = names.labelName(label);
+    out.innerKey.push_back({labelColour(label), name.empty() ? QString::fromUtf8(simcore::structureKindName(names.labelKind(label))) +
+                                                                   QStringLiteral(" (label %1)").arg(label)
+                                                             : QString::fromStdString(name)});
+    if (out.inner.isNull()) {
+      out.inner = layer;
+    } else {
+      QPainter p(&out.inner);
+      p.drawImage(0, 0, layer);
+    }
+  }
+}
+
+OverlayPicture OrganOverlay::renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface,
+                                        std::shared_ptr<const std::vector<std::array<int, 4>>> tets,
+                                        const std::vector<int>* labels, const std::vector<int>& innerLabels) {
   OverlayPicture out;
   if (cameraPositions.empty() || surface.triangles.empty() || !c.camera.problem().empty()) return out;
   double s = 1;
@@ -137,6 +153,22 @@ OverlayPicture OrganOverlay::renderLive(const app::Case& c, const std::vector<Ei
     cv::Mat rgba;
     cv::cvtColor(shaded, rgba, cv::COLOR_BGRA2RGBA);
     out.organ = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
+    // The inner structures on the cut mesh: the faces of their elements that are not shared with an element of the same
+    // label (a cut vessel's stump included), found again only when the elements change (burnt ones keep their label).
+    if (!innerLabels.empty() && tets && labels && labels->size() == tets->size()) {
+      std::vector<int> unburnt(labels->size());
+      for (std::size_t e = 0; e < labels->size(); ++e) unburnt[e] = simcore::unburntLabel((*labels)[e]);
+      if (innerTets_ != tets || innerTetLabels_ != unburnt) {
+        simcore::Mesh m;
+        m.points = cameraPositions;
+        m.tets = *tets;
+        m.tetLabels = unburnt;
+        innerFaces_ = simcore::boundaryTriangles(m, true, &innerFaceLabels_);
+        innerTets_ = std::move(tets);  // (held: a new mesh is never taken for this one at its address)
+        innerTetLabels_ = std::move(unburnt);
+      }
+      drawInner(out, cam, Pose{}, sv, innerFaces_, innerFaceLabels_, innerLabels, c.organ->volume);
+    }
   } catch (const std::exception&) {
     return out;  // behind the camera or a bad camera: nothing to draw
   }

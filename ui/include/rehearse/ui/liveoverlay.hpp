@@ -29,6 +29,9 @@ class LiveOverlay : public QObject {
     std::vector<Eigen::Vector3d> positions;
     std::shared_ptr<const simcore::CutSurface> surface;
     std::vector<int> inner;
+    /// After a cut, the cut mesh's elements and labels (the inner structures are drawn on them).
+    std::shared_ptr<const std::vector<std::array<int, 4>>> tets;
+    std::shared_ptr<const std::vector<int>> labels;
   };
   LiveOverlay(FrameView* view, QObject* parent);
   /// Draws `job` when due (the newest request wins).

@@ -38,11 +38,26 @@ class OrganOverlay {
   /// The simulated organ after a cut: its boundary at `cameraPositions` (camera frame, m), cut tissue in
   /// dark red where it is seen (by the CPU rasteriser: one pass for the shading, one for which triangle each
   /// pixel sees).
-  OverlayPicture renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface);
+  /// With the cut mesh's elements and their labels (`tets`, `labels`: the simulation's), the inner structures
+  /// `innerLabels` are drawn too, as the boundaries of their elements on the cut mesh (they went missing after a cut, a
+  /// person's check).
+  OverlayPicture renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface,
+                            std::shared_ptr<const std::vector<std::array<int, 4>>> tets = {},
+                            const std::vector<int>* labels = nullptr, const std::vector<int>& innerLabels = {});
 
  private:
   QImage organImage(const imaging::Camera& camera, const Pose& pose, const SurfaceView& surface, const QColor& colour);
+  /// The inner structures `innerLabels` into out.inner and out.innerKey: the faces `faces` (labelled `faceLabels`) over
+  /// the vertices of `view`, each label in its own colour, composed in label order; names from `names`.
+  void drawInner(OverlayPicture& out, const imaging::Camera& camera, const Pose& pose, SurfaceView view,
+                 const std::vector<std::array<int, 3>>& faces, const std::vector<int>& faceLabels,
+                 const std::vector<int>& innerLabels, const simcore::Mesh& names);
   std::unique_ptr<GLOverlay> gl_;
+  // The cut mesh's inner faces, kept while its elements are the same (renderLive runs at every frame shown).
+  std::shared_ptr<const std::vector<std::array<int, 4>>> innerTets_;
+  std::vector<int> innerTetLabels_;
+  std::vector<std::array<int, 3>> innerFaces_;
+  std::vector<int> innerFaceLabels_;
 };
 
 }  // namespace rehearse::ui
