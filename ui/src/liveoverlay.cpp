@@ -48,7 +48,7 @@ void LiveOverlay::drawIfDue() {
   });
   watcher->setFuture(QtConcurrent::run([overlay = overlay_, job = std::move(job)] {
     if (job.surface)
-      return overlay->renderLive(*job.c, job.positions, *job.surface, job.tets, job.labels.get(), job.inner);
+      return overlay->renderLive(*job.c, job.positions, *job.surface, job.tets, job.labels, job.inner);
     // Uncut: the case with the simulated nodes as its shape (as an elastic fit's), drawn as the case is.
     return overlay->render(simulatedCase(*job.c, job.positions), job.inner);
   }));

@@ -123,7 +123,8 @@ void OrganOverlay::drawInner(OverlayPicture& out, const imaging::Camera& camera,
 
 OverlayPicture OrganOverlay::renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface,
                                         std::shared_ptr<const std::vector<std::array<int, 4>>> tets,
-                                        const std::vector<int>* labels, const std::vector<int>& innerLabels) {
+                                        std::shared_ptr<const std::vector<int>> labels,
+                                        const std::vector<int>& innerLabels) {
   OverlayPicture out;
   if (cameraPositions.empty() || surface.triangles.empty() || !c.camera.problem().empty()) return out;
   double s = 1;
@@ -156,16 +157,15 @@ OverlayPicture OrganOverlay::renderLive(const app::Case& c, const std::vector<Ei
     // The inner structures on the cut mesh: the faces of their elements that are not shared with an element of the same
     // label (a cut vessel's stump included), found again only when the elements change (burnt ones keep their label).
     if (!innerLabels.empty() && tets && labels && labels->size() == tets->size()) {
-      std::vector<int> unburnt(labels->size());
-      for (std::size_t e = 0; e < labels->size(); ++e) unburnt[e] = simcore::unburntLabel((*labels)[e]);
-      if (innerTets_ != tets || innerTetLabels_ != unburnt) {
+      if (innerTets_ != tets || innerTetLabels_ != labels) {
         simcore::Mesh m;
         m.points = cameraPositions;
         m.tets = *tets;
-        m.tetLabels = unburnt;
+        m.tetLabels.resize(labels->size());
+        for (std::size_t e = 0; e < labels->size(); ++e) m.tetLabels[e] = simcore::unburntLabel((*labels)[e]);
         innerFaces_ = simcore::boundaryTriangles(m, true, &innerFaceLabels_);
-        innerTets_ = std::move(tets);  // (held: a new mesh is never taken for this one at its address)
-        innerTetLabels_ = std::move(unburnt);
+        innerTets_ = std::move(tets);
+        innerTetLabels_ = std::move(labels);
       }
       drawInner(out, cam, Pose{}, sv, innerFaces_, innerFaceLabels_, innerLabels, c.organ->volume);
     }

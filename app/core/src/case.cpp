@@ -119,16 +119,6 @@ SurfaceView Case::surfaceView() const {
   return v;
 }
 
-SurfaceView Case::innerSurfaceView(const std::vector<int>& labels, std::vector<std::array<int, 3>>& storage) const {
-  storage.clear();
-  for (std::size_t i = 0; i < organ->innerSurface.size(); ++i)
-    if (std::find(labels.begin(), labels.end(), organ->innerSurfaceLabels[i]) != labels.end()) storage.push_back(organ->innerSurface[i]);
-  SurfaceView v = surfaceView();
-  v.triangles = storage.empty() ? nullptr : storage.front().data();
-  v.triangleCount = storage.size();
-  return v;
-}
-
 Pose Case::automaticPose() const {
   Pose p;
   const Eigen::Vector3d cog = organ->centreOfGravity;

@@ -43,7 +43,7 @@ class OrganOverlay {
   /// person's check).
   OverlayPicture renderLive(const app::Case& c, const std::vector<Eigen::Vector3d>& cameraPositions, const simcore::CutSurface& surface,
                             std::shared_ptr<const std::vector<std::array<int, 4>>> tets = {},
-                            const std::vector<int>* labels = nullptr, const std::vector<int>& innerLabels = {});
+                            std::shared_ptr<const std::vector<int>> labels = {}, const std::vector<int>& innerLabels = {});
 
  private:
   QImage organImage(const imaging::Camera& camera, const Pose& pose, const SurfaceView& surface, const QColor& colour);
@@ -53,9 +53,11 @@ class OrganOverlay {
                  const std::vector<std::array<int, 3>>& faces, const std::vector<int>& faceLabels,
                  const std::vector<int>& innerLabels, const simcore::Mesh& names);
   std::unique_ptr<GLOverlay> gl_;
-  // The cut mesh's inner faces, kept while its elements are the same (renderLive runs at every frame shown).
+  // The cut mesh's inner faces, kept while its elements and labels are the same ones (the session shares them between
+  // its snapshots until they change; renderLive runs at every frame shown). Held: a new mesh is never taken for this
+  // one at its address.
   std::shared_ptr<const std::vector<std::array<int, 4>>> innerTets_;
-  std::vector<int> innerTetLabels_;
+  std::shared_ptr<const std::vector<int>> innerTetLabels_;
   std::vector<std::array<int, 3>> innerFaces_;
   std::vector<int> innerFaceLabels_;
 };

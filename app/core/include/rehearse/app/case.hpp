@@ -208,8 +208,6 @@ struct Case {
   bool appearanceCurrent() const;
   /// The organ's outer surface as drawn (the fitted shape once there is one).
   SurfaceView surfaceView() const;
-  /// Same vertices, inner-structure triangles (the faces with one of `labels`); `storage` keeps them alive.
-  SurfaceView innerSurfaceView(const std::vector<int>& labels, std::vector<std::array<int, 3>>& storage) const;
   /// A first placement: the organ's centre on the optical axis, unrotated, at the distance where it
   /// spans about 60 % of the image width, or farther when that would take it out of the middle 90 % of
   /// the image either way (a large, deep or tall organ).
