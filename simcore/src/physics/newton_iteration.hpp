@@ -125,7 +125,7 @@ class NewtonLoop : public NewtonIteration {
   // Far: outside Newton's region (its second correction more than a tenth of its first): the distance is not known.
   enum class Verdict { Within, Move, Indefinite, Unresolved, Far, Failed };
   void start();
-  double lineSearch(double rnew);
+  double lineSearch(double rnew, bool guarded);
   bool withinAccuracy();
   Verdict verify();
   double secondCorrection();
