@@ -25,5 +25,6 @@ class TestRecording : public QObject {
   void strainMatchesClosedForms();
   void exportsAndMetricsFromTheScript();
   void resetEndsTheRecordedSession();
+  void aSessionWithoutStepsIsNotKept();
   void sessionsKeepTheirIdentityAcrossFiles();
 };

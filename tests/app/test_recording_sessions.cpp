@@ -9,6 +9,7 @@
 #include "session_inputs.hpp"
 
 #include <rehearse/app/recording.hpp>
+#include <rehearse/app/sessionlauncher.hpp>
 #include <rehearse/simcore/numerics.hpp>
 
 #include <QDir>
@@ -387,6 +388,67 @@ void TestRecording::resetEndsTheRecordedSession() {
   QCOMPARE(v.checked, 8L);
   QCOMPARE(v.mismatches, 0L);
   qInfo("reset at step 40: '%s'; the session keeps 40 steps and verifies (%ld checksums)", stopped.c_str(), v.checked);
+}
+
+// A recording stopped (or reset) before its first step keeps nothing: a person's check found an empty "Recorded session
+// 3" listed after Reset then Stop. The session with steps beside it stays, with its events, and verifies; the empty
+// one's rows are gone from every table; a session with steps is never dropped.
+void TestRecording::aSessionWithoutStepsIsNotKept() {
+  QTemporaryDir dir;
+  const std::string file = (dir.path() + "/case.rehearse").toStdString();
+  simcore::BodySetup s;
+  s.mesh = boxMesh(0.04, 0.01, 0.01, 6, 2, 2);
+  s.fixedNodes = nodesAtX(s.mesh, 0.0);
+  s.material.young = 5e3;
+  s.settings.method = simcore::NewtonMethod::Linearised;
+  std::int64_t keptId = 0, emptyId = 0;
+  {
+    auto first = std::make_shared<app::StepRecording>(
+        std::make_shared<app::Recorder>(file, app::SessionMeta{"A. Trainee", {}, {}, {}, {}, {}}, s, 5, 10));
+    simcore::Session session(s);
+    first->attach(session);
+    session.post(rehearse::testing::toolAt({0.04, 0.005, 0.005}));
+    for (int k = 0; k < 12; ++k) session.advance();
+    QCOMPARE(first->finish(&session), std::string());
+    QVERIFY(!first->discarded());
+    keptId = first->id();
+  }
+  {
+    auto second = std::make_shared<app::StepRecording>(
+        std::make_shared<app::Recorder>(file, app::SessionMeta{"A. Trainee", {}, {}, {}, {}, {}}, s, 5, 10));
+    simcore::Session session(s);
+    second->attach(session);
+    session.post(rehearse::testing::toolAt({0.03, 0.0, 0.02}));  // a tool moved while paused: an event, no step
+    QCOMPARE(app::listRecordings(file).size(), std::size_t{2});  // listed while it records
+    QCOMPARE(second->finish(&session), std::string());
+    QVERIFY(second->discarded());
+    emptyId = second->id();
+  }
+  const auto listed = app::listRecordings(file);
+  QCOMPARE(listed.size(), std::size_t{1});
+  QCOMPARE(listed.front().id, keptId);
+  QCOMPARE(listed.front().steps, 12L);
+  QVERIFY(listed.front().complete);
+  const auto v = app::verifyRecording(app::loadRecording(file, keptId));
+  QVERIFY(v.checked > 0 && v.mismatches == 0);
+  QVERIFY_THROWS_EXCEPTION(std::exception, app::loadRecording(file, emptyId));
+  // No row of the dropped session is left in any table.
+  {
+    sqlite3* db = nullptr;
+    QCOMPARE(sqlite3_open_v2(file.c_str(), &db, SQLITE_OPEN_READONLY, nullptr), SQLITE_OK);
+    for (const char* table : {"rehearsal_events", "rehearsal_checksums", "rehearsal_setups", "rehearsal_checkpoints"}) {
+      sqlite3_stmt* q = nullptr;
+      const std::string sql = std::string("SELECT COUNT(*) FROM ") + table + " WHERE session = ?";
+      QCOMPARE(sqlite3_prepare_v2(db, sql.c_str(), -1, &q, nullptr), SQLITE_OK);
+      sqlite3_bind_int64(q, 1, emptyId);
+      QCOMPARE(sqlite3_step(q), SQLITE_ROW);
+      QCOMPARE(sqlite3_column_int64(q, 0), sqlite3_int64{0});
+      sqlite3_finalize(q);
+    }
+    sqlite3_close(db);
+  }
+  qInfo("session %lld (12 steps) kept and verifies; session %lld (no step, one event) dropped from every table",
+        static_cast<long long>(keptId), static_cast<long long>(emptyId));
 }
 
 // Sessions have an identity across files (issue 32): a recorder whose file is replaced by a copy goes on in its

@@ -628,6 +628,28 @@ class TestReviewGui : public QObject {
     qInfo("reset ended session %lld, recorded on as %lld; saved as %s mid-recording:%s",
           static_cast<long long>(beforeReset), static_cast<long long>(afterReset),
           qPrintable(QFileInfo(other).fileName()), qPrintable(lines));
+    // A person's check: Stop right after a Reset (the run from rest paused at t = 0) saved an empty "Recorded session
+    // 3". Recording again, Reset, then Stop at once: the session the Reset ended is kept, the empty one is not, and the
+    // page says so.
+    const std::size_t listed = app::listRecordings(other.toStdString()).size();
+    QTest::keyClick(w_.get(), Qt::Key_R, Qt::ControlModifier);  // record
+    QVERIFY(w_->recording());
+    QVERIFY(waitFor([&] { return panel->recordingId() > afterReset && panel->session()->snapshot()->step > 10; }));
+    const qint64 third = panel->recordingId();
+    QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);  // Reset
+    QVERIFY(waitFor([&] { return panel->recordingId() > third; }));
+    const qint64 empty = panel->recordingId();
+    QCOMPARE(panel->session()->snapshot()->step, 0L);
+    QTest::keyClick(w_.get(), Qt::Key_R, Qt::ControlModifier);  // stop
+    QVERIFY(!w_->recording());
+    const QString said = child<QLabel>("recordState")->text();
+    QVERIFY2(said.contains("nothing to keep") && said.contains(QString("session %1 ").arg(empty)), qPrintable(said));
+    const auto after = app::listRecordings(other.toStdString());
+    QCOMPARE(after.size(), listed + 1);
+    QCOMPARE(after.back().id, third);
+    QVERIFY(after.back().complete && after.back().steps > 10);
+    qInfo("Reset then Stop: session %lld kept (%ld steps), session %lld not kept: %s", static_cast<long long>(third),
+          after.back().steps, static_cast<long long>(empty), qPrintable(said));
   }
 
   // Issue 32, the trainer's side: a session whose replay does not reproduce its recording says so in the review window

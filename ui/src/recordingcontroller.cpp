@@ -96,9 +96,12 @@ QString RecordingController::start(const QString& trainee) {
 void RecordingController::stop() {
   if (!recording()) return;
   const qint64 id = simulation_->recordingId();
-  simulation_->stopRecording();
+  const bool kept = simulation_->stopRecording();
   const QString text =
-      tr("Recorded session %1 in %2; review it with Ctrl+Shift+R.").arg(id).arg(QFileInfo(doc_->path()).fileName());
+      kept ? tr("Recorded session %1 in %2; review it with Ctrl+Shift+R.").arg(id).arg(QFileInfo(doc_->path()).fileName())
+           : tr("Recording stopped before the first step: nothing to keep (session %1 is not in %2).")
+                 .arg(id)
+                 .arg(QFileInfo(doc_->path()).fileName());
   page_->showRecording(false, text);
   say_(text);
   for (auto* review : window_->findChildren<ReviewWindow*>())

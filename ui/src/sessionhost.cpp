@@ -231,12 +231,14 @@ void SessionHost::reset() {
   if (session_) session_->reset();
 }
 
-void SessionHost::stopRecording() {
+bool SessionHost::stopRecording() {
   if (recordPending_) cancelRecord_ = true;
   waitForRetired();
-  if (!recording_) return;
+  if (!recording_) return true;
   (void)recording_->finish(session_.get());  // (a failure to mark it complete leaves it incomplete: replay says so)
+  const bool kept = !recording_->discarded();
   recording_.reset();
+  return kept;
 }
 
 QString SessionHost::recordingFailure() {

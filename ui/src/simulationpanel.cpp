@@ -192,11 +192,11 @@ QString SimulationPanel::startRecording(const QString& file, const app::SessionM
   return {};
 }
 
-void SimulationPanel::stopRecording() {
+bool SimulationPanel::stopRecording() {
   recordRequest_.reset();
   // The recording keeps the session as it is now (what the instruments do after it is not kept).
   if (last_ && recording()) kept_ = workOf(*last_);
-  host_->stopRecording();
+  return host_->stopRecording();
 }
 
 qint64 SimulationPanel::recordingId() const { return host_->recordingId(); }
@@ -379,11 +379,16 @@ void SimulationPanel::reset() {
     const qint64 ended = recordingId();
     const long at = host_->recordedSteps();
     startSession(setup(), recordRequest_);
+    // A session that took no step is not kept (StepRecording::finish drops it from the file).
     emit recordingRestarted(
-        ended > 0 ? tr("Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.")
-                        .arg(ended)
-                        .arg(at)
-                  : tr("Reset: the run from rest is recorded as a new session."));
+        ended > 0 && at > 0
+            ? tr("Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.")
+                  .arg(ended)
+                  .arg(at)
+        : ended > 0
+            ? tr("Reset: session %1 recorded no step and is not kept; the run from rest is recorded as a new session.")
+                  .arg(ended)
+            : tr("Reset: the run from rest is recorded as a new session."));
   } else {
     host_->reset();
   }

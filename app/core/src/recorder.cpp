@@ -294,6 +294,23 @@ void Recorder::afterStep(const simcore::StepRecord& r) {
   }
 }
 
+bool Recorder::discardIfEmpty() {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (finished_ || lastStep_ > 0 || !db_) return false;
+  for (const char* sql : {"DELETE FROM rehearsal_events WHERE session = ?", "DELETE FROM rehearsal_checksums WHERE session = ?",
+                          "DELETE FROM rehearsal_setups WHERE session = ?",
+                          "DELETE FROM rehearsal_checkpoints WHERE session = ?", "DELETE FROM rehearsal_sessions WHERE id = ?"}) {
+    Statement q(db_, sql);
+    sqlite3_bind_int64(q.s, 1, id_);
+    if (sqlite3_step(q.s) != SQLITE_DONE)
+      throw std::runtime_error(std::string("the recording store refused to drop an empty session: ") +
+                               sqlite3_errmsg(db_));
+  }
+  finished_ = true;
+  commitIfDue(true);
+  return true;
+}
+
 void Recorder::finish(long steps) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (finished_) return;

@@ -29,6 +29,10 @@ std::string StepRecording::error() const {
 std::string StepRecording::finish(simcore::Session* session) {
   if (session) session->setStepHook({});  // waits for the step in progress
   try {
+    if (recorder_->discardIfEmpty()) {
+      discarded_->store(true);
+      return {};
+    }
     recorder_->finish(recorder_->lastStep());
   } catch (const std::exception& e) {
     return e.what();

@@ -57,7 +57,8 @@ class SessionHost : public QObject {
   std::int64_t recordingId() const { return recording_ ? recording_->id() : 0; }
   long recordedSteps() const { return recording_ ? recording_->lastStep() : 0; }
   /// The recording ends complete (the session goes on unrecorded); a recorded session being built is not recorded.
-  void stopRecording();
+  /// False when the session had recorded no step and was dropped from the file (StepRecording::discarded).
+  bool stopRecording();
   /// A write the file refused since: why, and the recording stopped (empty when none).
   QString recordingFailure();
   void suspendRecording();                    ///< before the case file is copied and replaced

@@ -81,8 +81,9 @@ class SimulationPanel : public QWidget {
   /// Starts the simulation again from rest, recording the session into the case file `file` (SQLite, as it
   /// runs: app::Recorder) with `meta`. One sentence on error (nothing started then), empty on success.
   QString startRecording(const QString& file, const app::SessionMeta& meta);
-  /// Ends the recording (the session is marked complete); the simulation goes on unrecorded.
-  void stopRecording();
+  /// Ends the recording (the session is marked complete); the simulation goes on unrecorded. False when the session
+  /// had recorded no step and is not kept (SessionHost::stopRecording).
+  bool stopRecording();
   bool recording() const { return host_->recording(); }
   qint64 recordingId() const;
   /// What the instruments did to the organ since the session's start or its last Reset that nothing keeps (the case

@@ -100,6 +100,11 @@ class Recorder {
   long checkpoints() const { return checkpoints_; }
   /// Marks the session complete with its step count and commits.
   void finish(long steps);
+  /// A session that recorded no step (stopped, or reset, before its first): its rows are deleted, since there is
+  /// nothing to replay or review (a person's check found an empty "Recorded session 3" listed after Reset then Stop).
+  /// True when it was; false when it has steps, was finished or cannot be written now (suspended, broken). Throws
+  /// std::runtime_error with one sentence when the store refuses the deletion.
+  bool discardIfEmpty();
   /// Before the file is copied and replaced (a case saved anew, written beside and renamed over it): commits,
   /// checkpoints the WAL into the file and closes it, so that the copy holds everything written so far and no
   /// connection pairs the new file with the old WAL. Steps meanwhile are kept in memory (events, checksums,

@@ -37,6 +37,8 @@ class StepRecording {
   /// Marks the recorded session complete at its last step (`session`'s hook removed first when given: it waits for
   /// the step in progress). Empty on success, else why it could not be.
   std::string finish(simcore::Session* session = nullptr);
+  /// finish() found no step recorded and dropped the session from the file (Recorder::discardIfEmpty).
+  bool discarded() const { return discarded_->load(); }
   /// Before the case file is copied and replaced (Recorder::suspend).
   void suspend() { recorder_->suspend(); }
   /// The case file was replaced: the recording goes on into `file` (a failure is kept as failed()).
@@ -45,6 +47,7 @@ class StepRecording {
  private:
   std::shared_ptr<Recorder> recorder_;
   std::shared_ptr<std::atomic<bool>> failed_ = std::make_shared<std::atomic<bool>>(false);
+  std::shared_ptr<std::atomic<bool>> discarded_ = std::make_shared<std::atomic<bool>>(false);
   std::shared_ptr<std::string> error_ = std::make_shared<std::string>();
   mutable std::shared_ptr<std::mutex> mutex_ = std::make_shared<std::mutex>();
 };
