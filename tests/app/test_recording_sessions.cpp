@@ -41,6 +41,16 @@ using namespace rehearse;
 namespace {
 using ::testing::Run;
 using ::testing::run;
+
+// A 4 cm bar held at one end, linearised steps: the recorder's tests' small body.
+simcore::BodySetup smallHeldBar() {
+  simcore::BodySetup s;
+  s.mesh = boxMesh(0.04, 0.01, 0.01, 6, 2, 2);
+  s.fixedNodes = nodesAtX(s.mesh, 0.0);
+  s.material.young = 5e3;
+  s.settings.method = simcore::NewtonMethod::Linearised;
+  return s;
+}
 }  // namespace
 
 void TestRecording::checkpointWithACutUnderWayIsComplete() {
@@ -350,11 +360,7 @@ void TestRecording::exportsAndMetricsFromTheScript() {
 void TestRecording::resetEndsTheRecordedSession() {
   QTemporaryDir dir;
   const std::string file = (dir.path() + "/case.rehearse").toStdString();
-  simcore::BodySetup s;
-  s.mesh = boxMesh(0.04, 0.01, 0.01, 6, 2, 2);
-  s.fixedNodes = nodesAtX(s.mesh, 0.0);
-  s.material.young = 5e3;
-  s.settings.method = simcore::NewtonMethod::Linearised;
+  const simcore::BodySetup s = smallHeldBar();
   auto recorder = std::make_shared<app::Recorder>(file, app::SessionMeta{"R. Eset", {}, {}, {}, {}, {}}, s, 5, 10);
   std::string stopped;
   {
@@ -396,11 +402,7 @@ void TestRecording::resetEndsTheRecordedSession() {
 void TestRecording::aSessionWithoutStepsIsNotKept() {
   QTemporaryDir dir;
   const std::string file = (dir.path() + "/case.rehearse").toStdString();
-  simcore::BodySetup s;
-  s.mesh = boxMesh(0.04, 0.01, 0.01, 6, 2, 2);
-  s.fixedNodes = nodesAtX(s.mesh, 0.0);
-  s.material.young = 5e3;
-  s.settings.method = simcore::NewtonMethod::Linearised;
+  const simcore::BodySetup s = smallHeldBar();
   std::int64_t keptId = 0, emptyId = 0;
   {
     auto first = std::make_shared<app::StepRecording>(
@@ -459,11 +461,7 @@ void TestRecording::sessionsKeepTheirIdentityAcrossFiles() {
   QTemporaryDir dir;
   const std::string a = (dir.path() + "/a.rehearse").toStdString(),
                     other = (dir.path() + "/other.rehearse").toStdString();
-  simcore::BodySetup s;
-  s.mesh = boxMesh(0.04, 0.01, 0.01, 6, 2, 2);
-  s.fixedNodes = nodesAtX(s.mesh, 0.0);
-  s.material.young = 5e3;
-  s.settings.method = simcore::NewtonMethod::Linearised;
+  const simcore::BodySetup s = smallHeldBar();
   auto record = [&](const std::string& file, const char* who, int steps, double y,
                     const std::function<void(int, app::Recorder&)>& during = {}) {
     auto r = std::make_unique<app::Recorder>(file, app::SessionMeta{who, {}, {}, {}, {}, {}}, s, 5, 10);
