@@ -85,9 +85,11 @@ QString RecordingController::start(const QString& trainee) {
   }
   const QString err = simulation_->startRecording(path, meta);
   if (!err.isEmpty()) return err;
-  const QString text = tr("Recording%1 into %2 (the simulation started again from rest).")
+  // Recording a paused simulation records nothing until Play: said (a person's check lost 3 s thinking it ran).
+  const QString text = tr("Recording%1 into %2 (the simulation started again from rest%3).")
                            .arg(trainee.isEmpty() ? QString() : tr(" %1").arg(trainee))
-                           .arg(QFileInfo(path).fileName());
+                           .arg(QFileInfo(path).fileName())
+                           .arg(simulation_->isPlaying() ? QString() : tr("; paused: nothing is recorded until Play, F5"));
   page_->showRecording(true, text);
   say_(text);
   return {};
@@ -99,9 +101,11 @@ void RecordingController::stop() {
   const bool kept = simulation_->stopRecording();
   const QString text =
       kept ? tr("Recorded session %1 in %2; review it with Ctrl+Shift+R.").arg(id).arg(QFileInfo(doc_->path()).fileName())
-           : tr("Recording stopped before the first step: nothing to keep (session %1 is not in %2).")
-                 .arg(id)
-                 .arg(QFileInfo(doc_->path()).fileName());
+      : id > 0 ? tr("Recording stopped before the first step: nothing to keep (session %1 is not in %2).")
+                     .arg(id)
+                     .arg(QFileInfo(doc_->path()).fileName())
+               // (Stop right after Reset: the new session was still being set up and had no number yet.)
+               : tr("Recording stopped before the first step: nothing to keep.");
   page_->showRecording(false, text);
   say_(text);
   for (auto* review : window_->findChildren<ReviewWindow*>())

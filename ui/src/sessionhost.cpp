@@ -232,9 +232,11 @@ void SessionHost::reset() {
 }
 
 bool SessionHost::stopRecording() {
+  // A recorded session still being built (Stop right after Reset or Record) is not recorded: nothing is kept.
+  const bool pending = recordPending_;
   if (recordPending_) cancelRecord_ = true;
   waitForRetired();
-  if (!recording_) return true;
+  if (!recording_) return !pending;
   (void)recording_->finish(session_.get());  // (a failure to mark it complete leaves it incomplete: replay says so)
   const bool kept = !recording_->discarded();
   recording_.reset();

@@ -52,12 +52,13 @@ class SessionHost : public QObject {
   void stepOnce();  ///< (once built, when it is being built)
   void reset();     ///< back to the start (nothing asked meanwhile kept)
 
-  /// A recording is written or its session is being built.
-  bool recording() const { return recording_ != nullptr || recordPending_; }
+  /// A recording is written or its session is being built (and was not stopped meanwhile).
+  bool recording() const { return recording_ != nullptr || (recordPending_ && !cancelRecord_); }
   std::int64_t recordingId() const { return recording_ ? recording_->id() : 0; }
   long recordedSteps() const { return recording_ ? recording_->lastStep() : 0; }
   /// The recording ends complete (the session goes on unrecorded); a recorded session being built is not recorded.
-  /// False when the session had recorded no step and was dropped from the file (StepRecording::discarded).
+  /// False when the session had recorded no step and was dropped from the file (StepRecording::discarded), or was
+  /// still being built.
   bool stopRecording();
   /// A write the file refused since: why, and the recording stopped (empty when none).
   QString recordingFailure();
