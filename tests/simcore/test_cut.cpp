@@ -597,7 +597,10 @@ class TestCut : public QObject {
     QVERIFY(said(1, {415.3, 4.2}).contains("the organ came apart (2 pieces, 1 before)"));
     QVERIFY(said(1, {415.3, 4.1}).contains("but for a fragment"));
     QVERIFY(said(1, {393.3, 21.4}).contains("the organ came apart (2 pieces, 1 before)"));
-    QVERIFY(said(2, {393.3, 21.4}).contains("still in 2 pieces"));
+    QVERIFY(said(2, {393.3, 21.4}).contains("still in 2 pieces (the cut"));
+    // Fragments from earlier strokes are not pieces of the organ (a person read "still in 3 pieces" of one piece).
+    QVERIFY(said(3, {414.8, 0.3, 0.2}).contains("still in one piece besides 2 fragments under 1 % of it (the cut"));
+    QVERIFY(said(3, {393.3, 21.4, 0.2}).contains("still in 2 pieces besides a fragment under 1 % of it (the cut"));
   }
 
   // A stroke that cut nothing is said too (a blade swept beside the organ used to end in silence: the GUI's scissors

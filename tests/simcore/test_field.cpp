@@ -11,6 +11,7 @@
 #include <rehearse/simcore/session/session.hpp>
 
 #include <QtTest>
+#include <QRegularExpression>
 
 #include <algorithm>
 #include <cmath>
@@ -217,6 +218,12 @@ class TestField : public QObject {
       QVERIFY(has(snap->events, "clip misplaced"));
       QVERIFY(!snap->field.clips.at(0).spans);
       QVERIFY2(QString::fromStdString(snap->message).contains("does not span"), snap->message.c_str());
+      // Both lengths from the clip's centre, the structure's past the jaws' (not beside the jaws' end to end).
+      const auto m = QRegularExpression(QStringLiteral("reaches ([0-9.]+) mm to one side of the clip's centre, and "
+                                                       "the 1 mm jaws 0.5 mm"))
+                         .match(QString::fromStdString(snap->message));
+      QVERIFY2(m.hasMatch(), snap->message.c_str());
+      QVERIFY(m.captured(1).toDouble() > 0.5 + 1.3);  // past the jaws by more than half an element edge
     }
     {
       simcore::Session s(vesselBlock());

@@ -37,6 +37,7 @@
 #include <QtCharts/QLineSeries>
 
 #include <rehearse/simcore/cut.hpp>
+#include <rehearse/simcore/session/field.hpp>
 #include <rehearse/simcore/session/body.hpp>
 #include <rehearse/simcore/session/forceloop.hpp>
 
@@ -915,6 +916,136 @@ class TestRehearseGui : public QObject {
     const auto m = all.match(bleeds);
     QVERIFY2(m.hasMatch(), qPrintable(bleeds));
     QVERIFY(std::abs(m.captured(1).toDouble() - 1e6 * rate()) <= 0.01);
+    panel->pause();
+    QTest::keyClick(w_.get(), Qt::Key_R);
+  }
+
+  // The clip applier over the vessels the view draws. A person's clip right over the drawn trunk said "No vessel under
+  // the cursor within 25 mm": the trunk lies deeper than the applier reaches (33 mm on the phantom), which the view,
+  // drawing the vessels through the tissue, does not show. Each point aimed at here is where a vessel element's centroid
+  // is seen (the ray through it crosses the element, which the view draws as the vessel): 2-22 mm below the surface
+  // the clip is aimed at a vessel no deeper than that element; 27-60 mm below, with no vessel node within 6 mm of the
+  // ray above 26 mm, the applier says how deep the vessel lies.
+  void aClipFindsTheVesselTheViewDraws() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    QVERIFY(startedAgain());
+    panel->pause();
+    QTest::keyClick(w_.get(), Qt::Key_U);
+    QCOMPARE(view->tool(), ui::Tool::Clip);
+    const auto f = panel->lastFrame();
+    QVERIFY(f && f->tets && f->labels);
+    const simcore::Mesh& names = c.organ->volume;
+    std::vector<std::size_t> vessel;
+    for (std::size_t e = 0; e < f->tets->size(); ++e) {
+      const auto k = names.labelKind(simcore::unburntLabel((*f->labels)[e]));
+      if (simcore::isVessel(k) || k == simcore::StructureKind::BileDuct) vessel.push_back(e);
+    }
+    QVERIFY2(vessel.size() >= 20, "the phantom has its vessels");
+    struct Aim {
+      QPoint at;
+      double depth;  // m, the centroid below the surface under it
+    };
+    std::vector<Aim> shallow, deep;
+    for (std::size_t e : vessel) {
+      Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+      for (int v : (*f->tets)[e]) centroid += 0.25 * f->positions[static_cast<std::size_t>(v)];
+      const Eigen::Vector2d px = c.camera.project(centroid);
+      const QPoint at = view->toWidget(QPointF(px.x(), px.y())).toPoint();
+      const QPointF fp = view->toFrame(QPointF(at));
+      const auto hit = view->liveSurfaceAt(Eigen::Vector2d(fp.x(), fp.y()));
+      if (!hit) continue;
+      const double depth = centroid.z() - hit->z();
+      if (depth >= 0.002 && depth <= 0.022) shallow.push_back({at, depth});
+      if (depth < 0.027 || depth > 0.06) continue;
+      const Eigen::Vector3d ray = c.camera.K.inverse() * Eigen::Vector3d(fp.x(), fp.y(), 1.0);
+      bool above = false;  // a vessel node near the ray within the applier's reach
+      for (std::size_t o : vessel)
+        for (int v : (*f->tets)[o]) {
+          const Eigen::Vector3d& p = f->positions[static_cast<std::size_t>(v)];
+          above = above || (p.z() <= hit->z() + 0.026 && (p - p.z() / ray.z() * ray).norm() <= 0.006);
+        }
+      if (!above) deep.push_back({at, depth});
+    }
+    qInfo("of %zu vessel elements, %zu are seen 2-22 mm below the surface and %zu 27-60 mm below with none above",
+          vessel.size(), shallow.size(), deep.size());
+    QVERIFY(shallow.size() >= 16 && deep.size() >= 4);
+    auto clip = [&](const Aim& a) {
+      QString told;
+      const auto conn = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told = m; });
+      QTest::mouseClick(view, Qt::LeftButton, {}, a.at);
+      disconnect(conn);
+      qInfo("clip at (%d, %d), a vessel element's centroid %.1f mm deep: \"%s\"", a.at.x(), a.at.y(), 1e3 * a.depth,
+            qPrintable(told));
+      return told;
+    };
+    const QRegularExpression aimed(QStringLiteral("^Clip aimed at the vessel (\\d+) mm below the surface"));
+    for (std::size_t k = 0; k < 16; ++k) {
+      const Aim& a = shallow[k * shallow.size() / 16];
+      const QString told = clip(a);
+      const auto m = aimed.match(told);
+      QVERIFY2(m.hasMatch(), qPrintable(told));
+      // The jaws at most 5 mm past where the ray enters the vessel, which is not below the centroid.
+      QVERIFY2(m.captured(1).toDouble() <= 1e3 * a.depth + 5.5, qPrintable(told));
+    }
+    const QRegularExpression tooDeep(
+        QStringLiteral("^The vessel under the cursor lies (\\d+) mm below the surface, deeper than the clip applier "
+                       "reaches \\(25 mm\\)"));
+    for (std::size_t k = 0; k < 4; ++k) {
+      const Aim& a = deep[k * deep.size() / 4];
+      const QString told = clip(a);
+      const auto m = tooDeep.match(told);
+      QVERIFY2(m.hasMatch(), qPrintable(told));
+      QVERIFY2(m.captured(1).toDouble() >= 25 && m.captured(1).toDouble() <= 1e3 * a.depth + 0.5, qPrintable(told));
+    }
+    QTest::keyClick(w_.get(), Qt::Key_R);
+  }
+
+  // A scissors stroke at the default depth over the phantom's trunk, which lies deeper than the blade reaches (the trunk
+  // cut above turns the wheel 10 notches first). A person's six strokes over the drawn vessels cut none, and nothing said
+  // why: the stroke now says how deep the blade cuts and how deep the vessel under it lies, and no vessel is cut.
+  void aStrokeOverADeepVesselSaysHowDeepItLies() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    QVERIFY(startedAgain());
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
+    QStringList told;
+    const auto conn = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told << m; });
+    const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.55);
+    const QPoint a = view->toWidget(QPointF(from.x(), from.y())).toPoint(),
+                 b = view->toWidget(QPointF(to.x(), to.y())).toPoint();
+    QTest::mousePress(view, Qt::LeftButton, {}, a);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    for (int i = 1; i <= 20; ++i) {
+      QTest::mouseMove(view, a + (b - a) * (i / 20.0));
+      const long now = panel->lastFrame()->steps;
+      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.cutting; }));
+    QVERIFY(stepsOn(20));
+    disconnect(conn);
+    qInfo("what the scissors said: %s", qPrintable(told.join(" | ")));
+    QVERIFY2(!told.isEmpty() && told.front().startsWith("Cutting 20 mm deep"), qPrintable(told.join(" | ")));
+    const QRegularExpression beyond(
+        QStringLiteral("The (.+) here lies (\\d+) mm below the surface, past the blade's (\\d+) mm"));
+    QRegularExpressionMatch m;
+    for (const QString& l : told)
+      if (const auto x = beyond.match(l); x.hasMatch()) m = x;
+    QVERIFY2(m.hasMatch(), qPrintable(told.join(" | ")));
+    QVERIFY(m.captured(2).toInt() > m.captured(3).toInt());
+    QVERIFY(m.captured(3).toInt() >= 15 && m.captured(3).toInt() <= 20);  // the tip 20 mm along the shaft
+    double rate = 0;
+    for (const auto& bl : panel->lastFrame()->field.bleeds)
+      if (bl.stoppedBy < 0) rate += bl.rate;
+    QCOMPARE(rate, 0.0);  // what it said holds: the blade cut no vessel
+    QVERIFY(stepsOn(3));  // (the page's labels are refreshed at most 15 times a second)
+    QTest::qWait(150);
+    const QString counts = w_->findChild<QLabel*>("rehearseForce")->text();
+    QVERIFY2(counts.contains("cuts: 1") && !counts.contains("vessels cut"), qPrintable(counts));
     panel->pause();
     QTest::keyClick(w_.get(), Qt::Key_R);
   }

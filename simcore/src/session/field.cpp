@@ -310,11 +310,13 @@ Clip placeClip(const Eigen::VectorXd& x, const std::vector<std::array<int, 4>>& 
   double scale = 1.0;
   const double widest = closeOnNodes(clip, x, between, centre, s, scale);
   if (!clip.spans) {
-    char buf[240];
+    // Both lengths from the clip's centre (a person read "it reaches 8.2 mm from the clip's centre, beyond the 9 mm
+    // jaws" as if it fitted: the 9 mm is end to end).
+    char buf[280];
     std::snprintf(buf, sizeof buf,
-                  "The clip does not span the structure: it reaches %.1f mm from the clip's centre, beyond the %.0f mm "
-                  "jaws (a longer clip: the Simulation panel's Clip length).",
-                  1e3 * reaches, 1e3 * s.length);
+                  "The clip does not span the structure: it reaches %.1f mm to one side of the clip's centre, and the "
+                  "%.0f mm jaws %.1f mm (a longer clip: the Simulation panel's Clip length).",
+                  1e3 * reaches, 1e3 * s.length, 0.5e3 * s.length);
     message = buf;
   }
   if (2 * widest * scale > s.gap * (1 + 1e-9)) {

@@ -96,7 +96,13 @@ void StrokeTracker::say(const Stroke& s, const std::vector<double>& volumes, std
          : pieces > s.piecesBefore
              ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
                    " before)" + off + "."
-             : "the organ is still in " + std::string(pieces == 1 ? "one piece" : std::to_string(pieces) + " pieces") +
+             // Its pieces of 1 % or more, the fragments said apart (a person read "still in 3 pieces" of an organ in
+             // one piece but for two chips from earlier strokes).
+             : "the organ is still in " +
+                   std::string(pieces - fragments == 1 ? "one piece" : std::to_string(pieces - fragments) + " pieces") +
+                   (fragments == 0 ? std::string()
+                                   : " besides " + std::string(fragments == 1 ? "a fragment" : std::to_string(fragments) + " fragments") +
+                                         " under 1 % of it") +
                    " (the cut did not go through).";
     if (s.skippedInverted > 0)
       m += " " + std::to_string(s.skippedInverted) +

@@ -328,6 +328,10 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     shares = tr(" (jaws %1 N, shaft %2 N)")
                  .arg(t.graspForce.norm(), 0, 'f', 2)
                  .arg((t.force - t.graspForce).norm(), 0, 'f', 2);
+  else if (t.held.empty() && t.force.norm() >= 0.005)
+    // Nothing held: the force is the shaft's, resting where the instrument was left (a person read 0.6-1.9 N after
+    // "Cut ended." as a force left over from the cut).
+    shares = tr(" (the shaft against the tissue)");
   // A force from a step that did not converge is not the tissue's equilibrium force: said next to the number
   // (issue 32: 18 kN, then 135 N, were shown from steps with a relative residual near 1).
   // The FFD model has no equilibrium at all: its force is Hertz's contact law at the hold's or poke's depth.

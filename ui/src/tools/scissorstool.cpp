@@ -39,7 +39,11 @@ class ScissorsTool final : public FrameTool {
     path_.push_back(f);
     send(simcore::InputKind::ToolPose, tipAt(f), false);
     send(simcore::InputKind::Cut, tipAt(f), true);
-    emit view_.toolMessage(QObject::tr("Cutting: drag across the organ, release to stop (wheel: deeper or shallower)."));
+    said_.clear();
+    emit view_.toolMessage(QObject::tr("Cutting %1 mm deep: drag across the organ, release to stop (wheel: deeper or "
+                                       "shallower).")
+                               .arg(1e3 * depth_, 0, 'f', 0));
+    sayWhatLiesBeyond(f);
     return true;
   }
   void move(const QPointF&, const Eigen::Vector2d& f) override {
@@ -51,6 +55,7 @@ class ScissorsTool final : public FrameTool {
     if (const auto hit = view_.liveSurfaceAt(f, FrameView::SurfacePick::OuterPoint); hit && hit->z() < surfaceDepth_ + 0.005) surfaceDepth_ = hit->z();
     path_.push_back(f);
     send(simcore::InputKind::ToolPose, tipAt(f), false);
+    sayWhatLiesBeyond(f);
   }
   void release(QMouseEvent*) override {
     if (!cutting_) return;
@@ -75,6 +80,10 @@ class ScissorsTool final : public FrameTool {
     }
     depth_ = std::max(1e-3, depth_ - 0.002 * e->angleDelta().y() / 120.0);
     send(simcore::InputKind::ToolPose, tipAt(path_.back()), false);
+    said_.clear();  // a structure still out of reach is said again at the new depth
+    emit view_.toolMessage(QObject::tr("Cutting %1 mm deep.").arg(1e3 * depth_, 0, 'f', 0));
+    sayWhatLiesBeyond(path_.back());
+    view_.update();
     return true;
   }
   void paint(QPainter& painter) override {
@@ -83,6 +92,10 @@ class ScissorsTool final : public FrameTool {
     QPolygonF line;
     for (const auto& f : path_) line << view_.toWidget(QPointF(f.x(), f.y()));
     painter.drawPolyline(line);
+    // The blade's depth beside the cursor (a person cut six strokes over the drawn vessels at the default depth and
+    // nothing said how deep the blade went).
+    painter.setPen(QColor(255, 235, 235));
+    painter.drawText(line.back() + QPointF(12, -10), QObject::tr("%1 mm deep").arg(1e3 * depth_, 0, 'f', 0));
   }
   Qt::CursorShape cursor() const override { return Qt::CrossCursor; }
 
@@ -99,11 +112,26 @@ class ScissorsTool final : public FrameTool {
     }
     return at + depth_ * along;
   }
+  /// Says once a stroke (and again after the wheel) a vessel or duct under the cursor that lies past the blade's tip: the
+  /// view draws the structures through the tissue, and a stroke over one at the default depth cut nothing and said
+  /// nothing.
+  void sayWhatLiesBeyond(const Eigen::Vector2d& f) {
+    const double tip = tipAt(f).z();
+    const auto s = structureUnder(view_, f, surfaceDepth_, surfaceDepth_ + 0.15);
+    if (!s || s->entry <= tip || std::find(said_.begin(), said_.end(), s->label) != said_.end()) return;
+    said_.push_back(s->label);
+    emit view_.toolMessage(QObject::tr("The %1 here lies %2 mm below the surface, past the blade's %3 mm: turn the "
+                                       "wheel down (towards you) to cut deeper.")
+                               .arg(QString::fromStdString(s->name))
+                               .arg(1e3 * (s->entry - surfaceDepth_), 0, 'f', 0)
+                               .arg(1e3 * (tip - surfaceDepth_), 0, 'f', 0));
+  }
   void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) { postInstrument(view_, kind, tip, on, 1); }
   bool cutting_ = false;
   double surfaceDepth_ = 0;  ///< m: the pressed surface point's depth (camera z)
   double depth_ = 0;         ///< m: the tip beyond the surface along the shaft
   std::vector<Eigen::Vector2d> path_;
+  std::vector<int> said_;  ///< the structures said to lie past the blade in this stroke at this depth
 };
 
 }  // namespace

@@ -6,6 +6,7 @@
 
 #include <memory>
 #include <optional>
+#include <string>
 
 namespace rehearse::ui::tools {
 
@@ -28,6 +29,15 @@ void postInstrument(FrameView& view, simcore::InputKind kind, const Eigen::Vecto
                     int label = 0);
 /// The point under frame pixel `f` at camera depth `depth` (m).
 Eigen::Vector3d pointAtDepth(const FrameView& view, const Eigen::Vector2d& f, double depth);
+
+/// A vessel or duct the view ray under frame pixel `f` crosses, as the view draws it (its labelled elements at the live
+/// shape): the shallowest one entered between camera depths `from` and `to` (m).
+struct StructureUnder {
+  int label = 0;
+  double entry = 0, exit = 0;  ///< m, camera depth where the ray enters it (not before `from`) and leaves it
+  std::string name;            ///< in words (simcore::structureWords: "vessel", "portal vein", "artery (A4)")
+};
+std::optional<StructureUnder> structureUnder(const FrameView& view, const Eigen::Vector2d& f, double from, double to);
 
 /// Widget position of a gizmo handle at the view's case pose; a null point when the organ is behind the camera.
 QPointF gizmoHandlePosition(const FrameView& view, GizmoHandle h);

@@ -155,6 +155,9 @@ class FrameView : public QWidget {
                     std::shared_ptr<const std::vector<int>> labels = nullptr,
                     std::shared_ptr<const std::vector<std::array<int, 4>>> tets = nullptr);
   const simcore::OperativeField& liveField() const { return field_; }
+  /// The elements and their labels as the simulation has them now (null before its first frame).
+  const std::shared_ptr<const std::vector<std::array<int, 4>>>& liveTets() const { return fieldTets_; }
+  const std::shared_ptr<const std::vector<int>>& liveLabels() const { return fieldLabels_; }
   /// Where the powered cautery hook went over the tissue, kept on the surface it touched (three nodes and barycentric
   /// weights, so it follows the tissue as it moves), one stroke per time the power came on: the burn is drawn along it.
   struct BurnTrailPoint {
