@@ -371,10 +371,27 @@ class TestSession : public QObject {
     const long at = s.snapshot()->step;
     QTest::qWait(200);
     QVERIFY(s.snapshot()->step <= at + 1);  // paused (at most the step in progress finished)
+    // Given while paused and no step applied them: the jaws closed on a free node, and an edit. After Reset the
+    // organ from rest is not held (a GUI test's clips clicked on a paused organ closed on it after Reset and Play);
+    // the edit stays, as edits do over a reset.
+    s.post(toolAt(organ().volume.points[freeNode()]));
+    s.post(jaw(true));
+    s.post(parameter("young", 61e3));
     s.reset();
     QTRY_COMPARE_WITH_TIMEOUT(s.snapshot()->step, 0L, 20000);
     QVERIFY(published.load() > 5);
+    s.stepOnce();
+    QTRY_COMPARE_WITH_TIMEOUT(s.snapshot()->step, 1L, 20000);
+    QVERIFY(s.snapshot()->tool.held.empty());
+    QVERIFY(!s.snapshot()->tool.jawClosed);
+    QCOMPARE(s.snapshot()->material.young, 61e3);
     QVERIFY(s.recorded().back().name == "young");
+    // What is given after the Reset is done.
+    s.post(toolAt(organ().volume.points[freeNode()]));
+    s.post(jaw(true));
+    s.stepOnce();
+    QTRY_COMPARE_WITH_TIMEOUT(s.snapshot()->step, 2L, 20000);
+    QVERIFY(!s.snapshot()->tool.held.empty());
   }
 
   void unsupportedInputsSaySo() {

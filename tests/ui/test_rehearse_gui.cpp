@@ -8,6 +8,8 @@
 #include "window_support.hpp"
 
 #include "rehearse/ui/frameview.hpp"
+#include "rehearse/ui/organview.hpp"
+#include "rehearse/ui/pages/meshpage.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
@@ -931,7 +933,7 @@ class TestRehearseGui : public QObject {
     auto* view = w_->frameView();
     const auto& c = *w_->caseData();
     QVERIFY(startedAgain());
-    panel->pause();
+    panel->pause();  // (the shape the aims are taken on; the first click plays it again)
     QTest::keyClick(w_.get(), Qt::Key_U);
     QCOMPARE(view->tool(), ui::Tool::Clip);
     const auto f = panel->lastFrame();
@@ -997,9 +999,18 @@ class TestRehearseGui : public QObject {
       const QString told = clip(a);
       const auto m = tooDeep.match(told);
       QVERIFY2(m.hasMatch(), qPrintable(told));
-      QVERIFY2(m.captured(1).toDouble() >= 25 && m.captured(1).toDouble() <= 1e3 * a.depth + 0.5, qPrintable(told));
+      // (the organ plays between the clicks: its tissue moves a little under the clips already closed)
+      QVERIFY2(m.captured(1).toDouble() >= 25 && m.captured(1).toDouble() <= 1e3 * a.depth + 2, qPrintable(told));
     }
-    QTest::keyClick(w_.get(), Qt::Key_R);
+    // (Each click played the organ: the clips closed.) Reset then Play starts from rest without them.
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->field.clips.empty(); }));
+    const long before = panel->lastFrame()->steps;
+    panel->reset();
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps < before; }));
+    panel->play();
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= 10; }));
+    QVERIFY(panel->lastFrame()->field.clips.empty());
+    panel->pause();
   }
 
   // A scissors stroke at the default depth over the phantom's trunk, which lies deeper than the blade reaches (the trunk
@@ -1023,21 +1034,25 @@ class TestRehearseGui : public QObject {
       QTest::mouseMove(view, a + (b - a) * (i / 20.0));
       const long now = panel->lastFrame()->steps;
       QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+      if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); i == 12 && !dir.isEmpty())
+        w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-scissors-depth.png");
     }
     QTest::mouseRelease(view, Qt::LeftButton, {}, b);
     QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.cutting; }));
     QVERIFY(stepsOn(20));
     disconnect(conn);
     qInfo("what the scissors said: %s", qPrintable(told.join(" | ")));
-    QVERIFY2(!told.isEmpty() && told.front().startsWith("Cutting 20 mm deep"), qPrintable(told.join(" | ")));
-    const QRegularExpression beyond(
-        QStringLiteral("The (.+) here lies (\\d+) mm below the surface, past the blade's (\\d+) mm"));
+    // The depth said is the tip's below the surface along the view (20 mm along the shaft from the trocar).
+    const auto cutting = QRegularExpression(QStringLiteral("^Cutting (\\d+) mm deep")).match(told.value(0));
+    QVERIFY2(cutting.hasMatch(), qPrintable(told.join(" | ")));
+    QVERIFY(cutting.captured(1).toInt() >= 15 && cutting.captured(1).toInt() <= 20);
+    const QRegularExpression beyond(QStringLiteral("The (.+) here lies (\\d+) mm deep, past the blade's (\\d+) mm"));
     QRegularExpressionMatch m;
     for (const QString& l : told)
       if (const auto x = beyond.match(l); x.hasMatch()) m = x;
     QVERIFY2(m.hasMatch(), qPrintable(told.join(" | ")));
     QVERIFY(m.captured(2).toInt() > m.captured(3).toInt());
-    QVERIFY(m.captured(3).toInt() >= 15 && m.captured(3).toInt() <= 20);  // the tip 20 mm along the shaft
+    QVERIFY(std::abs(m.captured(3).toInt() - cutting.captured(1).toInt()) <= 1);  // (the surface moves under the stroke)
     double rate = 0;
     for (const auto& bl : panel->lastFrame()->field.bleeds)
       if (bl.stoppedBy < 0) rate += bl.rate;
@@ -1046,8 +1061,51 @@ class TestRehearseGui : public QObject {
     QTest::qWait(150);
     const QString counts = w_->findChild<QLabel*>("rehearseForce")->text();
     QVERIFY2(counts.contains("cuts: 1") && !counts.contains("vessels cut"), qPrintable(counts));
+    // With nothing held the tool's force is the shaft's contact alone (a hook left on the tissue after "Energy off.",
+    // scissors left in the incision): the page says so (a person read 0.6-1.9 N after "Cut ended." as a force left over
+    // from the cut). This stroke's shaft ended touching nothing (checked); the page is shown the same frame with a
+    // shaft's force, paused so that no step replaces it.
+    const auto last = panel->lastFrame();
+    qInfo("after the stroke: tool force %.3f N, %zu held, %d contacts", last->tool.force.norm(), last->tool.held.size(),
+          last->tool.contacts);
+    QVERIFY(last->tool.held.empty() && last->tool.force.norm() < 0.005 && !counts.contains("shaft"));
+    panel->pause();
+    for (long was = -1; was != panel->lastFrame()->steps;) {  // (the step under way when paused is shown too)
+      was = panel->lastFrame()->steps;
+      QTest::qWait(300);
+    }
+    auto resting = std::make_shared<ui::SimulationFrame>(*panel->lastFrame());
+    resting->tool.force = Eigen::Vector3d(0.2, -0.5, 0.6);
+    resting->tool.contacts = 3;
+    w_->rehearsePage()->showFrame(resting);
+    QTest::qWait(150);
+    const QString shaft = w_->findChild<QLabel*>("rehearseForce")->text();
+    QVERIFY2(shaft.startsWith("Tool force 0.81 N (the shaft against the tissue)"), qPrintable(shaft));
     panel->pause();
     QTest::keyClick(w_.get(), Qt::Key_R);
+  }
+
+  // The Organ 3D panel draws each structure in its label's colour, as step 1's list and the legend over the frame do (a
+  // person's check found the phantom's vessels lavender there beside a yellow legend: one blue for every structure,
+  // drawn half-transparent over the organ's orange). The phantom's vessels are label 2, (250, 200, 60).
+  void theOrgan3DDrawsEachStructureInItsColour() {
+    auto* organ = qobject_cast<ui::OrganView*>(w_->organWidget());
+    QVERIFY2(organ, "the offscreen window draws the Organ 3D panel without OpenGL");
+    QCOMPARE(ui::labelColour(2), QColor(250, 200, 60));
+    organ->setCase(w_->caseData());
+    organ->repaint();
+    const QImage img = organ->rendered().convertToFormat(QImage::Format_RGB32);
+    QVERIFY(!img.isNull());
+    int yellow = 0, bluish = 0;
+    for (int y = 0; y < img.height(); ++y)
+      for (int x = 0; x < img.width(); ++x) {
+        const QColor p = img.pixelColor(x, y);
+        yellow += p.red() >= 200 && p.green() >= 150 && p.blue() <= 110 && p.green() > p.blue() + 60;
+        bluish += p.blue() > p.red() + 20;
+      }
+    qInfo("Organ 3D: %d px of the vessels' yellow, %d bluish px (of %d)", yellow, bluish, img.width() * img.height());
+    QVERIFY(yellow >= 300);
+    QCOMPARE(bluish, 0);
   }
 
   // The grasper pulled down across the frame until the tissue slips out of the jaws: the sentence is in the status bar

@@ -1,4 +1,5 @@
 #include "rehearse/ui/organglview.hpp"
+#include "rehearse/ui/pages/meshpage.hpp"
 
 #include <rehearse/simcore/mesh.hpp>
 
@@ -112,7 +113,13 @@ void OrganGLView::upload() {
   };
   for (const auto& t : case_->organ->surface) add(t, {0.85f, 0.55f, 0.45f});
   organCount_ = static_cast<int>(case_->organ->surface.size() * 3);
-  for (const auto& t : case_->organ->innerSurface) add(t, {0.35f, 0.55f, 1.0f});
+  // Each structure in its label's colour (as step 1's list and the legend over the frame).
+  const auto& inner = case_->organ->innerSurface;
+  const auto& labels = case_->organ->innerSurfaceLabels;
+  for (std::size_t i = 0; i < inner.size(); ++i) {
+    const QColor c = labelColour(labels.size() == inner.size() ? labels[i] : 0);
+    add(inner[i], {float(c.redF()), float(c.greenF()), float(c.blueF())});
+  }
   vertexCount_ = static_cast<int>(data.size() / 9);
   vao_.bind();
   vbo_.bind();

@@ -1,4 +1,5 @@
 #include "rehearse/ui/organview.hpp"
+#include "rehearse/ui/pages/meshpage.hpp"
 
 #include <rehearse/imaging/render.hpp>
 #include <rehearse/simcore/mesh.hpp>
@@ -61,13 +62,26 @@ void OrganView::render() {
   image_ = QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888).copy();
   QPainter painter(&image_);
   if (!inner.empty()) {
-    SurfaceView v = case_->surfaceView();  // the organ's current shape (fitted or rest)
-    v.triangles = inner.front().data();
-    v.triangleCount = inner.size();
-    cv::Mat4b in = imaging::renderOverlay(cam, p, v, cv::Vec3b(255, 150, 80));
-    cv::cvtColor(in, rgba, cv::COLOR_BGRA2RGBA);
-    painter.setOpacity(0.45);
-    painter.drawImage(0, 0, QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888));
+    // Each structure in its label's colour, as step 1's list, the legend and the view over the frame draw it (they
+    // were all drawn one blue here, which over the organ's colour read lavender beside a yellow legend).
+    const auto& labels = case_->organ->innerSurfaceLabels;
+    std::vector<int> kinds(labels.begin(), labels.end());
+    std::sort(kinds.begin(), kinds.end());
+    kinds.erase(std::unique(kinds.begin(), kinds.end()), kinds.end());
+    if (labels.size() != inner.size()) kinds.assign(1, 0);
+    painter.setOpacity(0.7);
+    for (int label : kinds) {
+      std::vector<std::array<int, 3>> faces;
+      for (std::size_t i = 0; i < inner.size(); ++i)
+        if (labels.size() != inner.size() || labels[i] == label) faces.push_back(inner[i]);
+      SurfaceView v = case_->surfaceView();  // the organ's current shape (fitted or rest)
+      v.triangles = faces.front().data();
+      v.triangleCount = faces.size();
+      const QColor colour = labelColour(label);
+      cv::Mat4b in = imaging::renderOverlay(cam, p, v, cv::Vec3b(colour.blue(), colour.green(), colour.red()));
+      cv::cvtColor(in, rgba, cv::COLOR_BGRA2RGBA);
+      painter.drawImage(0, 0, QImage(rgba.data, rgba.cols, rgba.rows, static_cast<int>(rgba.step), QImage::Format_RGBA8888));
+    }
     painter.setOpacity(1.0);
   }
   painter.setRenderHint(QPainter::Antialiasing);

@@ -70,6 +70,13 @@ void SessionLoop::reset() {
     std::lock_guard<std::mutex> lock(mutex_);
     playing_ = false;
     pendingReset_ = true;
+    // What the instruments did before the Reset and no step applied (given while paused) is not done to the organ
+    // from rest: 20 clips clicked on a paused organ closed on it after Reset and Play. Edits (material, gravity,
+    // parameters) stay, as the session keeps them over a reset; what is posted after this call is kept.
+    std::erase_if(mailbox_, [](const InputEvent& e) {
+      return e.step < 0 && (e.kind == InputKind::ToolPose || e.kind == InputKind::Jaw || e.kind == InputKind::Cut ||
+                            e.kind == InputKind::Clip || e.kind == InputKind::Energy);
+    });
   }
   wake_.notify_all();
 }

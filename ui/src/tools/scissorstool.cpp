@@ -42,7 +42,7 @@ class ScissorsTool final : public FrameTool {
     said_.clear();
     emit view_.toolMessage(QObject::tr("Cutting %1 mm deep: drag across the organ, release to stop (wheel: deeper or "
                                        "shallower).")
-                               .arg(1e3 * depth_, 0, 'f', 0));
+                               .arg(1e3 * reach(f), 0, 'f', 0));
     sayWhatLiesBeyond(f);
     return true;
   }
@@ -81,7 +81,7 @@ class ScissorsTool final : public FrameTool {
     depth_ = std::max(1e-3, depth_ - 0.002 * e->angleDelta().y() / 120.0);
     send(simcore::InputKind::ToolPose, tipAt(path_.back()), false);
     said_.clear();  // a structure still out of reach is said again at the new depth
-    emit view_.toolMessage(QObject::tr("Cutting %1 mm deep.").arg(1e3 * depth_, 0, 'f', 0));
+    emit view_.toolMessage(QObject::tr("Cutting %1 mm deep.").arg(1e3 * reach(path_.back()), 0, 'f', 0));
     sayWhatLiesBeyond(path_.back());
     view_.update();
     return true;
@@ -95,7 +95,7 @@ class ScissorsTool final : public FrameTool {
     // The blade's depth beside the cursor (a person cut six strokes over the drawn vessels at the default depth and
     // nothing said how deep the blade went).
     painter.setPen(QColor(255, 235, 235));
-    painter.drawText(line.back() + QPointF(12, -10), QObject::tr("%1 mm deep").arg(1e3 * depth_, 0, 'f', 0));
+    painter.drawText(line.back() + QPointF(12, -10), QObject::tr("%1 mm deep").arg(1e3 * reach(path_.back()), 0, 'f', 0));
   }
   Qt::CursorShape cursor() const override { return Qt::CrossCursor; }
 
@@ -116,16 +116,17 @@ class ScissorsTool final : public FrameTool {
   /// view draws the structures through the tissue, and a stroke over one at the default depth cut nothing and said
   /// nothing.
   void sayWhatLiesBeyond(const Eigen::Vector2d& f) {
-    const double tip = tipAt(f).z();
     const auto s = structureUnder(view_, f, surfaceDepth_, surfaceDepth_ + 0.15);
-    if (!s || s->entry <= tip || std::find(said_.begin(), said_.end(), s->label) != said_.end()) return;
+    if (!s || s->entry <= tipAt(f).z() || std::find(said_.begin(), said_.end(), s->label) != said_.end()) return;
     said_.push_back(s->label);
-    emit view_.toolMessage(QObject::tr("The %1 here lies %2 mm below the surface, past the blade's %3 mm: turn the "
-                                       "wheel down (towards you) to cut deeper.")
+    emit view_.toolMessage(QObject::tr("The %1 here lies %2 mm deep, past the blade's %3 mm: wheel down (towards you) "
+                                       "to cut deeper.")
                                .arg(QString::fromStdString(s->name))
                                .arg(1e3 * (s->entry - surfaceDepth_), 0, 'f', 0)
-                               .arg(1e3 * (tip - surfaceDepth_), 0, 'f', 0));
+                               .arg(1e3 * reach(f), 0, 'f', 0));
   }
+  /// How deep below the surface (along the view) the blade's tip is for the cursor at `f`: the depth said and drawn.
+  double reach(const Eigen::Vector2d& f) const { return tipAt(f).z() - surfaceDepth_; }
   void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) { postInstrument(view_, kind, tip, on, 1); }
   bool cutting_ = false;
   double surfaceDepth_ = 0;  ///< m: the pressed surface point's depth (camera z)
