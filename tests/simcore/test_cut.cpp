@@ -589,10 +589,15 @@ class TestCut : public QObject {
     };
     const QString chip = said(1, {415.3, 0.3});
     QVERIFY(!chip.contains("came apart"));
-    QVERIFY(chip.contains("in one piece but for a fragment under 1 % of it (2 pieces, 1 before)"));
+    QVERIFY(chip.contains("in one piece but for a fragment under 1 % of it (chipped off by this stroke)"));
     QVERIFY(chip.contains("the smallest 0.3 mL"));
     const QString chips = said(3, {414.8, 0.3, 0.2, 0.1});
-    QVERIFY(chips.contains("but for 3 fragments"));
+    QVERIFY(chips.contains("but for 3 fragments under 1 % of it (1 chipped off by this stroke)"));
+    // A sliver's volume is not "0.0 mL" (a person read it as no piece at all).
+    const QString slivers = said(4, {414.6, 0.1, 0.04, 0.02, 0.01});
+    QVERIFY2(slivers.contains("but for 4 fragments under 1 % of it (1 chipped off by this stroke)"), qPrintable(slivers));
+    QVERIFY2(slivers.contains("the smallest under 0.1 mL, under 0.1 mL and under 0.1 mL"), qPrintable(slivers));
+    QVERIFY(!slivers.contains("0.0 mL"));
     // 4.2 mL is 1.0 % of the 419.5 mL organ: a piece, not a fragment.
     QVERIFY(said(1, {415.3, 4.2}).contains("the organ came apart (2 pieces, 1 before)"));
     QVERIFY(said(1, {415.3, 4.1}).contains("but for a fragment"));

@@ -373,12 +373,120 @@ class TestRehearseGui : public QObject {
     qInfo("released: the bitten nodes %.1f mm from where they had settled while pulled, %.1f mm after 100 steps",
           1e3 * before, 1e3 * after);
     QVERIFY(after < 0.3 * before);
+    {  // The hand let go: the grasper is withdrawn along its shaft, and no force is left on the tissue (its shaft
+       // kept pressing it, 0.3-1.9 N on the page after a release).
+      const auto g = panel->lastFrame();
+      qInfo("withdrawn: the tip %.0f mm from the trocar (%.0f mm when it let go), tool force %.3f N, %d contacts",
+            1e3 * (g->tool.tip - g->trocar).norm(), 1e3 * (f->tool.tip - g->trocar).norm(), g->tool.force.norm(),
+            g->tool.contacts);
+      QVERIFY((g->tool.tip - g->trocar).norm() < 0.25 * (f->tool.tip - g->trocar).norm());
+      QCOMPARE(g->tool.contacts, 0);
+      QCOMPARE(g->tool.force.norm(), 0.0);
+    }
     // Reset (Shift+F5): a new session, and what the last one said goes with it (a user's check: "Released: the tissue
     // relaxes." stayed over the next case's organ).
     QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);
     QVERIFY(waitFor([&] { return panel->lastFrame() && panel->lastFrame()->steps < released; }, 60000));
     QVERIFY(waitFor([&] { return !w_->findChild<QLabel*>("rehearseStatus")->text().startsWith("Released"); }, 10000));
     panel->pause();
+  }
+
+  // A person's grasp low on the organ pulled up 70 px and let go: the steps were held back by the inversion guard from
+  // then on ("relative residual 0.97", 4-6 fps, "8.88 N (the shaft against the tissue) — step not converged") until
+  // Reset, three times in two launches: the grasper's shaft stayed in the squeezed tissue it had let go of. This path
+  // (a grasp at 80 % of the organ's height, 70 px up) did not stall with the shaft left there, but 2.41 N stayed on the
+  // tissue from 2 contacts (checked; at 85 %: 1.32 N). Withdrawn when the hand lets go, no force is left, and every
+  // step after the release converges.
+  void aPullLetGoLeavesNoStall() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    QVERIFY(startedAgain());
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    QVERIFY(stepsOn(30));
+    const auto [top, bottom] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.45);
+    const Eigen::Vector2d low = top + 0.8 * (bottom - top);  // (the stroke runs 10 % past the organ's bottom)
+    const QPoint a = view->toWidget(QPointF(low.x(), low.y())).toPoint();
+    QTest::mousePress(view, Qt::LeftButton, {}, a);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    for (int i = 1; i <= 10; ++i) {
+      QTest::mouseMove(view, a - QPoint(0, 7 * i));
+      QVERIFY(stepsOn(3));
+    }
+    QVERIFY(stepsOn(20));
+    const double pulled = panel->lastFrame()->tool.force.norm();
+    QTest::mouseRelease(view, Qt::LeftButton, {}, a - QPoint(0, 70));
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.jawClosed; }));
+    long seen = 0, unconverged = 0, inverted = 0;
+    const auto watched = connect(panel, &ui::SimulationPanel::frameShown, this, [&] {
+      const auto fr = panel->lastFrame();
+      ++seen;
+      unconverged += fr->report.outcome != simcore::StepStatus::Converged;
+      inverted += fr->report.invertedElements > 0;
+    });
+    const auto unwatch = qScopeGuard([&] { disconnect(watched); });
+    QVERIFY(stepsOn(150));
+    const auto g = panel->lastFrame();
+    qInfo("pulled at %.2f N, let go: of %ld frames shown over 150 steps %ld not converged, %ld with inverted elements; "
+          "tool force %.3f N, %d contacts",
+          pulled, seen, unconverged, inverted, g->tool.force.norm(), g->tool.contacts);
+    QVERIFY(pulled > 0.1);
+    QCOMPARE(unconverged, 0L);
+    QCOMPARE(inverted, 0L);
+    QCOMPARE(g->tool.force.norm(), 0.0);
+    panel->pause();
+  }
+
+  // Shift+F5 in the middle of a scissors stroke (a person's check): the stroke went on over the organ from rest, the
+  // blade off, its shaft shoving the organ at up to 30 N, then "Cut ended." at the release and 13.2 N left on the page.
+  // The Reset ends the stroke: the drag after it posts nothing and says nothing, and the organ stays at rest.
+  void aResetMidStrokeEndsTheStroke() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    QVERIFY(startedAgain());
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
+    const std::size_t elements = panel->lastFrame()->tets->size();
+    const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.3);
+    const QPoint a = view->toWidget(QPointF(from.x(), from.y())).toPoint(),
+                 b = view->toWidget(QPointF(to.x(), to.y())).toPoint();
+    QTest::mousePress(view, Qt::LeftButton, {}, a);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    for (int i = 1; i <= 8; ++i) {
+      QTest::mouseMove(view, a + (b - a) * (i / 20.0));
+      QVERIFY(stepsOn(3));
+    }
+    const long before = panel->lastFrame()->steps;
+    QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);
+    QMessageBox* box = nullptr;  // asked when the stroke has cut: answered Reset
+    waitFor([&] {
+      box = w_->findChild<QMessageBox*>("resetRehearsalBox");
+      return (box && box->isVisible()) || panel->lastFrame()->steps < before;
+    }, 10000);
+    if (box && box->isVisible()) QTest::mouseClick(box->button(QMessageBox::Reset), Qt::LeftButton);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->steps < before; }, 30000));
+    QVERIFY(!panel->isPlaying());
+    QStringList told;
+    const auto conn = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told << m; });
+    for (int i = 9; i <= 20; ++i) {
+      QTest::mouseMove(view, a + (b - a) * (i / 20.0));
+      QTest::qWait(30);
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b);
+    QTest::qWait(300);
+    disconnect(conn);
+    const auto f = panel->lastFrame();
+    qInfo("after Reset mid-stroke and the rest of the drag: playing %d, step %ld, cutting %d, force %.3f N, %zu "
+          "elements (%zu before the stroke); said: %s",
+          panel->isPlaying(), f->steps, f->tool.cutting, f->tool.force.norm(), f->tets->size(), elements,
+          qPrintable(told.join(" | ")));
+    QVERIFY(!panel->isPlaying());  // nothing was posted (a post plays the organ)
+    QVERIFY(!f->tool.cutting);
+    QCOMPARE(f->tool.force.norm(), 0.0);
+    QCOMPARE(f->tets->size(), elements);
+    QVERIFY2(told.isEmpty(), qPrintable(told.join(" | ")));
   }
 
   // Space closes the jaws where the cursor is (the grasper, R) and opens them again.
@@ -1042,17 +1150,16 @@ class TestRehearseGui : public QObject {
     QVERIFY(stepsOn(20));
     disconnect(conn);
     qInfo("what the scissors said: %s", qPrintable(told.join(" | ")));
-    // The depth said is the tip's below the surface along the view (20 mm along the shaft from the trocar).
-    const auto cutting = QRegularExpression(QStringLiteral("^Cutting (\\d+) mm deep")).match(told.value(0));
-    QVERIFY2(cutting.hasMatch(), qPrintable(told.join(" | ")));
-    QVERIFY(cutting.captured(1).toInt() >= 15 && cutting.captured(1).toInt() <= 20);
-    const QRegularExpression beyond(QStringLiteral("The (.+) here lies (\\d+) mm deep, past the blade's (\\d+) mm"));
+    // The depth said is the tip's beyond the surface along the shaft, as the wheel sets it (20 mm to start with).
+    QVERIFY2(told.value(0).startsWith("Cutting 20 mm deep"), qPrintable(told.join(" | ")));
+    const QRegularExpression beyond(
+        QStringLiteral("The (.+) here lies (\\d+) mm deep along the shaft, past the blade's (\\d+) mm"));
     QRegularExpressionMatch m;
     for (const QString& l : told)
       if (const auto x = beyond.match(l); x.hasMatch()) m = x;
     QVERIFY2(m.hasMatch(), qPrintable(told.join(" | ")));
-    QVERIFY(m.captured(2).toInt() > m.captured(3).toInt());
-    QVERIFY(std::abs(m.captured(3).toInt() - cutting.captured(1).toInt()) <= 1);  // (the surface moves under the stroke)
+    QVERIFY(m.captured(2).toInt() > m.captured(3).toInt() + 2);
+    QCOMPARE(m.captured(3).toInt(), 20);
     double rate = 0;
     for (const auto& bl : panel->lastFrame()->field.bleeds)
       if (bl.stoppedBy < 0) rate += bl.rate;

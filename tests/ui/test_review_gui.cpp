@@ -574,6 +574,17 @@ class TestReviewGui : public QObject {
     QVERIFY(w_->recording());
     QVERIFY2(child<QLabel>("recordState")->text().contains(QString("session %1 ended").arg(beforeReset)),
              qPrintable(child<QLabel>("recordState")->text()));
+    {
+      // The step it says it ended at is the file's (a person read 27298 where the file has 27299: the step under way
+      // when Reset was pressed came after it was read).
+      const auto m = QRegularExpression(QStringLiteral("ended at step (\\d+)")).match(child<QLabel>("recordState")->text());
+      QVERIFY(m.hasMatch());
+      long inFile = -1;
+      for (const auto& r : app::listRecordings(file_.toStdString()))
+        if (r.id == beforeReset) inFile = r.steps;
+      qInfo("Reset while recording: the page says step %s, the file has %ld", qPrintable(m.captured(1)), inFile);
+      QCOMPARE(m.captured(1).toLong(), inFile);
+    }
     QTest::keyClick(w_.get(), Qt::Key_F5);  // Play (a reset pauses)
     QVERIFY(waitFor([&] { return panel->session()->snapshot()->step > 30; }));
     const qint64 afterReset = panel->recordingId();
@@ -664,6 +675,11 @@ class TestReviewGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);  // Reset
     QTest::keyClick(w_.get(), Qt::Key_R, Qt::ControlModifier);  // stop, at once
     QVERIFY(!w_->recording());
+    // The session the Reset started is still being built: its recording, made on the build's thread, is dropped when
+    // the build is done (the file listed it until then).
+    QVERIFY(waitFor([&] { return panel->session() != nullptr; }));
+    QVERIFY(!w_->recording());
+    QVERIFY2(child<QPushButton>("recordButton")->text() == "Record", qPrintable(child<QPushButton>("recordButton")->text()));
     const QString atOnce = child<QLabel>("recordState")->text();
     QVERIFY2(atOnce.contains("nothing to keep") && !atOnce.contains("session 0"), qPrintable(atOnce));
     const auto last = app::listRecordings(other.toStdString());

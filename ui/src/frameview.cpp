@@ -651,6 +651,13 @@ std::vector<std::pair<QString, QString>> FrameView::viewKeys() {
           {QStringLiteral("Space"), tr("Grasper: close the jaws at the cursor, or open them")}};
 }
 
+void FrameView::endGesture() {
+  // Quietly: nothing it would post (the blade off, the instrument withdrawn) or say ("Cut ended.") belongs to the run
+  // from rest (while recording, that run's session is still being built: a post there said "not ready").
+  const QSignalBlocker quiet(this);
+  if (current() && current()->abandon()) update();
+}
+
 void FrameView::keyPressEvent(QKeyEvent* e) {
   if (current() && current()->key(e)) return;
   switch (e->key()) {

@@ -129,6 +129,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     if (!simulation_->post(e))
       say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
   });
+  connect(simulation_, &SimulationPanel::wasReset, view_, &FrameView::endGesture);
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
     doc_->edit(text, [&](app::Case& k) { k.attachments = nodes; });

@@ -25,15 +25,25 @@ void SessionHost::retire() {
   // thread of their own (issue 62: Reset while recording froze the window 2 s); what records next waits for it.
   if (!session_ && !recording_) return;
   QPointer<SessionHost> self(this);
-  retired_ = app::retireSession(std::move(session_), std::move(recording_), retired_, [self](const std::string& e) {
-    const QString why = QString::fromStdString(e);
-    QMetaObject::invokeMethod(
-        self.data(),
-        [self, why] {
-          if (self) emit self->recordingStopped(tr("The recorded session could not be marked complete: %1").arg(why));
-        },
-        Qt::QueuedConnection);
-  });
+  retired_ = app::retireSession(
+      std::move(session_), std::move(recording_), retired_,
+      [self](const std::string& e) {
+        const QString why = QString::fromStdString(e);
+        QMetaObject::invokeMethod(
+            self.data(),
+            [self, why] {
+              if (self) emit self->recordingStopped(tr("The recorded session could not be marked complete: %1").arg(why));
+            },
+            Qt::QueuedConnection);
+      },
+      [self](std::int64_t id, long lastStep, bool discarded) {
+        QMetaObject::invokeMethod(
+            self.data(),
+            [self, id, lastStep, discarded] {
+              if (self) emit self->recordingRetired(static_cast<qint64>(id), lastStep, discarded);
+            },
+            Qt::QueuedConnection);
+      });
   session_.reset();
   recording_.reset();
 }

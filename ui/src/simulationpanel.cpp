@@ -115,6 +115,21 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   connect(host_, &SessionHost::frame, this, &SimulationPanel::onFrame);
   connect(host_, &SessionHost::restProgress, this, [this](const QString& text) { status_->setText(text); });
   connect(host_, &SessionHost::recordingStopped, this, &SimulationPanel::recordingStopped);
+  connect(host_, &SessionHost::recordingRetired, this, [this](qint64 id, long lastStep, bool discarded) {
+    if (id <= 0 || id != resetEnded_) return;
+    resetEnded_ = 0;
+    // Stopped meanwhile (Reset then Stop at once): the stop has said what was kept, and the page is not recording (this
+    // sentence set it to recording again, and the next Record click stopped instead).
+    if (!recordRequest_ || !host_->recording()) return;
+    // A session that took no step is not kept (StepRecording::finish drops it from the file).
+    emit recordingRestarted(
+        discarded
+            ? tr("Reset: session %1 recorded no step and is not kept; the run from rest is recorded as a new session.")
+                  .arg(id)
+            : tr("Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.")
+                  .arg(id)
+                  .arg(lastStep));
+  });
 
   auto* buttons = new QHBoxLayout;
   playButton_ = new QPushButton(tr("Play"), this);
@@ -377,22 +392,16 @@ void SimulationPanel::reset() {
     // A recorded session's steps only go forwards: the run from rest is another session (the one recorded so far
     // ends complete where it was; both replay and verify).
     const qint64 ended = recordingId();
-    const long at = host_->recordedSteps();
     startSession(setup(), recordRequest_);
-    // A session that took no step is not kept (StepRecording::finish drops it from the file).
-    emit recordingRestarted(
-        ended > 0 && at > 0
-            ? tr("Reset: recorded session %1 ended at step %2; the run from rest is recorded as a new session.")
-                  .arg(ended)
-                  .arg(at)
-        : ended > 0
-            ? tr("Reset: session %1 recorded no step and is not kept; the run from rest is recorded as a new session.")
-                  .arg(ended)
-            : tr("Reset: the run from rest is recorded as a new session."));
+    // Said once the ended session is complete in the file (recordingRetired): its last step is known then (read here,
+    // the step under way was still to come: a person read 27298 where the file has 27299).
+    resetEnded_ = ended;
+    if (ended <= 0) emit recordingRestarted(tr("Reset: the run from rest is recorded as a new session."));
   } else {
     host_->reset();
   }
   updateButtons();
+  emit wasReset();
 }
 
 void SimulationPanel::resetAsked() {

@@ -71,14 +71,17 @@ Launch launchSession(const SessionRequest& request, const LaunchOptions& options
 
 std::shared_future<void> retireSession(std::shared_ptr<simcore::Session> session,
                                        std::shared_ptr<StepRecording> recording, std::shared_future<void> previous,
-                                       std::function<void(const std::string&)> onError) {
+                                       std::function<void(const std::string&)> onError,
+                                       std::function<void(std::int64_t, long, bool)> onFinished) {
   return std::async(std::launch::async, [session = std::move(session), recording = std::move(recording),
-                                         previous = std::move(previous), onError = std::move(onError)]() mutable {
+                                         previous = std::move(previous), onError = std::move(onError),
+                                         onFinished = std::move(onFinished)]() mutable {
            if (previous.valid()) previous.wait();
            session.reset();  // joins its thread (its step, a cut's build under way)
            if (!recording) return;
            const std::string why = recording->finish();  // a new session is a new recording (or none)
            if (!why.empty() && onError) onError(why);
+           if (onFinished) onFinished(recording->id(), recording->lastStep(), recording->discarded());
          })
       .share();
 }

@@ -71,16 +71,18 @@ void StrokeTracker::say(const Stroke& s, const std::vector<double>& volumes, std
     // What came off, by its volume: a sliver at the organ's thin edge said apart from a lobe (a person read "the
     // organ came apart (2 pieces)" and could not tell which).
     std::string off;
+    // A volume in words: "0.0 mL" read as no piece at all (a person's check), a sliver under 0.1 mL is said so.
+    auto mL = [](double v) {
+      char buf[32];
+      if (1e6 * v < 0.05) return std::string("under 0.1 mL");
+      std::snprintf(buf, sizeof buf, "%.1f mL", 1e6 * v);
+      return std::string(buf);
+    };
     if (pieces > s.piecesBefore) {
-      char buf[64];
-      std::snprintf(buf, sizeof buf, "%.1f mL", 1e6 * volumes.front());
-      off = ": the largest piece is " + std::string(buf) + ", the smallest";
+      off = ": the largest piece is " + mL(volumes.front()) + ", the smallest";
       const std::size_t shown = std::min<std::size_t>(pieces - 1, 3);
-      for (std::size_t k = 0; k < shown; ++k) {
-        std::snprintf(buf, sizeof buf, "%s%.1f mL", k == 0 ? " " : k + 1 == shown ? " and " : ", ",
-                      1e6 * volumes[pieces - 1 - k]);
-        off += buf;
-      }
+      for (std::size_t k = 0; k < shown; ++k)
+        off += std::string(k == 0 ? " " : k + 1 == shown ? " and " : ", ") + mL(volumes[pieces - 1 - k]);
     }
     // Pieces under 1 % of the organ are fragments the blade chipped off, not the organ coming apart (a person's three
     // shallow strokes across the phantom each read "the organ came apart", its smallest pieces 0.1-0.3 mL of 415).
@@ -89,10 +91,16 @@ void StrokeTracker::say(const Stroke& s, const std::vector<double>& volumes, std
     std::size_t fragments = 0;
     for (std::size_t k = 1; k < pieces; ++k) fragments += volumes[k] < kFragmentShare * total;
     const bool chipped = pieces > s.piecesBefore && fragments + 1 == pieces;
+    // (The fragments this stroke chipped off said apart from the earlier ones: "(8 pieces, 4 before)" counted the
+    // fragments as pieces.)
+    const std::size_t chippedNow = pieces - s.piecesBefore;
     m += chipped ? "the organ is in one piece but for " +
                        std::string(fragments == 1 ? "a fragment" : std::to_string(fragments) + " fragments") +
-                       " under 1 % of it (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
-                       " before)" + off + "."
+                       " under 1 % of it (" +
+                       (chippedNow == fragments ? std::string(fragments == 1 ? "chipped" : "all chipped") +
+                                                      " off by this stroke"
+                                                : std::to_string(chippedNow) + " chipped off by this stroke") +
+                       ")" + off + "."
          : pieces > s.piecesBefore
              ? "the organ came apart (" + std::to_string(pieces) + " pieces, " + std::to_string(s.piecesBefore) +
                    " before)" + off + "."

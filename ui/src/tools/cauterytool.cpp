@@ -64,6 +64,7 @@ class CauteryTool final : public FrameTool {
     if (!on_) return;
     on_ = false;
     postInstrument(view_, simcore::InputKind::Energy, tip_, false, kTool);
+    retractInstrument(view_, tip_, kTool);
     emit view_.toolMessage(QObject::tr("Energy off."));
   }
   bool abandon() override {

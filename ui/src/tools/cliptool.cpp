@@ -62,6 +62,7 @@ class ClipTool final : public FrameTool {
     // the session closes the jaws on it when it is still within their reach (its sentence follows in step 7's line).
     postInstrument(view_, simcore::InputKind::Clip, tip, true, 3, aimed);
     last_ = f;
+    placedAt_ = tip;
     if (aimed) {
       // In words ("vessel", not the label's "vessels": a person read "Clip aimed at the vessels").
       const std::string name = simcore::structureWords(volume.labelKind(aimed), volume.labelName(aimed));
@@ -81,6 +82,12 @@ class ClipTool final : public FrameTool {
     }
     return true;
   }
+  // The applier leaves the clip and is withdrawn when the button comes up (its shaft kept pressing the tissue).
+  void release(QMouseEvent*) override {
+    if (!placedAt_) return;
+    retractInstrument(view_, *placedAt_, 3);
+    placedAt_.reset();
+  }
   void paint(QPainter& painter) override {
     if (!last_) return;
     painter.setPen(QPen(QColor(200, 200, 215), 1.5, Qt::DotLine));
@@ -95,6 +102,7 @@ class ClipTool final : public FrameTool {
   static constexpr double kLateral = 0.003;      ///< m from the view ray
   static constexpr double kPastEntry = 0.005;    ///< m: the jaws at most this far past where the ray enters the vessel
   std::optional<Eigen::Vector2d> last_;
+  std::optional<Eigen::Vector3d> placedAt_;  ///< the tip a clip was just placed at, until the button comes up
 };
 
 }  // namespace

@@ -45,6 +45,7 @@ class GraspTool final : public FrameTool {
     if (!holding_) return;
     holding_ = false;
     send(simcore::InputKind::Jaw, tipAt(last_), false);
+    retractInstrument(view_, tipAt(last_), 0);
     emit view_.toolMessage(QObject::tr("Released."));
   }
   bool abandon() override {
@@ -149,6 +150,12 @@ void postInstrument(FrameView& view, simcore::InputKind kind, const Eigen::Vecto
   e.on = on;
   e.label = label;
   emit view.instrumentInput(e);
+}
+
+void retractInstrument(FrameView& view, const Eigen::Vector3d& tip, int tool) {
+  const auto& trocar = view.trocar();
+  if (!trocar || !tip.allFinite() || (tip - *trocar).norm() < 1e-3) return;
+  postInstrument(view, simcore::InputKind::ToolPose, *trocar + 0.2 * (tip - *trocar), false, tool);
 }
 
 Eigen::Vector3d pointAtDepth(const FrameView& view, const Eigen::Vector2d& f, double depth) {

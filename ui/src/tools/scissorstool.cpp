@@ -42,7 +42,7 @@ class ScissorsTool final : public FrameTool {
     said_.clear();
     emit view_.toolMessage(QObject::tr("Cutting %1 mm deep: drag across the organ, release to stop (wheel: deeper or "
                                        "shallower).")
-                               .arg(1e3 * reach(f), 0, 'f', 0));
+                               .arg(1e3 * depth_, 0, 'f', 0));
     sayWhatLiesBeyond(f);
     return true;
   }
@@ -61,6 +61,7 @@ class ScissorsTool final : public FrameTool {
     if (!cutting_) return;
     cutting_ = false;
     send(simcore::InputKind::Cut, tipAt(path_.back()), false);
+    retractInstrument(view_, tipAt(path_.back()), 1);
     emit view_.toolMessage(QObject::tr("Cut ended."));
   }
   bool abandon() override {
@@ -81,7 +82,7 @@ class ScissorsTool final : public FrameTool {
     depth_ = std::max(1e-3, depth_ - 0.002 * e->angleDelta().y() / 120.0);
     send(simcore::InputKind::ToolPose, tipAt(path_.back()), false);
     said_.clear();  // a structure still out of reach is said again at the new depth
-    emit view_.toolMessage(QObject::tr("Cutting %1 mm deep.").arg(1e3 * reach(path_.back()), 0, 'f', 0));
+    emit view_.toolMessage(QObject::tr("Cutting %1 mm deep.").arg(1e3 * depth_, 0, 'f', 0));
     sayWhatLiesBeyond(path_.back());
     view_.update();
     return true;
@@ -95,38 +96,43 @@ class ScissorsTool final : public FrameTool {
     // The blade's depth beside the cursor (a person cut six strokes over the drawn vessels at the default depth and
     // nothing said how deep the blade went).
     painter.setPen(QColor(255, 235, 235));
-    painter.drawText(line.back() + QPointF(12, -10), QObject::tr("%1 mm deep").arg(1e3 * reach(path_.back()), 0, 'f', 0));
+    painter.drawText(line.back() + QPointF(12, -10), QObject::tr("%1 mm deep").arg(1e3 * depth_, 0, 'f', 0));
   }
   Qt::CursorShape cursor() const override { return Qt::CrossCursor; }
 
  private:
   static constexpr double kBladeDepth = 0.02;  ///< m beyond the pressed surface point (the blade is 30 mm)
+  static constexpr double kBeyond = 0.002;     ///< m past the tip before a structure is said to be out of its reach
   /// The tip for the cursor at frame pixel `f`: on the line from the trocar through the point under the cursor at the
   /// pressed surface's depth, depth_ beyond it (along the view ray when no trocar is known or it lies beyond the point).
   Eigen::Vector3d tipAt(const Eigen::Vector2d& f) const {
+    return pointAtDepth(view_, f, surfaceDepth_) + depth_ * shaftAt(f);
+  }
+  /// The shaft's direction (unit, into the tissue) for the cursor at `f`.
+  Eigen::Vector3d shaftAt(const Eigen::Vector2d& f) const {
     const Eigen::Vector3d at = pointAtDepth(view_, f, surfaceDepth_);
     Eigen::Vector3d along = at.normalized();
     if (const auto& trocar = view_.trocar()) {
       const Eigen::Vector3d shaft = at - *trocar;
       if (shaft.norm() > 1e-6 && shaft.normalized().dot(along) > 0.1) along = shaft.normalized();
     }
-    return at + depth_ * along;
+    return along;
   }
-  /// Says once a stroke (and again after the wheel) a vessel or duct under the cursor that lies past the blade's tip: the
-  /// view draws the structures through the tissue, and a stroke over one at the default depth cut nothing and said
-  /// nothing.
+  /// Says once a stroke (and again after the wheel) a vessel or duct on the blade's line under the cursor that lies past
+  /// its tip (by more than 2 mm: an element the tip reaches into is cut with its faces, and a person read "lies 17 mm,
+  /// past the blade's 17 mm" over a vessel the stroke cut): the view draws the structures through the tissue, and a
+  /// stroke over one at the default depth cut nothing and said nothing. Depths along the shaft from the surface, as the
+  /// blade's own.
   void sayWhatLiesBeyond(const Eigen::Vector2d& f) {
-    const auto s = structureUnder(view_, f, surfaceDepth_, surfaceDepth_ + 0.15);
-    if (!s || s->entry <= tipAt(f).z() || std::find(said_.begin(), said_.end(), s->label) != said_.end()) return;
+    const auto s = structureAlong(view_, pointAtDepth(view_, f, surfaceDepth_), shaftAt(f), 0.0, 0.15);
+    if (!s || s->entry <= depth_ + kBeyond || std::find(said_.begin(), said_.end(), s->label) != said_.end()) return;
     said_.push_back(s->label);
-    emit view_.toolMessage(QObject::tr("The %1 here lies %2 mm deep, past the blade's %3 mm: wheel down (towards you) "
-                                       "to cut deeper.")
+    emit view_.toolMessage(QObject::tr("The %1 here lies %2 mm deep along the shaft, past the blade's %3 mm: wheel down "
+                                       "(towards you) to cut deeper.")
                                .arg(QString::fromStdString(s->name))
-                               .arg(1e3 * (s->entry - surfaceDepth_), 0, 'f', 0)
-                               .arg(1e3 * reach(f), 0, 'f', 0));
+                               .arg(1e3 * s->entry, 0, 'f', 0)
+                               .arg(1e3 * depth_, 0, 'f', 0));
   }
-  /// How deep below the surface (along the view) the blade's tip is for the cursor at `f`: the depth said and drawn.
-  double reach(const Eigen::Vector2d& f) const { return tipAt(f).z() - surfaceDepth_; }
   void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) { postInstrument(view_, kind, tip, on, 1); }
   bool cutting_ = false;
   double surfaceDepth_ = 0;  ///< m: the pressed surface point's depth (camera z)

@@ -13,8 +13,9 @@
 namespace rehearse::ui::tools {
 namespace {
 
-/// The depths (camera z, m) between which the ray t * d (d.z() == 1) is inside the tetrahedron `x`; none when it misses.
-std::optional<std::pair<double, double>> rayThrough(const Eigen::Vector3d& d, const std::array<Eigen::Vector3d, 4>& x) {
+/// The parameters t between which the line o + t d is inside the tetrahedron `x`, from t = 0 on; none when it misses.
+std::optional<std::pair<double, double>> rayThrough(const Eigen::Vector3d& o, const Eigen::Vector3d& d,
+                                                    const std::array<Eigen::Vector3d, 4>& x) {
   Eigen::Matrix3d m;
   m << x[1] - x[0], x[2] - x[0], x[3] - x[0];
   const double det = m.determinant();
@@ -22,7 +23,7 @@ std::optional<std::pair<double, double>> rayThrough(const Eigen::Vector3d& d, co
   if (!(std::abs(det) > 1e-12 * scale) || !std::isfinite(det)) return std::nullopt;  // flat or broken: not aimed at
   const Eigen::Matrix3d inv = m.inverse();
   // Barycentric coordinates along the ray: l(t) = alpha + beta t, all four non-negative inside.
-  const Eigen::Vector3d alpha = -inv * x[0], beta = inv * d;
+  const Eigen::Vector3d alpha = inv * (o - x[0]), beta = inv * d;
   double lo = 0, hi = std::numeric_limits<double>::infinity();
   auto keep = [&](double a, double b) {  // a + b t >= 0
     if (std::abs(b) < 1e-300) return a >= 0;
@@ -42,6 +43,11 @@ std::optional<std::pair<double, double>> rayThrough(const Eigen::Vector3d& d, co
 }  // namespace
 
 std::optional<StructureUnder> structureUnder(const FrameView& view, const Eigen::Vector2d& f, double from, double to) {
+  return structureAlong(view, Eigen::Vector3d::Zero(), pointAtDepth(view, f, 1.0), from, to);  // (t: camera depth)
+}
+
+std::optional<StructureUnder> structureAlong(const FrameView& view, const Eigen::Vector3d& origin,
+                                             const Eigen::Vector3d& direction, double from, double to) {
   const auto& c = view.caseData();
   if (!c || !c->organ) return std::nullopt;
   const simcore::Mesh& names = c->organ->volume;
@@ -50,7 +56,6 @@ std::optional<StructureUnder> structureUnder(const FrameView& view, const Eigen:
   const std::vector<std::array<int, 4>>& tets = view.liveTets() ? *view.liveTets() : names.tets;
   const std::vector<int>& labels = view.liveLabels() ? *view.liveLabels() : names.tetLabels;
   if (labels.size() != tets.size()) return std::nullopt;
-  const Eigen::Vector3d d = pointAtDepth(view, f, 1.0);
   // Each clampable structure's crossings along the ray, then the shallowest structure entered between from and to.
   std::vector<std::pair<int, std::pair<double, double>>> crossings;
   for (std::size_t e = 0; e < tets.size(); ++e) {
@@ -69,7 +74,7 @@ std::optional<StructureUnder> structureUnder(const FrameView& view, const Eigen:
       x[static_cast<std::size_t>(v)] = live[i];
     }
     if (!inside) continue;
-    if (const auto span = rayThrough(d, x); span && span->second >= from && span->first <= to)
+    if (const auto span = rayThrough(origin, direction, x); span && span->second >= from && span->first <= to)
       crossings.push_back({label, *span});
   }
   if (crossings.empty()) return std::nullopt;

@@ -27,6 +27,12 @@ std::unique_ptr<FrameTool> makeCauteryTool(FrameView& view);
 /// to the simulation session; `label`: the structure a clip was aimed at (0: none).
 void postInstrument(FrameView& view, simcore::InputKind kind, const Eigen::Vector3d& tip, bool on, int tool,
                     int label = 0);
+/// The instrument `tool` withdrawn from the tissue when the hand lets go of it (the jaws opened, the blade or the power
+/// off, the clip closed): its tip from `tip` back along the shaft to a fifth of the way from the trocar (the default
+/// trocar lies an organ's radius off the organ). Left where it was, its shaft kept pressing the tissue: a force on the
+/// page that no hand applied (0.3-1.9 N after a release), and after a pull the squeezed tissue under the shaft held the
+/// steps back until Reset. Nothing is posted without a trocar (no shaft to touch with).
+void retractInstrument(FrameView& view, const Eigen::Vector3d& tip, int tool);
 /// The point under frame pixel `f` at camera depth `depth` (m).
 Eigen::Vector3d pointAtDepth(const FrameView& view, const Eigen::Vector2d& f, double depth);
 
@@ -34,10 +40,13 @@ Eigen::Vector3d pointAtDepth(const FrameView& view, const Eigen::Vector2d& f, do
 /// shape): the shallowest one entered between camera depths `from` and `to` (m).
 struct StructureUnder {
   int label = 0;
-  double entry = 0, exit = 0;  ///< m, camera depth where the ray enters it (not before `from`) and leaves it
+  double entry = 0, exit = 0;  ///< m along the line (camera depth for structureUnder): where it enters (not before `from`), leaves
   std::string name;            ///< in words (simcore::structureWords: "vessel", "portal vein", "artery (A4)")
 };
 std::optional<StructureUnder> structureUnder(const FrameView& view, const Eigen::Vector2d& f, double from, double to);
+/// The same along the line `origin` + t `direction` (camera frame; entry and exit are values of t, from `from` on).
+std::optional<StructureUnder> structureAlong(const FrameView& view, const Eigen::Vector3d& origin,
+                                             const Eigen::Vector3d& direction, double from, double to);
 
 /// Widget position of a gizmo handle at the view's case pose; a null point when the organ is behind the camera.
 QPointF gizmoHandlePosition(const FrameView& view, GizmoHandle h);

@@ -178,6 +178,9 @@ class FrameView : public QWidget {
   void setOverlayStyle(OverlayStyle style);
   OverlayStyle overlayStyle() const { return style_; }
   void setTool(Tool t);
+  /// The instrument's gesture under way (a grasp, a stroke, a burn) ends, as if its button came up: the simulation
+  /// was reset under it (a scissors stroke went on after Reset, the blade off, shoving the organ at 30 N).
+  void endGesture();
   Tool tool() const { return tool_; }
   void setSnapToEdges(bool on) { settings_.snapToEdges = on; }
   /// The type new segments get: "silhouette", "ridge" or "ligament".

@@ -55,7 +55,6 @@ class SessionHost : public QObject {
   /// A recording is written or its session is being built (and was not stopped meanwhile).
   bool recording() const { return recording_ != nullptr || (recordPending_ && !cancelRecord_); }
   std::int64_t recordingId() const { return recording_ ? recording_->id() : 0; }
-  long recordedSteps() const { return recording_ ? recording_->lastStep() : 0; }
   /// The recording ends complete (the session goes on unrecorded); a recorded session being built is not recorded.
   /// False when the session had recorded no step and was dropped from the file (StepRecording::discarded), or was
   /// still being built.
@@ -75,6 +74,9 @@ class SessionHost : public QObject {
   void frame(std::shared_ptr<const SimulationFrame> f);
   void restProgress(const QString& text);  ///< the rest shape's solves as they go
   void recordingStopped(const QString& why);
+  /// A recorded session replaced (a reset, a new organ) is complete in the file: its id, its last step, and whether it
+  /// was dropped for recording no step.
+  void recordingRetired(qint64 id, long lastStep, bool discarded);
 
  private:
   struct Built {

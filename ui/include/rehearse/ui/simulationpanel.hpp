@@ -109,6 +109,8 @@ class SimulationPanel : public QWidget {
 
  signals:
   void statusChanged(const QString& text);
+  /// The simulation went back to rest (Reset): what the instruments were doing is over.
+  void wasReset();
   /// The user edited the material (fields or preset): the window makes it an undoable edit of the case.
   void materialEdited(const rehearse::app::MaterialSettings& material);
   void frameShown(long steps);
@@ -145,6 +147,7 @@ class SimulationPanel : public QWidget {
   SessionHost* host_ = nullptr;                 ///< runs the session (a child of the panel)
   QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not
   bool startRefused_ = false;  ///< the last start was refused (a run setting changed on the panel tries again)
+  qint64 resetEnded_ = 0;  ///< the recorded session a Reset ended: said once it is complete (SessionHost::recordingRetired)
   app::MaterialSettings builtWith_;  ///< the material the session's body was built with
   SimulationView* view_ = nullptr;
   SimulationForm* form_ = nullptr;  ///< the material (the case's), the run's settings and the colouring

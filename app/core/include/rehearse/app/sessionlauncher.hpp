@@ -77,9 +77,12 @@ struct Launch {
 Launch launchSession(const SessionRequest& request, const LaunchOptions& options);
 
 /// `session` joined and `recording` marked complete on a thread of their own, after `previous` (an older retirement)
-/// is done; a recording that could not be completed is said through `onError` (on that thread).
+/// is done; a recording that could not be completed is said through `onError` (on that thread); once it is complete,
+/// `onFinished` (on that thread) is told its id, its last step (the session joined: no step comes after it) and
+/// whether it was dropped for recording no step.
 std::shared_future<void> retireSession(std::shared_ptr<simcore::Session> session,
                                        std::shared_ptr<StepRecording> recording, std::shared_future<void> previous,
-                                       std::function<void(const std::string&)> onError);
+                                       std::function<void(const std::string&)> onError,
+                                       std::function<void(std::int64_t, long, bool)> onFinished = {});
 
 }  // namespace rehearse::app
