@@ -1353,6 +1353,16 @@ class TestRehearseGui : public QObject {
       QTest::mouseMove(view, a + (b - a) * (i / 40.0));
       QVERIFY(watch(4));
     }
+    {  // The wheel while the power is on presses the hook deeper, as the page's help says; it zoomed the view out in
+       // the middle of a person's burn.
+      const double zoom = view->zoom();
+      QString told;
+      const auto conn = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told = m; });
+      wheelDeeper(view, b, 3);
+      disconnect(conn);
+      QCOMPARE(view->zoom(), zoom);
+      QCOMPARE(told, QStringLiteral("The hook presses 2.0 mm into the tissue."));
+    }
     QTest::mouseRelease(view, Qt::LeftButton, {}, b);
     QVERIFY(waitFor([&] { return !panel->lastFrame()->field.energy; }));
     QVERIFY(watch(5));

@@ -282,8 +282,7 @@ void MainWindow::showSimulationFrame() {
   // (a slip's sentence the page has just said in the status bar is there already: it was logged twice).
   if (f && !f->message.isEmpty() && f->message != lastSimulationMessage_ &&
       !messages_->document()->lastBlock().text().endsWith(f->message)) {
-    messages_->appendPlainText(QDateTime::currentDateTime().toString(QStringLiteral("hh:mm:ss  ")) +
-                               tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));
+    logMessage(tr("Simulation (step %1): %2").arg(f->steps).arg(f->message));  // (scrolled to: a person's check)
   }
   if (f) lastSimulationMessage_ = f->message;
   if (f && f->organ && doc_->data() && f->organ->organ == doc_->data()->organ) {

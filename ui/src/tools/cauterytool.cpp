@@ -7,6 +7,9 @@
 
 #include <QMouseEvent>
 #include <QPainter>
+#include <QWheelEvent>
+
+#include <algorithm>
 
 namespace rehearse::ui::tools {
 namespace {
@@ -29,6 +32,7 @@ class CauteryTool final : public FrameTool {
       return true;
     }
     pressed_ = view_.liveShape();
+    press_ = kPress;
     on_ = true;
     off_ = false;
     path_.assign(1, f);
@@ -72,6 +76,25 @@ class CauteryTool final : public FrameTool {
     release(nullptr);
     return true;
   }
+  // The wheel presses the hook deeper into the tissue or lifts it (0-5 mm, half a millimetre a notch) while the power
+  // is on, as the page's help says the wheel moves the tip; it zoomed the whole view out in the middle of a burn.
+  bool wheel(QWheelEvent* e) override {
+    if (!on_) {
+      if (!(e->buttons() & Qt::LeftButton)) return false;
+      emit view_.toolMessage(QObject::tr("The hook is not on the tissue: press on the organ to apply energy; the wheel "
+                                         "then presses it deeper or lifts it."));
+      return true;
+    }
+    press_ = std::clamp(press_ - 0.0005 * e->angleDelta().y() / 120.0, 0.0, kDeepest);
+    if (!off_ && !path_.empty()) {
+      if (const auto hit = view_.liveSurfaceAt(path_.back(), FrameView::SurfacePick::Point, &pressed_)) {
+        tip_ = onSurface(*hit);
+        postInstrument(view_, simcore::InputKind::ToolPose, tip_, false, kTool);
+      }
+    }
+    emit view_.toolMessage(QObject::tr("The hook presses %1 mm into the tissue.").arg(1e3 * press_, 0, 'f', 1));
+    return true;
+  }
   void paint(QPainter& painter) override {
     if (!on_ || path_.empty()) return;
     painter.setPen(QPen(QColor(255, 230, 120), 2, Qt::DotLine));
@@ -96,10 +119,14 @@ class CauteryTool final : public FrameTool {
       const Eigen::Vector3d shaft = *trocar - hit;
       if (shaft.norm() > 1e-6 && shaft.normalized().dot(back) > 0.1) back = shaft.normalized();
     }
-    return hit + std::max(0.0, view_.shaftRadius() - kPress) * back;
+    // (Pressed deeper with the wheel, past the shaft's radius the tip goes into the tissue.)
+    const double r = view_.shaftRadius();
+    return hit + (press_ <= kPress ? std::max(0.0, r - press_) : r - press_) * back;
   }
   static constexpr int kTool = 4;           ///< the cautery's instrument index (scripts' "cautery")
-  static constexpr double kPress = 0.0005;  ///< m: how far the shaft's end presses into the surface under the cursor
+  static constexpr double kPress = 0.0005;   ///< m: how far the shaft's end presses into the surface to start with
+  static constexpr double kDeepest = 0.005;  ///< m: the wheel presses it no deeper
+  double press_ = kPress;                    ///< m: how far it presses now (the wheel)
   bool on_ = false;
   bool off_ = false;  ///< the drag has left the organ: the hook is in the air
   Eigen::Vector3d tip_ = Eigen::Vector3d::Zero();
