@@ -84,6 +84,25 @@ class TestRehearseGui : public QObject {
     const long at = panel->lastFrame()->steps;
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 10; }));
   }
+  // A scissors stroke down the organ at `atWidth` of its width (widget px), from above it to below it.
+  std::pair<QPoint, QPoint> strokePoints(double atWidth) const {
+    const auto [from, to] =
+        strokeDownTheOrgan(w_->caseData()->camera, w_->simulationPanel()->lastFrame()->positions, atWidth);
+    auto* view = w_->frameView();
+    return {view->toWidget(QPointF(from.x(), from.y())).toPoint(), view->toWidget(QPointF(to.x(), to.y())).toPoint()};
+  }
+  // The scissors (B) pressed at `a` until they cut.
+  [[nodiscard]] bool scissorsPressedAt(const QPoint& a) {
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    if (w_->frameView()->tool() != ui::Tool::Scissors) return false;
+    QTest::mousePress(w_->frameView(), Qt::LeftButton, {}, a);
+    return waitFor([&] { return w_->simulationPanel()->lastFrame()->tool.cutting; }, 20000);
+  }
+  // The cursor moved from `a` towards `b`, the `i`th of `n` moves of the way, for three steps.
+  [[nodiscard]] bool dragStep(const QPoint& a, const QPoint& b, int i, int n) {
+    QTest::mouseMove(w_->frameView(), a + (b - a) * (i / static_cast<double>(n)));
+    return stepsOn(3);
+  }
   // How far the held nodes are from their places on the jaws (m).
   static double heldFromJaws(const ui::SimulationFrame& f) {
     double worst = 0;
@@ -444,20 +463,11 @@ class TestRehearseGui : public QObject {
   void aResetMidStrokeEndsTheStroke() {
     auto* panel = w_->simulationPanel();
     auto* view = w_->frameView();
-    const auto& c = *w_->caseData();
     QVERIFY(startedAgain());
-    QTest::keyClick(w_.get(), Qt::Key_B);
-    QCOMPARE(view->tool(), ui::Tool::Scissors);
     const std::size_t elements = panel->lastFrame()->tets->size();
-    const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.3);
-    const QPoint a = view->toWidget(QPointF(from.x(), from.y())).toPoint(),
-                 b = view->toWidget(QPointF(to.x(), to.y())).toPoint();
-    QTest::mousePress(view, Qt::LeftButton, {}, a);
-    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
-    for (int i = 1; i <= 8; ++i) {
-      QTest::mouseMove(view, a + (b - a) * (i / 20.0));
-      QVERIFY(stepsOn(3));
-    }
+    const auto [a, b] = strokePoints(0.3);
+    QVERIFY(scissorsPressedAt(a));
+    for (int i = 1; i <= 8; ++i) QVERIFY(dragStep(a, b, i, 20));
     const long before = panel->lastFrame()->steps;
     QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);
     QMessageBox* box = nullptr;  // asked when the stroke has cut: answered Reset
@@ -947,7 +957,6 @@ class TestRehearseGui : public QObject {
   void aCutTrunkBleedsWhereTheCameraSeesIt() {
     auto* panel = w_->simulationPanel();
     auto* view = w_->frameView();
-    const auto& c = *w_->caseData();
     QVERIFY(startedAgain());
     QTest::keyClick(w_.get(), Qt::Key_B);
     QCOMPARE(view->tool(), ui::Tool::Scissors);
@@ -979,17 +988,10 @@ class TestRehearseGui : public QObject {
       QVERIFY2(tool.contains("press on the organ to start the cut"), qPrintable(tool));
       QVERIFY(!panel->lastFrame()->tool.cutting);
     }
-    const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.55);
-    const QPoint a = view->toWidget(QPointF(from.x(), from.y())).toPoint(),
-                 b = view->toWidget(QPointF(to.x(), to.y())).toPoint();
-    QTest::mousePress(view, Qt::LeftButton, {}, a);
-    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    const auto [a, b] = strokePoints(0.55);
+    QVERIFY(scissorsPressedAt(a));
     wheelDeeper(view, a, 10);
-    for (int i = 1; i <= 20; ++i) {
-      QTest::mouseMove(view, a + (b - a) * (i / 20.0));
-      const long now = panel->lastFrame()->steps;
-      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
-    }
+    for (int i = 1; i <= 20; ++i) QVERIFY(dragStep(a, b, i, 20));
     QTest::mouseRelease(view, Qt::LeftButton, {}, b);
     QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.cutting; }));
     auto rate = [&] {
@@ -1127,21 +1129,13 @@ class TestRehearseGui : public QObject {
   void aStrokeOverADeepVesselSaysHowDeepItLies() {
     auto* panel = w_->simulationPanel();
     auto* view = w_->frameView();
-    const auto& c = *w_->caseData();
     QVERIFY(startedAgain());
-    QTest::keyClick(w_.get(), Qt::Key_B);
-    QCOMPARE(view->tool(), ui::Tool::Scissors);
     QStringList told;
     const auto conn = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told << m; });
-    const auto [from, to] = strokeDownTheOrgan(c.camera, panel->lastFrame()->positions, 0.55);
-    const QPoint a = view->toWidget(QPointF(from.x(), from.y())).toPoint(),
-                 b = view->toWidget(QPointF(to.x(), to.y())).toPoint();
-    QTest::mousePress(view, Qt::LeftButton, {}, a);
-    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    const auto [a, b] = strokePoints(0.55);
+    QVERIFY(scissorsPressedAt(a));
     for (int i = 1; i <= 20; ++i) {
-      QTest::mouseMove(view, a + (b - a) * (i / 20.0));
-      const long now = panel->lastFrame()->steps;
-      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= now + 3; }));
+      QVERIFY(dragStep(a, b, i, 20));
       if (const QByteArray dir = qgetenv("REHEARSE_SCREENSHOT_DIR"); i == 12 && !dir.isEmpty())
         w_->grab().save(QString::fromLocal8Bit(dir) + "/step7-scissors-depth.png");
     }
@@ -1254,6 +1248,8 @@ class TestRehearseGui : public QObject {
     const QStringList log = w_->messageLog();
     const auto logged = std::count_if(log.begin(), log.end(), [&](const QString& l) { return l.contains(slip); });
     qInfo("%s; logged %ld time(s)", qPrintable(slip), static_cast<long>(logged));
+    for (const QString& l : log)
+      if (l.contains(slip)) qInfo("  %s", qPrintable(l));
     QCOMPARE(static_cast<long>(logged), 1L);
     panel->pause();
   }

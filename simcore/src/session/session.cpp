@@ -608,8 +608,10 @@ void Session::run() {
     if (order == SessionLoop::Order::Quit) return;
     if (order == SessionLoop::Order::Republish) {
       std::lock_guard<std::mutex> stepLock(stepMutex_);
+      // The same step again (the stress asked for): its sentence was said when it was first published (said again,
+      // a slip's sentence came back in the status bar and the Messages panel long after, and after a Reset).
       const auto last = snapshot();
-      publish(last->report, last->message);
+      publish(last->report, {});
       continue;
     }
     if (order == SessionLoop::Order::Reset) {

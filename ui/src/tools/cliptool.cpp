@@ -29,16 +29,13 @@ class ClipTool final : public FrameTool {
       return true;
     }
     // The jaws close on the vessel (or duct) under the cursor, the shallowest within 25 mm below the surface point
-    // clicked: the one the view ray crosses where the view draws it (its labelled elements), at the middle of its
-    // crossing (at most 5 mm past where the ray enters it: a ray along a vessel is not sent to its far end); else the
-    // nearest of its nodes within 3 mm of the ray; without one, a little below that point (the tissue there).
+    // clicked: the nearest of its nodes within 3 mm of the view ray; else where the ray crosses it as the view draws it
+    // (its labelled elements: a vessel whose nodes lie farther apart than that), at the middle of its crossing (at most
+    // 5 mm past where the ray enters it); without one, a little below that point (the tissue there).
     const simcore::Mesh& volume = c->organ->volume;
     Eigen::Vector3d tip = pointAtDepth(view_, f, hit->z() + kDepth);
     int aimed = 0;
-    if (const auto s = structureUnder(view_, f, hit->z() - 0.001, hit->z() + kSearchDepth)) {
-      aimed = s->label;
-      tip = pointAtDepth(view_, f, std::min(0.5 * (s->entry + s->exit), s->entry + kPastEntry));
-    } else {
+    {
       const Eigen::Vector3d ray = pointAtDepth(view_, f, 1.0);
       const auto& live = view_.liveShape();
       std::vector<int> closable(volume.points.size(), 0);  // a vessel's or a duct's label at each node (0: none)
@@ -57,6 +54,11 @@ class ClipTool final : public FrameTool {
         aimed = closable[i];
       }
     }
+    if (!aimed)
+      if (const auto s = structureUnder(view_, f, hit->z() - 0.001, hit->z() + kSearchDepth)) {
+        aimed = s->label;
+        tip = pointAtDepth(view_, f, std::min(0.5 * (s->entry + s->exit), s->entry + kPastEntry));
+      }
     postInstrument(view_, simcore::InputKind::ToolPose, tip, false, 3);
     // The clip names the structure it was aimed at: the view shows the tissue a step or more behind the session, and
     // the session closes the jaws on it when it is still within their reach (its sentence follows in step 7's line).
