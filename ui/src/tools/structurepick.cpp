@@ -58,11 +58,19 @@ std::optional<StructureUnder> structureAlong(const FrameView& view, const Eigen:
   if (labels.size() != tets.size()) return std::nullopt;
   // Each clampable structure's crossings along the ray, then the shallowest structure entered between from and to.
   std::vector<std::pair<int, std::pair<double, double>>> crossings;
+  // Each label's kind found once a call (Mesh::labelKind parses its name: per element, on every move of a scissors
+  // stroke over a 17k-element organ, on the GUI thread).
+  std::vector<std::pair<int, bool>> clampable;
+  auto isClampable = [&](int label) {
+    for (const auto& [l, yes] : clampable)
+      if (l == label) return yes;
+    const simcore::StructureKind k = names.labelKind(label);
+    clampable.emplace_back(label, simcore::isVessel(k) || k == simcore::StructureKind::BileDuct);
+    return clampable.back().second;
+  };
   for (std::size_t e = 0; e < tets.size(); ++e) {
     const int label = simcore::unburntLabel(labels[e]);
-    if (label == 0) continue;
-    const simcore::StructureKind k = names.labelKind(label);
-    if (!simcore::isVessel(k) && k != simcore::StructureKind::BileDuct) continue;
+    if (label == 0 || !isClampable(label)) continue;
     std::array<Eigen::Vector3d, 4> x;
     bool inside = true;
     for (int v = 0; v < 4; ++v) {
