@@ -1186,6 +1186,69 @@ class TestRehearseGui : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_R);
   }
 
+  // A stroke that starts beside the organ: a surgeon brings the open blades to the tissue from outside it. The press
+  // off the organ's edge said "Press on the organ" and the drag across the organ then cut nothing (a person's check);
+  // now the cut opens where the drag first reaches the organ, and a stroke that never reaches it says so.
+  void aStrokeFromBesideTheOrganCutsWhereItReachesIt() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    QVERIFY(startedAgain());
+    const std::size_t elements0 = panel->lastFrame()->elements;
+    QStringList told;
+    const auto conn = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told << m; });
+    const auto disconnectTold = qScopeGuard([&] { disconnect(conn); });
+    const auto [onTop, b] = strokePoints(0.45);
+    // 30 % of the stroke's length above its first point (which lies 10 % of the organ's height below its top edge).
+    const QPoint a = onTop - (b - onTop) * 0.3;
+    auto onOrgan = [&](const QPoint& p) {
+      const QPointF f = view->toFrame(QPointF(p));
+      return view->liveSurfaceAt(Eigen::Vector2d(f.x(), f.y()), ui::FrameView::SurfacePick::OuterPoint).has_value();
+    };
+    QVERIFY2(!onOrgan(a) && onOrgan(onTop), "the stroke's first point is not beside the organ");
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
+    QTest::mousePress(view, Qt::LeftButton, {}, a);
+    QVERIFY(stepsOn(3));
+    QVERIFY(!panel->lastFrame()->tool.cutting);
+    QVERIFY2(told.value(0).startsWith("Not on the organ yet"), qPrintable(told.join(" | ")));
+    // The first of the drag's 26 moves whose point the view picks on the organ.
+    int firstOn = -1;
+    for (int i = 1; i <= 26 && firstOn < 0; ++i)
+      if (onOrgan(a + (b - a) * (i / 26.0))) firstOn = i;
+    int reachedAt = -1;
+    for (int i = 1; i <= 26; ++i) {
+      QVERIFY(dragStep(a, b, i, 26));
+      if (reachedAt < 0 && panel->lastFrame()->tool.cutting) reachedAt = i;
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, b);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.cutting; }));
+    QVERIFY(stepsOn(20));
+    // The blade met the organ at the move where the cursor first lay on it (the organ's top edge, 20 % of its height
+    // below the press: the 4th of 26 moves).
+    qInfo("reached the organ at move %d of 26 (the first on it: %d); elements %zu -> %zu; said: %s", reachedAt, firstOn,
+          elements0, panel->lastFrame()->elements, qPrintable(told.join(" | ")));
+    QVERIFY(firstOn > 1);
+    QCOMPARE(reachedAt, firstOn);
+    QVERIFY(panel->lastFrame()->elements > elements0);
+    QVERIFY2(told.filter(QRegularExpression("^Cutting 20 mm deep")).size() == 1, qPrintable(told.join(" | ")));
+    QVERIFY(stepsOn(3));
+    QTest::qWait(150);
+    QCOMPARE(cutsOnThePage(), 1);
+    // A press beside the organ dragged away from it: nothing cut, and said.
+    told.clear();
+    const std::size_t elements1 = panel->lastFrame()->elements;
+    QTest::mousePress(view, Qt::LeftButton, {}, a);
+    for (int i = 1; i <= 4; ++i) {
+      QTest::mouseMove(view, a - QPoint(0, 10 * i));
+      QVERIFY(stepsOn(2));
+    }
+    QTest::mouseRelease(view, Qt::LeftButton, {}, a - QPoint(0, 40));
+    QVERIFY(stepsOn(5));
+    QVERIFY(!panel->lastFrame()->tool.cutting);
+    QCOMPARE(panel->lastFrame()->elements, elements1);
+    QVERIFY2(told.contains("Nothing was cut: the stroke did not reach the organ."), qPrintable(told.join(" | ")));
+  }
+
   // The Organ 3D panel draws each structure in its label's colour, as step 1's list and the legend over the frame do (a
   // person's check found the phantom's vessels lavender there beside a yellow legend: one blue for every structure,
   // drawn half-transparent over the organ's orange). The phantom's vessels are label 2, (250, 200, 60).

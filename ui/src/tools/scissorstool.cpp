@@ -29,24 +29,21 @@ class ScissorsTool final : public FrameTool {
     }
     const auto hit = view_.liveSurfaceAt(f, FrameView::SurfacePick::OuterPoint);
     if (!hit) {
-      emit view_.toolMessage(QObject::tr("Press on the organ to start the cut."));
+      // A stroke may start beside the organ (a surgeon brings the open blades to the tissue): the cut opens where the
+      // drag first reaches it. (A press just off the organ's edge said "Press on the organ" and the drag across it then
+      // cut nothing: a person's check.)
+      reaching_ = true;
+      emit view_.toolMessage(QObject::tr("Not on the organ yet: drag onto it to start the cut there."));
       return true;
     }
-    surfaceDepth_ = hit->z();
-    depth_ = kBladeDepth;
-    cutting_ = true;
-    path_.clear();
-    path_.push_back(f);
-    send(simcore::InputKind::ToolPose, tipAt(f), false);
-    send(simcore::InputKind::Cut, tipAt(f), true);
-    said_.clear();
-    emit view_.toolMessage(QObject::tr("Cutting %1 mm deep: drag across the organ, release to stop (wheel: deeper or "
-                                       "shallower).")
-                               .arg(1e3 * depth_, 0, 'f', 0));
-    sayWhatLiesBeyond(f);
+    start(f, hit->z());
     return true;
   }
   void move(const QPointF&, const Eigen::Vector2d& f) override {
+    if (reaching_) {
+      if (const auto hit = view_.liveSurfaceAt(f, FrameView::SurfacePick::OuterPoint)) start(f, hit->z());
+      return;
+    }
     if (!cutting_) return;
     // The shaft through the organ's outer surface under the cursor as it is now (it bulges towards the camera and
     // falls away: at the pressed depth, the shaft crossed the surface 57 px above a stroke across the phantom's
@@ -58,6 +55,11 @@ class ScissorsTool final : public FrameTool {
     sayWhatLiesBeyond(f);
   }
   void release(QMouseEvent*) override {
+    if (reaching_) {
+      reaching_ = false;
+      emit view_.toolMessage(QObject::tr("Nothing was cut: the stroke did not reach the organ."));
+      return;
+    }
     if (!cutting_) return;
     cutting_ = false;
     send(simcore::InputKind::Cut, tipAt(path_.back()), false);
@@ -65,6 +67,10 @@ class ScissorsTool final : public FrameTool {
     emit view_.toolMessage(QObject::tr("Cut ended."));
   }
   bool abandon() override {
+    if (reaching_) {
+      reaching_ = false;
+      return true;
+    }
     if (!cutting_) return false;
     release(nullptr);
     return true;
@@ -73,10 +79,10 @@ class ScissorsTool final : public FrameTool {
     if (!cutting_) {
       // A press that missed the organ holds no blade: the wheel then is a person reaching for depth, not a zoom (the
       // view had shrunk to a corner under 15 notches).
-      if (!(e->buttons() & Qt::LeftButton)) return false;
+      if (!reaching_ && !(e->buttons() & Qt::LeftButton)) return false;
       emit view_.toolMessage(
-          QObject::tr("The scissors are not cutting: press on the organ to start the cut; the wheel then takes the "
-                      "blade deeper or shallower."));
+          QObject::tr("The scissors are not cutting yet: drag onto the organ to start the cut; the wheel then takes "
+                      "the blade deeper or shallower."));
       return true;
     }
     depth_ = std::max(1e-3, depth_ - 0.002 * e->angleDelta().y() / 120.0);
@@ -101,6 +107,22 @@ class ScissorsTool final : public FrameTool {
   Qt::CursorShape cursor() const override { return Qt::CrossCursor; }
 
  private:
+  /// Opens the cut at frame pixel `f`, the organ's outer surface there at camera depth `z`.
+  void start(const Eigen::Vector2d& f, double z) {
+    reaching_ = false;
+    surfaceDepth_ = z;
+    depth_ = kBladeDepth;
+    cutting_ = true;
+    path_.clear();
+    path_.push_back(f);
+    send(simcore::InputKind::ToolPose, tipAt(f), false);
+    send(simcore::InputKind::Cut, tipAt(f), true);
+    said_.clear();
+    emit view_.toolMessage(QObject::tr("Cutting %1 mm deep: drag across the organ, release to stop (wheel: deeper or "
+                                       "shallower).")
+                               .arg(1e3 * depth_, 0, 'f', 0));
+    sayWhatLiesBeyond(f);
+  }
   static constexpr double kBladeDepth = 0.02;  ///< m beyond the pressed surface point (the blade is 30 mm)
   static constexpr double kBeyond = 0.002;     ///< m past the tip before a structure is said to be out of its reach
   /// The tip for the cursor at frame pixel `f`: on the line from the trocar through the point under the cursor at the
@@ -135,6 +157,7 @@ class ScissorsTool final : public FrameTool {
   }
   void send(simcore::InputKind kind, const Eigen::Vector3d& tip, bool on) { postInstrument(view_, kind, tip, on, 1); }
   bool cutting_ = false;
+  bool reaching_ = false;  ///< pressed beside the organ: the cut opens where the drag reaches it
   double surfaceDepth_ = 0;  ///< m: the pressed surface point's depth (camera z)
   double depth_ = 0;         ///< m: the tip beyond the surface along the shaft
   std::vector<Eigen::Vector2d> path_;
