@@ -86,6 +86,44 @@ BladeSweep tearSquare(const Over& o, const std::array<int, 4>& t, const Eigen::V
                     centre + reach * u + reach * w};
 }
 
+// The tear's front when the tear parts the tissue along faces (ToolSettings::tearRemovesElements): the over-stretched
+// elements the plane through the worst one's centre, across its stretch, runs through, reached from it through shared
+// faces. (Every over-stretched element at once took a uniformly stretched bar out whole; the worst one alone let the
+// patient liver's pull outrun its tears, 18 of them, until the steps stalled.)
+std::vector<int> tearFront(const std::vector<Over>& over, const std::vector<std::array<int, 4>>& tets,
+                           const Eigen::VectorXd& x) {
+  const Over& worst = over.front();
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (int v : tets[static_cast<std::size_t>(worst.element)]) centre += 0.25 * nodeAt(x, v);
+  auto crossed = [&](int e) {
+    double lo = 1e300, hi = -1e300;
+    for (int v : tets[static_cast<std::size_t>(e)]) {
+      const double d = (nodeAt(x, v) - centre).dot(worst.direction);
+      lo = std::min(lo, d), hi = std::max(hi, d);
+    }
+    return lo < 0 && hi > 0;
+  };
+  std::vector<int> candidates;
+  for (const Over& o : over)
+    if (o.element == worst.element || crossed(o.element)) candidates.push_back(o.element);
+  auto shareAFace = [&](int a, int b) {
+    int shared = 0;
+    for (int u : tets[static_cast<std::size_t>(a)])
+      for (int v : tets[static_cast<std::size_t>(b)]) shared += u == v;
+    return shared >= 3;
+  };
+  std::vector<int> front{worst.element};
+  std::vector<char> taken(candidates.size(), 0);
+  for (std::size_t k = 0; k < candidates.size(); ++k) taken[k] = candidates[k] == worst.element;
+  for (std::size_t i = 0; i < front.size(); ++i)
+    for (std::size_t k = 0; k < candidates.size(); ++k)
+      if (!taken[k] && shareAFace(front[i], candidates[k])) {
+        taken[k] = 1;
+        front.push_back(candidates[k]);
+      }
+  return front;
+}
+
 // The named structures the tear went through, each new one's events recorded ("a, b (name)"); `attached` is set when
 // one is a ligament.
 std::string tornStructures(const std::vector<int>& tornLabels, const Mesh& mesh, std::vector<std::string>& events,
@@ -176,6 +214,70 @@ void Session::tearOverStretched(std::string& message) {
     return;
   }
   tearHeld_ = false;
+  if (setup_.tools.tearRemovesElements) {
+    // The tear parts the tissue along the faces of its front's elements: they are taken out of the mesh and the nodes
+    // stay, so the unknowns, the factor's size and most of the tangent are as they were. A node no element holds any
+    // more (a corner of the front) is pinned where it is, out of every surface: nothing draws, touches or moves it.
+    // (Kept on a softened element instead, such nodes bridged the crack: a bar taken apart stayed in one piece.)
+    const std::vector<int> front = tearFront(over, tets, state_.x);
+    std::vector<int> uses(body_->nodeCount(), 0);
+    for (const auto& t : tets)
+      for (int v : t) ++uses[static_cast<std::size_t>(v)];
+    std::vector<char> out(tets.size(), 0);
+    TopologyChange change;
+    change.kind = ChangeKind::Tear;
+    change.setup = setup_;
+    BodySetup& next = change.setup;
+    bool attached = false;
+    for (int e : front) {
+      const auto& t = tets[static_cast<std::size_t>(e)];
+      for (int v : t) attached = attached || body_->fixedMask()[static_cast<std::size_t>(v)];
+      const int label = e < static_cast<int>(labels.size()) ? labels[static_cast<std::size_t>(e)] : 0;
+      if (std::find(change.labels.begin(), change.labels.end(), label) == change.labels.end())
+        change.labels.push_back(label);
+      out[static_cast<std::size_t>(e)] = 1;
+      for (int v : t)
+        if (--uses[static_cast<std::size_t>(v)] == 0) next.fixedNodes.push_back(v);
+    }
+    std::vector<std::array<int, 4>> keptTets;
+    std::vector<int> keptLabels;
+    keptTets.reserve(tets.size());
+    keptLabels.reserve(tets.size());
+    for (std::size_t e = 0; e < tets.size(); ++e)
+      if (!out[e]) keptTets.push_back(tets[e]), keptLabels.push_back(labels[e]);
+    next.mesh.points = rest;
+    next.mesh.unitToMetre = 1.0;
+    next.mesh.triangles.clear();
+    next.mesh.triangleLabels.clear();
+    next.mesh.tets = std::move(keptTets);
+    next.mesh.tetLabels = std::move(keptLabels);
+    next.rest.clear();
+    next.start.clear();  // the state carries on (the same nodes)
+    ++next.topology;
+    std::sort(change.labels.begin(), change.labels.end());
+    const int latency = setup_.tools.tearLatencySteps;
+    change.applyAt = latency >= 0 ? steps_ + latency : -1;
+    change.late = latency >= 0 && setup_.tools.tearWhenBuilt &&
+                  setup_.settings.factorRefresh != FactorRefresh::Synchronous;
+    if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) change.factorAt = state_.x;
+    tearRefused_ = false;
+    ++constructions_.cutMeshes;
+    const std::vector<int> tornLabels = change.labels;
+    std::string sentence;
+    if (!changeTopology(std::move(change), sentence)) {
+      say(message, "The tear could not be made: " + sentence);
+      return;
+    }
+    events_.push_back(eventWord(EventKind::Tear));
+    const std::string structures = tornStructures(tornLabels, setup_.mesh, events_, attached);
+    if (attached) events_.push_back(eventWord(EventKind::AttachmentTorn));
+    std::snprintf(buf, sizeof buf, "The %s tore: stretched %.0f %% where its material tears at %.0f %%%s.",
+                  attached ? "tissue at its attachment" : "tissue", 100 * over.front().strain,
+                  100 * over.front().limit, structures.empty() ? "" : (", through the " + structures).c_str());
+    say(message, buf);
+    if (!sentence.empty()) message += " " + sentence;
+    return;
+  }
   // The tear: a square across the stretch, reaching the element's farthest node, through the middle of the widest gap
   // between its nodes along the stretch (as far from them as it can be: a plane near a node snaps to it and may cross
   // nothing). When the furthest element cannot be split (a sliver, a plane through its nodes), the next ones are

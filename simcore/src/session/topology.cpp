@@ -12,6 +12,17 @@
 #include <map>
 
 namespace rehearse::simcore {
+namespace {
+// A tear that parts along faces pins the nodes no element holds any more (BodySetup::fixedNodes): the jaws let go of
+// those they held (the torn-off corner is out of every surface; a held node that is fixed has no row to pull on).
+void letGoOfPinned(ToolState& tool, const BodySetup& setup) {
+  for (std::size_t k = tool.held.size(); k-- > 0;)
+    if (std::find(setup.fixedNodes.begin(), setup.fixedNodes.end(), tool.held[k]) != setup.fixedNodes.end()) {
+      tool.held.erase(tool.held.begin() + static_cast<std::ptrdiff_t>(k));
+      if (k < tool.heldOffset.size()) tool.heldOffset.erase(tool.heldOffset.begin() + static_cast<std::ptrdiff_t>(k));
+    }
+}
+}  // namespace
 
 bool Session::changeTopology(TopologyChange change, std::string& message) {
   body_->carryInto(change.setup);  // the hybrid model's region, grown by the cut's new nodes, and its responses
@@ -25,6 +36,7 @@ bool Session::changeTopology(TopologyChange change, std::string& message) {
   const BodySetup before = setup_;
   const SimulationState stateBefore = state_;
   setup_ = std::move(change.setup);
+  if (change.kind == ChangeKind::Tear && setup_.tools.tearRemovesElements) letGoOfPinned(tool_, setup_);
   extendByCut(state_.x, change.newNodes);
   extendByCut(state_.v, change.newNodes);
   state_.lagged = {};
@@ -210,6 +222,7 @@ bool Session::finishPendingChange(bool wait, std::string& message) {
   // The state carried across from where the tissue is now (the old body went on stepping meanwhile).
   setup_ = std::move(p.setup);
   setup_.hybridBefore.reset();
+  if (p.kind == ChangeKind::Tear && setup_.tools.tearRemovesElements) letGoOfPinned(tool_, setup_);
   if (p.clearProgress) setup_.cut.clear();
   extendByCut(state_.x, p.newNodes);
   extendByCut(state_.v, p.newNodes);
