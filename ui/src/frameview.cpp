@@ -658,6 +658,12 @@ void FrameView::endGesture() {
   if (current() && current()->abandon()) update();
 }
 
+void FrameView::setLiveJaws(bool closedOnNothing) {
+  if (!closedOnNothing) return;
+  if (const auto it = tools_.find(Tool::Grasp); it != tools_.end() && it->second) it->second->jawsEmptied();
+  update();
+}
+
 void FrameView::keyPressEvent(QKeyEvent* e) {
   if (current() && current()->key(e)) return;
   switch (e->key()) {

@@ -5,6 +5,7 @@
 
 #include <rehearse/imaging/render.hpp>
 
+#include <QElapsedTimer>
 #include <QKeyEvent>
 #include <QMouseEvent>
 #include <QPainter>
@@ -52,6 +53,18 @@ class GraspTool final : public FrameTool {
     if (!holding_) return false;
     release(nullptr);
     return true;
+  }
+  // The tissue slipped out of the jaws (the simulation's frame shows them closed on nothing): the hold ends and the
+  // grasper is withdrawn, as when the button comes up; the drag moves nothing until the next press. (Frames from
+  // before the bite's own step show the jaws open or empty: the first 0.3 s after a bite are not taken for a slip.)
+  void jawsEmptied() override {
+    if (!holding_ || !bitten_.isValid() || bitten_.elapsed() < 300) return;
+    holding_ = false;
+    send(simcore::InputKind::Jaw, tipAt(last_), false);
+    retractInstrument(view_, tipAt(last_), 0);
+    emit view_.toolMessage(
+        QObject::tr("The tissue slipped out of the grasper: the jaws hold nothing and are withdrawn; press on the organ "
+                    "to grasp again."));
   }
   // Enter, or a tool other than the scissors taken while the jaws hold: they let go.
   void finish() override {
@@ -115,6 +128,7 @@ class GraspTool final : public FrameTool {
     offset_ = tip - tipAt(f);  // the bite's node need not be under the cursor: the drag moves it by the cursor's motion
     holding_ = true;
     resume_ = false;
+    bitten_.start();
     send(simcore::InputKind::ToolPose, tip, false);
     send(simcore::InputKind::Jaw, tip, true);
     last_ = f;
@@ -129,6 +143,7 @@ class GraspTool final : public FrameTool {
     postInstrument(view_, kind, tip, on, 0);
   }
   bool holding_ = false;
+  QElapsedTimer bitten_;  ///< since the jaws last closed
   bool resume_ = false;                             ///< taken again while holding: the next drag starts at `jaws_`
   Eigen::Vector3d jaws_ = Eigen::Vector3d::Zero();  ///< where the grasper last put its tip (camera frame, m)
   double depth_ = 0;

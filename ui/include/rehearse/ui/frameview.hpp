@@ -181,6 +181,10 @@ class FrameView : public QWidget {
   /// The instrument's gesture under way (a grasp, a stroke, a burn) ends, as if its button came up: the simulation
   /// was reset under it (a scissors stroke went on after Reset, the blade off, shoving the organ at 30 N).
   void endGesture();
+  /// The simulation's jaws as its last frame has them: `closedOnNothing` when they are closed and hold nothing (the
+  /// tissue slipped out). The grasper's hold then ends and it is withdrawn (after a slip the jaws had gone on dragging
+  /// the shaft through the tissue with the cursor: 24-529,216 N, steps not converged; a person's check).
+  void setLiveJaws(bool closedOnNothing);
   Tool tool() const { return tool_; }
   void setSnapToEdges(bool on) { settings_.snapToEdges = on; }
   /// The type new segments get: "silhouette", "ridge" or "ligament".
