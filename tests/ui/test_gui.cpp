@@ -284,7 +284,8 @@ class TestGui : public QObject {
   }
 
   void initTestCase() {
-    QCoreApplication::setOrganizationName("RehearseTest");
+    // A second run of this program beside it (test_gui_hidpi) names its own instance: each keeps its own location.
+    QCoreApplication::setOrganizationName("RehearseTest" + qEnvironmentVariable("REHEARSE_TEST_INSTANCE"));
     QStandardPaths::setTestModeEnabled(true);  // settings and autosave go to a test location
     forgetEarlierRuns();
   }
