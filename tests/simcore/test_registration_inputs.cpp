@@ -318,6 +318,48 @@ class TestRegistrationInputs : public QObject {
     QVERIFY(res.cancelled);
     QCOMPARE(calls, 2);
   }
+
+  // A fit's shape that a simulation cannot start from is not kept (runElasticFit: fittedShapeProblem). A person's check
+  // on the patient liver: the first fit from the automatic placement said "converged" with the organ crossing the image
+  // plane and an element folded flat; Keep Fit took it, and step 7 refused "Tetrahedron 1702 is flat".
+  void aShapeTheSimulationCannotStartFromIsNotKept() {
+    const FemModel m = organModel(c_);
+    RegistrationResult r;
+    r.ok = true;
+    r.pose = c_.truePose;
+    r.x = m.restVector();
+    QCOMPARE(QString::fromStdString(app::fittedShapeProblem(m, c_.surface, r)), QString());
+    // Element 0's last node moved onto the plane of its other three: flat. The reference is the simulation's own
+    // refusal of that shape (FemModel::build, as step 7 builds its body from the fitted shape).
+    const auto& t = m.tets[0];
+    const Eigen::Vector3d p0 = m.rest[t[0]], n = (m.rest[t[1]] - p0).cross(m.rest[t[2]] - p0).normalized();
+    const Eigen::Vector3d p3 = m.rest[t[3]];
+    r.x.segment<3>(3 * t[3]) = p3 - n * n.dot(p3 - p0);
+    Mesh shape = c_.volume;
+    shape.unitToMetre = 1.0;
+    for (std::size_t i = 0; i < shape.points.size(); ++i) shape.points[i] = r.x.segment<3>(3 * static_cast<Eigen::Index>(i));
+    bool refused = false;
+    try {
+      FemModel::build(shape, {}, {});
+    } catch (const MeshError& e) {
+      refused = QString(e.what()).startsWith("Tetrahedron 0 is flat");
+    }
+    QVERIFY(refused);
+    QString why = QString::fromStdString(app::fittedShapeProblem(m, c_.surface, r));
+    qInfo("%s", qPrintable(why));
+    QVERIFY2(why.contains("flat or inside out (element 0 first)") && why.contains("not kept"), qPrintable(why));
+    // Through the plane: inside out (its rest volume's sign lost).
+    r.x.segment<3>(3 * t[3]) = p3 - 2 * n * n.dot(p3 - p0);
+    why = QString::fromStdString(app::fittedShapeProblem(m, c_.surface, r));
+    QVERIFY2(why.contains("flat or inside out (element 0 first)"), qPrintable(why));
+    // The organ's centre on the image plane: about half its surface behind the camera.
+    r.x = m.restVector();
+    r.pose.t.z() -= c_.truePose.apply(c_.centreOfGravity()).z();
+    why = QString::fromStdString(app::fittedShapeProblem(m, c_.surface, r));
+    qInfo("%s", qPrintable(why));
+    QVERIFY2(why.startsWith("The fit left the organ crossing the camera's image plane (") && why.contains("step 4"),
+             qPrintable(why));
+  }
 };
 
 QTEST_GUILESS_MAIN(TestRegistrationInputs)

@@ -421,6 +421,26 @@ class TestGui : public QObject {
   // Messages are read whole: a long error is shortened in the status bar, never pushes the widgets beside
   // it out, and is whole in the label's tooltip and in the Messages panel (Ctrl+L). The Case panel wraps
   // its lines instead of clipping them.
+  // F9 (Fit to Contour) from another step's page, as F10 from any step: the fit's page shows, and what the fit does or
+  // needs is said. A person's check found F9 on step 4's page did nothing (the key was its button's, on a hidden page).
+  void f9FromAnotherStepOpensTheFit() {
+    ui::MainWindow w;
+    w.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&w));
+    w.activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(&w));
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    QVERIFY(loaded.wait(60000));
+    QTest::keyClick(&w, Qt::Key_4, Qt::AltModifier);
+    QCOMPARE(w.step(), ui::Step::Rigid);
+    QTest::keyClick(&w, Qt::Key_F9);
+    QCOMPARE(w.step(), ui::Step::Elastic);
+    // The built-in phantom has no contour yet: said where the person looks, not only on the page.
+    QVERIFY2(w.statusText().startsWith("The fit needs") && w.statusText().contains("contour"), qPrintable(w.statusText()));
+    QVERIFY(closeDiscardingChanges(w));
+  }
+
   void messagesAreReadWhole() {
     ui::MainWindow w;
     w.resize(1000, 700);

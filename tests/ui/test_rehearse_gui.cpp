@@ -478,6 +478,9 @@ class TestRehearseGui : public QObject {
     if (box && box->isVisible()) QTest::mouseClick(box->button(QMessageBox::Reset), Qt::LeftButton);
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps < before; }, 30000));
     QVERIFY(!panel->isPlaying());
+    // The organ waits, and the window says so and what goes on (a person's check: Reset mid-grasp, nothing said).
+    QVERIFY(waitFor([&] { return w_->statusBar()->currentMessage().contains("waits: press on it with an instrument, or F5"); }, 10000));
+    QVERIFY(!w_->messageLog().filter("Reset: the organ is back at rest").isEmpty());
     QStringList told;
     const auto conn = connect(view, &ui::FrameView::toolMessage, this, [&](const QString& m) { told << m; });
     for (int i = 9; i <= 20; ++i) {

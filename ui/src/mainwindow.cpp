@@ -130,9 +130,15 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
   });
   connect(simulation_, &SimulationPanel::wasReset, view_, &FrameView::endGesture);
-  // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it).
-  connect(simulation_, &SimulationPanel::wasReset, this,
-          [this] { logMessage(tr("Reset: the organ is back at rest, as the frame shows it.")); });
+  // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
+  // the status bar with what it waits for (Reset mid-grasp left the organ still, the drag after it moving nothing, and
+  // nothing said so).
+  connect(simulation_, &SimulationPanel::wasReset, this, [this] {
+    sayBriefly(simulation_->isPlaying()
+                   ? tr("Reset: the organ is back at rest, as the frame shows it.")
+                   : tr("Reset: the organ is back at rest, as the frame shows it, and waits: press on it with an "
+                        "instrument, or F5, to go on."));
+  });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
     doc_->edit(text, [&](app::Case& k) { k.attachments = nodes; });

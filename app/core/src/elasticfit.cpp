@@ -88,7 +88,68 @@ simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress&
   if (segments.empty() && o.curves.empty())
     throw simcore::MeshError("The contour has no silhouette segment and no ridge or ligament with its curve on the organ.");
   o.onIteration = progress;
-  return simcore::registerToContour(model, in.attachments, in.settings, in.organ->surface, segments, in.start, in.camera, o);
+  simcore::RegistrationResult r =
+      simcore::registerToContour(model, in.attachments, in.settings, in.organ->surface, segments, in.start, in.camera, o);
+  // A person's check on the patient liver (the automatic placement, then the first fit): the fit said "converged" with
+  // the organ crossing the image plane and an element folded flat; Keep Fit took it, and step 7 could not start
+  // ("Tetrahedron 1702 is flat in the rest shape").
+  if (r.ok && !r.cancelled)
+    if (std::string why = fittedShapeProblem(model, in.organ->surface, r); !why.empty()) {
+      r.ok = false;
+      r.converged = false;
+      r.status = std::move(why);
+    }
+  return r;
+}
+
+std::string fittedShapeProblem(const simcore::FemModel& model, const std::vector<std::array<int, 3>>& surface,
+                               const simcore::RegistrationResult& r) {
+  const std::size_t n = model.nodeCount();
+  if (static_cast<std::size_t>(r.x.size()) != 3 * n) return {};
+  auto at = [&](int i) -> Eigen::Vector3d { return r.x.segment<3>(3 * static_cast<Eigen::Index>(i)); };
+  std::vector<char> onSurface(n, 0);
+  for (const auto& t : surface)
+    for (int v : t)
+      if (v >= 0 && static_cast<std::size_t>(v) < n) onSurface[static_cast<std::size_t>(v)] = 1;
+  int behind = 0, surfaceNodes = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!onSurface[i]) continue;
+    ++surfaceNodes;
+    const Eigen::Vector3d p = r.pose.apply(at(static_cast<int>(i)));
+    if (!(p.z() > 1e-6) || !p.allFinite()) ++behind;  // (registerToContour's own test of a node in front)
+  }
+  char text[400];
+  if (behind > 0) {
+    std::snprintf(text, sizeof text,
+                  "The fit left the organ crossing the camera's image plane (%d of its %d surface nodes at or behind "
+                  "the camera), so it is not kept: place the organ in front of the camera, nearer its outline (step "
+                  "4), then fit again.",
+                  behind, surfaceNodes);
+    return text;
+  }
+  int folded = 0, first = -1;
+  for (std::size_t e = 0; e < model.tets.size(); ++e) {
+    const auto& t = model.tets[e];
+    Eigen::Matrix3d rest, now;
+    for (int k = 0; k < 3; ++k) {
+      rest.col(k) = model.rest[static_cast<std::size_t>(t[k + 1])] - model.rest[static_cast<std::size_t>(t[0])];
+      now.col(k) = at(t[k + 1]) - at(t[0]);
+    }
+    const double volume = now.determinant() / 6.0;
+    const double scale = std::pow(now.colwise().norm().maxCoeff(), 3);
+    // Flat as FemModel::build finds it, or turned inside out (the sign of its rest volume lost).
+    if (!(std::abs(volume) > 1e-12 * scale) || volume * rest.determinant() < 0) {
+      if (first < 0) first = static_cast<int>(e);
+      ++folded;
+    }
+  }
+  if (folded == 0) return {};
+  std::snprintf(text, sizeof text,
+                "The fit folded %d of the organ's %zu elements flat or inside out (element %d first), a shape it "
+                "cannot be simulated in, so it is not kept: place the organ nearer its outline (step 4) or hold it by "
+                "more attachments, then fit again.",
+                folded, model.tets.size(), first);
+  return text;
 }
 
 std::string uncertaintySentence(const simcore::RegistrationUncertainty& u) {

@@ -197,6 +197,24 @@ void Session::tearOverStretched(std::string& message) {
     say(message, said);
   }
   char buf[320];
+  // The tear asked for, either way it is made: the change, then what tore (the tissue, each named structure it went
+  // through, an attachment), said once.
+  auto makeTear = [&](TopologyChange change, bool attached, double strain, double limit) {
+    const std::vector<int> tornLabels = change.labels;
+    std::string sentence;
+    if (!changeTopology(std::move(change), sentence)) {
+      say(message, "The tear could not be made: " + sentence);
+      return;
+    }
+    events_.push_back(eventWord(EventKind::Tear));
+    const std::string structures = tornStructures(tornLabels, setup_.mesh, events_, attached);
+    if (attached) events_.push_back(eventWord(EventKind::AttachmentTorn));
+    std::snprintf(buf, sizeof buf, "The %s tore: stretched %.0f %% where its material tears at %.0f %%%s.",
+                  attached ? "tissue at its attachment" : "tissue", 100 * strain, 100 * limit,
+                  structures.empty() ? "" : (", through the " + structures).c_str());
+    say(message, buf);
+    if (!sentence.empty()) message += " " + sentence;
+  };
   if (setup_.tools.tearOnlyUnderLoad && !loaded) return;
   // Only a converged step's positions tear: an inexact step's (the best of its tries, kept) can be far from where the
   // tissue is. Tearing them set off a cascade on the patient liver: after two tears an element by the crack kept
@@ -244,7 +262,7 @@ void Session::tearOverStretched(std::string& message) {
     keptTets.reserve(tets.size());
     keptLabels.reserve(tets.size());
     for (std::size_t e = 0; e < tets.size(); ++e)
-      if (!out[e]) keptTets.push_back(tets[e]), keptLabels.push_back(labels[e]);
+      if (!out[e]) keptTets.push_back(tets[e]), keptLabels.push_back(e < labels.size() ? labels[e] : 0);
     next.mesh.points = rest;
     next.mesh.unitToMetre = 1.0;
     next.mesh.triangles.clear();
@@ -262,20 +280,7 @@ void Session::tearOverStretched(std::string& message) {
     if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) change.factorAt = state_.x;
     tearRefused_ = false;
     ++constructions_.cutMeshes;
-    const std::vector<int> tornLabels = change.labels;
-    std::string sentence;
-    if (!changeTopology(std::move(change), sentence)) {
-      say(message, "The tear could not be made: " + sentence);
-      return;
-    }
-    events_.push_back(eventWord(EventKind::Tear));
-    const std::string structures = tornStructures(tornLabels, setup_.mesh, events_, attached);
-    if (attached) events_.push_back(eventWord(EventKind::AttachmentTorn));
-    std::snprintf(buf, sizeof buf, "The %s tore: stretched %.0f %% where its material tears at %.0f %%%s.",
-                  attached ? "tissue at its attachment" : "tissue", 100 * over.front().strain,
-                  100 * over.front().limit, structures.empty() ? "" : (", through the " + structures).c_str());
-    say(message, buf);
-    if (!sentence.empty()) message += " " + sentence;
+    makeTear(std::move(change), attached, over.front().strain, over.front().limit);
     return;
   }
   // The tear: a square across the stretch, reaching the element's farthest node, through the middle of the widest gap
@@ -326,23 +331,9 @@ void Session::tearOverStretched(std::string& message) {
   ++constructions_.cutMeshes;
   bool attached = false;  // the torn element held by an attachment (a ligament's fixed node) or is a ligament
   for (int v : t) attached = attached || body_->fixedMask()[static_cast<std::size_t>(v)];
-  TopologyChange change = changeFromCut(r, std::move(restCopy), std::move(tetsCopy), std::move(labelsCopy), setup_.cut,
-                                        ChangeKind::Tear);  // at the tear's latency
-  const std::vector<int> tornLabels = change.labels;
-  std::string sentence;
-  if (!changeTopology(std::move(change), sentence)) {
-    say(message, "The tear could not be made: " + sentence);
-    return;
-  }
-  // What tore: the tissue, each named structure the tear went through, an attachment.
-  events_.push_back(eventWord(EventKind::Tear));
-  const std::string structures = tornStructures(tornLabels, setup_.mesh, events_, attached);
-  if (attached) events_.push_back(eventWord(EventKind::AttachmentTorn));
-  std::snprintf(buf, sizeof buf, "The %s tore: stretched %.0f %% where its material tears at %.0f %%%s.",
-                attached ? "tissue at its attachment" : "tissue", 100 * worstStrain, 100 * worstLimit,
-                structures.empty() ? "" : (", through the " + structures).c_str());
-  say(message, buf);
-  if (!sentence.empty()) message += " " + sentence;
+  makeTear(changeFromCut(r, std::move(restCopy), std::move(tetsCopy), std::move(labelsCopy), setup_.cut,
+                         ChangeKind::Tear),  // at the tear's latency
+           attached, worstStrain, worstLimit);
 }
 
 }  // namespace rehearse::simcore

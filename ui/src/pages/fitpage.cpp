@@ -4,6 +4,7 @@
 
 #include <rehearse/app/elasticfit.hpp>
 
+#include <QAction>
 #include <QCheckBox>
 #include <QComboBox>
 #include <QDoubleSpinBox>
@@ -108,8 +109,13 @@ void FitPage::addFitButtons(QVBoxLayout* layout) {
   auto* row = new QHBoxLayout;
   auto* fit = new QPushButton(tr("Fit to Contour (F9)"), this);
   fit->setObjectName(QStringLiteral("fitButton"));
-  fit->setShortcut(QKeySequence(Qt::Key_F9));
   connect(fit, &QPushButton::clicked, this, &FitPage::runElasticFit);
+  // F9 from anywhere, as F10: to this step, and fit. (The button's own key acted only while this page showed: F9 on
+  // step 4's page did nothing, a person's check found.)
+  auto* key = new QAction(tr("Fit to Contour (from any step)"), this);  // named: the keyboard reference
+  key->setShortcut(QKeySequence(Qt::Key_F9));
+  connect(key, &QAction::triggered, this, &FitPage::runElasticFit);
+  wb_.window->addAction(key);
   auto* clear = new QPushButton(tr("Clear Fit"), this);
   clear->setObjectName(QStringLiteral("fitClear"));
   connect(clear, &QPushButton::clicked, this, [this] {
@@ -297,11 +303,12 @@ void FitPage::runElasticFit() { runFit(rigid_->isChecked()); }
 void FitPage::runFit(bool rigidPrepass) {
   if (!wb_.doc->hasCase()) return;
   const auto c = data();
+  wb_.goToStep(app::Step::Elastic);  // (F9 from another step: the fit's page shows what it does, or what it needs)
   if (const std::string missing = app::missingFor(*c, app::Step::Elastic); !missing.empty()) {
     status_->setText(tr("The fit needs %1.").arg(QString::fromStdString(missing)));
+    wb_.status(status_->text());
     return;
   }
-  wb_.goToStep(app::Step::Elastic);
   series_->clear();
   axisY_->setRange(0, 10);
   axisX_->setRange(0, 1);
@@ -397,6 +404,7 @@ void FitPage::runFit(bool rigidPrepass) {
       return [this, message] {
         wb_.view->setCase(data());
         status_->setText(tr("The fit failed: %1").arg(message));
+        wb_.status(status_->text());  // (the status bar had stayed at "Elastic fit...", and nothing was logged)
         emit fitFinished(false, status_->text());
       };
     }

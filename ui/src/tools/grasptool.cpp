@@ -42,13 +42,7 @@ class GraspTool final : public FrameTool {
     last_ = f;
     send(simcore::InputKind::ToolPose, tipAt(f), false);
   }
-  void release(QMouseEvent*) override {
-    if (!holding_) return;
-    holding_ = false;
-    send(simcore::InputKind::Jaw, tipAt(last_), false);
-    retractInstrument(view_, tipAt(last_), 0);
-    emit view_.toolMessage(QObject::tr("Released."));
-  }
+  void release(QMouseEvent*) override { letGo(QObject::tr("Released.")); }
   bool abandon() override {
     if (!holding_) return false;
     release(nullptr);
@@ -59,12 +53,8 @@ class GraspTool final : public FrameTool {
   // before the bite's own step show the jaws open or empty: the first 0.3 s after a bite are not taken for a slip.)
   void jawsEmptied() override {
     if (!holding_ || !bitten_.isValid() || bitten_.elapsed() < 300) return;
-    holding_ = false;
-    send(simcore::InputKind::Jaw, tipAt(last_), false);
-    retractInstrument(view_, tipAt(last_), 0);
-    emit view_.toolMessage(
-        QObject::tr("The tissue slipped out of the grasper: the jaws hold nothing and are withdrawn; press on the organ "
-                    "to grasp again."));
+    letGo(QObject::tr("The tissue slipped out of the grasper: the jaws hold nothing and are withdrawn; press on the "
+                      "organ to grasp again."));
   }
   // Enter, or a tool other than the scissors taken while the jaws hold: they let go.
   void finish() override {
@@ -108,6 +98,14 @@ class GraspTool final : public FrameTool {
   Qt::CursorShape cursor() const override { return holding_ ? Qt::ClosedHandCursor : Qt::OpenHandCursor; }
 
  private:
+  // The jaws open where they are and the grasper is withdrawn, with the sentence that says why.
+  void letGo(const QString& said) {
+    if (!holding_) return;
+    holding_ = false;
+    send(simcore::InputKind::Jaw, tipAt(last_), false);
+    retractInstrument(view_, tipAt(last_), 0);
+    emit view_.toolMessage(said);
+  }
   void bite(const Eigen::Vector2d& f) {
     const auto& c = view_.caseData();
     if (!c || !c->hasPose) {

@@ -58,8 +58,16 @@ simcore::FemModel fitModel(const FitInput& in);
 using FitProgress = std::function<bool(const simcore::RegistrationIteration&, const Eigen::VectorXd& x, const Pose& pose)>;
 
 /// Runs the fit. Throws simcore::MeshError / rehearse::InputError with one sentence for unusable input
-/// (no silhouette segment and no curve on the organ, a mesh behind the camera, ...).
+/// (no silhouette segment and no curve on the organ, a mesh behind the camera, ...). A fit whose shape cannot be used
+/// (fittedShapeProblem) is not ok, its status the sentence.
 simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress& progress = {});
+
+/// What makes a fit's shape (r.x, r.pose) unusable whatever its distance to the outline, in one sentence with what to do;
+/// empty when usable: the organ's surface crossing the camera's image plane (a node of `surface` at or behind the
+/// camera), or an element of `model` folded flat or inside out against its rest shape (flat: as FemModel::build finds
+/// it, which a simulation started from that shape then refuses).
+std::string fittedShapeProblem(const simcore::FemModel& model, const std::vector<std::array<int, 3>>& surface,
+                               const simcore::RegistrationResult& r);
 
 /// One sentence for the fit's uncertainty (simcore::RegistrationUncertainty): "the surface may be up to 2.4 mm from
 /// where the fit put it (inner targets 3.1 mm), weakest: a move along the view", or that the contour leaves a direction
