@@ -57,6 +57,17 @@ using namespace rehearse;
 class TestGui : public QObject {
   Q_OBJECT
   // A launch on the phantom that finds a crash's autosave: the recovery question it shows (null when none).
+  // The window shown, active, with the built-in case open.
+  static bool openBuiltInCase(ui::MainWindow& w) {
+    w.show();
+    if (!QTest::qWaitForWindowExposed(&w)) return false;
+    w.activateWindow();
+    if (!QTest::qWaitForWindowActive(&w)) return false;
+    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
+    w.openCase({});
+    return loaded.wait(60000);
+  }
+
   static QMessageBox* launch(ui::MainWindow& w) {
     w.show();
     QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
@@ -418,20 +429,11 @@ class TestGui : public QObject {
     QVERIFY2(cursor->text().isEmpty(), qPrintable(cursor->text()));
   }
 
-  // Messages are read whole: a long error is shortened in the status bar, never pushes the widgets beside
-  // it out, and is whole in the label's tooltip and in the Messages panel (Ctrl+L). The Case panel wraps
-  // its lines instead of clipping them.
   // F9 (Fit to Contour) from another step's page, as F10 from any step: the fit's page shows, and what the fit does or
   // needs is said. A person's check found F9 on step 4's page did nothing (the key was its button's, on a hidden page).
   void f9FromAnotherStepOpensTheFit() {
     ui::MainWindow w;
-    w.show();
-    QVERIFY(QTest::qWaitForWindowExposed(&w));
-    w.activateWindow();
-    QVERIFY(QTest::qWaitForWindowActive(&w));
-    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
-    w.openCase({});
-    QVERIFY(loaded.wait(60000));
+    QVERIFY(openBuiltInCase(w));
     QTest::keyClick(&w, Qt::Key_4, Qt::AltModifier);
     QCOMPARE(w.step(), ui::Step::Rigid);
     QTest::keyClick(&w, Qt::Key_F9);
@@ -441,6 +443,9 @@ class TestGui : public QObject {
     QVERIFY(closeDiscardingChanges(w));
   }
 
+  // Messages are read whole: a long error is shortened in the status bar, never pushes the widgets beside
+  // it out, and is whole in the label's tooltip and in the Messages panel (Ctrl+L). The Case panel wraps
+  // its lines instead of clipping them.
   void messagesAreReadWhole() {
     ui::MainWindow w;
     w.resize(1000, 700);
@@ -772,13 +777,7 @@ class TestGui : public QObject {
   // so, and the window goes on working (a second import of the same file completes).
   void cancelKeepsTheWindowUsable() {
     ui::MainWindow w;
-    w.show();
-    QVERIFY(QTest::qWaitForWindowExposed(&w));
-    w.activateWindow();
-    QVERIFY(QTest::qWaitForWindowActive(&w));
-    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
-    w.openCase({});
-    QVERIFY(loaded.wait(60000));
+    QVERIFY(openBuiltInCase(w));
     const auto before = w.caseData();
     const int undoIndex = w.undoStack()->index();
     // A sphere surface (20480 triangles) to fill with 20k tetrahedra: seconds of meshing, cancellable.
@@ -840,13 +839,7 @@ class TestGui : public QObject {
   // puts it; Ctrl+Z gives the previous organ back; a damaged image says one sentence and changes nothing.
   void importsASegmentation() {
     ui::MainWindow w;
-    w.show();
-    QVERIFY(QTest::qWaitForWindowExposed(&w));
-    w.activateWindow();
-    QVERIFY(QTest::qWaitForWindowActive(&w));
-    QSignalSpy loaded(&w, &ui::MainWindow::caseLoaded);
-    w.openCase({});
-    QVERIFY(loaded.wait(60000));
+    QVERIFY(openBuiltInCase(w));
     const auto before = w.caseData();
     // A 60 x 50 x 40 mm block of 1 mm x 1 mm x 2 mm voxels: an ellipsoid "liver" (label 1) holding a ball (label 4).
     simcore::LabelImage image;
