@@ -88,19 +88,70 @@ simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress&
   if (segments.empty() && o.curves.empty())
     throw simcore::MeshError("The contour has no silhouette segment and no ridge or ligament with its curve on the organ.");
   o.onIteration = progress;
-  simcore::RegistrationResult r =
-      simcore::registerToContour(model, in.attachments, in.settings, in.organ->surface, segments, in.start, in.camera, o);
+  simcore::RegistrationResult r;
+  try {
+    r = simcore::registerToContour(model, in.attachments, in.settings, in.organ->surface, segments, in.start, in.camera, o);
+  } catch (const simcore::MeshError& e) {
+    // The fit's own iterations took an organ that started in front of the camera behind it: said as that, not as a
+    // placement to correct (a person's check read "The organ is behind the camera" for an organ 400-500 mm in front).
+    simcore::RegistrationResult atStart;
+    atStart.x = model.restVector();
+    atStart.pose = in.start;
+    if (std::string(e.what()).find("behind the camera") == std::string::npos ||
+        !fittedShapeProblem(model, in.organ->surface, atStart).empty())
+      throw;
+    throw simcore::MeshError(
+        "The fit moved the organ behind the camera from where it started in front of it: place the organ nearer its "
+        "outline (step 4), or fit without the rigid pre-pass, then fit again.");
+  }
   // A person's check on the patient liver (the automatic placement, then the first fit): the fit said "converged" with
   // the organ crossing the image plane and an element folded flat; Keep Fit took it, and step 7 could not start
   // ("Tetrahedron 1702 is flat in the rest shape").
-  if (r.ok && !r.cancelled)
+  if (r.ok && !r.cancelled) {
     if (std::string why = fittedShapeProblem(model, in.organ->surface, r); !why.empty()) {
       r.ok = false;
       r.converged = false;
       r.status = std::move(why);
+    } else if (const std::string turned = insideOutElements(model, r); !turned.empty()) {
+      r.status += "; " + turned;
     }
+  } else if (!r.ok && !r.cancelled && r.status.rfind("failed: ", 0) == 0) {
+    // Said once ("The fit failed: ..." is the window's), with what to change.
+    r.status = r.status.substr(8) +
+               "; place the organ nearer its outline (step 4) or hold it by more attachments, then fit again";
+  }
   return r;
 }
+
+namespace {
+// The elements of a fitted shape (x, 3n) flat as FemModel::build finds them (which a simulation started from the shape
+// refuses), and those turned inside out against the rest shape (the sign of the rest volume lost; the simulation takes
+// such an element at rest as it is).
+struct ElementTurns {
+  int flat = 0, firstFlat = -1, insideOut = 0, firstInsideOut = -1;
+};
+ElementTurns elementTurns(const simcore::FemModel& model, const Eigen::VectorXd& x) {
+  ElementTurns out;
+  for (std::size_t e = 0; e < model.tets.size(); ++e) {
+    const auto& t = model.tets[e];
+    Eigen::Matrix3d rest, now;
+    for (int k = 0; k < 3; ++k) {
+      rest.col(k) = model.rest[static_cast<std::size_t>(t[k + 1])] - model.rest[static_cast<std::size_t>(t[0])];
+      now.col(k) = x.segment<3>(3 * static_cast<Eigen::Index>(t[k + 1])) - x.segment<3>(3 * static_cast<Eigen::Index>(t[0]));
+    }
+    const double volume = now.determinant() / 6.0;
+    const double scale = std::pow(now.colwise().norm().maxCoeff(), 3);
+    if (!(std::abs(volume) > 1e-12 * scale)) {
+      if (out.firstFlat < 0) out.firstFlat = static_cast<int>(e);
+      ++out.flat;
+    } else if (volume * rest.determinant() < 0) {
+      if (out.firstInsideOut < 0) out.firstInsideOut = static_cast<int>(e);
+      ++out.insideOut;
+    }
+  }
+  return out;
+}
+}  // namespace
 
 std::string fittedShapeProblem(const simcore::FemModel& model, const std::vector<std::array<int, 3>>& surface,
                                const simcore::RegistrationResult& r) {
@@ -127,28 +178,25 @@ std::string fittedShapeProblem(const simcore::FemModel& model, const std::vector
                   behind, surfaceNodes);
     return text;
   }
-  int folded = 0, first = -1;
-  for (std::size_t e = 0; e < model.tets.size(); ++e) {
-    const auto& t = model.tets[e];
-    Eigen::Matrix3d rest, now;
-    for (int k = 0; k < 3; ++k) {
-      rest.col(k) = model.rest[static_cast<std::size_t>(t[k + 1])] - model.rest[static_cast<std::size_t>(t[0])];
-      now.col(k) = at(t[k + 1]) - at(t[0]);
-    }
-    const double volume = now.determinant() / 6.0;
-    const double scale = std::pow(now.colwise().norm().maxCoeff(), 3);
-    // Flat as FemModel::build finds it, or turned inside out (the sign of its rest volume lost).
-    if (!(std::abs(volume) > 1e-12 * scale) || volume * rest.determinant() < 0) {
-      if (first < 0) first = static_cast<int>(e);
-      ++folded;
-    }
-  }
-  if (folded == 0) return {};
+  const ElementTurns turns = elementTurns(model, r.x);
+  if (turns.flat == 0) return {};
   std::snprintf(text, sizeof text,
-                "The fit folded %d of the organ's %zu elements flat or inside out (element %d first), a shape it "
-                "cannot be simulated in, so it is not kept: place the organ nearer its outline (step 4) or hold it by "
-                "more attachments, then fit again.",
-                folded, model.tets.size(), first);
+                "The fit folded %d of the organ's %zu elements flat (element %d first), a shape it cannot be simulated "
+                "in, so it is not kept: place the organ nearer its outline (step 4) or hold it by more attachments, "
+                "then fit again.",
+                turns.flat, model.tets.size(), turns.firstFlat);
+  return text;
+}
+
+std::string insideOutElements(const simcore::FemModel& model, const simcore::RegistrationResult& r) {
+  if (static_cast<std::size_t>(r.x.size()) != 3 * model.nodeCount()) return {};
+  const ElementTurns turns = elementTurns(model, r.x);
+  if (turns.insideOut == 0) return {};
+  char text[300];
+  std::snprintf(text, sizeof text,
+                "%d of the organ's %zu elements came out inside out (element %d first): the simulation takes them as "
+                "they are; a placement nearer the outline (step 4) avoids it",
+                turns.insideOut, model.tets.size(), turns.firstInsideOut);
   return text;
 }
 

@@ -64,10 +64,13 @@ simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress&
 
 /// What makes a fit's shape (r.x, r.pose) unusable whatever its distance to the outline, in one sentence with what to do;
 /// empty when usable: the organ's surface crossing the camera's image plane (a node of `surface` at or behind the
-/// camera), or an element of `model` folded flat or inside out against its rest shape (flat: as FemModel::build finds
-/// it, which a simulation started from that shape then refuses).
+/// camera), or an element of `model` folded flat (as FemModel::build finds it, which a simulation started from that
+/// shape then refuses).
 std::string fittedShapeProblem(const simcore::FemModel& model, const std::vector<std::array<int, 3>>& surface,
                                const simcore::RegistrationResult& r);
+/// The elements of the fit's shape turned inside out against the rest shape, in words (empty when none): said with a
+/// kept fit (the simulation takes them as they are: FemModel::build accepts either sign).
+std::string insideOutElements(const simcore::FemModel& model, const simcore::RegistrationResult& r);
 
 /// One sentence for the fit's uncertainty (simcore::RegistrationUncertainty): "the surface may be up to 2.4 mm from
 /// where the fit put it (inner targets 3.1 mm), weakest: a move along the view", or that the contour leaves a direction
