@@ -320,6 +320,33 @@ class TestGrasp : public QObject {
   // The shaft pressed into the tissue and swept across it (nothing held), a hand's pace (1 mm a step, 0.5 mm a step):
   // the force the loop renders between steps (the last step's model at the next step's tip) against the force that step
   // solves there. A person saw the chart spike to about 48 N at a touch that solved a few newtons.
+  void theLoopExtrapolatesOnlyWhatStillActs() {
+    // The loop's force between steps, f0 + K (p - p0), from a step's snapshot: K only from a step that solved its
+    // equations with something held or touched. A person's chart (the patient liver) rose to 5-194 kN between steps
+    // that solved 16-25 N: after a slip (nothing held, no cap) and on steps that did not converge.
+    simcore::Snapshot s;
+    s.tool.tip = Eigen::Vector3d(0, 0, 0.1);
+    s.tool.force = Eigen::Vector3d(2, 0, 0);
+    s.tool.stiffness = 1e6 * Eigen::Matrix3d::Identity();  // N/m
+    s.tool.held = {7};
+    s.report.outcome = simcore::StepStatus::Converged;
+    const Eigen::Vector3d moved = s.tool.tip + Eigen::Vector3d(1e-6, 0, 0);  // 1 um: 1 N more along x
+    auto at = [&](double cap) { return simcore::extrapolateForce(simcore::toolForceModel(s, cap, 0.0025), moved); };
+    QVERIFY((at(15) - Eigen::Vector3d(3, 0, 0)).norm() < 1e-9);  // held, converged: f0 + K d
+    s.tool.held.clear();  // slipped: nothing held, nothing touched
+    QVERIFY((at(15) - s.tool.force).norm() < 1e-12);
+    s.tool.contacts = 3;  // the shaft touches: its stiffness, uncapped
+    QVERIFY((at(15) - Eigen::Vector3d(3, 0, 0)).norm() < 1e-9);
+    for (const auto outcome : {simcore::StepStatus::Failed, simcore::StepStatus::Inverted}) {
+      s.report.outcome = outcome;  // a step that did not solve: its force held
+      QVERIFY((at(15) - s.tool.force).norm() < 1e-12);
+    }
+    s.report.outcome = simcore::StepStatus::Inexact;  // the linearised method's one solve: extrapolated
+    QVERIFY((at(15) - Eigen::Vector3d(3, 0, 0)).norm() < 1e-9);
+    s.report.keptBestOf = 4;  // no attempt converged, the best kept: held
+    QVERIFY((at(15) - s.tool.force).norm() < 1e-12);
+  }
+
   void shaftContactForceBetweenSteps() {
     for (const double mmPerStep : {0.5, 1.0}) {
       simcore::BodySetup s = liverSetup();

@@ -13,7 +13,16 @@ ToolForceModel toolForceModel(const Snapshot& s, double maxGraspForce, double re
   m.step = s.step;
   m.tip = s.tool.tip;
   m.force = s.tool.force;
-  m.stiffness = s.tool.stiffness;
+  // The stiffness is extrapolated with only when it is the tissue's under what acts now: a step that reached its
+  // equations' answer (converged, within the accuracy asked, or inexact by design, as the linearised method's one solve),
+  // and something still held or touched. After a slip or on a step that did not converge the force is held instead: a
+  // person's chart rose to 5-194 kN between steps that solved 16-25 N (the patient liver, the jaws' stiffness
+  // extrapolated with nothing held and no cap, and an unconverged step's compliance).
+  const StepReport& r = s.report;
+  const bool solved = r.outcome == StepStatus::Converged || r.withinAccuracy ||
+                      (r.outcome == StepStatus::Inexact && r.keptBestOf == 0 && !r.guardStalled && !r.errorUnknown);
+  const bool acting = !s.tool.held.empty() || s.tool.contacts > 0;
+  m.stiffness = solved && acting ? s.tool.stiffness : Eigen::Matrix3d::Zero();
   m.maxForce = s.tool.held.empty() ? 0 : maxGraspForce;  // the jaws' hold caps the pull; contact has no cap
   m.reach = reach;
   return m;
