@@ -101,8 +101,8 @@ simcore::RegistrationResult runElasticFit(const FitInput& in, const FitProgress&
         !fittedShapeProblem(model, in.organ->surface, atStart).empty())
       throw;
     throw simcore::MeshError(
-        "The fit moved the organ behind the camera from where it started in front of it: place the organ nearer its "
-        "outline (step 4), or fit without the rigid pre-pass, then fit again.");
+        "its iterations moved the organ behind the camera from where it started in front of it: place the organ "
+        "nearer its outline (step 4), or fit without the rigid pre-pass, then fit again.");
   }
   // A person's check on the patient liver (the automatic placement, then the first fit): the fit said "converged" with
   // the organ crossing the image plane and an element folded flat; Keep Fit took it, and step 7 could not start
@@ -172,8 +172,8 @@ std::string fittedShapeProblem(const simcore::FemModel& model, const std::vector
   char text[400];
   if (behind > 0) {
     std::snprintf(text, sizeof text,
-                  "The fit left the organ crossing the camera's image plane (%d of its %d surface nodes at or behind "
-                  "the camera), so it is not kept: place the organ in front of the camera, nearer its outline (step "
+                  "the organ came out crossing the camera's image plane (%d of its %d surface nodes at or behind the "
+                  "camera), so the fit is not kept: place the organ in front of the camera, nearer its outline (step "
                   "4), then fit again.",
                   behind, surfaceNodes);
     return text;
@@ -181,9 +181,9 @@ std::string fittedShapeProblem(const simcore::FemModel& model, const std::vector
   const ElementTurns turns = elementTurns(model, r.x);
   if (turns.flat == 0) return {};
   std::snprintf(text, sizeof text,
-                "The fit folded %d of the organ's %zu elements flat (element %d first), a shape it cannot be simulated "
-                "in, so it is not kept: place the organ nearer its outline (step 4) or hold it by more attachments, "
-                "then fit again.",
+                "%d of the organ's %zu elements came out flat (element %d first), a shape the organ cannot be "
+                "simulated in, so the fit is not kept: place the organ nearer its outline (step 4) or hold it by more "
+                "attachments, then fit again.",
                 turns.flat, model.tets.size(), turns.firstFlat);
   return text;
 }

@@ -324,10 +324,14 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (f->field.energy) extra += tr("   ENERGY ON");
   // While the jaws hold and the shaft touches, the two shares (the jaws' decides a slip).
   QString shares;
-  if (!t.held.empty() && (t.force - t.graspForce).norm() >= 0.005)
-    shares = tr(" (jaws %1 N, shaft %2 N)")
+  // (Forces in different directions: a total below a share read as a mistake to a person, so the directions are said.)
+  if (!t.held.empty() && (t.force - t.graspForce).norm() >= 0.005) {
+    const Eigen::Vector3d shaft = t.force - t.graspForce;
+    const bool apart = t.graspForce.dot(shaft) < 0.5 * t.graspForce.norm() * shaft.norm();  // over 60 degrees
+    shares = (apart ? tr(" (jaws %1 N and shaft %2 N, in different directions)") : tr(" (jaws %1 N, shaft %2 N)"))
                  .arg(t.graspForce.norm(), 0, 'f', 2)
-                 .arg((t.force - t.graspForce).norm(), 0, 'f', 2);
+                 .arg(shaft.norm(), 0, 'f', 2);
+  }
   else if (t.held.empty() && t.force.norm() >= 0.005)
     // Nothing held: the force is the shaft's, resting where the instrument was left (a person read 0.6-1.9 N after
     // "Cut ended." as a force left over from the cut).
