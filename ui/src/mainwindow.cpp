@@ -133,11 +133,10 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
   // the status bar with what it waits for (Reset mid-grasp left the organ still, the drag after it moving nothing, and
   // nothing said so).
+  // (Reset always leaves the organ paused: SimulationPanel::reset.)
   connect(simulation_, &SimulationPanel::wasReset, this, [this] {
-    sayBriefly(simulation_->isPlaying()
-                   ? tr("Reset: the organ is back at rest, as the frame shows it.")
-                   : tr("Reset: the organ is back at rest, as the frame shows it, and waits: press on it with an "
-                        "instrument, or F5, to go on."));
+    sayBriefly(tr("Reset: the organ is back at rest, as the frame shows it, and waits: press on it with an instrument, "
+                  "or F5, to go on."));
   });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {

@@ -242,42 +242,30 @@ void Session::tearOverStretched(std::string& message) {
     for (const auto& t : tets)
       for (int v : t) ++uses[static_cast<std::size_t>(v)];
     std::vector<char> out(tets.size(), 0);
-    TopologyChange change;
-    change.kind = ChangeKind::Tear;
-    change.setup = setup_;
-    BodySetup& next = change.setup;
+    CutResult parted;  // no new nodes: the front's elements out, their labels
+    std::vector<int> orphans;
     bool attached = false;
     for (int e : front) {
       const auto& t = tets[static_cast<std::size_t>(e)];
       for (int v : t) attached = attached || body_->fixedMask()[static_cast<std::size_t>(v)];
       const int label = e < static_cast<int>(labels.size()) ? labels[static_cast<std::size_t>(e)] : 0;
-      if (std::find(change.labels.begin(), change.labels.end(), label) == change.labels.end())
-        change.labels.push_back(label);
+      if (std::find(parted.cutLabels.begin(), parted.cutLabels.end(), label) == parted.cutLabels.end())
+        parted.cutLabels.push_back(label);
       out[static_cast<std::size_t>(e)] = 1;
       for (int v : t)
-        if (--uses[static_cast<std::size_t>(v)] == 0) next.fixedNodes.push_back(v);
+        if (--uses[static_cast<std::size_t>(v)] == 0) orphans.push_back(v);
     }
+    std::sort(parted.cutLabels.begin(), parted.cutLabels.end());
     std::vector<std::array<int, 4>> keptTets;
     std::vector<int> keptLabels;
     keptTets.reserve(tets.size());
     keptLabels.reserve(tets.size());
     for (std::size_t e = 0; e < tets.size(); ++e)
       if (!out[e]) keptTets.push_back(tets[e]), keptLabels.push_back(e < labels.size() ? labels[e] : 0);
-    next.mesh.points = rest;
-    next.mesh.unitToMetre = 1.0;
-    next.mesh.triangles.clear();
-    next.mesh.triangleLabels.clear();
-    next.mesh.tets = std::move(keptTets);
-    next.mesh.tetLabels = std::move(keptLabels);
-    next.rest.clear();
-    next.start.clear();  // the state carries on (the same nodes)
-    ++next.topology;
-    std::sort(change.labels.begin(), change.labels.end());
-    const int latency = setup_.tools.tearLatencySteps;
-    change.applyAt = latency >= 0 ? steps_ + latency : -1;
-    change.late = latency >= 0 && setup_.tools.tearWhenBuilt &&
-                  setup_.settings.factorRefresh != FactorRefresh::Synchronous;
-    if (setup_.settings.factorRefresh != FactorRefresh::Synchronous || latency >= 0) change.factorAt = state_.x;
+    // The same new setup as a cut's (the state carries on; the same nodes), at the tear's latency.
+    TopologyChange change = changeFromCut(parted, rest, std::move(keptTets), std::move(keptLabels), setup_.cut,
+                                          ChangeKind::Tear);
+    change.setup.fixedNodes.insert(change.setup.fixedNodes.end(), orphans.begin(), orphans.end());
     tearRefused_ = false;
     ++constructions_.cutMeshes;
     makeTear(std::move(change), attached, over.front().strain, over.front().limit);
