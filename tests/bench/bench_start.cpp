@@ -6,8 +6,11 @@
 // by outcome. Then (issue 61) the same organs carried by the tissue around them, gravity along the view, for the
 // picks an assistant makes (none, one, 22 along the top, the 8 % highest): start error and drift over 10 s; and the
 // BodyParts3D organs through `rehearse gesture --start equilibrium` with the picks as files. Writes start.csv,
-// start_supported.csv and start_cli.csv into the directory given (default ".").
-//   bench_start [OUT_DIR] [--quick] [--cli]   (--quick: the 3.8k meshes only; --cli: the command line's table only)
+// start_supported.csv and start_cli.csv into the directory given (default "."). With --pull only (issue 61's "a grasp and
+// a 20 mm pull give a force of a few newtons"): the supported organs grasped and pulled 20 mm, start_pull.csv
+// (REHEARSE_BENCH_ONLY="organ/picks" runs one case; REHEARSE_BENCH_DIAG=1 says the unconverged steps and the most
+// compressed element; REHEARSE_BENCH_GRASP_MM the grasp radius: 6, 10 and 14 mm crush the same element).
+//   bench_start [OUT_DIR] [--quick] [--cli] [--pull]   (--quick: the 3.8k meshes only; --cli: the command line's table)
 #include <sys/wait.h>
 
 #include <algorithm>
@@ -222,16 +225,153 @@ void commandLineStarts(const std::vector<Organ>& organs, const std::string& out)
     }
   }
 }
+
+// Issue 61's "a grasp and a 20 mm pull give a force of a few newtons": the same supported organs and picks, the
+// grasper on free tissue (the front surface node nearest the organ's middle across the view, at least 15 mm from every
+// held node), pulled 20 mm across the view away from the holds, two ways: as the mouse gives it (ten jumps of 2 mm, 5
+// steps apart, as test_patient_start drags) and at a hand's speed (20 mm/s, 0.2 mm a step); then held 1 s. The jaws'
+// force (no grasp limit: the tissue's own answer) at its peak, at the end of the pull and after the hold, for the
+// damping given (Rayleigh beta, s).
+void supportedPulls(const std::vector<Organ>& organs, const std::string& out, const std::vector<double>& betas) {
+  std::ofstream csv(out + "/start_pull.csv");
+  csv << "organ,tets,picks,held,beta_s,pull,held_by_jaws,peak_n,end_of_pull_n,after_1s_n,steps_not_converged\n";
+  std::printf("\nthe grasper on free tissue pulled 20 mm across the view (no grasp limit), supported, gravity +z:\n");
+  std::printf("%-20s %-16s %5s %7s %-6s %5s %8s %8s %8s %s\n", "organ", "picks", "held", "beta s", "pull", "jaws",
+              "peak N", "end N", "1 s N", "not converged");
+  const char* only = std::getenv("REHEARSE_BENCH_ONLY");  // "organ/picks" substrings, to look at one case
+  for (const Organ& o : organs) {
+    if (!std::filesystem::exists(o.path)) continue;
+    if (only && o.name.find(std::string(only).substr(0, std::string(only).find('/'))) == std::string::npos) continue;
+    BodySetup base;
+    base.mesh = testing::meshedOrgan(testing::loadOrganSurface(o.path), 3800);
+    base.material = o.material;
+    base.settings.gravity = Eigen::Vector3d(0, 0, 9.81);
+    base.settings.method = kInteractiveMethod;  // the GUI's
+    base.settings.factorRefresh = FactorRefresh::Asynchronous;
+    base.tools.maxGraspForce = 1e9;
+    if (const char* r = std::getenv("REHEARSE_BENCH_GRASP_MM")) base.tools.graspRadius = 1e-3 * std::atof(r);
+    const std::vector<Eigen::Vector3d> shape = base.mesh.points;
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const auto& p : shape) centre += p;
+    centre /= static_cast<double>(shape.size());
+    for (const auto& [name, held] : testing::assistantPicks(base.mesh)) {
+      if (only && std::string(only).find('/') != std::string::npos &&
+          std::string(name) != std::string(only).substr(std::string(only).find('/') + 1))
+        continue;
+      BodySetup s = base;
+      s.fixedNodes = held;
+      InverseRestOptions io;
+      io.supportModulus = kDefaultSupportModulus;
+      const InverseRestResult r = startInEquilibrium(s, shape, io);
+      if (!r.converged()) {
+        std::printf("%-20s %-16s no start: %s\n", o.name.c_str(), name, r.status.c_str());
+        continue;
+      }
+      int bite = -1;
+      double best = 1e300;
+      for (int n : testing::surfaceNodes(s.mesh)) {
+        const Eigen::Vector3d& p = shape[static_cast<std::size_t>(n)];
+        bool free = true;
+        for (int h : held) free = free && (shape[static_cast<std::size_t>(h)] - p).norm() >= 0.015;
+        const double across = (p - centre).head<2>().norm();
+        if (!free || across > 0.03) continue;
+        if (p.z() < best) best = p.z(), bite = n;
+      }
+      if (bite < 0) continue;
+      const Eigen::Vector3d p = shape[static_cast<std::size_t>(bite)];
+      Eigen::Vector3d away(0, -1, 0);
+      if (!held.empty()) {
+        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+        for (int h : held) mean += shape[static_cast<std::size_t>(h)];
+        mean /= static_cast<double>(held.size());
+        away = p - mean;
+        away.z() = 0;
+        away = away.norm() > 1e-6 ? Eigen::Vector3d(away.normalized()) : Eigen::Vector3d(0, -1, 0);
+      }
+      for (const double beta : betas)
+        for (const bool jumps : {true, false}) {
+          BodySetup d = s;
+          d.settings.rayleighStiffness = beta;
+          Session session(d);
+          auto send = [&](InputKind kind, const Eigen::Vector3d& at, bool on) {
+            InputEvent e;
+            e.kind = kind;
+            e.position = at;
+            e.on = on;
+            session.post(e);
+          };
+          for (int k = 0; k < 10; ++k) session.advance();
+          send(InputKind::ToolPose, p, false);
+          send(InputKind::Jaw, p, true);
+          session.advance();
+          const std::size_t jaws = session.snapshot()->tool.held.size();
+          double peak = 0;
+          long notConverged = 0;
+          auto step = [&] {
+            const StepReport rep = session.advance();
+            if (rep.outcome != StepStatus::Converged && notConverged++ < 3 && std::getenv("REHEARSE_BENCH_DIAG"))
+              std::printf("    step %ld: %s (%.3g N)\n", session.snapshot()->step, statusSentence(rep).c_str(),
+                          session.snapshot()->tool.graspForce.norm());
+            peak = std::max(peak, session.snapshot()->tool.graspForce.norm());
+          };
+          if (jumps)
+            for (int k = 1; k <= 10; ++k) {
+              send(InputKind::ToolPose, p + 0.002 * k * away, false);
+              for (int i = 0; i < 5; ++i) step();
+            }
+          else
+            for (int k = 1; k <= 100; ++k) {
+              send(InputKind::ToolPose, p + 0.0002 * k * away, false);
+              step();
+            }
+          const double endOfPull = session.snapshot()->tool.graspForce.norm();
+          for (int k = 0; k < 100; ++k) step();
+          const double after = session.snapshot()->tool.graspForce.norm();
+          if (std::getenv("REHEARSE_BENCH_DIAG")) {  // the most compressed element: where, and how much
+            const auto snap = session.snapshot();
+            double worst = 1e300;
+            std::size_t at = 0;
+            for (std::size_t e = 0; e < s.mesh.tets.size(); ++e) {
+              const auto& t = s.mesh.tets[e];
+              auto vol = [&](const std::vector<Eigen::Vector3d>& x) {
+                return (x[t[1]] - x[t[0]]).cross(x[t[2]] - x[t[0]]).dot(x[t[3]] - x[t[0]]);
+              };
+              const double ratio = vol(snap->positions) / vol(shape);
+              if (ratio < worst) worst = ratio, at = e;
+            }
+            const auto& t = s.mesh.tets[at];
+            double toHeld = 1e300;
+            for (int hn : held)
+              for (int k = 0; k < 4; ++k)
+                toHeld = std::min(toHeld, (shape[static_cast<std::size_t>(hn)] - shape[t[k]]).norm());
+            double toBite = 1e300;
+            for (int k = 0; k < 4; ++k) toBite = std::min(toBite, (p - shape[t[k]]).norm());
+            std::printf("    worst element %zu: volume x %.3f; %.1f mm from a held node, %.1f mm from the bite\n", at,
+                        worst, 1e3 * toHeld, 1e3 * toBite);
+          }
+          const char* how = jumps ? "jumps" : "hand";
+          std::printf("%-20s %-16s %5zu %7.3f %-6s %5zu %8.2f %8.2f %8.2f %ld\n", o.name.c_str(), name, held.size(),
+                      beta, how, jaws, peak, endOfPull, after, notConverged);
+          csv << '"' << o.name << "\"," << s.mesh.tets.size() << ",\"" << name << "\"," << held.size() << ',' << beta
+              << ',' << how << ',' << jaws << ',' << peak << ',' << endOfPull << ',' << after << ',' << notConverged
+              << '\n';
+          std::fflush(stdout);
+        }
+    }
+  }
+}
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string out = ".";
-  bool quick = false, cliOnly = false;
+  bool quick = false, cliOnly = false, pullOnly = false;
   for (int i = 1; i < argc; ++i) {
     if (!std::strcmp(argv[i], "--quick"))
       quick = true;
     else if (!std::strcmp(argv[i], "--cli"))
       cliOnly = true;
+    else if (!std::strcmp(argv[i], "--pull"))
+      pullOnly = true;
     else
       out = argv[i];
   }
@@ -245,6 +385,10 @@ int main(int argc, char** argv) {
       {"BodyParts3D kidney",
        shared + "/bodyparts3d/FMA7205_Left_Kidney.obj",
        {MaterialModel::Corotational, 250e3, 0.4, 1066}}};
+  if (pullOnly) {
+    supportedPulls(organs, out, {0.1, 0.02, 0.01});
+    return 0;
+  }
   if (!cliOnly) {
     hangingStarts(organs, out, quick);
     supportedStarts(organs, out);
