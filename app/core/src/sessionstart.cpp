@@ -11,6 +11,17 @@
 #include <functional>
 
 namespace rehearse::app {
+namespace {
+// The tissue's viscosity in the rehearsal: stiffness-proportional (Kelvin-Voigt) damping, beta = 0.02 s (simcore's
+// generic default is 0.1 s). Liver is viscoelastic and relaxes under a held strain (Liu and Bilston 2000, Biorheology
+// 37:191: stress relaxation and oscillatory shear of liver in its linear range); we take its instantaneous stiffness
+// as a small multiple of its relaxed one (our reading, about 3). With 10 ms steps, beta = 0.02 s makes a jump of the
+// tool within one step meet (1 + beta / h) = 3 times the tissue's elastic stiffness, and a loss tangent omega beta =
+// 0.13 at 1 Hz. With 0.1 s the same jump met 11 times: a mouse drag of 2 mm jumps read 2.2-2.8 times the patient
+// liver's force at rest (bench_start --pull), and the grasp slipped at the scene's 15 N after a few pixels
+// (helper-52); at 0.02 s, 1.3-1.6 times. At a hand's 20 mm/s the viscous share is 2-3 % of the force.
+constexpr double kTissueDampingBeta = 0.02;  ///< s
+}  // namespace
 
 simcore::BodySetup bodySetup(const SessionRequest& s) {
   simcore::BodySetup b;
@@ -32,6 +43,7 @@ simcore::BodySetup bodySetup(const SessionRequest& s) {
   b.settings.factorRefresh =
       simcore::FactorRefresh::Asynchronous;  // the surgeon never waits for a factorisation (issue 15)
   b.settings.gravity = s.gravity;
+  b.settings.rayleighStiffness = kTissueDampingBeta;
   // The step's error estimate (issue 64) every 10th step: the status line shows it at that rate, and the window stays
   // responsive (estimated at every step, the review window froze up to 125 ms on the phantom while the session ran).
   b.settings.estimateErrorEvery = 10;
