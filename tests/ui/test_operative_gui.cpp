@@ -644,7 +644,12 @@ struct Cholecystectomy {
         torn += e == "tear";
         slips += e == "slip";
       }
-      if (torn + slips > 0 || f->tool.held.empty()) ended = status->text();
+      // (A frame shown carries its own step's events only: a tear on a step between two frames is heard, not seen in
+      // the last frame. A person stops pulling on the sentence; the pull had gone on 900 px, out of the view.)
+      const bool said = std::any_of(heard.begin(), heard.end(), [](const QString& l) {
+        return l.contains(" tore") || l.contains("slipped");
+      });
+      if (torn + slips > 0 || f->tool.held.empty() || said) ended = status->text();
       if (i % 20 == 0) qInfo("pulled %d px: %.1f N; %s", 6 * i, f->tool.force.norm(), qPrintable(status->text()));
     }
     // What ended it, as the session said it (the page's line may already say something newer).
