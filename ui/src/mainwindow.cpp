@@ -125,18 +125,30 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
         },
         merge);
   });
-  connect(view_, &FrameView::instrumentInput, this, [this](const simcore::InputEvent& e) {
+  // A slip's sentence goes into the case's line (RehearsePage) and stayed there: under the next grasp's 10 s hint
+  // while the jaws held again, and after Reset, as if the tissue had just slipped (a person's check). A new bite, or
+  // Reset, replaces it. (The session's sentence, in simcore's words: not translated.)
+  const auto forgetSlip = [this](const QString& now) {
+    if (!status_.caseText->text().contains(QLatin1String("slipped out of the grasper"))) return;
+    status_.caseText->setText(now);
+    status_.caseText->setToolTip(now);
+  };
+  connect(view_, &FrameView::instrumentInput, this, [this, forgetSlip](const simcore::InputEvent& e) {
     if (!simulation_->post(e))
       say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
+    else if (e.kind == simcore::InputKind::Jaw && e.on)
+      forgetSlip(tr("Grasped: drag to pull, release to let go."));
   });
   connect(simulation_, &SimulationPanel::wasReset, view_, &FrameView::endGesture);
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
   // the status bar with what it waits for (Reset mid-grasp left the organ still, the drag after it moving nothing, and
   // nothing said so).
   // (Reset always leaves the organ paused: SimulationPanel::reset.)
-  connect(simulation_, &SimulationPanel::wasReset, this, [this] {
-    sayBriefly(tr("Reset: the organ is back at rest, as the frame shows it, and waits: press on it with an instrument, "
-                  "or F5, to go on."));
+  connect(simulation_, &SimulationPanel::wasReset, this, [this, forgetSlip] {
+    const QString said = tr("Reset: the organ is back at rest, as the frame shows it, and waits: press on it with an "
+                            "instrument, or F5, to go on.");
+    sayBriefly(said);
+    forgetSlip(said);
   });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
