@@ -9,7 +9,7 @@
 // start_supported.csv and start_cli.csv into the directory given (default "."). With --pull only (issue 61's "a grasp and
 // a 20 mm pull give a force of a few newtons"): the supported organs grasped and pulled 20 mm, start_pull.csv
 // (REHEARSE_BENCH_ONLY="organ/picks" runs one case; REHEARSE_BENCH_DIAG=1 says the unconverged steps and the most
-// compressed element; REHEARSE_BENCH_GRASP_MM the grasp radius: 6, 10 and 14 mm crush the same element).
+// compressed element; REHEARSE_BENCH_GRASP_MM the grasp radius).
 //   bench_start [OUT_DIR] [--quick] [--cli] [--pull]   (--quick: the 3.8k meshes only; --cli: the command line's table)
 #include <sys/wait.h>
 

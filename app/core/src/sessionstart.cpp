@@ -19,7 +19,7 @@ namespace {
 // tool within one step meet (1 + beta / h) = 3 times the tissue's elastic stiffness, and a loss tangent omega beta =
 // 0.13 at 1 Hz. With 0.1 s the same jump met 11 times: a mouse drag of 2 mm jumps read 2.2-2.8 times the patient
 // liver's force at rest (bench_start --pull), and the grasp slipped at the scene's 15 N after a few pixels
-// (helper-52); at 0.02 s, 1.3-1.6 times. At a hand's 20 mm/s the viscous share is 2-3 % of the force.
+// (helper-52); at 0.02 s, 1.3-1.5 times. At a hand's 20 mm/s the viscous share is 2-3 % of the force.
 constexpr double kTissueDampingBeta = 0.02;  ///< s
 }  // namespace
 
