@@ -580,6 +580,68 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 10000));
   }
 
+  // Reset (Shift+F5) while the jaws pull the organ aside, then a press at once, before any frame after the Reset is
+  // shown: the jaws bite the organ at rest, where the window now shows it, not where the last frame before the Reset
+  // had it. (A person pressed within the slow step that ends before the Reset is taken, and the jaws "closed on
+  // nothing" where the tissue had been.) The press is where the two shapes lie farthest apart under one pixel.
+  void aPressAtOnceAfterResetBitesTheOrganAtRest() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    QVERIFY(startedAgain());
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    const std::vector<Eigen::Vector3d> rest = panel->lastFrame()->positions;
+    const auto& c = *w_->caseData();
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    const QPoint at = view->toWidget(QPointF(centre.x(), centre.y())).toPoint();
+    QTest::mouseMove(view, at);
+    QTest::mousePress(view, Qt::LeftButton, {}, at);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    QPoint last = at;
+    for (int i = 1; i <= 6; ++i) {
+      last = view->toWidget(QPointF(centre.x() + 5.0 * i, centre.y())).toPoint();
+      QTest::mouseMove(view, last);
+      QVERIFY(stepsOn(3));
+    }
+    QVERIFY(stepsOn(10));
+    QVERIFY2(!panel->lastFrame()->tool.held.empty(), qPrintable(w_->statusText()));  // held, not slipped
+    Eigen::AlignedBox2d box;
+    for (const auto& p : rest) box.extend(c.camera.project(p));
+    Eigen::Vector2d press = centre;
+    double apart = 0;
+    for (double y = box.min().y(); y <= box.max().y(); y += 3)
+      for (double x = box.min().x(); x <= box.max().x(); x += 3) {
+        const auto atRest = view->liveSurfaceAt({x, y}, ui::FrameView::SurfacePick::Node, &rest);
+        const auto shown = view->liveSurfaceAt({x, y});
+        if (atRest && shown && (*atRest - *shown).norm() > apart) apart = (*atRest - *shown).norm(), press = {x, y};
+      }
+    const auto restBite = view->liveSurfaceAt(press, ui::FrameView::SurfacePick::Node, &rest);
+    const auto staleBite = view->liveSurfaceAt(press);
+    QVERIFY(restBite && staleBite);
+    qInfo("pulled 30 px; pressed at (%.0f, %.0f) px, where the organ at rest and as last shown are %.1f mm apart",
+          press.x(), press.y(), 1e3 * apart);
+    QVERIFY(apart > 0.012);  // twice the jaws' 6 mm bite: a bite at the old place would hold other tissue or none
+    QTest::keyClick(w_.get(), Qt::Key_F5, Qt::ShiftModifier);  // Reset: nothing cut, so no question
+    QTest::mouseRelease(view, Qt::LeftButton, {}, last);
+    const QPoint q = view->toWidget(QPointF(press.x(), press.y())).toPoint();
+    QTest::mouseMove(view, q);
+    QTest::mousePress(view, Qt::LeftButton, {}, q);
+    QVERIFY2(waitFor([&] {
+               const auto f = panel->lastFrame();
+               return f->steps < 50 && (!f->tool.held.empty() || w_->statusText().contains("closed on nothing"));
+             }, 20000),
+             qPrintable(w_->statusText()));
+    const auto f = panel->lastFrame();
+    qInfo("after the Reset the jaws closed %.1f mm from the organ at rest's node under the press (%.1f mm from where "
+          "the last frame before it had it), holding %zu node(s)",
+          1e3 * (f->tool.jawTip - *restBite).norm(), 1e3 * (f->tool.jawTip - *staleBite).norm(), f->tool.held.size());
+    QVERIFY2(!f->tool.held.empty(), qPrintable(w_->statusText()));
+    QVERIFY((f->tool.jawTip - *restBite).norm() < 0.002);
+    QTest::mouseRelease(view, Qt::LeftButton, {}, q);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 10000));
+    panel->pause();
+  }
+
   void threeDViewEndsTheDrag() {
     QTest::keyClick(w_.get(), Qt::Key_R);
     QCOMPARE(w_->frameView()->tool(), ui::Tool::Grasp);

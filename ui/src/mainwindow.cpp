@@ -145,6 +145,15 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   // nothing said so).
   // (Reset always leaves the organ paused: SimulationPanel::reset.)
   connect(simulation_, &SimulationPanel::wasReset, this, [this, forgetSlip] {
+    // The organ is back at rest from now on: an instrument pressed at once bites it there (the case's shape), not where
+    // the last frame before the Reset showed it. Frames of steps taken before the Reset, still on their way (the step
+    // under way when Reset was pressed ends first: 0.2-0.4 s on a slow step), are not shown over it: they end at the
+    // Reset's own frame, at step 0 (showSimulationFrame). A person pressed within that time and the jaws "closed on
+    // nothing" where the tissue had been.
+    view_->setLiveShape({});
+    view_->setLiveSurface(nullptr);
+    view_->setProperty(kFramesBeforeReset, true);
+    view_->update();
     const QString said = tr("Reset: the organ is back at rest, as the frame shows it, and waits: press on it with an "
                             "instrument, or F5, to go on.");
     sayBriefly(said);

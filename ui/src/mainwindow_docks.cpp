@@ -277,6 +277,12 @@ void MainWindow::connectSimulation() {
 
 void MainWindow::showSimulationFrame() {
   const auto f = simulation_->lastFrame();
+  // After Reset, the frames of steps taken before it are not shown (the view holds the organ at rest); the Reset's own
+  // frame, at step 0, ends them (every frame published reaches here, in order).
+  if (f && view_->property(kFramesBeforeReset).toBool()) {
+    if (f->steps > 0) return;
+    view_->setProperty(kFramesBeforeReset, false);
+  }
   if (pages_.rehearse) pages_.rehearse->showFrame(f);
   // What happened in the rehearsal (a slip, a vessel cut, a refused edit) is kept in the Messages panel, once each
   // (a slip's sentence the page has just said in the status bar is there already: it was logged twice).

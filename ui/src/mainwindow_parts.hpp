@@ -7,4 +7,8 @@ namespace rehearse::ui {
 /// "3  Contour": a workflow step's number and title, as the workflow panel and the Step menu show it.
 QString stepName(int i);
 
+/// The frame view's property set from Reset until the Reset's own frame (step 0) is shown: the frames of steps taken
+/// before it, still on their way, are not drawn over the organ at rest (MainWindow::showSimulationFrame).
+inline constexpr const char* kFramesBeforeReset = "rehearse.framesBeforeReset";
+
 }  // namespace rehearse::ui
