@@ -13,9 +13,11 @@
 #include "rehearse/ui/simulationpanel.hpp"
 
 #include <rehearse/imaging/camera.hpp>
+#include <rehearse/imaging/contour.hpp>
 #include <rehearse/simcore/meshio.hpp>
 
 #include <QCheckBox>
+#include <QStatusBar>
 #include <QDoubleSpinBox>
 #include <QLabel>
 #include <QDragEnterEvent>
@@ -341,6 +343,52 @@ class TestWorkflow : public QObject {
     QVERIFY(w_->stepDone(ui::Step::Contour));
     QVERIFY(w_->contourDistance() >= 0);
     shot(*w_, "step3-contour");
+  }
+
+  // A freehand stroke that strays past the frame's top edge and comes back in (a person drawing round an organ the
+  // frame cuts): its two parts inside the frame are kept as two segments, ending on the edge, in one undo step, and said
+  // so; the contour stays one the fit takes. (The whole stroke was kept, and the fit then refused the contour: "Segment 1
+  // has points outside the image; redraw it inside the frame..", with two full stops.)
+  void aStrokePastTheFrameKeepsWhatIsInside() {
+    w_->setStep(ui::Step::Contour);
+    auto* view = w_->frameView();
+    view->setFocus();
+    QTest::keyClick(w_.get(), Qt::Key_F);
+    // Two notches of the wheel out: room round the frame to draw in.
+    QWheelEvent wheel(view->rect().center(), view->mapToGlobal(QPointF(view->rect().center())), QPoint(),
+                      QPoint(0, -240), Qt::NoButton, Qt::NoModifier, Qt::NoScrollPhase, false);
+    QApplication::sendEvent(view, &wheel);
+    QCOMPARE(view->tool(), ui::Tool::Freehand);
+    const std::size_t segments = w_->caseData()->contour.segments.size();
+    const int before = w_->undoStack()->index();
+    const double width = w_->caseData()->frame.cols, height = w_->caseData()->frame.rows;
+    std::vector<QPointF> pts;
+    for (int i = 0; i <= 40; ++i)  // from (300, 120) up to 60 px above the frame and down again to (700, 120)
+      pts.push_back(view->toWidget(QPointF(300 + 10.0 * i, 120 - 180 * std::sin(std::numbers::pi * i / 40))));
+    QTest::mousePress(view, Qt::LeftButton, {}, pts.front().toPoint());
+    for (const auto& p : pts) QTest::mouseMove(view, p.toPoint());
+    QTest::mouseRelease(view, Qt::LeftButton, {}, pts.back().toPoint());
+    const auto& c = w_->caseData()->contour;
+    QCOMPARE(c.segments.size(), segments + 2);
+    QCOMPARE(w_->undoStack()->index(), before + 1);
+    for (std::size_t k = segments; k < c.segments.size(); ++k) {
+      const auto& p = c.segments[k].points;
+      QVERIFY(p.size() >= 3);
+      for (const auto& q : p) QVERIFY(q.x() >= -0.5 && q.y() >= -0.5 && q.x() <= width - 0.5 && q.y() <= height - 0.5);
+      // Each part ends on the frame's top edge, where the stroke crossed it (at x = 300 + 400 * asin(2/3) / pi = 393
+      // going out, 607 coming back).
+      const Eigen::Vector2d edge = k == segments ? p.back() : p.front();
+      qInfo("part %zu: %zu points, from (%.1f, %.1f) to (%.1f, %.1f)", k - segments + 1, p.size(), p.front().x(),
+            p.front().y(), p.back().x(), p.back().y());
+      QCOMPARE(edge.y(), -0.5);
+      QVERIFY(std::abs(edge.x() - (k == segments ? 393.0 : 607.0)) < 12);
+    }
+    QVERIFY2(w_->statusBar()->currentMessage().contains("2 parts inside the frame"),
+             qPrintable(w_->statusBar()->currentMessage()));
+    QVERIFY2(imaging::contourProblem(c).empty(), imaging::contourProblem(c).c_str());
+    w_->undoStack()->undo();
+    QCOMPARE(w_->caseData()->contour.segments.size(), segments);
+    view->fitToWindow();
   }
 
   // Step 4: each gizmo handle changes the pose by the expected amount; a drag is one undo step.

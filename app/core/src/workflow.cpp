@@ -26,7 +26,11 @@ std::string missingFor(const Case& c, Step s) {
   if (index(s) > index(Step::Frame) && !stepDone(c, Step::Frame)) return "a frame with its camera (step 2)";
   // The appearance needs the organ placed over the frame, not the contour it was fitted to.
   if (s == Step::Appearance) return c.hasPose ? std::string() : "the organ placed over the frame (step 4)";
-  if (index(s) > index(Step::Contour) && !stepDone(c, Step::Contour)) return "a contour (step 3): " + imaging::contourProblem(c.contour);
+  if (index(s) > index(Step::Contour) && !stepDone(c, Step::Contour)) {
+    std::string why = imaging::contourProblem(c.contour);  // a sentence; here a phrase ("The fit needs %1.")
+    if (!why.empty() && why.back() == '.') why.pop_back();
+    return "a contour (step 3): " + why;
+  }
   if (index(s) > index(Step::Rigid) && !c.hasPose) return "a rigid alignment (step 4)";
   return {};
 }

@@ -14,6 +14,56 @@
 namespace rehearse::ui::tools {
 namespace {
 
+// The stroke's runs inside the frame ([-0.5, width - 0.5] x [-0.5, height - 0.5], pixel centres at integers), each
+// ended where it crosses the frame's edge (Liang-Barsky on each stretch). What lies outside is not the organ's outline:
+// where the organ reaches past the frame, the frame's edge cuts it, and a hand drawing round it strays there.
+std::vector<std::vector<Eigen::Vector2d>> insideTheFrame(const std::vector<Eigen::Vector2d>& stroke, double width,
+                                                         double height) {
+  const Eigen::Vector2d lo(-0.5, -0.5), hi(width - 0.5, height - 0.5);
+  auto onto = [&](const Eigen::Vector2d& p) -> Eigen::Vector2d { return p.cwiseMax(lo).cwiseMin(hi); };
+  auto inside = [&](const Eigen::Vector2d& p) { return (p.array() >= lo.array()).all() && (p.array() <= hi.array()).all(); };
+  std::vector<std::vector<Eigen::Vector2d>> runs;
+  std::vector<Eigen::Vector2d> run;
+  auto endRun = [&] {
+    if (run.size() >= 2) runs.push_back(run);
+    run.clear();
+  };
+  for (std::size_t i = 0; i < stroke.size(); ++i) {
+    if (i == 0) {
+      if (inside(stroke[0])) run.push_back(stroke[0]);
+      continue;
+    }
+    const Eigen::Vector2d a = stroke[i - 1], d = stroke[i] - stroke[i - 1];
+    double t0 = 0, t1 = 1;
+    bool crosses = true;
+    for (int k = 0; k < 2 && crosses; ++k) {
+      for (const auto& [q, bound] : {std::pair{-d[k], a[k] - lo[k]}, std::pair{d[k], hi[k] - a[k]}}) {
+        if (q == 0) {
+          if (bound < 0) crosses = false;  // parallel to this edge, outside it
+          continue;
+        }
+        const double t = bound / q;
+        if (q < 0) t0 = std::max(t0, t);
+        else t1 = std::min(t1, t);
+      }
+    }
+    if (!crosses || t0 > t1) {  // wholly outside
+      endRun();
+      continue;
+    }
+    if (t0 > 0) {  // enters the frame here
+      endRun();
+      run.push_back(onto(a + t0 * d));
+    } else if (run.empty()) {
+      run.push_back(onto(a));
+    }
+    run.push_back(onto(a + t1 * d));
+    if (t1 < 1) endRun();  // leaves it here
+  }
+  endRun();
+  return runs;
+}
+
 class DrawTool final : public FrameTool {
  public:
   DrawTool(FrameView& v, bool freehand) : FrameTool(v), freehand_(freehand) {}
@@ -50,8 +100,26 @@ class DrawTool final : public FrameTool {
   void finish() override {
     if (draft_.size() >= 2) {
       const auto& c = view_.caseData();
-      if (view_.toolSettings().snapToEdges && c && !c->frame.empty()) snapOnWorker(c->frame, draft_);
-      else addSegment(draft_, freehand_ ? QObject::tr("Draw segment") : QObject::tr("Add segment"));
+      // Only what lies inside the frame is kept, in as many pieces as the stroke had there (a person drew round an
+      // organ that reaches past the frame's edge: the whole stroke was kept, and the fit then refused the contour).
+      std::vector<std::vector<Eigen::Vector2d>> pieces{draft_};
+      if (c && !c->frame.empty()) pieces = insideTheFrame(draft_, c->frame.cols, c->frame.rows);
+      if (pieces.size() != 1 || pieces.front() != draft_) {
+        emit view_.toolMessage(
+            pieces.empty()
+                ? QObject::tr("The stroke lay outside the frame: nothing was drawn (the frame's edge is not the organ's "
+                              "outline).")
+            : pieces.size() == 1
+                ? QObject::tr("The stroke went past the frame's edge: only its part inside the frame was kept (the "
+                              "frame's edge is not the organ's outline).")
+                : QObject::tr("The stroke went past the frame's edge: its %1 parts inside the frame were kept as %1 "
+                              "segments (the frame's edge is not the organ's outline).")
+                      .arg(pieces.size()));
+      }
+      if (view_.toolSettings().snapToEdges && c && !c->frame.empty())
+        for (const auto& piece : pieces) snapOnWorker(c->frame, piece);
+      else if (!pieces.empty())
+        addSegments(pieces, freehand_ ? QObject::tr("Draw segment") : QObject::tr("Add segment"));
     }
     draft_.clear();
     drawing_ = false;
@@ -90,8 +158,14 @@ class DrawTool final : public FrameTool {
   };
 
   void addSegment(const std::vector<Eigen::Vector2d>& points, const QString& text, const std::string& type = {}) {
+    addSegments({points}, text, type);
+  }
+  // The pieces join the contour as one undo step.
+  void addSegments(const std::vector<std::vector<Eigen::Vector2d>>& pieces, const QString& text,
+                   const std::string& type = {}) {
     imaging::Contour c = view_.currentContour();
-    c.segments.push_back({points, false, type.empty() ? view_.toolSettings().newSegmentType : type, {}});
+    for (const auto& points : pieces)
+      c.segments.push_back({points, false, type.empty() ? view_.toolSettings().newSegmentType : type, {}});
     emit view_.contourEdited(c, text, -1);
   }
 
