@@ -9,6 +9,26 @@
 #include <limits>
 
 namespace rehearse::simcore::detail {
+namespace {
+// An element crushed below this share of its rest volume (or turned inside out) is a shape the organ cannot take: the
+// simulation's steps keep every element above it (Integrator's inversion floor), and the case refuses a flat one.
+constexpr double kCrushedVolume = 0.01;
+
+// The elements of shape x below kCrushedVolume of their rest volume.
+std::vector<int> crushedElements(const FemModel& model, const Eigen::VectorXd& x) {
+  std::vector<int> out;
+  for (std::size_t e = 0; e < model.tets.size(); ++e) {
+    const auto& t = model.tets[e];
+    auto at = [&](int k) { return x.segment<3>(3 * static_cast<Eigen::Index>(t[static_cast<std::size_t>(k)])); };
+    auto rest = [&](int k) { return model.rest[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])]; };
+    Eigen::Matrix3d now, was;
+    for (int k = 0; k < 3; ++k) now.col(k) = at(k + 1) - at(0), was.col(k) = rest(k + 1) - rest(0);
+    const double J = now.determinant() / was.determinant();
+    if (!(J >= kCrushedVolume)) out.push_back(static_cast<int>(e));
+  }
+  return out;
+}
+}  // namespace
 
 // The elastic stage's bindings for the shape x (the pose is res.pose): the contour onto the silhouette's vertices,
 // outliers beyond `outlierFloor` (as dropOutliers) and `cap` dropped, the curves' nodes onto their image curves.
@@ -71,8 +91,17 @@ void ContourRegistration::elasticStage(const RigidEnd& rigid) {
       o.rigidPrepass ? std::clamp(4 * rigidMean, 8.0, 0.02 * diag) : std::numeric_limits<double>::infinity();
   Eigen::VectorXd bestX = res.x;
   std::string failure;
+  // Nodes whose binding crushed the tissue: not bound again. A binding pulls one surface node onto its ray, whatever
+  // lies in the way; where the contour is not this organ's outline there (a hand's stroke off the organ, a fold), it
+  // pulled nodes through their neighbours: a person's contour on the patient liver, fitted without attachments, turned
+  // 2-3 elements inside out, or left 2 flat and the fit refused.
+  std::vector<char> unbound(model.nodeCount(), 0);
+  std::string crushedStop;
   for (int k = 0; k < o.maxIterations; ++k) {
-    const std::vector<Binding> bindings = elasticBindings(state.x, outlierFloor, cap);
+    std::vector<Binding> bindings = elasticBindings(state.x, outlierFloor, cap);
+    bindings.erase(std::remove_if(bindings.begin(), bindings.end(),
+                                  [&](const Binding& b) { return unbound[static_cast<std::size_t>(b.a)] != 0; }),
+                   bindings.end());
     if (bindings.size() < 3) {
       failure = "no part of the contour could be bound to the organ's silhouette (" +
                 std::to_string(bindings.size()) +
@@ -92,6 +121,39 @@ void ContourRegistration::elasticStage(const RigidEnd& rigid) {
       failure = "the elastic solve did not converge (" + rep.status + ")";
       break;
     }
+    if (const std::vector<int> crushed = crushedElements(model, state.x); !crushed.empty()) {
+      // The bound nodes of the crushed elements are let go, or failing any, those of the elements beside them; the
+      // iteration is taken again from where it started without them.
+      std::vector<char> near(model.nodeCount(), 0);
+      for (int e : crushed)
+        for (int n : model.tets[static_cast<std::size_t>(e)]) near[static_cast<std::size_t>(n)] = 1;
+      auto letGo = [&] {
+        int released = 0;
+        for (const auto& b : bindings)
+          if (near[static_cast<std::size_t>(b.a)] && !unbound[static_cast<std::size_t>(b.a)])
+            unbound[static_cast<std::size_t>(b.a)] = 1, ++released;
+        return released;
+      };
+      int released = letGo();
+      if (released == 0) {
+        std::vector<char> ring = near;
+        for (const auto& t : model.tets) {
+          bool touches = false;
+          for (int n : t) touches = touches || near[static_cast<std::size_t>(n)];
+          if (touches)
+            for (int n : t) ring[static_cast<std::size_t>(n)] = 1;
+        }
+        near = ring;
+        released = letGo();
+      }
+      state = before;
+      if (released == 0) {  // (not met in the cases measured) the best shape before it stands, said so
+        crushedStop = "; it stopped where it crushed " + std::to_string(crushed.size()) +
+                      " element(s) with no binding beside them to let go";
+        break;
+      }
+      continue;
+    }
     res.x = state.x;
     const auto ri = record(++current.iteration, "elastic", bindings.size());
     stalled = ri.score() < bestMean - o.tolerance ? 0 : stalled + 1;
@@ -110,6 +172,9 @@ void ContourRegistration::elasticStage(const RigidEnd& rigid) {
   }
   res.x = bestX;
   elasticStatus(rigid, bestMean, failure);
+  if (const auto let = std::count(unbound.begin(), unbound.end(), 1); let > 0)
+    res.status += "; " + std::to_string(let) + " silhouette node(s) left free where binding them crushed the tissue";
+  res.status += crushedStop;
 }
 
 // The elastic stage's outcome: cancelled, no better than the rigid start (which is kept), failed, or its best.
