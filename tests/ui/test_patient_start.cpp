@@ -120,12 +120,13 @@ class TestPatientStart : public QObject {
   }
 
   // F9 on the elastic step, until the case has a fit of its current attachments.
-  void fit() {
+  void fit(QString* said = nullptr) {
     QTest::keyClick(w_.get(), Qt::Key_5, Qt::AltModifier);
     QCOMPARE(w_->step(), ui::Step::Elastic);
     QSignalSpy finished(w_->fitPage(), &ui::FitPage::fitFinished);
     QTest::keyClick(w_.get(), Qt::Key_F9);
     QVERIFY(finished.wait(300000));
+    if (said) *said = finished.first().at(1).toString();
     qInfo("  fit (%zu held nodes): %s", w_->caseData()->attachments.size(),
           qPrintable(finished.first().at(1).toString()));
     QVERIFY2(finished.first().at(0).toBool(), qPrintable(finished.first().at(1).toString()));
@@ -453,7 +454,8 @@ class TestPatientStart : public QObject {
   // 1.1 x 0.92), drawn freehand in two pieces, F9 with no node held. The fit is kept and crushes no element: none of
   // the fitted shape's elements, their volumes computed here from its nodes, is below 1 % of its rest volume (the
   // simulation's floor) or inside out. Before, the fit's bindings pulled surface nodes through their neighbours: 2
-  // elements inside out in this case, and in a person's case under Xvfb 2 flat ones, so the fit was refused.
+  // elements inside out in this case, and in a person's case under Xvfb 2 flat ones, so the fit was refused. Then step 7
+  // as for the assistants' picks above: it starts within 1 px, stays within 1 px over 10 s, and a grasp pulls it 20 mm.
   void aPersonsContourWithoutAttachmentsCrushesNothing() {
     REQUIRE_SHARED("scikit-surgery/laparoscopy-liver-frame.jpg");
     REQUIRE_SHARED("scikit-surgery/patient-liver/liver.vtk");
@@ -480,14 +482,9 @@ class TestPatientStart : public QObject {
       drawInTwoPieces(borders.front());
       if (QTest::currentTestFailed()) return;
     }
-    QTest::keyClick(w_.get(), Qt::Key_5, Qt::AltModifier);
-    QSignalSpy finished(w_->fitPage(), &ui::FitPage::fitFinished);
-    QTest::keyClick(w_.get(), Qt::Key_F9);
-    QVERIFY(finished.wait(300000));
-    const QString said = finished.first().at(1).toString();
-    qInfo("fit without attachments: %s", qPrintable(said));
-    QVERIFY2(finished.first().at(0).toBool(), qPrintable(said));
-    QVERIFY(w_->caseData()->hasFit());
+    QString said;
+    fit(&said);  // F9 (and F10)
+    if (QTest::currentTestFailed()) return;
     const auto k = w_->caseData();
     const auto shape = k->shapeNodes();
     const auto& rest = k->organ->volume.points;
@@ -508,6 +505,7 @@ class TestPatientStart : public QObject {
           smallest, below);
     QCOMPARE(below, 0);
     QVERIFY2(!said.contains("inside out") && !said.contains("flat"), qPrintable(said));
+    rehearse("a person's contour, none");  // step 7 starts there, stays, and a grasp pulls it 20 mm
   }
 
   void cleanupTestCase() {
