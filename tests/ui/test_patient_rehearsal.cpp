@@ -80,16 +80,9 @@ struct PatientRehearsal {
   void importTheLiver() {
     // Import, frame and intrinsics through the pages, as an assistant does.
     {
-      const QString why = openFrameWithIntrinsics(*w_, sharedData("scikit-surgery/laparoscopy-liver-frame.jpg"),
-                                                  sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt"));
+      const QString why = importPatientLiverOverItsFrame(*w_);
       QVERIFY2(why.isEmpty(), qPrintable(why));
     }
-    w_->meshPage()->setMeshUnit("mm");
-    w_->meshPage()->setTargetTets(3600);
-    QSignalSpy imported(w_.get(), &MainWindow::meshImported);
-    w_->meshPage()->importMesh(QString::fromStdString(sharedData("scikit-surgery/patient-liver/liver.vtk")));
-    QVERIFY(imported.wait(180000));
-    QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
     // Drawn through its own surface (20,000 triangles), carried by the tetrahedra (issue 35).
     {
       const auto& organ = *w_->caseData()->organ;

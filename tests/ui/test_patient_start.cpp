@@ -81,17 +81,8 @@ class TestPatientStart : public QObject {
   // The scikit-surgery frame with its intrinsics, and the patient liver imported over it (meshed to about 3,600
   // elements), its placement accepted; the frame view focused.
   void importPatientLiver() {
-    {
-      const QString why = openFrameWithIntrinsics(*w_, sharedData("scikit-surgery/laparoscopy-liver-frame.jpg"),
-                                                  sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt"));
-      QVERIFY2(why.isEmpty(), qPrintable(why));
-    }
-    w_->meshPage()->setMeshUnit("mm");
-    w_->meshPage()->setTargetTets(3600);
-    QSignalSpy imported(w_.get(), &MainWindow::meshImported);
-    w_->meshPage()->importMesh(QString::fromStdString(sharedData("scikit-surgery/patient-liver/liver.vtk")));
-    QVERIFY(imported.wait(180000));
-    QVERIFY2(imported.first().at(0).toBool(), qPrintable(imported.first().at(1).toString()));
+    const QString why = importPatientLiverOverItsFrame(*w_);
+    QVERIFY2(why.isEmpty(), qPrintable(why));
     w_->editCase("Accept the import's placement (test)", [](app::Case& c) { c.hasPose = c.poseAligned = true; });
     w_->frameView()->setFocus();
   }
