@@ -2,8 +2,10 @@
 // The GUI suites' shared hand: the real main window opened on the built-in phantom case as the application shows it
 // (dark theme, 1600x900, active for keyboard shortcuts), a screenshot for the README, a drag as a hand makes it.
 #include "fresh_start.hpp"
-#include "test_support.hpp"
 #include "rehearse/ui/pages/meshpage.hpp"
+#ifdef REHEARSE_SHARED_DATA
+#include "test_support.hpp"
+#endif
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
@@ -258,6 +260,7 @@ inline void wheelDeeper(QWidget* target, QPoint at, int notches) {
   w.framePage()->loadCalibration(QString::fromStdString(intrinsics));
   return {};
 }
+#ifdef REHEARSE_SHARED_DATA  // (the suites that read ../shared/data)
 // The scikit-surgery frame with its intrinsics, and the patient liver imported over it through step 1's page
 // (millimetres, meshed to about `tets` elements), as an assistant does; empty when all went in, else why not.
 [[nodiscard]] inline QString importPatientLiverOverItsFrame(rehearse::ui::MainWindow& w, int tets = 3600) {
@@ -272,6 +275,7 @@ inline void wheelDeeper(QWidget* target, QPoint at, int notches) {
   if (!imported.wait(180000)) return QStringLiteral("the import did not finish within 180 s");
   return imported.first().at(0).toBool() ? QString() : imported.first().at(1).toString();
 }
+#endif
 // Types `text` into a spin box as a user does (all selected, the digits, then `end`: Return, or Tab to leave it).
 inline void typeInto(QAbstractSpinBox* box, const QString& text, Qt::Key end = Qt::Key_Return) {
   box->selectAll();
