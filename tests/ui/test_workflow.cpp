@@ -383,7 +383,7 @@ class TestWorkflow : public QObject {
       QCOMPARE(edge.y(), -0.5);
       QVERIFY(std::abs(edge.x() - (k == segments ? 393.0 : 607.0)) < 12);
     }
-    QVERIFY2(w_->statusBar()->currentMessage().contains("2 parts inside the frame"),
+    QVERIFY2(w_->statusBar()->currentMessage().contains("2 parts inside kept as segments"),
              qPrintable(w_->statusBar()->currentMessage()));
     QVERIFY2(imaging::contourProblem(c).empty(), imaging::contourProblem(c).c_str());
     w_->undoStack()->undo();

@@ -106,15 +106,11 @@ class DrawTool final : public FrameTool {
       if (c && !c->frame.empty()) pieces = insideTheFrame(draft_, c->frame.cols, c->frame.rows);
       if (pieces.size() != 1 || pieces.front() != draft_) {
         emit view_.toolMessage(
-            pieces.empty()
-                ? QObject::tr("The stroke lay outside the frame: nothing was drawn (the frame's edge is not the organ's "
-                              "outline).")
-            : pieces.size() == 1
-                ? QObject::tr("The stroke went past the frame's edge: only its part inside the frame was kept (the "
-                              "frame's edge is not the organ's outline).")
-                : QObject::tr("The stroke went past the frame's edge: its %1 parts inside the frame were kept as %1 "
-                              "segments (the frame's edge is not the organ's outline).")
-                      .arg(pieces.size()));
+            // (Short: the status bar's line is narrow. The frame's edge is not the organ's outline.)
+            pieces.empty()       ? QObject::tr("Stroke outside the frame: nothing drawn.")
+            : pieces.size() == 1 ? QObject::tr("Stroke past the frame's edge: the part inside kept.")
+                                 : QObject::tr("Stroke past the frame's edge: %1 parts inside kept as segments.")
+                                       .arg(pieces.size()));
       }
       if (view_.toolSettings().snapToEdges && c && !c->frame.empty())
         for (const auto& piece : pieces) snapOnWorker(c->frame, piece);
