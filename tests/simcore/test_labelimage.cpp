@@ -512,6 +512,16 @@ class TestLabelImage : public QObject {
       checkOneSentence(why, "CompressedDataSize");
       QVERIFY2(why.find("header is damaged") != std::string::npos, (value + ": " + why).c_str());
     }
+    // MetaIO ends a field's name at a carriage return or a ':' as at '=', and takes the value after the next '=' or
+    // ':' (the fuzzer's: "CompressedDataSize \r~= 1e30" asked for 2^63 bytes): the header is refused as damaged.
+    for (const std::string& line : {std::string("CompressedDataSize \r~= 1e30"), std::string("CompressedDataSize\n= 1e30"),
+                                    std::string("CompressedDataSize : 1e30")}) {
+      std::string b = bytes;
+      b.replace(field, valueEnd - field, line);
+      writeFile(tempPath("separator.mha"), b);
+      const std::string why = errorOf([] { readLabelImage(tempPath("separator.mha")); });
+      checkOneSentence(why, "header is damaged");
+    }
     QCOMPARE(readLabelImage(tempPath("intact.mha")).labels, smallImage().labels);
   }
   void hostileNifti() {

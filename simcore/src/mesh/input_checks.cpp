@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <limits>
 #include <map>
+#include <set>
 #include <vector>
 
 namespace rehearse::simcore::checks {
@@ -356,7 +357,20 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
   while (pos < 65536) {
     const std::size_t lineStart = pos;
     if (!nextLine(bytes, pos, line)) break;
-    const std::size_t eq = line.find('=');
+    // MetaIO ends a name at '=' or ':' or at a line end, '\r' included, and then takes the value after the next '=' or
+    // ':' wherever it comes (found by fuzzing: "CompressedDataSize \r~= 1e30" was CompressedDataSize = 1e30 to it, a
+    // field of another name here, and it asked for 2^63 bytes). A header's lines are "Name = value": a line that is
+    // not, or a name cut by a carriage return, is damage.
+    const std::size_t eq = line.find_first_of("=:");
+    {
+      const std::string_view head = line.substr(0, eq == std::string_view::npos ? line.size() : eq);
+      const std::string_view cut = trim(head.substr(0, head.find('\r')));
+      static const std::set<std::string_view> checked = {
+          "NDims",          "DimSize",         "ElementType",        "ElementDataFile", "CompressedData",
+          "CompressedDataSize", "HeaderSize",  "ElementSpacing",     "ElementSize",     "ElementNumberOfChannels"};
+      if (checked.count(cut) && (eq == std::string_view::npos || cut.size() != trim(head).size()))
+        return "its field " + std::string(cut) + " has no '=' on its line (its value would be read from further on)";
+    }
     if (eq == std::string_view::npos) continue;
     if (const std::size_t nameBytes = lineStart + eq - keyStart; nameBytes > 200)
       return "a field name of " + num(static_cast<double>(nameBytes)) +
@@ -370,7 +384,9 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
     // MetaIO takes a field given twice as it comes (found by fuzzing: "NDims = 1.6e18" before a later "NDims = 3",
     // which was all this check saw; MetaIO read values for minutes): a header says each once.
     if (fields.count(key)) return "its field '" + key.substr(0, 40) + "' is given twice";
-    fields[key] = std::string(trim(line.substr(eq + 1)));
+    std::string_view value = line.substr(eq);  // after the separators and blanks, as MetaIO's value
+    value.remove_prefix(std::min(value.size(), value.find_first_not_of("=: \t")));
+    fields[key] = std::string(trim(value));
     if (key == "ElementDataFile") {
       sawData = true;
       break;
