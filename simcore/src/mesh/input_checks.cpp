@@ -359,8 +359,8 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
     if (!nextLine(bytes, pos, line)) break;
     // MetaIO ends a name at '=' or ':' or at a line end, '\r' included, and then takes the value after the next '=' or
     // ':' wherever it comes (found by fuzzing: "CompressedDataSize \r~= 1e30" was CompressedDataSize = 1e30 to it, a
-    // field of another name here, and it asked for 2^63 bytes). A header's lines are "Name = value": a line that is
-    // not, or a name cut by a carriage return, is damage.
+    // field of another name here, and it asked for 2^63 bytes). A field checked below whose name ends at a carriage
+    // return or at its line's end is damage; other lines without '=' are passed over, as before.
     const std::size_t eq = line.find_first_of("=:");
     {
       const std::string_view head = line.substr(0, eq == std::string_view::npos ? line.size() : eq);
