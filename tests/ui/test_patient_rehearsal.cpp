@@ -45,6 +45,18 @@ using namespace rehearse;
 using ui::MainWindow;
 
 namespace {
+// The window's widest width while it lives (a status line's long sentence widened it from 1600 to 1833 px while the
+// appearance was estimated; under load it had not yet, and the same drag pulled the tissue 9.7 mm instead of 7.2).
+struct WidthWatch : QObject {
+  explicit WidthWatch(QWidget* w) : watched(w), widest(w->width()) { w->installEventFilter(this); }
+  bool eventFilter(QObject* o, QEvent* e) override {
+    if (o == watched && e->type() == QEvent::Resize) widest = std::max(widest, watched->width());
+    return false;
+  }
+  QWidget* watched;
+  int widest;
+};
+
 // patientLiverOverTheRealFrame, one method per phase of the scenario (what a phase makes, the later ones use). A
 // failed QVERIFY returns from its phase: the test checks QTest::currentTestFailed() after each.
 struct PatientRehearsal {
@@ -75,6 +87,25 @@ struct PatientRehearsal {
     const auto& c = *kept;
     return f && f->organ && f->organ->hasFit() && f->organ->shapeDigest() == c.shapeDigest() &&
            f->organ->pose.t == c.pose.t && f->positions.size() == c.organ->volume.points.size();
+  }
+
+  // Waits until the tissue has come to rest (no node moved 0.01 mm in 50 steps, at most 3000 steps): what a pull or a
+  // stroke leaves is looked at in its equilibrium, not after a count of steps (which a loaded machine overshoots: the
+  // pull's bitten node read 7.22 mm 30 steps after the drag on an idle machine, 9.65 mm with the suite's core shared
+  // four ways). Returns the steps it took; the last 50 steps' largest motion (m) in `moved`.
+  long comeToRest(double& moved) {
+    const long from = panel->lastFrame()->steps;
+    moved = 1e9;
+    while (moved > 1e-5 && panel->lastFrame()->steps < from + 3000) {
+      const auto before = panel->lastFrame();
+      if (!waitFor([&] { return panel->lastFrame()->steps >= before->steps + 50; }, 60000)) return -1;
+      const auto after = panel->lastFrame();
+      if (after->positions.size() != before->positions.size()) continue;  // a cut came in meanwhile
+      moved = 0;
+      for (std::size_t i = 0; i < after->positions.size(); ++i)
+        moved = std::max(moved, (after->positions[i] - before->positions[i]).norm());
+    }
+    return panel->lastFrame()->steps - from;
   }
 
   void importTheLiver() {
@@ -290,7 +321,13 @@ struct PatientRehearsal {
       }
     }
     a = view->toWidget(QPointF(centre.x(), centre.y()));
-    b = a + QPointF(0, -12);
+    // 25 px of the frame up (7 mm at the bite's depth), whatever the view's scale: the stroke below is placed in the
+    // frame's pixels too. (Once 12 px of the view: 24.9 px of the frame in a window a status line had widened to 1833
+    // px, 33.3 px in one of 1600.)
+    b = view->toWidget(QPointF(centre.x(), centre.y() - 25));
+    QCOMPARE(w_->width(), 1600);  // nothing said so far made the window wider
+    qInfo("the pull: %.1f px of the view, 25 px of the frame; the view %dx%d, the window %dx%d", (b - a).manhattanLength(),
+          view->width(), view->height(), w_->width(), w_->height());
     QTest::mousePress(view, Qt::LeftButton, {}, a.toPoint());
     const bool bit = waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 30000);
     QVERIFY2(bit, qPrintable(QStringLiteral("pressed at (%1, %2) px of the frame").arg(centre.x()).arg(centre.y())));
@@ -302,8 +339,10 @@ struct PatientRehearsal {
       QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= at + 4; }, 60000));
     }
     {
-      const long at = panel->lastFrame()->steps;
-      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= at + 30; }, 60000));
+      double still = 0;
+      const long took = comeToRest(still);
+      qInfo("the tissue came to rest %ld steps after the pull (%.4f mm in the last 50 steps)", took, 1e3 * still);
+      QVERIFY2(took >= 0 && still <= 1e-5, qPrintable(QString::number(1e3 * still)));
     }
     QVERIFY2(!panel->lastFrame()->tool.held.empty(), qPrintable(panel->lastFrame()->message));
     const double moved =
@@ -365,21 +404,32 @@ struct PatientRehearsal {
     // elements (about 1 cm) before it cuts. The jaws hold one node, so the traction opens the incision a little.
     const QPointF strokeFrom = view->toWidget(QPointF(centre.x() + 90, centre.y() - 16)),
                   strokeTo = view->toWidget(QPointF(centre.x() - 90, centre.y() - 16));
+    SessionHeard heard(panel, 2000);  // every frame's sentence and events, none missed between the waits
     QTest::mousePress(view, Qt::LeftButton, {}, strokeFrom.toPoint());
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 30000));
-    QStringList said;  // what the session said during the stroke (each sentence once)
     for (int i = 1; i <= 20; ++i) {
       QTest::mouseMove(view, (strokeFrom + (strokeTo - strokeFrom) * (i / 20.0)).toPoint());
       const long at = panel->lastFrame()->steps;
       QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= at + 3; }, 60000));
-      if (const QString m = panel->lastFrame()->message; !m.isEmpty() && !said.contains(m)) said << m;
     }
     QTest::mouseRelease(view, Qt::LeftButton, {}, strokeTo.toPoint());
-    QVERIFY2(waitFor([&] { return panel->lastFrame()->surface && panel->lastFrame()->surface->cutCount > 0; }, 120000),
-             qPrintable(said.join(" | ") + " | " + panel->lastFrame()->message));
+    // The stroke's sentence is said once all of it is in: the cut the blade made while an earlier cut's body was being
+    // built comes in after that one (when depends on the machine's load; CI once looked 40 steps after the first cut
+    // came in and saw 8 cut faces of the stroke's 12).
+    const auto said = [&] { return heard.lines.join(" | "); };
+    QVERIFY2(waitFor([&] { return said().contains("The cut is done") || said().contains("Nothing was cut"); }, 180000),
+             qPrintable(said()));
+    QVERIFY2(!said().contains("Nothing was cut") && panel->lastFrame()->surface &&
+                 panel->lastFrame()->surface->cutCount > 0,
+             qPrintable(said()));
+    for (const QString& line : heard.lines)
+      if (line.contains("The cut is done")) qInfo("the stroke: %s", qPrintable(line));
     {
-      const long at = panel->lastFrame()->steps;
-      QVERIFY(waitFor([&] { return panel->lastFrame()->steps >= at + 40; }, 60000));
+      double moved = 0;
+      const long took = comeToRest(moved);
+      qInfo("the tissue came to rest %ld steps after the stroke's sentence (%.4f mm in the last 50 steps)", took,
+            1e3 * moved);
+      QVERIFY2(took >= 0 && moved <= 1e-5, qPrintable(QString::number(1e3 * moved)));
     }
     QVERIFY(panel->lastFrame()->tool.jawClosed && !panel->lastFrame()->tool.held.empty());
     panel->pause();
@@ -480,12 +530,14 @@ struct PatientRehearsal {
 class TestPatientRehearsal : public QObject {
   Q_OBJECT
   std::unique_ptr<MainWindow> w_;
+  std::unique_ptr<WidthWatch> widths;
 
  private slots:
   void initTestCase() {
     QCoreApplication::setOrganizationName("RehearsePatientRehearsalTest");
     MainWindow::setRenderer(MainWindow::Renderer::Software);
     QVERIFY(openPhantomCase(w_));
+    widths = std::make_unique<WidthWatch>(w_.get());
   }
 
   void patientLiverOverTheRealFrame() {
@@ -511,6 +563,10 @@ class TestPatientRehearsal : public QObject {
     s.cutWhileHolding();
     if (QTest::currentTestFailed()) return;
     s.nothingHeld();
+    if (QTest::currentTestFailed()) return;
+    // Nothing the window said made it wider than the person made it.
+    qInfo("the window: %d px wide, at most %d px", w_->width(), widths->widest);
+    QCOMPARE(widths->widest, 1600);
   }
 
   void cleanupTestCase() {

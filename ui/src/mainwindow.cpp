@@ -409,15 +409,18 @@ void MainWindow::refreshOverlay() {
   if (view_->secondFrameShown()) {
     // (the first frame's distance does not describe the second frame's outline: no organ is placed there yet)
     status_.distance->setText(tr("Second frame: the fit places the organ in it"));
+    status_.distance->setToolTip(status_.distance->text());
   } else if (picture_.meanDistance >= 0) {
     const QString text = tr("Contour to silhouette: mean %1 px, RMS %2 px, max %3 px")
                              .arg(picture_.meanDistance, 0, 'f', 1)
                              .arg(picture_.rmsDistance, 0, 'f', 1)
                              .arg(picture_.maxDistance, 0, 'f', 1);
     status_.distance->setText(text);
+    status_.distance->setToolTip(text);
     pages_.rigid->setDistanceText(text);
   } else {
     status_.distance->clear();
+    status_.distance->setToolTip({});
     // Why there is no distance, as the case has it (a two-segment contour is not "no contour").
     const bool anyContour = c && !c->contour.segments.empty();
     const bool silhouette = c && !imaging::silhouetteSegments(c->contour).empty();
@@ -668,6 +671,7 @@ void MainWindow::showProgress(double fraction, const QString& stage) {
   const qint64 seconds = status_.clock.isValid() ? status_.clock.elapsed() / 1000 : 0;
   status_.stage->setText(status_.stageText.isEmpty() ? tr("%1 s").arg(seconds)
                                                      : tr("%1 · %2 s").arg(status_.stageText).arg(seconds));
+  status_.stage->setToolTip(status_.stage->text());
 }
 
 void MainWindow::openCase(const QString& path) {
