@@ -238,11 +238,12 @@ class TestPatientStart : public QObject {
     QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 30000));
     qInfo("  %s: grasped node %d (%zu held by the jaws: %s)", picks, bite, panel->lastFrame()->tool.held.size(),
           qPrintable(panel->lastFrame()->message));
-    double peak = 0;
+    double peak = 0, held = 0;  // N: the largest grasp force; the last one while the jaws held (before a slip)
     QStringList said, trace;
     const auto forces = connect(panel, &ui::SimulationPanel::frameShown, this, [&] {
       const auto f = panel->lastFrame();
       peak = std::max(peak, f->tool.graspForce.norm());
+      if (!f->tool.held.empty()) held = f->tool.graspForce.norm();
       if (trace.size() < 12)
         trace << QStringLiteral("%1:%2n/%3N/%4mm")
                      .arg(f->steps)
@@ -289,7 +290,18 @@ class TestPatientStart : public QObject {
       if (said[i].contains(QStringLiteral("slipped out of the grasper at"))) slipAt = i;
     if (slipAt >= 0) {
       const QRegularExpressionMatch m = QRegularExpression("at ([0-9.]+) N").match(said[slipAt]);
-      QVERIFY2(m.hasMatch() && m.captured(1).toDouble() <= 16.5, qPrintable(said[slipAt]));
+      // The jaws are held back where the force, to first order, reaches the limit (Session::limitJawsAtGraspForce):
+      // what that first order misses of the slip step's own change is the overshoot, a fraction of the change. A
+      // 2 mm jump on this pinned tissue takes the force from 8.8 N to 15.7-16.9 N in one step (which, depends on how
+      // far the tissue settled between the jumps, the machine's timing): 10-24 % of the step's change past the limit.
+      // (The slip at 16.5 N or less this test once asked for held only while a status line had widened the window,
+      // the mouse's jumps finer in the frame's pixels.)
+      const double at = m.hasMatch() ? m.captured(1).toDouble() : 1e9,
+                   limit = panel->session()->setup().tools.maxGraspForce;
+      qInfo("  %s: %.2f N on the last step the jaws held, %.1f N at the slip: %.0f %% of the step's change past the "
+            "limit",
+            picks, held, at, 100 * (at - limit) / std::max(1e-9, at - held));
+      QVERIFY2(at < 2 * limit && at - limit <= 0.35 * (at - held), qPrintable(said[slipAt]));
     } else {
       QVERIFY2(peak > 0.05 && peak < 15.5, qPrintable(trace.join(' ')));
     }
