@@ -159,6 +159,17 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     sayBriefly(said);
     forgetSlip(said);
   });
+  // Another organ (a mesh imported, the organ moved, other attachments): the old session's organ, its cut, blood,
+  // clips and warnings leave the frame view at once. (A helper imported the patient liver over the phantom's rehearsal:
+  // the phantom's bleeding stayed drawn over the real frame, no session of the new organ to replace it.)
+  connect(simulation_, &SimulationPanel::sessionReplaced, this, [this] {
+    view_->setLiveShape({});
+    view_->setLiveSurface(nullptr);
+    view_->setLiveField({}, Eigen::Vector3d::Zero(), nullptr, nullptr);
+    view_->setWarning({}, {});
+    view_->setLiveJaws(false);
+    view_->update();
+  });
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
     doc_->edit(text, [&](app::Case& k) { k.attachments = nodes; });

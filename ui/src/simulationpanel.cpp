@@ -261,6 +261,7 @@ void SimulationPanel::setCase(std::shared_ptr<const app::Case> c) {
   // new organ starts paused.
   const bool playOn = sameOrgan && playing_;
   playing_ = false;
+  if (!sameOrgan) emit sessionReplaced();
   startSession(setup());
   if (playOn) play();
   updateButtons();

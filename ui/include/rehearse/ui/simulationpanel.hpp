@@ -111,6 +111,9 @@ class SimulationPanel : public QWidget {
   void statusChanged(const QString& text);
   /// The simulation went back to rest (Reset): what the instruments were doing is over.
   void wasReset();
+  /// The case's organ changed (another mesh, shape, place or attachments): its session was replaced by a new one at
+  /// rest (or none, while the organ has no place over the frame); what the old one drew is gone.
+  void sessionReplaced();
   /// The user edited the material (fields or preset): the window makes it an undoable edit of the case.
   void materialEdited(const rehearse::app::MaterialSettings& material);
   void frameShown(long steps);
