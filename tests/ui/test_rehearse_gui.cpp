@@ -576,8 +576,19 @@ class TestRehearseGui : public QObject {
     QVERIFY2(grasp(), qPrintable(w_->statusBar()->currentMessage() + " | " + w_->messageLog().join(" | ")));
     QVERIFY2(!w_->statusText().contains(slipped), qPrintable(w_->statusText()));
     QVERIFY2(w_->statusText().contains("Grasped"), qPrintable(w_->statusText()));
+    QVERIFY2(pullUntilItSlips(), qPrintable(w_->statusText() + " | " + w_->messageLog().join(" | ")));
+    // ... and so does another instrument taken to the tissue (a helper read the slip's sentence 30 s after a clip):
+    // the scissors pressed on the organ.
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
+    QTest::mouseMove(view, at);
+    QTest::mousePress(view, Qt::LeftButton, {}, at);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.cutting; }, 20000));
+    QVERIFY2(!w_->statusText().contains(slipped), qPrintable(w_->statusText()));
     QTest::mouseRelease(view, Qt::LeftButton, {}, at);
-    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 10000));
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.cutting; }, 20000));
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
   }
 
   // Reset (Shift+F5) while the jaws pull the organ aside, then a press at once, before any frame after the Reset is

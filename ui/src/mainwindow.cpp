@@ -138,6 +138,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
     else if (e.kind == simcore::InputKind::Jaw && e.on)
       forgetSlip(tr("Grasped: drag to pull, release to let go."));
+    // Another instrument at work ends the slip's news too (a helper read "The tissue slipped out of..." 30 s after
+    // placing a clip).
+    else if ((e.kind == simcore::InputKind::Cut || e.kind == simcore::InputKind::Energy) && e.on)
+      forgetSlip(QString());
+    else if (e.kind == simcore::InputKind::Clip)
+      forgetSlip(QString());
   });
   connect(simulation_, &SimulationPanel::wasReset, view_, &FrameView::endGesture);
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
