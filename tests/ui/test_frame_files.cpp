@@ -388,6 +388,34 @@ class TestFrameFiles : public QObject {
     QVERIFY2(opened.first().at(0).toBool(), qPrintable(opened.first().at(1).toString()));
     QCOMPARE(w_->caseData()->frame.cols, 1920);
     QCOMPARE(w_->caseData()->frame.rows, 1080);
+    // Its calibration beside it, under its name, came with it (the numbers as that file writes them), and it is said.
+    qInfo("opened: %s", qPrintable(w_->statusText()));
+    QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);
+    QCOMPARE(w_->caseData()->camera.fy(), 2017.966019);
+    QVERIFY2(w_->statusText().contains("laparoscopy-liver-frame.intrinsics.txt"), qPrintable(w_->statusText()));
+    {
+      // The same frame alone in a folder: the default camera, said to be a guess (fx = fy = 0.8 of the width).
+      const QString alone = QString::fromStdString(tempPath("alone.jpg"));
+      QFile::remove(alone);
+      QVERIFY(QFile::copy(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")), alone));
+      QSignalSpy again(w_.get(), &MainWindow::frameSourceOpened);
+      w_->framePage()->openFrameSource(alone);
+      QVERIFY(again.count() == 1 || again.wait(60000));
+      QVERIFY2(again.first().at(0).toBool(), qPrintable(again.first().at(1).toString()));
+      qInfo("opened alone: %s", qPrintable(w_->statusText()));
+      // (The camera is kept when the size matches: the calibration loaded above stays.)
+      QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);
+      w_->undoStack()->undo();
+      w_->undoStack()->undo();  // the calibration found beside the first frame
+      QCOMPARE(w_->caseData()->camera.fx(), 0.8 * 1920);
+      QSignalSpy third(w_.get(), &MainWindow::frameSourceOpened);
+      w_->framePage()->openFrameSource(alone);
+      QVERIFY(third.count() == 1 || third.wait(60000));
+      qInfo("opened alone over the guessed camera: %s", qPrintable(w_->statusText()));
+      QCOMPARE(w_->caseData()->camera.fx(), 0.8 * 1920);
+      QVERIFY2(w_->statusText().contains("default guessed from the image size"), qPrintable(w_->statusText()));
+      w_->undoStack()->undo();
+    }
     w_->framePage()->loadCalibration(
         QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));
     QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);

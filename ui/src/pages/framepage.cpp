@@ -176,6 +176,21 @@ QString unreadableImage(const QString& path) {
   if (info.size() == 0) return FramePage::tr("%1 is empty (0 bytes); copy the whole file again.").arg(info.fileName());
   return FramePage::tr("%1 is not a readable image; use PNG, JPEG, BMP or TIFF.").arg(info.fileName());
 }
+// The camera a frame of this size gets when nothing says better (Camera::defaultFor): a guess, said as one.
+bool guessedCamera(const imaging::Camera& c) {
+  const imaging::Camera d = imaging::Camera::defaultFor(c.width, c.height);
+  return c.K == d.K && c.distortion == d.distortion;
+}
+
+// A calibration written beside the frame under its name ("frame.intrinsics.txt", "frame.yaml", ...), if any.
+QString calibrationBeside(const QString& framePath) {
+  const QFileInfo f(framePath);
+  for (const char* ext : {".intrinsics.txt", ".calibration.yaml", ".calibration.yml", ".yaml", ".yml"}) {
+    const QFileInfo c(f.dir().filePath(f.completeBaseName() + QLatin1String(ext)));
+    if (c.isFile()) return c.filePath();
+  }
+  return {};
+}
 }  // namespace
 
 void FramePage::refresh(const app::Case& c) {
@@ -221,6 +236,18 @@ void FramePage::openFrameSource(const QString& path) {
     videoLabel_->setText(tr("no video"));
     shownFrame_ = img;
     useShownFrame();
+    // A calibration beside the frame, under its name, is the scope's: loaded (one more undo step) when the frame
+    // would otherwise take the guessed camera. (A helper opened the scikit-surgery frame beside its intrinsics and
+    // worked on with fx = fy = 1536 px instead of 2012 and 2018.)
+    if (const QString beside = calibrationBeside(path); !beside.isEmpty() && data() && guessedCamera(data()->camera)) {
+      loadCalibration(beside);
+      if (!guessedCamera(data()->camera))
+        wb_.status(tr("Frame opened with the calibration found beside it, %1 (fx %2, fy %3 px); Undo keeps the "
+                      "frame with the default camera.")
+                       .arg(QFileInfo(beside).fileName())
+                       .arg(data()->camera.fx(), 0, 'f', 1)
+                       .arg(data()->camera.fy(), 0, 'f', 1));
+    }
     emit frameSourceOpened(true, {});
     return;
   }
@@ -348,6 +375,11 @@ void FramePage::useShownFrame() {
   QString text = fromVideo ? tr("Using frame %1 of the video.").arg(shown) : tr("Frame opened.");
   if (hadContour) text += tr(" The contour sketched on the previous frame was removed: sketch it on this one (step 3), or Undo to go back to both.");
   if (hadSecond && data()->frame2.empty()) text += tr(" The second frame, of another size, was removed.");
+  // What the frame does not say is said as a guess: the focal length decides how deep the fitted organ lies.
+  if (guessedCamera(data()->camera))
+    text += tr(" The camera is a default guessed from the image size (fx = fy = %1 px, centred): load the scope's "
+               "calibration (Load Calibration...) before the fit.")
+                .arg(data()->camera.fx(), 0, 'f', 0);
   wb_.status(text);
 }
 
