@@ -384,6 +384,12 @@ class TestGuide : public QObject {
                  qPrintable(QStringLiteral("%1 (%2) is missing from the table").arg(k.toString(), a->text())));
     for (const auto& e : table) QVERIFY2(!e.what.trimmed().isEmpty(), qPrintable(e.keys));
     QVERIFY(named > 40);
+    // F1 is the user guide, where a desktop application keeps its help (a helper pressed it and met the About box).
+    {
+      const auto f1 = std::find_if(table.begin(), table.end(), [](const ui::KeyEntry& e) { return e.keys == "F1"; });
+      QVERIFY(f1 != table.end());
+      QVERIFY2(f1->what.contains("Guide", Qt::CaseInsensitive), qPrintable(f1->what));
+    }
     // The Help menu shows the same table (Ctrl+/ opens it).
     QTest::keyClick(w_.get(), Qt::Key_Slash, Qt::ControlModifier);
     QTableWidget* shown = nullptr;

@@ -164,21 +164,27 @@ void MainWindow::buildHelpMenu() {
   // The keyboard reference, read from this window's own actions and keys (the user guide prints the same table).
   QAction* keysAction = help->addAction(tr("&Keyboard Shortcuts"), this, [this] { showKeyboardReference(); });
   keysAction->setShortcut(QKeySequence(Qt::CTRL | Qt::Key_Slash));
-  // The user guide, as installed with the package (HTML; a PDF beside it).
-  help->addAction(tr("User &Guide"), this, [this] {
-    // Installed beside the program: PREFIX/bin/rehearse and PREFIX/share/doc/rehearse/guide/ (GNUInstallDirs).
-    const QString installed = QDir::cleanPath(QCoreApplication::applicationDirPath() +
-                                              QStringLiteral("/../share/doc/rehearse/guide/guide.html"));
-    if (QFileInfo::exists(installed)) {
-      QDesktopServices::openUrl(QUrl::fromLocalFile(installed));
-      say(tr("The user guide opens in the web browser: %1").arg(installed));
-    } else {
+  // The user guide, as installed with the package (HTML; a PDF beside it), or as the build made it; F1, where a
+  // desktop application keeps its help (a helper pressed F1 and met the About box).
+  QAction* guide = help->addAction(tr("User &Guide"), this, [this] {
+    // Installed beside the program: PREFIX/bin/rehearse and PREFIX/share/doc/rehearse/guide/ (GNUInstallDirs); in
+    // the build folder: build/app/rehearse and build/docs/guide/.
+    const QString dir = QCoreApplication::applicationDirPath();
+    const QString installed = QDir::cleanPath(dir + QStringLiteral("/../share/doc/rehearse/guide/guide.html")),
+                  built = QDir::cleanPath(dir + QStringLiteral("/../docs/guide/guide.html"));
+    const QString found = QFileInfo::exists(installed) ? installed : QFileInfo::exists(built) ? built : QString();
+    if (found.isEmpty()) {
       say(tr("The user guide is not installed here (%1); build and install the package, or see the build folder's "
              "docs/guide/guide.html.")
               .arg(installed));
+    } else if (QDesktopServices::openUrl(QUrl::fromLocalFile(found))) {
+      say(tr("The user guide opens in the web browser: %1").arg(found));
+    } else {
+      say(tr("No web browser opened the user guide; open it yourself: %1 (a PDF beside it).").arg(found));
     }
   });
-  QAction* about = help->addAction(tr("&About Rehearse"), this, [this] {
+  guide->setShortcut(QKeySequence::HelpContents);
+  help->addAction(tr("&About Rehearse"), this, [this] {
     QMessageBox::about(
         this, tr("About Rehearse"),
         tr("<b>Rehearse %1</b> (%2)<p>Intra-operative surgical gesture rehearsal. It registers the pre-operative "
@@ -188,7 +194,6 @@ void MainWindow::buildHelpMenu() {
            "recorded for replay and review.</p>")
             .arg(QStringLiteral(REHEARSE_VERSION), QStringLiteral(REHEARSE_REVISION)));
   });
-  about->setShortcut(QKeySequence::HelpContents);
 }
 
 void MainWindow::showKeyboardReference() {
