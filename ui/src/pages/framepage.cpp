@@ -235,6 +235,7 @@ void FramePage::openFrameSource(const QString& path) {
     videoSlider_->setEnabled(false);
     videoLabel_->setText(tr("no video"));
     shownFrame_ = img;
+    const bool hadContour = data() && !data()->contour.segments.empty();
     useShownFrame();
     // A calibration beside the frame, under its name, is the scope's: loaded (one more undo step) when the frame
     // would otherwise take the guessed camera. (A helper opened the scikit-surgery frame beside its intrinsics and
@@ -246,7 +247,10 @@ void FramePage::openFrameSource(const QString& path) {
                       "frame with the default camera.")
                        .arg(QFileInfo(beside).fileName())
                        .arg(data()->camera.fx(), 0, 'f', 1)
-                       .arg(data()->camera.fy(), 0, 'f', 1));
+                       .arg(data()->camera.fy(), 0, 'f', 1) +
+                   (hadContour ? tr(" The contour sketched on the previous frame was removed: sketch it on this one "
+                                    "(step 3).")
+                               : QString()));
     }
     emit frameSourceOpened(true, {});
     return;
