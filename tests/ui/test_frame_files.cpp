@@ -15,6 +15,7 @@
 #include <rehearse/simcore/meshio.hpp>
 
 #include <QCheckBox>
+#include <QPushButton>
 #include <QDoubleSpinBox>
 #include <QLabel>
 #include <QDragEnterEvent>
@@ -394,27 +395,56 @@ class TestFrameFiles : public QObject {
     QCOMPARE(w_->caseData()->camera.fy(), 2017.966019);
     QVERIFY2(w_->statusText().contains("laparoscopy-liver-frame.intrinsics.txt"), qPrintable(w_->statusText()));
     {
-      // The same frame alone in a folder: the default camera, said to be a guess (fx = fy = 0.8 of the width).
+      // The same frame alone in a folder, opened over the calibrated camera of its size: the camera is kept.
       const QString alone = QString::fromStdString(tempPath("alone.jpg"));
       QFile::remove(alone);
       QVERIFY(QFile::copy(QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.jpg")), alone));
-      QSignalSpy again(w_.get(), &MainWindow::frameSourceOpened);
-      w_->framePage()->openFrameSource(alone);
-      QVERIFY(again.count() == 1 || again.wait(60000));
-      QVERIFY2(again.first().at(0).toBool(), qPrintable(again.first().at(1).toString()));
+      auto openAlone = [&] {
+        QSignalSpy again(w_.get(), &MainWindow::frameSourceOpened);
+        w_->framePage()->openFrameSource(alone);
+        return (again.count() == 1 || again.wait(60000)) && again.first().at(0).toBool();
+      };
+      QVERIFY(openAlone());
       qInfo("opened alone: %s", qPrintable(w_->statusText()));
-      // (The camera is kept when the size matches: the calibration loaded above stays.)
       QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);
+      QVERIFY2(!w_->statusText().contains("guessed"), qPrintable(w_->statusText()));
       w_->undoStack()->undo();
-      w_->undoStack()->undo();  // the calibration found beside the first frame
+      // Over the camera guessed from the size (the page's Default From Image Size): still a guess, and said so.
+      QPushButton* defaults = nullptr;
+      for (auto* b : w_->framePage()->findChildren<QPushButton*>())
+        if (b->text() == "Default From Image Size") defaults = b;
+      QVERIFY(defaults);
+      QTest::mouseClick(defaults, Qt::LeftButton);
       QCOMPARE(w_->caseData()->camera.fx(), 0.8 * 1920);
-      QSignalSpy third(w_.get(), &MainWindow::frameSourceOpened);
-      w_->framePage()->openFrameSource(alone);
-      QVERIFY(third.count() == 1 || third.wait(60000));
+      QVERIFY(openAlone());
       qInfo("opened alone over the guessed camera: %s", qPrintable(w_->statusText()));
       QCOMPARE(w_->caseData()->camera.fx(), 0.8 * 1920);
       QVERIFY2(w_->statusText().contains("default guessed from the image size"), qPrintable(w_->statusText()));
       w_->undoStack()->undo();
+      w_->undoStack()->undo();
+      // One undo step took the frame and its calibration: back to the frame opened with it.
+      QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);
+      w_->undoStack()->undo();
+      QVERIFY(w_->caseData()->frame.cols != 1920 || w_->caseData()->camera.fx() != 2012.186314);
+      w_->undoStack()->redo();
+      QCOMPARE(w_->caseData()->camera.fy(), 2017.966019);
+      // A file beside the image under its name that is no calibration: said, the frame opened all the same.
+      const QString other = QString::fromStdString(tempPath("other.jpg")), notCal = QString::fromStdString(tempPath("other.yaml"));
+      QFile::remove(other);
+      QVERIFY(QFile::copy(alone, other));
+      writeFile(notCal.toStdString(), "labels: [liver, gallbladder]\n");
+      QTest::mouseClick(defaults, Qt::LeftButton);
+      QSignalSpy third(w_.get(), &MainWindow::frameSourceOpened);
+      w_->framePage()->openFrameSource(other);
+      QVERIFY(third.count() == 1 || third.wait(60000));
+      QVERIFY(third.first().at(0).toBool());
+      qInfo("opened beside a file that is no calibration: %s", qPrintable(w_->statusText()));
+      QVERIFY2(w_->statusText().contains("other.yaml beside it was not read as its calibration"),
+               qPrintable(w_->statusText()));
+      QCOMPARE(w_->caseData()->camera.fx(), 0.8 * 1920);
+      w_->undoStack()->undo();
+      w_->undoStack()->undo();
+      QCOMPARE(w_->caseData()->camera.fx(), 2012.186314);
     }
     w_->framePage()->loadCalibration(
         QString::fromStdString(sharedData("scikit-surgery/laparoscopy-liver-frame.intrinsics.txt")));

@@ -658,6 +658,14 @@ void FrameView::endGesture() {
   if (current() && current()->abandon()) update();
 }
 
+void FrameView::clearLive() {
+  live_.clear();
+  liveSurface_.reset();
+  setLiveField({}, Eigen::Vector3d::Zero());
+  setWarning({}, {});
+  update();
+}
+
 void FrameView::setLiveJaws(bool closedOnNothing) {
   if (!closedOnNothing) return;
   if (const auto it = tools_.find(Tool::Grasp); it != tools_.end() && it->second) it->second->jawsEmptied();

@@ -140,9 +140,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       forgetSlip(tr("Grasped: drag to pull, release to let go."));
     // Another instrument at work ends the slip's news too (a helper read "The tissue slipped out of..." 30 s after
     // placing a clip).
-    else if ((e.kind == simcore::InputKind::Cut || e.kind == simcore::InputKind::Energy) && e.on)
-      forgetSlip(QString());
-    else if (e.kind == simcore::InputKind::Clip)
+    else if (((e.kind == simcore::InputKind::Cut || e.kind == simcore::InputKind::Energy) && e.on) ||
+             e.kind == simcore::InputKind::Clip)
       forgetSlip(QString());
   });
   connect(simulation_, &SimulationPanel::wasReset, view_, &FrameView::endGesture);
@@ -156,10 +155,8 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     // under way when Reset was pressed ends first: 0.2-0.4 s on a slow step), are not shown over it: they end at the
     // Reset's own frame, at step 0 (showSimulationFrame). A person pressed within that time and the jaws "closed on
     // nothing" where the tissue had been.
-    view_->setLiveShape({});
-    view_->setLiveSurface(nullptr);
+    view_->clearLive();
     view_->setProperty(kFramesBeforeReset, true);
-    view_->update();
     const QString said = tr("Reset: the organ is back at rest, as the frame shows it, and waits: press on it with an "
                             "instrument, or F5, to go on.");
     sayBriefly(said);
@@ -168,14 +165,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   // Another organ (a mesh imported, the organ moved, other attachments): the old session's organ, its cut, blood,
   // clips and warnings leave the frame view at once. (A helper imported the patient liver over the phantom's rehearsal:
   // the phantom's bleeding stayed drawn over the real frame, no session of the new organ to replace it.)
-  connect(simulation_, &SimulationPanel::sessionReplaced, this, [this] {
-    view_->setLiveShape({});
-    view_->setLiveSurface(nullptr);
-    view_->setLiveField({}, Eigen::Vector3d::Zero(), nullptr, nullptr);
-    view_->setWarning({}, {});
-    view_->setLiveJaws(false);
-    view_->update();
-  });
+  connect(simulation_, &SimulationPanel::sessionReplaced, view_, &FrameView::clearLive);
   connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
     doc_->edit(text, [&](app::Case& k) { k.attachments = nodes; });

@@ -14,6 +14,8 @@
 #include <QSpinBox>
 #include <QToolButton>
 #include <QVBoxLayout>
+
+#include <optional>
 #include <QtConcurrent/QtConcurrent>
 
 #include <opencv2/imgcodecs.hpp>
@@ -235,23 +237,9 @@ void FramePage::openFrameSource(const QString& path) {
     videoSlider_->setEnabled(false);
     videoLabel_->setText(tr("no video"));
     shownFrame_ = img;
-    const bool hadContour = data() && !data()->contour.segments.empty();
-    useShownFrame();
-    // A calibration beside the frame, under its name, is the scope's: loaded (one more undo step) when the frame
-    // would otherwise take the guessed camera. (A helper opened the scikit-surgery frame beside its intrinsics and
-    // worked on with fx = fy = 1536 px instead of 2012 and 2018.)
-    if (const QString beside = calibrationBeside(path); !beside.isEmpty() && data() && guessedCamera(data()->camera)) {
-      loadCalibration(beside);
-      if (!guessedCamera(data()->camera))
-        wb_.status(tr("Frame opened with the calibration found beside it, %1 (fx %2, fy %3 px); Undo keeps the "
-                      "frame with the default camera.")
-                       .arg(QFileInfo(beside).fileName())
-                       .arg(data()->camera.fx(), 0, 'f', 1)
-                       .arg(data()->camera.fy(), 0, 'f', 1) +
-                   (hadContour ? tr(" The contour sketched on the previous frame was removed: sketch it on this one "
-                                    "(step 3).")
-                               : QString()));
-    }
+    // A calibration beside the image, under its name, is the scope's (a helper opened the scikit-surgery frame beside
+    // its intrinsics and worked on with fx = fy = 1536 px instead of 2012 and 2018).
+    takeShownFrame(calibrationBeside(path));
     emit frameSourceOpened(true, {});
     return;
   }
@@ -353,21 +341,42 @@ void FramePage::showVideoFrame(int index) {
   }));
 }
 
-void FramePage::useShownFrame() {
+void FramePage::useShownFrame() { takeShownFrame({}); }
+
+void FramePage::takeShownFrame(const QString& calibration) {
   if (shownFrame_.empty() || !data()) return;
   cv::Mat3b frame = shownFrame_.clone();
+  // The calibration beside the image, read before the edit (one undo step takes both); why not, when it is not one.
+  std::optional<imaging::Camera> beside;
+  QString unread;
+  if (!calibration.isEmpty()) {
+    try {
+      const imaging::Camera cam = imaging::loadCamera(calibration.toStdString(), frame.cols, frame.rows);
+      if (cam.width == frame.cols && cam.height == frame.rows)
+        beside = cam;
+      else
+        unread = tr("it is for %1x%2 images").arg(cam.width).arg(cam.height);
+    } catch (const std::exception& e) {
+      unread = QString::fromUtf8(e.what());
+    }
+  }
+  const imaging::Camera& was = data()->camera;
+  const bool sameSize = was.width == frame.cols && was.height == frame.rows;
+  if (beside && sameSize && !guessedCamera(was)) beside.reset();  // a camera stated for this size is kept
   const int shown = shownVideoFrame_;
   const bool fromVideo = video_ != nullptr && videoFrames_ > 0;
   // The outline was sketched on the frame it replaces: it does not belong to this one (another moment, maybe another
   // size). It goes with the old frame, in the same undo step, so that step 3 is to be done again.
   const bool hadContour = !data()->contour.segments.empty(), hadSecond = !data()->frame2.empty();
-  wb_.doc->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame](app::Case& k) {
+  wb_.doc->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame, beside](app::Case& k) {
     k.contour.segments.clear();
     if (k.frame2.size() != frame.size()) {  // (a second frame of another size does not go with this one)
       k.frame2 = cv::Mat3b();
       k.contour2 = {};
     }
-    if (k.camera.width != frame.cols || k.camera.height != frame.rows) {
+    if (beside) {
+      k.camera = *beside;
+    } else if (k.camera.width != frame.cols || k.camera.height != frame.rows) {
       // A frame of another size keeps no stale calibration: the stated default, editable in the panel.
       k.camera = imaging::Camera::defaultFor(frame.cols, frame.rows);
     }
@@ -376,7 +385,14 @@ void FramePage::useShownFrame() {
     k.contour.width = frame.cols;
     k.contour.height = frame.rows;
   });
-  QString text = fromVideo ? tr("Using frame %1 of the video.").arg(shown) : tr("Frame opened.");
+  QString text = fromVideo ? tr("Using frame %1 of the video.").arg(shown)
+                 : beside  ? tr("Frame opened with the calibration found beside it, %1 (fx %2, fy %3 px).")
+                                .arg(QFileInfo(calibration).fileName())
+                                .arg(beside->fx(), 0, 'f', 1)
+                                .arg(beside->fy(), 0, 'f', 1)
+                           : tr("Frame opened.");
+  if (!unread.isEmpty())
+    text += tr(" %1 beside it was not read as its calibration: %2").arg(QFileInfo(calibration).fileName(), unread);
   if (hadContour) text += tr(" The contour sketched on the previous frame was removed: sketch it on this one (step 3), or Undo to go back to both.");
   if (hadSecond && data()->frame2.empty()) text += tr(" The second frame, of another size, was removed.");
   // What the frame does not say is said as a guess: the focal length decides how deep the fitted organ lies.

@@ -134,6 +134,9 @@ class FrameView : public QWidget {
   /// the instruments act on.
   void setLiveShape(std::vector<Eigen::Vector3d> cameraPositions) { live_ = std::move(cameraPositions); }
   const std::vector<Eigen::Vector3d>& liveShape() const { return live_; }
+  /// Nothing simulated drawn any more (Reset, another organ): the live shape, its cut surface, the clips, blood and
+  /// burns, the warning; the case's organ at rest is drawn until a new frame comes.
+  void clearLive();
   /// Where the simulation's instruments enter (camera frame, m; unset before a session): the scissors lay their
   /// shaft through the pressed point from there.
   void setTrocar(const std::optional<Eigen::Vector3d>& trocar) { trocar_ = trocar; }

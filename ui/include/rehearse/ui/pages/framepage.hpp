@@ -49,6 +49,9 @@ class FramePage : public StepPage {
 
  private:
   void useVideo(std::shared_ptr<cv::VideoCapture> cap, int frames, const QString& label);
+  /// useShownFrame, with the calibration file found beside the image (empty: none): taken in the same undo step when
+  /// the frame would otherwise keep the camera guessed from its size.
+  void takeShownFrame(const QString& calibration);
 
   QSlider* videoSlider_ = nullptr;
   QLabel* videoLabel_ = nullptr;
