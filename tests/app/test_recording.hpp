@@ -20,6 +20,7 @@ class TestRecording : public QObject {
   void aReplayReportsItsProgressAndStops();
   void seekingLandsOnTheStraightRun();
   void jawsKeepTheirHoldWhileTheBladeCuts();
+  void aSlipTakenAgainReplays();
   void checkpointWithACutUnderWayIsComplete();
   void stabilitySettingsAreRecorded();
   void strainMatchesClosedForms();

@@ -290,18 +290,15 @@ class TestPatientStart : public QObject {
       if (said[i].contains(QStringLiteral("slipped out of the grasper at"))) slipAt = i;
     if (slipAt >= 0) {
       const QRegularExpressionMatch m = QRegularExpression("at ([0-9.]+) N").match(said[slipAt]);
-      // The jaws are held back where the force, to first order, reaches the limit (Session::limitJawsAtGraspForce):
-      // what that first order misses of the slip step's own change is the overshoot, a fraction of the change. A
-      // 2 mm jump on this pinned tissue takes the force from 8.8 N to 15.7-16.9 N in one step (which, depends on how
-      // far the tissue settled between the jumps, the machine's timing): 10-24 % of the step's change past the limit.
-      // (The slip at 16.5 N or less this test once asked for held only while a status line had widened the window,
-      // the mouse's jumps finer in the frame's pixels.)
+      // The jaws are held back where the force, to first order, reaches the limit (Session::limitJawsAtGraspForce). A
+      // 2 mm jump on this pinned tissue takes the force from 8.8 N to 15.7-16.9 N in one step: what the first order
+      // missed, 10-24 % of the step's change past the limit (which, depended on how far the tissue settled between the
+      // jumps, the machine's timing). Now such a step is taken again with the jaws moved back by regula falsi on the
+      // force (ToolSettings::slipResolved): the slip within 2 % of the limit, whatever the timing.
       const double at = m.hasMatch() ? m.captured(1).toDouble() : 1e9,
                    limit = panel->session()->setup().tools.maxGraspForce;
-      qInfo("  %s: %.2f N on the last step the jaws held, %.1f N at the slip: %.0f %% of the step's change past the "
-            "limit",
-            picks, held, at, 100 * (at - limit) / std::max(1e-9, at - held));
-      QVERIFY2(at < 2 * limit && at - limit <= 0.35 * (at - held), qPrintable(said[slipAt]));
+      qInfo("  %s: %.2f N on the last step the jaws held, %.1f N at the slip (limit %.0f N)", picks, held, at, limit);
+      QVERIFY2(at <= 1.02 * limit, qPrintable(said[slipAt]));
     } else {
       QVERIFY2(peak > 0.05 && peak < 15.5, qPrintable(trace.join(' ')));
     }

@@ -278,6 +278,7 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   if (t.tearLatencySteps != t.cutLatencySteps) j["tools"]["tearLatencySteps"] = t.tearLatencySteps;
   // Written only when on (setups recorded before it existed let go after a whole step: their text stays as it was).
   if (t.slipAtLimit) j["tools"]["slipAtLimit"] = true;
+  if (t.slipResolved) j["tools"]["slipResolved"] = true;  // (and those before it slipped a first order past)
   // (likewise: setups recorded before it existed refused a tear their element could not make alone)
   if (t.tearThroughNeighbours) j["tools"]["tearThroughNeighbours"] = true;
   // (likewise: setups recorded before it existed waited for a tear's body at its boundary)
@@ -377,6 +378,7 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
         t.contains("tearLatencySteps") ? asInt(t.at("tearLatencySteps")) : s.tools.cutLatencySteps;
     s.tools.jawsKeepTheirHold = t.value("jawsKeepTheirHold", false);          // ... and the jaws followed every tip
     s.tools.slipAtLimit = t.value("slipAtLimit", false);  // ... and the jaws let go after a whole step's pull
+    s.tools.slipResolved = t.value("slipResolved", false);  // ... the held-back step's force as it came out
     s.tools.tearThroughNeighbours = t.value("tearThroughNeighbours", false);  // ... and tears were the element's alone
     s.tools.tearOnlyUnderLoad = t.value("tearOnlyUnderLoad", false);  // ... made whatever stretched the tissue
     s.tools.tearRemovesElements = t.value("tearRemovesElements", false);  // ... split across the stretch, re-meshed

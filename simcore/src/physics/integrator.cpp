@@ -366,7 +366,7 @@ std::string statusSentence(const StepReport& r) {
   return r.status;
 }
 
-StepReport Integrator::step(SimulationState& state) {
+StepReport Integrator::step(SimulationState& state, bool swapIn) {
   const auto t0 = std::chrono::steady_clock::now();
   Work& w = *w_;
   w.savedX = state.x;
@@ -389,7 +389,7 @@ StepReport Integrator::step(SimulationState& state) {
   // A factor built on the second thread is swapped in at the first step start after it is ready (never
   // within a step: a replay installs it at the same step boundary, FactorRefresh::Deferred).
   StepReport swap;
-  if (settings_.factorRefresh != FactorRefresh::Synchronous) swapInRequested(swap);
+  if (swapIn && settings_.factorRefresh != FactorRefresh::Synchronous) swapInRequested(swap);
   w.estimateThisStep = settings_.estimateErrorEvery <= 1 || w.stepsTaken % settings_.estimateErrorEvery == 0;
   ++w.stepsTaken;
   double h = settings_.timeStep;

@@ -31,8 +31,10 @@ class FemBody final : public DeformableBody {
     for (std::size_t i = 0; i < start_.size(); ++i) s.x.segment<3>(3 * static_cast<Eigen::Index>(i)) = start_[i];
     return s;
   }
-  StepReport step(SimulationState& state) override {
-    StepReport rep = integrator_.step(state);
+  StepReport step(SimulationState& state) override { return stepped(state, true); }
+  std::optional<StepReport> stepAgain(SimulationState& state) override { return stepped(state, false); }
+  StepReport stepped(SimulationState& state, bool swapIn) {
+    StepReport rep = integrator_.step(state, swapIn);
     // The tool force's error (issue 64): the force the multipliers' estimated change makes on the tool.
     if (std::isfinite(rep.errorPosition))
       rep.errorForce = integrator_.constraints().empty()

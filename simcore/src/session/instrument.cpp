@@ -11,12 +11,11 @@
 #include <cmath>
 #include <cstdio>
 
+#include "grasplimit.hpp"
+
 namespace rehearse::simcore {
 
 namespace {
-
-/// The share of the maximum grasp force at which jaws held back at the limit let go (the step's solved force).
-constexpr double kLetGoShare = 0.95;
 
 // The grasper: closing the jaws bites every free node within the grasp radius of the tip (the nearest first), each
 // held at its place relative to the tip by three bilateral rows; opening them lets go (the tissue leaves the open

@@ -1,6 +1,7 @@
 #include <rehearse/simcore/session/session.hpp>
 #include <rehearse/simcore/session/forceloop.hpp>
 #include <rehearse/simcore/input_ranges.hpp>
+#include "grasplimit.hpp"
 
 #include <algorithm>
 #include <numeric>
@@ -172,6 +173,7 @@ void Session::updateToolConstraints() {
   for (const auto& r : c)
     for (int node : r.nodes)
       if (node >= 0) toolNodes_.push_back(node);
+  toolRows_ = c;
   body_->setToolConstraints(std::move(c));
 }
 
@@ -351,6 +353,7 @@ void Session::apply(const InputEvent& e, std::string& message) {
 
 bool Session::limitJawsAtGraspForce() {
   // Where the jaws were at the last step's end: the held nodes sit at their offsets from them (the hold's rows).
+  jawMove_.valid = false;
   if (!setup_.tools.slipAtLimit || !tool_.jawClosed || tool_.held.empty() || tool_.jawTip != tool_.tip) return false;
   Eigen::Vector3d before = Eigen::Vector3d::Zero(), velocity = Eigen::Vector3d::Zero();
   for (std::size_t k = 0; k < tool_.held.size(); ++k) {
@@ -366,12 +369,71 @@ bool Session::limitJawsAtGraspForce() {
   const double h = setup_.settings.timeStep;
   const Eigen::Vector3d d = tool_.jawTip - before - velocity * h, f = tool_.graspForce, kd = tool_.stiffness * d;
   const double max = setup_.tools.maxGraspForce;
+  jawMove_ = JawMove{true, before, tool_.jawTip - before};  // (the whole move: the tissue's own share too)
   if (!(f + kd).allFinite() || (f + kd).norm() <= max || kd.squaredNorm() == 0) return false;
   // |f + s kd| = max: the larger root of a s^2 + b s + c = 0 (c < 0 when the force is below the limit now).
   const double a = kd.squaredNorm(), b = 2 * f.dot(kd), c = f.squaredNorm() - max * max;
   const double share = c >= 0 ? 0.0 : std::clamp((-b + std::sqrt(b * b - 4 * a * c)) / (2 * a), 0.0, 1.0);
   tool_.jawTip = before + velocity * h + share * d;
+  jawMove_.move = tool_.jawTip - before;
   return true;
+}
+
+StepReport Session::resolveGraspLimit(const SimulationState& start, StepReport rep) {
+  const double max = setup_.tools.maxGraspForce;
+  if (!rep.ok || !jawMove_.valid) return rep;
+  double f = body_->toolForce(true).norm();
+  if (!(f > kPastTheLimit * max)) return rep;
+  // Regula falsi on the force along the jaws' move this step (held back or not), Illinois' variant: below, the jaws
+  // kept where the last step left them (the force it ended with, as a first guess: held still, the tissue's own motion
+  // eases it); above, the move this step took. Aimed between the let-go share and the limit, and taken again until the
+  // force lands there (at most three more solves, only at a slip): a step left below the let-go share would keep the
+  // jaws back without a slip, and the hand's next move would be held back again. (Along the share of the move beyond
+  // where the tissue goes on its own, the first order's axis, a steady pull has nothing to take back: the jaws and the
+  // tissue move together.)
+  const double target = 0.5 * (kLetGoShare + 1) * max;
+  double sLo = 0, fLo = tool_.graspForce.norm(), sHi = 1, fHi = f;
+  int kept = 0;  // which end the last two tries kept (-1 low, +1 high): Illinois halves the other's distance
+  const bool swapped = rep.factorSwapped;
+  double wallMs = rep.wallMs;
+  int factorisations = rep.factorisations;
+  auto landed = [&](double force) { return force >= kLetGoShare * max && force <= kPastTheLimit * max; };
+  for (int again = 0; again < 3 && !landed(f) && sHi > sLo; ++again) {
+    double s = fHi > fLo && fLo < target ? sLo + (sHi - sLo) * (target - fLo) / (fHi - fLo) : sLo;
+    s = std::clamp(s, sLo, sHi);
+    tool_.jawTip = jawMove_.from + s * jawMove_.move;
+    std::vector<ScalarConstraint> holds;  // the instruments' holds: the first rows (updateToolConstraints)
+    for (const auto& i : instruments_) i->holds(tool_, holds);
+    if (holds.size() > toolRows_.size()) break;
+    std::copy(holds.begin(), holds.end(), toolRows_.begin());
+    body_->setToolConstraints(toolRows_);
+    SimulationState tryAgain = start;
+    tryAgain.lagged = state_.lagged;  // the factor the first try ended with (and what it asked for)
+    std::optional<StepReport> next = body_->stepAgain(tryAgain);
+    if (!next) break;
+    state_ = std::move(tryAgain);
+    rep = *next;
+    wallMs += rep.wallMs;
+    factorisations += rep.factorisations;
+    if (!rep.ok) break;  // (the state is the step's start: the next step goes on from there)
+    f = body_->toolForce(true).norm();
+    if (f > target) {
+      sHi = s;
+      fHi = f;
+      if (kept == 1) fLo = target - 0.5 * (target - fLo);
+      kept = 1;
+    } else {
+      sLo = s;
+      fLo = f;
+      if (kept == -1) fHi = target + 0.5 * (fHi - target);
+      kept = -1;
+    }
+  }
+  rep.factorSwapped = swapped;
+  rep.wallMs = wallMs;
+  rep.factorisations = factorisations;
+  slipDue_ = true;  // held back at the limit: the tissue slips once the force is within kLetGoShare of it
+  return rep;
 }
 
 StepReport Session::advance() {
@@ -406,7 +468,11 @@ StepReport Session::advance() {
   // close further; made from the time alone, so a session restored at any step makes the same rows).
   if ((tool_.present && setup_.tools.toolRadius > 0) || !field_.clips.empty() || slipDue_) updateToolConstraints();
   const double timeBefore = state_.time;
-  const StepReport rep = body_->step(state_);
+  // A step the jaws make is taken again when its force comes out past the limit (ToolSettings::slipResolved; FEM).
+  std::optional<SimulationState> start;
+  if (jawMove_.valid && setup_.tools.slipResolved && setup_.model == BodyModel::Fem) start = state_;
+  StepReport rep = body_->step(state_);
+  if (start) rep = resolveGraspLimit(*start, std::move(rep));
   if (rep.guardStalled) settleHeldBackClips(message);
   if (rep.ok && state_.time > timeBefore) {
     const double lossBefore = field_.bloodLoss;

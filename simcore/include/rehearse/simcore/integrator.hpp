@@ -263,8 +263,10 @@ class Integrator {
 
   SimulationState initialState() const;
   /// One implicit Euler step of settings.timeStep (sub-stepped on failure). The state is left
-  /// unchanged when the step fails after all retries.
-  StepReport step(SimulationState& state);
+  /// unchanged when the step fails after all retries. `swapIn` false: a factor built on the second thread is not
+  /// swapped in at this step's start (a step taken again from the same start: the first one swapped what was ready,
+  /// and a replay installs a recorded factor once per step boundary, before its first try).
+  StepReport step(SimulationState& state, bool swapIn = true);
   /// Newton iterations to static equilibrium under gravity and `extraForces` (N, 3n, may be empty).
   StepReport solveStatic(SimulationState& state, const Eigen::VectorXd& extraForces = {});
   /// Solves A y = b with the configured solver (A symmetric positive definite); exposed for tests.

@@ -205,6 +205,10 @@ class Session : private InstrumentHost {
   /// Before a step: the jaws held back where the grasp force reaches the limit (ToolSettings::slipAtLimit); true when
   /// they were (the tissue then slips after the step).
   bool limitJawsAtGraspForce();
+  /// After a step the jaws made (jawMove_): when the grasp force it solved is past the limit by more than 2 %, the step
+  /// is taken again from `start` with the jaws moved back along their move (ToolSettings::slipResolved); the report of
+  /// the step kept.
+  StepReport resolveGraspLimit(const SimulationState& start, StepReport first);
   bool jawsAtGraspLimit() const override { return slipDue_; }
   bool stepConverged() const override { return stepConverged_; }
   // InstrumentHost: what an instrument may ask of the session.
@@ -267,6 +271,15 @@ class Session : private InstrumentHost {
   /// The jaws were held back this step to let go at the grasp limit (ToolSettings::slipAtLimit): the tissue slips
   /// after it. Set and read within one advance().
   bool slipDue_ = false;
+  /// This step's move of the jaws (limitJawsAtGraspForce, after its hold-back): from where the last step left them
+  /// (`from`) along `move`. Set and read within one advance(); valid only when the jaws hold and make their own move.
+  struct JawMove {
+    bool valid = false;
+    Eigen::Vector3d from = Eigen::Vector3d::Zero(), move = Eigen::Vector3d::Zero();
+  } jawMove_;
+  /// The tool's rows as last made (updateToolConstraints; the instruments' holds first): a step taken again changes
+  /// only the jaws' own.
+  std::vector<ScalarConstraint> toolRows_;
   bool stepConverged_ = true;  ///< the last step's outcome was Converged (InstrumentHost::stepConverged)
   bool tearRefused_ = false;  ///< the last tear could not be made (said once until one is made)
   bool tearHeld_ = false;     ///< an over-stretched element not torn because the step did not converge (said once)
