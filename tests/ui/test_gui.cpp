@@ -17,6 +17,7 @@
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/organoverlay.hpp"
 #include "rehearse/ui/pages/meshpage.hpp"
+#include "rehearse/ui/pages/steppage.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/jobrunner.hpp"
 #include "rehearse/ui/steadybox.hpp"
@@ -46,6 +47,9 @@
 #include <QHBoxLayout>
 #include <QVBoxLayout>
 #include <QSettings>
+#include <QTimer>
+#include <QTemporaryDir>
+#include <QFileDialog>
 #include <QSignalSpy>
 #include <QThread>
 #include <QStandardPaths>
@@ -563,6 +567,46 @@ class TestGui : public QObject {
       QVERIFY(QTest::qWaitForWindowExposed(&w));
       QTest::keyClick(&w, Qt::Key_V);
       QCOMPARE(w.frameView()->overlayStyle(), ui::OverlayStyle::Shaded);
+    }
+    QSettings().clear();
+    QCoreApplication::setOrganizationName(organisation);
+  }
+
+  // The file dialogs open in the folder a file was last taken from (any dialog's), else in the user's home: not in the
+  // working directory the program was started from (a person's check), nor in a folder since removed. Ctrl+O, as a
+  // person opens a case.
+  void fileDialogsOpenInTheLastFolderOrHome() {
+    const QString organisation = QCoreApplication::organizationName();
+    QCoreApplication::setOrganizationName("RehearseDialogFolderTest");
+    QSettings().clear();
+    QTemporaryDir last;
+    QVERIFY(QDir::currentPath() != QDir::homePath());  // (else this test could not tell them apart)
+    {
+      ui::MainWindow w;
+      w.show();
+      QVERIFY(QTest::qWaitForWindowExposed(&w));
+      auto folderShown = [&] {
+        QString seen;
+        QTimer poll;
+        poll.setInterval(50);
+        connect(&poll, &QTimer::timeout, this, [&] {
+          for (QWidget* top : QApplication::topLevelWidgets())
+            if (auto* d = qobject_cast<QFileDialog*>(top); d && d->isVisible()) {
+              seen = d->directory().absolutePath();
+              d->reject();
+            }
+        });
+        poll.start();
+        w.activateWindow();  // (no window manager gives it back after a dialog)
+        if (!QTest::qWaitForWindowActive(&w)) return QStringLiteral("(the window could not be made active)");
+        QTest::keyClick(&w, Qt::Key_O, Qt::ControlModifier);
+        return seen;
+      };
+      QCOMPARE(folderShown(), QDir::homePath());
+      ui::rememberDialogFolder(last.path() + "/case.rehearse");
+      QCOMPARE(folderShown(), QDir(last.path()).absolutePath());
+      QSettings().setValue("lastDir", last.path() + "/gone");
+      QCOMPARE(folderShown(), QDir::homePath());
     }
     QSettings().clear();
     QCoreApplication::setOrganizationName(organisation);

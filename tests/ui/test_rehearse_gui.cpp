@@ -10,6 +10,7 @@
 #include "rehearse/ui/frameview.hpp"
 #include "rehearse/ui/organview.hpp"
 #include "rehearse/ui/pages/meshpage.hpp"
+#include "rehearse/ui/pages/rehearsepage.hpp"
 #include "rehearse/ui/gui.hpp"
 #include "rehearse/ui/mainwindow.hpp"
 #include "rehearse/ui/simulationpanel.hpp"
@@ -571,8 +572,22 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps < before && panel->lastFrame()->steps > 5; }));
     QVERIFY2(!w_->statusText().contains(slipped), qPrintable(w_->statusText()));
     QVERIFY2(w_->statusText().contains("Reset: the organ is back at rest"), qPrintable(w_->statusText()));
+    // The force chart shows the run from rest, not the ended pull's trace scrolling out over 5 s (a person's check).
+    auto* chartView = w_->findChild<QChartView*>("toolForceChart");
+    QVERIFY(chartView);
+    auto chartPeak = [&] {
+      w_->rehearsePage()->updateChart();
+      double top = 0;
+      for (const QPointF& p : qobject_cast<QLineSeries*>(chartView->chart()->series().first())->points())
+        top = std::max(top, p.y());
+      return top;
+    };
+    const double afterReset = chartPeak();
+    qInfo("the force chart's peak just after Reset: %.3f N", afterReset);
+    QVERIFY2(afterReset < 0.05, qPrintable(QString::number(afterReset)));
     QVERIFY2(grasp(), qPrintable(w_->statusBar()->currentMessage() + " | " + w_->messageLog().join(" | ")));
     QVERIFY2(pullUntilItSlips(), qPrintable(w_->statusText() + " | " + w_->messageLog().join(" | ")));
+    QVERIFY2(chartPeak() > 1, "the chart shows the pull after the Reset");
     QVERIFY2(grasp(), qPrintable(w_->statusBar()->currentMessage() + " | " + w_->messageLog().join(" | ")));
     QVERIFY2(!w_->statusText().contains(slipped), qPrintable(w_->statusText()));
     QVERIFY2(w_->statusText().contains("Grasped"), qPrintable(w_->statusText()));

@@ -441,6 +441,12 @@ bool FrameView::toolsBusy() const {
   return false;
 }
 
+namespace {
+// An instrument of step 7 in hand: the registration's marks (landmarks through the rest pose) do not follow the
+// tissue, and are not drawn over the rehearsal (a person saw them and their legend stay through the grasp).
+bool instrumentTool(Tool t) { return t == Tool::Grasp || t == Tool::Scissors || t == Tool::Clip || t == Tool::Cautery; }
+}  // namespace
+
 QList<LegendEntry> FrameView::legend() const {
   QList<LegendEntry> out;
   if (frame_.isNull()) return out;
@@ -458,7 +464,7 @@ QList<LegendEntry> FrameView::legend() const {
   for (const char* t : {"silhouette", "ridge", "ligament"})
     if (std::find(types.begin(), types.end(), std::string(t)) != types.end())
       out.push_back({tools::segmentColour(t), tr("contour: %1").arg(tr(t))});
-  if (case_ && !case_->landmarks.empty()) {
+  if (case_ && !case_->landmarks.empty() && !instrumentTool(tool_)) {
     out.push_back({palette::landmarkOnOrgan(), tr("landmark on the organ")});
     out.push_back({palette::landmarkInFrame(), tr("landmark in the frame")});
   }
@@ -552,7 +558,7 @@ void FrameView::paintOrganMarks(QPainter& painter, const imaging::Contour& conto
     for (const auto& q : poly) painter.drawEllipse(q, 2.5, 2.5);
   }
   // Landmarks: model points through the current pose (orange) and their image points (cyan).
-  for (std::size_t i = 0; i < case_->landmarks.size(); ++i) {
+  for (std::size_t i = 0; i < case_->landmarks.size() && !instrumentTool(tool_); ++i) {
     const auto& l = case_->landmarks[i];
     const Eigen::Vector3d xc = case_->pose.apply(l.model);
     QPointF m;

@@ -477,8 +477,7 @@ void MainWindow::saveAs() {
   // A name to start from: the case's file, or its name in the folder last used ("Built-in liver phantom.rehearse").
   QString suggested = doc_->path();
   if (suggested.isEmpty() && doc_->hasCase()) {
-    const QString dir = s.value(QStringLiteral("lastDir"), QDir::homePath()).toString();
-    suggested = QDir(dir).filePath(QString::fromStdString(doc_->data()->name).replace('/', '-') + ".rehearse");
+    suggested = QDir(dialogFolder()).filePath(QString::fromStdString(doc_->data()->name).replace('/', '-') + ".rehearse");
   }
   QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), suggested, tr("Rehearse cases (*.rehearse)"));
   if (path.isEmpty()) return;
@@ -491,7 +490,7 @@ void MainWindow::openFileDialog() {
   askToKeepChanges(tr("opening another case"), [this] {
     QSettings s;
     const QString path =
-        QFileDialog::getOpenFileName(this, tr("Open Case"), s.value(QStringLiteral("lastDir")).toString(),
+        QFileDialog::getOpenFileName(this, tr("Open Case"), dialogFolder(),
                                      tr("Rehearse cases (*.rehearse);;All files (*)"));
     if (path.isEmpty()) return;
     s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());

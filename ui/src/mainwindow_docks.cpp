@@ -438,6 +438,8 @@ void MainWindow::buildWorkflowPanel() {
   pages_.appearance = new AppearancePage(wb_, composition_);
   pages_.rehearse = new RehearsePage(wb_);
   pages_.rehearse->setForceLoop([this] { return simulation_ ? simulation_->forceLoop() : nullptr; });
+  connect(simulation_, &SimulationPanel::wasReset, pages_.rehearse, &RehearsePage::forgetForceHistory);
+  connect(simulation_, &SimulationPanel::sessionReplaced, pages_.rehearse, &RehearsePage::forgetForceHistory);
   pages_.all = {pages_.mesh, pages_.frame,      pages_.contour, pages_.rigid,
                 pages_.fit,  pages_.appearance, pages_.rehearse};
   for (StepPage* p : pages_.all) stepStack_->addWidget(p);

@@ -2,6 +2,7 @@
 #include "rehearse/ui/devicesteering.hpp"
 #include "rehearse_revision.hpp"
 #include "rehearse/ui/mainwindow.hpp"
+#include "rehearse/ui/pages/steppage.hpp"
 #include "rehearse/ui/keyboardreference.hpp"
 #include "rehearse/ui/liveoverlay.hpp"
 #include "rehearse/ui/recordingcontroller.hpp"
@@ -92,8 +93,7 @@ QList<QAction*> MainWindow::buildFileMenu() {
   QAction* open = file->addAction(tr("Open Case &Folder..."), this, [this] {
     askToKeepChanges(tr("opening another case"), [this] {
       QSettings s;
-      const QString dir = QFileDialog::getExistingDirectory(this, tr("Open Case Folder"),
-                                                            s.value(QStringLiteral("lastDir")).toString());
+      const QString dir = QFileDialog::getExistingDirectory(this, tr("Open Case Folder"), dialogFolder());
       if (dir.isEmpty()) return;
       s.setValue(QStringLiteral("lastDir"), dir);
       openCase(dir);

@@ -122,17 +122,23 @@ ContourPage::ContourPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Ste
   auto* io = new QHBoxLayout;
   auto* imp = new QPushButton(tr("Import..."), this);
   connect(imp, &QPushButton::clicked, this, [this] {
-    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Import Contour"), QSettings().value("lastDir").toString(), tr("Contours (*.json)"));
-    if (!p.isEmpty()) importContour(p);
+    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Import Contour"), dialogFolder(), tr("Contours (*.json)"));
+    if (!p.isEmpty()) {
+      rememberDialogFolder(p);
+      importContour(p);
+    }
   });
   auto* exp = new QPushButton(tr("Export..."), this);
   connect(exp, &QPushButton::clicked, this, [this] {
     const QString ours = tr("Rehearse contour, undistorted frame (*.json)");
     const QString p2ilf = tr("P2ILF contour, raw frame (*.json)");
     QString filter = ours;
-    const QString p = QFileDialog::getSaveFileName(wb_.window, tr("Export Contour"), QSettings().value("lastDir").toString(),
+    const QString p = QFileDialog::getSaveFileName(wb_.window, tr("Export Contour"), dialogFolder(),
                                                    ours + QStringLiteral(";;") + p2ilf, &filter);
-    if (!p.isEmpty()) exportContour(p, filter == p2ilf ? imaging::ContourFormat::P2ILF : imaging::ContourFormat::Rehearse);
+    if (!p.isEmpty()) {
+      rememberDialogFolder(p);
+      exportContour(p, filter == p2ilf ? imaging::ContourFormat::P2ILF : imaging::ContourFormat::Rehearse);
+    }
   });
   io->addWidget(imp);
   io->addWidget(exp);

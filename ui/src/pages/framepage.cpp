@@ -86,9 +86,12 @@ FramePage::FramePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::F
   auto* openSecond = new QPushButton(tr("Open Image..."), secondBox);
   connect(openSecond, &QPushButton::clicked, this, [this] {
     const QString p =
-        QFileDialog::getOpenFileName(wb_.window, tr("Open Second Frame"), QSettings().value("lastDir").toString(),
+        QFileDialog::getOpenFileName(wb_.window, tr("Open Second Frame"), dialogFolder(),
                                      tr("Images (*.png *.jpg *.jpeg *.bmp *.tif *.tiff)"));
-    if (!p.isEmpty()) openSecondFrame(p);
+    if (!p.isEmpty()) {
+      rememberDialogFolder(p);
+      openSecondFrame(p);
+    }
   });
   auto* clearSecond = new QPushButton(tr("Clear"), secondBox);
   clearSecond->setObjectName(QStringLiteral("clearSecondFrame"));
@@ -152,9 +155,12 @@ FramePage::FramePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::F
   form->addRow(tr("Distortion"), distortionLabel_);
   auto* loadCal = new QPushButton(tr("Load Calibration..."), camBox);
   connect(loadCal, &QPushButton::clicked, this, [this] {
-    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Load Camera Calibration"), QSettings().value("lastDir").toString(),
+    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Load Camera Calibration"), dialogFolder(),
                                                    tr("Calibrations (*.yaml *.yml *.xml *.json *.txt)"));
-    if (!p.isEmpty()) loadCalibration(p);
+    if (!p.isEmpty()) {
+      rememberDialogFolder(p);
+      loadCalibration(p);
+    }
   });
   auto* defaults = new QPushButton(tr("Default From Image Size"), camBox);
   connect(defaults, &QPushButton::clicked, this, [this] {
@@ -214,9 +220,12 @@ void FramePage::refresh(const app::Case& c) {
 }
 
 void FramePage::openFrameDialog() {
-  const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Open Endoscope Image or Video"), QSettings().value("lastDir").toString(),
+  const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Open Endoscope Image or Video"), dialogFolder(),
                                                  tr("Images and videos (*.png *.jpg *.jpeg *.bmp *.tif *.mp4 *.avi *.mkv *.mov)"));
-  if (!p.isEmpty()) openFrameSource(p);
+  if (!p.isEmpty()) {
+    rememberDialogFolder(p);
+    openFrameSource(p);
+  }
 }
 
 void FramePage::openFrameSource(const QString& path) {
@@ -367,9 +376,13 @@ void FramePage::takeShownFrame(const QString& calibration) {
   const bool fromVideo = video_ != nullptr && videoFrames_ > 0;
   // The outline was sketched on the frame it replaces: it does not belong to this one (another moment, maybe another
   // size). It goes with the old frame, in the same undo step, so that step 3 is to be done again.
-  const bool hadContour = !data()->contour.segments.empty(), hadSecond = !data()->frame2.empty();
+  // So is the elastic fit to that outline (the shape and its "where the organ may be"): kept, steps 4-5 read done on a
+  // frame nothing was fitted to. The hand's alignment, if any, stays as this frame's start.
+  const bool hadContour = !data()->contour.segments.empty(), hadSecond = !data()->frame2.empty(),
+             hadFit = data()->hasFit();
   wb_.doc->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame, beside](app::Case& k) {
     k.contour.segments.clear();
+    k.fit.reset();
     if (k.frame2.size() != frame.size()) {  // (a second frame of another size does not go with this one)
       k.frame2 = cv::Mat3b();
       k.contour2 = {};
@@ -393,7 +406,13 @@ void FramePage::takeShownFrame(const QString& calibration) {
                            : tr("Frame opened.");
   if (!unread.isEmpty())
     text += tr(" %1 beside it was not read as its calibration: %2").arg(QFileInfo(calibration).fileName(), unread);
-  if (hadContour) text += tr(" The contour sketched on the previous frame was removed: sketch it on this one (step 3), or Undo to go back to both.");
+  if (hadContour && hadFit)
+    text += tr(" The contour sketched on the previous frame and the fit to it were removed: sketch and fit on this one "
+               "(steps 3 and 5), or Undo to go back to them.");
+  else if (hadContour)
+    text += tr(" The contour sketched on the previous frame was removed: sketch it on this one (step 3), or Undo to go back to both.");
+  else if (hadFit)
+    text += tr(" The fit to the previous frame was removed: fit on this one (step 5), or Undo to go back to it.");
   if (hadSecond && data()->frame2.empty()) text += tr(" The second frame, of another size, was removed.");
   // What the frame does not say is said as a guess: the focal length decides how deep the fitted organ lies.
   if (guessedCamera(data()->camera))

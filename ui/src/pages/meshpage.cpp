@@ -155,12 +155,15 @@ void MeshPage::refresh(const app::Case& c) {
 
 void MeshPage::importMeshDialog() {
   const QString p = QFileDialog::getOpenFileName(
-      wb_.window, tr("Import Organ Mesh"), QSettings().value("lastDir").toString(),
+      wb_.window, tr("Import Organ Mesh"), dialogFolder(),
       tr("Meshes and segmentations (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb "
          "*.nrrd *.nhdr *.nii *.nii.gz *.mha *.mhd *.inr *.inr.gz);;"
          "Meshes (*.msh *.vtk *.vtu *.mesh *.obj *.stl *.ply *.off *.gltf *.glb);;"
          "Segmentations: label images (*.nrrd *.nhdr *.nii *.nii.gz *.mha *.mhd *.inr *.inr.gz)"));
-  if (!p.isEmpty()) importMesh(p);
+  if (!p.isEmpty()) {
+    rememberDialogFolder(p);
+    importMesh(p);
+  }
 }
 
 void MeshPage::importMesh(const QString& path) {

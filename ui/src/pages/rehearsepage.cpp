@@ -167,6 +167,13 @@ void RehearsePage::hideEvent(QHideEvent* e) {
   chartTimer_->stop();
 }
 
+void RehearsePage::forgetForceHistory() {
+  const simcore::ForceLoop* loop = loop_ ? loop_() : nullptr;
+  const auto last = loop ? loop->samples(0.5) : std::vector<simcore::ForceSample>{};
+  chartFrom_ = last.empty() ? -std::numeric_limits<double>::infinity() : last.back().time;
+  updateChart();
+}
+
 void RehearsePage::updateChart() {
   const simcore::ForceLoop* loop = loop_ ? loop_() : nullptr;
   if (!loop) {
@@ -177,11 +184,14 @@ void RehearsePage::updateChart() {
   const auto samples = loop->samples(5.0);
   QList<QPointF> points;
   double top = 1.0;
+  if (!samples.empty() && samples.back().time < chartFrom_)
+    chartFrom_ = -std::numeric_limits<double>::infinity();  // another loop, its clock from 0: nothing of the old run
   if (!samples.empty()) {
     const double now = samples.back().time;
     const std::size_t stride = std::max<std::size_t>(1, samples.size() / 250);  // a point per 20 ms on the chart
     points.reserve(static_cast<int>(samples.size() / stride + 1));
     for (std::size_t i = 0; i < samples.size(); i += stride) {
+      if (samples[i].time <= chartFrom_) continue;  // the ended run's
       const double f = samples[i].force.norm();
       top = std::max(top, f);
       points.append(QPointF(samples[i].time - now, f));

@@ -110,8 +110,11 @@ RigidPage::RigidPage(Workbench& wb, QWidget* parent) : StepPage(wb, app::Step::R
   load->setObjectName(QStringLiteral("loadPose"));
   load->setToolTip(tr("A pose file: JSON {\"R\": [[...]], \"t\": [...], \"unit\": \"m\"} or a 4x4 text matrix in the mesh's unit"));
   connect(load, &QPushButton::clicked, this, [this] {
-    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Load Pose"), QSettings().value("lastDir").toString(), tr("Poses (*.json *.txt)"));
-    if (!p.isEmpty()) loadPose(p);
+    const QString p = QFileDialog::getOpenFileName(wb_.window, tr("Load Pose"), dialogFolder(), tr("Poses (*.json *.txt)"));
+    if (!p.isEmpty()) {
+      rememberDialogFolder(p);
+      loadPose(p);
+    }
   });
   l->addWidget(load);
   auto* lmBox = new QGroupBox(tr("Landmark pairs (mesh point, then image point)"), this);
@@ -199,6 +202,15 @@ void RigidPage::refreshLandmarks(const app::Case& c) {
                                .arg(p.hasImage ? QStringLiteral("(%1, %2) px").arg(p.image.x(), 0, 'f', 1).arg(p.image.y(), 0, 'f', 1)
                                                : tr("click the frame")));
   }
+  if (c.landmarks.empty()) {
+    // Where the pairs are made is the frame view, not this list (a person looked for it here).
+    auto* hint = new QListWidgetItem(tr("None yet: press Pick Landmarks (L), click a point on the organ in the frame "
+                                        "view, then where that point is in the frame."),
+                                     landmarkList_);
+    hint->setFlags(Qt::NoItemFlags);
+    hint->setForeground(palette().color(QPalette::Disabled, QPalette::Text));
+  }
+  landmarkList_->setWordWrap(true);
   pnpButton_->setEnabled(complete >= 4);
 }
 

@@ -3,7 +3,10 @@
 #include "rehearse/ui/frameview.hpp"
 
 #include <QAction>
+#include <QDir>
+#include <QFileInfo>
 #include <QPushButton>
+#include <QSettings>
 
 namespace rehearse::ui {
 
@@ -67,6 +70,15 @@ void StepKeys::bind(const QKeySequence& key, app::Step step, std::function<void(
 
 void StepKeys::stepShown(app::Step step) {
   for (const auto& [text, action] : actions_) action->setEnabled(handlers_[text].count(step) > 0);
+}
+
+QString dialogFolder() {
+  const QString last = QSettings().value(QStringLiteral("lastDir")).toString();
+  return !last.isEmpty() && QFileInfo(last).isDir() ? last : QDir::homePath();
+}
+
+void rememberDialogFolder(const QString& file) {
+  if (!file.isEmpty()) QSettings().setValue(QStringLiteral("lastDir"), QFileInfo(file).absolutePath());
 }
 
 }  // namespace rehearse::ui

@@ -9,6 +9,7 @@
 #include <rehearse/simcore/session/body.hpp>
 
 #include <functional>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -46,6 +47,9 @@ class RehearsePage : public StepPage {
   void setForceLoop(std::function<const simcore::ForceLoop*()> loop) { loop_ = std::move(loop); }
   /// Redraws the chart from the loop now (the page's timer does it 15 times a second while it is shown).
   void updateChart();
+  /// Reset or another organ: the chart shows the loop's force from now on, not the ended run's last 5 s (a person saw
+  /// the old pull's trace scroll out over the organ at rest).
+  void forgetForceHistory();
   /// What the Record button and the Review button do (the main window's): start returns one sentence on error.
   struct RecordHandlers {
     std::function<QString(const QString& trainee)> start;
@@ -64,6 +68,8 @@ class RehearsePage : public StepPage {
 
  private:
   std::function<const simcore::ForceLoop*()> loop_;
+  /// s, the loop's clock: samples up to it belong to a run that ended (forgetForceHistory); -inf: none.
+  double chartFrom_ = -std::numeric_limits<double>::infinity();
   QLineSeries* series_ = nullptr;
   QValueAxis* axisX_ = nullptr;
   QValueAxis* axisY_ = nullptr;

@@ -77,4 +77,10 @@ class StepPage : public QWidget {
   app::Step step_;
 };
 
+/// The folder a file dialog opens in: the last one any dialog took a file from or saved one to, else the user's home
+/// (not the working directory the program happened to be started in, a person's check).
+QString dialogFolder();
+/// Remembers `file`'s folder for the next dialog (QSettings "lastDir").
+void rememberDialogFolder(const QString& file);
+
 }  // namespace rehearse::ui
