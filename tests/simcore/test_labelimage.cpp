@@ -606,6 +606,11 @@ class TestLabelImage : public QObject {
                                      "NDims = 3\nElementType = MET_UCHAR\nElementDataFile = LOCAL\n" +
                                          std::string(8, '\1'));
     expectImageRefused("twice.mha", "given twice", true);
+    // A long value: MetaIO strcpy'd a 256-byte ObjectType into its 255 bytes (found by fuzzing: glibc's fortify aborted).
+    writeFile(tempPath("longvalue.mha"), "ObjectType = Ima" + std::string(250, '\xff') +
+                                             "ge\nNDims = 3\nDimSize = 2 2 2\nElementType = MET_UCHAR\n"
+                                             "ElementDataFile = LOCAL\n" + std::string(8, '\1'));
+    expectImageRefused("longvalue.mha", "a value of 255 characters for its field 'ObjectType'", true);
     writeFile(tempPath("pgm.inr"), "P5\n2 2\n255\n");
     expectImageRefused("pgm.inr", "not an INR image", true);
     // The same shapes, sound, are read: a MetaImage with a short unknown field, and the NIfTI as ITK wrote it.

@@ -92,6 +92,11 @@ class TestWorkflow : public QObject {
     QVERIFY(w_->infoText().contains("tetrahedra:"));
     QVERIFY(w_->stepDone(ui::Step::Mesh));
     QVERIFY(!c.groundTruth);
+    // The phantom's attachments went with its organ, said (a person saw a fit and landmark pairs go without a word).
+    QVERIFY(c.attachments.empty());
+    QVERIFY2(w_->messageLog().join(" ").contains(QRegularExpression("The previous organ's \\d+ attachments went with it "
+                                                                     "\\(Ctrl\\+Z brings them back\\)")),
+             qPrintable(w_->messageLog().join(" | ")));
     // An imported organ has no ligament nodes: the simulation panel says the tissue around it carries it (issue 61:
     // it said "it will fall freely under gravity", which the default support does not let it do), and step 1 says so.
     auto* simStatus = w_->findChild<QLabel*>("simStatus");

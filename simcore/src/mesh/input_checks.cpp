@@ -386,6 +386,11 @@ std::string metaImageHeaderProblem(std::string_view bytes, MetaImageLayout* layo
     if (fields.count(key)) return "its field '" + key.substr(0, 40) + "' is given twice";
     std::string_view value = line.substr(eq);  // after the separators and blanks, as MetaIO's value
     value.remove_prefix(std::min(value.size(), value.find_first_not_of("=: \t")));
+    // ... and copies a string field's value (ObjectType, Comment, ...) into a 255-byte buffer with strcpy too (found
+    // by fuzzing: a 256-byte ObjectType aborted in glibc's fortify). Values here are short.
+    if (value.size() > 200)
+      return "a value of " + num(static_cast<double>(value.size())) + " characters for its field '" +
+             std::string(trim(name)).substr(0, 40) + "' (MetaImage values are a few words or numbers)";
     fields[key] = std::string(trim(value));
     if (key == "ElementDataFile") {
       sawData = true;

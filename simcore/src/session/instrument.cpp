@@ -89,9 +89,14 @@ class Grasper final : public Instrument {
     const bool atLimit = host.jawsAtGraspLimit() && tool.graspForce.norm() >= kLetGoShare * max;
     if (tool.held.empty() || !(tool.graspForce.norm() > max || atLimit)) return false;
     char buf[400];
-    if (host.stepConverged() || !(tool.graspForce.norm() > 1.25 * max))
+    if (host.stepConverged())
       std::snprintf(buf, sizeof buf,
                     "The tissue slipped out of the grasper at %.3g N (the scene's maximum grasp force is %.3g N).",
+                    tool.graspForce.norm(), max);
+    else if (!(tool.graspForce.norm() > 1.25 * max))  // (a step taken again at the limit reads there: slipResolved)
+      std::snprintf(buf, sizeof buf,
+                    "The tissue slipped out of the grasper at %.3g N (the scene's maximum grasp force is %.3g N), on a "
+                    "step that did not converge: not the tissue's force at equilibrium.",
                     tool.graspForce.norm(), max);
     else  // a force read on a step that did not converge is not the tissue's at equilibrium
       std::snprintf(buf, sizeof buf,

@@ -257,6 +257,17 @@ void MeshPage::importMesh(const QString& path) {
         QString base = QFileInfo(path).completeBaseName();  // (liver.vtk: liver; a segmentation's .nii.gz: its name)
         if (base.endsWith(QStringLiteral(".nii"), Qt::CaseInsensitive)) base.chop(4);
         const std::string named = base.toStdString();
+        // What belonged to the organ it replaces goes with it (Case::setOrgan), said (a person saw the fit and four
+        // landmark pairs gone without a word).
+        QStringList dropped;
+        if (const app::Case& was = *data(); !was.organ->empty()) {
+          if (was.hasFit()) dropped << tr("fit");
+          if (const std::size_t n = was.landmarks.size(); n > 0)
+            dropped << (n == 1 ? tr("landmark pair") : tr("%1 landmark pairs").arg(n));
+          if (const std::size_t n = was.attachments.size(); n > 0)
+            dropped << (n == 1 ? tr("attachment") : tr("%1 attachments").arg(n));
+          if (was.poseAligned) dropped << tr("alignment");
+        }
         wb_.doc->edit(segmentation ? tr("Import segmentation") : tr("Import mesh"), [&](app::Case& k) {
           k.setOrgan(prepared);
           if (renamed && !named.empty()) k.name = named;
@@ -264,7 +275,7 @@ void MeshPage::importMesh(const QString& path) {
         emit importNotesChanged();
         const auto& organ = *data()->organ;
         const std::set<int> labels(organ.volume.tetLabels.begin(), organ.volume.tetLabels.end());
-        wb_.status(
+        QString said =
             segmentation
                 ? tr("Imported the segmentation %1: %2 tetrahedra in %3 labelled parts")
                           .arg(QFileInfo(path).fileName())
@@ -279,7 +290,13 @@ void MeshPage::importMesh(const QString& path) {
                       .arg(QFileInfo(path).fileName())
                       .arg(organ.volume.tets.size())
                       .arg(organ.visual->triangles.size())
-                : tr("Imported %1: %2 tetrahedra").arg(QFileInfo(path).fileName()).arg(organ.volume.tets.size()));
+                : tr("Imported %1: %2 tetrahedra").arg(QFileInfo(path).fileName()).arg(organ.volume.tets.size());
+        if (!dropped.isEmpty()) {
+          const QString last = dropped.takeLast();
+          said += tr(". The previous organ's %1 went with it (Ctrl+Z brings them back).")
+                      .arg(dropped.isEmpty() ? last : tr("%1 and %2").arg(dropped.join(QStringLiteral(", ")), last));
+        }
+        wb_.status(said);
         emit meshImported(true, {});
       };
     } catch (const simcore::Cancelled&) {
