@@ -473,7 +473,6 @@ void MainWindow::save() {
 }
 
 void MainWindow::saveAs() {
-  QSettings s;
   // A name to start from: the case's file, or its name in the folder last used ("Built-in liver phantom.rehearse").
   QString suggested = doc_->path();
   if (suggested.isEmpty() && doc_->hasCase()) {
@@ -482,18 +481,17 @@ void MainWindow::saveAs() {
   QString path = QFileDialog::getSaveFileName(this, tr("Save Case"), suggested, tr("Rehearse cases (*.rehearse)"));
   if (path.isEmpty()) return;
   if (!path.endsWith(QStringLiteral(".rehearse"))) path += QStringLiteral(".rehearse");
-  s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
+  rememberDialogFolder(path);
   saveCaseAs(path);
 }
 
 void MainWindow::openFileDialog() {
   askToKeepChanges(tr("opening another case"), [this] {
-    QSettings s;
     const QString path =
         QFileDialog::getOpenFileName(this, tr("Open Case"), dialogFolder(),
                                      tr("Rehearse cases (*.rehearse);;All files (*)"));
     if (path.isEmpty()) return;
-    s.setValue(QStringLiteral("lastDir"), QFileInfo(path).absolutePath());
+    rememberDialogFolder(path);
     openCase(path);
   });
 }

@@ -92,10 +92,9 @@ QList<QAction*> MainWindow::buildFileMenu() {
   openFile->setShortcut(QKeySequence::Open);
   QAction* open = file->addAction(tr("Open Case &Folder..."), this, [this] {
     askToKeepChanges(tr("opening another case"), [this] {
-      QSettings s;
       const QString dir = QFileDialog::getExistingDirectory(this, tr("Open Case Folder"), dialogFolder());
       if (dir.isEmpty()) return;
-      s.setValue(QStringLiteral("lastDir"), dir);
+      rememberDialogFolder(QDir(dir).filePath(QStringLiteral(".")));  // (the folder itself, not its parent)
       openCase(dir);
     });
   });

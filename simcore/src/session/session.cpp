@@ -394,7 +394,7 @@ StepReport Session::resolveGraspLimit(const SimulationState& start, StepReport r
   const double target = 0.5 * (kLetGoShare + 1) * max;
   double sLo = 0, fLo = tool_.graspForce.norm(), sHi = 1, fHi = f;
   int kept = 0;  // which end the last two tries kept (-1 low, +1 high): Illinois halves the other's distance
-  const bool swapped = rep.factorSwapped;
+  const bool swapped = rep.factorSwapped, requested = rep.factorRequested;
   double wallMs = rep.wallMs;
   int factorisations = rep.factorisations;
   auto landed = [&](double force) { return force >= kLetGoShare * max && force <= kPastTheLimit * max; };
@@ -430,6 +430,7 @@ StepReport Session::resolveGraspLimit(const SimulationState& start, StepReport r
     }
   }
   rep.factorSwapped = swapped;
+  rep.factorRequested = requested || rep.factorRequested;
   rep.wallMs = wallMs;
   rep.factorisations = factorisations;
   slipDue_ = true;  // held back at the limit: the tissue slips once the force is within kLetGoShare of it
