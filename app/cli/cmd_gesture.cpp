@@ -167,6 +167,9 @@ StartOptions startOptions(Options& o, double caseSupport) {
     throw UsageError("--start takes rest or equilibrium, not '" + o["start"] + "'");
   StartOptions startAs;
   startAs.inEquilibrium = o.count("start") && o["start"] == "equilibrium";
+  // A person's picks (the case's attachments, or nodes given with --fixed-nodes) hold as the window holds them: a lone
+  // one with its neighbours on the surface. A scene's or preset's own held nodes hold as they are written.
+  startAs.attachmentPatches = o.count("case") || o.count("fixed-nodes");
   if (startAs.inEquilibrium) startAs.supportModulus = caseSupport >= 0 ? caseSupport : simcore::kDefaultSupportModulus;
   if (o.count("support")) {
     char* end = nullptr;
@@ -209,6 +212,8 @@ GestureStart startBody(simcore::BodySetup& setup, const StartOptions& startAs) {
     case SessionStart::Outcome::Ready:
       break;
   }
+  if (const std::string patches = prepared.patchesSentence(); !patches.empty())
+    std::printf("held: %s\n", patches.c_str());
   if (prepared.supportNotInModel)
     std::fprintf(stderr, "rehearse: note: the %s model hangs the organ from its held nodes; --support acts in the FEM "
                  "only\n", simcore::bodyModelName(prepared.body.model).c_str());

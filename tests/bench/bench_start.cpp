@@ -100,6 +100,14 @@ void hangingStarts(const std::vector<Organ>& organs, const std::string& out, boo
   }
 }
 
+// The nodes that hold the organ for an assistant's picks, as the window's and the command line's start holds them (a
+// lone pick holds its neighbours on the surface too, app::prepareStart); REHEARSE_BENCH_POINT_PICKS=1: the picks alone
+// (as before that existed).
+std::vector<int> heldFor(const Mesh& mesh, const std::vector<int>& picked) {
+  if (std::getenv("REHEARSE_BENCH_POINT_PICKS")) return picked;
+  return attachmentPatches(mesh.tets, mesh.points.size(), picked);
+}
+
 // Issue 61: the tissue around the organ carries it (support.hpp, the default modulus), gravity along the view (+z,
 // into the scene), for the picks an assistant makes: none, one node, 22 along its top, the 8 % highest. The start's
 // distance from the shape, then 10 s (1000 steps) with the GUI's method from it: the largest move of a node.
@@ -120,9 +128,10 @@ void supportedStarts(const std::vector<Organ>& organs, const std::string& out) {
     base.settings.method = NewtonMethod::Linearised;
     base.settings.factorRefresh = FactorRefresh::Asynchronous;
     const std::vector<Eigen::Vector3d> shape = base.mesh.points;
-    for (const auto& [name, held] : testing::assistantPicks(base.mesh)) {
+    for (const auto& [name, picked] : testing::assistantPicks(base.mesh)) {
       BodySetup s = base;
-      s.fixedNodes = held;
+      s.fixedNodes = heldFor(s.mesh, picked);
+      const std::vector<int>& held = s.fixedNodes;
       InverseRestOptions io;
       io.supportModulus = kDefaultSupportModulus;
       const auto t0 = std::chrono::steady_clock::now();
@@ -251,15 +260,13 @@ void supportedPulls(const std::vector<Organ>& organs, const std::string& out, co
     base.tools.maxGraspForce = 1e9;
     if (const char* r = std::getenv("REHEARSE_BENCH_GRASP_MM")) base.tools.graspRadius = 1e-3 * std::atof(r);
     const std::vector<Eigen::Vector3d> shape = base.mesh.points;
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (const auto& p : shape) centre += p;
-    centre /= static_cast<double>(shape.size());
-    for (const auto& [name, held] : testing::assistantPicks(base.mesh)) {
+    for (const auto& [name, picked] : testing::assistantPicks(base.mesh)) {
       if (only && std::string(only).find('/') != std::string::npos &&
           std::string(name) != std::string(only).substr(std::string(only).find('/') + 1))
         continue;
       BodySetup s = base;
-      s.fixedNodes = held;
+      s.fixedNodes = heldFor(s.mesh, picked);
+      const std::vector<int>& held = s.fixedNodes;
       InverseRestOptions io;
       io.supportModulus = kDefaultSupportModulus;
       const InverseRestResult r = startInEquilibrium(s, shape, io);
@@ -267,27 +274,11 @@ void supportedPulls(const std::vector<Organ>& organs, const std::string& out, co
         std::printf("%-20s %-16s no start: %s\n", o.name.c_str(), name, r.status.c_str());
         continue;
       }
-      int bite = -1;
-      double best = 1e300;
-      for (int n : testing::surfaceNodes(s.mesh)) {
-        const Eigen::Vector3d& p = shape[static_cast<std::size_t>(n)];
-        bool free = true;
-        for (int h : held) free = free && (shape[static_cast<std::size_t>(h)] - p).norm() >= 0.015;
-        const double across = (p - centre).head<2>().norm();
-        if (!free || across > 0.03) continue;
-        if (p.z() < best) best = p.z(), bite = n;
-      }
-      if (bite < 0) continue;
+      const testing::FreeBite free = testing::freeBite(s.mesh, shape, held);
+      if (free.bite < 0) continue;
+      const int bite = free.bite;
       const Eigen::Vector3d p = shape[static_cast<std::size_t>(bite)];
-      Eigen::Vector3d away(0, -1, 0);
-      if (!held.empty()) {
-        Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-        for (int h : held) mean += shape[static_cast<std::size_t>(h)];
-        mean /= static_cast<double>(held.size());
-        away = p - mean;
-        away.z() = 0;
-        away = away.norm() > 1e-6 ? Eigen::Vector3d(away.normalized()) : Eigen::Vector3d(0, -1, 0);
-      }
+      const Eigen::Vector3d away = free.away;
       for (const double beta : betas)
         for (const bool jumps : {true, false}) {
           BodySetup d = s;

@@ -118,6 +118,36 @@ inline std::vector<std::pair<const char*, std::vector<int>>> assistantPicks(cons
           {"8 % highest", highest(static_cast<std::size_t>(0.08 * static_cast<double>(height.size())))}};
 }
 
+/// Where the grasper bites free tissue on an organ held by `held` under gravity along +z (issue 61's pulls): the front
+/// surface node nearest the organ's middle across the view (within 30 mm of it), at least 15 mm from every held node;
+/// and the direction across the view away from the held nodes (-y with none). bite -1: no such node.
+struct FreeBite {
+  int bite = -1;
+  Eigen::Vector3d away = Eigen::Vector3d(0, -1, 0);
+};
+inline FreeBite freeBite(const simcore::Mesh& v, const std::vector<Eigen::Vector3d>& shape, const std::vector<int>& held) {
+  FreeBite b;
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const auto& p : shape) centre += p;
+  centre /= static_cast<double>(shape.size());
+  double best = 1e300;
+  for (int n : surfaceNodes(v)) {
+    const Eigen::Vector3d& p = shape[static_cast<std::size_t>(n)];
+    bool free = true;
+    for (int h : held) free = free && (shape[static_cast<std::size_t>(h)] - p).norm() >= 0.015;
+    if (!free || (p - centre).head<2>().norm() > 0.03) continue;
+    if (p.z() < best) best = p.z(), b.bite = n;
+  }
+  if (b.bite < 0 || held.empty()) return b;
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  for (int h : held) mean += shape[static_cast<std::size_t>(h)];
+  mean /= static_cast<double>(held.size());
+  Eigen::Vector3d away = shape[static_cast<std::size_t>(b.bite)] - mean;
+  away.z() = 0;
+  if (away.norm() > 1e-6) b.away = away.normalized();
+  return b;
+}
+
 /// A real organ's surface meshed as the rehearsal meshes it (self-intersections allowed, seed 0), about `tets` tets.
 inline simcore::Mesh meshedOrgan(const simcore::Mesh& surface, std::size_t tets) {
   simcore::TetrahedraliseOptions to;

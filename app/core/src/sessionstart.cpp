@@ -8,7 +8,9 @@
 #include <rehearse/simcore/integrator.hpp>
 #include <rehearse/simcore/support.hpp>
 
+#include <algorithm>
 #include <functional>
+#include <string>
 
 namespace rehearse::app {
 namespace {
@@ -71,8 +73,28 @@ void RestShapeCache::keep(std::uint64_t key, const simcore::InverseRestResult& r
   result_ = r;
 }
 
+std::string SessionStart::patchesSentence() const {
+  if (lone == 0 || held <= picked) return {};
+  const std::size_t added = held - picked;
+  return (lone == 1 ? std::string("The lone attachment holds its ") + std::to_string(added) + " neighbours"
+                    : "The " + std::to_string(lone) + " lone attachments hold their " + std::to_string(added) +
+                          " neighbours") +
+         " on the surface too (" + std::to_string(held) +
+         " nodes held): a ligament attaches over an area, and a single pinned node is crushed by a pull.";
+}
+
 SessionStart prepareStart(simcore::BodySetup body, const StartOptions& options) {
   SessionStart out;
+  out.picked = body.fixedNodes.size();
+  if (options.attachmentPatches && !body.fixedNodes.empty()) {
+    std::vector<int> given = body.fixedNodes;
+    std::sort(given.begin(), given.end());
+    given.erase(std::unique(given.begin(), given.end()), given.end());
+    out.picked = given.size();
+    const std::vector<int> held = simcore::attachmentPatches(body.mesh.tets, body.mesh.points.size(), given, &out.lone);
+    body.fixedNodes = held;
+  }
+  out.held = body.fixedNodes.size();
   // The tissue around the organ carries it: the FEM's springs (the other models hang it from its held nodes).
   const double support = body.model == simcore::BodyModel::Fem ? options.supportModulus : 0.0;
   const bool heavy = body.settings.gravity.norm() > 0;

@@ -4,7 +4,10 @@
 #include <rehearse/simcore/mesh.hpp>
 
 #include <Eigen/Dense>
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <map>
 
 namespace rehearse::simcore {
 
@@ -95,6 +98,50 @@ SupportPlacement placeSupports(const std::vector<std::array<int, 4>>& tets, cons
   }
   p.load = weight.norm();
   return p;
+}
+
+std::vector<int> attachmentPatches(const std::vector<std::array<int, 4>>& tets, std::size_t nodes,
+                                   const std::vector<int>& picked, std::size_t* lone) {
+  std::vector<int> out = picked;
+  if (lone) *lone = 0;
+  std::vector<char> isPicked(nodes, 0);
+  for (int v : picked)
+    if (v >= 0 && static_cast<std::size_t>(v) < nodes) isPicked[static_cast<std::size_t>(v)] = 1;
+  // The boundary: the faces one element has.
+  std::map<std::array<int, 3>, int> faceCount;
+  for (const auto& t : tets)
+    for (int skip = 0; skip < 4; ++skip) {
+      std::array<int, 3> f{};
+      for (int j = 0, k = 0; j < 4; ++j)
+        if (j != skip) f[static_cast<std::size_t>(k++)] = t[static_cast<std::size_t>(j)];
+      std::sort(f.begin(), f.end());
+      ++faceCount[f];
+    }
+  std::vector<std::vector<int>> onSurface(nodes), inVolume(nodes);
+  auto link = [&](std::vector<std::vector<int>>& n, int a, int b) {
+    if (a < 0 || b < 0 || static_cast<std::size_t>(a) >= nodes || static_cast<std::size_t>(b) >= nodes) return;
+    if (!isPicked[static_cast<std::size_t>(a)] && !isPicked[static_cast<std::size_t>(b)]) return;  // only picks' rings
+    n[static_cast<std::size_t>(a)].push_back(b);
+    n[static_cast<std::size_t>(b)].push_back(a);
+  };
+  for (const auto& [f, count] : faceCount)
+    if (count == 1)
+      for (int i = 0; i < 3; ++i) link(onSurface, f[static_cast<std::size_t>(i)], f[static_cast<std::size_t>((i + 1) % 3)]);
+  for (const auto& t : tets)
+    for (int i = 0; i < 4; ++i)
+      for (int j = i + 1; j < 4; ++j) link(inVolume, t[static_cast<std::size_t>(i)], t[static_cast<std::size_t>(j)]);
+  for (int v : picked) {
+    if (v < 0 || static_cast<std::size_t>(v) >= nodes) continue;
+    const auto& surface = onSurface[static_cast<std::size_t>(v)];
+    const auto& ring = surface.empty() ? inVolume[static_cast<std::size_t>(v)] : surface;
+    const bool alone = std::none_of(ring.begin(), ring.end(), [&](int u) { return isPicked[static_cast<std::size_t>(u)] != 0; });
+    if (!alone || ring.empty()) continue;
+    out.insert(out.end(), ring.begin(), ring.end());
+    if (lone) ++*lone;
+  }
+  std::sort(out.begin(), out.end());
+  out.erase(std::unique(out.begin(), out.end()), out.end());
+  return out;
 }
 
 }  // namespace rehearse::simcore

@@ -81,6 +81,9 @@ struct StartOptions {
   /// Each static solve of the rest shape (its number, its equilibrium's distance from the shape in m); false cancels.
   std::function<bool(int, double)> progress;
   RestShapeCache* cache = nullptr;  ///< the rest shape solved for the same body before (none: solved)
+  /// A lone attachment holds its neighbours on the surface too (simcore::attachmentPatches: one pinned node crushes
+  /// its own elements); false: the held nodes as given.
+  bool attachmentPatches = true;
 };
 
 /// What prepareStart found.
@@ -103,6 +106,12 @@ struct SessionStart {
   /// the tissue around it).
   bool supportNotInModel = false;
   bool reused = false;                         ///< the rest shape came from the cache (the same organ as before)
+  std::size_t picked = 0;  ///< attachments given (the body's held nodes before StartOptions::attachmentPatches)
+  std::size_t lone = 0;    ///< of them, lone picks that hold their neighbours on the surface too
+  std::size_t held = 0;    ///< nodes the body holds
+  /// "The 1 lone attachment holds its 6 neighbours on the surface too (7 nodes held): one pinned node is crushed by a
+  /// pull." Empty when no pick is lone.
+  std::string patchesSentence() const;
   std::optional<simcore::InverseRestResult> rest;  ///< the solve, when one was made or reused
 };
 
