@@ -85,6 +85,21 @@ void TestSimulationGui::elasticFitStep() {
   for (const auto& e : w_->frameView()->legend()) named |= e.text.startsWith("where the organ may be");
   QVERIFY(named);
   {
+    // Not over the rehearsal: with an instrument of step 7 in hand the bound (on the fitted shape, which the tissue
+    // leaves) is neither drawn nor named; back with the previous tool, it is again.
+    ui::FrameView* view = w_->frameView();
+    const ui::Tool before = view->tool();
+    auto boundNamed = [&] {
+      for (const auto& e : view->legend())
+        if (e.text.startsWith("where the organ may be")) return true;
+      return false;
+    };
+    view->setTool(ui::Tool::Grasp);
+    QVERIFY(!boundNamed());
+    view->setTool(before);
+    QVERIFY(boundNamed());
+  }
+  {
     const auto& fc = *w_->caseData();
     const auto own = imaging::maskOutlines(imaging::renderMask(fc.camera, fc.pose, fc.surfaceView()));
     QVERIFY(!own.empty());

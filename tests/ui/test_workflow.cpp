@@ -664,13 +664,23 @@ class TestWorkflow : public QObject {
       for (const auto& e : view->legend()) n += e.text.startsWith("landmark") ? 1 : 0;
       return n;
     };
+    // Nor the assistant's contour (a helper saw it drawn over the rehearsal, with the fit's dashed bound).
+    auto contourInLegend = [&] {
+      int n = 0;
+      for (const auto& e : view->legend()) n += e.text.startsWith("contour: ") ? 1 : 0;
+      return n;
+    };
     QCOMPARE(landmarksInLegend(), 2);
+    const int contourEntries = contourInLegend();
+    QVERIFY2(contourEntries > 0, "step 3's contour is named while aligning");
     w_->setStep(ui::Step::Rehearse);
     QCOMPARE(view->tool(), ui::Tool::Grasp);
     QCOMPARE(landmarksInLegend(), 0);
+    QCOMPARE(contourInLegend(), 0);
     w_->simulationPanel()->pause();
     w_->setStep(ui::Step::Rigid);
     QCOMPARE(landmarksInLegend(), 2);
+    QCOMPARE(contourInLegend(), contourEntries);
   }
 
   // Save and reopen: every field the user made comes back.

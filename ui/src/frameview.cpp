@@ -328,6 +328,13 @@ std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f
 
 // ------------------------------------------------------------------------------------------ painting
 
+namespace {
+// An instrument of step 7 in hand: the registration's marks (landmarks through the rest pose, the assistant's contour
+// and the organ curves bound to it, the fit's "where the organ may be") do not follow the tissue, and are not drawn over
+// the rehearsal (people saw the landmarks, then the contour and the fit's dashed bound, stay through a grasp).
+bool instrumentTool(Tool t) { return t == Tool::Grasp || t == Tool::Scissors || t == Tool::Clip || t == Tool::Cautery; }
+}  // namespace
+
 void FrameView::paintEvent(QPaintEvent*) {
   ++paints_;
   QPainter painter(this);
@@ -362,7 +369,8 @@ void FrameView::paintEvent(QPaintEvent*) {
   }
   painter.setTransform(toWidget);
   if (overlayVisible_) paintOverlay(painter);
-  if (!possible_.isEmpty() && !secondShown_) {
+  const bool marks = !instrumentTool(tool_);
+  if (!possible_.isEmpty() && !secondShown_ && marks) {
     QPen pen(palette::possibleOutline(), 2.0, Qt::DashLine);
     pen.setCosmetic(true);
     painter.setPen(pen);
@@ -370,7 +378,7 @@ void FrameView::paintEvent(QPaintEvent*) {
     for (const auto& poly : possible_) painter.drawPolygon(poly);
   }
   // Contour: segments coloured by type.
-  const auto contour = currentContour();
+  const auto contour = marks ? currentContour() : imaging::Contour{};
   for (const auto& s : contour.segments) {
     QPolygonF poly;
     for (const auto& p : s.points) poly << QPointF(p.x(), p.y());
@@ -441,11 +449,6 @@ bool FrameView::toolsBusy() const {
   return false;
 }
 
-namespace {
-// An instrument of step 7 in hand: the registration's marks (landmarks through the rest pose) do not follow the
-// tissue, and are not drawn over the rehearsal (a person saw them and their legend stay through the grasp).
-bool instrumentTool(Tool t) { return t == Tool::Grasp || t == Tool::Scissors || t == Tool::Clip || t == Tool::Cautery; }
-}  // namespace
 
 QList<LegendEntry> FrameView::legend() const {
   QList<LegendEntry> out;
@@ -456,15 +459,16 @@ QList<LegendEntry> FrameView::legend() const {
     if (innerKey_.isEmpty()) out.push_back({QColor(200, 60, 60), tr("inner structures: colours as in step 1")});
     for (const auto& [colour, name] : innerKey_) out.push_back({colour, tr("inside: %1").arg(name)});
   }
-  if (!possible_.isEmpty() && !secondShown_) out.push_back({palette::possibleOutline(), possibleText_});
+  const bool marks = !instrumentTool(tool_);
+  if (!possible_.isEmpty() && !secondShown_ && marks) out.push_back({palette::possibleOutline(), possibleText_});
   std::vector<std::string> types;
-  if (case_)
+  if (case_ && marks)
     for (const auto& seg : (secondShown_ ? case_->contour2 : case_->contour).segments)
       if (std::find(types.begin(), types.end(), seg.type) == types.end()) types.push_back(seg.type);
   for (const char* t : {"silhouette", "ridge", "ligament"})
     if (std::find(types.begin(), types.end(), std::string(t)) != types.end())
       out.push_back({tools::segmentColour(t), tr("contour: %1").arg(tr(t))});
-  if (case_ && !case_->landmarks.empty() && !instrumentTool(tool_)) {
+  if (case_ && !case_->landmarks.empty() && marks) {
     out.push_back({palette::landmarkOnOrgan(), tr("landmark on the organ")});
     out.push_back({palette::landmarkInFrame(), tr("landmark in the frame")});
   }
