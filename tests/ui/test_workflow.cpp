@@ -259,9 +259,11 @@ class TestWorkflow : public QObject {
       fit->nodes = k.organ->volume.points;
       for (auto& p : fit->nodes) p.x() += 0.002;
       k.fit = fit;
+      k.appearance = std::make_shared<app::AppearanceEstimate>();  // and step 6's estimate from its pixels
     });
     QVERIFY(w_->stepDone(ui::Step::Contour));
     QVERIFY(w_->stepDone(ui::Step::Elastic));
+    QVERIFY(w_->caseData()->appearance);
     w_->framePage()->useShownFrame();
     // ... do not belong to another frame (issue 32: the outline stayed, and step 3 stayed done; a person saw steps 4-5
     // still done and the old fit's outline drawn over the new frame): they go, said in a sentence.
@@ -269,11 +271,15 @@ class TestWorkflow : public QObject {
     QVERIFY(!w_->stepDone(ui::Step::Contour));
     QVERIFY(!w_->caseData()->fit);
     QVERIFY(!w_->stepDone(ui::Step::Elastic));
-    QVERIFY2(w_->messageLog().join(" ").contains("contour sketched on the previous frame and the fit to it were removed"),
+    QVERIFY(!w_->caseData()->appearance);  // (the composited view re-shaded the new frame with the old one's light)
+    QVERIFY2(w_->messageLog().join(" ").contains(
+                 "The contour sketched on the previous frame, the fit to it and the appearance estimated from it were "
+                 "removed: sketch, fit and estimate the appearance (F10) on this one (steps 3, 5 and 6)"),
              qPrintable(w_->messageLog().join(" | ")));
-    w_->undoStack()->undo();  // one undo brings the frame, its outline and the fit back together
+    w_->undoStack()->undo();  // one undo brings the frame, its outline, the fit and the appearance back together
     QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(1));
     QVERIFY(w_->stepDone(ui::Step::Elastic));
+    QVERIFY(w_->caseData()->appearance);
     QCOMPARE(cv::norm(w_->caseData()->frame, img, cv::NORM_INF), 0.0);
     w_->undoStack()->redo();
     const cv::Vec3b px = w_->caseData()->frame(360, 640);

@@ -378,11 +378,15 @@ void FramePage::takeShownFrame(const QString& calibration) {
   // size). It goes with the old frame, in the same undo step, so that step 3 is to be done again.
   // So is the elastic fit to that outline (the shape and its "where the organ may be"): kept, steps 4-5 read done on a
   // frame nothing was fitted to. The hand's alignment, if any, stays as this frame's start.
+  // And the appearance estimated from the old frame's pixels (step 6): kept, the composited view re-shaded the new frame
+  // with another frame's light and albedo, and step 6's table showed them as this frame's (a helper read the phantom's
+  // numbers over the patient liver's frame).
   const bool hadContour = !data()->contour.segments.empty(), hadSecond = !data()->frame2.empty(),
-             hadFit = data()->hasFit();
+             hadFit = data()->hasFit(), hadAppearance = data()->appearance != nullptr;
   wb_.doc->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame, beside](app::Case& k) {
     k.contour.segments.clear();
     k.fit.reset();
+    k.appearance.reset();
     if (k.frame2.size() != frame.size()) {  // (a second frame of another size does not go with this one)
       k.frame2 = cv::Mat3b();
       k.contour2 = {};
@@ -406,13 +410,26 @@ void FramePage::takeShownFrame(const QString& calibration) {
                            : tr("Frame opened.");
   if (!unread.isEmpty())
     text += tr(" %1 beside it was not read as its calibration: %2").arg(QFileInfo(calibration).fileName(), unread);
-  if (hadContour && hadFit)
-    text += tr(" The contour sketched on the previous frame and the fit to it were removed: sketch and fit on this one "
-               "(steps 3 and 5), or Undo to go back to them.");
-  else if (hadContour)
-    text += tr(" The contour sketched on the previous frame was removed: sketch it on this one (step 3), or Undo to go back to both.");
-  else if (hadFit)
-    text += tr(" The fit to the previous frame was removed: fit on this one (step 5), or Undo to go back to it.");
+  // What went with the old frame, in one sentence: each thing, and the step that makes it again.
+  QStringList gone, redo, steps;
+  if (hadContour) gone << tr("the contour sketched on the previous frame"), redo << tr("sketch"), steps << QStringLiteral("3");
+  if (hadFit)
+    gone << (hadContour ? tr("the fit to it") : tr("the fit to the previous frame")), redo << tr("fit"),
+        steps << QStringLiteral("5");
+  if (hadAppearance)
+    gone << (gone.isEmpty() ? tr("the appearance estimated from the previous frame") : tr("the appearance estimated from it")),
+        redo << tr("estimate the appearance (F10)"), steps << QStringLiteral("6");
+  auto listed = [this](const QStringList& l) {
+    return l.size() <= 1 ? l.join(QString()) : l.mid(0, l.size() - 1).join(QStringLiteral(", ")) + tr(" and ") + l.back();
+  };
+  if (!gone.isEmpty()) {
+    QString first = listed(gone);
+    first[0] = first[0].toUpper();
+    text += QLatin1Char(' ') +
+            (gone.size() == 1 ? tr("%1 was removed: %2 on this one (step %3), or Undo to go back to it.")
+                              : tr("%1 were removed: %2 on this one (steps %3), or Undo to go back to them."))
+                .arg(first, listed(redo), listed(steps));
+  }
   if (hadSecond && data()->frame2.empty()) text += tr(" The second frame, of another size, was removed.");
   // What the frame does not say is said as a guess: the focal length decides how deep the fitted organ lies.
   if (guessedCamera(data()->camera))
