@@ -683,10 +683,19 @@ class TestWorkflow : public QObject {
     QCOMPARE(view->tool(), ui::Tool::Grasp);
     QCOMPARE(landmarksInLegend(), 0);
     QCOMPARE(contourInLegend(), 0);
-    w_->simulationPanel()->pause();
+    // Step 7 plays the rehearsal; leaving it pauses it, said (a person saw the simulation's clock run in step 1), and
+    // coming back plays it again.
+    QVERIFY(w_->simulationPanel()->isPlaying());
     w_->setStep(ui::Step::Rigid);
+    QVERIFY(!w_->simulationPanel()->isPlaying());
+    QVERIFY2(w_->messageLog().join(" ").contains("The rehearsal is paused outside step 7"),
+             qPrintable(w_->messageLog().join(" | ")));
     QCOMPARE(landmarksInLegend(), 2);
     QCOMPARE(contourInLegend(), contourEntries);
+    w_->setStep(ui::Step::Rehearse);
+    QVERIFY(w_->simulationPanel()->isPlaying());
+    w_->setStep(ui::Step::Rigid);
+    QVERIFY(!w_->simulationPanel()->isPlaying());
   }
 
   // Save and reopen: every field the user made comes back.

@@ -249,6 +249,7 @@ QWidget* MainWindow::organWidget() const {
 // ------------------------------------------------------------------------------------------- workflow
 
 void MainWindow::setStep(Step s) {
+  const Step left = step_;
   step_ = s;
   crash::setActivity(activity());
   keys_->stepShown(s);
@@ -275,6 +276,12 @@ void MainWindow::setStep(Step s) {
   if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors ||
                               view_->tool() == Tool::Clip || view_->tool() == Tool::Cautery))
     view_->setTool(Tool::Navigate);
+  // Leaving the rehearsal pauses it, as entering it plays it: the other steps show the case's organ, not the
+  // simulation's, and its steps took a core from the mesher and the fits (a person saw its clock run in step 1).
+  if (left == Step::Rehearse && s != Step::Rehearse && simulation_ && simulation_->isPlaying()) {
+    simulation_->pause();
+    say(tr("The rehearsal is paused outside step 7 (the other steps show the case's organ); step 7 plays it again."));
+  }
   if (s != Step::Rehearse && doc_->hasCase()) {
     refreshOverlay();  // the case's organ again, not the simulation's
     showInOrganView(centreOrgan_, doc_->data());
