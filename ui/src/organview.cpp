@@ -109,7 +109,7 @@ void OrganView::paintEvent(QPaintEvent*) {
   painter.drawImage(0, 0, image_);
   painter.setPen(QColor(170, 170, 170));
   painter.drawText(rect().adjusted(6, 4, -6, -4), Qt::AlignLeft | Qt::AlignBottom,
-                   tr("%1 tets, %2 attachments").arg(case_->organ->volume.tets.size()).arg(case_->attachments.size()));
+                   tr("the case's organ: %1 tets, %2 attachments").arg(case_->organ->volume.tets.size()).arg(case_->attachments.size()));
 }
 
 void OrganView::mousePressEvent(QMouseEvent* e) { turntable_.press(e->position()); }

@@ -264,7 +264,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   // A new session (a new organ, case, reset or recording) starts its counts from nothing.
   if (f->steps < lastSteps_ || f->steps == 0) {
     slips_ = cuts_ = vesselCuts_ = tears_ = 0;
-    wasCutting_ = strokeCounted_ = false;
+    wasCutting_ = strokeCounted_ = slippedFromJaws_ = false;
     // ... and what the last one said goes with it ("Released: the tissue relaxes." stayed over a new case's organ).
     if (!status_->text().isEmpty()) pendingStatus_ = QString();
   }
@@ -278,6 +278,8 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   simcore::EventCounts counted;
   counted.add(f->events);
   slips_ += counted.slips;
+  if (!f->tool.held.empty()) slippedFromJaws_ = false;
+  if (counted.slips > 0) slippedFromJaws_ = true;
   // Strokes that cut, not the cut's updates (a person read "cuts: 10" after three strokes): a stroke counts at its
   // first cut; one still being built when the blade is lifted is the same stroke.
   if (f->tool.cutting && !wasCutting_) strokeCounted_ = false;
@@ -307,8 +309,12 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     status(tr("Holding %n node(s) of tissue.", nullptr, static_cast<int>(t.held.size())));
   else if (t.jawClosed)
     status(f->message.isEmpty() ? tr("The jaws are closed on nothing.") : f->message);
-  else if (std::find(f->events.begin(), f->events.end(), "release") != f->events.end())
-    status(tr("Released: the tissue relaxes."));
+  else if (std::find(f->events.begin(), f->events.end(), "release") != f->events.end()) {
+    // (After a slip the jaws hold nothing: a person read "Released: the tissue relaxes." over a slip.)
+    status(slippedFromJaws_ ? tr("The jaws opened: the tissue had already slipped out of them.")
+                            : tr("Released: the tissue relaxes."));
+    slippedFromJaws_ = false;
+  }
   else if (cuts_ > 0 && pendingStatus_.value_or(status_->text()).startsWith(tr("Cutting")))
     status(tr("Cut: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
   QString extra;
