@@ -100,9 +100,9 @@ void hangingStarts(const std::vector<Organ>& organs, const std::string& out, boo
   }
 }
 
-// The nodes that hold the organ for an assistant's picks, as the window's and the command line's start holds them (a
-// lone pick holds its neighbours on the surface too, app::prepareStart); REHEARSE_BENCH_POINT_PICKS=1: the picks alone
-// (as before that existed).
+// The nodes that hold the organ for an assistant's picks, as `rehearse gesture --fixed-nodes` holds them (a lone pick
+// holds its neighbours on the surface too, app::prepareStart); REHEARSE_BENCH_POINT_PICKS=1: the picks alone (as before
+// that existed, and as the window still holds its clicks).
 std::vector<int> heldFor(const Mesh& mesh, const std::vector<int>& picked) {
   if (std::getenv("REHEARSE_BENCH_POINT_PICKS")) return picked;
   return attachmentPatches(mesh.tets, mesh.points.size(), picked);

@@ -82,8 +82,11 @@ struct StartOptions {
   std::function<bool(int, double)> progress;
   RestShapeCache* cache = nullptr;  ///< the rest shape solved for the same body before (none: solved)
   /// A lone attachment holds its neighbours on the surface too (simcore::attachmentPatches: one pinned node crushes
-  /// its own elements); false: the held nodes as given.
-  bool attachmentPatches = true;
+  /// its own elements); false: the held nodes as given. `rehearse gesture` asks it for nodes given as a file
+  /// (--fixed-nodes). The window does not yet: its clicks hold patches by radius, and where a click held one node, the
+  /// patches changed the patient liver's tears at its attachments (3-5 tears under a 7 mm pull where 3 or fewer were
+  /// asked; not yet understood).
+  bool attachmentPatches = false;
 };
 
 /// What prepareStart found.
