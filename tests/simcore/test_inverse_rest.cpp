@@ -73,6 +73,15 @@ std::pair<double, bool> driftOver(const BodySetup& s, int steps) {
   return {drift, converged};
 }
 
+// BodyParts3D's liver meshed to about `tets` tets, co-rotational, gravity along the view's depth axis (z).
+BodySetup bodyPartsLiverAlongTheView(std::size_t tets) {
+  BodySetup s;
+  s.mesh = testing::meshedOrgan(testing::loadOrganSurface(sharedData("bodyparts3d/FMA7197_Liver.obj")), tets);
+  s.material = {MaterialModel::Corotational, 27e3, 0.4, 1079};
+  s.settings.gravity = Eigen::Vector3d(0, 0, 9.81);
+  return s;
+}
+
 }  // namespace
 
 class TestInverseRest : public QObject {
@@ -264,10 +273,7 @@ class TestInverseRest : public QObject {
   // The start is found for each and a session leaves the organ there.
   void realLiverStartsOnItsSupportsForAnyPicks() {
     REQUIRE_SHARED("bodyparts3d/FMA7197_Liver.obj");
-    BodySetup base;
-    base.mesh = testing::meshedOrgan(testing::loadOrganSurface(sharedData("bodyparts3d/FMA7197_Liver.obj")), 2500);
-    base.material = {MaterialModel::Corotational, 27e3, 0.4, 1079};
-    base.settings.gravity = Eigen::Vector3d(0, 0, 9.81);
+    const BodySetup base = bodyPartsLiverAlongTheView(2500);
     const std::vector<Eigen::Vector3d> target = base.mesh.points;
     for (const auto& [name, held] : testing::assistantPicks(base.mesh)) {
       BodySetup s = base;
@@ -335,10 +341,7 @@ class TestInverseRest : public QObject {
   // (the pick and its neighbours on the surface), every step converges and no element is crushed (0.48).
   void aLonePickIsNotCrushedByAPull() {
     REQUIRE_SHARED("bodyparts3d/FMA7197_Liver.obj");
-    BodySetup base;
-    base.mesh = testing::meshedOrgan(testing::loadOrganSurface(sharedData("bodyparts3d/FMA7197_Liver.obj")), 3800);
-    base.material = {MaterialModel::Corotational, 27e3, 0.4, 1079};
-    base.settings.gravity = Eigen::Vector3d(0, 0, 9.81);
+    BodySetup base = bodyPartsLiverAlongTheView(3800);
     base.settings.method = kInteractiveMethod;
     base.settings.factorRefresh = FactorRefresh::Synchronous;  // the same steps in every run
     base.tools.maxGraspForce = 1e9;
@@ -356,18 +359,11 @@ class TestInverseRest : public QObject {
       if (bite.bite < 0) return -2;
       Session session(s);
       const Eigen::Vector3d p = shape[static_cast<std::size_t>(bite.bite)];
-      auto send = [&](InputKind kind, const Eigen::Vector3d& at, bool on) {
-        InputEvent e;
-        e.kind = kind;
-        e.position = at;
-        e.on = on;
-        session.post(e);
-      };
-      send(InputKind::ToolPose, p, false);
-      send(InputKind::Jaw, p, true);
+      session.post(testing::toolAt(p));
+      session.post(testing::jaws(true));
       int notConverged = 0;
       for (int k = 1; k <= 150; ++k) {
-        if (k <= 100) send(InputKind::ToolPose, p + 0.0002 * k * bite.away, false);
+        if (k <= 100) session.post(testing::toolAt(p + 0.0002 * k * bite.away));
         notConverged += session.advance().outcome != StepStatus::Converged;
       }
       const auto& x = session.snapshot()->positions;
