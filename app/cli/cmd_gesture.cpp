@@ -197,6 +197,14 @@ struct GestureStart {
 // `setup` made ready to start. A body nothing holds under gravity, or with no equilibrium at the shape, is not started
 // (exit 4).
 GestureStart startBody(simcore::BodySetup& setup, const StartOptions& startAs) {
+  // A held node the mesh does not have is the input's fault, said in one line (it surfaced as "no rest shape was
+  // found: rest shape 1 cannot be simulated (...)", twice).
+  for (int n : setup.fixedNodes)
+    if (n < 0 || static_cast<std::size_t>(n) >= setup.mesh.points.size()) {
+      std::fprintf(stderr, "rehearse: the held nodes name node %d, but the mesh has %zu nodes (numbered from 0)\n", n,
+                   setup.mesh.points.size());
+      return {1, {}, -1};
+    }
   SessionStart prepared = prepareStart(std::move(setup), startAs);
   if (prepared.rest) std::printf("start: %s\n", prepared.rest->status.c_str());
   switch (prepared.outcome) {

@@ -484,6 +484,14 @@ class TestCli : public QObject {
     QVERIFY(run({"info", mapped}).out.contains("triangles: "));
     expectOneLineError(run({"simulate", "--preset", "liver", "--fixed-nodes", "999999", "--out", out}), 1,
                        "does not exist");
+    // The same for a rehearsal's start (a helper read it as a solver's failure, said twice, nested in "no rest shape").
+    {
+      const QString gesture = QString::fromStdString(tempPath("held-nowhere.json"));
+      writeFile(gesture.toStdString(), R"({"format": "rehearse-gesture", "duration": 0.02, "events": []})");
+      expectOneLineError(run({"gesture", "--preset", "liver", "--script", gesture, "--start", "equilibrium",
+                              "--fixed-nodes", "999999", "--out", out}),
+                         1, "the held nodes name node 999999, but the mesh has");
+    }
     expectOneLineError(run({"simulate", "--preset", "spleen", "--out", out}), 2, "preset 'spleen'");
     expectOneLineError(run({"simulate", "--preset", "liver", "--gravity", "down", "--out", out}), 2, "three numbers");
     expectOneLineError(run({"simulate", "--preset", "liver", "--material", "rubber", "--out", out}), 1,

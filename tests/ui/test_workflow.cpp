@@ -260,10 +260,12 @@ class TestWorkflow : public QObject {
       for (auto& p : fit->nodes) p.x() += 0.002;
       k.fit = fit;
       k.appearance = std::make_shared<app::AppearanceEstimate>();  // and step 6's estimate from its pixels
+      k.landmarks = {app::LandmarkPair{Eigen::Vector3d(0.01, 0, 0), Eigen::Vector2d(300, 200), true}};  // and a pair
     });
     QVERIFY(w_->stepDone(ui::Step::Contour));
     QVERIFY(w_->stepDone(ui::Step::Elastic));
     QVERIFY(w_->caseData()->appearance);
+    QCOMPARE(w_->caseData()->landmarks.size(), std::size_t(1));
     w_->framePage()->useShownFrame();
     // ... do not belong to another frame (issue 32: the outline stayed, and step 3 stayed done; a person saw steps 4-5
     // still done and the old fit's outline drawn over the new frame): they go, said in a sentence.
@@ -272,14 +274,17 @@ class TestWorkflow : public QObject {
     QVERIFY(!w_->caseData()->fit);
     QVERIFY(!w_->stepDone(ui::Step::Elastic));
     QVERIFY(!w_->caseData()->appearance);  // (the composited view re-shaded the new frame with the old one's light)
+    QVERIFY(w_->caseData()->landmarks.empty());  // (a helper saw the pair's old pixel drawn on the new frame)
     QVERIFY2(w_->messageLog().join(" ").contains(
-                 "The contour sketched on the previous frame, the fit to it and the appearance estimated from it were "
-                 "removed: sketch, fit and estimate the appearance (F10) on this one (steps 3, 5 and 6)"),
+                 "The contour sketched on the previous frame, the landmark pair picked on it, the fit to it and "
+                 "the appearance estimated from it were removed: sketch, pick the pairs, fit and estimate the "
+                 "appearance (F10) on this one (steps 3, 4, 5 and 6)"),
              qPrintable(w_->messageLog().join(" | ")));
     w_->undoStack()->undo();  // one undo brings the frame, its outline, the fit and the appearance back together
     QCOMPARE(w_->caseData()->contour.segments.size(), std::size_t(1));
     QVERIFY(w_->stepDone(ui::Step::Elastic));
     QVERIFY(w_->caseData()->appearance);
+    QCOMPARE(w_->caseData()->landmarks.size(), std::size_t(1));
     QCOMPARE(cv::norm(w_->caseData()->frame, img, cv::NORM_INF), 0.0);
     w_->undoStack()->redo();
     const cv::Vec3b px = w_->caseData()->frame(360, 640);

@@ -79,7 +79,7 @@ std::string SessionStart::patchesSentence() const {
   return (lone == 1 ? std::string("The lone attachment holds its ") + std::to_string(added) + " neighbours"
                     : "The " + std::to_string(lone) + " lone attachments hold their " + std::to_string(added) +
                           " neighbours") +
-         " on the surface too (" + std::to_string(held) +
+         " too (" + std::to_string(held) +
          " nodes held): a ligament attaches over an area, and a single pinned node is crushed by a pull.";
 }
 

@@ -383,10 +383,14 @@ void FramePage::takeShownFrame(const QString& calibration) {
   // numbers over the patient liver's frame).
   const bool hadContour = !data()->contour.segments.empty(), hadSecond = !data()->frame2.empty(),
              hadFit = data()->hasFit(), hadAppearance = data()->appearance != nullptr;
+  // The landmark pairs' points in the frame are the old frame's (a helper saw a pair drawn on the real frame at the
+  // phantom's pixel): the pairs go too, their points on the organ picked again with the new frame's.
+  const std::size_t hadPairs = data()->landmarks.size();
   wb_.doc->edit(fromVideo ? tr("Pick frame %1").arg(shown) : tr("Open frame"), [frame, beside](app::Case& k) {
     k.contour.segments.clear();
     k.fit.reset();
     k.appearance.reset();
+    k.landmarks.clear();
     if (k.frame2.size() != frame.size()) {  // (a second frame of another size does not go with this one)
       k.frame2 = cv::Mat3b();
       k.contour2 = {};
@@ -419,6 +423,20 @@ void FramePage::takeShownFrame(const QString& calibration) {
   if (hadAppearance)
     gone << (gone.isEmpty() ? tr("the appearance estimated from the previous frame") : tr("the appearance estimated from it")),
         redo << tr("estimate the appearance (F10)"), steps << QStringLiteral("6");
+  if (hadPairs > 0)
+    gone << (hadPairs == 1 ? (gone.isEmpty() ? tr("the landmark pair picked on the previous frame")
+                                             : tr("the landmark pair picked on it"))
+                           : (gone.isEmpty() ? tr("the %1 landmark pairs picked on the previous frame").arg(hadPairs)
+                                             : tr("the %1 landmark pairs picked on it").arg(hadPairs))),
+        redo << tr("pick the pairs"), steps << QStringLiteral("4");
+  {  // in the workflow's order
+    std::vector<int> order(static_cast<std::size_t>(steps.size()));
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
+    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return steps[a].toInt() < steps[b].toInt(); });
+    QStringList g, r, st;
+    for (int i : order) g << gone[i], r << redo[i], st << steps[i];
+    gone = g, redo = r, steps = st;
+  }
   auto listed = [this](const QStringList& l) {
     return l.size() <= 1 ? l.join(QString()) : l.mid(0, l.size() - 1).join(QStringLiteral(", ")) + tr(" and ") + l.back();
   };

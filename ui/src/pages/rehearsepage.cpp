@@ -311,7 +311,9 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     status(f->message.isEmpty() ? tr("The jaws are closed on nothing.") : f->message);
   else if (std::find(f->events.begin(), f->events.end(), "release") != f->events.end()) {
     // (After a slip the jaws hold nothing: a person read "Released: the tissue relaxes." over a slip.)
-    status(slippedFromJaws_ ? tr("The jaws opened: the tissue had already slipped out of them.")
+    // (The grasper itself opens and is withdrawn at a slip, while the button may still be held.)
+    status(slippedFromJaws_ ? tr("The tissue slipped out of the jaws; the grasper opened and was withdrawn: press on "
+                                 "the organ to grasp again.")
                             : tr("Released: the tissue relaxes."));
     slippedFromJaws_ = false;
   }

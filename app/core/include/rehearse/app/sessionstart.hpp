@@ -112,8 +112,8 @@ struct SessionStart {
   std::size_t picked = 0;  ///< attachments given (the body's held nodes before StartOptions::attachmentPatches)
   std::size_t lone = 0;    ///< of them, lone picks that hold their neighbours on the surface too
   std::size_t held = 0;    ///< nodes the body holds
-  /// "The 1 lone attachment holds its 6 neighbours on the surface too (7 nodes held): one pinned node is crushed by a
-  /// pull." Empty when no pick is lone.
+  /// "The lone attachment holds its 6 neighbours too (7 nodes held): ..." (on the surface, or inside the organ for a
+  /// pick inside it). Empty when no pick is lone.
   std::string patchesSentence() const;
   std::optional<simcore::InverseRestResult> rest;  ///< the solve, when one was made or reused
 };
