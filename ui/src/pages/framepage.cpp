@@ -414,28 +414,30 @@ void FramePage::takeShownFrame(const QString& calibration) {
                            : tr("Frame opened.");
   if (!unread.isEmpty())
     text += tr(" %1 beside it was not read as its calibration: %2").arg(QFileInfo(calibration).fileName(), unread);
-  // What went with the old frame, in one sentence: each thing, and the step that makes it again.
-  QStringList gone, redo, steps;
-  if (hadContour) gone << tr("the contour sketched on the previous frame"), redo << tr("sketch"), steps << QStringLiteral("3");
-  if (hadFit)
-    gone << (hadContour ? tr("the fit to it") : tr("the fit to the previous frame")), redo << tr("fit"),
-        steps << QStringLiteral("5");
+  // What went with the old frame, in one sentence, in the workflow's order: each thing (the first names the previous
+  // frame, the others refer to it), and the step that makes it again.
+  struct Gone {
+    int step;
+    QString first, later, redo;
+  };
+  std::vector<Gone> went;
+  if (hadContour)
+    went.push_back({3, tr("the contour sketched on the previous frame"), tr("the contour sketched on it"), tr("sketch")});
+  if (hadPairs == 1)
+    went.push_back({4, tr("the landmark pair picked on the previous frame"), tr("the landmark pair picked on it"),
+                    tr("pick the pairs")});
+  else if (hadPairs > 1)
+    went.push_back({4, tr("the %1 landmark pairs picked on the previous frame").arg(hadPairs),
+                    tr("the %1 landmark pairs picked on it").arg(hadPairs), tr("pick the pairs")});
+  if (hadFit) went.push_back({5, tr("the fit to the previous frame"), tr("the fit to it"), tr("fit")});
   if (hadAppearance)
-    gone << (gone.isEmpty() ? tr("the appearance estimated from the previous frame") : tr("the appearance estimated from it")),
-        redo << tr("estimate the appearance (F10)"), steps << QStringLiteral("6");
-  if (hadPairs > 0)
-    gone << (hadPairs == 1 ? (gone.isEmpty() ? tr("the landmark pair picked on the previous frame")
-                                             : tr("the landmark pair picked on it"))
-                           : (gone.isEmpty() ? tr("the %1 landmark pairs picked on the previous frame").arg(hadPairs)
-                                             : tr("the %1 landmark pairs picked on it").arg(hadPairs))),
-        redo << tr("pick the pairs"), steps << QStringLiteral("4");
-  {  // in the workflow's order
-    std::vector<int> order(static_cast<std::size_t>(steps.size()));
-    for (std::size_t i = 0; i < order.size(); ++i) order[i] = static_cast<int>(i);
-    std::stable_sort(order.begin(), order.end(), [&](int a, int b) { return steps[a].toInt() < steps[b].toInt(); });
-    QStringList g, r, st;
-    for (int i : order) g << gone[i], r << redo[i], st << steps[i];
-    gone = g, redo = r, steps = st;
+    went.push_back({6, tr("the appearance estimated from the previous frame"), tr("the appearance estimated from it"),
+                    tr("estimate the appearance (F10)")});
+  QStringList gone, redo, steps;
+  for (const Gone& g : went) {
+    gone << (gone.isEmpty() ? g.first : g.later);
+    redo << g.redo;
+    steps << QString::number(g.step);
   }
   auto listed = [this](const QStringList& l) {
     return l.size() <= 1 ? l.join(QString()) : l.mid(0, l.size() - 1).join(QStringLiteral(", ")) + tr(" and ") + l.back();
