@@ -105,7 +105,7 @@ void hangingStarts(const std::vector<Organ>& organs, const std::string& out, boo
 // that existed, and as the window still holds its clicks).
 std::vector<int> heldFor(const Mesh& mesh, const std::vector<int>& picked) {
   if (std::getenv("REHEARSE_BENCH_POINT_PICKS")) return picked;
-  return attachmentPatches(mesh.tets, mesh.points.size(), picked);
+  return attachmentPatches(mesh, picked);
 }
 
 // Issue 61: the tissue around the organ carries it (support.hpp, the default modulus), gravity along the view (+z,

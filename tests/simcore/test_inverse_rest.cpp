@@ -290,9 +290,9 @@ class TestInverseRest : public QObject {
     }
   }
 
-  // A lone pick holds its neighbours on the surface (simcore::attachmentPatches), checked against the mesh's own
-  // boundary (boundaryTriangles, another code): a node on a box's top face held alone holds the nodes of the boundary
-  // triangles around it; two neighbouring picks hold as picked; a node inside holds the nodes of its elements; a number
+  // A lone pick holds its neighbours on the surface (simcore::attachmentPatches), checked against the box's geometry
+  // (not its boundary's code): a node on a box's top face held alone holds the nodes on the top face it shares an
+  // element with (an edge of an element lying in the flat top face is an edge of the surface); two neighbouring picks hold as picked; a node inside holds the nodes of its elements; a number
   // outside the mesh is kept for the body to refuse.
   void aLonePickHoldsItsNeighboursOnTheSurface() {
     const Mesh box = boxMesh(0.04, 0.02, 0.02, 4, 2, 2);
@@ -305,29 +305,31 @@ class TestInverseRest : public QObject {
     const int top = nodeAt(0.02, 0.01, 0.02), inside = nodeAt(0.02, 0.01, 0.01), beside = nodeAt(0.03, 0.01, 0.02);
     QVERIFY(top >= 0 && inside >= 0 && beside >= 0);
     std::vector<int> ring{top};
-    for (const auto& t : boundaryTriangles(box, false))
-      if (std::find(t.begin(), t.end(), top) != t.end()) ring.insert(ring.end(), t.begin(), t.end());
+    for (const auto& t : box.tets)
+      if (std::find(t.begin(), t.end(), top) != t.end())
+        for (int v : t)
+          if (std::abs(box.points[static_cast<std::size_t>(v)].z() - 0.02) < 1e-9) ring.push_back(v);
     std::sort(ring.begin(), ring.end());
     ring.erase(std::unique(ring.begin(), ring.end()), ring.end());
     std::size_t lone = 0;
-    const std::vector<int> held = attachmentPatches(box.tets, n, {top}, &lone);
+    const std::vector<int> held = attachmentPatches(box, {top}, &lone);
     qInfo("a lone pick on the top face holds %zu nodes", held.size());
     QCOMPARE(held, ring);
     QCOMPARE(lone, std::size_t(1));
     QVERIFY(held.size() >= 5);
-    QCOMPARE(attachmentPatches(box.tets, n, {top, beside}, &lone), (std::vector<int>{std::min(top, beside), std::max(top, beside)}));
+    QCOMPARE(attachmentPatches(box, {top, beside}, &lone), (std::vector<int>{std::min(top, beside), std::max(top, beside)}));
     QCOMPARE(lone, std::size_t(0));
     std::vector<int> around{inside};
     for (const auto& t : box.tets)
       if (std::find(t.begin(), t.end(), inside) != t.end()) around.insert(around.end(), t.begin(), t.end());
     std::sort(around.begin(), around.end());
     around.erase(std::unique(around.begin(), around.end()), around.end());
-    QCOMPARE(attachmentPatches(box.tets, n, {inside}), around);
-    const std::vector<int> outside = attachmentPatches(box.tets, n, {static_cast<int>(n) + 5});
+    QCOMPARE(attachmentPatches(box, {inside}), around);
+    const std::vector<int> outside = attachmentPatches(box, {static_cast<int>(n) + 5});
     QCOMPARE(outside, (std::vector<int>{static_cast<int>(n) + 5}));
     // The built-in phantom's ligaments are regions: none of its held nodes is lone, so it holds as it always did.
     const phantom::Phantom ph = phantom::makePhantom();
-    QCOMPARE(attachmentPatches(ph.volume.tets, ph.volume.points.size(), ph.attachments, &lone).size(),
+    QCOMPARE(attachmentPatches(ph.volume, ph.attachments, &lone).size(),
              ph.attachments.size());
     qInfo("the phantom's %zu held nodes: %zu lone", ph.attachments.size(), lone);
     QCOMPARE(lone, std::size_t(0));
@@ -380,7 +382,7 @@ class TestInverseRest : public QObject {
     };
     double pinned = 0, patched = 0;
     const int alone = pull(pick, pinned);
-    const std::vector<int> held = attachmentPatches(base.mesh.tets, shape.size(), pick);
+    const std::vector<int> held = attachmentPatches(base.mesh, pick);
     const int spread = pull(held, patched);
     qInfo("held at the pick alone: %d of 150 steps not converged, smallest element at %.3f of its volume; the pick and "
           "its %zu neighbours: %d, %.3f",

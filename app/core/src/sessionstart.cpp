@@ -91,7 +91,7 @@ SessionStart prepareStart(simcore::BodySetup body, const StartOptions& options) 
     std::sort(given.begin(), given.end());
     given.erase(std::unique(given.begin(), given.end()), given.end());
     out.picked = given.size();
-    const std::vector<int> held = simcore::attachmentPatches(body.mesh.tets, body.mesh.points.size(), given, &out.lone);
+    const std::vector<int> held = simcore::attachmentPatches(body.mesh, given, &out.lone);
     body.fixedNodes = held;
   }
   out.held = body.fixedNodes.size();

@@ -7,7 +7,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
 
 namespace rehearse::simcore {
 
@@ -100,23 +99,14 @@ SupportPlacement placeSupports(const std::vector<std::array<int, 4>>& tets, cons
   return p;
 }
 
-std::vector<int> attachmentPatches(const std::vector<std::array<int, 4>>& tets, std::size_t nodes,
-                                   const std::vector<int>& picked, std::size_t* lone) {
+std::vector<int> attachmentPatches(const Mesh& volume, const std::vector<int>& picked, std::size_t* lone) {
+  const std::size_t nodes = volume.points.size();
+  const auto& tets = volume.tets;
   std::vector<int> out = picked;
   if (lone) *lone = 0;
   std::vector<char> isPicked(nodes, 0);
   for (int v : picked)
     if (v >= 0 && static_cast<std::size_t>(v) < nodes) isPicked[static_cast<std::size_t>(v)] = 1;
-  // The boundary: the faces one element has.
-  std::map<std::array<int, 3>, int> faceCount;
-  for (const auto& t : tets)
-    for (int skip = 0; skip < 4; ++skip) {
-      std::array<int, 3> f{};
-      for (int j = 0, k = 0; j < 4; ++j)
-        if (j != skip) f[static_cast<std::size_t>(k++)] = t[static_cast<std::size_t>(j)];
-      std::sort(f.begin(), f.end());
-      ++faceCount[f];
-    }
   std::vector<std::vector<int>> onSurface(nodes), inVolume(nodes);
   auto link = [&](std::vector<std::vector<int>>& n, int a, int b) {
     if (a < 0 || b < 0 || static_cast<std::size_t>(a) >= nodes || static_cast<std::size_t>(b) >= nodes) return;
@@ -124,9 +114,8 @@ std::vector<int> attachmentPatches(const std::vector<std::array<int, 4>>& tets, 
     n[static_cast<std::size_t>(a)].push_back(b);
     n[static_cast<std::size_t>(b)].push_back(a);
   };
-  for (const auto& [f, count] : faceCount)
-    if (count == 1)
-      for (int i = 0; i < 3; ++i) link(onSurface, f[static_cast<std::size_t>(i)], f[static_cast<std::size_t>((i + 1) % 3)]);
+  for (const auto& f : boundaryTriangles(volume, false))
+    for (int i = 0; i < 3; ++i) link(onSurface, f[static_cast<std::size_t>(i)], f[static_cast<std::size_t>((i + 1) % 3)]);
   for (const auto& t : tets)
     for (int i = 0; i < 4; ++i)
       for (int j = i + 1; j < 4; ++j) link(inVolume, t[static_cast<std::size_t>(i)], t[static_cast<std::size_t>(j)]);

@@ -48,8 +48,7 @@ SupportPlacement placeSupports(const std::vector<std::array<int, 4>>& tets, cons
 /// boundary triangle with it (the nodes that share an element with it, for a pick inside the organ). Picks beside
 /// other picks (along an edge, a region) hold as picked. Sorted, without repeats; node numbers outside the mesh are
 /// kept as given (the body refuses them with its own sentence). `lone` (may be null): how many picks were lone.
-std::vector<int> attachmentPatches(const std::vector<std::array<int, 4>>& tets, std::size_t nodes,
-                                   const std::vector<int>& picked, std::size_t* lone = nullptr);
+std::vector<int> attachmentPatches(const Mesh& volume, const std::vector<int>& picked, std::size_t* lone = nullptr);
 
 /// The default foundation modulus, Pa/m (see above).
 constexpr double kDefaultSupportModulus = 1e5;
