@@ -167,10 +167,10 @@ StartOptions startOptions(Options& o, double caseSupport) {
     throw UsageError("--start takes rest or equilibrium, not '" + o["start"] + "'");
   StartOptions startAs;
   startAs.inEquilibrium = o.count("start") && o["start"] == "equilibrium";
-  // Nodes given as a file of picks (--fixed-nodes) hold a lone one with its neighbours on the surface. A case's
-  // attachments (the window's clicks) and a scene's or preset's own held nodes hold as they are written, as the window
-  // holds them.
-  startAs.attachmentPatches = o.count("fixed-nodes") > 0;
+  // A person's picks (a case's attachments, the window's clicks, or nodes given as a file with --fixed-nodes) hold a
+  // lone one with its neighbours on the surface, as the window holds them. A scene's or preset's own held nodes hold
+  // as they are written.
+  startAs.attachmentPatches = o.count("case") || o.count("fixed-nodes");
   if (startAs.inEquilibrium) startAs.supportModulus = caseSupport >= 0 ? caseSupport : simcore::kDefaultSupportModulus;
   if (o.count("support")) {
     char* end = nullptr;

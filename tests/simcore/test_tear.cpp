@@ -413,7 +413,9 @@ class TestTear : public QObject {
       long releasedAt = -1;
       for (int k = 1; k <= hold + steps + after; ++k) {
         const double u = std::clamp(k - hold, 0, steps) * kStep;
-        if (releasedAt < 0) s.post(toolAt(tip0 + Eigen::Vector3d(u, 0, 0)));
+        // (held where it started, the jaws jiggle 0.1 mm across: a tear grows only while the jaws move)
+        const double jiggle = k <= hold && k % 2 ? 1e-4 : 0.0;
+        if (releasedAt < 0) s.post(toolAt(tip0 + Eigen::Vector3d(u, jiggle, 0)));
         s.advance();
         const auto snap = s.snapshot();
         if (!has(snap->events, "tear")) continue;
@@ -436,7 +438,7 @@ class TestTear : public QObject {
       }
       return out;
     };
-    // At rest, 300 steps (3 s) held where it started.
+    // At rest, 300 steps (3 s) held where it started (the jaws jiggling there).
     const Run still = run(started(0.15, true), 300, 0, 0);
     qInfo("starts 20 %% past its rest shape, tears at 15 %% from the start: %ld tears in 3 s (%s)", still.tears,
           still.firstMessage.c_str());
@@ -569,6 +571,68 @@ class TestTear : public QObject {
         QVERIFY(untouched > 0);
       }
     }
+  }
+
+  // Issue 61, "growing only while pulled" (ToolSettings::tearOnlyWhilePulled): a plate pulled at one corner of its
+  // free end 16 mm (40 %) in 5 steps, faster than a tear opens (the window's 5-step latency), then held still by the
+  // jaws for 60 steps, then pulled on 6 mm. Measured: with the rule 1 tear in the pull, none held still, 3 pulled on;
+  // without it (the sessions recorded before it) 1, then 5 while the jaws stood still. A setup written with the rule
+  // keeps it; one written before it existed reads without it.
+  void aHeldTearGrowsOnlyWhilePulled() {
+    for (const bool rule : {true, false}) {
+      // (A plate 40 mm wide, pulled at one corner of its free end: the bar alone comes apart at its first tear.)
+      simcore::BodySetup setup = bar();
+      setup.mesh = boxMesh(kL, 4 * kSide, kSide, 4, 8, 2);
+      setup.fixedNodes = nodesAtX(setup.mesh, 0.0);
+      setup.tools.tearLatencySteps = 5;
+      setup.tools.tearOnlyWhilePulled = rule;
+      simcore::Session s(setup);
+      const Eigen::Vector3d tip0(kL, 0.5 * kSide, 0.5 * kSide);
+      s.post(toolAt(tip0));
+      s.post(jaws(true));
+      s.advance();
+      double u = 0;
+      int pulling = 0, still = 0, again = 0;
+      auto step = [&](int& count) {
+        const auto rep = s.advance();
+        if (!rep.ok) qWarning("%s", simcore::statusSentence(rep).c_str());
+        count += static_cast<int>(has(s.snapshot()->events, "tear"));
+      };
+      // A quick pull far past the limit: 16 mm (40 %) over 5 steps, faster than a tear opens.
+      for (int k = 0; k < 5; ++k) {
+        u += 0.08 * kL;
+        s.post(toolAt(tip0 + Eigen::Vector3d(u, 0, 0)));
+        step(pulling);
+      }
+      const double tornAt = u;
+      for (int k = 0; k < 60; ++k) step(still);
+      const bool held = !s.snapshot()->tool.held.empty();
+      for (int k = 0; k < 60 && held; ++k) {
+        u += kStep;
+        s.post(toolAt(tip0 + Eigen::Vector3d(u, 0, 0)));
+        step(again);
+      }
+      qInfo("%s: torn at a pull of %.2f mm; %d tears while the jaws held still 60 steps, %d over 6 mm more pull "
+            "(%s; %zu pieces, %.4f N; %d while pulled)",
+            rule ? "growing only while pulled" : "as recorded before", 1e3 * tornAt, still, again,
+            held ? "still held" : "the jaws had let go",
+            simcore::connectedPieces(*s.snapshot()->tets, s.snapshot()->positions.size()),
+            s.snapshot()->tool.force.norm(), pulling);
+      QVERIFY2(pulling >= 1, "the quick pull did not tear the plate");
+      if (rule) {
+        QCOMPARE(still, 0);
+        QVERIFY(held);
+        QVERIFY2(again >= 1, "pulled on, the torn bar did not tear again");
+      } else {
+        QVERIFY2(still >= 1, "held still, the plate did not tear on without the rule: the contrast is gone");
+      }
+    }
+    simcore::BodySetup with = bar();
+    QVERIFY(app::decodeSetup(app::encodeSetup(with)).tools.tearOnlyWhilePulled);
+    with.tools.tearOnlyWhilePulled = false;
+    const std::string before = app::encodeSetup(with);
+    QVERIFY(before.find("tearOnlyWhilePulled") == std::string::npos);
+    QVERIFY(!app::decodeSetup(before).tools.tearOnlyWhilePulled);
   }
 
   void badTearSettingsAreRefused() {

@@ -162,6 +162,8 @@ QString SessionHost::startWords(const app::SessionRequest& s, const app::Session
                  .arg(start.reused ? tr(" (solved for the last session, the same organ)") : QString());
   else if (start.start == app::SessionStart::Start::SagsFromShape)
     words += tr("The organ starts at rest on the registered shape and will sag from it under gravity.");
+  if (const std::string patches = start.patchesSentence(); !patches.empty())
+    words += QLatin1Char(' ') + QString::fromStdString(patches);
   return words;
 }
 

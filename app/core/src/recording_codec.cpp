@@ -284,6 +284,7 @@ std::string encodeSetup(const simcore::BodySetup& s) {
   // (likewise: setups recorded before it existed waited for a tear's body at its boundary)
   if (t.tearWhenBuilt) j["tools"]["tearWhenBuilt"] = true;
   if (t.tearOnlyUnderLoad) j["tools"]["tearOnlyUnderLoad"] = true;  // (likewise: they tore whatever stretched them)
+  if (t.tearOnlyWhilePulled) j["tools"]["tearOnlyWhilePulled"] = true;  // (likewise: and while the jaws held still)
   if (t.tearRemovesElements) j["tools"]["tearRemovesElements"] = true;  // (likewise: their tears re-meshed)
   if (t.bladeReachesTheSurface) j["tools"]["bladeReachesTheSurface"] = true;  // (likewise: their blade's length only)
   if (t.trocar) j["tools"]["trocar"] = vec(*t.trocar);
@@ -381,6 +382,7 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
     s.tools.slipResolved = t.value("slipResolved", false);  // ... the held-back step's force as it came out
     s.tools.tearThroughNeighbours = t.value("tearThroughNeighbours", false);  // ... and tears were the element's alone
     s.tools.tearOnlyUnderLoad = t.value("tearOnlyUnderLoad", false);  // ... made whatever stretched the tissue
+    s.tools.tearOnlyWhilePulled = t.value("tearOnlyWhilePulled", false);  // ... and while the jaws held still
     s.tools.tearRemovesElements = t.value("tearRemovesElements", false);  // ... split across the stretch, re-meshed
     s.tools.tearWhenBuilt = t.value("tearWhenBuilt", false);  // ... and waited for a tear's body at its boundary
     s.tools.bladeReachesTheSurface = t.value("bladeReachesTheSurface", false);  // ... and cut the blade's length only

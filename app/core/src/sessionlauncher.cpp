@@ -55,6 +55,9 @@ Launch launchSession(const SessionRequest& request, const LaunchOptions& options
   body.buildProgress = options.buildProgress;
   StartOptions startAs;
   startAs.inEquilibrium = request.startInEquilibrium;
+  // The window's clicks hold what the radius caught; a click that caught one node alone (a coarse mesh, a small
+  // radius) holds its neighbours on the surface too, as a file of picks does: one pinned node is crushed by a pull.
+  startAs.attachmentPatches = true;
   startAs.supportModulus = request.supportModulus;
   startAs.cache = options.cache;
   startAs.progress = options.restProgress;

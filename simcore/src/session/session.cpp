@@ -464,6 +464,16 @@ StepReport Session::advance() {
   }
   if (strokes_.open() && !tool_.cutting && !builds_.underWay() && !strokes_.restOfSweep()) finishStroke(message);
   slipDue_ = limitJawsAtGraspForce();
+  jawsPull_ = false;
+  if (tool_.jawClosed && !tool_.held.empty() && tool_.heldOffset.size() == tool_.held.size()) {
+    Eigen::Vector3d grip = Eigen::Vector3d::Zero();
+    for (std::size_t k = 0; k < tool_.held.size(); ++k)
+      grip += state_.x.segment<3>(3 * static_cast<Eigen::Index>(tool_.held[k])) - tool_.heldOffset[k];
+    grip /= static_cast<double>(tool_.held.size());
+    // (10 um: more than the hold's rows leave between the held nodes and the jaws; less than a mouse move's
+    // 0.1-1 mm at the organ, or a scripted pull's step)
+    jawsPull_ = (tool_.jawTip - grip).norm() > 1e-5;
+  }
   for (auto& i : instruments_) i->stepping(setup_.settings.timeStep, tool_, *this, message);  // the cautery heats
   // Contacts move with the tissue: detected at every step. The clips' rows are made at every step too (closing ones
   // close further; made from the time alone, so a session restored at any step makes the same rows).

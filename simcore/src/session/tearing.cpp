@@ -167,8 +167,9 @@ void Session::tearOverStretched(std::string& message) {
   // A tear grows while the jaws pull the tissue and stops when they let go (ToolSettings::tearOnlyUnderLoad, issue 61):
   // with nothing held, no element is measured after the first step (that one says if the organ starts past its limit).
   // (Not a shaft's contact: a released grasper stays where it let go, and the tissue springing back onto it tore 12
-  // times in 100 steps on the patient liver.)
-  const bool loaded = !tool_.held.empty();
+  // times in 100 steps on the patient liver.) And only at a step the jaws move (ToolSettings::tearOnlyWhilePulled):
+  // jaws held still on a torn, still stretched tissue tore it again every 6 steps until released.
+  const bool loaded = !tool_.held.empty() && (!setup_.tools.tearOnlyWhilePulled || jawsPull_);
   if (setup_.tools.tearOnlyUnderLoad && !loaded && steps_ > 1) return;
   const auto& rest = body_->restPositions();
   // The stretch is the instruments' (and the tissue's own since): measured from where the organ started, when it

@@ -82,10 +82,8 @@ struct StartOptions {
   std::function<bool(int, double)> progress;
   RestShapeCache* cache = nullptr;  ///< the rest shape solved for the same body before (none: solved)
   /// A lone attachment holds its neighbours on the surface too (simcore::attachmentPatches: one pinned node crushes
-  /// its own elements); false: the held nodes as given. `rehearse gesture` asks it for nodes given as a file
-  /// (--fixed-nodes). The window does not yet: its clicks hold patches by radius, and where a click held one node, the
-  /// patches changed the patient liver's tears at its attachments (3-5 tears under a 7 mm pull where 3 or fewer were
-  /// asked; not yet understood).
+  /// its own elements); false: the held nodes as given (a scene's or preset's own). The window asks it for its clicks
+  /// (launchSession), `rehearse gesture` for a case's attachments and nodes given as a file (--fixed-nodes).
   bool attachmentPatches = false;
 };
 

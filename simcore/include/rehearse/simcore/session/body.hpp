@@ -87,6 +87,13 @@ struct ToolSettings {
   /// held and 17 more over the 100 steps after the release, the torn flap sagging on its weight). false: whatever
   /// stretches it (the sessions recorded before this existed).
   bool tearOnlyUnderLoad = true;
+  /// And only while the jaws pull it: a tear is asked at a step the jaws moved (the held tissue's grip, from the held
+  /// nodes at the step's start, to where the jaws are), not while they hold still. A held tear grows as the pull goes
+  /// on and stops when the hand does (issue 61: "growing only while pulled"). test_patient_start's path (the patient
+  /// liver held by 22 clicks along its top edge, its lone clicks with their neighbours: 42 nodes; pulled 1 mm a move
+  /// until a tear shows, then held 10 steps and released): 3 tears in each of 3 runs without it, 1 in each of 2 with it;
+  /// test_tear aHeldTearGrowsOnlyWhilePulled. false: every step the jaws hold it (the sessions recorded before this).
+  bool tearOnlyWhilePulled = true;
   /// A tear parts the tissue along the faces of the over-stretched elements it runs through (the plane across the worst
   /// one's stretch, through its centre, and the over-stretched elements it crosses next to it): those elements are
   /// taken out of the mesh and the nodes stay; a node no element holds any more is pinned where it is, and the jaws
@@ -116,6 +123,7 @@ struct ToolSettings {
            cutLatencySteps == o.cutLatencySteps && tearLatencySteps == o.tearLatencySteps &&
            tearWhenBuilt == o.tearWhenBuilt &&
            tearThroughNeighbours == o.tearThroughNeighbours && tearOnlyUnderLoad == o.tearOnlyUnderLoad &&
+           tearOnlyWhilePulled == o.tearOnlyWhilePulled &&
            tearRemovesElements == o.tearRemovesElements &&
            cut.snap == o.cut.snap &&
            cut.minQuality == o.cut.minQuality && cut.minVolumeFraction == o.cut.minVolumeFraction &&

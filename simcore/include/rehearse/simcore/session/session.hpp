@@ -271,6 +271,10 @@ class Session : private InstrumentHost {
   /// The jaws were held back this step to let go at the grasp limit (ToolSettings::slipAtLimit): the tissue slips
   /// after it. Set and read within one advance().
   bool slipDue_ = false;
+  /// The jaws hold tissue and move this step (ToolSettings::tearOnlyWhilePulled: a held tear grows only while pulled):
+  /// the grip at the step's start, from the held nodes less their offsets, is not where the jaws are. Set and read
+  /// within one advance() (from the state alone: a restored session decides it the same way).
+  bool jawsPull_ = false;
   /// This step's move of the jaws (limitJawsAtGraspForce, after its hold-back): from where the last step left them
   /// (`from`) along `move`. Set and read within one advance(); valid only when the jaws hold and make their own move.
   struct JawMove {
