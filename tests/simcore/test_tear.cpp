@@ -62,14 +62,18 @@ struct Pull {
   int iterationsAfter = 0, factorisationsAfter = 0;  // over the steps from the first tear on
 };
 
+// The grasper closes on the tissue at `tip` (one step).
+void grasp(simcore::Session& s, const Eigen::Vector3d& tip) {
+  s.post(toolAt(tip));
+  s.post(jaws(true));
+  s.advance();
+}
 // The grasper closes on the bar's free end and pulls it along x by kStep per step up to `to` (m), then holds there
 // for `hold` steps.
 Pull pull(simcore::Session& s, double to, int hold) {
   Pull out;
   const Eigen::Vector3d tip0(kL, 0.5 * kSide, 0.5 * kSide);
-  s.post(toolAt(tip0));
-  s.post(jaws(true));
-  s.advance();
+  grasp(s, tip0);
   const int steps = static_cast<int>(std::lround(to / kStep));
   for (int k = 1; k <= steps + hold; ++k) {
     const double u = std::min(k, steps) * kStep;
@@ -479,9 +483,7 @@ class TestTear : public QObject {
       s.tools.tearLatencySteps = latency;
       simcore::Session session(s);
       const Eigen::Vector3d tip0(kL, 0.5 * kSide, 0.5 * kSide);
-      session.post(toolAt(tip0));
-      session.post(jaws(true));
-      session.advance();
+      grasp(session, tip0);
       long tornAt = -1, openedAt = -1;
       const std::size_t elements = session.snapshot()->tets->size();
       for (int k = 1; k <= 140 && openedAt < 0; ++k) {
@@ -588,9 +590,7 @@ class TestTear : public QObject {
       setup.tools.tearOnlyWhilePulled = rule;
       simcore::Session s(setup);
       const Eigen::Vector3d tip0(kL, 0.5 * kSide, 0.5 * kSide);
-      s.post(toolAt(tip0));
-      s.post(jaws(true));
-      s.advance();
+      grasp(s, tip0);
       double u = 0;
       int pulling = 0, still = 0, again = 0;
       auto step = [&](int& count) {
