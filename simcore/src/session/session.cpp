@@ -15,6 +15,16 @@
 #include <map>
 
 namespace rehearse::simcore {
+namespace {
+// Where the jaws held the tissue at the last step's end: the held nodes at their offsets from them (the hold's rows),
+// averaged. (What the grasp limit moves the jaws from, and what a pull is measured from.)
+Eigen::Vector3d gripOf(const ToolState& tool, const Eigen::VectorXd& x) {
+  Eigen::Vector3d grip = Eigen::Vector3d::Zero();
+  for (std::size_t k = 0; k < tool.held.size(); ++k)
+    grip += x.segment<3>(3 * static_cast<Eigen::Index>(tool.held[k])) - tool.heldOffset[k];
+  return grip / static_cast<double>(tool.held.size());
+}
+}  // namespace
 
 Eigen::Vector3d defaultTrocar(const std::vector<Eigen::Vector3d>& rest) {
   Eigen::Vector3d c = Eigen::Vector3d::Zero();
@@ -355,13 +365,9 @@ bool Session::limitJawsAtGraspForce() {
   // Where the jaws were at the last step's end: the held nodes sit at their offsets from them (the hold's rows).
   jawMove_.valid = false;
   if (!setup_.tools.slipAtLimit || !tool_.jawClosed || tool_.held.empty() || tool_.jawTip != tool_.tip) return false;
-  Eigen::Vector3d before = Eigen::Vector3d::Zero(), velocity = Eigen::Vector3d::Zero();
-  for (std::size_t k = 0; k < tool_.held.size(); ++k) {
-    const Eigen::Index i = 3 * static_cast<Eigen::Index>(tool_.held[k]);
-    before += state_.x.segment<3>(i) - tool_.heldOffset[k];
-    velocity += state_.v.segment<3>(i);
-  }
-  before /= static_cast<double>(tool_.held.size());
+  const Eigen::Vector3d before = gripOf(tool_, state_.x);
+  Eigen::Vector3d velocity = Eigen::Vector3d::Zero();
+  for (int n : tool_.held) velocity += state_.v.segment<3>(3 * static_cast<Eigen::Index>(n));
   velocity /= static_cast<double>(tool_.held.size());
   // The grasp force along the move, to first order: F(s) = F + s K d for the share s of the move d taken, d the jaws'
   // move beyond where the held tissue goes on its own over the step (K, the step's stiffness, includes the tissue's
@@ -465,15 +471,10 @@ StepReport Session::advance() {
   if (strokes_.open() && !tool_.cutting && !builds_.underWay() && !strokes_.restOfSweep()) finishStroke(message);
   slipDue_ = limitJawsAtGraspForce();
   jawsPull_ = false;
-  if (tool_.jawClosed && !tool_.held.empty() && tool_.heldOffset.size() == tool_.held.size()) {
-    Eigen::Vector3d grip = Eigen::Vector3d::Zero();
-    for (std::size_t k = 0; k < tool_.held.size(); ++k)
-      grip += state_.x.segment<3>(3 * static_cast<Eigen::Index>(tool_.held[k])) - tool_.heldOffset[k];
-    grip /= static_cast<double>(tool_.held.size());
-    // (10 um: more than the hold's rows leave between the held nodes and the jaws; less than a mouse move's
-    // 0.1-1 mm at the organ, or a scripted pull's step)
-    jawsPull_ = (tool_.jawTip - grip).norm() > 1e-5;
-  }
+  // (10 um: more than the hold's rows leave between the held nodes and the jaws; less than a mouse move's 0.1-1 mm at
+  // the organ, or a scripted pull's step)
+  if (tool_.jawClosed && !tool_.held.empty() && tool_.heldOffset.size() == tool_.held.size())
+    jawsPull_ = (tool_.jawTip - gripOf(tool_, state_.x)).norm() > 1e-5;
   for (auto& i : instruments_) i->stepping(setup_.settings.timeStep, tool_, *this, message);  // the cautery heats
   // Contacts move with the tissue: detected at every step. The clips' rows are made at every step too (closing ones
   // close further; made from the time alone, so a session restored at any step makes the same rows).
