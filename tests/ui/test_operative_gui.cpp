@@ -670,6 +670,13 @@ struct Cholecystectomy {
       QVERIFY(waitFor([&] { return panel_->lastFrame()->positions.size() > nodesBeforeTear; },
                       60000));  // torn: the tear's faces get their own nodes
       QVERIFY2(waitFor([&] { return force->text().contains("TORN"); }, 30000), qPrintable(force->text()));
+      // Every tear's sentence is in the Messages panel: as many as the page counts (a person read 5 against 6).
+      const auto tornCount = [&] {
+        return QRegularExpression(QStringLiteral("TORN: ([0-9]+)")).match(force->text()).captured(1).toLongLong();
+      };
+      const auto tearSentences = [&] { return static_cast<long long>(w_->messageLog().filter(" tore: stretched").size()); };
+      QVERIFY2(waitFor([&] { return tornCount() > 0 && tornCount() == tearSentences(); }, 10000),
+               qPrintable(QStringLiteral("%1 against %2 sentences").arg(force->text()).arg(tearSentences())));
     } else {
       // The sentence says why the jaws let go, with the force, above the grasp's limit.
       const QRegularExpression at(

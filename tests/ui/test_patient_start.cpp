@@ -199,6 +199,11 @@ class TestPatientStart : public QObject {
       const auto held = panel->session()->setup().fixedNodes.size();
       QCOMPARE(m.captured(2).toULongLong(), static_cast<qulonglong>(held));
       QVERIFY(held > c.attachments.size());
+      // The frames carry them (the simulation view draws the held neighbours beside the picks) ...
+      QVERIFY(panel->lastFrame()->held);
+      QCOMPARE(panel->lastFrame()->held->size(), held);
+      // ... and the start's whole sentence stays in the Messages panel (the panel's lines cut it off, a person read).
+      QVERIFY2(w_->messageLog().join(QLatin1Char('\n')).contains(m.captured(0)), qPrintable(w_->messageLog().join(" | ")));
     }
     // Where it starts: the first frame of this session.
     const double startPx = farthestPx(c, panel->lastFrame()->positions);

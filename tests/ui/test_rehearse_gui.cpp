@@ -38,6 +38,7 @@
 #include <QScrollArea>
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
+#include <QtCharts/QValueAxis>
 
 #include <rehearse/simcore/cut.hpp>
 #include <rehearse/simcore/session/field.hpp>
@@ -598,6 +599,25 @@ class TestRehearseGui : public QObject {
     QVERIFY2(grasp(), qPrintable(w_->statusBar()->currentMessage() + " | " + w_->messageLog().join(" | ")));
     QVERIFY2(!w_->statusText().contains(slipped), qPrintable(w_->statusText()));
     QVERIFY2(w_->statusText().contains("Grasped"), qPrintable(w_->statusText()));
+    // While the jaws hold, the chart draws the force at which they let go (the session's, dashed) within its axis.
+    auto limitLine = [&] {
+      w_->rehearsePage()->updateChart();
+      const auto series = chartView->chart()->series();
+      return series.size() > 1 ? qobject_cast<QLineSeries*>(series.at(1))->points() : QList<QPointF>{};
+    };
+    auto* axisY = qobject_cast<QValueAxis*>(chartView->chart()->axes(Qt::Vertical).first());
+    const double limit = panel->session()->setup().tools.maxGraspForce;
+    QVERIFY(limit > 0);
+    QVERIFY2(waitFor([&] { return !limitLine().isEmpty(); }, 5000), "no limit line while the jaws hold");
+    QCOMPARE(limitLine().first().y(), limit);
+    QVERIFY2(axisY->max() >= limit, qPrintable(QString::number(axisY->max())));
+    // Let go: the line that said how to pull goes with the hold (a person read "Grasped: drag to pull" after it), and the
+    // limit's line with it.
+    QTest::mouseRelease(view, Qt::LeftButton, {}, at);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 20000));
+    QVERIFY(waitFor([&] { return limitLine().isEmpty(); }, 5000));
+    QVERIFY2(!w_->statusText().contains("Grasped"), qPrintable(w_->statusText()));
+    QVERIFY2(grasp(), qPrintable(w_->statusBar()->currentMessage() + " | " + w_->messageLog().join(" | ")));
     QVERIFY2(pullUntilItSlips(), qPrintable(w_->statusText() + " | " + w_->messageLog().join(" | ")));
     // ... and so does another instrument taken to the tissue (a helper read the slip's sentence 30 s after a clip):
     // the scissors pressed on the organ.

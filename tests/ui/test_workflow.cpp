@@ -701,6 +701,14 @@ class TestWorkflow : public QObject {
     QVERIFY(w_->simulationPanel()->isPlaying());
     w_->setStep(ui::Step::Rigid);
     QVERIFY(!w_->simulationPanel()->isPlaying());
+    // Play (F5) taken in step 4 plays it, and the status bar no longer says it is paused (a person's check).
+    QVERIFY(w_->statusText().contains("paused outside step 7"));
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    QVERIFY(w_->simulationPanel()->isPlaying());
+    QVERIFY2(!w_->statusText().contains("paused") && w_->statusText().contains("plays in the Simulation panel"),
+             qPrintable(w_->statusText()));
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    QVERIFY(!w_->simulationPanel()->isPlaying());
   }
 
   // Save and reopen: every field the user made comes back.

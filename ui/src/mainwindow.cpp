@@ -96,6 +96,7 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   wb_.jobs = jobs_;
   wb_.window = this;
   wb_.status = [this](const QString& text) { say(text); };
+  wb_.log = [this](const QString& text) { logMessage(text); };
   wb_.goToStep = [this](Step s) { setStep(s); };
   wb_.currentStep = [this] { return step_; };
   keys_ = std::make_unique<StepKeys>(this, wb_.currentStep);
@@ -138,6 +139,9 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
     else if (e.kind == simcore::InputKind::Jaw && e.on)
       forgetSlip(tr("Grasped: drag to pull, release to let go."));
+    // ... and the jaws opened end that line (a person read "Grasped: drag to pull" after letting go).
+    else if (e.kind == simcore::InputKind::Jaw && status_.caseText->text() == tr("Grasped: drag to pull, release to let go."))
+      say(QString());
     // Another instrument at work ends the slip's news too (a helper read "The tissue slipped out of..." 30 s after
     // placing a clip).
     else if (((e.kind == simcore::InputKind::Cut || e.kind == simcore::InputKind::Energy) && e.on) ||
@@ -145,6 +149,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       forgetSlip(QString());
   });
   connect(simulation_, &SimulationPanel::wasReset, view_, &FrameView::endGesture);
+  // Play taken on the Simulation panel outside step 7 (a person pressed it in step 4 and the status bar still said the
+  // rehearsal was paused): it plays there, in the panel's view.
+  connect(simulation_, &SimulationPanel::playingChanged, this, [this](bool playing) {
+    if (playing && step_ != Step::Rehearse && status_.caseText->text().contains(QLatin1String("paused outside step 7")))
+      say(tr("The rehearsal plays in the Simulation panel's view; the frame shows the case's organ until step 7."));
+  });
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
   // the status bar with what it waits for (Reset mid-grasp left the organ still, the drag after it moving nothing, and
   // nothing said so).

@@ -246,6 +246,8 @@ void MainWindow::connectSimulation() {
     status_.simulation->setText(text);
     status_.simulation->setToolTip(text);  // the whole sentence (the bar shows what fits)
   });
+  // (The panel shows the start's first lines and t = 0 only until the first step; a person read it cut off.)
+  connect(simulation_, &SimulationPanel::startSaid, this, [this](const QString& words) { logMessage(words); });
   liveOverlay_ = new LiveOverlay(view_, this);
   connect(liveOverlay_, &LiveOverlay::drawn, this,
           [this](const OverlayPicture& picture, const std::shared_ptr<const app::Organ>& organ) {

@@ -72,6 +72,7 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
 
 void SimulationPanel::sessionStarted(const QString& words) {
   startWord_ = words;
+  if (!words.isEmpty()) emit startSaid(words);
   // A refusal said before (nothing held it, no equilibrium) is over: the organ runs (it said so while paused too).
   if (!error_.isEmpty()) {
     error_.clear();
@@ -368,12 +369,14 @@ void SimulationPanel::play() {
   rate_.frames = 0;
   host_->play();
   updateButtons();
+  emit playingChanged(true);
 }
 
 void SimulationPanel::pause() {
   playing_ = false;
   host_->pause();
   updateButtons();
+  emit playingChanged(false);
 }
 
 void SimulationPanel::togglePlay() { playing_ ? pause() : play(); }

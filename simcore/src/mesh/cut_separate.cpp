@@ -2,6 +2,7 @@
 // side of the cut, the faces between the two sides that open, and their nodes duplicated per group of elements
 // still connected; then what stays pending for the next update, the nodes on the cut, and the result.
 #include "cut_stages.hpp"
+#include <rehearse/simcore/words.hpp>
 
 #include <algorithm>
 #include <cstdint>
@@ -304,8 +305,9 @@ CutResult TetCutter::finish() {
   if (in.progress && r.changed) in.progress->sweeps.push_back(in.blade);
   char buf[240];
   std::snprintf(buf, sizeof buf,
-                "Cut: %zu element(s) split and %zu refined, %zu face(s) separated, %zu node(s) duplicated.",
-                r.splitElements, r.refinedElements, r.separatedFaces, r.duplicatedNodes);
+                "Cut: %s split and %zu refined, %s separated, %s duplicated.",
+                quantity(r.splitElements, "element", "elements").c_str(), r.refinedElements,
+                quantity(r.separatedFaces, "face", "faces").c_str(), quantity(r.duplicatedNodes, "node", "nodes").c_str());
   r.status = buf;
   if (!r.changed)
     r.status = !crossing.crossedAny

@@ -3,6 +3,7 @@
 // snapping more crossings to nodes until every piece meets the stated quality and volume, or refusing the cut.
 // The pieces and new nodes stay in `built` until the separation writes them into the mesh.
 #include "cut_stages.hpp"
+#include <rehearse/simcore/words.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -30,8 +31,9 @@ bool TetCutter::splitElements() {
     if (iteration >= 40) {
       char buf[200];
       std::snprintf(buf, sizeof buf,
-                    "The cut was refused: %zu element(s) would keep a piece below the stated quality (%.2f) or volume (%.0e of its element).",
-                    check.failing.size(), in.settings.minQuality, in.settings.minVolumeFraction);
+                    "The cut was refused: %s would keep a piece below the stated quality (%.2f) or volume (%.0e of its element).",
+                    quantity(check.failing.size(), "element", "elements").c_str(), in.settings.minQuality,
+                    in.settings.minVolumeFraction);
       r.status = buf;
       return false;
     }

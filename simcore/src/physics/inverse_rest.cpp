@@ -1,5 +1,6 @@
 // The rest shape that sags into a given shape (inverse elastostatics by fixed point; inverse_rest.hpp).
 #include <rehearse/simcore/inverse_rest.hpp>
+#include <rehearse/simcore/words.hpp>
 
 #include <rehearse/simcore/support.hpp>
 
@@ -261,8 +262,8 @@ InverseRestResult& RestIteration::finish(InverseRestResult& r) const {
     r.status = "The rest shape's solve was cancelled.";
   } else if (best <= options.tolerance) {
     r.outcome = InverseRestResult::Outcome::Converged;
-    r.status = "Rest shape solved in " + std::to_string(r.iterations) +
-               " static solve(s): its equilibrium under gravity is the shape within " + mm(best) +
+    r.status = "Rest shape solved in " + quantity(static_cast<std::size_t>(r.iterations), "static solve", "static solves") +
+               ": its equilibrium under gravity is the shape within " + mm(best) +
                "; the rest shape lies up to " + mm(r.sag) + " from it (the sag it takes under gravity)" +
                (r.supportLoad > 0 ? "; the tissue around it carries " + newtons(r.supportLoad) + " of its weight on " +
                                         std::to_string(r.supports.size()) + " surface nodes."

@@ -1,6 +1,7 @@
 // The registration's elastic stage: the bound points held on their rays (image plane only), static equilibrium,
 // rebind, repeat; its status; and the final checks any fit must pass (the contour near the organ's silhouette).
 #include "contour_registration.hpp"
+#include <rehearse/simcore/words.hpp>
 
 #include <Eigen/Dense>
 
@@ -148,8 +149,8 @@ void ContourRegistration::elasticStage(const RigidEnd& rigid) {
       }
       state = before;
       if (released == 0) {  // (not met in the cases measured) the best shape before it stands, said so
-        crushedStop = "; it stopped where it crushed " + std::to_string(crushed.size()) +
-                      " element(s) with no binding beside them to let go";
+        crushedStop = "; it stopped where it crushed " + quantity(crushed.size(), "element", "elements") +
+                      " with no binding beside them to let go";
         break;
       }
       continue;
@@ -173,7 +174,8 @@ void ContourRegistration::elasticStage(const RigidEnd& rigid) {
   res.x = bestX;
   elasticStatus(rigid, bestMean, failure);
   if (const auto let = std::count(unbound.begin(), unbound.end(), 1); let > 0)
-    res.status += "; " + std::to_string(let) + " silhouette node(s) left free where binding them crushed the tissue";
+    res.status += "; " + quantity(static_cast<std::size_t>(let), "silhouette node", "silhouette nodes") +
+                  " left free where binding them crushed the tissue";
   res.status += crushedStop;
 }
 

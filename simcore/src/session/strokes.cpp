@@ -1,4 +1,5 @@
 #include <rehearse/simcore/session/strokes.hpp>
+#include <rehearse/simcore/words.hpp>
 
 #include <algorithm>
 #include <cstdio>
@@ -66,8 +67,9 @@ void StrokeTracker::say(const Stroke& s, const std::vector<double>& volumes, std
                   " The blade reaches from its tip back along the shaft: take it deeper into the tissue (the "
                   "wheel, in the view) or stroke further across it.";
   } else {
-    m = "The cut is done: " + std::to_string(s.separatedFaces) + " face(s) opened and " + std::to_string(s.split) +
-        " element(s) split in " + std::to_string(s.updates) + " update(s); ";
+    m = "The cut is done: " + quantity(static_cast<std::size_t>(s.separatedFaces), "face", "faces") + " opened and " +
+        quantity(static_cast<std::size_t>(s.split), "element", "elements") + " split in " +
+        quantity(static_cast<std::size_t>(s.updates), "update", "updates") + "; ";
     // What came off, by its volume: a sliver at the organ's thin edge said apart from a lobe (a person read "the
     // organ came apart (2 pieces)" and could not tell which).
     std::string off;
@@ -113,8 +115,9 @@ void StrokeTracker::say(const Stroke& s, const std::vector<double>& volumes, std
                                          " under 1 % of it") +
                    " (the cut did not go through).";
     if (s.skippedInverted > 0)
-      m += " " + std::to_string(s.skippedInverted) +
-           " crossed element(s) were inverted and not cut: tissue still joins there.";
+      m += " " + (s.skippedInverted == 1 ? std::string("1 crossed element was")
+                                          : std::to_string(s.skippedInverted) + " crossed elements were") +
+           " inverted and not cut: tissue still joins there.";
     if (!s.lastRefusal.empty()) m += " The stroke's last sweep was not cut: " + s.lastRefusal;
   }
   if (!message.empty()) message += " ";

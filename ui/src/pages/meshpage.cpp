@@ -132,7 +132,8 @@ void MeshPage::refresh(const app::Case& c) {
   attachmentsLabel_->setText(c.attachments.empty()
                                  ? tr("No ligament attachments: in the simulation the tissue around the organ carries it (the Simulation "
                                       "panel's Support; with none, nothing holds it and it is not started).")
-                                 : tr("Ligament attachments: %n node(s).", nullptr, static_cast<int>(c.attachments.size())));
+                                 : c.attachments.size() == 1 ? tr("Ligament attachments: 1 node.")
+                                                                 : tr("Ligament attachments: %1 nodes.").arg(c.attachments.size()));
   labels_->clear();
   std::map<int, std::size_t> counts;
   for (int l : c.organ->volume.tetLabels) counts[l]++;

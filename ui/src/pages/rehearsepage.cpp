@@ -141,6 +141,15 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   chart->addAxis(axisY_, Qt::AlignLeft);
   series_->attachAxis(axisX_);
   series_->attachAxis(axisY_);
+  // While the jaws hold, the force at which they let go (a person watched the trace rise with the axis rescaling under
+  // it, and could not tell how near the slip was).
+  limit_ = new QLineSeries;
+  limit_->setName(tr("grasp limit"));
+  QPen dashed(QColor(255, 150, 40), 1.5, Qt::DashLine);
+  limit_->setPen(dashed);
+  chart->addSeries(limit_);
+  limit_->attachAxis(axisX_);
+  limit_->attachAxis(axisY_);
   auto* chartView = new QChartView(chart, this);
   chartView->setObjectName(QStringLiteral("toolForceChart"));
   chartView->setMinimumHeight(200);  // no antialiasing: the chart redraws 15 times a second beside the organ
@@ -198,7 +207,21 @@ void RehearsePage::updateChart() {
     }
   }
   series_->replace(points);
-  axisY_->setRange(0, std::ceil(top * 1.1));
+  if (graspLimit_ > 0) {
+    limit_->replace(QList<QPointF>{{-5.0, graspLimit_}, {0.0, graspLimit_}});
+    top = std::max(top, graspLimit_);
+  } else if (limit_->count() > 0) {
+    limit_->clear();
+  }
+  // The top on a 1-2-5 ladder: the axis moves in steps, not with every sample.
+  const double scaled = 1.1 * top, decade = std::pow(10.0, std::floor(std::log10(scaled)));
+  double nice = 10 * decade;
+  for (double m : {1.0, 2.0, 5.0})
+    if (m * decade >= scaled) {
+      nice = m * decade;
+      break;
+    }
+  axisY_->setRange(0, nice);
   // The rates below, twice a second (statistics of the last 10 s; the text in a SteadyBox does not lay the page out
   // again, which cost 10-25 ms of the GUI thread per change on 2 cores under the simulation's load, issue 64).
   if (loopRateShown_.isValid() && loopRateShown_.elapsed() < 500) return;
@@ -275,6 +298,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     if (stepMs_.size() > 100) stepMs_.erase(stepMs_.begin());
   }
   lastSteps_ = f->steps;
+  graspLimit_ = f->tool.held.empty() ? 0.0 : f->maxGraspForce;
   simcore::EventCounts counted;
   counted.add(f->events);
   slips_ += counted.slips;
@@ -301,12 +325,16 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   tears_ += tore;
   auto status = [this](const QString& text) { pendingStatus_ = text; };
   const auto& t = f->tool;
+  // Each tear's sentence is kept in the Messages panel too: the page's line shows the newest only (a person counted 5
+  // sentences against "TORN: 6").
+  if (tore > 0 && !f->message.isEmpty() && wb_.log) wb_.log(f->message);
   if (tore > 0 && !f->message.isEmpty())
     status(f->message);  // what tore, and at what strain
   else if (t.cutting)
     status(tr("Cutting: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
   else if (!t.held.empty())
-    status(tr("Holding %n node(s) of tissue.", nullptr, static_cast<int>(t.held.size())));
+    status(t.held.size() == 1 ? tr("The jaws hold the tissue at 1 node of its mesh.")
+                              : tr("The jaws hold the tissue at %1 nodes of its mesh.").arg(t.held.size()));
   else if (t.jawClosed)
     status(f->message.isEmpty() ? tr("The jaws are closed on nothing.") : f->message);
   else if (std::find(f->events.begin(), f->events.end(), "release") != f->events.end()) {

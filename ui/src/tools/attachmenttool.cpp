@@ -88,8 +88,10 @@ class AttachmentTool final : public FrameTool {
     if (release) std::set_difference(nodes.begin(), nodes.end(), patch.begin(), patch.end(), std::back_inserter(result));
     else std::set_union(nodes.begin(), nodes.end(), patch.begin(), patch.end(), std::back_inserter(result));
     const auto changed = static_cast<int>(std::max(result.size(), nodes.size()) - std::min(result.size(), nodes.size()));
-    emit view_.attachmentsEdited(result, release ? QObject::tr("Release %n attachment node(s)", nullptr, changed)
-                                                 : QObject::tr("Attach %n node(s)", nullptr, changed));
+    emit view_.attachmentsEdited(result, release ? (changed == 1 ? QObject::tr("Release 1 attachment node")
+                                                                  : QObject::tr("Release %1 attachment nodes").arg(changed))
+                                                 : (changed == 1 ? QObject::tr("Attach 1 node")
+                                                                  : QObject::tr("Attach %1 nodes").arg(changed)));
   }
 };
 

@@ -109,6 +109,11 @@ class SimulationPanel : public QWidget {
 
  signals:
   void statusChanged(const QString& text);
+  /// A session started: how it starts (in equilibrium on what, the held nodes), in sentences longer than the panel's
+  /// lines hold; the window keeps them in its Messages panel.
+  void startSaid(const QString& words);
+  /// Play or Pause taken (the button, F5, a step's entry or exit).
+  void playingChanged(bool playing);
   /// The simulation went back to rest (Reset): what the instruments were doing is over.
   void wasReset();
   /// The case's organ changed (another mesh, shape, place or attachments): its session was replaced by a new one at

@@ -43,6 +43,9 @@ struct SimulationFrame {
   Eigen::Vector3d gravity = Eigen::Vector3d::Zero();   ///< m/s^2, camera frame
   /// The nodes the tissue around the organ carries (BodySetup::supports; drawn beneath the organ), none without.
   std::shared_ptr<const std::vector<int>> supports;
+  /// The nodes the session holds fixed (BodySetup::fixedNodes): the case's attachments and, around a lone pick, its
+  /// neighbours on the surface (app::StartOptions::attachmentPatches), drawn smaller than the picks.
+  std::shared_ptr<const std::vector<int>> held;
   /// Steps since the start (or the last Reset) that did not converge to the scene's tolerance: every step counted,
   /// whether or not its frame was drawn.
   long stepsNotConverged = 0;
@@ -52,6 +55,7 @@ struct SimulationFrame {
   Eigen::Vector3d trocar = Eigen::Vector3d::Zero();             ///< where the instruments enter (camera frame, m)
   double toolRadius = 0;                                        ///< m: the shafts' radius for contact
   double mass = 0;                                              ///< kg
+  double maxGraspForce = 0;                                     ///< N: the jaws let go above it (ToolSettings)
   std::shared_ptr<const std::vector<std::array<int, 4>>> tets;  ///< the elements at this step
   /// Elements inside out after this step (when the report counts any): their indices, their nodes (per node, 1 when
   /// one of its elements is) and their centroids (camera frame, m), for the warning drawn on the organ.
@@ -103,6 +107,8 @@ struct FrameBasis {
   std::vector<std::array<int, 4>> tets;
   std::vector<int> incidence;  ///< elements per node (stress averaged onto nodes)
   std::shared_ptr<const std::vector<int>> supports;  ///< the supported nodes (kept by index through cuts)
+  std::shared_ptr<const std::vector<int>> held;      ///< the held nodes (BodySetup::fixedNodes, kept by index)
+  double maxGraspForce = 0;                          ///< N (ToolSettings::maxGraspForce)
   long generation = 0;         ///< frames of an older session are dropped
   // On the session's thread (its published callback, once per step): steps not converged since the start or a Reset.
   long lastStep = 0, notConverged = 0;

@@ -71,6 +71,8 @@ class RehearsePage : public StepPage {
   /// s, the loop's clock: samples up to it belong to a run that ended (forgetForceHistory); -inf: none.
   double chartFrom_ = -std::numeric_limits<double>::infinity();
   QLineSeries* series_ = nullptr;
+  QLineSeries* limit_ = nullptr;  ///< the grasp's limit, dashed, while the jaws hold
+  double graspLimit_ = 0;         ///< N, from the last frame while its jaws held tissue; 0: not holding
   QValueAxis* axisX_ = nullptr;
   QValueAxis* axisY_ = nullptr;
   QLabel* loopRate_ = nullptr;

@@ -47,6 +47,7 @@ struct Workbench {
   JobRunner* jobs = nullptr;
   QWidget* window = nullptr;                        ///< for dialogs and window-wide shortcuts
   std::function<void(const QString&)> status;       ///< a sentence for the status bar
+  std::function<void(const QString&)> log;          ///< a sentence for the Messages panel only
   std::function<void(app::Step)> goToStep;          ///< shows a step's page (and its default tool)
   std::function<app::Step()> currentStep;
   StepKeys* keys = nullptr;
