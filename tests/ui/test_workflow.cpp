@@ -709,6 +709,7 @@ class TestWorkflow : public QObject {
              qPrintable(w_->statusText()));
     QTest::keyClick(w_.get(), Qt::Key_F5);
     QVERIFY(!w_->simulationPanel()->isPlaying());
+    QVERIFY2(w_->statusText().contains("paused") && !w_->statusText().contains("plays in"), qPrintable(w_->statusText()));
   }
 
   // Save and reopen: every field the user made comes back.

@@ -389,14 +389,16 @@ void FrameView::paintEvent(QPaintEvent*) {
     else painter.drawPolyline(poly);
   }
   painter.resetTransform();
-  paintField(painter);
+  // (the simulation's marks: in step 7, or with an instrument in hand wherever it was taken)
+  const bool simulating = rehearsing_ || instrumentTool(tool_);
+  if (simulating) paintField(painter);
   paintOrganMarks(painter, contour);
   for (const auto& [kind, tool] : tools_)
     if (kind != tool_) tool->paintIdle(painter);
   if (FrameTool* t = current()) t->paint(painter);
   paintInstrument(painter);
   paintDeviceTip(painter);
-  paintWarning(painter);
+  if (simulating) paintWarning(painter);
   paintLegend(painter);
 }
 
@@ -676,10 +678,10 @@ void FrameView::clearLive() {
   update();
 }
 
-void FrameView::setLiveJaws(bool closedOnNothing) {
-  if (!closedOnNothing) return;
-  if (const auto it = tools_.find(Tool::Grasp); it != tools_.end() && it->second) it->second->jawsEmptied();
-  update();
+void FrameView::setLiveJaws(bool closed, bool holding) {
+  if (!closed) return;
+  if (const auto it = tools_.find(Tool::Grasp); it != tools_.end() && it->second) it->second->jawsSeen(closed, holding);
+  if (!holding) update();
 }
 
 void FrameView::keyPressEvent(QKeyEvent* e) {

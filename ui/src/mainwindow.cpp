@@ -154,6 +154,9 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(simulation_, &SimulationPanel::playingChanged, this, [this](bool playing) {
     if (playing && step_ != Step::Rehearse && status_.caseText->text().contains(QLatin1String("paused outside step 7")))
       say(tr("The rehearsal plays in the Simulation panel's view; the frame shows the case's organ until step 7."));
+    // ... and paused there again, it says so (the line had stayed "plays" under a paused clock).
+    else if (!playing && status_.caseText->text().contains(QLatin1String("plays in the Simulation panel's view")))
+      say(tr("The rehearsal is paused; step 7 plays it again."));
   });
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
   // the status bar with what it waits for (Reset mid-grasp left the organ still, the drag after it moving nothing, and
@@ -261,6 +264,7 @@ QWidget* MainWindow::organWidget() const {
 void MainWindow::setStep(Step s) {
   const Step left = step_;
   step_ = s;
+  view_->setRehearsing(s == Step::Rehearse);
   crash::setActivity(activity());
   keys_->stepShown(s);
   if (s != Step::Contour) view_->setSecondFrameShown(false);  // (the second frame is sketched on in step 3 only)

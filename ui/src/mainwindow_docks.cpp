@@ -307,7 +307,7 @@ void MainWindow::showSimulationFrame() {
                                                                      : std::nullopt);
     view_->setLiveSurface(f->surface);
     view_->setLiveField(f->field, f->gravity, f->labels, f->tets);
-    view_->setLiveJaws(f->tool.jawClosed && f->tool.held.empty());
+    view_->setLiveJaws(f->tool.jawClosed, !f->tool.held.empty());
     view_->followHook(f->steps, f->tool.tip, f->tool.present, f->field.energy,
                       simcore::CauterySettings{}.radius,  // (the GUI's hook has the default radius)
                       f->field.energyTime);

@@ -287,7 +287,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   // A new session (a new organ, case, reset or recording) starts its counts from nothing.
   if (f->steps < lastSteps_ || f->steps == 0) {
     slips_ = cuts_ = vesselCuts_ = tears_ = 0;
-    wasCutting_ = strokeCounted_ = slippedFromJaws_ = false;
+    wasCutting_ = strokeCounted_ = slippedFromJaws_ = jawsHeldTissue_ = false;
     // ... and what the last one said goes with it ("Released: the tissue relaxes." stayed over a new case's organ).
     if (!status_->text().isEmpty()) pendingStatus_ = QString();
   }
@@ -302,7 +302,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   simcore::EventCounts counted;
   counted.add(f->events);
   slips_ += counted.slips;
-  if (!f->tool.held.empty()) slippedFromJaws_ = false;
+  if (!f->tool.held.empty()) slippedFromJaws_ = false, jawsHeldTissue_ = true;
   if (counted.slips > 0) slippedFromJaws_ = true;
   // Strokes that cut, not the cut's updates (a person read "cuts: 10" after three strokes): a stroke counts at its
   // first cut; one still being built when the blade is lifted is the same stroke.
@@ -340,10 +340,12 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   else if (std::find(f->events.begin(), f->events.end(), "release") != f->events.end()) {
     // (After a slip the jaws hold nothing: a person read "Released: the tissue relaxes." over a slip.)
     // (The grasper itself opens and is withdrawn at a slip, while the button may still be held.)
-    status(slippedFromJaws_ ? tr("The tissue slipped out of the jaws; the grasper opened and was withdrawn: press on "
-                                 "the organ to grasp again.")
-                            : tr("Released: the tissue relaxes."));
-    slippedFromJaws_ = false;
+    // (Jaws that closed on nothing released nothing: a person read "Released: the tissue relaxes." after a miss.)
+    status(slippedFromJaws_   ? tr("The tissue slipped out of the jaws; the grasper opened and was withdrawn: press on "
+                                   "the organ to grasp again.")
+           : jawsHeldTissue_ ? tr("Released: the tissue relaxes.")
+                             : tr("The jaws opened: they had closed on nothing."));
+    slippedFromJaws_ = jawsHeldTissue_ = false;
   }
   else if (cuts_ > 0 && pendingStatus_.value_or(status_->text()).startsWith(tr("Cutting")))
     status(tr("Cut: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));

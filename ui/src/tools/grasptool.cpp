@@ -48,13 +48,23 @@ class GraspTool final : public FrameTool {
     release(nullptr);
     return true;
   }
-  // The tissue slipped out of the jaws (the simulation's frame shows them closed on nothing): the hold ends and the
-  // grasper is withdrawn, as when the button comes up; the drag moves nothing until the next press. (Frames from
-  // before the bite's own step show the jaws open or empty: the first 0.3 s after a bite are not taken for a slip.)
-  void jawsEmptied() override {
-    if (!holding_ || !bitten_.isValid() || bitten_.elapsed() < 300) return;
-    letGo(QObject::tr("The tissue slipped out of the grasper: the jaws hold nothing and are withdrawn; press on the "
-                      "organ to grasp again."));
+  // The simulation's frame shows the jaws closed on nothing: the hold ends and the grasper is withdrawn, as when the
+  // button comes up; the drag moves nothing until the next press. After a frame showed them holding tissue, it slipped
+  // out; before any did, they closed on none (a person's 1 mm bite missed the tissue and read that it had slipped).
+  // (Frames from before the bite's own step show the jaws open or empty: the first 0.3 s after a bite are not taken for
+  // either.)
+  void jawsSeen(bool closed, bool holding) override {
+    if (!holding_ || !closed) return;
+    if (holding) {
+      heldTissue_ = true;
+      return;
+    }
+    if (!bitten_.isValid() || bitten_.elapsed() < 300) return;
+    letGo(heldTissue_ ? QObject::tr("The tissue slipped out of the grasper: the jaws hold nothing and are withdrawn; "
+                                    "press on the organ to grasp again.")
+                      : QObject::tr("The jaws closed on nothing: no tissue they may hold lay within the jaw bite "
+                                    "(Simulation panel) of where they closed; press on the organ again, or widen the "
+                                    "bite."));
   }
   // Enter, or a tool other than the scissors taken while the jaws hold: they let go.
   void finish() override {
@@ -125,6 +135,7 @@ class GraspTool final : public FrameTool {
     offset_.setZero();
     offset_ = tip - tipAt(f);  // the bite's node need not be under the cursor: the drag moves it by the cursor's motion
     holding_ = true;
+    heldTissue_ = false;
     resume_ = false;
     bitten_.start();
     send(simcore::InputKind::ToolPose, tip, false);
@@ -141,6 +152,7 @@ class GraspTool final : public FrameTool {
     postInstrument(view_, kind, tip, on, 0);
   }
   bool holding_ = false;
+  bool heldTissue_ = false;  ///< a frame since the bite showed the jaws holding tissue
   QElapsedTimer bitten_;  ///< since the jaws last closed
   bool resume_ = false;                             ///< taken again while holding: the next drag starts at `jaws_`
   Eigen::Vector3d jaws_ = Eigen::Vector3d::Zero();  ///< where the grasper last put its tip (camera frame, m)

@@ -40,8 +40,9 @@ class FrameTool {
   virtual void finish() {}
   /// Drops the work in progress without committing it (Esc); true when there was some.
   virtual bool abandon() { return false; }
-  /// The simulation's jaws are closed on nothing (the tissue slipped out of them): a grasp under way ends.
-  virtual void jawsEmptied() {}
+  /// The simulation's jaws as its last frame has them: closed and holding tissue (`holding`), or closed on nothing
+  /// (the tissue slipped out of them, or they closed where there was none): a grasp under way ends.
+  virtual void jawsSeen(bool /*closed*/, bool /*holding*/) {}
   /// Draws over the frame, in widget coordinates.
   virtual void paint(QPainter& /*p*/) {}
   /// Draws what the tool leaves on the frame while another one is in use (the grasper's closed jaws).

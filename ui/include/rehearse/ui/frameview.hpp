@@ -147,6 +147,12 @@ class FrameView : public QWidget {
   /// The simulation's warning over the frame: a sentence at the top and magenta rings at `cameraPoints` (camera
   /// frame, m: the elements it is about). Empty text clears it.
   void setWarning(std::vector<Eigen::Vector3d> cameraPoints, const QString& text);
+  /// Step 7 is shown (true) or another step is: the rehearsal's clips, blood, burns and warning are drawn in step 7, or
+  /// with an instrument in hand, only (the other steps show the case's organ; a person saw the blood of a rehearsal
+  /// over step 4's overlay).
+  void setRehearsing(bool on) {
+    if (rehearsing_ != on) rehearsing_ = on, update();
+  }
   const QString& warning() const { return warningText_; }
   /// After a cut: the live shape's boundary (its triangles index liveShape()); null before any cut.
   void setLiveSurface(std::shared_ptr<const simcore::CutSurface> s) { liveSurface_ = std::move(s); }
@@ -184,10 +190,11 @@ class FrameView : public QWidget {
   /// The instrument's gesture under way (a grasp, a stroke, a burn) ends, as if its button came up: the simulation
   /// was reset under it (a scissors stroke went on after Reset, the blade off, shoving the organ at 30 N).
   void endGesture();
-  /// The simulation's jaws as its last frame has them: `closedOnNothing` when they are closed and hold nothing (the
-  /// tissue slipped out). The grasper's hold then ends and it is withdrawn (after a slip the jaws had gone on dragging
-  /// the shaft through the tissue with the cursor: 24-529,216 N, steps not converged; a person's check).
-  void setLiveJaws(bool closedOnNothing);
+  /// The simulation's jaws as its last frame has them: closed or not, holding tissue or not. Closed on nothing (the
+  /// tissue slipped out, or there was none within the bite), the grasper's hold ends and it is withdrawn (after a slip
+  /// the jaws had gone on dragging the shaft through the tissue with the cursor: 24-529,216 N, steps not converged; a
+  /// person's check).
+  void setLiveJaws(bool closed, bool holding);
   Tool tool() const { return tool_; }
   void setSnapToEdges(bool on) { settings_.snapToEdges = on; }
   /// The type new segments get: "silhouette", "ridge" or "ligament".
@@ -340,6 +347,7 @@ class FrameView : public QWidget {
   bool secondShown_ = false;
   QString possibleText_;
   bool overlayVisible_ = true;
+  bool rehearsing_ = true;  ///< setRehearsing
   bool legendVisible_ = true;
   double opacity_ = 0.45;
   OverlayStyle style_ = OverlayStyle::Shaded;

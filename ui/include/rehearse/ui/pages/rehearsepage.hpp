@@ -84,6 +84,7 @@ class RehearsePage : public StepPage {
   QString forceText_;
   std::unique_ptr<Throttle> labelThrottle_;
   int slips_ = 0, cuts_ = 0, vesselCuts_ = 0, tears_ = 0;  // (cuts_: strokes that cut)
+  bool jawsHeldTissue_ = false;  // a frame since the jaws last opened showed them holding tissue
   bool slippedFromJaws_ = false;  // the tissue slipped out of the jaws since they last held it: opening them releases nothing
   bool wasCutting_ = false, strokeCounted_ = false;
   long lastSteps_ = 0;  ///< the last frame's step: a smaller one is a new session
