@@ -170,6 +170,9 @@ void TestSimulationGui::resetReturnsToRest() {
   QCOMPARE(panel_->lastFrame()->steps, 0L);
   QCOMPARE(panel_->lastFrame()->time, 0.0);
   QVERIFY(panel_->lastFrame()->valueMax < 1e-12);
+  // The colour bar at rest: 1 mm at its top, so that nothing is coloured by micrometres (a person saw red and yellow
+  // patches under a bar reading 0.00).
+  QCOMPARE(panel_->lastFrame()->valueScale, 1.0);
 }
 
 // Issue 34: the organ starts where the frame shows it unless the box is cleared; cleared, the registered shape is the

@@ -546,13 +546,18 @@ QString SimulationPanel::statusText() const {
   } else if (shown_.unknown) {
     error = tr(" · distance from the converged answer not known");
   }
+  // (A step whose residual met the tolerance while its distance is not known read "... not known · converged" to a
+  // person, as a contradiction: what converged is said.)
+  QString status = QString::fromStdString(simcore::statusSentence(r));
+  if (shown_.unknown && !std::isfinite(shown_.position) && status == QLatin1String("converged"))
+    status = tr("converged by its residual");
   return tr("t = %1 s · step %2 ms%3 · %4%5 · %6")
       .arg(last_->time, 0, 'f', 2)
       .arg(r.wallMs, 0, 'f', 1)
       .arg(rate)
       .arg(solver)
       .arg(error)
-      .arg(QString::fromStdString(simcore::statusSentence(r)));
+      .arg(status);
 }
 
 void SimulationPanel::updateButtons() {

@@ -26,7 +26,9 @@ struct SimulationFrame {
   std::vector<Eigen::Vector3d> positions;  ///< per node, camera frame (m)
   std::vector<double> value;               ///< per node: displacement (mm) or von Mises (kPa)
   double valueMax = 0;
-  double valueScale = 0;  ///< top of the colour bar: the 98th percentile (stress peaks at attachments)
+  /// Top of the colour bar: the displacement's largest (at least 1 mm), the stress's 98th percentile (it peaks at the
+  /// attachments).
+  double valueScale = 0;
   int colouring = 0;      ///< 0 displacement, 1 von Mises
   simcore::StepReport report;
   double time = 0;  ///< simulated time (s)
