@@ -228,23 +228,29 @@ void SimulationView::paintEvent(QPaintEvent*) {
   for (int a : organCase.attachments)
     if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0)
       painter.drawEllipse(project(cam[a]), 2.5, 2.5);
-  // The tissue around the organ carrying it: its supported nodes, small and blue-grey (under the organ's surface,
-  // where gravity presses it: seen when the view is turned), and said under the arrow.
+  // What holds the organ, said under the arrow in the dots' colours: the held nodes (orange), and the tissue around it
+  // carrying it: its supported nodes, small and blue-grey (under the organ's surface, where gravity presses it: seen
+  // when the view is turned). (A person read "on its supports (135 nodes)" beside the orange dots as their count.)
+  // Within the drawing area (left of the colour bar), elided where narrow; the whole sentence in the panel's status.
+  // Below the gravity arrow (which reaches 30 px down), on a dark band so that the organ behind does not hide it.
+  double captionY = 92;
+  auto caption = [&](const QColor& colour, const QString& said) {
+    painter.setPen(colour);
+    const QString text = painter.fontMetrics().elidedText(said, Qt::ElideRight, static_cast<int>(std::max(W - 24, 10.0)));
+    const QRectF box(18, captionY, painter.fontMetrics().horizontalAdvance(text) + 6, 16);
+    painter.fillRect(box, QColor(24, 25, 28, 190));
+    painter.drawText(box.adjusted(3, 0, 0, 0), Qt::AlignLeft, text);
+    painter.setPen(Qt::NoPen);
+    captionY += 18;
+  };
+  if (frame_->held && !frame_->held->empty())
+    caption(QColor(255, 170, 80), frame_->held->size() == 1 ? tr("held: 1 node") : tr("held: %1 nodes").arg(frame_->held->size()));
   if (frame_->supports && !frame_->supports->empty()) {
     painter.setBrush(QColor(110, 170, 210, 200));
     for (int a : *frame_->supports)
       if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0)
         painter.drawEllipse(project(cam[a]), 1.6, 1.6);
-    painter.setPen(QColor(110, 170, 210));
-    // Within the drawing area (left of the colour bar), elided where narrow; the whole sentence in the panel's status.
-    // Below the gravity arrow (which reaches 30 px down), on a dark band so that the organ behind does not hide it.
-    const QString text = painter.fontMetrics().elidedText(
-        tr("on its supports (%n nodes)", nullptr, static_cast<int>(frame_->supports->size())), Qt::ElideRight,
-        static_cast<int>(std::max(W - 24, 10.0)));
-    const QRectF caption(18, 92, painter.fontMetrics().horizontalAdvance(text) + 6, 16);
-    painter.fillRect(caption, QColor(24, 25, 28, 190));
-    painter.drawText(caption.adjusted(3, 0, 0, 0), Qt::AlignLeft, text);
-    painter.setPen(Qt::NoPen);
+    caption(QColor(110, 170, 210), tr("carried by the tissue around it: %1 nodes").arg(frame_->supports->size()));
   }
   // Gravity, as the case states it, turned with the view: an arrow (a crossed circle where it points into the view, a
   // dotted one where it points out of it).
@@ -293,8 +299,8 @@ void SimulationView::paintEvent(QPaintEvent*) {
 }
 
 QRect SimulationView::marksArea() {
-  // The time line (y 4-24), the arrow about (30, 56) reaching 30 px, its word to x 162, the caption at y 92-108.
-  return QRect(0, 0, 170, 110);
+  // The time line (y 4-24), the arrow about (30, 56) reaching 30 px, its word to x 162, the captions at y 92-126.
+  return QRect(0, 0, 170, 128);
 }
 
 QRect SimulationView::warningArea(const QSize& size, const QFontMetrics& fm, const QString& text) {

@@ -129,14 +129,17 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   auto* chart = new QChart;
   chart->addSeries(series_);
   chart->legend()->hide();
-  chart->setTitle(tr("Tool force (N), last 5 s"));
+  chart->setTitle(tr("Tool force (N) over the last 5 s"));
   chart->setTheme(QChart::ChartThemeDark);
+  // (The units are in the title: the axes' own titles were cut off at the page's foot, and the time's ticks fell on
+  // -3.75 s and -1.25 s, read "-3.8" and "-1.3"; a person's check.)
   axisX_ = new QValueAxis;
-  axisX_->setTitleText(tr("s"));
   axisX_->setRange(-5, 0);
+  axisX_->setTickCount(6);
+  axisX_->setLabelFormat(QStringLiteral("%.0f"));
   axisY_ = new QValueAxis;
-  axisY_->setTitleText(tr("N"));
   axisY_->setRange(0, 1);
+  axisY_->setLabelFormat(QStringLiteral("%g"));
   chart->addAxis(axisX_, Qt::AlignBottom);
   chart->addAxis(axisY_, Qt::AlignLeft);
   series_->attachAxis(axisX_);
