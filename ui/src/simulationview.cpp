@@ -250,7 +250,7 @@ void SimulationView::paintEvent(QPaintEvent*) {
     for (int a : *frame_->supports)
       if (a >= 0 && static_cast<std::size_t>(a) < cam.size() && cam[a].z() > 0)
         painter.drawEllipse(project(cam[a]), 1.6, 1.6);
-    caption(QColor(110, 170, 210), tr("carried by the tissue around it: %1 nodes").arg(frame_->supports->size()));
+    caption(QColor(110, 170, 210), tr("supported below: %1 nodes").arg(frame_->supports->size()));
   }
   // Gravity, as the case states it, turned with the view: an arrow (a crossed circle where it points into the view, a
   // dotted one where it points out of it).
