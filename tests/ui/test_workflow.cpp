@@ -223,6 +223,15 @@ class TestWorkflow : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
     QVERIFY(w_->caseData()->organ == organ);
     QCOMPARE(status->text(), QStringLiteral("Undone: Import mesh"));
+    // A new edit (the material's Young's modulus typed on the Simulation panel) ends that sentence.
+    auto* young = w_->simulationPanel()->findChild<QDoubleSpinBox*>("simYoung");
+    QVERIFY(young);
+    const QString undoneWas = w_->caseData()->material.young == 30e3 ? "31" : "30";
+    typeInto(young, undoneWas);
+    QVERIFY(waitFor([&] { return w_->caseData()->material.young == 1e3 * undoneWas.toDouble(); }, 5000));
+    QVERIFY2(!status->text().startsWith("Undone"), qPrintable(status->text()));
+    QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
+    QCOMPARE(status->text(), QStringLiteral("Undone: Edit material"));
   }
 
   void step2FrameAndVideo() {

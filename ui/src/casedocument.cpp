@@ -104,6 +104,7 @@ void CaseDocument::edit(const QString& text, const std::function<void(app::Case&
   auto after = std::make_shared<app::Case>(*case_);
   fn(*after);
   undo_.push(new CaseCommand(this, case_, std::move(after), text, mergeId));
+  emit edited(text);
 }
 
 void CaseDocument::setVersion(std::shared_ptr<const app::Case> version) {

@@ -146,7 +146,12 @@ QList<QAction*> MainWindow::buildEditMenu() {
   tips();
   connect(doc_->undoStack(), &QUndoStack::indexChanged, this, tips);
   connect(doc_->undoStack(), &QUndoStack::cleanChanged, this, tips);
-  // Undo and redo say what they did, so that no older sentence ("Imported ...") stays in the status bar.
+  // Undo and redo say what they did, so that no older sentence ("Imported ...") stays in the status bar; and a new edit
+  // ends that sentence (a person read "Undone: Attach 4 nodes" after three new picks, and in step 7).
+  connect(doc_, &CaseDocument::edited, this, [this] {
+    const QString now = status_.caseText->text();
+    if (now.startsWith(tr("Undone: ")) || now.startsWith(tr("Redone: "))) say(QString());
+  });
   connect(undo, &QAction::triggered, this, [this] {
     const QUndoStack* stack = doc_->undoStack();
     say(tr("Undone: %1").arg(stack->text(stack->index())));

@@ -111,6 +111,8 @@ class CaseDocument : public QObject {
 
  signals:
   void changed(rehearse::ui::CaseDocument::Parts parts);
+  /// A new edit was made (pushed onto the undo stack: not an undo or redo).
+  void edited(const QString& text);
   void loaded(bool ok, const QString& message);
   void saved(bool ok, const QString& message);
   void progress(double fraction, const QString& stage);
