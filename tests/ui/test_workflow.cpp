@@ -719,6 +719,20 @@ class TestWorkflow : public QObject {
     QTest::keyClick(w_.get(), Qt::Key_F5);
     QVERIFY(!w_->simulationPanel()->isPlaying());
     QVERIFY2(w_->statusText().contains("paused") && !w_->statusText().contains("plays in"), qPrintable(w_->statusText()));
+    // Back in step 7 it plays, and the status bar no longer says it is paused (a person read that while it played); the
+    // instrument taken there before is in hand again (the scissors here).
+    w_->setStep(ui::Step::Rehearse);
+    QTest::keyClick(w_.get(), Qt::Key_B);
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
+    w_->setStep(ui::Step::Rigid);
+    QVERIFY(w_->statusText().contains("paused outside step 7"));
+    w_->setStep(ui::Step::Rehearse);
+    QVERIFY(w_->simulationPanel()->isPlaying());
+    QVERIFY2(!w_->statusText().contains("paused"), qPrintable(w_->statusText()));
+    QCOMPARE(view->tool(), ui::Tool::Scissors);
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    w_->setStep(ui::Step::Rigid);
   }
 
   // Save and reopen: every field the user made comes back.

@@ -152,11 +152,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   // Play taken on the Simulation panel outside step 7 (a person pressed it in step 4 and the status bar still said the
   // rehearsal was paused): it plays there, in the panel's view.
   connect(simulation_, &SimulationPanel::playingChanged, this, [this](bool playing) {
-    if (playing && step_ != Step::Rehearse && status_.caseText->text().contains(QLatin1String("paused outside step 7")))
+    if (step_ == Step::Rehearse) {
+      if (saysPausedOutside()) say(QString());  // (in step 7 Play and Pause show themselves)
+    } else if (playing && status_.caseText->text().contains(QLatin1String("paused outside step 7"))) {
       say(tr("The rehearsal plays in the Simulation panel's view; the frame shows the case's organ until step 7."));
-    // ... and paused there again, it says so (the line had stayed "plays" under a paused clock).
-    else if (!playing && status_.caseText->text().contains(QLatin1String("plays in the Simulation panel's view")))
+    } else if (!playing && status_.caseText->text().contains(QLatin1String("plays in the Simulation panel's view"))) {
+      // ... and paused there again, it says so (the line had stayed "plays" under a paused clock).
       say(tr("The rehearsal is paused; step 7 plays it again."));
+    }
   });
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
   // the status bar with what it waits for (Reset mid-grasp left the organ still, the drag after it moving nothing, and
@@ -265,6 +268,10 @@ void MainWindow::setStep(Step s) {
   const Step left = step_;
   step_ = s;
   view_->setRehearsing(s == Step::Rehearse);
+  if (const Tool held = view_->tool(); left == Step::Rehearse && s != Step::Rehearse &&
+                                        (held == Tool::Grasp || held == Tool::Scissors || held == Tool::Clip ||
+                                         held == Tool::Cautery))
+    lastInstrument_ = held;
   crash::setActivity(activity());
   keys_->stepShown(s);
   if (s != Step::Contour) view_->setSecondFrameShown(false);  // (the second frame is sketched on in step 3 only)
@@ -283,24 +290,34 @@ void MainWindow::setStep(Step s) {
   else if ((s == Step::Elastic || s == Step::Appearance) && (t == Tool::Align || t == Tool::Landmarks))
     view_->setTool(Tool::Navigate);  // no gizmo over the fit
   else if (s == Step::Rehearse) {
-    if (t != Tool::Scissors && t != Tool::Clip && t != Tool::Cautery) view_->setTool(Tool::Grasp);
+    // The instrument in hand when step 7 was left (a person came back from step 4 to the grasper, not the scissors).
+    if (t != Tool::Grasp && t != Tool::Scissors && t != Tool::Clip && t != Tool::Cautery) view_->setTool(lastInstrument_);
     // The organ is rehearsed on live: it settles on its ligaments before the first grasp.
     if (doc_->hasCase() && doc_->data()->hasPose && !simulation_->isPlaying()) simulation_->play();
   }
   if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors ||
-                              view_->tool() == Tool::Clip || view_->tool() == Tool::Cautery))
+                              view_->tool() == Tool::Clip || view_->tool() == Tool::Cautery)) {
     view_->setTool(Tool::Navigate);
+  }
   // Leaving the rehearsal pauses it, as entering it plays it: the other steps show the case's organ, not the
   // simulation's, and its steps took a core from the mesher and the fits (a person saw its clock run in step 1).
   if (left == Step::Rehearse && s != Step::Rehearse && simulation_ && simulation_->isPlaying()) {
     simulation_->pause();
     say(tr("The rehearsal is paused outside step 7 (the other steps show the case's organ); step 7 plays it again."));
   }
+  // Back in step 7 those sentences are over (a person read "paused outside step 7" there while it played).
+  if (s == Step::Rehearse && saysPausedOutside()) say(QString());
   if (s != Step::Rehearse && doc_->hasCase()) {
     refreshOverlay();  // the case's organ again, not the simulation's
     showInOrganView(centreOrgan_, doc_->data());
   }
   updateWorkflow();
+}
+
+bool MainWindow::saysPausedOutside() const {
+  const QString now = status_.caseText->text();
+  return now.contains(QLatin1String("paused outside step 7")) || now.contains(QLatin1String("step 7 plays it again")) ||
+         now.contains(QLatin1String("plays in the Simulation panel's view"));
 }
 
 bool MainWindow::stepDone(Step s) const {

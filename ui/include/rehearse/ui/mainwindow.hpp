@@ -266,7 +266,10 @@ class MainWindow : public QMainWindow {
   StatusParts status_;
   QListWidget* workflow_ = nullptr;
   QStackedWidget* stepStack_ = nullptr;
+  /// The status bar says the rehearsal is paused outside step 7, or plays or is paused there (setStep, F5).
+  bool saysPausedOutside() const;
   Step step_ = Step::Mesh;
+  Tool lastInstrument_ = Tool::Grasp;  ///< the instrument in hand when step 7 was last left (taken again there)
   Workbench wb_;
   QString busyMessage_;  ///< the running job's message (crash reports say what was running)
   QString activity() const;
