@@ -575,6 +575,11 @@ class TestRehearseGui : public QObject {
     const bool saidOpened = waitFor([&] { return pageStatus->text().contains("the grasper opened and was withdrawn"); }, 10000);
     qInfo("the page after the slip and the release: %s", qPrintable(pageStatus->text()));
     QVERIFY2(saidOpened && !pageStatus->text().contains("Released: the tissue relaxes"), qPrintable(pageStatus->text()));
+    // A press beside the organ then (the view's corner): the grasper says to press on the organ, and the page no longer
+    // says the tissue slipped (a person read the two together).
+    QTest::mousePress(view, Qt::LeftButton, {}, QPoint(5, 5));
+    QTest::mouseRelease(view, Qt::LeftButton, {}, QPoint(5, 5));
+    QVERIFY2(waitFor([&] { return !pageStatus->text().contains("slipped"); }, 5000), qPrintable(pageStatus->text()));
     const long before = panel->lastFrame()->steps;
     QVERIFY(startedAgain());  // Reset (and play); then the organ at rest again in the frames shown
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps < before && panel->lastFrame()->steps > 5; }));

@@ -118,6 +118,16 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
     force_->setToolTip(forceText_);
   });
   force_->setObjectName(QStringLiteral("rehearseForce"));
+  // A press beside the organ after a slip: the grasper says to press on the organ, and the page's "The tissue slipped
+  // out of the jaws" is over (a person read the two together, as if the press had slipped).
+  if (wb_.view)
+    connect(wb_.view, &FrameView::toolMessage, this, [this](const QString& said) {
+      if (!said.contains(QLatin1String("Press on the organ to grasp it"))) return;
+      if (pendingStatus_.value_or(status_->text()).contains(QLatin1String("slipped out of the jaws"))) {
+        pendingStatus_ = QString();
+        labelThrottle_->request();
+      }
+    });
   // (A long line, with the shares, counts or a step not converged, wraps: it never widens the panel and shrinks the
   // frame.)
   QFont big = force_->font();
@@ -334,7 +344,8 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (tore > 0 && !f->message.isEmpty())
     status(f->message);  // what tore, and at what strain
   else if (t.cutting)
-    status(tr("Cutting: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
+    // (In words: "Cutting: 3932 elements, 858 nodes." read as jargon to a person.)
+    status(tr("Cutting: the organ's mesh re-made along the blade (%1 elements now).").arg(f->elements));
   else if (!t.held.empty())
     status(t.held.size() == 1 ? tr("The jaws hold the tissue at 1 node of its mesh.")
                               : tr("The jaws hold the tissue at %1 nodes of its mesh.").arg(t.held.size()));
@@ -351,7 +362,7 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     slippedFromJaws_ = jawsHeldTissue_ = false;
   }
   else if (cuts_ > 0 && pendingStatus_.value_or(status_->text()).startsWith(tr("Cutting")))
-    status(tr("Cut: %1 elements, %2 nodes.").arg(f->elements).arg(f->positions.size()));
+    status(tr("Cut: the organ's mesh re-made along the blade (%1 elements now).").arg(f->elements));
   QString extra;
   // The blood first (the counts after it: three lines at the page's width had cut "bleeding 1..." off).
   if (f->field.bloodLoss > 0) {
