@@ -303,6 +303,10 @@ void MainWindow::setStep(Step s) {
   // simulation's, and its steps took a core from the mesher and the fits (a person saw its clock run in step 1).
   if (left == Step::Rehearse && s != Step::Rehearse && simulation_ && simulation_->isPlaying()) {
     simulation_->pause();
+    // One step more, so that what leaving asked is applied before it stands still: the instrument taken from the hand
+    // above let go (the jaws open, the blade lifts). Paused first, the jaws' opening had waited for step 7 again, the
+    // organ held where the jaws had it (a race: test_appearance_gui graspPullCut failed once on it).
+    simulation_->stepOnce();
     say(tr("The rehearsal is paused outside step 7 (the other steps show the case's organ); step 7 plays it again."));
   }
   // Back in step 7 those sentences are over (a person read "paused outside step 7" there while it played).
