@@ -3,11 +3,13 @@
 // inputs applied at step boundaries on the session's own thread, and honest statuses for what it cannot do.
 #include "test_support.hpp"
 
+#include "box_mesh.hpp"
 #include "phantom/phantom.hpp"
 
 #include <rehearse/simcore/session/events.hpp>
 #include <rehearse/simcore/session/session.hpp>
 
+#include <QElapsedTimer>
 #include <QThread>
 #include <cstring>
 
@@ -392,6 +394,44 @@ class TestSession : public QObject {
     s.stepOnce();
     QTRY_COMPARE_WITH_TIMEOUT(s.snapshot()->step, 2L, 20000);
     QVERIFY(!s.snapshot()->tool.held.empty());
+  }
+
+  // Played, the session keeps to real time: steps that took longer than their time step (here one step held 0.6 s by
+  // the step hook, as a cut's or a tear's step can be) are not made up afterwards at more than real time; it runs on
+  // at real time from where it is, at most 0.1 s behind.
+  void slowStepsAreNotMadeUpAfterwards() {
+    // A small bar hung at one end (48 elements: steps of a fraction of a millisecond, many times faster than real time).
+    BodySetup setup;
+    setup.mesh = boxMesh(0.04, 0.01, 0.01, 4, 1, 1);
+    setup.mesh.unitToMetre = 1.0;
+    for (std::size_t i = 0; i < setup.mesh.points.size(); ++i)
+      if (setup.mesh.points[i].x() < 1e-9) setup.fixedNodes.push_back(static_cast<int>(i));
+    setup.material = {MaterialModel::StVK, 27e3, 0.4, 1000};
+    setup.settings.timeStep = 0.01;
+    Session s(setup);
+    // The held step's end: the simulated time and the wall clock there (read on the session's thread, at once).
+    std::atomic<bool> holdNext{false}, held{false};
+    double t0 = 0;
+    QElapsedTimer wall;
+    s.setStepHook([&](const StepRecord& r) {
+      if (!holdNext.exchange(false)) return;
+      QThread::msleep(600);
+      t0 = r.state->time;
+      wall.start();
+      held = true;
+    });
+    s.play();
+    QTRY_VERIFY_WITH_TIMEOUT(s.snapshot()->step >= 5, 20000);
+    holdNext = true;
+    QTRY_VERIFY_WITH_TIMEOUT(held.load(), 20000);
+    QTest::qWait(1000);
+    const double simulated = s.snapshot()->time - t0, elapsed = 1e-3 * static_cast<double>(wall.elapsed());
+    s.pause();
+    qInfo("after a 0.6 s step: %.3f s simulated in %.3f s", simulated, elapsed);
+    // Made up, it simulated the 0.6 s lost on top of the wall clock's (1.64 s in 1.05 s, measured without the bound);
+    // at real time, the 0.1 s allowed behind plus a step ahead (10 ms) more than the wall clock (1.15 s in 1.05 s), here
+    // with two steps' margin. (A slow machine simulates less, never more.)
+    QVERIFY2(simulated <= elapsed + 0.1 + 0.03, qPrintable(QString::number(simulated)));
   }
 
   void unsupportedInputsSaySo() {

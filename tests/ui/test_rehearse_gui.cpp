@@ -22,6 +22,7 @@
 
 #include <rehearse/simcore/precomputed.hpp>
 
+#include <QListWidget>
 #include <QTemporaryDir>
 #include <QProgressDialog>
 #include <QMessageBox>
@@ -523,6 +524,46 @@ class TestRehearseGui : public QObject {
         waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }, 20000));
     qInfo("Space: the jaws held %zu node(s), Space again let go", held);
     panel->pause();
+  }
+
+  // Paused in step 7 (F5) with the jaws closed on the organ, then another step picked in the workflow list: the jaws let
+  // go there and then (the instrument put down posts their opening, which plays; leaving pauses after one step more),
+  // and the rehearsal stands still after (the last note feared the organ stayed held until step 7 played again).
+  void leavingStep7PausedLetsGo() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    const ui::Step was = w_->step();
+    QVERIFY(startedAgain());
+    w_->setStep(ui::Step::Rehearse);
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    const auto& c = *w_->caseData();
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    const QPoint at = view->toWidget(QPointF(centre.x(), centre.y())).toPoint();
+    QTest::mouseMove(view, at);
+    QTest::keyClick(view, Qt::Key_Space);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    QTest::keyClick(w_.get(), Qt::Key_F5);
+    QVERIFY(waitFor([&] { return !panel->isPlaying(); }));
+    QTest::qWait(300);  // (a step under way when paused is published)
+    const long pausedAt = panel->lastFrame()->steps;
+    QTest::qWait(300);
+    QCOMPARE(panel->lastFrame()->steps, pausedAt);
+    QVERIFY(panel->lastFrame()->tool.jawClosed && !panel->lastFrame()->tool.held.empty());
+    auto* list = w_->findChild<QListWidget*>("workflowList");
+    QVERIFY(list);
+    const QRect item = list->visualItemRect(list->item(app::index(ui::Step::Rigid)));
+    QTest::mouseClick(list->viewport(), Qt::LeftButton, {}, item.center());
+    QCOMPARE(w_->step(), ui::Step::Rigid);
+    QVERIFY2(waitFor([&] { return panel->lastFrame()->steps > pausedAt; }, 20000), "no step let go");
+    QVERIFY(panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed);
+    QTest::qWait(300);
+    const long letGoAt = panel->lastFrame()->steps;
+    qInfo("paused at step %ld; after leaving step 7: step %ld, the jaws open", pausedAt, letGoAt);
+    QVERIFY(!panel->isPlaying());  // and paused again: it stands still outside step 7
+    QTest::qWait(300);
+    QCOMPARE(panel->lastFrame()->steps, letGoAt);
+    w_->setStep(was);
   }
 
   // The 3D view (F4) taken while the grasper's drag holds the tissue: the drag ends as its release would (a person's

@@ -742,6 +742,12 @@ void Session::run() {
       const double ahead =
           (state().time - simAtStart) - std::chrono::duration<double>(clock::now() - playStart).count();
       if (ahead > 0) loop_.waitWhileAhead(ahead);
+      // Behind it by more than kMostBehind (slow steps: a cut, a tear, a loaded machine), the time lost is not made
+      // up: the organ goes on at real time from where it is. (Made up, the steps after slow ones ran back to back:
+      // a person read 192 fps, and the organ moved faster than real time meanwhile.)
+      constexpr double kMostBehind = 0.1;  // s
+      if (ahead < -kMostBehind)
+        playStart += std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(-ahead - kMostBehind));
     }
   }
 }
