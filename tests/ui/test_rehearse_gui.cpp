@@ -764,6 +764,16 @@ class TestRehearseGui : public QObject {
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps > at + 10; }));
     QVERIFY(panel->lastFrame()->tool.held.empty());
     qInfo("F4 in the drag: the jaws opened; the moves after it held nothing");
+    // In step 7, the 3D view taken with an instrument in hand says where the instruments work (a person pressed on the
+    // organ there with the grasper: nothing happened, nothing said).
+    {
+      const ui::Step was = w_->step();
+      w_->setStep(ui::Step::Rehearse);
+      QTest::keyClick(w_.get(), Qt::Key_F4);
+      QVERIFY2(w_->statusText().contains("the instruments work on the frame"), qPrintable(w_->statusText()));
+      QTest::keyClick(w_.get(), Qt::Key_F3);
+      w_->setStep(was);
+    }
     panel->pause();
   }
 

@@ -448,6 +448,12 @@ void MainWindow::setViewMode(ViewMode mode) {
   checkShownViewMode();
   if (mode == ViewMode::Composited && !composition_->ready())
     say(tr("The composited view needs the appearance: %1.").arg(composition_->whyNot()));
+  // The 3D view takes no instrument: said when it is taken with one in hand in step 7 (a person pressed on the organ
+  // there with the grasper and nothing happened, nothing said).
+  const Tool inHand = view_->tool();
+  if (mode == ViewMode::ThreeD && step_ == Step::Rehearse &&
+      (inHand == Tool::Grasp || inHand == Tool::Scissors || inHand == Tool::Clip || inHand == Tool::Cautery))
+    say(tr("The 3D view turns and zooms the organ; the instruments work on the frame (F2 or F3 shows it again)."));
 }
 
 void MainWindow::refreshOverlay() {
