@@ -129,18 +129,19 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   // A slip's sentence goes into the case's line (RehearsePage) and stayed there: under the next grasp's 10 s hint
   // while the jaws held again, and after Reset, as if the tissue had just slipped (a person's check). A new bite, or
   // Reset, replaces it. (The session's sentence, in simcore's words: not translated.)
-  const auto forgetSlip = [this](const QString& now) {
+  const auto forgetSlip = [this](const QString& now, Said what = Said::Other) {
     if (!status_.caseText->text().contains(QLatin1String("slipped out of the grasper"))) return;
     status_.caseText->setText(now);
     status_.caseText->setToolTip(now);
+    said_ = what;
   };
   connect(view_, &FrameView::instrumentInput, this, [this, forgetSlip](const simcore::InputEvent& e) {
     if (!simulation_->post(e))
       say(tr("The simulation is not ready yet; the grasp did nothing (the organ needs a mesh and a pose)."));
     else if (e.kind == simcore::InputKind::Jaw && e.on)
-      forgetSlip(tr("Grasped: drag to pull, release to let go."));
+      forgetSlip(tr("Grasped: drag to pull, release to let go."), Said::Grasped);
     // ... and the jaws opened end that line (a person read "Grasped: drag to pull" after letting go).
-    else if (e.kind == simcore::InputKind::Jaw && status_.caseText->text() == tr("Grasped: drag to pull, release to let go."))
+    else if (e.kind == simcore::InputKind::Jaw && said_ == Said::Grasped)
       say(QString());
     // Another instrument at work ends the slip's news too (a helper read "The tissue slipped out of..." 30 s after
     // placing a clip).
@@ -154,11 +155,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(simulation_, &SimulationPanel::playingChanged, this, [this](bool playing) {
     if (step_ == Step::Rehearse) {
       if (saysPausedOutside()) say(QString());  // (in step 7 Play and Pause show themselves)
-    } else if (playing && status_.caseText->text().contains(QLatin1String("paused outside step 7"))) {
-      say(tr("The rehearsal plays in the Simulation panel's view; the frame shows the case's organ until step 7."));
-    } else if (!playing && status_.caseText->text().contains(QLatin1String("plays in the Simulation panel's view"))) {
+    } else if (playing && said_ == Said::PausedOutside) {
+      sayAs(Said::PlaysInPanel,
+            tr("The rehearsal plays in the Simulation panel's view; the frame shows the case's organ until step 7."));
+    } else if (!playing && said_ == Said::PlaysInPanel) {
       // ... and paused there again, it says so (the line had stayed "plays" under a paused clock).
-      say(tr("The rehearsal is paused; step 7 plays it again."));
+      sayAs(Said::PausedInPanel, tr("The rehearsal is paused; step 7 plays it again."));
     }
   });
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
@@ -307,7 +309,8 @@ void MainWindow::setStep(Step s) {
     // above let go (the jaws open, the blade lifts). Paused first, the jaws' opening had waited for step 7 again, the
     // organ held where the jaws had it (a race: test_appearance_gui graspPullCut failed once on it).
     simulation_->stepOnce();
-    say(tr("The rehearsal is paused outside step 7 (the other steps show the case's organ); step 7 plays it again."));
+    sayAs(Said::PausedOutside,
+          tr("The rehearsal is paused outside step 7 (the other steps show the case's organ); step 7 plays it again."));
   }
   // Back in step 7 those sentences are over (a person read "paused outside step 7" there while it played).
   if (s == Step::Rehearse && saysPausedOutside()) say(QString());
@@ -319,9 +322,7 @@ void MainWindow::setStep(Step s) {
 }
 
 bool MainWindow::saysPausedOutside() const {
-  const QString now = status_.caseText->text();
-  return now.contains(QLatin1String("paused outside step 7")) || now.contains(QLatin1String("step 7 plays it again")) ||
-         now.contains(QLatin1String("plays in the Simulation panel's view"));
+  return said_ == Said::PausedOutside || said_ == Said::PlaysInPanel || said_ == Said::PausedInPanel;
 }
 
 bool MainWindow::stepDone(Step s) const {
@@ -605,9 +606,12 @@ void MainWindow::dropEvent(QDropEvent* e) {
 
 // ------------------------------------------------------------------------------------------ messages
 
-void MainWindow::say(const QString& text) {
+void MainWindow::say(const QString& text) { sayAs(Said::Other, text); }
+
+void MainWindow::sayAs(Said what, const QString& text) {
   status_.caseText->setText(text);
   status_.caseText->setToolTip(text);
+  said_ = text.isEmpty() ? Said::Other : what;
   if (!text.isEmpty()) logMessage(text);
 }
 

@@ -149,16 +149,15 @@ QList<QAction*> MainWindow::buildEditMenu() {
   // Undo and redo say what they did, so that no older sentence ("Imported ...") stays in the status bar; and a new edit
   // ends that sentence (a person read "Undone: Attach 4 nodes" after three new picks, and in step 7).
   connect(doc_, &CaseDocument::edited, this, [this] {
-    const QString now = status_.caseText->text();
-    if (now.startsWith(tr("Undone: ")) || now.startsWith(tr("Redone: "))) say(QString());
+    if (said_ == Said::UndoneOrRedone) say(QString());
   });
   connect(undo, &QAction::triggered, this, [this] {
     const QUndoStack* stack = doc_->undoStack();
-    say(tr("Undone: %1").arg(stack->text(stack->index())));
+    sayAs(Said::UndoneOrRedone, tr("Undone: %1").arg(stack->text(stack->index())));
   });
   connect(redo, &QAction::triggered, this, [this] {
     const QUndoStack* stack = doc_->undoStack();
-    if (stack->index() > 0) say(tr("Redone: %1").arg(stack->text(stack->index() - 1)));
+    if (stack->index() > 0) sayAs(Said::UndoneOrRedone, tr("Redone: %1").arg(stack->text(stack->index() - 1)));
   });
   return {undo, redo};
 }

@@ -209,6 +209,10 @@ class MainWindow : public QMainWindow {
   void showProgress(double fraction, const QString& stage);
   /// Shows a sentence in the status bar and adds it to the Messages panel.
   void say(const QString& text);
+  /// The sentences of the window's own the case's line may hold, which later events end or replace (said_).
+  enum class Said { Other, Grasped, PausedOutside, PlaysInPanel, PausedInPanel, UndoneOrRedone };
+  /// say() of one of those sentences, kept as what the line holds.
+  void sayAs(Said what, const QString& text);
   /// say() for a reply that is not news of the case ("Cancelled: ..."): the status bar's temporary message for
   /// kBriefMessageMs (over a tool's hint), the case's line left as it was.
   void sayBriefly(const QString& text);
@@ -268,6 +272,7 @@ class MainWindow : public QMainWindow {
   QStackedWidget* stepStack_ = nullptr;
   /// The status bar says the rehearsal is paused outside step 7, or plays or is paused there (setStep, F5).
   bool saysPausedOutside() const;
+  Said said_ = Said::Other;  ///< which of the window's sentences the case's line holds (Other: none of them)
   Step step_ = Step::Mesh;
   Tool lastInstrument_ = Tool::Grasp;  ///< the instrument in hand when step 7 was last left (taken again there)
   Workbench wb_;
