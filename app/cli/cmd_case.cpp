@@ -12,6 +12,7 @@
 #include "rehearse/app/review.hpp"
 #include "rehearse/app/materials.hpp"
 
+#include <rehearse/simcore/words.hpp>
 #include <rehearse/imaging/appearance.hpp>
 #include <rehearse/imaging/camera.hpp>
 #include <rehearse/imaging/contour.hpp>
@@ -159,7 +160,7 @@ int caseInfo(const std::string& path) {
   } else {
     std::printf("organ: %zu nodes, %zu tetrahedra%s%s\n", volume.points.size(), volume.tets.size(),
                 c.organ->source.empty() ? "" : ", imported from ", c.organ->source.c_str());
-    std::printf("attachments: %zu node(s)\n", c.attachments.size());
+    std::printf("attachments: %s\n", simcore::quantity(c.attachments.size(), "node", "nodes").c_str());
   }
   if (c.frame.empty()) std::printf("frame: none (step 2 not done)\n");
   else std::printf("frame: %d x %d px%s\n", c.frame.cols, c.frame.rows, c.rawFrame.empty() ? "" : " (undistorted)");
@@ -170,7 +171,8 @@ int caseInfo(const std::string& path) {
   if (c.contour.segments.empty())
     std::printf("contour: none (step 3 not done)\n");
   else
-    std::printf("contour: %zu piece(s), %zu points\n", c.contour.segments.size(), c.contour.pointCount());
+    std::printf("contour: %s, %s\n", simcore::quantity(c.contour.segments.size(), "piece", "pieces").c_str(),
+                simcore::quantity(c.contour.pointCount(), "point", "points").c_str());
   std::printf("pose: %s\n", !c.hasPose         ? "none (step 4 not done)"
                             : c.hasFit()       ? "aligned and elastically fitted (step 5)"
                             : c.poseAligned    ? "aligned by hand (step 4)"
@@ -193,7 +195,8 @@ int caseInfo(const std::string& path) {
     const auto sessions = listRecordings(path);
     long complete = 0;
     for (const auto& r : sessions) complete += r.complete;
-    std::printf("recordings: %zu session(s), %ld complete\n", sessions.size(), complete);
+    std::printf("recordings: %s, %ld complete\n", simcore::quantity(sessions.size(), "session", "sessions").c_str(),
+                complete);
   }
   for (const auto& n : notes) std::printf("note: %s\n", n.c_str());
   if (!c.organ->empty()) std::printf("%s", simcore::formatQuality(simcore::computeQuality(volume)).c_str());

@@ -1,6 +1,7 @@
 // rehearse gesture: a scripted rehearsal without a window (issue 15), through the simulation session.
 #include "support.hpp"
 
+#include <rehearse/simcore/words.hpp>
 #include <rehearse/text_input.hpp>
 
 #include "phantom/phantom.hpp"
@@ -374,11 +375,13 @@ void writeGestureReport(const std::string& path, const GestureResult& r, const s
 void printGestureSummary(const std::string& outPath, const GestureResult& r, const simcore::BodySetup& setup,
                          const StepTotals& t) {
   const simcore::Mesh& out = r.finalMesh;
-  const std::string vessels = setup.mesh.namesAVessel() ? std::to_string(r.events.vesselCuts) + " vessel cut(s)"
-                                                        : "vessels unknown (the mesh names none)";
+  using simcore::quantity;
+  const std::string vessels = setup.mesh.namesAVessel()
+                                  ? quantity(static_cast<std::size_t>(r.events.vesselCuts), "vessel cut", "vessel cuts")
+                                  : "vessels unknown (the mesh names none)";
   std::printf(
       "gesture (%s): %zu steps (%.2f ms mean), up to %zu nodes grasped, peak tool force %.2f N, %d slips, %d cut "
-      "updates, %s, %d clip(s) (%d misplaced), %.2f mL of blood lost, %d tear(s), %zu failed steps; %zu elements, "
+      "updates, %s, %s (%d misplaced), %.2f mL of blood lost, %s, %zu failed steps; %zu elements, "
       "%zu "
       "nodes "
       "written to %s\n",
@@ -386,7 +389,9 @@ void printGestureSummary(const std::string& outPath, const GestureResult& r, con
                                               : simcore::bodyModelName(setup.model) + " model")
           .c_str(),
       r.steps.size(), t.wall / static_cast<double>(r.steps.size()), t.grasped, t.peak, r.events.slips, r.events.cuts, vessels.c_str(),
-      r.events.clips, r.events.misplacedClips, 1e6 * r.bloodLoss, r.events.tears, r.failed, out.tets.size(), out.points.size(),
+      quantity(static_cast<std::size_t>(r.events.clips), "clip", "clips").c_str(), r.events.misplacedClips,
+      1e6 * r.bloodLoss, quantity(static_cast<std::size_t>(r.events.tears), "tear", "tears").c_str(), r.failed,
+      out.tets.size(), out.points.size(),
       outPath.c_str());
   const LargestError e = largestError(r);
   if (std::isfinite(e.position))

@@ -2,6 +2,7 @@
 // training database.
 #include "support.hpp"
 
+#include <rehearse/simcore/words.hpp>
 #include <rehearse/text_input.hpp>
 
 #include "phantom/phantom.hpp"
@@ -447,22 +448,24 @@ int exactCheck(std::int64_t id, const Recording& rec, const Options& o) {
               " %ld not resolved by exact Newton (no truth there)\n",
               checked, steps, 1e3 * worst, worstAt, worstForce, unresolved);
   if (otherSolution > 0)
-    std::printf("%ld step(s) where exact Newton went to another solution of the step's equations (up to %.4f mm away): the "
+    std::printf("%s where exact Newton went to another solution of the step's equations (up to %.4f mm away): the "
                 "run's own method converged as far, or exact Newton started where the run ended, stays by the run's answer; not "
                 "counted above\n",
-                otherSolution, 1e3 * otherApart);
+                simcore::quantity(static_cast<std::size_t>(otherSolution), "step", "steps").c_str(), 1e3 * otherApart);
   if (lowAt >= 0)
     std::printf("the run's own estimate at least %.2f times the truth (step %ld) where the truth is over %.4f mm; %ld under "
                 "half\n",
                 lowest, lowAt, 1e3 * judged, under);
   if (asked > 0)
-    std::printf("asked %.4f mm: %ld step(s) ended on it are farther\n", 1e3 * asked, beyond);
+    std::printf("asked %.4f mm: %s ended on it %s farther\n", 1e3 * asked,
+                simcore::quantity(static_cast<std::size_t>(beyond), "step", "steps").c_str(), beyond == 1 ? "is" : "are");
   else
     std::printf("no accuracy asked (the relative residual 1e-6 ended the steps)\n");
   std::printf("written %s\n", out.c_str());
   if (beyond > 0 || under > 0) {
-    std::fprintf(stderr, "rehearse: session %lld: %ld step(s) farther than the accuracy asked, %ld estimate(s) under half "
-                 "the true error\n", static_cast<long long>(id), beyond, under);
+    std::fprintf(stderr, "rehearse: session %lld: %s farther than the accuracy asked, %s under half the true error\n",
+                 static_cast<long long>(id), simcore::quantity(static_cast<std::size_t>(beyond), "step", "steps").c_str(),
+                 simcore::quantity(static_cast<std::size_t>(under), "estimate", "estimates").c_str());
     return 4;
   }
   return 0;

@@ -184,10 +184,10 @@ class TestCaseCommands : public QObject {
     QVERIFY2(r.code == 0, qPrintable(r.err));
     for (const QString& line :
          {QStringLiteral("kind: case (a case file, as the window saves it)"), organ,
-          QStringLiteral("attachments: %1 node(s)").arg(c.attachments.size()),
+          QStringLiteral("attachments: %1 %2").arg(c.attachments.size()).arg(c.attachments.size() == 1 ? "node" : "nodes"),
           QStringLiteral("frame: %1 x %2 px").arg(c.frame.cols).arg(c.frame.rows),
           QStringLiteral("pose: placed automatically, not aligned"), QStringLiteral("appearance: not estimated"),
-          QStringLiteral("recordings: 0 session(s)"), QStringLiteral("tetrahedra: %1").arg(c.organ->volume.tets.size())})
+          QStringLiteral("recordings: 0 sessions"), QStringLiteral("tetrahedra: %1").arg(c.organ->volume.tets.size())})
       QVERIFY2(r.out.contains(line), qPrintable(line + " not in:\n" + r.out));
     r = run({"info", folder_});
     QVERIFY2(r.code == 0 && r.out.contains("kind: case (a case folder)") && r.out.contains(organ), qPrintable(r.out));
@@ -211,7 +211,7 @@ class TestCaseCommands : public QObject {
     r = run({"info", estimatedFile});
     QVERIFY2(r.out.contains("appearance: the model explains 12 % of the organ's shading; texture only"),
              qPrintable(r.out));
-    QVERIFY2(r.out.contains("recordings: 1 session(s), 1 complete"), qPrintable(r.out));
+    QVERIFY2(r.out.contains("recordings: 1 session, 1 complete"), qPrintable(r.out));
     // Reading a case recorded into (a WAL database) leaves nothing beside it (a helper found -wal and -shm files).
     for (const char* suffix : {"-wal", "-shm"}) QVERIFY2(!QFile::exists(estimatedFile + suffix), suffix);
     expectOneLineError(run({"info", file_, "--unit", "mm"}), 2, "--unit is for mesh files");

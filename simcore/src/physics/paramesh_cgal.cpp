@@ -1,6 +1,7 @@
 // The geometry image of an organ's surface through CGAL's Surface_mesh_parameterization (a seam cut to a disk,
 // the square border by arc length, discrete authalic or conformal map), and CGAL's approximate Hausdorff distance.
 #include <rehearse/simcore/paramesh.hpp>
+#include <rehearse/simcore/words.hpp>
 
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
@@ -579,7 +580,7 @@ std::optional<GeometryImage> makeGeometryImage(const std::vector<Eigen::Vector3d
                      static_cast<long>(sm.number_of_faces());
   if (euler != 2) {
     why = "The organ's surface has Euler characteristic " + std::to_string(euler) + " (" +
-          std::to_string((2 - euler) / 2) + " handle(s)): a geometry image needs a closed piece without handles (2).";
+          quantity(static_cast<std::size_t>((2 - euler) / 2), "handle", "handles") + "): a geometry image needs a closed piece without handles (2).";
     return std::nullopt;
   }
   if (PMP::volume(sm) < 0) PMP::reverse_face_orientations(sm);
