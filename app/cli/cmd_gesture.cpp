@@ -380,15 +380,14 @@ void printGestureSummary(const std::string& outPath, const GestureResult& r, con
                                   ? quantity(static_cast<std::size_t>(r.events.vesselCuts), "vessel cut", "vessel cuts")
                                   : "vessels unknown (the mesh names none)";
   std::printf(
-      "gesture (%s): %zu steps (%.2f ms mean), up to %s grasped, peak tool force %.2f N, %d slips, %d cut "
-      "updates, %s, %s (%d misplaced), %.2f mL of blood lost, %s, %zu failed steps; %zu elements, "
-      "%zu "
-      "nodes "
-      "written to %s\n",
+      "gesture (%s): %zu steps (%.2f ms mean), up to %s grasped, peak tool force %.2f N, %s, %s, %s, %s (%d "
+      "misplaced), %.2f mL of blood lost, %s, %zu failed steps; %zu elements, %zu nodes written to %s\n",
       (setup.model == simcore::BodyModel::Fem ? simcore::toString(setup.settings.method)
                                               : simcore::bodyModelName(setup.model) + " model")
           .c_str(),
-      r.steps.size(), t.wall / static_cast<double>(r.steps.size()), quantity(t.grasped, "node", "nodes").c_str(), t.peak, r.events.slips, r.events.cuts, vessels.c_str(),
+      r.steps.size(), t.wall / static_cast<double>(r.steps.size()), quantity(t.grasped, "node", "nodes").c_str(), t.peak,
+      quantity(static_cast<std::size_t>(r.events.slips), "slip", "slips").c_str(),
+      quantity(static_cast<std::size_t>(r.events.cuts), "cut update", "cut updates").c_str(), vessels.c_str(),
       quantity(static_cast<std::size_t>(r.events.clips), "clip", "clips").c_str(), r.events.misplacedClips,
       1e6 * r.bloodLoss, quantity(static_cast<std::size_t>(r.events.tears), "tear", "tears").c_str(), r.failed,
       out.tets.size(), out.points.size(),
