@@ -416,6 +416,12 @@ void TestSimulationGui::accuracyIsAskedInMillimetres() {
   QTest::keyClick(w_.get(), Qt::Key_F5);
   qInfo("0.05 mm asked: %s, estimated %.3g mm from the converged answer", f->report.status.c_str(),
         1e3 * f->report.errorPosition);
+  // Said in plain decimals (a person read "±4.9e-10 mm" as jargon): "within 0.001 mm" or "±0.012 mm".
+  const QString said = panel_->statusText();
+  qInfo("status line: %s", qPrintable(said));
+  QVERIFY2(said.contains(QRegularExpression(QStringLiteral("(±[0-9.]+|within 0.001) mm"))) &&
+               !said.contains(QRegularExpression(QStringLiteral("[0-9]e[-+]?[0-9]"))),
+           qPrintable(said));
   QCOMPARE(QString::fromStdString(f->report.status), QString("converged"));
   QVERIFY(f->report.errorPosition <= 5e-5);
   typeInto("0");  // the default again for the functions after this one

@@ -540,9 +540,13 @@ QString SimulationPanel::statusText() const {
   // How far the step is from the converged answer, estimated as it ran (issue 64): in millimetres, and in newtons on
   // the tool while it holds or touches the tissue.
   QString error;
+  // (In plain decimals: "±4.9e-10 mm" read as the program's jargon; below a thousandth, "within 0.001 mm".)
+  const auto amount = [](double v, const QString& unit) {
+    return v < 5e-4 ? tr("within 0.001 %1").arg(unit) : tr("±%1 %2").arg(QString::number(v, v < 1 ? 'f' : 'g', 3), unit);
+  };
   if (std::isfinite(shown_.position)) {
-    error = tr(" · ±%1 mm").arg(QString::number(1e3 * shown_.position, 'g', 2));
-    if (shown_.force > 0) error += tr(", ±%1 N").arg(QString::number(shown_.force, 'g', 2));
+    error = tr(" · %1").arg(amount(1e3 * shown_.position, tr("mm")));
+    if (shown_.force > 0) error += tr(", %1").arg(amount(shown_.force, tr("N")));
   } else if (shown_.unknown) {
     error = tr(" · distance from the converged answer not known");
   }
