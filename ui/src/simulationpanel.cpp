@@ -401,11 +401,21 @@ void SimulationPanel::reset() {
     // the step under way was still to come: a person read 27298 where the file has 27299).
     resetEnded_ = ended;
     if (ended <= 0) emit recordingRestarted(tr("Reset: the run from rest is recorded as a new session."));
+  } else if (organ_ && setup().startInEquilibrium && mechanicallyOther(organ_->material, builtWith_)) {
+    // The start was solved for the material the session was built with: after an edit (a softer tissue) the same
+    // rest shape hangs elsewhere, so Reset solves the start again for the material now (a person set Young's modulus
+    // from 27 to 3 kPa and pressed Reset: the start's sentence was the 27 kPa one, and the organ sagged from it).
+    startSession(setup());
   } else {
     host_->reset();
   }
   updateButtons();
   emit wasReset();
+}
+
+bool SimulationPanel::mechanicallyOther(app::MaterialSettings a, app::MaterialSettings b) {
+  a.tearStrain = b.tearStrain = 0;  // (where the tissue tears does not move the start)
+  return !(a == b);
 }
 
 void SimulationPanel::resetAsked() {

@@ -67,6 +67,8 @@ class SimulationPanel : public QWidget {
   /// The current session (read-only: its setup and counters), null while none runs.
   const simcore::Session* session() const { return host_->session(); }
   SimulationSetup setup() const;
+  /// Two materials whose equilibrium differs (all but where the tissue tears).
+  static bool mechanicallyOther(app::MaterialSettings a, app::MaterialSettings b);
   QString statusText() const;
   /// The distance from the converged answer the status line shows (m, N; issue 64).
   struct ShownError {
