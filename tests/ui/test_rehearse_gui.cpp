@@ -22,6 +22,8 @@
 
 #include <rehearse/simcore/precomputed.hpp>
 
+#include <QApplication>
+#include <QDockWidget>
 #include <QListWidget>
 #include <QTemporaryDir>
 #include <QProgressDialog>
@@ -526,6 +528,37 @@ class TestRehearseGui : public QObject {
     panel->pause();
   }
 
+  // The Simulation panel's buttons and the page's, clicked with the mouse, leave the keys with the frame view: Space then
+  // closes the grasper's jaws (a person's Space after Reset and Cancel opened the Reset question again: the button had
+  // kept the focus).
+  void aClickedButtonLeavesTheKeysToTheView() {
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    QVERIFY(startedAgain());
+    const ui::Step was = w_->step();
+    w_->setStep(ui::Step::Rehearse);  // (the page's instruments and the panel's buttons in sight, as a person has them)
+    w_->findChild<QDockWidget*>("simulationDock")->raise();
+    view->setFocus();
+    QVERIFY(QTest::qWaitFor([&] { return view->hasFocus(); }));
+    for (const char* name : {"simPlay", "simPlay", "simStep", "simReset", "grasperTool"}) {
+      auto* b = w_->findChild<QPushButton*>(name);
+      QVERIFY2(b && b->isVisible(), name);
+      QTest::mouseClick(b, Qt::LeftButton);
+      QVERIFY2(view->hasFocus(), qPrintable(QString(name) + " took the keys: " + (QApplication::focusWidget() ? QApplication::focusWidget()->objectName() + " " + QApplication::focusWidget()->metaObject()->className() : QString("none"))));
+    }
+    QCOMPARE(view->tool(), ui::Tool::Grasp);
+    panel->play();
+    const auto& c = *w_->caseData();
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    QTest::mouseMove(view, view->toWidget(QPointF(centre.x(), centre.y())).toPoint());
+    QTest::keyClick(QApplication::focusWidget(), Qt::Key_Space);
+    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    QTest::keyClick(QApplication::focusWidget(), Qt::Key_Space);
+    QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 20000));
+    panel->pause();
+    w_->setStep(was);
+  }
+
   // Paused in step 7 (F5) with the jaws closed on the organ, then another step picked in the workflow list: the jaws let
   // go there and then (the instrument put down posts their opening, which plays; leaving pauses after one step more),
   // and the rehearsal stands still after (the last note feared the organ stayed held until step 7 played again).
@@ -772,6 +805,7 @@ class TestRehearseGui : public QObject {
       QTest::keyClick(w_.get(), Qt::Key_F4);
       QVERIFY2(w_->statusText().contains("the instruments work on the frame"), qPrintable(w_->statusText()));
       QTest::keyClick(w_.get(), Qt::Key_F3);
+      QVERIFY2(!w_->statusText().contains("the instruments work on the frame"), qPrintable(w_->statusText()));
       w_->setStep(was);
     }
     panel->pause();

@@ -232,6 +232,11 @@ class TestWorkflow : public QObject {
     QVERIFY2(!status->text().startsWith("Undone"), qPrintable(status->text()));
     QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
     QCOMPARE(status->text(), QStringLiteral("Undone: Edit material"));
+    // ... and so does another step taken (a person read "Undone: Attach 2 nodes" in step 7).
+    QTest::keyClick(w_.get(), Qt::Key_2, Qt::AltModifier);
+    QCOMPARE(w_->step(), ui::Step::Frame);
+    QVERIFY2(!status->text().startsWith("Undone"), qPrintable(status->text()));
+    QTest::keyClick(w_.get(), Qt::Key_1, Qt::AltModifier);
   }
 
   void step2FrameAndVideo() {

@@ -150,6 +150,10 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       forgetSlip(QString());
   });
   connect(simulation_, &SimulationPanel::wasReset, view_, &FrameView::endGesture);
+  // Play, Step and Reset clicked: the keys back to the frame, where the instruments work (Space closes the jaws).
+  connect(simulation_, &SimulationPanel::keysBack, this, [this] {
+    if (viewMode_ != ViewMode::ThreeD && view_->isVisible()) view_->setFocus();
+  });
   // Play taken on the Simulation panel outside step 7 (a person pressed it in step 4 and the status bar still said the
   // rehearsal was paused): it plays there, in the panel's view.
   connect(simulation_, &SimulationPanel::playingChanged, this, [this](bool playing) {
@@ -312,8 +316,9 @@ void MainWindow::setStep(Step s) {
     sayAs(Said::PausedOutside,
           tr("The rehearsal is paused outside step 7 (the other steps show the case's organ); step 7 plays it again."));
   }
-  // Back in step 7 those sentences are over (a person read "paused outside step 7" there while it played).
-  if (s == Step::Rehearse && saysPausedOutside()) say(QString());
+  // Back in step 7 those sentences are over (a person read "paused outside step 7" there while it played); and an undo's
+  // or redo's sentence is over on another step (a person read "Undone: Attach 2 nodes" in step 7).
+  if ((s == Step::Rehearse && saysPausedOutside()) || (s != left && said_ == Said::UndoneOrRedone)) say(QString());
   if (s != Step::Rehearse && doc_->hasCase()) {
     refreshOverlay();  // the case's organ again, not the simulation's
     showInOrganView(centreOrgan_, doc_->data());
@@ -451,10 +456,13 @@ void MainWindow::setViewMode(ViewMode mode) {
     say(tr("The composited view needs the appearance: %1.").arg(composition_->whyNot()));
   // The 3D view takes no instrument: said when it is taken with one in hand in step 7 (a person pressed on the organ
   // there with the grasper and nothing happened, nothing said).
+  // (Short, so that the status bar shows it whole; ended when the frame is back.)
   const Tool inHand = view_->tool();
   if (mode == ViewMode::ThreeD && step_ == Step::Rehearse &&
       (inHand == Tool::Grasp || inHand == Tool::Scissors || inHand == Tool::Clip || inHand == Tool::Cautery))
-    say(tr("The 3D view turns and zooms the organ; the instruments work on the frame (F2 or F3 shows it again)."));
+    sayAs(Said::InstrumentsOnTheFrame, tr("The 3D view turns the organ; the instruments work on the frame (F2, F3)."));
+  else if (mode != ViewMode::ThreeD && said_ == Said::InstrumentsOnTheFrame)
+    say(QString());
 }
 
 void MainWindow::refreshOverlay() {

@@ -17,6 +17,7 @@
 #include <QMessageBox>
 #include <QPushButton>
 #include <QStringList>
+#include <QTimer>
 #include <QtConcurrent/QtConcurrent>
 #include <QVBoxLayout>
 
@@ -167,6 +168,11 @@ SimulationPanel::SimulationPanel(QWidget* parent) : QWidget(parent) {
   connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::togglePlay);
   connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::stepOnce);
   connect(resetButton_, &QPushButton::clicked, this, &SimulationPanel::resetAsked);
+  // Clicked (the field being typed in committed as the button took the keys), the keys go back to where the instruments
+  // are (a person's Space after Reset and Cancel opened the Reset question again: the button had kept them). Reset's
+  // question gives them back when it is answered.
+  connect(playButton_, &QPushButton::clicked, this, &SimulationPanel::keysBack);
+  connect(stepButton_, &QPushButton::clicked, this, &SimulationPanel::keysBack);
   connect(form_, &SimulationForm::presetChosen, this, &SimulationPanel::applyPreset);
   connect(form_, &SimulationForm::materialEdited, this, &SimulationPanel::materialFieldsEdited);
   connect(form_, &SimulationForm::runEdited, this, &SimulationPanel::postRunParameters);
@@ -420,7 +426,11 @@ bool SimulationPanel::mechanicallyOther(app::MaterialSettings a, app::MaterialSe
 
 void SimulationPanel::resetAsked() {
   const QString unkept = unkeptWork();
-  if (unkept.isEmpty()) return reset();
+  if (unkept.isEmpty()) {
+    reset();
+    emit keysBack();
+    return;
+  }
   // Reset discarded an unrecorded cut without a word, where quitting or opening another case asked.
   auto* box = new QMessageBox(QMessageBox::Warning, tr("Rehearsal not kept"),
                               tr("Reset takes the organ back to rest and ends this rehearsal (%1), which is not "
@@ -436,6 +446,7 @@ void SimulationPanel::resetAsked() {
   const bool wasPlaying = isPlaying();
   if (wasPlaying) pause();
   connect(box, &QMessageBox::finished, this, [this, box, wasPlaying](int) {
+    QTimer::singleShot(0, this, &SimulationPanel::keysBack);  // (after the box has given the focus back to the button)
     if (box->standardButton(box->clickedButton()) == QMessageBox::Reset) return reset();
     if (wasPlaying) play();
   });

@@ -25,6 +25,8 @@ QPushButton* StepPage::toolButton(QWidget* parent, const QString& text, const QS
   connect(button, &QPushButton::clicked, this, [this, tool, button] {
     wb_.view->setTool(tool);
     button->setChecked(wb_.view->tool() == tool);
+    // The keys go to the frame view, where the tool works (Space there closes the grasper's jaws; the button kept them).
+    wb_.view->setFocus();
   });
   if (wb_.view) {
     button->setChecked(wb_.view->tool() == tool);

@@ -210,7 +210,7 @@ class MainWindow : public QMainWindow {
   /// Shows a sentence in the status bar and adds it to the Messages panel.
   void say(const QString& text);
   /// The sentences of the window's own the case's line may hold, which later events end or replace (said_).
-  enum class Said { Other, Grasped, PausedOutside, PlaysInPanel, PausedInPanel, UndoneOrRedone };
+  enum class Said { Other, Grasped, PausedOutside, PlaysInPanel, PausedInPanel, UndoneOrRedone, InstrumentsOnTheFrame };
   /// say() of one of those sentences, kept as what the line holds.
   void sayAs(Said what, const QString& text);
   /// say() for a reply that is not news of the case ("Cancelled: ..."): the status bar's temporary message for

@@ -110,6 +110,8 @@ class SimulationPanel : public QWidget {
   std::uint64_t responseKey() const { return last_ ? last_->responseKey : 0; }
 
  signals:
+  /// Play, Step or Reset clicked (or Reset's question answered): the keys go back to the frame view (MainWindow).
+  void keysBack();
   void statusChanged(const QString& text);
   /// A session started: how it starts (in equilibrium on what, the held nodes), in sentences longer than the panel's
   /// lines hold; the window keeps them in its Messages panel.
