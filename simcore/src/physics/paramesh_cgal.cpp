@@ -580,7 +580,8 @@ std::optional<GeometryImage> makeGeometryImage(const std::vector<Eigen::Vector3d
                      static_cast<long>(sm.number_of_faces());
   if (euler != 2) {
     why = "The organ's surface has Euler characteristic " + std::to_string(euler) + " (" +
-          quantity(static_cast<std::size_t>((2 - euler) / 2), "handle", "handles") + "): a geometry image needs a closed piece without handles (2).";
+          quantity(static_cast<std::size_t>((2 - euler) / 2), "handle", "handles") +
+          "): a geometry image needs a closed piece without handles (2).";
     return std::nullopt;
   }
   if (PMP::volume(sm) < 0) PMP::reverse_face_orientations(sm);
