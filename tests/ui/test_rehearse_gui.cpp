@@ -137,6 +137,15 @@ class TestRehearseGui : public QObject {
     for (const auto& p : w_->simulationPanel()->lastFrame()->positions) organ.extend(w_->caseData()->camera.project(p));
     return true;
   }
+  // Space with the cursor over the organ's centre (the grasper in hand): the jaws closed on it.
+  [[nodiscard]] bool jawsClosedByKeyAtTheCentre() {
+    auto* view = w_->frameView();
+    const auto& c = *w_->caseData();
+    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
+    QTest::mouseMove(view, view->toWidget(QPointF(centre.x(), centre.y())).toPoint());
+    QTest::keyClick(QApplication::focusWidget() ? QApplication::focusWidget() : view, Qt::Key_Space);
+    return waitFor([&] { return !w_->simulationPanel()->lastFrame()->tool.held.empty(); }, 20000);
+  }
   // `n` more steps played.
   [[nodiscard]] bool stepsOn(long n) {
     auto* panel = w_->simulationPanel();
@@ -514,12 +523,8 @@ class TestRehearseGui : public QObject {
     auto* panel = w_->simulationPanel();
     panel->play();
     auto* view = w_->frameView();
-    const auto& c = *w_->caseData();
-    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
-    const QPoint at = view->toWidget(QPointF(centre.x(), centre.y())).toPoint();
-    QTest::mouseMove(view, at);
-    QTest::keyClick(view, Qt::Key_Space);
-    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    view->setFocus();
+    QVERIFY(jawsClosedByKeyAtTheCentre());
     const std::size_t held = panel->lastFrame()->tool.held.size();
     QTest::keyClick(view, Qt::Key_Space);
     QVERIFY(
@@ -544,15 +549,12 @@ class TestRehearseGui : public QObject {
       auto* b = w_->findChild<QPushButton*>(name);
       QVERIFY2(b && b->isVisible(), name);
       QTest::mouseClick(b, Qt::LeftButton);
-      QVERIFY2(view->hasFocus(), qPrintable(QString(name) + " took the keys: " + (QApplication::focusWidget() ? QApplication::focusWidget()->objectName() + " " + QApplication::focusWidget()->metaObject()->className() : QString("none"))));
+      const QWidget* has = QApplication::focusWidget();
+      QVERIFY2(view->hasFocus(), qPrintable(QString(name) + " took the keys: " + (has ? has->objectName() : "none")));
     }
     QCOMPARE(view->tool(), ui::Tool::Grasp);
     panel->play();
-    const auto& c = *w_->caseData();
-    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
-    QTest::mouseMove(view, view->toWidget(QPointF(centre.x(), centre.y())).toPoint());
-    QTest::keyClick(QApplication::focusWidget(), Qt::Key_Space);
-    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    QVERIFY(jawsClosedByKeyAtTheCentre());  // (Space given to whichever widget has the keys)
     QTest::keyClick(QApplication::focusWidget(), Qt::Key_Space);
     QVERIFY(waitFor([&] { return panel->lastFrame()->tool.held.empty(); }, 20000));
     panel->pause();
@@ -570,12 +572,8 @@ class TestRehearseGui : public QObject {
     w_->setStep(ui::Step::Rehearse);
     QTest::keyClick(w_.get(), Qt::Key_R);
     QCOMPARE(view->tool(), ui::Tool::Grasp);
-    const auto& c = *w_->caseData();
-    const Eigen::Vector2d centre = c.camera.project(c.pose.apply(c.organ->centreOfGravity));
-    const QPoint at = view->toWidget(QPointF(centre.x(), centre.y())).toPoint();
-    QTest::mouseMove(view, at);
-    QTest::keyClick(view, Qt::Key_Space);
-    QVERIFY(waitFor([&] { return !panel->lastFrame()->tool.held.empty(); }, 20000));
+    view->setFocus();
+    QVERIFY(jawsClosedByKeyAtTheCentre());
     QTest::keyClick(w_.get(), Qt::Key_F5);
     QVERIFY(waitFor([&] { return !panel->isPlaying(); }));
     QTest::qWait(300);  // (a step under way when paused is published)
