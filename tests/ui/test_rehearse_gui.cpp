@@ -525,6 +525,9 @@ class TestRehearseGui : public QObject {
     auto* view = w_->frameView();
     view->setFocus();
     QVERIFY(jawsClosedByKeyAtTheCentre());
+    // The hint names the key that lets go, not a button no one holds (a person's check).
+    QVERIFY2(w_->statusBar()->currentMessage().contains("Space again to let go"),
+             qPrintable(w_->statusBar()->currentMessage()));
     const std::size_t held = panel->lastFrame()->tool.held.size();
     QTest::keyClick(view, Qt::Key_Space);
     QVERIFY(

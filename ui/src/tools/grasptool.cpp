@@ -29,7 +29,7 @@ class GraspTool final : public FrameTool {
   bool key(QKeyEvent* e) override {
     if (e->key() != Qt::Key_Space) return false;
     if (holding_) release(nullptr);
-    else bite(hover_);
+    else bite(hover_, true);
     return true;
   }
   void move(const QPointF&, const Eigen::Vector2d& f) override {
@@ -116,7 +116,8 @@ class GraspTool final : public FrameTool {
     retractInstrument(view_, tipAt(last_), 0);
     emit view_.toolMessage(said);
   }
-  void bite(const Eigen::Vector2d& f) {
+  // `byKey`: Space closed them (no button is held: Space again lets go).
+  void bite(const Eigen::Vector2d& f, bool byKey = false) {
     const auto& c = view_.caseData();
     if (!c || !c->hasPose) {
       emit view_.toolMessage(QObject::tr("The grasper works on the organ placed over the frame: place it first (step 4)."));
@@ -141,7 +142,9 @@ class GraspTool final : public FrameTool {
     send(simcore::InputKind::ToolPose, tip, false);
     send(simcore::InputKind::Jaw, tip, true);
     last_ = f;
-    emit view_.toolMessage(QObject::tr("Grasped: drag to pull, release to let go."));
+    // (Closed by Space, "release to let go" named a button no one held: a person's check.)
+    emit view_.toolMessage(byKey ? QObject::tr("Grasped: move the mouse to pull, Space again to let go.")
+                                 : QObject::tr("Grasped: drag to pull, release to let go."));
     return;
   }
   // The tip for frame pixel `f`: the point under it at the depth the jaws bit at (camera frame, m), plus the
