@@ -142,10 +142,6 @@ void FrameView::setOverlayOpacity(double opacity) {
   update();
 }
 
-namespace {
-bool isInstrument(Tool k) { return k == Tool::Grasp || k == Tool::Scissors || k == Tool::Clip || k == Tool::Cautery; }
-}  // namespace
-
 void FrameView::paintInstrument(QPainter& painter) {
   if (!pointer_ || !isInstrument(tool_) || !case_ || frame_.isNull()) return;
   const QString name = tool_ == Tool::Grasp      ? tr("Grasper")
@@ -328,12 +324,10 @@ std::optional<Eigen::Vector3d> FrameView::liveSurfaceAt(const Eigen::Vector2d& f
 
 // ------------------------------------------------------------------------------------------ painting
 
-namespace {
-// An instrument of step 7 in hand: the registration's marks (landmarks through the rest pose, the assistant's contour
-// and the organ curves bound to it, the fit's "where the organ may be") do not follow the tissue, and are not drawn over
-// the rehearsal (people saw the landmarks, then the contour and the fit's dashed bound, stay through a grasp).
-bool instrumentTool(Tool t) { return t == Tool::Grasp || t == Tool::Scissors || t == Tool::Clip || t == Tool::Cautery; }
-}  // namespace
+// An instrument of step 7 in hand (isInstrument): the registration's marks (landmarks through the rest pose, the
+// assistant's contour and the organ curves bound to it, the fit's "where the organ may be") do not follow the tissue,
+// and are not drawn over the rehearsal (people saw the landmarks, then the contour and the fit's dashed bound, stay
+// through a grasp).
 
 void FrameView::paintEvent(QPaintEvent*) {
   ++paints_;
@@ -369,7 +363,7 @@ void FrameView::paintEvent(QPaintEvent*) {
   }
   painter.setTransform(toWidget);
   if (overlayVisible_) paintOverlay(painter);
-  const bool marks = !instrumentTool(tool_);
+  const bool marks = !isInstrument(tool_);
   if (!possible_.isEmpty() && !secondShown_ && marks) {
     QPen pen(palette::possibleOutline(), 2.0, Qt::DashLine);
     pen.setCosmetic(true);
@@ -390,7 +384,7 @@ void FrameView::paintEvent(QPaintEvent*) {
   }
   painter.resetTransform();
   // (the simulation's marks: in step 7, or with an instrument in hand wherever it was taken)
-  const bool simulating = rehearsing_ || instrumentTool(tool_);
+  const bool simulating = rehearsing_ || isInstrument(tool_);
   if (simulating) paintField(painter);
   paintOrganMarks(painter, contour);
   for (const auto& [kind, tool] : tools_)
@@ -461,7 +455,7 @@ QList<LegendEntry> FrameView::legend() const {
     if (innerKey_.isEmpty()) out.push_back({QColor(200, 60, 60), tr("inner structures: colours as in step 1")});
     for (const auto& [colour, name] : innerKey_) out.push_back({colour, tr("inside: %1").arg(name)});
   }
-  const bool marks = !instrumentTool(tool_);
+  const bool marks = !isInstrument(tool_);
   if (!possible_.isEmpty() && !secondShown_ && marks) out.push_back({palette::possibleOutline(), possibleText_});
   std::vector<std::string> types;
   if (case_ && marks)
@@ -564,7 +558,7 @@ void FrameView::paintOrganMarks(QPainter& painter, const imaging::Contour& conto
     for (const auto& q : poly) painter.drawEllipse(q, 2.5, 2.5);
   }
   // Landmarks: model points through the current pose (orange) and their image points (cyan).
-  for (std::size_t i = 0; i < case_->landmarks.size() && !instrumentTool(tool_); ++i) {
+  for (std::size_t i = 0; i < case_->landmarks.size() && !isInstrument(tool_); ++i) {
     const auto& l = case_->landmarks[i];
     const Eigen::Vector3d xc = case_->pose.apply(l.model);
     QPointF m;

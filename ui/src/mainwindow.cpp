@@ -274,10 +274,7 @@ void MainWindow::setStep(Step s) {
   const Step left = step_;
   step_ = s;
   view_->setRehearsing(s == Step::Rehearse);
-  if (const Tool held = view_->tool(); left == Step::Rehearse && s != Step::Rehearse &&
-                                        (held == Tool::Grasp || held == Tool::Scissors || held == Tool::Clip ||
-                                         held == Tool::Cautery))
-    lastInstrument_ = held;
+  if (left == Step::Rehearse && s != Step::Rehearse && isInstrument(view_->tool())) lastInstrument_ = view_->tool();
   crash::setActivity(activity());
   keys_->stepShown(s);
   if (s != Step::Contour) view_->setSecondFrameShown(false);  // (the second frame is sketched on in step 3 only)
@@ -297,14 +294,11 @@ void MainWindow::setStep(Step s) {
     view_->setTool(Tool::Navigate);  // no gizmo over the fit
   else if (s == Step::Rehearse) {
     // The instrument in hand when step 7 was left (a person came back from step 4 to the grasper, not the scissors).
-    if (t != Tool::Grasp && t != Tool::Scissors && t != Tool::Clip && t != Tool::Cautery) view_->setTool(lastInstrument_);
+    if (!isInstrument(t)) view_->setTool(lastInstrument_);
     // The organ is rehearsed on live: it settles on its ligaments before the first grasp.
     if (doc_->hasCase() && doc_->data()->hasPose && !simulation_->isPlaying()) simulation_->play();
   }
-  if (s != Step::Rehearse && (view_->tool() == Tool::Grasp || view_->tool() == Tool::Scissors ||
-                              view_->tool() == Tool::Clip || view_->tool() == Tool::Cautery)) {
-    view_->setTool(Tool::Navigate);
-  }
+  if (s != Step::Rehearse && isInstrument(view_->tool())) view_->setTool(Tool::Navigate);
   // Leaving the rehearsal pauses it, as entering it plays it: the other steps show the case's organ, not the
   // simulation's, and its steps took a core from the mesher and the fits (a person saw its clock run in step 1).
   if (left == Step::Rehearse && s != Step::Rehearse && simulation_ && simulation_->isPlaying()) {
@@ -457,9 +451,7 @@ void MainWindow::setViewMode(ViewMode mode) {
   // The 3D view takes no instrument: said when it is taken with one in hand in step 7 (a person pressed on the organ
   // there with the grasper and nothing happened, nothing said).
   // (Short, so that the status bar shows it whole; ended when the frame is back.)
-  const Tool inHand = view_->tool();
-  if (mode == ViewMode::ThreeD && step_ == Step::Rehearse &&
-      (inHand == Tool::Grasp || inHand == Tool::Scissors || inHand == Tool::Clip || inHand == Tool::Cautery))
+  if (mode == ViewMode::ThreeD && step_ == Step::Rehearse && isInstrument(view_->tool()))
     sayAs(Said::InstrumentsOnTheFrame, tr("The 3D view turns the organ; the instruments work on the frame (F2, F3)."));
   else if (mode != ViewMode::ThreeD && said_ == Said::InstrumentsOnTheFrame)
     say(QString());

@@ -45,6 +45,10 @@ enum class Tool {
   Clip,
   Cautery
 };
+/// An instrument of step 7 (the grasper, scissors, clip applier or cautery hook).
+inline bool isInstrument(Tool t) {
+  return t == Tool::Grasp || t == Tool::Scissors || t == Tool::Clip || t == Tool::Cautery;
+}
 
 /// Gizmo handles of the Align tool: translations along and rotations about the camera axes through
 /// the organ's centre of gravity.
