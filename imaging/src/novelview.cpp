@@ -35,6 +35,9 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
   }
   // What the fitted frame saw of the organ at rest (its depth), and the organ through the view.
   const Rasterization fittedSeen = rasterize(in.camera, in.pose, rest, 1);
+  // Texture only: tissue the fitted frame never showed (hidden there, or beyond its border) takes the organ's mean
+  // colour in that frame, as the compositor's does, not the background through the organ.
+  const cv::Vec3f unseenColour = in.textureOnly ? meanOrganColour(in.frame, fittedSeen.triangle) : cv::Vec3f();
   // What the model leaves of the fitted frame (Compositor::frameResidual), carried with the tissue it was seen on.
   cv::Mat3f residual;
   if (!in.textureOnly && in.frameDetail) {
@@ -75,8 +78,7 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
         }
         if (seen) out.seen(y, x) = 255;
         if (in.textureOnly) {
-          if (!seen) continue;
-          const cv::Vec3f bgr = bilinear(in.frame, qx, qy);
+          const cv::Vec3f bgr = seen ? bilinear(in.frame, qx, qy) : unseenColour;
           out.image(y, x) = cv::Vec3b(cv::saturate_cast<uchar>(bgr[0]), cv::saturate_cast<uchar>(bgr[1]),
                                       cv::saturate_cast<uchar>(bgr[2]));
           out.covered(y, x) = 255;

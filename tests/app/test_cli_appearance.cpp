@@ -279,10 +279,16 @@ class TestCliAppearance : public QObject {
       const cv::Mat3b h = cv::imread((dir + "/h-" + tag + ".png").toStdString());
       QVERIFY(h.size() == t.size());
       int drawn = 0, nearMean = 0, fromGiven = 0;
+      // Texture only draws tissue the frame never showed in the organ's mean colour there (the novel view), where a
+      // re-shade draws the model in full: no share to mix.
+      const cv::Vec3f organMean = imaging::meanOrganColour(oc.frame, imaging::rasterize(oc.camera, Pose{}, oc.surface()).triangle);
+      const cv::Vec3b unseen(cv::saturate_cast<uchar>(organMean[0]), cv::saturate_cast<uchar>(organMean[1]),
+                             cv::saturate_cast<uchar>(organMean[2]));
       for (int y = 0; y < h.rows; ++y)
         for (int x = 0; x < h.cols; ++x) {
           const cv::Vec3b tv = t(y, x), gv = g(y, x), hv = h(y, x);
-          if (tv == cv::Vec3b(0, 0, 0)) continue;  // texture only drew nothing here (the novel view)
+          if (tv == cv::Vec3b(0, 0, 0)) continue;  // the organ is not drawn here (the novel view's background)
+          if (novelView && tv == unseen) continue;
           if (tv == gv) continue;                                   // no change to mix
           ++drawn;
           int worst = 0, apart = 0;

@@ -209,8 +209,9 @@ class Compositor {
 /// vertex order, model frame, metres) seen through another camera at another pose (model -> that camera). The
 /// scope carries its light: Theta's light and fall-off are in the view camera's frame, so highlights move with
 /// the view. Re-shaded, the albedo is the one the fitted frame saw where each point was at rest (1 where that
-/// frame did not see it); texture-only, the fitted frame's own colours are pasted where it saw the point and
-/// nothing is drawn elsewhere (what texture mapping can show). Undistorted view, over `background` (the view's
+/// frame did not see it); texture-only, the fitted frame's own colours are pasted where it saw the point (bilinear at
+/// its projection, hidden there when a surface lies over 2 mm nearer) and the organ's mean colour in that frame
+/// elsewhere (meanOrganColour, as the compositor draws it). Undistorted view, over `background` (the view's
 /// size) or black. Throws InputError for a bad camera, a background of another size, or an organ behind it.
 struct NovelView {
   cv::Mat3b image;
