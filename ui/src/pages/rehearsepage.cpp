@@ -301,6 +301,8 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
   if (f->steps < lastSteps_ || f->steps == 0) {
     slips_ = cuts_ = vesselCuts_ = tears_ = 0;
     wasCutting_ = strokeCounted_ = slippedFromJaws_ = jawsHeldTissue_ = false;
+    unconverged_ = 0;
+    saidUnconverged_ = false;
     // ... and what the last one said goes with it ("Released: the tissue relaxes." stayed over a new case's organ).
     if (!status_->text().isEmpty()) pendingStatus_ = QString();
   }
@@ -310,6 +312,13 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     stepMs_.push_back(f->report.wallMs);
     if (stepMs_.size() > 100) stepMs_.erase(stepMs_.begin());
   }
+  // Steps that do not converge, by the frames' last step (a person set 3 kPa and a 50 ms step, grasped and let go: the
+  // organ ran 86 then 162 mm from its start, every step inexact, while the page said "Released: the tissue relaxes.").
+  // The FFD model has no equilibrium to converge to.
+  if (f->steps > lastSteps_)
+    unconverged_ = f->model != simcore::BodyModel::Ffd && f->report.outcome != simcore::StepStatus::Converged
+                       ? unconverged_ + (f->steps - lastSteps_)
+                       : 0;
   lastSteps_ = f->steps;
   graspLimit_ = f->tool.held.empty() ? 0.0 : f->maxGraspForce;
   simcore::EventCounts counted;
@@ -357,12 +366,25 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     // (Jaws that closed on nothing released nothing: a person read "Released: the tissue relaxes." after a miss.)
     status(slippedFromJaws_   ? tr("The tissue slipped out of the jaws; the grasper opened and was withdrawn: press on "
                                    "the organ to grasp again.")
+           : jawsHeldTissue_ && unconverged_ > 0
+               ? tr("Released, but the steps are not converging: what the tissue does now is not its own motion (a "
+                    "smaller time step or a stiffer tissue in the Simulation panel, or Reset).")
            : jawsHeldTissue_ ? tr("Released: the tissue relaxes.")
                              : tr("The jaws opened: they had closed on nothing."));
     slippedFromJaws_ = jawsHeldTissue_ = false;
   }
   else if (cuts_ > 0 && pendingStatus_.value_or(status_->text()).startsWith(tr("Cutting")))
     status(tr("Cut: the organ's mesh re-made along the blade (%1 elements now).").arg(f->elements));
+  // A run of steps that do not converge is said over the instruments' own lines (a tear's sentence stays).
+  if (unconverged_ >= 10 && tore == 0) {
+    status(tr("The last %1 steps did not converge: the organ's motion is not its equilibrium. A smaller time step or a "
+              "stiffer tissue (Simulation panel), or Reset, brings it back.")
+               .arg(unconverged_));
+    saidUnconverged_ = true;
+  } else if (saidUnconverged_ && unconverged_ == 0) {
+    if (!pendingStatus_) status(tr("The steps converge again."));
+    saidUnconverged_ = false;
+  }
   QString extra;
   // The blood first (the counts after it: three lines at the page's width had cut "bleeding 1..." off).
   if (f->field.bloodLoss > 0) {

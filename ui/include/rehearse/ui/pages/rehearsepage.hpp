@@ -88,6 +88,10 @@ class RehearsePage : public StepPage {
   bool slippedFromJaws_ = false;  // the tissue slipped out of the jaws since they last held it: opening them releases nothing
   bool wasCutting_ = false, strokeCounted_ = false;
   long lastSteps_ = 0;  ///< the last frame's step: a smaller one is a new session
+  /// Steps in a row that did not converge (counted through the frames; 0 after a converged one): from 10 on, the page
+  /// says the organ's motion is not its equilibrium.
+  long unconverged_ = 0;
+  bool saidUnconverged_ = false;  ///< the page's line says so (and is to say when they converge again)
   /// The model that steps and its last steps' wall times (ms), for the rate line.
   simcore::BodyModel model_ = simcore::BodyModel::Fem;
   std::vector<double> stepMs_;
