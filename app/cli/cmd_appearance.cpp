@@ -32,6 +32,7 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <regex>
 #include <iostream>
 #include <fstream>
 #include <map>
@@ -86,6 +87,19 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
     if (o.count("unit")) lo.unit = o["unit"];
     simcore::Mesh m = simcore::loadMesh(o["mesh"], lo);
     m.convertToMetres();
+    // A size no organ has is a wrong unit (a millimetre file read as metres made a 22 m organ, fitted and written
+    // without a word): refused with the likely unit.
+    if (const double size = m.points.empty() ? 0.0 : m.bounds().sizes().maxCoeff(); size > 0)
+      if (const simcore::OrganSize check = simcore::checkOrganSize(size, lo.unit); !check.organSized) {
+        char text[300];
+        std::snprintf(text, sizeof text, "With --unit %s the organ of %s would measure %.3g mm across; organs measure 10 to 1000 mm.",
+                      lo.unit.c_str(), std::filesystem::path(o["mesh"]).filename().c_str(), size * 1e3);
+        throw UsageError(std::string(text) +
+                         (check.likely.empty() ? " Check the file."
+                                               : " It is probably in " + check.likely + " (" +
+                                                     std::to_string(static_cast<int>(std::lround(check.likelySize * 1e3))) +
+                                                     " mm across): give --unit " + check.likely + "."));
+      }
     in.triangles = m.isVolume() ? simcore::boundaryTriangles(m, false) : m.triangles;
     in.vertices.clear();
     for (const auto& p : m.points) in.vertices.insert(in.vertices.end(), {p.x(), p.y(), p.z()});
@@ -297,12 +311,28 @@ int cmdCompose(const std::vector<std::string>& args) {
   } else {
     j = composeWithTheta(in, theta, deformed, how);
   }
+  const std::string thetaName = std::filesystem::path(o["theta"]).filename().string();
+  // A verdict whose own sentence gives another share than its number was edited (a person set 95 % in a THETA whose
+  // sentence said 36 %, and it was re-shaded in full without a word): said, the number taken.
+  if (verdict.known) {
+    static const std::regex said("explains ([0-9]+) %");
+    std::smatch m;
+    if (std::regex_search(verdict.said, m, said) && std::abs(std::stoi(m[1].str()) - imaging::explainedPercent(verdict.explained)) > 1)
+      std::printf("note: %s says the fit explained %d %% of the organ's shading, but its sentence says %s %% (edited?); "
+                  "the number is taken\n",
+                  thetaName.c_str(), imaging::explainedPercent(verdict.explained), m[1].str().c_str());
+  }
   if (untrusted) {
-    char share[32];
-    std::snprintf(share, sizeof share, "%d %%", imaging::explainedPercent(verdict.explained));
-    std::printf("not re-shaded: the fit behind %s is marked texture only (it explained %s of the organ's shading); "
-                "the frame's own colours are drawn instead\n",
-                std::filesystem::path(o["theta"]).filename().c_str(), share);
+    if (verdict.explained >= 0.5)
+      std::printf("not re-shaded: %s is marked texture only (its \"reshade\" is false, though it says the fit explained "
+                  "%d %% of the organ's shading); the frame's own colours are drawn instead\n",
+                  thetaName.c_str(), imaging::explainedPercent(verdict.explained));
+    else
+      std::printf("not re-shaded: the fit behind %s is marked texture only (it explained %d %% of the organ's shading); "
+                  "the frame's own colours are drawn instead\n",
+                  thetaName.c_str(), imaging::explainedPercent(verdict.explained));
+  } else if (textureOnly) {
+    std::printf("texture only, as --texture-only asks: the frame's own colours follow the tissue\n");
   } else if (!textureOnly && imaging::trustPercent(how.trust) == 0) {
     std::printf("not re-shaded where the frame saw the tissue: the fit behind %s explained %d %% of the organ's shading, "
                 "too little for the model to change the frame's colours (it starts above 50 %%, in full from 90 %%); "
@@ -317,6 +347,9 @@ int cmdCompose(const std::vector<std::string>& args) {
     std::printf("re-shaded with %s as given: it carries no fit's verdict (written by hand, or before 'rehearse "
                 "appearance' kept one)\n",
                 std::filesystem::path(o["theta"]).filename().c_str());
+  } else if (!textureOnly) {
+    std::printf("re-shaded in full: the fit behind %s explained %d %% of the organ's shading (in full from 90 %%)\n",
+                thetaName.c_str(), imaging::explainedPercent(verdict.explained));
   }
   std::vector<uchar> buf;
   cv::imencode(ext, j, buf);

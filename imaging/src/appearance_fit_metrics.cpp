@@ -61,7 +61,7 @@ void AppearanceFitter::writeStatus() {
       res_.highlightFound ? "fitted"
                           : "no specular highlight found: the light started at the lens and the specular part is not "
                             "determined (ks = 0)",
-      explainedPercent(res_.explained), 100 * res_.smoothShare,  // floored, as the page and the verdict say it
+      explainedPercent(res_.explained), static_cast<double>(explainedPercent(res_.smoothShare)),  // floored, as the page and the verdict say it
       res_.textureOnly ? ": too little, so the organ is shown with the frame's own texture, not re-shaded" : "");
   res_.status = text;
   if (!res_.sources.empty()) {
@@ -71,24 +71,31 @@ void AppearanceFitter::writeStatus() {
     for (const auto& s : res_.sources) {
       if (s.used) used = &s;
       tried += std::string(tried.empty() ? "" : ", ") + s.name + " " +
-               std::to_string(static_cast<int>(std::lround(100 * s.explainedWith))) + " %";
+               std::to_string(explainedPercent(s.explainedWith)) + " %";
     }
-    const std::string alone = std::to_string(static_cast<int>(std::lround(100 * res_.scopeExplained)));
+    const std::string alone = std::to_string(explainedPercent(res_.scopeExplained));
     if (used)
       res_.status += "; the scope's light alone explains " + alone + " %, with " + used->name + " " +
-                     std::to_string(static_cast<int>(std::lround(100 * used->explainedWith))) +
+                     std::to_string(explainedPercent(used->explainedWith)) +
                      " %, which is used (tried beside the scope's light: " + tried +
                      "); a second source can also stand in for an organ registered where the frame does not show it, so "
                      "check the registration (the overlay) before trusting the light";
     else
       res_.status += "; no second light source is borne out (the scope's light alone " + alone + " %; with " + tried + ")";
   }
+  // A part is seen when the scope's light explains at least a point less without it than with every part (the share the
+  // status and the page give for the scope's light: a second source's stage may refit it after the parts' check).
+  const double scope = res_.sources.empty() ? res_.explained : res_.scopeExplained;
   std::string notSeen;
-  for (const auto& c : res_.checks)
-    if (!c.holds) notSeen += std::string(notSeen.empty() ? "" : ", ") + c.part;
+  int unseen = 0;
+  for (auto& c : res_.checks) {
+    c.holds = scope - c.explainedWithout >= 0.01;
+    if (!c.holds) notSeen += std::string(notSeen.empty() ? "" : ", ") + c.part, ++unseen;
+  }
   if (!notSeen.empty())
     res_.status += "; the frame does not bear out the scope light's " + notSeen +
-                   " (without each, the scope's light explains as much)";
+                   (unseen == 1 ? " (without it, the scope's light explains as much)"
+                                : " (without each, the scope's light explains as much)");
   if (res_.lightAtBound)
     res_.status += "; the light ends on the search's bound (" + std::to_string(static_cast<int>(kLightBound * 1e3)) +
                    " mm from the lens): the frame does not place it";

@@ -18,7 +18,9 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
   if (auto p = view.problem(); !p.empty()) throw InputError("The view's camera: " + p);
   const cv::Size size(view.width, view.height);
   if (!background.empty() && background.size() != size)
-    throw InputError("The view's image is not the size of the view's camera.");
+    throw InputError("The view's image is " + std::to_string(background.cols) + "x" + std::to_string(background.rows) +
+                     " but the view's camera is calibrated for " + std::to_string(size.width) + "x" +
+                     std::to_string(size.height) + "; give the image that camera took.");
   if (in.frame.size() != cv::Size(in.camera.width, in.camera.height))
     throw InputError("The frame's size is not the camera's.");
   if (!in.textureOnly && in.albedo.size() != in.frame.size())
@@ -46,7 +48,30 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
     if (atRest.background.size() != atRest.frame.size()) atRest.background = atRest.frame;
     residual = Compositor(atRest).frameResidual();
   }
-  const SurfaceGeometry g = surfaceGeometry(view, viewPose, shape);  // throws for an organ behind the view
+  // The view's own pose is what is wrong when the organ is behind it or out of it (said as such: a person read "the
+  // organ lies behind the camera" and looked at the frame's pose; an organ off the view gave a black picture, unsaid).
+  bool inFront = false;
+  for (std::size_t i = 0; i < shape.vertexCount && !inFront; ++i) inFront = viewPose.apply(shape.vertex(i)).z() > 1e-3;
+  if (!inFront)
+    throw InputError("The organ lies behind the view's camera at the view's pose; check that pose (z must be positive "
+                     "in the view camera's frame).");
+  const SurfaceGeometry g = surfaceGeometry(view, viewPose, shape);
+  if (cv::countNonZero(g.triangle >= 0) == 0)
+    throw InputError("The organ is not in the view at the view's pose; check that pose.");
+  // Which side of each triangle each camera faces (the sign of its normal against the line of sight, whatever the
+  // winding): a view that sees a triangle from the other side than the fitted frame did sees the back of an open
+  // surface, which the frame never showed (a person saw the frame's texture mirrored on an open CT surface's back).
+  std::vector<char> otherSide(rest.triangleCount, 0);
+  for (std::size_t t = 0; t < rest.triangleCount; ++t) {
+    auto facing = [&](const SurfaceView& s, const Pose& p) {
+      const int* tri = s.triangles + 3 * t;
+      const Eigen::Vector3d a = p.apply(s.vertex(static_cast<std::size_t>(tri[0]))),
+                            b = p.apply(s.vertex(static_cast<std::size_t>(tri[1]))),
+                            c = p.apply(s.vertex(static_cast<std::size_t>(tri[2])));
+      return (b - a).cross(c - a).dot(a) < 0;
+    };
+    otherSide[t] = facing(rest, in.pose) != facing(shape, viewPose);
+  }
   // The scope's light moves with the view; a second source is the scene's (appearance.hpp): its direction, fixed to
   // the organ's surroundings, turned from the fitted camera's frame into the view's.
   Appearance theta = in.theta;
@@ -69,7 +94,7 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
         const Eigen::Vector3d c = in.pose.apply(atRest);
         bool seen = false;
         double qx = 0, qy = 0;
-        if (c.z() > 1e-3) {
+        if (c.z() > 1e-3 && !otherSide[static_cast<std::size_t>(t)]) {
           const Eigen::Vector2d q = in.camera.project(c);
           qx = q.x(), qy = q.y();
           const int ix = static_cast<int>(std::lround(qx)), iy = static_cast<int>(std::lround(qy));

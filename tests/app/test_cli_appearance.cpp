@@ -355,7 +355,9 @@ class TestCliAppearance : public QObject {
              "--image", dir + "/frame.png", "--theta", dir + "/theta.json", "--deformed", dir + "/sag.vtu", "--out",
              dir + "/j.png"});
     QVERIFY2(r.code == 0, qPrintable(r.err));
-    QVERIFY2(!r.out.contains("re-shaded"), qPrintable(r.out));  // a trusted fit re-shades without a word
+    // A trusted fit re-shades in full, and says so (a person's hand-edited 95 % was re-shaded without a word).
+    QVERIFY2(r.out.contains("re-shaded in full: the fit behind theta.json explained 9"), qPrintable(r.out));
+    QVERIFY2(!r.out.contains("note:"), qPrintable(r.out));  // its sentence and its number agree
     QVERIFY(QFile(dir + "/j.png").size() > 10000);
     // Drawn through a surface of its own (--visual, issue 35) carried by the volume's tetrahedra: here the volume's
     // own boundary, whose vertices are nodes, so the carried sag is the sag itself and the image the same.
@@ -438,6 +440,54 @@ class TestCliAppearance : public QObject {
                             dir + "/pose.json", "--image", dir + "/frame.png", "--theta", dir + "/theta.json",
                             "--deformed", dir + "/organ_surface.obj", "--out", dir + "/k.png"}),
                        1, "same mesh in the same order");
+    // A novel view whose own pose puts the organ behind its camera, or off its view, and an image of another size than
+    // the view's camera: the view is named (a person read "behind the camera" and checked the frame's pose; an organ
+    // off the view gave a black picture, unsaid).
+    QFile off(dir + "/off.json");
+    off.open(QIODevice::WriteOnly);
+    off.write(R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [0.5, 0, 0.2]})");
+    off.close();
+    const QStringList organ{"--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json",
+                            "--image", dir + "/frame.png", "--theta", dir + "/theta.json", "--view-camera",
+                            dir + "/camera.yaml"};
+    expectOneLineError(run(QStringList{"compose"} + organ + QStringList{"--view-pose", dir + "/behind.json", "--out", dir + "/b.png"}),
+                       1, "behind the view's camera at the view's pose");
+    expectOneLineError(run(QStringList{"compose"} + organ + QStringList{"--view-pose", dir + "/off.json", "--out", dir + "/b.png"}),
+                       1, "not in the view at the view's pose");
+    cv::imwrite((dir + "/small.png").toStdString(), cv::Mat3b(100, 160, cv::Vec3b(40, 40, 40)));
+    expectOneLineError(run(QStringList{"compose"} + organ +
+                           QStringList{"--view-pose", dir + "/pose.json", "--view-image", dir + "/small.png", "--out", dir + "/b.png"}),
+                       1, "The view's image is 160x100 but the view's camera is calibrated for");
+    QVERIFY(!QFile::exists(dir + "/b.png"));
+    // A mesh in millimetres read as metres measures kilometres: refused with the unit it is likely in.
+    {
+      rehearse::simcore::Mesh mm = rehearse::simcore::loadMesh((dir + "/organ_surface.obj").toStdString());
+      for (auto& p : mm.points) p *= 1000;
+      rehearse::simcore::saveMesh(mm, (dir + "/organ_mm.vtu").toStdString());
+    }
+    expectOneLineError(run({"appearance", "--mesh", dir + "/organ_mm.vtu", "--camera", dir + "/camera.yaml", "--pose",
+                            dir + "/pose.json", "--image", dir + "/frame.png", "--out", dir + "/x.json"}),
+                       2, "probably in mm");
+    QVERIFY(!QFile::exists(dir + "/x.json"));
+    // A THETA whose number was edited away from its own sentence: said, and the number taken (here 95 % with a sentence
+    // of the phantom's 9x %: within a point, no note; 50 %: a note, and "not re-shaded where the frame saw the tissue").
+    {
+      QFile f(dir + "/theta.json");
+      f.open(QIODevice::ReadOnly);
+      QJsonObject t = QJsonDocument::fromJson(f.readAll()).object();
+      QJsonObject v = t["fit"].toObject();
+      v["explained"] = 0.5;
+      t["fit"] = v;
+      QFile e(dir + "/edited.json");
+      e.open(QIODevice::WriteOnly);
+      e.write(QJsonDocument(t).toJson());
+    }
+    r = run({"compose", "--mesh", dir + "/organ.vtu", "--camera", dir + "/camera.yaml", "--pose", dir + "/pose.json",
+             "--image", dir + "/frame.png", "--theta", dir + "/edited.json", "--out", dir + "/e.png"});
+    QVERIFY2(r.code == 0, qPrintable(r.err));
+    QVERIFY2(r.out.contains("note: edited.json says the fit explained 50 % of the organ's shading, but its sentence says 9"),
+             qPrintable(r.out));
+    QVERIFY2(r.out.contains("not re-shaded where the frame saw the tissue"), qPrintable(r.out));
     // Issue 35's bad input: a frame with no organ pixels (black), a wholly saturated organ (white), a mesh that
     // misses the frame: one sentence each, no THETA written.
     for (const auto& [value, name] : {std::pair{0, "black.png"}, std::pair{255, "white.png"}}) {

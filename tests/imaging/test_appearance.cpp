@@ -592,7 +592,8 @@ class TestAppearance : public QObject {
   // frame's texture carried over pixel by pixel, checked against a reference written here (its own z-buffers of the CT
   // surface in both views, the frame sampled bilinearly where each point of the view projects, a point hidden in the
   // frame when a surface lies over 2 mm nearer there): through a stereo partner 5 mm to the right and through the scope
-  // turned 10 degrees. The tissue the frame did not see is drawn in the organ's mean colour in the frame, not left empty.
+  // turned 10 degrees. The tissue the frame did not see is drawn in the organ's mean colour in the frame, not left empty,
+  // and so is the back of the open surface seen from behind.
   void openCasNovelViewIsTheTextureCarriedOver() {
     REQUIRE_SHARED(std::string("open-cas/Stereo_SD_d_complete_22_IMG_left.bmp"));
     const auto oc = testdata::OpenCas::load();
@@ -658,6 +659,24 @@ class TestAppearance : public QObject {
       QVERIFY(unseenMean >= 0.9 * unseen);
       QVERIFY(empty <= 0.001 * cv::countNonZero(inner));
     }
+    // Its back (the scope turned 150 degrees about the organ): the CT surface is open, and the frame saw none of its
+    // back, whatever the depths say: the organ's mean colour, not the front's texture mirrored.
+    const Pose back = Pose{}.turnedAbout(Eigen::AngleAxisd(150 * M_PI / 180, Eigen::Vector3d::UnitY()).toRotationMatrix(), centre);
+    const auto behind = imaging::composeNovelView(in, oc.camera, back);
+    cv::Mat1b inner;
+    cv::erode(behind.covered, inner, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(3, 3)));
+    int plain = 0;
+    for (int y = 0; y < inner.rows; ++y)
+      for (int x = 0; x < inner.cols; ++x) {
+        if (!inner(y, x)) continue;
+        int off = 0;
+        for (int k = 0; k < 3; ++k) off = std::max(off, static_cast<int>(std::abs(organMean[k] - behind.image(y, x)[k]) + 0.5));
+        plain += off <= 1;
+      }
+    qInfo("Open-CAS from behind: %d of %d inner px in the organ's mean colour, %d seen", plain, cv::countNonZero(inner),
+          cv::countNonZero(behind.seen & inner));
+    QVERIFY(cv::countNonZero(inner) > 10000);
+    QVERIFY(plain >= 0.99 * cv::countNonZero(inner));
   }
 
   // A second source in a novel view (issue 65): the scope's light moves with the view, the distant light stays with the

@@ -151,7 +151,7 @@ void TestAppearanceGui::estimateWithTheKeyboard() {
   QVERIFY(db >= 30.0);
   // Issue 65: the page says which light the frame shows; the phantom's is its scope's alone, no second source used.
   const QString report = w_->appearancePage()->findChild<QLabel*>("appearanceReport")->text();
-  QVERIFY2(report.contains(QStringLiteral("Light: the scope's alone explains")) && report.contains(QStringLiteral("an ambient term")) &&
+  QVERIFY2(report.contains(QStringLiteral("Light: the scope's light alone explains")) && report.contains(QStringLiteral("an ambient term")) &&
                !report.contains(QStringLiteral("(used)")) && !report.contains(QStringLiteral("Distant light towards")),
            qPrintable(report));
   QVERIFY(!w_->composition()->diffuseImage().isNull() && !w_->composition()->backgroundImage().isNull());

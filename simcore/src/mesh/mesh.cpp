@@ -194,6 +194,20 @@ double metresPerUnit(const std::string& unit) {
   throw MeshError("Unknown length unit '" + unit + "'; use m, dm, cm or mm.");
 }
 
+OrganSize checkOrganSize(double sizeMetres, const std::string& unit) {
+  OrganSize out;
+  out.organSized = sizeMetres >= 0.01 && sizeMetres <= 1.0;
+  if (out.organSized) return out;
+  double perUnit = sizeMetres;  // the file's own coordinates' extent
+  try {
+    perUnit = sizeMetres / metresPerUnit(unit);
+  } catch (const MeshError&) {
+  }
+  for (const char* name : {"m", "dm", "cm", "mm"})  // (the last that fits: the smallest unit)
+    if (const double s = perUnit * metresPerUnit(name); s >= 0.03 && s <= 0.5) out.likely = name, out.likelySize = s;
+  return out;
+}
+
 void validateMesh(const Mesh& m, const std::string& what) {
   if (m.points.empty()) throw MeshError(what + " holds no points; choose a file that contains a mesh.");
   if (m.triangles.empty() && m.tets.empty())

@@ -181,7 +181,7 @@ void AppearancePage::refresh(const app::Case& c) {
   // The share floored, as the re-shading's line below says it (89.95 % is not yet the 90 % that re-shades in full).
   lines << tr("Explains %1 % of the shading (smooth: %2 %); at rest %3 dB in the organ; %4 s.")
                .arg(imaging::explainedPercent(a->explained))
-               .arg(100 * a->smoothShare, 0, 'f', 0)
+               .arg(imaging::explainedPercent(a->smoothShare))
                .arg(a->restPsnr, 0, 'f', 1)
                .arg(a->totalMs / 1000, 0, 'f', 2);
   // How far the composited view follows the model (imaging::reshadeTrust): said whenever it is not in full.
@@ -194,9 +194,9 @@ void AppearancePage::refresh(const app::Case& c) {
     // The light the frame shows: the scope's alone, each second source tried beside it, and the one Theta carries.
     QStringList tried;
     for (const auto& k : a->sources)
-      tried << tr("%1 %2 %").arg(QString::fromStdString(k.name)).arg(100 * k.explainedWith, 0, 'f', 0) +
+      tried << tr("%1 %2 %").arg(QString::fromStdString(k.name)).arg(imaging::explainedPercent(k.explainedWith)) +
                    (k.used ? tr(" (used)") : QString());
-    lines << tr("Light: the scope's alone explains %1 %; with %2.").arg(100 * a->scopeExplained, 0, 'f', 0).arg(tried.join(QStringLiteral(", ")));
+    lines << tr("Light: the scope's light alone explains %1 %; with %2.").arg(imaging::explainedPercent(a->scopeExplained)).arg(tried.join(QStringLiteral(", ")));
     auto rgb = [](const Eigen::Vector3d& v) {
       return QStringLiteral("%1 / %2 / %3").arg(v.x(), 0, 'g', 3).arg(v.y(), 0, 'g', 3).arg(v.z(), 0, 'g', 3);
     };
@@ -211,10 +211,10 @@ void AppearancePage::refresh(const app::Case& c) {
   if (!a->checks.empty()) {
     QStringList without;
     for (const auto& k : a->checks)
-      without << tr("%1 %2 %").arg(QString::fromStdString(k.part)).arg(100 * k.explainedWithout, 0, 'f', 0) +
+      without << tr("%1 %2 %").arg(QString::fromStdString(k.part)).arg(imaging::explainedPercent(k.explainedWithout)) +
                      (k.holds ? QString() : tr(" (not seen)"));
     lines << tr("Left out of the scope's light (%1 % with every part): %2.")
-                 .arg(100 * a->scopeExplained, 0, 'f', 0)
+                 .arg(imaging::explainedPercent(a->sources.empty() ? a->explained : a->scopeExplained))
                  .arg(without.join(QStringLiteral(", ")));
   }
   if (!a->turnSaid.empty() && !a->turned) lines << QString::fromStdString(a->turnSaid);

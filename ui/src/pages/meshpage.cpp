@@ -205,28 +205,17 @@ void MeshPage::importMesh(const QString& path) {
         if (!m.points.empty()) {
           m.convertToMetres();
           const double size = m.bounds().sizes().maxCoeff();
-          if (!(size >= 0.01 && size <= 1.0)) {
-            // The file's coordinates in its own unit, and the units that would make it 3 to 50 cm across.
-            const std::map<std::string, double> metresPer = {{"m", 1.0}, {"dm", 0.1}, {"cm", 0.01}, {"mm", 0.001}};
-            const auto chosen = metresPer.find(unit);
-            const double perUnit = size / (chosen != metresPer.end() ? chosen->second : 1.0);
-            QString likely;
-            double likelySize = 0;
-            for (const auto& [name, metres] : metresPer)
-              if (perUnit * metres >= 0.03 && perUnit * metres <= 0.5) {
-                likely = QString::fromStdString(name);
-                likelySize = perUnit * metres;
-              }
+          if (const simcore::OrganSize check = simcore::checkOrganSize(size, unit); !check.organSized) {
             const QString what =
                 tr("With the file unit %1 this organ would measure %2 mm across; organs measure 10 to 1000 mm.")
                     .arg(QString::fromStdString(unit))
                     .arg(size * 1e3, 0, 'g', 3);
             throw simcore::MeshError(
-                (likely.isEmpty()
+                (check.likely.empty()
                      ? what + tr(" Check the file.")
                      : what + tr(" The file is probably in %1 (%2 mm across): choose that file unit and import again.")
-                                  .arg(likely)
-                                  .arg(likelySize * 1e3, 0, 'f', 0))
+                                  .arg(QString::fromStdString(check.likely))
+                                  .arg(check.likelySize * 1e3, 0, 'f', 0))
                     .toStdString());
           }
         }

@@ -75,4 +75,14 @@ std::vector<std::array<int, 3>> boundaryTriangles(const Mesh& volume, bool inclu
 /// throws MeshError naming the accepted units otherwise.
 double metresPerUnit(const std::string& unit);
 
+/// Whether a mesh read in `unit` that measures `sizeMetres` across (its largest extent) has an organ's size (10 to 1000
+/// mm), and if not, the unit it is likely in: the one of m, dm, cm and mm that makes it 30 to 500 mm across (the
+/// smallest such unit; none: empty), and its size in that unit (metres).
+struct OrganSize {
+  bool organSized = true;
+  std::string likely;
+  double likelySize = 0;
+};
+OrganSize checkOrganSize(double sizeMetres, const std::string& unit);
+
 }  // namespace rehearse::simcore
