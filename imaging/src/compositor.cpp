@@ -85,9 +85,11 @@ struct Compositor::Impl {
     Eigen::Vector3f b, c;              ///< the deformed vertices b and c
     std::array<Eigen::Vector3f, 3> r;  ///< the vertices at rest (camera frame)
     std::array<Eigen::Vector3f, 3> m;  ///< the vertices' normals
+    std::array<float, 3> w{1, 1, 1};   ///< the vertices' share of the frame's detail (frameDetailWeights)
   };
   static std::vector<Plane> planes(const std::vector<Eigen::Vector3d>& X, const std::vector<Eigen::Vector3d>& N,
-                                   const std::vector<Eigen::Vector3f>& rest, const std::vector<int>& triangles) {
+                                   const std::vector<Eigen::Vector3f>& rest, const std::vector<int>& triangles,
+                                   const std::vector<float>& detail = {}) {
     std::vector<Plane> out(triangles.size() / 3);
     cv::parallel_for_(cv::Range(0, static_cast<int>(out.size())), [&](const cv::Range& range) {
       for (int t = range.start; t < range.end; ++t) {
@@ -96,6 +98,8 @@ struct Compositor::Impl {
         Plane& q = out[static_cast<std::size_t>(t)];
         q.b = b.cast<float>(), q.c = c.cast<float>();
         for (int k = 0; k < 3; ++k) q.r[k] = rest[tri[k]], q.m[k] = N[tri[k]].cast<float>();
+        if (!detail.empty())
+          for (int k = 0; k < 3; ++k) q.w[k] = detail[static_cast<std::size_t>(tri[k])];
         const Eigen::Vector3d n = (b - a).cross(c - a);
         const double nn = n.squaredNorm();
         q.n = n.cast<float>();
@@ -167,7 +171,8 @@ __attribute__((target_clones("avx2", "default"))) void Compositor::Impl::shadeBa
   // that point was at rest and its image there, the interpolated normal, Theta's diffuse and specular terms before
   // their tables (appearance.hpp: F [kd cos(theta_i) / r^2 + ks exp(-alpha^2 / 2 sigma^2) / (r^2 cos(theta_r))]).
   alignas(64) float valid[kBatch], rzs[kBatch], diffuse[kBatch], specular[kBatch], lobeF[kBatch], fallF[kBatch],
-      tapFx[kBatch], tapFy[kBatch], room[kBatch];
+      tapFx[kBatch], tapFy[kBatch], room[kBatch], keep[kBatch];
+  const float W0 = q.w[0], W1 = q.w[1], W2 = q.w[2];
   const float dx_ = roomF.x(), dy_ = roomF.y(), dz_ = roomF.z();
   alignas(64) int nearest[kBatch], lobeK[kBatch], fallK[kBatch], tapX[kBatch], tapY[kBatch];
   const int width = camera.width, height = camera.height;
@@ -183,6 +188,7 @@ __attribute__((target_clones("avx2", "default"))) void Compositor::Impl::shadeBa
     const float wa = gax * (x - Xb.x()) + gay * (y - Xb.y()) + gaz * (z - Xb.z()),
                 wb = gbx * (x - Xc.x()) + gby * (y - Xc.y()) + gbz * (z - Xc.z());
     const float wc = 1 - wa - wb;
+    keep[i] = std::min(1.0f, std::max(0.0f, wa * W0 + wb * W1 + wc * W2));  // the frame's detail kept here
     // Where the point was at rest, and its image there: the nearest pixel (-1: none) and the bilinear lookup's.
     const float rx = wa * R0.x() + wb * R1.x() + wc * R2.x(), ry = wa * R0.y() + wb * R1.y() + wc * R2.y(),
                 rz = wa * R0.z() + wb * R1.z() + wc * R2.z();
@@ -249,8 +255,9 @@ __attribute__((target_clones("avx2", "default"))) void Compositor::Impl::shadeBa
     cv::Vec3f& out = bgr[i];
     if (textureOnly && material == 0) {
       // Tissue the frame never showed (an underside a pull turns into view) has no texture to carry: it takes the
-      // organ's mean colour rather than showing the background through the organ.
-      out = seen ? bilinear(frame, tap) : unseenColour;
+      // organ's mean colour rather than showing the background through the organ; so, as far as it is stretched over
+      // more than the frame showed of it (frameDetailWeights), does tissue the frame saw obliquely.
+      out = seen ? keep[i] * bilinear(frame, tap) + (1 - keep[i]) * unseenColour : unseenColour;
       ok[i] = true;
       continue;
     }
@@ -262,15 +269,23 @@ __attribute__((target_clones("avx2", "default"))) void Compositor::Impl::shadeBa
     const float fall = !withFalloff ? 1.0f
                        : fallK[i] < 0 ? 0.0f
                                       : (1 - fallF[i]) * falloff[fallK[i]] + fallF[i] * falloff[fallK[i] + 1];
-    for (int k = 0; k < 3; ++k)
-      out[k] = 255.0f * fall * (albedoHere[k] * kdF[2 - k] * diffuse[i] + ksF[2 - k] * spec) +
-               255.0f * albedoHere[k] * (krF[2 - k] * room[i] + kaF[2 - k]);
+    // The model's shading: what the albedo multiplies (the scope's diffuse term and the second source), and the rest.
+    float shaded[3], glossy[3];
+    for (int k = 0; k < 3; ++k) {
+      shaded[k] = 255.0f * (fall * kdF[2 - k] * diffuse[i] + krF[2 - k] * room[i] + kaF[2 - k]);
+      glossy[k] = 255.0f * fall * ksF[2 - k] * spec;
+      out[k] = albedoHere[k] * shaded[k] + glossy[k];
+    }
     // The frame's detail over the model as a frame can show it, and the model's change applied as far as the fit
-    // earned it: trust (min(model, 255) + residual) + (1 - trust) frame, one lookup of `carried` (made once).
+    // earned it: trust (min(model, 255) + residual) + (1 - trust) frame, one lookup of `carried` (made once); where the
+    // tissue is stretched over more than the frame showed of it, the model (albedo 1) instead, as far as it is.
     if (material == 0 && seen && !carried.empty()) {
       const cv::Vec3f c = bilinear(carried, tap);
       for (int k = 0; k < 3; ++k) out[k] = trust * std::min(out[k], 255.0f) + c[k];
     }
+    if (material == 0 && seen && keep[i] < 1)
+      for (int k = 0; k < 3; ++k)
+        out[k] = keep[i] * out[k] + (1 - keep[i]) * std::min(shaded[k] + glossy[k], 255.0f);
     ok[i] = true;
   }
 }
@@ -301,6 +316,36 @@ cv::Vec3f meanOrganColour(const cv::Mat3b& frame, const cv::Mat1i& triangleAtRes
   else
     m = cv::mean(frame);  // the frame shows none of the organ at rest: its own mean
   return cv::Vec3f(static_cast<float>(m[0]), static_cast<float>(m[1]), static_cast<float>(m[2]));
+}
+
+std::vector<float> frameDetailWeights(const Camera& camera, const std::vector<Eigen::Vector3d>& rest,
+                                      const std::vector<Eigen::Vector3d>& now, const std::vector<int>& triangles) {
+  std::vector<float> w(rest.size(), 1.0f);
+  if (now.size() != rest.size()) return w;
+  // Each triangle's image area (px^2) at rest and now, summed at its vertices.
+  std::vector<double> atRest(rest.size(), 0.0), atNow(rest.size(), 0.0);
+  auto area = [&](const std::vector<Eigen::Vector3d>& X, const int* t) {
+    Eigen::Vector2d q[3];
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d& x = X[static_cast<std::size_t>(t[k])];
+      if (!(x.z() > 1e-6)) return 0.0;
+      q[k] = camera.project(x);
+    }
+    return 0.5 * std::abs((q[1] - q[0]).x() * (q[2] - q[0]).y() - (q[1] - q[0]).y() * (q[2] - q[0]).x());
+  };
+  for (std::size_t t = 0; t + 2 < triangles.size(); t += 3) {
+    const double a = area(rest, triangles.data() + t), b = area(now, triangles.data() + t);
+    for (int k = 0; k < 3; ++k) {
+      atRest[static_cast<std::size_t>(triangles[t + static_cast<std::size_t>(k)])] += a;
+      atNow[static_cast<std::size_t>(triangles[t + static_cast<std::size_t>(k)])] += b;
+    }
+  }
+  constexpr double kFull = 2.0, kNone = 5.0, kTiny = 0.05;  // area ratios; px^2 (a tiny area's ratio is not noise)
+  for (std::size_t i = 0; i < w.size(); ++i) {
+    const double ratio = (atNow[i] + kTiny) / (atRest[i] + kTiny);
+    w[i] = static_cast<float>(std::clamp((kNone - ratio) / (kNone - kFull), 0.0, 1.0));
+  }
+  return w;
 }
 
 Compositor::Compositor(const CompositionInput& in) : d_(std::make_unique<Impl>()) {
@@ -621,7 +666,7 @@ cv::Mat3b Compositor::compose(const SurfaceView& deformed, int scale) const {
     }
   } giveBack{d, s.seen};
   rasterizeCameraFrameInto(s.seen, d.camera, X, surface, 1, 1e-3, d.cull);
-  s.P = Impl::planes(X, N, d.restCamF, d.triangles);
+  s.P = Impl::planes(X, N, d.restCamF, d.triangles, frameDetailWeights(d.camera, d.restCam, X, d.triangles));
   cv::Mat3b out = d.background.clone();
   s.uv.resize(d.vertexCount);
   for (std::size_t i = 0; i < d.vertexCount; ++i)

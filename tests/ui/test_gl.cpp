@@ -296,7 +296,22 @@ class TestGl : public QObject {
       bent[i] += 0.004;
       bent[i + 1] += 0.15 * bent[i] * bent[i] / 0.05;
     }
-    for (const auto& [name, shape] : {std::pair<const char*, std::vector<double>>{"at rest", {}}, {"bent and moved", bent}}) {
+    // Tilted 25 degrees about the camera's horizontal axis: the underside the frame saw obliquely is stretched towards
+    // the camera, where both draw the model rather than the frame's few pixels (imaging::frameDetailWeights).
+    std::vector<double> tilted(in.vertices);
+    {
+      Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+      for (std::size_t i = 0; i < tilted.size(); i += 3) centre += Eigen::Vector3d(tilted[i], tilted[i + 1], tilted[i + 2]);
+      centre /= static_cast<double>(tilted.size() / 3);
+      const Eigen::Matrix3d turn = c.truePose.R.transpose() *
+                                   Eigen::AngleAxisd(-25 * M_PI / 180, Eigen::Vector3d::UnitX()).toRotationMatrix() * c.truePose.R;
+      for (std::size_t i = 0; i < tilted.size(); i += 3) {
+        const Eigen::Vector3d p = centre + turn * (Eigen::Vector3d(tilted[i], tilted[i + 1], tilted[i + 2]) - centre);
+        for (int k = 0; k < 3; ++k) tilted[i + static_cast<std::size_t>(k)] = p[k];
+      }
+    }
+    for (const auto& [name, shape] : {std::pair<const char*, std::vector<double>>{"at rest", {}}, {"bent and moved", bent},
+                                      {"tilted 25 degrees", tilted}}) {
       QImage j;
       QVERIFY(gl.compose(shape, j, 4));
       QCOMPARE(j.size(), QSize(c.camera.width, c.camera.height));

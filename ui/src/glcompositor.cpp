@@ -39,14 +39,17 @@ const char* kOrganVertex = R"(#version 330 core
 layout(location = 0) in vec3 position;
 layout(location = 1) in vec3 normal;
 layout(location = 2) in vec3 rest;
+layout(location = 3) in float detail;  // the frame's detail kept (imaging::frameDetailWeights)
 uniform mat4 projection;
 out vec3 vPosition;
 out vec3 vNormal;
 out vec3 vRest;
+out float vDetail;
 void main() {
   vPosition = position;
   vNormal = normal;
   vRest = rest;
+  vDetail = detail;
   gl_Position = projection * vec4(position, 1.0);
 })";
 // Theta's model (imaging/appearance.hpp) per fragment, as imaging::Compositor does per pixel.
@@ -54,6 +57,7 @@ const char* kOrganFragment = R"(#version 330 core
 in vec3 vPosition;
 in vec3 vNormal;
 in vec3 vRest;
+in float vDetail;
 uniform sampler2D albedo;     // BGR ratios, sampled as RGB
 uniform sampler2D frame;
 uniform sampler2D restDepth;  // camera z of what the frame shows at rest, 0 where it shows no organ
@@ -91,8 +95,9 @@ void main() {
     if (i.x >= 0 && i.y >= 0 && i.x < int(size.x) && i.y < int(size.y)) seen = texelFetch(restDepth, i, 0).r > r.z - 0.002;
   }
   vec2 uv = (clamp(q, vec2(0.0), size - 1.0) + 0.5) / size;
+  float keep = clamp(vDetail, 0.0, 1.0);  // stretched over more than the frame showed of it: the model, as far as it is
   if (textureOnly) {
-    colour = vec4(seen ? texture(frame, uv).rgb : unseenColour, 1.0);
+    colour = vec4(seen ? mix(unseenColour, texture(frame, uv).rgb, keep) : unseenColour, 1.0);
     return;
   }
   vec3 a = seen ? texture(albedo, uv).rgb : vec3(1.0);
@@ -115,6 +120,8 @@ void main() {
   vec3 second = a * (kr * max(dot(n, roomDirection), 0.0) + ka);
   vec3 model = min(f * (a * kd * diffuse + ks * specular) + second, 1.0) + detail;
   if (seen) model = mix(texture(frame, uv).rgb, model, trust);
+  vec3 plain = min(f * (kd * diffuse + ks * specular) + kr * max(dot(n, roomDirection), 0.0) + ka, 1.0);
+  if (seen) model = mix(plain, model, keep);
   colour = vec4(clamp(model, 0.0, 1.0), 1.0);
 })";
 
@@ -302,13 +309,19 @@ bool GLCompositor::compose(const std::vector<double>& deformedVertices, QImage& 
   }
   const SurfaceView surface{v.data(), n, d.triangles.data(), d.triangles.size() / 3};
   const std::vector<Eigen::Vector3d> normals = imaging::vertexNormals(x, surface);
-  std::vector<float> data(9 * n);
-  for (std::size_t i = 0; i < n; ++i)
+  std::vector<Eigen::Vector3d> rest(n);
+  for (std::size_t i = 0; i < n; ++i) rest[i] = Eigen::Vector3d(d.restCam[3 * i], d.restCam[3 * i + 1], d.restCam[3 * i + 2]);
+  const std::vector<float> keep = imaging::frameDetailWeights(d.camera, rest, x, d.triangles);
+  constexpr std::size_t kStride = 10;  // position, normal, rest, the frame's detail kept
+  std::vector<float> data(kStride * n);
+  for (std::size_t i = 0; i < n; ++i) {
     for (std::size_t k = 0; k < 3; ++k) {
-      data[9 * i + k] = static_cast<float>(x[i][static_cast<int>(k)]);
-      data[9 * i + 3 + k] = static_cast<float>(normals[i][static_cast<int>(k)]);
-      data[9 * i + 6 + k] = d.restCam[3 * i + k];
+      data[kStride * i + k] = static_cast<float>(x[i][static_cast<int>(k)]);
+      data[kStride * i + 3 + k] = static_cast<float>(normals[i][static_cast<int>(k)]);
+      data[kStride * i + 6 + k] = d.restCam[3 * i + k];
     }
+    data[kStride * i + 9] = keep[i];
+  }
   if (!d.context.makeCurrent(&d.surface)) return false;
   auto* gl = d.context.extraFunctions();
   if (!d.target(samples)) {
@@ -336,9 +349,10 @@ bool GLCompositor::compose(const std::vector<double>& deformedVertices, QImage& 
     ibo.allocate(indices.data(), static_cast<int>(indices.size() * sizeof(unsigned)));
     QOpenGLShaderProgram& p = d.organ;
     p.bind();
-    for (int a = 0; a < 3; ++a) {
+    for (int a = 0; a < 4; ++a) {
       p.enableAttributeArray(a);
-      p.setAttributeBuffer(a, GL_FLOAT, static_cast<int>(3 * a * sizeof(float)), 3, static_cast<int>(9 * sizeof(float)));
+      p.setAttributeBuffer(a, GL_FLOAT, static_cast<int>(3 * a * sizeof(float)), a < 3 ? 3 : 1,
+                           static_cast<int>(kStride * sizeof(float)));
     }
     p.setUniformValue("projection", projection);
     const GLuint textures[] = {d.albedo, d.frame, d.restDepth, d.residual};

@@ -172,6 +172,16 @@ cv::Mat3b compose(const CompositionInput& in, int scale = 2);
 /// frame never showed (an underside a pull turns into view) in it, not the background through the organ.
 cv::Vec3f meanOrganColour(const cv::Mat3b& frame, const cv::Mat1i& triangleAtRest);
 
+/// How much of the frame's own detail (its colours, and what the model leaves of them) a composite keeps at each vertex
+/// of a deformed surface, seen through the frame's camera: 1 where the tissue around the vertex covers at most twice the
+/// image area it covered in the frame at rest (1.4 times as wide), 0 from 5 times on (2.2 times as wide), linear
+/// between. Tissue the frame saw obliquely (a fold's underside, a rim) that a pull turns towards the camera has a few
+/// frame pixels to stretch over many: drawn from them, it was a smear of streaks (a person's check); the model is drawn
+/// there instead. At rest every weight is 1. `rest` and `now`: the vertices in the camera's frame; the areas are those
+/// of the triangles around each vertex, summed.
+std::vector<float> frameDetailWeights(const Camera& camera, const std::vector<Eigen::Vector3d>& rest,
+                                      const std::vector<Eigen::Vector3d>& now, const std::vector<int>& triangles);
+
 /// Composition prepared once for a registered organ at rest, for a stream of deformed shapes (the viewport
 /// following a simulation, a replay): the rest geometry through the camera, the frame's texture, the albedo
 /// and the background are kept; each shape then costs its own rasterisation at the frame's resolution,
