@@ -275,7 +275,11 @@ void TestAppearanceGui::aTextureOnlyEstimateIsNotReshaded() {
     composition->waitForIdle();
     return toMat(composition->composeNow(moved));
   };
-  const cv::Mat3b full = withShare(0.95), half = withShare(0.7);
+  const cv::Mat3b full = withShare(0.95);
+  QTRY_VERIFY2(w_->findChild<QLabel*>(QStringLiteral("appearanceReport"))->text().contains(
+                   QStringLiteral("Re-shading applies the model's change in full")),
+               qPrintable(w_->findChild<QLabel*>(QStringLiteral("appearanceReport"))->text()));
+  const cv::Mat3b half = withShare(0.7);
   cv::Mat3b mean;
   cv::addWeighted(full, 0.5, shifted, 0.5, 0.0, mean);
   // Inside the organ at rest, away from its rim (the turned organ covers nearly all of it).

@@ -190,6 +190,8 @@ void AppearancePage::refresh(const app::Case& c) {
   else if (a->reshading().trust < 1)
     lines << tr("Re-shading applies %1 % of the model's change to the frame's colours (in full from 90 % explained).")
                  .arg(imaging::trustPercent(a->reshading().trust));
+  else
+    lines << tr("Re-shading applies the model's change in full (90 % or more explained).");
   if (!a->sources.empty()) {
     // The light the frame shows: the scope's alone, each second source tried beside it, and the one Theta carries.
     QStringList tried;
