@@ -94,11 +94,12 @@ AppearanceInput appearanceInput(std::map<std::string, std::string>& o, const cha
         char text[300];
         std::snprintf(text, sizeof text, "With --unit %s the organ of %s would measure %.3g mm across; organs measure 10 to 1000 mm.",
                       lo.unit.c_str(), std::filesystem::path(o["mesh"]).filename().c_str(), size * 1e3);
+        std::string give;
+        for (std::size_t i = 0; i < check.likely.size(); ++i)
+          give += std::string(i == 0 ? "" : " or ") + "--unit " + check.likely[i].first;
         throw UsageError(std::string(text) +
                          (check.likely.empty() ? " Check the file."
-                                               : " It is probably in " + check.likely + " (" +
-                                                     std::to_string(static_cast<int>(std::lround(check.likelySize * 1e3))) +
-                                                     " mm across): give --unit " + check.likely + "."));
+                                               : " It is probably in " + check.likelyText() + ": give " + give + "."));
       }
     in.triangles = m.isVolume() ? simcore::boundaryTriangles(m, false) : m.triangles;
     in.vertices.clear();
@@ -306,8 +307,15 @@ int cmdCompose(const std::vector<std::string>& args) {
     if (const std::string problem = view.problem(); !problem.empty())
       throw simcore::MeshError("The view's camera: " + problem);
     viewImage = imaging::undistortImage(viewImage, view);
-    j = composeNovelViewWithTheta(in, theta, view, imaging::loadPose(o["view-pose"]), viewImage, deformed, how)
-            .image;
+    try {
+      j = composeNovelViewWithTheta(in, theta, view, imaging::loadPose(o["view-pose"]), viewImage, deformed, how).image;
+    } catch (const rehearse::InputError& e) {
+      // The view's own pose named by its file (a person looked for which of two poses was meant).
+      const std::string why = e.what();
+      if (why.find("the view's pose") == std::string::npos) throw;
+      throw rehearse::InputError(why.substr(0, why.find_last_not_of('.') + 1) + " (--view-pose " +
+                                std::filesystem::path(o["view-pose"]).filename().string() + ").");
+    }
   } else {
     j = composeWithTheta(in, theta, deformed, how);
   }

@@ -7,6 +7,8 @@
 
 #include <opencv2/core/utility.hpp>
 
+#include <Eigen/Geometry>
+
 #include <algorithm>
 #include <cmath>
 
@@ -50,11 +52,22 @@ NovelView composeNovelView(const CompositionInput& in, const Camera& view, const
   }
   // The view's own pose is what is wrong when the organ is behind it or out of it (said as such: a person read "the
   // organ lies behind the camera" and looked at the frame's pose; an organ off the view gave a black picture, unsaid).
-  bool inFront = false;
-  for (std::size_t i = 0; i < shape.vertexCount && !inFront; ++i) inFront = viewPose.apply(shape.vertex(i)).z() > 1e-3;
+  bool inFront = false, behind = false;
+  Eigen::AlignedBox3d box;
+  for (std::size_t i = 0; i < shape.vertexCount; ++i) {
+    const Eigen::Vector3d p = viewPose.apply(shape.vertex(i));
+    inFront |= p.z() > 1e-3;
+    behind |= p.z() <= 1e-3;
+    box.extend(p);
+  }
   if (!inFront)
     throw InputError("The organ lies behind the view's camera at the view's pose; check that pose (z must be positive "
                      "in the view camera's frame).");
+  // A camera among the organ's own points (some in front of it, some behind, the lens within their extent) would
+  // draw a cut through the tissue as if it were the organ (a person's pose put it 5 cm into the organ: drawn, unsaid).
+  if (behind && box.contains(Eigen::Vector3d::Zero()))
+    throw InputError("The view's camera lies inside the organ at the view's pose; check that pose (the organ must lie "
+                     "wholly in front of the camera).");
   const SurfaceGeometry g = surfaceGeometry(view, viewPose, shape);
   if (cv::countNonZero(g.triangle >= 0) == 0)
     throw InputError("The organ is not in the view at the view's pose; check that pose.");

@@ -453,7 +453,17 @@ class TestCliAppearance : public QObject {
     expectOneLineError(run(QStringList{"compose"} + organ + QStringList{"--view-pose", dir + "/behind.json", "--out", dir + "/b.png"}),
                        1, "behind the view's camera at the view's pose");
     expectOneLineError(run(QStringList{"compose"} + organ + QStringList{"--view-pose", dir + "/off.json", "--out", dir + "/b.png"}),
-                       1, "not in the view at the view's pose");
+                       1, "not in the view at the view's pose; check that pose (--view-pose off.json).");
+    {  // the view's camera at the organ's centre, among its points
+      const rehearse::simcore::Mesh m = rehearse::simcore::loadMesh((dir + "/organ.vtu").toStdString());
+      Eigen::Vector3d c = Eigen::Vector3d::Zero();
+      for (const auto& p : m.points) c += p / static_cast<double>(m.points.size());
+      QFile inside(dir + "/inside.json");
+      inside.open(QIODevice::WriteOnly);
+      inside.write(QString(R"({"R": [[1,0,0],[0,1,0],[0,0,1]], "t": [%1, %2, %3]})").arg(-c.x()).arg(-c.y()).arg(-c.z()).toUtf8());
+    }
+    expectOneLineError(run(QStringList{"compose"} + organ + QStringList{"--view-pose", dir + "/inside.json", "--out", dir + "/b.png"}),
+                       1, "The view's camera lies inside the organ at the view's pose");
     cv::imwrite((dir + "/small.png").toStdString(), cv::Mat3b(100, 160, cv::Vec3b(40, 40, 40)));
     expectOneLineError(run(QStringList{"compose"} + organ +
                            QStringList{"--view-pose", dir + "/pose.json", "--view-image", dir + "/small.png", "--out", dir + "/b.png"}),

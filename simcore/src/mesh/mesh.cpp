@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cstdio>
 #include <cmath>
 #include <tuple>
 
@@ -203,9 +204,19 @@ OrganSize checkOrganSize(double sizeMetres, const std::string& unit) {
     perUnit = sizeMetres / metresPerUnit(unit);
   } catch (const MeshError&) {
   }
-  for (const char* name : {"m", "dm", "cm", "mm"})  // (the last that fits: the smallest unit)
-    if (const double s = perUnit * metresPerUnit(name); s >= 0.03 && s <= 0.5) out.likely = name, out.likelySize = s;
+  for (const char* name : {"mm", "m", "cm", "dm"})
+    if (const double s = perUnit * metresPerUnit(name); name != unit && s >= 0.01 && s <= 1.0) out.likely.emplace_back(name, s);
   return out;
+}
+
+std::string OrganSize::likelyText() const {
+  std::string text;
+  for (std::size_t i = 0; i < likely.size(); ++i) {
+    char one[64];
+    std::snprintf(one, sizeof one, "%s (%.0f mm across)", likely[i].first.c_str(), likely[i].second * 1e3);
+    text += std::string(i == 0 ? "" : i + 1 == likely.size() ? " or " : ", ") + one;
+  }
+  return text;
 }
 
 void validateMesh(const Mesh& m, const std::string& what) {

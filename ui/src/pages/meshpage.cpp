@@ -213,9 +213,8 @@ void MeshPage::importMesh(const QString& path) {
             throw simcore::MeshError(
                 (check.likely.empty()
                      ? what + tr(" Check the file.")
-                     : what + tr(" The file is probably in %1 (%2 mm across): choose that file unit and import again.")
-                                  .arg(QString::fromStdString(check.likely))
-                                  .arg(check.likelySize * 1e3, 0, 'f', 0))
+                     : what + tr(" The file is probably in %1: choose that file unit and import again.")
+                                  .arg(QString::fromStdString(check.likelyText())))
                     .toStdString());
           }
         }

@@ -5,6 +5,7 @@
 #include <array>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace rehearse::simcore {
@@ -76,12 +77,13 @@ std::vector<std::array<int, 3>> boundaryTriangles(const Mesh& volume, bool inclu
 double metresPerUnit(const std::string& unit);
 
 /// Whether a mesh read in `unit` that measures `sizeMetres` across (its largest extent) has an organ's size (10 to 1000
-/// mm), and if not, the unit it is likely in: the one of m, dm, cm and mm that makes it 30 to 500 mm across (the
-/// smallest such unit; none: empty), and its size in that unit (metres).
+/// mm), and if not, the units that would give it one, with its size in each (metres), the most common first (mm, m, cm,
+/// dm): a file's numbers alone may fit two (23 units: a 23 mm patch, or 23 cm), so every one is said.
 struct OrganSize {
   bool organSized = true;
-  std::string likely;
-  double likelySize = 0;
+  std::vector<std::pair<std::string, double>> likely;
+  /// "mm (23 mm across) or cm (233 mm across)"; empty when none.
+  std::string likelyText() const;
 };
 OrganSize checkOrganSize(double sizeMetres, const std::string& unit);
 
