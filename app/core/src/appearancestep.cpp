@@ -227,7 +227,7 @@ std::shared_ptr<const AppearanceEstimate> appearanceEstimateFromJson(const std::
   e->status = j.value("status", std::string());
   e->turnSaid = j.value("turn_said", std::string());
   e->turned = j.value("turned", false);
-  e->inpaint = j.value("inpaint", std::string("ns"));
+  e->inpaint = j.value("inpaint", std::string("ns"));  // (an estimate saved before the method was kept: the default then)
   for (const auto& s : j.value("stages", json::array()))
     e->stages.push_back({s.at("name").get<std::string>(), s.at("rms_levels").get<double>(), s.at("ms").get<double>(), s.at("pixels").get<std::size_t>()});
   e->restPsnr = j.value("rest_psnr_db", 0.0);

@@ -29,10 +29,10 @@ AppearancePage::AppearancePage(Workbench& wb, Composition* composition, QWidget*
   auto* fillLabel = new QLabel(tr("&Background fill:"), this);
   inpaint_ = new QComboBox(this);
   inpaint_->setObjectName(QStringLiteral("appearanceInpaint"));
-  inpaint_->setToolTip(tr("How the frame behind the organ is filled, shown where the organ moves away. Navier-Stokes is the "
-                          "best trade-off measured on a real frame (BENCHMARKS.md)."));
-  inpaint_->addItem(tr("Navier-Stokes (default)"), QStringLiteral("ns"));
-  inpaint_->addItem(tr("Telea"), QStringLiteral("telea"));
+  inpaint_->setToolTip(tr("How the frame behind the organ is filled, shown where the organ moves away. Telea is the "
+                          "best measured on organ-sized holes in a real frame, and as fast as any (BENCHMARKS.md)."));
+  inpaint_->addItem(tr("Telea (default)"), QStringLiteral("telea"));
+  inpaint_->addItem(tr("Navier-Stokes"), QStringLiteral("ns"));
   inpaint_->addItem(tr("Frequency-selective (slow)"), QStringLiteral("fsr"));
   inpaint_->addItem(tr("Shift-map (slowest)"), QStringLiteral("shiftmap"));
   fillLabel->setBuddy(inpaint_);

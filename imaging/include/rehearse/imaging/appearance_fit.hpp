@@ -45,7 +45,7 @@ InpaintMethod parseInpaintMethod(const std::string& name);
 const char* inpaintMethodName(InpaintMethod m);
 /// The frame with `region` (grown by `growPx`) filled: the background I_B a moved organ uncovers. Holes over
 /// 150,000 px are filled at half resolution by the diffusion methods (a quarter of the time).
-cv::Mat3b inpaintRegion(const cv::Mat3b& frame, const cv::Mat1b& region, InpaintMethod method = InpaintMethod::NavierStokes, int growPx = 4);
+cv::Mat3b inpaintRegion(const cv::Mat3b& frame, const cv::Mat1b& region, InpaintMethod method = InpaintMethod::Telea, int growPx = 4);
 
 struct AppearanceStage {
   std::string name;

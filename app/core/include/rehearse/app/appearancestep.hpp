@@ -19,7 +19,7 @@ struct AppearanceInput {
   std::vector<double> vertices;   ///< the organ's surface at rest (registered shape), model frame, metres, 3n
   std::vector<std::array<int, 3>> triangles;
   cv::Mat3b frame;                ///< undistorted, BGR
-  imaging::InpaintMethod inpaint = imaging::InpaintMethod::NavierStokes;  ///< the best trade-off measured (BENCHMARKS.md)
+  imaging::InpaintMethod inpaint = imaging::InpaintMethod::Telea;  ///< the best measured on organ-sized holes (BENCHMARKS.md)
   std::function<bool(double, const std::string&)> progress;  ///< false cancels (imaging::AppearanceCancelled)
   /// The outline sketched in step 3 (undistorted pixels of the frame). With a silhouette in it and `turnByShading`,
   /// step 6 also settles the turn the outline leaves open (ShadingTurn); without one that turn is not searched.

@@ -124,7 +124,7 @@ struct AppearanceEstimate {
   /// whether it turned the organ (the pose below is then the turned one, which the case took with the estimate).
   std::string turnSaid;
   bool turned = false;
-  std::string inpaint = "ns";                  ///< how I_B was filled (imaging::parseInpaintMethod)
+  std::string inpaint = "telea";               ///< how I_B was filled (imaging::parseInpaintMethod)
   std::vector<imaging::AppearanceStage> stages;
   double restPsnr = 0;                         ///< dB, the organ composed at rest against the frame inside its mask
   double totalMs = 0;
