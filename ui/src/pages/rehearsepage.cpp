@@ -312,14 +312,18 @@ void RehearsePage::showFrame(const std::shared_ptr<const SimulationFrame>& f) {
     stepMs_.push_back(f->report.wallMs);
     if (stepMs_.size() > 100) stepMs_.erase(stepMs_.begin());
   }
-  // Steps that do not converge, by the frames' last step (a person set 3 kPa and a 50 ms step, grasped and let go: the
-  // organ ran 86 then 162 mm from its start, every step inexact, while the page said "Released: the tissue relaxes.").
-  // The FFD model has no equilibrium to converge to.
-  if (f->steps > lastSteps_)
-    unconverged_ = f->model != simcore::BodyModel::Ffd && f->report.outcome != simcore::StepStatus::Converged
-                       ? unconverged_ + (f->steps - lastSteps_)
-                       : 0;
+  // Steps in a row that do not converge (a person set 3 kPa and a 50 ms step, grasped and let go: the organ ran 86 then
+  // 162 mm from its start, every step inexact, while the page said "Released: the tissue relaxes."). Counted from the
+  // session's own count of such steps, every step whether drawn or not: when a step between two frames converged, the
+  // run is the last step's alone. The FFD model has no equilibrium to converge to.
+  if (f->steps > lastSteps_) {
+    const long stepped = f->steps - lastSteps_, failed = f->stepsNotConverged - lastNotConverged_;
+    unconverged_ = f->model == simcore::BodyModel::Ffd || f->report.outcome == simcore::StepStatus::Converged ? 0
+                   : failed >= stepped                                                                  ? unconverged_ + stepped
+                                                                                                        : 1;
+  }
   lastSteps_ = f->steps;
+  lastNotConverged_ = f->stepsNotConverged;
   graspLimit_ = f->tool.held.empty() ? 0.0 : f->maxGraspForce;
   simcore::EventCounts counted;
   counted.add(f->events);

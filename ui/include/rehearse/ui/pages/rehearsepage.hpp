@@ -91,6 +91,7 @@ class RehearsePage : public StepPage {
   /// Steps in a row that did not converge (counted through the frames; 0 after a converged one): from 10 on, the page
   /// says the organ's motion is not its equilibrium.
   long unconverged_ = 0;
+  long lastNotConverged_ = 0;  ///< the last frame's SimulationFrame::stepsNotConverged
   bool saidUnconverged_ = false;  ///< the page's line says so (and is to say when they converge again)
   /// The model that steps and its last steps' wall times (ms), for the rate line.
   simcore::BodyModel model_ = simcore::BodyModel::Fem;
