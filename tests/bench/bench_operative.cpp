@@ -8,7 +8,8 @@
 // GUI's (chord with the asynchronous refresh, changes swapped in when built, steps ended at the accuracy of 0.05 mm and
 // 0.5 % of the tool force), each accelerated (the default) and plain (SimulationSettings::chordAcceleration off, as
 // before it existed), and each with and without the accuracy (SimulationSettings::accuracyPosition; 1e-6: the relative
-// residual alone), and the experiment of tears that part along faces (ToolSettings::tearRemovesElements: the
+// residual alone), the experiment of the nonlinear elimination of a torn flap's nodes
+// (SimulationSettings::localElimination, synchronous and asynchronous), and the experiment of tears that part along faces (ToolSettings::tearRemovesElements: the
 // over-stretched elements taken out, the nodes kept), synchronous and asynchronous. With --exact-check, each variant's last run is replayed and every step taken again by exact Newton
 // from the same start (simcore::checkAgainstExact, as `rehearse replay --exact-check`): per phase the largest true
 // error, the lowest estimate for its truth (where the truth is over 5 um), the steps past the accuracy asked, and those
@@ -130,6 +131,7 @@ int main(int argc, char** argv) {
     double accuracy;   // SimulationSettings::accuracyPosition (m; 0: the relative residual alone)
     bool tearWhenBuilt = false;  // ToolSettings::tearWhenBuilt (the GUI's)
     bool tearRemovesElements = false;  // ToolSettings::tearRemovesElements (an experiment; the GUI's re-meshes)
+    bool localElimination = false;  // SimulationSettings::localElimination (an experiment, issue 61)
   };
   for (const Variant v :
        {Variant{"chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, true, 0},
@@ -139,6 +141,10 @@ int main(int argc, char** argv) {
                 false, true},
         Variant{"chord, sync, 0.05 mm, tears part along faces", simcore::FactorRefresh::Synchronous, 5, true, 5e-5,
                 false, true},
+        Variant{"chord, sync, 0.05 mm, local elimination", simcore::FactorRefresh::Synchronous, 5, true, 5e-5, false,
+                false, true},
+        Variant{"chord, async, 0.05 mm, tears when built, local elimination", simcore::FactorRefresh::Asynchronous, -1,
+                true, 5e-5, true, false, true},
         Variant{"chord, async (GUI), 1e-6", simcore::FactorRefresh::Asynchronous, -1, true, 0},
         Variant{"chord, sync, 0.05 mm", simcore::FactorRefresh::Synchronous, 5, true, 5e-5},
         Variant{"plain chord, sync, latency 5", simcore::FactorRefresh::Synchronous, 5, false, 0},
@@ -152,6 +158,7 @@ int main(int argc, char** argv) {
       s.settings.accuracyPosition = v.accuracy;
       s.tools.tearWhenBuilt = v.tearWhenBuilt;
       s.tools.tearRemovesElements = v.tearRemovesElements;
+      s.settings.localElimination = v.localElimination;
       app::GestureScript script = all;
       script.cutLatencySteps = v.latency;
       // phase -> per run: the step times; and the last run's statuses and events

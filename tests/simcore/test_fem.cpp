@@ -7,6 +7,8 @@
 
 #include <rehearse/simcore/fem.hpp>
 
+#include "fem_patch.hpp"  // simcore/src/physics: the nonlinear elimination's patch (issue 61)
+
 #include <Eigen/SparseCholesky>
 
 #include <random>
@@ -355,6 +357,81 @@ class TestFem : public QObject {
     const FemModel bare = FemModel::build(organ, {}, soft);
     const Eigen::VectorXd springPart = K * v - elasticStiffness(bare, x) * v;
     QVERIFY(springPart.norm() > 1e-3 * Kv.norm());
+  }
+
+  // Issue 61: a patch of nodes (SimulationSettings::localElimination) has exactly the whole model's rows there: its
+  // forces, its block of the stiffness (plain and projected), its rows of a tangent product, and the change of the
+  // energy when only its nodes move. On the phantom with its vessel wall (springs), anchors on some nodes, a random
+  // deformation and one element pushed inside out (the projection's case).
+  void aPatchHasTheModelsRows() {
+    auto c = rehearse::phantom::makePhantom();
+    Mesh wall;
+    wall.points = c.volume.points;
+    wall.unitToMetre = c.volume.unitToMetre;
+    wall.triangles = c.innerSurface;
+    wall.compact();
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    for (const auto& p : wall.points) centre += p / wall.points.size();
+    for (auto& p : wall.points) p = centre + 0.9 * (p - centre);
+    Mesh organ = c.volume;
+    FemModel m = FemModel::build(organ, {}, {MaterialModel::Corotational, 27e3, 0.45, 1000}, {{wall, 620e3, 1e-3, "vessels"}});
+    std::mt19937 rng(11);
+    std::normal_distribution<double> n(0, 1);
+    Eigen::VectorXd x = m.restVector();
+    for (Eigen::Index i = 0; i < x.size(); ++i) x[i] += 0.001 * n(rng);
+    // The nodes within 25 mm of a node, and anchors on every third node of the model.
+    const Eigen::Vector3d at = m.rest[static_cast<std::size_t>(c.volume.points.size() / 3)];
+    detail::NodePatch p;
+    for (std::size_t i = 0; i < m.nodeCount(); ++i)
+      if ((m.rest[i] - at).norm() < 0.025) p.nodes.push_back(static_cast<int>(i));
+    for (std::size_t i = 0; i < m.nodeCount(); i += 3) m.anchors.push_back({static_cast<int>(i), m.rest[i], 50.0});
+    // One element of the patch inside out: its fourth node through the face of the other three.
+    const auto& tet = m.tets[static_cast<std::size_t>([&] {
+      for (std::size_t e = 0; e < m.tets.size(); ++e)
+        if (std::find(p.nodes.begin(), p.nodes.end(), m.tets[e][3]) != p.nodes.end()) return e;
+      return std::size_t(0);
+    }())];
+    const Eigen::Vector3d face = (x.segment<3>(3 * tet[0]) + x.segment<3>(3 * tet[1]) + x.segment<3>(3 * tet[2])) / 3;
+    x.segment<3>(3 * tet[3]) = face - 0.5 * (x.segment<3>(3 * tet[3]) - face);
+    detail::completePatch(m, p);
+    const auto B = static_cast<Eigen::Index>(p.nodes.size());
+    QVERIFY2(B > 20 && !p.springs.empty() && !p.anchors.empty(),
+             qPrintable(QString("%1 nodes, %2 springs, %3 anchors").arg(B).arg(p.springs.size()).arg(p.anchors.size())));
+    auto rows = [&](const Eigen::VectorXd& full) {
+      Eigen::VectorXd out(3 * B);
+      for (Eigen::Index l = 0; l < B; ++l) out.segment<3>(3 * l) = full.segment<3>(3 * p.nodes[static_cast<std::size_t>(l)]);
+      return out;
+    };
+    Eigen::VectorXd fB;
+    detail::patchForces(m, p, x, fB);
+    const Eigen::VectorXd f = rows(elasticForces(m, x));
+    QVERIFY2((fB - f).norm() <= 1e-12 * f.norm(), qPrintable(QString::number((fB - f).norm() / f.norm())));
+    for (TangentProjection projection : {TangentProjection::None, TangentProjection::Checked}) {
+      Eigen::SparseMatrix<double> K = m.pattern;
+      assembleStiffness(m, x, K, projection);
+      std::vector<Eigen::Triplet<double>> t;
+      detail::patchStiffness(m, p, x, projection, 2.0, t);
+      Eigen::SparseMatrix<double> KB(3 * B, 3 * B);
+      KB.setFromTriplets(t.begin(), t.end());
+      Eigen::MatrixXd block(3 * B, 3 * B);
+      for (Eigen::Index a = 0; a < 3 * B; ++a)
+        for (Eigen::Index b = 0; b < 3 * B; ++b)
+          block(a, b) = K.coeff(3 * p.nodes[static_cast<std::size_t>(a / 3)] + a % 3, 3 * p.nodes[static_cast<std::size_t>(b / 3)] + b % 3);
+      const double off = (Eigen::MatrixXd(KB) - 2.0 * block).norm() / (2.0 * block.norm());
+      QVERIFY2(off < 1e-12, qPrintable(QString("projection %1: %2").arg(static_cast<int>(projection)).arg(off)));
+    }
+    TangentState ts;
+    prepareTangentState(m, x, ts);
+    Eigen::VectorXd v(x.size()), Kv, KvB;
+    for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = n(rng);
+    applyStiffness(m, ts, v, Kv);
+    detail::patchStiffnessProduct(m, p, ts, v, KvB);
+    QVERIFY2((KvB - rows(Kv)).norm() <= 1e-12 * rows(Kv).norm(), qPrintable(QString::number((KvB - rows(Kv)).norm())));
+    // Only the patch's nodes moved: the model's energy changes by what the patch's energy does.
+    Eigen::VectorXd y = x;
+    for (int node : p.nodes) y.segment<3>(3 * node) += 0.0005 * Eigen::Vector3d(n(rng), n(rng), n(rng));
+    const double whole = elasticEnergy(m, y) - elasticEnergy(m, x), part = detail::patchEnergy(m, p, y) - detail::patchEnergy(m, p, x);
+    QVERIFY2(std::abs(whole - part) <= 1e-9 * std::abs(whole), qPrintable(QString("%1 J against %2 J").arg(whole).arg(part)));
   }
 
   // Patch test: under any affine deformation the forces on interior nodes vanish.

@@ -126,6 +126,7 @@ json settings(const simcore::SimulationSettings& s) {
   if (s.chordAcceleration) j["chordAcceleration"] = true;
   if (s.checkedProjection) j["checkedProjection"] = true;
   if (s.heldBackStop) j["heldBackStop"] = true;
+  if (s.localElimination) j["localElimination"] = true;
   if (s.accuracyPosition > 0) {
     j["accuracyPosition"] = s.accuracyPosition;
     j["accuracyForce"] = s.accuracyForce;
@@ -163,6 +164,7 @@ simcore::SimulationSettings settings(const json& j) {
   s.chordAcceleration = j.value("chordAcceleration", false);
   s.checkedProjection = j.value("checkedProjection", false);
   s.heldBackStop = j.value("heldBackStop", false);
+  s.localElimination = j.value("localElimination", false);
   s.accuracyPosition = j.value("accuracyPosition", 0.0);  // the residual alone decided before it existed
   s.accuracyForce = j.value("accuracyForce", s.accuracyForce);
   return s;

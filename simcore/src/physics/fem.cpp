@@ -1,6 +1,8 @@
 #include <rehearse/simcore/fem.hpp>
 #include <rehearse/simcore/quality.hpp>
 
+#include "fem_patch.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -564,3 +566,154 @@ double inversionFreeStep(const FemModel& m, const Eigen::VectorXd& x, const Eige
 }
 
 }  // namespace rehearse::simcore
+
+namespace rehearse::simcore::detail {
+
+void completePatch(const FemModel& m, NodePatch& p) {
+  p.local.assign(m.nodeCount(), -1);
+  for (std::size_t i = 0; i < p.nodes.size(); ++i) p.local[static_cast<std::size_t>(p.nodes[i])] = static_cast<int>(i);
+  auto in = [&](int n) { return n >= 0 && p.local[static_cast<std::size_t>(n)] >= 0; };
+  p.elements.clear();
+  for (std::size_t e = 0; e < m.tets.size(); ++e) {
+    const auto& t = m.tets[e];
+    if (in(t[0]) || in(t[1]) || in(t[2]) || in(t[3])) p.elements.push_back(static_cast<int>(e));
+  }
+  p.springs.clear();
+  for (std::size_t i = 0; i < m.springs.size(); ++i)
+    for (int k = 0; k < 8; ++k)
+      if (m.springs[i].weights[k] != 0 && in(m.springs[i].nodes[k])) {
+        p.springs.push_back(static_cast<int>(i));
+        break;
+      }
+  p.anchors.clear();
+  for (std::size_t i = 0; i < m.anchors.size(); ++i)
+    if (in(m.anchors[i].node)) p.anchors.push_back(static_cast<int>(i));
+}
+
+void patchForces(const FemModel& m, const NodePatch& p, const Eigen::VectorXd& x, Eigen::VectorXd& fB) {
+  fB.setZero(3 * static_cast<Eigen::Index>(p.nodes.size()));
+  auto add = [&](int node, const Eigen::Vector3d& v) {
+    const int l = p.local[static_cast<std::size_t>(node)];
+    if (l >= 0) fB.segment<3>(3 * l) += v;
+  };
+  for (int e : p.elements) {
+    const auto i = static_cast<std::size_t>(e);
+    const Eigen::Matrix3d H = -m.restVolume[i] * firstPiola(m.model[i], m.lame[i], deformationGradient(m, i, x)) *
+                              m.Bm[i].transpose();
+    const auto& t = m.tets[i];
+    for (int k = 0; k < 3; ++k) {
+      add(t[k + 1], H.col(k));
+      add(t[0], -H.col(k));
+    }
+  }
+  for (int a : p.anchors) {
+    const NodeAnchor& an = m.anchors[static_cast<std::size_t>(a)];
+    add(an.node, -an.stiffness * (x.segment<3>(3 * an.node) - an.at));
+  }
+  for (int i : p.springs) {
+    const EmbeddedSpring& sp = m.springs[static_cast<std::size_t>(i)];
+    const Eigen::Vector3d d = springVector(sp, x);
+    const double l = d.norm();
+    if (!(l > 0)) continue;
+    const Eigen::Vector3d g = sp.stiffness * (l - sp.restLength) / l * d;
+    for (int k = 0; k < 8; ++k) add(sp.nodes[k], -sp.weights[k] * g);
+  }
+}
+
+double patchEnergy(const FemModel& m, const NodePatch& p, const Eigen::VectorXd& x) {
+  double e = 0;
+  for (int t : p.elements) {
+    const auto i = static_cast<std::size_t>(t);
+    e += m.restVolume[i] * energyDensity(m.model[i], m.lame[i], deformationGradient(m, i, x));
+  }
+  for (int i : p.springs) {
+    const EmbeddedSpring& sp = m.springs[static_cast<std::size_t>(i)];
+    const double l = springVector(sp, x).norm() - sp.restLength;
+    e += 0.5 * sp.stiffness * l * l;
+  }
+  for (int a : p.anchors) {
+    const NodeAnchor& an = m.anchors[static_cast<std::size_t>(a)];
+    e += 0.5 * an.stiffness * (x.segment<3>(3 * an.node) - an.at).squaredNorm();
+  }
+  return e;
+}
+
+void patchStiffness(const FemModel& m, const NodePatch& p, const Eigen::VectorXd& x, TangentProjection projection,
+                    double scale, std::vector<Eigen::Triplet<double>>& out) {
+  double Ke[144];
+  for (int e : p.elements) {
+    const auto i = static_cast<std::size_t>(e);
+    const Eigen::Matrix3d F = deformationGradient(m, i, x);
+    const TangentCache cache = prepareTangent(m.model[i], F);
+    elementStiffness(m, i, F, cache, Ke);
+    if (projection == TangentProjection::Checked) {
+      if (!stressTangentDefinite(m, i, F, cache)) projectElementTangent(Ke);
+    } else if (projection != TangentProjection::None) {
+      projectElementTangent(Ke);
+    }
+    const auto& t = m.tets[i];
+    for (int c = 0; c < 12; ++c) {
+      const int lc = p.local[static_cast<std::size_t>(t[c / 3])];
+      if (lc < 0) continue;
+      for (int r = 0; r < 12; ++r) {
+        const int lr = p.local[static_cast<std::size_t>(t[r / 3])];
+        if (lr >= 0) out.emplace_back(3 * lr + r % 3, 3 * lc + c % 3, scale * Ke[12 * c + r]);
+      }
+    }
+  }
+  for (int i : p.springs) {
+    const EmbeddedSpring& sp = m.springs[static_cast<std::size_t>(i)];
+    Eigen::Matrix3d H = springHessian(sp, springVector(sp, x));
+    if (projection != TangentProjection::None) {
+      Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig(H);
+      H = eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).asDiagonal() * eig.eigenvectors().transpose();
+    }
+    for (int c = 0; c < 8; ++c) {
+      const int lc = p.local[static_cast<std::size_t>(sp.nodes[c])];
+      if (lc < 0 || sp.weights[c] == 0) continue;
+      for (int r = 0; r < 8; ++r) {
+        const int lr = p.local[static_cast<std::size_t>(sp.nodes[r])];
+        if (lr < 0 || sp.weights[r] == 0) continue;
+        for (int a = 0; a < 3; ++a)
+          for (int b = 0; b < 3; ++b)
+            out.emplace_back(3 * lr + a, 3 * lc + b, scale * sp.weights[r] * sp.weights[c] * H(a, b));
+      }
+    }
+  }
+  for (int a : p.anchors) {
+    const NodeAnchor& an = m.anchors[static_cast<std::size_t>(a)];
+    const int l = p.local[static_cast<std::size_t>(an.node)];
+    for (int d = 0; d < 3; ++d) out.emplace_back(3 * l + d, 3 * l + d, scale * an.stiffness);
+  }
+}
+
+void patchStiffnessProduct(const FemModel& m, const NodePatch& p, const TangentState& at, const Eigen::VectorXd& v,
+                           Eigen::VectorXd& outB) {
+  outB.setZero(3 * static_cast<Eigen::Index>(p.nodes.size()));
+  auto add = [&](int node, const Eigen::Vector3d& w) {
+    const int l = p.local[static_cast<std::size_t>(node)];
+    if (l >= 0) outB.segment<3>(3 * l) += w;
+  };
+  for (int e : p.elements) {
+    const auto i = static_cast<std::size_t>(e);
+    const Eigen::Matrix3d dF = deformationGradient(m, i, v);
+    const Eigen::Matrix3d H =
+        m.restVolume[i] * firstPiolaDifferential(m.model[i], m.lame[i], at.F[i], at.cache[i], dF) * m.Bm[i].transpose();
+    const auto& t = m.tets[i];
+    for (int k = 0; k < 3; ++k) {
+      add(t[k + 1], H.col(k));
+      add(t[0], -H.col(k));
+    }
+  }
+  for (int i : p.springs) {
+    const EmbeddedSpring& sp = m.springs[static_cast<std::size_t>(i)];
+    const Eigen::Vector3d hd = at.springHessian[static_cast<std::size_t>(i)] * springVector(sp, v);
+    for (int k = 0; k < 8; ++k) add(sp.nodes[k], sp.weights[k] * hd);
+  }
+  for (int a : p.anchors) {
+    const NodeAnchor& an = m.anchors[static_cast<std::size_t>(a)];
+    add(an.node, an.stiffness * v.segment<3>(3 * an.node));
+  }
+}
+
+}  // namespace rehearse::simcore::detail

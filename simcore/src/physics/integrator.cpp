@@ -429,6 +429,7 @@ StepReport Integrator::step(SimulationState& state, bool swapIn) {
     rep.factorRequested = sub.factorRequested;
     rep.factorSwapped = swap.factorSwapped;
     rep.innerIterations = sub.innerIterations;
+    rep.eliminations = sub.eliminations;
     rep.inversionLimited = sub.inversionLimited;
     rep.guardStalled = sub.guardStalled;
     // A step taken in smaller steps solved other equations than the step's: it does not say it is within the accuracy

@@ -39,6 +39,7 @@ class NewtonIteration {
 
  protected:
   void project(Eigen::VectorXd& r) const { in_.project(r); }
+  bool fixedNode(std::size_t i) const { return in_.fixed_[i] != 0; }
   bool solveConstrained(const Eigen::VectorXd& rhs, const Eigen::VectorXd& x, double positionScale, Eigen::VectorXd& dx,
                         StepReport& rep, bool freeGiven = false, const Eigen::VectorXd* carried = nullptr) {
     return in_.solveConstrained(rhs, x, positionScale, dx, rep, freeGiven, carried);
@@ -154,6 +155,9 @@ class NewtonLoop : public NewtonIteration {
 
  protected:
   bool plainMove_ = true;  // the last move was the plain correction (the chord's: not mixed)
+  /// Issue 61: Newton on the few free nodes that hold nearly all of the residual `res` at `vel` (its net norm
+  /// `rnorm`), the rest fixed; updates all three and returns true when it lowered the net norm.
+  bool eliminate(Eigen::VectorXd& vel, Eigen::VectorXd& res, double& rnorm);
   // The moves are the lagged factor's corrections (the chord): their contraction is the factor's mismatch with the
   // tangent, direction by direction (the Newton methods solve with the tangent itself).
   bool chordMap_ = false;

@@ -117,6 +117,15 @@ struct SimulationSettings {
   /// 1 % ends there (StepReport::guardStalled), and a clip its tissue cannot close further stays as far as it closed
   /// (Session::settleHeldBackClips). Recorded only when on (sessions recorded before replay without it).
   bool heldBackStop = true;
+  /// Issue 61, an experiment (off by default; the bench's variant "..., local elimination"): a chord move that leaves
+  /// more than a quarter of the residual, half or more of it on a few free nodes (64 at most: a torn flap springing
+  /// back, which the lagged factor does not hold), is followed by Newton on those nodes and their neighbours alone, the
+  /// rest of the organ fixed (nonlinear elimination, Lanzkron, Rose and Wilkes 1996; Cai and Keyes 2002), with the
+  /// exact tangent of what touches them (projected where indefinite). Kept only where it lowers the whole residual.
+  /// With the synchronous refresh the patient liver's pull that tears took p99 129 ms instead of 545 (fewer factors
+  /// rebuilt in the step); with the asynchronous refresh (the window's) its steps were slower (median 70 ms instead of
+  /// 31, two inexact): BENCHMARKS.md. It allocates in the steps it acts in. Recorded only when on.
+  bool localElimination = false;
   /// Each step estimates its distance from the converged answer in metres and newtons (StepReport::errorPosition,
   /// errorForce: one more solve with the step's factor). It changes nothing the step computes (a replay with it off
   /// gives the same bits), so it is not recorded.
@@ -197,6 +206,7 @@ struct StepReport {
   int retries = 0;
   int factorisations = 0;          ///< numeric factorisations during the step
   int innerIterations = 0;         ///< CG iterations (lagged-pcg, newton-krylov) or Gauss-Seidel sweeps (constraints)
+  int eliminations = 0;            ///< SimulationSettings::localElimination: the moves it acted on and kept
   double constraintViolation = 0;  ///< max |H x - value| after the step (m)
   bool factorRequested =
       false;  ///< asynchronous/deferred: a new lagged factor was requested at this step's start positions
