@@ -283,14 +283,30 @@ class TestTear : public QObject {
 
   // A session whose tissue tears (with the scene's latency: the torn body built on the second thread) replays bit for
   // bit from its start and from every checkpoint taken while it ran.
+  // Also with the experiment of the torn flap's nodes solved on their own (SimulationSettings::localElimination).
+  void tearsReplayBitForBit_data() {
+    QTest::addColumn<bool>("eliminate");
+    QTest::newRow("exact Newton") << false;
+    QTest::newRow("chord, local elimination") << true;
+  }
   void tearsReplayBitForBit() {
+    QFETCH(bool, eliminate);
     simcore::BodySetup setup = bar();
     setup.tools.cutLatencySteps = 3;
     setup.tools.tearLatencySteps = 3;
+    setup.settings.localElimination = eliminate;
+    // (The elimination is the chord's; with the factor built on the second thread it waits for two slow iterations:
+    // the synchronous refresh, where it acts at once.)
+    if (eliminate) {
+      setup.settings.method = simcore::NewtonMethod::Chord;
+      setup.settings.factorRefresh = simcore::FactorRefresh::Synchronous;
+    }
     simcore::Session live(setup);
     std::vector<std::pair<long, std::string>> taken;
     std::map<std::uint64_t, simcore::BodySetup> setups;
+    int eliminations = 0;
     live.setStepHook([&](const simcore::StepRecord& r) {
+      eliminations += r.snapshot->report.eliminations;
       if (r.step % 7 != 0) return;
       const simcore::Checkpoint c = r.checkpoint();
       taken.emplace_back(r.step, app::encodeCheckpointState(c));
@@ -317,8 +333,9 @@ class TestTear : public QObject {
       while (resumed.snapshot()->step < liveEnd->step) resumed.advance();
       QVERIFY2(resumed.snapshot()->positions == liveEnd->positions, qPrintable(QString("from step %1").arg(step)));
     }
-    qInfo("replayed, and resumed from %zu checkpoints (%d with a tear being built): bit for bit", taken.size(),
-          withChange);
+    qInfo("replayed, and resumed from %zu checkpoints (%d with a tear being built): bit for bit; %d moves ended by an "
+          "elimination", taken.size(), withChange, eliminations);
+    QVERIFY(eliminate ? eliminations > 0 : eliminations == 0);
   }
 
   // What a recording keeps of a scene: each material's tear strain and the clip's least squeeze come back as they were
@@ -352,6 +369,10 @@ class TestTear : public QObject {
     QVERIFY(app::encodeSetup(plain).find("tearRemovesElements") == std::string::npos);
     plain.tools.tearRemovesElements = true;
     QVERIFY(app::decodeSetup(app::encodeSetup(plain)).tools.tearRemovesElements);
+    // The torn flap's nodes solved on their own (an experiment, off by default): the same.
+    QVERIFY(app::encodeSetup(plain).find("localElimination") == std::string::npos);
+    plain.settings.localElimination = true;
+    QVERIFY(app::decodeSetup(app::encodeSetup(plain)).settings.localElimination);
     s.tools.clip.minSqueeze = 1.5;
     QVERIFY(app::setupProblem(s).find("squeeze") != std::string::npos);
   }

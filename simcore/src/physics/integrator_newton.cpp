@@ -68,6 +68,10 @@ constexpr double kEliminationShare = 0.5;
 // ... is eliminated by at most this many iterations on the patch (its tangent factorised once), ended at a hundredth of
 // the patch's first residual.
 constexpr int kEliminationIterations = 8;
+// With a factor built on the second thread, only once this many of the step's iterations have failed to halve the
+// residual (ChordNewton's slow iterations): ungated, the window's variant slowed (median 70 ms instead of 31 on the patient
+// liver's pull); gated at 2, p99 181 ms against 225 over five runs, but in three more runs 327 ms with two steps inexact.
+constexpr int kEliminationAsyncGate = 2;
 
 NewtonIteration::NewtonIteration(Integrator& in, NewtonStep& s)
     : in_(in),
@@ -979,7 +983,9 @@ double ChordNewton::move(bool& guarded) {
   // The move and the elimination are one map, whose contraction the accuracy's estimate measures as the chord's (with
   // the moves after an elimination taken as not comparable, fewer steps ended on the accuracy: on the patient liver's
   // pull the synchronous p99 was 196 ms against 132 ms). The mixing starts again from it (not the chord's map).
-  if (settings_.localElimination && std::isfinite(rnew) && rnew > kEliminationTrigger * s_.rn &&
+  if (settings_.localElimination &&
+      (settings_.factorRefresh == FactorRefresh::Synchronous || slowIterations_ >= kEliminationAsyncGate) &&
+      std::isfinite(rnew) && rnew > kEliminationTrigger * s_.rn &&
       rnew > settings_.tolerance * s_.scale && eliminate(w.vn, w.rn, rnew)) {
     ++rep.eliminations;
     aa.reset();
