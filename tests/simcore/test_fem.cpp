@@ -39,6 +39,21 @@ std::vector<Eigen::Matrix3d> testGradients(std::mt19937& rng) {
   Fs.push_back(inv);
   return Fs;
 }
+
+// The phantom's vessel wall as its own surface (the faces between the vessels and the parenchyma, with only the points
+// they use), shrunk by 10 % about its centre so its vertices fall inside tets.
+template <class Case>
+Mesh vesselWall(const Case& c) {
+  Mesh wall;
+  wall.points = c.volume.points;
+  wall.unitToMetre = c.volume.unitToMetre;
+  wall.triangles = c.innerSurface;
+  wall.compact();
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  for (const auto& p : wall.points) centre += p / wall.points.size();
+  for (auto& p : wall.points) p = centre + 0.9 * (p - centre);
+  return wall;
+}
 }  // namespace
 
 class TestFem : public QObject {
@@ -302,15 +317,7 @@ class TestFem : public QObject {
   void embeddedSurfaces() {
     auto c = rehearse::phantom::makePhantom();
     QVERIFY(!c.innerSurface.empty());
-    // The vessel wall as its own surface, shrunk by 10 % about its centre so its vertices fall inside tets.
-    Mesh wall;  // the faces between the vessels and the parenchyma, with only the points they use
-    wall.points = c.volume.points;
-    wall.unitToMetre = c.volume.unitToMetre;
-    wall.triangles = c.innerSurface;
-    wall.compact();
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (const auto& p : wall.points) centre += p / wall.points.size();
-    for (auto& p : wall.points) p = centre + 0.9 * (p - centre);
+    const Mesh wall = vesselWall(c);
     Mesh organ = c.volume;
     std::fill(organ.tetLabels.begin(), organ.tetLabels.end(), 1);  // no vessel label: the wall carries it
     const MaterialParams soft{MaterialModel::Linear, 27e3, 0.4, 1000};
@@ -365,14 +372,7 @@ class TestFem : public QObject {
   // deformation and one element pushed inside out (the projection's case).
   void aPatchHasTheModelsRows() {
     auto c = rehearse::phantom::makePhantom();
-    Mesh wall;
-    wall.points = c.volume.points;
-    wall.unitToMetre = c.volume.unitToMetre;
-    wall.triangles = c.innerSurface;
-    wall.compact();
-    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
-    for (const auto& p : wall.points) centre += p / wall.points.size();
-    for (auto& p : wall.points) p = centre + 0.9 * (p - centre);
+    const Mesh wall = vesselWall(c);
     Mesh organ = c.volume;
     FemModel m = FemModel::build(organ, {}, {MaterialModel::Corotational, 27e3, 0.45, 1000}, {{wall, 620e3, 1e-3, "vessels"}});
     std::mt19937 rng(11);

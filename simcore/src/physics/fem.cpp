@@ -568,6 +568,21 @@ double inversionFreeStep(const FemModel& m, const Eigen::VectorXd& x, const Eige
 }  // namespace rehearse::simcore
 
 namespace rehearse::simcore::detail {
+namespace {
+void addToPatch(const NodePatch& p, int node, const Eigen::Vector3d& v, Eigen::VectorXd& out) {
+  const int l = p.local[static_cast<std::size_t>(node)];
+  if (l >= 0) out.segment<3>(3 * l) += v;
+}
+// An element's 3x3 block (columns: nodes 1..3; node 0 takes minus their sum) onto the patch's rows, as
+// scatterElementVectors does onto the model's.
+void addElementToPatch(const FemModel& m, const NodePatch& p, std::size_t e, const Eigen::Matrix3d& H, Eigen::VectorXd& out) {
+  const auto& t = m.tets[e];
+  for (int k = 0; k < 3; ++k) {
+    addToPatch(p, t[k + 1], H.col(k), out);
+    addToPatch(p, t[0], -H.col(k), out);
+  }
+}
+}  // namespace
 
 void completePatch(const FemModel& m, NodePatch& p) {
   p.local.assign(m.nodeCount(), -1);
@@ -592,19 +607,12 @@ void completePatch(const FemModel& m, NodePatch& p) {
 
 void patchForces(const FemModel& m, const NodePatch& p, const Eigen::VectorXd& x, Eigen::VectorXd& fB) {
   fB.setZero(3 * static_cast<Eigen::Index>(p.nodes.size()));
-  auto add = [&](int node, const Eigen::Vector3d& v) {
-    const int l = p.local[static_cast<std::size_t>(node)];
-    if (l >= 0) fB.segment<3>(3 * l) += v;
-  };
+  auto add = [&](int node, const Eigen::Vector3d& v) { addToPatch(p, node, v, fB); };
   for (int e : p.elements) {
     const auto i = static_cast<std::size_t>(e);
-    const Eigen::Matrix3d H = -m.restVolume[i] * firstPiola(m.model[i], m.lame[i], deformationGradient(m, i, x)) *
-                              m.Bm[i].transpose();
-    const auto& t = m.tets[i];
-    for (int k = 0; k < 3; ++k) {
-      add(t[k + 1], H.col(k));
-      add(t[0], -H.col(k));
-    }
+    addElementToPatch(m, p, i,
+                      -m.restVolume[i] * firstPiola(m.model[i], m.lame[i], deformationGradient(m, i, x)) * m.Bm[i].transpose(),
+                      fB);
   }
   for (int a : p.anchors) {
     const NodeAnchor& an = m.anchors[static_cast<std::size_t>(a)];
@@ -690,20 +698,14 @@ void patchStiffness(const FemModel& m, const NodePatch& p, const Eigen::VectorXd
 void patchStiffnessProduct(const FemModel& m, const NodePatch& p, const TangentState& at, const Eigen::VectorXd& v,
                            Eigen::VectorXd& outB) {
   outB.setZero(3 * static_cast<Eigen::Index>(p.nodes.size()));
-  auto add = [&](int node, const Eigen::Vector3d& w) {
-    const int l = p.local[static_cast<std::size_t>(node)];
-    if (l >= 0) outB.segment<3>(3 * l) += w;
-  };
+  auto add = [&](int node, const Eigen::Vector3d& w) { addToPatch(p, node, w, outB); };
   for (int e : p.elements) {
     const auto i = static_cast<std::size_t>(e);
     const Eigen::Matrix3d dF = deformationGradient(m, i, v);
-    const Eigen::Matrix3d H =
-        m.restVolume[i] * firstPiolaDifferential(m.model[i], m.lame[i], at.F[i], at.cache[i], dF) * m.Bm[i].transpose();
-    const auto& t = m.tets[i];
-    for (int k = 0; k < 3; ++k) {
-      add(t[k + 1], H.col(k));
-      add(t[0], -H.col(k));
-    }
+    addElementToPatch(
+        m, p, i,
+        m.restVolume[i] * firstPiolaDifferential(m.model[i], m.lame[i], at.F[i], at.cache[i], dF) * m.Bm[i].transpose(),
+        outB);
   }
   for (int i : p.springs) {
     const EmbeddedSpring& sp = m.springs[static_cast<std::size_t>(i)];
