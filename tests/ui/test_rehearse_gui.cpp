@@ -1882,6 +1882,33 @@ class TestRehearseGui : public QObject {
     }
   }
 
+  // The force chart whole on a 1600 x 900 screen, without scrolling the page (a person's check: its time axis fell below
+  // the panel's fold, under a scroll bar).
+  void theForceChartFitsOnALaptopScreen() {
+    const QSize was = w_->size();
+    w_->resize(1600, 900);
+    QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
+    auto* chartView = w_->findChild<QChartView*>("toolForceChart");
+    QVERIFY(chartView);
+    QVERIFY(waitFor([&] { return chartView->isVisible(); }));
+    QTest::qWait(200);  // laid out at the new size
+    // The part of the chart inside the page's scroll area's viewport (the fold), the page scrolled to its top.
+    QScrollArea* area = nullptr;
+    for (QWidget* p = chartView->parentWidget(); p && !area; p = p->parentWidget()) area = qobject_cast<QScrollArea*>(p);
+    QVERIFY(area);
+    area->verticalScrollBar()->setValue(0);
+    const QRect chart(chartView->mapTo(area->viewport(), QPoint(0, 0)), chartView->size());
+    const QRect shown = chart.intersected(area->viewport()->rect());
+    qInfo("window %dx%d: the chart %dx%d, %dx%d of it above the fold", w_->width(), w_->height(), chart.width(),
+          chart.height(), shown.width(), shown.height());
+    const bool whole = shown == chart;
+    const double plot = chartView->chart()->plotArea().height();  // room for the force's tick labels
+    qInfo("its plot area %.0f px high", plot);
+    w_->resize(was);
+    QVERIFY2(whole, "the force chart is cut by the page's fold");
+    QVERIFY2(plot >= 60, qPrintable(QString("the plot area is %1 px high").arg(plot)));
+  }
+
   // Closing over unsaved work while the organ moves: the Save / Discard / Cancel question stops the simulation (its
   // steps stand still while the question is read; before, it ran on behind it), and Cancel plays it on.
   void theOrganWaitsWhileUnsavedChangesAreAsked() {

@@ -13,6 +13,7 @@
 #include <QPushButton>
 #include <QTimer>
 #include <QVBoxLayout>
+#include <QGraphicsLayout>
 #include <QtCharts/QChart>
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
@@ -150,6 +151,11 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   axisY_ = new QValueAxis;
   axisY_->setRange(0, 1);
   axisY_->setLabelFormat(QStringLiteral("%g"));
+  // Three force ticks and thin margins: the chart fits above the panel's fold at 1600 x 900 with its labels readable
+  // (five ticks in 150 px were elided to "...").
+  axisY_->setTickCount(3);
+  chart->layout()->setContentsMargins(0, 0, 0, 0);
+  chart->setMargins(QMargins(6, 2, 6, 2));
   chart->addAxis(axisX_, Qt::AlignBottom);
   chart->addAxis(axisY_, Qt::AlignLeft);
   series_->attachAxis(axisX_);
@@ -165,7 +171,9 @@ RehearsePage::RehearsePage(Workbench& wb, QWidget* parent) : StepPage(wb, app::S
   limit_->attachAxis(axisY_);
   auto* chartView = new QChartView(chart, this);
   chartView->setObjectName(QStringLiteral("toolForceChart"));
-  chartView->setMinimumHeight(200);  // no antialiasing: the chart redraws 15 times a second beside the organ
+  // 150 px: the whole chart above the panel's fold on a 1600 x 900 screen (at 200 its time axis fell below it, under a
+  // scroll bar: a person's check). No antialiasing: the chart redraws 15 times a second beside the organ.
+  chartView->setMinimumHeight(150);
   layout->addWidget(chartView, 1);
   loopRate_ = new QLabel(this);
   loopRate_->setObjectName(QStringLiteral("forceLoopRate"));
