@@ -536,6 +536,27 @@ class TestRehearseGui : public QObject {
     panel->pause();
   }
 
+  // An instrument used on the paused rehearsal plays it (its input applies at the next step), and the window says so,
+  // once (a person's check: a release while paused set the organ moving without a word).
+  void anInstrumentOnThePausedRehearsalSaysItPlays() {
+    QTest::keyClick(w_.get(), Qt::Key_R);
+    auto* panel = w_->simulationPanel();
+    auto* view = w_->frameView();
+    panel->pause();
+    QVERIFY(!panel->isPlaying());
+    auto said = [&] { return w_->messageLog().filter("the instrument plays it again").size(); };
+    const auto before = said();
+    view->setFocus();
+    QVERIFY(jawsClosedByKeyAtTheCentre());  // the jaws close on the paused organ: it plays
+    QVERIFY(panel->isPlaying());
+    QTest::keyClick(view, Qt::Key_Space);  // and open, playing already: not said again
+    QVERIFY(
+        waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }, 20000));
+    qInfo("said: %s", qPrintable(w_->messageLog().filter("the instrument plays it again").join(" | ")));
+    QCOMPARE(said(), before + 1);
+    panel->pause();
+  }
+
   // The Simulation panel's buttons and the page's, clicked with the mouse, leave the keys with the frame view: Space then
   // closes the grasper's jaws (a person's Space after Reset and Cancel opened the Reset question again: the button had
   // kept the focus).

@@ -167,6 +167,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
       sayAs(Said::PausedInPanel, tr("The rehearsal is paused; step 7 plays it again."));
     }
   });
+  // An instrument used on the paused rehearsal plays it (its input is applied at the next step): said, once per
+  // pause (a person's check: a release while paused set the organ moving without a word).
+  connect(simulation_, &SimulationPanel::playedByInput, this, [this] {
+    if (step_ == Step::Rehearse)
+      sayBriefly(tr("The rehearsal was paused: the instrument plays it again (F5 pauses it)."));
+  });
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
   // the status bar with what it waits for (Reset mid-grasp left the organ still, the drag after it moving nothing, and
   // nothing said so).

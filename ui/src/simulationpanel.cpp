@@ -359,7 +359,10 @@ void SimulationPanel::postRunParameters() {
 
 bool SimulationPanel::post(simcore::InputEvent e) {
   if (!host_->post(std::move(e))) return false;
-  if (!playing_) play();
+  if (!playing_) {
+    play();
+    if (playing_) emit playedByInput();
+  }
   return true;
 }
 

@@ -118,6 +118,8 @@ class SimulationPanel : public QWidget {
   void startSaid(const QString& words);
   /// Play or Pause taken (the button, F5, a step's entry or exit).
   void playingChanged(bool playing);
+  /// An instrument's input (a press, a release, a key) played the rehearsal that was paused.
+  void playedByInput();
   /// The simulation went back to rest (Reset): what the instruments were doing is over.
   void wasReset();
   /// The case's organ changed (another mesh, shape, place or attachments): its session was replaced by a new one at
