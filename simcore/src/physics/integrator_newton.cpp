@@ -58,7 +58,6 @@ constexpr double kSecondFloor = 1e-2;
 
 // A contact left out of the set that the corrected positions press through by more than this share of the accuracy.
 constexpr double kContactSlack = 0.1;
-}  // namespace
 
 // SimulationSettings::localElimination: a chord move leaving more than this share of the residual before it, ...
 constexpr double kEliminationTrigger = 0.25;
@@ -72,6 +71,7 @@ constexpr int kEliminationIterations = 8;
 // residual (ChordNewton's slow iterations): ungated, the window's variant slowed (median 70 ms instead of 31 on the patient
 // liver's pull); gated at 2, p99 181 ms against 225 over five runs, but in three more runs 327 ms with two steps inexact.
 constexpr int kEliminationAsyncGate = 2;
+}  // namespace
 
 NewtonIteration::NewtonIteration(Integrator& in, NewtonStep& s)
     : in_(in),
