@@ -544,15 +544,19 @@ class TestRehearseGui : public QObject {
     auto* view = w_->frameView();
     panel->pause();
     QVERIFY(!panel->isPlaying());
-    auto said = [&] { return w_->messageLog().filter("the instrument plays it again").size(); };
+    auto said = [&] { return w_->messageLog().filter("an instrument used on the paused rehearsal plays it").size(); };
     const auto before = said();
     view->setFocus();
     QVERIFY(jawsClosedByKeyAtTheCentre());  // the jaws close on the paused organ: it plays
     QVERIFY(panel->isPlaying());
+    // The status bar says it too, with the grasper's hint (which took it at once: helper-64).
+    QVERIFY2(w_->statusBar()->currentMessage().startsWith("Playing again (it was paused).") &&
+                 w_->statusBar()->currentMessage().contains("Space again to let go"),
+             qPrintable(w_->statusBar()->currentMessage()));
     QTest::keyClick(view, Qt::Key_Space);  // and open, playing already: not said again
     QVERIFY(
         waitFor([&] { return panel->lastFrame()->tool.held.empty() && !panel->lastFrame()->tool.jawClosed; }, 20000));
-    qInfo("said: %s", qPrintable(w_->messageLog().filter("the instrument plays it again").join(" | ")));
+    qInfo("said: %s", qPrintable(w_->messageLog().filter("an instrument used on the paused rehearsal").join(" | ")));
     QCOMPARE(said(), before + 1);
     panel->pause();
   }

@@ -170,8 +170,9 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   // An instrument used on the paused rehearsal plays it (its input is applied at the next step): said, once per
   // pause (a person's check: a release while paused set the organ moving without a word).
   connect(simulation_, &SimulationPanel::playedByInput, this, [this] {
-    if (step_ == Step::Rehearse)
-      sayBriefly(tr("The rehearsal was paused: the instrument plays it again (F5 pauses it)."));
+    if (step_ != Step::Rehearse) return;
+    resumedByInput_.start();
+    sayBriefly(tr("Playing again: an instrument used on the paused rehearsal plays it (F5 pauses it)."));
   });
   // Logged (a person's check found no Reset in the Messages panel; a recording's own sentence follows it), and said in
   // the status bar with what it waits for (Reset mid-grasp left the organ still, the drag after it moving nothing, and
@@ -194,7 +195,13 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   // clips and warnings leave the frame view at once. (A helper imported the patient liver over the phantom's rehearsal:
   // the phantom's bleeding stayed drawn over the real frame, no session of the new organ to replace it.)
   connect(simulation_, &SimulationPanel::sessionReplaced, view_, &FrameView::clearLive);
-  connect(view_, &FrameView::toolMessage, this, [this](const QString& text) { statusBar()->showMessage(text, 10000); });
+  connect(view_, &FrameView::toolMessage, this, [this](const QString& text) {
+    // The first hint after an instrument played the paused rehearsal says that too (helper-64: "Grasped: ..." took the
+    // status bar at once, and the resume was said only in the Messages panel).
+    const bool resumed = resumedByInput_.isValid() && resumedByInput_.elapsed() < 2000;
+    resumedByInput_.invalidate();
+    statusBar()->showMessage(resumed ? tr("Playing again (it was paused). %1").arg(text) : text, 10000);
+  });
   connect(view_, &FrameView::attachmentsEdited, this, [this](const std::vector<int>& nodes, const QString& text) {
     doc_->edit(text, [&](app::Case& k) { k.attachments = nodes; });
   });

@@ -273,6 +273,8 @@ class MainWindow : public QMainWindow {
   /// The status bar says the rehearsal is paused outside step 7, or plays or is paused there (setStep, F5).
   bool saysPausedOutside() const;
   Said said_ = Said::Other;  ///< which of the window's sentences the case's line holds (Other: none of them)
+  /// Started when an instrument played the paused rehearsal: the tool's next hint says so too (it took the status bar).
+  QElapsedTimer resumedByInput_;
   Step step_ = Step::Mesh;
   Tool lastInstrument_ = Tool::Grasp;  ///< the instrument in hand when step 7 was last left (taken again there)
   Workbench wb_;
