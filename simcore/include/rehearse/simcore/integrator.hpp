@@ -123,8 +123,9 @@ struct SimulationSettings {
   /// rest of the organ fixed (nonlinear elimination, Lanzkron, Rose and Wilkes 1996; Cai and Keyes 2002), with the
   /// exact tangent of what touches them (projected where indefinite). Kept only where it lowers the whole residual.
   /// With the synchronous refresh the patient liver's pull that tears took p99 129 ms instead of 545 (fewer factors
-  /// rebuilt in the step); with the asynchronous refresh (the window's) its steps were slower (median 70 ms instead of
-  /// 31, two inexact): BENCHMARKS.md. It allocates in the steps it acts in. Recorded only when on.
+  /// rebuilt in the step). With the asynchronous refresh (the window's) it waits for two slow iterations; ungated it made
+  /// the steps slower (median 70 ms instead of 31, two inexact), gated it helped in one set of runs and not in the next:
+  /// BENCHMARKS.md. It allocates in the steps it acts in. Recorded only when on.
   bool localElimination = false;
   /// Each step estimates its distance from the converged answer in metres and newtons (StepReport::errorPosition,
   /// errorForce: one more solve with the step's factor). It changes nothing the step computes (a replay with it off
