@@ -34,6 +34,8 @@
 #include <QTemporaryDir>
 #include <QUndoStack>
 
+#include <cstdlib>
+
 using namespace rehearse;
 using ui::MainWindow;
 
@@ -275,6 +277,37 @@ class TestDesktopGui : public QObject {
     QVERIFY(QTest::qWaitForWindowExposed(&second));
     QVERIFY2(waitFor([&] { return second.centralWidget()->width() >= second.width() * 2 / 5; }, 5000),
              qPrintable(QString("the frame has %1 of %2 px").arg(second.centralWidget()->width()).arg(second.width())));
+    QVERIFY(closeDiscardingChanges(second));
+  }
+
+  // A second launch gives the docks the widths the person dragged them to (helper-64: a left dock left at 513 px came
+  // back at 437 under Xvfb at 1600x900).
+  void secondLaunchKeepsTheDocksWidths() {
+    int workflowLeft = 0, organLeft = 0;
+    {
+      MainWindow first;
+      first.resize(1600, 900);
+      first.show();
+      QVERIFY(QTest::qWaitForWindowExposed(&first));
+      auto* workflow = first.findChild<QDockWidget*>("workflowDock");
+      auto* organ = first.findChild<QDockWidget*>("organDock");
+      QVERIFY(workflow && organ);
+      first.resizeDocks({workflow, organ}, {513, 447}, Qt::Horizontal);  // dragged by their edges
+      QVERIFY2(waitFor([&] { return std::abs(workflow->width() - 513) <= 2 && std::abs(organ->width() - 447) <= 2; }, 5000), qPrintable(QString("%1 %2 window %3").arg(workflow->width()).arg(organ->width()).arg(first.width())));
+      workflowLeft = workflow->width();
+      organLeft = organ->width();
+      QVERIFY(closeDiscardingChanges(first));
+    }
+    MainWindow second;
+    second.resize(1600, 900);
+    second.show();
+    QVERIFY(QTest::qWaitForWindowExposed(&second));
+    auto* workflow = second.findChild<QDockWidget*>("workflowDock");
+    auto* organ = second.findChild<QDockWidget*>("organDock");
+    QVERIFY(workflow && organ);
+    QVERIFY2(waitFor([&] { return std::abs(workflow->width() - workflowLeft) <= 2 && std::abs(organ->width() - organLeft) <= 2; }, 5000),
+             qPrintable(QString("left at %1 and %2 px, back at %3 and %4").arg(workflowLeft).arg(organLeft)
+                            .arg(workflow->width()).arg(organ->width())));
     QVERIFY(closeDiscardingChanges(second));
   }
 

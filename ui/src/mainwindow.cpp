@@ -252,7 +252,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     // A later start keeps the layout the person left, but not a frame squeezed by a dock a long text widened in the
     // last session (issue 62: the left dock came back 580 px wide and the frame 490 px): the frame keeps at least
     // two fifths of the window (a first start gives it 45 %), the docks back to their first widths when it would not.
-    QTimer::singleShot(0, this, [this, workflow, organ] {
+    // The docks' widths as they were left are given again once the window is laid out at its size: restoreState
+    // alone, applied before, brought a left dock dragged to 513 px back at 437 (helper-64).
+    const QList<int> left = {settings.value(QStringLiteral("window/workflowWidth"), 0).toInt(),
+                             settings.value(QStringLiteral("window/organWidth"), 0).toInt()};
+    QTimer::singleShot(0, this, [this, workflow, organ, left] {
+      if (left[0] > 0 && left[1] > 0 && workflow->isVisible() && organ->isVisible() &&
+          !workflow->isFloating() && !organ->isFloating())
+        resizeDocks({workflow, organ}, left, Qt::Horizontal);
       if (centralWidget() && centralWidget()->width() < width() * 2 / 5) {
         const double share = std::min(1.0, width() / 1600.0);  // a first start's widths at 1600 px, narrower below
         resizeDocks({workflow, organ}, {static_cast<int>(470 * share), static_cast<int>(400 * share)}, Qt::Horizontal);
@@ -897,6 +904,12 @@ void MainWindow::closeEvent(QCloseEvent* e) {
   QSettings settings;
   settings.setValue(QStringLiteral("window/geometry"), saveGeometry());
   settings.setValue(QStringLiteral("window/state"), saveState());
+  auto* workflow = findChild<QDockWidget*>(QStringLiteral("workflowDock"));
+  auto* organ = findChild<QDockWidget*>(QStringLiteral("organDock"));
+  if (workflow && organ) {
+    settings.setValue(QStringLiteral("window/workflowWidth"), workflow->width());
+    settings.setValue(QStringLiteral("window/organWidth"), organ->width());
+  }
   e->accept();
 }
 
