@@ -283,31 +283,28 @@ class TestDesktopGui : public QObject {
   // A second launch gives the docks the widths the person dragged them to (helper-64: a left dock left at 513 px came
   // back at 437 under Xvfb at 1600x900).
   void secondLaunchKeepsTheDocksWidths() {
-    int workflowLeft = 0, organLeft = 0;
+    // A launch at the screen a person has, the docks dragged to (w, o) or not: empty once they are at (w, o), else
+    // where they are.
+    auto launch = [](MainWindow& window, int w, int o, bool drag) -> QString {
+      window.resize(1600, 900);
+      window.show();
+      if (!QTest::qWaitForWindowExposed(&window)) return QStringLiteral("not shown");
+      auto* workflow = window.findChild<QDockWidget*>("workflowDock");
+      auto* organ = window.findChild<QDockWidget*>("organDock");
+      if (!workflow || !organ) return QStringLiteral("no docks");
+      if (drag) window.resizeDocks({workflow, organ}, {w, o}, Qt::Horizontal);  // by their edges
+      const bool there = waitFor([&] { return std::abs(workflow->width() - w) <= 2 && std::abs(organ->width() - o) <= 2; }, 5000);
+      return there ? QString() : QString("%1 and %2 px, not %3 and %4").arg(workflow->width()).arg(organ->width()).arg(w).arg(o);
+    };
     {
       MainWindow first;
-      first.resize(1600, 900);
-      first.show();
-      QVERIFY(QTest::qWaitForWindowExposed(&first));
-      auto* workflow = first.findChild<QDockWidget*>("workflowDock");
-      auto* organ = first.findChild<QDockWidget*>("organDock");
-      QVERIFY(workflow && organ);
-      first.resizeDocks({workflow, organ}, {513, 447}, Qt::Horizontal);  // dragged by their edges
-      QVERIFY2(waitFor([&] { return std::abs(workflow->width() - 513) <= 2 && std::abs(organ->width() - 447) <= 2; }, 5000), qPrintable(QString("%1 %2 window %3").arg(workflow->width()).arg(organ->width()).arg(first.width())));
-      workflowLeft = workflow->width();
-      organLeft = organ->width();
+      const QString dragged = launch(first, 513, 447, true);
+      QVERIFY2(dragged.isEmpty(), qPrintable(dragged));
       QVERIFY(closeDiscardingChanges(first));
     }
     MainWindow second;
-    second.resize(1600, 900);
-    second.show();
-    QVERIFY(QTest::qWaitForWindowExposed(&second));
-    auto* workflow = second.findChild<QDockWidget*>("workflowDock");
-    auto* organ = second.findChild<QDockWidget*>("organDock");
-    QVERIFY(workflow && organ);
-    QVERIFY2(waitFor([&] { return std::abs(workflow->width() - workflowLeft) <= 2 && std::abs(organ->width() - organLeft) <= 2; }, 5000),
-             qPrintable(QString("left at %1 and %2 px, back at %3 and %4").arg(workflowLeft).arg(organLeft)
-                            .arg(workflow->width()).arg(organ->width())));
+    const QString back = launch(second, 513, 447, false);
+    QVERIFY2(back.isEmpty(), qPrintable("back at " + back));
     QVERIFY(closeDiscardingChanges(second));
   }
 
