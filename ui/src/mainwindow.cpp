@@ -45,6 +45,7 @@
 #include <QSettings>
 #include <QStackedWidget>
 #include <QStatusBar>
+#include <QStyle>
 #include <QTimer>
 #include <QFutureWatcher>
 #include <QtConcurrent/QtConcurrentRun>
@@ -250,19 +251,25 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
     if (workflow && organ) resizeDocks({workflow, organ}, {470, 400}, Qt::Horizontal);
   } else if (workflow && organ) {
     // A later start keeps the layout the person left, but not a frame squeezed by a dock a long text widened in the
-    // last session (issue 62: the left dock came back 580 px wide and the frame 490 px): the frame keeps at least
-    // two fifths of the window (a first start gives it 45 %), the docks back to their first widths when it would not.
+    // last session (issue 62: the left dock came back 580 px wide and the frame 490 px of 1600): the frame keeps at
+    // least a third of the window (a first start gives it 45 %), the docks back to their first widths when it would
+    // not. (Two fifths left a person 66 px to drag at 1600 px, the right dock at its least width: helper-65.)
     // The docks' widths as they were left are given again once the window is laid out at its size: restoreState
-    // alone, applied before, brought a left dock dragged to 513 px back at 437 (helper-64).
+    // alone, applied before, brought a left dock dragged to 513 px back at 437 (helper-64). Whether the frame keeps its
+    // third is judged from those widths (the frame's own width is the old one until the layout runs again: judged from
+    // it, a frame left at 320 of 1600 px came back so at every launch, helper-65).
     const QList<int> left = {settings.value(QStringLiteral("window/workflowWidth"), 0).toInt(),
                              settings.value(QStringLiteral("window/organWidth"), 0).toInt()};
     QTimer::singleShot(0, this, [this, workflow, organ, left] {
-      if (left[0] > 0 && left[1] > 0 && workflow->isVisible() && organ->isVisible() &&
-          !workflow->isFloating() && !organ->isFloating())
-        resizeDocks({workflow, organ}, left, Qt::Horizontal);
-      if (centralWidget() && centralWidget()->width() < width() * 2 / 5) {
+      const bool docked = workflow->isVisible() && organ->isVisible() && !workflow->isFloating() && !organ->isFloating();
+      const int separators = 2 * style()->pixelMetric(QStyle::PM_DockWidgetSeparatorExtent, nullptr, this);
+      const int frame = docked && left[0] > 0 && left[1] > 0 ? width() - left[0] - left[1] - separators
+                                                             : (centralWidget() ? centralWidget()->width() : width());
+      if (frame < width() / 3) {
         const double share = std::min(1.0, width() / 1600.0);  // a first start's widths at 1600 px, narrower below
         resizeDocks({workflow, organ}, {static_cast<int>(470 * share), static_cast<int>(400 * share)}, Qt::Horizontal);
+      } else if (docked && left[0] > 0 && left[1] > 0) {
+        resizeDocks({workflow, organ}, left, Qt::Horizontal);
       }
     });
   }
