@@ -212,7 +212,6 @@ std::uint64_t setupHash(const simcore::BodySetup& s) {
   light.settings = s.settings;
   light.tools = s.tools;
   light.topology = s.topology;
-  light.tears = s.tears;
   light.model = s.model;
   light.mesh.unitToMetre = s.mesh.unitToMetre;
   light.mesh.labelNames = s.mesh.labelNames;
@@ -304,9 +303,6 @@ std::string encodeSetup(const simcore::BodySetup& s) {
     j["tools"]["cautery"] = {
         {"radius", t.cautery.radius}, {"burnTime", t.cautery.burnTime}, {"stiffening", t.cautery.stiffening}};
   j["topology"] = s.topology;
-  // The tears among those changes (a checkpoint of a torn body: its steps' estimates are checked as the run's were),
-  // written only when there are some (the setups recorded before it existed keep their bytes and hash).
-  if (s.tears > 0) j["tears"] = s.tears;
   // The deformable model, when not the FEM (setups recorded before it existed, all FEM, keep their bytes and hash).
   if (s.model != simcore::BodyModel::Fem) j["model"] = simcore::bodyModelName(s.model);
   // The hybrid model's FEM region as it had grown (a checkpoint's or a cut body's setup: a restore builds the same).
@@ -417,7 +413,6 @@ simcore::BodySetup decodeSetup(const std::string& text, RecordedNumerics* numeri
       s.tools.cautery.stiffening = c.at("stiffening");
     }
     s.topology = asInt(j.at("topology"));
-    if (j.contains("tears")) s.tears = asInt(j.at("tears"));
     if (j.contains("model")) s.model = simcore::bodyModelFromString(j.at("model").get<std::string>());
     if (j.contains("regionCentres"))
       for (const auto& c : j.at("regionCentres")) {
@@ -561,7 +556,6 @@ std::string setupProblem(const simcore::BodySetup& s) {
   if (tool.tearLatencySteps < -1 || tool.tearLatencySteps > 1000)
     return "the tear's latency is not between -1 and 1000 steps";
   if (s.topology < 0) return "the topology version is negative";
-  if (s.tears < 0 || s.tears > s.topology) return "the tears are more than the topology changes, or negative";
   // The ranges every input path holds (a run inside the old ones could be set never to end).
   if (const std::string why = simcore::settingsProblem(t); !why.empty()) return why;
   if (auto p = simcore::materialRangeProblem(s.material, "the organ"); !p.empty()) return p;

@@ -487,10 +487,6 @@ bool NewtonLoop::withinAccuracy() {
 bool NewtonLoop::suspect() const {
   if (in_.verifyEveryEstimate()) return true;
   if ((measured_ && !(contraction_ <= kVerifyRho)) || (ratioMeasured_ && !(correctionRatio_ <= kVerifyRho))) return true;
-  return staleFactor();
-}
-
-bool NewtonLoop::staleFactor() const {
   if (w.laggedAt.size() != w.x0.size()) return true;
   double far = 0;
   for (Eigen::Index i = 0; i + 2 < w.x0.size(); i += 3)
@@ -807,12 +803,6 @@ NewtonIteration::Try NewtonLoop::finish(bool ok, int maxIterations) {
     // moved (its positions, velocities and multipliers as it left them).
     const bool verifying = accuracy_ && lagged && settings_.solver == LinearSolverKind::Cholmod && w.chol->valid();
     if (verifying && suspect()) {
-      // A factor built where the organ no longer is would have every step checked from here on (15-20 ms of a 5 ms
-      // step on the patient liver after a cut, the organ carried 5-11 mm from it): a new one is asked for (built on the
-      // second thread when asynchronous, at the next step's start when synchronous). Not for a torn body, whose steps
-      // are all checked anyway: its flap swinging 5 mm from every factor asked for one at nearly every step, and the
-      // pull's steps after the tears waited on them (p99 799 ms against 231 on the patient liver, three runs).
-      if (!in_.verifyEveryEstimate() && staleFactor()) w.drift = true;
       const Verdict v = verify();
       // The multipliers the step ended with (verify() kept them in muBefore).
       if (hasConstraints && w.muBefore.size() == w.cons.multipliers().size()) w.cons.multipliers() = w.muBefore;

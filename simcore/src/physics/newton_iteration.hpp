@@ -132,7 +132,6 @@ class NewtonLoop : public NewtonIteration {
   double secondCorrection();
   bool contactsChange();
   bool suspect() const;
-  bool staleFactor() const;  // the factor was built more than kStaleFactor from the step's start (or for other nodes)
   Try finish(bool ok, int maxIterations);
   const bool prepareInResidual_;
   const bool accuracy_;       // SimulationSettings::accuracyPosition is on

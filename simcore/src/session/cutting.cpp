@@ -93,7 +93,6 @@ TopologyChange Session::changeFromCut(const CutResult& r, std::vector<Eigen::Vec
     if (r.duplicateOf[k] >= 0 && fixed[static_cast<std::size_t>(r.duplicateOf[k])])
       next.fixedNodes.push_back(static_cast<int>(n + k));
   ++next.topology;
-  if (kind == ChangeKind::Tear) ++next.tears;
   change.newNodes = r.newNodes;
   change.labels = r.cutLabels;
   // A tear opens at its own latency (ToolSettings::tearLatencySteps), a blade's cut at the cut's.

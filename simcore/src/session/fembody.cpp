@@ -19,7 +19,7 @@ class FemBody final : public DeformableBody {
     if (!start_.empty() && start_.size() != model_.nodeCount())
       throw MeshError("The body's start positions (" + std::to_string(start_.size()) + ") do not match its mesh (" +
                       std::to_string(model_.nodeCount()) + " nodes).");
-    integrator_.setVerifyEveryEstimate(s.tears > 0);
+    integrator_.setVerifyEveryEstimate(s.topology > 0);
     labels_.resize(model_.tets.size(), 0);
     fixed_.assign(model_.nodeCount(), 0);
     for (int i : s.fixedNodes)

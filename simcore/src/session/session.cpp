@@ -705,7 +705,6 @@ void Session::run() {
         setup_.tearFrom = uncut_.tearFrom;
         setup_.fixedNodes = uncut_.fixedNodes;
         setup_.topology = uncut_.topology;
-        setup_.tears = uncut_.tears;
         setup_.cut = uncut_.cut;
         body_ = makeBody(setup_);
         elementsChanged();

@@ -296,12 +296,10 @@ class Integrator {
   /// Forces the lagged factorisation to be rebuilt at the next step (after a parameter change).
   void invalidateFactorisation();
   /// With the accuracy asked (SimulationSettings::accuracyPosition) and a lagged CHOLMOD factor, every step's estimate
-  /// is checked on the tangent at its end, whatever ended it (issue 64): for a body that was torn (FemBody sets it
-  /// from BodySetup::tears; its flaps' stiffness is far from any factor's: on the
+  /// is checked on the tangent at its end, whatever ended it (issue 64): for a body that was cut or torn (FemBody sets it
+  /// from BodySetup::topology; its flaps' stiffness is far from any factor's: on the
   /// patient liver after tears, steps ending after 1-3 chord iterations estimated 0.003-0.025 mm where exact Newton's
-  /// answer was 0.09-0.52 mm away). The step's end is not moved; a distance not confirmed is said as such. A body cut by
-  /// the blade alone does not need it (`bench_operative --exact-check`, the patient liver's cut and cautery: every
-  /// estimate at least 1.87 times its truth without it) and it was most of such a step: 15-20 ms of 22-27 ms.
+  /// answer was 0.09-0.52 mm away). The step's end is not moved; a distance not confirmed is said as such.
   void setVerifyEveryEstimate(bool on) { verifyEveryEstimate_ = on; }
   bool verifyEveryEstimate() const { return verifyEveryEstimate_; }
   /// Deferred refresh: builds the factor requested at an earlier step (from that step's start positions); the

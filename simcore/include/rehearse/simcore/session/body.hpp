@@ -189,9 +189,6 @@ struct BodySetup {
   SimulationSettings settings;            ///< time step, method, gravity (m/s^2, in the body's frame), ...
   ToolSettings tools;
   int topology = 0;  ///< bumped by every cut (the mesh above is then the cut one, in metres)
-  /// Of those, the tears (each one bumps both): a torn body has every step's error estimate checked on the tangent
-  /// (Integrator::setVerifyEveryEstimate); a body cut by the blade alone does not need it.
-  int tears = 0;
   BodyModel model = BodyModel::Fem;  ///< the deformable model the body is
   CutProgress cut;   ///< the blade's cut while it is on (cutTetrahedra's `progress`)
   /// Told the share done (0..1) while a body takes long to build (the precomputed model's responses); false cancels
