@@ -10,7 +10,7 @@
 // before it existed), and each with and without the accuracy (SimulationSettings::accuracyPosition; 1e-6: the relative
 // residual alone), the experiment of the nonlinear elimination of a torn flap's nodes
 // (SimulationSettings::localElimination, synchronous and asynchronous), and the experiment of tears that part along faces (ToolSettings::tearRemovesElements: the
-// over-stretched elements taken out, the nodes kept), synchronous and asynchronous. With --exact-check, each variant's last run is replayed and every step taken again by exact Newton
+// over-stretched elements taken out, the nodes kept), synchronous, asynchronous, and asynchronous applied when built (as the window applies its tears). With --exact-check, each variant's last run is replayed and every step taken again by exact Newton
 // from the same start (simcore::checkAgainstExact, as `rehearse replay --exact-check`): per phase the largest true
 // error, the lowest estimate for its truth (where the truth is over 5 um), the steps past the accuracy asked, and those
 // where exact Newton went to another solution of the step's equations. Writes operative-steps.csv into the directory
@@ -139,6 +139,8 @@ int main(int argc, char** argv) {
         Variant{"chord, async, 0.05 mm, tears when built", simcore::FactorRefresh::Asynchronous, -1, true, 5e-5, true},
         Variant{"chord, async, 0.05 mm, tears part along faces", simcore::FactorRefresh::Asynchronous, -1, true, 5e-5,
                 false, true},
+        Variant{"chord, async, 0.05 mm, tears when built, part along faces", simcore::FactorRefresh::Asynchronous, -1,
+                true, 5e-5, true, true},
         Variant{"chord, sync, 0.05 mm, tears part along faces", simcore::FactorRefresh::Synchronous, 5, true, 5e-5,
                 false, true},
         Variant{"chord, sync, 0.05 mm, local elimination", simcore::FactorRefresh::Synchronous, 5, true, 5e-5, false,

@@ -90,8 +90,21 @@ BladeSweep tearSquare(const Over& o, const std::array<int, 4>& t, const Eigen::V
 // elements the plane through the worst one's centre, across its stretch, runs through, reached from it through shared
 // faces. (Every over-stretched element at once took a uniformly stretched bar out whole; the worst one alone let the
 // patient liver's pull outrun its tears, 18 of them, until the steps stalled.)
-std::vector<int> tearFront(const std::vector<Over>& over, const std::vector<std::array<int, 4>>& tets,
-                           const Eigen::VectorXd& x) {
+// The elements holding a node the jaws hold are the jaws' bite: they stay with the jaws, and the front is the tissue
+// beside the bite (the worst over-stretched element outside it seeds the plane). Taken out with the rest, the bite's
+// nodes were left with no element, pinned and dropped by the jaws: a bar pulled at its end stayed in one piece.
+// When every over-stretched element is in the bite, the bite is parted as any tissue.
+std::vector<int> tearFront(const std::vector<Over>& allOver, const std::vector<std::array<int, 4>>& tets,
+                           const Eigen::VectorXd& x, const std::vector<int>& held) {
+  auto bites = [&](int e) {
+    for (int v : tets[static_cast<std::size_t>(e)])
+      if (std::find(held.begin(), held.end(), v) != held.end()) return true;
+    return false;
+  };
+  std::vector<Over> outside;
+  for (const Over& o : allOver)
+    if (!bites(o.element)) outside.push_back(o);
+  const std::vector<Over>& over = outside.empty() ? allOver : outside;
   const Over& worst = over.front();
   Eigen::Vector3d centre = Eigen::Vector3d::Zero();
   for (int v : tets[static_cast<std::size_t>(worst.element)]) centre += 0.25 * nodeAt(x, v);
@@ -238,7 +251,8 @@ void Session::tearOverStretched(std::string& message) {
     // stay, so the unknowns, the factor's size and most of the tangent are as they were. A node no element holds any
     // more (a corner of the front) is pinned where it is, out of every surface: nothing draws, touches or moves it.
     // (Kept on a softened element instead, such nodes bridged the crack: a bar taken apart stayed in one piece.)
-    const std::vector<int> front = tearFront(over, tets, state_.x);
+    const std::vector<int> front =
+        tearFront(over, tets, state_.x, tool_.held);
     std::vector<int> uses(body_->nodeCount(), 0);
     for (const auto& t : tets)
       for (int v : t) ++uses[static_cast<std::size_t>(v)];

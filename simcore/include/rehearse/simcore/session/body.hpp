@@ -95,15 +95,15 @@ struct ToolSettings {
   /// test_tear aHeldTearGrowsOnlyWhilePulled. false: every step the jaws hold it (the sessions recorded before this).
   bool tearOnlyWhilePulled = true;
   /// A tear parts the tissue along the faces of the over-stretched elements it runs through (the plane across the worst
-  /// one's stretch, through its centre, and the over-stretched elements it crosses next to it): those elements are
+  /// one's stretch, through its centre, and the over-stretched elements it crosses next to it; the elements holding a
+  /// node the jaws hold, their bite, stay with the jaws when any other element is over-stretched): those elements are
   /// taken out of the mesh and the nodes stay; a node no element holds any more is pinned where it is, and the jaws
   /// let go of it. The unknowns do not change, so the steps after a tear keep a factor of their size and solve a
   /// tangent that changed little: on the patient liver's pull the steps after the tears took 24-28 ms at the median
-  /// and 112-139 ms at the 99th percentile, against 34-49 and 631-1,044 ms re-meshed (BENCHMARKS.md, issue 61). An
-  /// experiment kept for the bench, not the window's: the tissue it takes out is lost (its mass too), and where the
-  /// jaws pull hardest it can take out the layer they hold, pinning it out of sight (a bar pulled at its end lost its
-  /// end layer and stayed in one piece). false: each tear splits its element across the stretch through the cut's
-  /// re-meshing (the window's, and the sessions recorded before this existed).
+  /// and 112-139 ms at the 99th percentile, against 34-49 and 631-1,044 ms re-meshed; with the bite kept, 31-35 and
+  /// 97-119 ms, and the pull tears 18 times instead of 6 (BENCHMARKS.md, issue 61). An experiment kept for the bench,
+  /// not the window's: the tissue it takes out is lost (its mass too). false: each tear splits its element across the
+  /// stretch through the cut's re-meshing (the window's, and the sessions recorded before this existed).
   bool tearRemovesElements = false;
   CutSettings cut;  ///< snapping and the quality the re-meshing keeps
   /// The jaws keep their hold where their own instrument left them while another instrument moves (InputEvent::tool:
