@@ -10,14 +10,14 @@
 // before it existed), and each with and without the accuracy (SimulationSettings::accuracyPosition; 1e-6: the relative
 // residual alone), the experiment of the nonlinear elimination of a torn flap's nodes
 // (SimulationSettings::localElimination, synchronous and asynchronous), and the experiment of tears that part along faces (ToolSettings::tearRemovesElements: the
-// over-stretched elements taken out, the nodes kept), synchronous, asynchronous, and asynchronous applied when built (as the window applies its tears). With --exact-check, each variant's last run is replayed and every step taken again by exact Newton
+// over-stretched elements taken out, the nodes kept), synchronous, asynchronous, and asynchronous applied when built (ToolSettings::tearWhenBuilt; the window waits for a tear's body at its boundary). With --exact-check, each variant's last run is replayed and every step taken again by exact Newton
 // from the same start (simcore::checkAgainstExact, as `rehearse replay --exact-check`): per phase the largest true
 // error, the lowest estimate for its truth (where the truth is over 5 um), the steps past the accuracy asked, and those
 // where exact Newton went to another solution of the step's equations. Writes operative-steps.csv into the directory
 // given (default "."). --only TEXT runs the variants whose name contains TEXT (=NAME: that one). --record CASE records
 // each variant's last run into CASE (a .rehearse file, as `rehearse gesture --record`): a run of the asynchronous
 // variants is not repeatable, and `rehearse replay CASE --exact-check` checks a kept one again. --damping A,B sets the
-// Rayleigh damping (alpha 1/s, beta s; the case's scene has 1, 0; the GUI's is SimulationSettings{}'s 0.1, 0.1).
+// Rayleigh damping (alpha 1/s, beta s; the case's scene has 1, 0; the GUI's is 0.1, 0.02: app::bodySetup).
 //   bench_operative [OUT_DIR] [--repeat N] [--only TEXT] [--exact-check] [--record CASE] [--damping A,B]
 #include "percentile.hpp"
 #include "operative_case.hpp"
