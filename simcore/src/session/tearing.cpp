@@ -251,8 +251,7 @@ void Session::tearOverStretched(std::string& message) {
     // stay, so the unknowns, the factor's size and most of the tangent are as they were. A node no element holds any
     // more (a corner of the front) is pinned where it is, out of every surface: nothing draws, touches or moves it.
     // (Kept on a softened element instead, such nodes bridged the crack: a bar taken apart stayed in one piece.)
-    const std::vector<int> front =
-        tearFront(over, tets, state_.x, tool_.held);
+    const std::vector<int> front = tearFront(over, tets, state_.x, tool_.held);
     std::vector<int> uses(body_->nodeCount(), 0);
     for (const auto& t : tets)
       for (int v : t) ++uses[static_cast<std::size_t>(v)];

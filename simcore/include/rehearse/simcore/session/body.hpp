@@ -101,7 +101,7 @@ struct ToolSettings {
   /// let go of it. The unknowns do not change, so the steps after a tear keep a factor of their size and solve a
   /// tangent that changed little: on the patient liver's pull the steps after the tears took 24-28 ms at the median
   /// and 112-139 ms at the 99th percentile, against 34-49 and 631-1,044 ms re-meshed; with the bite kept, 31-35 and
-  /// 97-119 ms, and the pull tears 18 times instead of 6 (BENCHMARKS.md, issue 61). An experiment kept for the bench,
+  /// 97-119 ms, and the pull tears 16-18 times instead of 5-6 (BENCHMARKS.md, issue 61). An experiment kept for the bench,
   /// not the window's: the tissue it takes out is lost (its mass too). false: each tear splits its element across the
   /// stretch through the cut's re-meshing (the window's, and the sessions recorded before this existed).
   bool tearRemovesElements = false;
