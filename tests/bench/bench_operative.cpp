@@ -18,7 +18,12 @@
 // each variant's last run into CASE (a .rehearse file, as `rehearse gesture --record`): a run of the asynchronous
 // variants is not repeatable, and `rehearse replay CASE --exact-check` checks a kept one again. --damping A,B sets the
 // Rayleigh damping (alpha 1/s, beta s; the case's scene has 1, 0; the GUI's is 0.1, 0.02: app::bodySetup).
+// --organ patient|bodyparts3d: the liver surface the case is meshed from (the scikit-surgery patient's, the default, or
+// BodyParts3D's); --tets N: the meshing's target (default 10000: the patient liver at 9,265 elements; 17000 gives its
+// 15,899 and BodyParts3D's 17,051, issue 64's sizes); --estimate-every N: SimulationSettings::estimateErrorEvery (the
+// command line's 1, the default; the window's 10).
 //   bench_operative [OUT_DIR] [--repeat N] [--only TEXT] [--exact-check] [--record CASE] [--damping A,B]
+//                   [--organ patient|bodyparts3d] [--tets N] [--estimate-every N]
 #include "percentile.hpp"
 #include "operative_case.hpp"
 #include "session_inputs.hpp"
@@ -67,6 +72,9 @@ int main(int argc, char** argv) {
   bool exactCheck = false;
   std::string record;  // --record CASE
   double dampingAlpha = -1, dampingBeta = -1;  // --damping A,B (negative: the scene's)
+  std::string organ = "patient";               // --organ patient|bodyparts3d
+  std::size_t tets = 10000;                    // --tets N: the meshing's target
+  int estimateEvery = 1;                       // --estimate-every N (the window's: 10)
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--exact-check") == 0)
       exactCheck = true;
@@ -83,26 +91,56 @@ int main(int argc, char** argv) {
       only = argv[++i];
     else if (std::strcmp(argv[i], "--record") == 0 && i + 1 < argc)
       record = argv[++i];
+    else if (std::strcmp(argv[i], "--organ") == 0 && i + 1 < argc) {
+      organ = argv[++i];
+      if (organ != "patient" && organ != "bodyparts3d") {
+        std::fprintf(stderr, "--organ takes patient or bodyparts3d\n");
+        return 2;
+      }
+    }
+    else if (std::strcmp(argv[i], "--tets") == 0 && i + 1 < argc) {
+      const long n = std::atol(argv[++i]);
+      if (n < 500 || n > 200000) {
+        std::fprintf(stderr, "--tets takes a meshing target from 500 to 200000\n");
+        return 2;
+      }
+      tets = static_cast<std::size_t>(n);
+    }
+    else if (std::strcmp(argv[i], "--estimate-every") == 0 && i + 1 < argc) {
+      estimateEvery = std::atoi(argv[++i]);
+      if (estimateEvery < 1) {
+        std::fprintf(stderr, "--estimate-every takes a whole number of steps, at least 1\n");
+        return 2;
+      }
+    }
+    else if (argv[i][0] == '-') {
+      std::fprintf(stderr, "unknown option %s (see the comment at the top of bench_operative.cpp)\n", argv[i]);
+      return 2;
+    }
     else
       out = argv[i];
   }
   std::filesystem::create_directories(out);
-  const std::string liver = std::string(REHEARSE_SHARED_DATA) + "/scikit-surgery/patient-liver/liver.vtk";
+  const char* organName = organ == "patient" ? "patient liver" : "BodyParts3D liver";
+  const std::string liver = std::string(REHEARSE_SHARED_DATA) +
+                            (organ == "patient" ? "/scikit-surgery/patient-liver/liver.vtk" : "/bodyparts3d/FMA7197_Liver.obj");
   if (!std::filesystem::exists(liver)) {
-    std::printf("the patient liver is absent (%s): nothing to measure\n", liver.c_str());
+    std::printf("the %s is absent (%s): nothing to measure\n", organName, liver.c_str());
     return 0;
   }
   const std::string dir = out + "/operative-case";
   std::filesystem::create_directories(dir);
-  const testing::OperativeCase oc = testing::writeOperativeCase(liver, dir);
-  std::printf("patient liver: %zu elements, %zu nodes; cystic artery %d elements\n", oc.elements, oc.nodes, oc.artery);
+  const testing::OperativeCase oc = testing::writeOperativeCase(liver, dir, tets);
+  std::printf("%s: %zu elements, %zu nodes; cystic artery %d elements\n", organName, oc.elements, oc.nodes, oc.artery);
   simcore::BodySetup base = testing::sceneBody(simcore::loadScene(dir + "/scene.json"));
   base.settings.method = simcore::NewtonMethod::Chord;
   if (dampingAlpha >= 0) {
     base.settings.rayleighMass = dampingAlpha;
     base.settings.rayleighStiffness = dampingBeta;
   }
-  std::printf("damping: alpha %g 1/s, beta %g s\n", base.settings.rayleighMass, base.settings.rayleighStiffness);
+  base.settings.estimateErrorEvery = estimateEvery;
+  std::printf("damping: alpha %g 1/s, beta %g s; error estimated every %d step(s)\n", base.settings.rayleighMass,
+              base.settings.rayleighStiffness, estimateEvery);
   std::ifstream in(dir + "/chole.json");
   std::stringstream ss;
   ss << in.rdbuf();
