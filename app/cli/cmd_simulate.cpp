@@ -75,7 +75,8 @@ int cmdSimulate(const std::vector<std::string>& args) {
         !why.empty())
       throw UsageError(why);
   if (p.staticSolve) o["static"] = "";
-  const simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial, p.embedded);
+  simcore::FemModel model = simcore::FemModel::build(p.mesh, p.materials, p.defaultMaterial, p.embedded);
+  simcore::setVolumeBarrier(model, p.settings.volumeBarrier);
   for (const auto& e : model.embeddings)
     if (e.outside)
       std::fprintf(stderr, "rehearse: note: %zu vertices of the embedded surface '%s' lie outside the organ\n",

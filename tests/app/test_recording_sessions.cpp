@@ -230,7 +230,8 @@ void TestRecording::stabilitySettingsAreRecorded() {
   QJsonObject j = QJsonDocument::fromJson(QByteArray::fromStdString(app::encodeSetup(s))).object();
   QJsonObject settings = j["settings"].toObject();
   for (const char* key :
-       {"strict", "inversionGuard", "linearisedTolerance", "chordAcceleration", "checkedProjection", "heldBackStop"}) {
+       {"strict", "inversionGuard", "linearisedTolerance", "chordAcceleration", "checkedProjection", "heldBackStop",
+        "volumeBarrier"}) {
     QVERIFY2(settings.contains(key), key);
     settings.remove(key);
   }
@@ -258,6 +259,15 @@ void TestRecording::stabilitySettingsAreRecorded() {
     QVERIFY(!(app::decodeSetup(app::encodeSetup(s)).settings.*flag));
     QVERIFY(!(old.settings.*flag));
   }
+  // The corotational law's volume barrier: on by default (at kVolumeBarrierJ), written with its J, and off in a setup
+  // recorded before it existed.
+  s.settings = simcore::SimulationSettings{};
+  QCOMPARE(s.settings.volumeBarrier, simcore::kVolumeBarrierJ);
+  QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.volumeBarrier, simcore::kVolumeBarrierJ);
+  s.settings.volumeBarrier = 0;
+  QVERIFY(!QString::fromStdString(app::encodeSetup(s)).contains("volumeBarrier"));
+  QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.volumeBarrier, 0.0);
+  QCOMPARE(old.settings.volumeBarrier, 0.0);
   // The accuracy asked in millimetres (issue 64): off by default, written only when on (with its force share), and
   // off in a setup recorded before it existed.
   s.settings = simcore::SimulationSettings{};

@@ -6,6 +6,7 @@
 #include "phantom/phantom.hpp"
 
 #include <rehearse/simcore/fem.hpp>
+#include <rehearse/simcore/integrator.hpp>
 
 #include "fem_patch.hpp"  // simcore/src/physics: the nonlinear elimination's patch (issue 61)
 
@@ -473,6 +474,99 @@ class TestFem : public QObject {
     QVERIFY_THROWS_EXCEPTION(MeshError, materialModelFromString("rubber"));
     const auto m = FemModel::build(ok, {}, {MaterialModel::Linear, 1e3, 0.3, 1000});
     QVERIFY(std::abs(m.lumpedMass.sum() - 1000.0 / 6.0) < 1e-12);
+  }
+
+  // The corotational law's volume barrier (Lame::barrier; sessions set it: SimulationSettings::volumeBarrier). For
+  // crushed elements (J from 0.02 to 0.28, rotated and sheared) its stress is its energy's gradient and its tangent the
+  // stress's derivative (central differences), with and without a prepared tangent; at and above its J it changes not a
+  // bit. And a tet whose apex is pushed towards its base by 1.5 times what the plain law resists at flat: the plain law
+  // has no open equilibrium (its balance (2 mu + lambda)(s - 1) = -f a / V gives s = -0.5, inverted; the inversion guard
+  // stops the solve at its floor, not converged), while with the barrier the static solve converges with the element
+  // open (the apex slides aside as it sinks: a sheared rest, not the straight one), where the potential is stationary
+  // by central differences of the energy alone and least.
+  void volumeBarrierHoldsACrushedElement() {
+    std::mt19937 rng(23);
+    Lame plain = Lame::fromYoung(27e3, 0.4), p = plain;
+    p.barrier = 0.3;
+    const MaterialModel m = MaterialModel::Corotational;
+    for (double s : {0.02, 0.1, 0.28}) {
+      const Eigen::Matrix3d Q1 = Eigen::AngleAxisd(1.1, Eigen::Vector3d(1, 2, -0.5).normalized()).toRotationMatrix();
+      const Eigen::Matrix3d Q2 = Eigen::AngleAxisd(-0.7, Eigen::Vector3d(0.3, -1, 2).normalized()).toRotationMatrix();
+      Eigen::Matrix3d F = Q1 * Eigen::Vector3d(1.1, 0.9, s).asDiagonal().toDenseMatrix() * Q2;
+      F += 0.01 * s * randomMatrix(rng, 1.0);  // a little shear
+      QVERIFY(F.determinant() > 0 && F.determinant() < 0.3);
+      const Eigen::Matrix3d P = firstPiola(m, p, F);
+      QVERIFY(P.allFinite());
+      QVERIFY((P - firstPiola(m, plain, F)).norm() > 1e-3 * P.norm());  // the barrier acts here
+      QVERIFY((P - firstPiola(m, p, F, prepareTangent(m, F))).norm() <= 1e-12 * P.norm());
+      const double h = 1e-7 * s;
+      Eigen::Matrix3d fd;
+      for (int i = 0; i < 9; ++i) {
+        Eigen::Matrix3d Fp = F, Fm = F;
+        Fp(i) += h;
+        Fm(i) -= h;
+        fd(i) = (energyDensity(m, p, Fp) - energyDensity(m, p, Fm)) / (2 * h);
+      }
+      QVERIFY2((fd - P).norm() < 1e-6 * P.norm(), qPrintable(QString("J %1: stress error %2").arg(F.determinant()).arg((fd - P).norm() / P.norm())));
+      const Eigen::Matrix3d dF = randomMatrix(rng, 1.0);
+      const Eigen::Matrix3d fdP = (firstPiola(m, p, F + h * dF) - firstPiola(m, p, F - h * dF)) / (2 * h);
+      for (const Eigen::Matrix3d& an : {firstPiolaDifferential(m, p, F, dF), firstPiolaDifferential(m, p, F, prepareTangent(m, F), dF)})
+        QVERIFY2((fdP - an).norm() < 1e-5 * an.norm(), qPrintable(QString("J %1: tangent error %2").arg(F.determinant()).arg((fdP - an).norm() / an.norm())));
+    }
+    for (const auto& F : testGradients(rng))
+      if (F.determinant() >= 0.3) {
+        QVERIFY(firstPiola(m, p, F) == firstPiola(m, plain, F));
+        QVERIFY(energyDensity(m, p, F) == energyDensity(m, plain, F));
+      }
+    // The pushed tet: base nodes fixed, the apex pushed straight down by 1.5 times what the plain law resists at flat.
+    const double a = 0.01;
+    rehearse::simcore::Mesh tet;
+    tet.points = {{0, 0, 0}, {a, 0, 0}, {0, a, 0}, {0, 0, a}};
+    tet.tets = {{0, 1, 2, 3}};
+    tet.tetLabels = {1};
+    const double V = a * a * a / 6, force = 1.5 * (2 * plain.mu + plain.lambda) * V / a;
+    for (bool withBarrier : {false, true}) {
+      FemModel model = FemModel::build(tet, {}, {MaterialModel::Corotational, 27e3, 0.4, 1000});
+      if (withBarrier) model.lame[0].barrier = 0.3;
+      SimulationSettings settings;
+      settings.gravity.setZero();
+      settings.tolerance = 1e-8;
+      settings.maxNewtonIterations = 200;
+      settings.strict = false;
+      Integrator integrator(model, {0, 1, 2}, settings);
+      SimulationState state = integrator.initialState();
+      Eigen::VectorXd push = Eigen::VectorXd::Zero(12);
+      push[11] = -force;
+      const StepReport r = integrator.solveStatic(state, push);
+      Eigen::Matrix3d Ds;
+      for (int k = 0; k < 3; ++k) Ds.col(k) = state.x.segment<3>(3 * (k + 1)) - state.x.head<3>();
+      const double J = Ds.determinant() / (a * a * a);
+      qInfo("%s: %s, J %.4g", withBarrier ? "with the barrier" : "the plain law", r.status.c_str(), J);
+      if (!withBarrier) {  // the plain law cannot hold it open: its flat element resists less than the push
+        QVERIFY2(r.outcome != StepStatus::Converged || J <= 0,
+                 qPrintable(QString("plain law: %1 at J %2").arg(QString::fromStdString(r.status)).arg(J)));
+        continue;
+      }
+      QVERIFY2(r.outcome == StepStatus::Converged, r.status.c_str());
+      QVERIFY2(J > 0.01 && J < 0.3, qPrintable(QString("J %1").arg(J)));
+      // At rest where the potential E(x) - f.x is stationary and least: its gradient at the apex by central
+      // differences of the energy alone (not the forces the solve used) is the push to 1e-6, and no small move of the
+      // apex lowers it.
+      auto potential = [&](const Eigen::VectorXd& y) { return elasticEnergy(model, y) - push.dot(y); };
+      for (int i = 9; i < 12; ++i) {
+        const double h = 1e-8 * a;
+        Eigen::VectorXd yp = state.x, ym = state.x;
+        yp[i] += h;
+        ym[i] -= h;
+        const double g = (potential(yp) - potential(ym)) / (2 * h);
+        QVERIFY2(std::abs(g) < 1e-6 * force, qPrintable(QString("dPotential/dx%1 = %2 N (push %3 N)").arg(i).arg(g).arg(force)));
+      }
+      for (int k = 0; k < 20; ++k) {
+        Eigen::VectorXd y = state.x;
+        y.tail<3>() += 1e-4 * a * Eigen::Vector3d(randomMatrix(rng, 1.0).col(0)).normalized();
+        QVERIFY(potential(y) > potential(state.x));
+      }
+    }
   }
 
   // The inversion guard: along x + s dx up to the returned s, every guarded element keeps det F >= eta det F(x)

@@ -127,6 +127,7 @@ json settings(const simcore::SimulationSettings& s) {
   if (s.checkedProjection) j["checkedProjection"] = true;
   if (s.heldBackStop) j["heldBackStop"] = true;
   if (s.localElimination) j["localElimination"] = true;
+  if (s.volumeBarrier > 0) j["volumeBarrier"] = s.volumeBarrier;
   if (s.accuracyPosition > 0) {
     j["accuracyPosition"] = s.accuracyPosition;
     j["accuracyForce"] = s.accuracyForce;
@@ -165,6 +166,7 @@ simcore::SimulationSettings settings(const json& j) {
   s.checkedProjection = j.value("checkedProjection", false);
   s.heldBackStop = j.value("heldBackStop", false);
   s.localElimination = j.value("localElimination", false);
+  s.volumeBarrier = j.value("volumeBarrier", 0.0);  // none before it existed
   s.accuracyPosition = j.value("accuracyPosition", 0.0);  // the residual alone decided before it existed
   s.accuracyForce = j.value("accuracyForce", s.accuracyForce);
   return s;

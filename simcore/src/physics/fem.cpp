@@ -212,6 +212,11 @@ FemModel FemModel::build(const Mesh& mesh, const std::map<int, MaterialParams>& 
   return m;
 }
 
+void setVolumeBarrier(FemModel& m, double J) {
+  for (std::size_t e = 0; e < m.lame.size(); ++e)
+    if (m.model[e] == MaterialModel::Corotational) m.lame[e].barrier = J;
+}
+
 Eigen::VectorXd FemModel::restVector() const {
   Eigen::VectorXd x(3 * rest.size());
   for (std::size_t i = 0; i < rest.size(); ++i) x.segment<3>(3 * i) = rest[i];

@@ -61,6 +61,9 @@ std::string toString(NewtonMethod m) {
 }
 
 std::string settingsProblem(const SimulationSettings& s, bool constrained) {
+  if (!(s.volumeBarrier >= 0 && s.volumeBarrier < 1))
+    return "The volume barrier is the volume ratio J below which a crushed element resists more: a number from 0 (off) "
+           "up to, not including, 1.";
   if (s.solver == LinearSolverKind::Cholmod) return {};
   const char* name = s.solver == LinearSolverKind::ConjugateGradient ? "cg" : "dense";
   if (s.attachments == AttachmentMode::Lagrange || constrained)

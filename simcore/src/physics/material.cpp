@@ -34,6 +34,24 @@ Eigen::Matrix3d cross(const Eigen::Vector3d& w) {
 // linearise to the same small-strain behaviour as the other models (P ~ mu (H + H^T) + lambda tr(H) I).
 Lame stable(const Lame& p) { return {p.mu, p.lambda + p.mu}; }
 
+// The corotational law's volume barrier (Lame::barrier): k b(J) for 0 < J < Jb, b(J) = -(J - Jb)^2 ln(J / Jb); its
+// value, first and second derivatives in J (zero outside; an inverted element, J <= 0, is the inversion guard's and its
+// own law's: the barrier is not defined there and adds nothing).
+struct Barrier {
+  double e = 0, d1 = 0, d2 = 0;
+  bool active() const { return d1 != 0 || d2 != 0; }
+};
+Barrier volumeBarrier(const Lame& p, double J) {
+  Barrier b;
+  const double Jb = p.barrier;
+  if (!(Jb > 0) || !(J > 0) || J >= Jb) return b;
+  const double k = kVolumeBarrierStiffness * (p.lambda + p.mu), d = J - Jb, l = std::log(J / Jb);
+  b.e = -k * d * d * l;
+  b.d1 = -k * (2 * d * l + d * d / J);
+  b.d2 = -k * (2 * l + 4 * d / J - d * d / (J * J));
+  return b;
+}
+
 // The split Neo-Hookean of CalculiX and Abaqus (*HYPERELASTIC, NEO HOOKE):
 //   W = C10 (J^-2/3 I1 - 3) + (J - 1)^2 / D1,  C10 = mu / 2,  D1 = 2 / K,  K = lambda + 2 mu / 3.
 // Not defined for inverted elements: J is clamped to a small positive value there.
@@ -138,7 +156,7 @@ double energyDensity(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F) {
       Eigen::Matrix3d R, S;
       polarDecomposition(F, R, S);
       const double t = (S - I).trace();
-      return p.mu * (F - R).squaredNorm() + 0.5 * p.lambda * t * t;
+      return p.mu * (F - R).squaredNorm() + 0.5 * p.lambda * t * t + volumeBarrier(p, F.determinant()).e;
     }
     case MaterialModel::StVK: {
       const Eigen::Matrix3d E = 0.5 * (F.transpose() * F - I);
@@ -158,7 +176,12 @@ double energyDensity(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F) {
 
 Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, const TangentCache& c) {
   if (m != MaterialModel::Corotational) return firstPiola(m, p, F);
-  return 2 * p.mu * (F - c.R) + p.lambda * (c.S.trace() - 3) * c.R;
+  Eigen::Matrix3d P = 2 * p.mu * (F - c.R) + p.lambda * (c.S.trace() - 3) * c.R;
+  if (p.barrier > 0) {
+    const Barrier b = volumeBarrier(p, F.determinant());
+    if (b.active()) P += b.d1 * cofactor(F);
+  }
+  return P;
 }
 
 Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F) {
@@ -171,7 +194,12 @@ Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d
     case MaterialModel::Corotational: {
       Eigen::Matrix3d R, S;
       polarDecomposition(F, R, S);
-      return 2 * p.mu * (F - R) + p.lambda * (S.trace() - 3) * R;  // as with a prepared tangent, to the bit
+      Eigen::Matrix3d P = 2 * p.mu * (F - R) + p.lambda * (S.trace() - 3) * R;  // as with a prepared tangent, to the bit
+      if (p.barrier > 0) {
+        const Barrier b = volumeBarrier(p, F.determinant());
+        if (b.active()) P += b.d1 * cofactor(F);
+      }
+      return P;
     }
     case MaterialModel::StVK: {
       const Eigen::Matrix3d E = 0.5 * (F.transpose() * F - I);
@@ -247,7 +275,15 @@ Eigen::Matrix3d firstPiolaDifferential(MaterialModel m, const Lame& p, const Eig
   const Eigen::Matrix3d B = c.R.transpose() * dF;
   const Eigen::Vector3d w = c.Ginv * Eigen::Vector3d(B(2, 1) - B(1, 2), B(0, 2) - B(2, 0), B(1, 0) - B(0, 1));
   const Eigen::Matrix3d dR = c.R * cross(w);
-  return 2 * p.mu * (dF - dR) + p.lambda * B.trace() * c.R + p.lambda * (c.S - I).trace() * dR;
+  Eigen::Matrix3d dP = 2 * p.mu * (dF - dR) + p.lambda * B.trace() * c.R + p.lambda * (c.S - I).trace() * dR;
+  if (p.barrier > 0) {
+    const Barrier b = volumeBarrier(p, F.determinant());
+    if (b.active()) {
+      const Eigen::Matrix3d C = cofactor(F);
+      dP += b.d2 * C.cwiseProduct(dF).sum() * C + b.d1 * cofactorDifferential(F, dF);
+    }
+  }
+  return dP;
 }
 
 }  // namespace rehearse::simcore

@@ -72,7 +72,10 @@ const std::vector<ComponentDecl>& sceneComponents() {
          "(inexact)"},
         {"inversion_guard", "boolean", "true", "",
          "linear, corotational and neohookean-split elements are kept from inverting (the nodes of an element that "
-         "would go below 1 % of its volume stop)"}}},
+         "would go below 1 % of its volume stop)"},
+        {"volume_barrier", "number", "0.3", "",
+         "corotational elements crushed below this volume ratio J resist ever more (an energy growing without bound as "
+         "J -> 0), so a crushed element's equilibrium stays open; 0 turns it off"}}},
       {"static",
        "Static equilibrium instead of time stepping (registration).",
        {{"newton_iterations", "integer", "30", "", "Newton iterations at most"},
@@ -238,6 +241,9 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.settings.tolerance = value(c, *decl, "tolerance").get<double>();
         s.settings.strict = value(c, *decl, "strict").get<bool>();
         s.settings.inversionGuard = value(c, *decl, "inversion_guard").get<bool>();
+        s.settings.volumeBarrier = value(c, *decl, "volume_barrier").get<double>();
+        if (!(s.settings.volumeBarrier >= 0 && s.settings.volumeBarrier < 1))
+          fail("implicit_euler's volume_barrier is a volume ratio from 0 (off) up to, not including, 1.");
         if (!(s.settings.timeStep > 0) || s.steps < 1) fail("implicit_euler needs dt > 0 and steps >= 1.");
       } else if (type == "static") {
         s.staticSolve = true;

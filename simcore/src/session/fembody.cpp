@@ -104,6 +104,7 @@ class FemBody final : public DeformableBody {
         throw MeshError("A support of the organ names node " + std::to_string(a.node) + " of " +
                         std::to_string(m.nodeCount()) + " or is not a finite spring: the body cannot be built.");
     m.anchors = s.supports;
+    setVolumeBarrier(m, s.settings.volumeBarrier);
     return m;
   }
   FemModel model_;

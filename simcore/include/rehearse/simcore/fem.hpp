@@ -98,6 +98,10 @@ struct FemModel {
   Eigen::VectorXd restVector() const;  ///< 3n
 };
 
+/// Sets the corotational elements' volume barrier (Lame::barrier) to J below which it acts (0: none), as
+/// SimulationSettings::volumeBarrier asks of a simulated body.
+void setVolumeBarrier(FemModel& m, double J);
+
 /// Positions of an embedded surface's vertices for nodal positions x (the mapping x_s = J x).
 std::vector<Eigen::Vector3d> mapEmbedded(const FemModel& m, std::size_t which, const Eigen::VectorXd& x);
 /// Barycentric embedding of points (metres, rest frame) in the model's tetrahedra (markers, probes).

@@ -117,6 +117,14 @@ struct SimulationSettings {
   /// 1 % ends there (StepReport::guardStalled), and a clip its tissue cannot close further stays as far as it closed
   /// (Session::settleHeldBackClips). Recorded only when on (sessions recorded before replay without it).
   bool heldBackStop = true;
+  /// The corotational law's volume barrier (Lame::barrier): below this J = det F an element's energy grows without
+  /// bound as it is crushed, so a crushed element's equilibrium stays open instead of the inversion guard stopping its
+  /// nodes at its floor step after step. Measured on the operative case at 16-17k elements (BENCHMARKS.md, the 2026-12-07
+  /// ninety-eighth session): without it, 11-13 steps of the cut and 49-92 of the pull ended inexact, held back by the
+  /// guard, at 1-3.7 s a step; with it (0.3), 1 of 151 in the pull and none in the cut. 0: off. The model carries it
+  /// (setVolumeBarrier: sessions' bodies and `rehearse simulate` set it from these settings); recorded only when on
+  /// (sessions recorded before it replay without it).
+  double volumeBarrier = kVolumeBarrierJ;
   /// Issue 61, an experiment (off by default; the bench's variant "..., local elimination"): a chord move that leaves
   /// more than a quarter of the residual, half or more of it on a few free nodes (64 at most: a torn flap springing
   /// back, which the lagged factor does not hold), is followed by Newton on those nodes and their neighbours alone, the

@@ -26,11 +26,22 @@ std::string toString(MaterialModel m);
 
 struct Lame {
   double mu = 0, lambda = 0;
+  /// The corotational law's volume barrier (0: none): below this J = det F an element's energy gains
+  /// kVolumeBarrierStiffness (lambda + mu) b(J), b(J) = -(J - Jb)^2 ln(J / Jb), which is zero with its first two
+  /// derivatives at Jb and grows without bound as J -> 0 (the barrier of Li et al. 2020, IPC, on the volume instead of
+  /// a distance). The corotational energy alone stays finite for a flat element, so a tool or a cut's neighbours can
+  /// crush one flat; the inversion guard then stops its nodes at its floor and no step converges again (measured on the
+  /// patient liver at 16k elements: BENCHMARKS.md). With the barrier the equilibrium itself keeps the element open.
+  double barrier = 0;
   /// From Young's modulus E (Pa) and Poisson's ratio nu (0 <= nu < 0.5).
   static Lame fromYoung(double E, double nu) {
     return {E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))};
   }
 };
+
+/// The volume barrier's weight over lambda + mu, and the J below which SimulationSettings::volumeBarrier sets it.
+constexpr double kVolumeBarrierStiffness = 10;
+constexpr double kVolumeBarrierJ = 0.3;
 
 double energyDensity(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F);
 Eigen::Matrix3d firstPiola(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F);
