@@ -27,6 +27,18 @@ Eigen::Matrix3d randomMatrix(std::mt19937& rng, double scale) {
   return m;
 }
 
+// dW/dF by central differences of the energy density (step h in each entry of F).
+Eigen::Matrix3d stressByDifferences(MaterialModel m, const Lame& p, const Eigen::Matrix3d& F, double h) {
+  Eigen::Matrix3d fd;
+  for (int i = 0; i < 9; ++i) {
+    Eigen::Matrix3d Fp = F, Fm = F;
+    Fp(i) += h;
+    Fm(i) -= h;
+    fd(i) = (energyDensity(m, p, Fp) - energyDensity(m, p, Fm)) / (2 * h);
+  }
+  return fd;
+}
+
 // Deformation gradients to test at: near identity, large rotation with stretch, strong compression,
 // and (for the models defined there) inverted.
 std::vector<Eigen::Matrix3d> testGradients(std::mt19937& rng) {
@@ -67,14 +79,7 @@ class TestFem : public QObject {
       for (const auto& F : testGradients(rng)) {
         if (m == MaterialModel::NeoHookeanSplit && F.determinant() <= 0) continue;  // not defined there
         const Eigen::Matrix3d P = firstPiola(m, p, F);
-        const double h = 1e-6;
-        Eigen::Matrix3d fd;
-        for (int i = 0; i < 9; ++i) {
-          Eigen::Matrix3d Fp = F, Fm = F;
-          Fp(i) += h;
-          Fm(i) -= h;
-          fd(i) = (energyDensity(m, p, Fp) - energyDensity(m, p, Fm)) / (2 * h);
-        }
+        const Eigen::Matrix3d fd = stressByDifferences(m, p, F, 1e-6);
         const double err = (fd - P).norm() / std::max(1.0, P.norm());
         QVERIFY2(err < 1e-6, qPrintable(QString("%1: relative error %2").arg(QString::fromStdString(toString(m))).arg(err)));
         QVERIFY(P.allFinite());
@@ -500,13 +505,7 @@ class TestFem : public QObject {
       QVERIFY((P - firstPiola(m, plain, F)).norm() > 1e-3 * P.norm());  // the barrier acts here
       QVERIFY((P - firstPiola(m, p, F, prepareTangent(m, F))).norm() <= 1e-12 * P.norm());
       const double h = 1e-7 * s;
-      Eigen::Matrix3d fd;
-      for (int i = 0; i < 9; ++i) {
-        Eigen::Matrix3d Fp = F, Fm = F;
-        Fp(i) += h;
-        Fm(i) -= h;
-        fd(i) = (energyDensity(m, p, Fp) - energyDensity(m, p, Fm)) / (2 * h);
-      }
+      const Eigen::Matrix3d fd = stressByDifferences(m, p, F, h);
       QVERIFY2((fd - P).norm() < 1e-6 * P.norm(), qPrintable(QString("J %1: stress error %2").arg(F.determinant()).arg((fd - P).norm() / P.norm())));
       const Eigen::Matrix3d dF = randomMatrix(rng, 1.0);
       const Eigen::Matrix3d fdP = (firstPiola(m, p, F + h * dF) - firstPiola(m, p, F - h * dF)) / (2 * h);
