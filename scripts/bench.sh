@@ -22,3 +22,7 @@ xvfb-run -a -s "-screen 0 2560x1440x24" build/tests/bench_rehearsal_view build/b
 build/tests/bench_operative build/bench --repeat 3
 # The GUI's damping (app::bodySetup: alpha 0.1 1/s, beta 0.02 s; the case's scene declares 1 and 0), the GUI's variant.
 build/tests/bench_operative build/bench/gui-damping --repeat 3 --damping 0.1,0.02 --only "=chord, async, 0.05 mm"
+# Issue 64's sizes: the patient liver at 15,899 elements and BodyParts3D's at 17,051, the window's variant, damping and
+# estimate (one run each: about 2 minutes apiece).
+build/tests/bench_operative build/bench/patient-16k --repeat 1 --tets 17000 --damping 0.1,0.02 --estimate-every 10 --only "=chord, async, 0.05 mm"
+build/tests/bench_operative build/bench/bodyparts3d-17k --repeat 1 --organ bodyparts3d --tets 17000 --damping 0.1,0.02 --estimate-every 10 --only "=chord, async, 0.05 mm"
