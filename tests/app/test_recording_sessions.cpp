@@ -268,6 +268,19 @@ void TestRecording::stabilitySettingsAreRecorded() {
   QVERIFY(!QString::fromStdString(app::encodeSetup(s)).contains("volumeBarrier"));
   QCOMPARE(app::decodeSetup(app::encodeSetup(s)).settings.volumeBarrier, 0.0);
   QCOMPARE(old.settings.volumeBarrier, 0.0);
+  {  // a setup another version or machine wrote with a barrier out of range: refused with a sentence, at read
+    s.settings.volumeBarrier = simcore::kVolumeBarrierJ;
+    QJsonObject bad = QJsonDocument::fromJson(QByteArray::fromStdString(app::encodeSetup(s))).object();
+    QJsonObject badSettings = bad["settings"].toObject();
+    badSettings["volumeBarrier"] = 1.5;
+    bad["settings"] = badSettings;
+    try {
+      app::decodeSetup(QJsonDocument(bad).toJson(QJsonDocument::Compact).toStdString());
+      QFAIL("a volume barrier of 1.5 was read");
+    } catch (const std::exception& e) {
+      QVERIFY2(QString(e.what()).contains("volume barrier"), e.what());
+    }
+  }
   // The accuracy asked in millimetres (issue 64): off by default, written only when on (with its force share), and
   // off in a setup recorded before it existed.
   s.settings = simcore::SimulationSettings{};

@@ -119,6 +119,13 @@ class TestScene : public QObject {
     QCOMPARE(bare.settings.rayleighMass, 0.0);
     QCOMPARE(bare.settings.rayleighStiffness, 0.0);
     QCOMPARE(bare.components, std::vector<std::string>({"mesh"}));
+    // The corotational law's volume barrier: at its default without the implicit_euler component or the parameter,
+    // as the scene says with it (0: off).
+    QCOMPARE(bare.settings.volumeBarrier, kVolumeBarrierJ);
+    QCOMPARE(parseScene(scene(false, false, false), f.dir).settings.volumeBarrier, kVolumeBarrierJ);
+    QCOMPARE(parseScene(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "implicit_euler", "volume_barrier": 0}]})",
+                        f.dir).settings.volumeBarrier,
+             0.0);
   }
 
   // Refused by name, on files of our own: these checks run whether or not ../shared/data is there.
@@ -141,6 +148,10 @@ class TestScene : public QObject {
     expect(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "solver", "factor": "magic"}]})", "supernodal or simplicial");
     expect(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "attachments", "nodes": [0], "mode": "glue"}]})", "projection");
     expect(R"({"components": [{"type": "mesh", "file": "no-such-mesh.vtu"}]})", "no-such-mesh.vtu");
+    expect(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "implicit_euler", "volume_barrier": 1}]})",
+           "volume_barrier");
+    expect(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "implicit_euler", "volume_barrier": -0.1}]})",
+           "volume_barrier");
     expect(R"({"components": 3})", "components");
     expect("{oops", "not valid JSON");
   }

@@ -543,6 +543,8 @@ std::string setupProblem(const simcore::BodySetup& s) {
       !inEnum(t.attachments, simcore::AttachmentMode::Lagrange) ||
       !inEnum(t.factorRefresh, simcore::FactorRefresh::Deferred))
     return "the solver, method, attachment or refresh setting is not one this version knows";
+  if (!(t.volumeBarrier >= 0 && t.volumeBarrier < 1))
+    return "the volume barrier is not a volume ratio from 0 up to, not including, 1";
   const auto& tool = s.tools;
   for (double v : {tool.graspRadius, tool.maxGraspForce, tool.bladeLength, tool.toolRadius, tool.depenetrationSpeed,
                    tool.cut.snap, tool.cut.minQuality, tool.cut.minVolumeFraction, tool.clip.length, tool.clip.width,
