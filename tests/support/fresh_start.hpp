@@ -28,7 +28,7 @@ inline void forgetEarlierRuns() {
 // it asks (about the case's unsaved changes, or about a rehearsal nothing keeps). True when the window closed.
 inline bool closeDiscardingChanges(QWidget& window) {
   window.close();
-  for (const char* name : {"unsavedChangesBox", "unkeptRehearsalBox"})
+  for (const char* name : {"unsavedChangesBox", "unkeptRehearsalBox", "endRehearsalBox"})
     if (auto* box = window.findChild<QMessageBox*>(QString::fromLatin1(name)))
       QTest::mouseClick(box->button(QMessageBox::Discard), Qt::LeftButton);
   return !window.isVisible();

@@ -26,6 +26,7 @@
 #include <QLabel>
 #include <QLineEdit>
 #include <QMenuBar>
+#include <QMessageBox>
 #include <QProgressBar>
 #include <QRadioButton>
 #include <QSlider>
@@ -277,6 +278,17 @@ inline void wheelDeeper(QWidget* target, QPoint at, int notches) {
 }
 #endif
 // Types `text` into a spin box as a user does (all selected, the digits, then `end`: Return, or Tab to leave it).
+// An edit that starts another session over a rehearsal nothing keeps asks first ("endRehearsalBox", opened by the edit
+// itself): answered Discard, as a person ending it would. False when a box was asked and did not go.
+inline bool discardTheRehearsalIfAsked(rehearse::ui::MainWindow& w) {
+  auto* box = w.findChild<QMessageBox*>("endRehearsalBox");
+  if (!box) return true;
+  QTest::mouseClick(box->button(QMessageBox::Discard), Qt::LeftButton);
+  const bool gone = waitFor([&] { return !w.findChild<QMessageBox*>("endRehearsalBox"); }, 10000);
+  w.activateWindow();  // (the window manager gives it back after a box; offscreen has none)
+  return gone && QTest::qWaitForWindowActive(&w);
+}
+
 inline void typeInto(QAbstractSpinBox* box, const QString& text, Qt::Key end = Qt::Key_Return) {
   box->selectAll();
   QTest::keyClicks(box, text);

@@ -28,6 +28,8 @@ class TestAppearanceGui : public QObject {
 
   // F10 on the window, and the page's answer.
   QList<QVariant> estimateWithF10();
+  // Edits, an undo and an import that end an unrecorded rehearsal ask first (aNewCaseEndsTheRehearsal's part).
+  void editsThatEndTheRehearsalAsk(const QString& unkept, const QString& folder);
 
  private slots:
   void initTestCase();

@@ -17,6 +17,13 @@
 #include <rehearse/imaging/render.hpp>
 
 #include <QMessageBox>
+#include <QDir>
+#include <QDropEvent>
+#include <QTimer>
+#include <QFile>
+#include <QUrl>
+#include <QMimeData>
+#include <QPointer>
 #include <QPushButton>
 #include <QAction>
 #include <QApplication>
@@ -525,7 +532,16 @@ void TestAppearanceGui::viewModesWithTheKeyboard() {
 // Moving the organ after the estimate: said stale, not composited; Undo makes it current again.
 void TestAppearanceGui::movedOrganMakesItStale() {
   const int width = w_->width(), least = w_->minimumSizeHint().width();
+  // The tear before (graspPullUntilItTears) is not kept: moving the organ ends that rehearsal, asked first (Discard).
+  QVERIFY(!panel_->unkeptWork().isEmpty());
   w_->editCase("Move (test)", [](app::Case& c) { c.pose.t.x() += 0.005; });
+  QMessageBox* box = nullptr;
+  QVERIFY(waitFor([&] { return (box = w_->findChild<QMessageBox*>("endRehearsalBox")) && box->isVisible(); }, 10000));
+  QVERIFY2(box->text().contains("Move (test)"), qPrintable(box->text()));
+  QTest::mouseClick(box->button(QMessageBox::Discard), Qt::LeftButton);
+  QVERIFY(waitFor([&] { return !w_->findChild<QMessageBox*>("endRehearsalBox"); }, 10000));
+  w_->activateWindow();  // (the window manager gives it back after a box; offscreen has none)
+  QVERIFY(QTest::qWaitForWindowActive(w_.get()));
   QVERIFY(!w_->caseData()->appearanceCurrent());
   // The status bar's long sentence does not widen the window (a person's check saw it grow from 1600 to 1622 px here,
   // and past the screen's 1920 px on another case): it is elided, whole in its tooltip.
@@ -607,6 +623,76 @@ void TestAppearanceGui::savedAndComposedAgainAfterReopening() {
 // did not keep; Discard starts the empty case, which shows no simulated organ and asks nothing more about the old
 // one's rehearsal. (A person's check found the old organ
 // kept on show, greyed at t = 20.59 s, and its cut asked about again at every Ctrl+Q, Ctrl+N and Ctrl+O.)
+// An edit, an undo or an import that would start another session ends a rehearsal nothing keeps: it asks first ("a
+// person imported a mesh over a cut rehearsal and it was gone without a word", where quitting and Reset asked). Cancel
+// keeps the rehearsal and the case as they were; Discard ends the rehearsal and the import goes ahead, undoable.
+void TestAppearanceGui::editsThatEndTheRehearsalAsk(const QString& unkept, const QString& folder) {
+  // The question (window-modal), answered with the mouse; what it asked kept.
+  QString asked;
+  auto answer = [&](QMessageBox::StandardButton button) {
+    QMessageBox* box = nullptr;
+    if (!waitFor(
+            [&] {
+              box = w_->findChild<QMessageBox*>("endRehearsalBox");
+              return box && box->isVisible();
+            },
+            10000))
+      return false;
+    asked = box->text() + " " + box->informativeText();
+    QTest::mouseClick(box->button(button), Qt::LeftButton);
+    return waitFor([&] { return !w_->findChild<QMessageBox*>("endRehearsalBox"); }, 10000);
+  };
+  const auto before = w_->caseData();
+  // The support's stiffness (a new start), Cancel: the field shows the case's value again.
+  auto* support = panel_->findChild<QDoubleSpinBox*>("simSupport");
+  QVERIFY(support);
+  const double shown = support->value();
+  support->setValue(shown + 100);
+  QVERIFY(answer(QMessageBox::Cancel));
+  QVERIFY2(asked.contains(unkept) && asked.contains("Change support") && asked.contains("recording"), qPrintable(asked));
+  QCOMPARE(w_->caseData(), before);
+  QCOMPARE(panel_->unkeptWork(), unkept);
+  QVERIFY(waitFor([&] { return support->value() == shown; }, 10000));
+  QCOMPARE(w_->caseData(), before);
+  QCOMPARE(w_->statusBar()->currentMessage(), QStringLiteral("Cancelled: the rehearsal stays as it is."));
+  // A mesh dropped on the window (the same as File > Import Mesh), Cancel: nothing read, the organ as it was.
+  const QString cube = QDir(folder).filePath("cube.vtk");
+  {
+    QFile f(cube);
+    QVERIFY(f.open(QIODevice::WriteOnly));
+    // A 60 mm cube in five tetrahedra (legacy VTK, millimetres).
+    f.write("# vtk DataFile Version 3.0\ncube\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 double\n"
+            "0 0 0\n60 0 0\n60 60 0\n0 60 0\n0 0 60\n60 0 60\n60 60 60\n0 60 60\n"
+            "CELLS 5 25\n4 0 1 3 4\n4 1 2 3 6\n4 1 4 5 6\n4 3 6 7 4\n4 1 3 4 6\n"
+            "CELL_TYPES 5\n10\n10\n10\n10\n10\n");
+  }
+  auto drop = [&] {  // as a user drags it from the file manager
+    QMimeData mime;
+    mime.setUrls({QUrl::fromLocalFile(cube)});
+    QDragEnterEvent enter(QPoint(600, 400), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
+    QApplication::sendEvent(w_.get(), &enter);
+    QDropEvent event(QPointF(600, 400), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
+    QApplication::sendEvent(w_.get(), &event);
+  };
+  drop();
+  QVERIFY(answer(QMessageBox::Cancel));
+  QVERIFY2(asked.contains(unkept) && asked.contains("importing cube.vtk"), qPrintable(asked));
+  QTest::qWait(500);
+  QCOMPARE(w_->caseData(), before);
+  QCOMPARE(panel_->unkeptWork(), unkept);
+  // Discard: the rehearsal ends at once, the cube comes in, and Ctrl+Z brings the organ back (nothing to ask then).
+  drop();
+  QVERIFY(answer(QMessageBox::Discard));
+  QVERIFY2(asked.contains("importing cube.vtk"), qPrintable(asked));
+  QCOMPARE(panel_->unkeptWork(), QString());
+  QVERIFY(waitFor([&] { return w_->caseData()->organ->volume.tets.size() == 5; }, 60000));
+  w_->activateWindow();
+  QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+  QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier);
+  QVERIFY(waitFor([&] { return w_->caseData()->organ == before->organ; }, 10000));
+  QVERIFY(!w_->findChild<QMessageBox*>("endRehearsalBox"));
+}
+
 void TestAppearanceGui::aNewCaseEndsTheRehearsal() {
   QVERIFY(rehearseFromRest());
   auto* view = w_->frameView();
@@ -637,8 +723,24 @@ void TestAppearanceGui::aNewCaseEndsTheRehearsal() {
   // A second line, after the recording: only that one is named, as such.
   QVERIFY(dragTheHook(view, panel_, widget(0.35, 0.6), widget(0.6, 0.6), [this](int n) { return stepsOn(n); }));
   QVERIFY2(waitFor([&] { return burnt() > recorded; }, 30000), qPrintable(panel_->unkeptWork()));
-  const QString unkept = panel_->unkeptWork();
+  QString unkept = panel_->unkeptWork();
   QCOMPARE(unkept, QStringLiteral("burnt since the recording stopped"));
+  editsThatEndTheRehearsalAsk(unkept, dir.path());
+  if (QTest::currentTestFailed()) return;
+  // That ended the rehearsal (an import, discarded, then undone): back in step 7, another line for New Case to ask about.
+  const auto ended = panel_->lastFrame();
+  QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
+  if (!panel_->isPlaying()) QTest::keyClick(w_.get(), Qt::Key_F5);  // (a new organ starts paused)
+  QVERIFY(waitFor([&] {
+    const auto f = panel_->lastFrame();
+    return f && f != ended && f->steps > 5 && f->positions.size() == c.organ->volume.points.size();
+  }, 60000));
+  QTest::keyClick(w_.get(), Qt::Key_J);
+  QCOMPARE(view->tool(), ui::Tool::Cautery);
+  QVERIFY(dragTheHook(view, panel_, widget(0.35, 0.5), widget(0.6, 0.5), [this](int n) { return stepsOn(n); }));
+  QVERIFY2(waitFor([&] { return burnt() > 0; }, 30000), qPrintable(panel_->unkeptWork()));
+  unkept = panel_->unkeptWork();
+  QCOMPARE(unkept, QStringLiteral("burnt"));
   QTest::keyClick(w_.get(), Qt::Key_N, Qt::ControlModifier);
   QMessageBox* box = nullptr;
   QVERIFY(waitFor(

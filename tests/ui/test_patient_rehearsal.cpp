@@ -480,14 +480,18 @@ struct PatientRehearsal {
     const auto& c = *kept;
     // Issue 61: no held node at all (Release All on the mesh step, then back to step 7): the tissue around the organ
     // carries it (the default support, gravity into the scene), so it starts where the frame shows it and stays.
+    // (Each of these starts the organ again: the cut rehearsal before is asked about, and discarded.)
     panel->findChild<QComboBox*>("simGravity")->setCurrentIndex(1);
+    QVERIFY(discardTheRehearsalIfAsked(*w_));
     panel->findChild<QDoubleSpinBox*>("simSupport")->setValue(100);  // Pa/mm, the default
+    QVERIFY(discardTheRehearsalIfAsked(*w_));
     // Gravity is the case's stated choice (saved with it, undoable under its own name).
     QCOMPARE(w_->caseData()->material.gravity, app::GravityChoice::IntoTheScene);
     QTest::keyClick(w_.get(), Qt::Key_1, Qt::AltModifier);
     auto* release = w_->findChild<QPushButton*>("clearAttachments");
     QVERIFY(release);
     QTest::mouseClick(release, Qt::LeftButton);
+    QVERIFY(discardTheRehearsalIfAsked(*w_));  // (the pull before may have torn it)
     QVERIFY(w_->caseData()->attachments.empty());
     QTest::keyClick(w_.get(), Qt::Key_7, Qt::AltModifier);
     auto unheld = [&](const std::shared_ptr<const ui::SimulationFrame>& f) {

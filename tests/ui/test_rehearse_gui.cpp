@@ -38,6 +38,7 @@
 
 #include <QComboBox>
 #include <QLabel>
+#include <QWheelEvent>
 #include <QScrollArea>
 #include <QtCharts/QChartView>
 #include <QtCharts/QLineSeries>
@@ -675,11 +676,29 @@ class TestRehearseGui : public QObject {
     const bool saidOpened = waitFor([&] { return pageStatus->text().contains("the grasper opened and was withdrawn"); }, 10000);
     qInfo("the page after the slip and the release: %s", qPrintable(pageStatus->text()));
     QVERIFY2(saidOpened && !pageStatus->text().contains("Released: the tissue relaxes"), qPrintable(pageStatus->text()));
+    // The wheel after the slip (a person pushing the jaws with it saw the frame zoom once they had slipped): it says
+    // the jaws hold nothing and leaves the view's zoom as it was.
+    {
+      const double zoom = view->zoom();
+      QWheelEvent wheel(QPointF(at), view->mapToGlobal(QPointF(at)), QPoint(), QPoint(0, 240), Qt::NoButton,
+                        Qt::NoModifier, Qt::NoScrollPhase, false);
+      QApplication::sendEvent(view, &wheel);
+      QCOMPARE(view->zoom(), zoom);
+      QVERIFY2(w_->statusBar()->currentMessage().contains("hold nothing"), qPrintable(w_->statusBar()->currentMessage()));
+    }
     // A press beside the organ then (the view's corner): the grasper says to press on the organ, and the page no longer
     // says the tissue slipped (a person read the two together).
     QTest::mousePress(view, Qt::LeftButton, {}, QPoint(5, 5));
     QTest::mouseRelease(view, Qt::LeftButton, {}, QPoint(5, 5));
     QVERIFY2(waitFor([&] { return !pageStatus->text().contains("slipped"); }, 5000), qPrintable(pageStatus->text()));
+    {  // that press gave the wheel back to the view: it zooms again
+      const double zoom = view->zoom();
+      QWheelEvent wheel(QPointF(at), view->mapToGlobal(QPointF(at)), QPoint(), QPoint(0, 240), Qt::NoButton,
+                        Qt::NoModifier, Qt::NoScrollPhase, false);
+      QApplication::sendEvent(view, &wheel);
+      QVERIFY(view->zoom() > zoom);
+      QTest::keyClick(view, Qt::Key_Home);  // (the frame fitted again)
+    }
     const long before = panel->lastFrame()->steps;
     QVERIFY(startedAgain());  // Reset (and play); then the organ at rest again in the frames shown
     QVERIFY(waitFor([&] { return panel->lastFrame()->steps < before && panel->lastFrame()->steps > 5; }));

@@ -28,6 +28,8 @@ class CaseCommand : public QUndoCommand {
       : QUndoCommand(text), d_(d), before_(std::move(before)), after_(std::move(after)), merge_(mergeId) {}
   void undo() override { d_->setVersion(before_); }
   void redo() override { d_->setVersion(after_); }
+  const std::shared_ptr<const app::Case>& before() const { return before_; }
+  const std::shared_ptr<const app::Case>& after() const { return after_; }
   int id() const override { return merge_ >= 0 ? 1 : -1; }
   bool mergeWith(const QUndoCommand* other) override {
     auto* o = dynamic_cast<const CaseCommand*>(other);
@@ -99,12 +101,49 @@ CaseDocument::~CaseDocument() {
   autosaveWatcher_.waitForFinished();
 }
 
-void CaseDocument::edit(const QString& text, const std::function<void(app::Case&)>& fn, int mergeId) {
-  if (!case_) return;
-  auto after = std::make_shared<app::Case>(*case_);
-  fn(*after);
-  undo_.push(new CaseCommand(this, case_, std::move(after), text, mergeId));
-  emit edited(text);
+bool CaseDocument::edit(const QString& text, const std::function<void(app::Case&)>& fn, int mergeId) {
+  if (!case_) return false;
+  auto copy = std::make_shared<app::Case>(*case_);
+  fn(*copy);
+  std::shared_ptr<const app::Case> after = std::move(copy);
+  auto push = [this, before = case_, after, text, mergeId] {
+    if (case_ != before) return;  // (another version came in while the guard asked: this edit was made on the old one)
+    undo_.push(new CaseCommand(this, case_, after, text, mergeId));
+    emit edited(text);
+  };
+  if (guard_ && !guard_(*case_, *after, tr("the edit \u201c%1\u201d").arg(text), push)) return false;
+  push();
+  return true;
+}
+
+bool CaseDocument::undoAsked(std::function<void()> done) {
+  if (!undo_.canUndo() || !case_) return false;
+  const auto* command = dynamic_cast<const CaseCommand*>(undo_.command(undo_.index() - 1));
+  auto undo = [this, index = undo_.index(), done] {
+    if (undo_.index() != index) return;
+    undo_.undo();
+    if (done) done();
+  };
+  if (command && guard_ && command->before() &&
+      !guard_(*case_, *command->before(), tr("undoing \u201c%1\u201d").arg(undo_.undoText()), undo))
+    return false;
+  undo();
+  return true;
+}
+
+bool CaseDocument::redoAsked(std::function<void()> done) {
+  if (!undo_.canRedo() || !case_) return false;
+  const auto* command = dynamic_cast<const CaseCommand*>(undo_.command(undo_.index()));
+  auto redo = [this, index = undo_.index(), done] {
+    if (undo_.index() != index) return;
+    undo_.redo();
+    if (done) done();
+  };
+  if (command && guard_ && command->after() &&
+      !guard_(*case_, *command->after(), tr("redoing \u201c%1\u201d").arg(undo_.redoText()), redo))
+    return false;
+  redo();
+  return true;
 }
 
 void CaseDocument::setVersion(std::shared_ptr<const app::Case> version) {

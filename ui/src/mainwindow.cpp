@@ -99,6 +99,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   wb_.status = [this](const QString& text) { say(text); };
   wb_.log = [this](const QString& text) { logMessage(text); };
   wb_.goToStep = [this](Step s) { setStep(s); };
+  wb_.endRehearsal = [this](const QString& doing, std::function<void()> then) {
+    askToEndRehearsal(doing, [this, then = std::move(then)] {
+      if (!simulation_->unkeptWork().isEmpty()) simulation_->reset();  // ended now: what follows does not ask again
+      then();
+    });
+  };
   wb_.currentStep = [this] { return step_; };
   keys_ = std::make_unique<StepKeys>(this, wb_.currentStep);
   wb_.keys = keys_.get();
@@ -209,6 +215,12 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   connect(jobs_, &JobRunner::busyChanged, this, &MainWindow::setBusy);
   connect(jobs_, &JobRunner::refused, this, &MainWindow::say);
   connect(doc_, &CaseDocument::changed, this, &MainWindow::onCaseChanged);
+  doc_->setGuard([this](const app::Case& before, const app::Case& after, const QString& what,
+                        std::function<void()> proceed) {
+    if (!simulation_ || simulation_->unkeptWork().isEmpty() || !simulation_->startsAnew(before, after)) return true;
+    askToEndRehearsal(what, std::move(proceed));  // (asks: there is a rehearsal to end)
+    return false;
+  });
   connect(doc_, &CaseDocument::loaded, this, &MainWindow::onLoadFinished);
   connect(doc_, &CaseDocument::progress, this, &MainWindow::showProgress);
   connect(jobs_, &JobRunner::progress, this, &MainWindow::showProgress);
@@ -846,6 +858,37 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
     });
   });
   box->open();
+}
+
+bool MainWindow::askToEndRehearsal(const QString& doing, std::function<void()> then) {
+  // An edit, an undo or an import that starts another session ended an unrecorded cut without a word (a person
+  // imported a mesh over a cut rehearsal), where quitting, opening another case and Reset ask.
+  const QString unkept = simulation_ ? simulation_->unkeptWork() : QString();
+  if (unkept.isEmpty()) {
+    then();
+    return true;
+  }
+  auto* box = new QMessageBox(
+      QMessageBox::Warning, tr("Rehearsal not kept"),
+      tr("The rehearsal on \u201c%1\u201d (%2) is not kept: %3 ends it.").arg(doc_->displayName(), unkept, doing),
+      QMessageBox::Discard | QMessageBox::Cancel, this);
+  box->setObjectName(QStringLiteral("endRehearsalBox"));
+  box->setInformativeText(tr("Only a recording keeps a rehearsal (Ctrl+R). Discard ends it; Cancel goes back to it."));
+  box->setDefaultButton(QMessageBox::Cancel);
+  box->setAttribute(Qt::WA_DeleteOnClose);
+  box->setWindowModality(Qt::WindowModal);
+  // The organ waits while the question is read (what it names would change); Cancel plays it on.
+  const bool wasPlaying = simulation_->isPlaying();
+  if (wasPlaying) simulation_->pause();
+  connect(box, &QMessageBox::finished, this, [this, box, wasPlaying, then = std::move(then)](int) {
+    if (box->standardButton(box->clickedButton()) == QMessageBox::Discard) return then();
+    if (wasPlaying) simulation_->play();
+    sayBriefly(tr("Cancelled: the rehearsal stays as it is."));
+    // A field that was changed (the support's stiffness) shows the case's value again.
+    if (doc_->hasCase()) onCaseChanged(CaseDocument::Parts());
+  });
+  box->open();
+  return false;
 }
 
 void MainWindow::cancelLoading() {

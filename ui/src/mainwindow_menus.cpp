@@ -151,13 +151,21 @@ QList<QAction*> MainWindow::buildEditMenu() {
   connect(doc_, &CaseDocument::edited, this, [this] {
     if (said_ == Said::UndoneOrRedone) say(QString());
   });
+  // An undo or a redo that would end an unrecorded rehearsal asks first (the document's guard): the stack's own
+  // connections are replaced by ones that go through it.
+  QObject::disconnect(undo, &QAction::triggered, doc_->undoStack(), nullptr);
+  QObject::disconnect(redo, &QAction::triggered, doc_->undoStack(), nullptr);
   connect(undo, &QAction::triggered, this, [this] {
-    const QUndoStack* stack = doc_->undoStack();
-    sayAs(Said::UndoneOrRedone, tr("Undone: %1").arg(stack->text(stack->index())));
+    doc_->undoAsked([this] {
+      const QUndoStack* stack = doc_->undoStack();
+      sayAs(Said::UndoneOrRedone, tr("Undone: %1").arg(stack->text(stack->index())));
+    });
   });
   connect(redo, &QAction::triggered, this, [this] {
-    const QUndoStack* stack = doc_->undoStack();
-    if (stack->index() > 0) sayAs(Said::UndoneOrRedone, tr("Redone: %1").arg(stack->text(stack->index() - 1)));
+    doc_->redoAsked([this] {
+      const QUndoStack* stack = doc_->undoStack();
+      if (stack->index() > 0) sayAs(Said::UndoneOrRedone, tr("Redone: %1").arg(stack->text(stack->index() - 1)));
+    });
   });
   return {undo, redo};
 }

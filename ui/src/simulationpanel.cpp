@@ -59,6 +59,9 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   startRefused_ = false;
   startWord_.clear();
   kept_.reset();
+  // The frame on show is the ended session's until the new one's first arrives: what it shows is not this rehearsal's
+  // (an undo right after a Discard asked again about the rehearsal just discarded).
+  superseded_ = last_;
   if (!started) {
     // The old session is over: its organ is not shown on (a new case without an organ kept showing it, greyed, and
     // its cut was asked about).
@@ -422,6 +425,12 @@ void SimulationPanel::reset() {
   emit wasReset();
 }
 
+bool SimulationPanel::startsAnew(const app::Case& before, const app::Case& after) const {
+  if (!sameBody(&before, &after) || before.material.supportModulus != after.material.supportModulus) return true;
+  const bool cut = last_ && last_->surface;
+  return before.material.gravity != after.material.gravity && !recordRequest_ && setup().startInEquilibrium && !cut;
+}
+
 bool SimulationPanel::mechanicallyOther(app::MaterialSettings a, app::MaterialSettings b) {
   a.tearStrain = b.tearStrain = 0;  // (where the tissue tears does not move the start)
   return !(a == b);
@@ -523,7 +532,8 @@ SimulationPanel::Work SimulationPanel::workOf(const SimulationFrame& f) {
 
 QString SimulationPanel::unkeptWork() const {
   // Nothing when the frame on show is not of the case's organ (a new case without one shows none).
-  if (!last_ || recording() || !organ_ || !last_->organ || last_->organ->organ != organ_->organ) return {};
+  if (!last_ || last_ == superseded_ || recording() || !organ_ || !last_->organ || last_->organ->organ != organ_->organ)
+    return {};
   const Work now = workOf(*last_);
   // What a recording stopped since this session's start keeps: only what the instruments did after it is unkept, and
   // only that is named (a person read the recorded cut among what the question said was lost). Not the blood lost:

@@ -143,8 +143,9 @@ void FitPage::addFitButtons(QVBoxLayout* layout) {
   });
   connect(revert_, &QPushButton::clicked, this, [this] {
     if (fitUndoIndex_ != wb_.doc->undoStack()->index()) return;
-    wb_.doc->undoStack()->undo();  // Redo brings the fit back, and with it this choice
-    status_->setText(tr("Fit reverted: the organ and the pose are as before it (Ctrl+Shift+Z brings it back)."));
+    wb_.doc->undoAsked([this] {  // Redo brings the fit back, and with it this choice
+      status_->setText(tr("Fit reverted: the organ and the pose are as before it (Ctrl+Shift+Z brings it back)."));
+    });
   });
   connect(wb_.doc->undoStack(), &QUndoStack::indexChanged, this, [this](int index) {
     const bool open = fitUndoIndex_ >= 0 && index == fitUndoIndex_;

@@ -169,6 +169,15 @@ void MeshPage::importMeshDialog() {
 
 void MeshPage::importMesh(const QString& path) {
   if (!data()) return;
+  // A new organ ends the rehearsal: one nothing keeps is asked about before the file is read (Discard ends it).
+  if (wb_.endRehearsal)
+    wb_.endRehearsal(tr("importing %1").arg(QFileInfo(path).fileName()), [this, path] { importMeshNow(path); });
+  else
+    importMeshNow(path);
+}
+
+void MeshPage::importMeshNow(const QString& path) {
+  if (!data()) return;
   const int target = targetTets_->value();
   const std::string unit = meshUnit_->currentText().toStdString();
   QSettings().setValue(QStringLiteral("mesh/targetTets"), target);
@@ -257,10 +266,15 @@ void MeshPage::importMesh(const QString& path) {
             dropped << (n == 1 ? tr("attachment") : tr("%1 attachments").arg(n));
           if (was.poseAligned) dropped << tr("alignment");
         }
-        wb_.doc->edit(segmentation ? tr("Import segmentation") : tr("Import mesh"), [&](app::Case& k) {
-          k.setOrgan(prepared);
-          if (renamed && !named.empty()) k.name = named;
-        });
+        if (!wb_.doc->edit(segmentation ? tr("Import segmentation") : tr("Import mesh"), [&](app::Case& k) {
+              k.setOrgan(prepared);
+              if (renamed && !named.empty()) k.name = named;
+            })) {
+          // (a rehearsal begun while the file was read: asked about, the organ comes in on Discard)
+          wb_.status(tr("%1 comes in once the question about the rehearsal is answered Discard.")
+                         .arg(QFileInfo(path).fileName()));
+          return;
+        }
         emit importNotesChanged();
         const auto& organ = *data()->organ;
         const std::set<int> labels(organ.volume.tetLabels.begin(), organ.volume.tetLabels.end());

@@ -60,6 +60,7 @@ class GraspTool final : public FrameTool {
       return;
     }
     if (!bitten_.isValid() || bitten_.elapsed() < 300) return;
+    slipped_ = true;  // (the wheel, meant for the jaws, does not zoom the view until the next bite)
     letGo(heldTissue_ ? QObject::tr("The tissue slipped out of the grasper: the jaws hold nothing and are withdrawn; "
                                     "press on the organ to grasp again.")
                       : QObject::tr("The jaws closed on nothing: no tissue they may hold lay within the jaw bite "
@@ -86,7 +87,9 @@ class GraspTool final : public FrameTool {
   // The wheel while holding: the jaws towards (up) or away from the camera, 2 mm a notch.
   bool wheel(QWheelEvent* e) override {
     if (!holding_) {
-      if (!(e->buttons() & Qt::LeftButton)) return false;  // (a press that missed the organ: not a zoom either)
+      // A press that missed the organ is not a zoom either; nor is the wheel after the tissue slipped out (a person
+      // pushing the jaws with the wheel saw the frame zoom once they had slipped): until the next bite it says why.
+      if (!(e->buttons() & Qt::LeftButton) && !slipped_) return false;
       emit view_.toolMessage(
           QObject::tr("The jaws hold nothing: press on the organ to grasp it; the wheel then moves them towards or "
                       "away from the camera."));
@@ -118,6 +121,7 @@ class GraspTool final : public FrameTool {
   }
   // `byKey`: Space closed them (no button is held: Space again lets go).
   void bite(const Eigen::Vector2d& f, bool byKey = false) {
+    slipped_ = false;  // (a press, on the organ or not, gives the wheel back to the view)
     const auto& c = view_.caseData();
     if (!c || !c->hasPose) {
       emit view_.toolMessage(QObject::tr("The grasper works on the organ placed over the frame: place it first (step 4)."));
@@ -156,6 +160,7 @@ class GraspTool final : public FrameTool {
   }
   bool holding_ = false;
   bool heldTissue_ = false;  ///< a frame since the bite showed the jaws holding tissue
+  bool slipped_ = false;     ///< the jaws let go on their own (a slip, a bite on nothing) since the last bite
   QElapsedTimer bitten_;  ///< since the jaws last closed
   bool resume_ = false;                             ///< taken again while holding: the next drag starts at `jaws_`
   Eigen::Vector3d jaws_ = Eigen::Vector3d::Zero();  ///< where the grasper last put its tip (camera frame, m)

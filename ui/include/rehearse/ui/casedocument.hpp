@@ -53,8 +53,20 @@ class CaseDocument : public QObject {
   bool hasCase() const { return case_ != nullptr; }
   QUndoStack* undoStack() { return &undo_; }
 
-  /// Applies `edit` to a copy of the case and pushes it as one undoable command.
-  void edit(const QString& text, const std::function<void(app::Case&)>& edit, int mergeId = -1);
+  /// Applies `edit` to a copy of the case and pushes it as one undoable command. False when the guard held it (the
+  /// case unchanged for now: pushed later if the guard's question lets it, unless the case changed meanwhile).
+  bool edit(const QString& text, const std::function<void(app::Case&)>& edit, int mergeId = -1);
+  /// Asked before an edit, an undo or a redo replaces the case (`before` by `after`, `what` names it: "the edit
+  /// \u201cAttach 4 nodes\u201d", "undoing \u201c...\u201d"): true goes ahead at once; false holds it, and the guard
+  /// calls `proceed` later if it may go ahead after all (a question answered), or never. The window asks there before
+  /// it ends a rehearsal nothing keeps.
+  using Guard = std::function<bool(const app::Case& before, const app::Case& after, const QString& what,
+                                   std::function<void()> proceed)>;
+  void setGuard(Guard guard) { guard_ = std::move(guard); }
+  /// Undo and redo as a person asks for them (Ctrl+Z, Ctrl+Shift+Z): the guard is asked first; `done` runs once undone
+  /// (at once, or after the guard's question). False when not done now.
+  bool undoAsked(std::function<void()> done = {});
+  bool redoAsked(std::function<void()> done = {});
   /// Replaces the displayed version (undo/redo, the end of a preview).
   void setVersion(std::shared_ptr<const app::Case> version);
 
@@ -130,6 +142,7 @@ class CaseDocument : public QObject {
   void setSaved(std::shared_ptr<const app::Case> version);
   QString recoveredFrom_;  ///< the file the autosave being opened was made from (recoverAutosave)
   QUndoStack undo_;
+  Guard guard_;
   QString path_, loadingPath_, savingPath_;
   std::shared_ptr<const app::Case> savingVersion_;  ///< the version a running save writes
   QStringList notes_;

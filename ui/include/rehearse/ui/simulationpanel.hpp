@@ -92,6 +92,10 @@ class SimulationPanel : public QWidget {
   /// keeps no simulation state, a recording keeps the session): "cut or torn, burnt, 2 clips", empty when nothing
   /// (or when it is being recorded). The window asks before it ends such a rehearsal (quit, new or another case).
   QString unkeptWork() const;
+  /// Whether the case `after` starts another session where `before` had one running (setCase): another organ, shape,
+  /// pose, attachments or support, or another gravity before anything was cut (postRunParameters); such an edit, undo
+  /// or redo ends the rehearsal (the window asks first).
+  bool startsAnew(const app::Case& before, const app::Case& after) const;
   /// What the instruments did to the organ, from a frame (SimulationPanel::unkeptWork compares and words it).
   struct Work {
     std::size_t cutFaces = 0, elements = 0, burnt = 0, clips = 0;
@@ -157,6 +161,7 @@ class SimulationPanel : public QWidget {
     Eigen::Vector3d gravity = Eigen::Vector3d::Zero();
   } asked_;
   std::optional<RecordRequest> recordRequest_;  ///< what is being recorded (a reset starts a new session with it)
+  std::shared_ptr<const SimulationFrame> superseded_;  ///< the frame on show when the last session started
   std::optional<Work> kept_;  ///< what a recording of this session, stopped, keeps (unkeptWork: only more is unkept)
   SessionHost* host_ = nullptr;                 ///< runs the session (a child of the panel)
   QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not

@@ -50,6 +50,9 @@ struct Workbench {
   std::function<void(const QString&)> log;          ///< a sentence for the Messages panel only
   std::function<void(app::Step)> goToStep;          ///< shows a step's page (and its default tool)
   std::function<app::Step()> currentStep;
+  /// Runs `then` once a rehearsal nothing keeps has ended: at once when there is none, else after asking whether
+  /// `doing` may end it (MainWindow::askToEndRehearsal; Discard ends it, Cancel runs nothing).
+  std::function<void(const QString& doing, std::function<void()> then)> endRehearsal;
   StepKeys* keys = nullptr;
 };
 
