@@ -741,6 +741,21 @@ void TestAppearanceGui::aNewCaseEndsTheRehearsal() {
   QVERIFY2(waitFor([&] { return burnt() > 0; }, 30000), qPrintable(panel_->unkeptWork()));
   unkept = panel_->unkeptWork();
   QCOMPARE(unkept, QStringLiteral("burnt"));
+  {  // Redo (Ctrl+Shift+Z) of the import would end this one too: asked, and Cancel keeps it and the organ.
+    QCOMPARE(w_->undoStack()->redoText(), QStringLiteral("Import mesh"));
+    const auto organ = w_->caseData()->organ;
+    QTest::keyClick(w_.get(), Qt::Key_Z, Qt::ControlModifier | Qt::ShiftModifier);
+    QMessageBox* box = nullptr;
+    QVERIFY(waitFor([&] { return (box = w_->findChild<QMessageBox*>("endRehearsalBox")) && box->isVisible(); }, 10000));
+    QVERIFY2(box->text().contains("redoing \u201cImport mesh\u201d") && box->text().contains(unkept),
+             qPrintable(box->text()));
+    QTest::mouseClick(box->button(QMessageBox::Cancel), Qt::LeftButton);
+    QVERIFY(waitFor([&] { return !w_->findChild<QMessageBox*>("endRehearsalBox"); }, 10000));
+    QCOMPARE(w_->caseData()->organ, organ);
+    QCOMPARE(panel_->unkeptWork(), unkept);
+    w_->activateWindow();
+    QVERIFY(QTest::qWaitForWindowActive(w_.get()));
+  }
   QTest::keyClick(w_.get(), Qt::Key_N, Qt::ControlModifier);
   QMessageBox* box = nullptr;
   QVERIFY(waitFor(

@@ -116,33 +116,19 @@ bool CaseDocument::edit(const QString& text, const std::function<void(app::Case&
   return true;
 }
 
-bool CaseDocument::undoAsked(std::function<void()> done) {
-  if (!undo_.canUndo() || !case_) return false;
-  const auto* command = dynamic_cast<const CaseCommand*>(undo_.command(undo_.index() - 1));
-  auto undo = [this, index = undo_.index(), done] {
-    if (undo_.index() != index) return;
-    undo_.undo();
+bool CaseDocument::stepAsked(bool back, std::function<void()> done) {
+  if (!(back ? undo_.canUndo() : undo_.canRedo()) || !case_) return false;
+  const auto* command = dynamic_cast<const CaseCommand*>(undo_.command(undo_.index() - (back ? 1 : 0)));
+  auto step = [this, back, index = undo_.index(), done] {
+    if (undo_.index() != index) return;  // (the history moved while the guard asked)
+    back ? undo_.undo() : undo_.redo();
     if (done) done();
   };
-  if (command && guard_ && command->before() &&
-      !guard_(*case_, *command->before(), tr("undoing \u201c%1\u201d").arg(undo_.undoText()), undo))
-    return false;
-  undo();
-  return true;
-}
-
-bool CaseDocument::redoAsked(std::function<void()> done) {
-  if (!undo_.canRedo() || !case_) return false;
-  const auto* command = dynamic_cast<const CaseCommand*>(undo_.command(undo_.index()));
-  auto redo = [this, index = undo_.index(), done] {
-    if (undo_.index() != index) return;
-    undo_.redo();
-    if (done) done();
-  };
-  if (command && guard_ && command->after() &&
-      !guard_(*case_, *command->after(), tr("redoing \u201c%1\u201d").arg(undo_.redoText()), redo))
-    return false;
-  redo();
+  const std::shared_ptr<const app::Case> target = command ? (back ? command->before() : command->after()) : nullptr;
+  const QString what = back ? tr("undoing \u201c%1\u201d").arg(undo_.undoText())
+                            : tr("redoing \u201c%1\u201d").arg(undo_.redoText());
+  if (target && guard_ && !guard_(*case_, *target, what, step)) return false;
+  step();
   return true;
 }
 

@@ -65,8 +65,8 @@ class CaseDocument : public QObject {
   void setGuard(Guard guard) { guard_ = std::move(guard); }
   /// Undo and redo as a person asks for them (Ctrl+Z, Ctrl+Shift+Z): the guard is asked first; `done` runs once undone
   /// (at once, or after the guard's question). False when not done now.
-  bool undoAsked(std::function<void()> done = {});
-  bool redoAsked(std::function<void()> done = {});
+  bool undoAsked(std::function<void()> done = {}) { return stepAsked(true, std::move(done)); }
+  bool redoAsked(std::function<void()> done = {}) { return stepAsked(false, std::move(done)); }
   /// Replaces the displayed version (undo/redo, the end of a preview).
   void setVersion(std::shared_ptr<const app::Case> version);
 
@@ -141,6 +141,7 @@ class CaseDocument : public QObject {
   std::shared_ptr<const app::Case> saved_;  ///< the version in the case's file (or as opened); isModified()
   void setSaved(std::shared_ptr<const app::Case> version);
   QString recoveredFrom_;  ///< the file the autosave being opened was made from (recoverAutosave)
+  bool stepAsked(bool back, std::function<void()> done);
   QUndoStack undo_;
   Guard guard_;
   QString path_, loadingPath_, savingPath_;
