@@ -126,6 +126,14 @@ class TestScene : public QObject {
     QCOMPARE(parseScene(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "implicit_euler", "volume_barrier": 0}]})",
                         f.dir).settings.volumeBarrier,
              0.0);
+    // With another law: unasked, or asked off, it is accepted (the default stands for whatever law there is).
+    QVERIFY(parseScene(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "material", "model": "stvk"},
+                                          {"type": "implicit_euler"}]})",
+                       f.dir).defaultMaterial.model == MaterialModel::StVK);
+    QCOMPARE(parseScene(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "material", "model": "stvk"},
+                                           {"type": "implicit_euler", "volume_barrier": 0}]})",
+                        f.dir).settings.volumeBarrier,
+             0.0);
   }
 
   // Refused by name, on files of our own: these checks run whether or not ../shared/data is there.
@@ -152,6 +160,10 @@ class TestScene : public QObject {
            "volume_barrier");
     expect(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "implicit_euler", "volume_barrier": -0.1}]})",
            "volume_barrier");
+    // Asked for where no law can honour it (the barrier is the corotational law's): refused, not dropped.
+    expect(R"({"components": [{"type": "mesh", "file": "beam.vtu"}, {"type": "material", "model": "stvk"},
+                              {"type": "implicit_euler", "volume_barrier": 0.3}]})",
+           "corotational law only");
     expect(R"({"components": 3})", "components");
     expect("{oops", "not valid JSON");
   }

@@ -183,6 +183,7 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
   s.settings.rayleighStiffness = 0;
   std::set<std::string> seen;
   bool haveMesh = false;
+  bool explicitBarrier = false;  // implicit_euler names volume_barrier
   for (const auto& c : root["components"]) {
     if (!c.is_object() || !c.contains("type") || !c["type"].is_string()) fail("every component needs a \"type\".");
     const std::string type = c["type"].get<std::string>();
@@ -242,6 +243,7 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
         s.settings.strict = value(c, *decl, "strict").get<bool>();
         s.settings.inversionGuard = value(c, *decl, "inversion_guard").get<bool>();
         s.settings.volumeBarrier = value(c, *decl, "volume_barrier").get<double>();
+        explicitBarrier = c.contains("volume_barrier");
         if (!(s.settings.volumeBarrier >= 0 && s.settings.volumeBarrier < 1))
           fail("implicit_euler's volume_barrier is a volume ratio from 0 (off) up to, not including, 1.");
         if (!(s.settings.timeStep > 0) || s.steps < 1) fail("implicit_euler needs dt > 0 and steps >= 1.");
@@ -286,6 +288,15 @@ Scene parseScene(const std::string& text, const std::string& baseDir) {
   for (const auto& [label, m] : s.materials)
     if (const std::string why = materialRangeProblem(m, "the material of label " + std::to_string(label)); !why.empty())
       fail(why + ".");
+  // The volume barrier is the corotational law's (Lame::barrier): asked for in a scene whose every law is another, it
+  // could not be honoured (refused, not dropped). Unasked, its default stands for whatever law there is.
+  if (explicitBarrier && s.settings.volumeBarrier > 0) {
+    bool corotational = s.defaultMaterial.model == MaterialModel::Corotational;
+    for (const auto& [label, m] : s.materials) corotational = corotational || m.model == MaterialModel::Corotational;
+    if (!corotational)
+      fail("implicit_euler's volume_barrier acts on the corotational law only, and no material here is corotational: "
+           "set it to 0 or use the corotational law.");
+  }
   if (seen.count("implicit_euler"))
     if (const std::string why = runLengthProblem(static_cast<double>(s.steps), s.settings.timeStep); !why.empty())
       fail(why + ".");
