@@ -636,8 +636,10 @@ void TestAppearanceGui::editsThatEndTheRehearsalAsk(const QString& unkept, const
               box = w_->findChild<QMessageBox*>("endRehearsalBox");
               return box && box->isVisible();
             },
-            10000))
+            10000)) {
+      qWarning("no question came: %s", qPrintable(w_->statusText()));
       return false;
+    }
     asked = box->text() + " " + box->informativeText();
     QTest::mouseClick(box->button(button), Qt::LeftButton);
     return waitFor([&] { return !w_->findChild<QMessageBox*>("endRehearsalBox"); }, 10000);
@@ -666,22 +668,39 @@ void TestAppearanceGui::editsThatEndTheRehearsalAsk(const QString& unkept, const
             "CELLS 5 25\n4 0 1 3 4\n4 1 2 3 6\n4 1 4 5 6\n4 3 6 7 4\n4 1 3 4 6\n"
             "CELL_TYPES 5\n10\n10\n10\n10\n10\n");
   }
-  auto drop = [&] {  // as a user drags it from the file manager
+  auto drop = [&](const QString& file) {  // as a user drags it from the file manager
     QMimeData mime;
-    mime.setUrls({QUrl::fromLocalFile(cube)});
+    mime.setUrls({QUrl::fromLocalFile(file)});
     QDragEnterEvent enter(QPoint(600, 400), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
     QApplication::sendEvent(w_.get(), &enter);
     QDropEvent event(QPointF(600, 400), Qt::CopyAction, &mime, Qt::LeftButton, Qt::NoModifier);
     QApplication::sendEvent(w_.get(), &event);
   };
-  drop();
+  // A file refused (a 6 mm "organ": a wrong unit) costs the rehearsal nothing: it is asked about only once a file is
+  // read (asked before, a person's Discard lost a burn to a file then refused).
+  const QString tiny = QDir(folder).filePath("tiny.vtk");
+  {
+    QFile f(tiny);
+    QVERIFY(f.open(QIODevice::WriteOnly));
+    f.write("# vtk DataFile Version 3.0\ntiny\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n"
+            "0 0 0\n6 0 0\n0 6 0\n0 0 6\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n");
+  }
+  drop(tiny);
+  QVERIFY2(waitFor([&] { return w_->statusText().contains("organs measure 10 to 1000 mm"); }, 30000),
+           qPrintable(w_->statusText()));
+  QVERIFY(!w_->findChild<QMessageBox*>("endRehearsalBox"));
+  QCOMPARE(w_->caseData(), before);
+  QCOMPARE(panel_->unkeptWork(), unkept);
+  // The cube, Cancel: nothing imported, the organ and the rehearsal as they were.
+  drop(cube);
   QVERIFY(answer(QMessageBox::Cancel));
   QVERIFY2(asked.contains(unkept) && asked.contains("importing cube.vtk"), qPrintable(asked));
   QTest::qWait(500);
   QCOMPARE(w_->caseData(), before);
   QCOMPARE(panel_->unkeptWork(), unkept);
+  QVERIFY2(w_->statusText().contains("cube.vtk was not imported"), qPrintable(w_->statusText()));
   // Discard: the rehearsal ends at once, the cube comes in, and Ctrl+Z brings the organ back (nothing to ask then).
-  drop();
+  drop(cube);
   QVERIFY(answer(QMessageBox::Discard));
   QVERIFY2(asked.contains("importing cube.vtk"), qPrintable(asked));
   QCOMPARE(panel_->unkeptWork(), QString());

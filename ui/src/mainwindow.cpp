@@ -99,11 +99,14 @@ MainWindow::MainWindow(QWidget* parent) : QMainWindow(parent) {
   wb_.status = [this](const QString& text) { say(text); };
   wb_.log = [this](const QString& text) { logMessage(text); };
   wb_.goToStep = [this](Step s) { setStep(s); };
-  wb_.endRehearsal = [this](const QString& doing, std::function<void()> then) {
-    askToEndRehearsal(doing, [this, then = std::move(then)] {
-      if (!simulation_->unkeptWork().isEmpty()) simulation_->reset();  // ended now: what follows does not ask again
-      then();
-    });
+  wb_.endRehearsal = [this](const QString& doing, std::function<void()> then, std::function<void()> otherwise) {
+    askToEndRehearsal(
+        doing,
+        [this, then = std::move(then)] {
+          if (!simulation_->unkeptWork().isEmpty()) simulation_->reset();  // ended now: what follows does not ask again
+          then();
+        },
+        std::move(otherwise));
   };
   wb_.currentStep = [this] { return step_; };
   keys_ = std::make_unique<StepKeys>(this, wb_.currentStep);
@@ -860,7 +863,7 @@ void MainWindow::askToKeepChanges(const QString& doing, std::function<void()> th
   box->open();
 }
 
-bool MainWindow::askToEndRehearsal(const QString& doing, std::function<void()> then) {
+bool MainWindow::askToEndRehearsal(const QString& doing, std::function<void()> then, std::function<void()> otherwise) {
   // An edit, an undo or an import that starts another session ended an unrecorded cut without a word (a person
   // imported a mesh over a cut rehearsal), where quitting, opening another case and Reset ask.
   const QString unkept = simulation_ ? simulation_->unkeptWork() : QString();
@@ -880,10 +883,12 @@ bool MainWindow::askToEndRehearsal(const QString& doing, std::function<void()> t
   // The organ waits while the question is read (what it names would change); Cancel plays it on.
   const bool wasPlaying = simulation_->isPlaying();
   if (wasPlaying) simulation_->pause();
-  connect(box, &QMessageBox::finished, this, [this, box, wasPlaying, then = std::move(then)](int) {
+  connect(box, &QMessageBox::finished, this,
+          [this, box, wasPlaying, then = std::move(then), otherwise = std::move(otherwise)](int) {
     if (box->standardButton(box->clickedButton()) == QMessageBox::Discard) return then();
     if (wasPlaying) simulation_->play();
     sayBriefly(tr("Cancelled: the rehearsal stays as it is."));
+    if (otherwise) otherwise();
     // A field that was changed (the support's stiffness) shows the case's value again.
     if (doc_->hasCase()) onCaseChanged(CaseDocument::Parts());
   });

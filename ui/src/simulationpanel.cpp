@@ -62,6 +62,7 @@ void SimulationPanel::startSession(const SimulationSetup& s, std::optional<Recor
   // The frame on show is the ended session's until the new one's first arrives: what it shows is not this rehearsal's
   // (an undo right after a Discard asked again about the rehearsal just discarded).
   superseded_ = last_;
+  resetPending_ = false;
   if (!started) {
     // The old session is over: its organ is not shown on (a new case without an organ kept showing it, greyed, and
     // its cut was asked about).
@@ -420,6 +421,7 @@ void SimulationPanel::reset() {
     startSession(setup());
   } else {
     host_->reset();
+    resetPending_ = true;  // (the frames of steps before it are not the rehearsal's: unkeptWork)
   }
   updateButtons();
   emit wasReset();
@@ -487,6 +489,7 @@ SimulationPanel::ShownError SimulationPanel::shownError(const SimulationFrame& f
 
 void SimulationPanel::onFrame(std::shared_ptr<const SimulationFrame> f) {
   last_ = f;
+  if (f->steps == 0) resetPending_ = false;  // the Reset's own frame: what comes after is the new rehearsal's
   shown_ = shownError(*f, shown_);
   if (asked_.model != f->model && f->message.contains(u"refused")) {
     // The model asked for was refused or its build cancelled: the list shows what runs.
@@ -532,7 +535,7 @@ SimulationPanel::Work SimulationPanel::workOf(const SimulationFrame& f) {
 
 QString SimulationPanel::unkeptWork() const {
   // Nothing when the frame on show is not of the case's organ (a new case without one shows none).
-  if (!last_ || last_ == superseded_ || recording() || !organ_ || !last_->organ || last_->organ->organ != organ_->organ)
+  if (!last_ || last_ == superseded_ || resetPending_ || recording() || !organ_ || !last_->organ || last_->organ->organ != organ_->organ)
     return {};
   const Work now = workOf(*last_);
   // What a recording stopped since this session's start keeps: only what the instruments did after it is unkept, and

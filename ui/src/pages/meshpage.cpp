@@ -169,15 +169,6 @@ void MeshPage::importMeshDialog() {
 
 void MeshPage::importMesh(const QString& path) {
   if (!data()) return;
-  // A new organ ends the rehearsal: one nothing keeps is asked about before the file is read (Discard ends it).
-  if (wb_.endRehearsal)
-    wb_.endRehearsal(tr("importing %1").arg(QFileInfo(path).fileName()), [this, path] { importMeshNow(path); });
-  else
-    importMeshNow(path);
-}
-
-void MeshPage::importMeshNow(const QString& path) {
-  if (!data()) return;
   const int target = targetTets_->value();
   const std::string unit = meshUnit_->currentText().toStdString();
   QSettings().setValue(QStringLiteral("mesh/targetTets"), target);
@@ -247,7 +238,10 @@ void MeshPage::importMeshNow(const QString& path) {
       if (!visualNote.empty()) notes.push_back(visualNote);
       QStringList qnotes;
       for (const auto& n : notes) qnotes << QString::fromStdString(n);
-      return [this, prepared, path, qnotes, segmentation, unmeshed] {
+      // A new organ ends the rehearsal: one nothing keeps is asked about once the file has been read and meshed (asked
+      // before, a Discard lost a burnt rehearsal to a file then refused for its unit: a person's check). Discard ends
+      // it and the organ comes in; Cancel imports nothing.
+      auto apply = [this, prepared, path, qnotes, segmentation, unmeshed] {
         importNotes_ = qnotes;
         // A case without a file that was the built-in phantom is named after the organ that replaces the phantom's
         // (the unsaved-changes question and Save As name it so); undone with the import.
@@ -301,6 +295,13 @@ void MeshPage::importMeshNow(const QString& path) {
         }
         wb_.status(said);
         emit meshImported(true, {});
+      };
+      return [this, apply, path] {
+        if (!wb_.endRehearsal) return apply();
+        wb_.endRehearsal(tr("importing %1").arg(QFileInfo(path).fileName()), apply, [this, path] {
+          wb_.status(tr("%1 was not imported: the rehearsal stays as it is.").arg(QFileInfo(path).fileName()));
+          emit meshImported(false, tr("cancelled"));
+        });
       };
     } catch (const simcore::Cancelled&) {
       return [this] {

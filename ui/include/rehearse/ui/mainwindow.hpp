@@ -72,10 +72,10 @@ class MainWindow : public QMainWindow {
   void askToKeepChanges(const QString& doing, std::function<void()> then);
   /// Runs `then` at once when no rehearsal that nothing keeps is under way (SimulationPanel::unkeptWork); otherwise
   /// asks (a window-modal box, objectName "endRehearsalBox": Discard / Cancel) whether `doing` ("importing liver.vtk",
-  /// "the edit \u201cAttach 4 nodes\u201d") may end it: Discard runs `then`, Cancel says so and plays the organ on.
-  /// True when `then` ran at once. Edits, undos and redos that start another session ask here (the document's guard),
-  /// and so does an import before it reads its file.
-  bool askToEndRehearsal(const QString& doing, std::function<void()> then);
+  /// "the edit \u201cAttach 4 nodes\u201d") may end it: Discard runs `then`, Cancel says so, plays the organ on and runs
+  /// `otherwise`. True when `then` ran at once. Edits, undos and redos that start another session ask here (the
+  /// document's guard), and so does an import once it has read its file.
+  bool askToEndRehearsal(const QString& doing, std::function<void()> then, std::function<void()> otherwise = {});
   bool isModified() const { return doc_->isModified(); }
   bool autosaveNewerThanCase() const { return doc_->autosaveNewerThanCase(); }
   /// Records the rehearsal (step 7) into the current case file from rest, the trainee named; one sentence on

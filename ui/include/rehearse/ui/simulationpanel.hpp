@@ -162,6 +162,7 @@ class SimulationPanel : public QWidget {
   } asked_;
   std::optional<RecordRequest> recordRequest_;  ///< what is being recorded (a reset starts a new session with it)
   std::shared_ptr<const SimulationFrame> superseded_;  ///< the frame on show when the last session started
+  bool resetPending_ = false;  ///< Reset asked, its frame (step 0) not shown yet
   std::optional<Work> kept_;  ///< what a recording of this session, stopped, keeps (unkeptWork: only more is unkept)
   SessionHost* host_ = nullptr;                 ///< runs the session (a child of the panel)
   QString startWord_;  ///< how the session started: in equilibrium where the frame shows it, or why not

@@ -20,8 +20,8 @@ class MeshPage : public StepPage {
   void refresh(const app::Case& c) override;
   void caseLoaded() override;
 
-  /// Imports a surface or volume mesh on a worker; emits meshImported. A rehearsal nothing keeps is asked about first
-  /// (Workbench::endRehearsal: the new organ ends it); Cancel imports nothing and emits nothing.
+  /// Imports a surface or volume mesh on a worker; emits meshImported. A rehearsal nothing keeps is asked about once
+  /// the file is read (Workbench::endRehearsal: the new organ ends it); Cancel imports nothing.
   void importMesh(const QString& path);
   void importMeshDialog();
   int targetTets() const;
@@ -39,7 +39,6 @@ class MeshPage : public StepPage {
   void importNotesChanged();
 
  private:
-  void importMeshNow(const QString& path);
   QSpinBox* targetTets_ = nullptr;
   QComboBox* meshUnit_ = nullptr;
   QTreeWidget* labels_ = nullptr;

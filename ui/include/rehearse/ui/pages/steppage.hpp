@@ -51,8 +51,8 @@ struct Workbench {
   std::function<void(app::Step)> goToStep;          ///< shows a step's page (and its default tool)
   std::function<app::Step()> currentStep;
   /// Runs `then` once a rehearsal nothing keeps has ended: at once when there is none, else after asking whether
-  /// `doing` may end it (MainWindow::askToEndRehearsal; Discard ends it, Cancel runs nothing).
-  std::function<void(const QString& doing, std::function<void()> then)> endRehearsal;
+  /// `doing` may end it (MainWindow::askToEndRehearsal; Discard ends it, Cancel runs `otherwise`).
+  std::function<void(const QString& doing, std::function<void()> then, std::function<void()> otherwise)> endRehearsal;
   StepKeys* keys = nullptr;
 };
 
