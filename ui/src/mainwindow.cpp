@@ -889,8 +889,12 @@ bool MainWindow::askToEndRehearsal(const QString& doing, std::function<void()> t
     if (wasPlaying) simulation_->play();
     sayBriefly(tr("Cancelled: the rehearsal stays as it is."));
     if (otherwise) otherwise();
-    // A field that was changed (the support's stiffness) shows the case's value again.
-    if (doc_->hasCase()) onCaseChanged(CaseDocument::Parts());
+    // A field that was changed (the support's stiffness) shows the case's value again: the fields alone are shown
+    // again (the views and the composition have not changed).
+    if (const auto& data = doc_->data()) {
+      simulation_->setCase(data);  // (the same case: the panel's fields refilled, the session untouched)
+      for (StepPage* p : pages_.all) p->refresh(*data);
+    }
   });
   box->open();
   return false;

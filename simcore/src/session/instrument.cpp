@@ -94,9 +94,9 @@ class Grasper final : public Instrument {
                     "The tissue slipped out of the grasper at %.3g N (the scene's maximum grasp force is %.3g N): %s.",
                     tool.graspForce.norm(), max,
                     // (at 14.9 N of 15, a person read a contradiction)
-                    tool.graspForce.norm() <= 1.25 * max ? "the jaws let go as the pull reached it"
+                    tool.graspForce.norm() <= kWithinOneStep * max ? "the jaws let go as the pull reached it"
                                                          : "the pull went past it within one step");
-    else if (!(tool.graspForce.norm() > 1.25 * max))  // (a step taken again at the limit reads there: slipResolved)
+    else if (!(tool.graspForce.norm() > kWithinOneStep * max))  // (a step taken again at the limit reads there: slipResolved)
       std::snprintf(buf, sizeof buf,
                     "The tissue slipped out of the grasper at %.3g N (the scene's maximum grasp force is %.3g N), on a "
                     "step that did not converge: not the tissue's force at equilibrium.",

@@ -265,7 +265,7 @@ void MeshPage::importMesh(const QString& path) {
               if (renamed && !named.empty()) k.name = named;
             })) {
           // (a rehearsal begun while the file was read: asked about, the organ comes in on Discard)
-          wb_.status(tr("%1 comes in once the question about the rehearsal is answered Discard.")
+          wb_.status(tr("%1 comes in if the question about the rehearsal is answered Discard.")
                          .arg(QFileInfo(path).fileName()));
           return;
         }
