@@ -22,6 +22,11 @@ xvfb-run -a -s "-screen 0 2560x1440x24" build/tests/bench_rehearsal_view build/b
 build/tests/bench_operative build/bench --repeat 3
 # The GUI's damping (app::bodySetup: alpha 0.1 1/s, beta 0.02 s; the case's scene declares 1 and 0), the GUI's variant.
 build/tests/bench_operative build/bench/gui-damping --repeat 3 --damping 0.1,0.02 --only "=chord, async, 0.05 mm"
+# The window's variant as the window runs it (paced at real time, its estimate every 10th step), and issue 61's tear:
+# the grasper alone pulling past the recommended 15 % and let go 0.2 s after the first tear.
+build/tests/bench_operative build/bench/window-paced --repeat 3 --damping 0.1,0.02 --estimate-every 10 --paced --only "=chord, async, 0.05 mm"
+build/tests/bench_operative build/bench/tear-once --repeat 3 --damping 0.1,0.02 --estimate-every 10 --paced --tear-once --only "=chord, async, 0.05 mm"
+build/tests/bench_operative build/bench/tear-once-3k --repeat 3 --tets 4000 --damping 0.1,0.02 --estimate-every 10 --paced --tear-once --only "=chord, async, 0.05 mm"
 # Issue 64's sizes: the patient liver at 15,899 elements and BodyParts3D's at 17,051, the window's variant, damping and
 # estimate (one run each: about 2 minutes apiece).
 build/tests/bench_operative build/bench/patient-16k --repeat 1 --tets 17000 --damping 0.1,0.02 --estimate-every 10 --only "=chord, async, 0.05 mm"

@@ -21,9 +21,14 @@
 // --organ patient|bodyparts3d: the liver surface the case is meshed from (the scikit-surgery patient's, the default, or
 // BodyParts3D's); --tets N: the meshing's target (default 10000: the patient liver at 9,265 elements; 17000 gives its
 // 15,899 and BodyParts3D's 17,051, issue 64's sizes); --estimate-every N: SimulationSettings::estimateErrorEvery (the
-// command line's 1, the default; the window's 10).
+// command line's 1, the default; the window's 10). --paced: the steps at real time, as the window plays them (a wait
+// before a step while the organ is ahead of the wall clock, not counted in the step's time; more than 0.1 s behind,
+// the time lost not made up): the second thread's builds then come in after as many steps as in the window.
+// --tear-once: issue 61's "a pull past the threshold tears once and stops tearing when released" (below, where the
+// script is changed): the pull's steps before the first tear ("pull") and from it on ("after the tear"), and the ratio
+// of the steps' p99 from the tear on to their median from the grasp on.
 //   bench_operative [OUT_DIR] [--repeat N] [--only TEXT] [--exact-check] [--record CASE] [--damping A,B]
-//                   [--organ patient|bodyparts3d] [--tets N] [--estimate-every N]
+//                   [--organ patient|bodyparts3d] [--tets N] [--estimate-every N] [--paced] [--tear-once]
 #include "percentile.hpp"
 #include "operative_case.hpp"
 #include "session_inputs.hpp"
@@ -35,8 +40,10 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -45,6 +52,7 @@
 #include <memory>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 using namespace rehearse;
@@ -55,12 +63,14 @@ using testing::percentile;
 
 // The phase a step belongs to, by its time (the script's events: clips 0.1-0.4 s, the cut 0.4-0.9 s, the cautery
 // 0.9-1.5 s, the pull and its tears from 1.5 s).
-const char* phaseOf(double t) {
+// --tear-once: the pull's steps before the first tear, and from it on (`tearAt`: the first tear's time, s).
+const char* phaseOf(double t, double tearAt = -1) {
   if (t <= 0.1) return "settle";
   if (t <= 0.4) return "clips";
   if (t <= 0.9) return "cut";
   if (t <= 1.5) return "cautery";
-  return "pull and tear";
+  if (tearAt < 0) return "pull and tear";
+  return t < tearAt - 1e-9 ? "pull" : "after the tear";
 }
 
 }  // namespace
@@ -75,9 +85,15 @@ int main(int argc, char** argv) {
   std::string organ = "patient";               // --organ patient|bodyparts3d
   std::size_t tets = 10000;                    // --tets N: the meshing's target
   int estimateEvery = 1;                       // --estimate-every N (the window's: 10)
+  bool tearOnce = false;                       // --tear-once
+  bool paced = false;                          // --paced
   for (int i = 1; i < argc; ++i) {
     if (std::strcmp(argv[i], "--exact-check") == 0)
       exactCheck = true;
+    else if (std::strcmp(argv[i], "--tear-once") == 0)
+      tearOnce = true;
+    else if (std::strcmp(argv[i], "--paced") == 0)
+      paced = true;
     else if (std::strcmp(argv[i], "--damping") == 0 && i + 1 < argc) {
       if (std::sscanf(argv[++i], "%lf,%lf", &dampingAlpha, &dampingBeta) != 2 || !(dampingAlpha >= 0) ||
           !(dampingBeta >= 0)) {
@@ -144,7 +160,25 @@ int main(int argc, char** argv) {
   std::ifstream in(dir + "/chole.json");
   std::stringstream ss;
   ss << in.rdbuf();
-  const app::GestureScript all = app::parseGestureScript(ss.str());
+  app::GestureScript all = app::parseGestureScript(ss.str());
+  // --tear-once: issue 61's tear as a person makes it in the window (test_patient_start tearOnce): the grasper alone on
+  // the intact liver (the operation's clips, cut and burn left out: at 15 % the liver beside the clipped artery tears
+  // with no pull, 0.9 s after the cut), tearing at the recommended 15 % (the artery at its 60 %); the jaws hold the
+  // window's 6 mm and let go at its 15 N; they pull 20 mm/s (a millimetre every five steps, as the test's mouse does)
+  // and open 20 steps (0.2 s, a person's reaction) after the first tear is shown; then the organ is watched to 7.6 s.
+  constexpr long kReactionSteps = 20;
+  if (tearOnce) {
+    all.tearStrainByLabel[1] = 0.15;
+    all.maxGraspForce = 15;
+    all.graspRadius = 0.006;
+    all.events.back().over = 4.0;
+    all.events.erase(all.events.begin(), std::find_if(all.events.begin(), all.events.end(),
+                                                        [](const app::GestureEvent& e) { return e.t >= 1.5; }));
+    all.duration = 7.6;
+    std::printf("tear once: the liver tears at 15 %%, the jaws hold 6 mm and let go at 15 N, a 20 mm/s pull, released "
+                "%ld steps after the first tear\n",
+                kReactionSteps);
+  }
   std::ofstream csv(out + "/operative-steps.csv");
   csv << "variant,script,phase,steps,median_ms,p99_ms,max_ms,converged,inexact,other,largest_error_mm,events,"
          "largest_true_error_mm,lowest_estimate_over_truth,past_accuracy,other_solution\n";
@@ -211,6 +245,7 @@ int main(int argc, char** argv) {
       long stepsRun = 0;
       std::unique_ptr<app::Recorder> recorder;  // --record: the last run
       bool last = false;
+      long tearStep = -1, releasedAt = -1;  // --tear-once: the first tear's step, the step the jaws opened at
       app::GestureHooks hooks;
       hooks.start = [&](const simcore::BodySetup& b) {
         ran = b;
@@ -225,11 +260,38 @@ int main(int argc, char** argv) {
       };
       hooks.step = [&](const simcore::StepRecord& r) {
         stepsRun = r.step;
+        if (tearOnce && tearStep < 0 && r.snapshot &&
+            std::count(r.snapshot->events.begin(), r.snapshot->events.end(), std::string("tear")) > 0)
+          tearStep = r.step;
         if (r.recorded) recorded = *r.recorded;
         if (recorder) recorder->afterStep(r);
       };
+      // --paced: the steps at real time, as the window plays them (Session::run): before each step, a wait while the
+      // organ is ahead of the wall clock; more than 0.1 s behind it, the time lost is not made up.
+      using Clock = std::chrono::steady_clock;
+      Clock::time_point playStart;
+      const double h = all.dt > 0 ? all.dt : base.settings.timeStep;
+      hooks.boundary = [&](long k, simcore::Session& session) {
+        if (paced) {
+          if (k == 0) playStart = Clock::now();
+          const double ahead = k * h - std::chrono::duration<double>(Clock::now() - playStart).count();
+          if (ahead > 0) std::this_thread::sleep_for(std::chrono::duration<double>(ahead));
+          if (ahead < -0.1)
+            playStart += std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(-ahead - 0.1));
+        }
+        if (!tearOnce || tearStep < 0 || releasedAt >= 0 || k < tearStep + kReactionSteps) return;
+        simcore::InputEvent open;
+        open.kind = simcore::InputKind::Jaw;
+        open.on = false;
+        session.post(open);
+        releasedAt = k;
+      };
+      std::vector<double> ratios;  // --tear-once: each run's p99 from the tear on over the median from the grasp on
+      std::vector<int> tearsHeld, tearsAfter;  // --tear-once: each run's tears before the release and after it
+      double tearAt = -1;                      // s, the last run's first tear (--tear-once; 1e9: none)
       for (int r = 0; r < repeat; ++r) {
         last = r + 1 == repeat;
+        tearStep = releasedAt = -1;
         const app::GestureResult g = app::runGesture(s, script, hooks);
         if (recorder) {
           recorder->finish(stepsRun);
@@ -238,11 +300,35 @@ int main(int argc, char** argv) {
           recorder.reset();
         }
         std::map<std::string, std::vector<double>> ms;
+        tearAt = -1;
+        if (tearOnce) {
+          tearAt = 1e9;
+          int held = 0, after = 0;
+          std::vector<double> fromGrasp, fromTear;
+          for (const auto& step : g.steps) {
+            const int n = static_cast<int>(std::count(step.events.begin(), step.events.end(), std::string("tear")));
+            if (n > 0 && tearAt > 1e8) tearAt = step.time;
+            (releasedAt >= 0 && step.step > releasedAt ? after : held) += n;
+            if (step.time > 1.5) fromGrasp.push_back(step.wallMs);
+            if (step.time >= tearAt - 1e-9) fromTear.push_back(step.wallMs);
+          }
+          tearsHeld.push_back(held);
+          tearsAfter.push_back(after);
+          if (!fromTear.empty()) ratios.push_back(percentile(fromTear, 0.99) / percentile(fromGrasp, 0.5));
+          std::printf("%-22s run %d: %s; %d tear(s) before the jaws opened, %d after; p99 from the tear on %.1f ms, "
+                      "median from the grasp on %.1f ms\n",
+                      v.name, r + 1,
+                      tearAt > 1e8 ? "no tear"
+                                   : ("first tear at " + std::to_string(tearAt) + " s, released at step " +
+                                      std::to_string(releasedAt))
+                                         .c_str(),
+                      held, after, fromTear.empty() ? 0.0 : percentile(fromTear, 0.99), percentile(fromGrasp, 0.5));
+        }
         statuses.clear();
         events.clear();
         largestError.clear();
         for (const auto& step : g.steps) {
-          const std::string phase = phaseOf(step.time);
+          const std::string phase = phaseOf(step.time, tearAt);
           ms[phase].push_back(step.wallMs);
           if (std::isfinite(step.report.errorPosition))
             largestError[phase] = std::max(largestError[phase], step.report.errorPosition);
@@ -258,7 +344,7 @@ int main(int argc, char** argv) {
             const auto& step = g.steps[i];
             std::string said;
             for (const auto& e : step.events) said += (said.empty() ? "" : " ") + e;
-            perStep << '"' << v.name << "\"," << i + 1 << ',' << step.time << ',' << phaseOf(step.time) << ','
+            perStep << '"' << v.name << "\"," << i + 1 << ',' << step.time << ',' << phaseOf(step.time, tearAt) << ','
                     << step.wallMs << ',' << static_cast<int>(step.report.outcome) << ','
                     << step.report.newtonIterations << ',' << step.report.retries << ','
                     << step.report.factorisations << ',' << step.report.inversionLimited << ','
@@ -288,7 +374,7 @@ int main(int argc, char** argv) {
                     << 1e3 * t.report.errorPosition << ',' << 1e3 * t.errorPosition << ',' << t.errorForce << ','
                     << t.resolved << ',' << 1e3 * t.ownConverged << ',' << 1e3 * t.ownToExact << ','
                     << 1e3 * t.exactFromEnd << ",\"" << t.why << "\"\n";
-          Truth& p = truths[phaseOf(t.time)];
+          Truth& p = truths[phaseOf(t.time, tearAt)];
           if (!t.resolved) return ++p.unresolved, true;
           if (t.anotherSolution(asked)) return ++p.other, true;
           p.worst = std::max(p.worst, t.errorPosition);
@@ -298,7 +384,18 @@ int main(int argc, char** argv) {
         };
         simcore::checkAgainstExact(ran, recorded, stepsRun, o);
       }
-      for (const char* phase : {"settle", "clips", "cut", "cautery", "pull and tear"}) {
+      if (tearOnce && !ratios.empty())
+        std::printf("%-22s tear once: p99 from the tear on / median from the grasp on %.2f (median of %zu runs: %s); "
+                    "tears before the release %d, after it %d (the last run)\n",
+                    v.name, percentile(ratios, 0.5), ratios.size(),
+                    [&] {
+                      std::string all;
+                      for (double x : ratios) all += (all.empty() ? "" : " ") + std::to_string(x).substr(0, 4);
+                      return all;
+                    }()
+                        .c_str(),
+                    tearsHeld.back(), tearsAfter.back());
+      for (const char* phase : {"settle", "clips", "cut", "cautery", "pull and tear", "pull", "after the tear"}) {
         if (!medians.count(phase)) continue;
         std::string said;
         for (const auto& [e, n] : events[phase]) said += (said.empty() ? "" : " ") + e + " x" + std::to_string(n);

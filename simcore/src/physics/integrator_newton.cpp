@@ -485,7 +485,7 @@ bool NewtonLoop::withinAccuracy() {
 // factor was built where the organ no longer is (a torn body's first factor is built where the tear began; its flap
 // then springs away).
 bool NewtonLoop::suspect() const {
-  if (in_.verifyEveryEstimate()) return true;
+  if (in_.verifyEveryEstimate() && w.estimateThisStep) return true;
   if ((measured_ && !(contraction_ <= kVerifyRho)) || (ratioMeasured_ && !(correctionRatio_ <= kVerifyRho))) return true;
   if (w.laggedAt.size() != w.x0.size()) return true;
   double far = 0;
@@ -802,7 +802,11 @@ NewtonIteration::Try NewtonLoop::finish(bool ok, int maxIterations) {
     // step that ended on the accuracy but is not confirmed within it there does not say it is. The step's end is not
     // moved (its positions, velocities and multipliers as it left them).
     const bool verifying = accuracy_ && lagged && settings_.solver == LinearSolverKind::Cholmod && w.chol->valid();
-    if (verifying && suspect()) {
+    const bool checked = verifying && suspect();
+    // A cut or torn body's step that estimates nothing (SimulationSettings::estimateErrorEvery) and was not checked
+    // claims nothing: its factor's contraction alone is not trusted there.
+    if (verifying && !checked && in_.verifyEveryEstimate()) rep.withinAccuracy = false;
+    if (checked) {
       const Verdict v = verify();
       // The multipliers the step ended with (verify() kept them in muBefore).
       if (hasConstraints && w.muBefore.size() == w.cons.multipliers().size()) w.cons.multipliers() = w.muBefore;

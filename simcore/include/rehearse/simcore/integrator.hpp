@@ -154,7 +154,9 @@ struct SimulationSettings {
   double accuracyPosition = 0;
   double accuracyForce = 0.005;  ///< fraction of the tool force (with accuracyPosition on)
   /// ... at every this many steps (the others report NaN): the interactive session estimates every 10th step (0.1 s,
-  /// the status line's refresh), so the window stays responsive; the command line every step.
+  /// the status line's refresh), so the window stays responsive; the command line every step. A cut or torn body's
+  /// check on the tangent (Integrator::setVerifyEveryEstimate) is made at those steps; its steps between them say
+  /// nothing of the accuracy (StepReport::withinAccuracy false) unless their factor looks suspect and is checked.
   int estimateErrorEvery = 1;
 };
 
@@ -304,7 +306,8 @@ class Integrator {
   /// Forces the lagged factorisation to be rebuilt at the next step (after a parameter change).
   void invalidateFactorisation();
   /// With the accuracy asked (SimulationSettings::accuracyPosition) and a lagged CHOLMOD factor, every step's estimate
-  /// is checked on the tangent at its end, whatever ended it (issue 64): for a body that was cut or torn (FemBody sets it
+  /// (SimulationSettings::estimateErrorEvery) is checked on the tangent at its end, whatever ended it (issue 64): for a
+  /// body that was cut or torn (FemBody sets it
   /// from BodySetup::topology; its flaps' stiffness is far from any factor's: on the
   /// patient liver after tears, steps ending after 1-3 chord iterations estimated 0.003-0.025 mm where exact Newton's
   /// answer was 0.09-0.52 mm away). The step's end is not moved; a distance not confirmed is said as such.
