@@ -473,6 +473,39 @@ void TestSimulationGui::accuracyIsAskedInMillimetres() {
   typeInto("0");  // the default again for the functions after this one
 }
 
+// helper-68: after a cut chipped a fragment off the phantom, the fragment (held by nothing) fell away with gravity and
+// the |u| colour bar read 31,242 mm, then 90,163 mm, the organ flat blue. The bar's top is now the carried pieces'.
+// Two tetrahedra sharing no node: one held at node 0 and moved 3 mm, the other free and 40 m away.
+void TestSimulationGui::aFallingFragmentDoesNotSetTheColourBar() {
+  ui::FrameBasis ctx;
+  for (int i = 0; i < 8; ++i) ctx.rest.emplace_back(0.01 * (i % 4 == 1), 0.01 * (i % 4 == 2), 0.01 * (i % 4 == 3) + 0.1 * (i / 4));
+  ctx.tets = {{0, 1, 2, 3}, {4, 5, 6, 7}};
+  ctx.incidence.assign(8, 1);
+  ctx.held = std::make_shared<const std::vector<int>>(std::vector<int>{0});
+  ctx.supports = std::make_shared<const std::vector<int>>();
+  simcore::Snapshot snap;
+  snap.step = 1;
+  snap.positions = ctx.rest;
+  snap.positions[3].z() += 0.003;                                   // the carried piece: 3 mm
+  for (int i = 4; i < 8; ++i) snap.positions[i].y() += 40.0 + i;  // the fragment: 44-47 m
+  snap.tets = std::make_shared<const std::vector<std::array<int, 4>>>(ctx.tets);
+  // Before any cut: every node's displacement (one body, however it moves).
+  auto whole = ui::makeSimulationFrame(ctx, snap, 0);
+  QCOMPARE(whole->valueMax, 47e3);
+  // After a cut: the carried piece's.
+  snap.topologyVersion = 1;
+  auto cut = ui::makeSimulationFrame(ctx, snap, 0);
+  QCOMPARE(cut->valueMax, 3.0);
+  QCOMPARE(cut->valueScale, 3.0);
+  // The fragment grasped (node 6): carried by the jaws, all of it counts.
+  snap.tool.held = {6};
+  QCOMPARE(ui::makeSimulationFrame(ctx, snap, 0)->valueMax, 47e3);
+  // Nothing carried at all (no hold, no support, nothing grasped): the whole organ's, as before.
+  snap.tool.held.clear();
+  ctx.held = std::make_shared<const std::vector<int>>();
+  QCOMPARE(ui::makeSimulationFrame(ctx, snap, 0)->valueMax, 47e3);
+}
+
 void TestSimulationGui::cleanupTestCase() {
   w_.reset();
 }

@@ -45,5 +45,6 @@ class TestSimulationGui : public QObject {
   void secondFrameInTheGui();
   void ambiguousFitOffersItsAlternatives();
   void aRefusedStartIsSaidUntilItsCauseGoes();
+  void aFallingFragmentDoesNotSetTheColourBar();
   void cleanupTestCase();
 };

@@ -50,6 +50,33 @@ std::shared_ptr<const SimulationFrame> makeSimulationFrame(FrameBasis& ctx, cons
       for (int v : ctx.tets[e]) f->value[v] += 1e-3 * snap.stress[e] / std::max(1, ctx.incidence[v]);
   }
   f->valueMax = f->value.empty() ? 0 : *std::max_element(f->value.begin(), f->value.end());
+  // After a cut, a piece that nothing carries (no held, supported or grasped node: a fragment the blade chipped off)
+  // falls away with gravity for as long as the rehearsal runs; its displacement is not the organ's. The colour bar's
+  // top is the carried pieces' largest (a person saw the bar read 31,242 mm, then 90,163, and the whole organ flat blue).
+  if (colouring == 0 && snap.topologyVersion > 0 && snap.tets && n > 0) {
+    std::vector<int> root(n);
+    for (std::size_t i = 0; i < n; ++i) root[i] = static_cast<int>(i);
+    auto find = [&](int a) {
+      while (root[static_cast<std::size_t>(a)] != a) a = root[static_cast<std::size_t>(a)] = root[static_cast<std::size_t>(root[static_cast<std::size_t>(a)])];
+      return a;
+    };
+    for (const auto& t : *snap.tets)
+      for (int k = 1; k < 4; ++k)
+        if (t[0] >= 0 && t[k] >= 0 && static_cast<std::size_t>(std::max(t[0], t[k])) < n) root[static_cast<std::size_t>(find(t[k]))] = find(t[0]);
+    std::vector<char> carried(n, 0);
+    auto carry = [&](int a) {
+      if (a >= 0 && static_cast<std::size_t>(a) < n) carried[static_cast<std::size_t>(find(a))] = 1;
+    };
+    if (ctx.held)
+      for (int a : *ctx.held) carry(a);
+    if (ctx.supports)
+      for (int a : *ctx.supports) carry(a);
+    for (int a : snap.tool.held) carry(a);
+    double most = -1;
+    for (std::size_t i = 0; i < n; ++i)
+      if (carried[static_cast<std::size_t>(find(static_cast<int>(i)))]) most = std::max(most, f->value[i]);
+    if (most >= 0) f->valueMax = most;  // (nothing carried at all: the whole organ's, as before)
+  }
   if (colouring == 0) {
     // Displacement: the colour bar's top is the largest (a pull moves a few nodes far: at the 98th percentile a person
     // read 0.01-0.02 mm over a torn organ pulled centimetres), at least 1 mm (at rest, micrometres of noise had coloured
