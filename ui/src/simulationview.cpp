@@ -54,27 +54,23 @@ std::shared_ptr<const SimulationFrame> makeSimulationFrame(FrameBasis& ctx, cons
   // falls away with gravity for as long as the rehearsal runs; its displacement is not the organ's. The colour bar's
   // top is the carried pieces' largest (a person saw the bar read 31,242 mm, then 90,163, and the whole organ flat blue).
   if (colouring == 0 && snap.topologyVersion > 0 && snap.tets && n > 0) {
-    std::vector<int> root(n);
-    for (std::size_t i = 0; i < n; ++i) root[i] = static_cast<int>(i);
-    auto find = [&](int a) {
-      while (root[static_cast<std::size_t>(a)] != a) a = root[static_cast<std::size_t>(a)] = root[static_cast<std::size_t>(root[static_cast<std::size_t>(a)])];
-      return a;
-    };
-    for (const auto& t : *snap.tets)
-      for (int k = 1; k < 4; ++k)
-        if (t[0] >= 0 && t[k] >= 0 && static_cast<std::size_t>(std::max(t[0], t[k])) < n) root[static_cast<std::size_t>(find(t[k]))] = find(t[0]);
-    std::vector<char> carried(n, 0);
-    auto carry = [&](int a) {
-      if (a >= 0 && static_cast<std::size_t>(a) < n) carried[static_cast<std::size_t>(find(a))] = 1;
-    };
-    if (ctx.held)
-      for (int a : *ctx.held) carry(a);
-    if (ctx.supports)
-      for (int a : *ctx.supports) carry(a);
-    for (int a : snap.tool.held) carry(a);
+    if (ctx.piecesOf != snap.tets || ctx.piece.size() != n) {  // (once per topology change, not at every step)
+      ctx.piecesOf = snap.tets;
+      ctx.piece = simcore::nodePieces(*snap.tets, n);
+      ctx.pieceHeld.assign(static_cast<std::size_t>(std::max(0, *std::max_element(ctx.piece.begin(), ctx.piece.end()) + 1)), 0);
+      for (const auto* nodes : {ctx.held.get(), ctx.supports.get()})
+        if (nodes)
+          for (int a : *nodes)
+            if (a >= 0 && static_cast<std::size_t>(a) < n && ctx.piece[static_cast<std::size_t>(a)] >= 0)
+              ctx.pieceHeld[static_cast<std::size_t>(ctx.piece[static_cast<std::size_t>(a)])] = 1;
+    }
+    std::vector<char> carried = ctx.pieceHeld;  // ... and the pieces the jaws hold
+    for (int a : snap.tool.held)
+      if (a >= 0 && static_cast<std::size_t>(a) < n && ctx.piece[static_cast<std::size_t>(a)] >= 0)
+        carried[static_cast<std::size_t>(ctx.piece[static_cast<std::size_t>(a)])] = 1;
     double most = -1;
     for (std::size_t i = 0; i < n; ++i)
-      if (carried[static_cast<std::size_t>(find(static_cast<int>(i)))]) most = std::max(most, f->value[i]);
+      if (ctx.piece[i] >= 0 && carried[static_cast<std::size_t>(ctx.piece[i])]) most = std::max(most, f->value[i]);
     if (most >= 0) f->valueMax = most;  // (nothing carried at all: the whole organ's, as before)
   }
   if (colouring == 0) {

@@ -151,8 +151,7 @@ std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::si
   return pieceVolumes(tets, std::vector<Eigen::Vector3d>(nodes, Eigen::Vector3d::Zero())).size();
 }
 
-std::vector<double> pieceVolumes(const std::vector<std::array<int, 4>>& tets, const std::vector<Eigen::Vector3d>& rest) {
-  const std::size_t nodes = rest.size();
+std::vector<int> nodePieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes) {
   std::vector<int> parent(nodes);
   std::iota(parent.begin(), parent.end(), 0);
   auto find = [&](int i) {
@@ -162,13 +161,22 @@ std::vector<double> pieceVolumes(const std::vector<std::array<int, 4>>& tets, co
   };
   for (const auto& t : tets)
     for (int k = 1; k < 4; ++k) parent[static_cast<std::size_t>(find(t[static_cast<std::size_t>(k)]))] = find(t[0]);
-  std::vector<int> piece(nodes, -1);
-  std::vector<double> volume;
+  std::vector<int> id(nodes, -1), piece(nodes, -1);
+  int next = 0;
+  for (const auto& t : tets)
+    if (int& r = id[static_cast<std::size_t>(find(t[0]))]; r < 0) r = next++;
+  for (std::size_t i = 0; i < nodes; ++i) piece[i] = id[static_cast<std::size_t>(find(static_cast<int>(i)))];
+  return piece;
+}
+
+std::vector<double> pieceVolumes(const std::vector<std::array<int, 4>>& tets, const std::vector<Eigen::Vector3d>& rest) {
+  const std::vector<int> piece = nodePieces(tets, rest.size());
+  std::vector<double> volume(static_cast<std::size_t>(
+      piece.empty() ? 0 : std::max(0, *std::max_element(piece.begin(), piece.end()) + 1)));
   for (const auto& t : tets) {
-    const auto r = static_cast<std::size_t>(find(t[0]));
-    if (piece[r] < 0) piece[r] = static_cast<int>(volume.size()), volume.push_back(0);
     const auto p = [&](int k) -> const Eigen::Vector3d& { return rest[static_cast<std::size_t>(t[static_cast<std::size_t>(k)])]; };
-    volume[static_cast<std::size_t>(piece[r])] += std::abs((p(1) - p(0)).cross(p(2) - p(0)).dot(p(3) - p(0))) / 6;
+    volume[static_cast<std::size_t>(piece[static_cast<std::size_t>(t[0])])] +=
+        std::abs((p(1) - p(0)).cross(p(2) - p(0)).dot(p(3) - p(0))) / 6;
   }
   std::sort(volume.begin(), volume.end(), std::greater<>());
   return volume;

@@ -111,6 +111,11 @@ struct FrameBasis {
   std::shared_ptr<const std::vector<int>> supports;  ///< the supported nodes (kept by index through cuts)
   std::shared_ptr<const std::vector<int>> held;      ///< the held nodes (BodySetup::fixedNodes, kept by index)
   double maxGraspForce = 0;                          ///< N (ToolSettings::maxGraspForce)
+  /// After a cut: the pieces of the elements `piecesOf` (simcore::nodePieces), made again when they change, and whether
+  /// a held or supported node carries each.
+  std::shared_ptr<const std::vector<std::array<int, 4>>> piecesOf;
+  std::vector<int> piece;
+  std::vector<char> pieceHeld;
   long generation = 0;         ///< frames of an older session are dropped
   // On the session's thread (its published callback, once per step): steps not converged since the start or a Reset.
   long lastStep = 0, notConverged = 0;

@@ -356,6 +356,8 @@ BodySetup replaySetup(BodySetup setup);
 std::shared_ptr<const CutSurface> makeCutSurface(const BodySetup& uncutSetup, const Mesh& cutMesh, double meanEdge);
 /// How many pieces the elements make (elements sharing a node are one piece): whether a cut went through.
 std::size_t connectedPieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes);
+/// Each node's piece (0, 1, ... in the order the elements reach them; -1: a node of no element).
+std::vector<int> nodePieces(const std::vector<std::array<int, 4>>& tets, std::size_t nodes);
 /// The pieces' volumes at rest (m^3, positions `rest`), largest first: as many as connectedPieces.
 std::vector<double> pieceVolumes(const std::vector<std::array<int, 4>>& tets, const std::vector<Eigen::Vector3d>& rest);
 /// The same, `each` given the replaying session (its snapshot: the tool, the events of the step).
